@@ -1,0 +1,1 @@
+//! Built-in key stimuli (placeholder; being written).

@@ -1,0 +1,1 @@
+//! Traces of a simulation (placeholder; being written).
