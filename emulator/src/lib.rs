@@ -1,5 +1,25 @@
 //! Cycle-accurate emulator of the dual-core RP2040 (two ARMv6-M Cortex-M0+ cores).
 //!
-//! Under construction: see issue 4. The emulator is independent of the compiler; the
-//! budget checker and the firmware harness will drive it through this crate's API.
+//! The crate is layered so that the pieces a static analyser needs come without a machine:
+//! [`decode::decode`] turns halfwords into an [`decode::Instr`] and [`timing::cycles`] prices
+//! it from the one timing table. Above them, [`core::Core`] executes instructions against the
+//! [`bus::Bus`] trait, [`bus::System`] is the RP2040's memory map (striped SRAM banks with
+//! contention, [`sio`], [`timer`]), and [`board::Board`] runs two cores in lock-step and
+//! offers the host API: load an ELF ([`elf`]), run N cycles, read and write memory, feed
+//! sensors, read the DAC, and count cycles per function.
 #![deny(missing_docs)]
+
+pub mod board;
+pub mod bus;
+pub mod core;
+pub mod decode;
+pub mod elf;
+pub mod exec;
+pub mod nvic;
+pub mod sio;
+pub mod timer;
+pub mod timing;
+
+pub use board::{Board, Call, Config, EmuError, StopReason, DAC_BASE, MAX_KEYS, SENSOR_BASE};
+pub use decode::{decode, Instr};
+pub use timing::cycles;

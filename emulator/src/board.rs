@@ -1,0 +1,490 @@
+//! The RP2040 board: two cores and the system, run in lock-step, plus the host API (load,
+//! run for N cycles, read/write memory, feed sensors, read forces, count cycles per function).
+//!
+//! **Lock-step.** Each core has its own cycle counter; the board always executes the next
+//! instruction of the core whose counter is lower (core 0 on a tie), so every shared-state
+//! access (SRAM banks, SIO FIFOs, spinlocks, timer) happens in global cycle order and a run
+//! is a pure function of the initial state: deterministic, whatever the host. A sleeping core
+//! (WFI/WFE) skips ahead to the next cycle at which something could wake it. Core 1 starts
+//! parked in the boot ROM's launch protocol (RP2040 datasheet 2.8.2): it echoes the FIFO
+//! sequence `0, 0, 1, vector table, stack pointer, entry` and then starts.
+//!
+//! **Sensors and DAC.** Firmware sees the key sensors and the motor drivers the way a DMA from
+//! SPI converters would leave them: word arrays in SRAM at [`SENSOR_BASE`] and [`DAC_BASE`],
+//! one 32-bit word per key (ADC sample, or DAC code, in the low 16 bits). The host writes
+//! sensors and reads forces with [`Board::set_sensor`] / [`Board::dac`], which cost the
+//! cores nothing; firmware loads and stores them as ordinary SRAM (2 cycles, bank 3:2
+//! striping and contention apply). Link firmware so nothing else lives there.
+
+use crate::bus::{Bus, System, SRAM_END};
+use crate::core::{Core, Event, Fault, RunState};
+use crate::decode::{decode, is_32bit, Instr};
+use crate::elf::{self, ElfError, Image};
+use crate::nvic::SVCALL;
+use std::fmt;
+
+/// Sensor block: `MAX_KEYS` words from 0x2003f000 (last 4 KB of striped SRAM), word k = key
+/// k's latest ADC sample.
+pub const SENSOR_BASE: u32 = 0x2003_f000;
+/// DAC block: `MAX_KEYS` words from 0x2003f400, word k = the force (DAC code) for key k's
+/// motor.
+pub const DAC_BASE: u32 = 0x2003_f400;
+/// Keys the sensor and DAC blocks have room for.
+pub const MAX_KEYS: usize = 128;
+
+/// Board configuration.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// System clock in Hz (RP2040: 133 MHz); drives the microsecond timer.
+    pub clock_hz: u64,
+    /// Stop [`Board::run`] at every SVC with [`StopReason::Svc`] (for host calls such as a
+    /// test harness's `write`/`exit`) instead of taking the SVCall exception.
+    pub svc_halts: bool,
+    /// Stop [`Board::run`] with [`StopReason::Fault`] after a core takes a HardFault, instead
+    /// of running the firmware's HardFault handler.
+    pub stop_on_fault: bool,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config { clock_hz: 133_000_000, svc_halts: false, stop_on_fault: true }
+    }
+}
+
+/// Why [`Board::run`] returned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StopReason {
+    /// Both cores reached the cycle limit.
+    CycleLimit,
+    /// A core executed SVC with [`Config::svc_halts`] set (its PC is past the SVC).
+    Svc {
+        /// The core.
+        core: usize,
+        /// The SVC immediate.
+        imm: u8,
+    },
+    /// A core faulted (with [`Config::stop_on_fault`]); it has entered its HardFault handler.
+    Fault {
+        /// The core.
+        core: usize,
+        /// The fault.
+        fault: Fault,
+    },
+    /// A core locked up (fault while handling HardFault, or failed stacking).
+    Lockup {
+        /// The core.
+        core: usize,
+        /// The fault.
+        fault: Fault,
+    },
+    /// No core can run (all parked or locked up).
+    Idle,
+}
+
+/// A host-side error.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum EmuError {
+    /// The ELF file could not be loaded.
+    Elf(ElfError),
+    /// A host access to an address outside ROM, flash and SRAM.
+    Unmapped(u32),
+    /// No symbol of that name.
+    NoSymbol(String),
+}
+
+impl fmt::Display for EmuError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EmuError::Elf(e) => e.fmt(f),
+            EmuError::Unmapped(a) => write!(f, "no memory at {a:#010x}"),
+            EmuError::NoSymbol(s) => write!(f, "no symbol named `{s}`"),
+        }
+    }
+}
+
+impl std::error::Error for EmuError {}
+
+impl From<ElfError> for EmuError {
+    fn from(e: ElfError) -> Self {
+        EmuError::Elf(e)
+    }
+}
+
+/// One measured call of a profiled function.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Call {
+    /// Core that made the call.
+    pub core: usize,
+    /// Cycle at which the function's first instruction started.
+    pub start: u64,
+    /// Cycles from the function's first instruction to the first instruction after its
+    /// return (the return instruction and any exception taken meanwhile included; the call
+    /// instruction excluded).
+    pub cycles: u64,
+}
+
+#[derive(Clone, Debug)]
+struct Profile {
+    entry: u32,
+    /// Open calls per core: (return address or exception number, SP at entry, start cycle).
+    open: [Vec<(Return, u32, u64)>; 2],
+    calls: Vec<Call>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Return {
+    To(u32),
+    FromException(u32),
+}
+
+/// Launch protocol state of the parked core 1.
+#[derive(Clone, Copy, Debug, Default)]
+struct Launch {
+    step: usize,
+    words: [u32; 6],
+}
+
+/// Decode cache entry: the instruction and its size, tagged by its address and halfwords.
+#[derive(Clone, Copy)]
+struct Cached {
+    addr: u32,
+    hw1: u16,
+    hw2: u16,
+    instr: Instr,
+    size: u32,
+}
+
+const CACHE_SLOTS: usize = 1 << 14;
+
+/// The emulated RP2040.
+pub struct Board {
+    /// Configuration.
+    pub config: Config,
+    /// The two cores.
+    pub cores: [Core; 2],
+    /// Memories and peripherals.
+    pub system: System,
+    /// The loaded image's symbols etc. (empty until [`Board::load_elf`]).
+    pub image: Image,
+    profiles: Vec<Profile>,
+    launch: Option<Launch>,
+    cache: Vec<Cached>,
+}
+
+impl Board {
+    /// A board with zeroed memory and both cores parked (core 1 in the launch protocol).
+    pub fn new(config: Config) -> Self {
+        let system = System::new(config.clock_hz);
+        Board {
+            config,
+            cores: [Core::new(0), Core::new(1)],
+            system,
+            image: Image::default(),
+            profiles: Vec::new(),
+            launch: Some(Launch::default()),
+            cache: vec![Cached { addr: u32::MAX, hw1: 0, hw2: 0, instr: Instr::Undefined { hw1: 0, hw2: 0 }, size: 2 }; CACHE_SLOTS],
+        }
+    }
+
+    /// Parses and loads an ELF executable, then starts core 0: from its vector table if the
+    /// image has one (`.vectors`/`.vector_table`/`.isr_vector` section), else at the entry
+    /// point with SP at the top of SRAM.
+    pub fn load_elf(&mut self, bytes: &[u8]) -> Result<(), EmuError> {
+        let image = elf::parse(bytes)?;
+        for seg in &image.segments {
+            self.write_bytes(seg.addr, &seg.data).map_err(|_| {
+                EmuError::Elf(ElfError::Unmapped { addr: seg.addr, size: seg.data.len() as u32 })
+            })?;
+        }
+        match image.vector_table {
+            Some(vt) => self.boot_from_vectors(0, vt)?,
+            None => self.cores[0].reset_to(image.entry, SRAM_END),
+        }
+        self.image = image;
+        Ok(())
+    }
+
+    /// Starts `core` from the vector table at `vtor` (SP = word 0, PC = word 1), as the boot
+    /// ROM does; the core stops taking part in the launch protocol.
+    pub fn boot_from_vectors(&mut self, core: usize, vtor: u32) -> Result<(), EmuError> {
+        let sp = self.read_u32(vtor)?;
+        let pc = self.read_u32(vtor + 4)?;
+        self.start_core(core, pc, sp, vtor);
+        Ok(())
+    }
+
+    /// Starts `core` at `pc` with stack pointer `sp` and VTOR `vtor`, at the current cycle.
+    pub fn start_core(&mut self, core: usize, pc: u32, sp: u32, vtor: u32) {
+        let now = self.cores[1 - core].cycle.max(self.cores[core].cycle);
+        let c = &mut self.cores[core];
+        c.cycle = now;
+        c.reset_to(pc, sp);
+        c.nvic.vtor = vtor;
+        if core == 1 {
+            self.launch = None;
+        }
+    }
+
+    /// Address of symbol `name` in the loaded image.
+    pub fn symbol(&self, name: &str) -> Result<u32, EmuError> {
+        self.image.symbol(name).map(|s| s.addr).ok_or_else(|| EmuError::NoSymbol(name.to_string()))
+    }
+
+    // ---- host memory access (no cycles, no contention) ----
+
+    /// Reads bytes without side effects or cycles (ROM, flash, SRAM only).
+    pub fn read_bytes(&mut self, addr: u32, out: &mut [u8]) -> Result<(), EmuError> {
+        for (i, b) in out.iter_mut().enumerate() {
+            let a = addr.wrapping_add(i as u32);
+            let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
+            *b = mem[off];
+        }
+        Ok(())
+    }
+
+    /// Writes bytes without cycles (ROM, flash, SRAM only), as a loader or DMA would.
+    pub fn write_bytes(&mut self, addr: u32, data: &[u8]) -> Result<(), EmuError> {
+        for (i, b) in data.iter().enumerate() {
+            let a = addr.wrapping_add(i as u32);
+            let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
+            mem[off] = *b;
+        }
+        Ok(())
+    }
+
+    /// Reads a little-endian word (host access).
+    pub fn read_u32(&mut self, addr: u32) -> Result<u32, EmuError> {
+        let mut b = [0; 4];
+        self.read_bytes(addr, &mut b)?;
+        Ok(u32::from_le_bytes(b))
+    }
+
+    /// Writes a little-endian word (host access).
+    pub fn write_u32(&mut self, addr: u32, value: u32) -> Result<(), EmuError> {
+        self.write_bytes(addr, &value.to_le_bytes())
+    }
+
+    /// Sets key `key`'s sensor word (what the sensor DMA would deliver). Panics-free: keys
+    /// beyond [`MAX_KEYS`] are an error.
+    pub fn set_sensor(&mut self, key: usize, value: u32) -> Result<(), EmuError> {
+        if key >= MAX_KEYS {
+            return Err(EmuError::Unmapped(SENSOR_BASE + 4 * key as u32));
+        }
+        self.write_u32(SENSOR_BASE + 4 * key as u32, value)
+    }
+
+    /// Key `key`'s DAC word (the force the firmware last wrote).
+    pub fn dac(&mut self, key: usize) -> Result<u32, EmuError> {
+        if key >= MAX_KEYS {
+            return Err(EmuError::Unmapped(DAC_BASE + 4 * key as u32));
+        }
+        self.read_u32(DAC_BASE + 4 * key as u32)
+    }
+
+    // ---- profiling ----
+
+    /// Starts measuring every call of the function at `addr` (Thumb bit ignored) on both
+    /// cores; see [`Board::calls`]. Returns a handle.
+    pub fn profile_addr(&mut self, addr: u32) -> usize {
+        self.profiles.push(Profile { entry: addr & !1, open: [Vec::new(), Vec::new()], calls: Vec::new() });
+        self.profiles.len() - 1
+    }
+
+    /// Starts measuring the function named `name`.
+    pub fn profile(&mut self, name: &str) -> Result<usize, EmuError> {
+        let addr = self.symbol(name)?;
+        Ok(self.profile_addr(addr))
+    }
+
+    /// The completed calls of profiled function `handle`.
+    pub fn calls(&self, handle: usize) -> &[Call] {
+        self.profiles.get(handle).map_or(&[], |p| &p.calls)
+    }
+
+    fn profile_step(&mut self, k: usize) {
+        let core = &self.cores[k];
+        let (pc, sp, now) = (core.r[15], core.r[13], core.cycle);
+        for p in &mut self.profiles {
+            while let Some(&(ret, entry_sp, start)) = p.open[k].last() {
+                let done = match ret {
+                    Return::To(addr) => pc == addr && sp >= entry_sp,
+                    Return::FromException(exc) => core.nvic.active & (1 << exc) == 0,
+                };
+                if !done {
+                    break;
+                }
+                p.open[k].pop();
+                p.calls.push(Call { core: k, start, cycles: now - start });
+            }
+            if pc == p.entry && core.thumb {
+                let lr = core.r[14];
+                let ret = if lr >> 28 == 0xf && core.ipsr != 0 {
+                    Return::FromException(core.ipsr)
+                } else {
+                    Return::To(lr & !1)
+                };
+                p.open[k].push((ret, sp, now));
+            }
+        }
+    }
+
+    // ---- running ----
+
+    /// Total cycles elapsed: the lower of the running cores' counters.
+    pub fn cycle(&self) -> u64 {
+        let running: Vec<u64> = self.cores.iter().filter(|c| active(c)).map(|c| c.cycle).collect();
+        running.into_iter().min().unwrap_or(self.cores[0].cycle.max(self.cores[1].cycle))
+    }
+
+    /// Runs for `cycles` more cycles (from [`Board::cycle`]) or until a stop.
+    pub fn run_for(&mut self, cycles: u64) -> StopReason {
+        let limit = self.cycle().saturating_add(cycles);
+        self.run_until(limit)
+    }
+
+    /// Runs until both running cores reach cycle `limit`, or a stop.
+    pub fn run_until(&mut self, limit: u64) -> StopReason {
+        loop {
+            match self.step(limit) {
+                Some(Ok(_)) => {}
+                Some(Err(stop)) => return stop,
+                None => return StopReason::CycleLimit,
+            }
+        }
+    }
+
+    /// Executes one instruction (or exception entry, or a sleep interval) on the core that
+    /// is behind, if it is before `limit`. `None` when both running cores are at `limit`;
+    /// `Some(Ok(core))` names the core that acted (its [`Core::last`] is the instruction).
+    pub fn step(&mut self, limit: u64) -> Option<Result<usize, StopReason>> {
+        let a0 = active(&self.cores[0]);
+        let a1 = active(&self.cores[1]);
+        let k = match (a0, a1) {
+            (true, true) => (self.cores[1].cycle < self.cores[0].cycle) as usize,
+            (true, false) => 0,
+            (false, true) => 1,
+            (false, false) => return Some(Err(StopReason::Idle)),
+        };
+        let now = self.cores[k].cycle;
+        if now >= limit {
+            return None;
+        }
+        if self.launch.is_some() && k == 0 {
+            self.poll_launch();
+        }
+        let lines = self.system.irq_lines(k, now);
+        if let RunState::Sleeping { wfe } = self.cores[k].state {
+            let (other_running, other_cycle) =
+                (self.cores[1 - k].state == RunState::Running, self.cores[1 - k].cycle);
+            let core = &mut self.cores[k];
+            if (wfe && core.event) || core.wakes_from_sleep(lines) {
+                if wfe {
+                    core.event = false;
+                }
+                core.state = RunState::Running;
+            } else {
+                // Skip to the next cycle at which something could wake this core.
+                let mut next = self.system.timer.next_event.min(core.nvic.syst_next).min(limit);
+                if other_running {
+                    next = next.min(other_cycle + 1);
+                }
+                core.cycle = next.max(now + 1);
+            }
+            return Some(Ok(k));
+        }
+        let event = self.step_cached(k, lines);
+        if !self.profiles.is_empty() {
+            self.profile_step(k);
+        }
+        match event {
+            Event::None => Some(Ok(k)),
+            Event::Sev => {
+                self.cores[1 - k].event = true;
+                Some(Ok(k))
+            }
+            Event::Svc(imm) => {
+                if self.config.svc_halts {
+                    Some(Err(StopReason::Svc { core: k, imm }))
+                } else {
+                    self.cores[k].nvic.pending |= 1 << SVCALL;
+                    Some(Ok(k))
+                }
+            }
+            Event::Fault(fault) => {
+                if self.config.stop_on_fault {
+                    Some(Err(StopReason::Fault { core: k, fault }))
+                } else {
+                    Some(Ok(k))
+                }
+            }
+            Event::Lockup(fault) => Some(Err(StopReason::Lockup { core: k, fault })),
+        }
+    }
+
+    /// Steps core `k` through the decode cache: an instruction is decoded once per address
+    /// and reused while the halfwords at that address are unchanged (checked on every hit,
+    /// so self-modifying code and reloaded images stay correct).
+    #[inline]
+    fn step_cached(&mut self, k: usize, lines: u32) -> Event {
+        let core = &mut self.cores[k];
+        let pc = core.r[15];
+        let interrupt_check = core.nvic.pending != 0 || lines != 0 || core.nvic.syst_next <= core.cycle;
+        if interrupt_check || !core.thumb {
+            return core.step(&mut self.system, lines);
+        }
+        let Ok(hw1) = self.system.fetch(pc) else { return core.step(&mut self.system, lines) };
+        let slot = &mut self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+        let hit = slot.addr == pc
+            && slot.hw1 == hw1
+            && (slot.size == 2 || self.system.fetch(pc.wrapping_add(2)) == Ok(slot.hw2));
+        if !hit {
+            let (hw2, size) = if is_32bit(hw1) {
+                match self.system.fetch(pc.wrapping_add(2)) {
+                    Ok(h) => (h, 4),
+                    Err(_) => return core.step(&mut self.system, lines),
+                }
+            } else {
+                (0, 2)
+            };
+            *slot = Cached { addr: pc, hw1, hw2, instr: decode(hw1, hw2), size };
+        }
+        let (instr, size) = (slot.instr, slot.size);
+        core.run_decoded(&mut self.system, pc, instr, size)
+    }
+
+    fn poll_launch(&mut self) {
+        // Boot ROM of core 1 (datasheet 2.8.2): echo each word; 0,0,1,vt,sp,pc launches.
+        while let Some(word) = self.peek_fifo_to_core1() {
+            let Some(mut l) = self.launch else { return };
+            self.system.sio.fifo_push(1, word);
+            let expected_ok = match l.step {
+                0 | 1 => word == 0,
+                2 => word == 1,
+                _ => true,
+            };
+            if expected_ok {
+                l.words[l.step] = word;
+                l.step += 1;
+            } else {
+                l.step = (word == 0) as usize;
+            }
+            if l.step == 6 {
+                let [_, _, _, vt, sp, pc] = l.words;
+                self.start_core(1, pc, sp, vt);
+                return;
+            }
+            self.launch = Some(l);
+        }
+    }
+
+    fn peek_fifo_to_core1(&mut self) -> Option<u32> {
+        if self.system.sio.fifo_status(1) & 1 == 0 {
+            return None;
+        }
+        self.system.sio.fifo_pop(1)
+    }
+}
+
+fn active(c: &Core) -> bool {
+    matches!(c.state, RunState::Running | RunState::Sleeping { .. })
+}

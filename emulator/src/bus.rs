@@ -1,0 +1,281 @@
+//! The RP2040 memory map and bus fabric as seen by the two cores (RP2040 datasheet 2.1, 2.2).
+//!
+//! Memory is plain byte vectors laid out by *physical* address, so the striped SRAM
+//! (0x20000000-0x2003ffff, four 64 KB banks interleaved word by word: bank = address bits
+//! 3:2) is one contiguous slice, and the non-striped aliases at 0x21000000 are an address
+//! transformation onto it (datasheet 2.6.1). Everything a core reaches outside its own
+//! private peripheral bus goes through the [`Bus`] trait, which returns wait states so the
+//! executor can count cycles.
+//!
+//! **Bank arbitration.** Each of the six SRAM banks (SRAM0-3 striped, SRAM4 and SRAM5 the 4 KB
+//! scratch banks at 0x20040000 and 0x20041000) serves one master per cycle. The emulator
+//! executes instructions in lock-step order (the core whose next instruction starts earlier
+//! goes first, core 0 first on a tie), and each data access claims its bank for one cycle;
+//! an access that finds its bank already claimed by the other core in the same cycle waits a
+//! cycle and tries again. So the earlier-issued access wins, core 0 on a tie: a fixed
+//! priority, as the RP2040 crossbar gives with both cores at the same BUS_PRIORITY and
+//! deterministic by construction. Instruction fetches are assumed not to contend (the
+//! Cortex-M0+ timing table presumes zero-wait fetches); ROM, flash, APB and SIO do not
+//! contend either. APB accesses cost [`crate::timing::APB_LOAD_WAIT`] /
+//! [`crate::timing::APB_STORE_WAIT`] extra cycles.
+
+use crate::sio::{Sio, SIO_BASE};
+use crate::timer::{Timer, TIMER_BASE};
+use crate::timing::{APB_LOAD_WAIT, APB_STORE_WAIT};
+
+/// Boot ROM: 0x00000000, 16 KB.
+pub const ROM_BASE: u32 = 0x0000_0000;
+/// Boot ROM size in bytes.
+pub const ROM_SIZE: u32 = 16 * 1024;
+/// XIP flash: 0x10000000 (modelled as 2 MB of zero-wait-state memory; the XIP cache is not).
+pub const FLASH_BASE: u32 = 0x1000_0000;
+/// Flash size in bytes.
+pub const FLASH_SIZE: u32 = 2 * 1024 * 1024;
+/// SRAM: 0x20000000 (striped SRAM0-3, then SRAM4 and SRAM5).
+pub const SRAM_BASE: u32 = 0x2000_0000;
+/// SRAM size in bytes: 4 x 64 KB + 2 x 4 KB.
+pub const SRAM_SIZE: u32 = 0x4_2000;
+/// SRAM4 (scratch X), 4 KB.
+pub const SRAM4_BASE: u32 = 0x2004_0000;
+/// SRAM5 (scratch Y), 4 KB.
+pub const SRAM5_BASE: u32 = 0x2004_1000;
+/// Non-striped alias of SRAM0-3: bank n at `SRAM_ALIAS_BASE + n * 0x10000`.
+pub const SRAM_ALIAS_BASE: u32 = 0x2100_0000;
+/// Top of SRAM, the default initial stack pointer.
+pub const SRAM_END: u32 = SRAM_BASE + SRAM_SIZE;
+/// Number of SRAM banks that arbitrate separately.
+pub const BANKS: usize = 6;
+
+/// An access to an address that nothing answers (or a fetch from a non-executable region).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BusFault {
+    /// The faulting address.
+    pub addr: u32,
+}
+
+/// What a core sees beyond its private peripheral bus. Sizes are 1, 2 or 4 bytes and the
+/// caller has already checked alignment. `cycle` is the cycle of the data phase; results
+/// carry the wait states added to the instruction.
+pub trait Bus {
+    /// Loads `size` bytes at `addr` for `core`: (zero-extended value, wait states).
+    fn read(&mut self, core: usize, cycle: u64, addr: u32, size: u32) -> Result<(u32, u32), BusFault>;
+    /// Stores the low `size` bytes of `value` at `addr` for `core`: wait states.
+    fn write(&mut self, core: usize, cycle: u64, addr: u32, size: u32, value: u32) -> Result<u32, BusFault>;
+    /// Fetches the halfword at `addr` (even) for execution.
+    fn fetch(&mut self, addr: u32) -> Result<u16, BusFault>;
+}
+
+/// The RP2040 outside the cores: memories, SIO, timer, and the bank arbiter.
+#[derive(Clone, Debug)]
+pub struct System {
+    /// Boot ROM contents.
+    pub rom: Vec<u8>,
+    /// Flash contents.
+    pub flash: Vec<u8>,
+    /// SRAM contents, by physical address from [`SRAM_BASE`].
+    pub sram: Vec<u8>,
+    /// Single-cycle IO block.
+    pub sio: Sio,
+    /// System timer.
+    pub timer: Timer,
+    /// Last cycle in which each core claimed each bank.
+    bank_claim: [[u64; 2]; BANKS],
+    /// Cycles each core has lost to bank contention.
+    pub contention_stalls: [u64; 2],
+}
+
+#[inline]
+fn load_le(mem: &[u8], off: usize, size: u32) -> u32 {
+    match size {
+        1 => mem[off] as u32,
+        2 => u16::from_le_bytes([mem[off], mem[off + 1]]) as u32,
+        _ => u32::from_le_bytes([mem[off], mem[off + 1], mem[off + 2], mem[off + 3]]),
+    }
+}
+
+#[inline]
+fn store_le(mem: &mut [u8], off: usize, size: u32, value: u32) {
+    let bytes = value.to_le_bytes();
+    mem[off..off + size as usize].copy_from_slice(&bytes[..size as usize]);
+}
+
+/// Maps an SRAM address (striped or aliased) to (offset into [`System::sram`], bank).
+#[inline]
+pub fn sram_location(addr: u32) -> Option<(usize, usize)> {
+    let off = addr.wrapping_sub(SRAM_BASE);
+    if off < 0x4_0000 {
+        return Some((off as usize, ((off >> 2) & 3) as usize));
+    }
+    if off < SRAM_SIZE {
+        return Some((off as usize, 4 + ((off - 0x4_0000) >> 12) as usize));
+    }
+    let alias = addr.wrapping_sub(SRAM_ALIAS_BASE);
+    if alias < 0x4_0000 {
+        let bank = alias >> 16;
+        let word = (alias & 0xffff) >> 2;
+        let phys = ((word * 4 + bank) << 2) | (alias & 3);
+        return Some((phys as usize, bank as usize));
+    }
+    None
+}
+
+impl System {
+    /// A fresh system with zeroed memories, clocked at `clock_hz`.
+    pub fn new(clock_hz: u64) -> Self {
+        System {
+            rom: vec![0; ROM_SIZE as usize],
+            flash: vec![0; FLASH_SIZE as usize],
+            sram: vec![0; SRAM_SIZE as usize],
+            sio: Sio::default(),
+            timer: Timer::new(clock_hz),
+            bank_claim: [[u64::MAX; 2]; BANKS],
+            contention_stalls: [0; 2],
+        }
+    }
+
+    /// The memory slice and offset backing `addr`, for side-effect-free access (loader,
+    /// harness, debugger). Covers ROM, flash and SRAM (both views).
+    pub fn backing(&mut self, addr: u32) -> Option<(&mut [u8], usize)> {
+        if let Some((off, _)) = sram_location(addr) {
+            return Some((&mut self.sram, off));
+        }
+        let off = addr.wrapping_sub(FLASH_BASE);
+        if off < FLASH_SIZE {
+            return Some((&mut self.flash, off as usize));
+        }
+        if addr < ROM_SIZE {
+            return Some((&mut self.rom, addr as usize));
+        }
+        None
+    }
+
+    /// Claims `bank` for `core` at `cycle`, returning the stall cycles.
+    #[inline]
+    fn arbitrate(&mut self, core: usize, cycle: u64, bank: usize) -> u32 {
+        let other = self.bank_claim[bank][1 - core];
+        let mut at = cycle;
+        while other == at {
+            at += 1;
+        }
+        self.bank_claim[bank][core] = at;
+        let stall = (at - cycle) as u32;
+        self.contention_stalls[core] += stall as u64;
+        stall
+    }
+
+    /// Interrupt lines (bit n = IRQ n) as seen by `core` at cycle `now`.
+    #[inline]
+    pub fn irq_lines(&mut self, core: usize, now: u64) -> u32 {
+        self.timer.update(now);
+        let mut lines = self.timer.irq_lines();
+        if self.sio.irq(0) {
+            lines |= 1 << 15; // SIO_IRQ_PROC0
+        }
+        if self.sio.irq(1) {
+            lines |= 1 << 16; // SIO_IRQ_PROC1
+        }
+        let _ = core;
+        lines
+    }
+
+    fn peripheral_read(&mut self, core: usize, cycle: u64, addr: u32) -> Option<u32> {
+        if addr & 0xf000_0000 == SIO_BASE {
+            return self.sio.read(core, cycle, addr - SIO_BASE);
+        }
+        if addr & !0x3fff == TIMER_BASE {
+            return self.timer.read(cycle, addr & 0xfff);
+        }
+        None
+    }
+
+    fn peripheral_write(&mut self, core: usize, cycle: u64, addr: u32, value: u32) -> bool {
+        if addr & 0xf000_0000 == SIO_BASE {
+            return self.sio.write(core, cycle, addr - SIO_BASE, value);
+        }
+        if addr & !0x3fff == TIMER_BASE {
+            // Atomic aliases: +0x1000 XOR, +0x2000 SET, +0x3000 CLR (datasheet 2.1.2).
+            let reg = addr & 0xfff;
+            let alias = (addr >> 12) & 3;
+            let value = if alias == 0 {
+                value
+            } else {
+                let Some(old) = self.timer.read(cycle, reg) else { return false };
+                match alias {
+                    1 => old ^ value,
+                    2 => old | value,
+                    _ => old & !value,
+                }
+            };
+            return self.timer.write(cycle, reg, value);
+        }
+        false
+    }
+}
+
+impl Bus for System {
+    #[inline]
+    fn read(&mut self, core: usize, cycle: u64, addr: u32, size: u32) -> Result<(u32, u32), BusFault> {
+        if let Some((off, bank)) = sram_location(addr) {
+            let wait = self.arbitrate(core, cycle, bank);
+            return Ok((load_le(&self.sram, off, size), wait));
+        }
+        match addr >> 28 {
+            0x0 if addr < ROM_SIZE => Ok((load_le(&self.rom, addr as usize, size), 0)),
+            0x1 if addr - FLASH_BASE < FLASH_SIZE => {
+                Ok((load_le(&self.flash, (addr - FLASH_BASE) as usize, size), 0))
+            }
+            0x4 | 0xd => {
+                let wait = if addr >> 28 == 4 { APB_LOAD_WAIT } else { 0 };
+                // Peripherals are 32-bit registers; narrower loads see the low bits.
+                match self.peripheral_read(core, cycle, addr & !3) {
+                    Some(v) => Ok((v >> ((addr & 3) * 8) & (u32::MAX >> (32 - 8 * size)), wait)),
+                    None => Err(BusFault { addr }),
+                }
+            }
+            _ => Err(BusFault { addr }),
+        }
+    }
+
+    #[inline]
+    fn write(&mut self, core: usize, cycle: u64, addr: u32, size: u32, value: u32) -> Result<u32, BusFault> {
+        if let Some((off, bank)) = sram_location(addr) {
+            let wait = self.arbitrate(core, cycle, bank);
+            store_le(&mut self.sram, off, size, value);
+            return Ok(wait);
+        }
+        match addr >> 28 {
+            0x4 | 0xd => {
+                let wait = if addr >> 28 == 4 { APB_STORE_WAIT } else { 0 };
+                // Narrow stores to 32-bit registers replicate the data across the word
+                // (datasheet 2.1.4).
+                let value = match size {
+                    1 => (value & 0xff) * 0x0101_0101,
+                    2 => (value & 0xffff) * 0x0001_0001,
+                    _ => value,
+                };
+                if self.peripheral_write(core, cycle, addr & !3, value) {
+                    Ok(wait)
+                } else {
+                    Err(BusFault { addr })
+                }
+            }
+            // ROM and flash are read-only to the cores (flash programming is not modelled).
+            _ => Err(BusFault { addr }),
+        }
+    }
+
+    #[inline]
+    fn fetch(&mut self, addr: u32) -> Result<u16, BusFault> {
+        if let Some((off, _)) = sram_location(addr) {
+            return Ok(load_le(&self.sram, off, 2) as u16);
+        }
+        if addr < ROM_SIZE {
+            return Ok(load_le(&self.rom, addr as usize, 2) as u16);
+        }
+        let off = addr.wrapping_sub(FLASH_BASE);
+        if off < FLASH_SIZE {
+            return Ok(load_le(&self.flash, off as usize, 2) as u16);
+        }
+        Err(BusFault { addr })
+    }
+}

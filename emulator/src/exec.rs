@@ -1,0 +1,501 @@
+//! Instruction semantics: one `match` arm per [`Instr`] variant.
+//!
+//! Each arm computes results and flags exactly as the ARMv6-M pseudocode (DDI0419 A6.7)
+//! does, touches memory only through the [`Bus`] (which reports wait states), and returns the
+//! instruction's cycles, taken from [`timing::cycles`] — the one timing table — plus wait
+//! states, plus [`timing::EXCEPTION_RETURN`] when it returns from an exception. A fault is
+//! returned as an error *before* any register is written, so the HardFault handler sees the
+//! state the faulting instruction started from (multi-word loads read everything first).
+
+use crate::bus::Bus;
+use crate::core::{Core, Event, FaultKind, RunState};
+use crate::decode::{self, AluOp, Instr, MemOp};
+use crate::nvic::PPB_BASE;
+use crate::sio::SIO_BASE;
+use crate::timing::{self, EXCEPTION_RETURN};
+
+/// `AddWithCarry(x, y, carry_in)` of DDI0419 A2.2.1: (result, carry, overflow).
+#[inline]
+pub fn add_with_carry(x: u32, y: u32, carry: bool) -> (u32, bool, bool) {
+    let wide = x as u64 + y as u64 + carry as u64;
+    let result = wide as u32;
+    let signed = x as i32 as i64 + y as i32 as i64 + carry as i64;
+    (result, wide >> 32 != 0, result as i32 as i64 != signed)
+}
+
+/// Evaluates condition code `cond` (0-14) against flags (DDI0419 A6.3).
+#[inline]
+pub fn condition_passed(cond: u8, n: bool, z: bool, c: bool, v: bool) -> bool {
+    let r = match cond >> 1 {
+        0 => z,
+        1 => c,
+        2 => n,
+        3 => v,
+        4 => c && !z,
+        5 => n == v,
+        6 => n == v && !z,
+        _ => true,
+    };
+    if cond & 1 == 1 && cond != 15 {
+        !r
+    } else {
+        r
+    }
+}
+
+type Exec = Result<(u32, Event), FaultKind>;
+
+impl Core {
+    #[inline]
+    fn nz(&mut self, r: u32) {
+        self.n = (r as i32) < 0;
+        self.z = r == 0;
+    }
+
+    /// Reads a register as an operand: PC reads as the instruction address + 4.
+    #[inline]
+    fn reg(&self, r: u8, pc: u32) -> u32 {
+        if r == 15 {
+            pc.wrapping_add(4)
+        } else {
+            self.r[r as usize]
+        }
+    }
+
+    #[inline]
+    fn set_reg(&mut self, r: u8, v: u32) {
+        self.r[r as usize] = if r == 13 { v & !3 } else { v };
+    }
+
+    /// Load from `addr` at data-phase cycle `at`: (value, wait states). The private
+    /// peripheral bus is reached here, never through the shared bus.
+    #[inline]
+    fn load<B: Bus>(&mut self, bus: &mut B, addr: u32, size: u32, at: u64) -> Result<(u32, u32), FaultKind> {
+        if addr & (size - 1) != 0 {
+            return Err(FaultKind::Unaligned { addr });
+        }
+        if addr >= PPB_BASE {
+            if size != 4 {
+                return Err(FaultKind::Bus { addr });
+            }
+            let ipsr = self.ipsr;
+            return self.nvic.read(at, addr, ipsr).map(|v| (v, 0)).ok_or(FaultKind::Bus { addr });
+        }
+        Ok(bus.read(self.id, at, addr, size)?)
+    }
+
+    #[inline]
+    fn store<B: Bus>(&mut self, bus: &mut B, addr: u32, size: u32, value: u32, at: u64) -> Result<u32, FaultKind> {
+        if addr & (size - 1) != 0 {
+            return Err(FaultKind::Unaligned { addr });
+        }
+        if addr >= PPB_BASE {
+            if size != 4 || !self.nvic.write(at, addr, value) {
+                return Err(FaultKind::Bus { addr });
+            }
+            return Ok(0);
+        }
+        Ok(bus.write(self.id, at, addr, size, value)?)
+    }
+
+    /// BXWritePC / LoadWritePC (DDI0419 A2.3.1): interworking branch, or exception return
+    /// for an EXC_RETURN value in handler mode. Returns extra cycles.
+    fn bx_write_pc<B: Bus>(&mut self, bus: &mut B, target: u32) -> Result<u32, FaultKind> {
+        if self.ipsr != 0 && target >> 28 == 0xf {
+            self.exception_return(bus, target)?;
+            return Ok(EXCEPTION_RETURN);
+        }
+        self.thumb = target & 1 == 1;
+        self.r[15] = target & !1;
+        Ok(0)
+    }
+
+    /// Executes `instr` located at `pc` (of `size` bytes). Returns its cycles and event.
+    pub(crate) fn execute<B: Bus>(&mut self, bus: &mut B, instr: Instr, pc: u32, size: u32) -> Exec {
+        use Instr::*;
+        let next = pc.wrapping_add(size);
+        let now = self.cycle;
+        let mut event = Event::None;
+        let mut taken = false;
+        let mut io_port = false;
+        let mut wait = 0u32;
+        self.r[15] = next;
+        match instr {
+            LslImm { rd, rm, imm } => {
+                let x = self.r[rm as usize];
+                let r = if imm == 0 {
+                    x
+                } else {
+                    self.c = (x >> (32 - imm as u32)) & 1 == 1;
+                    x << imm
+                };
+                self.r[rd as usize] = r;
+                self.nz(r);
+            }
+            LsrImm { rd, rm, imm } => {
+                let x = self.r[rm as usize];
+                self.c = (x >> (imm as u32 - 1)) & 1 == 1;
+                let r = if imm == 32 { 0 } else { x >> imm };
+                self.r[rd as usize] = r;
+                self.nz(r);
+            }
+            AsrImm { rd, rm, imm } => {
+                let x = self.r[rm as usize];
+                self.c = ((x as i32) >> (imm as u32 - 1)) & 1 == 1;
+                let r = ((x as i32) >> (imm as u32).min(31)) as u32;
+                self.r[rd as usize] = r;
+                self.nz(r);
+            }
+            AddReg { rd, rn, rm } => {
+                let (r, c, v) = add_with_carry(self.r[rn as usize], self.r[rm as usize], false);
+                (self.c, self.v) = (c, v);
+                self.r[rd as usize] = r;
+                self.nz(r);
+            }
+            SubReg { rd, rn, rm } => {
+                let (r, c, v) = add_with_carry(self.r[rn as usize], !self.r[rm as usize], true);
+                (self.c, self.v) = (c, v);
+                self.r[rd as usize] = r;
+                self.nz(r);
+            }
+            AddImm { rd, rn, imm } => {
+                let (r, c, v) = add_with_carry(self.r[rn as usize], imm as u32, false);
+                (self.c, self.v) = (c, v);
+                self.r[rd as usize] = r;
+                self.nz(r);
+            }
+            SubImm { rd, rn, imm } => {
+                let (r, c, v) = add_with_carry(self.r[rn as usize], !(imm as u32), true);
+                (self.c, self.v) = (c, v);
+                self.r[rd as usize] = r;
+                self.nz(r);
+            }
+            MovImm { rd, imm } => {
+                self.r[rd as usize] = imm as u32;
+                self.nz(imm as u32);
+            }
+            CmpImm { rn, imm } => {
+                let (r, c, v) = add_with_carry(self.r[rn as usize], !(imm as u32), true);
+                (self.c, self.v) = (c, v);
+                self.nz(r);
+            }
+            Alu { op, rdn, rm } => self.alu(op, rdn as usize, self.r[rm as usize]),
+            AddHi { rdn, rm } => {
+                let r = self.reg(rdn, pc).wrapping_add(self.reg(rm, pc));
+                if rdn == 15 {
+                    self.r[15] = r & !1; // ALUWritePC: a branch, no interworking
+                } else {
+                    self.set_reg(rdn, r);
+                }
+            }
+            CmpHi { rn, rm } => {
+                let (r, c, v) = add_with_carry(self.reg(rn, pc), !self.reg(rm, pc), true);
+                (self.c, self.v) = (c, v);
+                self.nz(r);
+            }
+            MovHi { rd, rm } => {
+                let r = self.reg(rm, pc);
+                if rd == 15 {
+                    self.r[15] = r & !1;
+                } else {
+                    self.set_reg(rd, r);
+                }
+            }
+            Bx { rm } => {
+                let target = self.reg(rm, pc);
+                wait += self.bx_write_pc(bus, target)?;
+            }
+            Blx { rm } => {
+                let target = self.r[rm as usize];
+                self.r[14] = next | 1;
+                self.thumb = target & 1 == 1;
+                self.r[15] = target & !1;
+            }
+            LdrLit { rt, imm } => {
+                let addr = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32);
+                io_port = addr >> 28 == SIO_BASE >> 28;
+                let (v, w) = self.load(bus, addr, 4, now + !io_port as u64)?;
+                wait += w;
+                self.r[rt as usize] = v;
+            }
+            MemReg { op, rt, rn, rm } => {
+                let addr = self.r[rn as usize].wrapping_add(self.r[rm as usize]);
+                io_port = addr >> 28 == SIO_BASE >> 28;
+                wait += self.mem(bus, op, rt, addr, now + !io_port as u64)?;
+            }
+            MemImm { op, rt, rn, imm } => {
+                let addr = self.r[rn as usize].wrapping_add(imm as u32);
+                io_port = addr >> 28 == SIO_BASE >> 28;
+                wait += self.mem(bus, op, rt, addr, now + !io_port as u64)?;
+            }
+            Adr { rd, imm } => self.r[rd as usize] = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32),
+            AddSpImm { rd, imm } => self.r[rd as usize] = self.r[13].wrapping_add(imm as u32),
+            AddSp { imm } => self.r[13] = self.r[13].wrapping_add(imm as u32),
+            SubSp { imm } => self.r[13] = self.r[13].wrapping_sub(imm as u32),
+            Sxth { rd, rm } => self.r[rd as usize] = self.r[rm as usize] as i16 as i32 as u32,
+            Sxtb { rd, rm } => self.r[rd as usize] = self.r[rm as usize] as i8 as i32 as u32,
+            Uxth { rd, rm } => self.r[rd as usize] = self.r[rm as usize] as u16 as u32,
+            Uxtb { rd, rm } => self.r[rd as usize] = self.r[rm as usize] as u8 as u32,
+            Rev { rd, rm } => self.r[rd as usize] = self.r[rm as usize].swap_bytes(),
+            Rev16 { rd, rm } => {
+                let x = self.r[rm as usize];
+                self.r[rd as usize] = ((x & 0x00ff_00ff) << 8) | ((x >> 8) & 0x00ff_00ff);
+            }
+            Revsh { rd, rm } => {
+                self.r[rd as usize] = (self.r[rm as usize] as u16).swap_bytes() as i16 as i32 as u32
+            }
+            Push { list } => {
+                let count = list.count_ones();
+                let base = self.r[13].wrapping_sub(4 * count);
+                if base & 3 != 0 {
+                    return Err(FaultKind::Unaligned { addr: base });
+                }
+                let mut addr = base;
+                for (i, reg) in (0..15).filter(|r| list & (1 << r) != 0).enumerate() {
+                    wait += self.store(bus, addr, 4, self.r[reg], now + 1 + i as u64 + wait as u64)?;
+                    addr += 4;
+                }
+                self.r[13] = base;
+            }
+            Pop { list } => {
+                let base = self.r[13];
+                let (values, w) = self.load_multiple(bus, base, list, now)?;
+                wait += w;
+                self.r[13] = base.wrapping_add(4 * list.count_ones());
+                for reg in 0..8 {
+                    if list & (1 << reg) != 0 {
+                        self.r[reg] = values[reg];
+                    }
+                }
+                if list & 0x8000 != 0 {
+                    wait += self.bx_write_pc(bus, values[15])?;
+                }
+            }
+            Stm { rn, list } => {
+                let base = self.r[rn as usize];
+                if base & 3 != 0 {
+                    return Err(FaultKind::Unaligned { addr: base });
+                }
+                let mut addr = base;
+                for (i, reg) in (0..8).filter(|r| list & (1 << r) != 0).enumerate() {
+                    wait += self.store(bus, addr, 4, self.r[reg], now + 1 + i as u64 + wait as u64)?;
+                    addr = addr.wrapping_add(4);
+                }
+                self.r[rn as usize] = addr;
+            }
+            Ldm { rn, list } => {
+                let base = self.r[rn as usize];
+                let (values, w) = self.load_multiple(bus, base, list as u16, now)?;
+                wait += w;
+                if list & (1 << rn) == 0 {
+                    self.r[rn as usize] = base.wrapping_add(4 * list.count_ones());
+                }
+                for reg in 0..8 {
+                    if list & (1 << reg) != 0 {
+                        self.r[reg] = values[reg];
+                    }
+                }
+            }
+            Cps { disable } => self.primask = disable,
+            Bkpt { imm } => return Err(FaultKind::Breakpoint { imm }),
+            Hint(h) => match h {
+                decode::Hint::Nop | decode::Hint::Yield => {}
+                decode::Hint::Sev => {
+                    self.event = true;
+                    event = Event::Sev;
+                }
+                decode::Hint::Wfe => {
+                    if self.event {
+                        self.event = false;
+                    } else {
+                        self.state = RunState::Sleeping { wfe: true };
+                    }
+                }
+                decode::Hint::Wfi => self.state = RunState::Sleeping { wfe: false },
+            },
+            BCond { cond, offset } => {
+                if condition_passed(cond, self.n, self.z, self.c, self.v) {
+                    taken = true;
+                    self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
+                }
+            }
+            B { offset } => self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32),
+            Svc { imm } => event = Event::Svc(imm),
+            Udf { imm } => return Err(FaultKind::Undefined { hw1: 0xde00 | imm as u16, hw2: 0 }),
+            Undefined { hw1, hw2 } => return Err(FaultKind::Undefined { hw1, hw2 }),
+            Bl { offset } => {
+                self.r[14] = next | 1;
+                self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
+            }
+            Msr { sysm, rn } => self.msr(sysm, self.r[rn as usize]),
+            Mrs { rd, sysm } => self.r[rd as usize] = self.mrs(sysm),
+            Barrier(_) => {}
+        }
+        Ok((timing::cycles(&instr, taken, io_port) + wait, event))
+    }
+
+    #[inline]
+    fn alu(&mut self, op: AluOp, d: usize, m: u32) {
+        let x = self.r[d];
+        let shift = m & 0xff;
+        let r = match op {
+            AluOp::And => x & m,
+            AluOp::Eor => x ^ m,
+            AluOp::Orr => x | m,
+            AluOp::Bic => x & !m,
+            AluOp::Mvn => !m,
+            AluOp::Tst => {
+                self.nz(x & m);
+                return;
+            }
+            AluOp::Lsl => match shift {
+                0 => x,
+                1..=31 => {
+                    self.c = (x >> (32 - shift)) & 1 == 1;
+                    x << shift
+                }
+                32 => {
+                    self.c = x & 1 == 1;
+                    0
+                }
+                _ => {
+                    self.c = false;
+                    0
+                }
+            },
+            AluOp::Lsr => match shift {
+                0 => x,
+                1..=31 => {
+                    self.c = (x >> (shift - 1)) & 1 == 1;
+                    x >> shift
+                }
+                32 => {
+                    self.c = x >> 31 == 1;
+                    0
+                }
+                _ => {
+                    self.c = false;
+                    0
+                }
+            },
+            AluOp::Asr => match shift {
+                0 => x,
+                1..=31 => {
+                    self.c = ((x as i32) >> (shift - 1)) & 1 == 1;
+                    ((x as i32) >> shift) as u32
+                }
+                _ => {
+                    self.c = x >> 31 == 1;
+                    ((x as i32) >> 31) as u32
+                }
+            },
+            AluOp::Ror => {
+                if shift == 0 {
+                    x
+                } else {
+                    let r = x.rotate_right(shift & 31);
+                    self.c = r >> 31 == 1;
+                    r
+                }
+            }
+            AluOp::Adc | AluOp::Sbc | AluOp::Rsb | AluOp::Cmp | AluOp::Cmn => {
+                let (a, b, carry) = match op {
+                    AluOp::Adc => (x, m, self.c),
+                    AluOp::Sbc => (x, !m, self.c),
+                    AluOp::Rsb => (!m, 0, true),
+                    AluOp::Cmp => (x, !m, true),
+                    _ => (x, m, false),
+                };
+                let (r, c, v) = add_with_carry(a, b, carry);
+                (self.c, self.v) = (c, v);
+                self.nz(r);
+                if matches!(op, AluOp::Cmp | AluOp::Cmn) {
+                    return;
+                }
+                r
+            }
+            AluOp::Mul => m.wrapping_mul(x),
+        };
+        self.r[d] = r;
+        self.nz(r);
+    }
+
+    /// One load or store `op` of `rt` at `addr`; returns wait states.
+    #[inline]
+    fn mem<B: Bus>(&mut self, bus: &mut B, op: MemOp, rt: u8, addr: u32, at: u64) -> Result<u32, FaultKind> {
+        let size = op.size();
+        if op.is_store() {
+            return self.store(bus, addr, size, self.r[rt as usize], at);
+        }
+        let (v, wait) = self.load(bus, addr, size, at)?;
+        self.r[rt as usize] = match op {
+            MemOp::Ldrsb => v as u8 as i8 as i32 as u32,
+            MemOp::Ldrsh => v as u16 as i16 as i32 as u32,
+            _ => v,
+        };
+        Ok(wait)
+    }
+
+    /// Loads the registers of `list` (bits 0-7, 15 = PC) from consecutive words at `base`
+    /// without writing any register: (values by register number, wait states).
+    fn load_multiple<B: Bus>(&mut self, bus: &mut B, base: u32, list: u16, now: u64) -> Result<([u32; 16], u32), FaultKind> {
+        if base & 3 != 0 {
+            return Err(FaultKind::Unaligned { addr: base });
+        }
+        let mut values = [0u32; 16];
+        let mut wait = 0;
+        let mut addr = base;
+        for (i, reg) in (0..16).filter(|r| list & (1 << r) != 0).enumerate() {
+            let (v, w) = self.load(bus, addr, 4, now + 1 + i as u64 + wait as u64)?;
+            wait += w;
+            values[reg] = v;
+            addr = addr.wrapping_add(4);
+        }
+        Ok((values, wait))
+    }
+
+    /// MRS (DDI0419 B5.2.2): special register `sysm`.
+    fn mrs(&self, sysm: u8) -> u32 {
+        match sysm {
+            0..=7 => {
+                let mut v = 0;
+                if sysm & 1 != 0 {
+                    v |= self.ipsr;
+                }
+                if sysm & 4 == 0 {
+                    v |= self.apsr();
+                }
+                v // EPSR reads as zero
+            }
+            8 => self.msp(),
+            9 => self.psp(),
+            16 => self.primask as u32,
+            20 => self.control & 3,
+            _ => 0,
+        }
+    }
+
+    /// MSR (DDI0419 B5.2.3).
+    fn msr(&mut self, sysm: u8, value: u32) {
+        match sysm {
+            0..=7 => {
+                if sysm & 4 == 0 {
+                    self.set_apsr(value);
+                }
+            }
+            8 => self.set_msp(value),
+            9 => self.set_psp(value),
+            16 => self.primask = value & 1 != 0,
+            20 => {
+                if self.ipsr == 0 {
+                    let was_psp = self.ipsr == 0 && self.control & 2 != 0;
+                    self.control = value & 3;
+                    self.switch_sp(was_psp);
+                } else {
+                    self.control = (self.control & 2) | (value & 1);
+                }
+            }
+            _ => {}
+        }
+    }
+}

@@ -1,0 +1,170 @@
+//! The RP2040 system timer (0x40054000, RP2040 datasheet section 4.6).
+//!
+//! The real timer counts microseconds from a 1 MHz tick. We derive the count from the
+//! emulated cycle (`us = cycle * 1_000_000 / clock_hz`) instead of ticking it, and turn each
+//! armed alarm into the cycle at which it fires, so the board only has to compare the current
+//! cycle with [`Timer::next_event`]. A 44.1 kHz sample tick is paced by advancing ALARM0 by 22
+//! or 23 µs alternately (mean 22.676 µs) in the alarm's interrupt handler.
+
+/// Base address of the timer.
+pub const TIMER_BASE: u32 = 0x4005_4000;
+/// Interrupt number of TIMER_IRQ_0 (alarm n raises IRQ n, datasheet 2.3.2).
+pub const TIMER_IRQ_0: u32 = 0;
+
+/// Register offsets (datasheet 4.6.5).
+pub mod reg {
+    /// Write high word of time (after TIMELW).
+    pub const TIMEHW: u32 = 0x00;
+    /// Write low word of time.
+    pub const TIMELW: u32 = 0x04;
+    /// Read high word (latched by reading TIMELR).
+    pub const TIMEHR: u32 = 0x08;
+    /// Read low word (latches TIMEHR).
+    pub const TIMELR: u32 = 0x0c;
+    /// ALARM0 (ALARMn at `ALARM0 + 4n`, n < 4).
+    pub const ALARM0: u32 = 0x10;
+    /// Armed alarms; write 1 to disarm.
+    pub const ARMED: u32 = 0x20;
+    /// Raw high word, no latching.
+    pub const TIMERAWH: u32 = 0x24;
+    /// Raw low word, no latching.
+    pub const TIMERAWL: u32 = 0x28;
+    /// Raw interrupts; write 1 to clear.
+    pub const INTR: u32 = 0x34;
+    /// Interrupt enable.
+    pub const INTE: u32 = 0x38;
+    /// Interrupt force.
+    pub const INTF: u32 = 0x3c;
+    /// Interrupt status after masking and forcing.
+    pub const INTS: u32 = 0x40;
+}
+
+/// Timer state.
+#[derive(Clone, Debug)]
+pub struct Timer {
+    clock_hz: u64,
+    /// Microseconds added by writes to TIMELW/TIMEHW (time = offset + cycle-derived count).
+    offset: u64,
+    latched_high: u32,
+    written_low: u32,
+    alarm: [u32; 4],
+    /// Cycle at which each armed alarm fires (u64::MAX when disarmed).
+    fire_at: [u64; 4],
+    intr: u32,
+    inte: u32,
+    intf: u32,
+    /// Earliest `fire_at`.
+    pub next_event: u64,
+}
+
+impl Timer {
+    /// A timer for a system clocked at `clock_hz`.
+    pub fn new(clock_hz: u64) -> Self {
+        Timer {
+            clock_hz,
+            offset: 0,
+            latched_high: 0,
+            written_low: 0,
+            alarm: [0; 4],
+            fire_at: [u64::MAX; 4],
+            intr: 0,
+            inte: 0,
+            intf: 0,
+            next_event: u64::MAX,
+        }
+    }
+
+    /// Microsecond count at cycle `now`.
+    pub fn micros(&self, now: u64) -> u64 {
+        self.offset.wrapping_add(((now as u128 * 1_000_000) / self.clock_hz as u128) as u64)
+    }
+
+    /// First cycle at which the count reaches `us`.
+    fn cycle_of(&self, us: u64) -> u64 {
+        let rel = us.wrapping_sub(self.offset) as u128;
+        (rel * self.clock_hz as u128).div_ceil(1_000_000) as u64
+    }
+
+    /// Fires alarms due by cycle `now`.
+    pub fn update(&mut self, now: u64) {
+        if now < self.next_event {
+            return;
+        }
+        for n in 0..4 {
+            if now >= self.fire_at[n] {
+                self.fire_at[n] = u64::MAX;
+                self.intr |= 1 << n;
+            }
+        }
+        self.next_event = self.fire_at.iter().copied().min().unwrap_or(u64::MAX);
+    }
+
+    /// Interrupt lines TIMER_IRQ_0..3 as bits 0-3.
+    pub fn irq_lines(&self) -> u32 {
+        (self.intr & self.inte) | self.intf
+    }
+
+    fn arm(&mut self, now: u64, n: usize, value: u32) {
+        self.alarm[n] = value;
+        let t = self.micros(now);
+        // The alarm compares the low 32 bits each microsecond; a target equal to now (or
+        // in the past) matches only after the count wraps (datasheet 4.6.4).
+        let mut delta = value.wrapping_sub(t as u32) as u64;
+        if delta == 0 {
+            delta = 1 << 32;
+        }
+        self.fire_at[n] = self.cycle_of(t + delta);
+        self.next_event = self.fire_at.iter().copied().min().unwrap_or(u64::MAX);
+    }
+
+    /// Reads register `offset` at cycle `now`; `None` if unmapped.
+    pub fn read(&mut self, now: u64, offset: u32) -> Option<u32> {
+        self.update(now);
+        let t = self.micros(now);
+        Some(match offset {
+            reg::TIMEHR => self.latched_high,
+            reg::TIMELR => {
+                self.latched_high = (t >> 32) as u32;
+                t as u32
+            }
+            0x10..=0x1c => self.alarm[((offset - reg::ALARM0) / 4) as usize],
+            reg::ARMED => (0..4).fold(0, |a, n| a | ((self.fire_at[n] != u64::MAX) as u32) << n),
+            reg::TIMERAWH => (t >> 32) as u32,
+            reg::TIMERAWL => t as u32,
+            0x2c | 0x30 => 0, // DBGPAUSE, PAUSE
+            reg::INTR => self.intr,
+            reg::INTE => self.inte,
+            reg::INTF => self.intf,
+            reg::INTS => self.irq_lines(),
+            _ => return None,
+        })
+    }
+
+    /// Writes register `offset` at cycle `now`; false if unmapped.
+    pub fn write(&mut self, now: u64, offset: u32, value: u32) -> bool {
+        self.update(now);
+        match offset {
+            reg::TIMELW => self.written_low = value,
+            reg::TIMEHW => {
+                let want = ((value as u64) << 32) | self.written_low as u64;
+                let base = self.micros(now).wrapping_sub(self.offset);
+                self.offset = want.wrapping_sub(base);
+            }
+            0x10..=0x1c => self.arm(now, ((offset - reg::ALARM0) / 4) as usize, value),
+            reg::ARMED => {
+                for n in 0..4 {
+                    if value & (1 << n) != 0 {
+                        self.fire_at[n] = u64::MAX;
+                    }
+                }
+                self.next_event = self.fire_at.iter().copied().min().unwrap_or(u64::MAX);
+            }
+            reg::INTR => self.intr &= !value,
+            reg::INTE => self.inte = value & 15,
+            reg::INTF => self.intf = value & 15,
+            0x2c | 0x30 => {}
+            _ => return false,
+        }
+        true
+    }
+}
