@@ -1,1 +1,28 @@
-//! compiler
+//! The Tactus touch-profile language: lexer, parser, name and dimension checks, the IR, and
+//! the f64 reference interpreter that defines what every engine must compute.
+//!
+//! Pipeline: [`parse::parse`] (logos + lalrpop) → [`ast::File`] → [`lower::lower`] (name
+//! resolution, dimension check, component instancing) → [`ir::Program`] →
+//! [`interp::Instance`] (per sample: sensors in; forces, outputs, states and events out).
+#![deny(missing_docs)]
+
+pub mod ast;
+pub mod diagnostics;
+pub mod lexer;
+pub mod parse;
+pub mod units;
+pub mod interp;
+pub mod ir;
+pub mod lower;
+pub mod print;
+
+use diagnostics::Diagnostic;
+
+/// Parses and lowers a source file: the whole front end in one call.
+///
+/// Errors: every syntax, name and dimension error found, as diagnostics with spans (render
+/// them with [`diagnostics::emit`]). On success, the warnings are in [`lower::Lowered`].
+pub fn compile(source: &str, config: &lower::Config) -> Result<lower::Lowered, Vec<Diagnostic>> {
+    let file = parse::parse(source).map_err(|d| vec![d])?;
+    lower::lower(&file, config)
+}

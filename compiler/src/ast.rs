@@ -1,0 +1,169 @@
+//! The abstract syntax tree, exactly as written, with byte spans.
+//!
+//! The AST keeps source order and spelling and resolves nothing: names are strings and
+//! units are already folded into literals by the lexer. [`crate::lower`] turns it into the
+//! IR, checking names and dimensions on the way. Spans are byte ranges into the source file.
+
+use crate::lexer::Literal;
+
+/// A byte range in the source file.
+pub type Span = std::ops::Range<usize>;
+
+/// A value with the span it came from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Spanned<T> {
+    /// The node.
+    pub node: T,
+    /// Where it was written.
+    pub span: Span,
+}
+
+/// A name as written.
+pub type Name = Spanned<String>;
+
+/// A whole `.tactus` file: components and instruments in source order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct File {
+    /// Top-level definitions.
+    pub items: Vec<TopItem>,
+}
+
+/// A top-level definition.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TopItem {
+    /// `instrument NAME { … }`
+    Instrument(Body),
+    /// `component NAME { … }`
+    Component(Body),
+}
+
+/// The body shared by instruments and components.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Body {
+    /// The instrument's or component's name.
+    pub name: Name,
+    /// Declarations in source order.
+    pub decls: Vec<Decl>,
+    /// The span of the whole definition.
+    pub span: Span,
+}
+
+/// A type annotation: a unit whose dimension is meant, or `bool`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TypeAnn {
+    /// `bool`.
+    Bool,
+    /// A unit expression such as `m`, `N*s/m` or `1`; each factor is (name, exponent).
+    Unit(Vec<(Name, i32)>),
+}
+
+/// A closed interval `[lo, hi]` declared for a sensor or state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Range {
+    /// Lower bound.
+    pub lo: Expr,
+    /// Upper bound.
+    pub hi: Expr,
+    /// Span of the brackets.
+    pub span: Span,
+}
+
+/// A declaration inside an instrument or component. Fields are named as in the syntax shown.
+#[allow(missing_docs)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum Decl {
+    /// `sensor NAME [: TYPE] in [lo, hi]`
+    Sensor { name: Name, ty: Option<Spanned<TypeAnn>>, range: Option<Range> },
+    /// `input NAME : TYPE` (components only)
+    Input { name: Name, ty: Option<Spanned<TypeAnn>> },
+    /// `param NAME [: TYPE] = EXPR`
+    Param { name: Name, ty: Option<Spanned<TypeAnn>>, value: Expr },
+    /// `state NAME [: TYPE] = EXPR in [lo, hi]`
+    State { name: Name, ty: Option<Spanned<TypeAnn>>, init: Expr, range: Option<Range> },
+    /// `mode NAME { a, b, … } [= a]`
+    Mode { name: Name, variants: Vec<Name>, init: Option<Name> },
+    /// `let NAME = EXPR`
+    Let { name: Name, value: Expr },
+    /// `force NAME = EXPR`
+    Force { name: Name, value: Expr },
+    /// `output NAME = EXPR`
+    Output { name: Name, value: Expr },
+    /// `dynamics { x' = EXPR … }`
+    Dynamics { eqs: Vec<Equation>, span: Span },
+    /// `on COND { … }` (rising edge) or `while COND { … }` (level).
+    Handler { trigger: Trigger, cond: Expr, body: Vec<Stmt>, span: Span },
+    /// `use NAME = COMPONENT(arg = EXPR, …)`
+    Use { name: Name, component: Name, args: Vec<(Name, Expr)>, span: Span },
+}
+
+/// When a handler's body runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Trigger {
+    /// `on`: the sample where the condition becomes true.
+    Edge,
+    /// `while`: every sample where the condition holds.
+    Level,
+}
+
+/// `x' = EXPR` in a dynamics block.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Equation {
+    /// The state being integrated.
+    pub state: Name,
+    /// Its time derivative.
+    pub rhs: Expr,
+}
+
+/// A statement in a handler body. Fields are named as in the syntax shown.
+#[allow(missing_docs)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum Stmt {
+    /// `NAME = EXPR` — a state or a mode.
+    Assign { target: Name, value: Expr },
+    /// `emit EVENT(arg = EXPR, …)`
+    Emit { event: Name, args: Vec<(Name, Expr)>, span: Span },
+}
+
+/// An expression with its span.
+pub type Expr = Spanned<ExprKind>;
+
+/// Binary operators, loosest binding first in the grammar.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(missing_docs)]
+pub enum BinOp {
+    Or,
+    And,
+    Eq,
+    Ne,
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Add,
+    Sub,
+    Mul,
+    Div,
+}
+
+/// Expression forms.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ExprKind {
+    /// A number with unit.
+    Number(Literal),
+    /// `true` / `false`.
+    Bool(bool),
+    /// A name, possibly qualified by an instance: `key`, `esc.f`.
+    Path(Vec<Name>),
+    /// `-x`
+    Neg(Box<Expr>),
+    /// `not x`
+    Not(Box<Expr>),
+    /// `a OP b`
+    Binary(BinOp, Box<Expr>, Box<Expr>),
+    /// `x ^ N` with an integer literal `N`.
+    Pow(Box<Expr>, Spanned<f64>),
+    /// `f(args)`
+    Call(Name, Vec<Expr>),
+    /// `if c { a } else { b }`
+    If(Box<Expr>, Box<Expr>, Box<Expr>),
+}

@@ -1,0 +1,109 @@
+//! Diagnostics: every error and warning the compiler reports, with spans, and the one place
+//! that renders them (codespan-reporting).
+//!
+//! Passes return `Vec<Diagnostic>`; nothing in the compiler prints. The CLI renders to the
+//! terminal with colours, tests use [`emit_to_string`] for snapshots.
+
+use crate::ast::Span;
+use codespan_reporting::diagnostic::{Diagnostic as CsDiagnostic, Label};
+use codespan_reporting::files::SimpleFile;
+use codespan_reporting::term::{self, termcolor};
+
+/// Whether a diagnostic stops compilation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Severity {
+    /// Compilation fails.
+    Error,
+    /// Reported; compilation goes on.
+    Warning,
+}
+
+/// One problem found in a source file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Diagnostic {
+    /// Error or warning.
+    pub severity: Severity,
+    /// A stable code, e.g. `E0201`, one per kind of problem (listed in `docs/language.md`).
+    pub code: &'static str,
+    /// One-line summary.
+    pub message: String,
+    /// The primary span and what to say under it.
+    pub primary: (Span, String),
+    /// Related spans ("first defined here").
+    pub secondary: Vec<(Span, String)>,
+    /// What to do about it, when we know.
+    pub hint: Option<String>,
+}
+
+impl Diagnostic {
+    /// An error at `span`.
+    pub fn error(code: &'static str, message: impl Into<String>, span: Span) -> Self {
+        Diagnostic {
+            severity: Severity::Error,
+            code,
+            message: message.into(),
+            primary: (span, String::new()),
+            secondary: Vec::new(),
+            hint: None,
+        }
+    }
+    /// A warning at `span`.
+    pub fn warning(code: &'static str, message: impl Into<String>, span: Span) -> Self {
+        Diagnostic { severity: Severity::Warning, ..Diagnostic::error(code, message, span) }
+    }
+    /// Sets the text under the primary span.
+    pub fn label(mut self, text: impl Into<String>) -> Self {
+        self.primary.1 = text.into();
+        self
+    }
+    /// Adds a related span.
+    pub fn with_secondary(mut self, span: Span, text: impl Into<String>) -> Self {
+        self.secondary.push((span, text.into()));
+        self
+    }
+    /// Adds a hint.
+    pub fn hint(mut self, text: impl Into<String>) -> Self {
+        self.hint = Some(text.into());
+        self
+    }
+    /// Whether this is an error.
+    pub fn is_error(&self) -> bool {
+        self.severity == Severity::Error
+    }
+
+    fn to_codespan(&self) -> CsDiagnostic<()> {
+        let d = match self.severity {
+            Severity::Error => CsDiagnostic::error(),
+            Severity::Warning => CsDiagnostic::warning(),
+        };
+        let mut labels = vec![Label::primary((), self.primary.0.clone()).with_message(&self.primary.1)];
+        labels.extend(self.secondary.iter().map(|(s, m)| Label::secondary((), s.clone()).with_message(m)));
+        d.with_code(self.code)
+            .with_message(&self.message)
+            .with_labels(labels)
+            .with_notes(self.hint.iter().map(|h| format!("hint: {h}")).collect())
+    }
+}
+
+/// Renders diagnostics for `file_name`/`source` to a writer (colours as the writer allows).
+pub fn emit(
+    out: &mut dyn termcolor::WriteColor,
+    file_name: &str,
+    source: &str,
+    diagnostics: &[Diagnostic],
+) -> std::io::Result<()> {
+    let file = SimpleFile::new(file_name, source);
+    let config = term::Config::default();
+    for d in diagnostics {
+        term::emit_to_write_style(out, &config, &file, &d.to_codespan()).map_err(std::io::Error::other)?;
+    }
+    Ok(())
+}
+
+/// Renders diagnostics to a plain string (no colours), for tests and snapshots.
+pub fn emit_to_string(file_name: &str, source: &str, diagnostics: &[Diagnostic]) -> String {
+    let mut buf = termcolor::NoColor::new(Vec::new());
+    // Writing into a Vec cannot fail.
+    let _ = emit(&mut buf, file_name, source, diagnostics);
+    String::from_utf8_lossy(&buf.into_inner()).into_owned()
+}

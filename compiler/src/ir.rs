@@ -1,0 +1,317 @@
+//! The IR: one flat program per instrument, components already instanced.
+//!
+//! Declarations live in tables indexed by `u32` newtypes ([`SensorId`], [`StateId`], …);
+//! computed values live in one table indexed by [`Value`], each defined exactly once by a
+//! [`Stmt::Def`] that precedes every use (structured control flow: the only branch is
+//! [`Stmt::If`], and a value defined inside its body is not used after it). The body is the
+//! whole per-sample update in execution order, so every engine — the f64 reference
+//! interpreter, the fixed-point interpreter, the JIT, the Thumb and C backends — runs the same
+//! statement list. All quantities are SI (the lexer converts units); [`Ty`] records the
+//! dimension of each value, which the backends use for range analysis and reports.
+//!
+//! Per-sample semantics (the full text is in `docs/language.md`, "Execution model"):
+//! 1. sensors are read and the differentiators behind `d()`/`d2()` take the new sample;
+//! 2. event handlers run in source order (`on`: rising edge; `while`: level);
+//! 3. force terms and outputs are computed, and the total force as their sum in declaration
+//!    order;
+//! 4. the dynamics equations are applied in source order (semi-implicit Euler).
+
+use crate::ast::Span;
+use crate::units::Dim;
+use std::fmt;
+
+macro_rules! entity {
+    ($(#[$m:meta])* $name:ident, $prefix:literal) => {
+        $(#[$m])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub struct $name(pub u32);
+        impl $name {
+            /// The index into its table.
+            pub fn index(self) -> usize {
+                self.0 as usize
+            }
+        }
+        impl fmt::Display for $name {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, concat!($prefix, "{}"), self.0)
+            }
+        }
+    };
+}
+
+entity!(
+    /// A computed value (SSA): index into [`Program::values`].
+    Value, "v"
+);
+entity!(
+    /// A sensor input: index into [`Program::sensors`].
+    SensorId, "sensor"
+);
+entity!(
+    /// A compile-time constant: index into [`Program::params`].
+    ParamId, "param"
+);
+entity!(
+    /// A continuous state: index into [`Program::states`].
+    StateId, "state"
+);
+entity!(
+    /// An enumerated mode: index into [`Program::modes`].
+    ModeId, "mode"
+);
+entity!(
+    /// A force term: index into [`Program::forces`].
+    ForceId, "force"
+);
+entity!(
+    /// A traced output: index into [`Program::outputs`].
+    OutputId, "output"
+);
+entity!(
+    /// A kind of emitted event: index into [`Program::events`].
+    EventId, "event"
+);
+entity!(
+    /// The remembered condition of an `on` handler: index into [`Program::edges`].
+    EdgeId, "edge"
+);
+
+/// The type of a value.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ty {
+    /// A real quantity of the given dimension, in SI.
+    Real(Dim),
+    /// A truth value (engines may hold it as 0/1).
+    Bool,
+    /// A variant index of the given mode.
+    Mode(ModeId),
+}
+
+/// A sensor: read once per sample from the outside world.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SensorDecl {
+    /// Source name.
+    pub name: String,
+    /// Dimension (SI).
+    pub dim: Dim,
+    /// Declared range `[lo, hi]` in SI; the range analysis starts from it.
+    pub range: (f64, f64),
+    /// Whether `d()`/`d2()` is taken of it (engines keep its history only then).
+    pub differentiated: bool,
+    /// Declaration span.
+    pub span: Span,
+}
+
+/// A param: a constant, folded at compile time (after `--param` overrides).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamDecl {
+    /// Source name, qualified by the instance for component params (`esc.peak`).
+    pub name: String,
+    /// Dimension.
+    pub dim: Dim,
+    /// Value in SI.
+    pub value: f64,
+    /// Declaration span.
+    pub span: Span,
+}
+
+/// A continuous state with its declared range. Writes saturate to the range.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StateDecl {
+    /// Qualified name.
+    pub name: String,
+    /// Dimension.
+    pub dim: Dim,
+    /// Initial value in SI.
+    pub init: f64,
+    /// Declared range `[lo, hi]` in SI.
+    pub range: (f64, f64),
+    /// Declaration span.
+    pub span: Span,
+}
+
+/// An enumerated mode (a finite state machine's current state).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModeDecl {
+    /// Qualified name.
+    pub name: String,
+    /// Variant names; a mode value is an index into this list.
+    pub variants: Vec<String>,
+    /// Initial variant index.
+    pub init: u32,
+    /// Declaration span.
+    pub span: Span,
+}
+
+/// A named force term or output.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NamedDecl {
+    /// Qualified name.
+    pub name: String,
+    /// Type of the value.
+    pub ty: Ty,
+    /// Declaration span.
+    pub span: Span,
+}
+
+/// A kind of event that `emit` produces, with its named arguments.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EventDecl {
+    /// Event name (`strike`).
+    pub name: String,
+    /// Argument names and dimensions, in order.
+    pub args: Vec<(String, Dim)>,
+}
+
+/// The remembered condition of one `on` handler (false before the first sample).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EdgeDecl {
+    /// Span of the handler.
+    pub span: Span,
+}
+
+/// Arithmetic operators. Dimension rule: `Add`/`Sub` need equal dimensions and keep it;
+/// `Mul` adds exponents, `Div` subtracts them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(missing_docs)]
+pub enum ArithOp {
+    Add,
+    Sub,
+    Mul,
+    Div,
+}
+
+/// Comparisons: operands of equal dimension (or the same mode, for `Eq`/`Ne`); result `Bool`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(missing_docs)]
+pub enum CmpOp {
+    Eq,
+    Ne,
+    Lt,
+    Le,
+    Gt,
+    Ge,
+}
+
+/// Built-in functions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Builtin {
+    /// `abs(x)`: same dimension.
+    Abs,
+    /// `sqrt(x)`: halves the exponents (which must be even); `sqrt` of a negative is 0.
+    Sqrt,
+    /// `exp(x)`: dimensionless in and out.
+    Exp,
+    /// `min(a, b)`: equal dimensions.
+    Min,
+    /// `max(a, b)`: equal dimensions.
+    Max,
+}
+
+/// How a value is computed. Each variant states its typing rule.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Op {
+    /// A constant in SI. Type: `Real(dim)` as recorded in [`ValueData::ty`].
+    Const(f64),
+    /// `true`/`false`. Type: `Bool`.
+    BoolConst(bool),
+    /// A mode variant index. Type: `Mode(m)`.
+    Variant(ModeId, u32),
+    /// A param's folded value. Type: `Real(param.dim)`.
+    Param(ParamId),
+    /// This sample's sensor reading. Type: `Real(sensor.dim)`.
+    Sensor(SensorId),
+    /// `d(x)` (order 1) or `d2(x)` (order 2) of a sensor by the multi-sample differentiator
+    /// of `tactus_runtime::differentiator`. Type: `Real(sensor.dim / s^order)`.
+    Deriv(SensorId, u8),
+    /// The state's current value (as left by earlier statements of this sample).
+    State(StateId),
+    /// The mode's current variant. Type: `Mode(m)`.
+    Mode(ModeId),
+    /// The condition an `on` handler had at the previous sample. Type: `Bool`.
+    Edge(EdgeId),
+    /// `-x`. Same type.
+    Neg(Value),
+    /// `not x`. Bool.
+    Not(Value),
+    /// `a OP b`. See [`ArithOp`].
+    Arith(ArithOp, Value, Value),
+    /// `a OP b`. See [`CmpOp`].
+    Cmp(CmpOp, Value, Value),
+    /// `a and b`. Bool.
+    And(Value, Value),
+    /// `a or b`. Bool.
+    Or(Value, Value),
+    /// `if c { a } else { b }`: both arms are evaluated (they have no effects). Type of `a`.
+    Select(Value, Value, Value),
+    /// A built-in function; unary ones use only the first operand.
+    Call(Builtin, Value, Option<Value>),
+}
+
+/// A value's definition and type.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ValueData {
+    /// How it is computed.
+    pub op: Op,
+    /// Its type.
+    pub ty: Ty,
+}
+
+/// A statement of the per-sample body, executed in order.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Stmt {
+    /// Computes a value.
+    Def(Value),
+    /// Writes a state, saturated to its declared range.
+    SetState(StateId, Value),
+    /// Sets a mode to a variant.
+    SetMode(ModeId, u32),
+    /// Remembers an `on` handler's condition for the next sample.
+    SetEdge(EdgeId, Value),
+    /// Runs the statements when the Bool value is true.
+    If(Value, Vec<Stmt>),
+    /// Emits an event with its argument values.
+    Emit(EventId, Vec<Value>),
+    /// Publishes a force term's value (newtons).
+    Force(ForceId, Value),
+    /// Publishes an output's value.
+    Output(OutputId, Value),
+    /// Publishes the total commanded force (newtons).
+    Total(Value),
+}
+
+/// One instrument, lowered and checked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Program {
+    /// Instrument name.
+    pub name: String,
+    /// The sample rate the dynamics are discretised at, Hz.
+    pub sample_rate_hz: f64,
+    /// Sensors, in declaration order.
+    pub sensors: Vec<SensorDecl>,
+    /// Params (constants), instance params qualified.
+    pub params: Vec<ParamDecl>,
+    /// States.
+    pub states: Vec<StateDecl>,
+    /// Modes.
+    pub modes: Vec<ModeDecl>,
+    /// Force terms; the commanded force is their sum.
+    pub forces: Vec<NamedDecl>,
+    /// Outputs (e.g. hammer position for a synthesizer).
+    pub outputs: Vec<NamedDecl>,
+    /// Event kinds.
+    pub events: Vec<EventDecl>,
+    /// Edge memories of `on` handlers.
+    pub edges: Vec<EdgeDecl>,
+    /// Value table.
+    pub values: Vec<ValueData>,
+    /// The per-sample update.
+    pub body: Vec<Stmt>,
+}
+
+impl Program {
+    /// The data of a value.
+    pub fn value(&self, v: Value) -> &ValueData {
+        &self.values[v.index()]
+    }
+}
