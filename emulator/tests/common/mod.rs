@@ -67,3 +67,82 @@ pub fn num(s: &str) -> u32 {
     }
     .unwrap_or_else(|_| panic!("bad number `{s}`"))
 }
+
+/// Minimal Thumb encoders for test programs that must run without binutils: one function
+/// per encoding class, arguments named after the bit fields (checked against the assembler
+/// in `rp2040.rs` when it is installed).
+pub mod enc {
+    fn lo(r: u16) -> u16 {
+        assert!(r < 8, "low register expected");
+        r
+    }
+    /// `MOVS Rd, #imm8`
+    pub fn movs(rd: u16, imm8: u16) -> u16 {
+        assert!(imm8 < 256);
+        0x2000 | lo(rd) << 8 | imm8
+    }
+    /// `LDR Rt, [Rn, #imm]` (imm multiple of 4, < 128)
+    pub fn ldr(rt: u16, rn: u16, imm: u16) -> u16 {
+        assert!(imm % 4 == 0 && imm < 128);
+        0x6800 | (imm / 4) << 6 | lo(rn) << 3 | lo(rt)
+    }
+    /// `STR Rt, [Rn, #imm]`
+    pub fn str(rt: u16, rn: u16, imm: u16) -> u16 {
+        assert!(imm % 4 == 0 && imm < 128);
+        0x6000 | (imm / 4) << 6 | lo(rn) << 3 | lo(rt)
+    }
+    /// `LSLS Rd, Rm, #imm5`
+    pub fn lsls(rd: u16, rm: u16, imm5: u16) -> u16 {
+        assert!(imm5 < 32);
+        imm5 << 6 | lo(rm) << 3 | lo(rd)
+    }
+    /// `ADDS Rdn, #imm8`
+    pub fn adds_imm8(rdn: u16, imm8: u16) -> u16 {
+        assert!(imm8 < 256);
+        0x3000 | lo(rdn) << 8 | imm8
+    }
+    /// `SUBS Rdn, #imm8`
+    pub fn subs_imm8(rdn: u16, imm8: u16) -> u16 {
+        assert!(imm8 < 256);
+        0x3800 | lo(rdn) << 8 | imm8
+    }
+    /// `B<cond> .+offset` (offset from the instruction, even)
+    pub fn bcond(cond: u16, offset: i32) -> u16 {
+        let imm = (offset - 4) / 2;
+        assert!((-128..128).contains(&imm) && cond < 14);
+        0xd000 | cond << 8 | (imm as u16 & 0xff)
+    }
+    /// `NOP` (the ARMv6-M hint; GNU as spells `nop` as `mov r8, r8` = 46c0)
+    pub fn nop() -> u16 {
+        0xbf00
+    }
+    /// `SVC #imm8`
+    pub fn svc(imm8: u16) -> u16 {
+        0xdf00 | imm8
+    }
+    /// `CMP Rn, #imm8`
+    pub fn cmp_imm(rn: u16, imm8: u16) -> u16 {
+        0x2800 | lo(rn) << 8 | imm8
+    }
+    /// Table of (encoding, assembly) for checking against the assembler.
+    pub fn examples() -> Vec<(u16, &'static str)> {
+        vec![
+            (movs(3, 200), "movs r3, #200"),
+            (ldr(1, 0, 0x70), "ldr r1, [r0, #0x70]"),
+            (str(2, 7, 0x64), "str r2, [r7, #0x64]"),
+            (lsls(0, 0, 28), "lsls r0, r0, #28"),
+            (adds_imm8(5, 1), "adds r5, #1"),
+            (subs_imm8(4, 1), "subs r4, #1"),
+            (bcond(1, -4), "bne .-4"),
+            (svc(0), "svc #0"),
+            (cmp_imm(6, 9), "cmp r6, #9"),
+        ]
+    }
+}
+
+/// Loads `code` at `addr` and starts core `core` there with SP `sp`.
+pub fn load_program(board: &mut tactus_emulator::Board, core: usize, addr: u32, sp: u32, code: &[u16]) {
+    let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+    board.write_bytes(addr, &bytes).expect("program fits in memory");
+    board.start_core(core, addr | 1, sp, 0);
+}
