@@ -339,3 +339,10 @@ fn missing_csv_file_is_an_io_error_naming_it() {
     assert!(matches!(e, StimulusError::Io { .. }));
     assert!(e.to_string().contains(&*path.to_string_lossy()), "{e}");
 }
+
+#[test]
+fn csv_from_a_spreadsheet_with_bom_and_crlf_is_read() {
+    let (_, s) = read_csv_text("bom-crlf", "\u{feff}key_mm\r\n0\r\n2.5\r\n10\r\n");
+    let s = s.unwrap();
+    assert_eq!(s.key, vec![0.0, 0.0025, 0.010]);
+}
