@@ -1,13 +1,21 @@
-//! The `tactus` command-line tool.
+//! The `tactus` command-line tool. Only this crate prints; the libraries return values and
+//! diagnostics.
 
+mod check_cmd;
 mod emu_cmd;
+mod plot;
+mod sim_cmd;
+mod source;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 /// Tactus: touch profiles for force-feedback instruments.
+///
+/// Write how a key should feel in a `.tactus` file (states, events, force terms), check it,
+/// simulate it on the host, and run firmware on the emulated RP2040.
 #[derive(Debug, Parser)]
-#[command(name = "tactus", version, about, long_about = None)]
+#[command(name = "tactus", version, about, long_about)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -15,6 +23,10 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Check an instrument: syntax, names, dimensions; exit code 1 on error.
+    Check(check_cmd::CheckArgs),
+    /// Simulate an instrument over a key stimulus; write a CSV trace and SVG plots.
+    Sim(sim_cmd::SimArgs),
     /// Run ELF firmware on the emulated dual-core RP2040.
     #[command(subcommand)]
     Emu(emu_cmd::EmuCommand),
@@ -23,6 +35,8 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Check(args) => check_cmd::run(args),
+        Command::Sim(args) => sim_cmd::run(args),
         Command::Emu(cmd) => emu_cmd::run(cmd),
     }
 }

@@ -15,6 +15,7 @@ pub mod interp;
 pub mod ir;
 pub mod lower;
 pub mod print;
+pub mod sim;
 
 use diagnostics::Diagnostic;
 

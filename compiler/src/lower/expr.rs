@@ -134,10 +134,10 @@ impl<'a> Lowerer<'a> {
         None
     }
 
-    /// A bare name that is not in scope but is a variant of `mode`.
-    fn variant_of(&self, scope: ScopeId, e: &ast::Expr, mode: ModeId) -> Option<u32> {
+    /// The variant of `mode` a bare name denotes.
+    fn variant_of(&self, e: &ast::Expr, mode: ModeId) -> Option<u32> {
         let ExprKind::Path(p) = &e.node else { return None };
-        if p.len() != 1 || self.scopes[scope.0].syms.contains_key(&p[0].node) {
+        if p.len() != 1 {
             return None;
         }
         self.prog.modes[mode.index()].variants.iter().position(|v| *v == p[0].node).map(|i| i as u32)
@@ -145,14 +145,18 @@ impl<'a> Lowerer<'a> {
 
     fn lower_binary(&mut self, scope: ScopeId, op: BinOp, a: &'a ast::Expr, b: &'a ast::Expr, span: Span) -> Option<Value> {
         if matches!(op, BinOp::Eq | BinOp::Ne) {
-            // `mode == variant` in either order.
-            let is_bare_unknown = |e: &ast::Expr| {
+            // `mode == variant` in either order. A variant name on the right of a mode wins
+            // over any other meaning of that name; on the left only an otherwise unknown name
+            // is taken as a variant.
+            let bare = |e: &ast::Expr| matches!(&e.node, ExprKind::Path(p) if p.len() == 1);
+            let unknown = |e: &ast::Expr| {
                 matches!(&e.node, ExprKind::Path(p) if p.len() == 1 && !self.scopes[scope.0].syms.contains_key(&p[0].node))
             };
-            let (mode_side, var_side) = if is_bare_unknown(a) { (b, a) } else { (a, b) };
+            let swapped = unknown(a) && !unknown(b);
+            let (mode_side, var_side) = if swapped { (b, a) } else { (a, b) };
             let mv = self.lower_expr(scope, mode_side)?;
-            if let Ty::Mode(m) = self.ty(mv) {
-                let Some(idx) = self.variant_of(scope, var_side, m) else {
+            if let (Ty::Mode(m), true) = (self.ty(mv), bare(var_side)) {
+                let Some(idx) = self.variant_of(var_side, m) else {
                     let list = self.prog.modes[m.index()].variants.join(", ");
                     let name = self.prog.modes[m.index()].name.clone();
                     self.err(
@@ -166,7 +170,7 @@ impl<'a> Lowerer<'a> {
                 return Some(self.def(Op::Cmp(cmp, mv, vv), Ty::Bool));
             }
             let other = self.lower_expr(scope, var_side)?;
-            let (x, y) = if std::ptr::eq(mode_side, a) { (mv, other) } else { (other, mv) };
+            let (x, y) = if swapped { (other, mv) } else { (mv, other) };
             return self.finish_binary(op, x, y, a, b, span);
         }
         let x = self.lower_expr(scope, a);

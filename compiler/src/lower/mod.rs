@@ -55,7 +55,11 @@ pub struct Lowered {
 pub fn lower(file: &ast::File, config: &Config) -> Result<Lowered, Vec<Diagnostic>> {
     let mut l = Lowerer::new(config);
     l.run(file);
-    let (errors, warnings): (Vec<_>, Vec<_>) = l.diags.into_iter().partition(|d| d.is_error());
+    // A definition lowered several times (once per memo epoch) reports its errors once.
+    let mut seen = HashSet::new();
+    let diags: Vec<Diagnostic> =
+        l.diags.into_iter().filter(|d| seen.insert((d.code, d.primary.0.clone(), d.message.clone()))).collect();
+    let (errors, warnings): (Vec<_>, Vec<_>) = diags.into_iter().partition(|d| d.is_error());
     if errors.is_empty() {
         Ok(Lowered { program: l.prog, warnings })
     } else {

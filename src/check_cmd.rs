@@ -1,0 +1,84 @@
+//! `tactus check`: parse and check an instrument, print its diagnostics (and the IR).
+
+use crate::source;
+use std::process::ExitCode;
+use tactus_compiler::diagnostics;
+use tactus_compiler::lower::Config;
+
+/// Arguments of `tactus check`.
+#[derive(Debug, clap::Args)]
+pub struct CheckArgs {
+    /// Instrument file (`instruments/grand_piano.tactus`) or built-in name (`grand_piano`).
+    pub file: String,
+    /// Override a param: `--param k=200 N/m` (repeatable; the unit must match the param's).
+    #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
+    pub params: Vec<(String, String)>,
+    /// Also print the lowered IR.
+    #[arg(long, value_enum)]
+    pub emit: Option<Emit>,
+}
+
+/// What `--emit` prints.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum Emit {
+    /// The IR after lowering (instanced components, SI constants).
+    Ir,
+}
+
+/// Parses `NAME=VALUE` of `--param`.
+pub fn parse_override(s: &str) -> Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((n, v)) if !n.trim().is_empty() && !v.trim().is_empty() => Ok((n.trim().to_string(), v.trim().to_string())),
+        _ => Err(format!("expected NAME=VALUE with a unit, e.g. `k=200 N/m`, got `{s}`")),
+    }
+}
+
+/// Compiles a source with overrides and prints its diagnostics to stderr; returns the IR.
+pub fn compile_reporting(src: &source::Source, params: &[(String, String)]) -> Option<tactus_compiler::lower::Lowered> {
+    let config = Config { overrides: params.to_vec(), ..Config::default() };
+    let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
+        codespan_reporting::term::termcolor::ColorChoice::Auto,
+    );
+    match tactus_compiler::compile(&src.text, &config) {
+        Ok(l) => {
+            let _ = diagnostics::emit(&mut err, &src.name, &src.text, &l.warnings);
+            Some(l)
+        }
+        Err(d) => {
+            let _ = diagnostics::emit(&mut err, &src.name, &src.text, &d);
+            let n = d.iter().filter(|d| d.is_error()).count();
+            eprintln!("error: {} has {n} error{}", src.name, if n == 1 { "" } else { "s" });
+            None
+        }
+    }
+}
+
+/// Runs `tactus check`.
+pub fn run(args: CheckArgs) -> ExitCode {
+    let src = match source::load(&args.file) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let Some(l) = compile_reporting(&src, &args.params) else { return ExitCode::FAILURE };
+    let p = &l.program;
+    println!(
+        "{}: instrument `{}` is well-formed: {} sensor(s), {} params, {} states, {} modes, {} force terms, {} outputs, {} event kinds, {} IR values",
+        src.name,
+        p.name,
+        p.sensors.len(),
+        p.params.len(),
+        p.states.len(),
+        p.modes.len(),
+        p.forces.len(),
+        p.outputs.len(),
+        p.events.len(),
+        p.values.len()
+    );
+    if matches!(args.emit, Some(Emit::Ir)) {
+        print!("{p}");
+    }
+    ExitCode::SUCCESS
+}

@@ -1,0 +1,124 @@
+//! `tactus sim`: run an instrument over a key stimulus on the host (f64 reference
+//! interpreter) and write a CSV trace and SVG plots.
+
+use crate::check_cmd::{compile_reporting, parse_override};
+use crate::{plot, source};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use tactus_runtime::stimulus;
+
+/// Arguments of `tactus sim`.
+#[derive(Debug, clap::Args)]
+#[command(after_long_help = stimulus_help())]
+pub struct SimArgs {
+    /// Instrument file or built-in name (grand_piano, harpsichord, harpsichord_2x8, hammond).
+    #[arg(default_value = "grand_piano")]
+    pub file: String,
+    /// Built-in stimulus name, or a CSV file of key positions (see below).
+    #[arg(long, short, default_value = "ff-dip")]
+    pub stimulus: String,
+    /// Full key dip of the built-in stimuli, mm [default: the key sensor's upper bound].
+    #[arg(long, value_name = "MM")]
+    pub dip: Option<f64>,
+    /// Override a param: `--param G=0.2 N` (repeatable).
+    #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
+    pub params: Vec<(String, String)>,
+    /// Directory for the trace and plots (created if missing).
+    #[arg(long, short, default_value = "out")]
+    pub out: PathBuf,
+}
+
+fn stimulus_help() -> String {
+    let mut s = String::from("Built-in stimuli (key travel at the front, position-driven):\n");
+    for (n, d) in stimulus::builtin_names() {
+        s.push_str(&format!("  {n:<10} {d}\n"));
+    }
+    s.push_str(
+        "\nA CSV stimulus has a header `key_mm` (one row per sample at 44.1 kHz) or\n\
+         `time_s,key_mm` (any increasing times, linearly interpolated).\n\n\
+         Outputs: OUT/NAME-STIMULUS.csv (every force term, total, states, modes, outputs,\n\
+         events), OUT/NAME-STIMULUS-forces.svg (force vs time, force vs key position) and,\n\
+         when the instrument has outputs, OUT/NAME-STIMULUS-outputs.svg.\n\n\
+         Example: tactus sim instruments/grand_piano.tactus --stimulus half-dip --param G=0.2 N",
+    );
+    s
+}
+
+/// Runs `tactus sim`.
+pub fn run(args: SimArgs) -> ExitCode {
+    match run_inner(&args) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
+    let src = source::load(&args.file)?;
+    let Some(lowered) = compile_reporting(&src, &args.params) else { return Ok(ExitCode::FAILURE) };
+    let program = &lowered.program;
+    let fs = program.sample_rate_hz;
+    let Some(key) = program.sensors.first() else {
+        return Err(format!("instrument `{}` has no sensor to drive", program.name));
+    };
+    let dip_m = args.dip.map_or(key.range.1, |mm| mm * 1e-3);
+    let stim = if std::path::Path::new(&args.stimulus).exists() {
+        stimulus::from_csv(std::path::Path::new(&args.stimulus), fs)
+    } else {
+        stimulus::builtin(&args.stimulus, dip_m, fs)
+    }
+    .map_err(|e| e.to_string())?;
+    let (trace, summary) = tactus_compiler::sim::simulate(program, &stim);
+
+    std::fs::create_dir_all(&args.out).map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
+    let stem = format!("{}-{}", program.name, stim.name.trim_end_matches(".csv"));
+    let csv = args.out.join(format!("{stem}.csv"));
+    trace.write_csv_file(&csv).map_err(|e| e.to_string())?;
+    let title = format!("{} — {}", program.name, stim.name);
+    let forces_svg = args.out.join(format!("{stem}-forces.svg"));
+    plot::plot_forces(&trace, &title, &forces_svg).map_err(|e| e.to_string())?;
+    let mut written = vec![csv, forces_svg];
+    if !program.outputs.is_empty() {
+        let names: Vec<&str> = program.outputs.iter().map(|o| o.name.as_str()).collect();
+        let svg = args.out.join(format!("{stem}-outputs.svg"));
+        plot::plot_columns(&trace, &names, &title, &svg).map_err(|e| e.to_string())?;
+        written.push(svg);
+    }
+
+    let total = trace.column("total").map(|c| c.values.clone()).unwrap_or_default();
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for &f in &total {
+        lo = lo.min(f);
+        hi = hi.max(f);
+    }
+    println!(
+        "{}: {} samples ({:.3} s at {} Hz), total force {:.3} N … {:.3} N",
+        title,
+        stim.len(),
+        stim.duration_s(),
+        fs,
+        lo,
+        hi
+    );
+    for (n, name, a) in &summary.events {
+        let ev = program.events.iter().find(|e| &e.name == name);
+        let args_text: Vec<String> = ev
+            .map(|e| e.args.iter().zip(a).map(|((an, d), v)| format!("{an} = {v:.4} {}", d.unit_string())).collect())
+            .unwrap_or_default();
+        println!("  event {name} at {:.2} ms: {}", *n as f64 / fs * 1e3, args_text.join(", "));
+    }
+    for (s, &count) in program.states.iter().zip(&summary.saturations) {
+        if count > 0 {
+            eprintln!(
+                "warning: state `{}` was saturated to its range [{}, {}] {} {count} times; widen the range if this is not intended",
+                s.name, s.range.0, s.range.1, s.dim.unit_string()
+            );
+        }
+    }
+    for w in written {
+        println!("  wrote {}", w.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
