@@ -460,3 +460,143 @@ fn decode32(hw1: u16, hw2: u16) -> Instr {
         _ => undefined,
     }
 }
+
+const REG_NAMES: [&str; 16] =
+    ["r0", "r1", "r2", "r3", "r4", "r5", "r6", "r7", "r8", "r9", "r10", "r11", "r12", "sp", "lr", "pc"];
+
+fn reg_list(f: &mut std::fmt::Formatter<'_>, list: u16) -> std::fmt::Result {
+    let names: Vec<&str> = (0..16).filter(|r| list & (1 << r) != 0).map(|r| REG_NAMES[r]).collect();
+    write!(f, "{{{}}}", names.join(", "))
+}
+
+const CONDS: [&str; 14] = ["eq", "ne", "cs", "cc", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt", "gt", "le"];
+
+/// Unified assembler syntax (branch targets as `.+offset` from the instruction).
+impl std::fmt::Display for Instr {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        use Instr::*;
+        let r = |n: u8| REG_NAMES[n as usize];
+        match *self {
+            LslImm { rd, rm, imm: 0 } => write!(f, "movs {}, {}", r(rd), r(rm)),
+            LslImm { rd, rm, imm } => write!(f, "lsls {}, {}, #{imm}", r(rd), r(rm)),
+            LsrImm { rd, rm, imm } => write!(f, "lsrs {}, {}, #{imm}", r(rd), r(rm)),
+            AsrImm { rd, rm, imm } => write!(f, "asrs {}, {}, #{imm}", r(rd), r(rm)),
+            AddReg { rd, rn, rm } => write!(f, "adds {}, {}, {}", r(rd), r(rn), r(rm)),
+            SubReg { rd, rn, rm } => write!(f, "subs {}, {}, {}", r(rd), r(rn), r(rm)),
+            AddImm { rd, rn, imm } => write!(f, "adds {}, {}, #{imm}", r(rd), r(rn)),
+            SubImm { rd, rn, imm } => write!(f, "subs {}, {}, #{imm}", r(rd), r(rn)),
+            MovImm { rd, imm } => write!(f, "movs {}, #{imm}", r(rd)),
+            CmpImm { rn, imm } => write!(f, "cmp {}, #{imm}", r(rn)),
+            Alu { op: AluOp::Rsb, rdn, rm } => write!(f, "rsbs {}, {}, #0", r(rdn), r(rm)),
+            Alu { op: AluOp::Mul, rdn, rm } => write!(f, "muls {}, {}, {}", r(rdn), r(rm), r(rdn)),
+            Alu { op, rdn, rm } => {
+                let name = match op {
+                    AluOp::And => "ands",
+                    AluOp::Eor => "eors",
+                    AluOp::Lsl => "lsls",
+                    AluOp::Lsr => "lsrs",
+                    AluOp::Asr => "asrs",
+                    AluOp::Adc => "adcs",
+                    AluOp::Sbc => "sbcs",
+                    AluOp::Ror => "rors",
+                    AluOp::Tst => "tst",
+                    AluOp::Cmp => "cmp",
+                    AluOp::Cmn => "cmn",
+                    AluOp::Orr => "orrs",
+                    AluOp::Bic => "bics",
+                    _ => "mvns",
+                };
+                write!(f, "{name} {}, {}", r(rdn), r(rm))
+            }
+            AddHi { rdn, rm } => write!(f, "add {}, {}", r(rdn), r(rm)),
+            CmpHi { rn, rm } => write!(f, "cmp {}, {}", r(rn), r(rm)),
+            MovHi { rd, rm } => write!(f, "mov {}, {}", r(rd), r(rm)),
+            Bx { rm } => write!(f, "bx {}", r(rm)),
+            Blx { rm } => write!(f, "blx {}", r(rm)),
+            LdrLit { rt, imm } => write!(f, "ldr {}, [pc, #{imm}]", r(rt)),
+            MemReg { op, rt, rn, rm } => write!(f, "{} {}, [{}, {}]", mem_name(op), r(rt), r(rn), r(rm)),
+            MemImm { op, rt, rn, imm } => write!(f, "{} {}, [{}, #{imm}]", mem_name(op), r(rt), r(rn)),
+            Adr { rd, imm } => write!(f, "add {}, pc, #{imm}", r(rd)),
+            AddSpImm { rd, imm } => write!(f, "add {}, sp, #{imm}", r(rd)),
+            AddSp { imm } => write!(f, "add sp, #{imm}"),
+            SubSp { imm } => write!(f, "sub sp, #{imm}"),
+            Sxth { rd, rm } => write!(f, "sxth {}, {}", r(rd), r(rm)),
+            Sxtb { rd, rm } => write!(f, "sxtb {}, {}", r(rd), r(rm)),
+            Uxth { rd, rm } => write!(f, "uxth {}, {}", r(rd), r(rm)),
+            Uxtb { rd, rm } => write!(f, "uxtb {}, {}", r(rd), r(rm)),
+            Rev { rd, rm } => write!(f, "rev {}, {}", r(rd), r(rm)),
+            Rev16 { rd, rm } => write!(f, "rev16 {}, {}", r(rd), r(rm)),
+            Revsh { rd, rm } => write!(f, "revsh {}, {}", r(rd), r(rm)),
+            Push { list } => {
+                f.write_str("push ")?;
+                reg_list(f, list)
+            }
+            Pop { list } => {
+                f.write_str("pop ")?;
+                reg_list(f, list)
+            }
+            Stm { rn, list } => {
+                write!(f, "stmia {}!, ", r(rn))?;
+                reg_list(f, list as u16)
+            }
+            Ldm { rn, list } => {
+                let wb = if list & (1 << rn) == 0 { "!" } else { "" };
+                write!(f, "ldmia {}{wb}, ", r(rn))?;
+                reg_list(f, list as u16)
+            }
+            Cps { disable } => f.write_str(if disable { "cpsid i" } else { "cpsie i" }),
+            Bkpt { imm } => write!(f, "bkpt #{imm}"),
+            Hint(h) => f.write_str(match h {
+                self::Hint::Nop => "nop",
+                self::Hint::Yield => "yield",
+                self::Hint::Wfe => "wfe",
+                self::Hint::Wfi => "wfi",
+                self::Hint::Sev => "sev",
+            }),
+            BCond { cond, offset } => write!(f, "b{} .{:+}", CONDS[cond as usize], offset + 4),
+            B { offset } => write!(f, "b .{:+}", offset + 4),
+            Svc { imm } => write!(f, "svc #{imm}"),
+            Udf { imm } => write!(f, "udf #{imm}"),
+            Bl { offset } => write!(f, "bl .{:+}", offset + 4),
+            Msr { sysm, rn } => write!(f, "msr {}, {}", sysreg(sysm), r(rn)),
+            Mrs { rd, sysm } => write!(f, "mrs {}, {}", r(rd), sysreg(sysm)),
+            Barrier(b) => f.write_str(match b {
+                self::Barrier::Dmb => "dmb sy",
+                self::Barrier::Dsb => "dsb sy",
+                self::Barrier::Isb => "isb sy",
+            }),
+            Undefined { hw1, hw2 } if is_32bit(hw1) => write!(f, ".inst.w 0x{hw1:04x}{hw2:04x}"),
+            Undefined { hw1, .. } => write!(f, ".inst.n 0x{hw1:04x}"),
+        }
+    }
+}
+
+fn mem_name(op: MemOp) -> &'static str {
+    match op {
+        MemOp::Str => "str",
+        MemOp::Strh => "strh",
+        MemOp::Strb => "strb",
+        MemOp::Ldrsb => "ldrsb",
+        MemOp::Ldr => "ldr",
+        MemOp::Ldrh => "ldrh",
+        MemOp::Ldrb => "ldrb",
+        MemOp::Ldrsh => "ldrsh",
+    }
+}
+
+fn sysreg(sysm: u8) -> &'static str {
+    match sysm {
+        0 => "apsr",
+        1 => "iapsr",
+        2 => "eapsr",
+        3 => "xpsr",
+        5 => "ipsr",
+        6 => "epsr",
+        7 => "iepsr",
+        8 => "msp",
+        9 => "psp",
+        16 => "primask",
+        20 => "control",
+        _ => "?",
+    }
+}
