@@ -208,7 +208,7 @@ impl Board {
     /// ROM does; the core stops taking part in the launch protocol.
     pub fn boot_from_vectors(&mut self, core: usize, vtor: u32) -> Result<(), EmuError> {
         let sp = self.read_u32(vtor)?;
-        let pc = self.read_u32(vtor + 4)?;
+        let pc = self.read_u32(vtor.wrapping_add(4))?;
         self.start_core(core, pc, sp, vtor);
         Ok(())
     }

@@ -391,7 +391,7 @@ impl Core {
         let xpsr = self.xpsr() | (align != 0) as u32 * (1 << 9);
         let words = [self.r[0], self.r[1], self.r[2], self.r[3], self.r[12], self.r[14], ret, xpsr];
         for (i, w) in words.iter().enumerate() {
-            bus.write(self.id, self.cycle, frame + 4 * i as u32, 4, *w)?;
+            bus.write(self.id, self.cycle, frame.wrapping_add(4 * i as u32), 4, *w)?;
         }
         self.r[13] = frame;
         self.r[14] = match (self.ipsr != 0, was_psp) {
@@ -431,7 +431,7 @@ impl Core {
         let frame = self.r[13];
         let mut w = [0u32; 8];
         for (i, slot) in w.iter_mut().enumerate() {
-            *slot = bus.read(self.id, self.cycle, frame + 4 * i as u32, 4)?.0;
+            *slot = bus.read(self.id, self.cycle, frame.wrapping_add(4 * i as u32), 4)?.0;
         }
         [self.r[0], self.r[1], self.r[2], self.r[3], self.r[12], self.r[14]] = [w[0], w[1], w[2], w[3], w[4], w[5]];
         self.r[15] = w[6] & !1;
@@ -439,7 +439,7 @@ impl Core {
         self.set_apsr(xpsr);
         self.thumb = xpsr & (1 << 24) != 0;
         self.ipsr = if to_thread { 0 } else { xpsr & 0x3f };
-        self.r[13] = frame + 32 + if xpsr & (1 << 9) != 0 { 4 } else { 0 };
+        self.r[13] = frame.wrapping_add(32 + if xpsr & (1 << 9) != 0 { 4 } else { 0 });
         self.event = true;
         Ok(())
     }

@@ -253,7 +253,7 @@ impl Core {
                 let mut addr = base;
                 for (i, reg) in (0..15).filter(|r| list & (1 << r) != 0).enumerate() {
                     wait += self.store(bus, addr, 4, self.r[reg], now + 1 + i as u64 + wait as u64)?;
-                    addr += 4;
+                    addr = addr.wrapping_add(4);
                 }
                 self.r[13] = base;
             }

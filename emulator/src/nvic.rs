@@ -86,7 +86,7 @@ impl Nvic {
             SVCALL => (self.shpr2 >> 30) as i32,
             PENDSV => ((self.shpr3 >> 22) & 3) as i32,
             SYSTICK => (self.shpr3 >> 30) as i32,
-            n if n >= IRQ0 => {
+            n if (IRQ0..IRQ0 + 32).contains(&n) => {
                 let irq = n - IRQ0;
                 ((self.ipr[(irq / 4) as usize] >> (8 * (irq % 4) + 6)) & 3) as i32
             }
