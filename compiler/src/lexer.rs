@@ -164,8 +164,36 @@ impl fmt::Display for Token {
             Token::Ident(s) => write!(f, "`{s}`"),
             Token::Number(_) => write!(f, "number"),
             other => {
-                let s = format!("{other:?}").to_lowercase();
-                write!(f, "`{s}`")
+                let text = match other {
+                    Token::LBrace => "{",
+                    Token::RBrace => "}",
+                    Token::LParen => "(",
+                    Token::RParen => ")",
+                    Token::LBracket => "[",
+                    Token::RBracket => "]",
+                    Token::Comma => ",",
+                    Token::Colon => ":",
+                    Token::Dot => ".",
+                    Token::Prime => "'",
+                    Token::Eq => "=",
+                    Token::EqEq => "==",
+                    Token::NotEq => "!=",
+                    Token::Lt => "<",
+                    Token::Le => "<=",
+                    Token::Gt => ">",
+                    Token::Ge => ">=",
+                    Token::Plus => "+",
+                    Token::Minus => "-",
+                    Token::Star => "*",
+                    Token::Slash => "/",
+                    Token::Caret => "^",
+                    _ => "",
+                };
+                if text.is_empty() {
+                    write!(f, "`{}`", format!("{other:?}").to_lowercase())
+                } else {
+                    write!(f, "`{text}`")
+                }
             }
         }
     }

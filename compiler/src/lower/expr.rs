@@ -401,7 +401,7 @@ impl<'a> Lowerer<'a> {
             self.err(
                 Diagnostic::error("E0202", format!("dimension mismatch: `{name}` of {} and {}", d0, dims[bad]), span)
                     .with_secondary(args[bad].span.clone(), dims[bad].to_string())
-                    .hint("all arguments must have the same unit"),
+                    .hint(zero_hint(Ty::Real(d0), Ty::Real(dims[bad])).unwrap_or("all arguments must have the same unit")),
             );
             return None;
         }

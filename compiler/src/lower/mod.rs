@@ -182,7 +182,7 @@ impl<'a> Lowerer<'a> {
             return;
         };
         self.prog.name = inst.name.node.clone();
-        let root = self.declare_scope(inst, String::new(), None, &[], 0);
+        let root = self.declare_scope(inst, String::new(), None, &[], inst.name.span.clone(), 0);
         self.apply_overrides();
         self.evaluate_constants();
         self.generate_body(root);
@@ -259,10 +259,13 @@ impl<'a> Lowerer<'a> {
                 .fold(first, |acc, &f| self.def(Op::Arith(ArithOp::Add, acc, f), Ty::Real(Dim::FORCE))),
             None => {
                 let span = self.scopes[root.0].body.name.span.clone();
-                self.err(
+                let declared = decls.iter().any(|(_, d)| matches!(d, ast::Decl::Force { .. }));
+                if !declared {
+                    self.err(
                     Diagnostic::warning("W0002", "this instrument has no force terms", span)
                         .hint("declare `force NAME = …` terms; their sum is the commanded force"),
-                );
+                    );
+                }
                 self.def(Op::Const(0.0), Ty::Real(Dim::FORCE))
             }
         };

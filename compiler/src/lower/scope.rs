@@ -120,6 +120,7 @@ impl<'a> Lowerer<'a> {
         prefix: String,
         parent: Option<ScopeId>,
         args: &'a [(ast::Name, ast::Expr)],
+        use_span: Span,
         depth: usize,
     ) -> ScopeId {
         let id = ScopeId(self.scopes.len());
@@ -279,7 +280,7 @@ impl<'a> Lowerer<'a> {
                         continue;
                     }
                     let child_prefix = format!("{prefix}{}.", name.node);
-                    let child = self.declare_scope(comp, child_prefix, Some(id), uargs, depth + 1);
+                    let child = self.declare_scope(comp, child_prefix, Some(id), uargs, span.clone(), depth + 1);
                     self.add_sym(id, name, Sym::Instance(child));
                 }
             }
@@ -302,9 +303,8 @@ impl<'a> Lowerer<'a> {
         if is_component {
             for inp in &self.scopes[id.0].inputs {
                 if inp.arg.is_none() {
-                    let use_span = args.first().map_or(body.name.span.clone(), |a| a.0.span.clone());
                     self.diags.push(
-                        Diagnostic::error("E0118", format!("input `{}` of component `{}` is not connected", inp.name.node, body.name.node), use_span)
+                        Diagnostic::error("E0118", format!("input `{}` of component `{}` is not connected", inp.name.node, body.name.node), use_span.clone())
                             .with_secondary(inp.name.span.clone(), "input declared here")
                             .hint(format!("pass it in the `use`: `{} = …`", inp.name.node)),
                     );
