@@ -28,14 +28,24 @@ pub enum Emit {
 /// Parses `NAME=VALUE` of `--param`.
 pub fn parse_override(s: &str) -> Result<(String, String), String> {
     match s.split_once('=') {
-        Some((n, v)) if !n.trim().is_empty() && !v.trim().is_empty() => Ok((n.trim().to_string(), v.trim().to_string())),
-        _ => Err(format!("expected NAME=VALUE with a unit, e.g. `k=200 N/m`, got `{s}`")),
+        Some((n, v)) if !n.trim().is_empty() && !v.trim().is_empty() => {
+            Ok((n.trim().to_string(), v.trim().to_string()))
+        }
+        _ => Err(format!(
+            "expected NAME=VALUE with a unit, e.g. `k=200 N/m`, got `{s}`"
+        )),
     }
 }
 
 /// Compiles a source with overrides and prints its diagnostics to stderr; returns the IR.
-pub fn compile_reporting(src: &source::Source, params: &[(String, String)]) -> Option<tactus_compiler::lower::Lowered> {
-    let config = Config { overrides: params.to_vec(), ..Config::default() };
+pub fn compile_reporting(
+    src: &source::Source,
+    params: &[(String, String)],
+) -> Option<tactus_compiler::lower::Lowered> {
+    let config = Config {
+        overrides: params.to_vec(),
+        ..Config::default()
+    };
     let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
         codespan_reporting::term::termcolor::ColorChoice::Auto,
     );
@@ -47,7 +57,11 @@ pub fn compile_reporting(src: &source::Source, params: &[(String, String)]) -> O
         Err(d) => {
             let _ = diagnostics::emit(&mut err, &src.name, &src.text, &d);
             let n = d.iter().filter(|d| d.is_error()).count();
-            eprintln!("error: {} has {n} error{}", src.name, if n == 1 { "" } else { "s" });
+            eprintln!(
+                "error: {} has {n} error{}",
+                src.name,
+                if n == 1 { "" } else { "s" }
+            );
             None
         }
     }
@@ -62,7 +76,9 @@ pub fn run(args: CheckArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let Some(l) = compile_reporting(&src, &args.params) else { return ExitCode::FAILURE };
+    let Some(l) = compile_reporting(&src, &args.params) else {
+        return ExitCode::FAILURE;
+    };
     let p = &l.program;
     println!(
         "{}: instrument `{}` is well-formed: {} sensor(s), {} params, {} states, {} modes, {} force terms, {} outputs, {} event kinds, {} IR values",

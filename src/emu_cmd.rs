@@ -28,7 +28,11 @@ pub enum EmuCommand {
 /// Runs an `emu` subcommand; returns the process exit code (1 for an unloadable file, 2
 /// when the firmware faults or locks up).
 pub fn run(cmd: EmuCommand) -> ExitCode {
-    let EmuCommand::Run { file, cycles, trace } = cmd;
+    let EmuCommand::Run {
+        file,
+        cycles,
+        trace,
+    } = cmd;
     let bytes = match std::fs::read(&file) {
         Ok(b) => b,
         Err(e) => {
@@ -41,7 +45,11 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
         eprintln!("error: cannot load {}: {e}", file.display());
         return ExitCode::FAILURE;
     }
-    let stop = if trace { run_traced(&mut board, cycles) } else { board.run_for(cycles) };
+    let stop = if trace {
+        run_traced(&mut board, cycles)
+    } else {
+        board.run_for(cycles)
+    };
     for core in &board.cores {
         print_core(core);
     }
@@ -85,15 +93,31 @@ fn run_traced(board: &mut Board, cycles: u64) -> StopReason {
                 let core = &board.cores[k];
                 if core.instructions != before_count[k] {
                     if let Some(last) = core.last {
-                        let func = board.image.function_at(last.pc).map(|s| s.name.as_str()).unwrap_or("");
+                        let func = board
+                            .image
+                            .function_at(last.pc)
+                            .map(|s| s.name.as_str())
+                            .unwrap_or("");
                         println!(
                             "core{k} {:>10} {:08x} {:<20} {:<28} {} cycles",
-                            before[k], last.pc, func, last.instr.to_string(), last.cycles
+                            before[k],
+                            last.pc,
+                            func,
+                            last.instr.to_string(),
+                            last.cycles
                         );
                     }
                 } else if core.cycle != before[k] {
-                    let what = if matches!(core.state, RunState::Sleeping { .. }) { "sleep" } else { "exception entry" };
-                    println!("core{k} {:>10} {what} ({} cycles)", before[k], core.cycle - before[k]);
+                    let what = if matches!(core.state, RunState::Sleeping { .. }) {
+                        "sleep"
+                    } else {
+                        "exception entry"
+                    };
+                    println!(
+                        "core{k} {:>10} {what} ({} cycles)",
+                        before[k],
+                        core.cycle - before[k]
+                    );
                 }
                 if let Err(stop) = result {
                     return stop;
@@ -111,7 +135,10 @@ fn print_core(core: &Core) {
         RunState::Parked => "parked",
         RunState::Lockup => "locked up",
     };
-    println!("core {}: {state}, {} cycles, {} instructions", core.id, core.cycle, core.instructions);
+    println!(
+        "core {}: {state}, {} cycles, {} instructions",
+        core.id, core.cycle, core.instructions
+    );
     for row in 0..4 {
         let regs: Vec<String> = (0..4)
             .map(|i| {

@@ -94,18 +94,20 @@ impl fmt::Display for PlotError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             PlotError::EmptyTrace { path } => {
-                write!(f, "{}: cannot plot: the trace has no samples", path.display())
+                write!(
+                    f,
+                    "{}: cannot plot: the trace has no samples",
+                    path.display()
+                )
             }
             PlotError::NoForces { path } => write!(
                 f,
                 "{}: cannot plot forces: the trace has no force columns",
                 path.display()
             ),
-            PlotError::NoColumns { path } => write!(
-                f,
-                "{}: cannot plot: no columns were named",
-                path.display()
-            ),
+            PlotError::NoColumns { path } => {
+                write!(f, "{}: cannot plot: no columns were named", path.display())
+            }
             PlotError::UnknownColumn {
                 path,
                 name,
@@ -531,8 +533,10 @@ mod tests {
             let total = spring + viscous + escapement;
             let hammer = 0.045 * (key / 0.01).powi(2);
             let strike = if i == n / 2 { 2.5 } else { f64::NAN };
-            t.push_row(&[time, key, spring, viscous, escapement, total, hammer, strike])
-                .unwrap();
+            t.push_row(&[
+                time, key, spring, viscous, escapement, total, hammer, strike,
+            ])
+            .unwrap();
         }
         t
     }
@@ -602,7 +606,18 @@ mod tests {
         let s = Series {
             label: "s".into(),
             x: &x,
-            y: vec![0.0, 1.0, f64::NAN, 3.0, 4.0, 5.0, f64::NAN, f64::NAN, 8.0, 9.0],
+            y: vec![
+                0.0,
+                1.0,
+                f64::NAN,
+                3.0,
+                4.0,
+                5.0,
+                f64::NAN,
+                f64::NAN,
+                8.0,
+                9.0,
+            ],
             colour: BLACK.to_rgba(),
             width: 1,
         };

@@ -57,11 +57,16 @@ pub fn run(args: SimArgs) -> ExitCode {
 
 fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     let src = source::load(&args.file)?;
-    let Some(lowered) = compile_reporting(&src, &args.params) else { return Ok(ExitCode::FAILURE) };
+    let Some(lowered) = compile_reporting(&src, &args.params) else {
+        return Ok(ExitCode::FAILURE);
+    };
     let program = &lowered.program;
     let fs = program.sample_rate_hz;
     let Some(key) = program.sensors.first() else {
-        return Err(format!("instrument `{}` has no sensor to drive", program.name));
+        return Err(format!(
+            "instrument `{}` has no sensor to drive",
+            program.name
+        ));
     };
     let dip_m = args.dip.map_or(key.range.1, |mm| mm * 1e-3);
     let stim = if std::path::Path::new(&args.stimulus).exists() {
@@ -72,7 +77,8 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     .map_err(|e| e.to_string())?;
     let (trace, summary) = tactus_compiler::sim::simulate(program, &stim);
 
-    std::fs::create_dir_all(&args.out).map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
     let stem = format!("{}-{}", program.name, stim.name.trim_end_matches(".csv"));
     let csv = args.out.join(format!("{stem}.csv"));
     trace.write_csv_file(&csv).map_err(|e| e.to_string())?;
@@ -87,7 +93,10 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
         written.push(svg);
     }
 
-    let total = trace.column("total").map(|c| c.values.clone()).unwrap_or_default();
+    let total = trace
+        .column("total")
+        .map(|c| c.values.clone())
+        .unwrap_or_default();
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for &f in &total {
         lo = lo.min(f);
@@ -105,9 +114,19 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     for (n, name, a) in &summary.events {
         let ev = program.events.iter().find(|e| &e.name == name);
         let args_text: Vec<String> = ev
-            .map(|e| e.args.iter().zip(a).map(|((an, d), v)| format!("{an} = {v:.4} {}", d.unit_string())).collect())
+            .map(|e| {
+                e.args
+                    .iter()
+                    .zip(a)
+                    .map(|((an, d), v)| format!("{an} = {v:.4} {}", d.unit_string()))
+                    .collect()
+            })
             .unwrap_or_default();
-        println!("  event {name} at {:.2} ms: {}", *n as f64 / fs * 1e3, args_text.join(", "));
+        println!(
+            "  event {name} at {:.2} ms: {}",
+            *n as f64 / fs * 1e3,
+            args_text.join(", ")
+        );
     }
     for (s, &count) in program.states.iter().zip(&summary.saturations) {
         if count > 0 {

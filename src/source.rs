@@ -5,9 +5,18 @@ use std::path::Path;
 
 /// Instruments shipped in the binary, by name (the file stem in `instruments/`).
 pub const BUILTIN_INSTRUMENTS: &[(&str, &str)] = &[
-    ("grand_piano", include_str!("../instruments/grand_piano.tactus")),
-    ("harpsichord", include_str!("../instruments/harpsichord.tactus")),
-    ("harpsichord_2x8", include_str!("../instruments/harpsichord_2x8.tactus")),
+    (
+        "grand_piano",
+        include_str!("../instruments/grand_piano.tactus"),
+    ),
+    (
+        "harpsichord",
+        include_str!("../instruments/harpsichord.tactus"),
+    ),
+    (
+        "harpsichord_2x8",
+        include_str!("../instruments/harpsichord_2x8.tactus"),
+    ),
     ("hammond", include_str!("../instruments/hammond.tactus")),
 ];
 
@@ -24,16 +33,28 @@ pub fn load(arg: &str) -> Result<Source, String> {
     let path = Path::new(arg);
     if path.exists() {
         return std::fs::read_to_string(path)
-            .map(|text| Source { name: arg.to_string(), text })
+            .map(|text| Source {
+                name: arg.to_string(),
+                text,
+            })
             .map_err(|e| format!("cannot read `{arg}`: {e}"));
     }
     let stem = arg.trim_end_matches(".tactus");
-    let stem = Path::new(stem).file_name().and_then(|s| s.to_str()).unwrap_or(stem);
+    let stem = Path::new(stem)
+        .file_name()
+        .and_then(|s| s.to_str())
+        .unwrap_or(stem);
     match BUILTIN_INSTRUMENTS.iter().find(|(n, _)| *n == stem) {
-        Some((n, text)) => Ok(Source { name: format!("builtin:{n}"), text: text.to_string() }),
+        Some((n, text)) => Ok(Source {
+            name: format!("builtin:{n}"),
+            text: text.to_string(),
+        }),
         None => {
             let names: Vec<&str> = BUILTIN_INSTRUMENTS.iter().map(|(n, _)| *n).collect();
-            Err(format!("no file `{arg}`, and no built-in instrument of that name (built-ins: {})", names.join(", ")))
+            Err(format!(
+                "no file `{arg}`, and no built-in instrument of that name (built-ins: {})",
+                names.join(", ")
+            ))
         }
     }
 }

@@ -11,19 +11,29 @@ use tactus_runtime::trace::Trace;
 const FS: f64 = 44_100.0;
 
 fn program(name: &str) -> Program {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("instruments").join(format!("{name}.tactus"));
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("instruments")
+        .join(format!("{name}.tactus"));
     let src = std::fs::read_to_string(&path).unwrap();
-    tactus_compiler::compile(&src, &Config::default()).unwrap().program
+    tactus_compiler::compile(&src, &Config::default())
+        .unwrap()
+        .program
 }
 
 fn run(p: &Program, s: &Stimulus) -> (Trace, SimSummary) {
     let r = simulate(p, s);
-    assert!(r.1.saturations.iter().all(|&n| n == 0), "a state hit its range: {:?}", r.1.saturations);
+    assert!(
+        r.1.saturations.iter().all(|&n| n == 0),
+        "a state hit its range: {:?}",
+        r.1.saturations
+    );
     r
 }
 
 fn col<'t>(t: &'t Trace, name: &str) -> &'t [f64] {
-    &t.column(name).unwrap_or_else(|| panic!("no column {name}")).values
+    &t.column(name)
+        .unwrap_or_else(|| panic!("no column {name}"))
+        .values
 }
 
 fn param(p: &Program, name: &str) -> f64 {
@@ -58,8 +68,17 @@ fn piano_full_dip() {
         col(t, "total")[k.iter().position(|&v| v >= x).unwrap()]
     };
     for x in [0.002, 0.005] {
-        assert!(at(&tf, x) > at(&t, x) + 0.05, "at {x} m: p {} vs pp {}", at(&tf, x), at(&t, x));
-        assert!(at(&t, x) > g, "descent force {} not above key weight {g}", at(&t, x));
+        assert!(
+            at(&tf, x) > at(&t, x) + 0.05,
+            "at {x} m: p {} vs pp {}",
+            at(&tf, x),
+            at(&t, x)
+        );
+        assert!(
+            at(&t, x) > g,
+            "descent force {} not above key weight {g}",
+            at(&t, x)
+        );
     }
 
     // Escapement bump: rises to its peak, then drops to zero before the key bottoms.
@@ -71,8 +90,15 @@ fn piano_full_dip() {
 
     // Key held: force back to the key-weight level (plus the repetition spring) and steady.
     let held = &total[bottom + 2000..release - 10];
-    let (lo, hi) = held.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &f| (l.min(f), h.max(f)));
-    assert!(lo >= g - 0.01 && hi <= g + 0.3, "held force {lo}..{hi} N, key weight {g} N");
+    let (lo, hi) = held
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &f| {
+            (l.min(f), h.max(f))
+        });
+    assert!(
+        lo >= g - 0.01 && hi <= g + 0.3,
+        "held force {lo}..{hi} N, key weight {g} N"
+    );
     assert!(hi - lo < 0.01, "held force not steady: {lo}..{hi}");
 
     // The hammer strikes the string once, upwards, and rebounds.
@@ -81,7 +107,11 @@ fn piano_full_dip() {
     let n = strikes[0].0;
     assert!(strikes[0].2[0] > 0.0);
     // Outputs are computed after the events of their sample: the reversal shows at once.
-    assert!((hv[n] / strikes[0].2[0] + 0.9).abs() < 1e-9, "rebound {}", hv[n]);
+    assert!(
+        (hv[n] / strikes[0].2[0] + 0.9).abs() < 1e-9,
+        "rebound {}",
+        hv[n]
+    );
 
     // Release: the hammer lands on the rest felt, bounces (rest-felt rebound) and the landing
     // reaches the key as a pulse.
@@ -102,12 +132,20 @@ fn piano_half_dip_hammer_falls_back_and_pulls_key_up() {
     // The key stops on the stop at half dip.
     let stop = key.iter().position(|&k| k >= 0.005 - 1e-9).unwrap();
     // The hammer flies on, falls back (negative velocity) …
-    let fall = (stop..hv.len()).find(|&i| hv[i] < -0.1).expect("hammer never falls back");
+    let fall = (stop..hv.len())
+        .find(|&i| hv[i] < -0.1)
+        .expect("hammer never falls back");
     // … and its impact on the key gives a force pulse pushing the key up, well above the
     // force the key felt while resting at the stop.
     let resting = total[stop + 44_100 / 2];
-    let pulse = total[fall..fall + 4410].iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-    assert!(pulse > resting + 1.0, "impact pulse {pulse} N vs resting {resting} N");
+    let pulse = total[fall..fall + 4410]
+        .iter()
+        .cloned()
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        pulse > resting + 1.0,
+        "impact pulse {pulse} N vs resting {resting} N"
+    );
     assert!(resting > g, "resting force {resting} below key weight {g}");
 }
 
@@ -118,9 +156,18 @@ fn piano_faster_key_gives_faster_hammer() {
     for descent in [0.200, 0.160, 0.100, 0.060, 0.040, 0.030, 0.025] {
         let s = stimulus::dip(descent, 0.2, 0.06, 0.010, FS).unwrap();
         let (_, sum) = run(&p, &s);
-        let strikes: Vec<f64> = sum.events.iter().filter(|e| e.1 == "strike").map(|e| e.2[0]).collect();
+        let strikes: Vec<f64> = sum
+            .events
+            .iter()
+            .filter(|e| e.1 == "strike")
+            .map(|e| e.2[0])
+            .collect();
         assert_eq!(strikes.len(), 1, "descent {descent} s: {strikes:?}");
-        assert!(strikes[0] > last, "descent {descent} s: hammer {} m/s not faster than {last}", strikes[0]);
+        assert!(
+            strikes[0] > last,
+            "descent {descent} s: hammer {} m/s not faster than {last}",
+            strikes[0]
+        );
         last = strikes[0];
     }
     assert!(last > 3.0, "ff hammer only {last} m/s");
@@ -128,7 +175,9 @@ fn piano_faster_key_gives_faster_hammer() {
 
 /// Number of upward crossings of `level` in `f[range]`.
 fn spikes(f: &[f64], level: f64) -> usize {
-    f.windows(2).filter(|w| w[0] < level && w[1] >= level).count()
+    f.windows(2)
+        .filter(|w| w[0] < level && w[1] >= level)
+        .count()
 }
 
 #[test]
@@ -140,7 +189,10 @@ fn harpsichord_one_spike_down_nothing_up() {
     let (bottom, release) = bottom_span(key, 0.007);
     let peak = param(&p, "jack.peak");
     assert_eq!(spikes(&pl[..bottom], 0.5 * peak), 1);
-    assert!(pl[release..].iter().all(|&f| f == 0.0), "plectrum force on the way up");
+    assert!(
+        pl[release..].iter().all(|&f| f == 0.0),
+        "plectrum force on the way up"
+    );
     assert_eq!(sum.events.iter().filter(|e| e.1 == "pluck").count(), 1);
 }
 
@@ -156,10 +208,18 @@ fn double_register_two_distinct_spikes() {
     // Viscous force is below 0.25 N at mf; the plectra add 0.5 N spikes on top.
     let level = base + 0.35;
     assert_eq!(spikes(&total[..bottom], level), 2, "two spikes on descent");
-    let plucks: Vec<usize> = sum.events.iter().filter(|e| e.1 == "pluck").map(|e| e.0).collect();
+    let plucks: Vec<usize> = sum
+        .events
+        .iter()
+        .filter(|e| e.1 == "pluck")
+        .map(|e| e.0)
+        .collect();
     assert_eq!(plucks.len(), 2);
     let (k1, k2) = (key[plucks[0]], key[plucks[1]]);
-    assert!((k1 - 0.004).abs() < 0.1e-3 && (k2 - 0.005).abs() < 0.1e-3, "plucks at {k1} and {k2} m");
+    assert!(
+        (k1 - 0.004).abs() < 0.1e-3 && (k2 - 0.005).abs() < 0.1e-3,
+        "plucks at {k1} and {k2} m"
+    );
     assert_eq!(spikes(&total[release..], level), 0, "spike on the way up");
 }
 
@@ -169,10 +229,18 @@ fn hammond_static_force_is_linear() {
     let (k, dg) = (param(&p, "k"), param(&p, "dG"));
     for i in 0..=16 {
         let x = 0.004 * i as f64 / 16.0;
-        let s = Stimulus { name: "static".into(), description: String::new(), sample_rate_hz: FS, key: vec![x; 64] };
+        let s = Stimulus {
+            name: "static".into(),
+            description: String::new(),
+            sample_rate_hz: FS,
+            key: vec![x; 64],
+        };
         let (t, _) = run(&p, &s);
         let f = *col(&t, "total").last().unwrap();
         let want = k * x - dg;
-        assert!((f - want).abs() <= 1e-9 * want.abs().max(dg), "x = {x}: {f} vs {want}");
+        assert!(
+            (f - want).abs() <= 1e-9 * want.abs().max(dg),
+            "x = {x}: {f} vs {want}"
+        );
     }
 }

@@ -17,10 +17,25 @@ fn temp_dir(name: &str) -> PathBuf {
 #[test]
 fn check_accepts_every_instrument_and_prints_ir() {
     for name in ["grand_piano", "harpsichord", "harpsichord_2x8", "hammond"] {
-        let out = tactus().args(["check", &format!("instruments/{name}.tactus"), "--emit", "ir"]).output().unwrap();
-        assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+        let out = tactus()
+            .args([
+                "check",
+                &format!("instruments/{name}.tactus"),
+                "--emit",
+                "ir",
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let stdout = String::from_utf8_lossy(&out.stdout);
-        assert!(stdout.contains("is well-formed") && stdout.contains("body:"), "{stdout}");
+        assert!(
+            stdout.contains("is well-formed") && stdout.contains("body:"),
+            "{stdout}"
+        );
     }
 }
 
@@ -28,25 +43,45 @@ fn check_accepts_every_instrument_and_prints_ir() {
 fn check_fails_with_diagnostics_on_a_bad_file() {
     let dir = temp_dir("bad");
     let f = dir.join("bad.tactus");
-    std::fs::write(&f, "instrument a {\n  sensor key: m in [0 mm, 10 mm]\n  force f = k * key\n}\n").unwrap();
+    std::fs::write(
+        &f,
+        "instrument a {\n  sensor key: m in [0 mm, 10 mm]\n  force f = k * key\n}\n",
+    )
+    .unwrap();
     let out = tactus().arg("check").arg(&f).output().unwrap();
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("E0201") && err.contains("unknown name `k`") && err.contains("bad.tactus:3"), "{err}");
+    assert!(
+        err.contains("E0201") && err.contains("unknown name `k`") && err.contains("bad.tactus:3"),
+        "{err}"
+    );
 }
 
 #[test]
 fn missing_file_is_a_clear_error() {
-    let out = tactus().args(["check", "no/such/file.tactus"]).output().unwrap();
+    let out = tactus()
+        .args(["check", "no/such/file.tactus"])
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("no file `no/such/file.tactus`"));
 }
 
 #[test]
 fn param_override_from_the_command_line() {
-    let ok = tactus().args(["check", "hammond", "--param", "k=200 N/m"]).output().unwrap();
-    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
-    let bad = tactus().args(["check", "hammond", "--param", "k=2 mm"]).output().unwrap();
+    let ok = tactus()
+        .args(["check", "hammond", "--param", "k=200 N/m"])
+        .output()
+        .unwrap();
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let bad = tactus()
+        .args(["check", "hammond", "--param", "k=2 mm"])
+        .output()
+        .unwrap();
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("E0303"));
 }
@@ -55,20 +90,43 @@ fn param_override_from_the_command_line() {
 fn sim_writes_trace_and_plots() {
     let dir = temp_dir("sim");
     let out = tactus()
-        .args(["sim", "instruments/grand_piano.tactus", "--stimulus", "ff-dip", "--out"])
+        .args([
+            "sim",
+            "instruments/grand_piano.tactus",
+            "--stimulus",
+            "ff-dip",
+            "--out",
+        ])
         .arg(&dir)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("event strike"), "{stdout}");
     let csv = std::fs::read_to_string(dir.join("grand_piano-ff-dip.csv")).unwrap();
     let header = csv.lines().next().unwrap();
-    for col in ["time [s]", "key [m]", "contact [N]", "escapement [N]", "total [N]", "s", "esc.phase", "hammer_vel [m/s]", "strike.velocity [m/s]"] {
+    for col in [
+        "time [s]",
+        "key [m]",
+        "contact [N]",
+        "escapement [N]",
+        "total [N]",
+        "s",
+        "esc.phase",
+        "hammer_vel [m/s]",
+        "strike.velocity [m/s]",
+    ] {
         assert!(header.contains(col), "missing {col} in {header}");
     }
     assert!(csv.lines().count() > 30_000);
-    for svg in ["grand_piano-ff-dip-forces.svg", "grand_piano-ff-dip-outputs.svg"] {
+    for svg in [
+        "grand_piano-ff-dip-forces.svg",
+        "grand_piano-ff-dip-outputs.svg",
+    ] {
         let text = std::fs::read_to_string(dir.join(svg)).unwrap();
         assert!(text.contains("<svg"), "{svg}");
     }
@@ -79,10 +137,28 @@ fn sim_reads_a_csv_stimulus_and_rejects_unknown_ones() {
     let dir = temp_dir("csv");
     let f = dir.join("press.csv");
     std::fs::write(&f, "time_s,key_mm\n0,0\n0.05,7\n0.3,7\n0.35,0\n0.6,0\n").unwrap();
-    let out = tactus().args(["sim", "harpsichord", "--stimulus"]).arg(&f).arg("--out").arg(&dir).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = tactus()
+        .args(["sim", "harpsichord", "--stimulus"])
+        .arg(&f)
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(String::from_utf8_lossy(&out.stdout).contains("event pluck"));
-    let bad = tactus().args(["sim", "harpsichord", "--stimulus", "fortissimo"]).arg("--out").arg(&dir).output().unwrap();
+    let bad = tactus()
+        .args(["sim", "harpsichord", "--stimulus", "fortissimo"])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
     assert_eq!(bad.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("ff-dip"), "error should list the built-ins");
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("ff-dip"),
+        "error should list the built-ins"
+    );
 }

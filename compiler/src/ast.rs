@@ -73,15 +73,35 @@ pub struct Range {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Decl {
     /// `sensor NAME [: TYPE] in [lo, hi]`
-    Sensor { name: Name, ty: Option<Spanned<TypeAnn>>, range: Option<Range> },
+    Sensor {
+        name: Name,
+        ty: Option<Spanned<TypeAnn>>,
+        range: Option<Range>,
+    },
     /// `input NAME : TYPE` (components only)
-    Input { name: Name, ty: Option<Spanned<TypeAnn>> },
+    Input {
+        name: Name,
+        ty: Option<Spanned<TypeAnn>>,
+    },
     /// `param NAME [: TYPE] = EXPR`
-    Param { name: Name, ty: Option<Spanned<TypeAnn>>, value: Expr },
+    Param {
+        name: Name,
+        ty: Option<Spanned<TypeAnn>>,
+        value: Expr,
+    },
     /// `state NAME [: TYPE] = EXPR in [lo, hi]`
-    State { name: Name, ty: Option<Spanned<TypeAnn>>, init: Expr, range: Option<Range> },
+    State {
+        name: Name,
+        ty: Option<Spanned<TypeAnn>>,
+        init: Expr,
+        range: Option<Range>,
+    },
     /// `mode NAME { a, b, … } [= a]`
-    Mode { name: Name, variants: Vec<Name>, init: Option<Name> },
+    Mode {
+        name: Name,
+        variants: Vec<Name>,
+        init: Option<Name>,
+    },
     /// `let NAME = EXPR`
     Let { name: Name, value: Expr },
     /// `force NAME = EXPR`
@@ -91,9 +111,19 @@ pub enum Decl {
     /// `dynamics { x' = EXPR … }`
     Dynamics { eqs: Vec<Equation>, span: Span },
     /// `on COND { … }` (rising edge) or `while COND { … }` (level).
-    Handler { trigger: Trigger, cond: Expr, body: Vec<Stmt>, span: Span },
+    Handler {
+        trigger: Trigger,
+        cond: Expr,
+        body: Vec<Stmt>,
+        span: Span,
+    },
     /// `use NAME = COMPONENT(arg = EXPR, …)`
-    Use { name: Name, component: Name, args: Vec<(Name, Expr)>, span: Span },
+    Use {
+        name: Name,
+        component: Name,
+        args: Vec<(Name, Expr)>,
+        span: Span,
+    },
 }
 
 /// When a handler's body runs.
@@ -121,7 +151,11 @@ pub enum Stmt {
     /// `NAME = EXPR` — a state or a mode.
     Assign { target: Name, value: Expr },
     /// `emit EVENT(arg = EXPR, …)`
-    Emit { event: Name, args: Vec<(Name, Expr)>, span: Span },
+    Emit {
+        event: Name,
+        args: Vec<(Name, Expr)>,
+        span: Span,
+    },
 }
 
 /// An expression with its span.

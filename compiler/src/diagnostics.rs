@@ -49,7 +49,10 @@ impl Diagnostic {
     }
     /// A warning at `span`.
     pub fn warning(code: &'static str, message: impl Into<String>, span: Span) -> Self {
-        Diagnostic { severity: Severity::Warning, ..Diagnostic::error(code, message, span) }
+        Diagnostic {
+            severity: Severity::Warning,
+            ..Diagnostic::error(code, message, span)
+        }
     }
     /// Sets the text under the primary span.
     pub fn label(mut self, text: impl Into<String>) -> Self {
@@ -76,8 +79,13 @@ impl Diagnostic {
             Severity::Error => CsDiagnostic::error(),
             Severity::Warning => CsDiagnostic::warning(),
         };
-        let mut labels = vec![Label::primary((), self.primary.0.clone()).with_message(&self.primary.1)];
-        labels.extend(self.secondary.iter().map(|(s, m)| Label::secondary((), s.clone()).with_message(m)));
+        let mut labels =
+            vec![Label::primary((), self.primary.0.clone()).with_message(&self.primary.1)];
+        labels.extend(
+            self.secondary
+                .iter()
+                .map(|(s, m)| Label::secondary((), s.clone()).with_message(m)),
+        );
         d.with_code(self.code)
             .with_message(&self.message)
             .with_labels(labels)
@@ -95,7 +103,8 @@ pub fn emit(
     let file = SimpleFile::new(file_name, source);
     let config = term::Config::default();
     for d in diagnostics {
-        term::emit_to_write_style(out, &config, &file, &d.to_codespan()).map_err(std::io::Error::other)?;
+        term::emit_to_write_style(out, &config, &file, &d.to_codespan())
+            .map_err(std::io::Error::other)?;
     }
     Ok(())
 }

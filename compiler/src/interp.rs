@@ -12,7 +12,12 @@ use tactus_runtime::differentiator::Differentiator;
 
 /// The value of a pure operation given its operands' values; reads of sensors, states,
 /// modes and edges go through `read`. Shared with compile-time constant folding.
-pub fn eval_op(op: &Op, val: impl Fn(Value) -> f64, param: impl Fn(ParamId) -> f64, read: &dyn Fn(&Op) -> f64) -> f64 {
+pub fn eval_op(
+    op: &Op,
+    val: impl Fn(Value) -> f64,
+    param: impl Fn(ParamId) -> f64,
+    read: &dyn Fn(&Op) -> f64,
+) -> f64 {
     let b = |x: bool| if x { 1.0 } else { 0.0 };
     match *op {
         Op::Const(c) => c,
@@ -118,7 +123,11 @@ impl<'p> Instance<'p> {
     pub fn step(&mut self, sensors: &[f64]) -> &SampleOut {
         for (i, s) in self.program.sensors.iter().enumerate() {
             let x = sensors.get(i).copied().unwrap_or(s.range.0);
-            let x = if x.is_nan() { s.range.0 } else { x.clamp(s.range.0, s.range.1) };
+            let x = if x.is_nan() {
+                s.range.0
+            } else {
+                x.clamp(s.range.0, s.range.1)
+            };
             self.sensors[i] = x;
             if s.differentiated {
                 self.diffs[i].push(x);
@@ -146,7 +155,12 @@ impl<'p> Instance<'p> {
                         Op::Edge(e) => f64::from(u8::from(self.edges[e.index()])),
                         _ => f64::NAN,
                     };
-                    let x = eval_op(op, |x| vals[x.index()], |p| self.program.params[p.index()].value, &read);
+                    let x = eval_op(
+                        op,
+                        |x| vals[x.index()],
+                        |p| self.program.params[p.index()].value,
+                        &read,
+                    );
                     self.vals[v.index()] = x;
                 }
                 Stmt::SetState(st, v) => {

@@ -215,11 +215,19 @@ fn number(lex: &mut logos::Lexer<Token>) -> Result<Literal, LexError> {
     let after = &rest[gap..];
     let first = word(after);
     if first.is_empty() {
-        return Ok(Literal { value, dim: Dim::NONE, is_plain_integer: is_int });
+        return Ok(Literal {
+            value,
+            dim: Dim::NONE,
+            is_plain_integer: is_int,
+        });
     }
     let Some(unit) = units::lookup(first) else {
         if is_keyword(first) {
-            return Ok(Literal { value, dim: Dim::NONE, is_plain_integer: is_int });
+            return Ok(Literal {
+                value,
+                dim: Dim::NONE,
+                is_plain_integer: is_int,
+            });
         }
         lex.bump(gap + first.len());
         return Err(LexError::UnknownUnit(first.to_string()));
@@ -233,10 +241,10 @@ fn number(lex: &mut logos::Lexer<Token>) -> Result<Literal, LexError> {
         consumed += exp_len;
         let (d, s) = (unit.dim.powi(exp), unit.scale.powi(exp));
         if divide {
-            dim = dim.div(d);
+            dim = dim / d;
             value /= s;
         } else {
-            dim = dim.mul(d);
+            dim = dim * d;
             value *= s;
         }
         let tail = &lex.remainder()[consumed..];
@@ -248,7 +256,11 @@ fn number(lex: &mut logos::Lexer<Token>) -> Result<Literal, LexError> {
         }
     }
     lex.bump(consumed);
-    Ok(Literal { value, dim, is_plain_integer: false })
+    Ok(Literal {
+        value,
+        dim,
+        is_plain_integer: false,
+    })
 }
 
 /// Reads `^N` or `^-N` after a unit factor; returns (exponent, characters consumed).
@@ -283,7 +295,9 @@ fn is_keyword(w: &str) -> bool {
 pub type Spanned = (usize, Token, usize);
 
 /// Lexes a whole source into lalrpop triples; the first error stops it.
-pub fn lex(src: &str) -> impl Iterator<Item = Result<Spanned, (LexError, std::ops::Range<usize>)>> + '_ {
+pub fn lex(
+    src: &str,
+) -> impl Iterator<Item = Result<Spanned, (LexError, std::ops::Range<usize>)>> + '_ {
     Token::lexer(src).spanned().map(|(tok, span)| match tok {
         Ok(t) => Ok((span.start, t, span.end)),
         Err(e) => Err((e, span)),
@@ -323,7 +337,9 @@ mod tests {
 
     #[test]
     fn unit_stops_before_non_unit_factor() {
-        let toks: Vec<_> = Token::lexer("2 N * s 2 N/k").collect::<Result<_, _>>().unwrap();
+        let toks: Vec<_> = Token::lexer("2 N * s 2 N/k")
+            .collect::<Result<_, _>>()
+            .unwrap();
         assert_eq!(toks.len(), 6, "{toks:?}");
         assert!(matches!(toks[1], Token::Star));
         assert!(matches!(toks[4], Token::Slash));

@@ -8,14 +8,14 @@
 
 pub mod ast;
 pub mod diagnostics;
-pub mod lexer;
-pub mod parse;
-pub mod units;
 pub mod interp;
 pub mod ir;
+pub mod lexer;
 pub mod lower;
+pub mod parse;
 pub mod print;
 pub mod sim;
+pub mod units;
 
 use diagnostics::Diagnostic;
 
@@ -24,6 +24,6 @@ use diagnostics::Diagnostic;
 /// Errors: every syntax, name and dimension error found, as diagnostics with spans (render
 /// them with [`diagnostics::emit`]). On success, the warnings are in [`lower::Lowered`].
 pub fn compile(source: &str, config: &lower::Config) -> Result<lower::Lowered, Vec<Diagnostic>> {
-    let file = parse::parse(source).map_err(|d| vec![d])?;
+    let file = parse::parse(source).map_err(|d| vec![*d])?;
     lower::lower(&file, config)
 }

@@ -27,14 +27,18 @@ pub fn int_literal(l: &Literal) -> Result<i64, ParseError<usize, Token, SyntaxEr
     if l.is_plain_integer && l.value <= 8.0 {
         Ok(l.value as i64)
     } else {
-        Err(ParseError::User { error: SyntaxError::BadExponent })
+        Err(ParseError::User {
+            error: SyntaxError::BadExponent,
+        })
     }
 }
 
 /// Parses a `.tactus` source into its AST, or the first syntax error as a diagnostic.
-pub fn parse(src: &str) -> Result<File, Diagnostic> {
+pub fn parse(src: &str) -> Result<File, Box<Diagnostic>> {
     let tokens = lexer::lex(src).map(|r| r.map_err(|(e, span)| SyntaxError::Lex(e, span)));
-    grammar::FileParser::new().parse(tokens).map_err(|e| to_diagnostic(e, src))
+    grammar::FileParser::new()
+        .parse(tokens)
+        .map_err(|e| Box::new(to_diagnostic(e, src)))
 }
 
 fn to_diagnostic(e: ParseError<usize, Token, SyntaxError>, src: &str) -> Diagnostic {
@@ -52,7 +56,10 @@ fn to_diagnostic(e: ParseError<usize, Token, SyntaxError>, src: &str) -> Diagnos
                 d
             }
         }
-        ParseError::UnrecognizedToken { token: (l, tok, r), expected } => {
+        ParseError::UnrecognizedToken {
+            token: (l, tok, r),
+            expected,
+        } => {
             let d = Diagnostic::error("E0003", format!("unexpected {tok}"), l..r)
                 .label(format!("expected {}", expected_list(&expected)));
             match tok {
@@ -98,13 +105,35 @@ fn to_diagnostic(e: ParseError<usize, Token, SyntaxError>, src: &str) -> Diagnos
 }
 
 fn is_keyword(t: &Token) -> bool {
-    !matches!(t, Token::Ident(_) | Token::Number(_)) && format!("{t:?}").chars().next().is_some_and(|c| c.is_alphabetic())
+    !matches!(t, Token::Ident(_) | Token::Number(_))
+        && format!("{t:?}")
+            .chars()
+            .next()
+            .is_some_and(|c| c.is_alphabetic())
         && !matches!(
             t,
-            Token::LBrace | Token::RBrace | Token::LParen | Token::RParen | Token::LBracket | Token::RBracket
-                | Token::Comma | Token::Colon | Token::Dot | Token::Prime | Token::Eq | Token::EqEq
-                | Token::NotEq | Token::Lt | Token::Le | Token::Gt | Token::Ge | Token::Plus
-                | Token::Minus | Token::Star | Token::Slash | Token::Caret
+            Token::LBrace
+                | Token::RBrace
+                | Token::LParen
+                | Token::RParen
+                | Token::LBracket
+                | Token::RBracket
+                | Token::Comma
+                | Token::Colon
+                | Token::Dot
+                | Token::Prime
+                | Token::Eq
+                | Token::EqEq
+                | Token::NotEq
+                | Token::Lt
+                | Token::Le
+                | Token::Gt
+                | Token::Ge
+                | Token::Plus
+                | Token::Minus
+                | Token::Star
+                | Token::Slash
+                | Token::Caret
         )
 }
 
@@ -126,7 +155,9 @@ fn expected_list(expected: &[String]) -> String {
 }
 
 /// Parses a single expression (e.g. the value of a `--param` override).
-pub fn parse_expr(src: &str) -> Result<crate::ast::Expr, Diagnostic> {
+pub fn parse_expr(src: &str) -> Result<crate::ast::Expr, Box<Diagnostic>> {
     let tokens = lexer::lex(src).map(|r| r.map_err(|(e, span)| SyntaxError::Lex(e, span)));
-    grammar::ExprParser::new().parse(tokens).map_err(|e| to_diagnostic(e, src))
+    grammar::ExprParser::new()
+        .parse(tokens)
+        .map_err(|e| Box::new(to_diagnostic(e, src)))
 }

@@ -10,17 +10,42 @@ impl fmt::Display for Program {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "instrument {} @ {} Hz", self.name, self.sample_rate_hz)?;
         for (i, s) in self.sensors.iter().enumerate() {
-            let d = if s.differentiated { " differentiated" } else { "" };
-            writeln!(f, "  sensor{i} {}: {:?} in [{}, {}]{d}", s.name, s.dim, g(s.range.0), g(s.range.1))?;
+            let d = if s.differentiated {
+                " differentiated"
+            } else {
+                ""
+            };
+            writeln!(
+                f,
+                "  sensor{i} {}: {:?} in [{}, {}]{d}",
+                s.name,
+                s.dim,
+                g(s.range.0),
+                g(s.range.1)
+            )?;
         }
         for (i, p) in self.params.iter().enumerate() {
             writeln!(f, "  param{i} {}: {:?} = {}", p.name, p.dim, g(p.value))?;
         }
         for (i, s) in self.states.iter().enumerate() {
-            writeln!(f, "  state{i} {}: {:?} = {} in [{}, {}]", s.name, s.dim, g(s.init), g(s.range.0), g(s.range.1))?;
+            writeln!(
+                f,
+                "  state{i} {}: {:?} = {} in [{}, {}]",
+                s.name,
+                s.dim,
+                g(s.init),
+                g(s.range.0),
+                g(s.range.1)
+            )?;
         }
         for (i, m) in self.modes.iter().enumerate() {
-            writeln!(f, "  mode{i} {} {{ {} }} = {}", m.name, m.variants.join(", "), m.variants[m.init as usize])?;
+            writeln!(
+                f,
+                "  mode{i} {} {{ {} }} = {}",
+                m.name,
+                m.variants.join(", "),
+                m.variants[m.init as usize]
+            )?;
         }
         for (i, x) in self.forces.iter().enumerate() {
             writeln!(f, "  force{i} {}", x.name)?;
@@ -61,7 +86,9 @@ impl Program {
                     let d = self.value(*v);
                     writeln!(out, "{pad}{v} = {} : {}", self.op_text(&d.op), ty(d.ty))?
                 }
-                Stmt::SetState(s, v) => writeln!(out, "{pad}set {} = {v}", self.states[s.index()].name)?,
+                Stmt::SetState(s, v) => {
+                    writeln!(out, "{pad}set {} = {v}", self.states[s.index()].name)?
+                }
                 Stmt::SetMode(m, i) => {
                     let md = &self.modes[m.index()];
                     writeln!(out, "{pad}set {} = {}", md.name, md.variants[*i as usize])?
@@ -74,10 +101,19 @@ impl Program {
                 }
                 Stmt::Emit(e, args) => {
                     let a: Vec<String> = args.iter().map(|v| v.to_string()).collect();
-                    writeln!(out, "{pad}emit {}({})", self.events[e.index()].name, a.join(", "))?
+                    writeln!(
+                        out,
+                        "{pad}emit {}({})",
+                        self.events[e.index()].name,
+                        a.join(", ")
+                    )?
                 }
-                Stmt::Force(x, v) => writeln!(out, "{pad}force {} = {v}", self.forces[x.index()].name)?,
-                Stmt::Output(x, v) => writeln!(out, "{pad}output {} = {v}", self.outputs[x.index()].name)?,
+                Stmt::Force(x, v) => {
+                    writeln!(out, "{pad}force {} = {v}", self.forces[x.index()].name)?
+                }
+                Stmt::Output(x, v) => {
+                    writeln!(out, "{pad}output {} = {v}", self.outputs[x.index()].name)?
+                }
                 Stmt::Total(v) => writeln!(out, "{pad}total = {v}")?,
             }
         }

@@ -50,7 +50,11 @@ pub fn simulate(program: &Program, stimulus: &Stimulus) -> (Trace, SimSummary) {
     for e in &program.events {
         event_col.push(trace.columns.len());
         for (a, d) in &e.args {
-            trace.add_column(format!("{}.{a}", e.name), d.unit_string(), ColumnKind::Event);
+            trace.add_column(
+                format!("{}.{a}", e.name),
+                d.unit_string(),
+                ColumnKind::Event,
+            );
         }
     }
     let mut inst = Instance::new(program);
@@ -66,7 +70,11 @@ pub fn simulate(program: &Program, stimulus: &Stimulus) -> (Trace, SimSummary) {
         row[c] = n as f64 / program.sample_rate_hz;
         c += 1;
         for (i, s) in program.sensors.iter().enumerate() {
-            row[c] = sensors.get(i).copied().unwrap_or(s.range.0).clamp(s.range.0, s.range.1);
+            row[c] = sensors
+                .get(i)
+                .copied()
+                .unwrap_or(s.range.0)
+                .clamp(s.range.0, s.range.1);
             c += 1;
         }
         for f in &out.forces {
@@ -98,5 +106,11 @@ pub fn simulate(program: &Program, stimulus: &Stimulus) -> (Trace, SimSummary) {
         // Rows always match the column count built above.
         let _ = trace.push_row(&row);
     }
-    (trace, SimSummary { saturations: inst.saturations().to_vec(), events })
+    (
+        trace,
+        SimSummary {
+            saturations: inst.saturations().to_vec(),
+            events,
+        },
+    )
 }

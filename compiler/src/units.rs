@@ -36,14 +36,6 @@ impl Dim {
     /// Hertz, 1/s.
     pub const FREQUENCY: Dim = Dim([0, 0, -1, 0]);
 
-    /// The product dimension (exponents added).
-    pub fn mul(self, o: Dim) -> Dim {
-        Dim(std::array::from_fn(|i| self.0[i].saturating_add(o.0[i])))
-    }
-    /// The quotient dimension (exponents subtracted).
-    pub fn div(self, o: Dim) -> Dim {
-        Dim(std::array::from_fn(|i| self.0[i].saturating_sub(o.0[i])))
-    }
     /// The dimension raised to an integer power.
     pub fn powi(self, n: i32) -> Dim {
         Dim(std::array::from_fn(|i| {
@@ -64,7 +56,10 @@ impl Dim {
     }
     /// The conventional name of the quantity, when it has one ("force", "velocity", …).
     pub fn quantity_name(self) -> Option<&'static str> {
-        NAMED.iter().find(|(d, _, _)| *d == self).map(|(_, _, q)| *q)
+        NAMED
+            .iter()
+            .find(|(d, _, _)| *d == self)
+            .map(|(_, _, q)| *q)
     }
     /// The SI unit to print for this dimension (e.g. `N`, `N*s/m`, `kg*m^2`).
     pub fn unit_string(self) -> String {
@@ -75,19 +70,45 @@ impl Dim {
         let mut num = Vec::new();
         let mut den = Vec::new();
         for (e, n) in self.0.iter().zip(names) {
-            let term = |e: i8| if e == 1 { n.to_string() } else { format!("{n}^{e}") };
+            let term = |e: i8| {
+                if e == 1 {
+                    n.to_string()
+                } else {
+                    format!("{n}^{e}")
+                }
+            };
             match e.cmp(&0) {
                 std::cmp::Ordering::Greater => num.push(term(*e)),
                 std::cmp::Ordering::Less => den.push(term(-*e)),
                 std::cmp::Ordering::Equal => {}
             }
         }
-        let num = if num.is_empty() { "1".to_string() } else { num.join("*") };
+        let num = if num.is_empty() {
+            "1".to_string()
+        } else {
+            num.join("*")
+        };
         if den.is_empty() {
             num
         } else {
             format!("{num}/{}", den.join("/"))
         }
+    }
+}
+
+impl std::ops::Mul for Dim {
+    type Output = Dim;
+    /// The product dimension (exponents added).
+    fn mul(self, o: Dim) -> Dim {
+        Dim(std::array::from_fn(|i| self.0[i].saturating_add(o.0[i])))
+    }
+}
+
+impl std::ops::Div for Dim {
+    type Output = Dim;
+    /// The quotient dimension (exponents subtracted).
+    fn div(self, o: Dim) -> Dim {
+        Dim(std::array::from_fn(|i| self.0[i].saturating_sub(o.0[i])))
     }
 }
 
@@ -146,29 +167,121 @@ const DEG: f64 = std::f64::consts::PI / 180.0;
 /// Every unit the language knows. Prefixed forms are listed explicitly (no general prefix
 /// rule) so that a one-letter name like `m` cannot be misread as a prefix.
 pub const UNITS: &[Unit] = &[
-    Unit { name: "m", dim: Dim::LENGTH, scale: 1.0 },
-    Unit { name: "cm", dim: Dim::LENGTH, scale: 1e-2 },
-    Unit { name: "mm", dim: Dim::LENGTH, scale: 1e-3 },
-    Unit { name: "um", dim: Dim::LENGTH, scale: 1e-6 },
-    Unit { name: "kg", dim: Dim::MASS, scale: 1.0 },
-    Unit { name: "g", dim: Dim::MASS, scale: 1e-3 },
-    Unit { name: "mg", dim: Dim::MASS, scale: 1e-6 },
-    Unit { name: "s", dim: Dim::TIME, scale: 1.0 },
-    Unit { name: "ms", dim: Dim::TIME, scale: 1e-3 },
-    Unit { name: "us", dim: Dim::TIME, scale: 1e-6 },
-    Unit { name: "A", dim: Dim::CURRENT, scale: 1.0 },
-    Unit { name: "mA", dim: Dim::CURRENT, scale: 1e-3 },
-    Unit { name: "N", dim: Dim::FORCE, scale: 1.0 },
-    Unit { name: "mN", dim: Dim::FORCE, scale: 1e-3 },
-    Unit { name: "Hz", dim: Dim::FREQUENCY, scale: 1.0 },
-    Unit { name: "kHz", dim: Dim::FREQUENCY, scale: 1e3 },
-    Unit { name: "rad", dim: Dim::NONE, scale: 1.0 },
-    Unit { name: "mrad", dim: Dim::NONE, scale: 1e-3 },
-    Unit { name: "deg", dim: Dim::NONE, scale: DEG },
-    Unit { name: "J", dim: Dim([2, 1, -2, 0]), scale: 1.0 },
-    Unit { name: "W", dim: Dim([2, 1, -3, 0]), scale: 1.0 },
-    Unit { name: "V", dim: Dim([2, 1, -3, -1]), scale: 1.0 },
-    Unit { name: "Pa", dim: Dim([-1, 1, -2, 0]), scale: 1.0 },
+    Unit {
+        name: "m",
+        dim: Dim::LENGTH,
+        scale: 1.0,
+    },
+    Unit {
+        name: "cm",
+        dim: Dim::LENGTH,
+        scale: 1e-2,
+    },
+    Unit {
+        name: "mm",
+        dim: Dim::LENGTH,
+        scale: 1e-3,
+    },
+    Unit {
+        name: "um",
+        dim: Dim::LENGTH,
+        scale: 1e-6,
+    },
+    Unit {
+        name: "kg",
+        dim: Dim::MASS,
+        scale: 1.0,
+    },
+    Unit {
+        name: "g",
+        dim: Dim::MASS,
+        scale: 1e-3,
+    },
+    Unit {
+        name: "mg",
+        dim: Dim::MASS,
+        scale: 1e-6,
+    },
+    Unit {
+        name: "s",
+        dim: Dim::TIME,
+        scale: 1.0,
+    },
+    Unit {
+        name: "ms",
+        dim: Dim::TIME,
+        scale: 1e-3,
+    },
+    Unit {
+        name: "us",
+        dim: Dim::TIME,
+        scale: 1e-6,
+    },
+    Unit {
+        name: "A",
+        dim: Dim::CURRENT,
+        scale: 1.0,
+    },
+    Unit {
+        name: "mA",
+        dim: Dim::CURRENT,
+        scale: 1e-3,
+    },
+    Unit {
+        name: "N",
+        dim: Dim::FORCE,
+        scale: 1.0,
+    },
+    Unit {
+        name: "mN",
+        dim: Dim::FORCE,
+        scale: 1e-3,
+    },
+    Unit {
+        name: "Hz",
+        dim: Dim::FREQUENCY,
+        scale: 1.0,
+    },
+    Unit {
+        name: "kHz",
+        dim: Dim::FREQUENCY,
+        scale: 1e3,
+    },
+    Unit {
+        name: "rad",
+        dim: Dim::NONE,
+        scale: 1.0,
+    },
+    Unit {
+        name: "mrad",
+        dim: Dim::NONE,
+        scale: 1e-3,
+    },
+    Unit {
+        name: "deg",
+        dim: Dim::NONE,
+        scale: DEG,
+    },
+    Unit {
+        name: "J",
+        dim: Dim([2, 1, -2, 0]),
+        scale: 1.0,
+    },
+    Unit {
+        name: "W",
+        dim: Dim([2, 1, -3, 0]),
+        scale: 1.0,
+    },
+    Unit {
+        name: "V",
+        dim: Dim([2, 1, -3, -1]),
+        scale: 1.0,
+    },
+    Unit {
+        name: "Pa",
+        dim: Dim([-1, 1, -2, 0]),
+        scale: 1.0,
+    },
 ];
 
 /// Looks a unit up by its spelling.
@@ -190,9 +303,9 @@ mod tests {
         let n = lookup("N").unwrap().dim;
         let m = lookup("m").unwrap().dim;
         let s = lookup("s").unwrap().dim;
-        assert_eq!(n.mul(s).div(m).unit_string(), "N*s/m");
-        assert_eq!(n.div(m).quantity_name(), Some("stiffness"));
-        assert_eq!(m.div(s).div(s).unit_string(), "m/s^2");
+        assert_eq!((n * s / m).unit_string(), "N*s/m");
+        assert_eq!((n / m).quantity_name(), Some("stiffness"));
+        assert_eq!((m / s / s).unit_string(), "m/s^2");
         assert_eq!(Dim([3, 0, -1, 2]).unit_string(), "m^3*A^2/s");
         assert_eq!(Dim([2, 0, 0, 0]).sqrt(), Some(Dim::LENGTH));
         assert_eq!(Dim::LENGTH.sqrt(), None);

@@ -10,7 +10,10 @@ use tactus_compiler::lower::Config;
 #[test]
 fn every_error_case_gives_its_diagnostic() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/errors");
-    let mut files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     files.retain(|p| p.extension().is_some_and(|e| e == "tactus"));
     files.sort();
     let mut codes = BTreeSet::new();
@@ -25,27 +28,47 @@ fn every_error_case_gives_its_diagnostic() {
         assert!(!errors.is_empty(), "{name}: no error among {diags:?}");
         for d in &errors {
             assert!(!d.message.is_empty(), "{name}: empty message");
-            assert!(d.primary.0.end <= src.len(), "{name}: span outside the file");
+            assert!(
+                d.primary.0.end <= src.len(),
+                "{name}: span outside the file"
+            );
             codes.insert(d.code);
         }
         let rendered = emit_to_string(&format!("{name}.tactus"), &src, &diags);
         insta::assert_snapshot!(name, rendered);
     }
     assert!(files.len() >= 25, "only {} error cases", files.len());
-    assert!(codes.len() >= 25, "only {} distinct error codes: {codes:?}", codes.len());
+    assert!(
+        codes.len() >= 25,
+        "only {} distinct error codes: {codes:?}",
+        codes.len()
+    );
 }
 
 #[test]
 fn param_overrides_are_checked() {
-    let src = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments/hammond.tactus")).unwrap();
-    let with = |k: &str, v: &str| Config { overrides: vec![(k.into(), v.into())], ..Config::default() };
+    let src = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments/hammond.tactus"),
+    )
+    .unwrap();
+    let with = |k: &str, v: &str| Config {
+        overrides: vec![(k.into(), v.into())],
+        ..Config::default()
+    };
     // A good override changes the folded value.
     let ok = tactus_compiler::compile(&src, &with("k", "200 N/m")).unwrap();
     let k = ok.program.params.iter().find(|p| p.name == "k").unwrap();
     assert_eq!(k.value, 200.0);
     // Wrong unit, unknown name and non-number all fail with their codes.
-    for (name, value, code) in [("k", "2 mm", "E0303"), ("kk", "1 N/m", "E0301"), ("k", "fast", "E0302")] {
+    for (name, value, code) in [
+        ("k", "2 mm", "E0303"),
+        ("kk", "1 N/m", "E0301"),
+        ("k", "fast", "E0302"),
+    ] {
         let err = tactus_compiler::compile(&src, &with(name, value)).unwrap_err();
-        assert!(err.iter().any(|d| d.code == code), "{name}={value}: {err:?}");
+        assert!(
+            err.iter().any(|d| d.code == code),
+            "{name}={value}: {err:?}"
+        );
     }
 }

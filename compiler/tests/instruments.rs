@@ -7,7 +7,10 @@ use tactus_compiler::lower::Config;
 
 fn instrument_files() -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
-    let mut v: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+    let mut v: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     v.retain(|p| p.extension().is_some_and(|e| e == "tactus"));
     v.sort();
     v
@@ -20,9 +23,17 @@ fn ir_of_every_instrument() {
     for path in files {
         let name = path.file_stem().unwrap().to_str().unwrap().to_string();
         let src = std::fs::read_to_string(&path).unwrap();
-        let lowered = tactus_compiler::compile(&src, &Config::default())
-            .unwrap_or_else(|d| panic!("{name}:\n{}", tactus_compiler::diagnostics::emit_to_string(&name, &src, &d)));
-        assert!(lowered.warnings.is_empty(), "{name}: {:?}", lowered.warnings);
+        let lowered = tactus_compiler::compile(&src, &Config::default()).unwrap_or_else(|d| {
+            panic!(
+                "{name}:\n{}",
+                tactus_compiler::diagnostics::emit_to_string(&name, &src, &d)
+            )
+        });
+        assert!(
+            lowered.warnings.is_empty(),
+            "{name}: {:?}",
+            lowered.warnings
+        );
         insta::assert_snapshot!(format!("ir_{name}"), lowered.program.to_string());
     }
 }
@@ -42,9 +53,45 @@ impl Rng {
 }
 
 const SNIPPETS: &[&str] = &[
-    "{", "}", "(", ")", "[", "]", ",", "=", "==", "'", ".", "^", "-", "*", "/", " mm", " N*s/m", "1e",
-    "9999999999999999999999", "0", " m^-3", " if ", " else ", " on ", " while ", " emit x()", " use ",
-    " state ", " mode ", "//", "\n", "é", "\u{0}", " d(", " d2(", " and ", " not ", ": bool", "1/s",
+    "{",
+    "}",
+    "(",
+    ")",
+    "[",
+    "]",
+    ",",
+    "=",
+    "==",
+    "'",
+    ".",
+    "^",
+    "-",
+    "*",
+    "/",
+    " mm",
+    " N*s/m",
+    "1e",
+    "9999999999999999999999",
+    "0",
+    " m^-3",
+    " if ",
+    " else ",
+    " on ",
+    " while ",
+    " emit x()",
+    " use ",
+    " state ",
+    " mode ",
+    "//",
+    "\n",
+    "é",
+    "\u{0}",
+    " d(",
+    " d2(",
+    " and ",
+    " not ",
+    ": bool",
+    "1/s",
 ];
 
 fn mutate(src: &str, rng: &mut Rng) -> String {
@@ -81,8 +128,11 @@ fn mutate(src: &str, rng: &mut Rng) -> String {
 
 #[test]
 fn mutated_instruments_never_panic() {
-    let sources: Vec<String> = instrument_files().iter().map(|p| std::fs::read_to_string(p).unwrap()).collect();
-    let mut rng = Rng(0x7AC7_05);
+    let sources: Vec<String> = instrument_files()
+        .iter()
+        .map(|p| std::fs::read_to_string(p).unwrap())
+        .collect();
+    let mut rng = Rng(0x007A_C705);
     let (mut ok, mut failed) = (0usize, 0usize);
     for i in 0..10_400 {
         let m = mutate(&sources[i % sources.len()], &mut rng);
@@ -91,7 +141,10 @@ fn mutated_instruments_never_panic() {
             Err(diags) => {
                 assert!(diags.iter().any(|d| d.is_error()));
                 for d in &diags {
-                    assert!(d.primary.0.start <= d.primary.0.end && d.primary.0.end <= m.len(), "span out of file: {d:?}");
+                    assert!(
+                        d.primary.0.start <= d.primary.0.end && d.primary.0.end <= m.len(),
+                        "span out of file: {d:?}"
+                    );
                 }
                 // Rendering must not panic either.
                 let _ = tactus_compiler::diagnostics::emit_to_string("m.tactus", &m, &diags);
@@ -100,5 +153,9 @@ fn mutated_instruments_never_panic() {
         }
     }
     // Mutations that happen to be harmless are fine, but most must be caught.
-    assert!(failed > ok, "only {failed} of {} mutants rejected", ok + failed);
+    assert!(
+        failed > ok,
+        "only {failed} of {} mutants rejected",
+        ok + failed
+    );
 }

@@ -28,7 +28,11 @@ pub struct Differentiator {
 
 impl Default for Differentiator {
     fn default() -> Self {
-        Differentiator { hist: [0.0; HISTORY], pos: 0, primed: false }
+        Differentiator {
+            hist: [0.0; HISTORY],
+            pos: 0,
+            primed: false,
+        }
     }
 }
 

@@ -231,7 +231,10 @@ impl fmt::Display for StimulusError {
                 name,
                 value,
                 expected,
-            } => write!(f, "stimulus parameter `{name}` = {value}: must be {expected}"),
+            } => write!(
+                f,
+                "stimulus parameter `{name}` = {value}: must be {expected}"
+            ),
             StimulusError::TooLong { source, samples } => write!(
                 f,
                 "stimulus `{source}` would have {samples:.0} samples, more than the limit of \
@@ -626,11 +629,15 @@ pub fn from_csv(path: &Path, sample_rate_hz: f64) -> Result<Stimulus, StimulusEr
     } else {
         keys
     };
-    let name = path
-        .file_stem()
-        .map_or_else(|| path.display().to_string(), |s| s.to_string_lossy().into());
+    let name = path.file_stem().map_or_else(
+        || path.display().to_string(),
+        |s| s.to_string_lossy().into(),
+    );
     let description = if timed {
-        format!("key positions from {} (time_s,key_mm, resampled)", path.display())
+        format!(
+            "key positions from {} (time_s,key_mm, resampled)",
+            path.display()
+        )
     } else {
         format!("key positions from {} (key_mm per sample)", path.display())
     };

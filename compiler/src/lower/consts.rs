@@ -23,30 +23,62 @@ impl<'a> Lowerer<'a> {
             let scope = ScopeId(si);
             for d in &self.scopes[si].body.decls {
                 match d {
-                    ast::Decl::Sensor { name, ty, range: Some(r) } if si == 0 => {
-                        let Some(Sym::Sensor(id)) = self.scopes[si].syms.get(&name.node).map(|s| s.0) else { continue };
+                    ast::Decl::Sensor {
+                        name,
+                        ty,
+                        range: Some(r),
+                    } if si == 0 => {
+                        let Some(Sym::Sensor(id)) =
+                            self.scopes[si].syms.get(&name.node).map(|s| s.0)
+                        else {
+                            continue;
+                        };
                         if let Some((lo, hi, dim)) = self.const_range(scope, r, ty.as_ref()) {
                             let s = &mut self.prog.sensors[id.index()];
                             s.range = (lo, hi);
                             s.dim = dim;
                         }
                     }
-                    ast::Decl::State { name, ty, init, range: Some(r) } => {
-                        let Some(Sym::State(id)) = self.scopes[si].syms.get(&name.node).map(|s| s.0) else { continue };
-                        let Some((lo, hi, dim)) = self.const_range(scope, r, ty.as_ref()) else { continue };
-                        let Some((v, vd)) = self.const_value(scope, init) else { continue };
+                    ast::Decl::State {
+                        name,
+                        ty,
+                        init,
+                        range: Some(r),
+                    } => {
+                        let Some(Sym::State(id)) =
+                            self.scopes[si].syms.get(&name.node).map(|s| s.0)
+                        else {
+                            continue;
+                        };
+                        let Some((lo, hi, dim)) = self.const_range(scope, r, ty.as_ref()) else {
+                            continue;
+                        };
+                        let Some((v, vd)) = self.const_value(scope, init) else {
+                            continue;
+                        };
                         if vd != dim {
                             self.err(
-                                Diagnostic::error("E0308", format!("initial value is {vd} but the range is {dim}"), init.span.clone())
-                                    .with_secondary(r.span.clone(), dim.to_string()),
+                                Diagnostic::error(
+                                    "E0308",
+                                    format!("initial value is {vd} but the range is {dim}"),
+                                    init.span.clone(),
+                                )
+                                .with_secondary(r.span.clone(), dim.to_string()),
                             );
                             continue;
                         }
                         if !(lo..=hi).contains(&v) {
                             self.err(
-                                Diagnostic::error("E0307", format!("initial value of `{}` lies outside its range", name.node), init.span.clone())
-                                    .with_secondary(r.span.clone(), "declared range")
-                                    .hint("widen the range or change the initial value"),
+                                Diagnostic::error(
+                                    "E0307",
+                                    format!(
+                                        "initial value of `{}` lies outside its range",
+                                        name.node
+                                    ),
+                                    init.span.clone(),
+                                )
+                                .with_secondary(r.span.clone(), "declared range")
+                                .hint("widen the range or change the initial value"),
                             );
                         }
                         let s = &mut self.prog.states[id.index()];
@@ -73,15 +105,23 @@ impl<'a> Lowerer<'a> {
         let ((lo, dl), (hi, dh)) = (lo?, hi?);
         if dl != dh {
             self.err(
-                Diagnostic::error("E0308", format!("range bounds differ in dimension: {dl} and {dh}"), r.span.clone())
-                    .hint("write both bounds with units of the same quantity, e.g. `[0 mm, 10 mm]`"),
+                Diagnostic::error(
+                    "E0308",
+                    format!("range bounds differ in dimension: {dl} and {dh}"),
+                    r.span.clone(),
+                )
+                .hint("write both bounds with units of the same quantity, e.g. `[0 mm, 10 mm]`"),
             );
             return None;
         }
         if lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less) {
             self.err(
-                Diagnostic::error("E0306", "empty range: the lower bound is not below the upper bound", r.span.clone())
-                    .hint("write `[lo, hi]` with lo < hi"),
+                Diagnostic::error(
+                    "E0306",
+                    "empty range: the lower bound is not below the upper bound",
+                    r.span.clone(),
+                )
+                .hint("write `[lo, hi]` with lo < hi"),
             );
             return None;
         }
@@ -89,7 +129,10 @@ impl<'a> Lowerer<'a> {
             if let Some(t) = self.annot_ty(a) {
                 if t != Ty::Real(dl) {
                     let msg = format!("declared as {} but its range is {dl}", self.ty_string(t));
-                    self.err(Diagnostic::error("E0309", msg, a.span.clone()).with_secondary(r.span.clone(), dl.to_string()));
+                    self.err(
+                        Diagnostic::error("E0309", msg, a.span.clone())
+                            .with_secondary(r.span.clone(), dl.to_string()),
+                    );
                     return None;
                 }
             }
@@ -114,7 +157,12 @@ impl<'a> Lowerer<'a> {
         let op = &self.prog.values[v.index()].op;
         let params: Vec<f64> = Vec::new();
         let _ = params;
-        crate::interp::eval_op(op, |x| self.fold(x), |p| self.prog.params[p.index()].value, &|_| 0.0)
+        crate::interp::eval_op(
+            op,
+            |x| self.fold(x),
+            |p| self.prog.params[p.index()].value,
+            &|_| 0.0,
+        )
     }
 
     /// The value and dimension of a param, evaluating it (and what it depends on) once.
@@ -127,15 +175,23 @@ impl<'a> Lowerer<'a> {
             let span = self.prog.params[p.index()].span.clone();
             let name = self.prog.params[p.index()].name.clone();
             self.err(
-                Diagnostic::error("E0304", format!("param `{name}` is defined in terms of itself"), span)
-                    .hint("a param's value must be computable from numbers and other params"),
+                Diagnostic::error(
+                    "E0304",
+                    format!("param `{name}` is defined in terms of itself"),
+                    span,
+                )
+                .hint("a param's value must be computable from numbers and other params"),
             );
             self.params[p.index()].done = Some(None);
             return None;
         }
         let was_const = std::mem::replace(&mut self.const_ctx, true);
         self.blocks.push(Vec::new());
-        let (expr, scope, annot) = (self.params[p.index()].expr, self.params[p.index()].scope, self.params[p.index()].annot);
+        let (expr, scope, annot) = (
+            self.params[p.index()].expr,
+            self.params[p.index()].scope,
+            self.params[p.index()].annot,
+        );
         let mut result = self.const_value(scope, expr);
         self.blocks.pop();
         self.const_ctx = was_const;
@@ -144,19 +200,31 @@ impl<'a> Lowerer<'a> {
             if let Some(t) = self.annot_ty(a) {
                 if t != Ty::Real(d) {
                     let msg = format!("declared as {} but its value is {d}", self.ty_string(t));
-                    self.err(Diagnostic::error("E0309", msg, expr.span.clone()).with_secondary(a.span.clone(), "declared type"));
+                    self.err(
+                        Diagnostic::error("E0309", msg, expr.span.clone())
+                            .with_secondary(a.span.clone(), "declared type"),
+                    );
                     result = None;
                 }
             }
         }
-        if let (Some((_, d)), Some((ov, od, text))) = (result, self.overrides.get(&p.index()).cloned()) {
+        if let (Some((_, d)), Some((ov, od, text))) =
+            (result, self.overrides.get(&p.index()).cloned())
+        {
             let name = self.prog.params[p.index()].name.clone();
             if od != d {
                 let span = self.prog.params[p.index()].span.clone();
                 self.err(
-                    Diagnostic::error("E0303", format!("`--param {name}={text}` is {od}, but `{name}` is {d}"), span)
-                        .label("declared here")
-                        .hint(format!("give the override in a unit of {}", d.unit_string())),
+                    Diagnostic::error(
+                        "E0303",
+                        format!("`--param {name}={text}` is {od}, but `{name}` is {d}"),
+                        span,
+                    )
+                    .label("declared here")
+                    .hint(format!(
+                        "give the override in a unit of {}",
+                        d.unit_string()
+                    )),
                 );
                 result = None;
             } else {

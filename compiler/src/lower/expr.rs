@@ -52,7 +52,11 @@ fn levenshtein(a: &str, b: &str) -> usize {
     for (i, ca) in a.chars().enumerate() {
         let mut cur = vec![i + 1];
         for (j, &cb) in b.iter().enumerate() {
-            cur.push((prev[j] + usize::from(ca != cb)).min(prev[j + 1] + 1).min(cur[j] + 1));
+            cur.push(
+                (prev[j] + usize::from(ca != cb))
+                    .min(prev[j + 1] + 1)
+                    .min(cur[j] + 1),
+            );
         }
         prev = cur;
     }
@@ -81,7 +85,11 @@ impl<'a> Lowerer<'a> {
                 let x = self.lower_expr(scope, a)?;
                 let d = self.real(x, &a.span, "raise to a power")?;
                 let n = n.node as i32;
-                let mut acc = if n == 0 { self.def(Op::Const(1.0), Ty::Real(Dim::NONE)) } else { x };
+                let mut acc = if n == 0 {
+                    self.def(Op::Const(1.0), Ty::Real(Dim::NONE))
+                } else {
+                    x
+                };
                 for k in 2..=n.abs() {
                     acc = self.def(Op::Arith(ArithOp::Mul, acc, x), Ty::Real(d.powi(k)));
                 }
@@ -100,7 +108,11 @@ impl<'a> Lowerer<'a> {
                 let (av, bv) = (av?, bv?);
                 let (ta, tb) = (self.ty(av), self.ty(bv));
                 if ta != tb {
-                    let msg = format!("the arms of this `if` differ: {} and {}", self.ty_string(ta), self.ty_string(tb));
+                    let msg = format!(
+                        "the arms of this `if` differ: {} and {}",
+                        self.ty_string(ta),
+                        self.ty_string(tb)
+                    );
                     self.err(
                         Diagnostic::error("E0204", msg, e.span.clone())
                             .with_secondary(a.span.clone(), self.ty_string(ta))
@@ -119,7 +131,9 @@ impl<'a> Lowerer<'a> {
             Ty::Real(d) => Some(d),
             t => {
                 let msg = format!("cannot {what} {}", self.ty_string(t));
-                self.err(Diagnostic::error("E0225", msg, span.clone()).label("expected a quantity"));
+                self.err(
+                    Diagnostic::error("E0225", msg, span.clone()).label("expected a quantity"),
+                );
                 None
             }
         }
@@ -129,29 +143,43 @@ impl<'a> Lowerer<'a> {
         if self.ty(v) == Ty::Bool {
             return Some(());
         }
-        let msg = format!("{what} needs a truth value, but this is {}", self.ty_string(self.ty(v)));
+        let msg = format!(
+            "{what} needs a truth value, but this is {}",
+            self.ty_string(self.ty(v))
+        );
         self.err(Diagnostic::error("E0205", msg, span.clone()).hint("compare it, e.g. `x > 1 mm`"));
         None
     }
 
     /// The variant of `mode` a bare name denotes.
     fn variant_of(&self, e: &ast::Expr, mode: ModeId) -> Option<u32> {
-        let ExprKind::Path(p) = &e.node else { return None };
+        let ExprKind::Path(p) = &e.node else {
+            return None;
+        };
         if p.len() != 1 {
             return None;
         }
-        self.prog.modes[mode.index()].variants.iter().position(|v| *v == p[0].node).map(|i| i as u32)
+        self.prog.modes[mode.index()]
+            .variants
+            .iter()
+            .position(|v| *v == p[0].node)
+            .map(|i| i as u32)
     }
 
-    fn lower_binary(&mut self, scope: ScopeId, op: BinOp, a: &'a ast::Expr, b: &'a ast::Expr, span: Span) -> Option<Value> {
+    fn lower_binary(
+        &mut self,
+        scope: ScopeId,
+        op: BinOp,
+        a: &'a ast::Expr,
+        b: &'a ast::Expr,
+        span: Span,
+    ) -> Option<Value> {
         if matches!(op, BinOp::Eq | BinOp::Ne) {
             // `mode == variant` in either order. A variant name on the right of a mode wins
             // over any other meaning of that name; on the left only an otherwise unknown name
             // is taken as a variant.
             let bare = |e: &ast::Expr| matches!(&e.node, ExprKind::Path(p) if p.len() == 1);
-            let unknown = |e: &ast::Expr| {
-                matches!(&e.node, ExprKind::Path(p) if p.len() == 1 && !self.scopes[scope.0].syms.contains_key(&p[0].node))
-            };
+            let unknown = |e: &ast::Expr| matches!(&e.node, ExprKind::Path(p) if p.len() == 1 && !self.scopes[scope.0].syms.contains_key(&p[0].node));
             let swapped = unknown(a) && !unknown(b);
             let (mode_side, var_side) = if swapped { (b, a) } else { (a, b) };
             let mv = self.lower_expr(scope, mode_side)?;
@@ -166,7 +194,11 @@ impl<'a> Lowerer<'a> {
                     return None;
                 };
                 let vv = self.def(Op::Variant(m, idx), Ty::Mode(m));
-                let cmp = if op == BinOp::Eq { CmpOp::Eq } else { CmpOp::Ne };
+                let cmp = if op == BinOp::Eq {
+                    CmpOp::Eq
+                } else {
+                    CmpOp::Ne
+                };
                 return Some(self.def(Op::Cmp(cmp, mv, vv), Ty::Bool));
             }
             let other = self.lower_expr(scope, var_side)?;
@@ -178,13 +210,25 @@ impl<'a> Lowerer<'a> {
         self.finish_binary(op, x?, y?, a, b, span)
     }
 
-    fn finish_binary(&mut self, op: BinOp, x: Value, y: Value, a: &ast::Expr, b: &ast::Expr, span: Span) -> Option<Value> {
+    fn finish_binary(
+        &mut self,
+        op: BinOp,
+        x: Value,
+        y: Value,
+        a: &ast::Expr,
+        b: &ast::Expr,
+        span: Span,
+    ) -> Option<Value> {
         let (tx, ty) = (self.ty(x), self.ty(y));
         match op {
             BinOp::And | BinOp::Or => {
                 self.boolean(x, &a.span, if op == BinOp::And { "`and`" } else { "`or`" })?;
                 self.boolean(y, &b.span, if op == BinOp::And { "`and`" } else { "`or`" })?;
-                let o = if op == BinOp::And { Op::And(x, y) } else { Op::Or(x, y) };
+                let o = if op == BinOp::And {
+                    Op::And(x, y)
+                } else {
+                    Op::Or(x, y)
+                };
                 Some(self.def(o, Ty::Bool))
             }
             BinOp::Eq | BinOp::Ne | BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge => {
@@ -202,12 +246,18 @@ impl<'a> Lowerer<'a> {
                     _ => false,
                 };
                 if !ok {
-                    let msg = format!("cannot compare {} with {}", self.ty_string(tx), self.ty_string(ty));
+                    let msg = format!(
+                        "cannot compare {} with {}",
+                        self.ty_string(tx),
+                        self.ty_string(ty)
+                    );
                     self.err(
                         Diagnostic::error("E0203", msg, span)
                             .with_secondary(a.span.clone(), self.ty_string(tx))
                             .with_secondary(b.span.clone(), self.ty_string(ty))
-                            .hint(zero_hint(tx, ty).unwrap_or("both sides must have the same unit")),
+                            .hint(
+                                zero_hint(tx, ty).unwrap_or("both sides must have the same unit"),
+                            ),
                     );
                     return None;
                 }
@@ -225,8 +275,8 @@ impl<'a> Lowerer<'a> {
                 let (aop, d) = match op {
                     BinOp::Add => (ArithOp::Add, dx),
                     BinOp::Sub => (ArithOp::Sub, dx),
-                    BinOp::Mul => (ArithOp::Mul, dx.mul(dy)),
-                    _ => (ArithOp::Div, dx.div(dy)),
+                    BinOp::Mul => (ArithOp::Mul, dx * dy),
+                    _ => (ArithOp::Div, dx / dy),
                 };
                 if matches!(aop, ArithOp::Add | ArithOp::Sub) && dx != dy {
                     let msg = format!("cannot {verb} {} and {}", dx, dy);
@@ -253,7 +303,11 @@ impl<'a> Lowerer<'a> {
         for (i, seg) in p.iter().enumerate().skip(1) {
             let Sym::Instance(child) = sym else {
                 let what = sym.describe();
-                self.err(Diagnostic::error("E0223", format!("`{}` is a {what}, it has no members", p[i - 1].node), p[i - 1].span.clone()));
+                self.err(Diagnostic::error(
+                    "E0223",
+                    format!("`{}` is a {what}, it has no members", p[i - 1].node),
+                    p[i - 1].span.clone(),
+                ));
                 return None;
             };
             cur_scope = child;
@@ -267,8 +321,12 @@ impl<'a> Lowerer<'a> {
         };
         if !visible {
             self.err(
-                Diagnostic::error("E0223", format!("`{}` is not visible outside its component", last.node), last.span.clone())
-                    .hint("declare it as `output NAME = …` in the component to read it from outside"),
+                Diagnostic::error(
+                    "E0223",
+                    format!("`{}` is not visible outside its component", last.node),
+                    last.span.clone(),
+                )
+                .hint("declare it as `output NAME = …` in the component to read it from outside"),
             );
             return None;
         }
@@ -283,7 +341,13 @@ impl<'a> Lowerer<'a> {
         None
     }
 
-    fn lower_sym(&mut self, scope: ScopeId, sym: Sym, name: &'a ast::Name, span: Span) -> Option<Value> {
+    fn lower_sym(
+        &mut self,
+        scope: ScopeId,
+        sym: Sym,
+        name: &'a ast::Name,
+        span: Span,
+    ) -> Option<Value> {
         if self.const_ctx && !matches!(sym, Sym::Param(_)) {
             return self.not_constant(name, sym.describe());
         }
@@ -302,8 +366,12 @@ impl<'a> Lowerer<'a> {
             Sym::Input(i) => self.lower_input(scope, i, span),
             Sym::Instance(_) => {
                 self.err(
-                    Diagnostic::error("E0222", format!("`{}` is a component instance, not a value", name.node), name.span.clone())
-                        .hint(format!("read one of its outputs: `{}.NAME`", name.node)),
+                    Diagnostic::error(
+                        "E0222",
+                        format!("`{}` is a component instance, not a value", name.node),
+                        name.span.clone(),
+                    )
+                    .hint(format!("read one of its outputs: `{}.NAME`", name.node)),
                 );
                 None
             }
@@ -318,7 +386,11 @@ impl<'a> Lowerer<'a> {
         let inp = &self.scopes[scope.0].inputs[i];
         let (arg, want, parent) = (inp.arg?, inp.dim, self.scopes[scope.0].parent?);
         if !self.in_progress.insert(key) {
-            self.err(Diagnostic::error("E0216", "this component input is defined in terms of itself", span));
+            self.err(Diagnostic::error(
+                "E0216",
+                "this component input is defined in terms of itself",
+                span,
+            ));
             return None;
         }
         let v = self.lower_expr(parent, arg);
@@ -327,7 +399,11 @@ impl<'a> Lowerer<'a> {
         if let Some(want) = want {
             if self.ty(v) != want {
                 let name = self.scopes[scope.0].inputs[i].name.node.clone();
-                let msg = format!("input `{name}` expects {}, but is given {}", self.ty_string(want), self.ty_string(self.ty(v)));
+                let msg = format!(
+                    "input `{name}` expects {}, but is given {}",
+                    self.ty_string(want),
+                    self.ty_string(self.ty(v))
+                );
                 self.err(Diagnostic::error("E0226", msg, arg.span.clone()).label("connected here"));
                 return None;
             }
@@ -338,7 +414,9 @@ impl<'a> Lowerer<'a> {
 
     /// The sensor an expression denotes directly or through component inputs.
     fn sensor_of(&self, scope: ScopeId, e: &ast::Expr) -> Option<SensorId> {
-        let ExprKind::Path(p) = &e.node else { return None };
+        let ExprKind::Path(p) = &e.node else {
+            return None;
+        };
         if p.len() != 1 {
             return None;
         }
@@ -352,13 +430,33 @@ impl<'a> Lowerer<'a> {
         }
     }
 
-    fn lower_call(&mut self, scope: ScopeId, f: &'a ast::Name, args: &'a [ast::Expr], span: Span) -> Option<Value> {
+    fn lower_call(
+        &mut self,
+        scope: ScopeId,
+        f: &'a ast::Name,
+        args: &'a [ast::Expr],
+        span: Span,
+    ) -> Option<Value> {
         let Some(&(name, sig)) = BUILTINS.iter().find(|(n, _)| *n == f.node) else {
             let hint = match closest(&f.node, BUILTINS.iter().map(|(n, _)| *n)) {
                 Some(c) => format!("did you mean `{c}`?"),
-                None => format!("the functions are: {}", BUILTINS.iter().map(|(_, s)| *s).collect::<Vec<_>>().join(", ")),
+                None => format!(
+                    "the functions are: {}",
+                    BUILTINS
+                        .iter()
+                        .map(|(_, s)| *s)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
             };
-            self.err(Diagnostic::error("E0217", format!("unknown function `{}`", f.node), f.span.clone()).hint(hint));
+            self.err(
+                Diagnostic::error(
+                    "E0217",
+                    format!("unknown function `{}`", f.node),
+                    f.span.clone(),
+                )
+                .hint(hint),
+            );
             return None;
         };
         let arity = match name {
@@ -368,14 +466,22 @@ impl<'a> Lowerer<'a> {
         };
         if args.len() != arity {
             self.err(
-                Diagnostic::error("E0218", format!("`{name}` takes {arity} argument(s), {} given", args.len()), span)
-                    .hint(format!("write `{sig}`")),
+                Diagnostic::error(
+                    "E0218",
+                    format!("`{name}` takes {arity} argument(s), {} given", args.len()),
+                    span,
+                )
+                .hint(format!("write `{sig}`")),
             );
             return None;
         }
         if name == "d" || name == "d2" {
             if self.const_ctx {
-                self.err(Diagnostic::error("E0305", format!("`{name}(…)` is not a constant"), span));
+                self.err(Diagnostic::error(
+                    "E0305",
+                    format!("`{name}(…)` is not a constant"),
+                    span,
+                ));
                 return None;
             }
             let Some(s) = self.sensor_of(scope, &args[0]) else {
@@ -387,7 +493,7 @@ impl<'a> Lowerer<'a> {
             };
             let order = if name == "d" { 1u8 } else { 2 };
             self.prog.sensors[s.index()].differentiated = true;
-            let d = self.prog.sensors[s.index()].dim.div(Dim::TIME.powi(order as i32));
+            let d = self.prog.sensors[s.index()].dim / Dim::TIME.powi(order as i32);
             return Some(self.memoised(Memo::Deriv(s, order), Op::Deriv(s, order), Ty::Real(d)));
         }
         let vals: Vec<Option<Value>> = args.iter().map(|a| self.lower_expr(scope, a)).collect();
@@ -399,9 +505,16 @@ impl<'a> Lowerer<'a> {
         let d0 = dims[0];
         if let Some(bad) = dims.iter().position(|d| *d != d0) {
             self.err(
-                Diagnostic::error("E0202", format!("dimension mismatch: `{name}` of {} and {}", d0, dims[bad]), span)
-                    .with_secondary(args[bad].span.clone(), dims[bad].to_string())
-                    .hint(zero_hint(Ty::Real(d0), Ty::Real(dims[bad])).unwrap_or("all arguments must have the same unit")),
+                Diagnostic::error(
+                    "E0202",
+                    format!("dimension mismatch: `{name}` of {} and {}", d0, dims[bad]),
+                    span,
+                )
+                .with_secondary(args[bad].span.clone(), dims[bad].to_string())
+                .hint(
+                    zero_hint(Ty::Real(d0), Ty::Real(dims[bad]))
+                        .unwrap_or("all arguments must have the same unit"),
+                ),
             );
             return None;
         }
@@ -426,8 +539,12 @@ impl<'a> Lowerer<'a> {
             _ => {
                 if !d0.is_none() {
                     self.err(
-                        Diagnostic::error("E0221", format!("`exp` needs a dimensionless argument, but this is {d0}"), args[0].span.clone())
-                            .hint("divide by a reference value first, e.g. `exp(-v*v / (v0*v0))`"),
+                        Diagnostic::error(
+                            "E0221",
+                            format!("`exp` needs a dimensionless argument, but this is {d0}"),
+                            args[0].span.clone(),
+                        )
+                        .hint("divide by a reference value first, e.g. `exp(-v*v / (v0*v0))`"),
                     );
                     return None;
                 }

@@ -37,7 +37,10 @@ pub struct Config {
 
 impl Default for Config {
     fn default() -> Self {
-        Config { sample_rate_hz: tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, overrides: Vec::new() }
+        Config {
+            sample_rate_hz: tactus_runtime::DEFAULT_SAMPLE_RATE_HZ,
+            overrides: Vec::new(),
+        }
     }
 }
 
@@ -57,11 +60,17 @@ pub fn lower(file: &ast::File, config: &Config) -> Result<Lowered, Vec<Diagnosti
     l.run(file);
     // A definition lowered several times (once per memo epoch) reports its errors once.
     let mut seen = HashSet::new();
-    let diags: Vec<Diagnostic> =
-        l.diags.into_iter().filter(|d| seen.insert((d.code, d.primary.0.clone(), d.message.clone()))).collect();
+    let diags: Vec<Diagnostic> = l
+        .diags
+        .into_iter()
+        .filter(|d| seen.insert((d.code, d.primary.0.clone(), d.message.clone())))
+        .collect();
     let (errors, warnings): (Vec<_>, Vec<_>) = diags.into_iter().partition(|d| d.is_error());
     if errors.is_empty() {
-        Ok(Lowered { program: l.prog, warnings })
+        Ok(Lowered {
+            program: l.prog,
+            warnings,
+        })
     } else {
         Err(errors.into_iter().chain(warnings).collect())
     }
@@ -156,16 +165,24 @@ impl<'a> Lowerer<'a> {
                 ast::TopItem::Component(b) => {
                     if let Some(prev) = self.components.insert(&b.name.node, b) {
                         self.err(
-                            Diagnostic::error("E0101", format!("component `{}` is defined twice", b.name.node), b.name.span.clone())
-                                .with_secondary(prev.name.span.clone(), "first defined here"),
+                            Diagnostic::error(
+                                "E0101",
+                                format!("component `{}` is defined twice", b.name.node),
+                                b.name.span.clone(),
+                            )
+                            .with_secondary(prev.name.span.clone(), "first defined here"),
                         );
                     }
                 }
                 ast::TopItem::Instrument(b) => match instrument {
                     Some(first) => self.err(
-                        Diagnostic::error("E0102", "a file defines one instrument", b.name.span.clone())
-                            .with_secondary(first.name.span.clone(), "the instrument of this file")
-                            .hint("put each instrument in its own .tactus file"),
+                        Diagnostic::error(
+                            "E0102",
+                            "a file defines one instrument",
+                            b.name.span.clone(),
+                        )
+                        .with_secondary(first.name.span.clone(), "the instrument of this file")
+                        .hint("put each instrument in its own .tactus file"),
                     ),
                     None => instrument = Some(b),
                 },
@@ -212,7 +229,13 @@ impl<'a> Lowerer<'a> {
         let decls = self.expanded_decls(root);
         // Phase 2: event handlers.
         for &(scope, d) in &decls {
-            if let ast::Decl::Handler { trigger, cond, body, span } = d {
+            if let ast::Decl::Handler {
+                trigger,
+                cond,
+                body,
+                span,
+            } = d
+            {
                 self.lower_handler(scope, *trigger, cond, body, span.clone());
             }
         }
@@ -224,7 +247,11 @@ impl<'a> Lowerer<'a> {
                     let idx = self.def_index(scope, &name.node);
                     if let Some(v) = self.lower_def(idx, name.span.clone()) {
                         if self.ty(v) != Ty::Real(Dim::FORCE) {
-                            let msg = format!("force term `{}` is {}, not a force", name.node, self.ty_string(self.ty(v)));
+                            let msg = format!(
+                                "force term `{}` is {}, not a force",
+                                name.node,
+                                self.ty_string(self.ty(v))
+                            );
                             self.err(
                                 Diagnostic::error("E0206", msg, self.defs[idx].expr.span.clone())
                                     .label("must be in newtons")
@@ -246,7 +273,11 @@ impl<'a> Lowerer<'a> {
                     let idx = self.def_index(scope, &name.node);
                     if let Some(v) = self.lower_def(idx, name.span.clone()) {
                         let id = OutputId(self.prog.outputs.len() as u32);
-                        self.prog.outputs.push(NamedDecl { name: name.node.clone(), ty: self.ty(v), span: name.span.clone() });
+                        self.prog.outputs.push(NamedDecl {
+                            name: name.node.clone(),
+                            ty: self.ty(v),
+                            span: name.span.clone(),
+                        });
                         self.emit_stmt(Stmt::Output(id, v));
                     }
                 }
@@ -254,16 +285,20 @@ impl<'a> Lowerer<'a> {
             }
         }
         let total = match forces.split_first() {
-            Some((&first, rest)) => rest
-                .iter()
-                .fold(first, |acc, &f| self.def(Op::Arith(ArithOp::Add, acc, f), Ty::Real(Dim::FORCE))),
+            Some((&first, rest)) => rest.iter().fold(first, |acc, &f| {
+                self.def(Op::Arith(ArithOp::Add, acc, f), Ty::Real(Dim::FORCE))
+            }),
             None => {
                 let span = self.scopes[root.0].body.name.span.clone();
-                let declared = decls.iter().any(|(_, d)| matches!(d, ast::Decl::Force { .. }));
+                let declared = decls
+                    .iter()
+                    .any(|(_, d)| matches!(d, ast::Decl::Force { .. }));
                 if !declared {
                     self.err(
-                    Diagnostic::warning("W0002", "this instrument has no force terms", span)
-                        .hint("declare `force NAME = …` terms; their sum is the commanded force"),
+                        Diagnostic::warning("W0002", "this instrument has no force terms", span)
+                            .hint(
+                                "declare `force NAME = …` terms; their sum is the commanded force",
+                            ),
                     );
                 }
                 self.def(Op::Const(0.0), Ty::Real(Dim::FORCE))
@@ -288,8 +323,15 @@ impl<'a> Lowerer<'a> {
             Some(other) => {
                 let what = other.describe();
                 self.err(
-                    Diagnostic::error("E0207", format!("`{}` is a {what}; only states have dynamics", eq.state.node), eq.state.span.clone())
-                        .hint(format!("declare it as `state {} = … in [lo, hi]`", eq.state.node)),
+                    Diagnostic::error(
+                        "E0207",
+                        format!("`{}` is a {what}; only states have dynamics", eq.state.node),
+                        eq.state.span.clone(),
+                    )
+                    .hint(format!(
+                        "declare it as `state {} = … in [lo, hi]`",
+                        eq.state.node
+                    )),
                 );
                 return;
             }
@@ -297,14 +339,20 @@ impl<'a> Lowerer<'a> {
         };
         if let Some(prev) = self.dynamics_of.insert(state, eq.state.span.clone()) {
             self.err(
-                Diagnostic::error("E0208", format!("state `{}` has two dynamics equations", eq.state.node), eq.state.span.clone())
-                    .with_secondary(prev, "first equation here"),
+                Diagnostic::error(
+                    "E0208",
+                    format!("state `{}` has two dynamics equations", eq.state.node),
+                    eq.state.span.clone(),
+                )
+                .with_secondary(prev, "first equation here"),
             );
             return;
         }
-        let Some(rhs) = self.lower_expr(scope, &eq.rhs) else { return };
+        let Some(rhs) = self.lower_expr(scope, &eq.rhs) else {
+            return;
+        };
         let sdim = self.prog.states[state.index()].dim;
-        let want = Ty::Real(sdim.div(Dim::TIME));
+        let want = Ty::Real(sdim / Dim::TIME);
         if self.ty(rhs) != want {
             let msg = format!(
                 "the derivative of `{}` must be {}, but this is {}",
@@ -315,7 +363,10 @@ impl<'a> Lowerer<'a> {
             self.err(
                 Diagnostic::error("E0209", msg, eq.rhs.span.clone())
                     .label("wrong dimension for a time derivative")
-                    .hint(format!("`{}` is {}; its derivative is that per second", eq.state.node, sdim)),
+                    .hint(format!(
+                        "`{}` is {}; its derivative is that per second",
+                        eq.state.node, sdim
+                    )),
             );
             return;
         }
@@ -327,11 +378,25 @@ impl<'a> Lowerer<'a> {
         self.memo.clear();
     }
 
-    fn lower_handler(&mut self, scope: ScopeId, trigger: ast::Trigger, cond: &'a ast::Expr, body: &'a [ast::Stmt], span: Span) {
-        let Some(c) = self.lower_expr(scope, cond) else { return };
+    fn lower_handler(
+        &mut self,
+        scope: ScopeId,
+        trigger: ast::Trigger,
+        cond: &'a ast::Expr,
+        body: &'a [ast::Stmt],
+        span: Span,
+    ) {
+        let Some(c) = self.lower_expr(scope, cond) else {
+            return;
+        };
         if self.ty(c) != Ty::Bool {
-            let msg = format!("a handler's condition must be true or false, but this is {}", self.ty_string(self.ty(c)));
-            self.err(Diagnostic::error("E0210", msg, cond.span.clone()).hint("compare it: `x > 5 mm`"));
+            let msg = format!(
+                "a handler's condition must be true or false, but this is {}",
+                self.ty_string(self.ty(c))
+            );
+            self.err(
+                Diagnostic::error("E0210", msg, cond.span.clone()).hint("compare it: `x > 5 mm`"),
+            );
             return;
         }
         let fire = match trigger {
@@ -359,7 +424,9 @@ impl<'a> Lowerer<'a> {
         match s {
             ast::Stmt::Assign { target, value } => match self.lookup(scope, target) {
                 Some(Sym::State(st)) => {
-                    let Some(v) = self.lower_expr(scope, value) else { return };
+                    let Some(v) = self.lower_expr(scope, value) else {
+                        return;
+                    };
                     let want = Ty::Real(self.prog.states[st.index()].dim);
                     if self.ty(v) != want {
                         let msg = format!(
@@ -368,7 +435,10 @@ impl<'a> Lowerer<'a> {
                             target.node,
                             self.ty_string(want)
                         );
-                        self.err(Diagnostic::error("E0211", msg, value.span.clone()).label("wrong dimension"));
+                        self.err(
+                            Diagnostic::error("E0211", msg, value.span.clone())
+                                .label("wrong dimension"),
+                        );
                         return;
                     }
                     self.emit_stmt(Stmt::SetState(st, v));
@@ -377,7 +447,9 @@ impl<'a> Lowerer<'a> {
                 Some(Sym::Mode(m)) => {
                     let variants = &self.prog.modes[m.index()].variants;
                     let idx = match &value.node {
-                        ast::ExprKind::Path(p) if p.len() == 1 => variants.iter().position(|v| *v == p[0].node),
+                        ast::ExprKind::Path(p) if p.len() == 1 => {
+                            variants.iter().position(|v| *v == p[0].node)
+                        }
                         _ => None,
                     };
                     match idx {
@@ -388,9 +460,16 @@ impl<'a> Lowerer<'a> {
                         None => {
                             let list = variants.join(", ");
                             self.err(
-                                Diagnostic::error("E0212", format!("mode `{}` can only be set to one of its variants", target.node), value.span.clone())
-                                    .label("not a variant of this mode")
-                                    .hint(format!("the variants are: {list}")),
+                                Diagnostic::error(
+                                    "E0212",
+                                    format!(
+                                        "mode `{}` can only be set to one of its variants",
+                                        target.node
+                                    ),
+                                    value.span.clone(),
+                                )
+                                .label("not a variant of this mode")
+                                .hint(format!("the variants are: {list}")),
                             );
                         }
                     }
@@ -409,9 +488,15 @@ impl<'a> Lowerer<'a> {
                 let mut vals = Vec::new();
                 let mut sig = Vec::new();
                 for (name, e) in args {
-                    let Some(v) = self.lower_expr(scope, e) else { return };
+                    let Some(v) = self.lower_expr(scope, e) else {
+                        return;
+                    };
                     let Ty::Real(d) = self.ty(v) else {
-                        self.err(Diagnostic::error("E0214", "event arguments must be quantities", e.span.clone()));
+                        self.err(Diagnostic::error(
+                            "E0214",
+                            "event arguments must be quantities",
+                            e.span.clone(),
+                        ));
                         return;
                     };
                     vals.push(v);
@@ -421,7 +506,10 @@ impl<'a> Lowerer<'a> {
                     Some(i) => {
                         if self.prog.events[i].args != sig {
                             let show = |s: &[(String, Dim)]| {
-                                s.iter().map(|(n, d)| format!("{n}: {}", d.unit_string())).collect::<Vec<_>>().join(", ")
+                                s.iter()
+                                    .map(|(n, d)| format!("{n}: {}", d.unit_string()))
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
                             };
                             let msg = format!(
                                 "event `{}` is emitted with ({}) here but with ({}) elsewhere",
@@ -435,7 +523,10 @@ impl<'a> Lowerer<'a> {
                         EventId(i as u32)
                     }
                     None => {
-                        self.prog.events.push(EventDecl { name: event.node.clone(), args: sig });
+                        self.prog.events.push(EventDecl {
+                            name: event.node.clone(),
+                            args: sig,
+                        });
                         EventId(self.prog.events.len() as u32 - 1)
                     }
                 };
@@ -456,8 +547,9 @@ impl<'a> Lowerer<'a> {
                 if self.defs[i].kind == DefKind::Let {
                     let name = self.defs[i].name.node.clone();
                     self.err(
-                        Diagnostic::warning("W0001", format!("`{name}` is never used"), span)
-                            .hint("remove it, or use it in a force term, output, condition or equation"),
+                        Diagnostic::warning("W0001", format!("`{name}` is never used"), span).hint(
+                            "remove it, or use it in a force term, output, condition or equation",
+                        ),
                     );
                 }
             }

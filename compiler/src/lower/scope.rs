@@ -78,11 +78,18 @@ impl<'a> Lowerer<'a> {
                 let mut d = Dim::NONE;
                 for (n, e) in factors {
                     match units::lookup(&n.node) {
-                        Some(u) => d = d.mul(u.dim.powi(*e)),
+                        Some(u) => d = d * u.dim.powi(*e),
                         None => {
                             self.err(
-                                Diagnostic::error("E0104", format!("unknown unit `{}` in a type", n.node), n.span.clone())
-                                    .hint(format!("known units: {}", units::unit_names().collect::<Vec<_>>().join(", "))),
+                                Diagnostic::error(
+                                    "E0104",
+                                    format!("unknown unit `{}` in a type", n.node),
+                                    n.span.clone(),
+                                )
+                                .hint(format!(
+                                    "known units: {}",
+                                    units::unit_names().collect::<Vec<_>>().join(", ")
+                                )),
                             );
                             return None;
                         }
@@ -97,20 +104,33 @@ impl<'a> Lowerer<'a> {
         if let Some((_, prev)) = self.scopes[scope.0].syms.get(&name.node) {
             let prev = prev.clone();
             self.err(
-                Diagnostic::error("E0105", format!("`{}` is defined twice", name.node), name.span.clone())
-                    .label("second definition")
-                    .with_secondary(prev, "first defined here")
-                    .hint("every name in an instrument or component is unique; rename one of them"),
+                Diagnostic::error(
+                    "E0105",
+                    format!("`{}` is defined twice", name.node),
+                    name.span.clone(),
+                )
+                .label("second definition")
+                .with_secondary(prev, "first defined here")
+                .hint("every name in an instrument or component is unique; rename one of them"),
             );
             return;
         }
         if crate::lower::expr::is_builtin(&name.node) {
             self.err(
-                Diagnostic::error("E0106", format!("`{}` is a built-in function and cannot be redefined", name.node), name.span.clone())
-                    .hint("choose another name"),
+                Diagnostic::error(
+                    "E0106",
+                    format!(
+                        "`{}` is a built-in function and cannot be redefined",
+                        name.node
+                    ),
+                    name.span.clone(),
+                )
+                .hint("choose another name"),
             );
         }
-        self.scopes[scope.0].syms.insert(name.node.clone(), (sym, name.span.clone()));
+        self.scopes[scope.0]
+            .syms
+            .insert(name.node.clone(), (sym, name.span.clone()));
     }
 
     /// Declares every name of `body` in a new scope; instances its `use`s recursively.
@@ -124,7 +144,13 @@ impl<'a> Lowerer<'a> {
         depth: usize,
     ) -> ScopeId {
         let id = ScopeId(self.scopes.len());
-        self.scopes.push(Scope { prefix: prefix.clone(), parent, body, syms: HashMap::new(), inputs: vec![] });
+        self.scopes.push(Scope {
+            prefix: prefix.clone(),
+            parent,
+            body,
+            syms: HashMap::new(),
+            inputs: vec![],
+        });
         let is_component = parent.is_some();
         let mut arg_used = vec![false; args.len()];
         let mut find_arg = |name: &str| {
@@ -162,8 +188,12 @@ impl<'a> Lowerer<'a> {
                 ast::Decl::Input { name, ty } => {
                     if !is_component {
                         self.err(
-                            Diagnostic::error("E0109", "inputs belong to components; an instrument reads sensors", name.span.clone())
-                                .hint(format!("write `sensor {} in [lo, hi]`", name.node)),
+                            Diagnostic::error(
+                                "E0109",
+                                "inputs belong to components; an instrument reads sensors",
+                                name.span.clone(),
+                            )
+                            .hint(format!("write `sensor {} in [lo, hi]`", name.node)),
                         );
                         continue;
                     }
@@ -171,8 +201,15 @@ impl<'a> Lowerer<'a> {
                         Some(t) => self.annot_ty(t),
                         None => {
                             self.err(
-                                Diagnostic::error("E0110", format!("input `{}` needs a type", name.node), name.span.clone())
-                                    .hint(format!("write `input {}: m` (a unit) or `input {}: bool`", name.node, name.node)),
+                                Diagnostic::error(
+                                    "E0110",
+                                    format!("input `{}` needs a type", name.node),
+                                    name.span.clone(),
+                                )
+                                .hint(format!(
+                                    "write `input {}: m` (a unit) or `input {}: bool`",
+                                    name.node, name.node
+                                )),
                             );
                             None
                         }
@@ -194,7 +231,12 @@ impl<'a> Lowerer<'a> {
                         (Some(a), Some(p)) => (a, p),
                         _ => (value, id),
                     };
-                    self.params.push(ParamInfo { expr, scope, annot: ty.as_ref(), done: None });
+                    self.params.push(ParamInfo {
+                        expr,
+                        scope,
+                        annot: ty.as_ref(),
+                        done: None,
+                    });
                     self.add_sym(id, name, Sym::Param(pid));
                 }
                 ast::Decl::State { name, range, .. } => {
@@ -214,17 +256,34 @@ impl<'a> Lowerer<'a> {
                         );
                     }
                 }
-                ast::Decl::Mode { name, variants, init } => {
+                ast::Decl::Mode {
+                    name,
+                    variants,
+                    init,
+                } => {
                     let mut names: Vec<String> = Vec::new();
                     for v in variants {
                         if names.contains(&v.node) {
-                            self.err(Diagnostic::error("E0112", format!("variant `{}` is listed twice", v.node), v.span.clone()));
+                            self.err(Diagnostic::error(
+                                "E0112",
+                                format!("variant `{}` is listed twice", v.node),
+                                v.span.clone(),
+                            ));
                         }
                         names.push(v.node.clone());
                     }
                     if names.is_empty() {
-                        self.err(Diagnostic::error("E0113", format!("mode `{}` has no variants", name.node), name.span.clone())
-                            .hint(format!("list them: `mode {} {{ ready, escaped }}`", name.node)));
+                        self.err(
+                            Diagnostic::error(
+                                "E0113",
+                                format!("mode `{}` has no variants", name.node),
+                                name.span.clone(),
+                            )
+                            .hint(format!(
+                                "list them: `mode {} {{ ready, escaped }}`",
+                                name.node
+                            )),
+                        );
                     }
                     let init_idx = match init {
                         None => 0,
@@ -232,8 +291,15 @@ impl<'a> Lowerer<'a> {
                             Some(p) => p as u32,
                             None => {
                                 self.err(
-                                    Diagnostic::error("E0114", format!("`{}` is not a variant of mode `{}`", i.node, name.node), i.span.clone())
-                                        .hint(format!("the variants are: {}", names.join(", "))),
+                                    Diagnostic::error(
+                                        "E0114",
+                                        format!(
+                                            "`{}` is not a variant of mode `{}`",
+                                            i.node, name.node
+                                        ),
+                                        i.span.clone(),
+                                    )
+                                    .hint(format!("the variants are: {}", names.join(", "))),
                                 );
                                 0
                             }
@@ -248,7 +314,9 @@ impl<'a> Lowerer<'a> {
                     });
                     self.add_sym(id, name, Sym::Mode(mid));
                 }
-                ast::Decl::Let { name, value } | ast::Decl::Force { name, value } | ast::Decl::Output { name, value } => {
+                ast::Decl::Let { name, value }
+                | ast::Decl::Force { name, value }
+                | ast::Decl::Output { name, value } => {
                     let kind = match d {
                         ast::Decl::Let { .. } => DefKind::Let,
                         ast::Decl::Force { .. } => DefKind::Force,
@@ -257,30 +325,64 @@ impl<'a> Lowerer<'a> {
                     let idx = self.defs.len();
                     // Component outputs are read from outside; do not warn that they are unused.
                     let used = kind != DefKind::Let;
-                    self.defs.push(DefInfo { scope: id, kind, name, expr: value, used });
+                    self.defs.push(DefInfo {
+                        scope: id,
+                        kind,
+                        name,
+                        expr: value,
+                        used,
+                    });
                     self.add_sym(id, name, Sym::Def(idx));
                 }
                 ast::Decl::Dynamics { .. } | ast::Decl::Handler { .. } => {}
-                ast::Decl::Use { name, component, args: uargs, span } => {
+                ast::Decl::Use {
+                    name,
+                    component,
+                    args: uargs,
+                    span,
+                } => {
                     let Some(&comp) = self.components.get(component.node.as_str()) else {
                         let known: Vec<&str> = self.components.keys().copied().collect();
-                        let hint = match crate::lower::expr::closest(&component.node, known.iter().copied()) {
+                        let hint = match crate::lower::expr::closest(
+                            &component.node,
+                            known.iter().copied(),
+                        ) {
                             Some(c) => format!("did you mean `{c}`?"),
-                            None if known.is_empty() => "define it in this file with `component NAME { … }`".into(),
+                            None if known.is_empty() => {
+                                "define it in this file with `component NAME { … }`".into()
+                            }
                             None => format!("components in this file: {}", known.join(", ")),
                         };
-                        self.err(Diagnostic::error("E0115", format!("no component named `{}`", component.node), component.span.clone()).hint(hint));
+                        self.err(
+                            Diagnostic::error(
+                                "E0115",
+                                format!("no component named `{}`", component.node),
+                                component.span.clone(),
+                            )
+                            .hint(hint),
+                        );
                         continue;
                     };
                     if depth >= 8 || std::ptr::eq(comp, body) {
                         self.err(
-                            Diagnostic::error("E0116", format!("component `{}` uses itself", component.node), span.clone())
-                                .hint("components are instanced at compile time; recursion has no end"),
+                            Diagnostic::error(
+                                "E0116",
+                                format!("component `{}` uses itself", component.node),
+                                span.clone(),
+                            )
+                            .hint("components are instanced at compile time; recursion has no end"),
                         );
                         continue;
                     }
                     let child_prefix = format!("{prefix}{}.", name.node);
-                    let child = self.declare_scope(comp, child_prefix, Some(id), uargs, span.clone(), depth + 1);
+                    let child = self.declare_scope(
+                        comp,
+                        child_prefix,
+                        Some(id),
+                        uargs,
+                        span.clone(),
+                        depth + 1,
+                    );
                     self.add_sym(id, name, Sym::Instance(child));
                 }
             }
@@ -295,8 +397,15 @@ impl<'a> Lowerer<'a> {
                     .map(|(k, _)| k.clone())
                     .collect();
                 self.err(
-                    Diagnostic::error("E0117", format!("component `{}` has no param or input `{}`", body.name.node, n.node), n.span.clone())
-                        .hint(format!("it takes: {}", sorted(kinds).join(", "))),
+                    Diagnostic::error(
+                        "E0117",
+                        format!(
+                            "component `{}` has no param or input `{}`",
+                            body.name.node, n.node
+                        ),
+                        n.span.clone(),
+                    )
+                    .hint(format!("it takes: {}", sorted(kinds).join(", "))),
                 );
             }
         }
@@ -304,9 +413,16 @@ impl<'a> Lowerer<'a> {
             for inp in &self.scopes[id.0].inputs {
                 if inp.arg.is_none() {
                     self.diags.push(
-                        Diagnostic::error("E0118", format!("input `{}` of component `{}` is not connected", inp.name.node, body.name.node), use_span.clone())
-                            .with_secondary(inp.name.span.clone(), "input declared here")
-                            .hint(format!("pass it in the `use`: `{} = …`", inp.name.node)),
+                        Diagnostic::error(
+                            "E0118",
+                            format!(
+                                "input `{}` of component `{}` is not connected",
+                                inp.name.node, body.name.node
+                            ),
+                            use_span.clone(),
+                        )
+                        .with_secondary(inp.name.span.clone(), "input declared here")
+                        .hint(format!("pass it in the `use`: `{} = …`", inp.name.node)),
                     );
                 }
             }
@@ -320,11 +436,19 @@ impl<'a> Lowerer<'a> {
             return Some(*s);
         }
         let names: Vec<String> = self.scopes[scope.0].syms.keys().cloned().collect();
-        let mut d = Diagnostic::error("E0201", format!("unknown name `{}`", name.node), name.span.clone()).label("not defined here");
+        let mut d = Diagnostic::error(
+            "E0201",
+            format!("unknown name `{}`", name.node),
+            name.span.clone(),
+        )
+        .label("not defined here");
         if let Some(c) = crate::lower::expr::closest(&name.node, names.iter().map(|s| s.as_str())) {
             d = d.hint(format!("did you mean `{c}`?"));
         } else if units::lookup(&name.node).is_some() {
-            d = d.hint(format!("`{}` is a unit: write it right after a number, e.g. `1 {}`", name.node, name.node));
+            d = d.hint(format!(
+                "`{}` is a unit: write it right after a number, e.g. `1 {}`",
+                name.node, name.node
+            ));
         } else if self.scopes[scope.0].parent.is_some() {
             d = d.hint("a component sees only its own names; pass outside values in as inputs");
         }
@@ -341,17 +465,26 @@ impl<'a> Lowerer<'a> {
                     Some(c) => format!("did you mean `{c}`?"),
                     None => format!("the params are: {}", known.join(", ")),
                 };
-                self.err(Diagnostic::error("E0301", format!("`--param {name}=…`: this instrument has no param `{name}`"), 0..0).hint(hint));
+                self.err(
+                    Diagnostic::error(
+                        "E0301",
+                        format!("`--param {name}=…`: this instrument has no param `{name}`"),
+                        0..0,
+                    )
+                    .hint(hint),
+                );
                 continue;
             };
-            let lit = crate::parse::parse_expr(text).ok().and_then(|e| match e.node {
-                ast::ExprKind::Number(l) => Some((l.value, l.dim)),
-                ast::ExprKind::Neg(inner) => match inner.node {
-                    ast::ExprKind::Number(l) => Some((-l.value, l.dim)),
+            let lit = crate::parse::parse_expr(text)
+                .ok()
+                .and_then(|e| match e.node {
+                    ast::ExprKind::Number(l) => Some((l.value, l.dim)),
+                    ast::ExprKind::Neg(inner) => match inner.node {
+                        ast::ExprKind::Number(l) => Some((-l.value, l.dim)),
+                        _ => None,
+                    },
                     _ => None,
-                },
-                _ => None,
-            });
+                });
             match lit {
                 Some(v) => {
                     self.overrides.insert(pid, (v.0, v.1, text.clone()));
@@ -359,9 +492,13 @@ impl<'a> Lowerer<'a> {
                 None => {
                     let span = self.prog.params[pid].span.clone();
                     self.err(
-                        Diagnostic::error("E0302", format!("`--param {name}={text}`: not a number with a unit"), span)
-                            .label("this param")
-                            .hint("write a number with its unit, e.g. `--param k=200 N/m`"),
+                        Diagnostic::error(
+                            "E0302",
+                            format!("`--param {name}={text}`: not a number with a unit"),
+                            span,
+                        )
+                        .label("this param")
+                        .hint("write a number with its unit, e.g. `--param k=200 N/m`"),
                     );
                 }
             }
