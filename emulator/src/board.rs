@@ -20,7 +20,8 @@ use crate::bus::{Bus, System, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
 use crate::decode::{decode, is_32bit, Instr};
 use crate::elf::{self, ElfError, Image};
-use crate::nvic::SVCALL;
+use crate::nvic::{IRQ0, SVCALL};
+use crate::timing::cycles;
 use std::fmt;
 
 /// Sensor block: `MAX_KEYS` words from 0x2003f000 (last 4 KB of striped SRAM), word k = key
@@ -152,6 +153,8 @@ struct Cached {
     hw2: u16,
     instr: Instr,
     size: u32,
+    /// Cycles from the timing table: (not taken, taken).
+    cost: (u8, u8),
 }
 
 const CACHE_SLOTS: usize = 1 << 14;
@@ -169,6 +172,9 @@ pub struct Board {
     profiles: Vec<Profile>,
     launch: Option<Launch>,
     cache: Vec<Cached>,
+    /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
+    lines: u32,
+    lines_epoch: u64,
 }
 
 impl Board {
@@ -182,7 +188,9 @@ impl Board {
             image: Image::default(),
             profiles: Vec::new(),
             launch: Some(Launch::default()),
-            cache: vec![Cached { addr: u32::MAX, hw1: 0, hw2: 0, instr: Instr::Undefined { hw1: 0, hw2: 0 }, size: 2 }; CACHE_SLOTS],
+            lines: 0,
+            lines_epoch: u64::MAX,
+            cache: vec![Cached { addr: u32::MAX, hw1: 0, hw2: 0, instr: Instr::Undefined { hw1: 0, hw2: 0 }, size: 2, cost: (0, 0) }; CACHE_SLOTS],
         }
     }
 
@@ -344,12 +352,89 @@ impl Board {
 
     /// Runs until both running cores reach cycle `limit`, or a stop.
     pub fn run_until(&mut self, limit: u64) -> StopReason {
+        self.lines_epoch = u64::MAX; // the host may have touched SIO or the timer
         loop {
-            match self.step(limit) {
-                Some(Ok(_)) => {}
-                Some(Err(stop)) => return stop,
-                None => return StopReason::CycleLimit,
+            let Some(k) = self.next_core() else { return StopReason::Idle };
+            let now = self.cores[k].cycle;
+            if now >= limit {
+                return StopReason::CycleLimit;
             }
+            if self.cores[k].state != RunState::Running {
+                match self.step(limit) {
+                    Some(Ok(_)) => continue,
+                    Some(Err(stop)) => return stop,
+                    None => return StopReason::CycleLimit,
+                }
+            }
+            // Core k keeps the turn while it stays behind the other core (core 0 on ties).
+            let other = &self.cores[1 - k];
+            let horizon = if active(other) { other.cycle + (k == 0) as u64 } else { u64::MAX };
+            let event = self.burst(k, horizon.min(limit));
+            if let Some(stop) = self.handle_event(k, event) {
+                return stop;
+            }
+        }
+    }
+
+    /// The core whose turn it is: the active core with the lower cycle, core 0 on ties.
+    fn next_core(&self) -> Option<usize> {
+        match (active(&self.cores[0]), active(&self.cores[1])) {
+            (true, true) => Some((self.cores[1].cycle < self.cores[0].cycle) as usize),
+            (true, false) => Some(0),
+            (false, true) => Some(1),
+            (false, false) => None,
+        }
+    }
+
+    /// Runs core `k` while its cycle is below `horizon` and it is running; returns early with
+    /// any event other than `None`. The fast path: interrupt lines are recomputed only when a
+    /// peripheral was touched or a timer event is due, and instructions come from the
+    /// decode cache with their cycle costs.
+    fn burst(&mut self, k: usize, horizon: u64) -> Event {
+        loop {
+            let core = &mut self.cores[k];
+            if core.cycle >= horizon || core.state != RunState::Running {
+                return Event::None;
+            }
+            if self.system.irq_epoch != self.lines_epoch || core.cycle >= self.system.timer.next_event {
+                let now = core.cycle;
+                if self.launch.is_some() {
+                    self.poll_launch();
+                    if self.launch.is_none() {
+                        return Event::None; // core 1 started: re-pick whose turn it is
+                    }
+                }
+                self.lines = self.system.irq_lines(k, now);
+                self.lines_epoch = self.system.irq_epoch;
+            }
+            let event = self.step_cached(k, self.lines);
+            if !self.profiles.is_empty() {
+                self.profile_step(k);
+            }
+            if event != Event::None {
+                return event;
+            }
+        }
+    }
+
+    /// Applies a step's event; `Some` when the run must stop.
+    fn handle_event(&mut self, k: usize, event: Event) -> Option<StopReason> {
+        match event {
+            Event::None => None,
+            Event::Sev => {
+                self.cores[1 - k].event = true;
+                None
+            }
+            Event::Svc(imm) => {
+                if self.config.svc_halts {
+                    Some(StopReason::Svc { core: k, imm })
+                } else {
+                    self.cores[k].nvic.pending |= 1 << SVCALL;
+                    None
+                }
+            }
+            Event::Fault(fault) => self.config.stop_on_fault.then_some(StopReason::Fault { core: k, fault }),
+            Event::Lockup(fault) => Some(StopReason::Lockup { core: k, fault }),
         }
     }
 
@@ -357,14 +442,7 @@ impl Board {
     /// is behind, if it is before `limit`. `None` when both running cores are at `limit`;
     /// `Some(Ok(core))` names the core that acted (its [`Core::last`] is the instruction).
     pub fn step(&mut self, limit: u64) -> Option<Result<usize, StopReason>> {
-        let a0 = active(&self.cores[0]);
-        let a1 = active(&self.cores[1]);
-        let k = match (a0, a1) {
-            (true, true) => (self.cores[1].cycle < self.cores[0].cycle) as usize,
-            (true, false) => 0,
-            (false, true) => 1,
-            (false, false) => return Some(Err(StopReason::Idle)),
-        };
+        let Some(k) = self.next_core() else { return Some(Err(StopReason::Idle)) };
         let now = self.cores[k].cycle;
         if now >= limit {
             return None;
@@ -396,28 +474,9 @@ impl Board {
         if !self.profiles.is_empty() {
             self.profile_step(k);
         }
-        match event {
-            Event::None => Some(Ok(k)),
-            Event::Sev => {
-                self.cores[1 - k].event = true;
-                Some(Ok(k))
-            }
-            Event::Svc(imm) => {
-                if self.config.svc_halts {
-                    Some(Err(StopReason::Svc { core: k, imm }))
-                } else {
-                    self.cores[k].nvic.pending |= 1 << SVCALL;
-                    Some(Ok(k))
-                }
-            }
-            Event::Fault(fault) => {
-                if self.config.stop_on_fault {
-                    Some(Err(StopReason::Fault { core: k, fault }))
-                } else {
-                    Some(Ok(k))
-                }
-            }
-            Event::Lockup(fault) => Some(Err(StopReason::Lockup { core: k, fault })),
+        match self.handle_event(k, event) {
+            None => Some(Ok(k)),
+            Some(stop) => Some(Err(stop)),
         }
     }
 
@@ -428,8 +487,8 @@ impl Board {
     fn step_cached(&mut self, k: usize, lines: u32) -> Event {
         let core = &mut self.cores[k];
         let pc = core.r[15];
-        let interrupt_check = core.nvic.pending != 0 || lines != 0 || core.nvic.syst_next <= core.cycle;
-        if interrupt_check || !core.thumb {
+        core.nvic.pending |= ((lines as u64) << IRQ0) & !core.nvic.active;
+        if core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb {
             return core.step(&mut self.system, lines);
         }
         let Ok(hw1) = self.system.fetch(pc) else { return core.step(&mut self.system, lines) };
@@ -446,10 +505,12 @@ impl Board {
             } else {
                 (0, 2)
             };
-            *slot = Cached { addr: pc, hw1, hw2, instr: decode(hw1, hw2), size };
+            let instr = decode(hw1, hw2);
+            let cost = (cycles(&instr, false, false) as u8, cycles(&instr, true, false) as u8);
+            *slot = Cached { addr: pc, hw1, hw2, instr, size, cost };
         }
-        let (instr, size) = (slot.instr, slot.size);
-        core.run_decoded(&mut self.system, pc, instr, size)
+        let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
+        core.run_priced(&mut self.system, pc, instr, size, Some(cost))
     }
 
     fn poll_launch(&mut self) {

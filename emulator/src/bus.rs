@@ -82,6 +82,9 @@ pub struct System {
     bank_claim: [[u64; 2]; BANKS],
     /// Cycles each core has lost to bank contention.
     pub contention_stalls: [u64; 2],
+    /// Bumped on every SIO or peripheral access, which may change interrupt lines: the
+    /// board recomputes [`System::irq_lines`] only when this changed or a timer event is due.
+    pub irq_epoch: u64,
 }
 
 #[inline]
@@ -130,6 +133,7 @@ impl System {
             timer: Timer::new(clock_hz),
             bank_claim: [[u64::MAX; 2]; BANKS],
             contention_stalls: [0; 2],
+            irq_epoch: 0,
         }
     }
 
@@ -179,6 +183,7 @@ impl System {
     }
 
     fn peripheral_read(&mut self, core: usize, cycle: u64, addr: u32) -> Option<u32> {
+        self.irq_epoch += 1;
         if addr & 0xf000_0000 == SIO_BASE {
             return self.sio.read(core, cycle, addr - SIO_BASE);
         }
@@ -189,6 +194,7 @@ impl System {
     }
 
     fn peripheral_write(&mut self, core: usize, cycle: u64, addr: u32, value: u32) -> bool {
+        self.irq_epoch += 1;
         if addr & 0xf000_0000 == SIO_BASE {
             return self.sio.write(core, cycle, addr - SIO_BASE, value);
         }

@@ -14,7 +14,7 @@
 use crate::bus::{Bus, BusFault};
 use crate::decode::{decode, is_32bit, Instr};
 use crate::nvic::{Nvic, HARDFAULT, IRQ0, NMI, SVCALL};
-use crate::timing::EXCEPTION_ENTRY;
+use crate::timing::{self, EXCEPTION_ENTRY};
 use std::fmt;
 
 /// Why a core faulted (every one of these becomes a HardFault on the core).
@@ -336,16 +336,41 @@ impl Core {
         self.run_decoded(bus, pc, instr, size)
     }
 
-    /// Executes an already decoded instruction at `pc` of `size` bytes (used by the board's
-    /// decode cache).
+    /// Executes an already decoded instruction at `pc` of `size` bytes.
     #[inline]
     pub fn run_decoded<B: Bus>(&mut self, bus: &mut B, pc: u32, instr: Instr, size: u32) -> Event {
+        self.run_priced(bus, pc, instr, size, None)
+    }
+
+    /// Executes a decoded instruction; `cost` is its precomputed `(not taken, taken)` cycles
+    /// from [`timing::cycles`] (the decode cache keeps them), recomputed when `None` or for
+    /// an I/O-port access.
+    #[inline(always)]
+    pub(crate) fn run_priced<B: Bus>(
+        &mut self,
+        bus: &mut B,
+        pc: u32,
+        instr: Instr,
+        size: u32,
+        cost: Option<(u8, u8)>,
+    ) -> Event {
         match self.execute(bus, instr, pc, size) {
-            Ok((cycles, event)) => {
+            Ok(o) => {
+                let base = match cost {
+                    Some((not_taken, taken)) if !o.io_port => {
+                        if o.taken {
+                            taken as u32
+                        } else {
+                            not_taken as u32
+                        }
+                    }
+                    _ => timing::cycles(&instr, o.taken, o.io_port),
+                };
+                let cycles = base + o.extra;
                 self.cycle += cycles as u64;
                 self.instructions += 1;
                 self.last = Some(Retired { pc, instr, cycles });
-                match event {
+                match o.event {
                     Event::Svc(imm) => {
                         // SVCall must be able to preempt now, else it escalates (DDI0419 B1.5.4).
                         if self.nvic.priority(SVCALL) >= self.execution_priority() {

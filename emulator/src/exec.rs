@@ -1,8 +1,8 @@
 //! Instruction semantics: one `match` arm per [`Instr`] variant.
 //!
 //! Each arm computes results and flags exactly as the ARMv6-M pseudocode (DDI0419 A6.7)
-//! does, touches memory only through the [`Bus`] (which reports wait states), and returns the
-//! instruction's cycles, taken from [`timing::cycles`] — the one timing table — plus wait
+//! does, touches memory only through the [`Bus`] (which reports wait states), and returns what
+//! the caller needs to price it with [`crate::timing::cycles`] — the one timing table — plus wait
 //! states, plus [`timing::EXCEPTION_RETURN`] when it returns from an exception. A fault is
 //! returned as an error *before* any register is written, so the HardFault handler sees the
 //! state the faulting instruction started from (multi-word loads read everything first).
@@ -12,7 +12,7 @@ use crate::core::{Core, Event, FaultKind, RunState};
 use crate::decode::{self, AluOp, Instr, MemOp};
 use crate::nvic::PPB_BASE;
 use crate::sio::SIO_BASE;
-use crate::timing::{self, EXCEPTION_RETURN};
+use crate::timing::EXCEPTION_RETURN;
 
 /// `AddWithCarry(x, y, carry_in)` of DDI0419 A2.2.1: (result, carry, overflow).
 #[inline]
@@ -43,7 +43,18 @@ pub fn condition_passed(cond: u8, n: bool, z: bool, c: bool, v: bool) -> bool {
     }
 }
 
-type Exec = Result<(u32, Event), FaultKind>;
+/// What an executed instruction did, for pricing it: whether a conditional branch was taken,
+/// whether its single load/store used the I/O port, extra cycles (bus wait states and
+/// exception return), and the event for the board.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Outcome {
+    pub taken: bool,
+    pub io_port: bool,
+    pub extra: u32,
+    pub event: Event,
+}
+
+type Exec = Result<Outcome, FaultKind>;
 
 impl Core {
     #[inline]
@@ -331,7 +342,7 @@ impl Core {
             Mrs { rd, sysm } => self.r[rd as usize] = self.mrs(sysm),
             Barrier(_) => {}
         }
-        Ok((timing::cycles(&instr, taken, io_port) + wait, event))
+        Ok(Outcome { taken, io_port, extra: wait, event })
     }
 
     #[inline]
