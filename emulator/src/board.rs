@@ -16,7 +16,7 @@
 //! cores nothing; firmware loads and stores them as ordinary SRAM (2 cycles, bank 3:2
 //! striping and contention apply). Link firmware so nothing else lives there.
 
-use crate::bus::{Bus, System, SRAM_END};
+use crate::bus::{sram_location, Bus, System, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
 use crate::decode::{decode, is_32bit, Instr};
 use crate::elf::{self, ElfError, Image};
@@ -149,8 +149,8 @@ struct Launch {
 #[derive(Clone, Copy)]
 struct Cached {
     addr: u32,
-    hw1: u16,
-    hw2: u16,
+    /// [`System::code_epoch`] when decoded.
+    epoch: u32,
     instr: Instr,
     size: u32,
     /// Cycles from the timing table: (not taken, taken).
@@ -190,7 +190,7 @@ impl Board {
             launch: Some(Launch::default()),
             lines: 0,
             lines_epoch: u64::MAX,
-            cache: vec![Cached { addr: u32::MAX, hw1: 0, hw2: 0, instr: Instr::Undefined { hw1: 0, hw2: 0 }, size: 2, cost: (0, 0) }; CACHE_SLOTS],
+            cache: vec![Cached { addr: u32::MAX, epoch: 0, instr: Instr::Undefined { hw1: 0, hw2: 0 }, size: 2, cost: (0, 0) }; CACHE_SLOTS],
         }
     }
 
@@ -257,6 +257,7 @@ impl Board {
             let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
             mem[off] = *b;
         }
+        self.system.invalidate_code();
         Ok(())
     }
 
@@ -481,8 +482,8 @@ impl Board {
     }
 
     /// Steps core `k` through the decode cache: an instruction is decoded once per address
-    /// and reused while the halfwords at that address are unchanged (checked on every hit,
-    /// so self-modifying code and reloaded images stay correct).
+    /// and reused until a store hits an SRAM page holding cached code or the host writes
+    /// memory (both bump [`System::code_epoch`]), so self-modifying code stays correct.
     #[inline]
     fn step_cached(&mut self, k: usize, lines: u32) -> Event {
         let core = &mut self.cores[k];
@@ -491,12 +492,9 @@ impl Board {
         if core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb {
             return core.step(&mut self.system, lines);
         }
-        let Ok(hw1) = self.system.fetch(pc) else { return core.step(&mut self.system, lines) };
         let slot = &mut self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
-        let hit = slot.addr == pc
-            && slot.hw1 == hw1
-            && (slot.size == 2 || self.system.fetch(pc.wrapping_add(2)) == Ok(slot.hw2));
-        if !hit {
+        if slot.addr != pc || slot.epoch != self.system.code_epoch {
+            let Ok(hw1) = self.system.fetch(pc) else { return core.step(&mut self.system, lines) };
             let (hw2, size) = if is_32bit(hw1) {
                 match self.system.fetch(pc.wrapping_add(2)) {
                     Ok(h) => (h, 4),
@@ -505,9 +503,14 @@ impl Board {
             } else {
                 (0, 2)
             };
+            for a in [pc, pc.wrapping_add(size - 2)] {
+                if let Some((off, _)) = sram_location(a) {
+                    self.system.code_pages[off >> 8] = true;
+                }
+            }
             let instr = decode(hw1, hw2);
             let cost = (cycles(&instr, false, false) as u8, cycles(&instr, true, false) as u8);
-            *slot = Cached { addr: pc, hw1, hw2, instr, size, cost };
+            *slot = Cached { addr: pc, epoch: self.system.code_epoch, instr, size, cost };
         }
         let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
         core.run_priced(&mut self.system, pc, instr, size, Some(cost))

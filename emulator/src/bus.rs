@@ -85,6 +85,11 @@ pub struct System {
     /// Bumped on every SIO or peripheral access, which may change interrupt lines: the
     /// board recomputes [`System::irq_lines`] only when this changed or a timer event is due.
     pub irq_epoch: u64,
+    /// One flag per 256-byte SRAM page: does the board's decode cache hold an instruction
+    /// from it? A store to such a page bumps [`System::code_epoch`].
+    pub code_pages: Vec<bool>,
+    /// Generation of the decode cache: cached instructions from an older epoch are stale.
+    pub code_epoch: u32,
 }
 
 #[inline]
@@ -134,6 +139,8 @@ impl System {
             bank_claim: [[u64::MAX; 2]; BANKS],
             contention_stalls: [0; 2],
             irq_epoch: 0,
+            code_pages: vec![false; (SRAM_SIZE / 256) as usize],
+            code_epoch: 0,
         }
     }
 
@@ -151,6 +158,12 @@ impl System {
             return Some((&mut self.rom, addr as usize));
         }
         None
+    }
+
+    /// Marks every cached instruction stale (self-modifying code, host writes).
+    pub fn invalidate_code(&mut self) {
+        self.code_epoch = self.code_epoch.wrapping_add(1);
+        self.code_pages.fill(false);
     }
 
     /// Claims `bank` for `core` at `cycle`, returning the stall cycles.
@@ -247,6 +260,9 @@ impl Bus for System {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.arbitrate(core, cycle, bank);
             store_le(&mut self.sram, off, size, value);
+            if self.code_pages[off >> 8] {
+                self.invalidate_code();
+            }
             return Ok(wait);
         }
         match addr >> 28 {

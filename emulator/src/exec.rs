@@ -24,7 +24,7 @@ pub fn add_with_carry(x: u32, y: u32, carry: bool) -> (u32, bool, bool) {
 }
 
 /// Evaluates condition code `cond` (0-14) against flags (DDI0419 A6.3).
-#[inline]
+#[inline(always)]
 pub fn condition_passed(cond: u8, n: bool, z: bool, c: bool, v: bool) -> bool {
     let r = match cond >> 1 {
         0 => z,
@@ -80,7 +80,7 @@ impl Core {
 
     /// Load from `addr` at data-phase cycle `at`: (value, wait states). The private
     /// peripheral bus is reached here, never through the shared bus.
-    #[inline]
+    #[inline(always)]
     fn load<B: Bus>(&mut self, bus: &mut B, addr: u32, size: u32, at: u64) -> Result<(u32, u32), FaultKind> {
         if addr & (size - 1) != 0 {
             return Err(FaultKind::Unaligned { addr });
@@ -95,7 +95,7 @@ impl Core {
         Ok(bus.read(self.id, at, addr, size)?)
     }
 
-    #[inline]
+    #[inline(always)]
     fn store<B: Bus>(&mut self, bus: &mut B, addr: u32, size: u32, value: u32, at: u64) -> Result<u32, FaultKind> {
         if addr & (size - 1) != 0 {
             return Err(FaultKind::Unaligned { addr });
@@ -122,6 +122,7 @@ impl Core {
     }
 
     /// Executes `instr` located at `pc` (of `size` bytes). Returns its cycles and event.
+    #[inline(always)]
     pub(crate) fn execute<B: Bus>(&mut self, bus: &mut B, instr: Instr, pc: u32, size: u32) -> Exec {
         use Instr::*;
         let next = pc.wrapping_add(size);
@@ -345,7 +346,7 @@ impl Core {
         Ok(Outcome { taken, io_port, extra: wait, event })
     }
 
-    #[inline]
+    #[inline(always)]
     fn alu(&mut self, op: AluOp, d: usize, m: u32) {
         let x = self.r[d];
         let shift = m & 0xff;
@@ -432,7 +433,7 @@ impl Core {
     }
 
     /// One load or store `op` of `rt` at `addr`; returns wait states.
-    #[inline]
+    #[inline(always)]
     fn mem<B: Bus>(&mut self, bus: &mut B, op: MemOp, rt: u8, addr: u32, at: u64) -> Result<u32, FaultKind> {
         let size = op.size();
         if op.is_store() {

@@ -124,18 +124,53 @@ pub mod enc {
     pub fn cmp_imm(rn: u16, imm8: u16) -> u16 {
         0x2800 | lo(rn) << 8 | imm8
     }
+    /// `STRH Rt, [Rn, #imm]` (imm even, < 64)
+    pub fn strh(rt: u16, rn: u16, imm: u16) -> u16 {
+        assert!(imm % 2 == 0 && imm < 64);
+        0x8000 | (imm / 2) << 6 | lo(rn) << 3 | lo(rt)
+    }
+    /// `B .+offset`
+    pub fn b(offset: i32) -> u16 {
+        let imm = (offset - 4) / 2;
+        assert!((-1024..1024).contains(&imm));
+        0xe000 | (imm as u16 & 0x7ff)
+    }
+    /// `BL .+offset` (two halfwords): I1 = NOT(J1 XOR S), I2 = NOT(J2 XOR S).
+    pub fn bl(offset: i32) -> [u16; 2] {
+        let imm = ((offset - 4) >> 1) as u32;
+        let s = (imm >> 23) & 1;
+        let i1 = (imm >> 22) & 1;
+        let i2 = (imm >> 21) & 1;
+        let j1 = (!i1 ^ s) & 1;
+        let j2 = (!i2 ^ s) & 1;
+        [0xf000 | (s << 10) as u16 | ((imm >> 11) & 0x3ff) as u16, 0xd000 | (j1 << 13) as u16 | (j2 << 11) as u16 | (imm & 0x7ff) as u16]
+    }
+    /// `PUSH {lr}`
+    pub fn push_lr() -> u16 {
+        0xb500
+    }
+    /// `POP {pc}`
+    pub fn pop_pc() -> u16 {
+        0xbd00
+    }
     /// Table of (encoding, assembly) for checking against the assembler.
-    pub fn examples() -> Vec<(u16, &'static str)> {
+    pub fn examples() -> Vec<(Vec<u16>, &'static str)> {
         vec![
-            (movs(3, 200), "movs r3, #200"),
-            (ldr(1, 0, 0x70), "ldr r1, [r0, #0x70]"),
-            (str(2, 7, 0x64), "str r2, [r7, #0x64]"),
-            (lsls(0, 0, 28), "lsls r0, r0, #28"),
-            (adds_imm8(5, 1), "adds r5, #1"),
-            (subs_imm8(4, 1), "subs r4, #1"),
-            (bcond(1, -4), "bne .-4"),
-            (svc(0), "svc #0"),
-            (cmp_imm(6, 9), "cmp r6, #9"),
+            (vec![movs(3, 200)], "movs r3, #200"),
+            (vec![ldr(1, 0, 0x70)], "ldr r1, [r0, #0x70]"),
+            (vec![str(2, 7, 0x64)], "str r2, [r7, #0x64]"),
+            (vec![lsls(0, 0, 28)], "lsls r0, r0, #28"),
+            (vec![adds_imm8(5, 1)], "adds r5, #1"),
+            (vec![subs_imm8(4, 1)], "subs r4, #1"),
+            (vec![bcond(1, -4)], "bne .-4"),
+            (vec![svc(0)], "svc #0"),
+            (vec![cmp_imm(6, 9)], "cmp r6, #9"),
+            (vec![strh(2, 1, 6)], "strh r2, [r1, #6]"),
+            (vec![b(-8)], "b .-8"),
+            (bl(0x1234).to_vec(), "bl .+0x1234"),
+            (bl(-0x2000).to_vec(), "bl .-0x2000"),
+            (vec![push_lr()], "push {lr}"),
+            (vec![pop_pc()], "pop {pc}"),
         ]
     }
 }

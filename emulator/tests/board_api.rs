@@ -1,0 +1,112 @@
+//! The host API the budget checker and the harness use: per-function cycle accounting,
+//! sensor and DAC blocks, host memory access, cycle-exact `run_for`, and self-modifying code
+//! through the decode cache.
+
+mod common;
+
+use common::enc::*;
+use common::load_program;
+use tactus_emulator::{Board, Config, EmuError, StopReason, DAC_BASE, SENSOR_BASE};
+
+fn board() -> Board {
+    Board::new(Config { svc_halts: true, ..Config::default() })
+}
+
+#[test]
+fn function_cycles_between_entry_and_return() {
+    // main: movs r4,#3; loop: bl func; subs r4,#1; bne loop; svc 0
+    // func (at +0x40): push {lr}; movs r0,#5; pop {pc}
+    let mut code = vec![movs(4, 3)];
+    code.extend(bl(0x40 - 2)); // at 0x2: target 0x40
+    code.extend([subs_imm8(4, 1), bcond(1, -6), svc(0)]);
+    code.resize(0x20, nop());
+    code.extend([push_lr(), movs(0, 5), pop_pc()]);
+    let mut b = board();
+    load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &code);
+    let f = b.profile_addr(0x2000_0040);
+    assert_eq!(b.run_for(1000), StopReason::Svc { core: 0, imm: 0 });
+    let calls = b.calls(f);
+    // push {lr} 1+1, movs 1, pop {pc} 3+N with N = 0 low registers: 2 + 1 + 3.
+    assert_eq!(calls.iter().map(|c| c.cycles).collect::<Vec<_>>(), [6, 6, 6]);
+    // Call k starts after movs (1) + k * (bl 3 + body 6 + subs 1 + bne taken 2) + bl 3.
+    assert_eq!(calls.iter().map(|c| c.start).collect::<Vec<_>>(), [4, 16, 28]);
+    assert_eq!(b.cores[0].cycle, 1 + 3 * 12 - 1, "last bne not taken");
+}
+
+#[test]
+fn profile_by_symbol_name_needs_a_loaded_symbol() {
+    let mut b = board();
+    assert_eq!(b.profile("nope"), Err(EmuError::NoSymbol("nope".into())));
+}
+
+#[test]
+fn sensors_in_forces_out() {
+    // For keys 0..4: dac[k] = 2 * sensor[k]. r0 = SENSOR_BASE, r1 = DAC_BASE = r0 + 0x400.
+    let mut code = vec![movs(0, 0x20), lsls(0, 0, 8), adds_imm8(0, 0x03), lsls(0, 0, 8), adds_imm8(0, 0xf0), lsls(0, 0, 8)];
+    code.extend([movs(1, 4), lsls(1, 1, 8), 0x1809]); // adds r1, r1, r0
+    for k in 0..4 {
+        code.extend([ldr(2, 0, 4 * k), lsls(2, 2, 1), str(2, 1, 4 * k)]);
+    }
+    code.push(svc(0));
+    let mut b = board();
+    load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &code);
+    for (k, v) in [100u32, 0, 0xffff, 1234].into_iter().enumerate() {
+        b.set_sensor(k, v).unwrap();
+    }
+    assert_eq!(b.run_for(1000), StopReason::Svc { core: 0, imm: 0 });
+    let forces: Vec<u32> = (0..4).map(|k| b.dac(k).unwrap()).collect();
+    assert_eq!(forces, [200, 0, 0x1fffe, 2468]);
+    assert_eq!(b.read_u32(DAC_BASE + 4).unwrap(), 0);
+    assert_eq!(b.read_u32(SENSOR_BASE + 12).unwrap(), 1234);
+    assert!(b.set_sensor(tactus_emulator::MAX_KEYS, 1).is_err());
+}
+
+#[test]
+fn host_memory_access_is_checked() {
+    let mut b = board();
+    assert_eq!(b.write_u32(0x3000_0000, 1), Err(EmuError::Unmapped(0x3000_0000)));
+    assert_eq!(b.read_u32(0x2004_1ffe), Err(EmuError::Unmapped(0x2004_2000)));
+    b.write_u32(0x2004_1ffc, 0xa5a5_5a5a).unwrap();
+    assert_eq!(b.read_u32(0x2004_1ffc), Ok(0xa5a5_5a5a));
+    // The non-striped alias: word 1 of SRAM1 is striped word 4*1 + 1 = byte 0x14.
+    b.write_u32(0x2101_0004, 77).unwrap();
+    assert_eq!(b.read_u32(0x2000_0014), Ok(77));
+}
+
+#[test]
+fn run_for_is_cycle_exact_and_resumable() {
+    // An endless loop of 1-cycle adds and a 2-cycle branch: 3 adds + b = 5 cycles.
+    let code = [adds_imm8(0, 1), adds_imm8(0, 1), adds_imm8(0, 1), b(-6)];
+    let mut b = board();
+    load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &code);
+    assert_eq!(b.run_for(500), StopReason::CycleLimit);
+    assert_eq!(b.cores[0].cycle, 500);
+    assert_eq!(b.cores[0].r[0], 300);
+    assert_eq!(b.run_for(1000), StopReason::CycleLimit);
+    assert_eq!((b.cycle(), b.cores[0].r[0]), (1500, 900));
+}
+
+#[test]
+fn self_modifying_code_is_seen() {
+    // 0: movs r0,#1 / cmp r7,#0 / bne done / movs r7,#1 / r1 = 0x20000000 / r2 = 0x2002
+    //    (movs r0,#2) / strh r2,[r1] / b 0 / done: svc 0
+    let code = [
+        movs(0, 1),
+        cmp_imm(7, 0),
+        bcond(1, 20), // at 0x4 -> 0x18
+        movs(7, 1),
+        movs(1, 0x20),
+        lsls(1, 1, 24),
+        movs(2, 0x20),
+        lsls(2, 2, 8),
+        adds_imm8(2, 2),
+        strh(2, 1, 0),
+        b(-20), // at 0x14 -> 0x0
+        nop(),
+        svc(0), // 0x18
+    ];
+    let mut b = board();
+    load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &code);
+    assert_eq!(b.run_for(1000), StopReason::Svc { core: 0, imm: 0 });
+    assert_eq!(b.cores[0].r[0], 2, "the rewritten instruction must execute");
+}
