@@ -413,7 +413,7 @@ impl Core {
         let sp = self.r[13];
         let align = sp & 4;
         let frame = sp.wrapping_sub(32 + align);
-        let xpsr = self.xpsr() | (align != 0) as u32 * (1 << 9);
+        let xpsr = self.xpsr() | ((align != 0) as u32) << 9;
         let words = [self.r[0], self.r[1], self.r[2], self.r[3], self.r[12], self.r[14], ret, xpsr];
         for (i, w) in words.iter().enumerate() {
             bus.write(self.id, self.cycle, frame.wrapping_add(4 * i as u32), 4, *w)?;

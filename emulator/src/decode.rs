@@ -1,8 +1,8 @@
 //! Thumb (ARMv6-M) instruction decoding, independent of any machine state.
 //!
 //! An [`Instr`] is a small `Copy` value whose fields are already extracted and scaled
-//! (immediates in bytes, branch offsets sign-extended relative to the instruction's address
-//! + 4), so that the executor, the timing table and a static analyser (the budget checker)
+//! (immediates in bytes, branch offsets sign-extended relative to the instruction's
+//! address plus 4), so that the executor, the timing table and a static analyser (the budget checker)
 //! all look at the same thing without re-reading bit fields. The decoder is one hand-written
 //! `match` over the encoding tables of the ARMv6-M Architecture Reference Manual (DDI0419,
 //! section A5 "The Thumb Instruction Set Encoding"); everything that table marks UNDEFINED

@@ -274,9 +274,9 @@ impl Core {
                 let (values, w) = self.load_multiple(bus, base, list, now)?;
                 wait += w;
                 self.r[13] = base.wrapping_add(4 * list.count_ones());
-                for reg in 0..8 {
+                for (reg, value) in values.iter().enumerate().take(8) {
                     if list & (1 << reg) != 0 {
-                        self.r[reg] = values[reg];
+                        self.r[reg] = *value;
                     }
                 }
                 if list & 0x8000 != 0 {
@@ -302,9 +302,9 @@ impl Core {
                 if list & (1 << rn) == 0 {
                     self.r[rn as usize] = base.wrapping_add(4 * list.count_ones());
                 }
-                for reg in 0..8 {
+                for (reg, value) in values.iter().enumerate().take(8) {
                     if list & (1 << reg) != 0 {
-                        self.r[reg] = values[reg];
+                        self.r[reg] = *value;
                     }
                 }
             }
@@ -490,11 +490,8 @@ impl Core {
     /// MSR (DDI0419 B5.2.3).
     fn msr(&mut self, sysm: u8, value: u32) {
         match sysm {
-            0..=7 => {
-                if sysm & 4 == 0 {
-                    self.set_apsr(value);
-                }
-            }
+            0..=3 => self.set_apsr(value),
+            4..=7 => {}
             8 => self.set_msp(value),
             9 => self.set_psp(value),
             16 => self.primask = value & 1 != 0,

@@ -80,10 +80,11 @@ impl Divider {
             } else {
                 (n.wrapping_div(d) as u32, n.wrapping_rem(d) as u32)
             }
-        } else if self.divisor == 0 {
-            (u32::MAX, self.dividend)
         } else {
-            (self.dividend / self.divisor, self.dividend % self.divisor)
+            match (self.dividend.checked_div(self.divisor), self.dividend.checked_rem(self.divisor)) {
+                (Some(q), Some(r)) => (q, r),
+                _ => (u32::MAX, self.dividend),
+            }
         };
         self.quotient = q;
         self.remainder = r;

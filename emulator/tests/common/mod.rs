@@ -83,12 +83,12 @@ pub mod enc {
     }
     /// `LDR Rt, [Rn, #imm]` (imm multiple of 4, < 128)
     pub fn ldr(rt: u16, rn: u16, imm: u16) -> u16 {
-        assert!(imm % 4 == 0 && imm < 128);
+        assert!(imm.is_multiple_of(4) && imm < 128);
         0x6800 | (imm / 4) << 6 | lo(rn) << 3 | lo(rt)
     }
     /// `STR Rt, [Rn, #imm]`
     pub fn str(rt: u16, rn: u16, imm: u16) -> u16 {
-        assert!(imm % 4 == 0 && imm < 128);
+        assert!(imm.is_multiple_of(4) && imm < 128);
         0x6000 | (imm / 4) << 6 | lo(rn) << 3 | lo(rt)
     }
     /// `LSLS Rd, Rm, #imm5`
@@ -126,7 +126,7 @@ pub mod enc {
     }
     /// `STRH Rt, [Rn, #imm]` (imm even, < 64)
     pub fn strh(rt: u16, rn: u16, imm: u16) -> u16 {
-        assert!(imm % 2 == 0 && imm < 64);
+        assert!(imm.is_multiple_of(2) && imm < 64);
         0x8000 | (imm / 2) << 6 | lo(rn) << 3 | lo(rt)
     }
     /// `B .+offset`
