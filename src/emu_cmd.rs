@@ -166,3 +166,60 @@ fn print_core(core: &Core) {
         core.ipsr
     );
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A minimal ARM ELF32 executable with `code` (halfwords) at 0x20000000.
+    fn elf(code: &[u16]) -> Vec<u8> {
+        let code: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+        let mut f = vec![0x7f, b'E', b'L', b'F', 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+        for v in [2u16, 40] {
+            f.extend(v.to_le_bytes()); // ET_EXEC, EM_ARM
+        }
+        for v in [1u32, 0x2000_0001, 52, 0, 0x0500_0000] {
+            f.extend(v.to_le_bytes()); // version, entry, phoff, shoff, flags
+        }
+        for v in [52u16, 32, 1, 40, 0, 0] {
+            f.extend(v.to_le_bytes());
+        }
+        let n = code.len() as u32;
+        for v in [1u32, 84, 0x2000_0000, 0x2000_0000, n, n, 5, 4] {
+            f.extend(v.to_le_bytes()); // PT_LOAD
+        }
+        f.extend(code);
+        f
+    }
+
+    fn run_file(name: &str, bytes: Option<&[u8]>, trace: bool) -> ExitCode {
+        let path = std::env::temp_dir().join(format!("tactus-emu-cli-{}-{name}", std::process::id()));
+        if let Some(b) = bytes {
+            std::fs::write(&path, b).unwrap();
+        }
+        run(EmuCommand::Run { file: path, cycles: 1000, trace })
+    }
+
+    #[test]
+    fn runs_to_the_cycle_limit() {
+        // movs r0, #42; b .
+        assert_eq!(run_file("ok.elf", Some(&elf(&[0x202a, 0xe7fe])), false), ExitCode::SUCCESS);
+        assert_eq!(run_file("trace.elf", Some(&elf(&[0x202a, 0xe7fe])), true), ExitCode::SUCCESS);
+    }
+
+    #[test]
+    fn unloadable_files_exit_1() {
+        assert_eq!(run_file("missing.elf", None, false), ExitCode::FAILURE);
+        assert_eq!(run_file("text.elf", Some(b"not an elf"), false), ExitCode::FAILURE);
+        let good = elf(&[0xe7fe]);
+        assert_eq!(run_file("short.elf", Some(&good[..60]), false), ExitCode::FAILURE);
+    }
+
+    #[test]
+    fn firmware_faults_exit_2() {
+        // udf #0
+        assert_eq!(run_file("udf.elf", Some(&elf(&[0xde00])), false), ExitCode::from(2));
+        // bx r0 with r0 = 0 (even): ARM state
+        assert_eq!(run_file("bx.elf", Some(&elf(&[0x4700])), true), ExitCode::from(2));
+    }
+}
