@@ -408,7 +408,7 @@ impl Board {
                 self.lines = self.system.irq_lines(k, now);
                 self.lines_epoch = self.system.irq_epoch;
             }
-            let event = self.step_cached(k, self.lines);
+            let event = self.step_cached::<false>(k, self.lines);
             if !self.profiles.is_empty() {
                 self.profile_step(k);
             }
@@ -434,8 +434,11 @@ impl Board {
                     None
                 }
             }
-            Event::Fault(fault) => self.config.stop_on_fault.then_some(StopReason::Fault { core: k, fault }),
-            Event::Lockup(fault) => Some(StopReason::Lockup { core: k, fault }),
+            Event::Fault => {
+                let fault = self.cores[k].fault?;
+                self.config.stop_on_fault.then_some(StopReason::Fault { core: k, fault })
+            }
+            Event::Lockup => self.cores[k].fault.map(|fault| StopReason::Lockup { core: k, fault }),
         }
     }
 
@@ -471,7 +474,7 @@ impl Board {
             }
             return Some(Ok(k));
         }
-        let event = self.step_cached(k, lines);
+        let event = self.step_cached::<true>(k, lines);
         if !self.profiles.is_empty() {
             self.profile_step(k);
         }
@@ -485,7 +488,7 @@ impl Board {
     /// and reused until a store hits an SRAM page holding cached code or the host writes
     /// memory (both bump [`System::code_epoch`]), so self-modifying code stays correct.
     #[inline]
-    fn step_cached(&mut self, k: usize, lines: u32) -> Event {
+    fn step_cached<const TRACE: bool>(&mut self, k: usize, lines: u32) -> Event {
         let core = &mut self.cores[k];
         let pc = core.r[15];
         core.nvic.pending |= ((lines as u64) << IRQ0) & !core.nvic.active;
@@ -513,7 +516,7 @@ impl Board {
             *slot = Cached { addr: pc, epoch: self.system.code_epoch, instr, size, cost };
         }
         let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
-        core.run_priced(&mut self.system, pc, instr, size, Some(cost))
+        core.run_priced::<_, TRACE>(&mut self.system, pc, instr, size, Some(cost))
     }
 
     fn poll_launch(&mut self) {

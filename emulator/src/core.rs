@@ -120,10 +120,11 @@ pub enum Event {
     Sev,
     /// SVC #imm was executed (the board either halts for a host call or pends SVCall).
     Svc(u8),
-    /// A fault was taken as a HardFault.
-    Fault(Fault),
-    /// A fault occurred where it cannot be handled: the core locked up.
-    Lockup(Fault),
+    /// A fault was taken as a HardFault (details in [`Core::fault`]).
+    Fault,
+    /// A fault occurred where it cannot be handled: the core locked up (details in
+    /// [`Core::fault`]).
+    Lockup,
 }
 
 /// A trace record of the last executed instruction.
@@ -172,8 +173,11 @@ pub struct Core {
     pub event: bool,
     /// Instructions retired.
     pub instructions: u64,
-    /// The last instruction executed (for tracing).
+    /// The last instruction executed, recorded only by traced steps
+    /// ([`crate::board::Board::step`]).
     pub last: Option<Retired>,
+    /// The most recent fault (HardFault or lockup).
+    pub fault: Option<Fault>,
 }
 
 impl Core {
@@ -197,6 +201,7 @@ impl Core {
             event: false,
             instructions: 0,
             last: None,
+            fault: None,
         }
     }
 
@@ -339,14 +344,14 @@ impl Core {
     /// Executes an already decoded instruction at `pc` of `size` bytes.
     #[inline]
     pub fn run_decoded<B: Bus>(&mut self, bus: &mut B, pc: u32, instr: Instr, size: u32) -> Event {
-        self.run_priced(bus, pc, instr, size, None)
+        self.run_priced::<B, true>(bus, pc, instr, size, None)
     }
 
     /// Executes a decoded instruction; `cost` is its precomputed `(not taken, taken)` cycles
     /// from [`timing::cycles`] (the decode cache keeps them), recomputed when `None` or for
-    /// an I/O-port access.
+    /// an I/O-port access. `TRACE` records [`Core::last`].
     #[inline(always)]
-    pub(crate) fn run_priced<B: Bus>(
+    pub(crate) fn run_priced<B: Bus, const TRACE: bool>(
         &mut self,
         bus: &mut B,
         pc: u32,
@@ -369,7 +374,9 @@ impl Core {
                 let cycles = base + o.extra;
                 self.cycle += cycles as u64;
                 self.instructions += 1;
-                self.last = Some(Retired { pc, instr, cycles });
+                if TRACE {
+                    self.last = Some(Retired { pc, instr, cycles });
+                }
                 match o.event {
                     Event::Svc(imm) => {
                         // SVCall must be able to preempt now, else it escalates (DDI0419 B1.5.4).
@@ -382,7 +389,9 @@ impl Core {
                 }
             }
             Err(kind) => {
-                self.last = Some(Retired { pc, instr, cycles: 0 });
+                if TRACE {
+                    self.last = Some(Retired { pc, instr, cycles: 0 });
+                }
                 self.fault(bus, Fault { pc, kind })
             }
         }
@@ -390,7 +399,8 @@ impl Core {
 
     fn lockup(&mut self, fault: Fault) -> Event {
         self.state = RunState::Lockup;
-        Event::Lockup(fault)
+        self.fault = Some(fault);
+        Event::Lockup
     }
 
     /// Takes a HardFault for `fault` (the faulting instruction is the return address), or
@@ -400,7 +410,10 @@ impl Core {
             return self.lockup(fault);
         }
         match self.enter_exception(bus, HARDFAULT, fault.pc) {
-            Ok(()) => Event::Fault(fault),
+            Ok(()) => {
+                self.fault = Some(fault);
+                Event::Fault
+            }
             Err(kind) => self.lockup(Fault { pc: fault.pc, kind }),
         }
     }
