@@ -92,7 +92,7 @@ pub struct System {
     pub code_epoch: u32,
 }
 
-#[inline]
+#[inline(always)]
 fn load_le(mem: &[u8], off: usize, size: u32) -> u32 {
     match size {
         1 => mem[off] as u32,
@@ -101,10 +101,13 @@ fn load_le(mem: &[u8], off: usize, size: u32) -> u32 {
     }
 }
 
-#[inline]
+#[inline(always)]
 fn store_le(mem: &mut [u8], off: usize, size: u32, value: u32) {
-    let bytes = value.to_le_bytes();
-    mem[off..off + size as usize].copy_from_slice(&bytes[..size as usize]);
+    match size {
+        1 => mem[off] = value as u8,
+        2 => mem[off..off + 2].copy_from_slice(&(value as u16).to_le_bytes()),
+        _ => mem[off..off + 4].copy_from_slice(&value.to_le_bytes()),
+    }
 }
 
 /// Maps an SRAM address (striped or aliased) to (offset into [`System::sram`], bank).
@@ -232,7 +235,7 @@ impl System {
 }
 
 impl Bus for System {
-    #[inline]
+    #[inline(always)]
     fn read(&mut self, core: usize, cycle: u64, addr: u32, size: u32) -> Result<(u32, u32), BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.arbitrate(core, cycle, bank);
@@ -255,7 +258,7 @@ impl Bus for System {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn write(&mut self, core: usize, cycle: u64, addr: u32, size: u32, value: u32) -> Result<u32, BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.arbitrate(core, cycle, bank);
