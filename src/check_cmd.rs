@@ -16,6 +16,17 @@ pub struct CheckArgs {
     /// Also print the lowered IR.
     #[arg(long, value_enum)]
     pub emit: Option<Emit>,
+    /// Print a report: `precision` gives the range, Q-format and error bound (N and DAC
+    /// LSB) of every state and force term of the fixed-point build, and its multiply cost.
+    #[arg(long, value_enum)]
+    pub report: Option<Report>,
+}
+
+/// What `--report` prints.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum Report {
+    /// Fixed-point ranges, formats and error bounds.
+    Precision,
 }
 
 /// What `--emit` prints.
@@ -95,6 +106,15 @@ pub fn run(args: CheckArgs) -> ExitCode {
     );
     if matches!(args.emit, Some(Emit::Ir)) {
         print!("{p}");
+    }
+    if matches!(args.report, Some(Report::Precision)) {
+        let fp = tactus_compiler::fixed::FixedProgram::new(p);
+        let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
+            codespan_reporting::term::termcolor::ColorChoice::Auto,
+        );
+        let _ = diagnostics::emit(&mut err, &src.name, &src.text, &fp.warnings);
+        let pr = tactus_compiler::fixed::report::analyse(&fp);
+        print!("{}", tactus_compiler::fixed::report::render(&fp, &pr));
     }
     ExitCode::SUCCESS
 }

@@ -23,9 +23,22 @@ pub struct SimArgs {
     /// Override a param: `--param G=0.2 N` (repeatable).
     #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
     pub params: Vec<(String, String)>,
+    /// Arithmetic: `f64` (the reference semantics) or `fixed` (32-bit fixed point, the bits
+    /// the firmware computes).
+    #[arg(long, value_enum, default_value = "f64")]
+    pub numeric: Numeric,
     /// Directory for the trace and plots (created if missing).
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
+}
+
+/// Arithmetic of `tactus sim`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Numeric {
+    /// Double precision, the reference semantics.
+    F64,
+    /// 32-bit fixed point with the compiler's formats.
+    Fixed,
 }
 
 fn stimulus_help() -> String {
@@ -75,11 +88,23 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
         stimulus::builtin(&args.stimulus, dip_m, fs)
     }
     .map_err(|e| e.to_string())?;
-    let (trace, summary) = tactus_compiler::sim::simulate(program, &stim);
+    let (trace, summary) = match args.numeric {
+        Numeric::F64 => tactus_compiler::sim::simulate(program, &stim),
+        Numeric::Fixed => {
+            let fp = tactus_compiler::fixed::FixedProgram::new(program);
+            let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
+                codespan_reporting::term::termcolor::ColorChoice::Auto,
+            );
+            let _ = tactus_compiler::diagnostics::emit(&mut err, &src.name, &src.text, &fp.warnings);
+            let mut inst = tactus_compiler::fixed::interp::FixedInstance::new(&fp);
+            tactus_compiler::sim::simulate_with(program, &mut inst, &stim)
+        }
+    };
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
-    let stem = format!("{}-{}", program.name, stim.name.trim_end_matches(".csv"));
+    let suffix = if args.numeric == Numeric::Fixed { "-fixed" } else { "" };
+    let stem = format!("{}-{}{suffix}", program.name, stim.name.trim_end_matches(".csv"));
     let csv = args.out.join(format!("{stem}.csv"));
     trace.write_csv_file(&csv).map_err(|e| e.to_string())?;
     let title = format!("{} — {}", program.name, stim.name);

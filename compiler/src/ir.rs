@@ -255,6 +255,8 @@ pub struct ValueData {
     pub op: Op,
     /// Its type.
     pub ty: Ty,
+    /// The source expression it was lowered from (for warnings of later passes).
+    pub span: Span,
 }
 
 /// A statement of the per-sample body, executed in order.

@@ -5,7 +5,8 @@
 //! One row per sample: time, sensors, every force term, the total, states, modes, outputs
 //! and one column per event argument (`strike.velocity`, NaN where the event did not fire).
 
-use crate::interp::Instance;
+use crate::fixed::interp::FixedInstance;
+use crate::interp::{Instance, SampleOut};
 use crate::ir::Program;
 use tactus_runtime::stimulus::Stimulus;
 use tactus_runtime::trace::{ColumnKind, Trace};
@@ -19,11 +20,60 @@ pub struct SimSummary {
     pub events: Vec<(usize, String, Vec<f64>)>,
 }
 
+/// An engine that runs one key sample by sample, seen in SI units.
+pub trait Engine {
+    /// Runs one sample on SI sensor readings.
+    fn step_si(&mut self, sensors: &[f64]) -> SampleOut;
+    /// Current states, SI, in program order.
+    fn states_si(&self) -> Vec<f64>;
+    /// Current mode variant indices.
+    fn modes_now(&self) -> Vec<u32>;
+    /// Saturations of state writes so far, per state.
+    fn state_saturations(&self) -> Vec<u64>;
+}
+
+impl Engine for Instance<'_> {
+    fn step_si(&mut self, sensors: &[f64]) -> SampleOut {
+        self.step(sensors).clone()
+    }
+    fn states_si(&self) -> Vec<f64> {
+        self.states().to_vec()
+    }
+    fn modes_now(&self) -> Vec<u32> {
+        self.modes().to_vec()
+    }
+    fn state_saturations(&self) -> Vec<u64> {
+        self.saturations().to_vec()
+    }
+}
+
+impl Engine for FixedInstance<'_> {
+    fn step_si(&mut self, sensors: &[f64]) -> SampleOut {
+        let fp = self.program();
+        self.step(sensors).to_si(fp)
+    }
+    fn states_si(&self) -> Vec<f64> {
+        let fp = self.program();
+        self.states().iter().zip(&fp.state_frac).map(|(&x, &f)| tactus_runtime::fixed::to_f64(x, f)).collect()
+    }
+    fn modes_now(&self) -> Vec<u32> {
+        self.modes().to_vec()
+    }
+    fn state_saturations(&self) -> Vec<u64> {
+        self.saturations().to_vec()
+    }
+}
+
 /// Runs `program` over `stimulus` with the f64 reference interpreter.
 ///
 /// The stimulus's sample rate should equal the program's (the dynamics were discretised for
 /// it); the caller checks this, the trace records the program's.
 pub fn simulate(program: &Program, stimulus: &Stimulus) -> (Trace, SimSummary) {
+    simulate_with(program, &mut Instance::new(program), stimulus)
+}
+
+/// Runs `program` over `stimulus` with any engine built from it.
+pub fn simulate_with(program: &Program, engine: &mut dyn Engine, stimulus: &Stimulus) -> (Trace, SimSummary) {
     let mut trace = Trace::new(program.sample_rate_hz);
     trace.add_column("time", "s", ColumnKind::Time);
     for s in &program.sensors {
@@ -57,7 +107,6 @@ pub fn simulate(program: &Program, stimulus: &Stimulus) -> (Trace, SimSummary) {
             );
         }
     }
-    let mut inst = Instance::new(program);
     let mut row = vec![0.0; trace.columns.len()];
     let mut events = Vec::new();
     let sensors = [0.0];
@@ -65,7 +114,7 @@ pub fn simulate(program: &Program, stimulus: &Stimulus) -> (Trace, SimSummary) {
         let mut sensors = sensors;
         sensors[0] = key;
         let sensors = &sensors[..program.sensors.len().min(1)];
-        let out = inst.step(sensors).clone();
+        let out = engine.step_si(sensors);
         let mut c = 0;
         row[c] = n as f64 / program.sample_rate_hz;
         c += 1;
@@ -83,12 +132,12 @@ pub fn simulate(program: &Program, stimulus: &Stimulus) -> (Trace, SimSummary) {
         }
         row[c] = out.total;
         c += 1;
-        for s in inst.states() {
-            row[c] = *s;
+        for s in engine.states_si() {
+            row[c] = s;
             c += 1;
         }
-        for m in inst.modes() {
-            row[c] = *m as f64;
+        for m in engine.modes_now() {
+            row[c] = m as f64;
             c += 1;
         }
         for o in &out.outputs {
@@ -109,7 +158,7 @@ pub fn simulate(program: &Program, stimulus: &Stimulus) -> (Trace, SimSummary) {
     (
         trace,
         SimSummary {
-            saturations: inst.saturations().to_vec(),
+            saturations: engine.state_saturations(),
             events,
         },
     )

@@ -92,3 +92,40 @@ mod tests {
         assert_eq!(d.d2(44_100.0), 0.0);
     }
 }
+
+/// The same history for fixed-point engines: raw sensor words, primed like [`Differentiator`].
+/// The fixed-point derivative is `(x[n] − x[n−N])` (resp. `x[n] − 2·x[n−N] + x[n−2N]`) taken
+/// exactly on the raw words, then multiplied by `fs/N` (resp. `(fs/N)²`) with the rounding
+/// rule of [`crate::fixed`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RawHistory {
+    hist: [i32; HISTORY],
+    pos: usize,
+    primed: bool,
+}
+
+impl RawHistory {
+    /// Takes this sample's raw reading.
+    pub fn push(&mut self, x: i32) {
+        if !self.primed {
+            self.hist = [x; HISTORY];
+            self.primed = true;
+        }
+        self.pos = (self.pos + 1) % HISTORY;
+        self.hist[self.pos] = x;
+    }
+
+    /// `x[n] − x[n−N]`, exact.
+    pub fn diff1(&self) -> i64 {
+        self.ago(0) as i64 - self.ago(WINDOW) as i64
+    }
+
+    /// `x[n] − 2·x[n−N] + x[n−2N]`, exact.
+    pub fn diff2(&self) -> i64 {
+        self.ago(0) as i64 - 2 * self.ago(WINDOW) as i64 + self.ago(2 * WINDOW) as i64
+    }
+
+    fn ago(&self, k: usize) -> i32 {
+        self.hist[(self.pos + HISTORY - k) % HISTORY]
+    }
+}

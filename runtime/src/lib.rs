@@ -6,6 +6,7 @@
 #![deny(missing_docs)]
 
 pub mod differentiator;
+pub mod fixed;
 pub mod stimulus;
 pub mod trace;
 

@@ -66,6 +66,13 @@ fn levenshtein(a: &str, b: &str) -> usize {
 impl<'a> Lowerer<'a> {
     /// Lowers an expression into the current block; `None` after reporting an error.
     pub(super) fn lower_expr(&mut self, scope: ScopeId, e: &'a ast::Expr) -> Option<Value> {
+        let outer = std::mem::replace(&mut self.cur_span, e.span.clone());
+        let v = self.lower_expr_inner(scope, e);
+        self.cur_span = outer;
+        v
+    }
+
+    fn lower_expr_inner(&mut self, scope: ScopeId, e: &'a ast::Expr) -> Option<Value> {
         match &e.node {
             ExprKind::Number(l) => Some(self.def(Op::Const(l.value), Ty::Real(l.dim))),
             ExprKind::Bool(b) => Some(self.def(Op::BoolConst(*b), Ty::Bool)),

@@ -118,6 +118,8 @@ struct Lowerer<'a> {
     /// True while lowering compile-time constants (params, ranges, initial values).
     const_ctx: bool,
     dynamics_of: HashMap<StateId, Span>,
+    /// Span of the innermost expression being lowered (recorded on each value).
+    cur_span: Span,
     /// `--param` overrides by param index: (value in SI, dimension, text as given).
     overrides: HashMap<usize, (f64, Dim, String)>,
 }
@@ -151,6 +153,7 @@ impl<'a> Lowerer<'a> {
             const_ctx: false,
             dynamics_of: HashMap::new(),
             overrides: HashMap::new(),
+            cur_span: 0..0,
         }
     }
 
@@ -567,7 +570,7 @@ impl<'a> Lowerer<'a> {
     /// Adds a value and its `Def` statement to the current block.
     fn def(&mut self, op: Op, ty: Ty) -> Value {
         let v = Value(self.prog.values.len() as u32);
-        self.prog.values.push(ValueData { op, ty });
+        self.prog.values.push(ValueData { op, ty, span: self.cur_span.clone() });
         self.emit_stmt(Stmt::Def(v));
         v
     }
