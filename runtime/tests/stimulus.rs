@@ -35,7 +35,11 @@ fn read_csv_text(tag: &str, text: &str) -> (PathBuf, Result<Stimulus, StimulusEr
 
 /// Seconds from the last sample at rest before the press to the first sample at the bottom.
 fn descent_s(s: &Stimulus) -> f64 {
-    let first_bottom = s.key.iter().position(|&x| x >= DIP).expect("reaches bottom");
+    let first_bottom = s
+        .key
+        .iter()
+        .position(|&x| x >= DIP)
+        .expect("reaches bottom");
     let last_rest = s.key[..first_bottom]
         .iter()
         .rposition(|&x| x <= 0.0)
@@ -182,7 +186,10 @@ fn half_dip_stops_abruptly_at_half_the_dip() {
     );
     // Still (on the stop) for the next 300 ms.
     for (i, &vi) in v[stop + 1..stop + (0.3 * FS) as usize].iter().enumerate() {
-        assert!(vi.abs() < 1e-9, "velocity {vi} m/s {i} samples after the stop");
+        assert!(
+            vi.abs() < 1e-9,
+            "velocity {vi} m/s {i} samples after the stop"
+        );
     }
     // Released slowly: the release is at least 5 times slower than the press.
     let v_min = v.iter().fold(0.0, |a: f64, &b| a.min(b));
@@ -200,7 +207,10 @@ fn repeated_has_four_presses_with_partial_releases() {
     assert_eq!(bottoms.len(), 4, "{bottoms:?}");
     let between = &s.key[bottoms[0]..bottoms[3]];
     let min_between = between.iter().fold(DIP, |a: f64, &b| a.min(b));
-    assert!((min_between - lo).abs() < 1e-12, "min between {min_between}");
+    assert!(
+        (min_between - lo).abs() < 1e-12,
+        "min between {min_between}"
+    );
     // ~8 notes per second.
     for w in bottoms.windows(2) {
         let period = (w[1] - w[0]) as f64 / FS;
@@ -322,7 +332,10 @@ fn bad_csv_files_give_errors_naming_file_line_and_column() {
     assert!(msg.contains("`key_mm`"), "{msg}");
 
     let (msg, e) = csv_error("decreasing", "time_s,key_mm\n0,1\n0.2,2\n0.1,3\n");
-    assert!(matches!(e, StimulusError::NotIncreasing { line: 4, .. }), "{msg}");
+    assert!(
+        matches!(e, StimulusError::NotIncreasing { line: 4, .. }),
+        "{msg}"
+    );
 
     let (msg, e) = csv_error("ragged", "time_s,key_mm\n0,1\n0.1\n");
     assert!(matches!(e, StimulusError::Csv { .. }), "{msg}");
