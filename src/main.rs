@@ -1,6 +1,7 @@
 //! The `tactus` command-line tool. Only this crate prints; the libraries return values and
 //! diagnostics.
 
+mod build_cmd;
 mod check_cmd;
 mod emu_cmd;
 mod plot;
@@ -27,6 +28,8 @@ enum Command {
     Check(check_cmd::CheckArgs),
     /// Simulate an instrument over a key stimulus; write a CSV trace and SVG plots.
     Sim(sim_cmd::SimArgs),
+    /// Compile an instrument to firmware sources (C99 today; Thumb ELF planned).
+    Build(build_cmd::BuildArgs),
     /// Run ELF firmware on the emulated dual-core RP2040.
     #[command(subcommand)]
     Emu(emu_cmd::EmuCommand),
@@ -37,6 +40,7 @@ fn main() -> ExitCode {
     match cli.command {
         Command::Check(args) => check_cmd::run(args),
         Command::Sim(args) => sim_cmd::run(args),
+        Command::Build(args) => build_cmd::run(args),
         Command::Emu(cmd) => emu_cmd::run(cmd),
     }
 }

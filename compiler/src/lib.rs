@@ -28,3 +28,4 @@ pub fn compile(source: &str, config: &lower::Config) -> Result<lower::Lowered, V
     lower::lower(&file, config)
 }
 pub mod fixed;
+pub mod cgen;
