@@ -341,8 +341,10 @@ impl Board {
 
     /// Total cycles elapsed: the lower of the running cores' counters.
     pub fn cycle(&self) -> u64 {
-        let running: Vec<u64> = self.cores.iter().filter(|c| active(c)).map(|c| c.cycle).collect();
-        running.into_iter().min().unwrap_or(self.cores[0].cycle.max(self.cores[1].cycle))
+        match self.next_core() {
+            Some(k) => self.cores[k].cycle,
+            None => self.cores[0].cycle.max(self.cores[1].cycle),
+        }
     }
 
     /// Runs for `cycles` more cycles (from [`Board::cycle`]) or until a stop.
@@ -423,7 +425,14 @@ impl Board {
         match event {
             Event::None => None,
             Event::Sev => {
-                self.cores[1 - k].event = true;
+                // The event reaches the other core at the end of the SEV's cycle: a core
+                // sleeping in WFE resumes no earlier than the next cycle.
+                let after = self.cores[k].cycle;
+                let other = &mut self.cores[1 - k];
+                other.event = true;
+                if matches!(other.state, RunState::Sleeping { .. }) {
+                    other.cycle = other.cycle.max(after);
+                }
                 None
             }
             Event::Svc(imm) => {

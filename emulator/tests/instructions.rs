@@ -199,3 +199,26 @@ fn every_timing_class_has_a_cycle_row() {
     let missing: Vec<Class> = Class::ALL.iter().copied().filter(|c| !covered.contains(c)).collect();
     assert!(missing.is_empty(), "timing classes without a table row: {missing:?}");
 }
+
+#[test]
+fn disassembly_reassembles_to_the_same_encoding() {
+    if !common::have_tool("arm-none-eabi-as", "disassembly_reassembles_to_the_same_encoding") {
+        return;
+    }
+    let rows = rows();
+    let mut src = String::from(".syntax unified\n.cpu cortex-m0\n.thumb\n.text\n");
+    for row in &rows {
+        let instr = tactus_emulator::decode(row.hex[0], row.hex.get(1).copied().unwrap_or(0));
+        src.push_str(&instr.to_string());
+        src.push('\n');
+    }
+    let text = common::assemble_text(&common::scratch_dir("disasm"), "disasm", &src);
+    let got: Vec<u16> = text.chunks(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
+    let mut at = 0;
+    for row in &rows {
+        let n = row.hex.len();
+        let shown = tactus_emulator::decode(row.hex[0], row.hex.get(1).copied().unwrap_or(0)).to_string();
+        assert_eq!(&got[at..at + n], &row.hex[..], "line {}: `{}` shown as `{shown}`", row.line, row.asm);
+        at += n;
+    }
+}

@@ -240,3 +240,51 @@ fn test_encoder_matches_assembler() {
         at += hws.len();
     }
 }
+
+#[test]
+fn wfe_sleeps_until_the_other_core_sends_an_event() {
+    let mut b = board();
+    // Core 0: 20 NOPs (20 cycles), SEV, then spin. Core 1: WFE, movs r2,#1, SVC #1.
+    let mut code0 = vec![nop(); 20];
+    code0.extend([0xbf40, 0xe7fe]); // sev; b .
+    load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &code0);
+    load_program(&mut b, 1, 0x2000_0100, 0x2000_1100, &[0xbf20, movs(2, 1), svc(1)]); // wfe
+    assert_eq!(b.run_for(1000), StopReason::Svc { core: 1, imm: 1 });
+    // Core 1 slept from cycle 2 (WFE costs 2) and woke at the cycle after core 0's SEV
+    // (which executes at cycle 20): the MOVS runs at 21, the SVC at 22.
+    assert_eq!(b.cores[1].cycle, 22);
+    assert_eq!(b.cores[1].r[2], 1);
+}
+
+#[test]
+fn fifo_interrupt_wakes_wfi() {
+    // Core 1 enables SIO_IRQ_PROC1 (IRQ 16) in its NVIC and sleeps in WFI with PRIMASK set,
+    // so the wake-up does not take the interrupt; it then reads the word from its FIFO.
+    // Core 0 writes 0x5a to FIFO_WR after 30 NOPs.
+    let mut b = board();
+    let mut code0 = vec![movs(0, 0xd0), lsls(0, 0, 24), movs(1, 0x5a)];
+    code0.extend(vec![nop(); 30]);
+    code0.extend([str(1, 0, 0x54), 0xe7fe]);
+    load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &code0);
+    let code1 = [
+        0xb672, // cpsid i
+        movs(3, 0xe0),
+        lsls(3, 3, 16),
+        adds_imm8(3, 0xe1),
+        lsls(3, 3, 8), // r3 = 0xe000e100
+        movs(4, 1),
+        lsls(4, 4, 16), // r4 = 1 << 16
+        str(4, 3, 0),   // NVIC_ISER = IRQ 16
+        0xbf30,         // wfi
+        movs(0, 0xd0),
+        lsls(0, 0, 24),
+        ldr(5, 0, 0x58), // FIFO_RD: 0 (and ROE) if read before core 0's write
+        0xe7fe,          // b .
+    ];
+    load_program(&mut b, 1, 0x2000_0100, 0x2000_1100, &code1);
+    b.cores[1].r[5] = 0xdead;
+    assert_eq!(b.run_for(1000), StopReason::CycleLimit);
+    assert_eq!(b.cores[1].r[5], 0x5a, "woke by the FIFO interrupt line and read the word");
+    assert_eq!(b.cores[1].ipsr, 0, "PRIMASK kept the interrupt from being taken");
+    assert_eq!(b.system.sio.fifo_status(1) & 8, 0, "no read underflow");
+}
