@@ -22,6 +22,9 @@ pub enum EmuCommand {
         /// Print every instruction with its core, start cycle and cycle cost.
         #[arg(long)]
         trace: bool,
+        /// Count the cycles of every call of this function (entry to return); repeatable.
+        #[arg(long, value_name = "SYMBOL")]
+        profile: Vec<String>,
     },
 }
 
@@ -32,6 +35,7 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
         file,
         cycles,
         trace,
+        profile,
     } = cmd;
     let bytes = match std::fs::read(&file) {
         Ok(b) => b,
@@ -45,6 +49,16 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
         eprintln!("error: cannot load {}: {e}", file.display());
         return ExitCode::FAILURE;
     }
+    let mut profiles = Vec::new();
+    for name in &profile {
+        match board.profile(name) {
+            Ok(handle) => profiles.push((name, handle)),
+            Err(e) => {
+                eprintln!("error: {}: {e}", file.display());
+                return ExitCode::FAILURE;
+            }
+        }
+    }
     let stop = if trace {
         run_traced(&mut board, cycles)
     } else {
@@ -52,6 +66,20 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
     };
     for core in &board.cores {
         print_core(core);
+    }
+    for (name, handle) in profiles {
+        let calls = board.calls(handle);
+        let cycles: Vec<u64> = calls.iter().map(|c| c.cycles).collect();
+        match (cycles.iter().min(), cycles.iter().max()) {
+            (Some(min), Some(max)) => {
+                let mean = cycles.iter().sum::<u64>() as f64 / cycles.len() as f64;
+                println!(
+                    "{name}: {} calls, cycles min {min} mean {mean:.1} max {max}",
+                    cycles.len()
+                );
+            }
+            _ => println!("{name}: no completed calls"),
+        }
     }
     match stop {
         StopReason::CycleLimit => {
@@ -193,33 +221,71 @@ mod tests {
     }
 
     fn run_file(name: &str, bytes: Option<&[u8]>, trace: bool) -> ExitCode {
-        let path = std::env::temp_dir().join(format!("tactus-emu-cli-{}-{name}", std::process::id()));
+        let path =
+            std::env::temp_dir().join(format!("tactus-emu-cli-{}-{name}", std::process::id()));
         if let Some(b) = bytes {
             std::fs::write(&path, b).unwrap();
         }
-        run(EmuCommand::Run { file: path, cycles: 1000, trace })
+        run(EmuCommand::Run {
+            file: path,
+            cycles: 1000,
+            trace,
+            profile: Vec::new(),
+        })
     }
 
     #[test]
     fn runs_to_the_cycle_limit() {
         // movs r0, #42; b .
-        assert_eq!(run_file("ok.elf", Some(&elf(&[0x202a, 0xe7fe])), false), ExitCode::SUCCESS);
-        assert_eq!(run_file("trace.elf", Some(&elf(&[0x202a, 0xe7fe])), true), ExitCode::SUCCESS);
+        assert_eq!(
+            run_file("ok.elf", Some(&elf(&[0x202a, 0xe7fe])), false),
+            ExitCode::SUCCESS
+        );
+        assert_eq!(
+            run_file("trace.elf", Some(&elf(&[0x202a, 0xe7fe])), true),
+            ExitCode::SUCCESS
+        );
+    }
+
+    #[test]
+    fn unknown_profile_symbol_exits_1() {
+        let path =
+            std::env::temp_dir().join(format!("tactus-emu-cli-{}-prof.elf", std::process::id()));
+        std::fs::write(&path, elf(&[0xe7fe])).unwrap();
+        let cmd = EmuCommand::Run {
+            file: path,
+            cycles: 10,
+            trace: false,
+            profile: vec!["main".into()],
+        };
+        assert_eq!(run(cmd), ExitCode::FAILURE);
     }
 
     #[test]
     fn unloadable_files_exit_1() {
         assert_eq!(run_file("missing.elf", None, false), ExitCode::FAILURE);
-        assert_eq!(run_file("text.elf", Some(b"not an elf"), false), ExitCode::FAILURE);
+        assert_eq!(
+            run_file("text.elf", Some(b"not an elf"), false),
+            ExitCode::FAILURE
+        );
         let good = elf(&[0xe7fe]);
-        assert_eq!(run_file("short.elf", Some(&good[..60]), false), ExitCode::FAILURE);
+        assert_eq!(
+            run_file("short.elf", Some(&good[..60]), false),
+            ExitCode::FAILURE
+        );
     }
 
     #[test]
     fn firmware_faults_exit_2() {
         // udf #0
-        assert_eq!(run_file("udf.elf", Some(&elf(&[0xde00])), false), ExitCode::from(2));
+        assert_eq!(
+            run_file("udf.elf", Some(&elf(&[0xde00])), false),
+            ExitCode::from(2)
+        );
         // bx r0 with r0 = 0 (even): ARM state
-        assert_eq!(run_file("bx.elf", Some(&elf(&[0x4700])), true), ExitCode::from(2));
+        assert_eq!(
+            run_file("bx.elf", Some(&elf(&[0x4700])), true),
+            ExitCode::from(2)
+        );
     }
 }

@@ -30,7 +30,9 @@ fn bench(c: &mut Criterion) {
     group.throughput(Throughput::Elements(CYCLES));
     for cores in [1, 2] {
         let mut b = board(cores);
-        group.bench_function(format!("{cores}_core"), |bench| bench.iter(|| b.run_for(CYCLES)));
+        group.bench_function(format!("{cores}_core"), |bench| {
+            bench.iter(|| b.run_for(CYCLES))
+        });
     }
     group.finish();
 }

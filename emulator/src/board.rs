@@ -48,7 +48,11 @@ pub struct Config {
 
 impl Default for Config {
     fn default() -> Self {
-        Config { clock_hz: 133_000_000, svc_halts: false, stop_on_fault: true }
+        Config {
+            clock_hz: 133_000_000,
+            svc_halts: false,
+            stop_on_fault: true,
+        }
     }
 }
 
@@ -190,7 +194,16 @@ impl Board {
             launch: Some(Launch::default()),
             lines: 0,
             lines_epoch: u64::MAX,
-            cache: vec![Cached { addr: u32::MAX, epoch: 0, instr: Instr::Undefined { hw1: 0, hw2: 0 }, size: 2, cost: (0, 0) }; CACHE_SLOTS],
+            cache: vec![
+                Cached {
+                    addr: u32::MAX,
+                    epoch: 0,
+                    instr: Instr::Undefined { hw1: 0, hw2: 0 },
+                    size: 2,
+                    cost: (0, 0)
+                };
+                CACHE_SLOTS
+            ],
         }
     }
 
@@ -201,7 +214,10 @@ impl Board {
         let image = elf::parse(bytes)?;
         for seg in &image.segments {
             self.write_bytes(seg.addr, &seg.data).map_err(|_| {
-                EmuError::Elf(ElfError::Unmapped { addr: seg.addr, size: seg.data.len() as u32 })
+                EmuError::Elf(ElfError::Unmapped {
+                    addr: seg.addr,
+                    size: seg.data.len() as u32,
+                })
             })?;
         }
         match image.vector_table {
@@ -235,7 +251,10 @@ impl Board {
 
     /// Address of symbol `name` in the loaded image.
     pub fn symbol(&self, name: &str) -> Result<u32, EmuError> {
-        self.image.symbol(name).map(|s| s.addr).ok_or_else(|| EmuError::NoSymbol(name.to_string()))
+        self.image
+            .symbol(name)
+            .map(|s| s.addr)
+            .ok_or_else(|| EmuError::NoSymbol(name.to_string()))
     }
 
     // ---- host memory access (no cycles, no contention) ----
@@ -295,7 +314,11 @@ impl Board {
     /// Starts measuring every call of the function at `addr` (Thumb bit ignored) on both
     /// cores; see [`Board::calls`]. Returns a handle.
     pub fn profile_addr(&mut self, addr: u32) -> usize {
-        self.profiles.push(Profile { entry: addr & !1, open: [Vec::new(), Vec::new()], calls: Vec::new() });
+        self.profiles.push(Profile {
+            entry: addr & !1,
+            open: [Vec::new(), Vec::new()],
+            calls: Vec::new(),
+        });
         self.profiles.len() - 1
     }
 
@@ -323,7 +346,11 @@ impl Board {
                     break;
                 }
                 p.open[k].pop();
-                p.calls.push(Call { core: k, start, cycles: now - start });
+                p.calls.push(Call {
+                    core: k,
+                    start,
+                    cycles: now - start,
+                });
             }
             if pc == p.entry && core.thumb {
                 let lr = core.r[14];
@@ -357,7 +384,9 @@ impl Board {
     pub fn run_until(&mut self, limit: u64) -> StopReason {
         self.lines_epoch = u64::MAX; // the host may have touched SIO or the timer
         loop {
-            let Some(k) = self.next_core() else { return StopReason::Idle };
+            let Some(k) = self.next_core() else {
+                return StopReason::Idle;
+            };
             let now = self.cores[k].cycle;
             if now >= limit {
                 return StopReason::CycleLimit;
@@ -371,7 +400,11 @@ impl Board {
             }
             // Core k keeps the turn while it stays behind the other core (core 0 on ties).
             let other = &self.cores[1 - k];
-            let horizon = if active(other) { other.cycle + (k == 0) as u64 } else { u64::MAX };
+            let horizon = if active(other) {
+                other.cycle + (k == 0) as u64
+            } else {
+                u64::MAX
+            };
             let event = self.burst(k, horizon.min(limit));
             if let Some(stop) = self.handle_event(k, event) {
                 return stop;
@@ -399,7 +432,9 @@ impl Board {
             if core.cycle >= horizon || core.state != RunState::Running {
                 return Event::None;
             }
-            if self.system.irq_epoch != self.lines_epoch || core.cycle >= self.system.timer.next_event {
+            if self.system.irq_epoch != self.lines_epoch
+                || core.cycle >= self.system.timer.next_event
+            {
                 let now = core.cycle;
                 if self.launch.is_some() {
                     self.poll_launch();
@@ -445,9 +480,13 @@ impl Board {
             }
             Event::Fault => {
                 let fault = self.cores[k].fault?;
-                self.config.stop_on_fault.then_some(StopReason::Fault { core: k, fault })
+                self.config
+                    .stop_on_fault
+                    .then_some(StopReason::Fault { core: k, fault })
             }
-            Event::Lockup => self.cores[k].fault.map(|fault| StopReason::Lockup { core: k, fault }),
+            Event::Lockup => self.cores[k]
+                .fault
+                .map(|fault| StopReason::Lockup { core: k, fault }),
         }
     }
 
@@ -455,7 +494,9 @@ impl Board {
     /// is behind, if it is before `limit`. `None` when both running cores are at `limit`;
     /// `Some(Ok(core))` names the core that acted (its [`Core::last`] is the instruction).
     pub fn step(&mut self, limit: u64) -> Option<Result<usize, StopReason>> {
-        let Some(k) = self.next_core() else { return Some(Err(StopReason::Idle)) };
+        let Some(k) = self.next_core() else {
+            return Some(Err(StopReason::Idle));
+        };
         let now = self.cores[k].cycle;
         if now >= limit {
             return None;
@@ -465,8 +506,10 @@ impl Board {
         }
         let lines = self.system.irq_lines(k, now);
         if let RunState::Sleeping { wfe } = self.cores[k].state {
-            let (other_running, other_cycle) =
-                (self.cores[1 - k].state == RunState::Running, self.cores[1 - k].cycle);
+            let (other_running, other_cycle) = (
+                self.cores[1 - k].state == RunState::Running,
+                self.cores[1 - k].cycle,
+            );
             let core = &mut self.cores[k];
             if (wfe && core.event) || core.wakes_from_sleep(lines) {
                 if wfe {
@@ -475,7 +518,12 @@ impl Board {
                 core.state = RunState::Running;
             } else {
                 // Skip to the next cycle at which something could wake this core.
-                let mut next = self.system.timer.next_event.min(core.nvic.syst_next).min(limit);
+                let mut next = self
+                    .system
+                    .timer
+                    .next_event
+                    .min(core.nvic.syst_next)
+                    .min(limit);
                 if other_running {
                     next = next.min(other_cycle + 1);
                 }
@@ -506,7 +554,9 @@ impl Board {
         }
         let slot = &mut self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
         if slot.addr != pc || slot.epoch != self.system.code_epoch {
-            let Ok(hw1) = self.system.fetch(pc) else { return core.step(&mut self.system, lines) };
+            let Ok(hw1) = self.system.fetch(pc) else {
+                return core.step(&mut self.system, lines);
+            };
             let (hw2, size) = if is_32bit(hw1) {
                 match self.system.fetch(pc.wrapping_add(2)) {
                     Ok(h) => (h, 4),
@@ -521,8 +571,17 @@ impl Board {
                 }
             }
             let instr = decode(hw1, hw2);
-            let cost = (cycles(&instr, false, false) as u8, cycles(&instr, true, false) as u8);
-            *slot = Cached { addr: pc, epoch: self.system.code_epoch, instr, size, cost };
+            let cost = (
+                cycles(&instr, false, false) as u8,
+                cycles(&instr, true, false) as u8,
+            );
+            *slot = Cached {
+                addr: pc,
+                epoch: self.system.code_epoch,
+                instr,
+                size,
+                cost,
+            };
         }
         let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
         core.run_priced::<_, TRACE>(&mut self.system, pc, instr, size, Some(cost))

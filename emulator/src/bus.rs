@@ -58,9 +58,22 @@ pub struct BusFault {
 /// carry the wait states added to the instruction.
 pub trait Bus {
     /// Loads `size` bytes at `addr` for `core`: (zero-extended value, wait states).
-    fn read(&mut self, core: usize, cycle: u64, addr: u32, size: u32) -> Result<(u32, u32), BusFault>;
+    fn read(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        size: u32,
+    ) -> Result<(u32, u32), BusFault>;
     /// Stores the low `size` bytes of `value` at `addr` for `core`: wait states.
-    fn write(&mut self, core: usize, cycle: u64, addr: u32, size: u32, value: u32) -> Result<u32, BusFault>;
+    fn write(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        size: u32,
+        value: u32,
+    ) -> Result<u32, BusFault>;
     /// Fetches the halfword at `addr` (even) for execution.
     fn fetch(&mut self, addr: u32) -> Result<u16, BusFault>;
 }
@@ -221,7 +234,9 @@ impl System {
             let value = if alias == 0 {
                 value
             } else {
-                let Some(old) = self.timer.read(cycle, reg) else { return false };
+                let Some(old) = self.timer.read(cycle, reg) else {
+                    return false;
+                };
                 match alias {
                     1 => old ^ value,
                     2 => old | value,
@@ -236,7 +251,13 @@ impl System {
 
 impl Bus for System {
     #[inline(always)]
-    fn read(&mut self, core: usize, cycle: u64, addr: u32, size: u32) -> Result<(u32, u32), BusFault> {
+    fn read(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        size: u32,
+    ) -> Result<(u32, u32), BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.arbitrate(core, cycle, bank);
             return Ok((load_le(&self.sram, off, size), wait));
@@ -259,7 +280,14 @@ impl Bus for System {
     }
 
     #[inline(always)]
-    fn write(&mut self, core: usize, cycle: u64, addr: u32, size: u32, value: u32) -> Result<u32, BusFault> {
+    fn write(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        size: u32,
+        value: u32,
+    ) -> Result<u32, BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.arbitrate(core, cycle, bank);
             store_le(&mut self.sram, off, size, value);

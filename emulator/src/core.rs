@@ -75,9 +75,10 @@ impl fmt::Display for Fault {
             FaultKind::Undefined { hw1, .. } => write!(f, "undefined instruction {hw1:04x}")?,
             FaultKind::Unaligned { addr } => write!(f, "unaligned access to {addr:#010x}")?,
             FaultKind::Bus { addr } => write!(f, "bus fault: nothing mapped at {addr:#010x}")?,
-            FaultKind::InvalidState { target } => {
-                write!(f, "branch to ARM state (even address {target:#010x}); Thumb only")?
-            }
+            FaultKind::InvalidState { target } => write!(
+                f,
+                "branch to ARM state (even address {target:#010x}); Thumb only"
+            )?,
             FaultKind::Breakpoint { imm } => write!(f, "BKPT #{imm} with no debugger")?,
             FaultKind::InvalidExcReturn { value } => {
                 write!(f, "invalid EXC_RETURN value {value:#010x}")?
@@ -219,7 +220,10 @@ impl Core {
 
     /// The APSR flags as bits 31:28.
     pub fn apsr(&self) -> u32 {
-        (self.n as u32) << 31 | (self.z as u32) << 30 | (self.c as u32) << 29 | (self.v as u32) << 28
+        (self.n as u32) << 31
+            | (self.z as u32) << 30
+            | (self.c as u32) << 29
+            | (self.v as u32) << 28
     }
 
     /// xPSR: APSR | EPSR.T | IPSR.
@@ -323,7 +327,13 @@ impl Core {
         }
         let pc = self.r[15];
         if !self.thumb {
-            return self.fault(bus, Fault { pc, kind: FaultKind::InvalidState { target: pc } });
+            return self.fault(
+                bus,
+                Fault {
+                    pc,
+                    kind: FaultKind::InvalidState { target: pc },
+                },
+            );
         }
         let hw1 = match bus.fetch(pc) {
             Ok(h) => h,
@@ -381,7 +391,13 @@ impl Core {
                     Event::Svc(imm) => {
                         // SVCall must be able to preempt now, else it escalates (DDI0419 B1.5.4).
                         if self.nvic.priority(SVCALL) >= self.execution_priority() {
-                            return self.fault(bus, Fault { pc, kind: FaultKind::SvcEscalation });
+                            return self.fault(
+                                bus,
+                                Fault {
+                                    pc,
+                                    kind: FaultKind::SvcEscalation,
+                                },
+                            );
                         }
                         Event::Svc(imm)
                     }
@@ -390,7 +406,11 @@ impl Core {
             }
             Err(kind) => {
                 if TRACE {
-                    self.last = Some(Retired { pc, instr, cycles: 0 });
+                    self.last = Some(Retired {
+                        pc,
+                        instr,
+                        cycles: 0,
+                    });
                 }
                 self.fault(bus, Fault { pc, kind })
             }
@@ -421,13 +441,20 @@ impl Core {
     /// Exception entry (DDI0419 B1.5.6): stacks r0-r3, r12, LR, the return address and xPSR
     /// on the current stack (8-byte aligned), loads the vector, and costs
     /// [`EXCEPTION_ENTRY`] cycles.
-    pub fn enter_exception<B: Bus>(&mut self, bus: &mut B, exc: u32, ret: u32) -> Result<(), FaultKind> {
+    pub fn enter_exception<B: Bus>(
+        &mut self,
+        bus: &mut B,
+        exc: u32,
+        ret: u32,
+    ) -> Result<(), FaultKind> {
         let was_psp = self.uses_psp();
         let sp = self.r[13];
         let align = sp & 4;
         let frame = sp.wrapping_sub(32 + align);
         let xpsr = self.xpsr() | ((align != 0) as u32) << 9;
-        let words = [self.r[0], self.r[1], self.r[2], self.r[3], self.r[12], self.r[14], ret, xpsr];
+        let words = [
+            self.r[0], self.r[1], self.r[2], self.r[3], self.r[12], self.r[14], ret, xpsr,
+        ];
         for (i, w) in words.iter().enumerate() {
             bus.write(self.id, self.cycle, frame.wrapping_add(4 * i as u32), 4, *w)?;
         }
@@ -451,7 +478,11 @@ impl Core {
     }
 
     /// Exception return (DDI0419 B1.5.8) for EXC_RETURN `value`.
-    pub(crate) fn exception_return<B: Bus>(&mut self, bus: &mut B, value: u32) -> Result<(), FaultKind> {
+    pub(crate) fn exception_return<B: Bus>(
+        &mut self,
+        bus: &mut B,
+        value: u32,
+    ) -> Result<(), FaultKind> {
         let (to_thread, to_psp) = match value {
             0xffff_fff1 => (false, false),
             0xffff_fff9 => (true, false),
@@ -469,9 +500,13 @@ impl Core {
         let frame = self.r[13];
         let mut w = [0u32; 8];
         for (i, slot) in w.iter_mut().enumerate() {
-            *slot = bus.read(self.id, self.cycle, frame.wrapping_add(4 * i as u32), 4)?.0;
+            *slot = bus
+                .read(self.id, self.cycle, frame.wrapping_add(4 * i as u32), 4)?
+                .0;
         }
-        [self.r[0], self.r[1], self.r[2], self.r[3], self.r[12], self.r[14]] = [w[0], w[1], w[2], w[3], w[4], w[5]];
+        [
+            self.r[0], self.r[1], self.r[2], self.r[3], self.r[12], self.r[14],
+        ] = [w[0], w[1], w[2], w[3], w[4], w[5]];
         self.r[15] = w[6] & !1;
         let xpsr = w[7];
         self.set_apsr(xpsr);

@@ -262,27 +262,73 @@ pub fn decode(hw1: u16, hw2: u16) -> Instr {
         0b000000..=0b001111 => {
             let op = (h >> 9) & 0x1f;
             match op {
-                0b00000..=0b00011 => LslImm { rd: lo3(0), rm: lo3(3), imm: ((h >> 6) & 31) as u8 },
+                0b00000..=0b00011 => LslImm {
+                    rd: lo3(0),
+                    rm: lo3(3),
+                    imm: ((h >> 6) & 31) as u8,
+                },
                 0b00100..=0b00111 => {
                     let imm = ((h >> 6) & 31) as u8;
-                    LsrImm { rd: lo3(0), rm: lo3(3), imm: if imm == 0 { 32 } else { imm } }
+                    LsrImm {
+                        rd: lo3(0),
+                        rm: lo3(3),
+                        imm: if imm == 0 { 32 } else { imm },
+                    }
                 }
                 0b01000..=0b01011 => {
                     let imm = ((h >> 6) & 31) as u8;
-                    AsrImm { rd: lo3(0), rm: lo3(3), imm: if imm == 0 { 32 } else { imm } }
+                    AsrImm {
+                        rd: lo3(0),
+                        rm: lo3(3),
+                        imm: if imm == 0 { 32 } else { imm },
+                    }
                 }
-                0b01100 => AddReg { rd: lo3(0), rn: lo3(3), rm: lo3(6) },
-                0b01101 => SubReg { rd: lo3(0), rn: lo3(3), rm: lo3(6) },
-                0b01110 => AddImm { rd: lo3(0), rn: lo3(3), imm: lo3(6) },
-                0b01111 => SubImm { rd: lo3(0), rn: lo3(3), imm: lo3(6) },
-                0b10000..=0b10011 => MovImm { rd: lo3(8), imm: h as u8 },
-                0b10100..=0b10111 => CmpImm { rn: lo3(8), imm: h as u8 },
-                0b11000..=0b11011 => AddImm { rd: lo3(8), rn: lo3(8), imm: h as u8 },
-                _ => SubImm { rd: lo3(8), rn: lo3(8), imm: h as u8 },
+                0b01100 => AddReg {
+                    rd: lo3(0),
+                    rn: lo3(3),
+                    rm: lo3(6),
+                },
+                0b01101 => SubReg {
+                    rd: lo3(0),
+                    rn: lo3(3),
+                    rm: lo3(6),
+                },
+                0b01110 => AddImm {
+                    rd: lo3(0),
+                    rn: lo3(3),
+                    imm: lo3(6),
+                },
+                0b01111 => SubImm {
+                    rd: lo3(0),
+                    rn: lo3(3),
+                    imm: lo3(6),
+                },
+                0b10000..=0b10011 => MovImm {
+                    rd: lo3(8),
+                    imm: h as u8,
+                },
+                0b10100..=0b10111 => CmpImm {
+                    rn: lo3(8),
+                    imm: h as u8,
+                },
+                0b11000..=0b11011 => AddImm {
+                    rd: lo3(8),
+                    rn: lo3(8),
+                    imm: h as u8,
+                },
+                _ => SubImm {
+                    rd: lo3(8),
+                    rn: lo3(8),
+                    imm: h as u8,
+                },
             }
         }
         // 010000: data processing
-        0b010000 => Alu { op: AluOp::TABLE[((h >> 6) & 15) as usize], rdn: lo3(0), rm: lo3(3) },
+        0b010000 => Alu {
+            op: AluOp::TABLE[((h >> 6) & 15) as usize],
+            rdn: lo3(0),
+            rm: lo3(3),
+        },
         // 010001: special data instructions and branch and exchange
         0b010001 => {
             let rdn = (((h >> 4) & 8) | (h & 7)) as u8;
@@ -313,7 +359,10 @@ pub fn decode(hw1: u16, hw2: u16) -> Instr {
             }
         }
         // 01001x: LDR (literal)
-        0b010010 | 0b010011 => LdrLit { rt: lo3(8), imm: ((h & 0xff) << 2) as u16 },
+        0b010010 | 0b010011 => LdrLit {
+            rt: lo3(8),
+            imm: ((h & 0xff) << 2) as u16,
+        },
         // 0101xx: load/store register offset
         0b010100..=0b010111 => {
             let op = match (h >> 9) & 7 {
@@ -326,7 +375,12 @@ pub fn decode(hw1: u16, hw2: u16) -> Instr {
                 6 => MemOp::Ldrb,
                 _ => MemOp::Ldrsh,
             };
-            MemReg { op, rt: lo3(0), rn: lo3(3), rm: lo3(6) }
+            MemReg {
+                op,
+                rt: lo3(0),
+                rn: lo3(3),
+                rm: lo3(6),
+            }
         }
         // 011xxx: load/store word/byte immediate
         0b011000..=0b011111 => {
@@ -337,37 +391,77 @@ pub fn decode(hw1: u16, hw2: u16) -> Instr {
                 2 => (MemOp::Strb, imm5),
                 _ => (MemOp::Ldrb, imm5),
             };
-            MemImm { op, rt: lo3(0), rn: lo3(3), imm }
+            MemImm {
+                op,
+                rt: lo3(0),
+                rn: lo3(3),
+                imm,
+            }
         }
         // 1000xx: load/store halfword immediate
         0b100000..=0b100011 => {
             let imm = (((h >> 6) & 31) << 1) as u16;
-            let op = if h & 0x800 != 0 { MemOp::Ldrh } else { MemOp::Strh };
-            MemImm { op, rt: lo3(0), rn: lo3(3), imm }
+            let op = if h & 0x800 != 0 {
+                MemOp::Ldrh
+            } else {
+                MemOp::Strh
+            };
+            MemImm {
+                op,
+                rt: lo3(0),
+                rn: lo3(3),
+                imm,
+            }
         }
         // 1001xx: load/store SP-relative
         0b100100..=0b100111 => {
-            let op = if h & 0x800 != 0 { MemOp::Ldr } else { MemOp::Str };
-            MemImm { op, rt: lo3(8), rn: 13, imm: ((h & 0xff) << 2) as u16 }
+            let op = if h & 0x800 != 0 {
+                MemOp::Ldr
+            } else {
+                MemOp::Str
+            };
+            MemImm {
+                op,
+                rt: lo3(8),
+                rn: 13,
+                imm: ((h & 0xff) << 2) as u16,
+            }
         }
         // 10100x: ADR
-        0b101000 | 0b101001 => Adr { rd: lo3(8), imm: ((h & 0xff) << 2) as u16 },
+        0b101000 | 0b101001 => Adr {
+            rd: lo3(8),
+            imm: ((h & 0xff) << 2) as u16,
+        },
         // 10101x: ADD Rd, SP, #imm
-        0b101010 | 0b101011 => AddSpImm { rd: lo3(8), imm: ((h & 0xff) << 2) as u16 },
+        0b101010 | 0b101011 => AddSpImm {
+            rd: lo3(8),
+            imm: ((h & 0xff) << 2) as u16,
+        },
         // 1011xx: miscellaneous 16-bit instructions
         0b101100..=0b101111 => decode_misc(hw1),
         // 11000x: STM
-        0b110000 | 0b110001 => Stm { rn: lo3(8), list: h as u8 },
+        0b110000 | 0b110001 => Stm {
+            rn: lo3(8),
+            list: h as u8,
+        },
         // 11001x: LDM
-        0b110010 | 0b110011 => Ldm { rn: lo3(8), list: h as u8 },
+        0b110010 | 0b110011 => Ldm {
+            rn: lo3(8),
+            list: h as u8,
+        },
         // 1101xx: conditional branch, UDF, SVC
         0b110100..=0b110111 => match (h >> 8) & 15 {
             14 => Udf { imm: h as u8 },
             15 => Svc { imm: h as u8 },
-            cond => BCond { cond: cond as u8, offset: sign_extend((h & 0xff) << 1, 9) },
+            cond => BCond {
+                cond: cond as u8,
+                offset: sign_extend((h & 0xff) << 1, 9),
+            },
         },
         // 11100x: B
-        0b111000 | 0b111001 => B { offset: sign_extend((h & 0x7ff) << 1, 12) },
+        0b111000 | 0b111001 => B {
+            offset: sign_extend((h & 0x7ff) << 1, 12),
+        },
         _ => Undefined { hw1, hw2: 0 },
     }
 }
@@ -380,24 +474,34 @@ fn decode_misc(hw1: u16) -> Instr {
     let op2 = (h >> 6) & 3; // bits 7:6
     let undefined = Undefined { hw1, hw2: 0 };
     match (h >> 8) & 0xf {
-        0x0 if h & 0x80 == 0 => AddSp { imm: ((h & 0x7f) << 2) as u16 },
-        0x0 => SubSp { imm: ((h & 0x7f) << 2) as u16 },
+        0x0 if h & 0x80 == 0 => AddSp {
+            imm: ((h & 0x7f) << 2) as u16,
+        },
+        0x0 => SubSp {
+            imm: ((h & 0x7f) << 2) as u16,
+        },
         0x2 => match op2 {
             0 => Sxth { rd, rm },
             1 => Sxtb { rd, rm },
             2 => Uxth { rd, rm },
             _ => Uxtb { rd, rm },
         },
-        0x4 | 0x5 => Push { list: ((h & 0xff) | ((h & 0x100) << 6)) as u16 },
+        0x4 | 0x5 => Push {
+            list: ((h & 0xff) | ((h & 0x100) << 6)) as u16,
+        },
         // CPS: 1011 0110 011 im 0010 (only the I bit exists on ARMv6-M)
-        0x6 if h & 0xef == 0x62 => Cps { disable: h & 0x10 != 0 },
+        0x6 if h & 0xef == 0x62 => Cps {
+            disable: h & 0x10 != 0,
+        },
         0xa => match op2 {
             0 => Rev { rd, rm },
             1 => Rev16 { rd, rm },
             3 => Revsh { rd, rm },
             _ => undefined,
         },
-        0xc | 0xd => Pop { list: ((h & 0xff) | ((h & 0x100) << 7)) as u16 },
+        0xc | 0xd => Pop {
+            list: ((h & 0xff) | ((h & 0x100) << 7)) as u16,
+        },
         0xe => Bkpt { imm: h as u8 },
         0xf if h & 0xf == 0 => match (h >> 4) & 0xf {
             1 => Hint(self::Hint::Yield),
@@ -429,7 +533,9 @@ fn decode32(hw1: u16, hw2: u16) -> Instr {
         let i1 = !(j1 ^ s) & 1;
         let i2 = !(j2 ^ s) & 1;
         let imm = (s << 24) | (i1 << 23) | (i2 << 22) | ((a & 0x3ff) << 12) | ((b & 0x7ff) << 1);
-        return Bl { offset: sign_extend(imm, 25) };
+        return Bl {
+            offset: sign_extend(imm, 25),
+        };
     }
     if op1 != 0b000 {
         return undefined;
@@ -439,7 +545,10 @@ fn decode32(hw1: u16, hw2: u16) -> Instr {
         0b0111000 | 0b0111001 => {
             // MSR: 11110 0 1110 0 0 Rn | 10 0 0 1000 SYSm
             if b & 0x3f00 == 0x0800 {
-                Msr { sysm: b as u8, rn: (a & 15) as u8 }
+                Msr {
+                    sysm: b as u8,
+                    rn: (a & 15) as u8,
+                }
             } else {
                 undefined
             }
@@ -455,21 +564,31 @@ fn decode32(hw1: u16, hw2: u16) -> Instr {
         }
         0b0111110 | 0b0111111 => {
             // MRS: 11110 0 1111 1 (1)(1)(1)(1) | 10 (0) 0 Rd SYSm
-            Mrs { rd: ((b >> 8) & 15) as u8, sysm: b as u8 }
+            Mrs {
+                rd: ((b >> 8) & 15) as u8,
+                sysm: b as u8,
+            }
         }
         _ => undefined,
     }
 }
 
-const REG_NAMES: [&str; 16] =
-    ["r0", "r1", "r2", "r3", "r4", "r5", "r6", "r7", "r8", "r9", "r10", "r11", "r12", "sp", "lr", "pc"];
+const REG_NAMES: [&str; 16] = [
+    "r0", "r1", "r2", "r3", "r4", "r5", "r6", "r7", "r8", "r9", "r10", "r11", "r12", "sp", "lr",
+    "pc",
+];
 
 fn reg_list(f: &mut std::fmt::Formatter<'_>, list: u16) -> std::fmt::Result {
-    let names: Vec<&str> = (0..16).filter(|r| list & (1 << r) != 0).map(|r| REG_NAMES[r]).collect();
+    let names: Vec<&str> = (0..16)
+        .filter(|r| list & (1 << r) != 0)
+        .map(|r| REG_NAMES[r])
+        .collect();
     write!(f, "{{{}}}", names.join(", "))
 }
 
-const CONDS: [&str; 14] = ["eq", "ne", "cs", "cc", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt", "gt", "le"];
+const CONDS: [&str; 14] = [
+    "eq", "ne", "cs", "cc", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt", "gt", "le",
+];
 
 /// Unified assembler syntax (branch targets as `.+offset` from the instruction).
 impl std::fmt::Display for Instr {
@@ -487,8 +606,16 @@ impl std::fmt::Display for Instr {
             SubImm { rd, rn, imm } => write!(f, "subs {}, {}, #{imm}", r(rd), r(rn)),
             MovImm { rd, imm } => write!(f, "movs {}, #{imm}", r(rd)),
             CmpImm { rn, imm } => write!(f, "cmp {}, #{imm}", r(rn)),
-            Alu { op: AluOp::Rsb, rdn, rm } => write!(f, "rsbs {}, {}, #0", r(rdn), r(rm)),
-            Alu { op: AluOp::Mul, rdn, rm } => write!(f, "muls {}, {}, {}", r(rdn), r(rm), r(rdn)),
+            Alu {
+                op: AluOp::Rsb,
+                rdn,
+                rm,
+            } => write!(f, "rsbs {}, {}, #0", r(rdn), r(rm)),
+            Alu {
+                op: AluOp::Mul,
+                rdn,
+                rm,
+            } => write!(f, "muls {}, {}, {}", r(rdn), r(rm), r(rdn)),
             Alu { op, rdn, rm } => {
                 let name = match op {
                     AluOp::And => "ands",
@@ -514,8 +641,12 @@ impl std::fmt::Display for Instr {
             Bx { rm } => write!(f, "bx {}", r(rm)),
             Blx { rm } => write!(f, "blx {}", r(rm)),
             LdrLit { rt, imm } => write!(f, "ldr {}, [pc, #{imm}]", r(rt)),
-            MemReg { op, rt, rn, rm } => write!(f, "{} {}, [{}, {}]", mem_name(op), r(rt), r(rn), r(rm)),
-            MemImm { op, rt, rn, imm } => write!(f, "{} {}, [{}, #{imm}]", mem_name(op), r(rt), r(rn)),
+            MemReg { op, rt, rn, rm } => {
+                write!(f, "{} {}, [{}, {}]", mem_name(op), r(rt), r(rn), r(rm))
+            }
+            MemImm { op, rt, rn, imm } => {
+                write!(f, "{} {}, [{}, #{imm}]", mem_name(op), r(rt), r(rn))
+            }
             Adr { rd, imm } => write!(f, "add {}, pc, #{imm}", r(rd)),
             AddSpImm { rd, imm } => write!(f, "add {}, sp, #{imm}", r(rd)),
             AddSp { imm } => write!(f, "add sp, #{imm}"),

@@ -90,7 +90,10 @@ impl fmt::Display for ElfError {
             ElfError::Malformed(e) => write!(f, "not a valid ELF file: {e}"),
             ElfError::NotArm(what) => write!(f, "not a 32-bit little-endian ARM ELF ({what})"),
             ElfError::Relocatable => {
-                write!(f, "relocatable object file: link it into an executable first")
+                write!(
+                    f,
+                    "relocatable object file: link it into an executable first"
+                )
             }
             ElfError::NotExecutable => write!(f, "ELF file is not an executable"),
             ElfError::Unmapped { addr, size } => write!(
@@ -114,7 +117,9 @@ pub fn parse(bytes: &[u8]) -> Result<Image, ElfError> {
     }
     let header = elf::FileHeader32::<object::Endianness>::parse(bytes)
         .map_err(|e| ElfError::Malformed(e.to_string()))?;
-    let endian = header.endian().map_err(|e| ElfError::Malformed(e.to_string()))?;
+    let endian = header
+        .endian()
+        .map_err(|e| ElfError::Malformed(e.to_string()))?;
     if !header.is_little_endian() {
         return Err(ElfError::NotArm("big-endian".into()));
     }
@@ -129,8 +134,13 @@ pub fn parse(bytes: &[u8]) -> Result<Image, ElfError> {
     if kind != elf::ET_EXEC {
         return Err(ElfError::NotExecutable);
     }
-    let mut image = Image { entry: header.e_entry(endian), ..Image::default() };
-    let phdrs = header.program_headers(endian, bytes).map_err(|e| ElfError::Malformed(e.to_string()))?;
+    let mut image = Image {
+        entry: header.e_entry(endian),
+        ..Image::default()
+    };
+    let phdrs = header
+        .program_headers(endian, bytes)
+        .map_err(|e| ElfError::Malformed(e.to_string()))?;
     for ph in phdrs {
         if ph.p_type(endian) != elf::PT_LOAD || ph.p_memsz(endian) == 0 {
             continue;
@@ -144,7 +154,10 @@ pub fn parse(bytes: &[u8]) -> Result<Image, ElfError> {
         }
         let mut data = data.to_vec();
         data.resize(memsz as usize, 0);
-        image.segments.push(Segment { addr: ph.p_paddr(endian), data });
+        image.segments.push(Segment {
+            addr: ph.p_paddr(endian),
+            data,
+        });
     }
     let file = object::File::parse(bytes).map_err(|e| ElfError::Malformed(e.to_string()))?;
     for sym in file.symbols() {
@@ -162,7 +175,10 @@ pub fn parse(bytes: &[u8]) -> Result<Image, ElfError> {
         });
     }
     for section in file.sections() {
-        if matches!(section.name(), Ok(".vectors" | ".vector_table" | ".isr_vector")) {
+        if matches!(
+            section.name(),
+            Ok(".vectors" | ".vector_table" | ".isr_vector")
+        ) {
             image.vector_table = Some(section.address() as u32);
         }
     }

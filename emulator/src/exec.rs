@@ -81,7 +81,13 @@ impl Core {
     /// Load from `addr` at data-phase cycle `at`: (value, wait states). The private
     /// peripheral bus is reached here, never through the shared bus.
     #[inline(always)]
-    fn load<B: Bus>(&mut self, bus: &mut B, addr: u32, size: u32, at: u64) -> Result<(u32, u32), FaultKind> {
+    fn load<B: Bus>(
+        &mut self,
+        bus: &mut B,
+        addr: u32,
+        size: u32,
+        at: u64,
+    ) -> Result<(u32, u32), FaultKind> {
         if addr & (size - 1) != 0 {
             return Err(FaultKind::Unaligned { addr });
         }
@@ -90,13 +96,24 @@ impl Core {
                 return Err(FaultKind::Bus { addr });
             }
             let ipsr = self.ipsr;
-            return self.nvic.read(at, addr, ipsr).map(|v| (v, 0)).ok_or(FaultKind::Bus { addr });
+            return self
+                .nvic
+                .read(at, addr, ipsr)
+                .map(|v| (v, 0))
+                .ok_or(FaultKind::Bus { addr });
         }
         Ok(bus.read(self.id, at, addr, size)?)
     }
 
     #[inline(always)]
-    fn store<B: Bus>(&mut self, bus: &mut B, addr: u32, size: u32, value: u32, at: u64) -> Result<u32, FaultKind> {
+    fn store<B: Bus>(
+        &mut self,
+        bus: &mut B,
+        addr: u32,
+        size: u32,
+        value: u32,
+        at: u64,
+    ) -> Result<u32, FaultKind> {
         if addr & (size - 1) != 0 {
             return Err(FaultKind::Unaligned { addr });
         }
@@ -123,7 +140,13 @@ impl Core {
 
     /// Executes `instr` located at `pc` (of `size` bytes). Returns its cycles and event.
     #[inline(always)]
-    pub(crate) fn execute<B: Bus>(&mut self, bus: &mut B, instr: Instr, pc: u32, size: u32) -> Exec {
+    pub(crate) fn execute<B: Bus>(
+        &mut self,
+        bus: &mut B,
+        instr: Instr,
+        pc: u32,
+        size: u32,
+    ) -> Exec {
         use Instr::*;
         let next = pc.wrapping_add(size);
         let now = self.cycle;
@@ -240,7 +263,9 @@ impl Core {
                 io_port = addr >> 28 == SIO_BASE >> 28;
                 wait += self.mem(bus, op, rt, addr, now + !io_port as u64)?;
             }
-            Adr { rd, imm } => self.r[rd as usize] = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32),
+            Adr { rd, imm } => {
+                self.r[rd as usize] = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32)
+            }
             AddSpImm { rd, imm } => self.r[rd as usize] = self.r[13].wrapping_add(imm as u32),
             AddSp { imm } => self.r[13] = self.r[13].wrapping_add(imm as u32),
             SubSp { imm } => self.r[13] = self.r[13].wrapping_sub(imm as u32),
@@ -264,7 +289,8 @@ impl Core {
                 }
                 let mut addr = base;
                 for (i, reg) in (0..15).filter(|r| list & (1 << r) != 0).enumerate() {
-                    wait += self.store(bus, addr, 4, self.r[reg], now + 1 + i as u64 + wait as u64)?;
+                    wait +=
+                        self.store(bus, addr, 4, self.r[reg], now + 1 + i as u64 + wait as u64)?;
                     addr = addr.wrapping_add(4);
                 }
                 self.r[13] = base;
@@ -290,7 +316,8 @@ impl Core {
                 }
                 let mut addr = base;
                 for (i, reg) in (0..8).filter(|r| list & (1 << r) != 0).enumerate() {
-                    wait += self.store(bus, addr, 4, self.r[reg], now + 1 + i as u64 + wait as u64)?;
+                    wait +=
+                        self.store(bus, addr, 4, self.r[reg], now + 1 + i as u64 + wait as u64)?;
                     addr = addr.wrapping_add(4);
                 }
                 self.r[rn as usize] = addr;
@@ -333,7 +360,12 @@ impl Core {
             }
             B { offset } => self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32),
             Svc { imm } => event = Event::Svc(imm),
-            Udf { imm } => return Err(FaultKind::Undefined { hw1: 0xde00 | imm as u16, hw2: 0 }),
+            Udf { imm } => {
+                return Err(FaultKind::Undefined {
+                    hw1: 0xde00 | imm as u16,
+                    hw2: 0,
+                })
+            }
             Undefined { hw1, hw2 } => return Err(FaultKind::Undefined { hw1, hw2 }),
             Bl { offset } => {
                 self.r[14] = next | 1;
@@ -343,7 +375,12 @@ impl Core {
             Mrs { rd, sysm } => self.r[rd as usize] = self.mrs(sysm),
             Barrier(_) => {}
         }
-        Ok(Outcome { taken, io_port, extra: wait, event })
+        Ok(Outcome {
+            taken,
+            io_port,
+            extra: wait,
+            event,
+        })
     }
 
     #[inline(always)]
@@ -434,7 +471,14 @@ impl Core {
 
     /// One load or store `op` of `rt` at `addr`; returns wait states.
     #[inline(always)]
-    fn mem<B: Bus>(&mut self, bus: &mut B, op: MemOp, rt: u8, addr: u32, at: u64) -> Result<u32, FaultKind> {
+    fn mem<B: Bus>(
+        &mut self,
+        bus: &mut B,
+        op: MemOp,
+        rt: u8,
+        addr: u32,
+        at: u64,
+    ) -> Result<u32, FaultKind> {
         let size = op.size();
         if op.is_store() {
             return self.store(bus, addr, size, self.r[rt as usize], at);
@@ -450,7 +494,13 @@ impl Core {
 
     /// Loads the registers of `list` (bits 0-7, 15 = PC) from consecutive words at `base`
     /// without writing any register: (values by register number, wait states).
-    fn load_multiple<B: Bus>(&mut self, bus: &mut B, base: u32, list: u16, now: u64) -> Result<([u32; 16], u32), FaultKind> {
+    fn load_multiple<B: Bus>(
+        &mut self,
+        bus: &mut B,
+        base: u32,
+        list: u16,
+        now: u64,
+    ) -> Result<([u32; 16], u32), FaultKind> {
         if base & 3 != 0 {
             return Err(FaultKind::Unaligned { addr: base });
         }

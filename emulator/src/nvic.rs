@@ -219,8 +219,11 @@ impl Nvic {
                 self.countflag = false;
                 self.syst_cvr = 0;
                 if self.syst_csr & 1 != 0 {
-                    self.syst_next =
-                        if self.syst_rvr == 0 { u64::MAX } else { now + 1 + self.syst_rvr as u64 };
+                    self.syst_next = if self.syst_rvr == 0 {
+                        u64::MAX
+                    } else {
+                        now + 1 + self.syst_rvr as u64
+                    };
                 }
             }
             0xe000_e100 => self.enabled |= value,

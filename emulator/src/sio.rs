@@ -81,7 +81,10 @@ impl Divider {
                 (n.wrapping_div(d) as u32, n.wrapping_rem(d) as u32)
             }
         } else {
-            match (self.dividend.checked_div(self.divisor), self.dividend.checked_rem(self.divisor)) {
+            match (
+                self.dividend.checked_div(self.divisor),
+                self.dividend.checked_rem(self.divisor),
+            ) {
                 (Some(q), Some(r)) => (q, r),
                 _ => (u32::MAX, self.dividend),
             }

@@ -76,7 +76,8 @@ impl Timer {
 
     /// Microsecond count at cycle `now`.
     pub fn micros(&self, now: u64) -> u64 {
-        self.offset.wrapping_add(((now as u128 * 1_000_000) / self.clock_hz as u128) as u64)
+        self.offset
+            .wrapping_add(((now as u128 * 1_000_000) / self.clock_hz as u128) as u64)
     }
 
     /// First cycle at which the count reaches `us`.

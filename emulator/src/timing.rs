@@ -86,7 +86,12 @@ impl Class {
     /// The timing table (DDI0484C table 3-1, zero wait states): one row per class.
     pub const fn cost(self) -> Cost {
         const fn row(base: u32, per_register: u32, taken: u32, io_port: u32) -> Cost {
-            Cost { base, per_register, taken, io_port }
+            Cost {
+                base,
+                per_register,
+                taken,
+                io_port,
+            }
         }
         match self {
             Class::Alu => row(1, 0, 0, 1),
@@ -156,7 +161,10 @@ pub const DIVIDER_LATENCY: u32 = 8;
 pub fn class(instr: &Instr) -> Class {
     use Instr::*;
     match *instr {
-        Alu { op: decode::AluOp::Mul, .. } => Class::Mul,
+        Alu {
+            op: decode::AluOp::Mul,
+            ..
+        } => Class::Mul,
         AddHi { rdn: 15, .. } | MovHi { rd: 15, .. } | Bx { .. } | Blx { .. } => Class::BranchReg,
         LdrLit { .. } => Class::Load,
         MemReg { op, .. } | MemImm { op, .. } => {

@@ -28,7 +28,16 @@ fn elf(class: u8, data: u8, etype: u16, machine: u16, addr: u32, code: &[u8]) ->
     h16(&mut f, 40); // e_shentsize
     h16(&mut f, 0); // e_shnum
     h16(&mut f, 0); // e_shstrndx
-    for v in [1, 84, addr, addr, code.len() as u32, code.len() as u32, 5, 4] {
+    for v in [
+        1,
+        84,
+        addr,
+        addr,
+        code.len() as u32,
+        code.len() as u32,
+        5,
+        4,
+    ] {
         h32(&mut f, v);
     }
     f.extend(code);
@@ -42,7 +51,10 @@ fn code(halfwords: &[u16]) -> Vec<u8> {
 const EM_ARM: u16 = 40;
 
 fn load(bytes: &[u8]) -> Result<Board, EmuError> {
-    let mut b = Board::new(Config { svc_halts: true, ..Config::default() });
+    let mut b = Board::new(Config {
+        svc_halts: true,
+        ..Config::default()
+    });
     b.load_elf(bytes)?;
     Ok(b)
 }
@@ -60,7 +72,10 @@ fn every_truncation_is_an_error() {
     let bytes = elf(1, 1, 2, EM_ARM, 0x2000_0000, &code(&[movs(0, 42), svc(0)]));
     for len in 0..bytes.len() {
         let err = load(&bytes[..len]).err();
-        assert!(matches!(err, Some(EmuError::Elf(ElfError::Malformed(_)))), "length {len}: {err:?}");
+        assert!(
+            matches!(err, Some(EmuError::Elf(ElfError::Malformed(_)))),
+            "length {len}: {err:?}"
+        );
     }
 }
 
@@ -77,13 +92,19 @@ fn wrong_kind_of_elf_is_named() {
         (b"#!/bin/sh\necho hi\n".to_vec(), "missing ELF magic"),
     ];
     for (bytes, want) in cases {
-        let msg = load(&bytes).err().map(|e| e.to_string()).unwrap_or_default();
+        let msg = load(&bytes)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
         assert!(msg.contains(want), "`{msg}` should mention `{want}`");
     }
 }
 
 fn run_code(halfwords: &[u16], regs: &[(usize, u32)]) -> (Board, StopReason) {
-    let mut b = Board::new(Config { svc_halts: true, ..Config::default() });
+    let mut b = Board::new(Config {
+        svc_halts: true,
+        ..Config::default()
+    });
     load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, halfwords);
     for &(r, v) in regs {
         b.cores[0].r[r] = v;
@@ -96,25 +117,45 @@ fn run_code(halfwords: &[u16], regs: &[(usize, u32)]) -> (Board, StopReason) {
 fn bad_code_faults_with_a_clear_reason() {
     // BX to an even address: the branch happens, the next fetch faults (ARM state).
     let (_, stop) = run_code(&[0x4700 | (1 << 3)], &[(1, 0x2000_0100)]); // bx r1
-    let StopReason::Fault { fault, .. } = stop else { panic!("{stop:?}") };
-    assert_eq!(fault.kind, FaultKind::InvalidState { target: 0x2000_0100 });
+    let StopReason::Fault { fault, .. } = stop else {
+        panic!("{stop:?}")
+    };
+    assert_eq!(
+        fault.kind,
+        FaultKind::InvalidState {
+            target: 0x2000_0100
+        }
+    );
     assert!(fault.to_string().contains("ARM state"), "{fault}");
     // Jump to an unmapped address: instruction fetch bus fault.
     let (_, stop) = run_code(&[0x4700 | (1 << 3)], &[(1, 0x3000_0001)]);
-    let StopReason::Fault { fault, .. } = stop else { panic!("{stop:?}") };
+    let StopReason::Fault { fault, .. } = stop else {
+        panic!("{stop:?}")
+    };
     assert_eq!(fault.kind, FaultKind::Bus { addr: 0x3000_0000 });
     // Undefined 32-bit encoding.
     let (b, stop) = run_code(&[0xf000, 0x8000], &[]);
-    let StopReason::Fault { fault, .. } = stop else { panic!("{stop:?}") };
-    assert!(fault.to_string().contains("undefined instruction f000 8000 at pc 0x20000000"), "{fault}");
+    let StopReason::Fault { fault, .. } = stop else {
+        panic!("{stop:?}")
+    };
+    assert!(
+        fault
+            .to_string()
+            .contains("undefined instruction f000 8000 at pc 0x20000000"),
+        "{fault}"
+    );
     assert_eq!(b.cores[0].ipsr, 3, "in HardFault");
     // Unaligned store.
     let (_, stop) = run_code(&[str(0, 1, 0)], &[(1, 0x2000_0102)]);
-    let StopReason::Fault { fault, .. } = stop else { panic!("{stop:?}") };
+    let StopReason::Fault { fault, .. } = stop else {
+        panic!("{stop:?}")
+    };
     assert_eq!(fault.kind, FaultKind::Unaligned { addr: 0x2000_0102 });
     // SVC with PRIMASK set cannot be taken: escalates to HardFault.
     let (_, stop) = run_code(&[0xb672, svc(1)], &[]); // cpsid i; svc #1
-    let StopReason::Fault { fault, .. } = stop else { panic!("{stop:?}") };
+    let StopReason::Fault { fault, .. } = stop else {
+        panic!("{stop:?}")
+    };
     assert_eq!(fault.kind, FaultKind::SvcEscalation);
 }
 
@@ -122,12 +163,21 @@ fn bad_code_faults_with_a_clear_reason() {
 fn fault_inside_hardfault_locks_up() {
     // No vector table (zeros): HardFault's vector is 0, an even address, so the handler's
     // first fetch faults again inside HardFault: lockup.
-    let mut b = Board::new(Config { stop_on_fault: false, ..Config::default() });
+    let mut b = Board::new(Config {
+        stop_on_fault: false,
+        ..Config::default()
+    });
     load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &[0xde00]); // udf #0
     let stop = b.run_for(1000);
-    let StopReason::Lockup { core: 0, fault } = stop else { panic!("{stop:?}") };
+    let StopReason::Lockup { core: 0, fault } = stop else {
+        panic!("{stop:?}")
+    };
     assert_eq!(fault.kind, FaultKind::InvalidState { target: 0 });
-    assert_eq!(b.run_for(1000), StopReason::Idle, "a locked-up core stays stopped");
+    assert_eq!(
+        b.run_for(1000),
+        StopReason::Idle,
+        "a locked-up core stays stopped"
+    );
 }
 
 #[test]
@@ -141,7 +191,11 @@ fn random_garbage_never_panics() {
     };
     let mut faults = 0;
     for _ in 0..400 {
-        let mut b = Board::new(Config { stop_on_fault: false, svc_halts: false, ..Config::default() });
+        let mut b = Board::new(Config {
+            stop_on_fault: false,
+            svc_halts: false,
+            ..Config::default()
+        });
         let prog: Vec<u16> = (0..64).map(|_| rand() as u16).collect();
         load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &prog);
         for r in 0..15 {
@@ -156,5 +210,8 @@ fn random_garbage_never_panics() {
             faults += 1;
         }
     }
-    assert!(faults > 100, "garbage should mostly fault; only {faults} of 400 did");
+    assert!(
+        faults > 100,
+        "garbage should mostly fault; only {faults} of 400 did"
+    );
 }

@@ -9,7 +9,10 @@ use common::load_program;
 use tactus_emulator::{Board, Config, EmuError, StopReason, DAC_BASE, SENSOR_BASE};
 
 fn board() -> Board {
-    Board::new(Config { svc_halts: true, ..Config::default() })
+    Board::new(Config {
+        svc_halts: true,
+        ..Config::default()
+    })
 }
 
 #[test]
@@ -27,9 +30,15 @@ fn function_cycles_between_entry_and_return() {
     assert_eq!(b.run_for(1000), StopReason::Svc { core: 0, imm: 0 });
     let calls = b.calls(f);
     // push {lr} 1+1, movs 1, pop {pc} 3+N with N = 0 low registers: 2 + 1 + 3.
-    assert_eq!(calls.iter().map(|c| c.cycles).collect::<Vec<_>>(), [6, 6, 6]);
+    assert_eq!(
+        calls.iter().map(|c| c.cycles).collect::<Vec<_>>(),
+        [6, 6, 6]
+    );
     // Call k starts after movs (1) + k * (bl 3 + body 6 + subs 1 + bne taken 2) + bl 3.
-    assert_eq!(calls.iter().map(|c| c.start).collect::<Vec<_>>(), [4, 16, 28]);
+    assert_eq!(
+        calls.iter().map(|c| c.start).collect::<Vec<_>>(),
+        [4, 16, 28]
+    );
     assert_eq!(b.cores[0].cycle, 1 + 3 * 12 - 1, "last bne not taken");
 }
 
@@ -42,7 +51,14 @@ fn profile_by_symbol_name_needs_a_loaded_symbol() {
 #[test]
 fn sensors_in_forces_out() {
     // For keys 0..4: dac[k] = 2 * sensor[k]. r0 = SENSOR_BASE, r1 = DAC_BASE = r0 + 0x400.
-    let mut code = vec![movs(0, 0x20), lsls(0, 0, 8), adds_imm8(0, 0x03), lsls(0, 0, 8), adds_imm8(0, 0xf0), lsls(0, 0, 8)];
+    let mut code = vec![
+        movs(0, 0x20),
+        lsls(0, 0, 8),
+        adds_imm8(0, 0x03),
+        lsls(0, 0, 8),
+        adds_imm8(0, 0xf0),
+        lsls(0, 0, 8),
+    ];
     code.extend([movs(1, 4), lsls(1, 1, 8), 0x1809]); // adds r1, r1, r0
     for k in 0..4 {
         code.extend([ldr(2, 0, 4 * k), lsls(2, 2, 1), str(2, 1, 4 * k)]);
@@ -64,8 +80,14 @@ fn sensors_in_forces_out() {
 #[test]
 fn host_memory_access_is_checked() {
     let mut b = board();
-    assert_eq!(b.write_u32(0x3000_0000, 1), Err(EmuError::Unmapped(0x3000_0000)));
-    assert_eq!(b.read_u32(0x2004_1ffe), Err(EmuError::Unmapped(0x2004_2000)));
+    assert_eq!(
+        b.write_u32(0x3000_0000, 1),
+        Err(EmuError::Unmapped(0x3000_0000))
+    );
+    assert_eq!(
+        b.read_u32(0x2004_1ffe),
+        Err(EmuError::Unmapped(0x2004_2000))
+    );
     b.write_u32(0x2004_1ffc, 0xa5a5_5a5a).unwrap();
     assert_eq!(b.read_u32(0x2004_1ffc), Ok(0xa5a5_5a5a));
     // The non-striped alias: word 1 of SRAM1 is striped word 4*1 + 1 = byte 0x14.

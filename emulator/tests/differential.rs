@@ -46,7 +46,20 @@ impl Rng {
     /// A register value: often an edge case, otherwise random.
     fn value(&mut self) -> u32 {
         match self.below(4) {
-            0 => *self.pick(&[0, 1, 2, 31, 32, 33, 0x7fff_ffff, 0x8000_0000, 0xffff_ffff, 0xffff_fffe, 0x8000, 0xff]),
+            0 => *self.pick(&[
+                0,
+                1,
+                2,
+                31,
+                32,
+                33,
+                0x7fff_ffff,
+                0x8000_0000,
+                0xffff_ffff,
+                0xffff_fffe,
+                0x8000,
+                0xff,
+            ]),
             1 => self.below(64),
             _ => self.next() as u32,
         }
@@ -56,7 +69,9 @@ impl Rng {
 /// Destination-capable low registers: r6 is the data base and never written.
 const DST: [&str; 7] = ["r0", "r1", "r2", "r3", "r4", "r5", "r7"];
 const SRC: [&str; 8] = ["r0", "r1", "r2", "r3", "r4", "r5", "r6", "r7"];
-const CONDS: [&str; 14] = ["eq", "ne", "cs", "cc", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt", "gt", "le"];
+const CONDS: [&str; 14] = [
+    "eq", "ne", "cs", "cc", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt", "gt", "le",
+];
 
 /// One straight-line instruction (no branch, no stack change); appends it and returns the
 /// number of instructions emitted.
@@ -78,15 +93,23 @@ fn simple(rng: &mut Rng, out: &mut String) -> usize {
         10 => writeln!(out, "asrs {d}, {s}, #{}", 1 + rng.below(32)),
         11..=13 => {
             let op = rng.pick(&[
-                "ands", "eors", "lsls", "lsrs", "asrs", "adcs", "sbcs", "rors", "tst", "cmp", "cmn", "orrs", "bics",
-                "mvns",
+                "ands", "eors", "lsls", "lsrs", "asrs", "adcs", "sbcs", "rors", "tst", "cmp",
+                "cmn", "orrs", "bics", "mvns",
             ]);
-            let dst = if matches!(*op, "tst" | "cmp" | "cmn") { s2 } else { d };
+            let dst = if matches!(*op, "tst" | "cmp" | "cmn") {
+                s2
+            } else {
+                d
+            };
             writeln!(out, "{op} {dst}, {s}")
         }
         14 => writeln!(out, "rsbs {d}, {s}, #0"),
         15 => writeln!(out, "muls {d}, {s}, {d}"),
-        16 => writeln!(out, "{} {d}, {s}", rng.pick(&["sxth", "sxtb", "uxth", "uxtb", "rev", "rev16", "revsh"])),
+        16 => writeln!(
+            out,
+            "{} {d}, {s}",
+            rng.pick(&["sxth", "sxtb", "uxth", "uxtb", "rev", "rev16", "revsh"])
+        ),
         17 => writeln!(out, "mov r8, {s}"),
         18 => writeln!(out, "add {d}, r8"),
         19 => writeln!(out, "cmp {s}, r8"),
@@ -100,15 +123,36 @@ fn simple(rng: &mut Rng, out: &mut String) -> usize {
         }
         24 | 25 => {
             // register offset: r5 = small aligned index, then the access
-            let (op, scale) =
-                *rng.pick(&[("ldr", 4), ("str", 4), ("ldrh", 2), ("strh", 2), ("ldrb", 1), ("strb", 1), ("ldrsh", 2), ("ldrsb", 1)]);
-            let r = if op.starts_with("ld") { *rng.pick(&["r0", "r1", "r2", "r3", "r4", "r7"]) } else { s };
-            writeln!(out, "movs r5, #{}\n{op} {r}, [r6, r5]", scale * rng.below(128 / scale)).unwrap();
+            let (op, scale) = *rng.pick(&[
+                ("ldr", 4),
+                ("str", 4),
+                ("ldrh", 2),
+                ("strh", 2),
+                ("ldrb", 1),
+                ("strb", 1),
+                ("ldrsh", 2),
+                ("ldrsb", 1),
+            ]);
+            let r = if op.starts_with("ld") {
+                *rng.pick(&["r0", "r1", "r2", "r3", "r4", "r7"])
+            } else {
+                s
+            };
+            writeln!(
+                out,
+                "movs r5, #{}\n{op} {r}, [r6, r5]",
+                scale * rng.below(128 / scale)
+            )
+            .unwrap();
             return 2;
         }
         26 => writeln!(out, "ldr {d}, [sp, #{}]", 4 * rng.below(32)),
         27 => writeln!(out, "str {s}, [sp, #{}]", 4 * rng.below(32)),
-        28 => writeln!(out, "add {d}, sp, #{}", 4 * rng.below(256)),
+        28 => match rng.below(3) {
+            0 => writeln!(out, "add {d}, sp, #{}", 4 * rng.below(256)),
+            1 => writeln!(out, "add {d}, pc"),
+            _ => writeln!(out, "mov {d}, pc"),
+        },
         _ => writeln!(out, "ldr {d}, ={:#x}", rng.value()),
     }
     .unwrap();
@@ -116,7 +160,10 @@ fn simple(rng: &mut Rng, out: &mut String) -> usize {
 }
 
 fn reg_list(rng: &mut Rng, n: usize, exclude: &[&str]) -> Vec<&'static str> {
-    let mut regs: Vec<&'static str> = ["r0", "r1", "r2", "r3", "r4", "r5", "r7"].into_iter().filter(|r| !exclude.contains(r)).collect();
+    let mut regs: Vec<&'static str> = ["r0", "r1", "r2", "r3", "r4", "r5", "r7"]
+        .into_iter()
+        .filter(|r| !exclude.contains(r))
+        .collect();
     while regs.len() > n {
         let i = rng.below(regs.len() as u32) as usize;
         regs.remove(i);
@@ -160,7 +207,13 @@ fn unit(rng: &mut Rng, out: &mut String, label: &mut usize) -> usize {
             let k = 1 + rng.below(4) as usize;
             let list = reg_list(rng, k, &["r5"]);
             let op = if rng.below(2) == 0 { "ldmia" } else { "stmia" };
-            writeln!(out, "adds r5, r6, #{}\n{op} r5!, {{{}}}", 4 * rng.below(2), list.join(", ")).unwrap();
+            writeln!(
+                out,
+                "adds r5, r6, #{}\n{op} r5!, {{{}}}",
+                4 * rng.below(2),
+                list.join(", ")
+            )
+            .unwrap();
             2
         }
         _ => simple(rng, out),
@@ -170,7 +223,9 @@ fn unit(rng: &mut Rng, out: &mut String, label: &mut usize) -> usize {
 /// One program of `SEQUENCES_PER_FILE` sequences; returns (source, instructions, per-sequence
 /// source for reporting).
 fn program(rng: &mut Rng) -> (String, usize, Vec<String>) {
-    let mut src = String::from(".syntax unified\n.cpu cortex-m0\n.thumb\n.text\n.global _start\n.thumb_func\n_start:\n");
+    let mut src = String::from(
+        ".syntax unified\n.cpu cortex-m0\n.thumb\n.text\n.global _start\n.thumb_func\n_start:\n",
+    );
     let mut count = 0;
     let mut label = 0;
     let mut sequences = Vec::new();
@@ -178,7 +233,12 @@ fn program(rng: &mut Rng) -> (String, usize, Vec<String>) {
         let mut body = String::new();
         writeln!(body, "ldr r0, =data+128\nmov sp, r0\nldr r6, =data").unwrap();
         writeln!(body, "ldr r0, ={:#x}\nmov r8, r0", rng.value()).unwrap();
-        writeln!(body, "ldr r0, ={:#x}\nmsr apsr_nzcvq, r0", rng.below(16) << 28).unwrap();
+        writeln!(
+            body,
+            "ldr r0, ={:#x}\nmsr apsr_nzcvq, r0",
+            rng.below(16) << 28
+        )
+        .unwrap();
         for r in DST {
             writeln!(body, "ldr {r}, ={:#x}", rng.value()).unwrap();
         }
@@ -201,13 +261,20 @@ fn program(rng: &mut Rng) -> (String, usize, Vec<String>) {
         sequences.push(seq_src);
     }
     src.push_str("movs r0, #0\nmovs r7, #1\nsvc #0\n.ltorg\n");
-    writeln!(src, ".data\n.balign 4\ndata: .space {DATA_BYTES}\nout: .space {OUT_BYTES}").unwrap();
+    writeln!(
+        src,
+        ".data\n.balign 4\ndata: .space {DATA_BYTES}\nout: .space {OUT_BYTES}"
+    )
+    .unwrap();
     (src, count, sequences)
 }
 
 /// Runs the ELF in the emulator, playing the `write` and `exit` syscalls; returns stdout.
 fn run_emulator(elf: &[u8]) -> Result<Vec<u8>, String> {
-    let mut board = Board::new(Config { svc_halts: true, ..Config::default() });
+    let mut board = Board::new(Config {
+        svc_halts: true,
+        ..Config::default()
+    });
     board.load_elf(elf).map_err(|e| e.to_string())?;
     let mut stdout = Vec::new();
     loop {
@@ -217,7 +284,9 @@ fn run_emulator(elf: &[u8]) -> Result<Vec<u8>, String> {
                 match r[7] {
                     4 => {
                         let mut buf = vec![0; r[2] as usize];
-                        board.read_bytes(r[1], &mut buf).map_err(|e| e.to_string())?;
+                        board
+                            .read_bytes(r[1], &mut buf)
+                            .map_err(|e| e.to_string())?;
                         stdout.extend(buf);
                     }
                     1 => return Ok(stdout),
@@ -232,7 +301,12 @@ fn run_emulator(elf: &[u8]) -> Result<Vec<u8>, String> {
 fn describe(chunk: &[u8]) -> String {
     let word = |i: usize| u32::from_le_bytes(chunk[4 * i..4 * i + 4].try_into().unwrap());
     let names = ["r0", "r1", "r2", "r3", "r4", "r5", "r7", "r6", "nzcv", "r8"];
-    names.iter().enumerate().map(|(i, n)| format!("{n}={:#x}", word(i))).collect::<Vec<_>>().join(" ")
+    names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| format!("{n}={:#x}", word(i)))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 #[test]
@@ -256,12 +330,24 @@ fn random_sequences_match_qemu() {
             &src,
             &["-Ttext=0x10000000", "-Tdata=0x20000000", "-e", "_start"],
         );
-        let qemu = Command::new("qemu-arm").arg(&elf_path).output().expect("run qemu-arm");
-        assert!(qemu.status.success(), "qemu-arm failed on {}: {}", elf_path.display(), String::from_utf8_lossy(&qemu.stderr));
+        let qemu = Command::new("qemu-arm")
+            .arg(&elf_path)
+            .output()
+            .expect("run qemu-arm");
+        assert!(
+            qemu.status.success(),
+            "qemu-arm failed on {}: {}",
+            elf_path.display(),
+            String::from_utf8_lossy(&qemu.stderr)
+        );
         let elf = std::fs::read(&elf_path).unwrap();
         let ours = run_emulator(&elf).unwrap_or_else(|e| panic!("{}: {e}", elf_path.display()));
         let per = OUT_BYTES + DATA_BYTES;
-        assert_eq!(qemu.stdout.len(), SEQUENCES_PER_FILE * per, "qemu output size");
+        assert_eq!(
+            qemu.stdout.len(),
+            SEQUENCES_PER_FILE * per,
+            "qemu output size"
+        );
         for (i, (a, b)) in qemu.stdout.chunks(per).zip(ours.chunks(per)).enumerate() {
             if a != b {
                 let regs = if a[..OUT_BYTES] != b[..OUT_BYTES] {
@@ -270,12 +356,19 @@ fn random_sequences_match_qemu() {
                     let at = a.iter().zip(b).position(|(x, y)| x != y).unwrap() - OUT_BYTES;
                     format!("data differs first at byte {at}")
                 };
-                panic!("{}: sequence {i} differs\n{regs}\nsequence:\n{}", elf_path.display(), sequences[i]);
+                panic!(
+                    "{}: sequence {i} differs\n{regs}\nsequence:\n{}",
+                    elf_path.display(),
+                    sequences[i]
+                );
             }
             compared += 1;
         }
         assert_eq!(ours.len(), qemu.stdout.len(), "emulator output size");
     }
     eprintln!("differential: {total} random instructions in {compared} sequences, 0 mismatches");
-    assert!(total >= MIN_INSTRUCTIONS, "only {total} instructions generated");
+    assert!(
+        total >= MIN_INSTRUCTIONS,
+        "only {total} instructions generated"
+    );
 }

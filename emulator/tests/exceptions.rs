@@ -8,7 +8,14 @@ mod common;
 use tactus_emulator::timing::{EXCEPTION_ENTRY, EXCEPTION_RETURN};
 use tactus_emulator::{Board, Config, StopReason};
 
-const LINK: [&str; 6] = ["--section-start=.vectors=0x20000000", "-Ttext=0x20000100", "-Tdata=0x20010000", "-e", "reset", "-N"];
+const LINK: [&str; 6] = [
+    "--section-start=.vectors=0x20000000",
+    "-Ttext=0x20000100",
+    "-Tdata=0x20010000",
+    "-e",
+    "reset",
+    "-N",
+];
 
 const PRELUDE: &str = r#"
 .syntax unified
@@ -32,7 +39,8 @@ nmi: b nmi
 "#;
 
 fn build(name: &str, body: &str) -> Option<Vec<u8>> {
-    if !common::have_tool("arm-none-eabi-as", name) || !common::have_tool("arm-none-eabi-ld", name) {
+    if !common::have_tool("arm-none-eabi-as", name) || !common::have_tool("arm-none-eabi-ld", name)
+    {
         return None;
     }
     let src = format!("{PRELUDE}{body}\n.ltorg\n.data\n.balign 4\nlogp: .word logbuf\ncount: .word 0\nlogbuf: .space 64\n");
@@ -125,14 +133,21 @@ timer_isr: b timer_isr
     ) else {
         return;
     };
-    let mut board = Board::new(Config { stop_on_fault: false, ..Config::default() });
+    let mut board = Board::new(Config {
+        stop_on_fault: false,
+        ..Config::default()
+    });
     board.load_elf(&elf).unwrap();
     assert_eq!(board.cores[0].r[13], 0x2004_2000, "SP from vector 0");
     let stop = board.run_for(20_000);
     assert_eq!(stop, StopReason::CycleLimit);
     assert_eq!(log(&mut board), [1, 2, 3, 4, 5, 6, 7, 3, 8, 7, 8, 7, 8, 9]);
     let c = &board.cores[0];
-    assert_eq!((c.ipsr, c.nvic.active, c.r[13]), (0, 0, 0x2004_2000), "all handlers returned, stack balanced");
+    assert_eq!(
+        (c.ipsr, c.nvic.active, c.r[13]),
+        (0, 0, 0x2004_2000),
+        "all handlers returned, stack balanced"
+    );
 }
 
 #[test]

@@ -30,7 +30,10 @@ fn rows() -> Vec<Row> {
             assert_eq!(f.len(), 5, "line {}: expected 5 fields", i + 1);
             Row {
                 line: i + 1,
-                hex: f[0].split_whitespace().map(|h| u16::from_str_radix(h, 16).expect("hex")).collect(),
+                hex: f[0]
+                    .split_whitespace()
+                    .map(|h| u16::from_str_radix(h, 16).expect("hex"))
+                    .collect(),
                 asm: f[1].to_string(),
                 setup: f[2].to_string(),
                 expect: f[3].to_string(),
@@ -131,7 +134,9 @@ fn check(row: &Row) -> Vec<String> {
     if cycles != row.cycles {
         errors.push(format!("{cycles} cycles, want {}", row.cycles));
     }
-    if matches!(row.asm.as_str(), "wfi" | "wfe") && !matches!(board.cores[0].state, RunState::Sleeping { .. }) {
+    if matches!(row.asm.as_str(), "wfi" | "wfe")
+        && !matches!(board.cores[0].state, RunState::Sleeping { .. })
+    {
         errors.push("did not sleep".into());
     }
     errors
@@ -147,7 +152,12 @@ fn instruction_table() {
             failures.push(format!("line {} `{}`: {e}", row.line, row.asm));
         }
     }
-    assert!(failures.is_empty(), "{} mismatches:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} mismatches:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 #[test]
@@ -163,24 +173,37 @@ fn table_encodings_match_assembler() {
     }
     let dir = common::scratch_dir("table");
     let text = common::assemble_text(&dir, "table", &src);
-    let got: Vec<u16> = text.chunks(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
+    let got: Vec<u16> = text
+        .chunks(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .collect();
     let mut at = 0;
     for row in &rows {
         let n = row.hex.len();
-        assert_eq!(&got[at..at + n], &row.hex[..], "line {} `{}`", row.line, row.asm);
+        assert_eq!(
+            &got[at..at + n],
+            &row.hex[..],
+            "line {} `{}`",
+            row.line,
+            row.asm
+        );
         at += n;
     }
 }
 
 #[test]
-fn decoder_agrees_with_disassembler_on_mnemonics() {
-    // Every 16-bit halfword decodes without panicking, and the classes the decoder gives
-    // are consistent with the size rule (32-bit prefixes never decode as 16-bit).
+fn every_halfword_decodes_prices_and_prints() {
+    // Every first halfword decodes, prices and prints without panicking, and 32-bit
+    // prefixes never decode as 16-bit instructions.
     for hw in 0..=u16::MAX {
         let i = tactus_emulator::decode(hw, 0xf800);
+        assert!(!i.to_string().is_empty());
         if tactus_emulator::decode::is_32bit(hw) {
             assert!(
-                matches!(i, tactus_emulator::Instr::Bl { .. } | tactus_emulator::Instr::Undefined { .. }),
+                matches!(
+                    i,
+                    tactus_emulator::Instr::Bl { .. } | tactus_emulator::Instr::Undefined { .. }
+                ),
                 "{hw:04x} f800 decoded as {i:?}"
             );
         }
@@ -194,15 +217,30 @@ fn every_timing_class_has_a_cycle_row() {
     use tactus_emulator::timing::{class, Class};
     let covered: HashSet<Class> = rows()
         .iter()
-        .map(|r| class(&tactus_emulator::decode(r.hex[0], r.hex.get(1).copied().unwrap_or(0))))
+        .map(|r| {
+            class(&tactus_emulator::decode(
+                r.hex[0],
+                r.hex.get(1).copied().unwrap_or(0),
+            ))
+        })
         .collect();
-    let missing: Vec<Class> = Class::ALL.iter().copied().filter(|c| !covered.contains(c)).collect();
-    assert!(missing.is_empty(), "timing classes without a table row: {missing:?}");
+    let missing: Vec<Class> = Class::ALL
+        .iter()
+        .copied()
+        .filter(|c| !covered.contains(c))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "timing classes without a table row: {missing:?}"
+    );
 }
 
 #[test]
 fn disassembly_reassembles_to_the_same_encoding() {
-    if !common::have_tool("arm-none-eabi-as", "disassembly_reassembles_to_the_same_encoding") {
+    if !common::have_tool(
+        "arm-none-eabi-as",
+        "disassembly_reassembles_to_the_same_encoding",
+    ) {
         return;
     }
     let rows = rows();
@@ -213,12 +251,22 @@ fn disassembly_reassembles_to_the_same_encoding() {
         src.push('\n');
     }
     let text = common::assemble_text(&common::scratch_dir("disasm"), "disasm", &src);
-    let got: Vec<u16> = text.chunks(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
+    let got: Vec<u16> = text
+        .chunks(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .collect();
     let mut at = 0;
     for row in &rows {
         let n = row.hex.len();
-        let shown = tactus_emulator::decode(row.hex[0], row.hex.get(1).copied().unwrap_or(0)).to_string();
-        assert_eq!(&got[at..at + n], &row.hex[..], "line {}: `{}` shown as `{shown}`", row.line, row.asm);
+        let shown =
+            tactus_emulator::decode(row.hex[0], row.hex.get(1).copied().unwrap_or(0)).to_string();
+        assert_eq!(
+            &got[at..at + n],
+            &row.hex[..],
+            "line {}: `{}` shown as `{shown}`",
+            row.line,
+            row.asm
+        );
         at += n;
     }
 }

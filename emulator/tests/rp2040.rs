@@ -10,12 +10,20 @@ use tactus_emulator::{Board, Config, StopReason};
 const SIO: u32 = 0xd000_0000;
 
 fn board() -> Board {
-    Board::new(Config { svc_halts: true, ..Config::default() })
+    Board::new(Config {
+        svc_halts: true,
+        ..Config::default()
+    })
 }
 
 /// r0 = SIO base (0xd0000000 = 0xd0 << 24), r1 = divisor, r2 = dividend, r3 = stale marker.
 fn sio_prologue(divisor: u16, dividend: u16) -> Vec<u16> {
-    vec![movs(0, 0xd0), lsls(0, 0, 24), movs(1, divisor), movs(2, dividend)]
+    vec![
+        movs(0, 0xd0),
+        lsls(0, 0, 24),
+        movs(1, divisor),
+        movs(2, dividend),
+    ]
 }
 
 /// Writes dividend and divisor, waits `delay` cycles (NOPs), reads QUOTIENT, REMAINDER and
@@ -32,7 +40,10 @@ fn divide_after(delay: usize, signed: bool, divisor: u16, dividend: u16) -> (u32
     code.push(ldr(4, 0, 0x74)); // REMAINDER
     code.push(svc(0));
     load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &code);
-    assert!(matches!(b.run_for(1000), StopReason::Svc { core: 0, imm: 0 }));
+    assert!(matches!(
+        b.run_for(1000),
+        StopReason::Svc { core: 0, imm: 0 }
+    ));
     let c = &b.cores[0];
     (c.r[3], c.r[4], c.r[5])
 }
@@ -48,7 +59,11 @@ fn divider_result_is_valid_8_cycles_after_the_operand_write() {
     assert_eq!(csr & 1, 1, "READY must be set 9 cycles after the write");
     // With 6 NOPs the quotient load is at +8: too early, it returns the previous result (0).
     let (q, r, _) = divide_after(6, false, 7, 100);
-    assert_eq!((q, r), (0, 2), "quotient read early is the stale value, remainder read at +9 is valid");
+    assert_eq!(
+        (q, r),
+        (0, 2),
+        "quotient read early is the stale value, remainder read at +9 is valid"
+    );
 }
 
 #[test]
@@ -86,7 +101,13 @@ fn two_core_loads(addr0: u32, addr1: u32, n: usize) -> ([u64; 2], [u64; 2]) {
         code.push(adds_imm8(0, (addr & 0xff) as u16));
         code.extend(std::iter::repeat_n(ldr(1, 0, 0), n));
         code.push(svc(core as u16));
-        load_program(&mut b, core, code_at, 0x2000_1000 + 0x100 * core as u32, &code);
+        load_program(
+            &mut b,
+            core,
+            code_at,
+            0x2000_1000 + 0x100 * core as u32,
+            &code,
+        );
     }
     let mut cycles = [0; 2];
     for _ in 0..2 {
@@ -134,12 +155,18 @@ fn fifo_and_spinlocks() {
     for i in 0..FIFO_DEPTH as u32 {
         assert!(sio.write(0, 0, reg::FIFO_WR, 100 + i));
     }
-    assert_eq!(sio.read(0, 0, reg::FIFO_ST).map(|s| s & 2), Some(0), "full: core 0 not RDY");
+    assert_eq!(
+        sio.read(0, 0, reg::FIFO_ST).map(|s| s & 2),
+        Some(0),
+        "full: core 0 not RDY"
+    );
     sio.write(0, 0, reg::FIFO_WR, 999); // overflow: dropped, WOF
     assert_eq!(sio.read(0, 0, reg::FIFO_ST).map(|s| s & 4), Some(4));
     assert!(sio.irq(0), "WOF raises SIO_IRQ_PROC0");
     assert_eq!(sio.read(1, 0, reg::FIFO_ST).map(|s| s & 1), Some(1));
-    let got: Vec<u32> = (0..FIFO_DEPTH).map(|_| sio.read(1, 0, reg::FIFO_RD).unwrap()).collect();
+    let got: Vec<u32> = (0..FIFO_DEPTH)
+        .map(|_| sio.read(1, 0, reg::FIFO_RD).unwrap())
+        .collect();
     assert_eq!(got, (100..100 + FIFO_DEPTH as u32).collect::<Vec<_>>());
     assert_eq!(sio.read(1, 0, reg::FIFO_RD), Some(0)); // underflow: ROE
     assert_eq!(sio.read(1, 0, reg::FIFO_ST).map(|s| s & 8), Some(8));
@@ -160,11 +187,25 @@ fn fifo_and_spinlocks() {
 fn cpuid_through_both_cores() {
     let mut b = board();
     for core in 0..2usize {
-        let code = [movs(0, 0xd0), lsls(0, 0, 24), movs(3, 7), ldr(3, 0, 0), svc(0)];
-        load_program(&mut b, core, 0x2000_0000 + 0x100 * core as u32, 0x2000_1000 + 0x100 * core as u32, &code);
+        let code = [
+            movs(0, 0xd0),
+            lsls(0, 0, 24),
+            movs(3, 7),
+            ldr(3, 0, 0),
+            svc(0),
+        ];
+        load_program(
+            &mut b,
+            core,
+            0x2000_0000 + 0x100 * core as u32,
+            0x2000_1000 + 0x100 * core as u32,
+            &code,
+        );
     }
     for _ in 0..2 {
-        let StopReason::Svc { core, .. } = b.run_for(100) else { panic!("no svc") };
+        let StopReason::Svc { core, .. } = b.run_for(100) else {
+            panic!("no svc")
+        };
         b.cores[core].state = tactus_emulator::core::RunState::Parked;
     }
     assert_eq!((b.cores[0].r[3], b.cores[1].r[3]), (0, 1));
@@ -175,7 +216,7 @@ fn core1_launch_protocol_echoes_and_starts() {
     let mut b = board();
     // Core 0 spins; core 1 is parked in the boot ROM.
     load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &[0xe7fe]); // b .
-    // Core 1's program: r2 = 0x55, then SVC #1.
+                                                                  // Core 1's program: r2 = 0x55, then SVC #1.
     let code1 = [movs(2, 0x55), svc(1)];
     let bytes: Vec<u8> = code1.iter().flat_map(|h| h.to_le_bytes()).collect();
     b.write_bytes(0x2000_2000, &bytes).unwrap();
@@ -201,9 +242,21 @@ fn lock_step_is_deterministic() {
         for core in 0..2usize {
             let mut code = vec![movs(0, 0x20), lsls(0, 0, 24), movs(4, 200)];
             // loop: ldr r1,[r0]; adds r1,#1; str r1,[r0]; subs r4,#1; bne loop
-            code.extend([ldr(1, 0, 0), adds_imm8(1, 1 + core as u16), str(1, 0, 0), subs_imm8(4, 1), bcond(1, -8)]);
+            code.extend([
+                ldr(1, 0, 0),
+                adds_imm8(1, 1 + core as u16),
+                str(1, 0, 0),
+                subs_imm8(4, 1),
+                bcond(1, -8),
+            ]);
             code.push(svc(0));
-            load_program(&mut b, core, 0x2000_0100 + 0x100 * core as u32, 0x2000_2000 + 0x100 * core as u32, &code);
+            load_program(
+                &mut b,
+                core,
+                0x2000_0100 + 0x100 * core as u32,
+                0x2000_2000 + 0x100 * core as u32,
+                &code,
+            );
         }
         let mut stops = Vec::new();
         for _ in 0..2 {
@@ -213,12 +266,19 @@ fn lock_step_is_deterministic() {
                 b.cores[core].state = tactus_emulator::core::RunState::Parked;
             }
         }
-        (stops, b.read_u32(0x2000_0000).unwrap(), b.system.contention_stalls)
+        (
+            stops,
+            b.read_u32(0x2000_0000).unwrap(),
+            b.system.contention_stalls,
+        )
     };
     let first = run();
     assert_eq!(first, run());
     assert_eq!(first.0.len(), 2, "both cores finished");
-    assert!(first.2[0] + first.2[1] > 0, "the shared word's bank must be contended");
+    assert!(
+        first.2[0] + first.2[1] > 0,
+        "the shared word's bank must be contended"
+    );
 }
 
 #[test]
@@ -233,10 +293,17 @@ fn test_encoder_matches_assembler() {
         src.push('\n');
     }
     let text = common::assemble_text(&common::scratch_dir("enc"), "enc", &src);
-    let got: Vec<u16> = text.chunks(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
+    let got: Vec<u16> = text
+        .chunks(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .collect();
     let mut at = 0;
     for (hws, asm) in &ex {
-        assert_eq!(&got[at..at + hws.len()], &hws[..], "`{asm}`: assembler vs encoder");
+        assert_eq!(
+            &got[at..at + hws.len()],
+            &hws[..],
+            "`{asm}`: assembler vs encoder"
+        );
         at += hws.len();
     }
 }
@@ -248,7 +315,13 @@ fn wfe_sleeps_until_the_other_core_sends_an_event() {
     let mut code0 = vec![nop(); 20];
     code0.extend([0xbf40, 0xe7fe]); // sev; b .
     load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &code0);
-    load_program(&mut b, 1, 0x2000_0100, 0x2000_1100, &[0xbf20, movs(2, 1), svc(1)]); // wfe
+    load_program(
+        &mut b,
+        1,
+        0x2000_0100,
+        0x2000_1100,
+        &[0xbf20, movs(2, 1), svc(1)],
+    ); // wfe
     assert_eq!(b.run_for(1000), StopReason::Svc { core: 1, imm: 1 });
     // Core 1 slept from cycle 2 (WFE costs 2) and woke at the cycle after core 0's SEV
     // (which executes at cycle 20): the MOVS runs at 21, the SVC at 22.
@@ -284,7 +357,13 @@ fn fifo_interrupt_wakes_wfi() {
     load_program(&mut b, 1, 0x2000_0100, 0x2000_1100, &code1);
     b.cores[1].r[5] = 0xdead;
     assert_eq!(b.run_for(1000), StopReason::CycleLimit);
-    assert_eq!(b.cores[1].r[5], 0x5a, "woke by the FIFO interrupt line and read the word");
-    assert_eq!(b.cores[1].ipsr, 0, "PRIMASK kept the interrupt from being taken");
+    assert_eq!(
+        b.cores[1].r[5], 0x5a,
+        "woke by the FIFO interrupt line and read the word"
+    );
+    assert_eq!(
+        b.cores[1].ipsr, 0,
+        "PRIMASK kept the interrupt from being taken"
+    );
     assert_eq!(b.system.sio.fifo_status(1) & 8, 0, "no read underflow");
 }

@@ -7,7 +7,10 @@ use std::process::Command;
 
 /// True when `tool` can be run; otherwise prints a SKIPPED line naming it.
 pub fn have_tool(tool: &str, test: &str) -> bool {
-    let ok = Command::new(tool).arg("--version").output().is_ok_and(|o| o.status.success());
+    let ok = Command::new(tool)
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
     if !ok {
         eprintln!("SKIPPED: {tool} not installed ({test})");
     }
@@ -34,9 +37,23 @@ pub fn assemble_and_link(dir: &Path, name: &str, source: &str, ld_args: &[&str])
         .arg(&s)
         .output()
         .expect("run arm-none-eabi-as");
-    assert!(out.status.success(), "as failed: {}", String::from_utf8_lossy(&out.stderr));
-    let out = Command::new("arm-none-eabi-ld").args(ld_args).arg("-o").arg(&elf).arg(&o).output().expect("run ld");
-    assert!(out.status.success(), "ld failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "as failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = Command::new("arm-none-eabi-ld")
+        .args(ld_args)
+        .arg("-o")
+        .arg(&elf)
+        .arg(&o)
+        .output()
+        .expect("run ld");
+    assert!(
+        out.status.success(),
+        "ld failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     elf
 }
 
@@ -52,10 +69,18 @@ pub fn assemble_text(dir: &Path, name: &str, source: &str) -> Vec<u8> {
         .arg(&s)
         .output()
         .expect("run arm-none-eabi-as");
-    assert!(out.status.success(), "as failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "as failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let bytes = std::fs::read(&o).expect("read .o");
     let file = object::File::parse(&*bytes).expect("parse .o");
-    file.section_by_name(".text").expect(".text").data().expect("text data").to_vec()
+    file.section_by_name(".text")
+        .expect(".text")
+        .data()
+        .expect("text data")
+        .to_vec()
 }
 
 /// Parses a number written in decimal or `0x` hex.
@@ -143,7 +168,10 @@ pub mod enc {
         let i2 = (imm >> 21) & 1;
         let j1 = (!i1 ^ s) & 1;
         let j2 = (!i2 ^ s) & 1;
-        [0xf000 | (s << 10) as u16 | ((imm >> 11) & 0x3ff) as u16, 0xd000 | (j1 << 13) as u16 | (j2 << 11) as u16 | (imm & 0x7ff) as u16]
+        [
+            0xf000 | (s << 10) as u16 | ((imm >> 11) & 0x3ff) as u16,
+            0xd000 | (j1 << 13) as u16 | (j2 << 11) as u16 | (imm & 0x7ff) as u16,
+        ]
     }
     /// `PUSH {lr}`
     pub fn push_lr() -> u16 {
@@ -176,8 +204,16 @@ pub mod enc {
 }
 
 /// Loads `code` at `addr` and starts core `core` there with SP `sp`.
-pub fn load_program(board: &mut tactus_emulator::Board, core: usize, addr: u32, sp: u32, code: &[u16]) {
+pub fn load_program(
+    board: &mut tactus_emulator::Board,
+    core: usize,
+    addr: u32,
+    sp: u32,
+    code: &[u16],
+) {
     let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
-    board.write_bytes(addr, &bytes).expect("program fits in memory");
+    board
+        .write_bytes(addr, &bytes)
+        .expect("program fits in memory");
     board.start_core(core, addr | 1, sp, 0);
 }
