@@ -9,6 +9,14 @@
 //! parked in the boot ROM's launch protocol (RP2040 datasheet 2.8.2): it echoes the FIFO
 //! sequence `0, 0, 1, vector table, stack pointer, entry` and then starts.
 //!
+//! **Speed.** [`Board::run_until`] lets the core whose turn it is run a burst of
+//! instructions until it gets ahead of the other core, taking instructions from a
+//! direct-mapped decode cache that also holds their timing-table costs; a store into an SRAM
+//! page holding cached code, or any host write, invalidates the cache (an epoch), so
+//! self-modifying code stays correct. Interrupt lines are recomputed only when a peripheral
+//! was accessed or a timer event is due. [`Board::step`] is the same machine one instruction
+//! at a time, recording [`Core::last`] for traces.
+//!
 //! **Sensors and DAC.** Firmware sees the key sensors and the motor drivers the way a DMA from
 //! SPI converters would leave them: word arrays in SRAM at [`SENSOR_BASE`] and [`DAC_BASE`],
 //! one 32-bit word per key (ADC sample, or DAC code, in the low 16 bits). The host writes
@@ -38,10 +46,10 @@ pub const MAX_KEYS: usize = 128;
 pub struct Config {
     /// System clock in Hz (RP2040: 133 MHz); drives the microsecond timer.
     pub clock_hz: u64,
-    /// Stop [`Board::run`] at every SVC with [`StopReason::Svc`] (for host calls such as a
+    /// Stop [`Board::run_until`] at every SVC with [`StopReason::Svc`] (for host calls such as a
     /// test harness's `write`/`exit`) instead of taking the SVCall exception.
     pub svc_halts: bool,
-    /// Stop [`Board::run`] with [`StopReason::Fault`] after a core takes a HardFault, instead
+    /// Stop [`Board::run_until`] with [`StopReason::Fault`] after a core takes a HardFault, instead
     /// of running the firmware's HardFault handler.
     pub stop_on_fault: bool,
 }
@@ -56,7 +64,7 @@ impl Default for Config {
     }
 }
 
-/// Why [`Board::run`] returned.
+/// Why [`Board::run_until`] returned.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StopReason {
     /// Both cores reached the cycle limit.

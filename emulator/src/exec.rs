@@ -3,7 +3,7 @@
 //! Each arm computes results and flags exactly as the ARMv6-M pseudocode (DDI0419 A6.7)
 //! does, touches memory only through the [`Bus`] (which reports wait states), and returns what
 //! the caller needs to price it with [`crate::timing::cycles`] — the one timing table — plus wait
-//! states, plus [`timing::EXCEPTION_RETURN`] when it returns from an exception. A fault is
+//! states, plus [`crate::timing::EXCEPTION_RETURN`] when it returns from an exception. A fault is
 //! returned as an error *before* any register is written, so the HardFault handler sees the
 //! state the faulting instruction started from (multi-word loads read everything first).
 

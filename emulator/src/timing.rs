@@ -8,7 +8,7 @@
 //! itself. All figures assume zero wait states (code and data in SRAM, RP2040 datasheet 2.6);
 //! the bus adds wait states on top (APB peripherals, bank contention), see [`crate::bus`].
 //!
-//! **POP {…, PC}.** Table 3-1 lists "POP {<loreglist>, pc}: 3+N". We read N as the number of
+//! **POP {…, PC}.** Table 3-1 lists "`POP {<loreglist>, pc}`: 3+N". We read N as the number of
 //! registers in `<loreglist>`, *excluding* PC: the syntax column names PC separately from the
 //! list N refers to, and the count then agrees with the pipeline (1 address cycle + one data
 //! cycle per loaded word including PC = 1+N+1, + 1 for refilling the two-stage pipeline =
@@ -47,7 +47,7 @@ pub enum Class {
     PopPc,
     /// B (unconditional): 2 cycles. DDI0484C table 3-1 "Branch: Unconditional".
     Branch,
-    /// B<cond>: 1 not taken, 2 taken. DDI0484C table 3-1 "Branch: Conditional".
+    /// `B<cond>`: 1 not taken, 2 taken. DDI0484C table 3-1 "Branch: Conditional".
     BranchCond,
     /// BL: 3 cycles. DDI0484C table 3-1 "Branch with link".
     Bl,

@@ -366,6 +366,7 @@ fn random_sequences_match_qemu() {
         }
         assert_eq!(ours.len(), qemu.stdout.len(), "emulator output size");
     }
+    let _ = std::fs::remove_dir_all(&dir);
     eprintln!("differential: {total} random instructions in {compared} sequences, 0 mismatches");
     assert!(
         total >= MIN_INSTRUCTIONS,

@@ -17,7 +17,7 @@ pub fn have_tool(tool: &str, test: &str) -> bool {
     ok
 }
 
-/// A fresh scratch directory under the target dir.
+/// A fresh scratch directory under the system temporary directory (one per test process).
 pub fn scratch_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("tactus-emu-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
