@@ -317,11 +317,19 @@ fn random_sequences_match_qemu() {
     {
         return;
     }
+    // Longer local runs: TACTUS_DIFF_FILES=40 TACTUS_DIFF_SEED=7 cargo test --test differential
+    let env = |name: &str, default: u64| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default)
+    };
+    let files = env("TACTUS_DIFF_FILES", FILES as u64) as usize;
     let dir = common::scratch_dir("diff");
-    let mut rng = Rng(SEED);
+    let mut rng = Rng(env("TACTUS_DIFF_SEED", SEED));
     let mut total = 0;
     let mut compared = 0;
-    for file in 0..FILES {
+    for file in 0..files {
         let (src, count, sequences) = program(&mut rng);
         total += count;
         let elf_path = common::assemble_and_link(
