@@ -388,7 +388,9 @@ impl Board {
         self.run_until(limit)
     }
 
-    /// Runs until both running cores reach cycle `limit`, or a stop.
+    /// Runs until both running cores reach cycle `limit`, or a stop. Instructions are not
+    /// split: each core stops at its first instruction boundary at or after `limit` (a
+    /// multi-cycle instruction that starts before the limit completes).
     pub fn run_until(&mut self, limit: u64) -> StopReason {
         self.lines_epoch = u64::MAX; // the host may have touched SIO or the timer
         loop {
