@@ -554,11 +554,13 @@ impl Board {
     /// Steps core `k` through the decode cache: an instruction is decoded once per address
     /// and reused until a store hits an SRAM page holding cached code or the host writes
     /// memory (both bump [`System::code_epoch`]), so self-modifying code stays correct.
-    #[inline]
+    #[inline(always)]
     fn step_cached<const TRACE: bool>(&mut self, k: usize, lines: u32) -> Event {
         let core = &mut self.cores[k];
         let pc = core.r[15];
-        core.nvic.pending |= ((lines as u64) << IRQ0) & !core.nvic.active;
+        if lines != 0 {
+            core.nvic.pending |= ((lines as u64) << IRQ0) & !core.nvic.active;
+        }
         if core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb {
             return core.step(&mut self.system, lines);
         }

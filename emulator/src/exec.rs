@@ -69,13 +69,13 @@ impl Core {
         if r == 15 {
             pc.wrapping_add(4)
         } else {
-            self.r[r as usize]
+            self.r[(r & 15) as usize]
         }
     }
 
     #[inline]
     fn set_reg(&mut self, r: u8, v: u32) {
-        self.r[r as usize] = if r == 13 { v & !3 } else { v };
+        self.r[(r & 15) as usize] = if r == 13 { v & !3 } else { v };
     }
 
     /// Load from `addr` at data-phase cycle `at`: (value, wait states). The private
@@ -157,64 +157,72 @@ impl Core {
         self.r[15] = next;
         match instr {
             LslImm { rd, rm, imm } => {
-                let x = self.r[rm as usize];
+                let x = self.r[(rm & 15) as usize];
                 let r = if imm == 0 {
                     x
                 } else {
                     self.c = (x >> (32 - imm as u32)) & 1 == 1;
                     x << imm
                 };
-                self.r[rd as usize] = r;
+                self.r[(rd & 15) as usize] = r;
                 self.nz(r);
             }
             LsrImm { rd, rm, imm } => {
-                let x = self.r[rm as usize];
+                let x = self.r[(rm & 15) as usize];
                 self.c = (x >> (imm as u32 - 1)) & 1 == 1;
                 let r = if imm == 32 { 0 } else { x >> imm };
-                self.r[rd as usize] = r;
+                self.r[(rd & 15) as usize] = r;
                 self.nz(r);
             }
             AsrImm { rd, rm, imm } => {
-                let x = self.r[rm as usize];
+                let x = self.r[(rm & 15) as usize];
                 self.c = ((x as i32) >> (imm as u32 - 1)) & 1 == 1;
                 let r = ((x as i32) >> (imm as u32).min(31)) as u32;
-                self.r[rd as usize] = r;
+                self.r[(rd & 15) as usize] = r;
                 self.nz(r);
             }
             AddReg { rd, rn, rm } => {
-                let (r, c, v) = add_with_carry(self.r[rn as usize], self.r[rm as usize], false);
+                let (r, c, v) = add_with_carry(
+                    self.r[(rn & 15) as usize],
+                    self.r[(rm & 15) as usize],
+                    false,
+                );
                 (self.c, self.v) = (c, v);
-                self.r[rd as usize] = r;
+                self.r[(rd & 15) as usize] = r;
                 self.nz(r);
             }
             SubReg { rd, rn, rm } => {
-                let (r, c, v) = add_with_carry(self.r[rn as usize], !self.r[rm as usize], true);
+                let (r, c, v) = add_with_carry(
+                    self.r[(rn & 15) as usize],
+                    !self.r[(rm & 15) as usize],
+                    true,
+                );
                 (self.c, self.v) = (c, v);
-                self.r[rd as usize] = r;
+                self.r[(rd & 15) as usize] = r;
                 self.nz(r);
             }
             AddImm { rd, rn, imm } => {
-                let (r, c, v) = add_with_carry(self.r[rn as usize], imm as u32, false);
+                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], imm as u32, false);
                 (self.c, self.v) = (c, v);
-                self.r[rd as usize] = r;
+                self.r[(rd & 15) as usize] = r;
                 self.nz(r);
             }
             SubImm { rd, rn, imm } => {
-                let (r, c, v) = add_with_carry(self.r[rn as usize], !(imm as u32), true);
+                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], !(imm as u32), true);
                 (self.c, self.v) = (c, v);
-                self.r[rd as usize] = r;
+                self.r[(rd & 15) as usize] = r;
                 self.nz(r);
             }
             MovImm { rd, imm } => {
-                self.r[rd as usize] = imm as u32;
+                self.r[(rd & 15) as usize] = imm as u32;
                 self.nz(imm as u32);
             }
             CmpImm { rn, imm } => {
-                let (r, c, v) = add_with_carry(self.r[rn as usize], !(imm as u32), true);
+                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], !(imm as u32), true);
                 (self.c, self.v) = (c, v);
                 self.nz(r);
             }
-            Alu { op, rdn, rm } => self.alu(op, rdn as usize, self.r[rm as usize]),
+            Alu { op, rdn, rm } => self.alu(op, rdn as usize, self.r[(rm & 15) as usize]),
             AddHi { rdn, rm } => {
                 let r = self.reg(rdn, pc).wrapping_add(self.reg(rm, pc));
                 if rdn == 15 {
@@ -241,7 +249,7 @@ impl Core {
                 wait += self.bx_write_pc(bus, target)?;
             }
             Blx { rm } => {
-                let target = self.r[rm as usize];
+                let target = self.r[(rm & 15) as usize];
                 self.r[14] = next | 1;
                 self.thumb = target & 1 == 1;
                 self.r[15] = target & !1;
@@ -251,35 +259,44 @@ impl Core {
                 io_port = addr >> 28 == SIO_BASE >> 28;
                 let (v, w) = self.load(bus, addr, 4, now + !io_port as u64)?;
                 wait += w;
-                self.r[rt as usize] = v;
+                self.r[(rt & 15) as usize] = v;
             }
             MemReg { op, rt, rn, rm } => {
-                let addr = self.r[rn as usize].wrapping_add(self.r[rm as usize]);
+                let addr = self.r[(rn & 15) as usize].wrapping_add(self.r[(rm & 15) as usize]);
                 io_port = addr >> 28 == SIO_BASE >> 28;
                 wait += self.mem(bus, op, rt, addr, now + !io_port as u64)?;
             }
             MemImm { op, rt, rn, imm } => {
-                let addr = self.r[rn as usize].wrapping_add(imm as u32);
+                let addr = self.r[(rn & 15) as usize].wrapping_add(imm as u32);
                 io_port = addr >> 28 == SIO_BASE >> 28;
                 wait += self.mem(bus, op, rt, addr, now + !io_port as u64)?;
             }
             Adr { rd, imm } => {
-                self.r[rd as usize] = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32)
+                self.r[(rd & 15) as usize] = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32)
             }
-            AddSpImm { rd, imm } => self.r[rd as usize] = self.r[13].wrapping_add(imm as u32),
+            AddSpImm { rd, imm } => {
+                self.r[(rd & 15) as usize] = self.r[13].wrapping_add(imm as u32)
+            }
             AddSp { imm } => self.r[13] = self.r[13].wrapping_add(imm as u32),
             SubSp { imm } => self.r[13] = self.r[13].wrapping_sub(imm as u32),
-            Sxth { rd, rm } => self.r[rd as usize] = self.r[rm as usize] as i16 as i32 as u32,
-            Sxtb { rd, rm } => self.r[rd as usize] = self.r[rm as usize] as i8 as i32 as u32,
-            Uxth { rd, rm } => self.r[rd as usize] = self.r[rm as usize] as u16 as u32,
-            Uxtb { rd, rm } => self.r[rd as usize] = self.r[rm as usize] as u8 as u32,
-            Rev { rd, rm } => self.r[rd as usize] = self.r[rm as usize].swap_bytes(),
+            Sxth { rd, rm } => {
+                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i16 as i32 as u32
+            }
+            Sxtb { rd, rm } => {
+                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i8 as i32 as u32
+            }
+            Uxth { rd, rm } => {
+                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as u16 as u32
+            }
+            Uxtb { rd, rm } => self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as u8 as u32,
+            Rev { rd, rm } => self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize].swap_bytes(),
             Rev16 { rd, rm } => {
-                let x = self.r[rm as usize];
-                self.r[rd as usize] = ((x & 0x00ff_00ff) << 8) | ((x >> 8) & 0x00ff_00ff);
+                let x = self.r[(rm & 15) as usize];
+                self.r[(rd & 15) as usize] = ((x & 0x00ff_00ff) << 8) | ((x >> 8) & 0x00ff_00ff);
             }
             Revsh { rd, rm } => {
-                self.r[rd as usize] = (self.r[rm as usize] as u16).swap_bytes() as i16 as i32 as u32
+                self.r[(rd & 15) as usize] =
+                    (self.r[(rm & 15) as usize] as u16).swap_bytes() as i16 as i32 as u32
             }
             Push { list } => {
                 let count = list.count_ones();
@@ -310,7 +327,7 @@ impl Core {
                 }
             }
             Stm { rn, list } => {
-                let base = self.r[rn as usize];
+                let base = self.r[(rn & 15) as usize];
                 if base & 3 != 0 {
                     return Err(FaultKind::Unaligned { addr: base });
                 }
@@ -320,14 +337,14 @@ impl Core {
                         self.store(bus, addr, 4, self.r[reg], now + 1 + i as u64 + wait as u64)?;
                     addr = addr.wrapping_add(4);
                 }
-                self.r[rn as usize] = addr;
+                self.r[(rn & 15) as usize] = addr;
             }
             Ldm { rn, list } => {
-                let base = self.r[rn as usize];
+                let base = self.r[(rn & 15) as usize];
                 let (values, w) = self.load_multiple(bus, base, list as u16, now)?;
                 wait += w;
                 if list & (1 << rn) == 0 {
-                    self.r[rn as usize] = base.wrapping_add(4 * list.count_ones());
+                    self.r[(rn & 15) as usize] = base.wrapping_add(4 * list.count_ones());
                 }
                 for (reg, value) in values.iter().enumerate().take(8) {
                     if list & (1 << reg) != 0 {
@@ -371,8 +388,8 @@ impl Core {
                 self.r[14] = next | 1;
                 self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
             }
-            Msr { sysm, rn } => self.msr(sysm, self.r[rn as usize]),
-            Mrs { rd, sysm } => self.r[rd as usize] = self.mrs(sysm),
+            Msr { sysm, rn } => self.msr(sysm, self.r[(rn & 15) as usize]),
+            Mrs { rd, sysm } => self.r[(rd & 15) as usize] = self.mrs(sysm),
             Barrier(_) => {}
         }
         Ok(Outcome {
@@ -481,10 +498,10 @@ impl Core {
     ) -> Result<u32, FaultKind> {
         let size = op.size();
         if op.is_store() {
-            return self.store(bus, addr, size, self.r[rt as usize], at);
+            return self.store(bus, addr, size, self.r[(rt & 15) as usize], at);
         }
         let (v, wait) = self.load(bus, addr, size, at)?;
-        self.r[rt as usize] = match op {
+        self.r[(rt & 15) as usize] = match op {
             MemOp::Ldrsb => v as u8 as i8 as i32 as u32,
             MemOp::Ldrsh => v as u16 as i16 as i32 as u32,
             _ => v,

@@ -32,8 +32,12 @@ pub struct Nvic {
     pub pending: u64,
     /// Active exceptions, bit = exception number.
     pub active: u64,
-    /// NVIC_ISER: enabled external interrupts (bit n = IRQ n).
+    /// NVIC_ISER: enabled external interrupts (bit n = IRQ n). Change it only through
+    /// [`Nvic::write`] or [`Nvic::set_enabled`], which keep `enable_mask` in step.
     pub enabled: u32,
+    /// Exceptions that may be taken when pending, bit = exception number: the system
+    /// exceptions always, external interrupts when enabled (derived from `enabled`).
+    enable_mask: u64,
     /// NVIC_IPR0-7: 8-bit priority fields of IRQ 0-31, only bits 7:6 implemented.
     pub ipr: [u32; 8],
     /// SHPR2 (SVCall priority in bits 31:30).
@@ -62,6 +66,7 @@ impl Default for Nvic {
             pending: 0,
             active: 0,
             enabled: 0,
+            enable_mask: (1 << IRQ0) - 1,
             ipr: [0; 8],
             shpr2: 0,
             shpr3: 0,
@@ -128,7 +133,13 @@ impl Nvic {
     /// Pending exceptions that may be taken: external interrupts must be enabled.
     #[inline]
     pub fn takeable(&self) -> u64 {
-        self.pending & !(((!self.enabled) as u64) << IRQ0)
+        self.pending & self.enable_mask
+    }
+
+    /// Sets NVIC_ISER's state (bit n = IRQ n enabled).
+    pub fn set_enabled(&mut self, enabled: u32) {
+        self.enabled = enabled;
+        self.enable_mask = ((enabled as u64) << IRQ0) | ((1 << IRQ0) - 1);
     }
 
     /// The pending, enabled exception with the highest priority (lowest exception number on
@@ -226,8 +237,8 @@ impl Nvic {
                     };
                 }
             }
-            0xe000_e100 => self.enabled |= value,
-            0xe000_e180 => self.enabled &= !value,
+            0xe000_e100 => self.set_enabled(self.enabled | value),
+            0xe000_e180 => self.set_enabled(self.enabled & !value),
             0xe000_e200 => self.pending |= (value as u64) << IRQ0,
             0xe000_e280 => self.pending &= !((value as u64) << IRQ0),
             0xe000_e400..=0xe000_e41c => {
