@@ -1,0 +1,112 @@
+//! Programs that break an IR invariant are rejected with an error, never a panic or bad
+//! native code. Each case: a name, a mutation of the grand piano's IR, the error message.
+
+use tactus_compiler::ir::{Program, SensorId, StateId, Stmt, Value};
+use tactus_compiler::lower::Config;
+use tactus_jit::JitProgram;
+
+fn piano() -> Program {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../instruments/grand_piano.tactus"
+    );
+    let src = std::fs::read_to_string(path).expect("grand_piano.tactus");
+    tactus_compiler::compile(&src, &Config::default())
+        .expect("compiles")
+        .program
+}
+
+/// The first value defined directly inside an `if` body, and the index of that `if`.
+fn defined_in_if(p: &Program) -> (usize, Value) {
+    for (i, s) in p.body.iter().enumerate() {
+        if let Stmt::If(_, inner) = s {
+            if let Some(v) =
+                inner
+                    .iter()
+                    .find_map(|s| if let Stmt::Def(v) = s { Some(*v) } else { None })
+            {
+                return (i, v);
+            }
+        }
+    }
+    panic!("the piano has no value defined inside an if");
+}
+
+fn first_def(p: &Program) -> Value {
+    p.body
+        .iter()
+        .find_map(|s| if let Stmt::Def(v) = s { Some(*v) } else { None })
+        .expect("a definition")
+}
+
+type Mutation = fn(&mut Program);
+
+#[test]
+fn invalid_programs_are_errors() {
+    let cases: &[(&str, Mutation, &str)] = &[
+        ("unchanged", |_| {}, "ok"),
+        (
+            "value out of the table",
+            |p| p.body.push(Stmt::Total(Value(1_000_000))),
+            "value v1000000 is used where it is not defined (IR invariant: its definition precedes every use)",
+        ),
+        (
+            "use before definition",
+            |p| {
+                let v = first_def(p);
+                p.body.insert(0, Stmt::Total(v));
+            },
+            "value v0 is used where it is not defined (IR invariant: its definition precedes every use)",
+        ),
+        (
+            "use after the if that defines it",
+            |p| {
+                let (i, v) = defined_in_if(p);
+                p.body.insert(i + 1, Stmt::Total(v));
+            },
+            "used where it is not defined",
+        ),
+        (
+            "defined twice",
+            |p| {
+                let v = first_def(p);
+                p.body.push(Stmt::Def(v));
+            },
+            "value v0 is defined twice (IR invariant: exactly one definition)",
+        ),
+        (
+            "state out of the table",
+            |p| {
+                let v = first_def(p);
+                p.body.push(Stmt::SetState(StateId(99), v));
+            },
+            "state index 99 is out of range (the program has 6)",
+        ),
+        (
+            "sensor out of the table",
+            |p| {
+                p.values[0].op = tactus_compiler::ir::Op::Deriv(SensorId(7), 1);
+            },
+            "sensor index 7 is out of range (the program has 1)",
+        ),
+        (
+            "inverted state range",
+            |p| p.states[0].range = (1.0, -1.0),
+            "state `s` has the invalid range [1, -1]",
+        ),
+        (
+            "NaN sensor bound",
+            |p| p.sensors[0].range.1 = f64::NAN,
+            "sensor `key` has the invalid range [0, NaN]",
+        ),
+    ];
+    for (name, mutate, want) in cases {
+        let mut p = piano();
+        mutate(&mut p);
+        let got = match JitProgram::compile(&p) {
+            Ok(_) => "ok".to_string(),
+            Err(e) => e.to_string(),
+        };
+        assert!(got.contains(want), "{name}: got {got:?}, want {want:?}");
+    }
+}
