@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 use tactus_compiler::lower::Config;
+use tactus_runtime::rng::XorShift64;
 
 fn instrument_files() -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
@@ -35,20 +36,6 @@ fn ir_of_every_instrument() {
             lowered.warnings
         );
         insta::assert_snapshot!(format!("ir_{name}"), lowered.program.to_string());
-    }
-}
-
-/// xorshift64*: a tiny deterministic generator, so every run tests the same mutants.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
     }
 }
 
@@ -94,7 +81,7 @@ const SNIPPETS: &[&str] = &[
     "1/s",
 ];
 
-fn mutate(src: &str, rng: &mut Rng) -> String {
+fn mutate(src: &str, rng: &mut XorShift64) -> String {
     let mut s: Vec<char> = src.chars().collect();
     for _ in 0..1 + rng.below(3) {
         if s.is_empty() {
@@ -132,7 +119,7 @@ fn mutated_instruments_never_panic() {
         .iter()
         .map(|p| std::fs::read_to_string(p).unwrap())
         .collect();
-    let mut rng = Rng(0x007A_C705);
+    let mut rng = XorShift64::new(0x007A_C705);
     let (mut ok, mut failed) = (0usize, 0usize);
     for i in 0..10_400 {
         let m = mutate(&sources[i % sources.len()], &mut rng);

@@ -17,28 +17,26 @@
 pub const WINDOW: usize = 8;
 const HISTORY: usize = 2 * WINDOW + 1;
 
-/// History of one sensor for `d()`/`d2()`.
+/// The last `2N + 1` readings of one sensor, newest last; before the first reading the
+/// history is primed with it. `History<f64>` serves the f64 engines, `History<i32>` (raw
+/// words) the fixed-point ones.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Differentiator {
-    hist: [f64; HISTORY],
+pub struct History<T> {
+    hist: [T; HISTORY],
     /// Index of the newest sample in `hist`.
     pos: usize,
     primed: bool,
 }
 
-impl Default for Differentiator {
+impl<T: Copy + Default> Default for History<T> {
     fn default() -> Self {
-        Differentiator {
-            hist: [0.0; HISTORY],
-            pos: 0,
-            primed: false,
-        }
+        History { hist: [T::default(); HISTORY], pos: 0, primed: false }
     }
 }
 
-impl Differentiator {
-    /// Takes this sample's reading (any unit; derivatives come out in that unit per second).
-    pub fn push(&mut self, x: f64) {
+impl<T: Copy> History<T> {
+    /// Takes this sample's reading.
+    pub fn push(&mut self, x: T) {
         if !self.primed {
             self.hist = [x; HISTORY];
             self.primed = true;
@@ -47,11 +45,16 @@ impl Differentiator {
         self.hist[self.pos] = x;
     }
 
-    /// The sample `k` samples ago (0 = newest).
-    fn ago(&self, k: usize) -> f64 {
+    /// The reading `k` samples ago (0 = newest), `k <= 2N`.
+    fn ago(&self, k: usize) -> T {
         self.hist[(self.pos + HISTORY - k) % HISTORY]
     }
+}
 
+/// History of one sensor for `d()`/`d2()` in the f64 engines.
+pub type Differentiator = History<f64>;
+
+impl History<f64> {
     /// `d(x)`: first derivative at sample rate `fs` (Hz), unit of x per second.
     pub fn d1(&self, fs: f64) -> f64 {
         (self.ago(0) - self.ago(WINDOW)) * (fs / WINDOW as f64)
@@ -61,6 +64,23 @@ impl Differentiator {
     pub fn d2(&self, fs: f64) -> f64 {
         let r = fs / WINDOW as f64;
         (self.ago(0) - 2.0 * self.ago(WINDOW) + self.ago(2 * WINDOW)) * r * r
+    }
+}
+
+/// The history for fixed-point engines: raw sensor words. The fixed-point derivative is
+/// `x[n] − x[n−N]` (resp. `x[n] − 2·x[n−N] + x[n−2N]`) taken exactly on the raw words, then
+/// multiplied by `fs/N` (resp. `(fs/N)²`) with the rounding rule of [`crate::fixed`].
+pub type RawHistory = History<i32>;
+
+impl History<i32> {
+    /// `x[n] − x[n−N]`, exact.
+    pub fn diff1(&self) -> i64 {
+        self.ago(0) as i64 - self.ago(WINDOW) as i64
+    }
+
+    /// `x[n] − 2·x[n−N] + x[n−2N]`, exact.
+    pub fn diff2(&self) -> i64 {
+        self.ago(0) as i64 - 2 * self.ago(WINDOW) as i64 + self.ago(2 * WINDOW) as i64
     }
 }
 
@@ -90,42 +110,5 @@ mod tests {
         d.push(0.005);
         assert_eq!(d.d1(44_100.0), 0.0);
         assert_eq!(d.d2(44_100.0), 0.0);
-    }
-}
-
-/// The same history for fixed-point engines: raw sensor words, primed like [`Differentiator`].
-/// The fixed-point derivative is `(x[n] − x[n−N])` (resp. `x[n] − 2·x[n−N] + x[n−2N]`) taken
-/// exactly on the raw words, then multiplied by `fs/N` (resp. `(fs/N)²`) with the rounding
-/// rule of [`crate::fixed`].
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct RawHistory {
-    hist: [i32; HISTORY],
-    pos: usize,
-    primed: bool,
-}
-
-impl RawHistory {
-    /// Takes this sample's raw reading.
-    pub fn push(&mut self, x: i32) {
-        if !self.primed {
-            self.hist = [x; HISTORY];
-            self.primed = true;
-        }
-        self.pos = (self.pos + 1) % HISTORY;
-        self.hist[self.pos] = x;
-    }
-
-    /// `x[n] − x[n−N]`, exact.
-    pub fn diff1(&self) -> i64 {
-        self.ago(0) as i64 - self.ago(WINDOW) as i64
-    }
-
-    /// `x[n] − 2·x[n−N] + x[n−2N]`, exact.
-    pub fn diff2(&self) -> i64 {
-        self.ago(0) as i64 - 2 * self.ago(WINDOW) as i64 + self.ago(2 * WINDOW) as i64
-    }
-
-    fn ago(&self, k: usize) -> i32 {
-        self.hist[(self.pos + HISTORY - k) % HISTORY]
     }
 }
