@@ -21,6 +21,23 @@
 /// Largest shift the primitives perform on an `i128` (larger shifts saturate or give 0).
 const MAX_SHIFT: i32 = 94;
 
+/// Lowest and highest fraction-bit counts a format may have.
+pub const FRAC_RANGE: (i32, i32) = (-32, 62);
+
+/// The finest format (fraction bits) whose signed 32-bit word holds every value of
+/// magnitude up to `mag`: `30 − floor(log2(mag))`, so `|raw| < 2^31` (with a 1e-9 margin for
+/// the rounding of `mag` itself). 30 for `mag = 0`; clamped to [`FRAC_RANGE`].
+pub fn frac_for(mag: f64) -> i32 {
+    let m = mag.abs() * (1.0 + 1e-9);
+    if m == 0.0 {
+        return 30;
+    }
+    if !m.is_finite() {
+        return FRAC_RANGE.0;
+    }
+    (30 - m.log2().floor() as i32).clamp(FRAC_RANGE.0, FRAC_RANGE.1)
+}
+
 /// A raw word and whether producing it saturated.
 pub type Sat = (i32, bool);
 

@@ -7,6 +7,7 @@
 
 pub mod differentiator;
 pub mod fixed;
+pub mod limiter;
 pub mod rng;
 pub mod stimulus;
 pub mod trace;

@@ -20,16 +20,11 @@ use range::{Interval, Ranges};
 use tactus_runtime::differentiator::WINDOW;
 use tactus_runtime::fixed as fx;
 
-/// Lowest and highest fraction-bit counts the planner assigns.
-pub const FRAC_RANGE: (i32, i32) = (-32, 62);
+pub use tactus_runtime::fixed::FRAC_RANGE;
 
-/// The finest format holding `iv` in an `i32`: fraction bits.
+/// The finest format holding `iv` in an `i32`: fraction bits ([`tactus_runtime::fixed::frac_for`]).
 pub fn frac_for(iv: Interval) -> i32 {
-    let m = iv.mag() * (1.0 + 1e-9);
-    if m == 0.0 || !m.is_finite() {
-        return if m == 0.0 { 30 } else { FRAC_RANGE.0 };
-    }
-    (30 - m.log2().floor() as i32).clamp(FRAC_RANGE.0, FRAC_RANGE.1)
+    tactus_runtime::fixed::frac_for(iv.mag())
 }
 
 /// A multiplication may drop low operand bits to fit `MULS` when the error this adds is at
