@@ -1,0 +1,388 @@
+//! The fixed-point primitives of [`tactus_runtime::fixed`] as C99 expressions.
+//!
+//! Each function here returns a C expression of type `int32_t` (comparisons: `int`, 0 or 1)
+//! that computes exactly the bits of the corresponding `tactus_runtime::fixed` function,
+//! with every format (fraction-bit count) baked in as a constant. The definition works in
+//! `i128`; C99 has no 128-bit type, so every shape is first reduced on the compile-time
+//! constants to one that fits `int64_t`/`uint64_t`:
+//!
+//! * a round-half-up right shift is `floor(v/2^m)` plus bit `m−1` of `v` ([`RUNTIME`]'s
+//!   `tx_rshr`), which never overflows;
+//! * a two-operand sum first floors its finer operand to the grid `g` of the coarser one
+//!   (or one bit finer than the result, if that is coarser), which leaves the final
+//!   round-half-up unchanged because `floor((floor(y)+c)/M) = floor((y+c)/M)` for integers
+//!   `c`, `M`; a coarser operand shifted left by 32 or more only decides the saturation
+//!   sign, so it is clamped to ±2 first;
+//! * a comparison with a constant is an integer comparison with a threshold found on the
+//!   word grid by [`tactus_runtime::fixed::cmp_const`] itself.
+//!
+//! Right shifts of negative numbers are implementation-defined in C99, so `tx_floor_shr`
+//! floors through `~` (exact-width integers are two's complement by C99 7.18.1.1). Left
+//! shifts of signed values are written as multiplications by powers of two. `sqrt`, `exp`
+//! and division by a run-time value are `static inline` helpers in [`RUNTIME`].
+
+use crate::ir::CmpOp;
+use std::cmp::Ordering;
+use tactus_runtime::fixed as fx;
+
+/// Helper functions every generated source includes (all `static inline`, prefix `tx_`).
+pub const RUNTIME: &str = r#"/* ---- fixed-point helpers: the bits of tactus_runtime::fixed, in int64_t ---- */
+
+/* floor(v / 2^s) for 0 <= s <= 63 (no right shift of a negative value). */
+static inline int64_t tx_floor_shr(int64_t v, int s) {
+    return v < 0 ? ~(~v >> s) : v >> s;
+}
+
+/* Saturates to int32_t. */
+static inline int32_t tx_sat(int64_t v) {
+    return v > INT32_MAX ? INT32_MAX : v < INT32_MIN ? INT32_MIN : (int32_t)v;
+}
+
+/* floor(v / 2^m + 1/2) for m >= 1: round half up, never overflows. */
+static inline int64_t tx_rshr(int64_t v, int m) {
+    if (m >= 64) return 0;
+    return tx_floor_shr(v, m) + (int64_t)(((uint64_t)v >> (m - 1)) & 1u);
+}
+
+/* v * 2^e saturated to int32_t, e >= 0. */
+static inline int32_t tx_shl_sat(int64_t v, int e) {
+    if (v == 0) return 0;
+    if (e >= 32) return v > 0 ? INT32_MAX : INT32_MIN;
+    if (v > (int64_t)(INT32_MAX >> e)) return INT32_MAX;
+    if (v < -((int64_t)1 << (31 - e))) return INT32_MIN;
+    return (int32_t)(v * ((int64_t)1 << e));
+}
+
+/* v * 2^e rounded half up and saturated to int32_t, any e. */
+static inline int32_t tx_round(int64_t v, int e) {
+    return e >= 0 ? tx_shl_sat(v, e) : tx_sat(tx_rshr(v, -e));
+}
+
+/* Clamps to [-2, 2] (a term shifted left by 32 or more only decides the sign). */
+static inline int64_t tx_clamp2(int64_t v) {
+    return v > 2 ? 2 : v < -2 ? -2 : v;
+}
+
+/* d * k * 2^e rounded half up and saturated, |d| < 2^47, without a 96-bit product. */
+static inline int32_t tx_round_wide(int64_t d, int32_t k, int e) {
+    int64_t dh = tx_floor_shr(d, 16);
+    int64_t hi = dh * k, lo = (d - dh * 65536) * k; /* d*k = hi*2^16 + lo */
+    int big = hi >= ((int64_t)1 << 40) || hi <= -((int64_t)1 << 40);
+    if (e <= -17) return tx_sat(tx_rshr(hi + tx_floor_shr(lo, 16), -e - 16));
+    if (big) return hi > 0 ? INT32_MAX : INT32_MIN;
+    return tx_round(hi * 65536 + lo, e);
+}
+
+/* x * 2^k / y truncated toward zero, saturated; y = 0 saturates to the sign of x. */
+static inline int32_t tx_div(int32_t x, int32_t y, int k) {
+    uint64_t ax, ay, q;
+    int neg, big;
+    if (y == 0) return x > 0 ? INT32_MAX : x < 0 ? INT32_MIN : 0;
+    if (k < 0) {
+        if (k <= -32) return 0;
+        return (int32_t)((int64_t)x / ((int64_t)y * ((int64_t)1 << -k)));
+    }
+    if (x == 0) return 0;
+    ax = (uint64_t)(x < 0 ? -(int64_t)x : (int64_t)x);
+    ay = (uint64_t)(y < 0 ? -(int64_t)y : (int64_t)y);
+    neg = (x < 0) != (y < 0);
+    if (k >= 63) big = 1;
+    else if (k >= 31) big = (ax << (k - 31)) >= ay;
+    else big = (ax << k) >= (ay << 31);
+    if (big) return neg ? INT32_MIN : INT32_MAX;
+    q = (ax << k) / ay;
+    return neg ? (int32_t)-(int64_t)q : (int32_t)q;
+}
+
+/* floor(sqrt(n)), digit by digit. */
+static inline uint64_t tx_isqrt(uint64_t n) {
+    uint64_t res = 0, one = (uint64_t)1 << 62;
+    while (one > n) one >>= 2;
+    while (one != 0) {
+        if (n >= res + one) {
+            n -= res + one;
+            res = (res >> 1) + one;
+        } else {
+            res >>= 1;
+        }
+        one >>= 2;
+    }
+    return res;
+}
+
+/* sqrt(max(x, 0)) with the root of x * 2^e taken exactly, then shifted right by post
+   (rounded half up); see tactus_runtime::fixed::sqrt. */
+static inline int32_t tx_sqrt(int32_t x, int e, int post) {
+    uint64_t r2;
+    if (x <= 0) return 0;
+    if (post == 0 && (e >= 62 || (uint64_t)x > ((((uint64_t)1 << 62) - ((uint64_t)1 << 31)) >> e)))
+        return INT32_MAX;
+    r2 = tx_isqrt(((uint64_t)x << e) << 2);
+    return (int32_t)tx_rshr((int64_t)r2, 1 + post);
+}
+
+/* The int64_t whose two's complement is u. */
+static inline int64_t tx_u2s(uint64_t u) {
+    return u >= ((uint64_t)1 << 63) ? -(int64_t)(~u) - 1 : (int64_t)u;
+}
+
+/* floor(a * b / 2^60), exactly, for |a * b| < 2^122. */
+static inline int64_t tx_mulshr60(int64_t a, int64_t b) {
+    int neg = (a < 0) != (b < 0);
+    uint64_t ua = a < 0 ? (uint64_t)0 - (uint64_t)a : (uint64_t)a;
+    uint64_t ub = b < 0 ? (uint64_t)0 - (uint64_t)b : (uint64_t)b;
+    uint64_t a0 = ua & 0xffffffffu, a1 = ua >> 32, b0 = ub & 0xffffffffu, b1 = ub >> 32;
+    uint64_t p00 = a0 * b0, p01 = a0 * b1, p10 = a1 * b0, p11 = a1 * b1;
+    uint64_t mid = (p00 >> 32) + (p01 & 0xffffffffu) + (p10 & 0xffffffffu);
+    uint64_t lo = (mid << 32) | (p00 & 0xffffffffu);
+    uint64_t hi = p11 + (p01 >> 32) + (p10 >> 32) + (mid >> 32);
+    uint64_t q = (hi << 4) | (lo >> 60);
+    int rem = (lo & ((((uint64_t)1) << 60) - 1u)) != 0;
+    return neg ? -(int64_t)q - rem : (int64_t)q;
+}
+
+/* exp(x * 2^-fx) in format fr, as tactus_runtime::fixed::exp: x = k*ln2 + r in Q60,
+   16 Taylor terms, then 2^k. xlo/xhi: the raw words beyond which k < -200 (result 0) or
+   k > 200 (saturated), found by the compiler. */
+static inline int32_t tx_exp(int32_t x, int fx, int fr, int32_t xlo, int32_t xhi) {
+    const int64_t ln2 = INT64_C(799144290325165667); /* round(ln 2 * 2^60) */
+    int64_t t, k, r, term, sum;
+    uint64_t xm;
+    int n;
+    if (x > xhi) return INT32_MAX;
+    if (x < xlo) return 0;
+    if (fx >= 60) {
+        int64_t xq = fx == 60 ? (int64_t)x : tx_rshr(x, fx - 60);
+        t = tx_floor_shr(xq, 8);
+        xm = (uint64_t)xq;
+    } else {
+        int s = 60 - fx;
+        xm = s >= 64 ? 0 : (uint64_t)(int64_t)x << s;
+        t = s >= 8 ? (s - 8 <= 62 ? (int64_t)x * ((int64_t)1 << (s - 8)) : 0) : tx_floor_shr(x, 8 - s);
+    }
+    /* k within 2 of round(xq / ln2); then exact: -ln2 <= 2r < ln2. */
+    k = t / (ln2 >> 8);
+    r = tx_u2s(xm - (uint64_t)k * (uint64_t)ln2);
+    while (2 * r < -ln2) { k--; r += ln2; }
+    while (2 * r >= ln2) { k++; r -= ln2; }
+    term = (int64_t)1 << 60;
+    sum = term;
+    for (n = 1; n <= 16; n++) {
+        term = tx_mulshr60(term, r);
+        term /= n;
+        sum += term;
+    }
+    return tx_round(sum, fr - 60 + (int)k);
+}
+"#;
+
+fn pow2(e: i32) -> String {
+    format!("INT64_C({})", 1i64 << e)
+}
+
+/// `x · 2^e` rounded half up and saturated, `x` a C expression of type `int64_t`.
+fn round_expr(x: &str, e: i32) -> String {
+    if e >= 0 {
+        format!("tx_shl_sat({x}, {e})")
+    } else {
+        format!("tx_sat(tx_rshr({x}, {}))", -e)
+    }
+}
+
+/// [`fx::convert`]: the `int32_t` expression `x` from `from` to `to` fraction bits.
+pub fn convert(x: &str, from: i32, to: i32) -> String {
+    let e = to - from;
+    if e == 0 {
+        x.to_string()
+    } else if e < 0 && -e >= 32 {
+        // |x| < 2^31 <= 2^(m-1): the half-up rounding of x/2^m is 0.
+        format!("((void)({x}), 0)")
+    } else if e < 0 {
+        format!("(int32_t)tx_rshr((int64_t)({x}), {})", -e)
+    } else {
+        round_expr(&format!("(int64_t)({x})"), e)
+    }
+}
+
+/// [`fx::neg`]: `-x` from `fx` to `fr` fraction bits.
+pub fn neg(x: &str, fx: i32, fr: i32) -> String {
+    round_expr(&format!("-(int64_t)({x})"), fr - fx)
+}
+
+/// [`fx::add`] (`sub = false`) or [`fx::sub`]: `x ± y` into `fr` fraction bits.
+pub fn add(x: &str, fx: i32, y: &str, fy: i32, fr: i32, sub: bool) -> String {
+    let tx = (format!("(int64_t)({x})"), fr - fx);
+    let ty = (if sub { format!("(-(int64_t)({y}))") } else { format!("(int64_t)({y})") }, fr - fy);
+    // Exponents relative to the result's LSB; the coarse term has the larger one.
+    let ((cx, e1), (cy, e2)) = if tx.1 >= ty.1 { (tx, ty) } else { (ty, tx) };
+    let g = e2.max(e1.min(-1));
+    let sy = (g - e2).min(63);
+    let fine = if sy == 0 { cy } else { format!("tx_floor_shr({cy}, {sy})") };
+    let dx = e1 - g;
+    let coarse = if dx == 0 {
+        cx
+    } else if dx <= 31 {
+        format!("{cx} * {}", pow2(dx))
+    } else {
+        format!("tx_clamp2({cx}) * {}", pow2(dx.min(40)))
+    };
+    round_expr(&format!("({coarse} + {fine})"), g)
+}
+
+/// [`fx::mul`] (`shifts = None`) or [`fx::mul_shifted`] with operand pre-shifts `(a, b)`:
+/// `x · y` into `fr` fraction bits.
+pub fn mul(x: &str, fx: i32, y: &str, fy: i32, fr: i32, shifts: Option<(u8, u8)>) -> String {
+    match shifts {
+        None => round_expr(&format!("((int64_t)({x}) * (int64_t)({y}))"), fr - fx - fy),
+        Some((a, b)) => {
+            let (a, b) = (a.min(31) as i32, b.min(31) as i32);
+            let sh = |v: &str, s: i32| if s == 0 { format!("(int64_t)({v})") } else { format!("tx_floor_shr({v}, {s})") };
+            round_expr(&format!("({} * {})", sh(x, a), sh(y, b)), fr - (fx - a) - (fy - b))
+        }
+    }
+}
+
+/// The derivative of a sensor: the exact raw difference `d` (an `int64_t` expression with
+/// `|d| <= dmax`) times the gain word `k`, rounded to `e` more fraction bits (`e` may be
+/// negative): `d·k·2^e`, as in the fixed interpreter.
+pub fn deriv(d: &str, dmax: i64, k: i32, e: i32) -> String {
+    if (dmax as i128) * (k as i128).abs() < (1i128 << 63) {
+        round_expr(&format!("(({d}) * (int64_t){k})"), e)
+    } else {
+        format!("tx_round_wide({d}, {k}, {e})")
+    }
+}
+
+/// [`fx::div`]: `x / y` into `fr` fraction bits, truncated toward zero.
+pub fn div(x: &str, fx: i32, y: &str, fy: i32, fr: i32) -> String {
+    let k = (fr - fx + fy).clamp(-94, 94);
+    format!("tx_div({x}, {y}, {k})")
+}
+
+/// [`fx::sqrt`]: `sqrt(max(x, 0))` into `fr` fraction bits.
+pub fn sqrt(x: &str, fx: i32, fr: i32) -> String {
+    let mut e = 2 * fr - fx;
+    let mut post = 0;
+    if e < 0 {
+        let p = (-e + 1) / 2;
+        e += 2 * p;
+        post = p;
+    }
+    // With a post shift, e is 0 or 1; without one, e >= 62 saturates every positive x.
+    let e = e.min(62);
+    let post = post.min(63);
+    format!("tx_sqrt({x}, {e}, {post})")
+}
+
+/// `k` of `exp`'s range reduction for the raw word `x` in format `fx`, exactly as
+/// [`fx::exp`] computes it.
+fn exp_k(x: i32, fx: i32) -> i128 {
+    const LN2_Q60: i128 = 799_144_290_325_165_667;
+    let xq = fx::rescale(x as i128, fx, 60);
+    (2 * xq + LN2_Q60).div_euclid(2 * LN2_Q60)
+}
+
+/// The first raw word in `lo..=hi` where `pred` holds (`pred` monotone: false then true),
+/// or `hi + 1`.
+fn first_true(lo: i64, hi: i64, pred: impl Fn(i64) -> bool) -> i64 {
+    let (mut a, mut b) = (lo, hi + 1);
+    while a < b {
+        let m = a + (b - a) / 2;
+        if pred(m) {
+            b = m;
+        } else {
+            a = m + 1;
+        }
+    }
+    a
+}
+
+/// [`fx::exp`]: `exp(x)` into `fr` fraction bits.
+pub fn exp(x: &str, fx: i32, fr: i32) -> String {
+    let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
+    let xhi = first_true(lo, hi, |w| exp_k(w as i32, fx) > 200) - 1;
+    let xlo = first_true(lo, hi, |w| exp_k(w as i32, fx) >= -200);
+    let lit = |w: i64| if w == i32::MIN as i64 { "INT32_MIN".to_string() } else { w.to_string() };
+    format!("tx_exp({x}, {fx}, {fr}, {}, {})", lit(xlo), lit(xhi))
+}
+
+fn c_op(op: CmpOp) -> &'static str {
+    match op {
+        CmpOp::Eq => "==",
+        CmpOp::Ne => "!=",
+        CmpOp::Lt => "<",
+        CmpOp::Le => "<=",
+        CmpOp::Gt => ">",
+        CmpOp::Ge => ">=",
+    }
+}
+
+/// [`fx::cmp`]: `x OP y` on exact values (an `int` expression, 0 or 1).
+pub fn cmp(op: CmpOp, x: &str, fx: i32, y: &str, fy: i32) -> String {
+    let o = c_op(op);
+    let scaled = |v: &str, d: i32| {
+        if d <= 31 {
+            format!("(int64_t)({v}) * {}", pow2(d))
+        } else {
+            // |other| < 2^31 < 2^32: only the sign of v matters.
+            format!("tx_clamp2({v}) * {}", pow2(32))
+        }
+    };
+    match fx.cmp(&fy) {
+        Ordering::Equal => format!("({x} {o} {y})"),
+        Ordering::Greater => format!("((int64_t)({x}) {o} {})", scaled(y, fx - fy)),
+        Ordering::Less => format!("({} {o} (int64_t)({y}))", scaled(x, fy - fx)),
+    }
+}
+
+/// [`fx::cmp_const`]: `x OP c` (or `c OP x` when `const_left`) on exact values, as integer
+/// comparisons of the raw word with thresholds precomputed on its grid.
+pub fn cmp_const(op: CmpOp, x: &str, fx: i32, c: f64, const_left: bool) -> String {
+    let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
+    // ge: first word whose value is >= c; gt: first word whose value is > c.
+    let ge = first_true(lo, hi, |w| fx::cmp_const(w as i32, fx, c) != Ordering::Less);
+    let gt = first_true(lo, hi, |w| fx::cmp_const(w as i32, fx, c) == Ordering::Greater);
+    // Normalise `c OP x` to `x OP' c`.
+    let op = if const_left {
+        match op {
+            CmpOp::Lt => CmpOp::Gt,
+            CmpOp::Le => CmpOp::Ge,
+            CmpOp::Gt => CmpOp::Lt,
+            CmpOp::Ge => CmpOp::Le,
+            o => o,
+        }
+    } else {
+        op
+    };
+    // `x >= t` / `x < t` as C, constant when t is outside the word range.
+    let at_least = |t: i64, neg: bool| {
+        if t <= lo || t > hi {
+            (((t <= lo) != neg) as u8).to_string()
+        } else if neg {
+            format!("({x} < {t})")
+        } else {
+            format!("({x} >= {t})")
+        }
+    };
+    let parts: Vec<String> = match op {
+        CmpOp::Ge => vec![at_least(ge, false)],
+        CmpOp::Lt => vec![at_least(ge, true)],
+        CmpOp::Gt => vec![at_least(gt, false)],
+        CmpOp::Le => vec![at_least(gt, true)],
+        CmpOp::Eq | CmpOp::Ne => vec![at_least(ge, false), at_least(gt, true)],
+    };
+    let constant = parts.iter().any(|p| p.len() == 1);
+    let mut expr = parts.join(" && ");
+    if parts.len() > 1 {
+        expr = format!("({expr})");
+    }
+    if op == CmpOp::Ne {
+        expr = format!("!{expr}");
+    }
+    // Keep the operand evaluated (and used) even when the answer is a constant.
+    if constant {
+        format!("((void)({x}), {expr})")
+    } else {
+        expr
+    }
+}

@@ -1,0 +1,218 @@
+//! The C backend against the fixed interpreter, bit for bit: every instrument, every
+//! built-in stimulus, and random raw sensor words (in and far out of range), compiled with
+//! the host `cc -std=c99 -O2 -Wall -Wextra -Werror` and run in one process per instrument.
+//! Compared on every sample: each force term's raw word, the total, the outputs, the
+//! emitted events with their arguments, the states and the modes.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use tactus_compiler::cgen::{self, CSource};
+use tactus_compiler::fixed::interp::FixedInstance;
+use tactus_compiler::fixed::FixedProgram;
+use tactus_compiler::lower::Config;
+use tactus_runtime::stimulus;
+
+/// The instruments: every `instruments/*.tactus`.
+fn instruments() -> Vec<(String, String)> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
+    let mut v: Vec<(String, String)> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "tactus"))
+        .map(|p| (p.file_stem().unwrap().to_string_lossy().into_owned(), std::fs::read_to_string(&p).unwrap()))
+        .collect();
+    v.sort();
+    assert!(!v.is_empty());
+    v
+}
+
+fn have_cc() -> bool {
+    Command::new("cc").arg("--version").stdout(Stdio::null()).stderr(Stdio::null()).status().is_ok_and(|s| s.success())
+}
+
+/// Writes the generated files and a driver; compiles them. The driver reads records
+/// `[reset, sensor words...]` of native-endian `int32_t` from stdin and writes, per record,
+/// `out[]`, then the states, then the modes.
+fn build(dir: &Path, fp: &FixedProgram, c: &CSource) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let st = &c.stem;
+    std::fs::write(dir.join(format!("{st}.h")), &c.header).unwrap();
+    std::fs::write(dir.join(format!("{st}.c")), &c.source).unwrap();
+    let p = &fp.program;
+    let (ns, nst, nm, len) = (p.sensors.len(), p.states.len(), p.modes.len(), c.layout.len);
+    let driver = format!(
+        r#"#include <stdio.h>
+#include "{st}.h"
+int main(void) {{
+    static struct tactus_{st}_state s;
+    int32_t rec[1 + {ns}];
+    int32_t out[{len} + {nst} + {nm} + 1];
+    int i;
+    tactus_{st}_init(&s);
+    while (fread(rec, sizeof rec[0], 1 + {ns}, stdin) == 1 + {ns}) {{
+        if (rec[0]) tactus_{st}_init(&s);
+        tactus_{st}_update(&s, rec + 1, out);
+        for (i = 0; i < {nst}; i++) out[{len} + i] = s.states[i];
+        for (i = 0; i < {nm}; i++) out[{len} + {nst} + i] = s.modes[i];
+        fwrite(out, sizeof out[0], {len} + {nst} + {nm}, stdout);
+    }}
+    return 0;
+}}
+"#
+    );
+    std::fs::write(dir.join("driver.c"), driver).unwrap();
+    let exe = dir.join("run");
+    let o = Command::new("cc")
+        .args(["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-o"])
+        .arg(&exe)
+        .arg(dir.join("driver.c"))
+        .arg(dir.join(format!("{st}.c")))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "cc failed in {}:\n{}", dir.display(), String::from_utf8_lossy(&o.stderr));
+    exe
+}
+
+/// Deterministic xorshift64*.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    fn below(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+}
+
+/// Random raw words for one sensor: a mix of arbitrary words, in-range words, random walks
+/// and words at and beyond the raw bounds.
+fn random_word(rng: &mut Rng, prev: i32, (lo, hi): (i32, i32)) -> i32 {
+    let span = (hi as i64 - lo as i64).max(1) as u64;
+    match rng.below(8) {
+        0 => rng.next() as i32,
+        1 => (lo as i64 + rng.below(span + 1) as i64) as i32,
+        2 => [i32::MIN, i32::MAX, lo, hi, lo.saturating_sub(1), hi.saturating_add(1), 0][rng.below(7) as usize],
+        _ => {
+            let step = (rng.below(span / 200 + 2) as i64) - (span / 400) as i64;
+            (prev as i64 + step).clamp(lo as i64, hi as i64) as i32
+        }
+    }
+}
+
+struct Run {
+    label: String,
+    records: Vec<Vec<i32>>,
+}
+
+#[test]
+fn c_matches_the_fixed_interpreter_bit_for_bit() {
+    if !have_cc() {
+        println!("SKIPPED: no cc");
+        return;
+    }
+    let base = std::env::temp_dir().join(format!("tactus-cgen-test-{}", std::process::id()));
+    let mut total_samples = 0usize;
+    for (name, text) in instruments() {
+        let p = tactus_compiler::compile(&text, &Config::default()).unwrap().program;
+        let fp = FixedProgram::new(&p);
+        let c = cgen::emit_c(&fp).unwrap();
+        let exe = build(&base.join(&name), &fp, &c);
+        let ns = p.sensors.len();
+        // Stimuli: sensor 0 follows the stimulus, the others sit at their lower bound.
+        let mut runs = Vec::new();
+        for (stim, _) in stimulus::builtin_names() {
+            let s = stimulus::builtin(stim, p.sensors[0].range.1, 44_100.0).unwrap();
+            let records = s
+                .key
+                .iter()
+                .map(|&k| {
+                    (0..ns).map(|i| FixedInstance::sensor_raw(&fp, i, if i == 0 { Some(k) } else { None })).collect()
+                })
+                .collect();
+            runs.push(Run { label: format!("{name}/{stim}"), records });
+        }
+        let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ name.len() as u64);
+        for r in 0..8 {
+            let mut prev: Vec<i32> = fp.sensor_raw_range.iter().map(|r| r.0).collect();
+            let records = (0..4000)
+                .map(|_| {
+                    for (i, w) in prev.iter_mut().enumerate() {
+                        *w = random_word(&mut rng, *w, fp.sensor_raw_range[i]);
+                    }
+                    prev.clone()
+                })
+                .collect();
+            runs.push(Run { label: format!("{name}/random{r}"), records });
+        }
+        // One input file for all runs; a reset flag starts each run.
+        let mut input = Vec::new();
+        for run in &runs {
+            for (n, rec) in run.records.iter().enumerate() {
+                input.extend_from_slice(&i32::from(n == 0).to_ne_bytes());
+                for w in rec {
+                    input.extend_from_slice(&w.to_ne_bytes());
+                }
+            }
+        }
+        let input_path = base.join(&name).join("input.bin");
+        std::fs::write(&input_path, &input).unwrap();
+        let o = Command::new(&exe).stdin(std::fs::File::open(&input_path).unwrap()).output().unwrap();
+        assert!(o.status.success(), "{name}: the C driver failed");
+        let words: Vec<i32> = o.stdout.chunks_exact(4).map(|b| i32::from_ne_bytes(b.try_into().unwrap())).collect();
+        let (len, nst, nm) = (c.layout.len, p.states.len(), p.modes.len());
+        let per = len + nst + nm;
+        let nrec: usize = runs.iter().map(|r| r.records.len()).sum();
+        assert_eq!(words.len(), nrec * per, "{name}: output length");
+        let mut mismatches = Vec::new();
+        let mut events = 0usize;
+        let mut rows = words.chunks_exact(per);
+        for run in &runs {
+            let mut inst = FixedInstance::new(&fp);
+            for (n, rec) in run.records.iter().enumerate() {
+                let row = rows.next().unwrap();
+                let want = inst.step_raw(rec).clone();
+                let l = &c.layout;
+                let mut got_events = Vec::new();
+                let mut stray = false;
+                for site in &l.emits {
+                    let nargs = p.events[site.event.index()].args.len();
+                    let args = &row[site.offset + 1..site.offset + 1 + nargs];
+                    match row[site.offset] {
+                        1 => got_events.push((site.event, args.to_vec())),
+                        0 => stray |= args.iter().any(|&a| a != 0),
+                        _ => stray = true,
+                    }
+                }
+                events += want.events.len();
+                let ok = row[l.forces..l.forces + p.forces.len()] == want.forces[..]
+                    && row[l.total] == want.total
+                    && row[l.outputs..l.outputs + p.outputs.len()] == want.outputs[..]
+                    && got_events == want.events
+                    && !stray
+                    && row[len..len + nst] == *inst.states()
+                    && row[len + nst..].iter().map(|&m| m as u32).eq(inst.modes().iter().copied());
+                if !ok {
+                    mismatches.push(format!(
+                        "{} sample {n} sensors {rec:?}:\n  C:      {:?}\n  interp: forces {:?} total {} outputs {:?} events {:?} states {:?} modes {:?}",
+                        run.label,
+                        row,
+                        want.forces,
+                        want.total,
+                        want.outputs,
+                        want.events,
+                        inst.states(),
+                        inst.modes()
+                    ));
+                }
+            }
+        }
+        total_samples += nrec;
+        println!("{name:<16} {} runs, {nrec} samples, {events} events, {} mismatches", runs.len(), mismatches.len());
+        assert!(mismatches.is_empty(), "{name}: {} mismatching samples; first:\n{}", mismatches.len(), mismatches[..mismatches.len().min(5)].join("\n"));
+    }
+    println!("{total_samples} samples compared");
+    let _ = std::fs::remove_dir_all(&base);
+}
