@@ -235,9 +235,13 @@ pub fn mul(x: &str, fx: i32, y: &str, fy: i32, fr: i32, shifts: Option<(u8, u8)>
     match shifts {
         None => round_expr(&format!("((int64_t)({x}) * (int64_t)({y}))"), fr - fx - fy),
         Some((a, b)) => {
-            let (a, b) = (a.min(31) as i32, b.min(31) as i32);
-            let sh = |v: &str, s: i32| if s == 0 { format!("(int64_t)({v})") } else { format!("tx_floor_shr({v}, {s})") };
-            round_expr(&format!("({} * {})", sh(x, a), sh(y, b)), fr - (fx - a) - (fy - b))
+            // As the definition: the shift is capped at 31 but the exponent uses the planned
+            // count (the planner never plans more than 31).
+            let sh = |v: &str, s: u8| match s.min(31) {
+                0 => format!("(int64_t)({v})"),
+                s => format!("tx_floor_shr({v}, {s})"),
+            };
+            round_expr(&format!("({} * {})", sh(x, a), sh(y, b)), fr - (fx - a as i32) - (fy - b as i32))
         }
     }
 }
