@@ -123,6 +123,12 @@ impl std::fmt::Debug for JitProgram {
     }
 }
 
+// SAFETY: `JITModule` is `Send` but not `Sync` (its symbol table is a `RefCell`). A
+// `JitProgram` never touches the module through `&self` — only `drop` (with `&mut self`)
+// uses it — so sharing `&JitProgram` shares only immutable data and the finished code, which
+// any number of threads may run at once on their own instances' buffers.
+unsafe impl Sync for JitProgram {}
+
 impl Drop for JitProgram {
     fn drop(&mut self) {
         if let Some(module) = self.module.take() {
