@@ -34,6 +34,8 @@
 #![deny(missing_docs)]
 
 pub mod codegen;
+pub mod fixed;
+pub mod fixed_codegen;
 pub mod layout;
 pub mod verify;
 
@@ -41,6 +43,7 @@ use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::FunctionBuilderContext;
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
+pub use fixed::{FixedJitInstance, FixedJitProgram};
 use layout::Layout;
 use tactus_compiler::interp::SampleOut;
 use tactus_compiler::ir::{Program, Value};
@@ -111,7 +114,7 @@ pub struct JitProgram {
     layout: Layout,
     func: SampleFn,
     /// Holds the code memory; freed on drop.
-    module: Option<JITModule>,
+    _code: Code,
 }
 
 impl std::fmt::Debug for JitProgram {
@@ -123,17 +126,59 @@ impl std::fmt::Debug for JitProgram {
     }
 }
 
-// SAFETY: `JITModule` is `Send` but not `Sync` (its symbol table is a `RefCell`). A
-// `JitProgram` never touches the module through `&self` — only `drop` (with `&mut self`)
-// uses it — so sharing `&JitProgram` shares only immutable data and the finished code, which
-// any number of threads may run at once on their own instances' buffers.
-unsafe impl Sync for JitProgram {}
+/// The executable memory of one compiled program: a finished [`JITModule`], freed on drop.
+/// Shared by the f64 and the fixed-point JIT.
+pub(crate) struct Code(Option<JITModule>);
 
-impl Drop for JitProgram {
+// SAFETY: `JITModule` is `Send` but not `Sync` (its symbol table is a `RefCell`). A `Code`
+// never touches the module through `&self` — only `drop` (with `&mut self`) uses it — so
+// sharing `&Code` shares only the finished code, which any number of threads may run at once
+// on their own instances' buffers.
+unsafe impl Sync for Code {}
+
+impl Drop for Code {
     fn drop(&mut self) {
-        if let Some(module) = self.module.take() {
-            // SAFETY: instances borrow `self`, so none is alive, and `func` dies with `self`.
+        if let Some(module) = self.0.take() {
+            // SAFETY: the program owning `self` is being dropped; instances borrow it, so
+            // none is alive, and the function pointers into the code die with it.
             unsafe { module.free_memory() };
+        }
+    }
+}
+
+/// A fresh module for the host with the given host symbols (name, address) importable, at
+/// `opt_level = speed`. Shared by both JITs so they run under the same settings.
+pub(crate) fn new_module(symbols: &[(&'static str, *const u8)]) -> Result<JITModule, JitError> {
+    let host = |e: &dyn std::fmt::Display| JitError::Host(e.to_string());
+    let mut flags = settings::builder();
+    flags.set("opt_level", "speed").map_err(|e| host(&e))?;
+    flags
+        .set("use_colocated_libcalls", "false")
+        .map_err(|e| host(&e))?;
+    flags.set("is_pic", "false").map_err(|e| host(&e))?;
+    let isa = cranelift_native::builder()
+        .map_err(|e| host(&e))?
+        .finish(settings::Flags::new(flags))
+        .map_err(|e| host(&e))?;
+    let mut builder = JITBuilder::with_isa(isa, default_libcall_names());
+    for &(name, addr) in symbols {
+        builder.symbol(name, addr);
+    }
+    Ok(JITModule::new(builder))
+}
+
+/// Runs `define` on `module`; on success wraps the module in a [`Code`], on failure frees
+/// its memory. `define` returns the address of the finished function.
+pub(crate) fn finish_module<T>(
+    mut module: JITModule,
+    define: impl FnOnce(&mut JITModule) -> Result<T, JitError>,
+) -> Result<(T, Code), JitError> {
+    match define(&mut module) {
+        Ok(f) => Ok((f, Code(Some(module)))),
+        Err(e) => {
+            // SAFETY: no pointer into the module's memory was handed out.
+            unsafe { module.free_memory() };
+            Err(e)
         }
     }
 }
@@ -155,36 +200,17 @@ impl JitProgram {
         if slots > (i32::MAX / 8) as usize {
             return Err(JitError::TooLarge { slots });
         }
-
-        let host = |e: &dyn std::fmt::Display| JitError::Host(e.to_string());
-        let mut flags = settings::builder();
-        flags.set("opt_level", "speed").map_err(|e| host(&e))?;
-        flags
-            .set("use_colocated_libcalls", "false")
-            .map_err(|e| host(&e))?;
-        flags.set("is_pic", "false").map_err(|e| host(&e))?;
-        let isa = cranelift_native::builder()
-            .map_err(|e| host(&e))?
-            .finish(settings::Flags::new(flags))
-            .map_err(|e| host(&e))?;
-        let mut builder = JITBuilder::with_isa(isa, default_libcall_names());
-        builder.symbol(codegen::EXP_SYMBOL, codegen::host_exp as *const u8);
-        builder.symbol(codegen::SQRT_SYMBOL, codegen::host_sqrt as *const u8);
-        let mut module = JITModule::new(builder);
-
-        match Self::define(&mut module, program, &layout) {
-            Ok(func) => Ok(JitProgram {
-                program: program.clone(),
-                layout,
-                func,
-                module: Some(module),
-            }),
-            Err(e) => {
-                // SAFETY: no pointer into the module's memory was handed out.
-                unsafe { module.free_memory() };
-                Err(e)
-            }
-        }
+        let module = new_module(&[
+            (codegen::EXP_SYMBOL, codegen::host_exp as *const u8),
+            (codegen::SQRT_SYMBOL, codegen::host_sqrt as *const u8),
+        ])?;
+        let (func, code) = finish_module(module, |m| Self::define(m, program, &layout))?;
+        Ok(JitProgram {
+            program: program.clone(),
+            layout,
+            func,
+            _code: code,
+        })
     }
 
     fn define(
