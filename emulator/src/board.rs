@@ -408,6 +408,22 @@ impl Board {
                     None => return StopReason::CycleLimit,
                 }
             }
+            // Both cores running the fast path: interleave them there, in lock-step order.
+            if self.fast_ready(0) && self.fast_ready(1) {
+                let deadline = |c: &Core| {
+                    limit
+                        .min(self.system.timer.next_event)
+                        .min(c.nvic.syst_next)
+                };
+                let deadline = [deadline(&self.cores[0]), deadline(&self.cores[1])];
+                if now < deadline[k] {
+                    let (k, event) = self.fast_run::<true>(k, deadline);
+                    if let Some(stop) = self.handle_event(k, event) {
+                        return stop;
+                    }
+                    continue;
+                }
+            }
             // Core k keeps the turn while it stays behind the other core (core 0 on ties).
             let other = &self.cores[1 - k];
             let horizon = if active(other) {
@@ -461,6 +477,67 @@ impl Board {
             }
             if event != Event::None {
                 return event;
+            }
+            if self.fast_ready(k) {
+                let deadline = horizon
+                    .min(self.system.timer.next_event)
+                    .min(self.cores[k].nvic.syst_next);
+                let (_, event) = self.fast_run::<false>(k, [deadline; 2]);
+                if event != Event::None {
+                    return event;
+                }
+            }
+        }
+    }
+
+    /// True when core `k`'s next instructions may take the fast path ([`Board::fast_run`]):
+    /// it is running in Thumb state with no exception it could take, the interrupt lines
+    /// are current and already pending on it (so the per-instruction "OR the lines into
+    /// pending" of [`Board::step_cached`] would change nothing), and no profile is active.
+    /// Everything the fast path executes leaves these conditions true; everything that
+    /// could change them leaves the fast path.
+    #[inline]
+    fn fast_ready(&self, k: usize) -> bool {
+        let c = &self.cores[k];
+        c.state == RunState::Running
+            && c.thumb
+            && c.nvic.takeable() == 0
+            && ((self.lines as u64) << IRQ0) & !c.nvic.active & !c.nvic.pending == 0
+            && self.lines_epoch == self.system.irq_epoch
+            && self.profiles.is_empty()
+    }
+
+    /// The fast path: runs core `k` (or, with `BOTH`, whichever core is behind, core 0 on
+    /// ties: the lock-step order) while the core to run is below its `deadline` (its
+    /// horizon, the next timer event and its next SysTick wrap; see [`Board::fast_ready`]
+    /// for the other conditions). Instructions come from the decode cache and run through
+    /// [`Core::execute_fast`]; the first one that needs the general path (a decode-cache
+    /// miss, a peripheral access, anything that could fault or change exception state) is
+    /// executed exactly as [`Board::step_cached`] would and ends the run, so the caller
+    /// re-checks everything as before. Returns the core that ran last and its event.
+    #[inline(always)]
+    fn fast_run<const BOTH: bool>(&mut self, k: usize, deadline: [u64; 2]) -> (usize, Event) {
+        loop {
+            let k = if BOTH {
+                (self.cores[1].cycle < self.cores[0].cycle) as usize
+            } else {
+                k
+            };
+            let core = &mut self.cores[k];
+            if core.cycle >= deadline[k] {
+                return (k, Event::None);
+            }
+            let pc = core.r[15];
+            let slot = &self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+            if slot.addr != pc || slot.epoch != self.system.code_epoch {
+                return (k, self.step_cached::<false>(k, self.lines));
+            }
+            let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
+            if !core.execute_fast(&mut self.system, instr, pc, size, cost) {
+                return (
+                    k,
+                    core.run_priced::<_, false>(&mut self.system, pc, instr, size, Some(cost)),
+                );
             }
         }
     }

@@ -143,6 +143,17 @@ pub fn sram_location(addr: u32) -> Option<(usize, usize)> {
     None
 }
 
+/// Arbitration bank of SRAM offset `off` (below [`SRAM_SIZE`]): address bits 3:2 in the
+/// striped banks, then SRAM4 and SRAM5.
+#[inline(always)]
+fn sram_bank(off: u32) -> usize {
+    if off < 0x4_0000 {
+        ((off >> 2) & 3) as usize
+    } else {
+        (4 + ((off >> 12) & 1)) as usize
+    }
+}
+
 impl System {
     /// A fresh system with zeroed memories, clocked at `clock_hz`.
     pub fn new(clock_hz: u64) -> Self {
@@ -193,6 +204,58 @@ impl System {
         self.bank_claim[bank][core] = at;
         let stall = (at - cycle) as u32;
         self.contention_stalls[core] += stall as u64;
+        stall
+    }
+
+    /// Direct SRAM access for the executor's fast path (`off` from [`SRAM_BASE`], below
+    /// [`SRAM_SIZE`], aligned to `size`): the same arbitration and data as [`Bus::read`]
+    /// on the striped view or SRAM4/5, without the address decode. Returns (value, wait).
+    #[inline(always)]
+    pub(crate) fn sram_read(&mut self, core: usize, cycle: u64, off: u32, size: u32) -> (u32, u32) {
+        let wait = self.arbitrate_fast(core, cycle, sram_bank(off));
+        (load_le(&self.sram, off as usize, size), wait)
+    }
+
+    /// Direct SRAM store for the fast path, as [`Bus::write`] does it (arbitration, data,
+    /// decode-cache invalidation for a page holding cached code). Returns the wait states.
+    #[inline(always)]
+    pub(crate) fn sram_write(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        off: u32,
+        size: u32,
+        value: u32,
+    ) -> u32 {
+        let wait = self.arbitrate_fast(core, cycle, sram_bank(off));
+        store_le(&mut self.sram, off as usize, size, value);
+        if self.code_pages[(off >> 8) as usize] {
+            self.invalidate_code();
+        }
+        wait
+    }
+
+    /// A side-effect-free word of SRAM at offset `off` (aligned, in range).
+    #[inline(always)]
+    pub(crate) fn sram_peek(&self, off: u32) -> u32 {
+        load_le(&self.sram, off as usize, 4)
+    }
+
+    /// Direct flash load for the fast path (`off` from [`FLASH_BASE`], in range, aligned):
+    /// flash never waits or contends.
+    #[inline(always)]
+    pub(crate) fn flash_read(&self, off: u32, size: u32) -> u32 {
+        load_le(&self.flash, off as usize, size)
+    }
+
+    /// [`System::arbitrate`] with the loop written out: the other core's last claim is one
+    /// cycle, so an access waits at most one cycle.
+    #[inline(always)]
+    fn arbitrate_fast(&mut self, core: usize, cycle: u64, bank: usize) -> u32 {
+        let claims = &mut self.bank_claim[bank];
+        let stall = (claims[(core ^ 1) & 1] == cycle) as u32;
+        claims[core & 1] = cycle + stall as u64;
+        self.contention_stalls[core & 1] += stall as u64;
         stall
     }
 

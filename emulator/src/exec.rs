@@ -7,7 +7,7 @@
 //! returned as an error *before* any register is written, so the HardFault handler sees the
 //! state the faulting instruction started from (multi-word loads read everything first).
 
-use crate::bus::Bus;
+use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_BASE, SRAM_SIZE};
 use crate::core::{Core, Event, FaultKind, RunState};
 use crate::decode::{self, AluOp, Instr, MemOp};
 use crate::nvic::PPB_BASE;
@@ -55,6 +55,28 @@ pub(crate) struct Outcome {
 }
 
 type Exec = Result<Outcome, FaultKind>;
+
+/// Offset of `addr` in [`System::sram`] when it is in the striped view or SRAM4/5.
+#[inline(always)]
+fn sram_offset(addr: u32) -> Option<u32> {
+    let off = addr.wrapping_sub(SRAM_BASE);
+    (off < SRAM_SIZE).then_some(off)
+}
+
+/// Offset of `addr` in flash.
+#[inline(always)]
+fn flash_offset(addr: u32) -> Option<u32> {
+    let off = addr.wrapping_sub(FLASH_BASE);
+    (off < FLASH_SIZE).then_some(off)
+}
+
+/// SRAM offset of `count` words from `base` when they are word-aligned and all in the
+/// striped view or SRAM4/5.
+#[inline(always)]
+fn sram_range(base: u32, count: u32) -> Option<u32> {
+    let off = base.wrapping_sub(SRAM_BASE);
+    (base & 3 == 0 && off < SRAM_SIZE && SRAM_SIZE - off >= 4 * count).then_some(off)
+}
 
 impl Core {
     #[inline]
@@ -398,6 +420,340 @@ impl Core {
             extra: wait,
             event,
         })
+    }
+
+    /// The board's fast path: executes `instr` at `pc` (of `size` bytes, costing `cost` =
+    /// (not taken, taken) cycles from the timing table) when it is a common case with the
+    /// same result as [`Core::execute`] priced by `run_priced` — registers and flags, SRAM
+    /// and flash accesses that cannot fault, branches that stay in Thumb state and return
+    /// from no exception — and returns true. Otherwise (peripherals, SIO, PPB, anything
+    /// that could fault, sleep, signal or change exception state) it touches nothing and
+    /// returns false, and the caller takes the general path.
+    #[inline(always)]
+    pub(crate) fn execute_fast(
+        &mut self,
+        sys: &mut System,
+        instr: Instr,
+        pc: u32,
+        size: u32,
+        cost: (u8, u8),
+    ) -> bool {
+        use Instr::*;
+        let next = pc.wrapping_add(size);
+        let now = self.cycle;
+        let mut cycles = cost.0 as u64;
+        match instr {
+            LslImm { rd, rm, imm } => {
+                let x = self.r[(rm & 15) as usize];
+                let r = if imm == 0 {
+                    x
+                } else {
+                    self.c = (x >> (32 - imm as u32)) & 1 == 1;
+                    x << imm
+                };
+                self.r[(rd & 15) as usize] = r;
+                self.nz(r);
+            }
+            LsrImm { rd, rm, imm } => {
+                let x = self.r[(rm & 15) as usize];
+                self.c = (x >> (imm as u32 - 1)) & 1 == 1;
+                let r = if imm == 32 { 0 } else { x >> imm };
+                self.r[(rd & 15) as usize] = r;
+                self.nz(r);
+            }
+            AsrImm { rd, rm, imm } => {
+                let x = self.r[(rm & 15) as usize];
+                self.c = ((x as i32) >> (imm as u32 - 1)) & 1 == 1;
+                let r = ((x as i32) >> (imm as u32).min(31)) as u32;
+                self.r[(rd & 15) as usize] = r;
+                self.nz(r);
+            }
+            AddReg { rd, rn, rm } => {
+                let (r, c, v) = add_with_carry(
+                    self.r[(rn & 15) as usize],
+                    self.r[(rm & 15) as usize],
+                    false,
+                );
+                (self.c, self.v) = (c, v);
+                self.r[(rd & 15) as usize] = r;
+                self.nz(r);
+            }
+            SubReg { rd, rn, rm } => {
+                let (r, c, v) = add_with_carry(
+                    self.r[(rn & 15) as usize],
+                    !self.r[(rm & 15) as usize],
+                    true,
+                );
+                (self.c, self.v) = (c, v);
+                self.r[(rd & 15) as usize] = r;
+                self.nz(r);
+            }
+            AddImm { rd, rn, imm } => {
+                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], imm as u32, false);
+                (self.c, self.v) = (c, v);
+                self.r[(rd & 15) as usize] = r;
+                self.nz(r);
+            }
+            SubImm { rd, rn, imm } => {
+                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], !(imm as u32), true);
+                (self.c, self.v) = (c, v);
+                self.r[(rd & 15) as usize] = r;
+                self.nz(r);
+            }
+            MovImm { rd, imm } => {
+                self.r[(rd & 15) as usize] = imm as u32;
+                self.nz(imm as u32);
+            }
+            CmpImm { rn, imm } => {
+                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], !(imm as u32), true);
+                (self.c, self.v) = (c, v);
+                self.nz(r);
+            }
+            Alu { op, rdn, rm } => self.alu(op, rdn as usize, self.r[(rm & 15) as usize]),
+            AddHi { rdn, rm } => {
+                let r = self.reg(rdn, pc).wrapping_add(self.reg(rm, pc));
+                if rdn == 15 {
+                    self.r[15] = r & !1;
+                    return self.retire(cycles);
+                }
+                self.set_reg(rdn, r);
+            }
+            CmpHi { rn, rm } => {
+                let (r, c, v) = add_with_carry(self.reg(rn, pc), !self.reg(rm, pc), true);
+                (self.c, self.v) = (c, v);
+                self.nz(r);
+            }
+            MovHi { rd, rm } => {
+                let r = self.reg(rm, pc);
+                if rd == 15 {
+                    self.r[15] = r & !1;
+                    return self.retire(cycles);
+                }
+                self.set_reg(rd, r);
+            }
+            Bx { rm } => {
+                let target = self.reg(rm, pc);
+                if target & 1 == 0 || (self.ipsr != 0 && target >> 28 == 0xf) {
+                    return false;
+                }
+                self.r[15] = target & !1;
+                return self.retire(cycles);
+            }
+            Blx { rm } => {
+                let target = self.r[(rm & 15) as usize];
+                if target & 1 == 0 {
+                    return false;
+                }
+                self.r[14] = next | 1;
+                self.r[15] = target & !1;
+                return self.retire(cycles);
+            }
+            LdrLit { rt, imm } => {
+                let addr = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32);
+                let v = if let Some(off) = sram_offset(addr) {
+                    let (v, w) = sys.sram_read(self.id, now + 1, off, 4);
+                    cycles += w as u64;
+                    v
+                } else if let Some(off) = flash_offset(addr) {
+                    sys.flash_read(off, 4)
+                } else {
+                    return false;
+                };
+                self.r[(rt & 15) as usize] = v;
+            }
+            MemReg { op, rt, rn, rm } => {
+                let addr = self.r[(rn & 15) as usize].wrapping_add(self.r[(rm & 15) as usize]);
+                match self.mem_fast(sys, op, rt, addr, now + 1) {
+                    Some(w) => cycles += w as u64,
+                    None => return false,
+                }
+            }
+            MemImm { op, rt, rn, imm } => {
+                let addr = self.r[(rn & 15) as usize].wrapping_add(imm as u32);
+                match self.mem_fast(sys, op, rt, addr, now + 1) {
+                    Some(w) => cycles += w as u64,
+                    None => return false,
+                }
+            }
+            Adr { rd, imm } => {
+                self.r[(rd & 15) as usize] = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32)
+            }
+            AddSpImm { rd, imm } => {
+                self.r[(rd & 15) as usize] = self.r[13].wrapping_add(imm as u32)
+            }
+            AddSp { imm } => self.r[13] = self.r[13].wrapping_add(imm as u32),
+            SubSp { imm } => self.r[13] = self.r[13].wrapping_sub(imm as u32),
+            Sxth { rd, rm } => {
+                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i16 as i32 as u32
+            }
+            Sxtb { rd, rm } => {
+                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i8 as i32 as u32
+            }
+            Uxth { rd, rm } => {
+                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as u16 as u32
+            }
+            Uxtb { rd, rm } => self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as u8 as u32,
+            Rev { rd, rm } => self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize].swap_bytes(),
+            Rev16 { rd, rm } => {
+                let x = self.r[(rm & 15) as usize];
+                self.r[(rd & 15) as usize] = ((x & 0x00ff_00ff) << 8) | ((x >> 8) & 0x00ff_00ff);
+            }
+            Revsh { rd, rm } => {
+                self.r[(rd & 15) as usize] =
+                    (self.r[(rm & 15) as usize] as u16).swap_bytes() as i16 as i32 as u32
+            }
+            Push { list } => {
+                let count = list.count_ones();
+                let base = self.r[13].wrapping_sub(4 * count);
+                let Some(mut off) = sram_range(base, count) else {
+                    return false;
+                };
+                let mut bits = list;
+                let mut at = now + 1;
+                while bits != 0 {
+                    let reg = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let w = sys.sram_write(self.id, at, off, 4, self.r[reg & 15]) as u64;
+                    cycles += w;
+                    at += 1 + w;
+                    off += 4;
+                }
+                self.r[13] = base;
+            }
+            Pop { list } => {
+                let base = self.r[13];
+                let count = list.count_ones();
+                let Some(mut off) = sram_range(base, count) else {
+                    return false;
+                };
+                if list & 0x8000 != 0 {
+                    let target = sys.sram_peek(off + 4 * (count - 1));
+                    if target & 1 == 0 || (self.ipsr != 0 && target >> 28 == 0xf) {
+                        return false;
+                    }
+                }
+                let mut bits = list;
+                let mut at = now + 1;
+                let mut values = [0u32; 16];
+                while bits != 0 {
+                    let reg = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let (v, w) = sys.sram_read(self.id, at, off, 4);
+                    values[reg & 15] = v;
+                    cycles += w as u64;
+                    at += 1 + w as u64;
+                    off += 4;
+                }
+                self.r[13] = base.wrapping_add(4 * count);
+                for (reg, value) in values.iter().enumerate().take(8) {
+                    if list & (1 << reg) != 0 {
+                        self.r[reg] = *value;
+                    }
+                }
+                if list & 0x8000 != 0 {
+                    self.r[15] = values[15] & !1;
+                    return self.retire(cycles);
+                }
+            }
+            Stm { rn, list } => {
+                let base = self.r[(rn & 15) as usize];
+                let count = list.count_ones();
+                let Some(mut off) = sram_range(base, count) else {
+                    return false;
+                };
+                let mut bits = list;
+                let mut at = now + 1;
+                while bits != 0 {
+                    let reg = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let w = sys.sram_write(self.id, at, off, 4, self.r[reg & 7]) as u64;
+                    cycles += w;
+                    at += 1 + w;
+                    off += 4;
+                }
+                self.r[(rn & 15) as usize] = base.wrapping_add(4 * count);
+            }
+            Ldm { rn, list } => {
+                let base = self.r[(rn & 15) as usize];
+                let count = list.count_ones();
+                let Some(mut off) = sram_range(base, count) else {
+                    return false;
+                };
+                let mut bits = list;
+                let mut at = now + 1;
+                let mut values = [0u32; 8];
+                while bits != 0 {
+                    let reg = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let (v, w) = sys.sram_read(self.id, at, off, 4);
+                    values[reg & 7] = v;
+                    cycles += w as u64;
+                    at += 1 + w as u64;
+                    off += 4;
+                }
+                if list & (1 << rn) == 0 {
+                    self.r[(rn & 15) as usize] = base.wrapping_add(4 * count);
+                }
+                for (reg, value) in values.iter().enumerate() {
+                    if list & (1 << reg) != 0 {
+                        self.r[reg] = *value;
+                    }
+                }
+            }
+            Hint(decode::Hint::Nop | decode::Hint::Yield) => {}
+            BCond { cond, offset } => {
+                if condition_passed(cond, self.n, self.z, self.c, self.v) {
+                    cycles = cost.1 as u64;
+                    self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
+                    return self.retire(cycles);
+                }
+            }
+            B { offset } => {
+                self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
+                return self.retire(cycles);
+            }
+            Bl { offset } => {
+                self.r[14] = next | 1;
+                self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
+                return self.retire(cycles);
+            }
+            _ => return false,
+        }
+        self.r[15] = next;
+        self.retire(cycles)
+    }
+
+    /// Counts a fast-path instruction of `cycles` cycles.
+    #[inline(always)]
+    fn retire(&mut self, cycles: u64) -> bool {
+        self.cycle += cycles;
+        self.instructions += 1;
+        true
+    }
+
+    /// A single load or store on the fast path (SRAM, or a flash load; aligned); `None`
+    /// (nothing done) for anything else. Returns the wait states.
+    #[inline(always)]
+    fn mem_fast(&mut self, sys: &mut System, op: MemOp, rt: u8, addr: u32, at: u64) -> Option<u32> {
+        let size = op.size();
+        if addr & (size - 1) != 0 {
+            return None;
+        }
+        if op.is_store() {
+            let off = sram_offset(addr)?;
+            return Some(sys.sram_write(self.id, at, off, size, self.r[(rt & 15) as usize]));
+        }
+        let (v, wait) = if let Some(off) = sram_offset(addr) {
+            sys.sram_read(self.id, at, off, size)
+        } else {
+            (sys.flash_read(flash_offset(addr)?, size), 0)
+        };
+        self.r[(rt & 15) as usize] = match op {
+            MemOp::Ldrsb => v as u8 as i8 as i32 as u32,
+            MemOp::Ldrsh => v as u16 as i16 as i32 as u32,
+            _ => v,
+        };
+        Some(wait)
     }
 
     #[inline(always)]

@@ -1,0 +1,236 @@
+//! The fast path of `Board::run_until` (decode cache, bursts, both cores interleaved in one
+//! loop) against `Board::step`, which runs the general path one instruction at a time:
+//! seeded random programs of data processing, SRAM/flash/SIO loads and stores, PUSH/POP,
+//! LDM/STM and forward branches, looping forever, on one core and on both (sharing a data
+//! area, so the SRAM banks contend), with a SysTick interrupt whose handler returns at once.
+//! After every run the cycle counters, registers, flags, instruction counts, contention
+//! stalls, stop reason and all of SRAM must agree exactly.
+
+use tactus_emulator::{Board, Config, StopReason};
+
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    fn below(&mut self, n: u32) -> u16 {
+        ((self.next() >> 33) as u32 % n) as u16
+    }
+}
+
+const DATA: u32 = 0x2002_0000;
+const SIO: u32 = 0xd000_0000;
+
+/// One random unit (one to three instructions). Registers: r0-r4 are scratch, r5 holds
+/// the SIO base, r6 the data area, r7 a small offset; SP is balanced within a unit.
+fn unit(rng: &mut Rng, out: &mut Vec<u16>) {
+    let d = rng.below(5);
+    let s = rng.below(8);
+    let t = rng.below(8);
+    match rng.below(20) {
+        0 => out.push(0x2000 | d << 8 | rng.below(256)), // movs
+        1 => out.push([0x1800, 0x1a00][rng.below(2) as usize] | t << 6 | s << 3 | d),
+        2 => out.push([0x1c00, 0x1e00][rng.below(2) as usize] | rng.below(8) << 6 | s << 3 | d),
+        3 => out.push([0x3000, 0x3800, 0x2800][rng.below(3) as usize] | d << 8 | rng.below(256)),
+        4 => out.push(
+            [0x0000, 0x0800, 0x1000][rng.below(3) as usize] | rng.below(32) << 6 | s << 3 | d,
+        ),
+        5 | 6 => out.push(0x4000 | rng.below(16) << 6 | s << 3 | d), // data processing
+        7 | 8 => {
+            // ldr/str/ldrb/strb/ldrh/strh [r6, #imm]
+            let (base, scale) = [
+                (0x6000, 4),
+                (0x6800, 4),
+                (0x7000, 1),
+                (0x7800, 1),
+                (0x8000, 2),
+                (0x8800, 2),
+            ][rng.below(6) as usize];
+            let _ = scale; // imm5 is scaled by the access size, so every offset is aligned
+            out.push(base | rng.below(32) << 6 | 6 << 3 | d)
+        }
+        9 => {
+            // register offset, all eight ops: [r6, r7]
+            let op = rng.below(8);
+            let d = if op < 3 { s.min(7) } else { d };
+            out.push(0x5000 | op << 9 | 7 << 6 | 6 << 3 | d)
+        }
+        10 => {
+            // hi registers: add / cmp / mov among r0-r4, r8-r12
+            let hi = [0, 1, 2, 3, 4, 8, 9, 10, 11, 12];
+            let rd = hi[rng.below(10) as usize];
+            let rm = hi[rng.below(10) as usize];
+            let op = [0x4400, 0x4500, 0x4600][rng.below(3) as usize];
+            out.push(op | (rd & 8) << 4 | rm << 3 | (rd & 7))
+        }
+        11 => {
+            // push {list}; one unit; pop {list}
+            let list = rng.below(32) | 1;
+            out.push(0xb400 | list | rng.below(2) << 8);
+            let lr = out.last().unwrap() & 0x100;
+            out.push(0x2000 | d << 8 | rng.below(256));
+            out.push(0xbc00 | list);
+            if lr != 0 {
+                // pop lr's slot too: add sp, #4
+                out.push(0xb001);
+            }
+        }
+        12 => {
+            // stm/ldm r6!, {list}; subs r6, #4n
+            let list = rng.below(32) | 1;
+            out.push([0xc600, 0xce00][rng.below(2) as usize] | list);
+            out.push(0x3e00 | (4 * list.count_ones() as u16));
+        }
+        13 => {
+            // forward conditional branch over 0-2 movs
+            let n = rng.below(3);
+            out.push(0xd000 | rng.below(14) << 8 | n);
+            for _ in 0..n {
+                out.push(0x2000 | d << 8 | rng.below(256));
+            }
+        }
+        14 => {
+            // SIO: CPUID, divider operands and results
+            let (offset, op) = [
+                (0x00, 0x6800), // ldr CPUID
+                (0x60, 0x6000), // str DIV_UDIVIDEND
+                (0x64, 0x6000), // str DIV_UDIVISOR
+                (0x70, 0x6800), // ldr DIV_QUOTIENT
+                (0x74, 0x6800), // ldr DIV_REMAINDER
+                (0x74, 0x6000), // str DIV_REMAINDER
+                (0x78, 0x6800), // ldr DIV_CSR
+            ][rng.below(7) as usize];
+            out.push(op | (offset / 4) << 6 | 5 << 3 | d)
+        }
+        15 => out.push(
+            [0xb2c0, 0xb280, 0xba00, 0xba40, 0xbac0, 0xb240, 0xb200][rng.below(7) as usize]
+                | s << 3
+                | d,
+        ),
+        16 => out.push(0xbf00), // nop
+        17 => {
+            // add rd, sp, #imm; adr
+            out.push([0xa800, 0xa000][rng.below(2) as usize] | d << 8 | rng.below(256))
+        }
+        18 => out.push(0x4840 | d << 8 | rng.below(4)), // ldr rd, [pc, #n] (even n*4)
+        _ => {
+            // b forward over one movs
+            out.push(0xe001);
+            out.push(0x2000 | d << 8 | rng.below(256));
+            out.push(0xbf00);
+        }
+    }
+}
+
+fn program(rng: &mut Rng) -> Vec<u16> {
+    let mut code = Vec::new();
+    while code.len() < 200 {
+        unit(rng, &mut code);
+    }
+    let back = -(code.len() as i32) * 2 - 4;
+    code.push(0xe000 | ((back >> 1) as u16 & 0x7ff)); // b start
+    code
+}
+
+fn board(rng: &mut Rng, cores: usize, in_flash: bool, systick: bool) -> Board {
+    let mut b = Board::new(Config::default());
+    let mut data = vec![0u8; 1024];
+    for x in data.iter_mut() {
+        *x = rng.next() as u8;
+    }
+    b.write_bytes(DATA, &data).unwrap();
+    // Vector table at 0x20030000: SysTick -> handler (adds r4, #1; bx lr).
+    let vtor = 0x2003_0000;
+    b.write_u32(vtor + 4 * 15, 0x2003_0101).unwrap();
+    b.write_bytes(0x2003_0100, &[0x01, 0x34, 0x70, 0x47])
+        .unwrap();
+    for core in 0..cores {
+        let code = program(rng);
+        let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+        let at = if in_flash && core == 0 {
+            0x1000_0000
+        } else {
+            0x2000_4000 + 0x1000 * core as u32
+        };
+        b.write_bytes(at, &bytes).unwrap();
+        b.start_core(core, at | 1, 0x2003_8000 + 0x1000 * core as u32, vtor);
+        let c = &mut b.cores[core];
+        for r in 0..13 {
+            c.r[r] = rng.next() as u32;
+        }
+        c.r[5] = SIO;
+        c.r[6] = DATA + 0x100 + 0x40 * core as u32;
+        c.r[7] = 4 * rng.below(16) as u32;
+        if systick {
+            c.nvic.syst_rvr = 300 + 37 * core as u32;
+            c.nvic.syst_csr = 3;
+            c.nvic.syst_next = 500 + core as u64;
+        }
+    }
+    b
+}
+
+fn state(b: &mut Board) -> String {
+    let mut s = String::new();
+    for c in &b.cores {
+        s +=
+            &format!(
+            "core {}: cycle {} instr {} r {:08x?} nzcv {}{}{}{} ipsr {} state {:?} fault {:?}\n",
+            c.id, c.cycle, c.instructions, c.r, c.n as u8, c.z as u8, c.c as u8, c.v as u8,
+            c.ipsr, c.state, c.fault
+        );
+    }
+    s += &format!("stalls {:?}\n", b.system.contention_stalls);
+    let mut sram = vec![0u8; 0x4_2000];
+    b.read_bytes(0x2000_0000, &mut sram).unwrap();
+    let h = sram.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &x| {
+        (h ^ x as u64).wrapping_mul(0x100_0000_01b3)
+    });
+    s += &format!("sram {h:016x}\n");
+    s
+}
+
+fn stepped(b: &mut Board, limit: u64) -> StopReason {
+    loop {
+        match b.step(limit) {
+            None => return StopReason::CycleLimit,
+            Some(Ok(_)) => {}
+            Some(Err(stop)) => return stop,
+        }
+    }
+}
+
+#[test]
+fn run_until_matches_single_steps() {
+    let mut rng = Rng(0x5eed_fa57);
+    let mut runs = 0;
+    for case in 0..48 {
+        let cores = 1 + case % 2;
+        let in_flash = case % 4 >= 2;
+        let systick = case % 8 >= 4;
+        let seed = rng.next();
+        let mut fast = board(&mut Rng(seed), cores, in_flash, systick);
+        let mut slow = board(&mut Rng(seed), cores, in_flash, systick);
+        // Several slices, so runs stop and resume mid-stream.
+        for slice in [1, 7, 500, 3000, 20_000] {
+            let limit = fast.cycle() + slice;
+            let a = fast.run_until(limit);
+            let b = stepped(&mut slow, limit);
+            let (sa, sb) = (state(&mut fast), state(&mut slow));
+            assert_eq!(a, b, "case {case} seed {seed:#x}: stop reasons differ");
+            assert_eq!(
+                sa, sb,
+                "case {case} seed {seed:#x} slice {slice}: states differ"
+            );
+            runs += 1;
+            if a != StopReason::CycleLimit {
+                break;
+            }
+        }
+    }
+    assert!(runs > 48);
+}
