@@ -226,6 +226,9 @@ fn define(
     };
     let b = cg::Translator::new(fp, layout, b, host).finish()?;
     b.finalize(module.target_config());
+    if std::env::var_os("TACTUS_JIT_DUMP").is_some() {
+        eprintln!("{}", ctx.func.display());
+    }
     module
         .define_function(id, &mut ctx)
         .map_err(|e| JitError::Codegen(format!("{e:?}")))?;
@@ -350,10 +353,9 @@ impl<'j> FixedJitInstance<'j> {
     /// [`Self::last_out`] holds what the last sample wrote to the `out` words.
     pub fn run_block(&mut self, sensors: &[i32], totals: &mut [i32]) -> usize {
         let ns = self.sensors.len();
-        let n = if ns == 0 {
-            totals.len()
-        } else {
-            totals.len().min(sensors.len() / ns)
+        let n = match sensors.len().checked_div(ns) {
+            Some(rows) => totals.len().min(rows),
+            None => totals.len(),
         };
         if n == 0 {
             return 0;

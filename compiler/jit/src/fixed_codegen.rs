@@ -85,7 +85,7 @@ pub struct HostFns {
 
 type Cv = cranelift_codegen::ir::Value;
 
-/// An exact intermediate: the integer `v` (type `ty`, `I64` or `I128`) standing for
+/// An exact intermediate: the integer `v` (type `ty`: `I32`, `I64` or `I128`) standing for
 /// `v · 2^-frac`, known to lie in `[lo, hi]`. Every bound stays within `±2^126`.
 #[derive(Clone, Copy, Debug)]
 struct Wide {
@@ -94,8 +94,25 @@ struct Wide {
     lo: i128,
     hi: i128,
     frac: i32,
-    /// The same value as an `i32`, when it came straight from one.
-    narrow: Option<Cv>,
+    /// The same value as a word, when it came straight from one.
+    narrow: Option<Word>,
+}
+
+/// A word: an `i32` SSA value and the interval its raw word is known to lie in, derived
+/// from the sensors' and states' raw ranges (which the native code enforces) and the
+/// constants, through the exact operations — never from the range analysis.
+#[derive(Clone, Copy, Debug)]
+struct Word {
+    v: Cv,
+    lo: i128,
+    hi: i128,
+}
+
+impl Word {
+    /// A word with no known bound.
+    fn full(v: Cv) -> Word {
+        Word { v, lo: I32_LO, hi: I32_HI }
+    }
 }
 
 const I32_LO: i128 = i32::MIN as i128;
@@ -142,8 +159,8 @@ pub struct Translator<'a, 'f> {
     remaining: Variable,
     totals: Variable,
     /// This sample's saturated sensor words.
-    sensor_words: Vec<Cv>,
-    vals: Vec<Option<Cv>>,
+    sensor_words: Vec<Word>,
+    vals: Vec<Option<Word>>,
     next_event: usize,
     exit: cranelift_codegen::ir::Block,
     header: cranelift_codegen::ir::Block,
@@ -302,7 +319,12 @@ impl<'a, 'f> Translator<'a, 'f> {
             let hi = b.ins().iconst(types::I32, i64::from(hi));
             let x = b.ins().smax(x, lo);
             let x = b.ins().smin(x, hi);
-            self.sensor_words.push(x);
+            let (lo, hi) = fp.sensor_raw_range[i];
+            self.sensor_words.push(Word {
+                v: x,
+                lo: i128::from(lo),
+                hi: i128::from(hi),
+            });
             if let (Some((pos, primed)), Some(at)) = (self.hist[i], self.layout.history[i]) {
                 self.push_history(x, pos, primed, at);
             }
@@ -376,17 +398,18 @@ impl<'a, 'f> Translator<'a, 'f> {
                     let x = self.val(*v)?;
                     let x = self.convert(x, fp.frac[v.index()], fp.state_frac[i]);
                     let (lo, hi) = fp.state_raw_range[i];
-                    let b = &mut self.b;
-                    let lo = b.ins().iconst(types::I32, i64::from(lo));
-                    let hi = b.ins().iconst(types::I32, i64::from(hi));
-                    let y = b.ins().smax(x, lo);
-                    let y = b.ins().smin(y, hi);
-                    let changed = b.ins().icmp(IntCC::NotEqual, y, x);
-                    let changed = b.ins().uextend(types::I64, changed);
-                    let n = b.use_var(self.sats[i]);
-                    let n = b.ins().iadd(n, changed);
-                    b.def_var(self.sats[i], n);
-                    b.def_var(self.states[i], y);
+                    let (lo, hi) = (i128::from(lo), i128::from(hi));
+                    let y = self.clamp_value(x.v, types::I32, x.lo, x.hi, lo, hi);
+                    if x.lo < lo || x.hi > hi {
+                        // Counted when the written word differs from the computed one.
+                        let b = &mut self.b;
+                        let changed = b.ins().icmp(IntCC::NotEqual, y, x.v);
+                        let changed = b.ins().uextend(types::I64, changed);
+                        let n = b.use_var(self.sats[i]);
+                        let n = b.ins().iadd(n, changed);
+                        b.def_var(self.sats[i], n);
+                    }
+                    self.b.def_var(self.states[i], y);
                 }
                 Stmt::SetMode(m, i) => {
                     let x = self.b.ins().iconst(types::I32, i64::from(*i as i32));
@@ -401,7 +424,7 @@ impl<'a, 'f> Translator<'a, 'f> {
                     let c = self.val(*c)?;
                     let then = self.b.create_block();
                     let join = self.b.create_block();
-                    self.b.ins().brif(c, then, &[], join, &[]);
+                    self.b.ins().brif(c.v, then, &[], join, &[]);
                     self.b.switch_to_block(then);
                     self.stmts(inner)?;
                     self.b.ins().jump(join, &[]);
@@ -422,7 +445,7 @@ impl<'a, 'f> Translator<'a, 'f> {
                         let x = self.convert(x, fp.frac[a.index()], f);
                         self.b
                             .ins()
-                            .store(self.flags, x, self.out, word(slot.offset + 1 + k));
+                            .store(self.flags, x.v, self.out, word(slot.offset + 1 + k));
                     }
                     let one = self.b.ins().iconst(types::I32, 1);
                     self.b
@@ -439,11 +462,11 @@ impl<'a, 'f> Translator<'a, 'f> {
 
     fn publish(&mut self, slot: usize, v: Value) -> Result<(), JitError> {
         let x = self.val(v)?;
-        self.b.ins().store(self.flags, x, self.out, word(slot));
+        self.b.ins().store(self.flags, x.v, self.out, word(slot));
         Ok(())
     }
 
-    fn val(&self, v: Value) -> Result<Cv, JitError> {
+    fn val(&self, v: Value) -> Result<Word, JitError> {
         self.vals
             .get(v.index())
             .copied()
@@ -452,8 +475,14 @@ impl<'a, 'f> Translator<'a, 'f> {
     }
 
     /// 0/1 of `x != 0`, as an `i32`.
-    fn truth(&mut self, x: Cv) -> Cv {
-        let t = self.b.ins().icmp_imm_s(IntCC::NotEqual, x, 0);
+    fn truth(&mut self, x: Word) -> Cv {
+        if x.lo == x.hi {
+            return self.b.ins().iconst(types::I32, i64::from(x.lo != 0));
+        }
+        if x.lo >= 0 && x.hi <= 1 {
+            return x.v;
+        }
+        let t = self.b.ins().icmp_imm_s(IntCC::NotEqual, x.v, 0);
         self.b.ins().uextend(types::I32, t)
     }
 
@@ -461,7 +490,13 @@ impl<'a, 'f> Translator<'a, 'f> {
         self.b.ins().iconst(types::I8, i64::from(t))
     }
 
-    fn op(&mut self, v: Value) -> Result<Cv, JitError> {
+    /// An `i8` truth value as a 0/1 word.
+    fn bool_word(&mut self, t: Cv) -> Word {
+        let v = self.b.ins().uextend(types::I32, t);
+        Word { v, lo: 0, hi: 1 }
+    }
+
+    fn op(&mut self, v: Value) -> Result<Word, JitError> {
         let fp = self.fp;
         let p = &fp.program;
         let fr = fp.frac[v.index()];
@@ -479,11 +514,23 @@ impl<'a, 'f> Translator<'a, 'f> {
             }
             Op::Deriv(s, order) => self.deriv(s.index(), order, fr),
             Op::State(s) => {
-                let x = self.b.use_var(self.states[s.index()]);
-                self.convert(x, fp.state_frac[s.index()], fr)
+                let i = s.index();
+                let v = self.b.use_var(self.states[i]);
+                let (lo, hi) = fp.state_raw_range[i];
+                let init = fp.state_init[i];
+                let x = Word {
+                    v,
+                    lo: i128::from(lo.min(init)),
+                    hi: i128::from(hi.max(init)),
+                };
+                self.convert(x, fp.state_frac[i], fr)
             }
-            Op::Mode(m) => self.b.use_var(self.modes[m.index()]),
-            Op::Edge(e) => self.b.use_var(self.edges[e.index()]),
+            Op::Mode(m) => Word::full(self.b.use_var(self.modes[m.index()])),
+            Op::Edge(e) => Word {
+                v: self.b.use_var(self.edges[e.index()]),
+                lo: 0,
+                hi: 1,
+            },
             Op::Neg(x) => {
                 let w = self.wide(self.val(x)?, frac(x));
                 let w = self.neg(w);
@@ -491,8 +538,8 @@ impl<'a, 'f> Translator<'a, 'f> {
             }
             Op::Not(x) => {
                 let x = self.val(x)?;
-                let t = self.b.ins().icmp_imm_s(IntCC::Equal, x, 0);
-                self.b.ins().uextend(types::I32, t)
+                let t = self.b.ins().icmp_imm_s(IntCC::Equal, x.v, 0);
+                self.bool_word(t)
             }
             Op::Arith(o, x, y) => {
                 let (a, fa, c, fc) = (self.val(x)?, frac(x), self.val(y)?, frac(y));
@@ -503,31 +550,24 @@ impl<'a, 'f> Translator<'a, 'f> {
                         let wa = self.shl(wa, (f - fa) as u32);
                         let wc = self.wide(c, fc);
                         let wc = self.shl(wc, (f - fc) as u32);
-                        let w = if o == ArithOp::Add {
-                            self.add(wa, wc)
-                        } else {
-                            let wc = self.neg(wc);
-                            self.add(wa, wc)
-                        };
+                        let wc = if o == ArithOp::Add { wc } else { self.neg(wc) };
+                        let w = self.add(wa, wc);
                         self.rescale(w, fr)
                     }
                     ArithOp::Mul => match fp.mul_kind[v.index()] {
-                        Some(MulKind::Muls(sa, sb)) => self.mul_shifted(a, fa, sa, c, fc, sb, fr),
-                        _ => self.mul(a, fa, c, fc, fr),
+                        Some(MulKind::Muls(sa, sb)) => self.mul(a, fa, sa, c, fc, sb, fr),
+                        _ => self.mul(a, fa, 0, c, fc, 0, fr),
                     },
                     ArithOp::Div => match (fp.recip[v.index()], fp.mul_kind[v.index()]) {
                         (Some((r, f)), Some(MulKind::Muls(sa, sb))) => {
                             let r = self.iconst(r);
-                            self.mul_shifted(a, fa, sa, r, f, sb, fr)
+                            self.mul(a, fa, sa, r, f, sb, fr)
                         }
                         (Some((r, f)), _) => {
                             let r = self.iconst(r);
-                            self.mul(a, fa, r, f, fr)
+                            self.mul(a, fa, 0, r, f, 0, fr)
                         }
-                        (None, _) => {
-                            let args = [a, self.iconst(fa), c, self.iconst(fc), self.iconst(fr)];
-                            self.call(self.host.div, &args)
-                        }
+                        (None, _) => self.div(a, fa, c, fc, fr),
                     },
                 }
             }
@@ -555,19 +595,17 @@ impl<'a, 'f> Translator<'a, 'f> {
                         self.cmp(cc, a, frac(x), c, frac(y))
                     }
                 };
-                self.b.ins().uextend(types::I32, t)
+                self.bool_word(t)
             }
             Op::And(x, y) | Op::Or(x, y) => {
                 let (a, c) = (self.val(x)?, self.val(y)?);
-                let b = &mut self.b;
-                let a = b.ins().icmp_imm_s(IntCC::NotEqual, a, 0);
-                let c = b.ins().icmp_imm_s(IntCC::NotEqual, c, 0);
+                let (a, c) = (self.truth(a), self.truth(c));
                 let t = if matches!(p.values[v.index()].op, Op::And(..)) {
-                    b.ins().band(a, c)
+                    self.b.ins().band(a, c)
                 } else {
-                    b.ins().bor(a, c)
+                    self.b.ins().bor(a, c)
                 };
-                b.ins().uextend(types::I32, t)
+                Word { v: t, lo: 0, hi: 1 }
             }
             Op::Select(c, x, y) => {
                 let c = self.val(c)?;
@@ -576,7 +614,7 @@ impl<'a, 'f> Translator<'a, 'f> {
                     Ty::Real(_) => (self.convert(a, frac(x), fr), self.convert(c2, frac(y), fr)),
                     _ => (a, c2),
                 };
-                self.b.ins().select(c, a, c2)
+                self.select(c.v, a, c2)
             }
             Op::Call(func, x, y) => {
                 let (a, fa) = (self.val(x)?, frac(x));
@@ -584,23 +622,38 @@ impl<'a, 'f> Translator<'a, 'f> {
                     Builtin::Abs => {
                         // a < 0 ? neg(a) : convert(a) = |a| (exact in i64), rescaled.
                         let w = self.wide(a, fa);
-                        let m = self.b.ins().iabs(w.v);
+                        let (lo, hi) = if w.lo >= 0 {
+                            (w.lo, w.hi)
+                        } else if w.hi <= 0 {
+                            (-w.hi, -w.lo)
+                        } else {
+                            (0, w.hi.max(-w.lo))
+                        };
+                        let ty = ty_for(lo, hi);
+                        let x = self.retype(w, ty);
+                        let v = self.b.ins().iabs(x);
                         let w = Wide {
-                            v: m,
-                            lo: 0,
-                            hi: -I32_LO,
+                            v,
+                            ty,
+                            lo,
+                            hi,
+                            frac: fa,
                             narrow: None,
-                            ..w
                         };
                         self.rescale(w, fr)
                     }
                     Builtin::Sqrt => {
-                        let args = [a, self.iconst(fa), self.iconst(fr)];
-                        self.call(self.host.sqrt, &args)
+                        let args = [a.v, self.iconst(fa).v, self.iconst(fr).v];
+                        // No interval: the runtime's function is the definition, whatever it
+                        // returns (its `i128` shifts can wrap in extreme formats).
+                        Word::full(self.call(self.host.sqrt, &args))
                     }
                     Builtin::Exp => {
-                        let args = [a, self.iconst(fa), self.iconst(fr)];
-                        self.call(self.host.exp, &args)
+                        let args = [a.v, self.iconst(fa).v, self.iconst(fr).v];
+                        // No interval, not even `>= 0`: for large arguments the final
+                        // `rescale` of `fixed::exp` shifts bits out of its `i128` and can
+                        // return a negative word, which the definition makes the answer.
+                        Word::full(self.call(self.host.exp, &args))
                     }
                     Builtin::Min | Builtin::Max => {
                         let (c, fc) = match y {
@@ -616,15 +669,28 @@ impl<'a, 'f> Translator<'a, 'f> {
                         let take_a = self.cmp(cc, a, fa, c, fc);
                         let a = self.convert(a, fa, fr);
                         let c = self.convert(c, fc, fr);
-                        self.b.ins().select(take_a, a, c)
+                        self.select(take_a, a, c)
                     }
                 }
             }
         })
     }
 
-    fn iconst(&mut self, x: i32) -> Cv {
-        self.b.ins().iconst(types::I32, i64::from(x))
+    fn select(&mut self, c: Cv, a: Word, b: Word) -> Word {
+        let v = self.b.ins().select(c, a.v, b.v);
+        Word {
+            v,
+            lo: a.lo.min(b.lo),
+            hi: a.hi.max(b.hi),
+        }
+    }
+
+    fn iconst(&mut self, x: i32) -> Word {
+        Word {
+            v: self.b.ins().iconst(types::I32, i64::from(x)),
+            lo: i128::from(x),
+            hi: i128::from(x),
+        }
     }
 
     fn call(&mut self, f: FuncRef, args: &[Cv]) -> Cv {
@@ -632,11 +698,62 @@ impl<'a, 'f> Translator<'a, 'f> {
         self.b.inst_results(call)[0]
     }
 
+    /// `fixed::div`, truncating toward zero; `y = 0` gives the sign of `x` saturated. With
+    /// `k = fr − fx + fy`, the quotient is `(x·2^k) / y` (`k >= 0`) or `x / (y·2^-k)`: an
+    /// `i64` division for `|k| <= 31`; for `k < −31` the divisor outweighs any `i32`, so the
+    /// quotient is 0; for `k > 31` the runtime's function is called.
+    fn div(&mut self, a: Word, fa: i32, c: Word, fc: i32, fr: i32) -> Word {
+        let k = fr - fa + fc;
+        if k > 31 {
+            let args = [a.v, self.iconst(fa).v, c.v, self.iconst(fr).v];
+            let args = [args[0], args[1], args[2], self.iconst(fc).v, args[3]];
+            let v = self.call(self.host.div, &args);
+            return Word::full(v);
+        }
+        let may_be_zero = c.lo <= 0 && c.hi >= 0;
+        let b = &mut self.b;
+        let q = if k < -31 {
+            Word { v: b.ins().iconst(types::I32, 0), lo: 0, hi: 0 }
+        } else {
+            let one = b.ins().iconst(types::I32, 1);
+            let y = if may_be_zero {
+                let z = b.ins().icmp_imm_s(IntCC::Equal, c.v, 0);
+                b.ins().select(z, one, c.v)
+            } else {
+                c.v
+            };
+            let n = b.ins().sextend(types::I64, a.v);
+            let d = b.ins().sextend(types::I64, y);
+            let (n, d) = if k >= 0 {
+                (b.ins().ishl_imm_s(n, i64::from(k)), d)
+            } else {
+                (n, b.ins().ishl_imm_s(d, i64::from(-k)))
+            };
+            let q = b.ins().sdiv(n, d);
+            let m = a.lo.abs().max(a.hi.abs()) << k.max(0);
+            self.narrow(q, types::I64, -m, m)
+        };
+        if !may_be_zero {
+            return q;
+        }
+        let b = &mut self.b;
+        let max = b.ins().iconst(types::I32, I32_HI as i64);
+        let min = b.ins().iconst(types::I32, I32_LO as i64);
+        let zero = b.ins().iconst(types::I32, 0);
+        let pos = b.ins().icmp_imm_s(IntCC::SignedGreaterThan, a.v, 0);
+        let neg = b.ins().icmp_imm_s(IntCC::SignedLessThan, a.v, 0);
+        let s = b.ins().select(neg, min, zero);
+        let s = b.ins().select(pos, max, s);
+        let z = b.ins().icmp_imm_s(IntCC::Equal, c.v, 0);
+        let v = b.ins().select(z, s, q.v);
+        Word::full(v)
+    }
+
     /// `d()`/`d2()`: the exact history difference times the gain, rounded to `fr`. As the
     /// interpreter: order 1 takes `diff1`, every other order `diff2`; the gain is
     /// `deriv_gain[min(order − 1, 1)]` (order 0 takes gain 0); a sensor without history
     /// (not differentiated) differentiates to 0.
-    fn deriv(&mut self, s: usize, order: u8, fr: i32) -> Cv {
+    fn deriv(&mut self, s: usize, order: u8, fr: i32) -> Word {
         let fp = self.fp;
         let (k, fk) = fp.deriv_gain[(order as usize).saturating_sub(1).min(1)];
         let from = fp.sensor_frac[s] + fk;
@@ -645,7 +762,7 @@ impl<'a, 'f> Translator<'a, 'f> {
         };
         let (slo, shi) = fp.sensor_raw_range[s];
         let span = i128::from(shi) - i128::from(slo);
-        let x0 = self.sensor_words[s];
+        let x0 = self.sensor_words[s].v;
         let b = &mut self.b;
         let x0 = b.ins().sextend(types::I64, x0);
         let x8 = self.ago(pos, at, WINDOW);
@@ -682,68 +799,68 @@ impl<'a, 'f> Translator<'a, 'f> {
         self.rescale(w, fr)
     }
 
-    /// `fixed::mul`: the exact 64-bit product rounded once.
-    fn mul(&mut self, a: Cv, fa: i32, c: Cv, fc: i32, fr: i32) -> Cv {
-        let wa = self.wide(a, fa);
-        let wc = self.wide(c, fc);
-        let v = self.b.ins().imul(wa.v, wc.v);
-        let m = I32_LO * I32_LO;
-        let w = Wide {
-            v,
-            ty: types::I64,
-            lo: I32_LO * I32_HI,
-            hi: m,
-            frac: fa + fc,
-            narrow: None,
-        };
-        self.rescale(w, fr)
-    }
-
-    /// `fixed::mul_shifted`: operands floored by `sa`, `sb` bits, exact product rounded once.
+    /// `fixed::mul_shifted` (`fixed::mul` when `sa = sb = 0`): operands floored by `sa`,
+    /// `sb` bits, their exact product rounded once.
     #[allow(clippy::too_many_arguments)]
-    fn mul_shifted(&mut self, a: Cv, fa: i32, sa: u8, c: Cv, fc: i32, sb: u8, fr: i32) -> Cv {
-        let (ka, kc) = (sa.min(31), sb.min(31));
-        let b = &mut self.b;
-        let a = b.ins().sshr_imm_s(a, i64::from(ka));
-        let c = b.ins().sshr_imm_s(c, i64::from(kc));
-        let (alo, ahi) = (I32_LO >> ka, I32_HI >> ka);
-        let (clo, chi) = (I32_LO >> kc, I32_HI >> kc);
-        let corners = [alo * clo, alo * chi, ahi * clo, ahi * chi];
-        let a = b.ins().sextend(types::I64, a);
-        let c = b.ins().sextend(types::I64, c);
-        let v = b.ins().imul(a, c);
+    fn mul(&mut self, a: Word, fa: i32, sa: u8, c: Word, fc: i32, sb: u8, fr: i32) -> Word {
+        let (ka, kc) = (u32::from(sa.min(31)), u32::from(sb.min(31)));
+        let a = self.sshr(a, ka);
+        let c = self.sshr(c, kc);
+        let corners = [a.lo * c.lo, a.lo * c.hi, a.hi * c.lo, a.hi * c.hi];
+        let lo = corners.iter().copied().min().unwrap_or(0);
+        let hi = corners.iter().copied().max().unwrap_or(0);
+        let ty = ty_for(lo, hi);
+        let x = self.retype(self.wide(a, 0), ty);
+        let y = self.retype(self.wide(c, 0), ty);
+        let v = self.b.ins().imul(x, y);
         let w = Wide {
             v,
-            ty: types::I64,
-            lo: corners.iter().copied().min().unwrap_or(0),
-            hi: corners.iter().copied().max().unwrap_or(0),
+            ty,
+            lo,
+            hi,
             frac: fa - i32::from(sa) + fc - i32::from(sb),
             narrow: None,
         };
         self.rescale(w, fr)
     }
 
+    /// `x >> s` (floor).
+    fn sshr(&mut self, x: Word, s: u32) -> Word {
+        if s == 0 {
+            return x;
+        }
+        Word {
+            v: self.b.ins().sshr_imm_s(x.v, i64::from(s)),
+            lo: x.lo >> s,
+            hi: x.hi >> s,
+        }
+    }
+
     /// The exact order of `a·2^-fa` and `c·2^-fc` under `cc`, as an `i8` truth value. The
     /// coarser operand is aligned by at most 32 bits: beyond 31, a non-zero operand already
     /// outweighs any `i32` of the finer format, so the order is unchanged.
-    fn cmp(&mut self, cc: IntCC, a: Cv, fa: i32, c: Cv, fc: i32) -> Cv {
+    fn cmp(&mut self, cc: IntCC, a: Word, fa: i32, c: Word, fc: i32) -> Cv {
         if fa == fc {
-            return self.b.ins().icmp(cc, a, c);
+            return self.b.ins().icmp(cc, a.v, c.v);
         }
-        let b = &mut self.b;
-        let mut a = b.ins().sextend(types::I64, a);
-        let mut c = b.ins().sextend(types::I64, c);
-        if fa < fc {
-            a = b.ins().ishl_imm_s(a, i64::from((fc - fa).min(32)));
+        let (sa, sc) = if fa < fc {
+            ((fc - fa).min(32) as u32, 0)
         } else {
-            c = b.ins().ishl_imm_s(c, i64::from((fa - fc).min(32)));
-        }
-        b.ins().icmp(cc, a, c)
+            (0, (fa - fc).min(32) as u32)
+        };
+        let ty = ty_for((a.lo << sa).min(c.lo << sc), (a.hi << sa).max(c.hi << sc));
+        let ty = if ty == types::I128 { types::I64 } else { ty };
+        let x = self.retype(self.wide(a, 0), ty);
+        let y = self.retype(self.wide(c, 0), ty);
+        let b = &mut self.b;
+        let x = if sa > 0 { b.ins().ishl_imm_s(x, i64::from(sa)) } else { x };
+        let y = if sc > 0 { b.ins().ishl_imm_s(y, i64::from(sc)) } else { y };
+        b.ins().icmp(cc, x, y)
     }
 
     /// `fixed::cmp_const(a, fa, k)` under `o` (with the order reversed when the constant is
     /// the left operand), as an `i8` truth value: integer thresholds on the raw word.
-    fn cmp_const(&mut self, o: CmpOp, a: Cv, fa: i32, k: f64, reversed: bool) -> Cv {
+    fn cmp_const(&mut self, o: CmpOp, a: Word, fa: i32, k: f64, reversed: bool) -> Cv {
         // The order is Less below `l`, Greater from `g` on, Equal in between.
         let l = first_true(|x| fx::cmp_const(x, fa, k) != Ordering::Less);
         let g = first_true(|x| fx::cmp_const(x, fa, k) == Ordering::Greater);
@@ -790,36 +907,39 @@ impl<'a, 'f> Translator<'a, 'f> {
         }
     }
 
-    /// `a < t` for a threshold `t` in `[i32::MIN, i32::MAX + 1]`, as an `i8`.
-    fn below(&mut self, a: Cv, t: i64) -> Cv {
-        if t <= i64::from(i32::MIN) {
-            self.bool_const(false)
-        } else if t > i64::from(i32::MAX) {
+    /// `a < t` for a threshold `t` in `[i32::MIN, i32::MAX + 1]`, as an `i8`; a constant
+    /// when `a`'s interval decides it.
+    fn below(&mut self, a: Word, t: i64) -> Cv {
+        let t128 = i128::from(t);
+        if a.hi < t128 {
             self.bool_const(true)
+        } else if a.lo >= t128 {
+            self.bool_const(false)
         } else {
-            self.b.ins().icmp_imm_s(IntCC::SignedLessThan, a, t)
+            self.b.ins().icmp_imm_s(IntCC::SignedLessThan, a.v, t)
         }
     }
 
-    /// An `i32` word as an exact intermediate.
-    fn wide(&mut self, x: Cv, frac: i32) -> Wide {
-        let v = self.b.ins().sextend(types::I64, x);
+    /// A word as an exact intermediate.
+    fn wide(&self, x: Word, frac: i32) -> Wide {
         Wide {
-            v,
-            ty: types::I64,
-            lo: I32_LO,
-            hi: I32_HI,
+            v: x.v,
+            ty: types::I32,
+            lo: x.lo,
+            hi: x.hi,
             frac,
             narrow: Some(x),
         }
     }
 
-    /// `w` in type `ty` (widening always; narrowing only when its interval fits).
+    /// `w` in type `ty`: sign-extended to a wider type, or reduced to a narrower one —
+    /// exact when `w`'s interval fits `ty`, and otherwise correct modulo `2^bits(ty)`, which
+    /// suffices when only ring operations (add, neg, mul, shl) follow and their result fits.
     fn retype(&mut self, w: Wide, ty: Type) -> Cv {
         if w.ty == ty {
             w.v
-        } else if ty == types::I128 {
-            self.b.ins().sextend(types::I128, w.v)
+        } else if w.ty.bits() < ty.bits() {
+            self.b.ins().sextend(ty, w.v)
         } else {
             self.b.ins().ireduce(ty, w.v)
         }
@@ -840,21 +960,20 @@ impl<'a, 'f> Translator<'a, 'f> {
         }
         let (lo, hi) = (w.lo << s, w.hi << s);
         let frac = w.frac + s as i32;
-        if fits64(lo, hi) {
-            let x = self.retype(w, types::I64);
-            let v = self.b.ins().ishl_imm_s(x, i64::from(s));
-            Wide { v, ty: types::I64, lo, hi, frac, narrow: None }
-        } else {
-            let x = self.retype(w, types::I128);
+        let ty = ty_for(lo, hi);
+        let x = self.retype(w, ty);
+        let v = if ty == types::I128 {
             let s = self.b.ins().iconst(types::I64, i64::from(s));
-            let v = self.b.ins().ishl(x, s);
-            Wide { v, ty: types::I128, lo, hi, frac, narrow: None }
-        }
+            self.b.ins().ishl(x, s)
+        } else {
+            self.b.ins().ishl_imm_s(x, i64::from(s))
+        };
+        Wide { v, ty, lo, hi, frac, narrow: None }
     }
 
     fn neg(&mut self, w: Wide) -> Wide {
         let (lo, hi) = (-w.hi, -w.lo);
-        let ty = if fits64(lo, hi) { w.ty } else { types::I128 };
+        let ty = ty_for(lo, hi);
         let x = self.retype(w, ty);
         let v = self.b.ins().ineg(x);
         Wide { v, ty, lo, hi, frac: w.frac, narrow: None }
@@ -863,18 +982,14 @@ impl<'a, 'f> Translator<'a, 'f> {
     /// Exact sum of two intermediates in the same format.
     fn add(&mut self, x: Wide, y: Wide) -> Wide {
         let (lo, hi) = (x.lo + y.lo, x.hi + y.hi);
-        let ty = if fits64(lo, hi) && x.ty == types::I64 && y.ty == types::I64 {
-            types::I64
-        } else {
-            types::I128
-        };
+        let ty = ty_for(lo, hi);
         let (a, c) = (self.retype(x, ty), self.retype(y, ty));
         let v = self.b.ins().iadd(a, c);
         Wide { v, ty, lo, hi, frac: x.frac, narrow: None }
     }
 
     /// A word converted between formats: `fixed::convert`.
-    fn convert(&mut self, x: Cv, from: i32, to: i32) -> Cv {
+    fn convert(&mut self, x: Word, from: i32, to: i32) -> Word {
         if from == to {
             return x;
         }
@@ -883,7 +998,7 @@ impl<'a, 'f> Translator<'a, 'f> {
     }
 
     /// `sat32(rescale(w, w.frac, to))`: rounded half up to `to`, saturated.
-    fn rescale(&mut self, w: Wide, to: i32) -> Cv {
+    fn rescale(&mut self, w: Wide, to: i32) -> Word {
         let s = to - w.frac;
         if s == 0 {
             if let Some(x) = w.narrow {
@@ -893,55 +1008,48 @@ impl<'a, 'f> Translator<'a, 'f> {
         if s >= 0 {
             let s = s as u32;
             if s <= 62 && w.lo >= (i64::MIN >> s) as i128 && w.hi <= (i64::MAX >> s) as i128 {
-                // Exact in i64.
-                let x = self.retype(w, types::I64);
+                // Exact.
+                let (lo, hi) = (w.lo << s, w.hi << s);
+                let ty = ty_for(lo, hi);
+                let x = self.retype(w, ty);
                 let v = if s == 0 { x } else { self.b.ins().ishl_imm_s(x, i64::from(s)) };
-                return self.narrow(v, types::I64, w.lo << s, w.hi << s);
+                return self.narrow(v, ty, lo, hi);
             }
             // Would not fit: clamp to ±2^31 (which saturates after any shift >= 1 exactly
             // when the exact value does, to the same side), shift at most 32.
             let lim = 1i128 << 31;
             let (lo, hi) = (w.lo.max(-lim), w.hi.min(lim));
-            let x = self.clamp(w, -lim, lim);
-            let x = if w.ty == types::I128 {
-                self.b.ins().ireduce(types::I64, x)
-            } else {
-                x
-            };
+            let x = self.clamp_value(w.v, w.ty, w.lo, w.hi, -lim, lim);
+            let x = self.retype(Wide { v: x, lo, hi, ..w }, types::I64);
             let s = s.min(32);
             let v = self.b.ins().ishl_imm_s(x, i64::from(s));
             return self.narrow(v, types::I64, lo << s, hi << s);
         }
         let r = (-s) as u32;
         if r > 126 {
-            return self.b.ins().iconst(types::I32, 0);
+            return self.iconst(0);
         }
         let half = 1i128 << (r - 1);
         let (lo, hi) = ((w.lo + half) >> r, (w.hi + half) >> r);
         if lo == hi {
-            let c = lo.clamp(I32_LO, I32_HI);
-            return self.b.ins().iconst(types::I32, c as i64);
+            return self.iconst(lo.clamp(I32_LO, I32_HI) as i32);
         }
-        if fits64(w.lo + half, w.hi + half) && r < 64 {
-            let x = self.retype(w, types::I64);
-            let x = self.b.ins().iadd_imm_s(x, half as i64);
-            let v = self.b.ins().sshr_imm_s(x, i64::from(r));
-            self.narrow(v, types::I64, lo, hi)
-        } else {
-            let x = self.retype(w, types::I128);
+        let ty = ty_for(w.lo + half, w.hi + half);
+        let x = self.retype(w, ty);
+        let v = if ty == types::I128 {
             let h = self.const128(half);
             let x = self.b.ins().iadd(x, h);
             let r = self.b.ins().iconst(types::I64, i64::from(r));
-            let v = self.b.ins().sshr(x, r);
-            self.narrow(v, types::I128, lo, hi)
-        }
+            self.b.ins().sshr(x, r)
+        } else {
+            let x = self.b.ins().iadd_imm_s(x, half as i64);
+            self.b.ins().sshr_imm_s(x, i64::from(r))
+        };
+        self.narrow(v, ty, lo, hi)
     }
 
-    /// `w.v` clamped to `[lo, hi]` (in `w.ty`), only on the sides `w`'s interval crosses.
-    fn clamp(&mut self, w: Wide, lo: i128, hi: i128) -> Cv {
-        self.clamp_value(w.v, w.ty, w.lo, w.hi, lo, hi)
-    }
-
+    /// `v` (type `ty`, in `[vlo, vhi]`) clamped to `[lo, hi]`, only on the sides the
+    /// interval crosses.
     fn clamp_value(&mut self, mut v: Cv, ty: Type, vlo: i128, vhi: i128, lo: i128, hi: i128) -> Cv {
         for (bound, crosses, cc) in [
             (lo, vlo < lo, IntCC::SignedLessThan),
@@ -966,11 +1074,11 @@ impl<'a, 'f> Translator<'a, 'f> {
         v
     }
 
-    /// `sat32` of `v` (type `ty`, interval `[lo, hi]`) as an `i32`.
-    fn narrow(&mut self, v: Cv, ty: Type, lo: i128, hi: i128) -> Cv {
-        if lo == hi {
-            let c = lo.clamp(I32_LO, I32_HI);
-            return self.b.ins().iconst(types::I32, c as i64);
+    /// `sat32` of `v` (type `ty`, interval `[lo, hi]`) as a word.
+    fn narrow(&mut self, v: Cv, ty: Type, lo: i128, hi: i128) -> Word {
+        let (clo, chi) = (lo.clamp(I32_LO, I32_HI), hi.clamp(I32_LO, I32_HI));
+        if clo == chi {
+            return self.iconst(clo as i32);
         }
         let v = self.clamp_value(v, ty, lo, hi, I32_LO, I32_HI);
         let v = if ty == types::I128 {
@@ -978,7 +1086,23 @@ impl<'a, 'f> Translator<'a, 'f> {
         } else {
             v
         };
-        self.b.ins().ireduce(types::I32, v)
+        let v = if ty == types::I32 {
+            v
+        } else {
+            self.b.ins().ireduce(types::I32, v)
+        };
+        Word { v, lo: clo, hi: chi }
+    }
+}
+
+/// The narrowest of `i32`, `i64`, `i128` holding `[lo, hi]`.
+fn ty_for(lo: i128, hi: i128) -> Type {
+    if lo >= I32_LO && hi <= I32_HI {
+        types::I32
+    } else if fits64(lo, hi) {
+        types::I64
+    } else {
+        types::I128
     }
 }
 
