@@ -28,6 +28,7 @@ use crate::bus::{sram_location, Bus, System, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
 use crate::decode::{decode, is_32bit, Instr};
 use crate::elf::{self, ElfError, Image};
+use crate::fast::Op;
 use crate::nvic::{IRQ0, SVCALL};
 use crate::timing::cycles;
 use std::fmt;
@@ -157,16 +158,24 @@ struct Launch {
     words: [u32; 6],
 }
 
-/// Decode cache entry: the instruction and its size, tagged by its address and halfwords.
+/// Decode cache entry: the instruction, its pre-decoded fast-path form and its size,
+/// tagged by its address and the code epoch.
 #[derive(Clone, Copy)]
 struct Cached {
-    addr: u32,
-    /// [`System::code_epoch`] when decoded.
-    epoch: u32,
+    /// [`cache_key`] of the address and the [`System::code_epoch`] when decoded.
+    key: u64,
+    op: Op,
     instr: Instr,
     size: u32,
     /// Cycles from the timing table: (not taken, taken).
     cost: (u8, u8),
+}
+
+/// Decode cache tag: the instruction's address and the code epoch in one word (addresses
+/// are even, so the empty tag `u64::MAX` never matches).
+#[inline(always)]
+fn cache_key(pc: u32, epoch: u32) -> u64 {
+    (epoch as u64) << 32 | pc as u64
 }
 
 const CACHE_SLOTS: usize = 1 << 14;
@@ -183,7 +192,7 @@ pub struct Board {
     pub image: Image,
     profiles: Vec<Profile>,
     launch: Option<Launch>,
-    cache: Vec<Cached>,
+    cache: Box<[Cached; CACHE_SLOTS]>,
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
@@ -204,14 +213,17 @@ impl Board {
             lines_epoch: u64::MAX,
             cache: vec![
                 Cached {
-                    addr: u32::MAX,
-                    epoch: 0,
+                    key: u64::MAX,
+                    op: Op::Other,
                     instr: Instr::Undefined { hw1: 0, hw2: 0 },
                     size: 2,
                     cost: (0, 0)
                 };
                 CACHE_SLOTS
-            ],
+            ]
+            .into_boxed_slice()
+            .try_into()
+            .unwrap_or_else(|_| unreachable!()),
         }
     }
 
@@ -529,11 +541,18 @@ impl Board {
             }
             let pc = core.r[15];
             let slot = &self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
-            if slot.addr != pc || slot.epoch != self.system.code_epoch {
+            if slot.key != cache_key(pc, self.system.code_epoch) {
                 return (k, self.step_cached::<false>(k, self.lines));
             }
-            let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
-            if !core.execute_fast(&mut self.system, instr, pc, size, cost) {
+            if !core.execute_op(
+                &mut self.system,
+                &slot.op,
+                &slot.instr,
+                pc,
+                slot.size,
+                slot.cost,
+            ) {
+                let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
                 return (
                     k,
                     core.run_priced::<_, false>(&mut self.system, pc, instr, size, Some(cost)),
@@ -642,7 +661,7 @@ impl Board {
             return core.step(&mut self.system, lines);
         }
         let slot = &mut self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
-        if slot.addr != pc || slot.epoch != self.system.code_epoch {
+        if slot.key != cache_key(pc, self.system.code_epoch) {
             let Ok(hw1) = self.system.fetch(pc) else {
                 return core.step(&mut self.system, lines);
             };
@@ -665,8 +684,8 @@ impl Board {
                 cycles(&instr, true, false) as u8,
             );
             *slot = Cached {
-                addr: pc,
-                epoch: self.system.code_epoch,
+                key: cache_key(pc, self.system.code_epoch),
+                op: Op::new(&instr, pc),
                 instr,
                 size,
                 cost,

@@ -80,7 +80,7 @@ fn sram_range(base: u32, count: u32) -> Option<u32> {
 
 impl Core {
     #[inline]
-    fn nz(&mut self, r: u32) {
+    pub(crate) fn nz(&mut self, r: u32) {
         self.n = (r as i32) < 0;
         self.z = r == 0;
     }
@@ -725,7 +725,7 @@ impl Core {
 
     /// Counts a fast-path instruction of `cycles` cycles.
     #[inline(always)]
-    fn retire(&mut self, cycles: u64) -> bool {
+    pub(crate) fn retire(&mut self, cycles: u64) -> bool {
         self.cycle += cycles;
         self.instructions += 1;
         true
@@ -734,7 +734,14 @@ impl Core {
     /// A single load or store on the fast path (SRAM, or a flash load; aligned); `None`
     /// (nothing done) for anything else. Returns the wait states.
     #[inline(always)]
-    fn mem_fast(&mut self, sys: &mut System, op: MemOp, rt: u8, addr: u32, at: u64) -> Option<u32> {
+    pub(crate) fn mem_fast(
+        &mut self,
+        sys: &mut System,
+        op: MemOp,
+        rt: u8,
+        addr: u32,
+        at: u64,
+    ) -> Option<u32> {
         let size = op.size();
         if addr & (size - 1) != 0 {
             return None;
@@ -757,7 +764,7 @@ impl Core {
     }
 
     #[inline(always)]
-    fn alu(&mut self, op: AluOp, d: usize, m: u32) {
+    pub(crate) fn alu(&mut self, op: AluOp, d: usize, m: u32) {
         let x = self.r[d];
         let shift = m & 0xff;
         let r = match op {

@@ -15,6 +15,7 @@ pub mod core;
 pub mod decode;
 pub mod elf;
 pub mod exec;
+mod fast;
 pub mod nvic;
 pub mod sio;
 pub mod timer;
