@@ -529,36 +529,29 @@ impl Board {
     /// re-checks everything as before. Returns the core that ran last and its event.
     #[inline(always)]
     fn fast_run<const BOTH: bool>(&mut self, k: usize, deadline: [u64; 2]) -> (usize, Event) {
-        loop {
-            let k = if BOTH {
-                (self.cores[1].cycle < self.cores[0].cycle) as usize
-            } else {
-                k
-            };
-            let core = &mut self.cores[k];
-            if core.cycle >= deadline[k] {
-                return (k, Event::None);
-            }
-            let pc = core.r[15];
-            let slot = &self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
-            if slot.key != cache_key(pc, self.system.code_epoch) {
-                return (k, self.step_cached::<false>(k, self.lines));
-            }
-            if !core.execute_op(
+        let (k, exit) = if BOTH {
+            run_both(&mut self.cores, &mut self.system, &self.cache, deadline)
+        } else {
+            let exit = run_one(
+                &mut self.cores[k],
                 &mut self.system,
-                &slot.op,
-                &slot.instr,
-                pc,
-                slot.size,
-                slot.cost,
-            ) {
+                &self.cache,
+                deadline[k],
+            );
+            (k, exit)
+        };
+        let event = match exit {
+            Exit::Deadline => Event::None,
+            Exit::Miss => self.step_cached::<false>(k, self.lines),
+            Exit::General => {
+                let core = &mut self.cores[k];
+                let pc = core.r[15];
+                let slot = &self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
                 let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
-                return (
-                    k,
-                    core.run_priced::<_, false>(&mut self.system, pc, instr, size, Some(cost)),
-                );
+                core.run_priced::<_, false>(&mut self.system, pc, instr, size, Some(cost))
             }
-        }
+        };
+        (k, event)
     }
 
     /// Applies a step's event; `Some` when the run must stop.
@@ -725,6 +718,72 @@ impl Board {
             return None;
         }
         self.system.sio.fifo_pop(1)
+    }
+}
+
+/// Why a fast-path run ([`run_one`], [`run_both`]) returned.
+enum Exit {
+    /// The core to run reached its deadline.
+    Deadline,
+    /// The core's next instruction is not in the decode cache.
+    Miss,
+    /// The core's next instruction (in the cache) needs the general path.
+    General,
+}
+
+/// One step of the fast path for `core`: false (and nothing done) with the reason when
+/// it must leave.
+#[inline(always)]
+fn fast_step(
+    core: &mut Core,
+    sys: &mut System,
+    cache: &[Cached; CACHE_SLOTS],
+    deadline: u64,
+) -> Result<(), Exit> {
+    if core.cycle >= deadline {
+        return Err(Exit::Deadline);
+    }
+    let pc = core.r[15];
+    let slot = &cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+    if slot.key != cache_key(pc, sys.code_epoch) {
+        return Err(Exit::Miss);
+    }
+    if !core.execute_op(sys, &slot.op, &slot.instr, pc, slot.size, slot.cost) {
+        return Err(Exit::General);
+    }
+    Ok(())
+}
+
+/// The fast path on one core until it must leave. A separate function whose arguments
+/// cannot alias, so the compiler may keep the core's counters in registers.
+#[inline(never)]
+fn run_one(
+    core: &mut Core,
+    sys: &mut System,
+    cache: &[Cached; CACHE_SLOTS],
+    deadline: u64,
+) -> Exit {
+    loop {
+        if let Err(exit) = fast_step(core, sys, cache, deadline) {
+            return exit;
+        }
+    }
+}
+
+/// The fast path on both cores in lock-step order (the core that is behind, core 0 on
+/// ties) until the core whose turn it is must leave; returns that core.
+#[inline(never)]
+fn run_both(
+    cores: &mut [Core; 2],
+    sys: &mut System,
+    cache: &[Cached; CACHE_SLOTS],
+    deadline: [u64; 2],
+) -> (usize, Exit) {
+    loop {
+        let k = (cores[1].cycle < cores[0].cycle) as usize;
+        if let Err(exit) = fast_step(&mut cores[k], sys, cache, deadline[k]) {
+            return (k, exit);
+        }
     }
 }
 

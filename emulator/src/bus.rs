@@ -107,10 +107,11 @@ pub struct System {
 
 #[inline(always)]
 fn load_le(mem: &[u8], off: usize, size: u32) -> u32 {
+    // One bounds check per access (the fixed-size conversions cannot fail).
     match size {
         1 => mem[off] as u32,
-        2 => u16::from_le_bytes([mem[off], mem[off + 1]]) as u32,
-        _ => u32::from_le_bytes([mem[off], mem[off + 1], mem[off + 2], mem[off + 3]]),
+        2 => u16::from_le_bytes(mem[off..off + 2].try_into().unwrap_or([0; 2])) as u32,
+        _ => u32::from_le_bytes(mem[off..off + 4].try_into().unwrap_or([0; 4])),
     }
 }
 
