@@ -27,6 +27,10 @@ pub struct SimArgs {
     /// the firmware computes).
     #[arg(long, value_enum, default_value = "f64")]
     pub numeric: Numeric,
+    /// Engine: `interp` (the interpreters that define the semantics) or `jit` (cranelift,
+    /// native code on this machine; f64 only for now).
+    #[arg(long, value_enum, default_value = "interp")]
+    pub engine: EngineKind,
     /// Directory for the trace and plots (created if missing).
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
@@ -39,6 +43,33 @@ pub enum Numeric {
     F64,
     /// 32-bit fixed point with the compiler's formats.
     Fixed,
+}
+
+/// Engine of `tactus sim`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EngineKind {
+    /// The reference interpreters.
+    Interp,
+    /// Cranelift JIT.
+    Jit,
+}
+
+/// The JIT seen as a simulation engine.
+struct JitEngine<'j>(tactus_jit::JitInstance<'j>);
+
+impl tactus_compiler::sim::Engine for JitEngine<'_> {
+    fn step_si(&mut self, sensors: &[f64]) -> tactus_compiler::interp::SampleOut {
+        self.0.step(sensors).clone()
+    }
+    fn states_si(&self) -> Vec<f64> {
+        self.0.states().to_vec()
+    }
+    fn modes_now(&self) -> Vec<u32> {
+        self.0.modes().to_vec()
+    }
+    fn state_saturations(&self) -> Vec<u64> {
+        self.0.saturations().to_vec()
+    }
 }
 
 fn stimulus_help() -> String {
@@ -88,9 +119,17 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
         stimulus::builtin(&args.stimulus, dip_m, fs)
     }
     .map_err(|e| e.to_string())?;
-    let (trace, summary) = match args.numeric {
-        Numeric::F64 => tactus_compiler::sim::simulate(program, &stim),
-        Numeric::Fixed => {
+    let (trace, summary) = match (args.numeric, args.engine) {
+        (Numeric::F64, EngineKind::Interp) => tactus_compiler::sim::simulate(program, &stim),
+        (Numeric::F64, EngineKind::Jit) => {
+            let jit = tactus_jit::JitProgram::compile(program).map_err(|e| format!("JIT: {e}"))?;
+            let mut engine = JitEngine(tactus_jit::JitInstance::new(&jit));
+            tactus_compiler::sim::simulate_with(program, &mut engine, &stim)
+        }
+        (Numeric::Fixed, EngineKind::Jit) => {
+            return Err("the fixed-point JIT is not built yet: use `--engine interp --numeric fixed`, or `--engine jit` with f64".into());
+        }
+        (Numeric::Fixed, EngineKind::Interp) => {
             let fp = tactus_compiler::fixed::FixedProgram::new(program);
             let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
                 codespan_reporting::term::termcolor::ColorChoice::Auto,
@@ -103,7 +142,11 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
-    let suffix = if args.numeric == Numeric::Fixed { "-fixed" } else { "" };
+    let suffix = match (args.numeric, args.engine) {
+        (Numeric::Fixed, _) => "-fixed",
+        (Numeric::F64, EngineKind::Jit) => "-jit",
+        _ => "",
+    };
     let stem = format!("{}-{}{suffix}", program.name, stim.name.trim_end_matches(".csv"));
     let csv = args.out.join(format!("{stem}.csv"));
     trace.write_csv_file(&csv).map_err(|e| e.to_string())?;
