@@ -8,6 +8,7 @@
 pub mod differentiator;
 pub mod fixed;
 pub mod limiter;
+pub mod performance;
 pub mod rng;
 pub mod stimulus;
 pub mod trace;

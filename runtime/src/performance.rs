@@ -1,0 +1,347 @@
+//! Recorded performances: MIDI files → notes → key trajectories (the "player").
+//!
+//! **Reading.** A standard MIDI file (format 0 or 1) is read with `midly`; tempo changes are
+//! honoured (SMPTE time codes too), a note-on with velocity 0 is a note-off, and the sustain
+//! pedal (controller 64, ≥ 64 = down) is kept as a list of changes. Every note-on is paired
+//! with the next note-off of the same key and channel; a note still sounding at the end of
+//! the file ends there.
+//!
+//! **The key-motion model.** A recorded note-on (a Disklavier records it when the hammer
+//! reaches the string) becomes a key press that reaches the key bottom at the note-on time:
+//!
+//! * descent time from velocity, log-linear between the literature's end points (Tactus
+//!   DESIGN.md: the key reaches bottom ≈ 160 ms after the start at *piano*, ≈ 25 ms at
+//!   *forte*), which we assign to MIDI velocities 30 and 100:
+//!   `T(v) = 160 ms · (25/160)^((v − 30)/70)`, clamped to [20 ms, 250 ms]. MIDI velocity
+//!   is close to logarithmic in hammer speed on reproducing pianos, so a log-linear map of
+//!   travel time keeps the order of velocities (the property the tests rely on);
+//! * the press follows the cycloidal law of [`crate::stimulus`] (smooth to the second
+//!   derivative) from wherever the key is, so a repeated note that comes before the key is
+//!   back up re-strikes from a half-released key;
+//! * the key is held at the bottom until the note-off, then released over
+//!   [`RELEASE_S`] (60 ms) back to rest, unless the next press of that key starts first.
+//!
+//! The sustain pedal does not move keys (it lifts dampers), so it is read but not played.
+
+use midly::{MetaMessage, MidiMessage, Smf, Timing, TrackEventKind};
+use std::fmt;
+use std::path::Path;
+
+/// Key release time, s.
+pub const RELEASE_S: f64 = 0.060;
+
+/// One note of a performance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Note {
+    /// MIDI key number (21 = A0 … 108 = C8 on a piano).
+    pub key: u8,
+    /// Note-on velocity, 1–127.
+    pub velocity: u8,
+    /// Note-on time, s.
+    pub on_s: f64,
+    /// Note-off time, s (≥ `on_s`).
+    pub off_s: f64,
+}
+
+/// A performance: notes sorted by note-on time, and the sustain pedal's changes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Performance {
+    /// Notes, by note-on time.
+    pub notes: Vec<Note>,
+    /// Sustain pedal changes: (time s, down).
+    pub sustain: Vec<(f64, bool)>,
+    /// Time of the last event, s.
+    pub duration_s: f64,
+}
+
+/// Why a MIDI file could not be read.
+#[derive(Debug)]
+pub enum MidiError {
+    /// The file could not be read.
+    Io(String, std::io::Error),
+    /// The bytes are not a valid standard MIDI file.
+    Parse(String, String),
+    /// The file holds no notes.
+    NoNotes(String),
+}
+
+impl fmt::Display for MidiError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            MidiError::Io(p, e) => write!(f, "{p}: cannot read: {e}"),
+            MidiError::Parse(p, e) => write!(f, "{p}: not a standard MIDI file: {e}"),
+            MidiError::NoNotes(p) => write!(f, "{p}: the file holds no notes"),
+        }
+    }
+}
+
+impl std::error::Error for MidiError {}
+
+/// Reads a MIDI file from disk.
+pub fn read_midi(path: &Path) -> Result<Performance, MidiError> {
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| MidiError::Io(name.clone(), e))?;
+    parse_midi(&bytes, &name)
+}
+
+/// Parses MIDI bytes; `name` is used in errors.
+pub fn parse_midi(bytes: &[u8], name: &str) -> Result<Performance, MidiError> {
+    let smf = Smf::parse(bytes).map_err(|e| MidiError::Parse(name.to_string(), e.to_string()))?;
+    // Merge all tracks into (tick, event) in tick order (stable: track order on ties).
+    let mut events = Vec::new();
+    for track in &smf.tracks {
+        let mut tick: u64 = 0;
+        for ev in track {
+            tick += u64::from(ev.delta.as_int());
+            events.push((tick, ev.kind));
+        }
+    }
+    events.sort_by_key(|e| e.0);
+    let seconds = TickClock::new(smf.header.timing);
+    let mut clock = seconds;
+    let mut sounding: Vec<Option<(f64, u8)>> = vec![None; 16 * 128];
+    let mut notes = Vec::new();
+    let mut sustain = Vec::new();
+    let mut last_s = 0.0f64;
+    for (tick, kind) in events {
+        let t = clock.seconds(tick);
+        last_s = last_s.max(t);
+        match kind {
+            TrackEventKind::Meta(MetaMessage::Tempo(us)) => clock.set_tempo(tick, us.as_int()),
+            TrackEventKind::Midi { channel, message } => {
+                let ch = channel.as_int() as usize;
+                match message {
+                    MidiMessage::NoteOn { key, vel } if vel.as_int() > 0 => {
+                        let slot = &mut sounding[ch * 128 + key.as_int() as usize];
+                        if let Some((on, v)) = slot.take() {
+                            notes.push(Note { key: key.as_int(), velocity: v, on_s: on, off_s: t });
+                        }
+                        *slot = Some((t, vel.as_int()));
+                    }
+                    MidiMessage::NoteOn { key, .. } | MidiMessage::NoteOff { key, .. } => {
+                        if let Some((on, v)) = sounding[ch * 128 + key.as_int() as usize].take() {
+                            notes.push(Note { key: key.as_int(), velocity: v, on_s: on, off_s: t });
+                        }
+                    }
+                    MidiMessage::Controller { controller, value } if controller.as_int() == 64 => {
+                        sustain.push((t, value.as_int() >= 64));
+                    }
+                    _ => {}
+                }
+            }
+            _ => {}
+        }
+    }
+    for (i, s) in sounding.iter().enumerate() {
+        if let Some((on, v)) = s {
+            notes.push(Note { key: (i % 128) as u8, velocity: *v, on_s: *on, off_s: last_s });
+        }
+    }
+    if notes.is_empty() {
+        return Err(MidiError::NoNotes(name.to_string()));
+    }
+    notes.sort_by(|a, b| a.on_s.total_cmp(&b.on_s).then(a.key.cmp(&b.key)));
+    Ok(Performance { notes, sustain, duration_s: last_s })
+}
+
+/// Tick → seconds with a piecewise-constant tempo map.
+#[derive(Clone, Copy)]
+struct TickClock {
+    /// Ticks per quarter note, or 0 for SMPTE timing.
+    tpq: f64,
+    /// Seconds per tick under SMPTE timing.
+    smpte_s_per_tick: f64,
+    /// The tempo segment in force: its start tick, start seconds, µs per quarter.
+    seg_tick: u64,
+    seg_s: f64,
+    us_per_q: f64,
+}
+
+impl TickClock {
+    fn new(t: Timing) -> Self {
+        match t {
+            Timing::Metrical(tpq) => TickClock {
+                tpq: f64::from(tpq.as_int().max(1)),
+                smpte_s_per_tick: 0.0,
+                seg_tick: 0,
+                seg_s: 0.0,
+                us_per_q: 500_000.0,
+            },
+            Timing::Timecode(fps, sub) => TickClock {
+                tpq: 0.0,
+                smpte_s_per_tick: 1.0 / (f64::from(fps.as_f32()) * f64::from(sub.max(1))),
+                seg_tick: 0,
+                seg_s: 0.0,
+                us_per_q: 500_000.0,
+            },
+        }
+    }
+    fn seconds(&self, tick: u64) -> f64 {
+        if self.tpq == 0.0 {
+            return tick as f64 * self.smpte_s_per_tick;
+        }
+        self.seg_s + (tick - self.seg_tick.min(tick)) as f64 * self.us_per_q * 1e-6 / self.tpq
+    }
+    fn set_tempo(&mut self, tick: u64, us_per_q: u32) {
+        if self.tpq == 0.0 {
+            return;
+        }
+        self.seg_s = self.seconds(tick);
+        self.seg_tick = tick;
+        self.us_per_q = f64::from(us_per_q.max(1));
+    }
+}
+
+/// Key descent time for a MIDI velocity, s (see the module documentation).
+pub fn descent_time_s(velocity: u8) -> f64 {
+    let v = f64::from(velocity.clamp(1, 127));
+    (0.160 * (0.025f64 / 0.160).powf((v - 30.0) / 70.0)).clamp(0.020, 0.250)
+}
+
+/// One movement of a key: from `from` (m) at `start_s` to `to` (m) at `end_s`, cycloidal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Move {
+    start_s: f64,
+    end_s: f64,
+    from: f64,
+    to: f64,
+}
+
+impl Move {
+    fn at(&self, t: f64) -> f64 {
+        if t <= self.start_s {
+            return self.from;
+        }
+        if t >= self.end_s {
+            return self.to;
+        }
+        let u = (t - self.start_s) / (self.end_s - self.start_s);
+        let s = u - (2.0 * std::f64::consts::PI * u).sin() / (2.0 * std::f64::consts::PI);
+        self.from + (self.to - self.from) * s
+    }
+}
+
+/// The key trajectory of one key for a whole performance.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KeyTrack {
+    /// MIDI key number.
+    pub key: u8,
+    moves: Vec<Move>,
+    /// Note-on times of the notes played on this key, s, with their velocities.
+    pub notes: Vec<(f64, u8)>,
+}
+
+impl KeyTrack {
+    /// Key travel at time `t` (s), m; 0 before the first press.
+    pub fn position(&self, t: f64) -> f64 {
+        // The last move that has started by t decides.
+        match self.moves.partition_point(|m| m.start_s <= t) {
+            0 => 0.0,
+            i => self.moves[i - 1].at(t),
+        }
+    }
+}
+
+/// The key tracks of every key played in a performance, for a key dip `dip_m` (m).
+/// Presses end at the note-on time (the hammer reaches the string then); a note whose press
+/// would start before time 0 starts at 0.
+pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
+    let mut by_key: std::collections::BTreeMap<u8, Vec<Note>> = Default::default();
+    for n in &perf.notes {
+        by_key.entry(n.key).or_default().push(*n);
+    }
+    let mut tracks = Vec::new();
+    for (key, notes) in by_key {
+        let mut t = KeyTrack { key, moves: Vec::new(), notes: Vec::new() };
+        for (i, n) in notes.iter().enumerate() {
+            let descent = descent_time_s(n.velocity);
+            let start = (n.on_s - descent).max(0.0);
+            // Cut the previous release if this press starts during it (repeated note).
+            if let Some(last) = t.moves.last_mut() {
+                if last.end_s > start {
+                    let here = last.at(start);
+                    last.end_s = start.max(last.start_s);
+                    last.to = here;
+                }
+            }
+            let from = t.position(start);
+            let bottom = n.on_s.max(start + 1e-3);
+            t.moves.push(Move { start_s: start, end_s: bottom, from, to: dip_m });
+            let next_start = notes.get(i + 1).map(|m| (m.on_s - descent_time_s(m.velocity)).max(0.0));
+            let release_at = n.off_s.max(bottom);
+            let release_at = next_start.map_or(release_at, |s| release_at.min(s.max(bottom)));
+            t.moves.push(Move { start_s: release_at, end_s: release_at + RELEASE_S, from: dip_m, to: 0.0 });
+            t.notes.push((n.on_s, n.velocity));
+        }
+        tracks.push(t);
+    }
+    tracks
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn smf(events: &[(u32, [u8; 3])]) -> Vec<u8> {
+        // Format 0, one track, 480 ticks per quarter, default tempo (0.5 s per quarter).
+        let mut track = Vec::new();
+        for (delta, msg) in events {
+            let mut d = *delta;
+            let mut bytes = vec![(d & 0x7f) as u8];
+            d >>= 7;
+            while d > 0 {
+                bytes.insert(0, 0x80 | (d & 0x7f) as u8);
+                d >>= 7;
+            }
+            track.extend(bytes);
+            track.extend(msg);
+        }
+        track.extend([0, 0xff, 0x2f, 0]);
+        let mut f = b"MThd\0\0\0\x06\0\0\0\x01\x01\xe0MTrk".to_vec();
+        f.extend((track.len() as u32).to_be_bytes());
+        f.extend(track);
+        f
+    }
+
+    #[test]
+    fn notes_pair_and_time_converts() {
+        // Note 60 on at 0, off at 480 ticks (0.5 s); note 62 on at 240 with velocity 0 = off.
+        let f = smf(&[(0, [0x90, 60, 100]), (240, [0x90, 62, 40]), (240, [0x80, 60, 0]), (0, [0x90, 62, 0]), (0, [0xb0, 64, 127])]);
+        let p = parse_midi(&f, "t.mid").unwrap();
+        assert_eq!(p.notes.len(), 2);
+        assert_eq!((p.notes[0].key, p.notes[0].velocity, p.notes[0].on_s, p.notes[0].off_s), (60, 100, 0.0, 0.5));
+        assert_eq!((p.notes[1].key, p.notes[1].on_s, p.notes[1].off_s), (62, 0.25, 0.5));
+        assert_eq!(p.sustain, vec![(0.5, true)]);
+    }
+
+    #[test]
+    fn bad_files_are_clear_errors() {
+        let e = parse_midi(b"not midi", "x.mid").unwrap_err().to_string();
+        assert!(e.contains("x.mid") && e.contains("not a standard MIDI file"), "{e}");
+        let e = parse_midi(&smf(&[(0, [0xb0, 64, 127])]), "empty.mid").unwrap_err().to_string();
+        assert!(e.contains("no notes"), "{e}");
+        let e = parse_midi(&[], "zero.mid").unwrap_err().to_string();
+        assert!(e.contains("zero.mid"), "{e}");
+    }
+
+    #[test]
+    fn presses_reach_bottom_at_note_on_and_repeat_from_half_release() {
+        let perf = Performance {
+            notes: vec![
+                Note { key: 60, velocity: 100, on_s: 0.3, off_s: 0.35 },
+                Note { key: 60, velocity: 60, on_s: 0.45, off_s: 0.8 },
+            ],
+            sustain: vec![],
+            duration_s: 1.0,
+        };
+        let t = &key_tracks(&perf, 0.01)[0];
+        assert_eq!(t.position(0.0), 0.0);
+        assert!((t.position(0.3) - 0.01).abs() < 1e-12);
+        assert!((t.position(0.45) - 0.01).abs() < 1e-12);
+        // The second press starts before the first release ends: the key never returns to 0.
+        let lowest = (3500..4500).map(|i| t.position(i as f64 * 1e-4)).fold(f64::INFINITY, f64::min);
+        assert!(lowest > 0.0 && lowest < 0.01, "{lowest}");
+        assert_eq!(t.position(2.0), 0.0);
+        assert!(descent_time_s(100) < descent_time_s(60) && descent_time_s(30) == 0.160);
+    }
+}
