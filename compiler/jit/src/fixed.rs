@@ -226,12 +226,12 @@ fn define(
     };
     let b = cg::Translator::new(fp, layout, b, host).finish()?;
     b.finalize(module.target_config());
-    if std::env::var_os("TACTUS_JIT_DUMP").is_some() {
-        eprintln!("{}", ctx.func.display());
-    }
     module
         .define_function(id, &mut ctx)
         .map_err(|e| JitError::Codegen(format!("{e:?}")))?;
+    if std::env::var_os("TACTUS_JIT_DUMP").is_some() {
+        eprintln!("{}", ctx.func.display());
+    }
     module.finalize_definitions().map_err(|e| err(&e))?;
     let code = module.get_finalized_function(id);
     // SAFETY: `code` is the function just defined with `fixed_codegen::signature(..)`: six

@@ -1020,7 +1020,8 @@ impl<'a, 'f> Translator<'a, 'f> {
             let lim = 1i128 << 31;
             let (lo, hi) = (w.lo.max(-lim), w.hi.min(lim));
             let x = self.clamp_value(w.v, w.ty, w.lo, w.hi, -lim, lim);
-            let x = self.retype(Wide { v: x, lo, hi, ..w }, types::I64);
+            let ty = if w.ty == types::I128 { types::I64 } else { w.ty };
+            let x = self.retype(Wide { v: x, ty, lo, hi, ..w }, types::I64);
             let s = s.min(32);
             let v = self.b.ins().ishl_imm_s(x, i64::from(s));
             return self.narrow(v, types::I64, lo << s, hi << s);
@@ -1049,29 +1050,40 @@ impl<'a, 'f> Translator<'a, 'f> {
     }
 
     /// `v` (type `ty`, in `[vlo, vhi]`) clamped to `[lo, hi]`, only on the sides the
-    /// interval crosses.
-    fn clamp_value(&mut self, mut v: Cv, ty: Type, vlo: i128, vhi: i128, lo: i128, hi: i128) -> Cv {
-        for (bound, crosses, cc) in [
-            (lo, vlo < lo, IntCC::SignedLessThan),
-            (hi, vhi > hi, IntCC::SignedGreaterThan),
-        ] {
-            if !crosses {
-                continue;
-            }
-            if ty == types::I128 {
-                let k = self.const128(bound);
-                let out = self.b.ins().icmp(cc, v, k);
-                v = self.b.ins().select(out, k, v);
-            } else {
-                let k = self.b.ins().iconst(ty, bound as i64);
-                v = if cc == IntCC::SignedLessThan {
-                    self.b.ins().smax(v, k)
-                } else {
-                    self.b.ins().smin(v, k)
-                };
-            }
+    /// interval crosses; an `i128` is first saturated to `i64` (see [`Self::sat64`]), so the
+    /// result has type `i64` then (`lo`, `hi` must lie within `i64`).
+    fn clamp_value(&mut self, v: Cv, ty: Type, vlo: i128, vhi: i128, lo: i128, hi: i128) -> Cv {
+        let (mut v, ty) = if ty == types::I128 {
+            (self.sat64(v), types::I64)
+        } else {
+            (v, ty)
+        };
+        let (vlo, vhi) = (vlo.max(i64::MIN as i128), vhi.min(i64::MAX as i128));
+        if vlo < lo {
+            let k = self.b.ins().iconst(ty, lo as i64);
+            v = self.b.ins().smax(v, k);
+        }
+        if vhi > hi {
+            let k = self.b.ins().iconst(ty, hi as i64);
+            v = self.b.ins().smin(v, k);
         }
         v
+    }
+
+    /// An `i128` saturated to `i64`: the low half when the high half is its sign extension,
+    /// else `i64::MIN`/`MAX` by the sign. (Cranelift's mid-end turns a compare-and-select on
+    /// `i128` into `smin.i128`/`smax.i128`, which the x64 backend lacks; this avoids both.)
+    /// Saturating to `i64` first does not change a later saturation to `i32`.
+    fn sat64(&mut self, v: Cv) -> Cv {
+        let b = &mut self.b;
+        let (lo, hi) = b.ins().isplit(v);
+        let sign = b.ins().sshr_imm_s(lo, 63);
+        let fits = b.ins().icmp(IntCC::Equal, hi, sign);
+        let neg = b.ins().icmp_imm_s(IntCC::SignedLessThan, hi, 0);
+        let min = b.ins().iconst(types::I64, i64::MIN);
+        let max = b.ins().iconst(types::I64, i64::MAX);
+        let sat = b.ins().select(neg, min, max);
+        b.ins().select(fits, lo, sat)
     }
 
     /// `sat32` of `v` (type `ty`, interval `[lo, hi]`) as a word.
@@ -1080,12 +1092,8 @@ impl<'a, 'f> Translator<'a, 'f> {
         if clo == chi {
             return self.iconst(clo as i32);
         }
+        // An i128 comes back as an i64.
         let v = self.clamp_value(v, ty, lo, hi, I32_LO, I32_HI);
-        let v = if ty == types::I128 {
-            self.b.ins().ireduce(types::I64, v)
-        } else {
-            v
-        };
         let v = if ty == types::I32 {
             v
         } else {
