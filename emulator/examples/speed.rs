@@ -7,7 +7,9 @@
 //! valgrind --tool=callgrind target/release/examples/speed 1 5000000
 //! ```
 //!
-//! Prints the cycles run, each core's registers as a checksum, and the wall-clock rate.
+//! `cores` = 3 runs the loop on core 0 with core 1 started but asleep in WFI (no interrupt
+//! will wake it). Prints the cycles run, each core's registers as a checksum, and the
+//! wall-clock rate.
 
 use tactus_emulator::{Board, Config};
 
@@ -17,7 +19,10 @@ const LOOP: [u16; 7] = [0x6801, 0x1889, 0x6041, 0x434b, 0x08dc, 0x3d01, 0xd1f8];
 
 fn main() {
     let mut args = std::env::args().skip(1);
-    let cores: usize = args.next().map_or(1, |a| a.parse().expect("cores: 1 or 2"));
+    let mode: usize = args
+        .next()
+        .map_or(1, |a| a.parse().expect("cores: 1, 2 or 3"));
+    let cores = mode.min(2);
     let cycles: u64 = args
         .next()
         .map_or(5_000_000, |a| a.parse().expect("cycles"));
@@ -32,6 +37,12 @@ fn main() {
         c.r[2] = 3;
         c.r[3] = 7;
         c.r[5] = u32::MAX;
+    }
+    if mode == 3 {
+        // Core 1: wfi; b .-2 (sleeps for good: no interrupt is enabled).
+        b.write_bytes(0x2000_1000, &[0x30, 0xbf, 0xfd, 0xe7])
+            .unwrap();
+        b.start_core(1, 0x2000_1001, 0x2004_0800, 0);
     }
     let t = std::time::Instant::now();
     let stop = b.run_for(cycles);

@@ -436,6 +436,34 @@ impl Board {
                     continue;
                 }
             }
+            // Core k running the fast path while the other core sleeps and nothing can
+            // wake it: the sleeper's steps only move its cycle counter, done in the loop.
+            if self.fast_ready(k) && self.launch.is_none() && self.sleeps_soundly(1 - k) {
+                let s = &self.cores[1 - k];
+                let deadline = limit
+                    .min(self.system.timer.next_event)
+                    .min(self.cores[k].nvic.syst_next);
+                let wake_check = limit
+                    .min(self.system.timer.next_event)
+                    .min(s.nvic.syst_next);
+                if now < deadline {
+                    let (j, exit) = run_beside_sleeper(
+                        &mut self.cores,
+                        k,
+                        &mut self.system,
+                        &self.cache,
+                        deadline,
+                        wake_check,
+                    );
+                    if j == k {
+                        let event = self.finish_fast(k, exit);
+                        if let Some(stop) = self.handle_event(k, event) {
+                            return stop;
+                        }
+                    }
+                    continue;
+                }
+            }
             // Core k keeps the turn while it stays behind the other core (core 0 on ties).
             let other = &self.cores[1 - k];
             let horizon = if active(other) {
@@ -540,7 +568,13 @@ impl Board {
             );
             (k, exit)
         };
-        let event = match exit {
+        (k, self.finish_fast(k, exit))
+    }
+
+    /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
+    /// needs the general path runs as [`Board::step_cached`] would run it. Returns its event.
+    fn finish_fast(&mut self, k: usize, exit: Exit) -> Event {
+        match exit {
             Exit::Deadline => Event::None,
             Exit::Miss => self.step_cached::<false>(k, self.lines),
             Exit::General => {
@@ -550,8 +584,25 @@ impl Board {
                 let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
                 core.run_priced::<_, false>(&mut self.system, pc, instr, size, Some(cost))
             }
+        }
+    }
+
+    /// True when core `s` is asleep and its sleep steps ([`Board::step`]) would only move
+    /// its cycle counter as long as nothing changes the interrupt lines, its NVIC or its
+    /// event register and no timer event or SysTick wrap is due: no wake-up event, the
+    /// current lines already pending on it, and no pending exception that would wake it.
+    fn sleeps_soundly(&self, s: usize) -> bool {
+        let c = &self.cores[s];
+        let RunState::Sleeping { wfe } = c.state else {
+            return false;
         };
-        (k, event)
+        let lines = self.system.current_irq_lines();
+        !(wfe && c.event)
+            && ((lines as u64) << IRQ0) & !c.nvic.active & !c.nvic.pending == 0
+            && !c
+                .nvic
+                .highest_pending()
+                .is_some_and(|(_, p)| p < c.nvic.active_priority())
     }
 
     /// Applies a step's event; `Some` when the run must stop.
@@ -790,6 +841,42 @@ fn run_both(
             }
         } else if let Err(exit) = fast_step(c0, sys, cache, deadline[0]) {
             return (0, exit);
+        }
+    }
+}
+
+/// The fast path on core `r` while the other core sleeps soundly ([`Board::sleeps_soundly`]),
+/// in lock-step order: on the sleeper's turns, its step — skip to the next cycle at which
+/// something could wake it: a timer event, its SysTick, the limit, or the cycle after the
+/// running core's — is done here while its cycle is below `wake_check` (the first of
+/// those), so nothing else about it can change. Returns the core that must leave.
+#[inline(never)]
+fn run_beside_sleeper(
+    cores: &mut [Core; 2],
+    r: usize,
+    sys: &mut System,
+    cache: &[Cached; CACHE_SLOTS],
+    deadline: u64,
+    wake_check: u64,
+) -> (usize, Exit) {
+    let s = 1 - r;
+    let (run, sleep) = if r == 0 {
+        let [a, b] = cores;
+        (a, b)
+    } else {
+        let [a, b] = cores;
+        (b, a)
+    };
+    loop {
+        // The sleeper's turn: it is behind, or level and core 0.
+        if sleep.cycle < run.cycle || (sleep.cycle == run.cycle && s == 0) {
+            let now = sleep.cycle;
+            if now >= wake_check {
+                return (s, Exit::Deadline);
+            }
+            sleep.cycle = wake_check.min(run.cycle + 1).max(now + 1);
+        } else if let Err(exit) = fast_step(run, sys, cache, deadline) {
+            return (r, exit);
         }
     }
 }

@@ -264,6 +264,14 @@ impl System {
     #[inline]
     pub fn irq_lines(&mut self, core: usize, now: u64) -> u32 {
         self.timer.update(now);
+        let _ = core;
+        self.current_irq_lines()
+    }
+
+    /// Interrupt lines without advancing the timer: what [`System::irq_lines`] returns at
+    /// any cycle before [`Timer::next_event`].
+    #[inline]
+    pub(crate) fn current_irq_lines(&self) -> u32 {
         let mut lines = self.timer.irq_lines();
         if self.sio.irq(0) {
             lines |= 1 << 15; // SIO_IRQ_PROC0
@@ -271,7 +279,6 @@ impl System {
         if self.sio.irq(1) {
             lines |= 1 << 16; // SIO_IRQ_PROC1
         }
-        let _ = core;
         lines
     }
 

@@ -2,7 +2,8 @@
 //! loop) against `Board::step`, which runs the general path one instruction at a time:
 //! seeded random programs of data processing, SRAM/flash/SIO loads and stores, PUSH/POP,
 //! LDM/STM and forward branches, looping forever, on one core and on both (sharing a data
-//! area, so the SRAM banks contend), with a SysTick interrupt whose handler returns at once.
+//! area, so the SRAM banks contend), some with WFI/WFE/SEV (so one core sleeps while the other
+//! runs) and some with a SysTick interrupt whose handler returns at once.
 //! After every run the cycle counters, registers, flags, instruction counts, contention
 //! stalls, stop reason and all of SRAM must agree exactly.
 
@@ -31,7 +32,7 @@ fn unit(rng: &mut Rng, out: &mut Vec<u16>) {
     let d = rng.below(5);
     let s = rng.below(8);
     let t = rng.below(8);
-    match rng.below(20) {
+    match rng.below(21) {
         0 => out.push(0x2000 | d << 8 | rng.below(256)), // movs
         1 => out.push([0x1800, 0x1a00][rng.below(2) as usize] | t << 6 | s << 3 | d),
         2 => out.push([0x1c00, 0x1e00][rng.below(2) as usize] | rng.below(8) << 6 | s << 3 | d),
@@ -117,6 +118,7 @@ fn unit(rng: &mut Rng, out: &mut Vec<u16>) {
             out.push([0xa800, 0xa000][rng.below(2) as usize] | d << 8 | rng.below(256))
         }
         18 => out.push(0x4840 | d << 8 | rng.below(4)), // ldr rd, [pc, #n] (even n*4)
+        19 if rng.below(4) == 0 => out.push([0xbf30, 0xbf20, 0xbf40][rng.below(3) as usize]), // wfi, wfe, sev
         _ => {
             // b forward over one movs
             out.push(0xe001);
@@ -126,17 +128,21 @@ fn unit(rng: &mut Rng, out: &mut Vec<u16>) {
     }
 }
 
-fn program(rng: &mut Rng) -> Vec<u16> {
+fn program(rng: &mut Rng, sev: bool) -> Vec<u16> {
     let mut code = Vec::new();
     while code.len() < 200 {
         unit(rng, &mut code);
+        if sev && rng.below(8) == 0 {
+            code.push(0xbf40);
+        }
     }
     let back = -(code.len() as i32) * 2 - 4;
     code.push(0xe000 | ((back >> 1) as u16 & 0x7ff)); // b start
     code
 }
 
-fn board(rng: &mut Rng, cores: usize, in_flash: bool, systick: bool) -> Board {
+/// `sleeper`: core 1 runs `wfe; adds r4, #1; b .-4` and core 0's program has extra SEVs.
+fn board(rng: &mut Rng, cores: usize, in_flash: bool, systick: bool, sleeper: bool) -> Board {
     let mut b = Board::new(Config::default());
     let mut data = vec![0u8; 1024];
     for x in data.iter_mut() {
@@ -149,7 +155,11 @@ fn board(rng: &mut Rng, cores: usize, in_flash: bool, systick: bool) -> Board {
     b.write_bytes(0x2003_0100, &[0x01, 0x34, 0x70, 0x47])
         .unwrap();
     for core in 0..cores {
-        let code = program(rng);
+        let code = if sleeper && core == 1 {
+            vec![0xbf20, 0x3401, 0xe7fc]
+        } else {
+            program(rng, sleeper)
+        };
         let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
         let at = if in_flash && core == 0 {
             0x1000_0000
@@ -208,13 +218,14 @@ fn stepped(b: &mut Board, limit: u64) -> StopReason {
 fn run_until_matches_single_steps() {
     let mut rng = Rng(0x5eed_fa57);
     let mut runs = 0;
-    for case in 0..48 {
+    for case in 0..64 {
         let cores = 1 + case % 2;
         let in_flash = case % 4 >= 2;
         let systick = case % 8 >= 4;
+        let sleeper = case >= 48 && cores == 2;
         let seed = rng.next();
-        let mut fast = board(&mut Rng(seed), cores, in_flash, systick);
-        let mut slow = board(&mut Rng(seed), cores, in_flash, systick);
+        let mut fast = board(&mut Rng(seed), cores, in_flash, systick, sleeper);
+        let mut slow = board(&mut Rng(seed), cores, in_flash, systick, sleeper);
         // Several slices, so runs stop and resume mid-stream.
         for slice in [1, 7, 500, 3000, 20_000] {
             let limit = fast.cycle() + slice;
@@ -232,5 +243,5 @@ fn run_until_matches_single_steps() {
             }
         }
     }
-    assert!(runs > 48);
+    assert!(runs > 64);
 }
