@@ -599,10 +599,9 @@ impl Board {
         let lines = self.system.current_irq_lines();
         !(wfe && c.event)
             && ((lines as u64) << IRQ0) & !c.nvic.active & !c.nvic.pending == 0
-            && !c
-                .nvic
+            && c.nvic
                 .highest_pending()
-                .is_some_and(|(_, p)| p < c.nvic.active_priority())
+                .is_none_or(|(_, p)| p >= c.nvic.active_priority())
     }
 
     /// Applies a step's event; `Some` when the run must stop.
