@@ -1,16 +1,112 @@
-//! `tactus build`: compile an instrument to firmware sources (being written).
+//! `tactus build`: compile an instrument to firmware sources.
+//!
+//! `--target c` (the default) writes `DIR/<name>.h` and `DIR/<name>.c`: portable C99 with
+//! the fixed-point bits of the fixed interpreter (see `tactus_compiler::cgen`). The Thumb
+//! backend (`--target rp2040`) is planned and reports so.
 
+use crate::check_cmd::{compile_reporting, parse_override};
+use crate::source;
+use std::path::PathBuf;
 use std::process::ExitCode;
+use tactus_compiler::cgen::{self, CConfig};
+use tactus_compiler::diagnostics;
+use tactus_compiler::fixed::FixedProgram;
 
 /// Arguments of `tactus build`.
 #[derive(Debug, clap::Args)]
 pub struct BuildArgs {
-    /// Instrument file or built-in name.
+    /// Instrument file (`instruments/grand_piano.tactus`) or built-in name (`grand_piano`).
     pub file: String,
+    /// What to generate: `c` (portable C99 sources) or `rp2040` (Thumb ELF; planned).
+    #[arg(long, value_enum, default_value = "c")]
+    pub target: Target,
+    /// Output directory, created if missing; receives `<name>.h` and `<name>.c`.
+    #[arg(short = 'o', long = "out-dir", value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
+    /// Override a param: `--param k=200 N/m` (repeatable; the unit must match the param's).
+    #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
+    pub params: Vec<(String, String)>,
+}
+
+/// Code generation targets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Target {
+    /// Portable C99 (`<stdint.h>` only), bit-exact with `tactus sim --numeric fixed`.
+    C,
+    /// Thumb machine code for the RP2040 (not implemented yet).
+    Rp2040,
 }
 
 /// Runs `tactus build`.
 pub fn run(args: BuildArgs) -> ExitCode {
-    eprintln!("error: `tactus build` is not implemented yet ({})", args.file);
-    ExitCode::FAILURE
+    match build(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(Some(e)) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+        // Diagnostics already printed.
+        Err(None) => ExitCode::FAILURE,
+    }
+}
+
+fn build(args: &BuildArgs) -> Result<(), Option<String>> {
+    if args.target == Target::Rp2040 {
+        return Err(Some(format!(
+            "{}: --target rp2040: not implemented yet: the Thumb backend is planned (issue 5); use --target c",
+            args.file
+        )));
+    }
+    let Some(dir) = &args.out_dir else {
+        return Err(Some(format!(
+            "{}: --target c needs an output directory: -o DIR",
+            args.file
+        )));
+    };
+    let src = source::load(&args.file).map_err(Some)?;
+    let lowered = compile_reporting(&src, &args.params).ok_or(None)?;
+    let fp = FixedProgram::new(&lowered.program);
+    if !fp.warnings.is_empty() {
+        let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
+            codespan_reporting::term::termcolor::ColorChoice::Auto,
+        );
+        let _ = diagnostics::emit(&mut err, &src.name, &src.text, &fp.warnings);
+    }
+    let config = CConfig {
+        source_name: Some(src.name.clone()),
+        overrides: args
+            .params
+            .iter()
+            .map(|(n, v)| format!("{n}={v}"))
+            .collect(),
+    };
+    let c = cgen::emit_c_with(&fp, &config).map_err(|e| Some(format!("{}: {e}", src.name)))?;
+    std::fs::create_dir_all(dir).map_err(|e| {
+        Some(format!(
+            "{}: cannot create `{}`: {e}",
+            src.name,
+            dir.display()
+        ))
+    })?;
+    let h = dir.join(format!("{}.h", c.stem));
+    let s = dir.join(format!("{}.c", c.stem));
+    for (path, text) in [(&h, &c.header), (&s, &c.source)] {
+        std::fs::write(path, text).map_err(|e| {
+            Some(format!(
+                "{}: cannot write `{}`: {e}",
+                src.name,
+                path.display()
+            ))
+        })?;
+    }
+    println!(
+        "{}: wrote {} and {} ({} + {} lines; call tactus_{}_update once per sample)",
+        src.name,
+        h.display(),
+        s.display(),
+        c.header.lines().count(),
+        c.source.lines().count(),
+        c.stem
+    );
+    Ok(())
 }

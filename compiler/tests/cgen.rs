@@ -19,7 +19,12 @@ fn instruments() -> Vec<(String, String)> {
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "tactus"))
-        .map(|p| (p.file_stem().unwrap().to_string_lossy().into_owned(), std::fs::read_to_string(&p).unwrap()))
+        .map(|p| {
+            (
+                p.file_stem().unwrap().to_string_lossy().into_owned(),
+                std::fs::read_to_string(&p).unwrap(),
+            )
+        })
         .collect();
     v.sort();
     assert!(!v.is_empty());
@@ -27,7 +32,12 @@ fn instruments() -> Vec<(String, String)> {
 }
 
 fn have_cc() -> bool {
-    Command::new("cc").arg("--version").stdout(Stdio::null()).stderr(Stdio::null()).status().is_ok_and(|s| s.success())
+    Command::new("cc")
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
 }
 
 /// Writes the generated files and a driver; compiles them. The driver reads records
@@ -69,7 +79,12 @@ int main(void) {{
         .arg(dir.join(format!("{st}.c")))
         .output()
         .unwrap();
-    assert!(o.status.success(), "cc failed in {}:\n{}", dir.display(), String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "cc failed in {}:\n{}",
+        dir.display(),
+        String::from_utf8_lossy(&o.stderr)
+    );
     exe
 }
 
@@ -94,7 +109,15 @@ fn random_word(rng: &mut Rng, prev: i32, (lo, hi): (i32, i32)) -> i32 {
     match rng.below(8) {
         0 => rng.next() as i32,
         1 => (lo as i64 + rng.below(span + 1) as i64) as i32,
-        2 => [i32::MIN, i32::MAX, lo, hi, lo.saturating_sub(1), hi.saturating_add(1), 0][rng.below(7) as usize],
+        2 => [
+            i32::MIN,
+            i32::MAX,
+            lo,
+            hi,
+            lo.saturating_sub(1),
+            hi.saturating_add(1),
+            0,
+        ][rng.below(7) as usize],
         _ => {
             let step = (rng.below(span / 200 + 2) as i64) - (span / 400) as i64;
             (prev as i64 + step).clamp(lo as i64, hi as i64) as i32
@@ -114,12 +137,34 @@ fn c_matches_the_fixed_interpreter_bit_for_bit() {
         return;
     }
     let base = std::env::temp_dir().join(format!("tactus-cgen-test-{}", std::process::id()));
-    let mut total_samples = 0usize;
-    for (name, text) in instruments() {
-        let p = tactus_compiler::compile(&text, &Config::default()).unwrap().program;
+    // One thread per instrument: the interpreter side dominates the time.
+    let total_samples: usize = std::thread::scope(|scope| {
+        let handles: Vec<_> = instruments()
+            .into_iter()
+            .map(|(name, text)| {
+                let base = &base;
+                scope.spawn(move || check_instrument(base, &name, &text))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .sum()
+    });
+    println!("{total_samples} samples compared");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// Compiles one instrument to C, runs every stimulus and the random words through it and
+/// through the fixed interpreter, and asserts equal bits; returns the number of samples.
+fn check_instrument(base: &Path, name: &str, text: &str) -> usize {
+    {
+        let p = tactus_compiler::compile(&text, &Config::default())
+            .unwrap()
+            .program;
         let fp = FixedProgram::new(&p);
         let c = cgen::emit_c(&fp).unwrap();
-        let exe = build(&base.join(&name), &fp, &c);
+        let exe = build(&base.join(name), &fp, &c);
         let ns = p.sensors.len();
         // Stimuli: sensor 0 follows the stimulus, the others sit at their lower bound.
         let mut runs = Vec::new();
@@ -129,10 +174,17 @@ fn c_matches_the_fixed_interpreter_bit_for_bit() {
                 .key
                 .iter()
                 .map(|&k| {
-                    (0..ns).map(|i| FixedInstance::sensor_raw(&fp, i, if i == 0 { Some(k) } else { None })).collect()
+                    (0..ns)
+                        .map(|i| {
+                            FixedInstance::sensor_raw(&fp, i, if i == 0 { Some(k) } else { None })
+                        })
+                        .collect()
                 })
                 .collect();
-            runs.push(Run { label: format!("{name}/{stim}"), records });
+            runs.push(Run {
+                label: format!("{name}/{stim}"),
+                records,
+            });
         }
         let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ name.len() as u64);
         for r in 0..8 {
@@ -145,7 +197,10 @@ fn c_matches_the_fixed_interpreter_bit_for_bit() {
                     prev.clone()
                 })
                 .collect();
-            runs.push(Run { label: format!("{name}/random{r}"), records });
+            runs.push(Run {
+                label: format!("{name}/random{r}"),
+                records,
+            });
         }
         // One input file for all runs; a reset flag starts each run.
         let mut input = Vec::new();
@@ -157,11 +212,18 @@ fn c_matches_the_fixed_interpreter_bit_for_bit() {
                 }
             }
         }
-        let input_path = base.join(&name).join("input.bin");
+        let input_path = base.join(name).join("input.bin");
         std::fs::write(&input_path, &input).unwrap();
-        let o = Command::new(&exe).stdin(std::fs::File::open(&input_path).unwrap()).output().unwrap();
+        let o = Command::new(&exe)
+            .stdin(std::fs::File::open(&input_path).unwrap())
+            .output()
+            .unwrap();
         assert!(o.status.success(), "{name}: the C driver failed");
-        let words: Vec<i32> = o.stdout.chunks_exact(4).map(|b| i32::from_ne_bytes(b.try_into().unwrap())).collect();
+        let words: Vec<i32> = o
+            .stdout
+            .chunks_exact(4)
+            .map(|b| i32::from_ne_bytes(b.try_into().unwrap()))
+            .collect();
         let (len, nst, nm) = (c.layout.len, p.states.len(), p.modes.len());
         let per = len + nst + nm;
         let nrec: usize = runs.iter().map(|r| r.records.len()).sum();
@@ -193,7 +255,10 @@ fn c_matches_the_fixed_interpreter_bit_for_bit() {
                     && got_events == want.events
                     && !stray
                     && row[len..len + nst] == *inst.states()
-                    && row[len + nst..].iter().map(|&m| m as u32).eq(inst.modes().iter().copied());
+                    && row[len + nst..]
+                        .iter()
+                        .map(|&m| m as u32)
+                        .eq(inst.modes().iter().copied());
                 if !ok {
                     mismatches.push(format!(
                         "{} sample {n} sensors {rec:?}:\n  C:      {:?}\n  interp: forces {:?} total {} outputs {:?} events {:?} states {:?} modes {:?}",
@@ -209,10 +274,17 @@ fn c_matches_the_fixed_interpreter_bit_for_bit() {
                 }
             }
         }
-        total_samples += nrec;
-        println!("{name:<16} {} runs, {nrec} samples, {events} events, {} mismatches", runs.len(), mismatches.len());
-        assert!(mismatches.is_empty(), "{name}: {} mismatching samples; first:\n{}", mismatches.len(), mismatches[..mismatches.len().min(5)].join("\n"));
+        println!(
+            "{name:<16} {} runs, {nrec} samples, {events} events, {} mismatches",
+            runs.len(),
+            mismatches.len()
+        );
+        assert!(
+            mismatches.is_empty(),
+            "{name}: {} mismatching samples; first:\n{}",
+            mismatches.len(),
+            mismatches[..mismatches.len().min(5)].join("\n")
+        );
+        nrec
     }
-    println!("{total_samples} samples compared");
-    let _ = std::fs::remove_dir_all(&base);
 }

@@ -27,13 +27,32 @@ fn frac(rng: &mut XorShift64, near: Option<i32>) -> i32 {
 
 fn word(rng: &mut XorShift64) -> i32 {
     match rng.below(6) {
-        0 => [0, 1, -1, i32::MIN, i32::MAX, i32::MIN + 1, i32::MAX - 1, 2, -2][rng.below(9)],
-        1 => (rng.next_u64() >> (33 + rng.below(31))) as i32 * if rng.below(2) == 0 { 1 } else { -1 },
+        0 => [
+            0,
+            1,
+            -1,
+            i32::MIN,
+            i32::MAX,
+            i32::MIN + 1,
+            i32::MAX - 1,
+            2,
+            -2,
+        ][rng.below(9)],
+        1 => {
+            (rng.next_u64() >> (33 + rng.below(31))) as i32 * if rng.below(2) == 0 { 1 } else { -1 }
+        }
         _ => rng.next_u64() as i32,
     }
 }
 
-const OPS: [CmpOp; 6] = [CmpOp::Eq, CmpOp::Ne, CmpOp::Lt, CmpOp::Le, CmpOp::Gt, CmpOp::Ge];
+const OPS: [CmpOp; 6] = [
+    CmpOp::Eq,
+    CmpOp::Ne,
+    CmpOp::Lt,
+    CmpOp::Le,
+    CmpOp::Gt,
+    CmpOp::Ge,
+];
 
 fn ord_holds(op: CmpOp, o: std::cmp::Ordering) -> bool {
     use std::cmp::Ordering::*;
@@ -92,14 +111,23 @@ fn cases(rng: &mut XorShift64, per_kind: usize) -> Vec<Case> {
         for sub in [false, true] {
             v.push(Case {
                 c: body(prim::add("x", fx_, "y", fy, fr, sub)),
-                want: Box::new(move |x, y| if sub { fx::sub(x, fx_, y, fy, fr).0 } else { fx::add(x, fx_, y, fy, fr).0 }),
+                want: Box::new(move |x, y| {
+                    if sub {
+                        fx::sub(x, fx_, y, fy, fr).0
+                    } else {
+                        fx::add(x, fx_, y, fy, fr).0
+                    }
+                }),
                 what: format!("{} {fx_} {fy} -> {fr}", if sub { "sub" } else { "add" }),
             });
         }
         let frm = frac(rng, Some(fx_ + fy));
         v.push(Case {
             c: body(prim::mul("x", fx_, "y", fy, frm, None)),
-            want: Box::new(move |x, y| product(x as i64 * y as i64, frm - fx_ - fy).unwrap_or_else(|| fx::mul(x, fx_, y, fy, frm).0)),
+            want: Box::new(move |x, y| {
+                product(x as i64 * y as i64, frm - fx_ - fy)
+                    .unwrap_or_else(|| fx::mul(x, fx_, y, fy, frm).0)
+            }),
             what: format!("mul {fx_} {fy} -> {frm}"),
         });
         let (a, b) = (rng.below(34) as u8, rng.below(34) as u8);
@@ -107,7 +135,8 @@ fn cases(rng: &mut XorShift64, per_kind: usize) -> Vec<Case> {
             c: body(prim::mul("x", fx_, "y", fy, frm, Some((a, b)))),
             want: Box::new(move |x, y| {
                 let p = (x >> a.min(31)) as i64 * (y >> b.min(31)) as i64;
-                product(p, frm - (fx_ - a as i32) - (fy - b as i32)).unwrap_or_else(|| fx::mul_shifted(x, fx_, a, y, fy, b, frm).0)
+                product(p, frm - (fx_ - a as i32) - (fy - b as i32))
+                    .unwrap_or_else(|| fx::mul_shifted(x, fx_, a, y, fy, b, frm).0)
             }),
             what: format!("mul_shifted {fx_}>>{a} {fy}>>{b} -> {frm}"),
         });
@@ -139,7 +168,15 @@ fn cases(rng: &mut XorShift64, per_kind: usize) -> Vec<Case> {
         let c = match rng.below(4) {
             0 => fx::to_f64(word(rng), fy),
             1 => (rng.unit() - 0.5) * 2f64.powi(rng.below(200) as i32 - 100),
-            2 => [0.0, -0.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e300, -1e-300][rng.below(7)],
+            2 => [
+                0.0,
+                -0.0,
+                f64::NAN,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                1e300,
+                -1e-300,
+            ][rng.below(7)],
             _ => fx::to_f64(word(rng), fx_) + 2f64.powi(-fx_ - 1),
         };
         let left = rng.below(2) == 0;
@@ -155,8 +192,13 @@ fn cases(rng: &mut XorShift64, per_kind: usize) -> Vec<Case> {
         let k = word(rng);
         let e = rng.below(140) as i32 - 100;
         v.push(Case {
-            c: format!("int64_t d = 4 * (int64_t)x + y; return {};", prim::deriv("d", 5 << 31, k, e)),
-            want: Box::new(move |x, y| fx::sat32(fx::rescale((4 * x as i128 + y as i128) * k as i128, 0, e)).0),
+            c: format!(
+                "int64_t d = 4 * (int64_t)x + y; return {};",
+                prim::deriv("d", 5 << 31, k, e)
+            ),
+            want: Box::new(move |x, y| {
+                fx::sat32(fx::rescale((4 * x as i128 + y as i128) * k as i128, 0, e)).0
+            }),
             what: format!("deriv k={k} e={e}"),
         });
     }
@@ -165,7 +207,12 @@ fn cases(rng: &mut XorShift64, per_kind: usize) -> Vec<Case> {
 
 #[test]
 fn c_primitives_match_the_definition() {
-    if Command::new("cc").arg("--version").stdout(Stdio::null()).status().is_err() {
+    if Command::new("cc")
+        .arg("--version")
+        .stdout(Stdio::null())
+        .status()
+        .is_err()
+    {
         println!("SKIPPED: no cc");
         return;
     }
@@ -176,7 +223,10 @@ fn c_primitives_match_the_definition() {
     let mut src = String::from("#include <stdint.h>\n#include <stdio.h>\n");
     src.push_str(prim::RUNTIME);
     for (i, c) in cases.iter().enumerate() {
-        src.push_str(&format!("static int32_t f{i}(int32_t x, int32_t y) {{ (void)x; (void)y; {} }}\n", c.c));
+        src.push_str(&format!(
+            "static int32_t f{i}(int32_t x, int32_t y) {{ (void)x; (void)y; {} }}\n",
+            c.c
+        ));
     }
     src.push_str("typedef int32_t (*fn)(int32_t, int32_t);\nstatic const fn fns[] = {");
     for i in 0..cases.len() {
@@ -193,7 +243,11 @@ fn c_primitives_match_the_definition() {
         .arg(dir.join("prims.c"))
         .output()
         .unwrap();
-    assert!(o.status.success(), "cc failed:\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "cc failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let mut input = Vec::new();
     let mut expect = Vec::new();
     for (i, c) in cases.iter().enumerate() {
@@ -209,22 +263,46 @@ fn c_primitives_match_the_definition() {
         }
     }
     std::fs::write(dir.join("input.bin"), &input).unwrap();
-    let o = Command::new(&exe).stdin(std::fs::File::open(dir.join("input.bin")).unwrap()).output().unwrap();
+    let o = Command::new(&exe)
+        .stdin(std::fs::File::open(dir.join("input.bin")).unwrap())
+        .output()
+        .unwrap();
     assert!(o.status.success());
-    let got: Vec<i32> = o.stdout.chunks_exact(4).map(|b| i32::from_ne_bytes(b.try_into().unwrap())).collect();
+    let got: Vec<i32> = o
+        .stdout
+        .chunks_exact(4)
+        .map(|b| i32::from_ne_bytes(b.try_into().unwrap()))
+        .collect();
     assert_eq!(got.len(), expect.len());
     let bad: Vec<String> = expect
         .iter()
         .zip(&got)
         .filter(|((_, _, _, w), g)| w != *g)
-        .map(|((i, x, y, w), g)| format!("{}: x={x} y={y}: C {g}, definition {w}\n    {}", cases[*i].what, cases[*i].c))
+        .map(|((i, x, y, w), g)| {
+            format!(
+                "{}: x={x} y={y}: C {g}, definition {w}\n    {}",
+                cases[*i].what, cases[*i].c
+            )
+        })
         .collect();
-    println!("{} cases, {} evaluations, {} mismatches", cases.len(), expect.len(), bad.len());
+    println!(
+        "{} cases, {} evaluations, {} mismatches",
+        cases.len(),
+        expect.len(),
+        bad.len()
+    );
     let mut kinds = std::collections::BTreeMap::new();
     for b in &bad {
-        *kinds.entry(b.split(' ').next().unwrap_or("").to_string()).or_insert(0) += 1;
+        *kinds
+            .entry(b.split(' ').next().unwrap_or("").to_string())
+            .or_insert(0) += 1;
     }
     println!("mismatches by kind: {kinds:?}");
-    assert!(bad.is_empty(), "{} mismatches; first:\n{}", bad.len(), bad[..bad.len().min(12)].join("\n"));
+    assert!(
+        bad.is_empty(),
+        "{} mismatches; first:\n{}",
+        bad.len(),
+        bad[..bad.len().min(12)].join("\n")
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

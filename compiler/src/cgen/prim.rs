@@ -182,7 +182,9 @@ fn pow2(e: i32) -> String {
 
 /// `x · 2^e` rounded half up and saturated, `x` a C expression of type `int64_t`.
 fn round_expr(x: &str, e: i32) -> String {
-    if e >= 0 {
+    if e == 0 {
+        format!("tx_sat({x})")
+    } else if e > 0 {
         format!("tx_shl_sat({x}, {e})")
     } else {
         format!("tx_sat(tx_rshr({x}, {}))", -e)
@@ -212,12 +214,23 @@ pub fn neg(x: &str, fx: i32, fr: i32) -> String {
 /// [`fx::add`] (`sub = false`) or [`fx::sub`]: `x ± y` into `fr` fraction bits.
 pub fn add(x: &str, fx: i32, y: &str, fy: i32, fr: i32, sub: bool) -> String {
     let tx = (format!("(int64_t)({x})"), fr - fx);
-    let ty = (if sub { format!("(-(int64_t)({y}))") } else { format!("(int64_t)({y})") }, fr - fy);
+    let ty = (
+        if sub {
+            format!("(-(int64_t)({y}))")
+        } else {
+            format!("(int64_t)({y})")
+        },
+        fr - fy,
+    );
     // Exponents relative to the result's LSB; the coarse term has the larger one.
     let ((cx, e1), (cy, e2)) = if tx.1 >= ty.1 { (tx, ty) } else { (ty, tx) };
     let g = e2.max(e1.min(-1));
     let sy = (g - e2).min(63);
-    let fine = if sy == 0 { cy } else { format!("tx_floor_shr({cy}, {sy})") };
+    let fine = if sy == 0 {
+        cy
+    } else {
+        format!("tx_floor_shr({cy}, {sy})")
+    };
     let dx = e1 - g;
     let coarse = if dx == 0 {
         cx
@@ -241,7 +254,10 @@ pub fn mul(x: &str, fx: i32, y: &str, fy: i32, fr: i32, shifts: Option<(u8, u8)>
                 0 => format!("(int64_t)({v})"),
                 s => format!("tx_floor_shr({v}, {s})"),
             };
-            round_expr(&format!("({} * {})", sh(x, a), sh(y, b)), fr - (fx - a as i32) - (fy - b as i32))
+            round_expr(
+                &format!("({} * {})", sh(x, a), sh(y, b)),
+                fr - (fx - a as i32) - (fy - b as i32),
+            )
         }
     }
 }
@@ -306,7 +322,13 @@ pub fn exp(x: &str, fx: i32, fr: i32) -> String {
     let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
     let xhi = first_true(lo, hi, |w| exp_k(w as i32, fx) > 200) - 1;
     let xlo = first_true(lo, hi, |w| exp_k(w as i32, fx) >= -200);
-    let lit = |w: i64| if w == i32::MIN as i64 { "INT32_MIN".to_string() } else { w.to_string() };
+    let lit = |w: i64| {
+        if w == i32::MIN as i64 {
+            "INT32_MIN".to_string()
+        } else {
+            w.to_string()
+        }
+    };
     format!("tx_exp({x}, {fx}, {fr}, {}, {})", lit(xlo), lit(xhi))
 }
 
@@ -345,7 +367,9 @@ pub fn cmp_const(op: CmpOp, x: &str, fx: i32, c: f64, const_left: bool) -> Strin
     let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
     // ge: first word whose value is >= c; gt: first word whose value is > c.
     let ge = first_true(lo, hi, |w| fx::cmp_const(w as i32, fx, c) != Ordering::Less);
-    let gt = first_true(lo, hi, |w| fx::cmp_const(w as i32, fx, c) == Ordering::Greater);
+    let gt = first_true(lo, hi, |w| {
+        fx::cmp_const(w as i32, fx, c) == Ordering::Greater
+    });
     // Normalise `c OP x` to `x OP' c`.
     let op = if const_left {
         match op {
