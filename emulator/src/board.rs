@@ -447,15 +447,15 @@ impl Board {
                     .min(self.system.timer.next_event)
                     .min(s.nvic.syst_next);
                 if now < deadline {
-                    let (j, exit) = run_beside_sleeper(
-                        &mut self.cores,
-                        k,
-                        &mut self.system,
-                        &self.cache,
-                        deadline,
-                        wake_check,
-                    );
-                    if j == k {
+                    let [c0, c1] = &mut self.cores;
+                    let (sys, cache) = (&mut self.system, &self.cache);
+                    let run = if k == 0 {
+                        run_beside_sleeper::<false>(c0, c1, sys, cache, deadline, wake_check)
+                    } else {
+                        run_beside_sleeper::<true>(c1, c0, sys, cache, deadline, wake_check)
+                    };
+                    // Ok: the sleeper reached its wake check; Err: core k must leave.
+                    if let Err(exit) = run {
                         let event = self.finish_fast(k, exit);
                         if let Some(stop) = self.handle_event(k, event) {
                             return stop;
@@ -813,10 +813,13 @@ fn run_one(
     cache: &[Cached; CACHE_SLOTS],
     deadline: u64,
 ) -> Exit {
+    let mut retired = 0;
     loop {
         if let Err(exit) = fast_step(core, sys, cache, deadline) {
+            core.instructions += retired;
             return exit;
         }
+        retired += 1;
     }
 }
 
@@ -830,52 +833,56 @@ fn run_both(
     deadline: [u64; 2],
 ) -> (usize, Exit) {
     let [c0, c1] = cores;
-    loop {
+    let mut retired = [0; 2];
+    let exit = loop {
         // Two copies of the step, chosen by a branch rather than an index: the choice is
         // then predicted instead of making every instruction wait for the previous one's
         // cycle count (and each core gets its own, better predicted, dispatch).
         if c1.cycle < c0.cycle {
-            if let Err(exit) = fast_step(c1, sys, cache, deadline[1]) {
-                return (1, exit);
+            match fast_step(c1, sys, cache, deadline[1]) {
+                Ok(()) => retired[1] += 1,
+                Err(exit) => break (1, exit),
             }
-        } else if let Err(exit) = fast_step(c0, sys, cache, deadline[0]) {
-            return (0, exit);
+        } else {
+            match fast_step(c0, sys, cache, deadline[0]) {
+                Ok(()) => retired[0] += 1,
+                Err(exit) => break (0, exit),
+            }
         }
-    }
+    };
+    c0.instructions += retired[0];
+    c1.instructions += retired[1];
+    exit
 }
 
 /// The fast path on core `r` while the other core sleeps soundly ([`Board::sleeps_soundly`]),
 /// in lock-step order: on the sleeper's turns, its step — skip to the next cycle at which
 /// something could wake it: a timer event, its SysTick, the limit, or the cycle after the
 /// running core's — is done here while its cycle is below `wake_check` (the first of
-/// those), so nothing else about it can change. Returns the core that must leave.
+/// those), so nothing else about it can change. `Ok` when the sleeper reached
+/// `wake_check`, `Err` when the running core must leave.
 #[inline(never)]
-fn run_beside_sleeper(
-    cores: &mut [Core; 2],
-    r: usize,
+fn run_beside_sleeper<const SLEEPER_IS_0: bool>(
+    run: &mut Core,
+    sleep: &mut Core,
     sys: &mut System,
     cache: &[Cached; CACHE_SLOTS],
     deadline: u64,
     wake_check: u64,
-) -> (usize, Exit) {
-    let s = 1 - r;
-    let (run, sleep) = if r == 0 {
-        let [a, b] = cores;
-        (a, b)
-    } else {
-        let [a, b] = cores;
-        (b, a)
-    };
+) -> Result<(), Exit> {
     loop {
         // The sleeper's turn: it is behind, or level and core 0.
-        if sleep.cycle < run.cycle || (sleep.cycle == run.cycle && s == 0) {
+        if sleep.cycle < run.cycle || (SLEEPER_IS_0 && sleep.cycle == run.cycle) {
             let now = sleep.cycle;
             if now >= wake_check {
-                return (s, Exit::Deadline);
+                return Ok(());
             }
             sleep.cycle = wake_check.min(run.cycle + 1).max(now + 1);
-        } else if let Err(exit) = fast_step(run, sys, cache, deadline) {
-            return (r, exit);
+        } else {
+            match fast_step(run, sys, cache, deadline) {
+                Ok(()) => run.instructions += 1,
+                Err(exit) => return Err(exit),
+            }
         }
     }
 }
