@@ -45,7 +45,7 @@ use cranelift_frontend::FunctionBuilderContext;
 use cranelift_jit::JITModule;
 use cranelift_module::{Linkage, Module};
 use tactus_compiler::fixed::interp::{FixedInstance, RawOut};
-use tactus_compiler::fixed::FixedProgram;
+use tactus_compiler::fixed::{FixedProgram, FRAC_RANGE};
 use tactus_runtime::differentiator::WINDOW;
 
 /// Readings a differentiator history holds (`2N + 1`).
@@ -171,7 +171,8 @@ impl FixedJitProgram {
     }
 }
 
-/// The per-value tables of the plan have one entry per value, state, sensor, …
+/// The per-value tables of the plan have one entry per value, state, sensor and event,
+/// raw ranges are ordered, and every format lies in [`FRAC_RANGE`].
 fn check_plan(fp: &FixedProgram) -> Result<(), JitError> {
     let p = &fp.program;
     let n = p.values.len();
@@ -186,7 +187,17 @@ fn check_plan(fp: &FixedProgram) -> Result<(), JitError> {
         && fp.state_init.len() == p.states.len()
         && fp.event_frac.len() == p.events.len()
         && fp.sensor_raw_range.iter().all(|(lo, hi)| lo <= hi)
-        && fp.state_raw_range.iter().all(|(lo, hi)| lo <= hi);
+        && fp.state_raw_range.iter().all(|(lo, hi)| lo <= hi)
+        // Every format within FRAC_RANGE bounds the shifts the code generator emits.
+        && fp
+            .frac
+            .iter()
+            .chain(&fp.sensor_frac)
+            .chain(&fp.state_frac)
+            .chain(fp.event_frac.iter().flatten())
+            .chain(fp.recip.iter().flatten().map(|(_, f)| f))
+            .chain(fp.deriv_gain.iter().map(|(_, f)| f))
+            .all(|f| (FRAC_RANGE.0..=FRAC_RANGE.1).contains(f));
     if ok {
         Ok(())
     } else {

@@ -1,11 +1,21 @@
-//! An f64 JIT of the Tactus IR with Cranelift: native code computing, sample by sample,
-//! exactly what the reference interpreter (`tactus_compiler::interp`) computes.
+//! Two JITs of the Tactus IR with Cranelift, each computing, sample by sample, exactly what
+//! its reference interpreter computes:
+//!
+//! * the **f64 JIT** ([`JitProgram`], [`JitInstance`]) — bit-identical to the f64 reference
+//!   interpreter (`tactus_compiler::interp`); documented below;
+//! * the **fixed-point JIT** ([`FixedJitProgram`], [`FixedJitInstance`], module [`fixed`])
+//!   — bit-identical to the fixed interpreter (`tactus_compiler::fixed::interp`), with the
+//!   sample loop and the differentiator histories in native code so that a block of samples
+//!   is one call ([`FixedJitInstance::run_block`]).
+//!
+//! Both share the IR verifier ([`verify`]), the slot numbering of states, modes, edges and
+//! outputs ([`layout::Layout`]) and the Cranelift module setup.
 //!
 //! [`JitProgram::compile`] verifies a [`Program`] ([`verify`]), fixes where every quantity
 //! lives ([`layout::Layout`]) and translates the body into one native function
 //! ([`codegen`]); [`JitInstance`] is the harness around it with the interpreter's API.
 //!
-//! # Calling convention
+//! # Calling convention (f64)
 //!
 //! ```text
 //! extern "C" fn(ctx: *mut f64, inputs: *const f64, out: *mut f64, sat: *mut u64)

@@ -3,7 +3,8 @@
 
 use tactus_compiler::ir::{Program, SensorId, StateId, Stmt, Value};
 use tactus_compiler::lower::Config;
-use tactus_jit::JitProgram;
+use tactus_compiler::fixed::FixedProgram;
+use tactus_jit::{FixedJitProgram, JitProgram};
 
 fn piano() -> Program {
     let path = concat!(
@@ -40,10 +41,10 @@ fn first_def(p: &Program) -> Value {
 }
 
 type Mutation = fn(&mut Program);
+type FixedMutation = fn(&mut FixedProgram);
 
-#[test]
-fn invalid_programs_are_errors() {
-    let cases: &[(&str, Mutation, &str)] = &[
+fn cases() -> Vec<(&'static str, Mutation, &'static str)> {
+    vec![
         ("unchanged", |_| {}, "ok"),
         (
             "value out of the table",
@@ -99,14 +100,68 @@ fn invalid_programs_are_errors() {
             |p| p.sensors[0].range.1 = f64::NAN,
             "sensor `key` has the invalid range [0, NaN]",
         ),
-    ];
-    for (name, mutate, want) in cases {
+    ]
+}
+
+#[test]
+fn invalid_programs_are_errors() {
+    for (name, mutate, want) in cases() {
         let mut p = piano();
         mutate(&mut p);
         let got = match JitProgram::compile(&p) {
             Ok(_) => "ok".to_string(),
             Err(e) => e.to_string(),
         };
+        assert!(got.contains(want), "{name}: got {got:?}, want {want:?}");
+    }
+}
+
+/// The fixed JIT runs the same verifier on the IR of a fixed program, and checks that the
+/// format plan has one entry per value, state, sensor and event.
+#[test]
+fn invalid_fixed_programs_are_errors() {
+    let fixed_cases: Vec<(&str, FixedMutation, &str)> = vec![
+        ("plan unchanged", |_| {}, "ok"),
+        (
+            "a format missing",
+            |fp| {
+                fp.frac.pop();
+            },
+            "internal error: inconsistent fixed-point plan tables",
+        ),
+        (
+            "inverted raw sensor range",
+            |fp| fp.sensor_raw_range[0] = (1, -1),
+            "internal error: inconsistent fixed-point plan tables",
+        ),
+        (
+            "a format beyond FRAC_RANGE",
+            |fp| fp.frac[0] = 1000,
+            "internal error: inconsistent fixed-point plan tables",
+        ),
+        (
+            "a state format missing",
+            |fp| {
+                fp.state_frac.clear();
+            },
+            "internal error: inconsistent fixed-point plan tables",
+        ),
+    ];
+    let base = FixedProgram::new(&piano());
+    let compile = |fp: &FixedProgram| match FixedJitProgram::compile(fp) {
+        Ok(_) => "ok".to_string(),
+        Err(e) => e.to_string(),
+    };
+    for (name, mutate, want) in cases() {
+        let mut fp = base.clone();
+        mutate(&mut fp.program);
+        let got = compile(&fp);
+        assert!(got.contains(want), "{name}: got {got:?}, want {want:?}");
+    }
+    for (name, mutate, want) in fixed_cases {
+        let mut fp = base.clone();
+        mutate(&mut fp);
+        let got = compile(&fp);
         assert!(got.contains(want), "{name}: got {got:?}, want {want:?}");
     }
 }
