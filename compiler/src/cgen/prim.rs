@@ -354,6 +354,12 @@ pub fn cmp(op: CmpOp, x: &str, fx: i32, y: &str, fy: i32) -> String {
             format!("tx_clamp2({v}) * {}", pow2(32))
         }
     };
+    if x == y && fx == fy {
+        // A value compared with itself (`q != q`): the order is Equal; C compilers reject
+        // the tautological comparison.
+        let holds = matches!(op, CmpOp::Eq | CmpOp::Le | CmpOp::Ge);
+        return format!("((void)({x}), {})", i32::from(holds));
+    }
     match fx.cmp(&fy) {
         Ordering::Equal => format!("({x} {o} {y})"),
         Ordering::Greater => format!("((int64_t)({x}) {o} {})", scaled(y, fx - fy)),
