@@ -235,109 +235,106 @@ fn c_matches_the_fixed_interpreter_on_special_operations() {
 /// Compiles one instrument to C, runs every built-in stimulus (if `stimuli`) and random
 /// words through it and through the fixed interpreter, and asserts equal bits; returns the number of samples.
 fn check_instrument(base: &Path, name: &str, text: &str, stimuli: bool) -> usize {
-    {
-        let p = tactus_compiler::compile(&text, &Config::default())
-            .unwrap()
-            .program;
-        let fp = FixedProgram::new(&p);
-        let c = cgen::emit_c(&fp).unwrap();
-        let exe = build(&base.join(name), &fp, &c);
-        let ns = p.sensors.len();
-        // Stimuli: sensor 0 follows the stimulus, the others sit at their lower bound.
-        let mut runs = Vec::new();
-        for (stim, _) in stimulus::builtin_names().iter().filter(|_| stimuli) {
-            let s = stimulus::builtin(stim, p.sensors[0].range.1, 44_100.0).unwrap();
-            let records = s
-                .key
-                .iter()
-                .map(|&k| {
-                    (0..ns)
-                        .map(|i| {
-                            FixedInstance::sensor_raw(&fp, i, if i == 0 { Some(k) } else { None })
-                        })
-                        .collect()
-                })
-                .collect();
-            runs.push(Run {
-                label: format!("{name}/{stim}"),
-                records,
-            });
-        }
-        let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ name.len() as u64);
-        for r in 0..if stimuli { 8 } else { 24 } {
-            let mut prev: Vec<i32> = fp.sensor_raw_range.iter().map(|r| r.0).collect();
-            let records = (0..4000)
-                .map(|_| {
-                    for (i, w) in prev.iter_mut().enumerate() {
-                        *w = random_word(&mut rng, *w, fp.sensor_raw_range[i]);
-                    }
-                    prev.clone()
-                })
-                .collect();
-            runs.push(Run {
-                label: format!("{name}/random{r}"),
-                records,
-            });
-        }
-        // One input file for all runs; a reset flag starts each run.
-        let mut input = Vec::new();
-        for run in &runs {
-            for (n, rec) in run.records.iter().enumerate() {
-                input.extend_from_slice(&i32::from(n == 0).to_ne_bytes());
-                for w in rec {
-                    input.extend_from_slice(&w.to_ne_bytes());
+    let p = tactus_compiler::compile(text, &Config::default())
+        .unwrap()
+        .program;
+    let fp = FixedProgram::new(&p);
+    let c = cgen::emit_c(&fp).unwrap();
+    let exe = build(&base.join(name), &fp, &c);
+    let ns = p.sensors.len();
+    // Stimuli: sensor 0 follows the stimulus, the others sit at their lower bound.
+    let mut runs = Vec::new();
+    for (stim, _) in stimulus::builtin_names().iter().filter(|_| stimuli) {
+        let s = stimulus::builtin(stim, p.sensors[0].range.1, 44_100.0).unwrap();
+        let records = s
+            .key
+            .iter()
+            .map(|&k| {
+                (0..ns)
+                    .map(|i| FixedInstance::sensor_raw(&fp, i, if i == 0 { Some(k) } else { None }))
+                    .collect()
+            })
+            .collect();
+        runs.push(Run {
+            label: format!("{name}/{stim}"),
+            records,
+        });
+    }
+    let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ name.len() as u64);
+    for r in 0..if stimuli { 8 } else { 24 } {
+        let mut prev: Vec<i32> = fp.sensor_raw_range.iter().map(|r| r.0).collect();
+        let records = (0..4000)
+            .map(|_| {
+                for (i, w) in prev.iter_mut().enumerate() {
+                    *w = random_word(&mut rng, *w, fp.sensor_raw_range[i]);
                 }
+                prev.clone()
+            })
+            .collect();
+        runs.push(Run {
+            label: format!("{name}/random{r}"),
+            records,
+        });
+    }
+    // One input file for all runs; a reset flag starts each run.
+    let mut input = Vec::new();
+    for run in &runs {
+        for (n, rec) in run.records.iter().enumerate() {
+            input.extend_from_slice(&i32::from(n == 0).to_ne_bytes());
+            for w in rec {
+                input.extend_from_slice(&w.to_ne_bytes());
             }
         }
-        let input_path = base.join(name).join("input.bin");
-        std::fs::write(&input_path, &input).unwrap();
-        let o = Command::new(&exe)
-            .stdin(std::fs::File::open(&input_path).unwrap())
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{name}: the C driver failed");
-        let words: Vec<i32> = o
-            .stdout
-            .chunks_exact(4)
-            .map(|b| i32::from_ne_bytes(b.try_into().unwrap()))
-            .collect();
-        let (len, nst, nm) = (c.layout.len, p.states.len(), p.modes.len());
-        let per = len + nst + nm;
-        let nrec: usize = runs.iter().map(|r| r.records.len()).sum();
-        assert_eq!(words.len(), nrec * per, "{name}: output length");
-        let mut mismatches = Vec::new();
-        let mut events = 0usize;
-        let mut rows = words.chunks_exact(per);
-        for run in &runs {
-            let mut inst = FixedInstance::new(&fp);
-            for (n, rec) in run.records.iter().enumerate() {
-                let row = rows.next().unwrap();
-                let want = inst.step_raw(rec).clone();
-                let l = &c.layout;
-                let mut got_events = Vec::new();
-                let mut stray = false;
-                for site in &l.emits {
-                    let nargs = p.events[site.event.index()].args.len();
-                    let args = &row[site.offset + 1..site.offset + 1 + nargs];
-                    match row[site.offset] {
-                        1 => got_events.push((site.event, args.to_vec())),
-                        0 => stray |= args.iter().any(|&a| a != 0),
-                        _ => stray = true,
-                    }
+    }
+    let input_path = base.join(name).join("input.bin");
+    std::fs::write(&input_path, &input).unwrap();
+    let o = Command::new(&exe)
+        .stdin(std::fs::File::open(&input_path).unwrap())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{name}: the C driver failed");
+    let words: Vec<i32> = o
+        .stdout
+        .chunks_exact(4)
+        .map(|b| i32::from_ne_bytes(b.try_into().unwrap()))
+        .collect();
+    let (len, nst, nm) = (c.layout.len, p.states.len(), p.modes.len());
+    let per = len + nst + nm;
+    let nrec: usize = runs.iter().map(|r| r.records.len()).sum();
+    assert_eq!(words.len(), nrec * per, "{name}: output length");
+    let mut mismatches = Vec::new();
+    let mut events = 0usize;
+    let mut rows = words.chunks_exact(per);
+    for run in &runs {
+        let mut inst = FixedInstance::new(&fp);
+        for (n, rec) in run.records.iter().enumerate() {
+            let row = rows.next().unwrap();
+            let want = inst.step_raw(rec).clone();
+            let l = &c.layout;
+            let mut got_events = Vec::new();
+            let mut stray = false;
+            for site in &l.emits {
+                let nargs = p.events[site.event.index()].args.len();
+                let args = &row[site.offset + 1..site.offset + 1 + nargs];
+                match row[site.offset] {
+                    1 => got_events.push((site.event, args.to_vec())),
+                    0 => stray |= args.iter().any(|&a| a != 0),
+                    _ => stray = true,
                 }
-                events += want.events.len();
-                let ok = row[l.forces..l.forces + p.forces.len()] == want.forces[..]
-                    && row[l.total] == want.total
-                    && row[l.outputs..l.outputs + p.outputs.len()] == want.outputs[..]
-                    && got_events == want.events
-                    && !stray
-                    && row[len..len + nst] == *inst.states()
-                    && row[len + nst..]
-                        .iter()
-                        .map(|&m| m as u32)
-                        .eq(inst.modes().iter().copied());
-                if !ok {
-                    mismatches.push(format!(
+            }
+            events += want.events.len();
+            let ok = row[l.forces..l.forces + p.forces.len()] == want.forces[..]
+                && row[l.total] == want.total
+                && row[l.outputs..l.outputs + p.outputs.len()] == want.outputs[..]
+                && got_events == want.events
+                && !stray
+                && row[len..len + nst] == *inst.states()
+                && row[len + nst..]
+                    .iter()
+                    .map(|&m| m as u32)
+                    .eq(inst.modes().iter().copied());
+            if !ok {
+                mismatches.push(format!(
                         "{} sample {n} sensors {rec:?}:\n  C:      {:?}\n  interp: forces {:?} total {} outputs {:?} events {:?} states {:?} modes {:?}",
                         run.label,
                         row,
@@ -348,20 +345,19 @@ fn check_instrument(base: &Path, name: &str, text: &str, stimuli: bool) -> usize
                         inst.states(),
                         inst.modes()
                     ));
-                }
             }
         }
-        println!(
-            "{name:<16} {} runs, {nrec} samples, {events} events, {} mismatches",
-            runs.len(),
-            mismatches.len()
-        );
-        assert!(
-            mismatches.is_empty(),
-            "{name}: {} mismatching samples; first:\n{}",
-            mismatches.len(),
-            mismatches[..mismatches.len().min(5)].join("\n")
-        );
-        nrec
     }
+    println!(
+        "{name:<16} {} runs, {nrec} samples, {events} events, {} mismatches",
+        runs.len(),
+        mismatches.len()
+    );
+    assert!(
+        mismatches.is_empty(),
+        "{name}: {} mismatching samples; first:\n{}",
+        mismatches.len(),
+        mismatches[..mismatches.len().min(5)].join("\n")
+    );
+    nrec
 }
