@@ -237,11 +237,16 @@ fn define(
     };
     let b = cg::Translator::new(fp, layout, b, host).finish()?;
     b.finalize(module.target_config());
+    let dump = std::env::var_os("TACTUS_JIT_DUMP").is_some();
+    ctx.set_disasm(dump);
     module
         .define_function(id, &mut ctx)
         .map_err(|e| JitError::Codegen(format!("{e:?}")))?;
-    if std::env::var_os("TACTUS_JIT_DUMP").is_some() {
+    if dump {
         eprintln!("{}", ctx.func.display());
+        if let Some(vcode) = ctx.compiled_code().and_then(|c| c.vcode.as_ref()) {
+            eprintln!("{vcode}");
+        }
     }
     module.finalize_definitions().map_err(|e| err(&e))?;
     let code = module.get_finalized_function(id);

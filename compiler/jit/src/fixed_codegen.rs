@@ -3,14 +3,19 @@
 //! Every IR value is one `i32` SSA value holding exactly the word the fixed interpreter
 //! holds (raw fixed-point word, variant index, or 0/1). Every operation follows the rule of
 //! `tactus_runtime::fixed`: the *exact* result, rounded half up to the result format
-//! (`floor(v·2^fr + 1/2)`), saturated to `i32`. The exact intermediate is a [`Wide`]: an
-//! integer in some format together with the interval it lies in, known at compile time from
-//! the formats alone (never from the range analysis, whose claims the interpreter checks
-//! rather than trusts). The interval picks the cheapest exact representation — `i64` when
-//! the intermediate and its rounding addend fit, `i128` otherwise (alignments by more than
-//! 31 bits, large derivative gains) — and drops the saturation sides that cannot fire.
-//! Left shifts whose exact result would not fit first clamp the operand to `±2^31` and shift
-//! by at most 32: the result saturates exactly when the exact one would, to the same side.
+//! (`floor(v·2^fr + 1/2)`), saturated to `i32`.
+//!
+//! Each word carries, at compile time, an interval its raw value is known to lie in,
+//! derived from what the native code itself enforces — sensor words saturated to their raw
+//! ranges, state words to theirs, constants exact — through the exact operations. It is
+//! never taken from the range analysis, whose claims the interpreter checks rather than
+//! trusts, and host-call results get none. The exact intermediate of an operation is an
+//! integer in some format with such an interval; the interval picks the cheapest exact
+//! representation (`i32`, `i64`, or `i128` for alignments beyond 31 bits and large
+//! derivative gains), drops the saturation sides that cannot fire, folds results that can
+//! take one value only, and decides comparisons it already knows. Left shifts whose exact
+//! result would not fit first clamp the operand to `±2^31` and shift by at most 32: the
+//! result saturates exactly when the exact one would, to the same side.
 //!
 //! Comparisons with a constant (`tactus_runtime::fixed::cmp_const`) become integer
 //! comparisons with thresholds found at compile time by binary search over the raw words,
