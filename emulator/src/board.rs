@@ -11,11 +11,23 @@
 //!
 //! **Speed.** [`Board::run_until`] lets the core whose turn it is run a burst of
 //! instructions until it gets ahead of the other core, taking instructions from a
-//! direct-mapped decode cache that also holds their timing-table costs; a store into an SRAM
-//! page holding cached code, or any host write, invalidates the cache (an epoch), so
-//! self-modifying code stays correct. Interrupt lines are recomputed only when a peripheral
-//! was accessed or a timer event is due. [`Board::step`] is the same machine one instruction
-//! at a time, recording [`Core::last`] for traces.
+//! direct-mapped decode cache that also holds their timing-table costs and a pre-decoded
+//! form (module `fast`); a store into an SRAM page holding cached code, or any host write,
+//! invalidates the cache (an epoch), so self-modifying code stays correct. Interrupt lines
+//! are recomputed only when a peripheral was accessed or a timer event is due. Once a core
+//! is in a state where its next instructions cannot take an exception (running, Thumb,
+//! nothing takeable pending, the current interrupt lines already pending on it), the fast
+//! path runs it in a tight loop (`Core::execute_op`): common instructions with SRAM and
+//! flash accesses complete there; anything else (peripherals, SIO, PPB, faults, sleep,
+//! SEV, SVC, exception return, a cache miss) runs through the general path and ends the
+//! loop, after which every condition is checked again. The loop also stops at each core's
+//! deadline: the run's limit, the next timer event and its next SysTick wrap. With both
+//! cores running, one loop alternates between them in the lock-step order (whichever is
+//! behind, core 0 on ties); with one core asleep and nothing able to wake it, the loop runs
+//! the other core and moves the sleeper's cycle counter exactly as its sleep steps would.
+//! So the order of all shared-state accesses, and every result, is the same as stepping
+//! one instruction at a time. [`Board::step`] is the same machine one instruction at a
+//! time, recording [`Core::last`] for traces.
 //!
 //! **Sensors and DAC.** Firmware sees the key sensors and the motor drivers the way a DMA from
 //! SPI converters would leave them: word arrays in SRAM at [`SENSOR_BASE`] and [`DAC_BASE`],
