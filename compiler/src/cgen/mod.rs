@@ -666,8 +666,13 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
                 1,
                 &format!("int32_t s{i} = sensors[{i}]; /* {} */", sd.name),
             );
-            self.line(1, &format!("if (s{i} < {}) s{i} = {};", lit(lo), lit(lo)));
-            self.line(1, &format!("if (s{i} > {}) s{i} = {};", lit(hi), lit(hi)));
+            // (A bound at the end of the word range needs no test, and C compilers warn.)
+            if lo != i32::MIN {
+                self.line(1, &format!("if (s{i} < {}) s{i} = {};", lit(lo), lit(lo)));
+            }
+            if hi != i32::MAX {
+                self.line(1, &format!("if (s{i} > {}) s{i} = {};", lit(hi), lit(hi)));
+            }
             if let Some(h) = self.hist_slot[i] {
                 self.line(1, &format!("if (!s->hist_primed[{h}]) {{"));
                 self.line(
