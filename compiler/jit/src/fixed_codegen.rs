@@ -14,7 +14,7 @@
 //! representation (`i32`, `i64`, or `i128` for alignments beyond 31 bits and large
 //! derivative gains), drops the saturation sides that cannot fire, folds results that can
 //! take one value only, and decides comparisons it already knows. Left shifts whose exact
-//! result would not fit first clamp the operand to `±2^31` and shift by at most 32: the
+//! result would not fit first clamp the operand to `±2^31` and shift by at most 31: the
 //! result saturates exactly when the exact one would, to the same side.
 //!
 //! Comparisons with a constant (`tactus_runtime::fixed::cmp_const`) become integer
@@ -1021,13 +1021,14 @@ impl<'a, 'f> Translator<'a, 'f> {
                 return self.narrow(v, ty, lo, hi);
             }
             // Would not fit: clamp to ±2^31 (which saturates after any shift >= 1 exactly
-            // when the exact value does, to the same side), shift at most 32.
+            // when the exact value does, to the same side), shift at most 31 (2^31·2^31
+            // fits an i64; any non-zero word shifted by 31 already saturates).
             let lim = 1i128 << 31;
             let (lo, hi) = (w.lo.max(-lim), w.hi.min(lim));
             let x = self.clamp_value(w.v, w.ty, w.lo, w.hi, -lim, lim);
             let ty = if w.ty == types::I128 { types::I64 } else { w.ty };
             let x = self.retype(Wide { v: x, ty, lo, hi, ..w }, types::I64);
-            let s = s.min(32);
+            let s = s.min(31);
             let v = self.b.ins().ishl_imm_s(x, i64::from(s));
             return self.narrow(v, types::I64, lo << s, hi << s);
         }
