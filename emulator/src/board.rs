@@ -440,10 +440,17 @@ impl Board {
                         .min(c.nvic.syst_next)
                 };
                 let deadline = [deadline(&self.cores[0]), deadline(&self.cores[1])];
-                if now < deadline[k] {
-                    let (k, event) = self.fast_run::<true>(k, deadline);
-                    if let Some(stop) = self.handle_event(k, event) {
-                        return stop;
+                if let (true, Some(w0), Some(w1)) =
+                    (now < deadline[k], self.watch_set(0), self.watch_set(1))
+                {
+                    let (k, ran) = self.fast_run::<true>(k, deadline, [w0, w1]);
+                    if let Some(event) = ran {
+                        if !self.profiles.is_empty() {
+                            self.profile_step(k);
+                        }
+                        if let Some(stop) = self.handle_event(k, event) {
+                            return stop;
+                        }
                     }
                     continue;
                 }
@@ -458,19 +465,32 @@ impl Board {
                 let wake_check = limit
                     .min(self.system.timer.next_event)
                     .min(s.nvic.syst_next);
-                if now < deadline {
+                if let (true, Some(watch)) = (now < deadline, self.watch_set(k)) {
                     let [c0, c1] = &mut self.cores;
                     let (sys, cache) = (&mut self.system, &self.cache);
-                    let run = if k == 0 {
-                        run_beside_sleeper::<false>(c0, c1, sys, cache, deadline, wake_check)
-                    } else {
-                        run_beside_sleeper::<true>(c1, c0, sys, cache, deadline, wake_check)
+                    let run = match (k == 0, self.profiles.is_empty()) {
+                        (true, true) => run_beside_sleeper::<false, false>(
+                            c0, c1, sys, cache, deadline, wake_check, &watch,
+                        ),
+                        (true, false) => run_beside_sleeper::<false, true>(
+                            c0, c1, sys, cache, deadline, wake_check, &watch,
+                        ),
+                        (false, true) => run_beside_sleeper::<true, false>(
+                            c1, c0, sys, cache, deadline, wake_check, &watch,
+                        ),
+                        (false, false) => run_beside_sleeper::<true, true>(
+                            c1, c0, sys, cache, deadline, wake_check, &watch,
+                        ),
                     };
                     // Ok: the sleeper reached its wake check; Err: core k must leave.
                     if let Err(exit) = run {
-                        let event = self.finish_fast(k, exit);
-                        if let Some(stop) = self.handle_event(k, event) {
-                            return stop;
+                        if let Some(event) = self.finish_fast(k, exit) {
+                            if !self.profiles.is_empty() {
+                                self.profile_step(k);
+                            }
+                            if let Some(stop) = self.handle_event(k, event) {
+                                return stop;
+                            }
                         }
                     }
                     continue;
@@ -530,13 +550,18 @@ impl Board {
             if event != Event::None {
                 return event;
             }
-            if self.fast_ready(k) {
+            if let (true, Some(watch)) = (self.fast_ready(k), self.watch_set(k)) {
                 let deadline = horizon
                     .min(self.system.timer.next_event)
                     .min(self.cores[k].nvic.syst_next);
-                let (_, event) = self.fast_run::<false>(k, [deadline; 2]);
-                if event != Event::None {
-                    return event;
+                let (_, ran) = self.fast_run::<false>(k, [deadline; 2], [watch; 2]);
+                if let Some(event) = ran {
+                    if !self.profiles.is_empty() {
+                        self.profile_step(k);
+                    }
+                    if event != Event::None {
+                        return event;
+                    }
                 }
             }
         }
@@ -545,7 +570,7 @@ impl Board {
     /// True when core `k`'s next instructions may take the fast path ([`Board::fast_run`]):
     /// it is running in Thumb state with no exception it could take, the interrupt lines
     /// are current and already pending on it (so the per-instruction "OR the lines into
-    /// pending" of [`Board::step_cached`] would change nothing), and no profile is active.
+    /// pending" of [`Board::step_cached`] would change nothing).
     /// Everything the fast path executes leaves these conditions true; everything that
     /// could change them leaves the fast path.
     #[inline]
@@ -556,7 +581,31 @@ impl Board {
             && c.nvic.takeable() == 0
             && ((self.lines as u64) << IRQ0) & !c.nvic.active & !c.nvic.pending == 0
             && self.lines_epoch == self.system.irq_epoch
-            && self.profiles.is_empty()
+    }
+
+    /// The addresses at which core `k`'s fast path must stop for [`Board::profile_step`]
+    /// (unused slots hold 1, which no PC equals), or `None` when there are too many. After
+    /// any other instruction of the fast path `profile_step` would do nothing: no call can
+    /// start (the PC is no profiled entry) and none can end (the PC is not the return
+    /// address of the innermost open call, and a call ending with an exception return
+    /// leaves the fast path anyway).
+    fn watch_set(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
+        let mut watch = [1; WATCH_SLOTS];
+        let mut n = 0;
+        for p in &self.profiles {
+            let addrs = [
+                Some(p.entry),
+                match p.open[k].last() {
+                    Some(&(Return::To(addr), _, _)) => Some(addr),
+                    _ => None,
+                },
+            ];
+            for a in addrs.into_iter().flatten() {
+                *watch.get_mut(n)? = a;
+                n += 1;
+            }
+        }
+        Some(watch)
     }
 
     /// The fast path: runs core `k` (or, with `BOTH`, whichever core is behind, core 0 on
@@ -568,26 +617,35 @@ impl Board {
     /// executed exactly as [`Board::step_cached`] would and ends the run, so the caller
     /// re-checks everything as before. Returns the core that ran last and its event.
     #[inline(always)]
-    fn fast_run<const BOTH: bool>(&mut self, k: usize, deadline: [u64; 2]) -> (usize, Event) {
-        let (k, exit) = if BOTH {
-            run_both(&mut self.cores, &mut self.system, &self.cache, deadline)
-        } else {
-            let exit = run_one(
-                &mut self.cores[k],
-                &mut self.system,
-                &self.cache,
-                deadline[k],
-            );
-            (k, exit)
+    fn fast_run<const BOTH: bool>(
+        &mut self,
+        k: usize,
+        deadline: [u64; 2],
+        watch: [[u32; WATCH_SLOTS]; 2],
+    ) -> (usize, Option<Event>) {
+        let (cores, sys, cache) = (&mut self.cores, &mut self.system, &self.cache);
+        let (k, exit) = match (BOTH, self.profiles.is_empty()) {
+            (true, true) => run_both::<false>(cores, sys, cache, deadline, &watch),
+            (true, false) => run_both::<true>(cores, sys, cache, deadline, &watch),
+            (false, true) => (
+                k,
+                run_one::<false>(&mut cores[k], sys, cache, deadline[k], &watch[k]),
+            ),
+            (false, false) => (
+                k,
+                run_one::<true>(&mut cores[k], sys, cache, deadline[k], &watch[k]),
+            ),
         };
         (k, self.finish_fast(k, exit))
     }
 
     /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
-    /// needs the general path runs as [`Board::step_cached`] would run it. Returns its event.
-    fn finish_fast(&mut self, k: usize, exit: Exit) -> Event {
-        match exit {
-            Exit::Deadline => Event::None,
+    /// needs the general path runs as [`Board::step_cached`] would run it. Returns the event
+    /// of the instruction the run ended with, `None` when it ended before one.
+    fn finish_fast(&mut self, k: usize, exit: Exit) -> Option<Event> {
+        Some(match exit {
+            Exit::Deadline => return None,
+            Exit::Watch => Event::None,
             Exit::Miss => self.step_cached::<false>(k, self.lines),
             Exit::General => {
                 let core = &mut self.cores[k];
@@ -596,7 +654,7 @@ impl Board {
                 let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
                 core.run_priced::<_, false>(&mut self.system, pc, instr, size, Some(cost))
             }
-        }
+        })
     }
 
     /// True when core `s` is asleep and its sleep steps ([`Board::step`]) would only move
@@ -791,16 +849,25 @@ enum Exit {
     Miss,
     /// The core's next instruction (in the cache) needs the general path.
     General,
+    /// The core executed an instruction that left it at a watched address (profiling).
+    Watch,
 }
+
+/// Most addresses the fast path watches for profiling ([`Board::watch_set`]).
+const WATCH_SLOTS: usize = 8;
 
 /// One step of the fast path for `core`: false (and nothing done) with the reason when
 /// it must leave.
+///
+/// With `WATCH`, an instruction that leaves the PC at an address in `watch` is counted here
+/// and ends the run with [`Exit::Watch`].
 #[inline(always)]
-fn fast_step(
+fn fast_step<const WATCH: bool>(
     core: &mut Core,
     sys: &mut System,
     cache: &[Cached; CACHE_SLOTS],
     deadline: u64,
+    watch: &[u32; WATCH_SLOTS],
 ) -> Result<(), Exit> {
     if core.cycle >= deadline {
         return Err(Exit::Deadline);
@@ -813,21 +880,26 @@ fn fast_step(
     if !core.execute_op(sys, &slot.op, &slot.instr, pc, slot.size, slot.cost) {
         return Err(Exit::General);
     }
+    if WATCH && watch.contains(&core.r[15]) {
+        core.instructions += 1;
+        return Err(Exit::Watch);
+    }
     Ok(())
 }
 
 /// The fast path on one core until it must leave. A separate function whose arguments
 /// cannot alias, so the compiler may keep the core's counters in registers.
 #[inline(never)]
-fn run_one(
+fn run_one<const WATCH: bool>(
     core: &mut Core,
     sys: &mut System,
     cache: &[Cached; CACHE_SLOTS],
     deadline: u64,
+    watch: &[u32; WATCH_SLOTS],
 ) -> Exit {
     let mut retired = 0;
     loop {
-        if let Err(exit) = fast_step(core, sys, cache, deadline) {
+        if let Err(exit) = fast_step::<WATCH>(core, sys, cache, deadline, watch) {
             core.instructions += retired;
             return exit;
         }
@@ -838,11 +910,12 @@ fn run_one(
 /// The fast path on both cores in lock-step order (the core that is behind, core 0 on
 /// ties) until the core whose turn it is must leave; returns that core.
 #[inline(never)]
-fn run_both(
+fn run_both<const WATCH: bool>(
     cores: &mut [Core; 2],
     sys: &mut System,
     cache: &[Cached; CACHE_SLOTS],
     deadline: [u64; 2],
+    watch: &[[u32; WATCH_SLOTS]; 2],
 ) -> (usize, Exit) {
     let [c0, c1] = cores;
     let mut retired = [0; 2];
@@ -851,12 +924,12 @@ fn run_both(
         // then predicted instead of making every instruction wait for the previous one's
         // cycle count (and each core gets its own, better predicted, dispatch).
         if c1.cycle < c0.cycle {
-            match fast_step(c1, sys, cache, deadline[1]) {
+            match fast_step::<WATCH>(c1, sys, cache, deadline[1], &watch[1]) {
                 Ok(()) => retired[1] += 1,
                 Err(exit) => break (1, exit),
             }
         } else {
-            match fast_step(c0, sys, cache, deadline[0]) {
+            match fast_step::<WATCH>(c0, sys, cache, deadline[0], &watch[0]) {
                 Ok(()) => retired[0] += 1,
                 Err(exit) => break (0, exit),
             }
@@ -874,13 +947,14 @@ fn run_both(
 /// those), so nothing else about it can change. `Ok` when the sleeper reached
 /// `wake_check`, `Err` when the running core must leave.
 #[inline(never)]
-fn run_beside_sleeper<const SLEEPER_IS_0: bool>(
+fn run_beside_sleeper<const SLEEPER_IS_0: bool, const WATCH: bool>(
     run: &mut Core,
     sleep: &mut Core,
     sys: &mut System,
     cache: &[Cached; CACHE_SLOTS],
     deadline: u64,
     wake_check: u64,
+    watch: &[u32; WATCH_SLOTS],
 ) -> Result<(), Exit> {
     loop {
         // The sleeper's turn: it is behind, or level and core 0.
@@ -891,7 +965,7 @@ fn run_beside_sleeper<const SLEEPER_IS_0: bool>(
             }
             sleep.cycle = wake_check.min(run.cycle + 1).max(now + 1);
         } else {
-            match fast_step(run, sys, cache, deadline) {
+            match fast_step::<WATCH>(run, sys, cache, deadline, watch) {
                 Ok(()) => run.instructions += 1,
                 Err(exit) => return Err(exit),
             }

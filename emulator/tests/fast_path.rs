@@ -4,8 +4,9 @@
 //! LDM/STM and forward branches, looping forever, on one core and on both (sharing a data
 //! area, so the SRAM banks contend), some with WFI/WFE/SEV (so one core sleeps while the other
 //! runs) and some with a SysTick interrupt whose handler returns at once.
-//! After every run the cycle counters, registers, flags, instruction counts, contention
-//! stalls, stop reason and all of SRAM must agree exactly.
+//! Some runs profile functions (`Board::profile_addr`). After every run the cycle counters,
+//! registers, flags, instruction counts, contention stalls, stop reason, all of SRAM and the
+//! profiled calls must agree exactly.
 
 use tactus_emulator::{Board, Config, StopReason};
 
@@ -142,7 +143,15 @@ fn program(rng: &mut Rng, sev: bool) -> Vec<u16> {
 }
 
 /// `sleeper`: core 1 runs `wfe; adds r4, #1; b .-4` and core 0's program has extra SEVs.
-fn board(rng: &mut Rng, cores: usize, in_flash: bool, systick: bool, sleeper: bool) -> Board {
+/// `profile`: two addresses of each program are profiled, with LR pointing into it.
+fn board(
+    rng: &mut Rng,
+    cores: usize,
+    in_flash: bool,
+    systick: bool,
+    sleeper: bool,
+    profile: bool,
+) -> Board {
     let mut b = Board::new(Config::default());
     let mut data = vec![0u8; 1024];
     for x in data.iter_mut() {
@@ -168,6 +177,12 @@ fn board(rng: &mut Rng, cores: usize, in_flash: bool, systick: bool, sleeper: bo
         };
         b.write_bytes(at, &bytes).unwrap();
         b.start_core(core, at | 1, 0x2003_8000 + 0x1000 * core as u32, vtor);
+        if profile {
+            let len = code.len() as u32;
+            b.profile_addr(at + 2 * rng.below(len) as u32);
+            b.profile_addr(at + 2 * rng.below(len) as u32);
+            b.cores[core].r[14] = (at + 2 * rng.below(len) as u32) | 1;
+        }
         let c = &mut b.cores[core];
         for r in 0..13 {
             c.r[r] = rng.next() as u32;
@@ -184,8 +199,11 @@ fn board(rng: &mut Rng, cores: usize, in_flash: bool, systick: bool, sleeper: bo
     b
 }
 
-fn state(b: &mut Board) -> String {
+fn state(b: &mut Board, profiles: usize) -> String {
     let mut s = String::new();
+    for h in 0..profiles {
+        s += &format!("calls {h}: {:?}\n", b.calls(h));
+    }
     for c in &b.cores {
         s +=
             &format!(
@@ -218,20 +236,22 @@ fn stepped(b: &mut Board, limit: u64) -> StopReason {
 fn run_until_matches_single_steps() {
     let mut rng = Rng(0x5eed_fa57);
     let mut runs = 0;
-    for case in 0..64 {
+    for case in 0..80 {
         let cores = 1 + case % 2;
         let in_flash = case % 4 >= 2;
         let systick = case % 8 >= 4;
-        let sleeper = case >= 48 && cores == 2;
+        let sleeper = (48..64).contains(&case) && cores == 2;
+        let profile = case >= 64;
+        let profiles = if profile { 2 * cores } else { 0 };
         let seed = rng.next();
-        let mut fast = board(&mut Rng(seed), cores, in_flash, systick, sleeper);
-        let mut slow = board(&mut Rng(seed), cores, in_flash, systick, sleeper);
+        let mut fast = board(&mut Rng(seed), cores, in_flash, systick, sleeper, profile);
+        let mut slow = board(&mut Rng(seed), cores, in_flash, systick, sleeper, profile);
         // Several slices, so runs stop and resume mid-stream.
         for slice in [1, 7, 500, 3000, 20_000] {
             let limit = fast.cycle() + slice;
             let a = fast.run_until(limit);
             let b = stepped(&mut slow, limit);
-            let (sa, sb) = (state(&mut fast), state(&mut slow));
+            let (sa, sb) = (state(&mut fast, profiles), state(&mut slow, profiles));
             assert_eq!(a, b, "case {case} seed {seed:#x}: stop reasons differ");
             assert_eq!(
                 sa, sb,
@@ -243,5 +263,5 @@ fn run_until_matches_single_steps() {
             }
         }
     }
-    assert!(runs > 64);
+    assert!(runs > 80);
 }
