@@ -8,7 +8,8 @@
 //! ```
 //!
 //! `cores` = 3 runs the loop on core 0 with core 1 started but asleep in WFI (no interrupt
-//! will wake it). Prints the cycles run, each core's registers as a checksum, and the
+//! will wake it); `cores` = 4 runs, on core 0, a loop calling a profiled function
+//! (`Board::profile_addr`) that does the SRAM load, add and store (16 cycles per call). Prints the cycles run, each core's registers as a checksum, and the
 //! wall-clock rate.
 
 use tactus_emulator::{Board, Config};
@@ -22,7 +23,7 @@ fn main() {
     let mode: usize = args
         .next()
         .map_or(1, |a| a.parse().expect("cores: 1, 2 or 3"));
-    let cores = mode.min(2);
+    let cores = if mode == 2 || mode == 3 { 2 } else { 1 };
     let cycles: u64 = args
         .next()
         .map_or(5_000_000, |a| a.parse().expect("cycles"));
@@ -44,6 +45,17 @@ fn main() {
             .unwrap();
         b.start_core(1, 0x2000_1001, 0x2004_0800, 0);
     }
+    let mut profile = None;
+    if mode == 4 {
+        // loop: bl func; subs r5, #1; bne loop ... func (+0x20): push {lr};
+        // ldr r1, [r0]; adds r1, r1, r2; str r1, [r0, #4]; pop {pc}
+        let mut code = vec![0xf000, 0xf80e, 0x3d01, 0xd1fb];
+        code.resize(16, 0xbf00);
+        code.extend([0xb500, 0x6801, 0x1889, 0x6041, 0xbd00]);
+        let bytes: Vec<u8> = code.iter().flat_map(|h: &u16| h.to_le_bytes()).collect();
+        b.write_bytes(0x2000_0000, &bytes).unwrap();
+        profile = Some(b.profile_addr(0x2000_0020));
+    }
     let t = std::time::Instant::now();
     let stop = b.run_for(cycles);
     let secs = t.elapsed().as_secs_f64();
@@ -53,6 +65,11 @@ fn main() {
             "core {}: cycle {} instructions {} r = {:08x?} stalls {}",
             c.id, c.cycle, c.instructions, c.r, b.system.contention_stalls[c.id]
         );
+    }
+    if let Some(h) = profile {
+        let calls = b.calls(h);
+        let total: u64 = calls.iter().map(|c| c.cycles).sum();
+        println!("{} profiled calls, {} cycles", calls.len(), total);
     }
     println!("{:.1} M cycles/s per core", cycles as f64 / secs / 1e6);
 }

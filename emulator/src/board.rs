@@ -543,26 +543,30 @@ impl Board {
                 self.lines = self.system.irq_lines(k, now);
                 self.lines_epoch = self.system.irq_epoch;
             }
+            // The fast path when it can run; a single general step otherwise.
+            if let (true, Some(watch)) = (self.fast_ready(k), self.watch_set(k)) {
+                let deadline = horizon
+                    .min(self.system.timer.next_event)
+                    .min(self.cores[k].nvic.syst_next);
+                if self.cores[k].cycle < deadline {
+                    let (_, ran) = self.fast_run::<false>(k, [deadline; 2], [watch; 2]);
+                    if let Some(event) = ran {
+                        if !self.profiles.is_empty() {
+                            self.profile_step(k);
+                        }
+                        if event != Event::None {
+                            return event;
+                        }
+                    }
+                    continue;
+                }
+            }
             let event = self.step_cached::<false>(k, self.lines);
             if !self.profiles.is_empty() {
                 self.profile_step(k);
             }
             if event != Event::None {
                 return event;
-            }
-            if let (true, Some(watch)) = (self.fast_ready(k), self.watch_set(k)) {
-                let deadline = horizon
-                    .min(self.system.timer.next_event)
-                    .min(self.cores[k].nvic.syst_next);
-                let (_, ran) = self.fast_run::<false>(k, [deadline; 2], [watch; 2]);
-                if let Some(event) = ran {
-                    if !self.profiles.is_empty() {
-                        self.profile_step(k);
-                    }
-                    if event != Event::None {
-                        return event;
-                    }
-                }
             }
         }
     }
