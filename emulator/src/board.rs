@@ -25,6 +25,9 @@
 //! cores running, one loop alternates between them in the lock-step order (whichever is
 //! behind, core 0 on ties); with one core asleep and nothing able to wake it, the loop runs
 //! the other core and moves the sleeper's cycle counter exactly as its sleep steps would.
+//! While functions are profiled, the loop also stops after any instruction that lands on a
+//! profiled entry or on the return address of the innermost open call, the only places
+//! where the per-instruction profiling bookkeeping can do anything.
 //! So the order of all shared-state accesses, and every result, is the same as stepping
 //! one instruction at a time. [`Board::step`] is the same machine one instruction at a
 //! time, recording [`Core::last`] for traces.
