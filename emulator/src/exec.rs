@@ -602,59 +602,8 @@ impl Core {
                 self.r[(rd & 15) as usize] =
                     (self.r[(rm & 15) as usize] as u16).swap_bytes() as i16 as i32 as u32
             }
-            Push { list } => {
-                let count = list.count_ones();
-                let base = self.r[13].wrapping_sub(4 * count);
-                let Some(mut off) = sram_range(base, count) else {
-                    return false;
-                };
-                let mut bits = list;
-                let mut at = now + 1;
-                while bits != 0 {
-                    let reg = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    let w = sys.sram_write(self.id, at, off, 4, self.r[reg & 15]) as u64;
-                    cycles += w;
-                    at += 1 + w;
-                    off += 4;
-                }
-                self.r[13] = base;
-            }
-            Pop { list } => {
-                let base = self.r[13];
-                let count = list.count_ones();
-                let Some(mut off) = sram_range(base, count) else {
-                    return false;
-                };
-                if list & 0x8000 != 0 {
-                    let target = sys.sram_peek(off + 4 * (count - 1));
-                    if target & 1 == 0 || (self.ipsr != 0 && target >> 28 == 0xf) {
-                        return false;
-                    }
-                }
-                let mut bits = list;
-                let mut at = now + 1;
-                let mut values = [0u32; 16];
-                while bits != 0 {
-                    let reg = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    let (v, w) = sys.sram_read(self.id, at, off, 4);
-                    values[reg & 15] = v;
-                    cycles += w as u64;
-                    at += 1 + w as u64;
-                    off += 4;
-                }
-                self.r[13] = base.wrapping_add(4 * count);
-                for (reg, value) in values.iter().enumerate().take(8) {
-                    if list & (1 << reg) != 0 {
-                        self.r[reg] = *value;
-                    }
-                }
-                if list & 0x8000 != 0 {
-                    self.r[15] = values[15] & !1;
-                    return self.retire(cycles);
-                }
-            }
+            Push { list } => return self.push_fast(sys, list, next, cycles),
+            Pop { list } => return self.pop_fast(sys, list, next, cycles),
             Stm { rn, list } => {
                 let base = self.r[(rn & 15) as usize];
                 let count = list.count_ones();
@@ -720,6 +669,80 @@ impl Core {
             _ => return false,
         }
         self.r[15] = next;
+        self.retire(cycles)
+    }
+
+    /// PUSH on the fast path (the stack in SRAM, word-aligned): the whole instruction, with
+    /// `cycles` from the timing table and `next` the following instruction's address, or
+    /// false with nothing done.
+    #[inline(always)]
+    pub(crate) fn push_fast(
+        &mut self,
+        sys: &mut System,
+        list: u16,
+        next: u32,
+        cycles: u64,
+    ) -> bool {
+        let mut cycles = cycles;
+        let count = list.count_ones();
+        let base = self.r[13].wrapping_sub(4 * count);
+        let Some(mut off) = sram_range(base, count) else {
+            return false;
+        };
+        let mut bits = list;
+        let mut at = self.cycle + 1;
+        while bits != 0 {
+            let reg = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let w = sys.sram_write(self.id, at, off, 4, self.r[reg & 15]) as u64;
+            cycles += w;
+            at += 1 + w;
+            off += 4;
+        }
+        self.r[13] = base;
+        self.r[15] = next;
+        self.retire(cycles)
+    }
+
+    /// POP on the fast path (the stack in SRAM, word-aligned; a PC load that stays in Thumb
+    /// state and is no exception return), as [`Core::push_fast`].
+    #[inline(always)]
+    pub(crate) fn pop_fast(&mut self, sys: &mut System, list: u16, next: u32, cycles: u64) -> bool {
+        let mut cycles = cycles;
+        let base = self.r[13];
+        let count = list.count_ones();
+        let Some(mut off) = sram_range(base, count) else {
+            return false;
+        };
+        if list & 0x8000 != 0 {
+            let target = sys.sram_peek(off + 4 * (count - 1));
+            if target & 1 == 0 || (self.ipsr != 0 && target >> 28 == 0xf) {
+                return false;
+            }
+        }
+        let mut bits = list;
+        let mut at = self.cycle + 1;
+        let mut values = [0u32; 16];
+        while bits != 0 {
+            let reg = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let (v, w) = sys.sram_read(self.id, at, off, 4);
+            values[reg & 15] = v;
+            cycles += w as u64;
+            at += 1 + w as u64;
+            off += 4;
+        }
+        self.r[13] = base.wrapping_add(4 * count);
+        for (reg, value) in values.iter().enumerate().take(8) {
+            if list & (1 << reg) != 0 {
+                self.r[reg] = *value;
+            }
+        }
+        self.r[15] = if list & 0x8000 != 0 {
+            values[15] & !1
+        } else {
+            next
+        };
         self.retire(cycles)
     }
 

@@ -220,6 +220,12 @@ pub(crate) enum Op {
     Bl {
         target: u32,
     },
+    Push {
+        list: u16,
+    },
+    Pop {
+        list: u16,
+    },
     Nop,
     /// Anything else: run the `Instr` through [`Core::execute_fast`].
     Other,
@@ -300,6 +306,8 @@ impl Op {
             Instr::Bl { offset } => Op::Bl {
                 target: rel(offset),
             },
+            Instr::Push { list } => Op::Push { list },
+            Instr::Pop { list } => Op::Pop { list },
             Instr::Hint(Hint::Nop) => Op::Nop,
             _ => Op::Other,
         }
@@ -307,6 +315,20 @@ impl Op {
 }
 
 impl Core {
+    /// [`Core::execute_fast`] out of line, for the less common instructions: keeps the hot
+    /// loops (two copies of them when both cores run) small.
+    #[inline(never)]
+    fn execute_other(
+        &mut self,
+        sys: &mut System,
+        instr: &Instr,
+        pc: u32,
+        size: u32,
+        cost: (u8, u8),
+    ) -> bool {
+        self.execute_fast(sys, *instr, pc, size, cost)
+    }
+
     /// Executes pre-decoded `op` (the instruction `instr` at `pc`, of `size` bytes, costing
     /// `cost` = (not taken, taken) cycles): the contract of [`Core::execute_fast`].
     #[inline(always)]
@@ -525,8 +547,10 @@ impl Core {
                 self.r[15] = target;
                 self.retire(base)
             }
+            Op::Push { list } => self.push_fast(sys, list, next, base),
+            Op::Pop { list } => self.pop_fast(sys, list, next, base),
             Op::Nop => done!(base),
-            Op::Other => self.execute_fast(sys, *instr, pc, size, cost),
+            Op::Other => self.execute_other(sys, instr, pc, size, cost),
         }
     }
 }
