@@ -4,6 +4,7 @@
 mod build_cmd;
 mod check_cmd;
 mod emu_cmd;
+mod play_cmd;
 mod plot;
 mod sim_cmd;
 mod source;
@@ -28,6 +29,8 @@ enum Command {
     Check(check_cmd::CheckArgs),
     /// Simulate an instrument over a key stimulus; write a CSV trace and SVG plots.
     Sim(sim_cmd::SimArgs),
+    /// Play a recorded performance (MIDI) through an instrument; write the hammer strikes.
+    Play(play_cmd::PlayArgs),
     /// Compile an instrument to firmware sources (C99 today; Thumb ELF planned).
     Build(build_cmd::BuildArgs),
     /// Run ELF firmware on the emulated dual-core RP2040.
@@ -41,6 +44,7 @@ fn main() -> ExitCode {
         Command::Check(args) => check_cmd::run(args),
         Command::Sim(args) => sim_cmd::run(args),
         Command::Build(args) => build_cmd::run(args),
+        Command::Play(args) => play_cmd::run(args),
         Command::Emu(cmd) => emu_cmd::run(cmd),
     }
 }

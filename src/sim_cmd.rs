@@ -55,7 +55,7 @@ pub enum EngineKind {
 }
 
 /// The JIT seen as a simulation engine.
-struct JitEngine<'j>(tactus_jit::JitInstance<'j>);
+pub struct JitEngine<'j>(pub tactus_jit::JitInstance<'j>);
 
 impl tactus_compiler::sim::Engine for JitEngine<'_> {
     fn step_si(&mut self, sensors: &[f64]) -> tactus_compiler::interp::SampleOut {

@@ -53,17 +53,18 @@ pub fn sat32(x: i128) -> Sat {
 }
 
 /// `x · 2^-from` expressed with `to` fraction bits, rounded half up (exact when `to >= from`).
-/// The result is an `i128`; shifts beyond [`MAX_SHIFT`] saturate (left) or round to 0/−1
-/// correctly (right).
+/// The result is an `i128`; a left shift that would leave the `i128` saturates to ±2^126
+/// (which [`sat32`] then saturates to the `i32` bounds), a right shift rounds correctly.
 pub fn rescale(x: i128, from: i32, to: i32) -> i128 {
     if to >= from {
         let s = to - from;
-        if s > MAX_SHIFT {
-            return match x.signum() {
-                0 => 0,
-                1 => i128::MAX >> 1,
-                _ => i128::MIN >> 1,
-            };
+        if x == 0 {
+            return 0;
+        }
+        // Saturate (far beyond any i32) instead of shifting bits out of the i128.
+        let bits = 128 - x.unsigned_abs().leading_zeros() as i32;
+        if s > MAX_SHIFT || s + bits >= 126 {
+            return if x > 0 { i128::MAX >> 1 } else { i128::MIN >> 1 };
         }
         x << s
     } else {
@@ -251,6 +252,13 @@ mod tests {
         assert_eq!(rescale(5, 2, 0), 1); // 1.25 → 1
         assert_eq!(from_f64(0.75, 1), (2, false));
         assert_eq!(from_f64(-0.75, 1), (-1, false));
+    }
+
+    #[test]
+    fn huge_left_shifts_saturate_by_sign() {
+        assert_eq!(sat32(rescale(1 << 62, 0, 80)), (i32::MAX, true));
+        assert_eq!(sat32(rescale(-(1 << 62), 0, 80)), (i32::MIN, true));
+        assert_eq!(exp(from_f64(105.0, 24).0, 24, 0), (i32::MAX, true));
     }
 
     #[test]

@@ -12,14 +12,18 @@
 //! * descent time from velocity, log-linear between the literature's end points (Tactus
 //!   DESIGN.md: the key reaches bottom ≈ 160 ms after the start at *piano*, ≈ 25 ms at
 //!   *forte*), which we assign to MIDI velocities 30 and 100:
-//!   `T(v) = 160 ms · (25/160)^((v − 30)/70)`, clamped to [20 ms, 250 ms]. MIDI velocity
+//!   `T(v) = 160 ms · (25/160)^((v − 30)/70)`, clamped to [20 ms, 200 ms] (a recorded
+//!   note-on means the hammer did reach the string, and the shipped piano's hammer no longer
+//!   does at a 250 ms descent). MIDI velocity
 //!   is close to logarithmic in hammer speed on reproducing pianos, so a log-linear map of
 //!   travel time keeps the order of velocities (the property the tests rely on);
 //! * the press follows the cycloidal law of [`crate::stimulus`] (smooth to the second
 //!   derivative) from wherever the key is, so a repeated note that comes before the key is
 //!   back up re-strikes from a half-released key;
 //! * the key is held at the bottom until the note-off, then released over
-//!   [`RELEASE_S`] (60 ms) back to rest, unless the next press of that key starts first.
+//!   [`RELEASE_S`] (60 ms) back to rest; when the next press of that key starts before the
+//!   release could finish, the key is released faster, to [`REPEAT_RISE`] of the dip
+//!   raised, just in time for that press.
 //!
 //! The sustain pedal does not move keys (it lifts dampers), so it is read but not played.
 
@@ -29,6 +33,14 @@ use std::path::Path;
 
 /// Key release time, s.
 pub const RELEASE_S: f64 = 0.060;
+
+/// Slowest key descent the player uses, s.
+pub const MAX_DESCENT_S: f64 = 0.200;
+
+/// A repeated note that comes before the key is back up re-strikes from at least this
+/// fraction of the dip raised (the repetition lever lets a grand re-strike from a half-raised
+/// key; the jack re-arms below its let-off zone).
+pub const REPEAT_RISE: f64 = 0.6;
 
 /// One note of a performance.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -195,7 +207,7 @@ impl TickClock {
 /// Key descent time for a MIDI velocity, s (see the module documentation).
 pub fn descent_time_s(velocity: u8) -> f64 {
     let v = f64::from(velocity.clamp(1, 127));
-    (0.160 * (0.025f64 / 0.160).powf((v - 30.0) / 70.0)).clamp(0.020, 0.250)
+    (0.160 * (0.025f64 / 0.160).powf((v - 30.0) / 70.0)).clamp(0.020, MAX_DESCENT_S)
 }
 
 /// One movement of a key: from `from` (m) at `start_s` to `to` (m) at `end_s`, cycloidal.
@@ -232,6 +244,11 @@ pub struct KeyTrack {
 }
 
 impl KeyTrack {
+    /// When the key's last movement ends, s.
+    pub fn last_move_end_s(&self) -> f64 {
+        self.moves.last().map_or(0.0, |m| m.end_s)
+    }
+
     /// Key travel at time `t` (s), m; 0 before the first press.
     pub fn position(&self, t: f64) -> f64 {
         // The last move that has started by t decides.
@@ -255,22 +272,27 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
         let mut t = KeyTrack { key, moves: Vec::new(), notes: Vec::new() };
         for (i, n) in notes.iter().enumerate() {
             let descent = descent_time_s(n.velocity);
-            let start = (n.on_s - descent).max(0.0);
-            // Cut the previous release if this press starts during it (repeated note).
-            if let Some(last) = t.moves.last_mut() {
-                if last.end_s > start {
-                    let here = last.at(start);
-                    last.end_s = start.max(last.start_s);
-                    last.to = here;
-                }
-            }
+            // Presses start after the previous movement ends (moves stay in time order).
+            let start = (n.on_s - descent).max(t.moves.last().map_or(0.0, |m| m.end_s));
             let from = t.position(start);
             let bottom = n.on_s.max(start + 1e-3);
             t.moves.push(Move { start_s: start, end_s: bottom, from, to: dip_m });
             let next_start = notes.get(i + 1).map(|m| (m.on_s - descent_time_s(m.velocity)).max(0.0));
             let release_at = n.off_s.max(bottom);
-            let release_at = next_start.map_or(release_at, |s| release_at.min(s.max(bottom)));
-            t.moves.push(Move { start_s: release_at, end_s: release_at + RELEASE_S, from: dip_m, to: 0.0 });
+            let release = match next_start {
+                // Time for a full release before the next press.
+                None => Move { start_s: release_at, end_s: release_at + RELEASE_S, from: dip_m, to: 0.0 },
+                Some(next) if next >= release_at + RELEASE_S => {
+                    Move { start_s: release_at, end_s: release_at + RELEASE_S, from: dip_m, to: 0.0 }
+                }
+                // A quick partial release that ends where the next press starts.
+                Some(next) => {
+                    let end = next.max(bottom + 2e-3);
+                    let start_r = release_at.min(end - 2e-3).max(bottom);
+                    Move { start_s: start_r, end_s: end, from: dip_m, to: dip_m * (1.0 - REPEAT_RISE) }
+                }
+            };
+            t.moves.push(release);
             t.notes.push((n.on_s, n.velocity));
         }
         tracks.push(t);
@@ -344,4 +366,33 @@ mod tests {
         assert_eq!(t.position(2.0), 0.0);
         assert!(descent_time_s(100) < descent_time_s(60) && descent_time_s(30) == 0.160);
     }
+}
+
+/// A built-in demo performance (8 s, generated, no recording): a C-major scale up from
+/// *pp* to *ff*, four repeated notes at 8 per second, a trill, and a loud chord — the main
+/// job's default input when no MIDI file is given.
+pub fn demo() -> Performance {
+    let mut notes = Vec::new();
+    let mut t = 0.3;
+    let scale = [60u8, 62, 64, 65, 67, 69, 71, 72];
+    for (i, &k) in scale.iter().enumerate() {
+        let v = 20 + (i as u8) * 14;
+        notes.push(Note { key: k, velocity: v, on_s: t, off_s: t + 0.22 });
+        t += 0.25;
+    }
+    t += 0.3;
+    for i in 0..4 {
+        notes.push(Note { key: 67, velocity: 70, on_s: t + i as f64 * 0.125, off_s: t + i as f64 * 0.125 + 0.06 });
+    }
+    t += 0.8;
+    for i in 0..12 {
+        let k = if i % 2 == 0 { 72 } else { 74 };
+        notes.push(Note { key: k, velocity: 55, on_s: t + i as f64 * 0.1, off_s: t + i as f64 * 0.1 + 0.08 });
+    }
+    t += 1.6;
+    for k in [48u8, 55, 60, 64, 67] {
+        notes.push(Note { key: k, velocity: 110, on_s: t, off_s: t + 1.5 });
+    }
+    notes.sort_by(|a, b| a.on_s.total_cmp(&b.on_s).then(a.key.cmp(&b.key)));
+    Performance { notes, sustain: vec![], duration_s: t + 2.0 }
 }

@@ -15,6 +15,7 @@
 
 mod consts;
 mod expr;
+mod fold;
 mod scope;
 
 use crate::ast::{self, Span};
@@ -318,6 +319,7 @@ impl<'a> Lowerer<'a> {
             }
         }
         self.prog.body = self.blocks.pop().unwrap_or_default();
+        fold::fold_constants(&mut self.prog);
     }
 
     fn lower_equation(&mut self, scope: ScopeId, eq: &'a ast::Equation, h: f64) {
