@@ -28,7 +28,7 @@ pub struct SimArgs {
     #[arg(long, value_enum, default_value = "f64")]
     pub numeric: Numeric,
     /// Engine: `interp` (the interpreters that define the semantics) or `jit` (cranelift,
-    /// native code on this machine; f64 only for now).
+    /// native code on this machine, bit-identical to the interpreter of the same numeric).
     #[arg(long, value_enum, default_value = "interp")]
     pub engine: EngineKind,
     /// Directory for the trace and plots (created if missing).
@@ -63,6 +63,26 @@ impl tactus_compiler::sim::Engine for JitEngine<'_> {
     }
     fn states_si(&self) -> Vec<f64> {
         self.0.states().to_vec()
+    }
+    fn modes_now(&self) -> Vec<u32> {
+        self.0.modes().to_vec()
+    }
+    fn state_saturations(&self) -> Vec<u64> {
+        self.0.saturations().to_vec()
+    }
+}
+
+/// The fixed-point JIT seen as a simulation engine (SI through the format plan).
+struct FixedJitEngine<'j>(tactus_jit::fixed::FixedJitInstance<'j>, &'j tactus_compiler::fixed::FixedProgram);
+
+impl tactus_compiler::sim::Engine for FixedJitEngine<'_> {
+    fn step_si(&mut self, sensors: &[f64]) -> tactus_compiler::interp::SampleOut {
+        let fp = self.1;
+        self.0.step(sensors).to_si(fp)
+    }
+    fn states_si(&self) -> Vec<f64> {
+        let fp = self.1;
+        self.0.states().iter().zip(&fp.state_frac).map(|(&x, &f)| tactus_runtime::fixed::to_f64(x, f)).collect()
     }
     fn modes_now(&self) -> Vec<u32> {
         self.0.modes().to_vec()
@@ -126,26 +146,30 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
             let mut engine = JitEngine(tactus_jit::JitInstance::new(&jit));
             tactus_compiler::sim::simulate_with(program, &mut engine, &stim)
         }
-        (Numeric::Fixed, EngineKind::Jit) => {
-            return Err("the fixed-point JIT is not built yet: use `--engine interp --numeric fixed`, or `--engine jit` with f64".into());
-        }
-        (Numeric::Fixed, EngineKind::Interp) => {
+        (Numeric::Fixed, engine) => {
             let fp = tactus_compiler::fixed::FixedProgram::new(program);
             let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
                 codespan_reporting::term::termcolor::ColorChoice::Auto,
             );
             let _ = tactus_compiler::diagnostics::emit(&mut err, &src.name, &src.text, &fp.warnings);
-            let mut inst = tactus_compiler::fixed::interp::FixedInstance::new(&fp);
-            tactus_compiler::sim::simulate_with(program, &mut inst, &stim)
+            if engine == EngineKind::Jit {
+                let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp).map_err(|e| format!("JIT: {e}"))?;
+                let mut engine = FixedJitEngine(tactus_jit::fixed::FixedJitInstance::new(&jit), &fp);
+                tactus_compiler::sim::simulate_with(program, &mut engine, &stim)
+            } else {
+                let mut inst = tactus_compiler::fixed::interp::FixedInstance::new(&fp);
+                tactus_compiler::sim::simulate_with(program, &mut inst, &stim)
+            }
         }
     };
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
     let suffix = match (args.numeric, args.engine) {
-        (Numeric::Fixed, _) => "-fixed",
+        (Numeric::Fixed, EngineKind::Interp) => "-fixed",
+        (Numeric::Fixed, EngineKind::Jit) => "-fixed-jit",
         (Numeric::F64, EngineKind::Jit) => "-jit",
-        _ => "",
+        (Numeric::F64, EngineKind::Interp) => "",
     };
     let stem = format!("{}-{}{suffix}", program.name, stim.name.trim_end_matches(".csv"));
     let csv = args.out.join(format!("{stem}.csv"));

@@ -167,7 +167,7 @@ fn sim_reads_a_csv_stimulus_and_rejects_unknown_ones() {
 fn sim_engines_agree_on_the_strike() {
     let dir = temp_dir("engines");
     let mut strikes = Vec::new();
-    for args in [&["--engine", "interp"][..], &["--engine", "jit"], &["--numeric", "fixed"]] {
+    for args in [&["--engine", "interp"][..], &["--engine", "jit"], &["--numeric", "fixed"], &["--numeric", "fixed", "--engine", "jit"]] {
         let out = tactus()
             .args(["sim", "grand_piano", "--stimulus", "mf-dip"])
             .args(args)
@@ -182,7 +182,14 @@ fn sim_engines_agree_on_the_strike() {
     }
     // Printed to 4 decimals: the f64 JIT is bit-identical, fixed point agrees to ~1e-6.
     assert!(strikes.iter().all(|s| *s == strikes[0]), "{strikes:?}");
-    for f in ["grand_piano-mf-dip.csv", "grand_piano-mf-dip-jit.csv", "grand_piano-mf-dip-fixed.csv"] {
+    for f in ["grand_piano-mf-dip.csv", "grand_piano-mf-dip-jit.csv", "grand_piano-mf-dip-fixed.csv", "grand_piano-mf-dip-fixed-jit.csv"] {
         assert!(dir.join(f).exists(), "{f}");
     }
+    // The fixed JIT is bit-identical to the fixed interpreter: identical traces.
+    let a = std::fs::read_to_string(dir.join("grand_piano-mf-dip-fixed.csv")).unwrap();
+    let b = std::fs::read_to_string(dir.join("grand_piano-mf-dip-fixed-jit.csv")).unwrap();
+    assert!(a == b, "fixed interpreter and fixed JIT traces differ");
+    let a = std::fs::read_to_string(dir.join("grand_piano-mf-dip.csv")).unwrap();
+    let b = std::fs::read_to_string(dir.join("grand_piano-mf-dip-jit.csv")).unwrap();
+    assert!(a == b, "f64 interpreter and f64 JIT traces differ");
 }
