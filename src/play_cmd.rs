@@ -16,9 +16,11 @@ use tactus_runtime::performance::{self, KeyTrack, Performance};
 
 /// Arguments of `tactus play`.
 #[derive(Debug, clap::Args)]
-#[command(after_long_help = "Writes OUT/NAME-strikes.csv (one row per strike: key, time, hammer speed, MIDI velocity, \
+#[command(
+    after_long_help = "Writes OUT/NAME-strikes.csv (one row per strike: key, time, hammer speed, MIDI velocity, \
 the input note it answers) and OUT/NAME-strikes.mid (the strikes as MIDI with velocities from the simulated hammer \
-speed: 1 at 0.1 m/s to 127 at 6 m/s, logarithmic). Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20")]
+speed: 1 at 0.1 m/s to 127 at 6 m/s, logarithmic). Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20"
+)]
 pub struct PlayArgs {
     /// MIDI performance to play [default: a built-in 8 s demo].
     pub performance: Option<PathBuf>,
@@ -85,33 +87,56 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         perf.duration_s = perf.duration_s.min(s);
     }
     let src = source::load(&args.instrument)?;
-    let Some(lowered) = compile_reporting(&src, &args.params) else { return Ok(ExitCode::FAILURE) };
+    let Some(lowered) = compile_reporting(&src, &args.params) else {
+        return Ok(ExitCode::FAILURE);
+    };
     let program = &lowered.program;
-    let key = program.sensors.first().ok_or_else(|| format!("instrument `{}` has no sensor", program.name))?;
+    let key = program
+        .sensors
+        .first()
+        .ok_or_else(|| format!("instrument `{}` has no sensor", program.name))?;
     if !program.events.iter().any(|e| e.name == "strike") {
-        return Err(format!("instrument `{}` emits no `strike` event to play", program.name));
+        return Err(format!(
+            "instrument `{}` emits no `strike` event to play",
+            program.name
+        ));
     }
     // A piano has keys 21 (A0) … 108 (C8); notes outside are reported and skipped.
-    let (inside, outside): (Vec<&performance::Note>, Vec<&performance::Note>) = perf.notes.iter().partition(|n| (21..=108).contains(&n.key));
+    let (inside, outside): (Vec<&performance::Note>, Vec<&performance::Note>) =
+        perf.notes.iter().partition(|n| (21..=108).contains(&n.key));
     for n in &outside {
-        eprintln!("warning: note {} at {:.3} s is outside the keyboard (21–108): skipped", n.key, n.on_s);
+        eprintln!(
+            "warning: note {} at {:.3} s is outside the keyboard (21–108): skipped",
+            n.key, n.on_s
+        );
     }
-    let perf = Performance { notes: inside.into_iter().copied().collect(), ..perf };
+    let perf = Performance {
+        notes: inside.into_iter().copied().collect(),
+        ..perf
+    };
     let tracks = performance::key_tracks(&perf, key.range.1);
     let jit = match args.engine {
-        PlayEngine::Jit => Some(tactus_jit::JitProgram::compile(program).map_err(|e| format!("JIT: {e}"))?),
+        PlayEngine::Jit => {
+            Some(tactus_jit::JitProgram::compile(program).map_err(|e| format!("JIT: {e}"))?)
+        }
         PlayEngine::Interp => None,
     };
     let fs = program.sample_rate_hz;
     let total_samples: u64 = tracks.iter().map(|t| window(t, fs).1 as u64).sum();
     let bar = ProgressBar::new(total_samples);
     bar.set_style(
-        ProgressStyle::with_template("{spinner} {msg} [{bar:30}] {percent}% {per_sec} key-samples, eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{spinner} {msg} [{bar:30}] {percent}% {per_sec} key-samples, eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar.set_message(format!("{} keys", tracks.len()));
     let started = Instant::now();
-    let strike_id = program.events.iter().position(|e| e.name == "strike").unwrap_or(0);
+    let strike_id = program
+        .events
+        .iter()
+        .position(|e| e.name == "strike")
+        .unwrap_or(0);
     let mut strikes = Vec::new();
     for t in &tracks {
         let (first, n) = window(t, fs);
@@ -126,7 +151,11 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             };
             for (e, a) in &out.events {
                 if e.index() == strike_id {
-                    strikes.push(Strike { key: t.key, time_s: time, speed_mps: a.first().copied().unwrap_or(0.0) });
+                    strikes.push(Strike {
+                        key: t.key,
+                        time_s: time,
+                        speed_mps: a.first().copied().unwrap_or(0.0),
+                    });
                 }
             }
         }
@@ -136,7 +165,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let wall = started.elapsed().as_secs_f64();
     strikes.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
 
-    std::fs::create_dir_all(&args.out).map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
     let stem = args
         .performance
         .as_ref()
@@ -176,10 +206,22 @@ fn window(t: &KeyTrack, fs: f64) -> (usize, usize) {
 fn write_strikes_csv(path: &Path, strikes: &[Strike], perf: &Performance) -> Result<usize, String> {
     let mut w = csv::Writer::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let err = |e: csv::Error| format!("{}: {e}", path.display());
-    w.write_record(["key", "time_s", "hammer_speed_mps", "midi_velocity", "note_on_s", "note_velocity"]).map_err(err)?;
+    w.write_record([
+        "key",
+        "time_s",
+        "hammer_speed_mps",
+        "midi_velocity",
+        "note_on_s",
+        "note_velocity",
+    ])
+    .map_err(err)?;
     let mut matched = 0;
     for s in strikes {
-        let note = perf.notes.iter().filter(|n| n.key == s.key).min_by(|a, b| (a.on_s - s.time_s).abs().total_cmp(&(b.on_s - s.time_s).abs()));
+        let note = perf.notes.iter().filter(|n| n.key == s.key).min_by(|a, b| {
+            (a.on_s - s.time_s)
+                .abs()
+                .total_cmp(&(b.on_s - s.time_s).abs())
+        });
         let (on, vel) = match note {
             Some(n) if (n.on_s - s.time_s).abs() <= 0.050 => {
                 matched += 1;
@@ -187,8 +229,15 @@ fn write_strikes_csv(path: &Path, strikes: &[Strike], perf: &Performance) -> Res
             }
             _ => (String::new(), String::new()),
         };
-        w.write_record([s.key.to_string(), s.time_s.to_string(), s.speed_mps.to_string(), midi_velocity(s.speed_mps).to_string(), on, vel])
-            .map_err(err)?;
+        w.write_record([
+            s.key.to_string(),
+            s.time_s.to_string(),
+            s.speed_mps.to_string(),
+            midi_velocity(s.speed_mps).to_string(),
+            on,
+            vel,
+        ])
+        .map_err(err)?;
     }
     w.flush().map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(matched)
@@ -206,7 +255,13 @@ fn write_midi(path: &Path, strikes: &[Strike], perf: &Performance) -> Result<(),
             .iter()
             .filter(|n| n.key == s.key && n.on_s <= s.time_s + 0.05)
             .map(|n| n.off_s)
-            .fold(s.time_s + 0.3, |acc, o| if o > s.time_s { o.min(acc.max(o)) } else { acc });
+            .fold(s.time_s + 0.3, |acc, o| {
+                if o > s.time_s {
+                    o.min(acc.max(o))
+                } else {
+                    acc
+                }
+            });
         let tick = |t: f64| (t * 960.0).round().max(0.0) as u64;
         evs.push((tick(s.time_s), true, s.key, midi_velocity(s.speed_mps)));
         evs.push((tick(off.max(s.time_s + 0.01)), false, s.key, 0));
@@ -218,13 +273,32 @@ fn write_midi(path: &Path, strikes: &[Strike], perf: &Performance) -> Result<(),
         let delta = u28::new(((tick - last).min(0x0FFF_FFFF)) as u32);
         last = tick;
         let message = if on {
-            MidiMessage::NoteOn { key: u7::new(key), vel: u7::new(vel) }
+            MidiMessage::NoteOn {
+                key: u7::new(key),
+                vel: u7::new(vel),
+            }
         } else {
-            MidiMessage::NoteOff { key: u7::new(key), vel: u7::new(0) }
+            MidiMessage::NoteOff {
+                key: u7::new(key),
+                vel: u7::new(0),
+            }
         };
-        track.push(TrackEvent { delta, kind: TrackEventKind::Midi { channel: u4::new(0), message } });
+        track.push(TrackEvent {
+            delta,
+            kind: TrackEventKind::Midi {
+                channel: u4::new(0),
+                message,
+            },
+        });
     }
-    track.push(TrackEvent { delta: u28::new(0), kind: TrackEventKind::Meta(midly::MetaMessage::EndOfTrack) });
-    let smf = Smf { header: Header::new(Format::SingleTrack, Timing::Metrical(u15::new(480))), tracks: vec![track] };
-    smf.save(path).map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    track.push(TrackEvent {
+        delta: u28::new(0),
+        kind: TrackEventKind::Meta(midly::MetaMessage::EndOfTrack),
+    });
+    let smf = Smf {
+        header: Header::new(Format::SingleTrack, Timing::Metrical(u15::new(480))),
+        tracks: vec![track],
+    };
+    smf.save(path)
+        .map_err(|e| format!("{}: cannot write: {e}", path.display()))
 }

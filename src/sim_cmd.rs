@@ -73,7 +73,10 @@ impl tactus_compiler::sim::Engine for JitEngine<'_> {
 }
 
 /// The fixed-point JIT seen as a simulation engine (SI through the format plan).
-struct FixedJitEngine<'j>(tactus_jit::fixed::FixedJitInstance<'j>, &'j tactus_compiler::fixed::FixedProgram);
+struct FixedJitEngine<'j>(
+    tactus_jit::fixed::FixedJitInstance<'j>,
+    &'j tactus_compiler::fixed::FixedProgram,
+);
 
 impl tactus_compiler::sim::Engine for FixedJitEngine<'_> {
     fn step_si(&mut self, sensors: &[f64]) -> tactus_compiler::interp::SampleOut {
@@ -82,7 +85,12 @@ impl tactus_compiler::sim::Engine for FixedJitEngine<'_> {
     }
     fn states_si(&self) -> Vec<f64> {
         let fp = self.1;
-        self.0.states().iter().zip(&fp.state_frac).map(|(&x, &f)| tactus_runtime::fixed::to_f64(x, f)).collect()
+        self.0
+            .states()
+            .iter()
+            .zip(&fp.state_frac)
+            .map(|(&x, &f)| tactus_runtime::fixed::to_f64(x, f))
+            .collect()
     }
     fn modes_now(&self) -> Vec<u32> {
         self.0.modes().to_vec()
@@ -151,10 +159,13 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
             let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
                 codespan_reporting::term::termcolor::ColorChoice::Auto,
             );
-            let _ = tactus_compiler::diagnostics::emit(&mut err, &src.name, &src.text, &fp.warnings);
+            let _ =
+                tactus_compiler::diagnostics::emit(&mut err, &src.name, &src.text, &fp.warnings);
             if engine == EngineKind::Jit {
-                let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp).map_err(|e| format!("JIT: {e}"))?;
-                let mut engine = FixedJitEngine(tactus_jit::fixed::FixedJitInstance::new(&jit), &fp);
+                let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp)
+                    .map_err(|e| format!("JIT: {e}"))?;
+                let mut engine =
+                    FixedJitEngine(tactus_jit::fixed::FixedJitInstance::new(&jit), &fp);
                 tactus_compiler::sim::simulate_with(program, &mut engine, &stim)
             } else {
                 let mut inst = tactus_compiler::fixed::interp::FixedInstance::new(&fp);
@@ -171,7 +182,11 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
         (Numeric::F64, EngineKind::Jit) => "-jit",
         (Numeric::F64, EngineKind::Interp) => "",
     };
-    let stem = format!("{}-{}{suffix}", program.name, stim.name.trim_end_matches(".csv"));
+    let stem = format!(
+        "{}-{}{suffix}",
+        program.name,
+        stim.name.trim_end_matches(".csv")
+    );
     let csv = args.out.join(format!("{stem}.csv"));
     trace.write_csv_file(&csv).map_err(|e| e.to_string())?;
     let title = format!("{} — {}", program.name, stim.name);

@@ -167,7 +167,12 @@ fn sim_reads_a_csv_stimulus_and_rejects_unknown_ones() {
 fn sim_engines_agree_on_the_strike() {
     let dir = temp_dir("engines");
     let mut strikes = Vec::new();
-    for args in [&["--engine", "interp"][..], &["--engine", "jit"], &["--numeric", "fixed"], &["--numeric", "fixed", "--engine", "jit"]] {
+    for args in [
+        &["--engine", "interp"][..],
+        &["--engine", "jit"],
+        &["--numeric", "fixed"],
+        &["--numeric", "fixed", "--engine", "jit"],
+    ] {
         let out = tactus()
             .args(["sim", "grand_piano", "--stimulus", "mf-dip"])
             .args(args)
@@ -175,14 +180,27 @@ fn sim_engines_agree_on_the_strike() {
             .arg(&dir)
             .output()
             .unwrap();
-        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-        let line = stdout.lines().find(|l| l.contains("event strike")).unwrap_or_else(|| panic!("{stdout}")).to_string();
+        let line = stdout
+            .lines()
+            .find(|l| l.contains("event strike"))
+            .unwrap_or_else(|| panic!("{stdout}"))
+            .to_string();
         strikes.push(line);
     }
     // Printed to 4 decimals: the f64 JIT is bit-identical, fixed point agrees to ~1e-6.
     assert!(strikes.iter().all(|s| *s == strikes[0]), "{strikes:?}");
-    for f in ["grand_piano-mf-dip.csv", "grand_piano-mf-dip-jit.csv", "grand_piano-mf-dip-fixed.csv", "grand_piano-mf-dip-fixed-jit.csv"] {
+    for f in [
+        "grand_piano-mf-dip.csv",
+        "grand_piano-mf-dip-jit.csv",
+        "grand_piano-mf-dip-fixed.csv",
+        "grand_piano-mf-dip-fixed-jit.csv",
+    ] {
         assert!(dir.join(f).exists(), "{f}");
     }
     // The fixed JIT is bit-identical to the fixed interpreter: identical traces.

@@ -16,8 +16,10 @@ fn temp_dir(name: &str) -> PathBuf {
     d
 }
 
-/// (key, time, speed, note_on, note_velocity) rows of a strikes CSV.
-fn strikes(path: &PathBuf) -> Vec<(u8, f64, f64, Option<f64>, Option<u8>)> {
+/// One row of a strikes CSV: (key, time, speed, note_on, note_velocity).
+type Row = (u8, f64, f64, Option<f64>, Option<u8>);
+
+fn strikes(path: &PathBuf) -> Vec<Row> {
     let mut r = csv::Reader::from_path(path).unwrap();
     r.records()
         .map(|rec| {
@@ -63,14 +65,28 @@ fn spearman(a: &[f64], b: &[f64]) -> f64 {
 
 #[test]
 fn maestro_1_first_20_s_one_strike_per_note() {
-    let midi = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/performances/Maestro_1.mid");
+    let midi =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/performances/Maestro_1.mid");
     if !midi.exists() {
-        eprintln!("SKIPPED: {} is absent (the shared data folder must sit beside the repository)", midi.display());
+        eprintln!(
+            "SKIPPED: {} is absent (the shared data folder must sit beside the repository)",
+            midi.display()
+        );
         return;
     }
     let dir = temp_dir("maestro");
-    let out = tactus().arg("play").arg(&midi).args(["--seconds", "20", "--out"]).arg(&dir).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = tactus()
+        .arg("play")
+        .arg(&midi)
+        .args(["--seconds", "20", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let rows = strikes(&dir.join("Maestro_1-strikes.csv"));
     let perf = read_midi(&midi).unwrap();
     let notes: Vec<_> = perf.notes.iter().filter(|n| n.on_s < 20.0).collect();
@@ -79,16 +95,33 @@ fn maestro_1_first_20_s_one_strike_per_note() {
     let mut vin = Vec::new();
     let mut vout = Vec::new();
     for n in &notes {
-        let hits: Vec<_> = rows.iter().filter(|s| s.0 == n.key && (s.1 - n.on_s).abs() <= 0.050).collect();
-        assert_eq!(hits.len(), 1, "note {} at {:.3} s: {} strikes", n.key, n.on_s, hits.len());
+        let hits: Vec<_> = rows
+            .iter()
+            .filter(|s| s.0 == n.key && (s.1 - n.on_s).abs() <= 0.050)
+            .collect();
+        assert_eq!(
+            hits.len(),
+            1,
+            "note {} at {:.3} s: {} strikes",
+            n.key,
+            n.on_s,
+            hits.len()
+        );
         vin.push(n.velocity as f64);
         vout.push(hits[0].2);
     }
     // No strike without a note.
-    assert!(rows.iter().all(|s| s.3.is_some()), "a strike answers no note");
+    assert!(
+        rows.iter().all(|s| s.3.is_some()),
+        "a strike answers no note"
+    );
     assert_eq!(rows.len(), notes.len());
     let rho = spearman(&vin, &vout);
-    eprintln!("Maestro_1, 20 s: {} notes, {} strikes, Spearman {rho:.4}", notes.len(), rows.len());
+    eprintln!(
+        "Maestro_1, 20 s: {} notes, {} strikes, Spearman {rho:.4}",
+        notes.len(),
+        rows.len()
+    );
     assert!(rho >= 0.95, "Spearman rank correlation {rho}");
     // The MIDI output parses back with one note per strike.
     let back = read_midi(&dir.join("Maestro_1-strikes.mid")).unwrap();
@@ -99,13 +132,24 @@ fn maestro_1_first_20_s_one_strike_per_note() {
 fn engines_agree_and_the_default_runs_without_arguments() {
     let dir = temp_dir("demo");
     let run = |engine: &str| {
-        let out = tactus().args(["play", "--seconds", "3", "--engine", engine, "--out"]).arg(&dir).output().unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let out = tactus()
+            .args(["play", "--seconds", "3", "--engine", engine, "--out"])
+            .arg(&dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         std::fs::read_to_string(dir.join("demo-strikes.csv")).unwrap()
     };
     let (jit, interp) = (run("jit"), run("interp"));
     assert!(jit.lines().count() > 5, "{jit}");
-    assert_eq!(jit, interp, "the JIT and the interpreter disagree on a strike");
+    assert_eq!(
+        jit, interp,
+        "the JIT and the interpreter disagree on a strike"
+    );
 }
 
 #[test]
@@ -116,5 +160,8 @@ fn bad_midi_is_a_clear_error() {
     let out = tactus().arg("play").arg(&f).output().unwrap();
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("empty.mid") && !err.contains("panicked"), "{err}");
+    assert!(
+        err.contains("empty.mid") && !err.contains("panicked"),
+        "{err}"
+    );
 }

@@ -14,17 +14,28 @@ use tactus_runtime::stimulus;
 const INSTRUMENTS: [&str; 4] = ["hammond", "harpsichord", "harpsichord_2x8", "grand_piano"];
 
 fn source(name: &str) -> String {
-    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../instruments/{name}.tactus"))).unwrap()
+    std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../instruments/{name}.tactus")),
+    )
+    .unwrap()
 }
 
 fn engines(c: &mut Criterion) {
     let mut g = c.benchmark_group("key-samples");
-    g.measurement_time(Duration::from_secs(3)).warm_up_time(Duration::from_millis(500)).sample_size(20);
+    g.measurement_time(Duration::from_secs(3))
+        .warm_up_time(Duration::from_millis(500))
+        .sample_size(20);
     for name in INSTRUMENTS {
-        let p = tactus_compiler::compile(&source(name), &Config::default()).unwrap().program;
+        let p = tactus_compiler::compile(&source(name), &Config::default())
+            .unwrap()
+            .program;
         let fp = FixedProgram::new(&p);
         let s = stimulus::builtin("mf-dip", p.sensors[0].range.1, p.sample_rate_hz).unwrap();
-        let raw: Vec<i32> = s.key.iter().map(|&k| FixedInstance::sensor_raw(&fp, 0, Some(k))).collect();
+        let raw: Vec<i32> = s
+            .key
+            .iter()
+            .map(|&k| FixedInstance::sensor_raw(&fp, 0, Some(k)))
+            .collect();
         g.throughput(Throughput::Elements(s.key.len() as u64));
         g.bench_with_input(BenchmarkId::new("interp-f64", name), &s.key, |b, keys| {
             b.iter(|| {
@@ -55,7 +66,9 @@ fn compile_time(c: &mut Criterion) {
     });
     g.bench_function("grand_piano source→fixed plan", |b| {
         b.iter(|| {
-            let p = tactus_compiler::compile(black_box(&src), &Config::default()).unwrap().program;
+            let p = tactus_compiler::compile(black_box(&src), &Config::default())
+                .unwrap()
+                .program;
             FixedProgram::new(&p)
         })
     });

@@ -54,7 +54,11 @@ impl Engine for FixedInstance<'_> {
     }
     fn states_si(&self) -> Vec<f64> {
         let fp = self.program();
-        self.states().iter().zip(&fp.state_frac).map(|(&x, &f)| tactus_runtime::fixed::to_f64(x, f)).collect()
+        self.states()
+            .iter()
+            .zip(&fp.state_frac)
+            .map(|(&x, &f)| tactus_runtime::fixed::to_f64(x, f))
+            .collect()
     }
     fn modes_now(&self) -> Vec<u32> {
         self.modes().to_vec()
@@ -73,7 +77,11 @@ pub fn simulate(program: &Program, stimulus: &Stimulus) -> (Trace, SimSummary) {
 }
 
 /// Runs `program` over `stimulus` with any engine built from it.
-pub fn simulate_with(program: &Program, engine: &mut dyn Engine, stimulus: &Stimulus) -> (Trace, SimSummary) {
+pub fn simulate_with(
+    program: &Program,
+    engine: &mut dyn Engine,
+    stimulus: &Stimulus,
+) -> (Trace, SimSummary) {
     let mut trace = Trace::new(program.sample_rate_hz);
     trace.add_column("time", "s", ColumnKind::Time);
     for s in &program.sensors {

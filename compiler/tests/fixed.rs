@@ -17,7 +17,9 @@ const INSTRUMENTS: [&str; 4] = ["hammond", "harpsichord", "harpsichord_2x8", "gr
 
 fn program(name: &str) -> Program {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../instruments/{name}.tactus"));
-    tactus_compiler::compile(&std::fs::read_to_string(path).unwrap(), &Config::default()).unwrap().program
+    tactus_compiler::compile(&std::fs::read_to_string(path).unwrap(), &Config::default())
+        .unwrap()
+        .program
 }
 
 struct Comparison {
@@ -47,8 +49,16 @@ fn compare(p: &Program, fp: &FixedProgram, s: &Stimulus) -> Comparison {
         for (i, (x, y)) in oa.forces.iter().zip(&ob.forces).enumerate() {
             c.max_term_err[i] = c.max_term_err[i].max((x - y).abs());
         }
-        c.events_f64.extend(oa.events.iter().map(|e| (n, e.1.first().copied().unwrap_or(0.0))));
-        c.events_fixed.extend(ob.events.iter().map(|e| (n, e.1.first().copied().unwrap_or(0.0))));
+        c.events_f64.extend(
+            oa.events
+                .iter()
+                .map(|e| (n, e.1.first().copied().unwrap_or(0.0))),
+        );
+        c.events_fixed.extend(
+            ob.events
+                .iter()
+                .map(|e| (n, e.1.first().copied().unwrap_or(0.0))),
+        );
     }
     c.overflowed = b.overflowed().iter().filter(|o| **o).count();
     c
@@ -59,30 +69,61 @@ fn fixed_matches_f64_within_the_reported_bounds() {
     for name in INSTRUMENTS {
         let p = program(name);
         let fp = FixedProgram::new(&p);
-        assert!(fp.warnings.is_empty(), "{name}: unbounded values {:?}", fp.warnings);
+        assert!(
+            fp.warnings.is_empty(),
+            "{name}: unbounded values {:?}",
+            fp.warnings
+        );
         let pr = report::analyse(&fp);
         let lsb = pr.dac_lsb_n();
         for (stim, _) in stimulus::builtin_names() {
             let s = stimulus::builtin(stim, p.sensors[0].range.1, p.sample_rate_hz).unwrap();
             let c = compare(&p, &fp, &s);
-            assert_eq!(c.overflowed, 0, "{name}/{stim}: a value saturated where the analysis proved it cannot");
+            assert_eq!(
+                c.overflowed, 0,
+                "{name}/{stim}: a value saturated where the analysis proved it cannot"
+            );
             let when: Vec<usize> = c.events_f64.iter().map(|e| e.0).collect();
             let when_fixed: Vec<usize> = c.events_fixed.iter().map(|e| e.0).collect();
-            assert_eq!(when, when_fixed, "{name}/{stim}: events on different samples");
+            assert_eq!(
+                when, when_fixed,
+                "{name}/{stim}: events on different samples"
+            );
             if pr.total_is_local {
                 // Integrated states: the report gives a per-sample bound only; the measured
                 // error must stay below one LSB of the DAC (what the motor can resolve).
-                assert!(c.max_total_err < lsb, "{name}/{stim}: {} N vs LSB {lsb} N", c.max_total_err);
+                assert!(
+                    c.max_total_err < lsb,
+                    "{name}/{stim}: {} N vs LSB {lsb} N",
+                    c.max_total_err
+                );
             } else {
-                assert!(c.max_total_err <= pr.total, "{name}/{stim}: {} N above the bound {} N", c.max_total_err, pr.total);
+                assert!(
+                    c.max_total_err <= pr.total,
+                    "{name}/{stim}: {} N above the bound {} N",
+                    c.max_total_err,
+                    pr.total
+                );
                 for (i, e) in c.max_term_err.iter().enumerate() {
-                    assert!(*e <= pr.force[i], "{name}/{stim}: term {i}: {e} N above {} N", pr.force[i]);
+                    assert!(
+                        *e <= pr.force[i],
+                        "{name}/{stim}: term {i}: {e} N above {} N",
+                        pr.force[i]
+                    );
                 }
             }
-            println!("{name:<16} {stim:<9} max |Δtotal| = {:.3e} N = {:.5} DAC LSB", c.max_total_err, c.max_total_err / lsb);
+            println!(
+                "{name:<16} {stim:<9} max |Δtotal| = {:.3e} N = {:.5} DAC LSB",
+                c.max_total_err,
+                c.max_total_err / lsb
+            );
         }
         if ["hammond", "harpsichord", "harpsichord_2x8"].contains(&name) {
-            assert!(!pr.total_is_local && pr.total <= lsb, "{name}: bound {} N is above 1 DAC LSB {lsb} N", pr.total);
+            assert!(
+                !pr.total_is_local && pr.total <= lsb,
+                "{name}: bound {} N is above 1 DAC LSB {lsb} N",
+                pr.total
+            );
         }
     }
 }
@@ -98,7 +139,11 @@ fn hammer_velocity_at_the_string_within_half_a_percent() {
         assert_eq!(c.events_fixed.len(), 1, "descent {descent}");
         let (v, w) = (c.events_f64[0].1, c.events_fixed[0].1);
         let rel = (v - w).abs() / v.abs();
-        assert!(rel < 0.005, "descent {descent} s: f64 {v} m/s, fixed {w} m/s ({:.4} %)", rel * 100.0);
+        assert!(
+            rel < 0.005,
+            "descent {descent} s: f64 {v} m/s, fixed {w} m/s ({:.4} %)",
+            rel * 100.0
+        );
     }
 }
 

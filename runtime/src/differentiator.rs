@@ -30,7 +30,11 @@ pub struct History<T> {
 
 impl<T: Copy + Default> Default for History<T> {
     fn default() -> Self {
-        History { hist: [T::default(); HISTORY], pos: 0, primed: false }
+        History {
+            hist: [T::default(); HISTORY],
+            pos: 0,
+            primed: false,
+        }
     }
 }
 

@@ -64,7 +64,11 @@ pub fn rescale(x: i128, from: i32, to: i32) -> i128 {
         // Saturate (far beyond any i32) instead of shifting bits out of the i128.
         let bits = 128 - x.unsigned_abs().leading_zeros() as i32;
         if s > MAX_SHIFT || s + bits >= 126 {
-            return if x > 0 { i128::MAX >> 1 } else { i128::MIN >> 1 };
+            return if x > 0 {
+                i128::MAX >> 1
+            } else {
+                i128::MIN >> 1
+            };
         }
         x << s
     } else {
@@ -130,14 +134,27 @@ pub fn mul(x: i32, fx: i32, y: i32, fy: i32, fr: i32) -> Sat {
 /// `a`, `b` so that the shifted product fits 32 bits.
 pub fn mul_shifted(x: i32, fx: i32, a: u8, y: i32, fy: i32, b: u8, fr: i32) -> Sat {
     let (xs, ys) = (x >> a.min(31), y >> b.min(31));
-    sat32(rescale(xs as i128 * ys as i128, fx - a as i32 + fy - b as i32, fr))
+    sat32(rescale(
+        xs as i128 * ys as i128,
+        fx - a as i32 + fy - b as i32,
+        fr,
+    ))
 }
 
 /// `x / y` into format `fr`, truncated toward zero. `y = 0` saturates to the sign of `x`
 /// (0 for `x = 0`) and reports an overflow.
 pub fn div(x: i32, fx: i32, y: i32, fy: i32, fr: i32) -> Sat {
     if y == 0 {
-        return (if x > 0 { i32::MAX } else if x < 0 { i32::MIN } else { 0 }, true);
+        return (
+            if x > 0 {
+                i32::MAX
+            } else if x < 0 {
+                i32::MIN
+            } else {
+                0
+            },
+            true,
+        );
     }
     // x/2^fx / (y/2^fy) · 2^fr = x · 2^(fr - fx + fy) / y
     let k = fr - fx + fy;
@@ -161,7 +178,9 @@ pub fn cmp(x: i32, fx: i32, y: i32, fy: i32) -> std::cmp::Ordering {
 /// semantics for every input on the word's grid; a backend implements `x >= c` as
 /// `raw >= ceil(c·2^f)`, `x > c` as `raw > floor(c·2^f)`, and so on.
 pub fn cmp_const(x: i32, fx: i32, c: f64) -> std::cmp::Ordering {
-    to_f64(x, fx).partial_cmp(&c).unwrap_or(std::cmp::Ordering::Less)
+    to_f64(x, fx)
+        .partial_cmp(&c)
+        .unwrap_or(std::cmp::Ordering::Less)
 }
 
 /// `-x` in format `fr`.
@@ -185,9 +204,14 @@ pub fn sqrt(x: i32, fx: i32, fr: i32) -> Sat {
         post = p;
     }
     n = rescale(n, 0, e.min(MAX_SHIFT));
+    if n >= 1i128 << 120 {
+        // Only reachable with post = 0 (a positive post leaves n < 2^32): the root is at
+        // least 2^60, far beyond an i32. Saturate, which also keeps `n << 2` in the i128.
+        return (i32::MAX, true);
+    }
     // Root with one extra bit, then round half up at the last step.
     let r2 = isqrt(n << 2); // floor(2·sqrt(n))
-    let r = rescale(r2 as i128, 1 + post, 0);
+    let r = rescale(r2, 1 + post, 0);
     sat32(r)
 }
 
@@ -215,7 +239,7 @@ const EXP_FRAC: i32 = 60;
 pub fn exp(x: i32, fx: i32, fr: i32) -> Sat {
     const LN2_Q60: i128 = 799_144_290_325_165_667; // round(ln 2 · 2^60)
     let xq = rescale(x as i128, fx, EXP_FRAC); // |x| < 2^31·2^-fx
-    // k = round(x / ln2)
+                                               // k = round(x / ln2)
     let k = (2 * xq + LN2_Q60).div_euclid(2 * LN2_Q60);
     if k > 200 {
         return (i32::MAX, true);
@@ -277,13 +301,27 @@ mod tests {
 
     #[test]
     fn sqrt_and_exp_are_within_their_bounds() {
-        for &(v, fx, fr) in &[(2.0, 20, 28), (1e-6, 40, 40), (12345.0, 10, 20), (0.5, 30, 30)] {
+        for &(v, fx, fr) in &[
+            (2.0, 20, 28),
+            (1e-6, 40, 40),
+            (12345.0, 10, 20),
+            (0.5, 30, 30),
+        ] {
             let x = from_f64(v, fx).0;
             let got = val(sqrt(x, fx, fr), fr);
             let want = to_f64(x, fx).sqrt();
-            assert!((got - want).abs() <= 0.5 * 2f64.powi(-fr) * (1.0 + 1e-9), "sqrt {v}: {got} {want}");
+            assert!(
+                (got - want).abs() <= 0.5 * 2f64.powi(-fr) * (1.0 + 1e-9),
+                "sqrt {v}: {got} {want}"
+            );
         }
-        for &(v, fx, fr) in &[(0.0, 28, 29), (1.0, 28, 28), (-3.7, 26, 34), (10.0, 26, 15), (-20.0, 24, 45)] {
+        for &(v, fx, fr) in &[
+            (0.0, 28, 29),
+            (1.0, 28, 28),
+            (-3.7, 26, 34),
+            (10.0, 26, 15),
+            (-20.0, 24, 45),
+        ] {
             let x = from_f64(v, fx).0;
             let got = val(exp(x, fx, fr), fr);
             let want = to_f64(x, fx).exp();

@@ -102,7 +102,10 @@ impl Limiter {
             }
         }
         if c.rated_a > c.peak_a || c.peak_a > 2000.0 {
-            return Err(format!("limiter: need rated_a ≤ peak_a ≤ 2000 A, got {} and {}", c.rated_a, c.peak_a));
+            return Err(format!(
+                "limiter: need rated_a ≤ peak_a ≤ 2000 A, got {} and {}",
+                c.rated_a, c.peak_a
+            ));
         }
         let recovery = c.recovery.max(1) as i64;
         let gain_ua_per_n = c.lever_arm_m / c.torque_constant_nm_per_a * 1e6;
@@ -137,7 +140,11 @@ impl Limiter {
             self.budget = (self.budget + 1).min(self.budget_max);
         }
         let (code, _) = fixed::mul(i, 0, self.dac_scale.0, self.dac_scale.1, 0);
-        Limited { current_ua: i, dac: code.clamp(-32767, 32767) as i16, limited: i != asked }
+        Limited {
+            current_ua: i,
+            dac: code.clamp(-32767, 32767) as i16,
+            limited: i != asked,
+        }
     }
 
     /// The rated current, µA.
@@ -170,7 +177,10 @@ mod tests {
         let (mut run, mut longest, mut above) = (0usize, 0usize, 0usize);
         for f in forces {
             let out = lim.step(f, F);
-            assert!(out.current_ua.unsigned_abs() <= lim.peak_ua() as u32, "{out:?}");
+            assert!(
+                out.current_ua.unsigned_abs() <= lim.peak_ua() as u32,
+                "{out:?}"
+            );
             if out.current_ua.unsigned_abs() > lim.rated_ua() as u32 {
                 run += 1;
                 above += 1;
@@ -178,7 +188,10 @@ mod tests {
                 run = 0;
             }
             longest = longest.max(run);
-            assert!(longest as i64 <= lim.over_samples(), "{longest} samples above rated");
+            assert!(
+                longest as i64 <= lim.over_samples(),
+                "{longest} samples above rated"
+            );
         }
         (longest, above)
     }
@@ -186,7 +199,7 @@ mod tests {
     #[test]
     fn stuck_at_full_scale_falls_back_to_rated_after_100_ms() {
         let mut lim = Limiter::new(&LimiterConfig::default()).unwrap();
-        let (longest, _) = check(&mut lim, std::iter::repeat(i32::MAX).take(44_100));
+        let (longest, _) = check(&mut lim, std::iter::repeat_n(i32::MAX, 44_100));
         assert_eq!(longest, 4410, "peak allowed for exactly 100 ms");
         let out = lim.step(i32::MAX, F);
         assert_eq!(out.current_ua, lim.rated_ua());
@@ -198,7 +211,13 @@ mod tests {
         let mut lim = Limiter::new(&LimiterConfig::default()).unwrap();
         let mut rng = XorShift64::new(7);
         let forces = (0..200_000).map(|_| match rng.below(4) {
-            0 => if rng.below(2) == 0 { i32::MAX } else { i32::MIN },
+            0 => {
+                if rng.below(2) == 0 {
+                    i32::MAX
+                } else {
+                    i32::MIN
+                }
+            }
             1 => word((rng.unit() - 0.5) * 6.0),
             2 => word(0.3),
             _ => rng.next_u64() as i32,
@@ -221,7 +240,10 @@ mod tests {
 
     #[test]
     fn bad_config_is_an_error_naming_the_field() {
-        let c = LimiterConfig { lever_arm_m: f64::NAN, ..LimiterConfig::default() };
+        let c = LimiterConfig {
+            lever_arm_m: f64::NAN,
+            ..LimiterConfig::default()
+        };
         assert!(Limiter::new(&c).unwrap_err().contains("lever_arm_m"));
     }
 }

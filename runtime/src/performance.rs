@@ -126,13 +126,23 @@ pub fn parse_midi(bytes: &[u8], name: &str) -> Result<Performance, MidiError> {
                     MidiMessage::NoteOn { key, vel } if vel.as_int() > 0 => {
                         let slot = &mut sounding[ch * 128 + key.as_int() as usize];
                         if let Some((on, v)) = slot.take() {
-                            notes.push(Note { key: key.as_int(), velocity: v, on_s: on, off_s: t });
+                            notes.push(Note {
+                                key: key.as_int(),
+                                velocity: v,
+                                on_s: on,
+                                off_s: t,
+                            });
                         }
                         *slot = Some((t, vel.as_int()));
                     }
                     MidiMessage::NoteOn { key, .. } | MidiMessage::NoteOff { key, .. } => {
                         if let Some((on, v)) = sounding[ch * 128 + key.as_int() as usize].take() {
-                            notes.push(Note { key: key.as_int(), velocity: v, on_s: on, off_s: t });
+                            notes.push(Note {
+                                key: key.as_int(),
+                                velocity: v,
+                                on_s: on,
+                                off_s: t,
+                            });
                         }
                     }
                     MidiMessage::Controller { controller, value } if controller.as_int() == 64 => {
@@ -146,14 +156,23 @@ pub fn parse_midi(bytes: &[u8], name: &str) -> Result<Performance, MidiError> {
     }
     for (i, s) in sounding.iter().enumerate() {
         if let Some((on, v)) = s {
-            notes.push(Note { key: (i % 128) as u8, velocity: *v, on_s: *on, off_s: last_s });
+            notes.push(Note {
+                key: (i % 128) as u8,
+                velocity: *v,
+                on_s: *on,
+                off_s: last_s,
+            });
         }
     }
     if notes.is_empty() {
         return Err(MidiError::NoNotes(name.to_string()));
     }
     notes.sort_by(|a, b| a.on_s.total_cmp(&b.on_s).then(a.key.cmp(&b.key)));
-    Ok(Performance { notes, sustain, duration_s: last_s })
+    Ok(Performance {
+        notes,
+        sustain,
+        duration_s: last_s,
+    })
 }
 
 /// Tick → seconds with a piecewise-constant tempo map.
@@ -269,27 +288,51 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
     }
     let mut tracks = Vec::new();
     for (key, notes) in by_key {
-        let mut t = KeyTrack { key, moves: Vec::new(), notes: Vec::new() };
+        let mut t = KeyTrack {
+            key,
+            moves: Vec::new(),
+            notes: Vec::new(),
+        };
         for (i, n) in notes.iter().enumerate() {
             let descent = descent_time_s(n.velocity);
             // Presses start after the previous movement ends (moves stay in time order).
             let start = (n.on_s - descent).max(t.moves.last().map_or(0.0, |m| m.end_s));
             let from = t.position(start);
             let bottom = n.on_s.max(start + 1e-3);
-            t.moves.push(Move { start_s: start, end_s: bottom, from, to: dip_m });
-            let next_start = notes.get(i + 1).map(|m| (m.on_s - descent_time_s(m.velocity)).max(0.0));
+            t.moves.push(Move {
+                start_s: start,
+                end_s: bottom,
+                from,
+                to: dip_m,
+            });
+            let next_start = notes
+                .get(i + 1)
+                .map(|m| (m.on_s - descent_time_s(m.velocity)).max(0.0));
             let release_at = n.off_s.max(bottom);
             let release = match next_start {
                 // Time for a full release before the next press.
-                None => Move { start_s: release_at, end_s: release_at + RELEASE_S, from: dip_m, to: 0.0 },
-                Some(next) if next >= release_at + RELEASE_S => {
-                    Move { start_s: release_at, end_s: release_at + RELEASE_S, from: dip_m, to: 0.0 }
-                }
+                None => Move {
+                    start_s: release_at,
+                    end_s: release_at + RELEASE_S,
+                    from: dip_m,
+                    to: 0.0,
+                },
+                Some(next) if next >= release_at + RELEASE_S => Move {
+                    start_s: release_at,
+                    end_s: release_at + RELEASE_S,
+                    from: dip_m,
+                    to: 0.0,
+                },
                 // A quick partial release that ends where the next press starts.
                 Some(next) => {
                     let end = next.max(bottom + 2e-3);
                     let start_r = release_at.min(end - 2e-3).max(bottom);
-                    Move { start_s: start_r, end_s: end, from: dip_m, to: dip_m * (1.0 - REPEAT_RISE) }
+                    Move {
+                        start_s: start_r,
+                        end_s: end,
+                        from: dip_m,
+                        to: dip_m * (1.0 - REPEAT_RISE),
+                    }
                 }
             };
             t.moves.push(release);
@@ -298,6 +341,59 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
         tracks.push(t);
     }
     tracks
+}
+
+/// A built-in demo performance (8 s, generated, no recording): a C-major scale up from
+/// *pp* to *ff*, four repeated notes at 8 per second, a trill, and a loud chord — the main
+/// job's default input when no MIDI file is given.
+pub fn demo() -> Performance {
+    let mut notes = Vec::new();
+    let mut t = 0.3;
+    let scale = [60u8, 62, 64, 65, 67, 69, 71, 72];
+    for (i, &k) in scale.iter().enumerate() {
+        let v = 20 + (i as u8) * 14;
+        notes.push(Note {
+            key: k,
+            velocity: v,
+            on_s: t,
+            off_s: t + 0.22,
+        });
+        t += 0.25;
+    }
+    t += 0.3;
+    for i in 0..4 {
+        notes.push(Note {
+            key: 67,
+            velocity: 70,
+            on_s: t + i as f64 * 0.125,
+            off_s: t + i as f64 * 0.125 + 0.06,
+        });
+    }
+    t += 0.8;
+    for i in 0..12 {
+        let k = if i % 2 == 0 { 72 } else { 74 };
+        notes.push(Note {
+            key: k,
+            velocity: 55,
+            on_s: t + i as f64 * 0.1,
+            off_s: t + i as f64 * 0.1 + 0.08,
+        });
+    }
+    t += 1.6;
+    for k in [48u8, 55, 60, 64, 67] {
+        notes.push(Note {
+            key: k,
+            velocity: 110,
+            on_s: t,
+            off_s: t + 1.5,
+        });
+    }
+    notes.sort_by(|a, b| a.on_s.total_cmp(&b.on_s).then(a.key.cmp(&b.key)));
+    Performance {
+        notes,
+        sustain: vec![],
+        duration_s: t + 2.0,
+    }
 }
 
 #[cfg(test)]
@@ -328,19 +424,41 @@ mod tests {
     #[test]
     fn notes_pair_and_time_converts() {
         // Note 60 on at 0, off at 480 ticks (0.5 s); note 62 on at 240 with velocity 0 = off.
-        let f = smf(&[(0, [0x90, 60, 100]), (240, [0x90, 62, 40]), (240, [0x80, 60, 0]), (0, [0x90, 62, 0]), (0, [0xb0, 64, 127])]);
+        let f = smf(&[
+            (0, [0x90, 60, 100]),
+            (240, [0x90, 62, 40]),
+            (240, [0x80, 60, 0]),
+            (0, [0x90, 62, 0]),
+            (0, [0xb0, 64, 127]),
+        ]);
         let p = parse_midi(&f, "t.mid").unwrap();
         assert_eq!(p.notes.len(), 2);
-        assert_eq!((p.notes[0].key, p.notes[0].velocity, p.notes[0].on_s, p.notes[0].off_s), (60, 100, 0.0, 0.5));
-        assert_eq!((p.notes[1].key, p.notes[1].on_s, p.notes[1].off_s), (62, 0.25, 0.5));
+        assert_eq!(
+            (
+                p.notes[0].key,
+                p.notes[0].velocity,
+                p.notes[0].on_s,
+                p.notes[0].off_s
+            ),
+            (60, 100, 0.0, 0.5)
+        );
+        assert_eq!(
+            (p.notes[1].key, p.notes[1].on_s, p.notes[1].off_s),
+            (62, 0.25, 0.5)
+        );
         assert_eq!(p.sustain, vec![(0.5, true)]);
     }
 
     #[test]
     fn bad_files_are_clear_errors() {
         let e = parse_midi(b"not midi", "x.mid").unwrap_err().to_string();
-        assert!(e.contains("x.mid") && e.contains("not a standard MIDI file"), "{e}");
-        let e = parse_midi(&smf(&[(0, [0xb0, 64, 127])]), "empty.mid").unwrap_err().to_string();
+        assert!(
+            e.contains("x.mid") && e.contains("not a standard MIDI file"),
+            "{e}"
+        );
+        let e = parse_midi(&smf(&[(0, [0xb0, 64, 127])]), "empty.mid")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no notes"), "{e}");
         let e = parse_midi(&[], "zero.mid").unwrap_err().to_string();
         assert!(e.contains("zero.mid"), "{e}");
@@ -350,8 +468,18 @@ mod tests {
     fn presses_reach_bottom_at_note_on_and_repeat_from_half_release() {
         let perf = Performance {
             notes: vec![
-                Note { key: 60, velocity: 100, on_s: 0.3, off_s: 0.35 },
-                Note { key: 60, velocity: 60, on_s: 0.45, off_s: 0.8 },
+                Note {
+                    key: 60,
+                    velocity: 100,
+                    on_s: 0.3,
+                    off_s: 0.35,
+                },
+                Note {
+                    key: 60,
+                    velocity: 60,
+                    on_s: 0.45,
+                    off_s: 0.8,
+                },
             ],
             sustain: vec![],
             duration_s: 1.0,
@@ -361,38 +489,11 @@ mod tests {
         assert!((t.position(0.3) - 0.01).abs() < 1e-12);
         assert!((t.position(0.45) - 0.01).abs() < 1e-12);
         // The second press starts before the first release ends: the key never returns to 0.
-        let lowest = (3500..4500).map(|i| t.position(i as f64 * 1e-4)).fold(f64::INFINITY, f64::min);
+        let lowest = (3500..4500)
+            .map(|i| t.position(i as f64 * 1e-4))
+            .fold(f64::INFINITY, f64::min);
         assert!(lowest > 0.0 && lowest < 0.01, "{lowest}");
         assert_eq!(t.position(2.0), 0.0);
         assert!(descent_time_s(100) < descent_time_s(60) && descent_time_s(30) == 0.160);
     }
-}
-
-/// A built-in demo performance (8 s, generated, no recording): a C-major scale up from
-/// *pp* to *ff*, four repeated notes at 8 per second, a trill, and a loud chord — the main
-/// job's default input when no MIDI file is given.
-pub fn demo() -> Performance {
-    let mut notes = Vec::new();
-    let mut t = 0.3;
-    let scale = [60u8, 62, 64, 65, 67, 69, 71, 72];
-    for (i, &k) in scale.iter().enumerate() {
-        let v = 20 + (i as u8) * 14;
-        notes.push(Note { key: k, velocity: v, on_s: t, off_s: t + 0.22 });
-        t += 0.25;
-    }
-    t += 0.3;
-    for i in 0..4 {
-        notes.push(Note { key: 67, velocity: 70, on_s: t + i as f64 * 0.125, off_s: t + i as f64 * 0.125 + 0.06 });
-    }
-    t += 0.8;
-    for i in 0..12 {
-        let k = if i % 2 == 0 { 72 } else { 74 };
-        notes.push(Note { key: k, velocity: 55, on_s: t + i as f64 * 0.1, off_s: t + i as f64 * 0.1 + 0.08 });
-    }
-    t += 1.6;
-    for k in [48u8, 55, 60, 64, 67] {
-        notes.push(Note { key: k, velocity: 110, on_s: t, off_s: t + 1.5 });
-    }
-    notes.sort_by(|a, b| a.on_s.total_cmp(&b.on_s).then(a.key.cmp(&b.key)));
-    Performance { notes, sustain: vec![], duration_s: t + 2.0 }
 }

@@ -5,11 +5,16 @@ use std::path::PathBuf;
 use tactus_runtime::performance::{key_tracks, read_midi};
 
 fn shared(name: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/performances").join(name);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data/performances")
+        .join(name);
     if p.exists() {
         Some(p)
     } else {
-        eprintln!("SKIPPED: {} is absent (the shared data folder must sit beside the repository)", p.display());
+        eprintln!(
+            "SKIPPED: {} is absent (the shared data folder must sit beside the repository)",
+            p.display()
+        );
         None
     }
 }
@@ -31,7 +36,11 @@ fn maestro_files_match_their_published_summary() {
         let kmin = p.notes.iter().map(|x| x.key).min().unwrap();
         let kmax = p.notes.iter().map(|x| x.key).max().unwrap();
         assert_eq!(((vmin, vmax), (kmin, kmax)), (vel, pitch), "{name}");
-        assert!((p.duration_s - len).abs() < 1.0, "{name}: {} s", p.duration_s);
+        assert!(
+            (p.duration_s - len).abs() < 1.0,
+            "{name}: {} s",
+            p.duration_s
+        );
         assert!(!p.sustain.is_empty(), "{name}: no sustain pedal events");
         assert!(p.notes.iter().all(|x| x.off_s >= x.on_s));
     }
@@ -39,14 +48,24 @@ fn maestro_files_match_their_published_summary() {
 
 #[test]
 fn every_note_is_a_press_reaching_the_bottom_at_its_note_on() {
-    let Some(path) = shared("Maestro_1.mid") else { return };
+    let Some(path) = shared("Maestro_1.mid") else {
+        return;
+    };
     let p = read_midi(&path).unwrap();
     let dip = 0.010;
     let tracks = key_tracks(&p, dip);
-    assert_eq!(tracks.iter().map(|t| t.notes.len()).sum::<usize>(), p.notes.len());
+    assert_eq!(
+        tracks.iter().map(|t| t.notes.len()).sum::<usize>(),
+        p.notes.len()
+    );
     for t in &tracks {
         for &(on, _) in &t.notes {
-            assert!((t.position(on) - dip).abs() < 1e-9, "key {} at {on} s: {}", t.key, t.position(on));
+            assert!(
+                (t.position(on) - dip).abs() < 1e-9,
+                "key {} at {on} s: {}",
+                t.key,
+                t.position(on)
+            );
         }
         for i in 0..2000 {
             let x = t.position(i as f64 * 0.2);
@@ -64,5 +83,8 @@ fn malformed_midi_is_an_error_naming_the_file() {
     let e = read_midi(&f).unwrap_err().to_string();
     assert!(e.contains("broken.mid"), "{e}");
     let e = read_midi(&dir.join("missing.mid")).unwrap_err().to_string();
-    assert!(e.contains("missing.mid") && e.contains("cannot read"), "{e}");
+    assert!(
+        e.contains("missing.mid") && e.contains("cannot read"),
+        "{e}"
+    );
 }

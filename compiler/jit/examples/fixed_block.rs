@@ -19,15 +19,24 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let engine = args.get(1).map_or("block", String::as_str);
     let repeats: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(10);
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../instruments/grand_piano.tactus");
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../instruments/grand_piano.tactus"
+    );
     let src = std::fs::read_to_string(path).expect("grand_piano.tactus");
-    let program = tactus_compiler::compile(&src, &Config::default()).expect("compiles").program;
+    let program = tactus_compiler::compile(&src, &Config::default())
+        .expect("compiles")
+        .program;
     let dip = program.sensors[0].range.1;
     let stim = tactus_runtime::stimulus::builtin("mf-dip", dip, 44_100.0).expect("stimulus");
     let fp = FixedProgram::new(&program);
     let fjit = FixedJitProgram::compile(&fp).expect("fixed jit");
     let jit = JitProgram::compile(&program).expect("jit");
-    let raw: Vec<i32> = stim.key.iter().map(|&k| FixedInstance::sensor_raw(&fp, 0, Some(k))).collect();
+    let raw: Vec<i32> = stim
+        .key
+        .iter()
+        .map(|&k| FixedInstance::sensor_raw(&fp, 0, Some(k)))
+        .collect();
     let mut totals = vec![0i32; raw.len()];
     let mut sum = 0i64;
     for _ in 0..repeats {

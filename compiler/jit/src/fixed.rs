@@ -312,10 +312,7 @@ impl<'j> FixedJitInstance<'j> {
     pub fn step_raw(&mut self, sensors: &[i32]) -> &RawOut {
         let fp = &self.jit.fp;
         for (i, x) in self.sensors.iter_mut().enumerate() {
-            *x = sensors
-                .get(i)
-                .copied()
-                .unwrap_or(fp.sensor_raw_range[i].0);
+            *x = sensors.get(i).copied().unwrap_or(fp.sensor_raw_range[i].0);
         }
         self.run_one()
     }
@@ -355,7 +352,11 @@ impl<'j> FixedJitInstance<'j> {
 
     fn read_modes(&mut self) {
         let s = &self.jit.layout.slots;
-        for (m, &x) in self.modes.iter_mut().zip(&self.ctx[s.mode(0)..s.mode(s.n_modes)]) {
+        for (m, &x) in self
+            .modes
+            .iter_mut()
+            .zip(&self.ctx[s.mode(0)..s.mode(s.n_modes)])
+        {
             // The native code only ever stores a variant index.
             *m = x as u32;
         }

@@ -116,7 +116,11 @@ struct Word {
 impl Word {
     /// A word with no known bound.
     fn full(v: Cv) -> Word {
-        Word { v, lo: I32_LO, hi: I32_HI }
+        Word {
+            v,
+            lo: I32_LO,
+            hi: I32_HI,
+        }
     }
 }
 
@@ -184,8 +188,9 @@ impl<'a, 'f> Translator<'a, 'f> {
         b.append_block_params_for_function_params(entry);
         b.switch_to_block(entry);
         let params = b.block_params(entry).to_vec();
-        let (ctx, sensors, n, out, sat, totals) =
-            (params[0], params[1], params[2], params[3], params[4], params[5]);
+        let (ctx, sensors, n, out, sat, totals) = (
+            params[0], params[1], params[2], params[3], params[4], params[5],
+        );
         let ptr = b.func.dfg.value_type(ctx);
         let flags = MemFlagsData::trusted();
         let l = &layout.slots;
@@ -263,12 +268,9 @@ impl<'a, 'f> Translator<'a, 'f> {
         self.stmts(&p.body)?;
         let (b, flags) = (&mut self.b, self.flags);
         // The total of this sample, then the next row.
-        let total = b.ins().load(
-            types::I32,
-            flags,
-            self.out,
-            word(self.layout.slots.total()),
-        );
+        let total = b
+            .ins()
+            .load(types::I32, flags, self.out, word(self.layout.slots.total()));
         let t = b.use_var(self.totals);
         b.ins().store(flags, total, t, 0);
         let t = b.ins().iadd_imm_s(t, 4);
@@ -718,7 +720,11 @@ impl<'a, 'f> Translator<'a, 'f> {
         let may_be_zero = c.lo <= 0 && c.hi >= 0;
         let b = &mut self.b;
         let q = if k < -31 {
-            Word { v: b.ins().iconst(types::I32, 0), lo: 0, hi: 0 }
+            Word {
+                v: b.ins().iconst(types::I32, 0),
+                lo: 0,
+                hi: 0,
+            }
         } else {
             let one = b.ins().iconst(types::I32, 1);
             let y = if may_be_zero {
@@ -858,8 +864,16 @@ impl<'a, 'f> Translator<'a, 'f> {
         let x = self.retype(self.wide(a, 0), ty);
         let y = self.retype(self.wide(c, 0), ty);
         let b = &mut self.b;
-        let x = if sa > 0 { b.ins().ishl_imm_s(x, i64::from(sa)) } else { x };
-        let y = if sc > 0 { b.ins().ishl_imm_s(y, i64::from(sc)) } else { y };
+        let x = if sa > 0 {
+            b.ins().ishl_imm_s(x, i64::from(sa))
+        } else {
+            x
+        };
+        let y = if sc > 0 {
+            b.ins().ishl_imm_s(y, i64::from(sc))
+        } else {
+            y
+        };
         b.ins().icmp(cc, x, y)
     }
 
@@ -973,7 +987,14 @@ impl<'a, 'f> Translator<'a, 'f> {
         } else {
             self.b.ins().ishl_imm_s(x, i64::from(s))
         };
-        Wide { v, ty, lo, hi, frac, narrow: None }
+        Wide {
+            v,
+            ty,
+            lo,
+            hi,
+            frac,
+            narrow: None,
+        }
     }
 
     fn neg(&mut self, w: Wide) -> Wide {
@@ -981,7 +1002,14 @@ impl<'a, 'f> Translator<'a, 'f> {
         let ty = ty_for(lo, hi);
         let x = self.retype(w, ty);
         let v = self.b.ins().ineg(x);
-        Wide { v, ty, lo, hi, frac: w.frac, narrow: None }
+        Wide {
+            v,
+            ty,
+            lo,
+            hi,
+            frac: w.frac,
+            narrow: None,
+        }
     }
 
     /// Exact sum of two intermediates in the same format.
@@ -990,7 +1018,14 @@ impl<'a, 'f> Translator<'a, 'f> {
         let ty = ty_for(lo, hi);
         let (a, c) = (self.retype(x, ty), self.retype(y, ty));
         let v = self.b.ins().iadd(a, c);
-        Wide { v, ty, lo, hi, frac: x.frac, narrow: None }
+        Wide {
+            v,
+            ty,
+            lo,
+            hi,
+            frac: x.frac,
+            narrow: None,
+        }
     }
 
     /// A word converted between formats: `fixed::convert`.
@@ -1017,7 +1052,11 @@ impl<'a, 'f> Translator<'a, 'f> {
                 let (lo, hi) = (w.lo << s, w.hi << s);
                 let ty = ty_for(lo, hi);
                 let x = self.retype(w, ty);
-                let v = if s == 0 { x } else { self.b.ins().ishl_imm_s(x, i64::from(s)) };
+                let v = if s == 0 {
+                    x
+                } else {
+                    self.b.ins().ishl_imm_s(x, i64::from(s))
+                };
                 return self.narrow(v, ty, lo, hi);
             }
             // Would not fit: clamp to ±2^31 (which saturates after any shift >= 1 exactly
@@ -1026,8 +1065,21 @@ impl<'a, 'f> Translator<'a, 'f> {
             let lim = 1i128 << 31;
             let (lo, hi) = (w.lo.max(-lim), w.hi.min(lim));
             let x = self.clamp_value(w.v, w.ty, w.lo, w.hi, -lim, lim);
-            let ty = if w.ty == types::I128 { types::I64 } else { w.ty };
-            let x = self.retype(Wide { v: x, ty, lo, hi, ..w }, types::I64);
+            let ty = if w.ty == types::I128 {
+                types::I64
+            } else {
+                w.ty
+            };
+            let x = self.retype(
+                Wide {
+                    v: x,
+                    ty,
+                    lo,
+                    hi,
+                    ..w
+                },
+                types::I64,
+            );
             let s = s.min(31);
             let v = self.b.ins().ishl_imm_s(x, i64::from(s));
             return self.narrow(v, types::I64, lo << s, hi << s);
@@ -1105,7 +1157,11 @@ impl<'a, 'f> Translator<'a, 'f> {
         } else {
             self.b.ins().ireduce(types::I32, v)
         };
-        Word { v, lo: clo, hi: chi }
+        Word {
+            v,
+            lo: clo,
+            hi: chi,
+        }
     }
 }
 

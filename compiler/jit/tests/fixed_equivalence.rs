@@ -140,10 +140,12 @@ fn every_instrument_every_builtin_stimulus_bit_for_bit() {
     let mut runs = 0;
     for path in instruments() {
         let fp = load(&path);
-        let jit = FixedJitProgram::compile(&fp).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let jit =
+            FixedJitProgram::compile(&fp).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let dip = fp.program.sensors[0].range.1;
         for &(name, _) in stimulus::builtin_names() {
-            let stim = stimulus::builtin(name, dip, 44_100.0).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let stim =
+                stimulus::builtin(name, dip, 44_100.0).unwrap_or_else(|e| panic!("{name}: {e}"));
             let mut pr = pair(&fp, &jit, format!("{} / {name}", fp.program.name));
             for (n, &k) in stim.key.iter().enumerate() {
                 pr.step(n, &[k]);
@@ -153,7 +155,10 @@ fn every_instrument_every_builtin_stimulus_bit_for_bit() {
         }
     }
     println!("stimuli: {runs} runs, {total:?}");
-    assert!(total.events > 0, "no stimulus emitted an event: the event path is untested");
+    assert!(
+        total.events > 0,
+        "no stimulus emitted an event: the event path is untested"
+    );
     assert_eq!(total.mismatches, 0, "{total:?}");
 }
 
@@ -164,7 +169,16 @@ fn raw_word(rng: &mut XorShift64, prev: i32, (lo, hi): (i32, i32)) -> i32 {
     let span = (i64::from(hi) - i64::from(lo)).max(1);
     let r = |rng: &mut XorShift64, n: i64| (rng.next_u64() % n as u64) as i64;
     let x = match rng.next_u64() % 16 {
-        0 => [i32::MIN, i32::MAX, 0, -1, lo, hi, lo.saturating_sub(1), hi.saturating_add(1)][rng.below(8)] as i64,
+        0 => [
+            i32::MIN,
+            i32::MAX,
+            0,
+            -1,
+            lo,
+            hi,
+            lo.saturating_sub(1),
+            hi.saturating_add(1),
+        ][rng.below(8)] as i64,
         1 => rng.next_u64() as u32 as i32 as i64,
         2 | 3 => i64::from(lo) + r(rng, span + 1),
         4 => i64::from(lo) - span + r(rng, 3 * span + 1),
@@ -178,7 +192,8 @@ fn random_raw_words_in_and_out_of_range_bit_for_bit() {
     let mut total = Stats::default();
     for (k, path) in instruments().into_iter().chain(test_programs()).enumerate() {
         let fp = load(&path);
-        let jit = FixedJitProgram::compile(&fp).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let jit =
+            FixedJitProgram::compile(&fp).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let mut rng = XorShift64::new(0x9e37_79b9_7f4a_7c15 ^ (k as u64 + 1));
         let ranges = fp.sensor_raw_range.clone();
         let mut prev: Vec<i32> = ranges.iter().map(|r| r.0).collect();
@@ -212,7 +227,8 @@ fn random_si_readings_bit_for_bit() {
     let mut total = Stats::default();
     for (k, path) in instruments().into_iter().chain(test_programs()).enumerate() {
         let fp = load(&path);
-        let jit = FixedJitProgram::compile(&fp).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let jit =
+            FixedJitProgram::compile(&fp).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let mut rng = XorShift64::new(0x1234_5678 + k as u64);
         let mut pr = pair(&fp, &jit, format!("{} / random SI", fp.program.name));
         let specials = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.0];
@@ -311,7 +327,8 @@ fn random_format_plans_bit_for_bit() {
             for f in fp.event_frac.iter_mut().flatten() {
                 *f = jiggle(&mut rng, *f);
             }
-            let jit = FixedJitProgram::compile(&fp).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let jit =
+                FixedJitProgram::compile(&fp).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             let ranges = fp.sensor_raw_range.clone();
             let mut prev: Vec<i32> = ranges.iter().map(|r| r.0).collect();
             let mut pr = pair(&fp, &jit, format!("{} / plan {plan}", fp.program.name));

@@ -1,9 +1,9 @@
 //! Programs that break an IR invariant are rejected with an error, never a panic or bad
 //! native code. Each case: a name, a mutation of the grand piano's IR, the error message.
 
+use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::{Program, SensorId, StateId, Stmt, Value};
 use tactus_compiler::lower::Config;
-use tactus_compiler::fixed::FixedProgram;
 use tactus_jit::{FixedJitProgram, JitProgram};
 
 fn piano() -> Program {

@@ -1,8 +1,8 @@
 //! A compiled program (f64 or fixed-point) is shared by instances on several threads (one
 //! key per thread).
 
-use tactus_compiler::lower::Config;
 use tactus_compiler::fixed::FixedProgram;
+use tactus_compiler::lower::Config;
 use tactus_jit::{FixedJitInstance, FixedJitProgram, JitInstance, JitProgram};
 
 fn piano() -> tactus_compiler::ir::Program {

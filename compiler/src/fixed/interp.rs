@@ -55,7 +55,11 @@ impl<'f> FixedInstance<'f> {
             vals: vec![0; p.values.len()],
             overflowed: vec![false; p.values.len()],
             saturations: vec![0; p.states.len()],
-            out: RawOut { forces: vec![0; p.forces.len()], outputs: vec![0; p.outputs.len()], ..RawOut::default() },
+            out: RawOut {
+                forces: vec![0; p.forces.len()],
+                outputs: vec![0; p.outputs.len()],
+                ..RawOut::default()
+            },
         }
     }
 
@@ -74,8 +78,9 @@ impl<'f> FixedInstance<'f> {
 
     /// Runs one sample on SI sensor readings.
     pub fn step(&mut self, sensors: &[f64]) -> &RawOut {
-        let raw: Vec<i32> =
-            (0..self.fp.program.sensors.len()).map(|i| Self::sensor_raw(self.fp, i, sensors.get(i).copied())).collect();
+        let raw: Vec<i32> = (0..self.fp.program.sensors.len())
+            .map(|i| Self::sensor_raw(self.fp, i, sensors.get(i).copied()))
+            .collect();
         self.step_raw(&raw)
     }
 
@@ -107,7 +112,11 @@ impl<'f> FixedInstance<'f> {
                 }
                 Stmt::SetState(st, v) => {
                     let i = st.index();
-                    let (x, _) = fx::convert(self.vals[v.index()], self.fp.frac[v.index()], self.fp.state_frac[i]);
+                    let (x, _) = fx::convert(
+                        self.vals[v.index()],
+                        self.fp.frac[v.index()],
+                        self.fp.state_frac[i],
+                    );
                     let (lo, hi) = self.fp.state_raw_range[i];
                     let y = x.clamp(lo, hi);
                     if y != x {
@@ -127,7 +136,9 @@ impl<'f> FixedInstance<'f> {
                     let a = args
                         .iter()
                         .zip(formats)
-                        .map(|(v, &f)| fx::convert(self.vals[v.index()], self.fp.frac[v.index()], f).0)
+                        .map(|(v, &f)| {
+                            fx::convert(self.vals[v.index()], self.fp.frac[v.index()], f).0
+                        })
                         .collect();
                     self.out.events.push((*e, a));
                 }
@@ -153,7 +164,11 @@ impl<'f> FixedInstance<'f> {
                 let h = &self.hist[s.index()];
                 let d = if *order == 1 { h.diff1() } else { h.diff2() };
                 let (k, fk) = fp.deriv_gain[(*order as usize).saturating_sub(1).min(1)];
-                fx::sat32(fx::rescale(d as i128 * k as i128, fp.sensor_frac[s.index()] + fk, fr))
+                fx::sat32(fx::rescale(
+                    d as i128 * k as i128,
+                    fp.sensor_frac[s.index()] + fk,
+                    fr,
+                ))
             }
             Op::State(s) => fx::convert(self.states[s.index()], fp.state_frac[s.index()], fr),
             Op::Mode(m) => (self.modes[m.index()] as i32, false),
@@ -169,11 +184,15 @@ impl<'f> FixedInstance<'f> {
                     ArithOp::Add => fx::add(a, fa, c, fc, fr),
                     ArithOp::Sub => fx::sub(a, fa, c, fc, fr),
                     ArithOp::Mul => match fp.mul_kind[v.index()] {
-                        Some(super::MulKind::Muls(sa, sb)) => fx::mul_shifted(a, fa, sa, c, fc, sb, fr),
+                        Some(super::MulKind::Muls(sa, sb)) => {
+                            fx::mul_shifted(a, fa, sa, c, fc, sb, fr)
+                        }
                         _ => fx::mul(a, fa, c, fc, fr),
                     },
                     ArithOp::Div => match (fp.recip[v.index()], fp.mul_kind[v.index()]) {
-                        (Some((r, f)), Some(super::MulKind::Muls(sa, sb))) => fx::mul_shifted(a, fa, sa, r, f, sb, fr),
+                        (Some((r, f)), Some(super::MulKind::Muls(sa, sb))) => {
+                            fx::mul_shifted(a, fa, sa, r, f, sb, fr)
+                        }
                         (Some((r, f)), _) => fx::mul(a, fa, r, f, fr),
                         (None, _) => fx::div(a, fa, c, fc, fr),
                     },
@@ -200,7 +219,11 @@ impl<'f> FixedInstance<'f> {
             Op::And(x, y) => b(self.vals[x.index()] != 0 && self.vals[y.index()] != 0),
             Op::Or(x, y) => b(self.vals[x.index()] != 0 || self.vals[y.index()] != 0),
             Op::Select(c, x, y) => {
-                let (a, f) = if self.vals[c.index()] != 0 { val(x) } else { val(y) };
+                let (a, f) = if self.vals[c.index()] != 0 {
+                    val(x)
+                } else {
+                    val(y)
+                };
                 match p.values[v.index()].ty {
                     Ty::Real(_) => fx::convert(a, f, fr),
                     _ => (a, false),
@@ -221,7 +244,11 @@ impl<'f> FixedInstance<'f> {
                     Builtin::Min | Builtin::Max => {
                         let (c, fc) = y.map(|y| val(&y)).unwrap_or((a, fa));
                         let less = fx::cmp(a, fa, c, fc) == std::cmp::Ordering::Less;
-                        let take_a = if *func == Builtin::Min { less || fx::cmp(a, fa, c, fc).is_eq() } else { !less };
+                        let take_a = if *func == Builtin::Min {
+                            less || fx::cmp(a, fa, c, fc).is_eq()
+                        } else {
+                            !less
+                        };
                         if take_a {
                             fx::convert(a, fa, fr)
                         } else {
@@ -259,13 +286,31 @@ impl RawOut {
     /// The same sample in SI units, for comparison with the f64 engines.
     pub fn to_si(&self, fp: &FixedProgram) -> crate::interp::SampleOut {
         crate::interp::SampleOut {
-            forces: self.forces.iter().zip(&fp.force_frac).map(|(&x, &f)| fx::to_f64(x, f)).collect(),
+            forces: self
+                .forces
+                .iter()
+                .zip(&fp.force_frac)
+                .map(|(&x, &f)| fx::to_f64(x, f))
+                .collect(),
             total: fx::to_f64(self.total, fp.total_frac),
-            outputs: self.outputs.iter().zip(&fp.output_frac).map(|(&x, &f)| fx::to_f64(x, f)).collect(),
+            outputs: self
+                .outputs
+                .iter()
+                .zip(&fp.output_frac)
+                .map(|(&x, &f)| fx::to_f64(x, f))
+                .collect(),
             events: self
                 .events
                 .iter()
-                .map(|(e, a)| (*e, a.iter().zip(&fp.event_frac[e.index()]).map(|(&x, &f)| fx::to_f64(x, f)).collect()))
+                .map(|(e, a)| {
+                    (
+                        *e,
+                        a.iter()
+                            .zip(&fp.event_frac[e.index()])
+                            .map(|(&x, &f)| fx::to_f64(x, f))
+                            .collect(),
+                    )
+                })
                 .collect(),
         }
     }

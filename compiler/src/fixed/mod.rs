@@ -109,7 +109,11 @@ fn published(p: &Program, frac: &[i32]) -> Published {
         force: vec![0; p.forces.len()],
         total: 0,
         output: vec![0; p.outputs.len()],
-        event: p.events.iter().map(|e| vec![FRAC_RANGE.1; e.args.len()]).collect(),
+        event: p
+            .events
+            .iter()
+            .map(|e| vec![FRAC_RANGE.1; e.args.len()])
+            .collect(),
     };
     fn walk(stmts: &[Stmt], frac: &[i32], out: &mut Published) {
         for s in stmts {
@@ -152,11 +156,14 @@ impl FixedProgram {
             };
             match vd.op {
                 Op::Const(c) => consts[i] = fx::from_f64(c, frac[i]).0,
-                Op::Param(p) => consts[i] = fx::from_f64(program.params[p.index()].value, frac[i]).0,
+                Op::Param(p) => {
+                    consts[i] = fx::from_f64(program.params[p.index()].value, frac[i]).0
+                }
                 _ => {}
             }
         }
-        let is_const = |v: Value| matches!(program.values[v.index()].op, Op::Const(_) | Op::Param(_));
+        let is_const =
+            |v: Value| matches!(program.values[v.index()].op, Op::Const(_) | Op::Param(_));
         let const_value = |v: Value| match program.values[v.index()].op {
             Op::Const(c) => c,
             Op::Param(p) => program.params[p.index()].value,
@@ -188,11 +195,19 @@ impl FixedProgram {
             let k = match (y, c) {
                 (_, Some((raw, fc))) => {
                     let free = raw.trailing_zeros().min(31) as i32;
-                    let k = Self::plan_mul(fx_of(x), 0, (fc, Interval::point(tactus_runtime::fixed::to_f64(raw, fc))), free, ranges.values[i]);
+                    let k = Self::plan_mul(
+                        fx_of(x),
+                        0,
+                        (fc, Interval::point(tactus_runtime::fixed::to_f64(raw, fc))),
+                        free,
+                        ranges.values[i],
+                    );
                     // The constant operand is the second one of the planned pair; keep the
                     // shifts in (variable, constant) order for every operand order.
                     match (vd.op.clone(), k) {
-                        (Op::Arith(ArithOp::Mul, a, _), MulKind::Muls(sa, sb)) if is_const(a) => MulKind::Muls(sb, sa),
+                        (Op::Arith(ArithOp::Mul, a, _), MulKind::Muls(sa, sb)) if is_const(a) => {
+                            MulKind::Muls(sb, sa)
+                        }
                         (_, k) => k,
                     }
                 }
@@ -201,21 +216,34 @@ impl FixedProgram {
             };
             mul_kind[i] = Some(k);
         }
-        let sensor_frac: Vec<i32> = program.sensors.iter().map(|s| frac_for(Interval::new(s.range.0, s.range.1))).collect();
+        let sensor_frac: Vec<i32> = program
+            .sensors
+            .iter()
+            .map(|s| frac_for(Interval::new(s.range.0, s.range.1)))
+            .collect();
         let sensor_raw_range = program
             .sensors
             .iter()
             .zip(&sensor_frac)
             .map(|(s, &f)| (fx::from_f64(s.range.0, f).0, fx::from_f64(s.range.1, f).0))
             .collect();
-        let state_frac: Vec<i32> = program.states.iter().map(|s| frac_for(Interval::new(s.range.0, s.range.1))).collect();
+        let state_frac: Vec<i32> = program
+            .states
+            .iter()
+            .map(|s| frac_for(Interval::new(s.range.0, s.range.1)))
+            .collect();
         let state_raw_range = program
             .states
             .iter()
             .zip(&state_frac)
             .map(|(s, &f)| (fx::from_f64(s.range.0, f).0, fx::from_f64(s.range.1, f).0))
             .collect();
-        let state_init = program.states.iter().zip(&state_frac).map(|(s, &f)| fx::from_f64(s.init, f).0).collect();
+        let state_init = program
+            .states
+            .iter()
+            .zip(&state_frac)
+            .map(|(s, &f)| fx::from_f64(s.init, f).0)
+            .collect();
         let r = program.sample_rate_hz / WINDOW as f64;
         let deriv_gain = [constant(r), constant(r * r)];
         let warnings = ranges
@@ -265,7 +293,13 @@ impl FixedProgram {
     /// free bits first, then the operand with more significant bits, until the product fits
     /// 31 bits; accept when the floor shifts cost at most [`MULS_REL_TOLERANCE`] of the
     /// result's magnitude, else use the 64-bit product.
-    fn plan_mul((fx, rx): (i32, Interval), free_x: i32, (fy, ry): (i32, Interval), free_y: i32, result: Interval) -> MulKind {
+    fn plan_mul(
+        (fx, rx): (i32, Interval),
+        free_x: i32,
+        (fy, ry): (i32, Interval),
+        free_y: i32,
+        result: Interval,
+    ) -> MulKind {
         let bits = |f: i32, r: Interval| (r.mag() * 2f64.powi(f)).max(1.0).log2().ceil() as i32;
         let (mut a, mut b) = (0i32, 0i32);
         let (bx, by) = (bits(fx, rx), bits(fy, ry));
@@ -301,8 +335,20 @@ impl FixedProgram {
 
     /// Number of multiplications of each kind and their estimated cycles on a Cortex-M0+.
     pub fn mul_cost(&self) -> (usize, usize, u32) {
-        let muls = self.mul_kind.iter().filter(|k| matches!(k, Some(MulKind::Muls(..)))).count();
-        let wide = self.mul_kind.iter().filter(|k| **k == Some(MulKind::Wide)).count();
-        (muls, wide, muls as u32 * MulKind::Muls(0, 0).cycles() + wide as u32 * MulKind::Wide.cycles())
+        let muls = self
+            .mul_kind
+            .iter()
+            .filter(|k| matches!(k, Some(MulKind::Muls(..))))
+            .count();
+        let wide = self
+            .mul_kind
+            .iter()
+            .filter(|k| **k == Some(MulKind::Wide))
+            .count();
+        (
+            muls,
+            wide,
+            muls as u32 * MulKind::Muls(0, 0).cycles() + wide as u32 * MulKind::Wide.cycles(),
+        )
     }
 }

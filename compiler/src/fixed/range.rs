@@ -57,7 +57,10 @@ impl Interval {
 fn products(a: Interval, b: Interval) -> Interval {
     let c = [a.lo * b.lo, a.lo * b.hi, a.hi * b.lo, a.hi * b.hi];
     let c = c.map(|x| if x.is_nan() { 0.0 } else { x });
-    Interval::new(c.iter().cloned().fold(f64::INFINITY, f64::min), c.iter().cloned().fold(f64::NEG_INFINITY, f64::max))
+    Interval::new(
+        c.iter().cloned().fold(f64::INFINITY, f64::min),
+        c.iter().cloned().fold(f64::NEG_INFINITY, f64::max),
+    )
 }
 
 /// The result of the analysis.
@@ -95,8 +98,16 @@ pub fn analyse(p: &Program) -> Ranges {
                     } else {
                         clamped.push(*v);
                         let c = UNBOUNDED_CLAMP;
-                        let lo = if iv.lo.is_nan() { -c } else { iv.lo.clamp(-c, c) };
-                        let hi = if iv.hi.is_nan() { c } else { iv.hi.clamp(-c, c) };
+                        let lo = if iv.lo.is_nan() {
+                            -c
+                        } else {
+                            iv.lo.clamp(-c, c)
+                        };
+                        let hi = if iv.hi.is_nan() {
+                            c
+                        } else {
+                            iv.hi.clamp(-c, c)
+                        };
                         Interval::new(lo.min(hi), hi.max(lo))
                     };
                 }

@@ -58,7 +58,9 @@ pub fn analyse(fp: &FixedProgram) -> Precision {
         .states
         .iter()
         .enumerate()
-        .map(|(i, s)| (s.init - tactus_runtime::fixed::to_f64(fp.state_init[i], fp.state_frac[i])).abs())
+        .map(|(i, s)| {
+            (s.init - tactus_runtime::fixed::to_f64(fp.state_init[i], fp.state_frac[i])).abs()
+        })
         .collect();
     let mut state = init_err.clone();
     let mut value = vec![0.0; p.values.len()];
@@ -67,8 +69,14 @@ pub fn analyse(fp: &FixedProgram) -> Precision {
     for _ in 0..64 {
         let (v, writes) = pass(fp, &state);
         value = v;
-        let next: Vec<f64> = (0..p.states.len()).map(|i| writes[i].max(init_err[i])).collect();
-        let grew: Vec<bool> = next.iter().zip(&state).map(|(n, o)| *n > *o * (1.0 + 1e-9) + 1e-300).collect();
+        let next: Vec<f64> = (0..p.states.len())
+            .map(|i| writes[i].max(init_err[i]))
+            .collect();
+        let grew: Vec<bool> = next
+            .iter()
+            .zip(&state)
+            .map(|(n, o)| *n > *o * (1.0 + 1e-9) + 1e-300)
+            .collect();
         state = next;
         if !grew.iter().any(|g| *g) {
             converged = true;
@@ -97,7 +105,15 @@ pub fn analyse(fp: &FixedProgram) -> Precision {
         .map(|x| x.value)
         .unwrap_or_else(|| total_range(fp));
     let total_is_local = accumulating.iter().any(|a| *a);
-    Precision { value, state, accumulating, force, total, total_is_local, full_scale_n }
+    Precision {
+        value,
+        state,
+        accumulating,
+        force,
+        total,
+        total_is_local,
+        full_scale_n,
+    }
 }
 
 fn total_range(fp: &FixedProgram) -> f64 {
@@ -134,7 +150,11 @@ fn pass(fp: &FixedProgram, state: &[f64]) -> (Vec<f64>, Vec<f64>) {
                 Stmt::Def(v) => e[v.index()] = op_error(fp, *v, state, e),
                 Stmt::SetState(st, v) => {
                     let i = st.index();
-                    let r = if fp.state_frac[i] < fp.frac[v.index()] { half_lsb(fp.state_frac[i]) } else { 0.0 };
+                    let r = if fp.state_frac[i] < fp.frac[v.index()] {
+                        half_lsb(fp.state_frac[i])
+                    } else {
+                        0.0
+                    };
                     writes[i] = writes[i].max(e[v.index()] + r);
                 }
                 Stmt::If(_, b) => walk(fp, b, state, e, writes),
@@ -154,13 +174,26 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
     let round_from = |f: i32| if fr < f { half_lsb(fr) } else { 0.0 };
     match &p.values[v.index()].op {
         Op::Const(c) => (c - tactus_runtime::fixed::to_f64(fp.consts[v.index()], fr)).abs(),
-        Op::Param(id) => (p.params[id.index()].value - tactus_runtime::fixed::to_f64(fp.consts[v.index()], fr)).abs(),
-        Op::BoolConst(_) | Op::Variant(..) | Op::Mode(_) | Op::Edge(_) | Op::Not(_) | Op::Cmp(..) | Op::And(..) | Op::Or(..) => 0.0,
+        Op::Param(id) => (p.params[id.index()].value
+            - tactus_runtime::fixed::to_f64(fp.consts[v.index()], fr))
+        .abs(),
+        Op::BoolConst(_)
+        | Op::Variant(..)
+        | Op::Mode(_)
+        | Op::Edge(_)
+        | Op::Not(_)
+        | Op::Cmp(..)
+        | Op::And(..)
+        | Op::Or(..) => 0.0,
         Op::Sensor(s) => round_from(fp.sensor_frac[s.index()]),
         Op::Deriv(s, order) => {
             let (lo, hi) = p.sensors[s.index()].range;
             let r = p.sample_rate_hz / tactus_runtime::differentiator::WINDOW as f64;
-            let (k, gain, span) = if *order == 1 { (fp.deriv_gain[0], r, hi - lo) } else { (fp.deriv_gain[1], r * r, 2.0 * (hi - lo)) };
+            let (k, gain, span) = if *order == 1 {
+                (fp.deriv_gain[0], r, hi - lo)
+            } else {
+                (fp.deriv_gain[1], r * r, 2.0 * (hi - lo))
+            };
             span * (gain - tactus_runtime::fixed::to_f64(k.0, k.1)).abs() + half_lsb(fr)
         }
         Op::State(s) => state[s.index()] + round_from(fp.state_frac[s.index()]),
@@ -183,11 +216,19 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                         };
                         let q = tactus_runtime::fixed::to_f64(r, f);
                         let (ex, eq) = shift_errors(fp, v, fx, f);
-                        (err(x) + ex) * (q.abs() + eq) + mag(x) * ((q - 1.0 / c).abs() + eq) + half_lsb(fr)
+                        (err(x) + ex) * (q.abs() + eq)
+                            + mag(x) * ((q - 1.0 / c).abs() + eq)
+                            + half_lsb(fr)
                     }
                     None => {
                         let yr = fp.ranges.values[y.index()];
-                        let ymin = if yr.lo > 0.0 { yr.lo } else if yr.hi < 0.0 { -yr.hi } else { 0.0 };
+                        let ymin = if yr.lo > 0.0 {
+                            yr.lo
+                        } else if yr.hi < 0.0 {
+                            -yr.hi
+                        } else {
+                            0.0
+                        };
                         if ymin == 0.0 {
                             f64::INFINITY
                         } else {
@@ -197,7 +238,9 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                 },
             }
         }
-        Op::Select(_, x, y) => err(x).max(err(y)) + round_from(fp.frac[x.index()].max(fp.frac[y.index()])),
+        Op::Select(_, x, y) => {
+            err(x).max(err(y)) + round_from(fp.frac[x.index()].max(fp.frac[y.index()]))
+        }
         Op::Call(f, x, y) => {
             let fx = fp.frac[x.index()];
             match f {
@@ -209,7 +252,11 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                 }
                 Builtin::Sqrt => {
                     let lo = fp.ranges.values[x.index()].lo;
-                    let prop = if lo > 0.0 { err(x) / (2.0 * lo.sqrt()) } else { err(x).sqrt() };
+                    let prop = if lo > 0.0 {
+                        err(x) / (2.0 * lo.sqrt())
+                    } else {
+                        err(x).sqrt()
+                    };
                     prop + half_lsb(fr)
                 }
                 Builtin::Exp => {
@@ -240,7 +287,13 @@ fn shift_errors(fp: &FixedProgram, v: Value, fx: i32, fy: i32) -> (f64, f64) {
                 Some((r, _)) => r.trailing_zeros() as u8,
                 None => free(y),
             };
-            let e = |s: u8, f: i32, free: u8| if s <= free { 0.0 } else { 2f64.powi(s as i32 - f) };
+            let e = |s: u8, f: i32, free: u8| {
+                if s <= free {
+                    0.0
+                } else {
+                    2f64.powi(s as i32 - f)
+                }
+            };
             (e(a, fx, free(x)), e(b, fy, fy_free))
         }
         _ => (0.0, 0.0),
@@ -257,13 +310,21 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
     let p = &fp.program;
     let mut s = String::new();
     let lsb = pr.dac_lsb_n();
-    let _ = writeln!(s, "precision report: {} (32-bit fixed point, round half up, saturating)", p.name);
+    let _ = writeln!(
+        s,
+        "precision report: {} (32-bit fixed point, round half up, saturating)",
+        p.name
+    );
     let _ = writeln!(
         s,
         "DAC: 16-bit at full scale ±{} N → 1 LSB = {:.3e} N{}",
         pr.full_scale_n,
         lsb,
-        if p.params.iter().any(|x| x.name == "full_scale") { "" } else { " (full scale from the total's range: declare `param full_scale = … N`)" }
+        if p.params.iter().any(|x| x.name == "full_scale") {
+            ""
+        } else {
+            " (full scale from the total's range: declare `param full_scale = … N`)"
+        }
     );
     let _ = writeln!(s, "\nstates                     range                          format      LSB          error bound");
     for (i, st) in p.states.iter().enumerate() {
@@ -279,7 +340,11 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
             q_name(f),
             2f64.powi(-f),
             pr.state[i],
-            if pr.accumulating[i] { "(per sample; accumulates)" } else { "" }
+            if pr.accumulating[i] {
+                "(per sample; accumulates)"
+            } else {
+                ""
+            }
         );
     }
     let _ = writeln!(s, "\nforce terms                range                          format      error bound (N)   (DAC LSB)");
@@ -306,7 +371,11 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
         q_name(fp.total_frac),
         pr.total,
         pr.total / lsb,
-        if pr.total_is_local { "  per sample, given exact states" } else { "" }
+        if pr.total_is_local {
+            "  per sample, given exact states"
+        } else {
+            ""
+        }
     );
     let (muls, wide, cycles) = fp.mul_cost();
     let _ = writeln!(
@@ -314,9 +383,16 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
         "\nmultiplications: {muls} fit MULS (32×32→32), {wide} need a 64-bit product (ARMv6-M has no SMULL): ≈ {cycles} Cortex-M0+ cycles"
     );
     if fp.warnings.is_empty() {
-        let _ = writeln!(s, "overflow: none possible — every value's format holds its analysed range");
+        let _ = writeln!(
+            s,
+            "overflow: none possible — every value's format holds its analysed range"
+        );
     } else {
-        let _ = writeln!(s, "overflow: saturation inserted at {} unbounded value(s) (see the warnings)", fp.warnings.len());
+        let _ = writeln!(
+            s,
+            "overflow: saturation inserted at {} unbounded value(s) (see the warnings)",
+            fp.warnings.len()
+        );
     }
     s
 }

@@ -28,8 +28,15 @@ fn walk(p: &mut Program, stmts: &[Stmt], konst: &mut [Option<f64>]) {
                     Op::Param(id) => Some(p.params[id.index()].value),
                     Op::Neg(_) | Op::Arith(..) | Op::Call(..) | Op::Select(..) => {
                         let operands = operands(&op);
-                        if operands.iter().all(|o| konst[o.index()].is_some()) && matches!(p.values[i].ty, Ty::Real(_)) {
-                            let c = crate::interp::eval_op(&op, |x| konst[x.index()].unwrap_or(f64::NAN), |id| p.params[id.index()].value, &|_| f64::NAN);
+                        if operands.iter().all(|o| konst[o.index()].is_some())
+                            && matches!(p.values[i].ty, Ty::Real(_))
+                        {
+                            let c = crate::interp::eval_op(
+                                &op,
+                                |x| konst[x.index()].unwrap_or(f64::NAN),
+                                |id| p.params[id.index()].value,
+                                &|_| f64::NAN,
+                            );
                             p.values[i].op = Op::Const(c);
                             Some(c)
                         } else {

@@ -572,7 +572,11 @@ impl<'a> Lowerer<'a> {
     /// Adds a value and its `Def` statement to the current block.
     fn def(&mut self, op: Op, ty: Ty) -> Value {
         let v = Value(self.prog.values.len() as u32);
-        self.prog.values.push(ValueData { op, ty, span: self.cur_span.clone() });
+        self.prog.values.push(ValueData {
+            op,
+            ty,
+            span: self.cur_span.clone(),
+        });
         self.emit_stmt(Stmt::Def(v));
         v
     }
