@@ -10,6 +10,7 @@ use tactus_compiler::cgen::{self, CSource};
 use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::lower::Config;
+use tactus_runtime::rng::XorShift64;
 use tactus_runtime::stimulus;
 
 /// The instruments: every `instruments/*.tactus`.
@@ -88,27 +89,13 @@ int main(void) {{
     exe
 }
 
-/// Deterministic xorshift64*.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: u64) -> u64 {
-        self.next() % n
-    }
-}
-
 /// Random raw words for one sensor: a mix of arbitrary words, in-range words, random walks
 /// and words at and beyond the raw bounds.
-fn random_word(rng: &mut Rng, prev: i32, (lo, hi): (i32, i32)) -> i32 {
+fn random_word(rng: &mut XorShift64, prev: i32, (lo, hi): (i32, i32)) -> i32 {
     let span = (hi as i64 - lo as i64).max(1) as u64;
     match rng.below(8) {
-        0 => rng.next() as i32,
-        1 => (lo as i64 + rng.below(span + 1) as i64) as i32,
+        0 => rng.next_u64() as i32,
+        1 => (lo as i64 + (rng.next_u64() % (span + 1) as u64) as i64) as i32,
         2 => [
             i32::MIN,
             i32::MAX,
@@ -117,9 +104,9 @@ fn random_word(rng: &mut Rng, prev: i32, (lo, hi): (i32, i32)) -> i32 {
             lo.saturating_sub(1),
             hi.saturating_add(1),
             0,
-        ][rng.below(7) as usize],
+        ][rng.below(7)],
         _ => {
-            let step = (rng.below(span / 200 + 2) as i64) - (span / 400) as i64;
+            let step = ((rng.next_u64() % (span / 200 + 2) as u64) as i64) - (span / 400) as i64;
             (prev as i64 + step).clamp(lo as i64, hi as i64) as i32
         }
     }
@@ -260,7 +247,7 @@ fn check_instrument(base: &Path, name: &str, text: &str, stimuli: bool) -> usize
             records,
         });
     }
-    let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ name.len() as u64);
+    let mut rng = XorShift64::new(0x9E37_79B9_7F4A_7C15 ^ name.len() as u64);
     for r in 0..if stimuli { 8 } else { 24 } {
         let mut prev: Vec<i32> = fp.sensor_raw_range.iter().map(|r| r.0).collect();
         let records = (0..4000)
