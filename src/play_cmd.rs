@@ -24,9 +24,13 @@ speed: 1 at 0.1 m/s to 127 at 6 m/s, logarithmic). Example: tactus play ../share
 pub struct PlayArgs {
     /// MIDI performance to play [default: a built-in 8 s demo].
     pub performance: Option<PathBuf>,
-    /// Instrument on every key (file or built-in name).
-    #[arg(long, default_value = "grand_piano")]
-    pub instrument: String,
+    /// Instrument on every key A0…C8 (file or built-in name) [default: grand_piano].
+    #[arg(long, conflicts_with = "layout")]
+    pub instrument: Option<String>,
+    /// Keyboard layout (TOML): instruments and param grading per key range, e.g.
+    /// instruments/layouts/grand88.toml.
+    #[arg(long)]
+    pub layout: Option<PathBuf>,
     /// Play only the first SECONDS of the performance.
     #[arg(long)]
     pub seconds: Option<f64>,
@@ -86,27 +90,30 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         perf.notes.retain(|n| n.on_s < s);
         perf.duration_s = perf.duration_s.min(s);
     }
-    let src = source::load(&args.instrument)?;
-    let Some(lowered) = compile_reporting(&src, &args.params) else {
-        return Ok(ExitCode::FAILURE);
+    // Which instrument (with which overrides) on which key.
+    let assignments = match &args.layout {
+        Some(l) => tactus_runtime::keyboard::read_layout(l)?.1,
+        None => {
+            let name = args
+                .instrument
+                .clone()
+                .unwrap_or_else(|| "grand_piano".to_string());
+            (21u8..=108)
+                .map(|key| tactus_runtime::keyboard::KeyAssignment {
+                    key,
+                    instrument: name.clone(),
+                    params: vec![],
+                })
+                .collect()
+        }
     };
-    let program = &lowered.program;
-    let key = program
-        .sensors
-        .first()
-        .ok_or_else(|| format!("instrument `{}` has no sensor", program.name))?;
-    if !program.events.iter().any(|e| e.name == "strike") {
-        return Err(format!(
-            "instrument `{}` emits no `strike` event to play",
-            program.name
-        ));
-    }
-    // A piano has keys 21 (A0) … 108 (C8); notes outside are reported and skipped.
-    let (inside, outside): (Vec<&performance::Note>, Vec<&performance::Note>) =
-        perf.notes.iter().partition(|n| (21..=108).contains(&n.key));
+    let (inside, outside): (Vec<&performance::Note>, Vec<&performance::Note>) = perf
+        .notes
+        .iter()
+        .partition(|n| assignments.iter().any(|a| a.key == n.key));
     for n in &outside {
         eprintln!(
-            "warning: note {} at {:.3} s is outside the keyboard (21–108): skipped",
+            "warning: note {} at {:.3} s is on no key of the layout: skipped",
             n.key, n.on_s
         );
     }
@@ -114,14 +121,78 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         notes: inside.into_iter().copied().collect(),
         ..perf
     };
-    let tracks = performance::key_tracks(&perf, key.range.1);
-    let jit = match args.engine {
-        PlayEngine::Jit => {
-            Some(tactus_jit::JitProgram::compile(program).map_err(|e| format!("JIT: {e}"))?)
-        }
-        PlayEngine::Interp => None,
+    // One compiled program per distinct (instrument, overrides), shared by its keys.
+    let mut programs: Vec<(String, Vec<(String, String)>, tactus_compiler::ir::Program)> =
+        Vec::new();
+    let mut key_program = std::collections::BTreeMap::new();
+    for a in assignments
+        .iter()
+        .filter(|a| perf.notes.iter().any(|n| n.key == a.key))
+    {
+        let mut params = a.params.clone();
+        params.extend(args.params.iter().cloned());
+        let idx = match programs
+            .iter()
+            .position(|(i, p, _)| *i == a.instrument && *p == params)
+        {
+            Some(i) => i,
+            None => {
+                let src = source::load(&a.instrument)?;
+                let Some(lowered) = compile_reporting(&src, &params) else {
+                    return Ok(ExitCode::FAILURE);
+                };
+                let program = lowered.program;
+                if program.sensors.is_empty()
+                    || !program
+                        .events
+                        .iter()
+                        .any(|e| e.name == "strike" || e.name == "pluck")
+                {
+                    return Err(format!("instrument `{}` (key {}) has no sensor or emits no `strike`/`pluck` to play", program.name, a.key));
+                }
+                programs.push((a.instrument.clone(), params, program));
+                programs.len() - 1
+            }
+        };
+        key_program.insert(a.key, idx);
+    }
+    let jits = match args.engine {
+        PlayEngine::Jit => programs
+            .iter()
+            .map(|(_, _, p)| {
+                tactus_jit::JitProgram::compile(p)
+                    .map(Some)
+                    .map_err(|e| format!("JIT: {e}"))
+            })
+            .collect::<Result<Vec<_>, _>>()?,
+        PlayEngine::Interp => programs.iter().map(|_| None).collect(),
     };
-    let fs = program.sample_rate_hz;
+    let dip_of = |key: u8| programs[key_program[&key]].2.sensors[0].range.1;
+    // Each played key's track, for its own instrument's key dip.
+    let tracks: Vec<KeyTrack> = key_program
+        .keys()
+        .flat_map(|&key| {
+            let notes = perf
+                .notes
+                .iter()
+                .filter(|n| n.key == key)
+                .copied()
+                .collect();
+            performance::key_tracks(
+                &Performance {
+                    notes,
+                    sustain: vec![],
+                    duration_s: perf.duration_s,
+                },
+                dip_of(key),
+            )
+        })
+        .collect();
+    let fs = programs
+        .first()
+        .map_or(tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, |p| {
+            p.2.sample_rate_hz
+        });
     let total_samples: u64 = tracks.iter().map(|t| window(t, fs).1 as u64).sum();
     let bar = ProgressBar::new(total_samples);
     bar.set_style(
@@ -132,15 +203,17 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     );
     bar.set_message(format!("{} keys", tracks.len()));
     let started = Instant::now();
-    let strike_id = program
-        .events
-        .iter()
-        .position(|e| e.name == "strike")
-        .unwrap_or(0);
     let mut strikes = Vec::new();
     for t in &tracks {
+        let pi = key_program[&t.key];
+        let program = &programs[pi].2;
+        let strike_id = program
+            .events
+            .iter()
+            .position(|e| e.name == "strike" || e.name == "pluck")
+            .unwrap_or(0);
         let (first, n) = window(t, fs);
-        let mut jit_inst = jit.as_ref().map(tactus_jit::JitInstance::new);
+        let mut jit_inst = jits[pi].as_ref().map(tactus_jit::JitInstance::new);
         let mut interp = tactus_compiler::interp::Instance::new(program);
         for i in 0..n {
             let time = (first + i) as f64 / fs;

@@ -165,3 +165,67 @@ fn bad_midi_is_a_clear_error() {
         "{err}"
     );
 }
+
+#[test]
+fn layouts_grade_keys_and_report_notes_outside() {
+    let dir = temp_dir("layout");
+    let layout = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("instruments/layouts/grand88.toml");
+    let out = tactus()
+        .args(["play", "--seconds", "3", "--layout"])
+        .arg(&layout)
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows = strikes(&dir.join("demo-strikes.csv"));
+    assert!(
+        !rows.is_empty() && rows.iter().all(|r| r.3.is_some()),
+        "{rows:?}"
+    );
+    // A layout covering only 60–64: the demo's other notes are reported and skipped.
+    let small = dir.join("small.toml");
+    std::fs::write(
+        &small,
+        "name = \"small\"\n[[range]]\nkeys = [60, 64]\ninstrument = \"grand_piano\"\n",
+    )
+    .unwrap();
+    let out = tactus()
+        .args(["play", "--seconds", "3", "--layout"])
+        .arg(&small)
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("on no key of the layout: skipped"), "{err}");
+    assert!(strikes(&dir.join("demo-strikes.csv"))
+        .iter()
+        .all(|r| (60..=64).contains(&r.0)));
+    // A broken layout names the file and the field.
+    std::fs::write(
+        &small,
+        "name = \"small\"\n[[range]]\nkeys = [60, 64]\ninstrumnt = \"grand_piano\"\n",
+    )
+    .unwrap();
+    let out = tactus()
+        .args(["play", "--layout"])
+        .arg(&small)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("small.toml") && err.contains("instrumnt"),
+        "{err}"
+    );
+}

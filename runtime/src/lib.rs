@@ -7,6 +7,7 @@
 
 pub mod differentiator;
 pub mod fixed;
+pub mod keyboard;
 pub mod limiter;
 pub mod performance;
 pub mod rng;

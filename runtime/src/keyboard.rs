@@ -1,0 +1,353 @@
+//! Keyboard layouts and boards as data files (TOML), so a user can describe their own.
+//!
+//! A **layout** says which instrument sits on which keys and how params vary across them:
+//!
+//! ```toml
+//! name = "grand88"
+//! [[range]]
+//! keys = [21, 108]              # MIDI key numbers, inclusive (A0 … C8)
+//! instrument = "grand_piano"    # a built-in name or a path relative to the layout file
+//! params = { G = "0.15 N" }     # overrides for every key of the range
+//! grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]   # linear from first to last key
+//! ```
+//!
+//! A **board** gives what the budget needs: clock, cores, sample rate, the cost of a key's
+//! I/O and of the sample interrupt (see `boards/rp2040.toml`).
+//!
+//! Errors name the file and the field (TOML's own messages carry line and column).
+
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// A keyboard layout.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Layout {
+    /// Layout name.
+    pub name: String,
+    /// Key ranges, in any order, not overlapping.
+    #[serde(rename = "range")]
+    pub ranges: Vec<KeyRange>,
+}
+
+/// One range of keys with one instrument.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct KeyRange {
+    /// First and last MIDI key, inclusive.
+    pub keys: [u8; 2],
+    /// Built-in instrument name or a path (relative to the layout file).
+    pub instrument: String,
+    /// Param overrides for every key: name → value with unit (`"0.15 N"`).
+    #[serde(default)]
+    pub params: BTreeMap<String, String>,
+    /// Params graded linearly from the first key to the last.
+    #[serde(default)]
+    pub grade: Vec<Grade>,
+}
+
+/// A param graded linearly across a key range.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Grade {
+    /// Param name.
+    pub param: String,
+    /// Value at the range's first key, with unit (`"11 g"`).
+    pub from: String,
+    /// Value at the range's last key, same unit (`"3.5 g"`).
+    pub to: String,
+}
+
+/// One key's instrument and overrides, resolved from a layout.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KeyAssignment {
+    /// MIDI key number.
+    pub key: u8,
+    /// Instrument (built-in name or path resolved against the layout's folder).
+    pub instrument: String,
+    /// `--param`-style overrides: (name, value with unit).
+    pub params: Vec<(String, String)>,
+}
+
+/// A board the firmware runs on.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Board {
+    /// Board name.
+    pub name: String,
+    /// Core clock, Hz.
+    pub clock_hz: f64,
+    /// Number of cores that run key updates.
+    pub cores: u32,
+    /// Sensor sample rate, Hz.
+    pub sample_rate_hz: f64,
+    /// Cycles to read one key's sensor word and write its force word.
+    pub io_cycles_per_key: u32,
+    /// Cycles of the sample interrupt itself (entry, exit, loop set-up) per core.
+    pub isr_overhead_cycles: u32,
+}
+
+impl Board {
+    /// Cycles available per sample per core (`clock / sample rate`, rounded down).
+    pub fn cycles_per_sample(&self) -> u64 {
+        (self.clock_hz / self.sample_rate_hz).floor() as u64
+    }
+}
+
+fn read(path: &Path) -> Result<String, String> {
+    std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))
+}
+
+/// Reads a board file. Errors name the file and, for bad values, the field.
+pub fn read_board(path: &Path) -> Result<Board, String> {
+    parse_board(&read(path)?, &path.display().to_string())
+}
+
+/// Parses a board from TOML text; `name` is used in errors.
+pub fn parse_board(text: &str, name: &str) -> Result<Board, String> {
+    let b: Board = toml::from_str(text).map_err(|e| format!("{name}: {e}"))?;
+    for (field, v) in [
+        ("clock_hz", b.clock_hz),
+        ("sample_rate_hz", b.sample_rate_hz),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(format!(
+                "{name}: `{field}` must be a positive number, got {v}"
+            ));
+        }
+    }
+    if b.cores == 0 {
+        return Err(format!("{name}: `cores` must be at least 1"));
+    }
+    if b.sample_rate_hz > b.clock_hz {
+        return Err(format!(
+            "{name}: `sample_rate_hz` ({}) exceeds `clock_hz` ({})",
+            b.sample_rate_hz, b.clock_hz
+        ));
+    }
+    Ok(b)
+}
+
+/// Reads a layout file and resolves it key by key. Errors name the file and the field.
+pub fn read_layout(path: &Path) -> Result<(Layout, Vec<KeyAssignment>), String> {
+    let name = path.display().to_string();
+    let layout = parse_layout(&read(path)?, &name)?;
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let keys = assign(&layout, &name, &dir)?;
+    Ok((layout, keys))
+}
+
+/// Parses a layout from TOML text; `name` is used in errors.
+pub fn parse_layout(text: &str, name: &str) -> Result<Layout, String> {
+    toml::from_str(text).map_err(|e| format!("{name}: {e}"))
+}
+
+/// Resolves a layout to one assignment per key, sorted by key. Instrument paths that exist
+/// relative to `dir` are made relative to it; other names are kept (built-ins).
+pub fn assign(layout: &Layout, name: &str, dir: &Path) -> Result<Vec<KeyAssignment>, String> {
+    let mut out: BTreeMap<u8, (usize, KeyAssignment)> = BTreeMap::new();
+    for (ri, r) in layout.ranges.iter().enumerate() {
+        let [a, b] = r.keys;
+        if a > b || b > 127 {
+            return Err(format!("{name}: range {}: `keys` must be [first, last] with first ≤ last ≤ 127, got [{a}, {b}]", ri + 1));
+        }
+        let local: PathBuf = dir.join(&r.instrument);
+        let instrument = if local.exists() {
+            local.display().to_string()
+        } else {
+            r.instrument.clone()
+        };
+        let grades: Vec<(String, f64, f64, String)> = r
+            .grade
+            .iter()
+            .map(|g| {
+                let (x, ux) = split_value(&g.from).ok_or_else(|| {
+                    format!(
+                        "{name}: range {}: grade `{}`: `from` = {:?} is not a number with a unit",
+                        ri + 1,
+                        g.param,
+                        g.from
+                    )
+                })?;
+                let (y, uy) = split_value(&g.to).ok_or_else(|| {
+                    format!(
+                        "{name}: range {}: grade `{}`: `to` = {:?} is not a number with a unit",
+                        ri + 1,
+                        g.param,
+                        g.to
+                    )
+                })?;
+                if ux != uy {
+                    return Err(format!(
+                        "{name}: range {}: grade `{}`: `from` is in {ux:?} but `to` in {uy:?}",
+                        ri + 1,
+                        g.param
+                    ));
+                }
+                Ok((g.param.clone(), x, y, ux))
+            })
+            .collect::<Result<_, String>>()?;
+        for k in a..=b {
+            if let Some((other, _)) = out.get(&k) {
+                return Err(format!(
+                    "{name}: key {k} is in range {} and range {}",
+                    other + 1,
+                    ri + 1
+                ));
+            }
+            let mut params: Vec<(String, String)> = r
+                .params
+                .iter()
+                .map(|(p, v)| (p.clone(), v.clone()))
+                .collect();
+            let u = if b == a {
+                0.0
+            } else {
+                f64::from(k - a) / f64::from(b - a)
+            };
+            for (p, x, y, unit) in &grades {
+                params.push((
+                    p.clone(),
+                    format!("{} {unit}", x + (y - x) * u).trim().to_string(),
+                ));
+            }
+            out.insert(
+                k,
+                (
+                    ri,
+                    KeyAssignment {
+                        key: k,
+                        instrument: instrument.clone(),
+                        params,
+                    },
+                ),
+            );
+        }
+    }
+    Ok(out.into_values().map(|(_, a)| a).collect())
+}
+
+/// Splits `"11 g"` into (11, "g"); `"0.9"` into (0.9, "").
+fn split_value(s: &str) -> Option<(f64, String)> {
+    let s = s.trim();
+    let end = s
+        .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | '-' | '+' | 'e' | 'E')))
+        .unwrap_or(s.len());
+    let (num, unit) = s.split_at(end);
+    let v: f64 = num.trim().parse().ok()?;
+    Some((v, unit.trim().to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GRAND: &str = r#"
+name = "grand88"
+[[range]]
+keys = [21, 108]
+instrument = "grand_piano"
+params = { G = "0.15 N" }
+grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
+"#;
+
+    #[test]
+    fn layout_resolves_per_key_with_grading() {
+        let l = parse_layout(GRAND, "g.toml").unwrap();
+        let keys = assign(&l, "g.toml", Path::new(".")).unwrap();
+        assert_eq!(keys.len(), 88);
+        assert_eq!(
+            keys[0].params,
+            vec![("G".into(), "0.15 N".into()), ("M_h".into(), "11 g".into())]
+        );
+        assert_eq!(keys[87].params[1], ("M_h".into(), "3.5 g".into()));
+        let mid: f64 = keys[44].params[1].1.trim_end_matches(" g").parse().unwrap();
+        assert!(mid < 11.0 && mid > 3.5);
+    }
+
+    #[test]
+    fn bad_layouts_name_file_and_field() {
+        let e = parse_layout(
+            "name = \"x\"\n[[range]]\nkeys = [1, 2]\ninstrumnt = \"p\"\n",
+            "bad.toml",
+        )
+        .unwrap_err();
+        assert!(e.contains("bad.toml") && e.contains("instrumnt"), "{e}");
+        let l = parse_layout(
+            "name = \"x\"\n[[range]]\nkeys = [60, 50]\ninstrument = \"p\"\n",
+            "rev.toml",
+        )
+        .unwrap();
+        let e = assign(&l, "rev.toml", Path::new(".")).unwrap_err();
+        assert!(e.contains("rev.toml") && e.contains("keys"), "{e}");
+        let two = "name = \"x\"\n[[range]]\nkeys = [1, 5]\ninstrument = \"a\"\n[[range]]\nkeys = [5, 6]\ninstrument = \"b\"\n";
+        let e = assign(
+            &parse_layout(two, "o.toml").unwrap(),
+            "o.toml",
+            Path::new("."),
+        )
+        .unwrap_err();
+        assert!(e.contains("key 5"), "{e}");
+        let g = "name = \"x\"\n[[range]]\nkeys = [1, 5]\ninstrument = \"a\"\ngrade = [{ param = \"m\", from = \"1 g\", to = \"2 kg\" }]\n";
+        let e = assign(
+            &parse_layout(g, "u.toml").unwrap(),
+            "u.toml",
+            Path::new("."),
+        )
+        .unwrap_err();
+        assert!(e.contains("`from` is in"), "{e}");
+    }
+
+    #[test]
+    fn shipped_layouts_and_boards_load() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let (l, keys) = read_layout(&root.join("instruments/layouts/grand88.toml")).unwrap();
+        assert_eq!(
+            (l.name.as_str(), keys.len(), keys[0].key, keys[87].key),
+            ("grand88", 88, 21, 108)
+        );
+        let (_, keys) =
+            read_layout(&root.join("instruments/layouts/split_harpsichord_piano.toml")).unwrap();
+        assert_eq!(
+            keys.iter()
+                .filter(|k| k.instrument == "harpsichord_2x8")
+                .count(),
+            44
+        );
+        assert_eq!(
+            keys.iter()
+                .filter(|k| k.instrument == "grand_piano")
+                .count(),
+            44
+        );
+        assert_eq!(
+            read_board(&root.join("boards/rp2040.toml"))
+                .unwrap()
+                .cycles_per_sample(),
+            3015
+        );
+        assert_eq!(
+            read_board(&root.join("boards/rp2040_200mhz.toml"))
+                .unwrap()
+                .cycles_per_sample(),
+            4535
+        );
+        let e = read_board(&root.join("boards/none.toml")).unwrap_err();
+        assert!(e.contains("none.toml") && e.contains("cannot read"), "{e}");
+    }
+
+    #[test]
+    fn boards_check_their_fields() {
+        let ok = "name = \"rp2040\"\nclock_hz = 133e6\ncores = 2\nsample_rate_hz = 44100\nio_cycles_per_key = 12\nisr_overhead_cycles = 60\n";
+        assert_eq!(parse_board(ok, "b.toml").unwrap().cycles_per_sample(), 3015);
+        let e = parse_board(&ok.replace("cores = 2", "cores = 0"), "b.toml").unwrap_err();
+        assert!(e.contains("b.toml") && e.contains("cores"), "{e}");
+        let e = parse_board(
+            &ok.replace("clock_hz = 133e6", "clock_hz = \"fast\""),
+            "c.toml",
+        )
+        .unwrap_err();
+        assert!(e.contains("c.toml") && e.contains("clock_hz"), "{e}");
+    }
+}
