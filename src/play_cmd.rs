@@ -54,6 +54,9 @@ pub enum PlayEngine {
     Interp,
 }
 
+/// A compiled instrument: (instrument name or path, overrides, program).
+type Compiled = (String, Vec<(String, String)>, tactus_compiler::ir::Program);
+
 /// One simulated hammer strike.
 struct Strike {
     key: u8,
@@ -122,8 +125,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         ..perf
     };
     // One compiled program per distinct (instrument, overrides), shared by its keys.
-    let mut programs: Vec<(String, Vec<(String, String)>, tactus_compiler::ir::Program)> =
-        Vec::new();
+    let mut programs: Vec<Compiled> = Vec::new();
     let mut key_program = std::collections::BTreeMap::new();
     for a in assignments
         .iter()

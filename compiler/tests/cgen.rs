@@ -95,7 +95,7 @@ fn random_word(rng: &mut XorShift64, prev: i32, (lo, hi): (i32, i32)) -> i32 {
     let span = (hi as i64 - lo as i64).max(1) as u64;
     match rng.below(8) {
         0 => rng.next_u64() as i32,
-        1 => (lo as i64 + (rng.next_u64() % (span + 1) as u64) as i64) as i32,
+        1 => (lo as i64 + (rng.next_u64() % (span + 1)) as i64) as i32,
         2 => [
             i32::MIN,
             i32::MAX,
@@ -106,7 +106,7 @@ fn random_word(rng: &mut XorShift64, prev: i32, (lo, hi): (i32, i32)) -> i32 {
             0,
         ][rng.below(7)],
         _ => {
-            let step = ((rng.next_u64() % (span / 200 + 2) as u64) as i64) - (span / 400) as i64;
+            let step = ((rng.next_u64() % (span / 200 + 2)) as i64) - (span / 400) as i64;
             (prev as i64 + step).clamp(lo as i64, hi as i64) as i32
         }
     }
