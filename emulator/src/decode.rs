@@ -48,7 +48,7 @@ pub enum AluOp {
 }
 
 impl AluOp {
-    const TABLE: [AluOp; 16] = [
+    pub(crate) const TABLE: [AluOp; 16] = [
         AluOp::And,
         AluOp::Eor,
         AluOp::Lsl,

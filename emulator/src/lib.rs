@@ -14,6 +14,7 @@ pub mod bus;
 pub mod core;
 pub mod decode;
 pub mod elf;
+pub mod encode;
 pub mod exec;
 mod fast;
 pub mod nvic;
