@@ -160,23 +160,13 @@ impl Core {
         Ok(0)
     }
 
-    /// Executes `instr` located at `pc` (of `size` bytes). Returns its cycles and event.
+    /// The register-only data-processing instructions (shifts by immediate, ADDS/SUBS/MOVS/CMP
+    /// of low registers, the ALU group, CMP of high registers, extends and byte reverses):
+    /// results and flags, no memory, no PC write. One implementation for both the general and
+    /// the fast executor. Cycle cost: the caller's (1, from the timing table).
     #[inline(always)]
-    pub(crate) fn execute<B: Bus>(
-        &mut self,
-        bus: &mut B,
-        instr: Instr,
-        pc: u32,
-        size: u32,
-    ) -> Exec {
+    fn data_processing(&mut self, instr: Instr, pc: u32) {
         use Instr::*;
-        let next = pc.wrapping_add(size);
-        let now = self.cycle;
-        let mut event = Event::None;
-        let mut taken = false;
-        let mut io_port = false;
-        let mut wait = 0u32;
-        self.r[15] = next;
         match instr {
             LslImm { rd, rm, imm } => {
                 let x = self.r[(rm & 15) as usize];
@@ -245,6 +235,70 @@ impl Core {
                 self.nz(r);
             }
             Alu { op, rdn, rm } => self.alu(op, rdn as usize, self.r[(rm & 15) as usize]),
+            CmpHi { rn, rm } => {
+                let (r, c, v) = add_with_carry(self.reg(rn, pc), !self.reg(rm, pc), true);
+                (self.c, self.v) = (c, v);
+                self.nz(r);
+            }
+            Sxth { rd, rm } => {
+                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i16 as i32 as u32
+            }
+            Sxtb { rd, rm } => {
+                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i8 as i32 as u32
+            }
+            Uxth { rd, rm } => {
+                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as u16 as u32
+            }
+            Uxtb { rd, rm } => self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as u8 as u32,
+            Rev { rd, rm } => self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize].swap_bytes(),
+            Rev16 { rd, rm } => {
+                let x = self.r[(rm & 15) as usize];
+                self.r[(rd & 15) as usize] = ((x & 0x00ff_00ff) << 8) | ((x >> 8) & 0x00ff_00ff);
+            }
+            Revsh { rd, rm } => {
+                self.r[(rd & 15) as usize] =
+                    (self.r[(rm & 15) as usize] as u16).swap_bytes() as i16 as i32 as u32
+            }
+            _ => unreachable!("not a data-processing instruction: {instr}"),
+        }
+    }
+
+    /// Executes `instr` located at `pc` (of `size` bytes). Returns its cycles and event.
+    #[inline(always)]
+    pub(crate) fn execute<B: Bus>(
+        &mut self,
+        bus: &mut B,
+        instr: Instr,
+        pc: u32,
+        size: u32,
+    ) -> Exec {
+        use Instr::*;
+        let next = pc.wrapping_add(size);
+        let now = self.cycle;
+        let mut event = Event::None;
+        let mut taken = false;
+        let mut io_port = false;
+        let mut wait = 0u32;
+        self.r[15] = next;
+        match instr {
+            LslImm { .. }
+            | LsrImm { .. }
+            | AsrImm { .. }
+            | AddReg { .. }
+            | SubReg { .. }
+            | AddImm { .. }
+            | SubImm { .. }
+            | MovImm { .. }
+            | CmpImm { .. }
+            | Alu { .. }
+            | CmpHi { .. }
+            | Sxth { .. }
+            | Sxtb { .. }
+            | Uxth { .. }
+            | Uxtb { .. }
+            | Rev { .. }
+            | Rev16 { .. }
+            | Revsh { .. } => self.data_processing(instr, pc),
             AddHi { rdn, rm } => {
                 let r = self.reg(rdn, pc).wrapping_add(self.reg(rm, pc));
                 if rdn == 15 {
@@ -252,11 +306,6 @@ impl Core {
                 } else {
                     self.set_reg(rdn, r);
                 }
-            }
-            CmpHi { rn, rm } => {
-                let (r, c, v) = add_with_carry(self.reg(rn, pc), !self.reg(rm, pc), true);
-                (self.c, self.v) = (c, v);
-                self.nz(r);
             }
             MovHi { rd, rm } => {
                 let r = self.reg(rm, pc);
@@ -301,25 +350,6 @@ impl Core {
             }
             AddSp { imm } => self.r[13] = self.r[13].wrapping_add(imm as u32),
             SubSp { imm } => self.r[13] = self.r[13].wrapping_sub(imm as u32),
-            Sxth { rd, rm } => {
-                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i16 as i32 as u32
-            }
-            Sxtb { rd, rm } => {
-                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i8 as i32 as u32
-            }
-            Uxth { rd, rm } => {
-                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as u16 as u32
-            }
-            Uxtb { rd, rm } => self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as u8 as u32,
-            Rev { rd, rm } => self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize].swap_bytes(),
-            Rev16 { rd, rm } => {
-                let x = self.r[(rm & 15) as usize];
-                self.r[(rd & 15) as usize] = ((x & 0x00ff_00ff) << 8) | ((x >> 8) & 0x00ff_00ff);
-            }
-            Revsh { rd, rm } => {
-                self.r[(rd & 15) as usize] =
-                    (self.r[(rm & 15) as usize] as u16).swap_bytes() as i16 as i32 as u32
-            }
             Push { list } => {
                 let count = list.count_ones();
                 let base = self.r[13].wrapping_sub(4 * count);
@@ -443,73 +473,24 @@ impl Core {
         let now = self.cycle;
         let mut cycles = cost.0 as u64;
         match instr {
-            LslImm { rd, rm, imm } => {
-                let x = self.r[(rm & 15) as usize];
-                let r = if imm == 0 {
-                    x
-                } else {
-                    self.c = (x >> (32 - imm as u32)) & 1 == 1;
-                    x << imm
-                };
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            LsrImm { rd, rm, imm } => {
-                let x = self.r[(rm & 15) as usize];
-                self.c = (x >> (imm as u32 - 1)) & 1 == 1;
-                let r = if imm == 32 { 0 } else { x >> imm };
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            AsrImm { rd, rm, imm } => {
-                let x = self.r[(rm & 15) as usize];
-                self.c = ((x as i32) >> (imm as u32 - 1)) & 1 == 1;
-                let r = ((x as i32) >> (imm as u32).min(31)) as u32;
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            AddReg { rd, rn, rm } => {
-                let (r, c, v) = add_with_carry(
-                    self.r[(rn & 15) as usize],
-                    self.r[(rm & 15) as usize],
-                    false,
-                );
-                (self.c, self.v) = (c, v);
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            SubReg { rd, rn, rm } => {
-                let (r, c, v) = add_with_carry(
-                    self.r[(rn & 15) as usize],
-                    !self.r[(rm & 15) as usize],
-                    true,
-                );
-                (self.c, self.v) = (c, v);
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            AddImm { rd, rn, imm } => {
-                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], imm as u32, false);
-                (self.c, self.v) = (c, v);
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            SubImm { rd, rn, imm } => {
-                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], !(imm as u32), true);
-                (self.c, self.v) = (c, v);
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            MovImm { rd, imm } => {
-                self.r[(rd & 15) as usize] = imm as u32;
-                self.nz(imm as u32);
-            }
-            CmpImm { rn, imm } => {
-                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], !(imm as u32), true);
-                (self.c, self.v) = (c, v);
-                self.nz(r);
-            }
-            Alu { op, rdn, rm } => self.alu(op, rdn as usize, self.r[(rm & 15) as usize]),
+            LslImm { .. }
+            | LsrImm { .. }
+            | AsrImm { .. }
+            | AddReg { .. }
+            | SubReg { .. }
+            | AddImm { .. }
+            | SubImm { .. }
+            | MovImm { .. }
+            | CmpImm { .. }
+            | Alu { .. }
+            | CmpHi { .. }
+            | Sxth { .. }
+            | Sxtb { .. }
+            | Uxth { .. }
+            | Uxtb { .. }
+            | Rev { .. }
+            | Rev16 { .. }
+            | Revsh { .. } => self.data_processing(instr, pc),
             AddHi { rdn, rm } => {
                 let r = self.reg(rdn, pc).wrapping_add(self.reg(rm, pc));
                 if rdn == 15 {
@@ -517,11 +498,6 @@ impl Core {
                     return self.retire(cycles);
                 }
                 self.set_reg(rdn, r);
-            }
-            CmpHi { rn, rm } => {
-                let (r, c, v) = add_with_carry(self.reg(rn, pc), !self.reg(rm, pc), true);
-                (self.c, self.v) = (c, v);
-                self.nz(r);
             }
             MovHi { rd, rm } => {
                 let r = self.reg(rm, pc);
@@ -583,25 +559,6 @@ impl Core {
             }
             AddSp { imm } => self.r[13] = self.r[13].wrapping_add(imm as u32),
             SubSp { imm } => self.r[13] = self.r[13].wrapping_sub(imm as u32),
-            Sxth { rd, rm } => {
-                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i16 as i32 as u32
-            }
-            Sxtb { rd, rm } => {
-                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i8 as i32 as u32
-            }
-            Uxth { rd, rm } => {
-                self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as u16 as u32
-            }
-            Uxtb { rd, rm } => self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as u8 as u32,
-            Rev { rd, rm } => self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize].swap_bytes(),
-            Rev16 { rd, rm } => {
-                let x = self.r[(rm & 15) as usize];
-                self.r[(rd & 15) as usize] = ((x & 0x00ff_00ff) << 8) | ((x >> 8) & 0x00ff_00ff);
-            }
-            Revsh { rd, rm } => {
-                self.r[(rd & 15) as usize] =
-                    (self.r[(rm & 15) as usize] as u16).swap_bytes() as i16 as i32 as u32
-            }
             Push { list } => return self.push_fast(sys, list, next, cycles),
             Pop { list } => return self.pop_fast(sys, list, next, cycles),
             Stm { rn, list } => {
