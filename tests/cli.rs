@@ -1,18 +1,7 @@
 //! The `tactus` binary as a user meets it: exit codes, files written, errors on bad input.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-fn tactus() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_tactus"))
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("tactus-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{assert_ok, tactus, temp_dir};
 
 #[test]
 fn check_accepts_every_instrument_and_prints_ir() {
@@ -41,7 +30,7 @@ fn check_accepts_every_instrument_and_prints_ir() {
 
 #[test]
 fn check_fails_with_diagnostics_on_a_bad_file() {
-    let dir = temp_dir("bad");
+    let dir = temp_dir("cli-bad");
     let f = dir.join("bad.tactus");
     std::fs::write(
         &f,
@@ -73,11 +62,7 @@ fn param_override_from_the_command_line() {
         .args(["check", "hammond", "--param", "k=200 N/m"])
         .output()
         .unwrap();
-    assert!(
-        ok.status.success(),
-        "{}",
-        String::from_utf8_lossy(&ok.stderr)
-    );
+    assert_ok(&ok);
     let bad = tactus()
         .args(["check", "hammond", "--param", "k=2 mm"])
         .output()
@@ -88,7 +73,7 @@ fn param_override_from_the_command_line() {
 
 #[test]
 fn sim_writes_trace_and_plots() {
-    let dir = temp_dir("sim");
+    let dir = temp_dir("cli-sim");
     let out = tactus()
         .args([
             "sim",
@@ -100,11 +85,7 @@ fn sim_writes_trace_and_plots() {
         .arg(&dir)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("event strike"), "{stdout}");
     let csv = std::fs::read_to_string(dir.join("grand_piano-ff-dip.csv")).unwrap();
@@ -134,7 +115,7 @@ fn sim_writes_trace_and_plots() {
 
 #[test]
 fn sim_reads_a_csv_stimulus_and_rejects_unknown_ones() {
-    let dir = temp_dir("csv");
+    let dir = temp_dir("cli-csv");
     let f = dir.join("press.csv");
     std::fs::write(&f, "time_s,key_mm\n0,0\n0.05,7\n0.3,7\n0.35,0\n0.6,0\n").unwrap();
     let out = tactus()
@@ -144,11 +125,7 @@ fn sim_reads_a_csv_stimulus_and_rejects_unknown_ones() {
         .arg(&dir)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     assert!(String::from_utf8_lossy(&out.stdout).contains("event pluck"));
     let bad = tactus()
         .args(["sim", "harpsichord", "--stimulus", "fortissimo"])
@@ -165,7 +142,7 @@ fn sim_reads_a_csv_stimulus_and_rejects_unknown_ones() {
 
 #[test]
 fn sim_engines_agree_on_the_strike() {
-    let dir = temp_dir("engines");
+    let dir = temp_dir("cli-engines");
     let mut strikes = Vec::new();
     for args in [
         &["--engine", "interp"][..],

@@ -1,20 +1,10 @@
 //! `tactus play` on real input: the first 20 s of Maestro_1 (MAESTRO via miditok's test
 //! files, in ../shared; the test says SKIPPED when it is absent).
 
+mod common;
+use common::{assert_ok, tactus, temp_dir};
 use std::path::PathBuf;
-use std::process::Command;
 use tactus_runtime::performance::read_midi;
-
-fn tactus() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_tactus"))
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("tactus-play-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// One row of a strikes CSV: (key, time, speed, note_on, note_velocity).
 type Row = (u8, f64, f64, Option<f64>, Option<u8>);
@@ -74,7 +64,7 @@ fn maestro_1_first_20_s_one_strike_per_note() {
         );
         return;
     }
-    let dir = temp_dir("maestro");
+    let dir = temp_dir("play-maestro");
     let out = tactus()
         .arg("play")
         .arg(&midi)
@@ -82,11 +72,7 @@ fn maestro_1_first_20_s_one_strike_per_note() {
         .arg(&dir)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let rows = strikes(&dir.join("Maestro_1-strikes.csv"));
     let perf = read_midi(&midi).unwrap();
     let notes: Vec<_> = perf.notes.iter().filter(|n| n.on_s < 20.0).collect();
@@ -130,18 +116,14 @@ fn maestro_1_first_20_s_one_strike_per_note() {
 
 #[test]
 fn engines_agree_and_the_default_runs_without_arguments() {
-    let dir = temp_dir("demo");
+    let dir = temp_dir("play-demo");
     let run = |engine: &str| {
         let out = tactus()
             .args(["play", "--seconds", "3", "--engine", engine, "--out"])
             .arg(&dir)
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        assert_ok(&out);
         std::fs::read_to_string(dir.join("demo-strikes.csv")).unwrap()
     };
     let (jit, interp) = (run("jit"), run("interp"));
@@ -154,7 +136,7 @@ fn engines_agree_and_the_default_runs_without_arguments() {
 
 #[test]
 fn bad_midi_is_a_clear_error() {
-    let dir = temp_dir("bad");
+    let dir = temp_dir("play-bad");
     let f = dir.join("empty.mid");
     std::fs::write(&f, b"").unwrap();
     let out = tactus().arg("play").arg(&f).output().unwrap();
@@ -168,7 +150,7 @@ fn bad_midi_is_a_clear_error() {
 
 #[test]
 fn layouts_grade_keys_and_report_notes_outside() {
-    let dir = temp_dir("layout");
+    let dir = temp_dir("play-layout");
     let layout = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("instruments/layouts/grand88.toml");
     let out = tactus()
         .args(["play", "--seconds", "3", "--layout"])
@@ -177,11 +159,7 @@ fn layouts_grade_keys_and_report_notes_outside() {
         .arg(&dir)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let rows = strikes(&dir.join("demo-strikes.csv"));
     assert!(
         !rows.is_empty() && rows.iter().all(|r| r.3.is_some()),
@@ -201,11 +179,7 @@ fn layouts_grade_keys_and_report_notes_outside() {
         .arg(&dir)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("on no key of the layout: skipped"), "{err}");
     assert!(strikes(&dir.join("demo-strikes.csv"))
