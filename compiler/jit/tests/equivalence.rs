@@ -9,39 +9,17 @@
 //! counts and event lists (names and order; arguments within 1e-12). The tests also count
 //! the values that are not bit-identical, and require none.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::{instruments, load_program, test_programs};
+use std::path::Path;
 use tactus_compiler::interp::{Instance, SampleOut};
 use tactus_compiler::ir::Program;
-use tactus_compiler::lower::Config;
 use tactus_jit::{JitInstance, JitProgram};
+use tactus_runtime::rng::XorShift64;
 use tactus_runtime::stimulus;
 
-fn tactus_files(dir: &Path) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .map(|e| e.expect("directory entry").path())
-        .filter(|p| p.extension().is_some_and(|x| x == "tactus"))
-        .collect();
-    files.sort();
-    files
-}
-
-fn instruments() -> Vec<PathBuf> {
-    let files = tactus_files(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../instruments"));
-    assert!(files.len() >= 4, "instruments not found: {files:?}");
-    files
-}
-
-fn test_programs() -> Vec<PathBuf> {
-    tactus_files(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data"))
-}
-
 fn load(path: &Path) -> Program {
-    let src = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    match tactus_compiler::compile(&src, &Config::default()) {
-        Ok(l) => l.program,
-        Err(d) => panic!("{}: {d:?}", path.display()),
-    }
+    load_program(path)
 }
 
 /// What a comparison found.
@@ -218,15 +196,12 @@ fn every_instrument_every_builtin_stimulus() {
     assert_eq!(total.not_bit_identical, 0, "{total:?}");
 }
 
-/// xorshift64*: deterministic, no dependency.
-struct Rng(u64);
+/// Random readings from the runtime's deterministic xorshift64*.
+struct Rng(XorShift64);
 
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+        self.0.next_u64()
     }
     fn unit(&mut self) -> f64 {
         (self.next() >> 11) as f64 / (1u64 << 53) as f64
@@ -264,7 +239,7 @@ fn random_readings_in_and_out_of_range() {
         let program = load(&path);
         let jit =
             JitProgram::compile(&program).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let mut rng = Rng(0x9e37_79b9_7f4a_7c15 ^ (k as u64 + 1));
+        let mut rng = Rng(XorShift64::new(0x9e37_79b9_7f4a_7c15 ^ (k as u64 + 1)));
         let ranges: Vec<(f64, f64)> = program.sensors.iter().map(|s| s.range).collect();
         let mut prev: Vec<f64> = ranges.iter().map(|r| r.0).collect();
         // One more reading than sensors sometimes, one fewer sometimes: missing readings

@@ -11,40 +11,17 @@
 //! included), missing and extra words. The batched entry point (`run_block`) is checked
 //! against the per-sample one on the same inputs.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::{instruments, load_program, test_programs};
+use std::path::Path;
 use tactus_compiler::fixed::interp::{FixedInstance, RawOut};
 use tactus_compiler::fixed::FixedProgram;
-use tactus_compiler::lower::Config;
 use tactus_jit::{FixedJitInstance, FixedJitProgram};
 use tactus_runtime::rng::XorShift64;
 use tactus_runtime::stimulus;
 
-fn tactus_files(dir: &Path) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .map(|e| e.expect("directory entry").path())
-        .filter(|p| p.extension().is_some_and(|x| x == "tactus"))
-        .collect();
-    files.sort();
-    files
-}
-
-fn instruments() -> Vec<PathBuf> {
-    let files = tactus_files(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../instruments"));
-    assert!(files.len() >= 4, "instruments not found: {files:?}");
-    files
-}
-
-fn test_programs() -> Vec<PathBuf> {
-    tactus_files(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data"))
-}
-
 fn load(path: &Path) -> FixedProgram {
-    let src = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    match tactus_compiler::compile(&src, &Config::default()) {
-        Ok(l) => FixedProgram::new(&l.program),
-        Err(d) => panic!("{}: {d:?}", path.display()),
-    }
+    FixedProgram::new(&load_program(path))
 }
 
 /// What a comparison covered.
