@@ -158,6 +158,40 @@ pub enum Token {
     Caret,
 }
 
+impl Token {
+    /// Whether this is a reserved word (it cannot be used as a name).
+    pub fn is_keyword(&self) -> bool {
+        use Token::*;
+        matches!(
+            self,
+            Instrument
+                | Component
+                | Sensor
+                | Param
+                | State
+                | Mode
+                | Let
+                | Dynamics
+                | On
+                | While
+                | Emit
+                | Force
+                | Output
+                | Input
+                | Use
+                | If
+                | Else
+                | And
+                | Or
+                | Not
+                | In
+                | True
+                | False
+                | Bool
+        )
+    }
+}
+
 impl fmt::Display for Token {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

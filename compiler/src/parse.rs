@@ -16,19 +16,22 @@ lalrpop_mod!(
 pub enum SyntaxError {
     /// A lexical error at a span.
     Lex(LexError, std::ops::Range<usize>),
-    /// A type annotation that is not a unit, `1` or `bool`.
-    BadType,
-    /// An exponent that is not a small integer.
-    BadExponent,
+    /// A type annotation that is not a unit, `1` or `bool`, at a span.
+    BadType(std::ops::Range<usize>),
+    /// An exponent that is not a small integer, at a span.
+    BadExponent(std::ops::Range<usize>),
 }
 
 /// An integer literal's value, for exponents (`x^2`, `m^-1`).
-pub fn int_literal(l: &Literal) -> Result<i64, ParseError<usize, Token, SyntaxError>> {
+pub fn int_literal(
+    l: &Literal,
+    span: std::ops::Range<usize>,
+) -> Result<i64, ParseError<usize, Token, SyntaxError>> {
     if l.is_plain_integer && l.value <= 8.0 {
         Ok(l.value as i64)
     } else {
         Err(ParseError::User {
-            error: SyntaxError::BadExponent,
+            error: SyntaxError::BadExponent(span),
         })
     }
 }
@@ -68,7 +71,7 @@ fn to_diagnostic(e: ParseError<usize, Token, SyntaxError>, src: &str) -> Diagnos
                 {
                     d.hint("each declaration starts with a keyword: sensor, param, state, mode, let, force, output, dynamics, on, while, use")
                 }
-                _ if is_keyword(&tok) && expected.iter().any(|x| x == "\"ident\"") => {
+                _ if tok.is_keyword() && expected.iter().any(|x| x == "\"ident\"") => {
                     d.hint(format!("{tok} is a keyword and cannot be used as a name"))
                 }
                 _ => d,
@@ -95,46 +98,16 @@ fn to_diagnostic(e: ParseError<usize, Token, SyntaxError>, src: &str) -> Diagnos
                 Diagnostic::error("E0001", "unexpected character", span)
                     .hint("comments start with `//`")
             }
-            SyntaxError::BadType | SyntaxError::BadExponent => {
-                // Fallible actions carry no span; point at the start of the file is worse than
-                // re-lexing, so find the first `^` or `:` with a bad follower.
-                Diagnostic::error("E0007", "a type is a unit such as `m`, `N*s/m` or `1`, or `bool`; exponents are small integers", 0..0)
+            SyntaxError::BadType(span) => Diagnostic::error("E0007", "not a type", span)
+                .label("expected a unit such as `m` or `N*s/m`, `1`, or `bool`")
+                .hint("a type names a dimension by a unit: `state v: m/s = 0 m/s in [...]`"),
+            SyntaxError::BadExponent(span) => {
+                Diagnostic::error("E0007", "an exponent must be a small integer", span)
+                    .label("expected an integer from -8 to 8")
+                    .hint("write powers as `x^2` or units as `m/s^2`")
             }
         },
     }
-}
-
-fn is_keyword(t: &Token) -> bool {
-    !matches!(t, Token::Ident(_) | Token::Number(_))
-        && format!("{t:?}")
-            .chars()
-            .next()
-            .is_some_and(|c| c.is_alphabetic())
-        && !matches!(
-            t,
-            Token::LBrace
-                | Token::RBrace
-                | Token::LParen
-                | Token::RParen
-                | Token::LBracket
-                | Token::RBracket
-                | Token::Comma
-                | Token::Colon
-                | Token::Dot
-                | Token::Prime
-                | Token::Eq
-                | Token::EqEq
-                | Token::NotEq
-                | Token::Lt
-                | Token::Le
-                | Token::Gt
-                | Token::Ge
-                | Token::Plus
-                | Token::Minus
-                | Token::Star
-                | Token::Slash
-                | Token::Caret
-        )
 }
 
 fn expected_list(expected: &[String]) -> String {
