@@ -9,7 +9,6 @@ use crate::source;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tactus_compiler::cgen::{self, CConfig};
-use tactus_compiler::diagnostics;
 use tactus_compiler::fixed::FixedProgram;
 
 /// Arguments of `tactus build`.
@@ -67,10 +66,7 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
     let lowered = compile_reporting(&src, &args.params).ok_or(None)?;
     let fp = FixedProgram::new(&lowered.program);
     if !fp.warnings.is_empty() {
-        let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
-            codespan_reporting::term::termcolor::ColorChoice::Auto,
-        );
-        let _ = diagnostics::emit(&mut err, &src.name, &src.text, &fp.warnings);
+        crate::source::report(&src, &fp.warnings);
     }
     let config = CConfig {
         source_name: Some(src.name.clone()),

@@ -2,7 +2,6 @@
 
 use crate::source;
 use std::process::ExitCode;
-use tactus_compiler::diagnostics;
 use tactus_compiler::lower::Config;
 
 /// Arguments of `tactus check`.
@@ -57,16 +56,13 @@ pub fn compile_reporting(
         overrides: params.to_vec(),
         ..Config::default()
     };
-    let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
-        codespan_reporting::term::termcolor::ColorChoice::Auto,
-    );
     match tactus_compiler::compile(&src.text, &config) {
         Ok(l) => {
-            let _ = diagnostics::emit(&mut err, &src.name, &src.text, &l.warnings);
+            source::report(src, &l.warnings);
             Some(l)
         }
         Err(d) => {
-            let _ = diagnostics::emit(&mut err, &src.name, &src.text, &d);
+            source::report(src, &d);
             let n = d.iter().filter(|d| d.is_error()).count();
             eprintln!(
                 "error: {} has {n} error{}",
@@ -109,10 +105,7 @@ pub fn run(args: CheckArgs) -> ExitCode {
     }
     if matches!(args.report, Some(Report::Precision)) {
         let fp = tactus_compiler::fixed::FixedProgram::new(p);
-        let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
-            codespan_reporting::term::termcolor::ColorChoice::Auto,
-        );
-        let _ = diagnostics::emit(&mut err, &src.name, &src.text, &fp.warnings);
+        crate::source::report(&src, &fp.warnings);
         let pr = tactus_compiler::fixed::report::analyse(&fp);
         print!("{}", tactus_compiler::fixed::report::render(&fp, &pr));
     }

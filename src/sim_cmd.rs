@@ -156,11 +156,7 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
         }
         (Numeric::Fixed, engine) => {
             let fp = tactus_compiler::fixed::FixedProgram::new(program);
-            let mut err = codespan_reporting::term::termcolor::StandardStream::stderr(
-                codespan_reporting::term::termcolor::ColorChoice::Auto,
-            );
-            let _ =
-                tactus_compiler::diagnostics::emit(&mut err, &src.name, &src.text, &fp.warnings);
+            crate::source::report(&src, &fp.warnings);
             if engine == EngineKind::Jit {
                 let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp)
                     .map_err(|e| format!("JIT: {e}"))?;

@@ -58,3 +58,20 @@ pub fn load(arg: &str) -> Result<Source, String> {
         }
     }
 }
+
+/// Prints diagnostics of `src` to stderr: coloured on a terminal, plain in pipes and logs.
+pub fn report(src: &Source, diagnostics: &[tactus_compiler::diagnostics::Diagnostic]) {
+    use codespan_reporting::term::termcolor::{ColorChoice, StandardStream};
+    use std::io::IsTerminal;
+    if diagnostics.is_empty() {
+        return;
+    }
+    let choice = if std::io::stderr().is_terminal() {
+        ColorChoice::Auto
+    } else {
+        ColorChoice::Never
+    };
+    let mut err = StandardStream::stderr(choice);
+    // A failed write to stderr leaves nothing better to report it to.
+    let _ = tactus_compiler::diagnostics::emit(&mut err, &src.name, &src.text, diagnostics);
+}
