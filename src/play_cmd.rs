@@ -62,6 +62,8 @@ struct Strike {
     key: u8,
     time_s: f64,
     speed_mps: f64,
+    /// The input note it answers: the note-on of its key nearest in time, if within 50 ms.
+    answers: Option<performance::Note>,
 }
 
 /// MIDI velocity for a hammer speed: logarithmic, 0.1 m/s → 1, 6 m/s → 127.
@@ -230,6 +232,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                         key: t.key,
                         time_s: time,
                         speed_mps: a.first().copied().unwrap_or(0.0),
+                        answers: None,
                     });
                 }
             }
@@ -239,6 +242,19 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     bar.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
     strikes.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    for s in &mut strikes {
+        s.answers = perf
+            .notes
+            .iter()
+            .filter(|n| n.key == s.key)
+            .min_by(|a, b| {
+                (a.on_s - s.time_s)
+                    .abs()
+                    .total_cmp(&(b.on_s - s.time_s).abs())
+            })
+            .filter(|n| (n.on_s - s.time_s).abs() <= 0.050)
+            .copied();
+    }
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
@@ -248,9 +264,9 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         .and_then(|p| p.file_stem())
         .map_or("demo".to_string(), |s| s.to_string_lossy().into_owned());
     let csv = args.out.join(format!("{stem}-strikes.csv"));
-    let matched = write_strikes_csv(&csv, &strikes, &perf)?;
+    let matched = write_strikes_csv(&csv, &strikes)?;
     let mid = args.out.join(format!("{stem}-strikes.mid"));
-    write_midi(&mid, &strikes, &perf)?;
+    write_midi(&mid, &strikes)?;
     let audio_s = perf.duration_s;
     println!(
         "{}: {} notes on {} keys → {} strikes ({} answer a note within 50 ms); {} key-samples in {:.2} s ({:.1}× real time for the played keys)",
@@ -278,7 +294,7 @@ fn window(t: &KeyTrack, fs: f64) -> (usize, usize) {
 }
 
 /// Writes one row per strike with the input note it answers; returns how many answer one.
-fn write_strikes_csv(path: &Path, strikes: &[Strike], perf: &Performance) -> Result<usize, String> {
+fn write_strikes_csv(path: &Path, strikes: &[Strike]) -> Result<usize, String> {
     let mut w = csv::Writer::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let err = |e: csv::Error| format!("{}: {e}", path.display());
     w.write_record([
@@ -292,17 +308,12 @@ fn write_strikes_csv(path: &Path, strikes: &[Strike], perf: &Performance) -> Res
     .map_err(err)?;
     let mut matched = 0;
     for s in strikes {
-        let note = perf.notes.iter().filter(|n| n.key == s.key).min_by(|a, b| {
-            (a.on_s - s.time_s)
-                .abs()
-                .total_cmp(&(b.on_s - s.time_s).abs())
-        });
-        let (on, vel) = match note {
-            Some(n) if (n.on_s - s.time_s).abs() <= 0.050 => {
+        let (on, vel) = match s.answers {
+            Some(n) => {
                 matched += 1;
                 (n.on_s.to_string(), n.velocity.to_string())
             }
-            _ => (String::new(), String::new()),
+            None => (String::new(), String::new()),
         };
         w.write_record([
             s.key.to_string(),
@@ -319,24 +330,14 @@ fn write_strikes_csv(path: &Path, strikes: &[Strike], perf: &Performance) -> Res
 }
 
 /// Writes the strikes as a format-0 MIDI file (480 ticks per quarter at 120 bpm: 960 ticks
-/// per second); each strike lasts until its input note's note-off.
-fn write_midi(path: &Path, strikes: &[Strike], perf: &Performance) -> Result<(), String> {
+/// per second); each strike lasts until the note-off of the note it answers (300 ms for a
+/// strike that answers none).
+fn write_midi(path: &Path, strikes: &[Strike]) -> Result<(), String> {
     use midly::num::{u15, u28, u4, u7};
     use midly::{Format, Header, MidiMessage, Smf, Timing, TrackEvent, TrackEventKind};
     let mut evs: Vec<(u64, bool, u8, u8)> = Vec::new();
     for s in strikes {
-        let off = perf
-            .notes
-            .iter()
-            .filter(|n| n.key == s.key && n.on_s <= s.time_s + 0.05)
-            .map(|n| n.off_s)
-            .fold(s.time_s + 0.3, |acc, o| {
-                if o > s.time_s {
-                    o.min(acc.max(o))
-                } else {
-                    acc
-                }
-            });
+        let off = s.answers.map_or(s.time_s + 0.3, |n| n.off_s);
         let tick = |t: f64| (t * 960.0).round().max(0.0) as u64;
         evs.push((tick(s.time_s), true, s.key, midi_velocity(s.speed_mps)));
         evs.push((tick(off.max(s.time_s + 0.01)), false, s.key, 0));
