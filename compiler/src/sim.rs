@@ -117,11 +117,9 @@ pub fn simulate_with(
     }
     let mut row = vec![0.0; trace.columns.len()];
     let mut events = Vec::new();
-    let sensors = [0.0];
     for (n, &key) in stimulus.key.iter().enumerate() {
-        let mut sensors = sensors;
-        sensors[0] = key;
-        let sensors = &sensors[..program.sensors.len().min(1)];
+        let reading = [key];
+        let sensors = &reading[..program.sensors.len().min(1)];
         let out = engine.step_si(sensors);
         let mut c = 0;
         row[c] = n as f64 / program.sample_rate_hz;

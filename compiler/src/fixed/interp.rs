@@ -34,6 +34,8 @@ pub struct FixedInstance<'f> {
     modes: Vec<u32>,
     edges: Vec<bool>,
     sensors: Vec<i32>,
+    /// Buffer for [`FixedInstance::step`]'s converted readings.
+    input: Vec<i32>,
     hist: Vec<RawHistory>,
     vals: Vec<i32>,
     overflowed: Vec<bool>,
@@ -51,6 +53,7 @@ impl<'f> FixedInstance<'f> {
             modes: p.modes.iter().map(|m| m.init).collect(),
             edges: vec![false; p.edges.len()],
             sensors: vec![0; p.sensors.len()],
+            input: Vec::with_capacity(p.sensors.len()),
             hist: vec![RawHistory::default(); p.sensors.len()],
             vals: vec![0; p.values.len()],
             overflowed: vec![false; p.values.len()],
@@ -78,10 +81,16 @@ impl<'f> FixedInstance<'f> {
 
     /// Runs one sample on SI sensor readings.
     pub fn step(&mut self, sensors: &[f64]) -> &RawOut {
-        let raw: Vec<i32> = (0..self.fp.program.sensors.len())
-            .map(|i| Self::sensor_raw(self.fp, i, sensors.get(i).copied()))
-            .collect();
-        self.step_raw(&raw)
+        // Converted into a buffer kept for the purpose: no allocation per sample.
+        let mut raw = std::mem::take(&mut self.input);
+        raw.clear();
+        raw.extend(
+            (0..self.fp.program.sensors.len())
+                .map(|i| Self::sensor_raw(self.fp, i, sensors.get(i).copied())),
+        );
+        self.step_raw(&raw);
+        self.input = raw;
+        &self.out
     }
 
     /// Runs one sample on raw sensor words (already in the sensors' formats and ranges).

@@ -155,8 +155,6 @@ impl<'a> Lowerer<'a> {
 
     fn fold(&self, v: Value) -> f64 {
         let op = &self.prog.values[v.index()].op;
-        let params: Vec<f64> = Vec::new();
-        let _ = params;
         crate::interp::eval_op(
             op,
             |x| self.fold(x),
