@@ -110,6 +110,48 @@ pub enum StopReason {
     Idle,
 }
 
+/// Where [`Board::call`] puts its return stub: the last word of SRAM (the stack given to a
+/// call must be below it).
+pub const CALL_STUB: u32 = SRAM_END - 4;
+
+/// What a function called with [`Board::call`] returned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CallResult {
+    /// r0 at return (the AAPCS result word).
+    pub r0: u32,
+    /// r1 at return (the high word of a 64-bit result).
+    pub r1: u32,
+    /// Cycles from the first instruction to the return, the return included.
+    pub cycles: u64,
+}
+
+/// Why [`Board::call`] did not return normally.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum CallError {
+    /// The board stopped before the function returned.
+    Stopped {
+        /// Why it stopped.
+        reason: StopReason,
+        /// The core's PC then.
+        pc: u32,
+    },
+    /// A host access failed.
+    Emu(EmuError),
+}
+
+impl fmt::Display for CallError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CallError::Stopped { reason, pc } => {
+                write!(f, "the called function did not return: {reason:?} at pc {pc:#010x}")
+            }
+            CallError::Emu(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for CallError {}
+
 /// A host-side error.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum EmuError {
@@ -342,6 +384,56 @@ impl Board {
             return Err(EmuError::Unmapped(DAC_BASE + 4 * key as u32));
         }
         self.read_u32(DAC_BASE + 4 * key as u32)
+    }
+
+    // ---- calling a function from the host ----
+
+    /// Calls the Thumb function at `addr` on `core` as AAPCS code would (arguments in r0–r3,
+    /// at most 4), with the stack at `sp`, and runs until it returns or `limit` cycles pass.
+    ///
+    /// The return address is a stub at [`CALL_STUB`] (an `SVC #0xCA`, written by this call)
+    /// that stops the board; the other core keeps running meanwhile. Returns r0 and r1 and the
+    /// cycles from the function's first instruction to its return (the return instruction
+    /// included, the stub and the caller's `BL` not: add 3 for a `BL`, Cortex-M0+ TRM 3.3).
+    ///
+    /// Errors: [`CallError::Stopped`] when the function faults, hits the cycle limit or the
+    /// board stops for another reason; [`CallError::Emu`] when the stub cannot be written.
+    pub fn call(
+        &mut self,
+        core: usize,
+        addr: u32,
+        args: &[u32],
+        sp: u32,
+        limit: u64,
+    ) -> Result<CallResult, CallError> {
+        const STUB_SVC: u8 = 0xca;
+        self.write_bytes(CALL_STUB, &[STUB_SVC, 0xdf, 0, 0xbe])
+            .map_err(CallError::Emu)?;
+        let halts = std::mem::replace(&mut self.config.svc_halts, true);
+        let c = &mut self.cores[core];
+        c.reset_to(addr | 1, sp);
+        for (i, a) in args.iter().take(4).enumerate() {
+            c.r[i] = *a;
+        }
+        c.r[14] = CALL_STUB | 1;
+        let start = c.cycle;
+        let stop = self.run_until(start.saturating_add(limit));
+        self.config.svc_halts = halts;
+        let c = &self.cores[core];
+        match stop {
+            StopReason::Svc { core: k, imm } if k == core && imm == STUB_SVC => {
+                let svc = cycles(&Instr::Svc { imm }, false, false) as u64;
+                Ok(CallResult {
+                    r0: c.r[0],
+                    r1: c.r[1],
+                    cycles: c.cycle - start - svc,
+                })
+            }
+            other => Err(CallError::Stopped {
+                reason: other,
+                pc: c.r[15],
+            }),
+        }
     }
 
     // ---- profiling ----

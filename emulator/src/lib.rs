@@ -22,6 +22,9 @@ pub mod sio;
 pub mod timer;
 pub mod timing;
 
-pub use board::{Board, Call, Config, EmuError, StopReason, DAC_BASE, MAX_KEYS, SENSOR_BASE};
+pub use board::{
+    Board, Call, CallError, CallResult, Config, EmuError, StopReason, CALL_STUB, DAC_BASE, MAX_KEYS,
+    SENSOR_BASE,
+};
 pub use decode::{decode, Instr};
 pub use timing::cycles;

@@ -132,3 +132,26 @@ fn self_modifying_code_is_seen() {
     assert_eq!(b.run_for(1000), StopReason::Svc { core: 0, imm: 0 });
     assert_eq!(b.cores[0].r[0], 2, "the rewritten instruction must execute");
 }
+
+/// `Board::call` runs an AAPCS function and returns r0 and its cycles (return included).
+#[test]
+fn call_runs_a_function_and_counts_its_cycles() {
+    use tactus_emulator::encode::encode;
+    use tactus_emulator::Instr;
+    let mut b = tactus_emulator::Board::new(Default::default());
+    // r0 = r0 + r1; r0 = r0 * r2; bx lr  → 1 + 1 + 2 cycles (BX: 2, Cortex-M0+ TRM 3.3)
+    let code = [
+        Instr::AddReg { rd: 0, rn: 0, rm: 1 },
+        Instr::Alu { op: tactus_emulator::decode::AluOp::Mul, rdn: 0, rm: 2 },
+        Instr::Bx { rm: 14 },
+    ];
+    let bytes: Vec<u8> = code.iter().flat_map(|i| encode(i).unwrap().bytes()).collect();
+    b.write_bytes(0x2000_0000, &bytes).unwrap();
+    let r = b.call(0, 0x2000_0000, &[3, 4, 5], 0x2004_0000, 1000).unwrap();
+    assert_eq!(r.r0, 35);
+    assert_eq!(r.cycles, 4);
+    // A function that never returns stops at the limit with an error, not a hang.
+    let spin = encode(&Instr::B { offset: -4 }).unwrap().bytes();
+    b.write_bytes(0x2000_0100, &spin).unwrap();
+    assert!(b.call(0, 0x2000_0100, &[], 0x2004_0000, 500).is_err());
+}
