@@ -20,7 +20,9 @@ mod fast;
 pub mod nvic;
 pub mod sio;
 pub mod timer;
+pub mod schedule;
 pub mod timing;
+pub mod wcet;
 
 pub use board::{
     Board, Call, CallError, CallResult, Config, EmuError, StopReason, CALL_STUB, DAC_BASE, MAX_KEYS,
