@@ -211,7 +211,10 @@ impl fmt::Display for WcetError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             WcetError::UnboundedLoop { header } => {
-                write!(f, "the loop with header {header:#010x} has no iteration bound")
+                write!(
+                    f,
+                    "the loop with header {header:#010x} has no iteration bound"
+                )
             }
             WcetError::ZeroBound { header } => {
                 write!(f, "the loop with header {header:#010x} has a bound of 0")
@@ -525,7 +528,12 @@ impl Cx<'_> {
                             },
                         ];
                     }
-                    Flow::Return => edges = vec![Edge { to: None, cost: plain }],
+                    Flow::Return => {
+                        edges = vec![Edge {
+                            to: None,
+                            cost: plain,
+                        }]
+                    }
                     Flow::Call(_) | Flow::Next => {
                         if let Flow::Call(t) = f {
                             let c = self.callee(addr, t)?;
@@ -542,8 +550,16 @@ impl Cx<'_> {
                         }
                         addr = next;
                         if let Some(&i) = index.get(&next) {
-                            edges = vec![Edge { to: Some(i), cost: 0 }];
-                            blocks.push(Block { start, end: next, body, edges });
+                            edges = vec![Edge {
+                                to: Some(i),
+                                cost: 0,
+                            }];
+                            blocks.push(Block {
+                                start,
+                                end: next,
+                                body,
+                                edges,
+                            });
                             break;
                         }
                         continue;
@@ -659,7 +675,8 @@ impl Cx<'_> {
             for s in sinks {
                 let Sink::Exit(t) = s else { continue };
                 if let Some((c, p)) = region.longest(start, s)? {
-                    let mut path = Vec::with_capacity(iter.1.len() * (bound as usize - 1) + p.len());
+                    let mut path =
+                        Vec::with_capacity(iter.1.len() * (bound as usize - 1) + p.len());
                     for _ in 1..bound {
                         path.extend_from_slice(&iter.1);
                     }
@@ -792,13 +809,16 @@ impl Consts {
             MovImm { rd, imm } => self.set(rd, Some(imm as u32)),
             LdrLit { rt, imm } => self.set(rt, code.word(pc_al.wrapping_add(imm as u32))),
             Adr { rd, imm } => self.set(rd, Some(pc_al.wrapping_add(imm as u32))),
-            AddImm { rd, rn, imm } => self.set(rd, self.get(rn).map(|v| v.wrapping_add(imm as u32))),
-            SubImm { rd, rn, imm } => self.set(rd, self.get(rn).map(|v| v.wrapping_sub(imm as u32))),
+            AddImm { rd, rn, imm } => {
+                self.set(rd, self.get(rn).map(|v| v.wrapping_add(imm as u32)))
+            }
+            SubImm { rd, rn, imm } => {
+                self.set(rd, self.get(rn).map(|v| v.wrapping_sub(imm as u32)))
+            }
             LslImm { rd, rm, imm } => self.set(rd, self.get(rm).map(|v| v << (imm & 31))),
             LsrImm { rd, rm, imm } => self.set(
                 rd,
-                self.get(rm)
-                    .map(|v| if imm >= 32 { 0 } else { v >> imm }),
+                self.get(rm).map(|v| if imm >= 32 { 0 } else { v >> imm }),
             ),
             AddReg { rd, rn, rm } => {
                 let v = match (self.get(rn), self.get(rm)) {
@@ -1048,7 +1068,7 @@ impl Acyclic<'_> {
                     Target::Node(m) => best.get(m).map(|(x, _)| x + c),
                 };
                 if let Some(v) = v {
-                    if b.map_or(true, |(x, _)| v > x) {
+                    if b.is_none_or(|(x, _)| v > x) {
                         b = Some((v, i));
                     }
                 }

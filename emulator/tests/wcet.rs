@@ -158,14 +158,21 @@ impl Prog {
     }
     fn run(&mut self, entry: &str, args: &[u32]) -> u64 {
         let at = self.at(entry);
-        self.board.call(0, at, args, SP, 1_000_000).unwrap().cycles
+        match self.board.call(0, at, args, SP, 1_000_000) {
+            Ok(r) => r.cycles,
+            Err(e) => panic!("{e} with {args:?}: {:#x?}", self.labels),
+        }
     }
     /// Static WCET vs. measurements over `inputs`: static ≥ every run, == the slowest.
     fn check(&mut self, entry: &str, bounds: &Bounds, inputs: &[Vec<u32>]) -> u64 {
         let w = self.wcet(entry, bounds).unwrap();
         let measured: Vec<u64> = inputs.iter().map(|a| self.run(entry, a)).collect();
         for (a, m) in inputs.iter().zip(&measured) {
-            assert!(w.cycles >= *m, "static {} < measured {m} for {a:?}", w.cycles);
+            assert!(
+                w.cycles >= *m,
+                "static {} < measured {m} for {a:?}",
+                w.cycles
+            );
         }
         assert_eq!(
             w.cycles,
@@ -197,8 +204,8 @@ fn straight_line() {
             rn: 13,
             imm: 4,
         }), // 2
-        I(Instr::AddSp { imm: 8 }), // 1
-        I(Instr::Pop { list: 0x80f0 }), // pop {r4-r7, pc}: 3 + 4
+        I(Instr::AddSp { imm: 8 }),      // 1
+        I(Instr::Pop { list: 0x80f0 }),  // pop {r4-r7, pc}: 3 + 4
     ]);
     let c = p.check("f", &Bounds::new(), &[vec![1], vec![100]]);
     assert_eq!(c, 6 + 1 + 1 + 1 + 1 + 2 + 2 + 1 + 7);
@@ -308,7 +315,11 @@ fn counted_loop_with_bound() {
         movs(1, 0),
         l("loop"),
         adds(2, 2, 1),
-        I(Instr::AddReg { rd: 1, rn: 1, rm: 2 }),
+        I(Instr::AddReg {
+            rd: 1,
+            rn: 1,
+            rm: 2,
+        }),
         alu(AluOp::Cmp, 2, 0),
         bc(NE, "loop"),
         I(Instr::MovHi { rd: 0, rm: 1 }),
@@ -331,7 +342,8 @@ fn counted_loop_with_bound() {
     assert_eq!(e, WcetError::UnboundedLoop { header });
     assert!(e.to_string().contains(&format!("{header:#010x}")));
     assert_eq!(
-        p.wcet("f", &Bounds::new().with_loop(header, 0)).unwrap_err(),
+        p.wcet("f", &Bounds::new().with_loop(header, 0))
+            .unwrap_err(),
         WcetError::ZeroBound { header }
     );
 }
@@ -409,6 +421,159 @@ fn nested_loops() {
 }
 
 #[test]
+fn loop_at_the_entry_with_a_break_a_return_inside_and_a_call() {
+    // f: r0 -= 1; if r0 == r1 return early (POP {PC} inside the loop);
+    //    if r0 == 7 break; bl g; while r0 != 0
+    let mut p = Prog::new(&[
+        l("f"),
+        l("loop"),
+        I(Instr::Push { list: 0x4000 }),
+        subs(0, 0, 1),
+        alu(AluOp::Cmp, 0, 1),
+        bc(NE, "go"),
+        I(Instr::Pop { list: 0x8000 }),
+        l("go"),
+        cmpi(0, 7),
+        bc(EQ, "brk"),
+        bl("g"),
+        I(Instr::Pop { list: 0x04 }),
+        I(Instr::MovHi { rd: 14, rm: 2 }),
+        cmpi(0, 0),
+        bc(NE, "loop"),
+        bx_lr(),
+        l("brk"),
+        I(Instr::Pop { list: 0x04 }),
+        I(Instr::MovHi { rd: 14, rm: 2 }),
+        adds(0, 0, 5),
+        bx_lr(),
+        l("g"),
+        nop(),
+        nop(),
+        bx_lr(),
+    ]);
+    assert_eq!(p.at("f"), p.at("loop"));
+    let bounds = Bounds::new().with_loop(p.at("loop"), 6);
+    let inputs: Vec<Vec<u32>> = (1..=6)
+        .flat_map(|n| [vec![n, 100], vec![n, 0], vec![n, 2]])
+        .collect();
+    p.check("f", &bounds, &inputs);
+    let w = p.wcet("f", &bounds).unwrap();
+    assert_eq!(w.path.iter().filter(|&&a| a == p.at("loop")).count(), 6);
+}
+
+#[test]
+fn isr_matches_a_timer_interrupt_on_the_board() {
+    // The timer test of tests/exceptions.rs, built with the encoder: an alarm interrupt
+    // every 23 us whose handler re-arms it and counts. The ISR's static WCET is exception
+    // entry + body + exception return, as measured from the alarm to the return.
+    let items = vec![
+        l("reset"),
+        Lit(0, "timer".into()),
+        movs(1, 1),
+        I(Instr::MemImm {
+            op: MemOp::Str,
+            rt: 1,
+            rn: 0,
+            imm: 0x38,
+        }), // INTE = alarm 0
+        Lit(2, "iser".into()),
+        I(Instr::MemImm {
+            op: MemOp::Str,
+            rt: 1,
+            rn: 2,
+            imm: 0,
+        }), // NVIC_ISER: IRQ 0
+        I(Instr::MemImm {
+            op: MemOp::Ldr,
+            rt: 1,
+            rn: 0,
+            imm: 0x28,
+        }), // TIMERAWL
+        adds(1, 1, 23),
+        I(Instr::MemImm {
+            op: MemOp::Str,
+            rt: 1,
+            rn: 0,
+            imm: 0x10,
+        }), // ALARM0
+        l("spin"),
+        I(Instr::Hint(tactus_emulator::decode::Hint::Wfi)),
+        b("spin"),
+        l("isr"),
+        Lit(0, "timer".into()),
+        movs(1, 1),
+        I(Instr::MemImm {
+            op: MemOp::Str,
+            rt: 1,
+            rn: 0,
+            imm: 0x34,
+        }), // clear INTR
+        I(Instr::MemImm {
+            op: MemOp::Ldr,
+            rt: 1,
+            rn: 0,
+            imm: 0x10,
+        }),
+        adds(1, 1, 23),
+        I(Instr::MemImm {
+            op: MemOp::Str,
+            rt: 1,
+            rn: 0,
+            imm: 0x10,
+        }), // next alarm
+        Lit(2, "count".into()),
+        I(Instr::MemImm {
+            op: MemOp::Ldr,
+            rt: 3,
+            rn: 2,
+            imm: 0,
+        }),
+        adds(3, 3, 1),
+        I(Instr::MemImm {
+            op: MemOp::Str,
+            rt: 3,
+            rn: 2,
+            imm: 0,
+        }),
+        bx_lr(),
+        Align,
+        l("timer"),
+        Word(0x4005_4000),
+        l("iser"),
+        Word(0xe000_e100),
+        l("count"),
+        Word(BASE + 0x800),
+    ];
+    let (bytes, labels) = assemble(BASE, &items);
+    let vtor = BASE + 0x1000;
+    let mut vectors = [0u32; 48];
+    vectors[0] = SP;
+    vectors[1] = labels["reset"] | 1;
+    vectors[16] = labels["isr"] | 1; // IRQ 0: TIMER_IRQ_0
+    let vbytes: Vec<u8> = vectors.iter().flat_map(|w| w.to_le_bytes()).collect();
+    let mut board = Board::new(Config::default());
+    board.write_bytes(BASE, &bytes).unwrap();
+    board.write_bytes(vtor, &vbytes).unwrap();
+    board.boot_from_vectors(0, vtor).unwrap();
+    let handle = board.profile_addr(labels["isr"]);
+    board.run_for(133 * 100);
+    let calls = board.calls(handle).to_vec();
+    assert_eq!(calls.len(), 100 / 23);
+    let image = Image {
+        base: BASE,
+        bytes: &bytes,
+    };
+    let w = analyse_isr(&image, labels["isr"], &Bounds::new()).unwrap();
+    let body = 2 + 1 + 4 + 3 + 1 + 4 + 2 + 2 + 1 + 2 + 2;
+    assert_eq!(w.cycles, (EXCEPTION_ENTRY + body + EXCEPTION_RETURN) as u64);
+    for (k, call) in calls.iter().enumerate() {
+        let fire = 23 * (k as u64 + 1) * 133;
+        let measured = call.start - fire + call.cycles;
+        assert_eq!(w.cycles, measured, "call {k}: {call:?}");
+    }
+}
+
+#[test]
 fn call_to_helper_and_pop_pc_return() {
     let mut p = Prog::new(&[
         l("f"),
@@ -428,11 +593,18 @@ fn call_to_helper_and_pop_pc_return() {
     ]);
     let helper = p.check("helper", &Bounds::new(), &[vec![0], vec![20]]);
     assert_eq!(helper, 1 + 1 + 2 + 2);
-    let c = p.check("f", &Bounds::new(), &[vec![0], vec![10], vec![11], vec![50]]);
+    let c = p.check(
+        "f",
+        &Bounds::new(),
+        &[vec![0], vec![10], vec![11], vec![50]],
+    );
     assert_eq!(c, 3 + 1 + 2 * (3 + helper) + 1 + 4);
     let w = p.wcet("f", &Bounds::new()).unwrap();
     assert_eq!(w.calls.len(), 2);
-    assert!(w.calls.iter().all(|s| s.callee == p.at("helper") && s.cycles == helper));
+    assert!(w
+        .calls
+        .iter()
+        .all(|s| s.callee == p.at("helper") && s.cycles == helper));
     // A declared callee WCET is used instead of analysing it.
     let w = p
         .wcet("f", &Bounds::new().with_call(p.at("helper"), 100))
@@ -545,7 +717,10 @@ fn literal_pools_are_data_and_io_port_accesses_cost_one_cycle() {
     let w = analyse(
         &|a: u32| {
             let off = a.checked_sub(BASE)? as usize;
-            Some(u16::from_le_bytes([*p.bytes.get(off)?, *p.bytes.get(off + 1)?]))
+            Some(u16::from_le_bytes([
+                *p.bytes.get(off)?,
+                *p.bytes.get(off + 1)?,
+            ]))
         },
         p.at("f"),
         &Bounds {
@@ -602,7 +777,7 @@ impl Rng {
 }
 
 /// A random straight-line instruction over r0-r2, r5, r6 (r3 holds the path selector, r4 is
-/// scratch for the selector tests, SP points at 16 free bytes).
+/// scratch for the selector tests, r7 counts loop iterations; SP points at 16 free bytes).
 fn random_op(rng: &mut Rng) -> It {
     let r = |rng: &mut Rng| [0u8, 1, 2, 5, 6][rng.below(5) as usize];
     let lo = |rng: &mut Rng| [0u8, 1, 2, 5, 6][rng.below(5) as usize];
@@ -610,7 +785,14 @@ fn random_op(rng: &mut Rng) -> It {
         0 => movs(lo(rng), rng.below(256) as u8),
         1 => adds(lo(rng), lo(rng), rng.below(8) as u8),
         2 => alu(
-            [AluOp::Eor, AluOp::Orr, AluOp::And, AluOp::Mul, AluOp::Adc, AluOp::Ror][rng.below(6) as usize],
+            [
+                AluOp::Eor,
+                AluOp::Orr,
+                AluOp::And,
+                AluOp::Mul,
+                AluOp::Adc,
+                AluOp::Ror,
+            ][rng.below(6) as usize],
             lo(rng),
             lo(rng),
         ),
@@ -631,8 +813,8 @@ fn random_op(rng: &mut Rng) -> It {
             rn: 13,
             imm: 4 * rng.below(4) as u16,
         }),
-        6 => I(Instr::Push { list: 0x00e0 }),
-        7 => I(Instr::Pop { list: 0x00e0 }),
+        6 => I(Instr::Push { list: 0x0060 }),
+        7 => I(Instr::Pop { list: 0x0060 }),
         _ => nop(),
     }
 }
@@ -640,12 +822,23 @@ fn random_op(rng: &mut Rng) -> It {
 /// A random function: prologue, `segments` segments each ending in a forward branch (on a
 /// selector bit of r3 when `selector`, else on a random data comparison, sometimes
 /// unconditional), epilogue. Returns the items and the number of selector bits used.
-fn random_program(rng: &mut Rng, segments: usize, selector: bool, with_call: bool) -> (Vec<It>, u32) {
+fn random_program(
+    rng: &mut Rng,
+    segments: usize,
+    selector: bool,
+    with_call: bool,
+    loop_n: Option<u8>,
+) -> (Vec<It>, u32) {
     let mut items = vec![
         l("f"),
         I(Instr::Push { list: 0x40f0 }),
         I(Instr::SubSp { imm: 16 }),
     ];
+    if let Some(n) = loop_n {
+        // r7 counts the iterations (the random code never writes it).
+        items.push(movs(7, n));
+        items.push(l("loop"));
+    }
     let mut bits = 0u32;
     for s in 0..segments {
         items.push(l(&format!("s{s}")));
@@ -662,7 +855,7 @@ fn random_program(rng: &mut Rng, segments: usize, selector: bool, with_call: boo
             items.push(op);
         }
         for _ in 0..depth {
-            items.push(I(Instr::Pop { list: 0x00e0 }));
+            items.push(I(Instr::Pop { list: 0x0060 }));
         }
         if with_call && rng.below(4) == 0 {
             items.push(bl("helper"));
@@ -688,6 +881,10 @@ fn random_program(rng: &mut Rng, segments: usize, selector: bool, with_call: boo
         }
     }
     items.push(l(&format!("s{segments}")));
+    if loop_n.is_some() {
+        items.push(subs(7, 7, 1));
+        items.push(bc(NE, "loop"));
+    }
     items.push(I(Instr::AddSp { imm: 16 }));
     items.push(I(Instr::Pop { list: 0x80f0 }));
     // A helper with a data-dependent branch (called with whatever r0 holds).
@@ -705,21 +902,32 @@ fn random_program(rng: &mut Rng, segments: usize, selector: bool, with_call: boo
 
 #[test]
 fn random_programs_static_equals_the_worst_run() {
-    let mut rng = Rng(0x7ac7_05_2026);
+    let mut rng = Rng(0x007a_c705_2026);
     let (mut exact, mut paths) = (0, 0);
     for round in 0..60 {
         let segments = 1 + rng.below(7) as usize;
         let with_call = round % 3 == 0;
-        let (items, bits) = random_program(&mut rng, segments, true, with_call);
+        // Every other program runs its segments in a counted loop: the selector bits are
+        // the same in every iteration, so the worst iteration repeats and the bound is exact.
+        let loop_n = (round % 2 == 1).then(|| 1 + rng.below(5) as u8);
+        let (items, bits) = random_program(&mut rng, segments, true, with_call, loop_n);
         let mut p = Prog::new(&items);
-        let w = p.wcet("f", &Bounds::new()).unwrap();
+        let bounds = match loop_n {
+            Some(n) => Bounds::new().with_loop(p.at("loop"), n as u32),
+            None => Bounds::new(),
+        };
+        let w = p.wcet("f", &bounds).unwrap();
         let mut worst = 0;
         paths += 1u32 << bits;
         for sel in 0..(1u32 << bits) {
             // r0 = 200 makes the helper take its long arm whenever r0 is untouched.
             let args = [200, rng.next() as u32, rng.next() as u32, sel];
             let m = p.run("f", &args);
-            assert!(w.cycles >= m, "round {round}: static {} < {m}\n{items:?}", w.cycles);
+            assert!(
+                w.cycles >= m,
+                "round {round}: static {} < {m}\n{items:?}",
+                w.cycles
+            );
             worst = worst.max(m);
         }
         if !with_call {
@@ -737,9 +945,14 @@ fn random_data_dependent_programs_are_never_under_estimated() {
     let mut rng = Rng(0x5eed_1234_abcd);
     for round in 0..40 {
         let segments = 2 + rng.below(10) as usize;
-        let (items, _) = random_program(&mut rng, segments, false, round % 2 == 0);
+        let loop_n = (round % 3 == 0).then(|| 1 + rng.below(4) as u8);
+        let (items, _) = random_program(&mut rng, segments, false, round % 2 == 0, loop_n);
         let mut p = Prog::new(&items);
-        let w = p.wcet("f", &Bounds::new()).unwrap();
+        let bounds = match loop_n {
+            Some(n) => Bounds::new().with_loop(p.at("loop"), n as u32),
+            None => Bounds::new(),
+        };
+        let w = p.wcet("f", &bounds).unwrap();
         for _ in 0..20 {
             let v = |rng: &mut Rng| match rng.below(3) {
                 0 => rng.below(4) as u32,
@@ -748,7 +961,11 @@ fn random_data_dependent_programs_are_never_under_estimated() {
             };
             let args = [v(&mut rng), v(&mut rng), v(&mut rng), v(&mut rng)];
             let m = p.run("f", &args);
-            assert!(w.cycles >= m, "round {round}: static {} < {m}\n{items:?}", w.cycles);
+            assert!(
+                w.cycles >= m,
+                "round {round}: static {} < {m}\n{items:?}",
+                w.cycles
+            );
         }
     }
 }
