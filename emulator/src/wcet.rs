@@ -11,8 +11,9 @@
 //!
 //! **Control flow.** `B`, `B<cond>` (two edges), `BL` (the callee is analysed as a function
 //! with the same [`Bounds`] and its WCET added at the call site, after the `BL`'s own 3
-//! cycles; recursion is an error) and returns: `BX LR`, `MOV PC, LR` and `POP {…, PC}` (which
-//! is assumed to pop the return address pushed on entry). Anything whose target is not
+//! cycles; recursion is an error) and returns: `BX LR`, `MOV PC, LR` and `POP {…, PC}` (each
+//! assumed to return to the caller: LR, or the LR pushed on entry, intact — as AAPCS code
+//! guarantees). Anything whose target is not
 //! known statically — `BX` of another register, `BLX`, `MOV`/`ADD` to PC — and anything that
 //! does not continue in bounded time (`SVC`, `BKPT`, `UDF`, undefined encodings, `WFI`,
 //! `WFE`) is a [`WcetError`] naming its address; the analysis never panics and never
@@ -39,7 +40,8 @@
 //! [`Region::Memory`] — the more expensive of the bus and the I/O port, but *not* APB: code
 //! that reaches APB through a pointer the analysis cannot see must say so in
 //! [`Bounds::accesses`] (or set `unknown_access` to [`Region::Apb`]). `LDM`/`STM` are priced
-//! as memory unless their base is known to be APB; `PUSH`/`POP` always as memory. SRAM
+//! as memory unless their base is known (or `unknown_access` says) to be APB; `PUSH`, `POP`
+//! and SP-relative loads and stores as memory (the stack is in SRAM). SRAM
 //! accesses are assumed to meet no bank contention from the other core (the emulator's
 //! one-cycle arbitration wait is not included), and flash as zero-wait (as the emulator
 //! models it). The hardware divider does not stall a read, so it costs nothing extra here.
@@ -187,6 +189,11 @@ pub enum WcetError {
         /// The instruction, printed.
         instr: String,
     },
+    /// Two reachable instructions overlap (a branch into the middle of a 32-bit one).
+    Overlap {
+        /// Address of the second instruction.
+        addr: u32,
+    },
     /// Control reaches an address outside the code image.
     OutOfImage {
         /// The address.
@@ -230,6 +237,12 @@ impl fmt::Display for WcetError {
             }
             WcetError::Unanalysable { addr, instr } => {
                 write!(f, "`{instr}` at {addr:#010x} has no bounded execution time")
+            }
+            WcetError::Overlap { addr } => {
+                write!(
+                    f,
+                    "the instruction at {addr:#010x} overlaps the one before it"
+                )
             }
             WcetError::OutOfImage { addr } => {
                 write!(f, "control reaches {addr:#010x}, outside the code image")
@@ -490,7 +503,7 @@ impl Cx<'_> {
         let mut prev_end = 0u32;
         for (&a, ins) in &instrs {
             if a < prev_end {
-                return Err(WcetError::Irreducible { addr: a });
+                return Err(WcetError::Overlap { addr: a });
             }
             prev_end = a + ins.size;
         }
@@ -751,6 +764,15 @@ impl Cx<'_> {
                 let a = (addr.wrapping_add(4) & !3).wrapping_add(imm as u32);
                 single(region(Some(a)), false)
             }
+            // The stack is in SRAM: SP-relative accesses are memory unless declared.
+            MemImm { op, rn: 13, .. } => single(
+                self.bounds
+                    .accesses
+                    .get(&addr)
+                    .copied()
+                    .unwrap_or(Region::Memory),
+                op.is_store(),
+            ),
             MemImm { op, rn, imm, .. } => {
                 let a = consts.get(rn).map(|b| b.wrapping_add(imm as u32));
                 single(region(a), op.is_store())
@@ -766,7 +788,14 @@ impl Cx<'_> {
                 let c = timing::cycles(instr, false, false) as u64;
                 let r = match self.bounds.accesses.get(&addr) {
                     Some(&r) => r,
-                    None => consts.get(rn).map(Region::of).unwrap_or(Region::Memory),
+                    None => consts.get(rn).map(Region::of).unwrap_or(
+                        // Only APB adds wait states to a multiple transfer.
+                        if self.bounds.unknown_access == Region::Apb {
+                            Region::Apb
+                        } else {
+                            Region::Memory
+                        },
+                    ),
                 };
                 let wait = if matches!(instr, Ldm { .. }) {
                     APB_LOAD_WAIT
