@@ -819,29 +819,21 @@ fn random_op(rng: &mut Rng) -> It {
     }
 }
 
-/// A random function: prologue, `segments` segments each ending in a forward branch (on a
-/// selector bit of r3 when `selector`, else on a random data comparison, sometimes
-/// unconditional), epilogue. Returns the items and the number of selector bits used.
-fn random_program(
+/// `count` random segments labelled `{prefix}0`.. and a final label `{prefix}{count}`; each
+/// segment ends in a forward branch within the group (on a selector bit of r3 when
+/// `selector`, numbered from `*bits`, else on a data comparison; sometimes unconditional or
+/// none) and, when `with_call`, sometimes calls `helper`.
+fn segments(
     rng: &mut Rng,
-    segments: usize,
+    prefix: &str,
+    count: usize,
     selector: bool,
     with_call: bool,
-    loop_n: Option<u8>,
-) -> (Vec<It>, u32) {
-    let mut items = vec![
-        l("f"),
-        I(Instr::Push { list: 0x40f0 }),
-        I(Instr::SubSp { imm: 16 }),
-    ];
-    if let Some(n) = loop_n {
-        // r7 counts the iterations (the random code never writes it).
-        items.push(movs(7, n));
-        items.push(l("loop"));
-    }
-    let mut bits = 0u32;
-    for s in 0..segments {
-        items.push(l(&format!("s{s}")));
+    bits: &mut u32,
+) -> Vec<It> {
+    let mut items = Vec::new();
+    for s in 0..count {
+        items.push(l(&format!("{prefix}{s}")));
         // Keep PUSH/POP balanced inside a segment.
         let mut depth = 0;
         for _ in 0..rng.below(5) {
@@ -860,18 +852,20 @@ fn random_program(
         if with_call && rng.below(4) == 0 {
             items.push(bl("helper"));
         }
-        let target = format!("s{}", s + 1 + rng.below((segments - s) as u64) as usize);
+        // Targets within 8 segments stay in B<cond> range (±256 bytes).
+        let reach = (count - s).min(8) as u64;
+        let target = format!("{prefix}{}", s + 1 + rng.below(reach) as usize);
         match rng.below(6) {
             0 => items.push(b(&target)),
             1 => {} // fall through
-            _ if selector => {
+            _ if selector && *bits < 31 => {
                 items.push(I(Instr::MovHi { rd: 4, rm: 3 }));
                 items.push(I(Instr::LsrImm {
                     rd: 4,
                     rm: 4,
-                    imm: (bits + 1) as u8,
+                    imm: (*bits + 1) as u8,
                 }));
-                bits += 1;
+                *bits += 1;
                 items.push(bc(if rng.below(2) == 0 { CS } else { CC }, &target));
             }
             _ => {
@@ -880,15 +874,13 @@ fn random_program(
             }
         }
     }
-    items.push(l(&format!("s{segments}")));
-    if loop_n.is_some() {
-        items.push(subs(7, 7, 1));
-        items.push(bc(NE, "loop"));
-    }
-    items.push(I(Instr::AddSp { imm: 16 }));
-    items.push(I(Instr::Pop { list: 0x80f0 }));
-    // A helper with a data-dependent branch (called with whatever r0 holds).
-    items.extend([
+    items.push(l(&format!("{prefix}{count}")));
+    items
+}
+
+/// A helper with a data-dependent branch (called with whatever r0 holds).
+fn helper() -> Vec<It> {
+    vec![
         l("helper"),
         cmpi(0, 100),
         bc(CC, "hdone"),
@@ -896,7 +888,91 @@ fn random_program(
         adds(0, 0, 1),
         l("hdone"),
         bx_lr(),
+    ]
+}
+
+/// A random function: prologue, `count` segments (see [`segments`]), optionally inside a
+/// loop counted by r7 that runs `loop_n` times, epilogue. Returns the items and the number
+/// of selector bits used.
+fn random_program(
+    rng: &mut Rng,
+    count: usize,
+    selector: bool,
+    with_call: bool,
+    loop_n: Option<u8>,
+) -> (Vec<It>, u32) {
+    let mut items = vec![
+        l("f"),
+        I(Instr::Push { list: 0x40f0 }),
+        I(Instr::SubSp { imm: 16 }),
+    ];
+    if let Some(n) = loop_n {
+        // r7 counts the iterations (the random code never writes it).
+        items.push(movs(7, n));
+        items.push(l("loop"));
+    }
+    let mut bits = 0u32;
+    items.extend(segments(rng, "s", count, selector, with_call, &mut bits));
+    if loop_n.is_some() {
+        items.push(subs(7, 7, 1));
+        items.push(bc(NE, "loop"));
+    }
+    items.push(I(Instr::AddSp { imm: 16 }));
+    items.push(I(Instr::Pop { list: 0x80f0 }));
+    items.extend(helper());
+    (items, bits)
+}
+
+/// Two nested counted loops around random segments: outer (r7) runs `no` times, inner (its
+/// counter at [sp, #16], out of reach of the random stores) `ni` times.
+fn random_nested(rng: &mut Rng, no: u8, ni: u8, with_call: bool) -> (Vec<It>, u32) {
+    let mut bits = 0;
+    let mut items = vec![
+        l("f"),
+        I(Instr::Push { list: 0x40f0 }),
+        I(Instr::SubSp { imm: 20 }),
+        movs(7, no),
+        l("outer"),
+    ];
+    let n = 1 + rng.below(3) as usize;
+    items.extend(segments(rng, "a", n, true, with_call, &mut bits));
+    items.extend([
+        movs(4, ni),
+        I(Instr::MemImm {
+            op: MemOp::Str,
+            rt: 4,
+            rn: 13,
+            imm: 16,
+        }),
+        l("inner"),
     ]);
+    let n = 1 + rng.below(3) as usize;
+    items.extend(segments(rng, "b", n, true, with_call, &mut bits));
+    items.extend([
+        I(Instr::MemImm {
+            op: MemOp::Ldr,
+            rt: 4,
+            rn: 13,
+            imm: 16,
+        }),
+        subs(4, 4, 1),
+        I(Instr::MemImm {
+            op: MemOp::Str,
+            rt: 4,
+            rn: 13,
+            imm: 16,
+        }),
+        bc(NE, "inner"),
+    ]);
+    let n = 1 + rng.below(3) as usize;
+    items.extend(segments(rng, "c", n, true, with_call, &mut bits));
+    items.extend([
+        subs(7, 7, 1),
+        bc(NE, "outer"),
+        I(Instr::AddSp { imm: 20 }),
+        I(Instr::Pop { list: 0x80f0 }),
+    ]);
+    items.extend(helper());
     (items, bits)
 }
 
@@ -967,5 +1043,57 @@ fn random_data_dependent_programs_are_never_under_estimated() {
                 w.cycles
             );
         }
+    }
+}
+
+#[test]
+fn random_nested_loops_static_equals_the_worst_run() {
+    let mut rng = Rng(0x0bad_cafe_f00d);
+    for round in 0..30 {
+        let (no, ni) = (1 + rng.below(4) as u8, 1 + rng.below(4) as u8);
+        let with_call = round % 4 == 0;
+        let (items, bits) = random_nested(&mut rng, no, ni, with_call);
+        let mut p = Prog::new(&items);
+        let bounds = Bounds::new()
+            .with_loop(p.at("outer"), no as u32)
+            .with_loop(p.at("inner"), ni as u32);
+        let w = p.wcet("f", &bounds).unwrap();
+        let mut worst = 0;
+        for sel in 0..(1u32 << bits.min(8)) {
+            let m = p.run("f", &[200, rng.next() as u32, rng.next() as u32, sel]);
+            assert!(
+                w.cycles >= m,
+                "round {round}: static {} < {m}\n{items:?}",
+                w.cycles
+            );
+            worst = worst.max(m);
+        }
+        if !with_call && bits <= 8 {
+            assert_eq!(w.cycles, worst, "round {round}: {items:?}");
+        }
+        // The worst path passes the inner header no × ni times.
+        let inner = w.path.iter().filter(|&&a| a == p.at("inner")).count();
+        assert_eq!(inner, no as usize * ni as usize);
+    }
+}
+
+#[test]
+fn large_programs_are_analysed_quickly() {
+    let mut rng = Rng(0x1a26e);
+    let (items, _) = random_program(&mut rng, 400, false, true, None);
+    let mut p = Prog::new(&items);
+    let bounds = Bounds::new();
+    let t = std::time::Instant::now();
+    let w = p.wcet("f", &bounds).unwrap();
+    let elapsed = t.elapsed();
+    eprintln!(
+        "{} blocks, WCET {} cycles, analysed in {elapsed:?}",
+        w.blocks.len(),
+        w.cycles
+    );
+    assert!(w.blocks.len() > 300);
+    for k in 0..10u32 {
+        let m = p.run("f", &[k, 200, k * 7, 3]);
+        assert!(w.cycles >= m);
     }
 }
