@@ -66,4 +66,38 @@ mod tests {
         // Graham's tight example for m = 2: 3,3,2,2,2 → LPT 7, optimum 6.
         assert_eq!(makespan(&lpt(&[3, 3, 2, 2, 2], 2)), 7);
     }
+
+    /// Graham's bound against the optimum found by brute force on small random instances.
+    #[test]
+    fn lpt_is_within_four_thirds_of_the_optimum() {
+        let mut x = 0x2545_f491_u64;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for _ in 0..200 {
+            let m = 2 + (next() % 2) as usize;
+            let n = 1 + (next() % 8) as usize;
+            let costs: Vec<u64> = (0..n).map(|_| 1 + next() % 50).collect();
+            let lpt_span = makespan(&lpt(&costs, m));
+            let mut opt = u64::MAX;
+            for code in 0..m.pow(n as u32) {
+                let mut totals = vec![0u64; m];
+                let mut c = code;
+                for &k in &costs {
+                    totals[c % m] += k;
+                    c /= m;
+                }
+                opt = opt.min(*totals.iter().max().unwrap());
+            }
+            // makespan ≤ (4/3 − 1/(3m)) · OPT, in integers.
+            assert!(
+                3 * m as u64 * lpt_span <= (4 * m as u64 - 1) * opt,
+                "{costs:?} on {m}"
+            );
+            assert!(lpt_span >= opt);
+        }
+    }
 }

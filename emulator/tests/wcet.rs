@@ -1097,3 +1097,15 @@ fn large_programs_are_analysed_quickly() {
         assert!(w.cycles >= m);
     }
 }
+
+#[test]
+fn a_branch_into_the_middle_of_a_32_bit_instruction_is_an_error() {
+    // 0: cmp r0, #0; 2: beq 6; 4: bl (second halfword 0xd001 = `beq` when read at 6);
+    // 8, 10, 12: bx lr. The code is given as a closure over halfwords.
+    let hw = [0x2800u16, 0xd000, 0xf400, 0xd001, 0x4770, 0x4770, 0x4770];
+    let code = |a: u32| hw.get(a.checked_sub(BASE)? as usize / 2).copied();
+    assert_eq!(
+        analyse(&code, BASE, &Bounds::new()).unwrap_err(),
+        WcetError::Overlap { addr: BASE + 6 }
+    );
+}
