@@ -18,9 +18,9 @@ pub mod encode;
 pub mod exec;
 mod fast;
 pub mod nvic;
+pub mod schedule;
 pub mod sio;
 pub mod timer;
-pub mod schedule;
 pub mod timing;
 pub mod wcet;
 
