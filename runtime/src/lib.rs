@@ -10,9 +10,11 @@ pub mod fixed;
 pub mod keyboard;
 pub mod limiter;
 pub mod performance;
+pub mod player;
 pub mod rng;
 pub mod stimulus;
 pub mod trace;
+pub mod voice;
 
 /// The board's default sample rate in hertz (MIKEY: 16-bit ADC sampled at 44.1 kHz).
 pub const DEFAULT_SAMPLE_RATE_HZ: f64 = 44_100.0;
