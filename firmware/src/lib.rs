@@ -1,0 +1,21 @@
+//! Compiled per-key updates on the emulated RP2040.
+//!
+//! - [`layout`]: the interface every compiled update implements (the state struct's byte
+//!   layout, the sensor and out word counts), computed from the program.
+//! - [`runner`]: [`UpdateRunner`] loads code (an ELF executable, or raw position-independent
+//!   Thumb code with entry offsets) into an emulated board and calls `init`/`update` from
+//!   the host, returning the out words, the states, the modes and the cycles per key-sample.
+//! - [`cc`]: compiles the C backend's output with clang or arm-none-eabi-gcc for the
+//!   Cortex-M0+ and links an ELF executable in SRAM, reporting code sizes.
+//! - [`measure`]: runs stimuli through a runner and the fixed interpreter side by side,
+//!   counting mismatches and collecting cycle statistics; [`report`] prints the table.
+#![deny(missing_docs)]
+
+pub mod cc;
+pub mod layout;
+pub mod measure;
+pub mod report;
+pub mod runner;
+
+pub use layout::{Interface, StateCounts, StateLayout};
+pub use runner::{RunError, Sample, UpdateRunner};
