@@ -1,25 +1,42 @@
 //! `tactus play`: a recorded performance played through an instrument, key by key, on the
 //! host engines (the emulated-board engine comes with the firmware backend).
 //!
-//! Each played key runs its own instance of the instrument over its key trajectory (the
-//! player model of `tactus_runtime::performance`), from 50 ms before its first press to
-//! 500 ms after its last release; keys that are never played stay at rest and need no
-//! simulation. Every `strike` the instrument emits becomes a note of the output MIDI file.
+//! Each played key runs its own instance of the instrument ([`KeyEngine`], stepped once per
+//! sample) from 50 ms before its first press to 500 ms after its last release; keys that are
+//! never played stay at rest and need no simulation. Two players move the keys:
+//!
+//! * `position` (default): the key-motion model of `tactus_runtime::performance` prescribes
+//!   the key travel; the instrument's force is computed but does not move the key;
+//! * `force`: a finger pushes with a force profile and the key moves under the finger's and
+//!   the instrument's forces (`tactus_runtime::player`): the closed loop. Each instrument is
+//!   first calibrated with single strokes at [`CALIBRATION_LEVELS_N`], so a note of MIDI
+//!   velocity `v` is played with the finger force that gives the hammer speed
+//!   [`speed_for_velocity`]`(v)`, started that stroke's lead time before the note-on.
+//!
+//! Every `strike` (or `pluck`) the instrument emits becomes a note of the output MIDI file and
+//! of the WAV rendering (`tactus_runtime::voice`).
 
 use crate::check_cmd::{compile_reporting, parse_override};
+use crate::plot;
 use crate::source;
 use indicatif::{ProgressBar, ProgressStyle};
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 use tactus_runtime::performance::{self, KeyTrack, Performance};
+use tactus_runtime::player::{Calibration, FingerConfig, ForcePlayer, ForceProfile, Stroke};
+use tactus_runtime::voice;
 
 /// Arguments of `tactus play`.
 #[derive(Debug, clap::Args)]
 #[command(
     after_long_help = "Writes OUT/NAME-strikes.csv (one row per strike: key, time, hammer speed, MIDI velocity, \
-the input note it answers) and OUT/NAME-strikes.mid (the strikes as MIDI with velocities from the simulated hammer \
-speed: 1 at 0.1 m/s to 127 at 6 m/s, logarithmic). Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20"
+the input note it answers), OUT/NAME-strikes.mid (the strikes as MIDI with velocities from the simulated hammer \
+speed: 1 at 0.1 m/s to 127 at 6 m/s, logarithmic) and OUT/NAME.wav (the strikes through a synthesized modal \
+piano voice, 44.1 kHz 16-bit mono, normalised). With --trace-keys: OUT/NAME-key<K>.csv per traced key (time, key \
+travel, instrument force, hammer position, finger force), OUT/NAME-force.svg and OUT/NAME-hammer.svg. \
+Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20 --trace-keys 60,64"
 )]
 pub struct PlayArgs {
     /// MIDI performance to play [default: a built-in 8 s demo].
@@ -37,15 +54,32 @@ pub struct PlayArgs {
     /// Engine: `jit` (cranelift, fast) or `interp` (the f64 reference interpreter).
     #[arg(long, value_enum, default_value = "jit")]
     pub engine: PlayEngine,
+    /// Player: `position` (prescribed key trajectories) or `force` (a finger force profile
+    /// against the instrument's force: the closed loop).
+    #[arg(long, value_enum, default_value = "position")]
+    pub player: Player,
     /// Override a param on every key: `--param M_h=10 g`.
     #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
     pub params: Vec<(String, String)>,
+    /// Keys to trace (MIDI numbers, comma-separated): a CSV per key and SVG plots of force
+    /// and hammer position vs time.
+    #[arg(long, value_delimiter = ',', value_name = "KEYS")]
+    pub trace_keys: Vec<u8>,
+    /// Trace from this time on, s.
+    #[arg(long, default_value_t = 0.0)]
+    pub trace_from: f64,
+    /// Trace until this time, s [default: the end].
+    #[arg(long)]
+    pub trace_to: Option<f64>,
+    /// Do not write the WAV rendering.
+    #[arg(long)]
+    pub no_wav: bool,
     /// Output directory.
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
 }
 
-/// Engines of `tactus play`.
+/// Engines of `tactus play`: what computes a key's instrument each sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum PlayEngine {
     /// Cranelift JIT (f64).
@@ -54,8 +88,78 @@ pub enum PlayEngine {
     Interp,
 }
 
+/// Players of `tactus play`: what moves the keys.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Player {
+    /// Key trajectories prescribed by the key-motion model (open loop).
+    Position,
+    /// A finger force profile against the instrument's force (closed loop).
+    Force,
+}
+
+/// What one sample of one key's instrument gives the play loop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KeySample {
+    /// The commanded force at the key, N (positive pushes the key up).
+    pub force_n: f64,
+    /// Hammer-head travel from rest, m (`NaN` when the instrument has no `hammer_pos`).
+    pub hammer_m: f64,
+    /// The hammer speed of a `strike`/`pluck` emitted this sample, m/s.
+    pub strike_mps: Option<f64>,
+}
+
+/// One key's instrument instance as the play loop sees it: one call per sample with the key
+/// travel (m). Engines (the host JIT and interpreter here; the emulated board later)
+/// implement it.
+pub trait KeyEngine {
+    /// Runs one sample with key travel `key_m` (m).
+    fn step(&mut self, key_m: f64) -> KeySample;
+}
+
 /// A compiled instrument: (instrument name or path, overrides, program).
 type Compiled = (String, Vec<(String, String)>, tactus_compiler::ir::Program);
+
+/// A host engine instance: the JIT when compiled, else the interpreter.
+struct HostKey<'a> {
+    jit: Option<tactus_jit::JitInstance<'a>>,
+    interp: tactus_compiler::interp::Instance<'a>,
+    strike_id: usize,
+    hammer_out: Option<usize>,
+}
+
+impl<'a> HostKey<'a> {
+    fn new(program: &'a tactus_compiler::ir::Program, jit: Option<&'a tactus_jit::JitProgram>) -> Self {
+        HostKey {
+            jit: jit.map(tactus_jit::JitInstance::new),
+            interp: tactus_compiler::interp::Instance::new(program),
+            strike_id: program
+                .events
+                .iter()
+                .position(|e| e.name == "strike" || e.name == "pluck")
+                .unwrap_or(0),
+            hammer_out: program.outputs.iter().position(|o| o.name == "hammer_pos"),
+        }
+    }
+}
+
+impl KeyEngine for HostKey<'_> {
+    fn step(&mut self, key_m: f64) -> KeySample {
+        let x = [key_m];
+        let out = match &mut self.jit {
+            Some(j) => j.step(&x),
+            None => self.interp.step(&x),
+        };
+        KeySample {
+            force_n: out.total,
+            hammer_m: self.hammer_out.map_or(f64::NAN, |i| out.outputs[i]),
+            strike_mps: out
+                .events
+                .iter()
+                .find(|(e, _)| e.index() == self.strike_id)
+                .map(|(_, a)| a.first().copied().unwrap_or(0.0)),
+        }
+    }
+}
 
 /// One simulated hammer strike.
 struct Strike {
@@ -72,6 +176,22 @@ pub fn midi_velocity(speed_mps: f64) -> u8 {
     v.round().clamp(1.0, 127.0) as u8
 }
 
+/// The hammer speed (m/s) that [`midi_velocity`] maps to MIDI velocity `v`: its inverse,
+/// `0.1 m/s · 60^((v − 1)/126)`.
+pub fn speed_for_velocity(v: u8) -> f64 {
+    0.1 * 60f64.powf((f64::from(v.clamp(1, 127)) - 1.0) / 126.0)
+}
+
+/// Peak finger forces of the calibration strokes, N (log-spaced from a push barely above a
+/// piano key's down-weight to a hard *fff* blow).
+pub const CALIBRATION_LEVELS_N: [f64; 14] = [
+    0.6, 0.75, 0.9, 1.1, 1.4, 1.8, 2.3, 3.0, 4.0, 5.5, 7.5, 10.0, 14.0, 20.0,
+];
+
+/// Time a stroke waits for the key to rise after the previous note's finger lifted, s: a
+/// note that follows sooner lifts the previous finger earlier.
+const RISE_GAP_S: f64 = 0.030;
+
 /// Runs `tactus play`.
 pub fn run(args: PlayArgs) -> ExitCode {
     match run_inner(&args) {
@@ -82,6 +202,22 @@ pub fn run(args: PlayArgs) -> ExitCode {
         }
     }
 }
+
+/// One key to simulate: its samples `first..first + n` and what moves it.
+struct KeyJob {
+    key: u8,
+    first: usize,
+    n: usize,
+    motion: Motion,
+}
+
+enum Motion {
+    Track(KeyTrack),
+    Finger(ForceProfile),
+}
+
+/// A traced key's samples: (time s, key travel m, instrument force N, hammer m, finger N).
+type TraceRows = Vec<[f64; 5]>;
 
 fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let mut perf = match &args.performance {
@@ -94,6 +230,14 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         }
         perf.notes.retain(|n| n.on_s < s);
         perf.duration_s = perf.duration_s.min(s);
+        if perf.notes.is_empty() {
+            return Err(format!(
+                "{}: no note starts in the first {s} s",
+                args.performance
+                    .as_ref()
+                    .map_or("the demo".to_string(), |p| p.display().to_string())
+            ));
+        }
     }
     // Which instrument (with which overrides) on which key.
     let assignments = match &args.layout {
@@ -122,13 +266,14 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             n.key, n.on_s
         );
     }
+    let skipped = outside.len();
     let perf = Performance {
         notes: inside.into_iter().copied().collect(),
         ..perf
     };
     // One compiled program per distinct (instrument, overrides), shared by its keys.
     let mut programs: Vec<Compiled> = Vec::new();
-    let mut key_program = std::collections::BTreeMap::new();
+    let mut key_program = BTreeMap::new();
     for a in assignments
         .iter()
         .filter(|a| perf.notes.iter().any(|n| n.key == a.key))
@@ -171,33 +316,77 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             .collect::<Result<Vec<_>, _>>()?,
         PlayEngine::Interp => programs.iter().map(|_| None).collect(),
     };
+    let engine_for = |pi: usize| HostKey::new(&programs[pi].2, jits[pi].as_ref());
     let dip_of = |key: u8| programs[key_program[&key]].2.sensors[0].range.1;
-    // Each played key's track, for its own instrument's key dip.
-    let tracks: Vec<KeyTrack> = key_program
-        .keys()
-        .flat_map(|&key| {
-            let notes = perf
-                .notes
-                .iter()
-                .filter(|n| n.key == key)
-                .copied()
-                .collect();
-            performance::key_tracks(
-                &Performance {
-                    notes,
-                    sustain: vec![],
-                    duration_s: perf.duration_s,
-                },
-                dip_of(key),
-            )
-        })
-        .collect();
     let fs = programs
         .first()
         .map_or(tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, |p| {
             p.2.sample_rate_hz
         });
-    let total_samples: u64 = tracks.iter().map(|t| window(t, fs).1 as u64).sum();
+    let finger = FingerConfig::default();
+    // The force player's calibration, per program.
+    let calibrations: Vec<Option<Calibration>> = match args.player {
+        Player::Position => programs.iter().map(|_| None).collect(),
+        Player::Force => (0..programs.len())
+            .map(|pi| {
+                let dip = programs[pi].2.sensors[0].range.1;
+                calibrate(|| engine_for(pi), dip, finger, fs)
+                    .map(Some)
+                    .ok_or_else(|| {
+                        format!(
+                            "instrument `{}`: no calibration stroke of {:?} N struck; the force player cannot play it",
+                            programs[pi].0, CALIBRATION_LEVELS_N
+                        )
+                    })
+            })
+            .collect::<Result<_, _>>()?,
+    };
+    // One job per played key.
+    let mut jobs = Vec::new();
+    for &key in key_program.keys() {
+        let notes: Vec<performance::Note> =
+            perf.notes.iter().filter(|n| n.key == key).copied().collect();
+        let (motion, start_s, end_s) = match args.player {
+            Player::Position => {
+                let track = performance::key_tracks(
+                    &Performance {
+                        notes: notes.clone(),
+                        sustain: vec![],
+                        duration_s: perf.duration_s,
+                    },
+                    dip_of(key),
+                )
+                .remove(0);
+                let first = track.notes.first().map_or(0.0, |n| n.0) - performance::MAX_DESCENT_S;
+                let last = track.notes.last().map_or(0.0, |n| n.0);
+                let end = track.last_move_end_s().max(last);
+                (Motion::Track(track), first, end)
+            }
+            Player::Force => {
+                let cal = calibrations[key_program[&key]].as_ref().expect("calibrated");
+                let profile = finger_profile(&notes, cal, finger);
+                let first = profile.strokes().first().map_or(0.0, |s| s.start_s);
+                let end = profile.strokes().iter().map(|s| s.lift_s).fold(0.0, f64::max);
+                (Motion::Finger(profile), first, end)
+            }
+        };
+        let a = ((start_s - 0.05).max(0.0) * fs) as usize;
+        let b = ((end_s + 0.5) * fs) as usize;
+        jobs.push(KeyJob {
+            key,
+            first: a,
+            n: b.saturating_sub(a),
+            motion,
+        });
+    }
+    let traced: BTreeSet<u8> = args.trace_keys.iter().copied().collect();
+    for k in &traced {
+        if !key_program.contains_key(k) {
+            eprintln!("warning: traced key {k} is never played: it stays at rest, no trace written");
+        }
+    }
+    let trace_to = args.trace_to.unwrap_or(f64::INFINITY);
+    let total_samples: u64 = jobs.iter().map(|j| j.n as u64).sum();
     let bar = ProgressBar::new(total_samples);
     bar.set_style(
         ProgressStyle::with_template(
@@ -205,39 +394,46 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    bar.set_message(format!("{} keys", tracks.len()));
+    bar.set_message(format!("{} keys", jobs.len()));
     let started = Instant::now();
     let mut strikes = Vec::new();
-    for t in &tracks {
-        let pi = key_program[&t.key];
-        let program = &programs[pi].2;
-        let strike_id = program
-            .events
-            .iter()
-            .position(|e| e.name == "strike" || e.name == "pluck")
-            .unwrap_or(0);
-        let (first, n) = window(t, fs);
-        let mut jit_inst = jits[pi].as_ref().map(tactus_jit::JitInstance::new);
-        let mut interp = tactus_compiler::interp::Instance::new(program);
-        for i in 0..n {
-            let time = (first + i) as f64 / fs;
-            let x = [t.position(time)];
-            let out = match &mut jit_inst {
-                Some(j) => j.step(&x),
-                None => interp.step(&x),
+    let mut traces: BTreeMap<u8, TraceRows> = BTreeMap::new();
+    for job in &jobs {
+        let pi = key_program[&job.key];
+        let mut engine = engine_for(pi);
+        let mut rows = traced.contains(&job.key).then(TraceRows::new);
+        let mut finger_player = ForcePlayer::new(dip_of(job.key), finger.mass_kg, fs);
+        for i in 0..job.n {
+            let time = (job.first + i) as f64 / fs;
+            let (x, push) = match &job.motion {
+                Motion::Track(t) => (t.position(time), 0.0),
+                Motion::Finger(p) => (finger_player.x_m, p.force(time)),
             };
-            for (e, a) in &out.events {
-                if e.index() == strike_id {
-                    strikes.push(Strike {
-                        key: t.key,
-                        time_s: time,
-                        speed_mps: a.first().copied().unwrap_or(0.0),
-                        answers: None,
-                    });
+            let s = engine.step(x);
+            if let Motion::Finger(_) = job.motion {
+                finger_player.step(push, s.force_n);
+            }
+            if let Some(speed) = s.strike_mps {
+                strikes.push(Strike {
+                    key: job.key,
+                    time_s: time,
+                    speed_mps: speed,
+                    answers: None,
+                });
+            }
+            if let Some(r) = &mut rows {
+                if time >= args.trace_from && time <= trace_to {
+                    r.push([time, x, s.force_n, s.hammer_m, push]);
                 }
             }
+            if i % 65_536 == 65_535 {
+                bar.inc(65_536);
+            }
         }
-        bar.inc(n as u64);
+        bar.inc((job.n % 65_536) as u64);
+        if let Some(r) = rows {
+            traces.insert(job.key, r);
+        }
     }
     bar.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
@@ -263,34 +459,237 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         .as_ref()
         .and_then(|p| p.file_stem())
         .map_or("demo".to_string(), |s| s.to_string_lossy().into_owned());
+    let mut wrote = Vec::new();
     let csv = args.out.join(format!("{stem}-strikes.csv"));
     let matched = write_strikes_csv(&csv, &strikes)?;
+    wrote.push(csv);
     let mid = args.out.join(format!("{stem}-strikes.mid"));
     write_midi(&mid, &strikes)?;
+    wrote.push(mid);
+    if !args.no_wav {
+        let wav = args.out.join(format!("{stem}.wav"));
+        write_wav(&wav, &strikes, &perf, fs)?;
+        wrote.push(wav);
+    }
+    if !traces.is_empty() {
+        wrote.extend(write_traces(&args.out, &stem, &traces)?);
+    }
     let audio_s = perf.duration_s;
     println!(
-        "{}: {} notes on {} keys → {} strikes ({} answer a note within 50 ms); {} key-samples in {:.2} s ({:.1}× real time for the played keys)",
+        "{}: {} notes on {} keys ({} player) → {} strikes ({} answer a note within 50 ms); {} note{} outside the layout skipped",
         stem,
         perf.notes.len(),
-        tracks.len(),
+        jobs.len(),
+        match args.player {
+            Player::Position => "position",
+            Player::Force => "force",
+        },
         strikes.len(),
         matched,
+        skipped,
+        if skipped == 1 { "" } else { "s" },
+    );
+    println!(
+        "  {} key-samples in {:.2} s: real-time factor {:.2} ({:.2} s of music; above 1 is faster than real time); peak memory {}",
         total_samples,
         wall,
-        audio_s / wall.max(1e-9)
+        audio_s / wall.max(1e-9),
+        audio_s,
+        peak_memory().map_or("unknown".to_string(), |kb| format!("{:.1} MB", kb as f64 / 1024.0)),
     );
-    println!("  wrote {}\n  wrote {}", csv.display(), mid.display());
+    for w in &wrote {
+        println!("  wrote {}", w.display());
+    }
     println!("  budget: not checked — the emulated-board engine needs the Thumb backend (planned)");
     Ok(ExitCode::SUCCESS)
 }
 
-/// First sample and number of samples to simulate for a key.
-fn window(t: &KeyTrack, fs: f64) -> (usize, usize) {
-    let first = t.notes.first().map_or(0.0, |n| n.0) - performance::MAX_DESCENT_S - 0.05;
-    let last = t.notes.last().map_or(0.0, |n| n.0);
-    let end = t.last_move_end_s().max(last) + 0.5;
-    let a = (first.max(0.0) * fs) as usize;
-    (a, ((end * fs) as usize).saturating_sub(a))
+/// Measures single strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
+/// (key at rest, push held until the strike or 0.6 s): the lead from the start of the push
+/// to the strike and the strike's hammer speed. `None` when fewer than two levels strike.
+fn calibrate<E: KeyEngine>(
+    mut fresh: impl FnMut() -> E,
+    dip_m: f64,
+    finger: FingerConfig,
+    fs: f64,
+) -> Option<Calibration> {
+    let start = 0.01;
+    let levels = CALIBRATION_LEVELS_N
+        .iter()
+        .filter_map(|&peak| {
+            let profile = ForceProfile::new(
+                finger,
+                vec![Stroke {
+                    start_s: start,
+                    peak_n: peak,
+                    push_end_s: 10.0,
+                    lift_s: 10.0,
+                }],
+            );
+            let mut engine = fresh();
+            let mut key = ForcePlayer::new(dip_m, finger.mass_kg, fs);
+            for i in 0..(0.6 * fs) as usize {
+                let t = i as f64 / fs;
+                let s = engine.step(key.x_m);
+                if let Some(v) = s.strike_mps {
+                    return Some((peak, t - start, v));
+                }
+                key.step(profile.force(t), s.force_n);
+            }
+            None
+        })
+        .collect();
+    Calibration::new(levels)
+}
+
+/// The finger's strokes for one key's notes: each aims at the hammer speed of its MIDI
+/// velocity ([`speed_for_velocity`]) with the calibrated force, starts the calibrated lead
+/// before its note-on, pushes until 10 ms after the note-on, holds until the note-off and
+/// lifts then — or [`RISE_GAP_S`] before the next stroke, if that comes sooner.
+fn finger_profile(notes: &[performance::Note], cal: &Calibration, finger: FingerConfig) -> ForceProfile {
+    let mut strokes: Vec<Stroke> = notes
+        .iter()
+        .map(|n| {
+            let (peak, lead) = cal.for_speed(speed_for_velocity(n.velocity));
+            let start = (n.on_s - lead).max(0.0);
+            let push_end = n.on_s.max(start) + 0.010;
+            Stroke {
+                start_s: start,
+                peak_n: peak,
+                push_end_s: push_end,
+                lift_s: n.off_s.max(push_end),
+            }
+        })
+        .collect();
+    for i in 1..strokes.len() {
+        let next = strokes[i].start_s;
+        let prev = &mut strokes[i - 1];
+        prev.lift_s = prev.lift_s.min(next - RISE_GAP_S).max(prev.start_s);
+        prev.push_end_s = prev.push_end_s.min(prev.lift_s);
+    }
+    ForceProfile::new(finger, strokes)
+}
+
+/// Peak resident memory of this process (`VmHWM` of `/proc/self/status`), kB; `None` where
+/// there is no such file (not Linux).
+fn peak_memory() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// Writes the strikes through the modal voice of `tactus_runtime::voice` as a 16-bit mono
+/// WAV at the sample rate `fs` (Hz), normalised to 90 % of full scale. A strike's damper
+/// falls at the note-off of the note it answers (300 ms after a strike that answers none),
+/// or later while the sustain pedal is down.
+fn write_wav(path: &Path, strikes: &[Strike], perf: &Performance, fs: f64) -> Result<(), String> {
+    let notes: Vec<voice::Strike> = strikes
+        .iter()
+        .map(|s| voice::Strike {
+            key: s.key,
+            time_s: s.time_s,
+            speed_mps: s.speed_mps,
+            damp_s: voice::damper_time(
+                s.answers.map_or(s.time_s + 0.3, |n| n.off_s),
+                &perf.sustain,
+            ),
+        })
+        .collect();
+    let last = strikes.iter().map(|s| s.time_s).fold(perf.duration_s, f64::max);
+    let samples = voice::render(&notes, last + 2.0, fs);
+    let pcm = voice::normalise_i16(&samples, 0.9);
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: fs.round() as u32,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let err = |e: hound::Error| format!("{}: cannot write: {e}", path.display());
+    let mut w = hound::WavWriter::create(path, spec).map_err(err)?;
+    for x in pcm {
+        w.write_sample(x).map_err(err)?;
+    }
+    w.finalize().map_err(err)
+}
+
+/// Writes one CSV per traced key (`STEM-key<K>.csv`: time_s, key_travel_m, force_n,
+/// hammer_pos_m, finger_force_n) and the plots `STEM-force.svg` (instrument force vs time)
+/// and `STEM-hammer.svg` (hammer position vs time); returns the files written.
+fn write_traces(out: &Path, stem: &str, traces: &BTreeMap<u8, TraceRows>) -> Result<Vec<PathBuf>, String> {
+    let mut wrote = Vec::new();
+    for (key, rows) in traces {
+        let path = out.join(format!("{stem}-key{key}.csv"));
+        let err = |e: csv::Error| format!("{}: {e}", path.display());
+        let mut w = csv::Writer::from_path(&path).map_err(err)?;
+        w.write_record(["time_s", "key_travel_m", "force_n", "hammer_pos_m", "finger_force_n"])
+            .map_err(err)?;
+        for r in rows {
+            w.write_record(r.iter().map(|v| v.to_string())).map_err(err)?;
+        }
+        w.flush().map_err(|e| format!("{}: {e}", path.display()))?;
+        wrote.push(path);
+    }
+    let lines = |col: usize, scale: f64| -> Vec<plot::Line> {
+        traces
+            .iter()
+            .map(|(key, rows)| plot::Line {
+                label: format!("key {key}"),
+                x: rows.iter().map(|r| r[0]).collect(),
+                y: rows.iter().map(|r| r[col] * scale).collect(),
+            })
+            .collect()
+    };
+    let force = out.join(format!("{stem}-force.svg"));
+    plot::plot_lines(
+        &lines(2, 1.0),
+        &format!("{stem}: force at the key"),
+        "time [s]",
+        "force [N]",
+        &force,
+    )
+    .map_err(|e| e.to_string())?;
+    wrote.push(force);
+    let hammer_lines = lines(3, 1e3);
+    if hammer_lines.iter().any(|l| l.y.iter().any(|v| v.is_finite())) {
+        let hammer = out.join(format!("{stem}-hammer.svg"));
+        plot::plot_lines(
+            &hammer_lines,
+            &format!("{stem}: hammer position"),
+            "time [s]",
+            "hammer travel [mm]",
+            &hammer,
+        )
+        .map_err(|e| e.to_string())?;
+        wrote.push(hammer);
+    }
+    Ok(wrote)
+}
+
+/// Hook for the emulated-board engine: writes `OUT/STEM-cycles.svg`, the cycles each core
+/// spent per sample (`cycles_per_core[c][i]`, at `sample_rate_hz`) against the per-sample
+/// deadline `deadline_cycles` (e.g. 125 MHz / 44.1 kHz ≈ 2834 cycles). Returns the path.
+///
+/// # Errors
+///
+/// A message naming the file when there are no samples or it cannot be written.
+#[allow(dead_code)] // called by the emulator engine (planned)
+pub fn write_cycle_plot(
+    out: &Path,
+    stem: &str,
+    cycles_per_core: &[Vec<u64>],
+    sample_rate_hz: f64,
+    deadline_cycles: u64,
+) -> Result<PathBuf, String> {
+    let path = out.join(format!("{stem}-cycles.svg"));
+    plot::plot_cycles_per_core(
+        cycles_per_core,
+        sample_rate_hz,
+        deadline_cycles,
+        &format!("{stem}: cycles per sample per core"),
+        &path,
+    )
+    .map_err(|e| e.to_string())?;
+    Ok(path)
 }
 
 /// Writes one row per strike with the input note it answers; returns how many answer one.

@@ -289,6 +289,137 @@ pub fn plot_columns(
     })
 }
 
+/// One line of a passage plot: `y[i]` at `x[i]`, already in the units of the axes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Line {
+    /// Legend label.
+    pub label: String,
+    /// Abscissae (e.g. time in seconds).
+    pub x: Vec<f64>,
+    /// Ordinates; `NaN` breaks the line.
+    pub y: Vec<f64>,
+}
+
+/// Writes an SVG with one panel of lines (e.g. the force on each traced key over a passage,
+/// time in seconds), one colour per line with a legend; long lines are decimated as in
+/// every plot here.
+///
+/// # Errors
+///
+/// [`PlotError::EmptyTrace`] when there are no lines or no finite point, or
+/// [`PlotError::Draw`]; every error names `path`.
+pub fn plot_lines(
+    lines: &[Line],
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    path: &Path,
+) -> Result<(), PlotError> {
+    let any_point = lines.iter().any(|l| {
+        l.x.iter()
+            .zip(&l.y)
+            .any(|(x, y)| x.is_finite() && y.is_finite())
+    });
+    if !any_point {
+        return Err(PlotError::EmptyTrace {
+            path: path.to_path_buf(),
+        });
+    }
+    let series: Vec<Series> = lines
+        .iter()
+        .enumerate()
+        .map(|(i, l)| Series {
+            label: l.label.clone(),
+            x: &l.x,
+            y: l.y.clone(),
+            colour: colour(i),
+            width: 1,
+        })
+        .collect();
+    let draw = |root: DrawingArea<SVGBackend, Shift>| -> Result<(), String> {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let root = root
+            .titled(title, ("sans-serif", 22))
+            .map_err(|e| e.to_string())?;
+        panel(&root, "", x_desc, y_desc, &series)?;
+        root.present().map_err(|e| e.to_string())
+    };
+    draw(SVGBackend::new(path, (WIDTH, 560)).into_drawing_area()).map_err(|message| {
+        PlotError::Draw {
+            path: path.to_path_buf(),
+            message,
+        }
+    })
+}
+
+/// Writes an SVG of the cycles each core spent on each sample (one line per core, x in
+/// seconds at `sample_rate_hz`) with the per-sample deadline `deadline_cycles` as a
+/// horizontal line: a sample whose cycles rise above it missed the deadline.
+/// `cycles[c][i]` is core `c`'s cycle count for sample `i`.
+///
+/// # Errors
+///
+/// [`PlotError::EmptyTrace`] when no core has a sample, or [`PlotError::Draw`]; every error
+/// names `path`.
+pub fn plot_cycles_per_core(
+    cycles: &[Vec<u64>],
+    sample_rate_hz: f64,
+    deadline_cycles: u64,
+    title: &str,
+    path: &Path,
+) -> Result<(), PlotError> {
+    let samples = cycles.iter().map(Vec::len).max().unwrap_or(0);
+    if samples == 0 || !(sample_rate_hz > 0.0) {
+        return Err(PlotError::EmptyTrace {
+            path: path.to_path_buf(),
+        });
+    }
+    let mut lines: Vec<Line> = cycles
+        .iter()
+        .enumerate()
+        .map(|(c, v)| Line {
+            label: format!("core {c}"),
+            x: (0..v.len()).map(|i| i as f64 / sample_rate_hz).collect(),
+            y: v.iter().map(|&n| n as f64).collect(),
+        })
+        .collect();
+    let end = (samples - 1) as f64 / sample_rate_hz;
+    lines.push(Line {
+        label: format!("deadline ({deadline_cycles} cycles)"),
+        x: vec![0.0, end],
+        y: vec![deadline_cycles as f64; 2],
+    });
+    let path_buf = path.to_path_buf();
+    let series: Vec<Series> = lines
+        .iter()
+        .enumerate()
+        .map(|(i, l)| Series {
+            label: l.label.clone(),
+            x: &l.x,
+            y: l.y.clone(),
+            colour: if i + 1 == lines.len() {
+                RGBColor(214, 39, 40).to_rgba()
+            } else {
+                colour(i)
+            },
+            width: if i + 1 == lines.len() { 2 } else { 1 },
+        })
+        .collect();
+    let draw = |root: DrawingArea<SVGBackend, Shift>| -> Result<(), String> {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let root = root
+            .titled(title, ("sans-serif", 22))
+            .map_err(|e| e.to_string())?;
+        panel(&root, "cycles per sample", "time [s]", "cycles", &series)?;
+        root.present().map_err(|e| e.to_string())
+    };
+    draw(SVGBackend::new(path, (WIDTH, 560)).into_drawing_area())
+        .map_err(|message| PlotError::Draw {
+            path: path_buf,
+            message,
+        })
+}
+
 /// The factor and unit to show an SI quantity in: metres as millimetres, seconds as
 /// milliseconds, anything else as it is.
 pub fn display_unit(si_unit: &str) -> (f64, &str) {
@@ -640,5 +771,47 @@ mod tests {
         let points: usize = runs.iter().map(Vec::len).sum();
         assert!(points <= MAX_POINTS_PER_SERIES, "{points} points");
         assert!(runs.iter().flatten().any(|&p| p == (54_321.0, 7.0)));
+    }
+
+    #[test]
+    fn plot_lines_and_cycles_per_core() {
+        let path = temp_svg("lines");
+        let lines = vec![
+            Line {
+                label: "key 60".into(),
+                x: vec![0.0, 1.0, 2.0],
+                y: vec![0.5, 3.0, 0.2],
+            },
+            Line {
+                label: "key 64".into(),
+                x: vec![0.5, 1.5],
+                y: vec![1.0, f64::NAN],
+            },
+        ];
+        plot_lines(&lines, "passage", "time [s]", "force [N]", &path).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        for label in ["passage", "key 60", "key 64", "force [N]", "time [s]"] {
+            assert!(svg.contains(label), "SVG lacks `{label}`");
+        }
+        let e = plot_lines(&[], "x", "t", "y", &path).unwrap_err();
+        assert!(matches!(e, PlotError::EmptyTrace { .. }), "{e}");
+
+        // Synthetic cycle counts: core 0 under the deadline, core 1 over it once.
+        let fs = 44_100.0;
+        let core0: Vec<u64> = (0..10_000).map(|i| 1500 + (i % 7) as u64 * 10).collect();
+        let mut core1: Vec<u64> = (0..10_000).map(|i| 2000 + (i % 5) as u64 * 20).collect();
+        core1[5000] = 3400;
+        let cpath = temp_svg("cycles");
+        plot_cycles_per_core(&[core0, core1], fs, 2834, "budget", &cpath).unwrap();
+        let svg = std::fs::read_to_string(&cpath).unwrap();
+        std::fs::remove_file(&cpath).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        for label in ["core 0", "core 1", "deadline (2834 cycles)", "cycles", "budget"] {
+            assert!(svg.contains(label), "SVG lacks `{label}`");
+        }
+        // One polyline per core and one for the deadline.
+        assert!(svg.matches("<polyline").count() >= 3, "too few lines");
+        let e = plot_cycles_per_core(&[], fs, 100, "x", &cpath).unwrap_err();
+        assert!(matches!(e, PlotError::EmptyTrace { .. }), "{e}");
     }
 }
