@@ -128,7 +128,10 @@ struct HostKey<'a> {
 }
 
 impl<'a> HostKey<'a> {
-    fn new(program: &'a tactus_compiler::ir::Program, jit: Option<&'a tactus_jit::JitProgram>) -> Self {
+    fn new(
+        program: &'a tactus_compiler::ir::Program,
+        jit: Option<&'a tactus_jit::JitProgram>,
+    ) -> Self {
         HostKey {
             jit: jit.map(tactus_jit::JitInstance::new),
             interp: tactus_compiler::interp::Instance::new(program),
@@ -344,8 +347,12 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     // One job per played key.
     let mut jobs = Vec::new();
     for &key in key_program.keys() {
-        let notes: Vec<performance::Note> =
-            perf.notes.iter().filter(|n| n.key == key).copied().collect();
+        let notes: Vec<performance::Note> = perf
+            .notes
+            .iter()
+            .filter(|n| n.key == key)
+            .copied()
+            .collect();
         let (motion, start_s, end_s) = match args.player {
             Player::Position => {
                 let track = performance::key_tracks(
@@ -363,10 +370,16 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                 (Motion::Track(track), first, end)
             }
             Player::Force => {
-                let cal = calibrations[key_program[&key]].as_ref().expect("calibrated");
+                let cal = calibrations[key_program[&key]]
+                    .as_ref()
+                    .expect("calibrated");
                 let profile = finger_profile(&notes, cal, finger);
                 let first = profile.strokes().first().map_or(0.0, |s| s.start_s);
-                let end = profile.strokes().iter().map(|s| s.lift_s).fold(0.0, f64::max);
+                let end = profile
+                    .strokes()
+                    .iter()
+                    .map(|s| s.lift_s)
+                    .fold(0.0, f64::max);
                 (Motion::Finger(profile), first, end)
             }
         };
@@ -382,7 +395,9 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let traced: BTreeSet<u8> = args.trace_keys.iter().copied().collect();
     for k in &traced {
         if !key_program.contains_key(k) {
-            eprintln!("warning: traced key {k} is never played: it stays at rest, no trace written");
+            eprintln!(
+                "warning: traced key {k} is never played: it stays at rest, no trace written"
+            );
         }
     }
     let trace_to = args.trace_to.unwrap_or(f64::INFINITY);
@@ -497,6 +512,36 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         audio_s,
         peak_memory().map_or("unknown".to_string(), |kb| format!("{:.1} MB", kb as f64 / 1024.0)),
     );
+    if args.player == Player::Force {
+        // What the finger can do on each instrument, and how many notes asked for more.
+        for (pi, cal) in calibrations.iter().enumerate() {
+            let Some(cal) = cal else { continue };
+            let l = cal.levels();
+            let (lo, hi) = (l[0].2, l[l.len() - 1].2);
+            let outside = perf
+                .notes
+                .iter()
+                .filter(|n| key_program.get(&n.key) == Some(&pi))
+                .filter(|n| {
+                    let v = speed_for_velocity(n.velocity);
+                    // Half a MIDI velocity step of slack: the ends are measured, not exact.
+                    v < lo * 0.985 || v > hi * 1.015
+                })
+                .count();
+            println!(
+                "  force player on `{}`: finger pushes {:.2}–{:.1} N give hammer speeds {:.2}–{:.2} m/s (MIDI {}–{}); {} note{} outside that range played at its nearest end",
+                programs[pi].0,
+                l[0].0,
+                l[l.len() - 1].0,
+                lo,
+                hi,
+                midi_velocity(lo),
+                midi_velocity(hi),
+                outside,
+                if outside == 1 { "" } else { "s" },
+            );
+        }
+    }
     for w in &wrote {
         println!("  wrote {}", w.display());
     }
@@ -546,7 +591,11 @@ fn calibrate<E: KeyEngine>(
 /// velocity ([`speed_for_velocity`]) with the calibrated force, starts the calibrated lead
 /// before its note-on, pushes until 10 ms after the note-on, holds until the note-off and
 /// lifts then — or [`RISE_GAP_S`] before the next stroke, if that comes sooner.
-fn finger_profile(notes: &[performance::Note], cal: &Calibration, finger: FingerConfig) -> ForceProfile {
+fn finger_profile(
+    notes: &[performance::Note],
+    cal: &Calibration,
+    finger: FingerConfig,
+) -> ForceProfile {
     let mut strokes: Vec<Stroke> = notes
         .iter()
         .map(|n| {
@@ -595,7 +644,10 @@ fn write_wav(path: &Path, strikes: &[Strike], perf: &Performance, fs: f64) -> Re
             ),
         })
         .collect();
-    let last = strikes.iter().map(|s| s.time_s).fold(perf.duration_s, f64::max);
+    let last = strikes
+        .iter()
+        .map(|s| s.time_s)
+        .fold(perf.duration_s, f64::max);
     let samples = voice::render(&notes, last + 2.0, fs);
     let pcm = voice::normalise_i16(&samples, 0.9);
     let spec = hound::WavSpec {
@@ -615,16 +667,27 @@ fn write_wav(path: &Path, strikes: &[Strike], perf: &Performance, fs: f64) -> Re
 /// Writes one CSV per traced key (`STEM-key<K>.csv`: time_s, key_travel_m, force_n,
 /// hammer_pos_m, finger_force_n) and the plots `STEM-force.svg` (instrument force vs time)
 /// and `STEM-hammer.svg` (hammer position vs time); returns the files written.
-fn write_traces(out: &Path, stem: &str, traces: &BTreeMap<u8, TraceRows>) -> Result<Vec<PathBuf>, String> {
+fn write_traces(
+    out: &Path,
+    stem: &str,
+    traces: &BTreeMap<u8, TraceRows>,
+) -> Result<Vec<PathBuf>, String> {
     let mut wrote = Vec::new();
     for (key, rows) in traces {
         let path = out.join(format!("{stem}-key{key}.csv"));
         let err = |e: csv::Error| format!("{}: {e}", path.display());
         let mut w = csv::Writer::from_path(&path).map_err(err)?;
-        w.write_record(["time_s", "key_travel_m", "force_n", "hammer_pos_m", "finger_force_n"])
-            .map_err(err)?;
+        w.write_record([
+            "time_s",
+            "key_travel_m",
+            "force_n",
+            "hammer_pos_m",
+            "finger_force_n",
+        ])
+        .map_err(err)?;
         for r in rows {
-            w.write_record(r.iter().map(|v| v.to_string())).map_err(err)?;
+            w.write_record(r.iter().map(|v| v.to_string()))
+                .map_err(err)?;
         }
         w.flush().map_err(|e| format!("{}: {e}", path.display()))?;
         wrote.push(path);
@@ -650,7 +713,10 @@ fn write_traces(out: &Path, stem: &str, traces: &BTreeMap<u8, TraceRows>) -> Res
     .map_err(|e| e.to_string())?;
     wrote.push(force);
     let hammer_lines = lines(3, 1e3);
-    if hammer_lines.iter().any(|l| l.y.iter().any(|v| v.is_finite())) {
+    if hammer_lines
+        .iter()
+        .any(|l| l.y.iter().any(|v| v.is_finite()))
+    {
         let hammer = out.join(format!("{stem}-hammer.svg"));
         plot::plot_lines(
             &hammer_lines,

@@ -413,11 +413,12 @@ pub fn plot_cycles_per_core(
         panel(&root, "cycles per sample", "time [s]", "cycles", &series)?;
         root.present().map_err(|e| e.to_string())
     };
-    draw(SVGBackend::new(path, (WIDTH, 560)).into_drawing_area())
-        .map_err(|message| PlotError::Draw {
+    draw(SVGBackend::new(path, (WIDTH, 560)).into_drawing_area()).map_err(|message| {
+        PlotError::Draw {
             path: path_buf,
             message,
-        })
+        }
+    })
 }
 
 /// The factor and unit to show an SI quantity in: metres as millimetres, seconds as
@@ -806,7 +807,13 @@ mod tests {
         let svg = std::fs::read_to_string(&cpath).unwrap();
         std::fs::remove_file(&cpath).unwrap();
         std::fs::remove_file(&path).unwrap();
-        for label in ["core 0", "core 1", "deadline (2834 cycles)", "cycles", "budget"] {
+        for label in [
+            "core 0",
+            "core 1",
+            "deadline (2834 cycles)",
+            "cycles",
+            "budget",
+        ] {
             assert!(svg.contains(label), "SVG lacks `{label}`");
         }
         // One polyline per core and one for the deadline.

@@ -214,13 +214,28 @@ fn write_midi(path: &Path, notes: &[(u8, u8, f64, f64)], pedal: &[(f64, bool)]) 
     let tick = |t: f64| (t * 960.0).round() as u64;
     let mut evs: Vec<(u64, MidiMessage)> = Vec::new();
     for &(key, vel, on, off) in notes {
-        evs.push((tick(on), MidiMessage::NoteOn { key: u7::new(key), vel: u7::new(vel) }));
-        evs.push((tick(off), MidiMessage::NoteOff { key: u7::new(key), vel: u7::new(0) }));
+        evs.push((
+            tick(on),
+            MidiMessage::NoteOn {
+                key: u7::new(key),
+                vel: u7::new(vel),
+            },
+        ));
+        evs.push((
+            tick(off),
+            MidiMessage::NoteOff {
+                key: u7::new(key),
+                vel: u7::new(0),
+            },
+        ));
     }
     for &(t, down) in pedal {
         evs.push((
             tick(t),
-            MidiMessage::Controller { controller: u7::new(64), value: u7::new(if down { 127 } else { 0 }) },
+            MidiMessage::Controller {
+                controller: u7::new(64),
+                value: u7::new(if down { 127 } else { 0 }),
+            },
         ));
     }
     evs.sort_by_key(|e| e.0);
@@ -230,13 +245,25 @@ fn write_midi(path: &Path, notes: &[(u8, u8, f64, f64)], pedal: &[(f64, bool)]) 
         .map(|(t, message)| {
             let delta = u28::new((t - last) as u32);
             last = t;
-            TrackEvent { delta, kind: TrackEventKind::Midi { channel: u4::new(0), message } }
+            TrackEvent {
+                delta,
+                kind: TrackEventKind::Midi {
+                    channel: u4::new(0),
+                    message,
+                },
+            }
         })
         .collect();
-    track.push(TrackEvent { delta: u28::new(0), kind: TrackEventKind::Meta(midly::MetaMessage::EndOfTrack) });
-    Smf { header: Header::new(Format::SingleTrack, Timing::Metrical(u15::new(480))), tracks: vec![track] }
-        .save(path)
-        .unwrap();
+    track.push(TrackEvent {
+        delta: u28::new(0),
+        kind: TrackEventKind::Meta(midly::MetaMessage::EndOfTrack),
+    });
+    Smf {
+        header: Header::new(Format::SingleTrack, Timing::Metrical(u15::new(480))),
+        tracks: vec![track],
+    }
+    .save(path)
+    .unwrap();
 }
 
 #[test]
@@ -256,11 +283,20 @@ fn malformed_and_empty_midi_files_are_clear_errors_naming_the_file() {
         (&silent, "no notes"),
         (&missing, "cannot read"),
     ] {
-        let out = tactus().arg("play").arg(f).arg("--out").arg(&dir).output().unwrap();
+        let out = tactus()
+            .arg("play")
+            .arg(f)
+            .arg("--out")
+            .arg(&dir)
+            .output()
+            .unwrap();
         assert_eq!(out.status.code(), Some(1), "{}", f.display());
         let err = String::from_utf8_lossy(&out.stderr);
         let name = f.file_name().unwrap().to_string_lossy();
-        assert!(err.contains(&*name) && err.contains(what) && !err.contains("panicked"), "{err}");
+        assert!(
+            err.contains(&*name) && err.contains(what) && !err.contains("panicked"),
+            "{err}"
+        );
     }
 }
 
@@ -269,14 +305,30 @@ fn notes_outside_the_layout_are_reported_counted_and_skipped() {
     let dir = temp_dir("play-outside");
     let f = dir.join("outside.mid");
     // Key 10 and key 120 are on no key of an 88-key piano (21–108).
-    write_midi(&f, &[(60, 80, 0.3, 0.6), (10, 80, 0.5, 0.8), (120, 90, 0.7, 0.9)], &[]);
-    let out = tactus().arg("play").arg(&f).args(["--no-wav", "--out"]).arg(&dir).output().unwrap();
+    write_midi(
+        &f,
+        &[(60, 80, 0.3, 0.6), (10, 80, 0.5, 0.8), (120, 90, 0.7, 0.9)],
+        &[],
+    );
+    let out = tactus()
+        .arg("play")
+        .arg(&f)
+        .args(["--no-wav", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
     assert_ok(&out);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("note 10 at 0.500 s is on no key of the layout: skipped"), "{err}");
+    assert!(
+        err.contains("note 10 at 0.500 s is on no key of the layout: skipped"),
+        "{err}"
+    );
     assert!(err.contains("note 120 at 0.700 s"), "{err}");
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("2 notes outside the layout skipped"), "{stdout}");
+    assert!(
+        stdout.contains("2 notes outside the layout skipped"),
+        "{stdout}"
+    );
     let rows = strikes(&dir.join("outside-strikes.csv"));
     assert_eq!(rows.len(), 1, "{rows:?}");
     assert_eq!(rows[0].0, 60);
@@ -307,10 +359,19 @@ fn the_wav_is_normalised_follows_dynamics_and_the_pedal_holds_the_sound() {
         &[(60, 35, 0.5, 0.8), (67, 110, 1.2, 1.5), (64, 90, 2.1, 2.3)],
         &[(2.0, true), (3.5, false)],
     );
-    let out = tactus().arg("play").arg(&f).arg("--out").arg(&dir).output().unwrap();
+    let out = tactus()
+        .arg("play")
+        .arg(&f)
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
     assert_ok(&out);
     let (spec, x) = read_wav(&dir.join("wav.wav"));
-    assert_eq!((spec.channels, spec.sample_rate, spec.bits_per_sample), (1, 44_100, 16));
+    assert_eq!(
+        (spec.channels, spec.sample_rate, spec.bits_per_sample),
+        (1, 44_100, 16)
+    );
     let peak = x.iter().map(|v| i32::from(*v).abs()).max().unwrap();
     assert!(peak > 20_000 && peak < 32_767, "peak {peak}");
     assert_eq!(rms(&x, 0.0, 0.4), 0.0, "sound before the first strike");
@@ -321,7 +382,10 @@ fn the_wav_is_normalised_follows_dynamics_and_the_pedal_holds_the_sound() {
     // … but the pedal holds the third note well past its note-off (2.3 s) until 3.5 s.
     let held = rms(&x, 3.0, 3.4);
     assert!(held > 0.1 * rms(&x, 2.1, 2.3), "held {held}");
-    assert!(rms(&x, 4.0, 4.2) < 0.05 * held, "not damped at the pedal release");
+    assert!(
+        rms(&x, 4.0, 4.2) < 0.05 * held,
+        "not damped at the pedal release"
+    );
 }
 
 /// The grand piano, compiled.
@@ -330,20 +394,34 @@ fn grand_piano() -> tactus_compiler::ir::Program {
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("instruments/grand_piano.tactus"),
     )
     .unwrap();
-    tactus_compiler::compile(&src, &Default::default()).unwrap().program
+    tactus_compiler::compile(&src, &Default::default())
+        .unwrap()
+        .program
 }
 
 /// One closed-loop stroke of peak force `peak` (N) from 10 ms, held until 0.3 s and lifted:
 /// (time the key first reaches the bottom s, first strike's hammer speed m/s, key travel
 /// per sample).
-fn closed_loop(program: &tactus_compiler::ir::Program, peak: f64) -> (Option<f64>, Option<f64>, Vec<f64>) {
+fn closed_loop(
+    program: &tactus_compiler::ir::Program,
+    peak: f64,
+) -> (Option<f64>, Option<f64>, Vec<f64>) {
     let fs = program.sample_rate_hz;
     let dip = program.sensors[0].range.1;
-    let strike = program.events.iter().position(|e| e.name == "strike").unwrap();
+    let strike = program
+        .events
+        .iter()
+        .position(|e| e.name == "strike")
+        .unwrap();
     let finger = FingerConfig::default();
     let profile = ForceProfile::new(
         finger,
-        vec![Stroke { start_s: 0.01, peak_n: peak, push_end_s: 0.3, lift_s: 0.3 }],
+        vec![Stroke {
+            start_s: 0.01,
+            peak_n: peak,
+            push_end_s: 0.3,
+            lift_s: 0.3,
+        }],
     );
     let mut inst = tactus_compiler::interp::Instance::new(program);
     let mut key = ForcePlayer::new(dip, finger.mass_kg, fs);
@@ -358,7 +436,11 @@ fn closed_loop(program: &tactus_compiler::ir::Program, peak: f64) -> (Option<f64
         }
         let out = inst.step(&[x]);
         if speed.is_none() {
-            speed = out.events.iter().find(|e| e.0.index() == strike).map(|e| e.1[0]);
+            speed = out
+                .events
+                .iter()
+                .find(|e| e.0.index() == strike)
+                .map(|e| e.1[0]);
         }
         key.step(profile.force(t), out.total);
     }
@@ -371,18 +453,28 @@ fn force_player_a_stronger_finger_descends_faster_and_strikes_harder_then_the_ke
     let fs = program.sample_rate_hz;
     let (b_soft, v_soft, x_soft) = closed_loop(&program, 1.5);
     let (b_hard, v_hard, x_hard) = closed_loop(&program, 6.0);
-    let (b_soft, b_hard) = (b_soft.expect("soft press bottoms"), b_hard.expect("hard press bottoms"));
+    let (b_soft, b_hard) = (
+        b_soft.expect("soft press bottoms"),
+        b_hard.expect("hard press bottoms"),
+    );
     let (v_soft, v_hard) = (v_soft.expect("soft strike"), v_hard.expect("hard strike"));
     eprintln!("1.5 N: bottom at {b_soft:.4} s, hammer {v_soft:.3} m/s; 6 N: {b_hard:.4} s, {v_hard:.3} m/s");
     assert!(b_hard < b_soft, "descent: 6 N {b_hard} s, 1.5 N {b_soft} s");
-    assert!(v_hard > 1.5 * v_soft, "hammer: 6 N {v_hard} m/s, 1.5 N {v_soft} m/s");
+    assert!(
+        v_hard > 1.5 * v_soft,
+        "hammer: 6 N {v_hard} m/s, 1.5 N {v_soft} m/s"
+    );
     // The instrument's force shapes the motion: against a free mass the 6 N push would bottom
     // the 10 mm dip in sqrt(2·dip·m/F) ≈ 10 ms; the hammer and the weight slow it.
     let free = (2.0 * 0.010 * FingerConfig::default().mass_kg / 6.0).sqrt();
     assert!(b_hard - 0.01 > 1.5 * free, "{b_hard} vs free fall {free}");
     // Finger lifted at 0.3 s: the instrument's weight term brings both keys back up.
     for x in [&x_soft, &x_hard] {
-        assert_eq!(x[(0.29 * fs) as usize], program.sensors[0].range.1, "not held down");
+        assert_eq!(
+            x[(0.29 * fs) as usize],
+            program.sensors[0].range.1,
+            "not held down"
+        );
         assert_eq!(*x.last().unwrap(), 0.0, "the key did not return");
         assert!(x.iter().all(|&v| (0.0..=0.010).contains(&v)));
     }
@@ -392,7 +484,16 @@ fn force_player_a_stronger_finger_descends_faster_and_strikes_harder_then_the_ke
 fn force_player_plays_the_demo_with_traces_and_plots() {
     let dir = temp_dir("play-force");
     let out = tactus()
-        .args(["play", "--player", "force", "--seconds", "3", "--trace-keys", "60,64,99", "--out"])
+        .args([
+            "play",
+            "--player",
+            "force",
+            "--seconds",
+            "3",
+            "--trace-keys",
+            "60,64,99",
+            "--out",
+        ])
         .arg(&dir)
         .output()
         .unwrap();
@@ -403,8 +504,16 @@ fn force_player_plays_the_demo_with_traces_and_plots() {
     let perf = tactus_runtime::performance::demo();
     let notes: Vec<_> = perf.notes.iter().filter(|n| n.on_s < 3.0).collect();
     let answered = rows.iter().filter(|r| r.3.is_some()).count();
-    eprintln!("force player, demo 3 s: {} notes, {} strikes, {answered} answer a note", notes.len(), rows.len());
-    assert!(answered * 10 >= notes.len() * 9, "{answered} of {} notes answered", notes.len());
+    eprintln!(
+        "force player, demo 3 s: {} notes, {} strikes, {answered} answer a note",
+        notes.len(),
+        rows.len()
+    );
+    assert!(
+        answered * 10 >= notes.len() * 9,
+        "{answered} of {} notes answered",
+        notes.len()
+    );
     // Traces: the key moves between the stops, the finger pushes, the hammer flies.
     for key in [60, 64] {
         let mut r = csv::Reader::from_path(dir.join(format!("demo-key{key}.csv"))).unwrap();
@@ -423,4 +532,65 @@ fn force_player_plays_the_demo_with_traces_and_plots() {
         let s = std::fs::read_to_string(dir.join(svg)).unwrap();
         assert!(s.contains("key 60") && s.contains("key 64"), "{svg}");
     }
+}
+
+#[test]
+fn maestro_1_first_20_s_with_the_force_player() {
+    let midi =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/performances/Maestro_1.mid");
+    if !midi.exists() {
+        eprintln!(
+            "SKIPPED: {} is absent (the shared data folder must sit beside the repository)",
+            midi.display()
+        );
+        return;
+    }
+    let dir = temp_dir("play-maestro-force");
+    let out = tactus()
+        .arg("play")
+        .arg(&midi)
+        .args(["--seconds", "20", "--player", "force", "--no-wav", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // The calibrated range, "(MIDI lo–hi)": notes inside it are aimed at their velocity.
+    let range = stdout.split("(MIDI ").nth(1).expect("calibration line");
+    let range: Vec<u8> = range
+        .split(')')
+        .next()
+        .unwrap()
+        .split('–')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let rows = strikes(&dir.join("Maestro_1-strikes.csv"));
+    let perf = read_midi(&midi).unwrap();
+    let notes: Vec<_> = perf.notes.iter().filter(|n| n.on_s < 20.0).collect();
+    let (mut vin, mut vout) = (Vec::new(), Vec::new());
+    for n in &notes {
+        let hits: Vec<_> = rows
+            .iter()
+            .filter(|s| s.0 == n.key && (s.1 - n.on_s).abs() <= 0.050)
+            .collect();
+        assert_eq!(hits.len(), 1, "note {} at {:.3} s", n.key, n.on_s);
+        if (range[0]..=range[1]).contains(&n.velocity) {
+            vin.push(n.velocity as f64);
+            vout.push(hits[0].2);
+        }
+    }
+    assert_eq!(rows.len(), notes.len());
+    assert!(
+        vin.len() * 3 >= notes.len(),
+        "{} notes in range {range:?}",
+        vin.len()
+    );
+    let rho = spearman(&vin, &vout);
+    eprintln!(
+        "Maestro_1, 20 s, force player: {} strikes for {} notes; Spearman {rho:.4} over the {} notes within MIDI {range:?}",
+        rows.len(),
+        notes.len(),
+        vin.len()
+    );
+    assert!(rho >= 0.9, "Spearman rank correlation {rho}");
 }

@@ -330,7 +330,10 @@ mod tests {
         .unwrap();
         assert_eq!(c.levels().len(), 3);
         let (f, lead) = c.for_speed(1.0);
-        assert!(f > 1.0 && f < 2.0 && lead > 0.05 && lead < 0.10, "{f} {lead}");
+        assert!(
+            f > 1.0 && f < 2.0 && lead > 0.05 && lead < 0.10,
+            "{f} {lead}"
+        );
         assert_eq!(c.for_speed(100.0), (4.0, 0.03));
         assert_eq!(c.for_speed(0.0), (1.0, 0.10));
         assert!(Calibration::new(vec![(1.0, 0.1, 0.5)]).is_none());

@@ -195,7 +195,10 @@ mod tests {
         // The fundamental is there: zero crossings ≈ 2·f0 per second (partials above it are
         // weaker for a soft blow).
         let w = &soft[(0.2 * FS) as usize..(0.7 * FS) as usize];
-        let crossings = w.windows(2).filter(|p| (p[0] < 0.0) != (p[1] < 0.0)).count();
+        let crossings = w
+            .windows(2)
+            .filter(|p| (p[0] < 0.0) != (p[1] < 0.0))
+            .count();
         let f0 = fundamental_hz(60);
         assert!(
             (crossings as f64 / 0.5 - 2.0 * f0).abs() < 0.25 * 2.0 * f0,
