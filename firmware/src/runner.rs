@@ -4,7 +4,8 @@
 //! The runner owns a [`Board`] with the code loaded, allocates the state struct, the sensor
 //! words and the out words in SRAM after the code, runs `init`, and then per sample writes
 //! the raw sensor words, calls `update` on core 0 with [`Board::call`] and reads back the out
-//! words, the states and the modes. The stack is just below [`CALL_STUB`] (the top of SRAM).
+//! words, the states and the modes. The stack is just below the page of [`CALL_STUB`] (the
+//! top of SRAM).
 //! Each buffer is followed by guard words that the runner checks after every call, so code
 //! that writes past the interface is caught.
 //!
@@ -17,7 +18,13 @@
 use crate::layout::Interface;
 use std::fmt;
 use tactus_emulator::board::StopReason;
-use tactus_emulator::{Board, CallError, Config, EmuError, CALL_STUB, SENSOR_BASE};
+use tactus_emulator::bus::sram_location;
+use tactus_emulator::{
+    cycles, Board, CallError, CallResult, Config, EmuError, Instr, CALL_STUB, SENSOR_BASE,
+};
+
+/// The return stub [`Board::call`] writes at [`CALL_STUB`]: `SVC #0xCA; BKPT`.
+const STUB: [u8; 4] = [0xca, 0xdf, 0x00, 0xbe];
 
 /// Cycles a `BL` costs the caller (Cortex-M0+ TRM 3.3), added to every measured call.
 pub const BL_CYCLES: u64 = 3;
@@ -29,8 +36,10 @@ pub const SRAM_BASE: u32 = 0x2000_0000;
 /// of the board start here.
 pub const DATA_LIMIT: u32 = SENSOR_BASE;
 
-/// Initial stack pointer of every call: 8-aligned, just below the call stub.
-pub const STACK_TOP: u32 = CALL_STUB & !7;
+/// Initial stack pointer of every call: just below the 256-byte page holding the call stub
+/// at [`CALL_STUB`]. Not in the stub's page: the emulator tracks executed code per page and
+/// empties its decode cache on a store into such a page, which every `PUSH` would then do.
+pub const STACK_TOP: u32 = CALL_STUB & !0xff;
 
 /// Bytes reserved for the stack below [`STACK_TOP`]; code and buffers must stay below it.
 pub const STACK_BYTES: u32 = 4096;
@@ -78,7 +87,8 @@ pub enum RunError {
         function: String,
         /// Why the board stopped.
         reason: StopReason,
-        /// The core's PC when it stopped.
+        /// The address of the faulting instruction for a fault or a lockup, else the core's
+        /// PC when it stopped.
         pc: u32,
     },
     /// The called function wrote beyond one of its buffers (a guard word changed).
@@ -233,7 +243,9 @@ impl UpdateRunner {
     ) -> Result<Self, RunError> {
         let up = |x: u32| x.div_ceil(16) * 16;
         let guard = 4 * GUARD_WORDS as u32;
-        let state_addr = up(code_end);
+        // A page of its own (the emulator tracks code per 256-byte page): host writes of
+        // sensor words then never invalidate the decode cache.
+        let state_addr = code_end.div_ceil(256) * 256;
         let sensors_addr = up(state_addr + iface.state.size as u32 + guard);
         let out_addr = up(sensors_addr + 4 * iface.sensors.max(1) as u32 + guard);
         let end = out_addr + 4 * iface.out_len as u32 + guard;
@@ -327,7 +339,7 @@ impl UpdateRunner {
         self.scratch.clear();
         self.scratch
             .extend(sensors.iter().flat_map(|w| w.to_le_bytes()));
-        self.board.write_bytes(self.sensors_addr, &self.scratch)?;
+        poke(&mut self.board, self.sensors_addr, &self.scratch)?;
         let cycles = self.call(
             self.update,
             &[self.state_addr, self.sensors_addr, self.out_addr],
@@ -374,7 +386,12 @@ impl UpdateRunner {
     }
 
     fn call(&mut self, addr: u32, args: &[u32]) -> Result<u64, RunError> {
-        match self.board.call(0, addr, args, STACK_TOP, self.limit) {
+        let result = if self.stub_ready() {
+            self.call_again(addr, args)
+        } else {
+            self.board.call(0, addr, args, STACK_TOP, self.limit)
+        };
+        match result {
             Ok(r) => Ok(r.cycles + BL_CYCLES),
             Err(CallError::Stopped { reason, pc }) => Err(RunError::Call {
                 function: if addr == self.init {
@@ -383,10 +400,65 @@ impl UpdateRunner {
                     self.iface.update_symbol()
                 },
                 reason,
-                pc,
+                pc: match reason {
+                    // The faulting instruction, not the HardFault handler's address.
+                    StopReason::Fault { fault, .. } | StopReason::Lockup { fault, .. } => fault.pc,
+                    _ => pc,
+                },
             }),
             Err(CallError::Emu(e)) => Err(RunError::Emu(e)),
         }
+    }
+
+    /// True when the return stub [`Board::call`] wrote is still in place.
+    fn stub_ready(&mut self) -> bool {
+        let mut b = [0; 4];
+        self.board.read_bytes(CALL_STUB, &mut b).is_ok() && b == STUB
+    }
+
+    /// [`Board::call`] without rewriting its return stub (already in place): `Board::call`
+    /// writes the stub with [`Board::write_bytes`], which empties the emulator's decode
+    /// cache, so every call would decode the whole function again (about 2/3 of the host
+    /// time per sample). Same registers, same stop condition, same cycle count; the test
+    /// `repeated_calls_agree_with_board_call` checks that.
+    fn call_again(&mut self, addr: u32, args: &[u32]) -> Result<CallResult, CallError> {
+        let halts = std::mem::replace(&mut self.board.config.svc_halts, true);
+        let c = &mut self.board.cores[0];
+        c.reset_to(addr | 1, STACK_TOP);
+        for (i, a) in args.iter().take(4).enumerate() {
+            c.r[i] = *a;
+        }
+        c.r[14] = CALL_STUB | 1;
+        let start = c.cycle;
+        let stop = self.board.run_until(start.saturating_add(self.limit));
+        self.board.config.svc_halts = halts;
+        let c = &self.board.cores[0];
+        match stop {
+            StopReason::Svc { core: 0, imm } if imm == STUB[0] => Ok(CallResult {
+                r0: c.r[0],
+                r1: c.r[1],
+                cycles: c.cycle - start - cycles(&Instr::Svc { imm }, false, false) as u64,
+            }),
+            reason => Err(CallError::Stopped {
+                reason,
+                pc: c.r[15],
+            }),
+        }
+    }
+
+    /// Calls `addr` always through [`Board::call`] (which rewrites its stub), for tests of
+    /// the fast path; returns the cycles including [`BL_CYCLES`].
+    #[doc(hidden)]
+    pub fn call_via_board(&mut self, addr: u32, args: &[u32]) -> Result<u64, CallError> {
+        self.board
+            .call(0, addr, args, STACK_TOP, self.limit)
+            .map(|r| r.cycles + BL_CYCLES)
+    }
+
+    /// The sensor and out buffer addresses (for tests that call the update directly).
+    #[doc(hidden)]
+    pub fn buffers(&self) -> (u32, u32) {
+        (self.sensors_addr, self.out_addr)
     }
 
     fn write_guard(&mut self, addr: u32) -> Result<(), RunError> {
@@ -412,4 +484,26 @@ impl UpdateRunner {
         }
         Ok(())
     }
+}
+
+/// Writes data bytes into SRAM as a DMA would. Unlike [`Board::write_bytes`], it leaves the
+/// emulator's decode cache alone unless the bytes land in a page that holds cached code
+/// (the runner's buffers never do), which keeps per-sample host writes cheap.
+fn poke(board: &mut Board, addr: u32, data: &[u8]) -> Result<(), EmuError> {
+    let end = addr.wrapping_add(data.len() as u32);
+    let code = (addr..end).step_by(256).chain(end.checked_sub(1)).any(|a| {
+        sram_location(a).is_none_or(|(off, _)| {
+            board.system.code_pages.get(off / 256).copied().unwrap_or(true)
+        })
+    });
+    let linear = matches!(
+        (sram_location(addr), end.checked_sub(1).and_then(sram_location)),
+        (Some((a, _)), Some((b, _))) if b + 1 - a == data.len() && a == (addr - SRAM_BASE) as usize
+    );
+    if code || !linear || data.is_empty() {
+        return board.write_bytes(addr, data);
+    }
+    let off = (addr - SRAM_BASE) as usize;
+    board.system.sram[off..off + data.len()].copy_from_slice(data);
+    Ok(())
 }
