@@ -29,3 +29,4 @@ pub fn compile(source: &str, config: &lower::Config) -> Result<lower::Lowered, V
 }
 pub mod cgen;
 pub mod fixed;
+pub mod thumb;

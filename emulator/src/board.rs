@@ -357,6 +357,18 @@ impl Board {
         Ok(())
     }
 
+    /// Writes data bytes without cycles and without invalidating decoded code: for buffers
+    /// the host refills often (sensor words, arguments). The caller guarantees that no
+    /// instruction lives in the range (else the core may run stale code).
+    pub fn write_data(&mut self, addr: u32, data: &[u8]) -> Result<(), EmuError> {
+        for (i, b) in data.iter().enumerate() {
+            let a = addr.wrapping_add(i as u32);
+            let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
+            mem[off] = *b;
+        }
+        Ok(())
+    }
+
     /// Reads a little-endian word (host access).
     pub fn read_u32(&mut self, addr: u32) -> Result<u32, EmuError> {
         let mut b = [0; 4];

@@ -63,6 +63,57 @@ pub struct EmitSite {
     pub offset: usize,
 }
 
+/// Byte offsets of the fields of `struct tactus_<name>_state` as a C compiler for a 32-bit
+/// target with natural alignment lays it out (`int32_t` 4-aligned, `uint8_t` unaligned;
+/// every array at least one element). The Thumb backend uses the same layout, so one header
+/// describes both.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StateLayout {
+    /// `int32_t states[]`.
+    pub states: usize,
+    /// `uint8_t modes[]`.
+    pub modes: usize,
+    /// `uint8_t edges[]`.
+    pub edges: usize,
+    /// `int32_t hist[][2N+1]`.
+    pub hist: usize,
+    /// `uint8_t hist_pos[]`.
+    pub hist_pos: usize,
+    /// `uint8_t hist_primed[]`.
+    pub hist_primed: usize,
+    /// `int32_t published[]`.
+    pub published: usize,
+    /// `sizeof` the struct, bytes (a multiple of 4).
+    pub size: usize,
+}
+
+impl StateLayout {
+    /// The layout for a program.
+    pub fn new(p: &Program) -> Self {
+        let align4 = |x: usize| (x + 3) & !3;
+        let n = |k: usize| k.max(1);
+        let nh = p.sensors.iter().filter(|s| s.differentiated).count();
+        let states = 0;
+        let modes = states + 4 * n(p.states.len());
+        let edges = modes + n(p.modes.len());
+        let hist = align4(edges + n(p.edges.len()));
+        let hist_pos = hist + 4 * (2 * WINDOW + 1) * n(nh);
+        let hist_primed = hist_pos + n(nh);
+        let published = align4(hist_primed + n(nh));
+        let size = published + 4 * (p.forces.len() + 1 + p.outputs.len());
+        StateLayout {
+            states,
+            modes,
+            edges,
+            hist,
+            hist_pos,
+            hist_primed,
+            published,
+            size,
+        }
+    }
+}
+
 /// What the generated code is annotated with.
 #[derive(Clone, Debug, Default)]
 pub struct CConfig {
@@ -117,6 +168,42 @@ pub fn emit_c(fp: &FixedProgram) -> Result<CSource, CgenError> {
 /// Errors: see [`CgenError`]; none occurs for the shipped instruments.
 pub fn emit_c_with(fp: &FixedProgram, config: &CConfig) -> Result<CSource, CgenError> {
     Gen::new(fp, config)?.run()
+}
+
+/// Which values the body needs (read by a statement, or transitively by the operands of
+/// one), and the event of every `emit` statement in program order.
+pub fn live_values(p: &Program) -> (Vec<bool>, Vec<EventId>) {
+    let mut used = vec![false; p.values.len()];
+    let mut work = Vec::new();
+    let mut sites = Vec::new();
+    fn roots(stmts: &[Stmt], work: &mut Vec<Value>, sites: &mut Vec<EventId>) {
+        for s in stmts {
+            match s {
+                Stmt::Def(_) | Stmt::SetMode(..) => {}
+                Stmt::SetState(_, v)
+                | Stmt::SetEdge(_, v)
+                | Stmt::Force(_, v)
+                | Stmt::Output(_, v)
+                | Stmt::Total(v) => work.push(*v),
+                Stmt::If(c, body) => {
+                    work.push(*c);
+                    roots(body, work, sites);
+                }
+                Stmt::Emit(e, args) => {
+                    sites.push(*e);
+                    work.extend(args.iter().copied());
+                }
+            }
+        }
+    }
+    roots(&p.body, &mut work, &mut sites);
+    while let Some(v) = work.pop() {
+        if std::mem::replace(&mut used[v.index()], true) {
+            continue;
+        }
+        work.extend(operands(&p.values[v.index()].op));
+    }
+    (used, sites)
 }
 
 /// An identifier in upper snake case (`esc.f` → `ESC_F`).
@@ -201,38 +288,13 @@ impl<'a> Gen<'a> {
         }
         let stem = upper(&p.name).to_ascii_lowercase();
         let mac = format!("TACTUS_{}", upper(&p.name));
-        // Liveness: values read by statements, and transitively by their operands.
-        let mut used = vec![false; p.values.len()];
-        let mut work = Vec::new();
-        let mut sites = Vec::new();
-        fn roots(stmts: &[Stmt], work: &mut Vec<Value>, sites: &mut Vec<EventId>) {
-            for s in stmts {
-                match s {
-                    Stmt::Def(_) | Stmt::SetMode(..) => {}
-                    Stmt::SetState(_, v)
-                    | Stmt::SetEdge(_, v)
-                    | Stmt::Force(_, v)
-                    | Stmt::Output(_, v)
-                    | Stmt::Total(v) => work.push(*v),
-                    Stmt::If(c, body) => {
-                        work.push(*c);
-                        roots(body, work, sites);
-                    }
-                    Stmt::Emit(e, args) => {
-                        sites.push(*e);
-                        work.extend(args.iter().copied());
-                    }
-                }
-            }
-        }
-        roots(&p.body, &mut work, &mut sites);
+        let (used, sites) = live_values(p);
         let mut deriv_used = HashSet::new();
-        while let Some(v) = work.pop() {
-            if std::mem::replace(&mut used[v.index()], true) {
+        for (v, vd) in p.values.iter().enumerate() {
+            if !used[v] {
                 continue;
             }
-            let op = &p.values[v.index()].op;
-            if let Op::Deriv(s, order) = op {
+            if let Op::Deriv(s, order) = &vd.op {
                 if *order != 1 && *order != 2 {
                     return Err(CgenError::Unsupported(format!(
                         "a derivative of order {order}"
@@ -246,7 +308,6 @@ impl<'a> Gen<'a> {
                 }
                 deriv_used.insert((s.index(), *order));
             }
-            work.extend(operands(op));
         }
         let mut hist_slot = vec![None; p.sensors.len()];
         let mut n = 0;

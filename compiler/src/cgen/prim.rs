@@ -367,15 +367,23 @@ pub fn cmp(op: CmpOp, x: &str, fx: i32, y: &str, fy: i32) -> String {
     }
 }
 
-/// [`fx::cmp_const`]: `x OP c` (or `c OP x` when `const_left`) on exact values, as integer
-/// comparisons of the raw word with thresholds precomputed on its grid.
-pub fn cmp_const(op: CmpOp, x: &str, fx: i32, c: f64, const_left: bool) -> String {
+/// The thresholds of [`fx::cmp_const`] on the grid of `fx` fraction bits: `ge` is the first
+/// raw word whose value is `>= c`, `gt` the first whose value is `> c` (each may be
+/// `i32::MAX + 1` when no word qualifies).
+pub fn thresholds(fx: i32, c: f64) -> (i64, i64) {
     let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
-    // ge: first word whose value is >= c; gt: first word whose value is > c.
     let ge = first_true(lo, hi, |w| fx::cmp_const(w as i32, fx, c) != Ordering::Less);
     let gt = first_true(lo, hi, |w| {
         fx::cmp_const(w as i32, fx, c) == Ordering::Greater
     });
+    (ge, gt)
+}
+
+/// [`fx::cmp_const`]: `x OP c` (or `c OP x` when `const_left`) on exact values, as integer
+/// comparisons of the raw word with thresholds precomputed on its grid.
+pub fn cmp_const(op: CmpOp, x: &str, fx: i32, c: f64, const_left: bool) -> String {
+    let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
+    let (ge, gt) = thresholds(fx, c);
     // Normalise `c OP x` to `x OP' c`.
     let op = if const_left {
         match op {

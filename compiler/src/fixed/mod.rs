@@ -202,8 +202,8 @@ impl FixedProgram {
                         free,
                         ranges.values[i],
                     );
-                    // The constant operand is the second one of the planned pair; keep the
-                    // shifts in (variable, constant) order for every operand order.
+                    // The constant operand is the second one of the planned pair; store the
+                    // shifts in operand order (x, y), which is what every engine applies.
                     match (vd.op.clone(), k) {
                         (Op::Arith(ArithOp::Mul, a, _), MulKind::Muls(sa, sb)) if is_const(a) => {
                             MulKind::Muls(sb, sa)

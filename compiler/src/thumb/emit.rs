@@ -1,0 +1,628 @@
+//! Emission: allocated machine IR to Thumb instructions, literal pools, branch relaxation,
+//! bytes (the emulator's encoder, one function per encoding format) and the GNU assembler
+//! listing.
+
+use super::mir::{Base, Label, Shift, M, V};
+use super::regalloc::{Allocation, Loc};
+use super::select::STATE_V;
+use super::ThumbError;
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use tactus_emulator::decode::{AluOp, Hint, Instr, MemOp};
+use tactus_emulator::encode::encode;
+
+/// One item of a function body after allocation.
+#[derive(Clone, Debug)]
+enum Item {
+    /// A fixed instruction.
+    I(Instr),
+    /// `LDR rt, =value` (literal pool).
+    Lit {
+        rt: u8,
+        value: i32,
+    },
+    /// A (conditional) branch to a label; relaxed to a long form when out of range.
+    Br {
+        cond: Option<u8>,
+        target: Label,
+    },
+    Label(Label),
+    /// A literal island: `B over` (unless `fallthrough` is false), alignment, the words.
+    Island {
+        id: usize,
+        jump: bool,
+    },
+    Note(String),
+}
+
+/// Lowered code of one function.
+pub(crate) struct Function {
+    /// Symbol name.
+    pub name: String,
+    items: Vec<Item>,
+}
+
+/// Machine code of an object: bytes, symbols, the listing.
+pub struct Code {
+    /// The `.text` bytes.
+    pub text: Vec<u8>,
+    /// Functions: name, offset, size in bytes.
+    pub symbols: Vec<(String, usize, usize)>,
+    /// Ranges of literal data inside `.text` (offset, length), for `$d` mapping symbols.
+    pub data: Vec<(usize, usize)>,
+    /// GNU-syntax assembly that `arm-none-eabi-as` assembles to `text`.
+    pub listing: String,
+    /// Comments (source-level events) at code offsets, for the WCET report.
+    pub notes: Vec<(usize, String)>,
+}
+
+struct Lower<'a> {
+    alloc: &'a Allocation,
+    items: Vec<Item>,
+}
+
+impl Lower<'_> {
+    fn loc(&self, v: V) -> Loc {
+        if v == STATE_V {
+            return Loc::Reg(7);
+        }
+        self.alloc.loc[v.0 as usize].expect("referenced register has a location")
+    }
+
+    fn i(&mut self, i: Instr) {
+        self.items.push(Item::I(i));
+    }
+
+    /// A register holding `v` for reading: its own, or scratch `k` after a reload.
+    fn read(&mut self, v: V, k: usize) -> u8 {
+        match self.loc(v) {
+            Loc::Reg(r) => r,
+            Loc::Slot(s) => {
+                let r = self.alloc.scratch[k];
+                self.i(Instr::MemImm {
+                    op: MemOp::Ldr,
+                    rt: r,
+                    rn: 13,
+                    imm: 4 * s,
+                });
+                r
+            }
+        }
+    }
+
+    /// The register to write `v` into (scratch 0 when spilled), and the store to do after.
+    fn write(&self, v: V) -> (u8, Option<u16>) {
+        match self.loc(v) {
+            Loc::Reg(r) => (r, None),
+            Loc::Slot(s) => (self.alloc.scratch[0], Some(s)),
+        }
+    }
+
+    fn spill(&mut self, r: u8, slot: Option<u16>) {
+        if let Some(s) = slot {
+            self.i(Instr::MemImm {
+                op: MemOp::Str,
+                rt: r,
+                rn: 13,
+                imm: 4 * s,
+            });
+        }
+    }
+
+    fn movi(&mut self, rd: u8, imm: i32) {
+        if (0..=255).contains(&imm) {
+            self.i(Instr::MovImm { rd, imm: imm as u8 });
+        } else if (0..=255).contains(&!imm) {
+            // MVNS keeps C (no shift), so this is as flag-safe as MOVS.
+            self.i(Instr::MovImm {
+                rd,
+                imm: !imm as u8,
+            });
+            self.i(Instr::Alu {
+                op: AluOp::Mvn,
+                rdn: rd,
+                rm: rd,
+            });
+        } else {
+            self.items.push(Item::Lit { rt: rd, value: imm });
+        }
+    }
+
+    fn base(&mut self, b: Base, k: usize) -> u8 {
+        match b {
+            Base::State => 7,
+            Base::V(v) => self.read(v, k),
+        }
+    }
+
+    fn one(&mut self, m: &M) {
+        match *m {
+            M::Movi { d, imm } => {
+                let (r, s) = self.write(d);
+                self.movi(r, imm);
+                self.spill(r, s);
+            }
+            M::Mov { d, s } => {
+                let src = self.read(s, 1);
+                let (r, sl) = self.write(d);
+                if r != src {
+                    self.i(Instr::MovHi { rd: r, rm: src });
+                }
+                self.spill(r, sl);
+            }
+            M::AddSub { sub, d, a, b } => {
+                let (ra, rb) = (self.read(a, 0), self.read(b, 1));
+                let (r, s) = self.write(d);
+                self.i(if sub {
+                    Instr::SubReg {
+                        rd: r,
+                        rn: ra,
+                        rm: rb,
+                    }
+                } else {
+                    Instr::AddReg {
+                        rd: r,
+                        rn: ra,
+                        rm: rb,
+                    }
+                });
+                self.spill(r, s);
+            }
+            M::AddSubI { sub, d, a, imm } => {
+                let ra = self.read(a, 0);
+                let (r, s) = self.write(d);
+                let rn = if imm > 7 && r != ra {
+                    self.i(Instr::MovHi { rd: r, rm: ra });
+                    r
+                } else {
+                    ra
+                };
+                self.i(if sub {
+                    Instr::SubImm { rd: r, rn, imm }
+                } else {
+                    Instr::AddImm { rd: r, rn, imm }
+                });
+                self.spill(r, s);
+            }
+            M::Alu2 { op, d, a, m } => {
+                let ra = self.read(a, 0);
+                let rm = self.read(m, 1);
+                let (r, s) = self.write(d);
+                let commutative = matches!(
+                    op,
+                    AluOp::And | AluOp::Orr | AluOp::Eor | AluOp::Adc | AluOp::Mul
+                );
+                let other = if r == ra {
+                    rm
+                } else if r == rm && commutative {
+                    ra
+                } else {
+                    debug_assert!(r != rm, "late use shares the definition's register");
+                    self.i(Instr::MovHi { rd: r, rm: ra });
+                    rm
+                };
+                self.i(Instr::Alu {
+                    op,
+                    rdn: r,
+                    rm: other,
+                });
+                self.spill(r, s);
+            }
+            M::Unary { op, d, m } => {
+                let rm = self.read(m, 0);
+                let (r, s) = self.write(d);
+                self.i(Instr::Alu { op, rdn: r, rm });
+                self.spill(r, s);
+            }
+            M::Sh { op, d, m, imm } => {
+                let rm = self.read(m, 0);
+                let (rd, s) = self.write(d);
+                self.i(match op {
+                    Shift::Lsl => Instr::LslImm { rd, rm, imm },
+                    Shift::Lsr => Instr::LsrImm { rd, rm, imm },
+                    Shift::Asr => Instr::AsrImm { rd, rm, imm },
+                });
+                self.spill(rd, s);
+            }
+            M::Uxth { d, m } => {
+                let rm = self.read(m, 0);
+                let (rd, s) = self.write(d);
+                self.i(Instr::Uxth { rd, rm });
+                self.spill(rd, s);
+            }
+            M::Cmp { a, b } => {
+                let (ra, rb) = (self.read(a, 0), self.read(b, 1));
+                self.i(Instr::Alu {
+                    op: AluOp::Cmp,
+                    rdn: ra,
+                    rm: rb,
+                });
+            }
+            M::CmpI { a, imm } => {
+                let ra = self.read(a, 0);
+                self.i(Instr::CmpImm { rn: ra, imm });
+            }
+            M::Load { op, t, base, off } => {
+                let rn = self.base(base, 0);
+                let (rt, s) = self.write(t);
+                self.i(Instr::MemImm {
+                    op,
+                    rt,
+                    rn,
+                    imm: off,
+                });
+                self.spill(rt, s);
+            }
+            M::LoadR { op, t, base, idx } => {
+                let rn = self.base(base, 0);
+                let rm = self.read(idx, 1);
+                let (rt, s) = self.write(t);
+                self.i(Instr::MemReg { op, rt, rn, rm });
+                self.spill(rt, s);
+            }
+            M::Store { op, t, base, off } => {
+                let rt = self.read(t, 0);
+                let rn = self.base(base, 1);
+                self.i(Instr::MemImm {
+                    op,
+                    rt,
+                    rn,
+                    imm: off,
+                });
+            }
+            M::Label(l) => self.items.push(Item::Label(l)),
+            M::B(l) => self.items.push(Item::Br {
+                cond: None,
+                target: l,
+            }),
+            M::Bc(c, l) => self.items.push(Item::Br {
+                cond: Some(c as u8),
+                target: l,
+            }),
+            M::Note(ref s) => self.items.push(Item::Note(s.clone())),
+        }
+    }
+}
+
+/// Lowers an allocated body to items, with the AAPCS prologue and epilogue: save the
+/// callee-saved registers used and LR, `r7 = r0` (the state pointer), the frame for
+/// spill slots, store spilled arguments; at the end, free the frame and `POP {…, PC}`.
+pub(crate) fn lower(name: &str, code: &[M], alloc: &Allocation) -> Function {
+    let mut l = Lower {
+        alloc,
+        items: Vec::new(),
+    };
+    let saved = (alloc.used_mask | 0x80) & 0xf0;
+    l.i(Instr::Push {
+        list: saved as u16 | 1 << 14,
+    });
+    l.i(Instr::MovHi { rd: 7, rm: 0 });
+    if alloc.slots > 0 {
+        let bytes = 4 * alloc.slots;
+        for chunk in chunks(bytes) {
+            l.i(Instr::SubSp { imm: chunk });
+        }
+    }
+    for (arg, r) in [(super::select::ARG1, 1u8), (super::select::ARG2, 2u8)] {
+        match alloc.loc.get(arg.0 as usize).copied().flatten() {
+            Some(Loc::Slot(s)) => l.i(Instr::MemImm {
+                op: MemOp::Str,
+                rt: r,
+                rn: 13,
+                imm: 4 * s,
+            }),
+            Some(Loc::Reg(x)) if x != r => unreachable!("arguments are pre-coloured"),
+            _ => {}
+        }
+    }
+    for m in code {
+        l.one(m);
+    }
+    if alloc.slots > 0 {
+        for chunk in chunks(4 * alloc.slots) {
+            l.i(Instr::AddSp { imm: chunk });
+        }
+    }
+    l.i(Instr::Pop {
+        list: saved as u16 | 1 << 15,
+    });
+    Function {
+        name: name.to_string(),
+        items: l.items,
+    }
+}
+
+/// `SUB SP`/`ADD SP` immediates are at most 508 bytes.
+fn chunks(mut bytes: u16) -> Vec<u16> {
+    let mut v = Vec::new();
+    while bytes > 0 {
+        let c = bytes.min(508);
+        v.push(c);
+        bytes -= c;
+    }
+    v
+}
+
+/// Distance (bytes) after which pending literals are flushed into an island: the `LDR`
+/// literal reach is 1020 bytes; sizes are estimated with every branch long, so relaxation
+/// never lengthens a distance past the estimate.
+const ISLAND_AFTER: usize = 800;
+
+fn est_size(it: &Item) -> usize {
+    match it {
+        Item::I(i) => encode(i).map(|e| e.bytes().len()).unwrap_or(2),
+        Item::Lit { .. } => 2,
+        Item::Br { .. } => 6,
+        Item::Label(_) | Item::Note(_) => 0,
+        Item::Island { .. } => 0,
+    }
+}
+
+/// Assembles functions into one `.text`.
+pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
+    // 1. Insert literal islands (per function: after the body, and inside when far).
+    let mut islands: Vec<Vec<i32>> = Vec::new();
+    let mut fitems: Vec<(String, Vec<Item>)> = Vec::new();
+    for f in funcs {
+        let mut out = Vec::new();
+        let mut pending_since: Option<usize> = None;
+        let mut pos = 0usize;
+        let mut cur: Vec<i32> = Vec::new();
+        for it in f.items {
+            if let Item::Lit { value, .. } = it {
+                if !cur.contains(&value) {
+                    cur.push(value);
+                }
+                pending_since.get_or_insert(pos);
+            }
+            pos += est_size(&it);
+            out.push(it);
+            if let Some(p0) = pending_since {
+                if pos - p0 + 4 * cur.len() + 8 > ISLAND_AFTER {
+                    out.push(Item::Island {
+                        id: islands.len(),
+                        jump: true,
+                    });
+                    islands.push(std::mem::take(&mut cur));
+                    pos += 4 * islands.last().map_or(0, |v| v.len()) + 4;
+                    pending_since = None;
+                }
+            }
+        }
+        if !cur.is_empty() {
+            out.push(Item::Island {
+                id: islands.len(),
+                jump: false,
+            });
+            islands.push(cur);
+        }
+        fitems.push((f.name, out));
+    }
+    // 2. Branch relaxation: short until out of range.
+    let mut long: HashMap<(usize, usize), bool> = HashMap::new();
+    loop {
+        let (addrs, labels, _) = layout(&fitems, &islands, &long);
+        let mut changed = false;
+        for (fi, (_, items)) in fitems.iter().enumerate() {
+            for (ii, it) in items.iter().enumerate() {
+                if let Item::Br { cond, target } = it {
+                    if long.get(&(fi, ii)).copied().unwrap_or(false) {
+                        continue;
+                    }
+                    let at = addrs[fi][ii];
+                    let off = labels[&(fi, target.0)] as i64 - (at as i64 + 4);
+                    let ok = match cond {
+                        Some(_) => (-256..=254).contains(&off),
+                        None => (-2048..=2046).contains(&off),
+                    };
+                    if !ok {
+                        long.insert((fi, ii), true);
+                        changed = true;
+                    }
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    // 3. Encode.
+    let (addrs, labels, island_at) = layout(&fitems, &islands, &long);
+    let mut text = Vec::new();
+    let mut listing =
+        String::from("    .syntax unified\n    .cpu cortex-m0plus\n    .thumb\n    .text\n");
+    let mut symbols = Vec::new();
+    let mut data = Vec::new();
+    let mut notes = Vec::new();
+    let enc = |i: &Instr| {
+        encode(i)
+            .map(|e| e.bytes())
+            .map_err(|e| ThumbError::Encoding(e.to_string()))
+    };
+    for (fi, (name, items)) in fitems.iter().enumerate() {
+        let start = text.len();
+        let _ = write!(
+            listing,
+            "\n    .global {name}\n    .type {name}, %function\n    .thumb_func\n    .p2align 1\n{name}:\n"
+        );
+        for (ii, it) in items.iter().enumerate() {
+            debug_assert_eq!(text.len(), addrs[fi][ii]);
+            match it {
+                Item::I(i) => {
+                    text.extend(enc(i)?);
+                    let _ = writeln!(listing, "    {i}");
+                }
+                Item::Lit { rt, value } => {
+                    let (isl, k) = find_lit(items, ii, &islands, *value);
+                    let target = island_at[&isl] + 4 * k;
+                    let pc = (text.len() + 4) & !3;
+                    let imm = target - pc;
+                    let i = Instr::LdrLit {
+                        rt: *rt,
+                        imm: imm as u16,
+                    };
+                    text.extend(enc(&i)?);
+                    let _ = writeln!(listing, "    ldr r{rt}, .Lpool{isl}_{k}");
+                }
+                Item::Br { cond, target } => {
+                    let dest = labels[&(fi, target.0)];
+                    let is_long = long.get(&(fi, ii)).copied().unwrap_or(false);
+                    let lname = format!(".L{fi}_{}", target.0);
+                    let cname = |c: u8| CONDS[c as usize];
+                    if !is_long {
+                        let off = dest as i32 - (text.len() as i32 + 4);
+                        let i = match cond {
+                            Some(c) => Instr::BCond {
+                                cond: *c,
+                                offset: off,
+                            },
+                            None => Instr::B { offset: off },
+                        };
+                        text.extend(enc(&i)?);
+                        let _ = writeln!(listing, "    b{} {lname}", cond.map_or("", cname));
+                    } else {
+                        if let Some(c) = cond {
+                            // B<!c> over the long branch.
+                            let inv = invert(*c);
+                            let i = Instr::BCond {
+                                cond: inv,
+                                offset: 4 - 4 + 2,
+                            };
+                            text.extend(enc(&i)?);
+                            let _ = writeln!(listing, "    b{} .+6", cname(inv));
+                        }
+                        let off = dest as i32 - (text.len() as i32 + 4);
+                        if (-2048..=2046).contains(&off) {
+                            // Keep the size of the long form fixed: BL (4 bytes).
+                        }
+                        let i = Instr::Bl { offset: off };
+                        text.extend(enc(&i)?);
+                        let _ = writeln!(listing, "    bl {lname}");
+                    }
+                }
+                Item::Label(lb) => {
+                    let _ = writeln!(listing, ".L{fi}_{}:", lb.0);
+                }
+                Item::Note(s) => {
+                    notes.push((text.len(), s.clone()));
+                    let _ = writeln!(listing, "    @ {s}");
+                }
+                Item::Island { id, jump } => {
+                    let words = &islands[*id];
+                    if *jump {
+                        let end = island_at[id] + 4 * words.len();
+                        let off = end as i32 - (text.len() as i32 + 4);
+                        text.extend(enc(&Instr::B { offset: off })?);
+                        let _ = writeln!(listing, "    b .Lisland{id}_end");
+                    }
+                    if text.len() % 4 != 0 {
+                        text.extend(enc(&Instr::Hint(Hint::Nop))?);
+                        let _ = writeln!(listing, "    nop");
+                    }
+                    debug_assert_eq!(text.len(), island_at[id]);
+                    data.push((text.len(), 4 * words.len()));
+                    for (k, w) in words.iter().enumerate() {
+                        text.extend(w.to_le_bytes());
+                        let _ = writeln!(listing, ".Lpool{id}_{k}:\n    .word {w}");
+                    }
+                    if *jump {
+                        let _ = writeln!(listing, ".Lisland{id}_end:");
+                    }
+                }
+            }
+        }
+        let _ = writeln!(listing, "    .size {name}, .-{name}");
+        symbols.push((name.clone(), start, text.len() - start));
+        // Functions start on a word boundary (keeps the next function's pools aligned
+        // the same way the assembler's `.p2align` does).
+        if text.len() % 4 != 0 {
+            text.extend(enc(&Instr::Hint(Hint::Nop))?);
+            let _ = writeln!(listing, "    nop");
+        }
+    }
+    Ok(Code {
+        text,
+        symbols,
+        data,
+        listing,
+        notes,
+    })
+}
+
+const CONDS: [&str; 14] = [
+    "eq", "ne", "cs", "cc", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt", "gt", "le",
+];
+
+fn invert(c: u8) -> u8 {
+    c ^ 1
+}
+
+/// The island and index holding `value` for the literal load at `ii`: the first island
+/// after it.
+fn find_lit(items: &[Item], ii: usize, islands: &[Vec<i32>], value: i32) -> (usize, usize) {
+    for it in &items[ii..] {
+        if let Item::Island { id, .. } = it {
+            if let Some(k) = islands[*id].iter().position(|&w| w == value) {
+                return (*id, k);
+            }
+        }
+    }
+    unreachable!("every literal has an island after it")
+}
+
+type Layout = (
+    Vec<Vec<usize>>,
+    HashMap<(usize, u32), usize>,
+    HashMap<usize, usize>,
+);
+
+/// Addresses of every item, of labels, and of island data, for the given branch forms.
+fn layout(
+    fitems: &[(String, Vec<Item>)],
+    islands: &[Vec<i32>],
+    long: &HashMap<(usize, usize), bool>,
+) -> Layout {
+    let mut addrs = Vec::new();
+    let mut labels = HashMap::new();
+    let mut island_at = HashMap::new();
+    let mut pos = 0usize;
+    for (fi, (_, items)) in fitems.iter().enumerate() {
+        let mut a = Vec::with_capacity(items.len());
+        for (ii, it) in items.iter().enumerate() {
+            a.push(pos);
+            pos += match it {
+                Item::I(i) => encode(i).map(|e| e.bytes().len()).unwrap_or(2),
+                Item::Lit { .. } => 2,
+                Item::Br { cond, .. } => {
+                    if long.get(&(fi, ii)).copied().unwrap_or(false) {
+                        if cond.is_some() {
+                            6
+                        } else {
+                            4
+                        }
+                    } else {
+                        2
+                    }
+                }
+                Item::Label(l) => {
+                    labels.insert((fi, l.0), pos);
+                    0
+                }
+                Item::Note(_) => 0,
+                Item::Island { id, jump } => {
+                    let mut p = pos + if *jump { 2 } else { 0 };
+                    if p % 4 != 0 {
+                        p += 2;
+                    }
+                    island_at.insert(*id, p);
+                    p + 4 * islands[*id].len() - pos
+                }
+            };
+        }
+        addrs.push(a);
+        if pos % 4 != 0 {
+            pos += 2;
+        }
+    }
+    (addrs, labels, island_at)
+}

@@ -1,0 +1,177 @@
+//! Machine IR: ARMv6-M Thumb instructions over virtual registers, before register
+//! allocation.
+//!
+//! Each [`M`] is one Thumb instruction (or a label, or a constant load that [`super::emit`]
+//! turns into `MOVS`, `MOVS`+`LSLS`, `MVNS` or a literal-pool `LDR`). Operands are virtual
+//! registers ([`V`]); the state pointer is pinned in `r7` ([`Base::State`]) and the stack
+//! pointer is [`Base::Sp`]. Control flow is forward only (no loops), so a virtual register's
+//! live range is the interval from its first definition to its last use in program order;
+//! a register may be defined again later in that interval (the arms of a diamond).
+
+use tactus_emulator::decode::{AluOp, MemOp};
+
+/// A virtual register (32-bit word).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct V(pub u32);
+
+/// A branch target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Label(pub u32);
+
+/// The base register of a load or store.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Base {
+    /// The instance's state struct (`r7`, pinned for the whole update).
+    State,
+    /// A virtual register holding an address.
+    V(V),
+}
+
+/// Shift-by-immediate operations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shift {
+    /// `LSLS` (0–31)
+    Lsl,
+    /// `LSRS` (1–32)
+    Lsr,
+    /// `ASRS` (1–32)
+    Asr,
+}
+
+/// ARMv6-M condition codes (DDI0419 A7.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(missing_docs)]
+pub enum Cond {
+    Eq = 0,
+    Ne = 1,
+    Hs = 2,
+    Lo = 3,
+    Mi = 4,
+    Pl = 5,
+    Ge = 10,
+    Lt = 11,
+    Gt = 12,
+    Le = 13,
+}
+
+impl Cond {
+    /// The opposite condition.
+    pub fn invert(self) -> Cond {
+        use Cond::*;
+        match self {
+            Eq => Ne,
+            Ne => Eq,
+            Hs => Lo,
+            Lo => Hs,
+            Mi => Pl,
+            Pl => Mi,
+            Ge => Lt,
+            Lt => Ge,
+            Gt => Le,
+            Le => Gt,
+        }
+    }
+}
+
+/// One machine instruction over virtual registers (fields: `d` destination, `a`/`b`/`m`
+/// sources, `t` transfer register, `imm` immediate, `off` byte offset).
+#[derive(Clone, Debug, PartialEq)]
+#[allow(missing_docs)]
+pub enum M {
+    /// `d = imm` (flags N, Z may change; C, V kept).
+    Movi { d: V, imm: i32 },
+    /// `d = s` (`MOV`, flags kept).
+    Mov { d: V, s: V },
+    /// `d = a + b` / `a - b` (`ADDS`/`SUBS` three registers).
+    AddSub { sub: bool, d: V, a: V, b: V },
+    /// `d = a ± imm` (`ADDS`/`SUBS` with imm3, or imm8 when `d` and `a` share a register).
+    AddSubI { sub: bool, d: V, a: V, imm: u8 },
+    /// `d = a op m` for a two-address data-processing op (`ANDS`, `ORRS`, `EORS`, `ADCS`,
+    /// `SBCS`, `MULS`): emitted as `MOV d, a` (if needed) then `op d, m`.
+    Alu2 { op: AluOp, d: V, a: V, m: V },
+    /// `d = -m` (`RSBS d, m, #0`) or `d = ~m` (`MVNS`).
+    Unary { op: AluOp, d: V, m: V },
+    /// `d = m shift imm`.
+    Sh { op: Shift, d: V, m: V, imm: u8 },
+    /// `UXTH d, m`.
+    Uxth { d: V, m: V },
+    /// `CMP a, b`.
+    Cmp { a: V, b: V },
+    /// `CMP a, #imm`.
+    CmpI { a: V, imm: u8 },
+    /// Load `t = [base + off]`.
+    Load {
+        op: MemOp,
+        t: V,
+        base: Base,
+        off: u16,
+    },
+    /// Load `t = [base + idx]`.
+    LoadR { op: MemOp, t: V, base: Base, idx: V },
+    /// Store `[base + off] = t`.
+    Store {
+        op: MemOp,
+        t: V,
+        base: Base,
+        off: u16,
+    },
+    /// A branch target.
+    Label(Label),
+    /// `B label`.
+    B(Label),
+    /// `B<cond> label`.
+    Bc(Cond, Label),
+    /// A comment for the listing (source-level event names for the WCET report).
+    Note(String),
+}
+
+impl M {
+    /// Virtual registers read.
+    pub fn uses(&self) -> Vec<V> {
+        let base = |b: &Base| match b {
+            Base::V(v) => Some(*v),
+            _ => None,
+        };
+        match self {
+            M::Movi { .. } | M::Label(_) | M::B(_) | M::Bc(..) | M::Note(_) => vec![],
+            M::Mov { s, .. } => vec![*s],
+            M::AddSub { a, b, .. } => vec![*a, *b],
+            M::AddSubI { a, .. } => vec![*a],
+            M::Alu2 { a, m, .. } => vec![*a, *m],
+            M::Unary { m, .. } | M::Sh { m, .. } | M::Uxth { m, .. } => vec![*m],
+            M::Cmp { a, b } => vec![*a, *b],
+            M::CmpI { a, .. } => vec![*a],
+            M::Load { base: b, .. } => base(b).into_iter().collect(),
+            M::LoadR { base: b, idx, .. } => base(b).into_iter().chain([*idx]).collect(),
+            M::Store { t, base: b, .. } => std::iter::once(*t).chain(base(b)).collect(),
+        }
+    }
+
+    /// The virtual register written, if any.
+    pub fn def(&self) -> Option<V> {
+        match self {
+            M::Movi { d, .. }
+            | M::Mov { d, .. }
+            | M::AddSub { d, .. }
+            | M::AddSubI { d, .. }
+            | M::Alu2 { d, .. }
+            | M::Unary { d, .. }
+            | M::Sh { d, .. }
+            | M::Uxth { d, .. } => Some(*d),
+            M::Load { t, .. } | M::LoadR { t, .. } => Some(*t),
+            _ => None,
+        }
+    }
+
+    /// Uses that must not share a register with the definition (the second operand of a
+    /// two-address op, which `MOV d, a` would overwrite).
+    pub fn late_use(&self) -> Option<V> {
+        match self {
+            M::Alu2 { op, a, m, .. } if a != m => {
+                let _ = op;
+                Some(*m)
+            }
+            _ => None,
+        }
+    }
+}

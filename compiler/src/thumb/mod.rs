@@ -1,0 +1,124 @@
+//! The ARMv6-M Thumb backend: a [`FixedProgram`] as machine code for the Cortex-M0+.
+//!
+//! Pipeline: [`select`] (fixed-point IR → [`mir`] over virtual registers, choosing each
+//! sequence from the range analysis' word bounds) → [`regalloc`] (linear scan, spilling
+//! to the stack) → [`emit`] (prologue/epilogue per AAPCS, literal pools, branch relaxation,
+//! encoding with the emulator's encoder, a GNU assembler listing) → [`elf`] (a relocatable
+//! object).
+//!
+//! The generated functions have the C backend's interface and state layout exactly — the
+//! header [`crate::cgen`] writes describes both:
+//!
+//! ```c
+//! void tactus_<name>_init(struct tactus_<name>_state *s);
+//! void tactus_<name>_update(struct tactus_<name>_state *s, const int32_t *sensors, int32_t *out);
+//! ```
+//!
+//! AAPCS (ARM IHI 0042): arguments in r0–r2; r4–r7 and SP preserved; LR is saved and the
+//! return is `POP {…, PC}`. The state pointer lives in r7 for the whole update. The code is
+//! position independent (PC-relative branches and literal loads only, no data sections), so
+//! the object needs no relocations: it can run from SRAM or flash at any word address.
+
+pub mod elf;
+pub mod emit;
+pub mod mir;
+pub mod regalloc;
+pub mod select;
+
+use crate::cgen::{self, CSource, OutLayout, StateLayout};
+use crate::fixed::FixedProgram;
+use std::fmt;
+
+/// Why a program cannot be compiled to Thumb code.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ThumbError {
+    /// A construct the Thumb backend does not implement yet (the C backend does).
+    Unsupported(String),
+    /// The interface (header) could not be generated; see [`cgen::CgenError`].
+    Interface(String),
+    /// An instruction did not encode (a backend bug: a field out of range).
+    Encoding(String),
+}
+
+impl fmt::Display for ThumbError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ThumbError::Unsupported(what) => {
+                write!(f, "the Thumb backend does not support {what}")
+            }
+            ThumbError::Interface(e) => write!(f, "cannot describe the interface: {e}"),
+            ThumbError::Encoding(e) => write!(f, "internal error: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for ThumbError {}
+
+/// A compiled instrument: code, interface and layouts.
+pub struct ThumbObject {
+    /// Machine code, symbols and listing.
+    pub code: emit::Code,
+    /// The C header describing the interface (the C backend's header).
+    pub header: String,
+    /// Identifier stem: the functions are `tactus_<stem>_init` / `_update`.
+    pub stem: String,
+    /// Layout of `out[]`.
+    pub out: OutLayout,
+    /// Layout of the state struct.
+    pub state: StateLayout,
+}
+
+impl ThumbObject {
+    /// Offset and size (bytes) in `.text` of the function named `name`.
+    pub fn symbol(&self, name: &str) -> Option<(usize, usize)> {
+        self.code
+            .symbols
+            .iter()
+            .find(|(n, ..)| n == name)
+            .map(|&(_, o, s)| (o, s))
+    }
+
+    /// Name of the update function.
+    pub fn update_name(&self) -> String {
+        format!("tactus_{}_update", self.stem)
+    }
+
+    /// Name of the init function.
+    pub fn init_name(&self) -> String {
+        format!("tactus_{}_init", self.stem)
+    }
+
+    /// The object as an ELF relocatable file (ARM, EABI 5).
+    pub fn elf(&self) -> Result<Vec<u8>, ThumbError> {
+        elf::write(&self.code)
+    }
+}
+
+/// Compiles a fixed-point program to Thumb code.
+///
+/// Errors: [`ThumbError::Unsupported`] for `sqrt`, `exp` and division by a run-time value
+/// (not used by the shipped keyboard instruments; the C backend supports them).
+pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
+    let c: CSource = cgen::emit_c(fp).map_err(|e| ThumbError::Interface(e.to_string()))?;
+    let p = &fp.program;
+    let st = StateLayout::new(p);
+    let (used, _) = cgen::live_values(p);
+    let upd = select::Sel::new(fp, &st, &c.layout, used.clone()).run()?;
+    let ini = select::Sel::new(fp, &st, &c.layout, used).init_body();
+    let mut funcs = Vec::new();
+    for (name, sel) in [
+        (format!("tactus_{}_init", c.stem), ini),
+        (format!("tactus_{}_update", c.stem), upd),
+    ] {
+        let alloc = regalloc::allocate(&sel.code, sel.nregs);
+        funcs.push(emit::lower(&name, &sel.code, &alloc));
+    }
+    let code = emit::assemble(funcs)?;
+    Ok(ThumbObject {
+        code,
+        header: c.header,
+        stem: c.stem,
+        out: c.layout,
+        state: st,
+    })
+}

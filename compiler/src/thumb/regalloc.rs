@@ -1,0 +1,170 @@
+//! Register allocation: linear scan (Poletto & Sarkar, "Linear scan register allocation",
+//! TOPLAS 21(5), 1999) over the forward-only machine IR.
+//!
+//! Because the body has no backward branches, a virtual register's live range is exactly
+//! the interval from its first definition to its last use in program order. The allocator
+//! first tries all seven free low registers (`r0`–`r6`; `r7` holds the state pointer); if
+//! that needs spills, it retries with five (`r0`–`r4`) and keeps `r5`, `r6` as scratch
+//! registers for reloading spilled operands (`LDR` from the stack frame, which leaves the
+//! flags alone, so `ADDS`/`ADCS` pairs survive reloads). The victim of a spill is the
+//! interval that ends last; a spilled register lives in its stack slot for its whole
+//! interval.
+
+use super::mir::*;
+use super::select::{ARG1, ARG2, STATE_V};
+
+/// Where a virtual register lives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Loc {
+    /// A low register.
+    Reg(u8),
+    /// A stack slot (word index from SP).
+    Slot(u16),
+}
+
+/// The allocation of one function.
+pub struct Allocation {
+    /// Location of each virtual register (`None`: never referenced).
+    pub loc: Vec<Option<Loc>>,
+    /// Number of stack slots.
+    pub slots: u16,
+    /// Scratch registers for spilled operands (empty when nothing spilled).
+    pub scratch: Vec<u8>,
+    /// Registers used (bit mask over r0–r7), for the prologue's `PUSH`.
+    pub used_mask: u8,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Interval {
+    v: u32,
+    start: usize,
+    end: usize,
+}
+
+/// Allocates the virtual registers of `code` (`nregs` of them).
+pub fn allocate(code: &[M], nregs: u32) -> Allocation {
+    let mut first = vec![usize::MAX; nregs as usize];
+    let mut last = vec![0usize; nregs as usize];
+    let mut late_at = vec![usize::MAX; nregs as usize];
+    for (i, m) in code.iter().enumerate() {
+        for u in m.uses() {
+            if u == STATE_V {
+                continue;
+            }
+            let k = u.0 as usize;
+            first[k] = first[k].min(i);
+            last[k] = last[k].max(i);
+        }
+        if let Some(d) = m.def() {
+            let k = d.0 as usize;
+            first[k] = first[k].min(i);
+            last[k] = last[k].max(i);
+        }
+        if let Some(u) = m.late_use() {
+            // The late use must stay out of the definition's register at `i`.
+            if last[u.0 as usize] == i {
+                late_at[u.0 as usize] = i;
+            }
+        }
+    }
+    // Arguments are live from the entry.
+    for a in [ARG1, ARG2] {
+        if (a.0 as usize) < first.len() && first[a.0 as usize] != usize::MAX {
+            first[a.0 as usize] = 0;
+        }
+    }
+    let mut intervals: Vec<Interval> = (0..nregs as usize)
+        .filter(|&k| first[k] != usize::MAX)
+        .map(|k| Interval {
+            v: k as u32,
+            start: first[k],
+            // A late use stays live one step longer, past the definition it must not share.
+            end: if late_at[k] == last[k] {
+                last[k] + 1
+            } else {
+                last[k]
+            },
+        })
+        .collect();
+    intervals.sort_by_key(|iv| (iv.start, iv.v));
+    if let Some(a) = scan(&intervals, nregs, &[0, 1, 2, 3, 4, 5, 6], &[]) {
+        return a;
+    }
+    scan(&intervals, nregs, &[0, 1, 2, 3, 4], &[5, 6]).expect("spilling always succeeds")
+}
+
+/// One linear scan with the given registers; `None` when it would spill and no scratch
+/// registers were set aside.
+fn scan(intervals: &[Interval], nregs: u32, regs: &[u8], scratch: &[u8]) -> Option<Allocation> {
+    let mut loc: Vec<Option<Loc>> = vec![None; nregs as usize];
+    let mut free: Vec<u8> = regs.iter().rev().copied().collect();
+    // Active intervals with their register, sorted by end.
+    let mut active: Vec<(Interval, u8)> = Vec::new();
+    let mut slots = 0u16;
+    let mut used_mask = 0u8;
+    let pre = |v: u32| -> Option<u8> {
+        if v == ARG1.0 {
+            Some(1)
+        } else if v == ARG2.0 {
+            Some(2)
+        } else {
+            None
+        }
+    };
+    for &iv in intervals {
+        // Expire intervals that ended before this one starts (a use at `start` may share
+        // its register with this definition).
+        active.retain(|(a, r)| {
+            if a.end <= iv.start && !(a.end == iv.start && a.start == iv.start) {
+                free.push(*r);
+                false
+            } else {
+                true
+            }
+        });
+        let want = pre(iv.v);
+        let reg = match want.and_then(|w| free.iter().position(|&r| r == w)) {
+            Some(p) => Some(free.remove(p)),
+            None => free.pop(),
+        };
+        match reg {
+            Some(r) => {
+                loc[iv.v as usize] = Some(Loc::Reg(r));
+                used_mask |= 1 << r;
+                active.push((iv, r));
+            }
+            None => {
+                if scratch.is_empty() {
+                    return None;
+                }
+                // Spill the interval that ends last.
+                let (k, _) = active
+                    .iter()
+                    .enumerate()
+                    .max_by_key(|(_, (a, _))| a.end)
+                    .expect("no register free implies active intervals");
+                if active[k].0.end > iv.end {
+                    let (victim, r) = active.remove(k);
+                    loc[victim.v as usize] = Some(Loc::Slot(slots));
+                    slots += 1;
+                    loc[iv.v as usize] = Some(Loc::Reg(r));
+                    active.push((iv, r));
+                } else {
+                    loc[iv.v as usize] = Some(Loc::Slot(slots));
+                    slots += 1;
+                }
+            }
+        }
+    }
+    for &s in scratch {
+        if slots > 0 {
+            used_mask |= 1 << s;
+        }
+    }
+    Some(Allocation {
+        loc,
+        slots,
+        scratch: if slots > 0 { scratch.to_vec() } else { vec![] },
+        used_mask,
+    })
+}
