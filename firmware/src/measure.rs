@@ -132,75 +132,100 @@ pub fn compare(
     out: &OutLayout,
     runs: &[Run],
 ) -> Result<Comparison, RunError> {
+    let mut v = compare_many(std::slice::from_mut(runner), fp, out, runs)?;
+    Ok(v.pop().unwrap_or_default())
+}
+
+/// [`compare`] for several engines of the same program at once, in lock-step with one pass
+/// of the interpreter (which costs as much host time as an emulated engine); one
+/// [`Comparison`] per runner, in order.
+///
+/// Errors: the first [`RunError`] of any runner ends the comparison.
+pub fn compare_many(
+    runners: &mut [UpdateRunner],
+    fp: &FixedProgram,
+    out: &OutLayout,
+    runs: &[Run],
+) -> Result<Vec<Comparison>, RunError> {
     let p = &fp.program;
-    let mut c = Comparison::default();
+    let mut cs = vec![Comparison::default(); runners.len()];
     let mut got_events = Vec::new();
     for run in runs {
-        c.init_cycles = runner.init()?;
         let mut inst = FixedInstance::new(fp);
-        let (states, modes) = runner.read_state()?;
-        if states != inst.states() || !modes.iter().map(|&m| m as u32).eq(inst.modes().iter().copied()) {
-            c.mismatches += 1;
-            if c.first_mismatches.len() < MISMATCHES_KEPT {
-                c.first_mismatches.push(format!(
-                    "{} after init: states {states:?} modes {modes:?}; interpreter states {:?} modes {:?}",
-                    run.label,
-                    inst.states(),
-                    inst.modes()
-                ));
+        for (runner, c) in runners.iter_mut().zip(&mut cs) {
+            c.init_cycles = runner.init()?;
+            let (states, modes) = runner.read_state()?;
+            if states != inst.states()
+                || !modes
+                    .iter()
+                    .map(|&m| m as u32)
+                    .eq(inst.modes().iter().copied())
+            {
+                c.mismatches += 1;
+                if c.first_mismatches.len() < MISMATCHES_KEPT {
+                    c.first_mismatches.push(format!(
+                        "{} after init: states {states:?} modes {modes:?}; interpreter states {:?} modes {:?}",
+                        run.label,
+                        inst.states(),
+                        inst.modes()
+                    ));
+                }
             }
         }
         for (n, rec) in run.records.iter().enumerate() {
-            let got = runner.step(rec)?;
+            // The interpreter's result of this sample (stepped once for all runners).
             let want = inst.step_raw(rec).clone();
-            c.samples += 1;
-            c.events += want.events.len();
-            c.cycles.add(got.cycles, &run.label, n);
-            let row = &got.out;
-            got_events.clear();
-            let mut stray = false;
-            for site in &out.emits {
-                let nargs = p.events[site.event.index()].args.len();
-                let args = &row[site.offset + 1..site.offset + 1 + nargs];
-                match row[site.offset] {
-                    1 => got_events.push((site.event, args.to_vec())),
-                    0 => stray |= args.iter().any(|&a| a != 0),
-                    _ => stray = true,
+            for (runner, c) in runners.iter_mut().zip(&mut cs) {
+                let got = runner.step(rec)?;
+                c.samples += 1;
+                c.events += want.events.len();
+                c.cycles.add(got.cycles, &run.label, n);
+                let row = &got.out;
+                got_events.clear();
+                let mut stray = false;
+                for site in &out.emits {
+                    let nargs = p.events[site.event.index()].args.len();
+                    let args = &row[site.offset + 1..site.offset + 1 + nargs];
+                    match row[site.offset] {
+                        1 => got_events.push((site.event, args.to_vec())),
+                        0 => stray |= args.iter().any(|&a| a != 0),
+                        _ => stray = true,
+                    }
                 }
-            }
-            let ok = row[out.forces..out.forces + p.forces.len()] == want.forces[..]
-                && row[out.total] == want.total
-                && row[out.outputs..out.outputs + p.outputs.len()] == want.outputs[..]
-                && got_events == want.events
-                && !stray
-                && got.states[..] == *inst.states()
-                && got
-                    .modes
-                    .iter()
-                    .map(|&m| m as u32)
-                    .eq(inst.modes().iter().copied());
-            if !ok {
-                c.mismatches += 1;
-                if c.first_mismatches.len() < MISMATCHES_KEPT {
-                    let mut s = String::new();
-                    let _ = write!(
-                        s,
-                        "{} sample {n} sensors {rec:?}:\n  emulated: out {:?} states {:?} modes {:?}\n  interp:   forces {:?} total {} outputs {:?} events {:?} states {:?} modes {:?}",
-                        run.label,
-                        row,
-                        got.states,
-                        got.modes,
-                        want.forces,
-                        want.total,
-                        want.outputs,
-                        want.events,
-                        inst.states(),
-                        inst.modes()
-                    );
-                    c.first_mismatches.push(s);
+                let ok = row[out.forces..out.forces + p.forces.len()] == want.forces[..]
+                    && row[out.total] == want.total
+                    && row[out.outputs..out.outputs + p.outputs.len()] == want.outputs[..]
+                    && got_events == want.events
+                    && !stray
+                    && got.states[..] == *inst.states()
+                    && got
+                        .modes
+                        .iter()
+                        .map(|&m| m as u32)
+                        .eq(inst.modes().iter().copied());
+                if !ok {
+                    c.mismatches += 1;
+                    if c.first_mismatches.len() < MISMATCHES_KEPT {
+                        let mut s = String::new();
+                        let _ = write!(
+                            s,
+                            "{} sample {n} sensors {rec:?}:\n  emulated: out {:?} states {:?} modes {:?}\n  interp:   forces {:?} total {} outputs {:?} events {:?} states {:?} modes {:?}",
+                            run.label,
+                            row,
+                            got.states,
+                            got.modes,
+                            want.forces,
+                            want.total,
+                            want.outputs,
+                            want.events,
+                            inst.states(),
+                            inst.modes()
+                        );
+                        c.first_mismatches.push(s);
+                    }
                 }
             }
         }
     }
-    Ok(c)
+    Ok(cs)
 }

@@ -13,7 +13,7 @@ use tactus_compiler::cgen::{self, CSource};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::lower::Config;
 use tactus_firmware::cc::{self, Compiler, Options};
-use tactus_firmware::measure::{builtin_runs, compare, Run};
+use tactus_firmware::measure::{builtin_runs, compare, compare_many, Run};
 use tactus_firmware::runner::RunError;
 use tactus_firmware::{Interface, UpdateRunner};
 
@@ -60,6 +60,24 @@ fn compile(text: &str) -> (FixedProgram, CSource) {
     (fp, c)
 }
 
+/// The built-in stimuli, every sample, except that stimuli longer than 1.1 s (`slow-dip`,
+/// 4.3 s) are decimated to at most 1.1 s by taking every k-th sample: the whole down and up
+/// stroke at a higher speed. This keeps the debug-build test within a minute on a 2-core
+/// machine; the example `compilers` checks every sample of every stimulus (in release).
+fn test_runs(fp: &FixedProgram) -> Vec<Run> {
+    const MAX: usize = 48_510; // 1.1 s at 44.1 kHz
+    builtin_runs(fp)
+        .into_iter()
+        .map(|r| {
+            let k = r.records.len().div_ceil(MAX);
+            Run {
+                label: if k > 1 { format!("{} (every {k}th sample)", r.label) } else { r.label },
+                records: r.records.into_iter().step_by(k).collect(),
+            }
+        })
+        .collect()
+}
+
 #[test]
 fn compiled_c_matches_the_fixed_interpreter_on_every_instrument_and_stimulus() {
     let compilers: Vec<Compiler> = Compiler::ALL
@@ -70,65 +88,117 @@ fn compiled_c_matches_the_fixed_interpreter_on_every_instrument_and_stimulus() {
         return;
     }
     let t0 = std::time::Instant::now();
-    // One thread per instrument (the emulator dominates).
-    let results: Vec<(String, usize)> = std::thread::scope(|scope| {
-        let handles: Vec<_> = instruments()
-            .into_iter()
-            .map(|(name, text)| {
-                let compilers = &compilers;
-                scope.spawn(move || {
-                    let (fp, c) = compile(&text);
-                    let runs = builtin_runs(&fp);
-                    assert!(runs.len() >= 5, "{name}: built-in stimuli missing");
-                    let mut lines = Vec::new();
-                    let mut events = 0;
-                    for &compiler in compilers {
-                        let b = cc::build(&c, compiler, &Options::default())
-                            .unwrap_or_else(|e| panic!("{name} {}: {e}", compiler.name()));
-                        assert!(b.update_bytes > 0 && b.update_with_helpers_bytes >= b.update_bytes);
-                        let iface = Interface::new(&fp, &c.stem, &c.layout);
-                        let mut r = UpdateRunner::from_elf(&b.elf, iface)
-                            .unwrap_or_else(|e| panic!("{name} {}: {e}", compiler.name()));
-                        let cmp = compare(&mut r, &fp, &c.layout, &runs)
-                            .unwrap_or_else(|e| panic!("{name} {}: {e}", compiler.name()));
-                        let total: usize = runs.iter().map(|r| r.records.len()).sum();
-                        assert_eq!(cmp.samples, total);
-                        assert_eq!(cmp.cycles.calls as usize, total);
-                        assert!(
-                            cmp.mismatches == 0,
-                            "{name} {}: {} mismatching samples; first:\n{}",
-                            compiler.name(),
-                            cmp.mismatches,
-                            cmp.first_mismatches.join("\n")
-                        );
-                        // A real update costs more than the call overhead.
-                        assert!(cmp.cycles.best > 10, "{name}: implausible cycle count");
-                        events += cmp.events;
-                        lines.push(format!(
-                            "{name:<16} {:<5} {} samples, {} events, worst {} mean {:.1} cycles, update {} B, with helpers {} B",
-                            compiler.name(),
-                            cmp.samples,
-                            cmp.events,
-                            cmp.cycles.worst,
-                            cmp.cycles.mean(),
-                            b.update_bytes,
-                            b.update_with_helpers_bytes
-                        ));
-                    }
-                    (lines.join("\n"), events)
+    struct Inst {
+        name: String,
+        fp: FixedProgram,
+        c: CSource,
+        builds: Vec<cc::Build>,
+        runs: Vec<Run>,
+    }
+    let insts: Vec<Inst> = instruments()
+        .into_iter()
+        .map(|(name, text)| {
+            let (fp, c) = compile(&text);
+            let builds = compilers
+                .iter()
+                .map(|&compiler| {
+                    let b = cc::build(&c, compiler, &Options::default())
+                        .unwrap_or_else(|e| panic!("{name} {}: {e}", compiler.name()));
+                    assert!(b.update_bytes > 0 && b.update_with_helpers_bytes >= b.update_bytes);
+                    b
                 })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-            .collect()
+                .collect();
+            let runs = test_runs(&fp);
+            assert!(runs.len() >= 5, "{name}: built-in stimuli missing");
+            Inst {
+                name,
+                fp,
+                c,
+                builds,
+                runs,
+            }
+        })
+        .collect();
+    // Work items (instrument, stimulus), longest first, shared by one worker per core; each
+    // item runs all builds in lock-step with one pass of the interpreter.
+    let mut items: Vec<(usize, usize)> = insts
+        .iter()
+        .enumerate()
+        .flat_map(|(i, inst)| (0..inst.runs.len()).map(move |r| (i, r)))
+        .collect();
+    items.sort_by_key(|&(i, r)| {
+        std::cmp::Reverse(insts[i].runs[r].records.len() * insts[i].c.source.len())
     });
-    for (lines, _) in &results {
-        println!("{lines}");
+    let queue = std::sync::Mutex::new(items);
+    let workers = std::thread::available_parallelism().map_or(2, |n| n.get());
+    // Per (instrument, build): the comparisons of its stimuli.
+    let results = std::sync::Mutex::new(Vec::new());
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| loop {
+                let Some((i, r)) = queue.lock().unwrap().pop() else {
+                    break;
+                };
+                let inst = &insts[i];
+                let mut runners: Vec<UpdateRunner> = inst
+                    .builds
+                    .iter()
+                    .map(|b| {
+                        let iface = Interface::new(&inst.fp, &inst.c.stem, &inst.c.layout);
+                        UpdateRunner::from_elf(&b.elf, iface)
+                            .unwrap_or_else(|e| panic!("{} {}: {e}", inst.name, b.compiler.name()))
+                    })
+                    .collect();
+                let run = std::slice::from_ref(&inst.runs[r]);
+                let cmps = compare_many(&mut runners, &inst.fp, &inst.c.layout, run)
+                    .unwrap_or_else(|e| panic!("{} {}: {e}", inst.name, run[0].label));
+                let mut res = results.lock().unwrap();
+                for (k, cmp) in cmps.into_iter().enumerate() {
+                    res.push((i, k, r, cmp));
+                }
+            });
+        }
+    });
+    let results = results.into_inner().unwrap();
+    let mut events = 0;
+    for (i, inst) in insts.iter().enumerate() {
+        let total: usize = inst.runs.iter().map(|r| r.records.len()).sum();
+        for (k, b) in inst.builds.iter().enumerate() {
+            let name = &inst.name;
+            let compiler = b.compiler.name();
+            let cmps: Vec<_> = results
+                .iter()
+                .filter(|(ri, rk, _, _)| (*ri, *rk) == (i, k))
+                .map(|(_, _, _, c)| c)
+                .collect();
+            assert_eq!(cmps.len(), inst.runs.len(), "{name} {compiler}: runs missing");
+            let samples: usize = cmps.iter().map(|c| c.samples).sum();
+            let calls: u64 = cmps.iter().map(|c| c.cycles.calls).sum();
+            assert_eq!(samples, total);
+            assert_eq!(calls as usize, total);
+            for c in &cmps {
+                assert!(
+                    c.mismatches == 0,
+                    "{name} {compiler}: {} mismatching samples; first:\n{}",
+                    c.mismatches,
+                    c.first_mismatches.join("\n")
+                );
+                // A real update costs more than the call overhead.
+                assert!(c.cycles.best > 10, "{name}: implausible cycle count");
+            }
+            events += cmps.iter().map(|c| c.events).sum::<usize>();
+            let worst = cmps.iter().map(|c| c.cycles.worst).max().unwrap_or(0);
+            let cycles: u64 = cmps.iter().map(|c| c.cycles.total).sum();
+            println!(
+                "{name:<16} {compiler:<5} {samples} samples, worst {worst} mean {:.1} cycles, update {} B, with helpers {} B",
+                cycles as f64 / calls as f64,
+                b.update_bytes,
+                b.update_with_helpers_bytes
+            );
+        }
     }
     // Some instrument emits events, so their comparison is not vacuous.
-    assert!(results.iter().any(|(_, e)| *e > 0), "no event in any instrument and stimulus");
+    assert!(events > 0, "no event in any instrument and stimulus");
     println!("{:.1} s", t0.elapsed().as_secs_f64());
 }
 
