@@ -2,8 +2,12 @@
 //! host engines (the emulated-board engine comes with the firmware backend).
 //!
 //! Each played key runs its own instance of the instrument ([`KeyEngine`], stepped once per
-//! sample) from 50 ms before its first press to 500 ms after its last release; keys that are
-//! never played stay at rest and need no simulation. Two players move the keys:
+//! sample) from 50 ms before a press to 500 ms after its release; keys that are never played
+//! stay at rest and need no simulation, and a key at rest for more than a second between
+//! notes is simulated as separate stretches, each from a fresh instance (a key that has been
+//! at rest that long is back in its initial state — hammer on the rest felt, jack re-armed,
+//! impact pulses decayed — so this changes no strike, and a whole piece costs the time its
+//! keys move, not its length times its keys). Two players move the keys:
 //!
 //! * `position` (default): the key-motion model of `tactus_runtime::performance` prescribes
 //!   the key travel; the instrument's force is computed but does not move the key;
@@ -173,7 +177,13 @@ struct Strike {
     answers: Option<performance::Note>,
 }
 
-/// MIDI velocity for a hammer speed: logarithmic, 0.1 m/s → 1, 6 m/s → 127.
+/// MIDI velocity for a hammer-head speed at the strike (m/s):
+/// `v = 1 + 126 · ln(speed / 0.1 m/s) / ln(60)`, rounded and clamped to 1–127, so
+/// 0.1 m/s → 1 and 6 m/s → 127. The end points span grand-piano hammer speeds from the
+/// softest audible blow to *fff*; the map is logarithmic because reproducing pianos record
+/// velocities close to logarithmic in hammer speed (the same assumption as the key-motion
+/// model of `tactus_runtime::performance`, which is what keeps input and output velocities
+/// in the same order). Its inverse is [`speed_for_velocity`].
 pub fn midi_velocity(speed_mps: f64) -> u8 {
     let v = 1.0 + 126.0 * (speed_mps / 0.1).ln() / (6.0f64 / 0.1).ln();
     v.round().clamp(1.0, 127.0) as u8
@@ -206,12 +216,35 @@ pub fn run(args: PlayArgs) -> ExitCode {
     }
 }
 
-/// One key to simulate: its samples `first..first + n` and what moves it.
+/// One busy stretch of a key to simulate from rest: its samples `first..first + n` and what
+/// moves it (an index into the motions).
 struct KeyJob {
     key: u8,
     first: usize,
     n: usize,
-    motion: Motion,
+    motion: usize,
+}
+
+/// Simulated time before a key's first movement, s.
+const LEAD_IN_S: f64 = 0.05;
+/// Simulated time after a key's last movement ends, s (the hammer settles on its rest felt).
+const TAIL_S: f64 = 0.5;
+/// A key at rest for longer than this between two movements, s, is simulated as two
+/// stretches, each from a fresh instance.
+const IDLE_GAP_S: f64 = 1.0;
+
+/// Merges movement intervals (start s, end s) into busy stretches: intervals closer than
+/// [`IDLE_GAP_S`] belong to one stretch.
+fn busy_stretches(mut busy: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    busy.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    for (a, b) in busy {
+        match out.last_mut() {
+            Some(last) if a - last.1 < IDLE_GAP_S => last.1 = last.1.max(b),
+            _ => out.push((a, b)),
+        }
+    }
+    out
 }
 
 enum Motion {
@@ -344,7 +377,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             })
             .collect::<Result<_, _>>()?,
     };
-    // One job per played key.
+    // One job per busy stretch of each played key (see the module documentation).
+    let mut motions = Vec::new();
     let mut jobs = Vec::new();
     for &key in key_program.keys() {
         let notes: Vec<performance::Note> = perf
@@ -353,7 +387,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             .filter(|n| n.key == key)
             .copied()
             .collect();
-        let (motion, start_s, end_s) = match args.player {
+        let (motion, busy): (Motion, Vec<(f64, f64)>) = match args.player {
             Player::Position => {
                 let track = performance::key_tracks(
                     &Performance {
@@ -364,33 +398,41 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                     dip_of(key),
                 )
                 .remove(0);
-                let first = track.notes.first().map_or(0.0, |n| n.0) - performance::MAX_DESCENT_S;
-                let last = track.notes.last().map_or(0.0, |n| n.0);
-                let end = track.last_move_end_s().max(last);
-                (Motion::Track(track), first, end)
+                let busy = notes
+                    .iter()
+                    .map(|n| {
+                        (
+                            n.on_s - performance::MAX_DESCENT_S,
+                            n.off_s.max(n.on_s) + performance::RELEASE_S,
+                        )
+                    })
+                    .collect();
+                (Motion::Track(track), busy)
             }
             Player::Force => {
                 let cal = calibrations[key_program[&key]]
                     .as_ref()
                     .expect("calibrated");
                 let profile = finger_profile(&notes, cal, finger);
-                let first = profile.strokes().first().map_or(0.0, |s| s.start_s);
-                let end = profile
+                let busy = profile
                     .strokes()
                     .iter()
-                    .map(|s| s.lift_s)
-                    .fold(0.0, f64::max);
-                (Motion::Finger(profile), first, end)
+                    .map(|s| (s.start_s, s.lift_s))
+                    .collect();
+                (Motion::Finger(profile), busy)
             }
         };
-        let a = ((start_s - 0.05).max(0.0) * fs) as usize;
-        let b = ((end_s + 0.5) * fs) as usize;
-        jobs.push(KeyJob {
-            key,
-            first: a,
-            n: b.saturating_sub(a),
-            motion,
-        });
+        motions.push(motion);
+        for (start_s, end_s) in busy_stretches(busy) {
+            let a = ((start_s - LEAD_IN_S).max(0.0) * fs) as usize;
+            let b = ((end_s + TAIL_S) * fs) as usize;
+            jobs.push(KeyJob {
+                key,
+                motion: motions.len() - 1,
+                first: a,
+                n: b.saturating_sub(a),
+            });
+        }
     }
     let traced: BTreeSet<u8> = args.trace_keys.iter().copied().collect();
     for k in &traced {
@@ -409,7 +451,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    bar.set_message(format!("{} keys", jobs.len()));
+    bar.set_message(format!("{} keys", key_program.len()));
     let started = Instant::now();
     let mut strikes = Vec::new();
     let mut traces: BTreeMap<u8, TraceRows> = BTreeMap::new();
@@ -420,12 +462,12 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         let mut finger_player = ForcePlayer::new(dip_of(job.key), finger.mass_kg, fs);
         for i in 0..job.n {
             let time = (job.first + i) as f64 / fs;
-            let (x, push) = match &job.motion {
+            let (x, push) = match &motions[job.motion] {
                 Motion::Track(t) => (t.position(time), 0.0),
                 Motion::Finger(p) => (finger_player.x_m, p.force(time)),
             };
             let s = engine.step(x);
-            if let Motion::Finger(_) = job.motion {
+            if let Motion::Finger(_) = motions[job.motion] {
                 finger_player.step(push, s.force_n);
             }
             if let Some(speed) = s.strike_mps {
@@ -447,7 +489,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         }
         bar.inc((job.n % 65_536) as u64);
         if let Some(r) = rows {
-            traces.insert(job.key, r);
+            traces.entry(job.key).or_default().extend(r);
         }
     }
     bar.finish_and_clear();
@@ -494,7 +536,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         "{}: {} notes on {} keys ({} player) → {} strikes ({} answer a note within 50 ms); {} note{} outside the layout skipped",
         stem,
         perf.notes.len(),
-        jobs.len(),
+        key_program.len(),
         match args.player {
             Player::Position => "position",
             Player::Force => "force",
@@ -695,10 +737,22 @@ fn write_traces(
     let lines = |col: usize, scale: f64| -> Vec<plot::Line> {
         traces
             .iter()
-            .map(|(key, rows)| plot::Line {
-                label: format!("key {key}"),
-                x: rows.iter().map(|r| r[0]).collect(),
-                y: rows.iter().map(|r| r[col] * scale).collect(),
+            .map(|(key, rows)| {
+                // A break (NaN) where the key rested unsimulated between two stretches.
+                let (mut x, mut y) = (Vec::new(), Vec::new());
+                for (i, r) in rows.iter().enumerate() {
+                    if i > 0 && r[0] - rows[i - 1][0] > 1e-3 {
+                        x.push(f64::NAN);
+                        y.push(f64::NAN);
+                    }
+                    x.push(r[0]);
+                    y.push(r[col] * scale);
+                }
+                plot::Line {
+                    label: format!("key {key}"),
+                    x,
+                    y,
+                }
             })
             .collect()
     };
@@ -842,4 +896,28 @@ fn write_midi(path: &Path, strikes: &[Strike]) -> Result<(), String> {
     };
     smf.save(path)
         .map_err(|e| format!("{}: cannot write: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn busy_stretches_merge_only_short_rests() {
+        let s = busy_stretches(vec![(5.0, 5.2), (0.0, 0.5), (1.2, 1.4), (0.4, 0.6)]);
+        // 0.6 → 1.2 is a rest shorter than IDLE_GAP_S: one stretch; 1.4 → 5.0 is longer.
+        assert_eq!(s, vec![(0.0, 1.4), (5.0, 5.2)]);
+        assert!(busy_stretches(vec![]).is_empty());
+    }
+
+    #[test]
+    fn velocity_and_speed_maps_are_inverse() {
+        for v in 1..=127u8 {
+            assert_eq!(midi_velocity(speed_for_velocity(v)), v);
+        }
+        assert_eq!(midi_velocity(0.1), 1);
+        assert_eq!(midi_velocity(6.0), 127);
+        assert_eq!(midi_velocity(100.0), 127);
+        assert_eq!(midi_velocity(0.0), 1);
+    }
 }

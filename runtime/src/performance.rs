@@ -25,7 +25,13 @@
 //!   release could finish, the key is released faster, to [`REPEAT_RISE`] of the dip
 //!   raised, just in time for that press.
 //!
-//! The sustain pedal does not move keys (it lifts dampers), so it is read but not played.
+//! The sustain pedal does not move keys (it lifts dampers), so it does not enter the key
+//! tracks; the WAV rendering of `tactus play` uses it to hold the dampers off
+//! ([`crate::voice::damper_time`]).
+//!
+//! This model prescribes the key's travel (open loop): the instrument's force does not move
+//! the key. The closed-loop alternative, a finger force against the instrument's force, is
+//! [`crate::player`].
 
 use midly::{MetaMessage, MidiMessage, Smf, Timing, TrackEventKind};
 use std::fmt;
