@@ -8,8 +8,8 @@
 //! use), then linked by `arm-none-eabi-ld` with a generated linker script that places
 //! everything in SRAM from 0x2000_0000, plus `libgcc.a` (found with `arm-none-eabi-gcc
 //! -mcpu=cortex-m0plus -mthumb -print-libgcc-file-name`) for the `__aeabi_*` helpers the
-//! compilers call (64-bit shifts and multiplies, divisions) and, if the compiler emitted a
-//! call to `memset`/`memcpy`, newlib's `libc.a`. There is no startup code: the host calls
+//! compilers call (64-bit multiplies, divisions) and, when installed, newlib's `libc.a` for a
+//! `memset`/`memcpy` a compiler may emit (none of the shipped instruments needs it). There is no startup code: the host calls
 //! the functions (see [`crate::runner`]).
 //!
 //! Sizes: [`Build::update_bytes`] is the update's ELF symbol size; the update is also linked
@@ -187,7 +187,7 @@ impl Default for Options {
 /// A function linked into the update-only image.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Function {
-    /// Symbol name.
+    /// Symbol name; aliases at the same address joined by `=` (`__aeabi_lmul=__muldi3`).
     pub name: String,
     /// ELF symbol size, bytes.
     pub size: u32,
@@ -310,7 +310,13 @@ pub fn build(c: &CSource, compiler: Compiler, opts: &Options) -> Result<Build, C
             cmd.arg("-u").arg(k);
         }
         cmd.arg("-o").arg(out).args(&objects);
-        cmd.args(["--start-group", &libgcc, &libc, "--end-group"]);
+        cmd.arg("--start-group").arg(&libgcc);
+        // newlib (Debian: libnewlib-arm-none-eabi, only recommended by gcc-arm-none-eabi)
+        // for a `memset`/`memcpy` a compiler may emit; without it, only libgcc.
+        if Path::new(&libc).is_absolute() {
+            cmd.arg(&libc);
+        }
+        cmd.arg("--end-group");
         run(&mut cmd, "arm-none-eabi-ld")?;
         std::fs::read(out).map_err(|e| CcError::Io(format!("{}: {e}", out.display())))
     };
@@ -328,7 +334,10 @@ pub fn build(c: &CSource, compiler: Compiler, opts: &Options) -> Result<Build, C
         update_bytes,
         update_with_helpers_bytes: text,
         update_rodata_bytes: rodata,
-        helpers: funcs.into_iter().filter(|f| f.name != update).collect(),
+        helpers: funcs
+            .into_iter()
+            .filter(|f| !f.name.split('=').any(|n| n == update))
+            .collect(),
     })
 }
 
@@ -355,17 +364,21 @@ fn sizes(elf: &[u8], name: &str) -> Result<(u32, (u32, u32, Vec<Function>)), CcE
             }
         }
     }
-    let mut funcs: Vec<Function> = file
+    // Aliases (`__aeabi_lmul` and `__muldi3` are one function) become one entry.
+    let mut syms: Vec<(u64, String, u32)> = file
         .symbols()
         .filter(|s| s.kind() == SymbolKind::Text && s.size() > 0)
-        .filter_map(|s| {
-            Some(Function {
-                name: s.name().ok()?.to_string(),
-                size: s.size() as u32,
-            })
-        })
+        .filter_map(|s| Some((s.address() & !1, s.name().ok()?.to_string(), s.size() as u32)))
         .collect();
-    funcs.sort_by(|a, b| a.name.cmp(&b.name));
-    funcs.dedup();
+    syms.sort();
+    syms.dedup();
+    let mut funcs: Vec<(u64, Function)> = Vec::new();
+    for (addr, name, size) in syms {
+        match funcs.last_mut() {
+            Some((a, f)) if *a == addr => f.name = format!("{}={name}", f.name),
+            _ => funcs.push((addr, Function { name, size })),
+        }
+    }
+    let funcs: Vec<Function> = funcs.into_iter().map(|(_, f)| f).collect();
     Ok((sym.size() as u32, (text, rodata, funcs)))
 }
