@@ -531,9 +531,32 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     if !traces.is_empty() {
         wrote.extend(write_traces(&args.out, &stem, &traces)?);
     }
+    // Notes no strike answers: the instrument did not sound them.
+    let silent: Vec<&performance::Note> = perf
+        .notes
+        .iter()
+        .filter(|n| {
+            !strikes.iter().any(|s| {
+                s.answers
+                    .is_some_and(|a| a.key == n.key && a.on_s == n.on_s)
+            })
+        })
+        .collect();
+    for n in silent.iter().take(10) {
+        eprintln!(
+            "warning: note {} at {:.3} s (velocity {}) produced no strike within 50 ms",
+            n.key, n.on_s, n.velocity
+        );
+    }
+    if silent.len() > 10 {
+        eprintln!(
+            "warning: … and {} more notes without a strike",
+            silent.len() - 10
+        );
+    }
     let audio_s = perf.duration_s;
     println!(
-        "{}: {} notes on {} keys ({} player) → {} strikes ({} answer a note within 50 ms); {} note{} outside the layout skipped",
+        "{}: {} notes on {} keys ({} player) → {} strikes ({} answer a note within 50 ms; {} note{} without a strike); {} note{} outside the layout skipped",
         stem,
         perf.notes.len(),
         key_program.len(),
@@ -543,6 +566,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         },
         strikes.len(),
         matched,
+        silent.len(),
+        if silent.len() == 1 { "" } else { "s" },
         skipped,
         if skipped == 1 { "" } else { "s" },
     );

@@ -19,11 +19,14 @@
 //!   travel time keeps the order of velocities (the property the tests rely on);
 //! * the press follows the cycloidal law of [`crate::stimulus`] (smooth to the second
 //!   derivative) from wherever the key is, so a repeated note that comes before the key is
-//!   back up re-strikes from a half-released key;
+//!   back up re-strikes from a half-released key; such a press covers the remaining travel
+//!   in the same fraction of `T(v)`, so the key keeps the speed of its velocity (a soft
+//!   re-strike over the full `T(v)` would move the key too slowly to throw the hammer to the
+//!   string);
 //! * the key is held at the bottom until the note-off, then released over
 //!   [`RELEASE_S`] (60 ms) back to rest; when the next press of that key starts before the
-//!   release could finish, the key is released faster, to [`REPEAT_RISE`] of the dip
-//!   raised, just in time for that press.
+//!   release could finish, the key is released only to [`REPEAT_RISE`] of the dip raised,
+//!   ending just when that press starts.
 //!
 //! The sustain pedal does not move keys (it lifts dampers), so it does not enter the key
 //! tracks; the WAV rendering of `tactus play` uses it to hold the dampers off
@@ -301,8 +304,16 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
         };
         for (i, n) in notes.iter().enumerate() {
             let descent = descent_time_s(n.velocity);
-            // Presses start after the previous movement ends (moves stay in time order).
-            let start = (n.on_s - descent).max(t.moves.last().map_or(0.0, |m| m.end_s));
+            // Presses start after the previous movement ends (moves stay in time order). A
+            // press from a half-released key covers only the remaining travel, in the same
+            // fraction of the descent time (the key keeps the speed of its velocity); the
+            // start depends on where the rising key is then, so it is found by iteration.
+            let earliest = t.moves.last().map_or(0.0, |m| m.end_s);
+            let mut start = (n.on_s - descent).max(earliest);
+            for _ in 0..3 {
+                let remaining = (1.0 - t.position(start) / dip_m).clamp(0.0, 1.0);
+                start = (n.on_s - descent * remaining).max(earliest);
+            }
             let from = t.position(start);
             let bottom = n.on_s.max(start + 1e-3);
             t.moves.push(Move {
@@ -311,9 +322,14 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
                 from,
                 to: dip_m,
             });
-            let next_start = notes
-                .get(i + 1)
-                .map(|m| (m.on_s - descent_time_s(m.velocity)).max(0.0));
+            // When the next press would start from rest, and when it starts from a key
+            // raised by `REPEAT_RISE` of the dip (covering that part of the dip in the same
+            // fraction of its descent time).
+            let next = notes.get(i + 1).map(|m| {
+                let d = descent_time_s(m.velocity);
+                ((m.on_s - d).max(0.0), (m.on_s - d * REPEAT_RISE).max(0.0))
+            });
+            let next_start = next.map(|n| n.0);
             let release_at = n.off_s.max(bottom);
             let release = match next_start {
                 // Time for a full release before the next press.
@@ -330,8 +346,9 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
                     to: 0.0,
                 },
                 // A quick partial release that ends where the next press starts.
-                Some(next) => {
-                    let end = next.max(bottom + 2e-3);
+                Some(_) => {
+                    let partial_start = next.map_or(0.0, |n| n.1);
+                    let end = partial_start.max(bottom + 2e-3);
                     let start_r = release_at.min(end - 2e-3).max(bottom);
                     Move {
                         start_s: start_r,
@@ -501,5 +518,34 @@ mod tests {
         assert!(lowest > 0.0 && lowest < 0.01, "{lowest}");
         assert_eq!(t.position(2.0), 0.0);
         assert!(descent_time_s(100) < descent_time_s(60) && descent_time_s(30) == 0.160);
+    }
+    #[test]
+    fn a_restrike_from_a_half_released_key_keeps_the_speed_of_its_velocity() {
+        let note = |on_s: f64, off_s: f64| Note {
+            key: 60,
+            velocity: 25,
+            on_s,
+            off_s,
+        };
+        let perf = Performance {
+            notes: vec![note(0.5, 0.52), note(0.68, 1.0)],
+            sustain: vec![],
+            duration_s: 1.5,
+        };
+        let dip = 0.01;
+        let t = &key_tracks(&perf, dip)[0];
+        // The last lowest point between the notes is where the second press starts.
+        let (i_low, low) = (5200..6800)
+            .map(|i| (i, t.position(i as f64 * 1e-4)))
+            .fold((0, f64::INFINITY), |a, b| if b.1 <= a.1 { b } else { a });
+        assert!(low > 0.0 && low < dip, "{low}");
+        let press_s = 0.68 - i_low as f64 * 1e-4;
+        let mean_speed = (dip - low) / press_s;
+        let full_speed = dip / descent_time_s(25);
+        assert!(
+            mean_speed > 0.95 * full_speed && mean_speed < 1.05 * full_speed,
+            "re-strike {mean_speed} m/s, full press {full_speed} m/s"
+        );
+        assert!((t.position(0.68) - dip).abs() < 1e-12);
     }
 }

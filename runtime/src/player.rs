@@ -1,7 +1,9 @@
 //! The force-driven player: a finger pushes a key with a force profile, the instrument's
 //! commanded force pushes back, and the key moves by Newton's law — the closed loop of
-//! MIKEY's second validation experiment (a simulated finger of given mass and force profile
-//! pressing the simulated key, instead of a prescribed key trajectory).
+//! MIKEY's second validation experiment (key and finger mass, a finger force profile, the
+//! commanded instrument force opposing, integrated at the sample rate) instead of a
+//! prescribed key trajectory. The structure follows that experiment; the finger's mass and
+//! force profiles below are our own choices, not the paper's numbers.
 //!
 //! **The law.** Key travel `x` (m, at the key front, 0 = rest, `dip` = key bottom) and its
 //! speed `v` (m/s) obey
