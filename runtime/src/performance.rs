@@ -25,8 +25,8 @@
 //!   string);
 //! * the key is held at the bottom until the note-off, then released over
 //!   [`RELEASE_S`] (60 ms) back to rest; when the next press of that key starts before the
-//!   release could finish, the key is released only to [`REPEAT_RISE`] of the dip raised,
-//!   ending just when that press starts.
+//!   release could finish, the key is released faster, to [`REPEAT_RISE`] of the dip
+//!   raised, by the time that press would start from rest, and waits there.
 //!
 //! The sustain pedal does not move keys (it lifts dampers), so it does not enter the key
 //! tracks; the WAV rendering of `tactus play` uses it to hold the dampers off
@@ -322,14 +322,13 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
                 from,
                 to: dip_m,
             });
-            // When the next press would start from rest, and when it starts from a key
-            // raised by `REPEAT_RISE` of the dip (covering that part of the dip in the same
-            // fraction of its descent time).
-            let next = notes.get(i + 1).map(|m| {
-                let d = descent_time_s(m.velocity);
-                ((m.on_s - d).max(0.0), (m.on_s - d * REPEAT_RISE).max(0.0))
-            });
-            let next_start = next.map(|n| n.0);
+            // When the next press would start if it started from rest: a release that cannot
+            // finish by then is a quick partial one, and the key waits, raised by
+            // `REPEAT_RISE` of the dip, for that press (the hammer stays up on the
+            // repetition lever meanwhile).
+            let next_start = notes
+                .get(i + 1)
+                .map(|m| (m.on_s - descent_time_s(m.velocity)).max(0.0));
             let release_at = n.off_s.max(bottom);
             let release = match next_start {
                 // Time for a full release before the next press.
@@ -345,10 +344,9 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
                     from: dip_m,
                     to: 0.0,
                 },
-                // A quick partial release that ends where the next press starts.
-                Some(_) => {
-                    let partial_start = next.map_or(0.0, |n| n.1);
-                    let end = partial_start.max(bottom + 2e-3);
+                // A quick partial release, by when the next press would start from rest.
+                Some(next) => {
+                    let end = next.max(bottom + 2e-3);
                     let start_r = release_at.min(end - 2e-3).max(bottom);
                     Move {
                         start_s: start_r,
