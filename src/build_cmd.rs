@@ -1,8 +1,13 @@
 //! `tactus build`: compile an instrument to firmware sources.
 //!
 //! `--target c` (the default) writes `DIR/<name>.h` and `DIR/<name>.c`: portable C99 with
-//! the fixed-point bits of the fixed interpreter (see `tactus_compiler::cgen`). The Thumb
-//! backend (`--target rp2040`) is planned and reports so.
+//! the fixed-point bits of the fixed interpreter (see `tactus_compiler::cgen`).
+//!
+//! `--target rp2040` writes `DIR/<name>.o` (an ARM ELF relocatable object for the
+//! Cortex-M0+, from `tactus_compiler::thumb`), `DIR/<name>.h` (the same interface header as
+//! the C target: state struct, prototypes, Q-formats and units) and `DIR/<name>.s` (a GNU
+//! assembler listing that `arm-none-eabi-as -mcpu=cortex-m0plus` assembles to the same
+//! bytes).
 
 use crate::check_cmd::{compile_reporting, parse_override};
 use crate::source;
@@ -10,16 +15,19 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use tactus_compiler::cgen::{self, CConfig};
 use tactus_compiler::fixed::FixedProgram;
+use tactus_compiler::thumb;
 
 /// Arguments of `tactus build`.
 #[derive(Debug, clap::Args)]
 pub struct BuildArgs {
     /// Instrument file (`instruments/grand_piano.tactus`) or built-in name (`grand_piano`).
     pub file: String,
-    /// What to generate: `c` (portable C99 sources) or `rp2040` (Thumb ELF; planned).
+    /// What to generate: `c` (portable C99 sources) or `rp2040` (Thumb ELF object, header
+    /// and assembler listing for the Cortex-M0+).
     #[arg(long, value_enum, default_value = "c")]
     pub target: Target,
-    /// Output directory, created if missing; receives `<name>.h` and `<name>.c`.
+    /// Output directory, created if missing; receives `<name>.h` and `<name>.c` (or `.o`,
+    /// `.h` and `.s` for rp2040).
     #[arg(short = 'o', long = "out-dir", value_name = "DIR")]
     pub out_dir: Option<PathBuf>,
     /// Override a param: `--param k=200 N/m` (repeatable; the unit must match the param's).
@@ -32,7 +40,7 @@ pub struct BuildArgs {
 pub enum Target {
     /// Portable C99 (`<stdint.h>` only), bit-exact with `tactus sim --numeric fixed`.
     C,
-    /// Thumb machine code for the RP2040 (not implemented yet).
+    /// ARMv6-M Thumb machine code for the RP2040's Cortex-M0+ cores, bit-exact too.
     Rp2040,
 }
 
@@ -50,15 +58,9 @@ pub fn run(args: BuildArgs) -> ExitCode {
 }
 
 fn build(args: &BuildArgs) -> Result<(), Option<String>> {
-    if args.target == Target::Rp2040 {
-        return Err(Some(format!(
-            "{}: --target rp2040: not implemented yet: the Thumb backend is planned (issue 5); use --target c",
-            args.file
-        )));
-    }
     let Some(dir) = &args.out_dir else {
         return Err(Some(format!(
-            "{}: --target c needs an output directory: -o DIR",
+            "{}: `tactus build` needs an output directory: -o DIR",
             args.file
         )));
     };
@@ -76,7 +78,6 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
             .map(|(n, v)| format!("{n}={v}"))
             .collect(),
     };
-    let c = cgen::emit_c_with(&fp, &config).map_err(|e| Some(format!("{}: {e}", src.name)))?;
     std::fs::create_dir_all(dir).map_err(|e| {
         Some(format!(
             "{}: cannot create `{}`: {e}",
@@ -84,16 +85,42 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
             dir.display()
         ))
     })?;
-    let h = dir.join(format!("{}.h", c.stem));
-    let s = dir.join(format!("{}.c", c.stem));
-    for (path, text) in [(&h, &c.header), (&s, &c.source)] {
-        std::fs::write(path, text).map_err(|e| {
+    let write = |path: &std::path::Path, bytes: &[u8]| {
+        std::fs::write(path, bytes).map_err(|e| {
             Some(format!(
                 "{}: cannot write `{}`: {e}",
                 src.name,
                 path.display()
             ))
-        })?;
+        })
+    };
+    if args.target == Target::Rp2040 {
+        let obj = thumb::compile(&fp).map_err(|e| Some(format!("{}: {e}", src.name)))?;
+        let elf = obj.elf().map_err(|e| Some(format!("{}: {e}", src.name)))?;
+        let o = dir.join(format!("{}.o", obj.stem));
+        let h = dir.join(format!("{}.h", obj.stem));
+        let s = dir.join(format!("{}.s", obj.stem));
+        write(&o, &elf)?;
+        write(&h, obj.header.as_bytes())?;
+        write(&s, obj.code.listing.as_bytes())?;
+        let (_, size) = obj.symbol(&obj.update_name()).unwrap_or((0, 0));
+        println!(
+            "{}: wrote {}, {} and {} (.text {} bytes, update {} bytes; link the object and call {} once per sample)",
+            src.name,
+            o.display(),
+            h.display(),
+            s.display(),
+            obj.code.text.len(),
+            size,
+            obj.update_name()
+        );
+        return Ok(());
+    }
+    let c = cgen::emit_c_with(&fp, &config).map_err(|e| Some(format!("{}: {e}", src.name)))?;
+    let h = dir.join(format!("{}.h", c.stem));
+    let s = dir.join(format!("{}.c", c.stem));
+    for (path, text) in [(&h, &c.header), (&s, &c.source)] {
+        write(path, text.as_bytes())?;
     }
     println!(
         "{}: wrote {} and {} ({} + {} lines; call tactus_{}_update once per sample)",

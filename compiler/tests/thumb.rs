@@ -44,6 +44,21 @@ struct Emu {
 }
 
 impl Emu {
+    /// A board running an executable linked from the object (symbols from its ELF).
+    fn from_elf(obj: &ThumbObject, elf: &[u8]) -> Self {
+        let mut board = Board::new(Default::default());
+        board.load_elf(elf).unwrap();
+        let init = board.symbol(&obj.init_name()).unwrap() & !1;
+        let update = board.symbol(&obj.update_name()).unwrap() & !1;
+        let mut e = Emu {
+            board,
+            init,
+            update,
+        };
+        e.reset();
+        e
+    }
+
     fn new(obj: &ThumbObject) -> Self {
         let mut board = Board::new(Default::default());
         board.write_bytes(CODE, &obj.code.text).unwrap();
@@ -111,8 +126,17 @@ fn compare(
     label: &str,
     records: &[Vec<i32>],
 ) -> (Vec<String>, u64, u64) {
+    compare_on(Emu::new(obj), fp, obj, label, records)
+}
+
+fn compare_on(
+    mut emu: Emu,
+    fp: &FixedProgram,
+    obj: &ThumbObject,
+    label: &str,
+    records: &[Vec<i32>],
+) -> (Vec<String>, u64, u64) {
     let p = &fp.program;
-    let mut emu = Emu::new(obj);
     let mut inst = FixedInstance::new(fp);
     let l = &obj.out;
     let mut bad = Vec::new();
@@ -257,4 +281,114 @@ fn thumb_matches_the_fixed_interpreter_on_operation_corners() {
     for (name, text) in cases {
         check_source(name, text, false, 3);
     }
+}
+
+fn have(tool: &str) -> bool {
+    std::process::Command::new(tool)
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+/// Tools the next test needs: present, or a clear skip (a failure under CI, which installs
+/// them: binutils-arm-none-eabi).
+fn tools_present(tools: &[&str]) -> bool {
+    let missing: Vec<&&str> = tools.iter().filter(|t| !have(t)).collect();
+    if missing.is_empty() {
+        return true;
+    }
+    let msg = format!("{missing:?} not installed (Debian: binutils-arm-none-eabi)");
+    assert!(std::env::var_os("CI").is_none(), "{msg}");
+    println!("SKIPPED: {msg}");
+    false
+}
+
+fn text_of(elf: &[u8]) -> Vec<u8> {
+    use object::{Object, ObjectSection};
+    let f = object::File::parse(elf).unwrap();
+    f.section_by_name(".text").unwrap().data().unwrap().to_vec()
+}
+
+/// The `.s` listing assembles with GNU as to exactly the bytes of the object, and the
+/// object links with GNU ld into an executable the emulator runs with the interpreter's bits.
+#[test]
+fn listing_assembles_to_the_same_bytes_and_the_object_links() {
+    if !tools_present(&["arm-none-eabi-as", "arm-none-eabi-ld"]) {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("tactus-thumb-as-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (name, text) in instruments() {
+        let p = tactus_compiler::compile(&text, &Config::default())
+            .unwrap()
+            .program;
+        let fp = FixedProgram::new(&p);
+        let obj = thumb::compile(&fp).unwrap();
+        let ours = obj.elf().unwrap();
+        assert_eq!(text_of(&ours), obj.code.text, "{name}: the ELF's .text");
+        let s = dir.join(format!("{name}.s"));
+        std::fs::write(&s, &obj.code.listing).unwrap();
+        let o = dir.join(format!("{name}-as.o"));
+        let out = std::process::Command::new("arm-none-eabi-as")
+            .args(["-mcpu=cortex-m0plus", "-o"])
+            .arg(&o)
+            .arg(&s)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{name}: as failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            out.stderr.is_empty(),
+            "{name}: as warned: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let theirs = text_of(&std::fs::read(&o).unwrap());
+        assert_eq!(theirs.len(), obj.code.text.len(), "{name}: .text sizes");
+        if let Some(i) = (0..theirs.len()).find(|&i| theirs[i] != obj.code.text[i]) {
+            panic!("{name}: as gives other bytes from offset {i:#x}");
+        }
+        // Link our object (not the assembler's) into an executable at the start of SRAM.
+        let ours_path = dir.join(format!("{name}.o"));
+        std::fs::write(&ours_path, &ours).unwrap();
+        let ld = dir.join("link.ld");
+        std::fs::write(&ld, "SECTIONS { . = 0x20000000; .text : { *(.text*) } }\n").unwrap();
+        let exe = dir.join(format!("{name}.elf"));
+        let out = std::process::Command::new("arm-none-eabi-ld")
+            .arg("-T")
+            .arg(&ld)
+            .arg("-e")
+            .arg(obj.update_name())
+            .arg("-o")
+            .arg(&exe)
+            .arg(&ours_path)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{name}: ld failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let emu = Emu::from_elf(&obj, &std::fs::read(&exe).unwrap());
+        let stim = stimulus::builtin("ff-dip", p.sensors[0].range.1, 44_100.0).unwrap();
+        let records: Vec<Vec<i32>> = stim
+            .key
+            .iter()
+            .map(|&k| {
+                (0..p.sensors.len())
+                    .map(|i| FixedInstance::sensor_raw(&fp, i, if i == 0 { Some(k) } else { None }))
+                    .collect()
+            })
+            .collect();
+        let (bad, worst, _) = compare_on(emu, &fp, &obj, &format!("{name}/linked"), &records);
+        assert!(
+            bad.is_empty(),
+            "{name}: linked firmware differs: {}",
+            bad[0]
+        );
+        println!("{name}: listing = object bytes ({} B); linked executable matches ({} samples, worst {worst} cycles)", theirs.len(), records.len());
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

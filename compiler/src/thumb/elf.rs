@@ -51,7 +51,7 @@ pub fn write(code: &Code) -> Result<Vec<u8>, ThumbError> {
             value: *off as u64 | 1,
             size: *size as u64,
             kind: SymbolKind::Text,
-            scope: SymbolScope::Linkage,
+            scope: SymbolScope::Dynamic,
             weak: false,
             section: SymbolSection::Section(text),
             flags: SymbolFlags::None,

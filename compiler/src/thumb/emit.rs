@@ -8,8 +8,8 @@ use super::select::STATE_V;
 use super::ThumbError;
 use std::collections::HashMap;
 use std::fmt::Write as _;
-use tactus_emulator::decode::{AluOp, Hint, Instr, MemOp};
-use tactus_emulator::encode::encode;
+use tactus_emulator::decode::{AluOp, Instr, MemOp};
+use tactus_emulator::encode::{enc_imm8, encode};
 
 /// One item of a function body after allocation.
 #[derive(Clone, Debug)]
@@ -186,7 +186,7 @@ impl Lower<'_> {
             }
             M::Alu2 { op, d, a, m } => {
                 let ra = self.read(a, 0);
-                let rm = self.read(m, 1);
+                let rm = if m == a { ra } else { self.read(m, 1) };
                 let (r, s) = self.write(d);
                 let commutative = matches!(
                     op,
@@ -429,15 +429,26 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
     // 3. Encode.
     let (addrs, labels, island_at) = layout(&fitems, &islands, &long);
     let mut text = Vec::new();
-    let mut listing =
-        String::from("    .syntax unified\n    .cpu cortex-m0plus\n    .thumb\n    .text\n");
+    let mut listing = String::from(
+        "    .syntax unified\n    .cpu cortex-m0plus\n    .thumb\n    .text\n    .p2align 2\n",
+    );
     let mut symbols = Vec::new();
     let mut data = Vec::new();
     let mut notes = Vec::new();
-    let enc = |i: &Instr| {
-        encode(i)
+    let enc = |i: &Instr| match *i {
+        // `ADDS Rdn, Rdn, #imm` with imm < 8 has two 16-bit encodings; GNU as picks T2
+        // (imm8), so the listing assembles to the same bytes only if we do too.
+        Instr::AddImm { rd, rn, imm } | Instr::SubImm { rd, rn, imm } if rd == rn && rd < 8 => {
+            let op = if matches!(i, Instr::SubImm { .. }) {
+                3
+            } else {
+                2
+            };
+            Ok(enc_imm8(op, rd as u16, imm as u16).to_le_bytes().to_vec())
+        }
+        _ => encode(i)
             .map(|e| e.bytes())
-            .map_err(|e| ThumbError::Encoding(e.to_string()))
+            .map_err(|e| ThumbError::Encoding(e.to_string())),
     };
     for (fi, (name, items)) in fitems.iter().enumerate() {
         let start = text.len();
@@ -516,8 +527,8 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
                         let _ = writeln!(listing, "    b .Lisland{id}_end");
                     }
                     if text.len() % 4 != 0 {
-                        text.extend(enc(&Instr::Hint(Hint::Nop))?);
-                        let _ = writeln!(listing, "    nop");
+                        text.extend(enc(&PAD)?);
+                        let _ = writeln!(listing, "    mov r8, r8");
                     }
                     debug_assert_eq!(text.len(), island_at[id]);
                     data.push((text.len(), 4 * words.len()));
@@ -536,8 +547,8 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
         // Functions start on a word boundary (keeps the next function's pools aligned
         // the same way the assembler's `.p2align` does).
         if text.len() % 4 != 0 {
-            text.extend(enc(&Instr::Hint(Hint::Nop))?);
-            let _ = writeln!(listing, "    nop");
+            text.extend(enc(&PAD)?);
+            let _ = writeln!(listing, "    mov r8, r8");
         }
     }
     Ok(Code {
@@ -548,6 +559,10 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
         notes,
     })
 }
+
+/// Alignment padding: `MOV r8, r8` (0x46c0), the no-op GNU as pads Thumb code with for
+/// ARMv6-M, so that the listing assembles to the same bytes.
+const PAD: Instr = Instr::MovHi { rd: 8, rm: 8 };
 
 const CONDS: [&str; 14] = [
     "eq", "ne", "cs", "cc", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt", "gt", "le",
