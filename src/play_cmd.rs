@@ -716,7 +716,7 @@ fn write_wav(path: &Path, strikes: &[Strike], perf: &Performance, fs: f64) -> Re
         .map(|s| s.time_s)
         .fold(perf.duration_s, f64::max);
     let samples = voice::render(&notes, last + 2.0, fs);
-    let pcm = voice::normalise_i16(&samples, 0.9);
+    let scale = voice::i16_scale(&samples, 0.9);
     let spec = hound::WavSpec {
         channels: 1,
         sample_rate: fs.round() as u32,
@@ -725,8 +725,8 @@ fn write_wav(path: &Path, strikes: &[Strike], perf: &Performance, fs: f64) -> Re
     };
     let err = |e: hound::Error| format!("{}: cannot write: {e}", path.display());
     let mut w = hound::WavWriter::create(path, spec).map_err(err)?;
-    for x in pcm {
-        w.write_sample(x).map_err(err)?;
+    for &x in &samples {
+        w.write_sample(voice::to_i16(x, scale)).map_err(err)?;
     }
     w.finalize().map_err(err)
 }

@@ -85,7 +85,7 @@ pub fn damper_time(off_s: f64, sustain: &[(f64, bool)]) -> f64 {
 /// 1 m/s strike's fundamental starts at amplitude about 1).
 pub fn render(strikes: &[Strike], seconds: f64, sample_rate_hz: f64) -> Vec<f32> {
     let n = (seconds.max(0.0) * sample_rate_hz).ceil() as usize;
-    let mut buf = vec![0f64; n];
+    let mut buf = vec![0f32; n];
     let dt = 1.0 / sample_rate_hz;
     let ln1000 = 1000f64.ln();
     let attack = (0.002 * sample_rate_hz).max(1.0);
@@ -119,7 +119,7 @@ pub fn render(strikes: &[Strike], seconds: f64, sample_rate_hz: f64) -> Vec<f32>
             let mut i = i0;
             while i < n && env > SILENCE * amp {
                 let a = ((i - i0) as f64 + 1.0).min(attack) / attack;
-                buf[i] += env * a * im;
+                buf[i] += (env * a * im) as f32;
                 let r = re * cos_w - im * sin_w;
                 im = re * sin_w + im * cos_w;
                 re = r;
@@ -128,26 +128,34 @@ pub fn render(strikes: &[Strike], seconds: f64, sample_rate_hz: f64) -> Vec<f32>
             }
         }
     }
-    buf.into_iter().map(|x| x as f32).collect()
+    buf
 }
 
 fn first_sample(t: f64, fs: f64) -> Option<usize> {
     (t.is_finite() && t >= 0.0).then(|| (t * fs).round() as usize)
 }
 
-/// Scales samples to 16-bit PCM with the peak at `headroom` of full scale (e.g. 0.9), so
-/// nothing clips; silence stays silence.
-pub fn normalise_i16(samples: &[f32], headroom: f64) -> Vec<i16> {
+/// The factor that puts the peak of `samples` at `headroom` of 16-bit full scale (e.g. 0.9);
+/// 0 for silence.
+pub fn i16_scale(samples: &[f32], headroom: f64) -> f64 {
     let peak = samples.iter().fold(0f32, |m, &x| m.max(x.abs()));
-    let scale = if peak > 0.0 {
+    if peak > 0.0 {
         headroom.clamp(0.0, 1.0) * f64::from(i16::MAX) / f64::from(peak)
     } else {
         0.0
-    };
-    samples
-        .iter()
-        .map(|&x| (f64::from(x) * scale).round().clamp(-32767.0, 32767.0) as i16)
-        .collect()
+    }
+}
+
+/// One sample as 16-bit PCM with the factor of [`i16_scale`] (rounded, never past ±32767).
+pub fn to_i16(x: f32, scale: f64) -> i16 {
+    (f64::from(x) * scale).round().clamp(-32767.0, 32767.0) as i16
+}
+
+/// Scales samples to 16-bit PCM with the peak at `headroom` of full scale (e.g. 0.9), so
+/// nothing clips; silence stays silence.
+pub fn normalise_i16(samples: &[f32], headroom: f64) -> Vec<i16> {
+    let scale = i16_scale(samples, headroom);
+    samples.iter().map(|&x| to_i16(x, scale)).collect()
 }
 
 #[cfg(test)]
