@@ -277,9 +277,10 @@ mod tests {
         let mut p = ForceProfile::new(FingerConfig::default(), vec![]);
         assert_eq!(p.force(1.0), 0.0);
         p = stroke(0.4); // below the 0.5 N weight
-        let mut cfg = FingerConfig::default();
-        cfg.hold_n = 0.4;
-        p.config = cfg;
+        p.config = FingerConfig {
+            hold_n: 0.4,
+            ..FingerConfig::default()
+        };
         assert!(run(&p, 0.4).iter().all(|&x| x == 0.0));
     }
 

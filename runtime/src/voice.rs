@@ -93,7 +93,7 @@ pub fn render(strikes: &[Strike], seconds: f64, sample_rate_hz: f64) -> Vec<f32>
         let Some(i0) = first_sample(s.time_s, sample_rate_hz) else {
             continue;
         };
-        if i0 >= n || !(s.speed_mps > 0.0) {
+        if i0 >= n || s.speed_mps.is_nan() || s.speed_mps <= 0.0 {
             continue;
         }
         let damp_i = if s.damp_s.is_finite() {
