@@ -4,8 +4,11 @@
 //! interpreter).
 //!
 //! ```text
-//! cargo run --release -p tactus-firmware --example compilers [INSTRUMENT...]
+//! cargo run --release -p tactus-firmware --example compilers [--keep DIR] [INSTRUMENT...]
 //! ```
+//!
+//! `--keep DIR` keeps each build's work directory (C files, objects, linker script, ELFs)
+//! under DIR, for disassembly.
 //!
 //! Prints a Markdown table (see `tactus_firmware::report::table`) and, per build, the
 //! helper functions linked for the update. Exits with status 1 on a mismatch or a failed
@@ -21,7 +24,17 @@ use tactus_firmware::report::{table, Row};
 use tactus_firmware::{Interface, UpdateRunner};
 
 fn main() {
-    let only: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut opts = Options::default();
+    if let Some(i) = args.iter().position(|a| a == "--keep") {
+        if i + 1 >= args.len() {
+            eprintln!("--keep needs a directory");
+            std::process::exit(2);
+        }
+        opts.work_dir = Some(args.remove(i + 1).into());
+        args.remove(i);
+    }
+    let only = args;
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
     let mut files: Vec<_> = std::fs::read_dir(&dir)
         .expect("instruments/")
@@ -69,7 +82,7 @@ fn main() {
         };
         let runs = builtin_runs(&fp);
         for compiler in Compiler::ALL {
-            let b = match cc::build(&c, compiler, &Options::default()) {
+            let b = match cc::build(&c, compiler, &opts) {
                 Ok(b) => b,
                 Err(e) => {
                     println!("{name} {}: {e}", compiler.name());

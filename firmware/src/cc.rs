@@ -168,8 +168,10 @@ pub struct Options {
     pub extra_sources: Vec<(String, String)>,
     /// Further symbols to keep in the full image (e.g. data defined in `extra_sources`).
     pub keep: Vec<String>,
-    /// Where to put the work directory (default: the system temp dir); it is removed after a
-    /// successful build and left for inspection after a failure.
+    /// Where to put the work directory. `None`: the system temp dir, and the directory is
+    /// removed after a successful build (left for inspection after a failure). `Some(dir)`:
+    /// the directory `dir/tactus-cc-…-<stem>-<compiler>` is kept (sources, objects, the
+    /// linker script, `full.elf` and `update.elf`).
     pub work_dir: Option<PathBuf>,
 }
 
@@ -326,7 +328,9 @@ pub fn build(c: &CSource, compiler: Compiler, opts: &Options) -> Result<Build, C
     let alone = link(&dir.join("update.elf"), &[])?;
     let (update_bytes, _) = sizes(&elf, &update)?;
     let (_, (text, rodata, funcs)) = sizes(&alone, &update)?;
-    let _ = std::fs::remove_dir_all(&dir);
+    if opts.work_dir.is_none() {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
     Ok(Build {
         compiler,
         version,
