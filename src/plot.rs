@@ -369,7 +369,7 @@ pub fn plot_cycles_per_core(
     path: &Path,
 ) -> Result<(), PlotError> {
     let samples = cycles.iter().map(Vec::len).max().unwrap_or(0);
-    if samples == 0 || !(sample_rate_hz > 0.0) {
+    if samples == 0 || sample_rate_hz.is_nan() || sample_rate_hz <= 0.0 {
         return Err(PlotError::EmptyTrace {
             path: path.to_path_buf(),
         });
