@@ -372,7 +372,13 @@ fn sizes(elf: &[u8], name: &str) -> Result<(u32, (u32, u32, Vec<Function>)), CcE
     let mut syms: Vec<(u64, String, u32)> = file
         .symbols()
         .filter(|s| s.kind() == SymbolKind::Text && s.size() > 0)
-        .filter_map(|s| Some((s.address() & !1, s.name().ok()?.to_string(), s.size() as u32)))
+        .filter_map(|s| {
+            Some((
+                s.address() & !1,
+                s.name().ok()?.to_string(),
+                s.size() as u32,
+            ))
+        })
         .collect();
     syms.sort();
     syms.dedup();

@@ -173,7 +173,15 @@ mod tests {
             published: 1,
         });
         assert_eq!(
-            (l.modes, l.edges, l.hist, l.hist_pos, l.hist_primed, l.published, l.size),
+            (
+                l.modes,
+                l.edges,
+                l.hist,
+                l.hist_pos,
+                l.hist_primed,
+                l.published,
+                l.size
+            ),
             (4, 5, 8, 8 + 68, 8 + 69, 8 + 72, 8 + 72 + 4)
         );
         let l = StateLayout::new(StateCounts {
@@ -185,7 +193,15 @@ mod tests {
         });
         // 12 | 12..14 | 14..19 → pad to 20 | 20..156 | 156,157 | 158,159 | 160..176
         assert_eq!(
-            (l.modes, l.edges, l.hist, l.hist_pos, l.hist_primed, l.published, l.size),
+            (
+                l.modes,
+                l.edges,
+                l.hist,
+                l.hist_pos,
+                l.hist_primed,
+                l.published,
+                l.size
+            ),
             (12, 14, 20, 156, 158, 160, 176)
         );
     }

@@ -122,7 +122,10 @@ impl fmt::Display for RunError {
                 function,
                 reason,
                 pc,
-            } => write!(f, "`{function}` did not return: {reason:?} at pc {pc:#010x}"),
+            } => write!(
+                f,
+                "`{function}` did not return: {reason:?} at pc {pc:#010x}"
+            ),
             RunError::Overrun { function, buffer } => {
                 write!(f, "`{function}` wrote past the end of its {buffer} buffer")
             }
@@ -352,7 +355,12 @@ impl UpdateRunner {
         }
         let ns = self.iface.state.counts.states;
         self.read_words(self.state_addr + self.iface.state.states as u32, ns)?;
-        for (o, b) in self.sample.states.iter_mut().zip(self.scratch.chunks_exact(4)) {
+        for (o, b) in self
+            .sample
+            .states
+            .iter_mut()
+            .zip(self.scratch.chunks_exact(4))
+        {
             *o = i32::from_le_bytes([b[0], b[1], b[2], b[3]]);
         }
         let modes = self.state_addr + self.iface.state.modes as u32;
@@ -493,7 +501,12 @@ fn poke(board: &mut Board, addr: u32, data: &[u8]) -> Result<(), EmuError> {
     let end = addr.wrapping_add(data.len() as u32);
     let code = (addr..end).step_by(256).chain(end.checked_sub(1)).any(|a| {
         sram_location(a).is_none_or(|(off, _)| {
-            board.system.code_pages.get(off / 256).copied().unwrap_or(true)
+            board
+                .system
+                .code_pages
+                .get(off / 256)
+                .copied()
+                .unwrap_or(true)
         })
     });
     let linear = matches!(

@@ -71,7 +71,11 @@ fn test_runs(fp: &FixedProgram) -> Vec<Run> {
         .map(|r| {
             let k = r.records.len().div_ceil(MAX);
             Run {
-                label: if k > 1 { format!("{} (every {k}th sample)", r.label) } else { r.label },
+                label: if k > 1 {
+                    format!("{} (every {k}th sample)", r.label)
+                } else {
+                    r.label
+                },
                 records: r.records.into_iter().step_by(k).collect(),
             }
         })
@@ -106,7 +110,10 @@ fn compiled_c_matches_the_fixed_interpreter_on_every_instrument_and_stimulus() {
                         .unwrap_or_else(|e| panic!("{name} {}: {e}", compiler.name()));
                     let helpers: u32 = b.helpers.iter().map(|f| f.size).sum();
                     assert!(b.update_bytes > 0);
-                    assert!(b.update_with_helpers_bytes >= b.update_bytes + helpers, "{name}: sizes");
+                    assert!(
+                        b.update_with_helpers_bytes >= b.update_bytes + helpers,
+                        "{name}: sizes"
+                    );
                     b
                 })
                 .collect();
@@ -173,7 +180,11 @@ fn compiled_c_matches_the_fixed_interpreter_on_every_instrument_and_stimulus() {
                 .filter(|(ri, rk, _, _)| (*ri, *rk) == (i, k))
                 .map(|(_, _, _, c)| c)
                 .collect();
-            assert_eq!(cmps.len(), inst.runs.len(), "{name} {compiler}: runs missing");
+            assert_eq!(
+                cmps.len(),
+                inst.runs.len(),
+                "{name} {compiler}: runs missing"
+            );
             let samples: usize = cmps.iter().map(|c| c.samples).sum();
             let calls: u64 = cmps.iter().map(|c| c.cycles.calls).sum();
             assert_eq!(samples, total);
@@ -302,7 +313,9 @@ fn runner_errors_are_typed() {
     if available(Compiler::Gcc) {
         let mut other = c.clone();
         other.stem = "other".into();
-        other.header = other.header.replace(&format!("tactus_{}_", c.stem), "tactus_other_");
+        other.header = other
+            .header
+            .replace(&format!("tactus_{}_", c.stem), "tactus_other_");
         other.source = other
             .source
             .replace(&format!("tactus_{}_", c.stem), "tactus_other_")
@@ -325,8 +338,13 @@ fn compare_detects_a_wrong_result() {
     // Corrupt out[0] (a published word: a force term or the total) by + 1.
     let mut bad = c.clone();
     let needle = "out[i] = s->published[i];";
-    assert!(bad.source.contains(&needle), "cgen's copy loop changed; update this test");
-    bad.source = bad.source.replace(needle, "out[i] = s->published[i] + (i == 0);");
+    assert!(
+        bad.source.contains(needle),
+        "cgen's copy loop changed; update this test"
+    );
+    bad.source = bad
+        .source
+        .replace(needle, "out[i] = s->published[i] + (i == 0);");
     let b = cc::build(&bad, Compiler::Gcc, &Options::default()).unwrap();
     let iface = Interface::new(&fp, &c.stem, &c.layout);
     let mut r = UpdateRunner::from_elf(&b.elf, iface).unwrap();
@@ -363,7 +381,9 @@ fn repeated_calls_agree_with_board_call() {
         for rec in run.records.iter().step_by(7).take(1500) {
             let got = fast.step(rec).unwrap().clone();
             for (i, w) in rec.iter().enumerate() {
-                slow.board().write_u32(sensors_addr + 4 * i as u32, *w as u32).unwrap();
+                slow.board()
+                    .write_u32(sensors_addr + 4 * i as u32, *w as u32)
+                    .unwrap();
             }
             let cycles = slow
                 .call_via_board(update, &[state, sensors_addr, out_addr])
