@@ -732,8 +732,9 @@ fn write_wav(path: &Path, strikes: &[Strike], perf: &Performance, fs: f64) -> Re
 }
 
 /// Writes one CSV per traced key (`STEM-key<K>.csv`: time_s, key_travel_m, force_n,
-/// hammer_pos_m, finger_force_n) and the plots `STEM-force.svg` (instrument force vs time)
-/// and `STEM-hammer.svg` (hammer position vs time); returns the files written.
+/// hammer_pos_m, finger_force_n) and the plots `STEM-force.svg` (instrument force, and the
+/// finger's with the force player, vs time) and `STEM-hammer.svg` (hammer position vs
+/// time); returns the files written.
 fn write_traces(
     out: &Path,
     stem: &str,
@@ -782,8 +783,19 @@ fn write_traces(
             .collect()
     };
     let force = out.join(format!("{stem}-force.svg"));
+    let mut force_lines = lines(2, 1.0);
+    for l in &mut force_lines {
+        l.label.push_str(" instrument");
+    }
+    // With the force player, the finger's push beside the instrument's force.
+    if traces.values().flatten().any(|r| r[4] != 0.0) {
+        force_lines.extend(lines(4, 1.0).into_iter().map(|mut l| {
+            l.label.push_str(" finger");
+            l
+        }));
+    }
     plot::plot_lines(
-        &lines(2, 1.0),
+        &force_lines,
         &format!("{stem}: force at the key"),
         "time [s]",
         "force [N]",

@@ -531,6 +531,9 @@ fn force_player_plays_the_demo_with_traces_and_plots() {
     for svg in ["demo-force.svg", "demo-hammer.svg"] {
         let s = std::fs::read_to_string(dir.join(svg)).unwrap();
         assert!(s.contains("key 60") && s.contains("key 64"), "{svg}");
+        if svg == "demo-force.svg" {
+            assert!(s.contains("key 60 finger") && s.contains("key 64 instrument"));
+        }
     }
 }
 
