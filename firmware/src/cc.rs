@@ -392,3 +392,29 @@ fn sizes(elf: &[u8], name: &str) -> Result<(u32, (u32, u32, Vec<Function>)), CcE
     let funcs: Vec<Function> = funcs.into_iter().map(|(_, f)| f).collect();
     Ok((sym.size() as u32, (text, rodata, funcs)))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_missing_tool_is_named_with_its_package() {
+        let e = run(
+            &mut Command::new("arm-none-eabi-no-such-tool"),
+            "arm-none-eabi-no-such-tool",
+        )
+        .unwrap_err();
+        assert_eq!(
+            e,
+            CcError::ToolMissing {
+                tool: "arm-none-eabi-no-such-tool".into(),
+                package: "binutils-arm-none-eabi".into()
+            }
+        );
+        assert!(e
+            .to_string()
+            .contains("apt-get install binutils-arm-none-eabi"));
+        assert_eq!(package_of(Compiler::Gcc.tool()), "gcc-arm-none-eabi");
+        assert_eq!(package_of(Compiler::Clang.tool()), "clang");
+    }
+}

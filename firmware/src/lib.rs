@@ -17,5 +17,5 @@ pub mod measure;
 pub mod report;
 pub mod runner;
 
-pub use layout::{Interface, StateCounts, StateLayout};
+pub use layout::{Interface, StateLayout};
 pub use runner::{RunError, Sample, UpdateRunner};

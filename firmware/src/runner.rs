@@ -261,8 +261,8 @@ impl UpdateRunner {
         let mut r = UpdateRunner {
             sample: Sample {
                 out: vec![0; iface.out_len],
-                states: vec![0; iface.state.counts.states],
-                modes: vec![0; iface.state.counts.modes],
+                states: vec![0; iface.states],
+                modes: vec![0; iface.modes],
                 cycles: 0,
             },
             board,
@@ -353,7 +353,7 @@ impl UpdateRunner {
         for (o, b) in self.sample.out.iter_mut().zip(self.scratch.chunks_exact(4)) {
             *o = i32::from_le_bytes([b[0], b[1], b[2], b[3]]);
         }
-        let ns = self.iface.state.counts.states;
+        let ns = self.iface.states;
         self.read_words(self.state_addr + self.iface.state.states as u32, ns)?;
         for (o, b) in self
             .sample
@@ -373,14 +373,14 @@ impl UpdateRunner {
     ///
     /// Errors: [`RunError::Emu`] only if the runner's own placement were wrong.
     pub fn read_state(&mut self) -> Result<(Vec<i32>, Vec<u8>), RunError> {
-        let ns = self.iface.state.counts.states;
+        let ns = self.iface.states;
         self.read_words(self.state_addr + self.iface.state.states as u32, ns)?;
         let states = self
             .scratch
             .chunks_exact(4)
             .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]))
             .collect();
-        let mut modes = vec![0; self.iface.state.counts.modes];
+        let mut modes = vec![0; self.iface.modes];
         self.board
             .read_bytes(self.state_addr + self.iface.state.modes as u32, &mut modes)?;
         Ok((states, modes))
