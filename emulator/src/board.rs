@@ -419,8 +419,13 @@ impl Board {
         limit: u64,
     ) -> Result<CallResult, CallError> {
         const STUB_SVC: u8 = 0xca;
-        self.write_bytes(CALL_STUB, &[STUB_SVC, 0xdf, 0, 0xbe])
-            .map_err(CallError::Emu)?;
+        // Rewriting an unchanged stub would empty the decode cache on every call.
+        let stub = [STUB_SVC, 0xdf, 0, 0xbe];
+        let mut now = [0u8; 4];
+        self.read_bytes(CALL_STUB, &mut now).map_err(CallError::Emu)?;
+        if now != stub {
+            self.write_bytes(CALL_STUB, &stub).map_err(CallError::Emu)?;
+        }
         let halts = std::mem::replace(&mut self.config.svc_halts, true);
         let c = &mut self.cores[core];
         c.reset_to(addr | 1, sp);
