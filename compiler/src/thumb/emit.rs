@@ -497,7 +497,7 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
                             let inv = invert(*c);
                             let i = Instr::BCond {
                                 cond: inv,
-                                offset: 4 - 4 + 2,
+                                offset: 2, // to the instruction after the 4-byte BL
                             };
                             text.extend(enc(&i)?);
                             let _ = writeln!(listing, "    b{} .+6", cname(inv));
