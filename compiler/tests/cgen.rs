@@ -89,29 +89,6 @@ int main(void) {{
     exe
 }
 
-/// Random raw words for one sensor: a mix of arbitrary words, in-range words, random walks
-/// and words at and beyond the raw bounds.
-fn random_word(rng: &mut XorShift64, prev: i32, (lo, hi): (i32, i32)) -> i32 {
-    let span = (hi as i64 - lo as i64).max(1) as u64;
-    match rng.below(8) {
-        0 => rng.next_u64() as i32,
-        1 => (lo as i64 + (rng.next_u64() % (span + 1)) as i64) as i32,
-        2 => [
-            i32::MIN,
-            i32::MAX,
-            lo,
-            hi,
-            lo.saturating_sub(1),
-            hi.saturating_add(1),
-            0,
-        ][rng.below(7)],
-        _ => {
-            let step = ((rng.next_u64() % (span / 200 + 2)) as i64) - (span / 400) as i64;
-            (prev as i64 + step).clamp(lo as i64, hi as i64) as i32
-        }
-    }
-}
-
 struct Run {
     label: String,
     records: Vec<Vec<i32>>,
@@ -253,7 +230,7 @@ fn check_instrument(base: &Path, name: &str, text: &str, stimuli: bool) -> usize
         let records = (0..4000)
             .map(|_| {
                 for (i, w) in prev.iter_mut().enumerate() {
-                    *w = random_word(&mut rng, *w, fp.sensor_raw_range[i]);
+                    *w = rng.sensor_word(*w, fp.sensor_raw_range[i]);
                 }
                 prev.clone()
             })

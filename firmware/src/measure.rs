@@ -8,6 +8,7 @@ use std::fmt::Write as _;
 use tactus_compiler::cgen::OutLayout;
 use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_compiler::fixed::FixedProgram;
+use tactus_runtime::rng::XorShift64;
 use tactus_runtime::stimulus;
 
 /// Sample rate of the built-in stimuli the measurements use, Hz (the board's).
@@ -54,6 +55,30 @@ pub fn builtin_runs(fp: &FixedProgram) -> Vec<Run> {
         .iter()
         .filter_map(|(name, _)| stimulus::builtin(name, s0.range.1, SAMPLE_RATE_HZ).ok())
         .map(|s| stimulus_run(fp, &s))
+        .collect()
+}
+
+/// `n` runs of `len` samples of adversarial raw sensor words
+/// ([`XorShift64::sensor_word`]: arbitrary words, corners, in-range walks), each sensor
+/// starting at its lower bound; reproducible from `seed`.
+pub fn random_runs(fp: &FixedProgram, seed: u64, n: usize, len: usize) -> Vec<Run> {
+    let mut rng = XorShift64::new(seed);
+    (0..n)
+        .map(|r| {
+            let mut prev: Vec<i32> = fp.sensor_raw_range.iter().map(|r| r.0).collect();
+            let records = (0..len)
+                .map(|_| {
+                    for (w, &range) in prev.iter_mut().zip(&fp.sensor_raw_range) {
+                        *w = rng.sensor_word(*w, range);
+                    }
+                    prev.clone()
+                })
+                .collect();
+            Run {
+                label: format!("random{r}"),
+                records,
+            }
+        })
         .collect()
 }
 

@@ -8,7 +8,9 @@
 //! Without the compilers the tests print why and pass, unless the environment variable `CI`
 //! is set (CI installs them: `.ci/run`), where they fail.
 
-use std::path::Path;
+mod common;
+
+use common::instruments;
 use tactus_compiler::cgen::{self, CSource};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::lower::Config;
@@ -16,24 +18,6 @@ use tactus_firmware::cc::{self, Compiler, Options};
 use tactus_firmware::measure::{builtin_runs, compare, compare_many, Run};
 use tactus_firmware::runner::RunError;
 use tactus_firmware::{Interface, UpdateRunner};
-
-fn instruments() -> Vec<(String, String)> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
-    let mut v: Vec<(String, String)> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "tactus"))
-        .map(|p| {
-            (
-                p.file_stem().unwrap().to_string_lossy().into_owned(),
-                std::fs::read_to_string(&p).unwrap(),
-            )
-        })
-        .collect();
-    v.sort();
-    assert!(!v.is_empty());
-    v
-}
 
 /// True when `compiler` and the binutils can be run; otherwise prints why, and panics when
 /// `CI` is set.

@@ -1,0 +1,177 @@
+//! The Thumb backend (`tactus_compiler::thumb`) against the fixed interpreter, bit for bit,
+//! on the emulated RP2040 through the same `UpdateRunner` and `measure::compare` as the C
+//! compilers: every instrument, every sample of every built-in stimulus, and adversarial
+//! raw sensor words (in and far out of range); small programs for the operation corners.
+//! Compared after init and on every sample: the force terms, total, outputs, emitted events
+//! with their arguments, the states and the modes.
+//!
+//! Also: the `.s` listing assembles with `arm-none-eabi-as` to exactly the object's bytes,
+//! and the object links with `arm-none-eabi-ld` into an executable that runs with the
+//! interpreter's bits. Without binutils-arm-none-eabi that test prints why and passes,
+//! unless `CI` is set (`.ci/run` installs them), where it fails.
+
+mod common;
+
+use common::instruments;
+use tactus_compiler::fixed::FixedProgram;
+use tactus_compiler::lower::Config;
+use tactus_compiler::thumb::{self, ThumbObject};
+use tactus_firmware::measure::{builtin_runs, compare, random_runs, stimulus_run, Run};
+use tactus_firmware::{Interface, UpdateRunner};
+use tactus_runtime::stimulus;
+
+fn compile(text: &str) -> (FixedProgram, ThumbObject) {
+    let p = tactus_compiler::compile(text, &Config::default())
+        .unwrap()
+        .program;
+    let fp = FixedProgram::new(&p);
+    let obj = thumb::compile(&fp).unwrap_or_else(|e| panic!("{}: {e}", p.name));
+    (fp, obj)
+}
+
+/// The object's code loaded at the start of SRAM.
+fn runner(fp: &FixedProgram, obj: &ThumbObject) -> UpdateRunner {
+    let (init, _) = obj.symbol(&obj.init_name()).unwrap();
+    let (update, _) = obj.symbol(&obj.update_name()).unwrap();
+    let iface = Interface::new(fp, &obj.stem, &obj.out);
+    UpdateRunner::from_code(
+        &obj.code.text,
+        0x2000_0000,
+        init as u32,
+        update as u32,
+        iface,
+    )
+    .unwrap()
+}
+
+/// Runs `runs` through the Thumb code and the interpreter and asserts equal bits.
+fn check(name: &str, fp: &FixedProgram, obj: &ThumbObject, mut r: UpdateRunner, runs: &[Run]) {
+    let c = compare(&mut r, fp, &obj.out, runs).unwrap_or_else(|e| panic!("{name}: {e}"));
+    println!(
+        "{name:<16} {} samples, {} mismatches, cycles worst {} mean {:.1}, .text {} bytes",
+        c.samples,
+        c.mismatches,
+        c.cycles.worst,
+        c.cycles.mean(),
+        obj.code.text.len()
+    );
+    assert!(
+        c.mismatches == 0,
+        "{name}: {} mismatching samples; first:\n{}",
+        c.mismatches,
+        c.first_mismatches.join("\n")
+    );
+}
+
+#[test]
+fn thumb_matches_the_fixed_interpreter_bit_for_bit() {
+    for (name, text) in instruments() {
+        let (fp, obj) = compile(&text);
+        let mut runs = builtin_runs(&fp);
+        runs.extend(random_runs(&fp, 0x5EED ^ name.len() as u64, 4, 3000));
+        check(&name, &fp, &obj, runner(&fp, &obj), &runs);
+    }
+}
+
+/// Small programs for the operations the shipped instruments use only in a few formats:
+/// run-time division (positive and negative divisors, scaled both ways), sums of operands
+/// in distant formats, a decay through a run-time division, comparisons across formats,
+/// min/max/abs, negation.
+#[test]
+fn thumb_matches_the_fixed_interpreter_on_operation_corners() {
+    let cases = [
+        ("div_pos", "instrument t {\n sensor a: N in [-30 N, 30 N]\n sensor b: s in [0.1 ms, 10 ms]\n output q = a / b\n output r = 1 N*s / (b + 1 ms)\n}\n"),
+        ("div_neg", "instrument t {\n sensor a: m in [-2 m, 3 m]\n sensor b: m in [-5 m, -0.5 m]\n output q = a / b\n output r = (a * 1000) / b\n output u = a / (b * 1000)\n}\n"),
+        ("sums", "instrument t {\n sensor a: m in [-1e-3 m, 1e-3 m]\n sensor b: m in [-100 m, 100 m]\n output s = a + b\n output df = a - b\n output e = b - a\n output f = (a + a) - (b - b * 0.5)\n force g = (a + b) * 1 N/m\n}\n"),
+        ("decay", "instrument t {\n sensor a: Hz in [-150 Hz, 150 Hz]\n state pulse = 0 N in [0 N, 30 N]\n state tau = 3 ms in [0.1 ms, 10 ms]\n while a < 0 Hz { pulse = 0.27 N*s * -a }\n dynamics { pulse' = -pulse / tau }\n force f = pulse\n}\n"),
+        ("compare", "instrument t {\n sensor a: m in [-1e-3 m, 1e-3 m]\n sensor b: m in [-100 m, 100 m]\n output lt = a < b\n output ge = a >= b\n output eq = a == b\n output ne = a != b\n output mn = min(a, b)\n output mx = max(a, -b)\n output ab = abs(b)\n output ng = -a\n output c = a > 0.5 mm\n output c2 = b <= -3 m\n output c3 = b == 0 m\n}\n"),
+    ];
+    for (name, text) in cases {
+        let (fp, obj) = compile(text);
+        let runs = random_runs(&fp, 0x5EED ^ name.len() as u64, 3, 3000);
+        check(name, &fp, &obj, runner(&fp, &obj), &runs);
+    }
+}
+
+fn have(tool: &str) -> bool {
+    std::process::Command::new(tool)
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+fn text_of(elf: &[u8]) -> Vec<u8> {
+    use object::{Object, ObjectSection};
+    let f = object::File::parse(elf).unwrap();
+    f.section_by_name(".text").unwrap().data().unwrap().to_vec()
+}
+
+#[test]
+fn listing_assembles_to_the_same_bytes_and_the_object_links() {
+    let missing: Vec<&str> = ["arm-none-eabi-as", "arm-none-eabi-ld"]
+        .into_iter()
+        .filter(|t| !have(t))
+        .collect();
+    if !missing.is_empty() {
+        let msg = format!("{missing:?} not installed (Debian: binutils-arm-none-eabi)");
+        assert!(std::env::var_os("CI").is_none(), "{msg}");
+        println!("SKIPPED: {msg}");
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("tactus-thumb-as-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |cmd: &mut std::process::Command, what: &str| {
+        let out = cmd.output().unwrap();
+        assert!(
+            out.status.success() && out.stderr.is_empty(),
+            "{what}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    for (name, text) in instruments() {
+        let (fp, obj) = compile(&text);
+        let ours = obj.elf().unwrap();
+        assert_eq!(text_of(&ours), obj.code.text, "{name}: the ELF's .text");
+        let s = dir.join(format!("{name}.s"));
+        std::fs::write(&s, &obj.code.listing).unwrap();
+        let o = dir.join(format!("{name}-as.o"));
+        run(
+            std::process::Command::new("arm-none-eabi-as")
+                .args(["-mcpu=cortex-m0plus", "-o"])
+                .arg(&o)
+                .arg(&s),
+            &format!("{name}: as"),
+        );
+        let theirs = text_of(&std::fs::read(&o).unwrap());
+        assert_eq!(theirs.len(), obj.code.text.len(), "{name}: .text sizes");
+        if let Some(i) = (0..theirs.len()).find(|&i| theirs[i] != obj.code.text[i]) {
+            panic!("{name}: as gives other bytes from offset {i:#x}");
+        }
+        // Link our object (not the assembler's) into an executable at the start of SRAM.
+        let ours_path = dir.join(format!("{name}.o"));
+        std::fs::write(&ours_path, &ours).unwrap();
+        let ld = dir.join("link.ld");
+        std::fs::write(&ld, "SECTIONS { . = 0x20000000; .text : { *(.text*) } }\n").unwrap();
+        let exe = dir.join(format!("{name}.elf"));
+        run(
+            std::process::Command::new("arm-none-eabi-ld")
+                .arg("-T")
+                .arg(&ld)
+                .args(["-e", &obj.update_name(), "-o"])
+                .arg(&exe)
+                .arg(&ours_path),
+            &format!("{name}: ld"),
+        );
+        let iface = Interface::new(&fp, &obj.stem, &obj.out);
+        let r = UpdateRunner::from_elf(&std::fs::read(&exe).unwrap(), iface).unwrap();
+        let ff = stimulus::builtin("ff-dip", fp.program.sensors[0].range.1, 44_100.0).unwrap();
+        check(
+            &format!("{name}/linked"),
+            &fp,
+            &obj,
+            r,
+            &[stimulus_run(&fp, &ff)],
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
