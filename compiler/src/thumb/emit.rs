@@ -502,10 +502,8 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
                             text.extend(enc(&i)?);
                             let _ = writeln!(listing, "    b{} .+6", cname(inv));
                         }
+                        // The long form is always BL (4 bytes), so sizes stay as laid out.
                         let off = dest as i32 - (text.len() as i32 + 4);
-                        if (-2048..=2046).contains(&off) {
-                            // Keep the size of the long form fixed: BL (4 bytes).
-                        }
                         let i = Instr::Bl { offset: off };
                         text.extend(enc(&i)?);
                         let _ = writeln!(listing, "    bl {lname}");

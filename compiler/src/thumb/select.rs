@@ -39,7 +39,7 @@ pub(crate) struct W {
     b: u64,
 }
 
-/// The selected body of `update` and the events the listing should name.
+/// A selected function body and its number of virtual registers.
 pub(crate) struct Selected {
     pub code: Vec<M>,
     pub nregs: u32,
@@ -529,7 +529,6 @@ impl<'a> Sel<'a> {
                         }
                     }
                 };
-                let _ = rb;
                 self.round(prod, e)
             }
             MulKind::Wide => {
@@ -627,9 +626,7 @@ impl<'a> Sel<'a> {
         let (sx, sy) = (f - fx_, f - fy);
         if sx > 31 || sy > 31 {
             // Formats more than 31 bits apart: not reachable from the shipped instruments.
-            let _ = self.fallback_unsupported(
-                "a sum of operands whose formats differ by more than 31 bits",
-            );
+            self.unsupported("a sum of operands whose formats differ by more than 31 bits");
             return W {
                 v: self.movi(0),
                 b: 0,
@@ -641,9 +638,9 @@ impl<'a> Sel<'a> {
         self.round64(s, fr - f, rb)
     }
 
-    fn fallback_unsupported(&mut self, what: &str) -> Result<(), ThumbError> {
+    /// Records the first construct this backend cannot compile ([`Sel::run`] reports it).
+    fn unsupported(&mut self, what: &str) {
         self.unsupported.get_or_insert_with(|| what.to_string());
-        Ok(())
     }
 }
 
@@ -720,7 +717,7 @@ impl<'a> Sel<'a> {
         for (i, _sd) in p.sensors.iter().enumerate() {
             let raw = self.load(MemOp::Ldr, Base::V(sensors_ptr), 4 * i);
             let (lo, hi) = fp.sensor_raw_range[i];
-            self.clamp(raw, lo, hi, LIM);
+            self.clamp(raw, lo, hi);
             let b = (lo as i64).unsigned_abs().max((hi as i64).unsigned_abs());
             self.sensors.push(W { v: raw, b });
         }
@@ -761,9 +758,8 @@ impl<'a> Sel<'a> {
         })
     }
 
-    /// Clamps `x` (redefined in place) to `[lo, hi]`; `b` bounds it before.
-    fn clamp(&mut self, x: V, lo: i32, hi: i32, b: u64) {
-        let _ = b;
+    /// Clamps `x` (redefined in place) to `[lo, hi]`.
+    fn clamp(&mut self, x: V, lo: i32, hi: i32) {
         for (bound, cond) in [(lo, Cond::Ge), (hi, Cond::Le)] {
             if (cond == Cond::Ge && bound == i32::MIN) || (cond == Cond::Le && bound == i32::MAX) {
                 continue;
@@ -824,7 +820,7 @@ impl<'a> Sel<'a> {
             let sv = self.nv();
             self.push(M::Mov { d: sv, s: STATE_V });
             if base <= 255 {
-                self.addi_big(sv, base as u8)
+                self.addi(false, sv, base as u8)
             } else {
                 let o = self.movi(base as i32);
                 self.addsub(false, sv, o)
@@ -898,18 +894,6 @@ impl<'a> Sel<'a> {
         Ok(())
     }
 
-    /// `d = a + imm8` for any `imm8` (two-address form).
-    fn addi_big(&mut self, a: V, imm: u8) -> V {
-        let d = self.nv();
-        self.push(M::AddSubI {
-            sub: false,
-            d,
-            a,
-            imm,
-        });
-        d
-    }
-
     fn deriv_used(&self, s: usize, order: u8) -> bool {
         self.p.values.iter().enumerate().any(|(i, vd)| {
             self.used[i] && matches!(vd.op, Op::Deriv(x, o) if x.index() == s && o == order)
@@ -942,7 +926,7 @@ impl<'a> Sel<'a> {
                     } else {
                         let c = self.nv();
                         self.push(M::Mov { d: c, s: t.v });
-                        self.clamp(c, lo, hi, t.b);
+                        self.clamp(c, lo, hi);
                         c
                     };
                     self.store(MemOp::Str, t, Base::State, st.states + 4 * i);
@@ -1402,15 +1386,12 @@ impl<'a> Sel<'a> {
             if d <= 31 {
                 this.shl64(w.v, d)
             } else {
-                // sign(w)·2^32 with the sign: (0, sign) where sign ∈ {-2..2} suffices.
-                let hi = this.nv();
-                this.push(M::Mov { d: hi, s: w.v });
+                // Only sign(w) matters: (lo, hi) = (0, sign(w)), i.e. sign(w)·2^32.
                 let s = this.sh(Shift::Asr, w.v, 31);
                 let pos = this.unary(AluOp::Rsb, w.v);
                 let pos = this.sh(Shift::Lsr, pos, 31); // 1 when w > 0
                 let sign = this.alu2(AluOp::Orr, s, pos); // -1, 0 or 1
                 let lo = this.movi(0);
-                let _ = hi;
                 (lo, sign)
             }
         };
