@@ -143,7 +143,10 @@ impl fmt::Display for CallError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             CallError::Stopped { reason, pc } => {
-                write!(f, "the called function did not return: {reason:?} at pc {pc:#010x}")
+                write!(
+                    f,
+                    "the called function did not return: {reason:?} at pc {pc:#010x}"
+                )
             }
             CallError::Emu(e) => e.fmt(f),
         }
@@ -348,11 +351,7 @@ impl Board {
 
     /// Writes bytes without cycles (ROM, flash, SRAM only), as a loader or DMA would.
     pub fn write_bytes(&mut self, addr: u32, data: &[u8]) -> Result<(), EmuError> {
-        for (i, b) in data.iter().enumerate() {
-            let a = addr.wrapping_add(i as u32);
-            let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
-            mem[off] = *b;
-        }
+        self.write_data(addr, data)?;
         self.system.invalidate_code();
         Ok(())
     }
@@ -422,7 +421,8 @@ impl Board {
         // Rewriting an unchanged stub would empty the decode cache on every call.
         let stub = [STUB_SVC, 0xdf, 0, 0xbe];
         let mut now = [0u8; 4];
-        self.read_bytes(CALL_STUB, &mut now).map_err(CallError::Emu)?;
+        self.read_bytes(CALL_STUB, &mut now)
+            .map_err(CallError::Emu)?;
         if now != stub {
             self.write_bytes(CALL_STUB, &stub).map_err(CallError::Emu)?;
         }

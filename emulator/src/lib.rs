@@ -25,8 +25,8 @@ pub mod timing;
 pub mod wcet;
 
 pub use board::{
-    Board, Call, CallError, CallResult, Config, EmuError, StopReason, CALL_STUB, DAC_BASE, MAX_KEYS,
-    SENSOR_BASE,
+    Board, Call, CallError, CallResult, Config, EmuError, StopReason, CALL_STUB, DAC_BASE,
+    MAX_KEYS, SENSOR_BASE,
 };
 pub use decode::{decode, Instr};
 pub use timing::cycles;

@@ -141,13 +141,26 @@ fn call_runs_a_function_and_counts_its_cycles() {
     let mut b = tactus_emulator::Board::new(Default::default());
     // r0 = r0 + r1; r0 = r0 * r2; bx lr  → 1 + 1 + 2 cycles (BX: 2, Cortex-M0+ TRM 3.3)
     let code = [
-        Instr::AddReg { rd: 0, rn: 0, rm: 1 },
-        Instr::Alu { op: tactus_emulator::decode::AluOp::Mul, rdn: 0, rm: 2 },
+        Instr::AddReg {
+            rd: 0,
+            rn: 0,
+            rm: 1,
+        },
+        Instr::Alu {
+            op: tactus_emulator::decode::AluOp::Mul,
+            rdn: 0,
+            rm: 2,
+        },
         Instr::Bx { rm: 14 },
     ];
-    let bytes: Vec<u8> = code.iter().flat_map(|i| encode(i).unwrap().bytes()).collect();
+    let bytes: Vec<u8> = code
+        .iter()
+        .flat_map(|i| encode(i).unwrap().bytes())
+        .collect();
     b.write_bytes(0x2000_0000, &bytes).unwrap();
-    let r = b.call(0, 0x2000_0000, &[3, 4, 5], 0x2004_0000, 1000).unwrap();
+    let r = b
+        .call(0, 0x2000_0000, &[3, 4, 5], 0x2004_0000, 1000)
+        .unwrap();
     assert_eq!(r.r0, 35);
     assert_eq!(r.cycles, 4);
     // A function that never returns stops at the limit with an error, not a hang.
