@@ -524,7 +524,7 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
                         text.extend(enc(&Instr::B { offset: off })?);
                         let _ = writeln!(listing, "    b .Lisland{id}_end");
                     }
-                    if text.len() % 4 != 0 {
+                    if !text.len().is_multiple_of(4) {
                         text.extend(enc(&PAD)?);
                         let _ = writeln!(listing, "    mov r8, r8");
                     }
@@ -544,7 +544,7 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
         symbols.push((name.clone(), start, text.len() - start));
         // Functions start on a word boundary (keeps the next function's pools aligned
         // the same way the assembler's `.p2align` does).
-        if text.len() % 4 != 0 {
+        if !text.len().is_multiple_of(4) {
             text.extend(enc(&PAD)?);
             let _ = writeln!(listing, "    mov r8, r8");
         }
@@ -624,7 +624,7 @@ fn layout(
                 Item::Note(_) => 0,
                 Item::Island { id, jump } => {
                     let mut p = pos + if *jump { 2 } else { 0 };
-                    if p % 4 != 0 {
+                    if !p.is_multiple_of(4) {
                         p += 2;
                     }
                     island_at.insert(*id, p);
@@ -633,7 +633,7 @@ fn layout(
             };
         }
         addrs.push(a);
-        if pos % 4 != 0 {
+        if !pos.is_multiple_of(4) {
             pos += 2;
         }
     }

@@ -192,7 +192,7 @@ impl<'a> Sel<'a> {
 
     fn load(&mut self, op: MemOp, base: Base, off: usize) -> V {
         let t = self.nv();
-        if off <= max_off(op) && off % op.size() as usize == 0 {
+        if imm_offset(op, off) {
             self.push(M::Load {
                 op,
                 t,
@@ -207,7 +207,7 @@ impl<'a> Sel<'a> {
     }
 
     fn store(&mut self, op: MemOp, t: V, base: Base, off: usize) {
-        if off <= max_off(op) && off % op.size() as usize == 0 {
+        if imm_offset(op, off) {
             self.push(M::Store {
                 op,
                 t,
@@ -653,9 +653,11 @@ pub(crate) enum Operand {
     Const(i32),
 }
 
-/// The largest immediate offset of a load/store form (imm5 scaled).
-fn max_off(op: MemOp) -> usize {
-    31 * op.size() as usize
+/// Whether byte offset `off` fits the immediate form of a load/store (imm5, scaled by the
+/// access size).
+fn imm_offset(op: MemOp, off: usize) -> bool {
+    let size = op.size() as usize;
+    off <= 31 * size && off.is_multiple_of(size)
 }
 
 /// The pinned state pointer as a virtual register for address arithmetic (allocated to r7).
