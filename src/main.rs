@@ -31,7 +31,7 @@ enum Command {
     Sim(sim_cmd::SimArgs),
     /// Play a recorded performance (MIDI) through an instrument; write the hammer strikes.
     Play(play_cmd::PlayArgs),
-    /// Compile an instrument to firmware sources (C99 today; Thumb ELF planned).
+    /// Compile an instrument to firmware: portable C99, or a Thumb ELF object for the RP2040.
     Build(build_cmd::BuildArgs),
     /// Run ELF firmware on the emulated dual-core RP2040.
     #[command(subcommand)]

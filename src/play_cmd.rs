@@ -612,7 +612,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     for w in &wrote {
         println!("  wrote {}", w.display());
     }
-    println!("  budget: not checked — the emulated-board engine needs the Thumb backend (planned)");
+    println!("  budget: not checked — the emulated-board engine of `play` is not built yet");
     Ok(ExitCode::SUCCESS)
 }
 

@@ -188,3 +188,30 @@ fn sim_engines_agree_on_the_strike() {
     let b = std::fs::read_to_string(dir.join("grand_piano-mf-dip-jit.csv")).unwrap();
     assert!(a == b, "f64 interpreter and f64 JIT traces differ");
 }
+
+#[test]
+fn build_rp2040_writes_object_header_and_listing() {
+    let dir = temp_dir("cli-build-rp2040");
+    let out = tactus()
+        .args(["build", "harpsichord", "--target", "rp2040", "-o"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let o = std::fs::read(dir.join("harpsichord.o")).unwrap();
+    // ELF32, little-endian, relocatable, EM_ARM (40).
+    assert_eq!(&o[..6], b"\x7fELF\x01\x01");
+    assert_eq!(u16::from_le_bytes([o[16], o[17]]), 1);
+    assert_eq!(u16::from_le_bytes([o[18], o[19]]), 40);
+    let h = std::fs::read_to_string(dir.join("harpsichord.h")).unwrap();
+    assert!(h.contains("void tactus_harpsichord_update("), "{h}");
+    let s = std::fs::read_to_string(dir.join("harpsichord.s")).unwrap();
+    assert!(s.contains("tactus_harpsichord_update:") && s.contains(".thumb_func"));
+    // Without -o: an error naming the missing option, exit 1.
+    let out = tactus()
+        .args(["build", "harpsichord", "--target", "rp2040"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("-o DIR"));
+}
