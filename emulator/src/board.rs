@@ -477,6 +477,15 @@ impl Board {
         self.profiles.get(handle).map_or(&[], |p| &p.calls)
     }
 
+    /// Forgets the completed calls of profiled function `handle` (read them with
+    /// [`Board::calls`] first); measuring continues. Long runs call this now and then so the
+    /// record does not grow without bound. An unknown handle is ignored.
+    pub fn clear_calls(&mut self, handle: usize) {
+        if let Some(p) = self.profiles.get_mut(handle) {
+            p.calls.clear();
+        }
+    }
+
     fn profile_step(&mut self, k: usize) {
         let core = &self.cores[k];
         let (pc, sp, now) = (core.r[15], core.r[13], core.cycle);

@@ -7,7 +7,7 @@
 //! returned as an error *before* any register is written, so the HardFault handler sees the
 //! state the faulting instruction started from (multi-word loads read everything first).
 
-use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_BASE, SRAM_SIZE};
+use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
 use crate::core::{Core, Event, FaultKind, RunState};
 use crate::decode::{self, AluOp, Instr, MemOp};
 use crate::nvic::PPB_BASE;
@@ -56,11 +56,21 @@ pub(crate) struct Outcome {
 
 type Exec = Result<Outcome, FaultKind>;
 
-/// Offset of `addr` in [`System::sram`] when it is in the striped view or SRAM4/5.
+/// Offset of `addr` in [`System::sram`] when it is in the striped view, SRAM4/5 or the
+/// non-striped aliases of SRAM0-3 (a single access, at most a word and aligned, so it stays
+/// inside one word of one bank; [`crate::bus::sram_location`] gives the same offset, and
+/// the offset's bits 3:2 are the bank for the arbiter).
 #[inline(always)]
 fn sram_offset(addr: u32) -> Option<u32> {
     let off = addr.wrapping_sub(SRAM_BASE);
-    (off < SRAM_SIZE).then_some(off)
+    if off < SRAM_SIZE {
+        return Some(off);
+    }
+    let alias = addr.wrapping_sub(SRAM_ALIAS_BASE);
+    (alias < 0x4_0000).then(|| {
+        let (bank, word) = (alias >> 16, (alias & 0xffff) >> 2);
+        ((word * 4 + bank) << 2) | (alias & 3)
+    })
 }
 
 /// Offset of `addr` in flash.

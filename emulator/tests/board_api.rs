@@ -43,6 +43,28 @@ fn function_cycles_between_entry_and_return() {
 }
 
 #[test]
+fn cleared_calls_are_forgotten_and_measuring_goes_on() {
+    // loop: bl func; b loop — func (at +0x40): push {lr}; movs r0,#5; pop {pc}
+    let mut code = bl(0x40).to_vec();
+    code.push(0xe7fc); // b loop
+    code.resize(0x20, nop());
+    code.extend([push_lr(), movs(0, 5), pop_pc()]);
+    let mut b = board();
+    load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &code);
+    let f = b.profile_addr(0x2000_0040);
+    b.run_for(100);
+    let before = b.calls(f).len();
+    assert!(before >= 5, "{before} calls");
+    b.clear_calls(f);
+    assert!(b.calls(f).is_empty());
+    b.clear_calls(f + 7); // unknown handle: ignored
+    b.run_for(100);
+    let after = b.calls(f);
+    assert!(after.len() >= 5 && after.iter().all(|c| c.cycles == 6));
+    assert!(after[0].start >= 100, "only calls after the clear");
+}
+
+#[test]
 fn profile_by_symbol_name_needs_a_loaded_symbol() {
     let mut b = board();
     assert_eq!(b.profile("nope"), Err(EmuError::NoSymbol("nope".into())));
