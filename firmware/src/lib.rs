@@ -9,9 +9,14 @@
 //!   Cortex-M0+ and links an ELF executable in SRAM, reporting code sizes.
 //! - [`measure`]: runs stimuli through a runner and the fixed interpreter side by side,
 //!   counting mismatches and collecting cycle statistics; [`report`] prints the table.
+//! - [`corpus`]: the stimulus corpus of the budget (presses, repetitions, trills, half
+//!   dips, noise, glitches, random words); [`budget`]: static WCET and measured cycles of
+//!   an update, the keys on the board's cores, the verdict (`tactus budget`).
 #![deny(missing_docs)]
 
+pub mod budget;
 pub mod cc;
+pub mod corpus;
 pub mod layout;
 pub mod measure;
 pub mod report;

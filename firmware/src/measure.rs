@@ -107,7 +107,8 @@ impl CycleStats {
         }
     }
 
-    fn add(&mut self, cycles: u64, label: &str, sample: usize) {
+    /// Records one call of `cycles` cycles, made at sample `sample` of the run `label`.
+    pub fn add(&mut self, cycles: u64, label: &str, sample: usize) {
         if self.calls == 0 || cycles < self.best {
             self.best = cycles;
         }

@@ -1,0 +1,452 @@
+//! The timing budget of a keyboard: does every key's update fit in one sample period of the
+//! board's cores?
+//!
+//! Per compiled program (an instrument with one set of param overrides):
+//! - [`static_update`]: the static worst case of the Thumb update, from
+//!   [`tactus_emulator::wcet::analyse`] on the `.text` (loaded at [`LOAD_ADDR`], as the
+//!   runner loads it), plus [`BL_CYCLES`] for the caller's `BL` — the same convention as the
+//!   runner's measured [`crate::runner::Sample::cycles`] (first instruction to return
+//!   inclusive, plus the `BL`), so the two compare directly. It also returns the worst path
+//!   and the source-level events on it (the Thumb backend's notes: `if` conditions with
+//!   their source spans, `emit`s), rendered with [`describe_note`].
+//! - [`measure_update`]: the update run in the emulator over a corpus
+//!   ([`crate::corpus`]), re-initialised before each run: worst and mean cycles.
+//! - [`program_cost`]: both, and whether measured ≤ static holds (if not, the analysis or
+//!   the emulator has a bug: [`ProgramCost::sound`]).
+//!
+//! Per board ([`plan`]): each key costs its program's static worst case plus the board's
+//! `io_cycles_per_key`; keys go to cores by longest processing time first
+//! ([`tactus_emulator::schedule::lpt`]); a core's cycles are its keys' sum plus
+//! `isr_overhead_cycles`, to be compared with `clock_hz / sample_rate_hz` cycles per sample
+//! (3015 for the RP2040 at 133 MHz and 44.1 kHz). [`max_keys`] is the largest number of
+//! identical keys that would fit.
+
+use crate::measure::{CycleStats, Run};
+use crate::runner::{RunError, UpdateRunner, BL_CYCLES};
+use crate::Interface;
+use std::fmt;
+use tactus_compiler::fixed::FixedProgram;
+use tactus_compiler::thumb::{ThumbError, ThumbObject};
+use tactus_emulator::schedule;
+use tactus_emulator::wcet::{self, Bounds, Image, WcetError};
+use tactus_runtime::keyboard::Board;
+
+/// Where the runner loads the Thumb `.text` (start of SRAM); the static analysis uses the
+/// same addresses.
+pub const LOAD_ADDR: u32 = 0x2000_0000;
+
+/// Why a program's cost could not be found.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum BudgetError {
+    /// The Thumb backend could not compile the program.
+    Compile(ThumbError),
+    /// The object has no update (or init) function symbol.
+    MissingSymbol(String),
+    /// The static analysis failed (an indirect branch, an unbounded loop, …).
+    Wcet(WcetError),
+    /// The update could not be run in the emulator.
+    Run(RunError),
+}
+
+impl fmt::Display for BudgetError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BudgetError::Compile(e) => write!(f, "cannot compile to Thumb code: {e}"),
+            BudgetError::MissingSymbol(s) => write!(f, "the compiled code has no `{s}`"),
+            BudgetError::Wcet(e) => write!(f, "static WCET analysis failed: {e}"),
+            BudgetError::Run(e) => write!(f, "cannot run the update in the emulator: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for BudgetError {}
+
+/// The static worst case of an update.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StaticCost {
+    /// Worst-case cycles per key-sample: the update's first instruction to its return
+    /// inclusive, plus [`BL_CYCLES`] for the caller's `BL`.
+    pub cycles: u64,
+    /// Start offsets (bytes into `.text`) of the blocks on a worst path, in execution order.
+    pub path: Vec<u32>,
+    /// The backend's notes (source-level events) inside the blocks of that path, in
+    /// execution order, each once: `(offset into .text, note)`.
+    pub events: Vec<(usize, String)>,
+}
+
+/// [`StaticCost`] of the update function of `obj`.
+///
+/// Errors: [`BudgetError::MissingSymbol`], [`BudgetError::Wcet`].
+pub fn static_update(obj: &ThumbObject) -> Result<StaticCost, BudgetError> {
+    let name = obj.update_name();
+    let (update, _) = obj.symbol(&name).ok_or(BudgetError::MissingSymbol(name))?;
+    let image = Image {
+        base: LOAD_ADDR,
+        bytes: &obj.code.text,
+    };
+    // The backend's code is forward-only (no loops), so it needs no bounds.
+    let w = wcet::analyse(&image, LOAD_ADDR + update as u32, &Bounds::new())
+        .map_err(BudgetError::Wcet)?;
+    let end_of = |start: u32| {
+        w.blocks
+            .iter()
+            .find(|b| b.start == start)
+            .map_or(start, |b| b.end)
+    };
+    let mut events = Vec::new();
+    let mut path = Vec::with_capacity(w.path.len());
+    for &start in &w.path {
+        let (s, e) = (start - LOAD_ADDR, end_of(start) - LOAD_ADDR);
+        path.push(s);
+        for (off, note) in &obj.code.notes {
+            if (s as usize..e as usize).contains(off) && !events.iter().any(|(o, _)| o == off) {
+                events.push((*off, note.clone()));
+            }
+        }
+    }
+    Ok(StaticCost {
+        cycles: w.cycles + BL_CYCLES,
+        path,
+        events,
+    })
+}
+
+/// Runs the update of `obj` over `runs` in the emulator (re-initialised before each run)
+/// and returns the cycles per key-sample (including the `BL`, as [`StaticCost::cycles`]).
+///
+/// Errors: [`BudgetError::MissingSymbol`], [`BudgetError::Run`] (a fault, a runaway call).
+pub fn measure_update(
+    obj: &ThumbObject,
+    fp: &FixedProgram,
+    runs: &[Run],
+) -> Result<CycleStats, BudgetError> {
+    let sym = |name: String| {
+        obj.symbol(&name)
+            .map(|(o, _)| o as u32)
+            .ok_or(BudgetError::MissingSymbol(name))
+    };
+    let init = sym(obj.init_name())?;
+    let update = sym(obj.update_name())?;
+    let iface = Interface::new(fp, &obj.stem, &obj.out);
+    let mut runner = UpdateRunner::from_code(&obj.code.text, LOAD_ADDR, init, update, iface)
+        .map_err(BudgetError::Run)?;
+    let mut stats = CycleStats::default();
+    for run in runs {
+        runner.init().map_err(BudgetError::Run)?;
+        for (n, rec) in run.records.iter().enumerate() {
+            let s = runner.step(rec).map_err(BudgetError::Run)?;
+            stats.add(s.cycles, &run.label, n);
+        }
+    }
+    Ok(stats)
+}
+
+/// A program's static and measured cost.
+#[derive(Clone, Debug)]
+pub struct ProgramCost {
+    /// The static worst case.
+    pub static_cost: StaticCost,
+    /// The measured cycles over the corpus.
+    pub measured: CycleStats,
+}
+
+impl ProgramCost {
+    /// Whether the measured worst case is within the static one (it must be: otherwise the
+    /// analysis or the emulator's timing is wrong).
+    pub fn sound(&self) -> bool {
+        self.measured.worst <= self.static_cost.cycles
+    }
+
+    /// Static over measured worst case (≥ 1 when sound; 1 is a tight bound). `None` with no
+    /// measurement.
+    pub fn ratio(&self) -> Option<f64> {
+        (self.measured.worst > 0)
+            .then(|| self.static_cost.cycles as f64 / self.measured.worst as f64)
+    }
+}
+
+/// Compiles nothing: analyses `obj` statically and measures it over `runs`.
+///
+/// Errors: as [`static_update`] and [`measure_update`].
+pub fn program_cost(
+    obj: &ThumbObject,
+    fp: &FixedProgram,
+    runs: &[Run],
+) -> Result<ProgramCost, BudgetError> {
+    Ok(ProgramCost {
+        static_cost: static_update(obj)?,
+        measured: measure_update(obj, fp, runs)?,
+    })
+}
+
+/// One core's share of the keys.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CoreBudget {
+    /// Indices into the key costs given to [`plan`].
+    pub keys: Vec<usize>,
+    /// Cycles per sample: the keys' costs plus the board's `isr_overhead_cycles`.
+    pub cycles: u64,
+    /// `cycles` over the cycles per sample.
+    pub utilisation: f64,
+    /// Cycles per sample minus `cycles` (negative: over budget).
+    pub headroom: i64,
+}
+
+/// The keys of a layout on a board's cores.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// Cycles available per sample per core (`clock_hz / sample_rate_hz`, rounded down).
+    pub cycles_per_sample: u64,
+    /// One entry per core.
+    pub cores: Vec<CoreBudget>,
+}
+
+impl Plan {
+    /// Every core within its cycles per sample.
+    pub fn fits(&self) -> bool {
+        self.cores.iter().all(|c| c.headroom >= 0)
+    }
+
+    /// The smallest headroom of any core (cycles; negative: the worst core's excess).
+    pub fn min_headroom(&self) -> i64 {
+        self.cores.iter().map(|c| c.headroom).min().unwrap_or(0)
+    }
+}
+
+/// Assigns keys with per-key costs `key_cycles` (static update + I/O, cycles per sample) to
+/// the board's cores by longest processing time first and checks each core's total plus the
+/// interrupt overhead against the cycles per sample.
+pub fn plan(board: &Board, key_cycles: &[u64]) -> Plan {
+    let cps = board.cycles_per_sample();
+    let loads = schedule::lpt(key_cycles, board.cores as usize);
+    let cores = loads
+        .into_iter()
+        .map(|l| {
+            let cycles = l.total + u64::from(board.isr_overhead_cycles);
+            CoreBudget {
+                keys: l.keys,
+                cycles,
+                utilisation: cycles as f64 / cps as f64,
+                headroom: cps as i64 - cycles as i64,
+            }
+        })
+        .collect();
+    Plan {
+        cycles_per_sample: cps,
+        cores,
+    }
+}
+
+/// The largest number of keys costing `key_cycles` each (cycles per sample, I/O included)
+/// that fit on the board: per core ⌊(cycles per sample − isr overhead) / key_cycles⌋, times
+/// the cores (LPT fills identical keys evenly, so this is exactly what [`plan`] accepts).
+pub fn max_keys(board: &Board, key_cycles: u64) -> u64 {
+    let free = board
+        .cycles_per_sample()
+        .saturating_sub(u64::from(board.isr_overhead_cycles));
+    free / key_cycles.max(1) * u64::from(board.cores)
+}
+
+/// The note name of a MIDI key number: 60 → `C4`, 21 → `A0`, 61 → `C#4` (scientific pitch
+/// notation, MIDI 60 = middle C = C4).
+pub fn note_name(key: u8) -> String {
+    const NAMES: [&str; 12] = [
+        "C", "C#", "D", "D#", "E", "F", "F#", "G", "G#", "A", "A#", "B",
+    ];
+    format!("{}{}", NAMES[key as usize % 12], key as i32 / 12 - 1)
+}
+
+/// A backend note rendered for people, given the instrument's source text: an
+/// `if condition vN @start..end` becomes the source line of the condition, prefixed by the
+/// enclosing `component`/`instrument` and followed by the head of the comment just above
+/// the statement, if any (`grand_piano line 151: on s >= s_string — Hammer–string
+/// impact`). Notes without a span (`emit strike`), or whose span is not in `source`, are
+/// returned as they are; `None` for an empty span (`@0..0`: a condition the compiler
+/// generated, with no source text of its own).
+pub fn describe_note(note: &str, source: &str) -> Option<String> {
+    let Some((a, b)) = note.rsplit_once('@').and_then(|(_, s)| {
+        let (a, b) = s.trim().split_once("..")?;
+        Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?))
+    }) else {
+        return Some(note.to_string());
+    };
+    if b <= a {
+        return None;
+    }
+    if a > source.len() || !source.is_char_boundary(a) {
+        return Some(note.to_string());
+    }
+    let lines: Vec<&str> = source.lines().collect();
+    let line_no = source[..a].matches('\n').count();
+    let Some(line) = lines.get(line_no) else {
+        return Some(note.to_string());
+    };
+    let mut text: String = line.split("//").next().unwrap_or("").trim().to_string();
+    if text.chars().count() > 72 {
+        text = text.chars().take(70).collect::<String>() + "…";
+    }
+    let owner = lines[..line_no]
+        .iter()
+        .rev()
+        .find_map(|l| {
+            let t = l.trim_start();
+            ["component ", "instrument "]
+                .iter()
+                .find_map(|k| t.strip_prefix(k))
+                .and_then(|r| r.split_whitespace().next())
+        })
+        .map(|n| n.trim_end_matches('{').to_string());
+    // The head of the comment block directly above the statement.
+    let mut i = line_no;
+    let mut head = None;
+    while i > 0 && lines[i - 1].trim_start().starts_with("//") {
+        i -= 1;
+        head = Some(lines[i].trim_start().trim_start_matches('/').trim());
+    }
+    let head = head.map(|h| {
+        let cut = h.find([':', '.', ';', '(']).unwrap_or(h.len());
+        h[..cut].trim().to_string()
+    });
+    let mut s = String::new();
+    if let Some(o) = owner {
+        s.push_str(&o);
+        s.push(' ');
+    }
+    s.push_str(&format!("line {}: {text}", line_no + 1));
+    if let Some(h) = head.filter(|h| !h.is_empty()) {
+        s.push_str(" — ");
+        s.push_str(&h);
+    }
+    Some(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::corpus::{self, Size};
+    use tactus_compiler::lower::Config;
+
+    fn compile(src: &str) -> (FixedProgram, ThumbObject) {
+        let l = tactus_compiler::compile(src, &Config::default()).unwrap();
+        let fp = FixedProgram::new(&l.program);
+        let obj = tactus_compiler::thumb::compile(&fp).unwrap();
+        (fp, obj)
+    }
+
+    const INSTRUMENTS: [(&str, &str); 4] = [
+        (
+            "grand_piano",
+            include_str!("../../instruments/grand_piano.tactus"),
+        ),
+        (
+            "harpsichord",
+            include_str!("../../instruments/harpsichord.tactus"),
+        ),
+        (
+            "harpsichord_2x8",
+            include_str!("../../instruments/harpsichord_2x8.tactus"),
+        ),
+        ("hammond", include_str!("../../instruments/hammond.tactus")),
+    ];
+
+    /// Soundness: the static worst case bounds every measured call of every instrument over
+    /// the (quick) corpus, and the worst path's events are notes of the code.
+    #[test]
+    fn static_bounds_measured_for_every_instrument() {
+        for (name, src) in INSTRUMENTS {
+            let (fp, obj) = compile(src);
+            let runs = corpus::corpus(&fp, Size::Quick);
+            let c = program_cost(&obj, &fp, &runs).unwrap();
+            let ratio = c.ratio().unwrap();
+            println!(
+                "{name}: static {} measured worst {} mean {:.1} static/measured {ratio:.3} over {} samples",
+                c.static_cost.cycles,
+                c.measured.worst,
+                c.measured.mean(),
+                c.measured.calls
+            );
+            assert!(
+                c.sound(),
+                "{name}: measured {} > static {} at {:?}",
+                c.measured.worst,
+                c.static_cost.cycles,
+                c.measured.worst_at
+            );
+            assert_eq!(c.measured.calls as usize, corpus::samples(&runs));
+            assert!(c.measured.best <= c.measured.worst && c.measured.best > BL_CYCLES);
+            assert!(!c.static_cost.path.is_empty());
+            for (off, note) in &c.static_cost.events {
+                assert!(obj.code.notes.contains(&(*off, note.clone())));
+            }
+        }
+    }
+
+    /// The worst path of the piano goes through the hammer–string impact (its most
+    /// expensive event: the strike's emit and the velocity reversal) — a property of the
+    /// instrument, not of a particular code generator.
+    #[test]
+    fn piano_worst_path_names_source_events() {
+        let (_, obj) = compile(INSTRUMENTS[0].1);
+        let s = static_update(&obj).unwrap();
+        let described: Vec<String> = s
+            .events
+            .iter()
+            .filter_map(|(_, n)| describe_note(n, INSTRUMENTS[0].1))
+            .collect();
+        println!("{described:#?}");
+        assert!(!described.is_empty());
+        assert!(
+            described.iter().any(|d| d.contains("line ")),
+            "{described:?}"
+        );
+    }
+
+    #[test]
+    fn notes_render_as_source_lines() {
+        let src = "instrument a {\n  // Impact: a comment\n  on x >= y {\n  }\n}\n";
+        let at = src.find("x >= y").unwrap();
+        let d = describe_note(&format!("if condition v3 @{at}..{}", at + 6), src);
+        assert_eq!(d.as_deref(), Some("a line 3: on x >= y { — Impact"));
+        assert_eq!(describe_note("emit strike", src).unwrap(), "emit strike");
+        assert_eq!(
+            describe_note("if condition v3 @999..1000", src).unwrap(),
+            "if condition v3 @999..1000"
+        );
+        assert_eq!(describe_note("if condition v9 @0..0", src), None);
+    }
+
+    fn board(cores: u32, clock_hz: f64) -> Board {
+        Board {
+            name: "t".into(),
+            clock_hz,
+            cores,
+            sample_rate_hz: 1000.0,
+            io_cycles_per_key: 10,
+            isr_overhead_cycles: 50,
+        }
+    }
+
+    #[test]
+    fn plans_fit_exactly_up_to_max_keys() {
+        let b = board(2, 1_000_000.0); // 1000 cycles per sample per core
+        assert_eq!(max_keys(&b, 95), 2 * 10);
+        let p = plan(&b, &[95; 20]);
+        assert!(p.fits(), "{p:?}");
+        assert_eq!(p.min_headroom(), 0);
+        let p = plan(&b, &[95; 21]);
+        assert!(!p.fits());
+        assert_eq!(p.min_headroom(), -95);
+        assert_eq!(p.cores.iter().map(|c| c.keys.len()).sum::<usize>(), 21);
+        assert!((p.cores[0].utilisation - 1.095).abs() < 1e-9);
+        assert_eq!(max_keys(&board(1, 1_000.0), 5), 0);
+    }
+
+    #[test]
+    fn note_names() {
+        assert_eq!(note_name(21), "A0");
+        assert_eq!(note_name(60), "C4");
+        assert_eq!(note_name(61), "C#4");
+        assert_eq!(note_name(108), "C8");
+        assert_eq!(note_name(0), "C-1");
+    }
+}
