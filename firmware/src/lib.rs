@@ -5,6 +5,8 @@
 //! - [`runner`]: [`UpdateRunner`] loads code (an ELF executable, or raw position-independent
 //!   Thumb code with entry offsets) into an emulated board and calls `init`/`update` from
 //!   the host, returning the out words, the states, the modes and the cycles per key-sample.
+//! - [`image`]: the whole per-sample firmware of a keyboard (programs, limiter, sample
+//!   interrupt per core) laid out in SRAM, run sample by sample, with its static WCET.
 //! - [`cc`]: compiles the C backend's output with clang or arm-none-eabi-gcc for the
 //!   Cortex-M0+ and links an ELF executable in SRAM, reporting code sizes.
 //! - [`measure`]: runs stimuli through a runner and the fixed interpreter side by side,
@@ -17,6 +19,7 @@
 pub mod budget;
 pub mod cc;
 pub mod corpus;
+pub mod image;
 pub mod layout;
 pub mod measure;
 pub mod report;

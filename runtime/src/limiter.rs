@@ -74,6 +74,24 @@ pub struct Limiter {
     budget: i64,
 }
 
+/// The integer constants of a [`Limiter`] ([`Limiter::constants`]); [`Limiter::step`] is
+/// defined in terms of these alone (and the budget).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LimiterConstants {
+    /// Force → current gain: (raw word, fraction bits), µA per N.
+    pub gain: (i32, i32),
+    /// Peak current, µA.
+    pub peak_ua: i32,
+    /// Rated current, µA.
+    pub rated_ua: i32,
+    /// Full time budget, in 1/`recovery` samples.
+    pub budget_max: i64,
+    /// Budget spent per sample above rated (one sample = `recovery` units).
+    pub recovery: i64,
+    /// Current → DAC code scale: (raw word, fraction bits), codes per µA.
+    pub dac_scale: (i32, i32),
+}
+
 /// One sample's result.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Limited {
@@ -145,6 +163,24 @@ impl Limiter {
             dac: code.clamp(-32767, 32767) as i16,
             limited: i != asked,
         }
+    }
+
+    /// The integer constants of this limiter, for firmware that computes the same words
+    /// (the firmware image's Thumb limiter is generated from them).
+    pub fn constants(&self) -> LimiterConstants {
+        LimiterConstants {
+            gain: self.gain,
+            peak_ua: self.peak_ua,
+            rated_ua: self.rated_ua,
+            budget_max: self.budget_max,
+            recovery: self.recovery,
+            dac_scale: self.dac_scale,
+        }
+    }
+
+    /// The remaining time budget, in 1/`recovery` samples (full after [`Limiter::new`]).
+    pub fn budget(&self) -> i64 {
+        self.budget
     }
 
     /// The rated current, µA.

@@ -1,0 +1,677 @@
+//! The whole per-sample firmware of a keyboard: compiled key programs, the safety limiter,
+//! a timer-paced sample interrupt per core, laid out in SRAM and run on the emulated RP2040.
+//!
+//! [`FirmwareImage::build`] takes the compiled programs ([`Program`]: one per distinct
+//! instrument and parameter set), the keys ([`KeySpec`]: which program, which core, which
+//! sensor/DAC window slot), the board (clock, sample rate) and the limiter's configuration,
+//! and produces machine code and data for SRAM plus the static worst-case cycles of each
+//! core's interrupt ([`IsrWcet`]). [`FirmwareImage::run`] loads it into an emulated board
+//! ([`ImageRun`]), which steps one sample at a time.
+//!
+//! **Memory.** Each core owns one 64 KB SRAM bank through the non-striped alias
+//! (core *c*: bank *c* at `0x21000000 + c·0x10000`, RP2040 datasheet 2.6.1): its vector
+//! table, its copy of every program's `.text` that its keys use (one copy per distinct
+//! program per core: the code is position independent, and a copy per core keeps each
+//! core's literal-pool loads in its own bank), its glue code (reset handler, sample
+//! interrupt, one limiter routine per force format), its control block, its keys' records
+//! and their state structs. Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
+//! core 1). So the only SRAM accesses two cores can contend for are the sensor loads and
+//! DAC stores in the striped sensor/DAC windows: at most one wait cycle each
+//! (`bus.rs`: the other core's claim lasts one cycle), which [`IsrWcet::contention`] adds.
+//! Code and data occupy disjoint ranges of bank offsets in both banks, so no data store
+//! ever lands in a physical 256-byte page that holds code (the emulator's decode cache
+//! would be emptied on each).
+//!
+//! **Start.** Both cores are started directly by the host ([`tactus_emulator::Board::start_core`]
+//! with each core's vector table, stack and reset handler), not through the boot ROM's FIFO
+//! launch of core 1: the launch only changes when core 1 starts, and the sample ticks are
+//! absolute times both cores wait for. Each reset handler calls `init` for its keys, arms
+//! its timer alarm (core *c* uses ALARM*c* / TIMER_IRQ_*c*, so each core has its own
+//! interrupt and clears only its own bit; core 0 writes INTE for both) for the first tick
+//! [`FirmwareImage::first_tick_us`], enables the interrupt, and sleeps in `WFI`.
+//!
+//! **The sample interrupt** (per core, straight-line code: no loop, so the static WCET
+//! needs no loop bounds): acknowledge the alarm; arm the next tick (`q + rem/fs` µs later,
+//! the remainder kept exactly, so tick *n* is at `first + ⌊n·10⁶/fs⌋` µs); then for each key
+//! of the core: copy the sensor window word into the key's record, `BL` the program's
+//! update (state, &sensor, out in the record), `BL` the limiter with the force word
+//! (`out[total]`), store the DAC code in the DAC window. Finally: if the timer already
+//! reached the next tick, the deadline was missed and the core's miss counter is
+//! incremented; the sample counter is incremented last. A handler that starts more than a
+//! period late (only after a miss) re-synchronises the tick to now + a margin.
+
+pub mod asm;
+pub mod glue;
+mod run;
+
+pub use run::{ImageRun, KeyEvent, SampleOut};
+
+use asm::Asm;
+use glue::{ctrl, rec, KeyCode, Tick};
+use std::collections::BTreeMap;
+use std::fmt;
+use tactus_compiler::fixed::FixedProgram;
+use tactus_compiler::thumb::ThumbObject;
+use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE, SRAM_ALIAS_BASE};
+use tactus_emulator::wcet::{self, Bounds, Region};
+use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
+use tactus_runtime::keyboard::Board as BoardSpec;
+use tactus_runtime::limiter::{Limiter, LimiterConfig};
+
+/// A compiled key program: the fixed-point program (for its formats and the interpreter)
+/// and its Thumb code.
+#[derive(Clone, Debug)]
+pub struct Program {
+    /// The fixed-point program.
+    pub fixed: FixedProgram,
+    /// Its Thumb object (position-independent `.text`).
+    pub thumb: ThumbObject,
+}
+
+impl Program {
+    /// Compiles instrument source `text` with `config` (sample rate, `--param`
+    /// overrides) to a fixed-point program and Thumb code. Errors are the rendered
+    /// diagnostics' messages or the Thumb backend's error.
+    pub fn compile(
+        text: &str,
+        config: &tactus_compiler::lower::Config,
+    ) -> Result<Program, ImageError> {
+        let lowered = tactus_compiler::compile(text, config).map_err(|d| {
+            ImageError::Compile(
+                d.iter()
+                    .map(|d| d.message.clone())
+                    .collect::<Vec<_>>()
+                    .join("; "),
+            )
+        })?;
+        let fixed = FixedProgram::new(&lowered.program);
+        let thumb = tactus_compiler::thumb::compile(&fixed)
+            .map_err(|e| ImageError::Compile(e.to_string()))?;
+        Ok(Program { fixed, thumb })
+    }
+
+    /// Static WCET (cycles, first instruction to return) of the program's update, as
+    /// [`wcet::analyse`] prices it (the code is position independent, so anywhere).
+    pub fn update_wcet(&self) -> Result<u64, ImageError> {
+        let (off, _) = self
+            .thumb
+            .symbol(&self.thumb.update_name())
+            .ok_or_else(|| ImageError::Compile("no update function".into()))?;
+        let image = wcet::Image {
+            base: 0x2000_0000,
+            bytes: &self.thumb.code.text,
+        };
+        wcet::analyse(&image, 0x2000_0000 + off as u32, &Bounds::new())
+            .map(|w| w.cycles)
+            .map_err(|e| ImageError::Wcet(e.to_string()))
+    }
+}
+
+/// One key of the image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct KeySpec {
+    /// Its slot in the sensor and DAC windows (word index from [`SENSOR_BASE`] /
+    /// [`DAC_BASE`]; e.g. the MIDI key number), below [`MAX_KEYS`].
+    pub slot: usize,
+    /// Index of its program in the programs given to [`FirmwareImage::build`].
+    pub program: usize,
+    /// The core that runs it (0 or 1).
+    pub core: usize,
+}
+
+/// Assigns keys to `cores` cores by longest processing time first
+/// ([`tactus_emulator::schedule::lpt`]) with each key's cost the static WCET of its
+/// program's update plus the handler's per-key glue; returns the core of each key.
+pub fn assign_cores(
+    programs: &[Program],
+    key_programs: &[usize],
+    cores: usize,
+) -> Result<Vec<usize>, ImageError> {
+    let mut cost = Vec::with_capacity(programs.len());
+    for p in programs {
+        cost.push(p.update_wcet()?);
+    }
+    let mut costs = Vec::with_capacity(key_programs.len());
+    for (i, &p) in key_programs.iter().enumerate() {
+        costs.push(*cost.get(p).ok_or(ImageError::BadKey {
+            key: i,
+            why: format!("program {p} does not exist"),
+        })?);
+    }
+    let mut core = vec![0; key_programs.len()];
+    for (c, load) in tactus_emulator::schedule::lpt(&costs, cores)
+        .iter()
+        .enumerate()
+    {
+        for &k in &load.keys {
+            core[k] = c;
+        }
+    }
+    Ok(core)
+}
+
+/// Why an image could not be built or run.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ImageError {
+    /// An instrument did not compile.
+    Compile(String),
+    /// A key's specification is invalid (`key` is its index in the key list).
+    BadKey {
+        /// Index in the key list.
+        key: usize,
+        /// What is wrong.
+        why: String,
+    },
+    /// The board cannot run an image (clock, sample rate or core count).
+    Board(String),
+    /// The limiter configuration cannot be built, or not in the firmware's arithmetic.
+    Limiter(String),
+    /// A core's code and data do not fit its SRAM bank.
+    NoRoom {
+        /// The core.
+        core: usize,
+        /// Bytes needed.
+        need: u32,
+        /// Bytes available.
+        have: u32,
+    },
+    /// The glue code could not be assembled.
+    Assemble(String),
+    /// The static WCET analysis failed.
+    Wcet(String),
+    /// A host access to the emulated board failed.
+    Emu(String),
+    /// The firmware did not reach the expected state (faulted, did not finish its start-up
+    /// before the first tick, did not complete a sample, overflowed its stack).
+    Run(String),
+    /// [`ImageRun::step`] got the wrong number of sensor words.
+    SensorCount {
+        /// Keys of the image.
+        expected: usize,
+        /// Words passed.
+        got: usize,
+    },
+}
+
+impl fmt::Display for ImageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ImageError::Compile(e) => write!(f, "cannot compile a key program: {e}"),
+            ImageError::BadKey { key, why } => write!(f, "key {key}: {why}"),
+            ImageError::Board(e) => write!(f, "board: {e}"),
+            ImageError::Limiter(e) => write!(f, "limiter: {e}"),
+            ImageError::NoRoom { core, need, have } => write!(
+                f,
+                "core {core}: code and data need {need} bytes, its SRAM bank has {have}"
+            ),
+            ImageError::Assemble(e) => write!(f, "cannot assemble the glue code: {e}"),
+            ImageError::Wcet(e) => write!(f, "static WCET analysis failed: {e}"),
+            ImageError::Emu(e) => write!(f, "emulator: {e}"),
+            ImageError::Run(e) => write!(f, "firmware run: {e}"),
+            ImageError::SensorCount { expected, got } => {
+                write!(f, "{got} sensor words given, the image has {expected} keys")
+            }
+        }
+    }
+}
+
+impl std::error::Error for ImageError {}
+
+/// The firmware's limiter routine alone, assembled at `base`, for keys whose force words
+/// have `force_frac` fraction bits: returns the code and the routine's address. Calling
+/// convention: `r0` = force word, `r1` = address of two words (budget, then current µA; the
+/// budget starts full: `Limiter::constants().budget_max`); returns the DAC code in `r0`.
+/// The image uses exactly this code; tests call it with arbitrary words.
+///
+/// Errors: [`ImageError::Limiter`], [`ImageError::Assemble`].
+pub fn limiter_routine(
+    limiter: &LimiterConfig,
+    force_frac: i32,
+    base: u32,
+) -> Result<(Vec<u8>, u32), ImageError> {
+    let consts = Limiter::new(limiter)
+        .map_err(ImageError::Limiter)?
+        .constants();
+    let mut a = Asm::new();
+    let entry = a.label();
+    glue::limiter(&mut a, entry, &consts, force_frac)?;
+    let (bytes, labels) = a.assemble(base).map_err(ImageError::Assemble)?;
+    Ok((bytes, labels[entry.index()]))
+}
+
+/// Static worst case of one core's sample interrupt, in core clock cycles, from the
+/// exception being taken to its return completing.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct IsrWcet {
+    /// [`wcet::analyse_isr`] of the handler with every key's update and limiter call
+    /// (no bank contention).
+    pub analysed: u64,
+    /// Bank-contention allowance: one wait cycle per sensor-window or DAC-window access of
+    /// this core's handler and per such access of the other core's handler in the same
+    /// sample (the only SRAM accesses that share a bank with another master; see the
+    /// module documentation).
+    pub contention: u64,
+}
+
+impl IsrWcet {
+    /// The bound: `analysed + contention`.
+    pub fn bound(&self) -> u64 {
+        self.analysed + self.contention
+    }
+}
+
+/// Where one key lives in the image.
+#[derive(Clone, Debug)]
+pub(crate) struct KeyPlace {
+    pub index: usize,
+    pub spec: KeySpec,
+    pub record: u32,
+    pub out_len: usize,
+    pub force_index: usize,
+}
+
+/// Where one core's pieces live.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct CorePlace {
+    pub vtor: u32,
+    pub reset: u32,
+    pub isr: u32,
+    pub ctrl: u32,
+    pub stack_top: u32,
+    pub stack_bottom: u32,
+    pub keys: Vec<usize>,
+}
+
+/// A built firmware image: bytes for SRAM, entry points, and what the host needs to run
+/// and read it.
+#[derive(Clone, Debug)]
+pub struct FirmwareImage {
+    pub(crate) segments: Vec<(u32, Vec<u8>)>,
+    pub(crate) cores: Vec<CorePlace>,
+    pub(crate) keys: Vec<KeyPlace>,
+    pub(crate) programs: Vec<Program>,
+    pub(crate) clock_hz: u64,
+    pub(crate) sample_rate_hz: u32,
+    pub(crate) first_tick_us: u32,
+    pub(crate) wcet: Vec<IsrWcet>,
+    pub(crate) limiter: LimiterConfig,
+    code_bytes: Vec<u32>,
+}
+
+/// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
+/// the striped addresses from [`SENSOR_BASE`], i.e. bank offsets from 0xfc00).
+const BANK_LIMIT: u32 = (SENSOR_BASE - 0x2000_0000) / 4;
+/// Size of the vector table (16 system exceptions + 32 interrupts), bytes.
+const VECTORS: u32 = 48 * 4;
+/// Stack bytes per core (the whole scratch bank).
+const STACK_BYTES: u32 = 4096;
+/// A word written at the bottom of each stack; the run checks it after every sample.
+pub(crate) const STACK_CANARY: u32 = 0x57AC_CA11;
+
+fn bank_base(core: usize) -> u32 {
+    SRAM_ALIAS_BASE + 0x1_0000 * core as u32
+}
+
+impl FirmwareImage {
+    /// Lays out and assembles the firmware for `keys` running `programs` on `board`, with
+    /// every force word limited by a [`Limiter`] configured by `limiter` (its sample rate
+    /// is replaced by the board's).
+    ///
+    /// Errors: [`ImageError::BadKey`] (slot beyond the windows or used twice, unknown
+    /// program, core beyond the board's, a program with more than one sensor),
+    /// [`ImageError::Board`] (more than 2 cores, a sample rate that is not a whole number of
+    /// Hz, a clock below 1 MHz), [`ImageError::Limiter`], [`ImageError::NoRoom`],
+    /// [`ImageError::Assemble`], [`ImageError::Wcet`].
+    pub fn build(
+        programs: &[Program],
+        keys: &[KeySpec],
+        board: &BoardSpec,
+        limiter: &LimiterConfig,
+    ) -> Result<FirmwareImage, ImageError> {
+        let cores = board.cores as usize;
+        if !(1..=2).contains(&cores) {
+            return Err(ImageError::Board(format!(
+                "{} cores; the RP2040 image runs on 1 or 2",
+                board.cores
+            )));
+        }
+        let fs = board.sample_rate_hz;
+        if !(fs >= 1.0 && fs.fract() == 0.0 && fs <= 1e6) {
+            return Err(ImageError::Board(format!(
+                "sample rate {fs} Hz: the tick schedule needs a whole number of Hz up to 1 MHz"
+            )));
+        }
+        let clock = board.clock_hz;
+        if !(clock >= 1e6 && clock.fract() == 0.0 && clock <= 1e10) {
+            return Err(ImageError::Board(format!(
+                "clock {clock} Hz: need a whole number of Hz from 1 MHz"
+            )));
+        }
+        let (fs, clock_hz) = (fs as u32, clock as u64);
+        let lim_cfg = LimiterConfig {
+            sample_rate_hz: fs as f64,
+            ..*limiter
+        };
+        let lim = Limiter::new(&lim_cfg).map_err(ImageError::Limiter)?;
+        let consts = lim.constants();
+
+        // Check the keys.
+        let mut used = BTreeMap::new();
+        for (i, k) in keys.iter().enumerate() {
+            let bad = |why: String| Err(ImageError::BadKey { key: i, why });
+            if k.slot >= MAX_KEYS {
+                return bad(format!(
+                    "slot {} beyond the {MAX_KEYS} window words",
+                    k.slot
+                ));
+            }
+            if let Some(j) = used.insert(k.slot, i) {
+                return bad(format!("slot {} is also key {j}'s", k.slot));
+            }
+            let Some(p) = programs.get(k.program) else {
+                return bad(format!("program {} does not exist", k.program));
+            };
+            if k.core >= cores {
+                return bad(format!("core {} but the board has {cores}", k.core));
+            }
+            if p.fixed.program.sensors.len() > 1 {
+                return bad(format!(
+                    "program `{}` reads {} sensors; the image feeds one word per key",
+                    p.thumb.stem,
+                    p.fixed.program.sensors.len()
+                ));
+            }
+        }
+
+        // Timer: margin covers the cycles between reading the time and arming the alarm.
+        let margin = (1 + (64 * 1_000_000u64).div_ceil(clock_hz)).min(200) as u8;
+        let tick = Tick {
+            q: 1_000_000 / fs,
+            rem: 1_000_000 % fs,
+            fs,
+            margin,
+        };
+        // First tick: after every core's start-up (checked by the run).
+        let first_tick_us = 200 + 50 * keys.len() as u32;
+
+        let mut segments = Vec::new();
+        let mut places: Vec<CorePlace> = vec![CorePlace::default(); cores];
+        let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
+        let mut analysed = vec![0u64; cores];
+        let mut window_accesses = vec![0u64; cores];
+        let mut code_bytes = vec![0u32; cores];
+
+        // Pass 1 per core: program copies (fixed sizes), then glue whose size we measure
+        // with provisional data addresses; the data start is the same bank offset in every
+        // bank, past every core's code.
+        struct CoreCode {
+            texts: Vec<(usize, u32)>, // (program, address of its .text copy)
+            glue_at: u32,
+        }
+        let mut cc = Vec::new();
+        for core in 0..cores {
+            let base = bank_base(core);
+            let mut at = base + VECTORS;
+            let mut texts = Vec::new();
+            for (p, prog) in programs.iter().enumerate() {
+                if keys.iter().any(|k| k.core == core && k.program == p) {
+                    at = at.next_multiple_of(4);
+                    texts.push((p, at));
+                    at += prog.thumb.code.text.len() as u32;
+                }
+            }
+            cc.push(CoreCode {
+                texts,
+                glue_at: at.next_multiple_of(4),
+            });
+        }
+        let glue = |core: usize,
+                    data_off: u32,
+                    cc: &CoreCode|
+         -> Result<(Asm, glue::CoreLabels, Vec<KeyPlace>, u32), ImageError> {
+            let base = bank_base(core);
+            let ctrl_addr = base + data_off;
+            let my: Vec<usize> = (0..keys.len()).filter(|&i| keys[i].core == core).collect();
+            let mut a = Asm::new();
+            // Limiter routines, one per force format.
+            let mut limiters = BTreeMap::new();
+            for &i in &my {
+                let f = programs[keys[i].program].fixed.total_frac;
+                if let std::collections::btree_map::Entry::Vacant(e) = limiters.entry(f) {
+                    let l = a.label();
+                    glue::limiter(&mut a, l, &consts, f)?;
+                    e.insert(l);
+                }
+            }
+            // Records after the control block, states after the records.
+            let mut at = ctrl_addr + ctrl::SIZE;
+            let mut kc = Vec::new();
+            let mut kp = Vec::new();
+            for &i in &my {
+                let p = &programs[keys[i].program];
+                let text = cc
+                    .texts
+                    .iter()
+                    .find(|t| t.0 == keys[i].program)
+                    .map_or(0, |t| t.1);
+                let sym = |name: String| {
+                    p.thumb
+                        .symbol(&name)
+                        .map(|(o, _)| text + o as u32)
+                        .ok_or_else(|| ImageError::Compile(format!("no symbol `{name}`")))
+                };
+                let out_len = p.thumb.out.len;
+                let size = rec::OUT + 4 * out_len as u32;
+                let force_index = p.thumb.out.total;
+                kc.push(KeyCode {
+                    force_offset: rec::OUT + 4 * force_index as u32,
+                    record_size: size,
+                    update: sym(p.thumb.update_name())?,
+                    init: sym(p.thumb.init_name())?,
+                    limiter: limiters[&p.fixed.total_frac],
+                });
+                kp.push(KeyPlace {
+                    index: i,
+                    spec: keys[i],
+                    record: at,
+                    out_len,
+                    force_index,
+                });
+                at += size;
+            }
+            let inte = if cores == 2 { 3 } else { 1 };
+            let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, tick, inte);
+            Ok((a, labels, kp, at))
+        };
+        // Provisional: data right after the largest code estimate; then the real offset.
+        let mut data_off = 0u32;
+        for (core, c) in cc.iter().enumerate() {
+            let (a, ..) = glue(core, BANK_LIMIT / 2, c)?;
+            let (bytes, _) = a.assemble(c.glue_at).map_err(ImageError::Assemble)?;
+            let end = c.glue_at + bytes.len() as u32 - bank_base(core);
+            data_off = data_off.max(end);
+        }
+        // Literal values do not change instruction sizes, but pool sharing may; keep slack.
+        data_off = (data_off + 64).next_multiple_of(256);
+
+        for (core, c) in cc.iter().enumerate() {
+            let base = bank_base(core);
+            let (a, labels, kp, data_end) = glue(core, data_off, c)?;
+            let (glue_bytes, addr) = a.assemble(c.glue_at).map_err(ImageError::Assemble)?;
+            let code_end = c.glue_at + glue_bytes.len() as u32;
+            if code_end - base > data_off {
+                return Err(ImageError::Assemble(format!(
+                    "core {core}: the glue grew past the data ({} > {data_off} bytes)",
+                    code_end - base
+                )));
+            }
+            code_bytes[core] = code_end - base;
+            // States after the records.
+            let mut at = data_end.next_multiple_of(4);
+            let mut data = Vec::new();
+            let ctrl_addr = base + data_off;
+            let first = |v: u32| v.to_le_bytes();
+            let mut ctrl_block = Vec::new();
+            ctrl_block.extend(first(first_tick_us)); // TARGET
+            ctrl_block.extend(first(0)); // ACC
+            ctrl_block.extend(first(0)); // SAMPLES
+            ctrl_block.extend(first(0)); // MISSES
+            ctrl_block.extend(first(0)); // READY
+            data.extend(ctrl_block);
+            let mut states = Vec::new();
+            for k in &kp {
+                let p = &programs[k.spec.program];
+                let state = at;
+                at = (at + p.thumb.state.size as u32).next_multiple_of(4);
+                states.push((state, p.thumb.state.size));
+                let mut r = vec![0u8; rec::OUT as usize + 4 * k.out_len];
+                let put = |r: &mut Vec<u8>, off: u16, v: u32| {
+                    r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
+                };
+                put(&mut r, rec::BUDGET, consts.budget_max as u32);
+                put(&mut r, rec::WINDOW, SENSOR_BASE + 4 * k.spec.slot as u32);
+                put(&mut r, rec::DAC, DAC_BASE + 4 * k.spec.slot as u32);
+                put(&mut r, rec::STATE, state);
+                data.extend(r);
+            }
+            for (_, size) in &states {
+                data.extend(vec![0u8; size.next_multiple_of(4)]);
+            }
+            let need = at - base;
+            if need > BANK_LIMIT {
+                return Err(ImageError::NoRoom {
+                    core,
+                    need,
+                    have: BANK_LIMIT,
+                });
+            }
+            // Vector table.
+            let stack_bottom = if core == 0 { SRAM4_BASE } else { SRAM5_BASE };
+            let stack_top = stack_bottom + STACK_BYTES;
+            let lab = |l: asm::Label| addr[l.index()];
+            let mut vt = vec![lab(labels.default) | 1; 48];
+            vt[0] = stack_top;
+            vt[1] = lab(labels.reset) | 1;
+            vt[16 + core] = lab(labels.isr) | 1;
+            let mut code = Vec::new();
+            for w in &vt {
+                code.extend(w.to_le_bytes());
+            }
+            for &(p, text) in &c.texts {
+                code.resize((text - base) as usize, 0);
+                code.extend(&programs[p].thumb.code.text);
+            }
+            code.resize((c.glue_at - base) as usize, 0);
+            code.extend(&glue_bytes);
+            // Static WCET of the handler over this core's whole code.
+            let mut bounds = Bounds::new();
+            for &l in &labels.apb {
+                bounds = bounds.with_access(lab(l), Region::Apb);
+            }
+            let image = wcet::Image { base, bytes: &code };
+            let w = wcet::analyse_isr(&image, lab(labels.isr), &bounds)
+                .map_err(|e| ImageError::Wcet(format!("core {core}: {e}")))?;
+            analysed[core] = w.cycles;
+            window_accesses[core] = 2 * kp.len() as u64;
+            segments.push((base, code));
+            segments.push((ctrl_addr, data));
+            places[core] = CorePlace {
+                vtor: base,
+                reset: lab(labels.reset),
+                isr: lab(labels.isr),
+                ctrl: ctrl_addr,
+                stack_top,
+                stack_bottom,
+                keys: Vec::new(),
+            };
+            for k in kp {
+                let i = k.index;
+                places[core].keys.push(i);
+                if let Some(slot) = key_places.get_mut(i) {
+                    *slot = Some(k);
+                }
+            }
+        }
+        let total: u64 = window_accesses.iter().sum();
+        let wcet = (0..cores)
+            .map(|c| IsrWcet {
+                analysed: analysed[c],
+                contention: if places[c].keys.is_empty() { 0 } else { total },
+            })
+            .collect();
+        let keys = key_places
+            .into_iter()
+            .enumerate()
+            .map(|(i, k)| {
+                k.ok_or(ImageError::BadKey {
+                    key: i,
+                    why: "not placed".into(),
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(FirmwareImage {
+            segments,
+            cores: places,
+            keys,
+            programs: programs.to_vec(),
+            clock_hz,
+            sample_rate_hz: fs,
+            first_tick_us,
+            wcet,
+            limiter: lim_cfg,
+            code_bytes,
+        })
+    }
+
+    /// Static WCET of core `core`'s sample interrupt (`None` for a core beyond the board's).
+    pub fn wcet(&self, core: usize) -> Option<IsrWcet> {
+        self.wcet.get(core).copied()
+    }
+
+    /// Cores of the image.
+    pub fn cores(&self) -> usize {
+        self.cores.len()
+    }
+
+    /// The keys on core `core`, as indices into the key list.
+    pub fn core_keys(&self, core: usize) -> &[usize] {
+        self.cores.get(core).map_or(&[], |c| &c.keys)
+    }
+
+    /// Bytes of code (vector table, program copies, glue) in core `core`'s bank.
+    pub fn code_bytes(&self, core: usize) -> u32 {
+        self.code_bytes.get(core).copied().unwrap_or(0)
+    }
+
+    /// Microsecond time of the first sample tick.
+    pub fn first_tick_us(&self) -> u32 {
+        self.first_tick_us
+    }
+
+    /// Core clock cycles per sample period (`clock / fs`, rounded down).
+    pub fn cycles_per_sample(&self) -> u64 {
+        self.clock_hz / self.sample_rate_hz as u64
+    }
+
+    /// The limiter configuration the image was built with (at the board's sample rate):
+    /// `Limiter::new` of it computes the reference words.
+    pub fn limiter_config(&self) -> &LimiterConfig {
+        &self.limiter
+    }
+
+    /// The programs, as given to [`FirmwareImage::build`].
+    pub fn programs(&self) -> &[Program] {
+        &self.programs
+    }
+
+    /// The keys, as given to [`FirmwareImage::build`].
+    pub fn keys(&self) -> Vec<KeySpec> {
+        self.keys.iter().map(|k| k.spec).collect()
+    }
+
+    /// Loads the image into a fresh emulated board and runs it up to the first tick
+    /// (every core's start-up); see [`ImageRun`].
+    pub fn run(&self) -> Result<ImageRun, ImageError> {
+        ImageRun::new(self)
+    }
+}

@@ -1,0 +1,278 @@
+//! [`ImageRun`]: a [`FirmwareImage`] running on an emulated RP2040, stepped one sample at a
+//! time from the host.
+//!
+//! Per [`ImageRun::step`]: the host writes every key's sensor word into the sensor window
+//! (as the sensor DMA would, before the tick), runs the board up to the *next* sample's
+//! tick — both cores sleep in `WFI` between their handlers, and the emulator skips sleep in
+//! one jump — and reads back each key's out words, limited current and DAC word, each
+//! core's handler cycles (measured by profiling the handler: exception entry + first
+//! instruction to the completed return) and the miss counters. If a core has not completed
+//! the sample by then (an overloaded image), the run continues until it has; the next
+//! handler may then already have started with the previous sensor words.
+
+use super::glue::{ctrl, rec};
+use super::{FirmwareImage, ImageError, STACK_CANARY};
+use tactus_compiler::ir::EventId;
+use tactus_emulator::timing::EXCEPTION_ENTRY;
+use tactus_emulator::{Board, Config, StopReason, DAC_BASE, SENSOR_BASE};
+
+/// One event a key's update emitted this sample.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct KeyEvent {
+    /// Index of the key in the image's key list.
+    pub key: usize,
+    /// The event.
+    pub event: EventId,
+    /// Its raw argument words (formats `FixedProgram::event_frac`).
+    pub args: Vec<i32>,
+}
+
+/// What one sample produced.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct SampleOut {
+    /// Per key: the force word the update computed (`out[total]`, format
+    /// `FixedProgram::total_frac`), before the limiter.
+    pub force: Vec<i32>,
+    /// Per key: the motor current the limiter allowed, µA.
+    pub current_ua: Vec<i32>,
+    /// Per key: the DAC code written to the DAC window.
+    pub dac: Vec<i16>,
+    /// Events emitted this sample, by key in key order, each key's in program order.
+    pub events: Vec<KeyEvent>,
+    /// Per core: cycles of the sample handler runs completed during this step (exception
+    /// entry to the completed return; normally exactly one run).
+    pub core_cycles: Vec<u64>,
+    /// Per core: handler runs completed during this step.
+    pub handler_runs: Vec<u32>,
+    /// Per core: the firmware's deadline-miss counter (since start).
+    pub misses: Vec<u32>,
+    /// Per core: cycles lost to SRAM bank contention during this step.
+    pub stalls: Vec<u64>,
+}
+
+/// A firmware image on an emulated board.
+pub struct ImageRun {
+    board: Board,
+    image: FirmwareImage,
+    /// Samples completed on every core.
+    samples: u64,
+    profiles: Vec<usize>,
+    out_words: Vec<Vec<i32>>,
+    sample: SampleOut,
+    stalls: [u64; 2],
+    scratch: Vec<u8>,
+}
+
+/// Host access failure as an image error.
+fn emu(e: impl std::fmt::Display) -> ImageError {
+    ImageError::Emu(e.to_string())
+}
+
+/// How many eighths of a sample period a step may run past the next tick for an
+/// overloaded core before the run is declared stuck.
+const MAX_EXTRA_EIGHTHS: u32 = 8 * 1000;
+
+impl ImageRun {
+    pub(crate) fn new(image: &FirmwareImage) -> Result<ImageRun, ImageError> {
+        let mut board = Board::new(Config {
+            clock_hz: image.clock_hz,
+            ..Config::default()
+        });
+        for (addr, bytes) in &image.segments {
+            board.write_bytes(*addr, bytes).map_err(emu)?;
+        }
+        let mut profiles = Vec::new();
+        for (k, c) in image.cores.iter().enumerate() {
+            board.write_u32(c.stack_bottom, STACK_CANARY).map_err(emu)?;
+            board.start_core(k, c.reset | 1, c.stack_top, c.vtor);
+            profiles.push(board.profile_addr(c.isr));
+        }
+        let n = image.keys.len();
+        let cores = image.cores.len();
+        let mut run = ImageRun {
+            board,
+            image: image.clone(),
+            samples: 0,
+            profiles,
+            out_words: image.keys.iter().map(|k| vec![0; k.out_len]).collect(),
+            sample: SampleOut {
+                force: vec![0; n],
+                current_ua: vec![0; n],
+                dac: vec![0; n],
+                events: Vec::new(),
+                core_cycles: vec![0; cores],
+                handler_runs: vec![0; cores],
+                misses: vec![0; cores],
+                stalls: vec![0; cores],
+            },
+            stalls: [0; 2],
+            scratch: Vec::new(),
+        };
+        let start = run.cycle_of(run.image.first_tick_us as u64);
+        let stop = run.board.run_until(start);
+        run.check_stop(stop)?;
+        for (k, c) in run.image.cores.iter().enumerate() {
+            let ready = run
+                .board
+                .read_u32(c.ctrl + ctrl::READY as u32)
+                .map_err(emu)?;
+            if ready != 1 {
+                return Err(ImageError::Run(format!(
+                    "core {k} did not finish its start-up before the first tick ({} µs)",
+                    run.image.first_tick_us
+                )));
+            }
+        }
+        run.stalls = run.board.system.contention_stalls;
+        Ok(run)
+    }
+
+    /// First cycle at which the timer reads `us` microseconds.
+    fn cycle_of(&self, us: u64) -> u64 {
+        ((us as u128 * self.image.clock_hz as u128).div_ceil(1_000_000)) as u64
+    }
+
+    /// Microsecond time of tick `n` (sample `n`'s interrupt), as the firmware schedules it.
+    pub fn tick_us(&self, n: u64) -> u64 {
+        self.image.first_tick_us as u64 + n * 1_000_000 / self.image.sample_rate_hz as u64
+    }
+
+    fn check_stop(&self, stop: StopReason) -> Result<(), ImageError> {
+        match stop {
+            StopReason::CycleLimit => Ok(()),
+            other => Err(ImageError::Run(format!(
+                "the board stopped: {other:?} (core pcs {:#010x}, {:#010x})",
+                self.board.cores[0].r[15], self.board.cores[1].r[15]
+            ))),
+        }
+    }
+
+    fn core_word(&mut self, core: usize, off: u16) -> Result<u32, ImageError> {
+        let a = self.image.cores[core].ctrl + off as u32;
+        self.board.read_u32(a).map_err(emu)
+    }
+
+    /// Runs one sample: `sensors` holds one raw sensor word per key (key-list order; the
+    /// word the key's program reads as its sensor), written to the sensor window before the
+    /// sample's tick. Returns what the sample produced.
+    ///
+    /// Errors: [`ImageError::SensorCount`]; [`ImageError::Run`] when the board faults, a
+    /// core never completes the sample, or a stack canary was overwritten.
+    pub fn step(&mut self, sensors: &[i32]) -> Result<&SampleOut, ImageError> {
+        let keys = self.image.keys.len();
+        if sensors.len() != keys {
+            return Err(ImageError::SensorCount {
+                expected: keys,
+                got: sensors.len(),
+            });
+        }
+        for (k, w) in self.image.keys.iter().zip(sensors) {
+            let a = SENSOR_BASE + 4 * k.spec.slot as u32;
+            self.board.write_data(a, &w.to_le_bytes()).map_err(emu)?;
+        }
+        let want = self.samples + 1;
+        let limit = self.cycle_of(self.tick_us(want));
+        let stop = self.board.run_until(limit);
+        self.check_stop(stop)?;
+        let eighth = (self.image.cycles_per_sample() / 8).max(1);
+        let mut extra = 0;
+        loop {
+            let mut done = true;
+            for c in 0..self.image.cores.len() {
+                done &= self.core_word(c, ctrl::SAMPLES)? as u64 >= want;
+            }
+            if done {
+                break;
+            }
+            extra += 1;
+            if extra > MAX_EXTRA_EIGHTHS {
+                return Err(ImageError::Run(format!(
+                    "sample {want} not completed {} periods after its tick",
+                    MAX_EXTRA_EIGHTHS / 8
+                )));
+            }
+            let stop = self.board.run_for(eighth);
+            self.check_stop(stop)?;
+        }
+        self.samples = want;
+        self.collect()?;
+        Ok(&self.sample)
+    }
+
+    fn collect(&mut self) -> Result<(), ImageError> {
+        let s = &mut self.sample;
+        s.events.clear();
+        for (c, place) in self.image.cores.iter().enumerate() {
+            let calls = self.board.calls(self.profiles[c]);
+            s.core_cycles[c] = calls
+                .iter()
+                .map(|x| x.cycles + EXCEPTION_ENTRY as u64)
+                .sum();
+            s.handler_runs[c] = calls.len() as u32;
+            self.board.clear_calls(self.profiles[c]);
+            s.misses[c] = self
+                .board
+                .read_u32(place.ctrl + ctrl::MISSES as u32)
+                .map_err(emu)?;
+            if self.board.read_u32(place.stack_bottom).map_err(emu)? != STACK_CANARY {
+                return Err(ImageError::Run(format!("core {c} overflowed its stack")));
+            }
+            let now = self.board.system.contention_stalls[c];
+            s.stalls[c] = now - self.stalls[c];
+            self.stalls[c] = now;
+        }
+        for (i, k) in self.image.keys.iter().enumerate() {
+            let len = rec::OUT as usize + 4 * k.out_len;
+            self.scratch.resize(len, 0);
+            self.board
+                .read_bytes(k.record, &mut self.scratch)
+                .map_err(emu)?;
+            let word = |b: &[u8], off: usize| {
+                i32::from_le_bytes([b[off], b[off + 1], b[off + 2], b[off + 3]])
+            };
+            s.current_ua[i] = word(&self.scratch, rec::CURRENT as usize);
+            let out = &mut self.out_words[i];
+            for (j, o) in out.iter_mut().enumerate() {
+                *o = word(&self.scratch, rec::OUT as usize + 4 * j);
+            }
+            s.force[i] = out[k.force_index];
+            let dac = self
+                .board
+                .read_u32(DAC_BASE + 4 * k.spec.slot as u32)
+                .map_err(emu)?;
+            s.dac[i] = dac as i32 as i16;
+            let p = &self.image.programs[k.spec.program];
+            for site in &p.thumb.out.emits {
+                if out[site.offset] == 1 {
+                    let nargs = p.fixed.program.events[site.event.index()].args.len();
+                    s.events.push(KeyEvent {
+                        key: i,
+                        event: site.event,
+                        args: out[site.offset + 1..site.offset + 1 + nargs].to_vec(),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Key `key`'s out words after the last sample (the update's `out[]`, `OutLayout`).
+    pub fn out(&self, key: usize) -> &[i32] {
+        self.out_words.get(key).map_or(&[], |v| v)
+    }
+
+    /// Samples completed.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The image.
+    pub fn image(&self) -> &FirmwareImage {
+        &self.image
+    }
+
+    /// The emulated board (to inspect memory, cores and counters).
+    pub fn board(&mut self) -> &mut Board {
+        &mut self.board
+    }
+}

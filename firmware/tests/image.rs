@@ -1,0 +1,392 @@
+//! The whole firmware image (`tactus_firmware::image`) on the emulated RP2040:
+//!
+//! - a layout that fits runs one simulated second (44 100 samples) with no deadline miss,
+//!   every key's force word equal to the fixed interpreter's total and every current and
+//!   DAC word equal to `runtime/src/limiter.rs`, events equal, and every measured handler
+//!   within its static WCET bound;
+//! - an overloaded image (grand piano keys on a slow clock) counts misses;
+//! - the firmware limiter against the reference on adversarial force words (noise,
+//!   stuck at full scale, glitches): directly on every shift path, and through an image
+//!   whose instrument passes its sensor through as the force.
+
+use std::path::Path;
+use tactus_compiler::fixed::interp::FixedInstance;
+use tactus_compiler::lower::Config;
+use tactus_emulator::timer::reg;
+use tactus_emulator::{Board, Config as BoardConfig};
+use tactus_firmware::image::{
+    assign_cores, limiter_routine, FirmwareImage, ImageRun, KeySpec, Program,
+};
+use tactus_runtime::keyboard::{read_board, Board as BoardSpec};
+use tactus_runtime::limiter::{Limiter, LimiterConfig};
+use tactus_runtime::rng::XorShift64;
+use tactus_runtime::stimulus;
+
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+}
+
+fn instrument(name: &str, overrides: &[(&str, &str)]) -> Program {
+    let text = std::fs::read_to_string(root().join(format!("instruments/{name}.tactus"))).unwrap();
+    let config = Config {
+        overrides: overrides
+            .iter()
+            .map(|(a, b)| (a.to_string(), b.to_string()))
+            .collect(),
+        ..Config::default()
+    };
+    Program::compile(&text, &config).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+fn rp2040() -> BoardSpec {
+    read_board(&root().join("boards/rp2040.toml")).unwrap()
+}
+
+/// Key `i`'s stimulus: the built-ins in turn, each repeated to `len` samples.
+fn stimuli(p: &Program, i: usize, len: usize) -> Vec<i32> {
+    let names = stimulus::builtin_names();
+    let s0 = &p.fixed.program.sensors[0];
+    let (name, _) = names[i % names.len()];
+    let s = stimulus::builtin(name, s0.range.1, 44_100.0).unwrap();
+    (0..len)
+        .map(|n| FixedInstance::sensor_raw(&p.fixed, 0, Some(s.key[n % s.key.len()])))
+        .collect()
+}
+
+/// Per-core statistics of a run.
+#[derive(Default, Debug)]
+struct Stats {
+    worst: Vec<u64>,
+    total: Vec<u64>,
+    stalls: Vec<u64>,
+}
+
+/// Runs `sensors[key][n]` through the image and through interpreter + reference limiter;
+/// returns the mismatch count (with the first few described) and cycle statistics.
+fn run_against_reference(
+    image: &FirmwareImage,
+    sensors: &[Vec<i32>],
+    samples: usize,
+) -> (usize, Vec<String>, Stats, ImageRun) {
+    let programs = image.programs();
+    let keys = image.keys();
+    let mut insts: Vec<FixedInstance> = keys
+        .iter()
+        .map(|k| FixedInstance::new(&programs[k.program].fixed))
+        .collect();
+    let mut lims: Vec<Limiter> = keys
+        .iter()
+        .map(|_| Limiter::new(image.limiter_config()).unwrap())
+        .collect();
+    let mut run = image.run().unwrap();
+    let cores = image.cores();
+    let mut st = Stats {
+        worst: vec![0; cores],
+        total: vec![0; cores],
+        stalls: vec![0; cores],
+    };
+    let (mut bad, mut first) = (0, Vec::new());
+    let mut rec = vec![0; keys.len()];
+    for n in 0..samples {
+        for (k, r) in rec.iter_mut().enumerate() {
+            *r = sensors[k][n];
+        }
+        let got = run.step(&rec).unwrap().clone();
+        for c in 0..cores {
+            assert_eq!(got.handler_runs[c], 1, "sample {n} core {c}");
+            st.worst[c] = st.worst[c].max(got.core_cycles[c]);
+            st.total[c] += got.core_cycles[c];
+            st.stalls[c] += got.stalls[c];
+        }
+        let mut want_events = Vec::new();
+        for (k, spec) in keys.iter().enumerate() {
+            let want = insts[k].step_raw(&[rec[k]]).clone();
+            let frac = programs[spec.program].fixed.total_frac;
+            let lim = lims[k].step(want.total, frac);
+            for (e, args) in &want.events {
+                want_events.push((k, *e, args.clone()));
+            }
+            let ok = got.force[k] == want.total
+                && got.current_ua[k] == lim.current_ua
+                && got.dac[k] == lim.dac;
+            if !ok {
+                bad += 1;
+                if first.len() < 5 {
+                    first.push(format!(
+                        "sample {n} key {k}: image force {} current {} dac {}; reference {} {} {}",
+                        got.force[k],
+                        got.current_ua[k],
+                        got.dac[k],
+                        want.total,
+                        lim.current_ua,
+                        lim.dac
+                    ));
+                }
+            }
+        }
+        let got_events: Vec<_> = got
+            .events
+            .iter()
+            .map(|e| (e.key, e.event, e.args.clone()))
+            .collect();
+        if got_events != want_events {
+            bad += 1;
+            if first.len() < 5 {
+                first.push(format!(
+                    "sample {n}: events {got_events:?}, reference {want_events:?}"
+                ));
+            }
+        }
+    }
+    (bad, first, st, run)
+}
+
+#[test]
+fn a_layout_that_fits_runs_a_second_without_misses_bit_exact_within_its_wcet() {
+    // Three programs (two harpsichord parameter sets share nothing; the hammond is shared by
+    // two keys), six keys on both cores by LPT.
+    let programs = vec![
+        instrument("harpsichord", &[]),
+        instrument("harpsichord", &[("G", "0.4 N")]),
+        instrument("hammond", &[]),
+    ];
+    let key_programs = [0, 1, 2, 2, 0, 1];
+    let cores = assign_cores(&programs, &key_programs, 2).unwrap();
+    let keys: Vec<KeySpec> = key_programs
+        .iter()
+        .zip(&cores)
+        .enumerate()
+        .map(|(i, (&program, &core))| KeySpec {
+            slot: 60 + i,
+            program,
+            core,
+        })
+        .collect();
+    let board = rp2040();
+    let image = FirmwareImage::build(&programs, &keys, &board, &LimiterConfig::default()).unwrap();
+    let samples = 44_100;
+    let sensors: Vec<Vec<i32>> = keys
+        .iter()
+        .enumerate()
+        .map(|(i, k)| stimuli(&programs[k.program], i, samples))
+        .collect();
+    let (bad, first, st, mut run) = run_against_reference(&image, &sensors, samples);
+    let last = run.step(&vec![0; keys.len()]).unwrap().clone();
+    for c in 0..image.cores() {
+        let w = image.wcet(c).unwrap();
+        println!(
+            "core {c}: keys {:?}, code {} bytes, handler cycles mean {:.1} worst {} (budget {}), \
+             static {} + contention {} = {}, stalls {}, misses {}",
+            image.core_keys(c),
+            image.code_bytes(c),
+            st.total[c] as f64 / samples as f64,
+            st.worst[c],
+            image.cycles_per_sample(),
+            w.analysed,
+            w.contention,
+            w.bound(),
+            st.stalls[c],
+            last.misses[c]
+        );
+        assert_eq!(last.misses[c], 0, "core {c} missed deadlines");
+        assert!(
+            st.worst[c] <= w.bound(),
+            "core {c}: measured {} > static bound {}",
+            st.worst[c],
+            w.bound()
+        );
+        assert!(st.worst[c] > 0 && w.bound() < image.cycles_per_sample());
+    }
+    assert!(bad == 0, "{bad} mismatches; first:\n{}", first.join("\n"));
+    assert_eq!(run.samples(), samples as u64 + 1);
+    // The image's tick schedule is the host's: after sample n (from 0) the armed alarm is
+    // tick n+1's.
+    let now = run.board().cycle();
+    let alarm = run.board().system.timer.read(now, reg::ALARM0).unwrap();
+    assert_eq!(alarm as u64, run.tick_us(run.samples()));
+}
+
+#[test]
+fn an_overloaded_image_counts_deadline_misses() {
+    // Two grand piano keys per core at 48 MHz: 1088 cycles per sample, a piano key's update
+    // alone costs more.
+    let programs = vec![instrument("grand_piano", &[])];
+    let keys: Vec<KeySpec> = (0..4)
+        .map(|i| KeySpec {
+            slot: 40 + i,
+            program: 0,
+            core: i % 2,
+        })
+        .collect();
+    let board = BoardSpec {
+        clock_hz: 48e6,
+        ..rp2040()
+    };
+    let image = FirmwareImage::build(&programs, &keys, &board, &LimiterConfig::default()).unwrap();
+    assert!(image.wcet(0).unwrap().bound() > image.cycles_per_sample());
+    let mut run = image.run().unwrap();
+    let sensors = stimuli(&programs[0], 0, 300);
+    let mut last = None;
+    for w in &sensors {
+        last = Some(run.step(&[*w; 4]).unwrap().clone());
+    }
+    let last = last.unwrap();
+    println!("overloaded: misses {:?} after 300 samples", last.misses);
+    for c in 0..2 {
+        assert!(last.misses[c] > 0, "core {c}: no miss counted");
+    }
+}
+
+/// Adversarial force words: noise, stuck at ±full scale, glitches between extremes,
+/// small forces; `n` of them.
+fn adversarial(rng: &mut XorShift64, n: usize, lo: i32, hi: i32) -> Vec<i32> {
+    let mut v = Vec::with_capacity(n);
+    while v.len() < n {
+        let len = 1 + rng.below(6000) as usize;
+        let kind = rng.below(5);
+        for _ in 0..len.min(n - v.len()) {
+            v.push(match kind {
+                0 => rng.next_u64() as i32,                                 // noise
+                1 => hi,                                                    // stuck at +full scale
+                2 => lo,                                                    // stuck at -full scale
+                3 if rng.below(50) == 0 => [lo, hi][rng.below(2) as usize], // glitches
+                _ => (rng.next_u64() as i32) >> (8 + rng.below(20)),        // small forces
+            });
+        }
+    }
+    v
+}
+
+/// Checks the limiter invariants on the image's currents: never above peak, never above
+/// rated for more than 100 ms in a row.
+fn check_invariants(currents: &[i32], lim: &Limiter) {
+    let mut run = 0i64;
+    for (n, &i) in currents.iter().enumerate() {
+        assert!(
+            i.unsigned_abs() <= lim.peak_ua() as u32,
+            "sample {n}: {i} µA"
+        );
+        if i.unsigned_abs() > lim.rated_ua() as u32 {
+            run += 1;
+        } else {
+            run = 0;
+        }
+        assert!(
+            run <= lim.over_samples(),
+            "sample {n}: {run} samples above rated"
+        );
+    }
+}
+
+#[test]
+fn the_firmware_limiter_equals_the_reference_on_adversarial_words() {
+    let cfg = LimiterConfig::default();
+    // Force formats giving products shifted by < 32, 32 and > 32 bits.
+    for frac in [0, 10, 21, 24, 30] {
+        let base = 0x2000_1000;
+        let (code, entry) = limiter_routine(&cfg, frac, base).unwrap();
+        let mut b = Board::new(BoardConfig::default());
+        b.write_bytes(base, &code).unwrap();
+        let mut reference = Limiter::new(&cfg).unwrap();
+        let data = 0x2000_8000;
+        b.write_u32(data, reference.budget() as u32).unwrap();
+        b.write_u32(data + 4, 0).unwrap();
+        let mut rng = XorShift64::new(0xC0FFEE + frac as u64);
+        let mut words = vec![i32::MIN, i32::MAX, 0, -1, 1];
+        words.extend(adversarial(&mut rng, 30_000, i32::MIN, i32::MAX));
+        let mut currents = Vec::new();
+        for (n, &f) in words.iter().enumerate() {
+            let r = b
+                .call(0, entry, &[f as u32, data], 0x2002_0000, 10_000)
+                .unwrap();
+            let want = reference.step(f, frac);
+            let current = b.read_u32(data + 4).unwrap() as i32;
+            assert_eq!(
+                (r.r0 as i32, current, b.read_u32(data).unwrap() as i64),
+                (want.dac as i32, want.current_ua, reference.budget()),
+                "frac {frac} sample {n} force {f:#x}"
+            );
+            currents.push(current);
+        }
+        check_invariants(&currents, &reference);
+    }
+}
+
+#[test]
+fn adversarial_forces_through_the_image_stay_within_the_motor_limits() {
+    // The force is the sensor: ±100 N in Q7.24, the limiter's gain makes most of that range
+    // far above the 2 A peak.
+    let text = "instrument pass {\n sensor f: N in [-100 N, 100 N]\n force out = f\n}\n";
+    let programs = vec![Program::compile(text, &Config::default()).unwrap()];
+    let keys: Vec<KeySpec> = (0..2)
+        .map(|i| KeySpec {
+            slot: i,
+            program: 0,
+            core: i,
+        })
+        .collect();
+    let image =
+        FirmwareImage::build(&programs, &keys, &rp2040(), &LimiterConfig::default()).unwrap();
+    let (lo, hi) = programs[0].fixed.sensor_raw_range[0];
+    let samples = 20_000;
+    let mut rng = XorShift64::new(99);
+    let sensors: Vec<Vec<i32>> = (0..2)
+        .map(|_| adversarial(&mut rng, samples, lo, hi))
+        .collect();
+    let (bad, first, _, _) = run_against_reference(&image, &sensors, samples);
+    assert!(bad == 0, "{bad} mismatches; first:\n{}", first.join("\n"));
+    // And the invariants on the image's own currents, replayed from a fresh run.
+    let mut run = image.run().unwrap();
+    let lim = Limiter::new(image.limiter_config()).unwrap();
+    let mut currents = vec![Vec::new(), Vec::new()];
+    for n in 0..samples {
+        let s = run.step(&[sensors[0][n], sensors[1][n]]).unwrap();
+        for k in 0..2 {
+            currents[k].push(s.current_ua[k]);
+        }
+    }
+    for c in &currents {
+        check_invariants(c, &lim);
+        assert!(c.iter().any(|&i| i.unsigned_abs() > lim.rated_ua() as u32));
+    }
+}
+
+#[test]
+fn bad_keys_and_boards_are_errors() {
+    let programs = vec![instrument("hammond", &[])];
+    let k = |slot, program, core| KeySpec {
+        slot,
+        program,
+        core,
+    };
+    let lim = LimiterConfig::default();
+    let b = rp2040();
+    let err = |keys: &[KeySpec], board: &BoardSpec| {
+        FirmwareImage::build(&programs, keys, board, &lim)
+            .unwrap_err()
+            .to_string()
+    };
+    assert!(err(&[k(200, 0, 0)], &b).contains("slot 200"));
+    assert!(err(&[k(1, 0, 0), k(1, 0, 1)], &b).contains("also key 0"));
+    assert!(err(&[k(1, 3, 0)], &b).contains("program 3"));
+    assert!(err(&[k(1, 0, 2)], &b).contains("core 2"));
+    let three = BoardSpec {
+        cores: 3,
+        ..b.clone()
+    };
+    assert!(err(&[k(1, 0, 0)], &three).contains("3 cores"));
+    let odd = BoardSpec {
+        sample_rate_hz: 44_100.5,
+        ..b.clone()
+    };
+    assert!(err(&[k(1, 0, 0)], &odd).contains("whole number"));
+    let mut run = FirmwareImage::build(&programs, &[k(1, 0, 0)], &b, &lim)
+        .unwrap()
+        .run()
+        .unwrap();
+    assert!(run
+        .step(&[])
+        .unwrap_err()
+        .to_string()
+        .contains("0 sensor words"));
+}
