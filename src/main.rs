@@ -1,6 +1,7 @@
 //! The `tactus` command-line tool. Only this crate prints; the libraries return values and
 //! diagnostics.
 
+mod budget_cmd;
 mod build_cmd;
 mod check_cmd;
 mod emu_cmd;
@@ -33,6 +34,9 @@ enum Command {
     Play(play_cmd::PlayArgs),
     /// Compile an instrument to firmware: portable C99, or a Thumb ELF object for the RP2040.
     Build(build_cmd::BuildArgs),
+    /// Check a keyboard's timing budget: static WCET and measured cycles per key, keys on
+    /// the board's cores, fits or not (exit 0/1; 2 on bad input).
+    Budget(budget_cmd::BudgetArgs),
     /// Run ELF firmware on the emulated dual-core RP2040.
     #[command(subcommand)]
     Emu(emu_cmd::EmuCommand),
@@ -44,6 +48,7 @@ fn main() -> ExitCode {
         Command::Check(args) => check_cmd::run(args),
         Command::Sim(args) => sim_cmd::run(args),
         Command::Build(args) => build_cmd::run(args),
+        Command::Budget(args) => budget_cmd::run(args),
         Command::Play(args) => play_cmd::run(args),
         Command::Emu(cmd) => emu_cmd::run(cmd),
     }
