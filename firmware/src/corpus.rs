@@ -27,6 +27,10 @@ pub enum Size {
     Full,
     /// One or two runs of each kind, short holds (tests, `--quick`).
     Quick,
+    /// One run of each kind and no built-in stimuli, about a quarter of [`Size::Quick`]:
+    /// for the many param variants of one instrument in a layout (graded hammer masses),
+    /// whose code differs from the fully measured variant only in constants.
+    Brief,
 }
 
 /// A key motion: waypoints `(seconds from the previous waypoint, travel as a fraction of the
@@ -72,6 +76,7 @@ pub fn presses(dip_m: f64, size: Size) -> Vec<(String, Vec<f64>)> {
     let descents: &[f64] = match size {
         Size::Full => &DESCENTS_MS,
         Size::Quick => &[12.0, 80.0],
+        Size::Brief => &[12.0],
     };
     let hold = if size == Size::Full { 0.15 } else { 0.05 };
     descents
@@ -123,6 +128,7 @@ pub fn repetitions(dip_m: f64, size: Size) -> Vec<(String, Vec<f64>)> {
             (14.0, 0.0, 10),
         ],
         Size::Quick => &[(12.0, 0.5, 6)],
+        Size::Brief => &[(12.0, 0.5, 4)],
     };
     let mut v: Vec<_> = cases
         .iter()
@@ -130,7 +136,7 @@ pub fn repetitions(dip_m: f64, size: Size) -> Vec<(String, Vec<f64>)> {
         .collect();
     let trills: &[(f64, f64)] = match size {
         Size::Full => &[(12.0, 0.7), (16.0, 0.8), (20.0, 0.85)],
-        Size::Quick => &[(16.0, 0.8)],
+        Size::Quick | Size::Brief => &[(16.0, 0.8)],
     };
     for &(rate, low) in trills {
         let (_, key) = repeated(dip_m, rate, low, (rate as usize).max(4));
@@ -145,6 +151,7 @@ pub fn half_dips(dip_m: f64, size: Size) -> Vec<(String, Vec<f64>)> {
     let depths: &[f64] = match size {
         Size::Full => &[0.3, 0.5, 0.7, 0.8, 0.85, 0.88, 0.9, 0.92, 0.95, 0.97],
         Size::Quick => &[0.5, 0.9],
+        Size::Brief => &[0.9],
     };
     let hold = if size == Size::Full { 0.1 } else { 0.04 };
     let mut v: Vec<_> = depths
@@ -194,7 +201,7 @@ pub fn half_dips(dip_m: f64, size: Size) -> Vec<(String, Vec<f64>)> {
 pub fn noisy(dip_m: f64, size: Size, seed: u64) -> Vec<(String, Vec<f64>)> {
     let amps: &[f64] = match size {
         Size::Full => &[0.001, 0.005, 0.02],
-        Size::Quick => &[0.005],
+        Size::Quick | Size::Brief => &[0.005],
     };
     let mut rng = XorShift64::new(seed);
     let mut v = Vec::new();
@@ -234,7 +241,7 @@ pub fn glitches(fp: &FixedProgram, size: Size, seed: u64) -> Vec<Run> {
     let (lo, hi) = fp.sensor_raw_range[0];
     let everies: &[usize] = match size {
         Size::Full => &[7, 50, 400],
-        Size::Quick => &[50],
+        Size::Quick | Size::Brief => &[50],
     };
     let mut rng = XorShift64::new(seed);
     let (_, key) = motion(
@@ -279,15 +286,19 @@ pub fn glitches(fp: &FixedProgram, size: Size, seed: u64) -> Vec<Run> {
 const QUICK_BUILTINS: [&str; 3] = ["ff-dip", "half-dip", "repeated"];
 
 /// The whole corpus for `fp` at `size`: the built-in stimuli ([`builtin_runs`]; in
-/// [`Size::Quick`] only `ff-dip`, `half-dip` and `repeated`), [`presses`], [`repetitions`],
+/// [`Size::Quick`] only `ff-dip`, `half-dip` and `repeated`; none in [`Size::Brief`]), [`presses`], [`repetitions`],
 /// [`half_dips`], [`noisy`], [`glitches`] and adversarial random words
-/// ([`random_runs`]: 8 × 4000 samples, or 2 × 2000 in quick). Deterministic: the same
+/// ([`random_runs`]: 8 × 4000 samples, 2 × 2000 in quick, 1 × 2000 in brief). Deterministic: the same
 /// program and size give the same runs. A program without sensors gets the random runs only
 /// (which are then empty records).
 pub fn corpus(fp: &FixedProgram, size: Size) -> Vec<Run> {
     let mut runs: Vec<Run> = builtin_runs(fp)
         .into_iter()
-        .filter(|r| size == Size::Full || QUICK_BUILTINS.contains(&r.label.as_str()))
+        .filter(|r| match size {
+            Size::Full => true,
+            Size::Quick => QUICK_BUILTINS.contains(&r.label.as_str()),
+            Size::Brief => false,
+        })
         .collect();
     if let Some(s0) = fp.program.sensors.first() {
         let dip = s0.range.1;
@@ -302,6 +313,7 @@ pub fn corpus(fp: &FixedProgram, size: Size) -> Vec<Run> {
     let (n, len) = match size {
         Size::Full => (8, 4000),
         Size::Quick => (2, 2000),
+        Size::Brief => (1, 2000),
     };
     runs.extend(random_runs(fp, 0x5eed_b0d6, n, len));
     runs
@@ -351,7 +363,14 @@ mod tests {
         }
         let full = corpus(&fp, Size::Full);
         assert!(full.len() > 2 * a.len() && samples(&full) > 4 * samples(&a));
-        println!("quick {} samples, full {}", samples(&a), samples(&full));
+        let brief = corpus(&fp, Size::Brief);
+        assert!(samples(&brief) < samples(&a));
+        println!(
+            "brief {} samples, quick {}, full {}",
+            samples(&brief),
+            samples(&a),
+            samples(&full)
+        );
     }
 
     #[test]
