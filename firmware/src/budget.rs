@@ -349,21 +349,30 @@ mod tests {
         ("hammond", include_str!("../../instruments/hammond.tactus")),
     ];
 
-    /// Soundness: the static worst case bounds every measured call of every instrument over
-    /// the (quick) corpus, and the worst path's events are notes of the code.
-    #[test]
-    fn static_bounds_measured_for_every_instrument() {
-        for (name, src) in INSTRUMENTS {
+    /// Soundness: the static worst case bounds every measured call of an instrument over
+    /// the whole (full) corpus, and the worst path's events are notes of the code.
+    /// Tightness: prints static / measured per instrument. The issue asks for the piano's
+    /// static bound within 20 % of its measured worst case; that does not hold (the longest
+    /// path combines branches no input takes together, e.g. the escapement's and the
+    /// contact's `if on_lever` selections, so the bound is about 1.6–3× the measured worst,
+    /// depending on the backend's code), so what is asserted is the weaker guard
+    /// static ≤ 4 × measured: a mispriced instruction class or a spurious path through the
+    /// whole literal pool would break it.
+    fn static_bounds_measured(name: &str) {
+        {
+            let src = INSTRUMENTS.iter().find(|(n, _)| *n == name).unwrap().1;
             let (fp, obj) = compile(src);
-            let runs = corpus::corpus(&fp, Size::Quick);
+            let runs = corpus::corpus(&fp, Size::Full);
             let c = program_cost(&obj, &fp, &runs).unwrap();
             let ratio = c.ratio().unwrap();
             println!(
-                "{name}: static {} measured worst {} mean {:.1} static/measured {ratio:.3} over {} samples",
+                "{name}: static {} measured worst {} mean {:.1} static/measured {ratio:.3} over {} samples (worst at {} sample {})",
                 c.static_cost.cycles,
                 c.measured.worst,
                 c.measured.mean(),
-                c.measured.calls
+                c.measured.calls,
+                c.measured.worst_at.0,
+                c.measured.worst_at.1
             );
             assert!(
                 c.sound(),
@@ -372,6 +381,7 @@ mod tests {
                 c.static_cost.cycles,
                 c.measured.worst_at
             );
+            assert!(ratio <= 4.0, "{name}: static/measured {ratio:.3}");
             assert_eq!(c.measured.calls as usize, corpus::samples(&runs));
             assert!(c.measured.best <= c.measured.worst && c.measured.best > BL_CYCLES);
             assert!(!c.static_cost.path.is_empty());
@@ -381,9 +391,43 @@ mod tests {
         }
     }
 
-    /// The worst path of the piano goes through the hammer–string impact (its most
-    /// expensive event: the strike's emit and the velocity reversal) — a property of the
-    /// instrument, not of a particular code generator.
+    // One test per instrument (the harness runs them in parallel).
+    #[test]
+    fn static_bounds_measured_grand_piano() {
+        static_bounds_measured("grand_piano");
+    }
+    #[test]
+    fn static_bounds_measured_harpsichord() {
+        static_bounds_measured("harpsichord");
+    }
+    #[test]
+    fn static_bounds_measured_harpsichord_2x8() {
+        static_bounds_measured("harpsichord_2x8");
+    }
+    #[test]
+    fn static_bounds_measured_hammond() {
+        static_bounds_measured("hammond");
+    }
+    /// A new instrument in `instruments/` needs its soundness test above.
+    #[test]
+    fn every_shipped_instrument_is_tested() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
+        let mut shipped: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .filter_map(|e| {
+                let p = e.ok()?.path();
+                (p.extension()? == "tactus").then(|| p.file_stem()?.to_str().map(String::from))?
+            })
+            .collect();
+        shipped.sort();
+        let mut tested: Vec<String> = INSTRUMENTS.iter().map(|(n, _)| n.to_string()).collect();
+        tested.sort();
+        assert_eq!(shipped, tested);
+    }
+
+    /// The worst path of the piano goes through the hammer–string impact (the `strike`
+    /// emit: the most stores of any event) — a property of the instrument, not of a
+    /// particular code generator — and its conditions render as source lines.
     #[test]
     fn piano_worst_path_names_source_events() {
         let (_, obj) = compile(INSTRUMENTS[0].1);
@@ -394,9 +438,12 @@ mod tests {
             .filter_map(|(_, n)| describe_note(n, INSTRUMENTS[0].1))
             .collect();
         println!("{described:#?}");
-        assert!(!described.is_empty());
         assert!(
-            described.iter().any(|d| d.contains("line ")),
+            described.iter().any(|d| d == "emit strike"),
+            "{described:?}"
+        );
+        assert!(
+            described.iter().any(|d| d.contains("grand_piano line ")),
             "{described:?}"
         );
     }
