@@ -88,8 +88,8 @@ fn run_against_reference(
     let (mut bad, mut first) = (0, Vec::new());
     let mut rec = vec![0; keys.len()];
     for n in 0..samples {
-        for (k, r) in rec.iter_mut().enumerate() {
-            *r = sensors[k][n];
+        for (r, s) in rec.iter_mut().zip(sensors) {
+            *r = s[n];
         }
         let got = run.step(&rec).unwrap().clone();
         for c in 0..cores {
@@ -242,15 +242,15 @@ fn an_overloaded_image_counts_deadline_misses() {
 fn adversarial(rng: &mut XorShift64, n: usize, lo: i32, hi: i32) -> Vec<i32> {
     let mut v = Vec::with_capacity(n);
     while v.len() < n {
-        let len = 1 + rng.below(6000) as usize;
+        let len = 1 + rng.below(6000);
         let kind = rng.below(5);
         for _ in 0..len.min(n - v.len()) {
             v.push(match kind {
-                0 => rng.next_u64() as i32,                                 // noise
-                1 => hi,                                                    // stuck at +full scale
-                2 => lo,                                                    // stuck at -full scale
-                3 if rng.below(50) == 0 => [lo, hi][rng.below(2) as usize], // glitches
-                _ => (rng.next_u64() as i32) >> (8 + rng.below(20)),        // small forces
+                0 => rng.next_u64() as i32,                          // noise
+                1 => hi,                                             // stuck at +full scale
+                2 => lo,                                             // stuck at -full scale
+                3 if rng.below(50) == 0 => [lo, hi][rng.below(2)],   // glitches
+                _ => (rng.next_u64() as i32) >> (8 + rng.below(20)), // small forces
             });
         }
     }
@@ -339,10 +339,10 @@ fn adversarial_forces_through_the_image_stay_within_the_motor_limits() {
     let mut run = image.run().unwrap();
     let lim = Limiter::new(image.limiter_config()).unwrap();
     let mut currents = vec![Vec::new(), Vec::new()];
-    for n in 0..samples {
-        let s = run.step(&[sensors[0][n], sensors[1][n]]).unwrap();
-        for k in 0..2 {
-            currents[k].push(s.current_ua[k]);
+    for (&a, &b) in sensors[0].iter().zip(&sensors[1]) {
+        let s = run.step(&[a, b]).unwrap();
+        for (c, &i) in currents.iter_mut().zip(&s.current_ua) {
+            c.push(i);
         }
     }
     for c in &currents {
@@ -389,4 +389,59 @@ fn bad_keys_and_boards_are_errors() {
         .unwrap_err()
         .to_string()
         .contains("0 sensor words"));
+}
+
+#[test]
+fn handler_overhead_per_core_and_per_key_measured_and_static() {
+    // Two hammond keys on core 0, none on core 1 (its handler is the bare per-core cost).
+    let programs = vec![instrument("hammond", &[])];
+    let keys: Vec<KeySpec> = (0..2)
+        .map(|i| KeySpec {
+            slot: 10 + i,
+            program: 0,
+            core: 0,
+        })
+        .collect();
+    let image =
+        FirmwareImage::build(&programs, &keys, &rp2040(), &LimiterConfig::default()).unwrap();
+    let mut run = image.run().unwrap();
+    assert_eq!(
+        image.update_addr(0),
+        image.update_addr(1),
+        "one copy per program"
+    );
+    let sensors = stimuli(&programs[0], 0, 2000);
+    let (mut empty_worst, mut glue_worst, mut handler_worst) = (0, 0, 0);
+    let profile = run.board().profile_addr(image.update_addr(0).unwrap());
+    for &w in &sensors {
+        let s = run.step(&[w, w]).unwrap().clone();
+        assert_eq!(s.misses, [0, 0]);
+        // Both keys share one copy of the program, so the profile sees both calls.
+        let updates: u64 = run
+            .board()
+            .calls(profile)
+            .iter()
+            .map(|c| 3 + c.cycles)
+            .sum();
+        assert_eq!(run.board().calls(profile).len(), 2);
+        run.board().clear_calls(profile);
+        empty_worst = u64::max(empty_worst, s.core_cycles[1]);
+        handler_worst = u64::max(handler_worst, s.core_cycles[0]);
+        // Per key: sensor copy, call set-up, limiter, DAC store.
+        let glue = (s.core_cycles[0] - s.core_cycles[1] - updates) / 2;
+        glue_worst = u64::max(glue_worst, glue);
+    }
+    let (w0, w1) = (image.wcet(0).unwrap(), image.wcet(1).unwrap());
+    let static_glue = (w0.analysed - w0.updates - w1.analysed) / 2;
+    println!(
+        "per core: measured {empty_worst} cycles, static {}; per key (limiter included): \
+         measured worst {glue_worst}, static {static_glue}; core 0 handler worst {handler_worst}, \
+         static {} (updates {})",
+        w1.analysed,
+        w0.bound(),
+        w0.updates
+    );
+    assert!(empty_worst > 0 && empty_worst <= w1.analysed);
+    assert!(glue_worst > 0 && glue_worst <= static_glue);
+    assert!(handler_worst <= w0.bound());
 }

@@ -226,9 +226,9 @@ impl Asm {
                 }
                 Item::Bl(_) | Item::BlLabel(_) => {
                     let addr = match item {
-                        Item::Bl(addr) => *addr,
                         Item::BlLabel(l) => labels[l.0],
-                        _ => unreachable!(),
+                        Item::Bl(addr) => *addr,
+                        _ => pc, // not reached: the arm matches only the two above
                     };
                     let offset = (addr & !1) as i64 - (pc as i64 + 4);
                     half(
@@ -256,13 +256,13 @@ impl Asm {
                     )?;
                 }
                 Item::Align4 => {
-                    if out.len() % 4 != 0 {
+                    if !out.len().is_multiple_of(4) {
                         out.extend([0x00, 0xbf]);
                     }
                 }
                 Item::Word(w) => out.extend(w.to_le_bytes()),
                 Item::Pool(n) => {
-                    if out.len() % 4 != 0 {
+                    if !out.len().is_multiple_of(4) {
                         out.extend([0x00, 0xbf]);
                     }
                     for w in &self.pools[*n] {

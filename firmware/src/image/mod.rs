@@ -251,6 +251,10 @@ pub struct IsrWcet {
     /// sample (the only SRAM accesses that share a bank with another master; see the
     /// module documentation).
     pub contention: u64,
+    /// Of `analysed`: the keys' update calls (each `BL` and the update's WCET). The rest,
+    /// `analysed - updates`, is the handler's own cost: exception entry and return, the
+    /// tick, and per key the sensor copy, the limiter and the DAC store.
+    pub updates: u64,
 }
 
 impl IsrWcet {
@@ -264,6 +268,8 @@ impl IsrWcet {
 #[derive(Clone, Debug)]
 pub(crate) struct KeyPlace {
     pub index: usize,
+    /// Address of the update this key calls (its core's copy).
+    pub update: u32,
     pub spec: KeySpec,
     pub record: u32,
     pub out_len: usize,
@@ -398,6 +404,7 @@ impl FirmwareImage {
         let mut places: Vec<CorePlace> = vec![CorePlace::default(); cores];
         let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
         let mut analysed = vec![0u64; cores];
+        let mut updates = vec![0u64; cores];
         let mut window_accesses = vec![0u64; cores];
         let mut code_bytes = vec![0u32; cores];
 
@@ -463,15 +470,17 @@ impl FirmwareImage {
                 let out_len = p.thumb.out.len;
                 let size = rec::OUT + 4 * out_len as u32;
                 let force_index = p.thumb.out.total;
+                let update = sym(p.thumb.update_name())?;
                 kc.push(KeyCode {
                     force_offset: rec::OUT + 4 * force_index as u32,
                     record_size: size,
-                    update: sym(p.thumb.update_name())?,
+                    update,
                     init: sym(p.thumb.init_name())?,
                     limiter: limiters[&p.fixed.total_frac],
                 });
                 kp.push(KeyPlace {
                     index: i,
+                    update,
                     spec: keys[i],
                     record: at,
                     out_len,
@@ -497,6 +506,7 @@ impl FirmwareImage {
         for (core, c) in cc.iter().enumerate() {
             let base = bank_base(core);
             let (a, labels, kp, data_end) = glue(core, data_off, c)?;
+            let update_addrs: Vec<u32> = kp.iter().map(|k| k.update).collect();
             let (glue_bytes, addr) = a.assemble(c.glue_at).map_err(ImageError::Assemble)?;
             let code_end = c.glue_at + glue_bytes.len() as u32;
             if code_end - base > data_off {
@@ -572,6 +582,12 @@ impl FirmwareImage {
             let w = wcet::analyse_isr(&image, lab(labels.isr), &bounds)
                 .map_err(|e| ImageError::Wcet(format!("core {core}: {e}")))?;
             analysed[core] = w.cycles;
+            updates[core] = w
+                .calls
+                .iter()
+                .filter(|c| update_addrs.contains(&c.callee))
+                .map(|c| 3 + c.cycles)
+                .sum();
             window_accesses[core] = 2 * kp.len() as u64;
             segments.push((base, code));
             segments.push((ctrl_addr, data));
@@ -597,6 +613,7 @@ impl FirmwareImage {
             .map(|c| IsrWcet {
                 analysed: analysed[c],
                 contention: if places[c].keys.is_empty() { 0 } else { total },
+                updates: updates[c],
             })
             .collect();
         let keys = key_places
@@ -626,6 +643,12 @@ impl FirmwareImage {
     /// Static WCET of core `core`'s sample interrupt (`None` for a core beyond the board's).
     pub fn wcet(&self, core: usize) -> Option<IsrWcet> {
         self.wcet.get(core).copied()
+    }
+
+    /// Address of the update function key `key` calls (its core's copy of its program), to
+    /// profile it on the board (`None` for an unknown key).
+    pub fn update_addr(&self, key: usize) -> Option<u32> {
+        self.keys.get(key).map(|k| k.update)
     }
 
     /// Cores of the image.
