@@ -256,13 +256,13 @@ impl Asm {
                     )?;
                 }
                 Item::Align4 => {
-                    if !out.len().is_multiple_of(4) {
+                    if !(base as usize + out.len()).is_multiple_of(4) {
                         out.extend([0x00, 0xbf]);
                     }
                 }
                 Item::Word(w) => out.extend(w.to_le_bytes()),
                 Item::Pool(n) => {
-                    if !out.len().is_multiple_of(4) {
+                    if !(base as usize + out.len()).is_multiple_of(4) {
                         out.extend([0x00, 0xbf]);
                     }
                     for w in &self.pools[*n] {
@@ -418,8 +418,12 @@ mod tests {
         a.b(top);
         let (bytes, labels) = a.assemble(0x2000_0002).unwrap();
         assert_eq!(labels[0], 0x2000_0002);
-        // ldr r0 at 0x..02: Align(0x..06,4)=0x..04; the pool is after `b over` (0x..0c) at
-        // 0x..10 (aligned after the NOP-free b at 0x..0c → 0x..0e, padded to 0x..10).
+        // ldr 0x..02, ldr 0x..04, bne 0x..06, bl 0x..08, b over 0x..0c, NOP padding at
+        // 0x..0e, the pool's one (shared) literal at 0x..10: absolute alignment, whatever
+        // the base.
+        assert_eq!(&bytes[0x0c..0x0e], &[0x00, 0xbf]);
+        assert_eq!(&bytes[0x0e..0x12], &0x1234_5678u32.to_le_bytes());
+        assert_eq!(bytes.len(), 0x16);
         match dec(&bytes, 0) {
             Instr::LdrLit { rt: 0, imm } => {
                 let lit = ((0x2000_0002u32 + 4) & !3) + imm as u32;
