@@ -1,0 +1,216 @@
+//! `tactus budget` as a user meets it: verdicts and exit codes, the worst key named, what
+//! fits, the JSON document, and clear errors on bad input. The runs use `--quick` (a
+//! smaller measurement corpus; the static figures and the verdict are the same) to keep
+//! the debug-build tests fast. No cycle count is hard-coded: the Thumb backend's code
+//! changes; every expectation is derived from the command's own figures.
+
+mod common;
+use common::{assert_ok, tactus, temp_dir};
+use serde_json::Value;
+
+fn budget(args: &[&str]) -> std::process::Output {
+    tactus().arg("budget").args(args).output().unwrap()
+}
+
+fn json(args: &[&str]) -> (Option<i32>, Value) {
+    let mut a = args.to_vec();
+    a.push("--json");
+    let out = budget(&a);
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "--json is not JSON ({e}): {}\nstderr: {}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        )
+    });
+    (out.status.code(), v)
+}
+
+fn n(v: &Value) -> u64 {
+    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}")) as u64
+}
+
+/// 88 piano keys on a 20 MHz RP2040 (453 cycles per sample): rejected with exit 1, naming
+/// the most expensive key (MIDI number and note) with its worst path, and what would fit.
+#[test]
+fn a_heavy_keyboard_is_rejected_naming_the_worst_key() {
+    let out = budget(&[
+        "grand_piano",
+        "--keys",
+        "88",
+        "--board",
+        "boards/rp2040_20mhz.toml",
+        "--quick",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains("DOES NOT FIT"), "{stdout}");
+    assert!(stdout.contains("most expensive key: 21 (A0)"), "{stdout}");
+    assert!(stdout.contains("its worst path"), "{stdout}");
+    assert!(stdout.contains("emit strike"), "{stdout}");
+    assert!(
+        stdout.contains("what fits on rp2040-20mhz:\n  grand_piano: 0 keys"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("BUG"), "{stdout}");
+}
+
+/// The JSON document is consistent with itself: each core's cycles are its keys' costs
+/// plus the interrupt overhead, every key is on one core, measured ≤ static, the verdict
+/// and the exit code agree with the headrooms.
+#[test]
+fn json_parses_and_adds_up() {
+    let (code, v) = json(&["harpsichord", "--keys", "6", "--quick"]);
+    let b = &v["board"];
+    let cps = n(&b["cycles_per_sample"]);
+    assert_eq!(cps, (n(&b["clock_hz"]) / n(&b["sample_rate_hz"])));
+    let p = &v["programs"][0];
+    let (st, me) = (n(&p["static_cycles"]), n(&p["measured_max"]));
+    assert!(me <= st && me > 0, "{p}");
+    assert_eq!(p["sound"], Value::Bool(true));
+    assert!(p["measured_mean"].as_f64().unwrap() <= me as f64);
+    let key_cost = st + n(&b["io_cycles_per_key"]);
+    let cores = v["cores"].as_array().unwrap();
+    assert_eq!(cores.len() as u64, n(&b["cores"]));
+    let mut keys: Vec<u64> = Vec::new();
+    for c in cores {
+        let k = c["keys"].as_array().unwrap();
+        keys.extend(k.iter().map(n));
+        assert_eq!(
+            n(&c["cycles"]),
+            k.len() as u64 * key_cost + n(&b["isr_overhead_cycles"])
+        );
+        assert_eq!(
+            c["headroom"].as_f64().unwrap() as i64,
+            cps as i64 - n(&c["cycles"]) as i64
+        );
+    }
+    keys.sort();
+    assert_eq!(keys, (21..27).collect::<Vec<u64>>());
+    let fits = cores.iter().all(|c| c["headroom"].as_f64().unwrap() >= 0.0);
+    assert_eq!(v["fits"], Value::Bool(fits));
+    assert_eq!(code, Some(if fits { 0 } else { 1 }));
+    assert_eq!(v["worst_key"]["note"], "A0");
+    assert_eq!(v["what_fits"][0]["cycles_per_key"], key_cost as f64);
+}
+
+/// "What fits" is exact: that many keys fit (exit 0), one more does not (exit 1).
+#[test]
+fn what_fits_fits_and_one_more_does_not() {
+    let (_, v) = json(&["harpsichord", "--keys", "1", "--quick"]);
+    let max = n(&v["what_fits"][0]["max_keys"]);
+    assert!(max >= 2, "{v}");
+    let out = budget(&["harpsichord", "--keys", &max.to_string(), "--quick"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{stdout}");
+    assert!(stdout.contains("verdict: FITS"), "{stdout}");
+    let out = budget(&["harpsichord", "--keys", &(max + 1).to_string(), "--quick"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains("DOES NOT FIT"), "{stdout}");
+}
+
+/// A layout with two instruments and a graded param: one program per param set, each
+/// measured (the costliest fully, the others briefly) and sound; keys as the layout says.
+#[test]
+fn a_small_split_layout_with_grading() {
+    let dir = temp_dir("budget-split");
+    let f = dir.join("split.toml");
+    std::fs::write(
+        &f,
+        "name = \"mini\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"harpsichord_2x8\"\n\
+         [[range]]\nkeys = [62, 64]\ninstrument = \"grand_piano\"\n\
+         grade = [ { param = \"M_h\", from = \"6 g\", to = \"3.5 g\" } ]\n",
+    )
+    .unwrap();
+    let (code, v) = json(&[f.to_str().unwrap(), "--quick"]);
+    assert_eq!(v["layout"], "mini");
+    let programs = v["programs"].as_array().unwrap();
+    assert_eq!(programs.len(), 1 + 3, "{v}");
+    for p in programs {
+        assert_eq!(p["sound"], Value::Bool(true), "{p}");
+        assert!(n(&p["measured_max"]) <= n(&p["static_cycles"]));
+    }
+    let pianos: Vec<&Value> = programs
+        .iter()
+        .filter(|p| p["instrument"] == "grand_piano")
+        .collect();
+    assert_eq!(pianos.len(), 3);
+    assert_eq!(pianos[0]["params"]["M_h"], "6 g");
+    assert_eq!(
+        pianos.iter().filter(|p| p["corpus"] == "quick").count(),
+        1,
+        "the costliest variant gets the larger corpus"
+    );
+    // The piano is the most expensive instrument: the worst key is one of its keys.
+    let wk = n(&v["worst_key"]["key"]);
+    assert!((62..=64).contains(&wk), "{v}");
+    assert_eq!(
+        code,
+        Some(if v["fits"] == Value::Bool(true) { 0 } else { 1 })
+    );
+}
+
+#[test]
+fn bad_input_exits_2_with_a_clear_message() {
+    let dir = temp_dir("budget-bad");
+    let err = |args: &[&str]| {
+        let out = budget(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {out:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let e = err(&["no/such/layout.toml"]);
+    assert!(
+        e.contains("no/such/layout.toml") && e.contains("cannot read"),
+        "{e}"
+    );
+    let typo = dir.join("typo.toml");
+    std::fs::write(
+        &typo,
+        "name = \"x\"\n[[range]]\nkeys = [60, 61]\ninstrumnt = \"grand_piano\"\n",
+    )
+    .unwrap();
+    let e = err(&[typo.to_str().unwrap()]);
+    assert!(e.contains("typo.toml") && e.contains("instrumnt"), "{e}");
+    let board = dir.join("board.toml");
+    std::fs::write(
+        &board,
+        "name = \"b\"\nclock_hz = 133e6\ncores = 0\nsample_rate_hz = 44100\nio_cycles_per_key = 12\nisr_overhead_cycles = 60\n",
+    )
+    .unwrap();
+    let e = err(&["hammond", "--board", board.to_str().unwrap()]);
+    assert!(e.contains("board.toml") && e.contains("cores"), "{e}");
+    let e = err(&["hammond", "--board", "no-such-board"]);
+    assert!(e.contains("no-such-board") && e.contains("rp2040"), "{e}");
+    let e = err(&["no_such_instrument"]);
+    assert!(e.contains("no_such_instrument"), "{e}");
+    let e = err(&["hammond", "--keys", "0"]);
+    assert!(e.contains("--keys"), "{e}");
+    let e = err(&["instruments/layouts/grand88.toml", "--keys", "3"]);
+    assert!(e.contains("--keys"), "{e}");
+    let unknown = dir.join("unknown.toml");
+    std::fs::write(
+        &unknown,
+        "name = \"x\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"violin\"\n",
+    )
+    .unwrap();
+    let e = err(&[unknown.to_str().unwrap()]);
+    assert!(e.contains("unknown.toml") && e.contains("violin"), "{e}");
+}
+
+#[test]
+fn help_explains_the_figures_and_exit_codes() {
+    let out = tactus().args(["budget", "--help"]).output().unwrap();
+    assert_ok(&out);
+    let s = String::from_utf8_lossy(&out.stdout);
+    for w in [
+        "static",
+        "measured",
+        "io_cycles_per_key",
+        "Exit codes",
+        "--keys",
+        "--json",
+    ] {
+        assert!(s.contains(w), "{w}: {s}");
+    }
+}
