@@ -15,9 +15,9 @@ use tactus_compiler::lower::Config;
 use tactus_emulator::timer::reg;
 use tactus_emulator::{Board, Config as BoardConfig};
 use tactus_firmware::image::{
-    assign_cores, limiter_routine, FirmwareImage, ImageRun, KeySpec, Program,
+    assign_cores, compile_layout, limiter_routine, FirmwareImage, ImageRun, KeySpec, Program,
 };
-use tactus_runtime::keyboard::{read_board, Board as BoardSpec};
+use tactus_runtime::keyboard::{assign, parse_layout, read_board, Board as BoardSpec};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 use tactus_runtime::rng::XorShift64;
 use tactus_runtime::stimulus;
@@ -59,6 +59,7 @@ struct Stats {
     worst: Vec<u64>,
     total: Vec<u64>,
     stalls: Vec<u64>,
+    events: usize,
 }
 
 /// Runs `sensors[key][n]` through the image and through interpreter + reference limiter;
@@ -84,6 +85,7 @@ fn run_against_reference(
         worst: vec![0; cores],
         total: vec![0; cores],
         stalls: vec![0; cores],
+        events: 0,
     };
     let (mut bad, mut first) = (0, Vec::new());
     let mut rec = vec![0; keys.len()];
@@ -129,6 +131,7 @@ fn run_against_reference(
             .iter()
             .map(|e| (e.key, e.event, e.args.clone()))
             .collect();
+        st.events += got_events.len();
         if got_events != want_events {
             bad += 1;
             if first.len() < 5 {
@@ -444,4 +447,77 @@ fn handler_overhead_per_core_and_per_key_measured_and_static() {
     assert!(empty_worst > 0 && empty_worst <= w1.analysed);
     assert!(glue_worst > 0 && glue_worst <= static_glue);
     assert!(handler_worst <= w0.bound());
+}
+
+/// The instrument text for a layout's instrument name (the shipped ones by name).
+fn shipped(name: &str) -> Result<String, String> {
+    std::fs::read_to_string(root().join(format!("instruments/{name}.tactus")))
+        .map_err(|e| e.to_string())
+}
+
+/// A layout with graded piano hammers (a program per key) and shared harpsichord keys, on
+/// the 200 MHz board: no miss, bit-exact, events equal. (The static bound does not prove
+/// the fit: the piano update's static WCET is far above its measured worst.)
+#[test]
+fn grand_piano_keys_from_a_layout_run_one_per_core_at_200_mhz_without_misses() {
+    // Two harpsichord keys (one program) and two piano keys with graded hammers (a program
+    // each).
+    let text = r#"
+        name = "test"
+        [[range]]
+        keys = [58, 59]
+        instrument = "harpsichord"
+        [[range]]
+        keys = [60, 61]
+        instrument = "grand_piano"
+        grade = [ { param = "M_h", from = "6 g", to = "3.5 g" } ]
+    "#;
+    let layout = parse_layout(text, "test").unwrap();
+    let assigned = assign(&layout, "test", Path::new(".")).unwrap();
+    let (programs, index) = compile_layout(&assigned, &shipped, 44_100.0).unwrap();
+    assert_eq!(programs.len(), 3);
+    assert_eq!(index, [0, 0, 1, 2]);
+    for p in &programs {
+        println!(
+            "{}: static update WCET {}",
+            p.thumb.stem,
+            p.update_wcet().unwrap()
+        );
+    }
+    let cores = assign_cores(&programs, &index, 2).unwrap();
+    let keys: Vec<KeySpec> = assigned
+        .iter()
+        .zip(index.iter().zip(&cores))
+        .map(|(a, (&program, &core))| KeySpec {
+            slot: a.key as usize,
+            program,
+            core,
+        })
+        .collect();
+    let board = read_board(&root().join("boards/rp2040_200mhz.toml")).unwrap();
+    let image = FirmwareImage::build(&programs, &keys, &board, &LimiterConfig::default()).unwrap();
+    let samples = 11_025; // 0.25 s
+    let sensors: Vec<Vec<i32>> = keys
+        .iter()
+        .enumerate()
+        .map(|(i, k)| stimuli(&programs[k.program], i + 1, samples))
+        .collect();
+    let (bad, first, st, mut run) = run_against_reference(&image, &sensors, samples);
+    assert!(bad == 0, "{bad} mismatches; first:\n{}", first.join("\n"));
+    let misses = run.step(&[0; 4]).unwrap().misses.clone();
+    println!("{} events (strikes, plucks)", st.events);
+    assert!(st.events > 0);
+    for c in 0..2 {
+        let w = image.wcet(c).unwrap();
+        println!(
+            "200 MHz core {c}: keys {:?}, worst {} mean {:.0}, static bound {} of {}",
+            image.core_keys(c),
+            st.worst[c],
+            st.total[c] as f64 / samples as f64,
+            w.bound(),
+            image.cycles_per_sample()
+        );
+        assert_eq!(misses[c], 0);
+        assert!(st.worst[c] <= w.bound() && st.worst[c] < image.cycles_per_sample());
+    }
 }

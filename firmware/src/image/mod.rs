@@ -55,7 +55,7 @@ use tactus_compiler::thumb::ThumbObject;
 use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE, SRAM_ALIAS_BASE};
 use tactus_emulator::wcet::{self, Bounds, Region};
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
-use tactus_runtime::keyboard::Board as BoardSpec;
+use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 
 /// A compiled key program: the fixed-point program (for its formats and the interpreter)
@@ -105,6 +105,43 @@ impl Program {
             .map(|w| w.cycles)
             .map_err(|e| ImageError::Wcet(e.to_string()))
     }
+}
+
+/// Compiles the programs a resolved keyboard layout needs (`tactus_runtime::keyboard::assign`):
+/// one per distinct (instrument, parameter overrides) — keys with identical parameters share
+/// a program, graded parameters make one per key. `source` returns an instrument's text by
+/// the name the layout gives (a built-in name or a path). Returns the programs and, per
+/// key, the index of its program.
+///
+/// Errors: [`ImageError::Compile`] naming the key and instrument when `source` fails or the
+/// instrument does not compile.
+pub fn compile_layout(
+    keys: &[KeyAssignment],
+    source: &dyn Fn(&str) -> Result<String, String>,
+    sample_rate_hz: f64,
+) -> Result<(Vec<Program>, Vec<usize>), ImageError> {
+    let mut programs = Vec::new();
+    let mut seen: BTreeMap<(&str, &[(String, String)]), usize> = BTreeMap::new();
+    let mut index = Vec::with_capacity(keys.len());
+    for k in keys {
+        let id = (k.instrument.as_str(), k.params.as_slice());
+        if let Some(&p) = seen.get(&id) {
+            index.push(p);
+            continue;
+        }
+        let fail =
+            |e: String| ImageError::Compile(format!("key {} (`{}`): {e}", k.key, k.instrument));
+        let text = source(&k.instrument).map_err(fail)?;
+        let config = tactus_compiler::lower::Config {
+            sample_rate_hz,
+            overrides: k.params.clone(),
+        };
+        let p = Program::compile(&text, &config).map_err(|e| fail(e.to_string()))?;
+        seen.insert(id, programs.len());
+        index.push(programs.len());
+        programs.push(p);
+    }
+    Ok((programs, index))
 }
 
 /// One key of the image.
