@@ -32,6 +32,104 @@ pub fn frac_for(iv: Interval) -> i32 {
 /// DAC at full scale).
 pub const MULS_REL_TOLERANCE: f64 = 1.0 / (1u64 << 22) as f64;
 
+/// Precision budget of the `MULS` plan: a force term's or the total's error bound may grow
+/// to this many DAC LSB (a quarter: the quantisation stays below what the DAC resolves).
+pub const BUDGET_FORCE_LSB: f64 = 0.25;
+
+/// Precision budget of the `MULS` plan: the error bound of a state that is only set (a held
+/// force, a recorded position) may grow to this fraction of its range (2^-24).
+pub const BUDGET_STATE_REL: f64 = 1.0 / (1u64 << 24) as f64;
+
+/// Precision budget of the `MULS` plan: the one-sample error bound of an integrated
+/// (accumulating) state may grow by at most this factor over its bound with exact products.
+/// Its errors add up sample after sample, and a floor shift's error is a bias, not noise: a
+/// near-threshold motion (a hammer that barely reaches the string) is decided by them.
+pub const BUDGET_ACCUMULATING_GROWTH: f64 = 2.0;
+
+/// Precision budget of the `MULS` plan: a value that is compared, emitted or output may
+/// carry an error bound of this fraction of its range (2^-20).
+pub const BUDGET_VALUE_REL: f64 = 1.0 / (1u64 << 20) as f64;
+
+/// Values whose error the budget watches: operands of comparisons, event arguments, outputs.
+fn watched_values(p: &Program) -> Vec<Value> {
+    let mut out: Vec<Value> = p
+        .values
+        .iter()
+        .filter_map(|vd| match vd.op {
+            Op::Cmp(_, x, y) => Some([x, y]),
+            _ => None,
+        })
+        .flatten()
+        .filter(|v| matches!(p.values[v.index()].ty, Ty::Real(_)))
+        .collect();
+    fn walk(stmts: &[Stmt], out: &mut Vec<Value>) {
+        for s in stmts {
+            match s {
+                Stmt::Emit(_, args) => out.extend(args.iter().copied()),
+                Stmt::Output(_, v) => out.push(*v),
+                Stmt::If(_, b) => walk(b, out),
+                _ => {}
+            }
+        }
+    }
+    walk(&p.body, &mut out);
+    out.sort_by_key(|v| v.index());
+    out.dedup();
+    out
+}
+
+/// The operands of one product as the plan sees them: each operand's format and range, and
+/// the number of its low bits known to be zero (a constant's trailing zeros), which shift
+/// off exactly.
+#[derive(Clone, Copy, Debug)]
+struct MulOperands {
+    x: (i32, Interval),
+    free_x: i32,
+    y: (i32, Interval),
+    free_y: i32,
+    result: Interval,
+}
+
+impl MulOperands {
+    /// Plans the product: shift free bits first, then the operand with more significant
+    /// bits, until the product fits 31 bits. With `tolerance`, accept only when the floor
+    /// shifts cost at most [`MULS_REL_TOLERANCE`] of the result's magnitude, else use the
+    /// 64-bit product; without, always `MULS` (the precision budget then decides). The
+    /// shifts are returned in operand order (`swapped`: the plan's pair is (y, x)).
+    fn plan(&self, swapped: bool, tolerance: bool) -> MulKind {
+        let ((fx, rx), (fy, ry)) = (self.x, self.y);
+        let (free_x, free_y) = (self.free_x, self.free_y);
+        let bits = |f: i32, r: Interval| (r.mag() * 2f64.powi(f)).max(1.0).log2().ceil() as i32;
+        let (mut a, mut b) = (0i32, 0i32);
+        let (bx, by) = (bits(fx, rx), bits(fy, ry));
+        while (bx - a) + (by - b) > 31 && a < 31 && b < 31 {
+            if a < free_x {
+                a += 1;
+            } else if b < free_y {
+                b += 1;
+            } else if bx - a >= by - b {
+                a += 1;
+            } else {
+                b += 1;
+            }
+        }
+        if (bx - a) + (by - b) > 31 {
+            return MulKind::Wide;
+        }
+        let shift_err = |s: i32, f: i32, free: i32| if s <= free { 0.0 } else { 2f64.powi(s - f) };
+        let (ex, ey) = (shift_err(a, fx, free_x), shift_err(b, fy, free_y));
+        let err = ry.mag() * ex + rx.mag() * ey + ex * ey;
+        if tolerance && err > MULS_REL_TOLERANCE * self.result.mag().max(f64::MIN_POSITIVE) {
+            return MulKind::Wide;
+        }
+        if swapped {
+            MulKind::Muls(b as u8, a as u8)
+        } else {
+            MulKind::Muls(a as u8, b as u8)
+        }
+    }
+}
+
 /// How a multiplication is done on a 32-bit core without a 64-bit product instruction.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MulKind {
@@ -169,6 +267,9 @@ impl FixedProgram {
             Op::Param(p) => program.params[p.index()].value,
             _ => f64::NAN,
         };
+        // Per multiplication: its operands as planned (format, range, free low bits) and
+        // whether the plan's pair is swapped against operand order.
+        let mut planned: Vec<(usize, MulOperands, bool)> = Vec::new();
         for (i, vd) in program.values.iter().enumerate() {
             let (x, y, c) = match vd.op {
                 Op::Arith(ArithOp::Div, x, y) if is_const(y) => {
@@ -192,29 +293,35 @@ impl FixedProgram {
                 _ => continue,
             };
             let fx_of = |v: Value| (frac[v.index()], ranges.values[v.index()]);
-            let k = match (y, c) {
+            let (ops, swapped) = match (y, c) {
                 (_, Some((raw, fc))) => {
                     let free = raw.trailing_zeros().min(31) as i32;
-                    let k = Self::plan_mul(
-                        fx_of(x),
-                        0,
-                        (fc, Interval::point(tactus_runtime::fixed::to_f64(raw, fc))),
-                        free,
-                        ranges.values[i],
-                    );
-                    // The constant operand is the second one of the planned pair; store the
-                    // shifts in operand order (x, y), which is what every engine applies.
-                    match (vd.op.clone(), k) {
-                        (Op::Arith(ArithOp::Mul, a, _), MulKind::Muls(sa, sb)) if is_const(a) => {
-                            MulKind::Muls(sb, sa)
-                        }
-                        (_, k) => k,
-                    }
+                    let ops = MulOperands {
+                        x: fx_of(x),
+                        free_x: 0,
+                        y: (fc, Interval::point(tactus_runtime::fixed::to_f64(raw, fc))),
+                        free_y: free,
+                        result: ranges.values[i],
+                    };
+                    // The constant operand is the second one of the planned pair; the shifts
+                    // are stored in operand order (x, y), which is what every engine applies.
+                    let swapped = matches!(vd.op, Op::Arith(ArithOp::Mul, a, _) if is_const(a));
+                    (ops, swapped)
                 }
-                (Some(y), None) => Self::plan_mul(fx_of(x), 0, fx_of(y), 0, ranges.values[i]),
+                (Some(y), None) => (
+                    MulOperands {
+                        x: fx_of(x),
+                        free_x: 0,
+                        y: fx_of(y),
+                        free_y: 0,
+                        result: ranges.values[i],
+                    },
+                    false,
+                ),
                 (None, None) => continue,
             };
-            mul_kind[i] = Some(k);
+            mul_kind[i] = Some(ops.plan(swapped, true));
+            planned.push((i, ops, swapped));
         }
         let sensor_frac: Vec<i32> = program
             .sensors
@@ -267,7 +374,7 @@ impl FixedProgram {
             })
             .collect();
         let publ = published(program, &frac);
-        FixedProgram {
+        let mut fp = FixedProgram {
             force_frac: publ.force,
             total_frac: publ.total,
             output_frac: publ.output,
@@ -285,42 +392,60 @@ impl FixedProgram {
             state_init,
             deriv_gain,
             warnings,
-        }
+        };
+        fp.spend_precision_budget(&planned);
+        fp
     }
 
-    /// Plans one product `x · y` (each given as format and range, with the number of low
-    /// bits known to be zero — a constant's trailing zeros — that shift off exactly): shift
-    /// free bits first, then the operand with more significant bits, until the product fits
-    /// 31 bits; accept when the floor shifts cost at most [`MULS_REL_TOLERANCE`] of the
-    /// result's magnitude, else use the 64-bit product.
-    fn plan_mul(
-        (fx, rx): (i32, Interval),
-        free_x: i32,
-        (fy, ry): (i32, Interval),
-        free_y: i32,
-        result: Interval,
-    ) -> MulKind {
-        let bits = |f: i32, r: Interval| (r.mag() * 2f64.powi(f)).max(1.0).log2().ceil() as i32;
-        let (mut a, mut b) = (0i32, 0i32);
-        let (bx, by) = (bits(fx, rx), bits(fy, ry));
-        while (bx - a) + (by - b) > 31 && a < 31 && b < 31 {
-            if a < free_x {
-                a += 1;
-            } else if b < free_y {
-                b += 1;
-            } else if bx - a >= by - b {
-                a += 1;
-            } else {
-                b += 1;
-            }
+    /// Turns 64-bit products into `MULS` products while the error bounds of
+    /// [`report::analyse`] stay within the precision budget: the total force and every force
+    /// term within [`BUDGET_FORCE_LSB`] DAC LSB (or their bound with exact products, if
+    /// larger); every state's one-sample bound within [`BUDGET_STATE_REL`] of its range;
+    /// every value that is compared, emitted or output within [`BUDGET_VALUE_REL`] of its
+    /// range. Products are tried in program order; each one kept spends part of the budget.
+    fn spend_precision_budget(&mut self, planned: &[(usize, MulOperands, bool)]) {
+        if !planned
+            .iter()
+            .any(|(i, _, _)| self.mul_kind[*i] == Some(MulKind::Wide))
+        {
+            return;
         }
-        let shift_err = |s: i32, f: i32, free: i32| if s <= free { 0.0 } else { 2f64.powi(s - f) };
-        let (ex, ey) = (shift_err(a, fx, free_x), shift_err(b, fy, free_y));
-        let err = ry.mag() * ex + rx.mag() * ey + ex * ey;
-        if err <= MULS_REL_TOLERANCE * result.mag().max(f64::MIN_POSITIVE) {
-            MulKind::Muls(a as u8, b as u8)
-        } else {
-            MulKind::Wide
+        let base = report::analyse(self);
+        let watched = watched_values(&self.program);
+        let lsb = base.dac_lsb_n();
+        let within = |pr: &report::Precision| -> bool {
+            let force_ok = |now: f64, was: f64| now <= was.max(BUDGET_FORCE_LSB * lsb);
+            force_ok(pr.total, base.total)
+                && pr
+                    .force
+                    .iter()
+                    .zip(&base.force)
+                    .all(|(n, w)| force_ok(*n, *w))
+                && self.program.states.iter().enumerate().all(|(i, st)| {
+                    let mag = st.range.0.abs().max(st.range.1.abs());
+                    if base.accumulating[i] || pr.accumulating[i] {
+                        pr.write[i] <= BUDGET_ACCUMULATING_GROWTH * base.write[i]
+                    } else {
+                        pr.state[i] <= base.state[i].max(BUDGET_STATE_REL * mag)
+                    }
+                })
+                && watched.iter().all(|v| {
+                    let mag = self.ranges.values[v.index()].mag();
+                    pr.value[v.index()] <= base.value[v.index()].max(BUDGET_VALUE_REL * mag)
+                })
+        };
+        for (i, ops, swapped) in planned {
+            if self.mul_kind[*i] != Some(MulKind::Wide) {
+                continue;
+            }
+            let k = ops.plan(*swapped, false);
+            if k == MulKind::Wide {
+                continue;
+            }
+            self.mul_kind[*i] = Some(k);
+            if !within(&report::analyse(self)) {
+                self.mul_kind[*i] = Some(MulKind::Wide);
+            }
         }
     }
 

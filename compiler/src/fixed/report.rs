@@ -29,6 +29,9 @@ pub struct Precision {
     pub state: Vec<f64>,
     /// Whether each state's error accumulates over samples (no finite bound).
     pub accumulating: Vec<bool>,
+    /// Bound of what one sample writes to each state (including the write's rounding),
+    /// given the state bounds above, SI: for an accumulating state, the error one sample adds.
+    pub write: Vec<f64>,
     /// Bound of each force term, N.
     pub force: Vec<f64>,
     /// Bound of the total force, N.
@@ -95,6 +98,7 @@ pub fn analyse(fp: &FixedProgram) -> Precision {
         }
         value = pass(fp, &state).0;
     }
+    let write = pass(fp, &state).1;
     let mut force = vec![0.0; p.forces.len()];
     let mut total = 0.0;
     collect(&p.body, &value, &mut force, &mut total);
@@ -109,6 +113,7 @@ pub fn analyse(fp: &FixedProgram) -> Precision {
         value,
         state,
         accumulating,
+        write,
         force,
         total,
         total_is_local,

@@ -43,6 +43,7 @@ pub(crate) struct Function {
 }
 
 /// Machine code of an object: bytes, symbols, the listing.
+#[derive(Clone, Debug)]
 pub struct Code {
     /// The `.text` bytes.
     pub text: Vec<u8>,
@@ -59,6 +60,9 @@ pub struct Code {
 struct Lower<'a> {
     alloc: &'a Allocation,
     items: Vec<Item>,
+    /// The stack slot each scratch register is known to hold (reload cache): valid in
+    /// straight-line code, forgotten at every label (a join point).
+    holds: [Option<u16>; 2],
 }
 
 impl Lower<'_> {
@@ -79,27 +83,35 @@ impl Lower<'_> {
             Loc::Reg(r) => r,
             Loc::Slot(s) => {
                 let r = self.alloc.scratch[k];
-                self.i(Instr::MemImm {
-                    op: MemOp::Ldr,
-                    rt: r,
-                    rn: 13,
-                    imm: 4 * s,
-                });
+                if self.holds[k] != Some(s) {
+                    self.i(Instr::MemImm {
+                        op: MemOp::Ldr,
+                        rt: r,
+                        rn: 13,
+                        imm: 4 * s,
+                    });
+                    self.holds[k] = Some(s);
+                }
                 r
             }
         }
     }
 
     /// The register to write `v` into (scratch 0 when spilled), and the store to do after.
-    fn write(&self, v: V) -> (u8, Option<u16>) {
+    fn write(&mut self, v: V) -> (u8, Option<u16>) {
         match self.loc(v) {
             Loc::Reg(r) => (r, None),
-            Loc::Slot(s) => (self.alloc.scratch[0], Some(s)),
+            Loc::Slot(s) => {
+                self.holds[0] = None;
+                (self.alloc.scratch[0], Some(s))
+            }
         }
     }
 
     fn spill(&mut self, r: u8, slot: Option<u16>) {
         if let Some(s) = slot {
+            // Scratch 0 now holds the slot's new value; a copy in scratch 1 is stale.
+            self.holds = [Some(s), None];
             self.i(Instr::MemImm {
                 op: MemOp::Str,
                 rt: r,
@@ -270,7 +282,10 @@ impl Lower<'_> {
                     imm: off,
                 });
             }
-            M::Label(l) => self.items.push(Item::Label(l)),
+            M::Label(l) => {
+                self.holds = [None, None];
+                self.items.push(Item::Label(l))
+            }
             M::B(l) => self.items.push(Item::Br {
                 cond: None,
                 target: l,
@@ -291,6 +306,7 @@ pub(crate) fn lower(name: &str, code: &[M], alloc: &Allocation) -> Function {
     let mut l = Lower {
         alloc,
         items: Vec::new(),
+        holds: [None, None],
     };
     let saved = (alloc.used_mask | 0x80) & 0xf0;
     l.i(Instr::Push {

@@ -55,6 +55,7 @@ impl fmt::Display for ThumbError {
 impl std::error::Error for ThumbError {}
 
 /// A compiled instrument: code, interface and layouts.
+#[derive(Clone, Debug)]
 pub struct ThumbObject {
     /// Machine code, symbols and listing.
     pub code: emit::Code,

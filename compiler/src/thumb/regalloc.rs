@@ -7,8 +7,9 @@
 //! that needs spills, it retries with five (`r0`–`r4`) and keeps `r5`, `r6` as scratch
 //! registers for reloading spilled operands (`LDR` from the stack frame, which leaves the
 //! flags alone, so `ADDS`/`ADCS` pairs survive reloads). The victim of a spill is the
-//! interval that ends last; a spilled register lives in its stack slot for its whole
-//! interval.
+//! interval with the fewest references per instruction of its range (the emitter's reload
+//! cache then removes repeated reloads in straight-line code); a spilled register lives in
+//! its stack slot for its whole interval.
 
 use super::mir::*;
 use super::select::{ARG1, ARG2, STATE_V};
@@ -39,6 +40,17 @@ struct Interval {
     v: u32,
     start: usize,
     end: usize,
+    /// Reads and writes of the register: each costs a reload or a store when spilled.
+    refs: u32,
+}
+
+impl Interval {
+    /// Spill weight: references per instruction of the live range (Poletto & Sarkar's
+    /// "ends last" rule spills long-lived operands read everywhere, such as a sensor word;
+    /// the density keeps those in registers and spills the rarely used ones).
+    fn weight(&self) -> f64 {
+        self.refs as f64 / (self.end - self.start + 1) as f64
+    }
 }
 
 /// Allocates the virtual registers of `code` (`nregs` of them).
@@ -46,17 +58,20 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
     let mut first = vec![usize::MAX; nregs as usize];
     let mut last = vec![0usize; nregs as usize];
     let mut late_at = vec![usize::MAX; nregs as usize];
+    let mut refs = vec![0u32; nregs as usize];
     for (i, m) in code.iter().enumerate() {
         for u in m.uses() {
             if u == STATE_V {
                 continue;
             }
             let k = u.0 as usize;
+            refs[k] += 1;
             first[k] = first[k].min(i);
             last[k] = last[k].max(i);
         }
         if let Some(d) = m.def() {
             let k = d.0 as usize;
+            refs[k] += 1;
             first[k] = first[k].min(i);
             last[k] = last[k].max(i);
         }
@@ -84,6 +99,7 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
             } else {
                 last[k]
             },
+            refs: refs[k],
         })
         .collect();
     intervals.sort_by_key(|iv| (iv.start, iv.v));
@@ -137,13 +153,18 @@ fn scan(intervals: &[Interval], nregs: u32, regs: &[u8], scratch: &[u8]) -> Opti
                 if scratch.is_empty() {
                     return None;
                 }
-                // Spill the interval that ends last.
+                // Spill the interval with the fewest references per instruction (ties: the
+                // one that ends last).
                 let (k, _) = active
                     .iter()
                     .enumerate()
-                    .max_by_key(|(_, (a, _))| a.end)
+                    .min_by(|(_, (a, _)), (_, (b, _))| {
+                        a.weight().total_cmp(&b.weight()).then(b.end.cmp(&a.end))
+                    })
                     .expect("no register free implies active intervals");
-                if active[k].0.end > iv.end {
+                let victim_first = active[k].0.weight() < iv.weight()
+                    || (active[k].0.weight() == iv.weight() && active[k].0.end > iv.end);
+                if victim_first {
                     let (victim, r) = active.remove(k);
                     loc[victim.v as usize] = Some(Loc::Slot(slots));
                     slots += 1;
