@@ -97,10 +97,19 @@ impl Program {
     /// Static WCET (cycles, first instruction to return) of the program's update, as
     /// [`wcet::analyse`] prices it (the code is position independent, so anywhere).
     pub fn update_wcet(&self) -> Result<u64, ImageError> {
+        self.wcet_of(&self.thumb.update_name())
+    }
+
+    /// Static WCET of the program's init, as [`Program::update_wcet`].
+    pub fn init_wcet(&self) -> Result<u64, ImageError> {
+        self.wcet_of(&self.thumb.init_name())
+    }
+
+    fn wcet_of(&self, name: &str) -> Result<u64, ImageError> {
         let (off, _) = self
             .thumb
-            .symbol(&self.thumb.update_name())
-            .ok_or_else(|| ImageError::Compile("no update function".into()))?;
+            .symbol(name)
+            .ok_or_else(|| ImageError::Compile(format!("no function `{name}`")))?;
         let image = wcet::Image {
             base: 0x2000_0000,
             bytes: &self.thumb.code.text,
@@ -440,8 +449,19 @@ impl FirmwareImage {
             fs,
             margin,
         };
-        // First tick: after every core's start-up (checked by the run).
-        let first_tick_us = 200 + 50 * keys.len() as u32;
+        // First tick: after every core's start-up (the run checks that both were ready).
+        // Start-up is the keys' `init` calls (their static WCET; 4000 cycles for one that
+        // cannot be analysed) plus a few dozen cycles per key and for the timer set-up.
+        let mut init_cycles = Vec::with_capacity(programs.len());
+        for p in programs {
+            init_cycles.push(p.init_wcet().unwrap_or(4000));
+        }
+        let startup: u64 = 1000
+            + keys
+                .iter()
+                .map(|k| 50 + init_cycles[k.program])
+                .sum::<u64>();
+        let first_tick_us = (20 + (startup * 1_000_000).div_ceil(clock_hz)) as u32;
 
         let mut segments = Vec::new();
         let mut places: Vec<CorePlace> = vec![CorePlace::default(); cores];
