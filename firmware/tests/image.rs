@@ -387,6 +387,19 @@ fn bad_keys_and_boards_are_errors() {
         .unwrap()
         .run()
         .unwrap();
+    // A limiter product the Thumb code cannot shift (force words with 60 fraction bits).
+    let e = limiter_routine(&lim, 60, 0x2000_0000)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("fraction bits"), "{e}");
+    // Twenty copies of the piano's code do not fit one core's bank.
+    let piano = instrument("grand_piano", &[]);
+    let many = vec![piano; 20];
+    let keys: Vec<KeySpec> = (0..20).map(|i| k(i, i, 0)).collect();
+    let e = FirmwareImage::build(&many, &keys, &b, &lim)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("core 0: code and data need"), "{e}");
     assert!(run
         .step(&[])
         .unwrap_err()

@@ -45,6 +45,9 @@ pub mod rec {
     pub const OUT: u32 = 24;
 }
 
+// The limiter stores the current in the word after the budget.
+const _: () = assert!(rec::CURRENT == rec::BUDGET + 4);
+
 /// NVIC_ISER (DDI0419 B3.4.3).
 const NVIC_ISER: u32 = 0xe000_e100;
 
@@ -173,7 +176,6 @@ pub fn limiter(
     }
     let s1 = shift(force_frac, c.gain.1, "force → current")?;
     let s2 = shift(0, c.dac_scale.1, "current → DAC code")?;
-    debug_assert_eq!(rec::CURRENT, rec::BUDGET + 4);
     a.bind(entry);
     a.i(asm::push_lr(0xf0));
     mul_round_clamp(a, c.gain.0 as u32, s1, c.peak_ua as u32);
