@@ -201,6 +201,8 @@ fn a_layout_that_fits_runs_a_second_without_misses_bit_exact_within_its_wcet() {
         assert!(st.worst[c] > 0 && w.bound() < image.cycles_per_sample());
     }
     assert!(bad == 0, "{bad} mismatches; first:\n{}", first.join("\n"));
+    println!("{} events (plucks)", st.events);
+    assert!(st.events > 0, "no event to compare");
     assert_eq!(run.samples(), samples as u64 + 1);
     // The image's tick schedule is the host's: after sample n (from 0) the armed alarm is
     // tick n+1's.
