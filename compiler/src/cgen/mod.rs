@@ -233,7 +233,7 @@ fn lit(x: i32) -> String {
     }
 }
 
-fn operands(op: &Op) -> Vec<Value> {
+pub(crate) fn operands(op: &Op) -> Vec<Value> {
     match op {
         Op::Neg(x) | Op::Not(x) => vec![*x],
         Op::Arith(_, x, y) | Op::Cmp(_, x, y) | Op::And(x, y) | Op::Or(x, y) => vec![*x, *y],

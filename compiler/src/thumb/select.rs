@@ -67,6 +67,81 @@ pub(crate) struct Sel<'a> {
     direct: Vec<bool>,
     /// The first construct found that this backend cannot compile.
     unsupported: Option<String>,
+    /// Conditions evaluated as branches where an `if` tests them, never as 0/1 words:
+    /// `and`/`or`/`not`/comparisons whose only use is that `if` (or another such condition).
+    fused: Vec<bool>,
+}
+
+/// How a comparison came out when selected as flags.
+enum Flags {
+    /// `CMP` was emitted; the comparison holds when this condition does.
+    Cond(Cond),
+    /// The comparison is decided at compile time (a constant beyond the word's range).
+    Known(bool),
+}
+
+/// The conditions [`Sel::branch`] evaluates as control flow (see `Sel::fused`).
+fn fused_conditions(p: &Program, used: &[bool]) -> Vec<bool> {
+    let n = p.values.len();
+    let mut uses = vec![0u32; n];
+    for (vd, _) in p.values.iter().zip(used).filter(|(_, u)| **u) {
+        for x in crate::cgen::operands(&vd.op) {
+            uses[x.index()] += 1;
+        }
+    }
+    let mut conds = Vec::new();
+    fn walk(stmts: &[Stmt], uses: &mut [u32], conds: &mut Vec<Value>) {
+        for s in stmts {
+            match s {
+                Stmt::If(c, body) => {
+                    uses[c.index()] += 1;
+                    conds.push(*c);
+                    walk(body, uses, conds);
+                }
+                Stmt::Def(_) | Stmt::SetMode(..) => {}
+                Stmt::SetState(_, v)
+                | Stmt::SetEdge(_, v)
+                | Stmt::Force(_, v)
+                | Stmt::Output(_, v)
+                | Stmt::Total(v) => uses[v.index()] += 1,
+                Stmt::Emit(_, args) => {
+                    for v in args {
+                        uses[v.index()] += 1;
+                    }
+                }
+            }
+        }
+    }
+    walk(&p.body, &mut uses, &mut conds);
+    let mut fused = vec![false; n];
+    let fusable = |v: Value, uses: &[u32]| {
+        uses[v.index()] == 1
+            && matches!(
+                p.values[v.index()].op,
+                Op::And(..) | Op::Or(..) | Op::Not(_) | Op::Cmp(..)
+            )
+    };
+    // Roots: `if` conditions used once, and the operands (used once) of `and`/`or` values
+    // that are kept as words — those are materialised by branches (see `Sel::def`).
+    let mut stack: Vec<Value> = conds.into_iter().filter(|c| fusable(*c, &uses)).collect();
+    for (i, vd) in p.values.iter().enumerate() {
+        if let Op::And(x, y) | Op::Or(x, y) = vd.op {
+            if used[i] && !stack.iter().any(|c| c.index() == i) {
+                stack.extend([x, y].into_iter().filter(|x| fusable(*x, &uses)));
+            }
+        }
+    }
+    while let Some(v) = stack.pop() {
+        fused[v.index()] = true;
+        if let Op::And(x, y) | Op::Or(x, y) = p.values[v.index()].op {
+            stack.extend([x, y].into_iter().filter(|x| fusable(*x, &uses)));
+        } else if let Op::Not(x) = p.values[v.index()].op {
+            if fusable(x, &uses) {
+                stack.push(x);
+            }
+        }
+    }
+    fused
 }
 
 fn pow2(e: i32) -> u64 {
@@ -118,6 +193,7 @@ impl<'a> Sel<'a> {
         }
         walk(&p.body, p, false, &mut count);
         let direct = count.iter().map(|&(n, nested)| n == 1 && !nested).collect();
+        let fused = fused_conditions(p, &used);
         Sel {
             fp,
             p,
@@ -135,6 +211,7 @@ impl<'a> Sel<'a> {
             next_site: 0,
             direct,
             unsupported: None,
+            fused,
         }
     }
 
@@ -704,6 +781,14 @@ impl<'a> Sel<'a> {
         }
     }
 
+    /// Whether `v` is the constant truth value `false` or a mode's first variant (word 0).
+    fn is_zero_word(&self, v: Value) -> bool {
+        matches!(
+            self.p.values[v.index()].op,
+            Op::BoolConst(false) | Op::Variant(_, 0)
+        )
+    }
+
     fn is_const(&self, v: Value) -> bool {
         matches!(self.p.values[v.index()].op, Op::Const(_) | Op::Param(_))
     }
@@ -907,7 +992,11 @@ impl<'a> Sel<'a> {
         for s in stmts {
             match s {
                 Stmt::Def(v) => {
-                    if self.used[v.index()] && !self.is_const(*v) {
+                    let word_only = matches!(
+                        p.values[v.index()].op,
+                        Op::Const(_) | Op::Param(_) | Op::BoolConst(_) | Op::Variant(..)
+                    );
+                    if self.used[v.index()] && !word_only && !self.fused[v.index()] {
                         let w = self.def(*v)?;
                         self.val[v.index()] = Some(w);
                     }
@@ -942,10 +1031,8 @@ impl<'a> Sel<'a> {
                     self.store(MemOp::Strb, w.v, Base::State, st.edges + e.index());
                 }
                 Stmt::If(c, body) => {
-                    let w = self.word(*c);
                     let skip = self.label();
-                    self.push(M::CmpI { a: w.v, imm: 0 });
-                    self.push(M::Bc(Cond::Eq, skip));
+                    self.branch(*c, false, skip)?;
                     self.push(M::Note(format!("if {}", describe(p, *c))));
                     self.stmts(body)?;
                     self.push(M::Label(skip));
@@ -973,6 +1060,182 @@ impl<'a> Sel<'a> {
             }
         }
         Ok(())
+    }
+
+    /// Branches to `target` when the truth value `v` equals `when`; falls through otherwise.
+    /// A fused condition becomes compare-and-branch chains (short-circuit `and`/`or`, `not`
+    /// by swapping the sense); any other value is tested as its 0/1 word.
+    fn branch(&mut self, v: Value, when: bool, target: Label) -> Result<(), ThumbError> {
+        if !self.fused[v.index()] {
+            let w = self.word(v);
+            self.push(M::CmpI { a: w.v, imm: 0 });
+            self.push(M::Bc(if when { Cond::Ne } else { Cond::Eq }, target));
+            return Ok(());
+        }
+        self.branch_op(v, when, target)
+    }
+
+    /// [`Sel::branch`] on the operation of `v` itself (an `and`, `or`, `not` or comparison),
+    /// whether or not `v` is fused; its operands follow their own fusion.
+    fn branch_op(&mut self, v: Value, when: bool, target: Label) -> Result<(), ThumbError> {
+        match self.p.values[v.index()].op {
+            Op::Not(x) => self.branch(x, !when, target),
+            Op::And(x, y) | Op::Or(x, y) => {
+                // `and` falls to `target` on the first false operand when testing for false;
+                // `or` dually. The other sense needs a local label for the early exit.
+                let is_and = matches!(self.p.values[v.index()].op, Op::And(..));
+                if when != is_and {
+                    self.branch(x, when, target)?;
+                    self.branch(y, when, target)
+                } else {
+                    let out = self.label();
+                    self.branch(x, !when, out)?;
+                    self.branch(y, when, target)?;
+                    self.push(M::Label(out));
+                    Ok(())
+                }
+            }
+            Op::Cmp(o, x, y) => match self.cmp_flags(o, x, y) {
+                Some(Flags::Cond(c)) => {
+                    self.push(M::Bc(if when { c } else { c.invert() }, target));
+                    Ok(())
+                }
+                Some(Flags::Known(holds)) => {
+                    if holds == when {
+                        self.push(M::B(target));
+                    }
+                    Ok(())
+                }
+                None => {
+                    let w = self.def(v)?;
+                    self.push(M::CmpI { a: w.v, imm: 0 });
+                    self.push(M::Bc(if when { Cond::Ne } else { Cond::Eq }, target));
+                    Ok(())
+                }
+            },
+            _ => unreachable!("only and/or/not/comparisons are branched on"),
+        }
+    }
+
+    /// `x OP y` as a `CMP` and the condition under which it holds, when one 32-bit `CMP`
+    /// decides it exactly (signed conditions use N, Z and V, so no overflow case is left
+    /// out); `None` when it needs the 64-bit or two-threshold forms.
+    fn cmp_flags(&mut self, o: CmpOp, x: Value, y: Value) -> Option<Flags> {
+        let fp = self.fp;
+        let real = |v: Value| matches!(self.p.values[v.index()].ty, Ty::Real(_));
+        let cond = |o: CmpOp| match o {
+            CmpOp::Eq => Cond::Eq,
+            CmpOp::Ne => Cond::Ne,
+            CmpOp::Lt => Cond::Lt,
+            CmpOp::Le => Cond::Le,
+            CmpOp::Gt => Cond::Gt,
+            CmpOp::Ge => Cond::Ge,
+        };
+        let mirror = |o: CmpOp| match o {
+            CmpOp::Lt => CmpOp::Gt,
+            CmpOp::Le => CmpOp::Ge,
+            CmpOp::Gt => CmpOp::Lt,
+            CmpOp::Ge => CmpOp::Le,
+            o => o,
+        };
+        // Compare with a known word: `CMP #imm` when it fits 8 bits.
+        let with_word = |this: &mut Self, a: V, t: i32| {
+            if (0..=255).contains(&t) {
+                this.push(M::CmpI { a, imm: t as u8 });
+            } else {
+                let k = this.movi(t);
+                this.push(M::Cmp { a, b: k });
+            }
+        };
+        if !real(x) || !real(y) {
+            // Truth values and modes: small non-negative words.
+            let small = |v: Value| match self.p.values[v.index()].op {
+                Op::Variant(_, i) => Some(i as i32),
+                Op::BoolConst(t) => Some(t as i32),
+                _ => None,
+            };
+            let (a, o, k) = match (small(x), small(y)) {
+                (_, Some(k)) => (x, o, k),
+                (Some(k), None) => (y, mirror(o), k),
+                (None, None) => {
+                    let (a, b) = (self.word(x), self.word(y));
+                    self.push(M::Cmp { a: a.v, b: b.v });
+                    return Some(Flags::Cond(cond(o)));
+                }
+            };
+            let w = self.word(a);
+            with_word(self, w.v, k);
+            return Some(Flags::Cond(cond(o)));
+        }
+        let konst = |v: Value| fp.exact_const(v);
+        if let (None, Some(c)) | (Some(c), None) = (konst(x), konst(y)) {
+            let const_left = konst(x).is_some();
+            let (v, o) = if const_left { (y, mirror(o)) } else { (x, o) };
+            let (ge, gt) = prim::thresholds(fp.frac[v.index()], c);
+            let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
+            // x >= t, x < t as flags; a threshold beyond the word range decides alone.
+            let at_least = |this: &mut Self, t: i64, holds_if_ge: bool| -> Flags {
+                if t <= lo || t > hi {
+                    return Flags::Known((t <= lo) == holds_if_ge);
+                }
+                let w = this.word(v);
+                with_word(this, w.v, t as i32);
+                Flags::Cond(if holds_if_ge { Cond::Ge } else { Cond::Lt })
+            };
+            return match o {
+                CmpOp::Ge => Some(at_least(self, ge, true)),
+                CmpOp::Lt => Some(at_least(self, ge, false)),
+                CmpOp::Gt => Some(at_least(self, gt, true)),
+                CmpOp::Le => Some(at_least(self, gt, false)),
+                CmpOp::Eq | CmpOp::Ne if ge == gt => Some(Flags::Known(o == CmpOp::Ne)),
+                CmpOp::Eq | CmpOp::Ne if gt == ge + 1 && ge > lo && ge <= hi => {
+                    let w = self.word(v);
+                    with_word(self, w.v, ge as i32);
+                    Some(Flags::Cond(cond(o)))
+                }
+                _ => None,
+            };
+        }
+        let (fa, fb) = (fp.frac[x.index()], fp.frac[y.index()]);
+        let (a, b) = (self.word(x), self.word(y));
+        if a.v == b.v && fa == fb {
+            return Some(Flags::Known(matches!(o, CmpOp::Eq | CmpOp::Le | CmpOp::Ge)));
+        }
+        let (d_a, d_b) = match fa.cmp(&fb) {
+            Ordering::Equal => (0, 0),
+            Ordering::Greater => (0, fa - fb),
+            Ordering::Less => (fb - fa, 0),
+        };
+        let fits = |w: W, d: i32| d <= 31 && shl_bound(w.b, d) < LIM;
+        if !(fits(a, d_a) && fits(b, d_b)) {
+            // 64-bit: SUBS/SBCS leave N and V of the 64-bit difference, so the signed
+            // conditions hold exactly (Z does not: equality needs the word form).
+            if matches!(o, CmpOp::Eq | CmpOp::Ne) {
+                return None;
+            }
+            let x = self.scaled64(a, d_a);
+            let y = self.scaled64(b, d_b);
+            let (p, q, c) = match o {
+                CmpOp::Lt => (x, y, Cond::Lt),
+                CmpOp::Ge => (x, y, Cond::Ge),
+                CmpOp::Gt => (y, x, Cond::Lt),
+                _ => (y, x, Cond::Ge),
+            };
+            let _ = self.add64(p, q, true);
+            return Some(Flags::Cond(c));
+        }
+        let a = if d_a > 0 {
+            self.sh(Shift::Lsl, a.v, d_a as u8)
+        } else {
+            a.v
+        };
+        let b = if d_b > 0 {
+            self.sh(Shift::Lsl, b.v, d_b as u8)
+        } else {
+            b.v
+        };
+        self.push(M::Cmp { a, b });
+        Some(Flags::Cond(cond(o)))
     }
 
     fn publish(&mut self, slot: usize, v: Value) {
@@ -1113,6 +1376,22 @@ impl<'a> Sel<'a> {
                     }
                 },
             },
+            Op::Cmp(o @ (CmpOp::Eq | CmpOp::Ne), x, y)
+                if !real(&x) && (self.is_zero_word(x) || self.is_zero_word(y)) =>
+            {
+                // A truth value or mode against 0: `RSBS t, a, #0` sets C exactly when
+                // a = 0, so `ADCS t, a` leaves C; `a ≠ 0` is the sign of `-a | a`.
+                let a = if self.is_zero_word(y) { x } else { y };
+                let a = self.word(a).v;
+                let t = self.unary(AluOp::Rsb, a);
+                let v = if o == CmpOp::Eq {
+                    self.alu2(AluOp::Adc, t, a)
+                } else {
+                    let t = self.alu2(AluOp::Orr, t, a);
+                    self.sh(Shift::Lsr, t, 31)
+                };
+                W { v, b: 1 }
+            }
             Op::Cmp(o, x, y) => match (fp.exact_const(x), fp.exact_const(y)) {
                 (_, Some(k)) if real(&x) => {
                     let a = self.word(x);
@@ -1127,6 +1406,16 @@ impl<'a> Sel<'a> {
                     self.cmp(o, a, f(&x), b, f(&y))
                 }
             },
+            Op::And(x, y) | Op::Or(x, y) if self.fused[x.index()] || self.fused[y.index()] => {
+                // `d = 0; if !(x op y) goto done; d = 1; done:` with the operands as
+                // compare-and-branch chains.
+                let d = self.movi(0);
+                let done = self.label();
+                self.branch_op(v, false, done)?;
+                self.push(M::Movi { d, imm: 1 });
+                self.push(M::Label(done));
+                W { v: d, b: 1 }
+            }
             Op::And(x, y) | Op::Or(x, y) => {
                 let (a, b) = (self.word(x), self.word(y));
                 let op = if matches!(op, Op::And(..)) {
@@ -1347,6 +1636,22 @@ impl<'a> Sel<'a> {
         W { v, b: 1 }
     }
 
+    /// `w · 2^d` as a 64-bit (lo, hi) pair for a comparison. When the shift is 32 or more
+    /// only the sign of the scaled word matters (the other word is below 2^31): it becomes
+    /// `sign(w) · 2^32`, as the definition's reduction does.
+    fn scaled64(&mut self, w: W, d: i32) -> (V, V) {
+        if d <= 31 {
+            self.shl64(w.v, d)
+        } else {
+            let s = self.sh(Shift::Asr, w.v, 31);
+            let pos = self.unary(AluOp::Rsb, w.v);
+            let pos = self.sh(Shift::Lsr, pos, 31); // 1 when w > 0
+            let sign = self.alu2(AluOp::Orr, s, pos); // -1, 0 or 1
+            let lo = self.movi(0);
+            (lo, sign)
+        }
+    }
+
     /// [`fx::cmp`]: exact comparison of words in different formats.
     fn cmp(&mut self, o: CmpOp, a: W, fa: i32, b: W, fb: i32) -> W {
         if a.v == b.v && fa == fb {
@@ -1382,23 +1687,8 @@ impl<'a> Sel<'a> {
             };
             return self.cmp32(o, a, b);
         }
-        // 64-bit: when the shift is 32 or more only the sign of the scaled word matters
-        // (|other| < 2^31): clamp it to ±2 first, as the definition's reduction does.
-        let scaled = |this: &mut Self, w: W, d: i32| -> (V, V) {
-            if d <= 31 {
-                this.shl64(w.v, d)
-            } else {
-                // Only sign(w) matters: (lo, hi) = (0, sign(w)), i.e. sign(w)·2^32.
-                let s = this.sh(Shift::Asr, w.v, 31);
-                let pos = this.unary(AluOp::Rsb, w.v);
-                let pos = this.sh(Shift::Lsr, pos, 31); // 1 when w > 0
-                let sign = this.alu2(AluOp::Orr, s, pos); // -1, 0 or 1
-                let lo = this.movi(0);
-                (lo, sign)
-            }
-        };
-        let x = scaled(self, a, d_a);
-        let y = scaled(self, b, d_b);
+        let x = self.scaled64(a, d_a);
+        let y = self.scaled64(b, d_b);
         let v = match o {
             CmpOp::Eq | CmpOp::Ne => {
                 let l = self.alu2(AluOp::Eor, x.0, y.0);
