@@ -33,6 +33,8 @@ enum Item {
         jump: bool,
     },
     Note(String),
+    /// Start of a top-level `if` body (see [`M::Mark`]).
+    Mark(u32),
 }
 
 /// Lowered code of one function.
@@ -40,6 +42,8 @@ pub(crate) struct Function {
     /// Symbol name.
     pub name: String,
     items: Vec<Item>,
+    /// Pairs of [`M::Mark`]s whose blocks no single call executes both of.
+    pub exclusive: Vec<(u32, u32)>,
 }
 
 /// Machine code of an object: bytes, symbols, the listing.
@@ -55,6 +59,11 @@ pub struct Code {
     pub listing: String,
     /// Comments (source-level events) at code offsets, for the WCET report.
     pub notes: Vec<(usize, String)>,
+    /// Flow facts for the WCET analysis: pairs of `.text` offsets of block starts (bodies of
+    /// top-level `if` statements) that no single call of the function executes both of —
+    /// the first body's assignments make the second's condition false (see
+    /// `select::exclusions`).
+    pub exclusive: Vec<(usize, usize)>,
 }
 
 struct Lower<'a> {
@@ -295,6 +304,7 @@ impl Lower<'_> {
                 target: l,
             }),
             M::Note(ref s) => self.items.push(Item::Note(s.clone())),
+            M::Mark(k) => self.items.push(Item::Mark(k)),
         }
     }
 }
@@ -345,6 +355,7 @@ pub(crate) fn lower(name: &str, code: &[M], alloc: &Allocation) -> Function {
     Function {
         name: name.to_string(),
         items: l.items,
+        exclusive: Vec::new(),
     }
 }
 
@@ -369,7 +380,7 @@ fn est_size(it: &Item) -> usize {
         Item::I(i) => encode(i).map(|e| e.bytes().len()).unwrap_or(2),
         Item::Lit { .. } => 2,
         Item::Br { .. } => 6,
-        Item::Label(_) | Item::Note(_) => 0,
+        Item::Label(_) | Item::Note(_) | Item::Mark(_) => 0,
         Item::Island { .. } => 0,
     }
 }
@@ -379,6 +390,7 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
     // 1. Insert literal islands (per function: after the body, and inside when far).
     let mut islands: Vec<Vec<i32>> = Vec::new();
     let mut fitems: Vec<(String, Vec<Item>)> = Vec::new();
+    let excl: Vec<(u32, u32)> = funcs.iter().flat_map(|f| f.exclusive.clone()).collect();
     for f in funcs {
         let mut out = Vec::new();
         let mut pending_since: Option<usize> = None;
@@ -451,6 +463,7 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
     let mut symbols = Vec::new();
     let mut data = Vec::new();
     let mut notes = Vec::new();
+    let mut marks: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
     let enc = |i: &Instr| match *i {
         // `ADDS Rdn, Rdn, #imm` with imm < 8 has two 16-bit encodings; GNU as picks T2
         // (imm8), so the listing assembles to the same bytes only if we do too.
@@ -532,6 +545,9 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
                     notes.push((text.len(), s.clone()));
                     let _ = writeln!(listing, "    @ {s}");
                 }
+                Item::Mark(k) => {
+                    marks.insert(*k, text.len());
+                }
                 Item::Island { id, jump } => {
                     let words = &islands[*id];
                     if *jump {
@@ -565,12 +581,17 @@ pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
             let _ = writeln!(listing, "    mov r8, r8");
         }
     }
+    let exclusive = excl
+        .iter()
+        .filter_map(|(a, b)| Some((*marks.get(a)?, *marks.get(b)?)))
+        .collect();
     Ok(Code {
         text,
         symbols,
         data,
         listing,
         notes,
+        exclusive,
     })
 }
 
@@ -637,7 +658,7 @@ fn layout(
                     labels.insert((fi, l.0), pos);
                     0
                 }
-                Item::Note(_) => 0,
+                Item::Note(_) | Item::Mark(_) => 0,
                 Item::Island { id, jump } => {
                     let mut p = pos + if *jump { 2 } else { 0 };
                     if !p.is_multiple_of(4) {

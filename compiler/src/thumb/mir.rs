@@ -123,6 +123,9 @@ pub enum M {
     Bc(Cond, Label),
     /// A comment for the listing (source-level event names for the WCET report).
     Note(String),
+    /// Marks the start of the body of the top-level `if` statement with this index (a
+    /// block start the WCET analysis' flow facts refer to).
+    Mark(u32),
 }
 
 impl M {
@@ -133,7 +136,7 @@ impl M {
             _ => None,
         };
         match self {
-            M::Movi { .. } | M::Label(_) | M::B(_) | M::Bc(..) | M::Note(_) => vec![],
+            M::Movi { .. } | M::Label(_) | M::B(_) | M::Bc(..) | M::Note(_) | M::Mark(_) => vec![],
             M::Mov { s, .. } => vec![*s],
             M::AddSub { a, b, .. } => vec![*a, *b],
             M::AddSubI { a, .. } => vec![*a],

@@ -112,7 +112,9 @@ pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
         (format!("tactus_{}_update", c.stem), upd),
     ] {
         let alloc = regalloc::allocate(&sel.code, sel.nregs);
-        funcs.push(emit::lower(&name, &sel.code, &alloc));
+        let mut f = emit::lower(&name, &sel.code, &alloc);
+        f.exclusive = sel.exclusive;
+        funcs.push(f);
     }
     let code = emit::assemble(funcs)?;
     Ok(ThumbObject {

@@ -24,6 +24,7 @@
 use super::mir::*;
 use super::ThumbError;
 use crate::cgen::{prim, OutLayout, StateLayout};
+use crate::fixed::range::Interval;
 use crate::fixed::{FixedProgram, MulKind};
 use crate::ir::*;
 use std::cmp::Ordering;
@@ -43,6 +44,9 @@ pub(crate) struct W {
 pub(crate) struct Selected {
     pub code: Vec<M>,
     pub nregs: u32,
+    /// Pairs of top-level `if` statements (their [`M::Mark`]s) whose bodies never both run
+    /// in one call ([`exclusions`]).
+    pub exclusive: Vec<(u32, u32)>,
 }
 
 pub(crate) struct Sel<'a> {
@@ -67,6 +71,8 @@ pub(crate) struct Sel<'a> {
     direct: Vec<bool>,
     /// The first construct found that this backend cannot compile.
     unsupported: Option<String>,
+    /// Whether [`Sel::stmts`] is at the body's top level (for [`M::Mark`]s).
+    top: bool,
     /// Conditions evaluated as branches where an `if` tests them, never as 0/1 words:
     /// `and`/`or`/`not`/comparisons whose only use is that `if` (or another such condition).
     fused: Vec<bool>,
@@ -212,6 +218,7 @@ impl<'a> Sel<'a> {
             direct,
             unsupported: None,
             fused,
+            top: false,
         }
     }
 
@@ -827,6 +834,7 @@ impl<'a> Sel<'a> {
             }
         }
         let body = p.body.clone();
+        self.top = true;
         self.stmts(&body)?;
         // Published slots not stored directly: copy published[] to out[].
         let np = p.forces.len() + 1 + p.outputs.len();
@@ -842,6 +850,7 @@ impl<'a> Sel<'a> {
         Ok(Selected {
             code: self.code,
             nregs: self.nv,
+            exclusive: exclusions(fp),
         })
     }
 
@@ -989,7 +998,8 @@ impl<'a> Sel<'a> {
 
     fn stmts(&mut self, stmts: &[Stmt]) -> Result<(), ThumbError> {
         let (p, fp, st) = (self.p, self.fp, self.st);
-        for s in stmts {
+        let top = std::mem::replace(&mut self.top, false);
+        for (k, s) in stmts.iter().enumerate() {
             match s {
                 Stmt::Def(v) => {
                     let word_only = matches!(
@@ -1033,6 +1043,9 @@ impl<'a> Sel<'a> {
                 Stmt::If(c, body) => {
                     let skip = self.label();
                     self.branch(*c, false, skip)?;
+                    if top {
+                        self.push(M::Mark(k as u32));
+                    }
                     self.push(M::Note(format!("if {}", describe(p, *c))));
                     self.stmts(body)?;
                     self.push(M::Label(skip));
@@ -1812,6 +1825,210 @@ impl<'a> Sel<'a> {
         Selected {
             code: self.code,
             nregs: self.nv,
+            exclusive: Vec::new(),
+        }
+    }
+}
+
+/// What one sample may hold in a state or mode after some statements: `None` = anything.
+#[derive(Clone, Default)]
+struct Known {
+    state: std::collections::HashMap<usize, Interval>,
+    mode: std::collections::HashMap<usize, Vec<u32>>,
+}
+
+impl Known {
+    /// The effect of `stmts`: `sure` when they certainly run (the assignments replace what is
+    /// known), else they may run (what they assign joins what is known, and a state or mode
+    /// not known stays unknown).
+    fn apply(&mut self, fp: &FixedProgram, stmts: &[Stmt], sure: bool) {
+        let p = &fp.program;
+        for s in stmts {
+            match s {
+                Stmt::SetState(st, v) => {
+                    let (lo, hi) = p.states[st.index()].range;
+                    let w = fp.ranges.values[v.index()];
+                    let w = Interval::new(w.lo.max(lo), w.hi.min(hi));
+                    if sure {
+                        self.state.insert(st.index(), w);
+                    } else if let Some(k) = self.state.get_mut(&st.index()) {
+                        *k = Interval::new(k.lo.min(w.lo), k.hi.max(w.hi));
+                    }
+                }
+                Stmt::SetMode(m, i) => {
+                    if sure {
+                        self.mode.insert(m.index(), vec![*i]);
+                    } else if let Some(k) = self.mode.get_mut(&m.index()) {
+                        if !k.contains(i) {
+                            k.push(*i);
+                        }
+                    }
+                }
+                Stmt::If(_, body) => self.apply(fp, body, false),
+                _ => {}
+            }
+        }
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Tri {
+    True,
+    False,
+    Unknown,
+}
+
+/// Flow facts for the WCET analysis: pairs `(i, j)` of top-level `if` statements (indices
+/// into the body), `i` before `j`, such that when `i`'s body runs, `j`'s condition is false —
+/// so no call runs both bodies. Found by evaluating `j`'s condition over intervals: states
+/// and modes loaded after `i` hold what `i`'s body assigned them (joined with what the
+/// statements in between may assign), every other value its analysed range. Example: the
+/// piano's strike sets the hammer angle to the string's, so neither the back-check
+/// (`s <= s_check`) nor the rest felt (`s <= 0`) can follow it in the same sample.
+/// Comparisons count as decided only with a margin of 10⁻⁴ of the operands' magnitude, far
+/// above the fixed-point errors of the compared words.
+pub(crate) fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
+    let p = &fp.program;
+    // Top-level position of each value's definition (inside an `if`: that `if`'s).
+    let mut pos = vec![usize::MAX; p.values.len()];
+    fn mark(stmts: &[Stmt], k: usize, pos: &mut [usize]) {
+        for s in stmts {
+            match s {
+                Stmt::Def(v) => pos[v.index()] = k,
+                Stmt::If(_, b) => mark(b, k, pos),
+                _ => {}
+            }
+        }
+    }
+    for (k, s) in p.body.iter().enumerate() {
+        mark(std::slice::from_ref(s), k, &mut pos);
+    }
+    let ifs: Vec<usize> = (0..p.body.len())
+        .filter(|&k| matches!(p.body[k], Stmt::If(..)))
+        .collect();
+    let mut out = Vec::new();
+    for &i in &ifs {
+        let Stmt::If(_, body_i) = &p.body[i] else {
+            continue;
+        };
+        let mut known = Known::default();
+        known.apply(fp, body_i, true);
+        if known.state.is_empty() && known.mode.is_empty() {
+            continue;
+        }
+        for k in i + 1..p.body.len() {
+            if let Stmt::If(c, _) = &p.body[k] {
+                let ev = Eval {
+                    fp,
+                    pos: &pos,
+                    after: i,
+                    known: &known,
+                };
+                if ev.tri(*c) == Tri::False {
+                    out.push((i as u32, k as u32));
+                }
+            }
+            known.apply(fp, std::slice::from_ref(&p.body[k]), true);
+            if known.state.is_empty() && known.mode.is_empty() {
+                break;
+            }
+        }
+    }
+    out
+}
+
+struct Eval<'a> {
+    fp: &'a FixedProgram,
+    pos: &'a [usize],
+    after: usize,
+    known: &'a Known,
+}
+
+impl Eval<'_> {
+    fn real(&self, v: Value) -> Interval {
+        let p = &self.fp.program;
+        match p.values[v.index()].op {
+            Op::State(s) if self.pos[v.index()] > self.after => self
+                .known
+                .state
+                .get(&s.index())
+                .copied()
+                .unwrap_or(self.fp.ranges.values[v.index()]),
+            _ => self.fp.ranges.values[v.index()],
+        }
+    }
+
+    fn modes(&self, v: Value) -> Option<Vec<u32>> {
+        match self.fp.program.values[v.index()].op {
+            Op::Variant(_, i) => Some(vec![i]),
+            Op::Mode(m) if self.pos[v.index()] > self.after => {
+                self.known.mode.get(&m.index()).cloned()
+            }
+            _ => None,
+        }
+    }
+
+    fn tri(&self, v: Value) -> Tri {
+        let p = &self.fp.program;
+        match p.values[v.index()].op {
+            Op::BoolConst(b) => {
+                if b {
+                    Tri::True
+                } else {
+                    Tri::False
+                }
+            }
+            Op::Not(x) => match self.tri(x) {
+                Tri::True => Tri::False,
+                Tri::False => Tri::True,
+                Tri::Unknown => Tri::Unknown,
+            },
+            Op::And(x, y) => match (self.tri(x), self.tri(y)) {
+                (Tri::False, _) | (_, Tri::False) => Tri::False,
+                (Tri::True, Tri::True) => Tri::True,
+                _ => Tri::Unknown,
+            },
+            Op::Or(x, y) => match (self.tri(x), self.tri(y)) {
+                (Tri::True, _) | (_, Tri::True) => Tri::True,
+                (Tri::False, Tri::False) => Tri::False,
+                _ => Tri::Unknown,
+            },
+            Op::Cmp(o, x, y) => match p.values[x.index()].ty {
+                Ty::Mode(_) => match (self.modes(x), self.modes(y), o) {
+                    (Some(a), Some(b), CmpOp::Eq | CmpOp::Ne) => {
+                        let eq = if a.len() == 1 && b.len() == 1 && a[0] == b[0] {
+                            Tri::True
+                        } else if a.iter().all(|k| !b.contains(k)) {
+                            Tri::False
+                        } else {
+                            Tri::Unknown
+                        };
+                        match (o, eq) {
+                            (CmpOp::Ne, Tri::True) => Tri::False,
+                            (CmpOp::Ne, Tri::False) => Tri::True,
+                            (_, t) => t,
+                        }
+                    }
+                    _ => Tri::Unknown,
+                },
+                Ty::Real(_) => {
+                    let (a, b) = (self.real(x), self.real(y));
+                    let m = 1e-4 * a.mag().max(b.mag());
+                    let lt = a.hi + m < b.lo; // certainly a < b
+                    let ge = a.lo - m > b.hi; // certainly a > b
+                    match o {
+                        CmpOp::Lt | CmpOp::Le if lt => Tri::True,
+                        CmpOp::Lt | CmpOp::Le if ge => Tri::False,
+                        CmpOp::Gt | CmpOp::Ge if ge => Tri::True,
+                        CmpOp::Gt | CmpOp::Ge if lt => Tri::False,
+                        CmpOp::Eq if lt || ge => Tri::False,
+                        CmpOp::Ne if lt || ge => Tri::True,
+                        _ => Tri::Unknown,
+                    }
+                }
+                Ty::Bool => Tri::Unknown,
+            },
+            _ => Tri::Unknown,
         }
     }
 }
