@@ -18,8 +18,11 @@
 //! * a right shift rounding half up by `m ≤ 31` is `ASRS #m-1; ADDS #1; ASRS #1`
 //!   (`floor((floor(x/2^(m-1)) + 1)/2) = floor(x/2^m + 1/2)`).
 //!
-//! Booleans are words 0/1; `if` statements are the only branches of the body besides the
-//! sensor and state clamps, so the update's worst case is close to its common case.
+//! Booleans are words 0/1 where a value needs them (an edge, an output); a condition that
+//! only an `if` tests is a chain of compare-and-branch instructions (short-circuit `and`/`or`,
+//! `not` by the branch sense), and an `and`/`or` word with such operands is materialised by
+//! branches. For the WCET analysis the selector also derives flow facts ([`exclusions`]):
+//! pairs of top-level `if` bodies that cannot both run in one call.
 
 use super::mir::*;
 use super::ThumbError;
