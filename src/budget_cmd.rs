@@ -524,6 +524,22 @@ impl Report<'_> {
                 events.join(" → ")
             }
         );
+        let calls = &wp.cost.static_cost.calls;
+        if !calls.is_empty() {
+            let total: u64 = calls.iter().map(|c| c.2 + 3).sum();
+            let _ = writeln!(
+                s,
+                "calls on it: {} ({total} cycles with their BLs, of the {} static)",
+                calls
+                    .iter()
+                    .map(|(site, callee, c)| format!(
+                        "BL at .text+{site:#x} to +{callee:#x} ({c} cycles)"
+                    ))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                wp.cost.static_cost.cycles
+            );
+        }
         let _ = writeln!(s, "what fits on {}:", self.board.name);
         let free = cps.saturating_sub(u64::from(self.board.isr_overhead_cycles));
         for (name, c, n) in self.what_fits() {
@@ -644,6 +660,23 @@ impl Report<'_> {
                     (
                         "worst_path",
                         Json::Arr(self.path_events(wp).into_iter().map(Json::Str).collect()),
+                    ),
+                    (
+                        "worst_path_calls",
+                        Json::Arr(
+                            wp.cost
+                                .static_cost
+                                .calls
+                                .iter()
+                                .map(|&(site, callee, c)| {
+                                    Json::obj([
+                                        ("site", Json::Num(site as f64)),
+                                        ("callee", Json::Num(callee as f64)),
+                                        ("cycles", Json::Num(c as f64)),
+                                    ])
+                                })
+                                .collect(),
+                        ),
                     ),
                 ]),
             ),

@@ -11,7 +11,8 @@
 //!
 //! **Control flow.** `B`, `B<cond>` (two edges), `BL` (the callee is analysed as a function
 //! with the same [`Bounds`] and its WCET added at the call site, after the `BL`'s own 3
-//! cycles; recursion is an error) and returns: `BX LR`, `MOV PC, LR` and `POP {…, PC}` (each
+//! cycles; recursion is an error; a `BL` listed in [`Bounds::branch_links`] is a long
+//! branch within the function instead) and returns: `BX LR`, `MOV PC, LR` and `POP {…, PC}` (each
 //! assumed to return to the caller: LR, or the LR pushed on entry, intact — as AAPCS code
 //! guarantees). Anything whose target is not
 //! known statically — `BX` of another register, `BLX`, `MOV`/`ADD` to PC — and anything that
@@ -48,7 +49,7 @@
 
 use crate::decode::{self, AluOp, Instr};
 use crate::timing::{self, APB_LOAD_WAIT, APB_STORE_WAIT, EXCEPTION_ENTRY, EXCEPTION_RETURN};
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 use std::fmt;
 
 /// Where the analysed code comes from: halfwords (and words, for literal pools) by address.
@@ -125,6 +126,11 @@ pub struct Bounds {
     pub accesses: HashMap<u32, Region>,
     /// Region assumed for an access whose address is not known (default [`Region::Memory`]).
     pub unknown_access: Region,
+    /// Addresses of `BL` instructions that are long *branches*, not calls: code generators
+    /// use `BL` (±4 MiB) to reach a label in the same function beyond `B`'s ±2 KiB, with LR
+    /// already saved. Such a `BL` is analysed as `B` to its target (costing the `BL`'s
+    /// cycles); as a call, the rest of the function would be counted twice.
+    pub branch_links: HashSet<u32>,
 }
 
 impl Bounds {
@@ -146,6 +152,12 @@ impl Bounds {
     /// Declares the region the load/store at `addr` accesses.
     pub fn with_access(mut self, addr: u32, region: Region) -> Self {
         self.accesses.insert(addr & !1, region);
+        self
+    }
+    /// Declares the `BL` at `addr` a long branch within its function (see
+    /// [`Bounds::branch_links`]).
+    pub fn with_branch_link(mut self, addr: u32) -> Self {
+        self.branch_links.insert(addr & !1);
         self
     }
 }
@@ -445,6 +457,14 @@ impl Cx<'_> {
         })
     }
 
+    /// [`flow`], with the `BL`s declared in [`Bounds::branch_links`] as jumps.
+    fn flow(&self, addr: u32, instr: &Instr) -> Result<Flow, WcetError> {
+        Ok(match flow(addr, instr)? {
+            Flow::Call(t) if self.bounds.branch_links.contains(&addr) => Flow::Jump(t),
+            f => f,
+        })
+    }
+
     fn callee(&mut self, site: u32, target: u32) -> Result<u64, WcetError> {
         if let Some(&c) = self.bounds.calls.get(&target) {
             return Ok(c);
@@ -483,7 +503,7 @@ impl Cx<'_> {
             let ins = self.fetch(addr)?;
             instrs.insert(addr, ins);
             let next = addr.wrapping_add(ins.size);
-            match flow(addr, &ins.instr)? {
+            match self.flow(addr, &ins.instr)? {
                 Flow::Next | Flow::Call(_) => work.push(next),
                 Flow::Jump(t) => {
                     leaders.insert(t);
@@ -520,7 +540,7 @@ impl Cx<'_> {
             loop {
                 let ins = instrs[&addr];
                 let next = addr.wrapping_add(ins.size);
-                let f = flow(addr, &ins.instr)?;
+                let f = self.flow(addr, &ins.instr)?;
                 let plain = timing::cycles(&ins.instr, false, false) as u64;
                 match f {
                     Flow::Jump(t) => {

@@ -612,6 +612,40 @@ fn call_to_helper_and_pop_pc_return() {
     assert_eq!(w.cycles, 3 + 1 + 2 * 103 + 1 + 4);
 }
 
+/// A `BL` used as a long branch to a label of the same function (LR already pushed; the
+/// target returns with `POP {…, PC}` to the function's caller): declared in
+/// `Bounds::branch_links`, it is a jump — static == the worst run. As a call, the tail
+/// from the target to the return would be counted after the `BL` as well.
+#[test]
+fn a_branch_link_within_the_function_is_a_jump() {
+    let mut p = Prog::new(&[
+        l("f"),
+        I(Instr::Push { list: 0x4010 }), // push {r4, lr}: 3
+        cmpi(0, 0),                      // 1
+        bc(EQ, "skip"),                  // 1 / 2
+        l("far"),
+        bl("tail"), // 3: a long branch, never returns here
+        l("skip"),
+        adds(1, 1, 1),
+        adds(1, 1, 1),
+        l("tail"),
+        alu(AluOp::Mul, 1, 1),
+        adds(1, 1, 2),
+        I(Instr::Pop { list: 0x8010 }), // pop {r4, pc}: 3 + 4
+    ]);
+    let bounds = Bounds::new().with_branch_link(p.at("far"));
+    // Both paths run: static == the slower (`check`), and the BL path costs the BL's
+    // cycles, not a call's.
+    let c = p.check("f", &bounds, &[vec![0], vec![1]]);
+    assert_eq!(p.run("f", &[1]).max(p.run("f", &[0])), c);
+    let w = p.wcet("f", &bounds).unwrap();
+    assert!(w.calls.is_empty());
+    // As a call, the tail is counted twice (and the POP's return treated as the callee's).
+    let as_call = p.wcet("f", &Bounds::new()).unwrap();
+    assert_eq!(as_call.calls.len(), 1);
+    assert!(as_call.cycles > c);
+}
+
 #[test]
 fn recursion_is_an_error() {
     let p = Prog::new(&[

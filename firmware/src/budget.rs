@@ -6,7 +6,9 @@
 //!   [`tactus_emulator::wcet::analyse`] on the `.text` (loaded at [`LOAD_ADDR`], as the
 //!   runner loads it), plus [`BL_CYCLES`] for the caller's `BL` — the same convention as the
 //!   runner's measured [`crate::runner::Sample::cycles`] (first instruction to return
-//!   inclusive, plus the `BL`), so the two compare directly. It also returns the worst path
+//!   inclusive, plus the `BL`), so the two compare directly. The backend's long branches
+//!   (`BL` to a label of the same function) are analysed as branches
+//!   ([`wcet::Bounds::branch_links`]). It also returns the worst path
 //!   and the source-level events on it (the Thumb backend's notes: `if` conditions with
 //!   their source spans, `emit`s), rendered with [`describe_note`].
 //! - [`measure_update`]: the update run in the emulator over a corpus
@@ -72,6 +74,10 @@ pub struct StaticCost {
     /// The backend's notes (source-level events) inside the blocks of that path, in
     /// execution order, each once: `(offset into .text, note)`.
     pub events: Vec<(usize, String)>,
+    /// The calls (`BL` to a routine outside the update; the long branches inside it are
+    /// not calls) on that path, in execution order: `(offset of the BL, offset of the
+    /// callee, the callee's worst case in cycles)`.
+    pub calls: Vec<(u32, u32, u64)>,
 }
 
 /// [`StaticCost`] of the update function of `obj`.
@@ -79,14 +85,30 @@ pub struct StaticCost {
 /// Errors: [`BudgetError::MissingSymbol`], [`BudgetError::Wcet`].
 pub fn static_update(obj: &ThumbObject) -> Result<StaticCost, BudgetError> {
     let name = obj.update_name();
-    let (update, _) = obj.symbol(&name).ok_or(BudgetError::MissingSymbol(name))?;
+    let (update, size) = obj.symbol(&name).ok_or(BudgetError::MissingSymbol(name))?;
     let image = Image {
         base: LOAD_ADDR,
         bytes: &obj.code.text,
     };
-    // The backend's code is forward-only (no loops), so it needs no bounds.
-    let w = wcet::analyse(&image, LOAD_ADDR + update as u32, &Bounds::new())
-        .map_err(BudgetError::Wcet)?;
+    let entry = LOAD_ADDR + update as u32;
+    let inside = entry..entry + size as u32;
+    // The backend's code is forward-only (no loops), so it needs no loop bounds. Its long
+    // branches are `BL`s to labels of the same function: a `BL` whose target lies inside
+    // the update is declared a branch, not a call (found one layer at a time: a long branch
+    // analysed as a call hides the ones in the code it reaches).
+    let mut bounds = Bounds::new();
+    let w = loop {
+        let w = wcet::analyse(&image, entry, &bounds).map_err(BudgetError::Wcet)?;
+        let before = bounds.branch_links.len();
+        for c in &w.calls {
+            if inside.contains(&c.callee) {
+                bounds.branch_links.insert(c.site);
+            }
+        }
+        if bounds.branch_links.len() == before {
+            break w;
+        }
+    };
     let end_of = |start: u32| {
         w.blocks
             .iter()
@@ -94,10 +116,16 @@ pub fn static_update(obj: &ThumbObject) -> Result<StaticCost, BudgetError> {
             .map_or(start, |b| b.end)
     };
     let mut events = Vec::new();
+    let mut calls = Vec::new();
     let mut path = Vec::with_capacity(w.path.len());
     for &start in &w.path {
         let (s, e) = (start - LOAD_ADDR, end_of(start) - LOAD_ADDR);
         path.push(s);
+        for c in &w.calls {
+            if (start..end_of(start)).contains(&c.site) {
+                calls.push((c.site - LOAD_ADDR, c.callee - LOAD_ADDR, c.cycles));
+            }
+        }
         for (off, note) in &obj.code.notes {
             if (s as usize..e as usize).contains(off) && !events.iter().any(|(o, _)| o == off) {
                 events.push((*off, note.clone()));
@@ -108,6 +136,7 @@ pub fn static_update(obj: &ThumbObject) -> Result<StaticCost, BudgetError> {
         cycles: w.cycles + BL_CYCLES,
         path,
         events,
+        calls,
     })
 }
 
@@ -351,78 +380,94 @@ mod tests {
 
     /// Soundness: the static worst case bounds every measured call of an instrument over
     /// the whole (full) corpus, and the worst path's events are notes of the code.
-    /// Tightness: prints static / measured per instrument. The issue asks for the piano's
-    /// static bound within 20 % of its measured worst case; that does not hold (the longest
-    /// path combines branches no input takes together, e.g. the escapement's and the
-    /// contact's `if on_lever` selections, so the bound is about 1.6–3× the measured worst,
-    /// depending on the backend's code), so what is asserted is the weaker guard
-    /// static ≤ 4 × measured: a mispriced instruction class or a spurious path through the
-    /// whole literal pool would break it.
-    fn static_bounds_measured(name: &str) {
-        {
-            let src = INSTRUMENTS.iter().find(|(n, _)| *n == name).unwrap().1;
-            let (fp, obj) = compile(src);
-            let runs = corpus::corpus(&fp, Size::Full);
-            let c = program_cost(&obj, &fp, &runs).unwrap();
-            let ratio = c.ratio().unwrap();
-            println!(
-                "{name}: static {} measured worst {} mean {:.1} static/measured {ratio:.3} over {} samples (worst at {} sample {})",
-                c.static_cost.cycles,
-                c.measured.worst,
-                c.measured.mean(),
-                c.measured.calls,
-                c.measured.worst_at.0,
-                c.measured.worst_at.1
-            );
-            assert!(
-                c.sound(),
-                "{name}: measured {} > static {} at {:?}",
-                c.measured.worst,
-                c.static_cost.cycles,
-                c.measured.worst_at
-            );
-            assert!(ratio <= 4.0, "{name}: static/measured {ratio:.3}");
-            assert_eq!(c.measured.calls as usize, corpus::samples(&runs));
-            assert!(c.measured.best <= c.measured.worst && c.measured.best > BL_CYCLES);
-            assert!(!c.static_cost.path.is_empty());
-            for (off, note) in &c.static_cost.events {
-                assert!(obj.code.notes.contains(&(*off, note.clone())));
-            }
+    /// Tightness guard: static ≤ 2 × measured (analysing the backend's long branches — `BL`
+    /// to a label of the same function — as calls counted the update's tail twice and gave
+    /// 2.2× on the piano). Returns static / measured.
+    fn static_bounds_measured(name: &str, src: &str) -> f64 {
+        let (fp, obj) = compile(src);
+        let runs = corpus::corpus(&fp, Size::Full);
+        let c = program_cost(&obj, &fp, &runs).unwrap();
+        let ratio = c.ratio().unwrap();
+        println!(
+            "{name}: static {} measured worst {} mean {:.1} static/measured {ratio:.3} over {} samples (worst at {} sample {})",
+            c.static_cost.cycles,
+            c.measured.worst,
+            c.measured.mean(),
+            c.measured.calls,
+            c.measured.worst_at.0,
+            c.measured.worst_at.1
+        );
+        assert!(
+            c.sound(),
+            "{name}: measured {} > static {} at {:?}",
+            c.measured.worst,
+            c.static_cost.cycles,
+            c.measured.worst_at
+        );
+        assert!(ratio <= 2.0, "{name}: static/measured {ratio:.3}");
+        assert_eq!(c.measured.calls as usize, corpus::samples(&runs));
+        assert!(c.measured.best <= c.measured.worst && c.measured.best > BL_CYCLES);
+        assert!(!c.static_cost.path.is_empty());
+        for (off, note) in &c.static_cost.events {
+            assert!(obj.code.notes.contains(&(*off, note.clone())));
         }
+        ratio
+    }
+
+    fn shipped(name: &str) -> &'static str {
+        INSTRUMENTS.iter().find(|(n, _)| *n == name).unwrap().1
     }
 
     // One test per instrument (the harness runs them in parallel).
+
+    /// The issue's tightness target: the piano's static bound within 20 % of its measured
+    /// worst case over the full corpus.
     #[test]
-    fn static_bounds_measured_grand_piano() {
-        static_bounds_measured("grand_piano");
+    fn static_bounds_measured_grand_piano_within_20_percent() {
+        let ratio = static_bounds_measured("grand_piano", shipped("grand_piano"));
+        assert!(
+            ratio <= 1.2,
+            "grand_piano: static/measured {ratio:.3} > 1.2"
+        );
     }
     #[test]
     fn static_bounds_measured_harpsichord() {
-        static_bounds_measured("harpsichord");
+        static_bounds_measured("harpsichord", shipped("harpsichord"));
     }
     #[test]
     fn static_bounds_measured_harpsichord_2x8() {
-        static_bounds_measured("harpsichord_2x8");
+        static_bounds_measured("harpsichord_2x8", shipped("harpsichord_2x8"));
     }
     #[test]
     fn static_bounds_measured_hammond() {
-        static_bounds_measured("hammond");
+        static_bounds_measured("hammond", shipped("hammond"));
     }
-    /// A new instrument in `instruments/` needs its soundness test above.
+
+    /// Every other instrument in `instruments/` (added after these tests were written) is
+    /// checked too; one the Thumb backend does not support is reported and skipped (`tactus
+    /// budget` reports it as an error).
     #[test]
-    fn every_shipped_instrument_is_tested() {
+    fn static_bounds_measured_other_instruments() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
-        let mut shipped: Vec<String> = std::fs::read_dir(dir)
-            .unwrap()
-            .filter_map(|e| {
-                let p = e.ok()?.path();
-                (p.extension()? == "tactus").then(|| p.file_stem()?.to_str().map(String::from))?
-            })
-            .collect();
-        shipped.sort();
-        let mut tested: Vec<String> = INSTRUMENTS.iter().map(|(n, _)| n.to_string()).collect();
-        tested.sort();
-        assert_eq!(shipped, tested);
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            let Some(stem) = p.file_stem().and_then(|s| s.to_str()) else {
+                continue;
+            };
+            if p.extension().is_none_or(|x| x != "tactus")
+                || INSTRUMENTS.iter().any(|(n, _)| *n == stem)
+            {
+                continue;
+            }
+            let src = std::fs::read_to_string(&p).unwrap();
+            let l = tactus_compiler::compile(&src, &Config::default()).unwrap();
+            let fp = FixedProgram::new(&l.program);
+            if let Err(e) = tactus_compiler::thumb::compile(&fp) {
+                println!("{stem}: skipped: {e}");
+                continue;
+            }
+            static_bounds_measured(stem, &src);
+        }
     }
 
     /// The worst path of the piano goes through the hammer–string impact (the `strike`
