@@ -44,7 +44,9 @@ key-sample, call included); `measured` the worst and mean over the stimulus corp
 emulator (always ≤ static, else the analysis has a bug). A key costs static + the board's
 io_cycles_per_key; a core's load is its keys plus isr_overhead_cycles, against
 clock_hz / sample_rate_hz cycles per sample. `what fits` is the most keys of each
-instrument the board could run.
+instrument the board could run. The costliest param set of each instrument is measured over
+the full corpus (presses, repeated notes, trills, half dips, noise, glitches, random words),
+its other param sets (graded params) over a brief one; `--quick` shrinks the full one.
 
 Exit codes: 0 fits, 1 does not fit (or measured > static), 2 bad input.")]
 pub struct BudgetArgs {
@@ -55,7 +57,8 @@ pub struct BudgetArgs {
     /// TOML file (clock_hz, cores, sample_rate_hz, io_cycles_per_key, isr_overhead_cycles).
     #[arg(long, default_value = "rp2040", value_name = "NAME_OR_FILE")]
     pub board: String,
-    /// For a single instrument: how many keys (identical copies), from MIDI 21 (A0) up.
+    /// For a single instrument: how many keys (identical copies; default 88), from MIDI 21
+    /// (A0) up.
     #[arg(long, value_name = "N")]
     pub keys: Option<u32>,
     /// Override a param of every key: `--param M_h=8 g` (repeatable; after the layout's own).
