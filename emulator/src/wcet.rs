@@ -131,6 +131,12 @@ pub struct Bounds {
     /// already saved. Such a `BL` is analysed as `B` to its target (costing the `BL`'s
     /// cycles); as a call, the rest of the function would be counted twice.
     pub branch_links: HashSet<u32>,
+    /// Start addresses of blocks the analysed call does not execute (flow facts supplied
+    /// by the caller): no path through them is counted. Used to split the analysis into
+    /// scenarios — for two blocks that never both run, the maximum over "the first does
+    /// not run" and "the second does not run" is a bound that excludes the infeasible path
+    /// through both. An address that is not a block start has no effect.
+    pub unexecuted: HashSet<u32>,
 }
 
 impl Bounds {
@@ -152,6 +158,12 @@ impl Bounds {
     /// Declares the region the load/store at `addr` accesses.
     pub fn with_access(mut self, addr: u32, region: Region) -> Self {
         self.accesses.insert(addr & !1, region);
+        self
+    }
+    /// Declares that the block starting at `addr` is not executed (see
+    /// [`Bounds::unexecuted`]).
+    pub fn with_unexecuted(mut self, addr: u32) -> Self {
+        self.unexecuted.insert(addr & !1);
         self
     }
     /// Declares the `BL` at `addr` a long branch within its function (see
@@ -696,6 +708,7 @@ impl Cx<'_> {
                 owner: &owner,
                 header: Some(h),
                 member: Some(&loops[li].body),
+                unexecuted: &self.bounds.unexecuted,
             };
             let start = Node::Block(h);
             let header_addr = blocks[h].start;
@@ -735,6 +748,7 @@ impl Cx<'_> {
             owner: &owner,
             header: None,
             member: None,
+            unexecuted: &self.bounds.unexecuted,
         };
         let start = match owner[0] {
             Some(l) => Node::Loop(l),
@@ -1004,6 +1018,8 @@ struct Acyclic<'a> {
     header: Option<usize>,
     /// Blocks of the loop (`None`: every block).
     member: Option<&'a Vec<bool>>,
+    /// Start addresses of blocks no counted path may enter ([`Bounds::unexecuted`]).
+    unexecuted: &'a HashSet<u32>,
 }
 
 /// An edge of a region: target, cycles, path segment the source node contributes.
@@ -1106,6 +1122,10 @@ impl Acyclic<'_> {
     /// is unreachable.
     fn longest(&self, start: Node, sink: Sink) -> Result<Option<(u64, Vec<u32>)>, WcetError> {
         let topo = self.topo(start)?;
+        let barred = |n: &Node| matches!(*n, Node::Block(i) if self.unexecuted.contains(&self.blocks[i].start));
+        if barred(&start) {
+            return Ok(None);
+        }
         // best[node] = (cycles to the sink, index of the chosen edge).
         let mut best: HashMap<Node, (u64, usize)> = HashMap::new();
         for (node, edges) in topo.iter().rev() {
@@ -1114,6 +1134,7 @@ impl Acyclic<'_> {
                 let v = match t {
                     Target::Sink(k) if *k == sink => Some(*c),
                     Target::Sink(_) => None,
+                    Target::Node(m) if barred(m) => None,
                     Target::Node(m) => best.get(m).map(|(x, _)| x + c),
                 };
                 if let Some(v) = v {

@@ -646,6 +646,57 @@ fn a_branch_link_within_the_function_is_a_jump() {
     assert!(as_call.cycles > c);
 }
 
+/// Flow facts: two `if` bodies that never both run. Excluding each in turn
+/// (`Bounds::unexecuted`) and taking the larger bound gives exactly the worst feasible run;
+/// without the facts the bound is the infeasible path through both.
+#[test]
+fn unexecuted_blocks_split_the_analysis_into_scenarios() {
+    let mut p = Prog::new(&[
+        l("f"),
+        cmpi(0, 0),
+        bc(EQ, "skip1"),
+        l("a"),
+        adds(2, 2, 1),
+        adds(2, 2, 1),
+        adds(2, 2, 1),
+        l("skip1"),
+        cmpi(1, 0),
+        bc(EQ, "skip2"),
+        l("b"),
+        adds(2, 2, 1),
+        adds(2, 2, 1),
+        adds(2, 2, 1),
+        adds(2, 2, 1),
+        l("skip2"),
+        bx_lr(),
+    ]);
+    let feasible = [vec![1, 0], vec![0, 1], vec![0, 0]]
+        .iter()
+        .map(|a| p.run("f", a))
+        .max()
+        .unwrap();
+    let both = p.run("f", &[1, 1]);
+    assert!(both > feasible);
+    assert_eq!(p.wcet("f", &Bounds::new()).unwrap().cycles, both);
+    let no_a = p
+        .wcet("f", &Bounds::new().with_unexecuted(p.at("a")))
+        .unwrap();
+    let no_b = p
+        .wcet("f", &Bounds::new().with_unexecuted(p.at("b")))
+        .unwrap();
+    assert_eq!(no_a.cycles.max(no_b.cycles), feasible);
+    assert!(!no_a.path.contains(&p.at("a")) && !no_b.path.contains(&p.at("b")));
+    // Excluding both arms leaves the path through neither; excluding the entry, none.
+    let neither = Bounds::new()
+        .with_unexecuted(p.at("a"))
+        .with_unexecuted(p.at("b"));
+    assert_eq!(p.wcet("f", &neither).unwrap().cycles, p.run("f", &[0, 0]));
+    assert_eq!(
+        p.wcet("f", &Bounds::new().with_unexecuted(p.at("f"))),
+        Err(WcetError::NoReturn { entry: p.at("f") })
+    );
+}
+
 #[test]
 fn recursion_is_an_error() {
     let p = Prog::new(&[
