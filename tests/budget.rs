@@ -47,7 +47,10 @@ fn a_heavy_keyboard_is_rejected_naming_the_worst_key() {
     assert!(stdout.contains("DOES NOT FIT"), "{stdout}");
     assert!(stdout.contains("most expensive key: 21 (A0)"), "{stdout}");
     assert!(stdout.contains("its worst path"), "{stdout}");
-    assert!(stdout.contains("emit strike"), "{stdout}");
+    assert!(
+        stdout.contains("passes: grand_piano line ") || stdout.contains("passes: escapement line "),
+        "{stdout}"
+    );
     assert!(
         stdout.contains("what fits on rp2040-20mhz:\n  grand_piano: 0 keys"),
         "{stdout}"
