@@ -11,7 +11,8 @@ use tactus_runtime::stimulus;
 #[derive(Debug, clap::Args)]
 #[command(after_long_help = stimulus_help())]
 pub struct SimArgs {
-    /// Instrument file or built-in name (grand_piano, harpsichord, harpsichord_2x8, hammond).
+    /// Instrument file or built-in name (grand_piano, harpsichord, harpsichord_2x8, hammond,
+    /// rubbed_bank).
     #[arg(default_value = "grand_piano")]
     pub file: String,
     /// Built-in stimulus name, or a CSV file of key positions (see below).
@@ -34,6 +35,14 @@ pub struct SimArgs {
     /// Directory for the trace and plots (created if missing).
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
+    /// Also write a WAV file: the instrument's outputs named `audio*` (or those chosen with
+    /// `--wav-output`) summed into one 16-bit mono channel at the program's sample rate,
+    /// normalised to 90 % of full scale.
+    #[arg(long, value_name = "FILE")]
+    pub wav: Option<PathBuf>,
+    /// An output to write to the WAV instead of the `audio*` outputs (repeatable; summed).
+    #[arg(long = "wav-output", value_name = "NAME", requires = "wav")]
+    pub wav_outputs: Vec<String>,
 }
 
 /// Arithmetic of `tactus sim`.
@@ -127,6 +136,91 @@ pub fn run(args: SimArgs) -> ExitCode {
     }
 }
 
+/// The outputs `--wav` writes: `chosen` (each must be a numeric output of `program`), or
+/// else every output whose name starts with `audio`, in declaration order.
+fn wav_outputs(
+    program: &tactus_compiler::ir::Program,
+    chosen: &[String],
+) -> Result<Vec<String>, String> {
+    use tactus_compiler::ir::Ty;
+    let numeric: Vec<&str> = program
+        .outputs
+        .iter()
+        .filter(|o| matches!(o.ty, Ty::Real(_)))
+        .map(|o| o.name.as_str())
+        .collect();
+    if chosen.is_empty() {
+        let audio: Vec<String> = numeric
+            .iter()
+            .filter(|n| n.starts_with("audio"))
+            .map(|n| n.to_string())
+            .collect();
+        if audio.is_empty() {
+            return Err(format!(
+                "--wav: instrument `{}` has no output named `audio*`; choose one with --wav-output NAME (outputs: {})",
+                program.name,
+                if numeric.is_empty() { "none".to_string() } else { numeric.join(", ") }
+            ));
+        }
+        return Ok(audio);
+    }
+    for c in chosen {
+        if !numeric.contains(&c.as_str()) {
+            return Err(format!(
+                "--wav-output: `{c}` is not a numeric output of `{}` (outputs: {})",
+                program.name,
+                if numeric.is_empty() {
+                    "none".to_string()
+                } else {
+                    numeric.join(", ")
+                }
+            ));
+        }
+    }
+    Ok(chosen.to_vec())
+}
+
+/// Writes the sum of the trace's output columns `names` (SI, one per sample) as a 16-bit
+/// mono WAV at `fs` Hz, with its peak at 90 % of full scale (silence stays silence).
+fn write_wav(
+    trace: &tactus_runtime::trace::Trace,
+    names: &[String],
+    fs: f64,
+    path: &std::path::Path,
+) -> Result<(), String> {
+    use tactus_runtime::trace::ColumnKind;
+    let rate = fs.round();
+    if !(1.0..=f64::from(u32::MAX)).contains(&rate) || (fs - rate).abs() > 1e-9 * fs {
+        return Err(format!(
+            "--wav: the sample rate {fs} Hz is not a whole number of hertz"
+        ));
+    }
+    let mut mix = vec![0f32; trace.len()];
+    for name in names {
+        let col = trace
+            .columns_of(ColumnKind::Output)
+            .find(|c| &c.name == name)
+            .ok_or_else(|| format!("--wav: no output column `{name}` in the trace"))?;
+        for (m, &x) in mix.iter_mut().zip(&col.values) {
+            *m += x as f32;
+        }
+    }
+    let scale = tactus_runtime::voice::i16_scale(&mix, 0.9);
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate as u32,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let err = |e: hound::Error| format!("{}: cannot write: {e}", path.display());
+    let mut w = hound::WavWriter::create(path, spec).map_err(err)?;
+    for &x in &mix {
+        w.write_sample(tactus_runtime::voice::to_i16(x, scale))
+            .map_err(err)?;
+    }
+    w.finalize().map_err(err)
+}
+
 fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     let src = source::load(&args.file)?;
     let Some(lowered) = compile_reporting(&src, &args.params) else {
@@ -139,6 +233,11 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
             "instrument `{}` has no sensor to drive",
             program.name
         ));
+    };
+    // Checked before the simulation, so that a misspelt output fails at once.
+    let wav_names = match &args.wav {
+        Some(_) => Some(wav_outputs(program, &args.wav_outputs)?),
+        None => None,
     };
     let dip_m = args.dip.map_or(key.range.1, |mm| mm * 1e-3);
     let stim = if std::path::Path::new(&args.stimulus).exists() {
@@ -189,6 +288,10 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     let forces_svg = args.out.join(format!("{stem}-forces.svg"));
     plot::plot_forces(&trace, &title, &forces_svg).map_err(|e| e.to_string())?;
     let mut written = vec![csv, forces_svg];
+    if let (Some(wav), Some(names)) = (&args.wav, &wav_names) {
+        write_wav(&trace, names, fs, wav)?;
+        written.push(wav.clone());
+    }
     if !program.outputs.is_empty() {
         let names: Vec<&str> = program.outputs.iter().map(|o| o.name.as_str()).collect();
         let svg = args.out.join(format!("{stem}-outputs.svg"));

@@ -18,6 +18,10 @@ pub const BUILTIN_INSTRUMENTS: &[(&str, &str)] = &[
         include_str!("../instruments/harpsichord_2x8.tactus"),
     ),
     ("hammond", include_str!("../instruments/hammond.tactus")),
+    (
+        "rubbed_bank",
+        include_str!("../instruments/rubbed_bank.tactus"),
+    ),
 ];
 
 /// A source text and the name to show in diagnostics.

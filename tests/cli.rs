@@ -215,3 +215,102 @@ fn build_rp2040_writes_object_header_and_listing() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("-o DIR"));
 }
+
+/// Reads a 16-bit mono WAV: (sample rate, samples).
+fn read_wav(path: &std::path::Path) -> (u32, Vec<i16>) {
+    let mut r = hound::WavReader::open(path).unwrap();
+    let spec = r.spec();
+    assert_eq!((spec.channels, spec.bits_per_sample), (1, 16));
+    let samples = r.samples::<i16>().map(|s| s.unwrap()).collect();
+    (spec.sample_rate, samples)
+}
+
+#[test]
+fn sim_writes_a_wav_of_the_audio_outputs() {
+    let dir = temp_dir("cli-wav");
+    // Two `audio*` outputs proportional to the key travel and one other output that is
+    // largest where the key is at rest: the WAV must hold the sum of the first two only.
+    let f = dir.join("w.tactus");
+    std::fs::write(
+        &f,
+        "instrument w {\n  sensor key: m in [0 mm, 10 mm]\n  force f = 1 N/m * key\n  \
+         output audio_a = key\n  output audio_b = key\n  output other = 10 mm - key\n}\n",
+    )
+    .unwrap();
+    let run = |extra: &[&str], wav: &str| {
+        let out = tactus()
+            .arg("sim")
+            .arg(&f)
+            .args(["--stimulus", "mf-dip", "--out"])
+            .arg(&dir)
+            .arg("--wav")
+            .arg(dir.join(wav))
+            .args(extra)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        assert!(String::from_utf8_lossy(&out.stdout).contains(wav));
+        read_wav(&dir.join(wav))
+    };
+    let (rate, audio) = run(&[], "audio.wav");
+    assert_eq!(rate, 44_100);
+    let mut rdr = csv::Reader::from_path(dir.join("w-mf-dip.csv")).unwrap();
+    let key_col = rdr
+        .headers()
+        .unwrap()
+        .iter()
+        .position(|h| h == "key [m]")
+        .unwrap();
+    let key: Vec<f64> = rdr
+        .records()
+        .map(|r| r.unwrap()[key_col].parse().unwrap())
+        .collect();
+    assert_eq!(audio.len(), key.len(), "one WAV sample per trace row");
+    // Normalised: the peak at 90 % of full scale, where the key is deepest; silence at rest.
+    let peak = key.iter().cloned().fold(0.0, f64::max);
+    assert_eq!(audio.iter().map(|s| s.abs()).max(), Some(29_490));
+    for (i, (&a, &k)) in audio.iter().zip(&key).enumerate() {
+        let want = (k / peak * 0.9 * 32767.0).round();
+        assert!(
+            (f64::from(a) - want).abs() <= 1.0,
+            "sample {i}: {a} vs {want}"
+        );
+    }
+    // --wav-output chooses another output: largest at rest.
+    let (_, other) = run(&["--wav-output", "other"], "other.wav");
+    assert_eq!(other[0], 29_490);
+    assert!(other.iter().all(|s| (0..=29_490).contains(s)));
+
+    // Errors: an unknown output, and an instrument without audio outputs.
+    let bad = tactus()
+        .arg("sim")
+        .arg(&f)
+        .args(["--out"])
+        .arg(&dir)
+        .arg("--wav")
+        .arg(dir.join("x.wav"))
+        .args(["--wav-output", "audio_c"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("`audio_c` is not a numeric output")
+            && err.contains("audio_a, audio_b, other"),
+        "{err}"
+    );
+    let none = tactus()
+        .args(["sim", "hammond", "--out"])
+        .arg(&dir)
+        .arg("--wav")
+        .arg(dir.join("h.wav"))
+        .output()
+        .unwrap();
+    assert_eq!(none.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&none.stderr);
+    assert!(
+        err.contains("no output named `audio*`") && err.contains("outputs: none"),
+        "{err}"
+    );
+    assert!(!dir.join("h.wav").exists() && !dir.join("x.wav").exists());
+}
