@@ -28,9 +28,10 @@ fn tuning_hz(i: usize) -> f64 {
     55.0 + 27.5 * i as f64
 }
 
-/// The stimulus below: the pen is pressed, rubs, and is lifted while still moving.
-/// Press 5 mm deep (1.5 N at the 300 N/m plane) from 40 to 240 ms (20 ms raised-cosine ramps);
-/// rubbing speed 0.1 m/s from 20 to 300 ms (20 ms raised-cosine blends), from −40 mm.
+/// The stimulus of [`rub_then_release`]: the pen is pressed, rubs, and is lifted while still
+/// moving. Press 5 mm deep (1.5 N at the 300 N/m plane) from 40 to 240 ms (20 ms
+/// raised-cosine ramps); rubbing at `speed` (mostly 0.1 m/s) from 20 to 300 ms (20 ms
+/// raised-cosine blends), from −40 mm. The pen is lifted at:
 const LIFTED_S: f64 = 0.26;
 /// Everything is still from here on: the masses ring freely.
 const FREE_S: f64 = 0.32;
@@ -69,7 +70,7 @@ fn smooth_step(t: f64, t0: f64, t1: f64) -> f64 {
 }
 
 /// Rubbing position at time `t`: the integral of a velocity that blends from 0 to
-/// `RUB_SPEED` over [20, 40] ms, holds, and blends back to 0 over [280, 300] ms. The
+/// `v` (m/s) over [20, 40] ms, holds, and blends back to 0 over [280, 300] ms. The
 /// integral of a raised-cosine blend of length `b` is `v·(τ − b/π·sin(πτ/b))/2`.
 fn rub_position(t: f64, v: f64) -> f64 {
     let b = 0.020;
@@ -87,7 +88,7 @@ fn rub_position(t: f64, v: f64) -> f64 {
     -0.040 + up + hold + down
 }
 
-/// `[press, rub]` readings, SI, for `seconds`: press, rub, lift, then still.
+/// `[press, rub]` readings, SI, for `seconds`: press, rub at `speed` (m/s), lift, then still.
 fn rub_then_release(seconds: f64, speed: f64) -> Vec<[f64; 2]> {
     (0..(seconds * FS) as usize)
         .map(|n| {
