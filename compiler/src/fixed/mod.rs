@@ -91,12 +91,8 @@ struct MulOperands {
 }
 
 impl MulOperands {
-    /// Plans the product: shift free bits first, then the operand with more significant
-    /// bits, until the product fits 31 bits. With `tolerance`, accept only when the floor
-    /// shifts cost at most [`MULS_REL_TOLERANCE`] of the result's magnitude, else use the
-    /// 64-bit product; without, always `MULS` (the precision budget then decides). The
-    /// shifts are returned in operand order (`swapped`: the plan's pair is (y, x)).
-    fn plan(&self, swapped: bool, tolerance: bool) -> MulKind {
+    /// The pre-shifts `(a, b)` that fit the product in 31 bits and their absolute error.
+    fn shifts(&self) -> Option<(i32, i32, f64)> {
         let ((fx, rx), (fy, ry)) = (self.x, self.y);
         let (free_x, free_y) = (self.free_x, self.free_y);
         let bits = |f: i32, r: Interval| (r.mag() * 2f64.powi(f)).max(1.0).log2().ceil() as i32;
@@ -114,11 +110,22 @@ impl MulOperands {
             }
         }
         if (bx - a) + (by - b) > 31 {
-            return MulKind::Wide;
+            return None;
         }
         let shift_err = |s: i32, f: i32, free: i32| if s <= free { 0.0 } else { 2f64.powi(s - f) };
         let (ex, ey) = (shift_err(a, fx, free_x), shift_err(b, fy, free_y));
-        let err = ry.mag() * ex + rx.mag() * ey + ex * ey;
+        Some((a, b, ry.mag() * ex + rx.mag() * ey + ex * ey))
+    }
+
+    /// Plans the product: shift free bits first, then the operand with more significant
+    /// bits, until the product fits 31 bits. With `tolerance`, accept only when the floor
+    /// shifts cost at most [`MULS_REL_TOLERANCE`] of the result's magnitude, else use the
+    /// 64-bit product; without, always `MULS` (the precision budget then decides). The
+    /// shifts are returned in operand order (`swapped`: the plan's pair is (y, x)).
+    fn plan(&self, swapped: bool, tolerance: bool) -> MulKind {
+        let Some((a, b, err)) = self.shifts() else {
+            return MulKind::Wide;
+        };
         if tolerance && err > MULS_REL_TOLERANCE * self.result.mag().max(f64::MIN_POSITIVE) {
             return MulKind::Wide;
         }
