@@ -86,31 +86,7 @@ pub struct StaticCost {
 /// Errors: [`BudgetError::MissingSymbol`], [`BudgetError::Wcet`].
 pub fn static_update(obj: &ThumbObject) -> Result<StaticCost, BudgetError> {
     let name = obj.update_name();
-    let (update, size) = obj.symbol(&name).ok_or(BudgetError::MissingSymbol(name))?;
-    let image = Image {
-        base: LOAD_ADDR,
-        bytes: &obj.code.text,
-    };
-    let entry = LOAD_ADDR + update as u32;
-    let inside = entry..entry + size as u32;
-    // The backend's code is forward-only (no loops), so it needs no loop bounds. Its long
-    // branches are `BL`s to labels of the same function: a `BL` whose target lies inside
-    // the update is declared a branch, not a call (found one layer at a time: a long branch
-    // analysed as a call hides the ones in the code it reaches).
-    let mut bounds = Bounds::new();
-    let w = loop {
-        let w = wcet::analyse(&image, entry, &bounds).map_err(BudgetError::Wcet)?;
-        let before = bounds.branch_links.len();
-        for c in &w.calls {
-            if inside.contains(&c.callee) {
-                bounds.branch_links.insert(c.site);
-            }
-        }
-        if bounds.branch_links.len() == before {
-            break w;
-        }
-    };
-    let w = with_flow_facts(&image, entry, bounds, &obj.code.exclusive)?.unwrap_or(w);
+    let w = function_wcet(obj, &name)?;
     let end_of = |start: u32| {
         w.blocks
             .iter()
@@ -140,6 +116,42 @@ pub fn static_update(obj: &ThumbObject) -> Result<StaticCost, BudgetError> {
         events,
         calls,
     })
+}
+
+/// The static analysis of one function of `obj` (loaded at [`LOAD_ADDR`]; the backend's
+/// code is position independent, so the cycles hold anywhere in SRAM): cycles from its first
+/// instruction to its return inclusive (without the caller's `BL`), worst path, blocks and
+/// calls. The backend's code is forward-only (no loops), so it needs no loop bounds. Its long
+/// branches are `BL`s to labels of the same function: a `BL` whose target lies inside the
+/// function is declared a branch, not a call ([`wcet::Bounds::branch_links`]; found one
+/// layer at a time: a long branch analysed as a call hides the ones in the code it reaches).
+/// The backend's flow facts (`Code::exclusive`) then tighten it ([`MAX_FACT_BLOCKS`]).
+///
+/// Errors: [`BudgetError::MissingSymbol`], [`BudgetError::Wcet`].
+pub fn function_wcet(obj: &ThumbObject, name: &str) -> Result<wcet::Wcet, BudgetError> {
+    let (off, size) = obj
+        .symbol(name)
+        .ok_or_else(|| BudgetError::MissingSymbol(name.to_string()))?;
+    let image = Image {
+        base: LOAD_ADDR,
+        bytes: &obj.code.text,
+    };
+    let entry = LOAD_ADDR + off as u32;
+    let inside = entry..entry + size as u32;
+    let mut bounds = Bounds::new();
+    let w = loop {
+        let w = wcet::analyse(&image, entry, &bounds).map_err(BudgetError::Wcet)?;
+        let before = bounds.branch_links.len();
+        for c in &w.calls {
+            if inside.contains(&c.callee) {
+                bounds.branch_links.insert(c.site);
+            }
+        }
+        if bounds.branch_links.len() == before {
+            break w;
+        }
+    };
+    Ok(with_flow_facts(&image, entry, bounds, &obj.code.exclusive)?.unwrap_or(w))
 }
 
 /// Most distinct blocks of the backend's exclusion facts used (2^n subsets are

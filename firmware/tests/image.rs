@@ -462,6 +462,28 @@ fn handler_overhead_per_core_and_per_key_measured_and_static() {
     assert!(empty_worst > 0 && empty_worst <= w1.analysed);
     assert!(glue_worst > 0 && glue_worst <= static_glue);
     assert!(handler_worst <= w0.bound());
+    // The board files' per-key and per-core costs (what `tactus budget` adds to the updates)
+    // cover the image's static figures, with the window contention per key: its own two
+    // window accesses may each wait a cycle, and each makes one access of a key on the other
+    // core wait (IsrWcet::contention): 4 per key when the cores hold as many keys.
+    let contention_per_key = 4;
+    for entry in std::fs::read_dir(root().join("boards")).unwrap() {
+        let path = entry.unwrap().path();
+        let b = tactus_runtime::keyboard::read_board(&path).unwrap();
+        assert!(
+            b.io_cycles_per_key as u64 >= static_glue + contention_per_key,
+            "{}: io_cycles_per_key {} < static glue {static_glue} + contention {contention_per_key}",
+            path.display(),
+            b.io_cycles_per_key
+        );
+        assert!(
+            b.isr_overhead_cycles as u64 >= w1.bound(),
+            "{}: isr_overhead_cycles {} < static handler {}",
+            path.display(),
+            b.isr_overhead_cycles,
+            w1.bound()
+        );
+    }
 }
 
 /// The instrument text for a layout's instrument name (the shipped ones by name).

@@ -106,15 +106,7 @@ impl Program {
     }
 
     fn wcet_of(&self, name: &str) -> Result<u64, ImageError> {
-        let (off, _) = self
-            .thumb
-            .symbol(name)
-            .ok_or_else(|| ImageError::Compile(format!("no function `{name}`")))?;
-        let image = wcet::Image {
-            base: 0x2000_0000,
-            bytes: &self.thumb.code.text,
-        };
-        wcet::analyse(&image, 0x2000_0000 + off as u32, &Bounds::new())
+        crate::budget::function_wcet(&self.thumb, name)
             .map(|w| w.cycles)
             .map_err(|e| ImageError::Wcet(e.to_string()))
     }
@@ -571,6 +563,10 @@ impl FirmwareImage {
             block_off += (c.glue + bytes.len() as u32 + 64).next_multiple_of(256);
         }
         let data_off = block_off;
+        let update_wcets: Vec<u64> = programs
+            .iter()
+            .map(Program::update_wcet)
+            .collect::<Result<_, _>>()?;
 
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
@@ -644,8 +640,12 @@ impl FirmwareImage {
             }
             code.resize(c.glue as usize, 0);
             code.extend(&glue_bytes);
-            // Static WCET of the handler over this core's whole code.
+            // Static WCET of the handler over this core's whole code. Each key's update is
+            // priced by its own analysis (long branches, flow facts: one call's worst case).
             let mut bounds = Bounds::new();
+            for k in &kp {
+                bounds = bounds.with_call(k.update, update_wcets[k.spec.program]);
+            }
             for &l in &labels.apb {
                 bounds = bounds.with_access(lab(l), Region::Apb);
             }
