@@ -20,6 +20,42 @@ use tactus_firmware::measure::{builtin_runs, compare, random_runs, stimulus_run,
 use tactus_firmware::{Interface, UpdateRunner};
 use tactus_runtime::stimulus;
 
+/// Shipped instruments the Thumb backend cannot compile yet, with the construct it refuses
+/// (`ThumbError::Unsupported`); the C backend compiles them. The bit-for-bit tests skip them
+/// and `thumb_refuses_only_the_listed_instruments` checks the list stays true: remove an
+/// entry when the backend learns the construct.
+const NOT_FOR_THUMB: &[(&str, &str)] = &[("rubbed_bank", "exp")];
+
+/// The shipped instruments the Thumb backend compiles.
+fn thumb_instruments() -> Vec<(String, String)> {
+    instruments()
+        .into_iter()
+        .filter(|(name, _)| NOT_FOR_THUMB.iter().all(|(n, _)| n != name))
+        .collect()
+}
+
+#[test]
+fn thumb_refuses_only_the_listed_instruments() {
+    for (name, text) in instruments() {
+        let p = tactus_compiler::compile(&text, &Config::default())
+            .unwrap()
+            .program;
+        let r = thumb::compile(&FixedProgram::new(&p));
+        match NOT_FOR_THUMB.iter().find(|(n, _)| *n == name) {
+            Some((_, what)) => match r {
+                Err(thumb::ThumbError::Unsupported(w)) => {
+                    assert!(
+                        w.contains(what),
+                        "{name}: refused for {w}, listed for {what}"
+                    )
+                }
+                other => panic!("{name} is listed as not for Thumb ({what}) but gives {other:?}"),
+            },
+            None => assert!(r.is_ok(), "{name}: {:?}", r.err()),
+        }
+    }
+}
+
 fn compile(text: &str) -> (FixedProgram, ThumbObject) {
     let p = tactus_compiler::compile(text, &Config::default())
         .unwrap()
@@ -65,7 +101,7 @@ fn check(name: &str, fp: &FixedProgram, obj: &ThumbObject, mut r: UpdateRunner, 
 
 #[test]
 fn thumb_matches_the_fixed_interpreter_bit_for_bit() {
-    for (name, text) in instruments() {
+    for (name, text) in thumb_instruments() {
         let (fp, obj) = compile(&text);
         let mut runs = builtin_runs(&fp);
         runs.extend(random_runs(&fp, 0x5EED ^ name.len() as u64, 4, 3000));
@@ -80,7 +116,7 @@ fn thumb_matches_the_fixed_interpreter_bit_for_bit() {
 /// strike excludes the back-check and the rest felt in the same sample).
 #[test]
 fn exclusive_if_bodies_never_run_in_the_same_sample() {
-    for (name, text) in instruments() {
+    for (name, text) in thumb_instruments() {
         let (fp, obj) = compile(&text);
         let pairs = &obj.code.exclusive;
         println!("{name}: {} exclusive pairs of if bodies", pairs.len());
@@ -186,7 +222,7 @@ fn listing_assembles_to_the_same_bytes_and_the_object_links() {
             String::from_utf8_lossy(&out.stderr)
         );
     };
-    for (name, text) in instruments() {
+    for (name, text) in thumb_instruments() {
         let (fp, obj) = compile(&text);
         let ours = obj.elf().unwrap();
         assert_eq!(text_of(&ours), obj.code.text, "{name}: the ELF's .text");
