@@ -436,7 +436,10 @@ fn fixed_jit_matches_fixed_interpreter_bit_for_bit() {
             .enumerate()
             .map(|(n, &k)| {
                 let t = n as f64 / FS;
-                [k, 0.080 + 0.010 * (2.0 * std::f64::consts::PI * 4.0 * t).sin()]
+                [
+                    k,
+                    0.080 + 0.010 * (2.0 * std::f64::consts::PI * 4.0 * t).sin(),
+                ]
             })
             .collect();
         compare_bits(&fp, &jit, &raw_rows(&fp, &input), name);
