@@ -420,7 +420,12 @@ impl FixedProgram {
         let base = report::analyse(self);
         let watched = watched_values(&self.program);
         let lsb = base.dac_lsb_n();
+        // A bound that is not finite proves nothing: such a candidate is never accepted.
         let within = |pr: &report::Precision| -> bool {
+            let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+            if !(pr.total.is_finite() && finite(&pr.force) && finite(&pr.write)) {
+                return false;
+            }
             let force_ok = |now: f64, was: f64| now <= was.max(BUDGET_FORCE_LSB * lsb);
             force_ok(pr.total, base.total)
                 && pr
@@ -433,12 +438,14 @@ impl FixedProgram {
                     if base.accumulating[i] || pr.accumulating[i] {
                         pr.write[i] <= BUDGET_ACCUMULATING_GROWTH * base.write[i]
                     } else {
-                        pr.state[i] <= base.state[i].max(BUDGET_STATE_REL * mag)
+                        pr.state[i].is_finite()
+                            && pr.state[i] <= base.state[i].max(BUDGET_STATE_REL * mag)
                     }
                 })
                 && watched.iter().all(|v| {
                     let mag = self.ranges.values[v.index()].mag();
-                    pr.value[v.index()] <= base.value[v.index()].max(BUDGET_VALUE_REL * mag)
+                    pr.value[v.index()].is_finite()
+                        && pr.value[v.index()] <= base.value[v.index()].max(BUDGET_VALUE_REL * mag)
                 })
         };
         for (i, ops, swapped) in planned {

@@ -75,10 +75,11 @@ pub fn analyse(fp: &FixedProgram) -> Precision {
         let next: Vec<f64> = (0..p.states.len())
             .map(|i| writes[i].max(init_err[i]))
             .collect();
+        // A bound that overflowed to infinity (or became NaN through 0·∞) has not converged.
         let grew: Vec<bool> = next
             .iter()
             .zip(&state)
-            .map(|(n, o)| *n > *o * (1.0 + 1e-9) + 1e-300)
+            .map(|(n, o)| !n.is_finite() || *n > *o * (1.0 + 1e-9) + 1e-300)
             .collect();
         state = next;
         if !grew.iter().any(|g| *g) {
