@@ -72,6 +72,63 @@ struct Lower<'a> {
     /// The stack slot each scratch register is known to hold (reload cache): valid in
     /// straight-line code, forgotten at every label (a join point).
     holds: [Option<u16>; 2],
+    /// Where each spill slot lives: a high register (`MOV` to and from it costs 1 cycle
+    /// where `LDR`/`STR` cost 2) or a word of the stack frame.
+    home: Vec<Home>,
+}
+
+/// The home of a spill slot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Home {
+    /// A high register (`r8`–`r12`).
+    Hi(u8),
+    /// A word of the stack frame (index from SP).
+    Stack(u16),
+}
+
+/// Spill slots get the high registers, most referenced first: `r12` (caller-saved, free),
+/// then `r8`–`r11` (callee-saved: each costs two `MOV`s and a share of a `PUSH`/`POP` pair,
+/// about 4 cycles, so it is used only for a slot referenced at least this many times).
+const HI_MIN_REFS: u32 = 6;
+
+/// The homes of `alloc`'s spill slots, from their static reference counts in `code`.
+fn homes(code: &[M], alloc: &Allocation) -> Vec<Home> {
+    let n = alloc.slots as usize;
+    let mut refs = vec![0u32; n];
+    let slot = |v: V| match alloc.loc.get(v.0 as usize).copied().flatten() {
+        Some(Loc::Slot(s)) => Some(s as usize),
+        _ => None,
+    };
+    for m in code {
+        for v in m.uses().into_iter().chain(m.def()) {
+            if let Some(s) = slot(v) {
+                refs[s] += 1;
+            }
+        }
+    }
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&s| (std::cmp::Reverse(refs[s]), s));
+    let mut home = vec![Home::Stack(0); n];
+    let mut hi = [12u8, 8, 9, 10, 11].into_iter();
+    let mut next_stack = 0u16;
+    for s in order {
+        let h = match hi.clone().next() {
+            Some(12) if refs[s] > 0 => hi.next(),
+            Some(r) if refs[s] >= HI_MIN_REFS => {
+                let _ = r;
+                hi.next()
+            }
+            _ => None,
+        };
+        home[s] = match h {
+            Some(r) => Home::Hi(r),
+            None => {
+                next_stack += 1;
+                Home::Stack(next_stack - 1)
+            }
+        };
+    }
+    home
 }
 
 impl Lower<'_> {
@@ -93,12 +150,15 @@ impl Lower<'_> {
             Loc::Slot(s) => {
                 let r = self.alloc.scratch[k];
                 if self.holds[k] != Some(s) {
-                    self.i(Instr::MemImm {
-                        op: MemOp::Ldr,
-                        rt: r,
-                        rn: 13,
-                        imm: 4 * s,
-                    });
+                    match self.home[s as usize] {
+                        Home::Hi(h) => self.i(Instr::MovHi { rd: r, rm: h }),
+                        Home::Stack(w) => self.i(Instr::MemImm {
+                            op: MemOp::Ldr,
+                            rt: r,
+                            rn: 13,
+                            imm: 4 * w,
+                        }),
+                    }
                     self.holds[k] = Some(s);
                 }
                 r
@@ -121,12 +181,20 @@ impl Lower<'_> {
         if let Some(s) = slot {
             // Scratch 0 now holds the slot's new value; a copy in scratch 1 is stale.
             self.holds = [Some(s), None];
-            self.i(Instr::MemImm {
+            self.store_home(r, s);
+        }
+    }
+
+    /// Stores low register `r` into spill slot `s`'s home.
+    fn store_home(&mut self, r: u8, s: u16) {
+        match self.home[s as usize] {
+            Home::Hi(h) => self.i(Instr::MovHi { rd: h, rm: r }),
+            Home::Stack(w) => self.i(Instr::MemImm {
                 op: MemOp::Str,
                 rt: r,
                 rn: 13,
-                imm: 4 * s,
-            });
+                imm: 4 * w,
+            }),
         }
     }
 
@@ -313,30 +381,46 @@ impl Lower<'_> {
 /// callee-saved registers used and LR, `r7 = r0` (the state pointer), the frame for
 /// spill slots, store spilled arguments; at the end, free the frame and `POP {…, PC}`.
 pub(crate) fn lower(name: &str, code: &[M], alloc: &Allocation) -> Function {
+    let home = homes(code, alloc);
+    let frame = home.iter().filter(|h| matches!(h, Home::Stack(_))).count() as u16;
+    // Callee-saved high registers used as spill homes, saved in pairs through r0 and r3
+    // (free after `r7 = r0`; r3 is no argument) so the stack stays 8-byte aligned.
+    let mut high: Vec<u8> = home
+        .iter()
+        .filter_map(|h| match h {
+            Home::Hi(r) if (8..=11).contains(r) => Some(*r),
+            _ => None,
+        })
+        .collect();
+    high.sort_unstable();
     let mut l = Lower {
         alloc,
         items: Vec::new(),
         holds: [None, None],
+        home,
     };
     let saved = (alloc.used_mask | 0x80) & 0xf0;
     l.i(Instr::Push {
         list: saved as u16 | 1 << 14,
     });
     l.i(Instr::MovHi { rd: 7, rm: 0 });
-    if alloc.slots > 0 {
-        let bytes = 4 * alloc.slots;
-        for chunk in chunks(bytes) {
+    for pair in high.chunks(2) {
+        l.i(Instr::MovHi { rd: 0, rm: pair[0] });
+        let mut list = 1u16;
+        if let Some(&h) = pair.get(1) {
+            l.i(Instr::MovHi { rd: 3, rm: h });
+            list |= 1 << 3;
+        }
+        l.i(Instr::Push { list });
+    }
+    if frame > 0 {
+        for chunk in chunks(4 * frame) {
             l.i(Instr::SubSp { imm: chunk });
         }
     }
     for (arg, r) in [(super::select::ARG1, 1u8), (super::select::ARG2, 2u8)] {
         match alloc.loc.get(arg.0 as usize).copied().flatten() {
-            Some(Loc::Slot(s)) => l.i(Instr::MemImm {
-                op: MemOp::Str,
-                rt: r,
-                rn: 13,
-                imm: 4 * s,
-            }),
+            Some(Loc::Slot(s)) => l.store_home(r, s),
             Some(Loc::Reg(x)) if x != r => unreachable!("arguments are pre-coloured"),
             _ => {}
         }
@@ -344,9 +428,20 @@ pub(crate) fn lower(name: &str, code: &[M], alloc: &Allocation) -> Function {
     for m in code {
         l.one(m);
     }
-    if alloc.slots > 0 {
-        for chunk in chunks(4 * alloc.slots) {
+    if frame > 0 {
+        for chunk in chunks(4 * frame) {
             l.i(Instr::AddSp { imm: chunk });
+        }
+    }
+    for pair in high.chunks(2).rev() {
+        let mut list = 1u16;
+        if pair.len() > 1 {
+            list |= 1 << 3;
+        }
+        l.i(Instr::Pop { list });
+        l.i(Instr::MovHi { rd: pair[0], rm: 0 });
+        if let Some(&h) = pair.get(1) {
+            l.i(Instr::MovHi { rd: h, rm: 3 });
         }
     }
     l.i(Instr::Pop {
