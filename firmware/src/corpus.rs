@@ -16,7 +16,6 @@
 //! debug-build tests.
 
 use crate::measure::{builtin_runs, random_runs, Run, SAMPLE_RATE_HZ};
-use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_runtime::rng::XorShift64;
 
@@ -49,22 +48,6 @@ fn motion(label: &str, dip_m: f64, points: &[(f64, f64)]) -> (String, Vec<f64>) 
         x0 = x1;
     }
     (label.to_string(), key)
-}
-
-/// Raw words of a key-travel sequence (metres) on sensor 0, others at their lower bound.
-fn to_run(fp: &FixedProgram, label: String, key: &[f64]) -> Run {
-    let ns = fp.program.sensors.len();
-    Run {
-        label,
-        records: key
-            .iter()
-            .map(|&k| {
-                (0..ns)
-                    .map(|i| FixedInstance::sensor_raw(fp, i, (i == 0).then_some(k)))
-                    .collect()
-            })
-            .collect(),
-    }
 }
 
 /// Full dips from very soft to very hard: descent times (rest to bottom), ms.
@@ -260,19 +243,11 @@ pub fn glitches(fp: &FixedProgram, size: Size, seed: u64) -> Vec<Run> {
     everies
         .iter()
         .map(|&every| {
-            let mut run = to_run(fp, format!("glitch-every-{every}"), &key);
+            let mut run = crate::measure::key_run(fp, format!("glitch-every-{every}"), &key);
             let mut next = every;
             for (i, rec) in run.records.iter_mut().enumerate() {
                 if i == next {
-                    rec[0] = [
-                        i32::MIN,
-                        i32::MAX,
-                        lo,
-                        hi,
-                        lo.saturating_sub(1),
-                        hi.saturating_add(1),
-                        0,
-                    ][rng.below(7)];
+                    rec[0] = rng.corner_word((lo, hi));
                     next += 1 + every / 2 + rng.below(every);
                 }
             }
@@ -307,7 +282,7 @@ pub fn corpus(fp: &FixedProgram, size: Size) -> Vec<Run> {
             .chain(repetitions(dip, size))
             .chain(half_dips(dip, size))
             .chain(noisy(dip, size, 0x7ac7_0500));
-        runs.extend(motions.map(|(label, key)| to_run(fp, label, &key)));
+        runs.extend(motions.map(|(label, key)| crate::measure::key_run(fp, label, &key)));
         runs.extend(glitches(fp, size, 0x6117_c400));
     }
     let (n, len) = match size {

@@ -27,11 +27,16 @@ pub struct Run {
 /// [`FixedInstance::sensor_raw`], the conversion every engine shares), the others sit at
 /// their lower bound.
 pub fn stimulus_run(fp: &FixedProgram, s: &stimulus::Stimulus) -> Run {
+    key_run(fp, s.name.clone(), &s.key)
+}
+
+/// The raw words of a key-travel sequence (metres, one per sample) on sensor 0, the other
+/// sensors at their lower bound, converted as every engine converts them.
+pub fn key_run(fp: &FixedProgram, label: String, key: &[f64]) -> Run {
     let ns = fp.program.sensors.len();
     Run {
-        label: s.name.clone(),
-        records: s
-            .key
+        label,
+        records: key
             .iter()
             .map(|&k| {
                 (0..ns)

@@ -36,6 +36,20 @@ impl XorShift64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 
+    /// One of the corner words of a sensor whose raw range is `[lo, hi]`: `i32::MIN`,
+    /// `i32::MAX`, the bounds, one past each, 0 — uniformly.
+    pub fn corner_word(&mut self, (lo, hi): (i32, i32)) -> i32 {
+        [
+            i32::MIN,
+            i32::MAX,
+            lo,
+            hi,
+            lo.saturating_sub(1),
+            hi.saturating_add(1),
+            0,
+        ][self.below(7)]
+    }
+
     /// An adversarial raw sensor word for engine comparisons, given the previous word and
     /// the sensor's raw range `[lo, hi]`: 1/8 an arbitrary 32-bit word, 1/8 uniform in
     /// range, 1/8 a corner (`i32::MIN`, `i32::MAX`, the bounds, one past each, 0), else a
@@ -45,15 +59,7 @@ impl XorShift64 {
         match self.below(8) {
             0 => self.next_u64() as i32,
             1 => (lo as i64 + (self.next_u64() % (span + 1)) as i64) as i32,
-            2 => [
-                i32::MIN,
-                i32::MAX,
-                lo,
-                hi,
-                lo.saturating_sub(1),
-                hi.saturating_add(1),
-                0,
-            ][self.below(7)],
+            2 => self.corner_word((lo, hi)),
             _ => {
                 let step = ((self.next_u64() % (span / 200 + 2)) as i64) - (span / 400) as i64;
                 (prev as i64 + step).clamp(lo as i64, hi as i64) as i32
