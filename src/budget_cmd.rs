@@ -545,15 +545,23 @@ impl Report<'_> {
         }
         let _ = writeln!(s, "what fits on {}:", self.board.name);
         let free = cps.saturating_sub(u64::from(self.board.isr_overhead_cycles));
+        let io = u64::from(self.board.io_cycles_per_key);
         for (name, c, n) in self.what_fits() {
+            let per_key =
+                free * u64::from(self.board.cores) / (self.key_program.len() as u64).max(1);
             let _ = writeln!(
                 s,
-                "  {name}: {n} key{} ({c} cycles per key; {} per core of {free} after the interrupt; {} keys need ≤ {} cycles per key)",
+                "  {name}: {n} key{} ({c} cycles per key; {} per core of {free} after the interrupt; {} keys need ≤ {per_key} cycles per key{})",
                 if n == 1 { "" } else { "s" },
                 n / u64::from(self.board.cores.max(1)),
                 self.key_program.len(),
-                free * u64::from(self.board.cores)
-                    / (self.key_program.len() as u64).max(1)
+                if per_key <= io {
+                    format!(
+                        ", less than the board's {io} cycles of per-key firmware glue alone: no update fits that many keys"
+                    )
+                } else {
+                    format!(", {} for the update after the glue", per_key - io)
+                }
             );
         }
         s
