@@ -1,5 +1,6 @@
 //! `tactus play`: a recorded performance played through an instrument, key by key, on the
-//! host engines (the emulated-board engine comes with the firmware backend).
+//! host engines: the f64 JIT or interpreter, or the fixed-point JIT (`--engine fixed`: the
+//! bits the firmware computes). The emulated-board engine is not built yet.
 //!
 //! Each played key runs its own instance of the instrument ([`KeyEngine`], stepped once per
 //! sample) from 50 ms before a press to 500 ms after its release; keys that are never played
@@ -90,6 +91,9 @@ pub enum PlayEngine {
     Jit,
     /// The f64 reference interpreter.
     Interp,
+    /// Cranelift JIT of the fixed-point program: the bits the firmware computes (the Thumb
+    /// code in the emulator equals it bit for bit).
+    Fixed,
 }
 
 /// Players of `tactus play`: what moves the keys.
@@ -164,6 +168,51 @@ impl KeyEngine for HostKey<'_> {
                 .iter()
                 .find(|(e, _)| e.index() == self.strike_id)
                 .map(|(_, a)| a.first().copied().unwrap_or(0.0)),
+        }
+    }
+}
+
+/// A fixed-point instance: the fixed JIT of the program, its words read back in SI.
+struct FixedKey<'a> {
+    jit: tactus_jit::fixed::FixedJitInstance<'a>,
+    fp: &'a tactus_compiler::fixed::FixedProgram,
+    strike_id: usize,
+    hammer_out: Option<usize>,
+}
+
+impl KeyEngine for FixedKey<'_> {
+    fn step(&mut self, key_m: f64) -> KeySample {
+        let fp = self.fp;
+        let out = self.jit.step(&[key_m]);
+        let si = tactus_runtime::fixed::to_f64;
+        KeySample {
+            force_n: si(out.total, fp.total_frac),
+            hammer_m: self
+                .hammer_out
+                .map_or(f64::NAN, |i| si(out.outputs[i], fp.output_frac[i])),
+            strike_mps: out
+                .events
+                .iter()
+                .find(|(e, _)| e.index() == self.strike_id)
+                .map(|(e, a)| {
+                    a.first()
+                        .map_or(0.0, |&w| si(w, fp.event_frac[e.index()][0]))
+                }),
+        }
+    }
+}
+
+/// The engine of one key: a host f64 engine or the fixed-point JIT.
+enum AnyKey<'a> {
+    Host(HostKey<'a>),
+    Fixed(FixedKey<'a>),
+}
+
+impl KeyEngine for AnyKey<'_> {
+    fn step(&mut self, key_m: f64) -> KeySample {
+        match self {
+            AnyKey::Host(k) => k.step(key_m),
+            AnyKey::Fixed(k) => k.step(key_m),
         }
     }
 }
@@ -350,9 +399,44 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                     .map_err(|e| format!("JIT: {e}"))
             })
             .collect::<Result<Vec<_>, _>>()?,
-        PlayEngine::Interp => programs.iter().map(|_| None).collect(),
+        PlayEngine::Interp | PlayEngine::Fixed => programs.iter().map(|_| None).collect(),
     };
-    let engine_for = |pi: usize| HostKey::new(&programs[pi].2, jits[pi].as_ref());
+    let fixed_programs: Vec<tactus_compiler::fixed::FixedProgram> = match args.engine {
+        PlayEngine::Fixed => programs
+            .iter()
+            .map(|(_, _, p)| tactus_compiler::fixed::FixedProgram::new(p))
+            .collect(),
+        _ => Vec::new(),
+    };
+    let fixed_jits = fixed_programs
+        .iter()
+        .map(|fp| {
+            tactus_jit::fixed::FixedJitProgram::compile(fp).map_err(|e| format!("fixed JIT: {e}"))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let engine_for = |pi: usize| -> AnyKey<'_> {
+        match fixed_jits.get(pi) {
+            Some(j) => {
+                let fp = &fixed_programs[pi];
+                AnyKey::Fixed(FixedKey {
+                    jit: tactus_jit::fixed::FixedJitInstance::new(j),
+                    fp,
+                    strike_id: fp
+                        .program
+                        .events
+                        .iter()
+                        .position(|e| e.name == "strike" || e.name == "pluck")
+                        .unwrap_or(0),
+                    hammer_out: fp
+                        .program
+                        .outputs
+                        .iter()
+                        .position(|o| o.name == "hammer_pos"),
+                })
+            }
+            None => AnyKey::Host(HostKey::new(&programs[pi].2, jits[pi].as_ref())),
+        }
+    };
     let dip_of = |key: u8| programs[key_program[&key]].2.sensors[0].range.1;
     let fs = programs
         .first()

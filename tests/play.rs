@@ -136,6 +136,37 @@ fn engines_agree_and_the_default_runs_without_arguments() {
     );
 }
 
+/// The fixed-point engine (the bits the firmware computes) plays the demo like the f64
+/// engines: a strike for the same notes on the same samples, hammer speeds within 0.1 %.
+#[test]
+fn the_fixed_point_engine_strikes_like_the_f64_engine() {
+    let dir = temp_dir("play-fixed");
+    let run = |engine: &str| {
+        let out = tactus()
+            .args(["play", "--no-wav", "--engine", engine, "--out"])
+            .arg(&dir)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        strikes(&dir.join("demo-strikes.csv"))
+    };
+    let (f64s, fixed) = (run("jit"), run("fixed"));
+    assert!(f64s.len() > 20, "{} strikes", f64s.len());
+    assert_eq!(f64s.len(), fixed.len(), "strike counts differ");
+    for (a, b) in f64s.iter().zip(&fixed) {
+        assert_eq!((a.0, a.1), (b.0, b.1), "a strike on another key or sample");
+        let rel = (a.2 - b.2).abs() / a.2.abs();
+        assert!(
+            rel < 1e-3,
+            "key {} at {} s: {} vs {} m/s",
+            a.0,
+            a.1,
+            a.2,
+            b.2
+        );
+    }
+}
+
 #[test]
 fn bad_midi_is_a_clear_error() {
     let dir = temp_dir("play-bad");
