@@ -204,7 +204,7 @@ impl KeyEngine for FixedKey<'_> {
 
 /// The engine of one key: a host f64 engine or the fixed-point JIT.
 enum AnyKey<'a> {
-    Host(HostKey<'a>),
+    Host(Box<HostKey<'a>>),
     Fixed(FixedKey<'a>),
 }
 
@@ -434,7 +434,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                         .position(|o| o.name == "hammer_pos"),
                 })
             }
-            None => AnyKey::Host(HostKey::new(&programs[pi].2, jits[pi].as_ref())),
+            None => AnyKey::Host(Box::new(HostKey::new(&programs[pi].2, jits[pi].as_ref()))),
         }
     };
     let dip_of = |key: u8| programs[key_program[&key]].2.sensors[0].range.1;
