@@ -205,7 +205,7 @@ impl KeyEngine for FixedKey<'_> {
 /// The engine of one key: a host f64 engine or the fixed-point JIT.
 enum AnyKey<'a> {
     Host(Box<HostKey<'a>>),
-    Fixed(FixedKey<'a>),
+    Fixed(Box<FixedKey<'a>>),
 }
 
 impl KeyEngine for AnyKey<'_> {
@@ -418,7 +418,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         match fixed_jits.get(pi) {
             Some(j) => {
                 let fp = &fixed_programs[pi];
-                AnyKey::Fixed(FixedKey {
+                AnyKey::Fixed(Box::new(FixedKey {
                     jit: tactus_jit::fixed::FixedJitInstance::new(j),
                     fp,
                     strike_id: fp
@@ -432,7 +432,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                         .outputs
                         .iter()
                         .position(|o| o.name == "hammer_pos"),
-                })
+                }))
             }
             None => AnyKey::Host(Box::new(HostKey::new(&programs[pi].2, jits[pi].as_ref()))),
         }
