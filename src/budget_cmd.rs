@@ -98,6 +98,12 @@ pub fn run(args: BudgetArgs) -> ExitCode {
     }
 }
 
+/// The board named `arg`: a board file, or a built-in board's name; errors name the file or
+/// list the built-ins.
+pub(crate) fn board_named(arg: &str) -> Result<Board, String> {
+    load_board(arg).map_err(|b| b.0)
+}
+
 fn load_board(arg: &str) -> Result<Board, Bad> {
     if Path::new(arg).exists() {
         return keyboard::read_board(Path::new(arg)).map_err(Bad);

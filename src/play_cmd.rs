@@ -1,6 +1,8 @@
 //! `tactus play`: a recorded performance played through an instrument, key by key, on the
-//! host engines: the f64 JIT or interpreter, or the fixed-point JIT (`--engine fixed`: the
-//! bits the firmware computes). The emulated-board engine is not built yet.
+//! host engines — the f64 JIT or interpreter, or the fixed-point JIT (`--engine fixed`: the
+//! bits the firmware computes) — or (`--engine emu`) as the compiled firmware of the played
+//! keys on the emulated board, every key every sample, with the cycles each core spends and
+//! the deadline misses the firmware counts.
 //!
 //! Each played key runs its own instance of the instrument ([`KeyEngine`], stepped once per
 //! sample) from 50 ms before a press to 500 ms after its release; keys that are never played
@@ -56,9 +58,15 @@ pub struct PlayArgs {
     /// Play only the first SECONDS of the performance.
     #[arg(long)]
     pub seconds: Option<f64>,
-    /// Engine: `jit` (cranelift, fast) or `interp` (the f64 reference interpreter).
+    /// Engine: `jit` (cranelift f64, fast), `interp` (the f64 reference interpreter),
+    /// `fixed` (the fixed-point JIT: the firmware's bits) or `emu` (the compiled firmware of
+    /// the played keys on the emulated board, sample by sample).
     #[arg(long, value_enum, default_value = "jit")]
     pub engine: PlayEngine,
+    /// Board of `--engine emu`: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`)
+    /// or a board file.
+    #[arg(long, default_value = "rp2040", value_name = "NAME_OR_FILE")]
+    pub board: String,
     /// Player: `position` (prescribed key trajectories) or `force` (a finger force profile
     /// against the instrument's force: the closed loop).
     #[arg(long, value_enum, default_value = "position")]
@@ -94,6 +102,10 @@ pub enum PlayEngine {
     /// Cranelift JIT of the fixed-point program: the bits the firmware computes (the Thumb
     /// code in the emulator equals it bit for bit).
     Fixed,
+    /// The firmware image of the played keys (`tactus_firmware::image`: Thumb updates, the
+    /// safety limiter, a timer interrupt per core) on the emulated board, every key every
+    /// sample; reports cycles per core and deadline misses.
+    Emu,
 }
 
 /// Players of `tactus play`: what moves the keys.
@@ -399,7 +411,9 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                     .map_err(|e| format!("JIT: {e}"))
             })
             .collect::<Result<Vec<_>, _>>()?,
-        PlayEngine::Interp | PlayEngine::Fixed => programs.iter().map(|_| None).collect(),
+        PlayEngine::Interp | PlayEngine::Fixed | PlayEngine::Emu => {
+            programs.iter().map(|_| None).collect()
+        }
     };
     let fixed_programs: Vec<tactus_compiler::fixed::FixedProgram> = match args.engine {
         PlayEngine::Fixed => programs
@@ -539,7 +553,34 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let started = Instant::now();
     let mut strikes = Vec::new();
     let mut traces: BTreeMap<u8, TraceRows> = BTreeMap::new();
-    for job in &jobs {
+    let mut emu_report = None;
+    if args.engine == PlayEngine::Emu {
+        if args.player != Player::Position {
+            return Err("--engine emu plays with --player position only (the closed loop through the emulated board is not built yet)".into());
+        }
+        let tracks: BTreeMap<u8, &KeyTrack> = jobs
+            .iter()
+            .filter_map(|j| match &motions[j.motion] {
+                Motion::Track(t) => Some((j.key, t)),
+                Motion::Finger(_) => None,
+            })
+            .collect();
+        let played: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
+            .iter()
+            .filter(|a| key_program.contains_key(&a.key))
+            .map(|a| {
+                let mut a = a.clone();
+                a.params.extend(args.params.iter().cloned());
+                a
+            })
+            .collect();
+        let end = jobs.iter().map(|j| j.first + j.n).max().unwrap_or(0);
+        bar.set_length(end as u64 * played.len() as u64);
+        let (s, report) = emu_strikes(&played, &tracks, end, fs, &args.board, &bar)?;
+        strikes = s;
+        emu_report = Some(report);
+    }
+    for job in jobs.iter().filter(|_| args.engine != PlayEngine::Emu) {
         let pi = key_program[&job.key];
         let mut engine = engine_for(pi);
         let mut rows = traced.contains(&job.key).then(TraceRows::new);
@@ -657,7 +698,10 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     );
     println!(
         "  {} key-samples in {:.2} s: real-time factor {:.2} ({:.2} s of music; above 1 is faster than real time); peak memory {}",
-        total_samples,
+        emu_report
+            .as_ref()
+            .map_or(total_samples, |r| r.cycles.first().map_or(0, |c| c.len() as u64)
+                * r.keys.iter().sum::<usize>() as u64),
         wall,
         audio_s / wall.max(1e-9),
         audio_s,
@@ -696,8 +740,148 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     for w in &wrote {
         println!("  wrote {}", w.display());
     }
-    println!("  budget: not checked — the emulated-board engine of `play` is not built yet");
+    match &emu_report {
+        Some(r) => {
+            let path = write_cycle_plot(&args.out, &stem, &r.cycles, fs, r.deadline)?;
+            println!("  wrote {}", path.display());
+            println!(
+                "  budget of the run on {} ({} cycles per sample per core):",
+                r.board, r.deadline
+            );
+            for c in 0..r.max.len() {
+                println!(
+                    "    core {c}: {} keys, max {} cycles per sample ({:.1} %), headroom {}, deadline misses {}",
+                    r.keys[c],
+                    r.max[c],
+                    100.0 * r.max[c] as f64 / r.deadline as f64,
+                    r.deadline as i64 - r.max[c] as i64,
+                    r.misses[c]
+                );
+            }
+            if r.misses.iter().any(|m| *m > 0) {
+                eprintln!("error: the firmware missed sample deadlines: the played keys do not fit this board (see `tactus budget`)");
+                return Ok(ExitCode::FAILURE);
+            }
+        }
+        None => println!(
+            "  budget: not checked (host engine; `--engine emu` runs the firmware on the emulated board)"
+        ),
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// What the emulated board reported over a run.
+struct EmuReport {
+    board: String,
+    /// Cycles per sample per core (the deadline).
+    deadline: u64,
+    /// Keys per core.
+    keys: Vec<usize>,
+    /// Largest cycles of one sample's interrupt, per core.
+    max: Vec<u64>,
+    /// Deadline misses counted by the firmware, per core.
+    misses: Vec<u32>,
+    /// Cycles of every sample, per core.
+    cycles: Vec<Vec<u64>>,
+}
+
+/// Plays the key tracks through the firmware image of the played keys on the emulated
+/// board: one program per distinct instrument and params, keys to cores by longest
+/// processing time first, every key every sample from sample 0 to `end` (the keys at rest
+/// before and after their notes). Strikes come from the keys' `out[]` words, their speeds
+/// converted from the event's format.
+fn emu_strikes(
+    played: &[tactus_runtime::keyboard::KeyAssignment],
+    tracks: &BTreeMap<u8, &KeyTrack>,
+    end: usize,
+    fs: f64,
+    board_arg: &str,
+    bar: &ProgressBar,
+) -> Result<(Vec<Strike>, EmuReport), String> {
+    use tactus_firmware::image::{assign_cores, compile_layout, FirmwareImage, KeySpec};
+    let board = crate::budget_cmd::board_named(board_arg)?;
+    let source = |name: &str| source::load(name).map(|s| s.text);
+    let (programs, key_programs) =
+        compile_layout(played, &source, fs).map_err(|e| format!("firmware: {e}"))?;
+    let cores = assign_cores(&programs, &key_programs, board.cores as usize)
+        .map_err(|e| format!("firmware: {e}"))?;
+    let specs: Vec<KeySpec> = played
+        .iter()
+        .zip(&key_programs)
+        .zip(&cores)
+        .map(|((a, &program), &core)| KeySpec {
+            slot: a.key as usize,
+            program,
+            core,
+        })
+        .collect();
+    let image = FirmwareImage::build(
+        &programs,
+        &specs,
+        &board,
+        &tactus_runtime::limiter::LimiterConfig::default(),
+    )
+    .map_err(|e| format!("firmware for {} keys on {}: {e}", played.len(), board.name))?;
+    let mut run = image.run().map_err(|e| format!("firmware: {e}"))?;
+    let n_cores = board.cores as usize;
+    let mut report = EmuReport {
+        board: board.name.clone(),
+        deadline: board.cycles_per_sample(),
+        keys: (0..n_cores)
+            .map(|c| cores.iter().filter(|&&k| k == c).count())
+            .collect(),
+        max: vec![0; n_cores],
+        misses: vec![0; n_cores],
+        cycles: vec![Vec::with_capacity(end); n_cores],
+    };
+    let strike_event: Vec<Option<tactus_compiler::ir::EventId>> = programs
+        .iter()
+        .map(|p| {
+            p.fixed
+                .program
+                .events
+                .iter()
+                .position(|e| e.name == "strike" || e.name == "pluck")
+                .map(|i| tactus_compiler::ir::EventId(i as u32))
+        })
+        .collect();
+    let mut sensors = vec![0i32; played.len()];
+    let mut strikes = Vec::new();
+    for i in 0..end {
+        let time = i as f64 / fs;
+        for (k, a) in played.iter().enumerate() {
+            let x = tracks.get(&a.key).map_or(0.0, |t| t.position(time));
+            let fp = &programs[key_programs[k]].fixed;
+            sensors[k] = tactus_compiler::fixed::interp::FixedInstance::sensor_raw(fp, 0, Some(x));
+        }
+        let out = run
+            .step(&sensors)
+            .map_err(|e| format!("firmware, sample {i}: {e}"))?;
+        for ev in &out.events {
+            let p = key_programs[ev.key];
+            if Some(ev.event) == strike_event[p] {
+                let frac = programs[p].fixed.event_frac[ev.event.index()][0];
+                strikes.push(Strike {
+                    key: played[ev.key].key,
+                    time_s: time,
+                    speed_mps: tactus_runtime::fixed::to_f64(
+                        ev.args.first().copied().unwrap_or(0),
+                        frac,
+                    ),
+                    answers: None,
+                });
+            }
+        }
+        for c in 0..n_cores {
+            report.max[c] = report.max[c].max(out.core_cycles[c]);
+            report.misses[c] = out.misses[c];
+            report.cycles[c].push(out.core_cycles[c]);
+        }
+        if i % 4096 == 4095 {
+            bar.inc(4096 * played.len() as u64);
+        }
+    }
+    Ok((strikes, report))
 }
 
 /// Measures single strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
@@ -913,7 +1097,6 @@ fn write_traces(
 /// # Errors
 ///
 /// A message naming the file when there are no samples or it cannot be written.
-#[allow(dead_code)] // called by the emulator engine (planned)
 pub fn write_cycle_plot(
     out: &Path,
     stem: &str,

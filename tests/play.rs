@@ -167,6 +167,55 @@ fn the_fixed_point_engine_strikes_like_the_f64_engine() {
     }
 }
 
+/// The main job on the emulated board: the demo's first 3 s on harpsichord keys through the
+/// firmware image (every played key every sample, the safety limiter, a timer interrupt per
+/// core) gives the same strikes as the fixed-point JIT, bit for bit (same samples, same
+/// speed words), with no deadline missed and the run's budget printed; the grand piano on
+/// the default board misses deadlines and says so with exit code 1.
+#[test]
+fn the_emulated_board_strikes_like_the_fixed_point_jit_without_missing_a_deadline() {
+    let dir = temp_dir("play-emu");
+    let run = |engine: &str, instrument: &str, board: &str, out: &str| {
+        tactus()
+            .args([
+                "play",
+                "--no-wav",
+                "--seconds",
+                "3",
+                "--instrument",
+                instrument,
+                "--board",
+                board,
+                "--engine",
+                engine,
+                "--out",
+            ])
+            .arg(dir.join(out))
+            .output()
+            .unwrap()
+    };
+    let emu = run("emu", "harpsichord", "rp2040_200mhz", "emu");
+    assert_ok(&emu);
+    let fixed = run("fixed", "harpsichord", "rp2040_200mhz", "fixed");
+    assert_ok(&fixed);
+    let read = |d: &str| std::fs::read_to_string(dir.join(d).join("demo-strikes.csv")).unwrap();
+    let (e, f) = (read("emu"), read("fixed"));
+    assert!(e.lines().count() > 3, "{e}");
+    assert_eq!(e, f, "the emulated board and the fixed-point JIT disagree");
+    let stdout = String::from_utf8_lossy(&emu.stdout);
+    for core in 0..2 {
+        assert!(
+            stdout.contains(&format!("core {core}:")) && stdout.contains("deadline misses 0"),
+            "{stdout}"
+        );
+    }
+    assert!(dir.join("emu/demo-cycles.svg").exists());
+    let over = run("emu", "grand_piano", "rp2040", "over");
+    assert_eq!(over.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&over.stderr);
+    assert!(stderr.contains("missed sample deadlines"), "{stderr}");
+}
+
 #[test]
 fn bad_midi_is_a_clear_error() {
     let dir = temp_dir("play-bad");
