@@ -385,17 +385,7 @@ pub fn cmp_const(op: CmpOp, x: &str, fx: i32, c: f64, const_left: bool) -> Strin
     let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
     let (ge, gt) = thresholds(fx, c);
     // Normalise `c OP x` to `x OP' c`.
-    let op = if const_left {
-        match op {
-            CmpOp::Lt => CmpOp::Gt,
-            CmpOp::Le => CmpOp::Ge,
-            CmpOp::Gt => CmpOp::Lt,
-            CmpOp::Ge => CmpOp::Le,
-            o => o,
-        }
-    } else {
-        op
-    };
+    let op = if const_left { op.mirrored() } else { op };
     // `x >= t` / `x < t` as C, constant when t is outside the word range.
     let at_least = |t: i64, neg: bool| {
         if t <= lo || t > hi {

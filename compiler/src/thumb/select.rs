@@ -81,6 +81,26 @@ pub(crate) struct Sel<'a> {
     fused: Vec<bool>,
 }
 
+/// The condition under which `a OP b` holds after `CMP a, b` (signed).
+fn cond_of(o: CmpOp) -> Cond {
+    match o {
+        CmpOp::Eq => Cond::Eq,
+        CmpOp::Ne => Cond::Ne,
+        CmpOp::Lt => Cond::Lt,
+        CmpOp::Le => Cond::Le,
+        CmpOp::Gt => Cond::Gt,
+        CmpOp::Ge => Cond::Ge,
+    }
+}
+
+/// Two comparison operands brought to one grid ([`Sel::common_grid`]).
+enum Grid {
+    /// Both fit 32 bits on the finer grid.
+    Words(W, W),
+    /// They need 64 bits: each word with its left shift.
+    Wide((W, i32), (W, i32)),
+}
+
 /// How a comparison came out when selected as flags.
 enum Flags {
     /// `CMP` was emitted; the comparison holds when this condition does.
@@ -1139,21 +1159,6 @@ impl<'a> Sel<'a> {
     fn cmp_flags(&mut self, o: CmpOp, x: Value, y: Value) -> Option<Flags> {
         let fp = self.fp;
         let real = |v: Value| matches!(self.p.values[v.index()].ty, Ty::Real(_));
-        let cond = |o: CmpOp| match o {
-            CmpOp::Eq => Cond::Eq,
-            CmpOp::Ne => Cond::Ne,
-            CmpOp::Lt => Cond::Lt,
-            CmpOp::Le => Cond::Le,
-            CmpOp::Gt => Cond::Gt,
-            CmpOp::Ge => Cond::Ge,
-        };
-        let mirror = |o: CmpOp| match o {
-            CmpOp::Lt => CmpOp::Gt,
-            CmpOp::Le => CmpOp::Ge,
-            CmpOp::Gt => CmpOp::Lt,
-            CmpOp::Ge => CmpOp::Le,
-            o => o,
-        };
         // Compare with a known word: `CMP #imm` when it fits 8 bits.
         let with_word = |this: &mut Self, a: V, t: i32| {
             if (0..=255).contains(&t) {
@@ -1172,21 +1177,25 @@ impl<'a> Sel<'a> {
             };
             let (a, o, k) = match (small(x), small(y)) {
                 (_, Some(k)) => (x, o, k),
-                (Some(k), None) => (y, mirror(o), k),
+                (Some(k), None) => (y, o.mirrored(), k),
                 (None, None) => {
                     let (a, b) = (self.word(x), self.word(y));
                     self.push(M::Cmp { a: a.v, b: b.v });
-                    return Some(Flags::Cond(cond(o)));
+                    return Some(Flags::Cond(cond_of(o)));
                 }
             };
             let w = self.word(a);
             with_word(self, w.v, k);
-            return Some(Flags::Cond(cond(o)));
+            return Some(Flags::Cond(cond_of(o)));
         }
         let konst = |v: Value| fp.exact_const(v);
         if let (None, Some(c)) | (Some(c), None) = (konst(x), konst(y)) {
             let const_left = konst(x).is_some();
-            let (v, o) = if const_left { (y, mirror(o)) } else { (x, o) };
+            let (v, o) = if const_left {
+                (y, o.mirrored())
+            } else {
+                (x, o)
+            };
             let (ge, gt) = prim::thresholds(fp.frac[v.index()], c);
             let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
             // x >= t, x < t as flags; a threshold beyond the word range decides alone.
@@ -1207,7 +1216,7 @@ impl<'a> Sel<'a> {
                 CmpOp::Eq | CmpOp::Ne if gt == ge + 1 && ge > lo && ge <= hi => {
                     let w = self.word(v);
                     with_word(self, w.v, ge as i32);
-                    Some(Flags::Cond(cond(o)))
+                    Some(Flags::Cond(cond_of(o)))
                 }
                 _ => None,
             };
@@ -1217,41 +1226,15 @@ impl<'a> Sel<'a> {
         if a.v == b.v && fa == fb {
             return Some(Flags::Known(matches!(o, CmpOp::Eq | CmpOp::Le | CmpOp::Ge)));
         }
-        let (d_a, d_b) = match fa.cmp(&fb) {
-            Ordering::Equal => (0, 0),
-            Ordering::Greater => (0, fa - fb),
-            Ordering::Less => (fb - fa, 0),
-        };
-        let fits = |w: W, d: i32| d <= 31 && shl_bound(w.b, d) < LIM;
-        if !(fits(a, d_a) && fits(b, d_b)) {
-            // 64-bit: SUBS/SBCS leave N and V of the 64-bit difference, so the signed
-            // conditions hold exactly (Z does not: equality needs the word form).
-            if matches!(o, CmpOp::Eq | CmpOp::Ne) {
-                return None;
+        match self.common_grid(a, fa, b, fb) {
+            Grid::Words(a, b) => {
+                self.push(M::Cmp { a: a.v, b: b.v });
+                Some(Flags::Cond(cond_of(o)))
             }
-            let x = self.scaled64(a, d_a);
-            let y = self.scaled64(b, d_b);
-            let (p, q, c) = match o {
-                CmpOp::Lt => (x, y, Cond::Lt),
-                CmpOp::Ge => (x, y, Cond::Ge),
-                CmpOp::Gt => (y, x, Cond::Lt),
-                _ => (y, x, Cond::Ge),
-            };
-            let _ = self.add64(p, q, true);
-            return Some(Flags::Cond(c));
+            // Equality of 64-bit words needs the word form (Z is not the 64-bit Z).
+            Grid::Wide(..) if matches!(o, CmpOp::Eq | CmpOp::Ne) => None,
+            Grid::Wide(a, b) => Some(Flags::Cond(self.cmp64_ordered(o, a, b))),
         }
-        let a = if d_a > 0 {
-            self.sh(Shift::Lsl, a.v, d_a as u8)
-        } else {
-            a.v
-        };
-        let b = if d_b > 0 {
-            self.sh(Shift::Lsl, b.v, d_b as u8)
-        } else {
-            b.v
-        };
-        self.push(M::Cmp { a, b });
-        Some(Flags::Cond(cond(o)))
     }
 
     fn publish(&mut self, slot: usize, v: Value) {
@@ -1640,16 +1623,53 @@ impl<'a> Sel<'a> {
             }
             _ => {
                 self.push(M::Cmp { a: a.v, b: b.v });
-                let cond = match o {
-                    CmpOp::Lt => Cond::Lt,
-                    CmpOp::Le => Cond::Le,
-                    CmpOp::Gt => Cond::Gt,
-                    _ => Cond::Ge,
-                };
-                self.set_flag(cond)
+                self.set_flag(cond_of(o))
             }
         };
         W { v, b: 1 }
+    }
+
+    /// Two words of formats `fa`, `fb` on the finer grid, for an exact comparison: as 32-bit
+    /// words when the coarser one shifted left provably fits, else with their left shifts
+    /// for [`Sel::scaled64`].
+    fn common_grid(&mut self, a: W, fa: i32, b: W, fb: i32) -> Grid {
+        let (d_a, d_b) = match fa.cmp(&fb) {
+            Ordering::Equal => (0, 0),
+            Ordering::Greater => (0, fa - fb),
+            Ordering::Less => (fb - fa, 0),
+        };
+        let fits = |w: W, d: i32| d <= 31 && shl_bound(w.b, d) < LIM;
+        if !(fits(a, d_a) && fits(b, d_b)) {
+            return Grid::Wide((a, d_a), (b, d_b));
+        }
+        let mut up = |w: W, d: i32| {
+            if d > 0 {
+                W {
+                    v: self.sh(Shift::Lsl, w.v, d as u8),
+                    b: shl_bound(w.b, d),
+                }
+            } else {
+                w
+            }
+        };
+        let a = up(a, d_a);
+        Grid::Words(a, up(b, d_b))
+    }
+
+    /// An ordered comparison (`<`, `<=`, `>`, `>=`) of two scaled words in 64 bits:
+    /// `SUBS`/`SBCS` of `x − y` (or `y − x`) leave N and V of the 64-bit difference; returns
+    /// the condition under which the comparison holds.
+    fn cmp64_ordered(&mut self, o: CmpOp, a: (W, i32), b: (W, i32)) -> Cond {
+        let x = self.scaled64(a.0, a.1);
+        let y = self.scaled64(b.0, b.1);
+        let (p, q, cond) = match o {
+            CmpOp::Lt => (x, y, Cond::Lt),
+            CmpOp::Ge => (x, y, Cond::Ge),
+            CmpOp::Gt => (y, x, Cond::Lt),
+            _ => (y, x, Cond::Ge),
+        };
+        let _ = self.add64(p, q, true);
+        cond
     }
 
     /// `w · 2^d` as a 64-bit (lo, hi) pair for a comparison. When the shift is 32 or more
@@ -1677,36 +1697,14 @@ impl<'a> Sel<'a> {
                 b: 1,
             };
         }
-        // Scale the coarser word to the finer grid.
-        let (a, b, d_a, d_b) = match fa.cmp(&fb) {
-            Ordering::Equal => (a, b, 0, 0),
-            Ordering::Greater => (a, b, 0, fa - fb),
-            Ordering::Less => (a, b, fb - fa, 0),
+        let (a, b) = match self.common_grid(a, fa, b, fb) {
+            Grid::Words(a, b) => return self.cmp32(o, a, b),
+            Grid::Wide(a, b) => (a, b),
         };
-        let fits = |w: W, d: i32| d <= 31 && shl_bound(w.b, d) < LIM;
-        if fits(a, d_a) && fits(b, d_b) {
-            let a = if d_a > 0 {
-                W {
-                    v: self.sh(Shift::Lsl, a.v, d_a as u8),
-                    b: shl_bound(a.b, d_a),
-                }
-            } else {
-                a
-            };
-            let b = if d_b > 0 {
-                W {
-                    v: self.sh(Shift::Lsl, b.v, d_b as u8),
-                    b: shl_bound(b.b, d_b),
-                }
-            } else {
-                b
-            };
-            return self.cmp32(o, a, b);
-        }
-        let x = self.scaled64(a, d_a);
-        let y = self.scaled64(b, d_b);
         let v = match o {
             CmpOp::Eq | CmpOp::Ne => {
+                let x = self.scaled64(a.0, a.1);
+                let y = self.scaled64(b.0, b.1);
                 let l = self.alu2(AluOp::Eor, x.0, y.0);
                 let h = self.alu2(AluOp::Eor, x.1, y.1);
                 let t = self.alu2(AluOp::Orr, l, h);
@@ -1719,14 +1717,7 @@ impl<'a> Sel<'a> {
                 }
             }
             _ => {
-                // x - y (or y - x) in 64 bits; LT is N != V after SBCS.
-                let (p, q, cond) = match o {
-                    CmpOp::Lt => (x, y, Cond::Lt),
-                    CmpOp::Ge => (x, y, Cond::Ge),
-                    CmpOp::Gt => (y, x, Cond::Lt),
-                    _ => (y, x, Cond::Ge),
-                };
-                let _ = self.add64(p, q, true);
+                let cond = self.cmp64_ordered(o, a, b);
                 self.set_flag(cond)
             }
         };
@@ -1736,17 +1727,7 @@ impl<'a> Sel<'a> {
     /// [`fx::cmp_const`]: `x OP c` (or `c OP x`) as thresholds on the word grid.
     fn cmp_const(&mut self, o: CmpOp, x: W, fx_: i32, c: f64, const_left: bool) -> W {
         let (ge, gt) = prim::thresholds(fx_, c);
-        let o = if const_left {
-            match o {
-                CmpOp::Lt => CmpOp::Gt,
-                CmpOp::Le => CmpOp::Ge,
-                CmpOp::Gt => CmpOp::Lt,
-                CmpOp::Ge => CmpOp::Le,
-                o => o,
-            }
-        } else {
-            o
-        };
+        let o = if const_left { o.mirrored() } else { o };
         let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
         // x >= t as a 0/1 word (constant outside the word range).
         let at_least = |this: &mut Self, t: i64, neg: bool| -> W {
