@@ -68,7 +68,24 @@ pub struct Range {
     pub span: Span,
 }
 
+/// A half-open range of indices `LO..HI` (a loop's or a sum's), both whole numbers known at
+/// compile time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IndexRange {
+    /// First index.
+    pub lo: Expr,
+    /// One past the last index.
+    pub hi: Expr,
+    /// Span of `LO..HI`.
+    pub span: Span,
+}
+
 /// A declaration inside an instrument or component. Fields are named as in the syntax shown.
+///
+/// `index` fields hold the `[EXPR]` of an array element (`state u[i] = …`); they are only
+/// ever `Some` before [`crate::expand`] has run, which turns them into plain names (`u[3]`).
+/// The same holds for [`Decl::For`], [`Decl::Solve`], [`ExprKind::Element`] and
+/// [`ExprKind::Sum`]: lowering sees none of them.
 #[allow(missing_docs)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Decl {
@@ -92,6 +109,7 @@ pub enum Decl {
     /// `state NAME [: TYPE] = EXPR in [lo, hi]`
     State {
         name: Name,
+        index: Option<Expr>,
         ty: Option<Spanned<TypeAnn>>,
         init: Expr,
         range: Option<Range>,
@@ -103,11 +121,23 @@ pub enum Decl {
         init: Option<Name>,
     },
     /// `let NAME = EXPR`
-    Let { name: Name, value: Expr },
+    Let {
+        name: Name,
+        index: Option<Expr>,
+        value: Expr,
+    },
     /// `force NAME = EXPR`
-    Force { name: Name, value: Expr },
+    Force {
+        name: Name,
+        index: Option<Expr>,
+        value: Expr,
+    },
     /// `output NAME = EXPR`
-    Output { name: Name, value: Expr },
+    Output {
+        name: Name,
+        index: Option<Expr>,
+        value: Expr,
+    },
     /// `dynamics { x' = EXPR … }`
     Dynamics { eqs: Vec<Equation>, span: Span },
     /// `on COND { … }` (rising edge) or `while COND { … }` (level).
@@ -120,10 +150,30 @@ pub enum Decl {
     /// `use NAME = COMPONENT(arg = EXPR, …)`
     Use {
         name: Name,
+        index: Option<Expr>,
         component: Name,
         args: Vec<(Name, Expr)>,
         span: Span,
     },
+    /// `for VAR in LO..HI { DECLS }`: the declarations once per index, `VAR` standing for
+    /// the index (a dimensionless whole number).
+    For {
+        var: Name,
+        range: IndexRange,
+        decls: Vec<Decl>,
+        span: Span,
+    },
+    /// `solve NAME in [LO, HI] { start = EXPR  residual = EXPR  iterations = N
+    /// [min_slope = EXPR] }`: Newton–Raphson on the residual, a fixed number of iterations.
+    Solve {
+        name: Name,
+        index: Option<Expr>,
+        range: Option<Range>,
+        fields: Vec<(Name, Expr)>,
+        span: Span,
+    },
+    /// `require COND`: a compile-time condition on params (a stability bound, say).
+    Require { cond: Expr, span: Span },
 }
 
 /// When a handler's body runs.
@@ -140,6 +190,8 @@ pub enum Trigger {
 pub struct Equation {
     /// The state being integrated.
     pub state: Name,
+    /// The element index of an array state (`u[i]' = …`), before [`crate::expand`].
+    pub index: Option<Expr>,
     /// Its time derivative.
     pub rhs: Expr,
 }
@@ -149,7 +201,11 @@ pub struct Equation {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Stmt {
     /// `NAME = EXPR` — a state or a mode.
-    Assign { target: Name, value: Expr },
+    Assign {
+        target: Name,
+        index: Option<Expr>,
+        value: Expr,
+    },
     /// `emit EVENT(arg = EXPR, …)`
     Emit {
         event: Name,
@@ -200,4 +256,15 @@ pub enum ExprKind {
     Call(Name, Vec<Expr>),
     /// `if c { a } else { b }`
     If(Box<Expr>, Box<Expr>, Box<Expr>),
+    /// A path with element indices: `u[i + 1]`, `r[i].f` (each segment, its index if any).
+    Element(Vec<(Name, Option<Expr>)>),
+    /// `sum(VAR in LO..HI, EXPR)`: `EXPR` added up over the indices.
+    Sum {
+        /// The index variable.
+        var: Name,
+        /// Its range.
+        range: Box<IndexRange>,
+        /// The term, read once per index.
+        body: Box<Expr>,
+    },
 }

@@ -105,6 +105,14 @@ pub enum Token {
     False,
     #[token("bool")]
     Bool,
+    #[token("for")]
+    For,
+    #[token("sum")]
+    Sum,
+    #[token("solve")]
+    Solve,
+    #[token("require")]
+    Require,
 
     #[regex(r"[A-Za-z_][A-Za-z0-9_]*", |lex| lex.slice().to_string())]
     Ident(String),
@@ -130,6 +138,8 @@ pub enum Token {
     Colon,
     #[token(".")]
     Dot,
+    #[token("..")]
+    DotDot,
     #[token("'")]
     Prime,
     #[token("=")]
@@ -188,6 +198,10 @@ impl Token {
                 | True
                 | False
                 | Bool
+                | For
+                | Sum
+                | Solve
+                | Require
         )
     }
 }
@@ -208,6 +222,7 @@ impl fmt::Display for Token {
                     Token::Comma => ",",
                     Token::Colon => ":",
                     Token::Dot => ".",
+                    Token::DotDot => "..",
                     Token::Prime => "'",
                     Token::Eq => "=",
                     Token::EqEq => "==",

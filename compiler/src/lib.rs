@@ -8,6 +8,7 @@
 
 pub mod ast;
 pub mod diagnostics;
+pub mod expand;
 pub mod interp;
 pub mod ir;
 pub mod lexer;

@@ -42,6 +42,7 @@ impl<'a> Lowerer<'a> {
                     ast::Decl::State {
                         name,
                         ty,
+                        index: _,
                         init,
                         range: Some(r),
                     } => {
@@ -84,6 +85,7 @@ impl<'a> Lowerer<'a> {
                         let s = &mut self.prog.states[id.index()];
                         (s.init, s.range, s.dim) = (v, (lo, hi), dim);
                     }
+                    ast::Decl::Require { cond, .. } => self.check_requirement(scope, cond),
                     _ => {}
                 }
             }
@@ -92,6 +94,78 @@ impl<'a> Lowerer<'a> {
         self.const_ctx = false;
         self.prog.values.clear();
         self.memo.clear();
+    }
+
+    /// Checks a `require`: comparisons of constants joined by `and`. A comparison that does
+    /// not hold is an error giving both sides' values in SI units.
+    fn check_requirement(&mut self, scope: ScopeId, cond: &'a ast::Expr) {
+        use ast::BinOp::*;
+        let ast::ExprKind::Binary(op, a, b) = &cond.node else {
+            self.err(
+                Diagnostic::error("E0311", "`require` takes comparisons of constants", cond.span.clone())
+                    .hint("write e.g. `require 1 / sample_rate < 1 / (3.1416 * f0)`; join several with `and`"),
+            );
+            return;
+        };
+        if *op == And {
+            self.check_requirement(scope, a);
+            self.check_requirement(scope, b);
+            return;
+        }
+        if !matches!(op, Lt | Le | Gt | Ge | Eq | Ne) {
+            self.err(
+                Diagnostic::error(
+                    "E0311",
+                    "`require` takes comparisons of constants",
+                    cond.span.clone(),
+                )
+                .hint("write e.g. `require hx >= h_min`; join several with `and`"),
+            );
+            return;
+        }
+        let (Some((va, da)), Some((vb, db))) =
+            (self.const_value(scope, a), self.const_value(scope, b))
+        else {
+            return;
+        };
+        if da != db {
+            self.err(
+                Diagnostic::error(
+                    "E0226",
+                    format!("cannot compare {da} with {db}"),
+                    cond.span.clone(),
+                )
+                .hint("both sides of a requirement must have the same dimension"),
+            );
+            return;
+        }
+        let holds = match op {
+            Lt => va < vb,
+            Le => va <= vb,
+            Gt => va > vb,
+            Ge => va >= vb,
+            Eq => va == vb,
+            _ => va != vb,
+        };
+        if !holds {
+            let unit = da.unit_string();
+            let show = |v: f64| {
+                if unit.is_empty() || unit == "1" {
+                    format!("{v:.6}")
+                } else {
+                    format!("{v:.6e} {unit}")
+                }
+            };
+            self.err(
+                Diagnostic::error(
+                    "E0310",
+                    format!("requirement not met: the left side is {}, the right side {}", show(va), show(vb)),
+                    cond.span.clone(),
+                )
+                .label("does not hold for these params")
+                .hint("change the params (or `--param` overrides) so that it holds: requirements guard numerical stability and the uniqueness of solves"),
+            );
+        }
     }
 
     fn const_range(

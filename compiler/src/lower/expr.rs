@@ -32,6 +32,11 @@ const BUILTINS: &[(&str, &str)] = &[
     ("d2", "d2(sensor)"),
 ];
 
+/// The built-in constant `sample_rate`: the board's sample rate in Hz, the rate the dynamics
+/// are integrated at (so `1 / sample_rate` is the time step of stability conditions). A name
+/// declared in the instrument or component takes precedence.
+pub const SAMPLE_RATE: &str = "sample_rate";
+
 /// Whether `name` is a built-in function.
 pub fn is_builtin(name: &str) -> bool {
     BUILTINS.iter().any(|(n, _)| *n == name)
@@ -107,6 +112,14 @@ impl<'a> Lowerer<'a> {
                 Some(acc)
             }
             ExprKind::Call(f, args) => self.lower_call(scope, f, args, e.span.clone()),
+            ExprKind::Element(_) | ExprKind::Sum { .. } => {
+                self.err(Diagnostic::error(
+                    "E0001",
+                    "internal error: an array element or sum reached lowering unexpanded",
+                    e.span.clone(),
+                ));
+                None
+            }
             ExprKind::If(c, a, b) => {
                 let cv = self.lower_expr(scope, c)?;
                 self.boolean(cv, &c.span, "an `if` condition")?;
@@ -301,6 +314,13 @@ impl<'a> Lowerer<'a> {
     }
 
     fn lower_path(&mut self, scope: ScopeId, p: &'a [ast::Name], span: Span) -> Option<Value> {
+        if p.len() == 1
+            && p[0].node == SAMPLE_RATE
+            && !self.scopes[scope.0].syms.contains_key(SAMPLE_RATE)
+        {
+            let fs = self.config.sample_rate_hz;
+            return Some(self.def(Op::Const(fs), Ty::Real(Dim::FREQUENCY)));
+        }
         let sym = self.lookup(scope, &p[0])?;
         if p.len() == 1 {
             return self.lower_sym(scope, sym, &p[0], span);

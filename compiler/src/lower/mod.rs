@@ -57,8 +57,9 @@ pub struct Lowered {
 /// Lowers a parsed file. Fails with every error found (and the warnings) when any error
 /// is found.
 pub fn lower(file: &ast::File, config: &Config) -> Result<Lowered, Vec<Diagnostic>> {
+    let file = crate::expand::expand(file, &config.overrides)?;
     let mut l = Lowerer::new(config);
-    l.run(file);
+    l.run(&file);
     // A definition lowered several times (once per memo epoch) reports its errors once.
     let mut seen = HashSet::new();
     let diags: Vec<Diagnostic> = l
@@ -427,7 +428,7 @@ impl<'a> Lowerer<'a> {
 
     fn lower_stmt(&mut self, scope: ScopeId, s: &'a ast::Stmt) {
         match s {
-            ast::Stmt::Assign { target, value } => match self.lookup(scope, target) {
+            ast::Stmt::Assign { target, value, .. } => match self.lookup(scope, target) {
                 Some(Sym::State(st)) => {
                     let Some(v) = self.lower_expr(scope, value) else {
                         return;

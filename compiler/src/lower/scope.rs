@@ -314,9 +314,9 @@ impl<'a> Lowerer<'a> {
                     });
                     self.add_sym(id, name, Sym::Mode(mid));
                 }
-                ast::Decl::Let { name, value }
-                | ast::Decl::Force { name, value }
-                | ast::Decl::Output { name, value } => {
+                ast::Decl::Let { name, value, .. }
+                | ast::Decl::Force { name, value, .. }
+                | ast::Decl::Output { name, value, .. } => {
                     let kind = match d {
                         ast::Decl::Let { .. } => DefKind::Let,
                         ast::Decl::Force { .. } => DefKind::Force,
@@ -334,9 +334,14 @@ impl<'a> Lowerer<'a> {
                     });
                     self.add_sym(id, name, Sym::Def(idx));
                 }
-                ast::Decl::Dynamics { .. } | ast::Decl::Handler { .. } => {}
+                ast::Decl::Dynamics { .. }
+                | ast::Decl::Handler { .. }
+                | ast::Decl::Require { .. } => {}
+                // Removed by `crate::expand` before lowering.
+                ast::Decl::For { .. } | ast::Decl::Solve { .. } => {}
                 ast::Decl::Use {
                     name,
+                    index: _,
                     component,
                     args: uargs,
                     span,

@@ -1,0 +1,948 @@
+//! Expansion: arrays, `for` loops, `sum`s and `solve`s become plain declarations.
+//!
+//! This pass runs on the AST before [`crate::lower`], so every later stage (the dimension
+//! check, the fixed-point analysis, every engine and the WCET analysis) sees only scalars
+//! and straight-line code, and a loop's trip count is part of the code's size — which is
+//! what lets the budget checker bound it.
+//!
+//! * `for i in LO..HI { DECLS }` repeats `DECLS` once per index; `i` stands for the index
+//!   as a dimensionless whole number.
+//! * `NAME[INDEX]` — in a declaration, an equation, an assignment or an expression — is the
+//!   element named `NAME[k]` with `k` the index's value. Indices are whole numbers known at
+//!   compile time: integer literals, loop variables, and params of the same instrument or
+//!   component whose values are whole numbers (with `--param` overrides), combined with
+//!   `+ - * /` (a division must be exact). An element that was never declared is an error
+//!   naming the array's extent.
+//! * `sum(i in LO..HI, EXPR)` is `EXPR` added up over the indices (at least one).
+//! * `solve X in [LO, HI] { start = … residual = … iterations = N [min_slope = …] }` is
+//!   Newton–Raphson with a fixed number of iterations, each iterate clamped into the range
+//!   (a safeguarded, projected Newton step): `X₀ = clamp(start)`, `Xₖ₊₁ = clamp(Xₖ −
+//!   R(Xₖ)/R′(Xₖ))`, `X = X_N`. The derivative `R′` is taken symbolically from the
+//!   residual's own expression ([`derivative`]); `min_slope` replaces it by
+//!   `max(R′, min_slope)` for residuals known to be increasing (the uniqueness condition of
+//!   the friction solve of Bilbao, *Numerical Sound Synthesis*, 2009, §7.3, gives such a
+//!   bound). The iterates are `let`s named `X#0 … X#N`.
+//!
+//! Errors are diagnostics with the span of the offending index, range or field.
+
+use crate::ast::*;
+use crate::diagnostics::Diagnostic;
+use crate::lexer::Literal;
+use crate::units::Dim;
+use std::collections::{HashMap, HashSet};
+
+/// The most elements a loop, a sum or an array may have: a bound on compile time and code
+/// size (every element is code of its own), far above what fits a Cortex-M0+ at 44.1 kHz.
+pub const MAX_TRIP_COUNT: i64 = 4096;
+
+/// The most Newton–Raphson iterations a `solve` may ask for.
+pub const MAX_ITERATIONS: i64 = 16;
+
+/// Expands every instrument and component of `file`; `overrides` are the `--param`
+/// overrides (name, value as source text), which index expressions honour.
+///
+/// Errors: every bad index, range, `sum` or `solve` found, as diagnostics.
+pub fn expand(file: &File, overrides: &[(String, String)]) -> Result<File, Vec<Diagnostic>> {
+    let mut diags = Vec::new();
+    let items = file
+        .items
+        .iter()
+        .map(|item| match item {
+            TopItem::Instrument(b) => TopItem::Instrument(expand_body(b, overrides, &mut diags)),
+            TopItem::Component(b) => TopItem::Component(expand_body(b, &[], &mut diags)),
+        })
+        .collect();
+    if diags.is_empty() {
+        Ok(File { items })
+    } else {
+        Err(diags)
+    }
+}
+
+fn expand_body(body: &Body, overrides: &[(String, String)], diags: &mut Vec<Diagnostic>) -> Body {
+    let mut params = HashMap::new();
+    for d in &body.decls {
+        if let Decl::Param { name, value, .. } = d {
+            params.insert(name.node.clone(), value.clone());
+        }
+    }
+    for (name, text) in overrides {
+        if params.contains_key(name) {
+            if let Ok(e) = crate::parse::parse_expr(text) {
+                params.insert(name.clone(), e);
+            }
+        }
+    }
+    let mut x = Expander {
+        params,
+        env: Vec::new(),
+        diags,
+        declared: HashSet::new(),
+        refs: Vec::new(),
+        depth: 0,
+    };
+    let decls = x.decls(&body.decls);
+    x.check_refs();
+    let decls = desugar_solves(decls, x.diags);
+    Body {
+        name: body.name.clone(),
+        decls,
+        span: body.span.clone(),
+    }
+}
+
+struct Expander<'d> {
+    /// Params of the body by name (their expressions, overrides applied).
+    params: HashMap<String, Expr>,
+    /// Loop variables in scope, innermost last.
+    env: Vec<(String, i64)>,
+    diags: &'d mut Vec<Diagnostic>,
+    /// Every name the expanded body declares.
+    declared: HashSet<String>,
+    /// Element references: (array name, element name, index value, span).
+    refs: Vec<(String, String, Span)>,
+    /// Param-evaluation depth (cycle guard).
+    depth: usize,
+}
+
+impl Expander<'_> {
+    fn decls(&mut self, decls: &[Decl]) -> Vec<Decl> {
+        let mut out = Vec::new();
+        for d in decls {
+            self.decl(d, &mut out);
+        }
+        out
+    }
+
+    fn decl(&mut self, d: &Decl, out: &mut Vec<Decl>) {
+        let decl = match d {
+            Decl::For {
+                var, range, decls, ..
+            } => {
+                let Some((lo, hi)) = self.range(range) else {
+                    return;
+                };
+                for i in lo..hi {
+                    self.env.push((var.node.clone(), i));
+                    for d in decls {
+                        self.decl(d, out);
+                    }
+                    self.env.pop();
+                }
+                return;
+            }
+            Decl::Sensor { name, ty, range } => {
+                self.declared.insert(name.node.clone());
+                Decl::Sensor {
+                    name: name.clone(),
+                    ty: ty.clone(),
+                    range: range.as_ref().map(|r| self.bounds(r)),
+                }
+            }
+            Decl::Input { name, ty } => {
+                self.declared.insert(name.node.clone());
+                Decl::Input {
+                    name: name.clone(),
+                    ty: ty.clone(),
+                }
+            }
+            Decl::Param { name, ty, value } => {
+                self.declared.insert(name.node.clone());
+                Decl::Param {
+                    name: name.clone(),
+                    ty: ty.clone(),
+                    value: self.expr(value),
+                }
+            }
+            Decl::State {
+                name,
+                index,
+                ty,
+                init,
+                range,
+            } => Decl::State {
+                name: self.declare(name, index.as_ref()),
+                index: None,
+                ty: ty.clone(),
+                init: self.expr(init),
+                range: range.as_ref().map(|r| self.bounds(r)),
+            },
+            Decl::Mode {
+                name,
+                variants,
+                init,
+            } => {
+                self.declared.insert(name.node.clone());
+                Decl::Mode {
+                    name: name.clone(),
+                    variants: variants.clone(),
+                    init: init.clone(),
+                }
+            }
+            Decl::Let { name, index, value } => Decl::Let {
+                name: self.declare(name, index.as_ref()),
+                index: None,
+                value: self.expr(value),
+            },
+            Decl::Force { name, index, value } => Decl::Force {
+                name: self.declare(name, index.as_ref()),
+                index: None,
+                value: self.expr(value),
+            },
+            Decl::Output { name, index, value } => Decl::Output {
+                name: self.declare(name, index.as_ref()),
+                index: None,
+                value: self.expr(value),
+            },
+            Decl::Dynamics { eqs, span } => Decl::Dynamics {
+                eqs: eqs
+                    .iter()
+                    .map(|eq| Equation {
+                        state: self.element(&eq.state, eq.index.as_ref()),
+                        index: None,
+                        rhs: self.expr(&eq.rhs),
+                    })
+                    .collect(),
+                span: span.clone(),
+            },
+            Decl::Handler {
+                trigger,
+                cond,
+                body,
+                span,
+            } => Decl::Handler {
+                trigger: *trigger,
+                cond: self.expr(cond),
+                body: body.iter().map(|s| self.stmt(s)).collect(),
+                span: span.clone(),
+            },
+            Decl::Use {
+                name,
+                index,
+                component,
+                args,
+                span,
+            } => Decl::Use {
+                name: self.declare(name, index.as_ref()),
+                index: None,
+                component: component.clone(),
+                args: args
+                    .iter()
+                    .map(|(n, e)| (n.clone(), self.expr(e)))
+                    .collect(),
+                span: span.clone(),
+            },
+            Decl::Solve {
+                name,
+                index,
+                range,
+                fields,
+                span,
+            } => Decl::Solve {
+                name: self.declare(name, index.as_ref()),
+                index: None,
+                range: range.as_ref().map(|r| self.bounds(r)),
+                fields: fields
+                    .iter()
+                    .map(|(n, e)| (n.clone(), self.expr(e)))
+                    .collect(),
+                span: span.clone(),
+            },
+            Decl::Require { cond, span } => Decl::Require {
+                cond: self.expr(cond),
+                span: span.clone(),
+            },
+        };
+        out.push(decl);
+    }
+
+    fn stmt(&mut self, s: &Stmt) -> Stmt {
+        match s {
+            Stmt::Assign {
+                target,
+                index,
+                value,
+            } => Stmt::Assign {
+                target: self.element(target, index.as_ref()),
+                index: None,
+                value: self.expr(value),
+            },
+            Stmt::Emit { event, args, span } => Stmt::Emit {
+                event: event.clone(),
+                args: args
+                    .iter()
+                    .map(|(n, e)| (n.clone(), self.expr(e)))
+                    .collect(),
+                span: span.clone(),
+            },
+        }
+    }
+
+    fn bounds(&mut self, r: &Range) -> Range {
+        Range {
+            lo: self.expr(&r.lo),
+            hi: self.expr(&r.hi),
+            span: r.span.clone(),
+        }
+    }
+
+    /// The name a declaration declares: `NAME` or the element `NAME[k]`.
+    fn declare(&mut self, name: &Name, index: Option<&Expr>) -> Name {
+        let n = match index {
+            None => name.clone(),
+            Some(i) => match self.int(i) {
+                Some(k) => element_name(name, k, i),
+                None => name.clone(),
+            },
+        };
+        self.declared.insert(n.node.clone());
+        n
+    }
+
+    /// The name an equation, assignment or path segment refers to.
+    fn element(&mut self, name: &Name, index: Option<&Expr>) -> Name {
+        match index {
+            None => name.clone(),
+            Some(i) => match self.int(i) {
+                Some(k) => {
+                    let n = element_name(name, k, i);
+                    self.refs
+                        .push((name.node.clone(), n.node.clone(), n.span.clone()));
+                    n
+                }
+                None => name.clone(),
+            },
+        }
+    }
+
+    fn range(&mut self, r: &IndexRange) -> Option<(i64, i64)> {
+        let lo = self.int(&r.lo)?;
+        let hi = self.int(&r.hi)?;
+        if hi - lo > MAX_TRIP_COUNT {
+            self.diags.push(
+                Diagnostic::error(
+                    "E0121",
+                    format!(
+                        "{lo}..{hi} has {} indices, more than the {MAX_TRIP_COUNT} a loop may have",
+                        hi - lo
+                    ),
+                    r.span.clone(),
+                )
+                .hint("every index becomes code of its own; a Cortex-M0+ runs a few thousand cycles per sample"),
+            );
+            return None;
+        }
+        Some((lo, hi))
+    }
+
+    fn expr(&mut self, e: &Expr) -> Expr {
+        let node = match &e.node {
+            ExprKind::Number(_) | ExprKind::Bool(_) => return e.clone(),
+            ExprKind::Path(p) => {
+                if p.len() == 1 {
+                    if let Some(k) = self.loop_var(&p[0].node) {
+                        return number(k as f64, e.span.clone());
+                    }
+                }
+                return e.clone();
+            }
+            ExprKind::Element(segs) => {
+                let names = segs
+                    .iter()
+                    .map(|(n, i)| self.element(n, i.as_ref()))
+                    .collect();
+                ExprKind::Path(names)
+            }
+            ExprKind::Sum { var, range, body } => {
+                let Some((lo, hi)) = self.range(range) else {
+                    return number(0.0, e.span.clone());
+                };
+                if hi <= lo {
+                    self.diags.push(
+                        Diagnostic::error(
+                            "E0123",
+                            format!("the sum over {lo}..{hi} has no terms"),
+                            range.span.clone(),
+                        )
+                        .hint("a sum needs at least one term (its zero would have no unit)"),
+                    );
+                    return number(0.0, e.span.clone());
+                }
+                let mut acc: Option<Expr> = None;
+                for i in lo..hi {
+                    self.env.push((var.node.clone(), i));
+                    let t = self.expr(body);
+                    self.env.pop();
+                    acc = Some(match acc {
+                        None => t,
+                        Some(a) => binary(BinOp::Add, a, t, e.span.clone()),
+                    });
+                }
+                return acc.unwrap_or_else(|| number(0.0, e.span.clone()));
+            }
+            ExprKind::Neg(a) => ExprKind::Neg(Box::new(self.expr(a))),
+            ExprKind::Not(a) => ExprKind::Not(Box::new(self.expr(a))),
+            ExprKind::Binary(op, a, b) => {
+                ExprKind::Binary(*op, Box::new(self.expr(a)), Box::new(self.expr(b)))
+            }
+            ExprKind::Pow(a, n) => ExprKind::Pow(Box::new(self.expr(a)), n.clone()),
+            ExprKind::Call(f, args) => {
+                ExprKind::Call(f.clone(), args.iter().map(|a| self.expr(a)).collect())
+            }
+            ExprKind::If(c, a, b) => ExprKind::If(
+                Box::new(self.expr(c)),
+                Box::new(self.expr(a)),
+                Box::new(self.expr(b)),
+            ),
+        };
+        Spanned {
+            node,
+            span: e.span.clone(),
+        }
+    }
+
+    fn loop_var(&self, name: &str) -> Option<i64> {
+        self.env
+            .iter()
+            .rev()
+            .find(|(n, _)| n == name)
+            .map(|&(_, k)| k)
+    }
+
+    /// A whole number known at compile time, or `None` after reporting why not.
+    fn int(&mut self, e: &Expr) -> Option<i64> {
+        let bad = |what: String| {
+            Diagnostic::error("E0120", what, e.span.clone()).hint(
+                "indices and loop bounds are whole numbers known at compile time: integer literals, loop variables and whole-number params, with + - * / (`u[i + 1]`, `0..N`)",
+            )
+        };
+        let v = match &e.node {
+            ExprKind::Number(l) => {
+                if l.dim != Dim::NONE || l.value.fract() != 0.0 || l.value.abs() > 1e9 {
+                    self.diags
+                        .push(bad("an index must be a dimensionless whole number".into()));
+                    return None;
+                }
+                l.value as i64
+            }
+            ExprKind::Path(p) if p.len() == 1 => {
+                if let Some(k) = self.loop_var(&p[0].node) {
+                    return Some(k);
+                }
+                let Some(value) = self.params.get(&p[0].node).cloned() else {
+                    self.diags.push(bad(format!(
+                        "`{}` is neither a loop variable nor a param of this definition",
+                        p[0].node
+                    )));
+                    return None;
+                };
+                if self.depth > 32 {
+                    self.diags.push(bad(format!(
+                        "param `{}` is defined in terms of itself",
+                        p[0].node
+                    )));
+                    return None;
+                }
+                self.depth += 1;
+                let k = self.int(&value);
+                self.depth -= 1;
+                return k;
+            }
+            ExprKind::Neg(a) => -self.int(a)?,
+            ExprKind::Binary(op @ (BinOp::Add | BinOp::Sub | BinOp::Mul | BinOp::Div), a, b) => {
+                let (a, b) = (self.int(a)?, self.int(b)?);
+                match op {
+                    BinOp::Add => a + b,
+                    BinOp::Sub => a - b,
+                    BinOp::Mul => a.saturating_mul(b),
+                    _ => {
+                        if b == 0 || a % b != 0 {
+                            self.diags
+                                .push(bad(format!("{a} / {b} is not a whole number")));
+                            return None;
+                        }
+                        a / b
+                    }
+                }
+            }
+            _ => {
+                self.diags.push(bad(
+                    "this is not a whole number known at compile time".into()
+                ));
+                return None;
+            }
+        };
+        Some(v)
+    }
+
+    /// Every element reference must name a declared element.
+    fn check_refs(&mut self) {
+        for (array, elem, span) in std::mem::take(&mut self.refs) {
+            if self.declared.contains(&elem) {
+                continue;
+            }
+            let prefix = format!("{array}[");
+            let indices: Vec<i64> = self
+                .declared
+                .iter()
+                .filter_map(|n| n.strip_prefix(&prefix)?.strip_suffix(']')?.parse().ok())
+                .collect();
+            let d = if let (Some(lo), Some(hi)) = (indices.iter().min(), indices.iter().max()) {
+                Diagnostic::error("E0122", format!("`{elem}` is outside the array"), span)
+                    .label("no such element")
+                    .hint(format!(
+                        "`{array}` has elements {array}[{lo}] … {array}[{hi}]"
+                    ))
+            } else if self.declared.contains(&array) {
+                Diagnostic::error("E0122", format!("`{array}` is not an array"), span)
+                    .hint(format!(
+                    "declare its elements in a loop: `for i in 0..N {{ state {array}[i] = … }}`"
+                ))
+            } else {
+                Diagnostic::error("E0122", format!("no array named `{array}`"), span).hint(format!(
+                    "declare its elements in a loop: `for i in 0..N {{ state {array}[i] = … }}`"
+                ))
+            };
+            self.diags.push(d);
+        }
+    }
+}
+
+fn element_name(name: &Name, k: i64, index: &Expr) -> Name {
+    Spanned {
+        node: format!("{}[{k}]", name.node),
+        span: name.span.start..(index.span.end + 1).max(name.span.end),
+    }
+}
+
+fn number(v: f64, span: Span) -> Expr {
+    Spanned {
+        node: ExprKind::Number(Literal {
+            value: v,
+            dim: Dim::NONE,
+            is_plain_integer: v.fract() == 0.0,
+        }),
+        span,
+    }
+}
+
+fn binary(op: BinOp, a: Expr, b: Expr, span: Span) -> Expr {
+    Spanned {
+        node: ExprKind::Binary(op, Box::new(a), Box::new(b)),
+        span,
+    }
+}
+
+fn call(f: &str, args: Vec<Expr>, span: Span) -> Expr {
+    Spanned {
+        node: ExprKind::Call(
+            Spanned {
+                node: f.into(),
+                span: span.clone(),
+            },
+            args,
+        ),
+        span,
+    }
+}
+
+fn path(name: &str, span: Span) -> Expr {
+    Spanned {
+        node: ExprKind::Path(vec![Spanned {
+            node: name.into(),
+            span: span.clone(),
+        }]),
+        span,
+    }
+}
+
+fn neg(a: Expr) -> Expr {
+    let span = a.span.clone();
+    Spanned {
+        node: ExprKind::Neg(Box::new(a)),
+        span,
+    }
+}
+
+fn if_expr(c: Expr, a: Expr, b: Expr) -> Expr {
+    let span = c.span.clone();
+    Spanned {
+        node: ExprKind::If(Box::new(c), Box::new(a), Box::new(b)),
+        span,
+    }
+}
+
+/// A zero with the dimension of `e`: `e * 0`.
+fn zero_like(e: &Expr) -> Expr {
+    binary(
+        BinOp::Mul,
+        e.clone(),
+        number(0.0, e.span.clone()),
+        e.span.clone(),
+    )
+}
+
+/// `e` with every bare `x` replaced by `by`.
+fn substitute(e: &Expr, x: &str, by: &str) -> Expr {
+    let node = match &e.node {
+        ExprKind::Path(p) if p.len() == 1 && p[0].node == x => {
+            return path(by, e.span.clone());
+        }
+        ExprKind::Number(_) | ExprKind::Bool(_) | ExprKind::Path(_) => return e.clone(),
+        ExprKind::Neg(a) => ExprKind::Neg(Box::new(substitute(a, x, by))),
+        ExprKind::Not(a) => ExprKind::Not(Box::new(substitute(a, x, by))),
+        ExprKind::Binary(op, a, b) => ExprKind::Binary(
+            *op,
+            Box::new(substitute(a, x, by)),
+            Box::new(substitute(b, x, by)),
+        ),
+        ExprKind::Pow(a, n) => ExprKind::Pow(Box::new(substitute(a, x, by)), n.clone()),
+        ExprKind::Call(f, args) => ExprKind::Call(
+            f.clone(),
+            args.iter().map(|a| substitute(a, x, by)).collect(),
+        ),
+        ExprKind::If(c, a, b) => ExprKind::If(
+            Box::new(substitute(c, x, by)),
+            Box::new(substitute(a, x, by)),
+            Box::new(substitute(b, x, by)),
+        ),
+        ExprKind::Element(_) | ExprKind::Sum { .. } => return e.clone(),
+    };
+    Spanned {
+        node,
+        span: e.span.clone(),
+    }
+}
+
+/// Whether `e` reads the bare name `x`.
+fn mentions(e: &Expr, x: &str) -> bool {
+    let mut found = false;
+    visit_paths(e, &mut |n| found |= n == x);
+    found
+}
+
+fn visit_paths(e: &Expr, f: &mut impl FnMut(&str)) {
+    match &e.node {
+        ExprKind::Path(p) => f(&p[0].node),
+        ExprKind::Number(_) | ExprKind::Bool(_) | ExprKind::Element(_) | ExprKind::Sum { .. } => {}
+        ExprKind::Neg(a) | ExprKind::Not(a) | ExprKind::Pow(a, _) => visit_paths(a, f),
+        ExprKind::Binary(_, a, b) => {
+            visit_paths(a, f);
+            visit_paths(b, f);
+        }
+        ExprKind::Call(_, args) => args.iter().for_each(|a| visit_paths(a, f)),
+        ExprKind::If(c, a, b) => {
+            visit_paths(c, f);
+            visit_paths(a, f);
+            visit_paths(b, f);
+        }
+    }
+}
+
+/// The derivative of `e` with respect to the bare name `x`, symbolically: `Ok(None)` when it
+/// is zero. The result has the dimension of `e` divided by that of `x` (d`x`/d`x` is the
+/// dimensionless 1), so it passes the dimension check wherever `e` does.
+///
+/// Rules: sum, product, quotient and power rules; `exp`, `sqrt`; `abs` (the sign of its
+/// argument, tested as `u >= -u`); `min`, `max`, `clamp` and `if` by the branch that is
+/// taken (a clamp's slope is 0 outside its bounds). Errors: a function of `x` it cannot
+/// differentiate (`d`, `d2`, a clamp whose bounds depend on `x`).
+pub fn derivative(e: &Expr, x: &str) -> Result<Option<Expr>, Diagnostic> {
+    let sp = e.span.clone();
+    let one = |sp: Span| number(1.0, sp);
+    Ok(match &e.node {
+        ExprKind::Number(_) | ExprKind::Bool(_) => None,
+        ExprKind::Path(p) => (p.len() == 1 && p[0].node == x).then(|| one(sp)),
+        ExprKind::Neg(a) => derivative(a, x)?.map(neg),
+        ExprKind::Not(_) | ExprKind::Element(_) | ExprKind::Sum { .. } => None,
+        ExprKind::Binary(op, a, b) => {
+            let (da, db) = (derivative(a, x)?, derivative(b, x)?);
+            match op {
+                BinOp::Add | BinOp::Sub => match (da, db) {
+                    (None, None) => None,
+                    (Some(da), None) => Some(da),
+                    (None, Some(db)) => Some(if *op == BinOp::Add { db } else { neg(db) }),
+                    (Some(da), Some(db)) => Some(binary(*op, da, db, sp)),
+                },
+                BinOp::Mul => {
+                    let l = da.map(|da| binary(BinOp::Mul, da, (**b).clone(), sp.clone()));
+                    let r = db.map(|db| binary(BinOp::Mul, (**a).clone(), db, sp.clone()));
+                    add(l, r, sp)
+                }
+                BinOp::Div => {
+                    let l = da.map(|da| binary(BinOp::Div, da, (**b).clone(), sp.clone()));
+                    let r = db.map(|db| {
+                        let num = binary(BinOp::Mul, (**a).clone(), db, sp.clone());
+                        let den = binary(BinOp::Mul, (**b).clone(), (**b).clone(), sp.clone());
+                        binary(BinOp::Div, num, den, sp.clone())
+                    });
+                    match (l, r) {
+                        (l, None) => l,
+                        (None, Some(r)) => Some(neg(r)),
+                        (Some(l), Some(r)) => Some(binary(BinOp::Sub, l, r, sp)),
+                    }
+                }
+                // Comparisons and logic are truth values: no slope.
+                _ => None,
+            }
+        }
+        ExprKind::Pow(a, n) => derivative(a, x)?.map(|da| {
+            let k = n.node;
+            let base = if k - 1.0 == 1.0 {
+                (**a).clone()
+            } else {
+                Spanned {
+                    node: ExprKind::Pow(
+                        a.clone(),
+                        Spanned {
+                            node: k - 1.0,
+                            span: n.span.clone(),
+                        },
+                    ),
+                    span: sp.clone(),
+                }
+            };
+            let scaled = binary(BinOp::Mul, number(k, n.span.clone()), base, sp.clone());
+            if k - 1.0 == 0.0 {
+                binary(BinOp::Mul, number(k, n.span.clone()), da, sp.clone())
+            } else {
+                binary(BinOp::Mul, scaled, da, sp.clone())
+            }
+        }),
+        ExprKind::If(c, a, b) => {
+            let (da, db) = (derivative(a, x)?, derivative(b, x)?);
+            branch((**c).clone(), da, db, a, b)
+        }
+        ExprKind::Call(f, args) => {
+            let ds = args
+                .iter()
+                .map(|a| derivative(a, x))
+                .collect::<Result<Vec<_>, _>>()?;
+            if ds.iter().all(Option::is_none) {
+                return Ok(None);
+            }
+            let arg = |i: usize| args[i].clone();
+            match (f.node.as_str(), ds.as_slice()) {
+                ("exp", [Some(d)]) => Some(binary(BinOp::Mul, e.clone(), d.clone(), sp)),
+                ("sqrt", [Some(d)]) => {
+                    let two_root = binary(BinOp::Mul, number(2.0, sp.clone()), e.clone(), sp.clone());
+                    Some(binary(BinOp::Div, d.clone(), two_root, sp))
+                }
+                ("abs", [Some(d)]) => {
+                    let c = binary(BinOp::Ge, arg(0), neg(arg(0)), sp.clone());
+                    Some(if_expr(c, d.clone(), neg(d.clone())))
+                }
+                ("min" | "max", [da, db]) => {
+                    let op = if f.node == "min" { BinOp::Le } else { BinOp::Ge };
+                    let c = binary(op, arg(0), arg(1), sp.clone());
+                    branch(c, da.clone(), db.clone(), &args[0], &args[1])
+                }
+                ("clamp", [Some(d), None, None]) => {
+                    let lo = binary(BinOp::Ge, arg(0), arg(1), sp.clone());
+                    let hi = binary(BinOp::Le, arg(0), arg(2), sp.clone());
+                    let inside = binary(BinOp::And, lo, hi, sp.clone());
+                    Some(if_expr(inside, d.clone(), zero_like(d)))
+                }
+                _ => {
+                    return Err(Diagnostic::error(
+                        "E0127",
+                        format!("cannot differentiate `{}` of the unknown `{x}`", f.node),
+                        e.span.clone(),
+                    )
+                    .hint("a solve's residual may use + - * / ^, exp, sqrt, abs, min, max, clamp (with constant bounds) and if"))
+                }
+            }
+        }
+    })
+}
+
+fn add(l: Option<Expr>, r: Option<Expr>, sp: Span) -> Option<Expr> {
+    match (l, r) {
+        (None, r) => r,
+        (l, None) => l,
+        (Some(l), Some(r)) => Some(binary(BinOp::Add, l, r, sp)),
+    }
+}
+
+/// `if c { da } else { db }`, a missing slope written as a zero of the other's dimension.
+fn branch(c: Expr, da: Option<Expr>, db: Option<Expr>, a: &Expr, b: &Expr) -> Option<Expr> {
+    let _ = (a, b);
+    match (da, db) {
+        (None, None) => None,
+        (Some(da), None) => {
+            let z = zero_like(&da);
+            Some(if_expr(c, da, z))
+        }
+        (None, Some(db)) => {
+            let z = zero_like(&db);
+            Some(if_expr(c, z, db))
+        }
+        (Some(da), Some(db)) => Some(if_expr(c, da, db)),
+    }
+}
+
+/// Replaces every `solve` by its Newton–Raphson iterates (see the module doc).
+fn desugar_solves(decls: Vec<Decl>, diags: &mut Vec<Diagnostic>) -> Vec<Decl> {
+    // Lets by name, to find residuals that read the unknown through a let.
+    let lets: HashMap<String, Expr> = decls
+        .iter()
+        .filter_map(|d| match d {
+            Decl::Let { name, value, .. } => Some((name.node.clone(), value.clone())),
+            _ => None,
+        })
+        .collect();
+    let mut out = Vec::with_capacity(decls.len());
+    for d in decls {
+        let Decl::Solve {
+            name,
+            range,
+            fields,
+            span,
+            ..
+        } = d
+        else {
+            out.push(d);
+            continue;
+        };
+        match solve_lets(&name, range.as_ref(), &fields, &span, &lets) {
+            Ok(v) => out.extend(v),
+            Err(d) => diags.push(d),
+        }
+    }
+    out
+}
+
+fn solve_lets(
+    name: &Name,
+    range: Option<&Range>,
+    fields: &[(Name, Expr)],
+    span: &Span,
+    lets: &HashMap<String, Expr>,
+) -> Result<Vec<Decl>, Diagnostic> {
+    const FIELDS: &str = "start, residual, iterations, min_slope";
+    let x = name.node.as_str();
+    let mut get = HashMap::new();
+    for (n, e) in fields {
+        if !FIELDS.split(", ").any(|f| f == n.node) {
+            return Err(Diagnostic::error(
+                "E0124",
+                format!("a solve has no field `{}`", n.node),
+                n.span.clone(),
+            )
+            .hint(format!("the fields are: {FIELDS}")));
+        }
+        if get.insert(n.node.as_str(), e).is_some() {
+            return Err(Diagnostic::error(
+                "E0124",
+                format!("field `{}` is given twice", n.node),
+                n.span.clone(),
+            ));
+        }
+    }
+    let missing = |f: &str| {
+        Diagnostic::error("E0124", format!("solve `{x}` has no `{f}`"), span.clone())
+            .hint("write `solve X in [lo, hi] { start = …  residual = …  iterations = 3 }`")
+    };
+    let Some(range) = range else {
+        return Err(Diagnostic::error("E0125", format!("solve `{x}` has no range"), name.span.clone())
+            .hint("add `in [lo, hi]`: every iterate is clamped into it, and it sets the fixed-point format"));
+    };
+    let start = *get.get("start").ok_or_else(|| missing("start"))?;
+    let residual = *get.get("residual").ok_or_else(|| missing("residual"))?;
+    let iters_e = *get.get("iterations").ok_or_else(|| missing("iterations"))?;
+    let iterations = match &iters_e.node {
+        ExprKind::Number(l)
+            if l.is_plain_integer && l.value >= 1.0 && l.value <= MAX_ITERATIONS as f64 =>
+        {
+            l.value as i64
+        }
+        _ => {
+            return Err(Diagnostic::error(
+                "E0126",
+                format!("the iteration count must be a whole number from 1 to {MAX_ITERATIONS}"),
+                iters_e.span.clone(),
+            )
+            .hint("Newton–Raphson converges quadratically: 2 to 4 iterations are usual"))
+        }
+    };
+    if !mentions(residual, x) {
+        return Err(Diagnostic::error(
+            "E0128",
+            format!("the residual does not depend on `{x}`"),
+            residual.span.clone(),
+        )
+        .hint(format!(
+            "write the equation `{x}` must satisfy as `residual = … ` that is 0 at the solution"
+        )));
+    }
+    // A let read by the residual must not depend on x: its slope would be missed.
+    let mut via = None;
+    visit_paths(residual, &mut |n| {
+        if via.is_none() && n != x && depends_on(n, x, lets, 0) {
+            via = Some(n.to_string());
+        }
+    });
+    if let Some(l) = via {
+        return Err(Diagnostic::error(
+            "E0129",
+            format!("the residual reads `{l}`, which depends on `{x}`"),
+            residual.span.clone(),
+        )
+        .hint(
+            "write it out in the residual: the slope is taken from the residual's own expression",
+        ));
+    }
+    let slope = derivative(residual, x)?.ok_or_else(|| {
+        Diagnostic::error(
+            "E0128",
+            format!("the residual's slope in `{x}` is zero"),
+            residual.span.clone(),
+        )
+    })?;
+    let rs = residual.span.clone();
+    let clamp = |e: Expr| {
+        call(
+            "clamp",
+            vec![e, range.lo.clone(), range.hi.clone()],
+            rs.clone(),
+        )
+    };
+    let iterate = |k: i64| format!("{x}#{k}");
+    let let_decl = |n: String, value: Expr| Decl::Let {
+        name: Spanned {
+            node: n,
+            span: name.span.clone(),
+        },
+        index: None,
+        value,
+    };
+    let mut out = vec![let_decl(iterate(0), clamp(start.clone()))];
+    for k in 1..=iterations {
+        let prev = iterate(k - 1);
+        let r = substitute(residual, x, &prev);
+        let mut s = substitute(&slope, x, &prev);
+        if let Some(m) = get.get("min_slope") {
+            s = call("max", vec![s, (*m).clone()], rs.clone());
+        }
+        let step = binary(BinOp::Div, r, s, rs.clone());
+        let next = binary(BinOp::Sub, path(&prev, rs.clone()), step, rs.clone());
+        out.push(let_decl(iterate(k), clamp(next)));
+    }
+    out.push(let_decl(x.to_string(), path(&iterate(iterations), rs)));
+    Ok(out)
+}
+
+/// Whether the let `n` (transitively) reads `x`.
+fn depends_on(n: &str, x: &str, lets: &HashMap<String, Expr>, depth: usize) -> bool {
+    if depth > 64 {
+        return false;
+    }
+    let Some(e) = lets.get(n) else {
+        return false;
+    };
+    let mut found = false;
+    visit_paths(e, &mut |m| {
+        found |= m == x || (!found && depends_on(m, x, lets, depth + 1));
+    });
+    found
+}
