@@ -7,6 +7,7 @@ mod check_cmd;
 mod emu_cmd;
 mod play_cmd;
 mod plot;
+mod plot_cmd;
 mod sim_cmd;
 mod source;
 
@@ -37,6 +38,10 @@ enum Command {
     /// Check a keyboard's timing budget: static WCET and measured cycles per key, keys on
     /// the board's cores, fits or not (exit 0/1; 2 on bad input).
     Budget(budget_cmd::BudgetArgs),
+    /// Plot the models behind the instruments (e.g. `tactus plot friction`: Bilbao's
+    /// friction characteristic, Onofrei et al. 2023 Fig. 9).
+    #[command(subcommand)]
+    Plot(plot_cmd::PlotCommand),
     /// Run ELF firmware on the emulated dual-core RP2040.
     #[command(subcommand)]
     Emu(emu_cmd::EmuCommand),
@@ -51,5 +56,6 @@ fn main() -> ExitCode {
         Command::Budget(args) => budget_cmd::run(args),
         Command::Play(args) => play_cmd::run(args),
         Command::Emu(cmd) => emu_cmd::run(cmd),
+        Command::Plot(cmd) => plot_cmd::run(cmd),
     }
 }

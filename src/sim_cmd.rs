@@ -1,5 +1,6 @@
-//! `tactus sim`: run an instrument over a key stimulus on the host (f64 reference
-//! interpreter) and write a CSV trace and SVG plots.
+//! `tactus sim`: run an instrument over a stimulus (a key stimulus, a multi-sensor CSV or a
+//! pen gesture; `tactus_compiler::sim::resolve`) on the host and write a CSV trace and SVG
+//! plots.
 
 use crate::check_cmd::{compile_reporting, parse_override};
 use crate::{plot, source};
@@ -15,12 +16,33 @@ pub struct SimArgs {
     /// rubbed_bank).
     #[arg(default_value = "grand_piano")]
     pub file: String,
-    /// Built-in stimulus name, or a CSV file of key positions (see below).
+    /// Built-in key stimulus or pen gesture, or a CSV file (key positions, or one column
+    /// per sensor; see below).
     #[arg(long, short, default_value = "ff-dip")]
     pub stimulus: String,
-    /// Full key dip of the built-in stimuli, mm [default: the key sensor's upper bound].
+    /// Full key dip of the built-in key stimuli, mm [default: the key sensor's upper bound].
     #[arg(long, value_name = "MM")]
     pub dip: Option<f64>,
+    /// Pen gestures: penetration while pressed, mm, as a reading of sensor 1 [default: the
+    /// middle of its range].
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    pub depth: Option<f64>,
+    /// Pen gestures: peak speed along sensor 2, m/s [default: 0.1; pluck 0.2].
+    #[arg(long, value_name = "M_PER_S", allow_negative_numbers = true)]
+    pub speed: Option<f64>,
+    /// Pen gestures: stroke length along sensor 2, mm [default: 20; bow-stroke 60 % of the
+    /// range].
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    pub stroke: Option<f64>,
+    /// Pen gestures: reading of sensor 3 (across, e.g. which string), mm [default: its
+    /// lower bound].
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    pub across: Option<f64>,
+    /// Also plot these trace columns (outputs, states, forces, sensors) against time into
+    /// OUT/NAME-STIMULUS-plot.svg, one SVG with all of them (repeatable: `--plot vrel --plot
+    /// friction`).
+    #[arg(long = "plot", value_name = "NAME")]
+    pub plots: Vec<String>,
     /// Override a param: `--param G=0.2 N` (repeatable).
     #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
     pub params: Vec<(String, String)>,
@@ -110,19 +132,89 @@ impl tactus_compiler::sim::Engine for FixedJitEngine<'_> {
 }
 
 fn stimulus_help() -> String {
-    let mut s = String::from("Built-in stimuli (key travel at the front, position-driven):\n");
+    let mut s = String::from(
+        "Built-in key stimuli (key travel at the front, position-driven, first sensor only;\n\
+         the other sensors read their lower bound):\n",
+    );
     for (n, d) in stimulus::builtin_names() {
         s.push_str(&format!("  {n:<10} {d}\n"));
     }
     s.push_str(
+        "\nPen gestures, for contact-point instruments (sensor 1 = penetration, sensor 2 =\n\
+         position along the stroke, optional sensor 3 = position across; --depth MM,\n\
+         --speed M_PER_S, --stroke MM, --across MM; smooth ramps, clamped to the ranges):\n",
+    );
+    for (n, d) in tactus_compiler::sim::gesture_names() {
+        s.push_str(&format!("  {n:<10} {d}\n"));
+    }
+    s.push_str(
         "\nA CSV stimulus has a header `key_mm` (one row per sample at 44.1 kHz) or\n\
-         `time_s,key_mm` (any increasing times, linearly interpolated).\n\n\
+         `time_s,key_mm` (any increasing times, linearly interpolated): key travel in mm,\n\
+         first sensor. Or one column per sensor, named as in the trace: an optional first\n\
+         column `time [s]`, then e.g. `press [m],rub [m]`, values in SI units (metres, not\n\
+         mm); sensors without a column read their lower bound, values outside a range are\n\
+         clamped (with a warning).\n\n\
          Outputs: OUT/NAME-STIMULUS.csv (every force term, total, states, modes, outputs,\n\
-         events), OUT/NAME-STIMULUS-forces.svg (force vs time, force vs key position) and,\n\
-         when the instrument has outputs, OUT/NAME-STIMULUS-outputs.svg.\n\n\
-         Example: tactus sim instruments/grand_piano.tactus --stimulus half-dip --param G=0.2 N",
+         events), OUT/NAME-STIMULUS-forces.svg (force vs time, force vs key position), when\n\
+         the instrument has outputs OUT/NAME-STIMULUS-outputs.svg, and with --plot\n\
+         OUT/NAME-STIMULUS-plot.svg.\n\n\
+         Examples: tactus sim instruments/grand_piano.tactus --stimulus half-dip --param G=0.2 N\n\
+         \x20         tactus sim rubbed_bank --stimulus press-rub --depth 5 --speed 0.1 --plot friction",
     );
     s
+}
+
+/// The pen gestures' names, comma-separated.
+fn gesture_list() -> String {
+    tactus_compiler::sim::gesture_names()
+        .iter()
+        .map(|(n, _)| *n)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Writes the trace columns `names` against time into one SVG: one panel with every series
+/// when they share a unit (y label `a, b [unit]`, display units: m as mm), otherwise (or
+/// with an event column) one panel per column, each labelled with its unit.
+fn plot_named(
+    trace: &tactus_runtime::trace::Trace,
+    names: &[String],
+    title: &str,
+    path: &std::path::Path,
+) -> Result<(), String> {
+    use tactus_runtime::trace::ColumnKind;
+    let mut columns = Vec::with_capacity(names.len());
+    for name in names {
+        let c = trace
+            .column(name)
+            .ok_or_else(|| format!("--plot: no column `{name}` in the trace"))?;
+        columns.push(c);
+    }
+    let unit = &columns[0].unit;
+    let shared = columns
+        .iter()
+        .all(|c| &c.unit == unit && c.kind != ColumnKind::Event);
+    if !shared {
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        return plot::plot_columns(trace, &refs, title, path).map_err(|e| e.to_string());
+    }
+    let (scale, shown) = plot::display_unit(unit);
+    let time_ms: Vec<f64> = trace.times_s().iter().map(|t| t * 1e3).collect();
+    let lines: Vec<plot::Line> = columns
+        .iter()
+        .map(|c| plot::Line {
+            label: c.name.clone(),
+            x: time_ms.clone(),
+            y: c.values.iter().map(|v| v * scale).collect(),
+        })
+        .collect();
+    let joined = names.join(", ");
+    let y_desc = if shown.is_empty() {
+        joined
+    } else {
+        format!("{joined} [{shown}]")
+    };
+    plot::plot_lines(&lines, title, "time [ms]", &y_desc, path).map_err(|e| e.to_string())
 }
 
 /// Runs `tactus sim`.
@@ -228,30 +320,76 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     };
     let program = &lowered.program;
     let fs = program.sample_rate_hz;
-    let Some(key) = program.sensors.first() else {
+    if program.sensors.is_empty() {
         return Err(format!(
             "instrument `{}` has no sensor to drive",
             program.name
         ));
-    };
+    }
     // Checked before the simulation, so that a misspelt output fails at once.
     let wav_names = match &args.wav {
         Some(_) => Some(wav_outputs(program, &args.wav_outputs)?),
         None => None,
     };
-    let dip_m = args.dip.map_or(key.range.1, |mm| mm * 1e-3);
-    let stim = if std::path::Path::new(&args.stimulus).exists() {
-        stimulus::from_csv(std::path::Path::new(&args.stimulus), fs)
-    } else {
-        stimulus::builtin(&args.stimulus, dip_m, fs)
+    let columns = tactus_compiler::sim::trace_columns(program);
+    for name in &args.plots {
+        if name == "time" || columns.column(name).is_none() {
+            let available: Vec<&str> = columns
+                .columns
+                .iter()
+                .filter(|c| c.name != "time")
+                .map(|c| c.name.as_str())
+                .collect();
+            return Err(format!(
+                "--plot: `{name}` is not a column of the trace of `{}` (available: {})",
+                program.name,
+                available.join(", ")
+            ));
+        }
     }
-    .map_err(|e| e.to_string())?;
+    let word = args.stimulus.as_str();
+    let is_file = std::path::Path::new(word).is_file();
+    let gesture = !is_file && tactus_compiler::sim::is_gesture(word);
+    let pen_options = [
+        ("--depth", args.depth),
+        ("--speed", args.speed),
+        ("--stroke", args.stroke),
+        ("--across", args.across),
+    ];
+    if !gesture {
+        if let Some((flag, _)) = pen_options.iter().find(|(_, v)| v.is_some()) {
+            return Err(format!(
+                "{flag} applies to the pen gestures ({}), not to `{word}`",
+                gesture_list()
+            ));
+        }
+    }
+    if args.dip.is_some() && (gesture || is_file) {
+        return Err(format!(
+            "--dip applies to the built-in key stimuli, not to `{word}`{}",
+            if gesture { " (use --depth)" } else { "" }
+        ));
+    }
+    let config = tactus_compiler::sim::GestureConfig {
+        depth_m: args.depth.map(|mm| mm * 1e-3),
+        speed_m_per_s: args.speed,
+        stroke_m: args.stroke.map(|mm| mm * 1e-3),
+        across_m: args.across.map(|mm| mm * 1e-3),
+    };
+    let stim =
+        tactus_compiler::sim::resolve(program, word, args.dip.map(|mm| mm * 1e-3), &config, fs)
+            .map_err(|e| e.to_string())?;
+    for note in &stim.notes {
+        eprintln!("warning: {note}");
+    }
     let (trace, summary) = match (args.numeric, args.engine) {
-        (Numeric::F64, EngineKind::Interp) => tactus_compiler::sim::simulate(program, &stim),
+        (Numeric::F64, EngineKind::Interp) => {
+            tactus_compiler::sim::simulate_sensors(program, &stim)
+        }
         (Numeric::F64, EngineKind::Jit) => {
             let jit = tactus_jit::JitProgram::compile(program).map_err(|e| format!("JIT: {e}"))?;
             let mut engine = JitEngine(tactus_jit::JitInstance::new(&jit));
-            tactus_compiler::sim::simulate_with(program, &mut engine, &stim)
+            tactus_compiler::sim::simulate_sensors_with(program, &mut engine, &stim)
         }
         (Numeric::Fixed, engine) => {
             let fp = tactus_compiler::fixed::FixedProgram::new(program);
@@ -261,10 +399,10 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
                     .map_err(|e| format!("JIT: {e}"))?;
                 let mut engine =
                     FixedJitEngine(tactus_jit::fixed::FixedJitInstance::new(&jit), &fp);
-                tactus_compiler::sim::simulate_with(program, &mut engine, &stim)
+                tactus_compiler::sim::simulate_sensors_with(program, &mut engine, &stim)
             } else {
                 let mut inst = tactus_compiler::fixed::interp::FixedInstance::new(&fp);
-                tactus_compiler::sim::simulate_with(program, &mut inst, &stim)
+                tactus_compiler::sim::simulate_sensors_with(program, &mut inst, &stim)
             }
         }
     };
@@ -296,6 +434,11 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
         let names: Vec<&str> = program.outputs.iter().map(|o| o.name.as_str()).collect();
         let svg = args.out.join(format!("{stem}-outputs.svg"));
         plot::plot_columns(&trace, &names, &title, &svg).map_err(|e| e.to_string())?;
+        written.push(svg);
+    }
+    if !args.plots.is_empty() {
+        let svg = args.out.join(format!("{stem}-plot.svg"));
+        plot_named(&trace, &args.plots, &title, &svg)?;
         written.push(svg);
     }
 
