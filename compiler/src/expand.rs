@@ -44,14 +44,40 @@ pub const MAX_ITERATIONS: i64 = 16;
 /// Errors: every bad index, range, `sum` or `solve` found, as diagnostics.
 pub fn expand(file: &File, overrides: &[(String, String)]) -> Result<File, Vec<Diagnostic>> {
     let mut diags = Vec::new();
-    let items = file
+    let mut components = HashMap::new();
+    for item in &file.items {
+        if let TopItem::Component(b) = item {
+            components.entry(b.name.node.clone()).or_insert(b);
+        }
+    }
+    let mut cx = Context {
+        components: &components,
+        diags: &mut diags,
+        requests: Vec::new(),
+    };
+    let mut items: Vec<TopItem> = file
         .items
         .iter()
         .map(|item| match item {
-            TopItem::Instrument(b) => TopItem::Instrument(expand_body(b, overrides, &mut diags)),
-            TopItem::Component(b) => TopItem::Component(expand_body(b, &[], &mut diags)),
+            TopItem::Instrument(b) => TopItem::Instrument(cx.body(b, None, overrides)),
+            TopItem::Component(b) => TopItem::Component(cx.body(b, None, &[])),
         })
         .collect();
+    // Specialisations requested by `use`s (and by the specialisations' own `use`s).
+    let mut done = HashSet::new();
+    while let Some((spec, comp, args)) = cx.requests.pop() {
+        if !done.insert(spec.clone()) {
+            continue;
+        }
+        let Some(body) = components.get(&comp).copied() else {
+            continue;
+        };
+        let overrides: Vec<(String, String)> = args
+            .iter()
+            .map(|(n, k)| (n.clone(), k.to_string()))
+            .collect();
+        items.push(TopItem::Component(cx.body(body, Some(spec), &overrides)));
+    }
     if diags.is_empty() {
         Ok(File { items })
     } else {
@@ -59,39 +85,70 @@ pub fn expand(file: &File, overrides: &[(String, String)]) -> Result<File, Vec<D
     }
 }
 
-fn expand_body(body: &Body, overrides: &[(String, String)], diags: &mut Vec<Diagnostic>) -> Body {
-    let mut params = HashMap::new();
-    for d in &body.decls {
-        if let Decl::Param { name, value, .. } = d {
-            params.insert(name.node.clone(), value.clone());
-        }
-    }
-    for (name, text) in overrides {
-        if params.contains_key(name) {
-            if let Ok(e) = crate::parse::parse_expr(text) {
-                params.insert(name.clone(), e);
+/// What the expansion of every body shares.
+struct Context<'f, 'd> {
+    /// The file's components by name (the first of duplicates; lowering reports those).
+    components: &'f HashMap<String, &'f Body>,
+    diags: &'d mut Vec<Diagnostic>,
+    /// Component specialisations to expand: (name, component, whole-number params).
+    requests: Vec<(String, String, Vec<(String, i64)>)>,
+}
+
+impl Context<'_, '_> {
+    /// Expands one body; `rename` names a specialisation, `overrides` set params by text.
+    fn body(
+        &mut self,
+        body: &Body,
+        rename: Option<String>,
+        overrides: &[(String, String)],
+    ) -> Body {
+        let mut params = HashMap::new();
+        for d in &body.decls {
+            if let Decl::Param { name, value, .. } = d {
+                params.insert(name.node.clone(), value.clone());
             }
         }
-    }
-    let mut x = Expander {
-        params,
-        env: Vec::new(),
-        diags,
-        declared: HashSet::new(),
-        refs: Vec::new(),
-        depth: 0,
-    };
-    let decls = x.decls(&body.decls);
-    x.check_refs();
-    let decls = desugar_solves(decls, x.diags);
-    Body {
-        name: body.name.clone(),
-        decls,
-        span: body.span.clone(),
+        for (name, text) in overrides {
+            if params.contains_key(name) {
+                if let Ok(e) = crate::parse::parse_expr(text) {
+                    params.insert(name.clone(), e);
+                }
+            }
+        }
+        let mut x = Expander {
+            params,
+            env: Vec::new(),
+            diags: &mut *self.diags,
+            declared: HashSet::new(),
+            refs: Vec::new(),
+            depth: 0,
+            components: self.components,
+            requests: &mut self.requests,
+            instance_overrides: if rename.is_none() { overrides } else { &[] },
+        };
+        let decls = x.decls(&body.decls);
+        x.check_refs();
+        let decls = desugar_solves(decls, self.diags);
+        let mut name = body.name.clone();
+        if let Some(r) = rename {
+            name.node = r;
+        }
+        Body {
+            name,
+            decls,
+            span: body.span.clone(),
+        }
     }
 }
 
-struct Expander<'d> {
+struct Expander<'d, 'f> {
+    /// The file's components, to specialise on whole-number arguments.
+    components: &'f HashMap<String, &'f Body>,
+    /// Where specialisations are requested.
+    requests: &'d mut Vec<(String, String, Vec<(String, i64)>)>,
+    /// `--param INSTANCE.PARAM=…` overrides, which size the arrays of the instances of
+    /// this body's `use`s (the instrument's only).
+    instance_overrides: &'f [(String, String)],
     /// Params of the body by name (their expressions, overrides applied).
     params: HashMap<String, Expr>,
     /// Loop variables in scope, innermost last.
@@ -105,7 +162,7 @@ struct Expander<'d> {
     depth: usize,
 }
 
-impl Expander<'_> {
+impl Expander<'_, '_> {
     fn decls(&mut self, decls: &[Decl]) -> Vec<Decl> {
         let mut out = Vec::new();
         for d in decls {
@@ -222,16 +279,20 @@ impl Expander<'_> {
                 component,
                 args,
                 span,
-            } => Decl::Use {
-                name: self.declare(name, index.as_ref()),
-                index: None,
-                component: component.clone(),
-                args: args
+            } => {
+                let args: Vec<(Name, Expr)> = args
                     .iter()
                     .map(|(n, e)| (n.clone(), self.expr(e)))
-                    .collect(),
-                span: span.clone(),
-            },
+                    .collect();
+                let name = self.declare(name, index.as_ref());
+                Decl::Use {
+                    component: self.specialise(&name.node, component, &args),
+                    name,
+                    index: None,
+                    args,
+                    span: span.clone(),
+                }
+            }
             Decl::Solve {
                 name,
                 index,
@@ -254,6 +315,59 @@ impl Expander<'_> {
             },
         };
         out.push(decl);
+    }
+
+    /// A component used with whole-number arguments for its params is expanded once per
+    /// distinct set of them (its arrays may be sized by them): `string<N=52>`. Returns the
+    /// name of the component to instance.
+    fn specialise(&mut self, instance: &str, component: &Name, args: &[(Name, Expr)]) -> Name {
+        let Some(body) = self.components.get(&component.node) else {
+            return component.clone();
+        };
+        let params: HashSet<&str> = body
+            .decls
+            .iter()
+            .filter_map(|d| match d {
+                Decl::Param { name, .. } => Some(name.node.as_str()),
+                _ => None,
+            })
+            .collect();
+        let mut whole = Vec::new();
+        for p in &params {
+            let qualified = format!("{instance}.{p}");
+            let given = match self
+                .instance_overrides
+                .iter()
+                .find(|(n, _)| *n == qualified)
+            {
+                Some((_, text)) => crate::parse::parse_expr(text).ok(),
+                None => args
+                    .iter()
+                    .find(|(n, _)| n.node == *p)
+                    .map(|(_, e)| e.clone()),
+            };
+            let Some(e) = given else {
+                continue;
+            };
+            let saved = self.diags.len();
+            let k = self.int(&e);
+            self.diags.truncate(saved);
+            if let Some(k) = k {
+                whole.push((p.to_string(), k));
+            }
+        }
+        whole.sort();
+        if whole.is_empty() {
+            return component.clone();
+        }
+        let list: Vec<String> = whole.iter().map(|(n, k)| format!("{n}={k}")).collect();
+        let spec = format!("{}<{}>", component.node, list.join(", "));
+        self.requests
+            .push((spec.clone(), component.node.clone(), whole));
+        Spanned {
+            node: spec,
+            span: component.span.clone(),
+        }
     }
 
     fn stmt(&mut self, s: &Stmt) -> Stmt {
@@ -494,10 +608,11 @@ impl Expander<'_> {
                         "`{array}` has elements {array}[{lo}] … {array}[{hi}]"
                     ))
             } else if self.declared.contains(&array) {
-                Diagnostic::error("E0122", format!("`{array}` is not an array"), span)
-                    .hint(format!(
+                Diagnostic::error("E0122", format!("`{array}` is not an array"), span).hint(
+                    format!(
                     "declare its elements in a loop: `for i in 0..N {{ state {array}[i] = … }}`"
-                ))
+                ),
+                )
             } else {
                 Diagnostic::error("E0122", format!("no array named `{array}`"), span).hint(format!(
                     "declare its elements in a loop: `for i in 0..N {{ state {array}[i] = … }}`"
