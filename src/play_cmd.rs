@@ -20,6 +20,10 @@
 //!   velocity `v` is played with the finger force that gives the hammer speed
 //!   [`speed_for_velocity`]`(v)`, started that stroke's lead time before the note-on.
 //!
+//! With `--engine emu` both players run on the firmware's words: the force player's key is
+//! pushed against the force word the key's firmware computed that sample, and traces also
+//! record the safety limiter's current and the DAC code.
+//!
 //! Every `strike` (or `pluck`) the instrument emits becomes a note of the output MIDI file and
 //! of the WAV rendering (`tactus_runtime::voice`).
 
@@ -42,7 +46,10 @@ use tactus_runtime::voice;
 the input note it answers), OUT/NAME-strikes.mid (the strikes as MIDI with velocities from the simulated hammer \
 speed: 1 at 0.1 m/s to 127 at 6 m/s, logarithmic) and OUT/NAME.wav (the strikes through a synthesized modal \
 piano voice, 44.1 kHz 16-bit mono, normalised). With --trace-keys: OUT/NAME-key<K>.csv per traced key (time, key \
-travel, instrument force, hammer position, finger force), OUT/NAME-force.svg and OUT/NAME-hammer.svg. \
+travel, instrument force, hammer position, finger force), OUT/NAME-force.svg and OUT/NAME-hammer.svg; \
+with --engine emu the force is the firmware's force word (before the safety limiter), the hammer its hammer_pos \
+output word, every sample of the trace window (the emulated keys run all the time), and two more columns: \
+motor_current_a (the current the firmware's safety limiter allowed) and dac_code (the word it wrote to the DAC). \
 Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20 --trace-keys 60,64"
 )]
 pub struct PlayArgs {
@@ -68,14 +75,16 @@ pub struct PlayArgs {
     #[arg(long, default_value = "rp2040", value_name = "NAME_OR_FILE")]
     pub board: String,
     /// Player: `position` (prescribed key trajectories) or `force` (a finger force profile
-    /// against the instrument's force: the closed loop).
+    /// against the instrument's force: the closed loop; with `--engine emu` against the
+    /// firmware's force word each sample, calibrated with the fixed-point JIT).
     #[arg(long, value_enum, default_value = "position")]
     pub player: Player,
     /// Override a param on every key: `--param M_h=10 g`.
     #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
     pub params: Vec<(String, String)>,
     /// Keys to trace (MIDI numbers, comma-separated): a CSV per key and SVG plots of force
-    /// and hammer position vs time.
+    /// and hammer position vs time (with `--engine emu` also the limited motor current and
+    /// the DAC code).
     #[arg(long, value_delimiter = ',', value_name = "KEYS")]
     pub trace_keys: Vec<u8>,
     /// Trace from this time on, s.
@@ -313,8 +322,9 @@ enum Motion {
     Finger(ForceProfile),
 }
 
-/// A traced key's samples: (time s, key travel m, instrument force N, hammer m, finger N).
-type TraceRows = Vec<[f64; 5]>;
+/// A traced key's samples: (time s, key travel m, instrument force N, hammer m, finger N,
+/// motor current A, DAC code); the last two only with `--engine emu` (`NaN` otherwise).
+type TraceRows = Vec<[f64; 7]>;
 
 fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let mut perf = match &args.performance {
@@ -415,8 +425,12 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             programs.iter().map(|_| None).collect()
         }
     };
-    let fixed_programs: Vec<tactus_compiler::fixed::FixedProgram> = match args.engine {
-        PlayEngine::Fixed => programs
+    // The fixed-point JIT runs the keys with `--engine fixed`, and calibrates the force
+    // player for `--engine emu` (the same bits as the firmware's update).
+    let fixed_needed = args.engine == PlayEngine::Fixed
+        || (args.engine == PlayEngine::Emu && args.player == Player::Force);
+    let fixed_programs: Vec<tactus_compiler::fixed::FixedProgram> = match fixed_needed {
+        true => programs
             .iter()
             .map(|(_, _, p)| tactus_compiler::fixed::FixedProgram::new(p))
             .collect(),
@@ -555,16 +569,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let mut traces: BTreeMap<u8, TraceRows> = BTreeMap::new();
     let mut emu_report = None;
     if args.engine == PlayEngine::Emu {
-        if args.player != Player::Position {
-            return Err("--engine emu plays with --player position only (the closed loop through the emulated board is not built yet)".into());
-        }
-        let tracks: BTreeMap<u8, &KeyTrack> = jobs
-            .iter()
-            .filter_map(|j| match &motions[j.motion] {
-                Motion::Track(t) => Some((j.key, t)),
-                Motion::Finger(_) => None,
-            })
-            .collect();
+        let key_motions: BTreeMap<u8, &Motion> =
+            jobs.iter().map(|j| (j.key, &motions[j.motion])).collect();
         let played: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
             .iter()
             .filter(|a| key_program.contains_key(&a.key))
@@ -576,8 +582,21 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             .collect();
         let end = jobs.iter().map(|j| j.first + j.n).max().unwrap_or(0);
         bar.set_length(end as u64 * played.len() as u64);
-        let (s, report) = emu_strikes(&played, &tracks, end, fs, &args.board, &bar)?;
+        let trace = EmuTrace {
+            keys: &traced,
+            from_s: args.trace_from,
+            to_s: trace_to,
+        };
+        let opts = EmuOptions {
+            board: &args.board,
+            end,
+            fs,
+            finger,
+            trace,
+        };
+        let (s, report, t) = emu_strikes(&played, &key_motions, &opts, &bar)?;
         strikes = s;
+        traces = t;
         emu_report = Some(report);
     }
     for job in jobs.iter().filter(|_| args.engine != PlayEngine::Emu) {
@@ -605,7 +624,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             }
             if let Some(r) = &mut rows {
                 if time >= args.trace_from && time <= trace_to {
-                    r.push([time, x, s.force_n, s.hammer_m, push]);
+                    r.push([time, x, s.force_n, s.hammer_m, push, f64::NAN, f64::NAN]);
                 }
             }
             if i % 65_536 == 65_535 {
@@ -654,7 +673,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         wrote.push(wav);
     }
     if !traces.is_empty() {
-        wrote.extend(write_traces(&args.out, &stem, &traces)?);
+        let emu = args.engine == PlayEngine::Emu;
+        wrote.extend(write_traces(&args.out, &stem, &traces, emu)?);
     }
     // Notes no strike answers: the instrument did not sound them.
     let silent: Vec<&performance::Note> = perf
@@ -785,21 +805,50 @@ struct EmuReport {
     cycles: Vec<Vec<u64>>,
 }
 
-/// Plays the key tracks through the firmware image of the played keys on the emulated
-/// board: one program per distinct instrument and params, keys to cores by longest
-/// processing time first, every key every sample from sample 0 to `end` (the keys at rest
-/// before and after their notes). Strikes come from the keys' `out[]` words, their speeds
-/// converted from the event's format.
+/// What `--engine emu` records per traced key ([`emu_strikes`]).
+struct EmuTrace<'a> {
+    /// The traced keys (MIDI numbers).
+    keys: &'a BTreeSet<u8>,
+    /// Trace from this time on, s.
+    from_s: f64,
+    /// Trace until this time, s.
+    to_s: f64,
+}
+
+/// How [`emu_strikes`] runs: the board, the samples, the finger of the force player and
+/// the traces.
+struct EmuOptions<'a> {
+    /// Board name or file (`--board`).
+    board: &'a str,
+    /// Samples to run, from sample 0.
+    end: usize,
+    /// Sample rate, Hz.
+    fs: f64,
+    /// The finger of the force player.
+    finger: FingerConfig,
+    /// What to trace.
+    trace: EmuTrace<'a>,
+}
+
+/// Plays the keys through the firmware image of the played keys on the emulated board: one
+/// program per distinct instrument and params, keys to cores by longest processing time
+/// first, every key every sample from sample 0 to `opts.end` (the keys at rest before and
+/// after their notes). A key moved by a [`Motion::Track`] follows it; a key moved by a
+/// [`Motion::Finger`] is a [`ForcePlayer`] pushed by the finger against the force word its
+/// firmware computed that sample (`SampleOut::force`, before the safety limiter, as the
+/// host engines' force): the closed loop, stepped exactly as the host engines' loop.
+/// Strikes come from the keys' `out[]` words, their speeds converted from the event's
+/// format. Traces hold every sample of the traced keys in the window, with the limited
+/// motor current and the DAC code.
 fn emu_strikes(
     played: &[tactus_runtime::keyboard::KeyAssignment],
-    tracks: &BTreeMap<u8, &KeyTrack>,
-    end: usize,
-    fs: f64,
-    board_arg: &str,
+    motions: &BTreeMap<u8, &Motion>,
+    opts: &EmuOptions,
     bar: &ProgressBar,
-) -> Result<(Vec<Strike>, EmuReport), String> {
+) -> Result<(Vec<Strike>, EmuReport, BTreeMap<u8, TraceRows>), String> {
     use tactus_firmware::image::{assign_cores, compile_layout, FirmwareImage, KeySpec};
-    let board = crate::budget_cmd::board_named(board_arg)?;
+    let (end, fs) = (opts.end, opts.fs);
+    let board = crate::budget_cmd::board_named(opts.board)?;
     let source = |name: &str| source::load(name).map(|s| s.text);
     let (programs, key_programs) =
         compile_layout(played, &source, fs).map_err(|e| format!("firmware: {e}"))?;
@@ -845,12 +894,51 @@ fn emu_strikes(
                 .map(|i| tactus_compiler::ir::EventId(i as u32))
         })
         .collect();
-    let mut sensors = vec![0i32; played.len()];
+    // Per program: the out word of `hammer_pos` and its format.
+    let hammer_word: Vec<Option<(usize, i32)>> = programs
+        .iter()
+        .map(|p| {
+            let fp = &p.fixed;
+            fp.program
+                .outputs
+                .iter()
+                .position(|o| o.name == "hammer_pos")
+                .map(|i| (p.thumb.out.outputs + i, fp.output_frac[i]))
+        })
+        .collect();
+    let motion: Vec<Option<&Motion>> = played
+        .iter()
+        .map(|a| motions.get(&a.key).copied())
+        .collect();
+    let mut players: Vec<Option<ForcePlayer>> = played
+        .iter()
+        .zip(&motion)
+        .zip(&key_programs)
+        .map(|((_, m), &p)| {
+            matches!(m, Some(Motion::Finger(_))).then(|| {
+                let dip = programs[p].fixed.program.sensors[0].range.1;
+                ForcePlayer::new(dip, opts.finger.mass_kg, fs)
+            })
+        })
+        .collect();
+    let traced: Vec<bool> = played
+        .iter()
+        .map(|a| opts.trace.keys.contains(&a.key))
+        .collect();
+    let mut traces: BTreeMap<u8, TraceRows> = BTreeMap::new();
+    let n = played.len();
+    let (mut sensors, mut xs) = (vec![0i32; n], vec![0.0; n]);
+    let (mut forces, mut currents, mut dacs) = (vec![0i32; n], vec![0i32; n], vec![0i16; n]);
     let mut strikes = Vec::new();
     for i in 0..end {
         let time = i as f64 / fs;
-        for (k, a) in played.iter().enumerate() {
-            let x = tracks.get(&a.key).map_or(0.0, |t| t.position(time));
+        for k in 0..n {
+            let x = match (motion[k], &players[k]) {
+                (Some(Motion::Track(t)), _) => t.position(time),
+                (_, Some(p)) => p.x_m,
+                _ => 0.0,
+            };
+            xs[k] = x;
             let fp = &programs[key_programs[k]].fixed;
             sensors[k] = tactus_compiler::fixed::interp::FixedInstance::sensor_raw(fp, 0, Some(x));
         }
@@ -877,11 +965,39 @@ fn emu_strikes(
             report.misses[c] = out.misses[c];
             report.cycles[c].push(out.core_cycles[c]);
         }
+        forces.copy_from_slice(&out.force);
+        currents.copy_from_slice(&out.current_ua);
+        dacs.copy_from_slice(&out.dac);
+        for k in 0..n {
+            let p = key_programs[k];
+            let force_n = tactus_runtime::fixed::to_f64(forces[k], programs[p].fixed.total_frac);
+            let push = match motion[k] {
+                Some(Motion::Finger(f)) => f.force(time),
+                _ => 0.0,
+            };
+            if let Some(player) = &mut players[k] {
+                player.step(push, force_n);
+            }
+            if traced[k] && time >= opts.trace.from_s && time <= opts.trace.to_s {
+                let hammer_m = hammer_word[p].map_or(f64::NAN, |(w, frac)| {
+                    tactus_runtime::fixed::to_f64(run.out(k)[w], frac)
+                });
+                traces.entry(played[k].key).or_default().push([
+                    time,
+                    xs[k],
+                    force_n,
+                    hammer_m,
+                    push,
+                    currents[k] as f64 * 1e-6,
+                    dacs[k] as f64,
+                ]);
+            }
+        }
         if i % 4096 == 4095 {
-            bar.inc(4096 * played.len() as u64);
+            bar.inc(4096 * n as u64);
         }
     }
-    Ok((strikes, report))
+    Ok((strikes, report, traces))
 }
 
 /// Measures single strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
@@ -1000,29 +1116,35 @@ fn write_wav(path: &Path, strikes: &[Strike], perf: &Performance, fs: f64) -> Re
 }
 
 /// Writes one CSV per traced key (`STEM-key<K>.csv`: time_s, key_travel_m, force_n,
-/// hammer_pos_m, finger_force_n) and the plots `STEM-force.svg` (instrument force, and the
+/// hammer_pos_m, finger_force_n, and with `emu` (rows from the firmware on the emulated
+/// board) motor_current_a and dac_code) and the plots `STEM-force.svg` (instrument force, and the
 /// finger's with the force player, vs time) and `STEM-hammer.svg` (hammer position vs
 /// time); returns the files written.
 fn write_traces(
     out: &Path,
     stem: &str,
     traces: &BTreeMap<u8, TraceRows>,
+    emu: bool,
 ) -> Result<Vec<PathBuf>, String> {
     let mut wrote = Vec::new();
+    let header = [
+        "time_s",
+        "key_travel_m",
+        "force_n",
+        "hammer_pos_m",
+        "finger_force_n",
+        "motor_current_a",
+        "dac_code",
+    ];
+    // The motor current and DAC code only from the firmware (`--engine emu`).
+    let columns = if emu { 7 } else { 5 };
     for (key, rows) in traces {
         let path = out.join(format!("{stem}-key{key}.csv"));
         let err = |e: csv::Error| format!("{}: {e}", path.display());
         let mut w = csv::Writer::from_path(&path).map_err(err)?;
-        w.write_record([
-            "time_s",
-            "key_travel_m",
-            "force_n",
-            "hammer_pos_m",
-            "finger_force_n",
-        ])
-        .map_err(err)?;
+        w.write_record(&header[..columns]).map_err(err)?;
         for r in rows {
-            w.write_record(r.iter().map(|v| v.to_string()))
+            w.write_record(r[..columns].iter().map(|v| v.to_string()))
                 .map_err(err)?;
         }
         w.flush().map_err(|e| format!("{}: {e}", path.display()))?;

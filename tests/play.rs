@@ -1,6 +1,6 @@
 //! `tactus play` on real input: the first 20 s of Maestro_1 (MAESTRO via miditok's test
 //! files, in ../shared; the test says SKIPPED when it is absent), on generated MIDI files,
-//! and the force-driven player in closed loop with the grand piano.
+//! and the force-driven player in closed loop with the grand piano (and on the emulated board).
 
 mod common;
 use common::{assert_ok, tactus, temp_dir};
@@ -214,6 +214,78 @@ fn the_emulated_board_strikes_like_the_fixed_point_jit_without_missing_a_deadlin
     assert_eq!(over.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&over.stderr);
     assert!(stderr.contains("missed sample deadlines"), "{stderr}");
+}
+
+/// The closed loop on the emulated board: with the force player, each key is pushed by the
+/// finger against the force word its firmware computed that sample; over the demo's first
+/// second on harpsichord keys that gives the same strikes as the fixed-point JIT, bit for
+/// bit. The trace of a played key has every sample, the fixed-point JIT's force wherever
+/// both simulated the key, and the firmware's limited current and DAC code.
+#[test]
+fn the_force_player_on_the_emulated_board_strikes_like_the_fixed_point_jit() {
+    let dir = temp_dir("play-emu-force");
+    let run = |engine: &str| {
+        let out = tactus()
+            .args([
+                "play",
+                "--no-wav",
+                "--seconds",
+                "1",
+                "--instrument",
+                "harpsichord",
+                "--player",
+                "force",
+                "--board",
+                "rp2040_200mhz",
+                "--trace-keys",
+                "60",
+                "--engine",
+                engine,
+                "--out",
+            ])
+            .arg(dir.join(engine))
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        out
+    };
+    run("emu");
+    run("fixed");
+    let read = |d: &str| std::fs::read_to_string(dir.join(d).join("demo-strikes.csv")).unwrap();
+    let (e, f) = (read("emu"), read("fixed"));
+    assert!(e.lines().count() > 2, "{e}");
+    assert_eq!(e, f, "the emulated board and the fixed-point JIT disagree");
+    let trace = |d: &str| {
+        let mut r = csv::Reader::from_path(dir.join(d).join("demo-key60.csv")).unwrap();
+        let header: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+        let rows: Vec<Vec<f64>> = r
+            .records()
+            .map(|rec| rec.unwrap().iter().map(|v| v.parse().unwrap()).collect())
+            .collect();
+        (header, rows)
+    };
+    let ((he, te), (hf, tf)) = (trace("emu"), trace("fixed"));
+    assert_eq!(he[..5], hf[..]);
+    assert_eq!(he[5..], ["motor_current_a", "dac_code"]);
+    // Every sample of the run (the emulated keys run all the time), at least the JIT's.
+    assert!(
+        te.len() >= tf.len() && tf.len() > 1000,
+        "{} {}",
+        te.len(),
+        tf.len()
+    );
+    let by_time: std::collections::HashMap<u64, &Vec<f64>> =
+        te.iter().map(|r| (r[0].to_bits(), r)).collect();
+    for r in &tf {
+        let e = by_time[&r[0].to_bits()];
+        // Time, travel, force and finger force bit for bit (the harpsichord has no hammer).
+        for c in [0, 1, 2, 4] {
+            assert_eq!(e[c].to_bits(), r[c].to_bits(), "column {c} at {} s", r[0]);
+        }
+    }
+    // The firmware drove the motor (its words are checked against the reference limiter
+    // in firmware/tests/image.rs).
+    assert!(te.iter().any(|r| r[5] != 0.0 && r[6] != 0.0));
 }
 
 #[test]
