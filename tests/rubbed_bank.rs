@@ -149,7 +149,7 @@ fn each_mass_rings_at_its_tuning() {
     let from = (0.4 * FS) as usize;
     let mut report = Vec::new();
     for i in 0..BANK {
-        let v = column(&run, output_index(&p, &format!("audio{i}")));
+        let v = column(&run, output_index(&p, &format!("audio[{i}]")));
         let peak = v[from..].iter().fold(0.0f64, |m, x| m.max(x.abs()));
         // Excited: the rub left a vibration far above the fixed-point LSB (3.7e-9 m/s).
         assert!(
@@ -190,13 +190,13 @@ fn energy_decays_without_excitation() {
     let input = rub_then_release(FREE_S + 0.8, RUB_SPEED);
     let run = run_f64(&p, &input);
     let audio: Vec<usize> = (0..BANK)
-        .map(|i| output_index(&p, &format!("audio{i}")))
+        .map(|i| output_index(&p, &format!("audio[{i}]")))
         .collect();
     let tau = p
         .params
         .iter()
-        .find(|x| x.name == "r0.tau")
-        .expect("param r0.tau")
+        .find(|x| x.name == "r[0].tau")
+        .expect("param r[0].tau")
         .value;
     let e: Vec<f64> = (0..=5)
         .map(|k| mean_square_sum(&run, &audio, FREE_S + 0.1 * k as f64))
@@ -333,7 +333,7 @@ fn fixed_point_follows_f64() {
 
         let mut compared = 0;
         for i in 0..BANK {
-            let k = output_index(&p, &format!("audio{i}"));
+            let k = output_index(&p, &format!("audio[{i}]"));
             let (a, b) = (&column(&want, k)[from..], &column(&got, k)[from..]);
             let (ra, rb) = (rms(a), rms(b));
             if ra < FIXED_RMS_FLOOR {
