@@ -27,7 +27,9 @@
 //! the other core and moves the sleeper's cycle counter exactly as its sleep steps would.
 //! While functions are profiled, the loop also stops after any instruction that lands on a
 //! profiled entry or on the return address of the innermost open call, the only places
-//! where the per-instruction profiling bookkeeping can do anything.
+//! where the per-instruction profiling bookkeeping can do anything; exception handlers
+//! profiled with [`Board::profile_handler`] are entered and left only by exception entry
+//! and return, in the general path, so they cost the loop no such check.
 //! So the order of all shared-state accesses, and every result, is the same as stepping
 //! one instruction at a time. [`Board::step`] is the same machine one instruction at a
 //! time, recording [`Core::last`] for traces.
@@ -200,6 +202,9 @@ pub struct Call {
 #[derive(Clone, Debug)]
 struct Profile {
     entry: u32,
+    /// Measures only activations entered by exception entry ([`Board::profile_handler`]):
+    /// the fast path need not watch the entry, which only the general path reaches then.
+    handler_only: bool,
     /// Open calls per core: (return address or exception number, SP at entry, start cycle).
     open: [Vec<(Return, u32, u64)>; 2],
     calls: Vec<Call>,
@@ -341,6 +346,16 @@ impl Board {
 
     /// Reads bytes without side effects or cycles (ROM, flash, SRAM only).
     pub fn read_bytes(&mut self, addr: u32, out: &mut [u8]) -> Result<(), EmuError> {
+        // Whole aligned words map to four consecutive bytes of one memory (the regions and
+        // the SRAM banks' words are aligned): one address decode per word.
+        if addr & 3 == 0 && out.len().is_multiple_of(4) {
+            for (i, w) in out.chunks_exact_mut(4).enumerate() {
+                let a = addr.wrapping_add(4 * i as u32);
+                let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
+                w.copy_from_slice(&mem[off..off + 4]);
+            }
+            return Ok(());
+        }
         for (i, b) in out.iter_mut().enumerate() {
             let a = addr.wrapping_add(i as u32);
             let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
@@ -360,6 +375,15 @@ impl Board {
     /// the host refills often (sensor words, arguments). The caller guarantees that no
     /// instruction lives in the range (else the core may run stale code).
     pub fn write_data(&mut self, addr: u32, data: &[u8]) -> Result<(), EmuError> {
+        // Whole aligned words: one address decode per word, as in `read_bytes`.
+        if addr & 3 == 0 && data.len().is_multiple_of(4) {
+            for (i, w) in data.chunks_exact(4).enumerate() {
+                let a = addr.wrapping_add(4 * i as u32);
+                let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
+                mem[off..off + 4].copy_from_slice(w);
+            }
+            return Ok(());
+        }
         for (i, b) in data.iter().enumerate() {
             let a = addr.wrapping_add(i as u32);
             let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
@@ -460,6 +484,25 @@ impl Board {
     pub fn profile_addr(&mut self, addr: u32) -> usize {
         self.profiles.push(Profile {
             entry: addr & !1,
+            handler_only: false,
+            open: [Vec::new(), Vec::new()],
+            calls: Vec::new(),
+        });
+        self.profiles.len() - 1
+    }
+
+    /// Starts measuring the exception handler at `addr` (Thumb bit ignored) on both cores:
+    /// like [`Board::profile_addr`], but only activations entered by exception entry are
+    /// measured (from the handler's first instruction to the first instruction after the
+    /// exception return that deactivates it, as `profile_addr` measures them); a branch or
+    /// call to `addr` is not. Both ends of such an activation are exception entry and
+    /// return, which the general path executes, so unlike `profile_addr` this costs the
+    /// fast path nothing: use it for interrupt handlers. Returns a handle for
+    /// [`Board::calls`].
+    pub fn profile_handler(&mut self, addr: u32) -> usize {
+        self.profiles.push(Profile {
+            entry: addr & !1,
+            handler_only: true,
             open: [Vec::new(), Vec::new()],
             calls: Vec::new(),
         });
@@ -509,6 +552,8 @@ impl Board {
                 let lr = core.r[14];
                 let ret = if lr >> 28 == 0xf && core.ipsr != 0 {
                     Return::FromException(core.ipsr)
+                } else if p.handler_only {
+                    continue;
                 } else {
                     Return::To(lr & !1)
                 };
@@ -589,7 +634,7 @@ impl Board {
                 if let (true, Some(watch)) = (now < deadline, self.watch_set(k)) {
                     let [c0, c1] = &mut self.cores;
                     let (sys, cache) = (&mut self.system, &self.cache);
-                    let run = match (k == 0, self.profiles.is_empty()) {
+                    let run = match (k == 0, watch[0] == NO_WATCH) {
                         (true, true) => run_beside_sleeper::<false, false>(
                             c0, c1, sys, cache, deadline, wake_check, &watch,
                         ),
@@ -715,11 +760,11 @@ impl Board {
     /// address of the innermost open call, and a call ending with an exception return
     /// leaves the fast path anyway).
     fn watch_set(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
-        let mut watch = [1; WATCH_SLOTS];
+        let mut watch = [NO_WATCH; WATCH_SLOTS];
         let mut n = 0;
         for p in &self.profiles {
             let addrs = [
-                Some(p.entry),
+                (!p.handler_only).then_some(p.entry),
                 match p.open[k].last() {
                     Some(&(Return::To(addr), _, _)) => Some(addr),
                     _ => None,
@@ -749,7 +794,13 @@ impl Board {
         watch: [[u32; WATCH_SLOTS]; 2],
     ) -> (usize, Option<Event>) {
         let (cores, sys, cache) = (&mut self.cores, &mut self.system, &self.cache);
-        let (k, exit) = match (BOTH, self.profiles.is_empty()) {
+        // Slots fill from the first: nothing to watch when it is empty.
+        let unwatched = if BOTH {
+            watch[0][0] == NO_WATCH && watch[1][0] == NO_WATCH
+        } else {
+            watch[k][0] == NO_WATCH
+        };
+        let (k, exit) = match (BOTH, unwatched) {
             (true, true) => run_both::<false>(cores, sys, cache, deadline, &watch),
             (true, false) => run_both::<true>(cores, sys, cache, deadline, &watch),
             (false, true) => (
@@ -977,6 +1028,9 @@ enum Exit {
     /// The core executed an instruction that left it at a watched address (profiling).
     Watch,
 }
+
+/// An unused slot of a watch set ([`Board::watch_set`]): odd, so no PC equals it.
+const NO_WATCH: u32 = 1;
 
 /// Most addresses the fast path watches for profiling ([`Board::watch_set`]).
 const WATCH_SLOTS: usize = 8;

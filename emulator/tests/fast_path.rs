@@ -290,3 +290,50 @@ fn run_until_matches_single_steps() {
     }
     assert!(runs > 96);
 }
+
+/// `Board::profile_handler` on the SysTick handler (entered only by exception entry) counts
+/// the same calls as `Board::profile_addr` on it, while the fast path watches nothing; the
+/// runs agree with single steps in everything else too.
+#[test]
+fn a_profiled_handler_costs_the_fast_path_nothing_and_counts_like_a_profiled_function() {
+    let mut rng = Rng(0x4a4d_1e55);
+    let mut calls = 0;
+    for case in 0..16 {
+        let cores = 1 + case % 2;
+        let seed = rng.next();
+        let make = |handler: bool| {
+            let mut b = board(
+                &mut Rng(seed),
+                cores,
+                case % 4 >= 2,
+                true,
+                false,
+                false,
+                false,
+            );
+            if handler {
+                b.profile_handler(0x2003_0101);
+            } else {
+                b.profile_addr(0x2003_0101);
+            }
+            b
+        };
+        let (mut fast, mut slow) = (make(true), make(false));
+        for slice in [1, 7, 500, 3000, 20_000] {
+            let limit = fast.cycle() + slice;
+            let a = fast.run_until(limit);
+            let b = stepped(&mut slow, limit);
+            assert_eq!(a, b, "case {case} seed {seed:#x}: stop reasons differ");
+            let (sa, sb) = (state(&mut fast, 1), state(&mut slow, 1));
+            assert_eq!(
+                sa, sb,
+                "case {case} seed {seed:#x} slice {slice}: states differ"
+            );
+            if a != StopReason::CycleLimit {
+                break;
+            }
+        }
+        calls += fast.calls(0).len();
+    }
+    assert!(calls > 16, "{calls} handler calls");
+}

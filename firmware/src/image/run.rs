@@ -85,7 +85,7 @@ impl ImageRun {
         for (k, c) in image.cores.iter().enumerate() {
             board.write_u32(c.stack_bottom, STACK_CANARY).map_err(emu)?;
             board.start_core(k, c.reset | 1, c.stack_top, c.vtor);
-            profiles.push(board.profile_addr(c.isr));
+            profiles.push(board.profile_handler(c.isr));
         }
         let n = image.keys.len();
         let cores = image.cores.len();
