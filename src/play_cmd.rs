@@ -326,6 +326,9 @@ enum Motion {
 /// motor current A, DAC code); the last two only with `--engine emu` (`NaN` otherwise).
 type TraceRows = Vec<[f64; 7]>;
 
+/// The traced keys' samples, by key.
+type Traces = BTreeMap<u8, TraceRows>;
+
 fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let mut perf = match &args.performance {
         Some(p) => performance::read_midi(p).map_err(|e| e.to_string())?,
@@ -845,7 +848,7 @@ fn emu_strikes(
     motions: &BTreeMap<u8, &Motion>,
     opts: &EmuOptions,
     bar: &ProgressBar,
-) -> Result<(Vec<Strike>, EmuReport, BTreeMap<u8, TraceRows>), String> {
+) -> Result<(Vec<Strike>, EmuReport, Traces), String> {
     use tactus_firmware::image::{assign_cores, compile_layout, FirmwareImage, KeySpec};
     let (end, fs) = (opts.end, opts.fs);
     let board = crate::budget_cmd::board_named(opts.board)?;
@@ -925,7 +928,7 @@ fn emu_strikes(
         .iter()
         .map(|a| opts.trace.keys.contains(&a.key))
         .collect();
-    let mut traces: BTreeMap<u8, TraceRows> = BTreeMap::new();
+    let mut traces = Traces::new();
     let n = played.len();
     let (mut sensors, mut xs) = (vec![0i32; n], vec![0.0; n]);
     let (mut forces, mut currents, mut dacs) = (vec![0i32; n], vec![0i32; n], vec![0i16; n]);
