@@ -230,34 +230,98 @@ fn isqrt(n: i128) -> i128 {
     r
 }
 
-/// Fraction bits of the internal exp computation.
-const EXP_FRAC: i32 = 60;
+/// `round(2^16 / ln 2)`: `exp`'s estimate of `x / ln 2`.
+pub const EXP_INV_LN2_Q16: i32 = 94_548;
+/// `round(ln 2 · 2^32)` (as an unsigned word: `0xB172_17F8`): `exp`'s `k·ln 2` modulo 2^32.
+pub const EXP_LN2_Q32: u32 = 0xB172_17F8;
+/// `round((ln 2 · 2^32 − EXP_LN2_Q32) · 2^24)`: the part of `ln 2 · 2^32` below
+/// [`EXP_LN2_Q32`]'s last bit, in units of 2^-56.
+pub const EXP_LN2_LO_Q56: i32 = -3_027_078;
+/// `exp`'s Taylor coefficients `round(2^30 / n!)`, `n = 0..=8` (Q30).
+pub const EXP_COEFFS_Q30: [i32; 9] = [
+    1_073_741_824,
+    1_073_741_824,
+    536_870_912,
+    178_956_971,
+    44_739_243,
+    8_947_849,
+    1_491_308,
+    213_044,
+    26_631,
+];
+/// Bound of `exp`'s relative error before its final rounding: `|P·2^(k−30) − e^v| ≤
+/// EXP_REL_ERR · e^v` (see [`exp`]).
+pub const EXP_REL_ERR: f64 = 1.0 / (1u64 << 28) as f64;
 
-/// `exp(x)` into format `fr`, by range reduction and a Taylor polynomial in Q60:
-/// `x = k·ln2 + r` with `|r| ≤ ln2/2`, `exp(r)` from 16 Taylor terms (truncation error
-/// < 2^-60), then `2^k`. Error bound: 2^-56 relative plus the final half-LSB rounding.
+/// `k = round(v / ln 2)` of `exp`'s range reduction for the raw word `x` in format `fx`
+/// (`v = x·2^-fx`), to within 0.006: `t = floor(v·2^8)`, `k = floor((t·94548 + 2^23) / 2^24)`
+/// ([`EXP_INV_LN2_Q16`]), clamped to `±2^40`. Monotone (non-decreasing) in `x`, so a backend finds the words where
+/// `k` crosses a bound by bisection.
+pub fn exp_k(x: i32, fx: i32) -> i64 {
+    let t = if fx >= 8 {
+        (x >> (fx - 8).min(31)) as i128
+    } else {
+        (x as i128) << (8 - fx)
+    };
+    // Clamped far beyond where the result saturates or is 0 (|k| ≤ 2^40 keeps it an i64).
+    ((t * EXP_INV_LN2_Q16 as i128 + (1 << 23)) >> 24).clamp(-(1 << 40), 1 << 40) as i64
+}
+
+/// `floor(a · b / 2^32)`, the high word of the signed 64-bit product (one step of `exp`'s
+/// polynomial).
+pub fn mulhi(a: i32, b: i32) -> i32 {
+    ((a as i64 * b as i64) >> 32) as i32
+}
+
+/// `exp(x)` into format `fr`: a fixed-point algorithm of 32-bit words, cheap on a Cortex-M0+
+/// (one `MULS` for the reduction, eight 32×32→64 products for the polynomial), the same bits
+/// on every engine. With `v = x·2^-fx`:
+///
+/// 1. `k = round(v / ln 2)` to within 0.006 ([`exp_k`]). If `k + fr ≥ 32` the result
+///    saturates (`(i32::MAX, true)`); if `k + fr ≤ −3` it is 0 — both are what step 4 gives,
+///    so these are shortcuts, and they bound `|k| ≤ 64`, `|v| < 45` for steps 2–4.
+/// 2. `r = v − k·ln 2` in Q32, as a wrapping 32-bit word: `X − k·L − round(k·D / 2^24)` where
+///    `X = x·2^(32−fx) mod 2^32` (for `fx > 32`: `floor(x / 2^(fx−32))`),
+///    `L` = [`EXP_LN2_Q32`], `D` = [`EXP_LN2_LO_Q56`]. Then `|r| ≤ 0.3515·2^32`, within 1.5
+///    units of the exact `(v − k·ln 2)·2^32`.
+/// 3. `P = exp(r·2^-32)` in Q30 by Horner's rule on the degree-8 Taylor polynomial
+///    (coefficients [`EXP_COEFFS_Q30`]): `p = c8`, then `p = c_n + floor(p·r / 2^32)`
+///    ([`mulhi`]) for `n = 7, …, 0`.
+/// 4. The result is `P·2^(k + fr − 30)` rounded half up and saturated ([`rescale`]).
+///
+/// Error bound (relative, before the final rounding): the Horner floors and coefficient
+/// roundings add at most 1.58 LSB of Q30 (each step's error is damped by `|r| ≤ 0.3515` in
+/// the following steps), the Taylor remainder `|r|^9/9!·e^|r|` at most 0.35 LSB, the error of
+/// `r` at most 1.5·2^-32·e^|r| = 0.54 LSB; 2.47 LSB against `P ≥ e^-0.3515·2^30` is below
+/// 3.6·2^-30 < [`EXP_REL_ERR`] = 2^-28. So `|result − e^v·2^fr| ≤ 2^-28·e^v·2^fr + 1/2`
+/// (in LSBs of `fr`), unless it saturates. Method: Cody–Waite style range reduction with a
+/// two-part `ln 2` and a truncated Taylor series (J.-M. Muller, *Elementary Functions*, 3rd
+/// ed., 2016, ch. 11); coefficients `round(2^30/n!)`.
 pub fn exp(x: i32, fx: i32, fr: i32) -> Sat {
-    const LN2_Q60: i128 = 799_144_290_325_165_667; // round(ln 2 · 2^60)
-    let xq = rescale(x as i128, fx, EXP_FRAC); // |x| < 2^31·2^-fx
-                                               // k = round(x / ln2)
-    let k = (2 * xq + LN2_Q60).div_euclid(2 * LN2_Q60);
-    if k > 200 {
+    let k = exp_k(x, fx);
+    if k + fr as i64 >= 32 {
         return (i32::MAX, true);
     }
-    if k < -200 {
+    if k + (fr as i64) <= -3 {
         return (0, false);
     }
-    let r = xq - k * LN2_Q60; // |r| <= ln2/2 in Q60
-    let one = 1i128 << EXP_FRAC;
-    let mut term = one;
-    let mut sum = one;
-    for n in 1..=16 {
-        term = (term * r) >> EXP_FRAC;
-        term /= n;
-        sum += term;
+    let k = k as i32; // |k| <= 64
+    let big_x = if fx > 32 {
+        x >> (fx - 32)
+    } else if fx > 0 {
+        ((x as u32) << (32 - fx)) as i32
+    } else {
+        0
+    };
+    let corr = (k * EXP_LN2_LO_Q56 + (1 << 23)) >> 24;
+    let r = big_x
+        .wrapping_sub(k.wrapping_mul(EXP_LN2_Q32 as i32))
+        .wrapping_sub(corr);
+    let mut p = EXP_COEFFS_Q30[8];
+    for n in (0..8).rev() {
+        p = EXP_COEFFS_Q30[n] + mulhi(p, r);
     }
-    // value = sum · 2^k · 2^-60 → format fr
-    sat32(rescale(sum, EXP_FRAC - k as i32, fr))
+    sat32(rescale(p as i128, 30 - k, fr))
 }
 
 #[cfg(test)]
@@ -325,8 +389,66 @@ mod tests {
             let x = from_f64(v, fx).0;
             let got = val(exp(x, fx, fr), fr);
             let want = to_f64(x, fx).exp();
-            let bound = 0.5 * 2f64.powi(-fr) + want * 2f64.powi(-50);
+            let bound = 0.5 * 2f64.powi(-fr) + want * EXP_REL_ERR;
             assert!((got - want).abs() <= bound, "exp {v}: {got} vs {want}");
         }
+    }
+
+    /// `exp` against `f64::exp` on random words of many formats: within its documented bound
+    /// wherever it does not saturate, saturated only where the exact value is at least
+    /// `2^31·(1 − 2^-28)` LSBs, and the shortcuts of step 1 agree with step 4.
+    #[test]
+    fn exp_meets_its_error_bound_on_random_words() {
+        let mut rng = crate::rng::XorShift64::new(0xE4B);
+        let mut worst = 0f64;
+        for n in 0..400_000 {
+            let fx = -32 + (n % 95) as i32;
+            let fr = -32 + ((n / 95) % 95) as i32;
+            // Words whose values are near the interesting range |v| < 50.
+            let v = (rng.unit() * 2.0 - 1.0) * 50.0;
+            let x = if n % 7 == 0 {
+                rng.next_u64() as i32
+            } else {
+                from_f64(v, fx).0
+            };
+            let (got, sat) = exp(x, fx, fr);
+            let want = (to_f64(x, fx)).exp() * 2f64.powi(fr);
+            if sat {
+                assert_eq!(got, i32::MAX);
+                assert!(want >= 2147483648.0 * (1.0 - EXP_REL_ERR), "{x} {fx} {fr}");
+                continue;
+            }
+            let err = (got as f64 - want).abs();
+            assert!(
+                err <= 0.5 + want * EXP_REL_ERR,
+                "exp({x}, {fx}, {fr}) = {got}, exact {want}"
+            );
+            if want > 1e6 {
+                worst = worst.max((err - 0.5).max(0.0) / want);
+            }
+            // The shortcuts: step 4 with the bounded k gives the same word.
+            let k = exp_k(x, fx);
+            if (-3 - fr as i64..=31 - fr as i64).contains(&k) {
+                assert!(got >= 0);
+            }
+        }
+        assert!(worst <= EXP_REL_ERR, "{worst}");
+    }
+
+    /// Step 1's shortcuts of `exp` are what step 4 gives at the edge: at `k + fr = 31` a
+    /// result may still fit, at `k + fr = −2` it may still round to 1.
+    #[test]
+    fn exp_shortcuts_are_step_four_at_their_edges() {
+        // v just below 31·ln 2 (k = 31), fr = 0: about 2^31·e^-0.35, not saturated.
+        let fx = 20;
+        let x = from_f64(30.6 * std::f64::consts::LN_2, fx).0;
+        assert_eq!(exp_k(x, fx), 31);
+        assert!(!exp(x, fx, 0).1);
+        // At v = -2·ln2 + 0.3 with fr = 0: k = −2 but the value 0.34 LSB rounds to 0; with
+        // fr = 1 it is 0.68 → 1.
+        let x = from_f64(-2.0 * std::f64::consts::LN_2 + 0.3, fx).0;
+        assert_eq!(exp_k(x, fx), -2);
+        assert_eq!(exp(x, fx, 0), (0, false));
+        assert_eq!(exp(x, fx, 1), (1, false));
     }
 }

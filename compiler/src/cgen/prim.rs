@@ -121,58 +121,32 @@ static inline int32_t tx_sqrt(int32_t x, int e, int post) {
     return (int32_t)tx_rshr((int64_t)r2, 1 + post);
 }
 
-/* The int64_t whose two's complement is u. */
-static inline int64_t tx_u2s(uint64_t u) {
-    return u >= ((uint64_t)1 << 63) ? -(int64_t)(~u) - 1 : (int64_t)u;
+/* The int32_t whose two's complement is u. */
+static inline int32_t tx_u2s32(uint32_t u) {
+    return u >= ((uint32_t)1 << 31) ? -(int32_t)(~u) - 1 : (int32_t)u;
 }
 
-/* floor(a * b / 2^60), exactly, for |a * b| < 2^122. */
-static inline int64_t tx_mulshr60(int64_t a, int64_t b) {
-    int neg = (a < 0) != (b < 0);
-    uint64_t ua = a < 0 ? (uint64_t)0 - (uint64_t)a : (uint64_t)a;
-    uint64_t ub = b < 0 ? (uint64_t)0 - (uint64_t)b : (uint64_t)b;
-    uint64_t a0 = ua & 0xffffffffu, a1 = ua >> 32, b0 = ub & 0xffffffffu, b1 = ub >> 32;
-    uint64_t p00 = a0 * b0, p01 = a0 * b1, p10 = a1 * b0, p11 = a1 * b1;
-    uint64_t mid = (p00 >> 32) + (p01 & 0xffffffffu) + (p10 & 0xffffffffu);
-    uint64_t lo = (mid << 32) | (p00 & 0xffffffffu);
-    uint64_t hi = p11 + (p01 >> 32) + (p10 >> 32) + (mid >> 32);
-    uint64_t q = (hi << 4) | (lo >> 60);
-    int rem = (lo & ((((uint64_t)1) << 60) - 1u)) != 0;
-    return neg ? -(int64_t)q - rem : (int64_t)q;
-}
-
-/* exp(x * 2^-fx) in format fr, as tactus_runtime::fixed::exp: x = k*ln2 + r in Q60,
-   16 Taylor terms, then 2^k. xlo/xhi: the raw words beyond which k < -200 (result 0) or
-   k > 200 (saturated), found by the compiler. */
+/* exp(x * 2^-fx) in format fr, as tactus_runtime::fixed::exp: k = round(x / ln2) from
+   t = floor(x * 2^(8-fx)), r = x - k*ln2 in Q32 (a wrapping word), P = exp(r) in Q30 by
+   Horner on the degree-8 Taylor polynomial, then P * 2^(k + fr - 30). xlo/xhi: the raw
+   words beyond which k + fr <= -3 (result 0) or k + fr >= 32 (saturated), found by the
+   compiler; between them |k| <= 64 and |t| < 2^14. */
 static inline int32_t tx_exp(int32_t x, int fx, int fr, int32_t xlo, int32_t xhi) {
-    const int64_t ln2 = INT64_C(799144290325165667); /* round(ln 2 * 2^60) */
-    int64_t t, k, r, term, sum;
-    uint64_t xm;
+    static const int32_t c[9] = {1073741824, 1073741824, 536870912, 178956971, 44739243,
+                                 8947849, 1491308, 213044, 26631};
+    int32_t t, k, corr, r, p;
+    uint32_t xq;
     int n;
     if (x > xhi) return INT32_MAX;
     if (x < xlo) return 0;
-    if (fx >= 60) {
-        int64_t xq = fx == 60 ? (int64_t)x : tx_rshr(x, fx - 60);
-        t = tx_floor_shr(xq, 8);
-        xm = (uint64_t)xq;
-    } else {
-        int s = 60 - fx;
-        xm = s >= 64 ? 0 : (uint64_t)(int64_t)x << s;
-        t = s >= 8 ? (s - 8 <= 62 ? (int64_t)x * ((int64_t)1 << (s - 8)) : 0) : tx_floor_shr(x, 8 - s);
-    }
-    /* k within 2 of round(xq / ln2); then exact: -ln2 <= 2r < ln2. */
-    k = t / (ln2 >> 8);
-    r = tx_u2s(xm - (uint64_t)k * (uint64_t)ln2);
-    while (2 * r < -ln2) { k--; r += ln2; }
-    while (2 * r >= ln2) { k++; r -= ln2; }
-    term = (int64_t)1 << 60;
-    sum = term;
-    for (n = 1; n <= 16; n++) {
-        term = tx_mulshr60(term, r);
-        term /= n;
-        sum += term;
-    }
-    return tx_round(sum, fr - 60 + (int)k);
+    t = (int32_t)(fx >= 8 ? tx_floor_shr(x, fx - 8) : (int64_t)x * ((int64_t)1 << (8 - fx)));
+    k = (int32_t)tx_floor_shr((int64_t)t * 94548 + ((int64_t)1 << 23), 24);
+    xq = fx > 32 ? (uint32_t)tx_floor_shr(x, fx - 32) : fx > 0 ? (uint32_t)x << (32 - fx) : 0u;
+    corr = (int32_t)tx_floor_shr((int64_t)k * -3027078 + ((int64_t)1 << 23), 24);
+    r = tx_u2s32(xq - (uint32_t)k * 0xB17217F8u - (uint32_t)corr);
+    p = c[8];
+    for (n = 7; n >= 0; n--) p = c[n] + (int32_t)tx_floor_shr((int64_t)p * r, 32);
+    return tx_round(p, fr - 30 + k);
 }
 "#;
 
@@ -294,14 +268,6 @@ pub fn sqrt(x: &str, fx: i32, fr: i32) -> String {
     format!("tx_sqrt({x}, {e}, {post})")
 }
 
-/// `k` of `exp`'s range reduction for the raw word `x` in format `fx`, exactly as
-/// [`fx::exp`] computes it.
-fn exp_k(x: i32, fx: i32) -> i128 {
-    const LN2_Q60: i128 = 799_144_290_325_165_667;
-    let xq = fx::rescale(x as i128, fx, 60);
-    (2 * xq + LN2_Q60).div_euclid(2 * LN2_Q60)
-}
-
 /// The first raw word in `lo..=hi` where `pred` holds (`pred` monotone: false then true),
 /// or `hi + 1`.
 fn first_true(lo: i64, hi: i64, pred: impl Fn(i64) -> bool) -> i64 {
@@ -317,11 +283,27 @@ fn first_true(lo: i64, hi: i64, pred: impl Fn(i64) -> bool) -> i64 {
     a
 }
 
+/// The raw words `(xlo, xhi)` of format `fx` outside which [`fx::exp`] into `fr` fraction
+/// bits takes a shortcut: `x < xlo` gives 0 (`k + fr ≤ −3`), `x > xhi` saturates
+/// (`k + fr ≥ 32`); `k` ([`fx::exp_k`]) is monotone in `x`, so they are found by bisection.
+/// Between them `|k| ≤ 64`. `xlo` may be `i32::MAX + 1` and `xhi` `i32::MIN − 1` (empty).
+pub fn exp_limits(fx: i32, fr: i32) -> (i64, i64) {
+    let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
+    let fr = fr as i64;
+    let xhi = first_true(lo, hi, |w| fx::exp_k(w as i32, fx) + fr >= 32) - 1;
+    let xlo = first_true(lo, hi, |w| fx::exp_k(w as i32, fx) + fr > -3);
+    (xlo, xhi)
+}
+
 /// [`fx::exp`]: `exp(x)` into `fr` fraction bits.
 pub fn exp(x: &str, fx: i32, fr: i32) -> String {
-    let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
-    let xhi = first_true(lo, hi, |w| exp_k(w as i32, fx) > 200) - 1;
-    let xlo = first_true(lo, hi, |w| exp_k(w as i32, fx) >= -200);
+    let (xlo, xhi) = exp_limits(fx, fr);
+    if xlo > i32::MAX as i64 {
+        return format!("((void)({x}), 0)");
+    }
+    if xhi < i32::MIN as i64 {
+        return format!("((void)({x}), INT32_MAX)");
+    }
     let lit = |w: i64| {
         if w == i32::MIN as i64 {
             "INT32_MIN".to_string()

@@ -267,7 +267,11 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                 }
                 Builtin::Exp => {
                     let hi = fp.ranges.values[x.index()].hi.exp();
-                    hi * err(x) * (1.0 + err(x)) + hi * 2f64.powi(-56) + half_lsb(fr)
+                    // Propagated: e^(v+e) − e^v ≤ e^v·e·(1 + e) for e ≤ 1; the algorithm's
+                    // own error (`fixed::EXP_REL_ERR`, relative) and the final rounding.
+                    hi * err(x) * (1.0 + err(x))
+                        + hi * tactus_runtime::fixed::EXP_REL_ERR
+                        + half_lsb(fr)
                 }
             }
         }

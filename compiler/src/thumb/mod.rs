@@ -95,16 +95,39 @@ impl ThumbObject {
     }
 }
 
+/// The largest object the backend produces: the RP2040's 256 KB of striped SRAM (the
+/// firmware runs its per-sample code from SRAM; the datasheet's SRAM0–3).
+pub const MAX_CODE_BYTES: usize = 256 * 1024;
+
+fn too_big(bytes: usize) -> ThumbError {
+    ThumbError::Unsupported(format!(
+        "an update of {} KB or more of code, more than the {} KB of SRAM the firmware runs code from",
+        bytes / 1024,
+        MAX_CODE_BYTES / 1024
+    ))
+}
+
 /// Compiles a fixed-point program to Thumb code.
 ///
-/// Errors: [`ThumbError::Unsupported`] for `sqrt`, `exp` and division by a run-time value
-/// (not used by the shipped keyboard instruments; the C backend supports them).
+/// Errors: [`ThumbError::Unsupported`] for a division by a run-time value whose range
+/// contains 0, a few format corners no shipped instrument reaches (the C backend supports
+/// them), and code larger than [`MAX_CODE_BYTES`]; `sqrt` and `exp` are inlined (see
+/// [`select`]).
 pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
     let c: CSource = cgen::emit_c(fp).map_err(|e| ThumbError::Interface(e.to_string()))?;
     let p = &fp.program;
     let st = StateLayout::new(p);
     let (used, _) = cgen::live_values(p);
     let upd = select::Sel::new(fp, &st, &c.layout, used.clone()).run()?;
+    // Every machine instruction takes at least 2 bytes: refuse early what cannot fit.
+    let at_least = 2 * upd
+        .code
+        .iter()
+        .filter(|m| !matches!(m, mir::M::Label(_) | mir::M::Note(_) | mir::M::Mark(_)))
+        .count();
+    if at_least > MAX_CODE_BYTES {
+        return Err(too_big(at_least));
+    }
     let ini = select::Sel::new(fp, &st, &c.layout, used).init_body();
     let mut funcs = Vec::new();
     for (name, sel) in [
@@ -117,6 +140,9 @@ pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
         funcs.push(f);
     }
     let code = emit::assemble(funcs)?;
+    if code.text.len() > MAX_CODE_BYTES {
+        return Err(too_big(code.text.len()));
+    }
     Ok(ThumbObject {
         code,
         header: c.header,

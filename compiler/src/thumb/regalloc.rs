@@ -9,7 +9,10 @@
 //! flags alone, so `ADDS`/`ADCS` pairs survive reloads). The victim of a spill is the
 //! interval with the fewest references per instruction of its range (the emitter's reload
 //! cache then removes repeated reloads in straight-line code); a spilled register lives in
-//! its stack slot for its whole interval.
+//! its stack slot for its whole interval. A slot is reused by a later spilled interval only
+//! when the frame would otherwise outgrow [`MAX_UNSHARED_SLOTS`] (a long body such as eleven
+//! inlined `exp`s: `LDR`/`STR` reach 255 words from SP); shorter bodies keep one slot per
+//! spilled interval, as before.
 
 use super::mir::*;
 use super::select::{ARG1, ARG2, STATE_V};
@@ -103,20 +106,55 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
         })
         .collect();
     intervals.sort_by_key(|iv| (iv.start, iv.v));
-    if let Some(a) = scan(&intervals, nregs, &[0, 1, 2, 3, 4, 5, 6], &[]) {
+    if let Some(a) = scan(&intervals, nregs, &[0, 1, 2, 3, 4, 5, 6], &[], false) {
         return a;
     }
-    scan(&intervals, nregs, &[0, 1, 2, 3, 4], &[5, 6]).expect("spilling always succeeds")
+    let a = scan(&intervals, nregs, &[0, 1, 2, 3, 4], &[5, 6], false)
+        .expect("spilling always succeeds");
+    if a.slots as usize <= MAX_UNSHARED_SLOTS {
+        return a;
+    }
+    scan(&intervals, nregs, &[0, 1, 2, 3, 4], &[5, 6], true).expect("spilling always succeeds")
 }
+
+/// Spill slots beyond which intervals that do not overlap share slots.
+pub const MAX_UNSHARED_SLOTS: usize = 200;
 
 /// One linear scan with the given registers; `None` when it would spill and no scratch
 /// registers were set aside.
-fn scan(intervals: &[Interval], nregs: u32, regs: &[u8], scratch: &[u8]) -> Option<Allocation> {
+/// With `share`, a spilled interval takes a slot whose previous occupant ended before it
+/// starts.
+fn scan(
+    intervals: &[Interval],
+    nregs: u32,
+    regs: &[u8],
+    scratch: &[u8],
+    share: bool,
+) -> Option<Allocation> {
     let mut loc: Vec<Option<Loc>> = vec![None; nregs as usize];
+    // The end of the last interval given each slot, and (for sharing) the slots ordered by
+    // that end, earliest first.
+    let mut slot_end: Vec<usize> = Vec::new();
+    let mut by_end: std::collections::BinaryHeap<std::cmp::Reverse<(usize, u16)>> =
+        Default::default();
+    let mut take_slot = |iv: &Interval| -> u16 {
+        let s = match by_end.peek() {
+            Some(&std::cmp::Reverse((e, s))) if share && e < iv.start => {
+                by_end.pop();
+                slot_end[s as usize] = iv.end;
+                s
+            }
+            _ => {
+                slot_end.push(iv.end);
+                (slot_end.len() - 1) as u16
+            }
+        };
+        by_end.push(std::cmp::Reverse((iv.end, s)));
+        s
+    };
     let mut free: Vec<u8> = regs.iter().rev().copied().collect();
     // Active intervals with their register, sorted by end.
     let mut active: Vec<(Interval, u8)> = Vec::new();
-    let mut slots = 0u16;
     let mut used_mask = 0u8;
     let pre = |v: u32| -> Option<u8> {
         if v == ARG1.0 {
@@ -166,17 +204,18 @@ fn scan(intervals: &[Interval], nregs: u32, regs: &[u8], scratch: &[u8]) -> Opti
                     || (active[k].0.weight() == iv.weight() && active[k].0.end > iv.end);
                 if victim_first {
                     let (victim, r) = active.remove(k);
-                    loc[victim.v as usize] = Some(Loc::Slot(slots));
-                    slots += 1;
+                    loc[victim.v as usize] = Some(Loc::Slot(take_slot(&victim)));
                     loc[iv.v as usize] = Some(Loc::Reg(r));
                     active.push((iv, r));
                 } else {
-                    loc[iv.v as usize] = Some(Loc::Slot(slots));
-                    slots += 1;
+                    loc[iv.v as usize] = Some(Loc::Slot(take_slot(&iv)));
                 }
             }
         }
     }
+    // (More than u16::MAX unshared slots: reported as u16::MAX, which makes `allocate`
+    // share them.)
+    let slots = slot_end.len().min(u16::MAX as usize) as u16;
     for &s in scratch {
         if slots > 0 {
             used_mask |= 1 << s;
