@@ -104,11 +104,35 @@ fn check(name: &str, fp: &FixedProgram, obj: &ThumbObject, mut r: UpdateRunner, 
     );
 }
 
+/// Objects larger than this are heavy to emulate in a debug build (`rubbed_bank`: 26 KB,
+/// eleven inlined `exp`s, 12k cycles a sample): their built-in stimuli are decimated to
+/// [`HEAVY_SAMPLES`] samples each (every k-th sample: the whole stroke, faster).
+const HEAVY_TEXT_BYTES: usize = 16 * 1024;
+/// Samples per built-in stimulus for a heavy object.
+const HEAVY_SAMPLES: usize = 4_000;
+
+/// The built-in stimuli of `fp`, decimated for a heavy object.
+fn stimulus_runs(fp: &FixedProgram, obj: &ThumbObject) -> Vec<Run> {
+    let runs = builtin_runs(fp);
+    if obj.code.text.len() <= HEAVY_TEXT_BYTES {
+        return runs;
+    }
+    runs.into_iter()
+        .map(|r| {
+            let k = r.records.len().div_ceil(HEAVY_SAMPLES);
+            Run {
+                label: format!("{} (every {k}th sample)", r.label),
+                records: r.records.into_iter().step_by(k).collect(),
+            }
+        })
+        .collect()
+}
+
 #[test]
 fn thumb_matches_the_fixed_interpreter_bit_for_bit() {
     for (name, text) in thumb_instruments() {
         let (fp, obj) = compile(&text);
-        let mut runs = builtin_runs(&fp);
+        let mut runs = stimulus_runs(&fp, &obj);
         runs.extend(random_runs(&fp, 0x5EED ^ name.len() as u64, 4, 3000));
         check(&name, &fp, &obj, runner(&fp, &obj), &runs);
     }
@@ -132,7 +156,7 @@ fn exclusive_if_bodies_never_run_in_the_same_sample() {
             continue;
         }
         let base = 0x2000_0000u32;
-        let mut runs = builtin_runs(&fp);
+        let mut runs = stimulus_runs(&fp, &obj);
         runs.extend(random_runs(&fp, 0xE1C1 ^ name.len() as u64, 2, 2000));
         let mut entered = vec![false; pairs.len()];
         for run in &runs {
