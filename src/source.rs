@@ -22,6 +22,14 @@ pub const BUILTIN_INSTRUMENTS: &[(&str, &str)] = &[
         "rubbed_bank",
         include_str!("../instruments/rubbed_bank.tactus"),
     ),
+    (
+        "bowed_string",
+        include_str!("../instruments/bowed_string.tactus"),
+    ),
+    (
+        "plucked_string",
+        include_str!("../instruments/plucked_string.tactus"),
+    ),
 ];
 
 /// A source text and the name to show in diagnostics.

@@ -111,6 +111,9 @@ fn pair<'f, 'j>(fp: &'f FixedProgram, jit: &'j FixedJitProgram, what: String) ->
     }
 }
 
+/// Interpreter work per run (value evaluations): large instruments get shorter runs.
+const EVALUATIONS_PER_RUN: usize = 30_000_000;
+
 #[test]
 fn every_instrument_every_builtin_stimulus_bit_for_bit() {
     let mut total = Stats::default();
@@ -124,7 +127,8 @@ fn every_instrument_every_builtin_stimulus_bit_for_bit() {
             let stim =
                 stimulus::builtin(name, dip, 44_100.0).unwrap_or_else(|e| panic!("{name}: {e}"));
             let mut pr = pair(&fp, &jit, format!("{} / {name}", fp.program.name));
-            for (n, &k) in stim.key.iter().enumerate() {
+            let cap = fp.program.samples_within(EVALUATIONS_PER_RUN);
+            for (n, &k) in stim.key.iter().take(cap).enumerate() {
                 pr.step(n, &[k]);
             }
             total.add(&pr.finish());
@@ -175,7 +179,7 @@ fn random_raw_words_in_and_out_of_range_bit_for_bit() {
         let ranges = fp.sensor_raw_range.clone();
         let mut prev: Vec<i32> = ranges.iter().map(|r| r.0).collect();
         let mut pr = pair(&fp, &jit, format!("{} / random raw", fp.program.name));
-        for n in 0..50_000 {
+        for n in 0..50_000.min(fp.program.samples_within(EVALUATIONS_PER_RUN)) {
             for (x, &r) in prev.iter_mut().zip(&ranges) {
                 // The walk continues from the saturated word.
                 *x = raw_word(&mut rng, (*x).clamp(r.0, r.1), r);
@@ -210,7 +214,7 @@ fn random_si_readings_bit_for_bit() {
         let mut pr = pair(&fp, &jit, format!("{} / random SI", fp.program.name));
         let specials = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.0];
         let mut prev: Vec<f64> = fp.program.sensors.iter().map(|s| s.range.0).collect();
-        for n in 0..20_000 {
+        for n in 0..20_000.min(fp.program.samples_within(EVALUATIONS_PER_RUN)) {
             for (x, s) in prev.iter_mut().zip(&fp.program.sensors) {
                 let (lo, hi) = s.range;
                 let span = hi - lo;
@@ -245,6 +249,7 @@ fn run_block_matches_step_raw() {
             let rows: Vec<i32> = stim
                 .key
                 .iter()
+                .take(fp.program.samples_within(EVALUATIONS_PER_RUN))
                 .flat_map(|&k| (0..ns).map(move |i| if i == 0 { Some(k) } else { None }))
                 .enumerate()
                 .map(|(j, x)| FixedInstance::sensor_raw(&fp, j % ns, x))
@@ -285,7 +290,13 @@ fn random_format_plans_bit_for_bit() {
     let mut plans = 0;
     for (k, path) in instruments().into_iter().chain(test_programs()).enumerate() {
         let base = load(&path);
-        for plan in 0..12u64 {
+        // Every plan is a JIT compile: large programs get two (one of each kind).
+        let n_plans = if base.program.values.len() > 2_000 {
+            2
+        } else {
+            12
+        };
+        for plan in 0..n_plans {
             let mut rng = XorShift64::new(0xf0f0_1234 ^ (k as u64) << 8 ^ plan);
             let mut fp = base.clone();
             // Even plans move formats by up to ±12 bits, odd ones by up to ±60 (anywhere).
@@ -309,7 +320,7 @@ fn random_format_plans_bit_for_bit() {
             let ranges = fp.sensor_raw_range.clone();
             let mut prev: Vec<i32> = ranges.iter().map(|r| r.0).collect();
             let mut pr = pair(&fp, &jit, format!("{} / plan {plan}", fp.program.name));
-            for n in 0..5_000 {
+            for n in 0..5_000.min(fp.program.samples_within(EVALUATIONS_PER_RUN)) {
                 for (x, &r) in prev.iter_mut().zip(&ranges) {
                     *x = raw_word(&mut rng, (*x).clamp(r.0, r.1), r);
                 }
