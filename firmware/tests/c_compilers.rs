@@ -10,7 +10,7 @@
 
 mod common;
 
-use common::instruments;
+use common::small_instruments;
 use tactus_compiler::cgen::{self, CSource};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::lower::Config;
@@ -97,7 +97,7 @@ fn compiled_c_matches_the_fixed_interpreter_on_every_instrument_and_stimulus() {
         builds: Vec<cc::Build>,
         runs: Vec<Run>,
     }
-    let insts: Vec<Inst> = instruments()
+    let insts: Vec<Inst> = small_instruments()
         .into_iter()
         .map(|(name, text)| {
             let (fp, c) = compile(&text);
@@ -223,7 +223,7 @@ fn state_layout_matches_the_compilers() {
         if !available(compiler) {
             continue;
         }
-        for (name, text) in instruments() {
+        for (name, text) in small_instruments() {
             let (fp, c) = compile(&text);
             let st = &c.stem;
             let probe = format!(
@@ -268,7 +268,7 @@ fn state_layout_matches_the_compilers() {
 /// never returns, code that writes past `out`, and raw code with entry offsets.
 #[test]
 fn runner_errors_are_typed() {
-    let (fp, c) = compile(&instruments()[0].1);
+    let (fp, c) = compile(&small_instruments()[0].1);
     let iface = Interface::new(&fp, &c.stem, &c.layout);
     // Raw Thumb code: init = `bx lr`; update = `ldr r0, [r0]` from an unmapped address
     // set up by `movs r0, #0; subs r0, #1` → 0xffffffff, which faults.
@@ -333,7 +333,7 @@ fn compare_detects_a_wrong_result() {
     if !available(Compiler::Gcc) {
         return;
     }
-    let (fp, c) = compile(&instruments()[0].1);
+    let (fp, c) = compile(&small_instruments()[0].1);
     // Corrupt out[0] (a published word: a force term or the total) by + 1.
     let mut bad = c.clone();
     let needle = "out[i] = s->published[i];";
@@ -366,7 +366,7 @@ fn repeated_calls_agree_with_board_call() {
     if !available(Compiler::Clang) {
         return;
     }
-    for (name, text) in instruments() {
+    for (name, text) in small_instruments() {
         let (fp, c) = compile(&text);
         let b = cc::build(&c, Compiler::Clang, &Options::default()).unwrap();
         let iface = Interface::new(&fp, &c.stem, &c.layout);
