@@ -85,13 +85,16 @@ pub fn expand(file: &File, overrides: &[(String, String)]) -> Result<File, Vec<D
     }
 }
 
+/// A component specialisation to expand: (its name, the component, whole-number params).
+type Request = (String, String, Vec<(String, i64)>);
+
 /// What the expansion of every body shares.
 struct Context<'f, 'd> {
     /// The file's components by name (the first of duplicates; lowering reports those).
     components: &'f HashMap<String, &'f Body>,
     diags: &'d mut Vec<Diagnostic>,
     /// Component specialisations to expand: (name, component, whole-number params).
-    requests: Vec<(String, String, Vec<(String, i64)>)>,
+    requests: Vec<Request>,
 }
 
 impl Context<'_, '_> {
@@ -145,7 +148,7 @@ struct Expander<'d, 'f> {
     /// The file's components, to specialise on whole-number arguments.
     components: &'f HashMap<String, &'f Body>,
     /// Where specialisations are requested.
-    requests: &'d mut Vec<(String, String, Vec<(String, i64)>)>,
+    requests: &'d mut Vec<Request>,
     /// `--param INSTANCE.PARAM=…` overrides, which size the arrays of the instances of
     /// this body's `use`s (the instrument's only).
     instance_overrides: &'f [(String, String)],
@@ -762,6 +765,7 @@ fn visit_paths(e: &Expr, f: &mut impl FnMut(&str)) {
 /// argument, tested as `u >= -u`); `min`, `max`, `clamp` and `if` by the branch that is
 /// taken (a clamp's slope is 0 outside its bounds). Errors: a function of `x` it cannot
 /// differentiate (`d`, `d2`, a clamp whose bounds depend on `x`).
+#[allow(clippy::result_large_err)] // a diagnostic, once per compile error
 pub fn derivative(e: &Expr, x: &str) -> Result<Option<Expr>, Diagnostic> {
     let sp = e.span.clone();
     let one = |sp: Span| number(1.0, sp);
@@ -927,6 +931,7 @@ fn desugar_solves(decls: Vec<Decl>, diags: &mut Vec<Diagnostic>) -> Vec<Decl> {
     out
 }
 
+#[allow(clippy::result_large_err)] // a diagnostic, once per compile error
 fn solve_lets(
     name: &Name,
     range: Option<&Range>,

@@ -149,7 +149,7 @@ fn mutated_instruments_never_panic() {
     let (mut ok, mut failed) = (0usize, 0usize);
     for i in 0..10_400 {
         let k = i % sources.len();
-        if large[k] && (i / sources.len()) % 20 != 0 {
+        if large[k] && !(i / sources.len()).is_multiple_of(20) {
             continue;
         }
         let m = mutate(&sources[k], &mut rng);
