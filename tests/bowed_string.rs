@@ -7,6 +7,9 @@
 //! the strings `across`) sample by sample. The f64 JIT is used for speed; it computes the
 //! reference interpreter's values bit for bit (`compiler/jit/tests`).
 
+mod common;
+
+use common::partial_hz;
 use std::path::Path;
 use tactus_compiler::ir::Program;
 use tactus_compiler::lower::Config;
@@ -121,44 +124,6 @@ fn slips_per_second(vrel: &[f64]) -> f64 {
     slips as f64 * FS / vrel.len() as f64
 }
 
-/// Frequency of the strongest partial within ±10 % of `f` (Hz): the peak of the
-/// Hann-windowed discrete-time Fourier transform, scanned in 0.5 Hz and then 0.01 Hz steps. For a periodic
-/// signal whose fundamental is near `f`, this is the fundamental; for a free string, its
-/// first mode.
-fn partial_hz(x: &[f64], f: f64) -> f64 {
-    let n = x.len() as f64;
-    let m = x.iter().sum::<f64>() / n;
-    let w: Vec<f64> = x
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (v - m) * (0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n).cos()))
-        .collect();
-    let power = |hz: f64| {
-        let (mut re, mut im) = (0.0, 0.0);
-        for (i, v) in w.iter().enumerate() {
-            let ph = 2.0 * std::f64::consts::PI * hz * i as f64 / FS;
-            re += v * ph.cos();
-            im -= v * ph.sin();
-        }
-        re * re + im * im
-    };
-    // 0.5 Hz steps over ±10 %, then 0.01 Hz steps around the best.
-    let scan = |from: f64, to: f64, step: f64| {
-        let mut best = (from, f64::MIN);
-        let mut hz = from;
-        while hz <= to {
-            let p = power(hz);
-            if p > best.1 {
-                best = (hz, p);
-            }
-            hz += step;
-        }
-        best.0
-    };
-    let coarse = scan(0.9 * f, 1.1 * f, 0.5);
-    scan(coarse - 0.5, coarse + 0.5, 0.01)
-}
-
 /// A stroke at 22 mN (80 % depth) and 0.1 m/s on the G string: during the stroke the bridge
 /// force is periodic (autocorrelation over one period ≥ 0.95) at the string's fundamental —
 /// the first mode of the same string ringing freely after the bow is lifted, and the tuning —
@@ -172,10 +137,10 @@ fn moderate_bowing_settles_into_stick_slip_at_the_fundamental() {
     let bridge = output_index(&p, "audio_g");
     let vrel = output_index(&p, "vrel");
     let bowed = column(&out, bridge, 0.40, 0.70);
-    let f_bowed = partial_hz(&bowed, G3_HZ);
+    let f_bowed = partial_hz(&bowed, G3_HZ, FS);
     let corr = autocorrelation(&bowed, (FS / f_bowed).round() as usize);
     let free = column(&out, bridge, 0.75, 0.95);
-    let f_free = partial_hz(&free, G3_HZ);
+    let f_free = partial_hz(&free, G3_HZ, FS);
     let v = column(&out, vrel, 0.40, 0.70);
     let sticking = v.iter().filter(|x| x.abs() < 0.0707).count() as f64 / v.len() as f64;
     let slips = slips_per_second(&v);

@@ -7,6 +7,9 @@
 //! The pen drives the three sensors (`press`, `pos`, `along`) sample by sample; the f64 JIT
 //! computes the reference interpreter's values bit for bit (`compiler/jit/tests`).
 
+mod common;
+
+use common::partial_hz;
 use std::path::Path;
 use tactus_compiler::ir::Program;
 use tactus_compiler::lower::Config;
@@ -87,41 +90,6 @@ fn across(seconds: f64, depth: f64, speed: f64) -> Vec<[f64; 3]> {
         .collect()
 }
 
-/// Frequency of the strongest partial within ±10 % of `f`, Hz (Hann-windowed DTFT peak,
-/// 0.5 Hz then 0.01 Hz steps).
-fn partial_hz(x: &[f64], f: f64) -> f64 {
-    let n = x.len() as f64;
-    let m = x.iter().sum::<f64>() / n;
-    let w: Vec<f64> = x
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (v - m) * (0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n).cos()))
-        .collect();
-    let power = |hz: f64| {
-        let (mut re, mut im) = (0.0, 0.0);
-        for (i, v) in w.iter().enumerate() {
-            let ph = 2.0 * std::f64::consts::PI * hz * i as f64 / FS;
-            re += v * ph.cos();
-            im -= v * ph.sin();
-        }
-        re * re + im * im
-    };
-    let scan = |from: f64, to: f64, step: f64| {
-        let mut best = (from, f64::MIN);
-        let mut hz = from;
-        while hz <= to {
-            let p = power(hz);
-            if p > best.1 {
-                best = (hz, p);
-            }
-            hz += step;
-        }
-        best.0
-    };
-    let coarse = scan(0.9 * f, 1.1 * f, 0.5);
-    scan(coarse - 0.5, coarse + 0.5, 0.01)
-}
-
 /// One crossing at 0.1, 0.3 and 0.6 m/s: exactly one pluck, where the deflection reaches the
 /// release (the tip at x_s + release); before it the pen feels −k_s·δ, 1.2 N at the release,
 /// and nothing after; the voice sounds at FS/(P + ½) within 0.5 %, louder for faster plucks.
@@ -154,7 +122,7 @@ fn one_pluck_per_crossing_with_speed_setting_the_amplitude() {
             .iter()
             .map(|o| o[audio])
             .collect();
-        let f = partial_hz(&sound, FS / (P + 0.5));
+        let f = partial_hz(&sound, FS / (P + 0.5), FS);
         let peak = sound.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         println!(
             "{speed} m/s: pluck at {v:.3} m/s, tip {:.3} mm, force before release {before:.3} N, \
@@ -200,7 +168,7 @@ fn windings_ripple_at_speed_over_pitch() {
         .collect();
     let r = run(&p, &input);
     let ripple: Vec<f64> = r.outputs[4410..].iter().map(|o| o[lateral]).collect();
-    let f = partial_hz(&ripple, 100.0);
+    let f = partial_hz(&ripple, 100.0, FS);
     let (lo, hi) = ripple
         .iter()
         .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));

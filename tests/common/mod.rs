@@ -1,4 +1,5 @@
-//! Helpers shared by the integration tests that run the `tactus` binary.
+//! Helpers shared by the integration tests (running the `tactus` binary, measuring signals).
+#![allow(dead_code)] // each test binary uses a subset
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
@@ -23,4 +24,42 @@ pub fn assert_ok(out: &Output) {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+/// Frequency of the strongest partial within ±10 % of `f` (Hz): the peak of the
+/// Hann-windowed discrete-time Fourier transform, scanned in 0.5 Hz and then 0.01 Hz steps. For a periodic
+/// signal whose fundamental is near `f`, this is the fundamental; for a free string, its
+/// first mode. `fs`: the sample rate, Hz.
+pub fn partial_hz(x: &[f64], f: f64, fs: f64) -> f64 {
+    let n = x.len() as f64;
+    let m = x.iter().sum::<f64>() / n;
+    let w: Vec<f64> = x
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (v - m) * (0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n).cos()))
+        .collect();
+    let power = |hz: f64| {
+        let (mut re, mut im) = (0.0, 0.0);
+        for (i, v) in w.iter().enumerate() {
+            let ph = 2.0 * std::f64::consts::PI * hz * i as f64 / fs;
+            re += v * ph.cos();
+            im -= v * ph.sin();
+        }
+        re * re + im * im
+    };
+    // 0.5 Hz steps over ±10 %, then 0.01 Hz steps around the best.
+    let scan = |from: f64, to: f64, step: f64| {
+        let mut best = (from, f64::MIN);
+        let mut hz = from;
+        while hz <= to {
+            let p = power(hz);
+            if p > best.1 {
+                best = (hz, p);
+            }
+            hz += step;
+        }
+        best.0
+    };
+    let coarse = scan(0.9 * f, 1.1 * f, 0.5);
+    scan(coarse - 0.5, coarse + 0.5, 0.01)
 }
