@@ -95,6 +95,16 @@ pub enum Decl {
         ty: Option<Spanned<TypeAnn>>,
         range: Option<Range>,
     },
+    /// `sensor NAME [: TYPE] in { x: [lo, hi], z: [lo, hi], … }`: a vector sensor (a pen's
+    /// position), one range per component; components are `x`, `y`, `z`, each at most once.
+    /// [`crate::expand`] turns it into scalar sensors `NAME.x`, … in the written order.
+    VectorSensor {
+        name: Name,
+        ty: Option<Spanned<TypeAnn>>,
+        components: Vec<(Name, Range)>,
+        /// Span of the braces.
+        span: Span,
+    },
     /// `input NAME : TYPE` (components only)
     Input {
         name: Name,
@@ -126,11 +136,23 @@ pub enum Decl {
         index: Option<Expr>,
         value: Expr,
     },
-    /// `force NAME = EXPR`
+    /// `force NAME = EXPR`; `axis` is set by [`crate::expand`] on the scalar terms a
+    /// [`Decl::VectorForce`] becomes (the parser always leaves it `None`).
     Force {
         name: Name,
         index: Option<Expr>,
         value: Expr,
+        axis: Option<crate::ir::Axis>,
+    },
+    /// `force NAME = { x: EXPR, z: EXPR, … }`: a vector force term of a pen instrument, in
+    /// newtons per component; components are `x`, `y`, `z`, each at most once, and a
+    /// missing one is 0 N. [`crate::expand`] turns it into scalar terms `NAME.x`, ….
+    VectorForce {
+        name: Name,
+        index: Option<Expr>,
+        components: Vec<(Name, Expr)>,
+        /// Span of the braces.
+        span: Span,
     },
     /// `output NAME = EXPR`
     Output {

@@ -22,11 +22,18 @@
 //!   `max(R′, min_slope)` for residuals known to be increasing (the uniqueness condition of
 //!   the friction solve of Bilbao, *Numerical Sound Synthesis*, 2009, §7.3, gives such a
 //!   bound). The iterates are `let`s named `X#0 … X#N`.
+//! * A vector sensor `sensor pen: m in { z: [..], x: [..] }` becomes the scalar sensors
+//!   `pen.z`, `pen.x` in the written order, and a vector force `force f = { x: A, z: B }`
+//!   the scalar force terms `f.x`, `f.z`, each tagged with its [`crate::ir::Axis`] (a
+//!   missing component is no term, i.e. 0 N). A read `pen.x` (or `d(pen.x)`, `f.z`) becomes
+//!   the one name `pen.x`; reading `pen` bare is an error (E0133), as are an unknown
+//!   component (E0130), a repeated one (E0131) and empty braces (E0132).
 //!
 //! Errors are diagnostics with the span of the offending index, range or field.
 
 use crate::ast::*;
 use crate::diagnostics::Diagnostic;
+use crate::ir::Axis;
 use crate::lexer::Literal;
 use crate::units::Dim;
 use std::collections::{HashMap, HashSet};
@@ -118,7 +125,10 @@ impl Context<'_, '_> {
                 }
             }
         }
+        let mut vectors = HashMap::new();
+        collect_vectors(&body.decls, &mut vectors);
         let mut x = Expander {
+            vectors,
             params,
             env: Vec::new(),
             diags: &mut *self.diags,
@@ -131,6 +141,7 @@ impl Context<'_, '_> {
         };
         let decls = x.decls(&body.decls);
         x.check_refs();
+        x.check_vector_names();
         let decls = desugar_solves(decls, self.diags);
         let mut name = body.name.clone();
         if let Some(r) = rename {
@@ -144,7 +155,48 @@ impl Context<'_, '_> {
     }
 }
 
+/// A vector sensor or force of a body, by its name (without an element index).
+struct Vector {
+    /// `"sensor"` or `"force"`, for messages.
+    kind: &'static str,
+    /// Its name as written.
+    name: Name,
+    /// The components written (the union over the elements of an array of vector forces).
+    components: Vec<String>,
+}
+
+/// Every vector sensor and force declared in `decls` (also inside loops), by name.
+fn collect_vectors(decls: &[Decl], out: &mut HashMap<String, Vector>) {
+    for d in decls {
+        let (kind, name, comps): (_, _, Vec<&Name>) = match d {
+            Decl::VectorSensor {
+                name, components, ..
+            } => ("sensor", name, components.iter().map(|(n, _)| n).collect()),
+            Decl::VectorForce {
+                name, components, ..
+            } => ("force", name, components.iter().map(|(n, _)| n).collect()),
+            Decl::For { decls, .. } => {
+                collect_vectors(decls, out);
+                continue;
+            }
+            _ => continue,
+        };
+        let v = out.entry(name.node.clone()).or_insert_with(|| Vector {
+            kind,
+            name: name.clone(),
+            components: Vec::new(),
+        });
+        for c in comps {
+            if !v.components.contains(&c.node) {
+                v.components.push(c.node.clone());
+            }
+        }
+    }
+}
+
 struct Expander<'d, 'f> {
+    /// The body's vector sensors and forces by name (their reads are rewritten).
+    vectors: HashMap<String, Vector>,
     /// The file's components, to specialise on whole-number arguments.
     components: &'f HashMap<String, &'f Body>,
     /// Where specialisations are requested.
@@ -199,6 +251,61 @@ impl Expander<'_, '_> {
                     range: range.as_ref().map(|r| self.bounds(r)),
                 }
             }
+            Decl::VectorSensor {
+                name,
+                ty,
+                components,
+                span,
+            } => {
+                let names: Vec<&Name> = components.iter().map(|(n, _)| n).collect();
+                let Some(axes) = self.axes("sensor", name, &names, span) else {
+                    return;
+                };
+                for ((c, range), _) in components.iter().zip(axes) {
+                    let full = format!("{}.{}", name.node, c.node);
+                    self.declared.insert(full.clone());
+                    out.push(Decl::Sensor {
+                        name: Spanned {
+                            node: full,
+                            span: c.span.clone(),
+                        },
+                        ty: ty.clone(),
+                        range: Some(self.bounds(range)),
+                    });
+                }
+                return;
+            }
+            Decl::VectorForce {
+                name,
+                index,
+                components,
+                span,
+            } => {
+                // The vector itself is no value: only its components (and, for the element
+                // check of `f[k].x`, the element `f[k]`) are declared.
+                let base = match index {
+                    None => name.clone(),
+                    Some(i) => self.declare(name, Some(i)),
+                };
+                let names: Vec<&Name> = components.iter().map(|(n, _)| n).collect();
+                let Some(axes) = self.axes("force", name, &names, span) else {
+                    return;
+                };
+                for ((c, value), axis) in components.iter().zip(axes) {
+                    let full = format!("{}.{}", base.node, c.node);
+                    self.declared.insert(full.clone());
+                    out.push(Decl::Force {
+                        name: Spanned {
+                            node: full,
+                            span: c.span.clone(),
+                        },
+                        index: None,
+                        value: self.expr(value),
+                        axis: Some(axis),
+                    });
+                }
+                return;
+            }
             Decl::Input { name, ty } => {
                 self.declared.insert(name.node.clone());
                 Decl::Input {
@@ -244,10 +351,16 @@ impl Expander<'_, '_> {
                 index: None,
                 value: self.expr(value),
             },
-            Decl::Force { name, index, value } => Decl::Force {
+            Decl::Force {
+                name,
+                index,
+                value,
+                axis,
+            } => Decl::Force {
                 name: self.declare(name, index.as_ref()),
                 index: None,
                 value: self.expr(value),
+                axis: *axis,
             },
             Decl::Output { name, index, value } => Decl::Output {
                 name: self.declare(name, index.as_ref()),
@@ -461,14 +574,14 @@ impl Expander<'_, '_> {
                         return number(k as f64, e.span.clone());
                     }
                 }
-                return e.clone();
+                self.vector_path(p.clone())
             }
             ExprKind::Element(segs) => {
                 let names = segs
                     .iter()
                     .map(|(n, i)| self.element(n, i.as_ref()))
                     .collect();
-                ExprKind::Path(names)
+                self.vector_path(names)
             }
             ExprKind::Sum { var, range, body } => {
                 let Some((lo, hi)) = self.range(range) else {
@@ -515,6 +628,144 @@ impl Expander<'_, '_> {
         Spanned {
             node,
             span: e.span.clone(),
+        }
+    }
+
+    /// A path, with a vector's component read (`pen.x`, `f[2].z`) merged into the one name
+    /// of its scalar (`pen.x`, `f[2].z`). Reports a vector read bare or an unknown component.
+    fn vector_path(&mut self, mut names: Vec<Name>) -> ExprKind {
+        let first = &names[0].node;
+        let base = first.split('[').next().unwrap_or(first);
+        let Some(v) = self.vectors.get(base) else {
+            return ExprKind::Path(names);
+        };
+        let Some(c) = names.get(1) else {
+            let example = v.components.first().map_or("x", String::as_str);
+            self.diags.push(
+                Diagnostic::error(
+                    "E0133",
+                    format!("`{first}` is a vector {}: it has no single value", v.kind),
+                    names[0].span.clone(),
+                )
+                .label("read one of its components")
+                .hint(format!(
+                    "a vector {} is read by component: `{first}.{example}` (it has {})",
+                    v.kind,
+                    v.components.join(", ")
+                )),
+            );
+            return ExprKind::Path(names);
+        };
+        if !v.components.contains(&c.node) {
+            let d = Diagnostic::error(
+                "E0130",
+                format!("vector {} `{base}` has no component `{}`", v.kind, c.node),
+                c.span.clone(),
+            )
+            .label("not one of its components")
+            .with_secondary(
+                v.name.span.clone(),
+                format!("declared with {}", v.components.join(", ")),
+            )
+            .hint(format!(
+                "read one of {}: `{first}.{}`",
+                v.components.join(", "),
+                v.components[0]
+            ));
+            self.diags.push(d);
+            return ExprKind::Path(names);
+        }
+        let merged = Spanned {
+            node: format!("{first}.{}", c.node),
+            span: names[0].span.start..c.span.end,
+        };
+        names.splice(0..2, [merged]);
+        ExprKind::Path(names)
+    }
+
+    /// The axes of a vector's components as written, or `None` after reporting an empty
+    /// list, a name other than `x`, `y`, `z`, or a repeated one.
+    fn axes(
+        &mut self,
+        kind: &str,
+        name: &Name,
+        components: &[&Name],
+        braces: &Span,
+    ) -> Option<Vec<Axis>> {
+        if components.is_empty() {
+            let example = if kind == "sensor" {
+                format!(
+                    "sensor {}: m in {{ z: [0 mm, 10 mm], x: [0 mm, 160 mm] }}",
+                    name.node
+                )
+            } else {
+                format!("force {} = {{ z: k * pen.z }}", name.node)
+            };
+            self.diags.push(
+                Diagnostic::error(
+                    "E0132",
+                    format!("vector {kind} `{}` has no components", name.node),
+                    braces.clone(),
+                )
+                .label("empty")
+                .hint(format!("name at least one of x, y, z: `{example}`")),
+            );
+            return None;
+        }
+        let mut axes: Vec<Axis> = Vec::new();
+        let mut ok = true;
+        for (i, c) in components.iter().enumerate() {
+            let Some(a) = Axis::from_name(&c.node) else {
+                self.diags.push(
+                    Diagnostic::error(
+                        "E0130",
+                        format!("`{}` is not a component of a vector {kind}", c.node),
+                        c.span.clone(),
+                    )
+                    .label("expected x, y or z")
+                    .hint("the components are x (the stroke axis), y (across it) and z (the depth into the surface)"),
+                );
+                ok = false;
+                continue;
+            };
+            if let Some(first) = components[..i].iter().find(|p| p.node == c.node) {
+                self.diags.push(
+                    Diagnostic::error(
+                        "E0131",
+                        format!("component `{}` of `{}` is given twice", c.node, name.node),
+                        c.span.clone(),
+                    )
+                    .label("second time")
+                    .with_secondary(first.span.clone(), "first given here")
+                    .hint("give each of x, y, z at most once"),
+                );
+                ok = false;
+                continue;
+            }
+            axes.push(a);
+        }
+        ok.then_some(axes)
+    }
+
+    /// A vector's name must not also name another declaration.
+    fn check_vector_names(&mut self) {
+        let mut clashes: Vec<(Name, &'static str)> = self
+            .vectors
+            .values()
+            .filter(|v| self.declared.contains(&v.name.node))
+            .map(|v| (v.name.clone(), v.kind))
+            .collect();
+        clashes.sort_by_key(|(n, _)| n.span.start);
+        for (name, kind) in clashes {
+            self.diags.push(
+                Diagnostic::error(
+                    "E0105",
+                    format!("`{}` is defined twice", name.node),
+                    name.span.clone(),
+                )
+                .label(format!("a vector {kind}, and something else has this name"))
+                .hint("every name in an instrument or component is unique; rename one of them"),
+            );
         }
     }
 

@@ -13,7 +13,8 @@
 //! 1. sensors are read and the differentiators behind `d()`/`d2()` take the new sample;
 //! 2. event handlers run in source order (`on`: rising edge; `while`: level);
 //! 3. force terms and outputs are computed, and the total force as their sum in declaration
-//!    order;
+//!    order (for a pen instrument one sum per axis: `x` and `y` as the outputs `force.x`,
+//!    `force.y`, `z` as the total; see [`Program::force_axes`]);
 //! 4. the dynamics equations are applied in source order (semi-implicit Euler).
 
 use crate::ast::Span;
@@ -152,6 +153,64 @@ pub struct NamedDecl {
     pub ty: Ty,
     /// Declaration span.
     pub span: Span,
+    /// The axis of a pen instrument's force term (a component of a vector force such as
+    /// `contact.x`); `None` for outputs and for a keyboard instrument's scalar force terms.
+    pub axis: Option<Axis>,
+}
+
+/// An axis of a pen instrument's 3-DoF contact point (the pen of Onofrei, Fontana & Serafin
+/// 2023). `Z` is the depth into the surface (positive into the plane; a force on `z` is
+/// positive pushing the pen out of it, like a keyboard's force pushing the key up), `X` the
+/// stroke axis (rubbing, bowing, plucking), `Y` across it. Forces on `X` and `Y` are in
+/// newtons along the positive axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Axis {
+    /// The stroke axis.
+    X,
+    /// Across the stroke.
+    Y,
+    /// Depth into the surface (the normal axis).
+    Z,
+}
+
+impl Axis {
+    /// The three axes in the order `x, y, z`.
+    pub const ALL: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
+
+    /// The component name as written in the source: `"x"`, `"y"` or `"z"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Axis::X => "x",
+            Axis::Y => "y",
+            Axis::Z => "z",
+        }
+    }
+
+    /// The axis a component name denotes, or `None` for anything but `x`, `y`, `z`.
+    pub fn from_name(name: &str) -> Option<Axis> {
+        match name {
+            "x" => Some(Axis::X),
+            "y" => Some(Axis::Y),
+            "z" => Some(Axis::Z),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Axis {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Where the total of one axis of a pen instrument's commanded force is published.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AxisTotal {
+    /// The total force word, [`Stmt::Total`] (the `z` axis: what a keyboard firmware's force
+    /// word drives).
+    Total,
+    /// A compiler-generated output (`force.x`, `force.y`), newtons.
+    Output(OutputId),
 }
 
 /// A kind of event that `emit` produces, with its named arguments.
@@ -310,7 +369,7 @@ pub struct Program {
     pub states: Vec<StateDecl>,
     /// Modes.
     pub modes: Vec<ModeDecl>,
-    /// Force terms; the commanded force is their sum.
+    /// Force terms; the commanded force is their sum (per axis, for a pen instrument).
     pub forces: Vec<NamedDecl>,
     /// Outputs (e.g. hammer position for a synthesizer).
     pub outputs: Vec<NamedDecl>,
@@ -322,9 +381,21 @@ pub struct Program {
     pub values: Vec<ValueData>,
     /// The per-sample update.
     pub body: Vec<Stmt>,
+    /// For a pen instrument (one with a vector force), where each axis' total force is
+    /// published, in the order `x, y, z`: `x` and `y` in the compiler-generated outputs
+    /// `force.x` and `force.y` (the sums of those axes' terms in declaration order, newtons),
+    /// `z` in [`Stmt::Total`]. Empty for a keyboard instrument, whose total is the one
+    /// scalar [`Stmt::Total`].
+    pub force_axes: Vec<(Axis, AxisTotal)>,
 }
 
 impl Program {
+    /// True for a pen instrument: its commanded force is a 3-vector (see
+    /// [`Program::force_axes`]).
+    pub fn is_pen(&self) -> bool {
+        !self.force_axes.is_empty()
+    }
+
     /// The data of a value.
     pub fn value(&self, v: Value) -> &ValueData {
         &self.values[v.index()]

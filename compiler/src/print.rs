@@ -48,7 +48,10 @@ impl fmt::Display for Program {
             )?;
         }
         for (i, x) in self.forces.iter().enumerate() {
-            writeln!(f, "  force{i} {}", x.name)?;
+            match x.axis {
+                Some(a) => writeln!(f, "  force{i} {} axis {a}", x.name)?,
+                None => writeln!(f, "  force{i} {}", x.name)?,
+            }
         }
         for (i, x) in self.outputs.iter().enumerate() {
             writeln!(f, "  output{i} {}: {}", x.name, ty(x.ty))?;
@@ -56,6 +59,17 @@ impl fmt::Display for Program {
         for (i, e) in self.events.iter().enumerate() {
             let args: Vec<String> = e.args.iter().map(|(n, d)| format!("{n}: {d:?}")).collect();
             writeln!(f, "  event{i} {}({})", e.name, args.join(", "))?;
+        }
+        if !self.force_axes.is_empty() {
+            let axes: Vec<String> = self
+                .force_axes
+                .iter()
+                .map(|(a, t)| match t {
+                    AxisTotal::Total => format!("{a} = total"),
+                    AxisTotal::Output(o) => format!("{a} = {o}"),
+                })
+                .collect();
+            writeln!(f, "  force axes: {}", axes.join(", "))?;
         }
         writeln!(f, "  edges {}", self.edges.len())?;
         writeln!(f, "body:")?;

@@ -144,6 +144,7 @@ impl<'a> Lowerer<'a> {
                 edges: vec![],
                 values: vec![],
                 body: vec![],
+                force_axes: vec![],
             },
             diags: vec![],
             scopes: vec![],
@@ -244,11 +245,43 @@ impl<'a> Lowerer<'a> {
                 self.lower_handler(scope, *trigger, cond, body, span.clone());
             }
         }
-        // Phase 3: force terms, outputs, total.
+        // Phase 3: force terms, outputs, total. An instrument with a vector force is a pen:
+        // each term has an axis, and each axis its own sum (x and y as outputs, z the total).
+        let first_vector = decls.iter().find_map(|(_, d)| match d {
+            ast::Decl::Force {
+                name,
+                axis: Some(_),
+                ..
+            } => Some(name.span.clone()),
+            _ => None,
+        });
         let mut forces = Vec::new();
+        let mut axis_terms: [Vec<Value>; 3] = Default::default();
         for &(scope, d) in &decls {
             match d {
-                ast::Decl::Force { name, .. } => {
+                ast::Decl::Force { name, axis, .. } => {
+                    if let (None, Some(pen)) = (axis, &first_vector) {
+                        self.err(
+                            Diagnostic::error(
+                                "E0134",
+                                format!(
+                                    "force term `{}` has no axis, but this is a pen instrument",
+                                    name.node
+                                ),
+                                name.span.clone(),
+                            )
+                            .label("a scalar force term")
+                            .with_secondary(
+                                pen.clone(),
+                                "this vector force makes the commanded force a 3-vector",
+                            )
+                            .hint(format!(
+                                "say which axis: `force {} = {{ z: … }}` (z pushes out of the surface, x along the stroke, y across)",
+                                name.node
+                            )),
+                        );
+                        continue;
+                    }
                     let idx = self.def_index(scope, &name.node);
                     if let Some(v) = self.lower_def(idx, name.span.clone()) {
                         if self.ty(v) != Ty::Real(Dim::FORCE) {
@@ -269,9 +302,13 @@ impl<'a> Lowerer<'a> {
                             name: self.qualified(scope, &name.node),
                             ty: Ty::Real(Dim::FORCE),
                             span: name.span.clone(),
+                            axis: *axis,
                         });
                         self.emit_stmt(Stmt::Force(id, v));
-                        forces.push(v);
+                        match axis {
+                            Some(a) => axis_terms[*a as usize].push(v),
+                            None => forces.push(v),
+                        }
                     }
                 }
                 ast::Decl::Output { name, .. } if scope == root => {
@@ -282,6 +319,7 @@ impl<'a> Lowerer<'a> {
                             name: name.node.clone(),
                             ty: self.ty(v),
                             span: name.span.clone(),
+                            axis: None,
                         });
                         self.emit_stmt(Stmt::Output(id, v));
                     }
@@ -289,10 +327,25 @@ impl<'a> Lowerer<'a> {
                 _ => {}
             }
         }
+        if let Some(pen) = first_vector {
+            let [x, y, z] = axis_terms;
+            for (axis, terms) in [(Axis::X, x), (Axis::Y, y)] {
+                let sum = self.force_sum(&terms);
+                let id = OutputId(self.prog.outputs.len() as u32);
+                self.prog.outputs.push(NamedDecl {
+                    name: format!("force.{axis}"),
+                    ty: Ty::Real(Dim::FORCE),
+                    span: pen.clone(),
+                    axis: Some(axis),
+                });
+                self.emit_stmt(Stmt::Output(id, sum));
+                self.prog.force_axes.push((axis, AxisTotal::Output(id)));
+            }
+            forces = z;
+            self.prog.force_axes.push((Axis::Z, AxisTotal::Total));
+        }
         let total = match forces.split_first() {
-            Some((&first, rest)) => rest.iter().fold(first, |acc, &f| {
-                self.def(Op::Arith(ArithOp::Add, acc, f), Ty::Real(Dim::FORCE))
-            }),
+            Some(_) => self.force_sum(&forces),
             None => {
                 let span = self.scopes[root.0].body.name.span.clone();
                 let declared = decls
@@ -321,6 +374,16 @@ impl<'a> Lowerer<'a> {
         }
         self.prog.body = self.blocks.pop().unwrap_or_default();
         fold::fold_constants(&mut self.prog);
+    }
+
+    /// The saturating sum of force terms in declaration order (a constant 0 N for none).
+    fn force_sum(&mut self, terms: &[Value]) -> Value {
+        match terms.split_first() {
+            Some((&first, rest)) => rest.iter().fold(first, |acc, &f| {
+                self.def(Op::Arith(ArithOp::Add, acc, f), Ty::Real(Dim::FORCE))
+            }),
+            None => self.def(Op::Const(0.0), Ty::Real(Dim::FORCE)),
+        }
     }
 
     fn lower_equation(&mut self, scope: ScopeId, eq: &'a ast::Equation, h: f64) {

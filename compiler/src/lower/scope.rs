@@ -338,7 +338,10 @@ impl<'a> Lowerer<'a> {
                 | ast::Decl::Handler { .. }
                 | ast::Decl::Require { .. } => {}
                 // Removed by `crate::expand` before lowering.
-                ast::Decl::For { .. } | ast::Decl::Solve { .. } => {}
+                ast::Decl::For { .. }
+                | ast::Decl::Solve { .. }
+                | ast::Decl::VectorSensor { .. }
+                | ast::Decl::VectorForce { .. } => {}
                 ast::Decl::Use {
                     name,
                     index: _,
