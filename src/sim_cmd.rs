@@ -23,18 +23,20 @@ pub struct SimArgs {
     /// Full key dip of the built-in key stimuli, mm [default: the key sensor's upper bound].
     #[arg(long, value_name = "MM")]
     pub dip: Option<f64>,
-    /// Pen gestures: penetration while pressed, mm, as a reading of sensor 1 [default: the
-    /// middle of its range].
+    /// Pen gestures: penetration while pressed, mm, as a reading of the depth sensor (a
+    /// vector sensor's z, or sensor 1) [default: the middle of its range].
     #[arg(long, value_name = "MM", allow_negative_numbers = true)]
     pub depth: Option<f64>,
-    /// Pen gestures: peak speed along sensor 2, m/s [default: 0.1; pluck 0.2].
+    /// Pen gestures: peak speed along the stroke axis (x, or sensor 2), m/s [default: 0.1;
+    /// pluck 0.2].
     #[arg(long, value_name = "M_PER_S", allow_negative_numbers = true)]
     pub speed: Option<f64>,
-    /// Pen gestures: stroke length along sensor 2, mm [default: 20; bow-stroke 60 % of the
+    /// Pen gestures: stroke length along the stroke axis, mm [default: 20; bow-stroke 60 % of the
     /// range].
     #[arg(long, value_name = "MM", allow_negative_numbers = true)]
     pub stroke: Option<f64>,
-    /// Pen gestures: reading of sensor 3 (across, e.g. which string), mm [default: its
+    /// Pen gestures: reading of the sensor across the stroke (y, or sensor 3; e.g. which
+    /// string), mm [default: its
     /// lower bound].
     #[arg(long, value_name = "MM", allow_negative_numbers = true)]
     pub across: Option<f64>,
@@ -140,9 +142,10 @@ fn stimulus_help() -> String {
         s.push_str(&format!("  {n:<10} {d}\n"));
     }
     s.push_str(
-        "\nPen gestures, for contact-point instruments (sensor 1 = penetration, sensor 2 =\n\
-         position along the stroke, optional sensor 3 = position across; --depth MM,\n\
-         --speed M_PER_S, --stroke MM, --across MM; smooth ramps, clamped to the ranges):\n",
+        "\nPen gestures, for contact-point instruments (a vector sensor `pen: m in { z: …,\n\
+         x: …, y: … }`: z = penetration, x = position along the stroke, optional y =\n\
+         position across; without one, sensors 1, 2 and 3; --depth MM, --speed M_PER_S,\n\
+         --stroke MM, --across MM; smooth ramps, clamped to the ranges):\n",
     );
     for (n, d) in tactus_compiler::sim::gesture_names() {
         s.push_str(&format!("  {n:<10} {d}\n"));
@@ -151,15 +154,15 @@ fn stimulus_help() -> String {
         "\nA CSV stimulus has a header `key_mm` (one row per sample at 44.1 kHz) or\n\
          `time_s,key_mm` (any increasing times, linearly interpolated): key travel in mm,\n\
          first sensor. Or one column per sensor, named as in the trace: an optional first\n\
-         column `time [s]`, then e.g. `press [m],rub [m]`, values in SI units (metres, not\n\
+         column `time [s]`, then e.g. `pen.z [m],pen.x [m]`, values in SI units (metres, not\n\
          mm); sensors without a column read their lower bound, values outside a range are\n\
          clamped (with a warning).\n\n\
-         Outputs: OUT/NAME-STIMULUS.csv (every force term, total, states, modes, outputs,\n\
-         events), OUT/NAME-STIMULUS-forces.svg (force vs time, force vs key position), when\n\
+         Outputs: OUT/NAME-STIMULUS.csv (every force term, total — force.x, force.y,\n\
+         force.z for a pen instrument —, states, modes, outputs, events), OUT/NAME-STIMULUS-forces.svg (force vs time, force vs key position), when\n\
          the instrument has outputs OUT/NAME-STIMULUS-outputs.svg, and with --plot\n\
          OUT/NAME-STIMULUS-plot.svg.\n\n\
          Examples: tactus sim instruments/grand_piano.tactus --stimulus half-dip --param G=0.2 N\n\
-         \x20         tactus sim rubbed_bank --stimulus press-rub --depth 5 --speed 0.1 --plot friction",
+         \x20         tactus sim rubbed_bank --stimulus press-rub --depth 5 --speed 0.1 --plot force.x",
     );
     s
 }
@@ -442,23 +445,30 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
         written.push(svg);
     }
 
-    let total = trace
-        .column("total")
-        .map(|c| c.values.clone())
-        .unwrap_or_default();
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for &f in &total {
-        lo = lo.min(f);
-        hi = hi.max(f);
+    // The total force's range: one for a keyboard, one per axis for a pen instrument.
+    let totals: Vec<String> = if program.is_pen() {
+        ["force.x", "force.y", "force.z"].to_vec()
+    } else {
+        vec!["total"]
     }
+    .into_iter()
+    .map(|name| {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &f in trace.column(name).map_or(&[][..], |c| &c.values[..]) {
+            lo = lo.min(f);
+            hi = hi.max(f);
+        }
+        let what = if name == "total" { "total force" } else { name };
+        format!("{what} {lo:.3} N … {hi:.3} N")
+    })
+    .collect();
     println!(
-        "{}: {} samples ({:.3} s at {} Hz), total force {:.3} N … {:.3} N",
+        "{}: {} samples ({:.3} s at {} Hz), {}",
         title,
         stim.len(),
         stim.duration_s(),
         fs,
-        lo,
-        hi
+        totals.join(", ")
     );
     for (n, name, a) in &summary.events {
         let ev = program.events.iter().find(|e| &e.name == name);

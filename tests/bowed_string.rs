@@ -3,8 +3,8 @@
 //! stick–slip at the string's fundamental; too little force gives no sustained oscillation;
 //! the compile-time stability and uniqueness conditions reject bad params with the numbers.
 //!
-//! The pen drives all three sensors (penetration `press`, bow position `bow`, position across
-//! the strings `across`) sample by sample. The f64 JIT is used for speed; it computes the
+//! The pen drives all three components of its vector sensor (penetration `pen.z`, bow
+//! position `pen.x`, position across the strings `pen.y`) sample by sample. The f64 JIT is used for speed; it computes the
 //! reference interpreter's values bit for bit (`compiler/jit/tests`).
 
 mod common;
@@ -47,7 +47,7 @@ fn smooth_step(t: f64, t0: f64, t1: f64) -> f64 {
 
 /// One bow stroke on the G string: the pen presses to `depth` (m) over [10, 40] ms and lifts
 /// over [`lift`, `lift` + 20 ms]; the bow accelerates to `speed` (m/s) over [0, 30] ms from
-/// 5 mm and keeps moving. Readings `[press, bow, across]`, SI, for `seconds`.
+/// 5 mm and keeps moving. Readings `[pen.z, pen.x, pen.y]`, SI, for `seconds`.
 fn stroke(seconds: f64, depth: f64, speed: f64, lift: f64) -> Vec<[f64; 3]> {
     let b = 0.030;
     (0..(seconds * FS) as usize)

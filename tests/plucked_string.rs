@@ -4,8 +4,10 @@
 //! amplitude that grows with the pluck speed; a lifted pen passes without plucking; sliding
 //! along the string gives the windings' ripple at speed / winding pitch.
 //!
-//! The pen drives the three sensors (`press`, `pos`, `along`) sample by sample; the f64 JIT
-//! computes the reference interpreter's values bit for bit (`compiler/jit/tests`).
+//! The pen drives the three components of its vector sensor (`pen.z`, `pen.x`, `pen.y`)
+//! sample by sample, and feels the string on the force's x axis (its total, the output
+//! `force.x`); the f64 JIT computes the reference interpreter's values bit for bit
+//! (`compiler/jit/tests`).
 
 mod common;
 
@@ -97,7 +99,7 @@ fn across(seconds: f64, depth: f64, speed: f64) -> Vec<[f64; 3]> {
 fn one_pluck_per_crossing_with_speed_setting_the_amplitude() {
     let p = program();
     let (lateral, defl, audio) = (
-        output(&p, "lateral"),
+        output(&p, "force.x"),
         output(&p, "deflection"),
         output(&p, "audio"),
     );
@@ -162,7 +164,7 @@ fn a_lifted_pen_passes_without_plucking() {
 #[test]
 fn windings_ripple_at_speed_over_pitch() {
     let p = program();
-    let lateral = output(&p, "lateral");
+    let lateral = output(&p, "force.x");
     let input: Vec<[f64; 3]> = (0..(0.5 * FS) as usize)
         .map(|n| [0.003, X_S, 0.020 + 0.05 * n as f64 / FS])
         .collect();

@@ -4,8 +4,10 @@
 //! damping sets, the friction drags the pen back, the fixed-point build follows the f64 build
 //! within a measured bound, and the fixed JIT reproduces the fixed interpreter bit for bit.
 //!
-//! The pen is driven directly through both sensors (penetration `press`, rubbing position
-//! `rub`), sample by sample; `tactus sim`'s key stimuli drive only the first sensor.
+//! The pen is driven directly through both components of its vector sensor (penetration
+//! `pen.z`, rubbing position `pen.x`), sample by sample; `tactus sim`'s key stimuli drive
+//! only the first sensor. The friction is the force's x component: the force term
+//! `contact.x`, whose axis total is the compiler-generated output `force.x`.
 
 use std::path::Path;
 use tactus_compiler::fixed::interp::{FixedInstance, RawOut};
@@ -88,7 +90,7 @@ fn rub_position(t: f64, v: f64) -> f64 {
     0.040 + up + hold + down
 }
 
-/// `[press, rub]` readings, SI, for `seconds`: press, rub at `speed` (m/s), lift, then still.
+/// `[pen.z, pen.x]` readings, SI, for `seconds`: press, rub at `speed` (m/s), lift, then still.
 fn rub_then_release(seconds: f64, speed: f64) -> Vec<[f64; 2]> {
     (0..(seconds * FS) as usize)
         .map(|n| {
@@ -222,8 +224,8 @@ fn friction_drags_the_pen_back() {
     let p = program();
     let input = rub_then_release(0.4, RUB_SPEED);
     let mut inst = Instance::new(&p);
-    let fr = output_index(&p, "friction");
-    let plane = p.forces.iter().position(|f| f.name == "plane").unwrap();
+    let fr = output_index(&p, "force.x");
+    let plane = p.forces.iter().position(|f| f.name == "contact.z").unwrap();
     let (mut sum, mut n) = (0.0, 0);
     for (k, s) in input.iter().enumerate() {
         let out = inst.step(s);
@@ -298,7 +300,7 @@ fn rms(x: &[f64]) -> f64 {
 fn fixed_point_follows_f64() {
     let p = program();
     let fp = fixed_program(&p);
-    let fr = output_index(&p, "friction");
+    let fr = output_index(&p, "force.x");
     let from = (0.4 * FS) as usize;
     let contact = ((0.06 * FS) as usize, (0.24 * FS) as usize);
     for speed in [0.02, RUB_SPEED] {
@@ -481,11 +483,12 @@ fn fixed_jit_matches_fixed_interpreter_bit_for_bit() {
 
     // The comparison saw the bank move, not just zeros.
     let mut interp = FixedInstance::new(&fp);
+    let audio0 = output_index(&p, "audio[0]");
     let moved = raw_rows(&fp, &rub_then_release(0.4, RUB_SPEED))
         .iter()
         .any(|r| {
             let out = interp.step_raw(r);
-            fx::to_f64(out.outputs[1], fp.output_frac[1]).abs() > 1e-4
+            fx::to_f64(out.outputs[audio0], fp.output_frac[audio0]).abs() > 1e-4
         });
     assert!(moved, "the rub did not move mass 0 in fixed point");
 }

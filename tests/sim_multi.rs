@@ -39,6 +39,18 @@ instrument pen2 {
 }
 ";
 
+/// PEN3 as a vector sensor written in the order x, z, y: the gestures must find the depth
+/// and the stroke by component, not by position.
+const PENV: &str = "// test pen, a vector sensor out of the usual order
+instrument penv {
+    sensor pen: m in { x: [-10 mm, 10 mm], z: [2 mm, 4 mm], y: [0 mm, 30 mm] }
+    param k = 100 N/m
+    force contact = { z: k * pen.z }
+    output vrel = d(pen.x)
+    output side = pen.y
+}
+";
+
 fn compile(src: &str) -> Program {
     tactus_compiler::compile(src, &Config::default())
         .unwrap_or_else(|d| {
@@ -94,10 +106,10 @@ fn write(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
     f
 }
 
-/// A CSV naming both sensors of `rubbed_bank` (trace-style headers with units, times
-/// resampled) drives both: the trace's `rub` column follows the file (40 → 60 mm while
-/// pressed 5 mm), and the friction output is zero before the press and clearly non-zero
-/// while the pen rubs.
+/// A CSV naming both components of `rubbed_bank`'s vector sensor (trace-style headers with
+/// units, times resampled) drives both: the trace's `pen.x` column follows the file (40 →
+/// 60 mm while pressed 5 mm), and the friction (the force's x total) is zero before the
+/// press and clearly non-zero while the pen rubs.
 #[test]
 fn multi_column_csv_drives_both_sensors_of_rubbed_bank() {
     let dir = temp_dir("multi-csv");
@@ -105,7 +117,7 @@ fn multi_column_csv_drives_both_sensors_of_rubbed_bank() {
         &dir,
         "rub.csv",
         "# press 5 mm, rub 20 mm at 0.1 m/s, lift\n\
-         time [s],press [m],rub [m]\n\
+         time [s],pen.z [m],pen.x [m]\n\
          0.00,0,0.040\n\
          0.02,0,0.040\n\
          0.04,0.005,0.040\n\
@@ -124,9 +136,9 @@ fn multi_column_csv_drives_both_sensors_of_rubbed_bank() {
     let trace = read_csv(&dir.join("rubbed_bank-rub.csv"));
     let (t, press, rub, friction) = (
         col(&trace, "time [s]"),
-        col(&trace, "press [m]"),
-        col(&trace, "rub [m]"),
-        col(&trace, "friction [N]"),
+        col(&trace, "pen.z [m]"),
+        col(&trace, "pen.x [m]"),
+        col(&trace, "force.x [N]"),
     );
     assert_eq!(t.len(), (0.30 * FS) as usize + 1);
     let at = |s: f64| (s * FS).round() as usize;
@@ -186,7 +198,7 @@ fn bad_csv_columns_are_clear_errors() {
     let unknown = write(
         &dir,
         "bow.csv",
-        "time [s],press [m],bow [m]\n0,0,0.04\n0.1,0.005,0.05\n",
+        "time [s],pen.z [m],bow [m]\n0,0,0.04\n0.1,0.005,0.05\n",
     );
     let out = tactus()
         .args(["sim", "rubbed_bank", "--stimulus"])
@@ -201,8 +213,8 @@ fn bad_csv_columns_are_clear_errors() {
         "bow.csv",
         "`bow [m]`",
         "rubbed_bank",
-        "press [m]",
-        "rub [m]",
+        "pen.z [m]",
+        "pen.x [m]",
     ] {
         assert!(err.contains(part), "`{part}` missing from: {err}");
     }
@@ -212,23 +224,23 @@ fn bad_csv_columns_are_clear_errors() {
     let malformed = write(
         &dir,
         "bad.csv",
-        "# a comment\ntime [s],press [m],rub [m]\n0,0,0.04\n0.1,5 mm,0.05\n",
+        "# a comment\ntime [s],pen.z [m],pen.x [m]\n0,0,0.04\n0.1,5 mm,0.05\n",
     );
     let e = sim::sensor_csv(&p, &malformed, FS).unwrap_err().to_string();
     assert!(
-        e.contains("bad.csv:4") && e.contains("`press [m]`") && e.contains("`5 mm`"),
+        e.contains("bad.csv:4") && e.contains("`pen.z [m]`") && e.contains("`5 mm`"),
         "{e}"
     );
 
-    let mm = write(&dir, "mm.csv", "press [mm],rub [m]\n5,0.04\n");
+    let mm = write(&dir, "mm.csv", "pen.z [mm],pen.x [m]\n5,0.04\n");
     let e = sim::sensor_csv(&p, &mm, FS).unwrap_err().to_string();
-    assert!(e.contains("`press [mm]`") && e.contains("[m]"), "{e}");
+    assert!(e.contains("`pen.z [mm]`") && e.contains("[m]"), "{e}");
 
-    let short = write(&dir, "short.csv", "press,rub\n0.001\n");
+    let short = write(&dir, "short.csv", "pen.z,pen.x\n0.001\n");
     let e = sim::sensor_csv(&p, &short, FS).unwrap_err().to_string();
     assert!(e.contains("short.csv:2") && e.contains("1 cells"), "{e}");
 
-    let back = write(&dir, "back.csv", "time,rub\n0,0.04\n0.1,0.05\n0.1,0.06\n");
+    let back = write(&dir, "back.csv", "time,pen.x\n0,0.04\n0.1,0.05\n0.1,0.06\n");
     let e = sim::sensor_csv(&p, &back, FS).unwrap_err().to_string();
     assert!(e.contains("back.csv:4") && e.contains("increasing"), "{e}");
 }
@@ -246,11 +258,26 @@ fn speed_and_jerkiness(x: &[f64]) -> (f64, f64) {
 /// reaching the requested depth (or its clamp), the stroke moving at the requested peak
 /// speed, starting and ending at rest, smoothly (the velocity changes by less than 1 % of
 /// the speed between samples: no steps for the differentiators); requests outside the
-/// ranges are clamped and reported.
+/// ranges are clamped and reported. A vector sensor's z, x and y are the depth, the stroke
+/// and across whatever order they are written in.
 #[test]
 fn gestures_stay_inside_the_sensor_ranges() {
+    assert_eq!(sim::pen_sensors(&compile(PEN3)), (0, 1, Some(2)));
+    assert_eq!(sim::pen_sensors(&compile(PEN2)), (0, 1, None));
+    assert_eq!(sim::pen_sensors(&compile(PENV)), (1, 0, Some(2)));
     for (src, config, want_notes) in [
         (PEN3, GestureConfig::default(), 0),
+        (PENV, GestureConfig::default(), 0),
+        (
+            PENV,
+            GestureConfig {
+                depth_m: Some(0.050),
+                speed_m_per_s: Some(0.3),
+                stroke_m: Some(0.5),
+                across_m: Some(-0.01),
+            },
+            3,
+        ),
         (
             PEN3,
             GestureConfig {
@@ -284,22 +311,20 @@ fn gestures_stay_inside_the_sensor_ranges() {
                     sensor.name
                 );
             }
-            let press = s.channel(0);
+            let (iz, ix, iy) = sim::pen_sensors(&p);
+            let lifted = p.sensors[iz].range.0;
+            let press = s.channel(iz);
             let deepest = press.iter().fold(f64::MIN, |m, &v| m.max(v));
             let depth = config
                 .depth_m
-                .map_or(0.5 * (p.sensors[0].range.0 + p.sensors[0].range.1), |d| {
-                    d.clamp(p.sensors[0].range.0, p.sensors[0].range.1)
+                .map_or(0.5 * (lifted + p.sensors[iz].range.1), |d| {
+                    d.clamp(lifted, p.sensors[iz].range.1)
                 });
             assert!((deepest - depth).abs() < 1e-12, "{what}: depth {deepest}");
-            assert_eq!(press[0], p.sensors[0].range.0, "{what}: starts lifted");
-            assert_eq!(
-                press[s.len() - 1],
-                p.sensors[0].range.0,
-                "{what}: ends lifted"
-            );
+            assert_eq!(press[0], lifted, "{what}: starts lifted");
+            assert_eq!(press[s.len() - 1], lifted, "{what}: ends lifted");
 
-            let pos = s.channel(1);
+            let pos = s.channel(ix);
             let speed = config
                 .speed_m_per_s
                 .unwrap_or(if *name == "pluck" { 0.2 } else { 0.1 });
@@ -314,11 +339,11 @@ fn gestures_stay_inside_the_sensor_ranges() {
             // The pen only moves along the stroke while pressed.
             for n in 1..s.len() {
                 if pos[n] != pos[n - 1] {
-                    assert!(press[n] > p.sensors[0].range.0, "{what}: moves lifted");
+                    assert!(press[n] > lifted, "{what}: moves lifted");
                 }
             }
-            if p.sensors.len() > 2 {
-                let across = s.channel(2);
+            if let Some(iy) = iy {
+                let across = s.channel(iy);
                 let want = config.across_m.map_or(0.0, |a| a.clamp(0.0, 0.030));
                 assert!(across.iter().all(|&a| a == want), "{what}: across");
             }
@@ -428,6 +453,82 @@ fn sim_plot_named_columns() {
     assert!(
         err.contains("`vbow`") && err.contains("vrel") && err.contains("plane"),
         "{err}"
+    );
+}
+
+/// `tactus sim rubbed_bank --stimulus press-rub --plot force.x`: a pen instrument's trace has
+/// its force's axis totals `force.x`, `force.y`, `force.z` where a keyboard's has `total`.
+/// `force.z` is the plane (300 N/m · pen.z), `force.y` is 0 N (no term on y), and `force.x`
+/// is the friction of the bank, recomputed here from the trace alone:
+/// Σᵢ (k·z/11)·φ̂(√a·(vᵢ − v_r)), with vᵢ the masses' velocities of the previous row (the
+/// trace records states after the dynamics), v_r = clamp(d(pen.x), ±1 m/s) from the
+/// 8-sample differentiator on the `pen.x` column, and φ̂ the instrument's clamped
+/// characteristic √2·u·exp(½ − u²). The summary prints each axis' range.
+#[test]
+fn sim_traces_the_pen_force_per_axis() {
+    const K_PLANE: f64 = 300.0;
+    const A: f64 = 100.0;
+    let dir = temp_dir("multi-pen-axes");
+    let out = tactus()
+        .args(["sim", "rubbed_bank", "--stimulus", "press-rub"])
+        .args(["--plot", "force.x", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("force.x") && stdout.contains("force.y") && stdout.contains("force.z"),
+        "{stdout}"
+    );
+    let svg = std::fs::read_to_string(dir.join("rubbed_bank-press-rub-plot.svg")).unwrap();
+    assert!(svg.contains("force.x"), "no force.x in the plot");
+
+    let trace = read_csv(&dir.join("rubbed_bank-press-rub.csv"));
+    assert!(
+        !trace.0.iter().any(|h| h.starts_with("total")),
+        "{:?}",
+        trace.0
+    );
+    for axis in ["force.x [N]", "force.y [N]", "force.z [N]"] {
+        assert_eq!(trace.0.iter().filter(|h| *h == axis).count(), 1, "{axis}");
+    }
+    let (z, x) = (col(&trace, "pen.z [m]"), col(&trace, "pen.x [m]"));
+    let (fx, fy, fz) = (
+        col(&trace, "force.x [N]"),
+        col(&trace, "force.y [N]"),
+        col(&trace, "force.z [N]"),
+    );
+    let (cx, cz) = (col(&trace, "contact.x [N]"), col(&trace, "contact.z [N]"));
+    let v: Vec<&[f64]> = (0..11)
+        .map(|i| col(&trace, &format!("r[{i}].v [m/s]")))
+        .collect();
+    let (mut worst, mut peak) = (0.0f64, 0.0f64);
+    for n in 0..x.len() {
+        assert_eq!(fz[n], cz[n], "sample {n}: force.z is the one z term");
+        assert!((fz[n] - K_PLANE * z[n]).abs() <= 1e-12, "sample {n}: plane");
+        assert_eq!(fy[n], 0.0, "sample {n}: nothing on y");
+        assert_eq!(fx[n], cx[n], "sample {n}: force.x is the one x term");
+        // Before the first sample the differentiator's history is the first reading.
+        let vr = ((x[n] - x[n.saturating_sub(8)]) * FS / 8.0).clamp(-1.0, 1.0);
+        let normal = K_PLANE * z[n] / 11.0;
+        let want: f64 = v
+            .iter()
+            .map(|vi| {
+                let vi = if n == 0 { 0.0 } else { vi[n - 1] };
+                let u = (A.sqrt() * (vi - vr)).clamp(-5.0, 5.0);
+                let phi = std::f64::consts::SQRT_2 * u * (0.5 - u * u).exp();
+                normal * phi.clamp(-1.0, 1.0)
+            })
+            .sum();
+        worst = worst.max((fx[n] - want).abs());
+        peak = peak.max(want.abs());
+    }
+    println!("force.x: peak {peak:.4} N, max |trace − recomputed| {worst:.2e} N");
+    assert!(peak > 0.1, "the rub produced no friction: {peak} N");
+    assert!(
+        worst <= 1e-9 * peak,
+        "force.x departs from the friction by {worst} N"
     );
 }
 

@@ -10,10 +10,13 @@
 //!   every other sensor reads its lower bound ([`SensorStimulus::from_key`]);
 //! * a **multi-sensor CSV** naming the sensors in its header ([`sensor_csv`]);
 //! * a built-in **pen gesture** for contact-point instruments ([`gesture`], names in
-//!   [`gesture_names`]): sensor 1 is the pen's penetration into the surface or string,
-//!   sensor 2 its position along the rubbing/bowing/plucking axis, an optional sensor 3 its
-//!   position across (e.g. which string). The convention follows the 3-DoF pen of Onofrei,
-//!   Fontana & Serafin 2023 (plucking, bowing and rubbing physically-based resonators).
+//!   [`gesture_names`]): the pen's penetration into the surface or string, its position
+//!   along the rubbing/bowing/plucking axis and, optionally, its position across (e.g. which
+//!   string). An instrument with a vector sensor (`sensor pen: m in { z: …, x: …, y: … }`)
+//!   gets them on its components `z`, `x` and `y` ([`pen_sensors`]); otherwise sensor 1 is
+//!   the penetration, sensor 2 the stroke axis and sensor 3 across. The convention follows
+//!   the 3-DoF pen of Onofrei, Fontana & Serafin 2023 (plucking, bowing and rubbing
+//!   physically-based resonators).
 //!
 //! [`resolve`] picks one of them from a command-line word, as `tactus sim --stimulus` does.
 //! Every engine clamps a reading to its sensor's declared range (a missing reading is the
@@ -51,10 +54,14 @@
 //!
 //! One row per sample: time, sensors, every force term, the total, states, modes, outputs
 //! and one column per event argument (`strike.velocity`, NaN where the event did not fire).
+//! The total is the column `total` for a keyboard instrument; a pen instrument (one with a
+//! vector force) has the three columns `force.x`, `force.y`, `force.z` there instead (its
+//! per-axis totals, newtons; `force.z` is the total force word), and its compiler-generated
+//! outputs `force.x`, `force.y` are not repeated among the outputs.
 
 use crate::fixed::interp::FixedInstance;
 use crate::interp::{Instance, SampleOut};
-use crate::ir::Program;
+use crate::ir::{AxisTotal, Program};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use tactus_runtime::stimulus::{self, Stimulus, StimulusError, MAX_SAMPLES};
@@ -356,7 +363,7 @@ impl fmt::Display for SensorStimulusError {
                 reason,
             } => write!(
                 f,
-                "gesture `{gesture}` needs a contact-point instrument (sensor 1 the pen's penetration, sensor 2 its position along the stroke, in m); `{instrument}` {reason}"
+                "gesture `{gesture}` needs a contact-point instrument (a vector sensor with z, the pen's penetration, and x, its position along the stroke, in m; or sensors 1 and 2 in that role); `{instrument}` {reason}"
             ),
             E::InvalidParameter {
                 name,
@@ -705,15 +712,15 @@ fn positive(name: &'static str, value: f64) -> Result<(), SensorStimulusError> {
 const GESTURES: &[(&str, &str)] = &[
     (
         "press-rub",
-        "press to DEPTH, rub 2 cycles back and forth over STROKE (20 mm) around the middle of sensor 2 at SPEED (0.1 m/s), release",
+        "press to DEPTH, rub 2 cycles back and forth over STROKE (20 mm) around the middle of the stroke axis (x) at SPEED (0.1 m/s), release",
     ),
     (
         "bow-stroke",
-        "press to DEPTH, one stroke over STROKE (60 % of sensor 2's range, centred) at SPEED (0.1 m/s), release",
+        "press to DEPTH, one stroke over STROKE (60 % of the stroke axis' range, centred) at SPEED (0.1 m/s), release",
     ),
     (
         "pluck",
-        "press to DEPTH, cross the middle of sensor 2 (the plucking point) over STROKE (20 mm) at SPEED (0.2 m/s), release",
+        "press to DEPTH, cross the middle of the stroke axis (x, the plucking point) over STROKE (20 mm) at SPEED (0.2 m/s), release",
     ),
 ];
 
@@ -730,16 +737,17 @@ pub fn is_gesture(name: &str) -> bool {
 /// Parameters of a pen gesture; `None` takes the gesture's default. SI units.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GestureConfig {
-    /// Penetration while pressed, m, as a reading of sensor 1 (default: the middle of its
+    /// Penetration while pressed, m, as a reading of the depth sensor (a vector sensor's `z`,
+    /// or sensor 1; see [`pen_sensors`]) (default: the middle of its
     /// range). Clamped into the range, with a note.
     pub depth_m: Option<f64>,
-    /// Peak speed along sensor 2, m/s (defaults: 0.1 for `press-rub` and `bow-stroke`, inside
+    /// Peak speed along the stroke axis (`x`, or sensor 2), m/s (defaults: 0.1 for `press-rub` and `bow-stroke`, inside
     /// the bow velocities |v_B| ≤ 0.4 m/s of Onofrei et al. 2023; 0.2 for `pluck`).
     pub speed_m_per_s: Option<f64>,
-    /// Length of a stroke along sensor 2, m (defaults: 20 mm for `press-rub` and `pluck`,
-    /// 60 % of sensor 2's range for `bow-stroke`). Clamped to sensor 2's range, with a note.
+    /// Length of a stroke along the stroke axis, m (defaults: 20 mm for `press-rub` and
+    /// `pluck`, 60 % of its range for `bow-stroke`). Clamped to its range, with a note.
     pub stroke_m: Option<f64>,
-    /// Reading of sensor 3 (across, e.g. which string), m, held for the whole gesture
+    /// Reading of the sensor across the stroke (`y`, or sensor 3; e.g. which string), m, held for the whole gesture
     /// (default: its lower bound). Clamped into the range, with a note.
     pub across_m: Option<f64>,
 }
@@ -869,8 +877,9 @@ impl Pen {
 }
 
 /// The pen gesture `name` (see [`gesture_names`]) for `program`, sampled at
-/// `sample_rate_hz`. Sensor 1 is the pen's penetration, sensor 2 its position along the
-/// stroke, sensor 3 (if any) its position across; further sensors read their lower bound.
+/// `sample_rate_hz`. The pen's penetration, its position along the stroke and (if there is
+/// one) across drive the sensors [`pen_sensors`] picks (a vector sensor's `z`, `x`, `y`, or
+/// sensors 1, 2, 3); every other sensor reads its lower bound.
 /// Every move is C² (raised-cosine velocity blends, cycloidal presses), so the `d()`/`d2()`
 /// differentiators see no steps; every reading stays inside its sensor's range (requests
 /// outside it are clamped, with a note in [`SensorStimulus::notes`]). Each gesture starts
@@ -880,7 +889,7 @@ impl Pen {
 /// # Errors
 ///
 /// [`SensorStimulusError::Unknown`] for an unknown name; [`SensorStimulusError::NotAPen`]
-/// when the program has fewer than two sensors or sensor 1 or 2 is not a length;
+/// when the program has fewer than two sensors or the depth or stroke sensor is not a length;
 /// [`SensorStimulusError::InvalidParameter`] for a speed or stroke that is not finite and
 /// positive, a depth or across position that is not finite, or a bad sample rate;
 /// [`SensorStimulusError::TooLong`] when a very slow speed makes more than [`MAX_SAMPLES`].
@@ -902,6 +911,7 @@ pub fn gesture(
         reason,
     };
     let sensors = &program.sensors;
+    let (iz, ix, iy) = pen_sensors(program);
     if sensors.len() < 2 {
         return Err(not_a_pen(format!(
             "has {} sensor{} ({})",
@@ -914,7 +924,7 @@ pub fn gesture(
                 .join(", ")
         )));
     }
-    for s in &sensors[..2] {
+    for s in [&sensors[iz], &sensors[ix]] {
         if s.dim != crate::units::Dim::LENGTH {
             return Err(not_a_pen(format!(
                 "has sensor `{}` in {}, not m",
@@ -925,7 +935,7 @@ pub fn gesture(
     }
     let mut notes = Vec::new();
     let mm = |x: f64| format!("{:.3}", x * 1e3);
-    let (p, r) = (sensors[0].range, sensors[1].range);
+    let (p, r) = (sensors[iz].range, sensors[ix].range);
     let width = r.1 - r.0;
     let depth = match config.depth_m {
         None => p.0 + 0.5 * (p.1 - p.0),
@@ -942,7 +952,7 @@ pub fn gesture(
                 notes.push(format!(
                     "{name}: depth {} mm is outside sensor `{}`'s range [{}, {}] mm: clamped to {} mm",
                     mm(d),
-                    sensors[0].name,
+                    sensors[iz].name,
                     mm(p.0),
                     mm(p.1),
                     mm(c)
@@ -981,7 +991,7 @@ pub fn gesture(
         notes.push(format!(
             "{name}: stroke {} mm is longer than sensor `{}`'s range [{}, {}] mm: clamped to {} mm",
             mm(stroke),
-            sensors[1].name,
+            sensors[ix].name,
             mm(r.0),
             mm(r.1),
             mm(width)
@@ -990,7 +1000,7 @@ pub fn gesture(
     } else {
         stroke
     };
-    let across = match (sensors.get(2), config.across_m) {
+    let across = match (iy.map(|i| &sensors[i]), config.across_m) {
         (_, Some(a)) if !a.is_finite() => {
             return Err(SensorStimulusError::InvalidParameter {
                 name: "across",
@@ -1000,7 +1010,7 @@ pub fn gesture(
         }
         (None, Some(_)) => {
             notes.push(format!(
-                "{name}: `{}` has no third sensor: the across position is ignored",
+                "{name}: `{}` has no sensor across the stroke (a third sensor, or a vector sensor's y): the across position is ignored",
                 program.name
             ));
             None
@@ -1070,22 +1080,20 @@ pub fn gesture(
     let mut values = Vec::with_capacity(samples * w);
     for n in 0..samples {
         let t = n as f64 / sample_rate_hz;
-        values.push(pen.press.at(t));
-        values.push(pen.pos.at(t));
-        for s in &sensors[2..] {
-            values.push(s.range.0);
-        }
-        if let Some(c) = across {
-            values[n * w + 2] = c;
+        values.extend(sensors.iter().map(|s| s.range.0));
+        values[n * w + iz] = pen.press.at(t);
+        values[n * w + ix] = pen.pos.at(t);
+        if let (Some(i), Some(c)) = (iy, across) {
+            values[n * w + i] = c;
         }
     }
     let description = format!(
         "{name}: the pen presses {} mm into `{}`, {what} {} and {} mm along `{}` at {speed} m/s, and releases",
         mm(depth),
-        sensors[0].name,
+        sensors[iz].name,
         mm(a),
         mm(b),
-        sensors[1].name
+        sensors[ix].name
     );
     let mut s = SensorStimulus {
         name: name.to_string(),
@@ -1099,6 +1107,24 @@ pub fn gesture(
     // A safety net: every move stays between its ends, which are inside the ranges.
     s.clamp_to(program, name);
     Ok(s)
+}
+
+/// The sensors a pen gesture drives, as indices into `program.sensors`: (penetration,
+/// stroke axis, across). When the program has a vector sensor with components `z` and `x`
+/// (the scalar sensors `NAME.z`, `NAME.x` of `sensor NAME: m in { z: …, x: …, y: … }`),
+/// they are its `z`, `x` and `y` (`None` without a `y`); otherwise sensors 1, 2 and 3
+/// (the third if there is one). Meaningful only for programs with at least two sensors.
+pub fn pen_sensors(program: &Program) -> (usize, usize, Option<usize>) {
+    let find = |name: &str| program.sensors.iter().position(|s| s.name == name);
+    for s in &program.sensors {
+        let Some(base) = s.name.strip_suffix(".z") else {
+            continue;
+        };
+        if let (Some(z), Some(x)) = (find(&format!("{base}.z")), find(&format!("{base}.x"))) {
+            return (z, x, find(&format!("{base}.y")));
+        }
+    }
+    (0, 1, (program.sensors.len() > 2).then_some(2))
 }
 
 /// The stimulus a command-line word names, for `program` at `sample_rate_hz`: an existing
@@ -1141,8 +1167,21 @@ pub fn resolve(
     Ok(SensorStimulus::from_key(program, &key))
 }
 
+/// Which outputs of `program` are a pen instrument's axis totals (`force.x`, `force.y`),
+/// one flag per output: the trace shows them with the total, not among the outputs.
+fn axis_outputs(program: &Program) -> Vec<bool> {
+    let mut mask = vec![false; program.outputs.len()];
+    for (_, t) in &program.force_axes {
+        if let AxisTotal::Output(o) = t {
+            mask[o.index()] = true;
+        }
+    }
+    mask
+}
+
 /// An empty trace with the columns a simulation of `program` records, in order: time,
-/// sensors, forces, total, states, modes, outputs, event arguments (`event.arg`).
+/// sensors, forces, total (`total`; for a pen instrument `force.x`, `force.y`, `force.z`),
+/// states, modes, outputs, event arguments (`event.arg`).
 pub fn trace_columns(program: &Program) -> Trace {
     let mut trace = Trace::new(program.sample_rate_hz);
     trace.add_column("time", "s", ColumnKind::Time);
@@ -1152,14 +1191,26 @@ pub fn trace_columns(program: &Program) -> Trace {
     for f in &program.forces {
         trace.add_column(f.name.clone(), "N", ColumnKind::Force);
     }
-    trace.add_column("total", "N", ColumnKind::TotalForce);
+    if program.is_pen() {
+        // The z total is the force word, the one the force plot shows as the total.
+        for (axis, t) in &program.force_axes {
+            let kind = match t {
+                AxisTotal::Total => ColumnKind::TotalForce,
+                AxisTotal::Output(_) => ColumnKind::Output,
+            };
+            trace.add_column(format!("force.{axis}"), "N", kind);
+        }
+    } else {
+        trace.add_column("total", "N", ColumnKind::TotalForce);
+    }
     for s in &program.states {
         trace.add_column(s.name.clone(), s.dim.unit_string(), ColumnKind::State);
     }
     for m in &program.modes {
         trace.add_column(m.name.clone(), "", ColumnKind::Mode);
     }
-    for o in &program.outputs {
+    let hidden = axis_outputs(program);
+    for (o, _) in program.outputs.iter().zip(&hidden).filter(|(_, &h)| !h) {
         let unit = match o.ty {
             crate::ir::Ty::Real(d) => d.unit_string(),
             _ => String::new(),
@@ -1223,6 +1274,7 @@ pub fn simulate_sensors_with(
         first += e.args.len();
     }
     let mut row = vec![0.0; trace.columns.len()];
+    let hidden = axis_outputs(program);
     let mut events = Vec::new();
     for n in 0..stimulus.len() {
         let sensors = stimulus.row(n);
@@ -1243,8 +1295,18 @@ pub fn simulate_sensors_with(
             row[c] = *f;
             c += 1;
         }
-        row[c] = out.total;
-        c += 1;
+        if program.is_pen() {
+            for (_, t) in &program.force_axes {
+                row[c] = match t {
+                    AxisTotal::Total => out.total,
+                    AxisTotal::Output(o) => out.outputs[o.index()],
+                };
+                c += 1;
+            }
+        } else {
+            row[c] = out.total;
+            c += 1;
+        }
         for s in engine.states_si() {
             row[c] = s;
             c += 1;
@@ -1253,7 +1315,7 @@ pub fn simulate_sensors_with(
             row[c] = m as f64;
             c += 1;
         }
-        for o in &out.outputs {
+        for (o, _) in out.outputs.iter().zip(&hidden).filter(|(_, &h)| !h) {
             row[c] = *o;
             c += 1;
         }
