@@ -141,7 +141,7 @@ impl Context<'_, '_> {
         };
         let decls = x.decls(&body.decls);
         x.check_refs();
-        x.check_vector_names();
+        x.check_vector_names(&decls);
         let decls = desugar_solves(decls, self.diags);
         let mut name = body.name.clone();
         if let Some(r) = rename {
@@ -152,6 +152,23 @@ impl Context<'_, '_> {
             decls,
             span: body.span.clone(),
         }
+    }
+}
+
+/// The name a (scalar, expanded) declaration declares, if any.
+fn declared_name(d: &Decl) -> Option<&Name> {
+    match d {
+        Decl::Sensor { name, .. }
+        | Decl::Input { name, .. }
+        | Decl::Param { name, .. }
+        | Decl::State { name, .. }
+        | Decl::Mode { name, .. }
+        | Decl::Let { name, .. }
+        | Decl::Force { name, .. }
+        | Decl::Output { name, .. }
+        | Decl::Use { name, .. }
+        | Decl::Solve { name, .. } => Some(name),
+        _ => None,
     }
 }
 
@@ -747,8 +764,8 @@ impl Expander<'_, '_> {
         ok.then_some(axes)
     }
 
-    /// A vector's name must not also name another declaration.
-    fn check_vector_names(&mut self) {
+    /// A vector's name must not also name another declaration of the expanded `decls`.
+    fn check_vector_names(&mut self, decls: &[Decl]) {
         let mut clashes: Vec<(Name, &'static str)> = self
             .vectors
             .values()
@@ -757,15 +774,21 @@ impl Expander<'_, '_> {
             .collect();
         clashes.sort_by_key(|(n, _)| n.span.start);
         for (name, kind) in clashes {
-            self.diags.push(
-                Diagnostic::error(
-                    "E0105",
-                    format!("`{}` is defined twice", name.node),
-                    name.span.clone(),
-                )
-                .label(format!("a vector {kind}, and something else has this name"))
-                .hint("every name in an instrument or component is unique; rename one of them"),
-            );
+            let mut d = Diagnostic::error(
+                "E0105",
+                format!("`{}` is defined twice", name.node),
+                name.span.clone(),
+            )
+            .label(format!("a vector {kind}"))
+            .hint("every name in an instrument or component is unique; rename one of them");
+            if let Some(other) = decls
+                .iter()
+                .filter_map(declared_name)
+                .find(|n| n.node == name.node)
+            {
+                d = d.with_secondary(other.span.clone(), "also defined here");
+            }
+            self.diags.push(d);
         }
     }
 
