@@ -215,7 +215,8 @@ fn pen_and_keyboard_instruments() {
 }
 
 /// A pen with every kind of vector force: a component's (`w.push`), an array of them in a
-/// loop (`ring[i]`, one read back as `ring[2].x`), terms on all three axes and an axis
+/// loop (`ring[i]`, one read back as `ring[2].x`; the component's as `w.push.y`), terms on
+/// all three axes and an axis
 /// total made of several terms. Sensors are written x, z, y.
 const PEN: &str = "
 component wall {
@@ -234,6 +235,7 @@ instrument pen_test {
     }
     force spring = { x: -20 N/m * (pen.x - 80 mm) }
     output third = ring[2].x
+    output pushed = w.push.y
 }
 ";
 
@@ -276,7 +278,7 @@ fn vector_forces_sum_per_axis() {
         ]
     );
     let out = |name: &str| p.outputs.iter().position(|o| o.name == name).unwrap();
-    let (ox, oy, third) = (out("force.x"), out("force.y"), out("third"));
+    let (ox, oy, third, pushed) = (out("force.x"), out("force.y"), out("third"), out("pushed"));
     let force_value = |o: usize| {
         p.body
             .iter()
@@ -324,6 +326,7 @@ fn vector_forces_sum_per_axis() {
         assert_eq!(a.outputs[oy], f("w.push.y"), "sample {n}: force.y");
         assert_eq!(a.total, sum_z, "sample {n}: the total is z");
         assert_eq!(a.outputs[third], f("ring[2].x"));
+        assert_eq!(a.outputs[pushed], f("w.push.y"));
         // The terms are what the source says, of the readings clamped into their ranges.
         let c: Vec<f64> = (0..3)
             .map(|i| x[i].clamp(p.sensors[i].range.0, p.sensors[i].range.1))

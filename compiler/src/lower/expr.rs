@@ -327,7 +327,10 @@ impl<'a> Lowerer<'a> {
         }
         let mut cur_scope = scope;
         let mut sym = sym;
-        for (i, seg) in p.iter().enumerate().skip(1) {
+        let mut last = &p[0];
+        let mut i = 1;
+        while i < p.len() {
+            let seg = &p[i];
             let Sym::Instance(child) = sym else {
                 let what = sym.describe();
                 self.err(Diagnostic::error(
@@ -338,9 +341,23 @@ impl<'a> Lowerer<'a> {
                 return None;
             };
             cur_scope = child;
-            sym = self.lookup(cur_scope, seg)?;
+            // A component's vector force read from outside: `w.push.y` names `push.y`.
+            let component = p
+                .get(i + 1)
+                .map(|c| format!("{}.{}", seg.node, c.node))
+                .and_then(|n| self.scopes[cur_scope.0].syms.get(&n).map(|s| s.0));
+            match component {
+                Some(s) => {
+                    sym = s;
+                    i += 2;
+                }
+                None => {
+                    sym = self.lookup(cur_scope, seg)?;
+                    i += 1;
+                }
+            }
+            last = seg;
         }
-        let last = p.last()?;
         let visible = match sym {
             Sym::Def(i) => self.defs[i].kind != super::DefKind::Let,
             Sym::State(_) | Sym::Mode(_) | Sym::Param(_) | Sym::Instance(_) => true,
