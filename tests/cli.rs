@@ -314,3 +314,68 @@ fn sim_writes_a_wav_of_the_audio_outputs() {
     );
     assert!(!dir.join("h.wav").exists() && !dir.join("x.wav").exists());
 }
+
+/// A pen instrument keeps its WAV: the `audio` output (here the pen's stroke position) is
+/// written as before, and the force's x total can be listened to with `--wav-output
+/// force.x` (a viscous drag, the pen's velocity along x, zero at rest).
+#[test]
+fn sim_writes_a_wav_of_a_pen_instrument() {
+    let dir = temp_dir("cli-pen-wav");
+    let f = dir.join("p.tactus");
+    std::fs::write(
+        &f,
+        "instrument p {\n  sensor pen: m in { z: [0 mm, 10 mm], x: [0 mm, 160 mm] }\n  \
+         force contact = { z: 300 N/m * pen.z, x: -2 N*s/m * d(pen.x) }\n  \
+         output audio = pen.x - 80 mm\n}\n",
+    )
+    .unwrap();
+    let run = |extra: &[&str], wav: &str| {
+        let out = tactus()
+            .arg("sim")
+            .arg(&f)
+            .args(["--stimulus", "press-rub", "--out"])
+            .arg(&dir)
+            .arg("--wav")
+            .arg(dir.join(wav))
+            .args(extra)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        read_wav(&dir.join(wav))
+    };
+    let (_, audio) = run(&[], "audio.wav");
+    let (_, drag) = run(&["--wav-output", "force.x"], "drag.wav");
+    let mut rdr = csv::Reader::from_path(dir.join("p-press-rub.csv")).unwrap();
+    let headers = rdr.headers().unwrap().clone();
+    let at = |name: &str| headers.iter().position(|h| h == name).unwrap();
+    let (x_col, fx_col) = (at("pen.x [m]"), at("force.x [N]"));
+    let rows: Vec<(f64, f64)> = rdr
+        .records()
+        .map(|r| {
+            let r = r.unwrap();
+            (r[x_col].parse().unwrap(), r[fx_col].parse().unwrap())
+        })
+        .collect();
+    assert_eq!(audio.len(), rows.len());
+    assert_eq!(drag.len(), rows.len());
+    let peak = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0f64, |m, x| m.max(x.abs()));
+    let (px, pf) = (
+        peak(&mut rows.iter().map(|r| r.0 - 0.080)),
+        peak(&mut rows.iter().map(|r| r.1)),
+    );
+    assert!(pf > 0.1, "no drag: {pf} N");
+    for (i, ((x, fx), (a, d))) in rows.iter().zip(audio.iter().zip(&drag)).enumerate() {
+        let (want_a, want_d) = (
+            ((x - 0.080) / px * 0.9 * 32767.0).round(),
+            (fx / pf * 0.9 * 32767.0).round(),
+        );
+        assert!(
+            (f64::from(*a) - want_a).abs() <= 1.0,
+            "sample {i}: audio {a} vs {want_a}"
+        );
+        assert!(
+            (f64::from(*d) - want_d).abs() <= 1.0,
+            "sample {i}: force.x {d} vs {want_d}"
+        );
+    }
+}
