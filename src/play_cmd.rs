@@ -401,6 +401,21 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                     return Ok(ExitCode::FAILURE);
                 };
                 let program = lowered.program;
+                if program.is_pen() || program.sensors.len() > 1 {
+                    return Err(format!(
+                        "instrument `{}` (key {}) reads {} sensors{}: `tactus play` moves one \
+                         key sensor per key; run a pen with \
+                         `tactus sim <instrument> --stimulus <pen gesture>`",
+                        program.name,
+                        a.key,
+                        program.sensors.len(),
+                        if program.is_pen() {
+                            " and pushes a 3-D force (a pen)"
+                        } else {
+                            ""
+                        }
+                    ));
+                }
                 if program.sensors.is_empty()
                     || !program
                         .events

@@ -29,7 +29,8 @@ pub mod ctrl {
 
 /// Byte offsets in a key's record.
 pub mod rec {
-    /// The key's sensor word, copied from the sensor window (the update's `sensors`).
+    /// The key's sensor word, copied from the sensor window (the update's `sensors`), for a
+    /// key with one sensor; a key with more keeps them from [`OUT`] on (`KeyCode`).
     pub const SENSOR: u16 = 0;
     /// The limiter's time budget (1/`recovery` samples).
     pub const BUDGET: u16 = 4;
@@ -219,15 +220,34 @@ pub fn limiter(
 
 /// One key of a core, as the handler sees it.
 pub struct KeyCode {
-    /// Byte offset of the force word (`out[total]`) in the record.
-    pub force_offset: u32,
+    /// Sensor words the handler copies from the key's sensor window words (consecutive
+    /// words from the record's [`rec::WINDOW`] address) into the record.
+    pub sensors: u32,
+    /// Byte offset in the record of the copied sensor words, the update's `sensors`
+    /// array: [`rec::SENSOR`] for a key with one sensor (the keyboard record), else past
+    /// the record's header (at most 124 minus 4 per sensor: a `STR` immediate).
+    pub sensor_offset: u32,
+    /// Byte offset of the update's `out` words in the record.
+    pub out_offset: u32,
+    /// The force words the key drives, each through the limiter to its own DAC window
+    /// word: drive *j* to the word `4·j` bytes past the record's [`rec::DAC`] address.
+    pub drives: Vec<DriveCode>,
     /// Record size in bytes.
     pub record_size: u32,
     /// Address of the key's program's update (this core's copy).
     pub update: u32,
     /// Address of the key's program's init (this core's copy).
     pub init: u32,
-    /// The limiter routine for the key's force format.
+}
+
+/// One force word of a key on its way to the DAC, as the handler sees it.
+pub struct DriveCode {
+    /// Byte offset of the force word in the record (`out[total]` for a keyboard key).
+    pub force_offset: u32,
+    /// Byte offset of the limiter's budget word in the record (the current follows it):
+    /// [`rec::BUDGET`] for the first drive.
+    pub budget_offset: u32,
+    /// The limiter routine for the force word's format.
     pub limiter: Label,
 }
 
@@ -358,26 +378,41 @@ pub fn core_code(
     apb_here(a);
     a.i(asm::str(1, 0, alarm));
     a.pool_inline();
-    // Every key: sensor → record, update, limiter, DAC.
+    // Every key: sensors → record, update, then each force word: limiter, DAC.
     walk(a, keys, &mut |a, k| {
         a.i(asm::ldr(0, 4, rec::WINDOW));
-        a.i(asm::ldr(0, 0, 0));
-        a.i(asm::str(0, 4, rec::SENSOR));
+        if k.sensors == 1 && k.sensor_offset == rec::SENSOR as u32 {
+            a.i(asm::ldr(0, 0, 0));
+            a.i(asm::str(0, 4, rec::SENSOR));
+        } else {
+            for i in 0..k.sensors {
+                a.i(asm::ldr(1, 0, 4 * i as u16));
+                a.i(asm::str(1, 4, (k.sensor_offset + 4 * i) as u16));
+            }
+        }
         a.i(asm::ldr(0, 4, rec::STATE));
         a.i(asm::mov(1, 4));
+        add_big(a, 1, k.sensor_offset);
         a.i(asm::mov(2, 4));
-        a.i(asm::adds_imm(2, 2, rec::OUT as u8));
+        add_big(a, 2, k.out_offset);
         a.bl(k.update);
-        if k.force_offset <= 124 {
-            a.i(asm::ldr(0, 4, k.force_offset as u16));
-        } else {
-            a.mov_const(0, k.force_offset);
-            a.i(asm::ldr_reg(0, 4, 0));
+        for (j, d) in k.drives.iter().enumerate() {
+            if d.force_offset <= 124 {
+                a.i(asm::ldr(0, 4, d.force_offset as u16));
+            } else {
+                a.mov_const(0, d.force_offset);
+                a.i(asm::ldr_reg(0, 4, 0));
+            }
+            if d.budget_offset <= 7 {
+                a.i(asm::adds_imm(1, 4, d.budget_offset as u8));
+            } else {
+                a.i(asm::mov(1, 4));
+                add_big(a, 1, d.budget_offset);
+            }
+            a.bl_label(d.limiter);
+            a.i(asm::ldr(1, 4, rec::DAC));
+            a.i(asm::str(0, 1, 4 * j as u16));
         }
-        a.i(asm::adds_imm(1, 4, rec::BUDGET as u8));
-        a.bl_label(k.limiter);
-        a.i(asm::ldr(1, 4, rec::DAC));
-        a.i(asm::str(0, 1, 0));
     });
     a.ldr_const(0, TIMER_BASE);
     apb_here(a);

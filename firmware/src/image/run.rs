@@ -1,18 +1,19 @@
 //! [`ImageRun`]: a [`FirmwareImage`] running on an emulated RP2040, stepped one sample at a
 //! time from the host.
 //!
-//! Per [`ImageRun::step`]: the host writes every key's sensor word into the sensor window
+//! Per [`ImageRun::step`]: the host writes every key's sensor words into the sensor window
 //! (as the sensor DMA would, before the tick), runs the board up to the *next* sample's
 //! tick — both cores sleep in `WFI` between their handlers, and the emulator skips sleep in
-//! one jump — and reads back each key's out words, limited current and DAC word, each
+//! one jump — and reads back each key's out words, and per force word it drives (one for a
+//! keyboard key, one per axis for a pen) the limited current and the DAC word, each
 //! core's handler cycles (measured by profiling the handler: exception entry + first
 //! instruction to the completed return) and the miss counters. If a core has not completed
 //! the sample by then (an overloaded image), the run continues until it has; the next
 //! handler may then already have started with the previous sensor words.
 
-use super::glue::{ctrl, rec};
+use super::glue::ctrl;
 use super::{FirmwareImage, ImageError, STACK_CANARY};
-use tactus_compiler::ir::EventId;
+use tactus_compiler::ir::{Axis, EventId};
 use tactus_emulator::timing::EXCEPTION_ENTRY;
 use tactus_emulator::{Board, Config, StopReason, DAC_BASE, SENSOR_BASE};
 
@@ -27,16 +28,35 @@ pub struct KeyEvent {
     pub args: Vec<i32>,
 }
 
+/// One force word of a key after one sample: the word, the limiter's current and the DAC
+/// code it wrote.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DriveOut {
+    /// The pen axis ([`super::Drive::axis`]); `None` for a keyboard key's force word.
+    pub axis: Option<Axis>,
+    /// The DAC window word written (word index from `DAC_BASE`).
+    pub slot: usize,
+    /// The force word the update computed, before the limiter (format [`super::Drive::frac`]).
+    pub force: i32,
+    /// The motor current the limiter allowed, µA.
+    pub current_ua: i32,
+    /// The DAC code written to the DAC window word `slot`.
+    pub dac: i16,
+}
+
 /// What one sample produced.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct SampleOut {
     /// Per key: the force word the update computed (`out[total]`, format
-    /// `FixedProgram::total_frac`), before the limiter.
+    /// `FixedProgram::total_frac`; a pen's z axis), before the limiter.
     pub force: Vec<i32>,
-    /// Per key: the motor current the limiter allowed, µA.
+    /// Per key: the motor current the limiter allowed for that word, µA.
     pub current_ua: Vec<i32>,
-    /// Per key: the DAC code written to the DAC window.
+    /// Per key: the DAC code written for that word (the key's first DAC window word).
     pub dac: Vec<i16>,
+    /// Per key: every force word it drives, in its DAC window order ([`super::Program::drives`]:
+    /// one for a keyboard key, equal to `force`/`current_ua`/`dac`; a pen's z, then x, y).
+    pub drives: Vec<Vec<DriveOut>>,
     /// Events emitted this sample, by key in key order, each key's in program order.
     pub events: Vec<KeyEvent>,
     /// Per core: cycles of the sample handler runs completed during this step (exception
@@ -99,6 +119,21 @@ impl ImageRun {
                 force: vec![0; n],
                 current_ua: vec![0; n],
                 dac: vec![0; n],
+                drives: image
+                    .keys
+                    .iter()
+                    .map(|k| {
+                        k.drives
+                            .iter()
+                            .enumerate()
+                            .map(|(j, (d, _))| DriveOut {
+                                axis: d.axis,
+                                slot: k.spec.slot + j,
+                                ..DriveOut::default()
+                            })
+                            .collect()
+                    })
+                    .collect(),
                 events: Vec::new(),
                 core_cycles: vec![0; cores],
                 handler_runs: vec![0; cores],
@@ -152,23 +187,28 @@ impl ImageRun {
         self.board.read_u32(a).map_err(emu)
     }
 
-    /// Runs one sample: `sensors` holds one raw sensor word per key (key-list order; the
-    /// word the key's program reads as its sensor), written to the sensor window before the
-    /// sample's tick. Returns what the sample produced.
+    /// Runs one sample: `sensors` holds the raw sensor words of every key in key-list
+    /// order, each key's [`super::Program::sensor_words`] words in its program's sensor
+    /// order (one per keyboard key; a pen's `z`, `x`, … as declared), written to the key's
+    /// sensor window words before the sample's tick. Returns what the sample produced.
     ///
     /// Errors: [`ImageError::SensorCount`]; [`ImageError::Run`] when the board faults, a
     /// core never completes the sample, or a stack canary was overwritten.
     pub fn step(&mut self, sensors: &[i32]) -> Result<&SampleOut, ImageError> {
-        let keys = self.image.keys.len();
-        if sensors.len() != keys {
+        let words = self.image.sensor_words();
+        if sensors.len() != words {
             return Err(ImageError::SensorCount {
-                expected: keys,
+                expected: words,
                 got: sensors.len(),
             });
         }
-        for (k, w) in self.image.keys.iter().zip(sensors) {
-            let a = SENSOR_BASE + 4 * k.spec.slot as u32;
-            self.board.write_data(a, &w.to_le_bytes()).map_err(emu)?;
+        let mut at = 0;
+        for k in &self.image.keys {
+            for (i, w) in sensors[at..at + k.sensors].iter().enumerate() {
+                let a = SENSOR_BASE + 4 * (k.spec.slot + i) as u32;
+                self.board.write_data(a, &w.to_le_bytes()).map_err(emu)?;
+            }
+            at += k.sensors;
         }
         let want = self.samples + 1;
         let limit = self.cycle_of(self.tick_us(want));
@@ -222,7 +262,7 @@ impl ImageRun {
             self.stalls[c] = now;
         }
         for (i, k) in self.image.keys.iter().enumerate() {
-            let len = rec::OUT as usize + 4 * k.out_len;
+            let len = k.out_offset as usize + 4 * k.out_len;
             self.scratch.resize(len, 0);
             self.board
                 .read_bytes(k.record, &mut self.scratch)
@@ -230,17 +270,25 @@ impl ImageRun {
             let word = |b: &[u8], off: usize| {
                 i32::from_le_bytes([b[off], b[off + 1], b[off + 2], b[off + 3]])
             };
-            s.current_ua[i] = word(&self.scratch, rec::CURRENT as usize);
             let out = &mut self.out_words[i];
             for (j, o) in out.iter_mut().enumerate() {
-                *o = word(&self.scratch, rec::OUT as usize + 4 * j);
+                *o = word(&self.scratch, k.out_offset as usize + 4 * j);
             }
-            s.force[i] = out[k.force_index];
-            let dac = self
-                .board
-                .read_u32(DAC_BASE + 4 * k.spec.slot as u32)
-                .map_err(emu)?;
-            s.dac[i] = dac as i32 as i16;
+            for (j, (d, budget)) in k.drives.iter().enumerate() {
+                let dac = self
+                    .board
+                    .read_u32(DAC_BASE + 4 * (k.spec.slot + j) as u32)
+                    .map_err(emu)?;
+                let o = &mut s.drives[i][j];
+                o.force = out[d.out_index];
+                o.current_ua = word(&self.scratch, *budget as usize + 4);
+                o.dac = dac as i32 as i16;
+            }
+            if let Some(first) = s.drives[i].first() {
+                s.force[i] = first.force;
+                s.current_ua[i] = first.current_ua;
+                s.dac[i] = first.dac;
+            }
             let p = &self.image.programs[k.spec.program];
             for site in &p.thumb.out.emits {
                 if out[site.offset] == 1 {
