@@ -530,7 +530,7 @@ impl Report<'_> {
             if events.is_empty() {
                 "no source-level events".to_string()
             } else {
-                events.join(" → ")
+                collapse_runs(&events).join(" → ")
             }
         );
         let calls = &wp.cost.static_cost.calls;
@@ -837,5 +837,38 @@ mod tests {
             keyboard::parse_board(text, n).unwrap();
         }
         assert!(load_board("no-such-board").is_err());
+    }
+}
+
+/// `items` with each run of equal neighbours written once, followed by `(× n)` when `n > 1`:
+/// a worst path through a 225-element delay line reads "line 85: … (× 225)", not the same
+/// label 225 times.
+fn collapse_runs(items: &[String]) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < items.len() {
+        let n = items[i..].iter().take_while(|x| **x == items[i]).count();
+        out.push(if n > 1 {
+            format!("{} (× {n})", items[i])
+        } else {
+            items[i].clone()
+        });
+        i += n;
+    }
+    out
+}
+
+#[cfg(test)]
+mod collapse_tests {
+    use super::collapse_runs;
+
+    #[test]
+    fn runs_of_equal_labels_are_counted() {
+        let v: Vec<String> = ["a", "b", "b", "b", "a", "c", "c"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        assert_eq!(collapse_runs(&v), ["a", "b (× 3)", "a", "c (× 2)"]);
+        assert!(collapse_runs(&[]).is_empty());
     }
 }

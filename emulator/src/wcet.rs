@@ -587,7 +587,7 @@ impl Cx<'_> {
                                 callee: t,
                                 cycles: c,
                             });
-                            body += plain + c;
+                            body = body.saturating_add(plain + c);
                             consts = Consts::new();
                         } else {
                             body += self.cost(addr, &ins.instr, &consts);
@@ -727,7 +727,11 @@ impl Cx<'_> {
                         path.extend_from_slice(&iter.1);
                     }
                     path.extend_from_slice(&p);
-                    exits.push((t, (bound - 1) * iter.0 + c, path));
+                    exits.push((
+                        t,
+                        (bound - 1).saturating_mul(iter.0).saturating_add(c),
+                        path,
+                    ));
                 }
             }
             if exits.is_empty() {
@@ -1135,7 +1139,9 @@ impl Acyclic<'_> {
                     Target::Sink(k) if *k == sink => Some(*c),
                     Target::Sink(_) => None,
                     Target::Node(m) if barred(m) => None,
-                    Target::Node(m) => best.get(m).map(|(x, _)| x + c),
+                    // Saturating: an unbounded-looking intermediate (a long branch analysed as a
+                    // call, before it is declared) must not wrap into a small bound.
+                    Target::Node(m) => best.get(m).map(|(x, _)| x.saturating_add(*c)),
                 };
                 if let Some(v) = v {
                     if b.is_none_or(|(x, _)| v > x) {
