@@ -61,12 +61,45 @@ pub fn eval_op(
             let y = || y.map_or(0.0, &val);
             match f {
                 Builtin::Abs => x.abs(),
-                Builtin::Sqrt => x.max(0.0).sqrt(),
+                Builtin::Sqrt => sqrt(x),
                 Builtin::Exp => x.exp(),
-                Builtin::Min => x.min(y()),
-                Builtin::Max => x.max(y()),
+                Builtin::Min => min(x, y()),
+                Builtin::Max => max(x, y()),
             }
         }
+    }
+}
+
+/// The language's `sqrt` on f64: `√x` for `x > 0`, else `+0` (negative numbers, both zeros
+/// and NaN give `+0`). Written as a comparison rather than `x.max(0.0).sqrt()` because Rust
+/// leaves the sign of `max(-0.0, 0.0)` open and rustc's choice depended on the optimisation
+/// level; every f64 engine (this interpreter, the JIT) uses exactly this definition.
+pub fn sqrt(x: f64) -> f64 {
+    if x > 0.0 {
+        x.sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// The language's `min` on f64: `if a.is_nan() { b } else if b < a { b } else { a }` — a
+/// NaN operand yields the other one, and of two equal operands (`-0`, `+0`) the first. Fixed
+/// here, not left to `f64::min`, whose sign of a zero result is unspecified.
+pub fn min(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b < a {
+        b
+    } else {
+        a
+    }
+}
+
+/// The language's `max` on f64: `if a.is_nan() { b } else if b > a { b } else { a }` (see
+/// [`min`]).
+pub fn max(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b > a {
+        b
+    } else {
+        a
     }
 }
 

@@ -16,16 +16,15 @@
 //! only on how it is computed, never on its declared type.
 //!
 //! Floating point: every operation is the IEEE operation the interpreter's Rust code
-//! performs, in the same order, so results are bit-identical. `exp` and `sqrt` call host
-//! functions holding the interpreter's own expressions (`x.exp()`, `x.max(0.0).sqrt()`).
-//! `min`/`max` are inline and reproduce Rust's `f64::min`/`f64::max` (a NaN operand yields
-//! the other one) as the compare-and-select sequence rustc emits on x86-64, which also
-//! fixes the sign of a zero result: `a.max(b)` is
-//! `if a.is_nan() { b } else if b > a { b } else { a }`. Rust leaves the sign of
-//! `max(-0.0, 0.0)` unspecified, and rustc does pick differently when one operand is a
-//! constant — `x.max(0.0)` becomes `if x > 0 { x } else { 0 }` with optimisations on and
-//! the general sequence without — which is why `sqrt` is a host call: its `max(0.0)` is
-//! compiled by rustc exactly as the interpreter's is, so `sqrt(-0.0)` agrees in every
+//! performs, in the same order, so results are bit-identical. `exp` calls a host function
+//! holding the interpreter's own expression (`x.exp()`). `sqrt`, `min` and `max` are inline
+//! and follow the interpreter's explicit definitions ([`tactus_compiler::interp::sqrt`],
+//! [`min`](tactus_compiler::interp::min), [`max`](tactus_compiler::interp::max)):
+//! `sqrt(x) = if x > 0 { √x } else { +0 }` (IEEE `sqrt` is correctly rounded, so the
+//! instruction and Rust's `f64::sqrt` agree) and `max(a, b) = if a.is_nan() { b } else if
+//! b > a { b } else { a }`, so even the sign of a zero result agrees in every build profile
+//! (`f64::max` leaves it open, and rustc's choice for `x.max(0.0)` once depended on the
+//! optimisation level).
 //! profile. State writes saturate as `f64::clamp` does (`x < lo`, then `x > hi`; NaN → lo).
 
 use crate::layout::Layout;
@@ -37,19 +36,10 @@ use tactus_compiler::ir::{ArithOp, Builtin, CmpOp, Op, Program, Stmt, Value};
 
 /// Name of the host symbol behind `exp`.
 pub const EXP_SYMBOL: &str = "tactus_jit_exp";
-/// Name of the host symbol behind `sqrt`.
-pub const SQRT_SYMBOL: &str = "tactus_jit_sqrt";
 
 /// `exp` for the native code: the very function the interpreter calls.
 pub extern "C" fn host_exp(x: f64) -> f64 {
     x.exp()
-}
-
-/// `sqrt` for the native code: the interpreter's expression, compiled by rustc like the
-/// interpreter's copy, so that even the sign of `sqrt(-0.0)` agrees (see the module
-/// documentation).
-pub extern "C" fn host_sqrt(x: f64) -> f64 {
-    x.max(0.0).sqrt()
 }
 
 /// The signature of a compiled program: `(ctx, inputs, out, sat)`, four pointers, no
@@ -68,8 +58,6 @@ pub fn signature(pointer: Type, call_conv: cranelift_codegen::isa::CallConv) -> 
 pub struct HostFns {
     /// [`host_exp`].
     pub exp: FuncRef,
-    /// [`host_sqrt`].
-    pub sqrt: FuncRef,
 }
 
 /// The signature of the host functions: `f64 → f64`.
@@ -427,8 +415,11 @@ impl<'a, 'f> Translator<'a, 'f> {
                 f(match func {
                     Builtin::Abs => b.ins().fabs(x),
                     Builtin::Sqrt => {
-                        let call = b.ins().call(self.host.sqrt, &[x]);
-                        b.inst_results(call)[0]
+                        // if x > 0 { sqrt(x) } else { +0 } (NaN > 0 is false).
+                        let zero = b.ins().f64const(0.0);
+                        let pos = b.ins().fcmp(FloatCC::GreaterThan, x, zero);
+                        let arg = b.ins().select(pos, x, zero);
+                        b.ins().sqrt(arg)
                     }
                     Builtin::Exp => {
                         let call = b.ins().call(self.host.exp, &[x]);

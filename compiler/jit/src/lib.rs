@@ -31,8 +31,8 @@
 //! * `sat` — one saturation counter per state, incremented when a write is saturated.
 //!
 //! The native code does no allocation, no bounds checks (the layout and the verifier
-//! guarantee every access is in bounds) and calls nothing but the host functions behind
-//! `exp` and `sqrt`.
+//! guarantee every access is in bounds) and calls nothing but the host function behind
+//! `exp` (and, in the fixed-point build, the ones behind `exp` and `sqrt`).
 //!
 //! # What the harness does
 //!
@@ -210,10 +210,7 @@ impl JitProgram {
         if slots > (i32::MAX / 8) as usize {
             return Err(JitError::TooLarge { slots });
         }
-        let module = new_module(&[
-            (codegen::EXP_SYMBOL, codegen::host_exp as *const u8),
-            (codegen::SQRT_SYMBOL, codegen::host_sqrt as *const u8),
-        ])?;
+        let module = new_module(&[(codegen::EXP_SYMBOL, codegen::host_exp as *const u8)])?;
         let (func, code) = finish_module(module, |m| Self::define(m, program, &layout))?;
         Ok(JitProgram {
             program: program.clone(),
@@ -239,16 +236,12 @@ impl JitProgram {
         let exp_id = module
             .declare_function(codegen::EXP_SYMBOL, Linkage::Import, &host_sig)
             .map_err(|e| cg(&e))?;
-        let sqrt_id = module
-            .declare_function(codegen::SQRT_SYMBOL, Linkage::Import, &host_sig)
-            .map_err(|e| cg(&e))?;
         let mut ctx = module.make_context();
         ctx.func.signature = sig;
         let mut fctx = FunctionBuilderContext::new();
         let b = cranelift_frontend::FunctionBuilder::new(&mut ctx.func, &mut fctx);
         let host = codegen::HostFns {
             exp: module.declare_func_in_func(exp_id, b.func),
-            sqrt: module.declare_func_in_func(sqrt_id, b.func),
         };
         let b = codegen::Translator::new(program, layout, b, host).finish()?;
         b.finalize(module.target_config());
