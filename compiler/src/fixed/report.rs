@@ -51,7 +51,17 @@ impl Precision {
 }
 
 fn half_lsb(f: i32) -> f64 {
-    0.5 * 2f64.powi(-f)
+    0.5 * pow2(-f)
+}
+
+/// `2^k`, exactly (as `2f64.powi(k)`, which is exact for powers of two, but without the
+/// library call: the precision budget runs this analysis thousands of times).
+fn pow2(k: i32) -> f64 {
+    if (-1022..=1023).contains(&k) {
+        f64::from_bits(((1023 + k) as u64) << 52)
+    } else {
+        2f64.powi(k)
+    }
 }
 
 /// Computes the error bounds of `fp`.
@@ -301,7 +311,7 @@ fn shift_errors(fp: &FixedProgram, v: Value, fx: i32, fy: i32) -> (f64, f64) {
                 if s <= free {
                     0.0
                 } else {
-                    2f64.powi(s as i32 - f)
+                    pow2(s as i32 - f)
                 }
             };
             (e(a, fx, free(x)), e(b, fy, fy_free))
