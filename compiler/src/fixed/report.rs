@@ -383,10 +383,32 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
             pr.force[i] / lsb
         );
     }
+    // A pen's x and y totals are outputs (`force.x`, `force.y`); z is the total word.
+    let outputs = output_values(p);
+    for (axis, at) in &p.force_axes {
+        let crate::ir::AxisTotal::Output(o) = at else {
+            continue;
+        };
+        let Some(v) = outputs[o.index()] else {
+            continue;
+        };
+        let r = fp.ranges.values[v.index()];
+        let e = pr.value[v.index()];
+        let _ = writeln!(
+            s,
+            "  {:<24} [{:>11.4e}, {:>11.4e}] N      {:<11} {:.3e}         {:.4}",
+            format!("total ({axis})"),
+            r.lo,
+            r.hi,
+            q_name(fp.frac[v.index()]),
+            e,
+            e / lsb
+        );
+    }
     let _ = writeln!(
         s,
         "  {:<24} {:>40} {:<11} {:.3e}         {:.4}{}",
-        "total",
+        if p.is_pen() { "total (z)" } else { "total" },
         "",
         q_name(fp.total_frac),
         pr.total,
@@ -415,6 +437,22 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
         );
     }
     s
+}
+
+/// The value published by each output (`None` for an output never published).
+fn output_values(p: &Program) -> Vec<Option<Value>> {
+    let mut out = vec![None; p.outputs.len()];
+    fn walk(stmts: &[Stmt], out: &mut [Option<Value>]) {
+        for s in stmts {
+            match s {
+                Stmt::Output(o, v) => out[o.index()] = Some(*v),
+                Stmt::If(_, b) => walk(b, out),
+                _ => {}
+            }
+        }
+    }
+    walk(&p.body, &mut out);
+    out
 }
 
 /// The value published by each force term.
