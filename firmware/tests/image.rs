@@ -841,7 +841,7 @@ fn the_rubbed_bank_runs_as_a_pen_at_8_khz_bit_exact_without_misses() {
         ..rp2040()
     };
     let image = FirmwareImage::build(&programs, &keys, &board, &LimiterConfig::default()).unwrap();
-    let samples = 2000;
+    let samples = 8000; // one second
     let mut rng = XorShift64::new(11);
     let sensors = vec![pen_gesture(&programs[0], fs, samples, &mut rng)];
     let st = check_pen_run(&image, &sensors, samples, "rubbed_bank at 8 kHz");
@@ -852,6 +852,16 @@ fn the_rubbed_bank_runs_as_a_pen_at_8_khz_bit_exact_without_misses() {
         distinct[0] > 10 && distinct[1] > 10 && distinct[2] == 1,
         "{distinct:?}"
     );
+    // Its glue (2 sensor copies, 3 limiter calls and DAC stores), as `FirmwareImage::key_glue`
+    // prices it: the handler of core 0 less the update and less core 1's bare handler.
+    let (w0, w1) = (image.wcet(0).unwrap(), image.wcet(1).unwrap());
+    let g = FirmwareImage::key_glue(&programs[0], &board, &LimiterConfig::default()).unwrap();
+    println!(
+        "rubbed_bank: glue static {} cycles, {} window words",
+        g.cycles, g.window_words
+    );
+    assert_eq!(g.cycles, w0.analysed - w0.updates - w1.analysed);
+    assert_eq!(g.window_words, 5);
 }
 
 #[test]
@@ -945,4 +955,27 @@ fn pens_that_overflow_or_overlap_the_windows_are_errors_naming_the_program() {
     let image = FirmwareImage::build(&programs, &[k(0, 0, 0)], &rp2040(), &lim).unwrap();
     let e = image.run().unwrap().step(&[0]).unwrap_err().to_string();
     assert!(e.contains("1 sensor words") && e.contains("reads 3"), "{e}");
+}
+
+#[test]
+fn a_pen_too_large_for_a_bank_is_a_no_room_error() {
+    // plucked_string's Thumb code (about 100 KB) is larger than a core's 63 KB of bank: the
+    // image says so (before analysing it) instead of placing it.
+    let pen = instrument("plucked_string", &[]);
+    assert_eq!(pen.sensor_words(), 3);
+    assert_eq!(pen.drives().unwrap().len(), 3);
+    let text = pen.thumb.code.text.len();
+    let keys = [KeySpec {
+        slot: 0,
+        program: 0,
+        core: 0,
+    }];
+    let built = FirmwareImage::build(&[pen], &keys, &rp2040(), &LimiterConfig::default());
+    println!("plucked_string: {text} bytes of Thumb code");
+    if text > 0xfc00 {
+        let e = built.expect_err("a program larger than the bank was placed");
+        assert!(e.to_string().contains("core 0: code and data need"), "{e}");
+    } else {
+        built.unwrap();
+    }
 }

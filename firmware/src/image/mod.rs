@@ -47,8 +47,10 @@
 //! force word (every keyboard key) has the record and the glue it always had; a key with
 //! more keeps its sensor words and the budgets of its further force words between the
 //! record's header and its out words. [`FirmwareImage::key_glue`] prices one key's glue
-//! statically (a keyboard key 159 cycles, a three-axis pen 456 at the time of writing).
-//! A program's `.text` must fit a core's bank: `plucked_string` (≈100 KB) does not.
+//! statically (at the time of writing: a keyboard key 159 cycles; `rubbed_bank`, two
+//! sensors and three axes, 448; a pen with three sensors and three axes 456). A program's
+//! `.text` must fit a core's bank: `plucked_string` (≈100 KB) does not
+//! ([`ImageError::NoRoom`]).
 //!
 //! **The sample interrupt** (per core, straight-line code: no loop, so the static WCET
 //! needs no loop bounds): acknowledge the alarm; arm the next tick (`q + rem/fs` µs later,
@@ -572,6 +574,24 @@ impl FirmwareImage {
                 return bad(format!("core {} but the board has {cores}", k.core));
             }
             key_drives.push(drives);
+        }
+
+        // The programs' code alone must fit each core's bank (checked before any analysis:
+        // a program too large to place, such as `plucked_string`, is not analysed).
+        for core in 0..cores {
+            let mut need = VECTORS;
+            for (p, prog) in programs.iter().enumerate() {
+                if keys.iter().any(|k| k.core == core && k.program == p) {
+                    need = need.next_multiple_of(4) + prog.thumb.code.text.len() as u32;
+                }
+            }
+            if need > BANK_LIMIT {
+                return Err(ImageError::NoRoom {
+                    core,
+                    need,
+                    have: BANK_LIMIT,
+                });
+            }
         }
 
         // Timer: margin covers the cycles between reading the time and arming the alarm.
