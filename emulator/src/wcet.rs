@@ -587,7 +587,7 @@ impl Cx<'_> {
                                 callee: t,
                                 cycles: c,
                             });
-                            body = body.saturating_add(plain + c);
+                            body = body.saturating_add(plain.saturating_add(c));
                             consts = Consts::new();
                         } else {
                             body += self.cost(addr, &ins.instr, &consts);
