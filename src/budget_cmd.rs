@@ -19,7 +19,9 @@ use std::process::ExitCode;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_firmware::budget::{self, describe_note, note_name, Plan, ProgramCost};
 use tactus_firmware::corpus::{self, Size};
+use tactus_firmware::image::FirmwareImage;
 use tactus_runtime::keyboard::{self, Board, KeyAssignment};
+use tactus_runtime::limiter::LimiterConfig;
 
 /// Boards shipped in the binary, by name (the file stem in `boards/`).
 pub const BUILTIN_BOARDS: &[(&str, &str)] = &[
@@ -85,6 +87,16 @@ struct Program {
     corpus: Size,
     samples: usize,
     cost: ProgramCost,
+    /// Firmware glue per key of this program, cycles per sample: the board's
+    /// `io_cycles_per_key` for a keyboard key; for a pen (several sensor words, a DAC word
+    /// per force axis), its glue measured from the firmware image
+    /// ([`FirmwareImage::key_glue`]) plus one contention cycle each way per window word.
+    io_cycles: u64,
+    /// Why a pen's glue could not be measured (its code does not fit a core's SRAM bank):
+    /// its `io_cycles` is then a keyboard key's, a lower bound.
+    io_note: Option<String>,
+    /// A pen instrument (counted as pens, not keys).
+    pen: bool,
 }
 
 /// Runs `tactus budget`.
@@ -135,7 +147,15 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
         let (l, keys) = keyboard::read_layout(Path::new(&args.input)).map_err(Bad)?;
         (l.name, keys)
     } else {
-        let n = args.keys.unwrap_or(88);
+        // A pen instrument is budgeted as one pen unless told otherwise.
+        let default_keys = match source::load(&args.input)
+            .ok()
+            .and_then(|src| compile_reporting(&src, &args.params))
+        {
+            Some(l) if l.program.is_pen() => 1,
+            _ => 88,
+        };
+        let n = args.keys.unwrap_or(default_keys);
         if !(1..=128).contains(&n) {
             return Err(Bad(format!(
                 "--keys must be between 1 and 128 (MIDI keys), got {n}"
@@ -185,8 +205,34 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
                     .map_err(|e| Bad(format!("{}: {e}", src.name)))?;
                 let static_cost =
                     budget::static_update(&obj).map_err(|e| Bad(format!("{}: {e}", src.name)))?;
+                let (io_cycles, io_note) = if fp.program.is_pen() {
+                    let image_program = tactus_firmware::image::Program {
+                        fixed: fp.clone(),
+                        thumb: obj.clone(),
+                    };
+                    match FirmwareImage::key_glue(
+                        &image_program,
+                        &board,
+                        &LimiterConfig::default(),
+                    ) {
+                        Ok(g) => (g.cycles + 2 * g.window_words, None),
+                        Err(e) => (
+                            u64::from(board.io_cycles_per_key),
+                            Some(format!(
+                                "{}: a pen's firmware glue not measured ({e}); a keyboard key's {} cycles used, a lower bound",
+                                src.name, board.io_cycles_per_key
+                            )),
+                        ),
+                    }
+                } else {
+                    (u64::from(board.io_cycles_per_key), None)
+                };
+                let pen = fp.program.is_pen();
                 compiled.push((fp, obj));
                 programs.push(Program {
+                    pen,
+                    io_cycles,
+                    io_note,
                     instrument: a.instrument.clone(),
                     params,
                     source: src.text,
@@ -227,10 +273,9 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
         p.cost.measured = measured;
     }
 
-    let io = u64::from(board.io_cycles_per_key);
     let key_cycles: Vec<u64> = key_program
         .iter()
-        .map(|&(_, p)| programs[p].cost.static_cost.cycles + io)
+        .map(|&(_, p)| programs[p].cost.static_cost.cycles + programs[p].io_cycles)
         .collect();
     let plan = budget::plan(&board, &key_cycles);
     // The most expensive key (the lowest of equals).
@@ -378,10 +423,9 @@ impl Report<'_> {
             .map(|(name, is)| {
                 let c = is
                     .iter()
-                    .map(|&i| self.programs[i].cost.static_cost.cycles)
+                    .map(|&i| self.programs[i].cost.static_cost.cycles + self.programs[i].io_cycles)
                     .max()
-                    .unwrap_or(0)
-                    + u64::from(self.board.io_cycles_per_key);
+                    .unwrap_or(0);
                 (name, c, budget::max_keys(self.board, c))
             })
             .collect()
@@ -521,8 +565,13 @@ impl Report<'_> {
             show_params(&wp.params),
             self.key_cycles[self.worst],
             wp.cost.static_cost.cycles,
-            self.board.io_cycles_per_key
+            wp.io_cycles
         );
+        for p in self.programs {
+            if let Some(n) = &p.io_note {
+                let _ = writeln!(s, "note: {n}");
+            }
+        }
         let _ = writeln!(
             s,
             "its worst path ({} blocks) passes: {}",
@@ -555,9 +604,14 @@ impl Report<'_> {
         for (name, c, n) in self.what_fits() {
             let per_key =
                 free * u64::from(self.board.cores) / (self.key_program.len() as u64).max(1);
+            let unit = if self.programs.iter().any(|p| p.instrument == name && p.pen) {
+                "pen"
+            } else {
+                "key"
+            };
             let _ = writeln!(
                 s,
-                "  {name}: {n} key{} ({c} cycles per key; {} per core of {free} after the interrupt; {} keys need ≤ {per_key} cycles per key{})",
+                "  {name}: {n} {unit}{} ({c} cycles per {unit}; {} per core of {free} after the interrupt; {} keys need ≤ {per_key} cycles per key{})",
                 if n == 1 { "" } else { "s" },
                 n / u64::from(self.board.cores.max(1)),
                 self.key_program.len(),

@@ -217,3 +217,32 @@ fn help_explains_the_figures_and_exit_codes() {
         assert!(s.contains(w), "{w}: {s}");
     }
 }
+
+/// A pen instrument is budgeted as one pen by default, its per-pen firmware glue measured
+/// from the image (two sensor words and three DAC words cost more than a keyboard key's one
+/// and one), and the verdict counts pens.
+#[test]
+fn a_pen_is_budgeted_as_one_pen_with_its_own_glue() {
+    let out = budget(&["rubbed_bank", "--quick"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("rubbed_bank × 1"), "{stdout}");
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("most expensive key:"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    let io: u64 = line
+        .rsplit("I/O ")
+        .next()
+        .and_then(|x| x.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    let key = budget(&["hammond", "--keys", "1", "--quick"]);
+    let key_out = String::from_utf8_lossy(&key.stdout);
+    let key_io: u64 = key_out
+        .lines()
+        .find(|l| l.starts_with("most expensive key:"))
+        .and_then(|l| l.rsplit("I/O ").next())
+        .and_then(|x| x.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{key_out}"));
+    assert!(io > key_io, "pen glue {io} cycles, a key's {key_io}");
+    assert!(stdout.contains("rubbed_bank: 0 pens"), "{stdout}");
+}
