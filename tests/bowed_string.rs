@@ -268,7 +268,7 @@ fn dip(b: &Bowed, n: u32) -> f64 {
 /// the band's lower edge) and towards the fingerboard (β = 1/6, upper part of the band)
 /// settles into periodic stick–slip at the fundamental both times, and each spectrum is weak
 /// at the partial with a node at the bowing point, n = 1/β: a point force at β drives mode n
-/// in proportion to sin(nπβ) (the modal weight of the spreading operator, Bilbao 2009 §5.2.2),
+/// in proportion to sin(nπβ) (the simply supported string's mode shape sin(nπx/L) at x = βL),
 /// so that mode is not sustained and decays with the string's losses — the bow-position
 /// "comb" of the bowed-string spectrum (Guettler, Schoonderwaldt, Askenfelt, SMAC 2003,
 /// discuss how deep it is for arco). So partial 6, against its neighbours, is at least 2×
@@ -278,7 +278,9 @@ fn the_bowing_point_follows_the_pen_and_shapes_the_spectrum() {
     let p = program();
     // Near the bridge the bow needs more force for stick–slip (Schelleng's minimum bow force
     // grows as 1/β², Schelleng, JASA 53, 1973): full depth (28 mN) and 0.08 m/s, still above
-    // the friction peak 1/√(2a) = 7.1 cm/s.
+    // the friction peak 1/√(2a) = 7.1 cm/s. Even so it slipped twice per period in our runs
+    // (the bow force within the uniqueness bound is below Schelleng's minimum there), but
+    // periodically, at the fundamental.
     let near_bridge = bow_g(&p, 1.0 / 15.0, 0.010, 0.08);
     let towards_fingerboard = bow_g(&p, 1.0 / 6.0, 0.008, 0.10);
     let (d6_near, d6_far) = (dip(&near_bridge, 6), dip(&towards_fingerboard, 6));
