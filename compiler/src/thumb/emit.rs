@@ -349,6 +349,11 @@ impl Lower<'_> {
                 self.i(Instr::MemReg { op, rt, rn, rm });
                 self.spill(rt, s);
             }
+            M::StoreR { op, t, idx } => {
+                let rt = self.read(t, 0);
+                let rm = self.read(idx, 1);
+                self.i(Instr::MemReg { op, rt, rn: 7, rm });
+            }
             M::Store { op, t, base, off } => {
                 let rt = self.read(t, 0);
                 let rn = self.base(base, 1);

@@ -108,6 +108,9 @@ pub enum M {
     },
     /// Load `t = [base + idx]`.
     LoadR { op: MemOp, t: V, base: Base, idx: V },
+    /// Store `[state + idx] = t` (`STR Rt, [r7, Rm]`; the state base only, so that `t` and
+    /// `idx` are the two operands that may need scratch registers).
+    StoreR { op: MemOp, t: V, idx: V },
     /// Store `[base + off] = t`.
     Store {
         op: MemOp,
@@ -147,6 +150,7 @@ impl M {
             M::Load { base: b, .. } => base(b).into_iter().collect(),
             M::LoadR { base: b, idx, .. } => base(b).into_iter().chain([*idx]).collect(),
             M::Store { t, base: b, .. } => std::iter::once(*t).chain(base(b)).collect(),
+            M::StoreR { t, idx, .. } => vec![*t, *idx],
         }
     }
 

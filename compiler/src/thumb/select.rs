@@ -72,6 +72,11 @@ pub(crate) struct Sel<'a> {
     /// Force/output/total slots written unconditionally exactly once: stored straight to
     /// `out[]`, not through `published[]`.
     direct: Vec<bool>,
+    /// `state + region` in a register, for word accesses beyond the 124-byte reach of an
+    /// immediate offset from r7 (`(region, register)`, region a multiple of 128): reused by
+    /// the following accesses to the same region until the next label, where control may
+    /// arrive from a path that did not define it.
+    region_base: Option<(usize, V)>,
     /// The first construct found that this backend cannot compile.
     unsupported: Option<String>,
     /// Whether [`Sel::stmts`] is at the body's top level (for [`M::Mark`]s).
@@ -239,6 +244,7 @@ impl<'a> Sel<'a> {
             out_ptr: V(0),
             next_site: 0,
             direct,
+            region_base: None,
             unsupported: None,
             fused,
             top: false,
@@ -256,7 +262,29 @@ impl<'a> Sel<'a> {
     }
 
     fn push(&mut self, m: M) {
+        if matches!(m, M::Label(_)) {
+            self.region_base = None;
+        }
         self.code.push(m);
+    }
+
+    /// For a word access at `off` bytes into the state struct beyond an immediate offset's
+    /// reach: the base register of its 128-byte region and the offset within it (a delay
+    /// line's shift then costs `LDR`/`STR` with immediate offsets, one address computation
+    /// per 32 words).
+    fn state_region(&mut self, off: usize) -> (V, u16) {
+        let region = off & !127;
+        if let Some((r, b)) = self.region_base {
+            if r == region {
+                return (b, (off - region) as u16);
+            }
+        }
+        let o = self.movi(region as i32);
+        let s = self.nv();
+        self.push(M::Mov { d: s, s: STATE_V });
+        let b = self.addsub(false, s, o);
+        self.region_base = Some((region, b));
+        (b, (off - region) as u16)
     }
 
     // ---- small builders ----
@@ -306,6 +334,14 @@ impl<'a> Sel<'a> {
                 base,
                 off: off as u16,
             });
+        } else if base == Base::State && op == MemOp::Ldr && off.is_multiple_of(4) {
+            let (b, o) = self.state_region(off);
+            self.push(M::Load {
+                op,
+                t,
+                base: Base::V(b),
+                off: o,
+            });
         } else {
             let idx = self.movi(off as i32);
             self.push(M::LoadR { op, t, base, idx });
@@ -322,14 +358,25 @@ impl<'a> Sel<'a> {
                 off: off as u16,
             });
         } else {
-            // `STR Rt, [Rn, Rm]`: compute the address instead (stores are rare).
             let addr = match base {
-                Base::State => {
-                    let o = self.movi(off as i32);
-                    let s = self.nv();
-                    self.push(M::Mov { d: s, s: STATE_V });
-                    self.addsub(false, s, o)
+                // `STR Rt, [r7, Rm]` with the offset in a register (a delay line's shift
+                // stores far into the state struct every sample).
+                Base::State if op == MemOp::Str && off.is_multiple_of(4) => {
+                    let (b, o) = self.state_region(off);
+                    self.push(M::Store {
+                        op,
+                        t,
+                        base: Base::V(b),
+                        off: o,
+                    });
+                    return;
                 }
+                Base::State => {
+                    let idx = self.movi(off as i32);
+                    self.push(M::StoreR { op, t, idx });
+                    return;
+                }
+                // Elsewhere the address is computed (such stores are rare).
                 Base::V(b) => {
                     let o = self.movi(off as i32);
                     self.addsub(false, b, o)
@@ -1043,8 +1090,22 @@ impl<'a> Sel<'a> {
                     let iv = fp.ranges.values[v.index()];
                     let scale = 2f64.powi(fp.state_frac[i]);
                     let margin = 2.0 + 1e-9 * iv.mag() * scale;
-                    let inside =
-                        iv.lo * scale - margin >= lo as f64 && iv.hi * scale + margin <= hi as f64;
+                    // A state copied into a state of the same format and a range at least
+                    // as wide (a delay line's shift) is inside too: every state word is
+                    // within its own raw range (initialised in it, clamped on each write).
+                    let copy = match p.values[v.index()].op {
+                        Op::State(src) => {
+                            let (slo, shi) = fp.state_raw_range[src.index()];
+                            fp.state_frac[src.index()] == fp.state_frac[i]
+                                && fp.frac[v.index()] == fp.state_frac[i]
+                                && slo >= lo
+                                && shi <= hi
+                        }
+                        _ => false,
+                    };
+                    let inside = copy
+                        || (iv.lo * scale - margin >= lo as f64
+                            && iv.hi * scale + margin <= hi as f64);
                     let t = if inside {
                         t.v
                     } else {
@@ -1062,6 +1123,11 @@ impl<'a> Sel<'a> {
                 Stmt::SetEdge(e, v) => {
                     let w = self.word(*v);
                     self.store(MemOp::Strb, w.v, Base::State, st.edges + e.index());
+                }
+                // `while true { … }`: the body, without a test (no flow fact can name it:
+                // a body that always runs excludes nothing).
+                Stmt::If(c, body) if p.values[c.index()].op == Op::BoolConst(true) => {
+                    self.stmts(body)?;
                 }
                 Stmt::If(c, body) => {
                     let skip = self.label();
@@ -2221,9 +2287,13 @@ pub(crate) fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
         let Stmt::If(_, body_i) = &p.body[i] else {
             continue;
         };
+        let Stmt::If(cond_i, _) = &p.body[i] else {
+            continue;
+        };
         let mut known = Known::default();
         known.apply(fp, body_i, true);
-        if known.state.is_empty() && known.mode.is_empty() {
+        let facts = sample_facts(fp, *cond_i);
+        if known.state.is_empty() && known.mode.is_empty() && facts.is_empty() {
             continue;
         }
         for k in i + 1..p.body.len() {
@@ -2233,15 +2303,98 @@ pub(crate) fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
                     pos: &pos,
                     after: i,
                     known: &known,
+                    facts: &facts,
                 };
                 if ev.tri(*c) == Tri::False {
                     out.push((i as u32, k as u32));
                 }
             }
             known.apply(fp, std::slice::from_ref(&p.body[k]), true);
-            if known.state.is_empty() && known.mode.is_empty() {
+            if known.state.is_empty() && known.mode.is_empty() && facts.is_empty() {
                 break;
             }
+        }
+    }
+    out
+}
+
+/// Whether `v` has one value throughout a sample: it reads only sensors, their derivatives,
+/// params and constants (no state, mode or edge, which handlers change).
+fn sample_constant(p: &Program, v: Value) -> bool {
+    match p.values[v.index()].op {
+        Op::Const(_) | Op::Param(_) | Op::Sensor(_) | Op::Deriv(..) => true,
+        Op::Neg(x) => sample_constant(p, x),
+        Op::Arith(_, x, y) => sample_constant(p, x) && sample_constant(p, y),
+        Op::Call(_, x, y) => sample_constant(p, x) && y.is_none_or(|y| sample_constant(p, y)),
+        _ => false,
+    }
+}
+
+/// Whether `a` and `b` compute the same thing from the same inputs (value ids may differ:
+/// the front end re-emits a `let` at each use). Only for [`sample_constant`] values.
+fn same_expr(p: &Program, a: Value, b: Value) -> bool {
+    if a == b {
+        return true;
+    }
+    match (&p.values[a.index()].op, &p.values[b.index()].op) {
+        (Op::Const(x), Op::Const(y)) => x.to_bits() == y.to_bits(),
+        (Op::Param(x), Op::Param(y)) => x == y,
+        (Op::Sensor(x), Op::Sensor(y)) => x == y,
+        (Op::Deriv(x, m), Op::Deriv(y, n)) => x == y && m == n,
+        (Op::Neg(x), Op::Neg(y)) => same_expr(p, *x, *y),
+        (Op::Arith(o, x1, y1), Op::Arith(q, x2, y2)) => {
+            o == q && same_expr(p, *x1, *x2) && same_expr(p, *y1, *y2)
+        }
+        (Op::Call(f, x1, y1), Op::Call(g, x2, y2)) => {
+            f == g
+                && same_expr(p, *x1, *x2)
+                && match (y1, y2) {
+                    (None, None) => true,
+                    (Some(y1), Some(y2)) => same_expr(p, *y1, *y2),
+                    _ => false,
+                }
+        }
+        _ => false,
+    }
+}
+
+/// What an `if` condition being true says about values that keep their value through the
+/// sample: for each comparison among its `and`-ed terms whose one side is
+/// [`sample_constant`], that side's interval narrowed by the other side's range (`x >= y`:
+/// x ≥ the least y). A later `if` testing the same expression of the same inputs sees the
+/// narrowed interval: the plucked string's `rel >= release` excludes its `rel <= -release`.
+fn sample_facts(fp: &FixedProgram, cond: Value) -> Vec<(Value, Interval)> {
+    let p = &fp.program;
+    let mut out = Vec::new();
+    let mut stack = vec![cond];
+    while let Some(v) = stack.pop() {
+        match p.values[v.index()].op {
+            Op::And(x, y) => {
+                stack.push(x);
+                stack.push(y);
+            }
+            Op::Cmp(o, x, y) if matches!(p.values[x.index()].ty, Ty::Real(_)) => {
+                let (a, b) = (fp.ranges.values[x.index()], fp.ranges.values[y.index()]);
+                // x o y: bounds on x from y's range, and on y from x's.
+                let (ax, by) = match o {
+                    CmpOp::Ge | CmpOp::Gt => (
+                        Interval::new(a.lo.max(b.lo), a.hi),
+                        Interval::new(b.lo, b.hi.min(a.hi)),
+                    ),
+                    CmpOp::Le | CmpOp::Lt => (
+                        Interval::new(a.lo, a.hi.min(b.hi)),
+                        Interval::new(b.lo.max(a.lo), b.hi),
+                    ),
+                    _ => continue,
+                };
+                if sample_constant(p, x) && ax.lo <= ax.hi {
+                    out.push((x, ax));
+                }
+                if sample_constant(p, y) && by.lo <= by.hi {
+                    out.push((y, by));
+                }
+            }
+            _ => {}
         }
     }
     out
@@ -2252,10 +2405,31 @@ struct Eval<'a> {
     pos: &'a [usize],
     after: usize,
     known: &'a Known,
+    /// Intervals of sample-constant expressions implied by the earlier `if`'s condition.
+    facts: &'a [(Value, Interval)],
 }
 
 impl Eval<'_> {
     fn real(&self, v: Value) -> Interval {
+        let p = &self.fp.program;
+        let r = self.real_unnarrowed(v);
+        if !sample_constant(p, v) {
+            return r;
+        }
+        self.facts
+            .iter()
+            .filter(|(f, _)| same_expr(p, *f, v))
+            .fold(r, |r, (_, k)| {
+                let n = Interval::new(r.lo.max(k.lo), r.hi.min(k.hi));
+                if n.lo <= n.hi {
+                    n
+                } else {
+                    r
+                }
+            })
+    }
+
+    fn real_unnarrowed(&self, v: Value) -> Interval {
         let p = &self.fp.program;
         match p.values[v.index()].op {
             Op::State(s) if self.pos[v.index()] > self.after => self
