@@ -208,6 +208,8 @@ struct Profile {
     /// Open calls per core: (return address or exception number, SP at entry, start cycle).
     open: [Vec<(Return, u32, u64)>; 2],
     calls: Vec<Call>,
+    /// Times the entry was reached (calls open or completed, both cores).
+    entries: u64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -487,6 +489,7 @@ impl Board {
             handler_only: false,
             open: [Vec::new(), Vec::new()],
             calls: Vec::new(),
+            entries: 0,
         });
         self.profiles.len() - 1
     }
@@ -505,6 +508,7 @@ impl Board {
             handler_only: true,
             open: [Vec::new(), Vec::new()],
             calls: Vec::new(),
+            entries: 0,
         });
         self.profiles.len() - 1
     }
@@ -518,6 +522,14 @@ impl Board {
     /// The completed calls of profiled function `handle`.
     pub fn calls(&self, handle: usize) -> &[Call] {
         self.profiles.get(handle).map_or(&[], |p| &p.calls)
+    }
+
+    /// How many times the entry of profiled address `handle` has been reached (0 for an
+    /// unknown handle). Unlike [`Board::calls`], which completes a call when control returns
+    /// to the link register it was entered with, this counts a block that is not a function
+    /// (a code generator's `BL` long branches change LR inside one) at the moment it runs.
+    pub fn entries(&self, handle: usize) -> u64 {
+        self.profiles.get(handle).map_or(0, |p| p.entries)
     }
 
     /// Forgets the completed calls of profiled function `handle` (read them with
@@ -549,6 +561,7 @@ impl Board {
                 });
             }
             if pc == p.entry && core.thumb {
+                p.entries += 1;
                 let lr = core.r[14];
                 let ret = if lr >> 28 == 0xf && core.ipsr != 0 {
                     Return::FromException(core.ipsr)

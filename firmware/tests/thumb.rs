@@ -208,20 +208,30 @@ fn exclusive_if_bodies_never_run_in_the_same_sample() {
                     )
                 })
                 .collect();
+            // Entries, not completed calls: a body is not a function, and the backend's
+            // long branches (`BL` to a label) change LR inside the update, so a "call" of a
+            // body address may complete only in a later sample.
+            let count = |r: &mut UpdateRunner| -> Vec<(u64, u64)> {
+                handles
+                    .iter()
+                    .map(|&(ha, hb)| (r.board().entries(ha), r.board().entries(hb)))
+                    .collect()
+            };
+            let mut before = count(&mut r);
             for (n, words) in run.records.iter().enumerate() {
                 r.step(words).unwrap();
-                for (k, &(ha, hb)) in handles.iter().enumerate() {
-                    let (na, nb) = (r.board().calls(ha).len(), r.board().calls(hb).len());
+                let after = count(&mut r);
+                for (k, (&(a0, b0), &(a1, b1))) in before.iter().zip(&after).enumerate() {
+                    let (na, nb) = (a1 - a0, b1 - b0);
                     assert!(
-                        !(na == 1 && nb == 1),
+                        !(na >= 1 && nb >= 1),
                         "{name}/{}: sample {n} runs both bodies of pair {:?}",
                         run.label,
                         pairs[k]
                     );
-                    entered[k] |= na == 1 || nb == 1;
-                    r.board().clear_calls(ha);
-                    r.board().clear_calls(hb);
+                    entered[k] |= na >= 1 || nb >= 1;
                 }
+                before = after;
             }
         }
         println!(
