@@ -957,25 +957,68 @@ fn pens_that_overflow_or_overlap_the_windows_are_errors_naming_the_program() {
     assert!(e.contains("1 sensor words") && e.contains("reads 3"), "{e}");
 }
 
+/// A program whose code is larger than a core's 63 KB of bank: 150 inlined `exp`s (about
+/// 80 KB of Thumb code).
+const TOO_LARGE: &str = "
+instrument too_large {
+    sensor x: m in [0 mm, 10 mm]
+    for i in 0..150 {
+        state s[i] = 0 in [-1, 1]
+        while true { s[i] = exp(-x / 10 mm - i / 1000) - 0.5 }
+    }
+    force f = x * 1 N/m
+}
+";
+
 #[test]
-fn a_pen_too_large_for_a_bank_is_a_no_room_error() {
-    // plucked_string's Thumb code (about 100 KB) is larger than a core's 63 KB of bank: the
-    // image says so (before analysing it) instead of placing it.
-    let pen = instrument("plucked_string", &[]);
-    assert_eq!(pen.sensor_words(), 3);
-    assert_eq!(pen.drives().unwrap().len(), 3);
-    let text = pen.thumb.code.text.len();
+fn a_program_too_large_for_a_bank_is_a_no_room_error() {
+    let big = Program::compile(TOO_LARGE, &Config::default()).unwrap();
+    let text = big.thumb.code.text.len();
+    println!("too_large: {text} bytes of Thumb code");
+    assert!(text > 0xfc00, "{text} bytes: not larger than a bank");
     let keys = [KeySpec {
         slot: 0,
         program: 0,
         core: 0,
     }];
-    let built = FirmwareImage::build(&[pen], &keys, &rp2040(), &LimiterConfig::default());
-    println!("plucked_string: {text} bytes of Thumb code");
-    if text > 0xfc00 {
-        let e = built.expect_err("a program larger than the bank was placed");
-        assert!(e.to_string().contains("core 0: code and data need"), "{e}");
-    } else {
-        built.unwrap();
-    }
+    let e = FirmwareImage::build(&[big], &keys, &rp2040(), &LimiterConfig::default())
+        .expect_err("a program larger than the bank was placed");
+    assert!(e.to_string().contains("core 0: code and data need"), "{e}");
+}
+
+/// The plucked string fits one core at the board's 44.1 kHz (its static WCET with the pen's
+/// glue is under the deadline): a second of pen gestures with plucks runs bit-exact on every
+/// DAC word, without a missed deadline, within the static bound.
+#[test]
+fn the_plucked_string_runs_as_a_pen_at_44_1_khz_bit_exact_without_misses() {
+    let pen = instrument("plucked_string", &[]);
+    assert_eq!(pen.sensor_words(), 3);
+    assert_eq!(pen.drives().unwrap().len(), 3);
+    let keys = [KeySpec {
+        slot: 0,
+        program: 0,
+        core: 0,
+    }];
+    let programs = vec![pen];
+    let image =
+        FirmwareImage::build(&programs, &keys, &rp2040(), &LimiterConfig::default()).unwrap();
+    let samples = 44_100;
+    let mut rng = XorShift64::new(13);
+    let sensors = vec![pen_gesture(&programs[0], 44_100.0, samples, &mut rng)];
+    // The gesture plucks: the reference emits `pluck` events.
+    let mut reference = FixedInstance::new(&programs[0].fixed);
+    let plucks: usize = sensors[0]
+        .iter()
+        .map(|w| reference.step_raw(w).events.len())
+        .sum();
+    println!("plucked_string: {plucks} plucks in the second");
+    assert!(plucks >= 2, "{plucks} plucks");
+    let st = check_pen_run(&image, &sensors, samples, "plucked_string at 44.1 kHz");
+    // The plane (z) and the string (x: its lateral stiffness and the windings) push; y not.
+    let distinct: Vec<usize> = st.codes[0].iter().map(|s| s.len()).collect();
+    println!("plucked_string: distinct DAC codes (z, x, y) {distinct:?}");
+    assert!(
+        distinct[0] > 10 && distinct[1] > 10 && distinct[2] == 1,
+        "{distinct:?}"
+    );
 }

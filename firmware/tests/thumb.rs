@@ -139,10 +139,11 @@ fn thumb_matches_the_fixed_interpreter_bit_for_bit() {
 }
 
 /// `bowed_string` at its shipped size is refused (over 256 KB of code); the same source with
-/// 16 nodes per string (the bow at node 2) is 140 KB and runs every construct the full
-/// instrument has — four bows with their Newton–Raphson solves, `exp`s and divisions, the
+/// 16 interior nodes per string (N = 17, the bowing point interpolated over nodes 1…4) is
+/// about 107 KB and runs every construct the full instrument has — four bows with their
+/// Newton–Raphson solves, `exp`s and divisions, the interpolation and spreading weights, the
 /// finite-difference node updates, the copied old velocities — so it is checked bit for bit
-/// here (71,000 cycles a sample in the emulator).
+/// here.
 #[test]
 fn thumb_matches_the_fixed_interpreter_on_a_smaller_bowed_string() {
     let text = instruments()
@@ -152,14 +153,16 @@ fn thumb_matches_the_fixed_interpreter_on_a_smaller_bowed_string() {
         .1;
     let mut config = Config::default();
     for s in ["g", "dd", "aa", "e"] {
-        config.overrides.push((format!("{s}.N"), "16".into()));
-        config.overrides.push((format!("{s}.nb"), "2".into()));
+        config.overrides.push((format!("{s}.N"), "17".into()));
+        config.overrides.push((format!("{s}.nlo"), "1".into()));
+        config.overrides.push((format!("{s}.nhi"), "4".into()));
     }
     let p = tactus_compiler::compile(&text, &config).unwrap().program;
     let fp = FixedProgram::new(&p);
-    let obj = thumb::compile(&fp).unwrap_or_else(|e| panic!("bowed_string, N = 16: {e}"));
-    // 71,000 cycles a sample: 500 samples of each built-in stimulus (every k-th sample of
-    // the whole gesture) and 2 × 300 random ones keep this near 10 s in a debug build.
+    let obj = thumb::compile(&fp).unwrap_or_else(|e| panic!("bowed_string, N = 17: {e}"));
+    // Tens of thousands of cycles a sample: 500 samples of each built-in stimulus (every k-th
+    // sample of the whole gesture) and 2 × 300 random ones keep this near 10 s in a debug
+    // build.
     let mut runs: Vec<Run> = builtin_runs(&fp)
         .into_iter()
         .map(|r| {
@@ -171,7 +174,7 @@ fn thumb_matches_the_fixed_interpreter_on_a_smaller_bowed_string() {
         })
         .collect();
     runs.extend(random_runs(&fp, 0xB0ED, 2, 300));
-    check("bowed_string/16", &fp, &obj, runner(&fp, &obj), &runs);
+    check("bowed_string/17", &fp, &obj, runner(&fp, &obj), &runs);
 }
 
 /// The backend's flow facts (`Code::exclusive`: pairs of `if` bodies that never both run in
