@@ -324,8 +324,9 @@ fn too_little_force_gives_no_sustained_oscillation() {
 }
 
 /// Too fine a grid breaks the FDTD stability bound, a sticky `a` breaks the uniqueness of the
-/// friction solve, and a bow node range short of the bowing points breaks the interpolation:
-/// all are compile errors that give the two numbers compared.
+/// friction solve, a bow node range short of the bowing points breaks the interpolation, and
+/// losses outside the paper's ranges are refused: all are compile errors that give the two
+/// numbers compared.
 #[test]
 fn stability_and_uniqueness_are_checked_at_compile_time() {
     let src = source();
@@ -338,6 +339,9 @@ fn stability_and_uniqueness_are_checked_at_compile_time() {
         ("g.a", "15000 s^2/m^2", "uniqueness"),
         // The bow's node range must hold 0.20·102 = 20.4.
         ("g.nhi", "20", "bow range"),
+        // The paper's loss ranges: σ0 ∈ [0.1, 10] s⁻¹, σ1 ∈ [1e-4, 0.015] m²/s.
+        ("g.sig0", "20 s^-1", "sigma0 range"),
+        ("dd.sig1", "5e-5 m^2/s", "sigma1 range"),
     ] {
         let diags = tactus_compiler::compile(&src, &with(k, v))
             .err()
