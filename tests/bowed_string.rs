@@ -12,7 +12,7 @@
 
 mod common;
 
-use common::partial_hz;
+use common::{partial_hz, smooth_step};
 use std::path::Path;
 use tactus_compiler::ir::Program;
 use tactus_compiler::lower::Config;
@@ -55,12 +55,6 @@ fn program() -> Program {
     });
     assert!(lowered.warnings.is_empty(), "{:?}", lowered.warnings);
     lowered.program
-}
-
-/// A raised-cosine step from 0 to 1 between `t0` and `t1`.
-fn smooth_step(t: f64, t0: f64, t1: f64) -> f64 {
-    let u = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
-    0.5 - 0.5 * (std::f64::consts::PI * u).cos()
 }
 
 /// One bow stroke on the G string at `y` across it (m, 0–10 mm): the pen presses to `depth`

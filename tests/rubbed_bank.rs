@@ -9,6 +9,9 @@
 //! only the first sensor. The friction is the force's x component: the force term
 //! `contact.x`, whose axis total is the compiler-generated output `force.x`.
 
+mod common;
+
+use common::smooth_step;
 use std::path::Path;
 use tactus_compiler::fixed::interp::{FixedInstance, RawOut};
 use tactus_compiler::fixed::FixedProgram;
@@ -63,12 +66,6 @@ fn fixed_program(p: &Program) -> FixedProgram {
         fp.warnings
     );
     fp
-}
-
-/// A raised-cosine step from 0 to 1 between `t0` and `t1`.
-fn smooth_step(t: f64, t0: f64, t1: f64) -> f64 {
-    let u = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
-    0.5 - 0.5 * (std::f64::consts::PI * u).cos()
 }
 
 /// Rubbing position at time `t`: the integral of a velocity that blends from 0 to

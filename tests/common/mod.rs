@@ -63,3 +63,10 @@ pub fn partial_hz(x: &[f64], f: f64, fs: f64) -> f64 {
     let coarse = scan(0.9 * f, 1.1 * f, 0.5);
     scan(coarse - 0.5, coarse + 0.5, 0.01)
 }
+
+/// A raised-cosine step from 0 to 1 between `t0` and `t1` (s): the smooth onsets of the pen
+/// strokes the pen-instrument tests drive.
+pub fn smooth_step(t: f64, t0: f64, t1: f64) -> f64 {
+    let u = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    0.5 - 0.5 * (std::f64::consts::PI * u).cos()
+}
