@@ -489,3 +489,23 @@ fn fixed_jit_matches_fixed_interpreter_bit_for_bit() {
         });
     assert!(moved, "the rub did not move mass 0 in fixed point");
 }
+
+/// The side walls at the track's ends push the pen back along x — lifted or pressed, with
+/// the plane's stiffness — and nothing between them: lifted and still at 80 mm the pen feels
+/// no force along x; 3 mm into either wall it feels 300 N/m × 3 mm = 0.9 N back towards the
+/// track, on the force's x axis (`force.x`).
+#[test]
+fn side_walls_push_the_pen_back_at_the_track_ends() {
+    let p = program();
+    let fx = output_index(&p, "force.x");
+    // Hold the pen lifted at `x` for 0.1 s (the differentiator settles: no rubbing velocity).
+    let held = |x: f64| -> f64 {
+        let input = vec![[0.0, x]; 4410];
+        run_f64(&p, &input).last().unwrap()[fx]
+    };
+    let (lo, mid, hi) = (held(0.002), held(0.080), held(0.158));
+    println!("force.x lifted at 2 mm {lo:.4} N, 80 mm {mid:.4} N, 158 mm {hi:.4} N");
+    assert!((lo - 0.9).abs() < 1e-9, "at 2 mm: {lo} N");
+    assert_eq!(mid, 0.0, "at 80 mm: {mid} N");
+    assert!((hi + 0.9).abs() < 1e-9, "at 158 mm: {hi} N");
+}
