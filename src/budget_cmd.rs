@@ -437,10 +437,15 @@ impl Report<'_> {
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "budget of {} ({}): {} keys on {}: {} core{} × {} cycles per sample ({} MHz / {} Hz); per key {} I/O cycles, per core {} interrupt cycles",
+            "budget of {} ({}): {} {} on {}: {} core{} × {} cycles per sample ({} MHz / {} Hz); per key {} I/O cycles, per core {} interrupt cycles",
             self.name,
             self.input,
             self.key_program.len(),
+            match (self.programs.iter().all(|p| p.pen), self.key_program.len()) {
+                (true, 1) => "pen",
+                (true, _) => "pens",
+                (false, _) => "keys",
+            },
             b.name,
             b.cores,
             if b.cores == 1 { "" } else { "s" },
@@ -557,10 +562,15 @@ impl Report<'_> {
                 need as f64 / cps as f64
             );
         }
+        // A pen has no note name: it is named by its window slot (the key number).
+        let who = if wp.pen {
+            format!("pen (slot {key})")
+        } else {
+            format!("key: {key} ({})", note_name(key))
+        };
         let _ = writeln!(
             s,
-            "most expensive key: {key} ({}) {} ({}): {} cycles per sample = static {} + I/O {}",
-            note_name(key),
+            "most expensive {who} {} ({}): {} cycles per sample = static {} + I/O {}",
             wp.instrument,
             show_params(&wp.params),
             self.key_cycles[self.worst],
@@ -600,24 +610,26 @@ impl Report<'_> {
         }
         let _ = writeln!(s, "what fits on {}:", self.board.name);
         let free = cps.saturating_sub(u64::from(self.board.isr_overhead_cycles));
-        let io = u64::from(self.board.io_cycles_per_key);
         for (name, c, n) in self.what_fits() {
             let per_key =
                 free * u64::from(self.board.cores) / (self.key_program.len() as u64).max(1);
-            let unit = if self.programs.iter().any(|p| p.instrument == name && p.pen) {
-                "pen"
-            } else {
-                "key"
-            };
+            let ps = || self.programs.iter().filter(|p| p.instrument == name);
+            let unit = if ps().any(|p| p.pen) { "pen" } else { "key" };
+            // The glue of this instrument's keys (a pen's is measured; a key's is the board's).
+            let io = ps()
+                .map(|p| p.io_cycles)
+                .max()
+                .unwrap_or(u64::from(self.board.io_cycles_per_key));
+            let count = self.key_program.len();
             let _ = writeln!(
                 s,
-                "  {name}: {n} {unit}{} ({c} cycles per {unit}; {} per core of {free} after the interrupt; {} keys need ≤ {per_key} cycles per key{})",
+                "  {name}: {n} {unit}{} ({c} cycles per {unit}; {} per core of {free} after the interrupt; {count} {unit}{} ≤ {per_key} cycles per {unit}{})",
                 if n == 1 { "" } else { "s" },
                 n / u64::from(self.board.cores.max(1)),
-                self.key_program.len(),
+                if count == 1 { " needs" } else { "s need" },
                 if per_key <= io {
                     format!(
-                        ", less than the board's {io} cycles of per-key firmware glue alone: no update fits that many keys"
+                        ", less than the {io} cycles of per-{unit} firmware glue alone: no update fits that many {unit}s"
                     )
                 } else {
                     format!(", {} for the update after the glue", per_key - io)

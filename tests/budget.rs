@@ -225,10 +225,13 @@ fn help_explains_the_figures_and_exit_codes() {
 fn a_pen_is_budgeted_as_one_pen_with_its_own_glue() {
     let out = budget(&["rubbed_bank", "--quick"]);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("rubbed_bank × 1"), "{stdout}");
+    assert!(
+        stdout.contains("rubbed_bank × 1 (rubbed_bank): 1 pen on"),
+        "{stdout}"
+    );
     let line = stdout
         .lines()
-        .find(|l| l.starts_with("most expensive key:"))
+        .find(|l| l.starts_with("most expensive pen (slot "))
         .unwrap_or_else(|| panic!("{stdout}"));
     let io: u64 = line
         .rsplit("I/O ")
