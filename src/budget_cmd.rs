@@ -137,6 +137,9 @@ fn load_board(arg: &str) -> Result<Board, Bad> {
 fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
     let board = load_board(&args.board)?;
     let is_layout = args.input.ends_with(".toml");
+    // A single instrument is compiled once, here (it decides the default number of keys),
+    // and reused for its keys below, so its diagnostics are printed once.
+    let mut precompiled = None;
     let (name, assignments) = if is_layout {
         if args.keys.is_some() {
             return Err(Bad(format!(
@@ -147,12 +150,13 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
         let (l, keys) = keyboard::read_layout(Path::new(&args.input)).map_err(Bad)?;
         (l.name, keys)
     } else {
+        precompiled = source::load(&args.input).ok().map(|src| {
+            let lowered = compile_reporting(&src, &args.params);
+            (src, lowered)
+        });
         // A pen instrument is budgeted as one pen unless told otherwise.
-        let default_keys = match source::load(&args.input)
-            .ok()
-            .and_then(|src| compile_reporting(&src, &args.params))
-        {
-            Some(l) if l.program.is_pen() => 1,
+        let default_keys = match &precompiled {
+            Some((_, Some(l))) if l.program.is_pen() => 1,
             _ => 88,
         };
         let n = args.keys.unwrap_or(default_keys);
@@ -189,9 +193,17 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
         {
             Some(i) => i,
             None => {
-                let src = source::load(&a.instrument)
-                    .map_err(|e| Bad(format!("{}: key {}: {e}", args.input, a.key)))?;
-                let Some(lowered) = compile_reporting(&src, &params) else {
+                // Only the single instrument is precompiled, with exactly these params.
+                let (src, lowered) = match precompiled.take() {
+                    Some(pre) => pre,
+                    None => {
+                        let src = source::load(&a.instrument)
+                            .map_err(|e| Bad(format!("{}: key {}: {e}", args.input, a.key)))?;
+                        let lowered = compile_reporting(&src, &params);
+                        (src, lowered)
+                    }
+                };
+                let Some(lowered) = lowered else {
                     return Err(Bad(format!(
                         "{}: key {}: `{}` does not compile with params {}",
                         args.input,
