@@ -12,7 +12,7 @@
 
 mod common;
 
-use common::{partial_hz, smooth_step};
+use common::{partial_hz, smooth_step, Spectrum};
 use std::path::Path;
 use tactus_compiler::ir::Program;
 use tactus_compiler::lower::Config;
@@ -230,24 +230,9 @@ fn moderate_bowing_settles_into_stick_slip_at_the_fundamental() {
 /// The amplitude of the bridge force's partial near `f` (Hz): the largest magnitude of the
 /// Hann-windowed discrete-time Fourier transform within ±1 Hz of `f`, in 0.1 Hz steps.
 fn partial_amplitude(x: &[f64], f: f64) -> f64 {
-    let n = x.len() as f64;
-    let m = x.iter().sum::<f64>() / n;
-    let w: Vec<f64> = x
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (v - m) * (0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n).cos()))
-        .collect();
+    let spectrum = Spectrum::new(x, FS);
     (-10..=10)
-        .map(|j| {
-            let hz = f + 0.1 * j as f64;
-            let (mut re, mut im) = (0.0, 0.0);
-            for (i, v) in w.iter().enumerate() {
-                let ph = 2.0 * std::f64::consts::PI * hz * i as f64 / FS;
-                re += v * ph.cos();
-                im -= v * ph.sin();
-            }
-            (re * re + im * im).sqrt()
-        })
+        .map(|j| spectrum.power(f + 0.1 * j as f64).sqrt())
         .fold(0.0, f64::max)
 }
 

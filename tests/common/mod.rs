@@ -26,27 +26,45 @@ pub fn assert_ok(out: &Output) {
     );
 }
 
+/// The Hann-windowed discrete-time Fourier transform of `x` (its mean removed), sampled at
+/// `fs` Hz: the power `|X(hz)|²` at any frequency.
+pub struct Spectrum {
+    windowed: Vec<f64>,
+    fs: f64,
+}
+
+impl Spectrum {
+    /// `x` sampled at `fs` Hz.
+    pub fn new(x: &[f64], fs: f64) -> Self {
+        let n = x.len() as f64;
+        let m = x.iter().sum::<f64>() / n;
+        let windowed = x
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (v - m) * (0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n).cos()))
+            .collect();
+        Spectrum { windowed, fs }
+    }
+
+    /// `|X(hz)|²`.
+    pub fn power(&self, hz: f64) -> f64 {
+        let (mut re, mut im) = (0.0, 0.0);
+        for (i, v) in self.windowed.iter().enumerate() {
+            let ph = 2.0 * std::f64::consts::PI * hz * i as f64 / self.fs;
+            re += v * ph.cos();
+            im -= v * ph.sin();
+        }
+        re * re + im * im
+    }
+}
+
 /// Frequency of the strongest partial within ±10 % of `f` (Hz): the peak of the
 /// Hann-windowed discrete-time Fourier transform, scanned in 0.5 Hz and then 0.01 Hz steps. For a periodic
 /// signal whose fundamental is near `f`, this is the fundamental; for a free string, its
 /// first mode. `fs`: the sample rate, Hz.
 pub fn partial_hz(x: &[f64], f: f64, fs: f64) -> f64 {
-    let n = x.len() as f64;
-    let m = x.iter().sum::<f64>() / n;
-    let w: Vec<f64> = x
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (v - m) * (0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n).cos()))
-        .collect();
-    let power = |hz: f64| {
-        let (mut re, mut im) = (0.0, 0.0);
-        for (i, v) in w.iter().enumerate() {
-            let ph = 2.0 * std::f64::consts::PI * hz * i as f64 / fs;
-            re += v * ph.cos();
-            im -= v * ph.sin();
-        }
-        re * re + im * im
-    };
+    let spectrum = Spectrum::new(x, fs);
+    let power = |hz: f64| spectrum.power(hz);
     // 0.5 Hz steps over ±10 %, then 0.01 Hz steps around the best.
     let scan = |from: f64, to: f64, step: f64| {
         let mut best = (from, f64::MIN);
