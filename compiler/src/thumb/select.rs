@@ -637,6 +637,13 @@ impl<'a> Sel<'a> {
         let hi = self.alu2(AluOp::Mul, ah, bh);
         let m1 = self.alu2(AluOp::Mul, ah, bl);
         let m2 = self.alu2(AluOp::Mul, al, bh);
+        self.add_cross_terms((lo, hi), m1, m2)
+    }
+
+    /// `(lo, hi) + m1·2^16 + m2·2^16` as a 64-bit pair: the cross terms of a product from
+    /// 16-bit halves (`lo`, `hi` the low·low and high·high products, `m1`, `m2` the mixed
+    /// ones, each shifted into both words with its sign).
+    fn add_cross_terms(&mut self, (lo, hi): (V, V), m1: V, m2: V) -> (V, V) {
         let t1 = self.sh(Shift::Lsl, m1, 16);
         let u1 = self.sh(Shift::Asr, m1, 16);
         let (lo, hi) = self.add64((lo, hi), (t1, u1), false);
@@ -1955,12 +1962,7 @@ impl<'a> Sel<'a> {
         let hi = self.alu2(AluOp::Mul, ph, rh);
         let m1 = self.alu2(AluOp::Mul, pl, rh);
         let m2 = self.alu2(AluOp::Mul, ph, rl);
-        let t1 = self.sh(Shift::Lsl, m1, 16);
-        let u1 = self.sh(Shift::Asr, m1, 16);
-        let (lo, hi) = self.add64((lo, hi), (t1, u1), false);
-        let t2 = self.sh(Shift::Lsl, m2, 16);
-        let u2 = self.sh(Shift::Asr, m2, 16);
-        self.add64((lo, hi), (t2, u2), false).1
+        self.add_cross_terms((lo, hi), m1, m2).1
     }
 
     /// `c ? a : b` for a 0/1 word `c`, branch-free: `b ^ ((a ^ b) & -c)`.
