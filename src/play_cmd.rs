@@ -864,7 +864,7 @@ fn emu_strikes(
     opts: &EmuOptions,
     bar: &ProgressBar,
 ) -> Result<(Vec<Strike>, EmuReport, Traces), String> {
-    use tactus_firmware::image::{assign_cores, compile_layout, FirmwareImage, KeySpec};
+    use tactus_firmware::image::{assign_cores, compile_layout, key_specs, FirmwareImage};
     let (end, fs) = (opts.end, opts.fs);
     let board = crate::budget_cmd::board_named(opts.board)?;
     let source = |name: &str| source::load(name).map(|s| s.text);
@@ -872,16 +872,7 @@ fn emu_strikes(
         compile_layout(played, &source, fs).map_err(|e| format!("firmware: {e}"))?;
     let cores = assign_cores(&programs, &key_programs, board.cores as usize)
         .map_err(|e| format!("firmware: {e}"))?;
-    let specs: Vec<KeySpec> = played
-        .iter()
-        .zip(&key_programs)
-        .zip(&cores)
-        .map(|((a, &program), &core)| KeySpec {
-            slot: a.key as usize,
-            program,
-            core,
-        })
-        .collect();
+    let specs = key_specs(played, &key_programs, &cores);
     let image = FirmwareImage::build(
         &programs,
         &specs,

@@ -12,7 +12,7 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::path::Path;
 use tactus_compiler::fixed::interp::FixedInstance;
-use tactus_firmware::image::{assign_cores, compile_layout, FirmwareImage, KeySpec};
+use tactus_firmware::image::{assign_cores, compile_layout, key_specs, FirmwareImage};
 use tactus_runtime::keyboard::{read_board, KeyAssignment};
 use tactus_runtime::limiter::LimiterConfig;
 use tactus_runtime::stimulus;
@@ -37,16 +37,7 @@ fn image(len: usize) -> (FirmwareImage, Vec<Vec<i32>>) {
     let (programs, key_programs) = compile_layout(&keys, &source, 44_100.0).unwrap();
     let board = read_board(&root.join("boards/rp2040_200mhz.toml")).unwrap();
     let cores = assign_cores(&programs, &key_programs, board.cores as usize).unwrap();
-    let specs: Vec<KeySpec> = keys
-        .iter()
-        .zip(&key_programs)
-        .zip(&cores)
-        .map(|((a, &program), &core)| KeySpec {
-            slot: a.key as usize,
-            program,
-            core,
-        })
-        .collect();
+    let specs = key_specs(&keys, &key_programs, &cores);
     let image = FirmwareImage::build(&programs, &specs, &board, &LimiterConfig::default()).unwrap();
     let names = stimulus::builtin_names();
     let sensors = specs

@@ -20,7 +20,8 @@ use tactus_compiler::lower::Config;
 use tactus_emulator::timer::reg;
 use tactus_emulator::{Board, Config as BoardConfig};
 use tactus_firmware::image::{
-    assign_cores, compile_layout, limiter_routine, FirmwareImage, ImageRun, KeySpec, Program,
+    assign_cores, compile_layout, key_specs, limiter_routine, FirmwareImage, ImageRun, KeySpec,
+    Program,
 };
 use tactus_runtime::keyboard::{assign, parse_layout, read_board, Board as BoardSpec};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
@@ -613,15 +614,7 @@ fn grand_piano_keys_from_a_layout_run_one_per_core_at_200_mhz_without_misses() {
         );
     }
     let cores = assign_cores(&programs, &index, 2).unwrap();
-    let keys: Vec<KeySpec> = assigned
-        .iter()
-        .zip(index.iter().zip(&cores))
-        .map(|(a, (&program, &core))| KeySpec {
-            slot: a.key as usize,
-            program,
-            core,
-        })
-        .collect();
+    let keys = key_specs(&assigned, &index, &cores);
     let board = read_board(&root().join("boards/rp2040_200mhz.toml")).unwrap();
     let image = FirmwareImage::build(&programs, &keys, &board, &LimiterConfig::default()).unwrap();
     let samples = 11_025; // 0.25 s

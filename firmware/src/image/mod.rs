@@ -265,6 +265,22 @@ pub struct KeySpec {
     pub core: usize,
 }
 
+/// The keys of a layout as the image places them: each key's window slot is its MIDI key
+/// number, with its program (an index into [`compile_layout`]'s programs) and its core
+/// ([`assign_cores`]). `keys`, `key_programs` and `cores` run in parallel (the shortest
+/// decides the length).
+pub fn key_specs(keys: &[KeyAssignment], key_programs: &[usize], cores: &[usize]) -> Vec<KeySpec> {
+    keys.iter()
+        .zip(key_programs)
+        .zip(cores)
+        .map(|((a, &program), &core)| KeySpec {
+            slot: a.key as usize,
+            program,
+            core,
+        })
+        .collect()
+}
+
 /// Assigns keys to `cores` cores by longest processing time first
 /// ([`tactus_emulator::schedule::lpt`]) with each key's cost the static WCET of its
 /// program's update plus the handler's per-key glue; returns the core of each key.
