@@ -216,6 +216,30 @@ fn build_rp2040_writes_object_header_and_listing() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("-o DIR"));
 }
 
+/// Runs `tactus sim FILE --stimulus STIMULUS --out DIR --wav DIR/WAV EXTRA…`, checks it
+/// succeeds and names the WAV, and reads the WAV: (sample rate, samples).
+fn sim_wav(
+    file: &std::path::Path,
+    stimulus: &str,
+    dir: &std::path::Path,
+    wav: &str,
+    extra: &[&str],
+) -> (u32, Vec<i16>) {
+    let out = tactus()
+        .arg("sim")
+        .arg(file)
+        .args(["--stimulus", stimulus, "--out"])
+        .arg(dir)
+        .arg("--wav")
+        .arg(dir.join(wav))
+        .args(extra)
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).contains(wav));
+    read_wav(&dir.join(wav))
+}
+
 /// Reads a 16-bit mono WAV: (sample rate, samples).
 fn read_wav(path: &std::path::Path) -> (u32, Vec<i16>) {
     let mut r = hound::WavReader::open(path).unwrap();
@@ -237,21 +261,7 @@ fn sim_writes_a_wav_of_the_audio_outputs() {
          output audio_a = key\n  output audio_b = key\n  output other = 10 mm - key\n}\n",
     )
     .unwrap();
-    let run = |extra: &[&str], wav: &str| {
-        let out = tactus()
-            .arg("sim")
-            .arg(&f)
-            .args(["--stimulus", "mf-dip", "--out"])
-            .arg(&dir)
-            .arg("--wav")
-            .arg(dir.join(wav))
-            .args(extra)
-            .output()
-            .unwrap();
-        assert_ok(&out);
-        assert!(String::from_utf8_lossy(&out.stdout).contains(wav));
-        read_wav(&dir.join(wav))
-    };
+    let run = |extra: &[&str], wav: &str| sim_wav(&f, "mf-dip", &dir, wav, extra);
     let (rate, audio) = run(&[], "audio.wav");
     assert_eq!(rate, 44_100);
     let mut rdr = csv::Reader::from_path(dir.join("w-mf-dip.csv")).unwrap();
@@ -329,20 +339,7 @@ fn sim_writes_a_wav_of_a_pen_instrument() {
          output audio = pen.x - 80 mm\n}\n",
     )
     .unwrap();
-    let run = |extra: &[&str], wav: &str| {
-        let out = tactus()
-            .arg("sim")
-            .arg(&f)
-            .args(["--stimulus", "press-rub", "--out"])
-            .arg(&dir)
-            .arg("--wav")
-            .arg(dir.join(wav))
-            .args(extra)
-            .output()
-            .unwrap();
-        assert_ok(&out);
-        read_wav(&dir.join(wav))
-    };
+    let run = |extra: &[&str], wav: &str| sim_wav(&f, "press-rub", &dir, wav, extra);
     let (_, audio) = run(&[], "audio.wav");
     let (_, drag) = run(&["--wav-output", "force.x"], "drag.wav");
     let mut rdr = csv::Reader::from_path(dir.join("p-press-rub.csv")).unwrap();
