@@ -379,24 +379,37 @@ fn thumb_exp_matches_the_runtime_on_forced_formats() {
                 };
                 words.push(w.clamp(i32::MIN as i64, i32::MAX as i64) as i32);
             }
-            let run = Run {
-                label: format!("exp {fx} -> {fr}"),
-                records: words.iter().map(|&w| vec![w]).collect(),
-            };
-            n += run.records.len();
-            let c = compare(&mut runner(&fp, &obj), &fp, &obj.out, &[run])
-                .unwrap_or_else(|e| panic!("exp {fx} -> {fr}: {e}"));
-            // Only calls that compute (not a shortcut): words within the limits.
-            cycles.push((fx, fr, c.cycles.best, c.cycles.worst, c.cycles.mean()));
-            assert!(
-                c.mismatches == 0,
-                "exp {fx} -> {fr}: {}",
-                c.first_mismatches.join("\n")
-            );
+            n += words.len();
+            cycles.push(check_forced("exp", fx, fr, &fp, &obj, &words));
         }
     }
     println!("{n} words");
     report_cycles("exp", &cycles);
+}
+
+/// Runs the [`forced`] program of `what` (argument format `fx`, result format `fr`) on
+/// `words` in the emulator and the interpreter, asserts equal bits, and returns `(fx, fr,
+/// best, worst, mean)` cycles of the update for [`report_cycles`].
+fn check_forced(
+    what: &str,
+    fx: i32,
+    fr: i32,
+    fp: &FixedProgram,
+    obj: &ThumbObject,
+    words: &[i32],
+) -> (i32, i32, u64, u64, f64) {
+    let run = Run {
+        label: format!("{what} {fx} -> {fr}"),
+        records: words.iter().map(|&w| vec![w]).collect(),
+    };
+    let c = compare(&mut runner(fp, obj), fp, &obj.out, &[run])
+        .unwrap_or_else(|e| panic!("{what} {fx} -> {fr}: {e}"));
+    assert!(
+        c.mismatches == 0,
+        "{what} {fx} -> {fr}: {}",
+        c.first_mismatches.join("\n")
+    );
+    (fx, fr, c.cycles.best, c.cycles.worst, c.cycles.mean())
 }
 
 /// Prints the update's cycles over the baseline update (`output e = a`, same formats):
@@ -472,19 +485,8 @@ fn thumb_sqrt_matches_the_runtime_on_forced_formats() {
                     words.push((r * r + d).clamp(0, i32::MAX as i64) as i32);
                 }
             }
-            let run = Run {
-                label: format!("sqrt {fx} -> {fr}"),
-                records: words.iter().map(|&w| vec![w]).collect(),
-            };
-            n += run.records.len();
-            let c = compare(&mut runner(&fp, &obj), &fp, &obj.out, &[run])
-                .unwrap_or_else(|e| panic!("sqrt {fx} -> {fr}: {e}"));
-            cycles.push((fx, fr, c.cycles.best, c.cycles.worst, c.cycles.mean()));
-            assert!(
-                c.mismatches == 0,
-                "sqrt {fx} -> {fr}: {}",
-                c.first_mismatches.join("\n")
-            );
+            n += words.len();
+            cycles.push(check_forced("sqrt", fx, fr, &fp, &obj, &words));
         }
     }
     assert!(es.contains(&30) && es.contains(&31) && es.iter().any(|&e| e >= 62));
