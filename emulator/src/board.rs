@@ -481,17 +481,22 @@ impl Board {
 
     // ---- profiling ----
 
-    /// Starts measuring every call of the function at `addr` (Thumb bit ignored) on both
-    /// cores; see [`Board::calls`]. Returns a handle.
-    pub fn profile_addr(&mut self, addr: u32) -> usize {
+    /// A new profile of the code at `addr` (Thumb bit ignored); its handle.
+    fn add_profile(&mut self, addr: u32, handler_only: bool) -> usize {
         self.profiles.push(Profile {
             entry: addr & !1,
-            handler_only: false,
+            handler_only,
             open: [Vec::new(), Vec::new()],
             calls: Vec::new(),
             entries: 0,
         });
         self.profiles.len() - 1
+    }
+
+    /// Starts measuring every call of the function at `addr` (Thumb bit ignored) on both
+    /// cores; see [`Board::calls`]. Returns a handle.
+    pub fn profile_addr(&mut self, addr: u32) -> usize {
+        self.add_profile(addr, false)
     }
 
     /// Starts measuring the exception handler at `addr` (Thumb bit ignored) on both cores:
@@ -503,14 +508,7 @@ impl Board {
     /// fast path nothing: use it for interrupt handlers. Returns a handle for
     /// [`Board::calls`].
     pub fn profile_handler(&mut self, addr: u32) -> usize {
-        self.profiles.push(Profile {
-            entry: addr & !1,
-            handler_only: true,
-            open: [Vec::new(), Vec::new()],
-            calls: Vec::new(),
-            entries: 0,
-        });
-        self.profiles.len() - 1
+        self.add_profile(addr, true)
     }
 
     /// Starts measuring the function named `name`.
