@@ -70,7 +70,7 @@ mod run;
 pub use run::{DriveOut, ImageRun, KeyEvent, SampleOut};
 
 use asm::Asm;
-use glue::{ctrl, rec, DriveCode, KeyCode, Tick};
+use glue::{ctrl, DriveCode, KeyCode, Tick};
 use std::collections::BTreeMap;
 use std::fmt;
 use tactus_compiler::fixed::FixedProgram;
@@ -80,7 +80,7 @@ use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE, SRAM_ALIAS_BASE};
 use tactus_emulator::wcet::{self, Bounds, Region};
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
-use tactus_runtime::limiter::{Limiter, LimiterConfig};
+use tactus_runtime::limiter::{DacScale, Limiter, LimiterConfig};
 
 /// A compiled key program: the fixed-point program (for its formats and the interpreter)
 /// and its Thumb code.
@@ -384,9 +384,10 @@ impl std::error::Error for ImageError {}
 
 /// The firmware's limiter routine alone, assembled at `base`, for keys whose force words
 /// have `force_frac` fraction bits: returns the code and the routine's address. Calling
-/// convention: `r0` = force word, `r1` = address of two words (budget, then current µA; the
-/// budget starts full: `Limiter::constants().budget_max`); returns the DAC code in `r0`.
-/// The image uses exactly this code; tests call it with arbitrary words.
+/// convention: `r0` = force word, `r1` = address of the budget word (it starts full:
+/// `Limiter::constants().budget_max`); returns the DAC code in `r0`. The image inlines
+/// exactly this limiter ([`glue::limiter_inline`]) per force word; tests call the routine
+/// with arbitrary words.
 ///
 /// Errors: [`ImageError::Limiter`], [`ImageError::Assemble`].
 pub fn limiter_routine(
@@ -397,9 +398,12 @@ pub fn limiter_routine(
     let consts = Limiter::new(limiter)
         .map_err(ImageError::Limiter)?
         .constants();
+    let scale = consts
+        .dac_scale(force_frac)
+        .map_err(ImageError::Limiter)?;
     let mut a = Asm::new();
     let entry = a.label();
-    glue::limiter(&mut a, entry, &consts, force_frac)?;
+    glue::limiter_function(&mut a, entry, &consts, &scale)?;
     let (bytes, labels) = a.assemble(base).map_err(ImageError::Assemble)?;
     Ok((bytes, labels[entry.index()]))
 }
@@ -456,6 +460,8 @@ pub(crate) struct KeyPlace {
     pub sensors: usize,
     /// Byte offset of the out words in the record.
     pub out_offset: u32,
+    /// Byte offset of the state struct's address in the record.
+    pub state_offset: u32,
     /// Its force words, each with the byte offset of its limiter budget in the record.
     pub drives: Vec<(Drive, u32)>,
 }
@@ -589,6 +595,11 @@ impl FirmwareImage {
             if k.core >= cores {
                 return bad(format!("core {} but the board has {cores}", k.core));
             }
+            for d in &drives {
+                consts.dac_scale(d.frac).map_err(|e| {
+                    ImageError::Limiter(format!("program `{}`: {e}", p.thumb.stem))
+                })?;
+            }
             key_drives.push(drives);
         }
 
@@ -678,17 +689,6 @@ impl FirmwareImage {
             let ctrl_addr = base + data_off;
             let my: Vec<usize> = (0..keys.len()).filter(|&i| keys[i].core == core).collect();
             let mut a = Asm::new();
-            // Limiter routines, one per force format.
-            let mut limiters = BTreeMap::new();
-            for &i in &my {
-                for d in &key_drives[i] {
-                    if let std::collections::btree_map::Entry::Vacant(e) = limiters.entry(d.frac) {
-                        let l = a.label();
-                        glue::limiter(&mut a, l, &consts, d.frac)?;
-                        e.insert(l);
-                    }
-                }
-            }
             // Records after the control block, states after the records.
             let mut at = ctrl_addr + ctrl::SIZE;
             let mut kc = Vec::new();
@@ -706,40 +706,42 @@ impl FirmwareImage {
                         .map(|(o, _)| text + o as u32)
                         .ok_or_else(|| ImageError::Compile(format!("no symbol `{name}`")))
                 };
-                let out_len = p.thumb.out.len;
-                let ns = p.sensor_words();
+                let out_len = p.thumb.out.len as u32;
+                let ns = p.sensor_words() as u32;
                 let drives = &key_drives[i];
-                // A keyboard key's record is the header and the out words; a key with
-                // more sensors or drives has its sensor words and the budgets of drives
-                // 1.. between the two.
-                let (sensor_offset, mut ext) = if ns == 1 {
-                    (rec::SENSOR as u32, rec::OUT)
+                let nd = drives.len() as u32;
+                // The record: sensor words first (the update's `sensors`), then the out
+                // words, the budgets and the state address — or, where the out words would
+                // push those beyond an `LDR` immediate, the budgets and the state address
+                // before the out words.
+                let (out_offset, budgets_offset) = if 4 * (ns + out_len + nd) <= 124 {
+                    (4 * ns, 4 * (ns + out_len))
                 } else {
-                    (rec::OUT, rec::OUT + 4 * ns as u32)
+                    (4 * (ns + nd + 1), 4 * ns)
                 };
-                let mut budgets = Vec::with_capacity(drives.len());
-                for j in 0..drives.len() {
-                    if j == 0 {
-                        budgets.push(rec::BUDGET as u32);
-                    } else {
-                        budgets.push(ext);
-                        ext += 8;
-                    }
-                }
-                let out_offset = ext;
-                let size = out_offset + 4 * out_len as u32;
+                let state_offset = budgets_offset + 4 * nd;
+                let size = 4 * (ns + out_len + nd + 1);
+                let budgets: Vec<u32> = (0..nd).map(|j| budgets_offset + 4 * j).collect();
                 let update = sym(p.thumb.update_name())?;
+                let slot = keys[i].slot as u32;
                 kc.push(KeyCode {
-                    sensors: ns as u32,
-                    sensor_offset,
+                    sensor_words: (0..ns).map(|j| SENSOR_BASE + 4 * (slot + j)).collect(),
                     out_offset,
+                    state_offset,
                     drives: drives
                         .iter()
                         .zip(&budgets)
-                        .map(|(d, &b)| DriveCode {
+                        .enumerate()
+                        .map(|(j, (d, &b))| DriveCode {
                             force_offset: out_offset + 4 * d.out_index as u32,
                             budget_offset: b,
-                            limiter: limiters[&d.frac],
+                            dac_word: DAC_BASE + 4 * (slot + j as u32),
+                            // Checked above, with the same constants.
+                            scale: consts.dac_scale(d.frac).unwrap_or(DacScale {
+                                pre_shift: 0,
+                                gain: 1,
+                                post_shift: 0,
+                            }),
                         })
                         .collect(),
                     record_size: size,
@@ -751,15 +753,16 @@ impl FirmwareImage {
                     update,
                     spec: keys[i],
                     record: at,
-                    out_len,
-                    sensors: ns,
+                    out_len: out_len as usize,
+                    sensors: ns as usize,
                     out_offset,
+                    state_offset,
                     drives: drives.iter().copied().zip(budgets).collect(),
                 });
                 at += size;
             }
             let inte = if cores == 2 { 3 } else { 1 };
-            let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, tick, inte);
+            let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, tick, inte, &consts)?;
             Ok((a, labels, kp, at))
         };
         // Provisional sizes (literal values do not change instruction sizes, but pool sharing
@@ -810,20 +813,14 @@ impl FirmwareImage {
                 let state = at;
                 at = (at + p.thumb.state.size as u32).next_multiple_of(4);
                 states.push((state, p.thumb.state.size));
-                let mut r = vec![0u8; k.out_offset as usize + 4 * k.out_len];
+                let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 1)];
                 let put = |r: &mut Vec<u8>, off: u32, v: u32| {
                     r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
                 };
                 for &(_, budget) in &k.drives {
                     put(&mut r, budget, consts.budget_max as u32);
                 }
-                put(
-                    &mut r,
-                    rec::WINDOW as u32,
-                    SENSOR_BASE + 4 * k.spec.slot as u32,
-                );
-                put(&mut r, rec::DAC as u32, DAC_BASE + 4 * k.spec.slot as u32);
-                put(&mut r, rec::STATE as u32, state);
+                put(&mut r, k.state_offset, state);
                 data.extend(r);
             }
             for (_, size) in &states {
