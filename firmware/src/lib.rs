@@ -13,9 +13,11 @@
 //!   counting mismatches and collecting cycle statistics; [`report`] prints the table.
 //! - [`corpus`]: the stimulus corpus of the budget (presses, repetitions, trills, half
 //!   dips, noise, glitches, random words); [`budget`]: static WCET and measured cycles of
-//!   an update, the keys on the board's cores, the verdict (`tactus budget`).
+//!   an update; [`boards`]: a keyboard as a set of boards — the planner and the verdict,
+//!   each board's sample interrupt as its image lays it out (`tactus budget`).
 #![deny(missing_docs)]
 
+pub mod boards;
 pub mod budget;
 pub mod cc;
 pub mod corpus;
@@ -24,6 +26,7 @@ pub mod layout;
 pub mod measure;
 pub mod report;
 pub mod runner;
+pub mod verdict;
 
 pub use layout::{Interface, StateLayout};
 pub use runner::{RunError, Sample, UpdateRunner};

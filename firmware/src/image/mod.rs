@@ -73,6 +73,7 @@ use asm::Asm;
 use glue::{ctrl, DriveCode, KeyCode, Tick};
 use std::collections::BTreeMap;
 use std::fmt;
+use std::sync::OnceLock;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::{Axis, AxisTotal};
 use tactus_compiler::thumb::ThumbObject;
@@ -83,16 +84,30 @@ use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::{DacScale, Limiter, LimiterConfig};
 
 /// A compiled key program: the fixed-point program (for its formats and the interpreter)
-/// and its Thumb code.
+/// and its Thumb code, with the static WCETs of its functions computed once.
 #[derive(Clone, Debug)]
 pub struct Program {
     /// The fixed-point program.
     pub fixed: FixedProgram,
     /// Its Thumb object (position-independent `.text`).
     pub thumb: ThumbObject,
+    /// `update_wcet`, once computed (images of many boards share programs).
+    update_cycles: OnceLock<Result<u64, ImageError>>,
+    /// `init_wcet`, once computed.
+    init_cycles: OnceLock<Result<u64, ImageError>>,
 }
 
 impl Program {
+    /// A program of already compiled parts.
+    pub fn new(fixed: FixedProgram, thumb: ThumbObject) -> Program {
+        Program {
+            fixed,
+            thumb,
+            update_cycles: OnceLock::new(),
+            init_cycles: OnceLock::new(),
+        }
+    }
+
     /// Compiles instrument source `text` with `config` (sample rate, `--param`
     /// overrides) to a fixed-point program and Thumb code. Errors are the rendered
     /// diagnostics' messages or the Thumb backend's error.
@@ -111,18 +126,22 @@ impl Program {
         let fixed = FixedProgram::new(&lowered.program);
         let thumb = tactus_compiler::thumb::compile(&fixed)
             .map_err(|e| ImageError::Compile(e.to_string()))?;
-        Ok(Program { fixed, thumb })
+        Ok(Program::new(fixed, thumb))
     }
 
     /// Static WCET (cycles, first instruction to return) of the program's update, as
     /// [`wcet::analyse`] prices it (the code is position independent, so anywhere).
     pub fn update_wcet(&self) -> Result<u64, ImageError> {
-        self.wcet_of(&self.thumb.update_name())
+        self.update_cycles
+            .get_or_init(|| self.wcet_of(&self.thumb.update_name()))
+            .clone()
     }
 
     /// Static WCET of the program's init, as [`Program::update_wcet`].
     pub fn init_wcet(&self) -> Result<u64, ImageError> {
-        self.wcet_of(&self.thumb.init_name())
+        self.init_cycles
+            .get_or_init(|| self.wcet_of(&self.thumb.init_name()))
+            .clone()
     }
 
     /// Sensor window words a key of this program reads per sample: one per sensor of the
@@ -869,7 +888,7 @@ impl FirmwareImage {
                 .calls
                 .iter()
                 .filter(|c| update_addrs.contains(&c.callee))
-                .map(|c| 3 + c.cycles)
+                .map(|c| crate::runner::BL_CYCLES + c.cycles)
                 .sum();
             window_accesses[core] = kp.iter().map(|k| (k.sensors + k.drives.len()) as u64).sum();
             segments.push((base, code));
