@@ -552,28 +552,8 @@ fn handler_overhead_per_core_and_per_key_measured_and_static() {
     assert!(empty_worst > 0 && empty_worst <= w1.analysed);
     assert!(glue_worst > 0 && glue_worst <= static_glue);
     assert!(handler_worst <= w0.bound());
-    // The board files' per-key and per-core costs (what `tactus budget` adds to the updates)
-    // cover the image's static figures, with the window contention per key: its own two
-    // window accesses may each wait a cycle, and each makes one access of a key on the other
-    // core wait (IsrWcet::contention): 4 per key when the cores hold as many keys.
-    let contention_per_key = 4;
-    for entry in std::fs::read_dir(root().join("boards")).unwrap() {
-        let path = entry.unwrap().path();
-        let b = tactus_runtime::keyboard::read_board(&path).unwrap();
-        assert!(
-            b.io_cycles_per_key as u64 >= static_glue + contention_per_key,
-            "{}: io_cycles_per_key {} < static glue {static_glue} + contention {contention_per_key}",
-            path.display(),
-            b.io_cycles_per_key
-        );
-        assert!(
-            b.isr_overhead_cycles as u64 >= w1.bound(),
-            "{}: isr_overhead_cycles {} < static handler {}",
-            path.display(),
-            b.isr_overhead_cycles,
-            w1.bound()
-        );
-    }
+    // The issue's target for the whole per-key glue (sensor copy, call, limiter, DAC store).
+    assert!(static_glue <= 40, "static glue per key {static_glue} > 40");
 }
 
 /// The instrument text for a layout's instrument name (the shipped ones by name).
@@ -898,10 +878,9 @@ fn pen_glue_per_key_measured_and_static() {
     let kb = FirmwareImage::build(&hammond, &keys, &rp2040(), &LimiterConfig::default()).unwrap();
     let (k0, k1) = (kb.wcet(0).unwrap(), kb.wcet(1).unwrap());
     let key_glue = k0.analysed - k0.updates - k1.analysed;
-    let io = rp2040().io_cycles_per_key as u64;
     println!(
         "pen (3 sensors, 3 axes) glue: measured worst {glue_worst}, static {static_glue}, \
-         contention {} words; keyboard key glue static {key_glue}; board io_cycles_per_key {io}",
+         contention {} words; keyboard key glue static {key_glue}",
         w0.contention
     );
     assert!(glue_worst > 0 && glue_worst <= static_glue);
@@ -912,10 +891,6 @@ fn pen_glue_per_key_measured_and_static() {
     assert_eq!((g.cycles, g.window_words), (static_glue, 6));
     let g = FirmwareImage::key_glue(&hammond[0], &rp2040(), &lim).unwrap();
     assert_eq!((g.cycles, g.window_words), (key_glue, 2));
-    assert!(
-        g.cycles + 2 * g.window_words <= io,
-        "the board file covers a keyboard key"
-    );
     // Each further axis costs at least another limiter; each further sensor a copy.
     assert!(
         static_glue > key_glue + 2 * 20,

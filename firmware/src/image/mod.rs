@@ -14,7 +14,7 @@
 //! table, its copy of every program's `.text` that its keys use (one copy per distinct
 //! program per core: the code is position independent, and a copy per core keeps each
 //! core's literal-pool loads in its own bank), its glue code (reset handler, sample
-//! interrupt, one limiter routine per force format), its control block, its keys' records
+//! interrupt with the limiter inline per force word), its control block, its keys' records
 //! and their state structs. Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
 //! core 1). So the only SRAM accesses two cores can contend for are the sensor loads and
 //! DAC stores in the striped sensor/DAC windows: at most one wait cycle each
@@ -43,12 +43,13 @@
 //! program (`ir::Program::force_axes`) one per axis, **z first** (the total: a pen's first
 //! DAC word is its normal force, as a key's), then x and y (the outputs `force.x`,
 //! `force.y`). Every force word passes its own limiter (its own time budget and current)
-//! through the limiter routine of its own fixed-point format. A key with one sensor and one
-//! force word (every keyboard key) has the record and the glue it always had; a key with
-//! more keeps its sensor words and the budgets of its further force words between the
-//! record's header and its out words. [`FirmwareImage::key_glue`] prices one key's glue
-//! statically (at the time of writing: a keyboard key 159 cycles; `rubbed_bank`, two
-//! sensors and three axes, 448; a pen with three sensors and three axes 456). A program's
+//! through the limiter inline with the scale of its own fixed-point format
+//! (`LimiterConstants::dac_scale`). A key's record holds its sensor words (the update's
+//! `sensors`), its out words, one limiter budget per force word and its state's address
+//! (the budgets and the address before the out words when the out words would push them
+//! beyond an `LDR` immediate). [`FirmwareImage::key_glue`] prices one key's glue
+//! statically (at the time of writing: a keyboard key 41 cycles alone on its core, 39 per
+//! key with two; a pen with three sensors and three axes 108). A program's
 //! `.text` must fit a core's bank: `plucked_string` (≈100 KB) does not
 //! ([`ImageError::NoRoom`]).
 //!
@@ -56,9 +57,9 @@
 //! needs no loop bounds): acknowledge the alarm; arm the next tick (`q + rem/fs` µs later,
 //! the remainder kept exactly, so tick *n* is at `first + ⌊n·10⁶/fs⌋` µs); then for each key
 //! of the core: copy its sensor window words into the key's record, `BL` the program's
-//! update (state, &sensors, out in the record), and per force word `BL` the limiter with
-//! the word (`out[total]`, or a pen's `force.x`/`force.y` output) and store the DAC code in
-//! its DAC window word. Finally: if the timer already
+//! update (state, &sensors, out in the record), and per force word run the limiter on the
+//! word (`out[total]`, or a pen's `force.x`/`force.y` output) and store the DAC code in its
+//! DAC window word. Finally: if the timer already
 //! reached the next tick, the deadline was missed and the core's miss counter is
 //! incremented; the sample counter is incremented last. A handler that starts more than a
 //! period late (only after a miss) re-synchronises the tick to now + a margin.
@@ -260,7 +261,7 @@ pub struct Drive {
     pub out_index: usize,
     /// Fraction bits of the word (`FixedProgram::total_frac` or the output's
     /// `FixedProgram::output_frac`): the force in newtons is `word / 2^frac`, and the
-    /// limiter routine that takes it is the one for this format.
+    /// limiter scales it with this format's `DacScale`.
     pub frac: i32,
 }
 
@@ -947,7 +948,7 @@ impl FirmwareImage {
     /// store ([`KeyGlue`]). Measured from the generated glue: the static WCET of core 0's
     /// handler of an image with this one key on `board`, minus its update calls, minus the
     /// handler of the same image without keys. A keyboard key costs the same whatever its
-    /// program (159 cycles at the time of writing); a pen more, per sensor and per axis.
+    /// program (41 cycles at the time of writing); a pen more, per sensor and per axis.
     ///
     /// Errors: those of [`FirmwareImage::build`] (e.g. [`ImageError::NoRoom`] for a
     /// program too large for a core's bank).
