@@ -421,19 +421,21 @@ impl BudgetReport {
                 .iter()
                 .any(|p| p.instrument == w.instrument && p.pen);
             let u = if pen { "pen" } else { "key" };
+            let count: usize = self
+                .programs
+                .iter()
+                .filter(|p| p.instrument == w.instrument)
+                .map(|p| p.keys.len())
+                .sum();
             let _ = writeln!(
                 s,
-                "  {}: {} {u}{} ({} cycles per {u} with its glue); its {} {u}{} of this layout need {} board{}",
+                "  {}: {} {u}{} ({} cycles per {u} with its glue); its {count} {u}{} of this layout need{} {} board{}",
                 w.instrument,
                 w.keys_per_board,
                 if w.keys_per_board == 1 { "" } else { "s" },
                 w.cycles_per_key,
-                self.programs
-                    .iter()
-                    .filter(|p| p.instrument == w.instrument)
-                    .map(|p| p.keys.len())
-                    .sum::<usize>(),
-                if pen { "s" } else { "s" },
+                if count == 1 { "" } else { "s" },
+                if count == 1 { "s" } else { "" },
                 w.boards_for_its_keys,
                 if w.boards_for_its_keys == 1 { "" } else { "s" }
             );
