@@ -301,9 +301,9 @@ pub fn key_specs(keys: &[KeyAssignment], key_programs: &[usize], cores: &[usize]
         .collect()
 }
 
-/// Assigns keys to `cores` cores by longest processing time first
-/// ([`tactus_emulator::schedule::lpt`]) with each key's cost the static WCET of its
-/// program's update plus the handler's per-key glue; returns the core of each key.
+/// Assigns keys to `cores` cores as the budget does ([`crate::boards::partition`]: an exact
+/// two-way partition) with each key's cost the static WCET of its program's update; returns
+/// the core of each key.
 pub fn assign_cores(
     programs: &[Program],
     key_programs: &[usize],
@@ -320,16 +320,7 @@ pub fn assign_cores(
             why: format!("program {p} does not exist"),
         })?);
     }
-    let mut core = vec![0; key_programs.len()];
-    for (c, load) in tactus_emulator::schedule::lpt(&costs, cores)
-        .iter()
-        .enumerate()
-    {
-        for &k in &load.keys {
-            core[k] = c;
-        }
-    }
-    Ok(core)
+    Ok(crate::boards::partition(&costs, cores))
 }
 
 /// Why an image could not be built or run.
