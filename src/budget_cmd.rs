@@ -227,15 +227,7 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
                         args.input,
                         a.key,
                         a.instrument,
-                        if params.is_empty() {
-                            "defaults".to_string()
-                        } else {
-                            params
-                                .iter()
-                                .map(|(n, v)| format!("{n}={v}"))
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        }
+                        verdict::show_params(params.iter().map(|(n, v)| (n, v)))
                     )));
                 };
                 let fp = FixedProgram::new(&lowered.program);

@@ -374,16 +374,10 @@ mod tests {
     /// The partition is optimal: brute force over every assignment of small instances.
     #[test]
     fn the_two_core_partition_is_exact() {
-        let mut x = 0x9e37_79b9_u64;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut rng = tactus_runtime::rng::XorShift64::new(0x9e37_79b9);
         for _ in 0..300 {
-            let n = 1 + (next() % 10) as usize;
-            let costs: Vec<u64> = (0..n).map(|_| 1 + next() % 900).collect();
+            let n = 1 + rng.below(10);
+            let costs: Vec<u64> = (0..n).map(|_| 1 + rng.below(900) as u64).collect();
             let core = partition(&costs, 2);
             let span = |core: &[usize]| {
                 let mut t = [0u64; 2];

@@ -468,16 +468,16 @@ impl BudgetReport {
     }
 }
 
-/// `name=value, …` or `defaults`.
-fn show_params(params: &BTreeMap<String, String>) -> String {
-    if params.is_empty() {
+/// Param overrides for people: `name=value, …`, or `defaults` when there are none.
+pub fn show_params<'a>(params: impl IntoIterator<Item = (&'a String, &'a String)>) -> String {
+    let v: Vec<String> = params
+        .into_iter()
+        .map(|(n, v)| format!("{n}={v}"))
+        .collect();
+    if v.is_empty() {
         "defaults".to_string()
     } else {
-        params
-            .iter()
-            .map(|(n, v)| format!("{n}={v}"))
-            .collect::<Vec<_>>()
-            .join(", ")
+        v.join(", ")
     }
 }
 
