@@ -350,8 +350,14 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         }
     }
     // Which instrument (with which overrides) on which key.
+    let mut layout_boards = None;
     let assignments = match &args.layout {
-        Some(l) => tactus_runtime::keyboard::read_layout(l)?.1,
+        Some(l) => {
+            let (layout, keys) = tactus_runtime::keyboard::read_layout(l)?;
+            layout_boards =
+                tactus_runtime::keyboard::board_keys(&layout, &l.display().to_string(), &keys)?;
+            keys
+        }
         None => {
             let name = args
                 .instrument
@@ -586,12 +592,13 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let mut strikes = Vec::new();
     let mut traces: BTreeMap<u8, TraceRows> = BTreeMap::new();
     let mut emu_report = None;
+    let mut emu_samples = 0usize;
     if args.engine == PlayEngine::Emu {
         let key_motions: BTreeMap<u8, &Motion> =
             jobs.iter().map(|j| (j.key, &motions[j.motion])).collect();
-        let played: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
+        // Every key of the layout runs on its board, played or not (as on the hardware).
+        let all: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
             .iter()
-            .filter(|a| key_program.contains_key(&a.key))
             .map(|a| {
                 let mut a = a.clone();
                 a.params.extend(args.params.iter().cloned());
@@ -599,7 +606,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             })
             .collect();
         let end = jobs.iter().map(|j| j.first + j.n).max().unwrap_or(0);
-        bar.set_length(end as u64 * played.len() as u64);
+        emu_samples = end;
+        bar.set_length(end as u64 * all.len() as u64);
         let trace = EmuTrace {
             keys: &traced,
             from_s: args.trace_from,
@@ -611,8 +619,9 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             fs,
             finger,
             trace,
+            boards: layout_boards.clone(),
         };
-        let (s, report, t) = emu_strikes(&played, &key_motions, &opts, &bar)?;
+        let (s, report, t) = emu_strikes(&all, &key_motions, &opts, &bar)?;
         strikes = s;
         traces = t;
         emu_report = Some(report);
@@ -736,10 +745,12 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     );
     println!(
         "  {} key-samples in {:.2} s: real-time factor {:.2} ({:.2} s of music; above 1 is faster than real time); peak memory {}",
-        emu_report
-            .as_ref()
-            .map_or(total_samples, |r| r.cycles.first().map_or(0, |c| c.len() as u64)
-                * r.keys.iter().sum::<usize>() as u64),
+        emu_report.as_ref().map_or(total_samples, |r| r
+            .boards
+            .iter()
+            .map(|b| b.keys.len() as u64)
+            .sum::<u64>()
+            * emu_samples as u64),
         wall,
         audio_s / wall.max(1e-9),
         audio_s,
@@ -780,24 +791,44 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     }
     match &emu_report {
         Some(r) => {
-            let path = write_cycle_plot(&args.out, &stem, &r.cycles, fs, r.deadline)?;
+            let series: Vec<Vec<u64>> = r.boards.iter().map(|b| b.cycles.clone()).collect();
+            let path = write_cycle_plot(
+                &args.out,
+                &stem,
+                &series,
+                fs / r.decimation as f64,
+                r.deadline,
+            )?;
             println!("  wrote {}", path.display());
             println!(
-                "  budget of the run on {} ({} cycles per sample per core):",
-                r.board, r.deadline
+                "  budget of the run on {} {} boards ({} cycles per sample per core; every key of every board every sample):",
+                r.boards.len(),
+                r.board,
+                r.deadline
             );
-            for c in 0..r.max.len() {
+            for (i, b) in r.boards.iter().enumerate() {
+                let cores: Vec<String> = (0..b.max.len())
+                    .map(|c| {
+                        format!(
+                            "core {c}: {} keys, max {} cycles per sample ({:.1} %, static {}), headroom {}, deadline misses {}",
+                            b.core_keys[c],
+                            b.max[c],
+                            100.0 * b.max[c] as f64 / r.deadline as f64,
+                            b.bound[c],
+                            r.deadline as i64 - b.max[c] as i64,
+                            b.misses[c]
+                        )
+                    })
+                    .collect();
                 println!(
-                    "    core {c}: {} keys, max {} cycles per sample ({:.1} %), headroom {}, deadline misses {}",
-                    r.keys[c],
-                    r.max[c],
-                    100.0 * r.max[c] as f64 / r.deadline as f64,
-                    r.deadline as i64 - r.max[c] as i64,
-                    r.misses[c]
+                    "    board {} (keys {}): {}",
+                    i + 1,
+                    tactus_firmware::verdict::key_ranges(&b.keys),
+                    cores.join("; ")
                 );
             }
-            if r.misses.iter().any(|m| *m > 0) {
-                eprintln!("error: the firmware missed sample deadlines: the played keys do not fit this board (see `tactus budget`)");
+            if r.boards.iter().any(|b| b.misses.iter().any(|m| *m > 0)) {
+                eprintln!("error: the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)");
                 return Ok(ExitCode::FAILURE);
             }
         }
@@ -808,19 +839,29 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// What the emulated board reported over a run.
+/// What the emulated boards reported over a run.
 struct EmuReport {
     board: String,
     /// Cycles per sample per core (the deadline).
     deadline: u64,
-    /// Keys per core.
-    keys: Vec<usize>,
-    /// Largest cycles of one sample's interrupt, per core.
+    /// Per board of the keyboard.
+    boards: Vec<BoardRun>,
+    /// Samples per point of [`BoardRun::cycles`].
+    decimation: usize,
+}
+
+/// One board's run: its keys, per core the keys, the largest handler, the misses and the
+/// static bound, and the cycles of its busier core (the largest of each `decimation`
+/// samples).
+struct BoardRun {
+    keys: Vec<u8>,
+    core_keys: Vec<usize>,
     max: Vec<u64>,
-    /// Deadline misses counted by the firmware, per core.
     misses: Vec<u32>,
-    /// Cycles of every sample, per core.
-    cycles: Vec<Vec<u64>>,
+    bound: Vec<u64>,
+    cycles: Vec<u64>,
+    strikes: Vec<Strike>,
+    traces: Traces,
 }
 
 /// What `--engine emu` records per traced key ([`emu_strikes`]).
@@ -846,51 +887,144 @@ struct EmuOptions<'a> {
     finger: FingerConfig,
     /// What to trace.
     trace: EmuTrace<'a>,
+    /// The layout's boards (MIDI keys per board), or `None` to plan them as `tactus budget`
+    /// does.
+    boards: Option<Vec<Vec<u8>>>,
 }
 
-/// Plays the keys through the firmware image of the played keys on the emulated board: one
-/// program per distinct instrument and params, keys to cores by longest processing time
-/// first, every key every sample from sample 0 to `opts.end` (the keys at rest before and
-/// after their notes). A key moved by a [`Motion::Track`] follows it; a key moved by a
-/// [`Motion::Finger`] is a [`ForcePlayer`] pushed by the finger against the force word its
-/// firmware computed that sample (`SampleOut::force`, before the safety limiter, as the
-/// host engines' force): the closed loop, stepped exactly as the host engines' loop.
-/// Strikes come from the keys' `out[]` words, their speeds converted from the event's
-/// format. Traces hold every sample of the traced keys in the window, with the limited
-/// motor current and the DAC code.
+/// Plays the keys through the firmware of every board of the keyboard on emulated boards:
+/// the boards as the layout lists them or as `tactus budget` plans them (the fewest boards
+/// that each meet the deadline by the static analysis of their sample interrupt), one
+/// program per distinct instrument and params, every key of every board every sample from
+/// sample 0 to `opts.end` (keys at rest before, between and after their notes, as on the
+/// hardware). The boards are independent, so they run in parallel on host threads. A key
+/// moved by a [`Motion::Track`] follows it; a key moved by a [`Motion::Finger`] is a
+/// [`ForcePlayer`] pushed by the finger against the force word its firmware computed that
+/// sample (`SampleOut::force`, before the safety limiter, as the host engines' force): the
+/// closed loop, stepped exactly as the host engines' loop. Strikes come from the keys'
+/// `out[]` words, their speeds converted from the event's format. Traces hold every sample
+/// of the traced keys in the window, with the motor current and the DAC code.
 fn emu_strikes(
-    played: &[tactus_runtime::keyboard::KeyAssignment],
+    all: &[tactus_runtime::keyboard::KeyAssignment],
     motions: &BTreeMap<u8, &Motion>,
     opts: &EmuOptions,
     bar: &ProgressBar,
 ) -> Result<(Vec<Strike>, EmuReport, Traces), String> {
-    use tactus_firmware::image::{assign_cores, compile_layout, key_specs, FirmwareImage};
-    let (end, fs) = (opts.end, opts.fs);
+    use tactus_firmware::boards::{self, PlanKey, ProgramCosts};
+    use tactus_firmware::image::compile_layout;
+    let fs = opts.fs;
     let board = crate::budget_cmd::board_named(opts.board)?;
+    let lim = tactus_runtime::limiter::LimiterConfig {
+        sample_rate_hz: board.sample_rate_hz,
+        ..Default::default()
+    };
     let source = |name: &str| source::load(name).map(|s| s.text);
     let (programs, key_programs) =
-        compile_layout(played, &source, fs).map_err(|e| format!("firmware: {e}"))?;
-    let cores = assign_cores(&programs, &key_programs, board.cores as usize)
-        .map_err(|e| format!("firmware: {e}"))?;
-    let specs = key_specs(played, &key_programs, &cores);
-    let image = FirmwareImage::build(
-        &programs,
-        &specs,
-        &board,
-        &tactus_runtime::limiter::LimiterConfig::default(),
-    )
-    .map_err(|e| format!("firmware for {} keys on {}: {e}", played.len(), board.name))?;
-    let mut run = image.run().map_err(|e| format!("firmware: {e}"))?;
-    let n_cores = board.cores as usize;
-    let mut report = EmuReport {
+        compile_layout(all, &source, fs).map_err(|e| format!("firmware: {e}"))?;
+    let costs = ProgramCosts::new(&programs, &board, &lim).map_err(|e| format!("firmware: {e}"))?;
+    let keys: Vec<PlanKey> = all
+        .iter()
+        .zip(&key_programs)
+        .map(|(a, &program)| PlanKey {
+            key: a.key,
+            program,
+        })
+        .collect();
+    let lists: Vec<Vec<u8>> = match &opts.boards {
+        Some(l) => l.clone(),
+        None => boards::plan(&programs, &costs, &keys, &board, &lim, &mut |_, _| {})
+            .map_err(|e| format!("firmware: {e}"))?
+            .into_iter()
+            .map(|b| b.keys)
+            .collect(),
+    };
+    let decimation = opts.end.div_ceil(4000).max(1);
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(lists.len())
+        .max(1);
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<Result<(usize, BoardRun), String>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut out = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(list) = lists.get(i) else { break };
+                        let bkeys: Vec<PlanKey> = keys
+                            .iter()
+                            .filter(|k| list.contains(&k.key))
+                            .copied()
+                            .collect();
+                        out.push(
+                            run_board(&programs, &costs, &bkeys, &board, &lim, motions, opts, bar, decimation)
+                                .map(|r| (i, r))
+                                .map_err(|e| format!("board {} ({}): {e}", i + 1, tactus_firmware::verdict::key_ranges(list))),
+                        );
+                    }
+                    out
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_else(|_| vec![Err("a board's thread panicked".to_string())]))
+            .collect()
+    });
+    let mut runs: Vec<(usize, BoardRun)> = results.into_iter().collect::<Result<_, _>>()?;
+    runs.sort_by_key(|r| r.0);
+    let mut strikes = Vec::new();
+    let mut traces = Traces::new();
+    let mut board_runs = Vec::with_capacity(runs.len());
+    for (_, mut r) in runs {
+        strikes.append(&mut r.strikes);
+        traces.append(&mut r.traces);
+        board_runs.push(r);
+    }
+    let report = EmuReport {
         board: board.name.clone(),
         deadline: board.cycles_per_sample(),
-        keys: (0..n_cores)
-            .map(|c| cores.iter().filter(|&&k| k == c).count())
+        boards: board_runs,
+        decimation,
+    };
+    Ok((strikes, report, traces))
+}
+
+/// One board of [`emu_strikes`]: its image, every key every sample.
+#[allow(clippy::too_many_arguments)]
+fn run_board(
+    programs: &[tactus_firmware::image::Program],
+    costs: &tactus_firmware::boards::ProgramCosts,
+    bkeys: &[tactus_firmware::boards::PlanKey],
+    board: &tactus_runtime::keyboard::Board,
+    lim: &tactus_runtime::limiter::LimiterConfig,
+    motions: &BTreeMap<u8, &Motion>,
+    opts: &EmuOptions,
+    bar: &ProgressBar,
+    decimation: usize,
+) -> Result<BoardRun, String> {
+    let (end, fs) = (opts.end, opts.fs);
+    let (core_of, image) =
+        tactus_firmware::boards::board_image(programs, costs, bkeys, board, lim)
+            .map_err(|e| e.to_string())?;
+    let image = image.map_err(|e| e.to_string())?;
+    let mut run = image.run().map_err(|e| e.to_string())?;
+    let n_cores = image.cores();
+    let key_programs: Vec<usize> = bkeys.iter().map(|k| k.program).collect();
+    let mut report = BoardRun {
+        keys: bkeys.iter().map(|k| k.key).collect(),
+        core_keys: (0..n_cores)
+            .map(|c| core_of.iter().filter(|&&k| k == c).count())
             .collect(),
         max: vec![0; n_cores],
         misses: vec![0; n_cores],
-        cycles: vec![Vec::with_capacity(end); n_cores],
+        bound: (0..n_cores)
+            .map(|c| image.wcet(c).map_or(0, |w| w.bound()))
+            .collect(),
+        cycles: Vec::with_capacity(end / decimation + 1),
+        strikes: Vec::new(),
+        traces: Traces::new(),
     };
     let strike_event: Vec<Option<tactus_compiler::ir::EventId>> = programs
         .iter()
@@ -915,30 +1049,24 @@ fn emu_strikes(
                 .map(|i| (p.thumb.out.outputs + i, fp.output_frac[i]))
         })
         .collect();
-    let motion: Vec<Option<&Motion>> = played
+    let motion: Vec<Option<&Motion>> = bkeys.iter().map(|k| motions.get(&k.key).copied()).collect();
+    let mut players: Vec<Option<ForcePlayer>> = motion
         .iter()
-        .map(|a| motions.get(&a.key).copied())
-        .collect();
-    let mut players: Vec<Option<ForcePlayer>> = played
-        .iter()
-        .zip(&motion)
         .zip(&key_programs)
-        .map(|((_, m), &p)| {
+        .map(|(m, &p)| {
             matches!(m, Some(Motion::Finger(_))).then(|| {
                 let dip = programs[p].fixed.program.sensors[0].range.1;
                 ForcePlayer::new(dip, opts.finger.mass_kg, fs)
             })
         })
         .collect();
-    let traced: Vec<bool> = played
+    let traced: Vec<bool> = bkeys
         .iter()
-        .map(|a| opts.trace.keys.contains(&a.key))
+        .map(|k| opts.trace.keys.contains(&k.key))
         .collect();
-    let mut traces = Traces::new();
-    let n = played.len();
+    let n = bkeys.len();
     let (mut sensors, mut xs) = (vec![0i32; n], vec![0.0; n]);
-    let (mut forces, mut currents, mut dacs) = (vec![0i32; n], vec![0i32; n], vec![0i16; n]);
-    let mut strikes = Vec::new();
+    let mut block_max = 0u64;
     for i in 0..end {
         let time = i as f64 / fs;
         for k in 0..n {
@@ -953,13 +1081,14 @@ fn emu_strikes(
         }
         let out = run
             .step(&sensors)
-            .map_err(|e| format!("firmware, sample {i}: {e}"))?;
+            .map_err(|e| format!("sample {i}: {e}"))?
+            .clone();
         for ev in &out.events {
             let p = key_programs[ev.key];
             if Some(ev.event) == strike_event[p] {
                 let frac = programs[p].fixed.event_frac[ev.event.index()][0];
-                strikes.push(Strike {
-                    key: played[ev.key].key,
+                report.strikes.push(Strike {
+                    key: bkeys[ev.key].key,
                     time_s: time,
                     speed_mps: tactus_runtime::fixed::to_f64(
                         ev.args.first().copied().unwrap_or(0),
@@ -972,14 +1101,15 @@ fn emu_strikes(
         for c in 0..n_cores {
             report.max[c] = report.max[c].max(out.core_cycles[c]);
             report.misses[c] = out.misses[c];
-            report.cycles[c].push(out.core_cycles[c]);
+            block_max = block_max.max(out.core_cycles[c]);
         }
-        forces.copy_from_slice(&out.force);
-        currents.copy_from_slice(&out.current_ua);
-        dacs.copy_from_slice(&out.dac);
+        if i % decimation == decimation - 1 || i + 1 == end {
+            report.cycles.push(block_max);
+            block_max = 0;
+        }
         for k in 0..n {
             let p = key_programs[k];
-            let force_n = tactus_runtime::fixed::to_f64(forces[k], programs[p].fixed.total_frac);
+            let force_n = tactus_runtime::fixed::to_f64(out.force[k], programs[p].fixed.total_frac);
             let push = match motion[k] {
                 Some(Motion::Finger(f)) => f.force(time),
                 _ => 0.0,
@@ -991,14 +1121,14 @@ fn emu_strikes(
                 let hammer_m = hammer_word[p].map_or(f64::NAN, |(w, frac)| {
                     tactus_runtime::fixed::to_f64(run.out(k)[w], frac)
                 });
-                traces.entry(played[k].key).or_default().push([
+                report.traces.entry(bkeys[k].key).or_default().push([
                     time,
                     xs[k],
                     force_n,
                     hammer_m,
                     push,
-                    currents[k] as f64 * 1e-6,
-                    dacs[k] as f64,
+                    out.current_ua[k] as f64 * 1e-6,
+                    out.dac[k] as f64,
                 ]);
             }
         }
@@ -1006,7 +1136,7 @@ fn emu_strikes(
             bar.inc(4096 * n as u64);
         }
     }
-    Ok((strikes, report, traces))
+    Ok(report)
 }
 
 /// Measures single strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
