@@ -791,14 +791,45 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     }
     match &emu_report {
         Some(r) => {
-            let series: Vec<Vec<u64>> = r.boards.iter().map(|b| b.cycles.clone()).collect();
-            let path = write_cycle_plot(
-                &args.out,
-                &stem,
+            // One line per board; beyond eight boards, the busiest and the mean of all.
+            let named: Vec<(String, Vec<u64>)> = if r.boards.len() <= 8 {
+                r.boards
+                    .iter()
+                    .enumerate()
+                    .map(|(i, b)| {
+                        (
+                            format!("board {} ({})", i + 1, tactus_firmware::verdict::key_ranges(&b.keys)),
+                            b.cycles.clone(),
+                        )
+                    })
+                    .collect()
+            } else {
+                let n = r.boards.iter().map(|b| b.cycles.len()).max().unwrap_or(0);
+                let at = |i: usize| r.boards.iter().filter_map(move |b| b.cycles.get(i).copied());
+                vec![
+                    (
+                        format!("busiest of {} boards", r.boards.len()),
+                        (0..n).map(|i| at(i).max().unwrap_or(0)).collect(),
+                    ),
+                    (
+                        "mean of the boards".to_string(),
+                        (0..n)
+                            .map(|i| at(i).sum::<u64>() / r.boards.len().max(1) as u64)
+                            .collect(),
+                    ),
+                ]
+            };
+            let series: Vec<(String, &[u64])> =
+                named.iter().map(|(l, v)| (l.clone(), v.as_slice())).collect();
+            let path = args.out.join(format!("{stem}-cycles.svg"));
+            plot::plot_cycle_series(
                 &series,
                 fs / r.decimation as f64,
                 r.deadline,
-            )?;
+                &format!("{stem}: cycles per sample, busier core of each board (max per {} samples)", r.decimation),
+                &path,
+            )
+            .map_err(|e| e.to_string())?;
             println!("  wrote {}", path.display());
             println!(
                 "  budget of the run on {} {} boards ({} cycles per sample per core; every key of every board every sample):",
@@ -1349,32 +1380,6 @@ fn write_traces(
         wrote.push(hammer);
     }
     Ok(wrote)
-}
-
-/// Hook for the emulated-board engine: writes `OUT/STEM-cycles.svg`, the cycles each core
-/// spent per sample (`cycles_per_core[c][i]`, at `sample_rate_hz`) against the per-sample
-/// deadline `deadline_cycles` (e.g. 125 MHz / 44.1 kHz ≈ 2834 cycles). Returns the path.
-///
-/// # Errors
-///
-/// A message naming the file when there are no samples or it cannot be written.
-pub fn write_cycle_plot(
-    out: &Path,
-    stem: &str,
-    cycles_per_core: &[Vec<u64>],
-    sample_rate_hz: f64,
-    deadline_cycles: u64,
-) -> Result<PathBuf, String> {
-    let path = out.join(format!("{stem}-cycles.svg"));
-    plot::plot_cycles_per_core(
-        cycles_per_core,
-        sample_rate_hz,
-        deadline_cycles,
-        &format!("{stem}: cycles per sample per core"),
-        &path,
-    )
-    .map_err(|e| e.to_string())?;
-    Ok(path)
 }
 
 /// Writes one row per strike with the input note it answers; returns how many answer one.
