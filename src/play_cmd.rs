@@ -35,7 +35,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-use tactus_runtime::performance::{self, KeyTrack, Performance};
+use tactus_runtime::performance::{self, Performance};
 use tactus_runtime::player::{Calibration, FingerConfig, ForcePlayer, ForceProfile, Stroke};
 use tactus_runtime::voice;
 
@@ -317,17 +317,9 @@ fn busy_stretches(mut busy: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
     out
 }
 
-enum Motion {
-    Track(KeyTrack),
-    Finger(ForceProfile),
-}
-
-/// A traced key's samples: (time s, key travel m, instrument force N, hammer m, finger N,
-/// motor current A, DAC code); the last two only with `--engine emu` (`NaN` otherwise).
-type TraceRows = Vec<[f64; 7]>;
-
-/// The traced keys' samples, by key.
-type Traces = BTreeMap<u8, TraceRows>;
+// How a key moves, the trace rows (the last two columns, motor current and DAC code, only
+// with `--engine emu`; `NaN` otherwise): defined with the firmware run.
+use tactus_firmware::perform::{Motion, TraceRows, Traces};
 
 fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let mut perf = match &args.performance {
@@ -876,23 +868,9 @@ struct EmuReport {
     /// Cycles per sample per core (the deadline).
     deadline: u64,
     /// Per board of the keyboard.
-    boards: Vec<BoardRun>,
+    boards: Vec<tactus_firmware::perform::BoardRun>,
     /// Samples per point of [`BoardRun::cycles`].
     decimation: usize,
-}
-
-/// One board's run: its keys, per core the keys, the largest handler, the misses and the
-/// static bound, and the cycles of its busier core (the largest of each `decimation`
-/// samples).
-struct BoardRun {
-    keys: Vec<u8>,
-    core_keys: Vec<usize>,
-    max: Vec<u64>,
-    misses: Vec<u32>,
-    bound: Vec<u64>,
-    cycles: Vec<u64>,
-    strikes: Vec<Strike>,
-    traces: Traces,
 }
 
 /// What `--engine emu` records per traced key ([`emu_strikes`]).
@@ -923,251 +901,64 @@ struct EmuOptions<'a> {
     boards: Option<Vec<Vec<u8>>>,
 }
 
-/// Plays the keys through the firmware of every board of the keyboard on emulated boards:
-/// the boards as the layout lists them or as `tactus budget` plans them (the fewest boards
-/// that each meet the deadline by the static analysis of their sample interrupt), one
-/// program per distinct instrument and params, every key of every board every sample from
-/// sample 0 to `opts.end` (keys at rest before, between and after their notes, as on the
-/// hardware). The boards are independent, so they run in parallel on host threads. A key
-/// moved by a [`Motion::Track`] follows it; a key moved by a [`Motion::Finger`] is a
-/// [`ForcePlayer`] pushed by the finger against the force word its firmware computed that
-/// sample (`SampleOut::force`, before the safety limiter, as the host engines' force): the
-/// closed loop, stepped exactly as the host engines' loop. Strikes come from the keys'
-/// `out[]` words, their speeds converted from the event's format. Traces hold every sample
-/// of the traced keys in the window, with the motor current and the DAC code.
+/// Plays the keys through the firmware of every board of the keyboard
+/// ([`tactus_firmware::perform::play_boards`]): the boards as the layout lists them or as
+/// `tactus budget` plans them, every key of every board every sample.
 fn emu_strikes(
     all: &[tactus_runtime::keyboard::KeyAssignment],
     motions: &BTreeMap<u8, &Motion>,
     opts: &EmuOptions,
     bar: &ProgressBar,
 ) -> Result<(Vec<Strike>, EmuReport, Traces), String> {
-    use tactus_firmware::boards::{self, PlanKey, ProgramCosts};
-    use tactus_firmware::image::compile_layout;
     let fs = opts.fs;
     let board = crate::budget_cmd::board_named(opts.board)?;
-    let lim = tactus_runtime::limiter::LimiterConfig {
-        sample_rate_hz: board.sample_rate_hz,
-        ..Default::default()
-    };
     let source = |name: &str| source::load(name).map(|s| s.text);
-    let (programs, key_programs) =
-        compile_layout(all, &source, fs).map_err(|e| format!("firmware: {e}"))?;
-    let costs = ProgramCosts::new(&programs, &board, &lim).map_err(|e| format!("firmware: {e}"))?;
-    let keys: Vec<PlanKey> = all
-        .iter()
-        .zip(&key_programs)
-        .map(|(a, &program)| PlanKey {
-            key: a.key,
-            program,
-        })
-        .collect();
-    let lists: Vec<Vec<u8>> = match &opts.boards {
-        Some(l) => l.clone(),
-        None => boards::plan(&programs, &costs, &keys, &board, &lim, &mut |_, _| {})
-            .map_err(|e| format!("firmware: {e}"))?
-            .into_iter()
-            .map(|b| b.keys)
-            .collect(),
+    let (programs, key_programs) = tactus_firmware::image::compile_layout(all, &source, fs)
+        .map_err(|e| format!("firmware: {e}"))?;
+    let keys: Vec<u8> = all.iter().map(|a| a.key).collect();
+    let popts = tactus_firmware::perform::PerformOptions {
+        end: opts.end,
+        fs,
+        finger: opts.finger,
+        trace_keys: opts.trace.keys.clone(),
+        trace_from_s: opts.trace.from_s,
+        trace_to_s: opts.trace.to_s,
+        boards: opts.boards.clone(),
+        limiter: tactus_runtime::limiter::LimiterConfig {
+            sample_rate_hz: board.sample_rate_hz,
+            ..Default::default()
+        },
     };
-    let decimation = opts.end.div_ceil(4000).max(1);
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(lists.len())
-        .max(1);
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Result<(usize, BoardRun), String>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                scope.spawn(|| {
-                    let mut out = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(list) = lists.get(i) else { break };
-                        let bkeys: Vec<PlanKey> = keys
-                            .iter()
-                            .filter(|k| list.contains(&k.key))
-                            .copied()
-                            .collect();
-                        out.push(
-                            run_board(&programs, &costs, &bkeys, &board, &lim, motions, opts, bar, decimation)
-                                .map(|r| (i, r))
-                                .map_err(|e| format!("board {} ({}): {e}", i + 1, tactus_firmware::verdict::key_ranges(list))),
-                        );
-                    }
-                    out
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap_or_else(|_| vec![Err("a board's thread panicked".to_string())]))
-            .collect()
-    });
-    let mut runs: Vec<(usize, BoardRun)> = results.into_iter().collect::<Result<_, _>>()?;
-    runs.sort_by_key(|r| r.0);
+    let run = tactus_firmware::perform::play_boards(
+        &programs,
+        &keys,
+        &key_programs,
+        &board,
+        motions,
+        &popts,
+        &|n| bar.inc(n),
+    )
+    .map_err(|e| format!("firmware: {e}"))?;
     let mut strikes = Vec::new();
     let mut traces = Traces::new();
-    let mut board_runs = Vec::with_capacity(runs.len());
-    for (_, mut r) in runs {
-        strikes.append(&mut r.strikes);
-        traces.append(&mut r.traces);
-        board_runs.push(r);
+    let mut boards = Vec::with_capacity(run.boards.len());
+    for mut b in run.boards {
+        strikes.extend(b.strikes.drain(..).map(|s| Strike {
+            key: s.key,
+            time_s: s.time_s,
+            speed_mps: s.speed_mps,
+            answers: None,
+        }));
+        traces.append(&mut b.traces);
+        boards.push(b);
     }
     let report = EmuReport {
         board: board.name.clone(),
         deadline: board.cycles_per_sample(),
-        boards: board_runs,
-        decimation,
+        boards,
+        decimation: run.decimation,
     };
     Ok((strikes, report, traces))
-}
-
-/// One board of [`emu_strikes`]: its image, every key every sample.
-#[allow(clippy::too_many_arguments)]
-fn run_board(
-    programs: &[tactus_firmware::image::Program],
-    costs: &tactus_firmware::boards::ProgramCosts,
-    bkeys: &[tactus_firmware::boards::PlanKey],
-    board: &tactus_runtime::keyboard::Board,
-    lim: &tactus_runtime::limiter::LimiterConfig,
-    motions: &BTreeMap<u8, &Motion>,
-    opts: &EmuOptions,
-    bar: &ProgressBar,
-    decimation: usize,
-) -> Result<BoardRun, String> {
-    let (end, fs) = (opts.end, opts.fs);
-    let (core_of, image) =
-        tactus_firmware::boards::board_image(programs, costs, bkeys, board, lim)
-            .map_err(|e| e.to_string())?;
-    let image = image.map_err(|e| e.to_string())?;
-    let mut run = image.run().map_err(|e| e.to_string())?;
-    let n_cores = image.cores();
-    let key_programs: Vec<usize> = bkeys.iter().map(|k| k.program).collect();
-    let mut report = BoardRun {
-        keys: bkeys.iter().map(|k| k.key).collect(),
-        core_keys: (0..n_cores)
-            .map(|c| core_of.iter().filter(|&&k| k == c).count())
-            .collect(),
-        max: vec![0; n_cores],
-        misses: vec![0; n_cores],
-        bound: (0..n_cores)
-            .map(|c| image.wcet(c).map_or(0, |w| w.bound()))
-            .collect(),
-        cycles: Vec::with_capacity(end / decimation + 1),
-        strikes: Vec::new(),
-        traces: Traces::new(),
-    };
-    let strike_event: Vec<Option<tactus_compiler::ir::EventId>> = programs
-        .iter()
-        .map(|p| {
-            p.fixed
-                .program
-                .events
-                .iter()
-                .position(|e| e.name == "strike" || e.name == "pluck")
-                .map(|i| tactus_compiler::ir::EventId(i as u32))
-        })
-        .collect();
-    // Per program: the out word of `hammer_pos` and its format.
-    let hammer_word: Vec<Option<(usize, i32)>> = programs
-        .iter()
-        .map(|p| {
-            let fp = &p.fixed;
-            fp.program
-                .outputs
-                .iter()
-                .position(|o| o.name == "hammer_pos")
-                .map(|i| (p.thumb.out.outputs + i, fp.output_frac[i]))
-        })
-        .collect();
-    let motion: Vec<Option<&Motion>> = bkeys.iter().map(|k| motions.get(&k.key).copied()).collect();
-    let mut players: Vec<Option<ForcePlayer>> = motion
-        .iter()
-        .zip(&key_programs)
-        .map(|(m, &p)| {
-            matches!(m, Some(Motion::Finger(_))).then(|| {
-                let dip = programs[p].fixed.program.sensors[0].range.1;
-                ForcePlayer::new(dip, opts.finger.mass_kg, fs)
-            })
-        })
-        .collect();
-    let traced: Vec<bool> = bkeys
-        .iter()
-        .map(|k| opts.trace.keys.contains(&k.key))
-        .collect();
-    let n = bkeys.len();
-    let (mut sensors, mut xs) = (vec![0i32; n], vec![0.0; n]);
-    let mut block_max = 0u64;
-    for i in 0..end {
-        let time = i as f64 / fs;
-        for k in 0..n {
-            let x = match (motion[k], &players[k]) {
-                (Some(Motion::Track(t)), _) => t.position(time),
-                (_, Some(p)) => p.x_m,
-                _ => 0.0,
-            };
-            xs[k] = x;
-            let fp = &programs[key_programs[k]].fixed;
-            sensors[k] = tactus_compiler::fixed::interp::FixedInstance::sensor_raw(fp, 0, Some(x));
-        }
-        let out = run
-            .step(&sensors)
-            .map_err(|e| format!("sample {i}: {e}"))?
-            .clone();
-        for ev in &out.events {
-            let p = key_programs[ev.key];
-            if Some(ev.event) == strike_event[p] {
-                let frac = programs[p].fixed.event_frac[ev.event.index()][0];
-                report.strikes.push(Strike {
-                    key: bkeys[ev.key].key,
-                    time_s: time,
-                    speed_mps: tactus_runtime::fixed::to_f64(
-                        ev.args.first().copied().unwrap_or(0),
-                        frac,
-                    ),
-                    answers: None,
-                });
-            }
-        }
-        for c in 0..n_cores {
-            report.max[c] = report.max[c].max(out.core_cycles[c]);
-            report.misses[c] = out.misses[c];
-            block_max = block_max.max(out.core_cycles[c]);
-        }
-        if i % decimation == decimation - 1 || i + 1 == end {
-            report.cycles.push(block_max);
-            block_max = 0;
-        }
-        for k in 0..n {
-            let p = key_programs[k];
-            let force_n = tactus_runtime::fixed::to_f64(out.force[k], programs[p].fixed.total_frac);
-            let push = match motion[k] {
-                Some(Motion::Finger(f)) => f.force(time),
-                _ => 0.0,
-            };
-            if let Some(player) = &mut players[k] {
-                player.step(push, force_n);
-            }
-            if traced[k] && time >= opts.trace.from_s && time <= opts.trace.to_s {
-                let hammer_m = hammer_word[p].map_or(f64::NAN, |(w, frac)| {
-                    tactus_runtime::fixed::to_f64(run.out(k)[w], frac)
-                });
-                report.traces.entry(bkeys[k].key).or_default().push([
-                    time,
-                    xs[k],
-                    force_n,
-                    hammer_m,
-                    push,
-                    out.current_ua[k] as f64 * 1e-6,
-                    out.dac[k] as f64,
-                ]);
-            }
-        }
-        if i % 4096 == 4095 {
-            bar.inc(4096 * n as u64);
-        }
-    }
-    Ok(report)
 }
 
 /// Measures single strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument

@@ -15,6 +15,7 @@
 //!   dips, noise, glitches, random words); [`budget`]: static WCET and measured cycles of
 //!   an update; [`boards`]: a keyboard as a set of boards — the planner and the verdict,
 //!   each board's sample interrupt as its image lays it out (`tactus budget`).
+//! - [`perform`]: a performance through the firmware of every board (`tactus play --engine emu`).
 #![deny(missing_docs)]
 
 pub mod boards;
@@ -24,6 +25,7 @@ pub mod corpus;
 pub mod image;
 pub mod layout;
 pub mod measure;
+pub mod perform;
 pub mod report;
 pub mod runner;
 pub mod verdict;
