@@ -11,7 +11,8 @@
 //! analysis proved the result fits, it never fires. Exceptions, each defined below: division
 //! truncates toward zero (what the RP2040's SIO divider computes), `sqrt` and `exp` are the
 //! integer algorithms given here, a multiplication the compiler fits into `MULS` pre-shifts
-//! its operands ([`mul_shifted`]), and a comparison with a constant compares exact values
+//! its operands ([`mul_shifted`]), a run-time division may pre-shift its divisor
+//! ([`div_shifted`]), and a comparison with a constant compares exact values
 //! ([`cmp_const`]).
 //!
 //! Every engine (fixed interpreter, JIT, Thumb, C) must produce exactly these bits; the
@@ -164,6 +165,19 @@ pub fn div(x: i32, fx: i32, y: i32, fy: i32, fr: i32) -> Sat {
         (x as i128, rescale(y as i128, 0, (-k).min(MAX_SHIFT)))
     };
     sat32(n / d)
+}
+
+/// `x / (y >> b)` into format `fr`: the divisor's word shifted right by `b` bits first
+/// (arithmetic shift: floor; format `fy − b`), then [`div`] of the exact values — truncated
+/// toward zero, saturated, a shifted divisor of 0 saturating as in [`div`]. `b = 0` is [`div`].
+///
+/// Why: a run-time division on a Cortex-M0+ is cheap on the RP2040's 32÷32 SIO divider only
+/// when the divisor leaves room for quotient digits in a 32-bit dividend (a divisor of `L`
+/// bits gives `32 − L` quotient bits per hardware division). The compiler picks `b` so that
+/// the dropped divisor bits cost at most a stated relative error (`DIV_REL_TOLERANCE` in the
+/// compiler's format plan); the quotient itself is exact for the shifted divisor.
+pub fn div_shifted(x: i32, fx: i32, y: i32, fy: i32, b: u8, fr: i32) -> Sat {
+    div(x, fx, y >> b.min(31), fy - b.min(31) as i32, fr)
 }
 
 /// Compares the exact values of two raw words.
@@ -361,6 +375,34 @@ mod tests {
         let q = to_f64(a, fa) / to_f64(b, fb);
         assert!((val(div(a, fa, b, fb, 26), 26) - q).abs() <= 2f64.powi(-26));
         assert_eq!(div(5, 0, 0, 0, 0), (i32::MAX, true));
+    }
+
+    /// `div_shifted` is `div` by the floor-shifted divisor: exact for that divisor, and
+    /// within `2^b / |y|` relative error of the unshifted quotient.
+    #[test]
+    fn div_shifted_divides_by_the_shifted_divisor() {
+        assert_eq!(div_shifted(1000, 0, 7, 0, 0, 0), div(1000, 0, 7, 0, 0));
+        // 7 >> 1 = 3 with one fraction bit less: 1000 / 6 = 166 (truncated).
+        assert_eq!(div_shifted(1000, 0, 7, 0, 1, 0), (166, false));
+        // Negative divisors floor: -7 >> 1 = -4, i.e. -8 → 1000 / -8 = -125.
+        assert_eq!(div_shifted(1000, 0, -7, 0, 1, 0), (-125, false));
+        // A divisor shifted to 0 saturates like a division by 0.
+        assert_eq!(div_shifted(5, 0, 3, 0, 2, 0), (i32::MAX, true));
+        let mut rng = crate::rng::XorShift64::new(0xD1F);
+        for _ in 0..20_000 {
+            let x = (rng.next_u64() as i32) >> (rng.next_u64() % 20);
+            let y = ((rng.next_u64() as i32) >> (rng.next_u64() % 8)) | (1 << 22);
+            let b = (rng.next_u64() % 8) as u8;
+            let (q, sat) = div_shifted(x, 20, y, 28, b, 30);
+            if sat {
+                continue;
+            }
+            let exact = to_f64(x, 20) / to_f64(y, 28);
+            let err = (to_f64(q, 30) - exact).abs();
+            let bound = exact.abs() * 2f64.powi(b as i32) / (y.unsigned_abs() as f64 - 2f64.powi(b as i32))
+                + 2f64.powi(-30);
+            assert!(err <= bound * (1.0 + 1e-12), "{x} {y} {b}: {err} > {bound}");
+        }
     }
 
     #[test]

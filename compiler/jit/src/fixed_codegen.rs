@@ -574,7 +574,11 @@ impl<'a, 'f> Translator<'a, 'f> {
                             let r = self.iconst(r);
                             self.mul(a, fa, 0, r, f, 0, fr)
                         }
-                        (None, _) => self.div(a, fa, c, fc, fr),
+                        (None, _) => {
+                            let b = fp.div_shift[v.index()].min(31);
+                            let c = self.sshr(c, u32::from(b));
+                            self.div(a, fa, c, fc - i32::from(b), fr)
+                        }
                     },
                 }
             }

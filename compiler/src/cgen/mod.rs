@@ -937,7 +937,7 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
                             prim::mul(&name(x), f(x), &lit(r), fr_r, fr, sh)
                         )
                     }
-                    (None, _) => prim::div(&name(x), f(x), &name(y), f(y), fr),
+                    (None, _) => prim::div(&name(x), f(x), &name(y), f(y), fp.div_shift[v.index()], fr),
                 },
             },
             Op::Cmp(o, x, y) => match (fp.exact_const(*x), fp.exact_const(*y)) {

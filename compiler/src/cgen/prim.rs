@@ -247,10 +247,18 @@ pub fn deriv(d: &str, dmax: i64, k: i32, e: i32) -> String {
     }
 }
 
-/// [`fx::div`]: `x / y` into `fr` fraction bits, truncated toward zero.
-pub fn div(x: &str, fx: i32, y: &str, fy: i32, fr: i32) -> String {
-    let k = (fr - fx + fy).clamp(-94, 94);
-    format!("tx_div({x}, {y}, {k})")
+/// [`fx::div_shifted`]: `x / (y >> b)` into `fr` fraction bits, truncated toward zero
+/// (`b = 0`: [`fx::div`]).
+///
+/// [`fx::div_shifted`]: tactus_runtime::fixed::div_shifted
+pub fn div(x: &str, fx: i32, y: &str, fy: i32, b: u8, fr: i32) -> String {
+    let b = b.min(31);
+    let k = (fr - fx + fy - b as i32).clamp(-94, 94);
+    if b == 0 {
+        format!("tx_div({x}, {y}, {k})")
+    } else {
+        format!("tx_div({x}, (int32_t)tx_floor_shr({y}, {b}), {k})")
+    }
 }
 
 /// [`fx::sqrt`]: `sqrt(max(x, 0))` into `fr` fraction bits.

@@ -203,7 +203,7 @@ impl<'f> FixedInstance<'f> {
                             fx::mul_shifted(a, fa, sa, r, f, sb, fr)
                         }
                         (Some((r, f)), _) => fx::mul(a, fa, r, f, fr),
-                        (None, _) => fx::div(a, fa, c, fc, fr),
+                        (None, _) => fx::div_shifted(a, fa, c, fc, fp.div_shift[v.index()], fr),
                     },
                 }
             }

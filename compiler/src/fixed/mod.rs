@@ -32,6 +32,79 @@ pub fn frac_for(iv: Interval) -> i32 {
 /// DAC at full scale).
 pub const MULS_REL_TOLERANCE: f64 = 1.0 / (1u64 << 22) as f64;
 
+/// A run-time division may shift its divisor right ([`tactus_runtime::fixed::div_shifted`])
+/// when the dropped bits cost at most this relative error of the quotient (2^-16: a
+/// sixteenth of a DAC LSB on a full-scale force, far below what a player feels in a decay
+/// time or a stiffness). The shift frees quotient digits per division of the RP2040's 32÷32
+/// SIO divider ([`sio_division_steps`]).
+pub const DIV_REL_TOLERANCE: f64 = 1.0 / 65536.0;
+
+/// Divisors are not shifted below this many significant bits: at 16, two hardware divisions
+/// give any quotient of up to 32 bits, so more shifting buys nothing.
+pub const DIV_MIN_DIVISOR_BITS: i32 = 16;
+
+/// Number of bits of a raw magnitude bound `m` (`ceil(log2(m + 1))`): 0 for 0.
+pub fn bits_of(m: u64) -> i32 {
+    64 - m.leading_zeros() as i32
+}
+
+/// Hardware divisions a long division by the RP2040's 32÷32 unsigned divider takes for a
+/// quotient of `quotient_bits` bits and a divisor of `divisor_bits` bits: digits of
+/// `s = 32 − divisor_bits` bits (each step divides the remainder with the next `s` dividend
+/// bits appended), `ceil(quotient_bits / s)` steps. `None` for a divisor of 32 bits or more
+/// (no digit fits). One definition, used by the Thumb backend and the precision report.
+pub fn sio_division_steps(quotient_bits: i32, divisor_bits: i32) -> Option<u32> {
+    let s = 32 - divisor_bits;
+    if s <= 0 {
+        return None;
+    }
+    Some((quotient_bits.max(1) + s - 1) as u32 / s as u32)
+}
+
+/// Estimated Cortex-M0+ cycles of a run-time division of `quotient_bits` quotient bits:
+/// `(steps, cycles)` on the SIO divider when that is cheaper than the restoring division
+/// (6 cycles a quotient bit, `compiler/src/thumb/select.rs`), else `(0, cycles)` of the
+/// restoring division. SIO: about 18 cycles of set-up and sign handling plus 17 per step
+/// (operand stores, the 8-cycle latency, the result loads, the digit shifts).
+pub fn division_cycles(quotient_bits: i32, divisor_bits: i32) -> (u32, u32) {
+    let restoring = 12 + 6 * quotient_bits.max(1) as u32;
+    match sio_division_steps(quotient_bits, divisor_bits) {
+        Some(n) if 18 + 17 * n < restoring => (n, 18 + 17 * n),
+        _ => (0, restoring),
+    }
+}
+
+/// The divisor pre-shift of a run-time division (see [`DIV_REL_TOLERANCE`]): the largest `b`
+/// with `2^b ≤ DIV_REL_TOLERANCE · min |y raw|` that leaves the divisor at least
+/// [`DIV_MIN_DIVISOR_BITS`] bits and at least 4 after the shift, and keeps the quotient with
+/// the shifted divisor below 2^31 in the result format. 0 when the divisor's range contains
+/// 0 (no shift is safe then).
+fn plan_div_shift(fy: i32, ry: Interval, fr: i32, rv: Interval) -> u8 {
+    let scale = 2f64.powi(fy);
+    let (lo, hi) = (ry.lo * scale, ry.hi * scale);
+    let ymin = if lo > 0.0 {
+        lo
+    } else if hi < 0.0 {
+        -hi
+    } else {
+        return 0;
+    };
+    let ymax = ry.mag() * scale;
+    if !(ymin.is_finite() && ymax.is_finite()) || ymin < 1.0 {
+        return 0;
+    }
+    let lmax = bits_of(ymax.ceil() as u64);
+    let mut b = ((DIV_REL_TOLERANCE * ymin).log2().floor() as i32)
+        .min(lmax - DIV_MIN_DIVISOR_BITS)
+        .clamp(0, 30);
+    let q = rv.mag() * 2f64.powi(fr);
+    while b > 0 && (q * (1.0 + 2f64.powi(b + 1) / ymin) + 2.0 >= 2147483648.0 || ymin < 4.0 * 2f64.powi(b))
+    {
+        b -= 1;
+    }
+    b as u8
+}
+
 /// Precision budget of the `MULS` plan: a force term's or the total's error bound may grow
 /// to this many DAC LSB (a quarter: the quantisation stays below what the DAC resolves).
 pub const BUDGET_FORCE_LSB: f64 = 0.25;
@@ -185,6 +258,9 @@ pub struct FixedProgram {
     pub recip: Vec<Option<(i32, i32)>>,
     /// How each multiplication (and division by a constant) is done; `None` for other values.
     pub mul_kind: Vec<Option<MulKind>>,
+    /// For a division by a run-time value: the right shift of its divisor's word
+    /// ([`tactus_runtime::fixed::div_shifted`]); 0 for an exact division and for other values.
+    pub div_shift: Vec<u8>,
     /// Fraction bits of each sensor (from its declared range).
     pub sensor_frac: Vec<i32>,
     /// Raw bounds of each sensor.
@@ -263,6 +339,7 @@ impl FixedProgram {
         let mut consts = vec![0; n];
         let mut recip = vec![None; n];
         let mut mul_kind = vec![None; n];
+        let mut div_shift = vec![0u8; n];
         for (i, vd) in program.values.iter().enumerate() {
             frac[i] = match vd.ty {
                 Ty::Real(_) => frac_for(ranges.values[i]),
@@ -288,6 +365,13 @@ impl FixedProgram {
         let mut planned: Vec<(usize, MulOperands, bool)> = Vec::new();
         for (i, vd) in program.values.iter().enumerate() {
             let (x, y, c) = match vd.op {
+                Op::Arith(ArithOp::Div, _, y) if !is_const(y) => {
+                    if matches!(program.values[y.index()].ty, Ty::Real(_)) {
+                        div_shift[i] =
+                            plan_div_shift(frac[y.index()], ranges.values[y.index()], frac[i], ranges.values[i]);
+                    }
+                    continue;
+                }
                 Op::Arith(ArithOp::Div, x, y) if is_const(y) => {
                     let c = const_value(y);
                     if c == 0.0 {
@@ -401,6 +485,7 @@ impl FixedProgram {
             consts,
             recip,
             mul_kind,
+            div_shift,
             sensor_frac,
             sensor_raw_range,
             state_frac,

@@ -245,10 +245,15 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                         } else {
                             0.0
                         };
-                        if ymin == 0.0 {
+                        // The divisor's pre-shift (`fixed::div_shifted`) floors its word: an
+                        // error below one LSB of the shifted word.
+                        let b = fp.div_shift[v.index()];
+                        let shift = if b > 0 { pow2(b as i32 - fy) } else { 0.0 };
+                        if ymin <= shift {
                             f64::INFINITY
                         } else {
-                            (err(x) + mag(&v) * err(y)) / ymin + 2.0 * half_lsb(fr)
+                            (err(x) + mag(&v) * (err(y) + shift)) / (ymin - shift)
+                                + 2.0 * half_lsb(fr)
                         }
                     }
                 },

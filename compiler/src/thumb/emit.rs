@@ -378,6 +378,7 @@ impl Lower<'_> {
             }),
             M::Note(ref s) => self.items.push(Item::Note(s.clone())),
             M::Mark(k) => self.items.push(Item::Mark(k)),
+            M::Nop => self.i(Instr::Hint(tactus_emulator::decode::Hint::Nop)),
         }
     }
 }
