@@ -12,6 +12,7 @@
 
 pub mod interp;
 pub mod range;
+pub mod contract;
 pub mod report;
 
 use crate::diagnostics::Diagnostic;
@@ -79,7 +80,7 @@ pub fn division_cycles(quotient_bits: i32, divisor_bits: i32) -> (u32, u32) {
 /// [`DIV_MIN_DIVISOR_BITS`] bits and at least 4 after the shift, and keeps the quotient with
 /// the shifted divisor below 2^31 in the result format. 0 when the divisor's range contains
 /// 0 (no shift is safe then).
-fn plan_div_shift(fy: i32, ry: Interval, fr: i32, rv: Interval) -> u8 {
+fn plan_div_shift(fy: i32, ry: Interval, fr: i32, rv: Interval, tolerance: f64) -> u8 {
     let scale = 2f64.powi(fy);
     let (lo, hi) = (ry.lo * scale, ry.hi * scale);
     let ymin = if lo > 0.0 {
@@ -94,7 +95,7 @@ fn plan_div_shift(fy: i32, ry: Interval, fr: i32, rv: Interval) -> u8 {
         return 0;
     }
     let lmax = bits_of(ymax.ceil() as u64);
-    let mut b = ((DIV_REL_TOLERANCE * ymin).log2().floor() as i32)
+    let mut b = ((tolerance * ymin).log2().floor() as i32)
         .min(lmax - DIV_MIN_DIVISOR_BITS)
         .clamp(0, 30);
     let q = rv.mag() * 2f64.powi(fr);
@@ -122,6 +123,51 @@ pub const BUDGET_ACCUMULATING_GROWTH: f64 = 2.0;
 /// Precision budget of the `MULS` plan: a value that is compared, emitted or output may
 /// carry an error bound of this fraction of its range (2^-20).
 pub const BUDGET_VALUE_REL: f64 = 1.0 / (1u64 << 20) as f64;
+
+/// The precision budget of a format plan: how much error the planner may spend on cheaper
+/// arithmetic. [`Default`] is the budget every engine and backend uses (the constants above);
+/// the accuracy contract ([`contract`]) is what it must keep, checked by simulation against
+/// the f64 reference (`compiler/tests/contract.rs`), including that a greedier budget breaks it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlanConfig {
+    /// [`BUDGET_FORCE_LSB`].
+    pub force_lsb: f64,
+    /// [`BUDGET_STATE_REL`].
+    pub state_rel: f64,
+    /// [`BUDGET_ACCUMULATING_GROWTH`].
+    pub accumulating_growth: f64,
+    /// [`BUDGET_VALUE_REL`].
+    pub value_rel: f64,
+    /// [`DIV_REL_TOLERANCE`].
+    pub div_rel_tolerance: f64,
+}
+
+impl Default for PlanConfig {
+    fn default() -> Self {
+        PlanConfig {
+            force_lsb: BUDGET_FORCE_LSB,
+            state_rel: BUDGET_STATE_REL,
+            accumulating_growth: BUDGET_ACCUMULATING_GROWTH,
+            value_rel: BUDGET_VALUE_REL,
+            div_rel_tolerance: DIV_REL_TOLERANCE,
+        }
+    }
+}
+
+impl PlanConfig {
+    /// A budget with no limit on products (every product that fits `MULS` gets it) and
+    /// divisors shifted to [`DIV_MIN_DIVISOR_BITS`] whatever it costs: what a planner
+    /// ignoring the contract would do. For tests that show the contract catches it.
+    pub fn unlimited() -> Self {
+        PlanConfig {
+            force_lsb: f64::INFINITY,
+            state_rel: f64::INFINITY,
+            accumulating_growth: f64::INFINITY,
+            value_rel: f64::INFINITY,
+            div_rel_tolerance: 1.0,
+        }
+    }
+}
 
 /// Work (candidate products × IR values) up to which the precision budget is spent one
 /// product at a time, one error analysis each (every shipped keyboard instrument, the bank
@@ -331,8 +377,14 @@ fn constant(v: f64) -> (i32, i32) {
 }
 
 impl FixedProgram {
-    /// Plans formats for `program`. Never fails: unbounded values get saturation and a warning.
+    /// Plans formats for `program` with the default budget ([`PlanConfig::default`]). Never
+    /// fails: unbounded values get saturation and a warning.
     pub fn new(program: &Program) -> Self {
+        Self::with_config(program, &PlanConfig::default())
+    }
+
+    /// Plans formats for `program` under the precision budget `config`.
+    pub fn with_config(program: &Program, config: &PlanConfig) -> Self {
         let ranges = range::analyse(program);
         let n = program.values.len();
         let mut frac = vec![0; n];
@@ -368,7 +420,13 @@ impl FixedProgram {
                 Op::Arith(ArithOp::Div, _, y) if !is_const(y) => {
                     if matches!(program.values[y.index()].ty, Ty::Real(_)) {
                         div_shift[i] =
-                            plan_div_shift(frac[y.index()], ranges.values[y.index()], frac[i], ranges.values[i]);
+                            plan_div_shift(
+                            frac[y.index()],
+                            ranges.values[y.index()],
+                            frac[i],
+                            ranges.values[i],
+                            config.div_rel_tolerance,
+                        );
                     }
                     continue;
                 }
@@ -494,7 +552,7 @@ impl FixedProgram {
             deriv_gain,
             warnings,
         };
-        fp.spend_precision_budget(&planned);
+        fp.spend_precision_budget(&planned, config);
         fp
     }
 
@@ -506,7 +564,7 @@ impl FixedProgram {
     /// range. Products are tried in program order; each one kept spends part of the budget.
     /// Large programs (over [`SEQUENTIAL_BUDGET_WORK`]) try them in groups instead, with at
     /// most [`MAX_GROUP_ANALYSES`] analyses: whole groups kept, the others left exact.
-    fn spend_precision_budget(&mut self, planned: &[(usize, MulOperands, bool)]) {
+    fn spend_precision_budget(&mut self, planned: &[(usize, MulOperands, bool)], config: &PlanConfig) {
         if !planned
             .iter()
             .any(|(i, _, _)| self.mul_kind[*i] == Some(MulKind::Wide))
@@ -522,7 +580,7 @@ impl FixedProgram {
             if !(pr.total.is_finite() && finite(&pr.force) && finite(&pr.write)) {
                 return false;
             }
-            let force_ok = |now: f64, was: f64| now <= was.max(BUDGET_FORCE_LSB * lsb);
+            let force_ok = |now: f64, was: f64| now <= was.max(config.force_lsb * lsb);
             force_ok(pr.total, base.total)
                 && pr
                     .force
@@ -532,16 +590,17 @@ impl FixedProgram {
                 && self.program.states.iter().enumerate().all(|(i, st)| {
                     let mag = st.range.0.abs().max(st.range.1.abs());
                     if base.accumulating[i] || pr.accumulating[i] {
-                        pr.write[i] <= BUDGET_ACCUMULATING_GROWTH * base.write[i]
+                        config.accumulating_growth == f64::INFINITY
+                            || pr.write[i] <= config.accumulating_growth * base.write[i]
                     } else {
                         pr.state[i].is_finite()
-                            && pr.state[i] <= base.state[i].max(BUDGET_STATE_REL * mag)
+                            && pr.state[i] <= base.state[i].max(config.state_rel * mag)
                     }
                 })
                 && watched.iter().all(|v| {
                     let mag = self.ranges.values[v.index()].mag();
                     pr.value[v.index()].is_finite()
-                        && pr.value[v.index()] <= base.value[v.index()].max(BUDGET_VALUE_REL * mag)
+                        && pr.value[v.index()] <= base.value[v.index()].max(config.value_rel * mag)
                 })
         };
         let candidates: Vec<(usize, MulKind)> = planned

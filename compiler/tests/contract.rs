@@ -1,0 +1,84 @@
+//! The accuracy contract (`fixed::contract`) on the keyboard instruments: the default format
+//! plan keeps every clause on every built-in stimulus — force within 1 DAC LSB, the same
+//! events (none lost or added) within 0.5 ms, event arguments within 1 %, states in range —
+//! and a planner that ignores the contract (`PlanConfig::unlimited`) breaks it on the piano.
+
+use std::path::Path;
+use tactus_compiler::fixed::contract::{self, Contract, ContractCheck};
+use tactus_compiler::fixed::{report, FixedProgram, PlanConfig};
+use tactus_compiler::ir::Program;
+use tactus_compiler::lower::Config;
+use tactus_runtime::stimulus;
+
+const INSTRUMENTS: [&str; 4] = ["hammond", "harpsichord", "harpsichord_2x8", "grand_piano"];
+
+fn program(name: &str) -> Program {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../instruments/{name}.tactus"));
+    tactus_compiler::compile(&std::fs::read_to_string(path).unwrap(), &Config::default())
+        .unwrap()
+        .program
+}
+
+/// Every built-in stimulus of `p` through both engines: (stimulus, what it showed).
+fn runs(p: &Program, fp: &FixedProgram) -> Vec<(&'static str, ContractCheck)> {
+    let lsb = report::analyse(fp).dac_lsb_n();
+    stimulus::builtin_names()
+        .iter()
+        .map(|(stim, _)| {
+            let s = stimulus::builtin(stim, p.sensors[0].range.1, p.sample_rate_hz).unwrap();
+            (*stim, contract::check(p, fp, &s.key, lsb))
+        })
+        .collect()
+}
+
+#[test]
+fn the_default_plan_keeps_the_contract_on_every_builtin_stimulus() {
+    let c = Contract::default();
+    let mut broken = Vec::new();
+    for name in INSTRUMENTS {
+        let p = program(name);
+        let fp = FixedProgram::new(&p);
+        for (stim, r) in runs(&p, &fp) {
+            println!(
+                "{name:<16} {stim:<9} force {:.4} LSB (of {}), events {}/{} unmatched {} shift {} samples, args {:.4} % (of {} %), states out {}",
+                r.max_force_lsb,
+                c.force_lsb,
+                r.events_f64,
+                r.events_fixed,
+                r.unmatched,
+                r.max_event_shift,
+                100.0 * r.max_arg_rel,
+                100.0 * c.event_arg_rel,
+                r.state_out_of_range
+            );
+            assert!(r.samples > 0);
+            for v in r.violations(&c, p.sample_rate_hz) {
+                broken.push(format!("{name}/{stim}: {v}"));
+            }
+        }
+    }
+    assert!(broken.is_empty(), "contract broken:\n{}", broken.join("\n"));
+}
+
+/// The contract is not vacuous: the piano planned with no precision budget (every product
+/// that fits `MULS` takes it, divisors shifted to 16 bits) breaks at least one clause.
+#[test]
+fn a_planner_greedier_than_the_contract_breaks_it() {
+    let c = Contract::default();
+    let p = program("grand_piano");
+    let greedy = FixedProgram::with_config(&p, &PlanConfig::unlimited());
+    let exact = FixedProgram::new(&p);
+    let (g, e) = (greedy.mul_cost(), exact.mul_cost());
+    println!("greedy plan: {} MULS, {} 64-bit; default plan: {} MULS, {} 64-bit", g.0, g.1, e.0, e.1);
+    assert!(g.1 < e.1, "the greedy plan must use fewer 64-bit products");
+    let broken: Vec<String> = runs(&p, &greedy)
+        .into_iter()
+        .flat_map(|(stim, r)| {
+            r.violations(&c, p.sample_rate_hz)
+                .into_iter()
+                .map(move |v| format!("{stim}: {v}"))
+        })
+        .collect();
+    println!("greedy plan breaks:\n{}", broken.join("\n"));
+    assert!(!broken.is_empty(), "the greedy plan kept the contract: the test shows nothing");
+}
