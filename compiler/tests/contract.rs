@@ -82,3 +82,30 @@ fn a_planner_greedier_than_the_contract_breaks_it() {
     println!("greedy plan breaks:\n{}", broken.join("\n"));
     assert!(!broken.is_empty(), "the greedy plan kept the contract: the test shows nothing");
 }
+
+/// The divisor tolerance is pinned by the contract too: shifting the piano's divisors to a
+/// 2^-6 relative error (its impact pulse's decay) breaks the force clause, where the
+/// default 2^-10 keeps it with a margin.
+#[test]
+fn a_greedier_divisor_shift_breaks_the_contract() {
+    let c = Contract::default();
+    let p = program("grand_piano");
+    let greedy = FixedProgram::with_config(
+        &p,
+        &PlanConfig {
+            div_rel_tolerance: 1.0 / 64.0,
+            ..PlanConfig::default()
+        },
+    );
+    let exact = FixedProgram::new(&p);
+    assert!(
+        greedy.div_shift.iter().zip(&exact.div_shift).any(|(g, e)| g > e),
+        "the greedy plan must shift some divisor further"
+    );
+    let worst = runs(&p, &greedy)
+        .iter()
+        .map(|(_, r)| r.max_force_lsb)
+        .fold(0.0, f64::max);
+    println!("divisors within 2^-6: worst force error {worst:.3} DAC LSB");
+    assert!(worst > c.force_lsb, "{worst} LSB: the contract did not catch it");
+}

@@ -1736,29 +1736,49 @@ impl<'a> Sel<'a> {
         self.push(M::Note("SIO divider".into()));
         self.store(MemOp::Str, d, Base::V(sio), UDIVISOR as usize);
         self.store(MemOp::Str, first, Base::V(sio), UDIVIDEND as usize);
-        for _ in 0..timing_divider_latency() {
+        // While the divider works (DIVIDER_LATENCY cycles): the next dividend digit from
+        // the feed, the previous digits shifted up; NOPs for the rest of the wait. Every
+        // instruction here is 1 cycle (spill code the allocator may add only waits longer).
+        let wait = timing_divider_latency() as usize;
+        let mut digit = None;
+        let mut busy = 0;
+        let next_digit = |this: &mut Self, feed: &mut Option<V>, busy: &mut usize| {
+            if let Some(f) = *feed {
+                let dg = this.sh(Shift::Lsr, f, (32 - s) as u8);
+                *feed = Some(this.sh(Shift::Lsl, f, s as u8));
+                *busy += 2;
+                Some(dg)
+            } else {
+                None
+            }
+        };
+        if steps > 1 {
+            digit = next_digit(self, &mut feed, &mut busy);
+        }
+        for _ in busy..wait {
             self.push(M::Nop);
         }
         let mut q = self.load(MemOp::Ldr, Base::V(sio), QUOTIENT as usize);
-        for _ in 1..steps {
+        for step in 1..steps {
             let r = self.load(MemOp::Ldr, Base::V(sio), REMAINDER as usize);
             let r = self.sh(Shift::Lsl, r, s as u8);
-            let dv = match feed {
-                Some(f) => {
-                    let digit = self.sh(Shift::Lsr, f, (32 - s) as u8);
-                    feed = Some(self.sh(Shift::Lsl, f, s as u8));
-                    self.alu2(AluOp::Orr, r, digit)
-                }
+            let dv = match digit {
+                Some(dg) => self.alu2(AluOp::Orr, r, dg),
                 None => r,
             };
             self.store(MemOp::Str, dv, Base::V(sio), UDIVIDEND as usize);
-            // The previous digits make room for the next one while the divider works.
             let qs = self.sh(Shift::Lsl, q, s as u8);
-            for _ in 1..timing_divider_latency() {
+            busy = 1;
+            digit = if step + 1 < steps {
+                next_digit(self, &mut feed, &mut busy)
+            } else {
+                None
+            };
+            for _ in busy..wait {
                 self.push(M::Nop);
             }
-            let digit = self.load(MemOp::Ldr, Base::V(sio), QUOTIENT as usize);
-            q = self.alu2(AluOp::Orr, qs, digit);
+            let dq = self.load(MemOp::Ldr, Base::V(sio), QUOTIENT as usize);
+            q = self.alu2(AluOp::Orr, qs, dq);
         }
         // Sign: q = (q ^ m) - m with m = sign(x) ^ sign(y).
         let m = self.alu2(AluOp::Eor, mx, my);
