@@ -73,6 +73,15 @@ static inline int32_t tx_round_wide(int64_t d, int32_t k, int e) {
     return tx_round(hi * 65536 + lo, e);
 }
 
+/* The high part of x*y in units of 2^k (16 <= k <= 32) from three 16x16 partial products:
+   xh*yh*2^(32-k) + floor(xh*yl / 2^(k-16)) + floor(xl*yh / 2^(k-16)). */
+static inline int64_t tx_mul_high(int32_t x, int32_t y, int k) {
+    int64_t xh = tx_floor_shr(x, 16), yh = tx_floor_shr(y, 16);
+    int64_t xl = (int64_t)((uint32_t)x & 0xffffu), yl = (int64_t)((uint32_t)y & 0xffffu);
+    return xh * yh * ((int64_t)1 << (32 - k)) + tx_floor_shr(xh * yl, k - 16)
+        + tx_floor_shr(xl * yh, k - 16);
+}
+
 /* x * 2^k / y truncated toward zero, saturated; y = 0 saturates to the sign of x. */
 static inline int32_t tx_div(int32_t x, int32_t y, int k) {
     uint64_t ax, ay, q;
@@ -234,6 +243,15 @@ pub fn mul(x: &str, fx: i32, y: &str, fy: i32, fr: i32, shifts: Option<(u8, u8)>
             )
         }
     }
+}
+
+/// [`fx::mul_high`]: three 16×16 partial products of `x·y` in units of `2^k`, rounded to
+/// `fr` (`tx_mul_high` computes the sum exactly in 64 bits).
+///
+/// [`fx::mul_high`]: tactus_runtime::fixed::mul_high
+pub fn mul_high(x: &str, fx: i32, y: &str, fy: i32, k: u8, fr: i32) -> String {
+    let k = k.clamp(16, 32);
+    round_expr(&format!("tx_mul_high({x}, {y}, {k})"), fr - (fx + fy - k as i32))
 }
 
 /// The derivative of a sensor: the exact raw difference `d` (an `int64_t` expression with

@@ -248,45 +248,84 @@ impl MulOperands {
         Some((a, b, ry.mag() * ex + rx.mag() * ey + ex * ey))
     }
 
+    /// The high-word form ([`MulKind::High`]): the smallest `k` in 16..=32 for which the
+    /// partial-product sum `p` of [`tactus_runtime::fixed::mul_high`] fits a signed 32-bit
+    /// word, and its absolute error (`(2 + 2^(32−k))·2^(k − fx − fy)`, SI).
+    fn high(&self) -> Option<(u8, f64)> {
+        let ((fx, rx), (fy, ry)) = (self.x, self.y);
+        let word = |f: i32, r: Interval| (r.mag() * 2f64.powi(f) * (1.0 + 1e-9)).ceil() + 1.0;
+        let (bx, by) = (word(fx, rx), word(fy, ry));
+        if !(bx.is_finite() && by.is_finite()) || bx > 2147483648.0 || by > 2147483648.0 {
+            return None;
+        }
+        // Bounds of the high halves: |x >> 16| ≤ floor(bx / 2^16) + 1.
+        let (hx, hy) = ((bx / 65536.0).floor() + 1.0, (by / 65536.0).floor() + 1.0);
+        (16..=32).find_map(|k: i32| {
+            let p = (hx * hy + hx + hy) * 2f64.powi(32 - k) + 2.0;
+            (p < 2147483647.0)
+                .then(|| (k as u8, (2.0 + 2f64.powi(32 - k)) * 2f64.powi(k - fx - fy)))
+        })
+    }
+
     /// Plans the product: shift free bits first, then the operand with more significant
     /// bits, until the product fits 31 bits. With `tolerance`, accept only when the floor
-    /// shifts cost at most [`MULS_REL_TOLERANCE`] of the result's magnitude, else use the
-    /// 64-bit product; without, always `MULS` (the precision budget then decides). The
-    /// shifts are returned in operand order (`swapped`: the plan's pair is (y, x)).
+    /// shifts cost at most [`MULS_REL_TOLERANCE`] of the result's magnitude, else the 64-bit
+    /// product; without, always `MULS` where the shifts exist. The precision budget then
+    /// tries the cheaper forms ([`MulOperands::high`] among them) on the 64-bit ones.
+    /// The shifts are returned in operand order (`swapped`: the plan's pair is (y, x)).
     fn plan(&self, swapped: bool, tolerance: bool) -> MulKind {
-        let Some((a, b, err)) = self.shifts() else {
-            return MulKind::Wide;
-        };
-        if tolerance && err > MULS_REL_TOLERANCE * self.result.mag().max(f64::MIN_POSITIVE) {
-            return MulKind::Wide;
+        let limit = MULS_REL_TOLERANCE * self.result.mag().max(f64::MIN_POSITIVE);
+        if let Some((a, b, err)) = self.shifts() {
+            if !tolerance || err <= limit {
+                return if swapped {
+                    MulKind::Muls(b as u8, a as u8)
+                } else {
+                    MulKind::Muls(a as u8, b as u8)
+                };
+            }
         }
-        if swapped {
-            MulKind::Muls(b as u8, a as u8)
-        } else {
-            MulKind::Muls(a as u8, b as u8)
-        }
+        let _ = tolerance;
+        MulKind::Wide
     }
 }
 
-/// How a multiplication is done on a 32-bit core without a 64-bit product instruction.
+/// How a multiplication is done on a 32-bit core without a 64-bit product instruction,
+/// cheapest first. A 16×16 product is `Muls(0, 0)` (its operands already fit).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MulKind {
     /// Operands pre-shifted right by (a, b) bits so the product fits 32 bits: one `MULS`
     /// plus shifts ([`tactus_runtime::fixed::mul_shifted`]).
     Muls(u8, u8),
+    /// The high word of the 32×32 product in units of `2^k`: three 16×16 `MULS` partial
+    /// products, two floored, the low one dropped, summed in 32 bits
+    /// ([`tactus_runtime::fixed::mul_high`]).
+    High(u8),
     /// The exact product needs up to 64 bits: four 16×16 `MULS` partial products and adds
     /// (ARMv6-M has no `SMULL`).
     Wide,
 }
 
 impl MulKind {
-    /// Estimated Cortex-M0+ cycles, including the final shift: `Muls` 3 (MULS 1 + shifts);
-    /// `Wide` 18 (4 MULS, 6 shifts/extends, 4 adds with carry, 2 shifts for the result
-    /// format, per the Cortex-M0+ TRM single-cycle ALU and fast-multiplier timings).
+    /// Estimated Cortex-M0+ cycles, operand splitting and the final rounding included (the
+    /// Cortex-M0+ TRM's single-cycle ALU and fast multiplier): `Muls` 6 (pre-shifts, a
+    /// constant load, `MULS`, the rounding shift); `High` 14 (halves of each operand, 3
+    /// `MULS`, 3 shifts, 2 adds, the rounding); `Wide` 23 (a literal load, halves, 4 `MULS`,
+    /// the cross terms into a 64-bit pair with `ADDS`/`ADCS`, a 64-bit rounding shift).
     pub fn cycles(self) -> u32 {
         match self {
-            MulKind::Muls(..) => 3,
-            MulKind::Wide => 18,
+            MulKind::Muls(..) => 6,
+            MulKind::High(_) => 14,
+            MulKind::Wide => 23,
+        }
+    }
+
+    /// The form's name in the precision report.
+    pub fn name(self) -> String {
+        match self {
+            MulKind::Muls(0, 0) => "MULS 32×32→32 (operands fit)".into(),
+            MulKind::Muls(a, b) => format!("pre-shifted MULS (>>{a}, >>{b})"),
+            MulKind::High(k) => format!("high word of 32×32 (3 MULS, units of 2^{k})"),
+            MulKind::Wide => "64-bit product (4 MULS)".into(),
         }
     }
 }
@@ -571,17 +610,15 @@ impl FixedProgram {
     /// Large programs (over [`SEQUENTIAL_BUDGET_WORK`]) try them in groups instead, with at
     /// most [`MAX_GROUP_ANALYSES`] analyses: whole groups kept, the others left exact.
     fn spend_precision_budget(&mut self, planned: &[(usize, MulOperands, bool)], config: &PlanConfig) {
-        if !planned
-            .iter()
-            .any(|(i, _, _)| self.mul_kind[*i] == Some(MulKind::Wide))
-        {
+        let not_muls = |k: Option<MulKind>| !matches!(k, Some(MulKind::Muls(..)));
+        if !planned.iter().any(|(i, _, _)| not_muls(self.mul_kind[*i])) {
             return;
         }
         let base = report::analyse(self);
         let watched = watched_values(&self.program);
         let lsb = base.dac_lsb_n();
         // A bound that is not finite proves nothing: such a candidate is never accepted.
-        let within = |pr: &report::Precision| -> bool {
+        let within_growth = |pr: &report::Precision, growth: f64| -> bool {
             let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
             if !(pr.total.is_finite() && finite(&pr.force) && finite(&pr.write)) {
                 return false;
@@ -596,8 +633,7 @@ impl FixedProgram {
                 && self.program.states.iter().enumerate().all(|(i, st)| {
                     let mag = st.range.0.abs().max(st.range.1.abs());
                     if base.accumulating[i] || pr.accumulating[i] {
-                        config.accumulating_growth == f64::INFINITY
-                            || pr.write[i] <= config.accumulating_growth * base.write[i]
+                        growth == f64::INFINITY || pr.write[i] <= growth * base.write[i]
                     } else {
                         pr.state[i].is_finite()
                             && pr.state[i] <= base.state[i].max(config.state_rel * mag)
@@ -609,19 +645,49 @@ impl FixedProgram {
                         && pr.value[v.index()] <= base.value[v.index()].max(config.value_rel * mag)
                 })
         };
-        let candidates: Vec<(usize, MulKind)> = planned
+        let within = |pr: &report::Precision| within_growth(pr, config.accumulating_growth);
+        // A high-word product's floors are a bias, not noise: on an integrated state it adds
+        // up sample after sample (three of the piano's hammer-velocity products moved a
+        // slow dip's force by 48 DAC LSB with a 2× growth allowed), so it may not grow an
+        // integrated state's one-sample bound at all.
+        let within_high = |pr: &report::Precision| {
+            within_growth(pr, config.accumulating_growth.min(1.0 + 1e-9))
+        };
+        // (product, its MULS plan, its plan within the tolerance to fall back to).
+        let candidates: Vec<(usize, MulKind, MulKind)> = planned
             .iter()
-            .filter(|(i, _, _)| self.mul_kind[*i] == Some(MulKind::Wide))
-            .map(|(i, ops, swapped)| (*i, ops.plan(*swapped, false)))
-            .filter(|(_, k)| *k != MulKind::Wide)
+            .filter(|(i, _, _)| not_muls(self.mul_kind[*i]))
+            .map(|(i, ops, swapped)| {
+                let was = self.mul_kind[*i].unwrap_or(MulKind::Wide);
+                (*i, ops.plan(*swapped, false), was)
+            })
+            .filter(|(_, k, _)| matches!(k, MulKind::Muls(..)))
+            .collect();
+        // The high-word form of each 64-bit product, tried where `MULS` is refused.
+        let high: std::collections::HashMap<usize, MulKind> = planned
+            .iter()
+            .filter_map(|(i, ops, _)| ops.high().map(|(k, _)| (*i, MulKind::High(k))))
             .collect();
         let values = self.program.values.len().max(1);
         if candidates.len().saturating_mul(values) <= SEQUENTIAL_BUDGET_WORK {
             // One analysis per product, in program order.
-            for &(i, k) in &candidates {
+            for &(i, k, was) in &candidates {
                 self.mul_kind[i] = Some(k);
                 if !within(&report::analyse(self)) {
-                    self.mul_kind[i] = Some(MulKind::Wide);
+                    self.mul_kind[i] = Some(was);
+                }
+            }
+            // Then the high-word form for every product still 64-bit (also those with no
+            // `MULS` plan), one analysis each.
+            for (i, _, _) in planned {
+                if self.mul_kind[*i] != Some(MulKind::Wide) {
+                    continue;
+                }
+                if let Some(&h) = high.get(i) {
+                    self.mul_kind[*i] = Some(h);
+                    if !within_high(&report::analyse(self)) {
+                        self.mul_kind[*i] = Some(MulKind::Wide);
+                    }
                 }
             }
             return;
@@ -634,7 +700,7 @@ impl FixedProgram {
         // (19,000 values, 2,946 candidates) one analysis per product took 46 s and kept
         // none of them.
         let tries = (SEQUENTIAL_BUDGET_WORK / values).clamp(1, MAX_GROUP_ANALYSES);
-        let mut queue: std::collections::VecDeque<&[(usize, MulKind)]> =
+        let mut queue: std::collections::VecDeque<&[(usize, MulKind, MulKind)]> =
             std::collections::VecDeque::from([&candidates[..]]);
         let mut done = 0;
         while let Some(group) = queue.pop_front() {
@@ -642,12 +708,12 @@ impl FixedProgram {
                 break;
             }
             done += 1;
-            for &(i, k) in group {
+            for &(i, k, _) in group {
                 self.mul_kind[i] = Some(k);
             }
             if !within(&report::analyse(self)) {
-                for &(i, _) in group {
-                    self.mul_kind[i] = Some(MulKind::Wide);
+                for &(i, _, was) in group {
+                    self.mul_kind[i] = Some(was);
                 }
                 if group.len() > 1 {
                     let (a, b) = group.split_at(group.len() / 2);
@@ -667,22 +733,25 @@ impl FixedProgram {
         }
     }
 
-    /// Number of multiplications of each kind and their estimated cycles on a Cortex-M0+.
+    /// Number of multiplications of each kind — (`MULS`, high word, 64-bit) — and their
+    /// estimated cycles on a Cortex-M0+ ([`MulKind::cycles`]).
+    pub fn mul_forms(&self) -> (usize, usize, usize, u32) {
+        let (mut m, mut h, mut w, mut c) = (0, 0, 0, 0);
+        for k in self.mul_kind.iter().flatten() {
+            match k {
+                MulKind::Muls(..) => m += 1,
+                MulKind::High(_) => h += 1,
+                MulKind::Wide => w += 1,
+            }
+            c += k.cycles();
+        }
+        (m, h, w, c)
+    }
+
+    /// Number of `MULS` products, of products needing more (high word or 64-bit), and the
+    /// estimated cycles of all ([`FixedProgram::mul_forms`]).
     pub fn mul_cost(&self) -> (usize, usize, u32) {
-        let muls = self
-            .mul_kind
-            .iter()
-            .filter(|k| matches!(k, Some(MulKind::Muls(..))))
-            .count();
-        let wide = self
-            .mul_kind
-            .iter()
-            .filter(|k| **k == Some(MulKind::Wide))
-            .count();
-        (
-            muls,
-            wide,
-            muls as u32 * MulKind::Muls(0, 0).cycles() + wide as u32 * MulKind::Wide.cycles(),
-        )
+        let (m, h, w, c) = self.mul_forms();
+        (m, h + w, c)
     }
 }

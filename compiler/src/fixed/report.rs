@@ -221,7 +221,7 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                 ArithOp::Mul => {
                     let (ex, ey) = shift_errors(fp, v, fx, fy);
                     let (ex, ey) = (err(x) + ex, err(y) + ey);
-                    mag(x) * ey + mag(y) * ex + ex * ey + half_lsb(fr)
+                    mag(x) * ey + mag(y) * ex + ex * ey + high_error(fp, v, fx, fy) + half_lsb(fr)
                 }
                 ArithOp::Div => match fp.recip[v.index()] {
                     Some((r, f)) => {
@@ -234,6 +234,7 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                         let (ex, eq) = shift_errors(fp, v, fx, f);
                         (err(x) + ex) * (q.abs() + eq)
                             + mag(x) * ((q - 1.0 / c).abs() + eq)
+                            + high_error(fp, v, fx, f)
                             + half_lsb(fr)
                     }
                     None => {
@@ -290,6 +291,18 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                 }
             }
         }
+    }
+}
+
+/// The error of a high-word product ([`tactus_runtime::fixed::mul_high`]) before its
+/// rounding: below `2 + 2^(32−k)` units of `2^(k − fx − fy)`; 0 for the other forms.
+fn high_error(fp: &FixedProgram, v: Value, fx: i32, fy: i32) -> f64 {
+    match fp.mul_kind[v.index()] {
+        Some(super::MulKind::High(k)) => {
+            let k = k as i32;
+            (2.0 + pow2(32 - k)) * pow2(k - fx - fy)
+        }
+        _ => 0.0,
     }
 }
 

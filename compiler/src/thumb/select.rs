@@ -692,6 +692,41 @@ impl<'a> Sel<'a> {
                 };
                 self.round(prod, e)
             }
+            MulKind::High(k) => {
+                // fixed::mul_high: xh·yh·2^(32−k) + floor(xh·yl / 2^(k−16)) +
+                // floor(xl·yh / 2^(k−16)), each partial product one MULS.
+                let k = k.clamp(16, 32) as i32;
+                let xl = self.nv();
+                self.push(M::Uxth { d: xl, m: x.v });
+                let xh = self.sh(Shift::Asr, x.v, 16);
+                let (yh, yl, yb) = match y {
+                    Operand::Const(c) => (self.movi(c >> 16), self.movi(c & 0xffff), c.unsigned_abs() as u64),
+                    Operand::Word(w) => {
+                        let yl = self.nv();
+                        self.push(M::Uxth { d: yl, m: w.v });
+                        (self.sh(Shift::Asr, w.v, 16), yl, w.b)
+                    }
+                };
+                let mut hh = self.alu2(AluOp::Mul, xh, yh);
+                if k < 32 {
+                    hh = self.sh(Shift::Lsl, hh, (32 - k) as u8);
+                }
+                let mut hl = self.alu2(AluOp::Mul, xh, yl);
+                let mut lh = self.alu2(AluOp::Mul, xl, yh);
+                if k > 16 {
+                    hl = self.sh(Shift::Asr, hl, (k - 16) as u8);
+                    lh = self.sh(Shift::Asr, lh, (k - 16) as u8);
+                }
+                let p = self.addsub(false, hh, hl);
+                let p = self.addsub(false, p, lh);
+                // The planner's bound (`MulOperands::high`): the sum fits an i32.
+                let (hx, hy) = ((x.b.min(LIM) >> 16) + 1, (yb.min(LIM) >> 16) + 1);
+                let pb = ((hx * hy + hx + hy) << (32 - k)) + 2;
+                if pb >= LIM {
+                    self.unsupported("a high-word product whose partial sum may not fit 32 bits");
+                }
+                self.round(W { v: p, b: pb.min(LIM) }, fr - (fx_ + fy - k))
+            }
             MulKind::Wide => {
                 let yv = match y {
                     Operand::Const(c) => self.movi(c),
