@@ -129,7 +129,8 @@ pub enum M {
     /// Marks the start of the body of the top-level `if` statement with this index (a
     /// block start the WCET analysis' flow facts refer to).
     Mark(u32),
-    /// `NOP`: one cycle of waiting (the SIO divider's latency).
+    /// A one-cycle no-op (`MOV r8, r8`, GNU as's `nop` on ARMv6-M): waiting out the SIO
+    /// divider's latency.
     Nop,
 }
 
