@@ -1768,7 +1768,6 @@ impl<'a> Sel<'a> {
             None
         };
         let sio = self.movi(SIO_BASE);
-        self.push(M::Note("SIO divider".into()));
         self.store(MemOp::Str, d, Base::V(sio), UDIVISOR as usize);
         self.store(MemOp::Str, first, Base::V(sio), UDIVIDEND as usize);
         // While the divider works (DIVIDER_LATENCY cycles): the next dividend digit from
