@@ -76,10 +76,12 @@ static inline int32_t tx_round_wide(int64_t d, int32_t k, int e) {
 /* The high part of x*y in units of 2^k (16 <= k <= 32) from three 16x16 partial products:
    xh*yh*2^(32-k) + floor(xh*yl / 2^(k-16)) + floor(xl*yh / 2^(k-16)). */
 static inline int64_t tx_mul_high(int32_t x, int32_t y, int k) {
-    int64_t xh = tx_floor_shr(x, 16), yh = tx_floor_shr(y, 16);
-    int64_t xl = (int64_t)((uint32_t)x & 0xffffu), yl = (int64_t)((uint32_t)y & 0xffffu);
-    return xh * yh * ((int64_t)1 << (32 - k)) + tx_floor_shr(xh * yl, k - 16)
-        + tx_floor_shr(xl * yh, k - 16);
+    /* Every partial product fits an int32_t (|xh| <= 2^15, 0 <= yl < 2^16): 32-bit
+       multiplies, no 64-bit library call. (x - xl) / 65536 is exact, so it is x >> 16. */
+    int32_t xl = (int32_t)((uint32_t)x & 0xffffu), yl = (int32_t)((uint32_t)y & 0xffffu);
+    int32_t xh = (x - xl) / 65536, yh = (y - yl) / 65536;
+    return (int64_t)(xh * yh) * ((int64_t)1 << (32 - k))
+        + tx_floor_shr((int64_t)(xh * yl), k - 16) + tx_floor_shr((int64_t)(xl * yh), k - 16);
 }
 
 /* x * 2^k / y truncated toward zero, saturated; y = 0 saturates to the sign of x. */
