@@ -9,6 +9,7 @@
 //! sensors, read the DAC, and count cycles per function.
 #![deny(missing_docs)]
 
+pub mod block;
 pub mod board;
 pub mod bus;
 pub mod core;
@@ -25,7 +26,7 @@ pub mod timing;
 pub mod wcet;
 
 pub use board::{
-    Board, Call, CallError, CallResult, Config, EmuError, StopReason, CALL_STUB, DAC_BASE,
+    Board, Call, CallError, CallResult, Config, EmuError, Engine, StopReason, CALL_STUB, DAC_BASE,
     MAX_KEYS, SENSOR_BASE,
 };
 pub use decode::{decode, Instr};
