@@ -251,11 +251,13 @@ impl Blocks {
 
 /// Runs `core` on blocks while its cycle is below `limit` (the caller has checked that
 /// the core may take the fast path: [`crate::board`]'s `fast_ready`), calling
-/// `after(cycle)` after every instruction. `Ok` when the core reached `limit` (at its first
+/// `after(cycle)` after every instruction when `HOOK` (else `after` is never called, and a
+/// block whose bound fits below `limit` runs with no per-instruction check). `Ok` when the core reached `limit` (at its first
 /// instruction boundary at or after it), else why it left, with the instruction that needs
-/// the general path not started.
-#[inline(always)]
-pub(crate) fn run<F: FnMut(u64)>(
+/// the general path not started. Not inlined: its arguments cannot alias, so the compiler
+/// may keep the core's counters in registers across the block.
+#[inline(never)]
+pub(crate) fn run<const HOOK: bool, F: FnMut(u64)>(
     core: &mut Core,
     sys: &mut System,
     blocks: &mut Blocks,
@@ -277,22 +279,37 @@ pub(crate) fn run<F: FnMut(u64)>(
         };
         let epoch = sys.code_epoch;
         let ops = &blocks.ops[..end];
-        let checked = core.cycle.saturating_add(ops[i].worst_from as u64) > limit;
         let mut leave = None;
-        while i < end {
-            if checked && core.cycle >= limit {
-                break;
+        if !HOOK && core.cycle.saturating_add(ops[i].worst_from as u64) <= limit {
+            // The whole rest of the block starts before `limit`: no per-instruction check.
+            let start = i;
+            for o in &ops[start..] {
+                if !core.execute_op(sys, &o.op, &o.instr, o.pc, o.size as u32, o.cost) {
+                    leave = Some(Leave::General);
+                    break;
+                }
+                i += 1;
+                if o.store && sys.code_epoch != epoch {
+                    break;
+                }
             }
-            let o = &ops[i];
-            if !core.execute_op(sys, &o.op, &o.instr, o.pc, o.size as u32, o.cost) {
-                leave = Some(Leave::General);
-                break;
-            }
-            retired += 1;
-            i += 1;
-            after(core.cycle);
-            if o.store && sys.code_epoch != epoch {
-                break;
+            retired += (i - start) as u64;
+        } else {
+            while i < end {
+                if core.cycle >= limit {
+                    break;
+                }
+                let o = &ops[i];
+                if !core.execute_op(sys, &o.op, &o.instr, o.pc, o.size as u32, o.cost) {
+                    leave = Some(Leave::General);
+                    break;
+                }
+                retired += 1;
+                i += 1;
+                after(core.cycle);
+                if o.store && sys.code_epoch != epoch {
+                    break;
+                }
             }
         }
         blocks.cursor[core.id & 1] = Cursor {

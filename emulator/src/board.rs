@@ -72,8 +72,9 @@ pub struct Config {
     /// of running the firmware's HardFault handler.
     pub stop_on_fault: bool,
     /// Which engine runs the fast path of [`Board::run_until`] / [`Board::run_for`]
-    /// (default [`Engine::Block`]). Both give the same cycles, registers and memory;
-    /// [`Board::step`] is always the general path.
+    /// (default [`Engine::Interp`], the faster of the two today: see BENCHMARKS.md). Both
+    /// give the same cycles, registers and memory; [`Board::step`] is always the general
+    /// path.
     pub engine: Engine,
 }
 
@@ -81,11 +82,12 @@ pub struct Config {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
     /// The interpreter: one instruction at a time from the decode cache (module `fast`).
+    #[default]
     Interp,
     /// Pre-decoded basic blocks with a per-block deadline check (module [`crate::block`]),
     /// the same instruction semantics; it falls back to the interpreter while functions
-    /// are profiled with [`Board::profile_addr`].
-    #[default]
+    /// are profiled with [`Board::profile_addr`]. Exact, but not yet faster than
+    /// [`Engine::Interp`] (BENCHMARKS.md, "Emulator: the block engine").
     Block,
 }
 
@@ -881,7 +883,7 @@ impl Board {
         let (sys, blocks) = (&mut self.system, &mut self.blocks);
         if !BOTH {
             let core = &mut self.cores[k];
-            return (k, block::run(core, sys, blocks, deadline[k], |_| {}));
+            return (k, block::run::<false, _>(core, sys, blocks, deadline[k], |_| {}));
         }
         let [c0, c1] = &mut self.cores;
         loop {
@@ -894,7 +896,9 @@ impl Board {
                 return (k, Ok(()));
             }
             let turn_ends = other.cycle + (k == 0) as u64;
-            if let Err(leave) = block::run(me, sys, blocks, deadline[k].min(turn_ends), |_| {}) {
+            if let Err(leave) =
+                block::run::<false, _>(me, sys, blocks, deadline[k].min(turn_ends), |_| {})
+            {
                 return (k, Err(leave));
             }
         }
@@ -1278,7 +1282,7 @@ fn blocks_beside_sleeper<const SLEEPER_IS_0: bool>(
                     *s = wake_check.min(r + 1).max(*s + 1);
                 }
             };
-            if block::run(run, sys, blocks, limit, after).is_err() {
+            if block::run::<true, _>(run, sys, blocks, limit, after).is_err() {
                 return Err(Exit::Miss);
             }
         }

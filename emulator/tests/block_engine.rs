@@ -1,5 +1,5 @@
-//! The block engine (`Engine::Block`, the default) against the interpreter
-//! (`Engine::Interp`) on seeded random programs: data processing, SRAM, flash and SIO
+//! The block engine (`Engine::Block`) against the interpreter (`Engine::Interp`, which
+//! `fast_path.rs` checks against single steps) on seeded random programs: data processing, SRAM, flash and SIO
 //! (divider, FIFO between the cores, CPUID) loads and stores, PUSH/POP, LDM/STM, forward
 //! branches, counted backward loops, calls (BL / BX LR), stores into the page that holds the
 //! program's own code (the blocks must be dropped), SysTick interrupts, WFI/WFE/SEV with one
@@ -9,8 +9,13 @@
 //! instruction counts, registers, flags, exception and run state, the contention stalls and
 //! the data area must agree exactly, and all of SRAM at the end of each program. The suite
 //! must run at least 10 M instructions per run, and counts its mismatches (which must be 0).
+//! The same comparison runs on the firmware-like key updates of the speed bench (SysTick
+//! interrupt, one or both cores, sleeping in WFI between samples).
 
-use tactus_emulator::{Board, Config, Engine, StopReason};
+use tactus_emulator::{Board, Config, Engine, StopReason, DAC_BASE};
+
+#[path = "../benches/common/mod.rs"]
+mod workloads;
 
 struct Rng(u64);
 
@@ -328,5 +333,37 @@ fn a_store_into_the_running_block_takes_effect_at_once() {
         b.cores[0].r[1] = 0x2207_2207;
         b.run_for(50);
         assert_eq!(b.cores[0].r[2], 7, "{engine:?}");
+    }
+}
+
+/// The speed bench's firmware-like workload (key updates in the SysTick handler, WFI
+/// between samples) on one and on both cores: every slice agrees, and so do the DAC words
+/// the handlers wrote.
+#[test]
+fn block_engine_matches_the_interpreter_on_key_updates() {
+    let mut rng = Rng(0x6b65_7973);
+    for (cores, keys, period) in [(1, 44, 3016), (2, 44, 3016), (2, 13, 1500), (1, 100, 4000)] {
+        let mut block = workloads::key_updates(Engine::Block, cores, keys, period);
+        let mut interp = workloads::key_updates(Engine::Interp, cores, keys, period);
+        while block.cycle() < 200_000 {
+            let limit = block.cycle() + 1 + rng.below(5000) as u64;
+            let a = block.run_until(limit);
+            let b = interp.run_until(limit);
+            assert_eq!(a, b, "{cores} cores, {keys} keys: stop reasons differ");
+            assert_eq!(
+                state(&mut block),
+                state(&mut interp),
+                "{cores} cores, {keys} keys at {limit}"
+            );
+        }
+        let mut dac = [vec![0u8; 4 * 128], vec![0u8; 4 * 128]];
+        block.read_bytes(DAC_BASE, &mut dac[0]).unwrap();
+        interp.read_bytes(DAC_BASE, &mut dac[1]).unwrap();
+        assert_eq!(dac[0], dac[1]);
+        assert!(dac[0].iter().any(|&x| x != 0), "the handlers wrote no force");
+        assert_eq!(sram(&mut block), sram(&mut interp));
+        assert!(block.blocks_decoded() > 0);
+        let handled: u64 = block.cores.iter().map(|c| c.instructions).sum();
+        assert!(handled > 10_000, "{handled} instructions");
     }
 }
