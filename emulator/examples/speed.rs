@@ -60,7 +60,11 @@ fn main() {
     let t = std::time::Instant::now();
     let stop = b.run_for(cycles);
     let secs = t.elapsed().as_secs_f64();
-    println!("{stop:?} after {} cycles ({engine:?})", b.cycle());
+    println!(
+        "{stop:?} after {} cycles ({engine:?}, {} blocks decoded)",
+        b.cycle(),
+        b.blocks_decoded()
+    );
     for c in &b.cores[..cores] {
         println!(
             "core {}: cycle {} instructions {} r = {:08x?} stalls {}",
