@@ -2,16 +2,28 @@
 //! run by a threaded executor that checks the run's deadline once per block.
 //!
 //! **What it is, and what it is not.** Issue 18 asks for basic blocks compiled to native
-//! code with cranelift. This module is the intermediate step the issue allows: a block is a
-//! run of pre-decoded instructions ([`BlockOp`], each the same [`Op`] the per-instruction
-//! fast path executes) from its first address to the first instruction that may write the
-//! PC (a branch, BL, BX/BLX, `POP {…, pc}`, ADD/MOV to PC, a trap) or
-//! [`MAX_BLOCK`] instructions, decoded once and executed by [`Core::execute_op`], the one
-//! definition of each instruction's semantics that the interpreter shares (so there is no
-//! second copy of any flag or condition to keep in step). What the block engine saves over
-//! the per-instruction fast path is the work *around* each instruction: the decode-cache
-//! lookup (hash, tag and code-epoch compare) and the deadline compare, which are done once
-//! per block instead of once per instruction.
+//! code with cranelift. This module is an intermediate step, not that: a block is a run of
+//! pre-decoded instructions (`BlockOp`, each the same `Op` the per-instruction fast
+//! path executes) from its first address to the first instruction that may write the PC
+//! (a branch, BL, BX/BLX, `POP {…, pc}`, ADD/MOV to PC, a trap) or [`MAX_BLOCK`]
+//! instructions, decoded once and executed by `Core::execute_op`, the one definition of
+//! each instruction's semantics that the interpreter shares (so there is no second copy of
+//! any flag or condition to keep in step). It saves the work *around* each instruction —
+//! the decode-cache lookup and the deadline compare, done once per block instead of once
+//! per instruction — and nothing else: every instruction is still dispatched through the
+//! `Op` match, writes PC and adds its cycles to the counter. **Measured, it is slower than
+//! the interpreter** (callgrind, BENCHMARKS.md "Emulator: the block engine"): 44.5 against
+//! 35.5 host instructions per emulated cycle on the speed loop, because the per-block
+//! bookkeeping (lookup, bound, cursor) costs about what the per-instruction lookups it
+//! replaces did, and with both cores running (lock-step, below) a core's turn is one or
+//! two instructions, so the per-turn cost dominates (107 against 40). So it is not the
+//! default ([`crate::board::Engine`]). What it does provide, tested exact against the
+//! interpreter, is the frame a compiled block would drop into: block discovery and
+//! invalidation, the static cycle bound from the timing table, mid-block exits to the
+//! general path, deadline and lock-step stops inside a block with a resume cursor, and the
+//! sleeper replay; replacing the `execute_op` loop of `run` by a call to a block's
+//! native code (registers and flags in the `Core`, memory through the same `mem_fast`)
+//! is the remaining step.
 //!
 //! **Cycles.** Each instruction's cost comes from the one timing table
 //! ([`crate::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block

@@ -31,7 +31,10 @@
 //! profiled with [`Board::profile_handler`] are entered and left only by exception entry
 //! and return, in the general path, so they cost the loop no such check.
 //! So the order of all shared-state accesses, and every result, is the same as stepping
-//! one instruction at a time. [`Board::step`] is the same machine one instruction at a
+//! one instruction at a time. [`Config::engine`] selects what runs that fast path: the
+//! interpreter above ([`Engine::Interp`], the default) or the block engine
+//! ([`Engine::Block`], module [`crate::block`]: pre-decoded basic blocks, the same
+//! instruction semantics and the same interleaving, exact but not yet faster). [`Board::step`] is the same machine one instruction at a
 //! time, recording [`Core::last`] for traces.
 //!
 //! **Sensors and DAC.** Firmware sees the key sensors and the motor drivers the way a DMA from
