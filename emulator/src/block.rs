@@ -12,11 +12,11 @@
 //! the decode-cache lookup and the deadline compare, done once per block instead of once
 //! per instruction — and nothing else: every instruction is still dispatched through the
 //! `Op` match, writes PC and adds its cycles to the counter. **Measured, it is slower than
-//! the interpreter** (callgrind, BENCHMARKS.md "Emulator: the block engine"): 44.5 against
-//! 35.5 host instructions per emulated cycle on the speed loop, because the per-block
+//! the interpreter** (callgrind, BENCHMARKS.md "Emulator: the block engine"): 43.4 against
+//! 34.8 host instructions per emulated cycle on the speed loop, because the per-block
 //! bookkeeping (lookup, bound, cursor) costs about what the per-instruction lookups it
 //! replaces did, and with both cores running (lock-step, below) a core's turn is one or
-//! two instructions, so the per-turn cost dominates (107 against 40). So it is not the
+//! two instructions, so the per-turn cost dominates (106 against 39). So it is not the
 //! default ([`crate::board::Engine`]). What it does provide, tested exact against the
 //! interpreter, is the frame a compiled block would drop into: block discovery and
 //! invalidation, the static cycle bound from the timing table, mid-block exits to the

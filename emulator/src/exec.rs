@@ -198,66 +198,103 @@ impl Core {
         condition_passed(cond, self.n, self.z, self.c, self.v)
     }
 
+    /// `LSLS Rd, Rm, #imm` (imm 0-31; 0 is `MOVS Rd, Rm`, carry unchanged).
+    #[inline(always)]
+    pub(crate) fn lsl_imm(&mut self, rd: u8, rm: u8, imm: u8) {
+        let x = self.r[(rm & 15) as usize];
+        let r = if imm == 0 {
+            x
+        } else {
+            self.c = (x >> (32 - imm as u32)) & 1 == 1;
+            x << imm
+        };
+        self.r[(rd & 15) as usize] = r;
+        self.nz(r);
+    }
+
+    /// `LSRS Rd, Rm, #imm` (imm 1-32).
+    #[inline(always)]
+    pub(crate) fn lsr_imm(&mut self, rd: u8, rm: u8, imm: u8) {
+        let x = self.r[(rm & 15) as usize];
+        self.c = (x >> (imm as u32 - 1)) & 1 == 1;
+        let r = if imm == 32 { 0 } else { x >> imm };
+        self.r[(rd & 15) as usize] = r;
+        self.nz(r);
+    }
+
+    /// `ASRS Rd, Rm, #imm` (imm 1-32).
+    #[inline(always)]
+    pub(crate) fn asr_imm(&mut self, rd: u8, rm: u8, imm: u8) {
+        let x = self.r[(rm & 15) as usize];
+        self.c = ((x as i32) >> (imm as u32 - 1)) & 1 == 1;
+        let r = ((x as i32) >> (imm as u32).min(31)) as u32;
+        self.r[(rd & 15) as usize] = r;
+        self.nz(r);
+    }
+
+    /// `ADDS Rd, Rn, Rm`.
+    #[inline(always)]
+    pub(crate) fn add_reg(&mut self, rd: u8, rn: u8, rm: u8) {
+        let (x, y) = (self.r[(rn & 15) as usize], self.r[(rm & 15) as usize]);
+        self.r[(rd & 15) as usize] = self.adds(x, y, false);
+    }
+
+    /// `SUBS Rd, Rn, Rm`.
+    #[inline(always)]
+    pub(crate) fn sub_reg(&mut self, rd: u8, rn: u8, rm: u8) {
+        let (x, y) = (self.r[(rn & 15) as usize], self.r[(rm & 15) as usize]);
+        self.r[(rd & 15) as usize] = self.adds(x, !y, true);
+    }
+
+    /// `ADDS Rd, Rn, #imm` (both encodings).
+    #[inline(always)]
+    pub(crate) fn add_imm(&mut self, rd: u8, rn: u8, imm: u8) {
+        let x = self.r[(rn & 15) as usize];
+        self.r[(rd & 15) as usize] = self.adds(x, imm as u32, false);
+    }
+
+    /// `SUBS Rd, Rn, #imm` (both encodings).
+    #[inline(always)]
+    pub(crate) fn sub_imm(&mut self, rd: u8, rn: u8, imm: u8) {
+        let x = self.r[(rn & 15) as usize];
+        self.r[(rd & 15) as usize] = self.adds(x, !(imm as u32), true);
+    }
+
+    /// `MOVS Rd, #imm`.
+    #[inline(always)]
+    pub(crate) fn mov_imm(&mut self, rd: u8, imm: u8) {
+        self.r[(rd & 15) as usize] = imm as u32;
+        self.nz(imm as u32);
+    }
+
+    /// `CMP Rn, #imm`.
+    #[inline(always)]
+    pub(crate) fn cmp_imm(&mut self, rn: u8, imm: u8) {
+        let x = self.r[(rn & 15) as usize];
+        self.adds(x, !(imm as u32), true);
+    }
+
     /// The register-only data-processing instructions (shifts by immediate, ADDS/SUBS/MOVS/CMP
     /// of low registers, the ALU group, CMP of high registers, extends and byte reverses):
     /// results and flags, no memory, no PC write. **The one definition** of these
-    /// instructions: [`Core::execute`], [`Core::execute_fast`] and the pre-decoded executor
-    /// (`Core::execute_op`, which the block engine also runs) all call it, the latter with
-    /// an `Instr` of a known variant that inlining folds to that variant's arm. Cycle cost:
-    /// the caller's (1, from the timing table).
+    /// instructions, with the methods it dispatches to (`lsl_imm` … `cmp_imm`, `alu`,
+    /// `adds`): [`Core::execute`] and [`Core::execute_fast`] call it, and the pre-decoded
+    /// executor (`Core::execute_op`, which the block engine also runs) calls the same
+    /// per-instruction methods directly. Cycle cost: the caller's (1, from the timing
+    /// table).
     #[inline(always)]
     pub(crate) fn data_processing(&mut self, instr: Instr, pc: u32) {
         use Instr::*;
         match instr {
-            LslImm { rd, rm, imm } => {
-                let x = self.r[(rm & 15) as usize];
-                let r = if imm == 0 {
-                    x
-                } else {
-                    self.c = (x >> (32 - imm as u32)) & 1 == 1;
-                    x << imm
-                };
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            LsrImm { rd, rm, imm } => {
-                let x = self.r[(rm & 15) as usize];
-                self.c = (x >> (imm as u32 - 1)) & 1 == 1;
-                let r = if imm == 32 { 0 } else { x >> imm };
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            AsrImm { rd, rm, imm } => {
-                let x = self.r[(rm & 15) as usize];
-                self.c = ((x as i32) >> (imm as u32 - 1)) & 1 == 1;
-                let r = ((x as i32) >> (imm as u32).min(31)) as u32;
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            AddReg { rd, rn, rm } => {
-                let (x, y) = (self.r[(rn & 15) as usize], self.r[(rm & 15) as usize]);
-                self.r[(rd & 15) as usize] = self.adds(x, y, false);
-            }
-            SubReg { rd, rn, rm } => {
-                let (x, y) = (self.r[(rn & 15) as usize], self.r[(rm & 15) as usize]);
-                self.r[(rd & 15) as usize] = self.adds(x, !y, true);
-            }
-            AddImm { rd, rn, imm } => {
-                let x = self.r[(rn & 15) as usize];
-                self.r[(rd & 15) as usize] = self.adds(x, imm as u32, false);
-            }
-            SubImm { rd, rn, imm } => {
-                let x = self.r[(rn & 15) as usize];
-                self.r[(rd & 15) as usize] = self.adds(x, !(imm as u32), true);
-            }
-            MovImm { rd, imm } => {
-                self.r[(rd & 15) as usize] = imm as u32;
-                self.nz(imm as u32);
-            }
-            CmpImm { rn, imm } => {
-                let x = self.r[(rn & 15) as usize];
-                self.adds(x, !(imm as u32), true);
-            }
+            LslImm { rd, rm, imm } => self.lsl_imm(rd, rm, imm),
+            LsrImm { rd, rm, imm } => self.lsr_imm(rd, rm, imm),
+            AsrImm { rd, rm, imm } => self.asr_imm(rd, rm, imm),
+            AddReg { rd, rn, rm } => self.add_reg(rd, rn, rm),
+            SubReg { rd, rn, rm } => self.sub_reg(rd, rn, rm),
+            AddImm { rd, rn, imm } => self.add_imm(rd, rn, imm),
+            SubImm { rd, rn, imm } => self.sub_imm(rd, rn, imm),
+            MovImm { rd, imm } => self.mov_imm(rd, imm),
+            CmpImm { rn, imm } => self.cmp_imm(rn, imm),
             Alu { op, rdn, rm } => self.alu(op, (rdn & 15) as usize, self.r[(rm & 15) as usize]),
             CmpHi { rn, rm } => {
                 let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));

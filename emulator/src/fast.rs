@@ -366,18 +366,14 @@ impl Core {
             }};
         }
         macro_rules! dp {
-            ($instr:expr) => {{
-                self.data_processing($instr, pc);
+            ($call:expr) => {{
+                $call;
                 done!(base)
             }};
         }
         macro_rules! alu {
             ($op:expr, $rdn:expr, $rm:expr) => {
-                dp!(Instr::Alu {
-                    op: $op,
-                    rdn: $rdn,
-                    rm: $rm
-                })
+                dp!(self.alu($op, ($rdn & 15) as usize, r!($rm)))
             };
         }
         macro_rules! mem {
@@ -389,17 +385,17 @@ impl Core {
             }};
         }
         match *op {
-            // Data processing: the one definition, `Core::data_processing`, on the `Instr`
-            // of this variant (inlining folds its `match` to the one arm).
-            Op::LslImm { rd, rm, imm } => dp!(Instr::LslImm { rd, rm, imm }),
-            Op::LsrImm { rd, rm, imm } => dp!(Instr::LsrImm { rd, rm, imm }),
-            Op::AsrImm { rd, rm, imm } => dp!(Instr::AsrImm { rd, rm, imm }),
-            Op::AddReg { rd, rn, rm } => dp!(Instr::AddReg { rd, rn, rm }),
-            Op::SubReg { rd, rn, rm } => dp!(Instr::SubReg { rd, rn, rm }),
-            Op::AddImm { rd, rn, imm } => dp!(Instr::AddImm { rd, rn, imm }),
-            Op::SubImm { rd, rn, imm } => dp!(Instr::SubImm { rd, rn, imm }),
-            Op::MovImm { rd, imm } => dp!(Instr::MovImm { rd, imm }),
-            Op::CmpImm { rn, imm } => dp!(Instr::CmpImm { rn, imm }),
+            // Data processing: the one definition of each (`exec.rs`), as the interpreter's
+            // `Core::data_processing` calls it.
+            Op::LslImm { rd, rm, imm } => dp!(self.lsl_imm(rd, rm, imm)),
+            Op::LsrImm { rd, rm, imm } => dp!(self.lsr_imm(rd, rm, imm)),
+            Op::AsrImm { rd, rm, imm } => dp!(self.asr_imm(rd, rm, imm)),
+            Op::AddReg { rd, rn, rm } => dp!(self.add_reg(rd, rn, rm)),
+            Op::SubReg { rd, rn, rm } => dp!(self.sub_reg(rd, rn, rm)),
+            Op::AddImm { rd, rn, imm } => dp!(self.add_imm(rd, rn, imm)),
+            Op::SubImm { rd, rn, imm } => dp!(self.sub_imm(rd, rn, imm)),
+            Op::MovImm { rd, imm } => dp!(self.mov_imm(rd, imm)),
+            Op::CmpImm { rn, imm } => dp!(self.cmp_imm(rn, imm)),
             Op::And { rdn, rm } => alu!(AluOp::And, rdn, rm),
             Op::Eor { rdn, rm } => alu!(AluOp::Eor, rdn, rm),
             Op::Orr { rdn, rm } => alu!(AluOp::Orr, rdn, rm),
