@@ -4,6 +4,8 @@
 //! A constant expression is lowered like any other (so it gets the same name and dimension
 //! checks) into scratch IR, then folded with the reference interpreter's arithmetic
 //! ([`crate::interp::eval_op`]), so a constant means exactly what it would mean at run time.
+//! A constant that folds to NaN or ±∞ (`0 N/m / 0`, `exp(1000)`, a `--param` of zero
+//! under a division) is an error (E0312) at its span: no engine could give it a meaning.
 
 use super::{Lowerer, Memo, ScopeId};
 use crate::ast;
@@ -218,7 +220,22 @@ impl<'a> Lowerer<'a> {
     fn const_value(&mut self, scope: ScopeId, e: &'a ast::Expr) -> Option<(f64, Dim)> {
         let v = self.lower_expr(scope, e)?;
         match self.ty(v) {
-            Ty::Real(d) => Some((self.fold(v), d)),
+            Ty::Real(d) => {
+                let x = self.fold(v);
+                if !x.is_finite() {
+                    self.err(
+                        Diagnostic::error(
+                            "E0312",
+                            format!("this constant is {x}, not a finite number"),
+                            e.span.clone(),
+                        )
+                        .label(format!("folds to {x}"))
+                        .hint("look for a division by zero (a param or `--param` of 0), `exp` or `^` of a large value, or a number beyond 1.8e308 in SI units"),
+                    );
+                    return None;
+                }
+                Some((x, d))
+            }
             t => {
                 let msg = format!("expected a quantity, found {}", self.ty_string(t));
                 self.err(Diagnostic::error("E0225", msg, e.span.clone()));

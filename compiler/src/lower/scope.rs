@@ -133,7 +133,8 @@ impl<'a> Lowerer<'a> {
             .insert(name.node.clone(), (sym, name.span.clone()));
     }
 
-    /// Declares every name of `body` in a new scope; instances its `use`s recursively.
+    /// Declares every name of `body` in a new scope; instances its `use`s recursively (at
+    /// most [`MAX_COMPONENT_DEPTH`] deep and [`MAX_INSTANCES`] scopes in all).
     pub(super) fn declare_scope(
         &mut self,
         body: &'a ast::Body,
@@ -371,14 +372,49 @@ impl<'a> Lowerer<'a> {
                         );
                         continue;
                     };
-                    if depth >= 8 || std::ptr::eq(comp, body) {
+                    // The chain of components from this scope up to the instrument: a
+                    // component already on it would be instanced without end.
+                    let mut chain = vec![body.name.node.as_str()];
+                    let mut up = self.scopes[id.0].parent;
+                    let mut recursive = std::ptr::eq(comp, body);
+                    while let Some(s) = up {
+                        recursive |= std::ptr::eq(comp, self.scopes[s.0].body);
+                        chain.push(self.scopes[s.0].body.name.node.as_str());
+                        up = self.scopes[s.0].parent;
+                    }
+                    if recursive {
+                        chain.reverse();
+                        let path = chain.join(" → ");
                         self.err(
                             Diagnostic::error(
                                 "E0116",
                                 format!("component `{}` uses itself", component.node),
                                 span.clone(),
                             )
+                            .label(format!("{path} → {}", component.node))
                             .hint("components are instanced at compile time; recursion has no end"),
+                        );
+                        continue;
+                    }
+                    if depth + 1 > MAX_COMPONENT_DEPTH {
+                        self.err(
+                            Diagnostic::error(
+                                "E0135",
+                                format!("components nested more than {MAX_COMPONENT_DEPTH} deep"),
+                                span.clone(),
+                            )
+                            .hint("flatten the chain of components: each level is an instance of its own"),
+                        );
+                        continue;
+                    }
+                    if self.scopes.len() >= MAX_INSTANCES {
+                        self.err(
+                            Diagnostic::error(
+                                "E0136",
+                                format!("more than {MAX_INSTANCES} component instances"),
+                                span.clone(),
+                            )
+                            .hint("every instance is code of its own; components that use others several times multiply"),
                         );
                         continue;
                     }
@@ -518,3 +554,12 @@ fn sorted(mut v: Vec<String>) -> Vec<String> {
     v.sort();
     v
 }
+
+/// The deepest a chain of component instances may be (a component using a component …):
+/// far beyond any instrument, and a bound on the recursion of [`Lowerer::declare_scope`].
+pub const MAX_COMPONENT_DEPTH: usize = 64;
+
+/// The most scopes (the instrument and its component instances, at every depth) one
+/// instrument may have. A component that uses another twice doubles the count per level,
+/// so depth alone does not bound it.
+pub const MAX_INSTANCES: usize = 4096;
