@@ -56,10 +56,11 @@ use std::fmt;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
-/// Largest number of samples a stimulus may have (2²⁸ ≈ 268 M, 100 minutes at 44.1 kHz), so
-/// that a typo in a sample rate or a time column is an error instead of an out-of-memory
-/// abort.
-pub const MAX_SAMPLES: usize = 1 << 28;
+/// Largest number of samples a stimulus may have (2²⁵ ≈ 33.5 M, 12.7 minutes at 44.1 kHz,
+/// 268 MB of f64 per sensor), so that a typo in a sample rate or a time column (a
+/// three-line CSV spanning 6000 s) is an error instead of an out-of-memory abort; the trace
+/// of a simulation is bounded on its own (`tactus_compiler::sim::MAX_TRACE_VALUES`).
+pub const MAX_SAMPLES: usize = 1 << 25;
 
 /// Full key dip of a grand piano key at the key front, metres (≈ 10 mm; DESIGN.md "Reference
 /// numbers", piano-action literature).
