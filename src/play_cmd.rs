@@ -331,7 +331,14 @@ type Traces = BTreeMap<u8, TraceRows>;
 
 fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let mut perf = match &args.performance {
-        Some(p) => performance::read_midi(p).map_err(|e| e.to_string())?,
+        Some(p) => {
+            let (perf, warnings) =
+                performance::read_midi_reporting(p).map_err(|e| e.to_string())?;
+            for w in warnings {
+                eprintln!("warning: {w}");
+            }
+            perf
+        }
         None => performance::demo(),
     };
     if let Some(s) = args.seconds {
@@ -339,6 +346,10 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             return Err(format!("--seconds must be a positive number, got {s}"));
         }
         perf.notes.retain(|n| n.on_s < s);
+        // `--seconds` bounds the simulated time: a note still held at `s` is released there.
+        for n in &mut perf.notes {
+            n.off_s = n.off_s.min(s);
+        }
         perf.duration_s = perf.duration_s.min(s);
         if perf.notes.is_empty() {
             return Err(format!(
