@@ -174,7 +174,7 @@ fn check_chunks(bytes: &[u8], name: &str) -> Result<Vec<String>, MidiError> {
             return Err(bad("the header's division is 0 ticks per quarter note".into()));
         }
     } else {
-        let fps = -((division >> 8) as u8 as i8) as i32;
+        let fps = -i32::from((division >> 8) as u8 as i8);
         if ![24, 25, 29, 30].contains(&fps) || division & 0xFF == 0 {
             return Err(bad(format!(
                 "the header's SMPTE division ({fps} frames/s, {} subframes) is not valid",
