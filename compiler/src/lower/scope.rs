@@ -408,6 +408,9 @@ impl<'a> Lowerer<'a> {
                         continue;
                     }
                     if self.scopes.len() >= MAX_INSTANCES {
+                        if self.diags.iter().any(|d| d.code == "E0136") {
+                            continue;
+                        }
                         self.err(
                             Diagnostic::error(
                                 "E0136",
