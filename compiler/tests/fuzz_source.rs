@@ -23,6 +23,26 @@ const TOKENS: &[&[u8]] = &[
     b"d(", b"d2(", b"solve x in [0 m, 1 m] { start = 0 m residual = x iterations = 16 }",
 ];
 
+const LINES: &[&[u8]] = &[
+    b"    force g = 1 N\n", b"    param q = 0 N/m / 0\n", b"    let z = key * key * key\n",
+    b"    for i in 0..4096 { let w[i] = 1 N }\n", b"    state s2: m = 0 mm in [0 mm, 1 mm]\n",
+    b"    dynamics { s2' = 1e12 m/s }\n", b"    force h = exp(1000) * 1 N\n", b"    require 1 < 0\n",
+    b"    output o = key / (key - key)\n", b"    on key > 1 mm { emit e(v = 1 m/s) }\n",
+];
+
+const NUMBERS: &[&[u8]] = &[
+    b"0", b"1e309", b"1e-320", b"4096", b"65536", b"9223372036854775807", b"1e12", b"0.0", b"17", b"2",
+];
+
+fn error_cases() -> usize {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/errors");
+    std::fs::read_dir(dir)
+        .unwrap()
+        .filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|e| e == "tactus"))
+        .count()
+}
+
+/// The shipped instruments first, then the error cases.
 fn seeds() -> Vec<Vec<u8>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut out = Vec::new();
@@ -48,7 +68,13 @@ fn mutated_sources_compile_or_give_diagnostics() {
         failure_persistence: None,
         ..PtConfig::default()
     });
-    let strategy = (0..seeds.len(), fuzz::edits(TOKENS));
+    // Half the cases edit bytes (mostly syntax errors), half keep lines whole (mostly
+    // programs that get through parsing into expansion, lowering and the interpreter).
+    let instruments = seeds.len() - error_cases();
+    let strategy = prop_oneof![
+        (0..seeds.len(), fuzz::edits(TOKENS)),
+        (0..instruments, fuzz::line_edits(LINES, NUMBERS)),
+    ];
     let compiled = Cell::new(0u32);
     let run = Cell::new(0u32);
     runner

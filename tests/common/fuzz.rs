@@ -72,6 +72,10 @@ pub enum Edit {
     Word(usize, u32, bool),
     /// Cut the input here.
     Truncate(usize),
+    /// Insert bytes at the start of the line holding a position (keeps declarations whole).
+    InsertLine(usize, Vec<u8>),
+    /// Replace a number (the digits at or after a position) by other digits.
+    Number(usize, Vec<u8>),
 }
 
 /// Extreme words that sizes, counts and offsets meet.
@@ -88,6 +92,20 @@ pub fn edits(tokens: &'static [&'static [u8]]) -> impl Strategy<Value = Vec<Edit
         1 => any::<usize>().prop_map(Edit::Truncate),
     ];
     prop::collection::vec(edit, 1..6)
+}
+
+/// A strategy of edits that mostly keep a source well-formed: whole lines inserted (from
+/// `lines`), numbers replaced (from `numbers`), lines repeated.
+pub fn line_edits(
+    lines: &'static [&'static [u8]],
+    numbers: &'static [&'static [u8]],
+) -> impl Strategy<Value = Vec<Edit>> {
+    let edit = prop_oneof![
+        3 => (any::<usize>(), prop::sample::select(lines)).prop_map(|(p, t)| Edit::InsertLine(p, t.to_vec())),
+        3 => (any::<usize>(), prop::sample::select(numbers)).prop_map(|(p, t)| Edit::Number(p, t.to_vec())),
+        1 => (any::<usize>(), 1usize..80, 1usize..50).prop_map(|(p, l, t)| Edit::Repeat(p, l, t)),
+    ];
+    prop::collection::vec(edit, 1..4)
 }
 
 /// Applies `edits` to `seed`; the result is at most a few hundred KB longer.
@@ -128,6 +146,21 @@ pub fn apply(seed: &[u8], edits: &[Edit]) -> Vec<u8> {
                 }
             }
             Edit::Truncate(p) => v.truncate(p % n),
+            Edit::InsertLine(p, bytes) => {
+                let at = (p % n).min(v.len());
+                let s = v[..at].iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+                v.splice(s..s, bytes.iter().copied());
+            }
+            Edit::Number(p, digits) => {
+                let at = (p % n).min(v.len());
+                if let Some(s) = v[at..].iter().position(u8::is_ascii_digit).map(|i| at + i) {
+                    let e = v[s..]
+                        .iter()
+                        .position(|b| !(b.is_ascii_digit() || *b == b'.'))
+                        .map_or(v.len(), |i| s + i);
+                    v.splice(s..e, digits.iter().copied());
+                }
+            }
         }
     }
     v

@@ -110,6 +110,9 @@ struct Lowerer<'a> {
     components: HashMap<&'a str, &'a ast::Body>,
     prog: Program,
     diags: Vec<Diagnostic>,
+    /// Spans already reported as unknown names (E0201): a name in a loop body is looked up
+    /// once per index, but reported once.
+    unknown_reported: HashSet<Span>,
     scopes: Vec<Scope<'a>>,
     params: Vec<ParamInfo<'a>>,
     defs: Vec<DefInfo<'a>>,
@@ -147,6 +150,7 @@ impl<'a> Lowerer<'a> {
                 force_axes: vec![],
             },
             diags: vec![],
+            unknown_reported: HashSet::new(),
             scopes: vec![],
             params: vec![],
             defs: vec![],

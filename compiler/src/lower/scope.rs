@@ -482,6 +482,11 @@ impl<'a> Lowerer<'a> {
         if let Some((s, _)) = self.scopes[scope.0].syms.get(&name.node) {
             return Some(*s);
         }
+        // A name inside a loop is looked up once per index: report (and search for a
+        // suggestion among thousands of names) once per place, not once per index.
+        if !self.unknown_reported.insert(name.span.clone()) {
+            return None;
+        }
         let names: Vec<String> = self.scopes[scope.0].syms.keys().cloned().collect();
         let mut d = Diagnostic::error(
             "E0201",
