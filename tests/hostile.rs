@@ -234,3 +234,21 @@ fn class_8_corrupt_midi_and_csv_are_named() {
     let f = write(&dir, "bom.tactus", format!("\u{feff}{KEY}    force f = key * 1 N/m\n}}\n"));
     expect(&["check", &f], 0, "well-formed");
 }
+
+#[test]
+fn class_5_unstable_mass_spring_is_diagnosed() {
+    let dir = temp_dir("hostile-5");
+    let out = dir.display().to_string();
+    // 1e12 N/m on 10 g: ω·T ≈ 227 at 44.1 kHz. Used to pass `check` and `sim` silently.
+    let src = "instrument t {\n    sensor key: m in [0 mm, 10 mm]\n    param k = 1e12 N/m\n    param m = 10 g\n    state x: m = 0 mm in [-10 mm, 10 mm]\n    state v: m/s = 0 m/s in [-10 m/s, 10 m/s]\n    let spring = k * (key - x)\n    dynamics {\n        x' = v\n        v' = spring / m\n    }\n    force f = k * (x - key)\n}\n";
+    let f = write(&dir, "osc.tactus", src);
+    let err = expect(&["check", &f], 0, "W0003");
+    assert!(err.contains("ω·T = 226.757"), "{err}");
+    // The states sit on their range bounds: `sim` says so.
+    let err = expect(&["sim", &f, "--out", &out], 0, "was saturated");
+    assert!(err.contains("W0003"), "{err}");
+    // A stiffness the sample rate can integrate gives no warning.
+    let ok = write(&dir, "ok.tactus", src.replace("1e12 N/m", "100 N/m"));
+    let err = expect(&["check", &ok], 0, "well-formed");
+    assert!(!err.contains("W0003"), "{err}");
+}
