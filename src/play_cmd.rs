@@ -819,6 +819,10 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The most samples one `--engine emu` run may cover (2²⁶, 25 minutes at 44.1 kHz; the
+/// per-sample cycles of two cores then take 1 GiB).
+const MAX_EMU_SAMPLES: usize = 1 << 26;
+
 /// What the emulated board reported over a run.
 struct EmuReport {
     board: String,
@@ -877,6 +881,15 @@ fn emu_strikes(
 ) -> Result<(Vec<Strike>, EmuReport, Traces), String> {
     use tactus_firmware::image::{assign_cores, compile_layout, key_specs, FirmwareImage};
     let (end, fs) = (opts.end, opts.fs);
+    // The run keeps every sample's cycles per core: bound it before allocating (a stray
+    // event hours into the file would otherwise ask for tens of GB).
+    if end > MAX_EMU_SAMPLES {
+        return Err(format!(
+            "--engine emu: the piece is {:.1} s long, more than the {:.0} s ({MAX_EMU_SAMPLES} samples) one emulated run may keep; play a part of it with --seconds",
+            end as f64 / fs,
+            MAX_EMU_SAMPLES as f64 / fs
+        ));
+    }
     let board = crate::budget_cmd::board_named(opts.board)?;
     let source = |name: &str| source::load(name).map(|s| s.text);
     let (programs, key_programs) =
@@ -1119,6 +1132,14 @@ fn write_wav(path: &Path, strikes: &[Strike], perf: &Performance, fs: f64) -> Re
         .iter()
         .map(|s| s.time_s)
         .fold(perf.duration_s, f64::max);
+    let wanted = (last + 2.0) * fs;
+    if !(wanted <= voice::MAX_RENDER_SAMPLES as f64) {
+        return Err(format!(
+            "{}: the piece is {last:.1} s long, more than the {:.0} s a WAV rendering may have; use --no-wav or --seconds",
+            path.display(),
+            voice::MAX_RENDER_SAMPLES as f64 / fs - 2.0
+        ));
+    }
     let samples = voice::render(&notes, last + 2.0, fs);
     let scale = voice::i16_scale(&samples, 0.9);
     let spec = hound::WavSpec {

@@ -161,6 +161,20 @@ fn class_3_play_seconds_bounds_the_simulated_time() {
         );
         assert!(err.contains("held longer than 120 s"), "{err}");
     }
+    // Two short notes 0x0FFFFFFF ticks (≈ 77 hours) apart, without --seconds: the emulated
+    // run and the WAV would have allocated for the whole gap; now each says what to do.
+    let f = write(
+        &dir,
+        "gap.mid",
+        midi(
+            0,
+            1,
+            480,
+            &[(0, &[0x90, 60, 100]), (480, &[0x80, 60, 0]), (0x0FFF_FFFF, &[0x90, 62, 100]), (480, &[0x80, 62, 0])],
+        ),
+    );
+    expect(&["play", &f, "--engine", "emu", "--out", &out, "--no-wav"], 1, "--seconds");
+    expect(&["play", &f, "--out", &out], 1, "WAV rendering");
 }
 
 #[test]

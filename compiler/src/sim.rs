@@ -471,7 +471,8 @@ impl fmt::Display for SensorStimulusError {
             }
             E::TooLong { source, samples } => write!(
                 f,
-                "stimulus `{source}` would have {samples:.0} samples, more than the limit of {MAX_SAMPLES} (or more than {MAX_TRACE_VALUES} values over all its sensors)"
+                "stimulus `{source}` would have {} samples, more than the limit of {MAX_SAMPLES} (or more than {MAX_TRACE_VALUES} values over all its sensors)",
+                if *samples < 1e15 { format!("{samples:.0}") } else { format!("{samples:.3e}") }
             ),
             E::TooLarge { path, bytes } => write!(
                 f,
@@ -986,7 +987,15 @@ pub fn gesture(
         }
     }
     let mut notes = Vec::new();
-    let mm = |x: f64| format!("{:.3}", x * 1e3);
+    // Plain millimetres, or scientific notation for a value no key could reach.
+    let mm = |x: f64| {
+        let v = x * 1e3;
+        if v.abs() < 1e9 {
+            format!("{v:.3}")
+        } else {
+            format!("{v:.3e}")
+        }
+    };
     let (p, r) = (sensors[iz].range, sensors[ix].range);
     let width = r.1 - r.0;
     let depth = match config.depth_m {

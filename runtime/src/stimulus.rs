@@ -238,8 +238,13 @@ impl fmt::Display for StimulusError {
             ),
             StimulusError::TooLong { source, samples } => write!(
                 f,
-                "stimulus `{source}` would have {samples:.0} samples, more than the limit of \
-                 {MAX_SAMPLES} (check the sample rate and the times)"
+                "stimulus `{source}` would have {} samples, more than the limit of \
+                 {MAX_SAMPLES} (check the sample rate and the times)",
+                if *samples < 1e15 {
+                    format!("{samples:.0}")
+                } else {
+                    format!("{samples:.3e}")
+                }
             ),
             StimulusError::Io { path, source } => {
                 write!(f, "{}: cannot read stimulus: {source}", path.display())
