@@ -640,6 +640,17 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                 Motion::Finger(p) => (finger_player.x_m, p.force(time)),
             };
             let s = engine.step(x);
+            // The f64 engines can lose the program's meaning (a division by zero, an
+            // overflow): stop at the first such sample rather than play NaN.
+            if !s.force_n.is_finite() || s.strike_mps.is_some_and(|v| !v.is_finite()) {
+                return Err(format!(
+                    "key {}: the simulation computed a non-finite value at sample {} (t = {time:.6} s): force {} N, strike speed {:?} m/s",
+                    job.key,
+                    job.first + i,
+                    s.force_n,
+                    s.strike_mps
+                ));
+            }
             if let Motion::Finger(_) = motions[job.motion] {
                 finger_player.step(push, s.force_n);
             }

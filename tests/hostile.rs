@@ -198,6 +198,22 @@ fn class_4_non_finite_values_are_errors() {
     for engine in ["interp", "jit"] {
         expect(&["sim", &f, "--engine", engine, "--out", &out], 1, "is inf at sample");
     }
+    // The same in `play`, on an instrument that strikes.
+    let f = write(
+        &dir,
+        "rtplay.tactus",
+        format!("{KEY}    force f = 1 N * exp(key / 1 um)
+    on key > 5 mm {{ emit strike(v = 1 m/s) }}
+}}
+"),
+    );
+    for engine in ["interp", "jit"] {
+        expect(
+            &["play", "--instrument", &f, "--engine", engine, "--seconds", "1", "--out", &out, "--no-wav"],
+            1,
+            "non-finite value at sample",
+        );
+    }
 }
 
 #[test]
