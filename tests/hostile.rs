@@ -14,7 +14,7 @@ use std::process::Output;
 fn bounded(args: &[&str]) -> Output {
     let mut script = String::from("ulimit -v 4000000; exec timeout 60 \"$0\"");
     for i in 0..args.len() {
-        script.push_str(&format!(" \"${}\"", i + 1));
+        script.push_str(&format!(" \"${{{}}}\"", i + 1));
     }
     std::process::Command::new("sh")
         .arg("-c")
