@@ -95,6 +95,25 @@ fn class_2_sizes_from_input_are_checked_before_allocation() {
         format!("{KEY}    for i in 0..4096 {{\n        for j in 0..4096 {{\n            let a[i * 4096 + j] = key\n        }}\n    }}\n    force f = key * 1 N/m\n}}\n"),
     );
     expect(&["check", &f], 1, "E0137");
+    // A component of 12,000 nodes instanced 4096 times (each level uses the one below
+    // twice): within the instance count, but 50 M nodes of IR.
+    let mut src = String::from("component c0 {\n    input x: m\n    force f = sum(i in 0..4096, x * 1 N/m)\n}\n");
+    for i in 1..13 {
+        src.push_str(&format!(
+            "component c{i} {{\n    input x: m\n    use a = c{p}(x = x)\n    use b = c{p}(x = x)\n}}\n",
+            p = i - 1
+        ));
+    }
+    src.push_str("instrument t {\n    sensor key: m in [0 mm, 10 mm]\n    use a = c12(x = key)\n}\n");
+    let f = write(&dir, "wide.tactus", &src);
+    expect(&["check", &f], 1, "E0136");
+    // Empty loops nested three deep (no declarations to charge, 68 G iterations).
+    let f = write(
+        &dir,
+        "empty.tactus",
+        format!("{KEY}    for i in 0..4096 {{ for j in 0..4096 {{ for k in 0..4096 {{ }} }} }}\n    force f = key * 1 N/m\n}}\n"),
+    );
+    expect(&["check", &f], 1, "E0137");
     // A three-line CSV spanning 6000 s.
     let csv = write(&dir, "long.csv", "time_s,key_mm\n0,0\n6000,5\n");
     expect(&["sim", "hammond", "--stimulus", &csv, "--out", &dir.display().to_string()], 1, "limit");

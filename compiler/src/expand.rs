@@ -327,7 +327,8 @@ impl Expander<'_, '_> {
                     return;
                 };
                 for i in lo..hi {
-                    if !self.charge(decls.len(), &range.span) {
+                    // At least one per index: empty loops nested 4096 deep cost time too.
+                    if !self.charge(decls.len().max(1), &range.span) {
                         return;
                     }
                     self.env.push((var.node.clone(), i));

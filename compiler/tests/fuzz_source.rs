@@ -75,12 +75,15 @@ fn mutated_sources_compile_or_give_diagnostics() {
         (0..seeds.len(), fuzz::edits(TOKENS)),
         (0..instruments, fuzz::line_edits(LINES, NUMBERS)),
     ];
+    let last = std::env::temp_dir().join("tactus-fuzz-source-last.tactus");
     let compiled = Cell::new(0u32);
     let run = Cell::new(0u32);
     runner
         .run(&strategy, |(seed, edits)| {
             let bytes = fuzz::apply(&seeds[seed], &edits);
             let src = String::from_utf8_lossy(&bytes).into_owned();
+            // The case being run, for a case that ends the process (abort, kill).
+            let _ = std::fs::write(&last, &src);
             let (ok, dt, peak) = fuzz::measured(|| {
                 match tactus_compiler::compile(&src, &Config::default()) {
                     Ok(l) => {

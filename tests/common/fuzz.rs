@@ -16,11 +16,20 @@ use std::time::{Duration, Instant};
 /// The system allocator, counting live bytes and their peak.
 pub struct PeakAlloc;
 
+/// The most live heap a harness may hold, bytes: the CLI's `ulimit -v 4000000` less room
+/// for code and stacks.
+pub const HEAP_CAP: usize = 3 << 30;
+
 static LIVE: AtomicUsize = AtomicUsize::new(0);
 static PEAK: AtomicUsize = AtomicUsize::new(0);
 
 unsafe impl GlobalAlloc for PeakAlloc {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        // Over the cap a case has failed its memory bound: refuse (the process aborts
+        // naming the size) rather than let the machine's OOM killer end it unnamed.
+        if LIVE.load(Ordering::Relaxed).saturating_add(layout.size()) > HEAP_CAP {
+            return std::ptr::null_mut();
+        }
         let p = unsafe { System.alloc(layout) };
         if !p.is_null() {
             let now = LIVE.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();

@@ -113,6 +113,9 @@ struct Lowerer<'a> {
     /// Spans already reported as unknown names (E0201): a name in a loop body is looked up
     /// once per index, but reported once.
     unknown_reported: HashSet<Span>,
+    /// AST nodes instanced so far (each component instance adds its body's), against
+    /// [`scope::MAX_INSTANCED_NODES`].
+    instanced: usize,
     scopes: Vec<Scope<'a>>,
     params: Vec<ParamInfo<'a>>,
     defs: Vec<DefInfo<'a>>,
@@ -151,6 +154,7 @@ impl<'a> Lowerer<'a> {
             },
             diags: vec![],
             unknown_reported: HashSet::new(),
+            instanced: 0,
             scopes: vec![],
             params: vec![],
             defs: vec![],

@@ -407,6 +407,21 @@ impl<'a> Lowerer<'a> {
                         );
                         continue;
                     }
+                    self.instanced = self.instanced.saturating_add(body_weight(comp));
+                    if self.instanced > MAX_INSTANCED_NODES {
+                        if self.diags.iter().any(|d| d.code == "E0136") {
+                            continue;
+                        }
+                        self.err(
+                            Diagnostic::error(
+                                "E0136",
+                                format!("the component instances hold more than {MAX_INSTANCED_NODES} declarations and expression nodes"),
+                                span.clone(),
+                            )
+                            .hint("every instance is code of its own; a large component used many times multiplies"),
+                        );
+                        continue;
+                    }
                     if self.scopes.len() >= MAX_INSTANCES {
                         if self.diags.iter().any(|d| d.code == "E0136") {
                             continue;
@@ -571,3 +586,48 @@ pub const MAX_COMPONENT_DEPTH: usize = 64;
 /// instrument may have. A component that uses another twice doubles the count per level,
 /// so depth alone does not bound it.
 pub const MAX_INSTANCES: usize = 4096;
+
+/// The most AST nodes (declarations and expression nodes, after expansion) all component
+/// instances of one instrument may hold together: [`MAX_INSTANCES`] bounds the count, this
+/// their size (4096 instances of a 28,000-node body would be 115 M nodes of IR).
+pub const MAX_INSTANCED_NODES: usize = 1 << 20;
+
+/// The size of `body` in declarations and expression nodes (an explicit stack: a chain of
+/// 4096 additions is 4096 deep).
+fn body_weight(body: &ast::Body) -> usize {
+    use ast::ExprKind as K;
+    let mut stack: Vec<&ast::Expr> = Vec::new();
+    let mut n = body.decls.len();
+    for d in &body.decls {
+        match d {
+            ast::Decl::Param { value, .. }
+            | ast::Decl::Let { value, .. }
+            | ast::Decl::Force { value, .. }
+            | ast::Decl::Output { value, .. } => stack.push(value),
+            ast::Decl::State { init, .. } => stack.push(init),
+            ast::Decl::Dynamics { eqs, .. } => stack.extend(eqs.iter().map(|e| &e.rhs)),
+            ast::Decl::Handler { cond, body, .. } => {
+                stack.push(cond);
+                for s in body {
+                    match s {
+                        ast::Stmt::Assign { value, .. } => stack.push(value),
+                        ast::Stmt::Emit { args, .. } => stack.extend(args.iter().map(|(_, e)| e)),
+                    }
+                }
+            }
+            ast::Decl::Use { args, .. } => stack.extend(args.iter().map(|(_, e)| e)),
+            _ => {}
+        }
+    }
+    while let Some(e) = stack.pop() {
+        n += 1;
+        match &e.node {
+            K::Neg(a) | K::Not(a) | K::Pow(a, _) => stack.push(a),
+            K::Binary(_, a, b) => stack.extend([&**a, &**b]),
+            K::Call(_, args) => stack.extend(args.iter()),
+            K::If(c, a, b) => stack.extend([&**c, &**a, &**b]),
+            _ => {}
+        }
+    }
+    n
+}
