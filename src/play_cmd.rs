@@ -323,7 +323,14 @@ use tactus_firmware::perform::{Motion, TraceRows, Traces};
 
 fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let mut perf = match &args.performance {
-        Some(p) => performance::read_midi(p).map_err(|e| e.to_string())?,
+        Some(p) => {
+            let (perf, warnings) =
+                performance::read_midi_reporting(p).map_err(|e| e.to_string())?;
+            for w in warnings {
+                eprintln!("warning: {w}");
+            }
+            perf
+        }
         None => performance::demo(),
     };
     if let Some(s) = args.seconds {
@@ -331,6 +338,10 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             return Err(format!("--seconds must be a positive number, got {s}"));
         }
         perf.notes.retain(|n| n.on_s < s);
+        // `--seconds` bounds the simulated time: a note still held at `s` is released there.
+        for n in &mut perf.notes {
+            n.off_s = n.off_s.min(s);
+        }
         perf.duration_s = perf.duration_s.min(s);
         if perf.notes.is_empty() {
             return Err(format!(
@@ -630,6 +641,17 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                 Motion::Finger(p) => (finger_player.x_m, p.force(time)),
             };
             let s = engine.step(x);
+            // The f64 engines can lose the program's meaning (a division by zero, an
+            // overflow): stop at the first such sample rather than play NaN.
+            if !s.force_n.is_finite() || s.strike_mps.is_some_and(|v| !v.is_finite()) {
+                return Err(format!(
+                    "key {}: the simulation computed a non-finite value at sample {} (t = {time:.6} s): force {} N, strike speed {:?} m/s",
+                    job.key,
+                    job.first + i,
+                    s.force_n,
+                    s.strike_mps
+                ));
+            }
             if let Motion::Finger(_) = motions[job.motion] {
                 finger_player.step(push, s.force_n);
             }
@@ -862,6 +884,11 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The most samples one `--engine emu` run may cover (2²⁶, 25 minutes at 44.1 kHz): a bound
+/// on the work a stray event hours into a file could ask for (the run's own records are
+/// decimated, `tactus_firmware::perform::MAX_POINTS` per board).
+const MAX_EMU_SAMPLES: usize = 1 << 26;
+
 /// What the emulated boards reported over a run.
 struct EmuReport {
     board: String,
@@ -910,7 +937,15 @@ fn emu_strikes(
     opts: &EmuOptions,
     bar: &ProgressBar,
 ) -> Result<(Vec<Strike>, EmuReport, Traces), String> {
-    let fs = opts.fs;
+    let (end, fs) = (opts.end, opts.fs);
+    // Bound the work before compiling anything (a stray event hours into the file).
+    if end > MAX_EMU_SAMPLES {
+        return Err(format!(
+            "--engine emu: the piece is {:.1} s long, more than the {:.0} s ({MAX_EMU_SAMPLES} samples) one emulated run may keep; play a part of it with --seconds",
+            end as f64 / fs,
+            MAX_EMU_SAMPLES as f64 / fs
+        ));
+    }
     let board = crate::budget_cmd::board_named(opts.board)?;
     let source = |name: &str| source::load(name).map(|s| s.text);
     let (programs, key_programs) = tactus_firmware::image::compile_layout(all, &source, fs)
@@ -1060,6 +1095,14 @@ fn write_wav(path: &Path, strikes: &[Strike], perf: &Performance, fs: f64) -> Re
         .iter()
         .map(|s| s.time_s)
         .fold(perf.duration_s, f64::max);
+    let wanted = (last + 2.0) * fs;
+    if !(wanted <= voice::MAX_RENDER_SAMPLES as f64) {
+        return Err(format!(
+            "{}: the piece is {last:.1} s long, more than the {:.0} s a WAV rendering may have; use --no-wav or --seconds",
+            path.display(),
+            voice::MAX_RENDER_SAMPLES as f64 / fs - 2.0
+        ));
+    }
     let samples = voice::render(&notes, last + 2.0, fs);
     let scale = voice::i16_scale(&samples, 0.9);
     let spec = hound::WavSpec {

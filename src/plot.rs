@@ -508,6 +508,11 @@ fn padded_range(values: impl Iterator<Item = f64>) -> Range<f64> {
     if lo > hi {
         return 0.0..1.0;
     }
+    // Values near ±f64::MAX would make the width and the padding overflow to ∞, on which
+    // plotters' tick search never ends: the drawn range stops at ±MAX/4 (a line beyond it
+    // is clipped), so width and padding stay finite.
+    const LIMIT: f64 = f64::MAX / 4.0;
+    let (lo, hi) = (lo.clamp(-LIMIT, LIMIT), hi.clamp(-LIMIT, LIMIT));
     let pad = if hi > lo {
         0.05 * (hi - lo)
     } else {
@@ -770,6 +775,24 @@ mod tests {
         let points: usize = runs.iter().map(Vec::len).sum();
         assert!(points <= MAX_POINTS_PER_SERIES, "{points} points");
         assert!(runs.iter().flatten().any(|&p| p == (54_321.0, 7.0)));
+    }
+
+    #[test]
+    fn values_near_the_f64_limits_plot_in_bounded_time() {
+        // Used to hang inside plotters: the padded range overflowed to ±∞.
+        let mut trace = Trace::new(44_100.0);
+        trace.add_column("time", "s", ColumnKind::Time);
+        trace.add_column("key", "m", ColumnKind::Sensor);
+        trace.add_column("f", "N", ColumnKind::Force);
+        trace.add_column("total", "N", ColumnKind::TotalForce);
+        for (i, f) in [f64::MAX, -f64::MAX, 1e300, f64::INFINITY, f64::NAN].iter().enumerate() {
+            trace.push_row(&[i as f64, 1e-3 * i as f64, *f, *f]).unwrap();
+        }
+        let path = temp_svg("huge");
+        let r = padded_range([f64::MAX, -f64::MAX].into_iter());
+        assert!(r.start.is_finite() && r.end.is_finite() && (r.end - r.start).is_finite());
+        plot_forces(&trace, "huge", &path).unwrap();
+        assert!(std::fs::metadata(&path).unwrap().len() > 0);
     }
 
     #[test]

@@ -385,6 +385,16 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     for note in &stim.notes {
         eprintln!("warning: {note}");
     }
+    let values = tactus_compiler::sim::trace_values(program, stim.len());
+    if values > tactus_compiler::sim::MAX_TRACE_VALUES {
+        return Err(format!(
+            "{}: {} samples × {} trace columns is {values} values, more than the {} a trace may hold; shorten the stimulus",
+            stim.name,
+            stim.len(),
+            columns.columns.len(),
+            tactus_compiler::sim::MAX_TRACE_VALUES
+        ));
+    }
     let (trace, summary) = match (args.numeric, args.engine) {
         (Numeric::F64, EngineKind::Interp) => {
             tactus_compiler::sim::simulate_sensors(program, &stim)
@@ -425,6 +435,16 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     );
     let csv = args.out.join(format!("{stem}.csv"));
     trace.write_csv_file(&csv).map_err(|e| e.to_string())?;
+    // A NaN or ∞ means the run lost the program's meaning (the fixed engines saturate, so
+    // this is the f64 engines'): keep the CSV to look at, plot nothing, fail.
+    if let Some((column, n, v)) = tactus_compiler::sim::first_non_finite(&trace) {
+        return Err(format!(
+            "{title}: `{column}` is {v} at sample {n} (t = {:.6} s): the simulation computed a non-finite value (a division by zero, an overflow or an unstable scheme); the trace up to there is in {}",
+            n as f64 / fs,
+            csv.display(),
+            title = format!("{} — {}", program.name, stim.name),
+        ));
+    }
     let title = format!("{} — {}", program.name, stim.name);
     let forces_svg = args.out.join(format!("{stem}-forces.svg"));
     plot::plot_forces(&trace, &title, &forces_svg).map_err(|e| e.to_string())?;

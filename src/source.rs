@@ -1,5 +1,10 @@
 //! Loading instrument sources: files on disk, or the instruments built into the binary so
 //! that `tactus sim` works on a fresh machine from any directory.
+//!
+//! A built-in is chosen only by its bare name (`grand_piano`: letters, digits and `_`, no
+//! directory, no extension). A path that does not exist is an error naming it, never a
+//! silent substitution of the built-in with the same file stem. A file is read only when it
+//! is at most [`MAX_SOURCE_BYTES`] long.
 
 use std::path::Path;
 
@@ -40,10 +45,31 @@ pub struct Source {
     pub text: String,
 }
 
-/// Reads `arg` as a path, or as the name of a built-in instrument when no such file exists.
+/// The largest instrument source read, in bytes: far beyond any hand-written profile (the
+/// shipped ones are a few KB); a bound on what a mistaken path can make the compiler hold.
+pub const MAX_SOURCE_BYTES: u64 = 16 << 20;
+
+/// Whether `arg` is a bare name (`grand_piano`), the only way to ask for a built-in.
+pub fn is_bare_name(arg: &str) -> bool {
+    !arg.is_empty() && arg.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_')
+}
+
+/// Reads `arg` as a path, or as the name of a built-in instrument when it is a bare name
+/// and no such file exists.
+///
+/// Errors (naming `arg`): a path that does not exist, a file larger than
+/// [`MAX_SOURCE_BYTES`] or not UTF-8, a bare name that is neither a file nor a built-in.
 pub fn load(arg: &str) -> Result<Source, String> {
     let path = Path::new(arg);
     if path.exists() {
+        let len = std::fs::metadata(path)
+            .map_err(|e| format!("cannot read `{arg}`: {e}"))?
+            .len();
+        if len > MAX_SOURCE_BYTES {
+            return Err(format!(
+                "`{arg}` is {len} bytes, more than the {MAX_SOURCE_BYTES} an instrument source may have"
+            ));
+        }
         return std::fs::read_to_string(path)
             .map(|text| Source {
                 name: arg.to_string(),
@@ -51,23 +77,22 @@ pub fn load(arg: &str) -> Result<Source, String> {
             })
             .map_err(|e| format!("cannot read `{arg}`: {e}"));
     }
-    let stem = arg.trim_end_matches(".tactus");
-    let stem = Path::new(stem)
-        .file_name()
-        .and_then(|s| s.to_str())
-        .unwrap_or(stem);
-    match BUILTIN_INSTRUMENTS.iter().find(|(n, _)| *n == stem) {
+    let names: Vec<&str> = BUILTIN_INSTRUMENTS.iter().map(|(n, _)| *n).collect();
+    if !is_bare_name(arg) {
+        return Err(format!(
+            "no file `{arg}` (built-in instruments are named bare, without a directory or extension: {})",
+            names.join(", ")
+        ));
+    }
+    match BUILTIN_INSTRUMENTS.iter().find(|(n, _)| *n == arg) {
         Some((n, text)) => Ok(Source {
             name: format!("builtin:{n}"),
             text: text.to_string(),
         }),
-        None => {
-            let names: Vec<&str> = BUILTIN_INSTRUMENTS.iter().map(|(n, _)| *n).collect();
-            Err(format!(
-                "no file `{arg}`, and no built-in instrument of that name (built-ins: {})",
-                names.join(", ")
-            ))
-        }
+        None => Err(format!(
+            "no file `{arg}`, and no built-in instrument of that name (built-ins: {})",
+            names.join(", ")
+        )),
     }
 }
 

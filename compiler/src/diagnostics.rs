@@ -103,10 +103,52 @@ pub fn emit(
     let file = SimpleFile::new(file_name, source);
     let config = term::Config::default();
     for d in diagnostics {
-        term::emit_to_write_style(out, &config, &file, &d.to_codespan())
-            .map_err(std::io::Error::other)?;
+        let cs = match long_line(source, d) {
+            // Rendering a megabyte-long line (and a caret line as long) takes minutes and
+            // shows nothing readable: name the place instead.
+            Some((line, column, len)) => {
+                let mut notes = vec![format!(
+                    "at {file_name}:{line}:{column} (a line of {len} bytes, not shown){}",
+                    if d.primary.1.is_empty() {
+                        String::new()
+                    } else {
+                        format!(": {}", d.primary.1)
+                    }
+                )];
+                notes.extend(d.hint.iter().map(|h| format!("hint: {h}")));
+                let base = match d.severity {
+                    Severity::Error => CsDiagnostic::error(),
+                    Severity::Warning => CsDiagnostic::warning(),
+                };
+                base.with_code(d.code).with_message(&d.message).with_notes(notes)
+            }
+            None => d.to_codespan(),
+        };
+        term::emit_to_write_style(out, &config, &file, &cs).map_err(std::io::Error::other)?;
     }
     Ok(())
+}
+
+/// The longest source line [`emit`] shows under a diagnostic, bytes.
+const MAX_SHOWN_LINE: usize = 4096;
+
+/// (line, column, line length), 1-based, of the first span of `d` whose line is longer than
+/// [`MAX_SHOWN_LINE`].
+fn long_line(source: &str, d: &Diagnostic) -> Option<(usize, usize, usize)> {
+    std::iter::once(&d.primary.0)
+        .chain(d.secondary.iter().map(|(s, _)| s))
+        .find_map(|span| {
+            let mut at = span.start.min(source.len());
+            while !source.is_char_boundary(at) {
+                at -= 1;
+            }
+            let start = source[..at].rfind('\n').map_or(0, |i| i + 1);
+            let end = source[at..].find('\n').map_or(source.len(), |i| at + i);
+            (end - start > MAX_SHOWN_LINE).then(|| {
+                let line = source[..start].matches('\n').count() + 1;
+                (line, source[start..at].chars().count() + 1, end - start)
+            })
+        })
 }
 
 /// Renders diagnostics to a plain string (no colours), for tests and snapshots.

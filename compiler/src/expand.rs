@@ -42,6 +42,25 @@ use std::collections::{HashMap, HashSet};
 /// size (every element is code of its own), far above what fits a Cortex-M0+ at 44.1 kHz.
 pub const MAX_TRIP_COUNT: i64 = 4096;
 
+/// The most AST nodes (declarations and expression nodes) the expansion of one file may
+/// produce, over all its loops, sums, solves and component specialisations together: the
+/// per-loop [`MAX_TRIP_COUNT`] alone lets nested loops multiply (4096 × 4096). The largest
+/// shipped instrument, the bowed strings, produces 28,792.
+pub const MAX_EXPANDED_NODES: usize = 1 << 18;
+
+/// The most component specialisations (distinct whole-number argument sets) one file may
+/// request; a component that uses itself with a growing argument would request them
+/// without end.
+pub const MAX_SPECIALISATIONS: usize = 1024;
+
+/// The largest magnitude an index or loop bound may reach while it is computed (literals
+/// are at most 10⁹ already; this keeps `+ - * /` of them away from i64 overflow).
+const MAX_INDEX: i64 = 1 << 40;
+
+/// The most steps one [`Expander::int`] may take: params defined by params
+/// (`p2 = p1 + p1`, …) would otherwise make it exponential.
+const MAX_INT_STEPS: usize = 1 << 20;
+
 /// The most Newton–Raphson iterations a `solve` may ask for.
 pub const MAX_ITERATIONS: i64 = 16;
 
@@ -61,6 +80,7 @@ pub fn expand(file: &File, overrides: &[(String, String)]) -> Result<File, Vec<D
         components: &components,
         diags: &mut diags,
         requests: Vec::new(),
+        work: Budget::default(),
     };
     let mut items: Vec<TopItem> = file
         .items
@@ -75,6 +95,21 @@ pub fn expand(file: &File, overrides: &[(String, String)]) -> Result<File, Vec<D
     while let Some((spec, comp, args)) = cx.requests.pop() {
         if !done.insert(spec.clone()) {
             continue;
+        }
+        if done.len() > MAX_SPECIALISATIONS {
+            let span = components
+                .get(&comp)
+                .map_or(0..0, |b| b.name.span.clone());
+            cx.diags.push(
+                Diagnostic::error(
+                    "E0138",
+                    format!("more than {MAX_SPECIALISATIONS} specialisations of components"),
+                    span,
+                )
+                .label(format!("`{spec}` is one too many"))
+                .hint("a component used with ever new whole-number arguments (`use a = C(n = n + 1)`) never ends"),
+            );
+            break;
         }
         let Some(body) = components.get(&comp).copied() else {
             continue;
@@ -102,6 +137,16 @@ struct Context<'f, 'd> {
     diags: &'d mut Vec<Diagnostic>,
     /// Component specialisations to expand: (name, component, whole-number params).
     requests: Vec<Request>,
+    /// The nodes produced so far, against [`MAX_EXPANDED_NODES`].
+    work: Budget,
+}
+
+/// Counts the AST nodes the expansion produces; once over [`MAX_EXPANDED_NODES`] it
+/// reports E0137 once (at the span being expanded) and expansion stops producing code.
+#[derive(Default)]
+struct Budget {
+    nodes: usize,
+    over: bool,
 }
 
 impl Context<'_, '_> {
@@ -138,6 +183,8 @@ impl Context<'_, '_> {
             components: self.components,
             requests: &mut self.requests,
             instance_overrides: if rename.is_none() { overrides } else { &[] },
+            work: &mut self.work,
+            int_steps: 0,
         };
         let decls = x.decls(&body.decls);
         x.check_refs();
@@ -232,9 +279,37 @@ struct Expander<'d, 'f> {
     refs: Vec<(String, String, Span)>,
     /// Param-evaluation depth (cycle guard).
     depth: usize,
+    /// The file's expansion budget.
+    work: &'d mut Budget,
+    /// Steps taken by the current [`Expander::int`] (params defined by params can make
+    /// one evaluation exponential).
+    int_steps: usize,
 }
 
 impl Expander<'_, '_> {
+    /// Charges `n` produced nodes to the budget; false (after reporting E0137 once) when
+    /// the budget is spent.
+    fn charge(&mut self, n: usize, span: &Span) -> bool {
+        if self.work.over {
+            return false;
+        }
+        self.work.nodes = self.work.nodes.saturating_add(n);
+        if self.work.nodes > MAX_EXPANDED_NODES {
+            self.work.over = true;
+            self.diags.push(
+                Diagnostic::error(
+                    "E0137",
+                    format!("the expansion produces more than {MAX_EXPANDED_NODES} nodes"),
+                    span.clone(),
+                )
+                .label("the loops, sums or solves that go over the budget")
+                .hint("nested loops and sums multiply: every index is code of its own; use fewer or shorter loops"),
+            );
+            return false;
+        }
+        true
+    }
+
     fn decls(&mut self, decls: &[Decl]) -> Vec<Decl> {
         let mut out = Vec::new();
         for d in decls {
@@ -252,6 +327,10 @@ impl Expander<'_, '_> {
                     return;
                 };
                 for i in lo..hi {
+                    // At least one per index: empty loops nested 4096 deep cost time too.
+                    if !self.charge(decls.len().max(1), &range.span) {
+                        return;
+                    }
                     self.env.push((var.node.clone(), i));
                     for d in decls {
                         self.decl(d, out);
@@ -565,13 +644,13 @@ impl Expander<'_, '_> {
     fn range(&mut self, r: &IndexRange) -> Option<(i64, i64)> {
         let lo = self.int(&r.lo)?;
         let hi = self.int(&r.hi)?;
-        if hi - lo > MAX_TRIP_COUNT {
+        if hi.saturating_sub(lo) > MAX_TRIP_COUNT {
             self.diags.push(
                 Diagnostic::error(
                     "E0121",
                     format!(
                         "{lo}..{hi} has {} indices, more than the {MAX_TRIP_COUNT} a loop may have",
-                        hi - lo
+                        hi.saturating_sub(lo)
                     ),
                     r.span.clone(),
                 )
@@ -583,6 +662,9 @@ impl Expander<'_, '_> {
     }
 
     fn expr(&mut self, e: &Expr) -> Expr {
+        if !self.charge(1, &e.span) {
+            return number(0.0, e.span.clone());
+        }
         let node = match &e.node {
             ExprKind::Number(_) | ExprKind::Bool(_) => return e.clone(),
             ExprKind::Path(p) => {
@@ -802,11 +884,25 @@ impl Expander<'_, '_> {
 
     /// A whole number known at compile time, or `None` after reporting why not.
     fn int(&mut self, e: &Expr) -> Option<i64> {
+        self.int_steps = 0;
+        self.int_inner(e)
+    }
+
+    fn int_inner(&mut self, e: &Expr) -> Option<i64> {
         let bad = |what: String| {
             Diagnostic::error("E0120", what, e.span.clone()).hint(
                 "indices and loop bounds are whole numbers known at compile time: integer literals, loop variables and whole-number params, with + - * / (`u[i + 1]`, `0..N`)",
             )
         };
+        self.int_steps += 1;
+        if self.int_steps > MAX_INT_STEPS {
+            if self.int_steps == MAX_INT_STEPS + 1 {
+                self.diags.push(bad(format!(
+                    "evaluating this index takes more than {MAX_INT_STEPS} steps"
+                )));
+            }
+            return None;
+        }
         let v = match &e.node {
             ExprKind::Number(l) => {
                 if l.dim != Dim::NONE || l.value.fract() != 0.0 || l.value.abs() > 1e9 {
@@ -835,24 +931,33 @@ impl Expander<'_, '_> {
                     return None;
                 }
                 self.depth += 1;
-                let k = self.int(&value);
+                let k = self.int_inner(&value);
                 self.depth -= 1;
                 return k;
             }
-            ExprKind::Neg(a) => -self.int(a)?,
+            ExprKind::Neg(a) => -self.int_inner(a)?,
             ExprKind::Binary(op @ (BinOp::Add | BinOp::Sub | BinOp::Mul | BinOp::Div), a, b) => {
-                let (a, b) = (self.int(a)?, self.int(b)?);
-                match op {
-                    BinOp::Add => a + b,
-                    BinOp::Sub => a - b,
-                    BinOp::Mul => a.saturating_mul(b),
+                let (a, b) = (self.int_inner(a)?, self.int_inner(b)?);
+                let v = match op {
+                    BinOp::Add => a.checked_add(b),
+                    BinOp::Sub => a.checked_sub(b),
+                    BinOp::Mul => a.checked_mul(b),
                     _ => {
                         if b == 0 || a % b != 0 {
                             self.diags
                                 .push(bad(format!("{a} / {b} is not a whole number")));
                             return None;
                         }
-                        a / b
+                        a.checked_div(b)
+                    }
+                };
+                match v {
+                    Some(v) if v.abs() <= MAX_INDEX => v,
+                    _ => {
+                        self.diags.push(bad(format!(
+                            "this index is beyond ±{MAX_INDEX}"
+                        )));
+                        return None;
                     }
                 }
             }

@@ -37,6 +37,8 @@ pub enum LexError {
     BadNumber(String),
     /// A unit exponent that is not a small integer (`m^x`).
     BadExponent(String),
+    /// A number whose value in SI units is not a finite f64 (`1e309`, `1e308 km`).
+    OutOfRange(String),
 }
 
 impl fmt::Display for LexError {
@@ -46,6 +48,9 @@ impl fmt::Display for LexError {
             LexError::UnknownUnit(u) => write!(f, "unknown unit `{u}`"),
             LexError::BadNumber(n) => write!(f, "malformed number `{n}`"),
             LexError::BadExponent(e) => write!(f, "malformed unit exponent `{e}`"),
+            LexError::OutOfRange(n) => {
+                write!(f, "`{n}` is too large: in SI units it is beyond the range of f64")
+            }
         }
     }
 }
@@ -53,7 +58,7 @@ impl fmt::Display for LexError {
 /// The tokens of the Tactus language.
 #[derive(Logos, Clone, Debug, PartialEq)]
 #[logos(error = LexError)]
-#[logos(skip r"[ \t\r\n\f]+")]
+#[logos(skip r"[ \t\r\n\f\u{FEFF}]+")]
 #[logos(skip(r"//[^\n]*", allow_greedy = true))]
 #[allow(missing_docs)]
 pub enum Token {
@@ -263,6 +268,9 @@ fn number(lex: &mut logos::Lexer<Token>) -> Result<Literal, LexError> {
     let gap = rest.len() - rest.trim_start_matches([' ', '\t']).len();
     let after = &rest[gap..];
     let first = word(after);
+    if !value.is_finite() && units::lookup(first).is_none() {
+        return Err(LexError::OutOfRange(digits.to_string()));
+    }
     if first.is_empty() {
         return Ok(Literal {
             value,
@@ -305,6 +313,9 @@ fn number(lex: &mut logos::Lexer<Token>) -> Result<Literal, LexError> {
         }
     }
     lex.bump(consumed);
+    if !value.is_finite() {
+        return Err(LexError::OutOfRange(lex.slice().to_string()));
+    }
     Ok(Literal {
         value,
         dim,

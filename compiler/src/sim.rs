@@ -185,6 +185,31 @@ impl SensorStimulus {
                 values.push(if i == 0 { k } else { s.range.0 });
             }
         }
+        // The engines clamp the key into the first sensor's range; say so when they will.
+        let mut notes = Vec::new();
+        if let Some(s) = program.sensors.first() {
+            let (lo, hi) = s.range;
+            let outside: Vec<f64> = key
+                .key
+                .iter()
+                .copied()
+                .filter(|k| !(lo..=hi).contains(k))
+                .collect();
+            if let Some(worst) = outside
+                .iter()
+                .copied()
+                .max_by(|a, b| (a - a.clamp(lo, hi)).abs().total_cmp(&(b - b.clamp(lo, hi)).abs()))
+            {
+                notes.push(format!(
+                    "{}: {} of {} key positions are outside sensor `{}`'s range [{lo}, {hi}] {} (the farthest: {worst:e}) and are clamped into it",
+                    key.name,
+                    outside.len(),
+                    key.len(),
+                    s.name,
+                    s.dim.unit_string()
+                ));
+            }
+        }
         SensorStimulus {
             name: key.name.clone(),
             description: key.description.clone(),
@@ -192,7 +217,7 @@ impl SensorStimulus {
             sensors: program.sensors.iter().map(|s| s.name.clone()).collect(),
             samples: key.len(),
             values,
-            notes: Vec::new(),
+            notes,
         }
     }
 
@@ -340,6 +365,13 @@ pub enum SensorStimulusError {
         /// How many samples it would have.
         samples: f64,
     },
+    /// A CSV file larger than [`MAX_CSV_BYTES`].
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size.
+        bytes: u64,
+    },
 }
 
 impl fmt::Display for SensorStimulusError {
@@ -439,7 +471,13 @@ impl fmt::Display for SensorStimulusError {
             }
             E::TooLong { source, samples } => write!(
                 f,
-                "stimulus `{source}` would have {samples:.0} samples, more than the limit of {MAX_SAMPLES}"
+                "stimulus `{source}` would have {} samples, more than the limit of {MAX_SAMPLES} (or more than {MAX_TRACE_VALUES} values over all its sensors)",
+                if *samples < 1e15 { format!("{samples:.0}") } else { format!("{samples:.3e}") }
+            ),
+            E::TooLarge { path, bytes } => write!(
+                f,
+                "{}: {bytes} bytes, more than the {MAX_CSV_BYTES} a stimulus file may have",
+                path.display()
             ),
         }
     }
@@ -488,10 +526,22 @@ pub fn sensor_csv(
     path: &Path,
     sample_rate_hz: f64,
 ) -> Result<SensorStimulus, SensorStimulusError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SensorStimulusError::Io {
+    let io = |source| SensorStimulusError::Io {
         path: path.to_path_buf(),
         source,
-    })?;
+    };
+    // The whole file is read at once: bound it first (a row per sample at MAX_SAMPLES rows
+    // of a few cells is far below this).
+    let len = std::fs::metadata(path).map_err(io)?.len();
+    if len > MAX_CSV_BYTES {
+        return Err(SensorStimulusError::TooLarge {
+            path: path.to_path_buf(),
+            bytes: len,
+        });
+    }
+    let text = std::fs::read_to_string(path).map_err(io)?;
+    // A UTF-8 byte-order mark (as spreadsheet programs write) is not part of the header.
+    let text = text.strip_prefix('\u{FEFF}').unwrap_or(&text);
     let mut lines = text
         .lines()
         .enumerate()
@@ -668,7 +718,10 @@ fn resample_rows(
 ) -> Result<Vec<f64>, SensorStimulusError> {
     let t0 = times[0];
     let samples = ((times[times.len() - 1] - t0) * fs).floor() + 1.0;
-    if !samples.is_finite() || samples > MAX_SAMPLES as f64 {
+    if !samples.is_finite()
+        || samples > MAX_SAMPLES as f64
+        || samples * w as f64 > MAX_TRACE_VALUES as f64
+    {
         return Err(SensorStimulusError::TooLong {
             source: path.display().to_string(),
             samples,
@@ -934,7 +987,15 @@ pub fn gesture(
         }
     }
     let mut notes = Vec::new();
-    let mm = |x: f64| format!("{:.3}", x * 1e3);
+    // Plain millimetres, or scientific notation for a value no key could reach.
+    let mm = |x: f64| {
+        let v = x * 1e3;
+        if v.abs() < 1e9 {
+            format!("{v:.3}")
+        } else {
+            format!("{v:.3e}")
+        }
+    };
     let (p, r) = (sensors[iz].range, sensors[ix].range);
     let width = r.1 - r.0;
     let depth = match config.depth_m {
@@ -1165,6 +1226,36 @@ pub fn resolve(
     };
     let key = stimulus::builtin(word, dip_m.unwrap_or(key.range.1), sample_rate_hz)?;
     Ok(SensorStimulus::from_key(program, &key))
+}
+
+/// The largest multi-sensor CSV file [`sensor_csv`] reads, in bytes (it is read whole).
+pub const MAX_CSV_BYTES: u64 = 1 << 30;
+
+/// The most values (samples × columns of [`trace_columns`]) a simulation's trace may hold:
+/// 2²⁷ f64, 1 GiB. The caller checks [`trace_values`] against it before simulating, so a
+/// long stimulus on a wide instrument is an error, not an out-of-memory abort.
+pub const MAX_TRACE_VALUES: usize = 1 << 27;
+
+/// How many values the trace of `program` over `samples` samples holds (saturating).
+pub fn trace_values(program: &Program, samples: usize) -> usize {
+    trace_columns(program).columns.len().saturating_mul(samples)
+}
+
+/// The first value of `trace` that is NaN or ±∞ outside the event columns (where NaN means
+/// "did not fire"): (column name, sample index, value). An f64 engine that computes one has
+/// lost the meaning of the program (a division by zero, an overflow, an unstable scheme).
+pub fn first_non_finite(trace: &Trace) -> Option<(String, usize, f64)> {
+    trace
+        .columns
+        .iter()
+        .filter(|c| c.kind != ColumnKind::Event)
+        .filter_map(|c| {
+            c.values
+                .iter()
+                .position(|v| !v.is_finite())
+                .map(|n| (c.name.clone(), n, c.values[n]))
+        })
+        .min_by_key(|(_, n, _)| *n)
 }
 
 /// Which outputs of `program` are a pen instrument's axis totals (`force.x`, `force.y`),

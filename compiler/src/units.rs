@@ -70,7 +70,7 @@ impl Dim {
         let mut num = Vec::new();
         let mut den = Vec::new();
         for (e, n) in self.0.iter().zip(names) {
-            let term = |e: i8| {
+            let term = |e: i32| {
                 if e == 1 {
                     n.to_string()
                 } else {
@@ -78,8 +78,9 @@ impl Dim {
                 }
             };
             match e.cmp(&0) {
-                std::cmp::Ordering::Greater => num.push(term(*e)),
-                std::cmp::Ordering::Less => den.push(term(-*e)),
+                std::cmp::Ordering::Greater => num.push(term(i32::from(*e))),
+                // In i32: the exponents saturate at i8::MIN, whose negation is no i8.
+                std::cmp::Ordering::Less => den.push(term(-i32::from(*e))),
                 std::cmp::Ordering::Equal => {}
             }
         }

@@ -7,11 +7,40 @@
 //! addresses with the Thumb bit cleared, so the board can account cycles per function.
 //! Everything is checked before anything is copied: a truncated file, a non-ARM or
 //! big-endian or 64-bit ELF, or a relocatable object gives an [`ElfError`], never a panic.
+//! A segment's size comes from the file, so it is checked against the RP2040's memory map
+//! ([`memory_region`]: ROM, flash, SRAM and its non-striped alias) *before* its zero-filled
+//! tail is allocated: a `p_memsz` of 0xFFFFFFFF is an [`ElfError::Unmapped`], not a 4 GB
+//! allocation.
 
 use object::elf;
 use object::read::elf::{FileHeader, ProgramHeader};
 use object::{Object, ObjectSection, ObjectSymbol, SymbolKind};
+use crate::bus::{
+    FLASH_BASE, FLASH_SIZE, ROM_BASE, ROM_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE,
+};
 use std::fmt;
+
+/// The emulated memories a segment may be loaded into: (base, size in bytes) of ROM,
+/// flash, SRAM and the non-striped alias of SRAM0–3 (`bus.rs` defines each).
+const REGIONS: [(u32, u32); 4] = [
+    (ROM_BASE, ROM_SIZE),
+    (FLASH_BASE, FLASH_SIZE),
+    (SRAM_BASE, SRAM_SIZE),
+    (SRAM_ALIAS_BASE, 0x4_0000),
+];
+
+/// The bytes of every region together: the most all segments of one file may fill.
+const TOTAL_MEMORY: u64 =
+    ROM_SIZE as u64 + FLASH_SIZE as u64 + SRAM_SIZE as u64 + 0x4_0000;
+
+/// The memory region (base, size) that holds all of `size` bytes from `addr`, if one does;
+/// an empty range needs only its address inside a region.
+pub fn memory_region(addr: u32, size: u32) -> Option<(u32, u32)> {
+    REGIONS.iter().copied().find(|&(base, len)| {
+        let off = addr.wrapping_sub(base);
+        off < len && u64::from(off) + u64::from(size) <= u64::from(len)
+    })
+}
 
 /// A symbol from the ELF symbol table.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -141,6 +170,7 @@ pub fn parse(bytes: &[u8]) -> Result<Image, ElfError> {
     let phdrs = header
         .program_headers(endian, bytes)
         .map_err(|e| ElfError::Malformed(e.to_string()))?;
+    let mut total = 0u64;
     for ph in phdrs {
         if ph.p_type(endian) != elf::PT_LOAD || ph.p_memsz(endian) == 0 {
             continue;
@@ -152,12 +182,20 @@ pub fn parse(bytes: &[u8]) -> Result<Image, ElfError> {
         if (memsz as usize) < data.len() {
             return Err(ElfError::Malformed("segment p_memsz < p_filesz".into()));
         }
+        let addr = ph.p_paddr(endian);
+        if memory_region(addr, memsz).is_none() {
+            return Err(ElfError::Unmapped { addr, size: memsz });
+        }
+        // Each segment fits a region, but 65,535 program headers could each claim one.
+        total = total.saturating_add(u64::from(memsz));
+        if total > TOTAL_MEMORY {
+            return Err(ElfError::Malformed(format!(
+                "the segments add up to more than the {TOTAL_MEMORY} bytes of emulated memory"
+            )));
+        }
         let mut data = data.to_vec();
         data.resize(memsz as usize, 0);
-        image.segments.push(Segment {
-            addr: ph.p_paddr(endian),
-            data,
-        });
+        image.segments.push(Segment { addr, data });
     }
     let file = object::File::parse(bytes).map_err(|e| ElfError::Malformed(e.to_string()))?;
     for sym in file.symbols() {

@@ -6,6 +6,15 @@
 //! with the next note-off of the same key and channel; a note still sounding at the end of
 //! the file ends there.
 //!
+//! **Corrupt files.** The file's chunk structure is checked before `midly` sees it
+//! ([`parse_midi_reporting`]): a file over [`MAX_MIDI_BYTES`], a header claiming 0 tracks,
+//! format 2 (independent sequences, which have no common time line), a division of 0 ticks
+//! per quarter note or 0 SMPTE subframes are errors naming the file. A truncated track or a
+//! header that claims more tracks than the file holds is read as far as it goes, with a
+//! warning giving the bytes missing and the notes left without a note-off. A note held
+//! longer than [`MAX_HELD_S`] is cut there, with a warning, so a stray note-off hours later
+//! cannot make a player simulate hours.
+//!
 //! **The key-motion model.** A recorded note-on (a Disklavier records it when the hammer
 //! reaches the string) becomes a key press that reaches the key bottom at the note-on time:
 //!
@@ -50,6 +59,14 @@ pub const MAX_DESCENT_S: f64 = 0.200;
 /// fraction of the dip raised (the repetition lever lets a grand re-strike from a half-raised
 /// key; the jack re-arms below its let-off zone).
 pub const REPEAT_RISE: f64 = 0.6;
+
+/// The longest a note may be held, s: a note-off later than this after its note-on is
+/// moved here (with a warning). Two minutes is beyond any held chord of the piano
+/// repertoire (the sustain pedal, not the key, holds longer sounds).
+pub const MAX_HELD_S: f64 = 120.0;
+
+/// The largest MIDI file read, bytes (the MAESTRO performances are well under 1 MB).
+pub const MAX_MIDI_BYTES: u64 = 16 << 20;
 
 /// One note of a performance.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -98,15 +115,118 @@ impl fmt::Display for MidiError {
 
 impl std::error::Error for MidiError {}
 
-/// Reads a MIDI file from disk.
+/// Reads a MIDI file from disk; repairs are dropped (see [`read_midi_reporting`]).
 pub fn read_midi(path: &Path) -> Result<Performance, MidiError> {
-    let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| MidiError::Io(name.clone(), e))?;
-    parse_midi(&bytes, &name)
+    read_midi_reporting(path).map(|(p, _)| p)
 }
 
-/// Parses MIDI bytes; `name` is used in errors.
+/// Reads a MIDI file from disk, with a warning (naming the file) per repair made.
+pub fn read_midi_reporting(path: &Path) -> Result<(Performance, Vec<String>), MidiError> {
+    let name = path.display().to_string();
+    let len = std::fs::metadata(path)
+        .map_err(|e| MidiError::Io(name.clone(), e))?
+        .len();
+    if len > MAX_MIDI_BYTES {
+        return Err(MidiError::Parse(
+            name,
+            format!("{len} bytes, more than the {MAX_MIDI_BYTES} a MIDI file may have"),
+        ));
+    }
+    let bytes = std::fs::read(path).map_err(|e| MidiError::Io(name.clone(), e))?;
+    parse_midi_reporting(&bytes, &name)
+}
+
+/// Parses MIDI bytes; `name` is used in errors; repairs are dropped (see
+/// [`parse_midi_reporting`]).
 pub fn parse_midi(bytes: &[u8], name: &str) -> Result<Performance, MidiError> {
+    parse_midi_reporting(bytes, name).map(|(p, _)| p)
+}
+
+/// Checks a standard MIDI file's header and chunks (see the module documentation):
+/// the warnings of a repaired read, or the error.
+fn check_chunks(bytes: &[u8], name: &str) -> Result<Vec<String>, MidiError> {
+    let bad = |m: String| MidiError::Parse(name.to_string(), m);
+    let be32 = |at: usize| u32::from_be_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    let be16 = |at: usize| u16::from_be_bytes([bytes[at], bytes[at + 1]]);
+    if bytes.len() < 14 || &bytes[..4] != b"MThd" {
+        // Not a bare SMF (a RIFF RMID wrapper, or not MIDI): midly decides.
+        return Ok(Vec::new());
+    }
+    let header_len = be32(4) as usize;
+    if header_len < 6 || header_len > bytes.len() - 8 {
+        return Err(bad(format!("the header chunk claims {header_len} bytes")));
+    }
+    let (format, claimed, division) = (be16(8), be16(10), be16(12));
+    match format {
+        0 | 1 => {}
+        2 => {
+            return Err(bad(
+                "MIDI format 2 (independent sequences) has no common time line; convert it to format 0 or 1".into(),
+            ))
+        }
+        f => return Err(bad(format!("unknown MIDI format {f}"))),
+    }
+    if claimed == 0 {
+        return Err(bad("the header claims 0 tracks".into()));
+    }
+    if division & 0x8000 == 0 {
+        if division == 0 {
+            return Err(bad("the header's division is 0 ticks per quarter note".into()));
+        }
+    } else {
+        let fps = -i32::from((division >> 8) as u8 as i8);
+        if ![24, 25, 29, 30].contains(&fps) || division & 0xFF == 0 {
+            return Err(bad(format!(
+                "the header's SMPTE division ({fps} frames/s, {} subframes) is not valid",
+                division & 0xFF
+            )));
+        }
+    }
+    let mut warnings = Vec::new();
+    let mut at = 8 + header_len;
+    let mut tracks = 0usize;
+    while at < bytes.len() {
+        if bytes.len() - at < 8 {
+            warnings.push(format!(
+                "{name}: {} stray bytes after the last chunk are ignored",
+                bytes.len() - at
+            ));
+            break;
+        }
+        let len = be32(at + 4) as usize;
+        let is_track = &bytes[at..at + 4] == b"MTrk";
+        tracks += usize::from(is_track);
+        let present = bytes.len() - at - 8;
+        if len > present {
+            warnings.push(format!(
+                "{name}: track {tracks} is truncated: its header claims {len} bytes, {present} are present; the events in the {} missing bytes are lost",
+                len - present
+            ));
+            break;
+        }
+        at += 8 + len;
+    }
+    if tracks != usize::from(claimed) {
+        warnings.push(format!(
+            "{name}: the header claims {claimed} tracks, the file holds {tracks}"
+        ));
+    }
+    if tracks == 0 {
+        return Err(bad("the file holds no track chunk".into()));
+    }
+    Ok(warnings)
+}
+
+/// Parses MIDI bytes; `name` is used in errors and warnings. Returns the performance and a
+/// warning per repair: a truncated track or a wrong track count (read as far as the file
+/// goes), notes left without a note-off, notes held longer than [`MAX_HELD_S`].
+///
+/// Errors ([`MidiError::Parse`], naming the file): see the module documentation.
+pub fn parse_midi_reporting(
+    bytes: &[u8],
+    name: &str,
+) -> Result<(Performance, Vec<String>), MidiError> {
+    let mut warnings = check_chunks(bytes, name)?;
     let smf = Smf::parse(bytes).map_err(|e| MidiError::Parse(name.to_string(), e.to_string()))?;
     // Merge all tracks into (tick, event) in tick order (stable: track order on ties).
     let mut events = Vec::new();
@@ -163,8 +283,10 @@ pub fn parse_midi(bytes: &[u8], name: &str) -> Result<Performance, MidiError> {
             _ => {}
         }
     }
+    let mut open = 0usize;
     for (i, s) in sounding.iter().enumerate() {
         if let Some((on, v)) = s {
+            open += 1;
             notes.push(Note {
                 key: (i % 128) as u8,
                 velocity: *v,
@@ -173,15 +295,39 @@ pub fn parse_midi(bytes: &[u8], name: &str) -> Result<Performance, MidiError> {
             });
         }
     }
+    if open > 0 {
+        warnings.push(format!(
+            "{name}: {open} notes have no note-off and end at the last event ({last_s:.3} s)"
+        ));
+    }
     if notes.is_empty() {
         return Err(MidiError::NoNotes(name.to_string()));
     }
+    let mut cut = 0usize;
+    for n in &mut notes {
+        if n.off_s - n.on_s > MAX_HELD_S {
+            n.off_s = n.on_s + MAX_HELD_S;
+            cut += 1;
+        }
+    }
+    if cut > 0 {
+        warnings.push(format!(
+            "{name}: {cut} notes are held longer than {MAX_HELD_S} s and end there"
+        ));
+    }
+    // The piece ends at its last event, but not after its last (bounded) note by more than
+    // the longest hold: a stray event far after the music moves no key.
+    let last_note = notes.iter().map(|n| n.off_s).fold(0.0, f64::max);
+    let duration_s = last_s.min(last_note + MAX_HELD_S);
     notes.sort_by(|a, b| a.on_s.total_cmp(&b.on_s).then(a.key.cmp(&b.key)));
-    Ok(Performance {
-        notes,
-        sustain,
-        duration_s: last_s,
-    })
+    Ok((
+        Performance {
+            notes,
+            sustain,
+            duration_s,
+        },
+        warnings,
+    ))
 }
 
 /// Tick → seconds with a piecewise-constant tempo map.

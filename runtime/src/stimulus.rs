@@ -56,10 +56,11 @@ use std::fmt;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
-/// Largest number of samples a stimulus may have (2²⁸ ≈ 268 M, 100 minutes at 44.1 kHz), so
-/// that a typo in a sample rate or a time column is an error instead of an out-of-memory
-/// abort.
-pub const MAX_SAMPLES: usize = 1 << 28;
+/// Largest number of samples a stimulus may have (2²⁵ ≈ 33.5 M, 12.7 minutes at 44.1 kHz,
+/// 268 MB of f64 per sensor), so that a typo in a sample rate or a time column (a
+/// three-line CSV spanning 6000 s) is an error instead of an out-of-memory abort; the trace
+/// of a simulation is bounded on its own (`tactus_compiler::sim::MAX_TRACE_VALUES`).
+pub const MAX_SAMPLES: usize = 1 << 25;
 
 /// Full key dip of a grand piano key at the key front, metres (≈ 10 mm; DESIGN.md "Reference
 /// numbers", piano-action literature).
@@ -237,8 +238,13 @@ impl fmt::Display for StimulusError {
             ),
             StimulusError::TooLong { source, samples } => write!(
                 f,
-                "stimulus `{source}` would have {samples:.0} samples, more than the limit of \
-                 {MAX_SAMPLES} (check the sample rate and the times)"
+                "stimulus `{source}` would have {} samples, more than the limit of \
+                 {MAX_SAMPLES} (check the sample rate and the times)",
+                if *samples < 1e15 {
+                    format!("{samples:.0}")
+                } else {
+                    format!("{samples:.3e}")
+                }
             ),
             StimulusError::Io { path, source } => {
                 write!(f, "{}: cannot read stimulus: {source}", path.display())

@@ -81,8 +81,13 @@ pub fn damper_time(off_s: f64, sustain: &[(f64, bool)]) -> f64 {
         .map_or(f64::INFINITY, |(t, _)| *t)
 }
 
+/// The longest buffer [`render`] should be asked for, samples (2²⁷ f32, 512 MiB, 50 minutes
+/// at 44.1 kHz): callers check a length from input against it before rendering.
+pub const MAX_RENDER_SAMPLES: usize = 1 << 27;
+
 /// Renders strikes into a mono buffer of `seconds` at `sample_rate_hz` (unnormalised: a
-/// 1 m/s strike's fundamental starts at amplitude about 1).
+/// 1 m/s strike's fundamental starts at amplitude about 1). The buffer is allocated whole:
+/// check `seconds · sample_rate_hz` against [`MAX_RENDER_SAMPLES`] first.
 pub fn render(strikes: &[Strike], seconds: f64, sample_rate_hz: f64) -> Vec<f32> {
     let n = (seconds.max(0.0) * sample_rate_hz).ceil() as usize;
     let mut buf = vec![0f32; n];

@@ -4,6 +4,8 @@
 //! A constant expression is lowered like any other (so it gets the same name and dimension
 //! checks) into scratch IR, then folded with the reference interpreter's arithmetic
 //! ([`crate::interp::eval_op`]), so a constant means exactly what it would mean at run time.
+//! A constant that folds to NaN or ±∞ (`0 N/m / 0`, `exp(1000)`, a `--param` of zero
+//! under a division) is an error (E0312) at its span: no engine could give it a meaning.
 
 use super::{Lowerer, Memo, ScopeId};
 use crate::ast;
@@ -86,6 +88,7 @@ impl<'a> Lowerer<'a> {
                         (s.init, s.range, s.dim) = (v, (lo, hi), dim);
                     }
                     ast::Decl::Require { cond, .. } => self.check_requirement(scope, cond),
+                    ast::Decl::Dynamics { eqs, .. } => self.check_oscillators(scope, eqs),
                     _ => {}
                 }
             }
@@ -168,6 +171,100 @@ impl<'a> Lowerer<'a> {
         }
     }
 
+    /// Warns (W0003) about a mass–spring the sample rate cannot integrate: equations
+    /// `x' = v` and `v' = RHS` where `∂RHS/∂x` (with the scope's `let`s inlined) is a
+    /// constant `−ω²`. Semi-implicit Euler, which the dynamics use, is stable for an
+    /// undamped oscillator only while `ω·T < 2` (T the sample period; Hairer, Lubich &
+    /// Wanner, *Geometric Numerical Integration*, 2006, §I.1: the symplectic Euler map of
+    /// the harmonic oscillator has eigenvalues on the unit circle iff |ωh| < 2). A stiffness
+    /// the compiler cannot fold (it depends on a state) is not checked here; `tactus sim`
+    /// reports the states that then saturate.
+    fn check_oscillators(&mut self, scope: ScopeId, eqs: &'a [ast::Equation]) {
+        let h = 1.0 / self.config.sample_rate_hz;
+        let lets: std::collections::HashMap<&str, &ast::Expr> = self.scopes[scope.0]
+            .body
+            .decls
+            .iter()
+            .filter_map(|d| match d {
+                ast::Decl::Let { name, value, .. } => Some((name.node.as_str(), value)),
+                _ => None,
+            })
+            .collect();
+        for eq in eqs {
+            let ast::ExprKind::Path(p) = &eq.rhs.node else {
+                continue;
+            };
+            let [v] = &p[..] else { continue };
+            let Some(veq) = eqs.iter().find(|e| e.state.node == v.node) else {
+                continue;
+            };
+            let mut budget = 10_000usize;
+            let Some(rhs) = inline_lets(&veq.rhs, &lets, 16, &mut budget) else {
+                continue;
+            };
+            let Ok(Some(slope)) = crate::expand::derivative(&rhs, &eq.state.node) else {
+                continue;
+            };
+            // A slope that is not a constant (a nonlinear spring) is not checked.
+            let Some((slope, dim)) = self.fold_slope(scope, &slope) else {
+                continue;
+            };
+            if dim != Dim::FREQUENCY * Dim::FREQUENCY || slope >= 0.0 {
+                continue;
+            }
+            let omega = (-slope).sqrt();
+            if omega * h >= 2.0 {
+                self.err(
+                    Diagnostic::warning(
+                        "W0003",
+                        format!(
+                            "`{}` and `{}` oscillate at ω = {omega:.4e} rad/s: ω·T = {:.3} ≥ 2, unstable under semi-implicit Euler at {} Hz",
+                            eq.state.node, v.node, omega * h, self.config.sample_rate_hz
+                        ),
+                        veq.rhs.span.clone(),
+                    )
+                    .label(format!("∂/∂{} of this is −ω² = {slope:.4e} 1/s^2", eq.state.node))
+                    .hint(format!(
+                        "lower the stiffness (or raise the mass) so that ω < {:.4e} rad/s, or raise the sample rate; add `require` on the params to make it an error",
+                        2.0 / h
+                    )),
+                );
+            }
+        }
+    }
+
+    /// The value and dimension of `e` when it is built from numbers and params of `scope`
+    /// with `+ - * /` and integer powers; `None` otherwise. Reports nothing.
+    fn fold_slope(&mut self, scope: ScopeId, e: &ast::Expr) -> Option<(f64, Dim)> {
+        use ast::ExprKind as K;
+        Some(match &e.node {
+            K::Number(l) => (l.value, l.dim),
+            K::Path(p) if p.len() == 1 => match self.scopes[scope.0].syms.get(&p[0].node) {
+                Some((Sym::Param(id), _)) => self.param_value(*id)?,
+                _ => return None,
+            },
+            K::Neg(a) => {
+                let (v, d) = self.fold_slope(scope, a)?;
+                (-v, d)
+            }
+            K::Binary(op, a, b) => {
+                let ((x, dx), (y, dy)) = (self.fold_slope(scope, a)?, self.fold_slope(scope, b)?);
+                match op {
+                    ast::BinOp::Add if dx == dy => (x + y, dx),
+                    ast::BinOp::Sub if dx == dy => (x - y, dx),
+                    ast::BinOp::Mul => (x * y, dx * dy),
+                    ast::BinOp::Div => (x / y, dx / dy),
+                    _ => return None,
+                }
+            }
+            K::Pow(a, n) => {
+                let (v, d) = self.fold_slope(scope, a)?;
+                (v.powi(n.node as i32), d.powi(n.node as i32))
+            }
+            _ => return None,
+        })
+    }
+
     fn const_range(
         &mut self,
         scope: ScopeId,
@@ -218,7 +315,22 @@ impl<'a> Lowerer<'a> {
     fn const_value(&mut self, scope: ScopeId, e: &'a ast::Expr) -> Option<(f64, Dim)> {
         let v = self.lower_expr(scope, e)?;
         match self.ty(v) {
-            Ty::Real(d) => Some((self.fold(v), d)),
+            Ty::Real(d) => {
+                let x = self.fold(v);
+                if !x.is_finite() {
+                    self.err(
+                        Diagnostic::error(
+                            "E0312",
+                            format!("this constant is {x}, not a finite number"),
+                            e.span.clone(),
+                        )
+                        .label(format!("folds to {x}"))
+                        .hint("look for a division by zero (a param or `--param` of 0), `exp` or `^` of a large value, or a number beyond 1.8e308 in SI units"),
+                    );
+                    return None;
+                }
+                Some((x, d))
+            }
             t => {
                 let msg = format!("expected a quantity, found {}", self.ty_string(t));
                 self.err(Diagnostic::error("E0225", msg, e.span.clone()));
@@ -313,3 +425,32 @@ impl<'a> Lowerer<'a> {
 }
 
 use super::scope::Sym;
+
+/// `e` with the names of `lets` replaced by their expressions, `depth` levels deep; `None`
+/// when the result would pass `budget` nodes (shared lets can grow it exponentially).
+fn inline_lets(
+    e: &ast::Expr,
+    lets: &std::collections::HashMap<&str, &ast::Expr>,
+    depth: u32,
+    budget: &mut usize,
+) -> Option<ast::Expr> {
+    use ast::ExprKind as K;
+    *budget = budget.checked_sub(1)?;
+    let b = |x: &ast::Expr, budget: &mut usize| inline_lets(x, lets, depth, budget).map(Box::new);
+    let node = match &e.node {
+        K::Path(p) if p.len() == 1 && depth > 0 => {
+            if let Some(v) = lets.get(p[0].node.as_str()) {
+                return inline_lets(v, lets, depth - 1, budget);
+            }
+            e.node.clone()
+        }
+        K::Neg(a) => K::Neg(b(a, budget)?),
+        K::Binary(op, x, y) => K::Binary(*op, b(x, budget)?, b(y, budget)?),
+        K::Pow(a, n) => K::Pow(b(a, budget)?, n.clone()),
+        _ => e.node.clone(),
+    };
+    Some(ast::Spanned {
+        node,
+        span: e.span.clone(),
+    })
+}

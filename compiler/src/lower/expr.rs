@@ -92,7 +92,10 @@ impl<'a> Lowerer<'a> {
                 self.boolean(x, &a.span, "`not`")?;
                 Some(self.def(Op::Not(x), Ty::Bool))
             }
-            ExprKind::Binary(op, a, b) => self.lower_binary(scope, *op, a, b, e.span.clone()),
+            ExprKind::Binary(op, a, b) if matches!(op, BinOp::Eq | BinOp::Ne) => {
+                self.lower_binary(scope, *op, a, b, e.span.clone())
+            }
+            ExprKind::Binary(..) => self.lower_chain(scope, e),
             ExprKind::Pow(a, n) => {
                 let x = self.lower_expr(scope, a)?;
                 let d = self.real(x, &a.span, "raise to a power")?;
@@ -184,6 +187,35 @@ impl<'a> Lowerer<'a> {
             .iter()
             .position(|v| *v == p[0].node)
             .map(|i| i as u32)
+    }
+
+    /// A left-nested chain of binary operators (`a + b + c …`, what a `sum` over 4096
+    /// indices expands to), lowered along its left spine in a loop rather than by one
+    /// recursion per operator, so its length costs no stack. The IR is what the recursion
+    /// gives: the leftmost operand first, then each right operand and its operation.
+    fn lower_chain(&mut self, scope: ScopeId, e: &'a ast::Expr) -> Option<Value> {
+        let mut spine = Vec::new();
+        let mut leaf = e;
+        while let ExprKind::Binary(op, a, _) = &leaf.node {
+            if matches!(op, BinOp::Eq | BinOp::Ne) {
+                break;
+            }
+            spine.push(leaf);
+            leaf = a;
+        }
+        let mut acc = self.lower_expr(scope, leaf);
+        for node in spine.into_iter().rev() {
+            let ExprKind::Binary(op, a, b) = &node.node else {
+                continue; // the spine holds binary nodes only
+            };
+            self.cur_span = node.span.clone();
+            let y = self.lower_expr(scope, b);
+            acc = match (acc, y) {
+                (Some(x), Some(y)) => self.finish_binary(*op, x, y, a, b, node.span.clone()),
+                _ => None,
+            };
+        }
+        acc
     }
 
     fn lower_binary(

@@ -110,6 +110,12 @@ struct Lowerer<'a> {
     components: HashMap<&'a str, &'a ast::Body>,
     prog: Program,
     diags: Vec<Diagnostic>,
+    /// Spans already reported as unknown names (E0201): a name in a loop body is looked up
+    /// once per index, but reported once.
+    unknown_reported: HashSet<Span>,
+    /// AST nodes instanced so far (each component instance adds its body's), against
+    /// [`scope::MAX_INSTANCED_NODES`].
+    instanced: usize,
     scopes: Vec<Scope<'a>>,
     params: Vec<ParamInfo<'a>>,
     defs: Vec<DefInfo<'a>>,
@@ -147,6 +153,8 @@ impl<'a> Lowerer<'a> {
                 force_axes: vec![],
             },
             diags: vec![],
+            unknown_reported: HashSet::new(),
+            instanced: 0,
             scopes: vec![],
             params: vec![],
             defs: vec![],
@@ -374,6 +382,19 @@ impl<'a> Lowerer<'a> {
         }
         self.prog.body = self.blocks.pop().unwrap_or_default();
         fold::fold_constants(&mut self.prog);
+        // A run-time expression whose constant part folds to NaN or ±∞ (`exp(1000) * 1 N`)
+        // is as meaningless as such a param: report the first one, at its span.
+        let bad = self.prog.values.iter().find_map(|v| match v.op {
+            Op::Const(c) if !c.is_finite() => Some((c, v.span.clone())),
+            _ => None,
+        });
+        if let Some((c, span)) = bad {
+            self.err(
+                Diagnostic::error("E0312", format!("this constant is {c}, not a finite number"), span)
+                    .label(format!("folds to {c}"))
+                    .hint("look for a division by zero (a param or `--param` of 0), `exp` or `^` of a large value, or a number beyond 1.8e308 in SI units"),
+            );
+        }
     }
 
     /// The saturating sum of force terms in declaration order (a constant 0 N for none).

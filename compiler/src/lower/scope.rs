@@ -133,7 +133,8 @@ impl<'a> Lowerer<'a> {
             .insert(name.node.clone(), (sym, name.span.clone()));
     }
 
-    /// Declares every name of `body` in a new scope; instances its `use`s recursively.
+    /// Declares every name of `body` in a new scope; instances its `use`s recursively (at
+    /// most [`MAX_COMPONENT_DEPTH`] deep and [`MAX_INSTANCES`] scopes in all).
     pub(super) fn declare_scope(
         &mut self,
         body: &'a ast::Body,
@@ -371,14 +372,67 @@ impl<'a> Lowerer<'a> {
                         );
                         continue;
                     };
-                    if depth >= 8 || std::ptr::eq(comp, body) {
+                    // The chain of components from this scope up to the instrument: a
+                    // component already on it would be instanced without end.
+                    let mut chain = vec![body.name.node.as_str()];
+                    let mut up = self.scopes[id.0].parent;
+                    let mut recursive = std::ptr::eq(comp, body);
+                    while let Some(s) = up {
+                        recursive |= std::ptr::eq(comp, self.scopes[s.0].body);
+                        chain.push(self.scopes[s.0].body.name.node.as_str());
+                        up = self.scopes[s.0].parent;
+                    }
+                    if recursive {
+                        chain.reverse();
+                        let path = chain.join(" → ");
                         self.err(
                             Diagnostic::error(
                                 "E0116",
                                 format!("component `{}` uses itself", component.node),
                                 span.clone(),
                             )
+                            .label(format!("{path} → {}", component.node))
                             .hint("components are instanced at compile time; recursion has no end"),
+                        );
+                        continue;
+                    }
+                    if depth + 1 > MAX_COMPONENT_DEPTH {
+                        self.err(
+                            Diagnostic::error(
+                                "E0135",
+                                format!("components nested more than {MAX_COMPONENT_DEPTH} deep"),
+                                span.clone(),
+                            )
+                            .hint("flatten the chain of components: each level is an instance of its own"),
+                        );
+                        continue;
+                    }
+                    self.instanced = self.instanced.saturating_add(body_weight(comp));
+                    if self.instanced > MAX_INSTANCED_NODES {
+                        if self.diags.iter().any(|d| d.code == "E0136") {
+                            continue;
+                        }
+                        self.err(
+                            Diagnostic::error(
+                                "E0136",
+                                format!("the component instances hold more than {MAX_INSTANCED_NODES} declarations and expression nodes"),
+                                span.clone(),
+                            )
+                            .hint("every instance is code of its own; a large component used many times multiplies"),
+                        );
+                        continue;
+                    }
+                    if self.scopes.len() >= MAX_INSTANCES {
+                        if self.diags.iter().any(|d| d.code == "E0136") {
+                            continue;
+                        }
+                        self.err(
+                            Diagnostic::error(
+                                "E0136",
+                                format!("more than {MAX_INSTANCES} component instances"),
+                                span.clone(),
+                            )
+                            .hint("every instance is code of its own; components that use others several times multiply"),
                         );
                         continue;
                     }
@@ -442,6 +496,11 @@ impl<'a> Lowerer<'a> {
     pub(super) fn lookup(&mut self, scope: ScopeId, name: &ast::Name) -> Option<Sym> {
         if let Some((s, _)) = self.scopes[scope.0].syms.get(&name.node) {
             return Some(*s);
+        }
+        // A name inside a loop is looked up once per index: report (and search for a
+        // suggestion among thousands of names) once per place, not once per index.
+        if !self.unknown_reported.insert(name.span.clone()) {
+            return None;
         }
         let names: Vec<String> = self.scopes[scope.0].syms.keys().cloned().collect();
         let mut d = Diagnostic::error(
@@ -517,4 +576,58 @@ impl<'a> Lowerer<'a> {
 fn sorted(mut v: Vec<String>) -> Vec<String> {
     v.sort();
     v
+}
+
+/// The deepest a chain of component instances may be (a component using a component …):
+/// far beyond any instrument, and a bound on the recursion of [`Lowerer::declare_scope`].
+pub const MAX_COMPONENT_DEPTH: usize = 64;
+
+/// The most scopes (the instrument and its component instances, at every depth) one
+/// instrument may have. A component that uses another twice doubles the count per level,
+/// so depth alone does not bound it.
+pub const MAX_INSTANCES: usize = 4096;
+
+/// The most AST nodes (declarations and expression nodes, after expansion) all component
+/// instances of one instrument may hold together: [`MAX_INSTANCES`] bounds the count, this
+/// their size (4096 instances of a 28,000-node body would be 115 M nodes of IR).
+pub const MAX_INSTANCED_NODES: usize = 1 << 20;
+
+/// The size of `body` in declarations and expression nodes (an explicit stack: a chain of
+/// 4096 additions is 4096 deep).
+fn body_weight(body: &ast::Body) -> usize {
+    use ast::ExprKind as K;
+    let mut stack: Vec<&ast::Expr> = Vec::new();
+    let mut n = body.decls.len();
+    for d in &body.decls {
+        match d {
+            ast::Decl::Param { value, .. }
+            | ast::Decl::Let { value, .. }
+            | ast::Decl::Force { value, .. }
+            | ast::Decl::Output { value, .. } => stack.push(value),
+            ast::Decl::State { init, .. } => stack.push(init),
+            ast::Decl::Dynamics { eqs, .. } => stack.extend(eqs.iter().map(|e| &e.rhs)),
+            ast::Decl::Handler { cond, body, .. } => {
+                stack.push(cond);
+                for s in body {
+                    match s {
+                        ast::Stmt::Assign { value, .. } => stack.push(value),
+                        ast::Stmt::Emit { args, .. } => stack.extend(args.iter().map(|(_, e)| e)),
+                    }
+                }
+            }
+            ast::Decl::Use { args, .. } => stack.extend(args.iter().map(|(_, e)| e)),
+            _ => {}
+        }
+    }
+    while let Some(e) = stack.pop() {
+        n += 1;
+        match &e.node {
+            K::Neg(a) | K::Not(a) | K::Pow(a, _) => stack.push(a),
+            K::Binary(_, a, b) => stack.extend([&**a, &**b]),
+            K::Call(_, args) => stack.extend(args.iter()),
+            K::If(c, a, b) => stack.extend([&**c, &**a, &**b]),
+            _ => {}
+        }
+    }
+    n
 }

@@ -1,0 +1,303 @@
+//! Hostile input through the CLI (issue 19): every command on malformed or adversarial
+//! files runs under `ulimit -v 4000000` (4 GB of address space) and a 60 s `timeout`, and
+//! ends with exit 0 and a correct result, or exit 1/2 and a message on stderr — never a
+//! signal (stack overflow, abort on a failed allocation), never the timeout. Each case is
+//! also the regression test of its class: a small input that used to fail, and the clean
+//! outcome now (the expected message).
+
+mod common;
+use common::temp_dir;
+use std::path::Path;
+use std::process::Output;
+
+/// Runs the `tactus` binary with `args` in the repository root, bounded as the issue asks.
+fn bounded(args: &[&str]) -> Output {
+    let mut script = String::from("ulimit -v 4000000; exec timeout 60 \"$0\"");
+    for i in 0..args.len() {
+        script.push_str(&format!(" \"${{{}}}\"", i + 1));
+    }
+    std::process::Command::new("sh")
+        .arg("-c")
+        .arg(script)
+        .arg(env!("CARGO_BIN_EXE_tactus"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap()
+}
+
+/// Runs and checks the outcome: `code` (0, 1 or 2), and `needle` in stderr (or stdout for
+/// exit 0) when given. Returns stderr.
+fn expect(args: &[&str], code: i32, needle: &str) -> String {
+    let out = bounded(args);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let got = out.status.code();
+    assert!(
+        got.is_some() && got != Some(124),
+        "{args:?} ended by a signal or the timeout ({:?}): {stderr}",
+        out.status
+    );
+    assert_eq!(got, Some(code), "{args:?}: {stderr}{stdout}");
+    if code != 0 {
+        assert!(!stderr.trim().is_empty(), "{args:?}: exit {code} without a message");
+    }
+    assert!(
+        stderr.contains(needle) || stdout.contains(needle),
+        "{args:?}: `{needle}` not in\n{stderr}{stdout}"
+    );
+    stderr
+}
+
+fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p.display().to_string()
+}
+
+const KEY: &str = "instrument t {\n    sensor key: m in [0 mm, 10 mm]\n";
+
+#[test]
+fn class_1_deep_source_is_a_diagnostic_and_nested_components_compile() {
+    let dir = temp_dir("hostile-1");
+    // A sum of 20,000 terms overflowed the stack in `expand`.
+    let terms = vec!["key * 1 N/m"; 20_000].join(" + ");
+    let f = write(&dir, "sum.tactus", format!("{KEY}    force f = {terms}\n}}\n"));
+    expect(&["check", &f], 1, "E0008");
+    // A 10 MB one-line file.
+    let long = vec!["- "; 5_000_000].concat();
+    let f = write(&dir, "long.tactus", format!("{KEY}    force f = {long}key * 1 N/m\n}}\n"));
+    expect(&["check", &f], 1, "E0008");
+    // Components nested 12 deep were a false "uses itself" (E0116) at depth 8.
+    let mut src = String::from("component c0 {\n    input x: m\n    force f = x * 1 N/m\n}\n");
+    for i in 1..12 {
+        src.push_str(&format!("component c{i} {{\n    input x: m\n    use a = c{}(x = x)\n}}\n", i - 1));
+    }
+    src.push_str("instrument t {\n    sensor key: m in [0 mm, 10 mm]\n    use a = c11(x = key)\n}\n");
+    let f = write(&dir, "nested.tactus", &src);
+    expect(&["check", &f], 0, "well-formed");
+    // Real recursion through another component still is E0116, with the chain.
+    let f = write(
+        &dir,
+        "cycle.tactus",
+        "component a {\n    input x: m\n    use b = b(x = x)\n}\ncomponent b {\n    input x: m\n    use c = a(x = x)\n}\ninstrument t {\n    sensor key: m in [0 mm, 10 mm]\n    use a = a(x = key)\n}\n",
+    );
+    expect(&["check", &f], 1, "a → b → a");
+}
+
+#[test]
+fn class_2_sizes_from_input_are_checked_before_allocation() {
+    let dir = temp_dir("hostile-2");
+    // 4096 × 4096 nested loops.
+    let f = write(
+        &dir,
+        "loops.tactus",
+        format!("{KEY}    for i in 0..4096 {{\n        for j in 0..4096 {{\n            let a[i * 4096 + j] = key\n        }}\n    }}\n    force f = key * 1 N/m\n}}\n"),
+    );
+    expect(&["check", &f], 1, "E0137");
+    // A component of 12,000 nodes instanced 4096 times (each level uses the one below
+    // twice): within the instance count, but 50 M nodes of IR.
+    let mut src = String::from("component c0 {\n    input x: m\n    force f = sum(i in 0..4096, x * 1 N/m)\n}\n");
+    for i in 1..13 {
+        src.push_str(&format!(
+            "component c{i} {{\n    input x: m\n    use a = c{p}(x = x)\n    use b = c{p}(x = x)\n}}\n",
+            p = i - 1
+        ));
+    }
+    src.push_str("instrument t {\n    sensor key: m in [0 mm, 10 mm]\n    use a = c12(x = key)\n}\n");
+    let f = write(&dir, "wide.tactus", &src);
+    expect(&["check", &f], 1, "E0136");
+    // Empty loops nested three deep (no declarations to charge, 68 G iterations).
+    let f = write(
+        &dir,
+        "empty.tactus",
+        format!("{KEY}    for i in 0..4096 {{ for j in 0..4096 {{ for k in 0..4096 {{ }} }} }}\n    force f = key * 1 N/m\n}}\n"),
+    );
+    expect(&["check", &f], 1, "E0137");
+    // A three-line CSV spanning 6000 s.
+    let csv = write(&dir, "long.csv", "time_s,key_mm\n0,0\n6000,5\n");
+    expect(&["sim", "hammond", "--stimulus", &csv, "--out", &dir.display().to_string()], 1, "limit");
+    // An ELF segment with p_memsz = 0xFFFFFFFF.
+    let mut elf = vec![0x7f, b'E', b'L', b'F', 1, 1, 1, 0];
+    elf.resize(16, 0);
+    for h in [2u16, 40] {
+        elf.extend(h.to_le_bytes());
+    }
+    for w in [1u32, 0x2000_0001, 52, 0, 0x0500_0000] {
+        elf.extend(w.to_le_bytes());
+    }
+    for h in [52u16, 32, 1, 40, 0, 0] {
+        elf.extend(h.to_le_bytes());
+    }
+    for w in [1u32, 84, 0x2000_0000, 0x2000_0000, 4, 0xFFFF_FFFF, 5, 4] {
+        elf.extend(w.to_le_bytes());
+    }
+    elf.extend([0xfe, 0xe7, 0, 0]);
+    let f = write(&dir, "huge.elf", elf);
+    expect(&["emu", "run", &f], 1, "outside the RP2040");
+}
+
+/// A format-0 MIDI file: 480 ticks per quarter, one track of (delta, bytes) events.
+fn midi(format: u16, tracks: u16, division: u16, events: &[(u32, &[u8])]) -> Vec<u8> {
+    let mut t = Vec::new();
+    for (d, msg) in events {
+        let mut d = *d;
+        let mut v = vec![(d & 0x7f) as u8];
+        d >>= 7;
+        while d > 0 {
+            v.insert(0, 0x80 | (d & 0x7f) as u8);
+            d >>= 7;
+        }
+        t.extend(v);
+        t.extend(*msg);
+    }
+    t.extend([0, 0xff, 0x2f, 0]);
+    let mut f = b"MThd\0\0\0\x06".to_vec();
+    for h in [format, tracks, division] {
+        f.extend(h.to_be_bytes());
+    }
+    f.extend(b"MTrk");
+    f.extend((t.len() as u32).to_be_bytes());
+    f.extend(t);
+    f
+}
+
+#[test]
+fn class_3_play_seconds_bounds_the_simulated_time() {
+    let dir = temp_dir("hostile-3");
+    let out = dir.display().to_string();
+    // A note-off 0x0FFFFFFF ticks after its note-on hung the JIT engines and aborted emu.
+    let f = write(
+        &dir,
+        "held.mid",
+        midi(0, 1, 480, &[(0, &[0x90, 60, 100]), (0x0FFF_FFFF, &[0x80, 60, 0])]),
+    );
+    for engine in ["jit", "emu"] {
+        let err = expect(
+            &["play", &f, "--seconds", "2", "--engine", engine, "--out", &out, "--no-wav"],
+            0,
+            "2.00 s of music",
+        );
+        assert!(err.contains("held longer than 120 s"), "{err}");
+    }
+    // Two short notes 0x0FFFFFFF ticks (≈ 77 hours) apart, without --seconds: the emulated
+    // run and the WAV would have allocated for the whole gap; now each says what to do.
+    let f = write(
+        &dir,
+        "gap.mid",
+        midi(
+            0,
+            1,
+            480,
+            &[(0, &[0x90, 60, 100]), (480, &[0x80, 60, 0]), (0x0FFF_FFFF, &[0x90, 62, 100]), (480, &[0x80, 62, 0])],
+        ),
+    );
+    expect(&["play", &f, "--engine", "emu", "--out", &out, "--no-wav"], 1, "--seconds");
+    expect(&["play", &f, "--out", &out], 1, "WAV rendering");
+}
+
+#[test]
+fn class_4_non_finite_values_are_errors() {
+    let dir = temp_dir("hostile-4");
+    let out = dir.display().to_string();
+    for (name, body, code) in [
+        ("nan", "    param k = 0 N/m / 0\n    force f = k * key\n", "E0312"),
+        ("big", "    param k = 1e309 N/m\n    force f = k * key\n", "E0006"),
+        ("exp", "    force f = exp(1000) * 1 N + key * 1 N/m\n", "E0312"),
+    ] {
+        let f = write(&dir, &format!("{name}.tactus"), format!("{KEY}{body}}}\n"));
+        expect(&["check", &f], 1, code);
+        expect(&["sim", &f, "--out", &out], 1, code);
+    }
+    // `--param l1=0 mm` under a division.
+    let f = write(&dir, "l1.tactus", format!("{KEY}    param l1 = 2 mm\n    param k = 1 N / l1\n    force f = k * key / 1 m\n}}\n"));
+    expect(&["check", &f, "--param", "l1=0 mm"], 1, "E0312");
+    // A run-time NaN in the f64 engines: the first sample and the value, exit 1.
+    let f = write(&dir, "rt.tactus", format!("{KEY}    force f = 1 N * exp(key / 1 um)\n}}\n"));
+    for engine in ["interp", "jit"] {
+        expect(&["sim", &f, "--engine", engine, "--out", &out], 1, "is inf at sample");
+    }
+    // The same in `play`, on an instrument that strikes.
+    let f = write(
+        &dir,
+        "rtplay.tactus",
+        format!("{KEY}    force f = 1 N * exp(key / 1 um)
+    on key > 5 mm {{ emit strike(v = 1 m/s) }}
+}}
+"),
+    );
+    for engine in ["interp", "jit"] {
+        expect(
+            &["play", "--instrument", &f, "--engine", engine, "--seconds", "1", "--out", &out, "--no-wav"],
+            1,
+            "non-finite value at sample",
+        );
+    }
+}
+
+#[test]
+fn class_7_missing_files_are_never_replaced_by_built_ins() {
+    expect(&["check", "/no/such/dir/grand_piano.tactus"], 1, "no file `/no/such/dir/grand_piano.tactus`");
+    expect(&["check", "grand_piano"], 0, "well-formed");
+    let dir = temp_dir("hostile-7");
+    let layout = write(
+        &dir,
+        "layout.toml",
+        "name = \"x\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"missing/grand_piano.tactus\"\n",
+    );
+    let out = bounded(&["budget", &layout]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(matches!(out.status.code(), Some(1 | 2)), "{:?} {stderr}", out.status);
+    assert!(stderr.contains("missing/grand_piano.tactus"), "{stderr}");
+}
+
+#[test]
+fn class_8_corrupt_midi_and_csv_are_named() {
+    let dir = temp_dir("hostile-8");
+    let out = dir.display().to_string();
+    let note: &[(u32, &[u8])] = &[(0, &[0x90, 60, 100]), (480, &[0x80, 60, 0])];
+    for (name, bytes, msg) in [
+        ("zero.mid", midi(0, 0, 480, note), "claims 0 tracks"),
+        ("fmt2.mid", midi(2, 1, 480, note), "format 2"),
+        ("div0.mid", midi(0, 1, 0, note), "division is 0"),
+    ] {
+        let f = write(&dir, name, bytes);
+        let err = expect(&["play", &f, "--out", &out, "--no-wav"], 1, msg);
+        assert!(err.contains(name), "{err}");
+    }
+    // Repaired reads: a warning with what was lost.
+    let many = write(&dir, "many.mid", midi(1, 65535, 480, note));
+    expect(&["play", &many, "--out", &out, "--no-wav"], 0, "claims 65535 tracks, the file holds 1");
+    let full = midi(0, 1, 480, note);
+    let cut = write(&dir, "cut.mid", &full[..full.len() - 5]);
+    let err = expect(&["play", &cut, "--out", &out, "--no-wav"], 0, "is truncated");
+    assert!(err.contains("1 notes have no note-off"), "{err}");
+    // CSV: a byte-order mark is read; 1e300 mm is reported, not clamped silently.
+    let bom = write(&dir, "bom.csv", "\u{feff}time_s,key_mm\n0,0\n0.05,3\n");
+    expect(&["sim", "hammond", "--stimulus", &bom, "--out", &out], 0, "total force");
+    let big = write(&dir, "big.csv", "time_s,key_mm\n0,0\n0.05,1e300\n");
+    expect(&["sim", "hammond", "--stimulus", &big, "--out", &out], 0, "outside sensor `key`'s range");
+    let pen = write(&dir, "pen.csv", "\u{feff}time [s], pen.z [m]\n0, 0\n0.05, 1e300\n");
+    expect(&["sim", "rubbed_bank", "--stimulus", &pen, "--out", &out], 0, "were clamped");
+    // A `.tactus` file with a byte-order mark.
+    let f = write(&dir, "bom.tactus", format!("\u{feff}{KEY}    force f = key * 1 N/m\n}}\n"));
+    expect(&["check", &f], 0, "well-formed");
+}
+
+#[test]
+fn class_5_unstable_mass_spring_is_diagnosed() {
+    let dir = temp_dir("hostile-5");
+    let out = dir.display().to_string();
+    // 1e12 N/m on 10 g: ω·T ≈ 227 at 44.1 kHz. Used to pass `check` and `sim` silently.
+    let src = "instrument t {\n    sensor key: m in [0 mm, 10 mm]\n    param k = 1e12 N/m\n    param m = 10 g\n    state x: m = 0 mm in [-10 mm, 10 mm]\n    state v: m/s = 0 m/s in [-10 m/s, 10 m/s]\n    let spring = k * (key - x)\n    dynamics {\n        x' = v\n        v' = spring / m\n    }\n    force f = k * (x - key)\n}\n";
+    let f = write(&dir, "osc.tactus", src);
+    let err = expect(&["check", &f], 0, "W0003");
+    assert!(err.contains("ω·T = 226.757"), "{err}");
+    // The states sit on their range bounds: `sim` says so.
+    let err = expect(&["sim", &f, "--out", &out], 0, "was saturated");
+    assert!(err.contains("W0003"), "{err}");
+    // A stiffness the sample rate can integrate gives no warning.
+    let ok = write(&dir, "ok.tactus", src.replace("1e12 N/m", "100 N/m"));
+    let err = expect(&["check", &ok], 0, "well-formed");
+    assert!(!err.contains("W0003"), "{err}");
+}
