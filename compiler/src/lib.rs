@@ -17,6 +17,7 @@ pub mod parse;
 pub mod print;
 pub mod sim;
 pub mod units;
+pub mod verify;
 
 use diagnostics::Diagnostic;
 

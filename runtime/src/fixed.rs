@@ -215,6 +215,36 @@ pub fn cmp_const(x: i32, fx: i32, c: f64) -> std::cmp::Ordering {
         .unwrap_or(std::cmp::Ordering::Less)
 }
 
+/// The smallest raw word `w` (as an `i64`; `i32::MAX + 1` when there is none) for which
+/// `pred(w)` holds, for a predicate that is false then true as `w` grows: a bisection over
+/// all 2^32 words, 33 evaluations. How every backend turns a monotone definition into
+/// compile-time thresholds ([`cmp_const_thresholds`], the shortcuts of [`exp`]).
+pub fn first_word_where(pred: impl Fn(i32) -> bool) -> i64 {
+    let (mut lo, mut hi) = (i32::MIN as i64, i32::MAX as i64 + 1);
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        // `mid <= i32::MAX` because `mid < hi`.
+        if pred(mid as i32) {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    lo
+}
+
+/// The thresholds of [`cmp_const`] on the grid of format `fx`: `(ge, gt)`, the smallest raw
+/// words whose exact value is `≥ c` resp. `> c` ([`first_word_where`]; `i32::MAX + 1` when
+/// no word is). So `x ≥ c` is `raw ≥ ge`, `x > c` is `raw ≥ gt`, `x = c` is
+/// `ge ≤ raw < gt`: how a backend compiles a comparison with a constant to integer compares.
+/// One definition for the JIT, the C and the Thumb backends.
+pub fn cmp_const_thresholds(fx: i32, c: f64) -> (i64, i64) {
+    (
+        first_word_where(|w| cmp_const(w, fx, c) != std::cmp::Ordering::Less),
+        first_word_where(|w| cmp_const(w, fx, c) == std::cmp::Ordering::Greater),
+    )
+}
+
 /// `-x` in format `fr`.
 pub fn neg(x: i32, fx: i32, fr: i32) -> Sat {
     sat32(rescale(-(x as i128), fx, fr))
@@ -393,6 +423,22 @@ mod tests {
         let q = to_f64(a, fa) / to_f64(b, fb);
         assert!((val(div(a, fa, b, fb, 26), 26) - q).abs() <= 2f64.powi(-26));
         assert_eq!(div(5, 0, 0, 0, 0), (i32::MAX, true));
+    }
+
+    /// The thresholds decide every word as `cmp_const` does (checked around them).
+    #[test]
+    fn cmp_const_thresholds_split_the_grid() {
+        for &(fx, c) in &[(20, 0.3), (37, 0.0094), (-3, 1e12), (30, -1.5), (10, f64::NAN), (5, 1e-30)] {
+            let (ge, gt) = cmp_const_thresholds(fx, c);
+            for w in [ge - 2, ge - 1, ge, ge + 1, gt - 1, gt, gt + 1] {
+                if w < i32::MIN as i64 || w > i32::MAX as i64 {
+                    continue;
+                }
+                let o = cmp_const(w as i32, fx, c);
+                assert_eq!(o != std::cmp::Ordering::Less, w >= ge, "{fx} {c} {w}");
+                assert_eq!(o == std::cmp::Ordering::Greater, w >= gt, "{fx} {c} {w}");
+            }
+        }
     }
 
     /// `mul_high` is within `2 + 2^(32−k)` units of `2^k` of the exact product before its

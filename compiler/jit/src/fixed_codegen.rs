@@ -19,8 +19,9 @@
 //!
 //! Comparisons with a constant (`tactus_runtime::fixed::cmp_const`) become integer
 //! comparisons with thresholds found at compile time by binary search over the raw words,
-//! *with `cmp_const` itself* as the predicate, so they decide as the interpreter does on every
-//! word by construction. Division by a non-constant, `sqrt` and `exp` call the runtime's own
+//! *with `cmp_const` itself* as the predicate (`fixed::cmp_const_thresholds`, shared with the
+//! C and Thumb backends), so they decide as the interpreter does on every word by
+//! construction. Division by a non-constant, `sqrt` and `exp` call the runtime's own
 //! functions through `extern "C"` wrappers.
 //!
 //! The sample loop keeps states, modes, edges, saturation counters and history positions
@@ -31,7 +32,6 @@ use crate::JitError;
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, MemFlagsData, Signature, Type};
 use cranelift_frontend::{FunctionBuilder, Variable};
-use std::cmp::Ordering;
 use tactus_compiler::fixed::{FixedProgram, MulKind};
 use tactus_compiler::ir::{ArithOp, Builtin, CmpOp, Op, Stmt, Ty, Value};
 use tactus_runtime::differentiator::WINDOW;
@@ -129,22 +129,6 @@ const I32_HI: i128 = i32::MAX as i128;
 
 fn fits64(lo: i128, hi: i128) -> bool {
     lo >= i64::MIN as i128 && hi <= i64::MAX as i128
-}
-
-/// Smallest raw word `a` (as `i64`, up to `i32::MAX + 1` when there is none) with `pred(a)`,
-/// for a predicate that is false then true as `a` grows.
-fn first_true(pred: impl Fn(i32) -> bool) -> i64 {
-    let (mut lo, mut hi) = (i64::from(i32::MIN), i64::from(i32::MAX) + 1);
-    while lo < hi {
-        let mid = lo + (hi - lo) / 2;
-        // `mid <= i32::MAX` because `mid < hi`.
-        if pred(mid as i32) {
-            hi = mid;
-        } else {
-            lo = mid + 1;
-        }
-    }
-    lo
 }
 
 /// Translates a verified fixed program into `b`, whose entry block is not yet created.
@@ -926,8 +910,7 @@ impl<'a, 'f> Translator<'a, 'f> {
     /// the left operand), as an `i8` truth value: integer thresholds on the raw word.
     fn cmp_const(&mut self, o: CmpOp, a: Word, fa: i32, k: f64, reversed: bool) -> Cv {
         // The order is Less below `l`, Greater from `g` on, Equal in between.
-        let l = first_true(|x| fx::cmp_const(x, fa, k) != Ordering::Less);
-        let g = first_true(|x| fx::cmp_const(x, fa, k) == Ordering::Greater);
+        let (l, g) = fx::cmp_const_thresholds(fa, k);
         // Which order (of the word against k) makes the comparison true.
         let (less, equal, greater) = match o {
             CmpOp::Eq => (false, true, false),

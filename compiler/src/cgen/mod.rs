@@ -167,6 +167,9 @@ pub fn emit_c(fp: &FixedProgram) -> Result<CSource, CgenError> {
 ///
 /// Errors: see [`CgenError`]; none occurs for the shipped instruments.
 pub fn emit_c_with(fp: &FixedProgram, config: &CConfig) -> Result<CSource, CgenError> {
+    // A broken IR invariant is a compiler bug; say which instead of emitting wrong C.
+    crate::verify::verify(&fp.program)
+        .map_err(|e| CgenError::Unsupported(format!("a broken IR invariant: {e}")))?;
     Gen::new(fp, config)?.run()
 }
 

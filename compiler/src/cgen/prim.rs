@@ -379,14 +379,10 @@ pub fn cmp(op: CmpOp, x: &str, fx: i32, y: &str, fy: i32) -> String {
 
 /// The thresholds of [`fx::cmp_const`] on the grid of `fx` fraction bits: `ge` is the first
 /// raw word whose value is `>= c`, `gt` the first whose value is `> c` (each may be
-/// `i32::MAX + 1` when no word qualifies).
+/// `i32::MAX + 1` when no word qualifies): [`fx::cmp_const_thresholds`], the runtime's one
+/// definition, which the JIT uses too.
 pub fn thresholds(fx: i32, c: f64) -> (i64, i64) {
-    let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
-    let ge = first_true(lo, hi, |w| fx::cmp_const(w as i32, fx, c) != Ordering::Less);
-    let gt = first_true(lo, hi, |w| {
-        fx::cmp_const(w as i32, fx, c) == Ordering::Greater
-    });
-    (ge, gt)
+    fx::cmp_const_thresholds(fx, c)
 }
 
 /// [`fx::cmp_const`]: `x OP c` (or `c OP x` when `const_left`) on exact values, as integer

@@ -13,6 +13,7 @@
 pub mod interp;
 pub mod range;
 pub mod contract;
+pub mod flow;
 pub mod report;
 
 use crate::diagnostics::Diagnostic;

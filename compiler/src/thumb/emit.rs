@@ -62,7 +62,7 @@ pub struct Code {
     /// Flow facts for the WCET analysis: pairs of `.text` offsets of block starts (bodies of
     /// top-level `if` statements) that no single call of the function executes both of —
     /// the first body's assignments make the second's condition false (see
-    /// `select::exclusions`).
+    /// `crate::fixed::flow::exclusions`).
     pub exclusive: Vec<(usize, usize)>,
 }
 

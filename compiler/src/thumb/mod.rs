@@ -38,6 +38,8 @@ pub enum ThumbError {
     Interface(String),
     /// An instruction did not encode (a backend bug: a field out of range).
     Encoding(String),
+    /// The IR breaks an invariant ([`crate::verify`]: a compiler bug), as its message.
+    Ir(String),
 }
 
 impl fmt::Display for ThumbError {
@@ -48,6 +50,7 @@ impl fmt::Display for ThumbError {
             }
             ThumbError::Interface(e) => write!(f, "cannot describe the interface: {e}"),
             ThumbError::Encoding(e) => write!(f, "internal error: {e}"),
+            ThumbError::Ir(e) => write!(f, "internal error: {e}"),
         }
     }
 }
@@ -114,6 +117,7 @@ fn too_big(bytes: usize) -> ThumbError {
 /// them), and code larger than [`MAX_CODE_BYTES`]; `sqrt` and `exp` are inlined (see
 /// [`select`]).
 pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
+    crate::verify::verify(&fp.program).map_err(|e| ThumbError::Ir(e.to_string()))?;
     let c: CSource = cgen::emit_c(fp).map_err(|e| ThumbError::Interface(e.to_string()))?;
     let p = &fp.program;
     let st = StateLayout::new(p);

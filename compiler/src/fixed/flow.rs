@@ -1,0 +1,322 @@
+//! Flow facts over intervals: which top-level `if` bodies cannot both run in one sample.
+//!
+//! A backend-independent analysis beside the range analysis ([`super::range`]), whose
+//! intervals it evaluates conditions over: a WCET analysis of any backend's code may use the
+//! pairs to leave infeasible paths out (the Thumb backend marks each top-level `if` body and
+//! the budget splits the worst path into scenarios, `Code::exclusive`). The facts are about
+//! the program's meaning, not its machine code, so they hold for every engine.
+
+use super::range::Interval;
+use super::FixedProgram;
+use crate::ir::*;
+
+/// What one sample may hold in a state or mode after some statements: `None` = anything.
+#[derive(Clone, Default)]
+struct Known {
+    state: std::collections::HashMap<usize, Interval>,
+    mode: std::collections::HashMap<usize, Vec<u32>>,
+}
+
+impl Known {
+    /// The effect of `stmts`: `sure` when they certainly run (the assignments replace what is
+    /// known), else they may run (what they assign joins what is known, and a state or mode
+    /// not known stays unknown).
+    fn apply(&mut self, fp: &FixedProgram, stmts: &[Stmt], sure: bool) {
+        let p = &fp.program;
+        for s in stmts {
+            match s {
+                Stmt::SetState(st, v) => {
+                    let (lo, hi) = p.states[st.index()].range;
+                    let w = fp.ranges.values[v.index()];
+                    let w = Interval::new(w.lo.max(lo), w.hi.min(hi));
+                    if sure {
+                        self.state.insert(st.index(), w);
+                    } else if let Some(k) = self.state.get_mut(&st.index()) {
+                        *k = Interval::new(k.lo.min(w.lo), k.hi.max(w.hi));
+                    }
+                }
+                Stmt::SetMode(m, i) => {
+                    if sure {
+                        self.mode.insert(m.index(), vec![*i]);
+                    } else if let Some(k) = self.mode.get_mut(&m.index()) {
+                        if !k.contains(i) {
+                            k.push(*i);
+                        }
+                    }
+                }
+                Stmt::If(_, body) => self.apply(fp, body, false),
+                _ => {}
+            }
+        }
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Tri {
+    True,
+    False,
+    Unknown,
+}
+
+/// Flow facts for the WCET analysis: pairs `(i, j)` of top-level `if` statements (indices
+/// into the body), `i` before `j`, such that when `i`'s body runs, `j`'s condition is false —
+/// so no call runs both bodies. Found by evaluating `j`'s condition over intervals: states
+/// and modes loaded after `i` hold what `i`'s body assigned them (joined with what the
+/// statements in between may assign), every other value its analysed range. Example: the
+/// piano's strike sets the hammer angle to the string's, so neither the back-check
+/// (`s <= s_check`) nor the rest felt (`s <= 0`) can follow it in the same sample.
+/// Comparisons count as decided only with a margin of 10⁻⁴ of the operands' magnitude, far
+/// above the fixed-point errors of the compared words.
+pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
+    let p = &fp.program;
+    // Top-level position of each value's definition (inside an `if`: that `if`'s).
+    let mut pos = vec![usize::MAX; p.values.len()];
+    fn mark(stmts: &[Stmt], k: usize, pos: &mut [usize]) {
+        for s in stmts {
+            match s {
+                Stmt::Def(v) => pos[v.index()] = k,
+                Stmt::If(_, b) => mark(b, k, pos),
+                _ => {}
+            }
+        }
+    }
+    for (k, s) in p.body.iter().enumerate() {
+        mark(std::slice::from_ref(s), k, &mut pos);
+    }
+    let ifs: Vec<usize> = (0..p.body.len())
+        .filter(|&k| matches!(p.body[k], Stmt::If(..)))
+        .collect();
+    let mut out = Vec::new();
+    for &i in &ifs {
+        let Stmt::If(_, body_i) = &p.body[i] else {
+            continue;
+        };
+        let Stmt::If(cond_i, _) = &p.body[i] else {
+            continue;
+        };
+        let mut known = Known::default();
+        known.apply(fp, body_i, true);
+        let facts = sample_facts(fp, *cond_i);
+        if known.state.is_empty() && known.mode.is_empty() && facts.is_empty() {
+            continue;
+        }
+        for k in i + 1..p.body.len() {
+            if let Stmt::If(c, _) = &p.body[k] {
+                let ev = Eval {
+                    fp,
+                    pos: &pos,
+                    after: i,
+                    known: &known,
+                    facts: &facts,
+                };
+                if ev.tri(*c) == Tri::False {
+                    out.push((i as u32, k as u32));
+                }
+            }
+            known.apply(fp, std::slice::from_ref(&p.body[k]), true);
+            if known.state.is_empty() && known.mode.is_empty() && facts.is_empty() {
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// Whether `v` has one value throughout a sample: it reads only sensors, their derivatives,
+/// params and constants (no state, mode or edge, which handlers change).
+fn sample_constant(p: &Program, v: Value) -> bool {
+    match p.values[v.index()].op {
+        Op::Const(_) | Op::Param(_) | Op::Sensor(_) | Op::Deriv(..) => true,
+        Op::Neg(x) => sample_constant(p, x),
+        Op::Arith(_, x, y) => sample_constant(p, x) && sample_constant(p, y),
+        Op::Call(_, x, y) => sample_constant(p, x) && y.is_none_or(|y| sample_constant(p, y)),
+        _ => false,
+    }
+}
+
+/// Whether `a` and `b` compute the same thing from the same inputs (value ids may differ:
+/// the front end re-emits a `let` at each use). Only for [`sample_constant`] values.
+fn same_expr(p: &Program, a: Value, b: Value) -> bool {
+    if a == b {
+        return true;
+    }
+    match (&p.values[a.index()].op, &p.values[b.index()].op) {
+        (Op::Const(x), Op::Const(y)) => x.to_bits() == y.to_bits(),
+        (Op::Param(x), Op::Param(y)) => x == y,
+        (Op::Sensor(x), Op::Sensor(y)) => x == y,
+        (Op::Deriv(x, m), Op::Deriv(y, n)) => x == y && m == n,
+        (Op::Neg(x), Op::Neg(y)) => same_expr(p, *x, *y),
+        (Op::Arith(o, x1, y1), Op::Arith(q, x2, y2)) => {
+            o == q && same_expr(p, *x1, *x2) && same_expr(p, *y1, *y2)
+        }
+        (Op::Call(f, x1, y1), Op::Call(g, x2, y2)) => {
+            f == g
+                && same_expr(p, *x1, *x2)
+                && match (y1, y2) {
+                    (None, None) => true,
+                    (Some(y1), Some(y2)) => same_expr(p, *y1, *y2),
+                    _ => false,
+                }
+        }
+        _ => false,
+    }
+}
+
+/// What an `if` condition being true says about values that keep their value through the
+/// sample: for each comparison among its `and`-ed terms whose one side is
+/// [`sample_constant`], that side's interval narrowed by the other side's range (`x >= y`:
+/// x ≥ the least y). A later `if` testing the same expression of the same inputs sees the
+/// narrowed interval: the plucked string's `rel >= release` excludes its `rel <= -release`.
+fn sample_facts(fp: &FixedProgram, cond: Value) -> Vec<(Value, Interval)> {
+    let p = &fp.program;
+    let mut out = Vec::new();
+    let mut stack = vec![cond];
+    while let Some(v) = stack.pop() {
+        match p.values[v.index()].op {
+            Op::And(x, y) => {
+                stack.push(x);
+                stack.push(y);
+            }
+            Op::Cmp(o, x, y) if matches!(p.values[x.index()].ty, Ty::Real(_)) => {
+                let (a, b) = (fp.ranges.values[x.index()], fp.ranges.values[y.index()]);
+                // x o y: bounds on x from y's range, and on y from x's.
+                let (ax, by) = match o {
+                    CmpOp::Ge | CmpOp::Gt => (
+                        Interval::new(a.lo.max(b.lo), a.hi),
+                        Interval::new(b.lo, b.hi.min(a.hi)),
+                    ),
+                    CmpOp::Le | CmpOp::Lt => (
+                        Interval::new(a.lo, a.hi.min(b.hi)),
+                        Interval::new(b.lo.max(a.lo), b.hi),
+                    ),
+                    _ => continue,
+                };
+                if sample_constant(p, x) && ax.lo <= ax.hi {
+                    out.push((x, ax));
+                }
+                if sample_constant(p, y) && by.lo <= by.hi {
+                    out.push((y, by));
+                }
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+struct Eval<'a> {
+    fp: &'a FixedProgram,
+    pos: &'a [usize],
+    after: usize,
+    known: &'a Known,
+    /// Intervals of sample-constant expressions implied by the earlier `if`'s condition.
+    facts: &'a [(Value, Interval)],
+}
+
+impl Eval<'_> {
+    fn real(&self, v: Value) -> Interval {
+        let p = &self.fp.program;
+        let r = self.real_unnarrowed(v);
+        if !sample_constant(p, v) {
+            return r;
+        }
+        self.facts
+            .iter()
+            .filter(|(f, _)| same_expr(p, *f, v))
+            .fold(r, |r, (_, k)| {
+                let n = Interval::new(r.lo.max(k.lo), r.hi.min(k.hi));
+                if n.lo <= n.hi {
+                    n
+                } else {
+                    r
+                }
+            })
+    }
+
+    fn real_unnarrowed(&self, v: Value) -> Interval {
+        let p = &self.fp.program;
+        match p.values[v.index()].op {
+            Op::State(s) if self.pos[v.index()] > self.after => self
+                .known
+                .state
+                .get(&s.index())
+                .copied()
+                .unwrap_or(self.fp.ranges.values[v.index()]),
+            _ => self.fp.ranges.values[v.index()],
+        }
+    }
+
+    fn modes(&self, v: Value) -> Option<Vec<u32>> {
+        match self.fp.program.values[v.index()].op {
+            Op::Variant(_, i) => Some(vec![i]),
+            Op::Mode(m) if self.pos[v.index()] > self.after => {
+                self.known.mode.get(&m.index()).cloned()
+            }
+            _ => None,
+        }
+    }
+
+    fn tri(&self, v: Value) -> Tri {
+        let p = &self.fp.program;
+        match p.values[v.index()].op {
+            Op::BoolConst(b) => {
+                if b {
+                    Tri::True
+                } else {
+                    Tri::False
+                }
+            }
+            Op::Not(x) => match self.tri(x) {
+                Tri::True => Tri::False,
+                Tri::False => Tri::True,
+                Tri::Unknown => Tri::Unknown,
+            },
+            Op::And(x, y) => match (self.tri(x), self.tri(y)) {
+                (Tri::False, _) | (_, Tri::False) => Tri::False,
+                (Tri::True, Tri::True) => Tri::True,
+                _ => Tri::Unknown,
+            },
+            Op::Or(x, y) => match (self.tri(x), self.tri(y)) {
+                (Tri::True, _) | (_, Tri::True) => Tri::True,
+                (Tri::False, Tri::False) => Tri::False,
+                _ => Tri::Unknown,
+            },
+            Op::Cmp(o, x, y) => match p.values[x.index()].ty {
+                Ty::Mode(_) => match (self.modes(x), self.modes(y), o) {
+                    (Some(a), Some(b), CmpOp::Eq | CmpOp::Ne) => {
+                        let eq = if a.len() == 1 && b.len() == 1 && a[0] == b[0] {
+                            Tri::True
+                        } else if a.iter().all(|k| !b.contains(k)) {
+                            Tri::False
+                        } else {
+                            Tri::Unknown
+                        };
+                        match (o, eq) {
+                            (CmpOp::Ne, Tri::True) => Tri::False,
+                            (CmpOp::Ne, Tri::False) => Tri::True,
+                            (_, t) => t,
+                        }
+                    }
+                    _ => Tri::Unknown,
+                },
+                Ty::Real(_) => {
+                    let (a, b) = (self.real(x), self.real(y));
+                    let m = 1e-4 * a.mag().max(b.mag());
+                    let lt = a.hi + m < b.lo; // certainly a < b
+                    let ge = a.lo - m > b.hi; // certainly a > b
+                    match o {
+                        CmpOp::Lt | CmpOp::Le if lt => Tri::True,
+                        CmpOp::Lt | CmpOp::Le if ge => Tri::False,
+                        CmpOp::Gt | CmpOp::Ge if ge => Tri::True,
+                        CmpOp::Gt | CmpOp::Ge if lt => Tri::False,
+                        CmpOp::Eq if lt || ge => Tri::False,
+                        CmpOp::Ne if lt || ge => Tri::True,
+                        _ => Tri::Unknown,
+                    }
+                }
+                Ty::Bool => Tri::Unknown,
+            },
+            _ => Tri::Unknown,
+        }
+    }
+}
