@@ -35,7 +35,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-use tactus_runtime::performance::{self, KeyTrack, Performance};
+use tactus_runtime::performance::{self, Performance};
 use tactus_runtime::player::{Calibration, FingerConfig, ForcePlayer, ForceProfile, Stroke};
 use tactus_runtime::voice;
 
@@ -317,17 +317,9 @@ fn busy_stretches(mut busy: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
     out
 }
 
-enum Motion {
-    Track(KeyTrack),
-    Finger(ForceProfile),
-}
-
-/// A traced key's samples: (time s, key travel m, instrument force N, hammer m, finger N,
-/// motor current A, DAC code); the last two only with `--engine emu` (`NaN` otherwise).
-type TraceRows = Vec<[f64; 7]>;
-
-/// The traced keys' samples, by key.
-type Traces = BTreeMap<u8, TraceRows>;
+// How a key moves, the trace rows (the last two columns, motor current and DAC code, only
+// with `--engine emu`; `NaN` otherwise): defined with the firmware run.
+use tactus_firmware::perform::{Motion, TraceRows, Traces};
 
 fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let mut perf = match &args.performance {
@@ -361,8 +353,14 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         }
     }
     // Which instrument (with which overrides) on which key.
+    let mut layout_boards = None;
     let assignments = match &args.layout {
-        Some(l) => tactus_runtime::keyboard::read_layout(l)?.1,
+        Some(l) => {
+            let (layout, keys) = tactus_runtime::keyboard::read_layout(l)?;
+            layout_boards =
+                tactus_runtime::keyboard::board_keys(&layout, &l.display().to_string(), &keys)?;
+            keys
+        }
         None => {
             let name = args
                 .instrument
@@ -597,12 +595,13 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let mut strikes = Vec::new();
     let mut traces: BTreeMap<u8, TraceRows> = BTreeMap::new();
     let mut emu_report = None;
+    let mut emu_samples = 0usize;
     if args.engine == PlayEngine::Emu {
         let key_motions: BTreeMap<u8, &Motion> =
             jobs.iter().map(|j| (j.key, &motions[j.motion])).collect();
-        let played: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
+        // Every key of the layout runs on its board, played or not (as on the hardware).
+        let all: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
             .iter()
-            .filter(|a| key_program.contains_key(&a.key))
             .map(|a| {
                 let mut a = a.clone();
                 a.params.extend(args.params.iter().cloned());
@@ -610,7 +609,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             })
             .collect();
         let end = jobs.iter().map(|j| j.first + j.n).max().unwrap_or(0);
-        bar.set_length(end as u64 * played.len() as u64);
+        emu_samples = end;
+        bar.set_length(end as u64 * all.len() as u64);
         let trace = EmuTrace {
             keys: &traced,
             from_s: args.trace_from,
@@ -622,8 +622,9 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             fs,
             finger,
             trace,
+            boards: layout_boards.clone(),
         };
-        let (s, report, t) = emu_strikes(&played, &key_motions, &opts, &bar)?;
+        let (s, report, t) = emu_strikes(&all, &key_motions, &opts, &bar)?;
         strikes = s;
         traces = t;
         emu_report = Some(report);
@@ -758,10 +759,12 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     );
     println!(
         "  {} key-samples in {:.2} s: real-time factor {:.2} ({:.2} s of music; above 1 is faster than real time); peak memory {}",
-        emu_report
-            .as_ref()
-            .map_or(total_samples, |r| r.cycles.first().map_or(0, |c| c.len() as u64)
-                * r.keys.iter().sum::<usize>() as u64),
+        emu_report.as_ref().map_or(total_samples, |r| r
+            .boards
+            .iter()
+            .map(|b| b.keys.len() as u64)
+            .sum::<u64>()
+            * emu_samples as u64),
         wall,
         audio_s / wall.max(1e-9),
         audio_s,
@@ -802,24 +805,75 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     }
     match &emu_report {
         Some(r) => {
-            let path = write_cycle_plot(&args.out, &stem, &r.cycles, fs, r.deadline)?;
+            // One line per board; beyond eight boards, the busiest and the mean of all.
+            let named: Vec<(String, Vec<u64>)> = if r.boards.len() <= 8 {
+                r.boards
+                    .iter()
+                    .enumerate()
+                    .map(|(i, b)| {
+                        (
+                            format!("board {} ({})", i + 1, tactus_firmware::verdict::key_ranges(&b.keys)),
+                            b.cycles.clone(),
+                        )
+                    })
+                    .collect()
+            } else {
+                let n = r.boards.iter().map(|b| b.cycles.len()).max().unwrap_or(0);
+                let at = |i: usize| r.boards.iter().filter_map(move |b| b.cycles.get(i).copied());
+                vec![
+                    (
+                        format!("busiest of {} boards", r.boards.len()),
+                        (0..n).map(|i| at(i).max().unwrap_or(0)).collect(),
+                    ),
+                    (
+                        "mean of the boards".to_string(),
+                        (0..n)
+                            .map(|i| at(i).sum::<u64>() / r.boards.len().max(1) as u64)
+                            .collect(),
+                    ),
+                ]
+            };
+            let series: Vec<(String, &[u64])> =
+                named.iter().map(|(l, v)| (l.clone(), v.as_slice())).collect();
+            let path = args.out.join(format!("{stem}-cycles.svg"));
+            plot::plot_cycle_series(
+                &series,
+                fs / r.decimation as f64,
+                r.deadline,
+                &format!("{stem}: cycles per sample, busier core of each board (max per {} samples)", r.decimation),
+                &path,
+            )
+            .map_err(|e| e.to_string())?;
             println!("  wrote {}", path.display());
             println!(
-                "  budget of the run on {} ({} cycles per sample per core):",
-                r.board, r.deadline
+                "  budget of the run on {} {} boards ({} cycles per sample per core; every key of every board every sample):",
+                r.boards.len(),
+                r.board,
+                r.deadline
             );
-            for c in 0..r.max.len() {
+            for (i, b) in r.boards.iter().enumerate() {
+                let cores: Vec<String> = (0..b.max.len())
+                    .map(|c| {
+                        format!(
+                            "core {c}: {} keys, max {} cycles per sample ({:.1} %, static {}), headroom {}, deadline misses {}",
+                            b.core_keys[c],
+                            b.max[c],
+                            100.0 * b.max[c] as f64 / r.deadline as f64,
+                            b.bound[c],
+                            r.deadline as i64 - b.max[c] as i64,
+                            b.misses[c]
+                        )
+                    })
+                    .collect();
                 println!(
-                    "    core {c}: {} keys, max {} cycles per sample ({:.1} %), headroom {}, deadline misses {}",
-                    r.keys[c],
-                    r.max[c],
-                    100.0 * r.max[c] as f64 / r.deadline as f64,
-                    r.deadline as i64 - r.max[c] as i64,
-                    r.misses[c]
+                    "    board {} (keys {}): {}",
+                    i + 1,
+                    tactus_firmware::verdict::key_ranges(&b.keys),
+                    cores.join("; ")
                 );
             }
-            if r.misses.iter().any(|m| *m > 0) {
-                eprintln!("error: the firmware missed sample deadlines: the played keys do not fit this board (see `tactus budget`)");
+            if r.boards.iter().any(|b| b.misses.iter().any(|m| *m > 0)) {
+                eprintln!("error: the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)");
                 return Ok(ExitCode::FAILURE);
             }
         }
@@ -830,23 +884,19 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The most samples one `--engine emu` run may cover (2²⁶, 25 minutes at 44.1 kHz; the
-/// per-sample cycles of two cores then take 1 GiB).
+/// The most samples one `--engine emu` run may cover (2²⁶, 25 minutes at 44.1 kHz): a
+/// stray event hours into a MIDI file would otherwise start a run of hours.
 const MAX_EMU_SAMPLES: usize = 1 << 26;
 
-/// What the emulated board reported over a run.
+/// What the emulated boards reported over a run.
 struct EmuReport {
     board: String,
     /// Cycles per sample per core (the deadline).
     deadline: u64,
-    /// Keys per core.
-    keys: Vec<usize>,
-    /// Largest cycles of one sample's interrupt, per core.
-    max: Vec<u64>,
-    /// Deadline misses counted by the firmware, per core.
-    misses: Vec<u32>,
-    /// Cycles of every sample, per core.
-    cycles: Vec<Vec<u64>>,
+    /// Per board of the keyboard.
+    boards: Vec<tactus_firmware::perform::BoardRun>,
+    /// Samples per point of [`BoardRun::cycles`].
+    decimation: usize,
 }
 
 /// What `--engine emu` records per traced key ([`emu_strikes`]).
@@ -872,175 +922,76 @@ struct EmuOptions<'a> {
     finger: FingerConfig,
     /// What to trace.
     trace: EmuTrace<'a>,
+    /// The layout's boards (MIDI keys per board), or `None` to plan them as `tactus budget`
+    /// does.
+    boards: Option<Vec<Vec<u8>>>,
 }
 
-/// Plays the keys through the firmware image of the played keys on the emulated board: one
-/// program per distinct instrument and params, keys to cores by longest processing time
-/// first, every key every sample from sample 0 to `opts.end` (the keys at rest before and
-/// after their notes). A key moved by a [`Motion::Track`] follows it; a key moved by a
-/// [`Motion::Finger`] is a [`ForcePlayer`] pushed by the finger against the force word its
-/// firmware computed that sample (`SampleOut::force`, before the safety limiter, as the
-/// host engines' force): the closed loop, stepped exactly as the host engines' loop.
-/// Strikes come from the keys' `out[]` words, their speeds converted from the event's
-/// format. Traces hold every sample of the traced keys in the window, with the limited
-/// motor current and the DAC code.
+/// Plays the keys through the firmware of every board of the keyboard
+/// ([`tactus_firmware::perform::play_boards`]): the boards as the layout lists them or as
+/// `tactus budget` plans them, every key of every board every sample.
 fn emu_strikes(
-    played: &[tactus_runtime::keyboard::KeyAssignment],
+    all: &[tactus_runtime::keyboard::KeyAssignment],
     motions: &BTreeMap<u8, &Motion>,
     opts: &EmuOptions,
     bar: &ProgressBar,
 ) -> Result<(Vec<Strike>, EmuReport, Traces), String> {
-    use tactus_firmware::image::{assign_cores, compile_layout, key_specs, FirmwareImage};
     let (end, fs) = (opts.end, opts.fs);
-    // The run keeps every sample's cycles per core: bound it before allocating (a stray
-    // event hours into the file would otherwise ask for tens of GB).
+    // Bounded before anything runs or is allocated per sample.
     if end > MAX_EMU_SAMPLES {
         return Err(format!(
-            "--engine emu: the piece is {:.1} s long, more than the {:.0} s ({MAX_EMU_SAMPLES} samples) one emulated run may keep; play a part of it with --seconds",
+            "--engine emu: the piece is {:.1} s long, more than the {:.0} s ({MAX_EMU_SAMPLES} samples) one emulated run may cover; play a part of it with --seconds",
             end as f64 / fs,
             MAX_EMU_SAMPLES as f64 / fs
         ));
     }
     let board = crate::budget_cmd::board_named(opts.board)?;
     let source = |name: &str| source::load(name).map(|s| s.text);
-    let (programs, key_programs) =
-        compile_layout(played, &source, fs).map_err(|e| format!("firmware: {e}"))?;
-    let cores = assign_cores(&programs, &key_programs, board.cores as usize)
+    let (programs, key_programs) = tactus_firmware::image::compile_layout(all, &source, fs)
         .map_err(|e| format!("firmware: {e}"))?;
-    let specs = key_specs(played, &key_programs, &cores);
-    let image = FirmwareImage::build(
+    let keys: Vec<u8> = all.iter().map(|a| a.key).collect();
+    let popts = tactus_firmware::perform::PerformOptions {
+        end: opts.end,
+        fs,
+        finger: opts.finger,
+        trace_keys: opts.trace.keys.clone(),
+        trace_from_s: opts.trace.from_s,
+        trace_to_s: opts.trace.to_s,
+        boards: opts.boards.clone(),
+        limiter: tactus_runtime::limiter::LimiterConfig {
+            sample_rate_hz: board.sample_rate_hz,
+            ..Default::default()
+        },
+    };
+    let run = tactus_firmware::perform::play_boards(
         &programs,
-        &specs,
+        &keys,
+        &key_programs,
         &board,
-        &tactus_runtime::limiter::LimiterConfig::default(),
+        motions,
+        &popts,
+        &|n| bar.inc(n),
     )
-    .map_err(|e| format!("firmware for {} keys on {}: {e}", played.len(), board.name))?;
-    let mut run = image.run().map_err(|e| format!("firmware: {e}"))?;
-    let n_cores = board.cores as usize;
-    let mut report = EmuReport {
+    .map_err(|e| format!("firmware: {e}"))?;
+    let mut strikes = Vec::new();
+    let mut traces = Traces::new();
+    let mut boards = Vec::with_capacity(run.boards.len());
+    for mut b in run.boards {
+        strikes.extend(b.strikes.drain(..).map(|s| Strike {
+            key: s.key,
+            time_s: s.time_s,
+            speed_mps: s.speed_mps,
+            answers: None,
+        }));
+        traces.append(&mut b.traces);
+        boards.push(b);
+    }
+    let report = EmuReport {
         board: board.name.clone(),
         deadline: board.cycles_per_sample(),
-        keys: (0..n_cores)
-            .map(|c| cores.iter().filter(|&&k| k == c).count())
-            .collect(),
-        max: vec![0; n_cores],
-        misses: vec![0; n_cores],
-        cycles: vec![Vec::with_capacity(end); n_cores],
+        boards,
+        decimation: run.decimation,
     };
-    let strike_event: Vec<Option<tactus_compiler::ir::EventId>> = programs
-        .iter()
-        .map(|p| {
-            p.fixed
-                .program
-                .events
-                .iter()
-                .position(|e| e.name == "strike" || e.name == "pluck")
-                .map(|i| tactus_compiler::ir::EventId(i as u32))
-        })
-        .collect();
-    // Per program: the out word of `hammer_pos` and its format.
-    let hammer_word: Vec<Option<(usize, i32)>> = programs
-        .iter()
-        .map(|p| {
-            let fp = &p.fixed;
-            fp.program
-                .outputs
-                .iter()
-                .position(|o| o.name == "hammer_pos")
-                .map(|i| (p.thumb.out.outputs + i, fp.output_frac[i]))
-        })
-        .collect();
-    let motion: Vec<Option<&Motion>> = played
-        .iter()
-        .map(|a| motions.get(&a.key).copied())
-        .collect();
-    let mut players: Vec<Option<ForcePlayer>> = played
-        .iter()
-        .zip(&motion)
-        .zip(&key_programs)
-        .map(|((_, m), &p)| {
-            matches!(m, Some(Motion::Finger(_))).then(|| {
-                let dip = programs[p].fixed.program.sensors[0].range.1;
-                ForcePlayer::new(dip, opts.finger.mass_kg, fs)
-            })
-        })
-        .collect();
-    let traced: Vec<bool> = played
-        .iter()
-        .map(|a| opts.trace.keys.contains(&a.key))
-        .collect();
-    let mut traces = Traces::new();
-    let n = played.len();
-    let (mut sensors, mut xs) = (vec![0i32; n], vec![0.0; n]);
-    let (mut forces, mut currents, mut dacs) = (vec![0i32; n], vec![0i32; n], vec![0i16; n]);
-    let mut strikes = Vec::new();
-    for i in 0..end {
-        let time = i as f64 / fs;
-        for k in 0..n {
-            let x = match (motion[k], &players[k]) {
-                (Some(Motion::Track(t)), _) => t.position(time),
-                (_, Some(p)) => p.x_m,
-                _ => 0.0,
-            };
-            xs[k] = x;
-            let fp = &programs[key_programs[k]].fixed;
-            sensors[k] = tactus_compiler::fixed::interp::FixedInstance::sensor_raw(fp, 0, Some(x));
-        }
-        let out = run
-            .step(&sensors)
-            .map_err(|e| format!("firmware, sample {i}: {e}"))?;
-        for ev in &out.events {
-            let p = key_programs[ev.key];
-            if Some(ev.event) == strike_event[p] {
-                let frac = programs[p].fixed.event_frac[ev.event.index()][0];
-                strikes.push(Strike {
-                    key: played[ev.key].key,
-                    time_s: time,
-                    speed_mps: tactus_runtime::fixed::to_f64(
-                        ev.args.first().copied().unwrap_or(0),
-                        frac,
-                    ),
-                    answers: None,
-                });
-            }
-        }
-        for c in 0..n_cores {
-            report.max[c] = report.max[c].max(out.core_cycles[c]);
-            report.misses[c] = out.misses[c];
-            report.cycles[c].push(out.core_cycles[c]);
-        }
-        forces.copy_from_slice(&out.force);
-        currents.copy_from_slice(&out.current_ua);
-        dacs.copy_from_slice(&out.dac);
-        for k in 0..n {
-            let p = key_programs[k];
-            let force_n = tactus_runtime::fixed::to_f64(forces[k], programs[p].fixed.total_frac);
-            let push = match motion[k] {
-                Some(Motion::Finger(f)) => f.force(time),
-                _ => 0.0,
-            };
-            if let Some(player) = &mut players[k] {
-                player.step(push, force_n);
-            }
-            if traced[k] && time >= opts.trace.from_s && time <= opts.trace.to_s {
-                let hammer_m = hammer_word[p].map_or(f64::NAN, |(w, frac)| {
-                    tactus_runtime::fixed::to_f64(run.out(k)[w], frac)
-                });
-                traces.entry(played[k].key).or_default().push([
-                    time,
-                    xs[k],
-                    force_n,
-                    hammer_m,
-                    push,
-                    currents[k] as f64 * 1e-6,
-                    dacs[k] as f64,
-                ]);
-            }
-        }
-        if i % 4096 == 4095 {
-            bar.inc(4096 * n as u64);
-        }
-    }
     Ok((strikes, report, traces))
 }
 
@@ -1262,32 +1213,6 @@ fn write_traces(
         wrote.push(hammer);
     }
     Ok(wrote)
-}
-
-/// Hook for the emulated-board engine: writes `OUT/STEM-cycles.svg`, the cycles each core
-/// spent per sample (`cycles_per_core[c][i]`, at `sample_rate_hz`) against the per-sample
-/// deadline `deadline_cycles` (e.g. 125 MHz / 44.1 kHz ≈ 2834 cycles). Returns the path.
-///
-/// # Errors
-///
-/// A message naming the file when there are no samples or it cannot be written.
-pub fn write_cycle_plot(
-    out: &Path,
-    stem: &str,
-    cycles_per_core: &[Vec<u64>],
-    sample_rate_hz: f64,
-    deadline_cycles: u64,
-) -> Result<PathBuf, String> {
-    let path = out.join(format!("{stem}-cycles.svg"));
-    plot::plot_cycles_per_core(
-        cycles_per_core,
-        sample_rate_hz,
-        deadline_cycles,
-        &format!("{stem}: cycles per sample per core"),
-        &path,
-    )
-    .map_err(|e| e.to_string())?;
-    Ok(path)
 }
 
 /// Writes one row per strike with the input note it answers; returns how many answer one.

@@ -352,23 +352,22 @@ pub fn plot_lines(
     })
 }
 
-/// Writes an SVG of the cycles each core spent on each sample (one line per core, x in
-/// seconds at `sample_rate_hz`) with the per-sample deadline `deadline_cycles` as a
-/// horizontal line: a sample whose cycles rise above it missed the deadline.
-/// `cycles[c][i]` is core `c`'s cycle count for sample `i`.
+/// Cycles per sample over time, one named line per series (`("board 3", cycles)`, e.g. a
+/// board's busier core), at `sample_rate_hz` points per second, against the per-sample
+/// deadline `deadline_cycles`.
 ///
 /// # Errors
 ///
-/// [`PlotError::EmptyTrace`] when no core has a sample, or [`PlotError::Draw`]; every error
-/// names `path`.
-pub fn plot_cycles_per_core(
-    cycles: &[Vec<u64>],
+/// [`PlotError::EmptyTrace`] without points, [`PlotError::Draw`] when the file cannot be
+/// written.
+pub fn plot_cycle_series(
+    cycles: &[(String, &[u64])],
     sample_rate_hz: f64,
     deadline_cycles: u64,
     title: &str,
     path: &Path,
 ) -> Result<(), PlotError> {
-    let samples = cycles.iter().map(Vec::len).max().unwrap_or(0);
+    let samples = cycles.iter().map(|c| c.1.len()).max().unwrap_or(0);
     if samples == 0 || sample_rate_hz.is_nan() || sample_rate_hz <= 0.0 {
         return Err(PlotError::EmptyTrace {
             path: path.to_path_buf(),
@@ -376,9 +375,8 @@ pub fn plot_cycles_per_core(
     }
     let mut lines: Vec<Line> = cycles
         .iter()
-        .enumerate()
-        .map(|(c, v)| Line {
-            label: format!("core {c}"),
+        .map(|(label, v)| Line {
+            label: label.clone(),
             x: (0..v.len()).map(|i| i as f64 / sample_rate_hz).collect(),
             y: v.iter().map(|&n| n as f64).collect(),
         })
@@ -826,22 +824,26 @@ mod tests {
         let mut core1: Vec<u64> = (0..10_000).map(|i| 2000 + (i % 5) as u64 * 20).collect();
         core1[5000] = 3400;
         let cpath = temp_svg("cycles");
-        plot_cycles_per_core(&[core0, core1], fs, 2834, "budget", &cpath).unwrap();
+        let named = [
+            ("board 1".to_string(), core0.as_slice()),
+            ("board 2".to_string(), core1.as_slice()),
+        ];
+        plot_cycle_series(&named, fs, 2834, "budget", &cpath).unwrap();
         let svg = std::fs::read_to_string(&cpath).unwrap();
         std::fs::remove_file(&cpath).unwrap();
         std::fs::remove_file(&path).unwrap();
         for label in [
-            "core 0",
-            "core 1",
+            "board 1",
+            "board 2",
             "deadline (2834 cycles)",
             "cycles",
             "budget",
         ] {
             assert!(svg.contains(label), "SVG lacks `{label}`");
         }
-        // One polyline per core and one for the deadline.
+        // One polyline per series and one for the deadline.
         assert!(svg.matches("<polyline").count() >= 3, "too few lines");
-        let e = plot_cycles_per_core(&[], fs, 100, "x", &cpath).unwrap_err();
+        let e = plot_cycle_series(&[], fs, 100, "x", &cpath).unwrap_err();
         assert!(matches!(e, PlotError::EmptyTrace { .. }), "{e}");
     }
 }

@@ -30,8 +30,9 @@ fn n(v: &Value) -> u64 {
     v.as_f64().unwrap_or_else(|| panic!("not a number: {v}")) as u64
 }
 
-/// 88 piano keys on a 20 MHz RP2040 (453 cycles per sample): rejected with exit 1, naming
-/// the most expensive key (MIDI number and note) with its worst path, and what would fit.
+/// 88 piano keys on a 20 MHz RP2040 (453 cycles per sample): not even one key fits a
+/// board, so every planned board is over budget — exit 1, naming the most expensive key
+/// (MIDI number and note) with its worst path, and what would fit.
 #[test]
 fn a_heavy_keyboard_is_rejected_naming_the_worst_key() {
     let out = budget(&[
@@ -44,7 +45,7 @@ fn a_heavy_keyboard_is_rejected_naming_the_worst_key() {
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert_eq!(out.status.code(), Some(1), "{stdout}");
-    assert!(stdout.contains("DOES NOT FIT"), "{stdout}");
+    assert!(stdout.contains("DOES NOT FIT — 88 of 88 boards over budget"), "{stdout}");
     assert!(stdout.contains("most expensive key: 21 (A0)"), "{stdout}");
     assert!(stdout.contains("its worst path"), "{stdout}");
     assert!(
@@ -52,69 +53,86 @@ fn a_heavy_keyboard_is_rejected_naming_the_worst_key() {
         "{stdout}"
     );
     assert!(
-        stdout.contains("what fits on rp2040-20mhz:\n  grand_piano: 0 keys"),
+        stdout.contains("what fits on one rp2040-20mhz board:\n  grand_piano: 0 keys"),
         "{stdout}"
     );
     assert!(!stdout.contains("BUG"), "{stdout}");
 }
 
-/// The JSON document is consistent with itself: each core's cycles are its keys' costs
-/// plus the interrupt overhead, every key is on one core, measured ≤ static, the verdict
-/// and the exit code agree with the headrooms.
+/// The JSON document is consistent with itself: every key is on exactly one core of one
+/// board, the boards are contiguous key ranges in order, each core's static bound is at
+/// least the empty interrupt plus its keys' updates and at most that plus their glue and
+/// contention (the image shares a core's set-up among its keys), measured ≤ static, and
+/// the verdict and the exit code agree with the headrooms.
 #[test]
 fn json_parses_and_adds_up() {
-    let (code, v) = json(&["harpsichord", "--keys", "6", "--quick"]);
+    let (code, v) = json(&["harpsichord", "--keys", "20", "--quick"]);
     let b = &v["board"];
     let cps = n(&b["cycles_per_sample"]);
     assert_eq!(cps, (n(&b["clock_hz"]) / n(&b["sample_rate_hz"])));
+    let isr = n(&b["isr_cycles"]);
+    assert!(isr > 15 && isr < cps, "{b}");
     let p = &v["programs"][0];
-    let (st, me) = (n(&p["static_cycles"]), n(&p["measured_max"]));
+    let (st, me, glue) = (n(&p["static_cycles"]), n(&p["measured_max"]), n(&p["glue_cycles"]));
     assert!(me <= st && me > 0, "{p}");
+    assert!(glue > 0 && glue < st, "{p}");
     assert_eq!(p["sound"], Value::Bool(true));
     assert!(p["measured_mean"].as_f64().unwrap() <= me as f64);
-    let key_cost = st + n(&b["io_cycles_per_key"]);
-    let cores = v["cores"].as_array().unwrap();
-    assert_eq!(cores.len() as u64, n(&b["cores"]));
+    let boards = v["boards"].as_array().unwrap();
+    assert_eq!(n(&v["board_count"]) as usize, boards.len());
+    assert!(boards.len() >= 2, "20 harpsichord keys take more than one board: {v}");
     let mut keys: Vec<u64> = Vec::new();
-    for c in cores {
-        let k = c["keys"].as_array().unwrap();
-        keys.extend(k.iter().map(n));
-        assert_eq!(
-            n(&c["cycles"]),
-            k.len() as u64 * key_cost + n(&b["isr_overhead_cycles"])
-        );
-        assert_eq!(
-            c["headroom"].as_f64().unwrap() as i64,
-            cps as i64 - n(&c["cycles"]) as i64
-        );
+    for bd in boards {
+        let on: Vec<u64> = bd["keys"].as_array().unwrap().iter().map(n).collect();
+        assert!(on.windows(2).all(|w| w[1] == w[0] + 1), "contiguous: {on:?}");
+        let mut on_cores: Vec<u64> = Vec::new();
+        let cores = bd["cores"].as_array().unwrap();
+        assert_eq!(cores.len() as u64, n(&b["cores"]));
+        for c in cores {
+            let k = c["keys"].as_array().unwrap();
+            on_cores.extend(k.iter().map(n));
+            let cycles = n(&c["cycles"]);
+            let nk = k.len() as u64;
+            assert!(cycles >= isr + nk * st, "{c}");
+            assert!(cycles <= isr + nk * (st + glue) + n(&c["contention"]), "{c}");
+            assert_eq!(
+                c["headroom"].as_f64().unwrap() as i64,
+                cps as i64 - cycles as i64
+            );
+        }
+        on_cores.sort();
+        assert_eq!(on_cores, on);
+        keys.extend(on);
     }
-    keys.sort();
-    assert_eq!(keys, (21..27).collect::<Vec<u64>>());
-    let fits = cores.iter().all(|c| c["headroom"].as_f64().unwrap() >= 0.0);
+    assert_eq!(keys, (21..41).collect::<Vec<u64>>());
+    let fits = boards.iter().all(|bd| {
+        bd["cores"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|c| c["headroom"].as_f64().unwrap() >= 0.0)
+    });
     assert_eq!(v["fits"], Value::Bool(fits));
     assert_eq!(code, Some(if fits { 0 } else { 1 }));
     assert_eq!(v["worst_key"]["note"], "A0");
-    assert_eq!(v["what_fits"][0]["cycles_per_key"], key_cost as f64);
+    assert_eq!(n(&v["what_fits"][0]["cycles_per_key"]), st + glue);
 }
 
-/// "What fits" is exact: that many keys fit (exit 0), one more does not (exit 1).
+/// "What fits" is exact: that many keys take one board, one more takes two.
 #[test]
 fn what_fits_fits_and_one_more_does_not() {
     let (_, v) = json(&["harpsichord", "--keys", "1", "--quick"]);
-    let max = n(&v["what_fits"][0]["max_keys"]);
+    let max = n(&v["what_fits"][0]["keys_per_board"]);
     assert!(max >= 2, "{v}");
-    let out = budget(&["harpsichord", "--keys", &max.to_string(), "--quick"]);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(0), "{stdout}");
-    assert!(stdout.contains("verdict: FITS"), "{stdout}");
-    let out = budget(&["harpsichord", "--keys", &(max + 1).to_string(), "--quick"]);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(1), "{stdout}");
-    assert!(stdout.contains("DOES NOT FIT"), "{stdout}");
+    let (code, v) = json(&["harpsichord", "--keys", &max.to_string(), "--quick"]);
+    assert_eq!((code, n(&v["board_count"])), (Some(0), 1), "{v}");
+    let (code, v) = json(&["harpsichord", "--keys", &(max + 1).to_string(), "--quick"]);
+    assert_eq!((code, n(&v["board_count"])), (Some(0), 2), "{v}");
 }
 
 /// A layout with two instruments and a graded param: one program per param set, each
-/// measured (the costliest fully, the others briefly) and sound; keys as the layout says.
+/// measured (the costliest fully, the others briefly) and sound; keys as the layout says;
+/// `--write-plan` writes a layout whose boards, read back, give the same verdict.
 #[test]
 fn a_small_split_layout_with_grading() {
     let dir = temp_dir("budget-split");
@@ -126,8 +144,15 @@ fn a_small_split_layout_with_grading() {
          grade = [ { param = \"M_h\", from = \"6 g\", to = \"3.5 g\" } ]\n",
     )
     .unwrap();
-    let (code, v) = json(&[f.to_str().unwrap(), "--quick"]);
+    let plan = dir.join("plan/mini-boards.toml");
+    let (code, v) = json(&[
+        f.to_str().unwrap(),
+        "--quick",
+        "--write-plan",
+        plan.to_str().unwrap(),
+    ]);
     assert_eq!(v["layout"], "mini");
+    assert_eq!(v["planned"], Value::Bool(true));
     let programs = v["programs"].as_array().unwrap();
     assert_eq!(programs.len(), 1 + 3, "{v}");
     for p in programs {
@@ -152,6 +177,32 @@ fn a_small_split_layout_with_grading() {
         code,
         Some(if v["fits"] == Value::Bool(true) { 0 } else { 1 })
     );
+    // The plan, read back: the same boards, listed rather than planned.
+    let text = std::fs::read_to_string(&plan).unwrap();
+    assert!(text.contains("[[board]]") && text.contains("board_kind"), "{text}");
+    let (code2, v2) = json(&[plan.to_str().unwrap(), "--quick"]);
+    assert_eq!(code2, code);
+    assert_eq!(v2["planned"], Value::Bool(false));
+    assert_eq!(v2["boards"], v["boards"], "{text}");
+}
+
+/// A listed board over budget is reported as such (exit 1), naming the board.
+#[test]
+fn a_listed_board_over_budget_does_not_fit() {
+    let dir = temp_dir("budget-over");
+    let f = dir.join("over.toml");
+    std::fs::write(
+        &f,
+        "name = \"over\"\n[[range]]\nkeys = [60, 65]\ninstrument = \"grand_piano\"\n\
+         [[board]]\nkeys = [60, 61]\n[[board]]\nkeys = [62, 65]\n",
+    )
+    .unwrap();
+    let out = budget(&[f.to_str().unwrap(), "--quick"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains("listed rp2040 boards"), "{stdout}");
+    assert!(stdout.contains("DOES NOT FIT — 1 of 2 boards over budget"), "{stdout}");
+    assert!(stdout.contains("board 2 (62–65"), "{stdout}");
 }
 
 #[test]
@@ -178,7 +229,7 @@ fn bad_input_exits_2_with_a_clear_message() {
     let board = dir.join("board.toml");
     std::fs::write(
         &board,
-        "name = \"b\"\nclock_hz = 133e6\ncores = 0\nsample_rate_hz = 44100\nio_cycles_per_key = 12\nisr_overhead_cycles = 60\n",
+        "name = \"b\"\nclock_hz = 133e6\ncores = 0\nsample_rate_hz = 44100\n",
     )
     .unwrap();
     let e = err(&["hammond", "--board", board.to_str().unwrap()]);
@@ -199,6 +250,47 @@ fn bad_input_exits_2_with_a_clear_message() {
     .unwrap();
     let e = err(&[unknown.to_str().unwrap()]);
     assert!(e.contains("unknown.toml") && e.contains("violin"), "{e}");
+    // Boards: overlapping, a key on none, an unknown board kind; a path that does not exist.
+    let layout = |name: &str, tail: &str| {
+        let p = dir.join(name);
+        std::fs::write(
+            &p,
+            format!("name = \"x\"\n[[range]]\nkeys = [60, 63]\ninstrument = \"hammond\"\n{tail}"),
+        )
+        .unwrap();
+        p
+    };
+    let p = layout("overlap.toml", "[[board]]\nkeys = [60, 62]\n[[board]]\nkeys = [62, 63]\n");
+    let e = err(&[p.to_str().unwrap()]);
+    assert!(e.contains("overlap.toml") && e.contains("overlap"), "{e}");
+    let p = layout("gap.toml", "[[board]]\nkeys = [60, 61]\n");
+    let e = err(&[p.to_str().unwrap()]);
+    assert!(e.contains("gap.toml") && e.contains("no board"), "{e}");
+    let p = dir.join("kind.toml");
+    std::fs::write(
+        &p,
+        "name = \"x\"\nboard_kind = \"pdp11\"\n[[range]]\nkeys = [60, 63]\ninstrument = \"hammond\"\n",
+    )
+    .unwrap();
+    let e = err(&[p.to_str().unwrap()]);
+    assert!(e.contains("kind.toml") && e.contains("board_kind") && e.contains("pdp11"), "{e}");
+    let p = layout("x.toml", "").with_file_name("path.toml");
+    std::fs::write(
+        &p,
+        "name = \"x\"\n[[range]]\nkeys = [60, 63]\ninstrument = \"no/such/hammond.tactus\"\n",
+    )
+    .unwrap();
+    let e = err(&[p.to_str().unwrap()]);
+    assert!(e.contains("path.toml") && e.contains("no such file"), "{e}");
+    // A param value outside what the instrument requires: the diagnostics, then the key.
+    let p = dir.join("param.toml");
+    std::fs::write(
+        &p,
+        "name = \"x\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"grand_piano\"\nparams = { M_h = \"-5 g\" }\n",
+    )
+    .unwrap();
+    let e = err(&[p.to_str().unwrap()]);
+    assert!(e.contains("param.toml") && e.contains("key 60") && e.contains("M_h=-5 g"), "{e}");
 }
 
 #[test]
@@ -209,7 +301,7 @@ fn help_explains_the_figures_and_exit_codes() {
     for w in [
         "static",
         "measured",
-        "io_cycles_per_key",
+        "boards",
         "Exit codes",
         "--keys",
         "--json",
@@ -226,7 +318,7 @@ fn a_pen_is_budgeted_as_one_pen_with_its_own_glue() {
     let out = budget(&["rubbed_bank", "--quick"]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
-        stdout.contains("rubbed_bank × 1 (rubbed_bank): 1 pen on"),
+        stdout.contains("rubbed_bank × 1 (rubbed_bank): 1 pen on planned"),
         "{stdout}"
     );
     let line = stdout
@@ -234,7 +326,7 @@ fn a_pen_is_budgeted_as_one_pen_with_its_own_glue() {
         .find(|l| l.starts_with("most expensive pen (slot "))
         .unwrap_or_else(|| panic!("{stdout}"));
     let io: u64 = line
-        .rsplit("I/O ")
+        .rsplit("glue ")
         .next()
         .and_then(|x| x.trim().parse().ok())
         .unwrap_or_else(|| panic!("{line}"));
@@ -243,7 +335,7 @@ fn a_pen_is_budgeted_as_one_pen_with_its_own_glue() {
     let key_io: u64 = key_out
         .lines()
         .find(|l| l.starts_with("most expensive key:"))
-        .and_then(|l| l.rsplit("I/O ").next())
+        .and_then(|l| l.rsplit("glue ").next())
         .and_then(|x| x.trim().parse().ok())
         .unwrap_or_else(|| panic!("{key_out}"));
     assert!(io > key_io, "pen glue {io} cycles, a key's {key_io}");

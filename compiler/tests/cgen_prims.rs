@@ -142,9 +142,15 @@ fn cases(rng: &mut XorShift64, per_kind: usize) -> Vec<Case> {
         });
         let frd = frac(rng, Some(fx_ - fy));
         v.push(Case {
-            c: body(prim::div("x", fx_, "y", fy, frd)),
+            c: body(prim::div("x", fx_, "y", fy, 0, frd)),
             want: Box::new(move |x, y| fx::div(x, fx_, y, fy, frd).0),
             what: format!("div {fx_} {fy} -> {frd}"),
+        });
+        let bd = rng.below(34) as u8;
+        v.push(Case {
+            c: body(prim::div("x", fx_, "y", fy, bd, frd)),
+            want: Box::new(move |x, y| fx::div_shifted(x, fx_, y, fy, bd, frd).0),
+            what: format!("div_shifted {fx_} {fy}>>{bd} -> {frd}"),
         });
         let frs = frac(rng, Some(fx_ / 2));
         v.push(Case {

@@ -1,44 +1,45 @@
-//! Fixed workload for measuring host instructions per emulated cycle under callgrind:
+//! Fixed workloads for measuring host instructions per emulated cycle under callgrind:
 //! the criterion bench's loop (SRAM load, add, SRAM store, MULS, shift, subtract, taken
-//! branch; 10 cycles per iteration) on one or both cores.
+//! branch; 10 cycles per iteration) on one or both cores, and its firmware-like key updates
+//! (the workloads are `benches/common/mod.rs`, shared with the bench).
 //!
 //! ```text
 //! cargo build --release -p tactus-emulator --example speed
-//! valgrind --tool=callgrind target/release/examples/speed 1 5000000
+//! valgrind --tool=callgrind target/release/examples/speed 1 5000000 block
 //! ```
 //!
-//! `cores` = 3 runs the loop on core 0 with core 1 started but asleep in WFI (no interrupt
-//! will wake it); `cores` = 4 runs, on core 0, a loop calling a profiled function
-//! (`Board::profile_addr`) that does the SRAM load, add and store (16 cycles per call). Prints the cycles run, each core's registers as a checksum, and the
+//! Arguments: `mode cycles engine`. `mode` 1 or 2 runs the loop on 1 or 2 cores; 3 runs
+//! the loop on core 0 with core 1 started but asleep in WFI (no interrupt will wake it);
+//! 4 runs, on core 0, a loop calling a profiled function (`Board::profile_addr`) that does
+//! the SRAM load, add and store (16 cycles per call); 5 and 6 run the key updates (44 keys
+//! per core, SysTick every 3,016 cycles) on 1 and 2 cores. `engine` is `block` (default)
+//! or `interp`. Prints the cycles run, each core's registers as a checksum, and the
 //! wall-clock rate.
 
-use tactus_emulator::{Board, Config};
+use tactus_emulator::Engine;
 
-/// loop: ldr r1,[r0]; adds r1,r1,r2; str r1,[r0,#4]; muls r3,r1,r3; lsrs r4,r3,#3;
-///       subs r5,#1; bne loop
-const LOOP: [u16; 7] = [0x6801, 0x1889, 0x6041, 0x434b, 0x08dc, 0x3d01, 0xd1f8];
+#[path = "../benches/common/mod.rs"]
+mod common;
 
 fn main() {
     let mut args = std::env::args().skip(1);
     let mode: usize = args
         .next()
-        .map_or(1, |a| a.parse().expect("cores: 1, 2 or 3"));
-    let cores = if mode == 2 || mode == 3 { 2 } else { 1 };
+        .map_or(1, |a| a.parse().expect("mode: 1 to 6"));
+    let cores = if mode == 2 || mode == 3 || mode == 6 { 2 } else { 1 };
     let cycles: u64 = args
         .next()
         .map_or(5_000_000, |a| a.parse().expect("cycles"));
-    let mut b = Board::new(Config::default());
-    for core in 0..cores {
-        let code: Vec<u8> = LOOP.iter().flat_map(|h| h.to_le_bytes()).collect();
-        let at = 0x2000_0000 + 0x1000 * core as u32;
-        b.write_bytes(at, &code).unwrap();
-        b.start_core(core, at | 1, 0x2004_0000 + 0x800 * core as u32, 0);
-        let c = &mut b.cores[core];
-        c.r[0] = 0x2001_0000 + 0x100 * core as u32;
-        c.r[2] = 3;
-        c.r[3] = 7;
-        c.r[5] = u32::MAX;
-    }
+    let engine = match args.next().as_deref() {
+        None | Some("block") => Engine::Block,
+        Some("interp") => Engine::Interp,
+        Some(other) => panic!("engine: block or interp, not {other}"),
+    };
+    let mut b = if mode >= 5 {
+        common::key_updates(engine, cores, 44, 3016)
+    } else {
+        common::speed_loop(engine, if mode == 2 { 2 } else { 1 })
+    };
     if mode == 3 {
         // Core 1: wfi; b .-2 (sleeps for good: no interrupt is enabled).
         b.write_bytes(0x2000_1000, &[0x30, 0xbf, 0xfd, 0xe7])
@@ -59,7 +60,11 @@ fn main() {
     let t = std::time::Instant::now();
     let stop = b.run_for(cycles);
     let secs = t.elapsed().as_secs_f64();
-    println!("{stop:?} after {} cycles", b.cycle());
+    println!(
+        "{stop:?} after {} cycles ({engine:?}, {} blocks decoded)",
+        b.cycle(),
+        b.blocks_decoded()
+    );
     for c in &b.cores[..cores] {
         println!(
             "core {}: cycle {} instructions {} r = {:08x?} stalls {}",
@@ -70,6 +75,10 @@ fn main() {
         let calls = b.calls(h);
         let total: u64 = calls.iter().map(|c| c.cycles).sum();
         println!("{} profiled calls, {} cycles", calls.len(), total);
+    }
+    if mode >= 5 {
+        let dac: Vec<u32> = (0..4).map(|k| b.dac(k).unwrap()).collect();
+        println!("dac[0..4] = {dac:?}");
     }
     println!("{:.1} M cycles/s per core", cycles as f64 / secs / 1e6);
 }

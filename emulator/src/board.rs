@@ -31,7 +31,10 @@
 //! profiled with [`Board::profile_handler`] are entered and left only by exception entry
 //! and return, in the general path, so they cost the loop no such check.
 //! So the order of all shared-state accesses, and every result, is the same as stepping
-//! one instruction at a time. [`Board::step`] is the same machine one instruction at a
+//! one instruction at a time. [`Config::engine`] selects what runs that fast path: the
+//! interpreter above ([`Engine::Interp`], the default) or the block engine
+//! ([`Engine::Block`], module [`crate::block`]: pre-decoded basic blocks, the same
+//! instruction semantics and the same interleaving, exact but not yet faster). [`Board::step`] is the same machine one instruction at a
 //! time, recording [`Core::last`] for traces.
 //!
 //! **Sensors and DAC.** Firmware sees the key sensors and the motor drivers the way a DMA from
@@ -41,6 +44,7 @@
 //! cores nothing; firmware loads and stores them as ordinary SRAM (2 cycles, bank 3:2
 //! striping and contention apply). Link firmware so nothing else lives there.
 
+use crate::block::{self, Blocks, Leave};
 use crate::bus::{sram_location, Bus, System, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
 use crate::decode::{decode, is_32bit, Instr};
@@ -70,6 +74,24 @@ pub struct Config {
     /// Stop [`Board::run_until`] with [`StopReason::Fault`] after a core takes a HardFault, instead
     /// of running the firmware's HardFault handler.
     pub stop_on_fault: bool,
+    /// Which engine runs the fast path of [`Board::run_until`] / [`Board::run_for`]
+    /// (default [`Engine::Interp`], the faster of the two today: see BENCHMARKS.md). Both
+    /// give the same cycles, registers and memory; [`Board::step`] is always the general
+    /// path.
+    pub engine: Engine,
+}
+
+/// The engine behind [`Board::run_until`]'s fast path.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Engine {
+    /// The interpreter: one instruction at a time from the decode cache (module `fast`).
+    #[default]
+    Interp,
+    /// Pre-decoded basic blocks with a per-block deadline check (module [`crate::block`]),
+    /// the same instruction semantics; it falls back to the interpreter while functions
+    /// are profiled with [`Board::profile_addr`]. Exact, but not yet faster than
+    /// [`Engine::Interp`] (BENCHMARKS.md, "Emulator: the block engine").
+    Block,
 }
 
 impl Default for Config {
@@ -78,6 +100,7 @@ impl Default for Config {
             clock_hz: 133_000_000,
             svc_halts: false,
             stop_on_fault: true,
+            engine: Engine::default(),
         }
     }
 }
@@ -260,6 +283,7 @@ pub struct Board {
     profiles: Vec<Profile>,
     launch: Option<Launch>,
     cache: Box<[Cached; CACHE_SLOTS]>,
+    blocks: Blocks,
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
@@ -278,6 +302,7 @@ impl Board {
             launch: Some(Launch::default()),
             lines: 0,
             lines_epoch: u64::MAX,
+            blocks: Blocks::new(),
             cache: vec![
                 Cached {
                     key: u64::MAX,
@@ -575,6 +600,13 @@ impl Board {
 
     // ---- running ----
 
+    /// Basic blocks the block engine ([`Engine::Block`]) has decoded so far (0 with
+    /// [`Engine::Interp`]): a block is decoded again after a store into a page holding
+    /// decoded code or a host write drops them all.
+    pub fn blocks_decoded(&self) -> u64 {
+        self.blocks.decoded
+    }
+
     /// Total cycles elapsed: the lower of the running cores' counters.
     pub fn cycle(&self) -> u64 {
         match self.next_core() {
@@ -645,7 +677,15 @@ impl Board {
                 if let (true, Some(watch)) = (now < deadline, self.watch_set(k)) {
                     let [c0, c1] = &mut self.cores;
                     let (sys, cache) = (&mut self.system, &self.cache);
+                    let blocks = &mut self.blocks;
+                    let on_blocks = self.config.engine == Engine::Block;
                     let run = match (k == 0, watch[0] == NO_WATCH) {
+                        (true, true) if on_blocks => {
+                            blocks_beside_sleeper::<false>(c0, c1, sys, blocks, deadline, wake_check)
+                        }
+                        (false, true) if on_blocks => {
+                            blocks_beside_sleeper::<true>(c1, c0, sys, blocks, deadline, wake_check)
+                        }
                         (true, true) => run_beside_sleeper::<false, false>(
                             c0, c1, sys, cache, deadline, wake_check, &watch,
                         ),
@@ -804,13 +844,21 @@ impl Board {
         deadline: [u64; 2],
         watch: [[u32; WATCH_SLOTS]; 2],
     ) -> (usize, Option<Event>) {
-        let (cores, sys, cache) = (&mut self.cores, &mut self.system, &self.cache);
         // Slots fill from the first: nothing to watch when it is empty.
         let unwatched = if BOTH {
             watch[0][0] == NO_WATCH && watch[1][0] == NO_WATCH
         } else {
             watch[k][0] == NO_WATCH
         };
+        if unwatched && self.config.engine == Engine::Block {
+            let (k, result) = self.block_run::<BOTH>(k, deadline);
+            let exit = match result {
+                Ok(()) => Exit::Deadline,
+                Err(_) => Exit::Miss,
+            };
+            return (k, self.finish_fast(k, exit));
+        }
+        let (cores, sys, cache) = (&mut self.cores, &mut self.system, &self.cache);
         let (k, exit) = match (BOTH, unwatched) {
             (true, true) => run_both::<false>(cores, sys, cache, deadline, &watch),
             (true, false) => run_both::<true>(cores, sys, cache, deadline, &watch),
@@ -824,6 +872,39 @@ impl Board {
             ),
         };
         (k, self.finish_fast(k, exit))
+    }
+
+    /// [`Board::fast_run`] on the block engine (nothing watched): core `k` alone, or with
+    /// `BOTH` the two cores in lock-step order, each running its blocks while it keeps the
+    /// turn (its cycle below the other core's, or equal for core 0; see [`crate::block`]).
+    /// Returns the core that ran last and `Ok` when it reached its deadline.
+    fn block_run<const BOTH: bool>(
+        &mut self,
+        k: usize,
+        deadline: [u64; 2],
+    ) -> (usize, Result<(), Leave>) {
+        let (sys, blocks) = (&mut self.system, &mut self.blocks);
+        if !BOTH {
+            let core = &mut self.cores[k];
+            return (k, block::run::<false, _>(core, sys, blocks, deadline[k], |_| {}));
+        }
+        let [c0, c1] = &mut self.cores;
+        loop {
+            let (k, me, other) = if c1.cycle < c0.cycle {
+                (1, &mut *c1, &*c0)
+            } else {
+                (0, &mut *c0, &*c1)
+            };
+            if me.cycle >= deadline[k] {
+                return (k, Ok(()));
+            }
+            let turn_ends = other.cycle + (k == 0) as u64;
+            if let Err(leave) =
+                block::run::<false, _>(me, sys, blocks, deadline[k].min(turn_ends), |_| {})
+            {
+                return (k, Err(leave));
+            }
+        }
     }
 
     /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
@@ -1158,6 +1239,54 @@ fn run_beside_sleeper<const SLEEPER_IS_0: bool, const WATCH: bool>(
             match fast_step::<WATCH>(run, sys, cache, deadline, watch) {
                 Ok(()) => run.instructions += 1,
                 Err(exit) => return Err(exit),
+            }
+        }
+    }
+}
+
+/// [`run_beside_sleeper`] on the block engine (nothing watched): the same interleaving.
+/// The running core keeps the turn while its cycle is below the sleeper's (`+ 1` when the
+/// sleeper is core 1, which loses ties); each sleeper turn before its wake check only sets
+/// its cycle to `min(wake_check, run.cycle + 1)`, which makes the turn the running core's
+/// again, so those turns are replayed after each instruction of a block (`after`). The
+/// block runs up to the cycle from which the sleeper's turn would find it at its wake
+/// check (the later of `wake_check` and the sleeper's cycle, `+ 1` when the sleeper is
+/// core 1) and the deadline; the loop then takes the turns exactly as
+/// [`run_beside_sleeper`] does.
+#[inline(never)]
+fn blocks_beside_sleeper<const SLEEPER_IS_0: bool>(
+    run: &mut Core,
+    sleep: &mut Core,
+    sys: &mut System,
+    blocks: &mut Blocks,
+    deadline: u64,
+    wake_check: u64,
+) -> Result<(), Exit> {
+    let loses_ties = !SLEEPER_IS_0 as u64;
+    loop {
+        if sleep.cycle < run.cycle || (SLEEPER_IS_0 && sleep.cycle == run.cycle) {
+            let now = sleep.cycle;
+            if now >= wake_check {
+                return Ok(());
+            }
+            sleep.cycle = wake_check.min(run.cycle + 1).max(now + 1);
+        } else {
+            if run.cycle >= deadline {
+                return Err(Exit::Deadline);
+            }
+            // From this cycle on, the sleeper's turn would find it at (or past) its wake
+            // check: the loop must take that turn.
+            let limit = deadline.min(wake_check.max(sleep.cycle) + loses_ties);
+            let s = &mut sleep.cycle;
+            let after = |r: u64| {
+                // (A turn that finds the sleeper at its wake check ends the run: the loop
+                // takes it, after the block.)
+                if r >= *s + loses_ties && *s < wake_check {
+                    *s = wake_check.min(r + 1).max(*s + 1);
+                }
+            };
+            if block::run::<true, _>(run, sys, blocks, limit, after).is_err() {
+                return Err(Exit::Miss);
             }
         }
     }

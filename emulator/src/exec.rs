@@ -43,6 +43,18 @@ pub fn condition_passed(cond: u8, n: bool, z: bool, c: bool, v: bool) -> bool {
     }
 }
 
+/// Target of a PC-relative branch (B, B<cond>, BL) at `pc`: PC reads as `pc + 4`.
+#[inline(always)]
+pub(crate) fn branch_target(pc: u32, offset: i32) -> u32 {
+    pc.wrapping_add(4).wrapping_add(offset as u32)
+}
+
+/// Address of a literal (LDR literal, ADR) at `pc`: `Align(PC, 4) + imm`.
+#[inline(always)]
+pub(crate) fn literal_address(pc: u32, imm: u16) -> u32 {
+    (pc.wrapping_add(4) & !3).wrapping_add(imm as u32)
+}
+
 /// What an executed instruction did, for pricing it: whether a conditional branch was taken,
 /// whether its single load/store used the I/O port, extra cycles (bus wait states and
 /// exception return), and the event for the board.
@@ -170,85 +182,123 @@ impl Core {
         Ok(0)
     }
 
+    /// `AddWithCarry` with the flag update of every flag-setting add, subtract and compare
+    /// (ADDS, SUBS, CMP, CMN, ADCS, SBCS, RSBS): sets N, Z, C and V and returns the result.
+    #[inline(always)]
+    pub(crate) fn adds(&mut self, x: u32, y: u32, carry: bool) -> u32 {
+        let (r, c, v) = add_with_carry(x, y, carry);
+        (self.c, self.v) = (c, v);
+        self.nz(r);
+        r
+    }
+
+    /// Whether condition `cond` (0-14) holds on the current flags.
+    #[inline(always)]
+    pub(crate) fn condition(&self, cond: u8) -> bool {
+        condition_passed(cond, self.n, self.z, self.c, self.v)
+    }
+
+    /// `LSLS Rd, Rm, #imm` (imm 0-31; 0 is `MOVS Rd, Rm`, carry unchanged).
+    #[inline(always)]
+    pub(crate) fn lsl_imm(&mut self, rd: u8, rm: u8, imm: u8) {
+        let x = self.r[(rm & 15) as usize];
+        let r = if imm == 0 {
+            x
+        } else {
+            self.c = (x >> (32 - imm as u32)) & 1 == 1;
+            x << imm
+        };
+        self.r[(rd & 15) as usize] = r;
+        self.nz(r);
+    }
+
+    /// `LSRS Rd, Rm, #imm` (imm 1-32).
+    #[inline(always)]
+    pub(crate) fn lsr_imm(&mut self, rd: u8, rm: u8, imm: u8) {
+        let x = self.r[(rm & 15) as usize];
+        self.c = (x >> (imm as u32 - 1)) & 1 == 1;
+        let r = if imm == 32 { 0 } else { x >> imm };
+        self.r[(rd & 15) as usize] = r;
+        self.nz(r);
+    }
+
+    /// `ASRS Rd, Rm, #imm` (imm 1-32).
+    #[inline(always)]
+    pub(crate) fn asr_imm(&mut self, rd: u8, rm: u8, imm: u8) {
+        let x = self.r[(rm & 15) as usize];
+        self.c = ((x as i32) >> (imm as u32 - 1)) & 1 == 1;
+        let r = ((x as i32) >> (imm as u32).min(31)) as u32;
+        self.r[(rd & 15) as usize] = r;
+        self.nz(r);
+    }
+
+    /// `ADDS Rd, Rn, Rm`.
+    #[inline(always)]
+    pub(crate) fn add_reg(&mut self, rd: u8, rn: u8, rm: u8) {
+        let (x, y) = (self.r[(rn & 15) as usize], self.r[(rm & 15) as usize]);
+        self.r[(rd & 15) as usize] = self.adds(x, y, false);
+    }
+
+    /// `SUBS Rd, Rn, Rm`.
+    #[inline(always)]
+    pub(crate) fn sub_reg(&mut self, rd: u8, rn: u8, rm: u8) {
+        let (x, y) = (self.r[(rn & 15) as usize], self.r[(rm & 15) as usize]);
+        self.r[(rd & 15) as usize] = self.adds(x, !y, true);
+    }
+
+    /// `ADDS Rd, Rn, #imm` (both encodings).
+    #[inline(always)]
+    pub(crate) fn add_imm(&mut self, rd: u8, rn: u8, imm: u8) {
+        let x = self.r[(rn & 15) as usize];
+        self.r[(rd & 15) as usize] = self.adds(x, imm as u32, false);
+    }
+
+    /// `SUBS Rd, Rn, #imm` (both encodings).
+    #[inline(always)]
+    pub(crate) fn sub_imm(&mut self, rd: u8, rn: u8, imm: u8) {
+        let x = self.r[(rn & 15) as usize];
+        self.r[(rd & 15) as usize] = self.adds(x, !(imm as u32), true);
+    }
+
+    /// `MOVS Rd, #imm`.
+    #[inline(always)]
+    pub(crate) fn mov_imm(&mut self, rd: u8, imm: u8) {
+        self.r[(rd & 15) as usize] = imm as u32;
+        self.nz(imm as u32);
+    }
+
+    /// `CMP Rn, #imm`.
+    #[inline(always)]
+    pub(crate) fn cmp_imm(&mut self, rn: u8, imm: u8) {
+        let x = self.r[(rn & 15) as usize];
+        self.adds(x, !(imm as u32), true);
+    }
+
     /// The register-only data-processing instructions (shifts by immediate, ADDS/SUBS/MOVS/CMP
     /// of low registers, the ALU group, CMP of high registers, extends and byte reverses):
-    /// results and flags, no memory, no PC write. One implementation for both the general and
-    /// the fast executor. Cycle cost: the caller's (1, from the timing table).
+    /// results and flags, no memory, no PC write. **The one definition** of these
+    /// instructions, with the methods it dispatches to (`lsl_imm` … `cmp_imm`, `alu`,
+    /// `adds`): [`Core::execute`] and [`Core::execute_fast`] call it, and the pre-decoded
+    /// executor (`Core::execute_op`, which the block engine also runs) calls the same
+    /// per-instruction methods directly. Cycle cost: the caller's (1, from the timing
+    /// table).
     #[inline(always)]
-    fn data_processing(&mut self, instr: Instr, pc: u32) {
+    pub(crate) fn data_processing(&mut self, instr: Instr, pc: u32) {
         use Instr::*;
         match instr {
-            LslImm { rd, rm, imm } => {
-                let x = self.r[(rm & 15) as usize];
-                let r = if imm == 0 {
-                    x
-                } else {
-                    self.c = (x >> (32 - imm as u32)) & 1 == 1;
-                    x << imm
-                };
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            LsrImm { rd, rm, imm } => {
-                let x = self.r[(rm & 15) as usize];
-                self.c = (x >> (imm as u32 - 1)) & 1 == 1;
-                let r = if imm == 32 { 0 } else { x >> imm };
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            AsrImm { rd, rm, imm } => {
-                let x = self.r[(rm & 15) as usize];
-                self.c = ((x as i32) >> (imm as u32 - 1)) & 1 == 1;
-                let r = ((x as i32) >> (imm as u32).min(31)) as u32;
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            AddReg { rd, rn, rm } => {
-                let (r, c, v) = add_with_carry(
-                    self.r[(rn & 15) as usize],
-                    self.r[(rm & 15) as usize],
-                    false,
-                );
-                (self.c, self.v) = (c, v);
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            SubReg { rd, rn, rm } => {
-                let (r, c, v) = add_with_carry(
-                    self.r[(rn & 15) as usize],
-                    !self.r[(rm & 15) as usize],
-                    true,
-                );
-                (self.c, self.v) = (c, v);
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            AddImm { rd, rn, imm } => {
-                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], imm as u32, false);
-                (self.c, self.v) = (c, v);
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            SubImm { rd, rn, imm } => {
-                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], !(imm as u32), true);
-                (self.c, self.v) = (c, v);
-                self.r[(rd & 15) as usize] = r;
-                self.nz(r);
-            }
-            MovImm { rd, imm } => {
-                self.r[(rd & 15) as usize] = imm as u32;
-                self.nz(imm as u32);
-            }
-            CmpImm { rn, imm } => {
-                let (r, c, v) = add_with_carry(self.r[(rn & 15) as usize], !(imm as u32), true);
-                (self.c, self.v) = (c, v);
-                self.nz(r);
-            }
-            Alu { op, rdn, rm } => self.alu(op, rdn as usize, self.r[(rm & 15) as usize]),
+            LslImm { rd, rm, imm } => self.lsl_imm(rd, rm, imm),
+            LsrImm { rd, rm, imm } => self.lsr_imm(rd, rm, imm),
+            AsrImm { rd, rm, imm } => self.asr_imm(rd, rm, imm),
+            AddReg { rd, rn, rm } => self.add_reg(rd, rn, rm),
+            SubReg { rd, rn, rm } => self.sub_reg(rd, rn, rm),
+            AddImm { rd, rn, imm } => self.add_imm(rd, rn, imm),
+            SubImm { rd, rn, imm } => self.sub_imm(rd, rn, imm),
+            MovImm { rd, imm } => self.mov_imm(rd, imm),
+            CmpImm { rn, imm } => self.cmp_imm(rn, imm),
+            Alu { op, rdn, rm } => self.alu(op, (rdn & 15) as usize, self.r[(rm & 15) as usize]),
             CmpHi { rn, rm } => {
-                let (r, c, v) = add_with_carry(self.reg(rn, pc), !self.reg(rm, pc), true);
-                (self.c, self.v) = (c, v);
-                self.nz(r);
+                let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));
+                self.adds(x, !y, true);
             }
             Sxth { rd, rm } => {
                 self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i16 as i32 as u32
@@ -270,6 +320,25 @@ impl Core {
                     (self.r[(rm & 15) as usize] as u16).swap_bytes() as i16 as i32 as u32
             }
             _ => unreachable!("not a data-processing instruction: {instr}"),
+        }
+    }
+
+    /// `ADD Rdn, Rm` and `MOV Rd, Rm` with a high register (no flags): the value written,
+    /// and whether it went to PC (ALUWritePC: a branch without interworking, bit 0
+    /// cleared). The one definition for every executor.
+    #[inline(always)]
+    pub(crate) fn hi_reg_op(&mut self, instr: Instr, pc: u32) -> bool {
+        let (rd, r) = match instr {
+            Instr::AddHi { rdn, rm } => (rdn, self.reg(rdn, pc).wrapping_add(self.reg(rm, pc))),
+            Instr::MovHi { rd, rm } => (rd, self.reg(rm, pc)),
+            _ => unreachable!("not ADD/MOV with a high register: {instr}"),
+        };
+        if rd == 15 {
+            self.r[15] = r & !1;
+            true
+        } else {
+            self.set_reg(rd, r);
+            false
         }
     }
 
@@ -309,21 +378,8 @@ impl Core {
             | Rev { .. }
             | Rev16 { .. }
             | Revsh { .. } => self.data_processing(instr, pc),
-            AddHi { rdn, rm } => {
-                let r = self.reg(rdn, pc).wrapping_add(self.reg(rm, pc));
-                if rdn == 15 {
-                    self.r[15] = r & !1; // ALUWritePC: a branch, no interworking
-                } else {
-                    self.set_reg(rdn, r);
-                }
-            }
-            MovHi { rd, rm } => {
-                let r = self.reg(rm, pc);
-                if rd == 15 {
-                    self.r[15] = r & !1;
-                } else {
-                    self.set_reg(rd, r);
-                }
+            AddHi { .. } | MovHi { .. } => {
+                self.hi_reg_op(instr, pc);
             }
             Bx { rm } => {
                 let target = self.reg(rm, pc);
@@ -336,7 +392,7 @@ impl Core {
                 self.r[15] = target & !1;
             }
             LdrLit { rt, imm } => {
-                let addr = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32);
+                let addr = literal_address(pc, imm);
                 io_port = addr >> 28 == SIO_BASE >> 28;
                 let (v, w) = self.load(bus, addr, 4, now + !io_port as u64)?;
                 wait += w;
@@ -352,9 +408,7 @@ impl Core {
                 io_port = addr >> 28 == SIO_BASE >> 28;
                 wait += self.mem(bus, op, rt, addr, now + !io_port as u64)?;
             }
-            Adr { rd, imm } => {
-                self.r[(rd & 15) as usize] = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32)
-            }
+            Adr { rd, imm } => self.r[(rd & 15) as usize] = literal_address(pc, imm),
             AddSpImm { rd, imm } => {
                 self.r[(rd & 15) as usize] = self.r[13].wrapping_add(imm as u32)
             }
@@ -432,12 +486,12 @@ impl Core {
                 decode::Hint::Wfi => self.state = RunState::Sleeping { wfe: false },
             },
             BCond { cond, offset } => {
-                if condition_passed(cond, self.n, self.z, self.c, self.v) {
+                if self.condition(cond) {
                     taken = true;
-                    self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
+                    self.r[15] = branch_target(pc, offset);
                 }
             }
-            B { offset } => self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32),
+            B { offset } => self.r[15] = branch_target(pc, offset),
             Svc { imm } => event = Event::Svc(imm),
             Udf { imm } => {
                 return Err(FaultKind::Undefined {
@@ -448,7 +502,7 @@ impl Core {
             Undefined { hw1, hw2 } => return Err(FaultKind::Undefined { hw1, hw2 }),
             Bl { offset } => {
                 self.r[14] = next | 1;
-                self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
+                self.r[15] = branch_target(pc, offset);
             }
             Msr { sysm, rn } => self.msr(sysm, self.r[(rn & 15) as usize]),
             Mrs { rd, sysm } => self.r[(rd & 15) as usize] = self.mrs(sysm),
@@ -501,21 +555,10 @@ impl Core {
             | Rev { .. }
             | Rev16 { .. }
             | Revsh { .. } => self.data_processing(instr, pc),
-            AddHi { rdn, rm } => {
-                let r = self.reg(rdn, pc).wrapping_add(self.reg(rm, pc));
-                if rdn == 15 {
-                    self.r[15] = r & !1;
+            AddHi { .. } | MovHi { .. } => {
+                if self.hi_reg_op(instr, pc) {
                     return self.retire(cycles);
                 }
-                self.set_reg(rdn, r);
-            }
-            MovHi { rd, rm } => {
-                let r = self.reg(rm, pc);
-                if rd == 15 {
-                    self.r[15] = r & !1;
-                    return self.retire(cycles);
-                }
-                self.set_reg(rd, r);
             }
             Bx { rm } => {
                 let target = self.reg(rm, pc);
@@ -535,17 +578,11 @@ impl Core {
                 return self.retire(cycles);
             }
             LdrLit { rt, imm } => {
-                let addr = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32);
-                let v = if let Some(off) = sram_offset(addr) {
-                    let (v, w) = sys.sram_read(self.id, now + 1, off, 4);
-                    cycles += w as u64;
-                    v
-                } else if let Some(off) = flash_offset(addr) {
-                    sys.flash_read(off, 4)
-                } else {
-                    return false;
-                };
-                self.r[(rt & 15) as usize] = v;
+                let addr = literal_address(pc, imm);
+                match self.mem_fast(sys, MemOp::Ldr, rt, addr, now + 1) {
+                    Some(w) => cycles += w as u64,
+                    None => return false,
+                }
             }
             MemReg { op, rt, rn, rm } => {
                 let addr = self.r[(rn & 15) as usize].wrapping_add(self.r[(rm & 15) as usize]);
@@ -561,9 +598,7 @@ impl Core {
                     None => return false,
                 }
             }
-            Adr { rd, imm } => {
-                self.r[(rd & 15) as usize] = (pc.wrapping_add(4) & !3).wrapping_add(imm as u32)
-            }
+            Adr { rd, imm } => self.r[(rd & 15) as usize] = literal_address(pc, imm),
             AddSpImm { rd, imm } => {
                 self.r[(rd & 15) as usize] = self.r[13].wrapping_add(imm as u32)
             }
@@ -618,19 +653,19 @@ impl Core {
             }
             Hint(decode::Hint::Nop | decode::Hint::Yield) => {}
             BCond { cond, offset } => {
-                if condition_passed(cond, self.n, self.z, self.c, self.v) {
+                if self.condition(cond) {
                     cycles = cost.1 as u64;
-                    self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
+                    self.r[15] = branch_target(pc, offset);
                     return self.retire(cycles);
                 }
             }
             B { offset } => {
-                self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
+                self.r[15] = branch_target(pc, offset);
                 return self.retire(cycles);
             }
             Bl { offset } => {
                 self.r[14] = next | 1;
-                self.r[15] = pc.wrapping_add(4).wrapping_add(offset as u32);
+                self.r[15] = branch_target(pc, offset);
                 return self.retire(cycles);
             }
             _ => return false,
@@ -826,9 +861,7 @@ impl Core {
                     AluOp::Cmp => (x, !m, true),
                     _ => (x, m, false),
                 };
-                let (r, c, v) = add_with_carry(a, b, carry);
-                (self.c, self.v) = (c, v);
-                self.nz(r);
+                let r = self.adds(a, b, carry);
                 if matches!(op, AluOp::Cmp | AluOp::Cmn) {
                     return;
                 }

@@ -12,7 +12,7 @@
 use crate::bus::System;
 use crate::core::Core;
 use crate::decode::{AluOp, Hint, Instr, MemOp};
-use crate::exec::add_with_carry;
+use crate::exec::{branch_target, literal_address};
 
 /// A pre-decoded instruction (see the module documentation). Register fields are 0-15,
 /// `imm`s are in bytes, `target`s and `addr`/`value`s absolute.
@@ -234,8 +234,8 @@ pub(crate) enum Op {
 impl Op {
     /// The operation for `instr` at address `pc`.
     pub(crate) fn new(instr: &Instr, pc: u32) -> Op {
-        let rel = |offset: i32| pc.wrapping_add(4).wrapping_add(offset as u32);
-        let lit = |imm: u16| (pc.wrapping_add(4) & !3).wrapping_add(imm as u32);
+        let rel = |offset: i32| branch_target(pc, offset);
+        let lit = |imm: u16| literal_address(pc, imm);
         match *instr {
             Instr::LslImm { rd, rm, imm } => Op::LslImm { rd, rm, imm },
             Instr::LsrImm { rd, rm, imm } => Op::LsrImm { rd, rm, imm },
@@ -365,6 +365,17 @@ impl Core {
                 done!(base)
             }};
         }
+        macro_rules! dp {
+            ($call:expr) => {{
+                $call;
+                done!(base)
+            }};
+        }
+        macro_rules! alu {
+            ($op:expr, $rdn:expr, $rm:expr) => {
+                dp!(self.alu($op, ($rdn & 15) as usize, r!($rm)))
+            };
+        }
         macro_rules! mem {
             ($op:expr, $rt:expr, $addr:expr) => {{
                 match self.mem_fast(sys, $op, $rt, $addr, now + 1) {
@@ -374,129 +385,32 @@ impl Core {
             }};
         }
         match *op {
-            Op::LslImm { rd, rm, imm } => {
-                let x = r!(rm);
-                let r = if imm == 0 {
-                    x
-                } else {
-                    self.c = (x >> (32 - imm as u32)) & 1 == 1;
-                    x << imm
-                };
-                r!(rd) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::LsrImm { rd, rm, imm } => {
-                let x = r!(rm);
-                self.c = (x >> (imm as u32 - 1)) & 1 == 1;
-                let r = if imm == 32 { 0 } else { x >> imm };
-                r!(rd) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::AsrImm { rd, rm, imm } => {
-                let x = r!(rm);
-                self.c = ((x as i32) >> (imm as u32 - 1)) & 1 == 1;
-                let r = ((x as i32) >> (imm as u32).min(31)) as u32;
-                r!(rd) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::AddReg { rd, rn, rm } => {
-                let (r, c, v) = add_with_carry(r!(rn), r!(rm), false);
-                (self.c, self.v) = (c, v);
-                r!(rd) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::SubReg { rd, rn, rm } => {
-                let (r, c, v) = add_with_carry(r!(rn), !r!(rm), true);
-                (self.c, self.v) = (c, v);
-                r!(rd) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::AddImm { rd, rn, imm } => {
-                let (r, c, v) = add_with_carry(r!(rn), imm as u32, false);
-                (self.c, self.v) = (c, v);
-                r!(rd) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::SubImm { rd, rn, imm } => {
-                let (r, c, v) = add_with_carry(r!(rn), !(imm as u32), true);
-                (self.c, self.v) = (c, v);
-                r!(rd) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::MovImm { rd, imm } => {
-                r!(rd) = imm as u32;
-                self.nz(imm as u32);
-                done!(base)
-            }
-            Op::CmpImm { rn, imm } => {
-                let (r, c, v) = add_with_carry(r!(rn), !(imm as u32), true);
-                (self.c, self.v) = (c, v);
-                self.nz(r);
-                done!(base)
-            }
-            Op::And { rdn, rm } => {
-                let r = r!(rdn) & r!(rm);
-                r!(rdn) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::Eor { rdn, rm } => {
-                let r = r!(rdn) ^ r!(rm);
-                r!(rdn) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::Orr { rdn, rm } => {
-                let r = r!(rdn) | r!(rm);
-                r!(rdn) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::Bic { rdn, rm } => {
-                let r = r!(rdn) & !r!(rm);
-                r!(rdn) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::Mvn { rdn, rm } => {
-                let r = !r!(rm);
-                r!(rdn) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::Tst { rdn, rm } => {
-                self.nz(r!(rdn) & r!(rm));
-                done!(base)
-            }
-            Op::Mul { rdn, rm } => {
-                let r = r!(rm).wrapping_mul(r!(rdn));
-                r!(rdn) = r;
-                self.nz(r);
-                done!(base)
-            }
-            Op::Cmp { rdn, rm } => {
-                let (r, c, v) = add_with_carry(r!(rdn), !r!(rm), true);
-                (self.c, self.v) = (c, v);
-                self.nz(r);
-                done!(base)
-            }
-            Op::Alu { op, rdn, rm } => {
-                self.alu(op, (rdn & 15) as usize, r!(rm));
-                done!(base)
-            }
+            // Data processing: the one definition of each (`exec.rs`), as the interpreter's
+            // `Core::data_processing` calls it.
+            Op::LslImm { rd, rm, imm } => dp!(self.lsl_imm(rd, rm, imm)),
+            Op::LsrImm { rd, rm, imm } => dp!(self.lsr_imm(rd, rm, imm)),
+            Op::AsrImm { rd, rm, imm } => dp!(self.asr_imm(rd, rm, imm)),
+            Op::AddReg { rd, rn, rm } => dp!(self.add_reg(rd, rn, rm)),
+            Op::SubReg { rd, rn, rm } => dp!(self.sub_reg(rd, rn, rm)),
+            Op::AddImm { rd, rn, imm } => dp!(self.add_imm(rd, rn, imm)),
+            Op::SubImm { rd, rn, imm } => dp!(self.sub_imm(rd, rn, imm)),
+            Op::MovImm { rd, imm } => dp!(self.mov_imm(rd, imm)),
+            Op::CmpImm { rn, imm } => dp!(self.cmp_imm(rn, imm)),
+            Op::And { rdn, rm } => alu!(AluOp::And, rdn, rm),
+            Op::Eor { rdn, rm } => alu!(AluOp::Eor, rdn, rm),
+            Op::Orr { rdn, rm } => alu!(AluOp::Orr, rdn, rm),
+            Op::Bic { rdn, rm } => alu!(AluOp::Bic, rdn, rm),
+            Op::Mvn { rdn, rm } => alu!(AluOp::Mvn, rdn, rm),
+            Op::Tst { rdn, rm } => alu!(AluOp::Tst, rdn, rm),
+            Op::Mul { rdn, rm } => alu!(AluOp::Mul, rdn, rm),
+            Op::Cmp { rdn, rm } => alu!(AluOp::Cmp, rdn, rm),
+            Op::Alu { op, rdn, rm } => alu!(op, rdn, rm),
             Op::Mov { rd, rm } => {
-                r!(rd) = r!(rm);
+                self.hi_reg_op(Instr::MovHi { rd, rm }, pc);
                 done!(base)
             }
             Op::AddHi { rdn, rm } => {
-                r!(rdn) = r!(rdn).wrapping_add(r!(rm));
+                self.hi_reg_op(Instr::AddHi { rdn, rm }, pc);
                 done!(base)
             }
             Op::Ldr { rt, rn, imm } => mem!(MemOp::Ldr, rt, r!(rn).wrapping_add(imm as u32)),
@@ -526,22 +440,19 @@ impl Core {
                 self.r[15] = target;
                 self.retire(base)
             }
-            Op::Beq { target } => branch!(self.z, target),
-            Op::Bne { target } => branch!(!self.z, target),
-            Op::Bcs { target } => branch!(self.c, target),
-            Op::Bcc { target } => branch!(!self.c, target),
-            Op::Bmi { target } => branch!(self.n, target),
-            Op::Bpl { target } => branch!(!self.n, target),
-            Op::Bhi { target } => branch!(self.c && !self.z, target),
-            Op::Bls { target } => branch!(!self.c || self.z, target),
-            Op::Bge { target } => branch!(self.n == self.v, target),
-            Op::Blt { target } => branch!(self.n != self.v, target),
-            Op::Bgt { target } => branch!(self.n == self.v && !self.z, target),
-            Op::Ble { target } => branch!(self.n != self.v || self.z, target),
-            Op::BCond { cond, target } => branch!(
-                crate::exec::condition_passed(cond, self.n, self.z, self.c, self.v),
-                target
-            ),
+            Op::Beq { target } => branch!(self.condition(0), target),
+            Op::Bne { target } => branch!(self.condition(1), target),
+            Op::Bcs { target } => branch!(self.condition(2), target),
+            Op::Bcc { target } => branch!(self.condition(3), target),
+            Op::Bmi { target } => branch!(self.condition(4), target),
+            Op::Bpl { target } => branch!(self.condition(5), target),
+            Op::Bhi { target } => branch!(self.condition(8), target),
+            Op::Bls { target } => branch!(self.condition(9), target),
+            Op::Bge { target } => branch!(self.condition(10), target),
+            Op::Blt { target } => branch!(self.condition(11), target),
+            Op::Bgt { target } => branch!(self.condition(12), target),
+            Op::Ble { target } => branch!(self.condition(13), target),
+            Op::BCond { cond, target } => branch!(self.condition(cond), target),
             Op::Bl { target } => {
                 self.r[14] = pc.wrapping_add(4) | 1;
                 self.r[15] = target;

@@ -6,9 +6,11 @@
 //! [`bus::Bus`] trait, [`bus::System`] is the RP2040's memory map (striped SRAM banks with
 //! contention, [`sio`], [`timer`]), and [`board::Board`] runs two cores in lock-step and
 //! offers the host API: load an ELF ([`elf`]), run N cycles, read and write memory, feed
-//! sensors, read the DAC, and count cycles per function.
+//! sensors, read the DAC, and count cycles per function. [`block`] is an alternative
+//! engine for the board's fast path (pre-decoded basic blocks, [`board::Engine`]).
 #![deny(missing_docs)]
 
+pub mod block;
 pub mod board;
 pub mod bus;
 pub mod core;
@@ -25,7 +27,7 @@ pub mod timing;
 pub mod wcet;
 
 pub use board::{
-    Board, Call, CallError, CallResult, Config, EmuError, StopReason, CALL_STUB, DAC_BASE,
+    Board, Call, CallError, CallResult, Config, EmuError, Engine, StopReason, CALL_STUB, DAC_BASE,
     MAX_KEYS, SENSOR_BASE,
 };
 pub use decode::{decode, Instr};

@@ -17,12 +17,8 @@
 //! - [`program_cost`]: both, and whether measured ≤ static holds (if not, the analysis or
 //!   the emulator has a bug: [`ProgramCost::sound`]).
 //!
-//! Per board ([`plan`]): each key costs its program's static worst case plus the board's
-//! `io_cycles_per_key`; keys go to cores by longest processing time first
-//! ([`tactus_emulator::schedule::lpt`]); a core's cycles are its keys' sum plus
-//! `isr_overhead_cycles`, to be compared with `clock_hz / sample_rate_hz` cycles per sample
-//! (3015 for the RP2040 at 133 MHz and 44.1 kHz). [`max_keys`] is the largest number of
-//! identical keys that would fit.
+//! Whether the keys fit their boards is not decided here but by the static analysis of each
+//! board's actual sample interrupt ([`crate::boards`]).
 
 use crate::measure::{CycleStats, Run};
 use crate::runner::{RunError, UpdateRunner, BL_CYCLES};
@@ -30,9 +26,7 @@ use crate::Interface;
 use std::fmt;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::thumb::{ThumbError, ThumbObject};
-use tactus_emulator::schedule;
 use tactus_emulator::wcet::{self, Bounds, Image, WcetError};
-use tactus_runtime::keyboard::Board;
 
 /// Where the runner loads the Thumb `.text` (start of SRAM); the static analysis uses the
 /// same addresses.
@@ -322,74 +316,6 @@ pub fn program_cost(
     })
 }
 
-/// One core's share of the keys.
-#[derive(Clone, Debug, PartialEq)]
-pub struct CoreBudget {
-    /// Indices into the key costs given to [`plan`].
-    pub keys: Vec<usize>,
-    /// Cycles per sample: the keys' costs plus the board's `isr_overhead_cycles`.
-    pub cycles: u64,
-    /// `cycles` over the cycles per sample.
-    pub utilisation: f64,
-    /// Cycles per sample minus `cycles` (negative: over budget).
-    pub headroom: i64,
-}
-
-/// The keys of a layout on a board's cores.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Plan {
-    /// Cycles available per sample per core (`clock_hz / sample_rate_hz`, rounded down).
-    pub cycles_per_sample: u64,
-    /// One entry per core.
-    pub cores: Vec<CoreBudget>,
-}
-
-impl Plan {
-    /// Every core within its cycles per sample.
-    pub fn fits(&self) -> bool {
-        self.cores.iter().all(|c| c.headroom >= 0)
-    }
-
-    /// The smallest headroom of any core (cycles; negative: the worst core's excess).
-    pub fn min_headroom(&self) -> i64 {
-        self.cores.iter().map(|c| c.headroom).min().unwrap_or(0)
-    }
-}
-
-/// Assigns keys with per-key costs `key_cycles` (static update + I/O, cycles per sample) to
-/// the board's cores by longest processing time first and checks each core's total plus the
-/// interrupt overhead against the cycles per sample.
-pub fn plan(board: &Board, key_cycles: &[u64]) -> Plan {
-    let cps = board.cycles_per_sample();
-    let loads = schedule::lpt(key_cycles, board.cores as usize);
-    let cores = loads
-        .into_iter()
-        .map(|l| {
-            let cycles = l.total + u64::from(board.isr_overhead_cycles);
-            CoreBudget {
-                keys: l.keys,
-                cycles,
-                utilisation: cycles as f64 / cps as f64,
-                headroom: cps as i64 - cycles as i64,
-            }
-        })
-        .collect();
-    Plan {
-        cycles_per_sample: cps,
-        cores,
-    }
-}
-
-/// The largest number of keys costing `key_cycles` each (cycles per sample, I/O included)
-/// that fit on the board: per core ⌊(cycles per sample − isr overhead) / key_cycles⌋, times
-/// the cores (LPT fills identical keys evenly, so this is exactly what [`plan`] accepts).
-pub fn max_keys(board: &Board, key_cycles: u64) -> u64 {
-    let free = board
-        .cycles_per_sample()
-        .saturating_sub(u64::from(board.isr_overhead_cycles));
-    free / key_cycles.max(1) * u64::from(board.cores)
-}
-
 /// The note name of a MIDI key number: 60 → `C4`, 21 → `A0`, 61 → `C#4` (scientific pitch
 /// notation, MIDI 60 = middle C = C4).
 pub fn note_name(key: u8) -> String {
@@ -635,32 +561,6 @@ mod tests {
             "if condition v3 @999..1000"
         );
         assert_eq!(describe_note("if condition v9 @0..0", src), None);
-    }
-
-    fn board(cores: u32, clock_hz: f64) -> Board {
-        Board {
-            name: "t".into(),
-            clock_hz,
-            cores,
-            sample_rate_hz: 1000.0,
-            io_cycles_per_key: 10,
-            isr_overhead_cycles: 50,
-        }
-    }
-
-    #[test]
-    fn plans_fit_exactly_up_to_max_keys() {
-        let b = board(2, 1_000_000.0); // 1000 cycles per sample per core
-        assert_eq!(max_keys(&b, 95), 2 * 10);
-        let p = plan(&b, &[95; 20]);
-        assert!(p.fits(), "{p:?}");
-        assert_eq!(p.min_headroom(), 0);
-        let p = plan(&b, &[95; 21]);
-        assert!(!p.fits());
-        assert_eq!(p.min_headroom(), -95);
-        assert_eq!(p.cores.iter().map(|c| c.keys.len()).sum::<usize>(), 21);
-        assert!((p.cores[0].utilisation - 1.095).abs() < 1e-9);
-        assert_eq!(max_keys(&board(1, 1_000.0), 5), 0);
     }
 
     #[test]

@@ -13,17 +13,22 @@
 //!   counting mismatches and collecting cycle statistics; [`report`] prints the table.
 //! - [`corpus`]: the stimulus corpus of the budget (presses, repetitions, trills, half
 //!   dips, noise, glitches, random words); [`budget`]: static WCET and measured cycles of
-//!   an update, the keys on the board's cores, the verdict (`tactus budget`).
+//!   an update; [`boards`]: a keyboard as a set of boards — the planner and the verdict,
+//!   each board's sample interrupt as its image lays it out (`tactus budget`).
+//! - [`perform`]: a performance through the firmware of every board (`tactus play --engine emu`).
 #![deny(missing_docs)]
 
+pub mod boards;
 pub mod budget;
 pub mod cc;
 pub mod corpus;
 pub mod image;
 pub mod layout;
 pub mod measure;
+pub mod perform;
 pub mod report;
 pub mod runner;
+pub mod verdict;
 
 pub use layout::{Interface, StateLayout};
 pub use runner::{RunError, Sample, UpdateRunner};

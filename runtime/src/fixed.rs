@@ -11,7 +11,9 @@
 //! analysis proved the result fits, it never fires. Exceptions, each defined below: division
 //! truncates toward zero (what the RP2040's SIO divider computes), `sqrt` and `exp` are the
 //! integer algorithms given here, a multiplication the compiler fits into `MULS` pre-shifts
-//! its operands ([`mul_shifted`]), and a comparison with a constant compares exact values
+//! its operands ([`mul_shifted`]) or keeps three of its four 16×16 partial products
+//! ([`mul_high`]), a run-time division may pre-shift its divisor
+//! ([`div_shifted`]), and a comparison with a constant compares exact values
 //! ([`cmp_const`]).
 //!
 //! Every engine (fixed interpreter, JIT, Thumb, C) must produce exactly these bits; the
@@ -164,6 +166,36 @@ pub fn div(x: i32, fx: i32, y: i32, fy: i32, fr: i32) -> Sat {
         (x as i128, rescale(y as i128, 0, (-k).min(MAX_SHIFT)))
     };
     sat32(n / d)
+}
+
+/// The high part of `x · y` from three of the four 16×16 partial products, as a Cortex-M0+
+/// computes it in 32-bit registers: with `x = xh·2^16 + xl` (`xh = x >> 16` signed,
+/// `xl = x & 0xffff`) and likewise `y`,
+/// `p = xh·yh·2^(32−k) + floor(xh·yl / 2^(k−16)) + floor(xl·yh / 2^(k−16))`, `16 ≤ k ≤ 32`:
+/// `x·y / 2^k` without the low partial product `xl·yl` and with two floors, an error below
+/// `2 + 2^(32−k)` units of `2^k` (so a few LSBs of 2^-62 relative for a full product). `p`
+/// has `fx + fy − k` fraction bits and is rounded once to `fr` (half up, saturated). Every
+/// partial product fits a signed 32-bit word (`|xh| ≤ 2^15`, `0 ≤ yl < 2^16`); the compiler
+/// picks `k` so that `p` does too.
+pub fn mul_high(x: i32, fx: i32, y: i32, fy: i32, k: u8, fr: i32) -> Sat {
+    let k = k.clamp(16, 32) as u32;
+    let (xh, xl) = ((x >> 16) as i128, (x & 0xffff) as i128);
+    let (yh, yl) = ((y >> 16) as i128, (y & 0xffff) as i128);
+    let p = ((xh * yh) << (32 - k)) + ((xh * yl) >> (k - 16)) + ((xl * yh) >> (k - 16));
+    sat32(rescale(p, fx + fy - k as i32, fr))
+}
+
+/// `x / (y >> b)` into format `fr`: the divisor's word shifted right by `b` bits first
+/// (arithmetic shift: floor; format `fy − b`), then [`div`] of the exact values — truncated
+/// toward zero, saturated, a shifted divisor of 0 saturating as in [`div`]. `b = 0` is [`div`].
+///
+/// Why: a run-time division on a Cortex-M0+ is cheap on the RP2040's 32÷32 SIO divider only
+/// when the divisor leaves room for quotient digits in a 32-bit dividend (a divisor of `L`
+/// bits gives `32 − L` quotient bits per hardware division). The compiler picks `b` so that
+/// the dropped divisor bits cost at most a stated relative error (`DIV_REL_TOLERANCE` in the
+/// compiler's format plan); the quotient itself is exact for the shifted divisor.
+pub fn div_shifted(x: i32, fx: i32, y: i32, fy: i32, b: u8, fr: i32) -> Sat {
+    div(x, fx, y >> b.min(31), fy - b.min(31) as i32, fr)
 }
 
 /// Compares the exact values of two raw words.
@@ -361,6 +393,56 @@ mod tests {
         let q = to_f64(a, fa) / to_f64(b, fb);
         assert!((val(div(a, fa, b, fb, 26), 26) - q).abs() <= 2f64.powi(-26));
         assert_eq!(div(5, 0, 0, 0, 0), (i32::MAX, true));
+    }
+
+    /// `mul_high` is within `2 + 2^(32−k)` units of `2^k` of the exact product before its
+    /// rounding.
+    #[test]
+    fn mul_high_is_the_product_without_its_low_partial() {
+        let mut rng = crate::rng::XorShift64::new(0x41);
+        for n in 0..50_000u32 {
+            let x = (rng.next_u64() as i32) >> (n % 5);
+            let y = (rng.next_u64() as i32) >> (n % 7);
+            let k = 16 + (n % 17) as u8;
+            // p in its own format (fr = fx + fy − k): no final rounding.
+            let (p, sat) = mul_high(x, 0, y, 0, k, -(k as i32));
+            let exact = x as f64 * y as f64 / 2f64.powi(k as i32);
+            if sat {
+                assert!(exact.abs() > 2.0e9, "{x} {y} {k}");
+                continue;
+            }
+            let bound = 2.0 + 2f64.powi(32 - k as i32);
+            assert!((p as f64 - exact).abs() <= bound, "{x} {y} {k}: {p} vs {exact}");
+        }
+        assert_eq!(mul_high(1 << 20, 10, 3 << 20, 10, 32, 0), (3 << 20, false));
+    }
+
+    /// `div_shifted` is `div` by the floor-shifted divisor: exact for that divisor, and
+    /// within `2^b / |y|` relative error of the unshifted quotient.
+    #[test]
+    fn div_shifted_divides_by_the_shifted_divisor() {
+        assert_eq!(div_shifted(1000, 0, 7, 0, 0, 0), div(1000, 0, 7, 0, 0));
+        // 7 >> 1 = 3 with one fraction bit less: 1000 / 6 = 166 (truncated).
+        assert_eq!(div_shifted(1000, 0, 7, 0, 1, 0), (166, false));
+        // Negative divisors floor: -7 >> 1 = -4, i.e. -8 → 1000 / -8 = -125.
+        assert_eq!(div_shifted(1000, 0, -7, 0, 1, 0), (-125, false));
+        // A divisor shifted to 0 saturates like a division by 0.
+        assert_eq!(div_shifted(5, 0, 3, 0, 2, 0), (i32::MAX, true));
+        let mut rng = crate::rng::XorShift64::new(0xD1F);
+        for _ in 0..20_000 {
+            let x = (rng.next_u64() as i32) >> (rng.next_u64() % 20);
+            let y = ((rng.next_u64() as i32) >> (rng.next_u64() % 8)) | (1 << 22);
+            let b = (rng.next_u64() % 8) as u8;
+            let (q, sat) = div_shifted(x, 20, y, 28, b, 30);
+            if sat {
+                continue;
+            }
+            let exact = to_f64(x, 20) / to_f64(y, 28);
+            let err = (to_f64(q, 30) - exact).abs();
+            let bound = exact.abs() * 2f64.powi(b as i32) / (y.unsigned_abs() as f64 - 2f64.powi(b as i32))
+                + 2f64.powi(-30);
+            assert!(err <= bound * (1.0 + 1e-12), "{x} {y} {b}: {err} > {bound}");
+        }
     }
 
     #[test]

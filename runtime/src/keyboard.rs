@@ -1,54 +1,90 @@
 //! Keyboard layouts and boards as data files (TOML), so a user can describe their own.
 //!
-//! A **layout** says which instrument sits on which keys and how params vary across them:
+//! A **layout** says which instrument sits on which keys, how params vary across them, and
+//! — optionally — on which boards the keys sit (a keyboard is a set of boards, each a
+//! microcontroller with a few keys; `tactus budget` plans them when the layout does not):
 //!
 //! ```toml
 //! name = "grand88"
+//! board_kind = "rp2040"         # optional: a built-in board or a board file (default rp2040)
 //! [[range]]
 //! keys = [21, 108]              # MIDI key numbers, inclusive (A0 … C8)
 //! instrument = "grand_piano"    # a built-in name or a path relative to the layout file
 //! params = { G = "0.15 N" }     # overrides for every key of the range
 //! grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]   # linear from first to last key
+//! [[board]]                     # optional, all or none: contiguous key ranges, inclusive
+//! keys = [21, 22]
 //! ```
 //!
-//! A **board** gives what the budget needs: clock, cores, sample rate, the cost of a key's
-//! I/O and of the sample interrupt (see `boards/rp2040.toml`).
+//! A **board** kind gives the machine: clock, cores, sample rate (see `boards/rp2040.toml`).
+//! What a key costs on it is not a board field: the budget prices each board's actual
+//! sample interrupt (`tactus_firmware::boards`).
 //!
 //! Errors name the file and the field (TOML's own messages carry line and column).
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// A keyboard layout.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Layout {
     /// Layout name.
     pub name: String,
+    /// The board kind the keys run on: a built-in board name or a board file (relative to
+    /// the layout file); `None`: the command's default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub board_kind: Option<String>,
     /// Key ranges, in any order, not overlapping.
     #[serde(rename = "range")]
     pub ranges: Vec<KeyRange>,
+    /// The boards, each a contiguous range of keys; empty: to be planned.
+    #[serde(rename = "board", default, skip_serializing_if = "Vec::is_empty")]
+    pub boards: Vec<BoardKeys>,
+}
+
+/// One board of a layout: the keys wired to it.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BoardKeys {
+    /// First and last MIDI key, inclusive (exactly two numbers).
+    #[serde(deserialize_with = "pair")]
+    pub keys: [u8; 2],
+}
+
+/// `[first, last]`: exactly two key numbers (a TOML array of another length is an error,
+/// not truncated).
+fn pair<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[u8; 2], D::Error> {
+    let v: Vec<u8> = Vec::deserialize(d)?;
+    match v.as_slice() {
+        [a, b] => Ok([*a, *b]),
+        _ => Err(serde::de::Error::custom(format!(
+            "`keys` must be [first, last] (two MIDI key numbers), got {} numbers",
+            v.len()
+        ))),
+    }
 }
 
 /// One range of keys with one instrument.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct KeyRange {
-    /// First and last MIDI key, inclusive.
+    /// First and last MIDI key, inclusive (exactly two numbers).
+    #[serde(deserialize_with = "pair")]
     pub keys: [u8; 2],
     /// Built-in instrument name or a path (relative to the layout file).
     pub instrument: String,
     /// Param overrides for every key: name → value with unit (`"0.15 N"`).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub params: BTreeMap<String, String>,
     /// Params graded linearly from the first key to the last.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub grade: Vec<Grade>,
 }
 
 /// A param graded linearly across a key range.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Grade {
     /// Param name.
@@ -70,7 +106,8 @@ pub struct KeyAssignment {
     pub params: Vec<(String, String)>,
 }
 
-/// A board the firmware runs on.
+/// A board the firmware runs on: the machine, nothing about the code (what a key costs is
+/// the static analysis of the board's actual sample interrupt).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Board {
@@ -78,15 +115,15 @@ pub struct Board {
     pub name: String,
     /// Core clock, Hz.
     pub clock_hz: f64,
-    /// Number of cores that run key updates.
+    /// Number of cores that run key updates (1 to [`MAX_CORES`]).
     pub cores: u32,
     /// Sensor sample rate, Hz.
     pub sample_rate_hz: f64,
-    /// Cycles to read one key's sensor word and write its force word.
-    pub io_cycles_per_key: u32,
-    /// Cycles of the sample interrupt itself (entry, exit, loop set-up) per core.
-    pub isr_overhead_cycles: u32,
 }
+
+/// Most cores a board file may declare (the RP2040 image runs on 1 or 2; a larger count
+/// is rejected when the board is read rather than allocated for).
+pub const MAX_CORES: u32 = 64;
 
 impl Board {
     /// Cycles available per sample per core (`clock / sample rate`, rounded down).
@@ -106,7 +143,19 @@ pub fn read_board(path: &Path) -> Result<Board, String> {
 
 /// Parses a board from TOML text; `name` is used in errors.
 pub fn parse_board(text: &str, name: &str) -> Result<Board, String> {
-    let b: Board = toml::from_str(text).map_err(|e| format!("{name}: {e}"))?;
+    let b: Board = toml::from_str(text).map_err(|e| {
+        let e = e.to_string();
+        match ["io_cycles_per_key", "isr_overhead_cycles"]
+            .iter()
+            .find(|f| e.contains(*f))
+        {
+            Some(f) => format!(
+                "{name}: `{f}` is no longer a board field: the budget prices each board's \
+                 actual sample interrupt (delete the line)"
+            ),
+            None => format!("{name}: {e}"),
+        }
+    })?;
     for (field, v) in [
         ("clock_hz", b.clock_hz),
         ("sample_rate_hz", b.sample_rate_hz),
@@ -117,8 +166,17 @@ pub fn parse_board(text: &str, name: &str) -> Result<Board, String> {
             ));
         }
     }
-    if b.cores == 0 {
-        return Err(format!("{name}: `cores` must be at least 1"));
+    if b.cores == 0 || b.cores > MAX_CORES {
+        return Err(format!(
+            "{name}: `cores` must be 1 to {MAX_CORES}, got {}",
+            b.cores
+        ));
+    }
+    if b.clock_hz > 1e12 || b.sample_rate_hz < 1.0 {
+        return Err(format!(
+            "{name}: need `clock_hz` ≤ 1 THz and `sample_rate_hz` ≥ 1 Hz, got {} and {}",
+            b.clock_hz, b.sample_rate_hz
+        ));
     }
     if b.sample_rate_hz > b.clock_hz {
         return Err(format!(
@@ -155,6 +213,15 @@ pub fn assign(layout: &Layout, name: &str, dir: &Path) -> Result<Vec<KeyAssignme
         let local: PathBuf = dir.join(&r.instrument);
         let instrument = if local.exists() {
             local.display().to_string()
+        } else if r.instrument.contains(['/', '\\']) || r.instrument.ends_with(".tactus") {
+            // A path that does not exist is an error, never a built-in of the same stem.
+            return Err(format!(
+                "{name}: range {}: `instrument` = {:?}: no such file ({} does not exist; \
+                 built-in instruments are named without a path or extension)",
+                ri + 1,
+                r.instrument,
+                local.display()
+            ));
         } else {
             r.instrument.clone()
         };
@@ -226,6 +293,63 @@ pub fn assign(layout: &Layout, name: &str, dir: &Path) -> Result<Vec<KeyAssignme
         }
     }
     Ok(out.into_values().map(|(_, a)| a).collect())
+}
+
+/// The layout's explicit boards checked against its resolved `keys`: per `[[board]]`, in
+/// file order, the MIDI keys on it (ascending). `None` when the layout lists no boards (they
+/// are to be planned).
+///
+/// Errors name the file and the board: `keys` not `[first, last]` with first ≤ last ≤ 127,
+/// two boards sharing a key, a board with no key of the layout, a key of the layout on no
+/// board.
+pub fn board_keys(
+    layout: &Layout,
+    name: &str,
+    keys: &[KeyAssignment],
+) -> Result<Option<Vec<Vec<u8>>>, String> {
+    if layout.boards.is_empty() {
+        return Ok(None);
+    }
+    let mut owner: BTreeMap<u8, usize> = BTreeMap::new();
+    let mut out = Vec::with_capacity(layout.boards.len());
+    for (bi, b) in layout.boards.iter().enumerate() {
+        let [lo, hi] = b.keys;
+        if lo > hi || hi > 127 {
+            return Err(format!(
+                "{name}: board {}: `keys` must be [first, last] with first ≤ last ≤ 127, got [{lo}, {hi}]",
+                bi + 1
+            ));
+        }
+        for k in lo..=hi {
+            if let Some(o) = owner.insert(k, bi) {
+                return Err(format!(
+                    "{name}: board {} and board {} overlap: key {k} is on both",
+                    o + 1,
+                    bi + 1
+                ));
+            }
+        }
+        let on: Vec<u8> = keys
+            .iter()
+            .map(|a| a.key)
+            .filter(|k| (lo..=hi).contains(k))
+            .collect();
+        if on.is_empty() {
+            return Err(format!(
+                "{name}: board {} (keys [{lo}, {hi}]) holds no key of the layout",
+                bi + 1
+            ));
+        }
+        out.push(on);
+    }
+    if let Some(a) = keys.iter().find(|a| !owner.contains_key(&a.key)) {
+        return Err(format!(
+            "{name}: key {} (range of `{}`) is on no board: every key needs a `[[board]]`, or \
+             list none and let `tactus budget` plan them",
+            a.key, a.instrument
+        ));
+    }
+    Ok(Some(out))
 }
 
 /// Splits `"11 g"` into (11, "g"); `"0.9"` into (0.9, "").
@@ -339,7 +463,7 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
 
     #[test]
     fn boards_check_their_fields() {
-        let ok = "name = \"rp2040\"\nclock_hz = 133e6\ncores = 2\nsample_rate_hz = 44100\nio_cycles_per_key = 12\nisr_overhead_cycles = 60\n";
+        let ok = "name = \"rp2040\"\nclock_hz = 133e6\ncores = 2\nsample_rate_hz = 44100\n";
         assert_eq!(parse_board(ok, "b.toml").unwrap().cycles_per_sample(), 3015);
         let e = parse_board(&ok.replace("cores = 2", "cores = 0"), "b.toml").unwrap_err();
         assert!(e.contains("b.toml") && e.contains("cores"), "{e}");
@@ -349,5 +473,66 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
         )
         .unwrap_err();
         assert!(e.contains("c.toml") && e.contains("clock_hz"), "{e}");
+        let e = parse_board(&ok.replace("cores = 2", "cores = 4294967295"), "b.toml").unwrap_err();
+        assert!(e.contains("b.toml") && e.contains("cores"), "{e}");
+        let e = parse_board(&format!("{ok}io_cycles_per_key = 163\n"), "old.toml").unwrap_err();
+        assert!(e.contains("old.toml") && e.contains("no longer"), "{e}");
+    }
+
+    fn layout_with(boards: &str) -> Result<Option<Vec<Vec<u8>>>, String> {
+        let text = format!(
+            "name = \"x\"\n[[range]]\nkeys = [60, 63]\ninstrument = \"hammond\"\n{boards}"
+        );
+        let l = parse_layout(&text, "l.toml")?;
+        let keys = assign(&l, "l.toml", Path::new("."))?;
+        board_keys(&l, "l.toml", &keys)
+    }
+
+    #[test]
+    fn explicit_boards_are_checked_against_the_keys() {
+        assert_eq!(layout_with("").unwrap(), None);
+        let two = "[[board]]\nkeys = [60, 61]\n[[board]]\nkeys = [62, 63]\n";
+        assert_eq!(
+            layout_with(two).unwrap(),
+            Some(vec![vec![60, 61], vec![62, 63]])
+        );
+        let e = layout_with("[[board]]\nkeys = [60, 62]\n[[board]]\nkeys = [62, 63]\n")
+            .unwrap_err();
+        assert!(e.contains("l.toml") && e.contains("overlap") && e.contains("key 62"), "{e}");
+        let e = layout_with("[[board]]\nkeys = [60, 62]\n").unwrap_err();
+        assert!(e.contains("l.toml") && e.contains("key 63") && e.contains("no board"), "{e}");
+        let e = layout_with("[[board]]\nkeys = [60, 63]\n[[board]]\nkeys = [70, 72]\n")
+            .unwrap_err();
+        assert!(e.contains("board 2") && e.contains("no key"), "{e}");
+        let e = layout_with("[[board]]\nkeys = [63, 60]\n").unwrap_err();
+        assert!(e.contains("board 1") && e.contains("first ≤ last"), "{e}");
+        let e = layout_with("[[board]]\nkeys = [60, 61, 63]\n").unwrap_err();
+        assert!(e.contains("l.toml") && e.contains("two"), "{e}");
+    }
+
+    #[test]
+    fn ranges_need_exactly_two_keys_and_missing_paths_are_errors() {
+        let e = parse_layout(
+            "name = \"x\"\n[[range]]\nkeys = [1, 2, 3]\ninstrument = \"p\"\n",
+            "three.toml",
+        )
+        .unwrap_err();
+        assert!(e.contains("three.toml") && e.contains("3 numbers"), "{e}");
+        let l = parse_layout(
+            "name = \"x\"\n[[range]]\nkeys = [1, 2]\ninstrument = \"no/such/grand_piano.tactus\"\n",
+            "missing.toml",
+        )
+        .unwrap();
+        let e = assign(&l, "missing.toml", Path::new(".")).unwrap_err();
+        assert!(e.contains("missing.toml") && e.contains("no such file"), "{e}");
+    }
+
+    #[test]
+    fn a_layout_with_boards_round_trips_through_toml() {
+        let text = "name = \"x\"\nboard_kind = \"rp2040\"\n[[range]]\nkeys = [60, 63]\ninstrument = \"hammond\"\n[[board]]\nkeys = [60, 63]\n";
+        let l = parse_layout(text, "r.toml").unwrap();
+        let back = parse_layout(&toml::to_string(&l).unwrap(), "r2.toml").unwrap();
+        assert_eq!(l, back);
+        assert_eq!(back.board_kind.as_deref(), Some("rp2040"));
     }
 }

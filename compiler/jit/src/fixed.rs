@@ -180,6 +180,7 @@ fn check_plan(fp: &FixedProgram) -> Result<(), JitError> {
         && fp.consts.len() == n
         && fp.recip.len() == n
         && fp.mul_kind.len() == n
+        && fp.div_shift.len() == n
         && fp.sensor_frac.len() == p.sensors.len()
         && fp.sensor_raw_range.len() == p.sensors.len()
         && fp.state_frac.len() == p.states.len()

@@ -563,6 +563,7 @@ impl<'a, 'f> Translator<'a, 'f> {
                     }
                     ArithOp::Mul => match fp.mul_kind[v.index()] {
                         Some(MulKind::Muls(sa, sb)) => self.mul(a, fa, sa, c, fc, sb, fr),
+                        Some(MulKind::High(k)) => self.mul_high(a, fa, c, fc, k, fr),
                         _ => self.mul(a, fa, 0, c, fc, 0, fr),
                     },
                     ArithOp::Div => match (fp.recip[v.index()], fp.mul_kind[v.index()]) {
@@ -570,11 +571,19 @@ impl<'a, 'f> Translator<'a, 'f> {
                             let r = self.iconst(r);
                             self.mul(a, fa, sa, r, f, sb, fr)
                         }
+                        (Some((r, f)), Some(MulKind::High(k))) => {
+                            let r = self.iconst(r);
+                            self.mul_high(a, fa, r, f, k, fr)
+                        }
                         (Some((r, f)), _) => {
                             let r = self.iconst(r);
                             self.mul(a, fa, 0, r, f, 0, fr)
                         }
-                        (None, _) => self.div(a, fa, c, fc, fr),
+                        (None, _) => {
+                            let b = fp.div_shift[v.index()].min(31);
+                            let c = self.sshr(c, u32::from(b));
+                            self.div(a, fa, c, fc - i32::from(b), fr)
+                        }
                     },
                 }
             }
@@ -830,6 +839,42 @@ impl<'a, 'f> Translator<'a, 'f> {
             lo,
             hi,
             frac: fa - i32::from(sa) + fc - i32::from(sb),
+            narrow: None,
+        };
+        self.rescale(w, fr)
+    }
+
+    /// `fixed::mul_high`: three 16×16 partial products (each exact in an `i32`: `|xh| ≤
+    /// 2^15`, `0 ≤ yl < 2^16`) summed exactly in an `i64`, then rounded to `fr`.
+    fn mul_high(&mut self, a: Word, fa: i32, c: Word, fc: i32, k: u8, fr: i32) -> Word {
+        let k = i64::from(k.clamp(16, 32));
+        let b = &mut self.b;
+        let halves = |b: &mut FunctionBuilder, x: Cv| {
+            let h = b.ins().sshr_imm_s(x, 16);
+            let l = b.ins().band_imm_u(x, 0xffff);
+            (h, l)
+        };
+        let (xh, xl) = halves(b, a.v);
+        let (yh, yl) = halves(b, c.v);
+        let hh = b.ins().imul(xh, yh);
+        let hl = b.ins().imul(xh, yl);
+        let lh = b.ins().imul(xl, yh);
+        let hh = b.ins().sextend(types::I64, hh);
+        let hh = b.ins().ishl_imm_s(hh, 32 - k);
+        let hl = b.ins().sshr_imm_s(hl, k - 16);
+        let hl = b.ins().sextend(types::I64, hl);
+        let lh = b.ins().sshr_imm_s(lh, k - 16);
+        let lh = b.ins().sextend(types::I64, lh);
+        let p = b.ins().iadd(hh, hl);
+        let p = b.ins().iadd(p, lh);
+        // |p| ≤ (2^30·2^(32−k) + 2·2^31) for any words: within an i64.
+        let m = (1i128 << (62 - k)) + (1i128 << 32);
+        let w = Wide {
+            v: p,
+            ty: types::I64,
+            lo: -m,
+            hi: m,
+            frac: fa + fc - k as i32,
             narrow: None,
         };
         self.rescale(w, fr)

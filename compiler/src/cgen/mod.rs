@@ -917,27 +917,28 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
             Op::Arith(o, x, y) => match o {
                 ArithOp::Add => prim::add(&name(x), f(x), &name(y), f(y), fr, false),
                 ArithOp::Sub => prim::add(&name(x), f(x), &name(y), f(y), fr, true),
-                ArithOp::Mul => {
-                    let sh = match fp.mul_kind[v.index()] {
-                        Some(MulKind::Muls(a, b)) => Some((a, b)),
-                        _ => None,
-                    };
-                    prim::mul(&name(x), f(x), &name(y), f(y), fr, sh)
-                }
+                ArithOp::Mul => match fp.mul_kind[v.index()] {
+                    Some(MulKind::High(k)) => prim::mul_high(&name(x), f(x), &name(y), f(y), k, fr),
+                    Some(MulKind::Muls(a, b)) => {
+                        prim::mul(&name(x), f(x), &name(y), f(y), fr, Some((a, b)))
+                    }
+                    _ => prim::mul(&name(x), f(x), &name(y), f(y), fr, None),
+                },
                 ArithOp::Div => match (fp.recip[v.index()], fp.mul_kind[v.index()]) {
                     (Some((r, fr_r)), kind) => {
-                        let sh = match kind {
-                            Some(MulKind::Muls(a, b)) => Some((a, b)),
-                            _ => None,
+                        let prod = match kind {
+                            Some(MulKind::High(k)) => {
+                                prim::mul_high(&name(x), f(x), &lit(r), fr_r, k, fr)
+                            }
+                            Some(MulKind::Muls(a, b)) => {
+                                prim::mul(&name(x), f(x), &lit(r), fr_r, fr, Some((a, b)))
+                            }
+                            _ => prim::mul(&name(x), f(x), &lit(r), fr_r, fr, None),
                         };
                         // The divisor's word is not read: keep it used for the C compiler.
-                        format!(
-                            "((void){}, {})",
-                            name(y),
-                            prim::mul(&name(x), f(x), &lit(r), fr_r, fr, sh)
-                        )
+                        format!("((void){}, {})", name(y), prod)
                     }
-                    (None, _) => prim::div(&name(x), f(x), &name(y), f(y), fr),
+                    (None, _) => prim::div(&name(x), f(x), &name(y), f(y), fp.div_shift[v.index()], fr),
                 },
             },
             Op::Cmp(o, x, y) => match (fp.exact_const(*x), fp.exact_const(*y)) {

@@ -73,6 +73,17 @@ static inline int32_t tx_round_wide(int64_t d, int32_t k, int e) {
     return tx_round(hi * 65536 + lo, e);
 }
 
+/* The high part of x*y in units of 2^k (16 <= k <= 32) from three 16x16 partial products:
+   xh*yh*2^(32-k) + floor(xh*yl / 2^(k-16)) + floor(xl*yh / 2^(k-16)). */
+static inline int64_t tx_mul_high(int32_t x, int32_t y, int k) {
+    /* Every partial product fits an int32_t (|xh| <= 2^15, 0 <= yl < 2^16): 32-bit
+       multiplies, no 64-bit library call. (x - xl) / 65536 is exact, so it is x >> 16. */
+    int32_t xl = (int32_t)((uint32_t)x & 0xffffu), yl = (int32_t)((uint32_t)y & 0xffffu);
+    int32_t xh = (x - xl) / 65536, yh = (y - yl) / 65536;
+    return (int64_t)(xh * yh) * ((int64_t)1 << (32 - k))
+        + tx_floor_shr((int64_t)(xh * yl), k - 16) + tx_floor_shr((int64_t)(xl * yh), k - 16);
+}
+
 /* x * 2^k / y truncated toward zero, saturated; y = 0 saturates to the sign of x. */
 static inline int32_t tx_div(int32_t x, int32_t y, int k) {
     uint64_t ax, ay, q;
@@ -236,6 +247,15 @@ pub fn mul(x: &str, fx: i32, y: &str, fy: i32, fr: i32, shifts: Option<(u8, u8)>
     }
 }
 
+/// [`fx::mul_high`]: three 16×16 partial products of `x·y` in units of `2^k`, rounded to
+/// `fr` (`tx_mul_high` computes the sum exactly in 64 bits).
+///
+/// [`fx::mul_high`]: tactus_runtime::fixed::mul_high
+pub fn mul_high(x: &str, fx: i32, y: &str, fy: i32, k: u8, fr: i32) -> String {
+    let k = k.clamp(16, 32);
+    round_expr(&format!("tx_mul_high({x}, {y}, {k})"), fr - (fx + fy - k as i32))
+}
+
 /// The derivative of a sensor: the exact raw difference `d` (an `int64_t` expression with
 /// `|d| <= dmax`) times the gain word `k`, rounded to `e` more fraction bits (`e` may be
 /// negative): `d·k·2^e`, as in the fixed interpreter.
@@ -247,10 +267,18 @@ pub fn deriv(d: &str, dmax: i64, k: i32, e: i32) -> String {
     }
 }
 
-/// [`fx::div`]: `x / y` into `fr` fraction bits, truncated toward zero.
-pub fn div(x: &str, fx: i32, y: &str, fy: i32, fr: i32) -> String {
-    let k = (fr - fx + fy).clamp(-94, 94);
-    format!("tx_div({x}, {y}, {k})")
+/// [`fx::div_shifted`]: `x / (y >> b)` into `fr` fraction bits, truncated toward zero
+/// (`b = 0`: [`fx::div`]).
+///
+/// [`fx::div_shifted`]: tactus_runtime::fixed::div_shifted
+pub fn div(x: &str, fx: i32, y: &str, fy: i32, b: u8, fr: i32) -> String {
+    let b = b.min(31);
+    let k = (fr - fx + fy - b as i32).clamp(-94, 94);
+    if b == 0 {
+        format!("tx_div({x}, {y}, {k})")
+    } else {
+        format!("tx_div({x}, (int32_t)tx_floor_shr({y}, {b}), {k})")
+    }
 }
 
 /// [`fx::sqrt`]: `sqrt(max(x, 0))` into `fr` fraction bits.

@@ -196,14 +196,18 @@ impl<'f> FixedInstance<'f> {
                         Some(super::MulKind::Muls(sa, sb)) => {
                             fx::mul_shifted(a, fa, sa, c, fc, sb, fr)
                         }
+                        Some(super::MulKind::High(k)) => fx::mul_high(a, fa, c, fc, k, fr),
                         _ => fx::mul(a, fa, c, fc, fr),
                     },
                     ArithOp::Div => match (fp.recip[v.index()], fp.mul_kind[v.index()]) {
                         (Some((r, f)), Some(super::MulKind::Muls(sa, sb))) => {
                             fx::mul_shifted(a, fa, sa, r, f, sb, fr)
                         }
+                        (Some((r, f)), Some(super::MulKind::High(k))) => {
+                            fx::mul_high(a, fa, r, f, k, fr)
+                        }
                         (Some((r, f)), _) => fx::mul(a, fa, r, f, fr),
-                        (None, _) => fx::div(a, fa, c, fc, fr),
+                        (None, _) => fx::div_shifted(a, fa, c, fc, fp.div_shift[v.index()], fr),
                     },
                 }
             }

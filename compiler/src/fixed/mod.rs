@@ -12,6 +12,7 @@
 
 pub mod interp;
 pub mod range;
+pub mod contract;
 pub mod report;
 
 use crate::diagnostics::Diagnostic;
@@ -32,6 +33,82 @@ pub fn frac_for(iv: Interval) -> i32 {
 /// DAC at full scale).
 pub const MULS_REL_TOLERANCE: f64 = 1.0 / (1u64 << 22) as f64;
 
+/// A run-time division may shift its divisor right ([`tactus_runtime::fixed::div_shifted`])
+/// when the dropped bits cost at most this relative error of the quotient (2^-10). The shift
+/// frees quotient digits per division of the RP2040's 32÷32 SIO divider
+/// ([`sio_division_steps`]). Chosen by the accuracy contract ([`contract`], checked in
+/// `compiler/tests/contract.rs`): on the grand piano's built-in stimuli the worst force error
+/// is 0.12 DAC LSB at 2^-16 and 2^-12, 0.19 at 2^-10, 0.76 at 2^-8 and 1.12 (broken) at 2^-6
+/// (its two divisions set the impact pulse's decay time and rate).
+pub const DIV_REL_TOLERANCE: f64 = 1.0 / 1024.0;
+
+/// Divisors are not shifted below this many significant bits: at 16, two hardware divisions
+/// give any quotient of up to 32 bits, so more shifting buys nothing.
+pub const DIV_MIN_DIVISOR_BITS: i32 = 16;
+
+/// Number of bits of a raw magnitude bound `m` (`ceil(log2(m + 1))`): 0 for 0.
+pub fn bits_of(m: u64) -> i32 {
+    64 - m.leading_zeros() as i32
+}
+
+/// Hardware divisions a long division by the RP2040's 32÷32 unsigned divider takes for a
+/// quotient of `quotient_bits` bits and a divisor of `divisor_bits` bits: digits of
+/// `s = 32 − divisor_bits` bits (each step divides the remainder with the next `s` dividend
+/// bits appended), `ceil(quotient_bits / s)` steps. `None` for a divisor of 32 bits or more
+/// (no digit fits). One definition, used by the Thumb backend and the precision report.
+pub fn sio_division_steps(quotient_bits: i32, divisor_bits: i32) -> Option<u32> {
+    let s = 32 - divisor_bits;
+    if s <= 0 {
+        return None;
+    }
+    Some((quotient_bits.max(1) + s - 1) as u32 / s as u32)
+}
+
+/// Estimated Cortex-M0+ cycles of a run-time division of `quotient_bits` quotient bits:
+/// `(steps, cycles)` on the SIO divider when that is cheaper than the restoring division
+/// (6 cycles a quotient bit, `compiler/src/thumb/select.rs`), else `(0, cycles)` of the
+/// restoring division. SIO: about 18 cycles of set-up and sign handling plus 14 per step
+/// (the remainder load and shift, the dividend store, the 8-cycle latency that also shifts
+/// the digits, the quotient load and merge).
+pub fn division_cycles(quotient_bits: i32, divisor_bits: i32) -> (u32, u32) {
+    let restoring = 12 + 6 * quotient_bits.max(1) as u32;
+    match sio_division_steps(quotient_bits, divisor_bits) {
+        Some(n) if 18 + 14 * n < restoring => (n, 18 + 14 * n),
+        _ => (0, restoring),
+    }
+}
+
+/// The divisor pre-shift of a run-time division (see [`DIV_REL_TOLERANCE`]): the largest `b`
+/// with `2^b ≤ DIV_REL_TOLERANCE · min |y raw|` that leaves the divisor at least
+/// [`DIV_MIN_DIVISOR_BITS`] bits and at least 4 after the shift, and keeps the quotient with
+/// the shifted divisor below 2^31 in the result format. 0 when the divisor's range contains
+/// 0 (no shift is safe then).
+fn plan_div_shift(fy: i32, ry: Interval, fr: i32, rv: Interval, tolerance: f64) -> u8 {
+    let scale = 2f64.powi(fy);
+    let (lo, hi) = (ry.lo * scale, ry.hi * scale);
+    let ymin = if lo > 0.0 {
+        lo
+    } else if hi < 0.0 {
+        -hi
+    } else {
+        return 0;
+    };
+    let ymax = ry.mag() * scale;
+    if !(ymin.is_finite() && ymax.is_finite()) || ymin < 1.0 {
+        return 0;
+    }
+    let lmax = bits_of(ymax.ceil() as u64);
+    let mut b = ((tolerance * ymin).log2().floor() as i32)
+        .min(lmax - DIV_MIN_DIVISOR_BITS)
+        .clamp(0, 30);
+    let q = rv.mag() * 2f64.powi(fr);
+    while b > 0 && (q * (1.0 + 2f64.powi(b + 1) / ymin) + 2.0 >= 2147483648.0 || ymin < 4.0 * 2f64.powi(b))
+    {
+        b -= 1;
+    }
+    b as u8
+}
+
 /// Precision budget of the `MULS` plan: a force term's or the total's error bound may grow
 /// to this many DAC LSB (a quarter: the quantisation stays below what the DAC resolves).
 pub const BUDGET_FORCE_LSB: f64 = 0.25;
@@ -49,6 +126,51 @@ pub const BUDGET_ACCUMULATING_GROWTH: f64 = 2.0;
 /// Precision budget of the `MULS` plan: a value that is compared, emitted or output may
 /// carry an error bound of this fraction of its range (2^-20).
 pub const BUDGET_VALUE_REL: f64 = 1.0 / (1u64 << 20) as f64;
+
+/// The precision budget of a format plan: how much error the planner may spend on cheaper
+/// arithmetic. [`Default`] is the budget every engine and backend uses (the constants above);
+/// the accuracy contract ([`contract`]) is what it must keep, checked by simulation against
+/// the f64 reference (`compiler/tests/contract.rs`), including that a greedier budget breaks it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlanConfig {
+    /// [`BUDGET_FORCE_LSB`].
+    pub force_lsb: f64,
+    /// [`BUDGET_STATE_REL`].
+    pub state_rel: f64,
+    /// [`BUDGET_ACCUMULATING_GROWTH`].
+    pub accumulating_growth: f64,
+    /// [`BUDGET_VALUE_REL`].
+    pub value_rel: f64,
+    /// [`DIV_REL_TOLERANCE`].
+    pub div_rel_tolerance: f64,
+}
+
+impl Default for PlanConfig {
+    fn default() -> Self {
+        PlanConfig {
+            force_lsb: BUDGET_FORCE_LSB,
+            state_rel: BUDGET_STATE_REL,
+            accumulating_growth: BUDGET_ACCUMULATING_GROWTH,
+            value_rel: BUDGET_VALUE_REL,
+            div_rel_tolerance: DIV_REL_TOLERANCE,
+        }
+    }
+}
+
+impl PlanConfig {
+    /// A budget with no limit on products (every product that fits `MULS` gets it) and
+    /// divisors shifted to [`DIV_MIN_DIVISOR_BITS`] whatever it costs: what a planner
+    /// ignoring the contract would do. For tests that show the contract catches it.
+    pub fn unlimited() -> Self {
+        PlanConfig {
+            force_lsb: f64::INFINITY,
+            state_rel: f64::INFINITY,
+            accumulating_growth: f64::INFINITY,
+            value_rel: f64::INFINITY,
+            div_rel_tolerance: 1.0,
+        }
+    }
+}
 
 /// Work (candidate products × IR values) up to which the precision budget is spent one
 /// product at a time, one error analysis each (every shipped keyboard instrument, the bank
@@ -126,45 +248,84 @@ impl MulOperands {
         Some((a, b, ry.mag() * ex + rx.mag() * ey + ex * ey))
     }
 
+    /// The high-word form ([`MulKind::High`]): the smallest `k` in 16..=32 for which the
+    /// partial-product sum `p` of [`tactus_runtime::fixed::mul_high`] fits a signed 32-bit
+    /// word, and its absolute error (`(2 + 2^(32−k))·2^(k − fx − fy)`, SI).
+    fn high(&self) -> Option<(u8, f64)> {
+        let ((fx, rx), (fy, ry)) = (self.x, self.y);
+        let word = |f: i32, r: Interval| (r.mag() * 2f64.powi(f) * (1.0 + 1e-9)).ceil() + 1.0;
+        let (bx, by) = (word(fx, rx), word(fy, ry));
+        if !(bx.is_finite() && by.is_finite()) || bx > 2147483648.0 || by > 2147483648.0 {
+            return None;
+        }
+        // Bounds of the high halves: |x >> 16| ≤ floor(bx / 2^16) + 1.
+        let (hx, hy) = ((bx / 65536.0).floor() + 1.0, (by / 65536.0).floor() + 1.0);
+        (16..=32).find_map(|k: i32| {
+            let p = (hx * hy + hx + hy) * 2f64.powi(32 - k) + 2.0;
+            (p < 2147483647.0)
+                .then(|| (k as u8, (2.0 + 2f64.powi(32 - k)) * 2f64.powi(k - fx - fy)))
+        })
+    }
+
     /// Plans the product: shift free bits first, then the operand with more significant
     /// bits, until the product fits 31 bits. With `tolerance`, accept only when the floor
-    /// shifts cost at most [`MULS_REL_TOLERANCE`] of the result's magnitude, else use the
-    /// 64-bit product; without, always `MULS` (the precision budget then decides). The
-    /// shifts are returned in operand order (`swapped`: the plan's pair is (y, x)).
+    /// shifts cost at most [`MULS_REL_TOLERANCE`] of the result's magnitude, else the 64-bit
+    /// product; without, always `MULS` where the shifts exist. The precision budget then
+    /// tries the cheaper forms ([`MulOperands::high`] among them) on the 64-bit ones.
+    /// The shifts are returned in operand order (`swapped`: the plan's pair is (y, x)).
     fn plan(&self, swapped: bool, tolerance: bool) -> MulKind {
-        let Some((a, b, err)) = self.shifts() else {
-            return MulKind::Wide;
-        };
-        if tolerance && err > MULS_REL_TOLERANCE * self.result.mag().max(f64::MIN_POSITIVE) {
-            return MulKind::Wide;
+        let limit = MULS_REL_TOLERANCE * self.result.mag().max(f64::MIN_POSITIVE);
+        if let Some((a, b, err)) = self.shifts() {
+            if !tolerance || err <= limit {
+                return if swapped {
+                    MulKind::Muls(b as u8, a as u8)
+                } else {
+                    MulKind::Muls(a as u8, b as u8)
+                };
+            }
         }
-        if swapped {
-            MulKind::Muls(b as u8, a as u8)
-        } else {
-            MulKind::Muls(a as u8, b as u8)
-        }
+        let _ = tolerance;
+        MulKind::Wide
     }
 }
 
-/// How a multiplication is done on a 32-bit core without a 64-bit product instruction.
+/// How a multiplication is done on a 32-bit core without a 64-bit product instruction,
+/// cheapest first. A 16×16 product is `Muls(0, 0)` (its operands already fit).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MulKind {
     /// Operands pre-shifted right by (a, b) bits so the product fits 32 bits: one `MULS`
     /// plus shifts ([`tactus_runtime::fixed::mul_shifted`]).
     Muls(u8, u8),
+    /// The high word of the 32×32 product in units of `2^k`: three 16×16 `MULS` partial
+    /// products, two floored, the low one dropped, summed in 32 bits
+    /// ([`tactus_runtime::fixed::mul_high`]).
+    High(u8),
     /// The exact product needs up to 64 bits: four 16×16 `MULS` partial products and adds
     /// (ARMv6-M has no `SMULL`).
     Wide,
 }
 
 impl MulKind {
-    /// Estimated Cortex-M0+ cycles, including the final shift: `Muls` 3 (MULS 1 + shifts);
-    /// `Wide` 18 (4 MULS, 6 shifts/extends, 4 adds with carry, 2 shifts for the result
-    /// format, per the Cortex-M0+ TRM single-cycle ALU and fast-multiplier timings).
+    /// Estimated Cortex-M0+ cycles, operand splitting and the final rounding included (the
+    /// Cortex-M0+ TRM's single-cycle ALU and fast multiplier): `Muls` 6 (pre-shifts, a
+    /// constant load, `MULS`, the rounding shift); `High` 14 (halves of each operand, 3
+    /// `MULS`, 3 shifts, 2 adds, the rounding); `Wide` 23 (a literal load, halves, 4 `MULS`,
+    /// the cross terms into a 64-bit pair with `ADDS`/`ADCS`, a 64-bit rounding shift).
     pub fn cycles(self) -> u32 {
         match self {
-            MulKind::Muls(..) => 3,
-            MulKind::Wide => 18,
+            MulKind::Muls(..) => 6,
+            MulKind::High(_) => 14,
+            MulKind::Wide => 23,
+        }
+    }
+
+    /// The form's name in the precision report.
+    pub fn name(self) -> String {
+        match self {
+            MulKind::Muls(0, 0) => "MULS 32×32→32 (operands fit)".into(),
+            MulKind::Muls(a, b) => format!("pre-shifted MULS (>>{a}, >>{b})"),
+            MulKind::High(k) => format!("high word of 32×32 (3 MULS, units of 2^{k})"),
+            MulKind::Wide => "64-bit product (4 MULS)".into(),
         }
     }
 }
@@ -185,6 +346,9 @@ pub struct FixedProgram {
     pub recip: Vec<Option<(i32, i32)>>,
     /// How each multiplication (and division by a constant) is done; `None` for other values.
     pub mul_kind: Vec<Option<MulKind>>,
+    /// For a division by a run-time value: the right shift of its divisor's word
+    /// ([`tactus_runtime::fixed::div_shifted`]); 0 for an exact division and for other values.
+    pub div_shift: Vec<u8>,
     /// Fraction bits of each sensor (from its declared range).
     pub sensor_frac: Vec<i32>,
     /// Raw bounds of each sensor.
@@ -255,14 +419,21 @@ fn constant(v: f64) -> (i32, i32) {
 }
 
 impl FixedProgram {
-    /// Plans formats for `program`. Never fails: unbounded values get saturation and a warning.
+    /// Plans formats for `program` with the default budget ([`PlanConfig::default`]). Never
+    /// fails: unbounded values get saturation and a warning.
     pub fn new(program: &Program) -> Self {
+        Self::with_config(program, &PlanConfig::default())
+    }
+
+    /// Plans formats for `program` under the precision budget `config`.
+    pub fn with_config(program: &Program, config: &PlanConfig) -> Self {
         let ranges = range::analyse(program);
         let n = program.values.len();
         let mut frac = vec![0; n];
         let mut consts = vec![0; n];
         let mut recip = vec![None; n];
         let mut mul_kind = vec![None; n];
+        let mut div_shift = vec![0u8; n];
         for (i, vd) in program.values.iter().enumerate() {
             frac[i] = match vd.ty {
                 Ty::Real(_) => frac_for(ranges.values[i]),
@@ -288,6 +459,19 @@ impl FixedProgram {
         let mut planned: Vec<(usize, MulOperands, bool)> = Vec::new();
         for (i, vd) in program.values.iter().enumerate() {
             let (x, y, c) = match vd.op {
+                Op::Arith(ArithOp::Div, _, y) if !is_const(y) => {
+                    if matches!(program.values[y.index()].ty, Ty::Real(_)) {
+                        div_shift[i] =
+                            plan_div_shift(
+                            frac[y.index()],
+                            ranges.values[y.index()],
+                            frac[i],
+                            ranges.values[i],
+                            config.div_rel_tolerance,
+                        );
+                    }
+                    continue;
+                }
                 Op::Arith(ArithOp::Div, x, y) if is_const(y) => {
                     let c = const_value(y);
                     if c == 0.0 {
@@ -401,6 +585,7 @@ impl FixedProgram {
             consts,
             recip,
             mul_kind,
+            div_shift: vec![0; n],
             sensor_frac,
             sensor_raw_range,
             state_frac,
@@ -409,7 +594,10 @@ impl FixedProgram {
             deriv_gain,
             warnings,
         };
-        fp.spend_precision_budget(&planned);
+        // Products are budgeted against the exact divisions: the divisor shifts' error is
+        // charged to the divisions' own tolerance, not handed on to the products.
+        fp.spend_precision_budget(&planned, config);
+        fp.div_shift = div_shift;
         fp
     }
 
@@ -421,23 +609,21 @@ impl FixedProgram {
     /// range. Products are tried in program order; each one kept spends part of the budget.
     /// Large programs (over [`SEQUENTIAL_BUDGET_WORK`]) try them in groups instead, with at
     /// most [`MAX_GROUP_ANALYSES`] analyses: whole groups kept, the others left exact.
-    fn spend_precision_budget(&mut self, planned: &[(usize, MulOperands, bool)]) {
-        if !planned
-            .iter()
-            .any(|(i, _, _)| self.mul_kind[*i] == Some(MulKind::Wide))
-        {
+    fn spend_precision_budget(&mut self, planned: &[(usize, MulOperands, bool)], config: &PlanConfig) {
+        let not_muls = |k: Option<MulKind>| !matches!(k, Some(MulKind::Muls(..)));
+        if !planned.iter().any(|(i, _, _)| not_muls(self.mul_kind[*i])) {
             return;
         }
         let base = report::analyse(self);
         let watched = watched_values(&self.program);
         let lsb = base.dac_lsb_n();
         // A bound that is not finite proves nothing: such a candidate is never accepted.
-        let within = |pr: &report::Precision| -> bool {
+        let within_growth = |pr: &report::Precision, growth: f64| -> bool {
             let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
             if !(pr.total.is_finite() && finite(&pr.force) && finite(&pr.write)) {
                 return false;
             }
-            let force_ok = |now: f64, was: f64| now <= was.max(BUDGET_FORCE_LSB * lsb);
+            let force_ok = |now: f64, was: f64| now <= was.max(config.force_lsb * lsb);
             force_ok(pr.total, base.total)
                 && pr
                     .force
@@ -447,31 +633,61 @@ impl FixedProgram {
                 && self.program.states.iter().enumerate().all(|(i, st)| {
                     let mag = st.range.0.abs().max(st.range.1.abs());
                     if base.accumulating[i] || pr.accumulating[i] {
-                        pr.write[i] <= BUDGET_ACCUMULATING_GROWTH * base.write[i]
+                        growth == f64::INFINITY || pr.write[i] <= growth * base.write[i]
                     } else {
                         pr.state[i].is_finite()
-                            && pr.state[i] <= base.state[i].max(BUDGET_STATE_REL * mag)
+                            && pr.state[i] <= base.state[i].max(config.state_rel * mag)
                     }
                 })
                 && watched.iter().all(|v| {
                     let mag = self.ranges.values[v.index()].mag();
                     pr.value[v.index()].is_finite()
-                        && pr.value[v.index()] <= base.value[v.index()].max(BUDGET_VALUE_REL * mag)
+                        && pr.value[v.index()] <= base.value[v.index()].max(config.value_rel * mag)
                 })
         };
-        let candidates: Vec<(usize, MulKind)> = planned
+        let within = |pr: &report::Precision| within_growth(pr, config.accumulating_growth);
+        // A high-word product's floors are a bias, not noise: on an integrated state it adds
+        // up sample after sample (three of the piano's hammer-velocity products moved a
+        // slow dip's force by 48 DAC LSB with a 2× growth allowed), so it may not grow an
+        // integrated state's one-sample bound at all.
+        let within_high = |pr: &report::Precision| {
+            within_growth(pr, config.accumulating_growth.min(1.0 + 1e-9))
+        };
+        // (product, its MULS plan, its plan within the tolerance to fall back to).
+        let candidates: Vec<(usize, MulKind, MulKind)> = planned
             .iter()
-            .filter(|(i, _, _)| self.mul_kind[*i] == Some(MulKind::Wide))
-            .map(|(i, ops, swapped)| (*i, ops.plan(*swapped, false)))
-            .filter(|(_, k)| *k != MulKind::Wide)
+            .filter(|(i, _, _)| not_muls(self.mul_kind[*i]))
+            .map(|(i, ops, swapped)| {
+                let was = self.mul_kind[*i].unwrap_or(MulKind::Wide);
+                (*i, ops.plan(*swapped, false), was)
+            })
+            .filter(|(_, k, _)| matches!(k, MulKind::Muls(..)))
+            .collect();
+        // The high-word form of each 64-bit product, tried where `MULS` is refused.
+        let high: std::collections::HashMap<usize, MulKind> = planned
+            .iter()
+            .filter_map(|(i, ops, _)| ops.high().map(|(k, _)| (*i, MulKind::High(k))))
             .collect();
         let values = self.program.values.len().max(1);
         if candidates.len().saturating_mul(values) <= SEQUENTIAL_BUDGET_WORK {
             // One analysis per product, in program order.
-            for &(i, k) in &candidates {
+            for &(i, k, was) in &candidates {
                 self.mul_kind[i] = Some(k);
                 if !within(&report::analyse(self)) {
-                    self.mul_kind[i] = Some(MulKind::Wide);
+                    self.mul_kind[i] = Some(was);
+                }
+            }
+            // Then the high-word form for every product still 64-bit (also those with no
+            // `MULS` plan), one analysis each.
+            for (i, _, _) in planned {
+                if self.mul_kind[*i] != Some(MulKind::Wide) {
+                    continue;
+                }
+                if let Some(&h) = high.get(i) {
+                    self.mul_kind[*i] = Some(h);
+                    if !within_high(&report::analyse(self)) {
+                        self.mul_kind[*i] = Some(MulKind::Wide);
+                    }
                 }
             }
             return;
@@ -484,7 +700,7 @@ impl FixedProgram {
         // (19,000 values, 2,946 candidates) one analysis per product took 46 s and kept
         // none of them.
         let tries = (SEQUENTIAL_BUDGET_WORK / values).clamp(1, MAX_GROUP_ANALYSES);
-        let mut queue: std::collections::VecDeque<&[(usize, MulKind)]> =
+        let mut queue: std::collections::VecDeque<&[(usize, MulKind, MulKind)]> =
             std::collections::VecDeque::from([&candidates[..]]);
         let mut done = 0;
         while let Some(group) = queue.pop_front() {
@@ -492,12 +708,12 @@ impl FixedProgram {
                 break;
             }
             done += 1;
-            for &(i, k) in group {
+            for &(i, k, _) in group {
                 self.mul_kind[i] = Some(k);
             }
             if !within(&report::analyse(self)) {
-                for &(i, _) in group {
-                    self.mul_kind[i] = Some(MulKind::Wide);
+                for &(i, _, was) in group {
+                    self.mul_kind[i] = Some(was);
                 }
                 if group.len() > 1 {
                     let (a, b) = group.split_at(group.len() / 2);
@@ -517,22 +733,25 @@ impl FixedProgram {
         }
     }
 
-    /// Number of multiplications of each kind and their estimated cycles on a Cortex-M0+.
+    /// Number of multiplications of each kind — (`MULS`, high word, 64-bit) — and their
+    /// estimated cycles on a Cortex-M0+ ([`MulKind::cycles`]).
+    pub fn mul_forms(&self) -> (usize, usize, usize, u32) {
+        let (mut m, mut h, mut w, mut c) = (0, 0, 0, 0);
+        for k in self.mul_kind.iter().flatten() {
+            match k {
+                MulKind::Muls(..) => m += 1,
+                MulKind::High(_) => h += 1,
+                MulKind::Wide => w += 1,
+            }
+            c += k.cycles();
+        }
+        (m, h, w, c)
+    }
+
+    /// Number of `MULS` products, of products needing more (high word or 64-bit), and the
+    /// estimated cycles of all ([`FixedProgram::mul_forms`]).
     pub fn mul_cost(&self) -> (usize, usize, u32) {
-        let muls = self
-            .mul_kind
-            .iter()
-            .filter(|k| matches!(k, Some(MulKind::Muls(..))))
-            .count();
-        let wide = self
-            .mul_kind
-            .iter()
-            .filter(|k| **k == Some(MulKind::Wide))
-            .count();
-        (
-            muls,
-            wide,
-            muls as u32 * MulKind::Muls(0, 0).cycles() + wide as u32 * MulKind::Wide.cycles(),
-        )
+        let (m, h, w, c) = self.mul_forms();
+        (m, h + w, c)
     }
 }

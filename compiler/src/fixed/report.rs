@@ -221,7 +221,7 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                 ArithOp::Mul => {
                     let (ex, ey) = shift_errors(fp, v, fx, fy);
                     let (ex, ey) = (err(x) + ex, err(y) + ey);
-                    mag(x) * ey + mag(y) * ex + ex * ey + half_lsb(fr)
+                    mag(x) * ey + mag(y) * ex + ex * ey + high_error(fp, v, fx, fy) + half_lsb(fr)
                 }
                 ArithOp::Div => match fp.recip[v.index()] {
                     Some((r, f)) => {
@@ -234,6 +234,7 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                         let (ex, eq) = shift_errors(fp, v, fx, f);
                         (err(x) + ex) * (q.abs() + eq)
                             + mag(x) * ((q - 1.0 / c).abs() + eq)
+                            + high_error(fp, v, fx, f)
                             + half_lsb(fr)
                     }
                     None => {
@@ -245,10 +246,15 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                         } else {
                             0.0
                         };
-                        if ymin == 0.0 {
+                        // The divisor's pre-shift (`fixed::div_shifted`) floors its word: an
+                        // error below one LSB of the shifted word.
+                        let b = fp.div_shift[v.index()];
+                        let shift = if b > 0 { pow2(b as i32 - fy) } else { 0.0 };
+                        if ymin <= shift {
                             f64::INFINITY
                         } else {
-                            (err(x) + mag(&v) * err(y)) / ymin + 2.0 * half_lsb(fr)
+                            (err(x) + mag(&v) * (err(y) + shift)) / (ymin - shift)
+                                + 2.0 * half_lsb(fr)
                         }
                     }
                 },
@@ -285,6 +291,18 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
                 }
             }
         }
+    }
+}
+
+/// The error of a high-word product ([`tactus_runtime::fixed::mul_high`]) before its
+/// rounding: below `2 + 2^(32−k)` units of `2^(k − fx − fy)`; 0 for the other forms.
+fn high_error(fp: &FixedProgram, v: Value, fx: i32, fy: i32) -> f64 {
+    match fp.mul_kind[v.index()] {
+        Some(super::MulKind::High(k)) => {
+            let k = k as i32;
+            (2.0 + pow2(32 - k)) * pow2(k - fx - fy)
+        }
+        _ => 0.0,
     }
 }
 
@@ -367,7 +385,7 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
             }
         );
     }
-    let _ = writeln!(s, "\nforce terms                range                          format      error bound (N)   (DAC LSB)");
+    let _ = writeln!(s, "\nforce terms                range                          format      error bound (N)   (DAC LSB; contract: total ≤ 1)");
     let forces = force_values(p);
     for (i, fd) in p.forces.iter().enumerate() {
         let v = forces[i];
@@ -419,10 +437,30 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
             ""
         }
     );
-    let (muls, wide, cycles) = fp.mul_cost();
+    render_arithmetic(&mut s, fp);
+    let c = super::contract::Contract::default();
     let _ = writeln!(
         s,
-        "\nmultiplications: {muls} fit MULS (32×32→32), {wide} need a 64-bit product (ARMv6-M has no SMULL): ≈ {cycles} Cortex-M0+ cycles"
+        "\naccuracy contract (defaults; checked by simulating against f64 on the built-in stimuli, compiler/tests/contract.rs):"
+    );
+    let _ = writeln!(
+        s,
+        "  force at the key within {} DAC LSB = {:.3e} N: static bound {:.4} LSB{}",
+        c.force_lsb,
+        c.force_lsb * lsb,
+        pr.total / lsb,
+        if pr.total_is_local {
+            " per sample (integrated states: measured by simulation)"
+        } else {
+            ""
+        }
+    );
+    let _ = writeln!(
+        s,
+        "  events on the same key as in f64, none lost or added, within {} ms ({:.0} samples); arguments within {} %; states within their declared ranges",
+        c.event_time_s * 1e3,
+        c.event_time_s * p.sample_rate_hz,
+        c.event_arg_rel * 100.0
     );
     if fp.warnings.is_empty() {
         let _ = writeln!(
@@ -437,6 +475,63 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
         );
     }
     s
+}
+
+/// The form and estimated cycles of every product and run-time division.
+fn render_arithmetic(s: &mut String, fp: &FixedProgram) {
+    let p = &fp.program;
+    let _ = writeln!(
+        s,
+        "\nproducts (form chosen by the precision budget; Cortex-M0+ cycles estimated)"
+    );
+    for (i, k) in fp.mul_kind.iter().enumerate() {
+        let (Some(k), Op::Arith(_, x, y)) = (k, &p.values[i].op) else {
+            continue;
+        };
+        let span = &p.values[i].span;
+        let fy = fp.recip[i].map_or(fp.frac[y.index()], |(_, f)| f);
+        let _ = writeln!(
+            s,
+            "  v{i:<5} source {:>5}..{:<5} {:<8} × {:<8} → {:<8} {:<46} ≈ {:>2}",
+            span.start,
+            span.end,
+            q_name(fp.frac[x.index()]),
+            q_name(fy),
+            q_name(fp.frac[i]),
+            k.name(),
+            k.cycles()
+        );
+    }
+    let (m, h, w, cycles) = fp.mul_forms();
+    let _ = writeln!(
+        s,
+        "multiplications: {m} MULS (32×32→32, operands pre-shifted where needed), {h} high word of 32×32, {w} 64-bit (ARMv6-M has no SMULL): ≈ {cycles} Cortex-M0+ cycles"
+    );
+    for (i, vd) in p.values.iter().enumerate() {
+        let Op::Arith(ArithOp::Div, _, y) = vd.op else {
+            continue;
+        };
+        if fp.recip[i].is_some() {
+            continue;
+        }
+        let b = fp.div_shift[i];
+        let word = |v: usize, f: i32| (fp.ranges.values[v].mag() * pow2(f)).ceil() as u64 + 1;
+        let qbits = super::bits_of(word(i, fp.frac[i]));
+        let dbits = super::bits_of(word(y.index(), fp.frac[y.index()]) >> b);
+        let (steps, cycles) = super::division_cycles(qbits, dbits);
+        let _ = writeln!(
+            s,
+            "division v{i} (source {}..{}): divisor >> {b} (relative error ≤ {:.1e}), {qbits}-bit quotient, {dbits}-bit divisor: {} ≈ {cycles} cycles",
+            vd.span.start,
+            vd.span.end,
+            if b > 0 { pow2(b as i32) / (fp.ranges.values[y.index()].lo.abs().min(fp.ranges.values[y.index()].hi.abs()) * pow2(fp.frac[y.index()])) } else { 0.0 },
+            if steps > 0 {
+                format!("SIO divider, {steps} steps")
+            } else {
+                "restoring division".to_string()
+            }
+        );
+    }
 }
 
 /// The value published by each output (`None` for an output never published).

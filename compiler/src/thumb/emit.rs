@@ -378,6 +378,8 @@ impl Lower<'_> {
             }),
             M::Note(ref s) => self.items.push(Item::Note(s.clone())),
             M::Mark(k) => self.items.push(Item::Mark(k)),
+            // `MOV r8, r8`: what GNU as assembles `nop` to for ARMv6-M (1 cycle, no effect).
+            M::Nop => self.i(Instr::MovHi { rd: 8, rm: 8 }),
         }
     }
 }

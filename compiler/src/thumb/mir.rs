@@ -129,6 +129,9 @@ pub enum M {
     /// Marks the start of the body of the top-level `if` statement with this index (a
     /// block start the WCET analysis' flow facts refer to).
     Mark(u32),
+    /// A one-cycle no-op (`MOV r8, r8`, GNU as's `nop` on ARMv6-M): waiting out the SIO
+    /// divider's latency.
+    Nop,
 }
 
 impl M {
@@ -139,7 +142,13 @@ impl M {
             _ => None,
         };
         match self {
-            M::Movi { .. } | M::Label(_) | M::B(_) | M::Bc(..) | M::Note(_) | M::Mark(_) => vec![],
+            M::Movi { .. }
+            | M::Label(_)
+            | M::B(_)
+            | M::Bc(..)
+            | M::Note(_)
+            | M::Mark(_)
+            | M::Nop => vec![],
             M::Mov { s, .. } => vec![*s],
             M::AddSub { a, b, .. } => vec![*a, *b],
             M::AddSubI { a, .. } => vec![*a],

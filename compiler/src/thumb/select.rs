@@ -692,6 +692,41 @@ impl<'a> Sel<'a> {
                 };
                 self.round(prod, e)
             }
+            MulKind::High(k) => {
+                // fixed::mul_high: xh·yh·2^(32−k) + floor(xh·yl / 2^(k−16)) +
+                // floor(xl·yh / 2^(k−16)), each partial product one MULS.
+                let k = k.clamp(16, 32) as i32;
+                let xl = self.nv();
+                self.push(M::Uxth { d: xl, m: x.v });
+                let xh = self.sh(Shift::Asr, x.v, 16);
+                let (yh, yl, yb) = match y {
+                    Operand::Const(c) => (self.movi(c >> 16), self.movi(c & 0xffff), c.unsigned_abs() as u64),
+                    Operand::Word(w) => {
+                        let yl = self.nv();
+                        self.push(M::Uxth { d: yl, m: w.v });
+                        (self.sh(Shift::Asr, w.v, 16), yl, w.b)
+                    }
+                };
+                let mut hh = self.alu2(AluOp::Mul, xh, yh);
+                if k < 32 {
+                    hh = self.sh(Shift::Lsl, hh, (32 - k) as u8);
+                }
+                let mut hl = self.alu2(AluOp::Mul, xh, yl);
+                let mut lh = self.alu2(AluOp::Mul, xl, yh);
+                if k > 16 {
+                    hl = self.sh(Shift::Asr, hl, (k - 16) as u8);
+                    lh = self.sh(Shift::Asr, lh, (k - 16) as u8);
+                }
+                let p = self.addsub(false, hh, hl);
+                let p = self.addsub(false, p, lh);
+                // The planner's bound (`MulOperands::high`): the sum fits an i32.
+                let (hx, hy) = ((x.b.min(LIM) >> 16) + 1, (yb.min(LIM) >> 16) + 1);
+                let pb = ((hx * hy + hx + hy) << (32 - k)) + 2;
+                if pb >= LIM {
+                    self.unsupported("a high-word product whose partial sum may not fit 32 bits");
+                }
+                self.round(W { v: p, b: pb.min(LIM) }, fr - (fx_ + fy - k))
+            }
             MulKind::Wide => {
                 let yv = match y {
                     Operand::Const(c) => self.movi(c),
@@ -819,6 +854,12 @@ pub(crate) enum Operand {
 fn imm_offset(op: MemOp, off: usize) -> bool {
     let size = op.size() as usize;
     off <= 31 * size && off.is_multiple_of(size)
+}
+
+/// Cycles between the SIO divider's operand write and a valid result read
+/// (`emulator/src/timing.rs`, the one table).
+fn timing_divider_latency() -> u32 {
+    tactus_emulator::timing::DIVIDER_LATENCY
 }
 
 /// The pinned state pointer as a virtual register for address arithmetic (allocated to r7).
@@ -1444,7 +1485,26 @@ impl<'a> Sel<'a> {
                                     .into(),
                             ));
                         }
-                        self.div(a, b, fr - f(&x) + f(&y), rb)?
+                        // The divisor's planned pre-shift (`fixed::div_shifted`).
+                        let sh = fp.div_shift[v.index()].min(31);
+                        if sh == 0 {
+                            return self.div(a, b, fr - f(&x) + f(&y), rb);
+                        }
+                        let shifted = (iv.lo * scale / 2f64.powi(sh as i32) > 2.0)
+                            || (iv.hi * scale / 2f64.powi(sh as i32) < -2.0);
+                        // The quotient by the floored divisor is larger by at most
+                        // `2^(b+1) / min |y|` relatively (the planner keeps it below 2^31).
+                        let ymin = (iv.lo * scale).abs().min((iv.hi * scale).abs());
+                        let grow = (rb as f64 * 2f64.powi(sh as i32 + 1) / ymin).ceil() + 1.0;
+                        let rb2 = rb.saturating_add(if grow.is_finite() { grow as u64 } else { LIM });
+                        if !shifted || rb2 >= LIM {
+                            return Err(ThumbError::Unsupported(
+                                "a division whose shifted divisor may be 0 or whose quotient may not fit"
+                                    .into(),
+                            ));
+                        }
+                        let bs = self.floor_shr(b, sh as i32);
+                        self.div(a, bs, fr - f(&x) + f(&y) - sh as i32, rb2)?
                     }
                 },
             },
@@ -1553,6 +1613,14 @@ impl<'a> Sel<'a> {
     /// [`fx::div`]: tactus_runtime::fixed::div
     fn div(&mut self, x: W, y: W, k: i32, rb: u64) -> Result<W, ThumbError> {
         let nb = (64 - rb.leading_zeros()) as i32; // quotient bits
+        // The divisor's bound once scaled for k < 0.
+        let d_bound = if k >= 0 { y.b } else { shl_bound(y.b, -k) };
+        if (k >= 0 || -k <= 31) && d_bound < LIM {
+            let (steps, _) = crate::fixed::division_cycles(nb, crate::fixed::bits_of(d_bound));
+            if steps > 0 {
+                return Ok(self.sio_div(x, y, k, rb, steps));
+            }
+        }
         let abs = |this: &mut Self, w: V| -> (V, V) {
             let m = this.sh(Shift::Asr, w, 31);
             let t = this.alu2(AluOp::Eor, w, m);
@@ -1638,6 +1706,121 @@ impl<'a> Sel<'a> {
             v: self.addsub(true, t, m),
             b: rb,
         })
+    }
+
+    /// [`fx::div`] on the RP2040's SIO hardware divider (datasheet 2.3.1.5: unsigned
+    /// dividend at `0xd000_0060`, divisor at `0x064`, quotient `0x070` and remainder `0x074`
+    /// valid 8 cycles after the last operand write): `trunc(|x|·2^k / |y|)` by long division
+    /// in digits of `s = 32 − L` bits for a divisor of `L` bits, `steps` hardware divisions
+    /// ([`crate::fixed::sio_division_steps`]). The first divides the top of the dividend
+    /// (below `|y|·2^s`, since the quotient is below `2^nb` with `nb ≤ steps·s`); each later
+    /// one divides the remainder with the next `s` dividend bits appended, whose quotient is
+    /// the next digit. Unsigned throughout; the sign is put back at the end, so the quotient
+    /// truncates toward zero as [`fx::div`] does. The divisor is written once: writing the
+    /// dividend starts the next division with the divisor register unchanged.
+    ///
+    /// The divider is per core, and the update runs only from the firmware's sample
+    /// interrupt, which does not nest (and from host calls on an idle core): nothing else
+    /// uses the divider between our writes and reads, so its state needs no saving
+    /// (the pico-sdk saves it only because its interrupts may interrupt a division).
+    ///
+    /// [`fx::div`]: tactus_runtime::fixed::div
+    fn sio_div(&mut self, x: W, y: W, k: i32, rb: u64, steps: u32) -> W {
+        const SIO_BASE: i32 = 0xd000_0000u32 as i32;
+        const UDIVIDEND: u16 = 0x060;
+        const UDIVISOR: u16 = 0x064;
+        const QUOTIENT: u16 = 0x070;
+        const REMAINDER: u16 = 0x074;
+        let abs = |this: &mut Self, w: V| -> (V, V) {
+            let m = this.sh(Shift::Asr, w, 31);
+            let t = this.alu2(AluOp::Eor, w, m);
+            (this.addsub(true, t, m), m)
+        };
+        let (ax, mx) = abs(self, x.v);
+        let (ay, my) = abs(self, y.v);
+        let (d, d_bound, k) = if k >= 0 {
+            (ay, y.b, k)
+        } else {
+            (self.sh(Shift::Lsl, ay, (-k) as u8), shl_bound(y.b, -k), 0)
+        };
+        let s = 32 - crate::fixed::bits_of(d_bound);
+        let low = (steps as i32 - 1) * s; // dividend bits below the first step's
+        // First dividend: |x|·2^k >> low.
+        let e = k - low;
+        let first = if e == 0 {
+            ax
+        } else if e > 0 {
+            self.sh(Shift::Lsl, ax, e.min(31) as u8)
+        } else if -e >= 32 {
+            self.movi(0)
+        } else {
+            self.sh(Shift::Lsr, ax, (-e) as u8)
+        };
+        // The low `low` dividend bits, top-aligned: |x| << (k + 32 − low) (none if ≥ 32).
+        let fsh = k + 32 - low;
+        let mut feed = if steps > 1 && fsh < 32 {
+            Some(if fsh == 0 {
+                ax
+            } else {
+                self.sh(Shift::Lsl, ax, fsh as u8)
+            })
+        } else {
+            None
+        };
+        let sio = self.movi(SIO_BASE);
+        self.store(MemOp::Str, d, Base::V(sio), UDIVISOR as usize);
+        self.store(MemOp::Str, first, Base::V(sio), UDIVIDEND as usize);
+        // While the divider works (DIVIDER_LATENCY cycles): the next dividend digit from
+        // the feed, the previous digits shifted up; NOPs for the rest of the wait. Every
+        // instruction here is 1 cycle (spill code the allocator may add only waits longer).
+        let wait = timing_divider_latency() as usize;
+        let mut digit = None;
+        let mut busy = 0;
+        let next_digit = |this: &mut Self, feed: &mut Option<V>, busy: &mut usize| {
+            if let Some(f) = *feed {
+                let dg = this.sh(Shift::Lsr, f, (32 - s) as u8);
+                *feed = Some(this.sh(Shift::Lsl, f, s as u8));
+                *busy += 2;
+                Some(dg)
+            } else {
+                None
+            }
+        };
+        if steps > 1 {
+            digit = next_digit(self, &mut feed, &mut busy);
+        }
+        for _ in busy..wait {
+            self.push(M::Nop);
+        }
+        let mut q = self.load(MemOp::Ldr, Base::V(sio), QUOTIENT as usize);
+        for step in 1..steps {
+            let r = self.load(MemOp::Ldr, Base::V(sio), REMAINDER as usize);
+            let r = self.sh(Shift::Lsl, r, s as u8);
+            let dv = match digit {
+                Some(dg) => self.alu2(AluOp::Orr, r, dg),
+                None => r,
+            };
+            self.store(MemOp::Str, dv, Base::V(sio), UDIVIDEND as usize);
+            let qs = self.sh(Shift::Lsl, q, s as u8);
+            busy = 1;
+            digit = if step + 1 < steps {
+                next_digit(self, &mut feed, &mut busy)
+            } else {
+                None
+            };
+            for _ in busy..wait {
+                self.push(M::Nop);
+            }
+            let dq = self.load(MemOp::Ldr, Base::V(sio), QUOTIENT as usize);
+            q = self.alu2(AluOp::Orr, qs, dq);
+        }
+        // Sign: q = (q ^ m) - m with m = sign(x) ^ sign(y).
+        let m = self.alu2(AluOp::Eor, mx, my);
+        let t = self.alu2(AluOp::Eor, q, m);
+        W {
+            v: self.addsub(true, t, m),
+            b: rb,
+        }
     }
 
     /// [`fx::exp`] of the word `x` (format `fx_`) into `fr` fraction bits; `rb` bounds the

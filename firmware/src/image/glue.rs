@@ -1,15 +1,23 @@
 //! The image's hand-written Thumb: the safety limiter, the sample interrupt handler and the
 //! reset handler of one core, emitted through [`super::asm::Asm`].
 //!
-//! Register use follows AAPCS: the per-key updates (compiled code) may clobber r0-r3 and
-//! r12 and preserve r4-r11, so the handler keeps its record pointer in r4 and its control
-//! block pointer in r5 across the `BL`s.
+//! **Registers.** The per-key updates (compiled code) follow AAPCS: they may clobber r0-r3
+//! and r12 and preserve r4-r11. The handler keeps its record pointer in r4, its control
+//! block in r5, the sensor and DAC window bases in r6 and r7. The limiter's board-wide
+//! constants live in r8-r11 for the whole run ([`hi`]): the reset handler sets them once,
+//! every update preserves them, and the only code a sample interrupt ever interrupts is the
+//! reset handler's idle loop (`WFI; B`), which touches no register — so the handler saves
+//! only what exception entry does not (LR, with r4 for an 8-byte aligned stack) and never
+//! reloads a constant.
+//!
+//! **The limiter** is [`limiter_inline`]: `runtime/src/limiter.rs` on the 16-bit DAC code,
+//! one `MULS`, no call; at the time of writing 25 cycles on its worst path.
 
 use super::asm::{self, cond, Asm, Label};
 use super::ImageError;
 use tactus_emulator::decode::{AluOp, Hint, Instr};
 use tactus_emulator::timer::{reg, TIMER_BASE};
-use tactus_runtime::limiter::LimiterConstants;
+use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
 /// Byte offsets in a core's control block (words in the core's own SRAM bank).
 pub mod ctrl {
@@ -27,27 +35,17 @@ pub mod ctrl {
     pub const SIZE: u32 = 20;
 }
 
-/// Byte offsets in a key's record.
-pub mod rec {
-    /// The key's sensor word, copied from the sensor window (the update's `sensors`), for a
-    /// key with one sensor; a key with more keeps them from [`OUT`] on (`KeyCode`).
-    pub const SENSOR: u16 = 0;
-    /// The limiter's time budget (1/`recovery` samples).
-    pub const BUDGET: u16 = 4;
-    /// The motor current the limiter allowed this sample, µA.
-    pub const CURRENT: u16 = 8;
-    /// Address of the key's sensor window word.
-    pub const WINDOW: u16 = 12;
-    /// Address of the key's DAC window word.
-    pub const DAC: u16 = 16;
-    /// Address of the key's state struct.
-    pub const STATE: u16 = 20;
-    /// The update's `out` words start here.
-    pub const OUT: u32 = 24;
+/// The high registers that hold the limiter's constants for the whole run.
+pub mod hi {
+    /// The rated current as a DAC code (`LimiterConstants::rated_code`).
+    pub const RATED: u8 = 8;
+    /// The peak current as a DAC code (`LimiterConstants::peak_code`).
+    pub const PEAK: u8 = 9;
+    /// The full time budget (`LimiterConstants::budget_max`).
+    pub const BUDGET_MAX: u8 = 10;
+    /// The gain of the core's most used force format ([`super::Gain::InRegister`]).
+    pub const GAIN: u8 = 11;
 }
-
-// The limiter stores the current in the word after the budget.
-const _: () = assert!(rec::CURRENT == rec::BUDGET + 4);
 
 /// NVIC_ISER (DDI0419 B3.4.3).
 const NVIC_ISER: u32 = 0xe000_e100;
@@ -61,176 +59,189 @@ fn add_big(a: &mut Asm, rd: u8, mut n: u32) {
     }
 }
 
-/// `r0 = clamp(round(r0 · b / 2^s), -limit, limit)`, the exact result of
-/// `fixed::mul(r0, f, b, fb, 0)` (s = f + fb) clamped to ±`limit`, as
-/// `runtime/src/limiter.rs` computes it: the signed 64-bit product from four 16×16 `MULS`
-/// of the magnitudes, negated back; `+ 2^(s-1)`, arithmetic shift by `s` (rounding half
-/// up); saturation to ±`limit`. Clobbers r2, r3, r6, r7 (and r4, r5); preserves r1.
-fn mul_round_clamp(a: &mut Asm, b: u32, s: u32, limit: u32) {
+/// `MOV rd, rm` with high registers (no flags).
+fn mov_hi(rd: u8, rm: u8) -> Instr {
+    Instr::MovHi { rd, rm }
+}
+
+/// `rt = [r4 + off]`: one `LDR` within its immediate's reach, else through `rt` as index.
+fn ldr_rec(a: &mut Asm, rt: u8, off: u32) {
+    if off <= 124 && off % 4 == 0 {
+        a.i(asm::ldr(rt, 4, off as u16));
+    } else {
+        a.mov_const(rt, off);
+        a.i(asm::ldr_reg(rt, 4, rt));
+    }
+}
+
+/// Where [`limiter_inline`] finds the gain of its force format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Gain {
+    /// In [`hi::GAIN`] (`MOV`, 1 cycle).
+    InRegister,
+    /// From the literal pool (`LDR`, 2 cycles): a key whose force format is not the one
+    /// the core keeps in the register.
+    Literal,
+}
+
+/// Checks that the Thumb limiter can use `c`; errors say which constant does not fit.
+fn check_constants(c: &LimiterConstants) -> Result<(), ImageError> {
+    if !(1..=255).contains(&c.recovery) {
+        return Err(ImageError::Limiter(format!(
+            "recovery {} is not 1 to 255 (a CMP immediate)",
+            c.recovery
+        )));
+    }
+    if c.rated_code < 1 || c.peak_code < c.rated_code || c.budget_max < c.recovery {
+        return Err(ImageError::Limiter(
+            "need 1 ≤ rated code ≤ peak code and a budget of at least one sample".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The limiter of one force word, inline: `r0` = the force word in, the DAC code out
+/// (sign-extended); the budget word at `[r<base> + budget_off]` updated. Exactly
+/// `Limiter::step` (runtime/src/limiter.rs) with scale `s`. Needs [`hi`] set; clobbers
+/// r1-r3; `base` must be r4-r7 and `budget_off` ≤ 124.
+///
+/// Worst path (the budget spent, clamped to rated): 25 cycles, from the sign to the
+/// budget's store.
+pub fn limiter_inline(
+    a: &mut Asm,
+    c: &LimiterConstants,
+    s: &DacScale,
+    gain: Gain,
+    base: u8,
+    budget_off: u16,
+) -> Result<(), ImageError> {
     use AluOp::*;
-    a.i(asm::asrs(7, 0, 31)); // r7 = sign mask of a
-    a.i(asm::alu(Eor, 0, 7));
-    a.i(asm::subs(0, 0, 7)); // r0 = |a| (unsigned)
-    a.i(Instr::Uxth { rd: 3, rm: 0 }); // al
-    a.i(asm::lsrs(0, 0, 16)); // ah
-    a.mov_const(4, b & 0xffff); // bl
-    a.mov_const(5, b >> 16); // bh
-    a.i(asm::mov(6, 3));
-    a.i(asm::alu(Mul, 6, 4)); // lo = al·bl
-    a.i(asm::alu(Mul, 3, 5)); // al·bh
-    a.i(asm::mov(2, 0));
-    a.i(asm::alu(Mul, 2, 5)); // hi = ah·bh
-    a.i(asm::alu(Mul, 0, 4)); // ah·bl
-    a.i(asm::movs(4, 0));
-    a.i(asm::adds(0, 0, 3)); // mid = ah·bl + al·bh, carry out
-    a.i(asm::alu(Adc, 4, 4)); // r4 = carry
-    a.i(asm::lsls(4, 4, 16));
-    a.i(asm::adds(2, 2, 4)); // hi += carry << 16
-    a.i(asm::lsls(3, 0, 16));
-    a.i(asm::lsrs(0, 0, 16));
-    a.i(asm::adds(6, 6, 3)); // lo += mid << 16
-    a.i(asm::alu(Adc, 2, 0)); // hi += mid >> 16 + carry
-                              // Negate (64-bit) when a < 0: (x ^ m) - m.
-    a.i(asm::alu(Eor, 6, 7));
-    a.i(asm::alu(Eor, 2, 7));
-    a.i(asm::subs(6, 6, 7));
-    a.i(asm::alu(Sbc, 2, 7));
-    // Round half up: + 2^(s-1).
-    if s - 1 < 32 {
-        a.mov_const(3, 1 << (s - 1));
-        a.i(asm::movs(4, 0));
-        a.i(asm::adds(6, 6, 3));
-        a.i(asm::alu(Adc, 2, 4));
-    } else {
-        a.mov_const(3, 1 << (s - 33));
-        a.i(asm::adds(2, 2, 3));
+    check_constants(c)?;
+    if !(4..=7).contains(&base) || budget_off > 124 || budget_off % 4 != 0 {
+        return Err(ImageError::Limiter(format!(
+            "budget word at r{base} + {budget_off}: needs r4-r7 and an offset ≤ 124"
+        )));
     }
-    // Arithmetic shift right by s (64-bit): the result's low word in r6, high in r2.
-    match s {
-        1..=31 => {
-            a.i(asm::lsrs(6, 6, s as u8));
-            a.i(asm::lsls(3, 2, (32 - s) as u8));
-            a.i(asm::alu(Orr, 6, 3));
-            a.i(asm::asrs(2, 2, s as u8));
-        }
-        32 => {
-            a.i(asm::mov(6, 2));
-            a.i(asm::asrs(2, 2, 31));
-        }
-        _ => {
-            a.i(asm::asrs(6, 2, (s - 32) as u8));
-            a.i(asm::asrs(2, 2, 31));
-        }
+    if s.pre_shift > 31 || s.post_shift > 31 || !(1..=65535).contains(&s.gain) {
+        return Err(ImageError::Limiter(format!("scale {s:?} out of range")));
     }
-    // Clamp to ±limit: in i32 range iff hi is the sign extension of lo.
-    let (inside, done) = (a.label(), a.label());
-    a.i(asm::asrs(3, 6, 31));
-    a.i(asm::cmp(3, 2));
-    a.bc(cond::EQ, inside);
-    a.mov_const(0, limit);
-    a.i(asm::cmp_imm(2, 0));
-    a.bc(cond::GE, done);
-    a.i(asm::negs(0, 0));
-    a.b(done);
-    a.bind(inside);
-    a.mov_const(0, limit);
-    a.i(asm::cmp(6, 0));
-    a.bc(cond::GT, done);
-    a.i(asm::negs(0, 0));
-    a.i(asm::cmp(6, 0));
-    a.bc(cond::LT, done);
-    a.i(asm::mov(0, 6));
-    a.bind(done);
+    let rec = c.recovery as u8;
+    let (sat, above, spent, apply) = (a.label(), a.label(), a.label(), a.label());
+    // r2 = sign mask, r0 = |force| (i32::MIN stays 2^31 as an unsigned magnitude).
+    a.i(asm::asrs(2, 0, 31));
+    a.i(asm::alu(Eor, 0, 2));
+    a.i(asm::subs(0, 0, 2));
+    if s.pre_shift > 0 {
+        a.i(asm::lsrs(0, 0, s.pre_shift as u8));
+    }
+    // |x| ≥ 2^15: saturated, above the peak.
+    a.i(asm::lsrs(1, 0, 15));
+    a.bc(cond::NE, sat);
+    match gain {
+        Gain::InRegister => a.i(mov_hi(1, hi::GAIN)),
+        Gain::Literal => a.ldr_const(1, s.gain),
+    }
+    a.i(asm::alu(Mul, 0, 1));
+    if s.post_shift > 0 {
+        a.i(asm::lsrs(0, 0, s.post_shift as u8));
+    }
+    a.i(asm::ldr(1, base, budget_off));
+    a.i(Instr::CmpHi { rn: 0, rm: hi::RATED });
+    a.bc(cond::GT, above);
+    // At or below rated: earn one unit, up to the full budget.
+    a.i(asm::adds_imm(1, 1, 1));
+    a.i(Instr::CmpHi {
+        rn: 1,
+        rm: hi::BUDGET_MAX,
+    });
+    a.bc(cond::LE, apply);
+    a.i(mov_hi(1, hi::BUDGET_MAX));
+    a.b(apply);
+    // Saturated: above the peak whatever the exact value.
+    a.bind(sat);
+    a.i(asm::ldr(1, base, budget_off));
+    a.i(asm::cmp_imm(1, rec));
+    a.bc(cond::LT, spent);
+    a.i(asm::subs_imm(1, 1, rec));
+    a.i(mov_hi(0, hi::PEAK));
+    a.b(apply);
+    // Budget spent: clamp to rated, which earns.
+    a.bind(spent);
+    a.i(mov_hi(0, hi::RATED));
+    a.i(asm::adds_imm(1, 1, 1));
+    a.b(apply);
+    // Above rated with budget: spend, clamp to the peak.
+    a.bind(above);
+    a.i(asm::cmp_imm(1, rec));
+    a.bc(cond::LT, spent);
+    a.i(asm::subs_imm(1, 1, rec));
+    a.i(Instr::CmpHi { rn: 0, rm: hi::PEAK });
+    a.bc(cond::LE, apply);
+    a.i(mov_hi(0, hi::PEAK));
+    a.bind(apply);
+    // The sign back.
+    a.i(asm::alu(Eor, 0, 2));
+    a.i(asm::subs(0, 0, 2));
+    a.i(asm::str(1, base, budget_off));
+    Ok(())
 }
 
-/// The shift of `fixed::mul(x, f, y, fy, 0)` when it is one the limiter code supports.
-fn shift(f: i32, fy: i32, what: &str) -> Result<u32, ImageError> {
-    let s = f + fy;
-    if (1..=62).contains(&s) {
-        Ok(s as u32)
-    } else {
-        Err(ImageError::Limiter(format!(
-            "{what}: a product with {s} fraction bits (the Thumb limiter handles 1 to 62)"
-        )))
+/// Sets [`hi`] for `c` with `gain` in [`hi::GAIN`] (clobbers r0).
+pub fn set_limiter_registers(a: &mut Asm, c: &LimiterConstants, gain: u32) {
+    for (reg, v) in [
+        (hi::RATED, c.rated_code as u32),
+        (hi::PEAK, c.peak_code as u32),
+        (hi::BUDGET_MAX, c.budget_max as u32),
+        (hi::GAIN, gain),
+    ] {
+        a.mov_const(0, v);
+        a.i(mov_hi(reg, 0));
     }
 }
 
-/// The limiter of keys whose force words have `force_frac` fraction bits, as a function:
-/// `r0` = force word, `r1` = address of the key's record budget word (the current follows
-/// it); returns the DAC code in `r0` (sign-extended) and updates the budget and the current.
-/// Exactly `Limiter::step` (runtime/src/limiter.rs).
-pub fn limiter(
+/// The limiter as a function, for tests: `r0` = force word, `r1` = address of the budget
+/// word; returns the DAC code in `r0` (sign-extended). Preserves r4-r11 (AAPCS).
+pub fn limiter_function(
     a: &mut Asm,
     entry: Label,
     c: &LimiterConstants,
-    force_frac: i32,
+    s: &DacScale,
 ) -> Result<(), ImageError> {
-    let bad = |what: &str| Err(ImageError::Limiter(what.to_string()));
-    if c.gain.0 <= 0 || c.dac_scale.0 <= 0 {
-        return bad("the gain and the DAC scale must be positive words");
-    }
-    if c.peak_ua <= 0 || c.rated_ua <= 0 || c.recovery <= 0 || c.budget_max < 0 {
-        return bad("the peak and rated currents and the recovery must be positive");
-    }
-    if c.budget_max >= i32::MAX as i64 || c.recovery > i32::MAX as i64 {
-        return bad("the time budget does not fit a 32-bit word");
-    }
-    let s1 = shift(force_frac, c.gain.1, "force → current")?;
-    let s2 = shift(0, c.dac_scale.1, "current → DAC code")?;
     a.bind(entry);
     a.i(asm::push_lr(0xf0));
-    mul_round_clamp(a, c.gain.0 as u32, s1, c.peak_ua as u32);
-    let (earn, above, clamp, store) = (a.label(), a.label(), a.label(), a.label());
-    a.i(asm::ldr(5, 1, 0)); // budget
-    a.i(asm::asrs(3, 0, 31));
-    a.i(asm::mov(2, 0));
-    a.i(asm::alu(AluOp::Eor, 2, 3));
-    a.i(asm::subs(2, 2, 3)); // |i|
-    a.mov_const(4, c.rated_ua as u32);
-    a.i(asm::cmp(2, 4));
-    a.bc(cond::HI, above);
-    a.bind(earn);
-    a.i(asm::adds_imm(5, 5, 1));
-    a.mov_const(6, c.budget_max as u32);
-    a.i(asm::cmp(5, 6));
-    a.bc(cond::LE, store);
-    a.i(asm::mov(5, 6));
-    a.b(store);
-    a.bind(above);
-    a.mov_const(6, c.recovery as u32);
-    a.i(asm::cmp(5, 6));
-    a.bc(cond::LT, clamp);
-    a.i(asm::subs(5, 5, 6));
-    a.b(store);
-    a.bind(clamp);
-    // Budget spent: clamp to ±rated (|i| is then rated, which earns).
-    a.i(asm::mov(0, 4));
-    a.i(asm::cmp_imm(3, 0));
-    a.bc(cond::EQ, earn);
-    a.i(asm::negs(0, 4));
-    a.b(earn);
-    a.bind(store);
-    a.i(asm::str(5, 1, 0));
-    a.i(asm::str(0, 1, 4));
-    mul_round_clamp(a, c.dac_scale.0 as u32, s2, 32767);
+    for r in 8..12 {
+        a.i(mov_hi(r - 4, r));
+    }
+    a.i(Instr::Push { list: 0xf0 });
+    a.i(asm::mov(4, 1));
+    a.i(asm::mov(5, 0));
+    set_limiter_registers(a, c, s.gain);
+    a.i(asm::mov(0, 5));
+    limiter_inline(a, c, s, Gain::InRegister, 4, 0)?;
+    a.i(Instr::Pop { list: 0xf0 });
+    for r in 8..12 {
+        a.i(mov_hi(r, r - 4));
+    }
     a.i(asm::pop_pc(0xf0));
     a.pool();
     Ok(())
 }
 
 /// One key of a core, as the handler sees it.
+///
+/// Its record (at r4 while the handler serves it) holds the update's `sensors` words first
+/// (copied from the sensor window), then, in whichever order keeps the handler's offsets
+/// within an `LDR` immediate ([`super::KeyPlace`]), the update's `out` words, one limiter
+/// budget word per drive and the address of its state struct.
 pub struct KeyCode {
-    /// Sensor words the handler copies from the key's sensor window words (consecutive
-    /// words from the record's [`rec::WINDOW`] address) into the record.
-    pub sensors: u32,
-    /// Byte offset in the record of the copied sensor words, the update's `sensors`
-    /// array: [`rec::SENSOR`] for a key with one sensor (the keyboard record), else past
-    /// the record's header (at most 124 minus 4 per sensor: a `STR` immediate).
-    pub sensor_offset: u32,
+    /// Addresses of the sensor window words the handler copies, in order, to the record's
+    /// first words.
+    pub sensor_words: Vec<u32>,
     /// Byte offset of the update's `out` words in the record.
     pub out_offset: u32,
-    /// The force words the key drives, each through the limiter to its own DAC window
-    /// word: drive *j* to the word `4·j` bytes past the record's [`rec::DAC`] address.
+    /// Byte offset of the state struct's address in the record (≤ 124).
+    pub state_offset: u32,
+    /// The force words the key drives, each through the limiter to its DAC window word.
     pub drives: Vec<DriveCode>,
     /// Record size in bytes.
     pub record_size: u32,
@@ -244,11 +255,12 @@ pub struct KeyCode {
 pub struct DriveCode {
     /// Byte offset of the force word in the record (`out[total]` for a keyboard key).
     pub force_offset: u32,
-    /// Byte offset of the limiter's budget word in the record (the current follows it):
-    /// [`rec::BUDGET`] for the first drive.
+    /// Byte offset of the limiter's budget word in the record (≤ 124).
     pub budget_offset: u32,
-    /// The limiter routine for the force word's format.
-    pub limiter: Label,
+    /// Address of its DAC window word.
+    pub dac_word: u32,
+    /// The force → DAC code scale of its force format.
+    pub scale: DacScale,
 }
 
 /// The tick schedule: `period_us = q + rem/fs` µs, kept exactly by a remainder accumulator.
@@ -280,6 +292,9 @@ pub struct CoreLabels {
 
 /// The reset and sample-interrupt handlers of core `core` with `keys`, its control block
 /// at `ctrl_addr`. `inte` is written to the timer's INTE by core 0 (one alarm per core).
+/// `limiter` gives the constants kept in [`hi`].
+///
+/// Errors: [`ImageError::Limiter`] (constants the Thumb limiter cannot use).
 pub fn core_code(
     a: &mut Asm,
     core: usize,
@@ -287,7 +302,8 @@ pub fn core_code(
     ctrl_addr: u32,
     tick: Tick,
     inte: u32,
-) -> CoreLabels {
+    limiter: &LimiterConstants,
+) -> Result<CoreLabels, ImageError> {
     let labels = CoreLabels {
         reset: a.label(),
         isr: a.label(),
@@ -301,24 +317,51 @@ pub fn core_code(
         apb.push(l);
     };
     let alarm = reg::ALARM0 as u16 + 4 * core as u16;
-    let walk = |a: &mut Asm, keys: &[KeyCode], f: &mut dyn FnMut(&mut Asm, &KeyCode)| {
+    // The gain kept in a register: the most used force format's.
+    let mut gains: Vec<(u32, usize)> = Vec::new();
+    for d in keys.iter().flat_map(|k| &k.drives) {
+        match gains.iter_mut().find(|g| g.0 == d.scale.gain) {
+            Some(g) => g.1 += 1,
+            None => gains.push((d.scale.gain, 1)),
+        }
+    }
+    let gain = gains.iter().max_by_key(|g| g.1).map_or(1, |g| g.0);
+    // Window bases: the lowest word of each window the core's keys use, so that a board's
+    // keys (consecutive slots) are reached by immediate offsets.
+    let sensor_base = keys
+        .iter()
+        .flat_map(|k| k.sensor_words.iter().copied())
+        .min()
+        .unwrap_or(0);
+    let dac_base = keys
+        .iter()
+        .flat_map(|k| k.drives.iter().map(|d| d.dac_word))
+        .min()
+        .unwrap_or(0);
+    let walk = |a: &mut Asm,
+                keys: &[KeyCode],
+                f: &mut dyn FnMut(&mut Asm, &KeyCode) -> Result<(), ImageError>|
+     -> Result<(), ImageError> {
         a.i(asm::mov(4, 5));
         add_big(a, 4, ctrl::SIZE);
         for (i, k) in keys.iter().enumerate() {
-            f(a, k);
+            f(a, k)?;
             if i + 1 < keys.len() {
                 add_big(a, 4, k.record_size);
             }
         }
+        Ok(())
     };
 
-    // ---- reset: init every key, arm the first tick, enable the interrupt, sleep ----
+    // ---- reset: init every key, arm the first tick, set the limiter's registers, mark
+    // the core ready, enable the interrupt, sleep ----
     a.bind(labels.reset);
     a.ldr_const(5, ctrl_addr);
     walk(a, keys, &mut |a, k| {
-        a.i(asm::ldr(0, 4, rec::STATE));
+        ldr_rec(a, 0, k.state_offset);
         a.bl(k.init);
-    });
+        Ok(())
+    })?;
     a.ldr_const(0, TIMER_BASE);
     if core == 0 {
         a.mov_const(1, inte);
@@ -326,11 +369,13 @@ pub fn core_code(
     }
     a.i(asm::ldr(1, 5, ctrl::TARGET));
     a.i(asm::str(1, 0, alarm));
+    set_limiter_registers(a, limiter, gain);
+    a.i(asm::movs(1, 1));
+    a.i(asm::str(1, 5, ctrl::READY));
+    // From here on only the idle loop runs between interrupts: it uses no register.
     a.ldr_const(0, NVIC_ISER);
     a.i(asm::movs(1, 1 << core));
     a.i(asm::str(1, 0, 0));
-    a.i(asm::movs(1, 1));
-    a.i(asm::str(1, 5, ctrl::READY));
     a.i(Instr::Cps { disable: false });
     let idle = a.label();
     a.bind(idle);
@@ -343,13 +388,13 @@ pub fn core_code(
     // ---- the sample interrupt ----
     a.align4();
     a.bind(labels.isr);
-    a.i(asm::push_lr(0x70)); // r4-r6 (r6 keeps the stack 8-aligned), lr
+    a.i(asm::push_lr(0x10)); // r4 (keeps the stack 8-aligned), lr
     a.ldr_const(5, ctrl_addr);
     a.ldr_const(0, TIMER_BASE);
     a.i(asm::movs(1, 1 << core));
     apb_here(a);
     a.i(asm::str(1, 0, reg::INTR as u16)); // acknowledge the alarm
-                                           // Next tick: target += q (+1 when the remainder accumulator overflows).
+    // Next tick: target += q (+1 when the remainder accumulator overflows).
     a.i(asm::ldr(1, 5, ctrl::TARGET));
     a.i(asm::ldr(2, 5, ctrl::ACC));
     a.mov_const(3, tick.q);
@@ -377,43 +422,62 @@ pub fn core_code(
     a.i(asm::str(1, 5, ctrl::TARGET));
     apb_here(a);
     a.i(asm::str(1, 0, alarm));
+    if !keys.is_empty() {
+        a.ldr_const(6, sensor_base);
+        a.ldr_const(7, dac_base);
+    }
     a.pool_inline();
     // Every key: sensors → record, update, then each force word: limiter, DAC.
     walk(a, keys, &mut |a, k| {
-        a.i(asm::ldr(0, 4, rec::WINDOW));
-        if k.sensors == 1 && k.sensor_offset == rec::SENSOR as u32 {
-            a.i(asm::ldr(0, 0, 0));
-            a.i(asm::str(0, 4, rec::SENSOR));
-        } else {
-            for i in 0..k.sensors {
-                a.i(asm::ldr(1, 0, 4 * i as u16));
-                a.i(asm::str(1, 4, (k.sensor_offset + 4 * i) as u16));
+        for (i, &w) in k.sensor_words.iter().enumerate() {
+            let off = w.wrapping_sub(sensor_base);
+            if off <= 124 && off % 4 == 0 {
+                a.i(asm::ldr(0, 6, off as u16));
+            } else {
+                a.ldr_const(0, w);
+                a.i(asm::ldr(0, 0, 0));
+            }
+            if 4 * i <= 124 {
+                a.i(asm::str(0, 4, 4 * i as u16));
+            } else {
+                a.mov_const(1, 4 * i as u32);
+                a.i(Instr::MemReg {
+                    op: tactus_emulator::decode::MemOp::Str,
+                    rt: 0,
+                    rn: 4,
+                    rm: 1,
+                });
             }
         }
-        a.i(asm::ldr(0, 4, rec::STATE));
+        ldr_rec(a, 0, k.state_offset);
         a.i(asm::mov(1, 4));
-        add_big(a, 1, k.sensor_offset);
-        a.i(asm::mov(2, 4));
-        add_big(a, 2, k.out_offset);
-        a.bl(k.update);
-        for (j, d) in k.drives.iter().enumerate() {
-            if d.force_offset <= 124 {
-                a.i(asm::ldr(0, 4, d.force_offset as u16));
-            } else {
-                a.mov_const(0, d.force_offset);
-                a.i(asm::ldr_reg(0, 4, 0));
-            }
-            if d.budget_offset <= 7 {
-                a.i(asm::adds_imm(1, 4, d.budget_offset as u8));
-            } else {
-                a.i(asm::mov(1, 4));
-                add_big(a, 1, d.budget_offset);
-            }
-            a.bl_label(d.limiter);
-            a.i(asm::ldr(1, 4, rec::DAC));
-            a.i(asm::str(0, 1, 4 * j as u16));
+        if k.out_offset <= 7 {
+            a.i(asm::adds_imm(2, 4, k.out_offset as u8));
+        } else {
+            a.i(asm::mov(2, 4));
+            add_big(a, 2, k.out_offset);
         }
-    });
+        a.bl(k.update);
+        for d in &k.drives {
+            ldr_rec(a, 0, d.force_offset);
+            let g = if d.scale.gain == gain {
+                Gain::InRegister
+            } else {
+                Gain::Literal
+            };
+            limiter_inline(a, limiter, &d.scale, g, 4, d.budget_offset as u16)?;
+            let off = d.dac_word.wrapping_sub(dac_base);
+            if off <= 124 && off % 4 == 0 {
+                a.i(asm::str(0, 7, off as u16));
+            } else {
+                a.ldr_const(1, d.dac_word);
+                a.i(asm::str(0, 1, 0));
+            }
+        }
+        // Literals this key needed (a far window word or offset, another format's gain).
+        a.pool_inline();
+        Ok(())
+    })?;
     a.ldr_const(0, TIMER_BASE);
     apb_here(a);
     a.i(asm::ldr(2, 0, reg::TIMERAWL as u16));
@@ -428,7 +492,7 @@ pub fn core_code(
     a.i(asm::ldr(1, 5, ctrl::SAMPLES));
     a.i(asm::adds_imm(1, 1, 1));
     a.i(asm::str(1, 5, ctrl::SAMPLES));
-    a.i(asm::pop_pc(0x70));
+    a.i(asm::pop_pc(0x10));
     a.pool();
-    CoreLabels { apb, ..labels }
+    Ok(CoreLabels { apb, ..labels })
 }

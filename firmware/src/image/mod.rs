@@ -14,7 +14,7 @@
 //! table, its copy of every program's `.text` that its keys use (one copy per distinct
 //! program per core: the code is position independent, and a copy per core keeps each
 //! core's literal-pool loads in its own bank), its glue code (reset handler, sample
-//! interrupt, one limiter routine per force format), its control block, its keys' records
+//! interrupt with the limiter inline per force word), its control block, its keys' records
 //! and their state structs. Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
 //! core 1). So the only SRAM accesses two cores can contend for are the sensor loads and
 //! DAC stores in the striped sensor/DAC windows: at most one wait cycle each
@@ -43,12 +43,13 @@
 //! program (`ir::Program::force_axes`) one per axis, **z first** (the total: a pen's first
 //! DAC word is its normal force, as a key's), then x and y (the outputs `force.x`,
 //! `force.y`). Every force word passes its own limiter (its own time budget and current)
-//! through the limiter routine of its own fixed-point format. A key with one sensor and one
-//! force word (every keyboard key) has the record and the glue it always had; a key with
-//! more keeps its sensor words and the budgets of its further force words between the
-//! record's header and its out words. [`FirmwareImage::key_glue`] prices one key's glue
-//! statically (at the time of writing: a keyboard key 159 cycles; `rubbed_bank`, two
-//! sensors and three axes, 448; a pen with three sensors and three axes 456). A program's
+//! through the limiter inline with the scale of its own fixed-point format
+//! (`LimiterConstants::dac_scale`). A key's record holds its sensor words (the update's
+//! `sensors`), its out words, one limiter budget per force word and its state's address
+//! (the budgets and the address before the out words when the out words would push them
+//! beyond an `LDR` immediate). [`FirmwareImage::key_glue`] prices one key's glue
+//! statically (at the time of writing: a keyboard key 41 cycles alone on its core, 39 per
+//! key with two; a pen with three sensors and three axes 108). A program's
 //! `.text` must fit a core's bank: `plucked_string` (≈100 KB) does not
 //! ([`ImageError::NoRoom`]).
 //!
@@ -56,9 +57,9 @@
 //! needs no loop bounds): acknowledge the alarm; arm the next tick (`q + rem/fs` µs later,
 //! the remainder kept exactly, so tick *n* is at `first + ⌊n·10⁶/fs⌋` µs); then for each key
 //! of the core: copy its sensor window words into the key's record, `BL` the program's
-//! update (state, &sensors, out in the record), and per force word `BL` the limiter with
-//! the word (`out[total]`, or a pen's `force.x`/`force.y` output) and store the DAC code in
-//! its DAC window word. Finally: if the timer already
+//! update (state, &sensors, out in the record), and per force word run the limiter on the
+//! word (`out[total]`, or a pen's `force.x`/`force.y` output) and store the DAC code in its
+//! DAC window word. Finally: if the timer already
 //! reached the next tick, the deadline was missed and the core's miss counter is
 //! incremented; the sample counter is incremented last. A handler that starts more than a
 //! period late (only after a miss) re-synchronises the tick to now + a margin.
@@ -70,9 +71,10 @@ mod run;
 pub use run::{DriveOut, ImageRun, KeyEvent, SampleOut};
 
 use asm::Asm;
-use glue::{ctrl, rec, DriveCode, KeyCode, Tick};
+use glue::{ctrl, DriveCode, KeyCode, Tick};
 use std::collections::BTreeMap;
 use std::fmt;
+use std::sync::OnceLock;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::{Axis, AxisTotal};
 use tactus_compiler::thumb::ThumbObject;
@@ -80,19 +82,33 @@ use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE, SRAM_ALIAS_BASE};
 use tactus_emulator::wcet::{self, Bounds, Region};
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
-use tactus_runtime::limiter::{Limiter, LimiterConfig};
+use tactus_runtime::limiter::{DacScale, Limiter, LimiterConfig};
 
 /// A compiled key program: the fixed-point program (for its formats and the interpreter)
-/// and its Thumb code.
+/// and its Thumb code, with the static WCETs of its functions computed once.
 #[derive(Clone, Debug)]
 pub struct Program {
     /// The fixed-point program.
     pub fixed: FixedProgram,
     /// Its Thumb object (position-independent `.text`).
     pub thumb: ThumbObject,
+    /// `update_wcet`, once computed (images of many boards share programs).
+    update_cycles: OnceLock<Result<u64, ImageError>>,
+    /// `init_wcet`, once computed.
+    init_cycles: OnceLock<Result<u64, ImageError>>,
 }
 
 impl Program {
+    /// A program of already compiled parts.
+    pub fn new(fixed: FixedProgram, thumb: ThumbObject) -> Program {
+        Program {
+            fixed,
+            thumb,
+            update_cycles: OnceLock::new(),
+            init_cycles: OnceLock::new(),
+        }
+    }
+
     /// Compiles instrument source `text` with `config` (sample rate, `--param`
     /// overrides) to a fixed-point program and Thumb code. Errors are the rendered
     /// diagnostics' messages or the Thumb backend's error.
@@ -111,18 +127,22 @@ impl Program {
         let fixed = FixedProgram::new(&lowered.program);
         let thumb = tactus_compiler::thumb::compile(&fixed)
             .map_err(|e| ImageError::Compile(e.to_string()))?;
-        Ok(Program { fixed, thumb })
+        Ok(Program::new(fixed, thumb))
     }
 
     /// Static WCET (cycles, first instruction to return) of the program's update, as
     /// [`wcet::analyse`] prices it (the code is position independent, so anywhere).
     pub fn update_wcet(&self) -> Result<u64, ImageError> {
-        self.wcet_of(&self.thumb.update_name())
+        self.update_cycles
+            .get_or_init(|| self.wcet_of(&self.thumb.update_name()))
+            .clone()
     }
 
     /// Static WCET of the program's init, as [`Program::update_wcet`].
     pub fn init_wcet(&self) -> Result<u64, ImageError> {
-        self.wcet_of(&self.thumb.init_name())
+        self.init_cycles
+            .get_or_init(|| self.wcet_of(&self.thumb.init_name()))
+            .clone()
     }
 
     /// Sensor window words a key of this program reads per sample: one per sensor of the
@@ -241,7 +261,7 @@ pub struct Drive {
     pub out_index: usize,
     /// Fraction bits of the word (`FixedProgram::total_frac` or the output's
     /// `FixedProgram::output_frac`): the force in newtons is `word / 2^frac`, and the
-    /// limiter routine that takes it is the one for this format.
+    /// limiter scales it with this format's `DacScale`.
     pub frac: i32,
 }
 
@@ -281,9 +301,9 @@ pub fn key_specs(keys: &[KeyAssignment], key_programs: &[usize], cores: &[usize]
         .collect()
 }
 
-/// Assigns keys to `cores` cores by longest processing time first
-/// ([`tactus_emulator::schedule::lpt`]) with each key's cost the static WCET of its
-/// program's update plus the handler's per-key glue; returns the core of each key.
+/// Assigns keys to `cores` cores as the budget does ([`crate::boards::partition`]: an exact
+/// two-way partition) with each key's cost the static WCET of its program's update; returns
+/// the core of each key.
 pub fn assign_cores(
     programs: &[Program],
     key_programs: &[usize],
@@ -300,16 +320,7 @@ pub fn assign_cores(
             why: format!("program {p} does not exist"),
         })?);
     }
-    let mut core = vec![0; key_programs.len()];
-    for (c, load) in tactus_emulator::schedule::lpt(&costs, cores)
-        .iter()
-        .enumerate()
-    {
-        for &k in &load.keys {
-            core[k] = c;
-        }
-    }
-    Ok(core)
+    Ok(crate::boards::partition(&costs, cores))
 }
 
 /// Why an image could not be built or run.
@@ -384,9 +395,10 @@ impl std::error::Error for ImageError {}
 
 /// The firmware's limiter routine alone, assembled at `base`, for keys whose force words
 /// have `force_frac` fraction bits: returns the code and the routine's address. Calling
-/// convention: `r0` = force word, `r1` = address of two words (budget, then current µA; the
-/// budget starts full: `Limiter::constants().budget_max`); returns the DAC code in `r0`.
-/// The image uses exactly this code; tests call it with arbitrary words.
+/// convention: `r0` = force word, `r1` = address of the budget word (it starts full:
+/// `Limiter::constants().budget_max`); returns the DAC code in `r0`. The image inlines
+/// exactly this limiter ([`glue::limiter_inline`]) per force word; tests call the routine
+/// with arbitrary words.
 ///
 /// Errors: [`ImageError::Limiter`], [`ImageError::Assemble`].
 pub fn limiter_routine(
@@ -397,9 +409,12 @@ pub fn limiter_routine(
     let consts = Limiter::new(limiter)
         .map_err(ImageError::Limiter)?
         .constants();
+    let scale = consts
+        .dac_scale(force_frac)
+        .map_err(ImageError::Limiter)?;
     let mut a = Asm::new();
     let entry = a.label();
-    glue::limiter(&mut a, entry, &consts, force_frac)?;
+    glue::limiter_function(&mut a, entry, &consts, &scale)?;
     let (bytes, labels) = a.assemble(base).map_err(ImageError::Assemble)?;
     Ok((bytes, labels[entry.index()]))
 }
@@ -456,6 +471,8 @@ pub(crate) struct KeyPlace {
     pub sensors: usize,
     /// Byte offset of the out words in the record.
     pub out_offset: u32,
+    /// Byte offset of the state struct's address in the record.
+    pub state_offset: u32,
     /// Its force words, each with the byte offset of its limiter budget in the record.
     pub drives: Vec<(Drive, u32)>,
 }
@@ -589,6 +606,11 @@ impl FirmwareImage {
             if k.core >= cores {
                 return bad(format!("core {} but the board has {cores}", k.core));
             }
+            for d in &drives {
+                consts.dac_scale(d.frac).map_err(|e| {
+                    ImageError::Limiter(format!("program `{}`: {e}", p.thumb.stem))
+                })?;
+            }
             key_drives.push(drives);
         }
 
@@ -678,17 +700,6 @@ impl FirmwareImage {
             let ctrl_addr = base + data_off;
             let my: Vec<usize> = (0..keys.len()).filter(|&i| keys[i].core == core).collect();
             let mut a = Asm::new();
-            // Limiter routines, one per force format.
-            let mut limiters = BTreeMap::new();
-            for &i in &my {
-                for d in &key_drives[i] {
-                    if let std::collections::btree_map::Entry::Vacant(e) = limiters.entry(d.frac) {
-                        let l = a.label();
-                        glue::limiter(&mut a, l, &consts, d.frac)?;
-                        e.insert(l);
-                    }
-                }
-            }
             // Records after the control block, states after the records.
             let mut at = ctrl_addr + ctrl::SIZE;
             let mut kc = Vec::new();
@@ -706,40 +717,42 @@ impl FirmwareImage {
                         .map(|(o, _)| text + o as u32)
                         .ok_or_else(|| ImageError::Compile(format!("no symbol `{name}`")))
                 };
-                let out_len = p.thumb.out.len;
-                let ns = p.sensor_words();
+                let out_len = p.thumb.out.len as u32;
+                let ns = p.sensor_words() as u32;
                 let drives = &key_drives[i];
-                // A keyboard key's record is the header and the out words; a key with
-                // more sensors or drives has its sensor words and the budgets of drives
-                // 1.. between the two.
-                let (sensor_offset, mut ext) = if ns == 1 {
-                    (rec::SENSOR as u32, rec::OUT)
+                let nd = drives.len() as u32;
+                // The record: sensor words first (the update's `sensors`), then the out
+                // words, the budgets and the state address — or, where the out words would
+                // push those beyond an `LDR` immediate, the budgets and the state address
+                // before the out words.
+                let (out_offset, budgets_offset) = if 4 * (ns + out_len + nd) <= 124 {
+                    (4 * ns, 4 * (ns + out_len))
                 } else {
-                    (rec::OUT, rec::OUT + 4 * ns as u32)
+                    (4 * (ns + nd + 1), 4 * ns)
                 };
-                let mut budgets = Vec::with_capacity(drives.len());
-                for j in 0..drives.len() {
-                    if j == 0 {
-                        budgets.push(rec::BUDGET as u32);
-                    } else {
-                        budgets.push(ext);
-                        ext += 8;
-                    }
-                }
-                let out_offset = ext;
-                let size = out_offset + 4 * out_len as u32;
+                let state_offset = budgets_offset + 4 * nd;
+                let size = 4 * (ns + out_len + nd + 1);
+                let budgets: Vec<u32> = (0..nd).map(|j| budgets_offset + 4 * j).collect();
                 let update = sym(p.thumb.update_name())?;
+                let slot = keys[i].slot as u32;
                 kc.push(KeyCode {
-                    sensors: ns as u32,
-                    sensor_offset,
+                    sensor_words: (0..ns).map(|j| SENSOR_BASE + 4 * (slot + j)).collect(),
                     out_offset,
+                    state_offset,
                     drives: drives
                         .iter()
                         .zip(&budgets)
-                        .map(|(d, &b)| DriveCode {
+                        .enumerate()
+                        .map(|(j, (d, &b))| DriveCode {
                             force_offset: out_offset + 4 * d.out_index as u32,
                             budget_offset: b,
-                            limiter: limiters[&d.frac],
+                            dac_word: DAC_BASE + 4 * (slot + j as u32),
+                            // Checked above, with the same constants.
+                            scale: consts.dac_scale(d.frac).unwrap_or(DacScale {
+                                pre_shift: 0,
+                                gain: 1,
+                                post_shift: 0,
+                            }),
                         })
                         .collect(),
                     record_size: size,
@@ -751,15 +764,16 @@ impl FirmwareImage {
                     update,
                     spec: keys[i],
                     record: at,
-                    out_len,
-                    sensors: ns,
+                    out_len: out_len as usize,
+                    sensors: ns as usize,
                     out_offset,
+                    state_offset,
                     drives: drives.iter().copied().zip(budgets).collect(),
                 });
                 at += size;
             }
             let inte = if cores == 2 { 3 } else { 1 };
-            let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, tick, inte);
+            let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, tick, inte, &consts)?;
             Ok((a, labels, kp, at))
         };
         // Provisional sizes (literal values do not change instruction sizes, but pool sharing
@@ -810,20 +824,14 @@ impl FirmwareImage {
                 let state = at;
                 at = (at + p.thumb.state.size as u32).next_multiple_of(4);
                 states.push((state, p.thumb.state.size));
-                let mut r = vec![0u8; k.out_offset as usize + 4 * k.out_len];
+                let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 1)];
                 let put = |r: &mut Vec<u8>, off: u32, v: u32| {
                     r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
                 };
                 for &(_, budget) in &k.drives {
                     put(&mut r, budget, consts.budget_max as u32);
                 }
-                put(
-                    &mut r,
-                    rec::WINDOW as u32,
-                    SENSOR_BASE + 4 * k.spec.slot as u32,
-                );
-                put(&mut r, rec::DAC as u32, DAC_BASE + 4 * k.spec.slot as u32);
-                put(&mut r, rec::STATE as u32, state);
+                put(&mut r, k.state_offset, state);
                 data.extend(r);
             }
             for (_, size) in &states {
@@ -872,7 +880,7 @@ impl FirmwareImage {
                 .calls
                 .iter()
                 .filter(|c| update_addrs.contains(&c.callee))
-                .map(|c| 3 + c.cycles)
+                .map(|c| crate::runner::BL_CYCLES + c.cycles)
                 .sum();
             window_accesses[core] = kp.iter().map(|k| (k.sensors + k.drives.len()) as u64).sum();
             segments.push((base, code));
@@ -931,7 +939,7 @@ impl FirmwareImage {
     /// store ([`KeyGlue`]). Measured from the generated glue: the static WCET of core 0's
     /// handler of an image with this one key on `board`, minus its update calls, minus the
     /// handler of the same image without keys. A keyboard key costs the same whatever its
-    /// program (159 cycles at the time of writing); a pen more, per sensor and per axis.
+    /// program (41 cycles at the time of writing); a pen more, per sensor and per axis.
     ///
     /// Errors: those of [`FirmwareImage::build`] (e.g. [`ImageError::NoRoom`] for a
     /// program too large for a core's bank).

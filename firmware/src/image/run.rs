@@ -16,6 +16,7 @@ use super::{FirmwareImage, ImageError, STACK_CANARY};
 use tactus_compiler::ir::{Axis, EventId};
 use tactus_emulator::timing::EXCEPTION_ENTRY;
 use tactus_emulator::{Board, Config, StopReason, DAC_BASE, SENSOR_BASE};
+use tactus_runtime::limiter::{Limiter, LimiterConstants};
 
 /// One event a key's update emitted this sample.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -38,7 +39,7 @@ pub struct DriveOut {
     pub slot: usize,
     /// The force word the update computed, before the limiter (format [`super::Drive::frac`]).
     pub force: i32,
-    /// The motor current the limiter allowed, µA.
+    /// The motor current of the DAC code (`LimiterConstants::current_ua`), µA.
     pub current_ua: i32,
     /// The DAC code written to the DAC window word `slot`.
     pub dac: i16,
@@ -81,6 +82,8 @@ pub struct ImageRun {
     sample: SampleOut,
     stalls: [u64; 2],
     scratch: Vec<u8>,
+    /// The limiter's constants: the current of each DAC code written.
+    limiter: LimiterConstants,
 }
 
 /// Host access failure as an image error.
@@ -142,6 +145,9 @@ impl ImageRun {
             },
             stalls: [0; 2],
             scratch: Vec::new(),
+            limiter: Limiter::new(&image.limiter)
+                .map_err(ImageError::Limiter)?
+                .constants(),
         };
         let start = run.cycle_of(run.image.first_tick_us as u64);
         let stop = run.board.run_until(start);
@@ -274,15 +280,15 @@ impl ImageRun {
             for (j, o) in out.iter_mut().enumerate() {
                 *o = word(&self.scratch, k.out_offset as usize + 4 * j);
             }
-            for (j, (d, budget)) in k.drives.iter().enumerate() {
+            for (j, (d, _)) in k.drives.iter().enumerate() {
                 let dac = self
                     .board
                     .read_u32(DAC_BASE + 4 * (k.spec.slot + j) as u32)
                     .map_err(emu)?;
                 let o = &mut s.drives[i][j];
                 o.force = out[d.out_index];
-                o.current_ua = word(&self.scratch, *budget as usize + 4);
                 o.dac = dac as i32 as i16;
+                o.current_ua = self.limiter.current_ua(i32::from(o.dac));
             }
             if let Some(first) = s.drives[i].first() {
                 s.force[i] = first.force;

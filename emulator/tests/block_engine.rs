@@ -1,0 +1,369 @@
+//! The block engine (`Engine::Block`) against the interpreter (`Engine::Interp`, which
+//! `fast_path.rs` checks against single steps) on seeded random programs: data processing, SRAM, flash and SIO
+//! (divider, FIFO between the cores, CPUID) loads and stores, PUSH/POP, LDM/STM, forward
+//! branches, counted backward loops, calls (BL / BX LR), stores into the page that holds the
+//! program's own code (the blocks must be dropped), SysTick interrupts, WFI/WFE/SEV with one
+//! core asleep, on one core and on both. Each pair of boards runs in slices of random length
+//! (1 to 2,500 cycles), so the block engine stops at a deadline in the middle of blocks as
+//! well as at their ends; after every slice the stop reason, both cores' cycle counters,
+//! instruction counts, registers, flags, exception and run state, the contention stalls and
+//! the data area must agree exactly, and all of SRAM at the end of each program. The suite
+//! must run at least 10 M instructions per run, and counts its mismatches (which must be 0).
+//! The same comparison runs on the firmware-like key updates of the speed bench (SysTick
+//! interrupt, one or both cores, sleeping in WFI between samples).
+
+use tactus_emulator::{Board, Config, Engine, StopReason, DAC_BASE};
+
+#[path = "../benches/common/mod.rs"]
+mod workloads;
+
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    fn below(&mut self, n: u32) -> u16 {
+        ((self.next() >> 33) as u32 % n) as u16
+    }
+}
+
+const SIO: u32 = 0xd000_0000;
+/// Code of core k at `CODE + 0x1000 * k` (SRAM) or at flash; its data area, in the same
+/// 256-byte page as the end of its code when `code_page_data`, else in its own page.
+const CODE: u32 = 0x2000_4000;
+const FLASH: u32 = 0x1000_0000;
+const VTOR: u32 = 0x2003_0000;
+/// Halfwords of straight-line units in each program (before the loop back and the callee).
+const UNITS_HALFWORDS: usize = 150;
+
+/// One random unit. Registers: r0-r3 scratch, r4 a loop counter (only inside a loop unit),
+/// r5 the SIO base, r6 the data area, r7 a small word offset; SP is balanced within a unit.
+/// `leaf`: no loops, calls or branches (inside a loop body).
+fn unit(rng: &mut Rng, out: &mut Vec<u16>, leaf: bool, sleepy: bool) {
+    let d = rng.below(4);
+    let s = rng.below(8);
+    let t = rng.below(8);
+    match rng.below(if leaf { 16 } else { 22 }) {
+        0 => out.push(0x2000 | d << 8 | rng.below(256)), // movs
+        1 => out.push([0x1800, 0x1a00][rng.below(2) as usize] | t << 6 | s << 3 | d),
+        2 => out.push([0x1c00, 0x1e00][rng.below(2) as usize] | rng.below(8) << 6 | s << 3 | d),
+        3 => out.push([0x3000, 0x3800, 0x2800][rng.below(3) as usize] | d << 8 | rng.below(256)),
+        4 => out.push(
+            [0x0000, 0x0800, 0x1000][rng.below(3) as usize] | rng.below(32) << 6 | s << 3 | d,
+        ),
+        5 | 6 => out.push(0x4000 | rng.below(16) << 6 | s << 3 | d), // ALU group
+        7 | 8 => {
+            // ldr/str/ldrb/strb/ldrh/strh [r6, #imm] (imm5 scaled: always aligned)
+            let base = [0x6000, 0x6800, 0x7000, 0x7800, 0x8000, 0x8800][rng.below(6) as usize];
+            out.push(base | rng.below(16) << 6 | 6 << 3 | d)
+        }
+        9 => {
+            // register offset, all eight ops: [r6, r7]
+            let op = rng.below(8);
+            out.push(0x5000 | op << 9 | 7 << 6 | 6 << 3 | d)
+        }
+        10 => {
+            // hi registers: add / cmp / mov among r0-r3, r8-r12
+            let hi = [0, 1, 2, 3, 8, 9, 10, 11, 12];
+            let rd = hi[rng.below(9) as usize];
+            let rm = hi[rng.below(9) as usize];
+            let op = [0x4400, 0x4500, 0x4600][rng.below(3) as usize];
+            out.push(op | (rd & 8) << 4 | rm << 3 | (rd & 7))
+        }
+        11 => {
+            // push {list}; movs; pop {list}
+            let list = rng.below(16) | 1;
+            out.push(0xb400 | list);
+            out.push(0x2000 | d << 8 | rng.below(256));
+            out.push(0xbc00 | list);
+        }
+        12 => {
+            // stm/ldm r6!, {list}; subs r6, #4n
+            let list = rng.below(16) | 1;
+            out.push([0xc600, 0xce00][rng.below(2) as usize] | list);
+            out.push(0x3e00 | (4 * list.count_ones() as u16));
+        }
+        13 => {
+            // SIO: CPUID, divider, FIFO status / write / read
+            let (offset, op) = [
+                (0x00, 0x6800), // ldr CPUID
+                (0x60, 0x6000), // str DIV_UDIVIDEND
+                (0x64, 0x6000), // str DIV_UDIVISOR
+                (0x70, 0x6800), // ldr DIV_QUOTIENT
+                (0x78, 0x6800), // ldr DIV_CSR
+                (0x50, 0x6800), // ldr FIFO_ST
+                (0x54, 0x6000), // str FIFO_WR
+                (0x58, 0x6800), // ldr FIFO_RD
+            ][rng.below(8) as usize];
+            out.push(op | (offset / 4) << 6 | 5 << 3 | d)
+        }
+        14 => out.push(
+            [0xb2c0, 0xb280, 0xba00, 0xba40, 0xbac0, 0xb240, 0xb200][rng.below(7) as usize]
+                | s << 3
+                | d,
+        ),
+        15 => out.push(0x4340 | s << 3 | d), // muls
+        16 => {
+            // forward conditional branch over 0-2 movs
+            let n = rng.below(3);
+            out.push(0xd000 | rng.below(14) << 8 | n);
+            for _ in 0..n {
+                out.push(0x2000 | d << 8 | rng.below(256));
+            }
+        }
+        17 | 18 => {
+            // counted loop: movs r4, #n; body; subs r4, #1; bne body
+            out.push(0x2400 | (1 + rng.below(12)));
+            let start = out.len();
+            for _ in 0..1 + rng.below(6) {
+                unit(rng, out, true, sleepy);
+            }
+            out.push(0x3c01);
+            let back = (start as i32 - out.len() as i32) * 2 - 4;
+            out.push(0xd100 | ((back >> 1) as u16 & 0xff));
+        }
+        19 => out.extend([0xf000, 0xf800]), // bl callee, aimed in `program`
+        20 if sleepy && rng.below(3) == 0 => {
+            out.push([0xbf30, 0xbf20, 0xbf40][rng.below(3) as usize]) // wfi, wfe, sev
+        }
+        _ => {
+            // b forward over one movs
+            out.push(0xe000);
+            out.push(0x2000 | d << 8 | rng.below(256));
+        }
+    }
+}
+
+/// A program looping forever, with a callee (`adds r0, #1; bx lr`) after the loop branch;
+/// every BL placeholder (`f000 f800`) is aimed at the callee.
+fn program(rng: &mut Rng, sleepy: bool) -> Vec<u16> {
+    let mut code = Vec::new();
+    while code.len() < UNITS_HALFWORDS {
+        unit(rng, &mut code, false, sleepy);
+    }
+    let back = -(code.len() as i32) * 2 - 4;
+    code.push(0xe000 | ((back >> 1) as u16 & 0x7ff)); // b start
+    let callee = code.len();
+    code.extend([0x3001, 0x4770]); // adds r0, #1; bx lr
+    // Only BL placeholders have the 32-bit prefix 0b11110 in their first halfword.
+    for i in 0..callee {
+        if code[i] == 0xf000 && code[i + 1] == 0xf800 {
+            let imm = (((callee as i32 - i as i32) * 2 - 4) >> 1) as u32;
+            code[i] = 0xf000 | ((imm >> 11) & 0x3ff) as u16;
+            code[i + 1] = 0xf800 | (imm & 0x7ff) as u16;
+        }
+    }
+    code
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Case {
+    cores: usize,
+    in_flash: bool,
+    systick: bool,
+    sleeper: bool,
+    code_page_data: bool,
+}
+
+fn board(seed: u64, case: Case, engine: Engine) -> Board {
+    let mut rng = Rng(seed);
+    let mut b = Board::new(Config {
+        engine,
+        ..Config::default()
+    });
+    // SysTick handler: adds r4, #1 is not safe (r4 counts loops): adds r3, #1; bx lr.
+    b.write_u32(VTOR + 4 * 15, VTOR + 0x101).unwrap();
+    b.write_bytes(VTOR + 0x100, &[0x01, 0x33, 0x70, 0x47])
+        .unwrap();
+    for core in 0..case.cores {
+        let code = if case.sleeper && core == 1 {
+            vec![0xbf20, 0x3301, 0xe7fc] // wfe; adds r3, #1; b .-4
+        } else {
+            program(&mut rng, case.sleeper)
+        };
+        assert!(code.len() * 2 <= 0x1c0, "program too long: {}", code.len());
+        let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+        let at = if case.in_flash && core == 0 {
+            FLASH
+        } else {
+            CODE + 0x1000 * core as u32
+        };
+        b.write_bytes(at, &bytes).unwrap();
+        let data = if case.code_page_data && !(case.in_flash && core == 0) {
+            at + 0x1c0 // the page that holds the end of the code
+        } else {
+            0x2002_0000 + 0x100 * core as u32
+        };
+        let fill: Vec<u8> = (0..0x100).map(|_| rng.next() as u8).collect();
+        b.write_bytes(data, &fill).unwrap();
+        b.start_core(core, at | 1, 0x2003_8000 + 0x1000 * core as u32, VTOR);
+        let c = &mut b.cores[core];
+        for r in 0..13 {
+            c.r[r] = rng.next() as u32;
+        }
+        c.r[5] = SIO;
+        c.r[6] = data;
+        c.r[7] = 4 * rng.below(16) as u32;
+        if case.systick {
+            c.nvic.syst_rvr = 700 + 37 * core as u32;
+            c.nvic.syst_csr = 3;
+            c.nvic.syst_next = 900 + core as u64;
+        }
+    }
+    b
+}
+
+/// Everything a slice must agree on, but all of SRAM (only the data areas, cheaply).
+fn state(b: &mut Board) -> String {
+    let mut s = String::new();
+    for c in &b.cores {
+        s += &format!(
+            "core {}: cycle {} instr {} r {:08x?} nzcv {}{}{}{} ipsr {} state {:?} fault {:?}\n",
+            c.id, c.cycle, c.instructions, c.r, c.n as u8, c.z as u8, c.c as u8, c.v as u8,
+            c.ipsr, c.state, c.fault
+        );
+    }
+    s += &format!("stalls {:?}\n", b.system.contention_stalls);
+    for area in [0x2002_0000u32, CODE + 0x1c0, CODE + 0x11c0] {
+        let mut d = vec![0u8; 0x200];
+        b.read_bytes(area, &mut d).unwrap();
+        s += &format!("data {area:#x} {:016x}\n", hash(&d));
+    }
+    s
+}
+
+fn hash(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &x| {
+        (h ^ x as u64).wrapping_mul(0x100_0000_01b3)
+    })
+}
+
+fn sram(b: &mut Board) -> u64 {
+    let mut m = vec![0u8; 0x4_2000];
+    b.read_bytes(0x2000_0000, &mut m).unwrap();
+    hash(&m)
+}
+
+/// Runs one case on both engines; returns (instructions run by the block engine,
+/// mismatching slices), printing the first mismatch.
+fn compare(seed: u64, case: Case, cycles: u64) -> (u64, u32) {
+    let mut block = board(seed, case, Engine::Block);
+    let mut interp = board(seed, case, Engine::Interp);
+    let mut rng = Rng(seed ^ 0x51ce);
+    let mut mismatches = 0;
+    let end = cycles;
+    while block.cycle() < end {
+        let limit = block.cycle() + 1 + rng.below(2500) as u64;
+        let a = block.run_until(limit);
+        let b = interp.run_until(limit);
+        let (sa, sb) = (state(&mut block), state(&mut interp));
+        if a != b || sa != sb {
+            if mismatches == 0 {
+                eprintln!(
+                    "case {case:?} seed {seed:#x} at limit {limit}:\nblock  {a:?}\n{sa}\ninterp {b:?}\n{sb}"
+                );
+            }
+            mismatches += 1;
+        }
+        if a != StopReason::CycleLimit || b != StopReason::CycleLimit {
+            break;
+        }
+    }
+    if sram(&mut block) != sram(&mut interp) {
+        eprintln!("case {case:?} seed {seed:#x}: SRAM differs at the end");
+        mismatches += 1;
+    }
+    assert_eq!(interp.blocks_decoded(), 0);
+    assert!(block.blocks_decoded() > 0, "the block engine never ran");
+    let instructions = block.cores.iter().map(|c| c.instructions).sum();
+    (instructions, mismatches)
+}
+
+#[test]
+fn block_engine_matches_the_interpreter_on_random_programs() {
+    let mut rng = Rng(0xb10c_e761);
+    let (mut instructions, mut mismatches, mut cases) = (0u64, 0u32, 0);
+    let mut code_page_runs = 0;
+    for i in 0..64u32 {
+        let case = Case {
+            cores: 1 + (i % 2) as usize,
+            in_flash: i % 4 >= 2,
+            systick: i % 8 >= 4,
+            sleeper: (i % 16 >= 8) && i % 2 == 1,
+            code_page_data: i % 3 == 0,
+        };
+        code_page_runs += case.code_page_data as u32;
+        let (n, m) = compare(rng.next(), case, 300_000);
+        instructions += n;
+        mismatches += m;
+        cases += 1;
+    }
+    eprintln!("{cases} programs, {instructions} instructions, {mismatches} mismatches");
+    assert_eq!(mismatches, 0, "{mismatches} mismatching slices");
+    assert!(
+        instructions >= 10_000_000,
+        "only {instructions} instructions compared"
+    );
+    assert!(code_page_runs > 0);
+}
+
+/// Self-modifying code: a store into the page holding the running block rewrites the
+/// block's next instruction, which must run as rewritten.
+#[test]
+fn a_store_into_the_running_block_takes_effect_at_once() {
+    // 0x20004000: str r1, [r0]  (r0 = 0x20004004, r1 = `movs r2, #7; movs r2, #7`)
+    //             nop
+    //             movs r2, #1   <- overwritten by the store before it runs
+    //             movs r2, #1
+    //             b .
+    for engine in [Engine::Block, Engine::Interp] {
+        let mut b = Board::new(Config {
+            engine,
+            ..Config::default()
+        });
+        let code: [u16; 5] = [0x6001, 0xbf00, 0x2201, 0x2201, 0xe7fe];
+        let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+        b.write_bytes(CODE, &bytes).unwrap();
+        b.start_core(0, CODE | 1, 0x2003_8000, VTOR);
+        b.cores[0].r[0] = CODE + 4;
+        b.cores[0].r[1] = 0x2207_2207;
+        b.run_for(50);
+        assert_eq!(b.cores[0].r[2], 7, "{engine:?}");
+    }
+}
+
+/// The speed bench's firmware-like workload (key updates in the SysTick handler, WFI
+/// between samples) on one and on both cores: every slice agrees, and so do the DAC words
+/// the handlers wrote.
+#[test]
+fn block_engine_matches_the_interpreter_on_key_updates() {
+    let mut rng = Rng(0x6b65_7973);
+    for (cores, keys, period) in [(1, 44, 3016), (2, 44, 3016), (2, 13, 1500), (1, 100, 4000)] {
+        let mut block = workloads::key_updates(Engine::Block, cores, keys, period);
+        let mut interp = workloads::key_updates(Engine::Interp, cores, keys, period);
+        while block.cycle() < 200_000 {
+            let limit = block.cycle() + 1 + rng.below(5000) as u64;
+            let a = block.run_until(limit);
+            let b = interp.run_until(limit);
+            assert_eq!(a, b, "{cores} cores, {keys} keys: stop reasons differ");
+            assert_eq!(
+                state(&mut block),
+                state(&mut interp),
+                "{cores} cores, {keys} keys at {limit}"
+            );
+        }
+        let mut dac = [vec![0u8; 4 * 128], vec![0u8; 4 * 128]];
+        block.read_bytes(DAC_BASE, &mut dac[0]).unwrap();
+        interp.read_bytes(DAC_BASE, &mut dac[1]).unwrap();
+        assert_eq!(dac[0], dac[1]);
+        assert!(dac[0].iter().any(|&x| x != 0), "the handlers wrote no force");
+        assert_eq!(sram(&mut block), sram(&mut interp));
+        assert!(block.blocks_decoded() > 0);
+        let handled: u64 = block.cores.iter().map(|c| c.instructions).sum();
+        assert!(handled > 10_000, "{handled} instructions");
+    }
+}

@@ -1,0 +1,401 @@
+//! A keyboard as a set of boards: the planner and the one verdict of "does it fit".
+//!
+//! A real force-feedback keyboard puts a few keys on each microcontroller board (each key
+//! with its motor driver and converter channels), so the sample deadline is proven **per
+//! board, on its cores**. The verdict for a board is the static WCET of its actual sample
+//! interrupt, per core, as [`FirmwareImage::build`] lays it out ([`IsrWcet::bound`]: the
+//! handler with every key's update call, sensor copy, inline limiter and DAC store, plus
+//! the window contention) against `clock_hz / sample_rate_hz` cycles. Nothing else prices
+//! a key: the board file describes the machine only.
+//!
+//! **Keys on a board.** A board's keys take window slots from 0 in key order (a pen takes
+//! as many consecutive slots as it has sensor or DAC words). They go to the cores by an
+//! exact two-way partition ([`partition`]) of their costs (update WCET + call + glue, each
+//! from the image), so no core assignment of the same keys needs fewer cycles on its
+//! fullest core.
+//!
+//! **Planning** ([`plan`]): boards take contiguous key ranges (the wiring runs along the
+//! keyboard). A greedy sweep gives each board, from the lowest key up, as many further keys
+//! as still fit. It is optimal when "fits" is *hereditary* — every sub-range of a fitting
+//! range fits — which holds here: a sub-range's optimal partition is at most the range's
+//! (costs are non-negative and additive), its window contention and its code are no
+//! larger. Then, by induction, the greedy sweep's *i*-th board ends at or beyond the *i*-th
+//! board of any valid plan (if greedy's board *i* starts no later, the other plan's board
+//! *i* restricted to greedy's start is a fitting sub-range), so no plan has fewer boards.
+//! The fit is decided by building each candidate board's image; a test checks the count
+//! against brute force over every contiguous split of small mixed layouts.
+
+use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
+use serde::Serialize;
+use tactus_emulator::MAX_KEYS;
+use tactus_runtime::keyboard::Board;
+use tactus_runtime::limiter::LimiterConfig;
+
+/// One key of a keyboard, as the planner sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlanKey {
+    /// MIDI key number (a pen: its layout slot).
+    pub key: u8,
+    /// Index of its program.
+    pub program: usize,
+}
+
+/// One core of a board: its keys and its sample interrupt's static cost.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CoreVerdict {
+    /// MIDI keys on the core.
+    pub keys: Vec<u8>,
+    /// The handler's static bound, cycles per sample ([`IsrWcet::bound`]).
+    pub cycles: u64,
+    /// Of `cycles`: the keys' update calls (`BL` + update WCET each).
+    pub updates: u64,
+    /// Of `cycles`: the window contention allowance.
+    pub contention: u64,
+    /// `cycles` over the cycles per sample.
+    pub utilisation: f64,
+    /// Cycles per sample minus `cycles` (negative: over budget).
+    pub headroom: i64,
+}
+
+/// One board of a keyboard: its keys, cores and verdict.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BoardVerdict {
+    /// MIDI keys on the board, ascending.
+    pub keys: Vec<u8>,
+    /// Per core.
+    pub cores: Vec<CoreVerdict>,
+    /// Per core: bytes of code (vector table, program copies, glue) in its SRAM bank.
+    pub code_bytes: Vec<u32>,
+    /// Why no image could be built (e.g. the code does not fit a bank): the board does not
+    /// fit.
+    pub error: Option<String>,
+}
+
+impl BoardVerdict {
+    /// Every core within its cycles per sample, and an image could be built.
+    pub fn fits(&self) -> bool {
+        self.error.is_none() && self.cores.iter().all(|c| c.headroom >= 0)
+    }
+
+    /// The smallest headroom of any core (cycles; `i64::MIN` when there is no image).
+    pub fn min_headroom(&self) -> i64 {
+        if self.error.is_some() {
+            return i64::MIN;
+        }
+        self.cores.iter().map(|c| c.headroom).min().unwrap_or(0)
+    }
+}
+
+/// Why boards could not be planned or checked.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum BoardsError {
+    /// A key's program index does not exist, or its window words do not fit a board.
+    BadKey(String),
+    /// A program's static cost could not be found.
+    Image(ImageError),
+}
+
+impl std::fmt::Display for BoardsError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BoardsError::BadKey(e) => f.write_str(e),
+            BoardsError::Image(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for BoardsError {}
+
+/// What one key of each program costs in a sample interrupt and how many window slots it
+/// takes, computed once per program.
+#[derive(Clone, Debug)]
+pub struct ProgramCosts {
+    /// Per program: update WCET + `BL` + the key's glue (static cycles, from the image).
+    pub key_cycles: Vec<u64>,
+    /// Per program: window slots a key takes (the larger of its sensor and DAC words).
+    pub slots: Vec<usize>,
+}
+
+impl ProgramCosts {
+    /// Prices each program's key with [`FirmwareImage::key_glue`] and the update's WCET.
+    ///
+    /// Errors: [`BoardsError::Image`] (a program whose code cannot be analysed or placed).
+    pub fn new(
+        programs: &[Program],
+        board: &Board,
+        limiter: &LimiterConfig,
+    ) -> Result<ProgramCosts, BoardsError> {
+        let mut key_cycles = Vec::with_capacity(programs.len());
+        let mut slots = Vec::with_capacity(programs.len());
+        for p in programs {
+            let update = p.update_wcet().map_err(BoardsError::Image)?;
+            // A program too large for a bank has no glue figure; its boards report NoRoom.
+            let glue = FirmwareImage::key_glue(p, board, limiter)
+                .map(|g| g.cycles)
+                .unwrap_or(0);
+            key_cycles.push(update + crate::runner::BL_CYCLES + glue);
+            let drives = p.drives().map_err(BoardsError::Image)?.len();
+            slots.push(p.sensor_words().max(drives));
+        }
+        Ok(ProgramCosts { key_cycles, slots })
+    }
+}
+
+/// An assignment of `costs` to `cores` cores minimising the fullest core's total: exact for
+/// two cores (a subset-sum table over the totals, for totals up to 2^22 cycles; beyond
+/// that, and for more cores, longest processing time first, which is within 4/3 of the
+/// optimum). Returns each key's core.
+pub fn partition(costs: &[u64], cores: usize) -> Vec<usize> {
+    let total: u64 = costs.iter().sum();
+    if cores <= 1 || costs.len() <= 1 {
+        return vec![0; costs.len()];
+    }
+    if cores > 2 || total > 1 << 22 {
+        let mut core = vec![0; costs.len()];
+        for (c, load) in tactus_emulator::schedule::lpt(costs, cores)
+            .iter()
+            .enumerate()
+        {
+            for &k in &load.keys {
+                core[k] = c;
+            }
+        }
+        return core;
+    }
+    // reach[i][s]: some subset of the first i keys sums to s (core 1's share).
+    let total = total as usize;
+    let mut reach = vec![vec![false; total + 1]; costs.len() + 1];
+    reach[0][0] = true;
+    for (i, &c) in costs.iter().enumerate() {
+        let c = c as usize;
+        for s in 0..=total {
+            reach[i + 1][s] = reach[i][s] || (s >= c && reach[i][s - c]);
+        }
+    }
+    // The core-1 share closest to half from below (core 0 takes the larger share).
+    let best = (0..=total / 2).rev().find(|&s| reach[costs.len()][s]).unwrap_or(0);
+    let mut core = vec![0; costs.len()];
+    let mut s = best;
+    for i in (0..costs.len()).rev() {
+        if !reach[i][s] {
+            core[i] = 1;
+            s -= costs[i] as usize;
+        }
+    }
+    core
+}
+
+/// The image of one board holding `keys` (slots from 0 in key order, cores by
+/// [`partition`]), with the programs it uses only.
+///
+/// Errors: [`BoardsError::BadKey`] for an unknown program or window slots beyond the
+/// board's; the image's own errors are returned inside `Ok(Err(..))` (a board that does
+/// not fit, not bad input).
+pub fn board_image(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    keys: &[PlanKey],
+    board: &Board,
+    limiter: &LimiterConfig,
+) -> Result<(Vec<usize>, Result<FirmwareImage, ImageError>), BoardsError> {
+    let mut used: Vec<usize> = Vec::new();
+    let mut specs = Vec::with_capacity(keys.len());
+    let mut slot = 0;
+    let mut cycles = Vec::with_capacity(keys.len());
+    for k in keys {
+        let width = *costs.slots.get(k.program).ok_or_else(|| {
+            BoardsError::BadKey(format!("key {}: program {} does not exist", k.key, k.program))
+        })?;
+        let local = match used.iter().position(|&p| p == k.program) {
+            Some(i) => i,
+            None => {
+                used.push(k.program);
+                used.len() - 1
+            }
+        };
+        specs.push(KeySpec {
+            slot,
+            program: local,
+            core: 0,
+        });
+        cycles.push(costs.key_cycles[k.program]);
+        slot += width;
+    }
+    if slot > MAX_KEYS {
+        return Ok((
+            vec![0; keys.len()],
+            Err(ImageError::Board(format!(
+                "{slot} window words, the board has {MAX_KEYS}"
+            ))),
+        ));
+    }
+    let core = partition(&cycles, board.cores as usize);
+    for (s, &c) in specs.iter_mut().zip(&core) {
+        s.core = c;
+    }
+    let local: Vec<Program> = used.iter().map(|&p| programs[p].clone()).collect();
+    Ok((
+        core,
+        FirmwareImage::build(&local, &specs, board, limiter),
+    ))
+}
+
+/// The verdict of one board holding `keys`: its image's static bound per core.
+///
+/// Errors: as [`board_image`].
+pub fn check_board(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    keys: &[PlanKey],
+    board: &Board,
+    limiter: &LimiterConfig,
+) -> Result<BoardVerdict, BoardsError> {
+    let cps = board.cycles_per_sample();
+    let (core, image) = board_image(programs, costs, keys, board, limiter)?;
+    let key_list: Vec<u8> = keys.iter().map(|k| k.key).collect();
+    let image = match image {
+        Ok(i) => i,
+        Err(e) => {
+            return Ok(BoardVerdict {
+                keys: key_list,
+                cores: Vec::new(),
+                code_bytes: Vec::new(),
+                error: Some(e.to_string()),
+            })
+        }
+    };
+    let cores = (0..image.cores())
+        .map(|c| {
+            let w: IsrWcet = image.wcet(c).unwrap_or_default();
+            let cycles = w.bound();
+            CoreVerdict {
+                keys: keys
+                    .iter()
+                    .zip(&core)
+                    .filter(|(_, &kc)| kc == c)
+                    .map(|(k, _)| k.key)
+                    .collect(),
+                cycles,
+                updates: w.updates,
+                contention: w.contention,
+                utilisation: cycles as f64 / cps.max(1) as f64,
+                headroom: i64::try_from(cps)
+                    .unwrap_or(i64::MAX)
+                    .saturating_sub(i64::try_from(cycles).unwrap_or(i64::MAX)),
+            }
+        })
+        .collect();
+    Ok(BoardVerdict {
+        keys: key_list,
+        cores,
+        code_bytes: (0..image.cores()).map(|c| image.code_bytes(c)).collect(),
+        error: None,
+    })
+}
+
+/// Plans the fewest boards for `keys` (ascending by key): contiguous ranges, each as long
+/// as still fits (see the module documentation for why this is optimal). A key that does
+/// not fit even alone gets a board of its own, which does not fit (the verdict says so).
+/// `progress` is called with (keys placed, keys in all).
+///
+/// Errors: as [`board_image`].
+pub fn plan(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    keys: &[PlanKey],
+    board: &Board,
+    limiter: &LimiterConfig,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<BoardVerdict>, BoardsError> {
+    let mut boards = Vec::new();
+    let mut i = 0;
+    while i < keys.len() {
+        let mut best = check_board(programs, costs, &keys[i..=i], board, limiter)?;
+        let mut j = i;
+        if best.fits() {
+            while j + 1 < keys.len() {
+                let next = check_board(programs, costs, &keys[i..=j + 1], board, limiter)?;
+                if !next.fits() {
+                    break;
+                }
+                best = next;
+                j += 1;
+            }
+        }
+        boards.push(best);
+        i = j + 1;
+        progress(i, keys.len());
+    }
+    Ok(boards)
+}
+
+/// The most keys of program `program` that one board holds (0 if not even one fits), found
+/// by building boards of identical keys (at most [`MAX_KEYS`]).
+///
+/// Errors: as [`board_image`].
+pub fn max_keys_per_board(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    program: usize,
+    board: &Board,
+    limiter: &LimiterConfig,
+) -> Result<usize, BoardsError> {
+    let fits = |n: usize| -> Result<bool, BoardsError> {
+        let keys: Vec<PlanKey> = (0..n)
+            .map(|i| PlanKey {
+                key: i as u8,
+                program,
+            })
+            .collect();
+        Ok(check_board(programs, costs, &keys, board, limiter)?.fits())
+    };
+    let width = costs.slots.get(program).copied().unwrap_or(1).max(1);
+    let (mut lo, mut hi) = (0usize, MAX_KEYS / width);
+    if !fits(1)? {
+        return Ok(0);
+    }
+    lo = lo.max(1);
+    // Largest n in [lo, hi] that fits (fits is hereditary in n).
+    while lo < hi {
+        let mid = (lo + hi).div_ceil(2);
+        if fits(mid)? {
+            lo = mid;
+        } else {
+            hi = mid - 1;
+        }
+    }
+    Ok(lo)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The partition is optimal: brute force over every assignment of small instances.
+    #[test]
+    fn the_two_core_partition_is_exact() {
+        let mut rng = tactus_runtime::rng::XorShift64::new(0x9e37_79b9);
+        for _ in 0..300 {
+            let n = 1 + rng.below(10);
+            let costs: Vec<u64> = (0..n).map(|_| 1 + rng.below(900) as u64).collect();
+            let core = partition(&costs, 2);
+            let span = |core: &[usize]| {
+                let mut t = [0u64; 2];
+                for (c, &k) in core.iter().zip(&costs) {
+                    t[*c] += k;
+                }
+                t[0].max(t[1])
+            };
+            let best = (0..1u32 << n)
+                .map(|m| {
+                    let a: Vec<usize> = (0..n).map(|i| (m >> i & 1) as usize).collect();
+                    span(&a)
+                })
+                .min()
+                .unwrap();
+            assert_eq!(span(&core), best, "{costs:?}");
+        }
+        assert_eq!(partition(&[5, 5], 1), vec![0, 0]);
+        assert!(partition(&[], 2).is_empty());
+    }
+}

@@ -1,0 +1,213 @@
+//! A keyboard as a set of boards (`tactus_firmware::boards`):
+//!
+//! - the planner's board count equals the brute-force minimum over every contiguous split
+//!   of small mixed layouts (up to 12 keys, three instruments, graded params), with the
+//!   same fit predicate (each board's image);
+//! - every planned board of the shipped layouts (grand88, split_harpsichord_piano) runs one
+//!   emulated second of the budget corpus with no deadline miss, every DAC word bit-exact
+//!   with the fixed interpreter plus the reference limiter, and every core's measured
+//!   handler within its static bound.
+
+use std::path::Path;
+use tactus_compiler::fixed::interp::FixedInstance;
+use tactus_firmware::boards::{self, board_image, check_board, PlanKey, ProgramCosts};
+use tactus_firmware::corpus::{self, Size};
+use tactus_firmware::image::{compile_layout, Program};
+use tactus_runtime::keyboard::{read_board, read_layout, Board};
+use tactus_runtime::limiter::{Limiter, LimiterConfig};
+use tactus_runtime::rng::XorShift64;
+
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+}
+
+fn shipped(name: &str) -> Result<String, String> {
+    std::fs::read_to_string(root().join(format!("instruments/{name}.tactus")))
+        .map_err(|e| format!("{name}: {e}"))
+}
+
+fn board(name: &str) -> Board {
+    read_board(&root().join(format!("boards/{name}.toml"))).unwrap()
+}
+
+fn limiter(b: &Board) -> LimiterConfig {
+    LimiterConfig {
+        sample_rate_hz: b.sample_rate_hz,
+        ..LimiterConfig::default()
+    }
+}
+
+/// The fewest boards of any contiguous split of `keys` whose every board fits, by brute
+/// force over all 2^(n−1) splits (the fit of each range computed once).
+fn brute_force(programs: &[Program], costs: &ProgramCosts, keys: &[PlanKey], b: &Board) -> usize {
+    let n = keys.len();
+    let lim = limiter(b);
+    let mut fits = vec![vec![false; n]; n];
+    for i in 0..n {
+        for j in i..n {
+            fits[i][j] = check_board(programs, costs, &keys[i..=j], b, &lim)
+                .unwrap()
+                .fits();
+        }
+    }
+    let mut best = usize::MAX;
+    for cuts in 0..1u32 << (n - 1) {
+        let (mut start, mut count, mut ok) = (0, 0, true);
+        for end in 0..n {
+            if end == n - 1 || cuts & (1 << end) != 0 {
+                ok &= fits[start][end];
+                count += 1;
+                start = end + 1;
+            }
+        }
+        if ok {
+            best = best.min(count);
+        }
+    }
+    best
+}
+
+#[test]
+fn the_planner_needs_no_more_boards_than_brute_force() {
+    // Three instruments, the piano in three graded variants.
+    let mut programs = Vec::new();
+    for (name, params) in [
+        ("hammond", vec![]),
+        ("harpsichord_2x8", vec![]),
+        ("grand_piano", vec![("M_h".to_string(), "9 g".to_string())]),
+        ("grand_piano", vec![("M_h".to_string(), "5 g".to_string())]),
+    ] {
+        let config = tactus_compiler::lower::Config {
+            overrides: params,
+            ..Default::default()
+        };
+        programs.push(Program::compile(&shipped(name).unwrap(), &config).unwrap());
+    }
+    let mut rng = XorShift64::new(0xB0A4D);
+    let mut compared = 0;
+    for b in [board("rp2040"), board("rp2040_200mhz")] {
+        let costs = ProgramCosts::new(&programs, &b, &limiter(&b)).unwrap();
+        for trial in 0..4 {
+            // Runs of one instrument, 8 to 12 keys in all.
+            let n = 8 + rng.below(5);
+            let mut keys = Vec::with_capacity(n);
+            let mut program = rng.below(4);
+            for k in 0..n {
+                if rng.below(4) == 0 {
+                    program = rng.below(4);
+                }
+                keys.push(PlanKey {
+                    key: 40 + k as u8,
+                    program,
+                });
+            }
+            let plan = boards::plan(&programs, &costs, &keys, &b, &limiter(&b), &mut |_, _| {})
+                .unwrap();
+            let covered: Vec<u8> = plan.iter().flat_map(|p| p.keys.clone()).collect();
+            assert_eq!(covered, keys.iter().map(|k| k.key).collect::<Vec<_>>());
+            assert!(plan.iter().all(|p| p.fits()), "{plan:?}");
+            let best = brute_force(&programs, &costs, &keys, &b);
+            println!(
+                "{} trial {trial}: {n} keys {:?} → {} boards (brute force {best})",
+                b.name,
+                keys.iter().map(|k| k.program).collect::<Vec<_>>(),
+                plan.len()
+            );
+            assert_eq!(plan.len(), best);
+            compared += 1;
+        }
+    }
+    assert_eq!(compared, 8);
+}
+
+/// Runs every planned board of `layout` for `samples` samples of the budget corpus.
+fn boards_run_bit_exact(layout: &str, samples: usize) {
+    let (_, assigned) = read_layout(&root().join(layout)).unwrap();
+    let b = board("rp2040");
+    let lim = limiter(&b);
+    let (programs, index) = compile_layout(&assigned, &shipped, b.sample_rate_hz).unwrap();
+    let costs = ProgramCosts::new(&programs, &b, &lim).unwrap();
+    let keys: Vec<PlanKey> = assigned
+        .iter()
+        .zip(&index)
+        .map(|(a, &program)| PlanKey { key: a.key, program })
+        .collect();
+    let plan = boards::plan(&programs, &costs, &keys, &b, &lim, &mut |_, _| {}).unwrap();
+    assert!(plan.iter().all(|p| p.fits()), "{layout}: {plan:?}");
+    // Each program's corpus, concatenated and cycled to `samples`; key i starts at an
+    // offset of its own so that neighbours do not move in step.
+    let words: Vec<Vec<i32>> = programs
+        .iter()
+        .map(|p| {
+            corpus::corpus(&p.fixed, Size::Quick)
+                .into_iter()
+                .flat_map(|r| r.records.into_iter().map(|w| w[0]))
+                .collect()
+        })
+        .collect();
+    let mut worst_use = 0.0f64;
+    for (bi, bv) in plan.iter().enumerate() {
+        let bkeys: Vec<PlanKey> = keys
+            .iter()
+            .filter(|k| bv.keys.contains(&k.key))
+            .copied()
+            .collect();
+        let (_, image) = board_image(&programs, &costs, &bkeys, &b, &lim).unwrap();
+        let image = image.unwrap();
+        let mut run = image.run().unwrap();
+        let mut insts: Vec<FixedInstance> = bkeys
+            .iter()
+            .map(|k| FixedInstance::new(&programs[k.program].fixed))
+            .collect();
+        let mut refs: Vec<Limiter> = bkeys.iter().map(|_| Limiter::new(&lim).unwrap()).collect();
+        let mut worst = vec![0u64; image.cores()];
+        let mut sensor = vec![0i32; bkeys.len()];
+        for n in 0..samples {
+            for (i, k) in bkeys.iter().enumerate() {
+                let w = &words[k.program];
+                sensor[i] = w[(n + 997 * k.key as usize) % w.len()];
+            }
+            let out = run.step(&sensor).unwrap();
+            for (i, k) in bkeys.iter().enumerate() {
+                let fp = &programs[k.program].fixed;
+                let total = insts[i].step_raw(&[sensor[i]]).total;
+                let dac = refs[i].step(total, fp.total_frac).dac;
+                assert_eq!(
+                    (out.force[i], out.dac[i]),
+                    (total, dac),
+                    "{layout} board {bi} key {} sample {n}",
+                    k.key
+                );
+            }
+            for (c, w) in worst.iter_mut().enumerate() {
+                *w = (*w).max(out.core_cycles[c]);
+            }
+        }
+        let last = run.step(&sensor).unwrap();
+        for c in 0..image.cores() {
+            let bound = image.wcet(c).unwrap().bound();
+            assert_eq!(last.misses[c], 0, "{layout} board {bi} core {c}");
+            assert!(
+                worst[c] <= bound,
+                "{layout} board {bi} core {c}: measured {} > static {bound}",
+                worst[c]
+            );
+            worst_use = worst_use.max(worst[c] as f64 / image.cycles_per_sample() as f64);
+        }
+    }
+    println!(
+        "{layout}: {} boards, {samples} samples each, 0 misses, bit-exact; worst measured core {:.1}% of a sample",
+        plan.len(),
+        100.0 * worst_use
+    );
+}
+
+#[test]
+fn every_planned_board_of_grand88_runs_a_second_bit_exact_without_misses() {
+    boards_run_bit_exact("instruments/layouts/grand88.toml", 44_100);
+}
+
+#[test]
+fn every_planned_board_of_the_split_layout_runs_a_second_bit_exact_without_misses() {
+    boards_run_bit_exact("instruments/layouts/split_harpsichord_piano.toml", 44_100);
+}
