@@ -884,9 +884,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The most samples one `--engine emu` run may cover (2²⁶, 25 minutes at 44.1 kHz): a bound
-/// on the work a stray event hours into a file could ask for (the run's own records are
-/// decimated, `tactus_firmware::perform::MAX_POINTS` per board).
+/// The most samples one `--engine emu` run may cover (2²⁶, 25 minutes at 44.1 kHz): a
+/// stray event hours into a MIDI file would otherwise start a run of hours.
 const MAX_EMU_SAMPLES: usize = 1 << 26;
 
 /// What the emulated boards reported over a run.
@@ -938,10 +937,10 @@ fn emu_strikes(
     bar: &ProgressBar,
 ) -> Result<(Vec<Strike>, EmuReport, Traces), String> {
     let (end, fs) = (opts.end, opts.fs);
-    // Bound the work before compiling anything (a stray event hours into the file).
+    // Bounded before anything runs or is allocated per sample.
     if end > MAX_EMU_SAMPLES {
         return Err(format!(
-            "--engine emu: the piece is {:.1} s long, more than the {:.0} s ({MAX_EMU_SAMPLES} samples) one emulated run may keep; play a part of it with --seconds",
+            "--engine emu: the piece is {:.1} s long, more than the {:.0} s ({MAX_EMU_SAMPLES} samples) one emulated run may cover; play a part of it with --seconds",
             end as f64 / fs,
             MAX_EMU_SAMPLES as f64 / fs
         ));
