@@ -17,19 +17,8 @@ use tactus_emulator::{Board, Config, Engine, StopReason, DAC_BASE};
 #[path = "../benches/common/mod.rs"]
 mod workloads;
 
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-    fn below(&mut self, n: u32) -> u16 {
-        ((self.next() >> 33) as u32 % n) as u16
-    }
-}
+mod common;
+use common::Rng;
 
 const SIO: u32 = 0xd000_0000;
 /// Code of core k at `CODE + 0x1000 * k` (SRAM) or at flash; its data area, in the same

@@ -12,19 +12,8 @@
 
 use tactus_emulator::{Board, Config, StopReason};
 
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-    fn below(&mut self, n: u32) -> u16 {
-        ((self.next() >> 33) as u32 % n) as u16
-    }
-}
+mod common;
+use common::Rng;
 
 const DATA: u32 = 0x2002_0000;
 const SIO: u32 = 0xd000_0000;

@@ -475,6 +475,10 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
         assert!(e.contains("c.toml") && e.contains("clock_hz"), "{e}");
         let e = parse_board(&ok.replace("cores = 2", "cores = 4294967295"), "b.toml").unwrap_err();
         assert!(e.contains("b.toml") && e.contains("cores"), "{e}");
+        // Issue 19 class 6: a clock whose cycles per sample exceed any integer was reported as
+        // "over by 8446744073709552191"; it is now an error naming the field.
+        let e = parse_board(&ok.replace("133e6", "1e30"), "huge.toml").unwrap_err();
+        assert!(e.contains("huge.toml") && e.contains("clock_hz"), "{e}");
         let e = parse_board(&format!("{ok}io_cycles_per_key = 163\n"), "old.toml").unwrap_err();
         assert!(e.contains("old.toml") && e.contains("no longer"), "{e}");
     }

@@ -217,3 +217,22 @@ pub fn load_program(
         .expect("program fits in memory");
     board.start_core(core, addr | 1, sp, 0);
 }
+
+/// The tests' deterministic PRNG (xorshift64*, Vigna 2016): `Rng(seed)` with a non-zero
+/// seed.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// The next 64 random bits.
+    pub fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+
+    /// A number below `n` (`n` ≥ 1, at most 65,536).
+    pub fn below(&mut self, n: u32) -> u16 {
+        ((self.next() >> 33) as u32 % n) as u16
+    }
+}
