@@ -86,6 +86,29 @@ pub struct BudgetArgs {
     /// board) to FILE, for `tactus play --layout` and later runs of `tactus budget`.
     #[arg(long, value_name = "FILE")]
     pub write_plan: Option<PathBuf>,
+    /// The emulator's engine for the measurements: `interp` or `block` (the same cycles;
+    /// compare their speed).
+    #[arg(long, value_enum, default_value = "interp")]
+    pub emu: EmuEngine,
+}
+
+/// The emulator's engine (`--emu`): both are exact; the interpreter is today the faster.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum EmuEngine {
+    /// One pre-decoded instruction at a time (the default).
+    #[default]
+    Interp,
+    /// Pre-decoded basic blocks with a per-block deadline check.
+    Block,
+}
+
+impl From<EmuEngine> for tactus_emulator::Engine {
+    fn from(e: EmuEngine) -> Self {
+        match e {
+            EmuEngine::Interp => tactus_emulator::Engine::Interp,
+            EmuEngine::Block => tactus_emulator::Engine::Block,
+        }
+    }
 }
 
 /// A failure: bad input (exit 2) with its message.
@@ -254,6 +277,7 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
         keys,
         boards: r.boards.clone(),
         quick: args.quick,
+        engine: args.emu.into(),
         limiter: LimiterConfig {
             sample_rate_hz: board.sample_rate_hz,
             ..LimiterConfig::default()

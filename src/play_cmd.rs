@@ -74,6 +74,10 @@ pub struct PlayArgs {
     /// or a board file.
     #[arg(long, default_value = "rp2040", value_name = "NAME_OR_FILE")]
     pub board: String,
+    /// The emulator's engine for `--engine emu`: `interp` or `block` (the same cycles and
+    /// strikes; compare their speed).
+    #[arg(long, value_enum, default_value = "interp")]
+    pub emu: crate::budget_cmd::EmuEngine,
     /// Player: `position` (prescribed key trajectories) or `force` (a finger force profile
     /// against the instrument's force: the closed loop; with `--engine emu` against the
     /// firmware's force word each sample, calibrated with the fixed-point JIT).
@@ -623,6 +627,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             finger,
             trace,
             boards: layout_boards.clone(),
+            emu: args.emu,
         };
         let (s, report, t) = emu_strikes(&all, &key_motions, &opts, &bar)?;
         strikes = s;
@@ -925,6 +930,8 @@ struct EmuOptions<'a> {
     /// The layout's boards (MIDI keys per board), or `None` to plan them as `tactus budget`
     /// does.
     boards: Option<Vec<Vec<u8>>>,
+    /// The emulator's engine.
+    emu: crate::budget_cmd::EmuEngine,
 }
 
 /// Plays the keys through the firmware of every board of the keyboard
@@ -962,6 +969,7 @@ fn emu_strikes(
             sample_rate_hz: board.sample_rate_hz,
             ..Default::default()
         },
+        engine: opts.emu.into(),
     };
     let run = tactus_firmware::perform::play_boards(
         &programs,

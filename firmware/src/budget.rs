@@ -257,6 +257,18 @@ pub fn measure_update(
     fp: &FixedProgram,
     runs: &[Run],
 ) -> Result<CycleStats, BudgetError> {
+    measure_update_with(obj, fp, runs, tactus_emulator::Engine::default())
+}
+
+/// [`measure_update`] on the emulator engine `engine` (the same cycles on every engine).
+///
+/// Errors: as [`measure_update`].
+pub fn measure_update_with(
+    obj: &ThumbObject,
+    fp: &FixedProgram,
+    runs: &[Run],
+    engine: tactus_emulator::Engine,
+) -> Result<CycleStats, BudgetError> {
     let sym = |name: String| {
         obj.symbol(&name)
             .map(|(o, _)| o as u32)
@@ -267,6 +279,7 @@ pub fn measure_update(
     let iface = Interface::new(fp, &obj.stem, &obj.out);
     let mut runner = UpdateRunner::from_code(&obj.code.text, LOAD_ADDR, init, update, iface)
         .map_err(BudgetError::Run)?;
+    runner.board().config.engine = engine;
     let mut stats = CycleStats::default();
     for run in runs {
         runner.init().map_err(BudgetError::Run)?;

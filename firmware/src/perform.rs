@@ -69,6 +69,8 @@ pub struct PerformOptions {
     pub boards: Option<Vec<Vec<u8>>>,
     /// The safety limiter.
     pub limiter: LimiterConfig,
+    /// The emulator's engine (the same cycles either way).
+    pub engine: tactus_emulator::Engine,
 }
 
 /// One board's run.
@@ -198,6 +200,7 @@ fn run_board(
         .map_err(|e| e.to_string())?;
     let image = image.map_err(|e| e.to_string())?;
     let mut run = image.run().map_err(|e| e.to_string())?;
+    run.board().config.engine = opts.engine;
     let n_cores = image.cores();
     let key_programs: Vec<usize> = bkeys.iter().map(|k| k.program).collect();
     let mut report = BoardRun {

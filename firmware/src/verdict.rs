@@ -50,6 +50,8 @@ pub struct BudgetInput {
     pub boards: Option<Vec<Vec<u8>>>,
     /// Measure over the quick corpus instead of the full one.
     pub quick: bool,
+    /// The emulator's engine for the measurements (the same cycles either way).
+    pub engine: tactus_emulator::Engine,
     /// The limiter every force word passes.
     pub limiter: LimiterConfig,
 }
@@ -593,7 +595,7 @@ pub fn keyboard_budget(
         };
         let fp = &pi.program.fixed;
         let runs = corpus::corpus(fp, size);
-        let measured = budget::measure_update(&pi.program.thumb, fp, &runs)
+        let measured = budget::measure_update_with(&pi.program.thumb, fp, &runs, input.engine)
             .map_err(|e: BudgetError| bad(&pi.instrument, &e))?;
         let cost = ProgramCost {
             static_cost: statics[i].clone(),
