@@ -207,10 +207,16 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
     let r = resolve(args, single_is_pen)?;
     // The board kind: --board, else the layout's, else rp2040 (a layout's board file is
     // relative to the layout).
-    let kind = match (&args.board, r.layout.as_ref().and_then(|(l, _)| l.board_kind.clone())) {
+    let kind = match (
+        &args.board,
+        r.layout.as_ref().and_then(|(l, _)| l.board_kind.clone()),
+    ) {
         (Some(b), _) => b.clone(),
         (None, Some(k)) => {
-            let dir = r.layout.as_ref().and_then(|(_, p)| p.parent().map(Path::to_path_buf));
+            let dir = r
+                .layout
+                .as_ref()
+                .and_then(|(_, p)| p.parent().map(Path::to_path_buf));
             match dir.map(|d| d.join(&k)).filter(|p| p.exists()) {
                 Some(p) => p.display().to_string(),
                 None => k,
@@ -318,7 +324,11 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
     if let Some(out) = &args.write_plan {
         write_plan(&report, &r, &kind, out)?;
         if !args.json {
-            println!("plan: {} boards written to {}", report.board_count, out.display());
+            println!(
+                "plan: {} boards written to {}",
+                report.board_count,
+                out.display()
+            );
         }
     }
     Ok(ExitCode::from(report.exit_code()))

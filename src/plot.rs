@@ -785,8 +785,13 @@ mod tests {
         trace.add_column("key", "m", ColumnKind::Sensor);
         trace.add_column("f", "N", ColumnKind::Force);
         trace.add_column("total", "N", ColumnKind::TotalForce);
-        for (i, f) in [f64::MAX, -f64::MAX, 1e300, f64::INFINITY, f64::NAN].iter().enumerate() {
-            trace.push_row(&[i as f64, 1e-3 * i as f64, *f, *f]).unwrap();
+        for (i, f) in [f64::MAX, -f64::MAX, 1e300, f64::INFINITY, f64::NAN]
+            .iter()
+            .enumerate()
+        {
+            trace
+                .push_row(&[i as f64, 1e-3 * i as f64, *f, *f])
+                .unwrap();
         }
         let path = temp_svg("huge");
         let r = padded_range([f64::MAX, -f64::MAX].into_iter());

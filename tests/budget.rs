@@ -45,7 +45,10 @@ fn a_heavy_keyboard_is_rejected_naming_the_worst_key() {
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert_eq!(out.status.code(), Some(1), "{stdout}");
-    assert!(stdout.contains("DOES NOT FIT — 88 of 88 boards over budget"), "{stdout}");
+    assert!(
+        stdout.contains("DOES NOT FIT — 88 of 88 boards over budget"),
+        "{stdout}"
+    );
     assert!(stdout.contains("most expensive key: 21 (A0)"), "{stdout}");
     assert!(stdout.contains("its worst path"), "{stdout}");
     assert!(
@@ -73,18 +76,28 @@ fn json_parses_and_adds_up() {
     let isr = n(&b["isr_cycles"]);
     assert!(isr > 15 && isr < cps, "{b}");
     let p = &v["programs"][0];
-    let (st, me, glue) = (n(&p["static_cycles"]), n(&p["measured_max"]), n(&p["glue_cycles"]));
+    let (st, me, glue) = (
+        n(&p["static_cycles"]),
+        n(&p["measured_max"]),
+        n(&p["glue_cycles"]),
+    );
     assert!(me <= st && me > 0, "{p}");
     assert!(glue > 0 && glue < st, "{p}");
     assert_eq!(p["sound"], Value::Bool(true));
     assert!(p["measured_mean"].as_f64().unwrap() <= me as f64);
     let boards = v["boards"].as_array().unwrap();
     assert_eq!(n(&v["board_count"]) as usize, boards.len());
-    assert!(boards.len() >= 2, "20 harpsichord keys take more than one board: {v}");
+    assert!(
+        boards.len() >= 2,
+        "20 harpsichord keys take more than one board: {v}"
+    );
     let mut keys: Vec<u64> = Vec::new();
     for bd in boards {
         let on: Vec<u64> = bd["keys"].as_array().unwrap().iter().map(n).collect();
-        assert!(on.windows(2).all(|w| w[1] == w[0] + 1), "contiguous: {on:?}");
+        assert!(
+            on.windows(2).all(|w| w[1] == w[0] + 1),
+            "contiguous: {on:?}"
+        );
         let mut on_cores: Vec<u64> = Vec::new();
         let cores = bd["cores"].as_array().unwrap();
         assert_eq!(cores.len() as u64, n(&b["cores"]));
@@ -94,7 +107,10 @@ fn json_parses_and_adds_up() {
             let cycles = n(&c["cycles"]);
             let nk = k.len() as u64;
             assert!(cycles >= isr + nk * st, "{c}");
-            assert!(cycles <= isr + nk * (st + glue) + n(&c["contention"]), "{c}");
+            assert!(
+                cycles <= isr + nk * (st + glue) + n(&c["contention"]),
+                "{c}"
+            );
             assert_eq!(
                 c["headroom"].as_f64().unwrap() as i64,
                 cps as i64 - cycles as i64
@@ -179,7 +195,10 @@ fn a_small_split_layout_with_grading() {
     );
     // The plan, read back: the same boards, listed rather than planned.
     let text = std::fs::read_to_string(&plan).unwrap();
-    assert!(text.contains("[[board]]") && text.contains("board_kind"), "{text}");
+    assert!(
+        text.contains("[[board]]") && text.contains("board_kind"),
+        "{text}"
+    );
     let (code2, v2) = json(&[plan.to_str().unwrap(), "--quick"]);
     assert_eq!(code2, code);
     assert_eq!(v2["planned"], Value::Bool(false));
@@ -201,7 +220,10 @@ fn a_listed_board_over_budget_does_not_fit() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert_eq!(out.status.code(), Some(1), "{stdout}");
     assert!(stdout.contains("listed rp2040 boards"), "{stdout}");
-    assert!(stdout.contains("DOES NOT FIT — 1 of 2 boards over budget"), "{stdout}");
+    assert!(
+        stdout.contains("DOES NOT FIT — 1 of 2 boards over budget"),
+        "{stdout}"
+    );
     assert!(stdout.contains("board 2 (62–65"), "{stdout}");
 }
 
@@ -260,7 +282,10 @@ fn bad_input_exits_2_with_a_clear_message() {
         .unwrap();
         p
     };
-    let p = layout("overlap.toml", "[[board]]\nkeys = [60, 62]\n[[board]]\nkeys = [62, 63]\n");
+    let p = layout(
+        "overlap.toml",
+        "[[board]]\nkeys = [60, 62]\n[[board]]\nkeys = [62, 63]\n",
+    );
     let e = err(&[p.to_str().unwrap()]);
     assert!(e.contains("overlap.toml") && e.contains("overlap"), "{e}");
     let p = layout("gap.toml", "[[board]]\nkeys = [60, 61]\n");
@@ -273,7 +298,10 @@ fn bad_input_exits_2_with_a_clear_message() {
     )
     .unwrap();
     let e = err(&[p.to_str().unwrap()]);
-    assert!(e.contains("kind.toml") && e.contains("board_kind") && e.contains("pdp11"), "{e}");
+    assert!(
+        e.contains("kind.toml") && e.contains("board_kind") && e.contains("pdp11"),
+        "{e}"
+    );
     let p = layout("x.toml", "").with_file_name("path.toml");
     std::fs::write(
         &p,
@@ -290,7 +318,10 @@ fn bad_input_exits_2_with_a_clear_message() {
     )
     .unwrap();
     let e = err(&[p.to_str().unwrap()]);
-    assert!(e.contains("param.toml") && e.contains("key 60") && e.contains("M_h=-5 g"), "{e}");
+    assert!(
+        e.contains("param.toml") && e.contains("key 60") && e.contains("M_h=-5 g"),
+        "{e}"
+    );
 }
 
 #[test]

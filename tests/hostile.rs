@@ -40,7 +40,10 @@ fn expect(args: &[&str], code: i32, needle: &str) -> String {
     );
     assert_eq!(got, Some(code), "{args:?}: {stderr}{stdout}");
     if code != 0 {
-        assert!(!stderr.trim().is_empty(), "{args:?}: exit {code} without a message");
+        assert!(
+            !stderr.trim().is_empty(),
+            "{args:?}: exit {code} without a message"
+        );
     }
     assert!(
         stderr.contains(needle) || stdout.contains(needle),
@@ -62,18 +65,31 @@ fn class_1_deep_source_is_a_diagnostic_and_nested_components_compile() {
     let dir = temp_dir("hostile-1");
     // A sum of 20,000 terms overflowed the stack in `expand`.
     let terms = vec!["key * 1 N/m"; 20_000].join(" + ");
-    let f = write(&dir, "sum.tactus", format!("{KEY}    force f = {terms}\n}}\n"));
+    let f = write(
+        &dir,
+        "sum.tactus",
+        format!("{KEY}    force f = {terms}\n}}\n"),
+    );
     expect(&["check", &f], 1, "E0008");
     // A 10 MB one-line file.
     let long = vec!["- "; 5_000_000].concat();
-    let f = write(&dir, "long.tactus", format!("{KEY}    force f = {long}key * 1 N/m\n}}\n"));
+    let f = write(
+        &dir,
+        "long.tactus",
+        format!("{KEY}    force f = {long}key * 1 N/m\n}}\n"),
+    );
     expect(&["check", &f], 1, "E0008");
     // Components nested 12 deep were a false "uses itself" (E0116) at depth 8.
     let mut src = String::from("component c0 {\n    input x: m\n    force f = x * 1 N/m\n}\n");
     for i in 1..12 {
-        src.push_str(&format!("component c{i} {{\n    input x: m\n    use a = c{}(x = x)\n}}\n", i - 1));
+        src.push_str(&format!(
+            "component c{i} {{\n    input x: m\n    use a = c{}(x = x)\n}}\n",
+            i - 1
+        ));
     }
-    src.push_str("instrument t {\n    sensor key: m in [0 mm, 10 mm]\n    use a = c11(x = key)\n}\n");
+    src.push_str(
+        "instrument t {\n    sensor key: m in [0 mm, 10 mm]\n    use a = c11(x = key)\n}\n",
+    );
     let f = write(&dir, "nested.tactus", &src);
     expect(&["check", &f], 0, "well-formed");
     // Real recursion through another component still is E0116, with the chain.
@@ -97,14 +113,18 @@ fn class_2_sizes_from_input_are_checked_before_allocation() {
     expect(&["check", &f], 1, "E0137");
     // A component of 12,000 nodes instanced 4096 times (each level uses the one below
     // twice): within the instance count, but 50 M nodes of IR.
-    let mut src = String::from("component c0 {\n    input x: m\n    force f = sum(i in 0..4096, x * 1 N/m)\n}\n");
+    let mut src = String::from(
+        "component c0 {\n    input x: m\n    force f = sum(i in 0..4096, x * 1 N/m)\n}\n",
+    );
     for i in 1..13 {
         src.push_str(&format!(
             "component c{i} {{\n    input x: m\n    use a = c{p}(x = x)\n    use b = c{p}(x = x)\n}}\n",
             p = i - 1
         ));
     }
-    src.push_str("instrument t {\n    sensor key: m in [0 mm, 10 mm]\n    use a = c12(x = key)\n}\n");
+    src.push_str(
+        "instrument t {\n    sensor key: m in [0 mm, 10 mm]\n    use a = c12(x = key)\n}\n",
+    );
     let f = write(&dir, "wide.tactus", &src);
     expect(&["check", &f], 1, "E0136");
     // Empty loops nested three deep (no declarations to charge, 68 G iterations).
@@ -116,7 +136,18 @@ fn class_2_sizes_from_input_are_checked_before_allocation() {
     expect(&["check", &f], 1, "E0137");
     // A three-line CSV spanning 6000 s.
     let csv = write(&dir, "long.csv", "time_s,key_mm\n0,0\n6000,5\n");
-    expect(&["sim", "hammond", "--stimulus", &csv, "--out", &dir.display().to_string()], 1, "limit");
+    expect(
+        &[
+            "sim",
+            "hammond",
+            "--stimulus",
+            &csv,
+            "--out",
+            &dir.display().to_string(),
+        ],
+        1,
+        "limit",
+    );
     // An ELF segment with p_memsz = 0xFFFFFFFF.
     let mut elf = vec![0x7f, b'E', b'L', b'F', 1, 1, 1, 0];
     elf.resize(16, 0);
@@ -170,13 +201,34 @@ fn class_3_play_seconds_bounds_the_simulated_time() {
     let f = write(
         &dir,
         "held.mid",
-        midi(0, 1, 480, &[(0, &[0x90, 60, 100]), (0x0FFF_FFFF, &[0x80, 60, 0])]),
+        midi(
+            0,
+            1,
+            480,
+            &[(0, &[0x90, 60, 100]), (0x0FFF_FFFF, &[0x80, 60, 0])],
+        ),
     );
     // (`--engine emu` runs every board of the layout: two keys keep it to one board.)
-    let layout = write(&dir, "two.toml", "name = \"two\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"grand_piano\"\n");
+    let layout = write(
+        &dir,
+        "two.toml",
+        "name = \"two\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"grand_piano\"\n",
+    );
     for engine in ["jit", "emu"] {
         let err = expect(
-            &["play", &f, "--layout", &layout, "--seconds", "2", "--engine", engine, "--out", &out, "--no-wav"],
+            &[
+                "play",
+                &f,
+                "--layout",
+                &layout,
+                "--seconds",
+                "2",
+                "--engine",
+                engine,
+                "--out",
+                &out,
+                "--no-wav",
+            ],
             0,
             "2.00 s of music",
         );
@@ -191,10 +243,21 @@ fn class_3_play_seconds_bounds_the_simulated_time() {
             0,
             1,
             480,
-            &[(0, &[0x90, 60, 100]), (480, &[0x80, 60, 0]), (0x0FFF_FFFF, &[0x90, 61, 100]), (480, &[0x80, 61, 0])],
+            &[
+                (0, &[0x90, 60, 100]),
+                (480, &[0x80, 60, 0]),
+                (0x0FFF_FFFF, &[0x90, 61, 100]),
+                (480, &[0x80, 61, 0]),
+            ],
         ),
     );
-    expect(&["play", &f, "--layout", &layout, "--engine", "emu", "--out", &out, "--no-wav"], 1, "--seconds");
+    expect(
+        &[
+            "play", &f, "--layout", &layout, "--engine", "emu", "--out", &out, "--no-wav",
+        ],
+        1,
+        "--seconds",
+    );
     expect(&["play", &f, "--out", &out], 1, "WAV rendering");
 }
 
@@ -203,34 +266,73 @@ fn class_4_non_finite_values_are_errors() {
     let dir = temp_dir("hostile-4");
     let out = dir.display().to_string();
     for (name, body, code) in [
-        ("nan", "    param k = 0 N/m / 0\n    force f = k * key\n", "E0312"),
-        ("big", "    param k = 1e309 N/m\n    force f = k * key\n", "E0006"),
-        ("exp", "    force f = exp(1000) * 1 N + key * 1 N/m\n", "E0312"),
+        (
+            "nan",
+            "    param k = 0 N/m / 0\n    force f = k * key\n",
+            "E0312",
+        ),
+        (
+            "big",
+            "    param k = 1e309 N/m\n    force f = k * key\n",
+            "E0006",
+        ),
+        (
+            "exp",
+            "    force f = exp(1000) * 1 N + key * 1 N/m\n",
+            "E0312",
+        ),
     ] {
         let f = write(&dir, &format!("{name}.tactus"), format!("{KEY}{body}}}\n"));
         expect(&["check", &f], 1, code);
         expect(&["sim", &f, "--out", &out], 1, code);
     }
     // `--param l1=0 mm` under a division.
-    let f = write(&dir, "l1.tactus", format!("{KEY}    param l1 = 2 mm\n    param k = 1 N / l1\n    force f = k * key / 1 m\n}}\n"));
+    let f = write(
+        &dir,
+        "l1.tactus",
+        format!(
+            "{KEY}    param l1 = 2 mm\n    param k = 1 N / l1\n    force f = k * key / 1 m\n}}\n"
+        ),
+    );
     expect(&["check", &f, "--param", "l1=0 mm"], 1, "E0312");
     // A run-time NaN in the f64 engines: the first sample and the value, exit 1.
-    let f = write(&dir, "rt.tactus", format!("{KEY}    force f = 1 N * exp(key / 1 um)\n}}\n"));
+    let f = write(
+        &dir,
+        "rt.tactus",
+        format!("{KEY}    force f = 1 N * exp(key / 1 um)\n}}\n"),
+    );
     for engine in ["interp", "jit"] {
-        expect(&["sim", &f, "--engine", engine, "--out", &out], 1, "is inf at sample");
+        expect(
+            &["sim", &f, "--engine", engine, "--out", &out],
+            1,
+            "is inf at sample",
+        );
     }
     // The same in `play`, on an instrument that strikes.
     let f = write(
         &dir,
         "rtplay.tactus",
-        format!("{KEY}    force f = 1 N * exp(key / 1 um)
+        format!(
+            "{KEY}    force f = 1 N * exp(key / 1 um)
     on key > 5 mm {{ emit strike(v = 1 m/s) }}
 }}
-"),
+"
+        ),
     );
     for engine in ["interp", "jit"] {
         expect(
-            &["play", "--instrument", &f, "--engine", engine, "--seconds", "1", "--out", &out, "--no-wav"],
+            &[
+                "play",
+                "--instrument",
+                &f,
+                "--engine",
+                engine,
+                "--seconds",
+                "1",
+                "--out",
+                &out,
+                "--no-wav",
+            ],
             1,
             "non-finite value at sample",
         );
@@ -239,7 +341,11 @@ fn class_4_non_finite_values_are_errors() {
 
 #[test]
 fn class_7_missing_files_are_never_replaced_by_built_ins() {
-    expect(&["check", "/no/such/dir/grand_piano.tactus"], 1, "no file `/no/such/dir/grand_piano.tactus`");
+    expect(
+        &["check", "/no/such/dir/grand_piano.tactus"],
+        1,
+        "no file `/no/such/dir/grand_piano.tactus`",
+    );
     expect(&["check", "grand_piano"], 0, "well-formed");
     let dir = temp_dir("hostile-7");
     let layout = write(
@@ -249,7 +355,11 @@ fn class_7_missing_files_are_never_replaced_by_built_ins() {
     );
     let out = bounded(&["budget", &layout]);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(matches!(out.status.code(), Some(1 | 2)), "{:?} {stderr}", out.status);
+    assert!(
+        matches!(out.status.code(), Some(1 | 2)),
+        "{:?} {stderr}",
+        out.status
+    );
     assert!(stderr.contains("missing/grand_piano.tactus"), "{stderr}");
 }
 
@@ -269,20 +379,48 @@ fn class_8_corrupt_midi_and_csv_are_named() {
     }
     // Repaired reads: a warning with what was lost.
     let many = write(&dir, "many.mid", midi(1, 65535, 480, note));
-    expect(&["play", &many, "--out", &out, "--no-wav"], 0, "claims 65535 tracks, the file holds 1");
+    expect(
+        &["play", &many, "--out", &out, "--no-wav"],
+        0,
+        "claims 65535 tracks, the file holds 1",
+    );
     let full = midi(0, 1, 480, note);
     let cut = write(&dir, "cut.mid", &full[..full.len() - 5]);
-    let err = expect(&["play", &cut, "--out", &out, "--no-wav"], 0, "is truncated");
+    let err = expect(
+        &["play", &cut, "--out", &out, "--no-wav"],
+        0,
+        "is truncated",
+    );
     assert!(err.contains("1 notes have no note-off"), "{err}");
     // CSV: a byte-order mark is read; 1e300 mm is reported, not clamped silently.
     let bom = write(&dir, "bom.csv", "\u{feff}time_s,key_mm\n0,0\n0.05,3\n");
-    expect(&["sim", "hammond", "--stimulus", &bom, "--out", &out], 0, "total force");
+    expect(
+        &["sim", "hammond", "--stimulus", &bom, "--out", &out],
+        0,
+        "total force",
+    );
     let big = write(&dir, "big.csv", "time_s,key_mm\n0,0\n0.05,1e300\n");
-    expect(&["sim", "hammond", "--stimulus", &big, "--out", &out], 0, "outside sensor `key`'s range");
-    let pen = write(&dir, "pen.csv", "\u{feff}time [s], pen.z [m]\n0, 0\n0.05, 1e300\n");
-    expect(&["sim", "rubbed_bank", "--stimulus", &pen, "--out", &out], 0, "were clamped");
+    expect(
+        &["sim", "hammond", "--stimulus", &big, "--out", &out],
+        0,
+        "outside sensor `key`'s range",
+    );
+    let pen = write(
+        &dir,
+        "pen.csv",
+        "\u{feff}time [s], pen.z [m]\n0, 0\n0.05, 1e300\n",
+    );
+    expect(
+        &["sim", "rubbed_bank", "--stimulus", &pen, "--out", &out],
+        0,
+        "were clamped",
+    );
     // A `.tactus` file with a byte-order mark.
-    let f = write(&dir, "bom.tactus", format!("\u{feff}{KEY}    force f = key * 1 N/m\n}}\n"));
+    let f = write(
+        &dir,
+        "bom.tactus",
+        format!("\u{feff}{KEY}    force f = key * 1 N/m\n}}\n"),
+    );
     expect(&["check", &f], 0, "well-formed");
 }
 

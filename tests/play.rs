@@ -204,12 +204,22 @@ fn the_emulated_board_strikes_like_the_fixed_point_jit_without_missing_a_deadlin
     assert!(e.lines().count() > 3, "{e}");
     assert_eq!(e, f, "the emulated board and the fixed-point JIT disagree");
     let stdout = String::from_utf8_lossy(&emu.stdout);
-    let boards: Vec<&str> = stdout.lines().filter(|l| l.trim_start().starts_with("board ")).collect();
+    let boards: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.trim_start().starts_with("board "))
+        .collect();
     assert!(boards.len() >= 2, "{stdout}");
     let keys: usize = boards
         .iter()
         .flat_map(|l| l.split("core ").skip(1))
-        .map(|c| c.split(": ").nth(1).and_then(|k| k.split(' ').next()).unwrap().parse::<usize>().unwrap())
+        .map(|c| {
+            c.split(": ")
+                .nth(1)
+                .and_then(|k| k.split(' ').next())
+                .unwrap()
+                .parse::<usize>()
+                .unwrap()
+        })
         .sum();
     assert_eq!(keys, 88, "every key of the keyboard runs: {stdout}");
     for l in &boards {
@@ -223,7 +233,15 @@ fn the_emulated_board_strikes_like_the_fixed_point_jit_without_missing_a_deadlin
     )
     .unwrap();
     let over = tactus()
-        .args(["play", "--no-wav", "--seconds", "1", "--engine", "emu", "--layout"])
+        .args([
+            "play",
+            "--no-wav",
+            "--seconds",
+            "1",
+            "--engine",
+            "emu",
+            "--layout",
+        ])
         .arg(&layout)
         .arg("--out")
         .arg(dir.join("over"))

@@ -120,7 +120,9 @@ pub fn emit(
                     Severity::Error => CsDiagnostic::error(),
                     Severity::Warning => CsDiagnostic::warning(),
                 };
-                base.with_code(d.code).with_message(&d.message).with_notes(notes)
+                base.with_code(d.code)
+                    .with_message(&d.message)
+                    .with_notes(notes)
             }
             None => d.to_codespan(),
         };

@@ -97,9 +97,7 @@ pub fn expand(file: &File, overrides: &[(String, String)]) -> Result<File, Vec<D
             continue;
         }
         if done.len() > MAX_SPECIALISATIONS {
-            let span = components
-                .get(&comp)
-                .map_or(0..0, |b| b.name.span.clone());
+            let span = components.get(&comp).map_or(0..0, |b| b.name.span.clone());
             cx.diags.push(
                 Diagnostic::error(
                     "E0138",
@@ -954,9 +952,8 @@ impl Expander<'_, '_> {
                 match v {
                     Some(v) if v.abs() <= MAX_INDEX => v,
                     _ => {
-                        self.diags.push(bad(format!(
-                            "this index is beyond ±{MAX_INDEX}"
-                        )));
+                        self.diags
+                            .push(bad(format!("this index is beyond ±{MAX_INDEX}")));
                         return None;
                     }
                 }

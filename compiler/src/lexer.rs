@@ -49,7 +49,10 @@ impl fmt::Display for LexError {
             LexError::BadNumber(n) => write!(f, "malformed number `{n}`"),
             LexError::BadExponent(e) => write!(f, "malformed unit exponent `{e}`"),
             LexError::OutOfRange(n) => {
-                write!(f, "`{n}` is too large: in SI units it is beyond the range of f64")
+                write!(
+                    f,
+                    "`{n}` is too large: in SI units it is beyond the range of f64"
+                )
             }
         }
     }

@@ -10,9 +10,9 @@
 //! chain in one expression.
 
 use crate::ast::File;
+use crate::ast::{Decl, Expr, ExprKind, Span, Spanned};
 use crate::diagnostics::Diagnostic;
 use crate::lexer::{self, LexError, Literal, Token};
-use crate::ast::{Decl, Expr, ExprKind, Span, Spanned};
 use lalrpop_util::{lalrpop_mod, ParseError};
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -35,7 +35,9 @@ type GrammarResult<T> = Result<T, ParseError<usize, Token, SyntaxError>>;
 
 impl Nesting {
     fn take(map: &RefCell<HashMap<(usize, usize), u32>>, span: &Span) -> u32 {
-        map.borrow_mut().remove(&(span.start, span.end)).unwrap_or(1)
+        map.borrow_mut()
+            .remove(&(span.start, span.end))
+            .unwrap_or(1)
     }
 
     /// Builds an expression node at `span`, or E0008 when it nests deeper than
@@ -49,9 +51,7 @@ impl Nesting {
             ExprKind::Call(_, args) => children.extend(args.iter()),
             ExprKind::If(c, a, b) => children.extend([&**c, &**a, &**b]),
             ExprKind::Element(segs) => children.extend(segs.iter().filter_map(|(_, i)| i.as_ref())),
-            ExprKind::Sum { range, body, .. } => {
-                children.extend([&range.lo, &range.hi, &**body])
-            }
+            ExprKind::Sum { range, body, .. } => children.extend([&range.lo, &range.hi, &**body]),
         }
         let depth = 1 + children
             .iter()
@@ -95,7 +95,9 @@ impl Nesting {
                 error: SyntaxError::TooDeep(span.start..(span.start + 3).min(span.end)),
             });
         }
-        self.loops.borrow_mut().insert((span.start, span.end), depth);
+        self.loops
+            .borrow_mut()
+            .insert((span.start, span.end), depth);
         Ok(d)
     }
 }

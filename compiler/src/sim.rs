@@ -195,11 +195,11 @@ impl SensorStimulus {
                 .copied()
                 .filter(|k| !(lo..=hi).contains(k))
                 .collect();
-            if let Some(worst) = outside
-                .iter()
-                .copied()
-                .max_by(|a, b| (a - a.clamp(lo, hi)).abs().total_cmp(&(b - b.clamp(lo, hi)).abs()))
-            {
+            if let Some(worst) = outside.iter().copied().max_by(|a, b| {
+                (a - a.clamp(lo, hi))
+                    .abs()
+                    .total_cmp(&(b - b.clamp(lo, hi)).abs())
+            }) {
                 notes.push(format!(
                     "{}: {} of {} key positions are outside sensor `{}`'s range [{lo}, {hi}] {} (the farthest: {worst:e}) and are clamped into it",
                     key.name,

@@ -83,7 +83,10 @@ fn a_planner_greedier_than_the_contract_breaks_it() {
         })
         .collect();
     println!("greedy plan breaks:\n{}", broken.join("\n"));
-    assert!(!broken.is_empty(), "the greedy plan kept the contract: the test shows nothing");
+    assert!(
+        !broken.is_empty(),
+        "the greedy plan kept the contract: the test shows nothing"
+    );
 }
 
 /// The divisor tolerance is pinned by the contract too: shifting the piano's divisors to a
@@ -102,7 +105,11 @@ fn a_greedier_divisor_shift_breaks_the_contract() {
     );
     let exact = FixedProgram::new(&p);
     assert!(
-        greedy.div_shift.iter().zip(&exact.div_shift).any(|(g, e)| g > e),
+        greedy
+            .div_shift
+            .iter()
+            .zip(&exact.div_shift)
+            .any(|(g, e)| g > e),
         "the greedy plan must shift some divisor further"
     );
     let worst = runs(&p, &greedy)
@@ -110,5 +117,8 @@ fn a_greedier_divisor_shift_breaks_the_contract() {
         .map(|(_, r)| r.max_force_lsb)
         .fold(0.0, f64::max);
     println!("divisors within 2^-6: worst force error {worst:.3} DAC LSB");
-    assert!(worst > c.force_lsb, "{worst} LSB: the contract did not catch it");
+    assert!(
+        worst > c.force_lsb,
+        "{worst} LSB: the contract did not catch it"
+    );
 }

@@ -16,8 +16,21 @@ use std::time::Duration;
 use tactus_compiler::lower::Config;
 
 const TOKENS: &[&[u8]] = &[
-    b"1e300", b"-1e300", b"NaN", b"inf", b"6000", b"\xef\xbb\xbf", b"\n0.5,3\n", b",", b"\n",
-    b"# c\n", b"time [s]", b"key_mm", b"1e-300", b"\"", b"9999999999",
+    b"1e300",
+    b"-1e300",
+    b"NaN",
+    b"inf",
+    b"6000",
+    b"\xef\xbb\xbf",
+    b"\n0.5,3\n",
+    b",",
+    b"\n",
+    b"# c\n",
+    b"time [s]",
+    b"key_mm",
+    b"1e-300",
+    b"\"",
+    b"9999999999",
 ];
 
 fn seeds() -> Vec<Vec<u8>> {
@@ -38,8 +51,11 @@ fn mutated_stimulus_files_read_or_give_errors() {
     let programs: Vec<_> = ["hammond", "rubbed_bank"]
         .iter()
         .map(|n| {
-            let src = std::fs::read_to_string(root.join(format!("../instruments/{n}.tactus"))).unwrap();
-            tactus_compiler::compile(&src, &Config::default()).unwrap().program
+            let src =
+                std::fs::read_to_string(root.join(format!("../instruments/{n}.tactus"))).unwrap();
+            tactus_compiler::compile(&src, &Config::default())
+                .unwrap()
+                .program
         })
         .collect();
     let dir = std::env::temp_dir().join(format!("tactus-fuzz-csv-{}", std::process::id()));
@@ -54,35 +70,42 @@ fn mutated_stimulus_files_read_or_give_errors() {
     });
     let (run, read) = (Cell::new(0u32), Cell::new(0u32));
     runner
-        .run(&(0..seeds.len(), 0..programs.len(), fuzz::edits(TOKENS)), |(seed, prog, edits)| {
-            let bytes = fuzz::apply(&seeds[seed], &edits);
-            std::fs::write(&path, &bytes).unwrap();
-            let program = &programs[prog];
-            let (r, dt, peak) = fuzz::measured(|| {
-                let key = tactus_runtime::stimulus::from_csv(&path, 44_100.0);
-                if let Err(e) = &key {
-                    assert!(e.to_string().contains("stim"), "{e}");
-                }
-                let s = tactus_compiler::sim::sensor_csv(program, &path, 44_100.0);
-                match s {
-                    Ok(s) => {
-                        assert!(s.len() <= tactus_runtime::stimulus::MAX_SAMPLES);
-                        true
-                    }
-                    Err(e) => {
+        .run(
+            &(0..seeds.len(), 0..programs.len(), fuzz::edits(TOKENS)),
+            |(seed, prog, edits)| {
+                let bytes = fuzz::apply(&seeds[seed], &edits);
+                std::fs::write(&path, &bytes).unwrap();
+                let program = &programs[prog];
+                let (r, dt, peak) = fuzz::measured(|| {
+                    let key = tactus_runtime::stimulus::from_csv(&path, 44_100.0);
+                    if let Err(e) = &key {
                         assert!(e.to_string().contains("stim"), "{e}");
-                        key.is_ok()
                     }
-                }
-            });
-            run.set(run.get() + 1);
-            read.set(read.get() + u32::from(r));
-            prop_assert!(dt < Duration::from_secs(10), "{dt:?}");
-            prop_assert!(peak < 1 << 31, "{peak} bytes");
-            Ok::<(), TestCaseError>(())
-        })
+                    let s = tactus_compiler::sim::sensor_csv(program, &path, 44_100.0);
+                    match s {
+                        Ok(s) => {
+                            assert!(s.len() <= tactus_runtime::stimulus::MAX_SAMPLES);
+                            true
+                        }
+                        Err(e) => {
+                            assert!(e.to_string().contains("stim"), "{e}");
+                            key.is_ok()
+                        }
+                    }
+                });
+                run.set(run.get() + 1);
+                read.set(read.get() + u32::from(r));
+                prop_assert!(dt < Duration::from_secs(10), "{dt:?}");
+                prop_assert!(peak < 1 << 31, "{peak} bytes");
+                Ok::<(), TestCaseError>(())
+            },
+        )
         .unwrap();
     std::fs::remove_dir_all(&dir).ok();
-    eprintln!("fuzz_csv: {} cases, {} read by one of the readers", run.get(), read.get());
+    eprintln!(
+        "fuzz_csv: {} cases, {} read by one of the readers",
+        run.get(),
+        read.get()
+    );
     assert!(run.get() >= cases);
 }

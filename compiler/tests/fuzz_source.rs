@@ -9,36 +9,78 @@ mod fuzz;
 
 use proptest::prelude::*;
 use proptest::test_runner::{Config as PtConfig, TestCaseError, TestRunner};
+use std::cell::Cell;
 use std::path::Path;
 use std::time::Duration;
-use std::cell::Cell;
 use tactus_compiler::lower::Config;
 use tactus_compiler::sim::Engine;
 
 const TOKENS: &[&[u8]] = &[
-    b" + key", b" * ", b"(", b")", b"{", b"}", b"[", b"]", b" - ", b"not ", b"if key > 0 mm { 1 N } else { 2 N }",
-    b"1e309", b"0 N/m / 0", b"exp(1000)", b"for i in 0..4096 { ", b"sum(i in 0..4096, 1 N)",
-    b"\nforce g = 1 N\n", b"\nstate s: m = 0 mm in [0 mm, 1 mm]\n", b"\xef\xbb\xbf", b"use a = ",
-    b"\ncomponent c { input x: m\n use a = c(x = x) }\n", b"-9223372036854775808", b"m^8*m^8*m^8",
-    b"d(", b"d2(", b"solve x in [0 m, 1 m] { start = 0 m residual = x iterations = 16 }",
+    b" + key",
+    b" * ",
+    b"(",
+    b")",
+    b"{",
+    b"}",
+    b"[",
+    b"]",
+    b" - ",
+    b"not ",
+    b"if key > 0 mm { 1 N } else { 2 N }",
+    b"1e309",
+    b"0 N/m / 0",
+    b"exp(1000)",
+    b"for i in 0..4096 { ",
+    b"sum(i in 0..4096, 1 N)",
+    b"\nforce g = 1 N\n",
+    b"\nstate s: m = 0 mm in [0 mm, 1 mm]\n",
+    b"\xef\xbb\xbf",
+    b"use a = ",
+    b"\ncomponent c { input x: m\n use a = c(x = x) }\n",
+    b"-9223372036854775808",
+    b"m^8*m^8*m^8",
+    b"d(",
+    b"d2(",
+    b"solve x in [0 m, 1 m] { start = 0 m residual = x iterations = 16 }",
 ];
 
 const LINES: &[&[u8]] = &[
-    b"    force g = 1 N\n", b"    param q = 0 N/m / 0\n", b"    let z = key * key * key\n",
-    b"    for i in 0..4096 { let w[i] = 1 N }\n", b"    state s2: m = 0 mm in [0 mm, 1 mm]\n",
-    b"    dynamics { s2' = 1e12 m/s }\n", b"    force h = exp(1000) * 1 N\n", b"    require 1 < 0\n",
-    b"    output o = key / (key - key)\n", b"    on key > 1 mm { emit e(v = 1 m/s) }\n",
+    b"    force g = 1 N\n",
+    b"    param q = 0 N/m / 0\n",
+    b"    let z = key * key * key\n",
+    b"    for i in 0..4096 { let w[i] = 1 N }\n",
+    b"    state s2: m = 0 mm in [0 mm, 1 mm]\n",
+    b"    dynamics { s2' = 1e12 m/s }\n",
+    b"    force h = exp(1000) * 1 N\n",
+    b"    require 1 < 0\n",
+    b"    output o = key / (key - key)\n",
+    b"    on key > 1 mm { emit e(v = 1 m/s) }\n",
 ];
 
 const NUMBERS: &[&[u8]] = &[
-    b"0", b"1e309", b"1e-320", b"4096", b"65536", b"9223372036854775807", b"1e12", b"0.0", b"17", b"2",
+    b"0",
+    b"1e309",
+    b"1e-320",
+    b"4096",
+    b"65536",
+    b"9223372036854775807",
+    b"1e12",
+    b"0.0",
+    b"17",
+    b"2",
 ];
 
 fn error_cases() -> usize {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/errors");
     std::fs::read_dir(dir)
         .unwrap()
-        .filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|e| e == "tactus"))
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|e| e == "tactus")
+        })
         .count()
 }
 

@@ -28,15 +28,41 @@ fn compile_small_stack(src: String) -> Result<(), Vec<&'static str>> {
 fn long_chains_and_deep_nests_fit_a_small_stack() {
     let deep = MAX_NESTING as usize - 10;
     let cases = [
-        ("sum over 4096", instrument("sum(i in 0..4096, key * 1 N/m)")),
-        ("unary chain", instrument(&format!("{}key * 1 N/m", "- ".repeat(deep)))),
-        ("nested calls", instrument(&format!("{}key{} * 1 N/m", "max(key, ".repeat(deep), ")".repeat(deep)))),
+        (
+            "sum over 4096",
+            instrument("sum(i in 0..4096, key * 1 N/m)"),
+        ),
+        (
+            "unary chain",
+            instrument(&format!("{}key * 1 N/m", "- ".repeat(deep))),
+        ),
+        (
+            "nested calls",
+            instrument(&format!(
+                "{}key{} * 1 N/m",
+                "max(key, ".repeat(deep),
+                ")".repeat(deep)
+            )),
+        ),
         (
             "nested ifs",
-            instrument(&format!("{}1 N{}", "if key > 1 mm { 1 N } else { ".repeat(deep / 2), " }".repeat(deep / 2))),
+            instrument(&format!(
+                "{}1 N{}",
+                "if key > 1 mm { 1 N } else { ".repeat(deep / 2),
+                " }".repeat(deep / 2)
+            )),
         ),
-        ("sum chain", instrument(&vec!["key * 1 N/m"; deep].join(" + "))),
-        ("sum of deep terms", instrument(&format!("sum(i in 0..1000, {}key * 1 N/m)", "- ".repeat(deep)))),
+        (
+            "sum chain",
+            instrument(&vec!["key * 1 N/m"; deep].join(" + ")),
+        ),
+        (
+            "sum of deep terms",
+            instrument(&format!(
+                "sum(i in 0..1000, {}key * 1 N/m)",
+                "- ".repeat(deep)
+            )),
+        ),
     ];
     for (name, src) in cases {
         assert_eq!(compile_small_stack(src), Ok(()), "{name}");
@@ -49,7 +75,11 @@ fn one_level_more_is_e0008_not_a_stack_overflow() {
     for src in [
         instrument(&format!("{}key * 1 N/m", "- ".repeat(over))),
         instrument(&vec!["key * 1 N/m"; 20_000].join(" + ")),
-        instrument(&format!("{}key{} * 1 N/m", "max(key, ".repeat(over), ")".repeat(over))),
+        instrument(&format!(
+            "{}key{} * 1 N/m",
+            "max(key, ".repeat(over),
+            ")".repeat(over)
+        )),
     ] {
         assert_eq!(compile_small_stack(src), Err(vec!["E0008"]));
     }

@@ -23,10 +23,12 @@ mod common;
 
 fn main() {
     let mut args = std::env::args().skip(1);
-    let mode: usize = args
-        .next()
-        .map_or(1, |a| a.parse().expect("mode: 1 to 6"));
-    let cores = if mode == 2 || mode == 3 || mode == 6 { 2 } else { 1 };
+    let mode: usize = args.next().map_or(1, |a| a.parse().expect("mode: 1 to 6"));
+    let cores = if mode == 2 || mode == 3 || mode == 6 {
+        2
+    } else {
+        1
+    };
     let cycles: u64 = args
         .next()
         .map_or(5_000_000, |a| a.parse().expect("cycles"));

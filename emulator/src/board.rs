@@ -680,9 +680,9 @@ impl Board {
                     let blocks = &mut self.blocks;
                     let on_blocks = self.config.engine == Engine::Block;
                     let run = match (k == 0, watch[0] == NO_WATCH) {
-                        (true, true) if on_blocks => {
-                            blocks_beside_sleeper::<false>(c0, c1, sys, blocks, deadline, wake_check)
-                        }
+                        (true, true) if on_blocks => blocks_beside_sleeper::<false>(
+                            c0, c1, sys, blocks, deadline, wake_check,
+                        ),
                         (false, true) if on_blocks => {
                             blocks_beside_sleeper::<true>(c1, c0, sys, blocks, deadline, wake_check)
                         }
@@ -886,7 +886,10 @@ impl Board {
         let (sys, blocks) = (&mut self.system, &mut self.blocks);
         if !BOTH {
             let core = &mut self.cores[k];
-            return (k, block::run::<false, _>(core, sys, blocks, deadline[k], |_| {}));
+            return (
+                k,
+                block::run::<false, _>(core, sys, blocks, deadline[k], |_| {}),
+            );
         }
         let [c0, c1] = &mut self.cores;
         loop {

@@ -12,12 +12,12 @@
 //! tail is allocated: a `p_memsz` of 0xFFFFFFFF is an [`ElfError::Unmapped`], not a 4 GB
 //! allocation.
 
-use object::elf;
-use object::read::elf::{FileHeader, ProgramHeader};
-use object::{Object, ObjectSection, ObjectSymbol, SymbolKind};
 use crate::bus::{
     FLASH_BASE, FLASH_SIZE, ROM_BASE, ROM_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE,
 };
+use object::elf;
+use object::read::elf::{FileHeader, ProgramHeader};
+use object::{Object, ObjectSection, ObjectSymbol, SymbolKind};
 use std::fmt;
 
 /// The emulated memories a segment may be loaded into: (base, size in bytes) of ROM,
@@ -30,8 +30,7 @@ const REGIONS: [(u32, u32); 4] = [
 ];
 
 /// The bytes of every region together: the most all segments of one file may fill.
-const TOTAL_MEMORY: u64 =
-    ROM_SIZE as u64 + FLASH_SIZE as u64 + SRAM_SIZE as u64 + 0x4_0000;
+const TOTAL_MEMORY: u64 = ROM_SIZE as u64 + FLASH_SIZE as u64 + SRAM_SIZE as u64 + 0x4_0000;
 
 /// The memory region (base, size) that holds all of `size` bytes from `addr`, if one does;
 /// an empty range needs only its address inside a region.

@@ -138,7 +138,7 @@ fn program(rng: &mut Rng, sleepy: bool) -> Vec<u16> {
     code.push(0xe000 | ((back >> 1) as u16 & 0x7ff)); // b start
     let callee = code.len();
     code.extend([0x3001, 0x4770]); // adds r0, #1; bx lr
-    // Only BL placeholders have the 32-bit prefix 0b11110 in their first halfword.
+                                   // Only BL placeholders have the 32-bit prefix 0b11110 in their first halfword.
     for i in 0..callee {
         if code[i] == 0xf000 && code[i + 1] == 0xf800 {
             let imm = (((callee as i32 - i as i32) * 2 - 4) >> 1) as u32;
@@ -210,7 +210,8 @@ fn board(seed: u64, case: Case, engine: Engine) -> Board {
 fn state(b: &mut Board) -> String {
     let mut s = String::new();
     for c in &b.cores {
-        s += &format!(
+        s +=
+            &format!(
             "core {}: cycle {} instr {} r {:08x?} nzcv {}{}{}{} ipsr {} state {:?} fault {:?}\n",
             c.id, c.cycle, c.instructions, c.r, c.n as u8, c.z as u8, c.c as u8, c.v as u8,
             c.ipsr, c.state, c.fault
@@ -349,7 +350,10 @@ fn block_engine_matches_the_interpreter_on_key_updates() {
         block.read_bytes(DAC_BASE, &mut dac[0]).unwrap();
         interp.read_bytes(DAC_BASE, &mut dac[1]).unwrap();
         assert_eq!(dac[0], dac[1]);
-        assert!(dac[0].iter().any(|&x| x != 0), "the handlers wrote no force");
+        assert!(
+            dac[0].iter().any(|&x| x != 0),
+            "the handlers wrote no force"
+        );
         assert_eq!(sram(&mut block), sram(&mut interp));
         assert!(block.blocks_decoded() > 0);
         let handled: u64 = block.cores.iter().map(|c| c.instructions).sum();

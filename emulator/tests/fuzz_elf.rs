@@ -64,18 +64,43 @@ fn elf(segments: &[(u32, Vec<u8>, u32)]) -> Vec<u8> {
     h16(&mut f, 5);
     h16(&mut f, 4);
     for ((addr, bytes, extra), off) in segments.iter().zip(&offsets) {
-        for v in [1, *off, *addr, *addr, bytes.len() as u32, bytes.len() as u32 + extra, 7, 4] {
+        for v in [
+            1,
+            *off,
+            *addr,
+            *addr,
+            bytes.len() as u32,
+            bytes.len() as u32 + extra,
+            7,
+            4,
+        ] {
             h32(&mut f, v);
         }
     }
     f.extend(body);
-    let sh = |f: &mut Vec<u8>, name: u32, ty: u32, addr: u32, off: u32, size: u32, link: u32, entsize: u32| {
+    let sh = |f: &mut Vec<u8>,
+              name: u32,
+              ty: u32,
+              addr: u32,
+              off: u32,
+              size: u32,
+              link: u32,
+              entsize: u32| {
         for v in [name, ty, 0, addr, off, size, link, 0, 4, entsize] {
             f.extend(v.to_le_bytes());
         }
     };
     sh(&mut f, 0, 0, 0, 0, 0, 0, 0);
-    sh(&mut f, 1, 1, segments[0].0, offsets[0], segments[0].1.len() as u32, 0, 0);
+    sh(
+        &mut f,
+        1,
+        1,
+        segments[0].0,
+        offsets[0],
+        segments[0].1.len() as u32,
+        0,
+        0,
+    );
     sh(&mut f, 10, 2, 0, sym_off, symtab.len() as u32, 3, 16);
     sh(&mut f, 18, 3, 0, str_off, strtab.len() as u32, 0, 0);
     sh(&mut f, 26, 3, 0, shs_off, shstr.len() as u32, 0, 0);
@@ -90,12 +115,20 @@ fn seeds() -> Vec<Vec<u8>> {
         .collect();
     vec![
         elf(&[(0x2000_0000, code.clone(), 64)]),
-        elf(&[(0x1000_0000, code.clone(), 0), (0x2000_1000, vec![1, 2, 3, 4], 256)]),
+        elf(&[
+            (0x1000_0000, code.clone(), 0),
+            (0x2000_1000, vec![1, 2, 3, 4], 256),
+        ]),
         elf(&[(0x2100_0000, code, 16)]),
     ]
 }
 
-const TOKENS: &[&[u8]] = &[b"\xff\xff\xff\xff", b"\x01\x00\x00\x00", b"\x00\x00\x00\x20", b"\x00\x00\x00\x10"];
+const TOKENS: &[&[u8]] = &[
+    b"\xff\xff\xff\xff",
+    b"\x01\x00\x00\x00",
+    b"\x00\x00\x00\x20",
+    b"\x00\x00\x00\x10",
+];
 
 #[test]
 fn mutated_elf_files_load_or_give_errors() {

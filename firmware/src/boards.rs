@@ -173,7 +173,10 @@ pub fn partition(costs: &[u64], cores: usize) -> Vec<usize> {
         }
     }
     // The core-1 share closest to half from below (core 0 takes the larger share).
-    let best = (0..=total / 2).rev().find(|&s| reach[costs.len()][s]).unwrap_or(0);
+    let best = (0..=total / 2)
+        .rev()
+        .find(|&s| reach[costs.len()][s])
+        .unwrap_or(0);
     let mut core = vec![0; costs.len()];
     let mut s = best;
     for i in (0..costs.len()).rev() {
@@ -204,7 +207,10 @@ pub fn board_image(
     let mut cycles = Vec::with_capacity(keys.len());
     for k in keys {
         let width = *costs.slots.get(k.program).ok_or_else(|| {
-            BoardsError::BadKey(format!("key {}: program {} does not exist", k.key, k.program))
+            BoardsError::BadKey(format!(
+                "key {}: program {} does not exist",
+                k.key, k.program
+            ))
         })?;
         let local = match used.iter().position(|&p| p == k.program) {
             Some(i) => i,
@@ -234,10 +240,7 @@ pub fn board_image(
         s.core = c;
     }
     let local: Vec<Program> = used.iter().map(|&p| programs[p].clone()).collect();
-    Ok((
-        core,
-        FirmwareImage::build(&local, &specs, board, limiter),
-    ))
+    Ok((core, FirmwareImage::build(&local, &specs, board, limiter)))
 }
 
 /// The verdict of one board holding `keys`: its image's static bound per core.

@@ -240,10 +240,7 @@ fn run_board(
                 .map(|i| (p.thumb.out.outputs + i, fp.output_frac[i]))
         })
         .collect();
-    let motion: Vec<Option<&Motion>> = bkeys
-        .iter()
-        .map(|k| motions.get(&k.key).copied())
-        .collect();
+    let motion: Vec<Option<&Motion>> = bkeys.iter().map(|k| motions.get(&k.key).copied()).collect();
     let mut players: Vec<Option<ForcePlayer>> = motion
         .iter()
         .zip(&key_programs)
@@ -302,8 +299,7 @@ fn run_board(
         }
         for k in 0..n {
             let p = key_programs[k];
-            let force_n =
-                tactus_runtime::fixed::to_f64(out.force[k], programs[p].fixed.total_frac);
+            let force_n = tactus_runtime::fixed::to_f64(out.force[k], programs[p].fixed.total_frac);
             let push = match motion[k] {
                 Some(Motion::Finger(f)) => f.force(time),
                 _ => 0.0,

@@ -271,7 +271,16 @@ impl BudgetReport {
         let _ = writeln!(
             s,
             "{:<18} {:>5} {:>6} {:>8} {:>6} {:>9} {:>8} {:>9} {:>8} {:>9}",
-            "instrument", "keys", "params", "static", "glue", "measured", "mean", "static /", "corpus", "samples"
+            "instrument",
+            "keys",
+            "params",
+            "static",
+            "glue",
+            "measured",
+            "mean",
+            "static /",
+            "corpus",
+            "samples"
         );
         let _ = writeln!(
             s,
@@ -573,8 +582,8 @@ pub fn keyboard_budget(
         return Err(VerdictError(format!("{}: no keys", input.input)));
     }
     let programs: Vec<Program> = input.programs.iter().map(|p| p.program.clone()).collect();
-    let costs = ProgramCosts::new(&programs, board, &input.limiter)
-        .map_err(|e| bad(&input.input, &e))?;
+    let costs =
+        ProgramCosts::new(&programs, board, &input.limiter).map_err(|e| bad(&input.input, &e))?;
 
     // Static cost per program, then measurement: the costliest variant of each instrument
     // over the full (or quick) corpus, its other param sets over the brief one.

@@ -39,6 +39,7 @@ fn limiter(b: &Board) -> LimiterConfig {
 
 /// The fewest boards of any contiguous split of `keys` whose every board fits, by brute
 /// force over all 2^(n−1) splits (the fit of each range computed once).
+#[allow(clippy::needless_range_loop)] // `end` indexes the split, not one slice
 fn brute_force(programs: &[Program], costs: &ProgramCosts, keys: &[PlanKey], b: &Board) -> usize {
     let n = keys.len();
     let lim = limiter(b);
@@ -101,8 +102,8 @@ fn the_planner_needs_no_more_boards_than_brute_force() {
                     program,
                 });
             }
-            let plan = boards::plan(&programs, &costs, &keys, &b, &limiter(&b), &mut |_, _| {})
-                .unwrap();
+            let plan =
+                boards::plan(&programs, &costs, &keys, &b, &limiter(&b), &mut |_, _| {}).unwrap();
             let covered: Vec<u8> = plan.iter().flat_map(|p| p.keys.clone()).collect();
             assert_eq!(covered, keys.iter().map(|k| k.key).collect::<Vec<_>>());
             assert!(plan.iter().all(|p| p.fits()), "{plan:?}");
@@ -130,7 +131,10 @@ fn boards_run_bit_exact(layout: &str, samples: usize) {
     let keys: Vec<PlanKey> = assigned
         .iter()
         .zip(&index)
-        .map(|(a, &program)| PlanKey { key: a.key, program })
+        .map(|(a, &program)| PlanKey {
+            key: a.key,
+            program,
+        })
         .collect();
     let plan = boards::plan(&programs, &costs, &keys, &b, &lim, &mut |_, _| {}).unwrap();
     assert!(plan.iter().all(|p| p.fits()), "{layout}: {plan:?}");
@@ -184,15 +188,14 @@ fn boards_run_bit_exact(layout: &str, samples: usize) {
             }
         }
         let last = run.step(&sensor).unwrap();
-        for c in 0..image.cores() {
+        for (c, &w) in worst.iter().enumerate() {
             let bound = image.wcet(c).unwrap().bound();
             assert_eq!(last.misses[c], 0, "{layout} board {bi} core {c}");
             assert!(
-                worst[c] <= bound,
-                "{layout} board {bi} core {c}: measured {} > static {bound}",
-                worst[c]
+                w <= bound,
+                "{layout} board {bi} core {c}: measured {w} > static {bound}"
             );
-            worst_use = worst_use.max(worst[c] as f64 / image.cycles_per_sample() as f64);
+            worst_use = worst_use.max(w as f64 / image.cycles_per_sample() as f64);
         }
     }
     println!(

@@ -618,8 +618,8 @@ fn static_wcet_does_not_regress() {
     let mut worse = Vec::new();
     for (name, text) in thumb_instruments() {
         let (_fp, obj) = compile(&text);
-        let cost = tactus_firmware::budget::static_update(&obj)
-            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let cost =
+            tactus_firmware::budget::static_update(&obj).unwrap_or_else(|e| panic!("{name}: {e}"));
         let before = STATIC_BEFORE.iter().find(|(n, _)| *n == name).map(|x| x.1);
         println!(
             "{name:<16} static {:>6} cycles (before issue 16: {})",

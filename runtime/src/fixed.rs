@@ -428,7 +428,14 @@ mod tests {
     /// The thresholds decide every word as `cmp_const` does (checked around them).
     #[test]
     fn cmp_const_thresholds_split_the_grid() {
-        for &(fx, c) in &[(20, 0.3), (37, 0.0094), (-3, 1e12), (30, -1.5), (10, f64::NAN), (5, 1e-30)] {
+        for &(fx, c) in &[
+            (20, 0.3),
+            (37, 0.0094),
+            (-3, 1e12),
+            (30, -1.5),
+            (10, f64::NAN),
+            (5, 1e-30),
+        ] {
             let (ge, gt) = cmp_const_thresholds(fx, c);
             for w in [ge - 2, ge - 1, ge, ge + 1, gt - 1, gt, gt + 1] {
                 if w < i32::MIN as i64 || w > i32::MAX as i64 {
@@ -458,7 +465,10 @@ mod tests {
                 continue;
             }
             let bound = 2.0 + 2f64.powi(32 - k as i32);
-            assert!((p as f64 - exact).abs() <= bound, "{x} {y} {k}: {p} vs {exact}");
+            assert!(
+                (p as f64 - exact).abs() <= bound,
+                "{x} {y} {k}: {p} vs {exact}"
+            );
         }
         assert_eq!(mul_high(1 << 20, 10, 3 << 20, 10, 32, 0), (3 << 20, false));
     }
@@ -485,7 +495,8 @@ mod tests {
             }
             let exact = to_f64(x, 20) / to_f64(y, 28);
             let err = (to_f64(q, 30) - exact).abs();
-            let bound = exact.abs() * 2f64.powi(b as i32) / (y.unsigned_abs() as f64 - 2f64.powi(b as i32))
+            let bound = exact.abs() * 2f64.powi(b as i32)
+                / (y.unsigned_abs() as f64 - 2f64.powi(b as i32))
                 + 2f64.powi(-30);
             assert!(err <= bound * (1.0 + 1e-12), "{x} {y} {b}: {err} > {bound}");
         }

@@ -484,9 +484,8 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
     }
 
     fn layout_with(boards: &str) -> Result<Option<Vec<Vec<u8>>>, String> {
-        let text = format!(
-            "name = \"x\"\n[[range]]\nkeys = [60, 63]\ninstrument = \"hammond\"\n{boards}"
-        );
+        let text =
+            format!("name = \"x\"\n[[range]]\nkeys = [60, 63]\ninstrument = \"hammond\"\n{boards}");
         let l = parse_layout(&text, "l.toml")?;
         let keys = assign(&l, "l.toml", Path::new("."))?;
         board_keys(&l, "l.toml", &keys)
@@ -500,13 +499,19 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
             layout_with(two).unwrap(),
             Some(vec![vec![60, 61], vec![62, 63]])
         );
-        let e = layout_with("[[board]]\nkeys = [60, 62]\n[[board]]\nkeys = [62, 63]\n")
-            .unwrap_err();
-        assert!(e.contains("l.toml") && e.contains("overlap") && e.contains("key 62"), "{e}");
+        let e =
+            layout_with("[[board]]\nkeys = [60, 62]\n[[board]]\nkeys = [62, 63]\n").unwrap_err();
+        assert!(
+            e.contains("l.toml") && e.contains("overlap") && e.contains("key 62"),
+            "{e}"
+        );
         let e = layout_with("[[board]]\nkeys = [60, 62]\n").unwrap_err();
-        assert!(e.contains("l.toml") && e.contains("key 63") && e.contains("no board"), "{e}");
-        let e = layout_with("[[board]]\nkeys = [60, 63]\n[[board]]\nkeys = [70, 72]\n")
-            .unwrap_err();
+        assert!(
+            e.contains("l.toml") && e.contains("key 63") && e.contains("no board"),
+            "{e}"
+        );
+        let e =
+            layout_with("[[board]]\nkeys = [60, 63]\n[[board]]\nkeys = [70, 72]\n").unwrap_err();
         assert!(e.contains("board 2") && e.contains("no key"), "{e}");
         let e = layout_with("[[board]]\nkeys = [63, 60]\n").unwrap_err();
         assert!(e.contains("board 1") && e.contains("first ≤ last"), "{e}");
@@ -528,7 +533,10 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
         )
         .unwrap();
         let e = assign(&l, "missing.toml", Path::new(".")).unwrap_err();
-        assert!(e.contains("missing.toml") && e.contains("no such file"), "{e}");
+        assert!(
+            e.contains("missing.toml") && e.contains("no such file"),
+            "{e}"
+        );
     }
 
     #[test]

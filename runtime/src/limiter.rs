@@ -241,7 +241,8 @@ impl Limiter {
                 c.recovery
             ));
         }
-        let code = |amps: f64| ((amps / c.dac_full_scale_a * 32767.0).round() as i64).min(32767) as i32;
+        let code =
+            |amps: f64| ((amps / c.dac_full_scale_a * 32767.0).round() as i64).min(32767) as i32;
         let peak_code = code(c.peak_a);
         let rated_code = code(c.rated_a).min(peak_code);
         if rated_code < 1 {
@@ -445,7 +446,10 @@ mod tests {
                 let exact = f64::from(w) * 2f64.powi(-frac) * c.codes_per_newton;
                 let (code, sat) = s.code(w);
                 assert!(!sat, "{frac}: {n} N saturated");
-                assert!((f64::from(code) - exact).abs() < 3.0, "{frac}: {n} N → {code}, exact {exact}");
+                assert!(
+                    (f64::from(code) - exact).abs() < 3.0,
+                    "{frac}: {n} N → {code}, exact {exact}"
+                );
             }
             let (hi, sat) = s.code(i32::MAX);
             assert!(sat && hi >= c.peak_code, "{frac}: {hi}");

@@ -146,7 +146,8 @@ pub fn parse_midi(bytes: &[u8], name: &str) -> Result<Performance, MidiError> {
 /// the warnings of a repaired read, or the error.
 fn check_chunks(bytes: &[u8], name: &str) -> Result<Vec<String>, MidiError> {
     let bad = |m: String| MidiError::Parse(name.to_string(), m);
-    let be32 = |at: usize| u32::from_be_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    let be32 =
+        |at: usize| u32::from_be_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
     let be16 = |at: usize| u16::from_be_bytes([bytes[at], bytes[at + 1]]);
     if bytes.len() < 14 || &bytes[..4] != b"MThd" {
         // Not a bare SMF (a RIFF RMID wrapper, or not MIDI): midly decides.
@@ -171,7 +172,9 @@ fn check_chunks(bytes: &[u8], name: &str) -> Result<Vec<String>, MidiError> {
     }
     if division & 0x8000 == 0 {
         if division == 0 {
-            return Err(bad("the header's division is 0 ticks per quarter note".into()));
+            return Err(bad(
+                "the header's division is 0 ticks per quarter note".into()
+            ));
         }
     } else {
         let fps = -i32::from((division >> 8) as u8 as i8);

@@ -16,7 +16,17 @@ use tactus_runtime::rng::XorShift64;
 /// Edge words, then random ones.
 fn words(n: usize, seed: u64) -> Vec<i32> {
     let mut rng = XorShift64::new(seed);
-    let mut v = vec![0, 1, -1, i32::MAX, i32::MIN, i32::MAX - 1, i32::MIN + 1, 1 << 15, -(1 << 15)];
+    let mut v = vec![
+        0,
+        1,
+        -1,
+        i32::MAX,
+        i32::MIN,
+        i32::MAX - 1,
+        i32::MIN + 1,
+        1 << 15,
+        -(1 << 15),
+    ];
     v.extend((0..n).map(|_| rng.next_u64() as i32));
     // Small magnitudes too (products and sums that do not saturate).
     v.extend((0..n).map(|_| (rng.next_u64() as i32) >> (rng.below(24) + 1)));
@@ -29,8 +39,16 @@ fn addition_subtraction_negation_in_one_format() {
     for pair in w.chunks(2) {
         let [x, y] = [pair[0], pair.get(1).copied().unwrap_or(7)];
         let (a, b) = (I16F16::from_bits(x), I16F16::from_bits(y));
-        assert_eq!(ours::add(x, 16, y, 16, 16).0, a.saturating_add(b).to_bits(), "{x} + {y}");
-        assert_eq!(ours::sub(x, 16, y, 16, 16).0, a.saturating_sub(b).to_bits(), "{x} - {y}");
+        assert_eq!(
+            ours::add(x, 16, y, 16, 16).0,
+            a.saturating_add(b).to_bits(),
+            "{x} + {y}"
+        );
+        assert_eq!(
+            ours::sub(x, 16, y, 16, 16).0,
+            a.saturating_sub(b).to_bits(),
+            "{x} - {y}"
+        );
         assert_eq!(ours::neg(x, 16, 16).0, a.saturating_neg().to_bits(), "-{x}");
         assert_eq!(ours::cmp(x, 16, y, 16), a.cmp(&b), "{x} <> {y}");
     }

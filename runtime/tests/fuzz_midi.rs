@@ -8,8 +8,8 @@
 #[path = "../../tests/common/fuzz.rs"]
 mod fuzz;
 
-use proptest::test_runner::{Config as PtConfig, TestCaseError, TestRunner};
 use proptest::prop_assert;
+use proptest::test_runner::{Config as PtConfig, TestCaseError, TestRunner};
 use std::cell::Cell;
 use std::path::Path;
 use std::time::Duration;
@@ -58,7 +58,10 @@ fn demo_smf(format: u16) -> Vec<u8> {
     let tracks: Vec<Vec<u8>> = if format == 0 {
         vec![track(&ev)]
     } else {
-        vec![track(&[(0, vec![0xFF, 0x51, 3, 0x07, 0xA1, 0x20])]), track(&ev)]
+        vec![
+            track(&[(0, vec![0xFF, 0x51, 3, 0x07, 0xA1, 0x20])]),
+            track(&ev),
+        ]
     };
     let mut f = b"MThd\0\0\0\x06".to_vec();
     f.extend(format.to_be_bytes());
@@ -76,17 +79,33 @@ fn seeds() -> Vec<Vec<u8>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     for i in 1..=3 {
         let found = ["../../shared", "../../../shared"].iter().find_map(|d| {
-            std::fs::read(root.join(d).join(format!("data/performances/Maestro_{i}.mid"))).ok()
+            std::fs::read(
+                root.join(d)
+                    .join(format!("data/performances/Maestro_{i}.mid")),
+            )
+            .ok()
         });
         s.extend(found);
     }
-    eprintln!("fuzz_midi: {} seeds ({} MAESTRO files)", s.len(), s.len() - 2);
+    eprintln!(
+        "fuzz_midi: {} seeds ({} MAESTRO files)",
+        s.len(),
+        s.len() - 2
+    );
     s
 }
 
 const TOKENS: &[&[u8]] = &[
-    b"MTrk", b"MThd", b"\x90\x3c\x64", b"\x80\x3c\x00", b"\xff\x51\x03\x00\x00\x01",
-    b"\xff\x2f\x00", b"\x8f\xff\xff\x7f", b"\xb0\x40\x7f", b"\xf0\x7f", b"\x00\x02",
+    b"MTrk",
+    b"MThd",
+    b"\x90\x3c\x64",
+    b"\x80\x3c\x00",
+    b"\xff\x51\x03\x00\x00\x01",
+    b"\xff\x2f\x00",
+    b"\x8f\xff\xff\x7f",
+    b"\xb0\x40\x7f",
+    b"\xf0\x7f",
+    b"\x00\x02",
 ];
 
 #[test]

@@ -88,7 +88,16 @@ pub enum Edit {
 }
 
 /// Extreme words that sizes, counts and offsets meet.
-const WORDS: [u32; 8] = [0, 1, 0x7FFF_FFFF, 0x8000_0000, 0xFFFF_FFFF, 0xFFFF, 0x1000_0000, 0x0FFF_FFFF];
+const WORDS: [u32; 8] = [
+    0,
+    1,
+    0x7FFF_FFFF,
+    0x8000_0000,
+    0xFFFF_FFFF,
+    0xFFFF,
+    0x1000_0000,
+    0x0FFF_FFFF,
+];
 
 /// A strategy of edit lists; `tokens` are byte strings worth inserting (keywords, numbers).
 pub fn edits(tokens: &'static [&'static [u8]]) -> impl Strategy<Value = Vec<Edit>> {
@@ -150,14 +159,21 @@ pub fn apply(seed: &[u8], edits: &[Edit]) -> Vec<u8> {
             Edit::Word(p, w, be) => {
                 if v.len() >= 4 {
                     let s = p % (v.len() - 3);
-                    let b = if *be { w.to_be_bytes() } else { w.to_le_bytes() };
+                    let b = if *be {
+                        w.to_be_bytes()
+                    } else {
+                        w.to_le_bytes()
+                    };
                     v[s..s + 4].copy_from_slice(&b);
                 }
             }
             Edit::Truncate(p) => v.truncate(p % n),
             Edit::InsertLine(p, bytes) => {
                 let at = (p % n).min(v.len());
-                let s = v[..at].iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+                let s = v[..at]
+                    .iter()
+                    .rposition(|&b| b == b'\n')
+                    .map_or(0, |i| i + 1);
                 v.splice(s..s, bytes.iter().copied());
             }
             Edit::Number(p, digits) => {

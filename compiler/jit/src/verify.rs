@@ -17,7 +17,9 @@ impl From<VerifyError> for JitError {
             VerifyError::UndefinedValue { value } => JitError::UndefinedValue { value },
             VerifyError::Redefined { value } => JitError::Redefined { value },
             VerifyError::BadIndex { kind, index, len } => JitError::BadIndex { kind, index, len },
-            VerifyError::BadRange { kind, name, lo, hi } => JitError::BadRange { kind, name, lo, hi },
+            VerifyError::BadRange { kind, name, lo, hi } => {
+                JitError::BadRange { kind, name, lo, hi }
+            }
         }
     }
 }

@@ -941,7 +941,9 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
                         // The divisor's word is not read: keep it used for the C compiler.
                         format!("((void){}, {})", name(y), prod)
                     }
-                    (None, _) => prim::div(&name(x), f(x), &name(y), f(y), fp.div_shift[v.index()], fr),
+                    (None, _) => {
+                        prim::div(&name(x), f(x), &name(y), f(y), fp.div_shift[v.index()], fr)
+                    }
                 },
             },
             Op::Cmp(o, x, y) => match (fp.exact_const(*x), fp.exact_const(*y)) {

@@ -253,7 +253,10 @@ pub fn mul(x: &str, fx: i32, y: &str, fy: i32, fr: i32, shifts: Option<(u8, u8)>
 /// [`fx::mul_high`]: tactus_runtime::fixed::mul_high
 pub fn mul_high(x: &str, fx: i32, y: &str, fy: i32, k: u8, fr: i32) -> String {
     let k = k.clamp(16, 32);
-    round_expr(&format!("tx_mul_high({x}, {y}, {k})"), fr - (fx + fy - k as i32))
+    round_expr(
+        &format!("tx_mul_high({x}, {y}, {k})"),
+        fr - (fx + fy - k as i32),
+    )
 }
 
 /// The derivative of a sensor: the exact raw difference `d` (an `int64_t` expression with

@@ -120,7 +120,9 @@ pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> Co
         let oa = a.step(&[fx::to_f64(raw, fp.sensor_frac[0])]).clone();
         let ob = b.step_raw(&[raw]).to_si(fp);
         out.samples += 1;
-        out.max_force_lsb = out.max_force_lsb.max((oa.total - ob.total).abs() / dac_lsb_n);
+        out.max_force_lsb = out
+            .max_force_lsb
+            .max((oa.total - ob.total).abs() / dac_lsb_n);
         ev_a.extend(oa.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
         ev_b.extend(ob.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
         let outside = b.states().iter().enumerate().any(|(i, &w)| {

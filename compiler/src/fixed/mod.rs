@@ -10,10 +10,10 @@
 //! format and saturated. Because the formats hold the analysed intervals, saturation can fire
 //! only where the analysis had to clamp an unbounded value, and those places are warned about.
 
-pub mod interp;
-pub mod range;
 pub mod contract;
 pub mod flow;
+pub mod interp;
+pub mod range;
 pub mod report;
 
 use crate::diagnostics::Diagnostic;
@@ -103,7 +103,8 @@ fn plan_div_shift(fy: i32, ry: Interval, fr: i32, rv: Interval, tolerance: f64) 
         .min(lmax - DIV_MIN_DIVISOR_BITS)
         .clamp(0, 30);
     let q = rv.mag() * 2f64.powi(fr);
-    while b > 0 && (q * (1.0 + 2f64.powi(b + 1) / ymin) + 2.0 >= 2147483648.0 || ymin < 4.0 * 2f64.powi(b))
+    while b > 0
+        && (q * (1.0 + 2f64.powi(b + 1) / ymin) + 2.0 >= 2147483648.0 || ymin < 4.0 * 2f64.powi(b))
     {
         b -= 1;
     }
@@ -462,8 +463,7 @@ impl FixedProgram {
             let (x, y, c) = match vd.op {
                 Op::Arith(ArithOp::Div, _, y) if !is_const(y) => {
                     if matches!(program.values[y.index()].ty, Ty::Real(_)) {
-                        div_shift[i] =
-                            plan_div_shift(
+                        div_shift[i] = plan_div_shift(
                             frac[y.index()],
                             ranges.values[y.index()],
                             frac[i],
@@ -610,7 +610,11 @@ impl FixedProgram {
     /// range. Products are tried in program order; each one kept spends part of the budget.
     /// Large programs (over [`SEQUENTIAL_BUDGET_WORK`]) try them in groups instead, with at
     /// most [`MAX_GROUP_ANALYSES`] analyses: whole groups kept, the others left exact.
-    fn spend_precision_budget(&mut self, planned: &[(usize, MulOperands, bool)], config: &PlanConfig) {
+    fn spend_precision_budget(
+        &mut self,
+        planned: &[(usize, MulOperands, bool)],
+        config: &PlanConfig,
+    ) {
         let not_muls = |k: Option<MulKind>| !matches!(k, Some(MulKind::Muls(..)));
         if !planned.iter().any(|(i, _, _)| not_muls(self.mul_kind[*i])) {
             return;
@@ -651,9 +655,8 @@ impl FixedProgram {
         // up sample after sample (three of the piano's hammer-velocity products moved a
         // slow dip's force by 48 DAC LSB with a 2× growth allowed), so it may not grow an
         // integrated state's one-sample bound at all.
-        let within_high = |pr: &report::Precision| {
-            within_growth(pr, config.accumulating_growth.min(1.0 + 1e-9))
-        };
+        let within_high =
+            |pr: &report::Precision| within_growth(pr, config.accumulating_growth.min(1.0 + 1e-9));
         // (product, its MULS plan, its plan within the tolerance to fall back to).
         let candidates: Vec<(usize, MulKind, MulKind)> = planned
             .iter()

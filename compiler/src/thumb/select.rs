@@ -701,7 +701,11 @@ impl<'a> Sel<'a> {
                 self.push(M::Uxth { d: xl, m: x.v });
                 let xh = self.sh(Shift::Asr, x.v, 16);
                 let (yh, yl, yb) = match y {
-                    Operand::Const(c) => (self.movi(c >> 16), self.movi(c & 0xffff), c.unsigned_abs() as u64),
+                    Operand::Const(c) => (
+                        self.movi(c >> 16),
+                        self.movi(c & 0xffff),
+                        c.unsigned_abs() as u64,
+                    ),
                     Operand::Word(w) => {
                         let yl = self.nv();
                         self.push(M::Uxth { d: yl, m: w.v });
@@ -726,7 +730,13 @@ impl<'a> Sel<'a> {
                 if pb >= LIM {
                     self.unsupported("a high-word product whose partial sum may not fit 32 bits");
                 }
-                self.round(W { v: p, b: pb.min(LIM) }, fr - (fx_ + fy - k))
+                self.round(
+                    W {
+                        v: p,
+                        b: pb.min(LIM),
+                    },
+                    fr - (fx_ + fy - k),
+                )
             }
             MulKind::Wide => {
                 let yv = match y {
@@ -1497,7 +1507,8 @@ impl<'a> Sel<'a> {
                         // `2^(b+1) / min |y|` relatively (the planner keeps it below 2^31).
                         let ymin = (iv.lo * scale).abs().min((iv.hi * scale).abs());
                         let grow = (rb as f64 * 2f64.powi(sh as i32 + 1) / ymin).ceil() + 1.0;
-                        let rb2 = rb.saturating_add(if grow.is_finite() { grow as u64 } else { LIM });
+                        let rb2 =
+                            rb.saturating_add(if grow.is_finite() { grow as u64 } else { LIM });
                         if !shifted || rb2 >= LIM {
                             return Err(ThumbError::Unsupported(
                                 "a division whose shifted divisor may be 0 or whose quotient may not fit"
@@ -1614,7 +1625,7 @@ impl<'a> Sel<'a> {
     /// [`fx::div`]: tactus_runtime::fixed::div
     fn div(&mut self, x: W, y: W, k: i32, rb: u64) -> Result<W, ThumbError> {
         let nb = (64 - rb.leading_zeros()) as i32; // quotient bits
-        // The divisor's bound once scaled for k < 0.
+                                                   // The divisor's bound once scaled for k < 0.
         let d_bound = if k >= 0 { y.b } else { shl_bound(y.b, -k) };
         if (k >= 0 || -k <= 31) && d_bound < LIM {
             let (steps, _) = crate::fixed::division_cycles(nb, crate::fixed::bits_of(d_bound));
@@ -1746,7 +1757,7 @@ impl<'a> Sel<'a> {
         };
         let s = 32 - crate::fixed::bits_of(d_bound);
         let low = (steps as i32 - 1) * s; // dividend bits below the first step's
-        // First dividend: |x|·2^k >> low.
+                                          // First dividend: |x|·2^k >> low.
         let e = k - low;
         let first = if e == 0 {
             ax

@@ -55,10 +55,10 @@ pub fn key_updates(engine: Engine, cores: usize, keys: u16, period: u32) -> Boar
         let first = keys as u32 * core as u32;
         let state = 0x2002_0000 + 0x800 * core as u32;
         let mut h: Vec<u16> = vec![
-            0xb5f0, // push {r4-r7, lr}
-            0x4c00, // ldr r4, =sensors   (offsets patched below)
-            0x4d00, // ldr r5, =dac
-            0x4e00, // ldr r6, =state
+            0xb5f0,        // push {r4-r7, lr}
+            0x4c00,        // ldr r4, =sensors   (offsets patched below)
+            0x4d00,        // ldr r5, =dac
+            0x4e00,        // ldr r6, =state
             0x2700 | keys, // movs r7, #keys
         ];
         let top = h.len();
@@ -94,11 +94,7 @@ pub fn key_updates(engine: Engine, cores: usize, keys: u16, period: u32) -> Boar
             h.push(0xbf00);
         }
         let pool = h.len(); // in halfwords, word-aligned
-        let literals = [
-            SENSOR_BASE + 4 * first,
-            DAC_BASE + 4 * first,
-            state,
-        ];
+        let literals = [SENSOR_BASE + 4 * first, DAC_BASE + 4 * first, state];
         for (i, reg_load) in [1usize, 2, 3].into_iter().enumerate() {
             let pc = handler + 2 * reg_load as u32;
             let lit = handler + 2 * pool as u32 + 4 * i as u32;

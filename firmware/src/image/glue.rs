@@ -66,7 +66,7 @@ fn mov_hi(rd: u8, rm: u8) -> Instr {
 
 /// `rt = [r4 + off]`: one `LDR` within its immediate's reach, else through `rt` as index.
 fn ldr_rec(a: &mut Asm, rt: u8, off: u32) {
-    if off <= 124 && off % 4 == 0 {
+    if off <= 124 && off.is_multiple_of(4) {
         a.i(asm::ldr(rt, 4, off as u16));
     } else {
         a.mov_const(rt, off);
@@ -117,7 +117,7 @@ pub fn limiter_inline(
 ) -> Result<(), ImageError> {
     use AluOp::*;
     check_constants(c)?;
-    if !(4..=7).contains(&base) || budget_off > 124 || budget_off % 4 != 0 {
+    if !(4..=7).contains(&base) || budget_off > 124 || !budget_off.is_multiple_of(4) {
         return Err(ImageError::Limiter(format!(
             "budget word at r{base} + {budget_off}: needs r4-r7 and an offset ≤ 124"
         )));
@@ -146,7 +146,10 @@ pub fn limiter_inline(
         a.i(asm::lsrs(0, 0, s.post_shift as u8));
     }
     a.i(asm::ldr(1, base, budget_off));
-    a.i(Instr::CmpHi { rn: 0, rm: hi::RATED });
+    a.i(Instr::CmpHi {
+        rn: 0,
+        rm: hi::RATED,
+    });
     a.bc(cond::GT, above);
     // At or below rated: earn one unit, up to the full budget.
     a.i(asm::adds_imm(1, 1, 1));
@@ -175,7 +178,10 @@ pub fn limiter_inline(
     a.i(asm::cmp_imm(1, rec));
     a.bc(cond::LT, spent);
     a.i(asm::subs_imm(1, 1, rec));
-    a.i(Instr::CmpHi { rn: 0, rm: hi::PEAK });
+    a.i(Instr::CmpHi {
+        rn: 0,
+        rm: hi::PEAK,
+    });
     a.bc(cond::LE, apply);
     a.i(mov_hi(0, hi::PEAK));
     a.bind(apply);
@@ -394,7 +400,7 @@ pub fn core_code(
     a.i(asm::movs(1, 1 << core));
     apb_here(a);
     a.i(asm::str(1, 0, reg::INTR as u16)); // acknowledge the alarm
-    // Next tick: target += q (+1 when the remainder accumulator overflows).
+                                           // Next tick: target += q (+1 when the remainder accumulator overflows).
     a.i(asm::ldr(1, 5, ctrl::TARGET));
     a.i(asm::ldr(2, 5, ctrl::ACC));
     a.mov_const(3, tick.q);

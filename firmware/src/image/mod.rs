@@ -409,9 +409,7 @@ pub fn limiter_routine(
     let consts = Limiter::new(limiter)
         .map_err(ImageError::Limiter)?
         .constants();
-    let scale = consts
-        .dac_scale(force_frac)
-        .map_err(ImageError::Limiter)?;
+    let scale = consts.dac_scale(force_frac).map_err(ImageError::Limiter)?;
     let mut a = Asm::new();
     let entry = a.label();
     glue::limiter_function(&mut a, entry, &consts, &scale)?;
@@ -607,9 +605,9 @@ impl FirmwareImage {
                 return bad(format!("core {} but the board has {cores}", k.core));
             }
             for d in &drives {
-                consts.dac_scale(d.frac).map_err(|e| {
-                    ImageError::Limiter(format!("program `{}`: {e}", p.thumb.stem))
-                })?;
+                consts
+                    .dac_scale(d.frac)
+                    .map_err(|e| ImageError::Limiter(format!("program `{}`: {e}", p.thumb.stem)))?;
             }
             key_drives.push(drives);
         }
