@@ -9,7 +9,7 @@
 mod fuzz;
 
 use proptest::prop_assert;
-use proptest::test_runner::{Config as PtConfig, TestCaseError, TestRunner};
+use proptest::test_runner::TestCaseError;
 use std::cell::Cell;
 use std::path::Path;
 use std::time::Duration;
@@ -62,12 +62,7 @@ fn mutated_stimulus_files_read_or_give_errors() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("stim.csv");
     let seeds = seeds();
-    let cases = fuzz::cases(1500);
-    let mut runner = TestRunner::new(PtConfig {
-        cases,
-        failure_persistence: None,
-        ..PtConfig::default()
-    });
+    let (mut runner, cases) = fuzz::runner(1500);
     let (run, read) = (Cell::new(0u32), Cell::new(0u32));
     runner
         .run(

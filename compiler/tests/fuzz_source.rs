@@ -8,7 +8,7 @@
 mod fuzz;
 
 use proptest::prelude::*;
-use proptest::test_runner::{Config as PtConfig, TestCaseError, TestRunner};
+use proptest::test_runner::TestCaseError;
 use std::cell::Cell;
 use std::path::Path;
 use std::time::Duration;
@@ -104,12 +104,7 @@ fn seeds() -> Vec<Vec<u8>> {
 #[test]
 fn mutated_sources_compile_or_give_diagnostics() {
     let seeds = seeds();
-    let cases = fuzz::cases(2000);
-    let mut runner = TestRunner::new(PtConfig {
-        cases,
-        failure_persistence: None,
-        ..PtConfig::default()
-    });
+    let (mut runner, cases) = fuzz::runner(2000);
     // Half the cases edit bytes (mostly syntax errors), half keep lines whole (mostly
     // programs that get through parsing into expansion, lowering and the interpreter).
     let instruments = seeds.len() - error_cases();

@@ -9,7 +9,7 @@
 mod fuzz;
 
 use proptest::prop_assert;
-use proptest::test_runner::{Config as PtConfig, TestCaseError, TestRunner};
+use proptest::test_runner::TestCaseError;
 use std::cell::Cell;
 use std::time::Duration;
 use tactus_emulator::{Board, Config};
@@ -137,12 +137,7 @@ fn mutated_elf_files_load_or_give_errors() {
         let mut b = Board::new(Config::default());
         b.load_elf(s).unwrap();
     }
-    let cases = fuzz::cases(3000);
-    let mut runner = TestRunner::new(PtConfig {
-        cases,
-        failure_persistence: None,
-        ..PtConfig::default()
-    });
+    let (mut runner, cases) = fuzz::runner(3000);
     let (run, loaded) = (Cell::new(0u32), Cell::new(0u32));
     runner
         .run(&(0..seeds.len(), fuzz::edits(TOKENS)), |(seed, edits)| {

@@ -9,7 +9,7 @@
 mod fuzz;
 
 use proptest::prop_assert;
-use proptest::test_runner::{Config as PtConfig, TestCaseError, TestRunner};
+use proptest::test_runner::TestCaseError;
 use std::cell::Cell;
 use std::path::Path;
 use std::time::Duration;
@@ -115,12 +115,7 @@ fn mutated_midi_files_parse_or_give_errors() {
         let (p, w) = parse_midi_reporting(s, "seed.mid").unwrap();
         assert!(!p.notes.is_empty() && w.is_empty(), "{w:?}");
     }
-    let cases = fuzz::cases(3000);
-    let mut runner = TestRunner::new(PtConfig {
-        cases,
-        failure_persistence: None,
-        ..PtConfig::default()
-    });
+    let (mut runner, cases) = fuzz::runner(3000);
     let (run, read) = (Cell::new(0u32), Cell::new(0u32));
     runner
         .run(&(0..seeds.len(), fuzz::edits(TOKENS)), |(seed, edits)| {

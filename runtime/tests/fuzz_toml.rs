@@ -9,7 +9,7 @@
 mod fuzz;
 
 use proptest::prop_assert;
-use proptest::test_runner::{Config as PtConfig, TestCaseError, TestRunner};
+use proptest::test_runner::TestCaseError;
 use std::cell::Cell;
 use std::path::Path;
 use std::time::Duration;
@@ -58,12 +58,7 @@ const TOKENS: &[&[u8]] = &[
 fn mutated_layouts_and_boards_parse_or_give_errors() {
     let seeds = seeds();
     assert!(seeds.len() >= 5);
-    let cases = fuzz::cases(3000);
-    let mut runner = TestRunner::new(PtConfig {
-        cases,
-        failure_persistence: None,
-        ..PtConfig::default()
-    });
+    let (mut runner, cases) = fuzz::runner(3000);
     let (run, read) = (Cell::new(0u32), Cell::new(0u32));
     runner
         .run(&(0..seeds.len(), fuzz::edits(TOKENS)), |(seed, edits)| {

@@ -1,6 +1,6 @@
-//! Shared by the fuzz harnesses (`compiler/tests/fuzz_*.rs`, `runtime/tests/fuzz_midi.rs`,
+//! Shared by the fuzz harnesses (`compiler/tests/fuzz_*.rs`, `runtime/tests/fuzz_{midi,toml}.rs`,
 //! `emulator/tests/fuzz_elf.rs`): byte-level mutations of seed files, the case count, and
-//! a counting global allocator, so each case can assert bounded time and bounded memory.
+//! the runner, a counting global allocator, so each case can assert bounded time and bounded memory.
 //!
 //! Included with `#[path = …] mod fuzz;` by each harness, which is then the only test in
 //! its binary (the peak counter is global). `TACTUS_FUZZ_CASES=100000` runs that many
@@ -52,6 +52,18 @@ pub fn cases(ci: u32) -> u32 {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(ci)
+}
+
+/// A proptest runner for `cases(ci)` cases, with no failure persistence (a failing case is
+/// printed; the seeds are the project's files), and that case count.
+pub fn runner(ci: u32) -> (proptest::test_runner::TestRunner, u32) {
+    let cases = cases(ci);
+    let config = proptest::test_runner::Config {
+        cases,
+        failure_persistence: None,
+        ..proptest::test_runner::Config::default()
+    };
+    (proptest::test_runner::TestRunner::new(config), cases)
 }
 
 /// Runs `f`, returning its result, its wall time and the peak of live heap bytes above
