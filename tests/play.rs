@@ -324,6 +324,64 @@ fn the_force_player_on_the_emulated_board_strikes_like_the_fixed_point_jit() {
     assert!(te.iter().any(|r| r[5] != 0.0 && r[6] != 0.0));
 }
 
+/// The hammer a piano key's firmware publishes (its `hammer_pos` out word, read from the
+/// emulated board) traces bit for bit as the fixed-point JIT's, with the travel and the force,
+/// after the JIT's first sample of the key (its instance starts there, fresh; the firmware's
+/// key has been at rest since sample 0, so their first forces may differ).
+#[test]
+fn the_emulated_piano_traces_the_hammer_like_the_fixed_point_jit() {
+    let dir = temp_dir("play-emu-hammer");
+    let layout = dir.join("two.toml");
+    std::fs::write(
+        &layout,
+        "name = \"two\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"grand_piano\"\n",
+    )
+    .unwrap();
+    let trace = |engine: &str| {
+        let out = tactus()
+            .args([
+                "play",
+                "--no-wav",
+                "--seconds",
+                "1",
+                "--board",
+                "rp2040_200mhz",
+            ])
+            .args(["--trace-keys", "60", "--engine", engine, "--layout"])
+            .arg(&layout)
+            .arg("--out")
+            .arg(dir.join(engine))
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let mut r = csv::Reader::from_path(dir.join(engine).join("demo-key60.csv")).unwrap();
+        r.records()
+            .map(|rec| {
+                let rec = rec.unwrap();
+                (rec[0].to_string(), [1, 2, 3].map(|c| rec[c].to_string()))
+            })
+            .collect::<std::collections::HashMap<String, [String; 3]>>()
+    };
+    let (emu, fixed) = (trace("emu"), trace("fixed"));
+    let first = fixed
+        .keys()
+        .min_by(|a, b| a.parse::<f64>().unwrap().total_cmp(&b.parse().unwrap()))
+        .unwrap()
+        .clone();
+    let mut compared = 0;
+    for (t, row) in fixed.iter().filter(|(t, _)| **t != first) {
+        if let Some(e) = emu.get(t) {
+            assert_eq!(e, row, "travel, force, hammer at {t} s");
+            compared += 1;
+        }
+    }
+    assert!(compared > 10_000, "{compared} samples compared");
+    assert!(
+        emu.values().any(|r| r[2].parse::<f64>().unwrap() > 0.01),
+        "the hammer moved"
+    );
+}
+
 #[test]
 fn bad_midi_is_a_clear_error() {
     let dir = temp_dir("play-bad");

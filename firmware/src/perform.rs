@@ -258,6 +258,8 @@ fn run_board(
     let n = bkeys.len();
     let (mut sensors, mut xs) = (vec![0i32; n], vec![0.0; n]);
     let mut block_max = 0u64;
+    // Traced rows of this sample waiting for their key's hammer position: (key, row).
+    let mut hammers: Vec<(usize, usize)> = Vec::with_capacity(n);
     for i in 0..end {
         let time = i as f64 / fs;
         for k in 0..n {
@@ -270,10 +272,7 @@ fn run_board(
             let fp = &programs[key_programs[k]].fixed;
             sensors[k] = FixedInstance::sensor_raw(fp, 0, Some(x));
         }
-        let out = run
-            .step(&sensors)
-            .map_err(|e| format!("sample {i}: {e}"))?
-            .clone();
+        let out = run.step(&sensors).map_err(|e| format!("sample {i}: {e}"))?;
         for ev in &out.events {
             let p = key_programs[ev.key];
             if Some(ev.event) == strike_event[p] {
@@ -308,18 +307,24 @@ fn run_board(
                 player.step(push, force_n);
             }
             if traced[k] && time >= opts.trace_from_s && time <= opts.trace_to_s {
-                let hammer_m = hammer_word[p].map_or(f64::NAN, |(w, frac)| {
-                    tactus_runtime::fixed::to_f64(run.out(k)[w], frac)
-                });
-                report.traces.entry(bkeys[k].key).or_default().push([
+                // The hammer is read from the key's out words once `out` is done with.
+                let rows = report.traces.entry(bkeys[k].key).or_default();
+                rows.push([
                     time,
                     xs[k],
                     force_n,
-                    hammer_m,
+                    f64::NAN,
                     push,
                     out.current_ua[k] as f64 * 1e-6,
                     out.dac[k] as f64,
                 ]);
+                hammers.push((k, rows.len() - 1));
+            }
+        }
+        for (k, row) in hammers.drain(..) {
+            if let Some((w, frac)) = hammer_word[key_programs[k]] {
+                let rows = report.traces.entry(bkeys[k].key).or_default();
+                rows[row][3] = tactus_runtime::fixed::to_f64(run.out(k)[w], frac);
             }
         }
         if i % 4096 == 4095 {

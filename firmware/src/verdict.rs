@@ -589,7 +589,7 @@ pub fn keyboard_budget(
     // over the full (or quick) corpus, its other param sets over the brief one.
     let mut statics = Vec::with_capacity(programs.len());
     for (p, pi) in programs.iter().zip(&input.programs) {
-        statics.push(budget::static_update(&p.thumb).map_err(|e| bad(&pi.instrument, &e))?);
+        statics.push(p.static_cost().map_err(|e| bad(&pi.instrument, &e))?);
     }
     let mut reports = Vec::with_capacity(programs.len());
     for (i, pi) in input.programs.iter().enumerate() {

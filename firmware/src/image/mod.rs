@@ -92,8 +92,9 @@ pub struct Program {
     pub fixed: FixedProgram,
     /// Its Thumb object (position-independent `.text`).
     pub thumb: ThumbObject,
-    /// `update_wcet`, once computed (images of many boards share programs).
-    update_cycles: OnceLock<Result<u64, ImageError>>,
+    /// `static_cost`, once computed (images of many boards, and the budget, share
+    /// programs).
+    update_cost: OnceLock<Result<crate::budget::StaticCost, ImageError>>,
     /// `init_wcet`, once computed.
     init_cycles: OnceLock<Result<u64, ImageError>>,
 }
@@ -104,7 +105,7 @@ impl Program {
         Program {
             fixed,
             thumb,
-            update_cycles: OnceLock::new(),
+            update_cost: OnceLock::new(),
             init_cycles: OnceLock::new(),
         }
     }
@@ -133,8 +134,20 @@ impl Program {
     /// Static WCET (cycles, first instruction to return) of the program's update, as
     /// [`wcet::analyse`] prices it (the code is position independent, so anywhere).
     pub fn update_wcet(&self) -> Result<u64, ImageError> {
-        self.update_cycles
-            .get_or_init(|| self.wcet_of(&self.thumb.update_name()))
+        self.static_cost()
+            .map(|c| c.cycles - crate::runner::BL_CYCLES)
+    }
+
+    /// The update's static cost as the budget reports it ([`crate::budget::static_update`]:
+    /// cycles with the caller's `BL`, the worst path and its events), computed once.
+    ///
+    /// Errors: [`ImageError::Wcet`] when the analysis fails.
+    pub fn static_cost(&self) -> Result<crate::budget::StaticCost, ImageError> {
+        self.update_cost
+            .get_or_init(|| {
+                crate::budget::static_update(&self.thumb)
+                    .map_err(|e| ImageError::Wcet(e.to_string()))
+            })
             .clone()
     }
 
@@ -443,8 +456,8 @@ impl IsrWcet {
 }
 
 /// The static cost of one key's glue in the sample interrupt
-/// ([`FirmwareImage::key_glue`]): what `tactus budget`'s per-key I/O figure
-/// (`io_cycles_per_key` of the board file) stands for.
+/// ([`FirmwareImage::key_glue`]): what a key costs the handler beyond its update (the
+/// planner's per-key estimate, `crate::boards::ProgramCosts`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct KeyGlue {
     /// Core clock cycles of the key's glue (static WCET, no bank contention).
