@@ -1103,7 +1103,7 @@ fn write_wav(path: &Path, strikes: &[Strike], perf: &Performance, fs: f64) -> Re
         .map(|s| s.time_s)
         .fold(perf.duration_s, f64::max);
     let wanted = (last + 2.0) * fs;
-    if !(wanted <= voice::MAX_RENDER_SAMPLES as f64) {
+    if wanted.is_nan() || wanted > voice::MAX_RENDER_SAMPLES as f64 {
         return Err(format!(
             "{}: the piece is {last:.1} s long, more than the {:.0} s a WAV rendering may have; use --no-wav or --seconds",
             path.display(),

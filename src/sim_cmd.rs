@@ -435,6 +435,7 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     );
     let csv = args.out.join(format!("{stem}.csv"));
     trace.write_csv_file(&csv).map_err(|e| e.to_string())?;
+    let title = format!("{} — {}", program.name, stim.name);
     // A NaN or ∞ means the run lost the program's meaning (the fixed engines saturate, so
     // this is the f64 engines'): keep the CSV to look at, plot nothing, fail.
     if let Some((column, n, v)) = tactus_compiler::sim::first_non_finite(&trace) {
@@ -442,10 +443,8 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
             "{title}: `{column}` is {v} at sample {n} (t = {:.6} s): the simulation computed a non-finite value (a division by zero, an overflow or an unstable scheme); the trace up to there is in {}",
             n as f64 / fs,
             csv.display(),
-            title = format!("{} — {}", program.name, stim.name),
         ));
     }
-    let title = format!("{} — {}", program.name, stim.name);
     let forces_svg = args.out.join(format!("{stem}-forces.svg"));
     plot::plot_forces(&trace, &title, &forces_svg).map_err(|e| e.to_string())?;
     let mut written = vec![csv, forces_svg];
