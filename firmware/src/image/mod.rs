@@ -27,13 +27,19 @@
 //! sample of six hammond keys steps in about 35 µs of host time in a debug build, against
 //! 290 µs with both blocks at bank offset 0).
 //!
-//! **Start.** Both cores are started directly by the host ([`tactus_emulator::Board::start_core`]
-//! with each core's vector table, stack and reset handler), not through the boot ROM's FIFO
-//! launch of core 1: the launch only changes when core 1 starts, and the sample ticks are
-//! absolute times both cores wait for. Each reset handler calls `init` for its keys, arms
-//! its timer alarm (core *c* uses ALARM*c* / TIMER_IRQ_*c*, so each core has its own
-//! interrupt and clears only its own bit; core 0 writes INTE for both) for the first tick
-//! [`FirmwareImage::first_tick_us`], enables the interrupt, and sleeps in `WFI`.
+//! **Start** (module [`boot`]): from reset, as on the chip. The image's lowest address,
+//! the striped 0x20000000 where the boot ROM enters a RAM image, holds an entry stub that
+//! enters core 0's vector table (core 0's block therefore starts at bank offset
+//! [`boot::ENTRY_RESERVE`]). Core 0's reset handler writes its stack canary, sets the
+//! clocks up (PLL_SYS to the board's clock from the 12 MHz crystal, the timer's 1 µs tick,
+//! the timer released from reset) and launches core 1 over the SIO FIFOs (0, 0, 1, vector
+//! table, stack pointer, entry: RP2040 datasheet 2.8.2), where core 1 waits in the boot
+//! ROM; core 1's reset handler, the first code of its glue, writes its canary. Then each
+//! reset handler calls `init` for its keys, arms its timer alarm (core *c* uses ALARM*c* /
+//! TIMER_IRQ_*c*, so each core has its own interrupt and clears only its own bit; core 0
+//! writes INTE for both) for the first tick [`FirmwareImage::first_tick_us`], enables the
+//! interrupt, and sleeps in `WFI`. The ticks are absolute times both cores wait for, so
+//! core 1's later start changes nothing after the first tick.
 //!
 //! **Keys and pens.** A key occupies consecutive words of the sensor and DAC windows from
 //! its [`KeySpec::slot`]: one sensor word per sensor of its program, in the program's
@@ -65,6 +71,7 @@
 //! period late (only after a miss) re-synchronises the tick to now + a margin.
 
 pub mod asm;
+pub mod boot;
 pub mod glue;
 mod layout;
 mod run;
@@ -514,6 +521,8 @@ pub struct FirmwareImage {
     pub(crate) wcet: Vec<IsrWcet>,
     pub(crate) limiter: LimiterConfig,
     code_bytes: Vec<u32>,
+    /// How core 0's reset handler boots the board.
+    pub(crate) boot: boot::Boot,
 }
 
 /// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
@@ -571,13 +580,14 @@ impl FirmwareImage {
         let first_tick_us = layout::first_tick_us(programs, keys, clock_hz);
 
         let mut cc = layout::place_programs(programs, keys, cores);
-        let data_off = layout::place_code_blocks(&l, &mut cc)?;
+        let data_off = layout::place_code_blocks(&l, &mut cc, clock_hz)?;
+        let boot = layout::boot_of(&cc, clock_hz);
         let update_wcets: Vec<u64> = programs
             .iter()
             .map(Program::update_wcet)
             .collect::<Result<_, _>>()?;
 
-        let mut segments = Vec::new();
+        let mut segments = vec![(boot::ENTRY, boot::entry_stub(cc[0].start)?)];
         let mut places: Vec<CorePlace> = Vec::with_capacity(cores);
         let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
         let mut wcet = Vec::with_capacity(cores);
@@ -585,11 +595,16 @@ impl FirmwareImage {
         let mut code_bytes = vec![0u32; cores];
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
-            let g = layout::assemble_glue(&l, core, data_off, c)?;
+            let g = layout::assemble_glue(&l, core, data_off, c, &boot)?;
             let (glue_bytes, addr) = g
                 .asm
                 .assemble(base + c.glue)
                 .map_err(ImageError::Assemble)?;
+            if addr[g.labels.reset.index()] != base + c.glue {
+                return Err(ImageError::Assemble(format!(
+                    "core {core}: the reset handler is not the first code of the glue"
+                )));
+            }
             let code_end = base + c.glue + glue_bytes.len() as u32;
             let next = cc
                 .get(core + 1)
@@ -655,6 +670,7 @@ impl FirmwareImage {
             wcet,
             limiter: lim_cfg,
             code_bytes,
+            boot,
         })
     }
 

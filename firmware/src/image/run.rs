@@ -104,10 +104,12 @@ impl ImageRun {
         for (addr, bytes) in &image.segments {
             board.write_bytes(*addr, bytes).map_err(emu)?;
         }
+        // From reset, as after a RAM UF2 download: the boot ROM enters the image at its
+        // lowest address with SP at the top of SRAM (`super::boot`); core 0 sets the clocks
+        // up and launches core 1 over the FIFOs, where core 1 waits in the boot ROM.
+        board.enter_ram_image(super::boot::ENTRY | 1);
         let mut profiles = Vec::new();
-        for (k, c) in image.cores.iter().enumerate() {
-            board.write_u32(c.stack_bottom, STACK_CANARY).map_err(emu)?;
-            board.start_core(k, c.reset | 1, c.stack_top, c.vtor);
+        for c in &image.cores {
             profiles.push(board.profile_handler(c.isr));
         }
         let n = image.keys.len();
