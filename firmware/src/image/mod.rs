@@ -72,6 +72,7 @@
 
 pub mod asm;
 pub mod boot;
+mod elf;
 pub mod glue;
 mod layout;
 mod run;
@@ -701,6 +702,52 @@ impl FirmwareImage {
             cycles: w.analysed.saturating_sub(w.updates + e.analysed),
             window_words: (program.sensor_words() + program.drives()?.len()) as u64,
         })
+    }
+
+    /// Whether the image can run on a chip, not only in the emulator: `Err` naming the
+    /// board's clock when no PLL_SYS setting makes it from the 12 MHz crystal (the reset
+    /// handler then leaves the clocks alone; the emulator runs at the board's clock from
+    /// power-on whatever the firmware sets).
+    ///
+    /// Errors: [`ImageError::Board`].
+    pub fn flashable(&self) -> Result<(), ImageError> {
+        match self.boot.pll {
+            Some(_) => Ok(()),
+            None => Err(ImageError::Board(format!(
+                "clock {} Hz: no PLL_SYS setting makes it from the 12 MHz crystal \
+                 (REFDIV 1, FBDIV 16-320, VCO 750-1600 MHz, post dividers 1-7)",
+                self.clock_hz
+            ))),
+        }
+    }
+
+    /// The image's loadable bytes: (address, bytes) per piece — the entry stub at
+    /// [`boot::ENTRY`], then per core its code block and its data — at their run
+    /// addresses (each core's in its bank through the non-striped alias).
+    pub fn segments(&self) -> &[(u32, Vec<u8>)] {
+        &self.segments
+    }
+
+    /// Per core: (vector table, reset handler, sample interrupt, control block, stack
+    /// top), addresses.
+    pub fn core_addresses(&self, core: usize) -> Option<[u32; 5]> {
+        self.cores
+            .get(core)
+            .map(|c| [c.vtor, c.reset, c.isr, c.ctrl, c.stack_top])
+    }
+
+    /// Per key (in key-list order): the address of its record (the update's sensor words
+    /// first, then its out words, limiter budgets and state address) and of its state.
+    pub fn key_addresses(&self, key: usize) -> Option<(u32, u32)> {
+        let k = self.keys.get(key)?;
+        let at = k.record + k.state_offset;
+        let (base, data) = self
+            .segments
+            .iter()
+            .find(|(b, d)| at >= *b && at + 4 <= b + d.len() as u32)?;
+        let o = (at - base) as usize;
+        let state = u32::from_le_bytes(data.get(o..o + 4)?.try_into().ok()?);
+        Some((k.record, state))
     }
 
     /// Static WCET of core `core`'s sample interrupt (`None` for a core beyond the board's).
