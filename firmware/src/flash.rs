@@ -66,8 +66,10 @@ pub struct CoreMap {
 pub struct KeyMapEntry {
     /// MIDI key number.
     pub midi: u8,
-    /// Instrument (and its params, if any).
+    /// Instrument (a built-in name or a path, as the layout names it).
     pub instrument: String,
+    /// Its param overrides, `name=value unit`.
+    pub params: Vec<String>,
     /// The core that runs it.
     pub core: usize,
     /// Its sensor words (one per sensor, in the program's sensor order).
@@ -115,8 +117,8 @@ pub struct KeyboardInput<'a> {
     pub name: &'a str,
     /// Distinct programs.
     pub programs: &'a [Program],
-    /// Per program, the instrument and params as the key map shows them.
-    pub program_names: &'a [String],
+    /// Per program, its instrument (as the layout names it) and param overrides.
+    pub program_names: &'a [(String, Vec<(String, String)>)],
     /// (MIDI key, program), ascending by key.
     pub keys: &'a [(u8, usize)],
     /// The board kind.
@@ -233,7 +235,12 @@ fn key_map(
             instrument: input
                 .program_names
                 .get(k.program)
-                .cloned()
+                .map(|n| n.0.clone())
+                .unwrap_or_default(),
+            params: input
+                .program_names
+                .get(k.program)
+                .map(|n| n.1.iter().map(|(a, b)| format!("{a}={b}")).collect())
                 .unwrap_or_default(),
             core: core_of.get(i).copied().unwrap_or(spec.core),
             sensor_words: (0..p.sensor_words())
@@ -285,10 +292,15 @@ fn readme(input: &KeyboardInput, fw: &BoardFirmware, boards: usize) -> String {
     let blocks = fw.uf2.len() / crate::uf2::BLOCK;
     let mut keys = String::new();
     for k in &m.keys {
+        let instrument = if k.params.is_empty() {
+            k.instrument.clone()
+        } else {
+            format!("{} ({})", k.instrument, k.params.join(", "))
+        };
         keys.push_str(&format!(
             "| {} | {} | {} | {} | {} |\n",
             k.midi,
-            k.instrument,
+            instrument,
             k.core,
             k.sensor_words.join(" "),
             k.dac_words.join(" ")
@@ -347,4 +359,169 @@ force word through the safety limiter, write the DAC word.\n\
         sw = m.sensor_window,
         dw = m.dac_window,
     )
+}
+
+/// One core of an [`ElfRun`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CoreRun {
+    /// Samples its handler completed.
+    pub samples: u32,
+    /// Its deadline-miss counter at the end.
+    pub misses: u32,
+    /// Longest handler run, cycles (exception entry to the completed return).
+    pub worst_cycles: u64,
+    /// Mean handler run, cycles.
+    pub mean_cycles: f64,
+}
+
+/// What [`run_elf`] measured.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ElfRun {
+    /// Samples run.
+    pub samples: usize,
+    /// Per core.
+    pub cores: Vec<CoreRun>,
+    /// Core clock cycles per sample period.
+    pub cycles_per_sample: u64,
+}
+
+/// Most samples [`run_elf`] runs (one emulated minute at 44.1 kHz).
+pub const MAX_RUN_SAMPLES: usize = 60 * 44_100;
+
+fn addr(s: &str, what: &str) -> Result<u32, String> {
+    u32::from_str_radix(s.trim_start_matches("0x"), 16)
+        .map_err(|_| format!("{what}: `{s}` is not a hexadecimal address"))
+}
+
+/// Boots firmware `elf` from reset on an emulated RP2040 at the key map's clock (the boot
+/// ROM enters it at its entry point; it launches core 1 itself) and runs `samples` samples:
+/// before each tick, key *k*'s sensor words get `sensors[k][n]` (one word per sensor of the
+/// key; a key with fewer given words keeps the rest at 0). Returns per core the handler's
+/// completed samples, worst and mean cycles, and misses.
+///
+/// Errors: a message for an ELF the loader rejects, a key map that does not match it (a
+/// missing or bad address), more than [`MAX_RUN_SAMPLES`] samples, sensor lists that do
+/// not match the keys, or firmware that faults or does not start.
+pub fn run_elf(
+    elf: &[u8],
+    map: &KeyMap,
+    sensors: &[Vec<Vec<i32>>],
+    samples: usize,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ElfRun, String> {
+    use crate::image::glue::ctrl;
+    use tactus_emulator::timing::EXCEPTION_ENTRY;
+    use tactus_emulator::{Config, StopReason};
+    if samples > MAX_RUN_SAMPLES {
+        return Err(format!(
+            "{samples} samples: at most {MAX_RUN_SAMPLES} (one emulated minute)"
+        ));
+    }
+    if sensors.len() != map.keys.len() {
+        return Err(format!(
+            "{} sensor lists for the key map's {} keys",
+            sensors.len(),
+            map.keys.len()
+        ));
+    }
+    if !(1..=1_000_000).contains(&map.sample_rate_hz) || map.clock_hz < 1_000_000 {
+        return Err(format!(
+            "key map: sample rate {} Hz, clock {} Hz",
+            map.sample_rate_hz, map.clock_hz
+        ));
+    }
+    let mut board = tactus_emulator::Board::new(Config {
+        clock_hz: map.clock_hz,
+        ..Config::default()
+    });
+    board
+        .load_elf(elf)
+        .map_err(|e| format!("cannot load the ELF: {e}"))?;
+    let mut cores = Vec::new();
+    for c in &map.cores {
+        let isr = addr(&c.sample_isr, "sample_isr")? & !1;
+        let ctrl = addr(&c.control, "control")?;
+        cores.push((board.profile_handler(isr), ctrl));
+    }
+    let mut words = Vec::new();
+    for k in &map.keys {
+        let w: Result<Vec<u32>, String> = k
+            .sensor_words
+            .iter()
+            .map(|s| addr(s, &format!("key {}", k.midi)))
+            .collect();
+        words.push(w?);
+    }
+    let clock = map.clock_hz as u128;
+    let cycle_of = |us: u64| (us as u128 * clock).div_ceil(1_000_000) as u64;
+    let tick = |n: u64| map.first_tick_us as u64 + n * 1_000_000 / map.sample_rate_hz as u64;
+    let check = |stop: StopReason, board: &tactus_emulator::Board| match stop {
+        StopReason::CycleLimit => Ok(()),
+        other => Err(format!(
+            "the firmware stopped: {other:?} (core pcs {:#010x}, {:#010x})",
+            board.cores[0].r[15], board.cores[1].r[15]
+        )),
+    };
+    let stop = board.run_until(cycle_of(tick(0)));
+    check(stop, &board)?;
+    for (i, (_, ctrl)) in cores.iter().enumerate() {
+        let ready = board
+            .read_u32(ctrl + u32::from(ctrl::READY))
+            .map_err(|e| e.to_string())?;
+        if ready != 1 {
+            return Err(format!(
+                "core {i} did not finish its start-up before the first tick"
+            ));
+        }
+    }
+    let mut totals = vec![(0u64, 0u64, 0u64); cores.len()];
+    for n in 0..samples {
+        for (k, w) in words.iter().enumerate() {
+            for (j, &a) in w.iter().enumerate() {
+                let v = sensors[k]
+                    .get(n)
+                    .and_then(|s| s.get(j))
+                    .copied()
+                    .unwrap_or(0);
+                board
+                    .write_data(a, &v.to_le_bytes())
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+        let stop = board.run_until(cycle_of(tick(n as u64 + 1)));
+        check(stop, &board)?;
+        for (c, (h, _)) in cores.iter().enumerate() {
+            for call in board.calls(*h) {
+                let cyc = call.cycles + EXCEPTION_ENTRY as u64;
+                totals[c].0 = totals[c].0.max(cyc);
+                totals[c].1 += cyc;
+                totals[c].2 += 1;
+            }
+            board.clear_calls(*h);
+        }
+        if n % 4410 == 0 {
+            progress(n, samples);
+        }
+    }
+    progress(samples, samples);
+    let mut out = Vec::new();
+    for (c, (_, ctrl)) in cores.iter().enumerate() {
+        let done = board
+            .read_u32(ctrl + u32::from(ctrl::SAMPLES))
+            .map_err(|e| e.to_string())?;
+        let misses = board
+            .read_u32(ctrl + u32::from(ctrl::MISSES))
+            .map_err(|e| e.to_string())?;
+        out.push(CoreRun {
+            samples: done,
+            misses,
+            worst_cycles: totals[c].0,
+            mean_cycles: totals[c].1 as f64 / totals[c].2.max(1) as f64,
+        });
+    }
+    Ok(ElfRun {
+        samples,
+        cores: out,
+        cycles_per_sample: map.clock_hz / map.sample_rate_hz as u64,
+    })
 }
