@@ -13,10 +13,11 @@
 //! core's whole code ([`analyse_handler`]).
 
 use super::asm::{self, Asm};
+use super::boot::{self, Boot};
 use super::glue::{self, ctrl, DriveCode, KeyCode, Tick};
 use super::{
     bank_base, CorePlace, Drive, ImageError, IsrWcet, KeyPlace, KeySpec, Program, BANK_LIMIT,
-    MAX_SENSORS, STACK_BYTES, VECTORS,
+    MAX_SENSORS, STACK_BYTES, STACK_CANARY, VECTORS,
 };
 use std::collections::BTreeMap;
 use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE};
@@ -165,20 +166,27 @@ pub(super) fn tick_schedule(fs: u32, clock_hz: u64) -> Tick {
 }
 
 /// Microsecond time of the first tick: after every core's start-up (the run checks that
-/// both were ready). Start-up is the keys' `init` calls (their static WCET; 4000 cycles for
-/// one that cannot be analysed) plus a few dozen cycles per key and for the timer set-up.
+/// both were ready). Start-up is the boot (clock set-up and core 1's launch: a few hundred
+/// cycles in the emulator, which does not model oscillator start-up or PLL lock times;
+/// the timer counts from its release after them), the keys' `init` calls (their static
+/// WCET; 4000 cycles for one that cannot be analysed) plus a few dozen cycles per key and
+/// for the timer set-up.
 pub(super) fn first_tick_us(programs: &[Program], keys: &[KeySpec], clock_hz: u64) -> u32 {
     let mut init_cycles = Vec::with_capacity(programs.len());
     for p in programs {
         init_cycles.push(p.init_wcet().unwrap_or(4000));
     }
-    let startup: u64 = 1000
+    let startup: u64 = BOOT_CYCLES
+        + 1000
         + keys
             .iter()
             .map(|k| 50 + init_cycles[k.program])
             .sum::<u64>();
     (20 + (startup * 1_000_000).div_ceil(clock_hz)) as u32
 }
+
+/// Cycles allowed for the boot before the keys' start-up ([`boot::core_start`]).
+const BOOT_CYCLES: u64 = 1000;
 
 /// One core's code block: its vector table, the copies of the programs its keys use
 /// (fixed sizes), then its glue.
@@ -316,7 +324,7 @@ pub(super) struct Glue {
 }
 
 /// The glue of core `core` (reset handler, sample interrupt) for its control block at
-/// bank offset `data_off`.
+/// bank offset `data_off`, core 0's reset handler booting as `boot` says.
 ///
 /// Errors: those of [`key_records`] and [`glue::core_code`].
 pub(super) fn assemble_glue(
@@ -324,12 +332,17 @@ pub(super) fn assemble_glue(
     core: usize,
     data_off: u32,
     cc: &CoreCode,
+    boot: &Boot,
 ) -> Result<Glue, ImageError> {
     let ctrl_addr = bank_base(core) + data_off;
     let (kc, kp, data_end) = key_records(l, core, ctrl_addr, cc)?;
     let mut a = Asm::new();
     let inte = if l.cores == 2 { 3 } else { 1 };
-    let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, l.tick, inte, &l.consts)?;
+    let bottom = stack(core).0;
+    let start = |a: &mut Asm| boot::core_start(a, core, boot, bottom, STACK_CANARY);
+    let labels = glue::core_code(
+        &mut a, core, &kc, ctrl_addr, l.tick, inte, &l.consts, &start,
+    )?;
     Ok(Glue {
         asm: a,
         labels,
@@ -340,17 +353,27 @@ pub(super) fn assemble_glue(
 
 /// Moves each core's block to its final place and returns the data's bank offset.
 ///
-/// Core 1's block follows core 0's in bank offsets (the emulator's decode cache is indexed
-/// by the low address bits, so the two cores' code would otherwise evict each other's); the
-/// data start is the same bank offset in every bank, past both blocks. The glue's size is
+/// Core 0's block starts after the entry stub's [`boot::ENTRY_RESERVE`]; core 1's block
+/// follows core 0's in bank offsets (the emulator's decode cache is indexed by the low
+/// address bits, so the two cores' code would otherwise evict each other's); the data
+/// start is the same bank offset in every bank, past both blocks. The glue's size is
 /// measured at provisional addresses: literal values do not change instruction sizes, but
 /// pool sharing may, so each block keeps 64 bytes of slack.
 ///
 /// Errors: those of [`assemble_glue`], [`ImageError::Assemble`].
-pub(super) fn place_code_blocks(l: &Layout, cc: &mut [CoreCode]) -> Result<u32, ImageError> {
-    let mut block_off = 0u32;
+pub(super) fn place_code_blocks(
+    l: &Layout,
+    cc: &mut [CoreCode],
+    clock_hz: u64,
+) -> Result<u32, ImageError> {
+    // Provisional launch words: large and distinct, as the final ones (same sizes).
+    let provisional = Boot::new(
+        clock_hz,
+        (cc.len() == 2).then_some([0x2101_0100, 0x2004_2000, 0x2101_0201]),
+    );
+    let mut block_off = boot::ENTRY_RESERVE;
     for (core, c) in cc.iter_mut().enumerate() {
-        let g = assemble_glue(l, core, BANK_LIMIT / 2, c)?;
+        let g = assemble_glue(l, core, BANK_LIMIT / 2, c, &provisional)?;
         let (bytes, _) = g
             .asm
             .assemble(c.start + c.glue)
@@ -509,4 +532,14 @@ pub(super) fn core_place(
         stack_bottom,
         keys: Vec::new(),
     }
+}
+
+/// The boot of an image whose blocks are placed (`cc` after [`place_code_blocks`]): the
+/// board's PLL dividers and, with two cores, core 1's vector table, stack top and reset
+/// handler (the first code of its glue, [`glue::core_code`]).
+pub(super) fn boot_of(cc: &[CoreCode], clock_hz: u64) -> Boot {
+    let core1 = cc
+        .get(1)
+        .map(|c| [c.start, stack(1).1, (c.start + c.glue) | 1]);
+    Boot::new(clock_hz, core1)
 }

@@ -27,13 +27,19 @@
 //! sample of six hammond keys steps in about 35 µs of host time in a debug build, against
 //! 290 µs with both blocks at bank offset 0).
 //!
-//! **Start.** Both cores are started directly by the host ([`tactus_emulator::Board::start_core`]
-//! with each core's vector table, stack and reset handler), not through the boot ROM's FIFO
-//! launch of core 1: the launch only changes when core 1 starts, and the sample ticks are
-//! absolute times both cores wait for. Each reset handler calls `init` for its keys, arms
-//! its timer alarm (core *c* uses ALARM*c* / TIMER_IRQ_*c*, so each core has its own
-//! interrupt and clears only its own bit; core 0 writes INTE for both) for the first tick
-//! [`FirmwareImage::first_tick_us`], enables the interrupt, and sleeps in `WFI`.
+//! **Start** (module [`boot`]): from reset, as on the chip. The image's lowest address,
+//! the striped 0x20000000 where the boot ROM enters a RAM image, holds an entry stub that
+//! enters core 0's vector table (core 0's block therefore starts at bank offset
+//! [`boot::ENTRY_RESERVE`]). Core 0's reset handler writes its stack canary, sets the
+//! clocks up (PLL_SYS to the board's clock from the 12 MHz crystal, the timer's 1 µs tick,
+//! the timer released from reset) and launches core 1 over the SIO FIFOs (0, 0, 1, vector
+//! table, stack pointer, entry: RP2040 datasheet 2.8.2), where core 1 waits in the boot
+//! ROM; core 1's reset handler, the first code of its glue, writes its canary. Then each
+//! reset handler calls `init` for its keys, arms its timer alarm (core *c* uses ALARM*c* /
+//! TIMER_IRQ_*c*, so each core has its own interrupt and clears only its own bit; core 0
+//! writes INTE for both) for the first tick [`FirmwareImage::first_tick_us`], enables the
+//! interrupt, and sleeps in `WFI`. The ticks are absolute times both cores wait for, so
+//! core 1's later start changes nothing after the first tick.
 //!
 //! **Keys and pens.** A key occupies consecutive words of the sensor and DAC windows from
 //! its [`KeySpec::slot`]: one sensor word per sensor of its program, in the program's
@@ -65,6 +71,8 @@
 //! period late (only after a miss) re-synchronises the tick to now + a margin.
 
 pub mod asm;
+pub mod boot;
+mod elf;
 pub mod glue;
 mod layout;
 mod run;
@@ -514,6 +522,8 @@ pub struct FirmwareImage {
     pub(crate) wcet: Vec<IsrWcet>,
     pub(crate) limiter: LimiterConfig,
     code_bytes: Vec<u32>,
+    /// How core 0's reset handler boots the board.
+    pub(crate) boot: boot::Boot,
 }
 
 /// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
@@ -571,13 +581,14 @@ impl FirmwareImage {
         let first_tick_us = layout::first_tick_us(programs, keys, clock_hz);
 
         let mut cc = layout::place_programs(programs, keys, cores);
-        let data_off = layout::place_code_blocks(&l, &mut cc)?;
+        let data_off = layout::place_code_blocks(&l, &mut cc, clock_hz)?;
+        let boot = layout::boot_of(&cc, clock_hz);
         let update_wcets: Vec<u64> = programs
             .iter()
             .map(Program::update_wcet)
             .collect::<Result<_, _>>()?;
 
-        let mut segments = Vec::new();
+        let mut segments = vec![(boot::ENTRY, boot::entry_stub(cc[0].start)?)];
         let mut places: Vec<CorePlace> = Vec::with_capacity(cores);
         let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
         let mut wcet = Vec::with_capacity(cores);
@@ -585,11 +596,16 @@ impl FirmwareImage {
         let mut code_bytes = vec![0u32; cores];
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
-            let g = layout::assemble_glue(&l, core, data_off, c)?;
+            let g = layout::assemble_glue(&l, core, data_off, c, &boot)?;
             let (glue_bytes, addr) = g
                 .asm
                 .assemble(base + c.glue)
                 .map_err(ImageError::Assemble)?;
+            if addr[g.labels.reset.index()] != base + c.glue {
+                return Err(ImageError::Assemble(format!(
+                    "core {core}: the reset handler is not the first code of the glue"
+                )));
+            }
             let code_end = base + c.glue + glue_bytes.len() as u32;
             let next = cc
                 .get(core + 1)
@@ -655,6 +671,7 @@ impl FirmwareImage {
             wcet,
             limiter: lim_cfg,
             code_bytes,
+            boot,
         })
     }
 
@@ -685,6 +702,52 @@ impl FirmwareImage {
             cycles: w.analysed.saturating_sub(w.updates + e.analysed),
             window_words: (program.sensor_words() + program.drives()?.len()) as u64,
         })
+    }
+
+    /// Whether the image can run on a chip, not only in the emulator: `Err` naming the
+    /// board's clock when no PLL_SYS setting makes it from the 12 MHz crystal (the reset
+    /// handler then leaves the clocks alone; the emulator runs at the board's clock from
+    /// power-on whatever the firmware sets).
+    ///
+    /// Errors: [`ImageError::Board`].
+    pub fn flashable(&self) -> Result<(), ImageError> {
+        match self.boot.pll {
+            Some(_) => Ok(()),
+            None => Err(ImageError::Board(format!(
+                "clock {} Hz: no PLL_SYS setting makes it from the 12 MHz crystal \
+                 (REFDIV 1, FBDIV 16-320, VCO 750-1600 MHz, post dividers 1-7)",
+                self.clock_hz
+            ))),
+        }
+    }
+
+    /// The image's loadable bytes: (address, bytes) per piece — the entry stub at
+    /// [`boot::ENTRY`], then per core its code block and its data — at their run
+    /// addresses (each core's in its bank through the non-striped alias).
+    pub fn segments(&self) -> &[(u32, Vec<u8>)] {
+        &self.segments
+    }
+
+    /// Per core: (vector table, reset handler, sample interrupt, control block, stack
+    /// top), addresses.
+    pub fn core_addresses(&self, core: usize) -> Option<[u32; 5]> {
+        self.cores
+            .get(core)
+            .map(|c| [c.vtor, c.reset, c.isr, c.ctrl, c.stack_top])
+    }
+
+    /// Per key (in key-list order): the address of its record (the update's sensor words
+    /// first, then its out words, limiter budgets and state address) and of its state.
+    pub fn key_addresses(&self, key: usize) -> Option<(u32, u32)> {
+        let k = self.keys.get(key)?;
+        let at = k.record + k.state_offset;
+        let (base, data) = self
+            .segments
+            .iter()
+            .find(|(b, d)| at >= *b && at + 4 <= b + d.len() as u32)?;
+        let o = (at - base) as usize;
+        let state = u32::from_le_bytes(data.get(o..o + 4)?.try_into().ok()?);
+        Some((k.record, state))
     }
 
     /// Static WCET of core `core`'s sample interrupt (`None` for a core beyond the board's).
