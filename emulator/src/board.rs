@@ -607,6 +607,18 @@ impl Board {
         self.blocks.decoded
     }
 
+    /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
+    pub fn regions_compiled(&self) -> u64 {
+        self.blocks.jit.count
+    }
+
+    /// The block engine compiles a code region to native code once its entry has been
+    /// reached `times` times (default 16; 0 compiles every region at once — the tests use
+    /// it to run everything natively). Results never depend on it, only speed.
+    pub fn set_compile_threshold(&mut self, times: u32) {
+        self.blocks.jit.threshold = times;
+    }
+
     /// Total cycles elapsed: the lower of the running cores' counters.
     pub fn cycle(&self) -> u64 {
         match self.next_core() {
@@ -888,7 +900,7 @@ impl Board {
             let core = &mut self.cores[k];
             return (
                 k,
-                block::run::<false, _>(core, sys, blocks, deadline[k], |_| {}),
+                block::run(core, sys, blocks, deadline[k], &mut block::Alone),
             );
         }
         let [c0, c1] = &mut self.cores;
@@ -903,7 +915,7 @@ impl Board {
             }
             let turn_ends = other.cycle + (k == 0) as u64;
             if let Err(leave) =
-                block::run::<false, _>(me, sys, blocks, deadline[k].min(turn_ends), |_| {})
+                block::run(me, sys, blocks, deadline[k].min(turn_ends), &mut block::Alone)
             {
                 return (k, Err(leave));
             }
@@ -1280,15 +1292,12 @@ fn blocks_beside_sleeper<const SLEEPER_IS_0: bool>(
             // From this cycle on, the sleeper's turn would find it at (or past) its wake
             // check: the loop must take that turn.
             let limit = deadline.min(wake_check.max(sleep.cycle) + loses_ties);
-            let s = &mut sleep.cycle;
-            let after = |r: u64| {
-                // (A turn that finds the sleeper at its wake check ends the run: the loop
-                // takes it, after the block.)
-                if r >= *s + loses_ties && *s < wake_check {
-                    *s = wake_check.min(r + 1).max(*s + 1);
-                }
+            let mut turns = block::Sleeper {
+                cycle: &mut sleep.cycle,
+                wake: wake_check,
+                loses_ties: !SLEEPER_IS_0,
             };
-            if block::run::<true, _>(run, sys, blocks, limit, after).is_err() {
+            if block::run(run, sys, blocks, limit, &mut turns).is_err() {
                 return Err(Exit::Miss);
             }
         }
