@@ -745,6 +745,7 @@ impl<'a> Translator<'a> {
 
     /// Leaves before the instruction at `pc` when `cond` holds (nothing of it done).
     fn general_if(&mut self, cond: Value, pc: u32) {
+        self.flush();
         let out = self.b.create_block();
         let on = self.b.create_block();
         self.b.ins().brif(cond, out, &[], on, &[]);
