@@ -44,7 +44,7 @@
 //! cores nothing; firmware loads and stores them as ordinary SRAM (2 cycles, bank 3:2
 //! striping and contention apply). Link firmware so nothing else lives there.
 
-use crate::block::{self, Blocks, Leave};
+use crate::block::{self, Blocks};
 use crate::bus::{sram_location, Bus, System, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
 use crate::decode::{decode, is_32bit, Instr};
@@ -862,9 +862,13 @@ impl Board {
         } else {
             watch[k][0] == NO_WATCH
         };
-        if unwatched && self.config.engine == Engine::Block {
-            let (k, result) = self.block_run::<BOTH>(k, deadline);
-            let exit = match result {
+        // Both cores running: lock-step turns of one or two instructions, too short for
+        // a compiled region to fit in; the interpreter's loop below is the faster there
+        // (BENCHMARKS.md, "the block compiler").
+        if unwatched && !BOTH && self.config.engine == Engine::Block {
+            let (sys, blocks) = (&mut self.system, &mut self.blocks);
+            let core = &mut self.cores[k];
+            let exit = match block::run(core, sys, blocks, deadline[k], &mut block::Alone) {
                 Ok(()) => Exit::Deadline,
                 Err(_) => Exit::Miss,
             };
@@ -884,42 +888,6 @@ impl Board {
             ),
         };
         (k, self.finish_fast(k, exit))
-    }
-
-    /// [`Board::fast_run`] on the block engine (nothing watched): core `k` alone, or with
-    /// `BOTH` the two cores in lock-step order, each running its blocks while it keeps the
-    /// turn (its cycle below the other core's, or equal for core 0; see [`crate::block`]).
-    /// Returns the core that ran last and `Ok` when it reached its deadline.
-    fn block_run<const BOTH: bool>(
-        &mut self,
-        k: usize,
-        deadline: [u64; 2],
-    ) -> (usize, Result<(), Leave>) {
-        let (sys, blocks) = (&mut self.system, &mut self.blocks);
-        if !BOTH {
-            let core = &mut self.cores[k];
-            return (
-                k,
-                block::run(core, sys, blocks, deadline[k], &mut block::Alone),
-            );
-        }
-        let [c0, c1] = &mut self.cores;
-        loop {
-            let (k, me, other) = if c1.cycle < c0.cycle {
-                (1, &mut *c1, &*c0)
-            } else {
-                (0, &mut *c0, &*c1)
-            };
-            if me.cycle >= deadline[k] {
-                return (k, Ok(()));
-            }
-            let turn_ends = other.cycle + (k == 0) as u64;
-            if let Err(leave) =
-                block::run(me, sys, blocks, deadline[k].min(turn_ends), &mut block::Alone)
-            {
-                return (k, Err(leave));
-            }
-        }
     }
 
     /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
