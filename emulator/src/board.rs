@@ -75,9 +75,9 @@ pub struct Config {
     /// of running the firmware's HardFault handler.
     pub stop_on_fault: bool,
     /// Which engine runs the fast path of [`Board::run_until`] / [`Board::run_for`]
-    /// (default [`Engine::Interp`], the faster of the two today: see BENCHMARKS.md). Both
-    /// give the same cycles, registers and memory; [`Board::step`] is always the general
-    /// path.
+    /// (default [`Engine::Block`], the faster: see BENCHMARKS.md, "the block compiler").
+    /// Both give the same cycles, registers and memory; [`Board::step`] is always the
+    /// general path.
     pub engine: Engine,
 }
 
@@ -85,12 +85,13 @@ pub struct Config {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
     /// The interpreter: one instruction at a time from the decode cache (module `fast`).
-    #[default]
     Interp,
-    /// Pre-decoded basic blocks with a per-block deadline check (module [`crate::block`]),
-    /// the same instruction semantics; it falls back to the interpreter while functions
-    /// are profiled with [`Board::profile_addr`]. Exact, but not yet faster than
-    /// [`Engine::Interp`] (BENCHMARKS.md, "Emulator: the block engine").
+    /// The block engine (module [`crate::block`]): code regions compiled to native code
+    /// with cranelift (module `jit`) once warm, pre-decoded basic blocks otherwise, the
+    /// same cycles and results as [`Engine::Interp`]. It runs one core at a time: while
+    /// both cores run (lock-step turns of an instruction or two) and while functions are
+    /// profiled with [`Board::profile_addr`], the interpreter runs.
+    #[default]
     Block,
 }
 
