@@ -260,6 +260,9 @@ mod tests {
             cycles: 1000,
             trace,
             profile: Vec::new(),
+            stimulus: None,
+            keys: None,
+            seconds: 1.0,
         })
     }
 
@@ -286,6 +289,9 @@ mod tests {
             cycles: 10,
             trace: false,
             profile: vec!["main".into()],
+            stimulus: None,
+            keys: None,
+            seconds: 1.0,
         };
         assert_eq!(run(cmd), ExitCode::FAILURE);
     }
