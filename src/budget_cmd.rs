@@ -86,19 +86,19 @@ pub struct BudgetArgs {
     /// board) to FILE, for `tactus play --layout` and later runs of `tactus budget`.
     #[arg(long, value_name = "FILE")]
     pub write_plan: Option<PathBuf>,
-    /// The emulator's engine for the measurements: `interp` or `block` (the same cycles;
-    /// compare their speed).
-    #[arg(long, value_enum, default_value = "interp")]
+    /// The emulator's engine for the measurements: `block` (code compiled to native code
+    /// with cranelift) or `interp` (the interpreter): the same cycles; compare their speed.
+    #[arg(long, value_enum, default_value = "block")]
     pub emu: EmuEngine,
 }
 
-/// The emulator's engine (`--emu`): both are exact; the interpreter is today the faster.
+/// The emulator's engine (`--emu`): both are exact; the block engine is the faster.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum EmuEngine {
-    /// One pre-decoded instruction at a time (the default).
-    #[default]
+    /// One pre-decoded instruction at a time.
     Interp,
-    /// Pre-decoded basic blocks with a per-block deadline check.
+    /// Code regions compiled to native code (the default).
+    #[default]
     Block,
 }
 

@@ -44,7 +44,7 @@
 //! cores nothing; firmware loads and stores them as ordinary SRAM (2 cycles, bank 3:2
 //! striping and contention apply). Link firmware so nothing else lives there.
 
-use crate::block::{self, Blocks, Leave};
+use crate::block::{self, Blocks};
 use crate::bus::{sram_location, Bus, System, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
 use crate::decode::{decode, is_32bit, Instr};
@@ -75,9 +75,9 @@ pub struct Config {
     /// of running the firmware's HardFault handler.
     pub stop_on_fault: bool,
     /// Which engine runs the fast path of [`Board::run_until`] / [`Board::run_for`]
-    /// (default [`Engine::Interp`], the faster of the two today: see BENCHMARKS.md). Both
-    /// give the same cycles, registers and memory; [`Board::step`] is always the general
-    /// path.
+    /// (default [`Engine::Block`], the faster: see BENCHMARKS.md, "the block compiler").
+    /// Both give the same cycles, registers and memory; [`Board::step`] is always the
+    /// general path.
     pub engine: Engine,
 }
 
@@ -85,12 +85,13 @@ pub struct Config {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
     /// The interpreter: one instruction at a time from the decode cache (module `fast`).
-    #[default]
     Interp,
-    /// Pre-decoded basic blocks with a per-block deadline check (module [`crate::block`]),
-    /// the same instruction semantics; it falls back to the interpreter while functions
-    /// are profiled with [`Board::profile_addr`]. Exact, but not yet faster than
-    /// [`Engine::Interp`] (BENCHMARKS.md, "Emulator: the block engine").
+    /// The block engine (module [`crate::block`]): code regions compiled to native code
+    /// with cranelift (module `jit`) once warm, pre-decoded basic blocks otherwise, the
+    /// same cycles and results as [`Engine::Interp`]. It runs one core at a time: while
+    /// both cores run (lock-step turns of an instruction or two) and while functions are
+    /// profiled with [`Board::profile_addr`], the interpreter runs.
+    #[default]
     Block,
 }
 
@@ -631,6 +632,18 @@ impl Board {
         self.blocks.decoded
     }
 
+    /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
+    pub fn regions_compiled(&self) -> u64 {
+        self.blocks.jit.count
+    }
+
+    /// The block engine compiles a code region to native code once its entry has been
+    /// reached `times` times (default 16; 0 compiles every region at once — the tests use
+    /// it to run everything natively). Results never depend on it, only speed.
+    pub fn set_compile_threshold(&mut self, times: u32) {
+        self.blocks.jit.threshold = times;
+    }
+
     /// Total cycles elapsed: the lower of the running cores' counters.
     pub fn cycle(&self) -> u64 {
         match self.next_core() {
@@ -874,9 +887,13 @@ impl Board {
         } else {
             watch[k][0] == NO_WATCH
         };
-        if unwatched && self.config.engine == Engine::Block {
-            let (k, result) = self.block_run::<BOTH>(k, deadline);
-            let exit = match result {
+        // Both cores running: lock-step turns of one or two instructions, too short for
+        // a compiled region to fit in; the interpreter's loop below is the faster there
+        // (BENCHMARKS.md, "the block compiler").
+        if unwatched && !BOTH && self.config.engine == Engine::Block {
+            let (sys, blocks) = (&mut self.system, &mut self.blocks);
+            let core = &mut self.cores[k];
+            let exit = match block::run(core, sys, blocks, deadline[k], &mut block::Alone) {
                 Ok(()) => Exit::Deadline,
                 Err(_) => Exit::Miss,
             };
@@ -896,42 +913,6 @@ impl Board {
             ),
         };
         (k, self.finish_fast(k, exit))
-    }
-
-    /// [`Board::fast_run`] on the block engine (nothing watched): core `k` alone, or with
-    /// `BOTH` the two cores in lock-step order, each running its blocks while it keeps the
-    /// turn (its cycle below the other core's, or equal for core 0; see [`crate::block`]).
-    /// Returns the core that ran last and `Ok` when it reached its deadline.
-    fn block_run<const BOTH: bool>(
-        &mut self,
-        k: usize,
-        deadline: [u64; 2],
-    ) -> (usize, Result<(), Leave>) {
-        let (sys, blocks) = (&mut self.system, &mut self.blocks);
-        if !BOTH {
-            let core = &mut self.cores[k];
-            return (
-                k,
-                block::run::<false, _>(core, sys, blocks, deadline[k], |_| {}),
-            );
-        }
-        let [c0, c1] = &mut self.cores;
-        loop {
-            let (k, me, other) = if c1.cycle < c0.cycle {
-                (1, &mut *c1, &*c0)
-            } else {
-                (0, &mut *c0, &*c1)
-            };
-            if me.cycle >= deadline[k] {
-                return (k, Ok(()));
-            }
-            let turn_ends = other.cycle + (k == 0) as u64;
-            if let Err(leave) =
-                block::run::<false, _>(me, sys, blocks, deadline[k].min(turn_ends), |_| {})
-            {
-                return (k, Err(leave));
-            }
-        }
     }
 
     /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
@@ -1348,15 +1329,12 @@ fn blocks_beside_sleeper<const SLEEPER_IS_0: bool>(
             // From this cycle on, the sleeper's turn would find it at (or past) its wake
             // check: the loop must take that turn.
             let limit = deadline.min(wake_check.max(sleep.cycle) + loses_ties);
-            let s = &mut sleep.cycle;
-            let after = |r: u64| {
-                // (A turn that finds the sleeper at its wake check ends the run: the loop
-                // takes it, after the block.)
-                if r >= *s + loses_ties && *s < wake_check {
-                    *s = wake_check.min(r + 1).max(*s + 1);
-                }
+            let mut turns = block::Sleeper {
+                cycle: &mut sleep.cycle,
+                wake: wake_check,
+                loses_ties: !SLEEPER_IS_0,
             };
-            if block::run::<true, _>(run, sys, blocks, limit, after).is_err() {
+            if block::run(run, sys, blocks, limit, &mut turns).is_err() {
                 return Err(Exit::Miss);
             }
         }

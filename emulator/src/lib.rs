@@ -19,6 +19,7 @@ pub mod decode;
 pub mod elf;
 pub mod encode;
 pub mod exec;
+mod jit;
 mod fast;
 pub mod nvic;
 pub mod schedule;
