@@ -74,7 +74,7 @@ use asm::Asm;
 use glue::{ctrl, DriveCode, KeyCode, Tick};
 use std::collections::BTreeMap;
 use std::fmt;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::{Axis, AxisTotal};
 use tactus_compiler::thumb::ThumbObject;
@@ -85,29 +85,53 @@ use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::{DacScale, Limiter, LimiterConfig};
 
 /// A compiled key program: the fixed-point program (for its formats and the interpreter)
-/// and its Thumb code, with the static WCETs of its functions computed once.
+/// and its Thumb code, with the static WCETs of its functions computed once, and the
+/// param block of its keys.
+///
+/// Programs that share code ([`compile_layout`]: one instrument, params as run-time data)
+/// hold the same `Arc`s and differ only in [`Program::params`]; the image places such code
+/// once per core, and its static costs are computed once for all of them.
 #[derive(Clone, Debug)]
 pub struct Program {
     /// The fixed-point program.
-    pub fixed: FixedProgram,
+    pub fixed: Arc<FixedProgram>,
     /// Its Thumb object (position-independent `.text`).
-    pub thumb: ThumbObject,
+    pub thumb: Arc<ThumbObject>,
+    /// The param block of the keys running this program: one word per run-time param of
+    /// `fixed` (`FixedProgram::param_block`), written into each key's state at
+    /// `StateLayout::params`; empty without run-time params.
+    pub params: Vec<i32>,
     /// `static_cost`, once computed (images of many boards, and the budget, share
     /// programs).
-    update_cost: OnceLock<Result<crate::budget::StaticCost, ImageError>>,
+    update_cost: Arc<OnceLock<Result<crate::budget::StaticCost, ImageError>>>,
     /// `init_wcet`, once computed.
-    init_cycles: OnceLock<Result<u64, ImageError>>,
+    init_cycles: Arc<OnceLock<Result<u64, ImageError>>>,
 }
 
 impl Program {
-    /// A program of already compiled parts.
+    /// A program of already compiled parts, with the params' own values as its param block
+    /// (`FixedProgram::nominal_param_block`).
     pub fn new(fixed: FixedProgram, thumb: ThumbObject) -> Program {
         Program {
-            fixed,
-            thumb,
-            update_cost: OnceLock::new(),
-            init_cycles: OnceLock::new(),
+            params: fixed.nominal_param_block(),
+            fixed: Arc::new(fixed),
+            thumb: Arc::new(thumb),
+            update_cost: Arc::default(),
+            init_cycles: Arc::default(),
         }
+    }
+
+    /// The same code with another param block (for another key of a shared program).
+    pub fn with_params(&self, params: Vec<i32>) -> Program {
+        Program {
+            params,
+            ..self.clone()
+        }
+    }
+
+    /// Whether `self` and `other` run the same code (one copy per core serves both).
+    pub fn same_code(&self, other: &Program) -> bool {
+        Arc::ptr_eq(&self.thumb, &other.thumb)
     }
 
     /// Compiles instrument source `text` with `config` (sample rate, `--param`
@@ -117,15 +141,13 @@ impl Program {
         text: &str,
         config: &tactus_compiler::lower::Config,
     ) -> Result<Program, ImageError> {
-        let lowered = tactus_compiler::compile(text, config).map_err(|d| {
-            ImageError::Compile(
-                d.iter()
-                    .map(|d| d.message.clone())
-                    .collect::<Vec<_>>()
-                    .join("; "),
-            )
-        })?;
-        let fixed = FixedProgram::new(&lowered.program);
+        let lowered = lower(text, config)?;
+        Program::of_ir(&lowered)
+    }
+
+    /// Plans formats for an IR program and compiles it to Thumb code.
+    fn of_ir(ir: &tactus_compiler::ir::Program) -> Result<Program, ImageError> {
+        let fixed = FixedProgram::new(ir);
         let thumb = tactus_compiler::thumb::compile(&fixed)
             .map_err(|e| ImageError::Compile(e.to_string()))?;
         Ok(Program::new(fixed, thumb))
@@ -225,23 +247,45 @@ impl Program {
     }
 }
 
+/// The IR of instrument source `text` under `config`; errors are the diagnostics' messages.
+fn lower(
+    text: &str,
+    config: &tactus_compiler::lower::Config,
+) -> Result<tactus_compiler::ir::Program, ImageError> {
+    tactus_compiler::compile(text, config)
+        .map(|l| l.program)
+        .map_err(|d| {
+            ImageError::Compile(
+                d.iter()
+                    .map(|d| d.message.clone())
+                    .collect::<Vec<_>>()
+                    .join("; "),
+            )
+        })
+}
+
 /// Compiles the programs a resolved keyboard layout needs (`tactus_runtime::keyboard::assign`):
-/// one per distinct (instrument, parameter overrides) — keys with identical parameters share
-/// a program, graded parameters make one per key. `source` returns an instrument's text by
-/// the name the layout gives (a built-in name or a path). Returns the programs and, per
-/// key, the index of its program.
+/// one per distinct (instrument, parameter overrides), each key's `require`s checked with its
+/// own values. The parameter sets of one instrument then share one code
+/// ([`tactus_compiler::share`]: a param that differs between the keys is run-time data, a
+/// word of each key's param block, planned over the interval the keys span), so a graded
+/// grand piano is one piano program whatever the number of keys; the returned programs of
+/// one instrument differ only in [`Program::params`] ([`Program::same_code`]). An instrument
+/// whose parameter sets cannot share (a state range computed from a param) gets one code
+/// per set. `source` returns an instrument's text by the name the layout gives (a built-in
+/// name or a path). Returns the programs and, per key, the index of its program.
 ///
 /// Errors: [`ImageError::Compile`] naming the key and instrument when `source` fails or the
-/// instrument does not compile.
+/// instrument does not compile (a `require` a key's param value breaks among them).
 pub fn compile_layout(
     keys: &[KeyAssignment],
     source: &dyn Fn(&str) -> Result<String, String>,
     sample_rate_hz: f64,
 ) -> Result<(Vec<Program>, Vec<usize>), ImageError> {
-    let mut programs = Vec::new();
-    // (instrument, overrides) → program index.
+    // (instrument, overrides) → index of the distinct set; sets in first-key order.
     type Id<'a> = (&'a str, &'a [(String, String)]);
     let mut seen: BTreeMap<Id, usize> = BTreeMap::new();
+    let mut sets: Vec<(&KeyAssignment, tactus_compiler::ir::Program)> = Vec::new();
     let mut index = Vec::with_capacity(keys.len());
     for k in keys {
         let id = (k.instrument.as_str(), k.params.as_slice());
@@ -256,11 +300,48 @@ pub fn compile_layout(
             sample_rate_hz,
             overrides: k.params.clone(),
         };
-        let p = Program::compile(&text, &config).map_err(|e| fail(e.to_string()))?;
-        seen.insert(id, programs.len());
-        index.push(programs.len());
-        programs.push(p);
+        let ir = lower(&text, &config).map_err(|e| fail(e.to_string()))?;
+        seen.insert(id, sets.len());
+        index.push(sets.len());
+        sets.push((k, ir));
     }
+    let mut programs: Vec<Option<Program>> = vec![None; sets.len()];
+    let mut instruments: Vec<&str> = sets.iter().map(|(k, _)| k.instrument.as_str()).collect();
+    instruments.dedup();
+    instruments.sort_unstable();
+    instruments.dedup();
+    for name in instruments {
+        let members: Vec<usize> = (0..sets.len())
+            .filter(|&i| sets[i].0.instrument == name)
+            .collect();
+        let irs: Vec<tactus_compiler::ir::Program> =
+            members.iter().map(|&i| sets[i].1.clone()).collect();
+        let fail = |i: usize, e: String| {
+            let k = sets[i].0;
+            ImageError::Compile(format!("key {} (`{}`): {e}", k.key, k.instrument))
+        };
+        match tactus_compiler::share::share(&irs) {
+            Ok(shared) if members.len() > 1 => {
+                let code = Program::of_ir(&shared.program).map_err(|e| fail(members[0], e.to_string()))?;
+                for (&i, values) in members.iter().zip(&shared.values) {
+                    let block = code
+                        .fixed
+                        .param_block(values)
+                        .map_err(|e| fail(i, e.to_string()))?;
+                    programs[i] = Some(code.with_params(block));
+                }
+            }
+            _ => {
+                for &i in &members {
+                    programs[i] = Some(Program::of_ir(&sets[i].1).map_err(|e| fail(i, e.to_string()))?);
+                }
+            }
+        }
+    }
+    let programs = programs
+        .into_iter()
+        .map(|p| p.ok_or_else(|| ImageError::Compile("a parameter set was not compiled".into())))
+        .collect::<Result<Vec<_>, _>>()?;
     Ok((programs, index))
 }
 
@@ -498,6 +579,8 @@ pub(crate) struct CorePlace {
     pub stack_top: u32,
     pub stack_bottom: u32,
     pub keys: Vec<usize>,
+    /// Copies of program code in the core's bank (one per distinct code its keys run).
+    pub code_copies: usize,
 }
 
 /// A built firmware image: bytes for SRAM, entry points, and what the host needs to run
@@ -625,12 +708,24 @@ impl FirmwareImage {
             key_drives.push(drives);
         }
 
+        // Programs sharing code (params as run-time data) are placed once per core: each
+        // program's code is that of the first program with the same code.
+        let code_of: Vec<usize> = programs
+            .iter()
+            .map(|p| programs.iter().position(|q| q.same_code(p)).unwrap_or(0))
+            .collect();
+        let core_uses = |core: usize, p: usize| {
+            code_of[p] == p
+                && keys
+                    .iter()
+                    .any(|k| k.core == core && code_of.get(k.program) == Some(&p))
+        };
         // The programs' code alone must fit each core's bank (checked before any analysis:
         // a program too large to place, such as `plucked_string`, is not analysed).
         for core in 0..cores {
             let mut need = VECTORS;
             for (p, prog) in programs.iter().enumerate() {
-                if keys.iter().any(|k| k.core == core && k.program == p) {
+                if core_uses(core, p) {
                     need = need.next_multiple_of(4) + prog.thumb.code.text.len() as u32;
                 }
             }
@@ -691,7 +786,7 @@ impl FirmwareImage {
             let mut at = VECTORS;
             let mut texts = Vec::new();
             for (p, prog) in programs.iter().enumerate() {
-                if keys.iter().any(|k| k.core == core && k.program == p) {
+                if core_uses(core, p) {
                     at = at.next_multiple_of(4);
                     texts.push((p, at));
                     at += prog.thumb.code.text.len() as u32;
@@ -720,7 +815,7 @@ impl FirmwareImage {
                 let text = cc
                     .texts
                     .iter()
-                    .find(|t| t.0 == keys[i].program)
+                    .find(|t| t.0 == code_of[keys[i].program])
                     .map_or(0, |t| cc.start + t.1);
                 let sym = |name: String| {
                     p.thumb
@@ -834,7 +929,7 @@ impl FirmwareImage {
                 let p = &programs[k.spec.program];
                 let state = at;
                 at = (at + p.thumb.state.size as u32).next_multiple_of(4);
-                states.push((state, p.thumb.state.size));
+                states.push((state, p.thumb.state.size, p.thumb.state.params, &p.params));
                 let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 1)];
                 let put = |r: &mut Vec<u8>, off: u32, v: u32| {
                     r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
@@ -845,8 +940,16 @@ impl FirmwareImage {
                 put(&mut r, k.state_offset, state);
                 data.extend(r);
             }
-            for (_, size) in &states {
-                data.extend(vec![0u8; size.next_multiple_of(4)]);
+            // States are zero (init sets them) but for the key's param block, which init
+            // leaves alone.
+            for (_, size, at, params) in &states {
+                let mut st = vec![0u8; size.next_multiple_of(4)];
+                for (k, w) in params.iter().enumerate() {
+                    if let Some(b) = st.get_mut(at + 4 * k..at + 4 * k + 4) {
+                        b.copy_from_slice(&w.to_le_bytes());
+                    }
+                }
+                data.extend(st);
             }
             let need = at - bank;
             if need > BANK_LIMIT {
@@ -904,6 +1007,7 @@ impl FirmwareImage {
                 stack_top,
                 stack_bottom,
                 keys: Vec::new(),
+                code_copies: c.texts.len(),
             };
             for k in kp {
                 let i = k.index;
@@ -993,6 +1097,12 @@ impl FirmwareImage {
     /// The keys on core `core`, as indices into the key list.
     pub fn core_keys(&self, core: usize) -> &[usize] {
         self.cores.get(core).map_or(&[], |c| &c.keys)
+    }
+
+    /// Copies of program code in core `core`'s bank: one per distinct code its keys run
+    /// (keys of one instrument with graded params share one, [`Program::same_code`]).
+    pub fn code_copies(&self, core: usize) -> usize {
+        self.cores.get(core).map_or(0, |c| c.code_copies)
     }
 
     /// Bytes of code (vector table, program copies, glue) in core `core`'s bank.
