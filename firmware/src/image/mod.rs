@@ -264,6 +264,49 @@ fn lower(
         })
 }
 
+/// Compiles lowered programs, given with their instrument names (one per distinct parameter
+/// set), to one [`Program`] each, in order: the sets of one instrument share one code
+/// ([`tactus_compiler::share`]; run-time params, a param block per program) when the
+/// instrument has several and they differ only in param values, else each set gets its own.
+///
+/// Errors: the index of the set and [`ImageError::Compile`] when the Thumb backend fails or
+/// a set's param values do not fit its shared program's intervals (a bug).
+pub fn compile_shared(
+    sets: &[(&str, &tactus_compiler::ir::Program)],
+) -> Result<Vec<Program>, (usize, ImageError)> {
+    let mut programs: Vec<Option<Program>> = vec![None; sets.len()];
+    let mut instruments: Vec<&str> = sets.iter().map(|s| s.0).collect();
+    instruments.sort_unstable();
+    instruments.dedup();
+    for name in instruments {
+        let members: Vec<usize> = (0..sets.len()).filter(|&i| sets[i].0 == name).collect();
+        let irs: Vec<tactus_compiler::ir::Program> =
+            members.iter().map(|&i| sets[i].1.clone()).collect();
+        match tactus_compiler::share::share(&irs) {
+            Ok(shared) if members.len() > 1 => {
+                let code = Program::of_ir(&shared.program).map_err(|e| (members[0], e))?;
+                for (&i, values) in members.iter().zip(&shared.values) {
+                    let block = code
+                        .fixed
+                        .param_block(values)
+                        .map_err(|e| (i, ImageError::Compile(e.to_string())))?;
+                    programs[i] = Some(code.with_params(block));
+                }
+            }
+            _ => {
+                for &i in &members {
+                    programs[i] = Some(Program::of_ir(sets[i].1).map_err(|e| (i, e))?);
+                }
+            }
+        }
+    }
+    programs
+        .into_iter()
+        .enumerate()
+        .map(|(i, p)| p.ok_or((i, ImageError::Compile("not compiled".into()))))
+        .collect()
+}
+
 /// Compiles the programs a resolved keyboard layout needs (`tactus_runtime::keyboard::assign`):
 /// one per distinct (instrument, parameter overrides), each key's `require`s checked with its
 /// own values. The parameter sets of one instrument then share one code
@@ -305,43 +348,14 @@ pub fn compile_layout(
         index.push(sets.len());
         sets.push((k, ir));
     }
-    let mut programs: Vec<Option<Program>> = vec![None; sets.len()];
-    let mut instruments: Vec<&str> = sets.iter().map(|(k, _)| k.instrument.as_str()).collect();
-    instruments.dedup();
-    instruments.sort_unstable();
-    instruments.dedup();
-    for name in instruments {
-        let members: Vec<usize> = (0..sets.len())
-            .filter(|&i| sets[i].0.instrument == name)
-            .collect();
-        let irs: Vec<tactus_compiler::ir::Program> =
-            members.iter().map(|&i| sets[i].1.clone()).collect();
-        let fail = |i: usize, e: String| {
-            let k = sets[i].0;
-            ImageError::Compile(format!("key {} (`{}`): {e}", k.key, k.instrument))
-        };
-        match tactus_compiler::share::share(&irs) {
-            Ok(shared) if members.len() > 1 => {
-                let code = Program::of_ir(&shared.program).map_err(|e| fail(members[0], e.to_string()))?;
-                for (&i, values) in members.iter().zip(&shared.values) {
-                    let block = code
-                        .fixed
-                        .param_block(values)
-                        .map_err(|e| fail(i, e.to_string()))?;
-                    programs[i] = Some(code.with_params(block));
-                }
-            }
-            _ => {
-                for &i in &members {
-                    programs[i] = Some(Program::of_ir(&sets[i].1).map_err(|e| fail(i, e.to_string()))?);
-                }
-            }
-        }
-    }
-    let programs = programs
-        .into_iter()
-        .map(|p| p.ok_or_else(|| ImageError::Compile("a parameter set was not compiled".into())))
-        .collect::<Result<Vec<_>, _>>()?;
+    let lowered: Vec<(&str, &tactus_compiler::ir::Program)> = sets
+        .iter()
+        .map(|(k, ir)| (k.instrument.as_str(), ir))
+        .collect();
+    let programs = compile_shared(&lowered).map_err(|(i, e)| {
+        let k = sets[i].0;
+        ImageError::Compile(format!("key {} (`{}`): {e}", k.key, k.instrument))
+    })?;
     Ok((programs, index))
 }
 
