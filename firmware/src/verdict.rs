@@ -611,7 +611,7 @@ pub fn keyboard_budget(
             &runs,
             input.engine,
         )
-            .map_err(|e: BudgetError| bad(&pi.instrument, &e))?;
+        .map_err(|e: BudgetError| bad(&pi.instrument, &e))?;
         let cost = ProgramCost {
             static_cost: statics[i].clone(),
             measured,

@@ -185,7 +185,12 @@ fn boards_run_bit_exact(layout: &str, samples: usize) {
         let mut run = image.run().unwrap();
         let mut insts: Vec<FixedInstance> = bkeys
             .iter()
-            .map(|k| FixedInstance::with_params(&programs[k.program].fixed, programs[k.program].params.clone()))
+            .map(|k| {
+                FixedInstance::with_params(
+                    &programs[k.program].fixed,
+                    programs[k.program].params.clone(),
+                )
+            })
             .collect();
         let mut refs: Vec<Limiter> = bkeys.iter().map(|_| Limiter::new(&lim).unwrap()).collect();
         let mut worst = vec![0u64; image.cores()];

@@ -124,7 +124,12 @@ fn run_words_against_reference(
     let keys = image.keys();
     let mut insts: Vec<FixedInstance> = keys
         .iter()
-        .map(|k| FixedInstance::with_params(&programs[k.program].fixed, programs[k.program].params.clone()))
+        .map(|k| {
+            FixedInstance::with_params(
+                &programs[k.program].fixed,
+                programs[k.program].params.clone(),
+            )
+        })
         .collect();
     let axes: Vec<Vec<Option<Axis>>> = keys
         .iter()

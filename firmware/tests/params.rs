@@ -95,7 +95,8 @@ fn thumb_code_with_param_blocks_is_bit_exact_with_the_fixed_interpreter() {
         };
         let init = obj.symbol(&obj.init_name()).unwrap().0 as u32;
         let update = obj.symbol(&obj.update_name()).unwrap().0 as u32;
-        let mut r = UpdateRunner::from_code(&obj.code.text, LOAD_ADDR, init, update, iface).unwrap();
+        let mut r =
+            UpdateRunner::from_code(&obj.code.text, LOAD_ADDR, init, update, iface).unwrap();
         let c = compare(&mut r, &fp, &obj.out, &runs).unwrap();
         println!(
             "Thumb, M_h set {k} (block {block:?}): {} samples, {} events, {} mismatches",
@@ -166,7 +167,10 @@ fn the_param_block_changes_the_hammer() {
         })
         .collect();
     let strikes: Vec<Option<usize>> = traces.iter().map(|t| t.0).collect();
-    println!("{}: first strike sample per M_h set (11, 7.25, 3.5 g): {strikes:?}", run.label);
+    println!(
+        "{}: first strike sample per M_h set (11, 7.25, 3.5 g): {strikes:?}",
+        run.label
+    );
     assert_ne!(traces[0].1, traces[1].1);
     assert_ne!(traces[1].1, traces[2].1);
 }
@@ -231,7 +235,11 @@ fn the_cost_of_run_time_params_against_constant_params() {
             }
         }
     }
-    println!("MULS/high/64-bit products: constant {:?}, run-time {:?}", cf.mul_forms(), sf.mul_forms());
+    println!(
+        "MULS/high/64-bit products: constant {:?}, run-time {:?}",
+        cf.mul_forms(),
+        sf.mul_forms()
+    );
     println!(
         "code: constant {} bytes, shared {} bytes",
         constant.thumb.code.text.len(),

@@ -3,7 +3,8 @@
 //! emulated RP2040.
 //!
 //! [`FirmwareImage::build`] takes the compiled programs ([`Program`]: one per distinct
-//! instrument and parameter set), the keys ([`KeySpec`]: which program, which core, which
+//! instrument and parameter set; the sets of one instrument share one code and differ in
+//! their param block, [`compile_shared`]), the keys ([`KeySpec`]: which program, which core, which
 //! sensor/DAC window slots), the board (clock, sample rate) and the limiter's configuration,
 //! and produces machine code and data for SRAM plus the static worst-case cycles of each
 //! core's interrupt ([`IsrWcet`]). [`FirmwareImage::run`] loads it into an emulated board
@@ -12,10 +13,11 @@
 //! **Memory.** Each core owns one 64 KB SRAM bank through the non-striped alias
 //! (core *c*: bank *c* at `0x21000000 + c·0x10000`, RP2040 datasheet 2.6.1): its vector
 //! table, its copy of every program's `.text` that its keys use (one copy per distinct
-//! program per core: the code is position independent, and a copy per core keeps each
+//! code per core, [`Program::same_code`]: the code is position independent, and a copy per core keeps each
 //! core's literal-pool loads in its own bank), its glue code (reset handler, sample
 //! interrupt with the limiter inline per force word), its control block, its keys' records
-//! and their state structs. Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
+//! and their state structs (each holding its key's param block, which `init` leaves
+//! alone). Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
 //! core 1). So the only SRAM accesses two cores can contend for are the sensor loads and
 //! DAC stores in the striped sensor/DAC windows: at most one wait cycle each
 //! (`bus.rs`: the other core's claim lasts one cycle), which [`IsrWcet::contention`] adds.
