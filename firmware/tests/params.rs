@@ -240,6 +240,12 @@ fn the_cost_of_run_time_params_against_constant_params() {
         cf.mul_forms(),
         sf.mul_forms()
     );
+    if let Some(dir) = std::env::var_os("TACTUS_LISTINGS") {
+        // Both listings, to see where the cycles go (`diff` them).
+        let dir = Path::new(&dir);
+        std::fs::write(dir.join("piano-constant.s"), &constant.thumb.code.listing).unwrap();
+        std::fs::write(dir.join("piano-runtime.s"), &programs[0].thumb.code.listing).unwrap();
+    }
     println!(
         "code: constant {} bytes, shared {} bytes",
         constant.thumb.code.text.len(),
