@@ -71,6 +71,7 @@ use crate::bus::{sram_location, Bus, System};
 use crate::core::Core;
 use crate::decode::{decode, is_32bit, Instr};
 use crate::fast::Op;
+use crate::jit::{self, Jit};
 use crate::timing::{self, Class};
 
 /// Most instructions in one block.
@@ -130,6 +131,8 @@ pub(crate) struct Blocks {
     cursor: [Cursor; 2],
     /// Blocks decoded so far (for tests and reports).
     pub(crate) decoded: u64,
+    /// The compiled regions ([`crate::jit`]).
+    pub(crate) jit: Jit,
 }
 
 #[inline(always)]
@@ -150,17 +153,6 @@ fn ends_block(instr: &Instr) -> bool {
     }
 }
 
-/// Data words `instr` moves (each may wait one cycle for the other core).
-fn data_words(instr: &Instr) -> u32 {
-    use Instr::*;
-    match *instr {
-        LdrLit { .. } | MemImm { .. } | MemReg { .. } => 1,
-        Push { list } | Pop { list } => list.count_ones(),
-        Stm { list, .. } | Ldm { list, .. } => list.count_ones(),
-        _ => 0,
-    }
-}
-
 impl Blocks {
     pub(crate) fn new() -> Blocks {
         Blocks {
@@ -170,6 +162,7 @@ impl Blocks {
             generation: 0,
             cursor: [Cursor::default(); 2],
             decoded: 0,
+            jit: Jit::new(),
         }
     }
 
@@ -240,7 +233,7 @@ impl Blocks {
                     Class::Store | Class::StoreMultiple | Class::Push
                 ),
                 cost,
-                worst_from: (cost.0.max(cost.1).max(1) as u32) + data_words(&instr),
+                worst_from: (cost.0.max(cost.1).max(1) as u32) + jit::data_words(&instr),
             });
             if ends_block(&instr) {
                 break;
@@ -261,27 +254,128 @@ impl Blocks {
     }
 }
 
+/// Who else takes turns while a core runs its blocks, and how their turns follow from the
+/// running core's cycles.
+pub(crate) trait Turns {
+    /// `after` must see every instruction's end cycle (else a block whose bound fits
+    /// runs with no per-instruction call).
+    const EACH: bool;
+    /// After an instruction that ended at `cycle`.
+    fn after(&mut self, cycle: u64);
+    /// After native code that ended at `cycle`, whose last instruction of two cycles or
+    /// more ended at `q` (0: none).
+    fn after_native(&mut self, cycle: u64, q: u64);
+}
+
+/// No one else: the core runs alone, or the caller's limit ends its turn.
+pub(crate) struct Alone;
+
+impl Turns for Alone {
+    const EACH: bool = false;
+    #[inline(always)]
+    fn after(&mut self, _: u64) {}
+    #[inline(always)]
+    fn after_native(&mut self, _: u64, _: u64) {}
+}
+
+/// A sleeping core whose turns only move its cycle counter (see [`crate::board`]'s
+/// `run_beside_sleeper`): on each of its turns before `wake`, `cycle` becomes
+/// `min(wake, running core's cycle + 1)`; its turn comes once the running core's cycle
+/// reaches its own (`loses_ties`: the sleeper is core 1, which loses ties, so the turn
+/// comes one cycle later).
+pub(crate) struct Sleeper<'a> {
+    pub(crate) cycle: &'a mut u64,
+    pub(crate) wake: u64,
+    pub(crate) loses_ties: bool,
+}
+
+impl Turns for Sleeper<'_> {
+    const EACH: bool = true;
+
+    #[inline(always)]
+    fn after(&mut self, r: u64) {
+        // (A turn that finds the sleeper at its wake check ends the run: the caller takes
+        // it, after the block.)
+        let s = &mut *self.cycle;
+        if r >= *s + self.loses_ties as u64 && *s < self.wake {
+            *s = self.wake.min(r + 1).max(*s + 1);
+        }
+    }
+
+    /// The same turns taken after each instruction of the native run, in closed form. Let
+    /// `s` be the sleeper's cycle before and `r` the running core's after. The sleeper is
+    /// core 0 (`!loses_ties`): its first turn comes at the first instruction end at or
+    /// after `s`, and each turn leaves it one cycle ahead, so every later instruction end
+    /// gives it another: `r + 1` if `r >= s`. The sleeper is core 1: a turn comes at an
+    /// end at least one cycle past it and leaves it one cycle ahead, so after a
+    /// one-cycle instruction it is level (no turn) and after the next one behind again
+    /// (a turn); an instruction of two cycles or more always gives it a turn. So from the
+    /// later of the last such instruction's end `q` and the first turn (`s + 1`), the
+    /// one-cycle instructions to `r` alternate: `r + 1` after an even number of them,
+    /// `r` after an odd one. Both are capped at `wake`, where the turns stop.
+    #[inline(always)]
+    fn after_native(&mut self, r: u64, q: u64) {
+        let s = *self.cycle;
+        if s >= self.wake {
+            return;
+        }
+        let next = if self.loses_ties {
+            if r < s + 1 {
+                s
+            } else {
+                let p = q.max(s + 1);
+                r + ((r - p) % 2 == 0) as u64
+            }
+        } else if r < s {
+            s
+        } else {
+            r + 1
+        };
+        *self.cycle = next.min(self.wake);
+    }
+}
+
 /// Runs `core` on blocks while its cycle is below `limit` (the caller has checked that
-/// the core may take the fast path: [`crate::board`]'s `fast_ready`), calling
-/// `after(cycle)` after every instruction when `HOOK` (else `after` is never called, and a
-/// block whose bound fits below `limit` runs with no per-instruction check). `Ok` when the core reached `limit` (at its first
+/// the core may take the fast path: [`crate::board`]'s `fast_ready`), with `turns` told of
+/// the instructions' end cycles. A region compiled to native code ([`crate::jit`]) runs
+/// whenever its bound fits before `limit`; otherwise the block's pre-decoded instructions
+/// run, with one deadline check per block when its bound fits and `turns` need not see
+/// every instruction. `Ok` when the core reached `limit` (at its first
 /// instruction boundary at or after it), else why it left, with the instruction that needs
 /// the general path not started. Not inlined: its arguments cannot alias, so the compiler
 /// may keep the core's counters in registers across the block.
 #[inline(never)]
-pub(crate) fn run<const HOOK: bool, F: FnMut(u64)>(
+pub(crate) fn run<T: Turns>(
     core: &mut Core,
     sys: &mut System,
     blocks: &mut Blocks,
     limit: u64,
-    mut after: F,
+    turns: &mut T,
 ) -> Result<(), Leave> {
     let mut retired = 0u64;
+    let mut native = true;
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
         }
         let pc = core.r[15];
+        if native {
+            if let Some((f, bound)) = blocks.jit.lookup(sys, pc) {
+                if core.cycle.saturating_add(bound) <= limit {
+                    let (exit, n, q) = jit::call(f, core, sys, limit);
+                    retired += n;
+                    turns.after_native(core.cycle, q);
+                    match exit {
+                        jit::Exit::Invalidate => sys.invalidate_code(),
+                        // The next instruction needs the pre-decoded path (or the general).
+                        jit::Exit::General => native = false,
+                        jit::Exit::Out | jit::Exit::Deadline => {}
+                    }
+                    continue;
+                }
+            }
+        }
+        native = true;
         let found = match blocks.resume(core.id, pc) {
             Some(r) if sys.code_epoch == blocks.epoch => Some(r),
             _ => blocks.find(sys, pc),
@@ -292,7 +386,7 @@ pub(crate) fn run<const HOOK: bool, F: FnMut(u64)>(
         let epoch = sys.code_epoch;
         let ops = &blocks.ops[..end];
         let mut leave = None;
-        if !HOOK && core.cycle.saturating_add(ops[i].worst_from as u64) <= limit {
+        if !T::EACH && core.cycle.saturating_add(ops[i].worst_from as u64) <= limit {
             // The whole rest of the block starts before `limit`: no per-instruction check.
             let start = i;
             for o in &ops[start..] {
@@ -318,7 +412,7 @@ pub(crate) fn run<const HOOK: bool, F: FnMut(u64)>(
                 }
                 retired += 1;
                 i += 1;
-                after(core.cycle);
+                turns.after(core.cycle);
                 if o.store && sys.code_epoch != epoch {
                     break;
                 }

@@ -44,7 +44,7 @@
 //! cores nothing; firmware loads and stores them as ordinary SRAM (2 cycles, bank 3:2
 //! striping and contention apply). Link firmware so nothing else lives there.
 
-use crate::block::{self, Blocks, Leave};
+use crate::block::{self, Blocks};
 use crate::bus::{sram_location, Bus, System, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
 use crate::decode::{decode, is_32bit, Instr};
@@ -75,9 +75,9 @@ pub struct Config {
     /// of running the firmware's HardFault handler.
     pub stop_on_fault: bool,
     /// Which engine runs the fast path of [`Board::run_until`] / [`Board::run_for`]
-    /// (default [`Engine::Interp`], the faster of the two today: see BENCHMARKS.md). Both
-    /// give the same cycles, registers and memory; [`Board::step`] is always the general
-    /// path.
+    /// (default [`Engine::Block`], the faster: see BENCHMARKS.md, "the block compiler").
+    /// Both give the same cycles, registers and memory; [`Board::step`] is always the
+    /// general path.
     pub engine: Engine,
 }
 
@@ -85,12 +85,13 @@ pub struct Config {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
     /// The interpreter: one instruction at a time from the decode cache (module `fast`).
-    #[default]
     Interp,
-    /// Pre-decoded basic blocks with a per-block deadline check (module [`crate::block`]),
-    /// the same instruction semantics; it falls back to the interpreter while functions
-    /// are profiled with [`Board::profile_addr`]. Exact, but not yet faster than
-    /// [`Engine::Interp`] (BENCHMARKS.md, "Emulator: the block engine").
+    /// The block engine (module [`crate::block`]): code regions compiled to native code
+    /// with cranelift (module `jit`) once warm, pre-decoded basic blocks otherwise, the
+    /// same cycles and results as [`Engine::Interp`]. It runs one core at a time: while
+    /// both cores run (lock-step turns of an instruction or two) and while functions are
+    /// profiled with [`Board::profile_addr`], the interpreter runs.
+    #[default]
     Block,
 }
 
@@ -241,11 +242,19 @@ enum Return {
     FromException(u32),
 }
 
-/// Launch protocol state of the parked core 1.
+/// Where core 1's boot ROM is in its wait loop (pico-bootrom `bootrom/bootrom_rt0.S`,
+/// `wait_for_vector`; RP2040 datasheet 2.8.2): the next word it waits for, the VTOR and
+/// stack pointer received so far, and a word it could not yet send because core 0's RX
+/// FIFO was full (the ROM waits in `WFE` for room, `send_and_then_again`).
 #[derive(Clone, Copy, Debug, Default)]
 struct Launch {
+    /// 0: the command 1; 1: the vector table; 2: the stack pointer; 3: the entry point;
+    /// 4: launching once the entry point's echo is sent.
     step: usize,
-    words: [u32; 6],
+    vtor: u32,
+    sp: u32,
+    entry: u32,
+    unsent: Option<u32>,
 }
 
 /// Decode cache entry: the instruction, its pre-decoded fast-path form and its size,
@@ -293,13 +302,13 @@ impl Board {
     /// A board with zeroed memory and both cores parked (core 1 in the launch protocol).
     pub fn new(config: Config) -> Self {
         let system = System::new(config.clock_hz);
-        Board {
+        let mut board = Board {
             config,
             cores: [Core::new(0), Core::new(1)],
             system,
             image: Image::default(),
             profiles: Vec::new(),
-            launch: Some(Launch::default()),
+            launch: None,
             lines: 0,
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
@@ -316,7 +325,12 @@ impl Board {
             .into_boxed_slice()
             .try_into()
             .unwrap_or_else(|_| unreachable!()),
-        }
+        };
+        // Core 1 reaches `wait_for_vector` a few cycles after reset, long before core 0
+        // can send anything: its first handshake is part of the power-on state.
+        board.launch = Some(Launch::default());
+        board.launch_handshake();
+        board
     }
 
     /// Parses and loads an ELF executable, then starts core 0: from its vector table if the
@@ -334,10 +348,21 @@ impl Board {
         }
         match image.vector_table {
             Some(vt) => self.boot_from_vectors(0, vt)?,
-            None => self.cores[0].reset_to(image.entry, SRAM_END),
+            None => self.enter_ram_image(image.entry),
         }
         self.image = image;
         Ok(())
+    }
+
+    /// Starts core 0 at `entry` (Thumb bit set) with SP at the top of SRAM and VTOR 0 (the
+    /// boot ROM's table), as the boot ROM enters a RAM image after a UF2 download: it
+    /// reboots through the watchdog with `entry` = the lowest address the UF2 wrote and
+    /// SP = 0x20042000 (pico-bootrom `bootrom/virtual_disk.c`,
+    /// `safe_reboot(lowest_addr, SRAM_END, …)`; `bootrom/bootrom_rt0.S`, `check_wdog`).
+    /// Core 1 stays in the boot ROM's launch protocol.
+    pub fn enter_ram_image(&mut self, entry: u32) {
+        self.cores[0].reset_to(entry, SRAM_END);
+        self.cores[0].nvic.vtor = 0;
     }
 
     /// Starts `core` from the vector table at `vtor` (SP = word 0, PC = word 1), as the boot
@@ -607,6 +632,18 @@ impl Board {
         self.blocks.decoded
     }
 
+    /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
+    pub fn regions_compiled(&self) -> u64 {
+        self.blocks.jit.count
+    }
+
+    /// The block engine compiles a code region to native code once its entry has been
+    /// reached `times` times (default 16; 0 compiles every region at once — the tests use
+    /// it to run everything natively). Results never depend on it, only speed.
+    pub fn set_compile_threshold(&mut self, times: u32) {
+        self.blocks.jit.threshold = times;
+    }
+
     /// Total cycles elapsed: the lower of the running cores' counters.
     pub fn cycle(&self) -> u64 {
         match self.next_core() {
@@ -850,9 +887,13 @@ impl Board {
         } else {
             watch[k][0] == NO_WATCH
         };
-        if unwatched && self.config.engine == Engine::Block {
-            let (k, result) = self.block_run::<BOTH>(k, deadline);
-            let exit = match result {
+        // Both cores running: lock-step turns of one or two instructions, too short for
+        // a compiled region to fit in; the interpreter's loop below is the faster there
+        // (BENCHMARKS.md, "the block compiler").
+        if unwatched && !BOTH && self.config.engine == Engine::Block {
+            let (sys, blocks) = (&mut self.system, &mut self.blocks);
+            let core = &mut self.cores[k];
+            let exit = match block::run(core, sys, blocks, deadline[k], &mut block::Alone) {
                 Ok(()) => Exit::Deadline,
                 Err(_) => Exit::Miss,
             };
@@ -872,42 +913,6 @@ impl Board {
             ),
         };
         (k, self.finish_fast(k, exit))
-    }
-
-    /// [`Board::fast_run`] on the block engine (nothing watched): core `k` alone, or with
-    /// `BOTH` the two cores in lock-step order, each running its blocks while it keeps the
-    /// turn (its cycle below the other core's, or equal for core 0; see [`crate::block`]).
-    /// Returns the core that ran last and `Ok` when it reached its deadline.
-    fn block_run<const BOTH: bool>(
-        &mut self,
-        k: usize,
-        deadline: [u64; 2],
-    ) -> (usize, Result<(), Leave>) {
-        let (sys, blocks) = (&mut self.system, &mut self.blocks);
-        if !BOTH {
-            let core = &mut self.cores[k];
-            return (
-                k,
-                block::run::<false, _>(core, sys, blocks, deadline[k], |_| {}),
-            );
-        }
-        let [c0, c1] = &mut self.cores;
-        loop {
-            let (k, me, other) = if c1.cycle < c0.cycle {
-                (1, &mut *c1, &*c0)
-            } else {
-                (0, &mut *c0, &*c1)
-            };
-            if me.cycle >= deadline[k] {
-                return (k, Ok(()));
-            }
-            let turn_ends = other.cycle + (k == 0) as u64;
-            if let Err(leave) =
-                block::run::<false, _>(me, sys, blocks, deadline[k].min(turn_ends), |_| {})
-            {
-                return (k, Err(leave));
-            }
-        }
     }
 
     /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
@@ -1079,36 +1084,80 @@ impl Board {
         core.run_priced::<_, TRACE>(&mut self.system, pc, instr, size, Some(cost))
     }
 
-    fn poll_launch(&mut self) {
-        // Boot ROM of core 1 (datasheet 2.8.2): echo each word; 0,0,1,vt,sp,pc launches.
-        while let Some(word) = self.peek_fifo_to_core1() {
-            let Some(mut l) = self.launch else { return };
-            self.system.sio.fifo_push(1, word);
-            let expected_ok = match l.step {
-                0 | 1 => word == 0,
-                2 => word == 1,
-                _ => true,
-            };
-            if expected_ok {
-                l.words[l.step] = word;
-                l.step += 1;
-            } else {
-                l.step = (word == 0) as usize;
-            }
-            if l.step == 6 {
-                let [_, _, _, vt, sp, pc] = l.words;
-                self.start_core(1, pc, sp, vt);
-                return;
-            }
-            self.launch = Some(l);
+    /// Core 1's boot ROM at `core_0_handshake_loop`: drain its RX FIFO, send 0 to core 0
+    /// and wait for the command 1.
+    fn launch_handshake(&mut self) {
+        // The drain reads while VLD is set: it never underflows.
+        while self.system.sio.fifo_status(1) & 1 != 0 {
+            self.system.sio.fifo_pop(1);
         }
+        if let Some(l) = &mut self.launch {
+            *l = Launch {
+                unsent: Some(0),
+                ..Launch::default()
+            };
+        }
+        self.launch_send();
     }
 
-    fn peek_fifo_to_core1(&mut self) -> Option<u32> {
-        if self.system.sio.fifo_status(1) & 1 == 0 {
-            return None;
+    /// Sends core 1's pending word to core 0 if its RX FIFO has room, then `SEV` (as the
+    /// ROM's `send_and_then` does). False while the word waits for room.
+    fn launch_send(&mut self) -> bool {
+        let Some(l) = &mut self.launch else {
+            return true;
+        };
+        let Some(word) = l.unsent else {
+            return true;
+        };
+        if self.system.sio.fifo_status(1) & 2 == 0 {
+            return false;
         }
-        self.system.sio.fifo_pop(1)
+        l.unsent = None;
+        self.system.sio.fifo_push(1, word);
+        self.cores[0].event = true;
+        true
+    }
+
+    /// Core 1's boot ROM reacting to what core 0 sent, word by word (pico-bootrom
+    /// `bootrom_rt0.S`: `wait_for_vector`, `send_and_then`, `receive_and_check_zero`;
+    /// datasheet 2.8.2): a 0 sends it back to the handshake (drain, send 0); in the first
+    /// step anything but 1 does too; otherwise it takes the word (VTOR, then SP, then the
+    /// entry point), echoes it, and after echoing the entry point starts core 1 there
+    /// with that VTOR and SP. The ROM's own instructions are not timed: each reaction
+    /// happens when core 0 next runs (about a dozen cycles per word on the chip).
+    fn poll_launch(&mut self) {
+        loop {
+            if !self.launch_send() {
+                return;
+            }
+            let Some(l) = self.launch else { return };
+            if l.step == 4 {
+                self.start_core(1, l.entry, l.sp, l.vtor);
+                return;
+            }
+            if self.system.sio.fifo_status(1) & 1 == 0 {
+                return;
+            }
+            let Some(word) = self.system.sio.fifo_pop(1) else {
+                return;
+            };
+            if word == 0 || (l.step == 0 && word != 1) {
+                self.launch_handshake();
+                continue;
+            }
+            let mut next = Launch {
+                step: l.step + 1,
+                unsent: Some(word),
+                ..l
+            };
+            match l.step {
+                1 => next.vtor = word,
+                2 => next.sp = word,
+                3 => next.entry = word,
+                _ => {}
+            }
+            self.launch = Some(next);
+        }
     }
 }
 
@@ -1280,15 +1329,12 @@ fn blocks_beside_sleeper<const SLEEPER_IS_0: bool>(
             // From this cycle on, the sleeper's turn would find it at (or past) its wake
             // check: the loop must take that turn.
             let limit = deadline.min(wake_check.max(sleep.cycle) + loses_ties);
-            let s = &mut sleep.cycle;
-            let after = |r: u64| {
-                // (A turn that finds the sleeper at its wake check ends the run: the loop
-                // takes it, after the block.)
-                if r >= *s + loses_ties && *s < wake_check {
-                    *s = wake_check.min(r + 1).max(*s + 1);
-                }
+            let mut turns = block::Sleeper {
+                cycle: &mut sleep.cycle,
+                wake: wake_check,
+                loses_ties: !SLEEPER_IS_0,
             };
-            if block::run::<true, _>(run, sys, blocks, limit, after).is_err() {
+            if block::run(run, sys, blocks, limit, &mut turns).is_err() {
                 return Err(Exit::Miss);
             }
         }

@@ -13,11 +13,13 @@
 pub mod block;
 pub mod board;
 pub mod bus;
+pub mod clocks;
 pub mod core;
 pub mod decode;
 pub mod elf;
 pub mod encode;
 pub mod exec;
+mod jit;
 mod fast;
 pub mod nvic;
 pub mod schedule;
