@@ -14,8 +14,6 @@ use crate::source;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use tactus_compiler::fixed::FixedProgram;
-use tactus_firmware::image::Program;
 use tactus_firmware::verdict::{self, BudgetInput, ProgramInput};
 use tactus_runtime::keyboard::{self, Board, KeyAssignment, Layout};
 use tactus_runtime::limiter::LimiterConfig;
@@ -270,15 +268,21 @@ pub(crate) fn compile_keyboard(args: &KeyboardSpec) -> Result<Keyboard, String> 
         _ => e,
     })?;
 
-    // Distinct programs, in order of first key.
-    let mut programs: Vec<ProgramInput> = Vec::new();
+    // Distinct parameter sets, in order of first key: (instrument, params, source, IR).
+    type ParamSet = (
+        String,
+        Vec<(String, String)>,
+        source::Source,
+        tactus_compiler::ir::Program,
+    );
+    let mut sets: Vec<ParamSet> = Vec::new();
     let mut keys: Vec<(u8, usize)> = Vec::new();
     for a in &r.keys {
         let mut params = a.params.clone();
         params.extend(args.params.iter().cloned());
-        let idx = match programs
+        let idx = match sets
             .iter()
-            .position(|p| p.instrument == a.instrument && p.params == params)
+            .position(|p: &ParamSet| p.0 == a.instrument && p.1 == params)
         {
             Some(i) => i,
             None => {
@@ -300,21 +304,28 @@ pub(crate) fn compile_keyboard(args: &KeyboardSpec) -> Result<Keyboard, String> 
                         verdict::show_params(params.iter().map(|(n, v)| (n, v)))
                     ));
                 };
-                let fp = FixedProgram::new(&lowered.program);
-                let obj = tactus_compiler::thumb::compile(&fp)
-                    .map_err(|e| format!("{}: {e}", src.name))?;
-                programs.push(ProgramInput {
-                    instrument: a.instrument.clone(),
-                    params,
-                    source: src.text,
-                    program: Program::new(fp, obj),
-                });
-                programs.len() - 1
+                sets.push((a.instrument.clone(), params, src, lowered.program));
+                sets.len() - 1
             }
         };
         keys.push((a.key, idx));
     }
     keys.sort_unstable();
+    // One code per instrument: graded params become run-time data (a param block per set).
+    let lowered: Vec<(&str, &tactus_compiler::ir::Program)> =
+        sets.iter().map(|s| (s.0.as_str(), &s.3)).collect();
+    let compiled = tactus_firmware::image::compile_shared(&lowered)
+        .map_err(|(i, e)| format!("{}: {e}", sets[i].2.name))?;
+    let programs: Vec<ProgramInput> = sets
+        .into_iter()
+        .zip(compiled)
+        .map(|((instrument, params, src, _), program)| ProgramInput {
+            instrument,
+            params,
+            source: src.text,
+            program,
+        })
+        .collect();
 
     Ok(Keyboard {
         resolved: r,

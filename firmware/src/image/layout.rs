@@ -126,8 +126,27 @@ pub(super) fn check_keys(
     Ok(key_drives)
 }
 
+/// Per program, the program whose code copy serves it: the first with the same code
+/// ([`Program::same_code`]: the parameter sets of one instrument share one code).
+fn code_of(programs: &[Program]) -> Vec<usize> {
+    programs
+        .iter()
+        .map(|p| programs.iter().position(|q| q.same_code(p)).unwrap_or(0))
+        .collect()
+}
+
+/// Whether core `core` holds a copy of program `p`'s code: `p` is the first with its code
+/// and a key of the core runs that code.
+fn core_uses(code_of: &[usize], keys: &[KeySpec], core: usize, p: usize) -> bool {
+    code_of[p] == p
+        && keys
+            .iter()
+            .any(|k| k.core == core && code_of.get(k.program) == Some(&p))
+}
+
 /// The programs' code alone must fit each core's bank (checked before any analysis: a
-/// program too large to place, such as `plucked_string`, is not analysed).
+/// program too large to place, such as `plucked_string`, is not analysed); one copy per
+/// distinct code.
 ///
 /// Errors: [`ImageError::NoRoom`].
 pub(super) fn check_code_fits(
@@ -135,10 +154,11 @@ pub(super) fn check_code_fits(
     keys: &[KeySpec],
     cores: usize,
 ) -> Result<(), ImageError> {
+    let code_of = code_of(programs);
     for core in 0..cores {
         let mut need = VECTORS;
         for (p, prog) in programs.iter().enumerate() {
-            if keys.iter().any(|k| k.core == core && k.program == p) {
+            if core_uses(&code_of, keys, core, p) {
                 need = need.next_multiple_of(4) + prog.thumb.code.text.len() as u32;
             }
         }
@@ -199,7 +219,7 @@ pub(super) struct CoreCode {
     pub glue: u32,
 }
 
-/// Per core, the vector table and the copy of each program its keys use, at offsets in a
+/// Per core, the vector table and one copy of each code its keys use, at offsets in a
 /// block provisionally at the start of the core's bank ([`place_code_blocks`] moves it).
 pub(super) fn place_programs(
     programs: &[Program],
@@ -207,11 +227,12 @@ pub(super) fn place_programs(
     cores: usize,
 ) -> Vec<CoreCode> {
     let mut cc = Vec::new();
+    let code_of = code_of(programs);
     for core in 0..cores {
         let mut at = VECTORS;
         let mut texts = Vec::new();
         for (p, prog) in programs.iter().enumerate() {
-            if keys.iter().any(|k| k.core == core && k.program == p) {
+            if core_uses(&code_of, keys, core, p) {
                 at = at.next_multiple_of(4);
                 texts.push((p, at));
                 at += prog.thumb.code.text.len() as u32;
@@ -247,12 +268,13 @@ pub(super) fn key_records(
     let mut at = ctrl_addr + ctrl::SIZE;
     let mut kc = Vec::new();
     let mut kp = Vec::new();
+    let code_of = code_of(programs);
     for &i in &my {
         let p = &programs[keys[i].program];
         let text = cc
             .texts
             .iter()
-            .find(|t| t.0 == keys[i].program)
+            .find(|t| Some(&t.0) == code_of.get(keys[i].program))
             .map_or(0, |t| cc.start + t.1);
         let sym = |name: String| {
             p.thumb
@@ -411,7 +433,7 @@ pub(super) fn data_block(
         let p = &l.programs[k.spec.program];
         let state = at;
         at = (at + p.thumb.state.size as u32).next_multiple_of(4);
-        states.push(p.thumb.state.size);
+        states.push((p.thumb.state.size, p.thumb.state.params, &p.params));
         let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 1)];
         let put = |r: &mut Vec<u8>, off: u32, v: u32| {
             r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
@@ -422,8 +444,16 @@ pub(super) fn data_block(
         put(&mut r, k.state_offset, state);
         data.extend(r);
     }
-    for size in &states {
-        data.extend(vec![0u8; size.next_multiple_of(4)]);
+    // States are zero (init sets them) but for the key's param block, which init leaves
+    // alone.
+    for (size, params_at, params) in &states {
+        let mut st = vec![0u8; size.next_multiple_of(4)];
+        for (k, w) in params.iter().enumerate() {
+            if let Some(b) = st.get_mut(params_at + 4 * k..params_at + 4 * k + 4) {
+                b.copy_from_slice(&w.to_le_bytes());
+            }
+        }
+        data.extend(st);
     }
     let need = at - bank;
     if need > BANK_LIMIT {
@@ -531,6 +561,7 @@ pub(super) fn core_place(
         stack_top,
         stack_bottom,
         keys: Vec::new(),
+        code_copies: cc.texts.len(),
     }
 }
 
