@@ -84,6 +84,10 @@ use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::{DacScale, Limiter, LimiterConfig};
 
+/// Most state words (states, modes, edges) the quiescent-key guard compares; a program
+/// with more runs every update.
+pub const MAX_GUARDED_WORDS: u32 = 160;
+
 /// A compiled key program: the fixed-point program (for its formats and the interpreter)
 /// and its Thumb code, with the static WCETs of its functions computed once.
 #[derive(Clone, Debug)]
@@ -97,6 +101,10 @@ pub struct Program {
     update_cost: OnceLock<Result<crate::budget::StaticCost, ImageError>>,
     /// `init_wcet`, once computed.
     init_cycles: OnceLock<Result<u64, ImageError>>,
+    /// Whether the image guards this program's updates with the quiescent-key guard
+    /// ([`glue::GuardCode`]: a key whose sensors and state stand still skips its update and
+    /// keeps its outputs). On by default; its cost is in every static bound of the image.
+    pub quiescent_guard: bool,
 }
 
 impl Program {
@@ -107,7 +115,28 @@ impl Program {
             thumb,
             update_cost: OnceLock::new(),
             init_cycles: OnceLock::new(),
+            quiescent_guard: true,
         }
+    }
+
+    /// The quiescent-key guard for a key of this program, its calm counter at
+    /// `calm_offset` in the record; `None` when [`Program::quiescent_guard`] is off.
+    fn guard(&self, calm_offset: u32) -> Option<glue::GuardCode> {
+        let differentiated = self.fixed.program.sensors.iter().any(|s| s.differentiated);
+        let words = (self.thumb.state.hist / 4) as u32;
+        // The guard's `B` over the comparison reaches 2 KB: at 10 bytes per word, a state
+        // of more than `MAX_GUARDED_WORDS` words runs unguarded.
+        (self.quiescent_guard && words <= MAX_GUARDED_WORDS).then(|| glue::GuardCode {
+            calm_offset,
+            calm_needed: if differentiated {
+                (2 * tactus_runtime::differentiator::WINDOW + 1) as u8
+            } else {
+                // Two, so that the first update (compared with a zero shadow) never
+                // decides alone.
+                2
+            },
+            words,
+        })
     }
 
     /// Compiles instrument source `text` with `config` (sample rate, `--param`
@@ -733,16 +762,17 @@ impl FirmwareImage {
                 let drives = &key_drives[i];
                 let nd = drives.len() as u32;
                 // The record: sensor words first (the update's `sensors`), then the out
-                // words, the budgets and the state address — or, where the out words would
-                // push those beyond an `LDR` immediate, the budgets and the state address
-                // before the out words.
-                let (out_offset, budgets_offset) = if 4 * (ns + out_len + nd) <= 124 {
+                // words, the budgets, the state address and the guard's calm counter — or,
+                // where the out words would push those beyond an `LDR` immediate, the
+                // budgets, the state address and the counter before the out words.
+                let (out_offset, budgets_offset) = if 4 * (ns + out_len + nd + 1) <= 124 {
                     (4 * ns, 4 * (ns + out_len))
                 } else {
-                    (4 * (ns + nd + 1), 4 * ns)
+                    (4 * (ns + nd + 2), 4 * ns)
                 };
                 let state_offset = budgets_offset + 4 * nd;
-                let size = 4 * (ns + out_len + nd + 1);
+                let calm_offset = state_offset + 4;
+                let size = 4 * (ns + out_len + nd + 2);
                 let budgets: Vec<u32> = (0..nd).map(|j| budgets_offset + 4 * j).collect();
                 let update = sym(p.thumb.update_name())?;
                 let slot = keys[i].slot as u32;
@@ -769,6 +799,7 @@ impl FirmwareImage {
                     record_size: size,
                     update,
                     init: sym(p.thumb.init_name())?,
+                    guard: p.guard(calm_offset),
                 });
                 kp.push(KeyPlace {
                     index: i,
@@ -832,10 +863,14 @@ impl FirmwareImage {
             let mut states = Vec::new();
             for k in &kp {
                 let p = &programs[k.spec.program];
-                let state = at;
-                at = (at + p.thumb.state.size as u32).next_multiple_of(4);
-                states.push((state, p.thumb.state.size));
-                let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 1)];
+                // The guard's shadow copy directly below the state struct (zeros: the
+                // first update never counts as calm unless its state is all zeros, which
+                // the counter's length makes harmless).
+                let shadow = p.guard(0).map_or(0, |g| g.shadow_bytes());
+                let state = at + shadow;
+                at = (state + p.thumb.state.size as u32).next_multiple_of(4);
+                states.push((state, shadow as usize + p.thumb.state.size));
+                let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 2)];
                 let put = |r: &mut Vec<u8>, off: u32, v: u32| {
                     r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
                 };
