@@ -123,10 +123,21 @@ impl Program {
     /// `calm_offset` in the record; `None` when [`Program::quiescent_guard`] is off.
     fn guard(&self, calm_offset: u32) -> Option<glue::GuardCode> {
         let differentiated = self.fixed.program.sensors.iter().any(|s| s.differentiated);
-        let words = (self.thumb.state.hist / 4) as u32;
-        // The guard's `B` over the comparison reaches 2 KB: at 10 bytes per word, a state
-        // of more than `MAX_GUARDED_WORDS` words runs unguarded.
-        (self.quiescent_guard && words <= MAX_GUARDED_WORDS).then(|| glue::GuardCode {
+        let (p, st) = (&self.fixed.program, &self.thumb.state);
+        // The words holding states, modes and edges (the layout pads empty arrays to one
+        // element: those are never written and not compared).
+        let mut words: Vec<u32> = (0..p.states.len() as u32).map(|i| st.states as u32 + 4 * i).collect();
+        let bytes = [(st.modes, p.modes.len()), (st.edges, p.edges.len())];
+        for (at, n) in bytes {
+            for b in at..at + n {
+                let w = (b as u32) & !3;
+                if words.last() != Some(&w) {
+                    words.push(w);
+                }
+            }
+        }
+        let words_len = words.len() as u32;
+        (self.quiescent_guard && words_len <= MAX_GUARDED_WORDS).then(|| glue::GuardCode {
             calm_offset,
             calm_needed: if differentiated {
                 (2 * tactus_runtime::differentiator::WINDOW + 1) as u8
