@@ -55,20 +55,23 @@ Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20 --tr
 pub struct PlayArgs {
     /// MIDI performance to play [default: a built-in 8 s demo].
     pub performance: Option<PathBuf>,
-    /// Instrument on every key A0…C8 (file or built-in name) [default: grand_piano].
+    /// Instrument on every key A0…C8 (file or built-in name), instead of the layout.
     #[arg(long, conflicts_with = "layout")]
     pub instrument: Option<String>,
-    /// Keyboard layout (TOML): instruments and param grading per key range, e.g.
-    /// instruments/layouts/grand88.toml.
+    /// Keyboard layout (TOML): instruments and param grading per key range [default: the
+    /// built-in grand88, instruments/layouts/grand88.toml: the grand piano on A0…C8 with
+    /// the hammer mass graded from 11 g to 3.5 g].
     #[arg(long)]
     pub layout: Option<PathBuf>,
     /// Play only the first SECONDS of the performance.
     #[arg(long)]
     pub seconds: Option<f64>,
-    /// Engine: `jit` (cranelift f64, fast), `interp` (the f64 reference interpreter),
-    /// `fixed` (the fixed-point JIT: the firmware's bits) or `emu` (the compiled firmware of
-    /// the played keys on the emulated board, sample by sample).
-    #[arg(long, value_enum, default_value = "jit")]
+    /// Engine: `emu` (the default: the compiled firmware of every board of the keyboard on
+    /// emulated RP2040s, every key every sample, with each core's cycles and deadline
+    /// misses), or for quick looks on the host `fixed` (the fixed-point JIT: the firmware's
+    /// bits), `jit` (cranelift f64) or `interp` (the f64 reference interpreter), which
+    /// simulate only the played keys and check no budget.
+    #[arg(long, value_enum, default_value = "emu")]
     pub engine: PlayEngine,
     /// Board of `--engine emu`: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`)
     /// or a board file.
@@ -365,11 +368,15 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                 tactus_runtime::keyboard::board_keys(&layout, &l.display().to_string(), &keys)?;
             keys
         }
+        None if args.instrument.is_none() => {
+            let name = "grand88 (built in)";
+            let layout = tactus_runtime::keyboard::parse_layout(source::GRAND88_LAYOUT, name)?;
+            let keys = tactus_runtime::keyboard::assign(&layout, name, Path::new(""))?;
+            layout_boards = tactus_runtime::keyboard::board_keys(&layout, name, &keys)?;
+            keys
+        }
         None => {
-            let name = args
-                .instrument
-                .clone()
-                .unwrap_or_else(|| "grand_piano".to_string());
+            let name = args.instrument.clone().unwrap_or_default();
             (21u8..=108)
                 .map(|key| tactus_runtime::keyboard::KeyAssignment {
                     key,
