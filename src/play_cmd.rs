@@ -100,6 +100,11 @@ pub struct PlayArgs {
     /// Trace until this time, s [default: the end].
     #[arg(long)]
     pub trace_to: Option<f64>,
+    /// With `--engine emu`: build the firmware without the quiescent-key guard, so that
+    /// every key's update runs every sample (the same strikes; to measure what the guard
+    /// saves).
+    #[arg(long)]
+    pub no_quiescent_guard: bool,
     /// Do not write the WAV rendering.
     #[arg(long)]
     pub no_wav: bool,
@@ -635,6 +640,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             trace,
             boards: layout_boards.clone(),
             emu: args.emu,
+            quiescent_guard: !args.no_quiescent_guard,
         };
         let (s, report, t) = emu_strikes(&all, &key_motions, &opts, &bar)?;
         strikes = s;
@@ -867,11 +873,12 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                 let cores: Vec<String> = (0..b.max.len())
                     .map(|c| {
                         format!(
-                            "core {c}: {} keys, max {} cycles per sample ({:.1} %, static {}), headroom {}, deadline misses {}",
+                            "core {c}: {} keys, max {} cycles per sample ({:.1} %, static {}, mean {:.1} %), headroom {}, deadline misses {}",
                             b.core_keys[c],
                             b.max[c],
                             100.0 * b.max[c] as f64 / r.deadline as f64,
                             b.bound[c],
+                            100.0 * b.total[c] as f64 / (r.samples.max(1) * r.deadline) as f64,
                             r.deadline as i64 - b.max[c] as i64,
                             b.misses[c]
                         )
@@ -909,6 +916,8 @@ struct EmuReport {
     boards: Vec<tactus_firmware::perform::BoardRun>,
     /// Samples per point of [`BoardRun::cycles`].
     decimation: usize,
+    /// Samples run.
+    samples: u64,
 }
 
 /// What `--engine emu` records per traced key ([`emu_strikes`]).
@@ -939,6 +948,8 @@ struct EmuOptions<'a> {
     boards: Option<Vec<Vec<u8>>>,
     /// The emulator's engine.
     emu: crate::budget_cmd::EmuEngine,
+    /// Whether the firmware guards quiescent keys.
+    quiescent_guard: bool,
 }
 
 /// Plays the keys through the firmware of every board of the keyboard
@@ -977,6 +988,7 @@ fn emu_strikes(
             ..Default::default()
         },
         engine: opts.emu.into(),
+        quiescent_guard: opts.quiescent_guard,
     };
     let run = tactus_firmware::perform::play_boards(
         &programs,
@@ -1006,6 +1018,7 @@ fn emu_strikes(
         deadline: board.cycles_per_sample(),
         boards,
         decimation: run.decimation,
+        samples: opts.end as u64,
     };
     Ok((strikes, report, traces))
 }

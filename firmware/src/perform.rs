@@ -71,6 +71,9 @@ pub struct PerformOptions {
     pub limiter: LimiterConfig,
     /// The emulator's engine (the same cycles either way).
     pub engine: tactus_emulator::Engine,
+    /// Whether the images guard quiescent keys ([`Program::quiescent_guard`]: the same
+    /// outputs either way; fewer cycles and a faster emulation with it).
+    pub quiescent_guard: bool,
 }
 
 /// One board's run.
@@ -82,6 +85,9 @@ pub struct BoardRun {
     pub core_keys: Vec<usize>,
     /// The largest handler per core, cycles (exception entry to return).
     pub max: Vec<u64>,
+    /// All handler cycles per core over the run (their mean per sample, over the cycles
+    /// of a sample period, is the core's mean utilisation).
+    pub total: Vec<u64>,
     /// Deadline misses the firmware counted, per core.
     pub misses: Vec<u32>,
     /// The static bound of each core's handler.
@@ -119,6 +125,15 @@ pub fn play_boards(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<KeyboardRun, String> {
     let lim = &opts.limiter;
+    let guarded: Vec<Program> = programs
+        .iter()
+        .map(|p| {
+            let mut p = p.clone();
+            p.quiescent_guard = opts.quiescent_guard;
+            p
+        })
+        .collect();
+    let programs = &guarded[..];
     let costs = ProgramCosts::new(programs, board, lim).map_err(|e| e.to_string())?;
     let keys: Vec<PlanKey> = keys
         .iter()
@@ -209,6 +224,7 @@ fn run_board(
             .map(|c| core_of.iter().filter(|&&k| k == c).count())
             .collect(),
         max: vec![0; n_cores],
+        total: vec![0; n_cores],
         misses: vec![0; n_cores],
         bound: (0..n_cores)
             .map(|c| image.wcet(c).map_or(0, |w| w.bound()))
@@ -289,6 +305,7 @@ fn run_board(
         }
         for c in 0..n_cores {
             report.max[c] = report.max[c].max(out.core_cycles[c]);
+            report.total[c] += out.core_cycles[c];
             report.misses[c] = out.misses[c];
             block_max = block_max.max(out.core_cycles[c]);
         }
