@@ -49,7 +49,8 @@ entity!(
     SensorId, "sensor"
 );
 entity!(
-    /// A compile-time constant: index into [`Program::params`].
+    /// A param: index into [`Program::params`]. A compile-time constant unless the param is
+    /// run-time data ([`ParamDecl::runtime`]).
     ParamId, "param"
 );
 entity!(
@@ -103,17 +104,24 @@ pub struct SensorDecl {
     pub span: Span,
 }
 
-/// A param: a constant, folded at compile time (after `--param` overrides).
+/// A param: a constant, folded at compile time (after `--param` overrides), or — in a
+/// program shared by keys that give it different values ([`crate::share`]) — run-time data:
+/// a word of the key's param block, planned over the interval the keys span.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ParamDecl {
-    /// Source name, qualified by the instance for component params (`esc.peak`).
+    /// Source name, qualified by the instance for component params (`esc.peak`); for a
+    /// param-derived word of a shared program, the expression it stands for.
     pub name: String,
     /// Dimension.
     pub dim: Dim,
-    /// Value in SI.
+    /// Value in SI (for a run-time param: the first key's value, what the f64 engines use).
     pub value: f64,
     /// Declaration span.
     pub span: Span,
+    /// `Some([lo, hi])` (SI) for a run-time param: every key of the shared program gives it
+    /// a value in `[lo, hi]`, the interval the range analysis and the format plan use; each
+    /// key's value is a word of its param block. `None` for a compile-time constant.
+    pub runtime: Option<(f64, f64)>,
 }
 
 /// A continuous state with its declared range. Writes saturate to the range.
@@ -289,7 +297,9 @@ pub enum Op {
     BoolConst(bool),
     /// A mode variant index. Type: `Mode(m)`.
     Variant(ModeId, u32),
-    /// A param's folded value. Type: `Real(param.dim)`.
+    /// A param's value: folded at compile time, or for a run-time param
+    /// ([`ParamDecl::runtime`]) the key's word in its param block, in the interval the
+    /// param declares. Type: `Real(param.dim)`.
     Param(ParamId),
     /// This sample's sensor reading. Type: `Real(sensor.dim)`.
     Sensor(SensorId),
@@ -394,6 +404,28 @@ impl Program {
     /// [`Program::force_axes`]).
     pub fn is_pen(&self) -> bool {
         !self.force_axes.is_empty()
+    }
+
+    /// The compile-time value of `v` (SI) when it is a constant or a compile-time param;
+    /// `None` for a run-time param ([`ParamDecl::runtime`]) and every other value.
+    pub fn const_value(&self, v: Value) -> Option<f64> {
+        match self.values[v.index()].op {
+            Op::Const(c) => Some(c),
+            Op::Param(p) if self.params[p.index()].runtime.is_none() => {
+                Some(self.params[p.index()].value)
+            }
+            _ => None,
+        }
+    }
+
+    /// The run-time params ([`ParamDecl::runtime`]) in declaration order: the words of a
+    /// key's param block, in this order.
+    pub fn runtime_params(&self) -> impl Iterator<Item = ParamId> + '_ {
+        self.params
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.runtime.is_some())
+            .map(|(i, _)| ParamId(i as u32))
     }
 
     /// The data of a value.

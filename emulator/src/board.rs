@@ -241,11 +241,19 @@ enum Return {
     FromException(u32),
 }
 
-/// Launch protocol state of the parked core 1.
+/// Where core 1's boot ROM is in its wait loop (pico-bootrom `bootrom/bootrom_rt0.S`,
+/// `wait_for_vector`; RP2040 datasheet 2.8.2): the next word it waits for, the VTOR and
+/// stack pointer received so far, and a word it could not yet send because core 0's RX
+/// FIFO was full (the ROM waits in `WFE` for room, `send_and_then_again`).
 #[derive(Clone, Copy, Debug, Default)]
 struct Launch {
+    /// 0: the command 1; 1: the vector table; 2: the stack pointer; 3: the entry point;
+    /// 4: launching once the entry point's echo is sent.
     step: usize,
-    words: [u32; 6],
+    vtor: u32,
+    sp: u32,
+    entry: u32,
+    unsent: Option<u32>,
 }
 
 /// Decode cache entry: the instruction, its pre-decoded fast-path form and its size,
@@ -293,13 +301,13 @@ impl Board {
     /// A board with zeroed memory and both cores parked (core 1 in the launch protocol).
     pub fn new(config: Config) -> Self {
         let system = System::new(config.clock_hz);
-        Board {
+        let mut board = Board {
             config,
             cores: [Core::new(0), Core::new(1)],
             system,
             image: Image::default(),
             profiles: Vec::new(),
-            launch: Some(Launch::default()),
+            launch: None,
             lines: 0,
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
@@ -316,7 +324,12 @@ impl Board {
             .into_boxed_slice()
             .try_into()
             .unwrap_or_else(|_| unreachable!()),
-        }
+        };
+        // Core 1 reaches `wait_for_vector` a few cycles after reset, long before core 0
+        // can send anything: its first handshake is part of the power-on state.
+        board.launch = Some(Launch::default());
+        board.launch_handshake();
+        board
     }
 
     /// Parses and loads an ELF executable, then starts core 0: from its vector table if the
@@ -1079,36 +1092,80 @@ impl Board {
         core.run_priced::<_, TRACE>(&mut self.system, pc, instr, size, Some(cost))
     }
 
-    fn poll_launch(&mut self) {
-        // Boot ROM of core 1 (datasheet 2.8.2): echo each word; 0,0,1,vt,sp,pc launches.
-        while let Some(word) = self.peek_fifo_to_core1() {
-            let Some(mut l) = self.launch else { return };
-            self.system.sio.fifo_push(1, word);
-            let expected_ok = match l.step {
-                0 | 1 => word == 0,
-                2 => word == 1,
-                _ => true,
-            };
-            if expected_ok {
-                l.words[l.step] = word;
-                l.step += 1;
-            } else {
-                l.step = (word == 0) as usize;
-            }
-            if l.step == 6 {
-                let [_, _, _, vt, sp, pc] = l.words;
-                self.start_core(1, pc, sp, vt);
-                return;
-            }
-            self.launch = Some(l);
+    /// Core 1's boot ROM at `core_0_handshake_loop`: drain its RX FIFO, send 0 to core 0
+    /// and wait for the command 1.
+    fn launch_handshake(&mut self) {
+        // The drain reads while VLD is set: it never underflows.
+        while self.system.sio.fifo_status(1) & 1 != 0 {
+            self.system.sio.fifo_pop(1);
         }
+        if let Some(l) = &mut self.launch {
+            *l = Launch {
+                unsent: Some(0),
+                ..Launch::default()
+            };
+        }
+        self.launch_send();
     }
 
-    fn peek_fifo_to_core1(&mut self) -> Option<u32> {
-        if self.system.sio.fifo_status(1) & 1 == 0 {
-            return None;
+    /// Sends core 1's pending word to core 0 if its RX FIFO has room, then `SEV` (as the
+    /// ROM's `send_and_then` does). False while the word waits for room.
+    fn launch_send(&mut self) -> bool {
+        let Some(l) = &mut self.launch else {
+            return true;
+        };
+        let Some(word) = l.unsent else {
+            return true;
+        };
+        if self.system.sio.fifo_status(1) & 2 == 0 {
+            return false;
         }
-        self.system.sio.fifo_pop(1)
+        l.unsent = None;
+        self.system.sio.fifo_push(1, word);
+        self.cores[0].event = true;
+        true
+    }
+
+    /// Core 1's boot ROM reacting to what core 0 sent, word by word (pico-bootrom
+    /// `bootrom_rt0.S`: `wait_for_vector`, `send_and_then`, `receive_and_check_zero`;
+    /// datasheet 2.8.2): a 0 sends it back to the handshake (drain, send 0); in the first
+    /// step anything but 1 does too; otherwise it takes the word (VTOR, then SP, then the
+    /// entry point), echoes it, and after echoing the entry point starts core 1 there
+    /// with that VTOR and SP. The ROM's own instructions are not timed: each reaction
+    /// happens when core 0 next runs (about a dozen cycles per word on the chip).
+    fn poll_launch(&mut self) {
+        loop {
+            if !self.launch_send() {
+                return;
+            }
+            let Some(l) = self.launch else { return };
+            if l.step == 4 {
+                self.start_core(1, l.entry, l.sp, l.vtor);
+                return;
+            }
+            if self.system.sio.fifo_status(1) & 1 == 0 {
+                return;
+            }
+            let Some(word) = self.system.sio.fifo_pop(1) else {
+                return;
+            };
+            if word == 0 || (l.step == 0 && word != 1) {
+                self.launch_handshake();
+                continue;
+            }
+            let mut next = Launch {
+                step: l.step + 1,
+                unsent: Some(word),
+                ..l
+            };
+            match l.step {
+                1 => next.vtor = word,
+                2 => next.sp = word,
+                3 => next.entry = word,
+                _ => {}
+            }
+            self.launch = Some(next);
+        }
     }
 }
 

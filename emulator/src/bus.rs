@@ -19,6 +19,7 @@
 //! contend either. APB accesses cost [`crate::timing::APB_LOAD_WAIT`] /
 //! [`crate::timing::APB_STORE_WAIT`] extra cycles.
 
+use crate::clocks::SysCtl;
 use crate::sio::{Sio, SIO_BASE};
 use crate::timer::{Timer, TIMER_BASE};
 use crate::timing::{APB_LOAD_WAIT, APB_STORE_WAIT};
@@ -91,6 +92,9 @@ pub struct System {
     pub sio: Sio,
     /// System timer.
     pub timer: Timer,
+    /// RESETS, XOSC, PLL_SYS, CLOCKS and the watchdog tick: the start-up's registers
+    /// (`clocks.rs`, a minimal model).
+    pub sysctl: SysCtl,
     /// Last cycle in which each core claimed each bank.
     bank_claim: [[u64; 2]; BANKS],
     /// Cycles each core has lost to bank contention.
@@ -164,6 +168,7 @@ impl System {
             sram: vec![0; SRAM_SIZE as usize],
             sio: Sio::default(),
             timer: Timer::new(clock_hz),
+            sysctl: SysCtl::default(),
             bank_claim: [[u64::MAX; 2]; BANKS],
             contention_stalls: [0; 2],
             irq_epoch: 0,
@@ -290,7 +295,7 @@ impl System {
         if addr & !0x3fff == TIMER_BASE {
             return self.timer.read(cycle, addr & 0xfff);
         }
-        None
+        self.sysctl.read(addr)
     }
 
     fn peripheral_write(&mut self, core: usize, cycle: u64, addr: u32, value: u32) -> bool {
@@ -316,7 +321,7 @@ impl System {
             };
             return self.timer.write(cycle, reg, value);
         }
-        false
+        self.sysctl.write(addr, value)
     }
 }
 

@@ -13,6 +13,7 @@
 pub mod block;
 pub mod board;
 pub mod bus;
+pub mod clocks;
 pub mod core;
 pub mod decode;
 pub mod elf;

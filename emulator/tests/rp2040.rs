@@ -214,24 +214,80 @@ fn cpuid_through_both_cores() {
 #[test]
 fn core1_launch_protocol_echoes_and_starts() {
     let mut b = board();
-    // Core 0 spins; core 1 is parked in the boot ROM.
+    // Core 0 spins; core 1 is parked in the boot ROM, which sent its handshake 0 at reset.
     load_program(&mut b, 0, 0x2000_0000, 0x2000_1000, &[0xe7fe]); // b .
-                                                                  // Core 1's program: r2 = 0x55, then SVC #1.
+    assert_eq!(b.system.sio.fifo_pop(0), Some(0), "the ROM's handshake 0");
+    assert_eq!(b.system.sio.fifo_status(0) & 1, 0, "nothing more");
+    // Core 1's program: r2 = 0x55, then SVC #1.
     let code1 = [movs(2, 0x55), svc(1)];
     let bytes: Vec<u8> = code1.iter().flat_map(|h| h.to_le_bytes()).collect();
     b.write_bytes(0x2000_2000, &bytes).unwrap();
-    let seq = [0, 0, 1, 0x2000_3000, 0x2000_4000, 0x2000_2001];
-    for w in seq {
+    // Word by word, as pico-sdk's multicore_launch_core1_raw: each answered before the next.
+    let mut exchange = |b: &mut Board, w: u32| {
         b.system.sio.fifo_push(0, w);
+        let stop = b.run_for(10);
+        (stop, b.system.sio.fifo_pop(0))
+    };
+    // A wrong command sends the ROM back to its handshake: it answers 0, not the word.
+    for w in [0, 0] {
+        assert_eq!(exchange(&mut b, w).1, Some(0));
     }
-    let stop = b.run_for(100);
-    assert_eq!(stop, StopReason::Svc { core: 1, imm: 1 });
+    assert_eq!(
+        exchange(&mut b, 7).1,
+        Some(0),
+        "not 1: back to the handshake"
+    );
+    let seq = [0, 0, 1, 0x2000_3000, 0x2000_4000, 0x2000_2001];
+    let mut last = StopReason::CycleLimit;
+    for w in seq {
+        let (stop, echo) = exchange(&mut b, w);
+        assert_eq!(echo, Some(w), "echo of {w:#x}");
+        last = stop;
+    }
+    assert_eq!(last, StopReason::Svc { core: 1, imm: 1 });
     assert_eq!(b.cores[1].r[2], 0x55);
     assert_eq!(b.cores[1].r[13], 0x2000_4000);
     assert_eq!(b.cores[1].nvic.vtor, 0x2000_3000);
-    // Every word was echoed back to core 0.
-    let echoed: Vec<u32> = (0..6).map(|_| b.system.sio.fifo_pop(0).unwrap()).collect();
-    assert_eq!(echoed, seq);
+    assert_eq!(
+        b.system.sio.fifo_status(0) & 0xc,
+        0,
+        "no FIFO error on core 0"
+    );
+    assert_eq!(
+        b.system.sio.fifo_status(1) & 0xc,
+        0,
+        "no FIFO error on core 1"
+    );
+}
+
+#[test]
+fn pll_set_up_is_decoded_and_status_bits_read_done() {
+    use tactus_emulator::clocks::{self, reg, SysCtl};
+    let mut s = SysCtl::default();
+    assert_eq!(s.pll_sys_hz(), None, "powered down at reset");
+    assert_eq!(clocks::pll_sys_dividers(125_000_000), Some((125, 6, 2)));
+    assert_eq!(clocks::pll_sys_dividers(200_000_000), Some((100, 6, 1)));
+    assert_eq!(clocks::pll_sys_dividers(1_000_000), None);
+    let pll = clocks::PLL_SYS_BASE;
+    assert!(s.write(pll + reg::PLL_FBDIV_INT, 125));
+    assert!(s.write(pll + reg::PLL_PRIM, 6 << 16 | 2 << 12));
+    assert!(s.write(pll + 0x3000 + reg::PLL_PWR, 1 | 1 << 5 | 1 << 3)); // CLR alias
+    assert_eq!(
+        s.read(pll + reg::PLL_CS).map(|v| v >> 31),
+        Some(1),
+        "locked"
+    );
+    assert_eq!(s.pll_sys_hz(), Some(125_000_000));
+    assert_eq!(s.clk_sys_hz(), None, "clk_sys still on clk_ref");
+    assert!(s.write(clocks::CLOCKS_BASE + reg::CLK_SYS_CTRL, 1));
+    assert_eq!(s.read(clocks::CLOCKS_BASE + reg::CLK_SYS_SELECTED), Some(2));
+    assert_eq!(s.clk_sys_hz(), Some(125_000_000));
+    assert!(s.write(clocks::RESETS_BASE + 0x2000, reg::RESET_TIMER)); // SET alias
+    assert_eq!(
+        s.read(clocks::RESETS_BASE + reg::RESET_DONE)
+            .map(|v| v & reg::RESET_TIMER),
+        Some(0)
+    );
 }
 
 #[test]

@@ -41,6 +41,9 @@ pub struct Interface {
     pub modes: usize,
     /// The state struct's byte offsets and size.
     pub state: StateLayout,
+    /// The key's param block, written at [`StateLayout::params`] before every `init`
+    /// (empty for a program without run-time params; `FixedProgram::param_block`).
+    pub params: Vec<i32>,
 }
 
 impl Interface {
@@ -55,6 +58,7 @@ impl Interface {
             states: p.states.len(),
             modes: p.modes.len(),
             state: StateLayout::new(p),
+            params: fp.nominal_param_block(),
         }
     }
 

@@ -171,6 +171,9 @@ pub fn compare(
 /// of the interpreter (which costs as much host time as an emulated engine); one
 /// [`Comparison`] per runner, in order.
 ///
+/// The interpreter runs with the first runner's param block ([`crate::layout::Interface::params`]; the
+/// runners of one comparison run one key).
+///
 /// Errors: the first [`RunError`] of any runner ends the comparison.
 pub fn compare_many(
     runners: &mut [UpdateRunner],
@@ -181,8 +184,11 @@ pub fn compare_many(
     let p = &fp.program;
     let mut cs = vec![Comparison::default(); runners.len()];
     let mut got_events = Vec::new();
+    let params = runners
+        .first()
+        .map_or_else(|| fp.nominal_param_block(), |r| r.interface().params.clone());
     for run in runs {
-        let mut inst = FixedInstance::new(fp);
+        let mut inst = FixedInstance::with_params(fp, params.clone());
         for (runner, c) in runners.iter_mut().zip(&mut cs) {
             c.init_cycles = runner.init()?;
             let (states, modes) = runner.read_state()?;

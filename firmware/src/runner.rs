@@ -290,6 +290,14 @@ impl UpdateRunner {
         &self.iface
     }
 
+    /// Sets the key's param block ([`Interface::params`]) and re-runs `init` with it.
+    ///
+    /// Errors: those of [`UpdateRunner::init`].
+    pub fn set_params(&mut self, params: Vec<i32>) -> Result<u64, RunError> {
+        self.iface.params = params;
+        self.init()
+    }
+
     /// Address of the update function (Thumb bit clear).
     pub fn update_addr(&self) -> u32 {
         self.update
@@ -317,7 +325,14 @@ impl UpdateRunner {
     /// Errors: [`RunError::Call`] when init faults or does not return, [`RunError::Overrun`]
     /// when it writes past the struct.
     pub fn init(&mut self) -> Result<u64, RunError> {
-        let junk: Vec<u8> = (0..self.iface.state.size).map(|i| 0x5B ^ i as u8).collect();
+        let mut junk: Vec<u8> = (0..self.iface.state.size).map(|i| 0x5B ^ i as u8).collect();
+        // The key's param block, which init leaves alone.
+        for (k, w) in self.iface.params.iter().enumerate() {
+            let at = self.iface.state.params + 4 * k;
+            if let Some(b) = junk.get_mut(at..at + 4) {
+                b.copy_from_slice(&w.to_le_bytes());
+            }
+        }
         self.board.write_bytes(self.state_addr, &junk)?;
         let s = self.iface.state.size as u32;
         self.write_guard(self.state_addr + s)?;

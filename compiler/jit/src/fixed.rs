@@ -66,6 +66,9 @@ pub struct FixedLayout {
     /// Number of arguments each event slot (in [`Layout::events`] order) receives: the
     /// emitted arguments that have a format in [`FixedProgram::event_frac`].
     pub event_args: Vec<usize>,
+    /// Word offset in ctx of the key's param block (one word per run-time param,
+    /// `FixedProgram::param_words`; written by the harness, read by the native code).
+    pub params: usize,
     /// Length of ctx in words.
     pub ctx_len: usize,
 }
@@ -94,10 +97,13 @@ impl FixedLayout {
                 e.n_args.min(formats)
             })
             .collect();
+        let params = next;
+        next += fp.param_words.len();
         FixedLayout {
             slots,
             history,
             event_args,
+            params,
             ctx_len: next,
         }
     }
@@ -272,11 +278,21 @@ pub struct FixedJitInstance<'j> {
 
 impl<'j> FixedJitInstance<'j> {
     /// A fresh instance: states at their initial raw words, modes at their initial variants,
-    /// edge memories false, histories empty.
+    /// edge memories false, histories empty; run-time params at the params' own values
+    /// (`FixedProgram::nominal_param_block`).
     pub fn new(jit: &'j FixedJitProgram) -> Self {
+        Self::with_params(jit, &jit.fp.nominal_param_block())
+    }
+
+    /// A fresh instance of one key of a shared program: `params` is its param block
+    /// (`FixedProgram::param_block`; missing words are 0, extra ones ignored).
+    pub fn with_params(jit: &'j FixedJitProgram, params: &[i32]) -> Self {
         let (fp, l) = (&jit.fp, &jit.layout);
         let p = &fp.program;
         let mut ctx = vec![0; l.ctx_len];
+        for (k, &w) in params.iter().take(fp.param_words.len()).enumerate() {
+            ctx[l.params + k] = w;
+        }
         for (i, &x) in fp.state_init.iter().enumerate() {
             ctx[l.slots.state(i)] = x;
         }

@@ -492,6 +492,30 @@ impl<'a, 'f> Translator<'a, 'f> {
         let p = &fp.program;
         let fr = fp.frac[v.index()];
         let frac = |x: Value| fp.frac[x.index()];
+        if let Some(k) = fp.param_word_of(v) {
+            // A run-time param: the key's word, clamped to the param's raw interval so that
+            // the bounds this code relies on are its own.
+            let (lo, hi) = fp.param_words[k].raw_range;
+            let x = self.b.ins().load(
+                types::I32,
+                self.flags,
+                self.ctx,
+                word(self.layout.params + k),
+            );
+            let x = self.clamp_value(
+                x,
+                types::I32,
+                i128::from(i32::MIN),
+                i128::from(i32::MAX),
+                i128::from(lo),
+                i128::from(hi),
+            );
+            return Ok(Word {
+                v: x,
+                lo: i128::from(lo),
+                hi: i128::from(hi),
+            });
+        }
         Ok(match p.values[v.index()].op {
             Op::Const(_) | Op::Param(_) => self.iconst(fp.consts[v.index()]),
             Op::BoolConst(t) => self.iconst(i32::from(t)),

@@ -71,6 +71,10 @@ pub struct EmitSite {
 pub struct StateLayout {
     /// `int32_t states[]`.
     pub states: usize,
+    /// `int32_t params[]`: the key's param block, one word per run-time param
+    /// ([`crate::ir::ParamDecl::runtime`]); absent (no bytes) without run-time params. The
+    /// firmware writes it before `init`, which leaves it alone.
+    pub params: usize,
     /// `uint8_t modes[]`.
     pub modes: usize,
     /// `uint8_t edges[]`.
@@ -94,7 +98,8 @@ impl StateLayout {
         let n = |k: usize| k.max(1);
         let nh = p.sensors.iter().filter(|s| s.differentiated).count();
         let states = 0;
-        let modes = states + 4 * n(p.states.len());
+        let params = states + 4 * n(p.states.len());
+        let modes = params + 4 * p.runtime_params().count();
         let edges = modes + n(p.modes.len());
         let hist = align4(edges + n(p.edges.len()));
         let hist_pos = hist + 4 * (2 * WINDOW + 1) * n(nh);
@@ -103,6 +108,7 @@ impl StateLayout {
         let size = published + 4 * (p.forces.len() + 1 + p.outputs.len());
         StateLayout {
             states,
+            params,
             modes,
             edges,
             hist,
@@ -599,7 +605,21 @@ impl<'a> Gen<'a> {
                 )?;
             }
         }
+        if !fp.param_words.is_empty() {
+            let _ = writeln!(h, "\n/* Run-time params: the words of `params[]` in the state (one program, a param block per key). */");
+        }
+        for (i, w) in fp.param_words.iter().enumerate() {
+            let d = &p.params[w.param.index()];
+            let (lo, hi) = d.runtime.unwrap_or((d.value, d.value));
+            def(
+                &mut h,
+                format!("{m}_PARAM_{i}_FRAC"),
+                w.frac.to_string(),
+                format!("`{}` in [{lo:e}, {hi:e}] {}, {}", d.name, unit(Ty::Real(d.dim)), q(w.frac)),
+            )?;
+        }
         let cnt = |n: usize| n.max(1);
+        let fp_params = p.runtime_params().count();
         let (ns, nm, ne, nh, np) = (
             p.states.len(),
             p.modes.len(),
@@ -613,6 +633,8 @@ impl<'a> Gen<'a> {
 /* Everything one instance remembers between samples (one per key). Arrays have at least
  * one element (C99 has no empty arrays); the extra element is unused.
  *   states[i]       raw word of state i, in {m}_STATE_<NAME>_FRAC, within its declared range
+ *   params[i]       (only with run-time params) the key's param block: set it before
+ *                   init (which leaves it alone); word i in {m}_PARAM_<i>_FRAC
  *   modes[i]        current variant index of mode i ({m}_MODE_<NAME>_<VARIANT>)
  *   edges[i]        condition of the i-th `on` handler at the previous sample (0/1)
  *   hist[i][17]     raw readings of the i-th differentiated sensor for d()/d2(): a ring of
@@ -621,7 +643,7 @@ impl<'a> Gen<'a> {
  *   published[]     force terms, total and outputs as last computed (copied to out[])
  */
 struct tactus_{st}_state {{
-    int32_t states[{}];
+    int32_t states[{}];{}
     uint8_t modes[{}];
     uint8_t edges[{}];
     int32_t hist[{}][{}];
@@ -648,6 +670,10 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
 #endif /* {guard} */
 ",
             cnt(ns),
+            match fp_params {
+                0 => String::new(),
+                k => format!("\n    int32_t params[{k}];"),
+            },
             cnt(nm),
             cnt(ne),
             cnt(nh),
@@ -894,6 +920,9 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
         let f = |x: &Value| fp.frac[x.index()];
         let real = |x: &Value| matches!(p.values[x.index()].ty, Ty::Real(_));
         Ok(match &p.values[v.index()].op {
+            Op::Param(_) if fp.param_word_of(v).is_some() => {
+                format!("s->params[{}]", fp.param_word_of(v).unwrap_or(0))
+            }
             Op::Const(_) | Op::Param(_) => lit(fp.consts[v.index()]),
             Op::BoolConst(t) => i32::from(*t).to_string(),
             Op::Variant(_, i) => i.to_string(),

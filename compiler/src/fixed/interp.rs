@@ -41,13 +41,23 @@ pub struct FixedInstance<'f> {
     overflowed: Vec<bool>,
     saturations: Vec<u64>,
     out: RawOut,
+    /// The key's param block ([`FixedProgram::param_block`]).
+    params: Vec<i32>,
 }
 
 impl<'f> FixedInstance<'f> {
-    /// A fresh instance at the initial state.
+    /// A fresh instance at the initial state, with the params' own values
+    /// ([`FixedProgram::nominal_param_block`]).
     pub fn new(fp: &'f FixedProgram) -> Self {
+        Self::with_params(fp, fp.nominal_param_block())
+    }
+
+    /// A fresh instance of one key of a shared program: `params` is the key's param block
+    /// ([`FixedProgram::param_block`]; a missing word reads as 0).
+    pub fn with_params(fp: &'f FixedProgram, params: Vec<i32>) -> Self {
         let p = &fp.program;
         FixedInstance {
+            params,
             fp,
             states: fp.state_init.clone(),
             modes: p.modes.iter().map(|m| m.init).collect(),
@@ -165,6 +175,10 @@ impl<'f> FixedInstance<'f> {
         let val = |x: &Value| (self.vals[x.index()], fp.frac[x.index()]);
         let b = |t: bool| (i32::from(t), false);
         match &p.values[v.index()].op {
+            Op::Param(p) if fp.param_slot[p.index()].is_some() => {
+                let k = fp.param_slot[p.index()].unwrap_or(0);
+                (self.params.get(k).copied().unwrap_or(0), false)
+            }
             Op::Const(_) | Op::Param(_) => (fp.consts[v.index()], false),
             Op::BoolConst(t) => b(*t),
             Op::Variant(_, i) => (*i as i32, false),

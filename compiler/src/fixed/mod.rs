@@ -374,7 +374,67 @@ pub struct FixedProgram {
     pub event_frac: Vec<Vec<i32>>,
     /// Saturation inserted where the analysis found no bound.
     pub warnings: Vec<Diagnostic>,
+    /// Per param ([`ParamId`]): its word's index in a key's param block when it is a
+    /// run-time param ([`ParamDecl::runtime`]), else `None`.
+    pub param_slot: Vec<Option<usize>>,
+    /// Per word of the param block ([`Program::runtime_params`] order): its fraction bits
+    /// (those of every value reading it) and the raw bounds of its declared interval.
+    pub param_words: Vec<ParamWord>,
 }
+
+/// The format of one word of a key's param block.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ParamWord {
+    /// The run-time param it holds.
+    pub param: ParamId,
+    /// Fraction bits.
+    pub frac: i32,
+    /// Raw bounds: the words of the param's interval ends in this format.
+    pub raw_range: (i32, i32),
+}
+
+/// Why a param block could not be made.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamBlockError {
+    /// The number of values is not the number of run-time params.
+    Count {
+        /// Values given.
+        given: usize,
+        /// Run-time params of the program.
+        expected: usize,
+    },
+    /// A value lies outside the interval the program was planned for.
+    OutOfRange {
+        /// The param's name.
+        param: String,
+        /// The value given, SI.
+        value: f64,
+        /// The planned interval, SI.
+        range: (f64, f64),
+    },
+}
+
+impl std::fmt::Display for ParamBlockError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ParamBlockError::Count { given, expected } => write!(
+                f,
+                "{given} param values given for a program with {expected} run-time params"
+            ),
+            ParamBlockError::OutOfRange {
+                param,
+                value,
+                range,
+            } => write!(
+                f,
+                "param `{param}` = {value:e} lies outside [{:e}, {:e}], the interval its program was planned for",
+                range.0, range.1
+            ),
+        }
+    }
+}
+
+impl std::error::Error for ParamBlockError {}
 
 /// Formats of what the body publishes.
 struct Published {
@@ -449,13 +509,34 @@ impl FixedProgram {
                 _ => {}
             }
         }
-        let is_const =
-            |v: Value| matches!(program.values[v.index()].op, Op::Const(_) | Op::Param(_));
-        let const_value = |v: Value| match program.values[v.index()].op {
-            Op::Const(c) => c,
-            Op::Param(p) => program.params[p.index()].value,
-            _ => f64::NAN,
-        };
+        let mut param_slot = vec![None; program.params.len()];
+        let mut param_words: Vec<ParamWord> = program
+            .runtime_params()
+            .enumerate()
+            .map(|(k, id)| {
+                param_slot[id.index()] = Some(k);
+                let (lo, hi) = program.params[id.index()].runtime.unwrap_or((0.0, 0.0));
+                let f = frac_for(Interval::new(lo, hi));
+                ParamWord {
+                    param: id,
+                    frac: f,
+                    raw_range: (fx::from_f64(lo, f).0, fx::from_f64(hi, f).0),
+                }
+            })
+            .collect();
+        // A word has the format of the values reading it (their intervals are the param's).
+        for (i, vd) in program.values.iter().enumerate() {
+            if let Op::Param(p) = vd.op {
+                if let Some(k) = param_slot[p.index()] {
+                    let w = &mut param_words[k];
+                    let (lo, hi) = program.params[p.index()].runtime.unwrap_or((0.0, 0.0));
+                    w.frac = frac[i];
+                    w.raw_range = (fx::from_f64(lo, frac[i]).0, fx::from_f64(hi, frac[i]).0);
+                }
+            }
+        }
+        let is_const = |v: Value| program.const_value(v).is_some();
+        let const_value = |v: Value| program.const_value(v).unwrap_or(f64::NAN);
         // Per multiplication: its operands as planned (format, range, free low bits) and
         // whether the plan's pair is swapped against operand order.
         let mut planned: Vec<(usize, MulOperands, bool)> = Vec::new();
@@ -594,6 +675,8 @@ impl FixedProgram {
             state_init,
             deriv_gain,
             warnings,
+            param_slot,
+            param_words,
         };
         // Products are budgeted against the exact divisions: the divisor shifts' error is
         // charged to the divisions' own tolerance, not handed on to the products.
@@ -728,13 +811,59 @@ impl FixedProgram {
         }
     }
 
-    /// The exact (unquantised) value of a constant or param value, for comparisons.
+    /// The exact (unquantised) value of a constant or compile-time param value, for
+    /// comparisons; `None` for a run-time param and every other value.
     pub fn exact_const(&self, v: Value) -> Option<f64> {
+        self.program.const_value(v)
+    }
+
+    /// The word of value `v` in a key's param block when `v` reads a run-time param.
+    pub fn param_word_of(&self, v: Value) -> Option<usize> {
         match self.program.values[v.index()].op {
-            Op::Const(c) => Some(c),
-            Op::Param(p) => Some(self.program.params[p.index()].value),
+            Op::Param(p) => self.param_slot[p.index()],
             _ => None,
         }
+    }
+
+    /// A key's param block: the raw word of each run-time param ([`Program::runtime_params`]
+    /// order) from its SI value `values`, rounded half up in the word's format
+    /// ([`tactus_runtime::fixed::from_f64`], as every constant is). Empty for a program
+    /// without run-time params.
+    ///
+    /// Errors: [`ParamBlockError`] when the count differs or a value lies outside the
+    /// interval the program was planned for (its formats would not hold it).
+    pub fn param_block(&self, values: &[f64]) -> Result<Vec<i32>, ParamBlockError> {
+        if values.len() != self.param_words.len() {
+            return Err(ParamBlockError::Count {
+                given: values.len(),
+                expected: self.param_words.len(),
+            });
+        }
+        values
+            .iter()
+            .zip(&self.param_words)
+            .map(|(&v, w)| {
+                let d = &self.program.params[w.param.index()];
+                let range = d.runtime.unwrap_or((d.value, d.value));
+                if !(range.0..=range.1).contains(&v) {
+                    return Err(ParamBlockError::OutOfRange {
+                        param: d.name.clone(),
+                        value: v,
+                        range,
+                    });
+                }
+                Ok(fx::from_f64(v, w.frac).0)
+            })
+            .collect()
+    }
+
+    /// The param block of the params' own values ([`ParamDecl::value`]: the first key's, for
+    /// a shared program); empty without run-time params.
+    pub fn nominal_param_block(&self) -> Vec<i32> {
+        self.param_words
+            .iter()
+            .map(|w| fx::from_f64(self.program.params[w.param.index()].value, w.frac).0)
+            .collect()
     }
 
     /// Number of multiplications of each kind — (`MULS`, high word, 64-bit) — and their

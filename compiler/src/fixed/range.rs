@@ -127,7 +127,10 @@ fn interval(p: &Program, op: &Op, v: &[Interval]) -> Interval {
         Op::Const(c) => Interval::point(*c),
         Op::BoolConst(b) => Interval::point(if *b { 1.0 } else { 0.0 }),
         Op::Variant(_, i) => Interval::point(*i as f64),
-        Op::Param(id) => Interval::point(p.params[id.index()].value),
+        Op::Param(id) => match p.params[id.index()].runtime {
+            Some((lo, hi)) => Interval::new(lo, hi),
+            None => Interval::point(p.params[id.index()].value),
+        },
         Op::Sensor(s) => {
             let r = p.sensors[s.index()].range;
             Interval::new(r.0, r.1)

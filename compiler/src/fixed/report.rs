@@ -190,6 +190,8 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
     let round_from = |f: i32| if fr < f { half_lsb(fr) } else { 0.0 };
     match &p.values[v.index()].op {
         Op::Const(c) => (c - tactus_runtime::fixed::to_f64(fp.consts[v.index()], fr)).abs(),
+        // A run-time param's word: rounded half up from any value in its interval.
+        Op::Param(_) if fp.param_word_of(v).is_some() => half_lsb(fr),
         Op::Param(id) => (p.params[id.index()].value
             - tactus_runtime::fixed::to_f64(fp.consts[v.index()], fr))
         .abs(),
@@ -317,9 +319,9 @@ fn shift_errors(fp: &FixedProgram, v: Value, fx: i32, fy: i32) -> (f64, f64) {
                 Op::Arith(_, x, y) => (x, y),
                 _ => return (0.0, 0.0),
             };
-            let free = |w: Value| match fp.program.values[w.index()].op {
-                Op::Const(_) | Op::Param(_) => fp.consts[w.index()].trailing_zeros() as u8,
-                _ => 0,
+            let free = |w: Value| match fp.program.const_value(w) {
+                Some(_) => fp.consts[w.index()].trailing_zeros() as u8,
+                None => 0,
             };
             let fy_free = match fp.recip[v.index()] {
                 Some((r, _)) => r.trailing_zeros() as u8,

@@ -227,6 +227,7 @@ impl<'a> Lowerer<'a> {
                         dim: Dim::NONE,
                         value: f64::NAN,
                         span: name.span.clone(),
+                        runtime: None,
                     });
                     let (expr, scope) = match (find_arg(&name.node), parent) {
                         (Some(a), Some(p)) => (a, p),

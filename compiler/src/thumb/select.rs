@@ -897,6 +897,16 @@ impl<'a> Sel<'a> {
 
     /// The word of an operand value (constants are rematerialised at each use).
     fn word(&mut self, v: Value) -> W {
+        if let Some(k) = self.fp.param_word_of(v) {
+            // A run-time param: the key's word in the param block inside its state (an
+            // `LDR` from r7, as cheap as the literal-pool `LDR` of a constant).
+            let (lo, hi) = self.fp.param_words[k].raw_range;
+            let t = self.load(MemOp::Ldr, Base::State, self.st.params + 4 * k);
+            return W {
+                v: t,
+                b: (lo as i64).unsigned_abs().max((hi as i64).unsigned_abs()),
+            };
+        }
         match self.p.values[v.index()].op {
             Op::Const(_) | Op::Param(_) => {
                 let c = self.fp.consts[v.index()];
@@ -926,7 +936,7 @@ impl<'a> Sel<'a> {
     }
 
     fn is_const(&self, v: Value) -> bool {
-        matches!(self.p.values[v.index()].op, Op::Const(_) | Op::Param(_))
+        self.p.const_value(v).is_some()
     }
 
     /// Selects the whole update body.
@@ -2380,7 +2390,9 @@ impl<'a> Sel<'a> {
         let (p, fp, st) = (self.p, self.fp, self.st);
         self.nv = FIRST_FREE;
         let z = self.movi(0);
-        for w in 0..st.size / 4 {
+        // Every word but the param block, which the firmware wrote before.
+        let params = st.params / 4..st.params / 4 + fp.param_words.len();
+        for w in (0..st.size / 4).filter(|w| !params.contains(w)) {
             self.store(MemOp::Str, z, Base::State, 4 * w);
         }
         for (i, &init) in fp.state_init.iter().enumerate() {

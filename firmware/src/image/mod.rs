@@ -66,23 +66,23 @@
 
 pub mod asm;
 pub mod glue;
+mod layout;
 mod run;
 
 pub use run::{DriveOut, ImageRun, KeyEvent, SampleOut};
 
 use asm::Asm;
-use glue::{ctrl, DriveCode, KeyCode, Tick};
 use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::OnceLock;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::{Axis, AxisTotal};
 use tactus_compiler::thumb::ThumbObject;
-use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE, SRAM_ALIAS_BASE};
-use tactus_emulator::wcet::{self, Bounds, Region};
-use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
+use tactus_emulator::bus::SRAM_ALIAS_BASE;
+
+use tactus_emulator::SENSOR_BASE;
 use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
-use tactus_runtime::limiter::{DacScale, Limiter, LimiterConfig};
+use tactus_runtime::limiter::{Limiter, LimiterConfig};
 
 /// Most state words (states, modes, edges) the quiescent-key guard compares; a program
 /// with more runs every update.
@@ -120,15 +120,18 @@ impl Program {
     }
 
     /// The quiescent-key guard for a key of this program, its calm counter at
-    /// `calm_offset` in the record; `None` when [`Program::quiescent_guard`] is off.
+    /// `calm_offset` in the record; `None` when [`Program::quiescent_guard`] is off or the
+    /// state has more than [`MAX_GUARDED_WORDS`] words (the guard's `B` over the comparison
+    /// reaches 2 KB, at 10 bytes per word).
     fn guard(&self, calm_offset: u32) -> Option<glue::GuardCode> {
         let differentiated = self.fixed.program.sensors.iter().any(|s| s.differentiated);
         let (p, st) = (&self.fixed.program, &self.thumb.state);
         // The words holding states, modes and edges (the layout pads empty arrays to one
         // element: those are never written and not compared).
-        let mut words: Vec<u32> = (0..p.states.len() as u32).map(|i| st.states as u32 + 4 * i).collect();
-        let bytes = [(st.modes, p.modes.len()), (st.edges, p.edges.len())];
-        for (at, n) in bytes {
+        let mut words: Vec<u32> = (0..p.states.len() as u32)
+            .map(|i| st.states as u32 + 4 * i)
+            .collect();
+        for (at, n) in [(st.modes, p.modes.len()), (st.edges, p.edges.len())] {
             for b in at..at + n {
                 let w = (b as u32) & !3;
                 if words.last() != Some(&w) {
@@ -136,8 +139,8 @@ impl Program {
                 }
             }
         }
-        let words_len = words.len() as u32;
-        (self.quiescent_guard && words_len <= MAX_GUARDED_WORDS).then(|| glue::GuardCode {
+        let few = words.len() as u32 <= MAX_GUARDED_WORDS;
+        (self.quiescent_guard && few).then(|| glue::GuardCode {
             calm_offset,
             calm_needed: if differentiated {
                 (2 * tactus_runtime::differentiator::WINDOW + 1) as u8
@@ -172,7 +175,7 @@ impl Program {
     }
 
     /// Static WCET (cycles, first instruction to return) of the program's update, as
-    /// [`wcet::analyse`] prices it (the code is position independent, so anywhere).
+    /// [`tactus_emulator::wcet::analyse`] prices it (the code is position independent, so anywhere).
     pub fn update_wcet(&self) -> Result<u64, ImageError> {
         self.static_cost()
             .map(|c| c.cycles - crate::runner::BL_CYCLES)
@@ -329,8 +332,8 @@ pub struct Drive {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct KeySpec {
     /// Its first slot in the sensor and DAC windows (word index from [`SENSOR_BASE`] /
-    /// [`DAC_BASE`]; e.g. the MIDI key number); its last word in either window must be
-    /// below [`MAX_KEYS`].
+    /// [`tactus_emulator::DAC_BASE`]; e.g. the MIDI key number); its last word in either window must be
+    /// below [`tactus_emulator::MAX_KEYS`].
     pub slot: usize,
     /// Index of its program in the programs given to [`FirmwareImage::build`].
     pub program: usize,
@@ -474,7 +477,7 @@ pub fn limiter_routine(
 /// exception being taken to its return completing.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct IsrWcet {
-    /// [`wcet::analyse_isr`] of the handler with every key's update and limiter call
+    /// [`tactus_emulator::wcet::analyse_isr`] of the handler with every key's update and limiter call
     /// (no bank contention).
     pub analysed: u64,
     /// Bank-contention allowance: one wait cycle per sensor-window or DAC-window access of
@@ -579,7 +582,7 @@ impl FirmwareImage {
     /// is replaced by the board's).
     ///
     /// Errors: [`ImageError::BadKey`] naming the program (a key's sensor or DAC words beyond
-    /// the [`MAX_KEYS`] window words, a window word used by two keys, an unknown program, a
+    /// the [`tactus_emulator::MAX_KEYS`] window words, a window word used by two keys, an unknown program, a
     /// core beyond the board's, a program with more than 24 sensors),
     /// [`ImageError::Board`] (more than 2 cores, a sample rate that is not a whole number of
     /// Hz, a clock below 1 MHz), [`ImageError::Limiter`], [`ImageError::NoRoom`],
@@ -590,265 +593,46 @@ impl FirmwareImage {
         board: &BoardSpec,
         limiter: &LimiterConfig,
     ) -> Result<FirmwareImage, ImageError> {
-        let cores = board.cores as usize;
-        if !(1..=2).contains(&cores) {
-            return Err(ImageError::Board(format!(
-                "{} cores; the RP2040 image runs on 1 or 2",
-                board.cores
-            )));
-        }
-        let fs = board.sample_rate_hz;
-        if !(fs >= 1.0 && fs.fract() == 0.0 && fs <= 1e6) {
-            return Err(ImageError::Board(format!(
-                "sample rate {fs} Hz: the tick schedule needs a whole number of Hz up to 1 MHz"
-            )));
-        }
-        let clock = board.clock_hz;
-        if !(clock >= 1e6 && clock.fract() == 0.0 && clock <= 1e10) {
-            return Err(ImageError::Board(format!(
-                "clock {clock} Hz: need a whole number of Hz from 1 MHz"
-            )));
-        }
-        let (fs, clock_hz) = (fs as u32, clock as u64);
+        let (cores, fs, clock_hz) = layout::check_board(board)?;
         let lim_cfg = LimiterConfig {
             sample_rate_hz: fs as f64,
             ..*limiter
         };
-        let lim = Limiter::new(&lim_cfg).map_err(ImageError::Limiter)?;
-        let consts = lim.constants();
-
-        // Check the keys: each one's words in both windows, no word used twice.
-        let mut used_sensor = BTreeMap::new();
-        let mut used_dac = BTreeMap::new();
-        let mut key_drives = Vec::with_capacity(keys.len());
-        for (i, k) in keys.iter().enumerate() {
-            let bad = |why: String| Err(ImageError::BadKey { key: i, why });
-            let Some(p) = programs.get(k.program) else {
-                return bad(format!("program {} does not exist", k.program));
-            };
-            let drives = p.drives()?;
-            let ns = p.sensor_words();
-            for (window, n, used) in [
-                ("sensor", ns, &mut used_sensor),
-                ("DAC", drives.len(), &mut used_dac),
-            ] {
-                if k.slot + n > MAX_KEYS {
-                    return bad(format!(
-                        "slot {}: program `{}` needs {window} window words {}..{} ({n} from the                          slot), beyond the {MAX_KEYS} window words",
-                        k.slot,
-                        p.thumb.stem,
-                        k.slot,
-                        k.slot + n
-                    ));
-                }
-                for s in k.slot..k.slot + n {
-                    if let Some(j) = used.insert(s, i) {
-                        return bad(format!("{window} slot {s} is also key {j}'s"));
-                    }
-                }
-            }
-            if ns > MAX_SENSORS {
-                return bad(format!(
-                    "program `{}` reads {ns} sensors; the image copies at most {MAX_SENSORS} \
-                     per key",
-                    p.thumb.stem
-                ));
-            }
-            if k.core >= cores {
-                return bad(format!("core {} but the board has {cores}", k.core));
-            }
-            for d in &drives {
-                consts
-                    .dac_scale(d.frac)
-                    .map_err(|e| ImageError::Limiter(format!("program `{}`: {e}", p.thumb.stem)))?;
-            }
-            key_drives.push(drives);
-        }
-
-        // The programs' code alone must fit each core's bank (checked before any analysis:
-        // a program too large to place, such as `plucked_string`, is not analysed).
-        for core in 0..cores {
-            let mut need = VECTORS;
-            for (p, prog) in programs.iter().enumerate() {
-                if keys.iter().any(|k| k.core == core && k.program == p) {
-                    need = need.next_multiple_of(4) + prog.thumb.code.text.len() as u32;
-                }
-            }
-            if need > BANK_LIMIT {
-                return Err(ImageError::NoRoom {
-                    core,
-                    need,
-                    have: BANK_LIMIT,
-                });
-            }
-        }
-
-        // Timer: margin covers the cycles between reading the time and arming the alarm.
-        let margin = (1 + (64 * 1_000_000u64).div_ceil(clock_hz)).min(200) as u8;
-        let tick = Tick {
-            q: 1_000_000 / fs,
-            rem: 1_000_000 % fs,
-            fs,
-            margin,
+        let consts = Limiter::new(&lim_cfg)
+            .map_err(ImageError::Limiter)?
+            .constants();
+        let key_drives = layout::check_keys(programs, keys, cores, &consts)?;
+        layout::check_code_fits(programs, keys, cores)?;
+        let l = layout::Layout {
+            programs,
+            keys,
+            cores,
+            consts,
+            key_drives,
+            tick: layout::tick_schedule(fs, clock_hz),
         };
-        // First tick: after every core's start-up (the run checks that both were ready).
-        // Start-up is the keys' `init` calls (their static WCET; 4000 cycles for one that
-        // cannot be analysed) plus a few dozen cycles per key and for the timer set-up.
-        let mut init_cycles = Vec::with_capacity(programs.len());
-        for p in programs {
-            init_cycles.push(p.init_wcet().unwrap_or(4000));
-        }
-        let startup: u64 = 1000
-            + keys
-                .iter()
-                .map(|k| 50 + init_cycles[k.program])
-                .sum::<u64>();
-        let first_tick_us = (20 + (startup * 1_000_000).div_ceil(clock_hz)) as u32;
+        let first_tick_us = layout::first_tick_us(programs, keys, clock_hz);
 
-        let mut segments = Vec::new();
-        let mut places: Vec<CorePlace> = vec![CorePlace::default(); cores];
-        let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
-        let mut analysed = vec![0u64; cores];
-        let mut updates = vec![0u64; cores];
-        let mut window_accesses = vec![0u64; cores];
-        let mut code_bytes = vec![0u32; cores];
-
-        // Per core a code block: vector table, program copies (fixed sizes), then glue whose
-        // size we measure with provisional addresses. Core 1's block follows core 0's in bank
-        // offsets (the emulator's decode cache is indexed by the low address bits, so the
-        // two cores' code would otherwise evict each other's); the data start is the same
-        // bank offset in every bank, past both blocks.
-        struct CoreCode {
-            /// Address of the block (the vector table), 256-aligned.
-            start: u32,
-            /// (program, offset of its .text copy in the block).
-            texts: Vec<(usize, u32)>,
-            /// Offset of the glue in the block.
-            glue: u32,
-        }
-        let mut cc = Vec::new();
-        for core in 0..cores {
-            let mut at = VECTORS;
-            let mut texts = Vec::new();
-            for (p, prog) in programs.iter().enumerate() {
-                if keys.iter().any(|k| k.core == core && k.program == p) {
-                    at = at.next_multiple_of(4);
-                    texts.push((p, at));
-                    at += prog.thumb.code.text.len() as u32;
-                }
-            }
-            cc.push(CoreCode {
-                start: bank_base(core),
-                texts,
-                glue: at.next_multiple_of(4),
-            });
-        }
-        let glue = |core: usize,
-                    data_off: u32,
-                    cc: &CoreCode|
-         -> Result<(Asm, glue::CoreLabels, Vec<KeyPlace>, u32), ImageError> {
-            let base = bank_base(core);
-            let ctrl_addr = base + data_off;
-            let my: Vec<usize> = (0..keys.len()).filter(|&i| keys[i].core == core).collect();
-            let mut a = Asm::new();
-            // Records after the control block, states after the records.
-            let mut at = ctrl_addr + ctrl::SIZE;
-            let mut kc = Vec::new();
-            let mut kp = Vec::new();
-            for &i in &my {
-                let p = &programs[keys[i].program];
-                let text = cc
-                    .texts
-                    .iter()
-                    .find(|t| t.0 == keys[i].program)
-                    .map_or(0, |t| cc.start + t.1);
-                let sym = |name: String| {
-                    p.thumb
-                        .symbol(&name)
-                        .map(|(o, _)| text + o as u32)
-                        .ok_or_else(|| ImageError::Compile(format!("no symbol `{name}`")))
-                };
-                let out_len = p.thumb.out.len as u32;
-                let ns = p.sensor_words() as u32;
-                let drives = &key_drives[i];
-                let nd = drives.len() as u32;
-                // The record: sensor words first (the update's `sensors`), then the out
-                // words, the budgets, the state address and the guard's calm counter — or,
-                // where the out words would push those beyond an `LDR` immediate, the
-                // budgets, the state address and the counter before the out words.
-                let (out_offset, budgets_offset) = if 4 * (ns + out_len + nd + 1) <= 124 {
-                    (4 * ns, 4 * (ns + out_len))
-                } else {
-                    (4 * (ns + nd + 2), 4 * ns)
-                };
-                let state_offset = budgets_offset + 4 * nd;
-                let calm_offset = state_offset + 4;
-                let size = 4 * (ns + out_len + nd + 2);
-                let budgets: Vec<u32> = (0..nd).map(|j| budgets_offset + 4 * j).collect();
-                let update = sym(p.thumb.update_name())?;
-                let slot = keys[i].slot as u32;
-                kc.push(KeyCode {
-                    sensor_words: (0..ns).map(|j| SENSOR_BASE + 4 * (slot + j)).collect(),
-                    out_offset,
-                    state_offset,
-                    drives: drives
-                        .iter()
-                        .zip(&budgets)
-                        .enumerate()
-                        .map(|(j, (d, &b))| DriveCode {
-                            force_offset: out_offset + 4 * d.out_index as u32,
-                            budget_offset: b,
-                            dac_word: DAC_BASE + 4 * (slot + j as u32),
-                            // Checked above, with the same constants.
-                            scale: consts.dac_scale(d.frac).unwrap_or(DacScale {
-                                pre_shift: 0,
-                                gain: 1,
-                                post_shift: 0,
-                            }),
-                        })
-                        .collect(),
-                    record_size: size,
-                    update,
-                    init: sym(p.thumb.init_name())?,
-                    guard: p.guard(calm_offset),
-                });
-                kp.push(KeyPlace {
-                    index: i,
-                    update,
-                    spec: keys[i],
-                    record: at,
-                    out_len: out_len as usize,
-                    sensors: ns as usize,
-                    out_offset,
-                    state_offset,
-                    drives: drives.iter().copied().zip(budgets).collect(),
-                });
-                at += size;
-            }
-            let inte = if cores == 2 { 3 } else { 1 };
-            let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, tick, inte, &consts)?;
-            Ok((a, labels, kp, at))
-        };
-        // Provisional sizes (literal values do not change instruction sizes, but pool sharing
-        // may: keep slack), then the blocks' offsets and the data offset.
-        let mut block_off = 0u32;
-        for (core, c) in cc.iter_mut().enumerate() {
-            let (a, ..) = glue(core, BANK_LIMIT / 2, c)?;
-            let (bytes, _) = a.assemble(c.start + c.glue).map_err(ImageError::Assemble)?;
-            c.start += block_off;
-            block_off += (c.glue + bytes.len() as u32 + 64).next_multiple_of(256);
-        }
-        let data_off = block_off;
+        let mut cc = layout::place_programs(programs, keys, cores);
+        let data_off = layout::place_code_blocks(&l, &mut cc)?;
         let update_wcets: Vec<u64> = programs
             .iter()
             .map(Program::update_wcet)
             .collect::<Result<_, _>>()?;
 
+        let mut segments = Vec::new();
+        let mut places: Vec<CorePlace> = Vec::with_capacity(cores);
+        let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
+        let mut wcet = Vec::with_capacity(cores);
+        let mut window_accesses = vec![0u64; cores];
+        let mut code_bytes = vec![0u32; cores];
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
-            let (a, labels, kp, data_end) = glue(core, data_off, c)?;
-            let update_addrs: Vec<u32> = kp.iter().map(|k| k.update).collect();
-            let (glue_bytes, addr) = a.assemble(base + c.glue).map_err(ImageError::Assemble)?;
+            let g = layout::assemble_glue(&l, core, data_off, c)?;
+            let (glue_bytes, addr) = g
+                .asm
+                .assemble(base + c.glue)
+                .map_err(ImageError::Assemble)?;
             let code_end = base + c.glue + glue_bytes.len() as u32;
             let next = cc
                 .get(core + 1)
@@ -859,114 +643,40 @@ impl FirmwareImage {
                 )));
             }
             code_bytes[core] = code_end - base;
-            // States after the records.
-            let mut at = data_end.next_multiple_of(4);
-            let mut data = Vec::new();
             let ctrl_addr = bank + data_off;
-            let first = |v: u32| v.to_le_bytes();
-            let mut ctrl_block = Vec::new();
-            ctrl_block.extend(first(first_tick_us)); // TARGET
-            ctrl_block.extend(first(0)); // ACC
-            ctrl_block.extend(first(0)); // SAMPLES
-            ctrl_block.extend(first(0)); // MISSES
-            ctrl_block.extend(first(0)); // READY
-            data.extend(ctrl_block);
-            let mut states = Vec::new();
-            for k in &kp {
-                let p = &programs[k.spec.program];
-                // The guard's shadow copy directly below the state struct (zeros: the
-                // first update never counts as calm unless its state is all zeros, which
-                // the counter's length makes harmless).
-                let shadow = p.guard(0).map_or(0, |g| g.shadow_bytes());
-                let state = at + shadow;
-                at = (state + p.thumb.state.size as u32).next_multiple_of(4);
-                states.push((state, shadow as usize + p.thumb.state.size));
-                let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 2)];
-                let put = |r: &mut Vec<u8>, off: u32, v: u32| {
-                    r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
-                };
-                for &(_, budget) in &k.drives {
-                    put(&mut r, budget, consts.budget_max as u32);
-                }
-                put(&mut r, k.state_offset, state);
-                data.extend(r);
-            }
-            for (_, size) in &states {
-                data.extend(vec![0u8; size.next_multiple_of(4)]);
-            }
-            let need = at - bank;
-            if need > BANK_LIMIT {
-                return Err(ImageError::NoRoom {
-                    core,
-                    need,
-                    have: BANK_LIMIT,
-                });
-            }
-            // Vector table.
-            let stack_bottom = if core == 0 { SRAM4_BASE } else { SRAM5_BASE };
-            let stack_top = stack_bottom + STACK_BYTES;
-            let lab = |l: asm::Label| addr[l.index()];
-            let mut vt = vec![lab(labels.default) | 1; 48];
-            vt[0] = stack_top;
-            vt[1] = lab(labels.reset) | 1;
-            vt[16 + core] = lab(labels.isr) | 1;
-            let mut code = Vec::new();
-            for w in &vt {
-                code.extend(w.to_le_bytes());
-            }
-            for &(p, text) in &c.texts {
-                code.resize(text as usize, 0);
-                code.extend(&programs[p].thumb.code.text);
-            }
-            code.resize(c.glue as usize, 0);
-            code.extend(&glue_bytes);
-            // Static WCET of the handler over this core's whole code. Each key's update is
-            // priced by its own analysis (long branches, flow facts: one call's worst case).
-            let mut bounds = Bounds::new();
-            for k in &kp {
-                bounds = bounds.with_call(k.update, update_wcets[k.spec.program]);
-            }
-            for &l in &labels.apb {
-                bounds = bounds.with_access(lab(l), Region::Apb);
-            }
-            let image = wcet::Image { base, bytes: &code };
-            let w = wcet::analyse_isr(&image, lab(labels.isr), &bounds)
-                .map_err(|e| ImageError::Wcet(format!("core {core}: {e}")))?;
-            analysed[core] = w.cycles;
-            updates[core] = w
-                .calls
+            let data = layout::data_block(&l, core, &g.keys, g.data_end, first_tick_us)?;
+            let code = layout::vector_table(core, c, programs, &g.labels, &addr, &glue_bytes);
+            wcet.push(layout::analyse_handler(
+                core,
+                base,
+                &code,
+                &g.labels,
+                &addr,
+                &g.keys,
+                &update_wcets,
+            )?);
+            window_accesses[core] = g
+                .keys
                 .iter()
-                .filter(|c| update_addrs.contains(&c.callee))
-                .map(|c| crate::runner::BL_CYCLES + c.cycles)
+                .map(|k| (k.sensors + k.drives.len()) as u64)
                 .sum();
-            window_accesses[core] = kp.iter().map(|k| (k.sensors + k.drives.len()) as u64).sum();
             segments.push((base, code));
             segments.push((ctrl_addr, data));
-            places[core] = CorePlace {
-                vtor: base,
-                reset: lab(labels.reset),
-                isr: lab(labels.isr),
-                ctrl: ctrl_addr,
-                stack_top,
-                stack_bottom,
-                keys: Vec::new(),
-            };
-            for k in kp {
+            let mut place = layout::core_place(core, c, &g.labels, &addr, ctrl_addr);
+            for k in g.keys {
                 let i = k.index;
-                places[core].keys.push(i);
+                place.keys.push(i);
                 if let Some(slot) = key_places.get_mut(i) {
                     *slot = Some(k);
                 }
             }
+            places.push(place);
         }
+        // Bank contention: every window access of both cores' handlers, on a core with keys.
         let total: u64 = window_accesses.iter().sum();
-        let wcet = (0..cores)
-            .map(|c| IsrWcet {
-                analysed: analysed[c],
-                contention: if places[c].keys.is_empty() { 0 } else { total },
-                updates: updates[c],
-            })
-            .collect();
+        for (w, p) in wcet.iter_mut().zip(&places) {
+            w.contention = if p.keys.is_empty() { 0 } else { total };
+        }
         let keys = key_places
             .into_iter()
             .enumerate()

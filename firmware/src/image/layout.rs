@@ -1,0 +1,518 @@
+//! The steps of [`FirmwareImage::build`], each named after what it lays out.
+//!
+//! The order is forced by what each step needs: the board and the keys are checked first
+//! ([`check_board`], [`check_keys`], [`check_code_fits`]: nothing is analysed for a program
+//! that cannot be placed); the tick schedule ([`tick_schedule`]) and the first tick
+//! ([`first_tick_us`]) follow from the board and the programs' `init` costs. Then the code:
+//! per core a block of vector table and program copies ([`place_programs`]), whose glue's
+//! size is measured at provisional addresses ([`place_code_blocks`], which also fixes where
+//! the data starts: the same bank offset in every bank, past every core's block); then per
+//! core the glue at its final address ([`assemble_glue`], with the key records
+//! [`key_records`] lays out), the control block, records and states ([`data_block`]), the
+//! vector table ([`vector_table`]) and the static WCET of the sample interrupt over the
+//! core's whole code ([`analyse_handler`]).
+
+use super::asm::{self, Asm};
+use super::glue::{self, ctrl, DriveCode, KeyCode, Tick};
+use super::{
+    bank_base, CorePlace, Drive, ImageError, IsrWcet, KeyPlace, KeySpec, Program, BANK_LIMIT,
+    MAX_SENSORS, STACK_BYTES, VECTORS,
+};
+use std::collections::BTreeMap;
+use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE};
+use tactus_emulator::wcet::{self, Bounds, Region};
+use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
+use tactus_runtime::keyboard::Board as BoardSpec;
+use tactus_runtime::limiter::{DacScale, LimiterConstants};
+
+/// What the steps share: the inputs of the build and what the checks derived from them.
+pub(super) struct Layout<'a> {
+    pub programs: &'a [Program],
+    pub keys: &'a [KeySpec],
+    /// Cores of the board (1 or 2).
+    pub cores: usize,
+    /// The limiter's constants at the board's sample rate.
+    pub consts: LimiterConstants,
+    /// Per key, the force words it drives ([`Program::drives`]).
+    pub key_drives: Vec<Vec<Drive>>,
+    pub tick: Tick,
+}
+
+/// The board's cores, sample rate (Hz) and clock (Hz) as the image needs them.
+///
+/// Errors: [`ImageError::Board`] (not 1 or 2 cores, a sample rate that is not a whole
+/// number of Hz up to 1 MHz, a clock that is not a whole number of Hz from 1 MHz).
+pub(super) fn check_board(board: &BoardSpec) -> Result<(usize, u32, u64), ImageError> {
+    let cores = board.cores as usize;
+    if !(1..=2).contains(&cores) {
+        return Err(ImageError::Board(format!(
+            "{} cores; the RP2040 image runs on 1 or 2",
+            board.cores
+        )));
+    }
+    let fs = board.sample_rate_hz;
+    if !(fs >= 1.0 && fs.fract() == 0.0 && fs <= 1e6) {
+        return Err(ImageError::Board(format!(
+            "sample rate {fs} Hz: the tick schedule needs a whole number of Hz up to 1 MHz"
+        )));
+    }
+    let clock = board.clock_hz;
+    if !(clock >= 1e6 && clock.fract() == 0.0 && clock <= 1e10) {
+        return Err(ImageError::Board(format!(
+            "clock {clock} Hz: need a whole number of Hz from 1 MHz"
+        )));
+    }
+    Ok((cores, fs as u32, clock as u64))
+}
+
+/// Checks every key — its program exists, its words in both windows are inside them and
+/// no other key's, at most [`MAX_SENSORS`] sensors, its core exists, the limiter can scale
+/// each of its force formats — and returns the force words each key drives.
+///
+/// Errors: [`ImageError::BadKey`], [`ImageError::Limiter`].
+pub(super) fn check_keys(
+    programs: &[Program],
+    keys: &[KeySpec],
+    cores: usize,
+    consts: &LimiterConstants,
+) -> Result<Vec<Vec<Drive>>, ImageError> {
+    let mut used_sensor = BTreeMap::new();
+    let mut used_dac = BTreeMap::new();
+    let mut key_drives = Vec::with_capacity(keys.len());
+    for (i, k) in keys.iter().enumerate() {
+        let bad = |why: String| Err(ImageError::BadKey { key: i, why });
+        let Some(p) = programs.get(k.program) else {
+            return bad(format!("program {} does not exist", k.program));
+        };
+        let drives = p.drives()?;
+        let ns = p.sensor_words();
+        for (window, n, used) in [
+            ("sensor", ns, &mut used_sensor),
+            ("DAC", drives.len(), &mut used_dac),
+        ] {
+            if k.slot + n > MAX_KEYS {
+                return bad(format!(
+                    "slot {}: program `{}` needs {window} window words {}..{} ({n} from the                          slot), beyond the {MAX_KEYS} window words",
+                    k.slot,
+                    p.thumb.stem,
+                    k.slot,
+                    k.slot + n
+                ));
+            }
+            for s in k.slot..k.slot + n {
+                if let Some(j) = used.insert(s, i) {
+                    return bad(format!("{window} slot {s} is also key {j}'s"));
+                }
+            }
+        }
+        if ns > MAX_SENSORS {
+            return bad(format!(
+                "program `{}` reads {ns} sensors; the image copies at most {MAX_SENSORS} \
+                 per key",
+                p.thumb.stem
+            ));
+        }
+        if k.core >= cores {
+            return bad(format!("core {} but the board has {cores}", k.core));
+        }
+        for d in &drives {
+            consts
+                .dac_scale(d.frac)
+                .map_err(|e| ImageError::Limiter(format!("program `{}`: {e}", p.thumb.stem)))?;
+        }
+        key_drives.push(drives);
+    }
+    Ok(key_drives)
+}
+
+/// The programs' code alone must fit each core's bank (checked before any analysis: a
+/// program too large to place, such as `plucked_string`, is not analysed).
+///
+/// Errors: [`ImageError::NoRoom`].
+pub(super) fn check_code_fits(
+    programs: &[Program],
+    keys: &[KeySpec],
+    cores: usize,
+) -> Result<(), ImageError> {
+    for core in 0..cores {
+        let mut need = VECTORS;
+        for (p, prog) in programs.iter().enumerate() {
+            if keys.iter().any(|k| k.core == core && k.program == p) {
+                need = need.next_multiple_of(4) + prog.thumb.code.text.len() as u32;
+            }
+        }
+        if need > BANK_LIMIT {
+            return Err(ImageError::NoRoom {
+                core,
+                need,
+                have: BANK_LIMIT,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The tick schedule at `fs` Hz on a `clock_hz` core clock; its margin covers the cycles
+/// between reading the time and arming the alarm.
+pub(super) fn tick_schedule(fs: u32, clock_hz: u64) -> Tick {
+    let margin = (1 + (64 * 1_000_000u64).div_ceil(clock_hz)).min(200) as u8;
+    Tick {
+        q: 1_000_000 / fs,
+        rem: 1_000_000 % fs,
+        fs,
+        margin,
+    }
+}
+
+/// Microsecond time of the first tick: after every core's start-up (the run checks that
+/// both were ready). Start-up is the keys' `init` calls (their static WCET; 4000 cycles for
+/// one that cannot be analysed) plus a few dozen cycles per key and for the timer set-up.
+pub(super) fn first_tick_us(programs: &[Program], keys: &[KeySpec], clock_hz: u64) -> u32 {
+    let mut init_cycles = Vec::with_capacity(programs.len());
+    for p in programs {
+        init_cycles.push(p.init_wcet().unwrap_or(4000));
+    }
+    let startup: u64 = 1000
+        + keys
+            .iter()
+            .map(|k| 50 + init_cycles[k.program])
+            .sum::<u64>();
+    (20 + (startup * 1_000_000).div_ceil(clock_hz)) as u32
+}
+
+/// One core's code block: its vector table, the copies of the programs its keys use
+/// (fixed sizes), then its glue.
+pub(super) struct CoreCode {
+    /// Address of the block (the vector table), 256-aligned.
+    pub start: u32,
+    /// (program, offset of its .text copy in the block).
+    pub texts: Vec<(usize, u32)>,
+    /// Offset of the glue in the block.
+    pub glue: u32,
+}
+
+/// Per core, the vector table and the copy of each program its keys use, at offsets in a
+/// block provisionally at the start of the core's bank ([`place_code_blocks`] moves it).
+pub(super) fn place_programs(
+    programs: &[Program],
+    keys: &[KeySpec],
+    cores: usize,
+) -> Vec<CoreCode> {
+    let mut cc = Vec::new();
+    for core in 0..cores {
+        let mut at = VECTORS;
+        let mut texts = Vec::new();
+        for (p, prog) in programs.iter().enumerate() {
+            if keys.iter().any(|k| k.core == core && k.program == p) {
+                at = at.next_multiple_of(4);
+                texts.push((p, at));
+                at += prog.thumb.code.text.len() as u32;
+            }
+        }
+        cc.push(CoreCode {
+            start: bank_base(core),
+            texts,
+            glue: at.next_multiple_of(4),
+        });
+    }
+    cc
+}
+
+/// The key records of core `core` (its control block at `ctrl_addr`, its code block `cc`):
+/// the glue's view of each key ([`KeyCode`]), where each key lives ([`KeyPlace`]) and the
+/// address after the last record.
+///
+/// Each record holds the sensor words first (the update's `sensors`), then the out words,
+/// the budgets, the state address and the quiescent guard's calm counter — or, where the
+/// out words would push those beyond an `LDR` immediate, the budgets, the state address
+/// and the counter before the out words.
+///
+/// Errors: [`ImageError::Compile`] when a program lacks its update or init symbol.
+pub(super) fn key_records(
+    l: &Layout,
+    core: usize,
+    ctrl_addr: u32,
+    cc: &CoreCode,
+) -> Result<(Vec<KeyCode>, Vec<KeyPlace>, u32), ImageError> {
+    let (programs, keys) = (l.programs, l.keys);
+    let my: Vec<usize> = (0..keys.len()).filter(|&i| keys[i].core == core).collect();
+    // Records after the control block, states after the records.
+    let mut at = ctrl_addr + ctrl::SIZE;
+    let mut kc = Vec::new();
+    let mut kp = Vec::new();
+    for &i in &my {
+        let p = &programs[keys[i].program];
+        let text = cc
+            .texts
+            .iter()
+            .find(|t| t.0 == keys[i].program)
+            .map_or(0, |t| cc.start + t.1);
+        let sym = |name: String| {
+            p.thumb
+                .symbol(&name)
+                .map(|(o, _)| text + o as u32)
+                .ok_or_else(|| ImageError::Compile(format!("no symbol `{name}`")))
+        };
+        let out_len = p.thumb.out.len as u32;
+        let ns = p.sensor_words() as u32;
+        let drives = &l.key_drives[i];
+        let nd = drives.len() as u32;
+        let (out_offset, budgets_offset) = if 4 * (ns + out_len + nd + 1) <= 124 {
+            (4 * ns, 4 * (ns + out_len))
+        } else {
+            (4 * (ns + nd + 2), 4 * ns)
+        };
+        let state_offset = budgets_offset + 4 * nd;
+        let calm_offset = state_offset + 4;
+        let size = 4 * (ns + out_len + nd + 2);
+        let budgets: Vec<u32> = (0..nd).map(|j| budgets_offset + 4 * j).collect();
+        let update = sym(p.thumb.update_name())?;
+        let slot = keys[i].slot as u32;
+        kc.push(KeyCode {
+            sensor_words: (0..ns).map(|j| SENSOR_BASE + 4 * (slot + j)).collect(),
+            out_offset,
+            state_offset,
+            drives: drives
+                .iter()
+                .zip(&budgets)
+                .enumerate()
+                .map(|(j, (d, &b))| DriveCode {
+                    force_offset: out_offset + 4 * d.out_index as u32,
+                    budget_offset: b,
+                    dac_word: DAC_BASE + 4 * (slot + j as u32),
+                    // Checked by `check_keys`, with the same constants.
+                    scale: l.consts.dac_scale(d.frac).unwrap_or(DacScale {
+                        pre_shift: 0,
+                        gain: 1,
+                        post_shift: 0,
+                    }),
+                })
+                .collect(),
+            record_size: size,
+            update,
+            init: sym(p.thumb.init_name())?,
+            guard: p.guard(calm_offset),
+        });
+        kp.push(KeyPlace {
+            index: i,
+            update,
+            spec: keys[i],
+            record: at,
+            out_len: out_len as usize,
+            sensors: ns as usize,
+            out_offset,
+            state_offset,
+            drives: drives.iter().copied().zip(budgets).collect(),
+        });
+        at += size;
+    }
+    Ok((kc, kp, at))
+}
+
+/// One core's glue, assembled: the assembler (labels bound), the handlers' labels, the
+/// key places and the address after the last key record.
+pub(super) struct Glue {
+    pub asm: Asm,
+    pub labels: glue::CoreLabels,
+    pub keys: Vec<KeyPlace>,
+    pub data_end: u32,
+}
+
+/// The glue of core `core` (reset handler, sample interrupt) for its control block at
+/// bank offset `data_off`.
+///
+/// Errors: those of [`key_records`] and [`glue::core_code`].
+pub(super) fn assemble_glue(
+    l: &Layout,
+    core: usize,
+    data_off: u32,
+    cc: &CoreCode,
+) -> Result<Glue, ImageError> {
+    let ctrl_addr = bank_base(core) + data_off;
+    let (kc, kp, data_end) = key_records(l, core, ctrl_addr, cc)?;
+    let mut a = Asm::new();
+    let inte = if l.cores == 2 { 3 } else { 1 };
+    let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, l.tick, inte, &l.consts)?;
+    Ok(Glue {
+        asm: a,
+        labels,
+        keys: kp,
+        data_end,
+    })
+}
+
+/// Moves each core's block to its final place and returns the data's bank offset.
+///
+/// Core 1's block follows core 0's in bank offsets (the emulator's decode cache is indexed
+/// by the low address bits, so the two cores' code would otherwise evict each other's); the
+/// data start is the same bank offset in every bank, past both blocks. The glue's size is
+/// measured at provisional addresses: literal values do not change instruction sizes, but
+/// pool sharing may, so each block keeps 64 bytes of slack.
+///
+/// Errors: those of [`assemble_glue`], [`ImageError::Assemble`].
+pub(super) fn place_code_blocks(l: &Layout, cc: &mut [CoreCode]) -> Result<u32, ImageError> {
+    let mut block_off = 0u32;
+    for (core, c) in cc.iter_mut().enumerate() {
+        let g = assemble_glue(l, core, BANK_LIMIT / 2, c)?;
+        let (bytes, _) = g
+            .asm
+            .assemble(c.start + c.glue)
+            .map_err(ImageError::Assemble)?;
+        c.start += block_off;
+        block_off += (c.glue + bytes.len() as u32 + 64).next_multiple_of(256);
+    }
+    Ok(block_off)
+}
+
+/// Core `core`'s data: its control block (first tick, counters; the data's start), its keys'
+/// records from there and their state structs from `data_end` (zeroed; each record's
+/// budgets full and its state address set). Returns the bytes and the address after the
+/// last state.
+///
+/// Errors: [`ImageError::NoRoom`] when the data passes [`BANK_LIMIT`].
+pub(super) fn data_block(
+    l: &Layout,
+    core: usize,
+    kp: &[KeyPlace],
+    data_end: u32,
+    first_tick_us: u32,
+) -> Result<Vec<u8>, ImageError> {
+    let bank = bank_base(core);
+    let mut at = data_end.next_multiple_of(4);
+    let mut data = Vec::new();
+    let word = |v: u32| v.to_le_bytes();
+    data.extend(word(first_tick_us)); // TARGET
+    data.extend(word(0)); // ACC
+    data.extend(word(0)); // SAMPLES
+    data.extend(word(0)); // MISSES
+    data.extend(word(0)); // READY
+    let mut states = Vec::new();
+    for k in kp {
+        let p = &l.programs[k.spec.program];
+        // The quiescent guard's shadow copy directly below the state struct (zeros: the
+        // guard's counter needs more than the first update, see `Program::guard`).
+        let shadow = p.guard(0).map_or(0, |g| g.shadow_bytes());
+        let state = at + shadow;
+        at = (state + p.thumb.state.size as u32).next_multiple_of(4);
+        states.push(shadow as usize + p.thumb.state.size);
+        let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 2)];
+        let put = |r: &mut Vec<u8>, off: u32, v: u32| {
+            r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
+        };
+        for &(_, budget) in &k.drives {
+            put(&mut r, budget, l.consts.budget_max as u32);
+        }
+        put(&mut r, k.state_offset, state);
+        data.extend(r);
+    }
+    for size in &states {
+        data.extend(vec![0u8; size.next_multiple_of(4)]);
+    }
+    let need = at - bank;
+    if need > BANK_LIMIT {
+        return Err(ImageError::NoRoom {
+            core,
+            need,
+            have: BANK_LIMIT,
+        });
+    }
+    Ok(data)
+}
+
+/// Core `core`'s stack: (bottom, top) in its scratch bank (SRAM4 for core 0, SRAM5 for
+/// core 1).
+pub(super) fn stack(core: usize) -> (u32, u32) {
+    let bottom = if core == 0 { SRAM4_BASE } else { SRAM5_BASE };
+    (bottom, bottom + STACK_BYTES)
+}
+
+/// The bytes of core `core`'s code block `cc`: its vector table (initial SP, reset
+/// handler, the sample interrupt at IRQ `core` — TIMER_IRQ_`core` — and the default
+/// handler everywhere else), its program copies and its glue. `addr` gives each glue
+/// label's address.
+pub(super) fn vector_table(
+    core: usize,
+    cc: &CoreCode,
+    programs: &[Program],
+    labels: &glue::CoreLabels,
+    addr: &[u32],
+    glue_bytes: &[u8],
+) -> Vec<u8> {
+    let lab = |l: asm::Label| addr[l.index()];
+    let mut vt = vec![lab(labels.default) | 1; 48];
+    vt[0] = stack(core).1;
+    vt[1] = lab(labels.reset) | 1;
+    vt[16 + core] = lab(labels.isr) | 1;
+    let mut code = Vec::new();
+    for w in &vt {
+        code.extend(w.to_le_bytes());
+    }
+    for &(p, text) in &cc.texts {
+        code.resize(text as usize, 0);
+        code.extend(&programs[p].thumb.code.text);
+    }
+    code.resize(cc.glue as usize, 0);
+    code.extend(glue_bytes);
+    code
+}
+
+/// The static WCET of core `core`'s sample interrupt over its whole code (`code` at
+/// `base`): each key's update priced by its own analysis (long branches, flow facts: one
+/// call's worst case), the timer accesses as APB. Returns the handler's analysed cycles
+/// and, of those, the update calls' (each `BL` and the update).
+///
+/// Errors: [`ImageError::Wcet`].
+pub(super) fn analyse_handler(
+    core: usize,
+    base: u32,
+    code: &[u8],
+    labels: &glue::CoreLabels,
+    addr: &[u32],
+    kp: &[KeyPlace],
+    update_wcets: &[u64],
+) -> Result<IsrWcet, ImageError> {
+    let lab = |l: asm::Label| addr[l.index()];
+    let mut bounds = Bounds::new();
+    for k in kp {
+        bounds = bounds.with_call(k.update, update_wcets[k.spec.program]);
+    }
+    for &l in &labels.apb {
+        bounds = bounds.with_access(lab(l), Region::Apb);
+    }
+    let image = wcet::Image { base, bytes: code };
+    let w = wcet::analyse_isr(&image, lab(labels.isr), &bounds)
+        .map_err(|e| ImageError::Wcet(format!("core {core}: {e}")))?;
+    let update_addrs: Vec<u32> = kp.iter().map(|k| k.update).collect();
+    let updates = w
+        .calls
+        .iter()
+        .filter(|c| update_addrs.contains(&c.callee))
+        .map(|c| crate::runner::BL_CYCLES + c.cycles)
+        .sum();
+    Ok(IsrWcet {
+        analysed: w.cycles,
+        contention: 0,
+        updates,
+    })
+}
+
+/// The place of core `core`'s pieces (its key list filled by the caller).
+pub(super) fn core_place(
+    core: usize,
+    cc: &CoreCode,
+    labels: &glue::CoreLabels,
+    addr: &[u32],
+    ctrl_addr: u32,
+) -> CorePlace {
+    let lab = |l: asm::Label| addr[l.index()];
+    let (stack_bottom, stack_top) = stack(core);
+    CorePlace {
+        vtor: cc.start,
+        reset: lab(labels.reset),
+        isr: lab(labels.isr),
+        ctrl: ctrl_addr,
+        stack_top,
+        stack_bottom,
+        keys: Vec::new(),
+    }
+}
