@@ -627,6 +627,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         let end = jobs.iter().map(|j| j.first + j.n).max().unwrap_or(0);
         emu_samples = end;
         bar.set_length(end as u64 * all.len() as u64);
+        bar.set_style(music_style(all.len() as f64 * fs));
+        bar.set_message(format!("{} keys on their boards", all.len()));
         let trace = EmuTrace {
             keys: &traced,
             from_s: args.trace_from,
@@ -901,6 +903,34 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         ),
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The progress bar of `--engine emu`, whose position counts key-samples
+/// (`key_samples_per_s` per second of music): music time done and in all, the real-time
+/// factor so far and the time left.
+fn music_style(key_samples_per_s: f64) -> ProgressStyle {
+    let k = key_samples_per_s.max(1.0);
+    ProgressStyle::with_template(
+        "{spinner} {msg} [{bar:30}] {music} of music, real-time factor {rtf}, eta {eta}",
+    )
+    .unwrap_or_else(|_| ProgressStyle::default_bar())
+    .with_key(
+        "music",
+        move |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+            let total = s.len().map_or(0.0, |l| l as f64 / k);
+            let _ = write!(w, "{:.1} s / {total:.1} s", s.pos() as f64 / k);
+        },
+    )
+    .with_key(
+        "rtf",
+        move |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+            let secs = s.elapsed().as_secs_f64();
+            let _ = match secs > 0.0 {
+                true => write!(w, "{:.2}", s.pos() as f64 / k / secs),
+                false => write!(w, "–"),
+            };
+        },
+    )
 }
 
 /// The most samples one `--engine emu` run may cover (2²⁶, 25 minutes at 44.1 kHz): a

@@ -111,8 +111,7 @@ pub struct KeyboardRun {
 
 /// Plays `motions` on the keyboard whose keys (ascending MIDI numbers) run `programs`
 /// (`key_programs[i]` is key `keys[i]`'s program): plans or takes the boards, builds each
-/// board's image and runs it for `opts.end` samples, the boards on as many host threads as
-/// the machine has cores. `progress` is called with key-samples done since its last call.
+/// board's image and runs it for `opts.end` samples, the boards in parallel (rayon). `progress` is called with key-samples done since its last call.
 ///
 /// Errors: a message naming the board when its image cannot be built or its run fails.
 pub fn play_boards(
@@ -149,47 +148,25 @@ pub fn play_boards(
             .collect(),
     };
     let decimation = opts.end.div_ceil(MAX_POINTS).max(1);
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(lists.len())
-        .max(1);
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Result<(usize, BoardRun), String>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                scope.spawn(|| {
-                    let mut out = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(list) = lists.get(i) else { break };
-                        let bkeys: Vec<PlanKey> = keys
-                            .iter()
-                            .filter(|k| list.contains(&k.key))
-                            .copied()
-                            .collect();
-                        let run = run_board(
-                            programs, &costs, &bkeys, board, motions, opts, progress, decimation,
-                        );
-                        out.push(run.map(|r| (i, r)).map_err(|e| {
-                            format!(
-                                "board {} ({}): {e}",
-                                i + 1,
-                                crate::verdict::key_ranges(list)
-                            )
-                        }));
-                    }
-                    out
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| vec![Err("a board's thread panicked".to_string())])
-            })
-            .collect()
-    });
+    // The boards share nothing: one rayon task each, on as many threads as the machine has
+    // cores.
+    use rayon::prelude::*;
+    let results: Vec<Result<(usize, BoardRun), String>> = lists
+        .par_iter()
+        .enumerate()
+        .map(|(i, list)| {
+            let bkeys: Vec<PlanKey> = keys
+                .iter()
+                .filter(|k| list.contains(&k.key))
+                .copied()
+                .collect();
+            run_board(
+                programs, &costs, &bkeys, board, motions, opts, progress, decimation,
+            )
+            .map(|r| (i, r))
+            .map_err(|e| format!("board {} ({}): {e}", i + 1, crate::verdict::key_ranges(list)))
+        })
+        .collect();
     let mut runs: Vec<(usize, BoardRun)> = results.into_iter().collect::<Result<_, _>>()?;
     runs.sort_by_key(|r| r.0);
     Ok(KeyboardRun {
