@@ -473,25 +473,63 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     // player for `--engine emu` (the same bits as the firmware's update).
     let fixed_needed = args.engine == PlayEngine::Fixed
         || (args.engine == PlayEngine::Emu && args.player == Player::Force);
-    let fixed_programs: Vec<tactus_compiler::fixed::FixedProgram> = match fixed_needed {
-        true => programs
-            .iter()
-            .map(|(_, _, p)| tactus_compiler::fixed::FixedProgram::new(p))
-            .collect(),
+    let fs = programs
+        .first()
+        .map_or(tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, |p| {
+            p.2.sample_rate_hz
+        });
+    // They run the programs the firmware runs: every key of the layout compiled together,
+    // so that an instrument's graded params are run-time data planned over the interval
+    // all its keys span ([`tactus_firmware::image::compile_layout`]); each played program
+    // is the shared code with the param block of its first key.
+    let fixed_programs: Vec<tactus_firmware::image::Program> = match fixed_needed {
+        true => {
+            let all: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
+                .iter()
+                .map(|a| {
+                    let mut a = a.clone();
+                    a.params.extend(args.params.iter().cloned());
+                    a
+                })
+                .collect();
+            let source = |name: &str| source::load(name).map(|s| s.text);
+            let (shared, index) = tactus_firmware::image::compile_layout(&all, &source, fs)
+                .map_err(|e| format!("fixed point: {e}"))?;
+            (0..programs.len())
+                .map(|pi| {
+                    all.iter()
+                        .position(|a| key_program.get(&a.key) == Some(&pi))
+                        .map(|i| shared[index[i]].clone())
+                        .ok_or_else(|| format!("program {pi} has no key"))
+                })
+                .collect::<Result<_, _>>()?
+        }
         _ => Vec::new(),
     };
-    let fixed_jits = fixed_programs
-        .iter()
-        .map(|fp| {
-            tactus_jit::fixed::FixedJitProgram::compile(fp).map_err(|e| format!("fixed JIT: {e}"))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    // One fixed JIT per distinct code.
+    let mut fixed_jits: Vec<(usize, tactus_jit::fixed::FixedJitProgram)> = Vec::new();
+    for (pi, p) in fixed_programs.iter().enumerate() {
+        if !fixed_jits
+            .iter()
+            .any(|(q, _)| fixed_programs[*q].same_code(p))
+        {
+            let j = tactus_jit::fixed::FixedJitProgram::compile(&p.fixed)
+                .map_err(|e| format!("fixed JIT: {e}"))?;
+            fixed_jits.push((pi, j));
+        }
+    }
     let engine_for = |pi: usize| -> AnyKey<'_> {
-        match fixed_jits.get(pi) {
-            Some(j) => {
-                let fp = &fixed_programs[pi];
+        let jit = fixed_programs.get(pi).and_then(|p| {
+            fixed_jits
+                .iter()
+                .find(|(q, _)| fixed_programs[*q].same_code(p))
+                .map(|(_, j)| (p, j))
+        });
+        match jit {
+            Some((p, j)) => {
+                let fp = &*p.fixed;
                 AnyKey::Fixed(Box::new(FixedKey {
-                    jit: tactus_jit::fixed::FixedJitInstance::new(j),
+                    jit: tactus_jit::fixed::FixedJitInstance::with_params(j, &p.params),
                     fp,
                     strike_id: fp
                         .program
@@ -510,11 +548,6 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         }
     };
     let dip_of = |key: u8| programs[key_program[&key]].2.sensors[0].range.1;
-    let fs = programs
-        .first()
-        .map_or(tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, |p| {
-            p.2.sample_rate_hz
-        });
     let finger = FingerConfig::default();
     // The force player's calibration, per program.
     let calibrations: Vec<Option<Calibration>> = match args.player {
