@@ -331,7 +331,7 @@ impl Turns for Sleeper<'_> {
                 s
             } else {
                 let p = q.max(s + 1);
-                r + ((r - p) % 2 == 0) as u64
+                r + (r - p).is_multiple_of(2) as u64
             }
         } else if r < s {
             s
