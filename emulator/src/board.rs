@@ -349,10 +349,21 @@ impl Board {
         }
         match image.vector_table {
             Some(vt) => self.boot_from_vectors(0, vt)?,
-            None => self.cores[0].reset_to(image.entry, SRAM_END),
+            None => self.enter_ram_image(image.entry),
         }
         self.image = image;
         Ok(())
+    }
+
+    /// Starts core 0 at `entry` (Thumb bit set) with SP at the top of SRAM and VTOR 0 (the
+    /// boot ROM's table), as the boot ROM enters a RAM image after a UF2 download: it
+    /// reboots through the watchdog with `entry` = the lowest address the UF2 wrote and
+    /// SP = 0x20042000 (pico-bootrom `bootrom/virtual_disk.c`,
+    /// `safe_reboot(lowest_addr, SRAM_END, …)`; `bootrom/bootrom_rt0.S`, `check_wdog`).
+    /// Core 1 stays in the boot ROM's launch protocol.
+    pub fn enter_ram_image(&mut self, entry: u32) {
+        self.cores[0].reset_to(entry, SRAM_END);
+        self.cores[0].nvic.vtor = 0;
     }
 
     /// Starts `core` from the vector table at `vtor` (SP = word 0, PC = word 1), as the boot
