@@ -13,8 +13,8 @@
 //! `Core::execute_op`, the interpreter's executor. Both layers are checked against the
 //! interpreter instruction by instruction (`tests/block_jit.rs`) and on whole programs
 //! (`tests/block_engine.rs`, the firmware images in `firmware/tests/image.rs`).
-//! Measured (BENCHMARKS.md, "the block compiler"): 12.0 against 34.5 host instructions
-//! per emulated cycle on the speed loop, 5.8 against 17.8 on the key-update workload.
+//! Measured (BENCHMARKS.md, "the block compiler"): 11.7 against 34.5 host instructions
+//! per emulated cycle on the speed loop, 5.76 against 17.8 on the key-update workload.
 //!
 //! **Cycles.** Each instruction's cost comes from the one timing table
 //! ([`crate::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block
@@ -331,7 +331,7 @@ impl Turns for Sleeper<'_> {
                 s
             } else {
                 let p = q.max(s + 1);
-                r + ((r - p) % 2 == 0) as u64
+                r + (r - p).is_multiple_of(2) as u64
             }
         } else if r < s {
             s

@@ -274,11 +274,14 @@ struct Slot {
 
 const NEVER: u32 = u32::MAX;
 
+/// A region's address and instruction halfwords.
+type RegionKey = (u32, Vec<u16>);
+
 /// The compiled regions: a direct-mapped lookup by address for the current code epoch, and
 /// the code itself kept by (address, halfwords) across epochs.
 pub(crate) struct Jit {
     slots: Box<[Slot]>,
-    compiled: HashMap<(u32, Vec<u16>), Option<(NativeFn, u64)>>,
+    compiled: HashMap<RegionKey, Option<(NativeFn, u64)>>,
     module: Option<JITModule>,
     /// Entries seen this many times uncompiled are compiled.
     pub(crate) threshold: u32,
@@ -689,12 +692,34 @@ impl<'a> Translator<'a> {
         r
     }
 
-    fn one(&mut self) -> Value {
-        self.b.ins().iconst(types::I8, 1)
+    /// `Core::adds(x, y, false)` (ADDS, CMN) in 32-bit operations: the carry is the
+    /// unsigned wrap, the overflow the sign rule.
+    fn add_flags(&mut self, x: Value, y: Value) -> Value {
+        let r = self.b.ins().iadd(x, y);
+        let c = self.b.ins().icmp(IntCC::UnsignedLessThan, r, x);
+        let a = self.b.ins().bxor(x, r);
+        let bb = self.b.ins().bxor(y, r);
+        let both = self.b.ins().band(a, bb);
+        let v = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, both, 0);
+        self.set_flag(C, c);
+        self.set_flag(V, v);
+        self.nz(r);
+        r
     }
 
-    fn zero8(&mut self) -> Value {
-        self.b.ins().iconst(types::I8, 0)
+    /// `Core::adds(x, !y, true)` (SUBS, CMP, NEGS) in 32-bit operations: the carry is
+    /// "no borrow" (`x >= y` unsigned), the overflow the sign rule of a subtraction.
+    fn sub_flags(&mut self, x: Value, y: Value) -> Value {
+        let r = self.b.ins().isub(x, y);
+        let c = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, x, y);
+        let a = self.b.ins().bxor(x, y);
+        let bb = self.b.ins().bxor(x, r);
+        let both = self.b.ins().band(a, bb);
+        let v = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, both, 0);
+        self.set_flag(C, c);
+        self.set_flag(V, v);
+        self.nz(r);
+        r
     }
 
     /// `Core::condition`: 1 when `cond` (0-13) holds.
@@ -860,29 +885,24 @@ impl<'a> Translator<'a> {
             }
             AddReg { rd, rn, rm } => {
                 let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));
-                let z = self.zero8();
-                let r = self.adds(x, y, z);
+                let r = self.add_flags(x, y);
                 self.set(rd, r);
             }
             SubReg { rd, rn, rm } => {
                 let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));
-                let ny = self.b.ins().bnot(y);
-                let o = self.one();
-                let r = self.adds(x, ny, o);
+                let r = self.sub_flags(x, y);
                 self.set(rd, r);
             }
             AddImm { rd, rn, imm } => {
                 let x = self.reg(rn, pc);
                 let y = self.c32(imm as u32);
-                let z = self.zero8();
-                let r = self.adds(x, y, z);
+                let r = self.add_flags(x, y);
                 self.set(rd, r);
             }
             SubImm { rd, rn, imm } => {
                 let x = self.reg(rn, pc);
-                let y = self.c32(!(imm as u32));
-                let o = self.one();
-                let r = self.adds(x, y, o);
+                let y = self.c32(imm as u32);
+                let r = self.sub_flags(x, y);
                 self.set(rd, r);
             }
             MovImm { rd, imm } => {
@@ -892,9 +912,8 @@ impl<'a> Translator<'a> {
             }
             CmpImm { rn, imm } => {
                 let x = self.reg(rn, pc);
-                let y = self.c32(!(imm as u32));
-                let o = self.one();
-                self.adds(x, y, o);
+                let y = self.c32(imm as u32);
+                self.sub_flags(x, y);
             }
             Alu { op, rdn, rm } => {
                 let m = self.reg(rm, pc);
@@ -902,9 +921,7 @@ impl<'a> Translator<'a> {
             }
             CmpHi { rn, rm } => {
                 let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));
-                let ny = self.b.ins().bnot(y);
-                let o = self.one();
-                self.adds(x, ny, o);
+                self.sub_flags(x, y);
             }
             Sxth { rd, rm } | Sxtb { rd, rm } | Uxth { rd, rm } | Uxtb { rd, rm } => {
                 let x = self.reg(rm, pc);
@@ -1191,18 +1208,26 @@ impl<'a> Translator<'a> {
                 self.set_flag(C, c);
                 r
             }
-            AluOp::Adc | AluOp::Sbc | AluOp::Rsb | AluOp::Cmp | AluOp::Cmn => {
+            AluOp::Cmp => {
+                self.sub_flags(x, m);
+                return;
+            }
+            AluOp::Cmn => {
+                self.add_flags(x, m);
+                return;
+            }
+            AluOp::Rsb => {
+                let zero = self.c32(0);
+                let r = self.sub_flags(zero, m);
+                self.set(rdn, r);
+                return;
+            }
+            AluOp::Adc | AluOp::Sbc => {
                 let (a, b, carry) = match op {
                     AluOp::Adc => (x, m, self.flag(C)),
-                    AluOp::Sbc => (x, self.b.ins().bnot(m), self.flag(C)),
-                    AluOp::Rsb => (self.b.ins().bnot(m), self.c32(0), self.one()),
-                    AluOp::Cmp => (x, self.b.ins().bnot(m), self.one()),
-                    _ => (x, m, self.zero8()),
+                    _ => (x, self.b.ins().bnot(m), self.flag(C)),
                 };
                 let r = self.adds(a, b, carry);
-                if matches!(op, AluOp::Cmp | AluOp::Cmn) {
-                    return;
-                }
                 self.set(rdn, r);
                 return;
             }

@@ -21,32 +21,33 @@ fn value(rng: &mut Rng) -> u32 {
     match rng.below(9) {
         0 => r,
         1 => 0x2000_0000 + (r % 0x4_2000),
-        2 => 0x2000_0000 + (r % 0x4_2000 & !3),
-        3 => 0x2100_0000 + (r % 0x4_0000 & !3),
-        4 => 0x1000_0000 + (r % 0x1000 & !3),
-        5 => CODE + (r % 0x40 & !1),
+        2 => 0x2000_0000 + ((r % 0x4_2000) & !3),
+        3 => 0x2100_0000 + ((r % 0x4_0000) & !3),
+        4 => 0x1000_0000 + ((r % 0x1000) & !3),
+        5 => CODE + ((r % 0x40) & !1),
         6 => 0x2004_2000 - 4 * (r % 8),
         7 => r % 64,
-        _ => 0xd000_0000 + (r % 0x80 & !3),
+        _ => 0xd000_0000 + ((r % 0x80) & !3),
     }
 }
 
 fn instruction(rng: &mut Rng) -> Vec<u16> {
     let h = rng.next() as u16;
-    match rng.below(8) {
+    match rng.below(12) {
         // BL with a small offset
-        0 => vec![
-            0xf000 | (rng.below(8) as u16),
-            0xf800 | (rng.below(0x40) as u16),
-        ],
+        0 => vec![0xf000 | rng.below(8), 0xf800 | rng.below(0x40)],
         // B<cond> and B with short offsets
         1 => vec![0xd000 | (rng.below(14) << 8) | (h & 0x0f)],
         2 => vec![0xe000 | (h & 0x0f)],
         // PUSH/POP, LDM/STM, misc
         3 => vec![0xb000 | (h & 0x0fff)],
         4 => vec![0xc000 | (h & 0x0fff)],
-        // data processing, hi registers, loads and stores
-        _ => vec![h & 0x9fff | ((rng.below(2) as u16) << 13)],
+        // the ALU group and high-register operations
+        8 | 9 => vec![0x4000 | (h & 0x07ff)],
+        // loads and stores with register or immediate offsets
+        10 => vec![0x5000 | (h & 0x2fff)],
+        // anything below 0xc000: shifts, add/sub, immediates, loads, stores, SP, misc
+        _ => vec![h % 0xc000],
     }
 }
 
