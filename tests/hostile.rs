@@ -258,7 +258,11 @@ fn class_3_play_seconds_bounds_the_simulated_time() {
         1,
         "--seconds",
     );
-    expect(&["play", &f, "--engine", "jit", "--out", &out], 1, "WAV rendering");
+    expect(
+        &["play", &f, "--engine", "jit", "--out", &out],
+        1,
+        "WAV rendering",
+    );
 }
 
 #[test]

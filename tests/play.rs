@@ -138,8 +138,13 @@ fn maestro_1_first_20_s_on_every_board_of_grand88_bit_exact_without_misses() {
     };
     let emu = run(None, "emu");
     let fixed = run(Some("fixed"), "fixed");
-    let read = |d: &str| std::fs::read_to_string(dir.join(d).join("Maestro_1-strikes.csv")).unwrap();
-    assert_eq!(read("emu"), read("fixed"), "the firmware and the fixed-point JIT disagree");
+    let read =
+        |d: &str| std::fs::read_to_string(dir.join(d).join("Maestro_1-strikes.csv")).unwrap();
+    assert_eq!(
+        read("emu"),
+        read("fixed"),
+        "the firmware and the fixed-point JIT disagree"
+    );
     let rows = strikes(&dir.join("emu/Maestro_1-strikes.csv"));
     let rho = check_one_strike_per_note(&midi, &rows, 20.0);
     let stdout = String::from_utf8_lossy(&emu.stdout);
@@ -151,7 +156,10 @@ fn maestro_1_first_20_s_on_every_board_of_grand88_bit_exact_without_misses() {
     for l in &boards {
         assert_eq!(l.matches("deadline misses 0").count(), 2, "{l}");
     }
-    eprintln!("Maestro_1, 20 s, every board of grand88: {} strikes, Spearman {rho:.4}", rows.len());
+    eprintln!(
+        "Maestro_1, 20 s, every board of grand88: {} strikes, Spearman {rho:.4}",
+        rows.len()
+    );
 }
 
 #[test]
@@ -480,7 +488,11 @@ fn bad_midi_is_a_clear_error() {
     let dir = temp_dir("play-bad");
     let f = dir.join("empty.mid");
     std::fs::write(&f, b"").unwrap();
-    let out = tactus().args(["play", "--engine", "jit"]).arg(&f).output().unwrap();
+    let out = tactus()
+        .args(["play", "--engine", "jit"])
+        .arg(&f)
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

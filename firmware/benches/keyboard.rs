@@ -55,11 +55,23 @@ fn bench(c: &mut Criterion) {
             engine: tactus_emulator::Engine::Interp,
             quiescent_guard: guard,
         };
-        let name = if guard { "grand88_1s_demo_guarded" } else { "grand88_1s_demo_unguarded" };
+        let name = if guard {
+            "grand88_1s_demo_guarded"
+        } else {
+            "grand88_1s_demo_unguarded"
+        };
         group.bench_function(name, |b| {
             b.iter(|| {
-                play_boards(&programs, &midi, &key_programs, &board, &motions, &opts, &|_| {})
-                    .unwrap()
+                play_boards(
+                    &programs,
+                    &midi,
+                    &key_programs,
+                    &board,
+                    &motions,
+                    &opts,
+                    &|_| {},
+                )
+                .unwrap()
             })
         });
     }

@@ -164,7 +164,13 @@ pub fn play_boards(
                 programs, &costs, &bkeys, board, motions, opts, progress, decimation,
             )
             .map(|r| (i, r))
-            .map_err(|e| format!("board {} ({}): {e}", i + 1, crate::verdict::key_ranges(list)))
+            .map_err(|e| {
+                format!(
+                    "board {} ({}): {e}",
+                    i + 1,
+                    crate::verdict::key_ranges(list)
+                )
+            })
         })
         .collect();
     let mut runs: Vec<(usize, BoardRun)> = results.into_iter().collect::<Result<_, _>>()?;

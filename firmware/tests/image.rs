@@ -1073,9 +1073,16 @@ fn quiescent_guard_skips_idle_keys_bit_exact_with_every_update_run() {
                 "{name}: sample {n}"
             );
             for k in 0..2 {
-                assert_eq!(rg.out(k), rp.out(k), "{name}: key {k}'s out words, sample {n}");
+                assert_eq!(
+                    rg.out(k),
+                    rp.out(k),
+                    "{name}: key {k}'s out words, sample {n}"
+                );
             }
-            assert_eq!((g.misses.clone(), u.misses.clone()), (vec![0, 0], vec![0, 0]));
+            assert_eq!(
+                (g.misses.clone(), u.misses.clone()),
+                (vec![0, 0], vec![0, 0])
+            );
             for c in 0..2 {
                 assert!(g.core_cycles[c] <= img_g.wcet(c).unwrap().bound(), "{name}");
                 assert!(u.core_cycles[c] <= img_p.wcet(c).unwrap().bound(), "{name}");
@@ -1095,7 +1102,10 @@ fn quiescent_guard_skips_idle_keys_bit_exact_with_every_update_run() {
             tail_g as f64 / 8000.0,
             tail_p as f64 / 8000.0
         );
-        assert!(bg.bound() > bp.bound(), "{name}: the bound counts the guard");
+        assert!(
+            bg.bound() > bp.bound(),
+            "{name}: the bound counts the guard"
+        );
         assert!(
             tail_g * 2 < tail_p,
             "{name}: at rest the guard skips the updates ({tail_g} vs {tail_p} cycles)"
