@@ -14,8 +14,6 @@ use crate::source;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use tactus_compiler::fixed::FixedProgram;
-use tactus_firmware::image::Program;
 use tactus_firmware::verdict::{self, BudgetInput, ProgramInput};
 use tactus_runtime::keyboard::{self, Board, KeyAssignment, Layout};
 use tactus_runtime::limiter::LimiterConfig;
@@ -86,19 +84,19 @@ pub struct BudgetArgs {
     /// board) to FILE, for `tactus play --layout` and later runs of `tactus budget`.
     #[arg(long, value_name = "FILE")]
     pub write_plan: Option<PathBuf>,
-    /// The emulator's engine for the measurements: `interp` or `block` (the same cycles;
-    /// compare their speed).
-    #[arg(long, value_enum, default_value = "interp")]
+    /// The emulator's engine for the measurements: `block` (code compiled to native code
+    /// with cranelift) or `interp` (the interpreter): the same cycles; compare their speed.
+    #[arg(long, value_enum, default_value = "block")]
     pub emu: EmuEngine,
 }
 
-/// The emulator's engine (`--emu`): both are exact; the interpreter is today the faster.
+/// The emulator's engine (`--emu`): both are exact; the block engine is the faster.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum EmuEngine {
-    /// One pre-decoded instruction at a time (the default).
-    #[default]
+    /// One pre-decoded instruction at a time.
     Interp,
-    /// Pre-decoded basic blocks with a per-block deadline check.
+    /// Code regions compiled to native code (the default).
+    #[default]
     Block,
 }
 
@@ -153,7 +151,7 @@ struct Resolved {
     boards: Option<Vec<Vec<u8>>>,
 }
 
-fn resolve(args: &BudgetArgs, single_is_pen: bool) -> Result<Resolved, Bad> {
+fn resolve(args: &KeyboardSpec, single_is_pen: bool) -> Result<Resolved, Bad> {
     if args.input.ends_with(".toml") {
         if args.keys.is_some() {
             return Err(Bad(format!(
@@ -161,9 +159,9 @@ fn resolve(args: &BudgetArgs, single_is_pen: bool) -> Result<Resolved, Bad> {
                 args.input
             )));
         }
-        let path = Path::new(&args.input);
+        let path = Path::new(args.input);
         let (l, keys) = keyboard::read_layout(path).map_err(Bad)?;
-        let boards = keyboard::board_keys(&l, &args.input, &keys).map_err(Bad)?;
+        let boards = keyboard::board_keys(&l, args.input, &keys).map_err(Bad)?;
         return Ok(Resolved {
             name: l.name.clone(),
             keys,
@@ -185,7 +183,7 @@ fn resolve(args: &BudgetArgs, single_is_pen: bool) -> Result<Resolved, Bad> {
         keys: (first..first + n)
             .map(|k| KeyAssignment {
                 key: k as u8,
-                instrument: args.input.clone(),
+                instrument: args.input.to_string(),
                 params: vec![],
             })
             .collect(),
@@ -194,24 +192,65 @@ fn resolve(args: &BudgetArgs, single_is_pen: bool) -> Result<Resolved, Bad> {
     })
 }
 
-fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
+/// A keyboard to compile: a layout file, or an instrument on `keys` keys.
+pub(crate) struct KeyboardSpec<'a> {
+    /// The layout file (`.toml`) or the instrument.
+    pub input: &'a str,
+    /// `--board`.
+    pub board: Option<&'a str>,
+    /// `--keys` (an instrument only).
+    pub keys: Option<u32>,
+    /// `--param` overrides for every key.
+    pub params: &'a [(String, String)],
+}
+
+/// A compiled keyboard: its keys resolved, its board, its distinct programs.
+pub(crate) struct Keyboard {
+    resolved: Resolved,
+    /// The board kind as given (a name or a path).
+    pub kind: String,
+    /// The board.
+    pub board: Board,
+    /// Distinct programs, in order of first key.
+    pub programs: Vec<ProgramInput>,
+    /// (MIDI key, program), ascending.
+    pub keys: Vec<(u8, usize)>,
+}
+
+impl Keyboard {
+    /// The layout's (or the instrument's) name.
+    pub fn name(&self) -> &str {
+        &self.resolved.name
+    }
+
+    /// The layout's own boards, if it lists them.
+    pub fn boards(&self) -> Option<&[Vec<u8>]> {
+        self.resolved.boards.as_deref()
+    }
+}
+
+/// Resolves and compiles a keyboard, printing each instrument's diagnostics once.
+///
+/// Errors: a message naming the input (a bad layout or board, an instrument that does not
+/// compile).
+pub(crate) fn compile_keyboard(args: &KeyboardSpec) -> Result<Keyboard, String> {
     // A single instrument is compiled once, here (whether it is a pen decides the default
     // number of keys), and reused for its keys below, so its diagnostics print once.
     let mut precompiled = None;
     if !args.input.ends_with(".toml") {
-        let src = source::load(&args.input).map_err(Bad)?;
-        let lowered = compile_reporting(&src, &args.params);
+        let src = source::load(args.input)?;
+        let lowered = compile_reporting(&src, args.params);
         precompiled = Some((src, lowered));
     }
     let single_is_pen = matches!(&precompiled, Some((_, Some(l))) if l.program.is_pen());
-    let r = resolve(args, single_is_pen)?;
+    let r = resolve(args, single_is_pen).map_err(|b| b.0)?;
     // The board kind: --board, else the layout's, else rp2040 (a layout's board file is
     // relative to the layout).
     let kind = match (
         &args.board,
         r.layout.as_ref().and_then(|(l, _)| l.board_kind.clone()),
     ) {
-        (Some(b), _) => b.clone(),
+        (Some(b), _) => b.to_string(),
         (None, Some(k)) => {
             let dir = r
                 .layout
@@ -225,19 +264,25 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
         (None, None) => "rp2040".to_string(),
     };
     let board = board_named(&kind).map_err(|e| match &r.layout {
-        Some((_, p)) if args.board.is_none() => Bad(format!("{}: `board_kind`: {e}", p.display())),
-        _ => Bad(e),
+        Some((_, p)) if args.board.is_none() => format!("{}: `board_kind`: {e}", p.display()),
+        _ => e,
     })?;
 
-    // Distinct programs, in order of first key.
-    let mut programs: Vec<ProgramInput> = Vec::new();
+    // Distinct parameter sets, in order of first key: (instrument, params, source, IR).
+    type ParamSet = (
+        String,
+        Vec<(String, String)>,
+        source::Source,
+        tactus_compiler::ir::Program,
+    );
+    let mut sets: Vec<ParamSet> = Vec::new();
     let mut keys: Vec<(u8, usize)> = Vec::new();
     for a in &r.keys {
         let mut params = a.params.clone();
         params.extend(args.params.iter().cloned());
-        let idx = match programs
+        let idx = match sets
             .iter()
-            .position(|p| p.instrument == a.instrument && p.params == params)
+            .position(|p: &ParamSet| p.0 == a.instrument && p.1 == params)
         {
             Some(i) => i,
             None => {
@@ -245,36 +290,61 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
                     Some(pre) => pre,
                     None => {
                         let src = source::load(&a.instrument)
-                            .map_err(|e| Bad(format!("{}: key {}: {e}", args.input, a.key)))?;
+                            .map_err(|e| format!("{}: key {}: {e}", args.input, a.key))?;
                         let lowered = compile_reporting(&src, &params);
                         (src, lowered)
                     }
                 };
                 let Some(lowered) = lowered else {
-                    return Err(Bad(format!(
+                    return Err(format!(
                         "{}: key {}: `{}` does not compile with params {} (see the diagnostics above)",
                         args.input,
                         a.key,
                         a.instrument,
                         verdict::show_params(params.iter().map(|(n, v)| (n, v)))
-                    )));
+                    ));
                 };
-                let fp = FixedProgram::new(&lowered.program);
-                let obj = tactus_compiler::thumb::compile(&fp)
-                    .map_err(|e| Bad(format!("{}: {e}", src.name)))?;
-                programs.push(ProgramInput {
-                    instrument: a.instrument.clone(),
-                    params,
-                    source: src.text,
-                    program: Program::new(fp, obj),
-                });
-                programs.len() - 1
+                sets.push((a.instrument.clone(), params, src, lowered.program));
+                sets.len() - 1
             }
         };
         keys.push((a.key, idx));
     }
     keys.sort_unstable();
+    // One code per instrument: graded params become run-time data (a param block per set).
+    let lowered: Vec<(&str, &tactus_compiler::ir::Program)> =
+        sets.iter().map(|s| (s.0.as_str(), &s.3)).collect();
+    let compiled = tactus_firmware::image::compile_shared(&lowered)
+        .map_err(|(i, e)| format!("{}: {e}", sets[i].2.name))?;
+    let programs: Vec<ProgramInput> = sets
+        .into_iter()
+        .zip(compiled)
+        .map(|((instrument, params, src, _), program)| ProgramInput {
+            instrument,
+            params,
+            source: src.text,
+            program,
+        })
+        .collect();
 
+    Ok(Keyboard {
+        resolved: r,
+        kind,
+        board,
+        programs,
+        keys,
+    })
+}
+
+fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
+    let kb = compile_keyboard(&KeyboardSpec {
+        input: &args.input,
+        board: args.board.as_deref(),
+        keys: args.keys,
+        params: &args.params,
+    })
+    .map_err(Bad)?;
+    let (r, kind, board, programs, keys) = (kb.resolved, kb.kind, kb.board, kb.programs, kb.keys);
     let input = BudgetInput {
         name: r.name.clone(),
         input: args.input.clone(),

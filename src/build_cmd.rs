@@ -3,24 +3,48 @@
 //! `--target c` (the default) writes `DIR/<name>.h` and `DIR/<name>.c`: portable C99 with
 //! the fixed-point bits of the fixed interpreter (see `tactus_compiler::cgen`).
 //!
-//! `--target rp2040` writes `DIR/<name>.o` (an ARM ELF relocatable object for the
-//! Cortex-M0+, from `tactus_compiler::thumb`), `DIR/<name>.h` (the same interface header as
-//! the C target: state struct, prototypes, Q-formats and units) and `DIR/<name>.s` (a GNU
-//! assembler listing that `arm-none-eabi-as -mcpu=cortex-m0plus` assembles to the same
-//! bytes).
+//! `--target rp2040` on one instrument writes `DIR/<name>.o` (an ARM ELF relocatable object
+//! for the Cortex-M0+, from `tactus_compiler::thumb`), `DIR/<name>.h` (the same interface
+//! header as the C target: state struct, prototypes, Q-formats and units) and
+//! `DIR/<name>.s` (a GNU assembler listing that `arm-none-eabi-as -mcpu=cortex-m0plus`
+//! assembles to the same bytes).
+//!
+//! `--target rp2040` on a keyboard — a layout (`.toml`), or an instrument with `--keys N` —
+//! writes flashable firmware per board (the layout's boards, or planned as `tactus budget`
+//! plans them): `DIR/board-NN/firmware.elf`, `firmware.uf2`, `keys.json` and `README.md`
+//! (`tactus_firmware::flash`).
 
+use crate::budget_cmd::{compile_keyboard, KeyboardSpec};
 use crate::check_cmd::{compile_reporting, parse_override};
 use crate::source;
+use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tactus_compiler::cgen::{self, CConfig};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::thumb;
+use tactus_firmware::flash::{self, KeyboardInput};
+use tactus_runtime::limiter::LimiterConfig;
 
 /// Arguments of `tactus build`.
 #[derive(Debug, clap::Args)]
+#[command(after_long_help = "\
+Examples:
+  tactus build grand_piano -o out/c                                    # C99 sources
+  tactus build grand_piano --target rp2040 -o out/obj                  # Thumb object, header, listing
+  tactus build instruments/layouts/grand88.toml --target rp2040 -o out/grand88   # firmware per board
+  tactus build instruments/hammond.tactus --keys 61 --target rp2040 -o out/organ
+
+Firmware per board: for a layout (or an instrument on --keys N keys), each board — the
+layout's [[board]]s, or the fewest that fit, planned as `tactus budget` plans them — gets a
+directory board-NN/ with firmware.uf2 (RAM-only, for the RP2040 boot ROM: hold BOOTSEL, plug
+in, copy it onto the RPI-RP2 drive), firmware.elf (the same image, for a debugger or
+`tactus emu run`), keys.json (each key's MIDI number, instrument, core, sensor and DAC word
+addresses) and README.md. The sensor and DAC words are memory locations a converter driver
+(or DMA, or PIO) must fill and drain; the firmware contains no ADC/DAC driver.")]
 pub struct BuildArgs {
-    /// Instrument file (`instruments/grand_piano.tactus`) or built-in name (`grand_piano`).
+    /// Instrument file (`instruments/grand_piano.tactus`), built-in name (`grand_piano`),
+    /// or keyboard layout (`instruments/layouts/grand88.toml`, rp2040 target only).
     pub file: String,
     /// What to generate: `c` (portable C99 sources) or `rp2040` (Thumb ELF object, header
     /// and assembler listing for the Cortex-M0+).
@@ -33,6 +57,14 @@ pub struct BuildArgs {
     /// Override a param: `--param k=200 N/m` (repeatable; the unit must match the param's).
     #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
     pub params: Vec<(String, String)>,
+    /// Firmware for N keys of the instrument (from A0 up), per board, instead of its object
+    /// file (rp2040 target).
+    #[arg(long, value_name = "N")]
+    pub keys: Option<u32>,
+    /// Board file or built-in board (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`) for
+    /// firmware; default: the layout's, else `rp2040`.
+    #[arg(long, value_name = "NAME_OR_FILE")]
+    pub board: Option<String>,
 }
 
 /// Code generation targets.
@@ -64,6 +96,22 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
             args.file
         )));
     };
+    let keyboard = args.file.ends_with(".toml") || args.keys.is_some();
+    if keyboard {
+        if args.target != Target::Rp2040 {
+            return Err(Some(format!(
+                "{}: a keyboard (a layout, or --keys) builds firmware per board: use --target rp2040",
+                args.file
+            )));
+        }
+        return build_firmware(args, dir);
+    }
+    if args.board.is_some() {
+        return Err(Some(format!(
+            "{}: --board is for firmware (a layout, or an instrument with --keys N)",
+            args.file
+        )));
+    }
     let src = source::load(&args.file).map_err(Some)?;
     let lowered = compile_reporting(&src, &args.params).ok_or(None)?;
     let fp = FixedProgram::new(&lowered.program);
@@ -130,6 +178,96 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
         c.header.lines().count(),
         c.source.lines().count(),
         c.stem
+    );
+    Ok(())
+}
+
+/// Firmware per board of a keyboard (see the module documentation).
+fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<String>> {
+    let kb = compile_keyboard(&KeyboardSpec {
+        input: &args.file,
+        board: args.board.as_deref(),
+        keys: args.keys,
+        params: &args.params,
+    })
+    .map_err(Some)?;
+    let programs: Vec<_> = kb.programs.iter().map(|p| p.program.clone()).collect();
+    let names: Vec<(String, Vec<(String, String)>)> = kb
+        .programs
+        .iter()
+        .map(|p| (p.instrument.clone(), p.params.clone()))
+        .collect();
+    let limiter = LimiterConfig {
+        sample_rate_hz: kb.board.sample_rate_hz,
+        ..LimiterConfig::default()
+    };
+    let command: Vec<String> = std::env::args().skip(1).collect();
+    let command = format!("tactus {}", command.join(" "));
+    let input = KeyboardInput {
+        name: kb.name(),
+        programs: &programs,
+        program_names: &names,
+        keys: &kb.keys,
+        board: &kb.board,
+        boards: kb.boards(),
+        limiter: &limiter,
+        command: &command,
+    };
+    let bar = ProgressBar::new(1);
+    bar.set_style(
+        ProgressStyle::with_template("{msg:>16} [{bar:30}] {pos}/{len}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let boards = flash::keyboard_firmware(&input, &mut |stage, done, total| {
+        bar.set_message(stage.to_string());
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })
+    .map_err(|e| Some(format!("{}: {e}", args.file)))?;
+    bar.finish_and_clear();
+    let write = |path: &std::path::Path, bytes: &[u8]| {
+        if let Some(d) = path.parent() {
+            std::fs::create_dir_all(d)
+                .map_err(|e| Some(format!("cannot create `{}`: {e}", d.display())))?;
+        }
+        std::fs::write(path, bytes)
+            .map_err(|e| Some(format!("cannot write `{}`: {e}", path.display())))
+    };
+    for b in &boards {
+        let d = dir.join(b.dir_name());
+        let json = serde_json::to_string_pretty(&b.key_map)
+            .map_err(|e| Some(format!("cannot write the key map: {e}")))?;
+        write(&d.join("firmware.elf"), &b.elf)?;
+        write(&d.join("firmware.uf2"), &b.uf2)?;
+        write(&d.join("keys.json"), json.as_bytes())?;
+        write(&d.join("README.md"), b.readme.as_bytes())?;
+        let cores: Vec<String> = (0..b.image.cores())
+            .map(|c| {
+                let w = b.image.wcet(c).unwrap_or_default();
+                format!(
+                    "core {c} {} / {} cycles",
+                    w.bound(),
+                    b.image.cycles_per_sample()
+                )
+            })
+            .collect();
+        println!(
+            "{}: keys {}, UF2 {} blocks; sample interrupt {}",
+            d.display(),
+            tactus_firmware::verdict::key_ranges(&b.keys),
+            b.uf2.len() / tactus_firmware::uf2::BLOCK,
+            cores.join(", ")
+        );
+    }
+    println!(
+        "{}: {} boards of {} at {} MHz in {}, each with firmware.uf2, firmware.elf, keys.json, README.md\n\
+         flash a board: hold BOOTSEL, plug it in, copy its firmware.uf2 onto the RPI-RP2 drive",
+        kb.name(),
+        boards.len(),
+        kb.board.name,
+        kb.board.clock_hz / 1e6,
+        dir.display()
     );
     Ok(())
 }

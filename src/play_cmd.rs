@@ -77,9 +77,10 @@ pub struct PlayArgs {
     /// or a board file.
     #[arg(long, default_value = "rp2040", value_name = "NAME_OR_FILE")]
     pub board: String,
-    /// The emulator's engine for `--engine emu`: `interp` or `block` (the same cycles and
-    /// strikes; compare their speed).
-    #[arg(long, value_enum, default_value = "interp")]
+    /// The emulator's engine for `--engine emu`: `block` (code compiled to native code with
+    /// cranelift) or `interp` (the interpreter): the same cycles and strikes; compare their
+    /// speed.
+    #[arg(long, value_enum, default_value = "block")]
     pub emu: crate::budget_cmd::EmuEngine,
     /// Player: `position` (prescribed key trajectories) or `force` (a finger force profile
     /// against the instrument's force: the closed loop; with `--engine emu` against the

@@ -322,6 +322,22 @@ fn bad_input_exits_2_with_a_clear_message() {
         e.contains("param.toml") && e.contains("key 60") && e.contains("M_h=-5 g"),
         "{e}"
     );
+    // A grading that leaves the declared range (`require M_h <= 20 g`) at one end: the
+    // key at that end, with its graded value.
+    let p = dir.join("grade.toml");
+    std::fs::write(
+        &p,
+        "name = \"x\"\n[[range]]\nkeys = [60, 62]\ninstrument = \"grand_piano\"\ngrade = [ { param = \"M_h\", from = \"3.5 g\", to = \"25 g\" } ]\n",
+    )
+    .unwrap();
+    let e = err(&[p.to_str().unwrap()]);
+    assert!(
+        e.contains("grade.toml")
+            && e.contains("key 62")
+            && e.contains("M_h=25 g")
+            && e.contains("requirement not met"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -1,29 +1,20 @@
-//! The block engine: pre-decoded Thumb basic blocks with their cycle bounds summed once,
-//! run by a threaded executor that checks the run's deadline once per block.
+//! The block engine: Thumb code compiled to native code by region ([`crate::jit`]), with
+//! pre-decoded basic blocks for what is cold or does not fit before a deadline.
 //!
-//! **What it is, and what it is not.** Issue 18 asks for basic blocks compiled to native
-//! code with cranelift. This module is an intermediate step, not that: a block is a run of
-//! pre-decoded instructions (`BlockOp`, each the same `Op` the per-instruction fast
-//! path executes) from its first address to the first instruction that may write the PC
-//! (a branch, BL, BX/BLX, `POP {…, pc}`, ADD/MOV to PC, a trap) or [`MAX_BLOCK`]
-//! instructions, decoded once and executed by `Core::execute_op`, the one definition of
-//! each instruction's semantics that the interpreter shares (so there is no second copy of
-//! any flag or condition to keep in step). It saves the work *around* each instruction —
-//! the decode-cache lookup and the deadline compare, done once per block instead of once
-//! per instruction — and nothing else: every instruction is still dispatched through the
-//! `Op` match, writes PC and adds its cycles to the counter. **Measured, it is slower than
-//! the interpreter** (callgrind, BENCHMARKS.md "Emulator: the block engine"): 43.4 against
-//! 34.8 host instructions per emulated cycle on the speed loop, because the per-block
-//! bookkeeping (lookup, bound, cursor) costs about what the per-instruction lookups it
-//! replaces did, and with both cores running (lock-step, below) a core's turn is one or
-//! two instructions, so the per-turn cost dominates (106 against 39). So it is not the
-//! default ([`crate::board::Engine`]). What it does provide, tested exact against the
-//! interpreter, is the frame a compiled block would drop into: block discovery and
-//! invalidation, the static cycle bound from the timing table, mid-block exits to the
-//! general path, deadline and lock-step stops inside a block with a resume cursor, and the
-//! sleeper replay; replacing the `execute_op` loop of `run` by a call to a block's
-//! native code (registers and flags in the `Core`, memory through the same `mem_fast`)
-//! is the remaining step.
+//! **Two layers.** A *region* ([`crate::jit`]) is the code from an address on, compiled
+//! with cranelift once its entry has been reached [`Jit::threshold`] times: straight-line
+//! code, forward branches and loops inside it are native, with the guest registers in host
+//! registers; it runs whenever the core's cycle plus the region's static bound fits before
+//! the run's deadline. Otherwise, or at an instruction the region leaves to the
+//! interpreter, a *block* runs: a run of pre-decoded instructions (`BlockOp`, each the
+//! same `Op` the per-instruction fast path executes) from its first address to the first
+//! instruction that may write the PC (a branch, BL, BX/BLX, `POP {…, pc}`, ADD/MOV to PC,
+//! a trap) or [`MAX_BLOCK`] instructions, decoded once and executed by
+//! `Core::execute_op`, the interpreter's executor. Both layers are checked against the
+//! interpreter instruction by instruction (`tests/block_jit.rs`) and on whole programs
+//! (`tests/block_engine.rs`, the firmware images in `firmware/tests/image.rs`).
+//! Measured (BENCHMARKS.md, "the block compiler"): 12.0 against 34.5 host instructions
+//! per emulated cycle on the speed loop, 5.8 against 17.8 on the key-update workload.
 //!
 //! **Cycles.** Each instruction's cost comes from the one timing table
 //! ([`crate::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block
@@ -50,27 +41,44 @@
 //! **Two cores.** The interpreter runs the cores in lock-step: the core whose next
 //! instruction starts earlier goes first (core 0 on a tie), which orders every shared-state
 //! access — SRAM data and bank arbitration, SIO, the timer, interrupt lines — in global
-//! cycle order. The block engine keeps that order exactly: a core runs its block only
-//! while it keeps the turn (its cycle below the other core's, or equal for core 0) and
-//! stops mid-block at the first instruction boundary where it loses it, resuming there
-//! (a per-core cursor) on its next turn. Running *ahead* of the other core would be exact
-//! only for a stretch in which this core provably touches nothing the other core can
-//! observe or contend for, *and* the other core provably does nothing this core can
-//! observe (an SIO write or a FIFO push that raises this core's interrupt, a store to data
-//! this core loads, a claim on a bank this core uses in the same cycle) — the bank arbiter
-//! keeps only each core's last claim, so even two cores on disjoint banks would need the
-//! other core's future, which is not known before it runs. We found no cheap proof of the
-//! second half, so the engine does not run ahead: with both cores running it is lock-step,
-//! and its gain there is only the saved cache lookups. With one core asleep and nothing able
-//! to wake it, the sleeper's turns only move its cycle counter (see
-//! [`crate::board`]); the running core then runs whole blocks up to the sleeper's wake
-//! check, and the sleeper's turns are replayed after each instruction by the caller's
-//! `after` hook, which is exactly the interleaving the interpreter performs.
-
+//! cycle order. The block engine keeps that order exactly, by running one core at a time
+//! only where the other core's turns are known in advance:
+//!
+//! * the other core is parked or locked up: it takes no turns;
+//! * the other core sleeps and nothing can wake it before its *wake check* (the next timer
+//!   event, its SysTick, the limit; see [`crate::board`]): its turns only move its cycle
+//!   counter, to the running core's cycle + 1, capped at the wake check. The running core
+//!   runs up to the cycle at which such a turn would find the sleeper at its wake check,
+//!   and the turns are replayed after each pre-decoded instruction ([`Sleeper::after`]), or
+//!   in closed form after native code ([`Sleeper::after_native`]), which needs only the
+//!   end cycle and that of the last instruction of two cycles or more;
+//! * both cores run: each turn lasts an instruction or two, no region fits in it, and the
+//!   board runs the interpreter's lock-step loop (faster there than blocks).
+//!
+//! *Running ahead.* Letting core A run a window `[t, t')` of its code before core B runs
+//! its own `[t, t')` is exact when nothing either core does in the window depends on the
+//! other's: A's loads read no word B stores in the window (and vice versa), no access of
+//! A claims a bank in the same cycle as an access of B (the arbiter's winner depends on
+//! which instruction started first), and B raises no interrupt or event A could take in
+//! the window (an SIO FIFO push, a timer alarm, SEV), and vice versa. The firmware image
+//! makes the first two likely — each core's code, data and stack are in its own bank
+//! (through the non-striped alias) and its scratch bank — but not certain: the sensor and
+//! DAC windows are striped over all four banks, so a core's window accesses contend with
+//! the other core's private bank, and the timer and SIO are shared. A static proof is
+//! therefore not available, and an exact run-ahead needs the check at run time: A runs a
+//! window *confined* to its own banks (native code exits before any other access),
+//! recording the (bank, cycle) of its claims; B then runs the same window, and each of its
+//! accesses to A's banks at a cycle A claimed, each access to A's words, and anything that
+//! could raise A's interrupt lines or stop the run rolls A back to the window's start
+//! (registers and a journal of its stores) and falls back to lock-step for that window.
+//! That is not built: with both cores running the engine is lock-step, and the issue's
+//! two-core speed target is not met (BENCHMARKS.md).
+//!
 use crate::bus::{sram_location, Bus, System};
 use crate::core::Core;
 use crate::decode::{decode, is_32bit, Instr};
 use crate::fast::Op;
+use crate::jit::{self, Jit};
 use crate::timing::{self, Class};
 
 /// Most instructions in one block.
@@ -130,6 +138,8 @@ pub(crate) struct Blocks {
     cursor: [Cursor; 2],
     /// Blocks decoded so far (for tests and reports).
     pub(crate) decoded: u64,
+    /// The compiled regions ([`crate::jit`]).
+    pub(crate) jit: Jit,
 }
 
 #[inline(always)]
@@ -150,17 +160,6 @@ fn ends_block(instr: &Instr) -> bool {
     }
 }
 
-/// Data words `instr` moves (each may wait one cycle for the other core).
-fn data_words(instr: &Instr) -> u32 {
-    use Instr::*;
-    match *instr {
-        LdrLit { .. } | MemImm { .. } | MemReg { .. } => 1,
-        Push { list } | Pop { list } => list.count_ones(),
-        Stm { list, .. } | Ldm { list, .. } => list.count_ones(),
-        _ => 0,
-    }
-}
-
 impl Blocks {
     pub(crate) fn new() -> Blocks {
         Blocks {
@@ -170,6 +169,7 @@ impl Blocks {
             generation: 0,
             cursor: [Cursor::default(); 2],
             decoded: 0,
+            jit: Jit::new(),
         }
     }
 
@@ -240,7 +240,7 @@ impl Blocks {
                     Class::Store | Class::StoreMultiple | Class::Push
                 ),
                 cost,
-                worst_from: (cost.0.max(cost.1).max(1) as u32) + data_words(&instr),
+                worst_from: (cost.0.max(cost.1).max(1) as u32) + jit::data_words(&instr),
             });
             if ends_block(&instr) {
                 break;
@@ -261,27 +261,128 @@ impl Blocks {
     }
 }
 
+/// Who else takes turns while a core runs its blocks, and how their turns follow from the
+/// running core's cycles.
+pub(crate) trait Turns {
+    /// `after` must see every instruction's end cycle (else a block whose bound fits
+    /// runs with no per-instruction call).
+    const EACH: bool;
+    /// After an instruction that ended at `cycle`.
+    fn after(&mut self, cycle: u64);
+    /// After native code that ended at `cycle`, whose last instruction of two cycles or
+    /// more ended at `q` (0: none).
+    fn after_native(&mut self, cycle: u64, q: u64);
+}
+
+/// No one else: the core runs alone, or the caller's limit ends its turn.
+pub(crate) struct Alone;
+
+impl Turns for Alone {
+    const EACH: bool = false;
+    #[inline(always)]
+    fn after(&mut self, _: u64) {}
+    #[inline(always)]
+    fn after_native(&mut self, _: u64, _: u64) {}
+}
+
+/// A sleeping core whose turns only move its cycle counter (see [`crate::board`]'s
+/// `run_beside_sleeper`): on each of its turns before `wake`, `cycle` becomes
+/// `min(wake, running core's cycle + 1)`; its turn comes once the running core's cycle
+/// reaches its own (`loses_ties`: the sleeper is core 1, which loses ties, so the turn
+/// comes one cycle later).
+pub(crate) struct Sleeper<'a> {
+    pub(crate) cycle: &'a mut u64,
+    pub(crate) wake: u64,
+    pub(crate) loses_ties: bool,
+}
+
+impl Turns for Sleeper<'_> {
+    const EACH: bool = true;
+
+    #[inline(always)]
+    fn after(&mut self, r: u64) {
+        // (A turn that finds the sleeper at its wake check ends the run: the caller takes
+        // it, after the block.)
+        let s = &mut *self.cycle;
+        if r >= *s + self.loses_ties as u64 && *s < self.wake {
+            *s = self.wake.min(r + 1).max(*s + 1);
+        }
+    }
+
+    /// The same turns taken after each instruction of the native run, in closed form. Let
+    /// `s` be the sleeper's cycle before and `r` the running core's after. The sleeper is
+    /// core 0 (`!loses_ties`): its first turn comes at the first instruction end at or
+    /// after `s`, and each turn leaves it one cycle ahead, so every later instruction end
+    /// gives it another: `r + 1` if `r >= s`. The sleeper is core 1: a turn comes at an
+    /// end at least one cycle past it and leaves it one cycle ahead, so after a
+    /// one-cycle instruction it is level (no turn) and after the next one behind again
+    /// (a turn); an instruction of two cycles or more always gives it a turn. So from the
+    /// later of the last such instruction's end `q` and the first turn (`s + 1`), the
+    /// one-cycle instructions to `r` alternate: `r + 1` after an even number of them,
+    /// `r` after an odd one. Both are capped at `wake`, where the turns stop.
+    #[inline(always)]
+    fn after_native(&mut self, r: u64, q: u64) {
+        let s = *self.cycle;
+        if s >= self.wake {
+            return;
+        }
+        let next = if self.loses_ties {
+            if r < s + 1 {
+                s
+            } else {
+                let p = q.max(s + 1);
+                r + ((r - p) % 2 == 0) as u64
+            }
+        } else if r < s {
+            s
+        } else {
+            r + 1
+        };
+        *self.cycle = next.min(self.wake);
+    }
+}
+
 /// Runs `core` on blocks while its cycle is below `limit` (the caller has checked that
-/// the core may take the fast path: [`crate::board`]'s `fast_ready`), calling
-/// `after(cycle)` after every instruction when `HOOK` (else `after` is never called, and a
-/// block whose bound fits below `limit` runs with no per-instruction check). `Ok` when the core reached `limit` (at its first
+/// the core may take the fast path: [`crate::board`]'s `fast_ready`), with `turns` told of
+/// the instructions' end cycles. A region compiled to native code ([`crate::jit`]) runs
+/// whenever its bound fits before `limit`; otherwise the block's pre-decoded instructions
+/// run, with one deadline check per block when its bound fits and `turns` need not see
+/// every instruction. `Ok` when the core reached `limit` (at its first
 /// instruction boundary at or after it), else why it left, with the instruction that needs
 /// the general path not started. Not inlined: its arguments cannot alias, so the compiler
 /// may keep the core's counters in registers across the block.
 #[inline(never)]
-pub(crate) fn run<const HOOK: bool, F: FnMut(u64)>(
+pub(crate) fn run<T: Turns>(
     core: &mut Core,
     sys: &mut System,
     blocks: &mut Blocks,
     limit: u64,
-    mut after: F,
+    turns: &mut T,
 ) -> Result<(), Leave> {
     let mut retired = 0u64;
+    let mut native = true;
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
         }
         let pc = core.r[15];
+        if native {
+            if let Some((f, bound)) = blocks.jit.lookup(sys, pc) {
+                if core.cycle.saturating_add(bound) <= limit {
+                    let (exit, n, q) = jit::call(f, core, sys, limit);
+                    retired += n;
+                    turns.after_native(core.cycle, q);
+                    match exit {
+                        jit::Exit::Invalidate => sys.invalidate_code(),
+                        // The next instruction needs the pre-decoded path (or the general).
+                        jit::Exit::General => native = false,
+                        jit::Exit::Out | jit::Exit::Deadline => {}
+                    }
+                    continue;
+                }
+            }
+        }
+        native = true;
         let found = match blocks.resume(core.id, pc) {
             Some(r) if sys.code_epoch == blocks.epoch => Some(r),
             _ => blocks.find(sys, pc),
@@ -292,7 +393,7 @@ pub(crate) fn run<const HOOK: bool, F: FnMut(u64)>(
         let epoch = sys.code_epoch;
         let ops = &blocks.ops[..end];
         let mut leave = None;
-        if !HOOK && core.cycle.saturating_add(ops[i].worst_from as u64) <= limit {
+        if !T::EACH && core.cycle.saturating_add(ops[i].worst_from as u64) <= limit {
             // The whole rest of the block starts before `limit`: no per-instruction check.
             let start = i;
             for o in &ops[start..] {
@@ -318,7 +419,7 @@ pub(crate) fn run<const HOOK: bool, F: FnMut(u64)>(
                 }
                 retired += 1;
                 i += 1;
-                after(core.cycle);
+                turns.after(core.cycle);
                 if o.store && sys.code_epoch != epoch {
                     break;
                 }

@@ -31,11 +31,12 @@
 //! profiled with [`Board::profile_handler`] are entered and left only by exception entry
 //! and return, in the general path, so they cost the loop no such check.
 //! So the order of all shared-state accesses, and every result, is the same as stepping
-//! one instruction at a time. [`Config::engine`] selects what runs that fast path: the
-//! interpreter above ([`Engine::Interp`], the default) or the block engine
-//! ([`Engine::Block`], module [`crate::block`]: pre-decoded basic blocks, the same
-//! instruction semantics and the same interleaving, exact but not yet faster). [`Board::step`] is the same machine one instruction at a
-//! time, recording [`Core::last`] for traces.
+//! one instruction at a time. [`Config::engine`] selects what runs that fast path for one
+//! core: the interpreter above ([`Engine::Interp`]) or the block engine ([`Engine::Block`],
+//! the default; module [`crate::block`]: code regions compiled to native code with
+//! cranelift, pre-decoded basic blocks where they do not fit; the same results).
+//! [`Board::step`] is the same machine one instruction at a time, recording
+//! [`Core::last`] for traces.
 //!
 //! **Sensors and DAC.** Firmware sees the key sensors and the motor drivers the way a DMA from
 //! SPI converters would leave them: word arrays in SRAM at [`SENSOR_BASE`] and [`DAC_BASE`],
@@ -44,7 +45,7 @@
 //! cores nothing; firmware loads and stores them as ordinary SRAM (2 cycles, bank 3:2
 //! striping and contention apply). Link firmware so nothing else lives there.
 
-use crate::block::{self, Blocks, Leave};
+use crate::block::{self, Blocks};
 use crate::bus::{sram_location, Bus, System, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
 use crate::decode::{decode, is_32bit, Instr};
@@ -75,9 +76,9 @@ pub struct Config {
     /// of running the firmware's HardFault handler.
     pub stop_on_fault: bool,
     /// Which engine runs the fast path of [`Board::run_until`] / [`Board::run_for`]
-    /// (default [`Engine::Interp`], the faster of the two today: see BENCHMARKS.md). Both
-    /// give the same cycles, registers and memory; [`Board::step`] is always the general
-    /// path.
+    /// (default [`Engine::Block`], the faster: see BENCHMARKS.md, "the block compiler").
+    /// Both give the same cycles, registers and memory; [`Board::step`] is always the
+    /// general path.
     pub engine: Engine,
 }
 
@@ -85,12 +86,13 @@ pub struct Config {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
     /// The interpreter: one instruction at a time from the decode cache (module `fast`).
-    #[default]
     Interp,
-    /// Pre-decoded basic blocks with a per-block deadline check (module [`crate::block`]),
-    /// the same instruction semantics; it falls back to the interpreter while functions
-    /// are profiled with [`Board::profile_addr`]. Exact, but not yet faster than
-    /// [`Engine::Interp`] (BENCHMARKS.md, "Emulator: the block engine").
+    /// The block engine (module [`crate::block`]): code regions compiled to native code
+    /// with cranelift (module `jit`) once warm, pre-decoded basic blocks otherwise, the
+    /// same cycles and results as [`Engine::Interp`]. It runs one core at a time: while
+    /// both cores run (lock-step turns of an instruction or two) and while functions are
+    /// profiled with [`Board::profile_addr`], the interpreter runs.
+    #[default]
     Block,
 }
 
@@ -347,10 +349,21 @@ impl Board {
         }
         match image.vector_table {
             Some(vt) => self.boot_from_vectors(0, vt)?,
-            None => self.cores[0].reset_to(image.entry, SRAM_END),
+            None => self.enter_ram_image(image.entry),
         }
         self.image = image;
         Ok(())
+    }
+
+    /// Starts core 0 at `entry` (Thumb bit set) with SP at the top of SRAM and VTOR 0 (the
+    /// boot ROM's table), as the boot ROM enters a RAM image after a UF2 download: it
+    /// reboots through the watchdog with `entry` = the lowest address the UF2 wrote and
+    /// SP = 0x20042000 (pico-bootrom `bootrom/virtual_disk.c`,
+    /// `safe_reboot(lowest_addr, SRAM_END, …)`; `bootrom/bootrom_rt0.S`, `check_wdog`).
+    /// Core 1 stays in the boot ROM's launch protocol.
+    pub fn enter_ram_image(&mut self, entry: u32) {
+        self.cores[0].reset_to(entry, SRAM_END);
+        self.cores[0].nvic.vtor = 0;
     }
 
     /// Starts `core` from the vector table at `vtor` (SP = word 0, PC = word 1), as the boot
@@ -620,6 +633,18 @@ impl Board {
         self.blocks.decoded
     }
 
+    /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
+    pub fn regions_compiled(&self) -> u64 {
+        self.blocks.jit.count
+    }
+
+    /// The block engine compiles a code region to native code once its entry has been
+    /// reached `times` times (default 16; 0 compiles every region at once — the tests use
+    /// it to run everything natively). Results never depend on it, only speed.
+    pub fn set_compile_threshold(&mut self, times: u32) {
+        self.blocks.jit.threshold = times;
+    }
+
     /// Total cycles elapsed: the lower of the running cores' counters.
     pub fn cycle(&self) -> u64 {
         match self.next_core() {
@@ -863,9 +888,13 @@ impl Board {
         } else {
             watch[k][0] == NO_WATCH
         };
-        if unwatched && self.config.engine == Engine::Block {
-            let (k, result) = self.block_run::<BOTH>(k, deadline);
-            let exit = match result {
+        // Both cores running: lock-step turns of one or two instructions, too short for
+        // a compiled region to fit in; the interpreter's loop below is the faster there
+        // (BENCHMARKS.md, "the block compiler").
+        if unwatched && !BOTH && self.config.engine == Engine::Block {
+            let (sys, blocks) = (&mut self.system, &mut self.blocks);
+            let core = &mut self.cores[k];
+            let exit = match block::run(core, sys, blocks, deadline[k], &mut block::Alone) {
                 Ok(()) => Exit::Deadline,
                 Err(_) => Exit::Miss,
             };
@@ -885,42 +914,6 @@ impl Board {
             ),
         };
         (k, self.finish_fast(k, exit))
-    }
-
-    /// [`Board::fast_run`] on the block engine (nothing watched): core `k` alone, or with
-    /// `BOTH` the two cores in lock-step order, each running its blocks while it keeps the
-    /// turn (its cycle below the other core's, or equal for core 0; see [`crate::block`]).
-    /// Returns the core that ran last and `Ok` when it reached its deadline.
-    fn block_run<const BOTH: bool>(
-        &mut self,
-        k: usize,
-        deadline: [u64; 2],
-    ) -> (usize, Result<(), Leave>) {
-        let (sys, blocks) = (&mut self.system, &mut self.blocks);
-        if !BOTH {
-            let core = &mut self.cores[k];
-            return (
-                k,
-                block::run::<false, _>(core, sys, blocks, deadline[k], |_| {}),
-            );
-        }
-        let [c0, c1] = &mut self.cores;
-        loop {
-            let (k, me, other) = if c1.cycle < c0.cycle {
-                (1, &mut *c1, &*c0)
-            } else {
-                (0, &mut *c0, &*c1)
-            };
-            if me.cycle >= deadline[k] {
-                return (k, Ok(()));
-            }
-            let turn_ends = other.cycle + (k == 0) as u64;
-            if let Err(leave) =
-                block::run::<false, _>(me, sys, blocks, deadline[k].min(turn_ends), |_| {})
-            {
-                return (k, Err(leave));
-            }
-        }
     }
 
     /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
@@ -1337,15 +1330,12 @@ fn blocks_beside_sleeper<const SLEEPER_IS_0: bool>(
             // From this cycle on, the sleeper's turn would find it at (or past) its wake
             // check: the loop must take that turn.
             let limit = deadline.min(wake_check.max(sleep.cycle) + loses_ties);
-            let s = &mut sleep.cycle;
-            let after = |r: u64| {
-                // (A turn that finds the sleeper at its wake check ends the run: the loop
-                // takes it, after the block.)
-                if r >= *s + loses_ties && *s < wake_check {
-                    *s = wake_check.min(r + 1).max(*s + 1);
-                }
+            let mut turns = block::Sleeper {
+                cycle: &mut sleep.cycle,
+                wake: wake_check,
+                loses_ties: !SLEEPER_IS_0,
             };
-            if block::run::<true, _>(run, sys, blocks, limit, after).is_err() {
+            if block::run(run, sys, blocks, limit, &mut turns).is_err() {
                 return Err(Exit::Miss);
             }
         }

@@ -96,7 +96,7 @@ pub struct System {
     /// (`clocks.rs`, a minimal model).
     pub sysctl: SysCtl,
     /// Last cycle in which each core claimed each bank.
-    bank_claim: [[u64; 2]; BANKS],
+    pub(crate) bank_claim: [[u64; 2]; BANKS],
     /// Cycles each core has lost to bank contention.
     pub contention_stalls: [u64; 2],
     /// Bumped on every SIO or peripheral access, which may change interrupt lines: the
@@ -197,6 +197,15 @@ impl System {
     pub fn invalidate_code(&mut self) {
         self.code_epoch = self.code_epoch.wrapping_add(1);
         self.code_pages.fill(false);
+    }
+
+    /// Sets the last cycle in which `core` (0 or 1) claimed SRAM bank `bank` (0-5), as if
+    /// it had accessed the bank then: for tests that put the arbiter in a given state.
+    /// Out-of-range arguments are ignored.
+    pub fn set_bank_claim(&mut self, core: usize, bank: usize, cycle: u64) {
+        if let Some(c) = self.bank_claim.get_mut(bank).and_then(|b| b.get_mut(core)) {
+            *c = cycle;
+        }
     }
 
     /// Claims `bank` for `core` at `cycle`, returning the stall cycles.

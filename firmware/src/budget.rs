@@ -269,6 +269,20 @@ pub fn measure_update_with(
     runs: &[Run],
     engine: tactus_emulator::Engine,
 ) -> Result<CycleStats, BudgetError> {
+    measure_key_update(obj, fp, &fp.nominal_param_block(), runs, engine)
+}
+
+/// [`measure_update_with`] for one key of a shared program: `params` is its param block
+/// (`FixedProgram::param_block`), written into its state before each `init`.
+///
+/// Errors: as [`measure_update_with`].
+pub fn measure_key_update(
+    obj: &ThumbObject,
+    fp: &FixedProgram,
+    params: &[i32],
+    runs: &[Run],
+    engine: tactus_emulator::Engine,
+) -> Result<CycleStats, BudgetError> {
     let sym = |name: String| {
         obj.symbol(&name)
             .map(|(o, _)| o as u32)
@@ -276,7 +290,10 @@ pub fn measure_update_with(
     };
     let init = sym(obj.init_name())?;
     let update = sym(obj.update_name())?;
-    let iface = Interface::new(fp, &obj.stem, &obj.out);
+    let iface = Interface {
+        params: params.to_vec(),
+        ..Interface::new(fp, &obj.stem, &obj.out)
+    };
     let mut runner = UpdateRunner::from_code(&obj.code.text, LOAD_ADDR, init, update, iface)
         .map_err(BudgetError::Run)?;
     runner.board().config.engine = engine;

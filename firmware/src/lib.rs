@@ -28,6 +28,9 @@ pub mod measure;
 pub mod perform;
 pub mod report;
 pub mod runner;
+
+pub mod flash;
+pub mod uf2;
 pub mod verdict;
 
 pub use layout::{Interface, StateLayout};

@@ -604,8 +604,14 @@ pub fn keyboard_budget(
         };
         let fp = &pi.program.fixed;
         let runs = corpus::corpus(fp, size);
-        let measured = budget::measure_update_with(&pi.program.thumb, fp, &runs, input.engine)
-            .map_err(|e: BudgetError| bad(&pi.instrument, &e))?;
+        let measured = budget::measure_key_update(
+            &pi.program.thumb,
+            fp,
+            &pi.program.params,
+            &runs,
+            input.engine,
+        )
+        .map_err(|e: BudgetError| bad(&pi.instrument, &e))?;
         let cost = ProgramCost {
             static_cost: statics[i].clone(),
             measured,

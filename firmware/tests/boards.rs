@@ -121,7 +121,16 @@ fn the_planner_needs_no_more_boards_than_brute_force() {
     assert_eq!(compared, 8);
 }
 
-/// Runs every planned board of `layout` for `samples` samples of the budget corpus.
+/// The instrument of MIDI key `key` in a resolved layout.
+fn assigned_of(assigned: &[tactus_runtime::keyboard::KeyAssignment], key: u8) -> &str {
+    assigned
+        .iter()
+        .find(|a| a.key == key)
+        .map_or("?", |a| a.instrument.as_str())
+}
+
+/// Runs every planned board of `layout` for `samples` samples of the budget corpus, and
+/// checks that each core of each board holds one code copy per instrument.
 fn boards_run_bit_exact(layout: &str, samples: usize) {
     let (_, assigned) = read_layout(&root().join(layout)).unwrap();
     let b = board("rp2040");
@@ -158,10 +167,30 @@ fn boards_run_bit_exact(layout: &str, samples: usize) {
             .collect();
         let (_, image) = board_image(&programs, &costs, &bkeys, &b, &lim).unwrap();
         let image = image.unwrap();
+        // One code copy per instrument per core: graded params are run-time data.
+        for c in 0..image.cores() {
+            let mut instruments: Vec<&str> = image
+                .core_keys(c)
+                .iter()
+                .map(|&i| assigned_of(&assigned, bkeys[i].key))
+                .collect();
+            instruments.sort_unstable();
+            instruments.dedup();
+            assert_eq!(
+                image.code_copies(c),
+                instruments.len(),
+                "{layout} board {bi} core {c}: {instruments:?}"
+            );
+        }
         let mut run = image.run().unwrap();
         let mut insts: Vec<FixedInstance> = bkeys
             .iter()
-            .map(|k| FixedInstance::new(&programs[k.program].fixed))
+            .map(|k| {
+                FixedInstance::with_params(
+                    &programs[k.program].fixed,
+                    programs[k.program].params.clone(),
+                )
+            })
             .collect();
         let mut refs: Vec<Limiter> = bkeys.iter().map(|_| Limiter::new(&lim).unwrap()).collect();
         let mut worst = vec![0u64; image.cores()];

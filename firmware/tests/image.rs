@@ -124,7 +124,12 @@ fn run_words_against_reference(
     let keys = image.keys();
     let mut insts: Vec<FixedInstance> = keys
         .iter()
-        .map(|k| FixedInstance::new(&programs[k.program].fixed))
+        .map(|k| {
+            FixedInstance::with_params(
+                &programs[k.program].fixed,
+                programs[k.program].params.clone(),
+            )
+        })
         .collect();
     let axes: Vec<Vec<Option<Axis>>> = keys
         .iter()
@@ -521,9 +526,12 @@ fn bad_keys_and_boards_are_errors() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("fraction bits"), "{e}");
-    // Twenty copies of the piano's code do not fit one core's bank.
+    // Twenty copies of the piano's code (twenty distinct programs: clones of one `Program`
+    // share one copy) do not fit one core's bank.
     let piano = instrument("grand_piano", &[]);
-    let many = vec![piano; 20];
+    let many: Vec<Program> = (0..20)
+        .map(|_| Program::new((*piano.fixed).clone(), (*piano.thumb).clone()))
+        .collect();
     let keys: Vec<KeySpec> = (0..20).map(|i| k(i, i, 0)).collect();
     let e = FirmwareImage::build(&many, &keys, &b, &lim)
         .unwrap_err()

@@ -333,3 +333,51 @@ fn random_format_plans_bit_for_bit() {
     println!("random plans: {plans} plans, {total:?}");
     assert_eq!(total.mismatches, 0, "{total:?}");
 }
+
+/// Params as run-time data: the grand piano shared by three hammer masses (the grading of
+/// `grand88`: 11 g bass, 7.25 g, 3.5 g treble), each key's param block in the JIT's ctx,
+/// bit for bit with the interpreter on every built-in stimulus.
+#[test]
+fn shared_program_with_each_keys_param_block_bit_for_bit() {
+    let path = instruments()
+        .into_iter()
+        .find(|p| p.ends_with("grand_piano.tactus"))
+        .expect("instruments/grand_piano.tactus");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let irs: Vec<_> = ["11 g", "7.25 g", "3.5 g"]
+        .iter()
+        .map(|m| {
+            let config = tactus_compiler::lower::Config {
+                overrides: vec![("M_h".into(), (*m).into())],
+                ..Default::default()
+            };
+            tactus_compiler::compile(&text, &config).unwrap().program
+        })
+        .collect();
+    let shared = tactus_compiler::share::share(&irs).unwrap();
+    let fp = FixedProgram::new(&shared.program);
+    assert_eq!(fp.param_words.len(), 2);
+    let jit = FixedJitProgram::compile(&fp).unwrap();
+    let dip = fp.program.sensors[0].range.1;
+    let mut total = Stats::default();
+    for values in &shared.values {
+        let block = fp.param_block(values).unwrap();
+        for &(name, _) in stimulus::builtin_names() {
+            let stim = stimulus::builtin(name, dip, 44_100.0).unwrap();
+            let mut pr = Pair {
+                fp: &fp,
+                interp: FixedInstance::with_params(&fp, block.clone()),
+                jit: FixedJitInstance::with_params(&jit, &block),
+                stats: Stats::default(),
+                what: format!("grand_piano {block:?} / {name}"),
+            };
+            for (n, &k) in stim.key.iter().enumerate() {
+                pr.step(n, &[k]);
+            }
+            total.add(&pr.finish());
+        }
+    }
+    println!("shared grand piano, 3 param blocks: {total:?}");
+    assert!(total.events > 0 && total.samples > 10_000);
+    assert_eq!(total.mismatches, 0, "{total:?}");
+}

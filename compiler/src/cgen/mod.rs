@@ -71,7 +71,7 @@ pub struct EmitSite {
 pub struct StateLayout {
     /// `int32_t states[]`.
     pub states: usize,
-    /// `int32_t params[]`: the key's param block, one word per run-time param
+    /// `int32_t params[]` (after `edges`): the key's param block, one word per run-time param
     /// ([`crate::ir::ParamDecl::runtime`]); absent (no bytes) without run-time params. The
     /// firmware writes it before `init`, which leaves it alone.
     pub params: usize,
@@ -98,10 +98,11 @@ impl StateLayout {
         let n = |k: usize| k.max(1);
         let nh = p.sensors.iter().filter(|s| s.differentiated).count();
         let states = 0;
-        let params = states + 4 * n(p.states.len());
-        let modes = params + 4 * p.runtime_params().count();
+        let modes = states + 4 * n(p.states.len());
         let edges = modes + n(p.modes.len());
-        let hist = align4(edges + n(p.edges.len()));
+        // After the byte arrays, whose `LDRB` immediates reach only 31 bytes from r7.
+        let params = align4(edges + n(p.edges.len()));
+        let hist = params + 4 * p.runtime_params().count();
         let hist_pos = hist + 4 * (2 * WINDOW + 1) * n(nh);
         let hist_primed = hist_pos + n(nh);
         let published = align4(hist_primed + n(nh));
@@ -638,19 +639,19 @@ impl<'a> Gen<'a> {
 /* Everything one instance remembers between samples (one per key). Arrays have at least
  * one element (C99 has no empty arrays); the extra element is unused.
  *   states[i]       raw word of state i, in {m}_STATE_<NAME>_FRAC, within its declared range
- *   params[i]       (only with run-time params) the key's param block: set it before
- *                   init (which leaves it alone); word i in {m}_PARAM_<i>_FRAC
  *   modes[i]        current variant index of mode i ({m}_MODE_<NAME>_<VARIANT>)
  *   edges[i]        condition of the i-th `on` handler at the previous sample (0/1)
+ *   params[i]       (only with run-time params) the key's param block: set it before
+ *                   init (which leaves it alone); word i in {m}_PARAM_<i>_FRAC
  *   hist[i][17]     raw readings of the i-th differentiated sensor for d()/d2(): a ring of
  *                   2N+1 = 17 words (N = {WINDOW}), newest at hist_pos[i]; before the first
  *                   sample it is filled with the first reading (hist_primed[i] = 0 until then)
  *   published[]     force terms, total and outputs as last computed (copied to out[])
  */
 struct tactus_{st}_state {{
-    int32_t states[{}];{}
+    int32_t states[{}];
     uint8_t modes[{}];
-    uint8_t edges[{}];
+    uint8_t edges[{}];{}
     int32_t hist[{}][{}];
     uint8_t hist_pos[{}];
     uint8_t hist_primed[{}];
@@ -675,12 +676,12 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
 #endif /* {guard} */
 ",
             cnt(ns),
+            cnt(nm),
+            cnt(ne),
             match fp_params {
                 0 => String::new(),
                 k => format!("\n    int32_t params[{k}];"),
             },
-            cnt(nm),
-            cnt(ne),
             cnt(nh),
             2 * WINDOW + 1,
             cnt(nh),

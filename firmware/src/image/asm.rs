@@ -26,6 +26,10 @@ pub mod cond {
     pub const EQ: u8 = 0;
     /// Not equal.
     pub const NE: u8 = 1;
+    /// Carry set (unsigned ≥).
+    pub const CS: u8 = 2;
+    /// Carry clear (unsigned <).
+    pub const CC: u8 = 3;
     /// Negative (N).
     pub const MI: u8 = 4;
     /// Positive or zero.

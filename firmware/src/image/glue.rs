@@ -407,9 +407,13 @@ pub struct CoreLabels {
 
 /// The reset and sample-interrupt handlers of core `core` with `keys`, its control block
 /// at `ctrl_addr`. `inte` is written to the timer's INTE by core 0 (one alarm per core).
-/// `limiter` gives the constants kept in [`hi`].
+/// `limiter` gives the constants kept in [`hi`]. `start` emits what the reset handler does
+/// before its keys' `init`s (`super::boot::core_start`: the stack canary; on core 0 the
+/// clocks and core 1's launch); the reset handler is the first code emitted, so its
+/// address is where `a` is assembled.
 ///
 /// Errors: [`ImageError::Limiter`] (constants the Thumb limiter cannot use).
+#[allow(clippy::too_many_arguments)]
 pub fn core_code(
     a: &mut Asm,
     core: usize,
@@ -418,6 +422,7 @@ pub fn core_code(
     tick: Tick,
     inte: u32,
     limiter: &LimiterConstants,
+    start: &dyn Fn(&mut Asm),
 ) -> Result<CoreLabels, ImageError> {
     let labels = CoreLabels {
         reset: a.label(),
@@ -471,6 +476,7 @@ pub fn core_code(
     // ---- reset: init every key, arm the first tick, set the limiter's registers, mark
     // the core ready, enable the interrupt, sleep ----
     a.bind(labels.reset);
+    start(a);
     a.ldr_const(5, ctrl_addr);
     walk(a, keys, &mut |a, k| {
         ldr_rec(a, 0, k.state_offset);

@@ -13,10 +13,11 @@
 //! core's whole code ([`analyse_handler`]).
 
 use super::asm::{self, Asm};
+use super::boot::{self, Boot};
 use super::glue::{self, ctrl, DriveCode, KeyCode, Tick};
 use super::{
     bank_base, CorePlace, Drive, ImageError, IsrWcet, KeyPlace, KeySpec, Program, BANK_LIMIT,
-    MAX_SENSORS, STACK_BYTES, VECTORS,
+    MAX_SENSORS, STACK_BYTES, STACK_CANARY, VECTORS,
 };
 use std::collections::BTreeMap;
 use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE};
@@ -125,8 +126,27 @@ pub(super) fn check_keys(
     Ok(key_drives)
 }
 
+/// Per program, the program whose code copy serves it: the first with the same code
+/// ([`Program::same_code`]: the parameter sets of one instrument share one code).
+fn code_of(programs: &[Program]) -> Vec<usize> {
+    programs
+        .iter()
+        .map(|p| programs.iter().position(|q| q.same_code(p)).unwrap_or(0))
+        .collect()
+}
+
+/// Whether core `core` holds a copy of program `p`'s code: `p` is the first with its code
+/// and a key of the core runs that code.
+fn core_uses(code_of: &[usize], keys: &[KeySpec], core: usize, p: usize) -> bool {
+    code_of[p] == p
+        && keys
+            .iter()
+            .any(|k| k.core == core && code_of.get(k.program) == Some(&p))
+}
+
 /// The programs' code alone must fit each core's bank (checked before any analysis: a
-/// program too large to place, such as `plucked_string`, is not analysed).
+/// program too large to place, such as `plucked_string`, is not analysed); one copy per
+/// distinct code.
 ///
 /// Errors: [`ImageError::NoRoom`].
 pub(super) fn check_code_fits(
@@ -134,10 +154,11 @@ pub(super) fn check_code_fits(
     keys: &[KeySpec],
     cores: usize,
 ) -> Result<(), ImageError> {
+    let code_of = code_of(programs);
     for core in 0..cores {
         let mut need = VECTORS;
         for (p, prog) in programs.iter().enumerate() {
-            if keys.iter().any(|k| k.core == core && k.program == p) {
+            if core_uses(&code_of, keys, core, p) {
                 need = need.next_multiple_of(4) + prog.thumb.code.text.len() as u32;
             }
         }
@@ -165,20 +186,27 @@ pub(super) fn tick_schedule(fs: u32, clock_hz: u64) -> Tick {
 }
 
 /// Microsecond time of the first tick: after every core's start-up (the run checks that
-/// both were ready). Start-up is the keys' `init` calls (their static WCET; 4000 cycles for
-/// one that cannot be analysed) plus a few dozen cycles per key and for the timer set-up.
+/// both were ready). Start-up is the boot (clock set-up and core 1's launch: a few hundred
+/// cycles in the emulator, which does not model oscillator start-up or PLL lock times;
+/// the timer counts from its release after them), the keys' `init` calls (their static
+/// WCET; 4000 cycles for one that cannot be analysed) plus a few dozen cycles per key and
+/// for the timer set-up.
 pub(super) fn first_tick_us(programs: &[Program], keys: &[KeySpec], clock_hz: u64) -> u32 {
     let mut init_cycles = Vec::with_capacity(programs.len());
     for p in programs {
         init_cycles.push(p.init_wcet().unwrap_or(4000));
     }
-    let startup: u64 = 1000
+    let startup: u64 = BOOT_CYCLES
+        + 1000
         + keys
             .iter()
             .map(|k| 50 + init_cycles[k.program])
             .sum::<u64>();
     (20 + (startup * 1_000_000).div_ceil(clock_hz)) as u32
 }
+
+/// Cycles allowed for the boot before the keys' start-up ([`boot::core_start`]).
+const BOOT_CYCLES: u64 = 1000;
 
 /// One core's code block: its vector table, the copies of the programs its keys use
 /// (fixed sizes), then its glue.
@@ -191,7 +219,7 @@ pub(super) struct CoreCode {
     pub glue: u32,
 }
 
-/// Per core, the vector table and the copy of each program its keys use, at offsets in a
+/// Per core, the vector table and one copy of each code its keys use, at offsets in a
 /// block provisionally at the start of the core's bank ([`place_code_blocks`] moves it).
 pub(super) fn place_programs(
     programs: &[Program],
@@ -199,11 +227,12 @@ pub(super) fn place_programs(
     cores: usize,
 ) -> Vec<CoreCode> {
     let mut cc = Vec::new();
+    let code_of = code_of(programs);
     for core in 0..cores {
         let mut at = VECTORS;
         let mut texts = Vec::new();
         for (p, prog) in programs.iter().enumerate() {
-            if keys.iter().any(|k| k.core == core && k.program == p) {
+            if core_uses(&code_of, keys, core, p) {
                 at = at.next_multiple_of(4);
                 texts.push((p, at));
                 at += prog.thumb.code.text.len() as u32;
@@ -240,12 +269,13 @@ pub(super) fn key_records(
     let mut at = ctrl_addr + ctrl::SIZE;
     let mut kc = Vec::new();
     let mut kp = Vec::new();
+    let code_of = code_of(programs);
     for &i in &my {
         let p = &programs[keys[i].program];
         let text = cc
             .texts
             .iter()
-            .find(|t| t.0 == keys[i].program)
+            .find(|t| Some(&t.0) == code_of.get(keys[i].program))
             .map_or(0, |t| cc.start + t.1);
         let sym = |name: String| {
             p.thumb
@@ -319,7 +349,7 @@ pub(super) struct Glue {
 }
 
 /// The glue of core `core` (reset handler, sample interrupt) for its control block at
-/// bank offset `data_off`.
+/// bank offset `data_off`, core 0's reset handler booting as `boot` says.
 ///
 /// Errors: those of [`key_records`] and [`glue::core_code`].
 pub(super) fn assemble_glue(
@@ -327,12 +357,17 @@ pub(super) fn assemble_glue(
     core: usize,
     data_off: u32,
     cc: &CoreCode,
+    boot: &Boot,
 ) -> Result<Glue, ImageError> {
     let ctrl_addr = bank_base(core) + data_off;
     let (kc, kp, data_end) = key_records(l, core, ctrl_addr, cc)?;
     let mut a = Asm::new();
     let inte = if l.cores == 2 { 3 } else { 1 };
-    let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, l.tick, inte, &l.consts)?;
+    let bottom = stack(core).0;
+    let start = |a: &mut Asm| boot::core_start(a, core, boot, bottom, STACK_CANARY);
+    let labels = glue::core_code(
+        &mut a, core, &kc, ctrl_addr, l.tick, inte, &l.consts, &start,
+    )?;
     Ok(Glue {
         asm: a,
         labels,
@@ -343,17 +378,27 @@ pub(super) fn assemble_glue(
 
 /// Moves each core's block to its final place and returns the data's bank offset.
 ///
-/// Core 1's block follows core 0's in bank offsets (the emulator's decode cache is indexed
-/// by the low address bits, so the two cores' code would otherwise evict each other's); the
-/// data start is the same bank offset in every bank, past both blocks. The glue's size is
+/// Core 0's block starts after the entry stub's [`boot::ENTRY_RESERVE`]; core 1's block
+/// follows core 0's in bank offsets (the emulator's decode cache is indexed by the low
+/// address bits, so the two cores' code would otherwise evict each other's); the data
+/// start is the same bank offset in every bank, past both blocks. The glue's size is
 /// measured at provisional addresses: literal values do not change instruction sizes, but
 /// pool sharing may, so each block keeps 64 bytes of slack.
 ///
 /// Errors: those of [`assemble_glue`], [`ImageError::Assemble`].
-pub(super) fn place_code_blocks(l: &Layout, cc: &mut [CoreCode]) -> Result<u32, ImageError> {
-    let mut block_off = 0u32;
+pub(super) fn place_code_blocks(
+    l: &Layout,
+    cc: &mut [CoreCode],
+    clock_hz: u64,
+) -> Result<u32, ImageError> {
+    // Provisional launch words: large and distinct, as the final ones (same sizes).
+    let provisional = Boot::new(
+        clock_hz,
+        (cc.len() == 2).then_some([0x2101_0100, 0x2004_2000, 0x2101_0201]),
+    );
+    let mut block_off = boot::ENTRY_RESERVE;
     for (core, c) in cc.iter_mut().enumerate() {
-        let g = assemble_glue(l, core, BANK_LIMIT / 2, c)?;
+        let g = assemble_glue(l, core, BANK_LIMIT / 2, c, &provisional)?;
         let (bytes, _) = g
             .asm
             .assemble(c.start + c.glue)
@@ -394,7 +439,12 @@ pub(super) fn data_block(
         let shadow = p.guard(0).map_or(0, |g| g.shadow_bytes());
         let state = at + shadow;
         at = (state + p.thumb.state.size as u32).next_multiple_of(4);
-        states.push(shadow as usize + p.thumb.state.size);
+        states.push((
+            shadow as usize,
+            p.thumb.state.size,
+            p.thumb.state.params,
+            &p.params,
+        ));
         let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 2)];
         let put = |r: &mut Vec<u8>, off: u32, v: u32| {
             r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
@@ -405,8 +455,17 @@ pub(super) fn data_block(
         put(&mut r, k.state_offset, state);
         data.extend(r);
     }
-    for size in &states {
-        data.extend(vec![0u8; size.next_multiple_of(4)]);
+    // Shadows and states are zero (init sets the states) but for the key's param block,
+    // which init leaves alone.
+    for (shadow, size, params_at, params) in &states {
+        let mut st = vec![0u8; (shadow + size).next_multiple_of(4)];
+        for (k, w) in params.iter().enumerate() {
+            let at = shadow + params_at + 4 * k;
+            if let Some(b) = st.get_mut(at..at + 4) {
+                b.copy_from_slice(&w.to_le_bytes());
+            }
+        }
+        data.extend(st);
     }
     let need = at - bank;
     if need > BANK_LIMIT {
@@ -514,5 +573,16 @@ pub(super) fn core_place(
         stack_top,
         stack_bottom,
         keys: Vec::new(),
+        code_copies: cc.texts.len(),
     }
+}
+
+/// The boot of an image whose blocks are placed (`cc` after [`place_code_blocks`]): the
+/// board's PLL dividers and, with two cores, core 1's vector table, stack top and reset
+/// handler (the first code of its glue, [`glue::core_code`]).
+pub(super) fn boot_of(cc: &[CoreCode], clock_hz: u64) -> Boot {
+    let core1 = cc
+        .get(1)
+        .map(|c| [c.start, stack(1).1, (c.start + c.glue) | 1]);
+    Boot::new(clock_hz, core1)
 }

@@ -3,7 +3,8 @@
 //! emulated RP2040.
 //!
 //! [`FirmwareImage::build`] takes the compiled programs ([`Program`]: one per distinct
-//! instrument and parameter set), the keys ([`KeySpec`]: which program, which core, which
+//! instrument and parameter set; the sets of one instrument share one code and differ in
+//! their param block, [`compile_shared`]), the keys ([`KeySpec`]: which program, which core, which
 //! sensor/DAC window slots), the board (clock, sample rate) and the limiter's configuration,
 //! and produces machine code and data for SRAM plus the static worst-case cycles of each
 //! core's interrupt ([`IsrWcet`]). [`FirmwareImage::run`] loads it into an emulated board
@@ -12,10 +13,11 @@
 //! **Memory.** Each core owns one 64 KB SRAM bank through the non-striped alias
 //! (core *c*: bank *c* at `0x21000000 + c·0x10000`, RP2040 datasheet 2.6.1): its vector
 //! table, its copy of every program's `.text` that its keys use (one copy per distinct
-//! program per core: the code is position independent, and a copy per core keeps each
+//! code per core, [`Program::same_code`]: the code is position independent, and a copy per core keeps each
 //! core's literal-pool loads in its own bank), its glue code (reset handler, sample
 //! interrupt with the limiter inline per force word), its control block, its keys' records
-//! and their state structs. Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
+//! and their state structs (each holding its key's param block, which `init` leaves
+//! alone). Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
 //! core 1). So the only SRAM accesses two cores can contend for are the sensor loads and
 //! DAC stores in the striped sensor/DAC windows: at most one wait cycle each
 //! (`bus.rs`: the other core's claim lasts one cycle), which [`IsrWcet::contention`] adds.
@@ -27,13 +29,19 @@
 //! sample of six hammond keys steps in about 35 µs of host time in a debug build, against
 //! 290 µs with both blocks at bank offset 0).
 //!
-//! **Start.** Both cores are started directly by the host ([`tactus_emulator::Board::start_core`]
-//! with each core's vector table, stack and reset handler), not through the boot ROM's FIFO
-//! launch of core 1: the launch only changes when core 1 starts, and the sample ticks are
-//! absolute times both cores wait for. Each reset handler calls `init` for its keys, arms
-//! its timer alarm (core *c* uses ALARM*c* / TIMER_IRQ_*c*, so each core has its own
-//! interrupt and clears only its own bit; core 0 writes INTE for both) for the first tick
-//! [`FirmwareImage::first_tick_us`], enables the interrupt, and sleeps in `WFI`.
+//! **Start** (module [`boot`]): from reset, as on the chip. The image's lowest address,
+//! the striped 0x20000000 where the boot ROM enters a RAM image, holds an entry stub that
+//! enters core 0's vector table (core 0's block therefore starts at bank offset
+//! [`boot::ENTRY_RESERVE`]). Core 0's reset handler writes its stack canary, sets the
+//! clocks up (PLL_SYS to the board's clock from the 12 MHz crystal, the timer's 1 µs tick,
+//! the timer released from reset) and launches core 1 over the SIO FIFOs (0, 0, 1, vector
+//! table, stack pointer, entry: RP2040 datasheet 2.8.2), where core 1 waits in the boot
+//! ROM; core 1's reset handler, the first code of its glue, writes its canary. Then each
+//! reset handler calls `init` for its keys, arms its timer alarm (core *c* uses ALARM*c* /
+//! TIMER_IRQ_*c*, so each core has its own interrupt and clears only its own bit; core 0
+//! writes INTE for both) for the first tick [`FirmwareImage::first_tick_us`], enables the
+//! interrupt, and sleeps in `WFI`. The ticks are absolute times both cores wait for, so
+//! core 1's later start changes nothing after the first tick.
 //!
 //! **Keys and pens.** A key occupies consecutive words of the sensor and DAC windows from
 //! its [`KeySpec::slot`]: one sensor word per sensor of its program, in the program's
@@ -65,6 +73,8 @@
 //! period late (only after a miss) re-synchronises the tick to now + a margin.
 
 pub mod asm;
+pub mod boot;
+mod elf;
 pub mod glue;
 mod layout;
 mod run;
@@ -74,7 +84,7 @@ pub use run::{DriveOut, ImageRun, KeyEvent, SampleOut};
 use asm::Asm;
 use std::collections::BTreeMap;
 use std::fmt;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::{Axis, AxisTotal};
 use tactus_compiler::thumb::ThumbObject;
@@ -89,18 +99,27 @@ use tactus_runtime::limiter::{Limiter, LimiterConfig};
 pub const MAX_GUARDED_WORDS: u32 = 160;
 
 /// A compiled key program: the fixed-point program (for its formats and the interpreter)
-/// and its Thumb code, with the static WCETs of its functions computed once.
+/// and its Thumb code, with the static WCETs of its functions computed once, and the
+/// param block of its keys.
+///
+/// Programs that share code ([`compile_layout`]: one instrument, params as run-time data)
+/// hold the same `Arc`s and differ only in [`Program::params`]; the image places such code
+/// once per core, and its static costs are computed once for all of them.
 #[derive(Clone, Debug)]
 pub struct Program {
     /// The fixed-point program.
-    pub fixed: FixedProgram,
+    pub fixed: Arc<FixedProgram>,
     /// Its Thumb object (position-independent `.text`).
-    pub thumb: ThumbObject,
+    pub thumb: Arc<ThumbObject>,
+    /// The param block of the keys running this program: one word per run-time param of
+    /// `fixed` (`FixedProgram::param_block`), written into each key's state at
+    /// `StateLayout::params`; empty without run-time params.
+    pub params: Vec<i32>,
     /// `static_cost`, once computed (images of many boards, and the budget, share
     /// programs).
-    update_cost: OnceLock<Result<crate::budget::StaticCost, ImageError>>,
+    update_cost: Arc<OnceLock<Result<crate::budget::StaticCost, ImageError>>>,
     /// `init_wcet`, once computed.
-    init_cycles: OnceLock<Result<u64, ImageError>>,
+    init_cycles: Arc<OnceLock<Result<u64, ImageError>>>,
     /// Whether the image guards this program's updates with the quiescent-key guard
     /// ([`glue::GuardCode`]: a key whose sensors and state stand still skips its update and
     /// keeps its outputs). On by default; its cost is in every static bound of the image.
@@ -108,15 +127,30 @@ pub struct Program {
 }
 
 impl Program {
-    /// A program of already compiled parts.
+    /// A program of already compiled parts, with the params' own values as its param block
+    /// (`FixedProgram::nominal_param_block`).
     pub fn new(fixed: FixedProgram, thumb: ThumbObject) -> Program {
         Program {
-            fixed,
-            thumb,
-            update_cost: OnceLock::new(),
-            init_cycles: OnceLock::new(),
+            params: fixed.nominal_param_block(),
+            fixed: Arc::new(fixed),
+            thumb: Arc::new(thumb),
+            update_cost: Arc::default(),
+            init_cycles: Arc::default(),
             quiescent_guard: true,
         }
+    }
+
+    /// The same code with another param block (for another key of a shared program).
+    pub fn with_params(&self, params: Vec<i32>) -> Program {
+        Program {
+            params,
+            ..self.clone()
+        }
+    }
+
+    /// Whether `self` and `other` run the same code (one copy per core serves both).
+    pub fn same_code(&self, other: &Program) -> bool {
+        Arc::ptr_eq(&self.thumb, &other.thumb)
     }
 
     /// The quiescent-key guard for a key of this program, its calm counter at
@@ -160,15 +194,13 @@ impl Program {
         text: &str,
         config: &tactus_compiler::lower::Config,
     ) -> Result<Program, ImageError> {
-        let lowered = tactus_compiler::compile(text, config).map_err(|d| {
-            ImageError::Compile(
-                d.iter()
-                    .map(|d| d.message.clone())
-                    .collect::<Vec<_>>()
-                    .join("; "),
-            )
-        })?;
-        let fixed = FixedProgram::new(&lowered.program);
+        let lowered = lower(text, config)?;
+        Program::of_ir(&lowered)
+    }
+
+    /// Plans formats for an IR program and compiles it to Thumb code.
+    fn of_ir(ir: &tactus_compiler::ir::Program) -> Result<Program, ImageError> {
+        let fixed = FixedProgram::new(ir);
         let thumb = tactus_compiler::thumb::compile(&fixed)
             .map_err(|e| ImageError::Compile(e.to_string()))?;
         Ok(Program::new(fixed, thumb))
@@ -268,23 +300,88 @@ impl Program {
     }
 }
 
+/// The IR of instrument source `text` under `config`; errors are the diagnostics' messages.
+fn lower(
+    text: &str,
+    config: &tactus_compiler::lower::Config,
+) -> Result<tactus_compiler::ir::Program, ImageError> {
+    tactus_compiler::compile(text, config)
+        .map(|l| l.program)
+        .map_err(|d| {
+            ImageError::Compile(
+                d.iter()
+                    .map(|d| d.message.clone())
+                    .collect::<Vec<_>>()
+                    .join("; "),
+            )
+        })
+}
+
+/// Compiles lowered programs, given with their instrument names (one per distinct parameter
+/// set), to one [`Program`] each, in order: the sets of one instrument share one code
+/// ([`tactus_compiler::share`]; run-time params, a param block per program) when the
+/// instrument has several and they differ only in param values, else each set gets its own.
+///
+/// Errors: the index of the set and [`ImageError::Compile`] when the Thumb backend fails or
+/// a set's param values do not fit its shared program's intervals (a bug).
+pub fn compile_shared(
+    sets: &[(&str, &tactus_compiler::ir::Program)],
+) -> Result<Vec<Program>, (usize, ImageError)> {
+    let mut programs: Vec<Option<Program>> = vec![None; sets.len()];
+    let mut instruments: Vec<&str> = sets.iter().map(|s| s.0).collect();
+    instruments.sort_unstable();
+    instruments.dedup();
+    for name in instruments {
+        let members: Vec<usize> = (0..sets.len()).filter(|&i| sets[i].0 == name).collect();
+        let irs: Vec<tactus_compiler::ir::Program> =
+            members.iter().map(|&i| sets[i].1.clone()).collect();
+        match tactus_compiler::share::share(&irs) {
+            Ok(shared) if members.len() > 1 => {
+                let code = Program::of_ir(&shared.program).map_err(|e| (members[0], e))?;
+                for (&i, values) in members.iter().zip(&shared.values) {
+                    let block = code
+                        .fixed
+                        .param_block(values)
+                        .map_err(|e| (i, ImageError::Compile(e.to_string())))?;
+                    programs[i] = Some(code.with_params(block));
+                }
+            }
+            _ => {
+                for &i in &members {
+                    programs[i] = Some(Program::of_ir(sets[i].1).map_err(|e| (i, e))?);
+                }
+            }
+        }
+    }
+    programs
+        .into_iter()
+        .enumerate()
+        .map(|(i, p)| p.ok_or((i, ImageError::Compile("not compiled".into()))))
+        .collect()
+}
+
 /// Compiles the programs a resolved keyboard layout needs (`tactus_runtime::keyboard::assign`):
-/// one per distinct (instrument, parameter overrides) — keys with identical parameters share
-/// a program, graded parameters make one per key. `source` returns an instrument's text by
-/// the name the layout gives (a built-in name or a path). Returns the programs and, per
-/// key, the index of its program.
+/// one per distinct (instrument, parameter overrides), each key's `require`s checked with its
+/// own values. The parameter sets of one instrument then share one code
+/// ([`tactus_compiler::share`]: a param that differs between the keys is run-time data, a
+/// word of each key's param block, planned over the interval the keys span), so a graded
+/// grand piano is one piano program whatever the number of keys; the returned programs of
+/// one instrument differ only in [`Program::params`] ([`Program::same_code`]). An instrument
+/// whose parameter sets cannot share (a state range computed from a param) gets one code
+/// per set. `source` returns an instrument's text by the name the layout gives (a built-in
+/// name or a path). Returns the programs and, per key, the index of its program.
 ///
 /// Errors: [`ImageError::Compile`] naming the key and instrument when `source` fails or the
-/// instrument does not compile.
+/// instrument does not compile (a `require` a key's param value breaks among them).
 pub fn compile_layout(
     keys: &[KeyAssignment],
     source: &dyn Fn(&str) -> Result<String, String>,
     sample_rate_hz: f64,
 ) -> Result<(Vec<Program>, Vec<usize>), ImageError> {
-    let mut programs = Vec::new();
-    // (instrument, overrides) → program index.
+    // (instrument, overrides) → index of the distinct set; sets in first-key order.
     type Id<'a> = (&'a str, &'a [(String, String)]);
     let mut seen: BTreeMap<Id, usize> = BTreeMap::new();
+    let mut sets: Vec<(&KeyAssignment, tactus_compiler::ir::Program)> = Vec::new();
     let mut index = Vec::with_capacity(keys.len());
     for k in keys {
         let id = (k.instrument.as_str(), k.params.as_slice());
@@ -299,11 +396,19 @@ pub fn compile_layout(
             sample_rate_hz,
             overrides: k.params.clone(),
         };
-        let p = Program::compile(&text, &config).map_err(|e| fail(e.to_string()))?;
-        seen.insert(id, programs.len());
-        index.push(programs.len());
-        programs.push(p);
+        let ir = lower(&text, &config).map_err(|e| fail(e.to_string()))?;
+        seen.insert(id, sets.len());
+        index.push(sets.len());
+        sets.push((k, ir));
     }
+    let lowered: Vec<(&str, &tactus_compiler::ir::Program)> = sets
+        .iter()
+        .map(|(k, ir)| (k.instrument.as_str(), ir))
+        .collect();
+    let programs = compile_shared(&lowered).map_err(|(i, e)| {
+        let k = sets[i].0;
+        ImageError::Compile(format!("key {} (`{}`): {e}", k.key, k.instrument))
+    })?;
     Ok((programs, index))
 }
 
@@ -541,6 +646,8 @@ pub(crate) struct CorePlace {
     pub stack_top: u32,
     pub stack_bottom: u32,
     pub keys: Vec<usize>,
+    /// Copies of program code in the core's bank (one per distinct code its keys run).
+    pub code_copies: usize,
 }
 
 /// A built firmware image: bytes for SRAM, entry points, and what the host needs to run
@@ -557,6 +664,8 @@ pub struct FirmwareImage {
     pub(crate) wcet: Vec<IsrWcet>,
     pub(crate) limiter: LimiterConfig,
     code_bytes: Vec<u32>,
+    /// How core 0's reset handler boots the board.
+    pub(crate) boot: boot::Boot,
 }
 
 /// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
@@ -614,13 +723,14 @@ impl FirmwareImage {
         let first_tick_us = layout::first_tick_us(programs, keys, clock_hz);
 
         let mut cc = layout::place_programs(programs, keys, cores);
-        let data_off = layout::place_code_blocks(&l, &mut cc)?;
+        let data_off = layout::place_code_blocks(&l, &mut cc, clock_hz)?;
+        let boot = layout::boot_of(&cc, clock_hz);
         let update_wcets: Vec<u64> = programs
             .iter()
             .map(Program::update_wcet)
             .collect::<Result<_, _>>()?;
 
-        let mut segments = Vec::new();
+        let mut segments = vec![(boot::ENTRY, boot::entry_stub(cc[0].start)?)];
         let mut places: Vec<CorePlace> = Vec::with_capacity(cores);
         let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
         let mut wcet = Vec::with_capacity(cores);
@@ -628,11 +738,16 @@ impl FirmwareImage {
         let mut code_bytes = vec![0u32; cores];
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
-            let g = layout::assemble_glue(&l, core, data_off, c)?;
+            let g = layout::assemble_glue(&l, core, data_off, c, &boot)?;
             let (glue_bytes, addr) = g
                 .asm
                 .assemble(base + c.glue)
                 .map_err(ImageError::Assemble)?;
+            if addr[g.labels.reset.index()] != base + c.glue {
+                return Err(ImageError::Assemble(format!(
+                    "core {core}: the reset handler is not the first code of the glue"
+                )));
+            }
             let code_end = base + c.glue + glue_bytes.len() as u32;
             let next = cc
                 .get(core + 1)
@@ -698,6 +813,7 @@ impl FirmwareImage {
             wcet,
             limiter: lim_cfg,
             code_bytes,
+            boot,
         })
     }
 
@@ -730,6 +846,52 @@ impl FirmwareImage {
         })
     }
 
+    /// Whether the image can run on a chip, not only in the emulator: `Err` naming the
+    /// board's clock when no PLL_SYS setting makes it from the 12 MHz crystal (the reset
+    /// handler then leaves the clocks alone; the emulator runs at the board's clock from
+    /// power-on whatever the firmware sets).
+    ///
+    /// Errors: [`ImageError::Board`].
+    pub fn flashable(&self) -> Result<(), ImageError> {
+        match self.boot.pll {
+            Some(_) => Ok(()),
+            None => Err(ImageError::Board(format!(
+                "clock {} Hz: no PLL_SYS setting makes it from the 12 MHz crystal \
+                 (REFDIV 1, FBDIV 16-320, VCO 750-1600 MHz, post dividers 1-7)",
+                self.clock_hz
+            ))),
+        }
+    }
+
+    /// The image's loadable bytes: (address, bytes) per piece — the entry stub at
+    /// [`boot::ENTRY`], then per core its code block and its data — at their run
+    /// addresses (each core's in its bank through the non-striped alias).
+    pub fn segments(&self) -> &[(u32, Vec<u8>)] {
+        &self.segments
+    }
+
+    /// Per core: (vector table, reset handler, sample interrupt, control block, stack
+    /// top), addresses.
+    pub fn core_addresses(&self, core: usize) -> Option<[u32; 5]> {
+        self.cores
+            .get(core)
+            .map(|c| [c.vtor, c.reset, c.isr, c.ctrl, c.stack_top])
+    }
+
+    /// Per key (in key-list order): the address of its record (the update's sensor words
+    /// first, then its out words, limiter budgets and state address) and of its state.
+    pub fn key_addresses(&self, key: usize) -> Option<(u32, u32)> {
+        let k = self.keys.get(key)?;
+        let at = k.record + k.state_offset;
+        let (base, data) = self
+            .segments
+            .iter()
+            .find(|(b, d)| at >= *b && at + 4 <= b + d.len() as u32)?;
+        let o = (at - base) as usize;
+        let state = u32::from_le_bytes(data.get(o..o + 4)?.try_into().ok()?);
+        Some((k.record, state))
+    }
+
     /// Static WCET of core `core`'s sample interrupt (`None` for a core beyond the board's).
     pub fn wcet(&self, core: usize) -> Option<IsrWcet> {
         self.wcet.get(core).copied()
@@ -749,6 +911,12 @@ impl FirmwareImage {
     /// The keys on core `core`, as indices into the key list.
     pub fn core_keys(&self, core: usize) -> &[usize] {
         self.cores.get(core).map_or(&[], |c| &c.keys)
+    }
+
+    /// Copies of program code in core `core`'s bank: one per distinct code its keys run
+    /// (keys of one instrument with graded params share one, [`Program::same_code`]).
+    pub fn code_copies(&self, core: usize) -> usize {
+        self.cores.get(core).map_or(0, |c| c.code_copies)
     }
 
     /// Bytes of code (vector table, program copies, glue) in core `core`'s bank.

@@ -104,10 +104,32 @@ impl ImageRun {
         for (addr, bytes) in &image.segments {
             board.write_bytes(*addr, bytes).map_err(emu)?;
         }
+        // From reset, as after a RAM UF2 download: the boot ROM enters the image at its
+        // lowest address with SP at the top of SRAM (`super::boot`); core 0 sets the clocks
+        // up and launches core 1 over the FIFOs, where core 1 waits in the boot ROM.
+        board.enter_ram_image(super::boot::ENTRY | 1);
+        ImageRun::start(board, image)
+    }
+
+    /// Loads `elf` (the image's [`FirmwareImage::elf`], or a file claiming to be) into a
+    /// fresh emulated board, which enters it at its entry point as the boot ROM enters a
+    /// RAM image ([`Board::load_elf`]), and runs it up to the first tick; `image` tells
+    /// where its keys and counters are.
+    ///
+    /// Errors: [`ImageError::Emu`] for a file the loader rejects; those of
+    /// [`FirmwareImage::run`].
+    pub fn from_elf(image: &FirmwareImage, elf: &[u8]) -> Result<ImageRun, ImageError> {
+        let mut board = Board::new(Config {
+            clock_hz: image.clock_hz,
+            ..Config::default()
+        });
+        board.load_elf(elf).map_err(emu)?;
+        ImageRun::start(board, image)
+    }
+
+    fn start(mut board: Board, image: &FirmwareImage) -> Result<ImageRun, ImageError> {
         let mut profiles = Vec::new();
-        for (k, c) in image.cores.iter().enumerate() {
-            board.write_u32(c.stack_bottom, STACK_CANARY).map_err(emu)?;
-            board.start_core(k, c.reset | 1, c.stack_top, c.vtor);
+        for c in &image.cores {
             profiles.push(board.profile_handler(c.isr));
         }
         let n = image.keys.len();

@@ -1,0 +1,533 @@
+//! Firmware a user can flash: per board of a keyboard, the linked ELF, its RAM-only UF2,
+//! a key map and a README (what `tactus build LAYOUT --target rp2040 -o DIR` writes).
+//!
+//! The boards are the layout's own (`[[board]]`) or planned as `tactus budget` plans them
+//! ([`crate::boards::plan`]); each board's image is [`crate::boards::board_image`], the
+//! very image whose sample interrupt the budget proved, so a board that does not fit is an
+//! error here rather than firmware that misses its deadline. The image boots from reset
+//! ([`crate::image::boot`]); [`crate::uf2`] says why the UF2 is RAM-only.
+
+use crate::boards::{self, PlanKey, ProgramCosts};
+use crate::image::{FirmwareImage, Program};
+use serde::{Deserialize, Serialize};
+use tactus_emulator::{DAC_BASE, SENSOR_BASE};
+use tactus_runtime::keyboard::Board;
+use tactus_runtime::limiter::LimiterConfig;
+
+/// The key map of one board (`keys.json`): where each key's words live and what runs it.
+/// Addresses are hexadecimal strings (`"0x2003f000"`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct KeyMap {
+    /// Board number, from 1 along the keyboard.
+    pub board: usize,
+    /// The board file's name (`rp2040`, …).
+    pub board_kind: String,
+    /// Core clock the image sets up, Hz.
+    pub clock_hz: u64,
+    /// Sample rate, Hz.
+    pub sample_rate_hz: u32,
+    /// Where the boot ROM enters the image (the entry stub, Thumb bit set).
+    pub entry: String,
+    /// Timer time of the first sample tick, µs after the timer's release.
+    pub first_tick_us: u32,
+    /// The sensor window: one 32-bit word per sensor, the ADC sample in the low 16 bits,
+    /// written by a driver, DMA channel or PIO program before each tick.
+    pub sensor_window: String,
+    /// The DAC window: one 32-bit word per force word, the signed 16-bit DAC code, read by
+    /// a driver after each sample.
+    pub dac_window: String,
+    /// Per core: its entry points, control block and keys.
+    pub cores: Vec<CoreMap>,
+    /// Per key, in window order.
+    pub keys: Vec<KeyMapEntry>,
+}
+
+/// One core in a [`KeyMap`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CoreMap {
+    /// The core (0 or 1).
+    pub core: usize,
+    /// Its vector table (VTOR).
+    pub vector_table: String,
+    /// Its reset handler.
+    pub reset: String,
+    /// Its sample interrupt (TIMER_IRQ_core).
+    pub sample_isr: String,
+    /// Its control block: next tick (µs), tick remainder, samples, misses, ready (words).
+    pub control: String,
+    /// Its initial stack pointer.
+    pub stack_top: String,
+    /// The MIDI keys it runs.
+    pub keys: Vec<u8>,
+}
+
+/// One key in a [`KeyMap`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct KeyMapEntry {
+    /// MIDI key number.
+    pub midi: u8,
+    /// Instrument (a built-in name or a path, as the layout names it).
+    pub instrument: String,
+    /// Its param overrides, `name=value unit`.
+    pub params: Vec<String>,
+    /// The core that runs it.
+    pub core: usize,
+    /// Its sensor words (one per sensor, in the program's sensor order).
+    pub sensor_words: Vec<String>,
+    /// Its DAC words (one per force word: a keyboard key one, a pen z, x, y).
+    pub dac_words: Vec<String>,
+    /// Its record: the update's sensor copy, out words, limiter budgets, state address.
+    pub record: String,
+    /// Its state struct.
+    pub state: String,
+    /// Its param block; `null` while params are compiled into the program's code as
+    /// constants (one program copy per distinct param set).
+    pub param_block: Option<String>,
+}
+
+/// Everything written for one board.
+#[derive(Clone, Debug)]
+pub struct BoardFirmware {
+    /// Board number, from 1.
+    pub index: usize,
+    /// Its MIDI keys.
+    pub keys: Vec<u8>,
+    /// The image.
+    pub image: FirmwareImage,
+    /// The linked ELF ([`FirmwareImage::elf`]).
+    pub elf: Vec<u8>,
+    /// The RAM-only UF2 ([`crate::uf2::rp2040_ram`]).
+    pub uf2: Vec<u8>,
+    /// The key map.
+    pub key_map: KeyMap,
+    /// The README of its directory.
+    pub readme: String,
+}
+
+impl BoardFirmware {
+    /// The board's directory name: `board-01`, …
+    pub fn dir_name(&self) -> String {
+        format!("board-{:02}", self.index)
+    }
+}
+
+/// What [`keyboard_firmware`] builds.
+pub struct KeyboardInput<'a> {
+    /// The keyboard's name (the layout's).
+    pub name: &'a str,
+    /// Distinct programs.
+    pub programs: &'a [Program],
+    /// Per program, its instrument (as the layout names it) and param overrides.
+    pub program_names: &'a [(String, Vec<(String, String)>)],
+    /// (MIDI key, program), ascending by key.
+    pub keys: &'a [(u8, usize)],
+    /// The board kind.
+    pub board: &'a Board,
+    /// The layout's boards (MIDI keys each), or `None` to plan them.
+    pub boards: Option<&'a [Vec<u8>]>,
+    /// The safety limiter.
+    pub limiter: &'a LimiterConfig,
+    /// The command that built it, for the README.
+    pub command: &'a str,
+}
+
+fn hex(a: u32) -> String {
+    format!("{a:#010x}")
+}
+
+/// The firmware of every board of a keyboard. `progress(stage, done, total)` reports
+/// planning and building.
+///
+/// Errors (a message naming the board and its keys): a board that does not fit its
+/// deadline or memory, a clock no PLL setting makes, an image or ELF that cannot be
+/// written.
+pub fn keyboard_firmware(
+    input: &KeyboardInput,
+    progress: &mut dyn FnMut(&str, usize, usize),
+) -> Result<Vec<BoardFirmware>, String> {
+    let (programs, board, lim) = (input.programs, input.board, input.limiter);
+    let costs = ProgramCosts::new(programs, board, lim).map_err(|e| e.to_string())?;
+    let keys: Vec<PlanKey> = input
+        .keys
+        .iter()
+        .map(|&(key, program)| PlanKey { key, program })
+        .collect();
+    let lists: Vec<Vec<u8>> = match input.boards {
+        Some(l) => l.to_vec(),
+        None => boards::plan(programs, &costs, &keys, board, lim, &mut |d, n| {
+            progress("planning boards", d, n)
+        })
+        .map_err(|e| e.to_string())?
+        .into_iter()
+        .map(|b| b.keys)
+        .collect(),
+    };
+    let mut out = Vec::with_capacity(lists.len());
+    for (i, list) in lists.iter().enumerate() {
+        progress("building boards", i, lists.len());
+        let what = || {
+            format!(
+                "board {} (keys {})",
+                i + 1,
+                crate::verdict::key_ranges(list)
+            )
+        };
+        let bkeys: Vec<PlanKey> = keys
+            .iter()
+            .filter(|k| list.contains(&k.key))
+            .copied()
+            .collect();
+        let verdict = boards::check_board(programs, &costs, &bkeys, board, lim)
+            .map_err(|e| format!("{}: {e}", what()))?;
+        if !verdict.fits() {
+            return Err(format!(
+                "{}: does not fit the {} ({}); `tactus budget` shows why",
+                what(),
+                board.name,
+                verdict
+                    .error
+                    .clone()
+                    .unwrap_or_else(|| "a core's sample interrupt exceeds the period".into())
+            ));
+        }
+        let (core_of, image) = boards::board_image(programs, &costs, &bkeys, board, lim)
+            .map_err(|e| format!("{}: {e}", what()))?;
+        let image = image.map_err(|e| format!("{}: {e}", what()))?;
+        image.flashable().map_err(|e| format!("{}: {e}", what()))?;
+        let elf = image.elf().map_err(|e| format!("{}: {e}", what()))?;
+        let uf2 =
+            crate::uf2::rp2040_ram(image.segments()).map_err(|e| format!("{}: {e}", what()))?;
+        let key_map = key_map(input, i + 1, &image, &bkeys, &core_of);
+        let mut fw = BoardFirmware {
+            index: i + 1,
+            keys: list.clone(),
+            image,
+            elf,
+            uf2,
+            key_map,
+            readme: String::new(),
+        };
+        fw.readme = readme(input, &fw, lists.len());
+        out.push(fw);
+    }
+    progress("building boards", lists.len(), lists.len());
+    Ok(out)
+}
+
+/// The key map of board `index`, whose image holds `bkeys` (slots in order) on the cores
+/// `core_of`.
+fn key_map(
+    input: &KeyboardInput,
+    index: usize,
+    image: &FirmwareImage,
+    bkeys: &[PlanKey],
+    core_of: &[usize],
+) -> KeyMap {
+    let specs = image.keys();
+    let programs = image.programs();
+    let mut keys = Vec::with_capacity(bkeys.len());
+    for (i, (k, spec)) in bkeys.iter().zip(&specs).enumerate() {
+        let p = &programs[spec.program];
+        let nd = p.drives().map_or(1, |d| d.len());
+        let (record, state) = image.key_addresses(i).unwrap_or((0, 0));
+        keys.push(KeyMapEntry {
+            midi: k.key,
+            instrument: input
+                .program_names
+                .get(k.program)
+                .map(|n| n.0.clone())
+                .unwrap_or_default(),
+            params: input
+                .program_names
+                .get(k.program)
+                .map(|n| n.1.iter().map(|(a, b)| format!("{a}={b}")).collect())
+                .unwrap_or_default(),
+            core: core_of.get(i).copied().unwrap_or(spec.core),
+            sensor_words: (0..p.sensor_words())
+                .map(|j| hex(SENSOR_BASE + 4 * (spec.slot + j) as u32))
+                .collect(),
+            dac_words: (0..nd)
+                .map(|j| hex(DAC_BASE + 4 * (spec.slot + j) as u32))
+                .collect(),
+            record: hex(record),
+            state: hex(state),
+            param_block: None,
+        });
+    }
+    let cores = (0..image.cores())
+        .map(|c| {
+            let [vt, reset, isr, ctrl, sp] = image.core_addresses(c).unwrap_or_default();
+            CoreMap {
+                core: c,
+                vector_table: hex(vt),
+                reset: hex(reset | 1),
+                sample_isr: hex(isr | 1),
+                control: hex(ctrl),
+                stack_top: hex(sp),
+                keys: image
+                    .core_keys(c)
+                    .iter()
+                    .filter_map(|&i| bkeys.get(i).map(|k| k.key))
+                    .collect(),
+            }
+        })
+        .collect();
+    KeyMap {
+        board: index,
+        board_kind: input.board.name.clone(),
+        clock_hz: input.board.clock_hz as u64,
+        sample_rate_hz: input.board.sample_rate_hz as u32,
+        entry: hex(crate::image::boot::ENTRY | 1),
+        first_tick_us: image.first_tick_us(),
+        sensor_window: hex(SENSOR_BASE),
+        dac_window: hex(DAC_BASE),
+        cores,
+        keys,
+    }
+}
+
+/// The README of one board's directory.
+fn readme(input: &KeyboardInput, fw: &BoardFirmware, boards: usize) -> String {
+    let m = &fw.key_map;
+    let blocks = fw.uf2.len() / crate::uf2::BLOCK;
+    let mut keys = String::new();
+    for k in &m.keys {
+        let instrument = if k.params.is_empty() {
+            k.instrument.clone()
+        } else {
+            format!("{} ({})", k.instrument, k.params.join(", "))
+        };
+        keys.push_str(&format!(
+            "| {} | {} | {} | {} | {} |\n",
+            k.midi,
+            instrument,
+            k.core,
+            k.sensor_words.join(" "),
+            k.dac_words.join(" ")
+        ));
+    }
+    format!(
+        "# {name}: board {b} of {boards} (keys {range})\n\
+\n\
+Built by `{cmd}`.\n\
+\n\
+- `firmware.uf2`: a RAM-only UF2 for the RP2040 boot ROM ({blocks} blocks of 256 bytes,\n\
+  family ID 0xe48bff56, written to 0x20000000 upwards).\n\
+- `firmware.elf`: the same image as a linked ELF (for a debugger, `objdump`, or\n\
+  `tactus emu run firmware.elf --stimulus mf-dip`).\n\
+- `keys.json`: each key's MIDI number, instrument, core, sensor and DAC words, record and\n\
+  state addresses.\n\
+\n\
+## Flashing\n\
+\n\
+1. Hold BOOTSEL while plugging the board in (or while pressing RESET): it appears as a USB\n\
+   drive named `RPI-RP2`.\n\
+2. Copy `firmware.uf2` onto that drive. The boot ROM loads it into SRAM and starts it.\n\
+\n\
+Or, with picotool: `picotool load firmware.uf2 && picotool reboot` (a RAM image: picotool\n\
+loads it into SRAM and runs it), or over SWD: `arm-none-eabi-gdb firmware.elf`, `load`,\n\
+`jump _entry_point`.\n\
+\n\
+The image lives in SRAM only (no second-stage boot loader, nothing in flash): it is gone\n\
+after a power cycle; copy it again after each power-up.\n\
+\n\
+## What runs\n\
+\n\
+Core 0 sets the clocks to {mhz} MHz (PLL_SYS from the 12 MHz crystal), starts the timer's\n\
+1 µs tick and launches core 1 through the boot ROM's FIFO protocol. Each core then runs its\n\
+keys' sample interrupt at {fs} Hz: read each key's sensor word, run its update, pass each\n\
+force word through the safety limiter, write the DAC word.\n\
+\n\
+| MIDI | instrument | core | sensor words | DAC words |\n\
+|---|---|---|---|---|\n\
+{keys}\n\
+## What is not in this firmware\n\
+\n\
+- **ADC and DAC drivers.** The sensor and DAC words are plain SRAM words (sensor window\n\
+  {sw}, DAC window {dw}, one 32-bit word each); a driver, a DMA channel or a PIO program\n\
+  must fill the sensor words from the converters before each sample tick and send the DAC\n\
+  words out after it. Without one the keys read 0 and the motors get nothing.\n\
+- **Flash.** Nothing is written to flash; no boot2, no XIP timing.\n\
+- Verified in Tactus's cycle-accurate emulator, not on hardware: the emulator does not\n\
+  model oscillator start-up or PLL lock times, which only delay the first tick.\n",
+        name = input.name,
+        b = fw.index,
+        range = crate::verdict::key_ranges(&fw.keys),
+        cmd = input.command,
+        mhz = m.clock_hz as f64 / 1e6,
+        fs = m.sample_rate_hz,
+        sw = m.sensor_window,
+        dw = m.dac_window,
+    )
+}
+
+/// One core of an [`ElfRun`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CoreRun {
+    /// Samples its handler completed.
+    pub samples: u32,
+    /// Its deadline-miss counter at the end.
+    pub misses: u32,
+    /// Longest handler run, cycles (exception entry to the completed return).
+    pub worst_cycles: u64,
+    /// Mean handler run, cycles.
+    pub mean_cycles: f64,
+}
+
+/// What [`run_elf`] measured.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ElfRun {
+    /// Samples run.
+    pub samples: usize,
+    /// Per core.
+    pub cores: Vec<CoreRun>,
+    /// Core clock cycles per sample period.
+    pub cycles_per_sample: u64,
+}
+
+/// Most samples [`run_elf`] runs (one emulated minute at 44.1 kHz).
+pub const MAX_RUN_SAMPLES: usize = 60 * 44_100;
+
+fn addr(s: &str, what: &str) -> Result<u32, String> {
+    u32::from_str_radix(s.trim_start_matches("0x"), 16)
+        .map_err(|_| format!("{what}: `{s}` is not a hexadecimal address"))
+}
+
+/// Boots firmware `elf` from reset on an emulated RP2040 at the key map's clock (the boot
+/// ROM enters it at its entry point; it launches core 1 itself) and runs `samples` samples:
+/// before tick *n*, key *k*'s first sensor word gets `sensors[k][n mod len]` (a stimulus,
+/// repeated; its other sensor words stay 0; an empty list leaves the key at 0). Returns per
+/// core the handler's completed samples, worst and mean cycles, and misses.
+///
+/// Errors: a message for an ELF the loader rejects, a key map that does not match it (a
+/// missing or bad address, more than [`tactus_emulator::MAX_KEYS`] keys or 2 cores), more
+/// than [`MAX_RUN_SAMPLES`] samples, sensor lists that do not match the keys, or firmware
+/// that faults or does not start.
+pub fn run_elf(
+    elf: &[u8],
+    map: &KeyMap,
+    sensors: &[&[i32]],
+    samples: usize,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ElfRun, String> {
+    use crate::image::glue::ctrl;
+    use tactus_emulator::timing::EXCEPTION_ENTRY;
+    use tactus_emulator::{Config, StopReason};
+    if samples > MAX_RUN_SAMPLES {
+        return Err(format!(
+            "{samples} samples: at most {MAX_RUN_SAMPLES} (one emulated minute)"
+        ));
+    }
+    if map.keys.len() > tactus_emulator::MAX_KEYS || map.cores.len() > 2 {
+        return Err(format!(
+            "key map: {} keys on {} cores; a board has at most {} keys and 2 cores",
+            map.keys.len(),
+            map.cores.len(),
+            tactus_emulator::MAX_KEYS
+        ));
+    }
+    if sensors.len() != map.keys.len() {
+        return Err(format!(
+            "{} sensor lists for the key map's {} keys",
+            sensors.len(),
+            map.keys.len()
+        ));
+    }
+    if !(1..=1_000_000).contains(&map.sample_rate_hz) || map.clock_hz < 1_000_000 {
+        return Err(format!(
+            "key map: sample rate {} Hz, clock {} Hz",
+            map.sample_rate_hz, map.clock_hz
+        ));
+    }
+    let mut board = tactus_emulator::Board::new(Config {
+        clock_hz: map.clock_hz,
+        ..Config::default()
+    });
+    board
+        .load_elf(elf)
+        .map_err(|e| format!("cannot load the ELF: {e}"))?;
+    let mut cores = Vec::new();
+    for c in &map.cores {
+        let isr = addr(&c.sample_isr, "sample_isr")? & !1;
+        let ctrl = addr(&c.control, "control")?;
+        cores.push((board.profile_handler(isr), ctrl));
+    }
+    let mut words = Vec::new();
+    for k in &map.keys {
+        let w: Result<Vec<u32>, String> = k
+            .sensor_words
+            .iter()
+            .map(|s| addr(s, &format!("key {}", k.midi)))
+            .collect();
+        words.push(w?);
+    }
+    let clock = map.clock_hz as u128;
+    let cycle_of = |us: u64| (us as u128 * clock).div_ceil(1_000_000) as u64;
+    let tick = |n: u64| map.first_tick_us as u64 + n * 1_000_000 / map.sample_rate_hz as u64;
+    let check = |stop: StopReason, board: &tactus_emulator::Board| match stop {
+        StopReason::CycleLimit => Ok(()),
+        other => Err(format!(
+            "the firmware stopped: {other:?} (core pcs {:#010x}, {:#010x})",
+            board.cores[0].r[15], board.cores[1].r[15]
+        )),
+    };
+    let stop = board.run_until(cycle_of(tick(0)));
+    check(stop, &board)?;
+    for (i, (_, ctrl)) in cores.iter().enumerate() {
+        let ready = board
+            .read_u32(ctrl + u32::from(ctrl::READY))
+            .map_err(|e| e.to_string())?;
+        if ready != 1 {
+            return Err(format!(
+                "core {i} did not finish its start-up before the first tick"
+            ));
+        }
+    }
+    let mut totals = vec![(0u64, 0u64, 0u64); cores.len()];
+    for n in 0..samples {
+        for (k, w) in words.iter().enumerate() {
+            let s = sensors[k];
+            let v = if s.is_empty() { 0 } else { s[n % s.len()] };
+            if let Some(&a) = w.first() {
+                board
+                    .write_data(a, &v.to_le_bytes())
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+        let stop = board.run_until(cycle_of(tick(n as u64 + 1)));
+        check(stop, &board)?;
+        for (c, (h, _)) in cores.iter().enumerate() {
+            for call in board.calls(*h) {
+                let cyc = call.cycles + EXCEPTION_ENTRY as u64;
+                totals[c].0 = totals[c].0.max(cyc);
+                totals[c].1 += cyc;
+                totals[c].2 += 1;
+            }
+            board.clear_calls(*h);
+        }
+        if n % 4410 == 0 {
+            progress(n, samples);
+        }
+    }
+    progress(samples, samples);
+    let mut out = Vec::new();
+    for (c, (_, ctrl)) in cores.iter().enumerate() {
+        let done = board
+            .read_u32(ctrl + u32::from(ctrl::SAMPLES))
+            .map_err(|e| e.to_string())?;
+        let misses = board
+            .read_u32(ctrl + u32::from(ctrl::MISSES))
+            .map_err(|e| e.to_string())?;
+        out.push(CoreRun {
+            samples: done,
+            misses,
+            worst_cycles: totals[c].0,
+            mean_cycles: totals[c].1 as f64 / totals[c].2.max(1) as f64,
+        });
+    }
+    Ok(ElfRun {
+        samples,
+        cores: out,
+        cycles_per_sample: map.clock_hz / map.sample_rate_hz as u64,
+    })
+}

@@ -1,0 +1,220 @@
+//! The image's start from reset, as on the chip: the entry the boot ROM jumps to, the
+//! clock set-up, and core 1's launch over the SIO FIFOs.
+//!
+//! **Entry.** The image is RAM-only, like pico-sdk's `no_flash` binaries: after a UF2
+//! download into SRAM the boot ROM reboots through the watchdog and enters the image at
+//! the *lowest address written*, as Thumb code, with SP = 0x20042000 (pico-bootrom
+//! `bootrom/virtual_disk.c`, `_write_uf2_page_complete` → `safe_reboot(lowest_addr,
+//! SRAM_END)`; `bootrom_rt0.S`, `check_wdog`). The boot ROM accepts RAM blocks only in
+//! 0x20000000–0x20042000 (`is_address_ram`), the striped alias, so the image's lowest
+//! address is 0x20000000 and holds [`entry_stub`]: like pico-sdk's `_entry_point`
+//! (`crt0.S`, `PICO_NO_FLASH`), it points VTOR at core 0's vector table and enters the
+//! reset handler through it with the table's stack pointer.
+//!
+//! **Clocks** ([`clock_set_up`]): the 12 MHz crystal (XOSC, datasheet 2.16), PLL_SYS to
+//! the board's clock (2.18.2: REFDIV 1, FBDIV, POSTDIV1 × POSTDIV2, from
+//! [`tactus_emulator::clocks::pll_sys_dividers`]), clk_sys switched to it through the
+//! auxiliary mux (2.15.3.2), the watchdog tick at 12 reference cycles so the timer counts
+//! microseconds (4.7.2), and the timer pulsed through reset so it counts from 0 (its
+//! ticks are then absolute times the image schedules). The emulator models these
+//! registers minimally (`emulator/src/clocks.rs`).
+//!
+//! **Core 1** ([`launch_core1`]): pico-sdk's `multicore_launch_core1_raw`
+//! (`pico_multicore/multicore.c`): the words 0, 0, 1, vector table, stack pointer, entry
+//! point, each sent when the FIFO has room and answered by core 1's boot ROM; before each
+//! 0 the RX FIFO is drained and an event signalled (`SEV`: the ROM may be waiting for
+//! room); an answer that differs from the word sent restarts the sequence (RP2040
+//! datasheet 2.8.2).
+
+use super::asm::{self, cond, Asm};
+use super::ImageError;
+use tactus_emulator::clocks::{
+    self, reg, CLOCKS_BASE, PLL_SYS_BASE, RESETS_BASE, WATCHDOG_BASE, XOSC_BASE,
+};
+use tactus_emulator::decode::{Hint, Instr};
+use tactus_emulator::sio::{reg as sio, SIO_BASE};
+
+/// Where the boot ROM enters a RAM image: its lowest address (the entry stub's).
+pub const ENTRY: u32 = 0x2000_0000;
+/// Bytes reserved for the entry stub at the start of each bank: the stub's 24 bytes at
+/// the striped [`ENTRY`] fill the first words of all four banks, and core 0's vector
+/// table, 256-aligned for VTOR, starts after them.
+pub const ENTRY_RESERVE: u32 = 0x100;
+/// The M0+'s VTOR (ARMv6-M B3.2.5; RP2040 datasheet 2.4.8).
+const VTOR: u32 = 0xe000_ed08;
+
+/// Atomic register aliases (datasheet 2.1.2).
+const SET: u32 = 0x2000;
+const CLR: u32 = 0x3000;
+
+/// What core 0's reset handler starts before its keys: the PLL dividers of the board's
+/// clock and, on a two-core image, core 1's launch words.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Boot {
+    /// (FBDIV, POSTDIV1, POSTDIV2) of the board's clock; `None` when no PLL setting gives
+    /// it exactly (the image then runs only in the emulator, whose clock is the board's
+    /// from power-on: [`super::FirmwareImage::flashable`] says why).
+    pub pll: Option<(u32, u32, u32)>,
+    /// Core 1's vector table, initial stack pointer and entry point (Thumb bit set).
+    pub core1: Option<[u32; 3]>,
+}
+
+impl Boot {
+    /// The boot of a board clocked at `clock_hz`.
+    pub fn new(clock_hz: u64, core1: Option<[u32; 3]>) -> Boot {
+        Boot {
+            pll: clocks::pll_sys_dividers(clock_hz),
+            core1,
+        }
+    }
+}
+
+/// The entry stub at [`ENTRY`]: VTOR = `vectors` (core 0's table), SP = its word 0, jump
+/// to its word 1. Returns the assembled bytes.
+///
+/// Errors: [`ImageError::Assemble`].
+pub fn entry_stub(vectors: u32) -> Result<Vec<u8>, ImageError> {
+    let mut a = Asm::new();
+    a.ldr_const(0, vectors);
+    a.ldr_const(1, VTOR);
+    a.i(asm::str(0, 1, 0));
+    a.i(asm::ldr(1, 0, 0));
+    a.i(asm::ldr(2, 0, 4));
+    a.i(Instr::MovHi { rd: 13, rm: 1 });
+    a.i(Instr::Bx { rm: 2 });
+    a.pool();
+    let (bytes, _) = a.assemble(ENTRY).map_err(ImageError::Assemble)?;
+    if bytes.len() as u32 > ENTRY_RESERVE / 4 {
+        return Err(ImageError::Assemble(format!(
+            "the entry stub takes {} bytes, more than the {} its banks reserve",
+            bytes.len(),
+            ENTRY_RESERVE / 4
+        )));
+    }
+    Ok(bytes)
+}
+
+/// `[addr] = value` (clobbers r0, r1).
+fn store(a: &mut Asm, addr: u32, value: u32) {
+    a.ldr_const(0, addr);
+    a.mov_const(1, value);
+    a.i(asm::str(1, 0, 0));
+}
+
+/// Waits until `[addr] & mask == want` (clobbers r0-r2).
+fn wait(a: &mut Asm, addr: u32, mask: u32, want: u32) {
+    let top = a.label();
+    a.ldr_const(0, addr);
+    a.mov_const(2, mask);
+    a.bind(top);
+    a.i(asm::ldr(1, 0, 0));
+    a.i(asm::alu(tactus_emulator::decode::AluOp::And, 1, 2));
+    if want == 0 {
+        a.bc(cond::NE, top);
+    } else {
+        a.i(asm::cmp(1, 2));
+        a.bc(cond::NE, top);
+    }
+    debug_assert!(want == 0 || want == mask);
+}
+
+/// Pulses block `bit` of RESETS and waits until it is out of reset (clobbers r0-r2).
+fn pulse_reset(a: &mut Asm, bit: u32) {
+    store(a, RESETS_BASE + SET + reg::RESET, bit);
+    store(a, RESETS_BASE + CLR + reg::RESET, bit);
+    wait(a, RESETS_BASE + reg::RESET_DONE, bit, bit);
+}
+
+/// The clock set-up (module documentation); without PLL dividers only the timer's tick
+/// and reset. Clobbers r0-r2.
+pub fn clock_set_up(a: &mut Asm, pll: Option<(u32, u32, u32)>) {
+    if let Some((fbdiv, pd1, pd2)) = pll {
+        // XOSC: 1-15 MHz range, start-up delay 1 ms (12 MHz × 1 ms / 256), enable.
+        store(a, XOSC_BASE + reg::XOSC_CTRL, 0xaa0);
+        store(a, XOSC_BASE + reg::XOSC_STARTUP, 47);
+        store(a, XOSC_BASE + reg::XOSC_CTRL, reg::XOSC_ENABLE_1_15MHZ);
+        wait(a, XOSC_BASE + reg::XOSC_STATUS, 1 << 31, 1 << 31);
+        // clk_sys off the auxiliary mux (to clk_ref), clk_ref to the crystal.
+        store(a, CLOCKS_BASE + CLR + reg::CLK_SYS_CTRL, 1);
+        wait(a, CLOCKS_BASE + reg::CLK_SYS_SELECTED, 1, 1);
+        store(a, CLOCKS_BASE + reg::CLK_REF_CTRL, 2);
+        wait(a, CLOCKS_BASE + reg::CLK_REF_SELECTED, 4, 4);
+        // PLL_SYS: reset, REFDIV 1, FBDIV, power up the PLL and its VCO, lock, post
+        // dividers, power them up.
+        pulse_reset(a, reg::RESET_PLL_SYS);
+        store(a, PLL_SYS_BASE + reg::PLL_CS, 1);
+        store(a, PLL_SYS_BASE + reg::PLL_FBDIV_INT, fbdiv);
+        store(a, PLL_SYS_BASE + CLR + reg::PLL_PWR, 1 | 1 << 5);
+        wait(a, PLL_SYS_BASE + reg::PLL_CS, 1 << 31, 1 << 31);
+        store(a, PLL_SYS_BASE + reg::PLL_PRIM, pd1 << 16 | pd2 << 12);
+        store(a, PLL_SYS_BASE + CLR + reg::PLL_PWR, 1 << 3);
+        // clk_sys = PLL_SYS / 1 through the auxiliary mux.
+        store(a, CLOCKS_BASE + reg::CLK_SYS_DIV, 1 << 8);
+        store(a, CLOCKS_BASE + reg::CLK_SYS_CTRL, 0);
+        store(a, CLOCKS_BASE + reg::CLK_SYS_CTRL, 1);
+        wait(a, CLOCKS_BASE + reg::CLK_SYS_SELECTED, 2, 2);
+    }
+    // The timer: 1 µs ticks from the 12 MHz reference, counting from its release.
+    store(a, WATCHDOG_BASE + reg::WATCHDOG_TICK, 1 << 9 | 12);
+    pulse_reset(a, reg::RESET_TIMER);
+}
+
+/// Launches core 1 at `entry` with `vectors` and `sp` (module documentation). Clobbers
+/// r0, r4, r7 and LR.
+pub fn launch_core1(a: &mut Asm, [vectors, sp, entry]: [u32; 3]) {
+    let (restart, exchange, done) = (a.label(), a.label(), a.label());
+    a.ldr_const(4, SIO_BASE);
+    a.bind(restart);
+    for w in [0, 0, 1, vectors, sp, entry] {
+        if w <= 255 {
+            a.i(asm::movs(7, w as u8));
+        } else {
+            a.ldr_const(7, w);
+        }
+        a.bl_label(exchange);
+        a.i(asm::cmp(0, 7));
+        a.bc(cond::NE, restart);
+    }
+    a.b(done);
+    // exchange: r7 = the word; r0 = core 1's answer.
+    let (drain, drained, send, recv) = (a.label(), a.label(), a.label(), a.label());
+    a.bind(exchange);
+    a.i(asm::cmp_imm(7, 0));
+    a.bc(cond::NE, send);
+    a.bind(drain);
+    a.i(asm::ldr(0, 4, sio::FIFO_ST as u16));
+    a.i(asm::lsrs(0, 0, 1)); // VLD → carry
+    a.bc(cond::CC, drained);
+    a.i(asm::ldr(0, 4, sio::FIFO_RD as u16));
+    a.b(drain);
+    a.bind(drained);
+    a.i(Instr::Hint(Hint::Sev));
+    a.bind(send);
+    a.i(asm::ldr(0, 4, sio::FIFO_ST as u16));
+    a.i(asm::lsrs(0, 0, 2)); // RDY → carry
+    a.bc(cond::CC, send);
+    a.i(asm::str(7, 4, sio::FIFO_WR as u16));
+    a.i(Instr::Hint(Hint::Sev));
+    a.bind(recv);
+    a.i(asm::ldr(0, 4, sio::FIFO_ST as u16));
+    a.i(asm::lsrs(0, 0, 1));
+    a.bc(cond::CC, recv);
+    a.i(asm::ldr(0, 4, sio::FIFO_RD as u16));
+    a.i(Instr::Bx { rm: 14 });
+    a.pool();
+    a.bind(done);
+}
+
+/// What each core's reset handler does first: core 0 sets the clocks up and launches
+/// core 1 ([`Boot`]); every core writes its stack canary (`canary` at `stack_bottom`).
+/// Clobbers r0-r2, r4, r7, LR.
+pub fn core_start(a: &mut Asm, core: usize, boot: &Boot, stack_bottom: u32, canary: u32) {
+    store(a, stack_bottom, canary);
+    if core == 0 {
+        clock_set_up(a, boot.pll);
+        if let Some(words) = boot.core1 {
+            launch_core1(a, words);
+        }
+    }
+    a.pool_inline();
+}
