@@ -174,7 +174,7 @@ impl Program {
             }
         }
         let few = words.len() as u32 <= MAX_GUARDED_WORDS;
-        (self.quiescent_guard && few).then(|| glue::GuardCode {
+        (self.quiescent_guard && few).then_some(glue::GuardCode {
             calm_offset,
             calm_needed: if differentiated {
                 (2 * tactus_runtime::differentiator::WINDOW + 1) as u8
