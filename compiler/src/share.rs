@@ -237,8 +237,7 @@ fn same_shape(a: &Program, b: &Program) -> Result<(), String> {
         return differ("declarations");
     }
     if a.params.len() != b.params.len()
-        || a
-            .params
+        || a.params
             .iter()
             .zip(&b.params)
             .any(|(x, y)| x.name != y.name || x.dim != y.dim || x.runtime.is_some())

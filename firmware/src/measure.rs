@@ -184,9 +184,10 @@ pub fn compare_many(
     let p = &fp.program;
     let mut cs = vec![Comparison::default(); runners.len()];
     let mut got_events = Vec::new();
-    let params = runners
-        .first()
-        .map_or_else(|| fp.nominal_param_block(), |r| r.interface().params.clone());
+    let params = runners.first().map_or_else(
+        || fp.nominal_param_block(),
+        |r| r.interface().params.clone(),
+    );
     for run in runs {
         let mut inst = FixedInstance::with_params(fp, params.clone());
         for (runner, c) in runners.iter_mut().zip(&mut cs) {

@@ -615,7 +615,12 @@ impl<'a> Gen<'a> {
                 &mut h,
                 format!("{m}_PARAM_{i}_FRAC"),
                 w.frac.to_string(),
-                format!("`{}` in [{lo:e}, {hi:e}] {}, {}", d.name, unit(Ty::Real(d.dim)), q(w.frac)),
+                format!(
+                    "`{}` in [{lo:e}, {hi:e}] {}, {}",
+                    d.name,
+                    unit(Ty::Real(d.dim)),
+                    q(w.frac)
+                ),
             )?;
         }
         let cnt = |n: usize| n.max(1);
