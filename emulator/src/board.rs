@@ -375,8 +375,20 @@ impl Board {
         Ok(())
     }
 
-    /// Starts `core` at `pc` with stack pointer `sp` and VTOR `vtor`, at the current cycle.
+    /// Starts `core` at `pc` with stack pointer `sp` and VTOR `vtor`, at the current cycle,
+    /// as a debugger would. Core 1 taken from the boot ROM's wait loop this way is started
+    /// as if it had never entered it: what the ROM sent core 0 (its handshake 0) is
+    /// withdrawn from core 0's RX FIFO. (A launch over the FIFOs keeps the echoes.)
     pub fn start_core(&mut self, core: usize, pc: u32, sp: u32, vtor: u32) {
+        if core == 1 && self.launch.is_some() {
+            while self.system.sio.fifo_status(0) & 1 != 0 {
+                self.system.sio.fifo_pop(0);
+            }
+        }
+        self.start_core_at(core, pc, sp, vtor);
+    }
+
+    fn start_core_at(&mut self, core: usize, pc: u32, sp: u32, vtor: u32) {
         let now = self.cores[1 - core].cycle.max(self.cores[core].cycle);
         let c = &mut self.cores[core];
         c.cycle = now;
@@ -1133,7 +1145,7 @@ impl Board {
             }
             let Some(l) = self.launch else { return };
             if l.step == 4 {
-                self.start_core(1, l.entry, l.sp, l.vtor);
+                self.start_core_at(1, l.entry, l.sp, l.vtor);
                 return;
             }
             if self.system.sio.fifo_status(1) & 1 == 0 {
