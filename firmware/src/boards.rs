@@ -112,6 +112,10 @@ impl std::error::Error for BoardsError {}
 pub struct ProgramCosts {
     /// Per program: update WCET + `BL` + the key's glue (static cycles, from the image).
     pub key_cycles: Vec<u64>,
+    /// Per program: the same without the quiescent-key guard (equal to `key_cycles` for a
+    /// program without it): what a key costs on a board where the guard does not fit
+    /// ([`board_image`]).
+    pub plain_key_cycles: Vec<u64>,
     /// Per program: window slots a key takes (the larger of its sensor and DAC words).
     pub slots: Vec<usize>,
 }
@@ -126,18 +130,49 @@ impl ProgramCosts {
         limiter: &LimiterConfig,
     ) -> Result<ProgramCosts, BoardsError> {
         let mut key_cycles = Vec::with_capacity(programs.len());
+        let mut plain_key_cycles = Vec::with_capacity(programs.len());
         let mut slots = Vec::with_capacity(programs.len());
+        // The glue depends on the code and the guard, not on the param block: priced once
+        // per distinct code (88 graded piano keys are one).
+        let mut glue_of: Vec<(&Program, u64, u64)> = Vec::new();
         for p in programs {
             let update = p.update_wcet().map_err(BoardsError::Image)?;
-            // A program too large for a bank has no glue figure; its boards report NoRoom.
-            let glue = FirmwareImage::key_glue(p, board, limiter)
-                .map(|g| g.cycles)
-                .unwrap_or(0);
+            let (glue, plain_glue) = match glue_of
+                .iter()
+                .find(|(q, ..)| q.same_code(p) && q.quiescent_guard == p.quiescent_guard)
+            {
+                Some(&(_, g, pg)) => (g, pg),
+                None => {
+                    // A program too large for a bank has no glue figure; its boards report
+                    // NoRoom.
+                    let price = |p: &Program| {
+                        FirmwareImage::key_glue(p, board, limiter)
+                            .map(|g| g.cycles)
+                            .unwrap_or(0)
+                    };
+                    let glue = price(p);
+                    let plain_glue = match p.quiescent_guard {
+                        true => {
+                            let mut plain = p.clone();
+                            plain.quiescent_guard = false;
+                            price(&plain)
+                        }
+                        false => glue,
+                    };
+                    glue_of.push((p, glue, plain_glue));
+                    (glue, plain_glue)
+                }
+            };
             key_cycles.push(update + crate::runner::BL_CYCLES + glue);
+            plain_key_cycles.push(update + crate::runner::BL_CYCLES + plain_glue);
             let drives = p.drives().map_err(BoardsError::Image)?.len();
             slots.push(p.sensor_words().max(drives));
         }
-        Ok(ProgramCosts { key_cycles, slots })
+        Ok(ProgramCosts {
+            key_cycles,
+            plain_key_cycles,
+            slots,
+        })
     }
 }
 
@@ -235,12 +270,42 @@ pub fn board_image(
             ))),
         ));
     }
-    let core = partition(&cycles, board.cores as usize);
-    for (s, &c) in specs.iter_mut().zip(&core) {
-        s.core = c;
-    }
+    let build = |local: &[Program], cycles: &[u64], specs: &mut [KeySpec]| {
+        let core = partition(cycles, board.cores as usize);
+        for (s, &c) in specs.iter_mut().zip(&core) {
+            s.core = c;
+        }
+        (core, FirmwareImage::build(local, specs, board, limiter))
+    };
     let local: Vec<Program> = used.iter().map(|&p| programs[p].clone()).collect();
-    Ok((core, FirmwareImage::build(&local, &specs, board, limiter)))
+    let (core, image) = build(&local, &cycles, &mut specs);
+    // The quiescent-key guard only where it fits: it saves cycles at rest but adds to the
+    // worst case, and it must never cost a board. Where the guarded image misses the
+    // deadline (or has no room), the board is built without it, its cores partitioned by
+    // the unguarded costs.
+    let cps = board.cycles_per_sample();
+    let fits =
+        |i: &FirmwareImage| (0..i.cores()).all(|c| i.wcet(c).is_none_or(|w| w.bound() <= cps));
+    let guarded = local.iter().any(|p| p.quiescent_guard);
+    if guarded && !image.as_ref().is_ok_and(fits) {
+        let plain: Vec<Program> = local
+            .iter()
+            .map(|p| {
+                let mut p = p.clone();
+                p.quiescent_guard = false;
+                p
+            })
+            .collect();
+        let plain_cycles: Vec<u64> = keys
+            .iter()
+            .map(|k| costs.plain_key_cycles[k.program])
+            .collect();
+        let (plain_core, plain_image) = build(&plain, &plain_cycles, &mut specs);
+        if plain_image.is_ok() {
+            return Ok((plain_core, plain_image));
+        }
+    }
+    Ok((core, image))
 }
 
 /// The verdict of one board holding `keys`: its image's static bound per core.

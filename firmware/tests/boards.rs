@@ -243,3 +243,85 @@ fn every_planned_board_of_grand88_runs_a_second_bit_exact_without_misses() {
 fn every_planned_board_of_the_split_layout_runs_a_second_bit_exact_without_misses() {
     boards_run_bit_exact("instruments/layouts/split_harpsichord_piano.toml", 44_100);
 }
+
+/// The quiescent-key guard never costs a board: where a board's guarded image misses the
+/// deadline, [`board_image`] builds it without the guard. A 133 MHz board holds as many
+/// harpsichord keys with the guard on by default as without it, although with the guard
+/// forced on every key (its shadow compare in every key's worst case) that board would not
+/// fit.
+#[test]
+fn the_quiescent_guard_never_costs_a_board() {
+    let b = board("rp2040");
+    let lim = limiter(&b);
+    let guarded =
+        vec![Program::compile(&shipped("harpsichord").unwrap(), &Default::default()).unwrap()];
+    assert!(guarded[0].quiescent_guard, "the guard is on by default");
+    let costs = ProgramCosts::new(&guarded, &b, &lim).unwrap();
+    assert!(costs.key_cycles[0] > costs.plain_key_cycles[0]);
+    let cps = b.cycles_per_sample();
+    // The most keys that fit without the guard.
+    let most = (1..=32)
+        .take_while(|&n| {
+            let keys: Vec<PlanKey> = (0..n)
+                .map(|k| PlanKey {
+                    key: 40 + k as u8,
+                    program: 0,
+                })
+                .collect();
+            check_board(&guarded, &costs, &keys, &b, &lim)
+                .unwrap()
+                .fits()
+        })
+        .last()
+        .unwrap();
+    let keys: Vec<PlanKey> = (0..most)
+        .map(|k| PlanKey {
+            key: 40 + k as u8,
+            program: 0,
+        })
+        .collect();
+    let (_, image) = board_image(&guarded, &costs, &keys, &b, &lim).unwrap();
+    let image = image.unwrap();
+    let worst = (0..image.cores())
+        .map(|c| image.wcet(c).unwrap().bound())
+        .max()
+        .unwrap();
+    assert!(worst <= cps, "{worst} > {cps}");
+    // The guard costs per key: with it forced on (no fallback), the same board must not fit
+    // for this test to show anything.
+    let guard_only = (0..image.cores())
+        .map(|c| {
+            let n = keys.len().div_ceil(2) as u64;
+            image.wcet(c).unwrap().bound() + n * (costs.key_cycles[0] - costs.plain_key_cycles[0])
+        })
+        .max()
+        .unwrap();
+    assert!(
+        guard_only > cps,
+        "the fallback is not exercised: {guard_only} <= {cps}"
+    );
+    println!(
+        "{most} harpsichord keys: {worst} cycles per core as built, about {guard_only} with the guard on every key (deadline {cps})"
+    );
+    let plain = vec![{
+        let mut p = guarded[0].clone();
+        p.quiescent_guard = false;
+        p
+    }];
+    let plain_costs = ProgramCosts::new(&plain, &b, &lim).unwrap();
+    let plain_most = (1..=32)
+        .take_while(|&n| {
+            let keys: Vec<PlanKey> = (0..n)
+                .map(|k| PlanKey {
+                    key: 40 + k as u8,
+                    program: 0,
+                })
+                .collect();
+            check_board(&plain, &plain_costs, &keys, &b, &lim)
+                .unwrap()
+                .fits()
+        })
+        .last()
+        .unwrap();
+    assert_eq!(most, plain_most, "the guard cost a key per board");
+}
