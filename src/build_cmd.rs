@@ -253,16 +253,16 @@ fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<
             })
             .collect();
         println!(
-            "{}: keys {}, {} ({} bytes UF2), {}",
+            "{}: keys {}, UF2 {} blocks; sample interrupt {}",
             d.display(),
             tactus_firmware::verdict::key_ranges(&b.keys),
-            "firmware.uf2 firmware.elf keys.json README.md",
-            b.uf2.len(),
+            b.uf2.len() / tactus_firmware::uf2::BLOCK,
             cores.join(", ")
         );
     }
     println!(
-        "{}: {} boards of {} at {} MHz in {} (flash: hold BOOTSEL, plug in, copy firmware.uf2 onto RPI-RP2)",
+        "{}: {} boards of {} at {} MHz in {}, each with firmware.uf2, firmware.elf, keys.json, README.md\n\
+         flash a board: hold BOOTSEL, plug it in, copy its firmware.uf2 onto the RPI-RP2 drive",
         kb.name(),
         boards.len(),
         kb.board.name,

@@ -224,6 +224,143 @@ fn print_core(core: &Core) {
     );
 }
 
+/// `tactus emu run FIRMWARE.elf --stimulus S`: see the module documentation. Exit code 0
+/// without misses, 2 with.
+fn run_firmware(
+    file: &std::path::Path,
+    stimulus: &str,
+    keys: Option<&std::path::Path>,
+    seconds: f64,
+) -> Result<ExitCode, String> {
+    use tactus_firmware::flash::{self, KeyMap};
+    let elf = std::fs::read(file).map_err(|e| format!("cannot read {}: {e}", file.display()))?;
+    let map_path = keys.map_or_else(
+        || file.with_file_name("keys.json"),
+        std::path::Path::to_path_buf,
+    );
+    let text = std::fs::read_to_string(&map_path).map_err(|e| {
+        format!(
+            "{}: cannot read the key map {} ({e}); `tactus build LAYOUT --target rp2040` writes it beside the ELF, or name it with --keys",
+            file.display(),
+            map_path.display()
+        )
+    })?;
+    let map: KeyMap = serde_json::from_str(&text)
+        .map_err(|e| format!("{}: not a Tactus key map: {e}", map_path.display()))?;
+    let fs = map.sample_rate_hz as f64;
+    if !(seconds > 0.0 && seconds <= 60.0) {
+        return Err(format!("--seconds {seconds}: from just above 0 to 60"));
+    }
+    let samples = (seconds * fs).round().max(1.0) as usize;
+    if map.keys.len() > tactus_emulator::MAX_KEYS {
+        return Err(format!(
+            "{}: {} keys; a board has at most {}",
+            map_path.display(),
+            map.keys.len(),
+            tactus_emulator::MAX_KEYS
+        ));
+    }
+    // Each key's stimulus in its own instrument's sensor words, once per distinct
+    // instrument and params (a CSV read once).
+    let csv = if std::path::Path::new(stimulus).exists() {
+        let st = tactus_runtime::stimulus::from_csv(std::path::Path::new(stimulus), fs)
+            .map_err(|e| format!("--stimulus {stimulus}: {e}"))?;
+        Some(st)
+    } else {
+        None
+    };
+    // ((instrument, params), the stimulus in its sensor words)
+    type Words<'m> = ((&'m str, &'m [String]), Vec<i32>);
+    let mut distinct: Vec<Words> = Vec::new();
+    let mut which = Vec::with_capacity(map.keys.len());
+    for k in &map.keys {
+        let id = (k.instrument.as_str(), k.params.as_slice());
+        if let Some(i) = distinct.iter().position(|d| d.0 == id) {
+            which.push(i);
+            continue;
+        }
+        let src = crate::source::load(&k.instrument)
+            .map_err(|e| format!("{}: key {}: {e}", map_path.display(), k.midi))?;
+        let params: Vec<(String, String)> = k
+            .params
+            .iter()
+            .filter_map(|p| {
+                p.split_once('=')
+                    .map(|(a, b)| (a.to_string(), b.to_string()))
+            })
+            .collect();
+        let lowered = crate::check_cmd::compile_reporting(&src, &params).ok_or_else(|| {
+            format!(
+                "{}: key {}: `{}` does not compile",
+                map_path.display(),
+                k.midi,
+                k.instrument
+            )
+        })?;
+        let fp = tactus_compiler::fixed::FixedProgram::new(&lowered.program);
+        let words = match fp.program.sensors.first() {
+            None => Vec::new(),
+            Some(s0) => {
+                let builtin;
+                let st = match &csv {
+                    Some(st) => st,
+                    None => {
+                        builtin = tactus_runtime::stimulus::builtin(stimulus, s0.range.1, fs)
+                            .map_err(|e| format!("--stimulus {stimulus}: {e}"))?;
+                        &builtin
+                    }
+                };
+                if st.key.is_empty() {
+                    return Err(format!("--stimulus {stimulus}: no samples"));
+                }
+                // One run of the stimulus, at most the samples to run.
+                st.key
+                    .iter()
+                    .take(samples)
+                    .map(|&x| {
+                        tactus_compiler::fixed::interp::FixedInstance::sensor_raw(&fp, 0, Some(x))
+                    })
+                    .collect()
+            }
+        };
+        which.push(distinct.len());
+        distinct.push((id, words));
+    }
+    let sensors: Vec<&[i32]> = which.iter().map(|&i| distinct[i].1.as_slice()).collect();
+    let bar = indicatif::ProgressBar::new(samples as u64);
+    let run = flash::run_elf(&elf, &map, &sensors, samples, &mut |d, _| {
+        bar.set_position(d as u64)
+    })
+    .map_err(|e| format!("{}: {e}", file.display()))?;
+    bar.finish_and_clear();
+    println!(
+        "{}: board {} ({} keys), {} samples of `{stimulus}` at {} Hz, {} cycles per sample",
+        file.display(),
+        map.board,
+        map.keys.len(),
+        run.samples,
+        map.sample_rate_hz,
+        run.cycles_per_sample
+    );
+    for (c, core) in run.cores.iter().enumerate() {
+        println!(
+            "core {c}: keys {:?}, {} samples, handler cycles mean {:.1} worst {} ({:.1} % of the period), misses {}",
+            map.cores.get(c).map(|m| m.keys.clone()).unwrap_or_default(),
+            core.samples,
+            core.mean_cycles,
+            core.worst_cycles,
+            100.0 * core.worst_cycles as f64 / run.cycles_per_sample.max(1) as f64,
+            core.misses
+        );
+    }
+    let missed = run.cores.iter().any(|c| c.misses > 0);
+    Ok(if missed {
+        ExitCode::from(2)
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -260,6 +397,9 @@ mod tests {
             cycles: 1000,
             trace,
             profile: Vec::new(),
+            stimulus: None,
+            keys: None,
+            seconds: 1.0,
         })
     }
 
@@ -286,6 +426,9 @@ mod tests {
             cycles: 10,
             trace: false,
             profile: vec!["main".into()],
+            stimulus: None,
+            keys: None,
+            seconds: 1.0,
         };
         assert_eq!(run(cmd), ExitCode::FAILURE);
     }
@@ -317,112 +460,4 @@ mod tests {
             ExitCode::from(2)
         );
     }
-}
-
-/// `tactus emu run FIRMWARE.elf --stimulus S`: see the module documentation. Exit code 0
-/// without misses, 2 with.
-fn run_firmware(
-    file: &std::path::Path,
-    stimulus: &str,
-    keys: Option<&std::path::Path>,
-    seconds: f64,
-) -> Result<ExitCode, String> {
-    use tactus_firmware::flash::{self, KeyMap};
-    let elf = std::fs::read(file).map_err(|e| format!("cannot read {}: {e}", file.display()))?;
-    let map_path = keys.map_or_else(
-        || file.with_file_name("keys.json"),
-        std::path::Path::to_path_buf,
-    );
-    let text = std::fs::read_to_string(&map_path).map_err(|e| {
-        format!(
-            "{}: cannot read the key map {} ({e}); `tactus build LAYOUT --target rp2040` writes it beside the ELF, or name it with --keys",
-            file.display(),
-            map_path.display()
-        )
-    })?;
-    let map: KeyMap = serde_json::from_str(&text)
-        .map_err(|e| format!("{}: not a Tactus key map: {e}", map_path.display()))?;
-    let fs = map.sample_rate_hz as f64;
-    if !(seconds > 0.0 && seconds <= 60.0) {
-        return Err(format!("--seconds {seconds}: from just above 0 to 60"));
-    }
-    let samples = (seconds * fs).round().max(1.0) as usize;
-    // Each key's stimulus in its own instrument's sensor words.
-    let mut sensors = Vec::with_capacity(map.keys.len());
-    for k in &map.keys {
-        let src = crate::source::load(&k.instrument)
-            .map_err(|e| format!("{}: key {}: {e}", map_path.display(), k.midi))?;
-        let params: Vec<(String, String)> = k
-            .params
-            .iter()
-            .filter_map(|p| {
-                p.split_once('=')
-                    .map(|(a, b)| (a.to_string(), b.to_string()))
-            })
-            .collect();
-        let lowered = crate::check_cmd::compile_reporting(&src, &params).ok_or_else(|| {
-            format!(
-                "{}: key {}: `{}` does not compile",
-                map_path.display(),
-                k.midi,
-                k.instrument
-            )
-        })?;
-        let fp = tactus_compiler::fixed::FixedProgram::new(&lowered.program);
-        let Some(s0) = fp.program.sensors.first() else {
-            sensors.push(Vec::new());
-            continue;
-        };
-        let st = if std::path::Path::new(stimulus).exists() {
-            tactus_runtime::stimulus::from_csv(std::path::Path::new(stimulus), fs)
-        } else {
-            tactus_runtime::stimulus::builtin(stimulus, s0.range.1, fs)
-        }
-        .map_err(|e| format!("--stimulus {stimulus}: {e}"))?;
-        if st.key.is_empty() {
-            return Err(format!("--stimulus {stimulus}: no samples"));
-        }
-        let words: Vec<Vec<i32>> = (0..samples)
-            .map(|n| {
-                vec![tactus_compiler::fixed::interp::FixedInstance::sensor_raw(
-                    &fp,
-                    0,
-                    Some(st.key[n % st.key.len()]),
-                )]
-            })
-            .collect();
-        sensors.push(words);
-    }
-    let bar = indicatif::ProgressBar::new(samples as u64);
-    let run = flash::run_elf(&elf, &map, &sensors, samples, &mut |d, _| {
-        bar.set_position(d as u64)
-    })
-    .map_err(|e| format!("{}: {e}", file.display()))?;
-    bar.finish_and_clear();
-    println!(
-        "{}: board {} ({} keys), {} samples of `{stimulus}` at {} Hz, {} cycles per sample",
-        file.display(),
-        map.board,
-        map.keys.len(),
-        run.samples,
-        map.sample_rate_hz,
-        run.cycles_per_sample
-    );
-    for (c, core) in run.cores.iter().enumerate() {
-        println!(
-            "core {c}: keys {:?}, {} samples, handler cycles mean {:.1} worst {} ({:.1} % of the period), misses {}",
-            map.cores.get(c).map(|m| m.keys.clone()).unwrap_or_default(),
-            core.samples,
-            core.mean_cycles,
-            core.worst_cycles,
-            100.0 * core.worst_cycles as f64 / run.cycles_per_sample.max(1) as f64,
-            core.misses
-        );
-    }
-    let missed = run.cores.iter().any(|c| c.misses > 0);
-    Ok(if missed {
-        ExitCode::from(2)
-    } else {
-        ExitCode::SUCCESS
-    })
 }

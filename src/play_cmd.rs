@@ -55,20 +55,23 @@ Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20 --tr
 pub struct PlayArgs {
     /// MIDI performance to play [default: a built-in 8 s demo].
     pub performance: Option<PathBuf>,
-    /// Instrument on every key A0…C8 (file or built-in name) [default: grand_piano].
+    /// Instrument on every key A0…C8 (file or built-in name), instead of the layout.
     #[arg(long, conflicts_with = "layout")]
     pub instrument: Option<String>,
-    /// Keyboard layout (TOML): instruments and param grading per key range, e.g.
-    /// instruments/layouts/grand88.toml.
+    /// Keyboard layout (TOML): instruments and param grading per key range [default: the
+    /// built-in grand88, instruments/layouts/grand88.toml: the grand piano on A0…C8 with
+    /// the hammer mass graded from 11 g to 3.5 g].
     #[arg(long)]
     pub layout: Option<PathBuf>,
     /// Play only the first SECONDS of the performance.
     #[arg(long)]
     pub seconds: Option<f64>,
-    /// Engine: `jit` (cranelift f64, fast), `interp` (the f64 reference interpreter),
-    /// `fixed` (the fixed-point JIT: the firmware's bits) or `emu` (the compiled firmware of
-    /// the played keys on the emulated board, sample by sample).
-    #[arg(long, value_enum, default_value = "jit")]
+    /// Engine: `emu` (the default: the compiled firmware of every board of the keyboard on
+    /// emulated RP2040s, every key every sample, with each core's cycles and deadline
+    /// misses), or for quick looks on the host `fixed` (the fixed-point JIT: the firmware's
+    /// bits), `jit` (cranelift f64) or `interp` (the f64 reference interpreter), which
+    /// simulate only the played keys and check no budget.
+    #[arg(long, value_enum, default_value = "emu")]
     pub engine: PlayEngine,
     /// Board of `--engine emu`: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`)
     /// or a board file.
@@ -98,6 +101,11 @@ pub struct PlayArgs {
     /// Trace until this time, s [default: the end].
     #[arg(long)]
     pub trace_to: Option<f64>,
+    /// With `--engine emu`: build the firmware without the quiescent-key guard, so that
+    /// every key's update runs every sample (the same strikes; to measure what the guard
+    /// saves).
+    #[arg(long)]
+    pub no_quiescent_guard: bool,
     /// Do not write the WAV rendering.
     #[arg(long)]
     pub no_wav: bool,
@@ -366,11 +374,15 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                 tactus_runtime::keyboard::board_keys(&layout, &l.display().to_string(), &keys)?;
             keys
         }
+        None if args.instrument.is_none() => {
+            let name = "grand88 (built in)";
+            let layout = tactus_runtime::keyboard::parse_layout(source::GRAND88_LAYOUT, name)?;
+            let keys = tactus_runtime::keyboard::assign(&layout, name, Path::new(""))?;
+            layout_boards = tactus_runtime::keyboard::board_keys(&layout, name, &keys)?;
+            keys
+        }
         None => {
-            let name = args
-                .instrument
-                .clone()
-                .unwrap_or_else(|| "grand_piano".to_string());
+            let name = args.instrument.clone().unwrap_or_default();
             (21u8..=108)
                 .map(|key| tactus_runtime::keyboard::KeyAssignment {
                     key,
@@ -616,6 +628,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         let end = jobs.iter().map(|j| j.first + j.n).max().unwrap_or(0);
         emu_samples = end;
         bar.set_length(end as u64 * all.len() as u64);
+        bar.set_style(music_style(all.len() as f64 * fs));
+        bar.set_message(format!("{} keys on their boards", all.len()));
         let trace = EmuTrace {
             keys: &traced,
             from_s: args.trace_from,
@@ -629,6 +643,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             trace,
             boards: layout_boards.clone(),
             emu: args.emu,
+            quiescent_guard: !args.no_quiescent_guard,
         };
         let (s, report, t) = emu_strikes(&all, &key_motions, &opts, &bar)?;
         strikes = s;
@@ -861,11 +876,12 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
                 let cores: Vec<String> = (0..b.max.len())
                     .map(|c| {
                         format!(
-                            "core {c}: {} keys, max {} cycles per sample ({:.1} %, static {}), headroom {}, deadline misses {}",
+                            "core {c}: {} keys, max {} cycles per sample ({:.1} %, static {}, mean {:.1} %), headroom {}, deadline misses {}",
                             b.core_keys[c],
                             b.max[c],
                             100.0 * b.max[c] as f64 / r.deadline as f64,
                             b.bound[c],
+                            100.0 * b.total[c] as f64 / (r.samples.max(1) * r.deadline) as f64,
                             r.deadline as i64 - b.max[c] as i64,
                             b.misses[c]
                         )
@@ -890,6 +906,34 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The progress bar of `--engine emu`, whose position counts key-samples
+/// (`key_samples_per_s` per second of music): music time done and in all, the real-time
+/// factor so far and the time left.
+fn music_style(key_samples_per_s: f64) -> ProgressStyle {
+    let k = key_samples_per_s.max(1.0);
+    ProgressStyle::with_template(
+        "{spinner} {msg} [{bar:30}] {music} of music, real-time factor {rtf}, eta {eta}",
+    )
+    .unwrap_or_else(|_| ProgressStyle::default_bar())
+    .with_key(
+        "music",
+        move |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+            let total = s.len().map_or(0.0, |l| l as f64 / k);
+            let _ = write!(w, "{:.1} s / {total:.1} s", s.pos() as f64 / k);
+        },
+    )
+    .with_key(
+        "rtf",
+        move |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+            let secs = s.elapsed().as_secs_f64();
+            let _ = match secs > 0.0 {
+                true => write!(w, "{:.2}", s.pos() as f64 / k / secs),
+                false => write!(w, "–"),
+            };
+        },
+    )
+}
+
 /// The most samples one `--engine emu` run may cover (2²⁶, 25 minutes at 44.1 kHz): a
 /// stray event hours into a MIDI file would otherwise start a run of hours.
 const MAX_EMU_SAMPLES: usize = 1 << 26;
@@ -903,6 +947,8 @@ struct EmuReport {
     boards: Vec<tactus_firmware::perform::BoardRun>,
     /// Samples per point of [`BoardRun::cycles`].
     decimation: usize,
+    /// Samples run.
+    samples: u64,
 }
 
 /// What `--engine emu` records per traced key ([`emu_strikes`]).
@@ -933,6 +979,8 @@ struct EmuOptions<'a> {
     boards: Option<Vec<Vec<u8>>>,
     /// The emulator's engine.
     emu: crate::budget_cmd::EmuEngine,
+    /// Whether the firmware guards quiescent keys.
+    quiescent_guard: bool,
 }
 
 /// Plays the keys through the firmware of every board of the keyboard
@@ -971,6 +1019,7 @@ fn emu_strikes(
             ..Default::default()
         },
         engine: opts.emu.into(),
+        quiescent_guard: opts.quiescent_guard,
     };
     let run = tactus_firmware::perform::play_boards(
         &programs,
@@ -1000,6 +1049,7 @@ fn emu_strikes(
         deadline: board.cycles_per_sample(),
         boards,
         decimation: run.decimation,
+        samples: opts.end as u64,
     };
     Ok((strikes, report, traces))
 }

@@ -37,6 +37,11 @@ pub const BUILTIN_INSTRUMENTS: &[(&str, &str)] = &[
     ),
 ];
 
+/// The default keyboard layout of `tactus play`: `instruments/layouts/grand88.toml` (the
+/// grand piano on A0…C8, hammer mass graded), built in so that the default works from any
+/// directory.
+pub const GRAND88_LAYOUT: &str = include_str!("../instruments/layouts/grand88.toml");
+
 /// A source text and the name to show in diagnostics.
 pub struct Source {
     /// File name or `builtin:NAME`.

@@ -216,6 +216,84 @@ fn build_rp2040_writes_object_header_and_listing() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("-o DIR"));
 }
 
+#[test]
+fn build_firmware_from_a_tactus_file_then_boot_it_in_the_emulator() {
+    // One command from a .tactus file to a UF2 per board, then the ELF booted from reset
+    // with every key on a stimulus.
+    let dir = temp_dir("cli-build-firmware");
+    let out = tactus()
+        .args([
+            "build",
+            "instruments/hammond.tactus",
+            "--keys",
+            "20",
+            "--target",
+            "rp2040",
+            "-o",
+        ])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("boards of rp2040"), "{stdout}");
+    let boards: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with("board-")
+        })
+        .collect();
+    assert!(
+        boards.len() >= 2,
+        "20 organ keys need more than one board: {boards:?}"
+    );
+    for b in &boards {
+        for f in ["firmware.elf", "firmware.uf2", "keys.json", "README.md"] {
+            assert!(b.join(f).exists(), "{} missing", b.join(f).display());
+        }
+        let uf2 = std::fs::read(b.join("firmware.uf2")).unwrap();
+        assert_eq!(&uf2[..8], b"UF2\nWQ]\x9e");
+        let readme = std::fs::read_to_string(b.join("README.md")).unwrap();
+        assert!(
+            readme.contains("BOOTSEL") && readme.contains("picotool load"),
+            "{readme}"
+        );
+    }
+    let first = dir.join("board-01");
+    let out = tactus()
+        .args(["emu", "run"])
+        .arg(first.join("firmware.elf"))
+        .args(["--stimulus", "mf-dip", "--seconds", "0.2"])
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("8820 samples of `mf-dip`"), "{stdout}");
+    assert_eq!(stdout.matches("misses 0").count(), 2, "{stdout}");
+    // A missing key map is an error naming it.
+    std::fs::remove_file(first.join("keys.json")).unwrap();
+    let out = tactus()
+        .args(["emu", "run"])
+        .arg(first.join("firmware.elf"))
+        .args(["--stimulus", "mf-dip"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("keys.json"));
+    // A keyboard for the C target is an error.
+    let out = tactus()
+        .args(["build", "hammond", "--keys", "4", "-o"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--target rp2040"));
+}
+
 /// Runs `tactus sim FILE --stimulus STIMULUS --out DIR --wav DIR/WAV EXTRA…`, checks it
 /// succeeds and names the WAV, and reads the WAV: (sample rate, samples).
 fn sim_wav(

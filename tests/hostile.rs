@@ -258,7 +258,11 @@ fn class_3_play_seconds_bounds_the_simulated_time() {
         1,
         "--seconds",
     );
-    expect(&["play", &f, "--out", &out], 1, "WAV rendering");
+    expect(
+        &["play", &f, "--engine", "jit", "--out", &out],
+        1,
+        "WAV rendering",
+    );
 }
 
 #[test]
@@ -380,14 +384,14 @@ fn class_8_corrupt_midi_and_csv_are_named() {
     // Repaired reads: a warning with what was lost.
     let many = write(&dir, "many.mid", midi(1, 65535, 480, note));
     expect(
-        &["play", &many, "--out", &out, "--no-wav"],
+        &["play", &many, "--engine", "jit", "--out", &out, "--no-wav"],
         0,
         "claims 65535 tracks, the file holds 1",
     );
     let full = midi(0, 1, 480, note);
     let cut = write(&dir, "cut.mid", &full[..full.len() - 5]);
     let err = expect(
-        &["play", &cut, "--out", &out, "--no-wav"],
+        &["play", &cut, "--engine", "jit", "--out", &out, "--no-wav"],
         0,
         "is truncated",
     );

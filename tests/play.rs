@@ -55,20 +55,121 @@ fn spearman(a: &[f64], b: &[f64]) -> f64 {
     cov / (va * vb).sqrt()
 }
 
+/// A shipped performance: `../shared/data/performances/NAME` beside the repository, or in
+/// the folder `TACTUS_PERFORMANCES` names. `None`, after saying SKIPPED loudly, when it is
+/// absent (the data may not be copied into the repository).
+fn performance(name: &str) -> Option<PathBuf> {
+    let dir = std::env::var_os("TACTUS_PERFORMANCES").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/performances"),
+        PathBuf::from,
+    );
+    let midi = dir.join(name);
+    if midi.exists() {
+        return Some(midi);
+    }
+    let why = format!(
+        "{} is absent (the shared data folder must sit beside the repository, or set \
+         TACTUS_PERFORMANCES)",
+        midi.display()
+    );
+    eprintln!("SKIPPED: {why}");
+    None
+}
+
+/// Checks the strikes of the first `seconds` of `midi` against its notes: every note-on
+/// exactly one strike on its key within 50 ms, no strike without a note, strike speed rising
+/// with MIDI velocity (Spearman ≥ 0.95); returns the rank correlation.
+fn check_one_strike_per_note(midi: &Path, rows: &[Row], seconds: f64) -> f64 {
+    let perf = read_midi(midi).unwrap();
+    let notes: Vec<_> = perf.notes.iter().filter(|n| n.on_s < seconds).collect();
+    assert!(notes.len() > 50, "{} notes", notes.len());
+    let mut vin = Vec::new();
+    let mut vout = Vec::new();
+    for n in &notes {
+        let hits: Vec<_> = rows
+            .iter()
+            .filter(|s| s.0 == n.key && (s.1 - n.on_s).abs() <= 0.050)
+            .collect();
+        assert_eq!(
+            hits.len(),
+            1,
+            "note {} at {:.3} s: {} strikes",
+            n.key,
+            n.on_s,
+            hits.len()
+        );
+        vin.push(n.velocity as f64);
+        vout.push(hits[0].2);
+    }
+    assert!(
+        rows.iter().all(|s| s.3.is_some()),
+        "a strike answers no note"
+    );
+    assert_eq!(rows.len(), notes.len());
+    let rho = spearman(&vin, &vout);
+    assert!(rho >= 0.95, "Spearman rank correlation {rho}");
+    rho
+}
+
+/// The main job in CI: the first 20 s of Maestro_1 through the firmware of every board of
+/// grand88 (`tactus play`'s defaults: `--engine emu`, the built-in grand88 layout), every key
+/// every sample. Every note-on gives exactly one strike on its key within 50 ms, strike
+/// speed rises with MIDI velocity (Spearman ≥ 0.95), no core of any board misses a
+/// deadline, and the strikes are bit for bit those of the fixed-point JIT (`--engine fixed`).
+#[test]
+fn maestro_1_first_20_s_on_every_board_of_grand88_bit_exact_without_misses() {
+    let Some(midi) = performance("Maestro_1.mid") else {
+        return;
+    };
+    let dir = temp_dir("play-maestro-emu");
+    let run = |engine: Option<&str>, out: &str| {
+        let mut c = tactus();
+        c.arg("play").arg(&midi);
+        if let Some(e) = engine {
+            c.args(["--engine", e]);
+        }
+        let o = c
+            .args(["--seconds", "20", "--no-wav", "--out"])
+            .arg(dir.join(out))
+            .output()
+            .unwrap();
+        assert_ok(&o);
+        o
+    };
+    let emu = run(None, "emu");
+    let fixed = run(Some("fixed"), "fixed");
+    let read =
+        |d: &str| std::fs::read_to_string(dir.join(d).join("Maestro_1-strikes.csv")).unwrap();
+    assert_eq!(
+        read("emu"),
+        read("fixed"),
+        "the firmware and the fixed-point JIT disagree"
+    );
+    let rows = strikes(&dir.join("emu/Maestro_1-strikes.csv"));
+    let rho = check_one_strike_per_note(&midi, &rows, 20.0);
+    let stdout = String::from_utf8_lossy(&emu.stdout);
+    let boards: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.trim_start().starts_with("board "))
+        .collect();
+    assert_eq!(boards.len(), 44, "grand88's planned boards: {stdout}");
+    for l in &boards {
+        assert_eq!(l.matches("deadline misses 0").count(), 2, "{l}");
+    }
+    eprintln!(
+        "Maestro_1, 20 s, every board of grand88: {} strikes, Spearman {rho:.4}",
+        rows.len()
+    );
+}
+
 #[test]
 fn maestro_1_first_20_s_one_strike_per_note() {
-    let midi =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/performances/Maestro_1.mid");
-    if !midi.exists() {
-        eprintln!(
-            "SKIPPED: {} is absent (the shared data folder must sit beside the repository)",
-            midi.display()
-        );
+    let Some(midi) = performance("Maestro_1.mid") else {
         return;
-    }
+    };
     let dir = temp_dir("play-maestro");
     let out = tactus()
-        .arg("play")
+        .args(["play", "--engine", "jit"])
         .arg(&midi)
         .args(["--seconds", "20", "--out"])
         .arg(&dir)
@@ -387,7 +488,11 @@ fn bad_midi_is_a_clear_error() {
     let dir = temp_dir("play-bad");
     let f = dir.join("empty.mid");
     std::fs::write(&f, b"").unwrap();
-    let out = tactus().arg("play").arg(&f).output().unwrap();
+    let out = tactus()
+        .args(["play", "--engine", "jit"])
+        .arg(&f)
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -401,7 +506,7 @@ fn layouts_grade_keys_and_report_notes_outside() {
     let dir = temp_dir("play-layout");
     let layout = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("instruments/layouts/grand88.toml");
     let out = tactus()
-        .args(["play", "--seconds", "3", "--layout"])
+        .args(["play", "--engine", "jit", "--seconds", "3", "--layout"])
         .arg(&layout)
         .arg("--out")
         .arg(&dir)
@@ -421,7 +526,7 @@ fn layouts_grade_keys_and_report_notes_outside() {
     )
     .unwrap();
     let out = tactus()
-        .args(["play", "--seconds", "3", "--layout"])
+        .args(["play", "--engine", "jit", "--seconds", "3", "--layout"])
         .arg(&small)
         .arg("--out")
         .arg(&dir)
@@ -440,7 +545,7 @@ fn layouts_grade_keys_and_report_notes_outside() {
     )
     .unwrap();
     let out = tactus()
-        .args(["play", "--layout"])
+        .args(["play", "--engine", "jit", "--layout"])
         .arg(&small)
         .output()
         .unwrap();
@@ -530,7 +635,7 @@ fn malformed_and_empty_midi_files_are_clear_errors_naming_the_file() {
         (&missing, "cannot read"),
     ] {
         let out = tactus()
-            .arg("play")
+            .args(["play", "--engine", "jit"])
             .arg(f)
             .arg("--out")
             .arg(&dir)
@@ -557,7 +662,7 @@ fn notes_outside_the_layout_are_reported_counted_and_skipped() {
         &[],
     );
     let out = tactus()
-        .arg("play")
+        .args(["play", "--engine", "jit"])
         .arg(&f)
         .args(["--no-wav", "--out"])
         .arg(&dir)
@@ -606,7 +711,7 @@ fn the_wav_is_normalised_follows_dynamics_and_the_pedal_holds_the_sound() {
         &[(2.0, true), (3.5, false)],
     );
     let out = tactus()
-        .arg("play")
+        .args(["play", "--engine", "jit"])
         .arg(&f)
         .arg("--out")
         .arg(&dir)
@@ -732,6 +837,8 @@ fn force_player_plays_the_demo_with_traces_and_plots() {
     let out = tactus()
         .args([
             "play",
+            "--engine",
+            "jit",
             "--player",
             "force",
             "--seconds",
@@ -785,18 +892,12 @@ fn force_player_plays_the_demo_with_traces_and_plots() {
 
 #[test]
 fn maestro_1_first_20_s_with_the_force_player() {
-    let midi =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/performances/Maestro_1.mid");
-    if !midi.exists() {
-        eprintln!(
-            "SKIPPED: {} is absent (the shared data folder must sit beside the repository)",
-            midi.display()
-        );
+    let Some(midi) = performance("Maestro_1.mid") else {
         return;
-    }
+    };
     let dir = temp_dir("play-maestro-force");
     let out = tactus()
-        .arg("play")
+        .args(["play", "--engine", "jit"])
         .arg(&midi)
         .args(["--seconds", "20", "--player", "force", "--no-wav", "--out"])
         .arg(&dir)

@@ -1,29 +1,20 @@
-//! The block engine: pre-decoded Thumb basic blocks with their cycle bounds summed once,
-//! run by a threaded executor that checks the run's deadline once per block.
+//! The block engine: Thumb code compiled to native code by region ([`crate::jit`]), with
+//! pre-decoded basic blocks for what is cold or does not fit before a deadline.
 //!
-//! **What it is, and what it is not.** Issue 18 asks for basic blocks compiled to native
-//! code with cranelift. This module is an intermediate step, not that: a block is a run of
-//! pre-decoded instructions (`BlockOp`, each the same `Op` the per-instruction fast
-//! path executes) from its first address to the first instruction that may write the PC
-//! (a branch, BL, BX/BLX, `POP {…, pc}`, ADD/MOV to PC, a trap) or [`MAX_BLOCK`]
-//! instructions, decoded once and executed by `Core::execute_op`, the one definition of
-//! each instruction's semantics that the interpreter shares (so there is no second copy of
-//! any flag or condition to keep in step). It saves the work *around* each instruction —
-//! the decode-cache lookup and the deadline compare, done once per block instead of once
-//! per instruction — and nothing else: every instruction is still dispatched through the
-//! `Op` match, writes PC and adds its cycles to the counter. **Measured, it is slower than
-//! the interpreter** (callgrind, BENCHMARKS.md "Emulator: the block engine"): 43.4 against
-//! 34.8 host instructions per emulated cycle on the speed loop, because the per-block
-//! bookkeeping (lookup, bound, cursor) costs about what the per-instruction lookups it
-//! replaces did, and with both cores running (lock-step, below) a core's turn is one or
-//! two instructions, so the per-turn cost dominates (106 against 39). So it is not the
-//! default ([`crate::board::Engine`]). What it does provide, tested exact against the
-//! interpreter, is the frame a compiled block would drop into: block discovery and
-//! invalidation, the static cycle bound from the timing table, mid-block exits to the
-//! general path, deadline and lock-step stops inside a block with a resume cursor, and the
-//! sleeper replay; replacing the `execute_op` loop of `run` by a call to a block's
-//! native code (registers and flags in the `Core`, memory through the same `mem_fast`)
-//! is the remaining step.
+//! **Two layers.** A *region* ([`crate::jit`]) is the code from an address on, compiled
+//! with cranelift once its entry has been reached [`Jit::threshold`] times: straight-line
+//! code, forward branches and loops inside it are native, with the guest registers in host
+//! registers; it runs whenever the core's cycle plus the region's static bound fits before
+//! the run's deadline. Otherwise, or at an instruction the region leaves to the
+//! interpreter, a *block* runs: a run of pre-decoded instructions (`BlockOp`, each the
+//! same `Op` the per-instruction fast path executes) from its first address to the first
+//! instruction that may write the PC (a branch, BL, BX/BLX, `POP {…, pc}`, ADD/MOV to PC,
+//! a trap) or [`MAX_BLOCK`] instructions, decoded once and executed by
+//! `Core::execute_op`, the interpreter's executor. Both layers are checked against the
+//! interpreter instruction by instruction (`tests/block_jit.rs`) and on whole programs
+//! (`tests/block_engine.rs`, the firmware images in `firmware/tests/image.rs`).
+//! Measured (BENCHMARKS.md, "the block compiler"): 12.0 against 34.5 host instructions
+//! per emulated cycle on the speed loop, 5.8 against 17.8 on the key-update workload.
 //!
 //! **Cycles.** Each instruction's cost comes from the one timing table
 //! ([`crate::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block
@@ -50,23 +41,39 @@
 //! **Two cores.** The interpreter runs the cores in lock-step: the core whose next
 //! instruction starts earlier goes first (core 0 on a tie), which orders every shared-state
 //! access — SRAM data and bank arbitration, SIO, the timer, interrupt lines — in global
-//! cycle order. The block engine keeps that order exactly: a core runs its block only
-//! while it keeps the turn (its cycle below the other core's, or equal for core 0) and
-//! stops mid-block at the first instruction boundary where it loses it, resuming there
-//! (a per-core cursor) on its next turn. Running *ahead* of the other core would be exact
-//! only for a stretch in which this core provably touches nothing the other core can
-//! observe or contend for, *and* the other core provably does nothing this core can
-//! observe (an SIO write or a FIFO push that raises this core's interrupt, a store to data
-//! this core loads, a claim on a bank this core uses in the same cycle) — the bank arbiter
-//! keeps only each core's last claim, so even two cores on disjoint banks would need the
-//! other core's future, which is not known before it runs. We found no cheap proof of the
-//! second half, so the engine does not run ahead: with both cores running it is lock-step,
-//! and its gain there is only the saved cache lookups. With one core asleep and nothing able
-//! to wake it, the sleeper's turns only move its cycle counter (see
-//! [`crate::board`]); the running core then runs whole blocks up to the sleeper's wake
-//! check, and the sleeper's turns are replayed after each instruction by the caller's
-//! `after` hook, which is exactly the interleaving the interpreter performs.
-
+//! cycle order. The block engine keeps that order exactly, by running one core at a time
+//! only where the other core's turns are known in advance:
+//!
+//! * the other core is parked or locked up: it takes no turns;
+//! * the other core sleeps and nothing can wake it before its *wake check* (the next timer
+//!   event, its SysTick, the limit; see [`crate::board`]): its turns only move its cycle
+//!   counter, to the running core's cycle + 1, capped at the wake check. The running core
+//!   runs up to the cycle at which such a turn would find the sleeper at its wake check,
+//!   and the turns are replayed after each pre-decoded instruction ([`Sleeper::after`]), or
+//!   in closed form after native code ([`Sleeper::after_native`]), which needs only the
+//!   end cycle and that of the last instruction of two cycles or more;
+//! * both cores run: each turn lasts an instruction or two, no region fits in it, and the
+//!   board runs the interpreter's lock-step loop (faster there than blocks).
+//!
+//! *Running ahead.* Letting core A run a window `[t, t')` of its code before core B runs
+//! its own `[t, t')` is exact when nothing either core does in the window depends on the
+//! other's: A's loads read no word B stores in the window (and vice versa), no access of
+//! A claims a bank in the same cycle as an access of B (the arbiter's winner depends on
+//! which instruction started first), and B raises no interrupt or event A could take in
+//! the window (an SIO FIFO push, a timer alarm, SEV), and vice versa. The firmware image
+//! makes the first two likely — each core's code, data and stack are in its own bank
+//! (through the non-striped alias) and its scratch bank — but not certain: the sensor and
+//! DAC windows are striped over all four banks, so a core's window accesses contend with
+//! the other core's private bank, and the timer and SIO are shared. A static proof is
+//! therefore not available, and an exact run-ahead needs the check at run time: A runs a
+//! window *confined* to its own banks (native code exits before any other access),
+//! recording the (bank, cycle) of its claims; B then runs the same window, and each of its
+//! accesses to A's banks at a cycle A claimed, each access to A's words, and anything that
+//! could raise A's interrupt lines or stop the run rolls A back to the window's start
+//! (registers and a journal of its stores) and falls back to lock-step for that window.
+//! That is not built: with both cores running the engine is lock-step, and the issue's
+//! two-core speed target is not met (BENCHMARKS.md).
+//!
 use crate::bus::{sram_location, Bus, System};
 use crate::core::Core;
 use crate::decode::{decode, is_32bit, Instr};

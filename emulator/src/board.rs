@@ -31,11 +31,12 @@
 //! profiled with [`Board::profile_handler`] are entered and left only by exception entry
 //! and return, in the general path, so they cost the loop no such check.
 //! So the order of all shared-state accesses, and every result, is the same as stepping
-//! one instruction at a time. [`Config::engine`] selects what runs that fast path: the
-//! interpreter above ([`Engine::Interp`], the default) or the block engine
-//! ([`Engine::Block`], module [`crate::block`]: pre-decoded basic blocks, the same
-//! instruction semantics and the same interleaving, exact but not yet faster). [`Board::step`] is the same machine one instruction at a
-//! time, recording [`Core::last`] for traces.
+//! one instruction at a time. [`Config::engine`] selects what runs that fast path for one
+//! core: the interpreter above ([`Engine::Interp`]) or the block engine ([`Engine::Block`],
+//! the default; module [`crate::block`]: code regions compiled to native code with
+//! cranelift, pre-decoded basic blocks where they do not fit; the same results).
+//! [`Board::step`] is the same machine one instruction at a time, recording
+//! [`Core::last`] for traces.
 //!
 //! **Sensors and DAC.** Firmware sees the key sensors and the motor drivers the way a DMA from
 //! SPI converters would leave them: word arrays in SRAM at [`SENSOR_BASE`] and [`DAC_BASE`],

@@ -54,7 +54,9 @@ use crate::decode::{decode, is_32bit, AluOp, Instr, MemOp};
 use crate::exec::{branch_target, literal_address};
 use crate::timing;
 use cranelift_codegen::ir::condcodes::IntCC;
-use cranelift_codegen::ir::{types, AbiParam, Block, BlockArg, InstBuilder, MemFlagsData, Signature, Value};
+use cranelift_codegen::ir::{
+    types, AbiParam, Block, BlockArg, InstBuilder, MemFlagsData, Signature, Value,
+};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use cranelift_jit::{JITBuilder, JITModule};
@@ -401,9 +403,7 @@ impl Jit {
         sig.params.push(AbiParam::new(types::I64));
         sig.returns.push(AbiParam::new(types::I32));
         let name = format!("region{}", self.count);
-        let id = module
-            .declare_function(&name, Linkage::Local, &sig)
-            .ok()?;
+        let id = module.declare_function(&name, Linkage::Local, &sig).ok()?;
         let mut ctx = module.make_context();
         ctx.func.signature = sig;
         let b = FunctionBuilder::new(&mut ctx.func, &mut self.fctx);
@@ -416,7 +416,10 @@ impl Jit {
         // SAFETY: `code` is the function just defined with the signature above (two
         // pointers and a u64 in, a u32 out, the host's C calling convention), which is
         // `NativeFn`.
-        Some((unsafe { std::mem::transmute::<*const u8, NativeFn>(code) }, bound))
+        Some((
+            unsafe { std::mem::transmute::<*const u8, NativeFn>(code) },
+            bound,
+        ))
     }
 }
 
@@ -494,7 +497,8 @@ impl<'a> Translator<'a> {
     /// Translates `instrs` (a region from [`scan`], not empty) into `b`; returns the
     /// builder and the bound from the entry.
     fn run(mut b: FunctionBuilder<'a>, instrs: &[RegionInstr]) -> (FunctionBuilder<'a>, u64) {
-        let index: HashMap<u32, usize> = instrs.iter().enumerate().map(|(i, x)| (x.pc, i)).collect();
+        let index: HashMap<u32, usize> =
+            instrs.iter().enumerate().map(|(i, x)| (x.pc, i)).collect();
         let targets: Vec<Option<usize>> = instrs
             .iter()
             .map(|i| branch_of(i).and_then(|t| index.get(&t).copied()))
@@ -506,7 +510,8 @@ impl<'a> Translator<'a> {
         let params = b.block_params(entry).to_vec();
         let (core, ctx, limit) = (params[0], params[1], params[2]);
         let mf = MemFlagsData::trusted();
-        let ptr = |b: &mut FunctionBuilder, off: usize| b.ins().load(types::I64, mf, ctx, off as i32);
+        let ptr =
+            |b: &mut FunctionBuilder, off: usize| b.ins().load(types::I64, mf, ctx, off as i32);
         let sram = ptr(&mut b, offset_of!(Ctx, sram));
         let flash = ptr(&mut b, offset_of!(Ctx, flash));
         let code_pages = ptr(&mut b, offset_of!(Ctx, code_pages));
@@ -537,7 +542,9 @@ impl<'a> Translator<'a> {
             let v = b.ins().load(types::I8, mf, core, at as i32);
             b.def_var(*f, v);
         }
-        let v = b.ins().load(types::I64, mf, core, offset_of!(Core, cycle) as i32);
+        let v = b
+            .ins()
+            .load(types::I64, mf, core, offset_of!(Core, cycle) as i32);
         b.def_var(cyc, v);
         let v = b.ins().load(types::I64, mf, stalls_ptr, 0);
         b.def_var(stalls, v);
@@ -616,13 +623,11 @@ impl<'a> Translator<'a> {
             t.b.ins().store(mf, v, core, at as i32);
         }
         let v = t.b.use_var(cyc);
-        t.b.ins()
-            .store(mf, v, core, offset_of!(Core, cycle) as i32);
+        t.b.ins().store(mf, v, core, offset_of!(Core, cycle) as i32);
         let v = t.b.use_var(stalls);
         t.b.ins().store(mf, v, stalls_ptr, 0);
         let v = t.b.use_var(retired);
-        t.b.ins()
-            .store(mf, v, ctx, offset_of!(Ctx, retired) as i32);
+        t.b.ins().store(mf, v, ctx, offset_of!(Ctx, retired) as i32);
         let v = t.b.use_var(q);
         t.b.ins().store(mf, v, ctx, offset_of!(Ctx, q) as i32);
         let why = t.b.use_var(exit_why);
@@ -784,10 +789,10 @@ impl<'a> Translator<'a> {
                     // limit when `cycle + bound <= limit`.
                     let c = self.b.use_var(self.cyc);
                     let end = self.b.ins().iadd_imm_s(c, bound as i64);
-                    let fits =
-                        self.b
-                            .ins()
-                            .icmp(IntCC::UnsignedLessThanOrEqual, end, self.limit);
+                    let fits = self
+                        .b
+                        .ins()
+                        .icmp(IntCC::UnsignedLessThanOrEqual, end, self.limit);
                     let stop = self.b.create_block();
                     self.b.ins().brif(fits, label, &[], stop, &[]);
                     self.b.switch_to_block(stop);
@@ -965,10 +970,12 @@ impl<'a> Translator<'a> {
                 let odd = self.b.ins().band_imm_u(target, 1);
                 let even = self.b.ins().icmp_imm_u(IntCC::Equal, odd, 0);
                 let bad = if let Bx { .. } = ins.instr {
-                    let ipsr = self
-                        .b
-                        .ins()
-                        .load(types::I32, self.mf, self.core, offset_of!(Core, ipsr) as i32);
+                    let ipsr = self.b.ins().load(
+                        types::I32,
+                        self.mf,
+                        self.core,
+                        offset_of!(Core, ipsr) as i32,
+                    );
                     let handler = self.b.ins().icmp_imm_u(IntCC::NotEqual, ipsr, 0);
                     let top = self.b.ins().ushr_imm_u(target, 28);
                     let exc = self.b.ins().icmp_imm_u(IntCC::Equal, top, 0xf);
@@ -1207,7 +1214,10 @@ impl<'a> Translator<'a> {
     /// The SRAM arbiter for the access to offset `off` at data cycle `at`: the wait (0 or
     /// 1, i64) after claiming the bank (`System::arbitrate_fast`).
     fn arbitrate(&mut self, off: Value, at: Value) -> Value {
-        let striped = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, off, 0x4_0000);
+        let striped = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, off, 0x4_0000);
         let b0 = self.b.ins().ushr_imm_u(off, 2);
         let b0 = self.b.ins().band_imm_u(b0, 3);
         let b1 = self.b.ins().ushr_imm_u(off, 12);
@@ -1246,14 +1256,20 @@ impl<'a> Translator<'a> {
         self.b.append_block_param(join, types::I64);
         let alias = self.b.create_block();
         let off = self.b.ins().iadd_imm_s(addr, -(SRAM_BASE as i64));
-        let ok = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, off, SRAM_SIZE as i64);
+        let ok = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, off, SRAM_SIZE as i64);
         self.b
             .ins()
             .brif(ok, in_sram, &[BlockArg::Value(off)], alias, &[]);
         // The non-striped alias of SRAM0-3.
         self.b.switch_to_block(alias);
         let al = self.b.ins().iadd_imm_s(addr, -(SRAM_ALIAS_BASE as i64));
-        let ok = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, al, 0x4_0000);
+        let ok = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, al, 0x4_0000);
         let bank = self.b.ins().ushr_imm_u(al, 16);
         let word = self.b.ins().band_imm_u(al, 0xffff);
         let word = self.b.ins().ushr_imm_u(word, 2);
@@ -1272,7 +1288,10 @@ impl<'a> Translator<'a> {
             self.leave(p, Exit::General);
         } else {
             let f = self.b.ins().iadd_imm_s(addr, -(FLASH_BASE as i64));
-            let ok = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, f, FLASH_SIZE as i64);
+            let ok = self
+                .b
+                .ins()
+                .icmp_imm_u(IntCC::UnsignedLessThan, f, FLASH_SIZE as i64);
             let in_flash = self.b.create_block();
             let out = self.b.create_block();
             self.b.ins().brif(ok, in_flash, &[], out, &[]);
@@ -1284,7 +1303,9 @@ impl<'a> Translator<'a> {
             let at = self.b.ins().iadd(self.flash, f64_);
             let v = self.load_sized(op, at);
             let zero = self.b.ins().iconst(types::I64, 0);
-            self.b.ins().jump(join, &[BlockArg::Value(v), BlockArg::Value(zero)]);
+            self.b
+                .ins()
+                .jump(join, &[BlockArg::Value(v), BlockArg::Value(zero)]);
         }
         // SRAM: the arbiter, then the data.
         self.b.switch_to_block(in_sram);
@@ -1304,10 +1325,14 @@ impl<'a> Translator<'a> {
             let page = self.b.ins().ushr_imm_u(off64, 8);
             let pp = self.b.ins().iadd(self.code_pages, page);
             let code = self.b.ins().uload8(types::I32, self.mf, pp, 0);
-            self.b.ins().jump(join, &[BlockArg::Value(code), BlockArg::Value(wait)]);
+            self.b
+                .ins()
+                .jump(join, &[BlockArg::Value(code), BlockArg::Value(wait)]);
         } else {
             let v = self.load_sized(op, p);
-            self.b.ins().jump(join, &[BlockArg::Value(v), BlockArg::Value(wait)]);
+            self.b
+                .ins()
+                .jump(join, &[BlockArg::Value(v), BlockArg::Value(wait)]);
         }
         self.b.switch_to_block(join);
         let v = self.b.block_params(join)[0];
@@ -1363,10 +1388,11 @@ impl<'a> Translator<'a> {
         self.flush();
         let off = self.b.ins().iadd_imm_s(start, -(SRAM_BASE as i64));
         let low = self.b.ins().band_imm_u(start, 3);
-        let too_far = self
-            .b
-            .ins()
-            .icmp_imm_u(IntCC::UnsignedGreaterThan, off, (SRAM_SIZE - 4 * count) as i64);
+        let too_far = self.b.ins().icmp_imm_u(
+            IntCC::UnsignedGreaterThan,
+            off,
+            (SRAM_SIZE - 4 * count) as i64,
+        );
         let too_far = too_far.into_i32(&mut self.b);
         let bad = self.b.ins().bor(low, too_far);
         self.general_if(bad, pc);
@@ -1379,10 +1405,12 @@ impl<'a> Translator<'a> {
                 .load(types::I32, self.mf, base_p, 4 * (count as i32 - 1));
             let odd = self.b.ins().band_imm_u(t, 1);
             let even = self.b.ins().icmp_imm_u(IntCC::Equal, odd, 0);
-            let ipsr = self
-                .b
-                .ins()
-                .load(types::I32, self.mf, self.core, offset_of!(Core, ipsr) as i32);
+            let ipsr = self.b.ins().load(
+                types::I32,
+                self.mf,
+                self.core,
+                offset_of!(Core, ipsr) as i32,
+            );
             let handler = self.b.ins().icmp_imm_u(IntCC::NotEqual, ipsr, 0);
             let top = self.b.ins().ushr_imm_u(t, 28);
             let exc = self.b.ins().icmp_imm_u(IntCC::Equal, top, 0xf);
@@ -1403,7 +1431,9 @@ impl<'a> Translator<'a> {
             at = self.b.ins().iadd(at, step);
             match values {
                 Some(vs) => {
-                    self.b.ins().store(self.mf, vs[k as usize], base_p, 4 * k as i32);
+                    self.b
+                        .ins()
+                        .store(self.mf, vs[k as usize], base_p, 4 * k as i32);
                     let o64 = self.b.ins().uextend(types::I64, o);
                     let page = self.b.ins().ushr_imm_u(o64, 8);
                     let pp = self.b.ins().iadd(self.code_pages, page);

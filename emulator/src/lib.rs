@@ -6,8 +6,9 @@
 //! [`bus::Bus`] trait, [`bus::System`] is the RP2040's memory map (striped SRAM banks with
 //! contention, [`sio`], [`timer`]), and [`board::Board`] runs two cores in lock-step and
 //! offers the host API: load an ELF ([`elf`]), run N cycles, read and write memory, feed
-//! sensors, read the DAC, and count cycles per function. [`block`] is an alternative
-//! engine for the board's fast path (pre-decoded basic blocks, [`board::Engine`]).
+//! sensors, read the DAC, and count cycles per function. [`block`] is the default
+//! engine of the board's fast path: Thumb regions compiled to native code with cranelift
+//! (module `jit`), pre-decoded basic blocks otherwise ([`board::Engine`]).
 #![deny(missing_docs)]
 
 pub mod block;
@@ -19,8 +20,8 @@ pub mod decode;
 pub mod elf;
 pub mod encode;
 pub mod exec;
-mod jit;
 mod fast;
+mod jit;
 pub mod nvic;
 pub mod schedule;
 pub mod sio;

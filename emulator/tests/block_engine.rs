@@ -271,8 +271,12 @@ fn compare(seed: u64, case: Case, cycles: u64) -> (u64, u32) {
         mismatches += 1;
     }
     assert_eq!(interp.blocks_decoded(), 0);
-    assert!(block.blocks_decoded() > 0, "the block engine never ran");
-    assert!(block.regions_compiled() > 0, "no region was compiled");
+    // (With both cores running the block engine leaves the lock-step turns to the
+    // interpreter; it runs while one core sleeps or is parked.)
+    if case.cores == 1 || case.sleeper {
+        assert!(block.blocks_decoded() > 0, "the block engine never ran");
+        assert!(block.regions_compiled() > 0, "no region was compiled");
+    }
     let instructions = block.cores.iter().map(|c| c.instructions).sum();
     (instructions, mismatches)
 }

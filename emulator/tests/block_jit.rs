@@ -35,7 +35,10 @@ fn instruction(rng: &mut Rng) -> Vec<u16> {
     let h = rng.next() as u16;
     match rng.below(8) {
         // BL with a small offset
-        0 => vec![0xf000 | (rng.below(8) as u16), 0xf800 | (rng.below(0x40) as u16)],
+        0 => vec![
+            0xf000 | (rng.below(8) as u16),
+            0xf800 | (rng.below(0x40) as u16),
+        ],
         // B<cond> and B with short offsets
         1 => vec![0xd000 | (rng.below(14) << 8) | (h & 0x0f)],
         2 => vec![0xe000 | (h & 0x0f)],
@@ -104,7 +107,12 @@ fn every_translated_instruction_matches_the_interpreter() {
             let c = &mut b.cores[0];
             c.r[..13].copy_from_slice(&regs[..13]);
             c.r[14] = regs[14];
-            (c.n, c.z, c.c, c.v) = (flags & 8 != 0, flags & 4 != 0, flags & 2 != 0, flags & 1 != 0);
+            (c.n, c.z, c.c, c.v) = (
+                flags & 8 != 0,
+                flags & 4 != 0,
+                flags & 2 != 0,
+                flags & 1 != 0,
+            );
             let stop = b.run_until(now + 40);
             out.push((stop, state(b)));
         }

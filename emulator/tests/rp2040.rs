@@ -223,7 +223,7 @@ fn core1_launch_protocol_echoes_and_starts() {
     let bytes: Vec<u8> = code1.iter().flat_map(|h| h.to_le_bytes()).collect();
     b.write_bytes(0x2000_2000, &bytes).unwrap();
     // Word by word, as pico-sdk's multicore_launch_core1_raw: each answered before the next.
-    let mut exchange = |b: &mut Board, w: u32| {
+    let exchange = |b: &mut Board, w: u32| {
         b.system.sio.fifo_push(0, w);
         let stop = b.run_for(10);
         (stop, b.system.sio.fifo_pop(0))

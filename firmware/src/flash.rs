@@ -395,17 +395,18 @@ fn addr(s: &str, what: &str) -> Result<u32, String> {
 
 /// Boots firmware `elf` from reset on an emulated RP2040 at the key map's clock (the boot
 /// ROM enters it at its entry point; it launches core 1 itself) and runs `samples` samples:
-/// before each tick, key *k*'s sensor words get `sensors[k][n]` (one word per sensor of the
-/// key; a key with fewer given words keeps the rest at 0). Returns per core the handler's
-/// completed samples, worst and mean cycles, and misses.
+/// before tick *n*, key *k*'s first sensor word gets `sensors[k][n mod len]` (a stimulus,
+/// repeated; its other sensor words stay 0; an empty list leaves the key at 0). Returns per
+/// core the handler's completed samples, worst and mean cycles, and misses.
 ///
 /// Errors: a message for an ELF the loader rejects, a key map that does not match it (a
-/// missing or bad address), more than [`MAX_RUN_SAMPLES`] samples, sensor lists that do
-/// not match the keys, or firmware that faults or does not start.
+/// missing or bad address, more than [`tactus_emulator::MAX_KEYS`] keys or 2 cores), more
+/// than [`MAX_RUN_SAMPLES`] samples, sensor lists that do not match the keys, or firmware
+/// that faults or does not start.
 pub fn run_elf(
     elf: &[u8],
     map: &KeyMap,
-    sensors: &[Vec<Vec<i32>>],
+    sensors: &[&[i32]],
     samples: usize,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<ElfRun, String> {
@@ -415,6 +416,14 @@ pub fn run_elf(
     if samples > MAX_RUN_SAMPLES {
         return Err(format!(
             "{samples} samples: at most {MAX_RUN_SAMPLES} (one emulated minute)"
+        ));
+    }
+    if map.keys.len() > tactus_emulator::MAX_KEYS || map.cores.len() > 2 {
+        return Err(format!(
+            "key map: {} keys on {} cores; a board has at most {} keys and 2 cores",
+            map.keys.len(),
+            map.cores.len(),
+            tactus_emulator::MAX_KEYS
         ));
     }
     if sensors.len() != map.keys.len() {
@@ -477,12 +486,9 @@ pub fn run_elf(
     let mut totals = vec![(0u64, 0u64, 0u64); cores.len()];
     for n in 0..samples {
         for (k, w) in words.iter().enumerate() {
-            for (j, &a) in w.iter().enumerate() {
-                let v = sensors[k]
-                    .get(n)
-                    .and_then(|s| s.get(j))
-                    .copied()
-                    .unwrap_or(0);
+            let s = sensors[k];
+            let v = if s.is_empty() { 0 } else { s[n % s.len()] };
+            if let Some(&a) = w.first() {
                 board
                     .write_data(a, &v.to_le_bytes())
                     .map_err(|e| e.to_string())?;

@@ -71,6 +71,9 @@ pub struct PerformOptions {
     pub limiter: LimiterConfig,
     /// The emulator's engine (the same cycles either way).
     pub engine: tactus_emulator::Engine,
+    /// Whether the images guard quiescent keys ([`Program::quiescent_guard`]: the same
+    /// outputs either way; fewer cycles and a faster emulation with it).
+    pub quiescent_guard: bool,
 }
 
 /// One board's run.
@@ -82,6 +85,9 @@ pub struct BoardRun {
     pub core_keys: Vec<usize>,
     /// The largest handler per core, cycles (exception entry to return).
     pub max: Vec<u64>,
+    /// All handler cycles per core over the run (their mean per sample, over the cycles
+    /// of a sample period, is the core's mean utilisation).
+    pub total: Vec<u64>,
     /// Deadline misses the firmware counted, per core.
     pub misses: Vec<u32>,
     /// The static bound of each core's handler.
@@ -105,8 +111,7 @@ pub struct KeyboardRun {
 
 /// Plays `motions` on the keyboard whose keys (ascending MIDI numbers) run `programs`
 /// (`key_programs[i]` is key `keys[i]`'s program): plans or takes the boards, builds each
-/// board's image and runs it for `opts.end` samples, the boards on as many host threads as
-/// the machine has cores. `progress` is called with key-samples done since its last call.
+/// board's image and runs it for `opts.end` samples, the boards in parallel (rayon). `progress` is called with key-samples done since its last call.
 ///
 /// Errors: a message naming the board when its image cannot be built or its run fails.
 pub fn play_boards(
@@ -119,6 +124,15 @@ pub fn play_boards(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<KeyboardRun, String> {
     let lim = &opts.limiter;
+    let guarded: Vec<Program> = programs
+        .iter()
+        .map(|p| {
+            let mut p = p.clone();
+            p.quiescent_guard = opts.quiescent_guard;
+            p
+        })
+        .collect();
+    let programs = &guarded[..];
     let costs = ProgramCosts::new(programs, board, lim).map_err(|e| e.to_string())?;
     let keys: Vec<PlanKey> = keys
         .iter()
@@ -134,47 +148,31 @@ pub fn play_boards(
             .collect(),
     };
     let decimation = opts.end.div_ceil(MAX_POINTS).max(1);
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(lists.len())
-        .max(1);
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Result<(usize, BoardRun), String>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                scope.spawn(|| {
-                    let mut out = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(list) = lists.get(i) else { break };
-                        let bkeys: Vec<PlanKey> = keys
-                            .iter()
-                            .filter(|k| list.contains(&k.key))
-                            .copied()
-                            .collect();
-                        let run = run_board(
-                            programs, &costs, &bkeys, board, motions, opts, progress, decimation,
-                        );
-                        out.push(run.map(|r| (i, r)).map_err(|e| {
-                            format!(
-                                "board {} ({}): {e}",
-                                i + 1,
-                                crate::verdict::key_ranges(list)
-                            )
-                        }));
-                    }
-                    out
-                })
+    // The boards share nothing: one rayon task each, on as many threads as the machine has
+    // cores.
+    use rayon::prelude::*;
+    let results: Vec<Result<(usize, BoardRun), String>> = lists
+        .par_iter()
+        .enumerate()
+        .map(|(i, list)| {
+            let bkeys: Vec<PlanKey> = keys
+                .iter()
+                .filter(|k| list.contains(&k.key))
+                .copied()
+                .collect();
+            run_board(
+                programs, &costs, &bkeys, board, motions, opts, progress, decimation,
+            )
+            .map(|r| (i, r))
+            .map_err(|e| {
+                format!(
+                    "board {} ({}): {e}",
+                    i + 1,
+                    crate::verdict::key_ranges(list)
+                )
             })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| vec![Err("a board's thread panicked".to_string())])
-            })
-            .collect()
-    });
+        })
+        .collect();
     let mut runs: Vec<(usize, BoardRun)> = results.into_iter().collect::<Result<_, _>>()?;
     runs.sort_by_key(|r| r.0);
     Ok(KeyboardRun {
@@ -209,6 +207,7 @@ fn run_board(
             .map(|c| core_of.iter().filter(|&&k| k == c).count())
             .collect(),
         max: vec![0; n_cores],
+        total: vec![0; n_cores],
         misses: vec![0; n_cores],
         bound: (0..n_cores)
             .map(|c| image.wcet(c).map_or(0, |w| w.bound()))
@@ -289,6 +288,7 @@ fn run_board(
         }
         for c in 0..n_cores {
             report.max[c] = report.max[c].max(out.core_cycles[c]);
+            report.total[c] += out.core_cycles[c];
             report.misses[c] = out.misses[c];
             block_max = block_max.max(out.core_cycles[c]);
         }

@@ -547,7 +547,10 @@ fn bad_keys_and_boards_are_errors() {
 #[test]
 fn handler_overhead_per_core_and_per_key_measured_and_static() {
     // Two hammond keys on core 0, none on core 1 (its handler is the bare per-core cost).
-    let programs = vec![instrument("hammond", &[])];
+    // Without the quiescent guard: every sample calls both updates, and the glue measured
+    // is the issue-15 glue alone (the guard's cost: `quiescent_guard_*`).
+    let mut programs = vec![instrument("hammond", &[])];
+    programs[0].quiescent_guard = false;
     let keys: Vec<KeySpec> = (0..2)
         .map(|i| KeySpec {
             slot: 10 + i,
@@ -1033,4 +1036,87 @@ fn the_plucked_string_runs_as_a_pen_at_44_1_khz_bit_exact_without_misses() {
     let st = check_pen_run(&image, &sensors, samples, "plucked_string at 44.1 kHz");
     // The plane (z) and the string (x: its lateral stiffness and the windings) push; y not.
     assert_z_and_x_move_y_still(&st, "plucked_string");
+}
+
+/// The quiescent-key guard (`glue::GuardCode`, docs/language.md "Quiescent keys"): on every
+/// shipped keyboard instrument, a key at rest, pressed, released and at rest again, next to
+/// a key that never moves, gives the same out words, forces, currents, DAC codes and events
+/// sample for sample with the guard as without it (so, by the image's other tests, the
+/// fixed interpreter's bits); at rest the guarded handler skips the updates (its cycles
+/// fall to a small fraction of the unguarded ones), and no handler ever exceeds the static
+/// bound, which counts the full update plus the guard.
+#[test]
+fn quiescent_guard_skips_idle_keys_bit_exact_with_every_update_run() {
+    for name in ["grand_piano", "harpsichord", "harpsichord_2x8", "hammond"] {
+        let mut plain = instrument(name, &[]);
+        plain.quiescent_guard = false;
+        let guarded = instrument(name, &[]);
+        let keys: Vec<KeySpec> = (0..2)
+            .map(|i| KeySpec {
+                slot: 40 + i,
+                program: 0,
+                core: i,
+            })
+            .collect();
+        let build = |p: Program| {
+            FirmwareImage::build(&[p], &keys, &rp2040(), &LimiterConfig::default()).unwrap()
+        };
+        let (img_g, img_p) = (build(guarded), build(plain));
+        let p = &img_g.programs()[0];
+        let rest = FixedInstance::sensor_raw(&p.fixed, 0, Some(0.0));
+        let press = stimuli(p, 1, 6000);
+        let words: Vec<i32> = std::iter::repeat_n(rest, 1500)
+            .chain(press)
+            .chain(std::iter::repeat_n(rest, 20_000))
+            .collect();
+        let (mut rg, mut rp) = (img_g.run().unwrap(), img_p.run().unwrap());
+        let (mut tail_g, mut tail_p) = (0u64, 0u64);
+        let tail_from = words.len() - 4000;
+        for (n, &w) in words.iter().enumerate() {
+            let g = rg.step(&[w, rest]).unwrap().clone();
+            let u = rp.step(&[w, rest]).unwrap().clone();
+            assert_eq!(
+                (&g.force, &g.current_ua, &g.dac, &g.events),
+                (&u.force, &u.current_ua, &u.dac, &u.events),
+                "{name}: sample {n}"
+            );
+            for k in 0..2 {
+                assert_eq!(
+                    rg.out(k),
+                    rp.out(k),
+                    "{name}: key {k}'s out words, sample {n}"
+                );
+            }
+            assert_eq!(
+                (g.misses.clone(), u.misses.clone()),
+                (vec![0, 0], vec![0, 0])
+            );
+            for c in 0..2 {
+                assert!(g.core_cycles[c] <= img_g.wcet(c).unwrap().bound(), "{name}");
+                assert!(u.core_cycles[c] <= img_p.wcet(c).unwrap().bound(), "{name}");
+            }
+            if n >= tail_from {
+                tail_g += g.core_cycles[0] + g.core_cycles[1];
+                tail_p += u.core_cycles[0] + u.core_cycles[1];
+            }
+        }
+        let (bg, bp) = (img_g.wcet(0).unwrap(), img_p.wcet(0).unwrap());
+        println!(
+            "{name}: static handler with the guard {} cycles, without {} (the guard: +{}); \
+             at rest {:.0} cycles per sample and core with it, {:.0} without",
+            bg.bound(),
+            bp.bound(),
+            bg.bound() - bp.bound(),
+            tail_g as f64 / 8000.0,
+            tail_p as f64 / 8000.0
+        );
+        assert!(
+            bg.bound() > bp.bound(),
+            "{name}: the bound counts the guard"
+        );
+        assert!(
+            tail_g * 2 < tail_p,
+            "{name}: at rest the guard skips the updates ({tail_g} vs {tail_p} cycles)"
+        );
+    }
 }

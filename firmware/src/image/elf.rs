@@ -143,7 +143,7 @@ impl FirmwareImage {
             w.write_section_header(&SectionHeader {
                 sh_name: w.section_name_offset(Some(*name)),
                 sh_type: elf::SHT_PROGBITS,
-                sh_flags: elf::SectionFlags(flags.into()),
+                sh_flags: elf::SectionFlags(flags),
                 sh_addr: u64::from(*addr),
                 sh_offset: offsets[i],
                 sh_size: data.len() as u64,

@@ -255,6 +255,115 @@ pub struct KeyCode {
     pub update: u32,
     /// Address of the key's program's init (this core's copy).
     pub init: u32,
+    /// The quiescent-key guard around the update, if the program has one.
+    pub guard: Option<GuardCode>,
+}
+
+/// The quiescent-key guard of one key (docs/language.md, "Quiescent keys").
+///
+/// The update is a deterministic function of its state struct and its sensor words. The
+/// guard keeps, in the key's record, a *calm* counter: the number of consecutive updates,
+/// most recent last, that ran with the sensor words they have now and left the compared
+/// state words (states, modes, edges: bytes `[0, 4·words)` of the struct) as they found
+/// them, as a shadow copy of those words shows. With the counter at least `calm_needed`
+/// and the sensor words unchanged, the next update would compute exactly what the last
+/// did, so the handler skips the `BL` and the limiter runs on the kept out words. The
+/// history rings are not compared: `calm_needed` = 2·WINDOW + 1 updates with one sensor
+/// value fill a ring with it, and a ring of equal words reads the same whatever its
+/// position. Static cost: [`guard_check`]'s and [`guard_record`]'s instructions on every
+/// path that runs the update, so the static WCET counts the full update plus the guard.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GuardCode {
+    /// Byte offset of the calm counter in the record (≤ 124).
+    pub calm_offset: u32,
+    /// Calm updates after which the update is skipped (1 to 255).
+    pub calm_needed: u8,
+    /// Byte offsets in the state struct of the words compared (the words holding the
+    /// program's states, modes and edges), ascending.
+    pub words: Vec<u32>,
+}
+
+impl GuardCode {
+    /// Bytes of the shadow copy, placed directly below the state struct: word `j` shadows
+    /// `words[j]`.
+    pub fn shadow_bytes(&self) -> u32 {
+        4 * self.words.len() as u32
+    }
+}
+
+/// The guard's test before the update: `r3` holds the OR of the XORs of each new sensor
+/// word with its record copy (0: unchanged). Resets the calm counter when the sensors
+/// moved; branches to `skip` when the key is quiescent. Clobbers r1.
+/// Static cost: 10 cycles on the path that runs the update (sensors moved), 10 to `skip`.
+pub fn guard_check(a: &mut Asm, g: &GuardCode, skip: Label) {
+    let same = a.label();
+    a.i(asm::ldr(1, 4, g.calm_offset as u16));
+    a.i(asm::cmp_imm(3, 0));
+    a.bc(cond::EQ, same);
+    a.i(asm::movs(1, 0));
+    a.i(asm::str(1, 4, g.calm_offset as u16));
+    a.bind(same);
+    a.i(asm::cmp_imm(1, g.calm_needed));
+    // `skip` lies beyond the update's call and the comparison: out of a `B<cc>`'s reach.
+    let run = a.label();
+    a.bc(cond::LT, run);
+    a.b(skip);
+    a.bind(run);
+}
+
+/// The guard's bookkeeping after the update: compares the state words with the shadow
+/// copy below the struct (and refreshes it), then counts a calm update or resets the
+/// counter. Uses r6 as the accumulator and restores it to `sensor_base`. Clobbers r0-r3.
+/// Static cost: 8 cycles per compared word plus 16 (5 without state words).
+pub fn guard_record(a: &mut Asm, g: &GuardCode, state_offset: u32, sensor_base: u32) {
+    use AluOp::*;
+    if g.words.is_empty() {
+        // Nothing but the history rings persists: every update with unchanged sensors is
+        // calm.
+        a.i(asm::ldr(1, 4, g.calm_offset as u16));
+        a.i(asm::adds_imm(1, 1, 1));
+        a.i(asm::str(1, 4, g.calm_offset as u16));
+        return;
+    }
+    ldr_rec(a, 0, state_offset);
+    // r3 = the shadow (below the state), r0 = the state; each advances when its next
+    // offset would leave an LDR immediate's reach.
+    a.i(asm::mov(3, 0));
+    let back = g.shadow_bytes();
+    if back <= 255 {
+        a.i(asm::subs_imm(3, 3, back as u8));
+    } else {
+        a.mov_const(1, back);
+        a.i(asm::subs(3, 3, 1));
+    }
+    a.i(asm::movs(6, 0));
+    let (mut adv0, mut adv3) = (0u32, 0u32);
+    for (j, &o) in g.words.iter().enumerate() {
+        if o - adv0 > 124 {
+            add_big(a, 0, o - adv0);
+            adv0 = o;
+        }
+        let s = 4 * j as u32;
+        if s - adv3 > 124 {
+            add_big(a, 3, s - adv3);
+            adv3 = s;
+        }
+        let (o0, o3) = ((o - adv0) as u16, (s - adv3) as u16);
+        a.i(asm::ldr(1, 0, o0));
+        a.i(asm::ldr(2, 3, o3));
+        a.i(asm::str(1, 3, o3));
+        a.i(asm::alu(Eor, 2, 1));
+        a.i(asm::alu(Orr, 6, 2));
+    }
+    let keep = a.label();
+    a.i(asm::ldr(1, 4, g.calm_offset as u16));
+    a.i(asm::adds_imm(1, 1, 1));
+    a.i(asm::cmp_imm(6, 0));
+    a.bc(cond::EQ, keep);
+    a.i(asm::movs(1, 0));
+    a.bind(keep);
+    a.i(asm::str(1, 4, g.calm_offset as u16));
+    a.ldr_const(6, sensor_base);
 }
 
 /// One force word of a key on its way to the DAC, as the handler sees it.
@@ -441,6 +550,9 @@ pub fn core_code(
     a.pool_inline();
     // Every key: sensors → record, update, then each force word: limiter, DAC.
     walk(a, keys, &mut |a, k| {
+        if k.guard.is_some() {
+            a.i(asm::movs(3, 0));
+        }
         for (i, &w) in k.sensor_words.iter().enumerate() {
             let off = w.wrapping_sub(sensor_base);
             if off <= 124 && off % 4 == 0 {
@@ -448,6 +560,12 @@ pub fn core_code(
             } else {
                 a.ldr_const(0, w);
                 a.i(asm::ldr(0, 0, 0));
+            }
+            if k.guard.is_some() {
+                // r3 |= new ^ old (the image keeps at most 24 sensors: offsets ≤ 92).
+                a.i(asm::ldr(1, 4, 4 * i as u16));
+                a.i(asm::alu(AluOp::Eor, 1, 0));
+                a.i(asm::alu(AluOp::Orr, 3, 1));
             }
             if 4 * i <= 124 {
                 a.i(asm::str(0, 4, 4 * i as u16));
@@ -461,6 +579,10 @@ pub fn core_code(
                 });
             }
         }
+        let skip = a.label();
+        if let Some(g) = &k.guard {
+            guard_check(a, g, skip);
+        }
         ldr_rec(a, 0, k.state_offset);
         a.i(asm::mov(1, 4));
         if k.out_offset <= 7 {
@@ -470,6 +592,10 @@ pub fn core_code(
             add_big(a, 2, k.out_offset);
         }
         a.bl(k.update);
+        if let Some(g) = &k.guard {
+            guard_record(a, g, k.state_offset, sensor_base);
+        }
+        a.bind(skip);
         for d in &k.drives {
             ldr_rec(a, 0, d.force_offset);
             let g = if d.scale.gain == gain {

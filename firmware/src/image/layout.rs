@@ -252,8 +252,9 @@ pub(super) fn place_programs(
 /// address after the last record.
 ///
 /// Each record holds the sensor words first (the update's `sensors`), then the out words,
-/// the budgets and the state address — or, where the out words would push those beyond an
-/// `LDR` immediate, the budgets and the state address before the out words.
+/// the budgets, the state address and the quiescent guard's calm counter — or, where the
+/// out words would push those beyond an `LDR` immediate, the budgets, the state address
+/// and the counter before the out words.
 ///
 /// Errors: [`ImageError::Compile`] when a program lacks its update or init symbol.
 pub(super) fn key_records(
@@ -286,13 +287,14 @@ pub(super) fn key_records(
         let ns = p.sensor_words() as u32;
         let drives = &l.key_drives[i];
         let nd = drives.len() as u32;
-        let (out_offset, budgets_offset) = if 4 * (ns + out_len + nd) <= 124 {
+        let (out_offset, budgets_offset) = if 4 * (ns + out_len + nd + 1) <= 124 {
             (4 * ns, 4 * (ns + out_len))
         } else {
-            (4 * (ns + nd + 1), 4 * ns)
+            (4 * (ns + nd + 2), 4 * ns)
         };
         let state_offset = budgets_offset + 4 * nd;
-        let size = 4 * (ns + out_len + nd + 1);
+        let calm_offset = state_offset + 4;
+        let size = 4 * (ns + out_len + nd + 2);
         let budgets: Vec<u32> = (0..nd).map(|j| budgets_offset + 4 * j).collect();
         let update = sym(p.thumb.update_name())?;
         let slot = keys[i].slot as u32;
@@ -319,6 +321,7 @@ pub(super) fn key_records(
             record_size: size,
             update,
             init: sym(p.thumb.init_name())?,
+            guard: p.guard(calm_offset),
         });
         kp.push(KeyPlace {
             index: i,
@@ -431,10 +434,18 @@ pub(super) fn data_block(
     let mut states = Vec::new();
     for k in kp {
         let p = &l.programs[k.spec.program];
-        let state = at;
-        at = (at + p.thumb.state.size as u32).next_multiple_of(4);
-        states.push((p.thumb.state.size, p.thumb.state.params, &p.params));
-        let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 1)];
+        // The quiescent guard's shadow copy directly below the state struct (zeros: the
+        // guard's counter needs more than the first update, see `Program::guard`).
+        let shadow = p.guard(0).map_or(0, |g| g.shadow_bytes());
+        let state = at + shadow;
+        at = (state + p.thumb.state.size as u32).next_multiple_of(4);
+        states.push((
+            shadow as usize,
+            p.thumb.state.size,
+            p.thumb.state.params,
+            &p.params,
+        ));
+        let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 2)];
         let put = |r: &mut Vec<u8>, off: u32, v: u32| {
             r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
         };
@@ -444,12 +455,13 @@ pub(super) fn data_block(
         put(&mut r, k.state_offset, state);
         data.extend(r);
     }
-    // States are zero (init sets them) but for the key's param block, which init leaves
-    // alone.
-    for (size, params_at, params) in &states {
-        let mut st = vec![0u8; size.next_multiple_of(4)];
+    // Shadows and states are zero (init sets the states) but for the key's param block,
+    // which init leaves alone.
+    for (shadow, size, params_at, params) in &states {
+        let mut st = vec![0u8; (shadow + size).next_multiple_of(4)];
         for (k, w) in params.iter().enumerate() {
-            if let Some(b) = st.get_mut(params_at + 4 * k..params_at + 4 * k + 4) {
+            let at = shadow + params_at + 4 * k;
+            if let Some(b) = st.get_mut(at..at + 4) {
                 b.copy_from_slice(&w.to_le_bytes());
             }
         }

@@ -94,6 +94,10 @@ use tactus_emulator::SENSOR_BASE;
 use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 
+/// Most state words (states, modes, edges) the quiescent-key guard compares; a program
+/// with more runs every update.
+pub const MAX_GUARDED_WORDS: u32 = 160;
+
 /// A compiled key program: the fixed-point program (for its formats and the interpreter)
 /// and its Thumb code, with the static WCETs of its functions computed once, and the
 /// param block of its keys.
@@ -116,6 +120,10 @@ pub struct Program {
     update_cost: Arc<OnceLock<Result<crate::budget::StaticCost, ImageError>>>,
     /// `init_wcet`, once computed.
     init_cycles: Arc<OnceLock<Result<u64, ImageError>>>,
+    /// Whether the image guards this program's updates with the quiescent-key guard
+    /// ([`glue::GuardCode`]: a key whose sensors and state stand still skips its update and
+    /// keeps its outputs). On by default; its cost is in every static bound of the image.
+    pub quiescent_guard: bool,
 }
 
 impl Program {
@@ -128,6 +136,7 @@ impl Program {
             thumb: Arc::new(thumb),
             update_cost: Arc::default(),
             init_cycles: Arc::default(),
+            quiescent_guard: true,
         }
     }
 
@@ -142,6 +151,40 @@ impl Program {
     /// Whether `self` and `other` run the same code (one copy per core serves both).
     pub fn same_code(&self, other: &Program) -> bool {
         Arc::ptr_eq(&self.thumb, &other.thumb)
+    }
+
+    /// The quiescent-key guard for a key of this program, its calm counter at
+    /// `calm_offset` in the record; `None` when [`Program::quiescent_guard`] is off or the
+    /// state has more than [`MAX_GUARDED_WORDS`] words (the guard's `B` over the comparison
+    /// reaches 2 KB, at 10 bytes per word).
+    fn guard(&self, calm_offset: u32) -> Option<glue::GuardCode> {
+        let differentiated = self.fixed.program.sensors.iter().any(|s| s.differentiated);
+        let (p, st) = (&self.fixed.program, &self.thumb.state);
+        // The words holding states, modes and edges (the layout pads empty arrays to one
+        // element: those are never written and not compared).
+        let mut words: Vec<u32> = (0..p.states.len() as u32)
+            .map(|i| st.states as u32 + 4 * i)
+            .collect();
+        for (at, n) in [(st.modes, p.modes.len()), (st.edges, p.edges.len())] {
+            for b in at..at + n {
+                let w = (b as u32) & !3;
+                if words.last() != Some(&w) {
+                    words.push(w);
+                }
+            }
+        }
+        let few = words.len() as u32 <= MAX_GUARDED_WORDS;
+        (self.quiescent_guard && few).then(|| glue::GuardCode {
+            calm_offset,
+            calm_needed: if differentiated {
+                (2 * tactus_runtime::differentiator::WINDOW + 1) as u8
+            } else {
+                // Two, so that the first update (compared with a zero shadow) never
+                // decides alone.
+                2
+            },
+            words,
+        })
     }
 
     /// Compiles instrument source `text` with `config` (sample rate, `--param`
