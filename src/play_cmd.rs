@@ -478,20 +478,22 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         .map_or(tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, |p| {
             p.2.sample_rate_hz
         });
+    // Every key of the layout with its params (`--param` last): what the firmware runs,
+    // played or not (as on the hardware), and what `--engine fixed` compiles with it.
+    let all: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
+        .iter()
+        .map(|a| {
+            let mut a = a.clone();
+            a.params.extend(args.params.iter().cloned());
+            a
+        })
+        .collect();
     // They run the programs the firmware runs: every key of the layout compiled together,
     // so that an instrument's graded params are run-time data planned over the interval
     // all its keys span ([`tactus_firmware::image::compile_layout`]); each played program
     // is the shared code with the param block of its first key.
     let fixed_programs: Vec<tactus_firmware::image::Program> = match fixed_needed {
         true => {
-            let all: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
-                .iter()
-                .map(|a| {
-                    let mut a = a.clone();
-                    a.params.extend(args.params.iter().cloned());
-                    a
-                })
-                .collect();
             let source = |name: &str| source::load(name).map(|s| s.text);
             let (shared, index) = tactus_firmware::image::compile_layout(&all, &source, fs)
                 .map_err(|e| format!("fixed point: {e}"))?;
@@ -649,15 +651,6 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     if args.engine == PlayEngine::Emu {
         let key_motions: BTreeMap<u8, &Motion> =
             jobs.iter().map(|j| (j.key, &motions[j.motion])).collect();
-        // Every key of the layout runs on its board, played or not (as on the hardware).
-        let all: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
-            .iter()
-            .map(|a| {
-                let mut a = a.clone();
-                a.params.extend(args.params.iter().cloned());
-                a
-            })
-            .collect();
         let end = jobs.iter().map(|j| j.first + j.n).max().unwrap_or(0);
         emu_samples = end;
         bar.set_length(end as u64 * all.len() as u64);

@@ -259,21 +259,24 @@ fn the_quiescent_guard_never_costs_a_board() {
     let costs = ProgramCosts::new(&guarded, &b, &lim).unwrap();
     assert!(costs.key_cycles[0] > costs.plain_key_cycles[0]);
     let cps = b.cycles_per_sample();
-    // The most keys that fit without the guard.
-    let most = (1..=32)
-        .take_while(|&n| {
-            let keys: Vec<PlanKey> = (0..n)
-                .map(|k| PlanKey {
-                    key: 40 + k as u8,
-                    program: 0,
-                })
-                .collect();
-            check_board(&guarded, &costs, &keys, &b, &lim)
-                .unwrap()
-                .fits()
-        })
-        .last()
-        .unwrap();
+    // The most keys one board holds, by the planner's own verdict.
+    let most_keys = |programs: &[Program], costs: &ProgramCosts| {
+        (1..=32usize)
+            .take_while(|&n| {
+                let keys: Vec<PlanKey> = (0..n)
+                    .map(|k| PlanKey {
+                        key: 40 + k as u8,
+                        program: 0,
+                    })
+                    .collect();
+                check_board(programs, costs, &keys, &b, &lim)
+                    .unwrap()
+                    .fits()
+            })
+            .last()
+            .unwrap()
+    };
+    let most = most_keys(&guarded, &costs);
     let keys: Vec<PlanKey> = (0..most)
         .map(|k| PlanKey {
             key: 40 + k as u8,
@@ -309,19 +312,6 @@ fn the_quiescent_guard_never_costs_a_board() {
         p
     }];
     let plain_costs = ProgramCosts::new(&plain, &b, &lim).unwrap();
-    let plain_most = (1..=32)
-        .take_while(|&n| {
-            let keys: Vec<PlanKey> = (0..n)
-                .map(|k| PlanKey {
-                    key: 40 + k as u8,
-                    program: 0,
-                })
-                .collect();
-            check_board(&plain, &plain_costs, &keys, &b, &lim)
-                .unwrap()
-                .fits()
-        })
-        .last()
-        .unwrap();
+    let plain_most = most_keys(&plain, &plain_costs);
     assert_eq!(most, plain_most, "the guard cost a key per board");
 }

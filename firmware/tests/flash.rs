@@ -124,7 +124,10 @@ fn boot_and_run(fw: &BoardFirmware, board: &Board) -> (usize, Vec<String>, Vec<u
         .collect();
     let mut insts: Vec<FixedInstance> = keys
         .iter()
-        .map(|k| FixedInstance::new(&programs[k.program].fixed))
+        .map(|k| {
+            let p = &programs[k.program];
+            FixedInstance::with_params(&p.fixed, p.params.clone())
+        })
         .collect();
     let mut lims: Vec<Limiter> = keys
         .iter()
