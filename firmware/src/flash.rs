@@ -80,8 +80,9 @@ pub struct KeyMapEntry {
     pub record: String,
     /// Its state struct.
     pub state: String,
-    /// Its param block; `null` while params are compiled into the program's code as
-    /// constants (one program copy per distinct param set).
+    /// Its param block (inside its state struct, at `StateLayout::params`: one word per
+    /// run-time param, its graded values in their planned formats); `null` when the
+    /// program has no run-time params (every value compiled in as a constant).
     pub param_block: Option<String>,
 }
 
@@ -251,7 +252,7 @@ fn key_map(
                 .collect(),
             record: hex(record),
             state: hex(state),
-            param_block: None,
+            param_block: (!p.params.is_empty()).then(|| hex(state + p.thumb.state.params as u32)),
         });
     }
     let cores = (0..image.cores())

@@ -114,9 +114,25 @@ fn boot_and_run(fw: &BoardFirmware, board: &Board) -> (usize, Vec<String>, Vec<u
             "FIFO drained, no error"
         );
     }
-    let samples = board.sample_rate_hz as usize;
     let programs = image.programs();
     let keys = image.keys();
+    // The key map's param block holds each key's words, as booted (graded keys share code).
+    for (entry, k) in fw.key_map.keys.iter().zip(&keys) {
+        let params = &programs[k.program].params;
+        assert_eq!(entry.param_block.is_some(), !params.is_empty(), "{entry:?}");
+        if let Some(at) = &entry.param_block {
+            let at = u32::from_str_radix(at.trim_start_matches("0x"), 16).unwrap();
+            for (j, &w) in params.iter().enumerate() {
+                let got = run.board().read_u32(at + 4 * j as u32).unwrap();
+                assert_eq!(
+                    got as i32, w,
+                    "board {} key {}: param word {j}",
+                    fw.index, entry.midi
+                );
+            }
+        }
+    }
+    let samples = board.sample_rate_hz as usize;
     let words: Vec<Vec<i32>> = keys
         .iter()
         .enumerate()
