@@ -76,7 +76,7 @@
 //!
 use crate::bus::{sram_location, Bus, System};
 use crate::core::Core;
-use crate::decode::{decode, is_32bit, Instr};
+use crate::decode::{decode, Instr};
 use crate::fast::Op;
 use crate::jit::{self, Jit};
 use crate::timing::{self, Class};
@@ -211,14 +211,8 @@ impl Blocks {
         let first = self.ops.len();
         let mut a = pc;
         while self.ops.len() - first < MAX_BLOCK {
-            let Ok(hw1) = sys.fetch(a) else { break };
-            let (hw2, size) = if is_32bit(hw1) {
-                match sys.fetch(a.wrapping_add(2)) {
-                    Ok(h) => (h, 4),
-                    Err(_) => break,
-                }
-            } else {
-                (0, 2)
+            let Ok((hw1, hw2, size)) = sys.fetch_instr(a) else {
+                break;
             };
             for h in [a, a.wrapping_add(size - 2)] {
                 if let Some((off, _)) = sram_location(h) {

@@ -48,7 +48,7 @@
 use crate::block::{self, Blocks};
 use crate::bus::{sram_location, Bus, System, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
-use crate::decode::{decode, is_32bit, Instr};
+use crate::decode::{decode, Instr};
 use crate::elf::{self, ElfError, Image};
 use crate::fast::Op;
 use crate::nvic::{IRQ0, SVCALL};
@@ -1064,16 +1064,8 @@ impl Board {
         }
         let slot = &mut self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
         if slot.key != cache_key(pc, self.system.code_epoch) {
-            let Ok(hw1) = self.system.fetch(pc) else {
+            let Ok((hw1, hw2, size)) = self.system.fetch_instr(pc) else {
                 return core.step(&mut self.system, lines);
-            };
-            let (hw2, size) = if is_32bit(hw1) {
-                match self.system.fetch(pc.wrapping_add(2)) {
-                    Ok(h) => (h, 4),
-                    Err(_) => return core.step(&mut self.system, lines),
-                }
-            } else {
-                (0, 2)
             };
             for a in [pc, pc.wrapping_add(size - 2)] {
                 if let Some((off, _)) = sram_location(a) {

@@ -77,6 +77,19 @@ pub trait Bus {
     ) -> Result<u32, BusFault>;
     /// Fetches the halfword at `addr` (even) for execution.
     fn fetch(&mut self, addr: u32) -> Result<u16, BusFault>;
+
+    /// Fetches the instruction at `addr`: `(hw1, hw2, size in bytes)`, `hw2` 0 for a 16-bit
+    /// instruction (ARMv6-M ARM A5.1: the first halfword says whether a second follows).
+    /// Errors: the fault of the first halfword fetch that fails.
+    #[inline]
+    fn fetch_instr(&mut self, addr: u32) -> Result<(u16, u16, u32), BusFault> {
+        let hw1 = self.fetch(addr)?;
+        if crate::decode::is_32bit(hw1) {
+            Ok((hw1, self.fetch(addr.wrapping_add(2))?, 4))
+        } else {
+            Ok((hw1, 0, 2))
+        }
+    }
 }
 
 /// The RP2040 outside the cores: memories, SIO, timer, and the bank arbiter.

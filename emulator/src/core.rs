@@ -335,17 +335,9 @@ impl Core {
                 },
             );
         }
-        let hw1 = match bus.fetch(pc) {
-            Ok(h) => h,
+        let (hw1, hw2, size) = match bus.fetch_instr(pc) {
+            Ok(f) => f,
             Err(e) => return self.fault(bus, Fault { pc, kind: e.into() }),
-        };
-        let (hw2, size) = if is_32bit(hw1) {
-            match bus.fetch(pc.wrapping_add(2)) {
-                Ok(h) => (h, 4),
-                Err(e) => return self.fault(bus, Fault { pc, kind: e.into() }),
-            }
-        } else {
-            (0, 2)
         };
         let instr = decode(hw1, hw2);
         self.run_decoded(bus, pc, instr, size)

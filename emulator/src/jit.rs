@@ -50,7 +50,7 @@
 
 use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
 use crate::core::Core;
-use crate::decode::{decode, is_32bit, AluOp, Instr, MemOp};
+use crate::decode::{decode, AluOp, Instr, MemOp};
 use crate::exec::{branch_target, literal_address};
 use crate::timing;
 use cranelift_codegen::ir::condcodes::IntCC;
@@ -191,14 +191,8 @@ pub(crate) fn scan(sys: &mut System, entry: u32) -> (Vec<RegionInstr>, Vec<u16>)
     let mut a = entry;
     let mut furthest = entry;
     while instrs.len() < MAX_REGION {
-        let Ok(hw1) = sys.fetch(a) else { break };
-        let (hw2, size) = if is_32bit(hw1) {
-            match sys.fetch(a.wrapping_add(2)) {
-                Ok(h) => (h, 4),
-                Err(_) => break,
-            }
-        } else {
-            (0, 2)
+        let Ok((hw1, hw2, size)) = sys.fetch_instr(a) else {
+            break;
         };
         let instr = decode(hw1, hw2);
         if !translated(&instr) {
