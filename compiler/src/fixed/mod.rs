@@ -15,6 +15,7 @@ pub mod flow;
 pub mod interp;
 pub mod range;
 pub mod report;
+pub mod share;
 
 use crate::diagnostics::Diagnostic;
 use crate::ir::*;
@@ -489,6 +490,9 @@ impl FixedProgram {
 
     /// Plans formats for `program` under the precision budget `config`.
     pub fn with_config(program: &Program, config: &PlanConfig) -> Self {
+        // Each common value once (`share`): the same meaning, fewer products to plan and run.
+        let shared = share::share_common_values(program);
+        let program = &shared;
         let ranges = range::analyse(program);
         let n = program.values.len();
         let mut frac = vec![0; n];
