@@ -134,7 +134,10 @@ enum Item {
     /// A data word.
     Word(u32),
     /// Pool `id`'s literals, word aligned, behind a `B` over them when `jump`.
-    Pool { id: usize, jump: bool },
+    Pool {
+        id: usize,
+        jump: bool,
+    },
     /// A comment for the listing, recorded at its offset.
     Note(String),
     /// A named offset ([`Assembled::marks`]).
@@ -353,7 +356,7 @@ impl CodeBuffer {
     ///
     /// Errors: see [`BufferError`].
     pub fn finish(&self, base: u32) -> Result<Assembled, BufferError> {
-        if base % 2 != 0 {
+        if !base.is_multiple_of(2) {
             return Err(BufferError::OddBase(base));
         }
         if self.pools.last().is_some_and(|p| !p.is_empty()) {
@@ -656,7 +659,13 @@ mod tests {
         let Instr::LdrLit { imm, .. } = dec(bytes, 0) else {
             unreachable!()
         };
-        assert_eq!(dec(bytes, 2), Instr::LdrLit { rt: 1, imm: imm - 4 });
+        assert_eq!(
+            dec(bytes, 2),
+            Instr::LdrLit {
+                rt: 1,
+                imm: imm - 4
+            }
+        );
         // bne top: at 0x..06, target 0x..02: offset = 2 - 10 = -8.
         assert_eq!(
             dec(bytes, 4),
@@ -719,7 +728,11 @@ mod tests {
         assert_eq!(&out.text[at..at + 4], &5u32.to_le_bytes());
         // Control jumps over the island: `B` (then perhaps the padding) right before it,
         // landing right after its word.
-        let b = if dec(&out.text, at - 2) == PAD { at - 4 } else { at - 2 };
+        let b = if dec(&out.text, at - 2) == PAD {
+            at - 4
+        } else {
+            at - 2
+        };
         assert_eq!(
             dec(&out.text, b),
             Instr::B {
@@ -749,7 +762,13 @@ mod tests {
         ));
         let out = build(LongBranch::Bl).unwrap();
         // BNE .+6 ; BL far.
-        assert_eq!(dec(&out.text, 0), Instr::BCond { cond: cond::NE, offset: 2 });
+        assert_eq!(
+            dec(&out.text, 0),
+            Instr::BCond {
+                cond: cond::NE,
+                offset: 2
+            }
+        );
         let Instr::Bl { offset } = dec(&out.text, 2) else {
             panic!("{:?}", dec(&out.text, 2))
         };

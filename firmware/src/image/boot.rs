@@ -26,9 +26,9 @@
 //! room); an answer that differs from the word sent restarts the sequence (RP2040
 //! datasheet 2.8.2).
 
+use super::ImageError;
 use tactus_compiler::thumb::buffer::{CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ins::{self as asm, cond};
-use super::ImageError;
 use tactus_emulator::clocks::{
     self, reg, CLOCKS_BASE, PLL_SYS_BASE, RESETS_BASE, WATCHDOG_BASE, XOSC_BASE,
 };

@@ -13,9 +13,9 @@
 //! **The limiter** is [`limiter_inline`]: `runtime/src/limiter.rs` on the 16-bit DAC code,
 //! one `MULS`, no call; at the time of writing 25 cycles on its worst path.
 
+use super::ImageError;
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label};
 use tactus_compiler::thumb::ins::{self as asm, cond};
-use super::ImageError;
 use tactus_emulator::decode::{AluOp, Hint, Instr};
 use tactus_emulator::timer::{reg, TIMER_BASE};
 use tactus_runtime::limiter::{DacScale, LimiterConstants};

@@ -12,7 +12,6 @@
 //! vector table ([`vector_table`]) and the static WCET of the sample interrupt over the
 //! core's whole code ([`analyse_handler`]).
 
-use tactus_compiler::thumb::buffer::{CodeBuffer, Label, LongBranch};
 use super::boot::{self, Boot};
 use super::glue::{self, ctrl, DriveCode, KeyCode, Tick};
 use super::{
@@ -20,6 +19,7 @@ use super::{
     MAX_SENSORS, STACK_BYTES, STACK_CANARY, VECTORS,
 };
 use std::collections::BTreeMap;
+use tactus_compiler::thumb::buffer::{CodeBuffer, Label, LongBranch};
 use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE};
 use tactus_emulator::wcet::{self, Bounds, Region};
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};

@@ -80,12 +80,12 @@ mod run;
 
 pub use run::{DriveOut, ImageRun, KeyEvent, SampleOut};
 
-use tactus_compiler::thumb::buffer::{BufferError, CodeBuffer, LongBranch};
 use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::{Arc, OnceLock};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::{Axis, AxisTotal};
+use tactus_compiler::thumb::buffer::{BufferError, CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ThumbObject;
 use tactus_emulator::bus::SRAM_ALIAS_BASE;
 
