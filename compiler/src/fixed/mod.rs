@@ -10,12 +10,12 @@
 //! format and saturated. Because the formats hold the analysed intervals, saturation can fire
 //! only where the analysis had to clamp an unbounded value, and those places are warned about.
 
+pub mod common;
 pub mod contract;
 pub mod flow;
 pub mod interp;
 pub mod range;
 pub mod report;
-pub mod share;
 
 use crate::diagnostics::Diagnostic;
 use crate::ir::*;
@@ -490,8 +490,8 @@ impl FixedProgram {
 
     /// Plans formats for `program` under the precision budget `config`.
     pub fn with_config(program: &Program, config: &PlanConfig) -> Self {
-        // Each common value once (`share`): the same meaning, fewer products to plan and run.
-        let shared = share::share_common_values(program);
+        // Each common value once (`common`): the same meaning, fewer products to plan and run.
+        let shared = common::share_common_values(program);
         let program = &shared;
         let ranges = range::analyse(program);
         let n = program.values.len();

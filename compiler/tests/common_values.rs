@@ -1,11 +1,11 @@
-//! Common values (`fixed::share`): sharing never changes what a program computes — the f64
+//! Common values (`fixed::common`): sharing never changes what a program computes — the f64
 //! reference interpreter gives the same trace, bit for bit, on the shared program as on the
 //! original, for every shipped instrument and built-in stimulus — and it removes the grand
 //! piano's repeated products (a state read after a write is a new value: the piano's hammer
 //! states are written by its impact handlers between reads, which this also exercises).
 
 use std::path::Path;
-use tactus_compiler::fixed::share::share_common_values;
+use tactus_compiler::fixed::common::share_common_values;
 use tactus_compiler::ir::{ArithOp, Op, Program, Stmt};
 use tactus_compiler::lower::Config;
 use tactus_compiler::sim::simulate;
