@@ -123,7 +123,7 @@ fn main() {
         tactus_firmware::runner::BL_CYCLES
     );
     let mut rows: Vec<_> = by.into_iter().collect();
-    rows.sort_by(|a, b| b.1 .1.cmp(&a.1 .1));
+    rows.sort_by_key(|r| std::cmp::Reverse(r.1 .1));
     for (cat, (n, c)) in rows {
         println!(
             "  {cat:<40} {n:>5} instructions {c:>6} cycles  {:>5.1} %",
