@@ -5,7 +5,8 @@
 //! board, on its cores**. The verdict for a board is the static WCET of its actual sample
 //! interrupt, per core, as [`FirmwareImage::build`] lays it out ([`IsrWcet::bound`]: the
 //! handler with every key's update call, sensor copy, inline limiter and DAC store, plus
-//! the window contention) against `clock_hz / sample_rate_hz` cycles. Nothing else prices
+//! the window contention) against `Board::cycles_per_sample` cycles (the shortest tick
+//! interval, `tactus_runtime::keyboard::deadline_cycles`). Nothing else prices
 //! a key: the board file describes the machine only.
 //!
 //! **Keys on a board.** A board's keys take window slots from 0 in key order (a pen takes

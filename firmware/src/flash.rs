@@ -11,7 +11,7 @@ use crate::boards::{self, PlanKey, ProgramCosts};
 use crate::image::{FirmwareImage, Program};
 use serde::{Deserialize, Serialize};
 use tactus_emulator::{DAC_BASE, SENSOR_BASE};
-use tactus_runtime::keyboard::Board;
+use tactus_runtime::keyboard::{self, Board};
 use tactus_runtime::limiter::LimiterConfig;
 
 /// The key map of one board (`keys.json`): where each key's words live and what runs it.
@@ -462,9 +462,8 @@ pub fn run_elf(
             .collect();
         words.push(w?);
     }
-    let clock = map.clock_hz as u128;
-    let cycle_of = |us: u64| (us as u128 * clock).div_ceil(1_000_000) as u64;
-    let tick = |n: u64| map.first_tick_us as u64 + n * 1_000_000 / map.sample_rate_hz as u64;
+    let cycle_of = |us: u64| keyboard::cycle_at_us(us, map.clock_hz);
+    let tick = |n: u64| keyboard::tick_us(map.first_tick_us as u64, n, map.sample_rate_hz);
     let check = |stop: StopReason, board: &tactus_emulator::Board| match stop {
         StopReason::CycleLimit => Ok(()),
         other => Err(format!(
@@ -529,6 +528,9 @@ pub fn run_elf(
     Ok(ElfRun {
         samples,
         cores: out,
-        cycles_per_sample: map.clock_hz / map.sample_rate_hz as u64,
+        cycles_per_sample: keyboard::deadline_cycles(
+            map.clock_hz as f64,
+            map.sample_rate_hz as f64,
+        ),
     })
 }

@@ -21,14 +21,19 @@ pub struct Row {
 }
 
 /// Formats rows as a Markdown table: instrument, engine, worst and mean cycles per
-/// key-sample (including the call's `BL` and the return), the share of the 3015-cycle sample
-/// period of one 133 MHz core at 44.1 kHz that the worst case takes, code bytes (update /
-/// with helpers), samples compared and mismatches.
+/// key-sample (including the call's `BL` and the return), the share of the per-sample
+/// deadline of one core of the emulated board's default clock at 44.1 kHz (2,926 cycles at
+/// 133 MHz, [`tactus_runtime::keyboard::deadline_cycles`]) that the worst case takes, code
+/// bytes (update / with helpers), samples compared and mismatches.
 pub fn table(rows: &[Row]) -> String {
+    let deadline = tactus_runtime::keyboard::deadline_cycles(
+        tactus_emulator::board::Config::default().clock_hz as f64,
+        44_100.0,
+    );
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| instrument | engine | worst cycles | mean cycles | worst / 3015 | .text update | .text with helpers | samples | mismatches |"
+        "| instrument | engine | worst cycles | mean cycles | worst / {deadline} | .text update | .text with helpers | samples | mismatches |"
     );
     let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---:|---:|");
     let opt = |b: Option<u32>| b.map_or("–".to_string(), |b| b.to_string());
@@ -41,7 +46,7 @@ pub fn table(rows: &[Row]) -> String {
             r.engine,
             c.cycles.worst,
             c.cycles.mean(),
-            100.0 * c.cycles.worst as f64 / 3015.0,
+            100.0 * c.cycles.worst as f64 / deadline as f64,
             opt(r.update_bytes),
             opt(r.with_helpers_bytes),
             c.samples,

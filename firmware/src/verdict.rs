@@ -79,7 +79,7 @@ pub struct BoardKind {
     pub cores: u32,
     /// Sample rate, Hz.
     pub sample_rate_hz: f64,
-    /// Cycles per sample per core (`clock_hz / sample_rate_hz`, rounded down).
+    /// Cycles per sample per core: the deadline (`Board::cycles_per_sample`, the shortest tick interval).
     pub cycles_per_sample: u64,
     /// Static cycles of a core's sample interrupt with no key (entry, tick, miss check,
     /// return).

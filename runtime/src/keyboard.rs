@@ -133,9 +133,30 @@ impl Board {
     /// `⌊⌊10⁶/fs⌋ µs · clock⌋` (2,926 cycles at 133 MHz and 44.1 kHz, not the mean 3,015:
     /// a core whose interrupt took 2,958 cycles missed deadlines in the emulator).
     pub fn cycles_per_sample(&self) -> u64 {
-        let us = (1e6 / self.sample_rate_hz).floor();
-        (us * self.clock_hz / 1e6).floor() as u64
+        deadline_cycles(self.clock_hz, self.sample_rate_hz)
     }
+}
+
+/// Cycles from one sample tick to the next in the worst case: the shortest interval of
+/// the whole-microsecond tick schedule ([`tick_us`]), `⌊⌊10⁶/fs⌋ µs · clock⌋`, for a
+/// `clock_hz` core clock and an `fs_hz` sample rate (both positive; the board file's
+/// reader checks them). The one definition of the per-sample deadline: the budget, the
+/// board planner, the image's run and the ELF runner all use it.
+pub fn deadline_cycles(clock_hz: f64, fs_hz: f64) -> u64 {
+    let us = (1e6 / fs_hz).floor();
+    (us * clock_hz / 1e6).floor() as u64
+}
+
+/// Microsecond time of sample tick `n` when tick 0 is at `first_us`: `first + ⌊n·10⁶/fs⌋`,
+/// as the firmware's sample interrupt arms its next alarm (`fs_hz` > 0).
+pub fn tick_us(first_us: u64, n: u64, fs_hz: u32) -> u64 {
+    first_us + n * 1_000_000 / u64::from(fs_hz.max(1))
+}
+
+/// The first core clock cycle at which the RP2040 timer (1 MHz) reads `us` microseconds,
+/// at a `clock_hz` core clock: `⌈us · clock / 10⁶⌉`.
+pub fn cycle_at_us(us: u64, clock_hz: u64) -> u64 {
+    (us as u128 * clock_hz as u128).div_ceil(1_000_000) as u64
 }
 
 fn read(path: &Path) -> Result<String, String> {

@@ -932,9 +932,10 @@ impl FirmwareImage {
         self.first_tick_us
     }
 
-    /// Core clock cycles per sample period (`clock / fs`, rounded down).
+    /// Core clock cycles per sample: the deadline, the shortest interval between two
+    /// ticks ([`tactus_runtime::keyboard::deadline_cycles`]).
     pub fn cycles_per_sample(&self) -> u64 {
-        self.clock_hz / self.sample_rate_hz as u64
+        tactus_runtime::keyboard::deadline_cycles(self.clock_hz as f64, self.sample_rate_hz as f64)
     }
 
     /// The limiter configuration the image was built with (at the board's sample rate):

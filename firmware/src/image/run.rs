@@ -192,12 +192,16 @@ impl ImageRun {
 
     /// First cycle at which the timer reads `us` microseconds.
     fn cycle_of(&self, us: u64) -> u64 {
-        ((us as u128 * self.image.clock_hz as u128).div_ceil(1_000_000)) as u64
+        tactus_runtime::keyboard::cycle_at_us(us, self.image.clock_hz)
     }
 
     /// Microsecond time of tick `n` (sample `n`'s interrupt), as the firmware schedules it.
     pub fn tick_us(&self, n: u64) -> u64 {
-        self.image.first_tick_us as u64 + n * 1_000_000 / self.image.sample_rate_hz as u64
+        tactus_runtime::keyboard::tick_us(
+            self.image.first_tick_us as u64,
+            n,
+            self.image.sample_rate_hz,
+        )
     }
 
     fn check_stop(&self, stop: StopReason) -> Result<(), ImageError> {
