@@ -1,0 +1,81 @@
+//! The calling convention between a compiled region and the board: the context the
+//! native code reads its pointers from and writes its counts to, the exit reasons, and
+//! the call itself.
+
+use crate::bus::System;
+use crate::core::Core;
+
+/// What the native code shares with the board for one call (`#[repr(C)]`: the generated
+/// code reads its fields at fixed offsets).
+#[repr(C)]
+pub(crate) struct Ctx {
+    /// [`System::sram`]'s bytes.
+    pub sram: *mut u8,
+    /// [`System::flash`]'s bytes.
+    pub flash: *const u8,
+    /// [`System::code_pages`] (one `bool` per 256-byte page).
+    pub code_pages: *const u8,
+    /// `bank_claim[0][core]` (banks are 16 bytes apart).
+    pub claims_self: *mut u64,
+    /// `bank_claim[0][other core]`.
+    pub claims_other: *const u64,
+    /// `contention_stalls[core]`.
+    pub stalls: *mut u64,
+    /// Out: end cycle of the last instruction that cost two cycles or more (0: none).
+    pub q: u64,
+    /// Out: instructions retired.
+    pub retired: u64,
+}
+
+/// Why native code returned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub(crate) enum Exit {
+    /// At a branch out of the region or the region's end; PC is where to go on.
+    Out = 0,
+    /// Before an instruction the native code does not complete (PC is its address).
+    General = 1,
+    /// After a store into a code page (PC is the next instruction): drop decoded code.
+    Invalidate = 2,
+    /// A loop's back edge did not fit before the deadline (PC is the loop's head).
+    Deadline = 3,
+}
+
+impl Exit {
+    fn from_raw(r: u32) -> Exit {
+        match r {
+            0 => Exit::Out,
+            1 => Exit::General,
+            2 => Exit::Invalidate,
+            _ => Exit::Deadline,
+        }
+    }
+}
+
+/// A compiled region: `fn(core, ctx, limit) -> Exit`.
+pub(crate) type NativeFn = unsafe extern "C" fn(*mut Core, *mut Ctx, u64) -> u32;
+
+/// Runs `f` on `core`: the raw call with the context built from `sys`. Returns why it
+/// stopped, the instructions retired and the `q` cycle (see [`Ctx::q`]).
+#[inline(always)]
+pub(crate) fn call(f: NativeFn, core: &mut Core, sys: &mut System, limit: u64) -> (Exit, u64, u64) {
+    let id = core.id & 1;
+    let claims = sys.bank_claim.as_mut_ptr() as *mut u64;
+    let mut ctx = Ctx {
+        sram: sys.sram.as_mut_ptr(),
+        flash: sys.flash.as_ptr(),
+        code_pages: sys.code_pages.as_ptr() as *const u8,
+        // SAFETY (both): `bank_claim` is `[[u64; 2]; BANKS]`; `id` and `1 - id` are 0 or 1.
+        claims_self: unsafe { claims.add(id) },
+        claims_other: unsafe { claims.add(1 - id) },
+        stalls: &mut sys.contention_stalls[id],
+        q: 0,
+        retired: 0,
+    };
+    // SAFETY: `f` was compiled by `Jit::compile` for this layout of `Core` and `Ctx`; it
+    // reads and writes only the core's registers, flags, cycle, PC, the SRAM and flash
+    // bytes at offsets it has bounds-checked against `SRAM_SIZE` / `FLASH_SIZE`, the code
+    // page flags of those offsets, the claim table's six banks and the stall counter.
+    let exit = unsafe { f(core, &mut ctx, limit) };
+    (Exit::from_raw(exit), ctx.retired, ctx.q)
+}
