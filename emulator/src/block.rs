@@ -140,7 +140,16 @@ pub(crate) struct Blocks {
     pub(crate) decoded: u64,
     /// The compiled regions ([`crate::jit`]).
     pub(crate) jit: Jit,
+    /// The same regions compiled confined, for running ahead ([`run_confined`]).
+    pub(crate) confined: Jit,
+    /// The undo journal of the core running ahead (entries as [`crate::jit`] writes them).
+    pub(crate) journal: Vec<u64>,
+    /// A journal whose entries are dropped (the core catching up needs no undo).
+    scratch: Vec<u64>,
 }
+
+/// Undo-journal entries kept while a core runs ahead: a window that fills it ends there.
+const JOURNAL: usize = 1 << 16;
 
 #[inline(always)]
 fn tag(pc: u32, epoch: u32) -> u64 {
@@ -169,7 +178,10 @@ impl Blocks {
             generation: 0,
             cursor: [Cursor::default(); 2],
             decoded: 0,
-            jit: Jit::new(),
+            jit: Jit::new(false),
+            confined: Jit::new(true),
+            journal: Vec::with_capacity(JOURNAL),
+            scratch: Vec::with_capacity(JOURNAL),
         }
     }
 
@@ -361,9 +373,9 @@ pub(crate) fn run<T: Turns>(
         }
         let pc = core.r[15];
         if native {
-            if let Some((f, bound)) = blocks.jit.lookup(sys, pc) {
-                if core.cycle.saturating_add(bound) <= limit {
-                    let (exit, n, q) = jit::call(f, core, sys, limit);
+            if let Some(region) = blocks.jit.lookup(sys, pc) {
+                if core.cycle.saturating_add(region.bound) <= limit {
+                    let (exit, n, q) = jit::call(region.f, core, sys, limit, None);
                     retired += n;
                     turns.after_native(core.cycle, q);
                     match exit {
@@ -417,6 +429,105 @@ pub(crate) fn run<T: Turns>(
                 if o.store && sys.code_epoch != epoch {
                     break;
                 }
+            }
+        }
+        blocks.cursor[core.id & 1] = Cursor {
+            op: i as u32,
+            end: end as u32,
+            generation: blocks.generation,
+        };
+        if let Some(l) = leave {
+            break Err(l);
+        }
+    };
+    core.instructions += retired;
+    result
+}
+
+/// Whether the fast path may fetch the instruction at `pc` of `size` bytes now (its SRAM
+/// banks allowed, [`System::allows`]; flash and ROM always).
+#[inline(always)]
+fn fetch_allowed(sys: &System, pc: u32, size: u32) -> bool {
+    [pc, pc.wrapping_add(size - 2)]
+        .into_iter()
+        .all(|a| sram_location(a).is_none_or(|(off, _)| sys.allows(off as u32)))
+}
+
+/// [`run`] confined to the SRAM banks in [`System::allowed_banks`] (set by the caller), for
+/// running ahead ([`crate::board`], "Running ahead"): compiled regions come from the
+/// confined cache, whose loads and stores leave before an access to another bank, and
+/// pre-decoded instructions run through the executor, whose fast path does the same; an
+/// instruction fetched from another bank leaves too. With `journal`, only native code runs
+/// (the run ends where a region does not fit or leaves, `Err(Leave::General)`), and every
+/// store's old word is appended to `journal` (the run ends before a store that finds it
+/// full) so that the caller can undo the run. `Ok` when the core reached `limit`.
+pub(crate) fn run_confined(
+    core: &mut Core,
+    sys: &mut System,
+    blocks: &mut Blocks,
+    limit: u64,
+    mut journal: Option<&mut Vec<u64>>,
+) -> Result<(), Leave> {
+    let allowed = sys.allowed_banks;
+    let mut retired = 0u64;
+    let mut native = true;
+    let result = loop {
+        if core.cycle >= limit {
+            break Ok(());
+        }
+        let pc = core.r[15];
+        if native {
+            if let Some(region) = blocks.confined.lookup(sys, pc) {
+                if core.cycle.saturating_add(region.bound) <= limit && region.banks & !allowed == 0
+                {
+                    let log = match journal.as_deref_mut() {
+                        Some(j) => j,
+                        None => {
+                            blocks.scratch.clear();
+                            &mut blocks.scratch
+                        }
+                    };
+                    let mut confine = jit::Confine {
+                        allowed,
+                        journal: log,
+                    };
+                    let (exit, n, _) = jit::call(region.f, core, sys, limit, Some(&mut confine));
+                    retired += n;
+                    match exit {
+                        jit::Exit::Invalidate => sys.invalidate_code(),
+                        jit::Exit::General => native = false,
+                        jit::Exit::Out | jit::Exit::Deadline => {}
+                    }
+                    continue;
+                }
+            }
+        }
+        if journal.is_some() {
+            break Err(Leave::General);
+        }
+        native = true;
+        let found = match blocks.resume(core.id, pc) {
+            Some(r) if sys.code_epoch == blocks.epoch => Some(r),
+            _ => blocks.find(sys, pc),
+        };
+        let Some((mut i, end)) = found else {
+            break Err(Leave::Miss);
+        };
+        let epoch = sys.code_epoch;
+        let ops = &blocks.ops[..end];
+        let mut leave = None;
+        while i < end && core.cycle < limit {
+            let o = &ops[i];
+            if !fetch_allowed(sys, o.pc, o.size as u32)
+                || !core.execute_op(sys, &o.op, &o.instr, o.pc, o.size as u32, o.cost)
+            {
+                leave = Some(Leave::General);
+                break;
+            }
+            retired += 1;
+            i += 1;
+            if o.store && sys.code_epoch != epoch {
+                break;
             }
         }
         blocks.cursor[core.id & 1] = Cursor {

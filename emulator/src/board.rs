@@ -46,7 +46,7 @@
 //! striping and contention apply). Link firmware so nothing else lives there.
 
 use crate::block::{self, Blocks};
-use crate::bus::{sram_location, Bus, System, SRAM_END};
+use crate::bus::{sram_location, Bus, System, ALL_BANKS, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
 use crate::decode::{decode, Instr};
 use crate::elf::{self, ElfError, Image};
@@ -80,6 +80,14 @@ pub struct Config {
     /// Both give the same cycles, registers and memory; [`Board::step`] is always the
     /// general path.
     pub engine: Engine,
+    /// The SRAM banks each core may run ahead in (bit per bank: 0-3 SRAM0-3, 4 SRAM4,
+    /// 5 SRAM5). With both cores running on [`Engine::Block`], the core that is behind may
+    /// run compiled code ahead of the other while it touches only its own banks, the other
+    /// then catching up while it touches none of them (see "Running ahead" in this
+    /// module). Default: core 0 SRAM0 and SRAM4, core 1 SRAM1 and SRAM5, as the firmware
+    /// images lay them out (`tactus-firmware`, `image/mod.rs`); `[0, 0]` keeps the two
+    /// cores in lock-step on the interpreter. Results never depend on it, only speed.
+    pub own_banks: [u8; 2],
 }
 
 /// The engine behind [`Board::run_until`]'s fast path.
@@ -103,6 +111,7 @@ impl Default for Config {
             svc_halts: false,
             stop_on_fault: true,
             engine: Engine::default(),
+            own_banks: [0b01_0001, 0b10_0010],
         }
     }
 }
@@ -294,6 +303,8 @@ pub struct Board {
     launch: Option<Launch>,
     cache: Box<[Cached; CACHE_SLOTS]>,
     blocks: Blocks,
+    /// Run-ahead windows kept and rolled back ([`Board::run_ahead_windows`]).
+    windows: [u64; 2],
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
@@ -313,6 +324,7 @@ impl Board {
             lines: 0,
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
+            windows: [0; 2],
             cache: vec![
                 Cached {
                     key: u64::MAX,
@@ -647,7 +659,13 @@ impl Board {
 
     /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
     pub fn regions_compiled(&self) -> u64 {
-        self.blocks.jit.count
+        self.blocks.jit.count + self.blocks.confined.count
+    }
+
+    /// Run-ahead windows so far ("Running ahead" in the module documentation): (kept,
+    /// rolled back because the other core could not catch up confined).
+    pub fn run_ahead_windows(&self) -> (u64, u64) {
+        (self.windows[0], self.windows[1])
     }
 
     /// The block engine compiles a code region to native code once its entry has been
@@ -655,6 +673,7 @@ impl Board {
     /// it to run everything natively). Results never depend on it, only speed.
     pub fn set_compile_threshold(&mut self, times: u32) {
         self.blocks.jit.threshold = times;
+        self.blocks.confined.threshold = times;
     }
 
     /// Total cycles elapsed: the lower of the running cores' counters.
@@ -702,6 +721,19 @@ impl Board {
                 if let (true, Some(w0), Some(w1)) =
                     (now < deadline[k], self.watch_set(0), self.watch_set(1))
                 {
+                    let mut deadline = deadline;
+                    if self.config.engine == Engine::Block
+                        && w0[0] == NO_WATCH
+                        && w1[0] == NO_WATCH
+                        && self.config.own_banks[k] != 0
+                    {
+                        if self.run_ahead(k, deadline) {
+                            continue;
+                        }
+                        // Lock-step for a while before the next attempt.
+                        let now = self.cores[0].cycle.min(self.cores[1].cycle);
+                        deadline = deadline.map(|d| d.min(now.saturating_add(RETRY)));
+                    }
                     let (k, ran) = self.fast_run::<true>(k, deadline, [w0, w1]);
                     if let Some(event) = ran {
                         if !self.profiles.is_empty() {
@@ -926,6 +958,61 @@ impl Board {
             ),
         };
         (k, self.finish_fast(k, exit))
+    }
+
+    /// One window of running ahead (see "Running ahead" in the module documentation): core
+    /// `a` (the one behind, both cores on the fast path with `deadline`s as in
+    /// [`Board::run_until`]) runs compiled code confined to its own banks, the other core
+    /// then catches up confined to every other bank. True when the window was kept; false
+    /// when core `a` ran nothing, or when the other core could not catch up and core `a`
+    /// was rolled back (the other core's instructions stand: they commute with the window).
+    fn run_ahead(&mut self, a: usize, deadline: [u64; 2]) -> bool {
+        let b = 1 - a;
+        let start = self.cores[a].cycle;
+        // The other core must be able to reach the window's end (`+ 1` when it is core 0,
+        // which runs first on a tie) before its own deadline.
+        let end = deadline[a].min(deadline[b].saturating_sub((b == 0) as u64));
+        if start.saturating_add(MIN_WINDOW) > end {
+            return false;
+        }
+        let saved = (
+            self.cores[a].clone(),
+            self.system.bank_claim.map(|c| c[a]),
+            self.system.contention_stalls[a],
+        );
+        let (sys, blocks) = (&mut self.system, &mut self.blocks);
+        let mut journal = std::mem::take(&mut blocks.journal);
+        journal.clear();
+        sys.allowed_banks = self.config.own_banks[a] & ALL_BANKS;
+        let _ = block::run_confined(&mut self.cores[a], sys, blocks, end, Some(&mut journal));
+        let reached = self.cores[a].cycle;
+        let mut kept = reached > start;
+        if kept {
+            let target = reached + (b == 0) as u64;
+            sys.allowed_banks = ALL_BANKS & !self.config.own_banks[a];
+            let caught = block::run_confined(&mut self.cores[b], sys, blocks, target, None);
+            kept = caught.is_ok() && self.cores[b].cycle >= target;
+            if !kept {
+                // Undo core `a`'s window: its stores (newest first), its bank claims,
+                // stalls and state.
+                for &e in journal.iter().rev() {
+                    let off = (e >> 32) as usize;
+                    sys.sram[off..off + 4].copy_from_slice(&(e as u32).to_le_bytes());
+                }
+                let (core, claims, stalls) = saved;
+                self.cores[a] = core;
+                for (bank, c) in claims.iter().enumerate() {
+                    sys.bank_claim[bank][a] = *c;
+                }
+                sys.contention_stalls[a] = stalls;
+            }
+        }
+        sys.allowed_banks = ALL_BANKS;
+        blocks.journal = journal;
+        if reached > start {
+            self.windows[!kept as usize] += 1;
+        }
+        kept
     }
 
     /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
@@ -1177,6 +1264,12 @@ enum Exit {
     /// The core executed an instruction that left it at a watched address (profiling).
     Watch,
 }
+
+/// Fewest cycles a run-ahead window may span ([`Board::run_ahead`]).
+const MIN_WINDOW: u64 = 64;
+
+/// Lock-step cycles after a run-ahead window that could not be kept, before the next.
+const RETRY: u64 = 4096;
 
 /// An unused slot of a watch set ([`Board::watch_set`]): odd, so no PC equals it.
 const NO_WATCH: u32 = 1;

@@ -40,6 +40,33 @@ pub fn speed_loop(engine: Engine, cores: usize) -> Board {
     b
 }
 
+/// The speed loop on `cores` cores (1 or 2), each core's code and data in its own SRAM bank
+/// through the non-striped alias (core k: SRAM k at `0x21000000 + k·0x10000`) and its stack
+/// in its scratch bank, as the firmware images lay them out: what two cores running ahead
+/// of each other need (`Config::own_banks`).
+pub fn speed_loop_own_banks(engine: Engine, cores: usize) -> Board {
+    let mut b = Board::new(Config {
+        engine,
+        ..Config::default()
+    });
+    for core in 0..cores {
+        let bank = 0x2100_0000 + 0x1_0000 * core as u32;
+        b.write_bytes(bank + 0x100, &bytes(&LOOP)).unwrap();
+        b.start_core(
+            core,
+            (bank + 0x100) | 1,
+            0x2004_1000 + 0x1000 * core as u32,
+            0,
+        );
+        let c = &mut b.cores[core];
+        c.r[0] = bank + 0x8000;
+        c.r[2] = 3;
+        c.r[3] = 7;
+        c.r[5] = u32::MAX;
+    }
+    b
+}
+
 /// Firmware-like key updates (see the module documentation) on `cores` cores, `keys`
 /// keys per core (1-128 in all), SysTick every `period` cycles.
 pub fn key_updates(engine: Engine, cores: usize, keys: u16, period: u32) -> Board {

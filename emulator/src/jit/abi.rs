@@ -25,6 +25,25 @@ pub(crate) struct Ctx {
     pub q: u64,
     /// Out: instructions retired.
     pub retired: u64,
+    /// Confined code only ([`crate::jit`], "Confinement"): bit *b* set when the core may
+    /// access SRAM bank *b* (0-3 SRAM0-3, 4 SRAM4, 5 SRAM5).
+    pub allowed: u64,
+    /// Confined code only: the undo journal, one entry per store, `(word offset << 32) |
+    /// the word's old value`, in store order.
+    pub journal: *mut u64,
+    /// Confined code only: entries used (in and out).
+    pub journal_len: u64,
+    /// Confined code only: entries available; a store that finds the journal full leaves
+    /// before it ([`Exit::General`]).
+    pub journal_cap: u64,
+}
+
+/// A confined run's bank mask and undo journal ([`call`]).
+pub(crate) struct Confine<'a> {
+    /// SRAM banks the core may access (bit per bank).
+    pub allowed: u8,
+    /// The undo journal: the native code appends to it, up to its capacity.
+    pub journal: &'a mut Vec<u64>,
 }
 
 /// Why native code returned.
@@ -58,7 +77,13 @@ pub(crate) type NativeFn = unsafe extern "C" fn(*mut Core, *mut Ctx, u64) -> u32
 /// Runs `f` on `core`: the raw call with the context built from `sys`. Returns why it
 /// stopped, the instructions retired and the `q` cycle (see [`Ctx::q`]).
 #[inline(always)]
-pub(crate) fn call(f: NativeFn, core: &mut Core, sys: &mut System, limit: u64) -> (Exit, u64, u64) {
+pub(crate) fn call(
+    f: NativeFn,
+    core: &mut Core,
+    sys: &mut System,
+    limit: u64,
+    confine: Option<&mut Confine>,
+) -> (Exit, u64, u64) {
     let id = core.id & 1;
     let claims = sys.bank_claim.as_mut_ptr() as *mut u64;
     let mut ctx = Ctx {
@@ -71,11 +96,27 @@ pub(crate) fn call(f: NativeFn, core: &mut Core, sys: &mut System, limit: u64) -
         stalls: &mut sys.contention_stalls[id],
         q: 0,
         retired: 0,
+        allowed: 0,
+        journal: std::ptr::null_mut(),
+        journal_len: 0,
+        journal_cap: 0,
     };
+    if let Some(c) = confine.as_deref() {
+        ctx.allowed = c.allowed as u64;
+        ctx.journal = c.journal.as_ptr() as *mut u64;
+        ctx.journal_len = c.journal.len() as u64;
+        ctx.journal_cap = c.journal.capacity() as u64;
+    }
     // SAFETY: `f` was compiled by `Jit::compile` for this layout of `Core` and `Ctx`; it
     // reads and writes only the core's registers, flags, cycle, PC, the SRAM and flash
     // bytes at offsets it has bounds-checked against `SRAM_SIZE` / `FLASH_SIZE`, the code
-    // page flags of those offsets, the claim table's six banks and the stall counter.
+    // page flags of those offsets, the claim table's six banks and the stall counter;
+    // confined code also writes journal entries below `journal_cap`, the vector's
+    // capacity, whose length is then set to the entries written (each initialised).
     let exit = unsafe { f(core, &mut ctx, limit) };
+    if let Some(c) = confine {
+        // SAFETY: the native code wrote entries `len..journal_len`, within the capacity.
+        unsafe { c.journal.set_len(ctx.journal_len as usize) };
+    }
     (Exit::from_raw(exit), ctx.retired, ctx.q)
 }

@@ -29,7 +29,28 @@ struct Slot {
     bound: u64,
     /// Times seen uncompiled; [`NEVER`] when the entry is not translated.
     hits: u32,
+    /// SRAM banks its instructions are fetched from (bit per bank).
+    banks: u8,
 }
+
+/// A compiled region found by [`Jit::lookup`].
+#[derive(Clone, Copy)]
+pub(crate) struct Region {
+    /// The native code.
+    pub(crate) f: NativeFn,
+    /// Cycles bound from the entry (see `scan::bounds`).
+    pub(crate) bound: u64,
+    /// SRAM banks its instructions are fetched from (bit per bank; flash and ROM none).
+    pub(crate) banks: u8,
+}
+
+const EMPTY: Slot = Slot {
+    tag: u64::MAX,
+    func: None,
+    bound: 0,
+    hits: 0,
+    banks: 0,
+};
 
 const NEVER: u32 = u32::MAX;
 
@@ -47,6 +68,8 @@ pub(crate) struct Jit {
     /// Regions compiled so far (for tests and reports).
     pub(crate) count: u64,
     fctx: FunctionBuilderContext,
+    /// Compiles confined code (see the parent module, "Confinement").
+    confined: bool,
 }
 
 // SAFETY: the module and the function pointers into it are owned by this `Jit` alone;
@@ -68,18 +91,11 @@ fn tag(pc: u32, epoch: u32) -> u64 {
 }
 
 impl Jit {
-    pub(crate) fn new() -> Jit {
+    /// An empty cache compiling ordinary code, or with `confined` confined code.
+    pub(crate) fn new(confined: bool) -> Jit {
         Jit {
-            slots: vec![
-                Slot {
-                    tag: u64::MAX,
-                    func: None,
-                    bound: 0,
-                    hits: 0,
-                };
-                SLOTS
-            ]
-            .into_boxed_slice(),
+            confined,
+            slots: vec![EMPTY; SLOTS].into_boxed_slice(),
             compiled: HashMap::new(),
             module: None,
             threshold: 16,
@@ -88,14 +104,18 @@ impl Jit {
         }
     }
 
-    /// The compiled region at `pc` and its bound, compiling it when it has been seen
+    /// The compiled region at `pc`, compiling it when it has been seen
     /// [`Jit::threshold`] times; `None` while it is cold or when it cannot be compiled.
     #[inline(always)]
-    pub(crate) fn lookup(&mut self, sys: &mut System, pc: u32) -> Option<(NativeFn, u64)> {
+    pub(crate) fn lookup(&mut self, sys: &mut System, pc: u32) -> Option<Region> {
         let slot = &mut self.slots[((pc >> 1) as usize) & (SLOTS - 1)];
         if slot.tag == tag(pc, sys.code_epoch) {
             if let Some(f) = slot.func {
-                return Some((f, slot.bound));
+                return Some(Region {
+                    f,
+                    bound: slot.bound,
+                    banks: slot.banks,
+                });
             }
             if slot.hits == NEVER || slot.hits < self.threshold {
                 slot.hits = slot.hits.saturating_add((slot.hits != NEVER) as u32);
@@ -106,7 +126,7 @@ impl Jit {
     }
 
     #[inline(never)]
-    fn miss(&mut self, sys: &mut System, pc: u32) -> Option<(NativeFn, u64)> {
+    fn miss(&mut self, sys: &mut System, pc: u32) -> Option<Region> {
         let index = ((pc >> 1) as usize) & (SLOTS - 1);
         let fresh = self.slots[index].tag != tag(pc, sys.code_epoch);
         let (instrs, halfwords) = scan(sys, pc);
@@ -115,7 +135,15 @@ impl Jit {
             func: None,
             bound: 0,
             hits: 1,
+            banks: 0,
         };
+        for i in &instrs {
+            for h in [i.pc, i.pc.wrapping_add(i.size - 2)] {
+                if let Some((_, bank)) = crate::bus::sram_location(h) {
+                    slot.banks |= 1 << bank;
+                }
+            }
+        }
         if instrs.is_empty() {
             slot.hits = NEVER;
         } else if let Some(done) = self.compiled.get(&(pc, halfwords.clone())) {
@@ -135,17 +163,16 @@ impl Jit {
             }
         }
         self.slots[index] = slot;
-        slot.func.map(|f| (f, slot.bound))
+        slot.func.map(|f| Region {
+            f,
+            bound: slot.bound,
+            banks: slot.banks,
+        })
     }
 
     /// Drops every compiled region and frees its memory.
     fn reset(&mut self) {
-        self.slots.fill(Slot {
-            tag: u64::MAX,
-            func: None,
-            bound: 0,
-            hits: 0,
-        });
+        self.slots.fill(EMPTY);
         self.compiled.clear();
         if let Some(m) = self.module.take() {
             // SAFETY: no slot or map entry points into the module any more.
@@ -169,7 +196,7 @@ impl Jit {
         let mut ctx = module.make_context();
         ctx.func.signature = sig;
         let b = FunctionBuilder::new(&mut ctx.func, &mut self.fctx);
-        let (b, bound) = Translator::run(b, instrs);
+        let (b, bound) = Translator::run(b, instrs, self.confined);
         b.finalize(module.target_config());
         module.define_function(id, &mut ctx).ok()?;
         module.finalize_definitions().ok()?;

@@ -65,6 +65,6 @@ mod memory;
 mod scan;
 mod translate;
 
-pub(crate) use abi::{call, Exit};
-pub(crate) use cache::Jit;
+pub(crate) use abi::{call, Confine, Exit};
+pub(crate) use cache::{Jit, Region};
 pub(crate) use scan::data_words;

@@ -43,6 +43,8 @@ pub(super) struct Translator<'a> {
     pub(super) pend_n: u64,
     pub(super) exit: Block,
     pub(super) written: u16,
+    /// The context pointer when the code is confined (see the parent module).
+    pub(super) confined: Option<Value>,
 }
 
 impl<'a> Translator<'a> {
@@ -51,6 +53,7 @@ impl<'a> Translator<'a> {
     pub(super) fn run(
         mut b: FunctionBuilder<'a>,
         instrs: &[RegionInstr],
+        confined: bool,
     ) -> (FunctionBuilder<'a>, u64) {
         let index: HashMap<u32, usize> =
             instrs.iter().enumerate().map(|(i, x)| (x.pc, i)).collect();
@@ -132,6 +135,7 @@ impl<'a> Translator<'a> {
             pend_n: 0,
             exit,
             written: 0,
+            confined: confined.then_some(ctx),
         };
         // A block for each instruction a branch of the region jumps to.
         let mut labels: Vec<Option<Block>> = vec![None; instrs.len()];
