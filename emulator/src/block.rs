@@ -13,8 +13,7 @@
 //! `Core::execute_op`, the interpreter's executor. Both layers are checked against the
 //! interpreter instruction by instruction (`tests/block_jit.rs`) and on whole programs
 //! (`tests/block_engine.rs`, the firmware images in `firmware/tests/image.rs`).
-//! Measured (BENCHMARKS.md, "the block compiler"): 11.7 against 34.5 host instructions
-//! per emulated cycle on the speed loop, 5.76 against 17.8 on the key-update workload.
+//! Measured: see BENCHMARKS.md, "the block compiler".
 //!
 //! **Cycles.** Each instruction's cost comes from the one timing table
 //! ([`crate::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block
@@ -52,27 +51,10 @@
 //!   and the turns are replayed after each pre-decoded instruction ([`Sleeper::after`]), or
 //!   in closed form after native code ([`Sleeper::after_native`]), which needs only the
 //!   end cycle and that of the last instruction of two cycles or more;
-//! * both cores run: each turn lasts an instruction or two, no region fits in it, and the
-//!   board runs the interpreter's lock-step loop (faster there than blocks).
-//!
-//! *Running ahead.* Letting core A run a window `[t, t')` of its code before core B runs
-//! its own `[t, t')` is exact when nothing either core does in the window depends on the
-//! other's: A's loads read no word B stores in the window (and vice versa), no access of
-//! A claims a bank in the same cycle as an access of B (the arbiter's winner depends on
-//! which instruction started first), and B raises no interrupt or event A could take in
-//! the window (an SIO FIFO push, a timer alarm, SEV), and vice versa. The firmware image
-//! makes the first two likely — each core's code, data and stack are in its own bank
-//! (through the non-striped alias) and its scratch bank — but not certain: the sensor and
-//! DAC windows are striped over all four banks, so a core's window accesses contend with
-//! the other core's private bank, and the timer and SIO are shared. A static proof is
-//! therefore not available, and an exact run-ahead needs the check at run time: A runs a
-//! window *confined* to its own banks (native code exits before any other access),
-//! recording the (bank, cycle) of its claims; B then runs the same window, and each of its
-//! accesses to A's banks at a cycle A claimed, each access to A's words, and anything that
-//! could raise A's interrupt lines or stop the run rolls A back to the window's start
-//! (registers and a journal of its stores) and falls back to lock-step for that window.
-//! That is not built: with both cores running the engine is lock-step, and the issue's
-//! two-core speed target is not met (BENCHMARKS.md).
+//! * both cores run: the core behind runs a window of confined compiled code ahead of the
+//!   other in its own banks, and the other catches up confined to the other banks
+//!   ([`run_confined`]; the argument and the rollback are in [`crate::board`], "Running
+//!   ahead"); where that fails, the board's lock-step loop on the interpreter.
 //!
 use crate::bus::{sram_location, Bus, System};
 use crate::core::Core;

@@ -31,7 +31,36 @@
 //! profiled with [`Board::profile_handler`] are entered and left only by exception entry
 //! and return, in the general path, so they cost the loop no such check.
 //! So the order of all shared-state accesses, and every result, is the same as stepping
-//! one instruction at a time. [`Config::engine`] selects what runs that fast path for one
+//! one instruction at a time.
+//!
+//! **Running ahead** ([`Config::own_banks`], block engine only). With both cores on the
+//! fast path, lock-step turns last an instruction or two. Instead, the core that is behind
+//! (A) runs a *window* of compiled code ahead, *confined* to its own SRAM banks S_A: every
+//! load and store, and every instruction fetch from SRAM, is checked against S_A and the
+//! code leaves before an instruction that would touch anything else (another bank,
+//! SIO, a peripheral, the PPB; flash and ROM are read-only and always allowed), and every
+//! store journals the word it overwrites. The window ends where A leaves, at the first
+//! deadline of either core (the run's limit, the next timer event, either core's SysTick),
+//! or when the journal is full. Then the other core (B) catches up to A's cycle (one past
+//! it when B is core 0, which goes first on a tie) confined to the *other* banks. If B
+//! gets there, the window is kept; if B stops before (it needs one of A's banks, SIO, a
+//! peripheral, an exception, a sleep, a fetch from A's banks), A is rolled back — its
+//! stores undone from the journal, newest first, its bank claims, stall count and core
+//! state restored — and the cores go on in lock-step from there, B's instructions
+//! standing. *Why this is the lock-step result:* in the window A touches only S_A, B
+//! touches none of S_A, and neither touches anything else the other can see (no SIO, no
+//! peripheral, no interrupt line, no event: those leave; the timer has no event and no
+//! SysTick wraps before the window's end; nothing is fetched from a bank the other core
+//! writes). So no word either core reads is written by the other in the window, and an
+//! access's arbitration depends only on the other core's last claim of the *same* bank,
+//! which the other core does not change in the window: it is the value it had at the
+//! window's start, whichever order the two cores' instructions run in. The instructions of
+//! the two cores in the window therefore commute, and running all of A's before all of
+//! B's gives the registers, memory, cycles and stalls of the interleaved order. A rollback
+//! is exact for the same reason: B's instructions commute with A's, and A re-runs from
+//! the same state. Tests: `tests/block_engine.rs` (random two-core programs on own banks
+//! with shared, other-bank and SIO traffic, SysTick, WFI/WFE/SEV; the own-bank speed
+//! loop), `firmware/tests/image.rs` (an image of every shipped instrument, both cores). [`Config::engine`] selects what runs that fast path for one
 //! core: the interpreter above ([`Engine::Interp`]) or the block engine ([`Engine::Block`],
 //! the default; module [`crate::block`]: code regions compiled to native code with
 //! cranelift, pre-decoded basic blocks where they do not fit; the same results).
@@ -97,9 +126,10 @@ pub enum Engine {
     Interp,
     /// The block engine (module [`crate::block`]): code regions compiled to native code
     /// with cranelift (module `jit`) once warm, pre-decoded basic blocks otherwise, the
-    /// same cycles and results as [`Engine::Interp`]. It runs one core at a time: while
-    /// both cores run (lock-step turns of an instruction or two) and while functions are
-    /// profiled with [`Board::profile_addr`], the interpreter runs.
+    /// same cycles and results as [`Engine::Interp`]. It runs one core at a time; with both
+    /// cores running, the core behind runs ahead in its own banks ([`Config::own_banks`],
+    /// "Running ahead" in [`crate::board`]) and the interpreter's lock-step turns run where
+    /// that is not possible, as while functions are profiled with [`Board::profile_addr`].
     #[default]
     Block,
 }

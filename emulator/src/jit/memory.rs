@@ -3,7 +3,7 @@
 //! store, and the multiple transfers (PUSH, POP, STM, LDM) — `Core::mem_fast`,
 //! `push_fast`, `pop_fast` in `exec.rs`.
 
-use super::abi::{Ctx, Exit};
+use super::abi::Exit;
 use super::scan::RegionInstr;
 use super::translate::Translator;
 use crate::bus::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
@@ -60,74 +60,48 @@ impl Translator<'_> {
     }
 
     /// Confined code only (see the parent module, "Confinement"): leaves before the
-    /// instruction at `ins` unless every SRAM offset in `offs` is in an allowed bank and,
-    /// for a store, the journal has room for one entry per offset; then journals the old
-    /// words a store will overwrite. Nothing when the code is not confined.
-    fn confine(&mut self, ins: &RegionInstr, offs: &[Value], store: bool) {
-        let Some(ctx) = self.confined else {
+    /// instruction at `ins` unless every SRAM access in `at` (offset, bank) is in an allowed
+    /// bank; then, for a store, journals the old words it will overwrite (the journal's room
+    /// was checked at the region's entry or last back edge, [`Translator::journal_room`]).
+    /// Nothing when the code is not confined.
+    fn confine(&mut self, ins: &RegionInstr, at: &[(Value, Value)], store: bool) {
+        let Some(c) = self.confined else {
             return;
         };
-        let allowed = self
-            .b
-            .ins()
-            .load(types::I32, self.mf, ctx, offset_of!(Ctx, allowed) as i32);
-        let mut bad = self.b.ins().iconst(types::I32, 0);
-        for &off in offs {
-            let bank = self.bank_of(off);
-            let bit = self.b.ins().ushr(allowed, bank);
-            let bit = self.b.ins().band_imm_u(bit, 1);
-            let no = self.b.ins().bxor_imm_u(bit, 1);
-            bad = self.b.ins().bor(bad, no);
+        let mut allowed = None;
+        for &(_, bank) in at {
+            let bit = self.b.ins().ushr(c.allowed, bank);
+            allowed = Some(match allowed {
+                None => bit,
+                Some(a) => self.b.ins().band(a, bit),
+            });
         }
-        let len = if store {
-            let len = self.b.ins().load(
-                types::I64,
-                self.mf,
-                ctx,
-                offset_of!(Ctx, journal_len) as i32,
-            );
-            let cap = self.b.ins().load(
-                types::I64,
-                self.mf,
-                ctx,
-                offset_of!(Ctx, journal_cap) as i32,
-            );
-            let need = self.b.ins().iadd_imm_s(len, offs.len() as i64);
-            let full = self.b.ins().icmp(IntCC::UnsignedGreaterThan, need, cap);
-            let full = full.into_i32(&mut self.b);
-            bad = self.b.ins().bor(bad, full);
-            Some(len)
-        } else {
-            None
-        };
-        self.general_if(bad, ins.pc);
-        if let Some(len) = len {
-            let journal =
-                self.b
-                    .ins()
-                    .load(types::I64, self.mf, ctx, offset_of!(Ctx, journal) as i32);
-            let at = self.b.ins().ishl_imm_u(len, 3);
-            let at = self.b.ins().iadd(journal, at);
-            for (k, &off) in offs.iter().enumerate() {
+        if let Some(a) = allowed {
+            let ok = self.b.ins().band_imm_u(a, 1);
+            self.general_unless(ok, ins.pc);
+        }
+        if store {
+            let len = self.b.use_var(c.len);
+            let slot = self.b.ins().ishl_imm_u(len, 3);
+            let slot = self.b.ins().iadd(c.journal, slot);
+            for (k, &(off, _)) in at.iter().enumerate() {
                 let word = self.b.ins().band_imm_u(off, !3u32 as i64);
                 let word = self.b.ins().uextend(types::I64, word);
                 let p = self.b.ins().iadd(self.sram, word);
                 let old = self.b.ins().uload32(self.mf, p, 0);
                 let key = self.b.ins().ishl_imm_u(word, 32);
                 let entry = self.b.ins().bor(key, old);
-                self.b.ins().store(self.mf, entry, at, 8 * k as i32);
+                self.b.ins().store(self.mf, entry, slot, 8 * k as i32);
             }
-            let len = self.b.ins().iadd_imm_s(len, offs.len() as i64);
-            self.b
-                .ins()
-                .store(self.mf, len, ctx, offset_of!(Ctx, journal_len) as i32);
+            let len = self.b.ins().iadd_imm_s(len, at.len() as i64);
+            self.b.def_var(c.len, len);
         }
     }
 
-    /// The SRAM arbiter for the access to offset `off` at data cycle `at`: the wait (0 or
-    /// 1, i64) after claiming the bank (`System::arbitrate_fast`).
-    pub(super) fn arbitrate(&mut self, off: Value, at: Value) -> Value {
-        let bank = self.bank_of(off);
+    /// The SRAM arbiter for an access to `bank` (from [`Translator::bank_of`]) at data
+    /// cycle `at`: the wait (0 or 1, i64) after claiming the bank
+    /// (`System::arbitrate_fast`).
+    pub(super) fn arbitrate(&mut self, bank: Value, at: Value) -> Value {
         let bank = self.b.ins().uextend(types::I64, bank);
         let boff = self.b.ins().ishl_imm_u(bank, 4);
         let other_at = self.b.ins().iadd(self.claims_other, boff);
@@ -214,10 +188,11 @@ impl Translator<'_> {
         // SRAM: the arbiter, then the data.
         self.b.switch_to_block(in_sram);
         let off = self.b.block_params(in_sram)[0];
-        self.confine(ins, &[off], op.is_store());
+        let bank = self.bank_of(off);
+        self.confine(ins, &[(off, bank)], op.is_store());
         let c = self.b.use_var(self.cyc);
         let at = self.b.ins().iadd_imm_s(c, 1);
-        let wait = self.arbitrate(off, at);
+        let wait = self.arbitrate(bank, at);
         let off64 = self.b.ins().uextend(types::I64, off);
         let p = self.b.ins().iadd(self.sram, off64);
         if op.is_store() {
@@ -323,20 +298,21 @@ impl Translator<'_> {
             let bad = self.b.ins().bor(even, ret);
             self.general_if(bad, pc);
         }
-        if self.confined.is_some() {
-            let offs: Vec<Value> = (0..count)
-                .map(|k| self.b.ins().iadd_imm_s(off, 4 * k as i64))
-                .collect();
-            self.confine(ins, &offs, values.is_some());
-        }
+        let words: Vec<(Value, Value)> = (0..count)
+            .map(|k| {
+                let o = self.b.ins().iadd_imm_s(off, 4 * k as i64);
+                (o, self.bank_of(o))
+            })
+            .collect();
+        self.confine(ins, &words, values.is_some());
         let c = self.b.use_var(self.cyc);
         let mut at = self.b.ins().iadd_imm_s(c, 1);
         let mut total = self.b.ins().iconst(types::I64, 0);
         let mut loaded = Vec::new();
         let mut code = self.b.ins().iconst(types::I32, 0);
         for k in 0..count {
-            let o = self.b.ins().iadd_imm_s(off, 4 * k as i64);
-            let wait = self.arbitrate(o, at);
+            let (o, bank) = words[k as usize];
+            let wait = self.arbitrate(bank, at);
             total = self.b.ins().iadd(total, wait);
             let step = self.b.ins().iadd_imm_s(wait, 1);
             at = self.b.ins().iadd(at, step);

@@ -49,6 +49,14 @@
 //! more (what the board needs to replay a sleeping core's turns, [`crate::block`]).
 
 //!
+//! **Confinement.** For two cores running ahead of each other ([`crate::board`], "Running
+//! ahead") each region is also compiled *confined* (a second cache): every SRAM access
+//! checks its bank against the context's mask and leaves before the instruction when the
+//! bank is not allowed, and every store appends `(word offset, old word)` to the context's
+//! undo journal; the entry and each back edge check that the journal has room for every
+//! store word of the region, so no store checks it. The runner also refuses a region
+//! fetched from a bank outside the mask ([`cache::Region::banks`]).
+//!
 //! **Modules.** [`scan`] finds a region (which instructions are translated, where it ends,
 //! the cycle bound of each instruction); [`translate`] builds a region's function (the
 //! entry and exit code, the cycle and instruction counts, control flow), with the
@@ -66,5 +74,5 @@ mod scan;
 mod translate;
 
 pub(crate) use abi::{call, Confine, Exit};
-pub(crate) use cache::{Jit, Region};
+pub(crate) use cache::Jit;
 pub(crate) use scan::data_words;

@@ -43,8 +43,25 @@ pub(super) struct Translator<'a> {
     pub(super) pend_n: u64,
     pub(super) exit: Block,
     pub(super) written: u16,
-    /// The context pointer when the code is confined (see the parent module).
-    pub(super) confined: Option<Value>,
+    /// Confined code only (see the parent module): the bank mask and the journal.
+    pub(super) confined: Option<Confined>,
+}
+
+/// A confined function's bank mask and journal, loaded from [`Ctx`] at its entry.
+#[derive(Clone, Copy)]
+pub(super) struct Confined {
+    /// [`Ctx::allowed`] (i32).
+    pub(super) allowed: Value,
+    /// [`Ctx::journal`].
+    pub(super) journal: Value,
+    /// [`Ctx::journal_cap`].
+    pub(super) cap: Value,
+    /// Entries used ([`Ctx::journal_len`], written back at the exit).
+    pub(super) len: Variable,
+    /// Journal entries the region's stores can write between two checks (at the entry and
+    /// at each back edge): every store word of the region, as a forward path runs each
+    /// instruction at most once.
+    pub(super) room: u64,
 }
 
 impl<'a> Translator<'a> {
@@ -112,6 +129,35 @@ impl<'a> Translator<'a> {
         let zero32 = b.ins().iconst(types::I32, 0);
         b.def_var(exit_pc, zero32);
         b.def_var(exit_why, zero32);
+        let confined = confined.then(|| {
+            let allowed = b
+                .ins()
+                .load(types::I32, mf, ctx, offset_of!(Ctx, allowed) as i32);
+            let journal = ptr(&mut b, offset_of!(Ctx, journal));
+            let cap = ptr(&mut b, offset_of!(Ctx, journal_cap));
+            let len = b.declare_var(types::I64);
+            let v = ptr(&mut b, offset_of!(Ctx, journal_len));
+            b.def_var(len, v);
+            let room = instrs
+                .iter()
+                .filter(|i| {
+                    matches!(
+                        crate::timing::class(&i.instr),
+                        crate::timing::Class::Store
+                            | crate::timing::Class::StoreMultiple
+                            | crate::timing::Class::Push
+                    )
+                })
+                .map(|i| super::scan::data_words(&i.instr) as u64)
+                .sum();
+            Confined {
+                allowed,
+                journal,
+                cap,
+                len,
+                room,
+            }
+        });
         let exit = b.create_block();
         let mut t = Translator {
             b,
@@ -135,7 +181,7 @@ impl<'a> Translator<'a> {
             pend_n: 0,
             exit,
             written: 0,
-            confined: confined.then_some(ctx),
+            confined,
         };
         // A block for each instruction a branch of the region jumps to.
         let mut labels: Vec<Option<Block>> = vec![None; instrs.len()];
@@ -143,6 +189,11 @@ impl<'a> Translator<'a> {
             if labels[t_].is_none() {
                 labels[t_] = Some(t.b.create_block());
             }
+        }
+        // Confined: no store checks the journal's capacity; the entry checks room for all.
+        if t.confined.is_some() {
+            let room = t.journal_room();
+            t.general_unless(room, instrs[0].pc);
         }
         let mut live = true;
         for (i, ins) in instrs.iter().enumerate() {
@@ -189,6 +240,11 @@ impl<'a> Translator<'a> {
         t.b.ins().store(mf, v, ctx, offset_of!(Ctx, retired) as i32);
         let v = t.b.use_var(q);
         t.b.ins().store(mf, v, ctx, offset_of!(Ctx, q) as i32);
+        if let Some(c) = t.confined {
+            let v = t.b.use_var(c.len);
+            t.b.ins()
+                .store(mf, v, ctx, offset_of!(Ctx, journal_len) as i32);
+        }
         let why = t.b.use_var(exit_why);
         t.b.ins().return_(&[why]);
         t.b.seal_all_blocks();
@@ -245,6 +301,28 @@ impl<'a> Translator<'a> {
         self.b.ins().jump(self.exit, &[]);
     }
 
+    /// Confined code: whether the journal has room for [`Confined::room`] more entries.
+    pub(super) fn journal_room(&mut self) -> Value {
+        let c = self.confined.expect("confined code");
+        let len = self.b.use_var(c.len);
+        let need = self.b.ins().iadd_imm_s(len, c.room as i64);
+        self.b
+            .ins()
+            .icmp(IntCC::UnsignedLessThanOrEqual, need, c.cap)
+    }
+
+    /// Leaves before the instruction at `pc` unless `cond` holds (nothing of it done).
+    pub(super) fn general_unless(&mut self, cond: Value, pc: u32) {
+        self.flush();
+        let out = self.b.create_block();
+        let on = self.b.create_block();
+        self.b.ins().brif(cond, on, &[], out, &[]);
+        self.b.switch_to_block(out);
+        let p = self.c32(pc);
+        self.leave(p, Exit::General);
+        self.b.switch_to_block(on);
+    }
+
     /// Leaves before the instruction at `pc` when `cond` holds (nothing of it done).
     pub(super) fn general_if(&mut self, cond: Value, pc: u32) {
         self.flush();
@@ -290,10 +368,14 @@ impl<'a> Translator<'a> {
                     // limit when `cycle + bound <= limit`.
                     let c = self.b.use_var(self.cyc);
                     let end = self.b.ins().iadd_imm_s(c, bound as i64);
-                    let fits = self
-                        .b
-                        .ins()
-                        .icmp(IntCC::UnsignedLessThanOrEqual, end, self.limit);
+                    let mut fits =
+                        self.b
+                            .ins()
+                            .icmp(IntCC::UnsignedLessThanOrEqual, end, self.limit);
+                    if self.confined.is_some() {
+                        let room = self.journal_room();
+                        fits = self.b.ins().band(fits, room);
+                    }
                     let stop = self.b.create_block();
                     self.b.ins().brif(fits, label, &[], stop, &[]);
                     self.b.switch_to_block(stop);
