@@ -126,8 +126,6 @@ pub(crate) struct Blocks {
     pub(crate) confined: Jit,
     /// The undo journal of the core running ahead (entries as [`crate::jit`] writes them).
     pub(crate) journal: Vec<u64>,
-    /// A journal whose entries are dropped (the core catching up needs no undo).
-    scratch: Vec<u64>,
 }
 
 /// Undo-journal entries kept while a core runs ahead: a window that fills it ends there.
@@ -163,7 +161,6 @@ impl Blocks {
             jit: Jit::new(false),
             confined: Jit::new(true),
             journal: Vec::with_capacity(JOURNAL),
-            scratch: Vec::with_capacity(JOURNAL),
         }
     }
 
@@ -462,16 +459,9 @@ pub(crate) fn run_confined(
             if let Some(region) = blocks.confined.lookup(sys, pc) {
                 if core.cycle.saturating_add(region.bound) <= limit && region.banks & !allowed == 0
                 {
-                    let log = match journal.as_deref_mut() {
-                        Some(j) => j,
-                        None => {
-                            blocks.scratch.clear();
-                            &mut blocks.scratch
-                        }
-                    };
                     let mut confine = jit::Confine {
                         allowed,
-                        journal: log,
+                        journal: journal.as_deref_mut(),
                     };
                     let (exit, n, _) = jit::call(region.f, core, sys, limit, Some(&mut confine));
                     retired += n;

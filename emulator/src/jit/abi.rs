@@ -29,7 +29,7 @@ pub(crate) struct Ctx {
     /// access SRAM bank *b* (0-3 SRAM0-3, 4 SRAM4, 5 SRAM5).
     pub allowed: u64,
     /// Confined code only: the undo journal, one entry per store, `(word offset << 32) |
-    /// the word's old value`, in store order.
+    /// the word's old value`, in store order; null for none.
     pub journal: *mut u64,
     /// Confined code only: entries used (in and out).
     pub journal_len: u64,
@@ -42,8 +42,9 @@ pub(crate) struct Ctx {
 pub(crate) struct Confine<'a> {
     /// SRAM banks the core may access (bit per bank).
     pub allowed: u8,
-    /// The undo journal: the native code appends to it, up to its capacity.
-    pub journal: &'a mut Vec<u64>,
+    /// The undo journal: the native code appends to it, up to its capacity (`None`: the
+    /// stores are not journaled).
+    pub journal: Option<&'a mut Vec<u64>>,
 }
 
 /// Why native code returned.
@@ -103,9 +104,12 @@ pub(crate) fn call(
     };
     if let Some(c) = confine.as_deref() {
         ctx.allowed = c.allowed as u64;
-        ctx.journal = c.journal.as_ptr() as *mut u64;
-        ctx.journal_len = c.journal.len() as u64;
-        ctx.journal_cap = c.journal.capacity() as u64;
+        ctx.journal_cap = u64::MAX;
+        if let Some(j) = c.journal.as_deref() {
+            ctx.journal = j.as_ptr() as *mut u64;
+            ctx.journal_len = j.len() as u64;
+            ctx.journal_cap = j.capacity() as u64;
+        }
     }
     // SAFETY: `f` was compiled by `Jit::compile` for this layout of `Core` and `Ctx`; it
     // reads and writes only the core's registers, flags, cycle, PC, the SRAM and flash
@@ -114,9 +118,9 @@ pub(crate) fn call(
     // confined code also writes journal entries below `journal_cap`, the vector's
     // capacity, whose length is then set to the entries written (each initialised).
     let exit = unsafe { f(core, &mut ctx, limit) };
-    if let Some(c) = confine {
+    if let Some(j) = confine.and_then(|c| c.journal.as_deref_mut()) {
         // SAFETY: the native code wrote entries `len..journal_len`, within the capacity.
-        unsafe { c.journal.set_len(ctx.journal_len as usize) };
+        unsafe { j.set_len(ctx.journal_len as usize) };
     }
     (Exit::from_raw(exit), ctx.retired, ctx.q)
 }

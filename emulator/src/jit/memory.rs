@@ -61,7 +61,7 @@ impl Translator<'_> {
 
     /// Confined code only (see the parent module, "Confinement"): leaves before the
     /// instruction at `ins` unless every SRAM access in `at` (offset, bank) is in an allowed
-    /// bank; then, for a store, journals the old words it will overwrite (the journal's room
+    /// bank; then, for a store with a journal, journals the old words it will overwrite (the journal's room
     /// was checked at the region's entry or last back edge, [`Translator::journal_room`]).
     /// Nothing when the code is not confined.
     fn confine(&mut self, ins: &RegionInstr, at: &[(Value, Value)], store: bool) {
@@ -81,6 +81,11 @@ impl Translator<'_> {
             self.general_unless(ok, ins.pc);
         }
         if store {
+            // No journal (a core catching up needs no undo): no entries.
+            let write = self.b.create_block();
+            let done = self.b.create_block();
+            self.b.ins().brif(c.journal, write, &[], done, &[]);
+            self.b.switch_to_block(write);
             let len = self.b.use_var(c.len);
             let slot = self.b.ins().ishl_imm_u(len, 3);
             let slot = self.b.ins().iadd(c.journal, slot);
@@ -95,6 +100,8 @@ impl Translator<'_> {
             }
             let len = self.b.ins().iadd_imm_s(len, at.len() as i64);
             self.b.def_var(c.len, len);
+            self.b.ins().jump(done, &[]);
+            self.b.switch_to_block(done);
         }
     }
 
