@@ -1010,6 +1010,7 @@ impl Board {
             self.system.bank_claim.map(|c| c[a]),
             self.system.contention_stalls[a],
         );
+        let epoch = self.system.code_epoch;
         let (sys, blocks) = (&mut self.system, &mut self.blocks);
         let mut journal = std::mem::take(&mut blocks.journal);
         journal.clear();
@@ -1035,6 +1036,11 @@ impl Board {
                     sys.bank_claim[bank][a] = *c;
                 }
                 sys.contention_stalls[a] = stalls;
+                // Code decoded after a store into a code page in the window came from
+                // memory the undo has just changed back.
+                if sys.code_epoch != epoch {
+                    sys.invalidate_code();
+                }
             }
         }
         sys.allowed_banks = ALL_BANKS;

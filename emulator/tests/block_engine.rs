@@ -451,3 +451,54 @@ fn two_cores_on_their_own_banks_run_ahead_exactly() {
     assert!(kept > 10, "{kept} windows kept");
     assert_eq!(interp.run_ahead_windows(), (0, 0));
 }
+
+/// Running ahead with self-modifying code and rollbacks: core 0 rewrites an instruction of
+/// its own loop every iteration (in its own bank), core 1 reads SIO every 50 iterations of
+/// its own loop, so windows in which core 0 ran ahead — rewriting and recompiling its code —
+/// are rolled back when core 1 cannot catch up past its SIO load. Every slice agrees with
+/// the interpreter, and both outcomes occur.
+#[test]
+fn running_ahead_rolls_back_self_modifying_code_exactly() {
+    let setup = |engine| {
+        let mut b = Board::new(Config {
+            engine,
+            ..Config::default()
+        });
+        // Core 0: ldr r1,[r0]; eors r1,r2; str r1,[r0]; nop;
+        //   target: movs r3,#1 (toggled with #2); adds r4,r4,r3; subs r5,#1; bne loop
+        let c0: [u16; 8] = [
+            0x6801, 0x4051, 0x6001, 0xbf00, 0x2301, 0x18e4, 0x3d01, 0xd1f7,
+        ];
+        // Core 1: loop: ldr r1,[r0]; adds r1,#1; str r1,[r0]; subs r5,#1; bne loop;
+        //   ldr r2,[r6] (SIO CPUID); movs r5,#50; b loop
+        let c1: [u16; 8] = [
+            0x6801, 0x3101, 0x6001, 0x3d01, 0xd1fa, 0x6832, 0x2532, 0xe7f7,
+        ];
+        for (core, code, at) in [(0, c0, bank(0) + 0x100), (1, c1, bank(1) + 0x500)] {
+            let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+            b.write_bytes(at, &bytes).unwrap();
+            b.start_core(core, at | 1, 0x2004_1000 + 0x1000 * core as u32, 0);
+        }
+        let c = &mut b.cores[0];
+        (c.r[0], c.r[2], c.r[5]) = (bank(0) + 0x108, 3, u32::MAX);
+        let c = &mut b.cores[1];
+        (c.r[0], c.r[5], c.r[6]) = (bank(1) + 0x8000, 50, SIO);
+        b
+    };
+    let mut block = setup(Engine::Block);
+    block.set_compile_threshold(0);
+    let mut interp = setup(Engine::Interp);
+    let mut rng = Rng(0x5e1f);
+    while block.cycle() < 300_000 {
+        let limit = block.cycle() + 1 + rng.below(8000) as u64;
+        assert_eq!(block.run_until(limit), interp.run_until(limit));
+        assert_eq!(state(&mut block), state(&mut interp), "at {limit}");
+    }
+    assert_eq!(sram(&mut block), sram(&mut interp));
+    let (kept, rolled_back) = block.run_ahead_windows();
+    eprintln!("windows kept {kept}, rolled back {rolled_back}");
+    assert!(
+        kept > 0 && rolled_back > 0,
+        "{kept} kept, {rolled_back} rolled back"
+    );
+}
