@@ -489,7 +489,7 @@ fn running_ahead_rolls_back_self_modifying_code_exactly() {
     block.set_compile_threshold(0);
     let mut interp = setup(Engine::Interp);
     let mut rng = Rng(0x5e1f);
-    while block.cycle() < 300_000 {
+    while block.cycle() < 100_000 {
         let limit = block.cycle() + 1 + rng.below(8000) as u64;
         assert_eq!(block.run_until(limit), interp.run_until(limit));
         assert_eq!(state(&mut block), state(&mut interp), "at {limit}");
