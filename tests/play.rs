@@ -330,7 +330,7 @@ fn the_emulated_board_strikes_like_the_fixed_point_jit_without_missing_a_deadlin
     let layout = dir.join("over.toml");
     std::fs::write(
         &layout,
-        "name = \"over\"\n[[range]]\nkeys = [60, 63]\ninstrument = \"grand_piano\"\n[[board]]\nkeys = [60, 63]\n",
+        "name = \"over\"\n[[range]]\nkeys = [60, 65]\ninstrument = \"grand_piano\"\n[[board]]\nkeys = [60, 65]\n",
     )
     .unwrap();
     let over = tactus()

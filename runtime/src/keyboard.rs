@@ -126,9 +126,15 @@ pub struct Board {
 pub const MAX_CORES: u32 = 64;
 
 impl Board {
-    /// Cycles available per sample per core (`clock / sample rate`, rounded down).
+    /// Cycles available per sample per core: the shortest interval between two sample
+    /// ticks. The firmware's timer ticks on whole microseconds (tick `n` at
+    /// `⌊n·10⁶/fs⌋` µs, `firmware/src/image/layout.rs`, `tick_schedule`), so the intervals
+    /// are `⌊10⁶/fs⌋` or one µs more, and a handler must end within the shorter:
+    /// `⌊⌊10⁶/fs⌋ µs · clock⌋` (2,926 cycles at 133 MHz and 44.1 kHz, not the mean 3,015:
+    /// a core whose interrupt took 2,958 cycles missed deadlines in the emulator).
     pub fn cycles_per_sample(&self) -> u64 {
-        (self.clock_hz / self.sample_rate_hz).floor() as u64
+        let us = (1e6 / self.sample_rate_hz).floor();
+        (us * self.clock_hz / 1e6).floor() as u64
     }
 }
 
@@ -449,13 +455,13 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
             read_board(&root.join("boards/rp2040.toml"))
                 .unwrap()
                 .cycles_per_sample(),
-            3015
+            2926
         );
         assert_eq!(
             read_board(&root.join("boards/rp2040_200mhz.toml"))
                 .unwrap()
                 .cycles_per_sample(),
-            4535
+            4400
         );
         let e = read_board(&root.join("boards/none.toml")).unwrap_err();
         assert!(e.contains("none.toml") && e.contains("cannot read"), "{e}");
@@ -464,7 +470,7 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
     #[test]
     fn boards_check_their_fields() {
         let ok = "name = \"rp2040\"\nclock_hz = 133e6\ncores = 2\nsample_rate_hz = 44100\n";
-        assert_eq!(parse_board(ok, "b.toml").unwrap().cycles_per_sample(), 3015);
+        assert_eq!(parse_board(ok, "b.toml").unwrap().cycles_per_sample(), 2926);
         let e = parse_board(&ok.replace("cores = 2", "cores = 0"), "b.toml").unwrap_err();
         assert!(e.contains("b.toml") && e.contains("cores"), "{e}");
         let e = parse_board(

@@ -10,6 +10,7 @@
 //! format and saturated. Because the formats hold the analysed intervals, saturation can fire
 //! only where the analysis had to clamp an unbounded value, and those places are warned about.
 
+pub mod common;
 pub mod contract;
 pub mod flow;
 pub mod interp;
@@ -489,6 +490,9 @@ impl FixedProgram {
 
     /// Plans formats for `program` under the precision budget `config`.
     pub fn with_config(program: &Program, config: &PlanConfig) -> Self {
+        // Each common value once (`common`): the same meaning, fewer products to plan and run.
+        let shared = common::share_common_values(program);
+        let program = &shared;
         let ranges = range::analyse(program);
         let n = program.values.len();
         let mut frac = vec![0; n];

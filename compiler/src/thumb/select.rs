@@ -78,6 +78,11 @@ pub(crate) struct Sel<'a> {
     /// the following accesses to the same region until the next label, where control may
     /// arrive from a path that did not define it.
     region_base: Option<(usize, V)>,
+    /// Virtual registers holding a known word: defined once, by [`Sel::movi`] (a later
+    /// definition removes the entry). A rounding of such a word is folded to its result
+    /// ([`Sel::round`], [`Sel::floor_shr`]): a constant's conversion to another format costs
+    /// nothing at run time.
+    konst: std::collections::HashMap<V, i32>,
     /// The first construct found that this backend cannot compile.
     unsupported: Option<String>,
     /// Whether [`Sel::stmts`] is at the body's top level (for [`M::Mark`]s).
@@ -246,6 +251,7 @@ impl<'a> Sel<'a> {
             next_site: 0,
             direct,
             region_base: None,
+            konst: std::collections::HashMap::new(),
             unsupported: None,
             fused,
             top: false,
@@ -265,6 +271,9 @@ impl<'a> Sel<'a> {
     fn push(&mut self, m: M) {
         if matches!(m, M::Label(_)) {
             self.region_base = None;
+        }
+        if let Some(d) = m.def() {
+            self.konst.remove(&d);
         }
         self.code.push(m);
     }
@@ -293,7 +302,16 @@ impl<'a> Sel<'a> {
     fn movi(&mut self, imm: i32) -> V {
         let d = self.nv();
         self.push(M::Movi { d, imm });
+        self.konst.insert(d, imm);
         d
+    }
+
+    /// A known word `c` as a `W` (its bound is its magnitude).
+    fn known(&mut self, c: i32) -> W {
+        W {
+            v: self.movi(c),
+            b: c.unsigned_abs() as u64,
+        }
     }
 
     fn sh(&mut self, op: Shift, m: V, imm: u8) -> V {
@@ -399,6 +417,9 @@ impl<'a> Sel<'a> {
         if s <= 0 {
             return x;
         }
+        if let Some(&c) = self.konst.get(&x.v) {
+            return self.known(c >> s.min(31));
+        }
         let s = s.min(31) as u8;
         W {
             v: self.sh(Shift::Asr, x.v, s),
@@ -479,6 +500,12 @@ impl<'a> Sel<'a> {
 
     /// `x · 2^e` rounded half up and saturated (any `e`).
     fn round(&mut self, x: W, e: i32) -> W {
+        if let Some(&c) = self.konst.get(&x.v) {
+            if e != 0 {
+                // The definition itself (`fixed::convert`: round half up, saturate).
+                return self.known(tactus_runtime::fixed::convert(c, 0, e).0);
+            }
+        }
         match e.cmp(&0) {
             Ordering::Equal => x,
             Ordering::Greater => self.shl_sat(x, e),
@@ -697,33 +724,53 @@ impl<'a> Sel<'a> {
                 // fixed::mul_high: xh·yh·2^(32−k) + floor(xh·yl / 2^(k−16)) +
                 // floor(xl·yh / 2^(k−16)), each partial product one MULS.
                 let k = k.clamp(16, 32) as i32;
-                let xl = self.nv();
-                self.push(M::Uxth { d: xl, m: x.v });
                 let xh = self.sh(Shift::Asr, x.v, 16);
+                // A constant's zero half contributes nothing: its partial products are 0
+                // (`None`), and its register is never loaded.
                 let (yh, yl, yb) = match y {
-                    Operand::Const(c) => (
-                        self.movi(c >> 16),
-                        self.movi(c & 0xffff),
-                        c.unsigned_abs() as u64,
-                    ),
+                    Operand::Const(c) => {
+                        let half = |this: &mut Self, h: i32| (h != 0).then(|| this.movi(h));
+                        (
+                            half(self, c >> 16),
+                            half(self, c & 0xffff),
+                            c.unsigned_abs() as u64,
+                        )
+                    }
                     Operand::Word(w) => {
                         let yl = self.nv();
                         self.push(M::Uxth { d: yl, m: w.v });
-                        (self.sh(Shift::Asr, w.v, 16), yl, w.b)
+                        (Some(self.sh(Shift::Asr, w.v, 16)), Some(yl), w.b)
                     }
                 };
-                let mut hh = self.alu2(AluOp::Mul, xh, yh);
-                if k < 32 {
-                    hh = self.sh(Shift::Lsl, hh, (32 - k) as u8);
+                let mut parts = Vec::with_capacity(3);
+                if let Some(yh) = yh {
+                    let mut hh = self.alu2(AluOp::Mul, xh, yh);
+                    if k < 32 {
+                        hh = self.sh(Shift::Lsl, hh, (32 - k) as u8);
+                    }
+                    parts.push(hh);
                 }
-                let mut hl = self.alu2(AluOp::Mul, xh, yl);
-                let mut lh = self.alu2(AluOp::Mul, xl, yh);
-                if k > 16 {
-                    hl = self.sh(Shift::Asr, hl, (k - 16) as u8);
-                    lh = self.sh(Shift::Asr, lh, (k - 16) as u8);
+                // x's low half only where a high half of y multiplies it.
+                let xl = yh.map(|_| {
+                    let xl = self.nv();
+                    self.push(M::Uxth { d: xl, m: x.v });
+                    xl
+                });
+                for (a, b) in [(Some(xh), yl), (xl, yh)] {
+                    let (Some(a), Some(b)) = (a, b) else { continue };
+                    let mut t = self.alu2(AluOp::Mul, a, b);
+                    if k > 16 {
+                        t = self.sh(Shift::Asr, t, (k - 16) as u8);
+                    }
+                    parts.push(t);
                 }
-                let p = self.addsub(false, hh, hl);
-                let p = self.addsub(false, p, lh);
+                let mut p = match parts.first() {
+                    Some(&t) => t,
+                    None => self.movi(0),
+                };
+                for &t in parts.iter().skip(1) {
+                    p = self.addsub(false, p, t);
+                }
                 // The planner's bound (`MulOperands::high`): the sum fits an i32.
                 let (hx, hy) = ((x.b.min(LIM) >> 16) + 1, (yb.min(LIM) >> 16) + 1);
                 let pb = ((hx * hy + hx + hy) << (32 - k)) + 2;
@@ -986,6 +1033,20 @@ impl<'a> Sel<'a> {
         if let Some(what) = self.unsupported {
             return Err(ThumbError::Unsupported(what));
         }
+        // Constants nothing reads (the zero side of a `select` folded to `ANDS`/`BICS`):
+        // `MOVS #imm` and literal loads have no effect the code relies on (N and Z of a
+        // `MOVS` are never tested: every branch follows its own compare).
+        let mut used = vec![false; self.nv as usize];
+        for m in &self.code {
+            for u in m.uses() {
+                // (Fixed registers are numbered from the top: never a `Movi`'s.)
+                if let Some(x) = used.get_mut(u.0 as usize) {
+                    *x = true;
+                }
+            }
+        }
+        self.code
+            .retain(|m| !matches!(m, M::Movi { d, .. } if used.get(d.0 as usize) == Some(&false)));
         Ok(Selected {
             code: self.code,
             nregs: self.nv,
@@ -995,6 +1056,9 @@ impl<'a> Sel<'a> {
 
     /// Clamps `x` (redefined in place) to `[lo, hi]`.
     fn clamp(&mut self, x: V, lo: i32, hi: i32) {
+        if self.konst.get(&x).is_some_and(|c| (lo..=hi).contains(c)) {
+            return;
+        }
         for (bound, cond) in [(lo, Cond::Ge), (hi, Cond::Le)] {
             if (cond == Cond::Ge && bound == i32::MIN) || (cond == Cond::Le && bound == i32::MAX) {
                 continue;
@@ -2173,6 +2237,19 @@ impl<'a> Sel<'a> {
     /// `c ? a : b` for a 0/1 word `c`, branch-free: `b ^ ((a ^ b) & -c)`.
     fn select(&mut self, c: V, a: W, b: W) -> W {
         let m = self.unary(AluOp::Rsb, c);
+        // One side a known 0: `a & -c` or `b & ~(-c)` (`BICS`).
+        let b_zero = self.konst.get(&b.v) == Some(&0);
+        if b_zero || self.konst.get(&a.v) == Some(&0) {
+            let (op, keep) = if b_zero {
+                (AluOp::And, a)
+            } else {
+                (AluOp::Bic, b)
+            };
+            return W {
+                v: self.alu2(op, keep.v, m),
+                b: keep.b,
+            };
+        }
         let t = self.alu2(AluOp::Eor, a.v, b.v);
         let t = self.alu2(AluOp::And, t, m);
         W {
