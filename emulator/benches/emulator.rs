@@ -1,7 +1,8 @@
 //! Emulated cycles per host second of the two engines in the same run (criterion reports
 //! "elements" = emulated cycles): the speed loop (ALU, multiply, SRAM loads/stores and a
-//! taken branch) and firmware-like key updates in the SysTick interrupt (see
-//! `common/mod.rs`), each on one core and on both.
+//! taken branch), the same loop with each core's code and data in its own SRAM bank, and
+//! firmware-like key updates in the SysTick interrupt (see `common/mod.rs`), each on one
+//! core and on both (per core: elements are each core's cycles).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use tactus_emulator::Engine;
@@ -16,6 +17,13 @@ fn bench(c: &mut Criterion) {
         for cores in [1, 2] {
             let mut b = common::speed_loop(engine, cores);
             group.bench_function(format!("loop_{cores}_core_{engine:?}"), |bench| {
+                bench.iter(|| b.run_for(CYCLES))
+            });
+        }
+        for cores in [1, 2] {
+            // Each core's code and data in its own bank: two cores run ahead of each other.
+            let mut b = common::speed_loop_own_banks(engine, cores);
+            group.bench_function(format!("own_banks_loop_{cores}_core_{engine:?}"), |bench| {
                 bench.iter(|| b.run_for(CYCLES))
             });
         }

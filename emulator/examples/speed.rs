@@ -12,7 +12,9 @@
 //! the loop on core 0 with core 1 started but asleep in WFI (no interrupt will wake it);
 //! 4 runs, on core 0, a loop calling a profiled function (`Board::profile_addr`) that does
 //! the SRAM load, add and store (16 cycles per call); 5 and 6 run the key updates (44 keys
-//! per core, SysTick every 3,016 cycles) on 1 and 2 cores. `engine` is `block` (default)
+//! per core, SysTick every 3,016 cycles) on 1 and 2 cores; 7 and 8 run the loop with each
+//! core's code and data in its own SRAM bank on 1 and 2 cores (the cores run ahead of each
+//! other, `Config::own_banks`). `engine` is `block` (default)
 //! or `interp`. Prints the cycles run, each core's registers as a checksum, and the
 //! wall-clock rate.
 
@@ -24,7 +26,7 @@ mod common;
 fn main() {
     let mut args = std::env::args().skip(1);
     let mode: usize = args.next().map_or(1, |a| a.parse().expect("mode: 1 to 6"));
-    let cores = if mode == 2 || mode == 3 || mode == 6 {
+    let cores = if mode == 2 || mode == 3 || mode == 6 || mode == 8 {
         2
     } else {
         1
@@ -37,7 +39,9 @@ fn main() {
         Some("interp") => Engine::Interp,
         Some(other) => panic!("engine: block or interp, not {other}"),
     };
-    let mut b = if mode >= 5 {
+    let mut b = if mode >= 7 {
+        common::speed_loop_own_banks(engine, cores)
+    } else if mode >= 5 {
         common::key_updates(engine, cores, 44, 3016)
     } else {
         common::speed_loop(engine, if mode == 2 { 2 } else { 1 })
@@ -67,6 +71,11 @@ fn main() {
         b.cycle(),
         b.blocks_decoded()
     );
+    println!(
+        "run-ahead windows (kept, rolled back): {:?}; code epoch {}",
+        b.run_ahead_windows(),
+        b.system.code_epoch
+    );
     for c in &b.cores[..cores] {
         println!(
             "core {}: cycle {} instructions {} r = {:08x?} stalls {}",
@@ -78,7 +87,7 @@ fn main() {
         let total: u64 = calls.iter().map(|c| c.cycles).sum();
         println!("{} profiled calls, {} cycles", calls.len(), total);
     }
-    if mode >= 5 {
+    if mode == 5 || mode == 6 {
         let dac: Vec<u32> = (0..4).map(|k| b.dac(k).unwrap()).collect();
         println!("dac[0..4] = {dac:?}");
     }

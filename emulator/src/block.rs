@@ -13,8 +13,7 @@
 //! `Core::execute_op`, the interpreter's executor. Both layers are checked against the
 //! interpreter instruction by instruction (`tests/block_jit.rs`) and on whole programs
 //! (`tests/block_engine.rs`, the firmware images in `firmware/tests/image.rs`).
-//! Measured (BENCHMARKS.md, "the block compiler"): 11.7 against 34.5 host instructions
-//! per emulated cycle on the speed loop, 5.76 against 17.8 on the key-update workload.
+//! Measured: see BENCHMARKS.md, "the block compiler".
 //!
 //! **Cycles.** Each instruction's cost comes from the one timing table
 //! ([`crate::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block
@@ -52,27 +51,10 @@
 //!   and the turns are replayed after each pre-decoded instruction ([`Sleeper::after`]), or
 //!   in closed form after native code ([`Sleeper::after_native`]), which needs only the
 //!   end cycle and that of the last instruction of two cycles or more;
-//! * both cores run: each turn lasts an instruction or two, no region fits in it, and the
-//!   board runs the interpreter's lock-step loop (faster there than blocks).
-//!
-//! *Running ahead.* Letting core A run a window `[t, t')` of its code before core B runs
-//! its own `[t, t')` is exact when nothing either core does in the window depends on the
-//! other's: A's loads read no word B stores in the window (and vice versa), no access of
-//! A claims a bank in the same cycle as an access of B (the arbiter's winner depends on
-//! which instruction started first), and B raises no interrupt or event A could take in
-//! the window (an SIO FIFO push, a timer alarm, SEV), and vice versa. The firmware image
-//! makes the first two likely — each core's code, data and stack are in its own bank
-//! (through the non-striped alias) and its scratch bank — but not certain: the sensor and
-//! DAC windows are striped over all four banks, so a core's window accesses contend with
-//! the other core's private bank, and the timer and SIO are shared. A static proof is
-//! therefore not available, and an exact run-ahead needs the check at run time: A runs a
-//! window *confined* to its own banks (native code exits before any other access),
-//! recording the (bank, cycle) of its claims; B then runs the same window, and each of its
-//! accesses to A's banks at a cycle A claimed, each access to A's words, and anything that
-//! could raise A's interrupt lines or stop the run rolls A back to the window's start
-//! (registers and a journal of its stores) and falls back to lock-step for that window.
-//! That is not built: with both cores running the engine is lock-step, and the issue's
-//! two-core speed target is not met (BENCHMARKS.md).
+//! * both cores run: the core behind runs a window of confined compiled code ahead of the
+//!   other in its own banks, and the other catches up confined to the other banks
+//!   ([`run_confined`]; the argument and the rollback are in [`crate::board`], "Running
+//!   ahead"); where that fails, the board's lock-step loop on the interpreter.
 //!
 use crate::bus::{sram_location, Bus, System};
 use crate::core::Core;
@@ -140,7 +122,14 @@ pub(crate) struct Blocks {
     pub(crate) decoded: u64,
     /// The compiled regions ([`crate::jit`]).
     pub(crate) jit: Jit,
+    /// The same regions compiled confined, for running ahead ([`run_confined`]).
+    pub(crate) confined: Jit,
+    /// The undo journal of the core running ahead (entries as [`crate::jit`] writes them).
+    pub(crate) journal: Vec<u64>,
 }
+
+/// Undo-journal entries kept while a core runs ahead: a window that fills it ends there.
+const JOURNAL: usize = 1 << 16;
 
 #[inline(always)]
 fn tag(pc: u32, epoch: u32) -> u64 {
@@ -169,7 +158,9 @@ impl Blocks {
             generation: 0,
             cursor: [Cursor::default(); 2],
             decoded: 0,
-            jit: Jit::new(),
+            jit: Jit::new(false),
+            confined: Jit::new(true),
+            journal: Vec::with_capacity(JOURNAL),
         }
     }
 
@@ -361,9 +352,9 @@ pub(crate) fn run<T: Turns>(
         }
         let pc = core.r[15];
         if native {
-            if let Some((f, bound)) = blocks.jit.lookup(sys, pc) {
-                if core.cycle.saturating_add(bound) <= limit {
-                    let (exit, n, q) = jit::call(f, core, sys, limit);
+            if let Some(region) = blocks.jit.lookup(sys, pc) {
+                if core.cycle.saturating_add(region.bound) <= limit {
+                    let (exit, n, q) = jit::call(region.f, core, sys, limit, None);
                     retired += n;
                     turns.after_native(core.cycle, q);
                     match exit {
@@ -417,6 +408,98 @@ pub(crate) fn run<T: Turns>(
                 if o.store && sys.code_epoch != epoch {
                     break;
                 }
+            }
+        }
+        blocks.cursor[core.id & 1] = Cursor {
+            op: i as u32,
+            end: end as u32,
+            generation: blocks.generation,
+        };
+        if let Some(l) = leave {
+            break Err(l);
+        }
+    };
+    core.instructions += retired;
+    result
+}
+
+/// Whether the fast path may fetch the instruction at `pc` of `size` bytes now (its SRAM
+/// banks allowed, [`System::allows`]; flash and ROM always).
+#[inline(always)]
+fn fetch_allowed(sys: &System, pc: u32, size: u32) -> bool {
+    [pc, pc.wrapping_add(size - 2)]
+        .into_iter()
+        .all(|a| sram_location(a).is_none_or(|(off, _)| sys.allows(off as u32)))
+}
+
+/// [`run`] confined to the SRAM banks in [`System::allowed_banks`] (set by the caller), for
+/// running ahead ([`crate::board`], "Running ahead"): compiled regions come from the
+/// confined cache, whose loads and stores leave before an access to another bank, and
+/// pre-decoded instructions run through the executor, whose fast path does the same; an
+/// instruction fetched from another bank leaves too. With `journal`, only native code runs
+/// (the run ends where a region does not fit or leaves, `Err(Leave::General)`), and every
+/// store's old word is appended to `journal` (the run ends before a store that finds it
+/// full) so that the caller can undo the run. `Ok` when the core reached `limit`.
+pub(crate) fn run_confined(
+    core: &mut Core,
+    sys: &mut System,
+    blocks: &mut Blocks,
+    limit: u64,
+    mut journal: Option<&mut Vec<u64>>,
+) -> Result<(), Leave> {
+    let allowed = sys.allowed_banks;
+    let mut retired = 0u64;
+    let mut native = true;
+    let result = loop {
+        if core.cycle >= limit {
+            break Ok(());
+        }
+        let pc = core.r[15];
+        if native {
+            if let Some(region) = blocks.confined.lookup(sys, pc) {
+                if core.cycle.saturating_add(region.bound) <= limit && region.banks & !allowed == 0
+                {
+                    let mut confine = jit::Confine {
+                        allowed,
+                        journal: journal.as_deref_mut(),
+                    };
+                    let (exit, n, _) = jit::call(region.f, core, sys, limit, Some(&mut confine));
+                    retired += n;
+                    match exit {
+                        jit::Exit::Invalidate => sys.invalidate_code(),
+                        jit::Exit::General => native = false,
+                        jit::Exit::Out | jit::Exit::Deadline => {}
+                    }
+                    continue;
+                }
+            }
+        }
+        if journal.is_some() {
+            break Err(Leave::General);
+        }
+        native = true;
+        let found = match blocks.resume(core.id, pc) {
+            Some(r) if sys.code_epoch == blocks.epoch => Some(r),
+            _ => blocks.find(sys, pc),
+        };
+        let Some((mut i, end)) = found else {
+            break Err(Leave::Miss);
+        };
+        let epoch = sys.code_epoch;
+        let ops = &blocks.ops[..end];
+        let mut leave = None;
+        while i < end && core.cycle < limit {
+            let o = &ops[i];
+            if !fetch_allowed(sys, o.pc, o.size as u32)
+                || !core.execute_op(sys, &o.op, &o.instr, o.pc, o.size as u32, o.cost)
+            {
+                leave = Some(Leave::General);
+                break;
+            }
+            retired += 1;
+            i += 1;
+            if o.store && sys.code_epoch != epoch {
+                break;
             }
         }
         blocks.cursor[core.id & 1] = Cursor {

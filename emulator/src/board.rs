@@ -31,7 +31,36 @@
 //! profiled with [`Board::profile_handler`] are entered and left only by exception entry
 //! and return, in the general path, so they cost the loop no such check.
 //! So the order of all shared-state accesses, and every result, is the same as stepping
-//! one instruction at a time. [`Config::engine`] selects what runs that fast path for one
+//! one instruction at a time.
+//!
+//! **Running ahead** ([`Config::own_banks`], block engine only). With both cores on the
+//! fast path, lock-step turns last an instruction or two. Instead, the core that is behind
+//! (A) runs a *window* of compiled code ahead, *confined* to its own SRAM banks S_A: every
+//! load and store, and every instruction fetch from SRAM, is checked against S_A and the
+//! code leaves before an instruction that would touch anything else (another bank,
+//! SIO, a peripheral, the PPB; flash and ROM are read-only and always allowed), and every
+//! store journals the word it overwrites. The window ends where A leaves, at the first
+//! deadline of either core (the run's limit, the next timer event, either core's SysTick),
+//! or when the journal is full. Then the other core (B) catches up to A's cycle (one past
+//! it when B is core 0, which goes first on a tie) confined to the *other* banks. If B
+//! gets there, the window is kept; if B stops before (it needs one of A's banks, SIO, a
+//! peripheral, an exception, a sleep, a fetch from A's banks), A is rolled back — its
+//! stores undone from the journal, newest first, its bank claims, stall count and core
+//! state restored — and the cores go on in lock-step from there, B's instructions
+//! standing. *Why this is the lock-step result:* in the window A touches only S_A, B
+//! touches none of S_A, and neither touches anything else the other can see (no SIO, no
+//! peripheral, no interrupt line, no event: those leave; the timer has no event and no
+//! SysTick wraps before the window's end; nothing is fetched from a bank the other core
+//! writes). So no word either core reads is written by the other in the window, and an
+//! access's arbitration depends only on the other core's last claim of the *same* bank,
+//! which the other core does not change in the window: it is the value it had at the
+//! window's start, whichever order the two cores' instructions run in. The instructions of
+//! the two cores in the window therefore commute, and running all of A's before all of
+//! B's gives the registers, memory, cycles and stalls of the interleaved order. A rollback
+//! is exact for the same reason: B's instructions commute with A's, and A re-runs from
+//! the same state. Tests: `tests/block_engine.rs` (random two-core programs on own banks
+//! with shared, other-bank and SIO traffic, SysTick, WFI/WFE/SEV; the own-bank speed
+//! loop), `firmware/tests/image.rs` (an image of every shipped instrument, both cores). [`Config::engine`] selects what runs that fast path for one
 //! core: the interpreter above ([`Engine::Interp`]) or the block engine ([`Engine::Block`],
 //! the default; module [`crate::block`]: code regions compiled to native code with
 //! cranelift, pre-decoded basic blocks where they do not fit; the same results).
@@ -46,7 +75,7 @@
 //! striping and contention apply). Link firmware so nothing else lives there.
 
 use crate::block::{self, Blocks};
-use crate::bus::{sram_location, Bus, System, SRAM_END};
+use crate::bus::{sram_location, Bus, System, ALL_BANKS, SRAM_END};
 use crate::core::{Core, Event, Fault, RunState};
 use crate::decode::{decode, Instr};
 use crate::elf::{self, ElfError, Image};
@@ -80,6 +109,14 @@ pub struct Config {
     /// Both give the same cycles, registers and memory; [`Board::step`] is always the
     /// general path.
     pub engine: Engine,
+    /// The SRAM banks each core may run ahead in (bit per bank: 0-3 SRAM0-3, 4 SRAM4,
+    /// 5 SRAM5). With both cores running on [`Engine::Block`], the core that is behind may
+    /// run compiled code ahead of the other while it touches only its own banks, the other
+    /// then catching up while it touches none of them (see "Running ahead" in this
+    /// module). Default: core 0 SRAM0 and SRAM4, core 1 SRAM1 and SRAM5, as the firmware
+    /// images lay them out (`tactus-firmware`, `image/mod.rs`); `[0, 0]` keeps the two
+    /// cores in lock-step on the interpreter. Results never depend on it, only speed.
+    pub own_banks: [u8; 2],
 }
 
 /// The engine behind [`Board::run_until`]'s fast path.
@@ -89,9 +126,10 @@ pub enum Engine {
     Interp,
     /// The block engine (module [`crate::block`]): code regions compiled to native code
     /// with cranelift (module `jit`) once warm, pre-decoded basic blocks otherwise, the
-    /// same cycles and results as [`Engine::Interp`]. It runs one core at a time: while
-    /// both cores run (lock-step turns of an instruction or two) and while functions are
-    /// profiled with [`Board::profile_addr`], the interpreter runs.
+    /// same cycles and results as [`Engine::Interp`]. It runs one core at a time; with both
+    /// cores running, the core behind runs ahead in its own banks ([`Config::own_banks`],
+    /// "Running ahead" in [`crate::board`]) and the interpreter's lock-step turns run where
+    /// that is not possible, as while functions are profiled with [`Board::profile_addr`].
     #[default]
     Block,
 }
@@ -103,6 +141,7 @@ impl Default for Config {
             svc_halts: false,
             stop_on_fault: true,
             engine: Engine::default(),
+            own_banks: [0b01_0001, 0b10_0010],
         }
     }
 }
@@ -294,6 +333,8 @@ pub struct Board {
     launch: Option<Launch>,
     cache: Box<[Cached; CACHE_SLOTS]>,
     blocks: Blocks,
+    /// Run-ahead windows kept and rolled back ([`Board::run_ahead_windows`]).
+    windows: [u64; 2],
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
@@ -313,6 +354,7 @@ impl Board {
             lines: 0,
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
+            windows: [0; 2],
             cache: vec![
                 Cached {
                     key: u64::MAX,
@@ -647,7 +689,13 @@ impl Board {
 
     /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
     pub fn regions_compiled(&self) -> u64 {
-        self.blocks.jit.count
+        self.blocks.jit.count + self.blocks.confined.count
+    }
+
+    /// Run-ahead windows so far ("Running ahead" in the module documentation): (kept,
+    /// rolled back because the other core could not catch up confined).
+    pub fn run_ahead_windows(&self) -> (u64, u64) {
+        (self.windows[0], self.windows[1])
     }
 
     /// The block engine compiles a code region to native code once its entry has been
@@ -655,6 +703,7 @@ impl Board {
     /// it to run everything natively). Results never depend on it, only speed.
     pub fn set_compile_threshold(&mut self, times: u32) {
         self.blocks.jit.threshold = times;
+        self.blocks.confined.threshold = times;
     }
 
     /// Total cycles elapsed: the lower of the running cores' counters.
@@ -702,6 +751,19 @@ impl Board {
                 if let (true, Some(w0), Some(w1)) =
                     (now < deadline[k], self.watch_set(0), self.watch_set(1))
                 {
+                    let mut deadline = deadline;
+                    if self.config.engine == Engine::Block
+                        && w0[0] == NO_WATCH
+                        && w1[0] == NO_WATCH
+                        && self.config.own_banks[k] != 0
+                    {
+                        if self.run_ahead(k, deadline) {
+                            continue;
+                        }
+                        // Lock-step for a while before the next attempt.
+                        let now = self.cores[0].cycle.min(self.cores[1].cycle);
+                        deadline = deadline.map(|d| d.min(now.saturating_add(RETRY)));
+                    }
                     let (k, ran) = self.fast_run::<true>(k, deadline, [w0, w1]);
                     if let Some(event) = ran {
                         if !self.profiles.is_empty() {
@@ -926,6 +988,67 @@ impl Board {
             ),
         };
         (k, self.finish_fast(k, exit))
+    }
+
+    /// One window of running ahead (see "Running ahead" in the module documentation): core
+    /// `a` (the one behind, both cores on the fast path with `deadline`s as in
+    /// [`Board::run_until`]) runs compiled code confined to its own banks, the other core
+    /// then catches up confined to every other bank. True when the window was kept; false
+    /// when core `a` ran nothing, or when the other core could not catch up and core `a`
+    /// was rolled back (the other core's instructions stand: they commute with the window).
+    fn run_ahead(&mut self, a: usize, deadline: [u64; 2]) -> bool {
+        let b = 1 - a;
+        let start = self.cores[a].cycle;
+        // The other core must be able to reach the window's end (`+ 1` when it is core 0,
+        // which runs first on a tie) before its own deadline.
+        let end = deadline[a].min(deadline[b].saturating_sub((b == 0) as u64));
+        if start.saturating_add(MIN_WINDOW) > end {
+            return false;
+        }
+        let saved = (
+            self.cores[a].clone(),
+            self.system.bank_claim.map(|c| c[a]),
+            self.system.contention_stalls[a],
+        );
+        let epoch = self.system.code_epoch;
+        let (sys, blocks) = (&mut self.system, &mut self.blocks);
+        let mut journal = std::mem::take(&mut blocks.journal);
+        journal.clear();
+        sys.allowed_banks = self.config.own_banks[a] & ALL_BANKS;
+        let _ = block::run_confined(&mut self.cores[a], sys, blocks, end, Some(&mut journal));
+        let reached = self.cores[a].cycle;
+        let mut kept = reached > start;
+        if kept {
+            let target = reached + (b == 0) as u64;
+            sys.allowed_banks = ALL_BANKS & !self.config.own_banks[a];
+            let caught = block::run_confined(&mut self.cores[b], sys, blocks, target, None);
+            kept = caught.is_ok() && self.cores[b].cycle >= target;
+            if !kept {
+                // Undo core `a`'s window: its stores (newest first), its bank claims,
+                // stalls and state.
+                for &e in journal.iter().rev() {
+                    let off = (e >> 32) as usize;
+                    sys.sram[off..off + 4].copy_from_slice(&(e as u32).to_le_bytes());
+                }
+                let (core, claims, stalls) = saved;
+                self.cores[a] = core;
+                for (bank, c) in claims.iter().enumerate() {
+                    sys.bank_claim[bank][a] = *c;
+                }
+                sys.contention_stalls[a] = stalls;
+                // Code decoded after a store into a code page in the window came from
+                // memory the undo has just changed back.
+                if sys.code_epoch != epoch {
+                    sys.invalidate_code();
+                }
+            }
+        }
+        sys.allowed_banks = ALL_BANKS;
+        blocks.journal = journal;
+        if reached > start {
+            self.windows[!kept as usize] += 1;
+        }
+        kept
     }
 
     /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
@@ -1177,6 +1300,12 @@ enum Exit {
     /// The core executed an instruction that left it at a watched address (profiling).
     Watch,
 }
+
+/// Fewest cycles a run-ahead window may span ([`Board::run_ahead`]).
+const MIN_WINDOW: u64 = 64;
+
+/// Lock-step cycles after a run-ahead window that could not be kept, before the next.
+const RETRY: u64 = 4096;
 
 /// An unused slot of a watch set ([`Board::watch_set`]): odd, so no PC equals it.
 const NO_WATCH: u32 = 1;

@@ -120,7 +120,14 @@ pub struct System {
     pub code_pages: Vec<bool>,
     /// Generation of the decode cache: cached instructions from an older epoch are stale.
     pub code_epoch: u32,
+    /// SRAM banks the executor's fast path may access (bit per bank: 0-3 SRAM0-3, 4 SRAM4,
+    /// 5 SRAM5): [`ALL_BANKS`] except while a core runs confined to some banks
+    /// ([`crate::board`], "Running ahead"); an access elsewhere leaves the fast path.
+    pub(crate) allowed_banks: u8,
 }
+
+/// Every SRAM bank ([`System::allowed_banks`]).
+pub(crate) const ALL_BANKS: u8 = (1 << BANKS) - 1;
 
 #[inline(always)]
 fn load_le(mem: &[u8], off: usize, size: u32) -> u32 {
@@ -187,7 +194,21 @@ impl System {
             irq_epoch: 0,
             code_pages: vec![false; (SRAM_SIZE / 256) as usize],
             code_epoch: 0,
+            allowed_banks: ALL_BANKS,
         }
+    }
+
+    /// Whether the fast path may access SRAM offset `off` (below [`SRAM_SIZE`]) now
+    /// ([`System::allowed_banks`]).
+    #[inline(always)]
+    pub(crate) fn allows(&self, off: u32) -> bool {
+        self.allowed_banks == ALL_BANKS || (self.allowed_banks >> sram_bank(off)) & 1 != 0
+    }
+
+    /// Whether the fast path may access the `count` words from SRAM offset `off` now.
+    #[inline(always)]
+    pub(crate) fn allows_words(&self, off: u32, count: u32) -> bool {
+        self.allowed_banks == ALL_BANKS || (0..count).all(|k| self.allows(off + 4 * k))
     }
 
     /// The memory slice and offset backing `addr`, for side-effect-free access (loader,

@@ -609,7 +609,8 @@ impl Core {
             Stm { rn, list } => {
                 let base = self.r[(rn & 15) as usize];
                 let count = list.count_ones();
-                let Some(mut off) = sram_range(base, count) else {
+                let Some(mut off) = sram_range(base, count).filter(|&o| sys.allows_words(o, count))
+                else {
                     return false;
                 };
                 let mut bits = list;
@@ -627,7 +628,8 @@ impl Core {
             Ldm { rn, list } => {
                 let base = self.r[(rn & 15) as usize];
                 let count = list.count_ones();
-                let Some(mut off) = sram_range(base, count) else {
+                let Some(mut off) = sram_range(base, count).filter(|&o| sys.allows_words(o, count))
+                else {
                     return false;
                 };
                 let mut bits = list;
@@ -688,7 +690,7 @@ impl Core {
         let mut cycles = cycles;
         let count = list.count_ones();
         let base = self.r[13].wrapping_sub(4 * count);
-        let Some(mut off) = sram_range(base, count) else {
+        let Some(mut off) = sram_range(base, count).filter(|&o| sys.allows_words(o, count)) else {
             return false;
         };
         let mut bits = list;
@@ -713,7 +715,7 @@ impl Core {
         let mut cycles = cycles;
         let base = self.r[13];
         let count = list.count_ones();
-        let Some(mut off) = sram_range(base, count) else {
+        let Some(mut off) = sram_range(base, count).filter(|&o| sys.allows_words(o, count)) else {
             return false;
         };
         if list & 0x8000 != 0 {
@@ -773,10 +775,13 @@ impl Core {
             return None;
         }
         if op.is_store() {
-            let off = sram_offset(addr)?;
+            let off = sram_offset(addr).filter(|&o| sys.allows(o))?;
             return Some(sys.sram_write(self.id, at, off, size, self.r[(rt & 15) as usize]));
         }
         let (v, wait) = if let Some(off) = sram_offset(addr) {
+            if !sys.allows(off) {
+                return None;
+            }
             sys.sram_read(self.id, at, off, size)
         } else {
             (sys.flash_read(flash_offset(addr)?, size), 0)

@@ -30,9 +30,17 @@ const VTOR: u32 = 0x2003_0000;
 const UNITS_HALFWORDS: usize = 150;
 
 /// One random unit. Registers: r0-r3 scratch, r4 a loop counter (only inside a loop unit),
-/// r5 the SIO base, r6 the data area, r7 a small word offset; SP is balanced within a unit.
+/// r5 the SIO base, r6 the data area, r7 a small word offset, r12 a second data area (shared
+/// with the other core, or in its bank, or in this core's); SP is balanced within a unit.
 /// `leaf`: no loops, calls or branches (inside a loop body).
-fn unit(rng: &mut Rng, out: &mut Vec<u16>, leaf: bool, sleepy: bool) {
+/// `shared`: the r12 units are generated (two cores), and unit 10 leaves r12 alone.
+fn unit(rng: &mut Rng, out: &mut Vec<u16>, leaf: bool, sleepy: bool, shared: bool) {
+    if shared && rng.below(24) == 0 {
+        // mov r1, r12; ldr/str r0, [r1, #imm]
+        out.push(0x4661);
+        out.push([0x6008, 0x6808][rng.below(2) as usize] | rng.below(8) << 6);
+        return;
+    }
     let d = rng.below(4);
     let s = rng.below(8);
     let t = rng.below(8);
@@ -56,10 +64,11 @@ fn unit(rng: &mut Rng, out: &mut Vec<u16>, leaf: bool, sleepy: bool) {
             out.push(0x5000 | op << 9 | 7 << 6 | 6 << 3 | d)
         }
         10 => {
-            // hi registers: add / cmp / mov among r0-r3, r8-r12
+            // hi registers: add / cmp / mov among r0-r3, r8-r12 (r8-r11 with `shared`)
             let hi = [0, 1, 2, 3, 8, 9, 10, 11, 12];
-            let rd = hi[rng.below(9) as usize];
-            let rm = hi[rng.below(9) as usize];
+            let n = 9 - shared as u32;
+            let rd = hi[rng.below(n) as usize];
+            let rm = hi[rng.below(n) as usize];
             let op = [0x4400, 0x4500, 0x4600][rng.below(3) as usize];
             out.push(op | (rd & 8) << 4 | rm << 3 | (rd & 7))
         }
@@ -109,7 +118,7 @@ fn unit(rng: &mut Rng, out: &mut Vec<u16>, leaf: bool, sleepy: bool) {
             out.push(0x2400 | (1 + rng.below(12)));
             let start = out.len();
             for _ in 0..1 + rng.below(6) {
-                unit(rng, out, true, sleepy);
+                unit(rng, out, true, sleepy, shared);
             }
             out.push(0x3c01);
             let back = (start as i32 - out.len() as i32) * 2 - 4;
@@ -129,10 +138,10 @@ fn unit(rng: &mut Rng, out: &mut Vec<u16>, leaf: bool, sleepy: bool) {
 
 /// A program looping forever, with a callee (`adds r0, #1; bx lr`) after the loop branch;
 /// every BL placeholder (`f000 f800`) is aimed at the callee.
-fn program(rng: &mut Rng, sleepy: bool) -> Vec<u16> {
+fn program(rng: &mut Rng, sleepy: bool, shared: bool) -> Vec<u16> {
     let mut code = Vec::new();
     while code.len() < UNITS_HALFWORDS {
-        unit(rng, &mut code, false, sleepy);
+        unit(rng, &mut code, false, sleepy, shared);
     }
     let back = -(code.len() as i32) * 2 - 4;
     code.push(0xe000 | ((back >> 1) as u16 & 0x7ff)); // b start
@@ -156,6 +165,14 @@ struct Case {
     systick: bool,
     sleeper: bool,
     code_page_data: bool,
+    /// Each core's code and data in its own SRAM bank (the non-striped alias), its stack in
+    /// its scratch bank: the layout on which the cores run ahead of each other.
+    own_banks: bool,
+}
+
+/// Core `core`'s bank through the non-striped alias.
+fn bank(core: usize) -> u32 {
+    0x2100_0000 + 0x1_0000 * core as u32
 }
 
 fn board(seed: u64, case: Case, engine: Engine) -> Board {
@@ -175,27 +192,40 @@ fn board(seed: u64, case: Case, engine: Engine) -> Board {
         let code = if case.sleeper && core == 1 {
             vec![0xbf20, 0x3301, 0xe7fc] // wfe; adds r3, #1; b .-4
         } else {
-            program(&mut rng, case.sleeper)
+            program(&mut rng, case.sleeper, case.cores == 2)
         };
         assert!(code.len() * 2 <= 0x1c0, "program too long: {}", code.len());
         let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
         let at = if case.in_flash && core == 0 {
             FLASH
+        } else if case.own_banks {
+            bank(core) + 0x4000
         } else {
             CODE + 0x1000 * core as u32
         };
         b.write_bytes(at, &bytes).unwrap();
         let data = if case.code_page_data && !(case.in_flash && core == 0) {
             at + 0x1c0 // the page that holds the end of the code
+        } else if case.own_banks {
+            bank(core) + 0x8000
         } else {
             0x2002_0000 + 0x100 * core as u32
         };
         let fill: Vec<u8> = (0..0x100).map(|_| rng.next() as u8).collect();
         b.write_bytes(data, &fill).unwrap();
-        b.start_core(core, at | 1, 0x2003_8000 + 0x1000 * core as u32, VTOR);
+        let sp = if case.own_banks {
+            0x2004_1000 + 0x1000 * core as u32
+        } else {
+            0x2003_8000 + 0x1000 * core as u32
+        };
+        b.start_core(core, at | 1, sp, VTOR);
         let c = &mut b.cores[core];
         for r in 0..13 {
             c.r[r] = rng.next() as u32;
+        }
+        if case.cores == 2 {
+            c.r[12] =
+                [0x2002_0800, bank(1 - core) + 0x8000, bank(core) + 0x9000][rng.below(3) as usize];
         }
         c.r[5] = SIO;
         c.r[6] = data;
@@ -221,7 +251,15 @@ fn state(b: &mut Board) -> String {
         );
     }
     s += &format!("stalls {:?}\n", b.system.contention_stalls);
-    for area in [0x2002_0000u32, CODE + 0x1c0, CODE + 0x11c0] {
+    for area in [
+        0x2002_0000u32,
+        CODE + 0x1c0,
+        CODE + 0x11c0,
+        bank(0) + 0x41c0,
+        bank(1) + 0x41c0,
+        bank(0) + 0x8000,
+        bank(1) + 0x8000,
+    ] {
         let mut d = vec![0u8; 0x200];
         b.read_bytes(area, &mut d).unwrap();
         s += &format!("data {area:#x} {:016x}\n", hash(&d));
@@ -242,8 +280,9 @@ fn sram(b: &mut Board) -> u64 {
 }
 
 /// Runs one case on both engines; returns (instructions run by the block engine,
-/// mismatching slices), printing the first mismatch.
-fn compare(seed: u64, case: Case, cycles: u64) -> (u64, u32) {
+/// mismatching slices, run-ahead windows kept and rolled back), printing the first
+/// mismatch.
+fn compare(seed: u64, case: Case, cycles: u64) -> (u64, u32, (u64, u64)) {
     let mut block = board(seed, case, Engine::Block);
     let mut interp = board(seed, case, Engine::Interp);
     let mut rng = Rng(seed ^ 0x51ce);
@@ -272,13 +311,24 @@ fn compare(seed: u64, case: Case, cycles: u64) -> (u64, u32) {
     }
     assert_eq!(interp.blocks_decoded(), 0);
     // (With both cores running the block engine leaves the lock-step turns to the
-    // interpreter; it runs while one core sleeps or is parked.)
+    // interpreter unless they run ahead on their own banks; it runs while one core sleeps
+    // or is parked.)
     if case.cores == 1 || case.sleeper {
         assert!(block.blocks_decoded() > 0, "the block engine never ran");
-        assert!(block.regions_compiled() > 0, "no region was compiled");
+        assert!(
+            block.regions_compiled() > 0,
+            "no region was compiled: {case:?} seed {seed:#x} cycle {} {:?}",
+            block.cycle(),
+            block
+                .cores
+                .iter()
+                .map(|c| (c.state, c.fault, c.r[15]))
+                .collect::<Vec<_>>()
+        );
     }
     let instructions = block.cores.iter().map(|c| c.instructions).sum();
-    (instructions, mismatches)
+    let w = block.run_ahead_windows();
+    (instructions, mismatches, w)
 }
 
 #[test]
@@ -286,6 +336,7 @@ fn block_engine_matches_the_interpreter_on_random_programs() {
     let mut rng = Rng(0xb10c_e761);
     let (mut instructions, mut mismatches, mut cases) = (0u64, 0u32, 0);
     let mut code_page_runs = 0;
+    let mut windows = (0, 0);
     for i in 0..64u32 {
         let case = Case {
             cores: 1 + (i % 2) as usize,
@@ -293,14 +344,22 @@ fn block_engine_matches_the_interpreter_on_random_programs() {
             systick: i % 8 >= 4,
             sleeper: (i % 16 >= 8) && i % 2 == 1,
             code_page_data: i % 3 == 0,
+            own_banks: i % 4 == 1,
         };
         code_page_runs += case.code_page_data as u32;
-        let (n, m) = compare(rng.next(), case, 300_000);
+        let (n, m, w) = compare(rng.next(), case, 300_000);
+        windows = (windows.0 + w.0, windows.1 + w.1);
         instructions += n;
         mismatches += m;
         cases += 1;
     }
-    eprintln!("{cases} programs, {instructions} instructions, {mismatches} mismatches");
+    eprintln!(
+        "{cases} programs, {instructions} instructions, {mismatches} mismatches, \
+         run-ahead windows kept {}, rolled back {}",
+        windows.0, windows.1
+    );
+    // Both outcomes of running ahead are exercised.
+    assert!(windows.0 > 0 && windows.1 > 0, "{windows:?}");
     assert_eq!(mismatches, 0, "{mismatches} mismatching slices");
     assert!(
         instructions >= 10_000_000,
@@ -370,4 +429,76 @@ fn block_engine_matches_the_interpreter_on_key_updates() {
         let handled: u64 = block.cores.iter().map(|c| c.instructions).sum();
         assert!(handled > 10_000, "{handled} instructions");
     }
+}
+
+/// Two cores on their own banks (the speed loop with each core's code and data in its own
+/// SRAM bank, stacks in the scratch banks) run ahead of each other: the windows are kept
+/// and every slice agrees with the interpreter's lock-step.
+#[test]
+fn two_cores_on_their_own_banks_run_ahead_exactly() {
+    let mut rng = Rng(0x0a7e_ad00);
+    let mut block = workloads::speed_loop_own_banks(Engine::Block, 2);
+    block.set_compile_threshold(0);
+    let mut interp = workloads::speed_loop_own_banks(Engine::Interp, 2);
+    while block.cycle() < 400_000 {
+        let limit = block.cycle() + 1 + rng.below(20_000) as u64;
+        assert_eq!(block.run_until(limit), interp.run_until(limit));
+        assert_eq!(state(&mut block), state(&mut interp), "at {limit}");
+    }
+    assert_eq!(sram(&mut block), sram(&mut interp));
+    let (kept, rolled_back) = block.run_ahead_windows();
+    eprintln!("windows kept {kept}, rolled back {rolled_back}");
+    assert!(kept > 10, "{kept} windows kept");
+    assert_eq!(interp.run_ahead_windows(), (0, 0));
+}
+
+/// Running ahead with self-modifying code and rollbacks: core 0 rewrites an instruction of
+/// its own loop every iteration (in its own bank), core 1 reads SIO every 50 iterations of
+/// its own loop, so windows in which core 0 ran ahead — rewriting and recompiling its code —
+/// are rolled back when core 1 cannot catch up past its SIO load. Every slice agrees with
+/// the interpreter, and both outcomes occur.
+#[test]
+fn running_ahead_rolls_back_self_modifying_code_exactly() {
+    let setup = |engine| {
+        let mut b = Board::new(Config {
+            engine,
+            ..Config::default()
+        });
+        // Core 0: ldr r1,[r0]; eors r1,r2; str r1,[r0]; nop;
+        //   target: movs r3,#1 (toggled with #2); adds r4,r4,r3; subs r5,#1; bne loop
+        let c0: [u16; 8] = [
+            0x6801, 0x4051, 0x6001, 0xbf00, 0x2301, 0x18e4, 0x3d01, 0xd1f7,
+        ];
+        // Core 1: loop: ldr r1,[r0]; adds r1,#1; str r1,[r0]; subs r5,#1; bne loop;
+        //   ldr r2,[r6] (SIO CPUID); movs r5,#50; b loop
+        let c1: [u16; 8] = [
+            0x6801, 0x3101, 0x6001, 0x3d01, 0xd1fa, 0x6832, 0x2532, 0xe7f7,
+        ];
+        for (core, code, at) in [(0, c0, bank(0) + 0x100), (1, c1, bank(1) + 0x500)] {
+            let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+            b.write_bytes(at, &bytes).unwrap();
+            b.start_core(core, at | 1, 0x2004_1000 + 0x1000 * core as u32, 0);
+        }
+        let c = &mut b.cores[0];
+        (c.r[0], c.r[2], c.r[5]) = (bank(0) + 0x108, 3, u32::MAX);
+        let c = &mut b.cores[1];
+        (c.r[0], c.r[5], c.r[6]) = (bank(1) + 0x8000, 50, SIO);
+        b
+    };
+    let mut block = setup(Engine::Block);
+    block.set_compile_threshold(0);
+    let mut interp = setup(Engine::Interp);
+    let mut rng = Rng(0x5e1f);
+    while block.cycle() < 100_000 {
+        let limit = block.cycle() + 1 + rng.below(8000) as u64;
+        assert_eq!(block.run_until(limit), interp.run_until(limit));
+        assert_eq!(state(&mut block), state(&mut interp), "at {limit}");
+    }
+    assert_eq!(sram(&mut block), sram(&mut interp));
+    let (kept, rolled_back) = block.run_ahead_windows();
+    eprintln!("windows kept {kept}, rolled back {rolled_back}");
+    assert!(
+        kept > 0 && rolled_back > 0,
+        "{kept} kept, {rolled_back} rolled back"
+    );
 }

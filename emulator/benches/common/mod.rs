@@ -40,6 +40,31 @@ pub fn speed_loop(engine: Engine, cores: usize) -> Board {
     b
 }
 
+/// The speed loop on `cores` cores (1 or 2), each core's code and data in its own SRAM bank
+/// through the non-striped alias (core k: SRAM k at `0x21000000 + k·0x10000`) and its stack
+/// in its scratch bank, as the firmware images lay them out: what two cores running ahead
+/// of each other need (`Config::own_banks`). 10 cycles per iteration, as [`speed_loop`]. 10 cycles per iteration, as [`speed_loop`].
+pub fn speed_loop_own_banks(engine: Engine, cores: usize) -> Board {
+    let mut b = Board::new(Config {
+        engine,
+        ..Config::default()
+    });
+    for core in 0..cores {
+        let bank = 0x2100_0000 + 0x1_0000 * core as u32;
+        // Core 1's code at another bank offset than core 0's, as in the firmware images:
+        // the engines' direct-mapped caches are indexed by the low address bits.
+        let code = bank + 0x100 + 0x400 * core as u32;
+        b.write_bytes(code, &bytes(&LOOP)).unwrap();
+        b.start_core(core, code | 1, 0x2004_1000 + 0x1000 * core as u32, 0);
+        let c = &mut b.cores[core];
+        c.r[0] = bank + 0x8000;
+        c.r[2] = 3;
+        c.r[3] = 7;
+        c.r[5] = u32::MAX;
+    }
+    b
+}
+
 /// Firmware-like key updates (see the module documentation) on `cores` cores, `keys`
 /// keys per core (1-128 in all), SysTick every `period` cycles.
 pub fn key_updates(engine: Engine, cores: usize, keys: u16, period: u32) -> Board {

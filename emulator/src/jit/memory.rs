@@ -1,0 +1,356 @@
+//! Loads and stores as cranelift IR: the address paths (striped SRAM, SRAM4/5, the
+//! non-striped aliases, flash), the inline bank arbiter, the code-page check after a
+//! store, and the multiple transfers (PUSH, POP, STM, LDM) — `Core::mem_fast`,
+//! `push_fast`, `pop_fast` in `exec.rs`.
+
+use super::abi::Exit;
+use super::scan::RegionInstr;
+use super::translate::Translator;
+use crate::bus::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
+use crate::core::Core;
+use crate::decode::MemOp;
+use cranelift_codegen::ir::condcodes::IntCC;
+use cranelift_codegen::ir::{types, BlockArg, InstBuilder, Value};
+use cranelift_frontend::FunctionBuilder;
+use std::mem::offset_of;
+
+impl Translator<'_> {
+    /// POP (`rn` 13) or LDM: the words, the base write-back (LDM: unless the base is
+    /// loaded), the registers, and for POP {…, pc} the branch; false when it branched.
+    pub(super) fn load_multiple(&mut self, ins: &RegionInstr, rn: u8, list: u16) -> bool {
+        let count = list.count_ones();
+        let start = self.reg(rn, ins.pc);
+        let pops_pc = rn == 13 && list & 0x8000 != 0;
+        let (loaded, wait, _) = self.multiple(ins, start, count, None, pops_pc);
+        if rn == 13 || list & (1 << rn) == 0 {
+            let end = self.b.ins().iadd_imm_s(start, 4 * count as i64);
+            self.set(rn, end);
+        }
+        let regs: Vec<u8> = (0..16u8).filter(|r| list & (1 << r) != 0).collect();
+        let mut target = None;
+        for (&r, &v) in regs.iter().zip(&loaded) {
+            if r == 15 {
+                target = Some(self.b.ins().band_imm_u(v, !1u32 as i64));
+            } else {
+                self.set(r, v);
+            }
+        }
+        self.retire(ins.cost.0, Some(wait));
+        match target {
+            Some(t) => {
+                self.leave(t, Exit::Out);
+                false
+            }
+            None => true,
+        }
+    }
+
+    /// The arbitration bank (0-5) of SRAM offset `off` (`bus::sram_bank`), as an `i32`.
+    fn bank_of(&mut self, off: Value) -> Value {
+        let striped = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, off, 0x4_0000);
+        let b0 = self.b.ins().ushr_imm_u(off, 2);
+        let b0 = self.b.ins().band_imm_u(b0, 3);
+        let b1 = self.b.ins().ushr_imm_u(off, 12);
+        let b1 = self.b.ins().band_imm_u(b1, 1);
+        let b1 = self.b.ins().iadd_imm_s(b1, 4);
+        self.b.ins().select(striped, b0, b1)
+    }
+
+    /// Confined code only (see the parent module, "Confinement"): leaves before the
+    /// instruction at `ins` unless every SRAM access in `at` (offset, bank) is in an allowed
+    /// bank; then, for a store with a journal, journals the old words it will overwrite (the journal's room
+    /// was checked at the region's entry or last back edge, [`Translator::journal_room`]).
+    /// Nothing when the code is not confined.
+    fn confine(&mut self, ins: &RegionInstr, at: &[(Value, Value)], store: bool) {
+        let Some(c) = self.confined else {
+            return;
+        };
+        let mut allowed = None;
+        for &(_, bank) in at {
+            let bit = self.b.ins().ushr(c.allowed, bank);
+            allowed = Some(match allowed {
+                None => bit,
+                Some(a) => self.b.ins().band(a, bit),
+            });
+        }
+        if let Some(a) = allowed {
+            let ok = self.b.ins().band_imm_u(a, 1);
+            self.general_unless(ok, ins.pc);
+        }
+        if store {
+            // No journal (a core catching up needs no undo): no entries.
+            let write = self.b.create_block();
+            let done = self.b.create_block();
+            self.b.ins().brif(c.journal, write, &[], done, &[]);
+            self.b.switch_to_block(write);
+            let len = self.b.use_var(c.len);
+            let slot = self.b.ins().ishl_imm_u(len, 3);
+            let slot = self.b.ins().iadd(c.journal, slot);
+            for (k, &(off, _)) in at.iter().enumerate() {
+                let word = self.b.ins().band_imm_u(off, !3u32 as i64);
+                let word = self.b.ins().uextend(types::I64, word);
+                let p = self.b.ins().iadd(self.sram, word);
+                let old = self.b.ins().uload32(self.mf, p, 0);
+                let key = self.b.ins().ishl_imm_u(word, 32);
+                let entry = self.b.ins().bor(key, old);
+                self.b.ins().store(self.mf, entry, slot, 8 * k as i32);
+            }
+            let len = self.b.ins().iadd_imm_s(len, at.len() as i64);
+            self.b.def_var(c.len, len);
+            self.b.ins().jump(done, &[]);
+            self.b.switch_to_block(done);
+        }
+    }
+
+    /// The SRAM arbiter for an access to `bank` (from [`Translator::bank_of`]) at data
+    /// cycle `at`: the wait (0 or 1, i64) after claiming the bank
+    /// (`System::arbitrate_fast`).
+    pub(super) fn arbitrate(&mut self, bank: Value, at: Value) -> Value {
+        let bank = self.b.ins().uextend(types::I64, bank);
+        let boff = self.b.ins().ishl_imm_u(bank, 4);
+        let other_at = self.b.ins().iadd(self.claims_other, boff);
+        let other = self.b.ins().load(types::I64, self.mf, other_at, 0);
+        let hit = self.b.ins().icmp(IntCC::Equal, other, at);
+        let wait = self.b.ins().uextend(types::I64, hit);
+        let claim = self.b.ins().iadd(at, wait);
+        let self_at = self.b.ins().iadd(self.claims_self, boff);
+        self.b.ins().store(self.mf, claim, self_at, 0);
+        let s = self.b.use_var(self.stalls);
+        let s = self.b.ins().iadd(s, wait);
+        self.b.def_var(self.stalls, s);
+        wait
+    }
+
+    /// A single load or store (`Core::mem_fast`): SRAM (striped, SRAM4/5 or the
+    /// non-striped aliases) or a flash load; anything else leaves before it.
+    pub(super) fn mem(&mut self, ins: &RegionInstr, op: MemOp, rt: u8, addr: Value) -> bool {
+        let pc = ins.pc;
+        let size = op.size();
+        self.flush();
+        if size > 1 {
+            let low = self.b.ins().band_imm_u(addr, size as i64 - 1);
+            self.general_if(low, pc);
+        }
+        let in_sram = self.b.create_block();
+        self.b.append_block_param(in_sram, types::I32);
+        let join = self.b.create_block();
+        self.b.append_block_param(join, types::I32);
+        self.b.append_block_param(join, types::I64);
+        let alias = self.b.create_block();
+        let off = self.b.ins().iadd_imm_s(addr, -(SRAM_BASE as i64));
+        let ok = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, off, SRAM_SIZE as i64);
+        self.b
+            .ins()
+            .brif(ok, in_sram, &[BlockArg::Value(off)], alias, &[]);
+        // The non-striped alias of SRAM0-3.
+        self.b.switch_to_block(alias);
+        let al = self.b.ins().iadd_imm_s(addr, -(SRAM_ALIAS_BASE as i64));
+        let ok = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, al, 0x4_0000);
+        let bank = self.b.ins().ushr_imm_u(al, 16);
+        let word = self.b.ins().band_imm_u(al, 0xffff);
+        let word = self.b.ins().ushr_imm_u(word, 2);
+        let word = self.b.ins().ishl_imm_u(word, 2);
+        let phys = self.b.ins().iadd(word, bank);
+        let phys = self.b.ins().ishl_imm_u(phys, 2);
+        let low = self.b.ins().band_imm_u(al, 3);
+        let phys = self.b.ins().bor(phys, low);
+        let elsewhere = self.b.create_block();
+        self.b
+            .ins()
+            .brif(ok, in_sram, &[BlockArg::Value(phys)], elsewhere, &[]);
+        self.b.switch_to_block(elsewhere);
+        if op.is_store() {
+            let p = self.c32(pc);
+            self.leave(p, Exit::General);
+        } else {
+            let f = self.b.ins().iadd_imm_s(addr, -(FLASH_BASE as i64));
+            let ok = self
+                .b
+                .ins()
+                .icmp_imm_u(IntCC::UnsignedLessThan, f, FLASH_SIZE as i64);
+            let in_flash = self.b.create_block();
+            let out = self.b.create_block();
+            self.b.ins().brif(ok, in_flash, &[], out, &[]);
+            self.b.switch_to_block(out);
+            let p = self.c32(pc);
+            self.leave(p, Exit::General);
+            self.b.switch_to_block(in_flash);
+            let f64_ = self.b.ins().uextend(types::I64, f);
+            let at = self.b.ins().iadd(self.flash, f64_);
+            let v = self.load_sized(op, at);
+            let zero = self.b.ins().iconst(types::I64, 0);
+            self.b
+                .ins()
+                .jump(join, &[BlockArg::Value(v), BlockArg::Value(zero)]);
+        }
+        // SRAM: the arbiter, then the data.
+        self.b.switch_to_block(in_sram);
+        let off = self.b.block_params(in_sram)[0];
+        let bank = self.bank_of(off);
+        self.confine(ins, &[(off, bank)], op.is_store());
+        let c = self.b.use_var(self.cyc);
+        let at = self.b.ins().iadd_imm_s(c, 1);
+        let wait = self.arbitrate(bank, at);
+        let off64 = self.b.ins().uextend(types::I64, off);
+        let p = self.b.ins().iadd(self.sram, off64);
+        if op.is_store() {
+            let v = self.reg(rt, pc);
+            match size {
+                1 => self.b.ins().istore8(self.mf, v, p, 0),
+                2 => self.b.ins().istore16(self.mf, v, p, 0),
+                _ => self.b.ins().store(self.mf, v, p, 0),
+            };
+            let page = self.b.ins().ushr_imm_u(off64, 8);
+            let pp = self.b.ins().iadd(self.code_pages, page);
+            let code = self.b.ins().uload8(types::I32, self.mf, pp, 0);
+            self.b
+                .ins()
+                .jump(join, &[BlockArg::Value(code), BlockArg::Value(wait)]);
+        } else {
+            let v = self.load_sized(op, p);
+            self.b
+                .ins()
+                .jump(join, &[BlockArg::Value(v), BlockArg::Value(wait)]);
+        }
+        self.b.switch_to_block(join);
+        let v = self.b.block_params(join)[0];
+        let wait = self.b.block_params(join)[1];
+        if !op.is_store() {
+            self.set(rt, v);
+        }
+        self.retire(ins.cost.0, Some(wait));
+        if op.is_store() {
+            self.invalidate_if(v, ins);
+        }
+        true
+    }
+
+    /// After a store: leaves with [`Exit::Invalidate`] when it hit a code page.
+    pub(super) fn invalidate_if(&mut self, code: Value, ins: &RegionInstr) {
+        let out = self.b.create_block();
+        let on = self.b.create_block();
+        self.flush();
+        self.b.ins().brif(code, out, &[], on, &[]);
+        self.b.switch_to_block(out);
+        let p = self.c32(ins.pc.wrapping_add(ins.size));
+        self.leave(p, Exit::Invalidate);
+        self.b.switch_to_block(on);
+    }
+
+    pub(super) fn load_sized(&mut self, op: MemOp, p: Value) -> Value {
+        let mf = self.mf;
+        match op {
+            MemOp::Ldrb => self.b.ins().uload8(types::I32, mf, p, 0),
+            MemOp::Ldrsb => self.b.ins().sload8(types::I32, mf, p, 0),
+            MemOp::Ldrh => self.b.ins().uload16(types::I32, mf, p, 0),
+            MemOp::Ldrsh => self.b.ins().sload16(types::I32, mf, p, 0),
+            _ => self.b.ins().load(types::I32, mf, p, 0),
+        }
+    }
+
+    /// `count` consecutive words from `start` (PUSH, POP, STM, LDM: `push_fast`,
+    /// `pop_fast` and the `Stm`/`Ldm` arms of `execute_fast`): all in the striped view or
+    /// SRAM4/5 and word-aligned, else it leaves before the instruction. Stores `values`,
+    /// or loads the words; with `pops_pc`, a PC word that would leave Thumb state or return
+    /// from an exception leaves before the instruction. Returns the loaded words, the
+    /// wait states and whether a store hit a code page; the caller retires it.
+    pub(super) fn multiple(
+        &mut self,
+        ins: &RegionInstr,
+        start: Value,
+        count: u32,
+        values: Option<&[Value]>,
+        pops_pc: bool,
+    ) -> (Vec<Value>, Value, Value) {
+        let pc = ins.pc;
+        self.flush();
+        let off = self.b.ins().iadd_imm_s(start, -(SRAM_BASE as i64));
+        let low = self.b.ins().band_imm_u(start, 3);
+        let too_far = self.b.ins().icmp_imm_u(
+            IntCC::UnsignedGreaterThan,
+            off,
+            (SRAM_SIZE - 4 * count) as i64,
+        );
+        let too_far = too_far.into_i32(&mut self.b);
+        let bad = self.b.ins().bor(low, too_far);
+        self.general_if(bad, pc);
+        let off64 = self.b.ins().uextend(types::I64, off);
+        let base_p = self.b.ins().iadd(self.sram, off64);
+        if pops_pc {
+            let t = self
+                .b
+                .ins()
+                .load(types::I32, self.mf, base_p, 4 * (count as i32 - 1));
+            let odd = self.b.ins().band_imm_u(t, 1);
+            let even = self.b.ins().icmp_imm_u(IntCC::Equal, odd, 0);
+            let ipsr = self.b.ins().load(
+                types::I32,
+                self.mf,
+                self.core,
+                offset_of!(Core, ipsr) as i32,
+            );
+            let handler = self.b.ins().icmp_imm_u(IntCC::NotEqual, ipsr, 0);
+            let top = self.b.ins().ushr_imm_u(t, 28);
+            let exc = self.b.ins().icmp_imm_u(IntCC::Equal, top, 0xf);
+            let ret = self.b.ins().band(handler, exc);
+            let bad = self.b.ins().bor(even, ret);
+            self.general_if(bad, pc);
+        }
+        let words: Vec<(Value, Value)> = (0..count)
+            .map(|k| {
+                let o = self.b.ins().iadd_imm_s(off, 4 * k as i64);
+                (o, self.bank_of(o))
+            })
+            .collect();
+        self.confine(ins, &words, values.is_some());
+        let c = self.b.use_var(self.cyc);
+        let mut at = self.b.ins().iadd_imm_s(c, 1);
+        let mut total = self.b.ins().iconst(types::I64, 0);
+        let mut loaded = Vec::new();
+        let mut code = self.b.ins().iconst(types::I32, 0);
+        for k in 0..count {
+            let (o, bank) = words[k as usize];
+            let wait = self.arbitrate(bank, at);
+            total = self.b.ins().iadd(total, wait);
+            let step = self.b.ins().iadd_imm_s(wait, 1);
+            at = self.b.ins().iadd(at, step);
+            match values {
+                Some(vs) => {
+                    self.b
+                        .ins()
+                        .store(self.mf, vs[k as usize], base_p, 4 * k as i32);
+                    let o64 = self.b.ins().uextend(types::I64, o);
+                    let page = self.b.ins().ushr_imm_u(o64, 8);
+                    let pp = self.b.ins().iadd(self.code_pages, page);
+                    let hit = self.b.ins().uload8(types::I32, self.mf, pp, 0);
+                    code = self.b.ins().bor(code, hit);
+                }
+                None => {
+                    let v = self.b.ins().load(types::I32, self.mf, base_p, 4 * k as i32);
+                    loaded.push(v);
+                }
+            }
+        }
+        (loaded, total, code)
+    }
+}
+
+/// `icmp` results are `i8`; widen one to `i32` to combine it with a word.
+trait IntoI32 {
+    fn into_i32(self, b: &mut FunctionBuilder) -> Value;
+}
+
+impl IntoI32 for Value {
+    fn into_i32(self, b: &mut FunctionBuilder) -> Value {
+        b.ins().uextend(types::I32, self)
+    }
+}

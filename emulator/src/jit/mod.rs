@@ -1,0 +1,78 @@
+//! The block compiler: Thumb code regions translated to native code with cranelift.
+//!
+//! **What a region is.** A region starts at the address the core is about to execute and
+//! runs linearly through memory over the instructions this module translates (data
+//! processing, multiplies, loads and stores, LDM/STM/PUSH/POP, ADR/SP arithmetic, B, B<cc>,
+//! BL, BX, BLX, MOV/ADD to PC), up to [`MAX_REGION`](scan::MAX_REGION) instructions; it stops before the first
+//! instruction it does not translate (SVC, WFI, MSR, CPS, barriers, …) and after an
+//! unconditional branch that no earlier branch jumps beyond. Branches whose target is an
+//! instruction of the region become native jumps (a forward `if`, a counted loop), so the
+//! guest registers stay in host registers across loop iterations; every other target
+//! leaves the native code with the core's PC set.
+//!
+//! **Meaning.** Each instruction's effect is written once more here, as cranelift IR — the
+//! flags of `adds`, the conditions of `condition`, the shifts of `alu`, the memory paths of
+//! `mem_fast`/`push_fast`/`pop_fast` in `exec.rs`. They are not a second authority:
+//! `tests/block_jit.rs` runs every translated form, on random operands and flags, as a
+//! one-instruction region against `Core::execute_op` (the interpreter's executor), and
+//! `tests/block_engine.rs` runs random programs, the key-update workload and (in
+//! `firmware`) the firmware images on both engines with every observable compared. The
+//! region's decoding is `decode::decode` and its prices are `timing::cycles`, called when
+//! the region is compiled: the timing table stays the one source of cycles.
+//!
+//! **Cycles.** Each instruction's cost is the timing table's `(not taken, taken)` pair,
+//! summed at compile time along straight-line code; the run-time additions are only the
+//! data-dependent ones: which way a conditional branch went, and the wait state of an SRAM
+//! access that finds its bank claimed by the other core in the same cycle (the arbiter of
+//! [`crate::bus`], done inline on the same `bank_claim` table). Flash never waits; any
+//! other address (peripherals, SIO, PPB, the boot ROM, an unaligned or unmapped access)
+//! leaves the native code *before* the instruction, with every register, flag and counter
+//! as at its start, and the board's general path executes it. The caller runs a region
+//! only when the core's cycle plus the region's bound — the longest path from its entry to
+//! an exit or a loop's back edge, each instruction priced by the table's larger cost plus
+//! one wait per data word — is at most the run's deadline, so every instruction the native
+//! code starts starts before the deadline, as the interpreter's would; each back edge
+//! checks the same against the bound from the loop's head, and leaves at the head when it
+//! does not fit.
+//!
+//! **Self-modifying code.** A region marks the SRAM pages its instructions come from as
+//! code pages ([`System::code_pages`]); a native store into such a page completes, and the
+//! code leaves right after that instruction so the caller drops every decoded block and
+//! region ([`System::invalidate_code`]), as the interpreter's store does. Compiled code is
+//! kept by the region's address *and its instruction halfwords*, so after an invalidation
+//! (or a host write) an unchanged region is found again without recompiling; changed code
+//! is a new key.
+//!
+//! **Exits.** The function returns why it stopped ([`Exit`]) and writes back the guest
+//! registers and flags it changed, the cycle counter, the contention stalls, the number of
+//! instructions retired and the end cycle of its last instruction that took two cycles or
+//! more (what the board needs to replay a sleeping core's turns, [`crate::block`]).
+
+//!
+//! **Confinement.** For two cores running ahead of each other ([`crate::board`], "Running
+//! ahead") each region is also compiled *confined* (a second cache): every SRAM access
+//! checks its bank against the context's mask and leaves before the instruction when the
+//! bank is not allowed, and every store appends `(word offset, old word)` to the context's
+//! undo journal; the entry and each back edge check that the journal has room for every
+//! store word of the region, so no store checks it. The runner also refuses a region
+//! fetched from a bank outside the mask ([`cache::Region::banks`]).
+//!
+//! **Modules.** [`scan`] finds a region (which instructions are translated, where it ends,
+//! the cycle bound of each instruction); [`translate`] builds a region's function (the
+//! entry and exit code, the cycle and instruction counts, control flow), with the
+//! instruction groups in [`alu`] (data processing: flags, conditions, shifts) and
+//! [`memory`] (loads, stores, the inline SRAM arbiter, multiple transfers); [`abi`] is the
+//! calling convention between native code and the board (the context, the exit reasons);
+//! [`cache`] keeps the compiled regions (lookup, the compile threshold, invalidation by
+//! code epoch, the cranelift module).
+
+mod abi;
+mod alu;
+mod cache;
+mod memory;
+mod scan;
+mod translate;
+
+pub(crate) use abi::{call, Confine, Exit};
+pub(crate) use cache::Jit;
+pub(crate) use scan::data_words;

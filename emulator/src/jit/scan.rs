@@ -1,0 +1,142 @@
+//! Region discovery: which instructions the block compiler translates, where a region
+//! starts and ends, and the cycle bound from each instruction to the region's next exit
+//! (see the parent module's documentation).
+
+use crate::bus::{Bus, System};
+use crate::decode::{decode, Instr};
+use crate::exec::branch_target;
+use crate::timing;
+
+/// Most instructions in one region.
+pub(crate) const MAX_REGION: usize = 128;
+
+/// One instruction of a region.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RegionInstr {
+    pub pc: u32,
+    pub size: u32,
+    pub instr: Instr,
+    /// (not taken, taken) cycles from the timing table.
+    pub cost: (u32, u32),
+}
+
+/// Whether the block compiler translates `instr`.
+pub(crate) fn translated(instr: &Instr) -> bool {
+    use Instr::*;
+    match *instr {
+        LslImm { .. } | LsrImm { .. } | AsrImm { .. } | AddReg { .. } | SubReg { .. } => true,
+        AddImm { .. } | SubImm { .. } | MovImm { .. } | CmpImm { .. } | Alu { .. } => true,
+        CmpHi { .. } | Sxth { .. } | Sxtb { .. } | Uxth { .. } | Uxtb { .. } => true,
+        Rev { .. } | Rev16 { .. } | Revsh { .. } | AddHi { .. } | MovHi { .. } => true,
+        Bx { .. } | Blx { .. } | LdrLit { .. } | MemReg { .. } | MemImm { .. } => true,
+        Adr { .. } | AddSpImm { .. } | AddSp { .. } | SubSp { .. } => true,
+        Push { list } | Pop { list } => list != 0,
+        Stm { list, .. } | Ldm { list, .. } => list != 0,
+        Instr::Hint(crate::decode::Hint::Nop | crate::decode::Hint::Yield) => true,
+        BCond { cond, .. } => cond < 14,
+        B { .. } | Bl { .. } => true,
+        _ => false,
+    }
+}
+
+/// True when `instr` always transfers control (nothing falls through it).
+pub(super) fn unconditional(instr: &Instr) -> bool {
+    use Instr::*;
+    match *instr {
+        B { .. } | Bl { .. } | Bx { .. } | Blx { .. } => true,
+        Pop { list } => list & 0x8000 != 0,
+        AddHi { rdn, .. } => rdn == 15,
+        MovHi { rd, .. } => rd == 15,
+        _ => false,
+    }
+}
+
+/// The internal target of a B / B<cond> at `pc`.
+pub(super) fn branch_of(i: &RegionInstr) -> Option<u32> {
+    match i.instr {
+        Instr::B { offset } | Instr::BCond { offset, .. } => Some(branch_target(i.pc, offset)),
+        _ => None,
+    }
+}
+
+/// Data words `instr` moves (each may wait one cycle for the other core).
+pub(crate) fn data_words(instr: &Instr) -> u32 {
+    use Instr::*;
+    match *instr {
+        LdrLit { .. } | MemImm { .. } | MemReg { .. } => 1,
+        Push { list } | Pop { list } => list.count_ones(),
+        Stm { list, .. } | Ldm { list, .. } => list.count_ones(),
+        _ => 0,
+    }
+}
+
+/// Decodes the region at `entry` (see the module documentation), marking the SRAM pages
+/// it comes from as code pages. Returns its instructions and halfwords (the cache key).
+pub(crate) fn scan(sys: &mut System, entry: u32) -> (Vec<RegionInstr>, Vec<u16>) {
+    let mut instrs = Vec::new();
+    let mut halfwords = Vec::new();
+    let mut a = entry;
+    let mut furthest = entry;
+    while instrs.len() < MAX_REGION {
+        let Ok((hw1, hw2, size)) = sys.fetch_instr(a) else {
+            break;
+        };
+        let instr = decode(hw1, hw2);
+        if !translated(&instr) {
+            break;
+        }
+        for h in [a, a.wrapping_add(size - 2)] {
+            if let Some((off, _)) = crate::bus::sram_location(h) {
+                sys.code_pages[off >> 8] = true;
+            }
+        }
+        halfwords.push(hw1);
+        if size == 4 {
+            halfwords.push(hw2);
+        }
+        let cost = (
+            timing::cycles(&instr, false, false),
+            timing::cycles(&instr, true, false),
+        );
+        let i = RegionInstr {
+            pc: a,
+            size,
+            instr,
+            cost,
+        };
+        if let Some(t) = branch_of(&i) {
+            if t > a && t.wrapping_sub(entry) < 4 * MAX_REGION as u32 {
+                furthest = furthest.max(t);
+            }
+        }
+        instrs.push(i);
+        let next = a.wrapping_add(size);
+        if next < a || (unconditional(&instr) && furthest < next) {
+            break;
+        }
+        a = next;
+    }
+    (instrs, halfwords)
+}
+
+/// Per instruction, an upper bound on the cycles from its start to the region's next exit
+/// or back edge (see the module documentation); `targets[i]` is the index a B / B<cond>
+/// jumps to when it stays in the region.
+pub(super) fn bounds(instrs: &[RegionInstr], targets: &[Option<usize>]) -> Vec<u64> {
+    let mut bound = vec![0u64; instrs.len() + 1];
+    for i in (0..instrs.len()).rev() {
+        let ins = &instrs[i];
+        let own = ins.cost.0.max(ins.cost.1).max(1) as u64 + data_words(&ins.instr) as u64;
+        let fall = if unconditional(&ins.instr) {
+            0
+        } else {
+            bound[i + 1]
+        };
+        let jump = match targets[i] {
+            Some(t) if t > i => bound[t],
+            _ => 0,
+        };
+        bound[i] = own + fall.max(jump);
+    }
+    bound
+}

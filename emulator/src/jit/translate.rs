@@ -1,0 +1,671 @@
+//! A region's function: the entry (guest registers and flags loaded into cranelift
+//! variables), straight-line code with pending cycle and instruction counts, branches
+//! inside the region as native jumps (back edges checking the deadline), the exits, and
+//! the write-back. The instruction groups are in [`super::alu`] and [`super::memory`].
+
+use super::abi::{Ctx, Exit};
+use super::scan::{bounds, branch_of, RegionInstr};
+use crate::core::Core;
+use crate::decode::{Instr, MemOp};
+use crate::exec::{branch_target, literal_address};
+use cranelift_codegen::ir::condcodes::IntCC;
+use cranelift_codegen::ir::{types, Block, InstBuilder, MemFlagsData, Value};
+use cranelift_frontend::{FunctionBuilder, Variable};
+use std::collections::HashMap;
+use std::mem::offset_of;
+
+/// Flag variables, in `Core` field order.
+pub(super) const N: usize = 0;
+pub(super) const Z: usize = 1;
+pub(super) const C: usize = 2;
+pub(super) const V: usize = 3;
+
+pub(super) struct Translator<'a> {
+    pub(super) b: FunctionBuilder<'a>,
+    pub(super) mf: MemFlagsData,
+    pub(super) core: Value,
+    pub(super) limit: Value,
+    pub(super) sram: Value,
+    pub(super) flash: Value,
+    pub(super) code_pages: Value,
+    pub(super) claims_self: Value,
+    pub(super) claims_other: Value,
+    pub(super) regs: [Variable; 16],
+    pub(super) flags: [Variable; 4],
+    pub(super) cyc: Variable,
+    pub(super) retired: Variable,
+    pub(super) stalls: Variable,
+    pub(super) q: Variable,
+    pub(super) exit_pc: Variable,
+    pub(super) exit_why: Variable,
+    /// Cycles and instructions not yet added to `cyc` / `retired` (straight-line code).
+    pub(super) pend_cyc: u64,
+    pub(super) pend_n: u64,
+    pub(super) exit: Block,
+    pub(super) written: u16,
+    /// Confined code only (see the parent module): the bank mask and the journal.
+    pub(super) confined: Option<Confined>,
+}
+
+/// A confined function's bank mask and journal, loaded from [`Ctx`] at its entry.
+#[derive(Clone, Copy)]
+pub(super) struct Confined {
+    /// [`Ctx::allowed`] (i32).
+    pub(super) allowed: Value,
+    /// [`Ctx::journal`].
+    pub(super) journal: Value,
+    /// [`Ctx::journal_cap`].
+    pub(super) cap: Value,
+    /// Entries used ([`Ctx::journal_len`], written back at the exit).
+    pub(super) len: Variable,
+    /// Journal entries the region's stores can write between two checks (at the entry and
+    /// at each back edge): every store word of the region, as a forward path runs each
+    /// instruction at most once.
+    pub(super) room: u64,
+}
+
+impl<'a> Translator<'a> {
+    /// Translates `instrs` (a region from [`scan`], not empty) into `b`; returns the
+    /// builder and the bound from the entry.
+    pub(super) fn run(
+        mut b: FunctionBuilder<'a>,
+        instrs: &[RegionInstr],
+        confined: bool,
+    ) -> (FunctionBuilder<'a>, u64) {
+        let index: HashMap<u32, usize> =
+            instrs.iter().enumerate().map(|(i, x)| (x.pc, i)).collect();
+        let targets: Vec<Option<usize>> = instrs
+            .iter()
+            .map(|i| branch_of(i).and_then(|t| index.get(&t).copied()))
+            .collect();
+        let bound = bounds(instrs, &targets);
+        let entry = b.create_block();
+        b.append_block_params_for_function_params(entry);
+        b.switch_to_block(entry);
+        let params = b.block_params(entry).to_vec();
+        let (core, ctx, limit) = (params[0], params[1], params[2]);
+        let mf = MemFlagsData::trusted();
+        let ptr =
+            |b: &mut FunctionBuilder, off: usize| b.ins().load(types::I64, mf, ctx, off as i32);
+        let sram = ptr(&mut b, offset_of!(Ctx, sram));
+        let flash = ptr(&mut b, offset_of!(Ctx, flash));
+        let code_pages = ptr(&mut b, offset_of!(Ctx, code_pages));
+        let claims_self = ptr(&mut b, offset_of!(Ctx, claims_self));
+        let claims_other = ptr(&mut b, offset_of!(Ctx, claims_other));
+        let stalls_ptr = ptr(&mut b, offset_of!(Ctx, stalls));
+        let regs = std::array::from_fn(|_| b.declare_var(types::I32));
+        let flags = std::array::from_fn(|_| b.declare_var(types::I8));
+        let cyc = b.declare_var(types::I64);
+        let retired = b.declare_var(types::I64);
+        let stalls = b.declare_var(types::I64);
+        let q = b.declare_var(types::I64);
+        let exit_pc = b.declare_var(types::I32);
+        let exit_why = b.declare_var(types::I32);
+        for (i, &r) in regs.iter().enumerate() {
+            let v = b
+                .ins()
+                .load(types::I32, mf, core, (offset_of!(Core, r) + 4 * i) as i32);
+            b.def_var(r, v);
+        }
+        let flag_at = [
+            offset_of!(Core, n),
+            offset_of!(Core, z),
+            offset_of!(Core, c),
+            offset_of!(Core, v),
+        ];
+        for (f, at) in flags.iter().zip(flag_at) {
+            let v = b.ins().load(types::I8, mf, core, at as i32);
+            b.def_var(*f, v);
+        }
+        let v = b
+            .ins()
+            .load(types::I64, mf, core, offset_of!(Core, cycle) as i32);
+        b.def_var(cyc, v);
+        let v = b.ins().load(types::I64, mf, stalls_ptr, 0);
+        b.def_var(stalls, v);
+        let zero = b.ins().iconst(types::I64, 0);
+        b.def_var(retired, zero);
+        b.def_var(q, zero);
+        let zero32 = b.ins().iconst(types::I32, 0);
+        b.def_var(exit_pc, zero32);
+        b.def_var(exit_why, zero32);
+        let confined = confined.then(|| {
+            let allowed = b
+                .ins()
+                .load(types::I32, mf, ctx, offset_of!(Ctx, allowed) as i32);
+            let journal = ptr(&mut b, offset_of!(Ctx, journal));
+            let cap = ptr(&mut b, offset_of!(Ctx, journal_cap));
+            let len = b.declare_var(types::I64);
+            let v = ptr(&mut b, offset_of!(Ctx, journal_len));
+            b.def_var(len, v);
+            let room = instrs
+                .iter()
+                .filter(|i| {
+                    matches!(
+                        crate::timing::class(&i.instr),
+                        crate::timing::Class::Store
+                            | crate::timing::Class::StoreMultiple
+                            | crate::timing::Class::Push
+                    )
+                })
+                .map(|i| super::scan::data_words(&i.instr) as u64)
+                .sum();
+            Confined {
+                allowed,
+                journal,
+                cap,
+                len,
+                room,
+            }
+        });
+        let exit = b.create_block();
+        let mut t = Translator {
+            b,
+            mf,
+            core,
+            limit,
+            sram,
+            flash,
+            code_pages,
+            claims_self,
+            claims_other,
+            regs,
+            flags,
+            cyc,
+            retired,
+            stalls,
+            q,
+            exit_pc,
+            exit_why,
+            pend_cyc: 0,
+            pend_n: 0,
+            exit,
+            written: 0,
+            confined,
+        };
+        // A block for each instruction a branch of the region jumps to.
+        let mut labels: Vec<Option<Block>> = vec![None; instrs.len()];
+        for &t_ in targets.iter().flatten() {
+            if labels[t_].is_none() {
+                labels[t_] = Some(t.b.create_block());
+            }
+        }
+        // Confined: no store checks the journal's capacity; the entry checks room for all.
+        if t.confined.is_some() {
+            let room = t.journal_room();
+            t.general_unless(room, instrs[0].pc);
+        }
+        let mut live = true;
+        for (i, ins) in instrs.iter().enumerate() {
+            if let Some(l) = labels[i] {
+                if live {
+                    t.flush();
+                    t.b.ins().jump(l, &[]);
+                }
+                t.b.switch_to_block(l);
+                live = true;
+            }
+            if !live {
+                continue;
+            }
+            live = t.instr(ins, targets[i].map(|j| (j, labels[j], bound[j], j <= i)));
+        }
+        if live {
+            let end = instrs[instrs.len() - 1];
+            t.flush();
+            let pc = t.c32(end.pc.wrapping_add(end.size));
+            t.leave(pc, Exit::Out);
+        }
+        // The exit: write back and return.
+        t.b.switch_to_block(exit);
+        for i in 0..16 {
+            if t.written & (1 << i) != 0 {
+                let v = t.b.use_var(t.regs[i]);
+                t.b.ins()
+                    .store(mf, v, core, (offset_of!(Core, r) + 4 * i) as i32);
+            }
+        }
+        let pc = t.b.use_var(exit_pc);
+        t.b.ins()
+            .store(mf, pc, core, (offset_of!(Core, r) + 4 * 15) as i32);
+        for (f, at) in flags.iter().zip(flag_at) {
+            let v = t.b.use_var(*f);
+            t.b.ins().store(mf, v, core, at as i32);
+        }
+        let v = t.b.use_var(cyc);
+        t.b.ins().store(mf, v, core, offset_of!(Core, cycle) as i32);
+        let v = t.b.use_var(stalls);
+        t.b.ins().store(mf, v, stalls_ptr, 0);
+        let v = t.b.use_var(retired);
+        t.b.ins().store(mf, v, ctx, offset_of!(Ctx, retired) as i32);
+        let v = t.b.use_var(q);
+        t.b.ins().store(mf, v, ctx, offset_of!(Ctx, q) as i32);
+        if let Some(c) = t.confined {
+            let v = t.b.use_var(c.len);
+            t.b.ins()
+                .store(mf, v, ctx, offset_of!(Ctx, journal_len) as i32);
+        }
+        let why = t.b.use_var(exit_why);
+        t.b.ins().return_(&[why]);
+        t.b.seal_all_blocks();
+        (t.b, bound[0])
+    }
+
+    pub(super) fn c32(&mut self, x: u32) -> Value {
+        self.b.ins().iconst(types::I32, x as i64)
+    }
+
+    pub(super) fn reg(&mut self, r: u8, pc: u32) -> Value {
+        if r == 15 {
+            return self.c32(pc.wrapping_add(4));
+        }
+        self.b.use_var(self.regs[(r & 15) as usize])
+    }
+
+    pub(super) fn set(&mut self, r: u8, v: Value) {
+        let r = (r & 15) as usize;
+        self.written |= 1 << r;
+        self.b.def_var(self.regs[r], v);
+    }
+
+    pub(super) fn flag(&mut self, f: usize) -> Value {
+        self.b.use_var(self.flags[f])
+    }
+
+    pub(super) fn set_flag(&mut self, f: usize, v: Value) {
+        self.b.def_var(self.flags[f], v);
+    }
+
+    /// Adds the pending straight-line cycles and instructions to their variables.
+    pub(super) fn flush(&mut self) {
+        if self.pend_cyc != 0 {
+            let c = self.b.use_var(self.cyc);
+            let c = self.b.ins().iadd_imm_s(c, self.pend_cyc as i64);
+            self.b.def_var(self.cyc, c);
+            self.pend_cyc = 0;
+        }
+        if self.pend_n != 0 {
+            let n = self.b.use_var(self.retired);
+            let n = self.b.ins().iadd_imm_s(n, self.pend_n as i64);
+            self.b.def_var(self.retired, n);
+            self.pend_n = 0;
+        }
+    }
+
+    /// Jumps to the exit with PC `pc` and reason `why` (pending counts flushed first).
+    pub(super) fn leave(&mut self, pc: Value, why: Exit) {
+        self.flush();
+        self.b.def_var(self.exit_pc, pc);
+        let w = self.b.ins().iconst(types::I32, why as i64);
+        self.b.def_var(self.exit_why, w);
+        self.b.ins().jump(self.exit, &[]);
+    }
+
+    /// Confined code: whether the journal has room for [`Confined::room`] more entries.
+    pub(super) fn journal_room(&mut self) -> Value {
+        let c = self.confined.expect("confined code");
+        let len = self.b.use_var(c.len);
+        let need = self.b.ins().iadd_imm_s(len, c.room as i64);
+        self.b
+            .ins()
+            .icmp(IntCC::UnsignedLessThanOrEqual, need, c.cap)
+    }
+
+    /// Leaves before the instruction at `pc` unless `cond` holds (nothing of it done).
+    pub(super) fn general_unless(&mut self, cond: Value, pc: u32) {
+        self.flush();
+        let out = self.b.create_block();
+        let on = self.b.create_block();
+        self.b.ins().brif(cond, on, &[], out, &[]);
+        self.b.switch_to_block(out);
+        let p = self.c32(pc);
+        self.leave(p, Exit::General);
+        self.b.switch_to_block(on);
+    }
+
+    /// Leaves before the instruction at `pc` when `cond` holds (nothing of it done).
+    pub(super) fn general_if(&mut self, cond: Value, pc: u32) {
+        self.flush();
+        let out = self.b.create_block();
+        let on = self.b.create_block();
+        self.b.ins().brif(cond, out, &[], on, &[]);
+        self.b.switch_to_block(out);
+        let p = self.c32(pc);
+        self.leave(p, Exit::General);
+        self.b.switch_to_block(on);
+    }
+
+    /// Counts a completed instruction of `cycles` static cycles (plus `wait` dynamic ones),
+    /// recording its end as `q` when it took two cycles or more.
+    pub(super) fn retire(&mut self, cycles: u32, wait: Option<Value>) {
+        self.pend_cyc += cycles as u64;
+        self.pend_n += 1;
+        if let Some(w) = wait {
+            self.flush();
+            let c = self.b.use_var(self.cyc);
+            let c = self.b.ins().iadd(c, w);
+            self.b.def_var(self.cyc, c);
+        }
+        if cycles >= 2 {
+            self.flush();
+            let c = self.b.use_var(self.cyc);
+            self.b.def_var(self.q, c);
+        }
+    }
+
+    /// A branch to `target` (absolute), taken after the instruction was retired: a native
+    /// jump when it stays in the region (a back edge checks the deadline), else an exit.
+    pub(super) fn goto(
+        &mut self,
+        target: u32,
+        internal: Option<(usize, Option<Block>, u64, bool)>,
+    ) {
+        self.flush();
+        match internal {
+            Some((_, Some(label), bound, back)) => {
+                if back {
+                    // Every instruction up to the next exit or back edge starts before the
+                    // limit when `cycle + bound <= limit`.
+                    let c = self.b.use_var(self.cyc);
+                    let end = self.b.ins().iadd_imm_s(c, bound as i64);
+                    let mut fits =
+                        self.b
+                            .ins()
+                            .icmp(IntCC::UnsignedLessThanOrEqual, end, self.limit);
+                    if self.confined.is_some() {
+                        let room = self.journal_room();
+                        fits = self.b.ins().band(fits, room);
+                    }
+                    let stop = self.b.create_block();
+                    self.b.ins().brif(fits, label, &[], stop, &[]);
+                    self.b.switch_to_block(stop);
+                    let p = self.c32(target);
+                    self.leave(p, Exit::Deadline);
+                } else {
+                    self.b.ins().jump(label, &[]);
+                }
+            }
+            _ => {
+                let p = self.c32(target);
+                self.leave(p, Exit::Out);
+            }
+        }
+    }
+
+    /// Translates one instruction; false when nothing falls through it.
+    pub(super) fn instr(
+        &mut self,
+        ins: &RegionInstr,
+        internal: Option<(usize, Option<Block>, u64, bool)>,
+    ) -> bool {
+        use Instr::*;
+        let pc = ins.pc;
+        let next = pc.wrapping_add(ins.size);
+        let base = ins.cost.0;
+        match ins.instr {
+            LslImm { rd, rm, imm } => {
+                let x = self.reg(rm, pc);
+                let r = if imm == 0 {
+                    x
+                } else {
+                    let bit = self.b.ins().ushr_imm_u(x, 32 - imm as i64);
+                    let bit = self.b.ins().band_imm_u(bit, 1);
+                    let c = self.b.ins().ireduce(types::I8, bit);
+                    self.set_flag(C, c);
+                    self.b.ins().ishl_imm_u(x, imm as i64)
+                };
+                self.set(rd, r);
+                self.nz(r);
+            }
+            LsrImm { rd, rm, imm } => {
+                let x = self.reg(rm, pc);
+                let bit = self.b.ins().ushr_imm_u(x, imm as i64 - 1);
+                let bit = self.b.ins().band_imm_u(bit, 1);
+                let c = self.b.ins().ireduce(types::I8, bit);
+                self.set_flag(C, c);
+                let r = if imm == 32 {
+                    self.c32(0)
+                } else {
+                    self.b.ins().ushr_imm_u(x, imm as i64)
+                };
+                self.set(rd, r);
+                self.nz(r);
+            }
+            AsrImm { rd, rm, imm } => {
+                let x = self.reg(rm, pc);
+                let bit = self.b.ins().sshr_imm_u(x, imm as i64 - 1);
+                let bit = self.b.ins().band_imm_u(bit, 1);
+                let c = self.b.ins().ireduce(types::I8, bit);
+                self.set_flag(C, c);
+                let r = self.b.ins().sshr_imm_u(x, (imm as i64).min(31));
+                self.set(rd, r);
+                self.nz(r);
+            }
+            AddReg { rd, rn, rm } => {
+                let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));
+                let r = self.add_flags(x, y);
+                self.set(rd, r);
+            }
+            SubReg { rd, rn, rm } => {
+                let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));
+                let r = self.sub_flags(x, y);
+                self.set(rd, r);
+            }
+            AddImm { rd, rn, imm } => {
+                let x = self.reg(rn, pc);
+                let y = self.c32(imm as u32);
+                let r = self.add_flags(x, y);
+                self.set(rd, r);
+            }
+            SubImm { rd, rn, imm } => {
+                let x = self.reg(rn, pc);
+                let y = self.c32(imm as u32);
+                let r = self.sub_flags(x, y);
+                self.set(rd, r);
+            }
+            MovImm { rd, imm } => {
+                let r = self.c32(imm as u32);
+                self.set(rd, r);
+                self.nz(r);
+            }
+            CmpImm { rn, imm } => {
+                let x = self.reg(rn, pc);
+                let y = self.c32(imm as u32);
+                self.sub_flags(x, y);
+            }
+            Alu { op, rdn, rm } => {
+                let m = self.reg(rm, pc);
+                self.alu(op, rdn, m);
+            }
+            CmpHi { rn, rm } => {
+                let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));
+                self.sub_flags(x, y);
+            }
+            Sxth { rd, rm } | Sxtb { rd, rm } | Uxth { rd, rm } | Uxtb { rd, rm } => {
+                let x = self.reg(rm, pc);
+                let (ty, signed) = match ins.instr {
+                    Sxth { .. } => (types::I16, true),
+                    Sxtb { .. } => (types::I8, true),
+                    Uxth { .. } => (types::I16, false),
+                    _ => (types::I8, false),
+                };
+                let n = self.b.ins().ireduce(ty, x);
+                let r = if signed {
+                    self.b.ins().sextend(types::I32, n)
+                } else {
+                    self.b.ins().uextend(types::I32, n)
+                };
+                self.set(rd, r);
+            }
+            Rev { rd, rm } => {
+                let x = self.reg(rm, pc);
+                let r = self.b.ins().bswap(x);
+                self.set(rd, r);
+            }
+            Rev16 { rd, rm } => {
+                let x = self.reg(rm, pc);
+                let lo = self.b.ins().band_imm_u(x, 0x00ff_00ff);
+                let lo = self.b.ins().ishl_imm_u(lo, 8);
+                let hi = self.b.ins().ushr_imm_u(x, 8);
+                let hi = self.b.ins().band_imm_u(hi, 0x00ff_00ff);
+                let r = self.b.ins().bor(lo, hi);
+                self.set(rd, r);
+            }
+            Revsh { rd, rm } => {
+                let x = self.reg(rm, pc);
+                let h = self.b.ins().ireduce(types::I16, x);
+                let h = self.b.ins().bswap(h);
+                let r = self.b.ins().sextend(types::I32, h);
+                self.set(rd, r);
+            }
+            AddHi { rdn, rm } | MovHi { rd: rdn, rm } => {
+                let v = self.reg(rm, pc);
+                let r = if let AddHi { .. } = ins.instr {
+                    let x = self.reg(rdn, pc);
+                    self.b.ins().iadd(x, v)
+                } else {
+                    v
+                };
+                if rdn == 15 {
+                    let t = self.b.ins().band_imm_u(r, !1i64 as u32 as i64);
+                    self.retire(base, None);
+                    self.flush();
+                    self.leave(t, Exit::Out);
+                    return false;
+                }
+                let r = if rdn == 13 {
+                    self.b.ins().band_imm_u(r, !3u32 as i64)
+                } else {
+                    r
+                };
+                self.set(rdn, r);
+            }
+            Bx { rm } | Blx { rm } => {
+                let target = self.reg(rm, pc);
+                let odd = self.b.ins().band_imm_u(target, 1);
+                let even = self.b.ins().icmp_imm_u(IntCC::Equal, odd, 0);
+                let bad = if let Bx { .. } = ins.instr {
+                    let ipsr = self.b.ins().load(
+                        types::I32,
+                        self.mf,
+                        self.core,
+                        offset_of!(Core, ipsr) as i32,
+                    );
+                    let handler = self.b.ins().icmp_imm_u(IntCC::NotEqual, ipsr, 0);
+                    let top = self.b.ins().ushr_imm_u(target, 28);
+                    let exc = self.b.ins().icmp_imm_u(IntCC::Equal, top, 0xf);
+                    let ret = self.b.ins().band(handler, exc);
+                    self.b.ins().bor(even, ret)
+                } else {
+                    even
+                };
+                self.general_if(bad, pc);
+                if let Blx { .. } = ins.instr {
+                    let lr = self.c32(next | 1);
+                    self.set(14, lr);
+                }
+                let t = self.b.ins().band_imm_u(target, !1u32 as i64);
+                self.retire(base, None);
+                self.leave(t, Exit::Out);
+                return false;
+            }
+            LdrLit { rt, imm } => {
+                let a = self.c32(literal_address(pc, imm));
+                return self.mem(ins, MemOp::Ldr, rt, a);
+            }
+            MemReg { op, rt, rn, rm } => {
+                let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));
+                let a = self.b.ins().iadd(x, y);
+                return self.mem(ins, op, rt, a);
+            }
+            MemImm { op, rt, rn, imm } => {
+                let x = self.reg(rn, pc);
+                let a = self.b.ins().iadd_imm_s(x, imm as i64);
+                return self.mem(ins, op, rt, a);
+            }
+            Adr { rd, imm } => {
+                let v = self.c32(literal_address(pc, imm));
+                self.set(rd, v);
+            }
+            AddSpImm { rd, imm } => {
+                let sp = self.reg(13, pc);
+                let v = self.b.ins().iadd_imm_s(sp, imm as i64);
+                self.set(rd, v);
+            }
+            AddSp { imm } => {
+                let sp = self.reg(13, pc);
+                let v = self.b.ins().iadd_imm_s(sp, imm as i64);
+                self.set(13, v);
+            }
+            SubSp { imm } => {
+                let sp = self.reg(13, pc);
+                let v = self.b.ins().iadd_imm_s(sp, -(imm as i64));
+                self.set(13, v);
+            }
+            Push { list } => {
+                let count = list.count_ones();
+                let sp = self.reg(13, pc);
+                let start = self.b.ins().iadd_imm_s(sp, -4 * count as i64);
+                let regs: Vec<u8> = (0..16u8).filter(|r| list & (1 << r) != 0).collect();
+                let values: Vec<Value> = regs.iter().map(|&r| self.reg(r, pc)).collect();
+                let (_, wait, code) = self.multiple(ins, start, count, Some(&values), false);
+                self.set(13, start);
+                self.retire(base, Some(wait));
+                self.invalidate_if(code, ins);
+                return true;
+            }
+            Stm { rn, list } => {
+                let count = list.count_ones();
+                let start = self.reg(rn, pc);
+                let regs: Vec<u8> = (0..8u8).filter(|r| list & (1 << r) != 0).collect();
+                let values: Vec<Value> = regs.iter().map(|&r| self.reg(r, pc)).collect();
+                let (_, wait, code) = self.multiple(ins, start, count, Some(&values), false);
+                let end = self.b.ins().iadd_imm_s(start, 4 * count as i64);
+                self.set(rn, end);
+                self.retire(base, Some(wait));
+                self.invalidate_if(code, ins);
+                return true;
+            }
+            Pop { list } => return self.load_multiple(ins, 13, list),
+            Ldm { rn, list } => return self.load_multiple(ins, rn, list as u16),
+            Hint(_) => {}
+            B { offset } => {
+                self.retire(base, None);
+                self.goto(branch_target(pc, offset), internal);
+                return false;
+            }
+            BCond { cond, offset } => {
+                let c = self.condition(cond);
+                self.flush();
+                let taken = self.b.create_block();
+                let on = self.b.create_block();
+                self.b.ins().brif(c, taken, &[], on, &[]);
+                self.b.switch_to_block(taken);
+                let saved = (self.pend_cyc, self.pend_n);
+                self.retire(ins.cost.1, None);
+                self.goto(branch_target(pc, offset), internal);
+                (self.pend_cyc, self.pend_n) = saved;
+                self.b.switch_to_block(on);
+                self.retire(base, None);
+                return true;
+            }
+            Bl { offset } => {
+                let lr = self.c32(next | 1);
+                self.set(14, lr);
+                self.retire(base, None);
+                let t = self.c32(branch_target(pc, offset));
+                self.leave(t, Exit::Out);
+                return false;
+            }
+            _ => {
+                // Not translated (`translated` keeps these out of regions).
+                self.flush();
+                let p = self.c32(pc);
+                self.leave(p, Exit::General);
+                return false;
+            }
+        }
+        self.retire(base, None);
+        true
+    }
+}
