@@ -1,0 +1,206 @@
+//! What moves the keys: the two players and the stretches of time a key needs simulating.
+//!
+//! * the position player ([`Motion::Track`]): the key-motion model of
+//!   `tactus_runtime::performance` prescribes the key travel; the instrument's force is
+//!   computed but does not move the key;
+//! * the force player ([`Motion::Finger`]): a finger pushes with a force profile and the key
+//!   moves under the finger's and the instrument's forces (`tactus_runtime::player`): the
+//!   closed loop. Each instrument is first calibrated with single strokes at
+//!   [`CALIBRATION_LEVELS_N`] ([`calibrate`]), so a note of MIDI velocity `v` is played with
+//!   the finger force that gives the hammer speed [`speed_for_velocity`]`(v)`, started that
+//!   stroke's lead time before the note-on ([`finger_profile`]).
+//!
+//! On a host engine a key is simulated only around its movements ([`busy_stretches`]): from
+//! [`LEAD_IN_S`] before a press to [`TAIL_S`] after it ends, and a key at rest for more than
+//! [`IDLE_GAP_S`] between notes is simulated as separate stretches, each from a fresh
+//! instance (a key at rest that long is back in its initial state — hammer on the rest felt,
+//! jack re-armed, impact pulses decayed — so this changes no strike, and a whole piece costs
+//! the time its keys move, not its length times its keys). The firmware runs every key
+//! every sample, as the hardware does.
+
+use super::engine::KeyEngine;
+use super::run::{run_keys, Drive, TraceWindow};
+use super::strike::speed_for_velocity;
+use tactus_runtime::performance::{self, KeyTrack, Note, Performance};
+use tactus_runtime::player::{Calibration, FingerConfig, ForceProfile, Stroke};
+
+/// How a played key moves.
+#[derive(Clone, Debug)]
+pub enum Motion {
+    /// It follows a key-travel track (the position player).
+    Track(KeyTrack),
+    /// A finger pushes it with a force profile against the instrument (the force player).
+    Finger(ForceProfile),
+}
+
+/// Peak finger forces of the calibration strokes, N (log-spaced from a push barely above a
+/// piano key's down-weight to a hard *fff* blow).
+pub const CALIBRATION_LEVELS_N: [f64; 14] = [
+    0.6, 0.75, 0.9, 1.1, 1.4, 1.8, 2.3, 3.0, 4.0, 5.5, 7.5, 10.0, 14.0, 20.0,
+];
+
+/// Time a stroke waits for the key to rise after the previous note's finger lifted, s: a
+/// note that follows sooner lifts the previous finger earlier.
+pub const RISE_GAP_S: f64 = 0.030;
+
+/// Simulated time before a key's first movement, s.
+pub const LEAD_IN_S: f64 = 0.05;
+/// Simulated time after a key's last movement ends, s (the hammer settles on its rest felt).
+pub const TAIL_S: f64 = 0.5;
+/// A key at rest for longer than this between two movements, s, is simulated as two
+/// stretches, each from a fresh instance.
+pub const IDLE_GAP_S: f64 = 1.0;
+
+/// How long a calibration stroke is simulated, s.
+const CALIBRATION_S: f64 = 0.6;
+
+/// Measures single strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
+/// (`fresh()`: one key at rest; its dip `dip_m`; the push held until the strike or 0.6 s):
+/// the lead from the start of the push to the first strike and that strike's hammer speed.
+/// `None` when fewer than two levels strike.
+///
+/// Errors: the engine's (see [`run_keys`]).
+pub fn calibrate<'e>(
+    fresh: &dyn Fn() -> Box<dyn KeyEngine + 'e>,
+    dip_m: f64,
+    finger: FingerConfig,
+    fs: f64,
+) -> Result<Option<Calibration>, String> {
+    let start = 0.01;
+    let mut levels = Vec::new();
+    for &peak in &CALIBRATION_LEVELS_N {
+        let motion = Motion::Finger(ForceProfile::new(
+            finger,
+            vec![Stroke {
+                start_s: start,
+                peak_n: peak,
+                push_end_s: 10.0,
+                lift_s: 10.0,
+            }],
+        ));
+        let drive = Drive {
+            key: 0,
+            motion: Some(&motion),
+            dip_m,
+        };
+        let run = run_keys(
+            &mut *fresh(),
+            &[drive],
+            0..(CALIBRATION_S * fs) as usize,
+            fs,
+            &finger,
+            &TraceWindow::default(),
+            &|_| {},
+        )?;
+        if let Some(s) = run.strikes.first() {
+            levels.push((peak, s.time_s - start, s.speed_mps));
+        }
+    }
+    Ok(Calibration::new(levels))
+}
+
+/// The finger's strokes for one key's notes: each aims at the hammer speed of its MIDI
+/// velocity ([`speed_for_velocity`]) with the calibrated force, starts the calibrated lead
+/// before its note-on, pushes until 10 ms after the note-on, holds until the note-off and
+/// lifts then — or [`RISE_GAP_S`] before the next stroke, if that comes sooner.
+pub fn finger_profile(notes: &[Note], cal: &Calibration, finger: FingerConfig) -> ForceProfile {
+    let mut strokes: Vec<Stroke> = notes
+        .iter()
+        .map(|n| {
+            let (peak, lead) = cal.for_speed(speed_for_velocity(n.velocity));
+            let start = (n.on_s - lead).max(0.0);
+            let push_end = n.on_s.max(start) + 0.010;
+            Stroke {
+                start_s: start,
+                peak_n: peak,
+                push_end_s: push_end,
+                lift_s: n.off_s.max(push_end),
+            }
+        })
+        .collect();
+    for i in 1..strokes.len() {
+        let next = strokes[i].start_s;
+        let prev = &mut strokes[i - 1];
+        prev.lift_s = prev.lift_s.min(next - RISE_GAP_S).max(prev.start_s);
+        prev.push_end_s = prev.push_end_s.min(prev.lift_s);
+    }
+    ForceProfile::new(finger, strokes)
+}
+
+/// One key's motion for its notes `notes` (sorted by note-on), and the intervals it moves
+/// (start s, end s): the position player's track for a key of dip `dip_m` over a piece of
+/// `duration_s`, or with a calibration the force player's finger.
+pub fn key_motion(
+    notes: &[Note],
+    dip_m: f64,
+    duration_s: f64,
+    force: Option<(&Calibration, FingerConfig)>,
+) -> (Motion, Vec<(f64, f64)>) {
+    match force {
+        None => {
+            let track = performance::key_tracks(
+                &Performance {
+                    notes: notes.to_vec(),
+                    sustain: vec![],
+                    duration_s,
+                },
+                dip_m,
+            )
+            .remove(0);
+            let busy = notes
+                .iter()
+                .map(|n| {
+                    (
+                        n.on_s - performance::MAX_DESCENT_S,
+                        n.off_s.max(n.on_s) + performance::RELEASE_S,
+                    )
+                })
+                .collect();
+            (Motion::Track(track), busy)
+        }
+        Some((cal, finger)) => {
+            let profile = finger_profile(notes, cal, finger);
+            let busy = profile
+                .strokes()
+                .iter()
+                .map(|s| (s.start_s, s.lift_s))
+                .collect();
+            (Motion::Finger(profile), busy)
+        }
+    }
+}
+
+/// Merges movement intervals (start s, end s) into busy stretches: intervals closer than
+/// [`IDLE_GAP_S`] belong to one stretch.
+pub fn busy_stretches(mut busy: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    busy.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    for (a, b) in busy {
+        match out.last_mut() {
+            Some(last) if a - last.1 < IDLE_GAP_S => last.1 = last.1.max(b),
+            _ => out.push((a, b)),
+        }
+    }
+    out
+}
+
+/// The samples to simulate for a busy stretch (start s, end s) at `fs` Hz: from
+/// [`LEAD_IN_S`] before it to [`TAIL_S`] after it.
+pub fn stretch_samples((start_s, end_s): (f64, f64), fs: f64) -> std::ops::Range<usize> {
+    let a = ((start_s - LEAD_IN_S).max(0.0) * fs) as usize;
+    let b = ((end_s + TAIL_S) * fs) as usize;
+    a..b.max(a)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn busy_stretches_merge_only_short_rests() {
+        let s = busy_stretches(vec![(5.0, 5.2), (0.0, 0.5), (1.2, 1.4), (0.4, 0.6)]);
+        // 0.6 → 1.2 is a rest shorter than IDLE_GAP_S: one stretch; 1.4 → 5.0 is longer.
+        assert_eq!(s, vec![(0.0, 1.4), (5.0, 5.2)]);
+        assert!(busy_stretches(vec![]).is_empty());
+    }
+}
