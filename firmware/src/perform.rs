@@ -241,7 +241,7 @@ impl<'p> BoardEngine<'p> {
 
     /// What the board reported so far; its strikes and traces are the play loop's.
     pub fn finish(mut self) -> BoardRun {
-        if self.steps % self.decimation != 0 {
+        if !self.steps.is_multiple_of(self.decimation) {
             self.report.cycles.push(self.block_max);
         }
         self.report
@@ -282,7 +282,7 @@ impl KeyEngine for BoardEngine<'_> {
             self.block_max = self.block_max.max(out.core_cycles[c]);
         }
         self.steps += 1;
-        if self.steps % self.decimation == 0 {
+        if self.steps.is_multiple_of(self.decimation) {
             r.cycles.push(self.block_max);
             self.block_max = 0;
         }
