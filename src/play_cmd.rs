@@ -387,21 +387,35 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     }
     // Notes no strike answers: the instrument did not sound them.
     let silent = &played.silent;
-    for n in silent.iter().take(10) {
+    let too_soft = silent
+        .iter()
+        .filter(|s| s.cause == play::Silence::TooSoft)
+        .count();
+    for s in silent
+        .iter()
+        .filter(|s| s.cause == play::Silence::Other)
+        .take(10)
+    {
         eprintln!(
-            "warning: note {} at {:.3} s (velocity {}) produced no strike within 50 ms",
-            n.key, n.on_s, n.velocity
+            "warning: note {} at {:.3} s (velocity {}{}) produced no strike within 50 ms",
+            s.note.key,
+            s.note.on_s,
+            s.note.velocity,
+            s.since_previous_s.map_or(String::new(), |d| format!(
+                ", {:.0} ms after the key's last note-on",
+                d * 1e3
+            ))
         );
     }
-    if silent.len() > 10 {
+    if silent.len() - too_soft > 10 {
         eprintln!(
             "warning: … and {} more notes without a strike",
-            silent.len() - 10
+            silent.len() - too_soft - 10
         );
     }
     let audio_s = perf.duration_s;
     println!(
-        "{}: {} notes on {} keys ({} player) → {} strikes ({} answer a note within 50 ms; {} note{} without a strike); {} note{} outside the layout skipped",
+        "{}: {} notes on {} keys ({} player) → {} strikes ({} answer a note within 50 ms; {} note{} without a strike{}); {} note{} outside the layout skipped",
         stem,
         perf.notes.len(),
         keyboard.key_program.len(),
@@ -413,6 +427,13 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         matched,
         silent.len(),
         if silent.len() == 1 { "" } else { "s" },
+        match (args.player, silent.is_empty()) {
+            (Player::Force, false) => format!(
+                ": {too_soft} too soft to reach the string, below the calibrated minimum; {} other",
+                silent.len() - too_soft
+            ),
+            _ => String::new(),
+        },
         skipped,
         if skipped == 1 { "" } else { "s" },
     );
@@ -427,7 +448,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     // What the finger can do on each instrument, and how many notes asked for more.
     for (pi, cal) in played.calibrations.iter().enumerate() {
         let Some(cal) = cal else { continue };
-        let l = cal.levels();
+        let l = cal.from_rest.levels();
         let (lo, hi) = (l[0].2, l[l.len() - 1].2);
         let outside = perf
             .notes

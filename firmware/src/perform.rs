@@ -14,7 +14,7 @@
 use crate::boards::{self, PlanKey, ProgramCosts};
 use crate::image::Program;
 use crate::play::engine::{KeyEngine, KeySample};
-use crate::play::run::{run_keys, Drive, TraceWindow};
+use crate::play::run::{run_keys, Drive, LoopConfig, TraceWindow};
 use crate::play::strike::{strike_event, Strike};
 use std::collections::BTreeMap;
 use tactus_compiler::fixed::interp::FixedInstance;
@@ -334,9 +334,12 @@ fn run_board(
         &mut engine,
         &drives,
         0..opts.end,
-        opts.fs,
-        &opts.finger,
-        &opts.trace,
+        &LoopConfig {
+            fs: opts.fs,
+            finger: opts.finger,
+            trace: &opts.trace,
+            stop_at_strike_after_s: None,
+        },
         &|n| progress(n),
     )?;
     let mut report = engine.finish();

@@ -32,13 +32,14 @@ pub use strike::Strike;
 use crate::image::Program as FirmwareProgram;
 use crate::perform::{play_boards, BoardRun, PerformOptions};
 use engine::{FixedJitEngine, HostKey, JitEngine};
+pub use motion::FingerCalibration;
 use motion::{busy_stretches, calibrate, key_motion, stretch_samples, CALIBRATION_LEVELS_N};
 use run::{run_keys, Drive};
 use std::collections::BTreeMap;
 use tactus_compiler::ir::Program;
 use tactus_runtime::keyboard::{Board, KeyAssignment};
 use tactus_runtime::performance::{Note, Performance};
-use tactus_runtime::player::{Calibration, FingerConfig};
+use tactus_runtime::player::FingerConfig;
 
 /// What computes the keys' instruments.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -148,17 +149,39 @@ impl BoardsReport {
     }
 }
 
+/// Why a note sounded no strike.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Silence {
+    /// Too soft to reach the string: with the force player, its velocity asks for a hammer
+    /// speed below the softest the calibrated finger strikes with from rest (less half a
+    /// MIDI velocity step); a real piano leaves such a note silent too.
+    TooSoft,
+    /// Anything else: a miss of the player or the instrument.
+    Other,
+}
+
+/// A note no strike answers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SilentNote {
+    /// The note.
+    pub note: Note,
+    /// Why.
+    pub cause: Silence,
+    /// Time since the previous note-on of its key, s (`None` for its first note).
+    pub since_previous_s: Option<f64>,
+}
+
 /// What [`play`] produced.
 #[derive(Clone, Debug)]
 pub struct Played {
     /// The strikes by time, each with the note it answers.
     pub strikes: Vec<Strike>,
-    /// The notes no strike answers.
-    pub silent: Vec<Note>,
+    /// The notes no strike answers, each with why.
+    pub silent: Vec<SilentNote>,
     /// The traced keys' samples.
     pub traces: Traces,
     /// The force player's calibration per program (`None` with the position player).
-    pub calibrations: Vec<Option<Calibration>>,
+    pub calibrations: Vec<Option<FingerCalibration>>,
     /// Key-samples simulated.
     pub key_samples: u64,
     /// With `Emu`: the boards' budget over the run.
@@ -264,7 +287,7 @@ pub fn play(
     let dip_of = |pi: usize| programs[pi].program.sensors[0].range.1;
     let finger = config.finger;
     // The force player's calibration, per program.
-    let calibrations: Vec<Option<Calibration>> = match config.player {
+    let calibrations: Vec<Option<FingerCalibration>> = match config.player {
         Player::Position => programs.iter().map(|_| None).collect(),
         Player::Force => (0..programs.len())
             .map(|pi| {
@@ -368,9 +391,12 @@ pub fn play(
                 &mut *host_key(pi),
                 &[drive],
                 samples,
-                fs,
-                &finger,
-                &config.trace,
+                &run::LoopConfig {
+                    fs,
+                    finger,
+                    trace: &config.trace,
+                    stop_at_strike_after_s: None,
+                },
                 &|n| progress.inc(n),
             )?;
             strikes.append(&mut run.strikes);
@@ -380,7 +406,34 @@ pub fn play(
         }
     }
     strike::answer(&mut strikes, &perf.notes);
-    let silent = strike::silent(&perf.notes, &strikes);
+    let silent = strike::silent(&perf.notes, &strikes)
+        .into_iter()
+        .map(|note| {
+            let too_soft = keyboard
+                .key_program
+                .get(&note.key)
+                .and_then(|&pi| calibrations[pi].as_ref())
+                .is_some_and(|c| {
+                    // Half a MIDI velocity step of slack: the end is measured, not exact.
+                    strike::speed_for_velocity(note.velocity) < c.from_rest.levels()[0].2 * 0.985
+                });
+            let since_previous_s = perf
+                .notes
+                .iter()
+                .filter(|n| n.key == note.key && n.on_s < note.on_s)
+                .map(|n| note.on_s - n.on_s)
+                .reduce(f64::min);
+            SilentNote {
+                note,
+                cause: if too_soft {
+                    Silence::TooSoft
+                } else {
+                    Silence::Other
+                },
+                since_previous_s,
+            }
+        })
+        .collect();
     Ok(Played {
         strikes,
         silent,

@@ -19,7 +19,7 @@
 //! every sample, as the hardware does.
 
 use super::engine::KeyEngine;
-use super::run::{run_keys, Drive, TraceWindow};
+use super::run::{run_keys, Drive, LoopConfig, TraceWindow};
 use super::strike::speed_for_velocity;
 use tactus_runtime::performance::{self, KeyTrack, Note, Performance};
 use tactus_runtime::player::{Calibration, FingerConfig, ForceProfile, Stroke};
@@ -54,10 +54,41 @@ pub const IDLE_GAP_S: f64 = 1.0;
 /// How long a calibration stroke is simulated, s.
 const CALIBRATION_S: f64 = 0.6;
 
-/// Measures single strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
-/// (`fresh()`: one key at rest; its dip `dip_m`; the push held until the strike or 0.6 s):
-/// the lead from the start of the push to the first strike and that strike's hammer speed.
-/// `None` when fewer than two levels strike.
+/// How long the finger lets the key rise before a re-strike, s: the finger lifts this long
+/// before the re-striking push starts, as in the re-strike calibration. 40 ms bring a
+/// grand-piano key from the bottom back through the let-off zone, above the point where the
+/// jack re-arms under the knuckle of the hammer the repetition lever holds up (the
+/// escapement's `theta1`, 8.2 mm): the double escapement's purpose.
+pub const RESTRIKE_RISE_S: f64 = 0.040;
+
+/// A stroke is played from rest only when its push starts at least this long after the
+/// previous stroke's finger lifted, s: the key is back up and the hammer back on its rest
+/// felt (a released grand-piano key rises in ≈ 60 ms, its hammer lands ≈ 100 ms after the
+/// lift). A sooner stroke is a re-strike ([`FingerCalibration::restrike`]).
+pub const SETTLE_S: f64 = 0.100;
+
+/// When the first stroke of a re-strike calibration lifts, s: its strike is long past and
+/// the back-check holds the hammer.
+const RESTRIKE_FIRST_LIFT_S: f64 = 0.25;
+
+/// The force player's calibration of one instrument: strokes from rest and re-strikes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FingerCalibration {
+    /// Strokes from rest: (peak N, lead s, hammer speed m/s); the lead from the start of
+    /// the push to the strike.
+    pub from_rest: Calibration,
+    /// Re-strikes: the key held down after a strike, released for [`RESTRIKE_RISE_S`] and
+    /// pushed again from where it rose to, the hammer still on the repetition lever. `None`
+    /// when fewer than two levels re-strike.
+    pub restrike: Option<Calibration>,
+}
+
+/// Measures strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
+/// (`fresh()`: one key at rest; its dip `dip_m`): from rest (the push held until the strike
+/// or 0.6 s), and re-strikes (a 3 N stroke held down until 0.25 s, the finger lifted for
+/// [`RESTRIKE_RISE_S`], then the measured push). Each gives the lead from the start of the
+/// push to the strike and the strike's hammer speed. `None` when fewer than two levels
+/// strike from rest.
 ///
 /// Errors: the engine's (see [`run_keys`]).
 pub fn calibrate<'e>(
@@ -65,64 +96,116 @@ pub fn calibrate<'e>(
     dip_m: f64,
     finger: FingerConfig,
     fs: f64,
-) -> Result<Option<Calibration>, String> {
-    let start = 0.01;
-    let mut levels = Vec::new();
-    for &peak in &CALIBRATION_LEVELS_N {
-        let motion = Motion::Finger(ForceProfile::new(
-            finger,
-            vec![Stroke {
+) -> Result<Option<FingerCalibration>, String> {
+    let measure = |first: Option<Stroke>, start: f64| -> Result<Vec<(f64, f64, f64)>, String> {
+        let mut levels = Vec::new();
+        for &peak in &CALIBRATION_LEVELS_N {
+            let push = Stroke {
                 start_s: start,
                 peak_n: peak,
                 push_end_s: 10.0,
                 lift_s: 10.0,
-            }],
-        ));
-        let drive = Drive {
-            key: 0,
-            motion: Some(&motion),
-            dip_m,
-        };
-        let run = run_keys(
-            &mut *fresh(),
-            &[drive],
-            0..(CALIBRATION_S * fs) as usize,
-            fs,
-            &finger,
-            &TraceWindow::default(),
-            &|_| {},
-        )?;
-        if let Some(s) = run.strikes.first() {
-            levels.push((peak, s.time_s - start, s.speed_mps));
+            };
+            let motion = Motion::Finger(ForceProfile::new(
+                finger,
+                first.into_iter().chain([push]).collect(),
+            ));
+            let drive = Drive {
+                key: 0,
+                motion: Some(&motion),
+                dip_m,
+            };
+            let run = run_keys(
+                &mut *fresh(),
+                &[drive],
+                0..((start + CALIBRATION_S) * fs) as usize,
+                &LoopConfig {
+                    fs,
+                    finger,
+                    trace: &TraceWindow::default(),
+                    stop_at_strike_after_s: Some(start),
+                },
+                &|_| {},
+            )?;
+            if let Some(s) = run.strikes.iter().find(|s| s.time_s >= start) {
+                levels.push((peak, s.time_s - start, s.speed_mps));
+            }
         }
-    }
-    Ok(Calibration::new(levels))
+        Ok(levels)
+    };
+    let Some(from_rest) = Calibration::new(measure(None, 0.01)?) else {
+        return Ok(None);
+    };
+    let first = Stroke {
+        start_s: 0.01,
+        peak_n: 3.0,
+        push_end_s: 0.1,
+        lift_s: RESTRIKE_FIRST_LIFT_S,
+    };
+    let restrike = Calibration::new(measure(
+        Some(first),
+        RESTRIKE_FIRST_LIFT_S + RESTRIKE_RISE_S,
+    )?);
+    Ok(Some(FingerCalibration {
+        from_rest,
+        restrike,
+    }))
 }
 
 /// The finger's strokes for one key's notes: each aims at the hammer speed of its MIDI
 /// velocity ([`speed_for_velocity`]) with the calibrated force, starts the calibrated lead
 /// before its note-on, pushes until 10 ms after the note-on, holds until the note-off and
-/// lifts then — or [`RISE_GAP_S`] before the next stroke, if that comes sooner.
-pub fn finger_profile(notes: &[Note], cal: &Calibration, finger: FingerConfig) -> ForceProfile {
-    let mut strokes: Vec<Stroke> = notes
-        .iter()
-        .map(|n| {
-            let (peak, lead) = cal.for_speed(speed_for_velocity(n.velocity));
-            let start = (n.on_s - lead).max(0.0);
-            let push_end = n.on_s.max(start) + 0.010;
-            Stroke {
-                start_s: start,
-                peak_n: peak,
-                push_end_s: push_end,
-                lift_s: n.off_s.max(push_end),
+/// lifts then.
+///
+/// A stroke whose push would start less than [`SETTLE_S`] after the previous finger lifted
+/// finds the key not yet back at rest: it is a **re-strike**, played as the re-strike
+/// calibration measured it — with its force and lead, the previous finger lifted
+/// [`RESTRIKE_RISE_S`] before the push (holding the previous note that much longer, or
+/// releasing it sooner), and never before the previous push has ended. A re-strike whose
+/// calibrated lead does not fit in the time left takes the weakest calibrated re-strike
+/// whose lead does (louder than asked, on time); when none does, it starts late. Without a re-strike calibration (or for the first
+/// note) the stroke keeps the from-rest force and lead, and the previous finger lifts
+/// [`RISE_GAP_S`] before it.
+pub fn finger_profile(
+    notes: &[Note],
+    cal: &FingerCalibration,
+    finger: FingerConfig,
+) -> ForceProfile {
+    let mut strokes: Vec<Stroke> = Vec::with_capacity(notes.len());
+    for n in notes {
+        let speed = speed_for_velocity(n.velocity);
+        let (mut peak, lead) = cal.from_rest.for_speed(speed);
+        let mut start = (n.on_s - lead).max(0.0);
+        if let Some(prev) = strokes.last_mut() {
+            match &cal.restrike {
+                Some(re) if start < prev.lift_s + SETTLE_S => {
+                    let earliest = prev.push_end_s + RESTRIKE_RISE_S;
+                    let (mut p, mut lead) = re.for_speed(speed);
+                    if n.on_s - lead < earliest {
+                        // No time for so soft a push: the weakest re-strike that reaches
+                        // the string by the note-on (a pianist plays a fast repetition
+                        // louder rather than late).
+                        if let Some(l) = re.levels().iter().find(|l| n.on_s - l.1 >= earliest) {
+                            (p, lead) = (l.0, l.1);
+                        }
+                    }
+                    peak = p;
+                    start = (n.on_s - lead).max(earliest);
+                    prev.lift_s = start - RESTRIKE_RISE_S;
+                }
+                _ => {
+                    prev.lift_s = prev.lift_s.min(start - RISE_GAP_S).max(prev.start_s);
+                    prev.push_end_s = prev.push_end_s.min(prev.lift_s);
+                }
             }
-        })
-        .collect();
-    for i in 1..strokes.len() {
-        let next = strokes[i].start_s;
-        let prev = &mut strokes[i - 1];
-        prev.lift_s = prev.lift_s.min(next - RISE_GAP_S).max(prev.start_s);
-        prev.push_end_s = prev.push_end_s.min(prev.lift_s);
+        }
+        let push_end = n.on_s.max(start) + 0.010;
+        strokes.push(Stroke {
+            start_s: start,
+            peak_n: peak,
+            push_end_s: push_end,
+            lift_s: n.off_s.max(push_end),
+        });
     }
     ForceProfile::new(finger, strokes)
 }
@@ -134,7 +217,7 @@ pub fn key_motion(
     notes: &[Note],
     dip_m: f64,
     duration_s: f64,
-    force: Option<(&Calibration, FingerConfig)>,
+    force: Option<(&FingerCalibration, FingerConfig)>,
 ) -> (Motion, Vec<(f64, f64)>) {
     match force {
         None => {

@@ -53,12 +53,26 @@ pub struct KeysRun {
     pub traces: Traces,
 }
 
+/// How [`run_keys`] runs.
+#[derive(Clone, Debug)]
+pub struct LoopConfig<'t> {
+    /// Sample rate, Hz.
+    pub fs: f64,
+    /// The finger of a force player's key.
+    pub finger: FingerConfig,
+    /// What to trace.
+    pub trace: &'t TraceWindow,
+    /// Stop after the sample of the first strike at or after this time, s (a calibration
+    /// stroke needs no more).
+    pub stop_at_strike_after_s: Option<f64>,
+}
+
 /// Key-samples between two calls of the progress callback.
 pub const PROGRESS_SAMPLES: usize = 4096;
 
-/// Runs the keys `drives` (in the engine's key order) over the samples `samples` at `fs` Hz
-/// on `engine`; a force player's key has the finger `finger`. `progress` is called with the
-/// key-samples done since its last call.
+/// Runs the keys `drives` (in the engine's key order) over the samples `samples` on
+/// `engine` as `config` says. `progress` is called with the key-samples done since its last
+/// call.
 ///
 /// Errors: the engine's, and a message naming the key, sample and time when an engine
 /// computes a non-finite force or strike speed (an f64 program that divides by zero): the
@@ -67,11 +81,10 @@ pub fn run_keys(
     engine: &mut dyn KeyEngine,
     drives: &[Drive],
     samples: Range<usize>,
-    fs: f64,
-    finger: &FingerConfig,
-    trace: &TraceWindow,
+    config: &LoopConfig,
     progress: &dyn Fn(u64),
 ) -> Result<KeysRun, String> {
+    let (fs, finger, trace) = (config.fs, &config.finger, config.trace);
     let n = drives.len();
     let mut players: Vec<Option<ForcePlayer>> = drives
         .iter()
@@ -139,6 +152,11 @@ pub fn run_keys(
             }
         }
         pending += 1;
+        if let Some(after) = config.stop_at_strike_after_s {
+            if run.strikes.last().is_some_and(|s| s.time_s >= after) {
+                break;
+            }
+        }
         if pending == PROGRESS_SAMPLES {
             progress((PROGRESS_SAMPLES * n) as u64);
             pending = 0;
