@@ -445,32 +445,50 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         audio_s,
         peak_memory().map_or("unknown".to_string(), |kb| format!("{:.1} MB", kb as f64 / 1024.0)),
     );
-    // What the finger can do on each instrument, and how many notes asked for more.
+    // What the finger can do on each instrument (the range every key of it covers), and
+    // how many notes asked for more.
+    let mut names: Vec<&str> = Vec::new();
     for (pi, cal) in played.calibrations.iter().enumerate() {
-        let Some(cal) = cal else { continue };
-        let l = cal.from_rest.levels();
-        let (lo, hi) = (l[0].2, l[l.len() - 1].2);
-        let outside = perf
-            .notes
-            .iter()
-            .filter(|n| keyboard.key_program.get(&n.key) == Some(&pi))
-            .filter(|n| {
-                let v = strike::speed_for_velocity(n.velocity);
-                // Half a MIDI velocity step of slack: the ends are measured, not exact.
-                v < lo * 0.985 || v > hi * 1.015
-            })
-            .count();
+        let name = keyboard.programs[pi].name.as_str();
+        if cal.is_some() && !names.contains(&name) {
+            names.push(name);
+        }
+    }
+    for name in names {
+        let (mut lo, mut hi, mut sets, mut outside) = (0.0f64, f64::INFINITY, 0, 0);
+        let (mut push_lo, mut push_hi) = (f64::INFINITY, 0.0f64);
+        for (pi, cal) in played.calibrations.iter().enumerate() {
+            let Some(cal) = cal.as_ref().filter(|_| keyboard.programs[pi].name == name) else {
+                continue;
+            };
+            let l = cal.from_rest.levels();
+            let (a, b) = (l[0].2, l[l.len() - 1].2);
+            (lo, hi, sets) = (lo.max(a), hi.min(b), sets + 1);
+            (push_lo, push_hi) = (push_lo.min(l[0].0), push_hi.max(l[l.len() - 1].0));
+            outside += perf
+                .notes
+                .iter()
+                .filter(|n| keyboard.key_program.get(&n.key) == Some(&pi))
+                .filter(|n| {
+                    let v = strike::speed_for_velocity(n.velocity);
+                    // Half a MIDI velocity step of slack: the ends are measured, not exact.
+                    v < a * 0.985 || v > b * 1.015
+                })
+                .count();
+        }
         println!(
-            "  force player on `{}`: finger pushes {:.2}–{:.1} N give hammer speeds {:.2}–{:.2} m/s (MIDI {}–{}); {} note{} outside that range played at its nearest end",
-            keyboard.programs[pi].name,
-            l[0].0,
-            l[l.len() - 1].0,
-            lo,
-            hi,
+            "  force player on `{name}`{}: finger pushes {push_lo:.2}–{push_hi:.1} N give hammer speeds {lo:.2}–{hi:.2} m/s on every key (MIDI {}–{}); {outside} note{} outside its key's range played at its nearest end",
+            if sets > 1 { format!(" ({sets} parameter sets)") } else { String::new() },
             strike::midi_velocity(lo),
             strike::midi_velocity(hi),
-            outside,
             if outside == 1 { "" } else { "s" },
+        );
+    }
+    let r = played.restrikes;
+    if r.restrikes > 0 {
+        println!(
+            "  force player: {} notes re-struck before their key was back at rest; {} of them had no time for the asked softness and were played louder, {} started late",
+            r.restrikes, r.raised, r.late
         );
     }
     for w in &wrote {

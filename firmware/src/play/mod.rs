@@ -32,8 +32,8 @@ pub use strike::Strike;
 use crate::image::Program as FirmwareProgram;
 use crate::perform::{play_boards, BoardRun, PerformOptions};
 use engine::{FixedJitEngine, HostKey, JitEngine};
-pub use motion::FingerCalibration;
 use motion::{busy_stretches, calibrate, key_motion, stretch_samples, CALIBRATION_LEVELS_N};
+pub use motion::{FingerCalibration, Restrikes};
 use run::{run_keys, Drive};
 use std::collections::BTreeMap;
 use tactus_compiler::ir::Program;
@@ -182,6 +182,8 @@ pub struct Played {
     pub traces: Traces,
     /// The force player's calibration per program (`None` with the position player).
     pub calibrations: Vec<Option<FingerCalibration>>,
+    /// How the force player played repeated notes.
+    pub restrikes: Restrikes,
     /// Key-samples simulated.
     pub key_samples: u64,
     /// With `Emu`: the boards' budget over the run.
@@ -302,6 +304,7 @@ pub fn play(
     };
     // Each played key's motion and the stretches it moves.
     let mut motions: BTreeMap<u8, (Motion, Vec<(f64, f64)>)> = BTreeMap::new();
+    let mut restrikes = Restrikes::default();
     for (&key, &pi) in &keyboard.key_program {
         let notes: Vec<Note> = perf
             .notes
@@ -310,7 +313,8 @@ pub fn play(
             .copied()
             .collect();
         let force = calibrations[pi].as_ref().map(|c| (c, finger));
-        let (motion, busy) = key_motion(&notes, dip_of(pi), perf.duration_s, force);
+        let (motion, busy, counts) = key_motion(&notes, dip_of(pi), perf.duration_s, force);
+        restrikes += counts;
         motions.insert(key, (motion, busy_stretches(busy)));
     }
     let mut strikes = Vec::new();
@@ -439,6 +443,7 @@ pub fn play(
         silent,
         traces,
         calibrations,
+        restrikes,
         key_samples,
         boards,
     })

@@ -170,8 +170,9 @@ pub fn finger_profile(
     notes: &[Note],
     cal: &FingerCalibration,
     finger: FingerConfig,
-) -> ForceProfile {
+) -> (ForceProfile, Restrikes) {
     let mut strokes: Vec<Stroke> = Vec::with_capacity(notes.len());
+    let mut counts = Restrikes::default();
     for n in notes {
         let speed = speed_for_velocity(n.velocity);
         let (mut peak, lead) = cal.from_rest.for_speed(speed);
@@ -181,15 +182,20 @@ pub fn finger_profile(
                 Some(re) if start < prev.lift_s + SETTLE_S => {
                     let earliest = prev.push_end_s + RESTRIKE_RISE_S;
                     let (mut p, mut lead) = re.for_speed(speed);
+                    counts.restrikes += 1;
                     if n.on_s - lead < earliest {
                         // No time for so soft a push: the weakest re-strike that reaches
                         // the string by the note-on (a pianist plays a fast repetition
                         // louder rather than late).
                         if let Some(l) = re.levels().iter().find(|l| n.on_s - l.1 >= earliest) {
                             (p, lead) = (l.0, l.1);
+                            counts.raised += 1;
                         }
                     }
                     peak = p;
+                    if n.on_s - lead < earliest {
+                        counts.late += 1;
+                    }
                     start = (n.on_s - lead).max(earliest);
                     prev.lift_s = start - RESTRIKE_RISE_S;
                 }
@@ -207,18 +213,39 @@ pub fn finger_profile(
             lift_s: n.off_s.max(push_end),
         });
     }
-    ForceProfile::new(finger, strokes)
+    (ForceProfile::new(finger, strokes), counts)
 }
 
-/// One key's motion for its notes `notes` (sorted by note-on), and the intervals it moves
-/// (start s, end s): the position player's track for a key of dip `dip_m` over a piece of
-/// `duration_s`, or with a calibration the force player's finger.
+/// How the force player played repeated notes ([`finger_profile`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Restrikes {
+    /// Notes played as re-strikes (the key not yet back at rest).
+    pub restrikes: usize,
+    /// … of which the asked softness had no time: played with the weakest re-strike that
+    /// fits, louder than asked.
+    pub raised: usize,
+    /// … of which none fits: started late.
+    pub late: usize,
+}
+
+impl std::ops::AddAssign for Restrikes {
+    fn add_assign(&mut self, o: Restrikes) {
+        self.restrikes += o.restrikes;
+        self.raised += o.raised;
+        self.late += o.late;
+    }
+}
+
+/// One key's motion for its notes `notes` (sorted by note-on), the intervals it moves
+/// (start s, end s) and how its repeated notes were played: the position player's track for
+/// a key of dip `dip_m` over a piece of `duration_s`, or with a calibration the force
+/// player's finger.
 pub fn key_motion(
     notes: &[Note],
     dip_m: f64,
     duration_s: f64,
     force: Option<(&FingerCalibration, FingerConfig)>,
-) -> (Motion, Vec<(f64, f64)>) {
+) -> (Motion, Vec<(f64, f64)>, Restrikes) {
     match force {
         None => {
             let track = performance::key_tracks(
@@ -239,16 +266,16 @@ pub fn key_motion(
                     )
                 })
                 .collect();
-            (Motion::Track(track), busy)
+            (Motion::Track(track), busy, Restrikes::default())
         }
         Some((cal, finger)) => {
-            let profile = finger_profile(notes, cal, finger);
+            let (profile, counts) = finger_profile(notes, cal, finger);
             let busy = profile
                 .strokes()
                 .iter()
                 .map(|s| (s.start_s, s.lift_s))
                 .collect();
-            (Motion::Finger(profile), busy)
+            (Motion::Finger(profile), busy, counts)
         }
     }
 }
