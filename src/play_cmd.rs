@@ -25,7 +25,7 @@ use tactus_runtime::player::FingerConfig;
 the input note it answers), OUT/NAME-strikes.mid (the strikes as MIDI with velocities from the simulated hammer \
 speed: 1 at 0.1 m/s to 127 at 6 m/s, logarithmic) and OUT/NAME.wav (the strikes through a synthesized modal \
 piano voice, 44.1 kHz 16-bit mono, normalised). With --trace-keys: OUT/NAME-key<K>.csv per traced key (time, key \
-travel, instrument force, hammer position, finger force), OUT/NAME-force.svg and OUT/NAME-hammer.svg; \
+travel, instrument force, hammer position, finger force), OUT/NAME-force.svg, OUT/NAME-key.svg and OUT/NAME-hammer.svg; \
 with --engine emu the force is the firmware's force word (before the safety limiter), the hammer its hammer_pos \
 output word, every sample of the trace window (the emulated keys run all the time), and two more columns: \
 motor_current_a (the current the firmware's safety limiter allowed) and dac_code (the word it wrote to the DAC). \
@@ -637,8 +637,8 @@ fn peak_memory() -> Option<u64> {
 }
 
 /// Plots the traces: `STEM-force.svg` (instrument force, and the finger's with the force
-/// player, vs time) and `STEM-hammer.svg` (hammer position vs time); returns the files
-/// written.
+/// player, vs time), `STEM-key.svg` (key travel vs time) and `STEM-hammer.svg` (hammer
+/// position vs time); returns the files written.
 fn plot_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathBuf>, String> {
     let mut wrote = Vec::new();
     let lines = |col: usize, scale: f64| -> Vec<plot::Line> {
@@ -684,6 +684,16 @@ fn plot_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathBuf>, 
     )
     .map_err(|e| e.to_string())?;
     wrote.push(force);
+    let key = out.join(format!("{stem}-key.svg"));
+    plot::plot_lines(
+        &lines(1, 1e3),
+        &format!("{stem}: key travel"),
+        "time [s]",
+        "key travel [mm]",
+        &key,
+    )
+    .map_err(|e| e.to_string())?;
+    wrote.push(key);
     let hammer_lines = lines(3, 1e3);
     if hammer_lines
         .iter()
