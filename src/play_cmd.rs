@@ -32,7 +32,7 @@ motor_current_a (the current the firmware's safety limiter allowed) and dac_code
 Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20 --trace-keys 60,64"
 )]
 pub struct PlayArgs {
-    /// MIDI performance to play [default: a built-in 8 s demo].
+    /// MIDI performance to play [default: a built-in 4.5 s demo].
     pub performance: Option<PathBuf>,
     /// Instrument on every key A0…C8 (file or built-in name), instead of the layout.
     #[arg(long, conflicts_with = "layout")]
@@ -157,12 +157,11 @@ pub fn run(args: PlayArgs) -> ExitCode {
 struct Bar(ProgressBar);
 
 impl play::Progress for Bar {
-    fn start(&self, total: u64, keys: Option<usize>) {
+    fn start(&self, total: u64, per_second: Option<f64>) {
         self.0.set_length(total);
-        match keys {
+        match per_second {
             Some(k) => {
-                self.0.set_style(music_style(k as f64 * 44_100.0));
-                self.0.set_message(format!("{k} keys on their boards"));
+                self.0.set_style(music_style(k));
             }
             None => self.0.set_style(
                 ProgressStyle::with_template(
@@ -342,8 +341,10 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         quiescent_guard: !args.no_quiescent_guard,
     };
     let bar = Bar(ProgressBar::new(0));
-    bar.0
-        .set_message(format!("{} keys", keyboard.key_program.len()));
+    bar.0.set_message(match args.engine {
+        PlayEngine::Emu => format!("{} keys on their boards", keyboard.keys.len()),
+        _ => format!("{} keys", keyboard.key_program.len()),
+    });
     let started = Instant::now();
     let played = play::play(&perf, &keyboard, &config, &bar)?;
     bar.0.finish_and_clear();

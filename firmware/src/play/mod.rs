@@ -110,16 +110,17 @@ pub struct PlayConfig {
 
 /// Reports a run's progress, in key-samples.
 pub trait Progress: Sync {
-    /// The run starts: `total` key-samples; on the emulated boards every key of the
-    /// keyboard runs every sample, `keys` of them (`None` on a host engine).
-    fn start(&self, total: u64, keys: Option<usize>);
+    /// The run starts: `total` key-samples. On the emulated boards every key of the
+    /// keyboard runs every sample, so progress is music time: `per_second` key-samples per
+    /// second of music (`None` on a host engine).
+    fn start(&self, total: u64, per_second: Option<f64>);
     /// `n` more key-samples are done.
     fn inc(&self, n: u64);
 }
 
 /// No progress report.
 impl Progress for () {
-    fn start(&self, _: u64, _: Option<usize>) {}
+    fn start(&self, _: u64, _: Option<f64>) {}
     fn inc(&self, _: u64) {}
 }
 
@@ -337,7 +338,7 @@ pub fn play(
         }
         let keys: Vec<u8> = keyboard.keys.iter().map(|a| a.key).collect();
         key_samples = end as u64 * keys.len() as u64;
-        progress.start(key_samples, Some(keys.len()));
+        progress.start(key_samples, Some(keys.len() as f64 * fs));
         let opts = PerformOptions {
             end,
             fs,
