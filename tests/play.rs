@@ -1042,7 +1042,10 @@ fn a_truncated_midi_file_plays_as_far_as_it_goes_on_every_board_with_a_warning()
     );
     assert!(err.contains("note 10 at 0.300 s is on no key"), "{err}");
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("1 note outside the layout skipped"), "{stdout}");
+    assert!(
+        stdout.contains("1 note outside the layout skipped"),
+        "{stdout}"
+    );
     assert!(stdout.contains("deadline misses 0"), "{stdout}");
     let rows = strikes(&dir.join("cut-strikes.csv"));
     let keys: Vec<u8> = rows.iter().map(|r| r.0).collect();
@@ -1085,6 +1088,9 @@ fn whole_maestro_pieces_on_every_board_of_grand88_without_misses() {
         let perf = read_midi(&midi).unwrap();
         let rho = check_one_strike_per_note(&midi, &rows, perf.duration_s + 1.0);
         let summary = stdout.lines().nth(1).unwrap_or("");
-        eprintln!("{name}: {} strikes, Spearman {rho:.4};{summary}", rows.len());
+        eprintln!(
+            "{name}: {} strikes, Spearman {rho:.4};{summary}",
+            rows.len()
+        );
     }
 }
