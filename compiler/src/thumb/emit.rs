@@ -1,50 +1,15 @@
-//! Emission: allocated machine IR to Thumb instructions, literal pools, branch relaxation,
-//! bytes (the emulator's encoder, one function per encoding format) and the GNU assembler
-//! listing.
+//! Emission: allocated machine IR to Thumb instructions in the [`CodeBuffer`] — spill
+//! homes, the AAPCS prologue and epilogue, constants — and the object's [`Code`] from the
+//! assembled buffer (literal pools, branch relaxation, encoding and the GNU assembler
+//! listing are the buffer's).
 
+use super::buffer::{self, CodeBuffer};
 use super::mir::{Base, Label, Shift, M, V};
 use super::regalloc::{Allocation, Loc};
 use super::select::STATE_V;
 use super::ThumbError;
 use std::collections::HashMap;
-use std::fmt::Write as _;
 use tactus_emulator::decode::{AluOp, Instr, MemOp};
-use tactus_emulator::encode::{enc_imm8, encode};
-
-/// One item of a function body after allocation.
-#[derive(Clone, Debug)]
-enum Item {
-    /// A fixed instruction.
-    I(Instr),
-    /// `LDR rt, =value` (literal pool).
-    Lit {
-        rt: u8,
-        value: i32,
-    },
-    /// A (conditional) branch to a label; relaxed to a long form when out of range.
-    Br {
-        cond: Option<u8>,
-        target: Label,
-    },
-    Label(Label),
-    /// A literal island: `B over` (unless `fallthrough` is false), alignment, the words.
-    Island {
-        id: usize,
-        jump: bool,
-    },
-    Note(String),
-    /// Start of a top-level `if` body (see [`M::Mark`]).
-    Mark(u32),
-}
-
-/// Lowered code of one function.
-pub(crate) struct Function {
-    /// Symbol name.
-    pub name: String,
-    items: Vec<Item>,
-    /// Pairs of [`M::Mark`]s whose blocks no single call executes both of.
-    pub exclusive: Vec<(u32, u32)>,
-}
 
 /// Machine code of an object: bytes, symbols, the listing.
 #[derive(Clone, Debug)]
@@ -68,7 +33,9 @@ pub struct Code {
 
 struct Lower<'a> {
     alloc: &'a Allocation,
-    items: Vec<Item>,
+    buf: &'a mut CodeBuffer,
+    /// The buffer's label for each machine-IR label of this function.
+    labels: HashMap<u32, buffer::Label>,
     /// The stack slot each scratch register is known to hold (reload cache): valid in
     /// straight-line code, forgotten at every label (a join point).
     holds: [Option<u16>; 2],
@@ -140,7 +107,13 @@ impl Lower<'_> {
     }
 
     fn i(&mut self, i: Instr) {
-        self.items.push(Item::I(i));
+        self.buf.i(i);
+    }
+
+    /// The buffer's label for `l`.
+    fn label(&mut self, l: Label) -> buffer::Label {
+        let buf = &mut *self.buf;
+        *self.labels.entry(l.0).or_insert_with(|| buf.label())
     }
 
     /// A register holding `v` for reading: its own, or scratch `k` after a reload.
@@ -213,7 +186,7 @@ impl Lower<'_> {
                 rm: rd,
             });
         } else {
-            self.items.push(Item::Lit { rt: rd, value: imm });
+            self.buf.ldr_const(rd, imm as u32);
         }
     }
 
@@ -366,28 +339,31 @@ impl Lower<'_> {
             }
             M::Label(l) => {
                 self.holds = [None, None];
-                self.items.push(Item::Label(l))
+                let l = self.label(l);
+                self.buf.bind(l);
             }
-            M::B(l) => self.items.push(Item::Br {
-                cond: None,
-                target: l,
-            }),
-            M::Bc(c, l) => self.items.push(Item::Br {
-                cond: Some(c as u8),
-                target: l,
-            }),
-            M::Note(ref s) => self.items.push(Item::Note(s.clone())),
-            M::Mark(k) => self.items.push(Item::Mark(k)),
+            M::B(l) => {
+                let l = self.label(l);
+                self.buf.b(l);
+            }
+            M::Bc(c, l) => {
+                let l = self.label(l);
+                self.buf.bc(c as u8, l);
+            }
+            M::Note(ref s) => self.buf.note(s.clone()),
+            M::Mark(k) => self.buf.mark(k),
             // `MOV r8, r8`: what GNU as assembles `nop` to for ARMv6-M (1 cycle, no effect).
             M::Nop => self.i(Instr::MovHi { rd: 8, rm: 8 }),
         }
     }
 }
 
-/// Lowers an allocated body to items, with the AAPCS prologue and epilogue: save the
-/// callee-saved registers used and LR, `r7 = r0` (the state pointer), the frame for
-/// spill slots, store spilled arguments; at the end, free the frame and `POP {…, PC}`.
-pub(crate) fn lower(name: &str, code: &[M], alloc: &Allocation) -> Function {
+/// Lowers an allocated body into `buf` as function `name`, with the AAPCS prologue and
+/// epilogue: save the callee-saved registers used and LR, `r7 = r0` (the state pointer),
+/// the frame for spill slots, store spilled arguments; at the end, free the frame and
+/// `POP {…, PC}`. The buffer must relax long branches with [`buffer::LongBranch::Bl`]
+/// (LR is saved).
+pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Allocation) {
     let home = homes(code, alloc);
     let frame = home.iter().filter(|h| matches!(h, Home::Stack(_))).count() as u16;
     // Callee-saved high registers used as spill homes, saved in pairs through r0 and r3
@@ -400,9 +376,11 @@ pub(crate) fn lower(name: &str, code: &[M], alloc: &Allocation) -> Function {
         })
         .collect();
     high.sort_unstable();
+    buf.begin_function(name);
     let mut l = Lower {
         alloc,
-        items: Vec::new(),
+        buf,
+        labels: HashMap::new(),
         holds: [None, None],
         home,
     };
@@ -454,11 +432,7 @@ pub(crate) fn lower(name: &str, code: &[M], alloc: &Allocation) -> Function {
     l.i(Instr::Pop {
         list: saved as u16 | 1 << 15,
     });
-    Function {
-        name: name.to_string(),
-        items: l.items,
-        exclusive: Vec::new(),
-    }
+    l.buf.end_function();
 }
 
 /// `SUB SP`/`ADD SP` immediates are at most 508 bytes.
@@ -472,309 +446,24 @@ fn chunks(mut bytes: u16) -> Vec<u16> {
     v
 }
 
-/// Distance (bytes) after which pending literals are flushed into an island: the `LDR`
-/// literal reach is 1020 bytes; sizes are estimated with every branch long, so relaxation
-/// never lengthens a distance past the estimate.
-const ISLAND_AFTER: usize = 800;
-
-fn est_size(it: &Item) -> usize {
-    match it {
-        Item::I(i) => encode(i).map(|e| e.bytes().len()).unwrap_or(2),
-        Item::Lit { .. } => 2,
-        Item::Br { .. } => 6,
-        Item::Label(_) | Item::Note(_) | Item::Mark(_) => 0,
-        Item::Island { .. } => 0,
-    }
-}
-
-/// Assembles functions into one `.text`.
-pub(crate) fn assemble(funcs: Vec<Function>) -> Result<Code, ThumbError> {
-    // 1. Insert literal islands (per function: after the body, and inside when far).
-    let mut islands: Vec<Vec<i32>> = Vec::new();
-    let mut fitems: Vec<(String, Vec<Item>)> = Vec::new();
-    let excl: Vec<(u32, u32)> = funcs.iter().flat_map(|f| f.exclusive.clone()).collect();
-    for f in funcs {
-        let mut out = Vec::new();
-        let mut pending_since: Option<usize> = None;
-        let mut pos = 0usize;
-        let mut cur: Vec<i32> = Vec::new();
-        for it in f.items {
-            if let Item::Lit { value, .. } = it {
-                if !cur.contains(&value) {
-                    cur.push(value);
-                }
-                pending_since.get_or_insert(pos);
-            }
-            pos += est_size(&it);
-            out.push(it);
-            if let Some(p0) = pending_since {
-                if pos - p0 + 4 * cur.len() + 8 > ISLAND_AFTER {
-                    out.push(Item::Island {
-                        id: islands.len(),
-                        jump: true,
-                    });
-                    islands.push(std::mem::take(&mut cur));
-                    pos += 4 * islands.last().map_or(0, |v| v.len()) + 4;
-                    pending_since = None;
-                }
-            }
-        }
-        if !cur.is_empty() {
-            out.push(Item::Island {
-                id: islands.len(),
-                jump: false,
-            });
-            islands.push(cur);
-        }
-        fitems.push((f.name, out));
-    }
-    // 2. Branch relaxation: short until out of range.
-    let mut long: HashMap<(usize, usize), bool> = HashMap::new();
-    loop {
-        let (addrs, labels, _) = layout(&fitems, &islands, &long);
-        let mut changed = false;
-        for (fi, (_, items)) in fitems.iter().enumerate() {
-            for (ii, it) in items.iter().enumerate() {
-                if let Item::Br { cond, target } = it {
-                    if long.get(&(fi, ii)).copied().unwrap_or(false) {
-                        continue;
-                    }
-                    let at = addrs[fi][ii];
-                    let off = labels[&(fi, target.0)] as i64 - (at as i64 + 4);
-                    let ok = match cond {
-                        Some(_) => (-256..=254).contains(&off),
-                        None => (-2048..=2046).contains(&off),
-                    };
-                    if !ok {
-                        long.insert((fi, ii), true);
-                        changed = true;
-                    }
-                }
-            }
-        }
-        if !changed {
-            break;
-        }
-    }
-    // 3. Encode.
-    let (addrs, labels, island_at) = layout(&fitems, &islands, &long);
-    let mut text = Vec::new();
-    let mut listing = String::from(
-        "    .syntax unified\n    .cpu cortex-m0plus\n    .thumb\n    .text\n    .p2align 2\n",
-    );
-    let mut symbols = Vec::new();
-    let mut data = Vec::new();
-    let mut notes = Vec::new();
-    let mut marks: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
-    let enc = |i: &Instr| match *i {
-        // `ADDS Rdn, Rdn, #imm` with imm < 8 has two 16-bit encodings; GNU as picks T2
-        // (imm8), so the listing assembles to the same bytes only if we do too.
-        Instr::AddImm { rd, rn, imm } | Instr::SubImm { rd, rn, imm } if rd == rn && rd < 8 => {
-            let op = if matches!(i, Instr::SubImm { .. }) {
-                3
-            } else {
-                2
-            };
-            Ok(enc_imm8(op, rd as u16, imm as u16).to_le_bytes().to_vec())
-        }
-        _ => encode(i)
-            .map(|e| e.bytes())
-            .map_err(|e| ThumbError::Encoding(e.to_string())),
-    };
-    for (fi, (name, items)) in fitems.iter().enumerate() {
-        let start = text.len();
-        let _ = write!(
-            listing,
-            "\n    .global {name}\n    .type {name}, %function\n    .thumb_func\n    .p2align 1\n{name}:\n"
-        );
-        for (ii, it) in items.iter().enumerate() {
-            debug_assert_eq!(text.len(), addrs[fi][ii]);
-            match it {
-                Item::I(i) => {
-                    text.extend(enc(i)?);
-                    let _ = writeln!(listing, "    {i}");
-                }
-                Item::Lit { rt, value } => {
-                    let (isl, k) = find_lit(items, ii, &islands, *value);
-                    let target = island_at[&isl] + 4 * k;
-                    let pc = (text.len() + 4) & !3;
-                    let imm = target - pc;
-                    let i = Instr::LdrLit {
-                        rt: *rt,
-                        imm: imm as u16,
-                    };
-                    text.extend(enc(&i)?);
-                    let _ = writeln!(listing, "    ldr r{rt}, .Lpool{isl}_{k}");
-                }
-                Item::Br { cond, target } => {
-                    let dest = labels[&(fi, target.0)];
-                    let is_long = long.get(&(fi, ii)).copied().unwrap_or(false);
-                    let lname = format!(".L{fi}_{}", target.0);
-                    let cname = |c: u8| CONDS[c as usize];
-                    if !is_long {
-                        let off = dest as i32 - (text.len() as i32 + 4);
-                        let i = match cond {
-                            Some(c) => Instr::BCond {
-                                cond: *c,
-                                offset: off,
-                            },
-                            None => Instr::B { offset: off },
-                        };
-                        text.extend(enc(&i)?);
-                        let _ = writeln!(listing, "    b{} {lname}", cond.map_or("", cname));
-                    } else {
-                        if let Some(c) = cond {
-                            // B<!c> over the long branch.
-                            let inv = invert(*c);
-                            let i = Instr::BCond {
-                                cond: inv,
-                                offset: 2, // to the instruction after the 4-byte BL
-                            };
-                            text.extend(enc(&i)?);
-                            let _ = writeln!(listing, "    b{} .+6", cname(inv));
-                        }
-                        // The long form is always BL (4 bytes), so sizes stay as laid out.
-                        let off = dest as i32 - (text.len() as i32 + 4);
-                        let i = Instr::Bl { offset: off };
-                        text.extend(enc(&i)?);
-                        let _ = writeln!(listing, "    bl {lname}");
-                    }
-                }
-                Item::Label(lb) => {
-                    let _ = writeln!(listing, ".L{fi}_{}:", lb.0);
-                }
-                Item::Note(s) => {
-                    notes.push((text.len(), s.clone()));
-                    let _ = writeln!(listing, "    @ {s}");
-                }
-                Item::Mark(k) => {
-                    marks.insert(*k, text.len());
-                }
-                Item::Island { id, jump } => {
-                    let words = &islands[*id];
-                    if *jump {
-                        let end = island_at[id] + 4 * words.len();
-                        let off = end as i32 - (text.len() as i32 + 4);
-                        text.extend(enc(&Instr::B { offset: off })?);
-                        let _ = writeln!(listing, "    b .Lisland{id}_end");
-                    }
-                    if !text.len().is_multiple_of(4) {
-                        text.extend(enc(&PAD)?);
-                        let _ = writeln!(listing, "    mov r8, r8");
-                    }
-                    debug_assert_eq!(text.len(), island_at[id]);
-                    data.push((text.len(), 4 * words.len()));
-                    for (k, w) in words.iter().enumerate() {
-                        text.extend(w.to_le_bytes());
-                        let _ = writeln!(listing, ".Lpool{id}_{k}:\n    .word {w}");
-                    }
-                    if *jump {
-                        let _ = writeln!(listing, ".Lisland{id}_end:");
-                    }
-                }
-            }
-        }
-        let _ = writeln!(listing, "    .size {name}, .-{name}");
-        symbols.push((name.clone(), start, text.len() - start));
-        // Functions start on a word boundary (keeps the next function's pools aligned
-        // the same way the assembler's `.p2align` does).
-        if !text.len().is_multiple_of(4) {
-            text.extend(enc(&PAD)?);
-            let _ = writeln!(listing, "    mov r8, r8");
-        }
-    }
-    let exclusive = excl
+/// The object's code: `buf` assembled at 0, with `exclusive`'s pairs of [`M::Mark`]s
+/// (from every function) as pairs of `.text` offsets.
+///
+/// Errors: [`ThumbError::Encoding`] for what the buffer refuses (a backend bug).
+pub(crate) fn assemble(buf: &CodeBuffer, exclusive: &[(u32, u32)]) -> Result<Code, ThumbError> {
+    let a = buf
+        .finish(0)
+        .map_err(|e| ThumbError::Encoding(e.to_string()))?;
+    let exclusive = exclusive
         .iter()
-        .filter_map(|(a, b)| Some((*marks.get(a)?, *marks.get(b)?)))
+        .filter_map(|(x, y)| Some((*a.marks.get(x)?, *a.marks.get(y)?)))
         .collect();
     Ok(Code {
-        text,
-        symbols,
-        data,
-        listing,
-        notes,
+        text: a.text,
+        symbols: a.symbols,
+        data: a.data,
+        listing: a.listing,
+        notes: a.notes,
         exclusive,
     })
-}
-
-/// Alignment padding: `MOV r8, r8` (0x46c0), the no-op GNU as pads Thumb code with for
-/// ARMv6-M, so that the listing assembles to the same bytes.
-const PAD: Instr = Instr::MovHi { rd: 8, rm: 8 };
-
-const CONDS: [&str; 14] = [
-    "eq", "ne", "cs", "cc", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt", "gt", "le",
-];
-
-fn invert(c: u8) -> u8 {
-    c ^ 1
-}
-
-/// The island and index holding `value` for the literal load at `ii`: the first island
-/// after it.
-fn find_lit(items: &[Item], ii: usize, islands: &[Vec<i32>], value: i32) -> (usize, usize) {
-    for it in &items[ii..] {
-        if let Item::Island { id, .. } = it {
-            if let Some(k) = islands[*id].iter().position(|&w| w == value) {
-                return (*id, k);
-            }
-        }
-    }
-    unreachable!("every literal has an island after it")
-}
-
-type Layout = (
-    Vec<Vec<usize>>,
-    HashMap<(usize, u32), usize>,
-    HashMap<usize, usize>,
-);
-
-/// Addresses of every item, of labels, and of island data, for the given branch forms.
-fn layout(
-    fitems: &[(String, Vec<Item>)],
-    islands: &[Vec<i32>],
-    long: &HashMap<(usize, usize), bool>,
-) -> Layout {
-    let mut addrs = Vec::new();
-    let mut labels = HashMap::new();
-    let mut island_at = HashMap::new();
-    let mut pos = 0usize;
-    for (fi, (_, items)) in fitems.iter().enumerate() {
-        let mut a = Vec::with_capacity(items.len());
-        for (ii, it) in items.iter().enumerate() {
-            a.push(pos);
-            pos += match it {
-                Item::I(i) => encode(i).map(|e| e.bytes().len()).unwrap_or(2),
-                Item::Lit { .. } => 2,
-                Item::Br { cond, .. } => {
-                    if long.get(&(fi, ii)).copied().unwrap_or(false) {
-                        if cond.is_some() {
-                            6
-                        } else {
-                            4
-                        }
-                    } else {
-                        2
-                    }
-                }
-                Item::Label(l) => {
-                    labels.insert((fi, l.0), pos);
-                    0
-                }
-                Item::Note(_) | Item::Mark(_) => 0,
-                Item::Island { id, jump } => {
-                    let mut p = pos + if *jump { 2 } else { 0 };
-                    if !p.is_multiple_of(4) {
-                        p += 2;
-                    }
-                    island_at.insert(*id, p);
-                    p + 4 * islands[*id].len() - pos
-                }
-            };
-        }
-        addrs.push(a);
-        if !pos.is_multiple_of(4) {
-            pos += 2;
-        }
-    }
-    (addrs, labels, island_at)
 }

@@ -2,9 +2,10 @@
 //!
 //! Pipeline: [`select`] (fixed-point IR → [`mir`] over virtual registers, choosing each
 //! sequence from the range analysis' word bounds) → [`regalloc`] (linear scan, spilling
-//! to the stack) → [`emit`] (prologue/epilogue per AAPCS, literal pools, branch relaxation,
-//! encoding with the emulator's encoder, a GNU assembler listing) → [`elf`] (a relocatable
-//! object).
+//! to the stack) → [`emit`] (prologue/epilogue per AAPCS into the [`buffer`], which places
+//! literal pools, relaxes branches, encodes with the emulator's encoder and writes a GNU
+//! assembler listing; the firmware image's glue uses the same buffer) → [`elf`] (a
+//! relocatable object).
 //!
 //! The generated functions have the C backend's interface and state layout exactly — the
 //! header [`crate::cgen`] writes describes both:
@@ -19,8 +20,10 @@
 //! position independent (PC-relative branches and literal loads only, no data sections), so
 //! the object needs no relocations: it can run from SRAM or flash at any word address.
 
+pub mod buffer;
 pub mod elf;
 pub mod emit;
+pub mod ins;
 pub mod mir;
 pub mod regalloc;
 pub mod select;
@@ -133,17 +136,17 @@ pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
         return Err(too_big(at_least));
     }
     let ini = select::Sel::new(fp, &st, &c.layout, used).init_body();
-    let mut funcs = Vec::new();
+    let mut buf = buffer::CodeBuffer::new(buffer::LongBranch::Bl);
+    let mut exclusive = Vec::new();
     for (name, sel) in [
         (format!("tactus_{}_init", c.stem), ini),
         (format!("tactus_{}_update", c.stem), upd),
     ] {
         let alloc = regalloc::allocate(&sel.code, sel.nregs);
-        let mut f = emit::lower(&name, &sel.code, &alloc);
-        f.exclusive = sel.exclusive;
-        funcs.push(f);
+        emit::lower(&mut buf, &name, &sel.code, &alloc);
+        exclusive.extend(sel.exclusive);
     }
-    let code = emit::assemble(funcs)?;
+    let code = emit::assemble(&buf, &exclusive)?;
     if code.text.len() > MAX_CODE_BYTES {
         return Err(too_big(code.text.len()));
     }

@@ -26,8 +26,9 @@
 //! room); an answer that differs from the word sent restarts the sequence (RP2040
 //! datasheet 2.8.2).
 
-use super::asm::{self, cond, Asm};
 use super::ImageError;
+use tactus_compiler::thumb::buffer::{CodeBuffer, LongBranch};
+use tactus_compiler::thumb::ins::{self as asm, cond};
 use tactus_emulator::clocks::{
     self, reg, CLOCKS_BASE, PLL_SYS_BASE, RESETS_BASE, WATCHDOG_BASE, XOSC_BASE,
 };
@@ -74,7 +75,7 @@ impl Boot {
 ///
 /// Errors: [`ImageError::Assemble`].
 pub fn entry_stub(vectors: u32) -> Result<Vec<u8>, ImageError> {
-    let mut a = Asm::new();
+    let mut a = CodeBuffer::new(LongBranch::Refuse);
     a.ldr_const(0, vectors);
     a.ldr_const(1, VTOR);
     a.i(asm::str(0, 1, 0));
@@ -83,7 +84,7 @@ pub fn entry_stub(vectors: u32) -> Result<Vec<u8>, ImageError> {
     a.i(Instr::MovHi { rd: 13, rm: 1 });
     a.i(Instr::Bx { rm: 2 });
     a.pool();
-    let (bytes, _) = a.assemble(ENTRY).map_err(ImageError::Assemble)?;
+    let bytes = a.finish(ENTRY)?.text;
     if bytes.len() as u32 > ENTRY_RESERVE / 4 {
         return Err(ImageError::Assemble(format!(
             "the entry stub takes {} bytes, more than the {} its banks reserve",
@@ -95,14 +96,14 @@ pub fn entry_stub(vectors: u32) -> Result<Vec<u8>, ImageError> {
 }
 
 /// `[addr] = value` (clobbers r0, r1).
-fn store(a: &mut Asm, addr: u32, value: u32) {
+fn store(a: &mut CodeBuffer, addr: u32, value: u32) {
     a.ldr_const(0, addr);
     a.mov_const(1, value);
     a.i(asm::str(1, 0, 0));
 }
 
 /// Waits until `[addr] & mask == want` (clobbers r0-r2).
-fn wait(a: &mut Asm, addr: u32, mask: u32, want: u32) {
+fn wait(a: &mut CodeBuffer, addr: u32, mask: u32, want: u32) {
     let top = a.label();
     a.ldr_const(0, addr);
     a.mov_const(2, mask);
@@ -119,7 +120,7 @@ fn wait(a: &mut Asm, addr: u32, mask: u32, want: u32) {
 }
 
 /// Pulses block `bit` of RESETS and waits until it is out of reset (clobbers r0-r2).
-fn pulse_reset(a: &mut Asm, bit: u32) {
+fn pulse_reset(a: &mut CodeBuffer, bit: u32) {
     store(a, RESETS_BASE + SET + reg::RESET, bit);
     store(a, RESETS_BASE + CLR + reg::RESET, bit);
     wait(a, RESETS_BASE + reg::RESET_DONE, bit, bit);
@@ -127,7 +128,7 @@ fn pulse_reset(a: &mut Asm, bit: u32) {
 
 /// The clock set-up (module documentation); without PLL dividers only the timer's tick
 /// and reset. Clobbers r0-r2.
-pub fn clock_set_up(a: &mut Asm, pll: Option<(u32, u32, u32)>) {
+pub fn clock_set_up(a: &mut CodeBuffer, pll: Option<(u32, u32, u32)>) {
     if let Some((fbdiv, pd1, pd2)) = pll {
         // XOSC: 1-15 MHz range, start-up delay 1 ms (12 MHz × 1 ms / 256), enable.
         store(a, XOSC_BASE + reg::XOSC_CTRL, 0xaa0);
@@ -161,7 +162,7 @@ pub fn clock_set_up(a: &mut Asm, pll: Option<(u32, u32, u32)>) {
 
 /// Launches core 1 at `entry` with `vectors` and `sp` (module documentation). Clobbers
 /// r0, r4, r7 and LR.
-pub fn launch_core1(a: &mut Asm, [vectors, sp, entry]: [u32; 3]) {
+pub fn launch_core1(a: &mut CodeBuffer, [vectors, sp, entry]: [u32; 3]) {
     let (restart, exchange, done) = (a.label(), a.label(), a.label());
     a.ldr_const(4, SIO_BASE);
     a.bind(restart);
@@ -171,7 +172,7 @@ pub fn launch_core1(a: &mut Asm, [vectors, sp, entry]: [u32; 3]) {
         } else {
             a.ldr_const(7, w);
         }
-        a.bl_label(exchange);
+        a.bl(exchange);
         a.i(asm::cmp(0, 7));
         a.bc(cond::NE, restart);
     }
@@ -208,7 +209,7 @@ pub fn launch_core1(a: &mut Asm, [vectors, sp, entry]: [u32; 3]) {
 /// What each core's reset handler does first: core 0 sets the clocks up and launches
 /// core 1 ([`Boot`]); every core writes its stack canary (`canary` at `stack_bottom`).
 /// Clobbers r0-r2, r4, r7, LR.
-pub fn core_start(a: &mut Asm, core: usize, boot: &Boot, stack_bottom: u32, canary: u32) {
+pub fn core_start(a: &mut CodeBuffer, core: usize, boot: &Boot, stack_bottom: u32, canary: u32) {
     store(a, stack_bottom, canary);
     if core == 0 {
         clock_set_up(a, boot.pll);

@@ -1,5 +1,5 @@
 //! The image's hand-written Thumb: the safety limiter, the sample interrupt handler and the
-//! reset handler of one core, emitted through [`super::asm::Asm`].
+//! reset handler of one core, emitted through [`CodeBuffer`] (the compiler's code buffer).
 //!
 //! **Registers.** The per-key updates (compiled code) follow AAPCS: they may clobber r0-r3
 //! and r12 and preserve r4-r11. The handler keeps its record pointer in r4, its control
@@ -13,8 +13,9 @@
 //! **The limiter** is [`limiter_inline`]: `runtime/src/limiter.rs` on the 16-bit DAC code,
 //! one `MULS`, no call; at the time of writing 25 cycles on its worst path.
 
-use super::asm::{self, cond, Asm, Label};
 use super::ImageError;
+use tactus_compiler::thumb::buffer::{CodeBuffer, Label};
+use tactus_compiler::thumb::ins::{self as asm, cond};
 use tactus_emulator::decode::{AluOp, Hint, Instr};
 use tactus_emulator::timer::{reg, TIMER_BASE};
 use tactus_runtime::limiter::{DacScale, LimiterConstants};
@@ -51,7 +52,7 @@ pub mod hi {
 const NVIC_ISER: u32 = 0xe000_e100;
 
 /// `rd += n` for any `n` (ADDS #imm8 steps).
-fn add_big(a: &mut Asm, rd: u8, mut n: u32) {
+fn add_big(a: &mut CodeBuffer, rd: u8, mut n: u32) {
     while n > 0 {
         let step = n.min(255);
         a.i(asm::adds_imm(rd, rd, step as u8));
@@ -65,7 +66,7 @@ fn mov_hi(rd: u8, rm: u8) -> Instr {
 }
 
 /// `rt = [r4 + off]`: one `LDR` within its immediate's reach, else through `rt` as index.
-fn ldr_rec(a: &mut Asm, rt: u8, off: u32) {
+fn ldr_rec(a: &mut CodeBuffer, rt: u8, off: u32) {
     if off <= 124 && off.is_multiple_of(4) {
         a.i(asm::ldr(rt, 4, off as u16));
     } else {
@@ -108,7 +109,7 @@ fn check_constants(c: &LimiterConstants) -> Result<(), ImageError> {
 /// Worst path (the budget spent, clamped to rated): 25 cycles, from the sign to the
 /// budget's store.
 pub fn limiter_inline(
-    a: &mut Asm,
+    a: &mut CodeBuffer,
     c: &LimiterConstants,
     s: &DacScale,
     gain: Gain,
@@ -193,7 +194,7 @@ pub fn limiter_inline(
 }
 
 /// Sets [`hi`] for `c` with `gain` in [`hi::GAIN`] (clobbers r0).
-pub fn set_limiter_registers(a: &mut Asm, c: &LimiterConstants, gain: u32) {
+pub fn set_limiter_registers(a: &mut CodeBuffer, c: &LimiterConstants, gain: u32) {
     for (reg, v) in [
         (hi::RATED, c.rated_code as u32),
         (hi::PEAK, c.peak_code as u32),
@@ -208,7 +209,7 @@ pub fn set_limiter_registers(a: &mut Asm, c: &LimiterConstants, gain: u32) {
 /// The limiter as a function, for tests: `r0` = force word, `r1` = address of the budget
 /// word; returns the DAC code in `r0` (sign-extended). Preserves r4-r11 (AAPCS).
 pub fn limiter_function(
-    a: &mut Asm,
+    a: &mut CodeBuffer,
     entry: Label,
     c: &LimiterConstants,
     s: &DacScale,
@@ -295,7 +296,7 @@ impl GuardCode {
 /// word with its record copy (0: unchanged). Resets the calm counter when the sensors
 /// moved; branches to `skip` when the key is quiescent. Clobbers r1.
 /// Static cost: 10 cycles on the path that runs the update (sensors moved), 10 to `skip`.
-pub fn guard_check(a: &mut Asm, g: &GuardCode, skip: Label) {
+pub fn guard_check(a: &mut CodeBuffer, g: &GuardCode, skip: Label) {
     let same = a.label();
     a.i(asm::ldr(1, 4, g.calm_offset as u16));
     a.i(asm::cmp_imm(3, 0));
@@ -315,7 +316,7 @@ pub fn guard_check(a: &mut Asm, g: &GuardCode, skip: Label) {
 /// copy below the struct (and refreshes it), then counts a calm update or resets the
 /// counter. Uses r6 as the accumulator and restores it to `sensor_base`. Clobbers r0-r3.
 /// Static cost: 8 cycles per compared word plus 16 (5 without state words).
-pub fn guard_record(a: &mut Asm, g: &GuardCode, state_offset: u32, sensor_base: u32) {
+pub fn guard_record(a: &mut CodeBuffer, g: &GuardCode, state_offset: u32, sensor_base: u32) {
     use AluOp::*;
     if g.words.is_empty() {
         // Nothing but the history rings persists: every update with unchanged sensors is
@@ -415,14 +416,14 @@ pub struct CoreLabels {
 /// Errors: [`ImageError::Limiter`] (constants the Thumb limiter cannot use).
 #[allow(clippy::too_many_arguments)]
 pub fn core_code(
-    a: &mut Asm,
+    a: &mut CodeBuffer,
     core: usize,
     keys: &[KeyCode],
     ctrl_addr: u32,
     tick: Tick,
     inte: u32,
     limiter: &LimiterConstants,
-    start: &dyn Fn(&mut Asm),
+    start: &dyn Fn(&mut CodeBuffer),
 ) -> Result<CoreLabels, ImageError> {
     let labels = CoreLabels {
         reset: a.label(),
@@ -431,7 +432,7 @@ pub fn core_code(
         apb: Vec::new(),
     };
     let mut apb = Vec::new();
-    let mut apb_here = |a: &mut Asm| {
+    let mut apb_here = |a: &mut CodeBuffer| {
         let l = a.label();
         a.bind(l);
         apb.push(l);
@@ -458,9 +459,9 @@ pub fn core_code(
         .flat_map(|k| k.drives.iter().map(|d| d.dac_word))
         .min()
         .unwrap_or(0);
-    let walk = |a: &mut Asm,
+    let walk = |a: &mut CodeBuffer,
                 keys: &[KeyCode],
-                f: &mut dyn FnMut(&mut Asm, &KeyCode) -> Result<(), ImageError>|
+                f: &mut dyn FnMut(&mut CodeBuffer, &KeyCode) -> Result<(), ImageError>|
      -> Result<(), ImageError> {
         a.i(asm::mov(4, 5));
         add_big(a, 4, ctrl::SIZE);
@@ -480,7 +481,7 @@ pub fn core_code(
     a.ldr_const(5, ctrl_addr);
     walk(a, keys, &mut |a, k| {
         ldr_rec(a, 0, k.state_offset);
-        a.bl(k.init);
+        a.bl_addr(k.init);
         Ok(())
     })?;
     a.ldr_const(0, TIMER_BASE);
@@ -591,7 +592,7 @@ pub fn core_code(
             a.i(asm::mov(2, 4));
             add_big(a, 2, k.out_offset);
         }
-        a.bl(k.update);
+        a.bl_addr(k.update);
         if let Some(g) = &k.guard {
             guard_record(a, g, k.state_offset, sensor_base);
         }

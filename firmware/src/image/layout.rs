@@ -12,7 +12,6 @@
 //! vector table ([`vector_table`]) and the static WCET of the sample interrupt over the
 //! core's whole code ([`analyse_handler`]).
 
-use super::asm::{self, Asm};
 use super::boot::{self, Boot};
 use super::glue::{self, ctrl, DriveCode, KeyCode, Tick};
 use super::{
@@ -20,6 +19,7 @@ use super::{
     MAX_SENSORS, STACK_BYTES, STACK_CANARY, VECTORS,
 };
 use std::collections::BTreeMap;
+use tactus_compiler::thumb::buffer::{CodeBuffer, Label, LongBranch};
 use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE};
 use tactus_emulator::wcet::{self, Bounds, Region};
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
@@ -342,7 +342,7 @@ pub(super) fn key_records(
 /// One core's glue, assembled: the assembler (labels bound), the handlers' labels, the
 /// key places and the address after the last key record.
 pub(super) struct Glue {
-    pub asm: Asm,
+    pub asm: CodeBuffer,
     pub labels: glue::CoreLabels,
     pub keys: Vec<KeyPlace>,
     pub data_end: u32,
@@ -361,10 +361,10 @@ pub(super) fn assemble_glue(
 ) -> Result<Glue, ImageError> {
     let ctrl_addr = bank_base(core) + data_off;
     let (kc, kp, data_end) = key_records(l, core, ctrl_addr, cc)?;
-    let mut a = Asm::new();
+    let mut a = CodeBuffer::new(LongBranch::Refuse);
     let inte = if l.cores == 2 { 3 } else { 1 };
     let bottom = stack(core).0;
-    let start = |a: &mut Asm| boot::core_start(a, core, boot, bottom, STACK_CANARY);
+    let start = |a: &mut CodeBuffer| boot::core_start(a, core, boot, bottom, STACK_CANARY);
     let labels = glue::core_code(
         &mut a, core, &kc, ctrl_addr, l.tick, inte, &l.consts, &start,
     )?;
@@ -399,10 +399,7 @@ pub(super) fn place_code_blocks(
     let mut block_off = boot::ENTRY_RESERVE;
     for (core, c) in cc.iter_mut().enumerate() {
         let g = assemble_glue(l, core, BANK_LIMIT / 2, c, &provisional)?;
-        let (bytes, _) = g
-            .asm
-            .assemble(c.start + c.glue)
-            .map_err(ImageError::Assemble)?;
+        let bytes = g.asm.finish(c.start + c.glue)?.text;
         c.start += block_off;
         block_off += (c.glue + bytes.len() as u32 + 64).next_multiple_of(256);
     }
@@ -497,7 +494,7 @@ pub(super) fn vector_table(
     addr: &[u32],
     glue_bytes: &[u8],
 ) -> Vec<u8> {
-    let lab = |l: asm::Label| addr[l.index()];
+    let lab = |l: Label| addr[l.index()];
     let mut vt = vec![lab(labels.default) | 1; 48];
     vt[0] = stack(core).1;
     vt[1] = lab(labels.reset) | 1;
@@ -530,7 +527,7 @@ pub(super) fn analyse_handler(
     kp: &[KeyPlace],
     update_wcets: &[u64],
 ) -> Result<IsrWcet, ImageError> {
-    let lab = |l: asm::Label| addr[l.index()];
+    let lab = |l: Label| addr[l.index()];
     let mut bounds = Bounds::new();
     for k in kp {
         bounds = bounds.with_call(k.update, update_wcets[k.spec.program]);
@@ -563,7 +560,7 @@ pub(super) fn core_place(
     addr: &[u32],
     ctrl_addr: u32,
 ) -> CorePlace {
-    let lab = |l: asm::Label| addr[l.index()];
+    let lab = |l: Label| addr[l.index()];
     let (stack_bottom, stack_top) = stack(core);
     CorePlace {
         vtor: cc.start,

@@ -72,7 +72,6 @@
 //! incremented; the sample counter is incremented last. A handler that starts more than a
 //! period late (only after a miss) re-synchronises the tick to now + a margin.
 
-pub mod asm;
 pub mod boot;
 mod elf;
 pub mod glue;
@@ -81,12 +80,12 @@ mod run;
 
 pub use run::{DriveOut, ImageRun, KeyEvent, SampleOut};
 
-use asm::Asm;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::{Arc, OnceLock};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::{Axis, AxisTotal};
+use tactus_compiler::thumb::buffer::{BufferError, CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ThumbObject;
 use tactus_emulator::bus::SRAM_ALIAS_BASE;
 
@@ -552,6 +551,12 @@ impl fmt::Display for ImageError {
     }
 }
 
+impl From<BufferError> for ImageError {
+    fn from(e: BufferError) -> Self {
+        ImageError::Assemble(e.to_string())
+    }
+}
+
 impl std::error::Error for ImageError {}
 
 /// The firmware's limiter routine alone, assembled at `base`, for keys whose force words
@@ -571,11 +576,11 @@ pub fn limiter_routine(
         .map_err(ImageError::Limiter)?
         .constants();
     let scale = consts.dac_scale(force_frac).map_err(ImageError::Limiter)?;
-    let mut a = Asm::new();
+    let mut a = CodeBuffer::new(LongBranch::Refuse);
     let entry = a.label();
     glue::limiter_function(&mut a, entry, &consts, &scale)?;
-    let (bytes, labels) = a.assemble(base).map_err(ImageError::Assemble)?;
-    Ok((bytes, labels[entry.index()]))
+    let out = a.finish(base)?;
+    Ok((out.text, out.labels[entry.index()]))
 }
 
 /// Static worst case of one core's sample interrupt, in core clock cycles, from the
@@ -739,10 +744,8 @@ impl FirmwareImage {
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
             let g = layout::assemble_glue(&l, core, data_off, c, &boot)?;
-            let (glue_bytes, addr) = g
-                .asm
-                .assemble(base + c.glue)
-                .map_err(ImageError::Assemble)?;
+            let out = g.asm.finish(base + c.glue)?;
+            let (glue_bytes, addr) = (out.text, out.labels);
             if addr[g.labels.reset.index()] != base + c.glue {
                 return Err(ImageError::Assemble(format!(
                     "core {core}: the reset handler is not the first code of the glue"
