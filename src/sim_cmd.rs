@@ -87,51 +87,7 @@ pub enum EngineKind {
     Jit,
 }
 
-/// The JIT seen as a simulation engine.
-pub struct JitEngine<'j>(pub tactus_jit::JitInstance<'j>);
-
-impl tactus_compiler::sim::Engine for JitEngine<'_> {
-    fn step_si(&mut self, sensors: &[f64]) -> tactus_compiler::interp::SampleOut {
-        self.0.step(sensors).clone()
-    }
-    fn states_si(&self) -> Vec<f64> {
-        self.0.states().to_vec()
-    }
-    fn modes_now(&self) -> Vec<u32> {
-        self.0.modes().to_vec()
-    }
-    fn state_saturations(&self) -> Vec<u64> {
-        self.0.saturations().to_vec()
-    }
-}
-
-/// The fixed-point JIT seen as a simulation engine (SI through the format plan).
-struct FixedJitEngine<'j>(
-    tactus_jit::fixed::FixedJitInstance<'j>,
-    &'j tactus_compiler::fixed::FixedProgram,
-);
-
-impl tactus_compiler::sim::Engine for FixedJitEngine<'_> {
-    fn step_si(&mut self, sensors: &[f64]) -> tactus_compiler::interp::SampleOut {
-        let fp = self.1;
-        self.0.step(sensors).to_si(fp)
-    }
-    fn states_si(&self) -> Vec<f64> {
-        let fp = self.1;
-        self.0
-            .states()
-            .iter()
-            .zip(&fp.state_frac)
-            .map(|(&x, &f)| tactus_runtime::fixed::to_f64(x, f))
-            .collect()
-    }
-    fn modes_now(&self) -> Vec<u32> {
-        self.0.modes().to_vec()
-    }
-    fn state_saturations(&self) -> Vec<u64> {
-        self.0.saturations().to_vec()
-    }
-}
+use tactus_firmware::play::engine::{FixedJitEngine, JitEngine};
 
 fn stimulus_help() -> String {
     let mut s = String::from(

@@ -8,10 +8,11 @@
 //! quiescent-key guard (the firmware's default) and without it (every update every sample).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use std::path::Path;
 use tactus_firmware::image::compile_layout;
 use tactus_firmware::perform::{play_boards, Motion, PerformOptions};
+use tactus_firmware::play::TraceWindow;
 use tactus_runtime::keyboard::{read_board, read_layout};
 use tactus_runtime::limiter::LimiterConfig;
 use tactus_runtime::performance::{demo, key_tracks};
@@ -47,12 +48,10 @@ fn bench(c: &mut Criterion) {
             end,
             fs: 44_100.0,
             finger: FingerConfig::default(),
-            trace_keys: BTreeSet::new(),
-            trace_from_s: 0.0,
-            trace_to_s: 0.0,
+            trace: TraceWindow::default(),
             boards: None,
             limiter: LimiterConfig::default(),
-            engine: tactus_emulator::Engine::Interp,
+            engine: tactus_emulator::Engine::Block,
             quiescent_guard: guard,
         };
         let name = if guard {

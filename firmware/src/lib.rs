@@ -15,7 +15,9 @@
 //!   dips, noise, glitches, random words); [`budget`]: static WCET and measured cycles of
 //!   an update; [`boards`]: a keyboard as a set of boards — the planner and the verdict,
 //!   each board's sample interrupt as its image lays it out (`tactus budget`).
-//! - [`perform`]: a performance through the firmware of every board (`tactus play --engine emu`).
+//! - [`play`]: a recorded performance played through an instrument (`tactus play`): the
+//!   players, the one play loop over the one engine trait, the strike rule, the output files;
+//!   [`perform`]: its engine for the firmware of every board on emulated RP2040s.
 #![deny(missing_docs)]
 
 pub mod boards;
@@ -26,6 +28,7 @@ pub mod image;
 pub mod layout;
 pub mod measure;
 pub mod perform;
+pub mod play;
 pub mod report;
 pub mod runner;
 

@@ -2,52 +2,32 @@
 //! its own emulated RP2040, every key of every board every sample (unplayed keys at rest, as
 //! on the hardware), the boards in parallel on host threads (they share nothing).
 //!
-//! A key moved by a [`Motion::Track`] follows it; a key moved by a [`Motion::Finger`] is a
-//! [`ForcePlayer`] pushed by the finger against the force word its firmware computed that
-//! sample (`SampleOut::force`, before the safety limiter, as the host engines' force): the
-//! closed loop, stepped exactly as the host engines' loop. Strikes come from the keys'
-//! `out[]` words (the `strike` or `pluck` event), their speeds converted from the event's
-//! format. Per board and core the run keeps the largest handler, the misses, the static
-//! bound and, decimated to at most [`MAX_POINTS`] points, the cycles of the busier core.
+//! A board is a [`BoardEngine`]: the play loop ([`run_keys`], the one every engine runs
+//! through) steps it with every key's travel, so a key moved by a [`Motion::Finger`] is
+//! pushed against the force word its firmware computed that sample (`SampleOut::force`,
+//! before the safety limiter, as the host engines' force). Strikes come from the keys'
+//! `out[]` words through the strike rule ([`strike_event`]), their speeds converted from the
+//! event's format. Per board and core the run keeps the largest handler, the misses, the
+//! static bound and, decimated to at most [`MAX_POINTS`] points, the cycles of the busier
+//! core.
 
 use crate::boards::{self, PlanKey, ProgramCosts};
 use crate::image::Program;
-use std::collections::{BTreeMap, BTreeSet};
+use crate::play::engine::{KeyEngine, KeySample};
+use crate::play::run::{run_keys, Drive, LoopConfig, TraceWindow};
+use crate::play::strike::{strike_event, Strike};
+use std::collections::BTreeMap;
 use tactus_compiler::fixed::interp::FixedInstance;
+use tactus_runtime::fixed::to_f64;
 use tactus_runtime::keyboard::Board;
 use tactus_runtime::limiter::LimiterConfig;
-use tactus_runtime::performance::KeyTrack;
-use tactus_runtime::player::{FingerConfig, ForcePlayer, ForceProfile};
+use tactus_runtime::player::FingerConfig;
 
-/// How a played key moves.
-#[derive(Clone, Debug)]
-pub enum Motion {
-    /// It follows a key-travel track (the position player).
-    Track(KeyTrack),
-    /// A finger pushes it with a force profile against the instrument (the force player).
-    Finger(ForceProfile),
-}
-
-/// A traced key's samples: (time s, key travel m, instrument force N, hammer m, finger N,
-/// motor current A, DAC code).
-pub type TraceRows = Vec<[f64; 7]>;
-
-/// The traced keys' samples, by key.
-pub type Traces = BTreeMap<u8, TraceRows>;
+pub use crate::play::motion::Motion;
+pub use crate::play::run::{TraceRows, Traces};
 
 /// Most points of a board's cycle series ([`BoardRun::cycles`]).
 pub const MAX_POINTS: usize = 4000;
-
-/// A hammer strike (or pluck) a key's firmware emitted.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct KeyStrike {
-    /// MIDI key.
-    pub key: u8,
-    /// Time of the sample, s.
-    pub time_s: f64,
-    /// The event's first argument (the hammer speed), m/s.
-    pub speed_mps: f64,
-}
 
 /// How [`play_boards`] runs.
 #[derive(Clone, Debug)]
@@ -58,12 +38,8 @@ pub struct PerformOptions {
     pub fs: f64,
     /// The finger of the force player.
     pub finger: FingerConfig,
-    /// Keys to trace.
-    pub trace_keys: BTreeSet<u8>,
-    /// Trace from this time on, s.
-    pub trace_from_s: f64,
-    /// Trace until this time, s.
-    pub trace_to_s: f64,
+    /// Which keys to trace, and when.
+    pub trace: TraceWindow,
     /// The layout's boards (MIDI keys per board), or `None` to plan them as `tactus
     /// budget` does ([`boards::plan`]).
     pub boards: Option<Vec<Vec<u8>>>,
@@ -95,7 +71,7 @@ pub struct BoardRun {
     /// The busier core's cycles, the largest of each `decimation` samples.
     pub cycles: Vec<u64>,
     /// Its keys' strikes.
-    pub strikes: Vec<KeyStrike>,
+    pub strikes: Vec<Strike>,
     /// Its traced keys' samples.
     pub traces: Traces,
 }
@@ -181,7 +157,151 @@ pub fn play_boards(
     })
 }
 
-/// One board of [`play_boards`]: its image, every key every sample.
+/// One board's firmware on its emulated RP2040 as a [`KeyEngine`]: all its keys every
+/// sample through the image's sample interrupt. Per core it keeps the largest handler, the
+/// sum of the handlers, the misses the firmware counted and the busier core's largest
+/// handler of each `decimation` samples.
+pub struct BoardEngine<'p> {
+    run: crate::image::ImageRun,
+    /// Per key of the board: its program.
+    programs: Vec<&'p Program>,
+    /// Per key: the strike event ([`strike_event`]).
+    strike: Vec<Option<tactus_compiler::ir::EventId>>,
+    /// Per key: the out word of `hammer_pos` and its format.
+    hammer: Vec<Option<(usize, i32)>>,
+    sensors: Vec<i32>,
+    samples: Vec<KeySample>,
+    report: BoardRun,
+    decimation: usize,
+    steps: usize,
+    block_max: u64,
+}
+
+impl<'p> BoardEngine<'p> {
+    /// Builds the image of the board whose keys are `bkeys` (as [`boards::board_image`]
+    /// does for `tactus budget`) and boots it on an emulated RP2040 with the emulator's
+    /// engine `engine`; its cycle series keeps the largest of each `decimation` samples.
+    ///
+    /// Errors: a message when the image cannot be built or booted.
+    pub fn new(
+        programs: &'p [Program],
+        costs: &ProgramCosts,
+        bkeys: &[PlanKey],
+        board: &Board,
+        limiter: &LimiterConfig,
+        engine: tactus_emulator::Engine,
+        decimation: usize,
+    ) -> Result<Self, String> {
+        let (core_of, image) = boards::board_image(programs, costs, bkeys, board, limiter)
+            .map_err(|e| e.to_string())?;
+        let image = image.map_err(|e| e.to_string())?;
+        let mut run = image.run().map_err(|e| e.to_string())?;
+        run.board().config.engine = engine;
+        let n_cores = image.cores();
+        let key_programs: Vec<&Program> = bkeys.iter().map(|k| &programs[k.program]).collect();
+        let report = BoardRun {
+            keys: bkeys.iter().map(|k| k.key).collect(),
+            core_keys: (0..n_cores)
+                .map(|c| core_of.iter().filter(|&&k| k == c).count())
+                .collect(),
+            max: vec![0; n_cores],
+            total: vec![0; n_cores],
+            misses: vec![0; n_cores],
+            bound: (0..n_cores)
+                .map(|c| image.wcet(c).map_or(0, |w| w.bound()))
+                .collect(),
+            ..BoardRun::default()
+        };
+        Ok(BoardEngine {
+            run,
+            strike: key_programs
+                .iter()
+                .map(|p| strike_event(&p.fixed.program))
+                .collect(),
+            hammer: key_programs
+                .iter()
+                .map(|p| {
+                    let fp = &p.fixed;
+                    fp.program
+                        .outputs
+                        .iter()
+                        .position(|o| o.name == "hammer_pos")
+                        .map(|i| (p.thumb.out.outputs + i, fp.output_frac[i]))
+                })
+                .collect(),
+            sensors: vec![0; bkeys.len()],
+            samples: vec![KeySample::default(); bkeys.len()],
+            programs: key_programs,
+            report,
+            decimation: decimation.max(1),
+            steps: 0,
+            block_max: 0,
+        })
+    }
+
+    /// What the board reported so far; its strikes and traces are the play loop's.
+    pub fn finish(mut self) -> BoardRun {
+        if !self.steps.is_multiple_of(self.decimation) {
+            self.report.cycles.push(self.block_max);
+        }
+        self.report
+    }
+}
+
+impl KeyEngine for BoardEngine<'_> {
+    fn step(&mut self, travel_m: &[f64]) -> Result<&[KeySample], String> {
+        for (k, p) in self.programs.iter().enumerate() {
+            self.sensors[k] = FixedInstance::sensor_raw(&p.fixed, 0, travel_m.get(k).copied());
+        }
+        let i = self.steps;
+        let out = self
+            .run
+            .step(&self.sensors)
+            .map_err(|e| format!("sample {i}: {e}"))?;
+        for (k, p) in self.programs.iter().enumerate() {
+            self.samples[k] = KeySample {
+                force_n: to_f64(out.force[k], p.fixed.total_frac),
+                strike_mps: None,
+                current_a: out.current_ua[k] as f64 * 1e-6,
+                dac: out.dac[k] as f64,
+            };
+        }
+        for ev in &out.events {
+            if Some(ev.event) == self.strike[ev.key] {
+                let p = self.programs[ev.key];
+                let frac = p.fixed.event_frac[ev.event.index()][0];
+                self.samples[ev.key].strike_mps =
+                    Some(to_f64(ev.args.first().copied().unwrap_or(0), frac));
+            }
+        }
+        let r = &mut self.report;
+        for c in 0..r.max.len() {
+            r.max[c] = r.max[c].max(out.core_cycles[c]);
+            r.total[c] += out.core_cycles[c];
+            r.misses[c] = out.misses[c];
+            self.block_max = self.block_max.max(out.core_cycles[c]);
+        }
+        self.steps += 1;
+        if self.steps.is_multiple_of(self.decimation) {
+            r.cycles.push(self.block_max);
+            self.block_max = 0;
+        }
+        Ok(&self.samples)
+    }
+
+    fn hammer_m(&self, k: usize) -> f64 {
+        match self.hammer[k] {
+            Some((w, frac)) => self
+                .run
+                .out(k)
+                .get(w)
+                .map_or(f64::NAN, |&x| to_f64(x, frac)),
+            None => f64::NAN,
+        }
+    }
+}
+
+/// One board of [`play_boards`]: its image, every key every sample through the play loop.
 #[allow(clippy::too_many_arguments)]
 fn run_board(
     programs: &[Program],
@@ -193,143 +313,37 @@ fn run_board(
     progress: &(dyn Fn(u64) + Sync),
     decimation: usize,
 ) -> Result<BoardRun, String> {
-    let (end, fs) = (opts.end, opts.fs);
-    let (core_of, image) = boards::board_image(programs, costs, bkeys, board, &opts.limiter)
-        .map_err(|e| e.to_string())?;
-    let image = image.map_err(|e| e.to_string())?;
-    let mut run = image.run().map_err(|e| e.to_string())?;
-    run.board().config.engine = opts.engine;
-    let n_cores = image.cores();
-    let key_programs: Vec<usize> = bkeys.iter().map(|k| k.program).collect();
-    let mut report = BoardRun {
-        keys: bkeys.iter().map(|k| k.key).collect(),
-        core_keys: (0..n_cores)
-            .map(|c| core_of.iter().filter(|&&k| k == c).count())
-            .collect(),
-        max: vec![0; n_cores],
-        total: vec![0; n_cores],
-        misses: vec![0; n_cores],
-        bound: (0..n_cores)
-            .map(|c| image.wcet(c).map_or(0, |w| w.bound()))
-            .collect(),
-        cycles: Vec::with_capacity(end / decimation + 1),
-        strikes: Vec::new(),
-        traces: Traces::new(),
-    };
-    let strike_event: Vec<Option<tactus_compiler::ir::EventId>> = programs
+    let mut engine = BoardEngine::new(
+        programs,
+        costs,
+        bkeys,
+        board,
+        &opts.limiter,
+        opts.engine,
+        decimation,
+    )?;
+    let drives: Vec<Drive> = bkeys
         .iter()
-        .map(|p| {
-            p.fixed
-                .program
-                .events
-                .iter()
-                .position(|e| e.name == "strike" || e.name == "pluck")
-                .map(|i| tactus_compiler::ir::EventId(i as u32))
+        .map(|k| Drive {
+            key: k.key,
+            motion: motions.get(&k.key).copied(),
+            dip_m: programs[k.program].fixed.program.sensors[0].range.1,
         })
         .collect();
-    // Per program: the out word of `hammer_pos` and its format.
-    let hammer_word: Vec<Option<(usize, i32)>> = programs
-        .iter()
-        .map(|p| {
-            let fp = &p.fixed;
-            fp.program
-                .outputs
-                .iter()
-                .position(|o| o.name == "hammer_pos")
-                .map(|i| (p.thumb.out.outputs + i, fp.output_frac[i]))
-        })
-        .collect();
-    let motion: Vec<Option<&Motion>> = bkeys.iter().map(|k| motions.get(&k.key).copied()).collect();
-    let mut players: Vec<Option<ForcePlayer>> = motion
-        .iter()
-        .zip(&key_programs)
-        .map(|(m, &p)| {
-            matches!(m, Some(Motion::Finger(_))).then(|| {
-                let dip = programs[p].fixed.program.sensors[0].range.1;
-                ForcePlayer::new(dip, opts.finger.mass_kg, fs)
-            })
-        })
-        .collect();
-    let traced: Vec<bool> = bkeys
-        .iter()
-        .map(|k| opts.trace_keys.contains(&k.key))
-        .collect();
-    let n = bkeys.len();
-    let (mut sensors, mut xs) = (vec![0i32; n], vec![0.0; n]);
-    let mut block_max = 0u64;
-    // Traced rows of this sample waiting for their key's hammer position: (key, row).
-    let mut hammers: Vec<(usize, usize)> = Vec::with_capacity(n);
-    for i in 0..end {
-        let time = i as f64 / fs;
-        for k in 0..n {
-            let x = match (motion[k], &players[k]) {
-                (Some(Motion::Track(t)), _) => t.position(time),
-                (_, Some(p)) => p.x_m,
-                _ => 0.0,
-            };
-            xs[k] = x;
-            let fp = &programs[key_programs[k]].fixed;
-            sensors[k] = FixedInstance::sensor_raw(fp, 0, Some(x));
-        }
-        let out = run.step(&sensors).map_err(|e| format!("sample {i}: {e}"))?;
-        for ev in &out.events {
-            let p = key_programs[ev.key];
-            if Some(ev.event) == strike_event[p] {
-                let frac = programs[p].fixed.event_frac[ev.event.index()][0];
-                report.strikes.push(KeyStrike {
-                    key: bkeys[ev.key].key,
-                    time_s: time,
-                    speed_mps: tactus_runtime::fixed::to_f64(
-                        ev.args.first().copied().unwrap_or(0),
-                        frac,
-                    ),
-                });
-            }
-        }
-        for c in 0..n_cores {
-            report.max[c] = report.max[c].max(out.core_cycles[c]);
-            report.total[c] += out.core_cycles[c];
-            report.misses[c] = out.misses[c];
-            block_max = block_max.max(out.core_cycles[c]);
-        }
-        if i % decimation == decimation - 1 || i + 1 == end {
-            report.cycles.push(block_max);
-            block_max = 0;
-        }
-        for k in 0..n {
-            let p = key_programs[k];
-            let force_n = tactus_runtime::fixed::to_f64(out.force[k], programs[p].fixed.total_frac);
-            let push = match motion[k] {
-                Some(Motion::Finger(f)) => f.force(time),
-                _ => 0.0,
-            };
-            if let Some(player) = &mut players[k] {
-                player.step(push, force_n);
-            }
-            if traced[k] && time >= opts.trace_from_s && time <= opts.trace_to_s {
-                // The hammer is read from the key's out words once `out` is done with.
-                let rows = report.traces.entry(bkeys[k].key).or_default();
-                rows.push([
-                    time,
-                    xs[k],
-                    force_n,
-                    f64::NAN,
-                    push,
-                    out.current_ua[k] as f64 * 1e-6,
-                    out.dac[k] as f64,
-                ]);
-                hammers.push((k, rows.len() - 1));
-            }
-        }
-        for (k, row) in hammers.drain(..) {
-            if let Some((w, frac)) = hammer_word[key_programs[k]] {
-                let rows = report.traces.entry(bkeys[k].key).or_default();
-                rows[row][3] = tactus_runtime::fixed::to_f64(run.out(k)[w], frac);
-            }
-        }
-        if i % 4096 == 4095 {
-            progress(4096 * n as u64);
-        }
-    }
+    let run = run_keys(
+        &mut engine,
+        &drives,
+        0..opts.end,
+        &LoopConfig {
+            fs: opts.fs,
+            finger: opts.finger,
+            trace: &opts.trace,
+            stop_at_strike_after_s: None,
+        },
+        &|n| progress(n),
+    )?;
+    let mut report = engine.finish();
+    report.strikes = run.strikes;
+    report.traces = run.traces;
     Ok(report)
 }

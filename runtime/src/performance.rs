@@ -513,12 +513,14 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
     tracks
 }
 
-/// A built-in demo performance (8 s, generated, no recording): a C-major scale up from
-/// *pp* to *ff*, four repeated notes at 8 per second, a trill, and a loud chord — the main
-/// job's default input when no MIDI file is given.
+/// A built-in demo performance (4.5 s, generated, no recording): a C-major scale up from
+/// *pp* to *ff* at five notes per second, four repeated notes at 8 per second, a trill,
+/// and a loud chord — the main job's default input when no MIDI file is given. It is short
+/// because `tactus play` runs it through the firmware of all 44 boards of the 88-key grand,
+/// every key every sample, in the emulator: about 20 s on two cores (BENCHMARKS.md).
 pub fn demo() -> Performance {
     let mut notes = Vec::new();
-    let mut t = 0.3;
+    let mut t = 0.2;
     let scale = [60u8, 62, 64, 65, 67, 69, 71, 72];
     for (i, &k) in scale.iter().enumerate() {
         let v = 20 + (i as u8) * 14;
@@ -526,11 +528,11 @@ pub fn demo() -> Performance {
             key: k,
             velocity: v,
             on_s: t,
-            off_s: t + 0.22,
+            off_s: t + 0.17,
         });
-        t += 0.25;
+        t += 0.2;
     }
-    t += 0.3;
+    t += 0.2;
     for i in 0..4 {
         notes.push(Note {
             key: 67,
@@ -539,8 +541,8 @@ pub fn demo() -> Performance {
             off_s: t + i as f64 * 0.125 + 0.06,
         });
     }
-    t += 0.8;
-    for i in 0..12 {
+    t += 0.6;
+    for i in 0..8 {
         let k = if i % 2 == 0 { 72 } else { 74 };
         notes.push(Note {
             key: k,
@@ -549,20 +551,20 @@ pub fn demo() -> Performance {
             off_s: t + i as f64 * 0.1 + 0.08,
         });
     }
-    t += 1.6;
+    t += 0.9;
     for k in [48u8, 55, 60, 64, 67] {
         notes.push(Note {
             key: k,
             velocity: 110,
             on_s: t,
-            off_s: t + 1.5,
+            off_s: t + 0.8,
         });
     }
     notes.sort_by(|a, b| a.on_s.total_cmp(&b.on_s).then(a.key.cmp(&b.key)));
     Performance {
         notes,
         sustain: vec![],
-        duration_s: t + 2.0,
+        duration_s: t + 1.0,
     }
 }
 

@@ -1,0 +1,451 @@
+//! A recorded performance played through an instrument: `tactus play`'s work, the binary
+//! only parses arguments and prints.
+//!
+//! [`play`] turns each played key's notes into a [`Motion`] (the position player's key track
+//! or the force player's calibrated finger, [`motion`]), runs the keys through one engine
+//! and returns the strikes, each matched to the note it answers ([`strike`]), the notes left
+//! silent, the traced keys' samples and, on the emulated boards, each board's budget. Every
+//! engine is a [`KeyEngine`] ([`engine`]) stepped by the one play loop ([`run::run_keys`]):
+//!
+//! * `Emu` (the default of `tactus play`): the compiled firmware of every board of the
+//!   keyboard on emulated RP2040s, every key every sample, idle keys included
+//!   ([`crate::perform::play_boards`]);
+//! * `Fixed`: the fixed-point JIT of the programs the firmware runs (the layout compiled
+//!   together, each key with its param block): the firmware's bits on the host, played keys
+//!   only;
+//! * `Jit`, `Interp`: the f64 JIT and reference interpreter of each played key's program.
+//!
+//! The host engines simulate a key only around its movements ([`motion::busy_stretches`]).
+//! [`output`] writes the strikes as CSV, MIDI and WAV and the traces as CSV.
+
+pub mod engine;
+pub mod motion;
+pub mod output;
+pub mod run;
+pub mod strike;
+
+pub use engine::{KeyEngine, KeySample};
+pub use motion::Motion;
+pub use run::{TraceRows, TraceWindow, Traces};
+pub use strike::Strike;
+
+use crate::image::Program as FirmwareProgram;
+use crate::perform::{play_boards, BoardRun, PerformOptions};
+use engine::{FixedJitEngine, HostKey, JitEngine};
+use motion::{busy_stretches, calibrate, key_motion, stretch_samples, CALIBRATION_LEVELS_N};
+pub use motion::{FingerCalibration, Restrikes};
+use run::{run_keys, Drive};
+use std::collections::BTreeMap;
+use tactus_compiler::ir::Program;
+use tactus_runtime::keyboard::{Board, KeyAssignment};
+use tactus_runtime::performance::{Note, Performance};
+use tactus_runtime::player::FingerConfig;
+
+/// What computes the keys' instruments.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlayEngine {
+    /// Cranelift JIT (f64).
+    Jit,
+    /// The f64 reference interpreter.
+    Interp,
+    /// Cranelift JIT of the fixed-point programs the firmware runs: its bits, on the host.
+    Fixed,
+    /// The firmware of every board of the keyboard on emulated RP2040s.
+    Emu,
+}
+
+/// What moves the keys.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Player {
+    /// Key trajectories prescribed by the key-motion model (open loop).
+    Position,
+    /// A finger force profile against the instrument's force (closed loop).
+    Force,
+}
+
+/// A distinct instrument of the played keys, compiled.
+#[derive(Clone, Debug)]
+pub struct HostProgram {
+    /// The instrument as the layout names it (built-in name or path).
+    pub name: String,
+    /// Its program with the key's overrides (the f64 engines run it; every engine reads its
+    /// key dip from it).
+    pub program: Program,
+}
+
+/// The keyboard a performance is played on.
+pub struct Keyboard<'a> {
+    /// Every key of the layout with its instrument and params (overrides last): what the
+    /// firmware runs, played or not, and what `Fixed` compiles together.
+    pub keys: Vec<KeyAssignment>,
+    /// The distinct programs of the played keys.
+    pub programs: Vec<HostProgram>,
+    /// Played key (MIDI) → its index in `programs`; every note's key is here.
+    pub key_program: BTreeMap<u8, usize>,
+    /// The layout's boards (MIDI keys per board), or `None` to plan them as `tactus budget`
+    /// does.
+    pub boards: Option<Vec<Vec<u8>>>,
+    /// An instrument's source text by its name in `keys`.
+    pub source: &'a (dyn Fn(&str) -> Result<String, String> + Sync),
+}
+
+/// How [`play`] runs.
+#[derive(Clone, Debug)]
+pub struct PlayConfig {
+    /// The engine.
+    pub engine: PlayEngine,
+    /// The player.
+    pub player: Player,
+    /// The force player's finger.
+    pub finger: FingerConfig,
+    /// What to trace.
+    pub trace: TraceWindow,
+    /// The board of `Emu`.
+    pub board: Board,
+    /// The emulator's engine (the same cycles and strikes either way).
+    pub emulator: tactus_emulator::Engine,
+    /// Whether the firmware guards quiescent keys (the same strikes either way).
+    pub quiescent_guard: bool,
+}
+
+/// Reports a run's progress, in key-samples.
+pub trait Progress: Sync {
+    /// The run starts: `total` key-samples. On the emulated boards every key of the
+    /// keyboard runs every sample, so progress is music time: `per_second` key-samples per
+    /// second of music (`None` on a host engine).
+    fn start(&self, total: u64, per_second: Option<f64>);
+    /// `n` more key-samples are done.
+    fn inc(&self, n: u64);
+}
+
+/// No progress report.
+impl Progress for () {
+    fn start(&self, _: u64, _: Option<f64>) {}
+    fn inc(&self, _: u64) {}
+}
+
+/// The most samples one `Emu` run may cover (2²⁶, 25 minutes at 44.1 kHz): a stray event
+/// hours into a MIDI file would otherwise start a run of hours.
+pub const MAX_EMU_SAMPLES: usize = 1 << 26;
+
+/// What the emulated boards reported over a run.
+#[derive(Clone, Debug)]
+pub struct BoardsReport {
+    /// The board kind's name.
+    pub board: String,
+    /// Cycles per sample per core (the deadline).
+    pub deadline: u64,
+    /// Per board of the keyboard, in key order.
+    pub boards: Vec<BoardRun>,
+    /// Samples per point of [`BoardRun::cycles`].
+    pub decimation: usize,
+    /// Samples run.
+    pub samples: u64,
+}
+
+impl BoardsReport {
+    /// Whether any core of any board missed a deadline.
+    pub fn missed(&self) -> bool {
+        self.boards.iter().any(|b| b.misses.iter().any(|&m| m > 0))
+    }
+}
+
+/// Why a note sounded no strike.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Silence {
+    /// Too soft to reach the string: with the force player, its velocity asks for a hammer
+    /// speed below the softest the calibrated finger strikes with from rest (less half a
+    /// MIDI velocity step); a real piano leaves such a note silent too.
+    TooSoft,
+    /// Anything else: a miss of the player or the instrument.
+    Other,
+}
+
+/// A note no strike answers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SilentNote {
+    /// The note.
+    pub note: Note,
+    /// Why.
+    pub cause: Silence,
+    /// Time since the previous note-on of its key, s (`None` for its first note).
+    pub since_previous_s: Option<f64>,
+}
+
+/// What [`play`] produced.
+#[derive(Clone, Debug)]
+pub struct Played {
+    /// The strikes by time, each with the note it answers.
+    pub strikes: Vec<Strike>,
+    /// The notes no strike answers, each with why.
+    pub silent: Vec<SilentNote>,
+    /// The traced keys' samples.
+    pub traces: Traces,
+    /// The force player's calibration per program (`None` with the position player).
+    pub calibrations: Vec<Option<FingerCalibration>>,
+    /// How the force player played repeated notes.
+    pub restrikes: Restrikes,
+    /// Key-samples simulated.
+    pub key_samples: u64,
+    /// With `Emu`: the boards' budget over the run.
+    pub boards: Option<BoardsReport>,
+}
+
+/// Plays `perf` (its notes on keys of `keyboard.key_program`) on `keyboard` as `config`
+/// says; see the module documentation.
+///
+/// Errors: a message when a program does not compile to fixed point or to the JIT, the
+/// force player cannot calibrate an instrument (no calibration stroke strikes), an `Emu`
+/// run is longer than [`MAX_EMU_SAMPLES`], a board's image cannot be built or faults, or an
+/// f64 engine computes a non-finite value.
+pub fn play(
+    perf: &Performance,
+    keyboard: &Keyboard,
+    config: &PlayConfig,
+    progress: &dyn Progress,
+) -> Result<Played, String> {
+    let programs = &keyboard.programs;
+    let fs = programs
+        .first()
+        .map_or(tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, |p| {
+            p.program.sample_rate_hz
+        });
+    // The fixed-point JIT runs the keys with `Fixed`, and calibrates the force player for
+    // `Emu` (the same bits as the firmware's update).
+    let fixed_needed = config.engine == PlayEngine::Fixed
+        || (config.engine == PlayEngine::Emu && config.player == Player::Force);
+    // The programs the firmware runs: every key of the layout compiled together, so that an
+    // instrument's graded params are run-time data planned over the interval all its keys
+    // span; each host program's is the shared code with the param block of its first key.
+    let (firmware, firmware_index) = match fixed_needed || config.engine == PlayEngine::Emu {
+        true => crate::image::compile_layout(&keyboard.keys, keyboard.source, fs)
+            .map_err(|e| format!("firmware: {e}"))?,
+        false => (Vec::new(), Vec::new()),
+    };
+    let fixed_programs: Vec<&FirmwareProgram> = match fixed_needed {
+        true => (0..programs.len())
+            .map(|pi| {
+                keyboard
+                    .keys
+                    .iter()
+                    .position(|a| keyboard.key_program.get(&a.key) == Some(&pi))
+                    .map(|i| &firmware[firmware_index[i]])
+                    .ok_or_else(|| format!("program {pi} has no key"))
+            })
+            .collect::<Result<_, _>>()?,
+        false => Vec::new(),
+    };
+    // One fixed JIT per distinct code.
+    let mut fixed_jits: Vec<(usize, tactus_jit::fixed::FixedJitProgram)> = Vec::new();
+    for (pi, p) in fixed_programs.iter().enumerate() {
+        if !fixed_jits
+            .iter()
+            .any(|(q, _)| fixed_programs[*q].same_code(p))
+        {
+            let j = tactus_jit::fixed::FixedJitProgram::compile(&p.fixed)
+                .map_err(|e| format!("fixed JIT: {e}"))?;
+            fixed_jits.push((pi, j));
+        }
+    }
+    let jits: Vec<Option<tactus_jit::JitProgram>> = match config.engine {
+        PlayEngine::Jit => programs
+            .iter()
+            .map(|p| {
+                tactus_jit::JitProgram::compile(&p.program)
+                    .map(Some)
+                    .map_err(|e| format!("JIT: {e}"))
+            })
+            .collect::<Result<_, _>>()?,
+        _ => programs.iter().map(|_| None).collect(),
+    };
+    // A fresh host instance of program `pi`: the fixed JIT when it is needed, else the f64
+    // JIT when compiled, else the interpreter.
+    let host_key = |pi: usize| -> Box<dyn KeyEngine + '_> {
+        let fixed = fixed_programs.get(pi).and_then(|p| {
+            fixed_jits
+                .iter()
+                .find(|(q, _)| fixed_programs[*q].same_code(p))
+                .map(|(_, j)| (*p, j))
+        });
+        Box::new(match (fixed, &jits[pi]) {
+            (Some((p, j)), _) => HostKey::new(
+                &p.fixed.program,
+                Box::new(FixedJitEngine(
+                    tactus_jit::fixed::FixedJitInstance::with_params(j, &p.params),
+                    &p.fixed,
+                )),
+            ),
+            (None, Some(j)) => HostKey::new(
+                &programs[pi].program,
+                Box::new(JitEngine(tactus_jit::JitInstance::new(j))),
+            ),
+            (None, None) => HostKey::new(
+                &programs[pi].program,
+                Box::new(tactus_compiler::interp::Instance::new(
+                    &programs[pi].program,
+                )),
+            ),
+        })
+    };
+    let dip_of = |pi: usize| programs[pi].program.sensors[0].range.1;
+    let finger = config.finger;
+    // The force player's calibration, per program.
+    let calibrations: Vec<Option<FingerCalibration>> = match config.player {
+        Player::Position => programs.iter().map(|_| None).collect(),
+        Player::Force => (0..programs.len())
+            .map(|pi| {
+                calibrate(&|| host_key(pi), dip_of(pi), finger, fs)?.map(Some).ok_or_else(|| {
+                    format!(
+                        "instrument `{}`: no calibration stroke of {:?} N struck; the force player cannot play it",
+                        programs[pi].name, CALIBRATION_LEVELS_N
+                    )
+                })
+            })
+            .collect::<Result<_, String>>()?,
+    };
+    // Each played key's motion and the stretches it moves.
+    let mut motions: BTreeMap<u8, (Motion, Vec<(f64, f64)>)> = BTreeMap::new();
+    let mut restrikes = Restrikes::default();
+    for (&key, &pi) in &keyboard.key_program {
+        let notes: Vec<Note> = perf
+            .notes
+            .iter()
+            .filter(|n| n.key == key)
+            .copied()
+            .collect();
+        let force = calibrations[pi].as_ref().map(|c| (c, finger));
+        let (motion, busy, counts) = key_motion(&notes, dip_of(pi), perf.duration_s, force);
+        restrikes += counts;
+        motions.insert(key, (motion, busy_stretches(busy)));
+    }
+    let mut strikes = Vec::new();
+    let mut traces = Traces::new();
+    let key_samples;
+    let mut boards = None;
+    if config.engine == PlayEngine::Emu {
+        let end = motions
+            .values()
+            .flat_map(|(_, busy)| busy.iter().map(|&b| stretch_samples(b, fs).end))
+            .max()
+            .unwrap_or(0);
+        // Bounded before anything runs or is allocated per sample.
+        if end > MAX_EMU_SAMPLES {
+            return Err(format!(
+                "--engine emu: the piece is {:.1} s long, more than the {:.0} s ({MAX_EMU_SAMPLES} samples) one emulated run may cover; play a part of it with --seconds",
+                end as f64 / fs,
+                MAX_EMU_SAMPLES as f64 / fs
+            ));
+        }
+        let keys: Vec<u8> = keyboard.keys.iter().map(|a| a.key).collect();
+        key_samples = end as u64 * keys.len() as u64;
+        progress.start(key_samples, Some(keys.len() as f64 * fs));
+        let opts = PerformOptions {
+            end,
+            fs,
+            finger,
+            trace: config.trace.clone(),
+            boards: keyboard.boards.clone(),
+            limiter: tactus_runtime::limiter::LimiterConfig {
+                sample_rate_hz: config.board.sample_rate_hz,
+                ..Default::default()
+            },
+            engine: config.emulator,
+            quiescent_guard: config.quiescent_guard,
+        };
+        let key_motions: BTreeMap<u8, &Motion> =
+            motions.iter().map(|(&k, (m, _))| (k, m)).collect();
+        let run = play_boards(
+            &firmware,
+            &keys,
+            &firmware_index,
+            &config.board,
+            &key_motions,
+            &opts,
+            &|n| progress.inc(n),
+        )
+        .map_err(|e| format!("firmware: {e}"))?;
+        let mut runs = Vec::with_capacity(run.boards.len());
+        for mut b in run.boards {
+            strikes.append(&mut b.strikes);
+            traces.append(&mut b.traces);
+            runs.push(b);
+        }
+        boards = Some(BoardsReport {
+            board: config.board.name.clone(),
+            deadline: config.board.cycles_per_sample(),
+            boards: runs,
+            decimation: run.decimation,
+            samples: end as u64,
+        });
+    } else {
+        // One fresh instance per busy stretch of each played key.
+        let jobs: Vec<(u8, std::ops::Range<usize>)> = motions
+            .iter()
+            .flat_map(|(&key, (_, busy))| busy.iter().map(move |&b| (key, stretch_samples(b, fs))))
+            .collect();
+        key_samples = jobs.iter().map(|(_, r)| r.len() as u64).sum();
+        progress.start(key_samples, None);
+        for (key, samples) in jobs {
+            let pi = keyboard.key_program[&key];
+            let drive = Drive {
+                key,
+                motion: Some(&motions[&key].0),
+                dip_m: dip_of(pi),
+            };
+            let mut run = run_keys(
+                &mut *host_key(pi),
+                &[drive],
+                samples,
+                &run::LoopConfig {
+                    fs,
+                    finger,
+                    trace: &config.trace,
+                    stop_at_strike_after_s: None,
+                },
+                &|n| progress.inc(n),
+            )?;
+            strikes.append(&mut run.strikes);
+            for (k, mut rows) in run.traces {
+                traces.entry(k).or_default().append(&mut rows);
+            }
+        }
+    }
+    strike::answer(&mut strikes, &perf.notes);
+    let silent = strike::silent(&perf.notes, &strikes)
+        .into_iter()
+        .map(|note| {
+            let too_soft = keyboard
+                .key_program
+                .get(&note.key)
+                .and_then(|&pi| calibrations[pi].as_ref())
+                .is_some_and(|c| {
+                    // Half a MIDI velocity step of slack: the end is measured, not exact.
+                    strike::speed_for_velocity(note.velocity) < c.from_rest.levels()[0].2 * 0.985
+                });
+            let since_previous_s = perf
+                .notes
+                .iter()
+                .filter(|n| n.key == note.key && n.on_s < note.on_s)
+                .map(|n| note.on_s - n.on_s)
+                .reduce(f64::min);
+            SilentNote {
+                note,
+                cause: if too_soft {
+                    Silence::TooSoft
+                } else {
+                    Silence::Other
+                },
+                since_previous_s,
+            }
+        })
+        .collect();
+    Ok(Played {
+        strikes,
+        silent,
+        traces,
+        calibrations,
+        restrikes,
+        key_samples,
+        boards,
+    })
+}

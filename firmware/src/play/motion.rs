@@ -1,0 +1,316 @@
+//! What moves the keys: the two players and the stretches of time a key needs simulating.
+//!
+//! * the position player ([`Motion::Track`]): the key-motion model of
+//!   `tactus_runtime::performance` prescribes the key travel; the instrument's force is
+//!   computed but does not move the key;
+//! * the force player ([`Motion::Finger`]): a finger pushes with a force profile and the key
+//!   moves under the finger's and the instrument's forces (`tactus_runtime::player`): the
+//!   closed loop. Each instrument is first calibrated with single strokes at
+//!   [`CALIBRATION_LEVELS_N`] ([`calibrate`]), so a note of MIDI velocity `v` is played with
+//!   the finger force that gives the hammer speed [`speed_for_velocity`]`(v)`, started that
+//!   stroke's lead time before the note-on ([`finger_profile`]).
+//!
+//! On a host engine a key is simulated only around its movements ([`busy_stretches`]): from
+//! [`LEAD_IN_S`] before a press to [`TAIL_S`] after it ends, and a key at rest for more than
+//! [`IDLE_GAP_S`] between notes is simulated as separate stretches, each from a fresh
+//! instance (a key at rest that long is back in its initial state — hammer on the rest felt,
+//! jack re-armed, impact pulses decayed — so this changes no strike, and a whole piece costs
+//! the time its keys move, not its length times its keys). The firmware runs every key
+//! every sample, as the hardware does.
+
+use super::engine::KeyEngine;
+use super::run::{run_keys, Drive, LoopConfig, TraceWindow};
+use super::strike::speed_for_velocity;
+use tactus_runtime::performance::{self, KeyTrack, Note, Performance};
+use tactus_runtime::player::{Calibration, FingerConfig, ForceProfile, Stroke};
+
+/// How a played key moves.
+#[derive(Clone, Debug)]
+pub enum Motion {
+    /// It follows a key-travel track (the position player).
+    Track(KeyTrack),
+    /// A finger pushes it with a force profile against the instrument (the force player).
+    Finger(ForceProfile),
+}
+
+/// Peak finger forces of the calibration strokes, N (log-spaced from a push barely above a
+/// piano key's down-weight to a hard *fff* blow).
+pub const CALIBRATION_LEVELS_N: [f64; 14] = [
+    0.6, 0.75, 0.9, 1.1, 1.4, 1.8, 2.3, 3.0, 4.0, 5.5, 7.5, 10.0, 14.0, 20.0,
+];
+
+/// Time a stroke waits for the key to rise after the previous note's finger lifted, s: a
+/// note that follows sooner lifts the previous finger earlier.
+pub const RISE_GAP_S: f64 = 0.030;
+
+/// Simulated time before a key's first movement, s.
+pub const LEAD_IN_S: f64 = 0.05;
+/// Simulated time after a key's last movement ends, s (the hammer settles on its rest felt).
+pub const TAIL_S: f64 = 0.5;
+/// A key at rest for longer than this between two movements, s, is simulated as two
+/// stretches, each from a fresh instance.
+pub const IDLE_GAP_S: f64 = 1.0;
+
+/// How long a calibration stroke is simulated, s.
+const CALIBRATION_S: f64 = 0.6;
+
+/// How long the finger lets the key rise before a re-strike, s: the finger lifts this long
+/// before the re-striking push starts, as in the re-strike calibration. 40 ms bring a
+/// grand-piano key from the bottom back through the let-off zone, above the point where the
+/// jack re-arms under the knuckle of the hammer the repetition lever holds up (the
+/// escapement's `theta1`, 8.2 mm): the double escapement's purpose.
+pub const RESTRIKE_RISE_S: f64 = 0.040;
+
+/// A stroke is played from rest only when its push starts at least this long after the
+/// previous stroke's finger lifted, s: the key is back up and the hammer back on its rest
+/// felt (a released grand-piano key rises in ≈ 60 ms, its hammer lands ≈ 100 ms after the
+/// lift). A sooner stroke is a re-strike ([`FingerCalibration::restrike`]).
+pub const SETTLE_S: f64 = 0.100;
+
+/// When the first stroke of a re-strike calibration lifts, s: its strike is long past and
+/// the back-check holds the hammer.
+const RESTRIKE_FIRST_LIFT_S: f64 = 0.25;
+
+/// The force player's calibration of one instrument: strokes from rest and re-strikes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FingerCalibration {
+    /// Strokes from rest: (peak N, lead s, hammer speed m/s); the lead from the start of
+    /// the push to the strike.
+    pub from_rest: Calibration,
+    /// Re-strikes: the key held down after a strike, released for [`RESTRIKE_RISE_S`] and
+    /// pushed again from where it rose to, the hammer still on the repetition lever. `None`
+    /// when fewer than two levels re-strike.
+    pub restrike: Option<Calibration>,
+}
+
+/// Measures strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
+/// (`fresh()`: one key at rest; its dip `dip_m`): from rest (the push held until the strike
+/// or 0.6 s), and re-strikes (a 3 N stroke held down until 0.25 s, the finger lifted for
+/// [`RESTRIKE_RISE_S`], then the measured push). Each gives the lead from the start of the
+/// push to the strike and the strike's hammer speed. `None` when fewer than two levels
+/// strike from rest.
+///
+/// Errors: the engine's (see [`run_keys`]).
+pub fn calibrate<'e>(
+    fresh: &dyn Fn() -> Box<dyn KeyEngine + 'e>,
+    dip_m: f64,
+    finger: FingerConfig,
+    fs: f64,
+) -> Result<Option<FingerCalibration>, String> {
+    let measure = |first: Option<Stroke>, start: f64| -> Result<Vec<(f64, f64, f64)>, String> {
+        let mut levels = Vec::new();
+        for &peak in &CALIBRATION_LEVELS_N {
+            let push = Stroke {
+                start_s: start,
+                peak_n: peak,
+                push_end_s: 10.0,
+                lift_s: 10.0,
+            };
+            let motion = Motion::Finger(ForceProfile::new(
+                finger,
+                first.into_iter().chain([push]).collect(),
+            ));
+            let drive = Drive {
+                key: 0,
+                motion: Some(&motion),
+                dip_m,
+            };
+            let run = run_keys(
+                &mut *fresh(),
+                &[drive],
+                0..((start + CALIBRATION_S) * fs) as usize,
+                &LoopConfig {
+                    fs,
+                    finger,
+                    trace: &TraceWindow::default(),
+                    stop_at_strike_after_s: Some(start),
+                },
+                &|_| {},
+            )?;
+            if let Some(s) = run.strikes.iter().find(|s| s.time_s >= start) {
+                levels.push((peak, s.time_s - start, s.speed_mps));
+            }
+        }
+        Ok(levels)
+    };
+    let Some(from_rest) = Calibration::new(measure(None, 0.01)?) else {
+        return Ok(None);
+    };
+    let first = Stroke {
+        start_s: 0.01,
+        peak_n: 3.0,
+        push_end_s: 0.1,
+        lift_s: RESTRIKE_FIRST_LIFT_S,
+    };
+    let restrike = Calibration::new(measure(
+        Some(first),
+        RESTRIKE_FIRST_LIFT_S + RESTRIKE_RISE_S,
+    )?);
+    Ok(Some(FingerCalibration {
+        from_rest,
+        restrike,
+    }))
+}
+
+/// The finger's strokes for one key's notes: each aims at the hammer speed of its MIDI
+/// velocity ([`speed_for_velocity`]) with the calibrated force, starts the calibrated lead
+/// before its note-on, pushes until 10 ms after the note-on, holds until the note-off and
+/// lifts then.
+///
+/// A stroke whose push would start less than [`SETTLE_S`] after the previous finger lifted
+/// finds the key not yet back at rest: it is a **re-strike**, played as the re-strike
+/// calibration measured it — with its force and lead, the previous finger lifted
+/// [`RESTRIKE_RISE_S`] before the push (holding the previous note that much longer, or
+/// releasing it sooner), and never before the previous push has ended. A re-strike whose
+/// calibrated lead does not fit in the time left takes the weakest calibrated re-strike
+/// whose lead does (louder than asked, on time); when none does, it starts late. Without a re-strike calibration (or for the first
+/// note) the stroke keeps the from-rest force and lead, and the previous finger lifts
+/// [`RISE_GAP_S`] before it.
+pub fn finger_profile(
+    notes: &[Note],
+    cal: &FingerCalibration,
+    finger: FingerConfig,
+) -> (ForceProfile, Restrikes) {
+    let mut strokes: Vec<Stroke> = Vec::with_capacity(notes.len());
+    let mut counts = Restrikes::default();
+    for n in notes {
+        let speed = speed_for_velocity(n.velocity);
+        let (mut peak, lead) = cal.from_rest.for_speed(speed);
+        let mut start = (n.on_s - lead).max(0.0);
+        if let Some(prev) = strokes.last_mut() {
+            match &cal.restrike {
+                Some(re) if start < prev.lift_s + SETTLE_S => {
+                    let earliest = prev.push_end_s + RESTRIKE_RISE_S;
+                    let (mut p, mut lead) = re.for_speed(speed);
+                    counts.restrikes += 1;
+                    if n.on_s - lead < earliest {
+                        // No time for so soft a push: the weakest re-strike that reaches
+                        // the string by the note-on (a pianist plays a fast repetition
+                        // louder rather than late).
+                        if let Some(l) = re.levels().iter().find(|l| n.on_s - l.1 >= earliest) {
+                            (p, lead) = (l.0, l.1);
+                            counts.raised += 1;
+                        }
+                    }
+                    peak = p;
+                    if n.on_s - lead < earliest {
+                        counts.late += 1;
+                    }
+                    start = (n.on_s - lead).max(earliest);
+                    prev.lift_s = start - RESTRIKE_RISE_S;
+                }
+                _ => {
+                    prev.lift_s = prev.lift_s.min(start - RISE_GAP_S).max(prev.start_s);
+                    prev.push_end_s = prev.push_end_s.min(prev.lift_s);
+                }
+            }
+        }
+        let push_end = n.on_s.max(start) + 0.010;
+        strokes.push(Stroke {
+            start_s: start,
+            peak_n: peak,
+            push_end_s: push_end,
+            lift_s: n.off_s.max(push_end),
+        });
+    }
+    (ForceProfile::new(finger, strokes), counts)
+}
+
+/// How the force player played repeated notes ([`finger_profile`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Restrikes {
+    /// Notes played as re-strikes (the key not yet back at rest).
+    pub restrikes: usize,
+    /// … of which the asked softness had no time: played with the weakest re-strike that
+    /// fits, louder than asked.
+    pub raised: usize,
+    /// … of which none fits: started late.
+    pub late: usize,
+}
+
+impl std::ops::AddAssign for Restrikes {
+    fn add_assign(&mut self, o: Restrikes) {
+        self.restrikes += o.restrikes;
+        self.raised += o.raised;
+        self.late += o.late;
+    }
+}
+
+/// One key's motion for its notes `notes` (sorted by note-on), the intervals it moves
+/// (start s, end s) and how its repeated notes were played: the position player's track for
+/// a key of dip `dip_m` over a piece of `duration_s`, or with a calibration the force
+/// player's finger.
+pub fn key_motion(
+    notes: &[Note],
+    dip_m: f64,
+    duration_s: f64,
+    force: Option<(&FingerCalibration, FingerConfig)>,
+) -> (Motion, Vec<(f64, f64)>, Restrikes) {
+    match force {
+        None => {
+            let track = performance::key_tracks(
+                &Performance {
+                    notes: notes.to_vec(),
+                    sustain: vec![],
+                    duration_s,
+                },
+                dip_m,
+            )
+            .remove(0);
+            let busy = notes
+                .iter()
+                .map(|n| {
+                    (
+                        n.on_s - performance::MAX_DESCENT_S,
+                        n.off_s.max(n.on_s) + performance::RELEASE_S,
+                    )
+                })
+                .collect();
+            (Motion::Track(track), busy, Restrikes::default())
+        }
+        Some((cal, finger)) => {
+            let (profile, counts) = finger_profile(notes, cal, finger);
+            let busy = profile
+                .strokes()
+                .iter()
+                .map(|s| (s.start_s, s.lift_s))
+                .collect();
+            (Motion::Finger(profile), busy, counts)
+        }
+    }
+}
+
+/// Merges movement intervals (start s, end s) into busy stretches: intervals closer than
+/// [`IDLE_GAP_S`] belong to one stretch.
+pub fn busy_stretches(mut busy: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    busy.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    for (a, b) in busy {
+        match out.last_mut() {
+            Some(last) if a - last.1 < IDLE_GAP_S => last.1 = last.1.max(b),
+            _ => out.push((a, b)),
+        }
+    }
+    out
+}
+
+/// The samples to simulate for a busy stretch (start s, end s) at `fs` Hz: from
+/// [`LEAD_IN_S`] before it to [`TAIL_S`] after it.
+pub fn stretch_samples((start_s, end_s): (f64, f64), fs: f64) -> std::ops::Range<usize> {
+    let a = ((start_s - LEAD_IN_S).max(0.0) * fs) as usize;
+    let b = ((end_s + TAIL_S) * fs) as usize;
+    a..b.max(a)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn busy_stretches_merge_only_short_rests() {
+        let s = busy_stretches(vec![(5.0, 5.2), (0.0, 0.5), (1.2, 1.4), (0.4, 0.6)]);
+        // 0.6 → 1.2 is a rest shorter than IDLE_GAP_S: one stretch; 1.4 → 5.0 is longer.
+        assert_eq!(s, vec![(0.0, 1.4), (5.0, 5.2)]);
+        assert!(busy_stretches(vec![]).is_empty());
+    }
+}

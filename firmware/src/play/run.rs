@@ -1,0 +1,167 @@
+//! The play loop, once: a group of keys ([`KeyEngine`]) stepped sample by sample, each key
+//! moved by its [`Motion`] — a prescribed track (the position player) or a finger pushing
+//! against the force the engine computed the sample before (the force player: the closed
+//! loop, with the one-sample delay of the real board) — its strikes collected through the
+//! strike rule and the traced keys' samples recorded.
+//!
+//! Every engine runs through [`run_keys`]: a host engine one key at a time over a busy
+//! stretch, the firmware of a board all its keys over the whole piece, the force player's
+//! calibration one stroke at a time.
+
+use super::engine::KeyEngine;
+use super::motion::Motion;
+use super::strike::Strike;
+use std::collections::{BTreeMap, BTreeSet};
+use std::ops::Range;
+use tactus_runtime::player::{FingerConfig, ForcePlayer};
+
+/// A traced key's samples: (time s, key travel m, instrument force N, hammer m, finger N,
+/// motor current A, DAC code); the last two `NaN` on a host engine.
+pub type TraceRows = Vec<[f64; 7]>;
+
+/// The traced keys' samples, by key.
+pub type Traces = BTreeMap<u8, TraceRows>;
+
+/// Which keys to trace, and when.
+#[derive(Clone, Debug, Default)]
+pub struct TraceWindow {
+    /// The traced keys (MIDI).
+    pub keys: BTreeSet<u8>,
+    /// Trace from this time on, s.
+    pub from_s: f64,
+    /// Trace until this time, s.
+    pub to_s: f64,
+}
+
+/// One key of a group: what moves it.
+#[derive(Clone, Copy, Debug)]
+pub struct Drive<'m> {
+    /// MIDI key.
+    pub key: u8,
+    /// What moves it; `None`: it rests (travel 0).
+    pub motion: Option<&'m Motion>,
+    /// Its key dip (the upper bound of its sensor), m: the force player's bottom stop.
+    pub dip_m: f64,
+}
+
+/// What [`run_keys`] produced.
+#[derive(Clone, Debug, Default)]
+pub struct KeysRun {
+    /// The strikes, in sample order (then key order); none answers a note yet.
+    pub strikes: Vec<Strike>,
+    /// The traced keys' samples.
+    pub traces: Traces,
+}
+
+/// How [`run_keys`] runs.
+#[derive(Clone, Debug)]
+pub struct LoopConfig<'t> {
+    /// Sample rate, Hz.
+    pub fs: f64,
+    /// The finger of a force player's key.
+    pub finger: FingerConfig,
+    /// What to trace.
+    pub trace: &'t TraceWindow,
+    /// Stop after the sample of the first strike at or after this time, s (a calibration
+    /// stroke needs no more).
+    pub stop_at_strike_after_s: Option<f64>,
+}
+
+/// Key-samples between two calls of the progress callback.
+pub const PROGRESS_SAMPLES: usize = 4096;
+
+/// Runs the keys `drives` (in the engine's key order) over the samples `samples` on
+/// `engine` as `config` says. `progress` is called with the key-samples done since its last
+/// call.
+///
+/// Errors: the engine's, and a message naming the key, sample and time when an engine
+/// computes a non-finite force or strike speed (an f64 program that divides by zero): the
+/// run stops there rather than play `NaN`.
+pub fn run_keys(
+    engine: &mut dyn KeyEngine,
+    drives: &[Drive],
+    samples: Range<usize>,
+    config: &LoopConfig,
+    progress: &dyn Fn(u64),
+) -> Result<KeysRun, String> {
+    let (fs, finger, trace) = (config.fs, &config.finger, config.trace);
+    let n = drives.len();
+    let mut players: Vec<Option<ForcePlayer>> = drives
+        .iter()
+        .map(|d| {
+            matches!(d.motion, Some(Motion::Finger(_)))
+                .then(|| ForcePlayer::new(d.dip_m, finger.mass_kg, fs))
+        })
+        .collect();
+    let traced: Vec<bool> = drives.iter().map(|d| trace.keys.contains(&d.key)).collect();
+    let mut run = KeysRun::default();
+    let mut xs = vec![0.0; n];
+    let mut pending = 0usize;
+    for i in samples {
+        let time = i as f64 / fs;
+        for (k, d) in drives.iter().enumerate() {
+            xs[k] = match (d.motion, &players[k]) {
+                (Some(Motion::Track(t)), _) => t.position(time),
+                (_, Some(p)) => p.x_m,
+                _ => 0.0,
+            };
+        }
+        let out = engine.step(&xs)?;
+        for (k, d) in drives.iter().enumerate() {
+            let s = out[k];
+            if !s.force_n.is_finite() || s.strike_mps.is_some_and(|v| !v.is_finite()) {
+                return Err(format!(
+                    "key {}: the simulation computed a non-finite value at sample {i} (t = {time:.6} s): force {} N, strike speed {:?} m/s",
+                    d.key, s.force_n, s.strike_mps
+                ));
+            }
+            if let Some(speed) = s.strike_mps {
+                run.strikes.push(Strike {
+                    key: d.key,
+                    time_s: time,
+                    speed_mps: speed,
+                    answers: None,
+                });
+            }
+            let push = match d.motion {
+                Some(Motion::Finger(f)) => f.force(time),
+                _ => 0.0,
+            };
+            if let Some(p) = &mut players[k] {
+                p.step(push, s.force_n);
+            }
+            if traced[k] && time >= trace.from_s && time <= trace.to_s {
+                run.traces.entry(d.key).or_default().push([
+                    time,
+                    xs[k],
+                    s.force_n,
+                    f64::NAN,
+                    push,
+                    s.current_a,
+                    s.dac,
+                ]);
+            }
+        }
+        // The hammer once the samples are done with (an emulated board reads it from the
+        // key's out words).
+        for (k, d) in drives.iter().enumerate() {
+            if traced[k] && time >= trace.from_s && time <= trace.to_s {
+                if let Some(row) = run.traces.get_mut(&d.key).and_then(|r| r.last_mut()) {
+                    row[3] = engine.hammer_m(k);
+                }
+            }
+        }
+        pending += 1;
+        if let Some(after) = config.stop_at_strike_after_s {
+            if run.strikes.last().is_some_and(|s| s.time_s >= after) {
+                break;
+            }
+        }
+        if pending == PROGRESS_SAMPLES {
+            progress((PROGRESS_SAMPLES * n) as u64);
+            pending = 0;
+        }
+    }
+    progress((pending * n) as u64);
+    Ok(run)
+}
