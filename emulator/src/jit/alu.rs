@@ -27,12 +27,7 @@ impl Translator<'_> {
         let c = self.b.ins().ireduce(types::I8, hi);
         let a = self.b.ins().bxor(x, r);
         let bb = self.b.ins().bxor(y, r);
-        let both = self.b.ins().band(a, bb);
-        let v = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, both, 0);
-        self.set_flag(C, c);
-        self.set_flag(V, v);
-        self.nz(r);
-        r
+        self.set_cvnz(r, c, a, bb)
     }
 
     /// `Core::adds(x, y, false)` (ADDS, CMN) in 32-bit operations: the carry is the
@@ -42,12 +37,7 @@ impl Translator<'_> {
         let c = self.b.ins().icmp(IntCC::UnsignedLessThan, r, x);
         let a = self.b.ins().bxor(x, r);
         let bb = self.b.ins().bxor(y, r);
-        let both = self.b.ins().band(a, bb);
-        let v = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, both, 0);
-        self.set_flag(C, c);
-        self.set_flag(V, v);
-        self.nz(r);
-        r
+        self.set_cvnz(r, c, a, bb)
     }
 
     /// `Core::adds(x, !y, true)` (SUBS, CMP, NEGS) in 32-bit operations: the carry is
@@ -57,6 +47,12 @@ impl Translator<'_> {
         let c = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, x, y);
         let a = self.b.ins().bxor(x, y);
         let bb = self.b.ins().bxor(x, r);
+        self.set_cvnz(r, c, a, bb)
+    }
+
+    /// Sets C to `c`, V to the sign of `a & bb` (the overflow rule over the operand and
+    /// result XORs its caller computed), N and Z from `r`; returns `r`.
+    fn set_cvnz(&mut self, r: Value, c: Value, a: Value, bb: Value) -> Value {
         let both = self.b.ins().band(a, bb);
         let v = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, both, 0);
         self.set_flag(C, c);
