@@ -7,12 +7,10 @@ use super::abi::Exit;
 use super::scan::RegionInstr;
 use super::translate::Translator;
 use crate::bus::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
-use crate::core::Core;
 use crate::decode::MemOp;
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, BlockArg, InstBuilder, Value};
 use cranelift_frontend::FunctionBuilder;
-use std::mem::offset_of;
 
 impl Translator<'_> {
     /// POP (`rn` 13) or LDM: the words, the base write-back (LDM: unless the base is
@@ -290,19 +288,7 @@ impl Translator<'_> {
                 .b
                 .ins()
                 .load(types::I32, self.mf, base_p, 4 * (count as i32 - 1));
-            let odd = self.b.ins().band_imm_u(t, 1);
-            let even = self.b.ins().icmp_imm_u(IntCC::Equal, odd, 0);
-            let ipsr = self.b.ins().load(
-                types::I32,
-                self.mf,
-                self.core,
-                offset_of!(Core, ipsr) as i32,
-            );
-            let handler = self.b.ins().icmp_imm_u(IntCC::NotEqual, ipsr, 0);
-            let top = self.b.ins().ushr_imm_u(t, 28);
-            let exc = self.b.ins().icmp_imm_u(IntCC::Equal, top, 0xf);
-            let ret = self.b.ins().band(handler, exc);
-            let bad = self.b.ins().bor(even, ret);
+            let bad = self.interworking_exit(t, true);
             self.general_if(bad, pc);
         }
         let words: Vec<(Value, Value)> = (0..count)

@@ -255,6 +255,28 @@ impl<'a> Translator<'a> {
         self.b.ins().iconst(types::I32, x as i64)
     }
 
+    /// 1 when a `BX` or `POP {…, PC}` to `target` must leave compiled code for the
+    /// interpreter: an even target (no Thumb bit: a HardFault on ARMv6-M) or, when
+    /// `exc_return` and the core is in a handler, an EXC_RETURN value (`0xFxxxxxxx`).
+    pub(super) fn interworking_exit(&mut self, target: Value, exc_return: bool) -> Value {
+        let odd = self.b.ins().band_imm_u(target, 1);
+        let even = self.b.ins().icmp_imm_u(IntCC::Equal, odd, 0);
+        if !exc_return {
+            return even;
+        }
+        let ipsr = self.b.ins().load(
+            types::I32,
+            self.mf,
+            self.core,
+            offset_of!(Core, ipsr) as i32,
+        );
+        let handler = self.b.ins().icmp_imm_u(IntCC::NotEqual, ipsr, 0);
+        let top = self.b.ins().ushr_imm_u(target, 28);
+        let exc = self.b.ins().icmp_imm_u(IntCC::Equal, top, 0xf);
+        let ret = self.b.ins().band(handler, exc);
+        self.b.ins().bor(even, ret)
+    }
+
     pub(super) fn reg(&mut self, r: u8, pc: u32) -> Value {
         if r == 15 {
             return self.c32(pc.wrapping_add(4));
@@ -542,23 +564,7 @@ impl<'a> Translator<'a> {
             }
             Bx { rm } | Blx { rm } => {
                 let target = self.reg(rm, pc);
-                let odd = self.b.ins().band_imm_u(target, 1);
-                let even = self.b.ins().icmp_imm_u(IntCC::Equal, odd, 0);
-                let bad = if let Bx { .. } = ins.instr {
-                    let ipsr = self.b.ins().load(
-                        types::I32,
-                        self.mf,
-                        self.core,
-                        offset_of!(Core, ipsr) as i32,
-                    );
-                    let handler = self.b.ins().icmp_imm_u(IntCC::NotEqual, ipsr, 0);
-                    let top = self.b.ins().ushr_imm_u(target, 28);
-                    let exc = self.b.ins().icmp_imm_u(IntCC::Equal, top, 0xf);
-                    let ret = self.b.ins().band(handler, exc);
-                    self.b.ins().bor(even, ret)
-                } else {
-                    even
-                };
+                let bad = self.interworking_exit(target, matches!(ins.instr, Bx { .. }));
                 self.general_if(bad, pc);
                 if let Blx { .. } = ins.instr {
                     let lr = self.c32(next | 1);
