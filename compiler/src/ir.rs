@@ -397,6 +397,10 @@ pub struct Program {
     /// `z` in [`Stmt::Total`]. Empty for a keyboard instrument, whose total is the one
     /// scalar [`Stmt::Total`].
     pub force_axes: Vec<(Axis, AxisTotal)>,
+    /// The accuracy contract a fixed-point plan of the program must keep against these f64
+    /// semantics (`fixed::contract`): the defaults, or what the instrument's `tolerance`
+    /// lines state.
+    pub contract: Contract,
 }
 
 impl Program {
@@ -439,5 +443,41 @@ impl Program {
     /// of 20 000 values as much interpreter time as a piano key gets, not 60 times more.
     pub fn samples_within(&self, evaluations: usize) -> usize {
         (evaluations / self.values.len().max(1)).max(1)
+    }
+}
+
+/// The clauses of an accuracy contract.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Contract {
+    /// The total force at the key may differ from f64 by this many LSBs of a 16-bit DAC at
+    /// `full_scale` (the report's `fixed::report::Precision::dac_lsb_n`), at every sample.
+    pub force_lsb: f64,
+    /// An event may happen this much earlier or later than in f64, seconds (0.5 ms: 22
+    /// samples at 44.1 kHz).
+    pub event_time_s: f64,
+    /// An event's arguments may differ from f64 by this fraction of the f64 value (1 %: a
+    /// third of a MIDI velocity step at mf).
+    pub event_arg_rel: f64,
+}
+
+impl Default for Contract {
+    fn default() -> Self {
+        Contract {
+            force_lsb: 1.0,
+            event_time_s: 0.5e-3,
+            event_arg_rel: 0.01,
+        }
+    }
+}
+
+impl Contract {
+    /// The contract with every tolerance multiplied by `factor` (the planner's search keeps
+    /// `fixed::SIMULATION_MARGIN` of each clause in reserve).
+    pub fn scaled(&self, factor: f64) -> Contract {
+        Contract {
+            force_lsb: self.force_lsb * factor,
+            event_time_s: self.event_time_s * factor,
+            event_arg_rel: self.event_arg_rel * factor,
+        }
     }
 }

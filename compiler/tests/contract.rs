@@ -122,3 +122,139 @@ fn a_greedier_divisor_shift_breaks_the_contract() {
         "{worst} LSB: the contract did not catch it"
     );
 }
+
+/// The piano lowered with each of `masses` (hammer mass `M_h`) and shared, as grand88's
+/// graded keys are: one program with run-time params; and each key's param values.
+fn graded_piano(masses: &[&str]) -> (Program, Vec<Vec<f64>>) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments/grand_piano.tactus");
+    let text = std::fs::read_to_string(path).unwrap();
+    let irs: Vec<Program> = masses
+        .iter()
+        .map(|m| {
+            let config = Config {
+                overrides: vec![("M_h".into(), (*m).into())],
+                ..Config::default()
+            };
+            tactus_compiler::compile(&text, &config).unwrap().program
+        })
+        .collect();
+    let shared = tactus_compiler::share::share(&irs).unwrap();
+    (shared.program, shared.values)
+}
+
+/// The contract holds with run-time params: grand88's hammer masses (11 g in the bass to
+/// 3.5 g in the treble, one shared program planned once for the whole range), each clause on
+/// every built-in stimulus at the ends and the middle of the grading.
+#[test]
+fn the_contract_holds_over_the_graded_hammer_masses() {
+    let masses = ["11 g", "7.25 g", "3.5 g"];
+    let (shared, values) = graded_piano(&masses);
+    assert!(
+        shared.runtime_params().count() > 0,
+        "the masses must be run-time params"
+    );
+    let fp = FixedProgram::new(&shared);
+    let lsb = report::analyse(&fp).dac_lsb_n();
+    let mut broken = Vec::new();
+    for (m, v) in masses.iter().zip(&values) {
+        let mut worst = ContractCheck::default();
+        for (stim, _) in stimulus::builtin_names() {
+            let s =
+                stimulus::builtin(stim, shared.sensors[0].range.1, shared.sample_rate_hz).unwrap();
+            let run = contract::reference(&shared, &fp, &s.key, v);
+            let r = contract::compare(&shared, &fp, &run, lsb, shared.contract.event_time_s, None);
+            assert!(r.samples > 0);
+            for e in r.violations(&shared.contract, shared.sample_rate_hz) {
+                broken.push(format!("M_h {m}/{stim}: {e}"));
+            }
+            worst.max_force_lsb = worst.max_force_lsb.max(r.max_force_lsb);
+            worst.max_event_shift = worst.max_event_shift.max(r.max_event_shift);
+            worst.max_arg_rel = worst.max_arg_rel.max(r.max_arg_rel);
+            worst.unmatched += r.unmatched;
+            worst.events_f64 += r.events_f64;
+        }
+        println!(
+            "M_h {m:<7} force {:.4} LSB, events {} unmatched {}, shift {} samples, args {:.4} %",
+            worst.max_force_lsb,
+            worst.events_f64,
+            worst.unmatched,
+            worst.max_event_shift,
+            100.0 * worst.max_arg_rel
+        );
+    }
+    assert!(broken.is_empty(), "contract broken:\n{}", broken.join("\n"));
+}
+
+/// The planner's simulated search stops where the contract does: of the piano's products
+/// it left more expensive than `MULS`, making them cheaper one at a time (to the cheapest
+/// form it considered) breaks the contract for at least one; the test stops at the first.
+/// (The search keeps half of each tolerance in reserve, so not every such step breaks the
+/// whole contract.)
+#[test]
+fn a_plan_greedier_than_the_simulated_search_breaks_the_contract() {
+    use tactus_compiler::fixed::MulKind;
+    let c = Contract::default();
+    let p = program("grand_piano");
+    let fp = FixedProgram::new(&p);
+    let analysed = FixedProgram::with_config(
+        &p,
+        &PlanConfig {
+            simulate: false,
+            ..PlanConfig::default()
+        },
+    );
+    let (s, a) = (fp.mul_forms(), analysed.mul_forms());
+    println!(
+        "simulated search: {} MULS, {} high word, {} 64-bit, {} estimated cycles; analysis only: {} MULS, {} high word, {} 64-bit, {} cycles",
+        s.0, s.1, s.2, s.3, a.0, a.1, a.2, a.3
+    );
+    assert!(
+        s.3 < a.3,
+        "the search must find cheaper products than the analysis"
+    );
+    let lsb = report::analyse(&fp).dac_lsb_n();
+    let refs: Vec<(&str, contract::ReferenceRun)> = stimulus::builtin_names()
+        .iter()
+        .map(|(stim, _)| {
+            let s = stimulus::builtin(stim, p.sensors[0].range.1, p.sample_rate_hz).unwrap();
+            (*stim, contract::reference(&p, &fp, &s.key, &[]))
+        })
+        .collect();
+    let mut breaking = 0;
+    let mut tried = 0;
+    for (i, k) in fp.mul_kind.iter().enumerate() {
+        // The cheapest form the planner considered that is cheaper than the one it chose.
+        let cheaper = k.and_then(|k| {
+            fp.mul_options[i]
+                .iter()
+                .copied()
+                .find(|o| o.cycles() < k.cycles())
+        });
+        let Some(cheaper) = cheaper.filter(|g| Some(*g) != *k) else {
+            continue;
+        };
+        let mut q = fp.clone();
+        q.mul_kind[i] = Some(cheaper);
+        tried += 1;
+        // The first broken clause on any stimulus (each run stops at its first bad sample).
+        let broken = refs.iter().find_map(|(stim, run)| {
+            let r = contract::compare(&p, &q, run, lsb, c.event_time_s, Some(&c));
+            r.violations(&c, p.sample_rate_hz)
+                .first()
+                .map(|v| format!("{stim}: {v}"))
+        });
+        println!(
+            "product v{i}: {k:?} → {cheaper:?}: {}",
+            broken.as_deref().unwrap_or("holds")
+        );
+        if broken.is_some() {
+            breaking += 1;
+            break;
+        }
+    }
+    println!("{breaking} of the {tried} cheaper steps tried break the contract");
+    assert!(
+        tried > 0 && breaking > 0,
+        "no cheaper step breaks the contract: the test shows nothing"
+    );
+}

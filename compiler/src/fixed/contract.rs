@@ -17,29 +17,7 @@ use crate::interp::Instance;
 use crate::ir::Program;
 use tactus_runtime::fixed as fx;
 
-/// The clauses of an accuracy contract.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Contract {
-    /// The total force at the key may differ from f64 by this many LSBs of a 16-bit DAC at
-    /// `full_scale` (the report's [`super::report::Precision::dac_lsb_n`]), at every sample.
-    pub force_lsb: f64,
-    /// An event may happen this much earlier or later than in f64, seconds (0.5 ms: 22
-    /// samples at 44.1 kHz).
-    pub event_time_s: f64,
-    /// An event's arguments may differ from f64 by this fraction of the f64 value (1 %: a
-    /// third of a MIDI velocity step at mf).
-    pub event_arg_rel: f64,
-}
-
-impl Default for Contract {
-    fn default() -> Self {
-        Contract {
-            force_lsb: 1.0,
-            event_time_s: 0.5e-3,
-            event_arg_rel: 0.01,
-        }
-    }
-}
+pub use crate::ir::Contract;
 
 /// What one run showed, clause by clause (the worst over its samples and events).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -105,41 +83,127 @@ impl ContractCheck {
     }
 }
 
-/// Runs the f64 interpreter of `p` and the fixed interpreter of `fp` side by side on the key
-/// trajectory `keys` (metres, first sensor; the f64 engine reads the same quantised samples)
-/// and measures each clause. `dac_lsb_n` is one DAC LSB in newtons.
-pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> ContractCheck {
-    let mut a = Instance::new(p);
-    let mut b = FixedInstance::new(fp);
-    let mut out = ContractCheck::default();
-    // (sample, event, args) of each run.
-    let mut ev_a: Vec<(usize, usize, Vec<f64>)> = Vec::new();
-    let mut ev_b: Vec<(usize, usize, Vec<f64>)> = Vec::new();
+/// One run of the f64 reference on one stimulus, recorded so that several fixed-point plans
+/// of the same program can be compared with it ([`compare`]) without re-running it: the
+/// planner's search ([`super::FixedProgram::with_config`]) compares dozens of plans.
+#[derive(Clone, Debug)]
+pub struct ReferenceRun {
+    /// The quantised sensor word of each sample (first sensor; both engines read it).
+    raw: Vec<i32>,
+    /// The f64 total force of each sample, newtons.
+    total: Vec<f64>,
+    /// (sample, event, arguments SI) of each event of the f64 run.
+    events: Vec<(usize, usize, Vec<f64>)>,
+    /// The run-time params' values (SI, [`Program::runtime_params`] order) this run used;
+    /// empty for the params' own values.
+    params: Vec<f64>,
+}
+
+impl ReferenceRun {
+    /// Samples of the run.
+    pub fn len(&self) -> usize {
+        self.raw.len()
+    }
+
+    /// Whether the run has no sample.
+    pub fn is_empty(&self) -> bool {
+        self.raw.is_empty()
+    }
+}
+
+/// Runs the f64 interpreter of `p` on the key trajectory `keys` (metres, first sensor,
+/// quantised to the sensor words of `fp`), with the run-time params at `params` (SI, in
+/// [`Program::runtime_params`] order; empty: the params' own values).
+pub fn reference(p: &Program, fp: &FixedProgram, keys: &[f64], params: &[f64]) -> ReferenceRun {
+    let mut q;
+    let prog = if params.is_empty() {
+        p
+    } else {
+        q = p.clone();
+        let ids: Vec<_> = q.runtime_params().collect();
+        for (id, &v) in ids.iter().zip(params) {
+            q.params[id.index()].value = v;
+        }
+        &q
+    };
+    let mut a = Instance::new(prog);
+    let mut run = ReferenceRun {
+        raw: Vec::with_capacity(keys.len()),
+        total: Vec::with_capacity(keys.len()),
+        events: Vec::new(),
+        params: params.to_vec(),
+    };
     for (n, &k) in keys.iter().enumerate() {
         let raw = FixedInstance::sensor_raw(fp, 0, Some(k));
-        let oa = a.step(&[fx::to_f64(raw, fp.sensor_frac[0])]).clone();
-        let ob = b.step_raw(&[raw]).to_si(fp);
+        let oa = a.step(&[fx::to_f64(raw, fp.sensor_frac[0])]);
+        run.raw.push(raw);
+        run.total.push(oa.total);
+        run.events
+            .extend(oa.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
+    }
+    run
+}
+
+/// Runs the fixed interpreter of `fp` on the samples of a recorded reference run and
+/// measures each clause against it. With `stop`, the run ends at the first sample whose
+/// force or states break that contract (the planner's search only needs to know that a
+/// plan fails); the events are compared over the samples run.
+pub fn compare(
+    p: &Program,
+    fp: &FixedProgram,
+    run: &ReferenceRun,
+    dac_lsb_n: f64,
+    window_s: f64,
+    stop: Option<&Contract>,
+) -> ContractCheck {
+    let block = if run.params.is_empty() {
+        fp.nominal_param_block()
+    } else {
+        match fp.param_block(&run.params) {
+            Ok(b) => b,
+            Err(_) => fp.nominal_param_block(),
+        }
+    };
+    let mut b = FixedInstance::with_params(fp, block);
+    let mut out = ContractCheck::default();
+    let mut ev_b: Vec<(usize, usize, Vec<f64>)> = Vec::new();
+    let mut ran = run.raw.len();
+    for (n, (&raw, &total)) in run.raw.iter().zip(&run.total).enumerate() {
+        let ob = b.step_raw(&[raw]);
         out.samples += 1;
-        out.max_force_lsb = out
-            .max_force_lsb
-            .max((oa.total - ob.total).abs() / dac_lsb_n);
-        ev_a.extend(oa.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
-        ev_b.extend(ob.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
+        let ft = fx::to_f64(ob.total, fp.total_frac);
+        out.max_force_lsb = out.max_force_lsb.max((total - ft).abs() / dac_lsb_n);
+        for (e, args) in &ob.events {
+            let f = &fp.event_frac[e.index()];
+            let si = args
+                .iter()
+                .zip(f)
+                .map(|(&x, &f)| fx::to_f64(x, f))
+                .collect();
+            ev_b.push((n, e.index(), si));
+        }
         let outside = b.states().iter().enumerate().any(|(i, &w)| {
             let x = fx::to_f64(w, fp.state_frac[i]);
             let (lo, hi) = p.states[i].range;
             x < lo || x > hi
         });
         out.state_out_of_range += outside as usize;
+        if let Some(c) = stop {
+            if out.max_force_lsb > c.force_lsb || outside {
+                ran = n + 1;
+                break;
+            }
+        }
     }
     out.overflowed = b.overflowed().iter().filter(|o| **o).count();
+    let ev_a: Vec<&(usize, usize, Vec<f64>)> = run.events.iter().filter(|e| e.0 < ran).collect();
     out.events_f64 = ev_a.len();
     out.events_fixed = ev_b.len();
-    // Pair events in order, per kind, within the time tolerance window of 0.5 ms (the
-    // contract's default; a larger shift counts as a lost plus an added event).
-    let window = (Contract::default().event_time_s * p.sample_rate_hz).ceil() as usize;
+    // Pair events in order, per kind, within the time tolerance window (a larger shift
+    // counts as a lost plus an added event).
+    let window = (window_s * p.sample_rate_hz).ceil() as usize;
     let mut used = vec![false; ev_b.len()];
-    for (na, ka, args_a) in &ev_a {
+    for (na, ka, args_a) in ev_a {
         let partner = ev_b
             .iter()
             .enumerate()
@@ -158,4 +222,13 @@ pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> Co
     }
     out.unmatched += used.iter().filter(|u| !**u).count();
     out
+}
+
+/// Runs the f64 interpreter of `p` and the fixed interpreter of `fp` side by side on the key
+/// trajectory `keys` (metres, first sensor; the f64 engine reads the same quantised samples)
+/// and measures each clause (events paired within the program contract's time tolerance). `dac_lsb_n` is one
+/// DAC LSB in newtons.
+pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> ContractCheck {
+    let run = reference(p, fp, keys, &[]);
+    compare(p, fp, &run, dac_lsb_n, p.contract.event_time_s, None)
 }

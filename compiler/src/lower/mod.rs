@@ -151,6 +151,7 @@ impl<'a> Lowerer<'a> {
                 values: vec![],
                 body: vec![],
                 force_axes: vec![],
+                contract: Contract::default(),
             },
             diags: vec![],
             unknown_reported: HashSet::new(),
