@@ -42,7 +42,7 @@ fn the_default_plan_keeps_the_contract_on_every_builtin_stimulus() {
             println!(
                 "{name:<16} {stim:<9} force {:.4} LSB (of {}), events {}/{} unmatched {} shift {} samples, args {:.4} % (of {} %), states out {}",
                 r.max_force_lsb,
-                c.force_lsb,
+                c.force.lsb(r.dac_lsb_n),
                 r.events_f64,
                 r.events_fixed,
                 r.unmatched,
@@ -118,7 +118,7 @@ fn a_greedier_divisor_shift_breaks_the_contract() {
         .fold(0.0, f64::max);
     println!("divisors within 2^-6: worst force error {worst:.3} DAC LSB");
     assert!(
-        worst > c.force_lsb,
+        worst > c.force.lsb(1.0),
         "{worst} LSB: the contract did not catch it"
     );
 }
@@ -162,7 +162,7 @@ fn the_contract_holds_over_the_graded_hammer_masses() {
             let s =
                 stimulus::builtin(stim, shared.sensors[0].range.1, shared.sample_rate_hz).unwrap();
             let run = contract::reference(&shared, &fp, &s.key, v);
-            let r = contract::compare(&shared, &fp, &run, lsb, shared.contract.event_time_s, None);
+            let r = contract::compare(&shared, &fp, &run, lsb, &shared.contract, false);
             assert!(r.samples > 0);
             for e in r.violations(&shared.contract, shared.sample_rate_hz) {
                 broken.push(format!("M_h {m}/{stim}: {e}"));
@@ -192,7 +192,6 @@ fn the_contract_holds_over_the_graded_hammer_masses() {
 /// whole contract.)
 #[test]
 fn a_plan_greedier_than_the_simulated_search_breaks_the_contract() {
-    use tactus_compiler::fixed::MulKind;
     let c = Contract::default();
     let p = program("grand_piano");
     let fp = FixedProgram::new(&p);
@@ -238,7 +237,7 @@ fn a_plan_greedier_than_the_simulated_search_breaks_the_contract() {
         tried += 1;
         // The first broken clause on any stimulus (each run stops at its first bad sample).
         let broken = refs.iter().find_map(|(stim, run)| {
-            let r = contract::compare(&p, &q, run, lsb, c.event_time_s, Some(&c));
+            let r = contract::compare(&p, &q, run, lsb, &c, true);
             r.violations(&c, p.sample_rate_hz)
                 .first()
                 .map(|v| format!("{stim}: {v}"))
@@ -257,4 +256,94 @@ fn a_plan_greedier_than_the_simulated_search_breaks_the_contract() {
         tried > 0 && breaking > 0,
         "no cheaper step breaks the contract: the test shows nothing"
     );
+}
+
+/// `tolerance` lines state the contract: the harpsichord with a looser total, a clause on
+/// its plectrum term in newtons (the component instance's term by its qualified name would
+/// be `jack.f`; the instrument names it `plectrum`) and one on its pluck event gets exactly
+/// those clauses, and the simulation measures each of them; an output clause likewise.
+#[test]
+fn tolerance_lines_state_the_contract() {
+    use tactus_compiler::ir::ForceBound;
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments/harpsichord.tactus");
+    let text = std::fs::read_to_string(path).unwrap();
+    let end = text.rfind('}').unwrap();
+    let with = format!(
+        "{}    tolerance force = 2\n    tolerance force plectrum = 1 mN\n    tolerance event pluck {{ time = 1 ms, key_speed = 0.02 }}\n}}\n",
+        &text[..end]
+    );
+    let p = tactus_compiler::compile(&with, &Config::default())
+        .unwrap()
+        .program;
+    let c = &p.contract;
+    assert_eq!(c.force, ForceBound::Lsb(2.0));
+    assert_eq!(c.terms.len(), 1);
+    assert_eq!(p.forces[c.terms[0].0.index()].name, "plectrum");
+    assert_eq!(c.terms[0].1, ForceBound::Newtons(1e-3));
+    let pluck = c.events[0].event.index();
+    assert_eq!(p.events[pluck].name, "pluck");
+    assert!((c.time_of(pluck) - 1e-3).abs() < 1e-15);
+    assert!((c.arg_rel_of(pluck, 0) - 0.02).abs() < 1e-15);
+    // The unchanged clauses keep their defaults.
+    assert_eq!(c.event_arg_rel, Contract::default().event_arg_rel);
+    let fp = FixedProgram::new(&p);
+    let runs = contract::check_builtin(&p, &fp);
+    assert_eq!(runs.len(), stimulus::builtin_names().len());
+    for (stim, r) in &runs {
+        let m = r.margins(&p, c);
+        assert!(m.iter().any(|x| x.0 == "force `plectrum`"), "{m:?}");
+        assert!(
+            r.violations(c, p.sample_rate_hz).is_empty(),
+            "{stim}: {:?}",
+            r.violations(c, p.sample_rate_hz)
+        );
+        // The term's error is measured: an exact-zero bound would catch any difference.
+        assert!(r.term_lsb[0] >= 0.0 && r.term_lsb[0].is_finite());
+    }
+    print!(
+        "{}",
+        tactus_compiler::fixed::report::render_margins(&p, &runs)
+    );
+    // A bound far below what fixed point can do breaks: the clause is enforced.
+    let strict = with.replace(
+        "tolerance force plectrum = 1 mN",
+        "tolerance force plectrum = 1e-12 N",
+    );
+    let q = tactus_compiler::compile(&strict, &Config::default())
+        .unwrap()
+        .program;
+    let fq = FixedProgram::new(&q);
+    let broken = contract::check_builtin(&q, &fq)
+        .iter()
+        .any(|(_, r)| !r.violations(&q.contract, q.sample_rate_hz).is_empty());
+    assert!(broken, "a 1e-12 N clause on the plectrum term must break");
+}
+
+/// An output clause is measured in the output's unit and enforced; and the planner spends
+/// what it allows (with 1 µm the search takes a `MULS` for `key * 0.3`, worst ≈ 0.19 µm;
+/// with 1e-15 m it keeps the exact product).
+#[test]
+fn an_output_tolerance_is_measured_and_enforced() {
+    let src = |tol: &str| {
+        format!(
+            "instrument t {{\n    sensor key: m in [0 mm, 10 mm]\n    param full_scale = 5 N\n    force spring = 100 N/m * key\n    output depth = key * 0.3\n    tolerance output depth = {tol}\n}}\n"
+        )
+    };
+    for (tol, holds) in [("1 um", true), ("1e-15 m", false)] {
+        let p = tactus_compiler::compile(&src(tol), &Config::default())
+            .unwrap()
+            .program;
+        assert_eq!(p.contract.outputs.len(), 1);
+        let fp = FixedProgram::new(&p);
+        let runs = contract::check_builtin(&p, &fp);
+        let worst = runs
+            .iter()
+            .map(|(_, r)| r.output_err[0])
+            .fold(0.0, f64::max);
+        let ok = runs
+            .iter()
+            .all(|(_, r)| r.violations(&p.contract, p.sample_rate_hz).is_empty());
+        println!("output `depth` within {tol}: worst {worst:e} m, holds {ok}");
+        assert_eq!(ok, holds, "{tol}: worst {worst:e}");
+    }
 }

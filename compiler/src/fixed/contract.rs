@@ -8,8 +8,10 @@
 //! quantised sensor samples: the force at the key within a DAC LSB, the same events on the
 //! same key (none lost or added) within half a millisecond, their arguments (a strike's
 //! hammer speed) within a percent, and every state within its declared range with no
-//! saturation. [`Contract::default`] holds the issue-16 defaults; there is no `tolerance`
-//! syntax in the language yet, so an instrument cannot change them.
+//! saturation. [`Contract::default`] holds the issue-16 defaults; an instrument's
+//! `tolerance` lines ([`Program::contract`]) change them or add clauses on single force
+//! terms, outputs and events. A run is recorded once ([`reference`]) and compared with as
+//! many plans as the planner's search needs ([`compare`]).
 
 use super::interp::FixedInstance;
 use super::FixedProgram;
@@ -24,34 +26,116 @@ pub use crate::ir::Contract;
 pub struct ContractCheck {
     /// Samples compared.
     pub samples: usize,
+    /// One DAC LSB in newtons (what force bounds in newtons are converted with).
+    pub dac_lsb_n: f64,
     /// Largest |total force difference|, in DAC LSB.
     pub max_force_lsb: f64,
+    /// Per clause of [`Contract::terms`]: the largest |term difference|, DAC LSB.
+    pub term_lsb: Vec<f64>,
+    /// Per clause of [`Contract::outputs`]: the largest |output difference|, SI.
+    pub output_err: Vec<f64>,
     /// Events in the f64 run.
     pub events_f64: usize,
     /// Events in the fixed run.
     pub events_fixed: usize,
     /// Events of the f64 run with no partner in the fixed run, plus the reverse (an event is
-    /// paired with the next unpaired one of the same kind within the time tolerance).
+    /// paired with the next unpaired one of the same kind within its time tolerance).
     pub unmatched: usize,
     /// Largest time shift of a paired event, samples.
     pub max_event_shift: usize,
     /// Largest relative difference of a paired event's arguments.
     pub max_arg_rel: f64,
+    /// The largest shift of a paired event as a fraction of its kind's time tolerance.
+    pub shift_ratio: f64,
+    /// The largest relative difference of an argument as a fraction of its tolerance.
+    pub arg_ratio: f64,
     /// Samples where some fixed state lay outside its declared range.
     pub state_out_of_range: usize,
     /// Values that saturated (the range analysis claimed they cannot).
     pub overflowed: usize,
 }
 
+/// One clause's worst case against its bound, for the precision report: (clause, worst,
+/// bound, unit). The margin is `bound − worst`.
+pub type Margin = (String, f64, f64, &'static str);
+
 impl ContractCheck {
+    /// Each clause of `c` with the worst this run showed (names from `p`).
+    pub fn margins(&self, p: &Program, c: &Contract) -> Vec<Margin> {
+        let mut m = vec![(
+            "total force".to_string(),
+            self.max_force_lsb,
+            c.force.lsb(self.dac_lsb_n),
+            "DAC LSB",
+        )];
+        for ((f, b), w) in c.terms.iter().zip(&self.term_lsb) {
+            m.push((
+                format!("force `{}`", p.forces[f.index()].name),
+                *w,
+                b.lsb(self.dac_lsb_n),
+                "DAC LSB",
+            ));
+        }
+        for ((o, b), w) in c.outputs.iter().zip(&self.output_err) {
+            m.push((
+                format!("output `{}`", p.outputs[o.index()].name),
+                *w,
+                *b,
+                "SI",
+            ));
+        }
+        m.push((
+            "events lost or added".into(),
+            self.unmatched as f64,
+            0.0,
+            "",
+        ));
+        m.push((
+            "event time shift (of its tolerance)".into(),
+            self.shift_ratio,
+            1.0,
+            "",
+        ));
+        m.push((
+            "event arguments (of their tolerance)".into(),
+            self.arg_ratio,
+            1.0,
+            "",
+        ));
+        m.push((
+            "samples with a state out of range, saturations".into(),
+            (self.state_out_of_range + self.overflowed) as f64,
+            0.0,
+            "",
+        ));
+        m
+    }
+
     /// The clauses this run breaks, each as a sentence with the numbers (empty: it holds).
     pub fn violations(&self, c: &Contract, sample_rate_hz: f64) -> Vec<String> {
         let mut v = Vec::new();
-        if self.max_force_lsb > c.force_lsb {
+        let lsb = self.dac_lsb_n;
+        if self.max_force_lsb > c.force.lsb(lsb) {
             v.push(format!(
                 "force differs by {:.3} DAC LSB (contract {})",
-                self.max_force_lsb, c.force_lsb
+                self.max_force_lsb, c.force
             ));
+        }
+        for ((f, b), w) in c.terms.iter().zip(&self.term_lsb) {
+            if *w > b.lsb(lsb) {
+                v.push(format!(
+                    "force term {} differs by {w:.3} DAC LSB (contract {b})",
+                    f.index()
+                ));
+            }
+        }
+        for ((o, b), w) in c.outputs.iter().zip(&self.output_err) {
+            if *w > *b {
+                v.push(format!(
+                    "output {} differs by {w:e} (contract {b:e})",
+                    o.index()
+                ));
+            }
         }
         if self.unmatched > 0 {
             v.push(format!(
@@ -59,17 +143,19 @@ impl ContractCheck {
                 self.unmatched, self.events_f64, self.events_fixed
             ));
         }
-        let max_shift = c.event_time_s * sample_rate_hz;
-        if self.max_event_shift as f64 > max_shift {
+        if self.shift_ratio > 1.0 {
             v.push(format!(
-                "an event moved by {} samples (contract {:.1})",
-                self.max_event_shift, max_shift
+                "an event moved by {} samples ({:.2} of its tolerance; default {:.1} samples)",
+                self.max_event_shift,
+                self.shift_ratio,
+                c.event_time_s * sample_rate_hz
             ));
         }
-        if self.max_arg_rel > c.event_arg_rel {
+        if self.arg_ratio > 1.0 {
             v.push(format!(
-                "an event argument differs by {:.3} % (contract {} %)",
+                "an event argument differs by {:.3} % ({:.2} of its tolerance; default {} %)",
                 100.0 * self.max_arg_rel,
+                self.arg_ratio,
                 100.0 * c.event_arg_rel
             ));
         }
@@ -92,6 +178,10 @@ pub struct ReferenceRun {
     raw: Vec<i32>,
     /// The f64 total force of each sample, newtons.
     total: Vec<f64>,
+    /// Per clause of the contract's `terms`, the f64 term of each sample, newtons.
+    terms: Vec<Vec<f64>>,
+    /// Per clause of the contract's `outputs`, the f64 output of each sample, SI.
+    outputs: Vec<Vec<f64>>,
     /// (sample, event, arguments SI) of each event of the f64 run.
     events: Vec<(usize, usize, Vec<f64>)>,
     /// The run-time params' values (SI, [`Program::runtime_params`] order) this run used;
@@ -113,7 +203,8 @@ impl ReferenceRun {
 
 /// Runs the f64 interpreter of `p` on the key trajectory `keys` (metres, first sensor,
 /// quantised to the sensor words of `fp`), with the run-time params at `params` (SI, in
-/// [`Program::runtime_params`] order; empty: the params' own values).
+/// [`Program::runtime_params`] order; empty: the params' own values), recording what the
+/// clauses of `p.contract` need.
 pub fn reference(p: &Program, fp: &FixedProgram, keys: &[f64], params: &[f64]) -> ReferenceRun {
     let mut q;
     let prog = if params.is_empty() {
@@ -126,10 +217,13 @@ pub fn reference(p: &Program, fp: &FixedProgram, keys: &[f64], params: &[f64]) -
         }
         &q
     };
+    let c = &p.contract;
     let mut a = Instance::new(prog);
     let mut run = ReferenceRun {
         raw: Vec::with_capacity(keys.len()),
         total: Vec::with_capacity(keys.len()),
+        terms: vec![Vec::with_capacity(keys.len()); c.terms.len()],
+        outputs: vec![Vec::with_capacity(keys.len()); c.outputs.len()],
         events: Vec::new(),
         params: params.to_vec(),
     };
@@ -138,6 +232,12 @@ pub fn reference(p: &Program, fp: &FixedProgram, keys: &[f64], params: &[f64]) -
         let oa = a.step(&[fx::to_f64(raw, fp.sensor_frac[0])]);
         run.raw.push(raw);
         run.total.push(oa.total);
+        for (t, (f, _)) in run.terms.iter_mut().zip(&c.terms) {
+            t.push(oa.forces[f.index()]);
+        }
+        for (t, (o, _)) in run.outputs.iter_mut().zip(&c.outputs) {
+            t.push(oa.outputs[o.index()]);
+        }
         run.events
             .extend(oa.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
     }
@@ -145,16 +245,17 @@ pub fn reference(p: &Program, fp: &FixedProgram, keys: &[f64], params: &[f64]) -
 }
 
 /// Runs the fixed interpreter of `fp` on the samples of a recorded reference run and
-/// measures each clause against it. With `stop`, the run ends at the first sample whose
-/// force or states break that contract (the planner's search only needs to know that a
-/// plan fails); the events are compared over the samples run.
+/// measures each clause of `c` against it (`c` must have the clauses of `p.contract` the run
+/// recorded, scaled or not). With `stop`, the run ends at the first sample whose force,
+/// terms, outputs or states break `c` (the planner's search only needs to know that a plan
+/// fails); the events are compared over the samples run.
 pub fn compare(
     p: &Program,
     fp: &FixedProgram,
     run: &ReferenceRun,
     dac_lsb_n: f64,
-    window_s: f64,
-    stop: Option<&Contract>,
+    c: &Contract,
+    stop: bool,
 ) -> ContractCheck {
     let block = if run.params.is_empty() {
         fp.nominal_param_block()
@@ -165,7 +266,13 @@ pub fn compare(
         }
     };
     let mut b = FixedInstance::with_params(fp, block);
-    let mut out = ContractCheck::default();
+    let mut out = ContractCheck {
+        dac_lsb_n,
+        term_lsb: vec![0.0; run.terms.len()],
+        output_err: vec![0.0; run.outputs.len()],
+        ..ContractCheck::default()
+    };
+    let force_limit = c.force.lsb(dac_lsb_n);
     let mut ev_b: Vec<(usize, usize, Vec<f64>)> = Vec::new();
     let mut ran = run.raw.len();
     for (n, (&raw, &total)) in run.raw.iter().zip(&run.total).enumerate() {
@@ -173,6 +280,21 @@ pub fn compare(
         out.samples += 1;
         let ft = fx::to_f64(ob.total, fp.total_frac);
         out.max_force_lsb = out.max_force_lsb.max((total - ft).abs() / dac_lsb_n);
+        let mut broken = out.max_force_lsb > force_limit;
+        for (k, ((f, bound), series)) in c.terms.iter().zip(&run.terms).enumerate() {
+            let i = f.index();
+            let x = fx::to_f64(ob.forces[i], fp.force_frac[i]);
+            let e = (series[n] - x).abs() / dac_lsb_n;
+            out.term_lsb[k] = out.term_lsb[k].max(e);
+            broken |= e > bound.lsb(dac_lsb_n);
+        }
+        for (k, ((o, bound), series)) in c.outputs.iter().zip(&run.outputs).enumerate() {
+            let i = o.index();
+            let x = fx::to_f64(ob.outputs[i], fp.output_frac[i]);
+            let e = (series[n] - x).abs();
+            out.output_err[k] = out.output_err[k].max(e);
+            broken |= e > *bound;
+        }
         for (e, args) in &ob.events {
             let f = &fp.event_frac[e.index()];
             let si = args
@@ -188,22 +310,21 @@ pub fn compare(
             x < lo || x > hi
         });
         out.state_out_of_range += outside as usize;
-        if let Some(c) = stop {
-            if out.max_force_lsb > c.force_lsb || outside {
-                ran = n + 1;
-                break;
-            }
+        if stop && (broken || outside) {
+            ran = n + 1;
+            break;
         }
     }
     out.overflowed = b.overflowed().iter().filter(|o| **o).count();
     let ev_a: Vec<&(usize, usize, Vec<f64>)> = run.events.iter().filter(|e| e.0 < ran).collect();
     out.events_f64 = ev_a.len();
     out.events_fixed = ev_b.len();
-    // Pair events in order, per kind, within the time tolerance window (a larger shift
+    // Pair events in order, per kind, within the kind's time tolerance (a larger shift
     // counts as a lost plus an added event).
-    let window = (window_s * p.sample_rate_hz).ceil() as usize;
     let mut used = vec![false; ev_b.len()];
     for (na, ka, args_a) in ev_a {
+        let tol = c.time_of(*ka) * p.sample_rate_hz;
+        let window = tol.ceil() as usize;
         let partner = ev_b
             .iter()
             .enumerate()
@@ -211,10 +332,13 @@ pub fn compare(
         match partner {
             Some((j, (nb, _, args_b))) => {
                 used[j] = true;
-                out.max_event_shift = out.max_event_shift.max(na.abs_diff(*nb));
-                for (x, y) in args_a.iter().zip(args_b) {
+                let shift = na.abs_diff(*nb);
+                out.max_event_shift = out.max_event_shift.max(shift);
+                out.shift_ratio = out.shift_ratio.max(shift as f64 / tol.max(1e-12));
+                for (i, (x, y)) in args_a.iter().zip(args_b).enumerate() {
                     let rel = (x - y).abs() / x.abs().max(1e-12);
                     out.max_arg_rel = out.max_arg_rel.max(rel);
+                    out.arg_ratio = out.arg_ratio.max(rel / c.arg_rel_of(*ka, i));
                 }
             }
             None => out.unmatched += 1,
@@ -226,9 +350,26 @@ pub fn compare(
 
 /// Runs the f64 interpreter of `p` and the fixed interpreter of `fp` side by side on the key
 /// trajectory `keys` (metres, first sensor; the f64 engine reads the same quantised samples)
-/// and measures each clause (events paired within the program contract's time tolerance). `dac_lsb_n` is one
-/// DAC LSB in newtons.
+/// and measures each clause of `p.contract`. `dac_lsb_n` is one DAC LSB in newtons.
 pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> ContractCheck {
     let run = reference(p, fp, keys, &[]);
-    compare(p, fp, &run, dac_lsb_n, p.contract.event_time_s, None)
+    compare(p, fp, &run, dac_lsb_n, &p.contract, false)
+}
+
+/// Every built-in stimulus of a keyboard program (one sensor) through both engines,
+/// clause by clause against `p.contract`: (stimulus, what it showed). Empty for a program of
+/// several sensors (a pen), whose stimuli are not key dips.
+pub fn check_builtin(p: &Program, fp: &FixedProgram) -> Vec<(&'static str, ContractCheck)> {
+    if p.sensors.len() != 1 {
+        return Vec::new();
+    }
+    let lsb = super::report::analyse(fp).dac_lsb_n();
+    tactus_runtime::stimulus::builtin_names()
+        .iter()
+        .filter_map(|(stim, _)| {
+            let s = tactus_runtime::stimulus::builtin(stim, p.sensors[0].range.1, p.sample_rate_hz)
+                .ok()?;
+            Some((*stim, check(p, fp, &s.key, lsb)))
+        })
+        .collect()
 }

@@ -807,7 +807,7 @@ impl FixedProgram {
         let mut holds = |fp: &FixedProgram| -> bool {
             for pos in 0..order.len() {
                 let r = &runs[order[pos]];
-                let c = contract::compare(original, fp, r, lsb, strict.event_time_s, Some(&strict));
+                let c = contract::compare(original, fp, r, lsb, &strict, true);
                 if !c.violations(&strict, original.sample_rate_hz).is_empty() {
                     let i = order.remove(pos);
                     order.insert(0, i);
