@@ -1,0 +1,472 @@
+//! Instruction selection: the fixed-point IR to [`M`] over virtual registers.
+//!
+//! Every IR operation computes the bits `tactus_runtime::fixed` defines (the same
+//! reductions as the C backend's [`crate::cgen::prim`], written as ARMv6-M sequences). The
+//! range analysis bounds every word: `bound(v) ≥ |raw word|` for each value, from its
+//! interval and format, widened by a relative 1e-9 and one unit so that the f64 interval
+//! arithmetic's rounding cannot make it unsound. Those bounds choose the sequence:
+//!
+//! * a sum whose terms provably fit 32 bits is `ADDS`/`SUBS` (plus the format shifts); other
+//!   sums extend to 64 bits (`ADDS`/`ADCS`);
+//! * saturation to `i32` is emitted only where the bound does not prove the word fits;
+//! * a comparison of two words that cannot overflow is `SUBS` and a sign extraction
+//!   (branch-free); a comparison with a constant uses the exact thresholds of
+//!   [`crate::cgen::prim`];
+//! * a multiplication planned for `MULS` is `ASRS` pre-shifts, one `MULS` and the rounding
+//!   shift; a 64-bit product is four 16×16 `MULS` partial products combined with
+//!   `ADDS`/`ADCS` (ARMv6-M has no `SMULL`);
+//! * a right shift rounding half up by `m ≤ 31` is `ASRS #m-1; ADDS #1; ASRS #1`
+//!   (`floor((floor(x/2^(m-1)) + 1)/2) = floor(x/2^m + 1/2)`).
+//!
+//! Booleans are words 0/1 where a value needs them (an edge, an output); a condition that
+//! only an `if` tests is a chain of compare-and-branch instructions (short-circuit `and`/`or`,
+//! `not` by the branch sense), and an `and`/`or` word with such operands is materialised by
+//! branches. For the WCET analysis the selector also attaches flow facts
+//! ([`crate::fixed::flow::exclusions`]):
+//! pairs of top-level `if` bodies that cannot both run in one call.
+//!
+//! The selector's core (this module: the [`Sel`] state, the small builders, the statement
+//! walk) and one module per kind of sequence: [`values`] (an IR value's definition),
+//! [`words`] (shifts, rounding, saturation, 64-bit pairs), [`sums`], [`products`],
+//! [`divide`], [`elementary`] (`exp`, `sqrt`), [`compare`] (comparisons and branches) and
+//! [`state`] (state, sensor and output access).
+
+mod compare;
+mod divide;
+mod elementary;
+mod products;
+mod state;
+mod sums;
+mod values;
+mod words;
+
+use super::mir::*;
+use super::ThumbError;
+use crate::cgen::{prim, OutLayout, StateLayout};
+use crate::fixed::flow::exclusions;
+use crate::fixed::{FixedProgram, MulKind};
+use crate::ir::*;
+use compare::fused_conditions;
+use products::Operand;
+use std::cmp::Ordering;
+use tactus_emulator::decode::{AluOp, MemOp};
+use tactus_runtime::differentiator::WINDOW;
+
+const LIM: u64 = 1 << 31;
+
+/// A word and a bound on its magnitude.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct W {
+    v: V,
+    b: u64,
+}
+
+/// A selected function body and its number of virtual registers.
+pub(crate) struct Selected {
+    pub code: Vec<M>,
+    pub nregs: u32,
+    /// Pairs of top-level `if` statements (their [`M::Mark`]s) whose bodies never both run
+    /// in one call ([`crate::fixed::flow::exclusions`]).
+    pub exclusive: Vec<(u32, u32)>,
+}
+
+pub(crate) struct Sel<'a> {
+    fp: &'a FixedProgram,
+    p: &'a Program,
+    st: &'a StateLayout,
+    out: &'a OutLayout,
+    code: Vec<M>,
+    nv: u32,
+    nl: u32,
+    val: Vec<Option<W>>,
+    used: Vec<bool>,
+    sensors: Vec<W>,
+    derivs: Vec<[Option<W>; 2]>,
+    /// `d2()` of a sensor whose second difference does not fit 32 bits, as `(d1, e)` with
+    /// `d2 = d1 − e`.
+    d2_parts: Vec<Option<(W, W)>>,
+    out_ptr: V,
+    next_site: usize,
+    /// Force/output/total slots written unconditionally exactly once: stored straight to
+    /// `out[]`, not through `published[]`.
+    direct: Vec<bool>,
+    /// `state + region` in a register, for word accesses beyond the 124-byte reach of an
+    /// immediate offset from r7 (`(region, register)`, region a multiple of 128): reused by
+    /// the following accesses to the same region until the next label, where control may
+    /// arrive from a path that did not define it.
+    region_base: Option<(usize, V)>,
+    /// Virtual registers holding a known word: defined once, by [`Sel::movi`] (a later
+    /// definition removes the entry). A rounding of such a word is folded to its result
+    /// ([`Sel::round`], [`Sel::floor_shr`]): a constant's conversion to another format costs
+    /// nothing at run time.
+    konst: std::collections::HashMap<V, i32>,
+    /// The first construct found that this backend cannot compile.
+    unsupported: Option<String>,
+    /// Whether [`Sel::stmts`] is at the body's top level (for [`M::Mark`]s).
+    top: bool,
+    /// Conditions evaluated as branches where an `if` tests them, never as 0/1 words:
+    /// `and`/`or`/`not`/comparisons whose only use is that `if` (or another such condition).
+    fused: Vec<bool>,
+}
+
+fn pow2(e: i32) -> u64 {
+    if e >= 63 {
+        u64::MAX
+    } else {
+        1u64 << e.max(0)
+    }
+}
+
+fn shl_bound(b: u64, e: i32) -> u64 {
+    if b == 0 {
+        0
+    } else if e >= 40 {
+        u64::MAX
+    } else {
+        b.saturating_mul(pow2(e))
+    }
+}
+
+impl<'a> Sel<'a> {
+    pub(crate) fn new(
+        fp: &'a FixedProgram,
+        st: &'a StateLayout,
+        out: &'a OutLayout,
+        used: Vec<bool>,
+    ) -> Self {
+        let p = &fp.program;
+        let np = p.forces.len() + 1 + p.outputs.len();
+        let mut count = vec![(0usize, false); np];
+        fn walk(stmts: &[Stmt], p: &Program, nested: bool, count: &mut [(usize, bool)]) {
+            let nf = p.forces.len();
+            for s in stmts {
+                let slot = match s {
+                    Stmt::Force(f, _) => Some(f.index()),
+                    Stmt::Total(_) => Some(nf),
+                    Stmt::Output(o, _) => Some(nf + 1 + o.index()),
+                    Stmt::If(_, body) => {
+                        walk(body, p, true, count);
+                        None
+                    }
+                    _ => None,
+                };
+                if let Some(i) = slot {
+                    count[i].0 += 1;
+                    count[i].1 |= nested;
+                }
+            }
+        }
+        walk(&p.body, p, false, &mut count);
+        let direct = count.iter().map(|&(n, nested)| n == 1 && !nested).collect();
+        let fused = fused_conditions(p, &used);
+        Sel {
+            fp,
+            p,
+            st,
+            out,
+            code: Vec::new(),
+            nv: 0,
+            nl: 0,
+            val: vec![None; p.values.len()],
+            used,
+            sensors: Vec::new(),
+            derivs: vec![[None, None]; p.sensors.len()],
+            d2_parts: vec![None; p.sensors.len()],
+            out_ptr: V(0),
+            next_site: 0,
+            direct,
+            region_base: None,
+            konst: std::collections::HashMap::new(),
+            unsupported: None,
+            fused,
+            top: false,
+        }
+    }
+
+    fn nv(&mut self) -> V {
+        self.nv += 1;
+        V(self.nv - 1)
+    }
+
+    fn label(&mut self) -> Label {
+        self.nl += 1;
+        Label(self.nl - 1)
+    }
+
+    fn push(&mut self, m: M) {
+        if matches!(m, M::Label(_)) {
+            self.region_base = None;
+        }
+        if let Some(d) = m.def() {
+            self.konst.remove(&d);
+        }
+        self.code.push(m);
+    }
+
+    // ---- small builders ----
+
+    fn movi(&mut self, imm: i32) -> V {
+        let d = self.nv();
+        self.push(M::Movi { d, imm });
+        self.konst.insert(d, imm);
+        d
+    }
+
+    /// A known word `c` as a `W` (its bound is its magnitude).
+    fn known(&mut self, c: i32) -> W {
+        W {
+            v: self.movi(c),
+            b: c.unsigned_abs() as u64,
+        }
+    }
+
+    fn sh(&mut self, op: Shift, m: V, imm: u8) -> V {
+        let d = self.nv();
+        self.push(M::Sh { op, d, m, imm });
+        d
+    }
+
+    fn alu2(&mut self, op: AluOp, a: V, m: V) -> V {
+        let d = self.nv();
+        self.push(M::Alu2 { op, d, a, m });
+        d
+    }
+
+    fn addsub(&mut self, sub: bool, a: V, b: V) -> V {
+        let d = self.nv();
+        self.push(M::AddSub { sub, d, a, b });
+        d
+    }
+
+    fn addi(&mut self, sub: bool, a: V, imm: u8) -> V {
+        let d = self.nv();
+        self.push(M::AddSubI { sub, d, a, imm });
+        d
+    }
+
+    fn unary(&mut self, op: AluOp, m: V) -> V {
+        let d = self.nv();
+        self.push(M::Unary { op, d, m });
+        d
+    }
+
+    /// Records the first construct this backend cannot compile ([`Sel::run`] reports it).
+    fn unsupported(&mut self, what: &str) {
+        self.unsupported.get_or_insert_with(|| what.to_string());
+    }
+}
+
+/// The pinned state pointer as a virtual register for address arithmetic (allocated to r7).
+pub(crate) const STATE_V: V = V(u32::MAX);
+
+impl<'a> Sel<'a> {
+    /// Selects the whole update body.
+    pub(crate) fn run(mut self) -> Result<Selected, ThumbError> {
+        let (p, fp, st) = (self.p, self.fp, self.st);
+        // Arguments: r0 = state (copied to r7 by the prologue), r1 = sensors, r2 = out.
+        let sensors_ptr = ARG1;
+        self.out_ptr = ARG2;
+        self.nv = FIRST_FREE;
+        // 1. Sensors: load, clamp, push the histories.
+        for (i, _sd) in p.sensors.iter().enumerate() {
+            let raw = self.load(MemOp::Ldr, Base::V(sensors_ptr), 4 * i);
+            let (lo, hi) = fp.sensor_raw_range[i];
+            self.clamp(raw, lo, hi);
+            let b = (lo as i64).unsigned_abs().max((hi as i64).unsigned_abs());
+            self.sensors.push(W { v: raw, b });
+        }
+        let mut slot = 0;
+        for (i, sd) in p.sensors.iter().enumerate() {
+            if !sd.differentiated {
+                continue;
+            }
+            self.history(i, slot)?;
+            slot += 1;
+        }
+        // Clear the emit slots of out[].
+        if !self.out.emits.is_empty() {
+            let z = self.movi(0);
+            for site in self.out.emits.clone() {
+                let n = 1 + p.events[site.event.index()].args.len();
+                for k in 0..n {
+                    self.store(MemOp::Str, z, Base::V(self.out_ptr), 4 * (site.offset + k));
+                }
+            }
+        }
+        let body = p.body.clone();
+        self.top = true;
+        self.stmts(&body)?;
+        // Published slots not stored directly: copy published[] to out[].
+        let np = p.forces.len() + 1 + p.outputs.len();
+        for i in 0..np {
+            if !self.direct[i] {
+                let w = self.load(MemOp::Ldr, Base::State, st.published + 4 * i);
+                self.store(MemOp::Str, w, Base::V(self.out_ptr), 4 * i);
+            }
+        }
+        if let Some(what) = self.unsupported {
+            return Err(ThumbError::Unsupported(what));
+        }
+        // Constants nothing reads (the zero side of a `select` folded to `ANDS`/`BICS`):
+        // `MOVS #imm` and literal loads have no effect the code relies on (N and Z of a
+        // `MOVS` are never tested: every branch follows its own compare).
+        let mut used = vec![false; self.nv as usize];
+        for m in &self.code {
+            for u in m.uses() {
+                // (Fixed registers are numbered from the top: never a `Movi`'s.)
+                if let Some(x) = used.get_mut(u.0 as usize) {
+                    *x = true;
+                }
+            }
+        }
+        self.code
+            .retain(|m| !matches!(m, M::Movi { d, .. } if used.get(d.0 as usize) == Some(&false)));
+        Ok(Selected {
+            code: self.code,
+            nregs: self.nv,
+            exclusive: exclusions(fp),
+        })
+    }
+
+    fn stmts(&mut self, stmts: &[Stmt]) -> Result<(), ThumbError> {
+        let (p, fp, st) = (self.p, self.fp, self.st);
+        let top = std::mem::replace(&mut self.top, false);
+        for (k, s) in stmts.iter().enumerate() {
+            match s {
+                Stmt::Def(v) => {
+                    let word_only = matches!(
+                        p.values[v.index()].op,
+                        Op::Const(_) | Op::Param(_) | Op::BoolConst(_) | Op::Variant(..)
+                    );
+                    if self.used[v.index()] && !word_only && !self.fused[v.index()] {
+                        let w = self.def(*v)?;
+                        self.val[v.index()] = Some(w);
+                    }
+                }
+                Stmt::SetState(sid, v) => {
+                    let i = sid.index();
+                    let x = self.word(*v);
+                    let t = self.convert(x, fp.frac[v.index()], fp.state_frac[i]);
+                    let (lo, hi) = fp.state_raw_range[i];
+                    // The clamp is omitted where the value's interval proves it inside.
+                    let iv = fp.ranges.values[v.index()];
+                    let scale = 2f64.powi(fp.state_frac[i]);
+                    let margin = 2.0 + 1e-9 * iv.mag() * scale;
+                    // A state copied into a state of the same format and a range at least
+                    // as wide (a delay line's shift) is inside too: every state word is
+                    // within its own raw range (initialised in it, clamped on each write).
+                    let copy = match p.values[v.index()].op {
+                        Op::State(src) => {
+                            let (slo, shi) = fp.state_raw_range[src.index()];
+                            fp.state_frac[src.index()] == fp.state_frac[i]
+                                && fp.frac[v.index()] == fp.state_frac[i]
+                                && slo >= lo
+                                && shi <= hi
+                        }
+                        _ => false,
+                    };
+                    let inside = copy
+                        || (iv.lo * scale - margin >= lo as f64
+                            && iv.hi * scale + margin <= hi as f64);
+                    let t = if inside {
+                        t.v
+                    } else {
+                        let c = self.nv();
+                        self.push(M::Mov { d: c, s: t.v });
+                        self.clamp(c, lo, hi);
+                        c
+                    };
+                    self.store(MemOp::Str, t, Base::State, st.states + 4 * i);
+                }
+                Stmt::SetMode(m, i) => {
+                    let k = self.movi(*i as i32);
+                    self.store(MemOp::Strb, k, Base::State, st.modes + m.index());
+                }
+                Stmt::SetEdge(e, v) => {
+                    let w = self.word(*v);
+                    self.store(MemOp::Strb, w.v, Base::State, st.edges + e.index());
+                }
+                // `while true { … }`: the body, without a test (no flow fact can name it:
+                // a body that always runs excludes nothing).
+                Stmt::If(c, body) if p.values[c.index()].op == Op::BoolConst(true) => {
+                    self.stmts(body)?;
+                }
+                Stmt::If(c, body) => {
+                    let skip = self.label();
+                    self.branch(*c, false, skip)?;
+                    if top {
+                        self.push(M::Mark(k as u32));
+                    }
+                    self.push(M::Note(format!("if {}", describe(p, *c))));
+                    self.stmts(body)?;
+                    self.push(M::Label(skip));
+                }
+                Stmt::Emit(e, args) => {
+                    let site = self.out.emits[self.next_site];
+                    self.next_site += 1;
+                    self.push(M::Note(format!("emit {}", p.events[e.index()].name)));
+                    let one = self.movi(1);
+                    self.store(MemOp::Str, one, Base::V(self.out_ptr), 4 * site.offset);
+                    for (j, (a, f)) in args.iter().zip(&fp.event_frac[e.index()]).enumerate() {
+                        let x = self.word(*a);
+                        let w = self.convert(x, fp.frac[a.index()], *f);
+                        self.store(
+                            MemOp::Str,
+                            w.v,
+                            Base::V(self.out_ptr),
+                            4 * (site.offset + 1 + j),
+                        );
+                    }
+                }
+                Stmt::Force(f, v) => self.publish(f.index(), *v),
+                Stmt::Total(v) => self.publish(p.forces.len(), *v),
+                Stmt::Output(o, v) => self.publish(p.forces.len() + 1 + o.index(), *v),
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A short source-level description of a condition value, for the listing and the WCET
+/// report (`on hammer_hits_string`-style names come from the handler's span text).
+fn describe(p: &Program, v: Value) -> String {
+    let span = &p.values[v.index()].span;
+    format!("condition v{} @{}..{}", v.0, span.start, span.end)
+}
+
+/// `r1` and `r2` on entry: the sensors and out pointers (virtual registers pre-coloured
+/// by the allocator).
+pub(crate) const ARG1: V = V(0);
+pub(crate) const ARG2: V = V(1);
+pub(crate) const FIRST_FREE: u32 = 2;
+
+impl<'a> Sel<'a> {
+    /// The body of `init`: zero the struct, then the initial states and modes.
+    pub(crate) fn init_body(mut self) -> Selected {
+        let (p, fp, st) = (self.p, self.fp, self.st);
+        self.nv = FIRST_FREE;
+        let z = self.movi(0);
+        // Every word but the param block, which the firmware wrote before.
+        let params = st.params / 4..st.params / 4 + fp.param_words.len();
+        for w in (0..st.size / 4).filter(|w| !params.contains(w)) {
+            self.store(MemOp::Str, z, Base::State, 4 * w);
+        }
+        for (i, &init) in fp.state_init.iter().enumerate() {
+            if init != 0 {
+                let k = self.movi(init);
+                self.store(MemOp::Str, k, Base::State, st.states + 4 * i);
+            }
+        }
+        for (i, md) in p.modes.iter().enumerate() {
+            if md.init != 0 {
+                let k = self.movi(md.init as i32);
+                self.store(MemOp::Strb, k, Base::State, st.modes + i);
+            }
+        }
+        Selected {
+            code: self.code,
+            nregs: self.nv,
+            exclusive: Vec::new(),
+        }
+    }
+}

@@ -1,0 +1,253 @@
+//! State, sensor and output access: loads and stores with immediate offsets from the state
+//! pointer (r7) or a region base beyond their reach, sensor clamps, the differentiator ring and
+//! the published force/output slots.
+
+use super::*;
+
+/// Whether byte offset `off` fits the immediate form of a load/store (imm5, scaled by the
+/// access size).
+pub(super) fn imm_offset(op: MemOp, off: usize) -> bool {
+    let size = op.size() as usize;
+    off <= 31 * size && off.is_multiple_of(size)
+}
+
+impl<'a> Sel<'a> {
+    /// For a word access at `off` bytes into the state struct beyond an immediate offset's
+    /// reach: the base register of its 128-byte region and the offset within it (a delay
+    /// line's shift then costs `LDR`/`STR` with immediate offsets, one address computation
+    /// per 32 words).
+    pub(super) fn state_region(&mut self, off: usize) -> (V, u16) {
+        let region = off & !127;
+        if let Some((r, b)) = self.region_base {
+            if r == region {
+                return (b, (off - region) as u16);
+            }
+        }
+        let o = self.movi(region as i32);
+        let s = self.nv();
+        self.push(M::Mov { d: s, s: STATE_V });
+        let b = self.addsub(false, s, o);
+        self.region_base = Some((region, b));
+        (b, (off - region) as u16)
+    }
+
+    pub(super) fn load(&mut self, op: MemOp, base: Base, off: usize) -> V {
+        let t = self.nv();
+        if imm_offset(op, off) {
+            self.push(M::Load {
+                op,
+                t,
+                base,
+                off: off as u16,
+            });
+        } else if base == Base::State && op == MemOp::Ldr && off.is_multiple_of(4) {
+            let (b, o) = self.state_region(off);
+            self.push(M::Load {
+                op,
+                t,
+                base: Base::V(b),
+                off: o,
+            });
+        } else {
+            let idx = self.movi(off as i32);
+            self.push(M::LoadR { op, t, base, idx });
+        }
+        t
+    }
+
+    pub(super) fn store(&mut self, op: MemOp, t: V, base: Base, off: usize) {
+        if imm_offset(op, off) {
+            self.push(M::Store {
+                op,
+                t,
+                base,
+                off: off as u16,
+            });
+        } else {
+            let addr = match base {
+                // `STR Rt, [r7, Rm]` with the offset in a register (a delay line's shift
+                // stores far into the state struct every sample).
+                Base::State if op == MemOp::Str && off.is_multiple_of(4) => {
+                    let (b, o) = self.state_region(off);
+                    self.push(M::Store {
+                        op,
+                        t,
+                        base: Base::V(b),
+                        off: o,
+                    });
+                    return;
+                }
+                Base::State => {
+                    let idx = self.movi(off as i32);
+                    self.push(M::StoreR { op, t, idx });
+                    return;
+                }
+                // Elsewhere the address is computed (such stores are rare).
+                Base::V(b) => {
+                    let o = self.movi(off as i32);
+                    self.addsub(false, b, o)
+                }
+            };
+            self.push(M::Store {
+                op,
+                t,
+                base: Base::V(addr),
+                off: 0,
+            });
+        }
+    }
+
+    /// Clamps `x` (redefined in place) to `[lo, hi]`.
+    pub(super) fn clamp(&mut self, x: V, lo: i32, hi: i32) {
+        if self.konst.get(&x).is_some_and(|c| (lo..=hi).contains(c)) {
+            return;
+        }
+        for (bound, cond) in [(lo, Cond::Ge), (hi, Cond::Le)] {
+            if (cond == Cond::Ge && bound == i32::MIN) || (cond == Cond::Le && bound == i32::MAX) {
+                continue;
+            }
+            let ok = self.label();
+            let k = if (0..=255).contains(&bound) {
+                self.push(M::CmpI {
+                    a: x,
+                    imm: bound as u8,
+                });
+                None
+            } else {
+                let k = self.movi(bound);
+                self.push(M::Cmp { a: x, b: k });
+                Some(k)
+            };
+            self.push(M::Bc(cond, ok));
+            match k {
+                Some(k) => self.push(M::Mov { d: x, s: k }),
+                None => self.push(M::Movi { d: x, imm: bound }),
+            }
+            self.push(M::Label(ok));
+        }
+    }
+
+    /// The differentiator ring of sensor `i` (history slot `h`): prime, advance, store,
+    /// and the raw differences `d()`/`d2()` need.
+    pub(super) fn history(&mut self, i: usize, h: usize) -> Result<(), ThumbError> {
+        let (p, st) = (self.p, self.st);
+        let hlen = 2 * WINDOW + 1;
+        let s = self.sensors[i];
+        let base = st.hist + 4 * hlen * h;
+        // Prime on the first sample: fill the ring with this reading.
+        let primed = self.load(MemOp::Ldrb, Base::State, st.hist_primed + h);
+        let skip = self.label();
+        self.push(M::CmpI { a: primed, imm: 0 });
+        self.push(M::Bc(Cond::Ne, skip));
+        for k in 0..hlen {
+            self.store(MemOp::Str, s.v, Base::State, base + 4 * k);
+        }
+        let one = self.movi(1);
+        self.store(MemOp::Strb, one, Base::State, st.hist_primed + h);
+        self.push(M::Label(skip));
+        // pos = (pos + 1) mod 17
+        let pos = self.load(MemOp::Ldrb, Base::State, st.hist_pos + h);
+        let pos1 = self.addi(false, pos, 1);
+        let wrap = self.label();
+        self.push(M::CmpI {
+            a: pos1,
+            imm: hlen as u8,
+        });
+        self.push(M::Bc(Cond::Ne, wrap));
+        self.push(M::Movi { d: pos1, imm: 0 });
+        self.push(M::Label(wrap));
+        self.store(MemOp::Strb, pos1, Base::State, st.hist_pos + h);
+        // Address of the ring: state + base.
+        let ring = {
+            let sv = self.nv();
+            self.push(M::Mov { d: sv, s: STATE_V });
+            if base <= 255 {
+                self.addi(false, sv, base as u8)
+            } else {
+                let o = self.movi(base as i32);
+                self.addsub(false, sv, o)
+            }
+        };
+        let off0 = self.sh(Shift::Lsl, pos1, 2);
+        let addr = self.addsub(false, ring, off0);
+        self.push(M::Store {
+            op: MemOp::Str,
+            t: s.v,
+            base: Base::V(addr),
+            off: 0,
+        });
+        let span = {
+            let (lo, hi) = self.fp.sensor_raw_range[i];
+            (hi as i64 - lo as i64).unsigned_abs()
+        };
+        let ago = |this: &mut Self, back: usize| -> V {
+            // index (pos + hlen - back) mod hlen
+            let t = this.addi(false, pos1, (hlen - back) as u8);
+            let ok = this.label();
+            this.push(M::CmpI {
+                a: t,
+                imm: hlen as u8,
+            });
+            this.push(M::Bc(Cond::Lt, ok));
+            this.push(M::AddSubI {
+                sub: true,
+                d: t,
+                a: t,
+                imm: hlen as u8,
+            });
+            this.push(M::Label(ok));
+            let off = this.sh(Shift::Lsl, t, 2);
+            let w = this.nv();
+            this.push(M::LoadR {
+                op: MemOp::Ldr,
+                t: w,
+                base: Base::V(ring),
+                idx: off,
+            });
+            w
+        };
+        let used1 = self.deriv_used(i, 1);
+        let used2 = self.deriv_used(i, 2);
+        if used1 || used2 {
+            if span >= LIM {
+                return Err(ThumbError::Unsupported(format!(
+                    "d() of sensor `{}`: its raw range spans more than 2^30, so its differences do not fit 32 bits",
+                    p.sensors[i].name
+                )));
+            }
+            let n_ago = ago(self, WINDOW);
+            let d1 = self.addsub(true, s.v, n_ago);
+            if used1 {
+                self.derivs[i][0] = Some(W { v: d1, b: span });
+            }
+            if used2 {
+                let n2_ago = ago(self, 2 * WINDOW);
+                // x0 - 2 x_N + x_2N = d1 - (x_N - x_2N)
+                let e = self.addsub(true, n_ago, n2_ago);
+                if 2 * span < LIM {
+                    let d2 = self.addsub(true, d1, e);
+                    self.derivs[i][1] = Some(W { v: d2, b: 2 * span });
+                } else {
+                    // d2 needs 33 bits: keep its two differences (k·d2 = k·d1 − k·e).
+                    self.d2_parts[i] = Some((W { v: d1, b: span }, W { v: e, b: span }));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn deriv_used(&self, s: usize, order: u8) -> bool {
+        self.p.values.iter().enumerate().any(|(i, vd)| {
+            self.used[i] && matches!(vd.op, Op::Deriv(x, o) if x.index() == s && o == order)
+        })
+    }
+
+    pub(super) fn publish(&mut self, slot: usize, v: Value) {
+        let w = self.word(v);
+        if self.direct[slot] {
+            self.store(MemOp::Str, w.v, Base::V(self.out_ptr), 4 * slot);
+        } else {
+            self.store(MemOp::Str, w.v, Base::State, self.st.published + 4 * slot);
+        }
+    }
+}

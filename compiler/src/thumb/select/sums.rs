@@ -1,0 +1,111 @@
+//! Sums and differences ([`tactus_runtime::fixed::add`]): `ADDS`/`SUBS` with the format shifts
+//! where the bounds prove 32 bits enough, else the 64-bit reduction.
+
+use super::*;
+
+impl<'a> Sel<'a> {
+    /// `x ± y` into `fr` ([`fx::add`]); `rb` bounds the result.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn add(&mut self, x: W, fx_: i32, y: W, fy: i32, fr: i32, sub: bool, rb: u64) -> W {
+        let (ex, ey) = (fr - fx_, fr - fy);
+        // Both terms on the result grid or coarser: exact integer shifts.
+        // One term on or above the grid: result = coarse·2^e1 ± round(fine·2^e2).
+        let (coarse, e1, fine, e2, fine_is_y) = if ex >= ey {
+            (x, ex, y, ey, true)
+        } else {
+            (y, ey, x, ex, false)
+        };
+        if e1 >= 0 && shl_bound(coarse.b, e1) < LIM {
+            let cb = shl_bound(coarse.b, e1);
+            // The fine term, negated first when it is the subtrahend.
+            let fine_signed = if sub && fine_is_y {
+                self.neg(fine)
+            } else {
+                fine
+            };
+            let fb = shl_bound(fine.b, e2.max(0)) + 1;
+            let fine_fits = e2 < 0 || shl_bound(fine.b, e2) < LIM;
+            if fine_fits && cb + (fb >> (-e2).max(0)) + 1 < LIM {
+                let f = if e2 >= 0 {
+                    self.round(fine_signed, e2)
+                } else {
+                    self.rshr(fine_signed, -e2)
+                };
+                let c = self.round(coarse, e1);
+                let (a, b, s) = if fine_is_y {
+                    (c, f, false)
+                } else {
+                    (f, c, sub)
+                };
+                // fine_is_y: c + f (f already negated for a subtraction);
+                // else the coarse term is y: f - c or f + c.
+                let v = self.addsub(s, a.v, b.v);
+                return W { v, b: rb.min(LIM) };
+            }
+        }
+        // Both finer than the result (or no 32-bit proof): the definition's reduction.
+        let g = e2.max(e1.min(-1));
+        let sy = (g - e2).min(63);
+        let dx = e1 - g;
+        if dx > 31 {
+            return self.add64_path(x, fx_, y, fy, fr, sub, rb);
+        }
+        let fine_signed = if sub && fine_is_y {
+            self.neg(fine)
+        } else {
+            fine
+        };
+        let f = self.floor_shr(fine_signed, sy);
+        let cb = shl_bound(coarse.b, dx);
+        if cb + f.b < LIM {
+            let c = if dx > 0 {
+                W {
+                    v: self.sh(Shift::Lsl, coarse.v, dx as u8),
+                    b: cb,
+                }
+            } else {
+                coarse
+            };
+            let s = if fine_is_y {
+                self.addsub(false, c.v, f.v)
+            } else {
+                self.addsub(sub, f.v, c.v)
+            };
+            let r = self.round(W { v: s, b: cb + f.b }, g);
+            return W {
+                v: r.v,
+                b: rb.min(r.b),
+            };
+        }
+        self.add64_path(x, fx_, y, fy, fr, sub, rb)
+    }
+
+    /// The sum in 64 bits (both terms extended and shifted to the finer grid, which is at
+    /// most 31 bits below the coarser), then rounded.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn add64_path(
+        &mut self,
+        x: W,
+        fx_: i32,
+        y: W,
+        fy: i32,
+        fr: i32,
+        sub: bool,
+        rb: u64,
+    ) -> W {
+        let f = fx_.max(fy);
+        let (sx, sy) = (f - fx_, f - fy);
+        if sx > 31 || sy > 31 {
+            // Formats more than 31 bits apart: not reachable from the shipped instruments.
+            self.unsupported("a sum of operands whose formats differ by more than 31 bits");
+            return W {
+                v: self.movi(0),
+                b: 0,
+            };
+        }
+        let a = self.shl64(x.v, sx);
+        let b = self.shl64(y.v, sy);
+        let s = self.add64(a, b, sub);
+        self.round64(s, fr - f, rb)
+    }
+}

@@ -1,0 +1,313 @@
+//! One IR value's definition as a word ([`Sel::def`]), the words of operands (constants
+//! rematerialised, run-time params loaded from the param block) and their magnitude bounds.
+
+use super::*;
+
+impl<'a> Sel<'a> {
+    pub(super) fn bound_of(&self, v: Value) -> u64 {
+        let fp = self.fp;
+        match self.p.values[v.index()].ty {
+            Ty::Bool => 1,
+            Ty::Mode(m) => self.p.modes[m.index()].variants.len() as u64,
+            Ty::Real(_) => {
+                let mag = fp.ranges.values[v.index()].mag();
+                let f = fp.frac[v.index()];
+                let b = (mag * 2f64.powi(f) * (1.0 + 1e-9)).ceil() + 1.0;
+                if b.is_finite() && b < LIM as f64 {
+                    b as u64
+                } else {
+                    LIM
+                }
+            }
+        }
+    }
+
+    /// The word of an operand value (constants are rematerialised at each use).
+    pub(super) fn word(&mut self, v: Value) -> W {
+        if let Some(k) = self.fp.param_word_of(v) {
+            // A run-time param: the key's word in the param block inside its state (an
+            // `LDR` from r7, as cheap as the literal-pool `LDR` of a constant).
+            let (lo, hi) = self.fp.param_words[k].raw_range;
+            let t = self.load(MemOp::Ldr, Base::State, self.st.params + 4 * k);
+            return W {
+                v: t,
+                b: (lo as i64).unsigned_abs().max((hi as i64).unsigned_abs()),
+            };
+        }
+        match self.p.values[v.index()].op {
+            Op::Const(_) | Op::Param(_) => {
+                let c = self.fp.consts[v.index()];
+                W {
+                    v: self.movi(c),
+                    b: c.unsigned_abs() as u64,
+                }
+            }
+            Op::BoolConst(t) => W {
+                v: self.movi(t as i32),
+                b: 1,
+            },
+            Op::Variant(_, i) => W {
+                v: self.movi(i as i32),
+                b: i as u64,
+            },
+            _ => self.val[v.index()].expect("IR value used before its definition"),
+        }
+    }
+
+    /// Whether `v` is the constant truth value `false` or a mode's first variant (word 0).
+    pub(super) fn is_zero_word(&self, v: Value) -> bool {
+        matches!(
+            self.p.values[v.index()].op,
+            Op::BoolConst(false) | Op::Variant(_, 0)
+        )
+    }
+
+    pub(super) fn is_const(&self, v: Value) -> bool {
+        self.p.const_value(v).is_some()
+    }
+
+    /// The word of a value's definition.
+    pub(super) fn def(&mut self, v: Value) -> Result<W, ThumbError> {
+        let (p, fp, st) = (self.p, self.fp, self.st);
+        let fr = fp.frac[v.index()];
+        let rb = self.bound_of(v);
+        let f = |x: &Value| fp.frac[x.index()];
+        let real = |x: &Value| matches!(p.values[x.index()].ty, Ty::Real(_));
+        let op = p.values[v.index()].op.clone();
+        Ok(match op {
+            Op::Const(_) | Op::Param(_) | Op::BoolConst(_) | Op::Variant(..) => self.word(v),
+            Op::Sensor(s) => {
+                let x = self.sensors[s.index()];
+                let w = self.convert(x, fp.sensor_frac[s.index()], fr);
+                W {
+                    v: w.v,
+                    b: w.b.min(rb),
+                }
+            }
+            Op::Deriv(s, 2) if self.d2_parts[s.index()].is_some() => {
+                let (d1, e) = self.d2_parts[s.index()].expect("checked");
+                let (k, fk) = fp.deriv_gain[1];
+                let sh = fr - (fp.sensor_frac[s.index()] + fk);
+                let kv = self.movi(k);
+                let a = self.smull(d1.v, kv);
+                let kv = self.movi(k);
+                let b = self.smull(e.v, kv);
+                let diff = self.add64(a, b, true);
+                self.round64(diff, sh, rb)
+            }
+            Op::Deriv(s, order) => {
+                let d = self.derivs[s.index()][order as usize - 1].ok_or_else(|| {
+                    ThumbError::Unsupported(format!("a derivative of order {order}"))
+                })?;
+                let (k, fk) = fp.deriv_gain[order as usize - 1];
+                let e = fr - (fp.sensor_frac[s.index()] + fk);
+                let kind = if d.b.saturating_mul(k.unsigned_abs() as u64) < LIM {
+                    MulKind::Muls(0, 0)
+                } else {
+                    MulKind::Wide
+                };
+                self.mul(d, 0, Operand::Const(k), 0, e, kind, rb)
+            }
+            Op::State(s) => {
+                let x = self.load(MemOp::Ldr, Base::State, st.states + 4 * s.index());
+                let (lo, hi) = fp.state_raw_range[s.index()];
+                let b = (lo as i64).unsigned_abs().max((hi as i64).unsigned_abs());
+                self.convert(W { v: x, b }, fp.state_frac[s.index()], fr)
+            }
+            Op::Mode(m) => W {
+                v: self.load(MemOp::Ldrb, Base::State, st.modes + m.index()),
+                b: rb,
+            },
+            Op::Edge(e) => W {
+                v: self.load(MemOp::Ldrb, Base::State, st.edges + e.index()),
+                b: 1,
+            },
+            Op::Neg(x) => {
+                let w = self.word(x);
+                let n = self.neg(w);
+                self.round(n, fr - f(&x))
+            }
+            Op::Not(x) => {
+                let w = self.word(x);
+                let n = self.unary(AluOp::Rsb, w.v);
+                W {
+                    v: self.addi(false, n, 1),
+                    b: 1,
+                }
+            }
+            Op::Arith(o, x, y) => match o {
+                ArithOp::Add | ArithOp::Sub => {
+                    let (a, b) = (self.word(x), self.word(y));
+                    self.add(a, f(&x), b, f(&y), fr, o == ArithOp::Sub, rb)
+                }
+                ArithOp::Mul => {
+                    let kind = fp.mul_kind[v.index()].unwrap_or(MulKind::Wide);
+                    if self.is_const(y) {
+                        let a = self.word(x);
+                        self.mul(
+                            a,
+                            f(&x),
+                            Operand::Const(fp.consts[y.index()]),
+                            f(&y),
+                            fr,
+                            kind,
+                            rb,
+                        )
+                    } else if self.is_const(x) {
+                        // The plan's shifts are in operand order: (constant, variable) here.
+                        let kind = match kind {
+                            MulKind::Muls(sc, sv) => MulKind::Muls(sv, sc),
+                            k => k,
+                        };
+                        let a = self.word(y);
+                        self.mul(
+                            a,
+                            f(&y),
+                            Operand::Const(fp.consts[x.index()]),
+                            f(&x),
+                            fr,
+                            kind,
+                            rb,
+                        )
+                    } else {
+                        let (a, b) = (self.word(x), self.word(y));
+                        self.mul(a, f(&x), Operand::Word(b), f(&y), fr, kind, rb)
+                    }
+                }
+                ArithOp::Div => match fp.recip[v.index()] {
+                    Some((r, fr_r)) => {
+                        let kind = fp.mul_kind[v.index()].unwrap_or(MulKind::Wide);
+                        let a = self.word(x);
+                        self.mul(a, f(&x), Operand::Const(r), fr_r, fr, kind, rb)
+                    }
+                    None => {
+                        let (a, b) = (self.word(x), self.word(y));
+                        let iv = fp.ranges.values[y.index()];
+                        let scale = 2f64.powi(f(&y));
+                        let nonzero = iv.lo * scale > 2.0 || iv.hi * scale < -2.0;
+                        if !nonzero || rb >= LIM {
+                            return Err(ThumbError::Unsupported(
+                                "division by a run-time value whose range contains 0 (use the C backend, or clamp the divisor away from 0)"
+                                    .into(),
+                            ));
+                        }
+                        // The divisor's planned pre-shift (`fixed::div_shifted`).
+                        let sh = fp.div_shift[v.index()].min(31);
+                        if sh == 0 {
+                            return self.div(a, b, fr - f(&x) + f(&y), rb);
+                        }
+                        let shifted = (iv.lo * scale / 2f64.powi(sh as i32) > 2.0)
+                            || (iv.hi * scale / 2f64.powi(sh as i32) < -2.0);
+                        // The quotient by the floored divisor is larger by at most
+                        // `2^(b+1) / min |y|` relatively (the planner keeps it below 2^31).
+                        let ymin = (iv.lo * scale).abs().min((iv.hi * scale).abs());
+                        let grow = (rb as f64 * 2f64.powi(sh as i32 + 1) / ymin).ceil() + 1.0;
+                        let rb2 =
+                            rb.saturating_add(if grow.is_finite() { grow as u64 } else { LIM });
+                        if !shifted || rb2 >= LIM {
+                            return Err(ThumbError::Unsupported(
+                                "a division whose shifted divisor may be 0 or whose quotient may not fit"
+                                    .into(),
+                            ));
+                        }
+                        let bs = self.floor_shr(b, sh as i32);
+                        self.div(a, bs, fr - f(&x) + f(&y) - sh as i32, rb2)?
+                    }
+                },
+            },
+            Op::Cmp(o @ (CmpOp::Eq | CmpOp::Ne), x, y)
+                if !real(&x) && (self.is_zero_word(x) || self.is_zero_word(y)) =>
+            {
+                // A truth value or mode against 0: `RSBS t, a, #0` sets C exactly when
+                // a = 0, so `ADCS t, a` leaves C; `a ≠ 0` is the sign of `-a | a`.
+                let a = if self.is_zero_word(y) { x } else { y };
+                let a = self.word(a).v;
+                let t = self.unary(AluOp::Rsb, a);
+                let v = if o == CmpOp::Eq {
+                    self.alu2(AluOp::Adc, t, a)
+                } else {
+                    let t = self.alu2(AluOp::Orr, t, a);
+                    self.sh(Shift::Lsr, t, 31)
+                };
+                W { v, b: 1 }
+            }
+            Op::Cmp(o, x, y) => match (fp.exact_const(x), fp.exact_const(y)) {
+                (_, Some(k)) if real(&x) => {
+                    let a = self.word(x);
+                    self.cmp_const(o, a, f(&x), k, false)
+                }
+                (Some(k), _) if real(&y) => {
+                    let a = self.word(y);
+                    self.cmp_const(o, a, f(&y), k, true)
+                }
+                _ => {
+                    let (a, b) = (self.word(x), self.word(y));
+                    self.cmp(o, a, f(&x), b, f(&y))
+                }
+            },
+            Op::And(x, y) | Op::Or(x, y) if self.fused[x.index()] || self.fused[y.index()] => {
+                // `d = 0; if !(x op y) goto done; d = 1; done:` with the operands as
+                // compare-and-branch chains.
+                let d = self.movi(0);
+                let done = self.label();
+                self.branch_op(v, false, done)?;
+                self.push(M::Movi { d, imm: 1 });
+                self.push(M::Label(done));
+                W { v: d, b: 1 }
+            }
+            Op::And(x, y) | Op::Or(x, y) => {
+                let (a, b) = (self.word(x), self.word(y));
+                let op = if matches!(op, Op::And(..)) {
+                    AluOp::And
+                } else {
+                    AluOp::Orr
+                };
+                W {
+                    v: self.alu2(op, a.v, b.v),
+                    b: 1,
+                }
+            }
+            Op::Select(c, x, y) => {
+                let cw = self.word(c);
+                let (a, b) = (self.word(x), self.word(y));
+                let (a, b) = if real(&v) {
+                    (self.convert(a, f(&x), fr), self.convert(b, f(&y), fr))
+                } else {
+                    (a, b)
+                };
+                self.select(cw.v, a, b)
+            }
+            Op::Call(func, x, y) => {
+                let a = self.word(x);
+                let fa = f(&x);
+                match func {
+                    Builtin::Abs => {
+                        let neg = self.neg(a);
+                        let n = self.round(neg, fr - fa);
+                        let pos = self.convert(a, fa, fr);
+                        let c = self.sh(Shift::Lsr, a.v, 31);
+                        let r = self.select(c, n, pos);
+                        W { v: r.v, b: rb }
+                    }
+                    Builtin::Min | Builtin::Max => {
+                        let (b, fb) = match y {
+                            Some(y) => (self.word(y), f(&y)),
+                            None => (a, fa),
+                        };
+                        let cop = if func == Builtin::Min {
+                            CmpOp::Le
+                        } else {
+                            CmpOp::Ge
+                        };
+                        let c = self.cmp(cop, a, fa, b, fb);
+                        let (ca, cb) = (self.convert(a, fa, fr), self.convert(b, fb, fr));
+                        let r = self.select(c.v, ca, cb);
+                        W { v: r.v, b: rb }
+                    }
+                    Builtin::Exp => self.exp(a, fa, fr, rb),
+                    Builtin::Sqrt => self.sqrt(a, fa, fr, rb),
+                }
+            }
+        })
+    }
+}

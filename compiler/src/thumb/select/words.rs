@@ -1,0 +1,256 @@
+//! Shifts, rounding and saturation of words, and 64-bit `(lo, hi)` pairs: the reductions
+//! `tactus_runtime::fixed` defines (round half up, saturate to `i32`), each emitted only where
+//! the word bounds do not prove it a no-op; a known word is folded at compile time.
+
+use super::*;
+
+impl<'a> Sel<'a> {
+    /// `floor(x / 2^s)`.
+    pub(super) fn floor_shr(&mut self, x: W, s: i32) -> W {
+        if s <= 0 {
+            return x;
+        }
+        if let Some(&c) = self.konst.get(&x.v) {
+            return self.known(c >> s.min(31));
+        }
+        let s = s.min(31) as u8;
+        W {
+            v: self.sh(Shift::Asr, x.v, s),
+            b: (x.b >> s) + 1,
+        }
+    }
+
+    /// `floor(x / 2^m + 1/2)` (round half up), `m ≥ 1`.
+    pub(super) fn rshr(&mut self, x: W, m: i32) -> W {
+        if m >= 32 {
+            // |x| < 2^31 ≤ 2^(m-1): rounds to 0.
+            return W {
+                v: self.movi(0),
+                b: 0,
+            };
+        }
+        if let (Some(&c), 1..) = (self.konst.get(&x.v), m) {
+            // A known word: the rounding at compile time (exact in i64).
+            return self.known((((c as i64 >> (m - 1)) + 1) >> 1) as i32);
+        }
+        let b = (x.b >> m) + 1;
+        if m >= 2 || x.b < LIM - 1 {
+            let t = if m >= 2 {
+                self.sh(Shift::Asr, x.v, (m - 1) as u8)
+            } else {
+                x.v
+            };
+            let t = self.addi(false, t, 1);
+            W {
+                v: self.sh(Shift::Asr, t, 1),
+                b,
+            }
+        } else {
+            // m = 1 at the top of the range: the carry out of ASRS is the half bit.
+            let t = self.sh(Shift::Asr, x.v, 1);
+            let z = self.movi(0);
+            W {
+                v: self.alu2(AluOp::Adc, t, z),
+                b,
+            }
+        }
+    }
+
+    /// `x · 2^e` saturated to i32, `e ≥ 1`.
+    pub(super) fn shl_sat(&mut self, x: W, e: i32) -> W {
+        let b = shl_bound(x.b, e);
+        if b < LIM {
+            return W {
+                v: self.sh(Shift::Lsl, x.v, e as u8),
+                b,
+            };
+        }
+        let done = self.label();
+        let d;
+        if e >= 32 {
+            d = self.movi(0);
+            self.push(M::CmpI { a: x.v, imm: 0 });
+            self.push(M::Bc(Cond::Eq, done));
+        } else {
+            d = self.sh(Shift::Lsl, x.v, e as u8);
+            let back = self.sh(Shift::Asr, d, e as u8);
+            self.push(M::Cmp { a: back, b: x.v });
+            self.push(M::Bc(Cond::Eq, done));
+        }
+        self.saturate_into(d, x.v);
+        self.push(M::Label(done));
+        W { v: d, b: LIM }
+    }
+
+    /// `d = sign(s) < 0 ? i32::MIN : i32::MAX` (a redefinition of `d`).
+    pub(super) fn saturate_into(&mut self, d: V, s: V) {
+        let t = self.sh(Shift::Asr, s, 31);
+        let t = self.unary(AluOp::Mvn, t);
+        let min = self.movi(i32::MIN);
+        self.push(M::Alu2 {
+            op: AluOp::Eor,
+            d,
+            a: t,
+            m: min,
+        });
+    }
+
+    /// `x · 2^e` rounded half up and saturated (any `e`).
+    pub(super) fn round(&mut self, x: W, e: i32) -> W {
+        if let Some(&c) = self.konst.get(&x.v) {
+            if e != 0 {
+                // The definition itself (`fixed::convert`: round half up, saturate).
+                return self.known(tactus_runtime::fixed::convert(c, 0, e).0);
+            }
+        }
+        match e.cmp(&0) {
+            Ordering::Equal => x,
+            Ordering::Greater => self.shl_sat(x, e),
+            Ordering::Less => self.rshr(x, -e),
+        }
+    }
+
+    pub(super) fn convert(&mut self, x: W, from: i32, to: i32) -> W {
+        self.round(x, to - from)
+    }
+
+    /// `-x` (exact: bounds are below 2^31, so `x ≠ i32::MIN`... unless unbounded).
+    pub(super) fn neg(&mut self, x: W) -> W {
+        if let Some(&c) = self.konst.get(&x.v) {
+            // A known word: `-c`, saturated as below for i32::MIN.
+            return self.known(c.checked_neg().unwrap_or(i32::MAX));
+        }
+        if x.b < LIM {
+            W {
+                v: self.unary(AluOp::Rsb, x.v),
+                b: x.b,
+            }
+        } else {
+            // -i32::MIN saturates.
+            let d = self.unary(AluOp::Rsb, x.v);
+            let done = self.label();
+            self.push(M::Bc(Cond::Pl, done));
+            self.push(M::Cmp { a: d, b: x.v });
+            self.push(M::Bc(Cond::Ne, done));
+            let m = self.movi(i32::MAX);
+            self.push(M::Mov { d, s: m });
+            self.push(M::Label(done));
+            W { v: d, b: LIM - 1 }
+        }
+    }
+
+    /// A 64-bit word pair `(lo, hi)` from a 32-bit word.
+    pub(super) fn ext(&mut self, x: V) -> (V, V) {
+        (x, self.sh(Shift::Asr, x, 31))
+    }
+
+    /// `x · 2^k` as 64 bits, `0 ≤ k ≤ 31`.
+    pub(super) fn shl64(&mut self, x: V, k: i32) -> (V, V) {
+        if k == 0 {
+            return self.ext(x);
+        }
+        let lo = self.sh(Shift::Lsl, x, k as u8);
+        let hi = self.sh(Shift::Asr, x, (32 - k) as u8);
+        (lo, hi)
+    }
+
+    pub(super) fn add64(&mut self, a: (V, V), b: (V, V), sub: bool) -> (V, V) {
+        let lo = self.addsub(sub, a.0, b.0);
+        let hi = self.alu2(if sub { AluOp::Sbc } else { AluOp::Adc }, a.1, b.1);
+        (lo, hi)
+    }
+
+    /// Saturates a 64-bit pair to i32.
+    pub(super) fn sat64(&mut self, x: (V, V)) -> V {
+        let d = self.nv();
+        self.push(M::Mov { d, s: x.0 });
+        let sign = self.sh(Shift::Asr, x.0, 31);
+        self.push(M::Cmp { a: sign, b: x.1 });
+        let done = self.label();
+        self.push(M::Bc(Cond::Eq, done));
+        self.saturate_into(d, x.1);
+        self.push(M::Label(done));
+        d
+    }
+
+    /// `round(x · 2^e)` of a 64-bit pair to a saturated i32; `bound` is the result's
+    /// magnitude bound (saturation omitted when below 2^31).
+    pub(super) fn round64(&mut self, x: (V, V), e: i32, bound: u64) -> W {
+        let fits = bound < LIM;
+        if e >= 0 {
+            let v = if e == 0 {
+                if fits {
+                    x.0
+                } else {
+                    self.sat64(x)
+                }
+            } else if fits {
+                self.sh(Shift::Lsl, x.0, e.min(31) as u8)
+            } else {
+                // sat(x·2^e) = shl_sat(sat(x), e): a word outside i32 saturates either way.
+                let s = self.sat64(x);
+                self.shl_sat(W { v: s, b: LIM }, e).v
+            };
+            return W { v, b: bound };
+        }
+        let m = -e;
+        if m >= 64 {
+            return W {
+                v: self.movi(0),
+                b: 0,
+            };
+        }
+        if fits {
+            // Low word of floor(x / 2^m) plus the half bit (the carry out of the last shift).
+            let v = if m < 32 {
+                let t = self.sh(Shift::Lsl, x.1, (32 - m) as u8);
+                let r = self.sh(Shift::Lsr, x.0, m as u8);
+                let r = self.alu2(AluOp::Orr, r, t);
+                let z = self.movi(0);
+                self.alu2(AluOp::Adc, r, z)
+            } else if m == 32 {
+                let r = self.nv();
+                self.push(M::Mov { d: r, s: x.1 });
+                let _c = self.sh(Shift::Lsl, x.0, 1);
+                let z = self.movi(0);
+                self.alu2(AluOp::Adc, r, z)
+            } else {
+                let r = self.sh(Shift::Asr, x.1, (m - 32) as u8);
+                let z = self.movi(0);
+                self.alu2(AluOp::Adc, r, z)
+            };
+            return W { v, b: bound };
+        }
+        // Full 64-bit rounding shift, then saturation.
+        let (lo, hi) = if m < 32 {
+            let t = self.sh(Shift::Lsl, x.1, (32 - m) as u8);
+            let hi = self.sh(Shift::Asr, x.1, m as u8);
+            let lo = self.sh(Shift::Lsr, x.0, m as u8);
+            let lo = self.alu2(AluOp::Orr, lo, t);
+            let z = self.movi(0);
+            let lo = self.alu2(AluOp::Adc, lo, z);
+            let hi = self.alu2(AluOp::Adc, hi, z);
+            (lo, hi)
+        } else if m == 32 {
+            let hi = self.sh(Shift::Asr, x.1, 31);
+            let lo = self.nv();
+            self.push(M::Mov { d: lo, s: x.1 });
+            let _c = self.sh(Shift::Lsl, x.0, 1);
+            let z = self.movi(0);
+            let lo = self.alu2(AluOp::Adc, lo, z);
+            let hi = self.alu2(AluOp::Adc, hi, z);
+            (lo, hi)
+        } else {
+            let hi = self.sh(Shift::Asr, x.1, 31);
+            let lo = self.sh(Shift::Asr, x.1, (m - 32) as u8);
+            let z = self.movi(0);
+            let lo = self.alu2(AluOp::Adc, lo, z);
+            let hi = self.alu2(AluOp::Adc, hi, z);
+            (lo, hi)
+        };
+        W {
+            v: self.sat64((lo, hi)),
+            b: bound.min(LIM),
+        }
+    }
+}
