@@ -113,11 +113,16 @@ pub struct Config {
     /// 5 SRAM5). With both cores running on [`Engine::Block`], the core that is behind may
     /// run compiled code ahead of the other while it touches only its own banks, the other
     /// then catching up while it touches none of them (see "Running ahead" in this
-    /// module). Default: core 0 SRAM0 and SRAM4, core 1 SRAM1 and SRAM5, as the firmware
-    /// images lay them out (`tactus-firmware`, `image/mod.rs`); `[0, 0]` keeps the two
-    /// cores in lock-step on the interpreter. Results never depend on it, only speed.
+    /// module). Default `[0, 0]`: the two cores in lock-step on the interpreter — on the
+    /// firmware images, whose own banks are [`FIRMWARE_OWN_BANKS`], running ahead cost more
+    /// than it saved (BENCHMARKS.md, issue 18: the README demo took 53.6 CPU-s with it and
+    /// 45.2 without, the same strikes). Results never depend on it, only speed.
     pub own_banks: [u8; 2],
 }
+
+/// The banks each core of a firmware image owns (`tactus-firmware`, `image/mod.rs`: core 0
+/// SRAM0 and SRAM4, core 1 SRAM1 and SRAM5), for [`Config::own_banks`].
+pub const FIRMWARE_OWN_BANKS: [u8; 2] = [0b01_0001, 0b10_0010];
 
 /// The engine behind [`Board::run_until`]'s fast path.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -141,7 +146,7 @@ impl Default for Config {
             svc_halts: false,
             stop_on_fault: true,
             engine: Engine::default(),
-            own_banks: [0b01_0001, 0b10_0010],
+            own_banks: [0, 0],
         }
     }
 }

@@ -31,7 +31,7 @@ pub mod wcet;
 
 pub use board::{
     Board, Call, CallError, CallResult, Config, EmuError, Engine, StopReason, CALL_STUB, DAC_BASE,
-    MAX_KEYS, SENSOR_BASE,
+    FIRMWARE_OWN_BANKS, MAX_KEYS, SENSOR_BASE,
 };
 pub use decode::{decode, Instr};
 pub use timing::cycles;

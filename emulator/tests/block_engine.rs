@@ -12,7 +12,7 @@
 //! The same comparison runs on the firmware-like key updates of the speed bench (SysTick
 //! interrupt, one or both cores, sleeping in WFI between samples).
 
-use tactus_emulator::{Board, Config, Engine, StopReason, DAC_BASE};
+use tactus_emulator::{Board, Config, Engine, StopReason, DAC_BASE, FIRMWARE_OWN_BANKS};
 
 #[path = "../benches/common/mod.rs"]
 mod workloads;
@@ -179,6 +179,7 @@ fn board(seed: u64, case: Case, engine: Engine) -> Board {
     let mut rng = Rng(seed);
     let mut b = Board::new(Config {
         engine,
+        own_banks: FIRMWARE_OWN_BANKS,
         ..Config::default()
     });
     // Native code from the first visit on most programs; some run cold code on the
@@ -387,6 +388,7 @@ fn a_store_into_the_running_block_takes_effect_at_once() {
     for engine in [Engine::Block, Engine::Interp] {
         let mut b = Board::new(Config {
             engine,
+            own_banks: FIRMWARE_OWN_BANKS,
             ..Config::default()
         });
         let code: [u16; 5] = [0x6001, 0xbf00, 0x2201, 0x2201, 0xe7fe];
@@ -469,6 +471,7 @@ fn running_ahead_rolls_back_self_modifying_code_exactly() {
     let setup = |engine| {
         let mut b = Board::new(Config {
             engine,
+            own_banks: FIRMWARE_OWN_BANKS,
             ..Config::default()
         });
         // Core 0: ldr r1,[r0]; eors r1,r2; str r1,[r0]; nop;

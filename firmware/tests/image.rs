@@ -358,6 +358,7 @@ fn the_emulators_block_engine_runs_an_image_exactly_as_its_interpreter() {
     let sensors = stimuli(&programs[0], 0, 1000);
     let mut runs = [image.run().unwrap(), image.run().unwrap()];
     runs[1].board().config.engine = Engine::Block;
+    runs[1].board().config.own_banks = tactus_emulator::FIRMWARE_OWN_BANKS;
     runs[0].board().config.engine = Engine::Interp;
     for (n, w) in sensors.iter().enumerate() {
         let a = runs[0].step(&[*w; 4]).unwrap().clone();
@@ -1190,6 +1191,7 @@ fn the_block_engine_runs_every_instruments_image_exactly_as_the_interpreter() {
         let mut runs = [image.run().unwrap(), image.run().unwrap()];
         runs[0].board().config.engine = Engine::Interp;
         runs[1].board().config.engine = Engine::Block;
+        runs[1].board().config.own_banks = tactus_emulator::FIRMWARE_OWN_BANKS;
         for (n, w) in words.iter().enumerate() {
             let sensors = vec![*w; image.sensor_words()];
             let a = runs[0].step(&sensors).unwrap().clone();

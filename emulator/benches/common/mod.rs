@@ -11,7 +11,7 @@
 //!   each core's own scratch bank (SRAM4 / SRAM5), sensors, DAC and state in striped SRAM.
 #![allow(dead_code)]
 
-use tactus_emulator::{Board, Config, Engine, DAC_BASE, SENSOR_BASE};
+use tactus_emulator::{Board, Config, Engine, DAC_BASE, FIRMWARE_OWN_BANKS, SENSOR_BASE};
 
 /// loop: ldr r1,[r0]; adds r1,r1,r2; str r1,[r0,#4]; muls r3,r1,r3; lsrs r4,r3,#3;
 ///       subs r5,#1; bne loop  — 10 cycles per iteration.
@@ -43,10 +43,12 @@ pub fn speed_loop(engine: Engine, cores: usize) -> Board {
 /// The speed loop on `cores` cores (1 or 2), each core's code and data in its own SRAM bank
 /// through the non-striped alias (core k: SRAM k at `0x21000000 + k·0x10000`) and its stack
 /// in its scratch bank, as the firmware images lay them out: what two cores running ahead
-/// of each other need (`Config::own_banks`). 10 cycles per iteration, as [`speed_loop`]. 10 cycles per iteration, as [`speed_loop`].
+/// of each other need (`Config::own_banks` set to `FIRMWARE_OWN_BANKS`). 10 cycles per
+/// iteration, as [`speed_loop`].
 pub fn speed_loop_own_banks(engine: Engine, cores: usize) -> Board {
     let mut b = Board::new(Config {
         engine,
+        own_banks: FIRMWARE_OWN_BANKS,
         ..Config::default()
     });
     for core in 0..cores {

@@ -201,7 +201,7 @@ impl Jit {
         } else {
             let fetch = !fresh || self.threshold == 0;
             let key = (self.flavour, pc, halfwords);
-            match self.from_store(key, &instrs, fetch) {
+            match self.take_from_store(key, &instrs, fetch) {
                 Some(Some((f, bound))) => {
                     (slot.func, slot.bound) = (Some(f), bound);
                     self.count += 1;
@@ -220,7 +220,7 @@ impl Jit {
 
     /// The store's code for `key`, compiled now when `compile` (else `None` when it is not
     /// there yet); `Some(None)` when the region cannot be compiled. Keeps the chunk alive.
-    fn from_store(
+    fn take_from_store(
         &mut self,
         key: RegionKey,
         instrs: &[RegionInstr],
