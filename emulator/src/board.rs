@@ -132,8 +132,8 @@ pub enum Engine {
     /// The block engine (module [`crate::block`]): code regions compiled to native code
     /// with cranelift (module `jit`) once warm, pre-decoded basic blocks otherwise, the
     /// same cycles and results as [`Engine::Interp`]. It runs one core at a time; with both
-    /// cores running, the core behind runs ahead in its own banks ([`Config::own_banks`],
-    /// "Running ahead" in [`crate::board`]) and the interpreter's lock-step turns run where
+    /// cores running and [`Config::own_banks`] set, the core behind runs ahead in its own
+    /// banks ("Running ahead" in [`crate::board`]) and the interpreter's lock-step turns run where
     /// that is not possible, as while functions are profiled with [`Board::profile_addr`].
     #[default]
     Block,
