@@ -108,6 +108,13 @@ pub fn run(args: CheckArgs) -> ExitCode {
         crate::source::report(&src, &fp.warnings);
         let pr = tactus_compiler::fixed::report::analyse(&fp);
         print!("{}", tactus_compiler::fixed::report::render(&fp, &pr));
+        let runs = tactus_compiler::fixed::contract::check_builtin(p, &fp);
+        if !runs.is_empty() {
+            print!(
+                "{}",
+                tactus_compiler::fixed::report::render_margins(p, &runs)
+            );
+        }
     }
     ExitCode::SUCCESS
 }

@@ -196,6 +196,32 @@ pub enum Decl {
     },
     /// `require COND`: a compile-time condition on params (a stability bound, say).
     Require { cond: Expr, span: Span },
+    /// A clause of the instrument's accuracy contract (docs/language.md, "Tolerances"):
+    /// `tolerance force [TERM] = EXPR` (newtons, or a plain number of DAC LSB),
+    /// `tolerance output NAME = EXPR` (the output's unit),
+    /// `tolerance event NAME { time = EXPR, ARG = EXPR, … }` (seconds; a fraction per argument).
+    Tolerance {
+        /// What the clause bounds: `force`, `output` or the word before the event's name.
+        kind: ToleranceKind,
+        /// The force term, output or event named (none: the total force).
+        name: Option<Name>,
+        /// The bound of a force or output clause.
+        value: Option<Expr>,
+        /// The fields of an event clause.
+        fields: Vec<(Name, Expr)>,
+        span: Span,
+    },
+}
+
+/// The subject of a `tolerance` line.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ToleranceKind {
+    /// `tolerance force …`
+    Force,
+    /// `tolerance output …`
+    Output,
+    /// `tolerance WORD NAME { … }`: `event` is the one word allowed (anything else is E0313).
+    Word(Name),
 }
 
 /// When a handler's body runs.

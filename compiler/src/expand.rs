@@ -523,6 +523,22 @@ impl Expander<'_, '_> {
                 cond: self.expr(cond),
                 span: span.clone(),
             },
+            Decl::Tolerance {
+                kind,
+                name,
+                value,
+                fields,
+                span,
+            } => Decl::Tolerance {
+                kind: kind.clone(),
+                name: name.clone(),
+                value: value.as_ref().map(|v| self.expr(v)),
+                fields: fields
+                    .iter()
+                    .map(|(n, e)| (n.clone(), self.expr(e)))
+                    .collect(),
+                span: span.clone(),
+            },
         };
         out.push(decl);
     }

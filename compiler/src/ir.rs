@@ -397,6 +397,10 @@ pub struct Program {
     /// `z` in [`Stmt::Total`]. Empty for a keyboard instrument, whose total is the one
     /// scalar [`Stmt::Total`].
     pub force_axes: Vec<(Axis, AxisTotal)>,
+    /// The accuracy contract a fixed-point plan of the program must keep against these f64
+    /// semantics (`fixed::contract`): the defaults, or what the instrument's `tolerance`
+    /// lines state.
+    pub contract: Contract,
 }
 
 impl Program {
@@ -439,5 +443,143 @@ impl Program {
     /// of 20 000 values as much interpreter time as a piano key gets, not 60 times more.
     pub fn samples_within(&self, evaluations: usize) -> usize {
         (evaluations / self.values.len().max(1)).max(1)
+    }
+}
+
+/// The clauses of an accuracy contract: how far a fixed-point plan's run may stray from the
+/// f64 semantics on the same sensor samples (checked by `fixed::contract`). The defaults are
+/// issue 16's; an instrument's `tolerance` lines replace them (docs/language.md).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Contract {
+    /// How far the total force at the key may differ from f64, at every sample.
+    pub force: ForceBound,
+    /// An event may happen this much earlier or later than in f64, seconds (0.5 ms: 22
+    /// samples at 44.1 kHz), unless its own clause says otherwise ([`Contract::events`]).
+    pub event_time_s: f64,
+    /// An event's arguments may differ from f64 by this fraction of the f64 value (1 %: a
+    /// third of a MIDI velocity step at mf), unless its own clause says otherwise.
+    pub event_arg_rel: f64,
+    /// Clauses on single force terms: how far the term may differ from f64 at every sample
+    /// (`tolerance force TERM = …`).
+    pub terms: Vec<(ForceId, ForceBound)>,
+    /// Clauses on outputs: the output may differ from f64 by this much, SI, at every sample
+    /// (`tolerance output NAME = …`).
+    pub outputs: Vec<(OutputId, f64)>,
+    /// Clauses on single events (`tolerance event NAME { time = …, ARG = … }`).
+    pub events: Vec<EventTolerance>,
+}
+
+/// A bound on a force: LSBs of a 16-bit DAC at `full_scale` (the report's
+/// `fixed::report::Precision::dac_lsb_n`), or newtons.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ForceBound {
+    /// DAC LSB (`tolerance force = 0.5`).
+    Lsb(f64),
+    /// Newtons (`tolerance force = 2 mN`).
+    Newtons(f64),
+}
+
+impl ForceBound {
+    /// The bound in DAC LSB, given one LSB in newtons.
+    pub fn lsb(self, dac_lsb_n: f64) -> f64 {
+        match self {
+            ForceBound::Lsb(x) => x,
+            ForceBound::Newtons(n) => n / dac_lsb_n,
+        }
+    }
+
+    /// The bound times `factor`.
+    pub fn scaled(self, factor: f64) -> ForceBound {
+        match self {
+            ForceBound::Lsb(x) => ForceBound::Lsb(x * factor),
+            ForceBound::Newtons(n) => ForceBound::Newtons(n * factor),
+        }
+    }
+}
+
+impl std::fmt::Display for ForceBound {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ForceBound::Lsb(x) => write!(f, "{x} DAC LSB"),
+            ForceBound::Newtons(n) => write!(f, "{n:e} N"),
+        }
+    }
+}
+
+/// The clause of one event kind.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EventTolerance {
+    /// The event.
+    pub event: EventId,
+    /// Its time tolerance, seconds (`None`: [`Contract::event_time_s`]).
+    pub time_s: Option<f64>,
+    /// Relative tolerances of single arguments (argument index, fraction); the others
+    /// keep [`Contract::event_arg_rel`].
+    pub args_rel: Vec<(usize, f64)>,
+}
+
+impl Default for Contract {
+    fn default() -> Self {
+        Contract {
+            force: ForceBound::Lsb(1.0),
+            event_time_s: 0.5e-3,
+            event_arg_rel: 0.01,
+            terms: Vec::new(),
+            outputs: Vec::new(),
+            events: Vec::new(),
+        }
+    }
+}
+
+impl Contract {
+    /// The contract with every tolerance multiplied by `factor` (the planner's search keeps
+    /// `fixed::SIMULATION_MARGIN` of each clause in reserve).
+    pub fn scaled(&self, factor: f64) -> Contract {
+        Contract {
+            force: self.force.scaled(factor),
+            event_time_s: self.event_time_s * factor,
+            event_arg_rel: self.event_arg_rel * factor,
+            terms: self
+                .terms
+                .iter()
+                .map(|&(f, t)| (f, t.scaled(factor)))
+                .collect(),
+            outputs: self.outputs.iter().map(|&(o, t)| (o, t * factor)).collect(),
+            events: self
+                .events
+                .iter()
+                .map(|e| EventTolerance {
+                    event: e.event,
+                    time_s: e.time_s.map(|t| t * factor),
+                    args_rel: e.args_rel.iter().map(|&(i, t)| (i, t * factor)).collect(),
+                })
+                .collect(),
+        }
+    }
+
+    /// The time tolerance of event `e`, seconds.
+    pub fn time_of(&self, e: usize) -> f64 {
+        self.events
+            .iter()
+            .find(|t| t.event.index() == e)
+            .and_then(|t| t.time_s)
+            .unwrap_or(self.event_time_s)
+    }
+
+    /// The relative tolerance of argument `arg` of event `e`.
+    pub fn arg_rel_of(&self, e: usize, arg: usize) -> f64 {
+        self.events
+            .iter()
+            .find(|t| t.event.index() == e)
+            .and_then(|t| t.args_rel.iter().find(|a| a.0 == arg).map(|a| a.1))
+            .unwrap_or(self.event_arg_rel)
+    }
+
+    /// The largest time tolerance of any event, seconds (the window events are paired in).
+    pub fn max_time_s(&self) -> f64 {
+        self.events
+            .iter()
+            .filter_map(|t| t.time_s)
+            .fold(self.event_time_s, f64::max)
     }
 }

@@ -121,6 +121,8 @@ pub enum Token {
     Solve,
     #[token("require")]
     Require,
+    #[token("tolerance")]
+    Tolerance,
 
     #[regex(r"[A-Za-z_][A-Za-z0-9_]*", |lex| lex.slice().to_string())]
     Ident(String),
@@ -210,6 +212,7 @@ impl Token {
                 | Sum
                 | Solve
                 | Require
+                | Tolerance
         )
     }
 }

@@ -42,7 +42,7 @@ fn the_default_plan_keeps_the_contract_on_every_builtin_stimulus() {
             println!(
                 "{name:<16} {stim:<9} force {:.4} LSB (of {}), events {}/{} unmatched {} shift {} samples, args {:.4} % (of {} %), states out {}",
                 r.max_force_lsb,
-                c.force_lsb,
+                c.force.lsb(r.dac_lsb_n),
                 r.events_f64,
                 r.events_fixed,
                 r.unmatched,
@@ -118,7 +118,232 @@ fn a_greedier_divisor_shift_breaks_the_contract() {
         .fold(0.0, f64::max);
     println!("divisors within 2^-6: worst force error {worst:.3} DAC LSB");
     assert!(
-        worst > c.force_lsb,
+        worst > c.force.lsb(1.0),
         "{worst} LSB: the contract did not catch it"
     );
+}
+
+/// The piano lowered with each of `masses` (hammer mass `M_h`) and shared, as grand88's
+/// graded keys are: one program with run-time params; and each key's param values.
+fn graded_piano(masses: &[&str]) -> (Program, Vec<Vec<f64>>) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments/grand_piano.tactus");
+    let text = std::fs::read_to_string(path).unwrap();
+    let irs: Vec<Program> = masses
+        .iter()
+        .map(|m| {
+            let config = Config {
+                overrides: vec![("M_h".into(), (*m).into())],
+                ..Config::default()
+            };
+            tactus_compiler::compile(&text, &config).unwrap().program
+        })
+        .collect();
+    let shared = tactus_compiler::share::share(&irs).unwrap();
+    (shared.program, shared.values)
+}
+
+/// The contract holds with run-time params: grand88's hammer masses (11 g in the bass to
+/// 3.5 g in the treble, one shared program planned once for the whole range), each clause on
+/// every built-in stimulus at the ends and the middle of the grading.
+#[test]
+fn the_contract_holds_over_the_graded_hammer_masses() {
+    let masses = ["11 g", "7.25 g", "3.5 g"];
+    let (shared, values) = graded_piano(&masses);
+    assert!(
+        shared.runtime_params().count() > 0,
+        "the masses must be run-time params"
+    );
+    let fp = FixedProgram::new(&shared);
+    let lsb = report::analyse(&fp).dac_lsb_n();
+    let mut broken = Vec::new();
+    for (m, v) in masses.iter().zip(&values) {
+        let mut worst = ContractCheck::default();
+        for (stim, _) in stimulus::builtin_names() {
+            let s =
+                stimulus::builtin(stim, shared.sensors[0].range.1, shared.sample_rate_hz).unwrap();
+            let run = contract::reference(&shared, &fp, &s.key, v);
+            let r = contract::compare(&shared, &fp, &run, lsb, &shared.contract, false);
+            assert!(r.samples > 0);
+            for e in r.violations(&shared.contract, shared.sample_rate_hz) {
+                broken.push(format!("M_h {m}/{stim}: {e}"));
+            }
+            worst.max_force_lsb = worst.max_force_lsb.max(r.max_force_lsb);
+            worst.max_event_shift = worst.max_event_shift.max(r.max_event_shift);
+            worst.max_arg_rel = worst.max_arg_rel.max(r.max_arg_rel);
+            worst.unmatched += r.unmatched;
+            worst.events_f64 += r.events_f64;
+        }
+        println!(
+            "M_h {m:<7} force {:.4} LSB, events {} unmatched {}, shift {} samples, args {:.4} %",
+            worst.max_force_lsb,
+            worst.events_f64,
+            worst.unmatched,
+            worst.max_event_shift,
+            100.0 * worst.max_arg_rel
+        );
+    }
+    assert!(broken.is_empty(), "contract broken:\n{}", broken.join("\n"));
+}
+
+/// The planner's simulated search stops where the contract does: of the piano's products
+/// it left more expensive than `MULS`, making them cheaper one at a time (to the cheapest
+/// form it considered) breaks the contract for at least one; the test stops at the first.
+/// (The search keeps half of each tolerance in reserve, so not every such step breaks the
+/// whole contract.)
+#[test]
+fn a_plan_greedier_than_the_simulated_search_breaks_the_contract() {
+    let c = Contract::default();
+    let p = program("grand_piano");
+    let fp = FixedProgram::new(&p);
+    let analysed = FixedProgram::with_config(
+        &p,
+        &PlanConfig {
+            simulate: false,
+            ..PlanConfig::default()
+        },
+    );
+    let (s, a) = (fp.mul_forms(), analysed.mul_forms());
+    println!(
+        "simulated search: {} MULS, {} high word, {} 64-bit, {} estimated cycles; analysis only: {} MULS, {} high word, {} 64-bit, {} cycles",
+        s.0, s.1, s.2, s.3, a.0, a.1, a.2, a.3
+    );
+    assert!(
+        s.3 < a.3,
+        "the search must find cheaper products than the analysis"
+    );
+    let lsb = report::analyse(&fp).dac_lsb_n();
+    let refs: Vec<(&str, contract::ReferenceRun)> = stimulus::builtin_names()
+        .iter()
+        .map(|(stim, _)| {
+            let s = stimulus::builtin(stim, p.sensors[0].range.1, p.sample_rate_hz).unwrap();
+            (*stim, contract::reference(&p, &fp, &s.key, &[]))
+        })
+        .collect();
+    let mut breaking = 0;
+    let mut tried = 0;
+    for (i, k) in fp.mul_kind.iter().enumerate() {
+        // The cheapest form the planner considered that is cheaper than the one it chose.
+        let cheaper = k.and_then(|k| {
+            fp.mul_options[i]
+                .iter()
+                .copied()
+                .find(|o| o.cycles() < k.cycles())
+        });
+        let Some(cheaper) = cheaper.filter(|g| Some(*g) != *k) else {
+            continue;
+        };
+        let mut q = fp.clone();
+        q.mul_kind[i] = Some(cheaper);
+        tried += 1;
+        // The first broken clause on any stimulus (each run stops at its first bad sample).
+        let broken = refs.iter().find_map(|(stim, run)| {
+            let r = contract::compare(&p, &q, run, lsb, &c, true);
+            r.violations(&c, p.sample_rate_hz)
+                .first()
+                .map(|v| format!("{stim}: {v}"))
+        });
+        println!(
+            "product v{i}: {k:?} → {cheaper:?}: {}",
+            broken.as_deref().unwrap_or("holds")
+        );
+        if broken.is_some() {
+            breaking += 1;
+            break;
+        }
+    }
+    println!("{breaking} of the {tried} cheaper steps tried break the contract");
+    assert!(
+        tried > 0 && breaking > 0,
+        "no cheaper step breaks the contract: the test shows nothing"
+    );
+}
+
+/// `tolerance` lines state the contract: the harpsichord with a looser total, a clause on
+/// its plectrum term in newtons (the component instance's term by its qualified name would
+/// be `jack.f`; the instrument names it `plectrum`) and one on its pluck event gets exactly
+/// those clauses, and the simulation measures each of them; an output clause likewise.
+#[test]
+fn tolerance_lines_state_the_contract() {
+    use tactus_compiler::ir::ForceBound;
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments/harpsichord.tactus");
+    let text = std::fs::read_to_string(path).unwrap();
+    let end = text.rfind('}').unwrap();
+    let with = format!(
+        "{}    tolerance force = 2\n    tolerance force plectrum = 1 mN\n    tolerance event pluck {{ time = 1 ms, key_speed = 0.02 }}\n}}\n",
+        &text[..end]
+    );
+    let p = tactus_compiler::compile(&with, &Config::default())
+        .unwrap()
+        .program;
+    let c = &p.contract;
+    assert_eq!(c.force, ForceBound::Lsb(2.0));
+    assert_eq!(c.terms.len(), 1);
+    assert_eq!(p.forces[c.terms[0].0.index()].name, "plectrum");
+    assert_eq!(c.terms[0].1, ForceBound::Newtons(1e-3));
+    let pluck = c.events[0].event.index();
+    assert_eq!(p.events[pluck].name, "pluck");
+    assert!((c.time_of(pluck) - 1e-3).abs() < 1e-15);
+    assert!((c.arg_rel_of(pluck, 0) - 0.02).abs() < 1e-15);
+    // The unchanged clauses keep their defaults.
+    assert_eq!(c.event_arg_rel, Contract::default().event_arg_rel);
+    let fp = FixedProgram::new(&p);
+    let runs = contract::check_builtin(&p, &fp);
+    assert_eq!(runs.len(), stimulus::builtin_names().len());
+    for (stim, r) in &runs {
+        let m = r.margins(&p, c);
+        assert!(m.iter().any(|x| x.0 == "force `plectrum`"), "{m:?}");
+        assert!(
+            r.violations(c, p.sample_rate_hz).is_empty(),
+            "{stim}: {:?}",
+            r.violations(c, p.sample_rate_hz)
+        );
+        // The term's error is measured: an exact-zero bound would catch any difference.
+        assert!(r.term_lsb[0] >= 0.0 && r.term_lsb[0].is_finite());
+    }
+    print!(
+        "{}",
+        tactus_compiler::fixed::report::render_margins(&p, &runs)
+    );
+    // A bound far below what fixed point can do breaks: the clause is enforced.
+    let strict = with.replace(
+        "tolerance force plectrum = 1 mN",
+        "tolerance force plectrum = 1e-12 N",
+    );
+    let q = tactus_compiler::compile(&strict, &Config::default())
+        .unwrap()
+        .program;
+    let fq = FixedProgram::new(&q);
+    let broken = contract::check_builtin(&q, &fq)
+        .iter()
+        .any(|(_, r)| !r.violations(&q.contract, q.sample_rate_hz).is_empty());
+    assert!(broken, "a 1e-12 N clause on the plectrum term must break");
+}
+
+/// An output clause is measured in the output's unit and enforced; and the planner spends
+/// what it allows (with 1 µm the search takes a `MULS` for `key * 0.3`, worst ≈ 0.19 µm;
+/// with 1e-15 m it keeps the exact product).
+#[test]
+fn an_output_tolerance_is_measured_and_enforced() {
+    let src = |tol: &str| {
+        format!(
+            "instrument t {{\n    sensor key: m in [0 mm, 10 mm]\n    param full_scale = 5 N\n    force spring = 100 N/m * key\n    output depth = key * 0.3\n    tolerance output depth = {tol}\n}}\n"
+        )
+    };
+    for (tol, holds) in [("1 um", true), ("1e-15 m", false)] {
+        let p = tactus_compiler::compile(&src(tol), &Config::default())
+            .unwrap()
+            .program;
+        assert_eq!(p.contract.outputs.len(), 1);
+        let fp = FixedProgram::new(&p);
+        let runs = contract::check_builtin(&p, &fp);
+        let worst = runs
+            .iter()
+            .map(|(_, r)| r.output_err[0])
+            .fold(0.0, f64::max);
+        let ok = runs
+            .iter()
+            .all(|(_, r)| r.violations(&p.contract, p.sample_rate_hz).is_empty());
+        println!("output `depth` within {tol}: worst {worst:e} m, holds {ok}");
+        assert_eq!(ok, holds, "{tol}: worst {worst:e}");
+    }
 }

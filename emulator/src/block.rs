@@ -120,8 +120,11 @@ pub(crate) struct Blocks {
     cursor: [Cursor; 2],
     /// Blocks decoded so far (for tests and reports).
     pub(crate) decoded: u64,
-    /// The compiled regions ([`crate::jit`]).
+    /// The compiled regions ([`crate::jit`]) that arbitrate against the other core.
     pub(crate) jit: Jit,
+    /// The same regions compiled for a core whose every access is later than the other
+    /// core's last bank claim ([`jit::Flavour::Solo`]).
+    pub(crate) solo: Jit,
     /// The same regions compiled confined, for running ahead ([`run_confined`]).
     pub(crate) confined: Jit,
     /// The undo journal of the core running ahead (entries as [`crate::jit`] writes them).
@@ -158,8 +161,9 @@ impl Blocks {
             generation: 0,
             cursor: [Cursor::default(); 2],
             decoded: 0,
-            jit: Jit::new(false),
-            confined: Jit::new(true),
+            jit: Jit::new(jit::Flavour::Shared),
+            solo: Jit::new(jit::Flavour::Solo),
+            confined: Jit::new(jit::Flavour::Confined),
             journal: Vec::with_capacity(JOURNAL),
         }
     }
@@ -346,13 +350,27 @@ pub(crate) fn run<T: Turns>(
 ) -> Result<(), Leave> {
     let mut retired = 0u64;
     let mut native = true;
+    // The other core takes no turn during this run: once the core's cycle reaches the
+    // other's last claim of any bank, none of its accesses can wait (solo code).
+    let quiet_from = sys
+        .bank_claim
+        .iter()
+        .map(|c| c[(core.id ^ 1) & 1])
+        .filter(|&c| c != u64::MAX)
+        .max()
+        .unwrap_or(0);
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
         }
         let pc = core.r[15];
         if native {
-            if let Some(region) = blocks.jit.lookup(sys, pc) {
+            let cache = if core.cycle >= quiet_from {
+                &mut blocks.solo
+            } else {
+                &mut blocks.jit
+            };
+            if let Some(region) = cache.lookup(sys, pc) {
                 if core.cycle.saturating_add(region.bound) <= limit {
                     let (exit, n, q) = jit::call(region.f, core, sys, limit, None);
                     retired += n;

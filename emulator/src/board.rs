@@ -689,7 +689,7 @@ impl Board {
 
     /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
     pub fn regions_compiled(&self) -> u64 {
-        self.blocks.jit.count + self.blocks.confined.count
+        self.blocks.jit.count + self.blocks.solo.count + self.blocks.confined.count
     }
 
     /// Run-ahead windows so far ("Running ahead" in the module documentation): (kept,
@@ -703,6 +703,7 @@ impl Board {
     /// it to run everything natively). Results never depend on it, only speed.
     pub fn set_compile_threshold(&mut self, times: u32) {
         self.blocks.jit.threshold = times;
+        self.blocks.solo.threshold = times;
         self.blocks.confined.threshold = times;
     }
 

@@ -8,8 +8,10 @@
 //! quantised sensor samples: the force at the key within a DAC LSB, the same events on the
 //! same key (none lost or added) within half a millisecond, their arguments (a strike's
 //! hammer speed) within a percent, and every state within its declared range with no
-//! saturation. [`Contract::default`] holds the issue-16 defaults; there is no `tolerance`
-//! syntax in the language yet, so an instrument cannot change them.
+//! saturation. [`Contract::default`] holds the issue-16 defaults; an instrument's
+//! `tolerance` lines ([`Program::contract`]) change them or add clauses on single force
+//! terms, outputs and events. A run is recorded once ([`reference`]) and compared with as
+//! many plans as the planner's search needs ([`compare`]).
 
 use super::interp::FixedInstance;
 use super::FixedProgram;
@@ -17,63 +19,123 @@ use crate::interp::Instance;
 use crate::ir::Program;
 use tactus_runtime::fixed as fx;
 
-/// The clauses of an accuracy contract.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Contract {
-    /// The total force at the key may differ from f64 by this many LSBs of a 16-bit DAC at
-    /// `full_scale` (the report's [`super::report::Precision::dac_lsb_n`]), at every sample.
-    pub force_lsb: f64,
-    /// An event may happen this much earlier or later than in f64, seconds (0.5 ms: 22
-    /// samples at 44.1 kHz).
-    pub event_time_s: f64,
-    /// An event's arguments may differ from f64 by this fraction of the f64 value (1 %: a
-    /// third of a MIDI velocity step at mf).
-    pub event_arg_rel: f64,
-}
-
-impl Default for Contract {
-    fn default() -> Self {
-        Contract {
-            force_lsb: 1.0,
-            event_time_s: 0.5e-3,
-            event_arg_rel: 0.01,
-        }
-    }
-}
+pub use crate::ir::Contract;
 
 /// What one run showed, clause by clause (the worst over its samples and events).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ContractCheck {
     /// Samples compared.
     pub samples: usize,
+    /// One DAC LSB in newtons (what force bounds in newtons are converted with).
+    pub dac_lsb_n: f64,
     /// Largest |total force difference|, in DAC LSB.
     pub max_force_lsb: f64,
+    /// Per clause of [`Contract::terms`]: the largest |term difference|, DAC LSB.
+    pub term_lsb: Vec<f64>,
+    /// Per clause of [`Contract::outputs`]: the largest |output difference|, SI.
+    pub output_err: Vec<f64>,
     /// Events in the f64 run.
     pub events_f64: usize,
     /// Events in the fixed run.
     pub events_fixed: usize,
     /// Events of the f64 run with no partner in the fixed run, plus the reverse (an event is
-    /// paired with the next unpaired one of the same kind within the time tolerance).
+    /// paired with the next unpaired one of the same kind within its time tolerance).
     pub unmatched: usize,
     /// Largest time shift of a paired event, samples.
     pub max_event_shift: usize,
     /// Largest relative difference of a paired event's arguments.
     pub max_arg_rel: f64,
+    /// The largest shift of a paired event as a fraction of its kind's time tolerance.
+    pub shift_ratio: f64,
+    /// The largest relative difference of an argument as a fraction of its tolerance.
+    pub arg_ratio: f64,
     /// Samples where some fixed state lay outside its declared range.
     pub state_out_of_range: usize,
     /// Values that saturated (the range analysis claimed they cannot).
     pub overflowed: usize,
 }
 
+/// One clause's worst case against its bound, for the precision report: (clause, worst,
+/// bound, unit). The margin is `bound − worst`.
+pub type Margin = (String, f64, f64, &'static str);
+
 impl ContractCheck {
+    /// Each clause of `c` with the worst this run showed (names from `p`).
+    pub fn margins(&self, p: &Program, c: &Contract) -> Vec<Margin> {
+        let mut m = vec![(
+            "total force".to_string(),
+            self.max_force_lsb,
+            c.force.lsb(self.dac_lsb_n),
+            "DAC LSB",
+        )];
+        for ((f, b), w) in c.terms.iter().zip(&self.term_lsb) {
+            m.push((
+                format!("force `{}`", p.forces[f.index()].name),
+                *w,
+                b.lsb(self.dac_lsb_n),
+                "DAC LSB",
+            ));
+        }
+        for ((o, b), w) in c.outputs.iter().zip(&self.output_err) {
+            m.push((
+                format!("output `{}`", p.outputs[o.index()].name),
+                *w,
+                *b,
+                "SI",
+            ));
+        }
+        m.push((
+            "events lost or added".into(),
+            self.unmatched as f64,
+            0.0,
+            "",
+        ));
+        m.push((
+            "event time shift (of its tolerance)".into(),
+            self.shift_ratio,
+            1.0,
+            "",
+        ));
+        m.push((
+            "event arguments (of their tolerance)".into(),
+            self.arg_ratio,
+            1.0,
+            "",
+        ));
+        m.push((
+            "samples with a state out of range, saturations".into(),
+            (self.state_out_of_range + self.overflowed) as f64,
+            0.0,
+            "",
+        ));
+        m
+    }
+
     /// The clauses this run breaks, each as a sentence with the numbers (empty: it holds).
     pub fn violations(&self, c: &Contract, sample_rate_hz: f64) -> Vec<String> {
         let mut v = Vec::new();
-        if self.max_force_lsb > c.force_lsb {
+        let lsb = self.dac_lsb_n;
+        if self.max_force_lsb > c.force.lsb(lsb) {
             v.push(format!(
                 "force differs by {:.3} DAC LSB (contract {})",
-                self.max_force_lsb, c.force_lsb
+                self.max_force_lsb, c.force
             ));
+        }
+        for ((f, b), w) in c.terms.iter().zip(&self.term_lsb) {
+            if *w > b.lsb(lsb) {
+                v.push(format!(
+                    "force term {} differs by {w:.3} DAC LSB (contract {b})",
+                    f.index()
+                ));
+            }
+        }
+        for ((o, b), w) in c.outputs.iter().zip(&self.output_err) {
+            if *w > *b {
+                v.push(format!(
+                    "output {} differs by {w:e} (contract {b:e})",
+                    o.index()
+                ));
+            }
         }
         if self.unmatched > 0 {
             v.push(format!(
@@ -81,17 +143,19 @@ impl ContractCheck {
                 self.unmatched, self.events_f64, self.events_fixed
             ));
         }
-        let max_shift = c.event_time_s * sample_rate_hz;
-        if self.max_event_shift as f64 > max_shift {
+        if self.shift_ratio > 1.0 {
             v.push(format!(
-                "an event moved by {} samples (contract {:.1})",
-                self.max_event_shift, max_shift
+                "an event moved by {} samples ({:.2} of its tolerance; default {:.1} samples)",
+                self.max_event_shift,
+                self.shift_ratio,
+                c.event_time_s * sample_rate_hz
             ));
         }
-        if self.max_arg_rel > c.event_arg_rel {
+        if self.arg_ratio > 1.0 {
             v.push(format!(
-                "an event argument differs by {:.3} % (contract {} %)",
+                "an event argument differs by {:.3} % ({:.2} of its tolerance; default {} %)",
                 100.0 * self.max_arg_rel,
+                self.arg_ratio,
                 100.0 * c.event_arg_rel
             ));
         }
@@ -105,41 +169,162 @@ impl ContractCheck {
     }
 }
 
-/// Runs the f64 interpreter of `p` and the fixed interpreter of `fp` side by side on the key
-/// trajectory `keys` (metres, first sensor; the f64 engine reads the same quantised samples)
-/// and measures each clause. `dac_lsb_n` is one DAC LSB in newtons.
-pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> ContractCheck {
-    let mut a = Instance::new(p);
-    let mut b = FixedInstance::new(fp);
-    let mut out = ContractCheck::default();
-    // (sample, event, args) of each run.
-    let mut ev_a: Vec<(usize, usize, Vec<f64>)> = Vec::new();
-    let mut ev_b: Vec<(usize, usize, Vec<f64>)> = Vec::new();
+/// One run of the f64 reference on one stimulus, recorded so that several fixed-point plans
+/// of the same program can be compared with it ([`compare`]) without re-running it: the
+/// planner's search ([`super::FixedProgram::with_config`]) compares dozens of plans.
+#[derive(Clone, Debug)]
+pub struct ReferenceRun {
+    /// The quantised sensor word of each sample (first sensor; both engines read it).
+    raw: Vec<i32>,
+    /// The f64 total force of each sample, newtons.
+    total: Vec<f64>,
+    /// Per clause of the contract's `terms`, the f64 term of each sample, newtons.
+    terms: Vec<Vec<f64>>,
+    /// Per clause of the contract's `outputs`, the f64 output of each sample, SI.
+    outputs: Vec<Vec<f64>>,
+    /// (sample, event, arguments SI) of each event of the f64 run.
+    events: Vec<(usize, usize, Vec<f64>)>,
+    /// The run-time params' values (SI, [`Program::runtime_params`] order) this run used;
+    /// empty for the params' own values.
+    params: Vec<f64>,
+}
+
+impl ReferenceRun {
+    /// Samples of the run.
+    pub fn len(&self) -> usize {
+        self.raw.len()
+    }
+
+    /// Whether the run has no sample.
+    pub fn is_empty(&self) -> bool {
+        self.raw.is_empty()
+    }
+}
+
+/// Runs the f64 interpreter of `p` on the key trajectory `keys` (metres, first sensor,
+/// quantised to the sensor words of `fp`), with the run-time params at `params` (SI, in
+/// [`Program::runtime_params`] order; empty: the params' own values), recording what the
+/// clauses of `p.contract` need.
+pub fn reference(p: &Program, fp: &FixedProgram, keys: &[f64], params: &[f64]) -> ReferenceRun {
+    let mut q;
+    let prog = if params.is_empty() {
+        p
+    } else {
+        q = p.clone();
+        let ids: Vec<_> = q.runtime_params().collect();
+        for (id, &v) in ids.iter().zip(params) {
+            q.params[id.index()].value = v;
+        }
+        &q
+    };
+    let c = &p.contract;
+    let mut a = Instance::new(prog);
+    let mut run = ReferenceRun {
+        raw: Vec::with_capacity(keys.len()),
+        total: Vec::with_capacity(keys.len()),
+        terms: vec![Vec::with_capacity(keys.len()); c.terms.len()],
+        outputs: vec![Vec::with_capacity(keys.len()); c.outputs.len()],
+        events: Vec::new(),
+        params: params.to_vec(),
+    };
     for (n, &k) in keys.iter().enumerate() {
         let raw = FixedInstance::sensor_raw(fp, 0, Some(k));
-        let oa = a.step(&[fx::to_f64(raw, fp.sensor_frac[0])]).clone();
-        let ob = b.step_raw(&[raw]).to_si(fp);
+        let oa = a.step(&[fx::to_f64(raw, fp.sensor_frac[0])]);
+        run.raw.push(raw);
+        run.total.push(oa.total);
+        for (t, (f, _)) in run.terms.iter_mut().zip(&c.terms) {
+            t.push(oa.forces[f.index()]);
+        }
+        for (t, (o, _)) in run.outputs.iter_mut().zip(&c.outputs) {
+            t.push(oa.outputs[o.index()]);
+        }
+        run.events
+            .extend(oa.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
+    }
+    run
+}
+
+/// Runs the fixed interpreter of `fp` on the samples of a recorded reference run and
+/// measures each clause of `c` against it (`c` must have the clauses of `p.contract` the run
+/// recorded, scaled or not). With `stop`, the run ends at the first sample whose force,
+/// terms, outputs or states break `c` (the planner's search only needs to know that a plan
+/// fails); the events are compared over the samples run.
+pub fn compare(
+    p: &Program,
+    fp: &FixedProgram,
+    run: &ReferenceRun,
+    dac_lsb_n: f64,
+    c: &Contract,
+    stop: bool,
+) -> ContractCheck {
+    let block = if run.params.is_empty() {
+        fp.nominal_param_block()
+    } else {
+        match fp.param_block(&run.params) {
+            Ok(b) => b,
+            Err(_) => fp.nominal_param_block(),
+        }
+    };
+    let mut b = FixedInstance::with_params(fp, block);
+    let mut out = ContractCheck {
+        dac_lsb_n,
+        term_lsb: vec![0.0; run.terms.len()],
+        output_err: vec![0.0; run.outputs.len()],
+        ..ContractCheck::default()
+    };
+    let force_limit = c.force.lsb(dac_lsb_n);
+    let mut ev_b: Vec<(usize, usize, Vec<f64>)> = Vec::new();
+    let mut ran = run.raw.len();
+    for (n, (&raw, &total)) in run.raw.iter().zip(&run.total).enumerate() {
+        let ob = b.step_raw(&[raw]);
         out.samples += 1;
-        out.max_force_lsb = out
-            .max_force_lsb
-            .max((oa.total - ob.total).abs() / dac_lsb_n);
-        ev_a.extend(oa.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
-        ev_b.extend(ob.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
+        let ft = fx::to_f64(ob.total, fp.total_frac);
+        out.max_force_lsb = out.max_force_lsb.max((total - ft).abs() / dac_lsb_n);
+        let mut broken = out.max_force_lsb > force_limit;
+        for (k, ((f, bound), series)) in c.terms.iter().zip(&run.terms).enumerate() {
+            let i = f.index();
+            let x = fx::to_f64(ob.forces[i], fp.force_frac[i]);
+            let e = (series[n] - x).abs() / dac_lsb_n;
+            out.term_lsb[k] = out.term_lsb[k].max(e);
+            broken |= e > bound.lsb(dac_lsb_n);
+        }
+        for (k, ((o, bound), series)) in c.outputs.iter().zip(&run.outputs).enumerate() {
+            let i = o.index();
+            let x = fx::to_f64(ob.outputs[i], fp.output_frac[i]);
+            let e = (series[n] - x).abs();
+            out.output_err[k] = out.output_err[k].max(e);
+            broken |= e > *bound;
+        }
+        for (e, args) in &ob.events {
+            let f = &fp.event_frac[e.index()];
+            let si = args
+                .iter()
+                .zip(f)
+                .map(|(&x, &f)| fx::to_f64(x, f))
+                .collect();
+            ev_b.push((n, e.index(), si));
+        }
         let outside = b.states().iter().enumerate().any(|(i, &w)| {
             let x = fx::to_f64(w, fp.state_frac[i]);
             let (lo, hi) = p.states[i].range;
             x < lo || x > hi
         });
         out.state_out_of_range += outside as usize;
+        if stop && (broken || outside) {
+            ran = n + 1;
+            break;
+        }
     }
     out.overflowed = b.overflowed().iter().filter(|o| **o).count();
+    let ev_a: Vec<&(usize, usize, Vec<f64>)> = run.events.iter().filter(|e| e.0 < ran).collect();
     out.events_f64 = ev_a.len();
     out.events_fixed = ev_b.len();
-    // Pair events in order, per kind, within the time tolerance window of 0.5 ms (the
-    // contract's default; a larger shift counts as a lost plus an added event).
-    let window = (Contract::default().event_time_s * p.sample_rate_hz).ceil() as usize;
+    // Pair events in order, per kind, within the kind's time tolerance (a larger shift
+    // counts as a lost plus an added event).
     let mut used = vec![false; ev_b.len()];
-    for (na, ka, args_a) in &ev_a {
+    for (na, ka, args_a) in ev_a {
+        let tol = c.time_of(*ka) * p.sample_rate_hz;
+        let window = tol.ceil() as usize;
         let partner = ev_b
             .iter()
             .enumerate()
@@ -147,10 +332,13 @@ pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> Co
         match partner {
             Some((j, (nb, _, args_b))) => {
                 used[j] = true;
-                out.max_event_shift = out.max_event_shift.max(na.abs_diff(*nb));
-                for (x, y) in args_a.iter().zip(args_b) {
+                let shift = na.abs_diff(*nb);
+                out.max_event_shift = out.max_event_shift.max(shift);
+                out.shift_ratio = out.shift_ratio.max(shift as f64 / tol.max(1e-12));
+                for (i, (x, y)) in args_a.iter().zip(args_b).enumerate() {
                     let rel = (x - y).abs() / x.abs().max(1e-12);
                     out.max_arg_rel = out.max_arg_rel.max(rel);
+                    out.arg_ratio = out.arg_ratio.max(rel / c.arg_rel_of(*ka, i));
                 }
             }
             None => out.unmatched += 1,
@@ -158,4 +346,30 @@ pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> Co
     }
     out.unmatched += used.iter().filter(|u| !**u).count();
     out
+}
+
+/// Runs the f64 interpreter of `p` and the fixed interpreter of `fp` side by side on the key
+/// trajectory `keys` (metres, first sensor; the f64 engine reads the same quantised samples)
+/// and measures each clause of `p.contract`. `dac_lsb_n` is one DAC LSB in newtons.
+pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> ContractCheck {
+    let run = reference(p, fp, keys, &[]);
+    compare(p, fp, &run, dac_lsb_n, &p.contract, false)
+}
+
+/// Every built-in stimulus of a keyboard program (one sensor) through both engines,
+/// clause by clause against `p.contract`: (stimulus, what it showed). Empty for a program of
+/// several sensors (a pen), whose stimuli are not key dips.
+pub fn check_builtin(p: &Program, fp: &FixedProgram) -> Vec<(&'static str, ContractCheck)> {
+    if p.sensors.len() != 1 {
+        return Vec::new();
+    }
+    let lsb = super::report::analyse(fp).dac_lsb_n();
+    tactus_runtime::stimulus::builtin_names()
+        .iter()
+        .filter_map(|(stim, _)| {
+            let s = tactus_runtime::stimulus::builtin(stim, p.sensors[0].range.1, p.sample_rate_hz)
+                .ok()?;
+            Some((*stim, check(p, fp, &s.key, lsb)))
+        })
+        .collect()
 }

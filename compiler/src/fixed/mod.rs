@@ -146,6 +146,9 @@ pub struct PlanConfig {
     pub value_rel: f64,
     /// [`DIV_REL_TOLERANCE`].
     pub div_rel_tolerance: f64,
+    /// Whether the planner also tries cheaper product forms than the error analysis proves,
+    /// checked by simulating the accuracy contract (`FixedProgram::spend_by_simulation`).
+    pub simulate: bool,
 }
 
 impl Default for PlanConfig {
@@ -156,6 +159,7 @@ impl Default for PlanConfig {
             accumulating_growth: BUDGET_ACCUMULATING_GROWTH,
             value_rel: BUDGET_VALUE_REL,
             div_rel_tolerance: DIV_REL_TOLERANCE,
+            simulate: true,
         }
     }
 }
@@ -171,8 +175,32 @@ impl PlanConfig {
             accumulating_growth: f64::INFINITY,
             value_rel: f64::INFINITY,
             div_rel_tolerance: 1.0,
+            simulate: false,
         }
     }
+}
+
+/// The share of each contract clause the planner's simulation may spend: a cheaper product
+/// form is kept only when the built-in stimuli stay within half of every tolerance, so
+/// that what the built-in stimuli do not show (other params, other touches) has the other
+/// half.
+pub const SIMULATION_MARGIN: f64 = 0.5;
+
+/// Most contract simulations per round of the planner's search
+/// ([`FixedProgram::with_config`]).
+pub const MAX_SIMULATIONS: usize = 40;
+
+/// Programs with more IR values than this are not simulated by the planner (a rubbed bank
+/// or a bowed string: a simulation of the built-in stimuli would take minutes).
+pub const MAX_SIMULATED_VALUES: usize = 1500;
+
+/// Plans already searched by simulation in this process, by program.
+fn simulation_cache(
+) -> &'static std::sync::Mutex<std::collections::HashMap<String, Vec<Option<MulKind>>>> {
+    static CACHE: std::sync::OnceLock<
+        std::sync::Mutex<std::collections::HashMap<String, Vec<Option<MulKind>>>>,
+    > = std::sync::OnceLock::new();
+    CACHE.get_or_init(Default::default)
 }
 
 /// Work (candidate products × IR values) up to which the precision budget is spent one
@@ -349,6 +377,10 @@ pub struct FixedProgram {
     pub recip: Vec<Option<(i32, i32)>>,
     /// How each multiplication (and division by a constant) is done; `None` for other values.
     pub mul_kind: Vec<Option<MulKind>>,
+    /// Per product: the cheaper forms the planner considered beside the exact 64-bit one, in
+    /// the order tried (its `MULS` plan when the operands can be pre-shifted into 32 bits,
+    /// its high word when the partial sum fits); empty for other values.
+    pub mul_options: Vec<Vec<MulKind>>,
     /// For a division by a run-time value: the right shift of its divisor's word
     /// ([`tactus_runtime::fixed::div_shifted`]); 0 for an exact division and for other values.
     pub div_shift: Vec<u8>,
@@ -490,6 +522,7 @@ impl FixedProgram {
 
     /// Plans formats for `program` under the precision budget `config`.
     pub fn with_config(program: &Program, config: &PlanConfig) -> Self {
+        let original = program;
         // Each common value once (`common`): the same meaning, fewer products to plan and run.
         let shared = common::share_common_values(program);
         let program = &shared;
@@ -609,6 +642,12 @@ impl FixedProgram {
             mul_kind[i] = Some(ops.plan(swapped, true));
             planned.push((i, ops, swapped));
         }
+        let mut mul_options = vec![Vec::new(); n];
+        for (i, ops, swapped) in &planned {
+            let muls = Some(ops.plan(*swapped, false)).filter(|k| matches!(k, MulKind::Muls(..)));
+            let high = ops.high().map(|(k, _)| MulKind::High(k));
+            mul_options[*i] = muls.into_iter().chain(high).collect();
+        }
         let sensor_frac: Vec<i32> = program
             .sensors
             .iter()
@@ -671,6 +710,7 @@ impl FixedProgram {
             consts,
             recip,
             mul_kind,
+            mul_options,
             div_shift: vec![0; n],
             sensor_frac,
             sensor_raw_range,
@@ -686,7 +726,145 @@ impl FixedProgram {
         // charged to the divisions' own tolerance, not handed on to the products.
         fp.spend_precision_budget(&planned, config);
         fp.div_shift = div_shift;
+        if config.simulate {
+            fp.spend_by_simulation(original, &planned, config);
+        }
         fp
+    }
+
+    /// The planner's second pass: cheaper product forms than the error analysis could prove,
+    /// each kept only when the accuracy contract ([`contract`]) still holds with
+    /// [`SIMULATION_MARGIN`] of every clause to spare, simulated against the f64 reference
+    /// on every built-in stimulus, with the params' own values and, for a program with
+    /// run-time params, also at the middle of their intervals and at the far corner (a
+    /// shared program's first key is its nominal point; `compiler/tests/contract.rs` checks
+    /// the whole contract over grand88's hammer masses). It starts from the analysis' plan (which
+    /// the contract test checks too). Two rounds: every product not yet `MULS` tries its
+    /// `MULS` plan, then every product still 64-bit tries the high word. Each round tests
+    /// groups of products, breadth first (the whole round, then the halves of a failing
+    /// group), with at most [`MAX_SIMULATIONS`] simulations a round; a failing simulation
+    /// stops at its first broken sample, and the stimulus that failed is tried first next
+    /// time. Only keyboard programs (one sensor) of at most [`MAX_SIMULATED_VALUES`] values
+    /// are simulated. Results are kept per process (the same program planned again costs
+    /// nothing).
+    fn spend_by_simulation(
+        &mut self,
+        original: &Program,
+        planned: &[(usize, MulOperands, bool)],
+        config: &PlanConfig,
+    ) {
+        if original.sensors.len() != 1 || self.program.values.len() > MAX_SIMULATED_VALUES {
+            return;
+        }
+        let key = format!("{config:?}{original:?}");
+        if let Some(kinds) = simulation_cache()
+            .lock()
+            .ok()
+            .and_then(|c| c.get(&key).cloned())
+        {
+            self.mul_kind = kinds;
+            return;
+        }
+        let strict = original.contract.scaled(SIMULATION_MARGIN);
+        let lsb = report::analyse(self).dac_lsb_n();
+        let dip = original.sensors[0].range.1;
+        // The params' own values; with run-time params also the middle of their intervals
+        // and the far corner (each param at the end farther from its own value: for a
+        // grading planned from its first key, the last key).
+        let mut points: Vec<Vec<f64>> = vec![Vec::new()];
+        let ids: Vec<ParamId> = original.runtime_params().collect();
+        if !ids.is_empty() {
+            let at = |pick: &dyn Fn(f64, (f64, f64)) -> f64| -> Vec<f64> {
+                ids.iter()
+                    .map(|id| {
+                        let d = &original.params[id.index()];
+                        pick(d.value, d.runtime.unwrap_or((d.value, d.value)))
+                    })
+                    .collect()
+            };
+            points.push(at(&|_, (lo, hi)| 0.5 * (lo + hi)));
+            points.push(at(&|v, (lo, hi)| {
+                if (v - lo).abs() > (hi - v).abs() {
+                    lo
+                } else {
+                    hi
+                }
+            }));
+        }
+        let mut runs: Vec<contract::ReferenceRun> = Vec::new();
+        for (name, _) in tactus_runtime::stimulus::builtin_names() {
+            let Ok(s) = tactus_runtime::stimulus::builtin(name, dip, original.sample_rate_hz)
+            else {
+                continue;
+            };
+            for point in &points {
+                runs.push(contract::reference(original, self, &s.key, point));
+            }
+        }
+        // The shortest runs first: a failing plan is found sooner.
+        runs.sort_by_key(|r| r.len());
+        let mut order: Vec<usize> = (0..runs.len()).collect();
+        let mut holds = |fp: &FixedProgram| -> bool {
+            for pos in 0..order.len() {
+                let r = &runs[order[pos]];
+                let c = contract::compare(original, fp, r, lsb, &strict, true);
+                if !c.violations(&strict, original.sample_rate_hz).is_empty() {
+                    let i = order.remove(pos);
+                    order.insert(0, i);
+                    return false;
+                }
+            }
+            true
+        };
+        {
+            let rounds: [Vec<(usize, MulKind)>; 2] = [
+                planned
+                    .iter()
+                    .filter(|(i, _, _)| !matches!(self.mul_kind[*i], Some(MulKind::Muls(..))))
+                    .map(|(i, ops, sw)| (*i, ops.plan(*sw, false)))
+                    .filter(|(_, k)| matches!(k, MulKind::Muls(..)))
+                    .collect(),
+                Vec::new(),
+            ];
+            for round in 0..2 {
+                let candidates: Vec<(usize, MulKind)> = if round == 0 {
+                    rounds[0].clone()
+                } else {
+                    planned
+                        .iter()
+                        .filter(|(i, _, _)| self.mul_kind[*i] == Some(MulKind::Wide))
+                        .filter_map(|(i, ops, _)| ops.high().map(|(k, _)| (*i, MulKind::High(k))))
+                        .collect()
+                };
+                let mut queue: std::collections::VecDeque<&[(usize, MulKind)]> =
+                    std::collections::VecDeque::from([&candidates[..]]);
+                let mut done = 0;
+                while let Some(group) = queue.pop_front() {
+                    if group.is_empty() || done == MAX_SIMULATIONS {
+                        continue;
+                    }
+                    done += 1;
+                    let was: Vec<Option<MulKind>> =
+                        group.iter().map(|(i, _)| self.mul_kind[*i]).collect();
+                    for &(i, k) in group {
+                        self.mul_kind[i] = Some(k);
+                    }
+                    if !holds(self) {
+                        for (&(i, _), w) in group.iter().zip(was) {
+                            self.mul_kind[i] = w;
+                        }
+                        if group.len() > 1 {
+                            let (a, b) = group.split_at(group.len() / 2);
+                            queue.push_back(a);
+                            queue.push_back(b);
+                        }
+                    }
+                }
+            }
+        }
+        if let Ok(mut c) = simulation_cache().lock() {
+            c.insert(key, self.mul_kind.clone());
+        }
     }
 
     /// Turns 64-bit products into `MULS` products while the error bounds of

@@ -440,30 +440,7 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
         }
     );
     render_arithmetic(&mut s, fp);
-    let c = super::contract::Contract::default();
-    let _ = writeln!(
-        s,
-        "\naccuracy contract (defaults; checked by simulating against f64 on the built-in stimuli, compiler/tests/contract.rs):"
-    );
-    let _ = writeln!(
-        s,
-        "  force at the key within {} DAC LSB = {:.3e} N: static bound {:.4} LSB{}",
-        c.force_lsb,
-        c.force_lsb * lsb,
-        pr.total / lsb,
-        if pr.total_is_local {
-            " per sample (integrated states: measured by simulation)"
-        } else {
-            ""
-        }
-    );
-    let _ = writeln!(
-        s,
-        "  events on the same key as in f64, none lost or added, within {} ms ({:.0} samples); arguments within {} %; states within their declared ranges",
-        c.event_time_s * 1e3,
-        c.event_time_s * p.sample_rate_hz,
-        c.event_arg_rel * 100.0
-    );
+    render_contract(&mut s, fp, pr);
     if fp.warnings.is_empty() {
         let _ = writeln!(
             s,
@@ -479,12 +456,112 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
     s
 }
 
+/// The accuracy contract (the program's `tolerance` lines or the defaults) and its static
+/// side: the total force's error bound.
+fn render_contract(s: &mut String, fp: &FixedProgram, pr: &Precision) {
+    let p = &fp.program;
+    let c = &p.contract;
+    let lsb = pr.dac_lsb_n();
+    let _ = writeln!(
+        s,
+        "\naccuracy contract ({}; checked by simulating against f64 on the built-in stimuli):",
+        if *c == super::contract::Contract::default() {
+            "the defaults"
+        } else {
+            "the instrument's `tolerance` lines, defaults elsewhere"
+        }
+    );
+    let _ = writeln!(
+        s,
+        "  force at the key within {} = {:.4} DAC LSB = {:.3e} N: static bound {:.4} LSB{}",
+        c.force,
+        c.force.lsb(lsb),
+        c.force.lsb(lsb) * lsb,
+        pr.total / lsb,
+        if pr.total_is_local {
+            " per sample (integrated states: measured by simulation)"
+        } else {
+            ""
+        }
+    );
+    for (f, b) in &c.terms {
+        let _ = writeln!(
+            s,
+            "  force term `{}` within {} = {:.4} DAC LSB: static bound {:.4} LSB",
+            p.forces[f.index()].name,
+            b,
+            b.lsb(lsb),
+            pr.force[f.index()] / lsb
+        );
+    }
+    for (o, b) in &c.outputs {
+        let _ = writeln!(
+            s,
+            "  output `{}` within {b:e} (SI)",
+            p.outputs[o.index()].name
+        );
+    }
+    let _ = writeln!(
+        s,
+        "  events on the same key as in f64, none lost or added, within {} ms ({:.0} samples); arguments within {} %; states within their declared ranges",
+        c.event_time_s * 1e3,
+        c.event_time_s * p.sample_rate_hz,
+        c.event_arg_rel * 100.0
+    );
+    for e in &c.events {
+        let d = &p.events[e.event.index()];
+        let args: Vec<String> = e
+            .args_rel
+            .iter()
+            .map(|(i, r)| format!("`{}` within {} %", d.args[*i].0, r * 100.0))
+            .collect();
+        let _ = writeln!(
+            s,
+            "  event `{}`: within {} ms{}{}",
+            d.name,
+            c.time_of(e.event.index()) * 1e3,
+            if args.is_empty() { "" } else { "; " },
+            args.join(", ")
+        );
+    }
+}
+
+/// The margins of each clause of the contract, worst over the built-in stimuli (from
+/// [`super::contract::check_builtin`]), as report lines.
+pub fn render_margins(p: &Program, runs: &[(&str, super::contract::ContractCheck)]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\ncontract margins (worst over {} built-in stimuli, fixed point against f64):",
+        runs.len()
+    );
+    let mut worst: Vec<(String, f64, f64, &str, &str)> = Vec::new();
+    for (stim, r) in runs {
+        for (clause, w, b, unit) in r.margins(p, &p.contract) {
+            match worst.iter_mut().find(|x| x.0 == clause) {
+                Some(x) if w > x.1 => (x.1, x.4) = (w, stim),
+                Some(_) => {}
+                None => worst.push((clause, w, b, unit, stim)),
+            }
+        }
+    }
+    for (clause, w, b, unit, stim) in worst {
+        let verdict = if w <= b { "holds" } else { "BROKEN" };
+        let _ = writeln!(
+            s,
+            "  {clause:<48} worst {w:<10.4} of {b:<8} {unit:<8} margin {:<10.4} ({stim}) {verdict}",
+            b - w
+        );
+    }
+    s
+}
+
 /// The form and estimated cycles of every product and run-time division.
 fn render_arithmetic(s: &mut String, fp: &FixedProgram) {
     let p = &fp.program;
     let _ = writeln!(
         s,
-        "\nproducts (form chosen by the precision budget; Cortex-M0+ cycles estimated)"
+        "\nproducts (form chosen by the precision budget and the contract's simulation; Cortex-M0+ cycles estimated; the cheaper forms considered)"
     );
     for (i, k) in fp.mul_kind.iter().enumerate() {
         let (Some(k), Op::Arith(_, x, y)) = (k, &p.values[i].op) else {
@@ -492,16 +569,26 @@ fn render_arithmetic(s: &mut String, fp: &FixedProgram) {
         };
         let span = &p.values[i].span;
         let fy = fp.recip[i].map_or(fp.frac[y.index()], |(_, f)| f);
+        let tried: Vec<String> = fp.mul_options[i]
+            .iter()
+            .filter(|o| o.cycles() < k.cycles())
+            .map(|o| format!("{} ≈ {}", o.name(), o.cycles()))
+            .collect();
         let _ = writeln!(
             s,
-            "  v{i:<5} source {:>5}..{:<5} {:<8} × {:<8} → {:<8} {:<46} ≈ {:>2}",
+            "  v{i:<5} source {:>5}..{:<5} {:<8} × {:<8} → {:<8} {:<46} ≈ {:>2}{}",
             span.start,
             span.end,
             q_name(fp.frac[x.index()]),
             q_name(fy),
             q_name(fp.frac[i]),
             k.name(),
-            k.cycles()
+            k.cycles(),
+            if tried.is_empty() {
+                String::new()
+            } else {
+                format!("   (refused: {})", tried.join("; "))
+            }
         );
     }
     let (m, h, w, cycles) = fp.mul_forms();

@@ -88,6 +88,7 @@ impl<'a> Lowerer<'a> {
                         (s.init, s.range, s.dim) = (v, (lo, hi), dim);
                     }
                     ast::Decl::Require { cond, .. } => self.check_requirement(scope, cond),
+                    ast::Decl::Tolerance { .. } => self.evaluate_tolerance(scope, d),
                     ast::Decl::Dynamics { eqs, .. } => self.check_oscillators(scope, eqs),
                     _ => {}
                 }
@@ -312,7 +313,7 @@ impl<'a> Lowerer<'a> {
     }
 
     /// A constant's value in SI and its dimension.
-    fn const_value(&mut self, scope: ScopeId, e: &'a ast::Expr) -> Option<(f64, Dim)> {
+    pub(super) fn const_value(&mut self, scope: ScopeId, e: &'a ast::Expr) -> Option<(f64, Dim)> {
         let v = self.lower_expr(scope, e)?;
         match self.ty(v) {
             Ty::Real(d) => {

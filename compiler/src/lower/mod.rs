@@ -17,6 +17,7 @@ mod consts;
 mod expr;
 mod fold;
 mod scope;
+mod tolerance;
 
 use crate::ast::{self, Span};
 use crate::diagnostics::Diagnostic;
@@ -130,6 +131,8 @@ struct Lowerer<'a> {
     cur_span: Span,
     /// `--param` overrides by param index: (value in SI, dimension, text as given).
     overrides: HashMap<usize, (f64, Dim, String)>,
+    /// `tolerance` lines evaluated, resolved after the body ([`tolerance`]).
+    tolerances: Vec<tolerance::PendingTolerance<'a>>,
 }
 
 impl<'a> Lowerer<'a> {
@@ -151,6 +154,7 @@ impl<'a> Lowerer<'a> {
                 values: vec![],
                 body: vec![],
                 force_axes: vec![],
+                contract: Contract::default(),
             },
             diags: vec![],
             unknown_reported: HashSet::new(),
@@ -164,6 +168,7 @@ impl<'a> Lowerer<'a> {
             const_ctx: false,
             dynamics_of: HashMap::new(),
             overrides: HashMap::new(),
+            tolerances: Vec::new(),
             cur_span: 0..0,
         }
     }
@@ -217,6 +222,7 @@ impl<'a> Lowerer<'a> {
         self.apply_overrides();
         self.evaluate_constants();
         self.generate_body(root);
+        self.resolve_tolerances();
         self.check_unused();
     }
 

@@ -338,7 +338,8 @@ impl<'a> Lowerer<'a> {
                 }
                 ast::Decl::Dynamics { .. }
                 | ast::Decl::Handler { .. }
-                | ast::Decl::Require { .. } => {}
+                | ast::Decl::Require { .. }
+                | ast::Decl::Tolerance { .. } => {}
                 // Removed by `crate::expand` before lowering.
                 ast::Decl::For { .. }
                 | ast::Decl::Solve { .. }

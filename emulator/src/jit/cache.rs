@@ -4,7 +4,7 @@
 
 use super::abi::NativeFn;
 use super::scan::{scan, RegionInstr};
-use super::translate::Translator;
+use super::translate::{Flavour, Translator};
 use crate::bus::System;
 use cranelift_codegen::ir::{types, AbiParam, Signature};
 use cranelift_codegen::settings::{self, Configurable};
@@ -68,8 +68,8 @@ pub(crate) struct Jit {
     /// Regions compiled so far (for tests and reports).
     pub(crate) count: u64,
     fctx: FunctionBuilderContext,
-    /// Compiles confined code (see the parent module, "Confinement").
-    confined: bool,
+    /// Which variant of each region this cache compiles.
+    flavour: Flavour,
 }
 
 // SAFETY: the module and the function pointers into it are owned by this `Jit` alone;
@@ -91,10 +91,10 @@ fn tag(pc: u32, epoch: u32) -> u64 {
 }
 
 impl Jit {
-    /// An empty cache compiling ordinary code, or with `confined` confined code.
-    pub(crate) fn new(confined: bool) -> Jit {
+    /// An empty cache compiling regions of `flavour`.
+    pub(crate) fn new(flavour: Flavour) -> Jit {
         Jit {
-            confined,
+            flavour,
             slots: vec![EMPTY; SLOTS].into_boxed_slice(),
             compiled: HashMap::new(),
             module: None,
@@ -196,7 +196,7 @@ impl Jit {
         let mut ctx = module.make_context();
         ctx.func.signature = sig;
         let b = FunctionBuilder::new(&mut ctx.func, &mut self.fctx);
-        let (b, bound) = Translator::run(b, instrs, self.confined);
+        let (b, bound) = Translator::run(b, instrs, self.flavour);
         b.finalize(module.target_config());
         module.define_function(id, &mut ctx).ok()?;
         module.finalize_definitions().ok()?;
@@ -216,6 +216,9 @@ fn new_module() -> Option<JITModule> {
     let mut flags = settings::builder();
     flags.set("opt_level", "speed").ok()?;
     flags.set("is_pic", "false").ok()?;
+    // The translator's output is checked by the differential tests; the verifier would
+    // cost a tenth of every compile.
+    flags.set("enable_verifier", "false").ok()?;
     let isa = cranelift_native::builder()
         .ok()?
         .finish(settings::Flags::new(flags))

@@ -76,3 +76,4 @@ mod translate;
 pub(crate) use abi::{call, Confine, Exit};
 pub(crate) use cache::Jit;
 pub(crate) use scan::data_words;
+pub(crate) use translate::Flavour;
