@@ -39,7 +39,7 @@ pub(super) struct Flags {
 }
 
 /// How a region's SRAM accesses meet the other core (one compiled variant each).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(crate) enum Flavour {
     /// The other core may have claimed a bank in the cycles this code runs in: each
     /// access arbitrates against its claim (`System::arbitrate_fast`).
@@ -51,6 +51,10 @@ pub(crate) enum Flavour {
     /// Running ahead ([`crate::board`], "Running ahead"): arbitrated, every access checked
     /// against the allowed banks, every store journaled (see the parent module).
     Confined,
+    /// [`Flavour::Confined`] for a core whose accesses all come after the other core's last
+    /// claims (as [`Flavour::Solo`]): in a window the other core does not touch the banks
+    /// this core may, so their claims stay as they were.
+    ConfinedSolo,
 }
 
 pub(super) struct Translator<'a> {
@@ -106,7 +110,8 @@ impl<'a> Translator<'a> {
         instrs: &[RegionInstr],
         flavour: Flavour,
     ) -> (FunctionBuilder<'a>, u64) {
-        let confined = flavour == Flavour::Confined;
+        let confined = matches!(flavour, Flavour::Confined | Flavour::ConfinedSolo);
+        let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo);
         let index: HashMap<u32, usize> =
             instrs.iter().enumerate().map(|(i, x)| (x.pc, i)).collect();
         let targets: Vec<Option<usize>> = instrs
@@ -126,8 +131,7 @@ impl<'a> Translator<'a> {
         let flash = ptr(&mut b, offset_of!(Ctx, flash));
         let code_pages = ptr(&mut b, offset_of!(Ctx, code_pages));
         let claims_self = ptr(&mut b, offset_of!(Ctx, claims_self));
-        let claims_other =
-            (flavour != Flavour::Solo).then(|| ptr(&mut b, offset_of!(Ctx, claims_other)));
+        let claims_other = (!solo).then(|| ptr(&mut b, offset_of!(Ctx, claims_other)));
         let stalls_ptr = ptr(&mut b, offset_of!(Ctx, stalls));
         let regs = std::array::from_fn(|_| b.declare_var(types::I32));
         let flags = Flags {
