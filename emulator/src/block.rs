@@ -120,16 +120,40 @@ pub(crate) struct Blocks {
     cursor: [Cursor; 2],
     /// Blocks decoded so far (for tests and reports).
     pub(crate) decoded: u64,
-    /// The compiled regions ([`crate::jit`]).
+    /// The compiled regions ([`crate::jit`]) that arbitrate against the other core.
     pub(crate) jit: Jit,
+    /// The same regions compiled for a core whose every access is later than the other
+    /// core's last bank claim ([`jit::Flavour::Solo`]).
+    pub(crate) solo: Jit,
     /// The same regions compiled confined, for running ahead ([`run_confined`]).
     pub(crate) confined: Jit,
+    /// Confined without arbitration ([`jit::Flavour::ConfinedSolo`]).
+    pub(crate) confined_solo: Jit,
     /// The undo journal of the core running ahead (entries as [`crate::jit`] writes them).
     pub(crate) journal: Vec<u64>,
+    /// The core running ahead at each exit of its native code ([`run_confined`]).
+    pub(crate) marks: Vec<Mark>,
+}
+
+/// A core's state at an exit of native code while it runs ahead: where a window can be
+/// cut back to ([`crate::board`], "Running ahead").
+#[derive(Clone)]
+pub(crate) struct Mark {
+    /// The core.
+    pub(crate) core: Core,
+    /// Its last claim of each bank.
+    pub(crate) claims: [u64; crate::bus::BANKS],
+    /// Its contention stalls.
+    pub(crate) stalls: u64,
+    /// Undo-journal entries written before it.
+    pub(crate) journal: usize,
 }
 
 /// Undo-journal entries kept while a core runs ahead: a window that fills it ends there.
 const JOURNAL: usize = 1 << 16;
+
+/// Most marks ([`Mark`]) kept in one window (later exits are not marked).
+pub(crate) const MAX_MARKS: usize = 1024;
 
 #[inline(always)]
 fn tag(pc: u32, epoch: u32) -> u64 {
@@ -158,9 +182,12 @@ impl Blocks {
             generation: 0,
             cursor: [Cursor::default(); 2],
             decoded: 0,
-            jit: Jit::new(false),
-            confined: Jit::new(true),
+            jit: Jit::new(jit::Flavour::Shared),
+            solo: Jit::new(jit::Flavour::Solo),
+            confined: Jit::new(jit::Flavour::Confined),
+            confined_solo: Jit::new(jit::Flavour::ConfinedSolo),
             journal: Vec::with_capacity(JOURNAL),
+            marks: Vec::new(),
         }
     }
 
@@ -346,13 +373,27 @@ pub(crate) fn run<T: Turns>(
 ) -> Result<(), Leave> {
     let mut retired = 0u64;
     let mut native = true;
+    // The other core takes no turn during this run: once the core's cycle reaches the
+    // other's last claim of any bank, none of its accesses can wait (solo code).
+    let quiet_from = sys
+        .bank_claim
+        .iter()
+        .map(|c| c[(core.id ^ 1) & 1])
+        .filter(|&c| c != u64::MAX)
+        .max()
+        .unwrap_or(0);
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
         }
         let pc = core.r[15];
         if native {
-            if let Some(region) = blocks.jit.lookup(sys, pc) {
+            let cache = if core.cycle >= quiet_from {
+                &mut blocks.solo
+            } else {
+                &mut blocks.jit
+            };
+            if let Some(region) = cache.lookup(sys, pc) {
                 if core.cycle.saturating_add(region.bound) <= limit {
                     let (exit, n, q) = jit::call(region.f, core, sys, limit, None);
                     retired += n;
@@ -437,26 +478,43 @@ fn fetch_allowed(sys: &System, pc: u32, size: u32) -> bool {
 /// confined cache, whose loads and stores leave before an access to another bank, and
 /// pre-decoded instructions run through the executor, whose fast path does the same; an
 /// instruction fetched from another bank leaves too. With `journal`, only native code runs
-/// (the run ends where a region does not fit or leaves, `Err(Leave::General)`), and every
+/// (the run ends where a region does not fit or leaves, `Err(Leave::General)`), every
 /// store's old word is appended to `journal` (the run ends before a store that finds it
-/// full) so that the caller can undo the run. `Ok` when the core reached `limit`.
+/// full) so that the caller can undo the run, and the core's state after each native call
+/// is appended to `marks` (up to [`MAX_MARKS`]) so that it can undo part of it. `Ok` when
+/// the core reached `limit`.
 pub(crate) fn run_confined(
     core: &mut Core,
     sys: &mut System,
     blocks: &mut Blocks,
     limit: u64,
     mut journal: Option<&mut Vec<u64>>,
+    mut marks: Option<&mut Vec<Mark>>,
 ) -> Result<(), Leave> {
     let allowed = sys.allowed_banks;
     let mut retired = 0u64;
     let mut native = true;
+    // The other core does not touch the allowed banks while this one runs (see
+    // [`crate::board`], "Running ahead"), so its claims of them stay as they are: once the
+    // core's cycle reaches the last, no access can wait.
+    let quiet_from = (0..crate::bus::BANKS)
+        .filter(|b| allowed >> b & 1 != 0)
+        .map(|b| sys.bank_claim[b][(core.id ^ 1) & 1])
+        .filter(|&c| c != u64::MAX)
+        .max()
+        .unwrap_or(0);
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
         }
         let pc = core.r[15];
         if native {
-            if let Some(region) = blocks.confined.lookup(sys, pc) {
+            let cache = if core.cycle >= quiet_from {
+                &mut blocks.confined_solo
+            } else {
+                &mut blocks.confined
+            };
+            if let Some(region) = cache.lookup(sys, pc) {
                 if core.cycle.saturating_add(region.bound) <= limit && region.banks & !allowed == 0
                 {
                     let mut confine = jit::Confine {
@@ -465,6 +523,18 @@ pub(crate) fn run_confined(
                     };
                     let (exit, n, _) = jit::call(region.f, core, sys, limit, Some(&mut confine));
                     retired += n;
+                    if let (Some(m), Some(j)) = (marks.as_deref_mut(), journal.as_deref()) {
+                        if m.len() < MAX_MARKS {
+                            let mut c = core.clone();
+                            c.instructions += retired;
+                            m.push(Mark {
+                                core: c,
+                                claims: sys.bank_claim.map(|c| c[core.id & 1]),
+                                stalls: sys.contention_stalls[core.id & 1],
+                                journal: j.len(),
+                            });
+                        }
+                    }
                     match exit {
                         jit::Exit::Invalidate => sys.invalidate_code(),
                         jit::Exit::General => native = false,

@@ -333,8 +333,8 @@ pub struct Board {
     launch: Option<Launch>,
     cache: Box<[Cached; CACHE_SLOTS]>,
     blocks: Blocks,
-    /// Run-ahead windows kept and rolled back ([`Board::run_ahead_windows`]).
-    windows: [u64; 2],
+    /// Run-ahead windows kept, rolled back and partly kept ([`Board::run_ahead_windows`]).
+    windows: [u64; 3],
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
@@ -354,7 +354,7 @@ impl Board {
             lines: 0,
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
-            windows: [0; 2],
+            windows: [0; 3],
             cache: vec![
                 Cached {
                     key: u64::MAX,
@@ -689,13 +689,21 @@ impl Board {
 
     /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
     pub fn regions_compiled(&self) -> u64 {
-        self.blocks.jit.count + self.blocks.confined.count
+        let b = &self.blocks;
+        b.jit.count + b.solo.count + b.confined.count + b.confined_solo.count
     }
 
     /// Run-ahead windows so far ("Running ahead" in the module documentation): (kept,
-    /// rolled back because the other core could not catch up confined).
+    /// rolled back because the other core could not catch up confined). A window whose
+    /// first part was kept ([`Board::run_ahead_partly_kept`]) counts in neither.
     pub fn run_ahead_windows(&self) -> (u64, u64) {
         (self.windows[0], self.windows[1])
+    }
+
+    /// Run-ahead windows of which only the part before the other core's stop was kept
+    /// (the core that ran ahead rolled back and run again up to there).
+    pub fn run_ahead_partly_kept(&self) -> u64 {
+        self.windows[2]
     }
 
     /// The block engine compiles a code region to native code once its entry has been
@@ -703,7 +711,9 @@ impl Board {
     /// it to run everything natively). Results never depend on it, only speed.
     pub fn set_compile_threshold(&mut self, times: u32) {
         self.blocks.jit.threshold = times;
+        self.blocks.solo.threshold = times;
         self.blocks.confined.threshold = times;
+        self.blocks.confined_solo.threshold = times;
     }
 
     /// Total cycles elapsed: the lower of the running cores' counters.
@@ -757,12 +767,16 @@ impl Board {
                         && w1[0] == NO_WATCH
                         && self.config.own_banks[k] != 0
                     {
-                        if self.run_ahead(k, deadline) {
-                            continue;
-                        }
+                        let retry = match self.run_ahead(k, deadline) {
+                            Window::Kept => continue,
+                            // The core behind needs the general path (or cold code) at
+                            // once: a short lock-step stretch runs it.
+                            Window::Idle => RETRY,
+                            Window::RolledBack => RETRY,
+                        };
                         // Lock-step for a while before the next attempt.
                         let now = self.cores[0].cycle.min(self.cores[1].cycle);
-                        deadline = deadline.map(|d| d.min(now.saturating_add(RETRY)));
+                        deadline = deadline.map(|d| d.min(now.saturating_add(retry)));
                     }
                     let (k, ran) = self.fast_run::<true>(k, deadline, [w0, w1]);
                     if let Some(event) = ran {
@@ -993,62 +1007,90 @@ impl Board {
     /// One window of running ahead (see "Running ahead" in the module documentation): core
     /// `a` (the one behind, both cores on the fast path with `deadline`s as in
     /// [`Board::run_until`]) runs compiled code confined to its own banks, the other core
-    /// then catches up confined to every other bank. True when the window was kept; false
-    /// when core `a` ran nothing, or when the other core could not catch up and core `a`
-    /// was rolled back (the other core's instructions stand: they commute with the window).
-    fn run_ahead(&mut self, a: usize, deadline: [u64; 2]) -> bool {
+    /// then catches up confined to every other bank. When the other core stops before
+    /// catching up, core `a` is rolled back and runs again up to where the other stopped
+    /// (the window's first part is kept); it is rolled back for good when that part is
+    /// shorter than [`MIN_WINDOW`] (the other core's instructions stand either way: they
+    /// commute with the window).
+    fn run_ahead(&mut self, a: usize, deadline: [u64; 2]) -> Window {
         let b = 1 - a;
         let start = self.cores[a].cycle;
         // The other core must be able to reach the window's end (`+ 1` when it is core 0,
         // which runs first on a tie) before its own deadline.
         let end = deadline[a].min(deadline[b].saturating_sub((b == 0) as u64));
         if start.saturating_add(MIN_WINDOW) > end {
-            return false;
+            return Window::Idle;
         }
-        let saved = (
-            self.cores[a].clone(),
-            self.system.bank_claim.map(|c| c[a]),
-            self.system.contention_stalls[a],
-        );
+        let saved = Saved {
+            core: self.cores[a].clone(),
+            claims: self.system.bank_claim.map(|c| c[a]),
+            stalls: self.system.contention_stalls[a],
+        };
         let epoch = self.system.code_epoch;
         let (sys, blocks) = (&mut self.system, &mut self.blocks);
         let mut journal = std::mem::take(&mut blocks.journal);
+        let mut marks = std::mem::take(&mut blocks.marks);
         journal.clear();
+        marks.clear();
         sys.allowed_banks = self.config.own_banks[a] & ALL_BANKS;
-        let _ = block::run_confined(&mut self.cores[a], sys, blocks, end, Some(&mut journal));
+        let _ = block::run_confined(
+            &mut self.cores[a],
+            sys,
+            blocks,
+            end,
+            Some(&mut journal),
+            Some(&mut marks),
+        );
         let reached = self.cores[a].cycle;
         let mut kept = reached > start;
+        let mut partly = false;
         if kept {
             let target = reached + (b == 0) as u64;
             sys.allowed_banks = ALL_BANKS & !self.config.own_banks[a];
-            let caught = block::run_confined(&mut self.cores[b], sys, blocks, target, None);
+            let caught = block::run_confined(&mut self.cores[b], sys, blocks, target, None, None);
             kept = caught.is_ok() && self.cores[b].cycle >= target;
             if !kept {
-                // Undo core `a`'s window: its stores (newest first), its bank claims,
-                // stalls and state.
-                for &e in journal.iter().rev() {
-                    let off = (e >> 32) as usize;
-                    sys.sram[off..off + 4].copy_from_slice(&(e as u32).to_le_bytes());
-                }
-                let (core, claims, stalls) = saved;
-                self.cores[a] = core;
-                for (bank, c) in claims.iter().enumerate() {
-                    sys.bank_claim[bank][a] = *c;
-                }
-                sys.contention_stalls[a] = stalls;
-                // Code decoded after a store into a code page in the window came from
-                // memory the undo has just changed back.
-                if sys.code_epoch != epoch {
-                    sys.invalidate_code();
-                }
+                // Core `b` stopped at `t`, before an instruction it could not run confined.
+                // Cut core `a` back to its last mark before `b`'s next instruction in the
+                // lock-step order (at or before `t`, `t + 1` when `a` is core 0): what it
+                // ran up to there is in the window and stands.
+                let redo = self.cores[b].cycle + (a == 0) as u64;
+                let mark = marks
+                    .iter()
+                    .rev()
+                    .find(|m| m.core.cycle <= redo)
+                    .filter(|m| m.core.cycle >= start.saturating_add(MIN_WINDOW));
+                let cut = match mark {
+                    Some(m) => Saved {
+                        core: m.core.clone(),
+                        claims: m.claims,
+                        stalls: m.stalls,
+                    },
+                    None => saved,
+                };
+                let from = mark.map_or(0, |m| m.journal);
+                partly = mark.is_some();
+                undo(&mut self.cores[a], sys, a, &cut, &journal[from..], epoch);
             }
         }
         sys.allowed_banks = ALL_BANKS;
         blocks.journal = journal;
-        if reached > start {
-            self.windows[!kept as usize] += 1;
+        blocks.marks = marks;
+        if reached == start {
+            return Window::Idle;
         }
-        kept
+        self.windows[if kept {
+            0
+        } else if partly {
+            2
+        } else {
+            1
+        }] += 1;
+        if kept || partly {
+            Window::Kept
+        } else {
+            Window::RolledBack
+        }
     }
 
     /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
@@ -1301,6 +1343,17 @@ enum Exit {
     Watch,
 }
 
+/// What a run-ahead attempt ([`Board::run_ahead`]) did.
+enum Window {
+    /// The window was kept, or its first part (the core behind moved on).
+    Kept,
+    /// The core behind ran nothing (its next instruction needs the general path, its code
+    /// is not compiled yet, or the deadlines leave no room).
+    Idle,
+    /// The window was rolled back.
+    RolledBack,
+}
+
 /// Fewest cycles a run-ahead window may span ([`Board::run_ahead`]).
 const MIN_WINDOW: u64 = 64;
 
@@ -1472,6 +1525,32 @@ fn blocks_beside_sleeper<const SLEEPER_IS_0: bool>(
                 return Err(Exit::Miss);
             }
         }
+    }
+}
+
+/// A core's state at the start of a run-ahead window ([`Board::run_ahead`]).
+struct Saved {
+    core: Core,
+    claims: [u64; crate::bus::BANKS],
+    stalls: u64,
+}
+
+/// Undoes (the end of) core `a`'s run-ahead window: its stores in `journal` (newest
+/// first), its bank claims, stalls and state as `saved`; decoded code is dropped when a
+/// store in the window hit a code page (`epoch` moved), since the undo may have changed
+/// that memory back.
+fn undo(core: &mut Core, sys: &mut System, a: usize, saved: &Saved, journal: &[u64], epoch: u32) {
+    for &e in journal.iter().rev() {
+        let off = (e >> 32) as usize;
+        sys.sram[off..off + 4].copy_from_slice(&(e as u32).to_le_bytes());
+    }
+    *core = saved.core.clone();
+    for (bank, c) in saved.claims.iter().enumerate() {
+        sys.bank_claim[bank][a] = *c;
+    }
+    sys.contention_stalls[a] = saved.stalls;
+    if sys.code_epoch != epoch {
+        sys.invalidate_code();
     }
 }
 

@@ -280,9 +280,9 @@ fn sram(b: &mut Board) -> u64 {
 }
 
 /// Runs one case on both engines; returns (instructions run by the block engine,
-/// mismatching slices, run-ahead windows kept and rolled back), printing the first
-/// mismatch.
-fn compare(seed: u64, case: Case, cycles: u64) -> (u64, u32, (u64, u64)) {
+/// mismatching slices, run-ahead windows kept, rolled back and partly kept), printing the
+/// first mismatch.
+fn compare(seed: u64, case: Case, cycles: u64) -> (u64, u32, (u64, u64, u64)) {
     let mut block = board(seed, case, Engine::Block);
     let mut interp = board(seed, case, Engine::Interp);
     let mut rng = Rng(seed ^ 0x51ce);
@@ -327,8 +327,12 @@ fn compare(seed: u64, case: Case, cycles: u64) -> (u64, u32, (u64, u64)) {
         );
     }
     let instructions = block.cores.iter().map(|c| c.instructions).sum();
-    let w = block.run_ahead_windows();
-    (instructions, mismatches, w)
+    let (kept, rolled_back) = block.run_ahead_windows();
+    (
+        instructions,
+        mismatches,
+        (kept, rolled_back, block.run_ahead_partly_kept()),
+    )
 }
 
 #[test]
@@ -336,7 +340,7 @@ fn block_engine_matches_the_interpreter_on_random_programs() {
     let mut rng = Rng(0xb10c_e761);
     let (mut instructions, mut mismatches, mut cases) = (0u64, 0u32, 0);
     let mut code_page_runs = 0;
-    let mut windows = (0, 0);
+    let mut windows = (0, 0, 0);
     for i in 0..64u32 {
         let case = Case {
             cores: 1 + (i % 2) as usize,
@@ -348,18 +352,21 @@ fn block_engine_matches_the_interpreter_on_random_programs() {
         };
         code_page_runs += case.code_page_data as u32;
         let (n, m, w) = compare(rng.next(), case, 300_000);
-        windows = (windows.0 + w.0, windows.1 + w.1);
+        windows = (windows.0 + w.0, windows.1 + w.1, windows.2 + w.2);
         instructions += n;
         mismatches += m;
         cases += 1;
     }
     eprintln!(
         "{cases} programs, {instructions} instructions, {mismatches} mismatches, \
-         run-ahead windows kept {}, rolled back {}",
-        windows.0, windows.1
+         run-ahead windows kept {}, rolled back {}, partly kept {}",
+        windows.0, windows.1, windows.2
     );
-    // Both outcomes of running ahead are exercised.
-    assert!(windows.0 > 0 && windows.1 > 0, "{windows:?}");
+    // Every outcome of running ahead is exercised.
+    assert!(
+        windows.0 > 0 && windows.1 > 0 && windows.2 > 0,
+        "{windows:?}"
+    );
     assert_eq!(mismatches, 0, "{mismatches} mismatching slices");
     assert!(
         instructions >= 10_000_000,

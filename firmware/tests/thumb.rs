@@ -24,15 +24,21 @@ use tactus_runtime::stimulus;
 /// (`ThumbError::Unsupported`); the C backend compiles them. The bit-for-bit tests skip them
 /// and `thumb_refuses_only_the_listed_instruments` checks the list stays true: remove an
 /// entry when the backend learns the construct.
-/// `bowed_string`'s update (four strings of finite differences, 3 Newton steps each) is
-/// over 256 KB of code.
-const NOT_FOR_THUMB: &[(&str, &str)] = &[("bowed_string", "KB of SRAM")];
+/// (`bowed_string`, over 256 KB of code before issue 16's move coalescing, now compiles.)
+const NOT_FOR_THUMB: &[(&str, &str)] = &[];
 
-/// The shipped instruments the Thumb backend compiles.
+/// Shipped instruments the Thumb backend compiles but whose update is too long to emulate
+/// on every stimulus in a debug test: `bowed_string`'s (four strings of finite differences,
+/// 3 Newton steps each; about 250 KB of code). Its bits are checked at N = 17
+/// (`thumb_matches_the_fixed_interpreter_on_a_smaller_bowed_string`).
+const NOT_EMULATED: &[&str] = &["bowed_string"];
+
+/// The shipped instruments the Thumb backend compiles and these tests emulate.
 fn thumb_instruments() -> Vec<(String, String)> {
     instruments()
         .into_iter()
         .filter(|(name, _)| NOT_FOR_THUMB.iter().all(|(n, _)| n != name))
+        .filter(|(name, _)| !NOT_EMULATED.contains(&name.as_str()))
         .collect()
 }
 
@@ -51,7 +57,13 @@ fn thumb_refuses_only_the_listed_instruments() {
                         "{name}: refused for {w}, listed for {what}"
                     )
                 }
-                other => panic!("{name} is listed as not for Thumb ({what}) but gives {other:?}"),
+                Err(other) => {
+                    panic!("{name} is listed as not for Thumb ({what}) but gives {other}")
+                }
+                Ok(obj) => panic!(
+                    "{name} is listed as not for Thumb ({what}) but compiles (.text {} bytes)",
+                    obj.code.text.len()
+                ),
             },
             None => {
                 let obj = r.unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -138,7 +150,7 @@ fn thumb_matches_the_fixed_interpreter_bit_for_bit() {
     }
 }
 
-/// `bowed_string` at its shipped size is refused (over 256 KB of code); the same source with
+/// `bowed_string` at its shipped size is too long to emulate here ([`NOT_EMULATED`]); the same source with
 /// 16 interior nodes per string (N = 17, the bowing point interpolated over nodes 1…4) is
 /// about 107 KB and runs every construct the full instrument has — four bows with their
 /// Newton–Raphson solves, `exp`s and divisions, the interpolation and spreading weights, the

@@ -5,7 +5,7 @@
 
 use super::buffer::{self, CodeBuffer};
 use super::mir::{Base, Label, Shift, M, V};
-use super::regalloc::{Allocation, Loc};
+use super::regalloc::{Allocation, Loc, Remat};
 use super::select::STATE_V;
 use super::ThumbError;
 use std::collections::HashMap;
@@ -39,6 +39,13 @@ struct Lower<'a> {
     /// The stack slot each scratch register is known to hold (reload cache): valid in
     /// straight-line code, forgotten at every label (a join point).
     holds: [Option<u16>; 2],
+    /// Scratch registers holding an operand of the instruction being lowered (a second
+    /// spilled operand is reloaded into the other one).
+    pinned: [bool; 2],
+    /// The last instruction reading or writing each virtual register, and the index of
+    /// the instruction being lowered: an operand whose register is free after it.
+    last: Vec<usize>,
+    at: usize,
     /// Where each spill slot lives: a high register (`MOV` to and from it costs 1 cycle
     /// where `LDR`/`STR` cost 2) or a word of the stack frame.
     home: Vec<Home>,
@@ -55,7 +62,9 @@ enum Home {
 
 /// Spill slots get the high registers, most referenced first: `r12` (caller-saved, free),
 /// then `r8`–`r11` (callee-saved: each costs two `MOV`s and a share of a `PUSH`/`POP` pair,
-/// about 4 cycles, so it is used only for a slot referenced at least this many times).
+/// about 4 cycles, so it is first taken only for a slot referenced at least this many
+/// times). Slots whose live spans are disjoint share a high register (a second linear
+/// scan, over the slots, most referenced first).
 const HI_MIN_REFS: u32 = 6;
 
 /// The homes of `alloc`'s spill slots, from their static reference counts in `code`.
@@ -76,16 +85,27 @@ fn homes(code: &[M], alloc: &Allocation) -> Vec<Home> {
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by_key(|&s| (std::cmp::Reverse(refs[s]), s));
     let mut home = vec![Home::Stack(0); n];
-    let mut hi = [12u8, 8, 9, 10, 11].into_iter();
+    // The spans each high register holds (`r12` first; a callee-saved one is opened only
+    // for a slot with HI_MIN_REFS references, then shared by any disjoint slot).
+    let mut hi: Vec<(u8, Vec<(usize, usize)>)> = Vec::new();
+    let closed = [12u8, 8, 9, 10, 11];
     let mut next_stack = 0u16;
     for s in order {
-        let h = match hi.clone().next() {
-            Some(12) if refs[s] > 0 => hi.next(),
-            Some(r) if refs[s] >= HI_MIN_REFS => {
-                let _ = r;
-                hi.next()
-            }
-            _ => None,
+        let span = alloc.slot_span[s];
+        let disjoint =
+            |spans: &[(usize, usize)]| spans.iter().all(|&(a, b)| b < span.0 || span.1 < a);
+        let h = if refs[s] == 0 {
+            None
+        } else if let Some((r, spans)) = hi.iter_mut().find(|(_, spans)| disjoint(spans)) {
+            spans.push(span);
+            Some(*r)
+        } else if let Some(&r) = closed.get(hi.len()) {
+            (r == 12 || refs[s] >= HI_MIN_REFS).then(|| {
+                hi.push((r, vec![span]));
+                r
+            })
+        } else {
+            None
         };
         home[s] = match h {
             Some(r) => Home::Hi(r),
@@ -116,13 +136,37 @@ impl Lower<'_> {
         *self.labels.entry(l.0).or_insert_with(|| buf.label())
     }
 
-    /// A register holding `v` for reading: its own, or scratch `k` after a reload.
+    /// A register holding `v` for reading: its own, a scratch register that already holds
+    /// its slot, or scratch `k` (the other one if `k` holds an operand of this instruction)
+    /// after a reload.
     fn read(&mut self, v: V, k: usize) -> u8 {
         match self.loc(v) {
             Loc::Reg(r) => r,
-            Loc::Slot(s) => {
+            Loc::Remat(how) => {
+                let k = if self.pinned[k] { 1 - k } else { k };
+                self.pinned[k] = true;
                 let r = self.alloc.scratch[k];
-                if self.holds[k] != Some(s) {
+                self.holds[k] = None;
+                match how {
+                    Remat::Const(imm) => self.movi(r, imm),
+                    Remat::State(op, off) => self.i(Instr::MemImm {
+                        op,
+                        rt: r,
+                        rn: 7,
+                        imm: off,
+                    }),
+                }
+                r
+            }
+            Loc::Slot(s) => {
+                if let Some(j) = (0..2).find(|&j| self.holds[j] == Some(s)) {
+                    self.pinned[j] = true;
+                    return self.alloc.scratch[j];
+                }
+                let k = if self.pinned[k] { 1 - k } else { k };
+                self.pinned[k] = true;
+                let r = self.alloc.scratch[k];
+                {
                     match self.home[s as usize] {
                         Home::Hi(h) => self.i(Instr::MovHi { rd: r, rm: h }),
                         Home::Stack(w) => self.i(Instr::MemImm {
@@ -139,21 +183,52 @@ impl Lower<'_> {
         }
     }
 
-    /// The register to write `v` into (scratch 0 when spilled), and the store to do after.
-    fn write(&mut self, v: V) -> (u8, Option<u16>) {
+    /// The register to write `v` into (when spilled: scratch 0, or scratch 1 if scratch 0
+    /// is `avoid`), and the store to do after.
+    fn write(&mut self, v: V, avoid: Option<u8>) -> (u8, Option<u16>) {
         match self.loc(v) {
             Loc::Reg(r) => (r, None),
+            Loc::Remat(_) => unreachable!("a rematerialised register's definition is not emitted"),
             Loc::Slot(s) => {
-                self.holds[0] = None;
-                (self.alloc.scratch[0], Some(s))
+                let j = usize::from(avoid == Some(self.alloc.scratch[0]));
+                self.holds[j] = None;
+                (self.alloc.scratch[j], Some(s))
             }
         }
     }
 
+    /// Whether `v` lives in a register of its own that is free after this instruction (its
+    /// last reference; no other register is defined here but the instruction's own).
+    fn ends_here_in(&self, v: V, r: u8) -> bool {
+        v != STATE_V
+            && self.at > 0
+            && self.last.get(v.0 as usize) == Some(&self.at)
+            && !self.alloc.scratch.contains(&r)
+    }
+
+    /// Stores the value in low register `r` (not necessarily a scratch register) as spill
+    /// slot `s`'s new value.
+    fn spill_from(&mut self, r: u8, s: u16) {
+        for j in 0..2 {
+            if self.holds[j] == Some(s) {
+                self.holds[j] = None;
+            }
+        }
+        if let Some(j) = self.alloc.scratch.iter().position(|&x| x == r) {
+            self.holds[j] = Some(s);
+        }
+        self.store_home(r, s);
+    }
+
     fn spill(&mut self, r: u8, slot: Option<u16>) {
         if let Some(s) = slot {
-            // Scratch 0 now holds the slot's new value; a copy in scratch 1 is stale.
-            self.holds = [Some(s), None];
+            // The scratch register written now holds the slot's new value; a copy of the
+            // slot in the other one is stale.
+            let j = usize::from(self.alloc.scratch[1] == r);
+            self.holds[j] = Some(s);
+            if self.holds[1 - j] == Some(s) {
+                self.holds[1 - j] = None;
+            }
             self.store_home(r, s);
         }
     }
@@ -198,15 +273,28 @@ impl Lower<'_> {
     }
 
     fn one(&mut self, m: &M) {
+        self.pinned = [false, false];
+        if let Some(Loc::Remat(_)) = m.def().map(|d| self.loc(d)) {
+            // Recomputed at each read instead.
+            return;
+        }
         match *m {
             M::Movi { d, imm } => {
-                let (r, s) = self.write(d);
+                let (r, s) = self.write(d, None);
                 self.movi(r, imm);
                 self.spill(r, s);
             }
+            M::Mov { d, s } if matches!(self.loc(d), Loc::Slot(_)) => {
+                // A copy into a spilled register is a store of the source.
+                let src = self.read(s, 1);
+                let Loc::Slot(slot) = self.loc(d) else {
+                    unreachable!()
+                };
+                self.spill_from(src, slot);
+            }
             M::Mov { d, s } => {
                 let src = self.read(s, 1);
-                let (r, sl) = self.write(d);
+                let (r, sl) = self.write(d, None);
                 if r != src {
                     self.i(Instr::MovHi { rd: r, rm: src });
                 }
@@ -214,7 +302,7 @@ impl Lower<'_> {
             }
             M::AddSub { sub, d, a, b } => {
                 let (ra, rb) = (self.read(a, 0), self.read(b, 1));
-                let (r, s) = self.write(d);
+                let (r, s) = self.write(d, None);
                 self.i(if sub {
                     Instr::SubReg {
                         rd: r,
@@ -232,7 +320,7 @@ impl Lower<'_> {
             }
             M::AddSubI { sub, d, a, imm } => {
                 let ra = self.read(a, 0);
-                let (r, s) = self.write(d);
+                let (r, s) = self.write(d, None);
                 let rn = if imm > 7 && r != ra {
                     self.i(Instr::MovHi { rd: r, rm: ra });
                     r
@@ -249,11 +337,30 @@ impl Lower<'_> {
             M::Alu2 { op, d, a, m } => {
                 let ra = self.read(a, 0);
                 let rm = if m == a { ra } else { self.read(m, 1) };
-                let (r, s) = self.write(d);
-                let commutative = matches!(
-                    op,
-                    AluOp::And | AluOp::Orr | AluOp::Eor | AluOp::Adc | AluOp::Mul
-                );
+                let commutative = super::mir::commutative(op);
+                // A spilled result computed in the register of an operand that ends here
+                // (no `MOV` into a scratch register first), then stored.
+                if let Loc::Slot(slot) = self.loc(d) {
+                    let in_place = if self.ends_here_in(a, ra) {
+                        Some((ra, rm))
+                    } else if commutative && self.ends_here_in(m, rm) {
+                        Some((rm, ra))
+                    } else {
+                        None
+                    };
+                    if let Some((r, other)) = in_place {
+                        self.i(Instr::Alu {
+                            op,
+                            rdn: r,
+                            rm: other,
+                        });
+                        self.spill_from(r, slot);
+                        return;
+                    }
+                }
+                // A non-commutative op cannot write `m`'s register first (`MOV d, a`).
+                let avoid = (!commutative && rm != ra).then_some(rm);
+                let (r, s) = self.write(d, avoid);
                 let other = if r == ra {
                     rm
                 } else if r == rm && commutative {
@@ -272,13 +379,13 @@ impl Lower<'_> {
             }
             M::Unary { op, d, m } => {
                 let rm = self.read(m, 0);
-                let (r, s) = self.write(d);
+                let (r, s) = self.write(d, None);
                 self.i(Instr::Alu { op, rdn: r, rm });
                 self.spill(r, s);
             }
             M::Sh { op, d, m, imm } => {
                 let rm = self.read(m, 0);
-                let (rd, s) = self.write(d);
+                let (rd, s) = self.write(d, None);
                 self.i(match op {
                     Shift::Lsl => Instr::LslImm { rd, rm, imm },
                     Shift::Lsr => Instr::LsrImm { rd, rm, imm },
@@ -288,7 +395,7 @@ impl Lower<'_> {
             }
             M::Uxth { d, m } => {
                 let rm = self.read(m, 0);
-                let (rd, s) = self.write(d);
+                let (rd, s) = self.write(d, None);
                 self.i(Instr::Uxth { rd, rm });
                 self.spill(rd, s);
             }
@@ -306,7 +413,7 @@ impl Lower<'_> {
             }
             M::Load { op, t, base, off } => {
                 let rn = self.base(base, 0);
-                let (rt, s) = self.write(t);
+                let (rt, s) = self.write(t, None);
                 self.i(Instr::MemImm {
                     op,
                     rt,
@@ -318,7 +425,7 @@ impl Lower<'_> {
             M::LoadR { op, t, base, idx } => {
                 let rn = self.base(base, 0);
                 let rm = self.read(idx, 1);
-                let (rt, s) = self.write(t);
+                let (rt, s) = self.write(t, None);
                 self.i(Instr::MemReg { op, rt, rn, rm });
                 self.spill(rt, s);
             }
@@ -345,6 +452,7 @@ impl Lower<'_> {
             M::B(l) => {
                 let l = self.label(l);
                 self.buf.b(l);
+                self.buf.pool_after_branch();
             }
             M::Bc(c, l) => {
                 let l = self.label(l);
@@ -376,12 +484,16 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
         })
         .collect();
     high.sort_unstable();
+    high.dedup();
     buf.begin_function(name);
     let mut l = Lower {
         alloc,
         buf,
         labels: HashMap::new(),
         holds: [None, None],
+        pinned: [false, false],
+        last: last_refs(code, alloc.loc.len()),
+        at: 0,
         home,
     };
     let saved = (alloc.used_mask | 0x80) & 0xf0;
@@ -410,7 +522,8 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
             _ => {}
         }
     }
-    for m in code {
+    for (i, m) in code.iter().enumerate() {
+        l.at = i;
         l.one(m);
     }
     if frame > 0 {
@@ -433,6 +546,19 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
         list: saved as u16 | 1 << 15,
     });
     l.buf.end_function();
+}
+
+/// The index of the last instruction reading or writing each of `n` virtual registers.
+fn last_refs(code: &[M], n: usize) -> Vec<usize> {
+    let mut last = vec![0usize; n];
+    for (i, m) in code.iter().enumerate() {
+        for v in m.uses().into_iter().chain(m.def()) {
+            if let Some(x) = last.get_mut(v.0 as usize) {
+                *x = i;
+            }
+        }
+    }
+    last
 }
 
 /// `SUB SP`/`ADD SP` immediates are at most 508 bytes.

@@ -180,14 +180,35 @@ impl M {
     }
 
     /// Uses that must not share a register with the definition (the second operand of a
-    /// two-address op, which `MOV d, a` would overwrite).
+    /// two-address op that is not commutative, which `MOV d, a` would overwrite; a
+    /// commutative op is emitted as `op d, a` when `d` shares `m`'s register).
     pub fn late_use(&self) -> Option<V> {
         match self {
-            M::Alu2 { op, a, m, .. } if a != m => {
-                let _ = op;
-                Some(*m)
-            }
+            M::Alu2 { op, a, m, .. } if a != m && !commutative(*op) => Some(*m),
             _ => None,
         }
     }
+
+    /// The operands whose register the definition would like to share (a two-address
+    /// instruction then needs no `MOV`): `a` of an [`M::Alu2`] (either operand when the op
+    /// is commutative), of an [`M::AddSubI`] with an 8-bit immediate, and the source of an
+    /// [`M::Mov`] (which then emits nothing).
+    pub fn tied(&self) -> [Option<V>; 2] {
+        match *self {
+            M::Alu2 { op, a, m, .. } if commutative(op) => [Some(a), Some(m)],
+            M::Alu2 { a, .. } => [Some(a), None],
+            M::AddSubI { a, imm, .. } if imm > 7 => [Some(a), None],
+            M::Mov { s, .. } => [Some(s), None],
+            _ => [None, None],
+        }
+    }
+}
+
+/// Whether a two-address data-processing op gives the same result with its operands
+/// swapped (`ANDS`, `ORRS`, `EORS`, `ADCS`, `MULS`).
+pub fn commutative(op: AluOp) -> bool {
+    matches!(
+        op,
+        AluOp::And | AluOp::Orr | AluOp::Eor | AluOp::Adc | AluOp::Mul
+    )
 }

@@ -16,6 +16,7 @@
 
 use super::mir::*;
 use super::select::{ARG1, ARG2, STATE_V};
+use tactus_emulator::decode::MemOp;
 
 /// Where a virtual register lives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,6 +25,20 @@ pub enum Loc {
     Reg(u8),
     /// A stack slot (word index from SP).
     Slot(u16),
+    /// Not kept anywhere: each read recomputes it into a scratch register (a spilled
+    /// constant or state word — no store at its definition, which is not emitted).
+    Remat(Remat),
+}
+
+/// How a rematerialised register's value is recomputed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Remat {
+    /// `MOVS`/literal load of a constant (C and V kept, as a stack reload keeps them; no
+    /// reload sits between a flag-setting instruction and the branch that reads N or Z).
+    Const(i32),
+    /// A load from the state struct at this byte offset (`LDR`/`LDRB [r7, #off]`), where no
+    /// store in the register's live range may write that word.
+    State(MemOp, u16),
 }
 
 /// The allocation of one function.
@@ -32,6 +47,9 @@ pub struct Allocation {
     pub loc: Vec<Option<Loc>>,
     /// Number of stack slots.
     pub slots: u16,
+    /// The instructions each slot's registers are live over, `(first, last)` (the union
+    /// when intervals share a slot): slots whose spans are disjoint may share a home.
+    pub slot_span: Vec<(usize, usize)>,
     /// Scratch registers for spilled operands (empty when nothing spilled).
     pub scratch: Vec<u8>,
     /// Registers used (bit mask over r0–r7), for the prologue's `PUSH`.
@@ -45,6 +63,11 @@ struct Interval {
     end: usize,
     /// Reads and writes of the register: each costs a reload or a store when spilled.
     refs: u32,
+    /// Operands of the defining instruction whose register this one would like to share
+    /// ([`M::tied`]: no `MOV` for a two-address instruction when one of them ends there).
+    tied: [Option<V>; 2],
+    /// Recomputed at each use instead of spilled, if it must leave the registers.
+    remat: Option<Remat>,
 }
 
 impl Interval {
@@ -52,7 +75,9 @@ impl Interval {
     /// "ends last" rule spills long-lived operands read everywhere, such as a sensor word;
     /// the density keeps those in registers and spills the rarely used ones).
     fn weight(&self) -> f64 {
-        self.refs as f64 / (self.end - self.start + 1) as f64
+        // A rematerialised register costs nothing at its definition.
+        let cost = self.refs - u32::from(self.remat.is_some());
+        cost as f64 / (self.end - self.start + 1) as f64
     }
 }
 
@@ -62,6 +87,9 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
     let mut last = vec![0usize; nregs as usize];
     let mut late_at = vec![usize::MAX; nregs as usize];
     let mut refs = vec![0u32; nregs as usize];
+    let mut tied = vec![[None, None]; nregs as usize];
+    let mut defs = vec![0u32; nregs as usize];
+    let mut def_at = vec![usize::MAX; nregs as usize];
     for (i, m) in code.iter().enumerate() {
         for u in m.uses() {
             if u == STATE_V {
@@ -74,6 +102,11 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
         }
         if let Some(d) = m.def() {
             let k = d.0 as usize;
+            if first[k] == usize::MAX || first[k] == i {
+                tied[k] = m.tied();
+            }
+            defs[k] += 1;
+            def_at[k] = i;
             refs[k] += 1;
             first[k] = first[k].min(i);
             last[k] = last[k].max(i);
@@ -103,8 +136,27 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
                 last[k]
             },
             refs: refs[k],
+            tied: tied[k],
+            remat: None,
         })
         .collect();
+    let stores = StateStores::new(code);
+    for iv in &mut intervals {
+        let k = iv.v as usize;
+        if defs[k] != 1 || iv.v == ARG1.0 || iv.v == ARG2.0 {
+            continue;
+        }
+        iv.remat = match code[def_at[k]] {
+            M::Movi { imm, .. } => Some(Remat::Const(imm)),
+            M::Load {
+                op: op @ (MemOp::Ldr | MemOp::Ldrb),
+                base: Base::State,
+                off,
+                ..
+            } if !stores.may_write(off, iv.start, iv.end) => Some(Remat::State(op, off)),
+            _ => None,
+        };
+    }
     intervals.sort_by_key(|iv| (iv.start, iv.v));
     if let Some(a) = scan(&intervals, nregs, &[0, 1, 2, 3, 4, 5, 6], &[], false) {
         return a;
@@ -115,6 +167,54 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
         return a;
     }
     scan(&intervals, nregs, &[0, 1, 2, 3, 4], &[5, 6], true).expect("spilling always succeeds")
+}
+
+/// The stores of a body that may write the state struct, for [`Remat::State`]: stores at
+/// a known offset from r7 by word, and the others (through a computed address: a region
+/// base or `STR Rt, [r7, Rm]`) counted by position. Stores through the `out` pointer
+/// ([`ARG2`]) write the caller's output array, never the state.
+struct StateStores {
+    /// Instruction indices of stores to each state word (by `off / 4`), ascending.
+    by_word: std::collections::HashMap<u16, Vec<usize>>,
+    /// `unknown[i]`: stores at an unknown address before instruction `i`.
+    unknown: Vec<u32>,
+}
+
+impl StateStores {
+    fn new(code: &[M]) -> Self {
+        let mut by_word: std::collections::HashMap<u16, Vec<usize>> = Default::default();
+        let mut unknown = Vec::with_capacity(code.len() + 1);
+        let mut n = 0u32;
+        for (i, m) in code.iter().enumerate() {
+            unknown.push(n);
+            match m {
+                M::Store {
+                    base: Base::State,
+                    off,
+                    ..
+                } => by_word.entry(off / 4).or_default().push(i),
+                M::Store {
+                    base: Base::V(b), ..
+                } if *b == ARG2 => {}
+                M::Store { .. } | M::StoreR { .. } => n += 1,
+                _ => {}
+            }
+        }
+        unknown.push(n);
+        StateStores { by_word, unknown }
+    }
+
+    /// Whether a store in instructions `start..=end` may write the word holding byte `off`.
+    fn may_write(&self, off: u16, start: usize, end: usize) -> bool {
+        let end = end.min(self.unknown.len() - 2);
+        if self.unknown[end + 1] > self.unknown[start] {
+            return true;
+        }
+        self.by_word.get(&(off / 4)).is_some_and(|at| {
+            let p = at.partition_point(|&i| i < start);
+            at.get(p).is_some_and(|&i| i <= end)
+        })
+    }
 }
 
 /// Spill slots beyond which intervals that do not overlap share slots.
@@ -135,6 +235,7 @@ fn scan(
     // The end of the last interval given each slot, and (for sharing) the slots ordered by
     // that end, earliest first.
     let mut slot_end: Vec<usize> = Vec::new();
+    let mut slot_span: Vec<(usize, usize)> = Vec::new();
     let mut by_end: std::collections::BinaryHeap<std::cmp::Reverse<(usize, u16)>> =
         Default::default();
     let mut take_slot = |iv: &Interval| -> u16 {
@@ -142,10 +243,13 @@ fn scan(
             Some(&std::cmp::Reverse((e, s))) if share && e < iv.start => {
                 by_end.pop();
                 slot_end[s as usize] = iv.end;
+                let span = &mut slot_span[s as usize];
+                *span = (span.0.min(iv.start), span.1.max(iv.end));
                 s
             }
             _ => {
                 slot_end.push(iv.end);
+                slot_span.push((iv.start, iv.end));
                 (slot_end.len() - 1) as u16
             }
         };
@@ -176,7 +280,15 @@ fn scan(
                 true
             }
         });
-        let want = pre(iv.v);
+        // A pre-coloured argument's register, else the register of a tied operand that
+        // ended here (coalescing the two-address `MOV` away), else the last one freed.
+        let tied_reg = iv.tied.into_iter().flatten().find_map(|t| {
+            match loc.get(t.0 as usize).copied().flatten() {
+                Some(Loc::Reg(r)) if free.contains(&r) => Some(r),
+                _ => None,
+            }
+        });
+        let want = pre(iv.v).or(tied_reg);
         let reg = match want.and_then(|w| free.iter().position(|&r| r == w)) {
             Some(p) => Some(free.remove(p)),
             None => free.pop(),
@@ -202,13 +314,17 @@ fn scan(
                     .expect("no register free implies active intervals");
                 let victim_first = active[k].0.weight() < iv.weight()
                     || (active[k].0.weight() == iv.weight() && active[k].0.end > iv.end);
+                let mut spill = |iv: &Interval| match iv.remat {
+                    Some(r) => Loc::Remat(r),
+                    None => Loc::Slot(take_slot(iv)),
+                };
                 if victim_first {
                     let (victim, r) = active.remove(k);
-                    loc[victim.v as usize] = Some(Loc::Slot(take_slot(&victim)));
+                    loc[victim.v as usize] = Some(spill(&victim));
                     loc[iv.v as usize] = Some(Loc::Reg(r));
                     active.push((iv, r));
                 } else {
-                    loc[iv.v as usize] = Some(Loc::Slot(take_slot(&iv)));
+                    loc[iv.v as usize] = Some(spill(&iv));
                 }
             }
         }
@@ -216,15 +332,20 @@ fn scan(
     // (More than u16::MAX unshared slots: reported as u16::MAX, which makes `allocate`
     // share them.)
     let slots = slot_end.len().min(u16::MAX as usize) as u16;
+    // Scratch registers serve reloads and rematerialisations.
+    let spilled = loc
+        .iter()
+        .any(|l| matches!(l, Some(Loc::Slot(_) | Loc::Remat(_))));
     for &s in scratch {
-        if slots > 0 {
+        if spilled {
             used_mask |= 1 << s;
         }
     }
     Some(Allocation {
         loc,
         slots,
-        scratch: if slots > 0 { scratch.to_vec() } else { vec![] },
+        slot_span,
+        scratch: if spilled { scratch.to_vec() } else { vec![] },
         used_mask,
     })
 }

@@ -1,17 +1,15 @@
 //! Data processing as cranelift IR: N and Z, the add and subtract flags, the condition
 //! codes and the ALU group (`Core::adds`, `Core::condition`, `Core::alu` in `exec.rs`).
 
-use super::translate::{Translator, C, N, V, Z};
+use super::translate::{Translator, C, Z};
 use crate::decode::AluOp;
-use cranelift_codegen::ir::condcodes::IntCC;
+use cranelift_codegen::ir::condcodes::{CondCode, IntCC};
 use cranelift_codegen::ir::{types, InstBuilder, Value};
 
 impl Translator<'_> {
+    /// N and Z from the result `r` (held as `r` itself, see [`super::translate::Flags`]).
     pub(super) fn nz(&mut self, r: Value) {
-        let n = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, r, 0);
-        let z = self.b.ins().icmp_imm_u(IntCC::Equal, r, 0);
-        self.set_flag(N, n);
-        self.set_flag(Z, z);
+        self.b.def_var(self.flags.nz, r);
     }
 
     /// `Core::adds`: `x + y + carry` with N, Z, C and V.
@@ -51,39 +49,58 @@ impl Translator<'_> {
     }
 
     /// Sets C to `c`, V to the sign of `a & bb` (the overflow rule over the operand and
-    /// result XORs its caller computed), N and Z from `r`; returns `r`.
+    /// result XORs its caller computed; held as that word), N and Z from `r`; returns `r`.
     fn set_cvnz(&mut self, r: Value, c: Value, a: Value, bb: Value) -> Value {
         let both = self.b.ins().band(a, bb);
-        let v = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, both, 0);
-        self.set_flag(C, c);
-        self.set_flag(V, v);
+        self.set_c(c);
+        self.b.def_var(self.flags.v, both);
         self.nz(r);
         r
     }
 
     /// `Core::condition`: 1 when `cond` (0-13) holds.
     pub(super) fn condition(&mut self, cond: u8) -> Value {
-        let (n, z, c, v) = (self.flag(N), self.flag(Z), self.flag(C), self.flag(V));
-        let r = match cond >> 1 {
-            0 => z,
-            1 => c,
-            2 => n,
-            3 => v,
+        let nz = self.b.use_var(self.flags.nz);
+        let odd = cond & 1 == 1;
+        // Each test with its negation folded into the comparison.
+        let cc = |yes: IntCC| if odd { yes.complement() } else { yes };
+        match cond >> 1 {
+            0 => self.b.ins().icmp_imm_u(cc(IntCC::Equal), nz, 0),
+            1 => {
+                let c = self.flag(C);
+                self.b.ins().icmp_imm_u(cc(IntCC::NotEqual), c, 0)
+            }
+            2 => self.b.ins().icmp_imm_s(cc(IntCC::SignedLessThan), nz, 0),
+            3 => {
+                let v = self.b.use_var(self.flags.v);
+                self.b.ins().icmp_imm_s(cc(IntCC::SignedLessThan), v, 0)
+            }
             4 => {
-                let nz_ = self.b.ins().bxor_imm_u(z, 1);
-                self.b.ins().band(c, nz_)
+                let c = self.flag(C);
+                let z = self.flag(Z);
+                let hi = self.b.ins().band_not(c, z);
+                self.b.ins().icmp_imm_u(cc(IntCC::NotEqual), hi, 0)
             }
-            5 => self.b.ins().icmp(IntCC::Equal, n, v),
+            5 => {
+                // N == V: the signs of the two words agree.
+                let v = self.b.use_var(self.flags.v);
+                let x = self.b.ins().bxor(nz, v);
+                self.b
+                    .ins()
+                    .icmp_imm_s(cc(IntCC::SignedGreaterThanOrEqual), x, 0)
+            }
             _ => {
-                let ge = self.b.ins().icmp(IntCC::Equal, n, v);
-                let nz_ = self.b.ins().bxor_imm_u(z, 1);
-                self.b.ins().band(ge, nz_)
+                // N == V and not Z.
+                let v = self.b.use_var(self.flags.v);
+                let x = self.b.ins().bxor(nz, v);
+                let ge = self
+                    .b
+                    .ins()
+                    .icmp_imm_s(IntCC::SignedGreaterThanOrEqual, x, 0);
+                let z = self.flag(Z);
+                let gt = self.b.ins().band_not(ge, z);
+                self.b.ins().icmp_imm_u(cc(IntCC::NotEqual), gt, 0)
             }
-        };
-        if cond & 1 == 1 {
-            self.b.ins().bxor_imm_u(r, 1)
-        } else {
-            r
         }
     }
 
@@ -140,7 +157,7 @@ impl Translator<'_> {
                 let zero = self.b.ins().icmp_imm_u(IntCC::Equal, s, 0);
                 let old = self.flag(C);
                 let c = self.b.ins().select(zero, old, c);
-                self.set_flag(C, c);
+                self.set_c(c);
                 r
             }
             AluOp::Ror => {
@@ -151,7 +168,7 @@ impl Translator<'_> {
                 let zero = self.b.ins().icmp_imm_u(IntCC::Equal, s, 0);
                 let old = self.flag(C);
                 let c = self.b.ins().select(zero, old, c);
-                self.set_flag(C, c);
+                self.set_c(c);
                 r
             }
             AluOp::Cmp => {

@@ -1,10 +1,23 @@
-//! The compiled regions: a direct-mapped lookup by address and code epoch, the compile
-//! threshold, the code kept by (address, instruction halfwords) across invalidations, and
-//! the cranelift module that owns the machine code.
+//! The compiled regions: a direct-mapped lookup per board by address and code epoch, the
+//! compile threshold, and one store of machine code for the whole process, kept by
+//! (flavour, address, instruction halfwords) — so the boards of a keyboard that run the
+//! same firmware (or the same code at the same address) compile each region once, on
+//! whichever rayon thread meets it first, and a board finds it compiled at first sight.
+//!
+//! **Why sharing is sound.** A region's native code depends only on its flavour, address
+//! and instruction halfwords (the translator reads nothing else: the board's memory,
+//! registers and claims reach it through the call's arguments), so code compiled for one
+//! board is the code any other would compile. The store is a `Mutex`; the code itself is
+//! read-only once finalized and is called from any thread.
+//!
+//! **Memory.** Machine code lives in cranelift modules (*chunks*); the store compiles into
+//! its current chunk and starts a new one after [`MAX_COMPILED`] regions. Each board holds
+//! an `Arc` of every chunk its lookup slots point into, so a chunk is freed when the store
+//! and the last board that used it have let it go.
 
 use super::abi::NativeFn;
 use super::scan::{scan, RegionInstr};
-use super::translate::Translator;
+use super::translate::{Flavour, Translator};
 use crate::bus::System;
 use cranelift_codegen::ir::{types, AbiParam, Signature};
 use cranelift_codegen::settings::{self, Configurable};
@@ -12,6 +25,7 @@ use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
 use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// Compiled regions kept before all are dropped (and their memory freed).
 const MAX_COMPILED: usize = 8192;
@@ -54,36 +68,76 @@ const EMPTY: Slot = Slot {
 
 const NEVER: u32 = u32::MAX;
 
-/// A region's address and instruction halfwords.
-type RegionKey = (u32, Vec<u16>);
+/// A region's flavour, address and instruction halfwords.
+type RegionKey = (Flavour, u32, Vec<u16>);
 
-/// The compiled regions: a direct-mapped lookup by address for the current code epoch, and
-/// the code itself kept by (address, halfwords) across epochs.
-pub(crate) struct Jit {
-    slots: Box<[Slot]>,
-    compiled: HashMap<RegionKey, Option<(NativeFn, u64)>>,
-    module: Option<JITModule>,
-    /// Entries seen this many times uncompiled are compiled.
-    pub(crate) threshold: u32,
-    /// Regions compiled so far (for tests and reports).
-    pub(crate) count: u64,
-    fctx: FunctionBuilderContext,
-    /// Compiles confined code (see the parent module, "Confinement").
-    confined: bool,
-}
+/// One cranelift module's machine code, freed when the last holder drops it.
+struct Chunk(Mutex<Option<JITModule>>);
 
-// SAFETY: the module and the function pointers into it are owned by this `Jit` alone;
-// `JITModule` is `Send`, and nothing here is shared between threads.
-unsafe impl Send for Jit {}
+// SAFETY: the module is only touched under its mutex (compiling, freeing); the finalized
+// code it owns is immutable and callable from any thread.
+unsafe impl Send for Chunk {}
+// SAFETY: as above.
+unsafe impl Sync for Chunk {}
 
-impl Drop for Jit {
+impl Drop for Chunk {
     fn drop(&mut self) {
-        if let Some(m) = self.module.take() {
-            // SAFETY: the slots and the map holding pointers into the module die with it.
+        let module = self
+            .0
+            .get_mut()
+            .map(Option::take)
+            .unwrap_or_else(|e| e.into_inner().take());
+        if let Some(m) = module {
+            // SAFETY: every holder of a pointer into the module holds this chunk's `Arc`
+            // (the store's map, the boards' lookups), and this is the last one.
             unsafe { m.free_memory() };
         }
     }
 }
+
+/// The process's store of compiled regions (see the module documentation).
+struct Store {
+    /// Regions compiled into `chunk` (`None`: the region cannot be compiled).
+    compiled: HashMap<RegionKey, Option<(NativeFn, u64)>>,
+    chunk: Arc<Chunk>,
+    fctx: FunctionBuilderContext,
+    /// Functions defined so far (their symbol names).
+    defined: u64,
+}
+
+// SAFETY: the function pointers point into `chunk`'s finalized code (see `Chunk`); the
+// builder context is plain data.
+unsafe impl Send for Store {}
+
+fn store() -> &'static Mutex<Store> {
+    static STORE: OnceLock<Mutex<Store>> = OnceLock::new();
+    STORE.get_or_init(|| {
+        Mutex::new(Store {
+            compiled: HashMap::new(),
+            chunk: Arc::new(Chunk(Mutex::new(None))),
+            fctx: FunctionBuilderContext::new(),
+            defined: 0,
+        })
+    })
+}
+
+/// A board's compiled regions of one flavour: a direct-mapped lookup by address for the
+/// current code epoch, into code from the process's store.
+pub(crate) struct Jit {
+    slots: Box<[Slot]>,
+    /// The chunks the slots point into (kept alive while they do).
+    chunks: Vec<Arc<Chunk>>,
+    /// Entries seen this many times uncompiled are compiled (or taken from the store, where
+    /// another board may have compiled them already).
+    pub(crate) threshold: u32,
+    /// Regions this board has taken native code for so far (for tests and reports).
+    pub(crate) count: u64,
+    /// Which variant of each region this cache holds.
+    flavour: Flavour,
+}
+
+/// Chunks a board's lookup may hold before it forgets them all.
+const MAX_CHUNKS: usize = 4;
 
 #[inline(always)]
 fn tag(pc: u32, epoch: u32) -> u64 {
@@ -91,16 +145,14 @@ fn tag(pc: u32, epoch: u32) -> u64 {
 }
 
 impl Jit {
-    /// An empty cache compiling ordinary code, or with `confined` confined code.
-    pub(crate) fn new(confined: bool) -> Jit {
+    /// An empty cache compiling regions of `flavour`.
+    pub(crate) fn new(flavour: Flavour) -> Jit {
         Jit {
-            confined,
+            flavour,
             slots: vec![EMPTY; SLOTS].into_boxed_slice(),
-            compiled: HashMap::new(),
-            module: None,
+            chunks: Vec::new(),
             threshold: 16,
             count: 0,
-            fctx: FunctionBuilderContext::new(),
         }
     }
 
@@ -146,20 +198,16 @@ impl Jit {
         }
         if instrs.is_empty() {
             slot.hits = NEVER;
-        } else if let Some(done) = self.compiled.get(&(pc, halfwords.clone())) {
-            match *done {
-                Some((f, bound)) => (slot.func, slot.bound) = (Some(f), bound),
-                None => slot.hits = NEVER,
-            }
-        } else if !fresh || self.threshold == 0 {
-            if self.compiled.len() >= MAX_COMPILED {
-                self.reset();
-            }
-            let done = self.compile(&instrs);
-            self.compiled.insert((pc, halfwords), done);
-            match done {
-                Some((f, bound)) => (slot.func, slot.bound) = (Some(f), bound),
-                None => slot.hits = NEVER,
+        } else {
+            let fetch = !fresh || self.threshold == 0;
+            let key = (self.flavour, pc, halfwords);
+            match self.from_store(key, &instrs, fetch) {
+                Some(Some((f, bound))) => {
+                    (slot.func, slot.bound) = (Some(f), bound);
+                    self.count += 1;
+                }
+                Some(None) => slot.hits = NEVER,
+                None => {}
             }
         }
         self.slots[index] = slot;
@@ -170,38 +218,67 @@ impl Jit {
         })
     }
 
-    /// Drops every compiled region and frees its memory.
-    fn reset(&mut self) {
-        self.slots.fill(EMPTY);
-        self.compiled.clear();
-        if let Some(m) = self.module.take() {
-            // SAFETY: no slot or map entry points into the module any more.
-            unsafe { m.free_memory() };
+    /// The store's code for `key`, compiled now when `compile` (else `None` when it is not
+    /// there yet); `Some(None)` when the region cannot be compiled. Keeps the chunk alive.
+    fn from_store(
+        &mut self,
+        key: RegionKey,
+        instrs: &[RegionInstr],
+        compile: bool,
+    ) -> Option<Option<(NativeFn, u64)>> {
+        // A poisoned store (a panic while compiling) is still consistent: a map entry is
+        // inserted only after its code is finalized.
+        let mut store = store().lock().unwrap_or_else(|e| e.into_inner());
+        let done = match store.compiled.get(&key) {
+            Some(&done) => done,
+            None if !compile => return None,
+            None => {
+                if store.compiled.len() >= MAX_COMPILED {
+                    store.compiled.clear();
+                    store.chunk = Arc::new(Chunk(Mutex::new(None)));
+                }
+                let done = store.compile(instrs, self.flavour);
+                store.compiled.insert(key, done);
+                done
+            }
+        };
+        if done.is_some() && !self.chunks.iter().any(|c| Arc::ptr_eq(c, &store.chunk)) {
+            if self.chunks.len() >= MAX_CHUNKS {
+                // Forget every slot before letting their chunks go.
+                self.slots.fill(EMPTY);
+                self.chunks.clear();
+            }
+            self.chunks.push(store.chunk.clone());
         }
+        Some(done)
     }
+}
 
-    fn compile(&mut self, instrs: &[RegionInstr]) -> Option<(NativeFn, u64)> {
-        if self.module.is_none() {
-            self.module = Some(new_module()?);
+impl Store {
+    fn compile(&mut self, instrs: &[RegionInstr], flavour: Flavour) -> Option<(NativeFn, u64)> {
+        let chunk = self.chunk.clone();
+        let mut guard = chunk.0.lock().unwrap_or_else(|e| e.into_inner());
+        if guard.is_none() {
+            *guard = Some(new_module()?);
         }
-        let module = self.module.as_mut()?;
+        let module = guard.as_mut()?;
         let pointer = module.target_config().pointer_type();
         let mut sig = Signature::new(module.isa().default_call_conv());
         sig.params.push(AbiParam::new(pointer));
         sig.params.push(AbiParam::new(pointer));
         sig.params.push(AbiParam::new(types::I64));
         sig.returns.push(AbiParam::new(types::I32));
-        let name = format!("region{}", self.count);
+        let name = format!("region{}", self.defined);
+        self.defined += 1;
         let id = module.declare_function(&name, Linkage::Local, &sig).ok()?;
         let mut ctx = module.make_context();
         ctx.func.signature = sig;
         let b = FunctionBuilder::new(&mut ctx.func, &mut self.fctx);
-        let (b, bound) = Translator::run(b, instrs, self.confined);
+        let (b, bound) = Translator::run(b, instrs, flavour);
         b.finalize(module.target_config());
         module.define_function(id, &mut ctx).ok()?;
         module.finalize_definitions().ok()?;
         let code = module.get_finalized_function(id);
-        self.count += 1;
         // SAFETY: `code` is the function just defined with the signature above (two
         // pointers and a u64 in, a u32 out, the host's C calling convention), which is
         // `NativeFn`.
@@ -216,6 +293,9 @@ fn new_module() -> Option<JITModule> {
     let mut flags = settings::builder();
     flags.set("opt_level", "speed").ok()?;
     flags.set("is_pic", "false").ok()?;
+    // The translator's output is checked by the differential tests; the verifier would
+    // cost a tenth of every compile.
+    flags.set("enable_verifier", "false").ok()?;
     let isa = cranelift_native::builder()
         .ok()?
         .finish(settings::Flags::new(flags))

@@ -33,7 +33,7 @@ impl Translator<'_> {
                 self.set(r, v);
             }
         }
-        self.retire(ins.cost.0, Some(wait));
+        self.retire(ins.cost.0, wait);
         match target {
             Some(t) => {
                 self.leave(t, Exit::Out);
@@ -43,18 +43,32 @@ impl Translator<'_> {
         }
     }
 
-    /// The arbitration bank (0-5) of SRAM offset `off` (`bus::sram_bank`), as an `i32`.
-    fn bank_of(&mut self, off: Value) -> Value {
-        let striped = self
-            .b
-            .ins()
-            .icmp_imm_u(IntCC::UnsignedLessThan, off, 0x4_0000);
-        let b0 = self.b.ins().ushr_imm_u(off, 2);
-        let b0 = self.b.ins().band_imm_u(b0, 3);
-        let b1 = self.b.ins().ushr_imm_u(off, 12);
-        let b1 = self.b.ins().band_imm_u(b1, 1);
-        let b1 = self.b.ins().iadd_imm_s(b1, 4);
-        self.b.ins().select(striped, b0, b1)
+    /// The claim-table offset (`bank · 16`, i64) of SRAM offset `off` (below
+    /// [`SRAM_SIZE`]; `bus::sram_bank`): bits 3:2 in the striped banks, then SRAM4, SRAM5.
+    /// `striped` is `off < 0x40000` when the caller has it.
+    fn bank_offset(&mut self, off: Value, striped: Option<Value>) -> Value {
+        let striped = striped.unwrap_or_else(|| {
+            self.b
+                .ins()
+                .icmp_imm_u(IntCC::UnsignedLessThan, off, 0x4_0000)
+        });
+        let s = self.striped_bank_offset(off);
+        let h = self.scratch_bank_offset(off);
+        let r = self.b.ins().select(striped, s, h);
+        self.b.ins().uextend(types::I64, r)
+    }
+
+    /// `bank · 16` (i32) of a striped SRAM offset: `((off >> 2) & 3) << 4`.
+    fn striped_bank_offset(&mut self, off: Value) -> Value {
+        let x = self.b.ins().ishl_imm_u(off, 2);
+        self.b.ins().band_imm_u(x, 0x30)
+    }
+
+    /// `bank · 16` (i32) of an SRAM4/5 offset: `(4 + ((off >> 12) & 1)) << 4`.
+    fn scratch_bank_offset(&mut self, off: Value) -> Value {
+        let x = self.b.ins().ushr_imm_u(off, 8);
+        let x = self.b.ins().band_imm_u(x, 0x10);
+        self.b.ins().iadd_imm_s(x, 0x40)
     }
 
     /// Confined code only (see the parent module, "Confinement"): leaves before the
@@ -67,7 +81,9 @@ impl Translator<'_> {
             return;
         };
         let mut allowed = None;
-        for &(_, bank) in at {
+        for &(_, boff) in at {
+            let bank = self.b.ins().ushr_imm_u(boff, 4);
+            let bank = self.b.ins().ireduce(types::I32, bank);
             let bit = self.b.ins().ushr(c.allowed, bank);
             allowed = Some(match allowed {
                 None => bit,
@@ -103,23 +119,26 @@ impl Translator<'_> {
         }
     }
 
-    /// The SRAM arbiter for an access to `bank` (from [`Translator::bank_of`]) at data
-    /// cycle `at`: the wait (0 or 1, i64) after claiming the bank
-    /// (`System::arbitrate_fast`).
-    pub(super) fn arbitrate(&mut self, bank: Value, at: Value) -> Value {
-        let bank = self.b.ins().uextend(types::I64, bank);
-        let boff = self.b.ins().ishl_imm_u(bank, 4);
-        let other_at = self.b.ins().iadd(self.claims_other, boff);
+    /// The SRAM arbiter for an access to the bank at claim-table offset `boff` (from
+    /// [`Translator::bank_offset`]) at data cycle `at`: claims the bank and returns the
+    /// wait (0 or 1, i64; `System::arbitrate_fast`) — `None` in [`Flavour::Solo`](super::Flavour::Solo) code,
+    /// where the other core's claims are all older than `at` and only the claim is stored.
+    pub(super) fn arbitrate(&mut self, boff: Value, at: Value) -> Option<Value> {
+        let self_at = self.b.ins().iadd(self.claims_self, boff);
+        let Some(claims_other) = self.claims_other else {
+            self.b.ins().store(self.mf, at, self_at, 0);
+            return None;
+        };
+        let other_at = self.b.ins().iadd(claims_other, boff);
         let other = self.b.ins().load(types::I64, self.mf, other_at, 0);
         let hit = self.b.ins().icmp(IntCC::Equal, other, at);
         let wait = self.b.ins().uextend(types::I64, hit);
         let claim = self.b.ins().iadd(at, wait);
-        let self_at = self.b.ins().iadd(self.claims_self, boff);
         self.b.ins().store(self.mf, claim, self_at, 0);
         let s = self.b.use_var(self.stalls);
         let s = self.b.ins().iadd(s, wait);
         self.b.def_var(self.stalls, s);
-        wait
+        Some(wait)
     }
 
     /// A single load or store (`Core::mem_fast`): SRAM (striped, SRAM4/5 or the
@@ -127,26 +146,49 @@ impl Translator<'_> {
     pub(super) fn mem(&mut self, ins: &RegionInstr, op: MemOp, rt: u8, addr: Value) -> bool {
         let pc = ins.pc;
         let size = op.size();
+        let solo = self.claims_other.is_none();
         self.flush();
         if size > 1 {
             let low = self.b.ins().band_imm_u(addr, size as i64 - 1);
             self.general_if(low, pc);
         }
+        // SRAM: (physical offset, claim-table offset) from each of the three views.
         let in_sram = self.b.create_block();
+        self.b.append_block_param(in_sram, types::I32);
         self.b.append_block_param(in_sram, types::I32);
         let join = self.b.create_block();
         self.b.append_block_param(join, types::I32);
-        self.b.append_block_param(join, types::I64);
-        let alias = self.b.create_block();
+        if !solo {
+            self.b.append_block_param(join, types::I64);
+        }
+        let striped = self.b.create_block();
+        let not_striped = self.b.create_block();
         let off = self.b.ins().iadd_imm_s(addr, -(SRAM_BASE as i64));
         let ok = self
             .b
             .ins()
-            .icmp_imm_u(IntCC::UnsignedLessThan, off, SRAM_SIZE as i64);
+            .icmp_imm_u(IntCC::UnsignedLessThan, off, 0x4_0000);
+        self.b.ins().brif(ok, striped, &[], not_striped, &[]);
+        self.b.switch_to_block(striped);
+        let boff = self.striped_bank_offset(off);
         self.b
             .ins()
-            .brif(ok, in_sram, &[BlockArg::Value(off)], alias, &[]);
-        // The non-striped alias of SRAM0-3.
+            .jump(in_sram, &[BlockArg::Value(off), BlockArg::Value(boff)]);
+        // SRAM4/5 (striped view's end).
+        self.b.switch_to_block(not_striped);
+        let scratch = self.b.create_block();
+        let alias = self.b.create_block();
+        let ok = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, off, SRAM_SIZE as i64);
+        self.b.ins().brif(ok, scratch, &[], alias, &[]);
+        self.b.switch_to_block(scratch);
+        let boff = self.scratch_bank_offset(off);
+        self.b
+            .ins()
+            .jump(in_sram, &[BlockArg::Value(off), BlockArg::Value(boff)]);
+        // The non-striped alias of SRAM0-3: bank = bits 17:16.
         self.b.switch_to_block(alias);
         let al = self.b.ins().iadd_imm_s(addr, -(SRAM_ALIAS_BASE as i64));
         let ok = self
@@ -154,17 +196,21 @@ impl Translator<'_> {
             .ins()
             .icmp_imm_u(IntCC::UnsignedLessThan, al, 0x4_0000);
         let bank = self.b.ins().ushr_imm_u(al, 16);
-        let word = self.b.ins().band_imm_u(al, 0xffff);
-        let word = self.b.ins().ushr_imm_u(word, 2);
-        let word = self.b.ins().ishl_imm_u(word, 2);
+        let boff = self.b.ins().ushr_imm_u(al, 12);
+        let boff = self.b.ins().band_imm_u(boff, 0x30);
+        let word = self.b.ins().band_imm_u(al, 0xfffc);
         let phys = self.b.ins().iadd(word, bank);
         let phys = self.b.ins().ishl_imm_u(phys, 2);
         let low = self.b.ins().band_imm_u(al, 3);
         let phys = self.b.ins().bor(phys, low);
         let elsewhere = self.b.create_block();
-        self.b
-            .ins()
-            .brif(ok, in_sram, &[BlockArg::Value(phys)], elsewhere, &[]);
+        self.b.ins().brif(
+            ok,
+            in_sram,
+            &[BlockArg::Value(phys), BlockArg::Value(boff)],
+            elsewhere,
+            &[],
+        );
         self.b.switch_to_block(elsewhere);
         if op.is_store() {
             let p = self.c32(pc);
@@ -185,22 +231,25 @@ impl Translator<'_> {
             let f64_ = self.b.ins().uextend(types::I64, f);
             let at = self.b.ins().iadd(self.flash, f64_);
             let v = self.load_sized(op, at);
-            let zero = self.b.ins().iconst(types::I64, 0);
-            self.b
-                .ins()
-                .jump(join, &[BlockArg::Value(v), BlockArg::Value(zero)]);
+            let mut args = vec![BlockArg::Value(v)];
+            if !solo {
+                let zero = self.b.ins().iconst(types::I64, 0);
+                args.push(BlockArg::Value(zero));
+            }
+            self.b.ins().jump(join, &args);
         }
         // SRAM: the arbiter, then the data.
         self.b.switch_to_block(in_sram);
         let off = self.b.block_params(in_sram)[0];
-        let bank = self.bank_of(off);
-        self.confine(ins, &[(off, bank)], op.is_store());
+        let boff = self.b.block_params(in_sram)[1];
+        let boff = self.b.ins().uextend(types::I64, boff);
+        self.confine(ins, &[(off, boff)], op.is_store());
         let c = self.b.use_var(self.cyc);
         let at = self.b.ins().iadd_imm_s(c, 1);
-        let wait = self.arbitrate(bank, at);
+        let wait = self.arbitrate(boff, at);
         let off64 = self.b.ins().uextend(types::I64, off);
         let p = self.b.ins().iadd(self.sram, off64);
-        if op.is_store() {
+        let first = if op.is_store() {
             let v = self.reg(rt, pc);
             match size {
                 1 => self.b.ins().istore8(self.mf, v, p, 0),
@@ -209,23 +258,20 @@ impl Translator<'_> {
             };
             let page = self.b.ins().ushr_imm_u(off64, 8);
             let pp = self.b.ins().iadd(self.code_pages, page);
-            let code = self.b.ins().uload8(types::I32, self.mf, pp, 0);
-            self.b
-                .ins()
-                .jump(join, &[BlockArg::Value(code), BlockArg::Value(wait)]);
+            self.b.ins().uload8(types::I32, self.mf, pp, 0)
         } else {
-            let v = self.load_sized(op, p);
-            self.b
-                .ins()
-                .jump(join, &[BlockArg::Value(v), BlockArg::Value(wait)]);
-        }
+            self.load_sized(op, p)
+        };
+        let mut args = vec![BlockArg::Value(first)];
+        args.extend(wait.map(BlockArg::Value));
+        self.b.ins().jump(join, &args);
         self.b.switch_to_block(join);
         let v = self.b.block_params(join)[0];
-        let wait = self.b.block_params(join)[1];
+        let wait = (!solo).then(|| self.b.block_params(join)[1]);
         if !op.is_store() {
             self.set(rt, v);
         }
-        self.retire(ins.cost.0, Some(wait));
+        self.retire(ins.cost.0, wait);
         if op.is_store() {
             self.invalidate_if(v, ins);
         }
@@ -260,7 +306,8 @@ impl Translator<'_> {
     /// SRAM4/5 and word-aligned, else it leaves before the instruction. Stores `values`,
     /// or loads the words; with `pops_pc`, a PC word that would leave Thumb state or return
     /// from an exception leaves before the instruction. Returns the loaded words, the
-    /// wait states and whether a store hit a code page; the caller retires it.
+    /// wait states (`None` in [`Flavour::Solo`](super::Flavour::Solo) code: none) and whether a store hit a code
+    /// page; the caller retires it.
     pub(super) fn multiple(
         &mut self,
         ins: &RegionInstr,
@@ -268,7 +315,7 @@ impl Translator<'_> {
         count: u32,
         values: Option<&[Value]>,
         pops_pc: bool,
-    ) -> (Vec<Value>, Value, Value) {
+    ) -> (Vec<Value>, Option<Value>, Value) {
         let pc = ins.pc;
         self.flush();
         let off = self.b.ins().iadd_imm_s(start, -(SRAM_BASE as i64));
@@ -291,24 +338,35 @@ impl Translator<'_> {
             let bad = self.interworking_exit(t, true);
             self.general_if(bad, pc);
         }
+        let striped = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, off, 0x4_0000);
         let words: Vec<(Value, Value)> = (0..count)
             .map(|k| {
                 let o = self.b.ins().iadd_imm_s(off, 4 * k as i64);
-                (o, self.bank_of(o))
+                (o, self.bank_offset(o, Some(striped)))
             })
             .collect();
         self.confine(ins, &words, values.is_some());
         let c = self.b.use_var(self.cyc);
         let mut at = self.b.ins().iadd_imm_s(c, 1);
-        let mut total = self.b.ins().iconst(types::I64, 0);
+        let mut total = None;
         let mut loaded = Vec::new();
         let mut code = self.b.ins().iconst(types::I32, 0);
         for k in 0..count {
-            let (o, bank) = words[k as usize];
-            let wait = self.arbitrate(bank, at);
-            total = self.b.ins().iadd(total, wait);
-            let step = self.b.ins().iadd_imm_s(wait, 1);
-            at = self.b.ins().iadd(at, step);
+            let (o, boff) = words[k as usize];
+            at = match self.arbitrate(boff, at) {
+                Some(wait) => {
+                    total = Some(match total {
+                        None => wait,
+                        Some(t) => self.b.ins().iadd(t, wait),
+                    });
+                    let step = self.b.ins().iadd_imm_s(wait, 1);
+                    self.b.ins().iadd(at, step)
+                }
+                None => self.b.ins().iadd_imm_s(at, 1),
+            };
             match values {
                 Some(vs) => {
                     self.b

@@ -63,8 +63,15 @@
 //! instruction groups in [`alu`] (data processing: flags, conditions, shifts) and
 //! [`memory`] (loads, stores, the inline SRAM arbiter, multiple transfers); [`abi`] is the
 //! calling convention between native code and the board (the context, the exit reasons);
-//! [`cache`] keeps the compiled regions (lookup, the compile threshold, invalidation by
-//! code epoch, the cranelift module).
+//! [`cache`] keeps the compiled regions (a board's lookup, the compile threshold,
+//! invalidation by code epoch; the process's store of machine code, shared by every board).
+//!
+//! **Flavours.** Each region is compiled in up to four variants ([`Flavour`]): arbitrating
+//! against the other core's bank claims or *solo* (the other core's claims are all older
+//! than the core's cycle, so no access can wait and each only records its claim), each
+//! plain or confined. The runner picks solo code once the core's cycle has passed the other
+//! core's last claim (of the banks it may touch, when confined), which it cannot change
+//! while this core runs.
 
 mod abi;
 mod alu;
@@ -76,3 +83,4 @@ mod translate;
 pub(crate) use abi::{call, Confine, Exit};
 pub(crate) use cache::Jit;
 pub(crate) use scan::data_words;
+pub(crate) use translate::Flavour;

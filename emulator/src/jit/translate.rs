@@ -14,11 +14,48 @@ use cranelift_frontend::{FunctionBuilder, Variable};
 use std::collections::HashMap;
 use std::mem::offset_of;
 
-/// Flag variables, in `Core` field order.
+/// Flags, in `Core` field order (see [`Flags`] for how they are held).
 pub(super) const N: usize = 0;
 pub(super) const Z: usize = 1;
 pub(super) const C: usize = 2;
 pub(super) const V: usize = 3;
+
+/// The guest flags as the translated code holds them, so that an instruction that sets
+/// them computes almost nothing and a flag nobody reads before the next setter costs
+/// nothing: N and Z as one word whose sign is N and which is zero exactly when Z is set
+/// (every Thumb instruction that sets N sets Z from the same result: the word *is* the
+/// result), C as a byte, and V as a word whose sign is V (the overflow rule's XOR term,
+/// its sign not yet extracted). They become the core's four bytes only where read — a
+/// condition — and at the exit. A core whose N and Z are both set (only `MSR APSR` can do
+/// that) has no such word: the region leaves at once, before its first instruction.
+#[derive(Clone, Copy)]
+pub(super) struct Flags {
+    /// i32: N = sign, Z = (word == 0).
+    pub(super) nz: Variable,
+    /// i8: 0 or 1.
+    pub(super) c: Variable,
+    /// i32: V = sign.
+    pub(super) v: Variable,
+}
+
+/// How a region's SRAM accesses meet the other core (one compiled variant each).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) enum Flavour {
+    /// The other core may have claimed a bank in the cycles this code runs in: each
+    /// access arbitrates against its claim (`System::arbitrate_fast`).
+    Shared,
+    /// Every claim of the other core is older than the core's cycle at the call (it is
+    /// parked, asleep or behind and not running meanwhile): no access can wait, so each
+    /// only records its own claim (the other core reads it when it runs again).
+    Solo,
+    /// Running ahead ([`crate::board`], "Running ahead"): arbitrated, every access checked
+    /// against the allowed banks, every store journaled (see the parent module).
+    Confined,
+    /// [`Flavour::Confined`] for a core whose accesses all come after the other core's last
+    /// claims (as [`Flavour::Solo`]): in a window the other core does not touch the banks
+    /// this core may, so their claims stay as they were.
+    ConfinedSolo,
+}
 
 pub(super) struct Translator<'a> {
     pub(super) b: FunctionBuilder<'a>,
@@ -29,9 +66,10 @@ pub(super) struct Translator<'a> {
     pub(super) flash: Value,
     pub(super) code_pages: Value,
     pub(super) claims_self: Value,
-    pub(super) claims_other: Value,
+    /// `None` in [`Flavour::Solo`] code: no access waits.
+    pub(super) claims_other: Option<Value>,
     pub(super) regs: [Variable; 16],
-    pub(super) flags: [Variable; 4],
+    pub(super) flags: Flags,
     pub(super) cyc: Variable,
     pub(super) retired: Variable,
     pub(super) stalls: Variable,
@@ -70,8 +108,10 @@ impl<'a> Translator<'a> {
     pub(super) fn run(
         mut b: FunctionBuilder<'a>,
         instrs: &[RegionInstr],
-        confined: bool,
+        flavour: Flavour,
     ) -> (FunctionBuilder<'a>, u64) {
+        let confined = matches!(flavour, Flavour::Confined | Flavour::ConfinedSolo);
+        let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo);
         let index: HashMap<u32, usize> =
             instrs.iter().enumerate().map(|(i, x)| (x.pc, i)).collect();
         let targets: Vec<Option<usize>> = instrs
@@ -91,10 +131,14 @@ impl<'a> Translator<'a> {
         let flash = ptr(&mut b, offset_of!(Ctx, flash));
         let code_pages = ptr(&mut b, offset_of!(Ctx, code_pages));
         let claims_self = ptr(&mut b, offset_of!(Ctx, claims_self));
-        let claims_other = ptr(&mut b, offset_of!(Ctx, claims_other));
+        let claims_other = (!solo).then(|| ptr(&mut b, offset_of!(Ctx, claims_other)));
         let stalls_ptr = ptr(&mut b, offset_of!(Ctx, stalls));
         let regs = std::array::from_fn(|_| b.declare_var(types::I32));
-        let flags = std::array::from_fn(|_| b.declare_var(types::I8));
+        let flags = Flags {
+            nz: b.declare_var(types::I32),
+            c: b.declare_var(types::I8),
+            v: b.declare_var(types::I32),
+        };
         let cyc = b.declare_var(types::I64);
         let retired = b.declare_var(types::I64);
         let stalls = b.declare_var(types::I64);
@@ -113,10 +157,31 @@ impl<'a> Translator<'a> {
             offset_of!(Core, c),
             offset_of!(Core, v),
         ];
-        for (f, at) in flags.iter().zip(flag_at) {
-            let v = b.ins().load(types::I8, mf, core, at as i32);
-            b.def_var(*f, v);
+        let [n, z, c, v] = flag_at.map(|at| b.ins().load(types::I8, mf, core, at as i32));
+        {
+            // N and Z both set: no word holds them; leave before the first instruction,
+            // nothing changed (the context's counts are zero on the call).
+            let both = b.ins().band(n, z);
+            let bail = b.create_block();
+            let go = b.create_block();
+            b.ins().brif(both, bail, &[], go, &[]);
+            b.switch_to_block(bail);
+            let why = b.ins().iconst(types::I32, Exit::General as i64);
+            b.ins().return_(&[why]);
+            b.switch_to_block(go);
         }
+        // nz = Z ? 0 : (N ? i32::MIN : 1); V's word = V << 31.
+        let n32 = b.ins().uextend(types::I32, n);
+        let sign = b.ins().ishl_imm_u(n32, 31);
+        let one = b.ins().iconst(types::I32, 1);
+        let nonzero = b.ins().bor(sign, one);
+        let zero = b.ins().iconst(types::I32, 0);
+        let nz = b.ins().select(z, zero, nonzero);
+        b.def_var(flags.nz, nz);
+        b.def_var(flags.c, c);
+        let v32 = b.ins().uextend(types::I32, v);
+        let v32 = b.ins().ishl_imm_u(v32, 31);
+        b.def_var(flags.v, v32);
         let v = b
             .ins()
             .load(types::I64, mf, core, offset_of!(Core, cycle) as i32);
@@ -228,8 +293,8 @@ impl<'a> Translator<'a> {
         let pc = t.b.use_var(exit_pc);
         t.b.ins()
             .store(mf, pc, core, (offset_of!(Core, r) + 4 * 15) as i32);
-        for (f, at) in flags.iter().zip(flag_at) {
-            let v = t.b.use_var(*f);
+        let values = [N, Z, C, V].map(|f| t.flag(f));
+        for (v, at) in values.into_iter().zip(flag_at) {
             t.b.ins().store(mf, v, core, at as i32);
         }
         let v = t.b.use_var(cyc);
@@ -290,12 +355,28 @@ impl<'a> Translator<'a> {
         self.b.def_var(self.regs[r], v);
     }
 
+    /// Flag `f` (0 or 1, i8) from its held form ([`Flags`]).
     pub(super) fn flag(&mut self, f: usize) -> Value {
-        self.b.use_var(self.flags[f])
+        match f {
+            N => {
+                let w = self.b.use_var(self.flags.nz);
+                self.b.ins().icmp_imm_s(IntCC::SignedLessThan, w, 0)
+            }
+            Z => {
+                let w = self.b.use_var(self.flags.nz);
+                self.b.ins().icmp_imm_u(IntCC::Equal, w, 0)
+            }
+            C => self.b.use_var(self.flags.c),
+            _ => {
+                let w = self.b.use_var(self.flags.v);
+                self.b.ins().icmp_imm_s(IntCC::SignedLessThan, w, 0)
+            }
+        }
     }
 
-    pub(super) fn set_flag(&mut self, f: usize, v: Value) {
-        self.b.def_var(self.flags[f], v);
+    /// Sets C (an i8, 0 or 1).
+    pub(super) fn set_c(&mut self, c: Value) {
+        self.b.def_var(self.flags.c, c);
     }
 
     /// Adds the pending straight-line cycles and instructions to their variables.
@@ -433,7 +514,7 @@ impl<'a> Translator<'a> {
                     let bit = self.b.ins().ushr_imm_u(x, 32 - imm as i64);
                     let bit = self.b.ins().band_imm_u(bit, 1);
                     let c = self.b.ins().ireduce(types::I8, bit);
-                    self.set_flag(C, c);
+                    self.set_c(c);
                     self.b.ins().ishl_imm_u(x, imm as i64)
                 };
                 self.set(rd, r);
@@ -444,7 +525,7 @@ impl<'a> Translator<'a> {
                 let bit = self.b.ins().ushr_imm_u(x, imm as i64 - 1);
                 let bit = self.b.ins().band_imm_u(bit, 1);
                 let c = self.b.ins().ireduce(types::I8, bit);
-                self.set_flag(C, c);
+                self.set_c(c);
                 let r = if imm == 32 {
                     self.c32(0)
                 } else {
@@ -458,7 +539,7 @@ impl<'a> Translator<'a> {
                 let bit = self.b.ins().sshr_imm_u(x, imm as i64 - 1);
                 let bit = self.b.ins().band_imm_u(bit, 1);
                 let c = self.b.ins().ireduce(types::I8, bit);
-                self.set_flag(C, c);
+                self.set_c(c);
                 let r = self.b.ins().sshr_imm_u(x, (imm as i64).min(31));
                 self.set(rd, r);
                 self.nz(r);
@@ -616,7 +697,7 @@ impl<'a> Translator<'a> {
                 let values: Vec<Value> = regs.iter().map(|&r| self.reg(r, pc)).collect();
                 let (_, wait, code) = self.multiple(ins, start, count, Some(&values), false);
                 self.set(13, start);
-                self.retire(base, Some(wait));
+                self.retire(base, wait);
                 self.invalidate_if(code, ins);
                 return true;
             }
@@ -628,7 +709,7 @@ impl<'a> Translator<'a> {
                 let (_, wait, code) = self.multiple(ins, start, count, Some(&values), false);
                 let end = self.b.ins().iadd_imm_s(start, 4 * count as i64);
                 self.set(rn, end);
-                self.retire(base, Some(wait));
+                self.retire(base, wait);
                 self.invalidate_if(code, ins);
                 return true;
             }

@@ -22,10 +22,12 @@ impl<'a> Sel<'a> {
         let bl = self.nv();
         self.push(M::Uxth { d: bl, m: b });
         let bh = self.sh(Shift::Asr, b, 16);
+        // In this order only the first `MULS` needs a copy of an operand: each later one
+        // overwrites an operand at its last use (`bl`, `al`, then both).
         let lo = self.alu2(AluOp::Mul, al, bl);
-        let hi = self.alu2(AluOp::Mul, ah, bh);
         let m1 = self.alu2(AluOp::Mul, ah, bl);
         let m2 = self.alu2(AluOp::Mul, al, bh);
+        let hi = self.alu2(AluOp::Mul, ah, bh);
         self.add_cross_terms((lo, hi), m1, m2)
     }
 
@@ -113,19 +115,15 @@ impl<'a> Sel<'a> {
                     }
                 };
                 let mut parts = Vec::with_capacity(3);
-                if let Some(yh) = yh {
-                    let mut hh = self.alu2(AluOp::Mul, xh, yh);
-                    if k < 32 {
-                        hh = self.sh(Shift::Lsl, hh, (32 - k) as u8);
-                    }
-                    parts.push(hh);
-                }
                 // x's low half only where a high half of y multiplies it.
                 let xl = yh.map(|_| {
                     let xl = self.nv();
                     self.push(M::Uxth { d: xl, m: x.v });
                     xl
                 });
+                // The mixed products first, `xh·yh` last: each `MULS` then overwrites an
+                // operand at its last use (`yl`, then `xl`, then both), and no `MOV` copies
+                // one (the sum is the same word in any order: the bound proves it fits).
                 for (a, b) in [(Some(xh), yl), (xl, yh)] {
                     let (Some(a), Some(b)) = (a, b) else { continue };
                     let mut t = self.alu2(AluOp::Mul, a, b);
@@ -133,6 +131,13 @@ impl<'a> Sel<'a> {
                         t = self.sh(Shift::Asr, t, (k - 16) as u8);
                     }
                     parts.push(t);
+                }
+                if let Some(yh) = yh {
+                    let mut hh = self.alu2(AluOp::Mul, xh, yh);
+                    if k < 32 {
+                        hh = self.sh(Shift::Lsl, hh, (32 - k) as u8);
+                    }
+                    parts.push(hh);
                 }
                 let mut p = match parts.first() {
                     Some(&t) => t,

@@ -29,6 +29,10 @@ impl<'a> Sel<'a> {
                 b: 0,
             };
         }
+        if let (Some(&c), 1..) = (self.konst.get(&x.v), m) {
+            // A known word: the rounding at compile time (exact in i64).
+            return self.known((((c as i64 >> (m - 1)) + 1) >> 1) as i32);
+        }
         let b = (x.b >> m) + 1;
         if m >= 2 || x.b < LIM - 1 {
             let t = if m >= 2 {
@@ -112,6 +116,10 @@ impl<'a> Sel<'a> {
 
     /// `-x` (exact: bounds are below 2^31, so `x ≠ i32::MIN`... unless unbounded).
     pub(super) fn neg(&mut self, x: W) -> W {
+        if let Some(&c) = self.konst.get(&x.v) {
+            // A known word: `-c`, saturated as below for i32::MIN.
+            return self.known(c.checked_neg().unwrap_or(i32::MAX));
+        }
         if x.b < LIM {
             W {
                 v: self.unary(AluOp::Rsb, x.v),
