@@ -186,6 +186,11 @@ impl PlanConfig {
 /// half.
 pub const SIMULATION_MARGIN: f64 = 0.5;
 
+/// Key descent times (seconds) of the full dips the planner's search simulates besides the
+/// built-in stimuli: forte (≈ 25 ms to the key bottom) to piano (≈ 160 ms) and slower
+/// (DESIGN.md's grand-action reference numbers).
+pub const SIMULATED_DESCENTS_S: [f64; 7] = [0.025, 0.03, 0.04, 0.06, 0.1, 0.16, 0.2];
+
 /// Most contract simulations per round of the planner's search
 /// ([`FixedProgram::with_config`]).
 pub const MAX_SIMULATIONS: usize = 40;
@@ -735,7 +740,9 @@ impl FixedProgram {
     /// The planner's second pass: cheaper product forms than the error analysis could prove,
     /// each kept only when the accuracy contract ([`contract`]) still holds with
     /// [`SIMULATION_MARGIN`] of every clause to spare, simulated against the f64 reference
-    /// on every built-in stimulus, with the params' own values and, for a program with
+    /// on every built-in stimulus and full dips of [`SIMULATED_DESCENTS_S`] (where the
+    /// analysis proves the force clause for every input, also keeping that proof), with
+    /// the params' own values and, for a program with
     /// run-time params, also at the middle of their intervals and at the far corner (a
     /// shared program's first key is its nominal point; `compiler/tests/contract.rs` checks
     /// the whole contract over grand88's hammer masses). It starts from the analysis' plan (which
@@ -791,20 +798,45 @@ impl FixedProgram {
                 }
             }));
         }
+        let mut stimuli: Vec<Vec<f64>> = tactus_runtime::stimulus::builtin_names()
+            .iter()
+            .filter_map(|(name, _)| {
+                tactus_runtime::stimulus::builtin(name, dip, original.sample_rate_hz).ok()
+            })
+            .map(|s| s.key)
+            .collect();
+        // Full dips over the range of key descent times (an event's arguments, a strike's
+        // hammer speed, are most sensitive to the slow ones, where the hammer barely
+        // reaches the string).
+        for descent in SIMULATED_DESCENTS_S {
+            if let Ok(s) =
+                tactus_runtime::stimulus::dip(descent, 0.1, 0.06, dip, original.sample_rate_hz)
+            {
+                stimuli.push(s.key);
+            }
+        }
         let mut runs: Vec<contract::ReferenceRun> = Vec::new();
-        for (name, _) in tactus_runtime::stimulus::builtin_names() {
-            let Ok(s) = tactus_runtime::stimulus::builtin(name, dip, original.sample_rate_hz)
-            else {
-                continue;
-            };
+        for keys in &stimuli {
             for point in &points {
-                runs.push(contract::reference(original, self, &s.key, point));
+                runs.push(contract::reference(original, self, keys, point));
             }
         }
         // The shortest runs first: a failing plan is found sooner.
         runs.sort_by_key(|r| r.len());
         let mut order: Vec<usize> = (0..runs.len()).collect();
+        // Where the analysis proves the force clause for every input (no integrated state
+        // feeds the total), the search keeps it proven: simulation only adds to a proof.
+        let proven = {
+            let pr = report::analyse(self);
+            !pr.total_is_local && pr.total <= original.contract.force.lsb(lsb) * lsb
+        };
         let mut holds = |fp: &FixedProgram| -> bool {
+            if proven {
+                let pr = report::analyse(fp);
+                if pr.total_is_local || pr.total > original.contract.force.lsb(lsb) * lsb {
+                    return false;
+                }
+            }
             for pos in 0..order.len() {
                 let r = &runs[order[pos]];
                 let c = contract::compare(original, fp, r, lsb, &strict, true);

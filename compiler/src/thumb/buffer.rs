@@ -278,6 +278,18 @@ impl CodeBuffer {
         self.place_pool(false);
     }
 
+    /// After an unconditional branch: places the open pool here (control never falls into
+    /// it) when its first literal lies a quarter of an island's distance back or more, so
+    /// that fewer islands need a `B` over them (2 cycles each on the path through them).
+    pub fn pool_after_branch(&mut self) {
+        if self
+            .pending_since
+            .is_some_and(|p0| self.est - p0 >= ISLAND_AFTER / 4)
+        {
+            self.place_pool(false);
+        }
+    }
+
     /// Places the open pool here behind a `B` over it.
     pub fn pool_inline(&mut self) {
         self.place_pool(true);

@@ -42,6 +42,10 @@ struct Lower<'a> {
     /// Scratch registers holding an operand of the instruction being lowered (a second
     /// spilled operand is reloaded into the other one).
     pinned: [bool; 2],
+    /// The last instruction reading or writing each virtual register, and the index of
+    /// the instruction being lowered: an operand whose register is free after it.
+    last: Vec<usize>,
+    at: usize,
     /// Where each spill slot lives: a high register (`MOV` to and from it costs 1 cycle
     /// where `LDR`/`STR` cost 2) or a word of the stack frame.
     home: Vec<Home>,
@@ -193,6 +197,29 @@ impl Lower<'_> {
         }
     }
 
+    /// Whether `v` lives in a register of its own that is free after this instruction (its
+    /// last reference; no other register is defined here but the instruction's own).
+    fn ends_here_in(&self, v: V, r: u8) -> bool {
+        v != STATE_V
+            && self.at > 0
+            && self.last.get(v.0 as usize) == Some(&self.at)
+            && !self.alloc.scratch.contains(&r)
+    }
+
+    /// Stores the value in low register `r` (not necessarily a scratch register) as spill
+    /// slot `s`'s new value.
+    fn spill_from(&mut self, r: u8, s: u16) {
+        for j in 0..2 {
+            if self.holds[j] == Some(s) {
+                self.holds[j] = None;
+            }
+        }
+        if let Some(j) = self.alloc.scratch.iter().position(|&x| x == r) {
+            self.holds[j] = Some(s);
+        }
+        self.store_home(r, s);
+    }
+
     fn spill(&mut self, r: u8, slot: Option<u16>) {
         if let Some(s) = slot {
             // The scratch register written now holds the slot's new value; a copy of the
@@ -257,6 +284,14 @@ impl Lower<'_> {
                 self.movi(r, imm);
                 self.spill(r, s);
             }
+            M::Mov { d, s } if matches!(self.loc(d), Loc::Slot(_)) => {
+                // A copy into a spilled register is a store of the source.
+                let src = self.read(s, 1);
+                let Loc::Slot(slot) = self.loc(d) else {
+                    unreachable!()
+                };
+                self.spill_from(src, slot);
+            }
             M::Mov { d, s } => {
                 let src = self.read(s, 1);
                 let (r, sl) = self.write(d, None);
@@ -303,6 +338,26 @@ impl Lower<'_> {
                 let ra = self.read(a, 0);
                 let rm = if m == a { ra } else { self.read(m, 1) };
                 let commutative = super::mir::commutative(op);
+                // A spilled result computed in the register of an operand that ends here
+                // (no `MOV` into a scratch register first), then stored.
+                if let Loc::Slot(slot) = self.loc(d) {
+                    let in_place = if self.ends_here_in(a, ra) {
+                        Some((ra, rm))
+                    } else if commutative && self.ends_here_in(m, rm) {
+                        Some((rm, ra))
+                    } else {
+                        None
+                    };
+                    if let Some((r, other)) = in_place {
+                        self.i(Instr::Alu {
+                            op,
+                            rdn: r,
+                            rm: other,
+                        });
+                        self.spill_from(r, slot);
+                        return;
+                    }
+                }
                 // A non-commutative op cannot write `m`'s register first (`MOV d, a`).
                 let avoid = (!commutative && rm != ra).then_some(rm);
                 let (r, s) = self.write(d, avoid);
@@ -397,6 +452,7 @@ impl Lower<'_> {
             M::B(l) => {
                 let l = self.label(l);
                 self.buf.b(l);
+                self.buf.pool_after_branch();
             }
             M::Bc(c, l) => {
                 let l = self.label(l);
@@ -436,6 +492,8 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
         labels: HashMap::new(),
         holds: [None, None],
         pinned: [false, false],
+        last: last_refs(code, alloc.loc.len()),
+        at: 0,
         home,
     };
     let saved = (alloc.used_mask | 0x80) & 0xf0;
@@ -464,7 +522,8 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
             _ => {}
         }
     }
-    for m in code {
+    for (i, m) in code.iter().enumerate() {
+        l.at = i;
         l.one(m);
     }
     if frame > 0 {
@@ -487,6 +546,19 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
         list: saved as u16 | 1 << 15,
     });
     l.buf.end_function();
+}
+
+/// The index of the last instruction reading or writing each of `n` virtual registers.
+fn last_refs(code: &[M], n: usize) -> Vec<usize> {
+    let mut last = vec![0usize; n];
+    for (i, m) in code.iter().enumerate() {
+        for v in m.uses().into_iter().chain(m.def()) {
+            if let Some(x) = last.get_mut(v.0 as usize) {
+                *x = i;
+            }
+        }
+    }
+    last
 }
 
 /// `SUB SP`/`ADD SP` immediates are at most 508 bytes.
