@@ -1,6 +1,41 @@
+//! Generates the parser (lalrpop) and fingerprints the sources the format planner's
+//! simulated search depends on (`src/fixed/plan_cache.rs` keys its on-disk cache with it).
+
+use sha3::{Digest, Sha3_256};
+use std::path::Path;
+
 fn main() {
     lalrpop::Configuration::new()
         .use_cargo_dir_conventions()
         .process()
         .expect("lalrpop grammar failed to compile");
+    // Every source of this crate and of the runtime (the fixed-point rules, the stimuli):
+    // a change to any of them may change what the search chooses, so it changes the key.
+    let mut files = Vec::new();
+    for dir in ["src", "../runtime/src"] {
+        println!("cargo:rerun-if-changed={dir}");
+        collect(Path::new(dir), &mut files);
+    }
+    files.sort();
+    let mut h = Sha3_256::new();
+    for f in &files {
+        h.update(f.to_string_lossy().as_bytes());
+        h.update(std::fs::read(f).unwrap_or_default());
+    }
+    let hex: String = h.finalize().iter().map(|b| format!("{b:02x}")).collect();
+    println!("cargo:rustc-env=TACTUS_PLANNER_SOURCE_SHA3={hex}");
+}
+
+fn collect(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            collect(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs" || x == "lalrpop") {
+            out.push(p);
+        }
+    }
 }

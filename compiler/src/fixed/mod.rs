@@ -14,6 +14,7 @@ pub mod common;
 pub mod contract;
 pub mod flow;
 pub mod interp;
+pub mod plan_cache;
 pub mod range;
 pub mod report;
 
@@ -752,8 +753,8 @@ impl FixedProgram {
     /// group), with at most [`MAX_SIMULATIONS`] simulations a round; a failing simulation
     /// stops at its first broken sample, and the stimulus that failed is tried first next
     /// time. Only keyboard programs (one sensor) of at most [`MAX_SIMULATED_VALUES`] values
-    /// are simulated. Results are kept per process (the same program planned again costs
-    /// nothing).
+    /// are simulated. Results are kept per process and on disk ([`plan_cache`]: the same
+    /// program planned again by the same compiler costs nothing).
     fn spend_by_simulation(
         &mut self,
         original: &Program,
@@ -769,6 +770,13 @@ impl FixedProgram {
             .ok()
             .and_then(|c| c.get(&key).cloned())
         {
+            self.mul_kind = kinds;
+            return;
+        }
+        if let Some(kinds) = plan_cache::load(&key, &self.mul_kind) {
+            if let Ok(mut c) = simulation_cache().lock() {
+                c.insert(key, kinds.clone());
+            }
             self.mul_kind = kinds;
             return;
         }
@@ -894,6 +902,7 @@ impl FixedProgram {
                 }
             }
         }
+        plan_cache::store(&key, &self.mul_kind);
         if let Ok(mut c) = simulation_cache().lock() {
             c.insert(key, self.mul_kind.clone());
         }
