@@ -69,7 +69,7 @@ pub fn sio_division_steps(quotient_bits: i32, divisor_bits: i32) -> Option<u32> 
 
 /// Estimated Cortex-M0+ cycles of a run-time division of `quotient_bits` quotient bits:
 /// `(steps, cycles)` on the SIO divider when that is cheaper than the restoring division
-/// (6 cycles a quotient bit, `compiler/src/thumb/select.rs`), else `(0, cycles)` of the
+/// (6 cycles a quotient bit, `compiler/src/thumb/select/divide.rs`), else `(0, cycles)` of the
 /// restoring division. SIO: about 18 cycles of set-up and sign handling plus 14 per step
 /// (the remainder load and shift, the dividend store, the 8-cycle latency that also shifts
 /// the digits, the quotient load and merge).
