@@ -61,7 +61,10 @@ fn decode(line: &str) -> Option<Option<MulKind>> {
     let mut t = line.split(' ');
     let k = match t.next()? {
         "-" => None,
-        "m" => Some(MulKind::Muls(t.next()?.parse().ok()?, t.next()?.parse().ok()?)),
+        "m" => Some(MulKind::Muls(
+            t.next()?.parse().ok()?,
+            t.next()?.parse().ok()?,
+        )),
         "h" => Some(MulKind::High(t.next()?.parse().ok()?)),
         "w" => Some(MulKind::Wide),
         _ => return None,
@@ -83,7 +86,10 @@ fn load_in(dir: &Path, key: &str, like: &[Option<MulKind>]) -> Option<Vec<Option
     }
     let kinds: Vec<Option<MulKind>> = lines.map(decode).collect::<Option<_>>()?;
     let same_shape = kinds.len() == like.len()
-        && kinds.iter().zip(like).all(|(a, b)| a.is_some() == b.is_some());
+        && kinds
+            .iter()
+            .zip(like)
+            .all(|(a, b)| a.is_some() == b.is_some());
     same_shape.then_some(kinds)
 }
 
