@@ -857,25 +857,31 @@ impl FixedProgram {
             true
         };
         {
-            let rounds: [Vec<(usize, MulKind)>; 2] = [
-                planned
-                    .iter()
-                    .filter(|(i, _, _)| !matches!(self.mul_kind[*i], Some(MulKind::Muls(..))))
-                    .map(|(i, ops, sw)| (*i, ops.plan(*sw, false)))
-                    .filter(|(_, k)| matches!(k, MulKind::Muls(..)))
-                    .collect(),
-                Vec::new(),
-            ];
+            // Round 0: every product not yet `MULS` tries its `MULS` form; round 1: every
+            // product still 64-bit its high word — the forms `mul_options` lists.
             for round in 0..2 {
-                let candidates: Vec<(usize, MulKind)> = if round == 0 {
-                    rounds[0].clone()
-                } else {
-                    planned
-                        .iter()
-                        .filter(|(i, _, _)| self.mul_kind[*i] == Some(MulKind::Wide))
-                        .filter_map(|(i, ops, _)| ops.high().map(|(k, _)| (*i, MulKind::High(k))))
-                        .collect()
-                };
+                let candidates: Vec<(usize, MulKind)> = planned
+                    .iter()
+                    .filter_map(|&(i, _, _)| {
+                        let now = self.mul_kind[i];
+                        let option = |f: fn(&MulKind) -> bool| {
+                            self.mul_options[i]
+                                .iter()
+                                .copied()
+                                .find(|k| f(k))
+                                .map(|k| (i, k))
+                        };
+                        match round {
+                            0 if !matches!(now, Some(MulKind::Muls(..))) => {
+                                option(|k| matches!(k, MulKind::Muls(..)))
+                            }
+                            1 if now == Some(MulKind::Wide) => {
+                                option(|k| matches!(k, MulKind::High(_)))
+                            }
+                            _ => None,
+                        }
+                    })
+                    .collect();
                 let mut queue: std::collections::VecDeque<&[(usize, MulKind)]> =
                     std::collections::VecDeque::from([&candidates[..]]);
                 let mut done = 0;
