@@ -865,11 +865,7 @@ impl FixedProgram {
                     .filter_map(|&(i, _, _)| {
                         let now = self.mul_kind[i];
                         let option = |f: fn(&MulKind) -> bool| {
-                            self.mul_options[i]
-                                .iter()
-                                .copied()
-                                .find(|k| f(k))
-                                .map(|k| (i, k))
+                            self.mul_options[i].iter().copied().find(f).map(|k| (i, k))
                         };
                         match round {
                             0 if !matches!(now, Some(MulKind::Muls(..))) => {
