@@ -1,0 +1,381 @@
+//! Reciprocals of divisor states: a division by a state that only events set becomes a
+//! product with a hidden word holding the state's reciprocal, recomputed only where the
+//! state is assigned.
+//!
+//! The grand piano's impact pulse decays as `pulse' = -pulse / tau`, a run-time division
+//! every sample (≈ 60 cycles on the RP2040's SIO divider), although `tau` changes only at
+//! the hammer–key impact and at the rest felt. Before the format plan (beside
+//! [`super::common`], so the fixed interpreter, the fixed JIT, the C and the Thumb backends
+//! run the same program and stay bit-exact; the f64 reference keeps the plain division and
+//! defines the meaning) a state `s` is given a reciprocal when
+//! - the program divides by it (`x / s`),
+//! - it has no dynamics: every write is inside an `if` body (an event or `while` body), so
+//!   the writes run only when it changes, not every sample,
+//! - its declared range excludes 0 (a range through 0 has no bounded reciprocal: refused).
+//!
+//! Then the fixed program gets a hidden state `1/s` after the declared ones: range
+//! `[1/hi, 1/lo]`, initial value `1/init`. Every `x / s` becomes `x · (1/s)`, and every
+//! assignment `s = v` is followed by `1/s = r(v)`, with the algebra done symbolically where
+//! it removes a division: `r(constant) = 1/constant` folded (a compile-time param is a
+//! constant), `r(a / b) = b / a` — a product when `a` is a constant, which the plan turns
+//! into a multiplication by its reciprocal (a run-time param `a` is a run-time division,
+//! as every division by a run-time param outside [`crate::share`] is) — and otherwise one
+//! division `1 / clamp(v, lo, hi)` at the assignment, which runs only when `s` changes.
+//!
+//! **Saturation.** Every engine saturates a state write to the state's declared range. On a
+//! range of one sign `x ↦ 1/x` is monotonic, so for a value `v` of that sign
+//! `clamp(1/v, 1/hi, 1/lo) = 1/clamp(v, lo, hi)`: saturating the reciprocal's write to its
+//! range is saturating the state's, up to the rounding of the two bounds (half an LSB of
+//! the reciprocal's format). The symbolic forms are used only where the range analysis
+//! proves `v` on the side of 0 the range is on; elsewhere (`v` may be 0 or of the other sign,
+//! where the state saturates to its bound nearer 0 but `1/v` would saturate to the wrong
+//! end) the reciprocal is `1 / clamp(v, lo, hi)`, which agrees by construction.
+//!
+//! **Carried states.** When the divisions were the state's only reads, the fixed program
+//! reads the declared state nowhere; its writes (and what only they computed: the piano's
+//! `pulse_tau / (1 + …)`, a second division) are dropped, and the state is *carried by its
+//! reciprocal*: its word keeps the initial value and its value is `1 / (1/s)`
+//! ([`super::FixedProgram::states_si`], what traces of the fixed engines show).
+
+use super::range;
+use crate::ast::Span;
+use crate::ir::*;
+use crate::units::Dim;
+use std::collections::HashMap;
+
+/// A state whose divisions became products with its reciprocal.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Reciprocal {
+    /// The declared state.
+    pub state: StateId,
+    /// The hidden state holding `1/state` (after the declared states).
+    pub recip: StateId,
+    /// Source spans of the divisions by the state that became products.
+    pub divisions: Vec<Span>,
+    /// Per assignment of the state (the assigned expression's span): whether a run-time
+    /// division remains there to recompute the reciprocal.
+    pub writes: Vec<(Span, bool)>,
+    /// Whether the declared state is read nowhere else, so that the fixed program no longer
+    /// writes it (see the module documentation).
+    pub carried: bool,
+    /// Source spans of the run-time divisions that only the dropped writes of a carried
+    /// state computed (they are gone too).
+    pub dropped: Vec<Span>,
+}
+
+/// A state used as a divisor that keeps its divisions, and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Refused {
+    /// The state.
+    pub state: StateId,
+    /// Why: a sentence.
+    pub reason: &'static str,
+}
+
+/// The program with reciprocals, and what was done.
+#[derive(Clone, Debug)]
+pub struct Reciprocals {
+    /// The rewritten program (the input itself when no state qualifies).
+    pub program: Program,
+    /// One per state given a reciprocal, in state order; their hidden states are the last
+    /// `recips.len()` states of `program`, in this order.
+    pub recips: Vec<Reciprocal>,
+    /// States used as divisors that were not given one.
+    pub refused: Vec<Refused>,
+}
+
+/// Gives every qualifying divisor state a reciprocal (see the module documentation).
+pub fn reciprocals(p: &Program) -> Reciprocals {
+    let ns = p.states.len();
+    let defined = defined_values(p);
+    // Per state: the divisions by a read of it.
+    let mut divisions: Vec<Vec<usize>> = vec![Vec::new(); ns];
+    for (i, vd) in p.values.iter().enumerate() {
+        if let (true, Op::Arith(ArithOp::Div, _, y), Ty::Real(_)) = (defined[i], &vd.op, vd.ty) {
+            if let Op::State(s) = p.values[y.index()].op {
+                divisions[s.index()].push(i);
+            }
+        }
+    }
+    let mut top_level = vec![false; ns];
+    for s in &p.body {
+        if let Stmt::SetState(st, _) = s {
+            top_level[st.index()] = true;
+        }
+    }
+    let mut out = Reciprocals {
+        program: p.clone(),
+        recips: Vec::new(),
+        refused: Vec::new(),
+    };
+    for (s, divs) in divisions.iter().enumerate() {
+        if divs.is_empty() {
+            continue;
+        }
+        let (lo, hi) = p.states[s].range;
+        let reason = if top_level[s] {
+            Some("it has dynamics (written every sample): a reciprocal would cost a division every sample too")
+        } else if !(lo.is_finite() && hi.is_finite()) || lo <= 0.0 && hi >= 0.0 {
+            Some("its declared range includes 0: its reciprocal has no bound")
+        } else if p.states[s].init == 0.0 {
+            Some("its initial value is 0")
+        } else {
+            None
+        };
+        match reason {
+            Some(reason) => out.refused.push(Refused {
+                state: StateId(s as u32),
+                reason,
+            }),
+            None => out.recips.push(Reciprocal {
+                state: StateId(s as u32),
+                recip: StateId((ns + out.recips.len()) as u32),
+                divisions: divs.iter().map(|&i| p.values[i].span.clone()).collect(),
+                writes: Vec::new(),
+                carried: false,
+                dropped: Vec::new(),
+            }),
+        }
+    }
+    if out.recips.is_empty() {
+        return out;
+    }
+    let q = &mut out.program;
+    for r in &out.recips {
+        let d = &p.states[r.state.index()];
+        let (lo, hi) = d.range;
+        q.states.push(StateDecl {
+            name: format!("1/{}", d.name),
+            dim: Dim::NONE / d.dim,
+            init: 1.0 / d.init,
+            range: (1.0 / hi, 1.0 / lo),
+            span: d.span.clone(),
+        });
+    }
+    let recip_of: HashMap<StateId, usize> = out
+        .recips
+        .iter()
+        .enumerate()
+        .map(|(k, r)| (r.state, k))
+        .collect();
+    // Each divisor read gets a read of the reciprocal beside it (same generation), and the
+    // division becomes a product with it.
+    let mut after: HashMap<Value, Value> = HashMap::new();
+    for (k, r) in out.recips.iter().enumerate() {
+        for &i in &divisions[r.state.index()] {
+            let Op::Arith(ArithOp::Div, x, y) = q.values[i].op else {
+                continue;
+            };
+            let ry = *after.entry(y).or_insert_with(|| {
+                let ty = Ty::Real(q.states[ns + k].dim);
+                let span = q.values[y.index()].span.clone();
+                push(&mut q.values, Op::State(StateId((ns + k) as u32)), ty, span)
+            });
+            q.values[i].op = Op::Arith(ArithOp::Mul, x, ry);
+        }
+    }
+    let ranges = range::analyse(p);
+    let mut writes: Vec<Vec<(Span, bool)>> = vec![Vec::new(); out.recips.len()];
+    let body = std::mem::take(&mut q.body);
+    let mut ctx = Rewrite {
+        p,
+        ranges: &ranges,
+        values: &mut q.values,
+        after: &after,
+        recip_of: &recip_of,
+        ns,
+        writes: &mut writes,
+    };
+    q.body = ctx.stmts(&body);
+    for (r, w) in out.recips.iter_mut().zip(writes) {
+        r.writes = w;
+    }
+    // States read nowhere any more are carried by their reciprocals: their writes go, and
+    // with them what only those writes computed.
+    let live_before = live_values(p);
+    let live = live_values(q);
+    for r in &mut out.recips {
+        r.carried = !q
+            .values
+            .iter()
+            .enumerate()
+            .any(|(i, vd)| live[i] && vd.op == Op::State(r.state));
+    }
+    let is_division = |i: usize| match q.values[i].op {
+        Op::Arith(ArithOp::Div, _, y) => q.const_value(y).is_none(),
+        _ => false,
+    };
+    for r in out.recips.iter_mut().filter(|r| r.carried) {
+        let without = Program {
+            body: drop_writes(&q.body, &[r.state]),
+            ..q.clone()
+        };
+        let live_without = live_values(&without);
+        r.dropped = (0..q.values.len())
+            .filter(|&i| live[i] && !live_without[i] && is_division(i))
+            .map(|i| q.values[i].span.clone())
+            .collect();
+    }
+    let carried: Vec<StateId> = out
+        .recips
+        .iter()
+        .filter(|r| r.carried)
+        .map(|r| r.state)
+        .collect();
+    q.body = drop_writes(&q.body, &carried);
+    let live = live_values(q);
+    let n_orig = p.values.len();
+    let dead = |v: Value| !live[v.index()] && (v.index() >= n_orig || live_before[v.index()]);
+    q.body = drop_defs(&q.body, &dead);
+    out
+}
+
+fn push(values: &mut Vec<ValueData>, op: Op, ty: Ty, span: Span) -> Value {
+    values.push(ValueData { op, ty, span });
+    Value((values.len() - 1) as u32)
+}
+
+struct Rewrite<'a> {
+    p: &'a Program,
+    ranges: &'a range::Ranges,
+    values: &'a mut Vec<ValueData>,
+    after: &'a HashMap<Value, Value>,
+    recip_of: &'a HashMap<StateId, usize>,
+    ns: usize,
+    writes: &'a mut Vec<Vec<(Span, bool)>>,
+}
+
+impl Rewrite<'_> {
+    fn stmts(&mut self, stmts: &[Stmt]) -> Vec<Stmt> {
+        let mut out = Vec::with_capacity(stmts.len());
+        for s in stmts {
+            match s {
+                Stmt::Def(v) => {
+                    out.push(s.clone());
+                    if let Some(&r) = self.after.get(v) {
+                        out.push(Stmt::Def(r));
+                    }
+                }
+                Stmt::SetState(st, v) => {
+                    out.push(s.clone());
+                    if let Some(&k) = self.recip_of.get(st) {
+                        let (r, divides) = self.reciprocal(*st, *v, &mut out);
+                        out.push(Stmt::SetState(StateId((self.ns + k) as u32), r));
+                        let span = self.p.values[v.index()].span.clone();
+                        self.writes[k].push((span, divides));
+                    }
+                }
+                Stmt::If(c, b) => {
+                    let b = self.stmts(b);
+                    out.push(Stmt::If(*c, b));
+                }
+                other => out.push(other.clone()),
+            }
+        }
+        out
+    }
+
+    /// A value equal to `1 / clamp(v, lo, hi)` of state `st`'s range, its definitions pushed
+    /// to `out`, and whether it divides at run time.
+    fn reciprocal(&mut self, st: StateId, v: Value, out: &mut Vec<Stmt>) -> (Value, bool) {
+        let d = &self.p.states[st.index()];
+        let (lo, hi) = d.range;
+        let rty = Ty::Real(Dim::NONE / d.dim);
+        let span = self.p.values[v.index()].span.clone();
+        let mut def = |values: &mut Vec<ValueData>, op: Op, ty: Ty| {
+            let x = push(values, op, ty, span.clone());
+            out.push(Stmt::Def(x));
+            x
+        };
+        if let Some(c) = self.p.const_value(v) {
+            let c = if c.is_nan() { lo } else { c.clamp(lo, hi) };
+            return (def(self.values, Op::Const(1.0 / c), rty), false);
+        }
+        let iv = self.ranges.values[v.index()];
+        let same_side = if lo > 0.0 { iv.lo > 0.0 } else { iv.hi < 0.0 };
+        if let (true, Op::Arith(ArithOp::Div, a, b)) = (same_side, &self.p.values[v.index()].op) {
+            let ia = self.ranges.values[a.index()];
+            let a_nonzero = ia.lo > 0.0 || ia.hi < 0.0;
+            if a_nonzero && iv.lo.is_finite() && iv.hi.is_finite() {
+                let divides = self.p.const_value(*a).is_none();
+                return (def(self.values, Op::Arith(ArithOp::Div, *b, *a), rty), divides);
+            }
+        }
+        let ty = self.p.values[v.index()].ty;
+        let clo = def(self.values, Op::Const(lo), ty);
+        let chi = def(self.values, Op::Const(hi), ty);
+        let m = def(self.values, Op::Call(Builtin::Max, v, Some(clo)), ty);
+        let m = def(self.values, Op::Call(Builtin::Min, m, Some(chi)), ty);
+        let one = def(self.values, Op::Const(1.0), Ty::Real(Dim::NONE));
+        (def(self.values, Op::Arith(ArithOp::Div, one, m), rty), true)
+    }
+}
+
+/// Which values have a `Def` in the body.
+fn defined_values(p: &Program) -> Vec<bool> {
+    fn walk(stmts: &[Stmt], d: &mut [bool]) {
+        for s in stmts {
+            match s {
+                Stmt::Def(v) => d[v.index()] = true,
+                Stmt::If(_, b) => walk(b, d),
+                _ => {}
+            }
+        }
+    }
+    let mut d = vec![false; p.values.len()];
+    walk(&p.body, &mut d);
+    d
+}
+
+/// Which values something the body does (a write, a condition, a publication) needs.
+fn live_values(p: &Program) -> Vec<bool> {
+    fn roots(stmts: &[Stmt], out: &mut Vec<Value>) {
+        for s in stmts {
+            match s {
+                Stmt::Def(_) | Stmt::SetMode(..) => {}
+                Stmt::SetState(_, v)
+                | Stmt::SetEdge(_, v)
+                | Stmt::Force(_, v)
+                | Stmt::Output(_, v)
+                | Stmt::Total(v) => out.push(*v),
+                Stmt::Emit(_, args) => out.extend(args.iter().copied()),
+                Stmt::If(c, b) => {
+                    out.push(*c);
+                    roots(b, out);
+                }
+            }
+        }
+    }
+    let mut live = vec![false; p.values.len()];
+    let mut stack = Vec::new();
+    roots(&p.body, &mut stack);
+    while let Some(v) = stack.pop() {
+        if std::mem::replace(&mut live[v.index()], true) {
+            continue;
+        }
+        stack.extend(crate::cgen::operands(&p.values[v.index()].op));
+    }
+    live
+}
+
+fn drop_writes(stmts: &[Stmt], carried: &[StateId]) -> Vec<Stmt> {
+    stmts
+        .iter()
+        .filter(|s| !matches!(s, Stmt::SetState(st, _) if carried.contains(st)))
+        .map(|s| match s {
+            Stmt::If(c, b) => Stmt::If(*c, drop_writes(b, carried)),
+            other => other.clone(),
+        })
+        .collect()
+}
+
+fn drop_defs(stmts: &[Stmt], dead: &impl Fn(Value) -> bool) -> Vec<Stmt> {
+    stmts
+        .iter()
+        .filter(|s| !matches!(s, Stmt::Def(v) if dead(*v)))
+        .map(|s| match s {
+            Stmt::If(c, b) => Stmt::If(*c, drop_defs(b, dead)),
+            other => other.clone(),
+        })
+        .collect()
+}
