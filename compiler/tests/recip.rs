@@ -16,7 +16,7 @@ use tactus_runtime::stimulus;
 /// general form, one division at the assignment).
 const DECAY: &str = r#"
 instrument decay {
-    sensor key: Length in [0 mm, 10 mm]
+    sensor key: m in [0 mm, 10 mm]
     param gain = 2000 N/m
     param tau0 = 3 ms
     param v0 = 0.05 m/s
@@ -34,7 +34,7 @@ instrument decay {
         tau = 20 ms
     }
     on key > 8 mm {
-        tau = key * 1 s/m
+        tau = key * 2 s/m
     }
     force f = pulse
 }
@@ -63,7 +63,11 @@ fn per_sample_divisions(p: &Program) -> usize {
 #[test]
 fn the_division_by_an_event_set_state_leaves_the_per_sample_body() {
     let p = program(DECAY);
-    assert_eq!(per_sample_divisions(&p), 1, "the source divides every sample");
+    assert_eq!(
+        per_sample_divisions(&p),
+        1,
+        "the source divides every sample"
+    );
     let fp = FixedProgram::new(&p);
     assert_eq!(per_sample_divisions(&fp.program), 0);
     assert_eq!(fp.reciprocals.len(), 1);
@@ -81,8 +85,13 @@ fn the_division_by_an_event_set_state_leaves_the_per_sample_body() {
     assert_eq!(divides, [false, false, true]);
     assert_eq!(r.divisions.len(), 1);
     assert!(r.carried, "tau is read only as a divisor");
-    assert_eq!(r.dropped.len(), 1, "tau0 / (1 + …) is computed for nothing else");
-    let report = tactus_compiler::fixed::report::render(&fp, &tactus_compiler::fixed::report::analyse(&fp));
+    assert_eq!(
+        r.dropped.len(),
+        1,
+        "tau0 / (1 + …) is computed for nothing else"
+    );
+    let report =
+        tactus_compiler::fixed::report::render(&fp, &tactus_compiler::fixed::report::analyse(&fp));
     assert!(report.contains("1/tau of state `tau`"), "{report}");
     assert!(report.contains("gone, a product with `1/tau`"), "{report}");
 }
@@ -116,24 +125,33 @@ fn the_fixed_engine_follows_f64_and_saturates_as_the_state_would() {
     assert!(changes >= 6, "the stimuli must set tau by every assignment");
     assert!(worst_tau < 1e-4, "tau from its reciprocal: {worst_tau}");
     assert!(worst_force < 1e-3, "force error {worst_force} N");
-    // `tau = 20 ms` and `tau = key · 1 s/m` near the top of the range saturate: the
+    // `tau = 20 ms` and `tau = key · 2 s/m` (16 ms at 8 mm) saturate: the
     // reciprocal's saturations are the state's.
     let (sa, sb) = (
         Engine::state_saturations(&a)[tau],
         Engine::state_saturations(&b)[tau],
     );
     assert!(sa > 0, "the stimuli must saturate tau");
-    assert_eq!(sa, sb, "saturations of tau in f64 and of 1/tau in fixed point");
+    assert_eq!(
+        sa, sb,
+        "saturations of tau in f64 and of 1/tau in fixed point"
+    );
 }
 
 #[test]
 fn a_divisor_state_with_dynamics_or_a_range_through_zero_keeps_its_division() {
     for (src, reason) in [
         (
-            DECAY.replace("pulse' = -pulse / tau", "pulse' = -pulse / tau\n        tau' = 0 s/s"),
+            DECAY.replace(
+                "pulse' = -pulse / tau",
+                "pulse' = -pulse / tau\n        tau' = 0 * pulse / (1 N)",
+            ),
             "dynamics",
         ),
-        (DECAY.replace("in [0.1 ms, 10 ms]", "in [-1 ms, 10 ms]"), "includes 0"),
+        (
+            DECAY.replace("in [0.1 ms, 10 ms]", "in [-1 ms, 10 ms]"),
+            "includes 0",
+        ),
     ] {
         let p = program(&src);
         let fp = FixedProgram::new(&p);

@@ -20,7 +20,8 @@
 //! constant), `r(a / b) = b / a` — a product when `a` is a constant, which the plan turns
 //! into a multiplication by its reciprocal (a run-time param `a` is a run-time division,
 //! as every division by a run-time param outside [`crate::share`] is) — and otherwise one
-//! division `1 / clamp(v, lo, hi)` at the assignment, which runs only when `s` changes.
+//! division `1 / max(v, lo/2)` (for a negative range `1 / min(v, hi/2)`) at the
+//! assignment, which runs only when `s` changes.
 //!
 //! **Saturation.** Every engine saturates a state write to the state's declared range. On a
 //! range of one sign `x ↦ 1/x` is monotonic, so for a value `v` of that sign
@@ -29,7 +30,11 @@
 //! the reciprocal's format). The symbolic forms are used only where the range analysis
 //! proves `v` on the side of 0 the range is on; elsewhere (`v` may be 0 or of the other sign,
 //! where the state saturates to its bound nearer 0 but `1/v` would saturate to the wrong
-//! end) the reciprocal is `1 / clamp(v, lo, hi)`, which agrees by construction.
+//! end) `v` is first limited to half that bound, on the range's side of 0: a value below
+//! the bound still gives a reciprocal beyond `1/lo`, which saturates to `1/lo`. So the
+//! reciprocal saturates exactly when the state would (the fixed engines count a carried
+//! state's saturations as its reciprocal's), and a folded constant outside the range is
+//! left to saturate the same way.
 //!
 //! **Carried states.** When the divisions were the state's only reads, the fixed program
 //! reads the declared state nowhere; its writes (and what only they computed: the piano's
@@ -275,7 +280,8 @@ impl Rewrite<'_> {
         out
     }
 
-    /// A value equal to `1 / clamp(v, lo, hi)` of state `st`'s range, its definitions pushed
+    /// A value whose write saturated to `[1/hi, 1/lo]` is `1 / clamp(v, lo, hi)` of state
+    /// `st`'s range, saturating exactly when the state's write does; its definitions pushed
     /// to `out`, and whether it divides at run time.
     fn reciprocal(&mut self, st: StateId, v: Value, out: &mut Vec<Stmt>) -> (Value, bool) {
         let d = &self.p.states[st.index()];
@@ -287,8 +293,16 @@ impl Rewrite<'_> {
             out.push(Stmt::Def(x));
             x
         };
+        // The bound nearer 0, and half of it: a value between 0 and it, or across 0, is
+        // taken as the half, whose reciprocal lies beyond the range and saturates to the
+        // same end as the state (so that saturations are counted alike).
+        let near = if lo > 0.0 { lo } else { hi };
         if let Some(c) = self.p.const_value(v) {
-            let c = if c.is_nan() { lo } else { c.clamp(lo, hi) };
+            let c = if c.is_nan() || c * near <= 0.0 {
+                near / 2.0
+            } else {
+                c
+            };
             return (def(self.values, Op::Const(1.0 / c), rty), false);
         }
         let iv = self.ranges.values[v.index()];
@@ -298,14 +312,16 @@ impl Rewrite<'_> {
             let a_nonzero = ia.lo > 0.0 || ia.hi < 0.0;
             if a_nonzero && iv.lo.is_finite() && iv.hi.is_finite() {
                 let divides = self.p.const_value(*a).is_none();
-                return (def(self.values, Op::Arith(ArithOp::Div, *b, *a), rty), divides);
+                return (
+                    def(self.values, Op::Arith(ArithOp::Div, *b, *a), rty),
+                    divides,
+                );
             }
         }
         let ty = self.p.values[v.index()].ty;
-        let clo = def(self.values, Op::Const(lo), ty);
-        let chi = def(self.values, Op::Const(hi), ty);
-        let m = def(self.values, Op::Call(Builtin::Max, v, Some(clo)), ty);
-        let m = def(self.values, Op::Call(Builtin::Min, m, Some(chi)), ty);
+        let half = def(self.values, Op::Const(near / 2.0), ty);
+        let side = if lo > 0.0 { Builtin::Max } else { Builtin::Min };
+        let m = def(self.values, Op::Call(side, v, Some(half)), ty);
         let one = def(self.values, Op::Const(1.0), Ty::Real(Dim::NONE));
         (def(self.values, Op::Arith(ArithOp::Div, one, m), rty), true)
     }
