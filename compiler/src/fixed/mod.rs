@@ -10,6 +10,7 @@
 //! format and saturated. Because the formats hold the analysed intervals, saturation can fire
 //! only where the analysis had to clamp an unbounded value, and those places are warned about.
 
+pub mod chains;
 pub mod common;
 pub mod contract;
 pub mod flow;
@@ -553,8 +554,10 @@ impl FixedProgram {
                 refused: Vec::new(),
             }
         };
+        // Products of products by constants: one product by the constants' product (`chains`).
+        let folded = chains::fold_constant_chains(&recips.program);
         // Each common value once (`common`): the same meaning, fewer products to plan and run.
-        let shared = common::share_common_values(&recips.program);
+        let shared = common::share_common_values(&folded);
         let program = &shared;
         let ranges = range::analyse(program);
         let n = program.values.len();
