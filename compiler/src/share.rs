@@ -193,11 +193,23 @@ fn insert_defs(body: &[Stmt], before: &HashMap<usize, usize>) -> Vec<Stmt> {
     out
 }
 
-/// Whether each value is read: by a statement other than its definition, or by a value's
-/// operation (folded constants read nothing).
+/// Whether each value is read: by a statement other than its definition, or by the
+/// operation of a value the body defines (folded constants and values a fold left
+/// undefined read nothing).
 fn referenced(p: &Program) -> Vec<bool> {
     let mut r = vec![false; p.values.len()];
-    for vd in &p.values {
+    fn defs(stmts: &[Stmt], d: &mut [bool]) {
+        for s in stmts {
+            match s {
+                Stmt::Def(v) => d[v.index()] = true,
+                Stmt::If(_, b) => defs(b, d),
+                _ => {}
+            }
+        }
+    }
+    let mut defined = vec![false; p.values.len()];
+    defs(&p.body, &mut defined);
+    for (vd, _) in p.values.iter().zip(&defined).filter(|(_, d)| **d) {
         for x in crate::cgen::operands(&vd.op) {
             r[x.index()] = true;
         }

@@ -74,10 +74,15 @@ fn the_division_by_an_event_set_state_leaves_the_per_sample_body() {
     let r = &fp.reciprocals[0];
     assert_eq!(fp.program.states[r.state.index()].name, "tau");
     let h = &fp.program.states[r.recip.index()];
-    assert_eq!(h.name, "1/tau");
+    // The quotient's one reader is the dynamics' `· h` (h = 1/fs): the hidden word holds
+    // h/tau, and that product is gone too.
+    let step = 1.0 / p.sample_rate_hz;
+    assert_eq!(r.scale, step);
+    assert!(h.name.ends_with("/tau"), "{}", h.name);
     assert_eq!(r.recip.index(), p.states.len(), "after the declared states");
-    assert!((h.range.0 - 100.0).abs() < 1e-9 && (h.range.1 - 10_000.0).abs() < 1e-6);
-    assert!((h.init - 1.0 / 3e-3).abs() < 1e-9);
+    let near = |a: f64, b: f64| ((a - b) / b).abs() < 1e-12;
+    assert!(near(h.range.0, step * 100.0) && near(h.range.1, step * 10_000.0));
+    assert!(near(h.init, step / 3e-3));
     assert_eq!(fp.declared_states(), p.states.len());
     // Three assignments: b/a with a constant a (a product), a folded constant, and the
     // general form (one division, in its event body only).
@@ -92,8 +97,11 @@ fn the_division_by_an_event_set_state_leaves_the_per_sample_body() {
     );
     let report =
         tactus_compiler::fixed::report::render(&fp, &tactus_compiler::fixed::report::analyse(&fp));
-    assert!(report.contains("1/tau of state `tau`"), "{report}");
-    assert!(report.contains("gone, a product with `1/tau`"), "{report}");
+    assert!(
+        report.contains("/tau of state `tau` (1/tau scaled by"),
+        "{report}"
+    );
+    assert!(report.contains("gone, a product with `"), "{report}");
 }
 
 #[test]

@@ -100,7 +100,7 @@ pub fn significant_bits(k: f64) -> u32 {
 }
 
 /// `v = y · k`, `k · y` or `y / k` with `k` a compile-time constant: `(y, k or 1/k)`.
-fn by_constant(p: &Program, v: Value) -> Option<(Value, f64)> {
+pub(crate) fn by_constant(p: &Program, v: Value) -> Option<(Value, f64)> {
     match p.values[v.index()].op {
         Op::Arith(ArithOp::Mul, x, y) => match (p.const_value(x), p.const_value(y)) {
             (_, Some(k)) => Some((x, k)),

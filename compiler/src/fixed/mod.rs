@@ -1129,7 +1129,8 @@ impl FixedProgram {
     /// The declared states' values (SI) from a fixed engine's state words (all of them,
     /// hidden ones included): each word in its format, except that a state carried by its
     /// reciprocal ([`recip::Reciprocal::carried`]: the fixed program no longer writes it) is
-    /// `1 / (1/s)` of its hidden word. What traces of the fixed engines show.
+    /// `k / (k/s)` of its hidden word (`k` its [`recip::Reciprocal::scale`]). What traces of
+    /// the fixed engines show.
     pub fn states_si(&self, words: &[i32]) -> Vec<f64> {
         let n = self.declared_states().min(words.len());
         let mut out: Vec<f64> = (0..n)
@@ -1138,7 +1139,7 @@ impl FixedProgram {
         for r in self.reciprocals.iter().filter(|r| r.carried) {
             let (s, h) = (r.state.index(), r.recip.index());
             if s < n && h < words.len() {
-                out[s] = 1.0 / fx::to_f64(words[h], self.state_frac[h]);
+                out[s] = r.scale / fx::to_f64(words[h], self.state_frac[h]);
             }
         }
         out

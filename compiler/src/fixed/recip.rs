@@ -66,6 +66,10 @@ pub struct Reciprocal {
     /// Source spans of the run-time divisions that only the dropped writes of a carried
     /// state computed (they are gone too).
     pub dropped: Vec<Span>,
+    /// The constant `k` the hidden word is scaled by: it holds `k/state`. 1, unless every
+    /// division by the state is read only by a product by the same constant `k` (the
+    /// dynamics' `· h`), which then disappears: `(x / s) · k = x · (k/s)`.
+    pub scale: f64,
 }
 
 /// A state used as a divisor that keeps its divisions, and why.
@@ -139,21 +143,50 @@ pub fn reciprocals(p: &Program) -> Reciprocals {
                 writes: Vec::new(),
                 carried: false,
                 dropped: Vec::new(),
+                scale: 1.0,
             }),
         }
     }
     if out.recips.is_empty() {
         return out;
     }
+    // The one reader of each division, when it is a product by a constant: `(j, k)`.
+    let scaled_by = scaled_readers(p, &defined);
+    let mut scale_dim: Vec<Dim> = Vec::new();
+    for r in &mut out.recips {
+        let divs = &divisions[r.state.index()];
+        let ks: Vec<Option<(usize, f64)>> = divs.iter().map(|&i| scaled_by[i]).collect();
+        let k = ks.first().copied().flatten().map(|(_, k)| k);
+        let same = ks
+            .iter()
+            .all(|x| x.map(|(_, k2)| Some(k2.to_bits()) == k.map(f64::to_bits)) == Some(true));
+        let mut dim = Dim::NONE;
+        if let (true, Some(k)) = (same, k) {
+            let (j, i) = (ks[0].map_or(0, |x| x.0), divs[0]);
+            if let (Ty::Real(dj), Ty::Real(di)) = (p.values[j].ty, p.values[i].ty) {
+                if k.is_finite() && k != 0.0 {
+                    r.scale = k;
+                    dim = dj / di;
+                }
+            }
+        }
+        scale_dim.push(dim);
+    }
     let q = &mut out.program;
-    for r in &out.recips {
+    for (r, &kd) in out.recips.iter().zip(&scale_dim) {
         let d = &p.states[r.state.index()];
         let (lo, hi) = d.range;
+        let k = r.scale;
+        let (a, b) = (k / hi, k / lo);
         q.states.push(StateDecl {
-            name: format!("1/{}", d.name),
-            dim: Dim::NONE / d.dim,
-            init: 1.0 / d.init,
-            range: (1.0 / hi, 1.0 / lo),
+            name: if k == 1.0 {
+                format!("1/{}", d.name)
+            } else {
+                format!("{k:.6e}/{}", d.name)
+            },
+            dim: kd / d.dim,
+            init: k / d.init,
+            range: (a.min(b), a.max(b)),
             span: d.span.clone(),
         });
     }
@@ -176,15 +209,23 @@ pub fn reciprocals(p: &Program) -> Reciprocals {
                 let span = q.values[y.index()].span.clone();
                 push(&mut q.values, Op::State(StateId((ns + k) as u32)), ty, span)
             });
-            q.values[i].op = Op::Arith(ArithOp::Mul, x, ry);
+            // Scaled: the reader `(x / s) · k` is `x · (k/s)`; the division is left unread.
+            match scaled_by[i] {
+                Some((j, _)) if r.scale != 1.0 => q.values[j].op = Op::Arith(ArithOp::Mul, x, ry),
+                _ => q.values[i].op = Op::Arith(ArithOp::Mul, x, ry),
+            }
         }
     }
     let ranges = range::analyse(p);
     let mut writes: Vec<Vec<(Span, bool)>> = vec![Vec::new(); out.recips.len()];
     let body = std::mem::take(&mut q.body);
+    let scales: Vec<f64> = out.recips.iter().map(|r| r.scale).collect();
+    let hidden_dims: Vec<Dim> = q.states[ns..].iter().map(|d| d.dim).collect();
     let mut ctx = Rewrite {
         p,
         ranges: &ranges,
+        scales: &scales,
+        hidden_dims: &hidden_dims,
         values: &mut q.values,
         after: &after,
         recip_of: &recip_of,
@@ -243,6 +284,8 @@ fn push(values: &mut Vec<ValueData>, op: Op, ty: Ty, span: Span) -> Value {
 struct Rewrite<'a> {
     p: &'a Program,
     ranges: &'a range::Ranges,
+    scales: &'a [f64],
+    hidden_dims: &'a [Dim],
     values: &'a mut Vec<ValueData>,
     after: &'a HashMap<Value, Value>,
     recip_of: &'a HashMap<StateId, usize>,
@@ -264,7 +307,7 @@ impl Rewrite<'_> {
                 Stmt::SetState(st, v) => {
                     out.push(s.clone());
                     if let Some(&k) = self.recip_of.get(st) {
-                        let (r, divides) = self.reciprocal(*st, *v, &mut out);
+                        let (r, divides) = self.reciprocal(*st, *v, k, &mut out);
                         out.push(Stmt::SetState(StateId((self.ns + k) as u32), r));
                         let span = self.p.values[v.index()].span.clone();
                         self.writes[k].push((span, divides));
@@ -283,10 +326,18 @@ impl Rewrite<'_> {
     /// A value whose write saturated to `[1/hi, 1/lo]` is `1 / clamp(v, lo, hi)` of state
     /// `st`'s range, saturating exactly when the state's write does; its definitions pushed
     /// to `out`, and whether it divides at run time.
-    fn reciprocal(&mut self, st: StateId, v: Value, out: &mut Vec<Stmt>) -> (Value, bool) {
+    fn reciprocal(
+        &mut self,
+        st: StateId,
+        v: Value,
+        k: usize,
+        out: &mut Vec<Stmt>,
+    ) -> (Value, bool) {
         let d = &self.p.states[st.index()];
         let (lo, hi) = d.range;
-        let rty = Ty::Real(Dim::NONE / d.dim);
+        let (scale, rdim) = (self.scales[k], self.hidden_dims[k]);
+        let rty = Ty::Real(rdim);
+        let kty = Ty::Real(rdim * d.dim);
         let span = self.p.values[v.index()].span.clone();
         let mut def = |values: &mut Vec<ValueData>, op: Op, ty: Ty| {
             let x = push(values, op, ty, span.clone());
@@ -303,7 +354,7 @@ impl Rewrite<'_> {
             } else {
                 c
             };
-            return (def(self.values, Op::Const(1.0 / c), rty), false);
+            return (def(self.values, Op::Const(scale / c), rty), false);
         }
         let iv = self.ranges.values[v.index()];
         let same_side = if lo > 0.0 { iv.lo > 0.0 } else { iv.hi < 0.0 };
@@ -311,9 +362,39 @@ impl Rewrite<'_> {
             let ia = self.ranges.values[a.index()];
             let a_nonzero = ia.lo > 0.0 || ia.hi < 0.0;
             if a_nonzero && iv.lo.is_finite() && iv.hi.is_finite() {
+                let (Ty::Real(adim), Ty::Real(vdim)) =
+                    (self.p.values[a.index()].ty, self.p.values[v.index()].ty)
+                else {
+                    unreachable!("a real quotient has real operands")
+                };
+                // k/(a/b) = b/(a/k) for a constant a (a product, planned with the constant's
+                // reciprocal); else (b/a)·k.
+                if let (Some(ca), true) = (self.p.const_value(*a), scale != 1.0) {
+                    let ak = def(
+                        self.values,
+                        Op::Const(ca / scale),
+                        Ty::Real(adim / kdim(rdim, d.dim)),
+                    );
+                    return (
+                        def(self.values, Op::Arith(ArithOp::Div, *b, ak), rty),
+                        false,
+                    );
+                }
                 let divides = self.p.const_value(*a).is_none();
+                if scale == 1.0 {
+                    return (
+                        def(self.values, Op::Arith(ArithOp::Div, *b, *a), rty),
+                        divides,
+                    );
+                }
+                let ba = def(
+                    self.values,
+                    Op::Arith(ArithOp::Div, *b, *a),
+                    Ty::Real(Dim::NONE / vdim),
+                );
+                let kc = def(self.values, Op::Const(scale), kty);
                 return (
-                    def(self.values, Op::Arith(ArithOp::Div, *b, *a), rty),
+                    def(self.values, Op::Arith(ArithOp::Mul, ba, kc), rty),
                     divides,
                 );
             }
@@ -322,9 +403,61 @@ impl Rewrite<'_> {
         let half = def(self.values, Op::Const(near / 2.0), ty);
         let side = if lo > 0.0 { Builtin::Max } else { Builtin::Min };
         let m = def(self.values, Op::Call(side, v, Some(half)), ty);
-        let one = def(self.values, Op::Const(1.0), Ty::Real(Dim::NONE));
+        let one = def(self.values, Op::Const(scale), kty);
         (def(self.values, Op::Arith(ArithOp::Div, one, m), rty), true)
     }
+}
+
+/// The dimension of the scale of a hidden word of dimension `rdim` for a state of `sdim`.
+fn kdim(rdim: Dim, sdim: Dim) -> Dim {
+    rdim * sdim
+}
+
+/// Per value: when its only use is one value's operand and that value is a product by a
+/// constant of it (`v · k`, `k · v` or `v / k`), that reader and `k` (1/k for `/ k`).
+fn scaled_readers(p: &Program, defined: &[bool]) -> Vec<Option<(usize, f64)>> {
+    let n = p.values.len();
+    let mut uses = vec![0u32; n];
+    let mut reader = vec![usize::MAX; n];
+    for (j, vd) in p.values.iter().enumerate() {
+        if !defined[j] {
+            continue;
+        }
+        for x in crate::cgen::operands(&vd.op) {
+            uses[x.index()] += 1;
+            reader[x.index()] = j;
+        }
+    }
+    fn stmt_uses(stmts: &[Stmt], uses: &mut [u32]) {
+        for s in stmts {
+            match s {
+                Stmt::Def(_) | Stmt::SetMode(..) => {}
+                Stmt::SetState(_, v)
+                | Stmt::SetEdge(_, v)
+                | Stmt::Force(_, v)
+                | Stmt::Output(_, v)
+                | Stmt::Total(v) => uses[v.index()] += 1,
+                Stmt::Emit(_, args) => args.iter().for_each(|a| uses[a.index()] += 1),
+                Stmt::If(c, b) => {
+                    uses[c.index()] += 1;
+                    stmt_uses(b, uses);
+                }
+            }
+        }
+    }
+    stmt_uses(&p.body, &mut uses);
+    (0..n)
+        .map(|i| {
+            if uses[i] != 1 || reader[i] == usize::MAX {
+                return None;
+            }
+            let j = reader[i];
+            match super::chains::by_constant(p, Value(j as u32)) {
+                Some((x, k)) if x.index() == i => Some((j, k)),
+                _ => None,
+            }
+        })
+        .collect()
 }
 
 /// Which values have a `Def` in the body.

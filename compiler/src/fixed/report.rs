@@ -656,9 +656,14 @@ fn render_reciprocals(s: &mut String, fp: &FixedProgram) {
             .collect();
         let _ = writeln!(
             s,
-            "  {} of state `{}`: range [{:.4e}, {:.4e}] {}, {} (LSB {:.3e}); init {:.4e}; recomputed at {} assignment(s): {}",
+            "  {} of state `{}`{}: range [{:.4e}, {:.4e}] {}, {} (LSB {:.3e}); init {:.4e}; recomputed at {} assignment(s): {}",
             h.name,
             st.name,
+            if r.scale == 1.0 {
+                String::new()
+            } else {
+                format!(" (1/{} scaled by {:e}, the constant every quotient by it was multiplied by: that product is gone too)", st.name, r.scale)
+            },
             h.range.0,
             h.range.1,
             h.dim.unit_string(),
@@ -680,8 +685,8 @@ fn render_reciprocals(s: &mut String, fp: &FixedProgram) {
         if r.carried {
             let _ = writeln!(
                 s,
-                "    `{}` is read nowhere else: carried by `{}` (its writes dropped; its value is 1 / `{}`)",
-                st.name, h.name, h.name
+                "    `{}` is read nowhere else: carried by `{}` (its writes dropped; its value is {:e} / `{}`)",
+                st.name, h.name, r.scale, h.name
             );
             for d in &r.dropped {
                 let _ = writeln!(
