@@ -537,13 +537,13 @@ fn bad_keys_and_boards_are_errors() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("fraction bits"), "{e}");
-    // Twenty copies of the piano's code (twenty distinct programs: clones of one `Program`
-    // share one copy) do not fit one core's bank.
+    // Thirty copies of the piano's code (thirty distinct programs: clones of one `Program`
+    // share one copy) do not fit one core's bank (twenty did, at 2.6 KB of code each).
     let piano = instrument("grand_piano", &[]);
-    let many: Vec<Program> = (0..20)
+    let many: Vec<Program> = (0..30)
         .map(|_| Program::new((*piano.fixed).clone(), (*piano.thumb).clone()))
         .collect();
-    let keys: Vec<KeySpec> = (0..20).map(|i| k(i, i, 0)).collect();
+    let keys: Vec<KeySpec> = (0..30).map(|i| k(i, i, 0)).collect();
     let e = FirmwareImage::build(&many, &keys, &b, &lim)
         .unwrap_err()
         .to_string();
