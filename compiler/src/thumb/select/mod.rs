@@ -307,20 +307,9 @@ impl<'a> Sel<'a> {
         if let Some(what) = self.unsupported {
             return Err(ThumbError::Unsupported(what));
         }
-        // Constants nothing reads (the zero side of a `select` folded to `ANDS`/`BICS`):
-        // `MOVS #imm` and literal loads have no effect the code relies on (N and Z of a
-        // `MOVS` are never tested: every branch follows its own compare).
-        let mut used = vec![false; self.nv as usize];
-        for m in &self.code {
-            for u in m.uses() {
-                // (Fixed registers are numbered from the top: never a `Movi`'s.)
-                if let Some(x) = used.get_mut(u.0 as usize) {
-                    *x = true;
-                }
-            }
-        }
-        self.code
-            .retain(|m| !matches!(m, M::Movi { d, .. } if used.get(d.0 as usize) == Some(&false)));
+        // Words nothing reads (the zero side of a `select` folded to `ANDS`/`BICS`, a
+        // negated term of a difference that took the 64-bit path, …) and their flags.
+        super::dce::remove_dead(&mut self.code, self.nv);
         Ok(Selected {
             code: self.code,
             nregs: self.nv,
@@ -365,15 +354,28 @@ impl<'a> Sel<'a> {
                         }
                         _ => false,
                     };
-                    let inside = copy
-                        || (iv.lo * scale - margin >= lo as f64
-                            && iv.hi * scale + margin <= hi as f64);
-                    let t = if inside {
+                    // Each side of the clamp is omitted where the value's interval proves
+                    // it inside, or where its word's exact range does (a sensor, a state,
+                    // a constant: no rounding margin, so `xmax = key` stores key's word).
+                    let exact = self.exact_word_range(*v).map(|(a, b)| {
+                        let conv = |w| {
+                            tactus_runtime::fixed::convert(w, fp.frac[v.index()], fp.state_frac[i])
+                                .0
+                        };
+                        (conv(a), conv(b))
+                    });
+                    let lo_in = copy
+                        || iv.lo * scale - margin >= lo as f64
+                        || exact.is_some_and(|(a, _)| a >= lo);
+                    let hi_in = copy
+                        || iv.hi * scale + margin <= hi as f64
+                        || exact.is_some_and(|(_, b)| b <= hi);
+                    let t = if lo_in && hi_in {
                         t.v
                     } else {
                         let c = self.nv();
                         self.push(M::Mov { d: c, s: t.v });
-                        self.clamp(c, lo, hi);
+                        self.clamp_sides(c, (!lo_in).then_some(lo), (!hi_in).then_some(hi));
                         c
                     };
                     self.store(MemOp::Str, t, Base::State, st.states + 4 * i);
