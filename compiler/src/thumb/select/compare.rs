@@ -34,7 +34,9 @@ pub(super) enum Flags {
 }
 
 /// The conditions [`Sel::branch`] evaluates as control flow (see `Sel::fused`).
-pub(super) fn fused_conditions(p: &Program, used: &[bool]) -> Vec<bool> {
+/// `selects`: the conditions of the selects emitted as branches ([`super::arms`]), roots
+/// like an `if`'s.
+pub(super) fn fused_conditions(p: &Program, used: &[bool], selects: &[Value]) -> Vec<bool> {
     let n = p.values.len();
     let mut uses = vec![0u32; n];
     for (vd, _) in p.values.iter().zip(used).filter(|(_, u)| **u) {
@@ -76,7 +78,11 @@ pub(super) fn fused_conditions(p: &Program, used: &[bool]) -> Vec<bool> {
     };
     // Roots: `if` conditions used once, and the operands (used once) of `and`/`or` values
     // that are kept as words — those are materialised by branches (see `Sel::def`).
-    let mut stack: Vec<Value> = conds.into_iter().filter(|c| fusable(*c, &uses)).collect();
+    let mut stack: Vec<Value> = conds
+        .into_iter()
+        .chain(selects.iter().copied())
+        .filter(|c| fusable(*c, &uses))
+        .collect();
     for (i, vd) in p.values.iter().enumerate() {
         if let Op::And(x, y) | Op::Or(x, y) = vd.op {
             if used[i] && !stack.iter().any(|c| c.index() == i) {

@@ -31,6 +31,7 @@
 //! [`divide`], [`elementary`] (`exp`, `sqrt`), [`compare`] (comparisons and branches) and
 //! [`state`] (state, sensor and output access).
 
+mod arms;
 mod compare;
 mod divide;
 mod elementary;
@@ -104,9 +105,12 @@ pub(crate) struct Sel<'a> {
     unsupported: Option<String>,
     /// Whether [`Sel::stmts`] is at the body's top level (for [`M::Mark`]s).
     top: bool,
-    /// Conditions evaluated as branches where an `if` tests them, never as 0/1 words:
-    /// `and`/`or`/`not`/comparisons whose only use is that `if` (or another such condition).
+    /// Conditions evaluated as branches where an `if` (or a branching `select`) tests them,
+    /// never as 0/1 words: `and`/`or`/`not`/comparisons whose only use is that test (or
+    /// another such condition).
     fused: Vec<bool>,
+    /// The selects emitted as diamonds and the values computed inside their arms.
+    arms: arms::Arms,
 }
 
 fn pow2(e: i32) -> u64 {
@@ -158,7 +162,8 @@ impl<'a> Sel<'a> {
         }
         walk(&p.body, p, false, &mut count);
         let direct = count.iter().map(|&(n, nested)| n == 1 && !nested).collect();
-        let fused = fused_conditions(p, &used);
+        let arms = arms::plan(fp, &used);
+        let fused = fused_conditions(p, &used, &arms.conditions(p));
         Sel {
             fp,
             p,
@@ -179,6 +184,7 @@ impl<'a> Sel<'a> {
             konst: std::collections::HashMap::new(),
             unsupported: None,
             fused,
+            arms,
             top: false,
         }
     }
@@ -322,16 +328,9 @@ impl<'a> Sel<'a> {
         let top = std::mem::replace(&mut self.top, false);
         for (k, s) in stmts.iter().enumerate() {
             match s {
-                Stmt::Def(v) => {
-                    let word_only = matches!(
-                        p.values[v.index()].op,
-                        Op::Const(_) | Op::Param(_) | Op::BoolConst(_) | Op::Variant(..)
-                    );
-                    if self.used[v.index()] && !word_only && !self.fused[v.index()] {
-                        let w = self.def(*v)?;
-                        self.val[v.index()] = Some(w);
-                    }
-                }
+                // (A value computed in a branching select's arm waits for it.)
+                Stmt::Def(v) if self.arms.home[v.index()].is_none() => self.define(*v)?,
+                Stmt::Def(_) => {}
                 Stmt::SetState(sid, v) => {
                     let i = sid.index();
                     let x = self.word(*v);
@@ -426,6 +425,65 @@ impl<'a> Sel<'a> {
             }
         }
         Ok(())
+    }
+}
+
+impl<'a> Sel<'a> {
+    /// Computes `v` into [`Sel::val`] where it has a word of its own (not a constant,
+    /// rematerialised at each use, nor a condition fused into its branch).
+    fn define(&mut self, v: Value) -> Result<(), ThumbError> {
+        let word_only = matches!(
+            self.p.values[v.index()].op,
+            Op::Const(_) | Op::Param(_) | Op::BoolConst(_) | Op::Variant(..)
+        );
+        if self.used[v.index()] && !word_only && !self.fused[v.index()] {
+            let w = self.def(v)?;
+            self.val[v.index()] = Some(w);
+        }
+        Ok(())
+    }
+
+    /// `c ? x : y` as a diamond ([`arms`]): the condition as a compare-and-branch, each arm's
+    /// own values computed inside it; the costlier arm is the branch target (a taken
+    /// branch costs what the other arm's `B` over it does, minus the not-taken cycle).
+    fn select_branch(&mut self, v: Value, c: Value, x: Value, y: Value) -> Result<W, ThumbError> {
+        let (p, fp) = (self.p, self.fp);
+        let fr = fp.frac[v.index()];
+        let real = matches!(p.values[v.index()].ty, Ty::Real(_));
+        let d = self.nv();
+        let (second, done) = (self.label(), self.label());
+        let then_first = self.arms.cost(fp, (v, true)) <= self.arms.cost(fp, (v, false));
+        self.branch(c, !then_first, second)?;
+        let mut b = 0;
+        for (k, side) in [then_first, !then_first].into_iter().enumerate() {
+            if k == 1 {
+                self.push(M::B(done));
+                self.push(M::Label(second));
+            }
+            let members = self
+                .arms
+                .members
+                .get(&(v, side))
+                .cloned()
+                .unwrap_or_default();
+            for m in members {
+                self.define(m)?;
+            }
+            let a = if side { x } else { y };
+            let w = self.word(a);
+            let w = if real {
+                self.convert(w, fp.frac[a.index()], fr)
+            } else {
+                w
+            };
+            match self.konst.get(&w.v) {
+                Some(&imm) => self.push(M::Movi { d, imm }),
+                None => self.push(M::Mov { d, s: w.v }),
+            }
+            b = b.max(w.b);
+        }
+        self.push(M::Label(done));
+        Ok(W { v: d, b })
     }
 }
 
