@@ -25,6 +25,7 @@ mod dce;
 pub mod elf;
 pub mod emit;
 pub mod ins;
+mod literals;
 pub mod mir;
 pub mod regalloc;
 pub mod select;

@@ -316,6 +316,7 @@ impl<'a> Sel<'a> {
         // Words nothing reads (the zero side of a `select` folded to `ANDS`/`BICS`, a
         // negated term of a difference that took the 64-bit path, …) and their flags.
         super::dce::remove_dead(&mut self.code, self.nv);
+        super::literals::share(&mut self.code, self.nv);
         Ok(Selected {
             code: self.code,
             nregs: self.nv,
