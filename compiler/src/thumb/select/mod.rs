@@ -317,10 +317,19 @@ impl<'a> Sel<'a> {
         // negated term of a difference that took the 64-bit path, …) and their flags.
         super::dce::remove_dead(&mut self.code, self.nv);
         super::literals::share(&mut self.code, self.nv);
+        // Flow facts: exclusive `if` bodies, then the history primings (the first call)
+        // against the bodies that cannot run in it.
+        let mut exclusive = exclusions(fp);
+        let first = crate::fixed::flow::first_sample_exclusions(fp);
+        let primings = p.sensors.iter().filter(|s| s.differentiated).count() as u32;
+        for h in 0..primings {
+            let mark = crate::fixed::flow::FIRST_SAMPLE_MARK - h;
+            exclusive.extend(first.iter().map(|&k| (mark, k)));
+        }
         Ok(Selected {
             code: self.code,
             nregs: self.nv,
-            exclusive: exclusions(fp),
+            exclusive,
         })
     }
 

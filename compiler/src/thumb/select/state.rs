@@ -149,6 +149,8 @@ impl<'a> Sel<'a> {
         let skip = self.label();
         self.push(M::CmpI { a: primed, imm: 0 });
         self.push(M::Bc(Cond::Ne, skip));
+        // (The first call after `init`: a flow fact's block, `fixed::flow::first_sample_exclusions`.)
+        self.push(M::Mark(crate::fixed::flow::FIRST_SAMPLE_MARK - h as u32));
         for k in 0..hlen {
             self.store(MemOp::Str, s.v, Base::State, base + 4 * k);
         }
