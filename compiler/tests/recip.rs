@@ -147,7 +147,7 @@ fn the_fixed_engine_follows_f64_and_saturates_as_the_state_would() {
 }
 
 #[test]
-fn a_divisor_state_with_dynamics_or_a_range_through_zero_keeps_its_division() {
+fn a_divisor_state_with_dynamics_or_a_range_through_zero_or_too_wide_keeps_its_division() {
     for (src, reason) in [
         (
             DECAY.replace(
@@ -159,6 +159,10 @@ fn a_divisor_state_with_dynamics_or_a_range_through_zero_keeps_its_division() {
         (
             DECAY.replace("in [0.1 ms, 10 ms]", "in [-1 ms, 10 ms]"),
             "includes 0",
+        ),
+        (
+            DECAY.replace("in [0.1 ms, 10 ms]", "in [0.000000000001 ms, 10 ms]"),
+            "beyond what a word holds",
         ),
     ] {
         let p = program(&src);

@@ -128,6 +128,8 @@ pub fn reciprocals(p: &Program) -> Reciprocals {
             Some("its declared range includes 0: its reciprocal has no bound")
         } else if p.states[s].init == 0.0 {
             Some("its initial value is 0")
+        } else if !within_words(1.0, lo, hi) {
+            Some("its reciprocal's range is beyond what a word holds at the state's precision")
         } else {
             None
         };
@@ -164,7 +166,8 @@ pub fn reciprocals(p: &Program) -> Reciprocals {
         if let (true, Some(k)) = (same, k) {
             let (j, i) = (ks[0].map_or(0, |x| x.0), divs[0]);
             if let (Ty::Real(dj), Ty::Real(di)) = (p.values[j].ty, p.values[i].ty) {
-                if k.is_finite() && k != 0.0 {
+                let (lo, hi) = p.states[r.state.index()].range;
+                if k.is_finite() && k != 0.0 && within_words(k, lo, hi) {
                     r.scale = k;
                     dim = dj / di;
                 }
@@ -274,6 +277,20 @@ pub fn reciprocals(p: &Program) -> Reciprocals {
     let dead = |v: Value| !live[v.index()] && (v.index() >= n_orig || live_before[v.index()]);
     q.body = drop_defs(&q.body, &dead);
     out
+}
+
+/// Magnitudes a hidden word's range may reach: `[2^-40, 2^40]`, so that its format stays
+/// well inside `tactus_runtime::fixed::FRAC_RANGE` and the word resolves its near end.
+const MAX_RECIPROCAL: f64 = (1u64 << 40) as f64;
+
+/// Whether `k/x` over a range `[lo, hi]` of one sign stays within [`MAX_RECIPROCAL`].
+fn within_words(k: f64, lo: f64, hi: f64) -> bool {
+    let (a, b) = ((k / lo).abs(), (k / hi).abs());
+    let (small, large) = (a.min(b), a.max(b));
+    small.is_finite()
+        && large.is_finite()
+        && small >= 1.0 / MAX_RECIPROCAL
+        && large <= MAX_RECIPROCAL
 }
 
 fn push(values: &mut Vec<ValueData>, op: Op, ty: Ty, span: Span) -> Value {
