@@ -207,15 +207,16 @@ fn a_small_split_layout_with_grading() {
     assert_eq!(v2["boards"], v["boards"], "{text}");
 }
 
-/// A listed board over budget is reported as such (exit 1), naming the board.
+/// A listed board over budget is reported as such (exit 1), naming the board (six piano
+/// keys: three per core, where two fit).
 #[test]
 fn a_listed_board_over_budget_does_not_fit() {
     let dir = temp_dir("budget-over");
     let f = dir.join("over.toml");
     std::fs::write(
         &f,
-        "name = \"over\"\n[[range]]\nkeys = [60, 65]\ninstrument = \"grand_piano\"\n\
-         [[board]]\nkeys = [60, 61]\n[[board]]\nkeys = [62, 65]\n",
+        "name = \"over\"\n[[range]]\nkeys = [60, 67]\ninstrument = \"grand_piano\"\n\
+         [[board]]\nkeys = [60, 61]\n[[board]]\nkeys = [62, 67]\n",
     )
     .unwrap();
     let out = budget(&[f.to_str().unwrap(), "--quick"]);
@@ -226,7 +227,7 @@ fn a_listed_board_over_budget_does_not_fit() {
         stdout.contains("DOES NOT FIT — 1 of 2 boards over budget"),
         "{stdout}"
     );
-    assert!(stdout.contains("board 2 (62–65"), "{stdout}");
+    assert!(stdout.contains("board 2 (62–67"), "{stdout}");
 }
 
 #[test]
