@@ -207,7 +207,8 @@ fn a_small_split_layout_with_grading() {
     assert_eq!(v2["boards"], v["boards"], "{text}");
 }
 
-/// A listed board over budget is reported as such (exit 1), naming the board.
+/// A listed board over budget is reported as such (exit 1), naming the board (six piano
+/// keys: three per core, where two fit).
 #[test]
 fn a_listed_board_over_budget_does_not_fit() {
     let dir = temp_dir("budget-over");

@@ -152,7 +152,7 @@ fn maestro_1_first_20_s_on_every_board_of_grand88_bit_exact_without_misses() {
         .lines()
         .filter(|l| l.trim_start().starts_with("board "))
         .collect();
-    assert_eq!(boards.len(), 44, "grand88's planned boards: {stdout}");
+    assert_eq!(boards.len(), 22, "grand88's planned boards: {stdout}");
     for l in &boards {
         assert_eq!(l.matches("deadline misses 0").count(), 2, "{l}");
     }
@@ -1081,7 +1081,7 @@ fn whole_maestro_pieces_on_every_board_of_grand88_without_misses() {
             .lines()
             .filter(|l| l.trim_start().starts_with("board "))
             .collect();
-        assert_eq!(boards.len(), 44, "{name}: {stdout}");
+        assert_eq!(boards.len(), 22, "{name}: {stdout}");
         for l in &boards {
             assert_eq!(l.matches("deadline misses 0").count(), 2, "{name}: {l}");
         }

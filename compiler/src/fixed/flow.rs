@@ -108,15 +108,19 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
         if known.state.is_empty() && known.mode.is_empty() && facts.is_empty() {
             continue;
         }
+        // What is known before each top-level statement: nothing up to `i` (a read there
+        // saw the sample before `i`'s body), then what `i`'s body and the statements since
+        // left. A read is evaluated with what was known where it was read, not at the later
+        // `if`: a state read before an assignment that certainly runs saw the older value.
+        let mut at: Vec<Known> = vec![Known::default(); i + 1];
         for k in i + 1..p.body.len() {
+            at.push(known.clone());
             if let Stmt::If(c, _) = &p.body[k] {
                 let ev = Eval {
                     fp,
                     pos: &pos,
-                    after: i,
-                    known: &known,
                     facts: &facts,
-                    at: None,
+                    at: &at,
                 };
                 if ev.tri(*c) == Tri::False {
                     out.push((i as u32, k as u32));
@@ -177,10 +181,8 @@ pub fn first_sample_exclusions(fp: &FixedProgram) -> Vec<u32> {
             let ev = Eval {
                 fp,
                 pos: &pos,
-                after: 0,
-                known: &known,
                 facts: &[],
-                at: Some(&at),
+                at: &at,
             };
             if ev.tri(*c) == Tri::False {
                 out.push(k as u32);
@@ -277,13 +279,11 @@ fn sample_facts(fp: &FixedProgram, cond: Value) -> Vec<(Value, Interval)> {
 struct Eval<'a> {
     fp: &'a FixedProgram,
     pos: &'a [usize],
-    after: usize,
-    known: &'a Known,
     /// Intervals of sample-constant expressions implied by the earlier `if`'s condition.
     facts: &'a [(Value, Interval)],
-    /// What is known before each top-level statement, for reads at any position (the
-    /// first sample; `after` and `known` are then not used for reads).
-    at: Option<&'a [Known]>,
+    /// What is known before each top-level statement (up to the `if` being evaluated): a
+    /// value is read with what was known at its definition's position.
+    at: &'a [Known],
 }
 
 impl Eval<'_> {
@@ -308,18 +308,15 @@ impl Eval<'_> {
 
     /// What is known where `v` is read, if anything.
     fn known_at(&self, v: Value) -> Option<&Known> {
-        let pos = self.pos[v.index()];
-        match self.at {
-            Some(at) => at.get(pos),
-            None => (pos > self.after).then_some(self.known),
-        }
+        self.at.get(self.pos[v.index()])
     }
 
-    /// Whether `v` is certainly the word 0: a constant 0, or (the first sample) a state
-    /// read known to hold 0.
+    /// Whether `v` is certainly the word 0: a constant 0, or a state read known to hold 0
+    /// where it is read (its initial 0 in the first sample, or a constant 0 that an earlier
+    /// body certainly stored).
     fn zero(&self, v: Value) -> bool {
         match self.fp.program.values[v.index()].op {
-            Op::State(s) if self.at.is_some() => self
+            Op::State(s) => self
                 .known_at(v)
                 .is_some_and(|k| k.zero.contains(&s.index())),
             _ => self.fp.exact_const(v) == Some(0.0),
@@ -328,18 +325,10 @@ impl Eval<'_> {
 
     fn real_unnarrowed(&self, v: Value) -> Interval {
         let p = &self.fp.program;
-        if let (Op::State(s), Some(_)) = (&p.values[v.index()].op, self.at) {
-            return self
+        match p.values[v.index()].op {
+            Op::State(s) => self
                 .known_at(v)
                 .and_then(|k| k.state.get(&s.index()).copied())
-                .unwrap_or(self.fp.ranges.values[v.index()]);
-        }
-        match p.values[v.index()].op {
-            Op::State(s) if self.pos[v.index()] > self.after => self
-                .known
-                .state
-                .get(&s.index())
-                .copied()
                 .unwrap_or(self.fp.ranges.values[v.index()]),
             _ => self.fp.ranges.values[v.index()],
         }
@@ -396,7 +385,7 @@ impl Eval<'_> {
                     }
                     _ => Tri::Unknown,
                 },
-                Ty::Real(_) if self.at.is_some() && self.zero(x) && self.zero(y) => {
+                Ty::Real(_) if self.zero(x) && self.zero(y) => {
                     // Two words 0: decided exactly.
                     if matches!(o, CmpOp::Le | CmpOp::Ge | CmpOp::Eq) {
                         Tri::True

@@ -16,7 +16,9 @@
 //!   shift; a 64-bit product is four 16×16 `MULS` partial products combined with
 //!   `ADDS`/`ADCS` (ARMv6-M has no `SMULL`);
 //! * a right shift rounding half up by `m ≤ 31` is `ASRS #m-1; ADDS #1; ASRS #1`
-//!   (`floor((floor(x/2^(m-1)) + 1)/2) = floor(x/2^m + 1/2)`).
+//!   (`floor((floor(x/2^(m-1)) + 1)/2) = floor(x/2^m + 1/2)`);
+//! * a `select` whose arms cost more than a branch is a diamond, the values only one arm
+//!   uses computed inside it ([`arms`]); the others stay branch-free.
 //!
 //! Booleans are words 0/1 where a value needs them (an edge, an output); a condition that
 //! only an `if` tests is a chain of compare-and-branch instructions (short-circuit `and`/`or`,
