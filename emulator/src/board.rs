@@ -458,6 +458,19 @@ impl Board {
 
     /// Reads bytes without side effects or cycles (ROM, flash, SRAM only).
     pub fn read_bytes(&mut self, addr: u32, out: &mut [u8]) -> Result<(), EmuError> {
+        // Words of one SRAM view (the records and windows a harness reads every sample):
+        // no address decode per word.
+        if let Some((off, stride)) = u32::try_from(out.len())
+            .ok()
+            .and_then(|n| crate::bus::sram_word_run(addr, n))
+        {
+            let sram = &self.system.sram;
+            for (i, w) in out.chunks_exact_mut(4).enumerate() {
+                let o = off as usize + stride as usize * i;
+                w.copy_from_slice(&sram[o..o + 4]);
+            }
+            return Ok(());
+        }
         // Whole aligned words map to four consecutive bytes of one memory (the regions and
         // the SRAM banks' words are aligned): one address decode per word.
         if addr & 3 == 0 && out.len().is_multiple_of(4) {
@@ -487,6 +500,17 @@ impl Board {
     /// the host refills often (sensor words, arguments). The caller guarantees that no
     /// instruction lives in the range (else the core may run stale code).
     pub fn write_data(&mut self, addr: u32, data: &[u8]) -> Result<(), EmuError> {
+        if let Some((off, stride)) = u32::try_from(data.len())
+            .ok()
+            .and_then(|n| crate::bus::sram_word_run(addr, n))
+        {
+            let sram = &mut self.system.sram;
+            for (i, w) in data.chunks_exact(4).enumerate() {
+                let o = off as usize + stride as usize * i;
+                sram[o..o + 4].copy_from_slice(w);
+            }
+            return Ok(());
+        }
         // Whole aligned words: one address decode per word, as in `read_bytes`.
         if addr & 3 == 0 && data.len().is_multiple_of(4) {
             for (i, w) in data.chunks_exact(4).enumerate() {
@@ -943,6 +967,11 @@ impl Board {
     /// leaves the fast path anyway).
     fn watch_set(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
         let mut watch = [NO_WATCH; WATCH_SLOTS];
+        // Handler profiles ([`Board::profile_handler`]) watch nothing: they open and close
+        // at exception entry and return, on the general path.
+        if self.profiles.iter().all(|p| p.handler_only) {
+            return Some(watch);
+        }
         let mut n = 0;
         for p in &self.profiles {
             let addrs = [
@@ -984,7 +1013,13 @@ impl Board {
         // Both cores running: lock-step turns of one or two instructions, too short for
         // a compiled region to fit in; the interpreter's loop below is the faster there
         // (BENCHMARKS.md, "the block compiler").
-        if unwatched && !BOTH && self.config.engine == Engine::Block {
+        // A short turn (the other core's cycle a few cycles on, as in `burst`) fits no
+        // compiled region: the interpreter's loop costs less per call.
+        if unwatched
+            && !BOTH
+            && self.config.engine == Engine::Block
+            && deadline[k] >= self.cores[k].cycle.saturating_add(SHORT_TURN)
+        {
             let (sys, blocks) = (&mut self.system, &mut self.blocks);
             let core = &mut self.cores[k];
             let exit = match block::run(core, sys, blocks, deadline[k], &mut block::Alone) {
@@ -1358,6 +1393,10 @@ enum Window {
     /// The window was rolled back.
     RolledBack,
 }
+
+/// Turns shorter than this many cycles run on the interpreter's loop even with the block
+/// engine ([`Board::fast_run`]); the results are the same either way.
+const SHORT_TURN: u64 = 32;
 
 /// Fewest cycles a run-ahead window may span ([`Board::run_ahead`]).
 const MIN_WINDOW: u64 = 64;
