@@ -150,7 +150,8 @@ pub struct System {
     pub(crate) bank_claim: [[u64; 2]; BANKS],
     /// Cycles each core has lost to bank contention.
     pub contention_stalls: [u64; 2],
-    /// Bumped on every SIO or peripheral access, which may change interrupt lines: the
+    /// Bumped on every SIO access, peripheral write and timer read that fires an alarm,
+    /// which may change interrupt lines: the
     /// board recomputes [`System::irq_lines`] only when this changed or a timer event is due.
     pub irq_epoch: u64,
     /// One flag per 256-byte SRAM page: does the board's decode cache hold an instruction
@@ -398,13 +399,20 @@ impl System {
     }
 
     fn peripheral_read(&mut self, core: usize, cycle: u64, addr: u32) -> Option<u32> {
-        self.irq_epoch += 1;
         if addr & 0xf000_0000 == SIO_BASE {
+            // A FIFO read changes its status, hence the SIO interrupt lines.
+            self.irq_epoch += 1;
             return self.sio.read(core, cycle, addr - SIO_BASE);
         }
         if addr & !0x3fff == TIMER_BASE {
+            // A timer read changes no line, unless it fires an alarm that is due (the
+            // timer's `update`); the sample interrupt reads the time twice per sample.
+            if cycle >= self.timer.next_event {
+                self.irq_epoch += 1;
+            }
             return self.timer.read(cycle, addr & 0xfff);
         }
+        // RESETS, clocks, PLL, XOSC, watchdog: no interrupt lines.
         self.sysctl.read(addr)
     }
 
