@@ -1140,6 +1140,7 @@ impl Board {
         Some(match exit {
             Exit::Deadline => return None,
             Exit::Watch => Event::None,
+            Exit::Ran(event) => event,
             Exit::Miss => self.step_cached::<false>(k, self.lines),
             Exit::General => {
                 let core = &mut self.cores[k];
@@ -1381,6 +1382,9 @@ enum Exit {
     General,
     /// The core executed an instruction that left it at a watched address (profiling).
     Watch,
+    /// The core's next instruction needed the general path and has run there, with this
+    /// event ([`general_load`]).
+    Ran(Event),
 }
 
 /// What a run-ahead attempt ([`Board::run_ahead`]) did.
@@ -1453,12 +1457,41 @@ fn run_one<const WATCH: bool>(
 ) -> Exit {
     let mut retired = 0;
     loop {
-        if let Err(exit) = fast_step::<WATCH>(core, sys, cache, deadline, watch) {
-            core.instructions += retired;
-            return exit;
+        match fast_step::<WATCH>(core, sys, cache, deadline, watch) {
+            Ok(()) => retired += 1,
+            Err(Exit::General) if !WATCH => {
+                if let Some(event) = general_load(core, sys, cache) {
+                    core.instructions += retired;
+                    return Exit::Ran(event);
+                }
+            }
+            Err(exit) => {
+                core.instructions += retired;
+                return exit;
+            }
         }
-        retired += 1;
     }
+}
+
+/// On [`Exit::General`] in a loop without watched addresses: when the instruction is a
+/// single load (a timer read, on the firmware images), runs it on the general path as
+/// [`Board::finish_fast`] would; `None` when it left everything the caller's next
+/// decision depends on as it was — no event, the interrupt-line epoch, the next timer
+/// event and SysTick wrap, the core running — so the fast path goes on exactly as
+/// [`Board::run_until`] would resume it; else the event, for the caller to return
+/// ([`Exit::Ran`]). (A load changes no NVIC state; a fault is an event; a peripheral read
+/// that could change a line bumps the epoch.) Any other instruction runs the same way
+/// and returns its event.
+#[inline(never)]
+fn general_load(core: &mut Core, sys: &mut System, cache: &[Cached; CACHE_SLOTS]) -> Option<Event> {
+    let pc = core.r[15];
+    let slot = &cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+    let load = crate::timing::class(&slot.instr) == crate::timing::Class::Load;
+    let before = (sys.irq_epoch, sys.timer.next_event, core.nvic.syst_next);
+    let event = core.run_priced::<_, false>(sys, pc, slot.instr, slot.size, Some(slot.cost));
+    let same = (sys.irq_epoch, sys.timer.next_event, core.nvic.syst_next) == before;
+    let quiet = load && same && event == Event::None && core.state == RunState::Running;
+    (!quiet).then_some(event)
 }
 
 /// The fast path on both cores in lock-step order (the core that is behind, core 0 on
@@ -1480,11 +1513,21 @@ fn run_both<const WATCH: bool>(
         if c1.cycle < c0.cycle {
             match fast_step::<WATCH>(c1, sys, cache, deadline[1], &watch[1]) {
                 Ok(()) => retired[1] += 1,
+                Err(Exit::General) if !WATCH => {
+                    if let Some(event) = general_load(c1, sys, cache) {
+                        break (1, Exit::Ran(event));
+                    }
+                }
                 Err(exit) => break (1, exit),
             }
         } else {
             match fast_step::<WATCH>(c0, sys, cache, deadline[0], &watch[0]) {
                 Ok(()) => retired[0] += 1,
+                Err(Exit::General) if !WATCH => {
+                    if let Some(event) = general_load(c0, sys, cache) {
+                        break (0, Exit::Ran(event));
+                    }
+                }
                 Err(exit) => break (0, exit),
             }
         }
