@@ -24,8 +24,9 @@ use std::collections::{BTreeMap, HashMap};
 /// One program for several parameter sets of one instrument.
 #[derive(Clone, Debug)]
 pub struct Shared {
-    /// The shared program: the first input's, with every differing constant a run-time
-    /// param ([`ParamDecl::runtime`]). Identical to the first input when all agree.
+    /// The shared program: the first input's (its constant chains folded,
+    /// `fixed::chains`), with every differing constant a run-time param
+    /// ([`ParamDecl::runtime`]). Plans exactly as the first input when all agree.
     pub program: Program,
     /// Per input program (in input order), the SI value of each run-time param of
     /// `program`, in [`Program::runtime_params`] order.
@@ -38,6 +39,17 @@ pub struct Shared {
 /// Errors: a sentence saying what differs beyond constants (then each needs its own
 /// program), or that `programs` is empty.
 pub fn share(programs: &[Program]) -> Result<Shared, String> {
+    // Constant chains folded first (`fixed::chains`): a folded constant that differs between
+    // keys (`h/I_h`) becomes one run-time param, not a run-time param times a constant.
+    // Keys whose chains fold differently (a factor short for some keys only) share unfolded.
+    let folded: Vec<Program> = programs
+        .iter()
+        .map(crate::fixed::chains::fold_constant_chains)
+        .collect();
+    share_as_lowered(&folded).or_else(|_| share_as_lowered(programs))
+}
+
+fn share_as_lowered(programs: &[Program]) -> Result<Shared, String> {
     let Some(first) = programs.first() else {
         return Err("no programs to share".into());
     };
@@ -181,11 +193,23 @@ fn insert_defs(body: &[Stmt], before: &HashMap<usize, usize>) -> Vec<Stmt> {
     out
 }
 
-/// Whether each value is read: by a statement other than its definition, or by a value's
-/// operation (folded constants read nothing).
+/// Whether each value is read: by a statement other than its definition, or by the
+/// operation of a value the body defines (folded constants and values a fold left
+/// undefined read nothing).
 fn referenced(p: &Program) -> Vec<bool> {
     let mut r = vec![false; p.values.len()];
-    for vd in &p.values {
+    fn defs(stmts: &[Stmt], d: &mut [bool]) {
+        for s in stmts {
+            match s {
+                Stmt::Def(v) => d[v.index()] = true,
+                Stmt::If(_, b) => defs(b, d),
+                _ => {}
+            }
+        }
+    }
+    let mut defined = vec![false; p.values.len()];
+    defs(&p.body, &mut defined);
+    for (vd, _) in p.values.iter().zip(&defined).filter(|(_, d)| **d) {
         for x in crate::cgen::operands(&vd.op) {
             r[x.index()] = true;
         }

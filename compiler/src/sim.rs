@@ -109,18 +109,13 @@ impl Engine for FixedInstance<'_> {
         self.step(sensors).to_si(fp)
     }
     fn states_si(&self) -> Vec<f64> {
-        let fp = self.program();
-        self.states()
-            .iter()
-            .zip(&fp.state_frac)
-            .map(|(&x, &f)| tactus_runtime::fixed::to_f64(x, f))
-            .collect()
+        self.program().states_si(self.states())
     }
     fn modes_now(&self) -> Vec<u32> {
         self.modes().to_vec()
     }
     fn state_saturations(&self) -> Vec<u64> {
-        self.saturations().to_vec()
+        self.program().declared_saturations(self.saturations())
     }
 }
 

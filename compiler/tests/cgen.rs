@@ -270,7 +270,7 @@ fn check_instrument(base: &Path, name: &str, text: &str, stimuli: bool) -> usize
         .chunks_exact(4)
         .map(|b| i32::from_ne_bytes(b.try_into().unwrap()))
         .collect();
-    let (len, nst, nm) = (c.layout.len, p.states.len(), p.modes.len());
+    let (len, nst, nm) = (c.layout.len, fp.program.states.len(), p.modes.len());
     let per = len + nst + nm;
     let nrec: usize = runs.iter().map(|r| r.records.len()).sum();
     assert_eq!(words.len(), nrec * per, "{name}: output length");

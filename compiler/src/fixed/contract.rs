@@ -306,7 +306,7 @@ pub fn compare(
         }
         let outside = b.states().iter().enumerate().any(|(i, &w)| {
             let x = fx::to_f64(w, fp.state_frac[i]);
-            let (lo, hi) = p.states[i].range;
+            let (lo, hi) = fp.program.states[i].range;
             x < lo || x > hi
         });
         out.state_out_of_range += outside as usize;

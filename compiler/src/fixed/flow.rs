@@ -15,6 +15,9 @@ use crate::ir::*;
 struct Known {
     state: std::collections::HashMap<usize, Interval>,
     mode: std::collections::HashMap<usize, Vec<u32>>,
+    /// States whose word is exactly 0 (their initial 0, or a constant 0 stored): a
+    /// comparison of their read with a constant 0 is decided exactly, with no margin.
+    zero: std::collections::HashSet<usize>,
 }
 
 impl Known {
@@ -26,6 +29,11 @@ impl Known {
         for s in stmts {
             match s {
                 Stmt::SetState(st, v) => {
+                    if sure && fp.exact_const(*v) == Some(0.0) {
+                        self.zero.insert(st.index());
+                    } else if fp.exact_const(*v) != Some(0.0) {
+                        self.zero.remove(&st.index());
+                    }
                     let (lo, hi) = p.states[st.index()].range;
                     let w = fp.ranges.values[v.index()];
                     let w = Interval::new(w.lo.max(lo), w.hi.min(hi));
@@ -108,6 +116,7 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
                     after: i,
                     known: &known,
                     facts: &facts,
+                    at: None,
                 };
                 if ev.tri(*c) == Tri::False {
                     out.push((i as u32, k as u32));
@@ -118,6 +127,67 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
                 break;
             }
         }
+    }
+    out
+}
+
+/// The first-sample mark of differentiated sensor `h`'s history priming (its ring filled
+/// with the first reading, once after `init`): `FIRST_SAMPLE_MARK - h`, beside the top-level
+/// `if` indices of [`exclusions`].
+pub const FIRST_SAMPLE_MARK: u32 = u32::MAX;
+
+/// Top-level `if` statements (indices into the body) whose bodies cannot run in the first
+/// call after `init`: every state and mode holds its initial value when the call starts,
+/// and the statements before each `if` change them as [`exclusions`] follows them (an
+/// assignment that certainly runs replaces what is known, one in an `if` body joins it).
+/// The history priming runs exactly in that call, so it and these bodies never run in the
+/// same call (`(FIRST_SAMPLE_MARK - h, k)` pairs). Example: the piano's hammer rests at
+/// angle 0 with speed 0, so neither the strike (`s >= s_string`), the back-check nor the
+/// rest felt (`w < 0`: the word 0 against the constant 0, decided exactly) can run then.
+pub fn first_sample_exclusions(fp: &FixedProgram) -> Vec<u32> {
+    let p = &fp.program;
+    let mut pos = vec![usize::MAX; p.values.len()];
+    fn mark(stmts: &[Stmt], k: usize, pos: &mut [usize]) {
+        for s in stmts {
+            match s {
+                Stmt::Def(v) => pos[v.index()] = k,
+                Stmt::If(_, b) => mark(b, k, pos),
+                _ => {}
+            }
+        }
+    }
+    for (k, s) in p.body.iter().enumerate() {
+        mark(std::slice::from_ref(s), k, &mut pos);
+    }
+    let mut known = Known::default();
+    for (i, st) in p.states.iter().enumerate() {
+        known.state.insert(i, Interval::point(st.init));
+        if fp.state_init[i] == 0 {
+            known.zero.insert(i);
+        }
+    }
+    for (m, md) in p.modes.iter().enumerate() {
+        known.mode.insert(m, vec![md.init]);
+    }
+    let mut at: Vec<Known> = Vec::with_capacity(p.body.len());
+    let mut out = Vec::new();
+    for (k, st) in p.body.iter().enumerate() {
+        at.push(known.clone());
+        if let Stmt::If(c, _) = st {
+            let ev = Eval {
+                fp,
+                pos: &pos,
+                after: 0,
+                known: &known,
+                facts: &[],
+                at: Some(&at),
+            };
+            if ev.tri(*c) == Tri::False {
+                out.push(k as u32);
+                continue;
+            }
+        }
+        known.apply(fp, std::slice::from_ref(st), true);
     }
     out
 }
@@ -211,6 +281,9 @@ struct Eval<'a> {
     known: &'a Known,
     /// Intervals of sample-constant expressions implied by the earlier `if`'s condition.
     facts: &'a [(Value, Interval)],
+    /// What is known before each top-level statement, for reads at any position (the
+    /// first sample; `after` and `known` are then not used for reads).
+    at: Option<&'a [Known]>,
 }
 
 impl Eval<'_> {
@@ -233,8 +306,34 @@ impl Eval<'_> {
             })
     }
 
+    /// What is known where `v` is read, if anything.
+    fn known_at(&self, v: Value) -> Option<&Known> {
+        let pos = self.pos[v.index()];
+        match self.at {
+            Some(at) => at.get(pos),
+            None => (pos > self.after).then_some(self.known),
+        }
+    }
+
+    /// Whether `v` is certainly the word 0: a constant 0, or (the first sample) a state
+    /// read known to hold 0.
+    fn zero(&self, v: Value) -> bool {
+        match self.fp.program.values[v.index()].op {
+            Op::State(s) if self.at.is_some() => self
+                .known_at(v)
+                .is_some_and(|k| k.zero.contains(&s.index())),
+            _ => self.fp.exact_const(v) == Some(0.0),
+        }
+    }
+
     fn real_unnarrowed(&self, v: Value) -> Interval {
         let p = &self.fp.program;
+        if let (Op::State(s), Some(_)) = (&p.values[v.index()].op, self.at) {
+            return self
+                .known_at(v)
+                .and_then(|k| k.state.get(&s.index()).copied())
+                .unwrap_or(self.fp.ranges.values[v.index()]);
+        }
         match p.values[v.index()].op {
             Op::State(s) if self.pos[v.index()] > self.after => self
                 .known
@@ -249,9 +348,7 @@ impl Eval<'_> {
     fn modes(&self, v: Value) -> Option<Vec<u32>> {
         match self.fp.program.values[v.index()].op {
             Op::Variant(_, i) => Some(vec![i]),
-            Op::Mode(m) if self.pos[v.index()] > self.after => {
-                self.known.mode.get(&m.index()).cloned()
-            }
+            Op::Mode(m) => self.known_at(v)?.mode.get(&m.index()).cloned(),
             _ => None,
         }
     }
@@ -299,6 +396,14 @@ impl Eval<'_> {
                     }
                     _ => Tri::Unknown,
                 },
+                Ty::Real(_) if self.at.is_some() && self.zero(x) && self.zero(y) => {
+                    // Two words 0: decided exactly.
+                    if matches!(o, CmpOp::Le | CmpOp::Ge | CmpOp::Eq) {
+                        Tri::True
+                    } else {
+                        Tri::False
+                    }
+                }
                 Ty::Real(_) => {
                     let (a, b) = (self.real(x), self.real(y));
                     let m = 1e-4 * a.mag().max(b.mag());
@@ -318,5 +423,43 @@ impl Eval<'_> {
             },
             _ => Tri::Unknown,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fixed(src: &str) -> FixedProgram {
+        let c = crate::compile(src, &crate::lower::Config::default()).expect("compiles");
+        FixedProgram::new(&c.program)
+    }
+
+    /// The bodies of the `if`s (top-level indices) in the order they appear.
+    fn ifs(fp: &FixedProgram) -> Vec<u32> {
+        (0..fp.program.body.len() as u32)
+            .filter(|&k| matches!(fp.program.body[k as usize], Stmt::If(..)))
+            .collect()
+    }
+
+    #[test]
+    fn the_first_sample_excludes_what_the_initial_states_rule_out() {
+        // s starts at 0 and w at 0: `s >= 0.3` cannot hold, nor `w < 0` (the word 0 against
+        // the constant 0, exactly); `x > 1 mm` can; after `w = x * 1000 Hz` (in an `if` that
+        // may run) `w < 0` is no longer ruled out by the initial 0.
+        let fp = fixed(
+            "instrument t {\n sensor x: m in [0 mm, 10 mm]\n state s = 0 in [-1, 1]\n state w = 0 Hz in [-100 Hz, 100 Hz]\n on s >= 0.3 { s = 0 }\n while w < 0 Hz { w = 0 Hz }\n while x > 1 mm { s = 0.5 }\n on s >= 0.3 { s = 0 }\n while x > 2 mm { w = x * 1000 Hz/m }\n while w < 0 Hz { s = 0.1 }\n force f = s * 1 N\n}\n",
+        );
+        let k = ifs(&fp);
+        assert_eq!(k.len(), 6);
+        let first = first_sample_exclusions(&fp);
+        // The first two bodies are ruled out; the third may run and set s = 0.5, so the
+        // second `s >= 0.3` may hold; the last `w < 0` after a possible `w = x·1000`: x ≥ 0
+        // keeps it out (the interval), not the exact zero.
+        assert!(
+            first.contains(&k[0]) && first.contains(&k[1]),
+            "{first:?} of {k:?}"
+        );
+        assert!(!first.contains(&k[2]) && !first.contains(&k[3]) && !first.contains(&k[4]));
     }
 }

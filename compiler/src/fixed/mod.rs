@@ -10,12 +10,14 @@
 //! format and saturated. Because the formats hold the analysed intervals, saturation can fire
 //! only where the analysis had to clamp an unbounded value, and those places are warned about.
 
+pub mod chains;
 pub mod common;
 pub mod contract;
 pub mod flow;
 pub mod interp;
 pub mod plan_cache;
 pub mod range;
+pub mod recip;
 pub mod report;
 
 use crate::diagnostics::Diagnostic;
@@ -150,6 +152,10 @@ pub struct PlanConfig {
     /// Whether the planner also tries cheaper product forms than the error analysis proves,
     /// checked by simulating the accuracy contract (`FixedProgram::spend_by_simulation`).
     pub simulate: bool,
+    /// Whether divisions by states that only events set become products with their
+    /// reciprocals ([`recip`]). Off only to measure what the reciprocals save and to pin
+    /// the divisor tolerance on a program that still divides.
+    pub reciprocals: bool,
 }
 
 impl Default for PlanConfig {
@@ -161,6 +167,7 @@ impl Default for PlanConfig {
             value_rel: BUDGET_VALUE_REL,
             div_rel_tolerance: DIV_REL_TOLERANCE,
             simulate: true,
+            reciprocals: true,
         }
     }
 }
@@ -177,6 +184,7 @@ impl PlanConfig {
             value_rel: f64::INFINITY,
             div_rel_tolerance: 1.0,
             simulate: false,
+            reciprocals: true,
         }
     }
 }
@@ -419,6 +427,12 @@ pub struct FixedProgram {
     /// Per word of the param block ([`Program::runtime_params`] order): its fraction bits
     /// (those of every value reading it) and the raw bounds of its declared interval.
     pub param_words: Vec<ParamWord>,
+    /// The states whose divisions became products with a hidden reciprocal state
+    /// ([`recip`]); the hidden states are the last `reciprocals.len()` of
+    /// `program.states`, in this order.
+    pub reciprocals: Vec<recip::Reciprocal>,
+    /// States used as divisors that keep their divisions, and why ([`recip::Refused`]).
+    pub refused_reciprocals: Vec<recip::Refused>,
 }
 
 /// The format of one word of a key's param block.
@@ -529,8 +543,21 @@ impl FixedProgram {
     /// Plans formats for `program` under the precision budget `config`.
     pub fn with_config(program: &Program, config: &PlanConfig) -> Self {
         let original = program;
+        // Divisions by states that only events set: products with their reciprocals
+        // (`recip`), recomputed where the states are assigned.
+        let recips = if config.reciprocals {
+            recip::reciprocals(program)
+        } else {
+            recip::Reciprocals {
+                program: program.clone(),
+                recips: Vec::new(),
+                refused: Vec::new(),
+            }
+        };
+        // Products of products by constants: one product by the constants' product (`chains`).
+        let folded = chains::fold_constant_chains(&recips.program);
         // Each common value once (`common`): the same meaning, fewer products to plan and run.
-        let shared = common::share_common_values(program);
+        let shared = common::share_common_values(&folded);
         let program = &shared;
         let ranges = range::analyse(program);
         let n = program.values.len();
@@ -727,6 +754,8 @@ impl FixedProgram {
             warnings,
             param_slot,
             param_words,
+            reciprocals: recips.recips,
+            refused_reciprocals: recips.refused,
         };
         // Products are budgeted against the exact divisions: the divisor shifts' error is
         // charged to the divisions' own tolerance, not handed on to the products.
@@ -1089,6 +1118,47 @@ impl FixedProgram {
             .iter()
             .map(|w| fx::from_f64(self.program.params[w.param.index()].value, w.frac).0)
             .collect()
+    }
+
+    /// Number of declared states: those of the source program, before the hidden reciprocal
+    /// states ([`FixedProgram::reciprocals`]).
+    pub fn declared_states(&self) -> usize {
+        self.program.states.len() - self.reciprocals.len()
+    }
+
+    /// The declared states' values (SI) from a fixed engine's state words (all of them,
+    /// hidden ones included): each word in its format, except that a state carried by its
+    /// reciprocal ([`recip::Reciprocal::carried`]: the fixed program no longer writes it) is
+    /// `k / (k/s)` of its hidden word (`k` its [`recip::Reciprocal::scale`]). What traces of
+    /// the fixed engines show.
+    pub fn states_si(&self, words: &[i32]) -> Vec<f64> {
+        let n = self.declared_states().min(words.len());
+        let mut out: Vec<f64> = (0..n)
+            .map(|i| fx::to_f64(words[i], self.state_frac[i]))
+            .collect();
+        for r in self.reciprocals.iter().filter(|r| r.carried) {
+            let (s, h) = (r.state.index(), r.recip.index());
+            if s < n && h < words.len() {
+                out[s] = r.scale / fx::to_f64(words[h], self.state_frac[h]);
+            }
+        }
+        out
+    }
+
+    /// Saturations per declared state from a fixed engine's counts per state (hidden ones
+    /// included): a state carried by its reciprocal counts its reciprocal's (the
+    /// reciprocal saturates exactly when the state would: [`recip`]).
+    pub fn declared_saturations(&self, counts: &[u64]) -> Vec<u64> {
+        let n = self.declared_states().min(counts.len());
+        let mut out = counts[..n].to_vec();
+        for r in self.reciprocals.iter().filter(|r| r.carried) {
+            if let Some(&c) = counts.get(r.recip.index()) {
+                if r.state.index() < n {
+                    out[r.state.index()] = c;
+                }
+            }
+        }
+        out
     }
 
     /// Number of multiplications of each kind — (`MULS`, high word, 64-bit) — and their

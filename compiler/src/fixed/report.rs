@@ -440,6 +440,7 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
         }
     );
     render_arithmetic(&mut s, fp);
+    render_reciprocals(&mut s, fp);
     render_contract(&mut s, fp, pr);
     if fp.warnings.is_empty() {
         let _ = writeln!(
@@ -619,6 +620,90 @@ fn render_arithmetic(s: &mut String, fp: &FixedProgram) {
             } else {
                 "restoring division".to_string()
             }
+        );
+    }
+}
+
+/// The reciprocals of divisor states ([`super::recip`]): which state, the hidden word's
+/// format, where it is recomputed, and the divisions that are gone.
+fn render_reciprocals(s: &mut String, fp: &FixedProgram) {
+    let p = &fp.program;
+    if fp.reciprocals.is_empty() && fp.refused_reciprocals.is_empty() {
+        return;
+    }
+    let span = |r: &std::ops::Range<usize>| format!("source {}..{}", r.start, r.end);
+    let _ = writeln!(
+        s,
+        "\nreciprocals (a division by a state that only events set is a product with a hidden word 1/state, recomputed where the state is assigned):"
+    );
+    for r in &fp.reciprocals {
+        let (st, h) = (&p.states[r.state.index()], &p.states[r.recip.index()]);
+        let f = fp.state_frac[r.recip.index()];
+        let writes: Vec<String> = r
+            .writes
+            .iter()
+            .map(|(w, divides)| {
+                format!(
+                    "{} ({})",
+                    span(w),
+                    if *divides {
+                        "one run-time division"
+                    } else {
+                        "no division"
+                    }
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "  {} of state `{}`{}: range [{:.4e}, {:.4e}] {}, {} (LSB {:.3e}); init {:.4e}; recomputed at {} assignment(s): {}",
+            h.name,
+            st.name,
+            if r.scale == 1.0 {
+                String::new()
+            } else {
+                format!(" (1/{} scaled by {:e}, the constant every quotient by it was multiplied by: that product is gone too)", st.name, r.scale)
+            },
+            h.range.0,
+            h.range.1,
+            h.dim.unit_string(),
+            q_name(f),
+            pow2(-f),
+            h.init,
+            r.writes.len(),
+            writes.join(", ")
+        );
+        for d in &r.divisions {
+            let _ = writeln!(
+                s,
+                "    division by `{}` ({}): gone, a product with `{}`",
+                st.name,
+                span(d),
+                h.name
+            );
+        }
+        if r.carried {
+            let _ = writeln!(
+                s,
+                "    `{}` is read nowhere else: carried by `{}` (its writes dropped; its value is {:e} / `{}`)",
+                st.name, h.name, r.scale, h.name
+            );
+            for d in &r.dropped {
+                let _ = writeln!(
+                    s,
+                    "    division ({}) computed only for `{}`'s writes: gone",
+                    span(d),
+                    st.name
+                );
+            }
+        }
+    }
+    for r in &fp.refused_reciprocals {
+        let _ = writeln!(
+            s,
+            "  state `{}` keeps its divisions: {}",
+            p.states[r.state.index()].name,
+            r.reason
         );
     }
 }

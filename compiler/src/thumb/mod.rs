@@ -21,9 +21,11 @@
 //! the object needs no relocations: it can run from SRAM or flash at any word address.
 
 pub mod buffer;
+mod dce;
 pub mod elf;
 pub mod emit;
 pub mod ins;
+mod literals;
 pub mod mir;
 pub mod regalloc;
 pub mod select;

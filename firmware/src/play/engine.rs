@@ -129,18 +129,12 @@ impl Engine for FixedJitEngine<'_> {
         self.0.step(sensors).to_si(fp)
     }
     fn states_si(&self) -> Vec<f64> {
-        let fp = self.1;
-        self.0
-            .states()
-            .iter()
-            .zip(&fp.state_frac)
-            .map(|(&x, &f)| tactus_runtime::fixed::to_f64(x, f))
-            .collect()
+        self.1.states_si(self.0.states())
     }
     fn modes_now(&self) -> Vec<u32> {
         self.0.modes().to_vec()
     }
     fn state_saturations(&self) -> Vec<u64> {
-        self.0.saturations().to_vec()
+        self.1.declared_saturations(self.0.saturations())
     }
 }

@@ -34,7 +34,9 @@ pub(super) enum Flags {
 }
 
 /// The conditions [`Sel::branch`] evaluates as control flow (see `Sel::fused`).
-pub(super) fn fused_conditions(p: &Program, used: &[bool]) -> Vec<bool> {
+/// `selects`: the conditions of the selects emitted as branches ([`super::arms`]), roots
+/// like an `if`'s.
+pub(super) fn fused_conditions(p: &Program, used: &[bool], selects: &[Value]) -> Vec<bool> {
     let n = p.values.len();
     let mut uses = vec![0u32; n];
     for (vd, _) in p.values.iter().zip(used).filter(|(_, u)| **u) {
@@ -76,7 +78,11 @@ pub(super) fn fused_conditions(p: &Program, used: &[bool]) -> Vec<bool> {
     };
     // Roots: `if` conditions used once, and the operands (used once) of `and`/`or` values
     // that are kept as words — those are materialised by branches (see `Sel::def`).
-    let mut stack: Vec<Value> = conds.into_iter().filter(|c| fusable(*c, &uses)).collect();
+    let mut stack: Vec<Value> = conds
+        .into_iter()
+        .chain(selects.iter().copied())
+        .filter(|c| fusable(*c, &uses))
+        .collect();
     for (i, vd) in p.values.iter().enumerate() {
         if let Op::And(x, y) | Op::Or(x, y) = vd.op {
             if used[i] && !stack.iter().any(|c| c.index() == i) {
@@ -238,8 +244,60 @@ impl<'a> Sel<'a> {
             }
             // Equality of 64-bit words needs the word form (Z is not the 64-bit Z).
             Grid::Wide(..) if matches!(o, CmpOp::Eq | CmpOp::Ne) => None,
-            Grid::Wide(a, b) => Some(Flags::Cond(self.cmp64_ordered(o, a, b))),
+            Grid::Wide(a, b) => match self.floor_align(o, a, b) {
+                Some((x, y, o2)) => {
+                    self.push(M::Cmp { a: x.v, b: y.v });
+                    Some(Flags::Cond(cond_of(o2)))
+                }
+                None => Some(Flags::Cond(self.cmp64_ordered(o, a, b))),
+            },
         }
+    }
+
+    /// An ordered comparison of `a·2^da` with `b·2^db` (one of the shifts 0) in 32 bits,
+    /// the finer word `f` floored to the coarser grid instead of the coarser `c` shifted up
+    /// (which would not fit): `f ≥ c·2^d ⟺ ⌊f/2^d⌋ ≥ c` and `f > c·2^d ⟺ f − 1 ≥ c·2^d ⟺
+    /// ⌊(f−1)/2^d⌋ ≥ c` (`c·2^d` is a multiple of `2^d`), so `<`, `≤` are their negations;
+    /// `⌊f/2^d⌋ = f >> min(d, 31)` for `|f| < 2^31`. Returns the two words and `≥` or `<`;
+    /// `None` for `=`/`≠` or a finer word that may be `i32::MIN` (no `f − 1`).
+    pub(super) fn floor_align(
+        &mut self,
+        o: CmpOp,
+        a: (W, i32),
+        b: (W, i32),
+    ) -> Option<(W, W, CmpOp)> {
+        let (f, c, d, o) = if a.1 == 0 && b.1 > 0 {
+            (a.0, b.0, b.1, o)
+        } else if b.1 == 0 && a.1 > 0 {
+            (b.0, a.0, a.1, o.mirrored())
+        } else {
+            return None;
+        };
+        let (less_one, o2) = match o {
+            CmpOp::Ge => (false, CmpOp::Ge),
+            CmpOp::Lt => (false, CmpOp::Lt),
+            CmpOp::Gt => (true, CmpOp::Ge),
+            CmpOp::Le => (true, CmpOp::Lt),
+            CmpOp::Eq | CmpOp::Ne => return None,
+        };
+        if less_one && f.b >= LIM {
+            return None;
+        }
+        let t = if less_one {
+            self.addi(true, f.v, 1)
+        } else {
+            f.v
+        };
+        let d = d.min(31) as u8;
+        let t = self.sh(Shift::Asr, t, d);
+        Some((
+            W {
+                v: t,
+                b: (f.b >> d) + 1,
+            },
+            c,
+            o2,
+        ))
     }
 
     /// `c ? a : b` for a 0/1 word `c`, branch-free: `b ^ ((a ^ b) & -c)`.
@@ -401,6 +459,9 @@ impl<'a> Sel<'a> {
                 }
             }
             _ => {
+                if let Some((x, y, o2)) = self.floor_align(o, a, b) {
+                    return self.cmp32(o2, x, y);
+                }
                 let cond = self.cmp64_ordered(o, a, b);
                 self.set_flag(cond)
             }

@@ -182,18 +182,23 @@ impl<'a> Sel<'a> {
         let wait = timing_divider_latency() as usize;
         let mut digit = None;
         let mut busy = 0;
-        let next_digit = |this: &mut Self, feed: &mut Option<V>, busy: &mut usize| {
+        // (The feed is shifted on only when a later digit reads it: a dead shift would be
+        // removed after selection and shorten the timed wait.)
+        let next_digit = |this: &mut Self, feed: &mut Option<V>, busy: &mut usize, last: bool| {
             if let Some(f) = *feed {
                 let dg = this.sh(Shift::Lsr, f, (32 - s) as u8);
-                *feed = Some(this.sh(Shift::Lsl, f, s as u8));
-                *busy += 2;
+                *busy += 1;
+                if !last {
+                    *feed = Some(this.sh(Shift::Lsl, f, s as u8));
+                    *busy += 1;
+                }
                 Some(dg)
             } else {
                 None
             }
         };
         if steps > 1 {
-            digit = next_digit(self, &mut feed, &mut busy);
+            digit = next_digit(self, &mut feed, &mut busy, steps == 2);
         }
         for _ in busy..wait {
             self.push(M::Nop);
@@ -210,7 +215,7 @@ impl<'a> Sel<'a> {
             let qs = self.sh(Shift::Lsl, q, s as u8);
             busy = 1;
             digit = if step + 1 < steps {
-                next_digit(self, &mut feed, &mut busy)
+                next_digit(self, &mut feed, &mut busy, step + 2 == steps)
             } else {
                 None
             };

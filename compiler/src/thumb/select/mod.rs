@@ -31,6 +31,7 @@
 //! [`divide`], [`elementary`] (`exp`, `sqrt`), [`compare`] (comparisons and branches) and
 //! [`state`] (state, sensor and output access).
 
+mod arms;
 mod compare;
 mod divide;
 mod elementary;
@@ -104,9 +105,12 @@ pub(crate) struct Sel<'a> {
     unsupported: Option<String>,
     /// Whether [`Sel::stmts`] is at the body's top level (for [`M::Mark`]s).
     top: bool,
-    /// Conditions evaluated as branches where an `if` tests them, never as 0/1 words:
-    /// `and`/`or`/`not`/comparisons whose only use is that `if` (or another such condition).
+    /// Conditions evaluated as branches where an `if` (or a branching `select`) tests them,
+    /// never as 0/1 words: `and`/`or`/`not`/comparisons whose only use is that test (or
+    /// another such condition).
     fused: Vec<bool>,
+    /// The selects emitted as diamonds and the values computed inside their arms.
+    arms: arms::Arms,
 }
 
 fn pow2(e: i32) -> u64 {
@@ -158,7 +162,8 @@ impl<'a> Sel<'a> {
         }
         walk(&p.body, p, false, &mut count);
         let direct = count.iter().map(|&(n, nested)| n == 1 && !nested).collect();
-        let fused = fused_conditions(p, &used);
+        let arms = arms::plan(fp, &used);
+        let fused = fused_conditions(p, &used, &arms.conditions(p));
         Sel {
             fp,
             p,
@@ -179,6 +184,7 @@ impl<'a> Sel<'a> {
             konst: std::collections::HashMap::new(),
             unsupported: None,
             fused,
+            arms,
             top: false,
         }
     }
@@ -307,24 +313,23 @@ impl<'a> Sel<'a> {
         if let Some(what) = self.unsupported {
             return Err(ThumbError::Unsupported(what));
         }
-        // Constants nothing reads (the zero side of a `select` folded to `ANDS`/`BICS`):
-        // `MOVS #imm` and literal loads have no effect the code relies on (N and Z of a
-        // `MOVS` are never tested: every branch follows its own compare).
-        let mut used = vec![false; self.nv as usize];
-        for m in &self.code {
-            for u in m.uses() {
-                // (Fixed registers are numbered from the top: never a `Movi`'s.)
-                if let Some(x) = used.get_mut(u.0 as usize) {
-                    *x = true;
-                }
-            }
+        // Words nothing reads (the zero side of a `select` folded to `ANDS`/`BICS`, a
+        // negated term of a difference that took the 64-bit path, …) and their flags.
+        super::dce::remove_dead(&mut self.code, self.nv);
+        super::literals::share(&mut self.code, self.nv);
+        // Flow facts: exclusive `if` bodies, then the history primings (the first call)
+        // against the bodies that cannot run in it.
+        let mut exclusive = exclusions(fp);
+        let first = crate::fixed::flow::first_sample_exclusions(fp);
+        let primings = p.sensors.iter().filter(|s| s.differentiated).count() as u32;
+        for h in 0..primings {
+            let mark = crate::fixed::flow::FIRST_SAMPLE_MARK - h;
+            exclusive.extend(first.iter().map(|&k| (mark, k)));
         }
-        self.code
-            .retain(|m| !matches!(m, M::Movi { d, .. } if used.get(d.0 as usize) == Some(&false)));
         Ok(Selected {
             code: self.code,
             nregs: self.nv,
-            exclusive: exclusions(fp),
+            exclusive,
         })
     }
 
@@ -333,16 +338,9 @@ impl<'a> Sel<'a> {
         let top = std::mem::replace(&mut self.top, false);
         for (k, s) in stmts.iter().enumerate() {
             match s {
-                Stmt::Def(v) => {
-                    let word_only = matches!(
-                        p.values[v.index()].op,
-                        Op::Const(_) | Op::Param(_) | Op::BoolConst(_) | Op::Variant(..)
-                    );
-                    if self.used[v.index()] && !word_only && !self.fused[v.index()] {
-                        let w = self.def(*v)?;
-                        self.val[v.index()] = Some(w);
-                    }
-                }
+                // (A value computed in a branching select's arm waits for it.)
+                Stmt::Def(v) if self.arms.home[v.index()].is_none() => self.define(*v)?,
+                Stmt::Def(_) => {}
                 Stmt::SetState(sid, v) => {
                     let i = sid.index();
                     let x = self.word(*v);
@@ -365,15 +363,28 @@ impl<'a> Sel<'a> {
                         }
                         _ => false,
                     };
-                    let inside = copy
-                        || (iv.lo * scale - margin >= lo as f64
-                            && iv.hi * scale + margin <= hi as f64);
-                    let t = if inside {
+                    // Each side of the clamp is omitted where the value's interval proves
+                    // it inside, or where its word's exact range does (a sensor, a state,
+                    // a constant: no rounding margin, so `xmax = key` stores key's word).
+                    let exact = self.exact_word_range(*v).map(|(a, b)| {
+                        let conv = |w| {
+                            tactus_runtime::fixed::convert(w, fp.frac[v.index()], fp.state_frac[i])
+                                .0
+                        };
+                        (conv(a), conv(b))
+                    });
+                    let lo_in = copy
+                        || iv.lo * scale - margin >= lo as f64
+                        || exact.is_some_and(|(a, _)| a >= lo);
+                    let hi_in = copy
+                        || iv.hi * scale + margin <= hi as f64
+                        || exact.is_some_and(|(_, b)| b <= hi);
+                    let t = if lo_in && hi_in {
                         t.v
                     } else {
                         let c = self.nv();
                         self.push(M::Mov { d: c, s: t.v });
-                        self.clamp(c, lo, hi);
+                        self.clamp_sides(c, (!lo_in).then_some(lo), (!hi_in).then_some(hi));
                         c
                     };
                     self.store(MemOp::Str, t, Base::State, st.states + 4 * i);
@@ -424,6 +435,65 @@ impl<'a> Sel<'a> {
             }
         }
         Ok(())
+    }
+}
+
+impl<'a> Sel<'a> {
+    /// Computes `v` into [`Sel::val`] where it has a word of its own (not a constant,
+    /// rematerialised at each use, nor a condition fused into its branch).
+    fn define(&mut self, v: Value) -> Result<(), ThumbError> {
+        let word_only = matches!(
+            self.p.values[v.index()].op,
+            Op::Const(_) | Op::Param(_) | Op::BoolConst(_) | Op::Variant(..)
+        );
+        if self.used[v.index()] && !word_only && !self.fused[v.index()] {
+            let w = self.def(v)?;
+            self.val[v.index()] = Some(w);
+        }
+        Ok(())
+    }
+
+    /// `c ? x : y` as a diamond ([`arms`]): the condition as a compare-and-branch, each arm's
+    /// own values computed inside it; the costlier arm is the branch target (a taken
+    /// branch costs what the other arm's `B` over it does, minus the not-taken cycle).
+    fn select_branch(&mut self, v: Value, c: Value, x: Value, y: Value) -> Result<W, ThumbError> {
+        let (p, fp) = (self.p, self.fp);
+        let fr = fp.frac[v.index()];
+        let real = matches!(p.values[v.index()].ty, Ty::Real(_));
+        let d = self.nv();
+        let (second, done) = (self.label(), self.label());
+        let then_first = self.arms.cost(fp, (v, true)) <= self.arms.cost(fp, (v, false));
+        self.branch(c, !then_first, second)?;
+        let mut b = 0;
+        for (k, side) in [then_first, !then_first].into_iter().enumerate() {
+            if k == 1 {
+                self.push(M::B(done));
+                self.push(M::Label(second));
+            }
+            let members = self
+                .arms
+                .members
+                .get(&(v, side))
+                .cloned()
+                .unwrap_or_default();
+            for m in members {
+                self.define(m)?;
+            }
+            let a = if side { x } else { y };
+            let w = self.word(a);
+            let w = if real {
+                self.convert(w, fp.frac[a.index()], fr)
+            } else {
+                w
+            };
+            match self.konst.get(&w.v) {
+                Some(&imm) => self.push(M::Movi { d, imm }),
+                None => self.push(M::Mov { d, s: w.v }),
+            }
+            b = b.max(w.b);
+        }
+        self.push(M::Label(done));
+        Ok(W { v: d, b })
     }
 }
 

@@ -99,10 +99,20 @@ impl<'a> Sel<'a> {
 
     /// Clamps `x` (redefined in place) to `[lo, hi]`.
     pub(super) fn clamp(&mut self, x: V, lo: i32, hi: i32) {
-        if self.konst.get(&x).is_some_and(|c| (lo..=hi).contains(c)) {
+        self.clamp_sides(x, Some(lo), Some(hi));
+    }
+
+    /// [`Sel::clamp`] on the sides given (`None`: the word is proven inside on that side).
+    pub(super) fn clamp_sides(&mut self, x: V, lo: Option<i32>, hi: Option<i32>) {
+        if self
+            .konst
+            .get(&x)
+            .is_some_and(|c| lo.is_none_or(|lo| *c >= lo) && hi.is_none_or(|hi| *c <= hi))
+        {
             return;
         }
         for (bound, cond) in [(lo, Cond::Ge), (hi, Cond::Le)] {
+            let Some(bound) = bound else { continue };
             if (cond == Cond::Ge && bound == i32::MIN) || (cond == Cond::Le && bound == i32::MAX) {
                 continue;
             }
@@ -139,6 +149,8 @@ impl<'a> Sel<'a> {
         let skip = self.label();
         self.push(M::CmpI { a: primed, imm: 0 });
         self.push(M::Bc(Cond::Ne, skip));
+        // (The first call after `init`: a flow fact's block, `fixed::flow::first_sample_exclusions`.)
+        self.push(M::Mark(crate::fixed::flow::FIRST_SAMPLE_MARK - h as u32));
         for k in 0..hlen {
             self.store(MemOp::Str, s.v, Base::State, base + 4 * k);
         }
@@ -248,6 +260,44 @@ impl<'a> Sel<'a> {
             self.store(MemOp::Str, w.v, Base::V(self.out_ptr), 4 * slot);
         } else {
             self.store(MemOp::Str, w.v, Base::State, self.st.published + 4 * slot);
+        }
+    }
+}
+
+impl<'a> Sel<'a> {
+    /// The exact range `[lo, hi]` of the word of `v` (in its own format) where its
+    /// definition bounds it exactly: a sensor or state read (clamped to its raw range on
+    /// input and on every write), a constant, and a `select` of such; conversions between
+    /// formats round monotonically, so the range converts with its ends.
+    /// `None` where only the range analysis (with its rounding margins) bounds it.
+    pub(super) fn exact_word_range(&self, v: Value) -> Option<(i32, i32)> {
+        use tactus_runtime::fixed::convert;
+        let (p, fp) = (self.p, self.fp);
+        let fr = fp.frac[v.index()];
+        let conv =
+            |(lo, hi): (i32, i32), from: i32| (convert(lo, from, fr).0, convert(hi, from, fr).0);
+        if fp.param_word_of(v).is_some() {
+            return None;
+        }
+        match p.values[v.index()].op {
+            Op::Sensor(s) => Some(conv(
+                fp.sensor_raw_range[s.index()],
+                fp.sensor_frac[s.index()],
+            )),
+            Op::State(s) => Some(conv(
+                fp.state_raw_range[s.index()],
+                fp.state_frac[s.index()],
+            )),
+            Op::Const(_) | Op::Param(_) => {
+                let c = fp.consts[v.index()];
+                Some((c, c))
+            }
+            Op::Select(_, x, y) if matches!(p.values[v.index()].ty, Ty::Real(_)) => {
+                let a = conv(self.exact_word_range(x)?, fp.frac[x.index()]);
+                let b = conv(self.exact_word_range(y)?, fp.frac[y.index()]);
+                Some((a.0.min(b.0), a.1.max(b.1)))
+            }
+            _ => None,
         }
     }
 }

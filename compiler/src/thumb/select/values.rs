@@ -267,6 +267,9 @@ impl<'a> Sel<'a> {
                     b: 1,
                 }
             }
+            Op::Select(c, x, y) if self.arms.branchy[v.index()] => {
+                return self.select_branch(v, c, x, y);
+            }
             Op::Select(c, x, y) => {
                 let cw = self.word(c);
                 let (a, b) = (self.word(x), self.word(y));
