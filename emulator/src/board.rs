@@ -20,7 +20,9 @@
 //! path runs it in a tight loop (`Core::execute_op`): common instructions with SRAM and
 //! flash accesses complete there; anything else (peripherals, SIO, PPB, faults, sleep,
 //! SEV, SVC, exception return, a cache miss) runs through the general path and ends the
-//! loop, after which every condition is checked again. The loop also stops at each core's
+//! loop, after which every condition is checked again — except a single load that leaves
+//! every such condition as it was (a timer read: no event, the same interrupt-line epoch,
+//! timer event and SysTick wrap), after which the loop goes on as the board would. The loop also stops at each core's
 //! deadline: the run's limit, the next timer event and its next SysTick wrap. With both
 //! cores running, one loop alternates between them in the lock-step order (whichever is
 //! behind, core 0 on ties); with one core asleep and nothing able to wake it, the loop runs
