@@ -111,7 +111,9 @@ pub trait Bus {
         out: &mut [u32],
     ) -> Result<(), BusFault> {
         for (i, w) in out.iter_mut().enumerate() {
-            *w = self.read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?.0;
+            *w = self
+                .read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?
+                .0;
         }
         Ok(())
     }
@@ -224,7 +226,7 @@ pub(crate) fn plain_sram_span(addr: u32, len: u32) -> Option<u32> {
 /// one word to the next)` — 4 in the striped view or SRAM4/5 ([`plain_sram_span`]), 16 in
 /// one bank of the non-striped alias (its consecutive words are a bank's consecutive rows).
 pub(crate) fn sram_word_run(addr: u32, len: u32) -> Option<(u32, u32)> {
-    if len % 4 != 0 {
+    if !len.is_multiple_of(4) {
         return None;
     }
     if let Some(off) = plain_sram_span(addr, len) {
@@ -551,7 +553,9 @@ impl Bus for System {
     ) -> Result<(), BusFault> {
         let Some(off) = plain_sram_span(addr, 4 * out.len() as u32) else {
             for (i, w) in out.iter_mut().enumerate() {
-                *w = self.read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?.0;
+                *w = self
+                    .read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?
+                    .0;
             }
             return Ok(());
         };

@@ -355,7 +355,10 @@ fn block_engine_matches_the_interpreter_on_random_programs() {
         code_page_runs += case.code_page_data as u32;
         let (n, m, w, regions) = compare(rng.next(), case, 300_000);
         if case.cores == 2 && case.sleeper {
-            sleeper_native = (sleeper_native.0 + (regions > 0) as u32, sleeper_native.1 + 1);
+            sleeper_native = (
+                sleeper_native.0 + (regions > 0) as u32,
+                sleeper_native.1 + 1,
+            );
         }
         windows = (windows.0 + w.0, windows.1 + w.1, windows.2 + w.2);
         instructions += n;
