@@ -20,7 +20,9 @@
 //! path runs it in a tight loop (`Core::execute_op`): common instructions with SRAM and
 //! flash accesses complete there; anything else (peripherals, SIO, PPB, faults, sleep,
 //! SEV, SVC, exception return, a cache miss) runs through the general path and ends the
-//! loop, after which every condition is checked again. The loop also stops at each core's
+//! loop, after which every condition is checked again — except a single load that leaves
+//! every such condition as it was (a timer read: no event, the same interrupt-line epoch,
+//! timer event and SysTick wrap), after which the loop goes on as the board would. The loop also stops at each core's
 //! deadline: the run's limit, the next timer event and its next SysTick wrap. With both
 //! cores running, one loop alternates between them in the lock-step order (whichever is
 //! behind, core 0 on ties); with one core asleep and nothing able to wake it, the loop runs
@@ -458,6 +460,19 @@ impl Board {
 
     /// Reads bytes without side effects or cycles (ROM, flash, SRAM only).
     pub fn read_bytes(&mut self, addr: u32, out: &mut [u8]) -> Result<(), EmuError> {
+        // Words of one SRAM view (the records and windows a harness reads every sample):
+        // no address decode per word.
+        if let Some((off, stride)) = u32::try_from(out.len())
+            .ok()
+            .and_then(|n| crate::bus::sram_word_run(addr, n))
+        {
+            let sram = &self.system.sram;
+            for (i, w) in out.chunks_exact_mut(4).enumerate() {
+                let o = off as usize + stride as usize * i;
+                w.copy_from_slice(&sram[o..o + 4]);
+            }
+            return Ok(());
+        }
         // Whole aligned words map to four consecutive bytes of one memory (the regions and
         // the SRAM banks' words are aligned): one address decode per word.
         if addr & 3 == 0 && out.len().is_multiple_of(4) {
@@ -487,6 +502,17 @@ impl Board {
     /// the host refills often (sensor words, arguments). The caller guarantees that no
     /// instruction lives in the range (else the core may run stale code).
     pub fn write_data(&mut self, addr: u32, data: &[u8]) -> Result<(), EmuError> {
+        if let Some((off, stride)) = u32::try_from(data.len())
+            .ok()
+            .and_then(|n| crate::bus::sram_word_run(addr, n))
+        {
+            let sram = &mut self.system.sram;
+            for (i, w) in data.chunks_exact(4).enumerate() {
+                let o = off as usize + stride as usize * i;
+                sram[o..o + 4].copy_from_slice(w);
+            }
+            return Ok(());
+        }
         // Whole aligned words: one address decode per word, as in `read_bytes`.
         if addr & 3 == 0 && data.len().is_multiple_of(4) {
             for (i, w) in data.chunks_exact(4).enumerate() {
@@ -943,6 +969,11 @@ impl Board {
     /// leaves the fast path anyway).
     fn watch_set(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
         let mut watch = [NO_WATCH; WATCH_SLOTS];
+        // Handler profiles ([`Board::profile_handler`]) watch nothing: they open and close
+        // at exception entry and return, on the general path.
+        if self.profiles.iter().all(|p| p.handler_only) {
+            return Some(watch);
+        }
         let mut n = 0;
         for p in &self.profiles {
             let addrs = [
@@ -984,7 +1015,13 @@ impl Board {
         // Both cores running: lock-step turns of one or two instructions, too short for
         // a compiled region to fit in; the interpreter's loop below is the faster there
         // (BENCHMARKS.md, "the block compiler").
-        if unwatched && !BOTH && self.config.engine == Engine::Block {
+        // A short turn (the other core's cycle a few cycles on, as in `burst`) fits no
+        // compiled region: the interpreter's loop costs less per call.
+        if unwatched
+            && !BOTH
+            && self.config.engine == Engine::Block
+            && deadline[k] >= self.cores[k].cycle.saturating_add(SHORT_TURN)
+        {
             let (sys, blocks) = (&mut self.system, &mut self.blocks);
             let core = &mut self.cores[k];
             let exit = match block::run(core, sys, blocks, deadline[k], &mut block::Alone) {
@@ -1105,6 +1142,7 @@ impl Board {
         Some(match exit {
             Exit::Deadline => return None,
             Exit::Watch => Event::None,
+            Exit::Ran(event) => event,
             Exit::Miss => self.step_cached::<false>(k, self.lines),
             Exit::General => {
                 let core = &mut self.cores[k];
@@ -1346,6 +1384,9 @@ enum Exit {
     General,
     /// The core executed an instruction that left it at a watched address (profiling).
     Watch,
+    /// The core's next instruction needed the general path and has run there, with this
+    /// event ([`general_load`]).
+    Ran(Event),
 }
 
 /// What a run-ahead attempt ([`Board::run_ahead`]) did.
@@ -1358,6 +1399,10 @@ enum Window {
     /// The window was rolled back.
     RolledBack,
 }
+
+/// Turns shorter than this many cycles run on the interpreter's loop even with the block
+/// engine ([`Board::fast_run`]); the results are the same either way.
+const SHORT_TURN: u64 = 32;
 
 /// Fewest cycles a run-ahead window may span ([`Board::run_ahead`]).
 const MIN_WINDOW: u64 = 64;
@@ -1414,12 +1459,41 @@ fn run_one<const WATCH: bool>(
 ) -> Exit {
     let mut retired = 0;
     loop {
-        if let Err(exit) = fast_step::<WATCH>(core, sys, cache, deadline, watch) {
-            core.instructions += retired;
-            return exit;
+        match fast_step::<WATCH>(core, sys, cache, deadline, watch) {
+            Ok(()) => retired += 1,
+            Err(Exit::General) if !WATCH => {
+                if let Some(event) = general_load(core, sys, cache) {
+                    core.instructions += retired;
+                    return Exit::Ran(event);
+                }
+            }
+            Err(exit) => {
+                core.instructions += retired;
+                return exit;
+            }
         }
-        retired += 1;
     }
+}
+
+/// On [`Exit::General`] in a loop without watched addresses: when the instruction is a
+/// single load (a timer read, on the firmware images), runs it on the general path as
+/// [`Board::finish_fast`] would; `None` when it left everything the caller's next
+/// decision depends on as it was — no event, the interrupt-line epoch, the next timer
+/// event and SysTick wrap, the core running — so the fast path goes on exactly as
+/// [`Board::run_until`] would resume it; else the event, for the caller to return
+/// ([`Exit::Ran`]). (A load changes no NVIC state; a fault is an event; a peripheral read
+/// that could change a line bumps the epoch.) Any other instruction runs the same way
+/// and returns its event.
+#[inline(never)]
+fn general_load(core: &mut Core, sys: &mut System, cache: &[Cached; CACHE_SLOTS]) -> Option<Event> {
+    let pc = core.r[15];
+    let slot = &cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+    let load = crate::timing::class(&slot.instr) == crate::timing::Class::Load;
+    let before = (sys.irq_epoch, sys.timer.next_event, core.nvic.syst_next);
+    let event = core.run_priced::<_, false>(sys, pc, slot.instr, slot.size, Some(slot.cost));
+    let same = (sys.irq_epoch, sys.timer.next_event, core.nvic.syst_next) == before;
+    let quiet = load && same && event == Event::None && core.state == RunState::Running;
+    (!quiet).then_some(event)
 }
 
 /// The fast path on both cores in lock-step order (the core that is behind, core 0 on
@@ -1441,11 +1515,21 @@ fn run_both<const WATCH: bool>(
         if c1.cycle < c0.cycle {
             match fast_step::<WATCH>(c1, sys, cache, deadline[1], &watch[1]) {
                 Ok(()) => retired[1] += 1,
+                Err(Exit::General) if !WATCH => {
+                    if let Some(event) = general_load(c1, sys, cache) {
+                        break (1, Exit::Ran(event));
+                    }
+                }
                 Err(exit) => break (1, exit),
             }
         } else {
             match fast_step::<WATCH>(c0, sys, cache, deadline[0], &watch[0]) {
                 Ok(()) => retired[0] += 1,
+                Err(Exit::General) if !WATCH => {
+                    if let Some(event) = general_load(c0, sys, cache) {
+                        break (0, Exit::Ran(event));
+                    }
+                }
                 Err(exit) => break (0, exit),
             }
         }

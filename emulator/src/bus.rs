@@ -78,6 +78,46 @@ pub trait Bus {
     /// Fetches the halfword at `addr` (even) for execution.
     fn fetch(&mut self, addr: u32) -> Result<u16, BusFault>;
 
+    /// Stores `words` at `addr`, `addr + 4`, … for `core`, all in the data phase `cycle`:
+    /// exactly `words.len()` word [`Bus::write`]s in order (exception entry's stacking,
+    /// DDI0419 B1.5.6), with their claims, stalls and data; the wait states are not
+    /// returned (the caller's cost is fixed). Errors: the first fault, the words before it
+    /// written. [`System`] does it without the per-word address decode when the words lie
+    /// in plain SRAM.
+    #[inline]
+    fn write_words(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        words: &[u32],
+    ) -> Result<(), BusFault> {
+        for (i, w) in words.iter().enumerate() {
+            self.write(core, cycle, addr.wrapping_add(4 * i as u32), 4, *w)?;
+        }
+        Ok(())
+    }
+
+    /// Loads `out.len()` words from `addr`, `addr + 4`, … for `core` in the data phase
+    /// `cycle`: exactly that many word [`Bus::read`]s in order (exception return's
+    /// unstacking, DDI0419 B1.5.8), wait states dropped as in [`Bus::write_words`].
+    /// Errors: the first fault.
+    #[inline]
+    fn read_words(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        out: &mut [u32],
+    ) -> Result<(), BusFault> {
+        for (i, w) in out.iter_mut().enumerate() {
+            *w = self
+                .read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?
+                .0;
+        }
+        Ok(())
+    }
+
     /// Fetches the instruction at `addr`: `(hw1, hw2, size in bytes)`, `hw2` 0 for a 16-bit
     /// instruction (ARMv6-M ARM A5.1: the first halfword says whether a second follows).
     /// Errors: the fault of the first halfword fetch that fails.
@@ -112,7 +152,8 @@ pub struct System {
     pub(crate) bank_claim: [[u64; 2]; BANKS],
     /// Cycles each core has lost to bank contention.
     pub contention_stalls: [u64; 2],
-    /// Bumped on every SIO or peripheral access, which may change interrupt lines: the
+    /// Bumped on every SIO access, peripheral write and timer read that fires an alarm,
+    /// which may change interrupt lines: the
     /// board recomputes [`System::irq_lines`] only when this changed or a timer event is due.
     pub irq_epoch: u64,
     /// One flag per 256-byte SRAM page: does the board's decode cache hold an instruction
@@ -166,6 +207,35 @@ pub fn sram_location(addr: u32) -> Option<(usize, usize)> {
         return Some((phys as usize, bank as usize));
     }
     None
+}
+
+/// The offset into [`System::sram`] of `len` bytes from `addr` when they are contiguous
+/// there and `addr` is word-aligned: all in the striped view or all in SRAM4/5 (the
+/// non-striped aliases map consecutive words to other rows).
+#[inline(always)]
+pub(crate) fn plain_sram_span(addr: u32, len: u32) -> Option<u32> {
+    let off = addr.wrapping_sub(SRAM_BASE);
+    let end = off.checked_add(len)?;
+    let striped = end <= 0x4_0000;
+    let scratch = off >= 0x4_0000 && end <= SRAM_SIZE;
+    (addr & 3 == 0 && (striped || scratch)).then_some(off)
+}
+
+/// Where the `len` bytes (a multiple of 4) from word-aligned `addr` lie in
+/// [`System::sram`] when they are all in one view: `(offset of the first word, bytes from
+/// one word to the next)` — 4 in the striped view or SRAM4/5 ([`plain_sram_span`]), 16 in
+/// one bank of the non-striped alias (its consecutive words are a bank's consecutive rows).
+pub(crate) fn sram_word_run(addr: u32, len: u32) -> Option<(u32, u32)> {
+    if !len.is_multiple_of(4) {
+        return None;
+    }
+    if let Some(off) = plain_sram_span(addr, len) {
+        return Some((off, 4));
+    }
+    let alias = addr.wrapping_sub(SRAM_ALIAS_BASE);
+    let in_bank = alias & 0xffff;
+    (addr & 3 == 0 && alias < 0x4_0000 && in_bank.checked_add(len)? <= 0x1_0000)
+        .then_some((in_bank * 4 + (alias >> 16) * 4, 16))
 }
 
 /// Arbitration bank of SRAM offset `off` (below [`SRAM_SIZE`]): address bits 3:2 in the
@@ -331,13 +401,20 @@ impl System {
     }
 
     fn peripheral_read(&mut self, core: usize, cycle: u64, addr: u32) -> Option<u32> {
-        self.irq_epoch += 1;
         if addr & 0xf000_0000 == SIO_BASE {
+            // A FIFO read changes its status, hence the SIO interrupt lines.
+            self.irq_epoch += 1;
             return self.sio.read(core, cycle, addr - SIO_BASE);
         }
         if addr & !0x3fff == TIMER_BASE {
+            // A timer read changes no line, unless it fires an alarm that is due (the
+            // timer's `update`); the sample interrupt reads the time twice per sample.
+            if cycle >= self.timer.next_event {
+                self.irq_epoch += 1;
+            }
             return self.timer.read(cycle, addr & 0xfff);
         }
+        // RESETS, clocks, PLL, XOSC, watchdog: no interrupt lines.
         self.sysctl.read(addr)
     }
 
@@ -436,6 +513,60 @@ impl Bus for System {
         }
     }
 
+    /// Words in plain SRAM (the striped view or SRAM4/5, word-aligned, not crossing from
+    /// one to the other: contiguous bytes of [`System::sram`]) are stored directly, each
+    /// claimed by the same [`System::arbitrate`] and checked against the code pages as
+    /// [`Bus::write`] does; anything else takes the general path word by word.
+    #[inline]
+    fn write_words(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        words: &[u32],
+    ) -> Result<(), BusFault> {
+        let Some(off) = plain_sram_span(addr, 4 * words.len() as u32) else {
+            for (i, w) in words.iter().enumerate() {
+                self.write(core, cycle, addr.wrapping_add(4 * i as u32), 4, *w)?;
+            }
+            return Ok(());
+        };
+        for (i, &w) in words.iter().enumerate() {
+            let o = off + 4 * i as u32;
+            self.arbitrate(core, cycle, sram_bank(o));
+            store_le(&mut self.sram, o as usize, 4, w);
+            if self.code_pages[(o >> 8) as usize] {
+                self.invalidate_code();
+            }
+        }
+        Ok(())
+    }
+
+    /// As [`System::write_words`]: plain SRAM directly, the rest word by word.
+    #[inline]
+    fn read_words(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        out: &mut [u32],
+    ) -> Result<(), BusFault> {
+        let Some(off) = plain_sram_span(addr, 4 * out.len() as u32) else {
+            for (i, w) in out.iter_mut().enumerate() {
+                *w = self
+                    .read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?
+                    .0;
+            }
+            return Ok(());
+        };
+        for (i, w) in out.iter_mut().enumerate() {
+            let o = off + 4 * i as u32;
+            self.arbitrate(core, cycle, sram_bank(o));
+            *w = load_le(&self.sram, o as usize, 4);
+        }
+        Ok(())
+    }
+
     #[inline]
     fn fetch(&mut self, addr: u32) -> Result<u16, BusFault> {
         if let Some((off, _)) = sram_location(addr) {
@@ -449,5 +580,79 @@ impl Bus for System {
             return Ok(load_le(&self.flash, off as usize, 2) as u16);
         }
         Err(BusFault { addr })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The general path: every word through [`Bus::write`] / [`Bus::read`] (the trait's
+    /// provided `write_words` / `read_words`).
+    struct WordByWord<'a>(&'a mut System);
+
+    impl Bus for WordByWord<'_> {
+        fn read(&mut self, c: usize, t: u64, a: u32, n: u32) -> Result<(u32, u32), BusFault> {
+            self.0.read(c, t, a, n)
+        }
+        fn write(&mut self, c: usize, t: u64, a: u32, n: u32, v: u32) -> Result<u32, BusFault> {
+            self.0.write(c, t, a, n, v)
+        }
+        fn fetch(&mut self, a: u32) -> Result<u16, BusFault> {
+            self.0.fetch(a)
+        }
+    }
+
+    /// Exception entry's and return's frames through [`System`]'s direct path equal the
+    /// general path word by word: data, both cores' bank claims, stalls, the code epoch
+    /// (a frame over a code page) and the fault of a frame that leaves memory.
+    #[test]
+    fn frames_equal_word_by_word() {
+        let mut seed = 0x9e37_79b9u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        let frames = [
+            0x2000_0000,
+            0x2000_1008,
+            0x2003_fff0, // crosses into SRAM4
+            0x2004_0000,
+            0x2004_0ff0, // crosses SRAM4 → SRAM5
+            0x2004_1fe0,
+            0x2004_1ff0, // leaves SRAM
+            0x2100_0100, // the non-striped alias
+            0x1000_0000, // flash: read-only
+        ];
+        for _ in 0..200 {
+            let mut a = System::new(125_000_000);
+            for bank in 0..BANKS {
+                for core in 0..2 {
+                    a.bank_claim[bank][core] = 100 + (next() % 4) as u64;
+                }
+            }
+            let page = next() as usize % a.code_pages.len();
+            a.code_pages[page] = true;
+            a.code_pages[(0x1000 >> 8) + (next() as usize % 2)] = true;
+            let mut b = a.clone();
+            let frame = frames[next() as usize % frames.len()];
+            let (core, cycle) = ((next() & 1) as usize, 100 + (next() % 4) as u64);
+            let words: [u32; 8] = std::array::from_fn(|_| next());
+            let ra = a.write_words(core, cycle, frame, &words);
+            let rb = WordByWord(&mut b).write_words(core, cycle, frame, &words);
+            assert_eq!(ra, rb);
+            let mut wa = [0; 8];
+            let mut wb = [0; 8];
+            let ra = a.read_words(1 - core, cycle, frame, &mut wa);
+            let rb = WordByWord(&mut b).read_words(1 - core, cycle, frame, &mut wb);
+            assert_eq!((ra, wa), (rb, wb), "frame {frame:#x}");
+            assert_eq!(a.sram, b.sram);
+            assert_eq!(a.bank_claim, b.bank_claim);
+            assert_eq!(a.contention_stalls, b.contention_stalls);
+            assert_eq!(a.code_epoch, b.code_epoch);
+            assert_eq!(a.code_pages, b.code_pages);
+        }
     }
 }

@@ -447,9 +447,7 @@ impl Core {
         let words = [
             self.r[0], self.r[1], self.r[2], self.r[3], self.r[12], self.r[14], ret, xpsr,
         ];
-        for (i, w) in words.iter().enumerate() {
-            bus.write(self.id, self.cycle, frame.wrapping_add(4 * i as u32), 4, *w)?;
-        }
+        bus.write_words(self.id, self.cycle, frame, &words)?;
         self.r[13] = frame;
         self.r[14] = match (self.ipsr != 0, was_psp) {
             (true, _) => 0xffff_fff1,
@@ -491,11 +489,7 @@ impl Core {
         self.switch_sp(was_psp);
         let frame = self.r[13];
         let mut w = [0u32; 8];
-        for (i, slot) in w.iter_mut().enumerate() {
-            *slot = bus
-                .read(self.id, self.cycle, frame.wrapping_add(4 * i as u32), 4)?
-                .0;
-        }
+        bus.read_words(self.id, self.cycle, frame, &mut w)?;
         [
             self.r[0], self.r[1], self.r[2], self.r[3], self.r[12], self.r[14],
         ] = [w[0], w[1], w[2], w[3], w[4], w[5]];

@@ -1,6 +1,6 @@
 //! The fast path of `Board::run_until` (decode cache, bursts, both cores interleaved in one
 //! loop) against `Board::step`, which runs the general path one instruction at a time:
-//! seeded random programs of data processing, SRAM/flash/SIO loads and stores, PUSH/POP,
+//! seeded random programs of data processing, SRAM/flash/SIO loads and stores, timer reads, PUSH/POP,
 //! LDM/STM and forward branches, looping forever, on one core and on both (sharing a data
 //! area, so the SRAM banks contend), some with WFI/WFE/SEV (so one core sleeps while the other
 //! runs) and some with a SysTick interrupt whose handler returns at once.
@@ -24,7 +24,7 @@ fn unit(rng: &mut Rng, out: &mut Vec<u16>) {
     let d = rng.below(5);
     let s = rng.below(8);
     let t = rng.below(8);
-    match rng.below(21) {
+    match rng.below(22) {
         0 => out.push(0x2000 | d << 8 | rng.below(256)), // movs
         1 => out.push([0x1800, 0x1a00][rng.below(2) as usize] | t << 6 | s << 3 | d),
         2 => out.push([0x1c00, 0x1e00][rng.below(2) as usize] | rng.below(8) << 6 | s << 3 | d),
@@ -111,6 +111,17 @@ fn unit(rng: &mut Rng, out: &mut Vec<u16>) {
         }
         18 => out.push(0x4840 | d << 8 | rng.below(4)), // ldr rd, [pc, #n] (even n*4)
         19 if rng.below(4) == 0 => out.push([0xbf30, 0xbf20, 0xbf40][rng.below(3) as usize]), // wfi, wfe, sev
+        20 => {
+            // A timer read (the firmware's TIMERAWL): rd = 0x40054000 by movs/lsls/adds,
+            // then ldr rd, [rd, #offset] — TIMELR, TIMERAWH, TIMERAWL, ARMED, INTR, or an
+            // unmapped offset (a fault).
+            out.push(0x2040 | d << 8); // movs rd, #0x40
+            out.push(0x0200 | d << 3 | d); // lsls rd, rd, #8
+            out.push(0x3005 | d << 8); // adds rd, #5
+            out.push(0x0380 | d << 3 | d); // lsls rd, rd, #14
+            let offset = [0x0c, 0x24, 0x28, 0x28, 0x20, 0x34, 0x3c][rng.below(7) as usize];
+            out.push(0x6800 | (offset / 4) << 6 | d << 3 | d);
+        }
         _ => {
             // b forward over one movs
             out.push(0xe001);
