@@ -516,8 +516,9 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
 /// A built-in demo performance (4.5 s, generated, no recording): a C-major scale up from
 /// *pp* to *ff* at five notes per second, four repeated notes at 8 per second, a trill,
 /// and a loud chord — the main job's default input when no MIDI file is given. It is short
-/// because `tactus play` runs it through the firmware of all 44 boards of the 88-key grand,
-/// every key every sample, in the emulator: about 20 s on two cores (BENCHMARKS.md).
+/// because `tactus play` runs it through the firmware of all 22 boards of the 88-key grand,
+/// every key every sample, in the emulator: about 6 s on two cores with the plan cached
+/// (BENCHMARKS.md).
 pub fn demo() -> Performance {
     let mut notes = Vec::new();
     let mut t = 0.2;
