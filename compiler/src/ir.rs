@@ -364,6 +364,47 @@ pub enum Stmt {
     Total(Value),
 }
 
+impl Stmt {
+    /// The values this statement itself reads: the value it writes or publishes, an event's
+    /// arguments, an `if`'s condition (not the statements of its body). A `Def` reads
+    /// nothing here (its value's operands are [`Op`]'s), nor does a `SetMode`.
+    pub fn reads(&self) -> &[Value] {
+        match self {
+            Stmt::Def(_) | Stmt::SetMode(..) => &[],
+            Stmt::SetState(_, v)
+            | Stmt::SetEdge(_, v)
+            | Stmt::Force(_, v)
+            | Stmt::Output(_, v)
+            | Stmt::Total(v)
+            | Stmt::If(v, _) => std::slice::from_ref(v),
+            Stmt::Emit(_, args) => args,
+        }
+    }
+}
+
+/// Calls `f` on every statement of `stmts` in body order, each `if`'s body right after
+/// the `if` itself.
+pub fn walk_stmts<'a>(stmts: &'a [Stmt], f: &mut impl FnMut(&'a Stmt)) {
+    for s in stmts {
+        f(s);
+        if let Stmt::If(_, body) = s {
+            walk_stmts(body, f);
+        }
+    }
+}
+
+/// Which of a program's `n` values have a `Def` in `stmts` (`if` bodies included): a flag
+/// per value.
+pub fn defined_values(stmts: &[Stmt], n: usize) -> Vec<bool> {
+    let mut d = vec![false; n];
+    walk_stmts(stmts, &mut |s| {
+        if let Stmt::Def(v) = s {
+            d[v.index()] = true;
+        }
+    });
+    d
+}
+
 /// One instrument, lowered and checked.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Program {

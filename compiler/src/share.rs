@@ -198,44 +198,15 @@ fn insert_defs(body: &[Stmt], before: &HashMap<usize, usize>) -> Vec<Stmt> {
 /// undefined read nothing).
 fn referenced(p: &Program) -> Vec<bool> {
     let mut r = vec![false; p.values.len()];
-    fn defs(stmts: &[Stmt], d: &mut [bool]) {
-        for s in stmts {
-            match s {
-                Stmt::Def(v) => d[v.index()] = true,
-                Stmt::If(_, b) => defs(b, d),
-                _ => {}
-            }
-        }
-    }
-    let mut defined = vec![false; p.values.len()];
-    defs(&p.body, &mut defined);
+    let defined = defined_values(&p.body, p.values.len());
     for (vd, _) in p.values.iter().zip(&defined).filter(|(_, d)| **d) {
         for x in crate::cgen::operands(&vd.op) {
             r[x.index()] = true;
         }
     }
-    fn walk(stmts: &[Stmt], r: &mut [bool]) {
-        for s in stmts {
-            match s {
-                Stmt::Def(_) | Stmt::SetMode(..) => {}
-                Stmt::SetState(_, v)
-                | Stmt::SetEdge(_, v)
-                | Stmt::Force(_, v)
-                | Stmt::Output(_, v)
-                | Stmt::Total(v) => r[v.index()] = true,
-                Stmt::Emit(_, args) => {
-                    for a in args {
-                        r[a.index()] = true;
-                    }
-                }
-                Stmt::If(c, b) => {
-                    r[c.index()] = true;
-                    walk(b, r);
-                }
-            }
-        }
-    }
-    walk(&p.body, &mut r);
+    walk_stmts(&p.body, &mut |s| {
+        s.reads().iter().for_each(|v| r[v.index()] = true)
+    });
     r
 }
 

@@ -186,27 +186,12 @@ pub fn live_values(p: &Program) -> (Vec<bool>, Vec<EventId>) {
     let mut used = vec![false; p.values.len()];
     let mut work = Vec::new();
     let mut sites = Vec::new();
-    fn roots(stmts: &[Stmt], work: &mut Vec<Value>, sites: &mut Vec<EventId>) {
-        for s in stmts {
-            match s {
-                Stmt::Def(_) | Stmt::SetMode(..) => {}
-                Stmt::SetState(_, v)
-                | Stmt::SetEdge(_, v)
-                | Stmt::Force(_, v)
-                | Stmt::Output(_, v)
-                | Stmt::Total(v) => work.push(*v),
-                Stmt::If(c, body) => {
-                    work.push(*c);
-                    roots(body, work, sites);
-                }
-                Stmt::Emit(e, args) => {
-                    sites.push(*e);
-                    work.extend(args.iter().copied());
-                }
-            }
+    walk_stmts(&p.body, &mut |s| {
+        work.extend_from_slice(s.reads());
+        if let Stmt::Emit(e, _) = s {
+            sites.push(*e);
         }
-    }
-    roots(&p.body, &mut work, &mut sites);
+    });
     while let Some(v) = work.pop() {
         if std::mem::replace(&mut used[v.index()], true) {
             continue;

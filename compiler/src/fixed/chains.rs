@@ -112,22 +112,11 @@ pub(crate) fn by_constant(p: &Program, v: Value) -> Option<(Value, f64)> {
     }
 }
 
-fn count_statement_uses(stmts: &[Stmt], uses: &mut [u32]) {
-    for s in stmts {
-        match s {
-            Stmt::Def(_) | Stmt::SetMode(..) => {}
-            Stmt::SetState(_, v)
-            | Stmt::SetEdge(_, v)
-            | Stmt::Force(_, v)
-            | Stmt::Output(_, v)
-            | Stmt::Total(v) => uses[v.index()] += 1,
-            Stmt::Emit(_, args) => args.iter().for_each(|a| uses[a.index()] += 1),
-            Stmt::If(c, b) => {
-                uses[c.index()] += 1;
-                count_statement_uses(b, uses);
-            }
-        }
-    }
+/// Adds one to `uses` for each value a statement of `stmts` reads ([`Stmt::reads`]).
+pub(super) fn count_statement_uses(stmts: &[Stmt], uses: &mut [u32]) {
+    walk_stmts(stmts, &mut |s| {
+        s.reads().iter().for_each(|v| uses[v.index()] += 1)
+    });
 }
 
 /// The defined values in body order (a definition precedes its uses).

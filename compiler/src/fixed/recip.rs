@@ -96,7 +96,7 @@ pub struct Reciprocals {
 /// Gives every qualifying divisor state a reciprocal (see the module documentation).
 pub fn reciprocals(p: &Program) -> Reciprocals {
     let ns = p.states.len();
-    let defined = defined_values(p);
+    let defined = defined_values(&p.body, p.values.len());
     // Per state: the divisions by a read of it.
     let mut divisions: Vec<Vec<usize>> = vec![Vec::new(); ns];
     for (i, vd) in p.values.iter().enumerate() {
@@ -445,24 +445,7 @@ fn scaled_readers(p: &Program, defined: &[bool]) -> Vec<Option<(usize, f64)>> {
             reader[x.index()] = j;
         }
     }
-    fn stmt_uses(stmts: &[Stmt], uses: &mut [u32]) {
-        for s in stmts {
-            match s {
-                Stmt::Def(_) | Stmt::SetMode(..) => {}
-                Stmt::SetState(_, v)
-                | Stmt::SetEdge(_, v)
-                | Stmt::Force(_, v)
-                | Stmt::Output(_, v)
-                | Stmt::Total(v) => uses[v.index()] += 1,
-                Stmt::Emit(_, args) => args.iter().for_each(|a| uses[a.index()] += 1),
-                Stmt::If(c, b) => {
-                    uses[c.index()] += 1;
-                    stmt_uses(b, uses);
-                }
-            }
-        }
-    }
-    stmt_uses(&p.body, &mut uses);
+    super::chains::count_statement_uses(&p.body, &mut uses);
     (0..n)
         .map(|i| {
             if uses[i] != 1 || reader[i] == usize::MAX {
@@ -477,51 +460,9 @@ fn scaled_readers(p: &Program, defined: &[bool]) -> Vec<Option<(usize, f64)>> {
         .collect()
 }
 
-/// Which values have a `Def` in the body.
-fn defined_values(p: &Program) -> Vec<bool> {
-    fn walk(stmts: &[Stmt], d: &mut [bool]) {
-        for s in stmts {
-            match s {
-                Stmt::Def(v) => d[v.index()] = true,
-                Stmt::If(_, b) => walk(b, d),
-                _ => {}
-            }
-        }
-    }
-    let mut d = vec![false; p.values.len()];
-    walk(&p.body, &mut d);
-    d
-}
-
 /// Which values something the body does (a write, a condition, a publication) needs.
 fn live_values(p: &Program) -> Vec<bool> {
-    fn roots(stmts: &[Stmt], out: &mut Vec<Value>) {
-        for s in stmts {
-            match s {
-                Stmt::Def(_) | Stmt::SetMode(..) => {}
-                Stmt::SetState(_, v)
-                | Stmt::SetEdge(_, v)
-                | Stmt::Force(_, v)
-                | Stmt::Output(_, v)
-                | Stmt::Total(v) => out.push(*v),
-                Stmt::Emit(_, args) => out.extend(args.iter().copied()),
-                Stmt::If(c, b) => {
-                    out.push(*c);
-                    roots(b, out);
-                }
-            }
-        }
-    }
-    let mut live = vec![false; p.values.len()];
-    let mut stack = Vec::new();
-    roots(&p.body, &mut stack);
-    while let Some(v) = stack.pop() {
-        if std::mem::replace(&mut live[v.index()], true) {
-            continue;
-        }
-        stack.extend(crate::cgen::operands(&p.values[v.index()].op));
-    }
-    live
+    crate::cgen::live_values(p).0
 }
 
 fn drop_writes(stmts: &[Stmt], carried: &[StateId]) -> Vec<Stmt> {

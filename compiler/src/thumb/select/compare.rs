@@ -45,29 +45,12 @@ pub(super) fn fused_conditions(p: &Program, used: &[bool], selects: &[Value]) ->
         }
     }
     let mut conds = Vec::new();
-    fn walk(stmts: &[Stmt], uses: &mut [u32], conds: &mut Vec<Value>) {
-        for s in stmts {
-            match s {
-                Stmt::If(c, body) => {
-                    uses[c.index()] += 1;
-                    conds.push(*c);
-                    walk(body, uses, conds);
-                }
-                Stmt::Def(_) | Stmt::SetMode(..) => {}
-                Stmt::SetState(_, v)
-                | Stmt::SetEdge(_, v)
-                | Stmt::Force(_, v)
-                | Stmt::Output(_, v)
-                | Stmt::Total(v) => uses[v.index()] += 1,
-                Stmt::Emit(_, args) => {
-                    for v in args {
-                        uses[v.index()] += 1;
-                    }
-                }
-            }
+    walk_stmts(&p.body, &mut |s| {
+        s.reads().iter().for_each(|v| uses[v.index()] += 1);
+        if let Stmt::If(c, _) = s {
+            conds.push(*c);
         }
-    }
-    walk(&p.body, &mut uses, &mut conds);
+    });
     let mut fused = vec![false; n];
     let fusable = |v: Value, uses: &[u32]| {
         uses[v.index()] == 1
