@@ -77,20 +77,7 @@ enum Tri {
 /// above the fixed-point errors of the compared words.
 pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
     let p = &fp.program;
-    // Top-level position of each value's definition (inside an `if`: that `if`'s).
-    let mut pos = vec![usize::MAX; p.values.len()];
-    fn mark(stmts: &[Stmt], k: usize, pos: &mut [usize]) {
-        for s in stmts {
-            match s {
-                Stmt::Def(v) => pos[v.index()] = k,
-                Stmt::If(_, b) => mark(b, k, pos),
-                _ => {}
-            }
-        }
-    }
-    for (k, s) in p.body.iter().enumerate() {
-        mark(std::slice::from_ref(s), k, &mut pos);
-    }
+    let pos = def_positions(p);
     let ifs: Vec<usize> = (0..p.body.len())
         .filter(|&k| matches!(p.body[k], Stmt::If(..)))
         .collect();
@@ -150,19 +137,7 @@ pub const FIRST_SAMPLE_MARK: u32 = u32::MAX;
 /// rest felt (`w < 0`: the word 0 against the constant 0, decided exactly) can run then.
 pub fn first_sample_exclusions(fp: &FixedProgram) -> Vec<u32> {
     let p = &fp.program;
-    let mut pos = vec![usize::MAX; p.values.len()];
-    fn mark(stmts: &[Stmt], k: usize, pos: &mut [usize]) {
-        for s in stmts {
-            match s {
-                Stmt::Def(v) => pos[v.index()] = k,
-                Stmt::If(_, b) => mark(b, k, pos),
-                _ => {}
-            }
-        }
-    }
-    for (k, s) in p.body.iter().enumerate() {
-        mark(std::slice::from_ref(s), k, &mut pos);
-    }
+    let pos = def_positions(p);
     let mut known = Known::default();
     for (i, st) in p.states.iter().enumerate() {
         known.state.insert(i, Interval::point(st.init));
@@ -192,6 +167,20 @@ pub fn first_sample_exclusions(fp: &FixedProgram) -> Vec<u32> {
         known.apply(fp, std::slice::from_ref(st), true);
     }
     out
+}
+
+/// The top-level position of each value's definition (inside an `if`: that `if`'s index
+/// in the body); `usize::MAX` for a value the body does not define.
+fn def_positions(p: &Program) -> Vec<usize> {
+    let mut pos = vec![usize::MAX; p.values.len()];
+    for (k, s) in p.body.iter().enumerate() {
+        walk_stmts(std::slice::from_ref(s), &mut |t| {
+            if let Stmt::Def(v) = t {
+                pos[v.index()] = k;
+            }
+        });
+    }
+    pos
 }
 
 /// Whether `v` has one value throughout a sample: it reads only sensors, their derivatives,
