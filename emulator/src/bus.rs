@@ -92,10 +92,7 @@ pub trait Bus {
         addr: u32,
         words: &[u32],
     ) -> Result<(), BusFault> {
-        for (i, w) in words.iter().enumerate() {
-            self.write(core, cycle, addr.wrapping_add(4 * i as u32), 4, *w)?;
-        }
-        Ok(())
+        write_each_word(self, core, cycle, addr, words)
     }
 
     /// Loads `out.len()` words from `addr`, `addr + 4`, … for `core` in the data phase
@@ -110,12 +107,7 @@ pub trait Bus {
         addr: u32,
         out: &mut [u32],
     ) -> Result<(), BusFault> {
-        for (i, w) in out.iter_mut().enumerate() {
-            *w = self
-                .read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?
-                .0;
-        }
-        Ok(())
+        read_each_word(self, core, cycle, addr, out)
     }
 
     /// Fetches the instruction at `addr`: `(hw1, hw2, size in bytes)`, `hw2` 0 for a 16-bit
@@ -130,6 +122,36 @@ pub trait Bus {
             Ok((hw1, 0, 2))
         }
     }
+}
+
+/// [`Bus::write_words`]' general path: each word through [`Bus::write`], in order.
+#[inline]
+fn write_each_word<B: Bus + ?Sized>(
+    bus: &mut B,
+    core: usize,
+    cycle: u64,
+    addr: u32,
+    words: &[u32],
+) -> Result<(), BusFault> {
+    for (i, w) in words.iter().enumerate() {
+        bus.write(core, cycle, addr.wrapping_add(4 * i as u32), 4, *w)?;
+    }
+    Ok(())
+}
+
+/// [`Bus::read_words`]' general path: each word through [`Bus::read`], in order.
+#[inline]
+fn read_each_word<B: Bus + ?Sized>(
+    bus: &mut B,
+    core: usize,
+    cycle: u64,
+    addr: u32,
+    out: &mut [u32],
+) -> Result<(), BusFault> {
+    for (i, w) in out.iter_mut().enumerate() {
+        *w = bus.read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?.0;
+    }
+    Ok(())
 }
 
 /// The RP2040 outside the cores: memories, SIO, timer, and the bank arbiter.
@@ -526,10 +548,7 @@ impl Bus for System {
         words: &[u32],
     ) -> Result<(), BusFault> {
         let Some(off) = plain_sram_span(addr, 4 * words.len() as u32) else {
-            for (i, w) in words.iter().enumerate() {
-                self.write(core, cycle, addr.wrapping_add(4 * i as u32), 4, *w)?;
-            }
-            return Ok(());
+            return write_each_word(self, core, cycle, addr, words);
         };
         for (i, &w) in words.iter().enumerate() {
             let o = off + 4 * i as u32;
@@ -552,12 +571,7 @@ impl Bus for System {
         out: &mut [u32],
     ) -> Result<(), BusFault> {
         let Some(off) = plain_sram_span(addr, 4 * out.len() as u32) else {
-            for (i, w) in out.iter_mut().enumerate() {
-                *w = self
-                    .read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?
-                    .0;
-            }
-            return Ok(());
+            return read_each_word(self, core, cycle, addr, out);
         };
         for (i, w) in out.iter_mut().enumerate() {
             let o = off + 4 * i as u32;
