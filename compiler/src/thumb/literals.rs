@@ -71,52 +71,11 @@ pub(crate) fn share(code: &mut Vec<M>, nregs: u32) {
         k += 1;
         !drop[k - 1]
     });
-    let r = |v: &mut V| {
-        if let Some(&n) = rename.get(v) {
-            *v = n;
-        }
-    };
     for m in code.iter_mut() {
-        match m {
-            M::Mov { s, .. } => r(s),
-            M::AddSub { a, b, .. } | M::Cmp { a, b } => {
-                r(a);
-                r(b);
+        for v in m.uses_mut() {
+            if let Some(&n) = rename.get(v) {
+                *v = n;
             }
-            M::AddSubI { a, .. } | M::CmpI { a, .. } => r(a),
-            M::Alu2 { a, m, .. } => {
-                r(a);
-                r(m);
-            }
-            M::Unary { m, .. } | M::Sh { m, .. } | M::Uxth { m, .. } => r(m),
-            M::Load { base, .. } => {
-                if let Base::V(b) = base {
-                    r(b)
-                }
-            }
-            M::LoadR { base, idx, .. } => {
-                if let Base::V(b) = base {
-                    r(b)
-                }
-                r(idx);
-            }
-            M::Store { t, base, .. } => {
-                r(t);
-                if let Base::V(b) = base {
-                    r(b)
-                }
-            }
-            M::StoreR { t, idx, .. } => {
-                r(t);
-                r(idx);
-            }
-            M::Movi { .. }
-            | M::Label(_)
-            | M::B(_)
-            | M::Bc(..)
-            | M::Note(_)
-            | M::Mark(_)
-            | M::Nop => {}
         }
     }
 }
