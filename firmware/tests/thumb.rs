@@ -637,7 +637,7 @@ const STATIC_CEILING: &[(&str, u64)] = &[
     ("grand_piano", 1114),
     ("hammond", 258),
     ("harpsichord", 345),
-    ("harpsichord_2x8", 540),
+    ("harpsichord_2x8", 548),
     ("plucked_string", 1952),
     ("rubbed_bank", 6160),
 ];
