@@ -148,10 +148,6 @@ impl Translator<'_> {
         let size = op.size();
         let solo = self.claims_other.is_none();
         self.flush();
-        if size > 1 {
-            let low = self.b.ins().band_imm_u(addr, size as i64 - 1);
-            self.general_if(low, pc);
-        }
         // SRAM: (physical offset, claim-table offset) from each of the three views.
         let in_sram = self.b.create_block();
         self.b.append_block_param(in_sram, types::I32);
@@ -161,21 +157,36 @@ impl Translator<'_> {
         if !solo {
             self.b.append_block_param(join, types::I64);
         }
+        // The common case first, in one comparison: aligned and in the striped view. The
+        // offset rotated right by log2(size) moves the low (alignment) bits to the top, so
+        // it is below `0x40000 >> log2(size)` exactly when the offset is below 0x40000 and
+        // a multiple of the size.
         let striped = self.b.create_block();
-        let not_striped = self.b.create_block();
+        let slow = self.b.create_block();
         let off = self.b.ins().iadd_imm_s(addr, -(SRAM_BASE as i64));
+        let shift = size.trailing_zeros() as i64;
+        let key = if shift == 0 {
+            off
+        } else {
+            self.b.ins().rotr_imm_u(off, shift)
+        };
         let ok = self
             .b
             .ins()
-            .icmp_imm_u(IntCC::UnsignedLessThan, off, 0x4_0000);
-        self.b.ins().brif(ok, striped, &[], not_striped, &[]);
+            .icmp_imm_u(IntCC::UnsignedLessThan, key, 0x4_0000 >> shift);
+        self.b.ins().brif(ok, striped, &[], slow, &[]);
         self.b.switch_to_block(striped);
         let boff = self.striped_bank_offset(off);
         self.b
             .ins()
             .jump(in_sram, &[BlockArg::Value(off), BlockArg::Value(boff)]);
-        // SRAM4/5 (striped view's end).
-        self.b.switch_to_block(not_striped);
+        // Unaligned: the general path; aligned: SRAM4/5 (striped view's end), the alias,
+        // flash.
+        self.b.switch_to_block(slow);
+        if size > 1 {
+            let low = self.b.ins().band_imm_u(addr, size as i64 - 1);
+            self.general_if(low, pc);
+        }
         let scratch = self.b.create_block();
         let alias = self.b.create_block();
         let ok = self
