@@ -390,22 +390,28 @@ impl<'a> Translator<'a> {
         }
     }
 
-    /// Adds the pending instructions to [`Ctx::retired`] (before control flow leaves or
-    /// joins: every path into a label or the exit carries none pending).
+    /// Adds the pending instructions to [`Ctx::retired`] before a jump to a label (every
+    /// path into a label carries none pending).
     pub(super) fn flush_retired(&mut self) {
+        self.add_retired();
+        self.pend_n = 0;
+    }
+
+    /// Adds the pending instructions to [`Ctx::retired`] and keeps them pending: for an
+    /// exit in a side block, after which the translation goes on along the other branch.
+    fn add_retired(&mut self) {
         if self.pend_n != 0 {
             let at = offset_of!(Ctx, retired) as i32;
             let n = self.b.ins().load(types::I64, self.mf, self.ctx, at);
             let n = self.b.ins().iadd_imm_s(n, self.pend_n as i64);
             self.b.ins().store(self.mf, n, self.ctx, at);
-            self.pend_n = 0;
         }
     }
 
     /// Jumps to the exit with PC `pc` and reason `why` (pending counts flushed first).
     pub(super) fn leave(&mut self, pc: Value, why: Exit) {
         self.flush();
-        self.flush_retired();
+        self.add_retired();
         self.b.def_var(self.exit_pc, pc);
         let w = self.b.ins().iconst(types::I32, why as i64);
         self.b.def_var(self.exit_why, w);
