@@ -2,7 +2,9 @@
 //! `budget::static_update` finds it) summed by category, each priced by the emulator's
 //! timing table (`emulator/src/timing.rs`, taken or not as the path goes).
 //!
-//! `cargo run -p tactus-firmware --example wcet_breakdown -- instruments/grand_piano.tactus [--list]`
+//! `cargo run -p tactus-firmware --example wcet_breakdown -- instruments/grand_piano.tactus [--list] [--asm]`
+//! (`--list`: the worst path instruction by instruction; `--asm`: the whole object's GNU
+//! assembler listing first, to compare the code of two compiler versions).
 //!
 //! Categories are by instruction: `MULS`; operand splitting for multi-word products
 //! (`UXTH`); 64-bit carries (`ADCS`/`SBCS`); state loads and stores (`[r7, …]` and other
@@ -53,10 +55,11 @@ fn category(i: &Instr) -> &'static str {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(path) = args.iter().find(|a| !a.starts_with("--")) else {
-        eprintln!("usage: wcet_breakdown INSTRUMENT.tactus [--list]");
+        eprintln!("usage: wcet_breakdown INSTRUMENT.tactus [--list] [--asm]");
         std::process::exit(2);
     };
     let list = args.iter().any(|a| a == "--list");
+    let asm = args.iter().any(|a| a == "--asm");
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| {
         eprintln!("{path}: {e}");
         std::process::exit(2)
@@ -73,6 +76,9 @@ fn main() {
         eprintln!("{path}: {e}");
         std::process::exit(1)
     });
+    if asm {
+        println!("{}", obj.code.listing);
+    }
     let name = obj.update_name();
     let w = budget::function_wcet(&obj, &name).unwrap_or_else(|e| {
         eprintln!("{path}: {e}");

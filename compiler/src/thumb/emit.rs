@@ -6,7 +6,7 @@
 use super::buffer::{self, CodeBuffer};
 use super::mir::{Base, Label, Shift, M, V};
 use super::regalloc::{Allocation, Loc, Remat};
-use super::select::STATE_V;
+use super::select::{ARG2, STATE_V};
 use super::ThumbError;
 use std::collections::HashMap;
 use tactus_emulator::decode::{AluOp, Instr, MemOp};
@@ -36,9 +36,21 @@ struct Lower<'a> {
     buf: &'a mut CodeBuffer,
     /// The buffer's label for each machine-IR label of this function.
     labels: HashMap<u32, buffer::Label>,
-    /// The stack slot each scratch register is known to hold (reload cache): valid in
-    /// straight-line code, forgotten at every label (a join point).
-    holds: [Option<u16>; 2],
+    /// What each scratch register is known to hold (reload cache). The body branches only
+    /// forward, so at a label every way in has been lowered: the cache there is what all of
+    /// them agree on ([`Lower::pending`] for the branches, the fall-through unless the
+    /// instruction before is a `B`).
+    holds: [Option<Held>; 2],
+    /// Per machine-IR label: what the branches to it lowered so far agree the scratch
+    /// registers hold.
+    pending: HashMap<u32, [Option<Held>; 2]>,
+    /// Whether the instruction being lowered can be reached by falling through (not right
+    /// after an unconditional `B`).
+    reachable: bool,
+    /// A low register other than the scratch registers that holds a spill slot's value
+    /// (the register a slot was just stored from), until that register is written: a
+    /// reload is then a `MOV` (1 cycle) instead of an `LDR` (2).
+    copy: Option<(u8, u16)>,
     /// Scratch registers holding an operand of the instruction being lowered (a second
     /// spilled operand is reloaded into the other one).
     pinned: [bool; 2],
@@ -49,6 +61,20 @@ struct Lower<'a> {
     /// Where each spill slot lives: a high register (`MOV` to and from it costs 1 cycle
     /// where `LDR`/`STR` cost 2) or a word of the stack frame.
     home: Vec<Home>,
+}
+
+/// What a scratch register holds, for the reload cache.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Held {
+    /// The value of a spill slot.
+    Slot(u16),
+    /// A rematerialised constant or state word (a state word until a store may write it).
+    Remat(Remat),
+}
+
+/// Where both `a` and `b` agree.
+fn meet(a: [Option<Held>; 2], b: [Option<Held>; 2]) -> [Option<Held>; 2] {
+    [0, 1].map(|j| if a[j] == b[j] { a[j] } else { None })
 }
 
 /// The home of a spill slot.
@@ -143,10 +169,14 @@ impl Lower<'_> {
         match self.loc(v) {
             Loc::Reg(r) => r,
             Loc::Remat(how) => {
+                if let Some(j) = (0..2).find(|&j| self.holds[j] == Some(Held::Remat(how))) {
+                    self.pinned[j] = true;
+                    return self.alloc.scratch[j];
+                }
                 let k = if self.pinned[k] { 1 - k } else { k };
                 self.pinned[k] = true;
                 let r = self.alloc.scratch[k];
-                self.holds[k] = None;
+                self.holds[k] = Some(Held::Remat(how));
                 match how {
                     Remat::Const(imm) => self.movi(r, imm),
                     Remat::State(op, off) => self.i(Instr::MemImm {
@@ -159,25 +189,24 @@ impl Lower<'_> {
                 r
             }
             Loc::Slot(s) => {
-                if let Some(j) = (0..2).find(|&j| self.holds[j] == Some(s)) {
+                if let Some(j) = (0..2).find(|&j| self.holds[j] == Some(Held::Slot(s))) {
                     self.pinned[j] = true;
                     return self.alloc.scratch[j];
                 }
                 let k = if self.pinned[k] { 1 - k } else { k };
                 self.pinned[k] = true;
                 let r = self.alloc.scratch[k];
-                {
-                    match self.home[s as usize] {
-                        Home::Hi(h) => self.i(Instr::MovHi { rd: r, rm: h }),
-                        Home::Stack(w) => self.i(Instr::MemImm {
-                            op: MemOp::Ldr,
-                            rt: r,
-                            rn: 13,
-                            imm: 4 * w,
-                        }),
-                    }
-                    self.holds[k] = Some(s);
+                match (self.copy, self.home[s as usize]) {
+                    (Some((c, cs)), _) if cs == s => self.i(Instr::MovHi { rd: r, rm: c }),
+                    (_, Home::Hi(h)) => self.i(Instr::MovHi { rd: r, rm: h }),
+                    (_, Home::Stack(w)) => self.i(Instr::MemImm {
+                        op: MemOp::Ldr,
+                        rt: r,
+                        rn: 13,
+                        imm: 4 * w,
+                    }),
                 }
+                self.holds[k] = Some(Held::Slot(s));
                 r
             }
         }
@@ -210,14 +239,46 @@ impl Lower<'_> {
     /// slot `s`'s new value.
     fn spill_from(&mut self, r: u8, s: u16) {
         for j in 0..2 {
-            if self.holds[j] == Some(s) {
+            if self.holds[j] == Some(Held::Slot(s)) {
                 self.holds[j] = None;
             }
         }
-        if let Some(j) = self.alloc.scratch.iter().position(|&x| x == r) {
-            self.holds[j] = Some(s);
-        }
         self.store_home(r, s);
+        match self.alloc.scratch.iter().position(|&x| x == r) {
+            Some(j) => self.holds[j] = Some(Held::Slot(s)),
+            // A stack home: a reload before `r` is written again copies it instead.
+            None if matches!(self.home[s as usize], Home::Stack(_)) => self.copy = Some((r, s)),
+            None => {}
+        }
+    }
+
+    /// Forgets what the instruction about to be lowered invalidates: a copy in the low
+    /// register it defines, cached state words a store may write.
+    fn invalidate(&mut self, m: &M) {
+        if let (Some((c, _)), Some(Loc::Reg(r))) = (self.copy, m.def().map(|d| self.loc(d))) {
+            if c == r {
+                self.copy = None;
+            }
+        }
+        let word = match *m {
+            M::Store {
+                base: Base::State,
+                off,
+                ..
+            } => Some(off / 4),
+            M::Store {
+                base: Base::V(b), ..
+            } if b == ARG2 => return,
+            M::Store { .. } | M::StoreR { .. } => None,
+            _ => return,
+        };
+        for h in &mut self.holds {
+            if let Some(Held::Remat(Remat::State(_, o))) = *h {
+                if word.is_none_or(|w| w == o / 4) {
+                    *h = None;
+                }
+            }
+        }
     }
 
     fn spill(&mut self, r: u8, slot: Option<u16>) {
@@ -225,8 +286,8 @@ impl Lower<'_> {
             // The scratch register written now holds the slot's new value; a copy of the
             // slot in the other one is stale.
             let j = usize::from(self.alloc.scratch[1] == r);
-            self.holds[j] = Some(s);
-            if self.holds[1 - j] == Some(s) {
+            self.holds[j] = Some(Held::Slot(s));
+            if self.holds[1 - j] == Some(Held::Slot(s)) {
                 self.holds[1 - j] = None;
             }
             self.store_home(r, s);
@@ -235,6 +296,9 @@ impl Lower<'_> {
 
     /// Stores low register `r` into spill slot `s`'s home.
     fn store_home(&mut self, r: u8, s: u16) {
+        if self.copy.is_some_and(|(_, cs)| cs == s) {
+            self.copy = None;
+        }
         match self.home[s as usize] {
             Home::Hi(h) => self.i(Instr::MovHi { rd: h, rm: r }),
             Home::Stack(w) => self.i(Instr::MemImm {
@@ -265,6 +329,15 @@ impl Lower<'_> {
         }
     }
 
+    /// Records the reload cache on a branch to `l` (the body branches only forward).
+    fn branch_to(&mut self, l: Label) {
+        let h = self.holds;
+        self.pending
+            .entry(l.0)
+            .and_modify(|w| *w = meet(*w, h))
+            .or_insert(h);
+    }
+
     fn base(&mut self, b: Base, k: usize) -> u8 {
         match b {
             Base::State => 7,
@@ -274,6 +347,7 @@ impl Lower<'_> {
 
     fn one(&mut self, m: &M) {
         self.pinned = [false, false];
+        self.invalidate(m);
         if let Some(Loc::Remat(_)) = m.def().map(|d| self.loc(d)) {
             // Recomputed at each read instead.
             return;
@@ -445,16 +519,27 @@ impl Lower<'_> {
                 });
             }
             M::Label(l) => {
-                self.holds = [None, None];
+                let ways = self.pending.remove(&l.0);
+                self.holds = match (self.reachable, ways) {
+                    (true, Some(w)) => meet(self.holds, w),
+                    (true, None) => self.holds,
+                    (false, Some(w)) => w,
+                    (false, None) => [None, None],
+                };
+                self.reachable = true;
+                self.copy = None;
                 let l = self.label(l);
                 self.buf.bind(l);
             }
             M::B(l) => {
+                self.branch_to(l);
+                self.reachable = false;
                 let l = self.label(l);
                 self.buf.b(l);
                 self.buf.pool_after_branch();
             }
             M::Bc(c, l) => {
+                self.branch_to(l);
                 let l = self.label(l);
                 self.buf.bc(c as u8, l);
             }
@@ -491,6 +576,9 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
         buf,
         labels: HashMap::new(),
         holds: [None, None],
+        pending: HashMap::new(),
+        reachable: true,
+        copy: None,
         pinned: [false, false],
         last: last_refs(code, alloc.loc.len()),
         at: 0,

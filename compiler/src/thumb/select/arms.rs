@@ -67,40 +67,20 @@ fn cost(fp: &FixedProgram, v: Value) -> u32 {
 fn walk(p: &Program) -> (Vec<Value>, Vec<u32>, Vec<bool>) {
     let n = p.values.len();
     let (mut order, mut setc, mut stmt_used) = (Vec::new(), vec![0u32; n], vec![false; n]);
-    fn go(
-        stmts: &[Stmt],
-        order: &mut Vec<Value>,
-        setc: &mut [u32],
-        stmt_used: &mut [bool],
-        sets: &mut u32,
-    ) {
-        for s in stmts {
-            match s {
-                Stmt::Def(v) => {
-                    order.push(*v);
-                    setc[v.index()] = *sets;
-                }
-                Stmt::If(c, body) => {
-                    stmt_used[c.index()] = true;
-                    go(body, order, setc, stmt_used, sets);
-                }
-                Stmt::SetState(_, v) | Stmt::SetEdge(_, v) => {
-                    stmt_used[v.index()] = true;
-                    *sets += 1;
-                }
-                Stmt::SetMode(..) => *sets += 1,
-                Stmt::Force(_, v) | Stmt::Output(_, v) | Stmt::Total(v) => {
-                    stmt_used[v.index()] = true
-                }
-                Stmt::Emit(_, args) => {
-                    for v in args {
-                        stmt_used[v.index()] = true;
-                    }
-                }
-            }
+    let mut sets = 0u32;
+    crate::ir::walk_stmts(&p.body, &mut |s| {
+        for v in s.reads() {
+            stmt_used[v.index()] = true;
         }
-    }
-    go(&p.body, &mut order, &mut setc, &mut stmt_used, &mut 0);
+        match s {
+            Stmt::Def(v) => {
+                order.push(*v);
+                setc[v.index()] = sets;
+            }
+            Stmt::SetState(..) | Stmt::SetEdge(..) | Stmt::SetMode(..) => sets += 1,
+            _ => {}
+        }
+    });
     (order, setc, stmt_used)
 }
 

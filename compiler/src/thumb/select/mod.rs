@@ -113,6 +113,52 @@ pub(crate) struct Sel<'a> {
     fused: Vec<bool>,
     /// The selects emitted as diamonds and the values computed inside their arms.
     arms: arms::Arms,
+    /// Per value: the state it is stored into, when that store is its only reader and
+    /// keeps its format (its word may then be clamped where it is computed).
+    sole_store: Vec<Option<usize>>,
+    /// Values whose word was clamped to their state's range where computed
+    /// ([`Sel::fuse_store_clamp`]): their store clamps nothing.
+    store_clamped: Vec<bool>,
+    /// The last saturating left shift emitted ([`Sel::shl_sat`]), while it ends the code.
+    last_shl: Option<ShlSat>,
+}
+
+/// A saturating left shift `d = sat(x · 2^e)` occupying `code[start..end]`.
+#[derive(Clone, Copy, Debug)]
+struct ShlSat {
+    d: V,
+    x: W,
+    e: u8,
+    start: usize,
+    end: usize,
+}
+
+/// Per value of `fp`: the state `SetState` stores it into where that store is the value's
+/// only reader (no operand of a used value, no other statement) and the state has the
+/// value's format.
+fn sole_stores(fp: &FixedProgram, used: &[bool]) -> Vec<Option<usize>> {
+    let p = &fp.program;
+    let n = p.values.len();
+    let mut readers = vec![0u32; n];
+    for (i, vd) in p.values.iter().enumerate() {
+        if used[i] {
+            for x in crate::cgen::operands(&vd.op) {
+                readers[x.index()] += 1;
+            }
+        }
+    }
+    let mut store = vec![None; n];
+    walk_stmts(&p.body, &mut |s| {
+        for v in s.reads() {
+            readers[v.index()] += 1;
+        }
+        if let Stmt::SetState(sid, v) = s {
+            store[v.index()] = Some(sid.index());
+        }
+    });
+    (0..n)
+        .map(|i| store[i].filter(|&s| readers[i] == 1 && fp.frac[i] == fp.state_frac[s]))
+        .collect()
 }
 
 fn pow2(e: i32) -> u64 {
@@ -165,6 +211,7 @@ impl<'a> Sel<'a> {
         walk(&p.body, p, false, &mut count);
         let direct = count.iter().map(|&(n, nested)| n == 1 && !nested).collect();
         let arms = arms::plan(fp, &used);
+        let used_for_stores = used.clone();
         let fused = fused_conditions(p, &used, &arms.conditions(p));
         Sel {
             fp,
@@ -188,6 +235,9 @@ impl<'a> Sel<'a> {
             fused,
             arms,
             top: false,
+            sole_store: sole_stores(fp, &used_for_stores),
+            store_clamped: vec![false; p.values.len()],
+            last_shl: None,
         }
     }
 
@@ -341,11 +391,16 @@ impl<'a> Sel<'a> {
         for (k, s) in stmts.iter().enumerate() {
             match s {
                 // (A value computed in a branching select's arm waits for it.)
-                Stmt::Def(v) if self.arms.home[v.index()].is_none() => self.define(*v)?,
+                Stmt::Def(v) if self.arms.home[v.index()].is_none() => {
+                    let since = self.code.len();
+                    self.define(*v)?;
+                    self.fuse_store_clamp(*v, since);
+                }
                 Stmt::Def(_) => {}
                 Stmt::SetState(sid, v) => {
                     let i = sid.index();
                     let x = self.word(*v);
+                    let since = self.code.len();
                     let t = self.convert(x, fp.frac[v.index()], fp.state_frac[i]);
                     let (lo, hi) = fp.state_raw_range[i];
                     // The clamp is omitted where the value's interval proves it inside.
@@ -381,7 +436,11 @@ impl<'a> Sel<'a> {
                     let hi_in = copy
                         || iv.hi * scale + margin <= hi as f64
                         || exact.is_some_and(|(_, b)| b <= hi);
-                    let t = if lo_in && hi_in {
+                    let (lo_o, hi_o) = ((!lo_in).then_some(lo), (!hi_in).then_some(hi));
+                    let t = if (lo_in && hi_in) || self.store_clamped[v.index()] {
+                        t.v
+                    } else if self.fuse_shl_clamp(t.v, since, lo_o, hi_o).is_some() {
+                        // The conversion's saturating shift and the clamp in one.
                         t.v
                     } else {
                         let c = self.nv();

@@ -66,6 +66,7 @@ impl<'a> Sel<'a> {
             };
         }
         let done = self.label();
+        let start = self.code.len();
         let d;
         if e >= 32 {
             d = self.movi(0);
@@ -79,7 +80,108 @@ impl<'a> Sel<'a> {
         }
         self.saturate_into(d, x.v);
         self.push(M::Label(done));
+        if e < 32 {
+            self.last_shl = Some(ShlSat {
+                d,
+                x,
+                e: e as u8,
+                start,
+                end: self.code.len(),
+            });
+        }
         W { v: d, b: LIM }
+    }
+
+    /// Where value `v` was just computed by a saturating left shift and its only reader
+    /// stores it into a state of its format: [`Sel::fuse_shl_clamp`] with the state's range
+    /// (the store then clamps nothing).
+    pub(super) fn fuse_store_clamp(&mut self, v: Value, since: usize) {
+        let Some(i) = self.sole_store[v.index()] else {
+            return;
+        };
+        let Some(w) = self.val[v.index()] else {
+            return;
+        };
+        let (lo, hi) = self.fp.state_raw_range[i];
+        if let Some(b) = self.fuse_shl_clamp(w.v, since, Some(lo), Some(hi)) {
+            self.val[v.index()] = Some(W { v: w.v, b });
+            self.store_clamped[v.index()] = true;
+        }
+    }
+
+    /// Where the code ends with the saturating left shift `d = sat(x · 2^e)`, emitted at or
+    /// after `code[since]`, and `d`'s one reader clamps it to `[lo, hi]` (`None`: a side
+    /// proven inside): the shift and the clamp become one clamp of `x`, so nothing
+    /// saturates. With `L = ⌈lo / 2^e⌉` and `H = ⌊hi / 2^e⌋`, `x < L` gives `x · 2^e < lo`
+    /// (a saturated `i32::MIN` too), so `lo`; `x > H` gives `hi` likewise; in between
+    /// `x · 2^e` lies in `[lo, hi]` and fits. `d` is redefined as
+    /// `clamp(sat(x · 2^e), lo, hi)` exactly; the result is its magnitude bound, or `None`
+    /// (nothing changed) when the code does not end so.
+    pub(super) fn fuse_shl_clamp(
+        &mut self,
+        d: V,
+        since: usize,
+        lo: Option<i32>,
+        hi: Option<i32>,
+    ) -> Option<u64> {
+        let sh = self.last_shl?;
+        if sh.d != d || sh.start < since || sh.end != self.code.len() {
+            return None;
+        }
+        self.code.truncate(sh.start);
+        self.last_shl = None;
+        let x = sh.x;
+        let b = x.b.min(i64::MAX as u64) as i64;
+        // A side is checked where it is not proven and `x`'s bound reaches past it.
+        let lo = lo
+            .map(|lo| (lo, -((-(lo as i64)) >> sh.e)))
+            .filter(|&(_, l)| -b < l);
+        let hi = hi
+            .map(|hi| (hi, (hi as i64) >> sh.e))
+            .filter(|&(_, h)| b > h);
+        let (low, high, done) = (self.label(), self.label(), self.label());
+        for (side, cond, to) in [(lo, Cond::Lt, low), (hi, Cond::Gt, high)] {
+            let Some((_, k)) = side else { continue };
+            if (0..=255).contains(&k) {
+                self.push(M::CmpI {
+                    a: x.v,
+                    imm: k as u8,
+                });
+            } else {
+                let kv = self.movi(k as i32);
+                self.push(M::Cmp { a: x.v, b: kv });
+            }
+            self.push(M::Bc(cond, to));
+        }
+        self.push(M::Sh {
+            op: Shift::Lsl,
+            d,
+            m: x.v,
+            imm: sh.e,
+        });
+        if lo.is_some() || hi.is_some() {
+            self.push(M::B(done));
+        }
+        if let Some((lo, _)) = lo {
+            self.push(M::Label(low));
+            self.push(M::Movi { d, imm: lo });
+            if hi.is_some() {
+                self.push(M::B(done));
+            }
+        }
+        if let Some((hi, _)) = hi {
+            self.push(M::Label(high));
+            self.push(M::Movi { d, imm: hi });
+        }
+        self.push(M::Label(done));
+        let ends = [lo.map(|s| s.0), hi.map(|s| s.0)];
+        let inner = shl_bound(x.b, sh.e as i32);
+        Some(
+            ends.iter()
+                .flatten()
+                .map(|&c| (c as i64).unsigned_abs())
+                .fold(inner.min(LIM), u64::max),
+        )
     }
 
     /// `d = sign(s) < 0 ? i32::MIN : i32::MAX` (a redefinition of `d`).
