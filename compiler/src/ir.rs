@@ -393,6 +393,21 @@ pub fn walk_stmts<'a>(stmts: &'a [Stmt], f: &mut impl FnMut(&'a Stmt)) {
     }
 }
 
+/// `stmts` rebuilt: each statement other than an `if` replaced by what `f` pushes for it
+/// (nothing drops it; itself and others keep it with statements beside it), each `if` kept
+/// with its condition and its body rebuilt the same way. The one recursive filter and
+/// insertion over a body, for every pass that drops or inserts statements.
+pub fn rebuild_stmts(stmts: &[Stmt], f: &mut impl FnMut(&Stmt, &mut Vec<Stmt>)) -> Vec<Stmt> {
+    let mut out = Vec::with_capacity(stmts.len());
+    for s in stmts {
+        match s {
+            Stmt::If(c, body) => out.push(Stmt::If(*c, rebuild_stmts(body, f))),
+            other => f(other, &mut out),
+        }
+    }
+    out
+}
+
 /// Which of a program's `n` values have a `Def` in `stmts` (`if` bodies included): a flag
 /// per value.
 pub fn defined_values(stmts: &[Stmt], n: usize) -> Vec<bool> {

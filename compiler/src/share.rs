@@ -177,20 +177,14 @@ fn share_as_lowered(programs: &[Program]) -> Result<Shared, String> {
 
 /// `body` with `Def(n)` inserted before each `Def(i)` of `before` (`i → n`).
 fn insert_defs(body: &[Stmt], before: &HashMap<usize, usize>) -> Vec<Stmt> {
-    let mut out = Vec::with_capacity(body.len() + before.len());
-    for s in body {
-        match s {
-            Stmt::Def(v) => {
-                if let Some(&n) = before.get(&v.index()) {
-                    out.push(Stmt::Def(Value(n as u32)));
-                }
-                out.push(s.clone());
+    rebuild_stmts(body, &mut |s, out| {
+        if let Stmt::Def(v) = s {
+            if let Some(&n) = before.get(&v.index()) {
+                out.push(Stmt::Def(Value(n as u32)));
             }
-            Stmt::If(c, b) => out.push(Stmt::If(*c, insert_defs(b, before))),
-            _ => out.push(s.clone()),
         }
-    }
-    out
+        out.push(s.clone());
+    })
 }
 
 /// Whether each value is read: by a statement other than its definition, or by the

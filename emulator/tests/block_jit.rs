@@ -3,7 +3,7 @@
 //! random 16-bit instruction (or a BL pair), or two, followed by a BKPT, on random registers and
 //! flags whose values are biased towards the memory map's interesting places (striped
 //! SRAM, SRAM4/5, the non-striped aliases, flash, the code itself, the ends of SRAM and
-//! unaligned addresses), with the other core's bank claims set so the arbiter's wait
+//! of the striped view, either side of SRAM's start and unaligned addresses), with the other core's bank claims set so the arbiter's wait
 //! states come into play (in a third of the cases claims all in the past: the engine's
 //! solo code, which records claims without arbitrating). Both engines run the same cycles; the stop reason, every
 //! register, flag, counter, the contention stalls and all of SRAM must agree after each
@@ -19,7 +19,7 @@ const VTOR: u32 = 0x2003_0000;
 
 fn value(rng: &mut Rng) -> u32 {
     let r = rng.next() as u32;
-    match rng.below(9) {
+    match rng.below(11) {
         0 => r,
         1 => 0x2000_0000 + (r % 0x4_2000),
         2 => 0x2000_0000 + ((r % 0x4_2000) & !3),
@@ -28,6 +28,10 @@ fn value(rng: &mut Rng) -> u32 {
         5 => CODE + ((r % 0x40) & !1),
         6 => 0x2004_2000 - 4 * (r % 8),
         7 => r % 64,
+        // Either side of the striped view's end and of SRAM's start, aligned or not (the
+        // native code's one comparison for an aligned striped access).
+        8 => 0x2004_0000 - 4 + (r % 8),
+        9 => 0x2000_0000 - 4 + (r % 8),
         _ => 0xd000_0000 + ((r % 0x80) & !3),
     }
 }

@@ -122,35 +122,23 @@ pub(super) fn count_statement_uses(stmts: &[Stmt], uses: &mut [u32]) {
 /// The defined values in body order (a definition precedes its uses).
 fn def_order(stmts: &[Stmt]) -> Vec<usize> {
     let mut out = Vec::new();
-    fn walk(stmts: &[Stmt], out: &mut Vec<usize>) {
-        for s in stmts {
-            match s {
-                Stmt::Def(v) => out.push(v.index()),
-                Stmt::If(_, b) => walk(b, out),
-                _ => {}
-            }
+    walk_stmts(stmts, &mut |s| {
+        if let Stmt::Def(v) = s {
+            out.push(v.index())
         }
-    }
-    walk(stmts, &mut out);
+    });
     out
 }
 
 /// `stmts` without the definitions of `dropped` values and with each folded constant's
 /// definition before the product that reads it.
 fn rewrite_defs(stmts: &[Stmt], dropped: &[bool], before: &[Option<Value>]) -> Vec<Stmt> {
-    let mut out = Vec::with_capacity(stmts.len());
-    for s in stmts {
-        match s {
-            Stmt::Def(v) if dropped[v.index()] => {}
-            Stmt::Def(v) => {
-                if let Some(c) = before[v.index()] {
-                    out.push(Stmt::Def(c));
-                }
-                out.push(s.clone());
-            }
-            Stmt::If(c, b) => out.push(Stmt::If(*c, rewrite_defs(b, dropped, before))),
-            other => out.push(other.clone()),
+    rebuild_stmts(stmts, &mut |s, out| match s {
+        Stmt::Def(v) if dropped[v.index()] => {}
+        Stmt::Def(v) => {
+            out.extend(before[v.index()].map(Stmt::Def));
+            out.push(s.clone());
         }
-    }
-    out
+        other => out.push(other.clone()),
+    })
 }

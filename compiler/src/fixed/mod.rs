@@ -433,6 +433,11 @@ pub struct FixedProgram {
     pub reciprocals: Vec<recip::Reciprocal>,
     /// States used as divisors that keep their divisions, and why ([`recip::Refused`]).
     pub refused_reciprocals: Vec<recip::Refused>,
+    /// Per state of `program`: its declared range when the plan narrowed it to the hull of
+    /// what the state is assigned ([`range::state_hulls`]; `program.states` holds the hull,
+    /// which its word's format, its saturation and every read's interval follow), else
+    /// `None`.
+    pub narrowed: Vec<Option<(f64, f64)>>,
 }
 
 /// The format of one word of a key's param block.
@@ -557,7 +562,17 @@ impl FixedProgram {
         // Products of products by constants: one product by the constants' product (`chains`).
         let folded = chains::fold_constant_chains(&recips.program);
         // Each common value once (`common`): the same meaning, fewer products to plan and run.
-        let shared = common::share_common_values(&folded);
+        let mut shared = common::share_common_values(&folded);
+        // States only events set: the hull of what they are assigned, within their declared
+        // ranges (`range::state_hulls`); their words take that hull's format.
+        let mut narrowed = vec![None; shared.states.len()];
+        let hulls = range::state_hulls(&shared);
+        for ((st, h), n) in shared.states.iter_mut().zip(hulls).zip(&mut narrowed) {
+            if h != st.range {
+                *n = Some(st.range);
+                st.range = h;
+            }
+        }
         let program = &shared;
         let ranges = range::analyse(program);
         let n = program.values.len();
@@ -756,6 +771,7 @@ impl FixedProgram {
             param_words,
             reciprocals: recips.recips,
             refused_reciprocals: recips.refused,
+            narrowed,
         };
         // Products are budgeted against the exact divisions: the divisor shifts' error is
         // charged to the divisions' own tolerance, not handed on to the products.

@@ -83,44 +83,135 @@ pub fn deriv_interval(lo: f64, hi: f64, order: u8, fs: f64) -> Interval {
     }
 }
 
-/// Computes the interval of every value of `p`.
+/// Computes the interval of every value of `p`, a state read bounded by its declared range.
 pub fn analyse(p: &Program) -> Ranges {
+    let declared: Vec<Interval> = p
+        .states
+        .iter()
+        .map(|s| Interval::new(s.range.0, s.range.1))
+        .collect();
+    analyse_with(p, &declared)
+}
+
+/// [`analyse`] with each state read bounded by `states` (one interval per state).
+fn analyse_with(p: &Program, states: &[Interval]) -> Ranges {
     let mut values = vec![Interval::point(0.0); p.values.len()];
     let mut clamped = Vec::new();
-    fn walk(p: &Program, stmts: &[Stmt], values: &mut [Interval], clamped: &mut Vec<Value>) {
-        for s in stmts {
-            match s {
-                Stmt::Def(v) => {
-                    let iv = interval(p, &p.values[v.index()].op, values);
-                    let iv = iv.widen();
-                    values[v.index()] = if iv.bounded() {
-                        iv
-                    } else {
-                        clamped.push(*v);
-                        let c = UNBOUNDED_CLAMP;
-                        let lo = if iv.lo.is_nan() {
-                            -c
-                        } else {
-                            iv.lo.clamp(-c, c)
-                        };
-                        let hi = if iv.hi.is_nan() {
-                            c
-                        } else {
-                            iv.hi.clamp(-c, c)
-                        };
-                        Interval::new(lo.min(hi), hi.max(lo))
-                    };
-                }
-                Stmt::If(_, body) => walk(p, body, values, clamped),
-                _ => {}
-            }
-        }
-    }
-    walk(p, &p.body, &mut values, &mut clamped);
+    walk_stmts(&p.body, &mut |s| {
+        let Stmt::Def(v) = s else { return };
+        let iv = interval(p, &p.values[v.index()].op, &values, states);
+        let iv = iv.widen();
+        values[v.index()] = if iv.bounded() {
+            iv
+        } else {
+            clamped.push(*v);
+            let c = UNBOUNDED_CLAMP;
+            let lo = if iv.lo.is_nan() {
+                -c
+            } else {
+                iv.lo.clamp(-c, c)
+            };
+            let hi = if iv.hi.is_nan() {
+                c
+            } else {
+                iv.hi.clamp(-c, c)
+            };
+            Interval::new(lo.min(hi), hi.max(lo))
+        };
+    });
     Ranges { values, clamped }
 }
 
-fn interval(p: &Program, op: &Op, v: &[Interval]) -> Interval {
+/// Rounds of [`state_hulls`]' iteration after which a state whose interval still grows
+/// takes its whole declared range.
+pub const NARROWING_ROUNDS: usize = 6;
+
+/// Relative margin (of the hull's magnitude) added to each side of a narrowed state's hull
+/// that lies inside its declared range, so that a word rounded up at the hull's end (a
+/// product rounded half up) is not saturated: 2^-20.
+pub const NARROWING_MARGIN: f64 = 1.0 / (1u64 << 20) as f64;
+
+/// Per state of `p`, the interval it can hold: for a state that only `if` bodies write (an
+/// event's or a `while`'s: never integrated, never written every sample) the hull of its
+/// initial value and of every value assigned to it, saturated to its declared range (with
+/// [`NARROWING_MARGIN`] inside it); for any other state its declared range. The hulls are a
+/// fixed point of the interval analysis: starting from the initial values, each round
+/// analyses the body with the states bounded by the current hulls and joins what the
+/// writes can assign; a state still growing after [`NARROWING_ROUNDS`] rounds takes its
+/// declared range, so the iteration ends; when no hull grows, every write lies in its
+/// state's hull given that every state read does, and by induction over samples (the
+/// initial values lie in the hulls) every state stays in its hull (Cousot & Cousot,
+/// *Abstract interpretation*, POPL 1977: a post-fixed point of a monotone abstract
+/// transformer, with widening to the declared range). The piano's escapement records the
+/// deepest key travel `xmax = x`: its hull is the key's range `[0, 10 mm]`, half of the
+/// declared `[0, 20 mm]`, so it takes the key's format and its compares and its store need
+/// no alignment shift.
+pub fn state_hulls(p: &Program) -> Vec<(f64, f64)> {
+    let ns = p.states.len();
+    let declared: Vec<Interval> = p
+        .states
+        .iter()
+        .map(|s| Interval::new(s.range.0, s.range.1))
+        .collect();
+    let mut top_level = vec![false; ns];
+    for s in &p.body {
+        if let Stmt::SetState(st, _) = s {
+            top_level[st.index()] = true;
+        }
+    }
+    let mut writes: Vec<(usize, Value)> = Vec::new();
+    walk_stmts(&p.body, &mut |s| {
+        if let Stmt::SetState(st, v) = s {
+            writes.push((st.index(), *v));
+        }
+    });
+    let saturate = |iv: Interval, d: Interval| {
+        let c = |x: f64| {
+            if x.is_nan() {
+                d.lo
+            } else {
+                x.clamp(d.lo, d.hi)
+            }
+        };
+        Interval::new(c(iv.lo), c(iv.hi))
+    };
+    let mut hull: Vec<Interval> = (0..ns)
+        .map(|i| {
+            if top_level[i] || !(declared[i].lo.is_finite() && declared[i].hi.is_finite()) {
+                declared[i]
+            } else {
+                saturate(Interval::point(p.states[i].init), declared[i])
+            }
+        })
+        .collect();
+    let mut round = 0;
+    loop {
+        let values = analyse_with(p, &hull).values;
+        let mut next = hull.clone();
+        for &(st, v) in &writes {
+            next[st] = next[st].union(saturate(values[v.index()], declared[st]));
+        }
+        if next == hull {
+            break;
+        }
+        round += 1;
+        for i in 0..ns {
+            if next[i] != hull[i] && round >= NARROWING_ROUNDS {
+                next[i] = declared[i];
+            }
+        }
+        hull = next;
+    }
+    hull.iter()
+        .zip(&declared)
+        .map(|(h, d)| {
+            let m = NARROWING_MARGIN * h.mag();
+            (d.lo.max(h.lo - m), d.hi.min(h.hi + m))
+        })
+        .collect()
+}
+
+fn interval(p: &Program, op: &Op, v: &[Interval], states: &[Interval]) -> Interval {
     let g = |x: &Value| v[x.index()];
     let unit = Interval::new(0.0, 1.0);
     match op {
@@ -139,10 +230,7 @@ fn interval(p: &Program, op: &Op, v: &[Interval]) -> Interval {
             let r = p.sensors[s.index()].range;
             deriv_interval(r.0, r.1, *order, p.sample_rate_hz)
         }
-        Op::State(s) => {
-            let r = p.states[s.index()].range;
-            Interval::new(r.0, r.1)
-        }
+        Op::State(s) => states[s.index()],
         Op::Mode(m) => Interval::new(0.0, (p.modes[m.index()].variants.len().max(1) - 1) as f64),
         Op::Edge(_) | Op::Not(_) | Op::Cmp(..) | Op::And(..) | Op::Or(..) => unit,
         Op::Neg(x) => Interval::new(-g(x).hi, -g(x).lo),

@@ -255,11 +255,11 @@ pub fn reciprocals(p: &Program) -> Reciprocals {
         _ => false,
     };
     for r in out.recips.iter_mut().filter(|r| r.carried) {
-        let without = Program {
-            body: drop_writes(&q.body, &[r.state]),
+        let unwritten = Program {
+            body: without(&q.body, writes_of(&[r.state])),
             ..q.clone()
         };
-        let live_without = live_values(&without);
+        let live_without = live_values(&unwritten);
         r.dropped = (0..q.values.len())
             .filter(|&i| live[i] && !live_without[i] && is_division(i))
             .map(|i| q.values[i].span.clone())
@@ -271,11 +271,11 @@ pub fn reciprocals(p: &Program) -> Reciprocals {
         .filter(|r| r.carried)
         .map(|r| r.state)
         .collect();
-    q.body = drop_writes(&q.body, &carried);
+    q.body = without(&q.body, writes_of(&carried));
     let live = live_values(q);
     let n_orig = p.values.len();
     let dead = |v: Value| !live[v.index()] && (v.index() >= n_orig || live_before[v.index()]);
-    q.body = drop_defs(&q.body, &dead);
+    q.body = without(&q.body, |s| matches!(s, Stmt::Def(v) if dead(*v)));
     out
 }
 
@@ -465,24 +465,16 @@ fn live_values(p: &Program) -> Vec<bool> {
     crate::cgen::live_values(p).0
 }
 
-fn drop_writes(stmts: &[Stmt], carried: &[StateId]) -> Vec<Stmt> {
-    stmts
-        .iter()
-        .filter(|s| !matches!(s, Stmt::SetState(st, _) if carried.contains(st)))
-        .map(|s| match s {
-            Stmt::If(c, b) => Stmt::If(*c, drop_writes(b, carried)),
-            other => other.clone(),
-        })
-        .collect()
+/// `stmts` without the statements `drop` picks, in `if` bodies too.
+fn without(stmts: &[Stmt], drop: impl Fn(&Stmt) -> bool) -> Vec<Stmt> {
+    rebuild_stmts(stmts, &mut |s, out| {
+        if !drop(s) {
+            out.push(s.clone())
+        }
+    })
 }
 
-fn drop_defs(stmts: &[Stmt], dead: &impl Fn(Value) -> bool) -> Vec<Stmt> {
-    stmts
-        .iter()
-        .filter(|s| !matches!(s, Stmt::Def(v) if dead(*v)))
-        .map(|s| match s {
-            Stmt::If(c, b) => Stmt::If(*c, drop_defs(b, dead)),
-            other => other.clone(),
-        })
-        .collect()
+/// The writes of `carried` states.
+fn writes_of(carried: &[StateId]) -> impl Fn(&Stmt) -> bool + '_ {
+    move |s| matches!(s, Stmt::SetState(st, _) if carried.contains(st))
 }

@@ -381,9 +381,14 @@ pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
             2f64.powi(-f),
             pr.state[i],
             if pr.accumulating[i] {
-                "(per sample; accumulates)"
+                "(per sample; accumulates)".to_string()
             } else {
-                ""
+                match fp.narrowed.get(i).copied().flatten() {
+                    Some((lo, hi)) => format!(
+                        "(declared [{lo:.4e}, {hi:.4e}]: narrowed to what its assignments can hold)"
+                    ),
+                    None => String::new(),
+                }
             }
         );
     }

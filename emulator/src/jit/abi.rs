@@ -23,7 +23,7 @@ pub(crate) struct Ctx {
     pub stalls: *mut u64,
     /// Out: end cycle of the last instruction that cost two cycles or more (0: none).
     pub q: u64,
-    /// Out: instructions retired.
+    /// Out: instructions retired (zero on the call; the native code adds to it in place).
     pub retired: u64,
     /// Confined code only ([`crate::jit`], "Confinement"): bit *b* set when the core may
     /// access SRAM bank *b* (0-3 SRAM0-3, 4 SRAM4, 5 SRAM5).

@@ -277,6 +277,13 @@ impl Store {
         let (b, bound) = Translator::run(b, instrs, flavour);
         b.finalize(module.target_config());
         module.define_function(id, &mut ctx).ok()?;
+        // `TACTUS_JIT_DUMP=dir`: each region's machine code, for reading with
+        // `objdump -D -b binary -m i386:x86-64 dir/region0-Solo.bin`.
+        if let Ok(dir) = std::env::var("TACTUS_JIT_DUMP") {
+            if let Some(cc) = ctx.compiled_code() {
+                let _ = std::fs::write(format!("{dir}/{name}-{flavour:?}.bin"), cc.code_buffer());
+            }
+        }
         module.finalize_definitions().ok()?;
         let code = module.get_finalized_function(id);
         // SAFETY: `code` is the function just defined with the signature above (two

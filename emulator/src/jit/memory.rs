@@ -58,13 +58,13 @@ impl Translator<'_> {
         self.b.ins().uextend(types::I64, r)
     }
 
-    /// `bank · 16` (i32) of a striped SRAM offset: `((off >> 2) & 3) << 4`.
+    /// `bank · 16` (of `off`'s type) of a striped SRAM offset: `((off >> 2) & 3) << 4`.
     fn striped_bank_offset(&mut self, off: Value) -> Value {
         let x = self.b.ins().ishl_imm_u(off, 2);
         self.b.ins().band_imm_u(x, 0x30)
     }
 
-    /// `bank · 16` (i32) of an SRAM4/5 offset: `(4 + ((off >> 12) & 1)) << 4`.
+    /// `bank · 16` (of `off`'s type) of an SRAM4/5 offset: `(4 + ((off >> 12) & 1)) << 4`.
     fn scratch_bank_offset(&mut self, off: Value) -> Value {
         let x = self.b.ins().ushr_imm_u(off, 8);
         let x = self.b.ins().band_imm_u(x, 0x10);
@@ -105,7 +105,11 @@ impl Translator<'_> {
             let slot = self.b.ins().iadd(c.journal, slot);
             for (k, &(off, _)) in at.iter().enumerate() {
                 let word = self.b.ins().band_imm_u(off, !3u32 as i64);
-                let word = self.b.ins().uextend(types::I64, word);
+                let word = if self.b.func.dfg.value_type(word) == types::I64 {
+                    word
+                } else {
+                    self.b.ins().uextend(types::I64, word)
+                };
                 let p = self.b.ins().iadd(self.sram, word);
                 let old = self.b.ins().uload32(self.mf, p, 0);
                 let key = self.b.ins().ishl_imm_u(word, 32);
@@ -148,69 +152,94 @@ impl Translator<'_> {
         let size = op.size();
         let solo = self.claims_other.is_none();
         self.flush();
-        if size > 1 {
-            let low = self.b.ins().band_imm_u(addr, size as i64 - 1);
-            self.general_if(low, pc);
-        }
         // SRAM: (physical offset, claim-table offset) from each of the three views.
+        // (Both i64, so that neither is widened on the common path.)
         let in_sram = self.b.create_block();
-        self.b.append_block_param(in_sram, types::I32);
-        self.b.append_block_param(in_sram, types::I32);
+        self.b.append_block_param(in_sram, types::I64);
+        self.b.append_block_param(in_sram, types::I64);
         let join = self.b.create_block();
         self.b.append_block_param(join, types::I32);
         if !solo {
             self.b.append_block_param(join, types::I64);
         }
+        // The common case first, in one comparison: aligned and in the striped view. The
+        // offset rotated right by log2(size) moves the low (alignment) bits to the top, so
+        // it is below `0x40000 >> log2(size)` exactly when the offset is below 0x40000 and
+        // a multiple of the size.
         let striped = self.b.create_block();
-        let not_striped = self.b.create_block();
+        let slow = self.b.create_block();
         let off = self.b.ins().iadd_imm_s(addr, -(SRAM_BASE as i64));
+        let shift = size.trailing_zeros() as i64;
+        let key = if shift == 0 {
+            off
+        } else {
+            self.b.ins().rotr_imm_u(off, shift)
+        };
         let ok = self
             .b
             .ins()
-            .icmp_imm_u(IntCC::UnsignedLessThan, off, 0x4_0000);
-        self.b.ins().brif(ok, striped, &[], not_striped, &[]);
+            .icmp_imm_u(IntCC::UnsignedLessThan, key, 0x4_0000 >> shift);
+        self.b.ins().brif(ok, striped, &[], slow, &[]);
         self.b.switch_to_block(striped);
-        let boff = self.striped_bank_offset(off);
+        let off64 = self.b.ins().uextend(types::I64, off);
+        let boff = self.striped_bank_offset(off64);
         self.b
             .ins()
-            .jump(in_sram, &[BlockArg::Value(off), BlockArg::Value(boff)]);
-        // SRAM4/5 (striped view's end).
-        self.b.switch_to_block(not_striped);
-        let scratch = self.b.create_block();
+            .jump(in_sram, &[BlockArg::Value(off64), BlockArg::Value(boff)]);
+        // The non-striped alias of SRAM0-3 (bank = bits 17:16; where the firmware images
+        // keep each core's data), aligned, in one comparison as above.
+        self.b.switch_to_block(slow);
+        let al = self.b.ins().iadd_imm_s(addr, -(SRAM_ALIAS_BASE as i64));
+        let key = if shift == 0 {
+            al
+        } else {
+            self.b.ins().rotr_imm_u(al, shift)
+        };
+        let ok = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, key, 0x4_0000 >> shift);
         let alias = self.b.create_block();
+        let rest = self.b.create_block();
+        self.b.ins().brif(ok, alias, &[], rest, &[]);
+        self.b.switch_to_block(alias);
+        let bank = self.b.ins().ushr_imm_u(al, 16);
+        let word = self.b.ins().band_imm_u(al, 0xfffc);
+        let phys = self.b.ins().iadd(word, bank);
+        let phys = self.b.ins().ishl_imm_u(phys, 2);
+        // (A word access is aligned here: its low bits are zero.)
+        let phys = if size < 4 {
+            let low = self.b.ins().band_imm_u(al, 3);
+            self.b.ins().bor(phys, low)
+        } else {
+            phys
+        };
+        // The bank from the physical (striped) offset.
+        let phys = self.b.ins().uextend(types::I64, phys);
+        let boff = self.striped_bank_offset(phys);
+        self.b
+            .ins()
+            .jump(in_sram, &[BlockArg::Value(phys), BlockArg::Value(boff)]);
+        // Unaligned: the general path; aligned: SRAM4/5 (the striped view's end: `off` is
+        // at least 0x40000 here), flash.
+        self.b.switch_to_block(rest);
+        if size > 1 {
+            let low = self.b.ins().band_imm_u(addr, size as i64 - 1);
+            self.general_if(low, pc);
+        }
+        let scratch = self.b.create_block();
+        let elsewhere = self.b.create_block();
         let ok = self
             .b
             .ins()
             .icmp_imm_u(IntCC::UnsignedLessThan, off, SRAM_SIZE as i64);
-        self.b.ins().brif(ok, scratch, &[], alias, &[]);
+        self.b.ins().brif(ok, scratch, &[], elsewhere, &[]);
         self.b.switch_to_block(scratch);
-        let boff = self.scratch_bank_offset(off);
+        let off64 = self.b.ins().uextend(types::I64, off);
+        let boff = self.scratch_bank_offset(off64);
         self.b
             .ins()
-            .jump(in_sram, &[BlockArg::Value(off), BlockArg::Value(boff)]);
-        // The non-striped alias of SRAM0-3: bank = bits 17:16.
-        self.b.switch_to_block(alias);
-        let al = self.b.ins().iadd_imm_s(addr, -(SRAM_ALIAS_BASE as i64));
-        let ok = self
-            .b
-            .ins()
-            .icmp_imm_u(IntCC::UnsignedLessThan, al, 0x4_0000);
-        let bank = self.b.ins().ushr_imm_u(al, 16);
-        let boff = self.b.ins().ushr_imm_u(al, 12);
-        let boff = self.b.ins().band_imm_u(boff, 0x30);
-        let word = self.b.ins().band_imm_u(al, 0xfffc);
-        let phys = self.b.ins().iadd(word, bank);
-        let phys = self.b.ins().ishl_imm_u(phys, 2);
-        let low = self.b.ins().band_imm_u(al, 3);
-        let phys = self.b.ins().bor(phys, low);
-        let elsewhere = self.b.create_block();
-        self.b.ins().brif(
-            ok,
-            in_sram,
-            &[BlockArg::Value(phys), BlockArg::Value(boff)],
-            elsewhere,
-            &[],
-        );
+            .jump(in_sram, &[BlockArg::Value(off64), BlockArg::Value(boff)]);
         self.b.switch_to_block(elsewhere);
         if op.is_store() {
             let p = self.c32(pc);
@@ -242,12 +271,11 @@ impl Translator<'_> {
         self.b.switch_to_block(in_sram);
         let off = self.b.block_params(in_sram)[0];
         let boff = self.b.block_params(in_sram)[1];
-        let boff = self.b.ins().uextend(types::I64, boff);
         self.confine(ins, &[(off, boff)], op.is_store());
         let c = self.b.use_var(self.cyc);
         let at = self.b.ins().iadd_imm_s(c, 1);
         let wait = self.arbitrate(boff, at);
-        let off64 = self.b.ins().uextend(types::I64, off);
+        let off64 = off;
         let p = self.b.ins().iadd(self.sram, off64);
         let first = if op.is_store() {
             let v = self.reg(rt, pc);

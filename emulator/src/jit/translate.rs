@@ -71,12 +71,16 @@ pub(super) struct Translator<'a> {
     pub(super) regs: [Variable; 16],
     pub(super) flags: Flags,
     pub(super) cyc: Variable,
-    pub(super) retired: Variable,
+    /// The call's [`Ctx`]: instructions retired are added to [`Ctx::retired`] in place
+    /// (at exits, back edges and jumps to a label), so no register holds their count.
+    pub(super) ctx: Value,
     pub(super) stalls: Variable,
     pub(super) q: Variable,
     pub(super) exit_pc: Variable,
     pub(super) exit_why: Variable,
-    /// Cycles and instructions not yet added to `cyc` / `retired` (straight-line code).
+    /// Cycles not yet added to `cyc` and instructions not yet added to [`Ctx::retired`]
+    /// (straight-line code; the cycles are added before each memory access and branch,
+    /// the instructions only where control flow leaves or joins).
     pub(super) pend_cyc: u64,
     pub(super) pend_n: u64,
     pub(super) exit: Block,
@@ -140,7 +144,6 @@ impl<'a> Translator<'a> {
             v: b.declare_var(types::I32),
         };
         let cyc = b.declare_var(types::I64);
-        let retired = b.declare_var(types::I64);
         let stalls = b.declare_var(types::I64);
         let q = b.declare_var(types::I64);
         let exit_pc = b.declare_var(types::I32);
@@ -189,7 +192,6 @@ impl<'a> Translator<'a> {
         let v = b.ins().load(types::I64, mf, stalls_ptr, 0);
         b.def_var(stalls, v);
         let zero = b.ins().iconst(types::I64, 0);
-        b.def_var(retired, zero);
         b.def_var(q, zero);
         let zero32 = b.ins().iconst(types::I32, 0);
         b.def_var(exit_pc, zero32);
@@ -237,7 +239,7 @@ impl<'a> Translator<'a> {
             regs,
             flags,
             cyc,
-            retired,
+            ctx,
             stalls,
             q,
             exit_pc,
@@ -265,6 +267,7 @@ impl<'a> Translator<'a> {
             if let Some(l) = labels[i] {
                 if live {
                     t.flush();
+                    t.flush_retired();
                     t.b.ins().jump(l, &[]);
                 }
                 t.b.switch_to_block(l);
@@ -301,8 +304,6 @@ impl<'a> Translator<'a> {
         t.b.ins().store(mf, v, core, offset_of!(Core, cycle) as i32);
         let v = t.b.use_var(stalls);
         t.b.ins().store(mf, v, stalls_ptr, 0);
-        let v = t.b.use_var(retired);
-        t.b.ins().store(mf, v, ctx, offset_of!(Ctx, retired) as i32);
         let v = t.b.use_var(q);
         t.b.ins().store(mf, v, ctx, offset_of!(Ctx, q) as i32);
         if let Some(c) = t.confined {
@@ -379,7 +380,7 @@ impl<'a> Translator<'a> {
         self.b.def_var(self.flags.c, c);
     }
 
-    /// Adds the pending straight-line cycles and instructions to their variables.
+    /// Adds the pending straight-line cycles to the cycle variable.
     pub(super) fn flush(&mut self) {
         if self.pend_cyc != 0 {
             let c = self.b.use_var(self.cyc);
@@ -387,17 +388,30 @@ impl<'a> Translator<'a> {
             self.b.def_var(self.cyc, c);
             self.pend_cyc = 0;
         }
+    }
+
+    /// Adds the pending instructions to [`Ctx::retired`] before a jump to a label (every
+    /// path into a label carries none pending).
+    pub(super) fn flush_retired(&mut self) {
+        self.add_retired();
+        self.pend_n = 0;
+    }
+
+    /// Adds the pending instructions to [`Ctx::retired`] and keeps them pending: for an
+    /// exit in a side block, after which the translation goes on along the other branch.
+    fn add_retired(&mut self) {
         if self.pend_n != 0 {
-            let n = self.b.use_var(self.retired);
+            let at = offset_of!(Ctx, retired) as i32;
+            let n = self.b.ins().load(types::I64, self.mf, self.ctx, at);
             let n = self.b.ins().iadd_imm_s(n, self.pend_n as i64);
-            self.b.def_var(self.retired, n);
-            self.pend_n = 0;
+            self.b.ins().store(self.mf, n, self.ctx, at);
         }
     }
 
     /// Jumps to the exit with PC `pc` and reason `why` (pending counts flushed first).
     pub(super) fn leave(&mut self, pc: Value, why: Exit) {
         self.flush();
+        self.add_retired();
         self.b.def_var(self.exit_pc, pc);
         let w = self.b.ins().iconst(types::I32, why as i64);
         self.b.def_var(self.exit_why, w);
@@ -464,6 +478,7 @@ impl<'a> Translator<'a> {
         internal: Option<(usize, Option<Block>, u64, bool)>,
     ) {
         self.flush();
+        self.flush_retired();
         match internal {
             Some((_, Some(label), bound, back)) => {
                 if back {
