@@ -2,6 +2,14 @@
 //! non-striped aliases, flash), the inline bank arbiter, the code-page check after a
 //! store, and the multiple transfers (PUSH, POP, STM, LDM) — `Core::mem_fast`,
 //! `push_fast`, `pop_fast` in `exec.rs`.
+//!
+//! A single access tries the views in the order programs use them, each in one unsigned
+//! comparison that also checks the alignment (the offset into the view rotated right by
+//! log2(size) is below the view's size >> log2(size) exactly when it is in the view and
+//! aligned): the striped view, then the non-striped alias (each core's data in the
+//! firmware images); only then does an unaligned access leave for the general path and an
+//! aligned one try SRAM4/5 and flash. Offsets and bank offsets are 64-bit from the view on,
+//! so the common path widens nothing twice.
 
 use super::abi::Exit;
 use super::scan::RegionInstr;
