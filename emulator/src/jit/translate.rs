@@ -5,6 +5,7 @@
 
 use super::abi::{Ctx, Exit};
 use super::scan::{bounds, branch_of, RegionInstr};
+use crate::bus::SRAM_ALIAS_BASE;
 use crate::core::Core;
 use crate::decode::{Instr, MemOp};
 use crate::exec::{branch_target, literal_address};
@@ -87,6 +88,9 @@ pub(super) struct Translator<'a> {
     pub(super) written: u16,
     /// Confined code only (see the parent module): the bank mask and the journal.
     pub(super) confined: Option<Confined>,
+    /// The region is fetched through the non-striped alias of SRAM0-3 (as the firmware
+    /// images place each core's code): its accesses try that view before the striped one.
+    pub(super) alias_first: bool,
 }
 
 /// A confined function's bank mask and journal, loaded from [`Ctx`] at its entry.
@@ -249,6 +253,7 @@ impl<'a> Translator<'a> {
             exit,
             written: 0,
             confined,
+            alias_first: instrs[0].pc.wrapping_sub(SRAM_ALIAS_BASE) < 0x4_0000,
         };
         // A block for each instruction a branch of the region jumps to.
         let mut labels: Vec<Option<Block>> = vec![None; instrs.len()];
