@@ -84,7 +84,8 @@ impl Translator<'_> {
     /// bank; then, for a store with a journal, journals the old words it will overwrite (the journal's room
     /// was checked at the region's entry or last back edge, [`Translator::journal_room`]).
     /// Nothing when the code is not confined.
-    fn confine(&mut self, ins: &RegionInstr, at: &[(Value, Value)], store: bool) {
+    /// `aligned`: the offsets are word-aligned already (word accesses).
+    fn confine(&mut self, ins: &RegionInstr, at: &[(Value, Value)], store: bool, aligned: bool) {
         let Some(c) = self.confined else {
             return;
         };
@@ -112,7 +113,11 @@ impl Translator<'_> {
             let slot = self.b.ins().ishl_imm_u(len, 3);
             let slot = self.b.ins().iadd(c.journal, slot);
             for (k, &(off, _)) in at.iter().enumerate() {
-                let word = self.b.ins().band_imm_u(off, !3u32 as i64);
+                let word = if aligned {
+                    off
+                } else {
+                    self.b.ins().band_imm_u(off, !3u32 as i64)
+                };
                 let word = if self.b.func.dfg.value_type(word) == types::I64 {
                     word
                 } else {
@@ -275,7 +280,7 @@ impl Translator<'_> {
         self.b.switch_to_block(in_sram);
         let off = self.b.block_params(in_sram)[0];
         let boff = self.b.block_params(in_sram)[1];
-        self.confine(ins, &[(off, boff)], op.is_store());
+        self.confine(ins, &[(off, boff)], op.is_store(), op.size() == 4);
         let c = self.b.use_var(self.cyc);
         let at = self.b.ins().iadd_imm_s(c, 1);
         let wait = self.arbitrate(boff, at);
@@ -380,7 +385,7 @@ impl Translator<'_> {
                 (o, self.bank_offset(o, Some(striped)))
             })
             .collect();
-        self.confine(ins, &words, values.is_some());
+        self.confine(ins, &words, values.is_some(), true);
         let c = self.b.use_var(self.cyc);
         let mut at = self.b.ins().iadd_imm_s(c, 1);
         let mut total = None;
