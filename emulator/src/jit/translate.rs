@@ -50,12 +50,15 @@ pub(crate) enum Flavour {
     /// only records its own claim (the other core reads it when it runs again).
     Solo,
     /// Running ahead ([`crate::board`], "Running ahead"): arbitrated, every access checked
-    /// against the allowed banks, every store journaled (see the parent module).
-    Confined,
+    /// against the allowed banks (the bank mask, bit per bank, as [`abi::Ctx::allowed`]
+    /// at every call of this code), every store journaled (see the parent module).
+    ///
+    /// [`abi::Ctx::allowed`]: super::abi::Ctx::allowed
+    Confined(u8),
     /// [`Flavour::Confined`] for a core whose accesses all come after the other core's last
     /// claims (as [`Flavour::Solo`]): in a window the other core does not touch the banks
     /// this core may, so their claims stay as they were.
-    ConfinedSolo,
+    ConfinedSolo(u8),
 }
 
 pub(super) struct Translator<'a> {
@@ -111,6 +114,8 @@ pub(super) struct Confined {
     /// `cap - room`, once the entry has checked that the journal has the room (so it does
     /// not wrap): each back edge compares the length with it.
     pub(super) cap_room: Option<Value>,
+    /// The bank mask the code is compiled for (the same as `allowed` at run time).
+    pub(super) mask: u8,
 }
 
 impl<'a> Translator<'a> {
@@ -121,8 +126,12 @@ impl<'a> Translator<'a> {
         instrs: &[RegionInstr],
         flavour: Flavour,
     ) -> (FunctionBuilder<'a>, u64) {
-        let confined = matches!(flavour, Flavour::Confined | Flavour::ConfinedSolo);
-        let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo);
+        let mask = match flavour {
+            Flavour::Confined(m) | Flavour::ConfinedSolo(m) => Some(m),
+            _ => None,
+        };
+        let confined = mask.is_some();
+        let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo(_));
         let index: HashMap<u32, usize> =
             instrs.iter().enumerate().map(|(i, x)| (x.pc, i)).collect();
         let targets: Vec<Option<usize>> = instrs
@@ -231,6 +240,7 @@ impl<'a> Translator<'a> {
                 len,
                 room,
                 cap_room: None,
+                mask: mask.unwrap_or(0),
             }
         });
         let exit = b.create_block();
