@@ -193,14 +193,17 @@ impl Blocks {
         }
     }
 
-    /// The confined cache (`solo`: without arbitration) for bank mask `mask`, made on
-    /// first use with the board's compile threshold.
-    fn confined_for(&mut self, solo: bool, mask: u8) -> &mut Jit {
+    /// The confined cache (`solo`: without arbitration) for bank mask `mask`, with or
+    /// without journal code, made on first use with the board's compile threshold.
+    fn confined_for(&mut self, solo: bool, mask: u8, journaled: bool) -> &mut Jit {
         let threshold = self.jit.threshold;
         let (list, flavour) = if solo {
-            (&mut self.confined_solo, jit::Flavour::ConfinedSolo(mask))
+            (
+                &mut self.confined_solo,
+                jit::Flavour::ConfinedSolo(mask, journaled),
+            )
         } else {
-            (&mut self.confined, jit::Flavour::Confined(mask))
+            (&mut self.confined, jit::Flavour::Confined(mask, journaled))
         };
         let at = match list.iter().position(|j| j.flavour() == flavour) {
             Some(at) => at,
@@ -532,7 +535,7 @@ pub(crate) fn run_confined(
         }
         let pc = core.r[15];
         if native {
-            let cache = blocks.confined_for(core.cycle >= quiet_from, allowed);
+            let cache = blocks.confined_for(core.cycle >= quiet_from, allowed, journal.is_some());
             if let Some(region) = cache.lookup(sys, pc) {
                 if core.cycle.saturating_add(region.bound) <= limit && region.banks & !allowed == 0
                 {

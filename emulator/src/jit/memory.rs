@@ -116,14 +116,13 @@ impl Translator<'_> {
     /// Confined code only: for a store with a journal, journals the old words at the
     /// offsets of `at` (see [`Translator::confine`]).
     fn journal(&mut self, at: &[(Value, Value)], store: bool, aligned: bool) {
-        let Some(c) = self.confined else {
+        let Some(c) = self.confined.filter(|c| c.journaled) else {
             return;
         };
         if store {
-            // No journal (a core catching up needs no undo): no entries.
             let write = self.b.create_block();
             let done = self.b.create_block();
-            self.b.ins().brif(c.journal, write, &[], done, &[]);
+            self.b.ins().jump(write, &[]);
             self.b.switch_to_block(write);
             let len = self.b.use_var(c.len);
             let slot = self.b.ins().ishl_imm_u(len, 3);

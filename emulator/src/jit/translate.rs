@@ -51,14 +51,16 @@ pub(crate) enum Flavour {
     Solo,
     /// Running ahead ([`crate::board`], "Running ahead"): arbitrated, every access checked
     /// against the allowed banks (the bank mask, bit per bank, as [`abi::Ctx::allowed`]
-    /// at every call of this code), every store journaled (see the parent module).
+    /// at every call of this code), and, when the second field is true (the code is only
+    /// called with a journal), every store journaled (see the parent module); when false
+    /// (a core catching up, called without a journal), no journal code at all.
     ///
     /// [`abi::Ctx::allowed`]: super::abi::Ctx::allowed
-    Confined(u8),
+    Confined(u8, bool),
     /// [`Flavour::Confined`] for a core whose accesses all come after the other core's last
     /// claims (as [`Flavour::Solo`]): in a window the other core does not touch the banks
     /// this core may, so their claims stay as they were.
-    ConfinedSolo(u8),
+    ConfinedSolo(u8, bool),
 }
 
 pub(super) struct Translator<'a> {
@@ -116,6 +118,8 @@ pub(super) struct Confined {
     pub(super) cap_room: Option<Value>,
     /// The bank mask the code is compiled for (the same as `allowed` at run time).
     pub(super) mask: u8,
+    /// The code is called with a journal (else without: no journal code).
+    pub(super) journaled: bool,
 }
 
 impl<'a> Translator<'a> {
@@ -126,12 +130,12 @@ impl<'a> Translator<'a> {
         instrs: &[RegionInstr],
         flavour: Flavour,
     ) -> (FunctionBuilder<'a>, u64) {
-        let mask = match flavour {
-            Flavour::Confined(m) | Flavour::ConfinedSolo(m) => Some(m),
-            _ => None,
+        let (mask, journaled) = match flavour {
+            Flavour::Confined(m, j) | Flavour::ConfinedSolo(m, j) => (Some(m), j),
+            _ => (None, false),
         };
         let confined = mask.is_some();
-        let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo(_));
+        let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo(..));
         let index: HashMap<u32, usize> =
             instrs.iter().enumerate().map(|(i, x)| (x.pc, i)).collect();
         let targets: Vec<Option<usize>> = instrs
@@ -241,6 +245,7 @@ impl<'a> Translator<'a> {
                 room,
                 cap_room: None,
                 mask: mask.unwrap_or(0),
+                journaled,
             }
         });
         let exit = b.create_block();
@@ -277,7 +282,7 @@ impl<'a> Translator<'a> {
             }
         }
         // Confined: no store checks the journal's capacity; the entry checks room for all.
-        if let Some(c) = t.confined {
+        if let Some(c) = t.confined.filter(|c| c.journaled) {
             let room = t.journal_room();
             t.general_unless(room, instrs[0].pc);
             let cap_room = t.b.ins().iadd_imm_s(c.cap, -(c.room as i64));
@@ -520,7 +525,7 @@ impl<'a> Translator<'a> {
                         self.b
                             .ins()
                             .icmp(IntCC::UnsignedLessThanOrEqual, end, self.limit);
-                    if self.confined.is_some() {
+                    if self.confined.is_some_and(|c| c.journaled) {
                         let room = self.journal_room();
                         fits = self.b.ins().band(fits, room);
                     }
