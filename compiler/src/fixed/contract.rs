@@ -49,6 +49,16 @@ pub struct ContractCheck {
     pub shift_ratio: f64,
     /// The largest relative difference of an argument as a fraction of its tolerance.
     pub arg_ratio: f64,
+    /// The force clause read with the contract's time tolerance for events
+    /// ([`Contract::event_time_s`], 0.5 ms by default): the largest distance, DAC LSB, from a
+    /// sample's total force in either run to the nearest total force of the other run within
+    /// that tolerance — (τ, ε)-closeness of hybrid trajectories (H. Abbas, G. Fainekos et
+    /// al., "Conformance testing as falsification for cyber-physical systems", ACM TECS
+    /// 2014). A contact that closes a sample apart (the piano's hammer landing back on the
+    /// key, which emits no event) moves a force step by a sample: the strict clause
+    /// ([`ContractCheck::max_force_lsb`]) sees the whole step, this one the step's shift as
+    /// the event clause sees an event's. Measured only by a full comparison (`stop` off).
+    pub max_force_lsb_within_time: f64,
     /// Samples where some fixed state lay outside its declared range.
     pub state_out_of_range: usize,
     /// Values that saturated (the range analysis claimed they cannot).
@@ -206,6 +216,18 @@ impl ReferenceRun {
 /// [`Program::runtime_params`] order; empty: the params' own values), recording what the
 /// clauses of `p.contract` need.
 pub fn reference(p: &Program, fp: &FixedProgram, keys: &[f64], params: &[f64]) -> ReferenceRun {
+    let raw: Vec<i32> = keys
+        .iter()
+        .map(|&k| FixedInstance::sensor_raw(fp, 0, Some(k)))
+        .collect();
+    reference_raw(p, fp, &raw, params)
+}
+
+/// [`reference`] from raw words of the first sensor, as a sensor delivers them (the budget
+/// corpus: glitches, words outside the declared range, arbitrary words). Both engines read
+/// each word as the fixed engines do: the f64 interpreter gets the word's value in the
+/// sensor's format, clamped to the declared range as every engine clamps a reading.
+pub fn reference_raw(p: &Program, fp: &FixedProgram, raw: &[i32], params: &[f64]) -> ReferenceRun {
     let mut q;
     let prog = if params.is_empty() {
         p
@@ -219,18 +241,19 @@ pub fn reference(p: &Program, fp: &FixedProgram, keys: &[f64], params: &[f64]) -
     };
     let c = &p.contract;
     let mut a = Instance::new(prog);
+    let n = raw.len();
     let mut run = ReferenceRun {
-        raw: Vec::with_capacity(keys.len()),
-        total: Vec::with_capacity(keys.len()),
-        terms: vec![Vec::with_capacity(keys.len()); c.terms.len()],
-        outputs: vec![Vec::with_capacity(keys.len()); c.outputs.len()],
+        raw: Vec::with_capacity(n),
+        total: Vec::with_capacity(n),
+        terms: vec![Vec::with_capacity(n); c.terms.len()],
+        outputs: vec![Vec::with_capacity(n); c.outputs.len()],
         events: Vec::new(),
         params: params.to_vec(),
     };
-    for (n, &k) in keys.iter().enumerate() {
-        let raw = FixedInstance::sensor_raw(fp, 0, Some(k));
-        let oa = a.step(&[fx::to_f64(raw, fp.sensor_frac[0])]);
-        run.raw.push(raw);
+    let (lo, hi) = fp.sensor_raw_range[0];
+    for (n, &w) in raw.iter().enumerate() {
+        let oa = a.step(&[fx::to_f64(w.clamp(lo, hi), fp.sensor_frac[0])]);
+        run.raw.push(w);
         run.total.push(oa.total);
         for (t, (f, _)) in run.terms.iter_mut().zip(&c.terms) {
             t.push(oa.forces[f.index()]);
@@ -275,11 +298,15 @@ pub fn compare(
     let force_limit = c.force.lsb(dac_lsb_n);
     let mut ev_b: Vec<(usize, usize, Vec<f64>)> = Vec::new();
     let mut ran = run.raw.len();
+    let mut fixed_total: Vec<f64> = Vec::with_capacity(if stop { 0 } else { run.raw.len() });
     for (n, (&raw, &total)) in run.raw.iter().zip(&run.total).enumerate() {
         let ob = b.step_raw(&[raw]);
         out.samples += 1;
         let ft = fx::to_f64(ob.total, fp.total_frac);
         out.max_force_lsb = out.max_force_lsb.max((total - ft).abs() / dac_lsb_n);
+        if !stop {
+            fixed_total.push(ft);
+        }
         let mut broken = out.max_force_lsb > force_limit;
         for (k, ((f, bound), series)) in c.terms.iter().zip(&run.terms).enumerate() {
             let i = f.index();
@@ -315,6 +342,12 @@ pub fn compare(
             break;
         }
     }
+    if !stop {
+        let window = (c.event_time_s * p.sample_rate_hz).ceil() as usize;
+        let a = &run.total[..fixed_total.len()];
+        out.max_force_lsb_within_time =
+            closeness(a, &fixed_total, window).max(closeness(&fixed_total, a, window)) / dac_lsb_n;
+    }
     out.overflowed = b.overflowed().iter().filter(|o| **o).count();
     let ev_a: Vec<&(usize, usize, Vec<f64>)> = run.events.iter().filter(|e| e.0 < ran).collect();
     out.events_f64 = ev_a.len();
@@ -346,6 +379,23 @@ pub fn compare(
     }
     out.unmatched += used.iter().filter(|u| !**u).count();
     out
+}
+
+/// The largest distance from a sample of `a` to the nearest sample of `b` at most `window`
+/// samples away (the one-sided (τ, ε)-closeness of [`ContractCheck::max_force_lsb_within_time`]).
+fn closeness(a: &[f64], b: &[f64], window: usize) -> f64 {
+    let mut worst: f64 = 0.0;
+    for (n, &x) in a.iter().enumerate() {
+        let near = &b[n.saturating_sub(window)..(n + window + 1).min(b.len())];
+        let d = near
+            .iter()
+            .map(|&y| (x - y).abs())
+            .fold(f64::INFINITY, f64::min);
+        if d.is_finite() {
+            worst = worst.max(d);
+        }
+    }
+    worst
 }
 
 /// Runs the f64 interpreter of `p` and the fixed interpreter of `fp` side by side on the key

@@ -156,6 +156,9 @@ pub struct PlanConfig {
     /// reciprocals ([`recip`]). Off only to measure what the reciprocals save and to pin
     /// the divisor tolerance on a program that still divides.
     pub reciprocals: bool,
+    /// Whether states only events write are narrowed to the hull of what they are assigned
+    /// ([`range::state_hulls`]). Off only to measure what the narrowing saves.
+    pub narrow_states: bool,
 }
 
 impl Default for PlanConfig {
@@ -168,6 +171,7 @@ impl Default for PlanConfig {
             div_rel_tolerance: DIV_REL_TOLERANCE,
             simulate: true,
             reciprocals: true,
+            narrow_states: true,
         }
     }
 }
@@ -185,6 +189,7 @@ impl PlanConfig {
             div_rel_tolerance: 1.0,
             simulate: false,
             reciprocals: true,
+            narrow_states: true,
         }
     }
 }
@@ -566,7 +571,11 @@ impl FixedProgram {
         // States only events set: the hull of what they are assigned, within their declared
         // ranges (`range::state_hulls`); their words take that hull's format.
         let mut narrowed = vec![None; shared.states.len()];
-        let hulls = range::state_hulls(&shared);
+        let hulls = if config.narrow_states {
+            range::state_hulls(&shared)
+        } else {
+            shared.states.iter().map(|s| s.range).collect()
+        };
         for ((st, h), n) in shared.states.iter_mut().zip(hulls).zip(&mut narrowed) {
             if h != st.range {
                 *n = Some(st.range);

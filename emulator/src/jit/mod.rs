@@ -46,8 +46,10 @@
 //! **Exits.** The function returns why it stopped ([`Exit`]) and writes back the guest
 //! registers and flags it changed, the cycle counter, the contention stalls, the number of
 //! instructions retired and the end cycle of its last instruction that took two cycles or
-//! more (what the board needs to replay a sleeping core's turns, [`crate::block`]).
-
+//! more (what the board needs to replay a sleeping core's turns, [`crate::block`]). The
+//! instructions are counted in the context itself ([`abi::Ctx`]'s `retired`), added where
+//! control flow leaves the code or joins a label, so no host register carries the count
+//! around a loop.
 //!
 //! **Confinement.** For two cores running ahead of each other ([`crate::board`], "Running
 //! ahead") each region is also compiled *confined* (a second cache): every SRAM access

@@ -5,6 +5,7 @@
 
 use super::abi::{Ctx, Exit};
 use super::scan::{bounds, branch_of, RegionInstr};
+use crate::bus::SRAM_ALIAS_BASE;
 use crate::core::Core;
 use crate::decode::{Instr, MemOp};
 use crate::exec::{branch_target, literal_address};
@@ -87,6 +88,9 @@ pub(super) struct Translator<'a> {
     pub(super) written: u16,
     /// Confined code only (see the parent module): the bank mask and the journal.
     pub(super) confined: Option<Confined>,
+    /// The region is fetched through the non-striped alias of SRAM0-3 (as the firmware
+    /// images place each core's code): its accesses try that view before the striped one.
+    pub(super) alias_first: bool,
 }
 
 /// A confined function's bank mask and journal, loaded from [`Ctx`] at its entry.
@@ -104,6 +108,9 @@ pub(super) struct Confined {
     /// at each back edge): every store word of the region, as a forward path runs each
     /// instruction at most once.
     pub(super) room: u64,
+    /// `cap - room`, once the entry has checked that the journal has the room (so it does
+    /// not wrap): each back edge compares the length with it.
+    pub(super) cap_room: Option<Value>,
 }
 
 impl<'a> Translator<'a> {
@@ -223,6 +230,7 @@ impl<'a> Translator<'a> {
                 cap,
                 len,
                 room,
+                cap_room: None,
             }
         });
         let exit = b.create_block();
@@ -249,6 +257,7 @@ impl<'a> Translator<'a> {
             exit,
             written: 0,
             confined,
+            alias_first: instrs[0].pc.wrapping_sub(SRAM_ALIAS_BASE) < 0x4_0000,
         };
         // A block for each instruction a branch of the region jumps to.
         let mut labels: Vec<Option<Block>> = vec![None; instrs.len()];
@@ -258,9 +267,14 @@ impl<'a> Translator<'a> {
             }
         }
         // Confined: no store checks the journal's capacity; the entry checks room for all.
-        if t.confined.is_some() {
+        if let Some(c) = t.confined {
             let room = t.journal_room();
             t.general_unless(room, instrs[0].pc);
+            let cap_room = t.b.ins().iadd_imm_s(c.cap, -(c.room as i64));
+            t.confined = Some(Confined {
+                cap_room: Some(cap_room),
+                ..c
+            });
         }
         let mut live = true;
         for (i, ins) in instrs.iter().enumerate() {
@@ -422,6 +436,12 @@ impl<'a> Translator<'a> {
     pub(super) fn journal_room(&mut self) -> Value {
         let c = self.confined.expect("confined code");
         let len = self.b.use_var(c.len);
+        if let Some(cap_room) = c.cap_room {
+            return self
+                .b
+                .ins()
+                .icmp(IntCC::UnsignedLessThanOrEqual, len, cap_room);
+        }
         let need = self.b.ins().iadd_imm_s(len, c.room as i64);
         self.b
             .ins()

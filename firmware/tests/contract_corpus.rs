@@ -1,0 +1,236 @@
+//! The accuracy contract (`tactus_compiler::fixed::contract`) over the budget corpus
+//! (`tactus_firmware::corpus`, [`Size::Quick`]: presses from 12 to 200 ms, repeated notes,
+//! trills, half dips with reversals in the let-off zone, sensor noise, glitches and random
+//! words), for the piano (its default params, and grand88's graded hammer masses as one
+//! shared program at the grading's ends and middle), the harpsichords and the organ. Each
+//! run is compared with the f64 reference clause by clause — force within its DAC LSB
+//! bound, no event lost or added, every event within its time tolerance, arguments within
+//! theirs, states within their ranges and no value saturating — and the test fails naming
+//! every run and clause broken. The worst of each clause and its margin are printed
+//! (`cargo test -p tactus-firmware --test contract_corpus -- --nocapture`).
+//!
+//! The corpus's glitches and random words put arbitrary words on the sensor: both engines
+//! read them clamped to the sensor's declared range, as every engine does
+//! ([`contract::reference_raw`]).
+
+use std::path::Path;
+use tactus_compiler::fixed::contract::{self, ContractCheck};
+use tactus_compiler::fixed::{report, FixedProgram};
+use tactus_compiler::ir::Program;
+use tactus_compiler::lower::Config;
+use tactus_firmware::corpus::{self, Size};
+use tactus_runtime::keyboard::read_layout;
+
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+}
+
+fn source(name: &str) -> String {
+    std::fs::read_to_string(root().join(format!("instruments/{name}.tactus"))).unwrap()
+}
+
+fn lower(name: &str, config: &Config) -> Program {
+    tactus_compiler::compile(&source(name), config)
+        .unwrap_or_else(|d| panic!("{name}: {d:?}"))
+        .program
+}
+
+/// The worst of each clause over a set of runs.
+#[derive(Default)]
+struct Worst {
+    runs: usize,
+    samples: usize,
+    events: usize,
+    force: (f64, String),
+    force_within_time: (f64, String),
+    shift: (f64, String),
+    arg: (f64, String),
+    unmatched: usize,
+    out_of_range: usize,
+    overflowed: usize,
+}
+
+impl Worst {
+    fn add(&mut self, label: &str, r: &ContractCheck, force_bound: f64) {
+        self.runs += 1;
+        self.samples += r.samples;
+        self.events += r.events_f64;
+        let ratio = r.max_force_lsb / force_bound;
+        if ratio > self.force.0 {
+            self.force = (ratio, label.to_string());
+        }
+        let ratio = r.max_force_lsb_within_time / force_bound;
+        if ratio > self.force_within_time.0 {
+            self.force_within_time = (ratio, label.to_string());
+        }
+        if r.shift_ratio > self.shift.0 {
+            self.shift = (r.shift_ratio, label.to_string());
+        }
+        if r.arg_ratio > self.arg.0 {
+            self.arg = (r.arg_ratio, label.to_string());
+        }
+        self.unmatched += r.unmatched;
+        self.out_of_range += r.state_out_of_range;
+        self.overflowed += r.overflowed;
+    }
+
+    fn print(&self, what: &str, force_bound: f64) {
+        println!(
+            "{what:<26} {} runs, {} samples, {} events: force {:.4} of {force_bound} LSB (margin {:.4}; {}), \
+             within the 0.5 ms time tolerance {:.4} ({}), \
+             event shift {:.3} of its tolerance ({}), arguments {:.4} of theirs ({}), \
+             unmatched events {}, samples with a state out of range {}, saturating values {}",
+            self.runs,
+            self.samples,
+            self.events,
+            self.force.0 * force_bound,
+            (1.0 - self.force.0) * force_bound,
+            self.force.1,
+            self.force_within_time.0 * force_bound,
+            self.force_within_time.1,
+            self.shift.0,
+            self.shift.1,
+            self.arg.0,
+            self.arg.1,
+            self.unmatched,
+            self.out_of_range,
+            self.overflowed
+        );
+    }
+}
+
+/// Every run of the quick corpus of `fp` through the f64 reference of `p` (run-time params
+/// at `params`, SI; empty for the params' own values) and the fixed interpreter: the broken
+/// clauses, each as "what/run: clause", and the worst of each clause.
+fn check_corpus(
+    what: &str,
+    p: &Program,
+    fp: &FixedProgram,
+    params: &[f64],
+) -> (Vec<String>, Worst) {
+    let lsb = report::analyse(fp).dac_lsb_n();
+    let c = &p.contract;
+    let bound = c.force.lsb(lsb);
+    let mut worst = Worst::default();
+    let mut broken = Vec::new();
+    for run in corpus::corpus(fp, Size::Quick) {
+        let raw: Vec<i32> = run.records.iter().map(|r| r[0]).collect();
+        let reference = contract::reference_raw(p, fp, &raw, params);
+        let r = contract::compare(p, fp, &reference, lsb, c, false);
+        assert_eq!(r.samples, raw.len(), "{what}/{}", run.label);
+        worst.add(&run.label, &r, bound);
+        for v in r.violations(c, p.sample_rate_hz) {
+            broken.push(format!("{what}/{}: {v}", run.label));
+        }
+    }
+    assert!(
+        worst.runs > 10 && worst.samples > 100_000,
+        "{what}: the corpus ran nothing"
+    );
+    if !p.events.is_empty() {
+        assert!(worst.events > 0, "{what}: no event in the whole corpus");
+    }
+    worst.print(what, bound);
+    (broken, worst)
+}
+
+/// Every clause on every run of the corpus, for each keyboard instrument with its own
+/// params.
+#[test]
+fn the_contract_holds_over_the_budget_corpus() {
+    let mut broken = Vec::new();
+    for name in ["grand_piano", "harpsichord", "harpsichord_2x8", "hammond"] {
+        let p = lower(name, &Config::default());
+        let fp = FixedProgram::new(&p);
+        let (b, worst) = check_corpus(name, &p, &fp, &[]);
+        assert!(
+            worst.force.0 > 0.0,
+            "{name}: no force error measured at all"
+        );
+        broken.extend(b);
+    }
+    assert!(broken.is_empty(), "contract broken:\n{}", broken.join("\n"));
+}
+
+/// The clauses the corpus breaks today, as (key, run, clause), which the grand88 test
+/// asserts are exactly those broken — a ledger, like the static-WCET ceilings: a fix
+/// that removes one, or a plan that breaks another, fails the test until this list is
+/// updated. See [`the_contract_over_the_budget_corpus_for_grand88s_graded_masses`].
+const KNOWN_BREAKS: &[(u8, &str, &str)] = &[(64, "half-dip", "force differs by")];
+
+/// grand88's graded hammer masses: the piano of its lowest, middle and highest keys (A0,
+/// E4, C8: 11 g to 3.5 g, the grading's ends, so the shared program's run-time param
+/// intervals are the whole keyboard's) shared into one program as the layout shares all 88,
+/// and the contract checked over the corpus at each key's own param values.
+///
+/// **Not met** (found here): at E4's 7.29 g the built-in half dip breaks the force clause
+/// by 2,046 DAC LSB for one sample — the hammer falls back onto the key, and the contact
+/// closes (`on c > 0 m …`, the hammer–key impact, which emits no event) one sample later in
+/// fixed point than in f64 (the hammer's speed after ≈ 150 ms of free flight differs by
+/// 0.5 %), so the impact pulse's 3.1 N step comes a sample late, and its amplitude, from
+/// the closing speed a sample later, differs by ≈ 0.4 % (8.4 DAC LSB even against the f64
+/// force anywhere within the events' 0.5 ms time tolerance,
+/// `ContractCheck::max_force_lsb_within_time`). The analysis-only plan (no simulated
+/// search: more exact products) breaks it the same way, and the 7.25 g of the compiler's
+/// contract test keeps it (0.13 LSB): a threshold of the model met at one mass, not a
+/// cheap product. Every other clause holds on every run, and every clause on every run of
+/// the grading's two ends; the test asserts the broken clauses are exactly
+/// [`KNOWN_BREAKS`].
+#[test]
+fn the_contract_over_the_budget_corpus_for_grand88s_graded_masses() {
+    let (_, assigned) = read_layout(&root().join("instruments/layouts/grand88.toml")).unwrap();
+    let keys: Vec<_> = [21u8, 64, 108]
+        .iter()
+        .map(|k| assigned.iter().find(|a| a.key == *k).unwrap())
+        .collect();
+    let irs: Vec<Program> = keys
+        .iter()
+        .map(|k| {
+            assert_eq!(k.instrument, "grand_piano");
+            let config = Config {
+                overrides: k.params.clone(),
+                ..Config::default()
+            };
+            lower("grand_piano", &config)
+        })
+        .collect();
+    let shared = tactus_compiler::share::share(&irs).unwrap();
+    assert!(
+        shared.program.runtime_params().count() > 0,
+        "the masses must be run-time params"
+    );
+    let fp = FixedProgram::new(&shared.program);
+    let mut unexpected = Vec::new();
+    let mut seen = vec![false; KNOWN_BREAKS.len()];
+    for (k, values) in keys.iter().zip(&shared.values) {
+        let what = format!("grand88 key {} ({:?})", k.key, k.params);
+        let (broken, _) = check_corpus(&what, &shared.program, &fp, values);
+        for v in broken {
+            let known = KNOWN_BREAKS.iter().position(|(key, run, clause)| {
+                *key == k.key && v.contains(&format!("/{run}: {clause}"))
+            });
+            match known {
+                Some(i) => {
+                    seen[i] = true;
+                    println!("  broken (known, not met): {v}");
+                }
+                None => unexpected.push(v),
+            }
+        }
+    }
+    assert!(
+        unexpected.is_empty(),
+        "contract broken:\n{}",
+        unexpected.join("\n")
+    );
+    let gone: Vec<_> = KNOWN_BREAKS
+        .iter()
+        .zip(&seen)
+        .filter(|(_, s)| !**s)
+        .map(|(b, _)| b)
+        .collect();
+    assert!(
+        gone.is_empty(),
+        "known breaks no longer broken (remove them from KNOWN_BREAKS): {gone:?}"
+    );
+}
