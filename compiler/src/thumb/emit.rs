@@ -47,6 +47,9 @@ struct Lower<'a> {
     /// Whether the instruction being lowered can be reached by falling through (not right
     /// after an unconditional `B`).
     reachable: bool,
+    /// The instructions reading each spilled or rematerialised value, ascending: a reload
+    /// evicts the scratch register whose value is read again last (Belady's rule).
+    reads: HashMap<Held, Vec<usize>>,
     /// A low register other than the scratch registers that holds a spill slot's value
     /// (the register a slot was just stored from), until that register is written: a
     /// reload is then a `MOV` (1 cycle) instead of an `LDR` (2).
@@ -64,7 +67,7 @@ struct Lower<'a> {
 }
 
 /// What a scratch register holds, for the reload cache.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 enum Held {
     /// The value of a spill slot.
     Slot(u16),
@@ -162,6 +165,31 @@ impl Lower<'_> {
         *self.labels.entry(l.0).or_insert_with(|| buf.label())
     }
 
+    /// The scratch register a reload should take: the other one if `k` holds an operand of
+    /// this instruction, else whichever holds nothing or the value read again last.
+    fn victim(&self, k: usize) -> usize {
+        if self.pinned[k] {
+            return 1 - k;
+        }
+        if self.pinned[1 - k] {
+            return k;
+        }
+        let next = |j: usize| -> usize {
+            match self.holds[j] {
+                None => usize::MAX,
+                Some(h) => self.reads.get(&h).map_or(usize::MAX, |at| {
+                    let p = at.partition_point(|&i| i <= self.at);
+                    at.get(p).copied().unwrap_or(usize::MAX)
+                }),
+            }
+        };
+        if next(1 - k) > next(k) {
+            1 - k
+        } else {
+            k
+        }
+    }
+
     /// A register holding `v` for reading: its own, a scratch register that already holds
     /// its slot, or scratch `k` (the other one if `k` holds an operand of this instruction)
     /// after a reload.
@@ -173,7 +201,7 @@ impl Lower<'_> {
                     self.pinned[j] = true;
                     return self.alloc.scratch[j];
                 }
-                let k = if self.pinned[k] { 1 - k } else { k };
+                let k = self.victim(k);
                 self.pinned[k] = true;
                 let r = self.alloc.scratch[k];
                 self.holds[k] = Some(Held::Remat(how));
@@ -193,7 +221,7 @@ impl Lower<'_> {
                     self.pinned[j] = true;
                     return self.alloc.scratch[j];
                 }
-                let k = if self.pinned[k] { 1 - k } else { k };
+                let k = self.victim(k);
                 self.pinned[k] = true;
                 let r = self.alloc.scratch[k];
                 match (self.copy, self.home[s as usize]) {
@@ -579,6 +607,7 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
         pending: HashMap::new(),
         reachable: true,
         copy: None,
+        reads: reads(code, alloc),
         pinned: [false, false],
         last: last_refs(code, alloc.loc.len()),
         at: 0,
@@ -634,6 +663,22 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
         list: saved as u16 | 1 << 15,
     });
     l.buf.end_function();
+}
+
+/// The instructions reading each spilled or rematerialised value of `code`, ascending.
+fn reads(code: &[M], alloc: &Allocation) -> HashMap<Held, Vec<usize>> {
+    let mut at: HashMap<Held, Vec<usize>> = HashMap::new();
+    for (i, m) in code.iter().enumerate() {
+        for v in m.uses() {
+            let held = match alloc.loc.get(v.0 as usize).copied().flatten() {
+                Some(Loc::Slot(s)) => Held::Slot(s),
+                Some(Loc::Remat(r)) => Held::Remat(r),
+                _ => continue,
+            };
+            at.entry(held).or_default().push(i);
+        }
+    }
+    at
 }
 
 /// The index of the last instruction reading or writing each of `n` virtual registers.

@@ -31,7 +31,7 @@ pub enum Loc {
 }
 
 /// How a rematerialised register's value is recomputed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Remat {
     /// `MOVS`/literal load of a constant (C and V kept, as a stack reload keeps them; no
     /// reload sits between a flag-setting instruction and the branch that reads N or Z).

@@ -2,6 +2,14 @@
 //! non-striped aliases, flash), the inline bank arbiter, the code-page check after a
 //! store, and the multiple transfers (PUSH, POP, STM, LDM) — `Core::mem_fast`,
 //! `push_fast`, `pop_fast` in `exec.rs`.
+//!
+//! A single access tries the views in the order programs use them, each in one unsigned
+//! comparison that also checks the alignment (the offset into the view rotated right by
+//! log2(size) is below the view's size >> log2(size) exactly when it is in the view and
+//! aligned): the striped view, then the non-striped alias (each core's data in the
+//! firmware images) — the other way round in a region fetched through the alias; only then does an unaligned access leave for the general path and an
+//! aligned one try SRAM4/5 and flash. Offsets and bank offsets are 64-bit from the view on,
+//! so the common path widens nothing twice.
 
 use super::abi::Exit;
 use super::scan::RegionInstr;
@@ -76,12 +84,21 @@ impl Translator<'_> {
     /// bank; then, for a store with a journal, journals the old words it will overwrite (the journal's room
     /// was checked at the region's entry or last back edge, [`Translator::journal_room`]).
     /// Nothing when the code is not confined.
-    fn confine(&mut self, ins: &RegionInstr, at: &[(Value, Value)], store: bool) {
+    /// `aligned`: the offsets are word-aligned already (word accesses).
+    fn confine(&mut self, ins: &RegionInstr, at: &[(Value, Value)], store: bool, aligned: bool) {
+        let boffs: Vec<Value> = at.iter().map(|&(_, boff)| boff).collect();
+        self.confine_banks(ins, &boffs);
+        self.journal(at, store, aligned);
+    }
+
+    /// Confined code only: leaves before the instruction at `ins` unless every bank offset
+    /// in `boffs` is of an allowed bank.
+    fn confine_banks(&mut self, ins: &RegionInstr, boffs: &[Value]) {
         let Some(c) = self.confined else {
             return;
         };
         let mut allowed = None;
-        for &(_, boff) in at {
+        for &boff in boffs {
             let bank = self.b.ins().ushr_imm_u(boff, 4);
             let bank = self.b.ins().ireduce(types::I32, bank);
             let bit = self.b.ins().ushr(c.allowed, bank);
@@ -94,17 +111,28 @@ impl Translator<'_> {
             let ok = self.b.ins().band_imm_u(a, 1);
             self.general_unless(ok, ins.pc);
         }
+    }
+
+    /// Confined code only: for a store with a journal, journals the old words at the
+    /// offsets of `at` (see [`Translator::confine`]).
+    fn journal(&mut self, at: &[(Value, Value)], store: bool, aligned: bool) {
+        let Some(c) = self.confined.filter(|c| c.journaled) else {
+            return;
+        };
         if store {
-            // No journal (a core catching up needs no undo): no entries.
             let write = self.b.create_block();
             let done = self.b.create_block();
-            self.b.ins().brif(c.journal, write, &[], done, &[]);
+            self.b.ins().jump(write, &[]);
             self.b.switch_to_block(write);
             let len = self.b.use_var(c.len);
             let slot = self.b.ins().ishl_imm_u(len, 3);
             let slot = self.b.ins().iadd(c.journal, slot);
             for (k, &(off, _)) in at.iter().enumerate() {
-                let word = self.b.ins().band_imm_u(off, !3u32 as i64);
+                let word = if aligned {
+                    off
+                } else {
+                    self.b.ins().band_imm_u(off, !3u32 as i64)
+                };
                 let word = if self.b.func.dfg.value_type(word) == types::I64 {
                     word
                 } else {
@@ -157,72 +185,115 @@ impl Translator<'_> {
         let in_sram = self.b.create_block();
         self.b.append_block_param(in_sram, types::I64);
         self.b.append_block_param(in_sram, types::I64);
+        // Past the confined code's bank check.
+        let in_sram_ok = self.b.create_block();
+        self.b.append_block_param(in_sram_ok, types::I64);
+        self.b.append_block_param(in_sram_ok, types::I64);
         let join = self.b.create_block();
         self.b.append_block_param(join, types::I32);
         if !solo {
             self.b.append_block_param(join, types::I64);
         }
-        // The common case first, in one comparison: aligned and in the striped view. The
-        // offset rotated right by log2(size) moves the low (alignment) bits to the top, so
-        // it is below `0x40000 >> log2(size)` exactly when the offset is below 0x40000 and
-        // a multiple of the size.
-        let striped = self.b.create_block();
-        let slow = self.b.create_block();
+        // The common cases first, each in one comparison: aligned and in the striped view,
+        // or aligned and in the non-striped alias of SRAM0-3 (bank = bits 17:16; where the
+        // firmware images keep each core's data) — the alias first in a region fetched
+        // through the alias. The offset into the view rotated right by log2(size) moves
+        // the low (alignment) bits to the top, so it is below `0x40000 >> log2(size)`
+        // exactly when the offset is below 0x40000 and a multiple of the size.
         let off = self.b.ins().iadd_imm_s(addr, -(SRAM_BASE as i64));
         let shift = size.trailing_zeros() as i64;
-        let key = if shift == 0 {
-            off
+        // Confined code allowed exactly one of SRAM0-3: first that bank through the alias,
+        // in one comparison that is the view, the alignment and the bank check at once
+        // (its bank offset a constant).
+        let own = self
+            .confined
+            .map(|c| c.mask & 0xf)
+            .filter(|a| a.count_ones() == 1);
+        if let Some(a) = own {
+            let bank = a.trailing_zeros();
+            let rel = self
+                .b
+                .ins()
+                .iadd_imm_s(addr, -((SRAM_ALIAS_BASE + (bank << 16)) as i64));
+            let key = if shift == 0 {
+                rel
+            } else {
+                self.b.ins().rotr_imm_u(rel, shift)
+            };
+            let ok = self
+                .b
+                .ins()
+                .icmp_imm_u(IntCC::UnsignedLessThan, key, 0x1_0000 >> shift);
+            let hit = self.b.create_block();
+            let next = self.b.create_block();
+            self.b.ins().brif(ok, hit, &[], next, &[]);
+            self.b.switch_to_block(hit);
+            // Word w of bank b is at physical offset (4w + b)·4.
+            let word = self.b.ins().band_imm_u(rel, 0xfffc);
+            let phys = self.b.ins().iadd_imm_s(word, bank as i64);
+            let phys = self.b.ins().ishl_imm_u(phys, 2);
+            let phys = if size < 4 {
+                let low = self.b.ins().band_imm_u(rel, 3);
+                self.b.ins().bor(phys, low)
+            } else {
+                phys
+            };
+            let phys = self.b.ins().uextend(types::I64, phys);
+            let boff = self.b.ins().iconst(types::I64, 16 * bank as i64);
+            self.b
+                .ins()
+                .jump(in_sram_ok, &[BlockArg::Value(phys), BlockArg::Value(boff)]);
+            self.b.switch_to_block(next);
+        }
+        let order = if self.alias_first {
+            [true, false]
         } else {
-            self.b.ins().rotr_imm_u(off, shift)
+            [false, true]
         };
-        let ok = self
-            .b
-            .ins()
-            .icmp_imm_u(IntCC::UnsignedLessThan, key, 0x4_0000 >> shift);
-        self.b.ins().brif(ok, striped, &[], slow, &[]);
-        self.b.switch_to_block(striped);
-        let off64 = self.b.ins().uextend(types::I64, off);
-        let boff = self.striped_bank_offset(off64);
-        self.b
-            .ins()
-            .jump(in_sram, &[BlockArg::Value(off64), BlockArg::Value(boff)]);
-        // The non-striped alias of SRAM0-3 (bank = bits 17:16; where the firmware images
-        // keep each core's data), aligned, in one comparison as above.
-        self.b.switch_to_block(slow);
-        let al = self.b.ins().iadd_imm_s(addr, -(SRAM_ALIAS_BASE as i64));
-        let key = if shift == 0 {
-            al
-        } else {
-            self.b.ins().rotr_imm_u(al, shift)
-        };
-        let ok = self
-            .b
-            .ins()
-            .icmp_imm_u(IntCC::UnsignedLessThan, key, 0x4_0000 >> shift);
-        let alias = self.b.create_block();
-        let rest = self.b.create_block();
-        self.b.ins().brif(ok, alias, &[], rest, &[]);
-        self.b.switch_to_block(alias);
-        let bank = self.b.ins().ushr_imm_u(al, 16);
-        let word = self.b.ins().band_imm_u(al, 0xfffc);
-        let phys = self.b.ins().iadd(word, bank);
-        let phys = self.b.ins().ishl_imm_u(phys, 2);
-        // (A word access is aligned here: its low bits are zero.)
-        let phys = if size < 4 {
-            let low = self.b.ins().band_imm_u(al, 3);
-            self.b.ins().bor(phys, low)
-        } else {
-            phys
-        };
-        // The bank from the physical (striped) offset.
-        let phys = self.b.ins().uextend(types::I64, phys);
-        let boff = self.striped_bank_offset(phys);
-        self.b
-            .ins()
-            .jump(in_sram, &[BlockArg::Value(phys), BlockArg::Value(boff)]);
+        for alias in order {
+            let rel = if alias {
+                self.b.ins().iadd_imm_s(addr, -(SRAM_ALIAS_BASE as i64))
+            } else {
+                off
+            };
+            let key = if shift == 0 {
+                rel
+            } else {
+                self.b.ins().rotr_imm_u(rel, shift)
+            };
+            let ok = self
+                .b
+                .ins()
+                .icmp_imm_u(IntCC::UnsignedLessThan, key, 0x4_0000 >> shift);
+            let hit = self.b.create_block();
+            let next = self.b.create_block();
+            self.b.ins().brif(ok, hit, &[], next, &[]);
+            self.b.switch_to_block(hit);
+            let phys = if alias {
+                let bank = self.b.ins().ushr_imm_u(rel, 16);
+                let word = self.b.ins().band_imm_u(rel, 0xfffc);
+                let phys = self.b.ins().iadd(word, bank);
+                let phys = self.b.ins().ishl_imm_u(phys, 2);
+                // (A word access is aligned here: its low bits are zero.)
+                if size < 4 {
+                    let low = self.b.ins().band_imm_u(rel, 3);
+                    self.b.ins().bor(phys, low)
+                } else {
+                    phys
+                }
+            } else {
+                rel
+            };
+            // The bank from the physical (striped) offset.
+            let phys = self.b.ins().uextend(types::I64, phys);
+            let boff = self.striped_bank_offset(phys);
+            self.b
+                .ins()
+                .jump(in_sram, &[BlockArg::Value(phys), BlockArg::Value(boff)]);
+            self.b.switch_to_block(next);
+        }
         // Unaligned: the general path; aligned: SRAM4/5 (the striped view's end: `off` is
         // at least 0x40000 here), flash.
-        self.b.switch_to_block(rest);
         if size > 1 {
             let low = self.b.ins().band_imm_u(addr, size as i64 - 1);
             self.general_if(low, pc);
@@ -271,7 +342,14 @@ impl Translator<'_> {
         self.b.switch_to_block(in_sram);
         let off = self.b.block_params(in_sram)[0];
         let boff = self.b.block_params(in_sram)[1];
-        self.confine(ins, &[(off, boff)], op.is_store());
+        self.confine_banks(ins, &[boff]);
+        self.b
+            .ins()
+            .jump(in_sram_ok, &[BlockArg::Value(off), BlockArg::Value(boff)]);
+        self.b.switch_to_block(in_sram_ok);
+        let off = self.b.block_params(in_sram_ok)[0];
+        let boff = self.b.block_params(in_sram_ok)[1];
+        self.journal(&[(off, boff)], op.is_store(), op.size() == 4);
         let c = self.b.use_var(self.cyc);
         let at = self.b.ins().iadd_imm_s(c, 1);
         let wait = self.arbitrate(boff, at);
@@ -376,7 +454,7 @@ impl Translator<'_> {
                 (o, self.bank_offset(o, Some(striped)))
             })
             .collect();
-        self.confine(ins, &words, values.is_some());
+        self.confine(ins, &words, values.is_some(), true);
         let c = self.b.use_var(self.cyc);
         let mut at = self.b.ins().iadd_imm_s(c, 1);
         let mut total = None;

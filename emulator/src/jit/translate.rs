@@ -5,6 +5,7 @@
 
 use super::abi::{Ctx, Exit};
 use super::scan::{bounds, branch_of, RegionInstr};
+use crate::bus::SRAM_ALIAS_BASE;
 use crate::core::Core;
 use crate::decode::{Instr, MemOp};
 use crate::exec::{branch_target, literal_address};
@@ -49,12 +50,17 @@ pub(crate) enum Flavour {
     /// only records its own claim (the other core reads it when it runs again).
     Solo,
     /// Running ahead ([`crate::board`], "Running ahead"): arbitrated, every access checked
-    /// against the allowed banks, every store journaled (see the parent module).
-    Confined,
+    /// against the allowed banks (the bank mask, bit per bank, as [`abi::Ctx::allowed`]
+    /// at every call of this code), and, when the second field is true (the code is only
+    /// called with a journal), every store journaled (see the parent module); when false
+    /// (a core catching up, called without a journal), no journal code at all.
+    ///
+    /// [`abi::Ctx::allowed`]: super::abi::Ctx::allowed
+    Confined(u8, bool),
     /// [`Flavour::Confined`] for a core whose accesses all come after the other core's last
     /// claims (as [`Flavour::Solo`]): in a window the other core does not touch the banks
     /// this core may, so their claims stay as they were.
-    ConfinedSolo,
+    ConfinedSolo(u8, bool),
 }
 
 pub(super) struct Translator<'a> {
@@ -87,6 +93,9 @@ pub(super) struct Translator<'a> {
     pub(super) written: u16,
     /// Confined code only (see the parent module): the bank mask and the journal.
     pub(super) confined: Option<Confined>,
+    /// The region is fetched through the non-striped alias of SRAM0-3 (as the firmware
+    /// images place each core's code): its accesses try that view before the striped one.
+    pub(super) alias_first: bool,
 }
 
 /// A confined function's bank mask and journal, loaded from [`Ctx`] at its entry.
@@ -104,6 +113,13 @@ pub(super) struct Confined {
     /// at each back edge): every store word of the region, as a forward path runs each
     /// instruction at most once.
     pub(super) room: u64,
+    /// `cap - room`, once the entry has checked that the journal has the room (so it does
+    /// not wrap): each back edge compares the length with it.
+    pub(super) cap_room: Option<Value>,
+    /// The bank mask the code is compiled for (the same as `allowed` at run time).
+    pub(super) mask: u8,
+    /// The code is called with a journal (else without: no journal code).
+    pub(super) journaled: bool,
 }
 
 impl<'a> Translator<'a> {
@@ -114,8 +130,12 @@ impl<'a> Translator<'a> {
         instrs: &[RegionInstr],
         flavour: Flavour,
     ) -> (FunctionBuilder<'a>, u64) {
-        let confined = matches!(flavour, Flavour::Confined | Flavour::ConfinedSolo);
-        let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo);
+        let (mask, journaled) = match flavour {
+            Flavour::Confined(m, j) | Flavour::ConfinedSolo(m, j) => (Some(m), j),
+            _ => (None, false),
+        };
+        let confined = mask.is_some();
+        let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo(..));
         let index: HashMap<u32, usize> =
             instrs.iter().enumerate().map(|(i, x)| (x.pc, i)).collect();
         let targets: Vec<Option<usize>> = instrs
@@ -223,6 +243,9 @@ impl<'a> Translator<'a> {
                 cap,
                 len,
                 room,
+                cap_room: None,
+                mask: mask.unwrap_or(0),
+                journaled,
             }
         });
         let exit = b.create_block();
@@ -249,6 +272,7 @@ impl<'a> Translator<'a> {
             exit,
             written: 0,
             confined,
+            alias_first: instrs[0].pc.wrapping_sub(SRAM_ALIAS_BASE) < 0x4_0000,
         };
         // A block for each instruction a branch of the region jumps to.
         let mut labels: Vec<Option<Block>> = vec![None; instrs.len()];
@@ -258,9 +282,14 @@ impl<'a> Translator<'a> {
             }
         }
         // Confined: no store checks the journal's capacity; the entry checks room for all.
-        if t.confined.is_some() {
+        if let Some(c) = t.confined.filter(|c| c.journaled) {
             let room = t.journal_room();
             t.general_unless(room, instrs[0].pc);
+            let cap_room = t.b.ins().iadd_imm_s(c.cap, -(c.room as i64));
+            t.confined = Some(Confined {
+                cap_room: Some(cap_room),
+                ..c
+            });
         }
         let mut live = true;
         for (i, ins) in instrs.iter().enumerate() {
@@ -422,6 +451,12 @@ impl<'a> Translator<'a> {
     pub(super) fn journal_room(&mut self) -> Value {
         let c = self.confined.expect("confined code");
         let len = self.b.use_var(c.len);
+        if let Some(cap_room) = c.cap_room {
+            return self
+                .b
+                .ins()
+                .icmp(IntCC::UnsignedLessThanOrEqual, len, cap_room);
+        }
         let need = self.b.ins().iadd_imm_s(len, c.room as i64);
         self.b
             .ins()
@@ -490,7 +525,7 @@ impl<'a> Translator<'a> {
                         self.b
                             .ins()
                             .icmp(IntCC::UnsignedLessThanOrEqual, end, self.limit);
-                    if self.confined.is_some() {
+                    if self.confined.is_some_and(|c| c.journaled) {
                         let room = self.journal_room();
                         fits = self.b.ins().band(fits, room);
                     }

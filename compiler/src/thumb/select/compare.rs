@@ -266,12 +266,17 @@ impl<'a> Sel<'a> {
         if less_one && f.b >= LIM {
             return None;
         }
+        let d = d.min(31) as u8;
+        if let Some(&k) = self.konst.get(&f.v) {
+            // A known word: `⌊(f − 1)/2^d⌋` at compile time (`f ≠ i32::MIN`, checked above).
+            let t = self.known((k - i32::from(less_one)) >> d);
+            return Some((t, c, o2));
+        }
         let t = if less_one {
             self.addi(true, f.v, 1)
         } else {
             f.v
         };
-        let d = d.min(31) as u8;
         let t = self.sh(Shift::Asr, t, d);
         Some((
             W {
@@ -368,7 +373,10 @@ impl<'a> Sel<'a> {
             return Grid::Wide((a, d_a), (b, d_b));
         }
         let mut up = |w: W, d: i32| {
-            if d > 0 {
+            if let (Some(&k), 1..) = (self.konst.get(&w.v), d) {
+                // A known word shifted at compile time (it fits: checked above).
+                self.known(k << d)
+            } else if d > 0 {
                 W {
                     v: self.sh(Shift::Lsl, w.v, d as u8),
                     b: shl_bound(w.b, d),

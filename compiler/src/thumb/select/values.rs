@@ -297,6 +297,29 @@ impl<'a> Sel<'a> {
                             Some(y) => (self.word(y), f(&y)),
                             None => (a, fa),
                         };
+                        // Against a known 0 (`max(c_dot, 0 m/s)`): the sign mask of the
+                        // converted word, `r & ~(r >> 31)` (`r & (r >> 31)` for min). Exact:
+                        // the conversion is monotone and keeps 0, so `max(conv(a), 0) =
+                        // conv(max(a, 0))`, which the comparison and select compute.
+                        let zero = |w: &W| self.konst.get(&w.v) == Some(&0);
+                        let other = match (zero(&a), zero(&b)) {
+                            (false, true) => Some((a, fa)),
+                            (true, false) => Some((b, fb)),
+                            _ => None,
+                        };
+                        if let Some((x, fx)) = other {
+                            let r = self.convert(x, fx, fr);
+                            let sign = self.sh(Shift::Asr, r.v, 31);
+                            let op = if func == Builtin::Max {
+                                AluOp::Bic
+                            } else {
+                                AluOp::And
+                            };
+                            return Ok(W {
+                                v: self.alu2(op, r.v, sign),
+                                b: rb,
+                            });
+                        }
                         let cop = if func == Builtin::Min {
                             CmpOp::Le
                         } else {
