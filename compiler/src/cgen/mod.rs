@@ -97,15 +97,20 @@ impl StateLayout {
         let align4 = |x: usize| (x + 3) & !3;
         let n = |k: usize| k.max(1);
         let nh = p.sensors.iter().filter(|s| s.differentiated).count();
-        let states = 0;
-        let modes = states + 4 * n(p.states.len());
+        // The byte arrays first: `LDRB`/`STRB` immediates reach only 31 bytes from r7 (the
+        // words' reach 124), and the update reads and writes every mode, edge and history
+        // position byte each sample.
+        // The history bytes start a word of their own: the firmware's quiescent-key guard
+        // compares the words holding states, modes and edges, and a ring advances every
+        // sample.
+        let modes = 0;
         let edges = modes + n(p.modes.len());
-        // After the byte arrays, whose `LDRB` immediates reach only 31 bytes from r7.
-        let params = align4(edges + n(p.edges.len()));
-        let hist = params + 4 * p.runtime_params().count();
-        let hist_pos = hist + 4 * (2 * WINDOW + 1) * n(nh);
+        let hist_pos = align4(edges + n(p.edges.len()));
         let hist_primed = hist_pos + n(nh);
-        let published = align4(hist_primed + n(nh));
+        let states = align4(hist_primed + n(nh));
+        let params = states + 4 * n(p.states.len());
+        let hist = params + 4 * p.runtime_params().count();
+        let published = hist + 4 * (2 * WINDOW + 1) * n(nh);
         let size = published + 4 * (p.forces.len() + 1 + p.outputs.len());
         StateLayout {
             states,
@@ -626,6 +631,7 @@ impl<'a> Gen<'a> {
  *   states[i]       raw word of state i, in {m}_STATE_<NAME>_FRAC, within its declared range
  *   modes[i]        current variant index of mode i ({m}_MODE_<NAME>_<VARIANT>)
  *   edges[i]        condition of the i-th `on` handler at the previous sample (0/1)
+ *   hist_pos[i]     newest slot of the i-th ring below; hist_primed[i] 0 until the first sample
  *   params[i]       (only with run-time params) the key's param block: set it before
  *                   init (which leaves it alone); word i in {m}_PARAM_<i>_FRAC
  *   hist[i][17]     raw readings of the i-th differentiated sensor for d()/d2(): a ring of
@@ -634,12 +640,12 @@ impl<'a> Gen<'a> {
  *   published[]     force terms, total and outputs as last computed (copied to out[])
  */
 struct tactus_{st}_state {{
-    int32_t states[{}];
     uint8_t modes[{}];
     uint8_t edges[{}];{}
-    int32_t hist[{}][{}];
     uint8_t hist_pos[{}];
     uint8_t hist_primed[{}];
+    int32_t states[{}];{}
+    int32_t hist[{}][{}];
     int32_t published[{}];
 }};
 
@@ -660,17 +666,21 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
 
 #endif /* {guard} */
 ",
-            cnt(ns),
             cnt(nm),
             cnt(ne),
+            match (4 - (cnt(nm) + cnt(ne)) % 4) % 4 {
+                0 => String::new(),
+                k => format!("\n    uint8_t pad_[{k}];  /* hist_pos starts a word */"),
+            },
+            cnt(nh),
+            cnt(nh),
+            cnt(ns),
             match fp_params {
                 0 => String::new(),
                 k => format!("\n    int32_t params[{k}];"),
             },
             cnt(nh),
             2 * WINDOW + 1,
-            cnt(nh),
-            cnt(nh),
             np
         );
         Ok(h)

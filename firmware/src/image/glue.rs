@@ -280,7 +280,8 @@ pub struct GuardCode {
     /// Calm updates after which the update is skipped (1 to 255).
     pub calm_needed: u8,
     /// Byte offsets in the state struct of the words compared (the words holding the
-    /// program's states, modes and edges), ascending.
+    /// program's states that the update writes — a state it never writes keeps its
+    /// initial word — its modes and its edges), ascending.
     pub words: Vec<u32>,
 }
 

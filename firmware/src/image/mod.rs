@@ -160,8 +160,18 @@ impl Program {
         let differentiated = self.fixed.program.sensors.iter().any(|s| s.differentiated);
         let (p, st) = (&self.fixed.program, &self.thumb.state);
         // The words holding states, modes and edges (the layout pads empty arrays to one
-        // element: those are never written and not compared).
+        // element: those are never written and not compared). A state no statement of the
+        // update writes keeps the word `init` gave it (a state carried by its reciprocal,
+        // `tactus_compiler::fixed::recip`: the piano's `tau`), so it always equals its
+        // shadow after the first update and is not compared either.
+        let mut written = vec![false; p.states.len()];
+        tactus_compiler::ir::walk_stmts(&p.body, &mut |s| {
+            if let tactus_compiler::ir::Stmt::SetState(i, _) = s {
+                written[i.index()] = true;
+            }
+        });
         let mut words: Vec<u32> = (0..p.states.len() as u32)
+            .filter(|&i| written[i as usize])
             .map(|i| st.states as u32 + 4 * i)
             .collect();
         for (at, n) in [(st.modes, p.modes.len()), (st.edges, p.edges.len())] {

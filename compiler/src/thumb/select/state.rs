@@ -169,8 +169,14 @@ impl<'a> Sel<'a> {
         self.push(M::Movi { d: pos1, imm: 0 });
         self.push(M::Label(wrap));
         self.store(MemOp::Strb, pos1, Base::State, st.hist_pos + h);
-        // Address of the ring: state + base.
-        let ring = {
+        // Within an `ADDS` immediate of r7 the ring's words are `[r7, index · 4 + base]`
+        // (`[r7, (index + base/4) · 4]`): no register holds the ring's address.
+        let q = base / 4;
+        let near = base <= 255;
+        let ring = if near {
+            STATE_V
+        } else {
+            // Address of the ring: state + base.
             let sv = self.nv();
             self.push(M::Mov { d: sv, s: STATE_V });
             if base <= 255 {
@@ -180,25 +186,40 @@ impl<'a> Sel<'a> {
                 self.addsub(false, sv, o)
             }
         };
-        let off0 = self.sh(Shift::Lsl, pos1, 2);
-        let addr = self.addsub(false, ring, off0);
-        self.push(M::Store {
-            op: MemOp::Str,
-            t: s.v,
-            base: Base::V(addr),
-            off: 0,
-        });
+        if near {
+            let t = self.sh(Shift::Lsl, pos1, 2);
+            let off0 = self.addi(false, t, base as u8);
+            self.push(M::StoreR {
+                op: MemOp::Str,
+                t: s.v,
+                idx: off0,
+            });
+        } else {
+            let off0 = self.sh(Shift::Lsl, pos1, 2);
+            let addr = self.addsub(false, ring, off0);
+            self.push(M::Store {
+                op: MemOp::Str,
+                t: s.v,
+                base: Base::V(addr),
+                off: 0,
+            });
+        }
+        let (q, ring_base) = if near {
+            (q, Base::State)
+        } else {
+            (0, Base::V(ring))
+        };
         let span = {
             let (lo, hi) = self.fp.sensor_raw_range[i];
             (hi as i64 - lo as i64).unsigned_abs()
         };
         let ago = |this: &mut Self, back: usize| -> V {
-            // index (pos + hlen - back) mod hlen
-            let t = this.addi(false, pos1, (hlen - back) as u8);
+            // index (pos + hlen - back) mod hlen (plus q)
+            let t = this.addi(false, pos1, (q + hlen - back) as u8);
             let ok = this.label();
             this.push(M::CmpI {
                 a: t,
-                imm: hlen as u8,
+                imm: (q + hlen) as u8,
             });
             this.push(M::Bc(Cond::Lt, ok));
             this.push(M::AddSubI {
@@ -213,7 +234,7 @@ impl<'a> Sel<'a> {
             this.push(M::LoadR {
                 op: MemOp::Ldr,
                 t: w,
-                base: Base::V(ring),
+                base: ring_base,
                 idx: off,
             });
             w
