@@ -175,6 +175,27 @@ impl Translator<'_> {
 
     /// A single load or store (`Core::mem_fast`): SRAM (striped, SRAM4/5 or the
     /// non-striped aliases) or a flash load; anything else leaves before it.
+    /// Branches on whether `rel`, an offset into a view of `len` bytes, is inside it and a
+    /// multiple of `1 << shift` (the access size): rotated right by `shift`, the alignment
+    /// bits land on top, so one unsigned comparison with `len >> shift` checks both. Leaves
+    /// the builder in the taken block and returns the block for the other case.
+    fn in_view(&mut self, rel: Value, shift: i64, len: i64) -> cranelift_codegen::ir::Block {
+        let key = if shift == 0 {
+            rel
+        } else {
+            self.b.ins().rotr_imm_u(rel, shift)
+        };
+        let ok = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, key, len >> shift);
+        let hit = self.b.create_block();
+        let next = self.b.create_block();
+        self.b.ins().brif(ok, hit, &[], next, &[]);
+        self.b.switch_to_block(hit);
+        next
+    }
+
     pub(super) fn mem(&mut self, ins: &RegionInstr, op: MemOp, rt: u8, addr: Value) -> bool {
         let pc = ins.pc;
         let size = op.size();
@@ -215,19 +236,7 @@ impl Translator<'_> {
                 .b
                 .ins()
                 .iadd_imm_s(addr, -((SRAM_ALIAS_BASE + (bank << 16)) as i64));
-            let key = if shift == 0 {
-                rel
-            } else {
-                self.b.ins().rotr_imm_u(rel, shift)
-            };
-            let ok = self
-                .b
-                .ins()
-                .icmp_imm_u(IntCC::UnsignedLessThan, key, 0x1_0000 >> shift);
-            let hit = self.b.create_block();
-            let next = self.b.create_block();
-            self.b.ins().brif(ok, hit, &[], next, &[]);
-            self.b.switch_to_block(hit);
+            let next = self.in_view(rel, shift, 0x1_0000);
             // Word w of bank b is at physical offset (4w + b)·4.
             let word = self.b.ins().band_imm_u(rel, 0xfffc);
             let phys = self.b.ins().iadd_imm_s(word, bank as i64);
@@ -256,19 +265,7 @@ impl Translator<'_> {
             } else {
                 off
             };
-            let key = if shift == 0 {
-                rel
-            } else {
-                self.b.ins().rotr_imm_u(rel, shift)
-            };
-            let ok = self
-                .b
-                .ins()
-                .icmp_imm_u(IntCC::UnsignedLessThan, key, 0x4_0000 >> shift);
-            let hit = self.b.create_block();
-            let next = self.b.create_block();
-            self.b.ins().brif(ok, hit, &[], next, &[]);
-            self.b.switch_to_block(hit);
+            let next = self.in_view(rel, shift, 0x4_0000);
             let phys = if alias {
                 let bank = self.b.ins().ushr_imm_u(rel, 16);
                 let word = self.b.ins().band_imm_u(rel, 0xfffc);
