@@ -11,37 +11,9 @@ use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE
 use crate::core::{Core, Event, FaultKind, RunState};
 use crate::decode::{self, AluOp, Instr, MemOp};
 use crate::nvic::PPB_BASE;
+use crate::semantics::{self, Flagged, Host, Nzcv};
 use crate::sio::SIO_BASE;
 use crate::timing::EXCEPTION_RETURN;
-
-/// `AddWithCarry(x, y, carry_in)` of DDI0419 A2.2.1: (result, carry, overflow).
-#[inline]
-pub fn add_with_carry(x: u32, y: u32, carry: bool) -> (u32, bool, bool) {
-    let wide = x as u64 + y as u64 + carry as u64;
-    let result = wide as u32;
-    let signed = x as i32 as i64 + y as i32 as i64 + carry as i64;
-    (result, wide >> 32 != 0, result as i32 as i64 != signed)
-}
-
-/// Evaluates condition code `cond` (0-14) against flags (DDI0419 A6.3).
-#[inline(always)]
-pub fn condition_passed(cond: u8, n: bool, z: bool, c: bool, v: bool) -> bool {
-    let r = match cond >> 1 {
-        0 => z,
-        1 => c,
-        2 => n,
-        3 => v,
-        4 => c && !z,
-        5 => n == v,
-        6 => n == v && !z,
-        _ => true,
-    };
-    if cond & 1 == 1 && cond != 15 {
-        !r
-    } else {
-        r
-    }
-}
 
 /// Target of a PC-relative branch (B, B<cond>, BL) at `pc`: PC reads as `pc + 4`.
 #[inline(always)]
@@ -186,16 +158,42 @@ impl Core {
     /// (ADDS, SUBS, CMP, CMN, ADCS, SBCS, RSBS): sets N, Z, C and V and returns the result.
     #[inline(always)]
     pub(crate) fn adds(&mut self, x: u32, y: u32, carry: bool) -> u32 {
-        let (r, c, v) = add_with_carry(x, y, carry);
-        (self.c, self.v) = (c, v);
-        self.nz(r);
-        r
+        let f = semantics::add_with_carry(&mut Host, x, y, carry);
+        self.set_flags(f)
     }
 
-    /// Whether condition `cond` (0-14) holds on the current flags.
+    /// ADDS and CMN: [`semantics::add`]; sets N, Z, C and V and returns the result.
+    #[inline(always)]
+    pub(crate) fn add_flags(&mut self, x: u32, y: u32) -> u32 {
+        let f = semantics::add(&mut Host, x, y);
+        self.set_flags(f)
+    }
+
+    /// SUBS, CMP and RSBS: [`semantics::sub`]; sets N, Z, C and V and returns the result.
+    #[inline(always)]
+    pub(crate) fn sub_flags(&mut self, x: u32, y: u32) -> u32 {
+        let f = semantics::sub(&mut Host, x, y);
+        self.set_flags(f)
+    }
+
+    /// N and Z from the result, C, and V from the sign of the overflow word.
+    #[inline(always)]
+    fn set_flags(&mut self, f: Flagged<u32, bool>) -> u32 {
+        (self.c, self.v) = (f.c, (f.v as i32) < 0);
+        self.nz(f.result);
+        f.result
+    }
+
+    /// Whether condition `cond` (0-14) holds on the current flags ([`semantics::condition`]).
     #[inline(always)]
     pub(crate) fn condition(&self, cond: u8) -> bool {
-        condition_passed(cond, self.n, self.z, self.c, self.v)
+        let f = Nzcv {
+            n: self.n,
+            z: self.z,
+            c: self.c,
+            v: self.v,
+        };
+        semantics::condition(&mut Host, &f, cond)
     }
 
     /// `LSLS Rd, Rm, #imm` (imm 0-31; 0 is `MOVS Rd, Rm`, carry unchanged).
@@ -236,28 +234,28 @@ impl Core {
     #[inline(always)]
     pub(crate) fn add_reg(&mut self, rd: u8, rn: u8, rm: u8) {
         let (x, y) = (self.r[(rn & 15) as usize], self.r[(rm & 15) as usize]);
-        self.r[(rd & 15) as usize] = self.adds(x, y, false);
+        self.r[(rd & 15) as usize] = self.add_flags(x, y);
     }
 
     /// `SUBS Rd, Rn, Rm`.
     #[inline(always)]
     pub(crate) fn sub_reg(&mut self, rd: u8, rn: u8, rm: u8) {
         let (x, y) = (self.r[(rn & 15) as usize], self.r[(rm & 15) as usize]);
-        self.r[(rd & 15) as usize] = self.adds(x, !y, true);
+        self.r[(rd & 15) as usize] = self.sub_flags(x, y);
     }
 
     /// `ADDS Rd, Rn, #imm` (both encodings).
     #[inline(always)]
     pub(crate) fn add_imm(&mut self, rd: u8, rn: u8, imm: u8) {
         let x = self.r[(rn & 15) as usize];
-        self.r[(rd & 15) as usize] = self.adds(x, imm as u32, false);
+        self.r[(rd & 15) as usize] = self.add_flags(x, imm as u32);
     }
 
     /// `SUBS Rd, Rn, #imm` (both encodings).
     #[inline(always)]
     pub(crate) fn sub_imm(&mut self, rd: u8, rn: u8, imm: u8) {
         let x = self.r[(rn & 15) as usize];
-        self.r[(rd & 15) as usize] = self.adds(x, !(imm as u32), true);
+        self.r[(rd & 15) as usize] = self.sub_flags(x, imm as u32);
     }
 
     /// `MOVS Rd, #imm`.
@@ -271,7 +269,7 @@ impl Core {
     #[inline(always)]
     pub(crate) fn cmp_imm(&mut self, rn: u8, imm: u8) {
         let x = self.r[(rn & 15) as usize];
-        self.adds(x, !(imm as u32), true);
+        self.sub_flags(x, imm as u32);
     }
 
     /// The register-only data-processing instructions (shifts by immediate, ADDS/SUBS/MOVS/CMP
@@ -298,7 +296,7 @@ impl Core {
             Alu { op, rdn, rm } => self.alu(op, (rdn & 15) as usize, self.r[(rm & 15) as usize]),
             CmpHi { rn, rm } => {
                 let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));
-                self.adds(x, !y, true);
+                self.sub_flags(x, y);
             }
             Sxth { rd, rm } => {
                 self.r[(rd & 15) as usize] = self.r[(rm & 15) as usize] as i16 as i32 as u32
@@ -858,19 +856,16 @@ impl Core {
                     r
                 }
             }
-            AluOp::Adc | AluOp::Sbc | AluOp::Rsb | AluOp::Cmp | AluOp::Cmn => {
-                let (a, b, carry) = match op {
-                    AluOp::Adc => (x, m, self.c),
-                    AluOp::Sbc => (x, !m, self.c),
-                    AluOp::Rsb => (!m, 0, true),
-                    AluOp::Cmp => (x, !m, true),
-                    _ => (x, m, false),
-                };
-                let r = self.adds(a, b, carry);
-                if matches!(op, AluOp::Cmp | AluOp::Cmn) {
-                    return;
-                }
-                r
+            AluOp::Adc => self.adds(x, m, self.c),
+            AluOp::Sbc => self.adds(x, !m, self.c),
+            AluOp::Rsb => self.sub_flags(0, m),
+            AluOp::Cmp => {
+                self.sub_flags(x, m);
+                return;
+            }
+            AluOp::Cmn => {
+                self.add_flags(x, m);
+                return;
             }
             AluOp::Mul => m.wrapping_mul(x),
         };

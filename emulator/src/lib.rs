@@ -24,6 +24,7 @@ mod fast;
 mod jit;
 pub mod nvic;
 pub mod schedule;
+pub mod semantics;
 pub mod sio;
 pub mod timer;
 pub mod timing;

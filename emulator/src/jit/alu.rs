@@ -1,9 +1,13 @@
 //! Data processing as cranelift IR: N and Z, the add and subtract flags, the condition
 //! codes and the ALU group (`Core::adds`, `Core::condition`, `Core::alu` in `exec.rs`).
+//! The flag rules are not written here: the translator is a [`Domain`] whose operations
+//! emit one IR instruction each, and the rules are `crate::semantics`' generic functions,
+//! the same the interpreter runs on plain values.
 
-use super::translate::{Translator, C, Z};
+use super::translate::{Flags, Translator, C};
 use crate::decode::AluOp;
-use cranelift_codegen::ir::condcodes::{CondCode, IntCC};
+use crate::semantics::{self, Domain, Flagged, HeldFlags};
+use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, InstBuilder, Value};
 
 impl Translator<'_> {
@@ -12,96 +16,37 @@ impl Translator<'_> {
         self.b.def_var(self.flags.nz, r);
     }
 
-    /// `Core::adds`: `x + y + carry` with N, Z, C and V.
+    /// `Core::adds`: [`semantics::add_with_carry`] (ADCS, SBCS).
     pub(super) fn adds(&mut self, x: Value, y: Value, carry: Value) -> Value {
-        let ins = self.b.ins();
-        let xw = ins.uextend(types::I64, x);
-        let yw = self.b.ins().uextend(types::I64, y);
-        let cw = self.b.ins().uextend(types::I64, carry);
-        let s = self.b.ins().iadd(xw, yw);
-        let wide = self.b.ins().iadd(s, cw);
-        let r = self.b.ins().ireduce(types::I32, wide);
-        let hi = self.b.ins().ushr_imm_u(wide, 32);
-        let c = self.b.ins().ireduce(types::I8, hi);
-        let a = self.b.ins().bxor(x, r);
-        let bb = self.b.ins().bxor(y, r);
-        self.set_cvnz(r, c, a, bb)
+        let f = semantics::add_with_carry(self, x, y, carry);
+        self.set_flagged(f)
     }
 
-    /// `Core::adds(x, y, false)` (ADDS, CMN) in 32-bit operations: the carry is the
-    /// unsigned wrap, the overflow the sign rule.
+    /// `Core::add_flags`: [`semantics::add`] (ADDS, CMN).
     pub(super) fn add_flags(&mut self, x: Value, y: Value) -> Value {
-        let r = self.b.ins().iadd(x, y);
-        let c = self.b.ins().icmp(IntCC::UnsignedLessThan, r, x);
-        let a = self.b.ins().bxor(x, r);
-        let bb = self.b.ins().bxor(y, r);
-        self.set_cvnz(r, c, a, bb)
+        let f = semantics::add(self, x, y);
+        self.set_flagged(f)
     }
 
-    /// `Core::adds(x, !y, true)` (SUBS, CMP, NEGS) in 32-bit operations: the carry is
-    /// "no borrow" (`x >= y` unsigned), the overflow the sign rule of a subtraction.
+    /// `Core::sub_flags`: [`semantics::sub`] (SUBS, CMP, RSBS).
     pub(super) fn sub_flags(&mut self, x: Value, y: Value) -> Value {
-        let r = self.b.ins().isub(x, y);
-        let c = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, x, y);
-        let a = self.b.ins().bxor(x, y);
-        let bb = self.b.ins().bxor(x, r);
-        self.set_cvnz(r, c, a, bb)
+        let f = semantics::sub(self, x, y);
+        self.set_flagged(f)
     }
 
-    /// Sets C to `c`, V to the sign of `a & bb` (the overflow rule over the operand and
-    /// result XORs its caller computed; held as that word), N and Z from `r`; returns `r`.
-    fn set_cvnz(&mut self, r: Value, c: Value, a: Value, bb: Value) -> Value {
-        let both = self.b.ins().band(a, bb);
-        self.set_c(c);
-        self.b.def_var(self.flags.v, both);
-        self.nz(r);
-        r
+    /// Sets C, V (held as its word), N and Z from the result; returns the result.
+    fn set_flagged(&mut self, f: Flagged<Value, Value>) -> Value {
+        self.set_c(f.c);
+        self.b.def_var(self.flags.v, f.v);
+        self.nz(f.result);
+        f.result
     }
 
-    /// `Core::condition`: 1 when `cond` (0-13) holds.
+    /// `Core::condition`: 1 when `cond` (0-13) holds ([`semantics::condition`] on the
+    /// held flags).
     pub(super) fn condition(&mut self, cond: u8) -> Value {
-        let nz = self.b.use_var(self.flags.nz);
-        let odd = cond & 1 == 1;
-        // Each test with its negation folded into the comparison.
-        let cc = |yes: IntCC| if odd { yes.complement() } else { yes };
-        match cond >> 1 {
-            0 => self.b.ins().icmp_imm_u(cc(IntCC::Equal), nz, 0),
-            1 => {
-                let c = self.flag(C);
-                self.b.ins().icmp_imm_u(cc(IntCC::NotEqual), c, 0)
-            }
-            2 => self.b.ins().icmp_imm_s(cc(IntCC::SignedLessThan), nz, 0),
-            3 => {
-                let v = self.b.use_var(self.flags.v);
-                self.b.ins().icmp_imm_s(cc(IntCC::SignedLessThan), v, 0)
-            }
-            4 => {
-                let c = self.flag(C);
-                let z = self.flag(Z);
-                let hi = self.b.ins().band_not(c, z);
-                self.b.ins().icmp_imm_u(cc(IntCC::NotEqual), hi, 0)
-            }
-            5 => {
-                // N == V: the signs of the two words agree.
-                let v = self.b.use_var(self.flags.v);
-                let x = self.b.ins().bxor(nz, v);
-                self.b
-                    .ins()
-                    .icmp_imm_s(cc(IntCC::SignedGreaterThanOrEqual), x, 0)
-            }
-            _ => {
-                // N == V and not Z.
-                let v = self.b.use_var(self.flags.v);
-                let x = self.b.ins().bxor(nz, v);
-                let ge = self
-                    .b
-                    .ins()
-                    .icmp_imm_s(IntCC::SignedGreaterThanOrEqual, x, 0);
-                let z = self.flag(Z);
-                let gt = self.b.ins().band_not(ge, z);
-                self.b.ins().icmp_imm_u(cc(IntCC::NotEqual), gt, 0)
-            }
-        }
+        let flags = self.flags;
+        semantics::condition(self, &flags, cond)
     }
 
     /// `Core::alu`: the ALU group on `Rdn` and `m`.
@@ -197,5 +142,79 @@ impl Translator<'_> {
         };
         self.set(rdn, r);
         self.nz(r);
+    }
+}
+
+/// The held flags ([`Flags`]) read as the common form: the N/Z word serves as both N's and
+/// Z's word.
+impl<'a> HeldFlags<Translator<'a>> for Flags {
+    fn n(&self, d: &mut Translator<'a>) -> Value {
+        d.b.use_var(self.nz)
+    }
+    fn z(&self, d: &mut Translator<'a>) -> Value {
+        d.b.use_var(self.nz)
+    }
+    fn c(&self, d: &mut Translator<'a>) -> Value {
+        d.b.use_var(self.c)
+    }
+    fn v(&self, d: &mut Translator<'a>) -> Value {
+        d.b.use_var(self.v)
+    }
+}
+
+/// Cranelift IR as the domain: words are i32 values, bits i8 values (0 or 1), and each
+/// operation is one instruction (the carry-out add: through a 64-bit sum).
+impl Domain for Translator<'_> {
+    type Word = Value;
+    type Bit = Value;
+    fn add(&mut self, x: Value, y: Value) -> Value {
+        self.b.ins().iadd(x, y)
+    }
+    fn sub(&mut self, x: Value, y: Value) -> Value {
+        self.b.ins().isub(x, y)
+    }
+    fn add_carry(&mut self, x: Value, y: Value, carry: Value) -> (Value, Value) {
+        let xw = self.b.ins().uextend(types::I64, x);
+        let yw = self.b.ins().uextend(types::I64, y);
+        let cw = self.b.ins().uextend(types::I64, carry);
+        let s = self.b.ins().iadd(xw, yw);
+        let wide = self.b.ins().iadd(s, cw);
+        let r = self.b.ins().ireduce(types::I32, wide);
+        let hi = self.b.ins().ushr_imm_u(wide, 32);
+        (r, self.b.ins().ireduce(types::I8, hi))
+    }
+    fn xor(&mut self, x: Value, y: Value) -> Value {
+        self.b.ins().bxor(x, y)
+    }
+    fn and(&mut self, x: Value, y: Value) -> Value {
+        self.b.ins().band(x, y)
+    }
+    fn ult(&mut self, x: Value, y: Value) -> Value {
+        self.b.ins().icmp(IntCC::UnsignedLessThan, x, y)
+    }
+    fn uge(&mut self, x: Value, y: Value) -> Value {
+        self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, x, y)
+    }
+    fn sign_is(&mut self, w: Value, set: bool) -> Value {
+        let cc = if set {
+            IntCC::SignedLessThan
+        } else {
+            IntCC::SignedGreaterThanOrEqual
+        };
+        self.b.ins().icmp_imm_s(cc, w, 0)
+    }
+    fn zero_is(&mut self, w: Value, zero: bool) -> Value {
+        let cc = if zero { IntCC::Equal } else { IntCC::NotEqual };
+        self.b.ins().icmp_imm_u(cc, w, 0)
+    }
+    fn bit_is(&mut self, b: Value, set: bool) -> Value {
+        let cc = if set { IntCC::NotEqual } else { IntCC::Equal };
+        self.b.ins().icmp_imm_u(cc, b, 0)
+    }
+    fn and_not(&mut self, a: Value, b: Value) -> Value {
+        self.b.ins().band_not(a, b)
+    }
+    fn one(&mut self) -> Value {
+        self.b.ins().iconst(types::I8, 1)
     }
 }

@@ -1,0 +1,425 @@
+//! The ARMv6-M flag rules, written once over a value domain.
+//!
+//! The interpreter (`exec.rs`) computes on `u32`s and `bool`s; the block compiler
+//! (`jit/alu.rs`) builds cranelift IR that computes them later. Both need the same rules —
+//! which bit of an add is C, which word's sign is V, what each condition code tests — and a
+//! rule written twice drifts. So each rule here is a generic function over a [`Domain`]: the
+//! handful of word and bit operations the rules are made of. [`Host`] is the domain of plain
+//! values (every method `#[inline(always)]`, so the interpreter compiles to what it would
+//! with the formulas written in place); the translator's domain emits one IR instruction per
+//! method, so an instruction's IR is exactly the operations its rule names.
+//!
+//! The common form of the flags is the block compiler's lazy one, which costs the least in
+//! both domains: N as the sign of a word, Z as "a word is zero" (both the result word after
+//! a data-processing instruction), C as a bit, and V as the sign of a word (the overflow
+//! rule's XOR term, its sign not yet extracted). The unit tests check every rule on `u32`
+//! against DDI0419's own definitions (A2.2.1 `AddWithCarry`, A6.3 the conditions).
+
+/// The operations the flag rules are built from. `Word` is a 32-bit word, `Bit` a truth
+/// value (0 or 1). Methods take `&mut self` so a domain can emit code.
+pub trait Domain {
+    /// A 32-bit word.
+    type Word: Copy;
+    /// A truth value.
+    type Bit: Copy;
+    /// `x + y` modulo 2³².
+    fn add(&mut self, x: Self::Word, y: Self::Word) -> Self::Word;
+    /// `x - y` modulo 2³².
+    fn sub(&mut self, x: Self::Word, y: Self::Word) -> Self::Word;
+    /// `x + y + carry` modulo 2³² and the adder's carry out (bit 32 of the exact sum).
+    fn add_carry(
+        &mut self,
+        x: Self::Word,
+        y: Self::Word,
+        carry: Self::Bit,
+    ) -> (Self::Word, Self::Bit);
+    /// Bitwise exclusive or.
+    fn xor(&mut self, x: Self::Word, y: Self::Word) -> Self::Word;
+    /// Bitwise and.
+    fn and(&mut self, x: Self::Word, y: Self::Word) -> Self::Word;
+    /// `x < y`, unsigned.
+    fn ult(&mut self, x: Self::Word, y: Self::Word) -> Self::Bit;
+    /// `x >= y`, unsigned.
+    fn uge(&mut self, x: Self::Word, y: Self::Word) -> Self::Bit;
+    /// Whether bit 31 of `w` equals `set`.
+    fn sign_is(&mut self, w: Self::Word, set: bool) -> Self::Bit;
+    /// Whether "`w` is zero" equals `zero`.
+    fn zero_is(&mut self, w: Self::Word, zero: bool) -> Self::Bit;
+    /// Whether the bit `b` equals `set`.
+    fn bit_is(&mut self, b: Self::Bit, set: bool) -> Self::Bit;
+    /// `a AND NOT b`.
+    fn and_not(&mut self, a: Self::Bit, b: Self::Bit) -> Self::Bit;
+    /// The constant true.
+    fn one(&mut self) -> Self::Bit;
+}
+
+/// The result of a flag-setting add or subtract: the result word (N and Z come from it),
+/// C, and the word whose sign is V.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Flagged<W, B> {
+    /// The result; N is its sign, Z whether it is zero.
+    pub result: W,
+    /// The carry flag.
+    pub c: B,
+    /// A word whose sign is the overflow flag.
+    pub v: W,
+}
+
+/// The overflow word of `r = x + y (+ carry)`: signed overflow happened exactly when both
+/// operands' signs differ from the result's, i.e. when bit 31 of `(x ^ r) & (y ^ r)` is set.
+#[inline(always)]
+fn add_overflow<D: Domain>(d: &mut D, x: D::Word, y: D::Word, r: D::Word) -> D::Word {
+    let a = d.xor(x, r);
+    let b = d.xor(y, r);
+    d.and(a, b)
+}
+
+/// `AddWithCarry(x, y, carry)` (DDI0419 A2.2.1): ADCS, SBCS (with `y = NOT Rm`).
+#[inline(always)]
+pub fn add_with_carry<D: Domain>(
+    d: &mut D,
+    x: D::Word,
+    y: D::Word,
+    carry: D::Bit,
+) -> Flagged<D::Word, D::Bit> {
+    let (result, c) = d.add_carry(x, y, carry);
+    let v = add_overflow(d, x, y, result);
+    Flagged { result, c, v }
+}
+
+/// `AddWithCarry(x, y, '0')`: ADDS, CMN. The carry out is the unsigned wrap, `r < x`.
+#[inline(always)]
+pub fn add<D: Domain>(d: &mut D, x: D::Word, y: D::Word) -> Flagged<D::Word, D::Bit> {
+    let result = d.add(x, y);
+    let c = d.ult(result, x);
+    let v = add_overflow(d, x, y, result);
+    Flagged { result, c, v }
+}
+
+/// `AddWithCarry(x, NOT y, '1')`: SUBS, CMP, RSBS/NEGS (`x = 0`). The carry is "no borrow",
+/// `x >= y` unsigned; signed overflow happened exactly when the operands' signs differ and
+/// the result's differs from `x`'s: bit 31 of `(x ^ y) & (x ^ r)`.
+#[inline(always)]
+pub fn sub<D: Domain>(d: &mut D, x: D::Word, y: D::Word) -> Flagged<D::Word, D::Bit> {
+    let result = d.sub(x, y);
+    let c = d.uge(x, y);
+    let a = d.xor(x, y);
+    let b = d.xor(x, result);
+    let v = d.and(a, b);
+    Flagged { result, c, v }
+}
+
+/// The flags as a condition reads them, in the common form (see the module doc). Reads
+/// are on demand, so a condition reads (and a translation emits) only what it tests.
+pub trait HeldFlags<D: Domain> {
+    /// A word whose sign is N.
+    fn n(&self, d: &mut D) -> D::Word;
+    /// A word that is zero exactly when Z is set.
+    fn z(&self, d: &mut D) -> D::Word;
+    /// C.
+    fn c(&self, d: &mut D) -> D::Bit;
+    /// A word whose sign is V.
+    fn v(&self, d: &mut D) -> D::Word;
+}
+
+/// `ConditionPassed` for condition code `cond` (0-14; DDI0419 A6.3, table A6-1): each pair
+/// `2k`/`2k + 1` is a test and its complement, the complement folded into the test's last
+/// comparison. 14 (AL) holds; 15 is not a condition (B with 15 is SVC) and reads as AL.
+#[inline(always)]
+pub fn condition<D: Domain, F: HeldFlags<D>>(d: &mut D, f: &F, cond: u8) -> D::Bit {
+    let holds = cond & 1 == 0;
+    match cond >> 1 {
+        // EQ/NE: Z.
+        0 => {
+            let z = f.z(d);
+            d.zero_is(z, holds)
+        }
+        // CS/CC: C.
+        1 => {
+            let c = f.c(d);
+            d.bit_is(c, holds)
+        }
+        // MI/PL: N.
+        2 => {
+            let n = f.n(d);
+            d.sign_is(n, holds)
+        }
+        // VS/VC: V.
+        3 => {
+            let v = f.v(d);
+            d.sign_is(v, holds)
+        }
+        // HI/LS: C and not Z.
+        4 => {
+            let c = f.c(d);
+            let z = f.z(d);
+            let z = d.zero_is(z, true);
+            let hi = d.and_not(c, z);
+            d.bit_is(hi, holds)
+        }
+        // GE/LT: N == V, i.e. the sign of N ^ V is clear.
+        5 => {
+            let (n, v) = (f.n(d), f.v(d));
+            let x = d.xor(n, v);
+            d.sign_is(x, !holds)
+        }
+        // GT/LE: N == V and not Z.
+        6 => {
+            let (n, v) = (f.n(d), f.v(d));
+            let x = d.xor(n, v);
+            let ge = d.sign_is(x, false);
+            let z = f.z(d);
+            let z = d.zero_is(z, true);
+            let gt = d.and_not(ge, z);
+            d.bit_is(gt, holds)
+        }
+        _ => d.one(),
+    }
+}
+
+/// The domain of plain values: the interpreter's.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Host;
+
+impl Domain for Host {
+    type Word = u32;
+    type Bit = bool;
+    #[inline(always)]
+    fn add(&mut self, x: u32, y: u32) -> u32 {
+        x.wrapping_add(y)
+    }
+    #[inline(always)]
+    fn sub(&mut self, x: u32, y: u32) -> u32 {
+        x.wrapping_sub(y)
+    }
+    #[inline(always)]
+    fn add_carry(&mut self, x: u32, y: u32, carry: bool) -> (u32, bool) {
+        let wide = x as u64 + y as u64 + carry as u64;
+        (wide as u32, wide >> 32 != 0)
+    }
+    #[inline(always)]
+    fn xor(&mut self, x: u32, y: u32) -> u32 {
+        x ^ y
+    }
+    #[inline(always)]
+    fn and(&mut self, x: u32, y: u32) -> u32 {
+        x & y
+    }
+    #[inline(always)]
+    fn ult(&mut self, x: u32, y: u32) -> bool {
+        x < y
+    }
+    #[inline(always)]
+    fn uge(&mut self, x: u32, y: u32) -> bool {
+        x >= y
+    }
+    #[inline(always)]
+    fn sign_is(&mut self, w: u32, set: bool) -> bool {
+        ((w as i32) < 0) == set
+    }
+    #[inline(always)]
+    fn zero_is(&mut self, w: u32, zero: bool) -> bool {
+        (w == 0) == zero
+    }
+    #[inline(always)]
+    fn bit_is(&mut self, b: bool, set: bool) -> bool {
+        b == set
+    }
+    #[inline(always)]
+    fn and_not(&mut self, a: bool, b: bool) -> bool {
+        a && !b
+    }
+    #[inline(always)]
+    fn one(&mut self) -> bool {
+        true
+    }
+}
+
+/// Four flags as bools (the interpreter's [`crate::core::Core`] holds them so), read in the
+/// common form: N and V as bit 31 of a word, Z as a word that is zero exactly when Z is
+/// set. Exact for every combination, including N and Z both set (`MSR APSR`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Nzcv {
+    /// Negative.
+    pub n: bool,
+    /// Zero.
+    pub z: bool,
+    /// Carry.
+    pub c: bool,
+    /// Overflow.
+    pub v: bool,
+}
+
+impl HeldFlags<Host> for Nzcv {
+    #[inline(always)]
+    fn n(&self, _: &mut Host) -> u32 {
+        (self.n as u32) << 31
+    }
+    #[inline(always)]
+    fn z(&self, _: &mut Host) -> u32 {
+        !self.z as u32
+    }
+    #[inline(always)]
+    fn c(&self, _: &mut Host) -> bool {
+        self.c
+    }
+    #[inline(always)]
+    fn v(&self, _: &mut Host) -> u32 {
+        (self.v as u32) << 31
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// DDI0419 A2.2.1 `AddWithCarry`, literally: the unsigned and the signed sums, C when
+    /// the unsigned sum differs from the result read unsigned, V when the signed sum
+    /// differs from the result read signed.
+    fn ddi0419_add_with_carry(x: u32, y: u32, carry: bool) -> (u32, bool, bool) {
+        let unsigned_sum = x as u64 + y as u64 + carry as u64;
+        let signed_sum = x as i32 as i64 + y as i32 as i64 + carry as i64;
+        let result = unsigned_sum as u32;
+        (
+            result,
+            result as u64 != unsigned_sum,
+            result as i32 as i64 != signed_sum,
+        )
+    }
+
+    /// DDI0419 A6.3, table A6-1, literally.
+    fn ddi0419_condition(cond: u8, n: bool, z: bool, c: bool, v: bool) -> bool {
+        match cond {
+            0 => z,
+            1 => !z,
+            2 => c,
+            3 => !c,
+            4 => n,
+            5 => !n,
+            6 => v,
+            7 => !v,
+            8 => c && !z,
+            9 => !c || z,
+            10 => n == v,
+            11 => n != v,
+            12 => !z && n == v,
+            13 => z || n != v,
+            _ => true,
+        }
+    }
+
+    /// Edge operands, then pseudo-random ones (xorshift, fixed seed).
+    fn operands() -> Vec<u32> {
+        let mut v = vec![
+            0,
+            1,
+            2,
+            0x7fff_ffff,
+            0x8000_0000,
+            0x8000_0001,
+            0xffff_fffe,
+            0xffff_ffff,
+        ];
+        let mut s = 0x9e37_79b9u32;
+        for _ in 0..120 {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            v.push(s);
+        }
+        v
+    }
+
+    fn split(f: Flagged<u32, bool>) -> (u32, bool, bool) {
+        (f.result, f.c, (f.v as i32) < 0)
+    }
+
+    #[test]
+    fn add_and_subtract_flags_are_ddi0419s_add_with_carry() {
+        let ops = operands();
+        for &x in &ops {
+            for &y in &ops {
+                for carry in [false, true] {
+                    assert_eq!(
+                        split(add_with_carry(&mut Host, x, y, carry)),
+                        ddi0419_add_with_carry(x, y, carry),
+                        "ADCS {x:#x} {y:#x} {carry}"
+                    );
+                }
+                assert_eq!(
+                    split(add(&mut Host, x, y)),
+                    ddi0419_add_with_carry(x, y, false),
+                    "ADDS {x:#x} {y:#x}"
+                );
+                assert_eq!(
+                    split(sub(&mut Host, x, y)),
+                    ddi0419_add_with_carry(x, !y, true),
+                    "SUBS {x:#x} {y:#x}"
+                );
+            }
+        }
+    }
+
+    /// Every condition on every combination of the four flags held as bools (sixteen,
+    /// including N and Z both set), and on the flags an add and a subtract of the edge and
+    /// random operands leave in the lazy form (N/Z as the result word, V as the XOR word).
+    #[test]
+    fn conditions_are_ddi0419s() {
+        for cond in 0..15u8 {
+            for bits in 0..16u8 {
+                let f = Nzcv {
+                    n: bits & 8 != 0,
+                    z: bits & 4 != 0,
+                    c: bits & 2 != 0,
+                    v: bits & 1 != 0,
+                };
+                assert_eq!(
+                    condition(&mut Host, &f, cond),
+                    ddi0419_condition(cond, f.n, f.z, f.c, f.v),
+                    "cond {cond} on {f:?}"
+                );
+            }
+        }
+        /// The lazy form: one word for N and Z, the V word.
+        struct Lazy(Flagged<u32, bool>);
+        impl HeldFlags<Host> for Lazy {
+            fn n(&self, _: &mut Host) -> u32 {
+                self.0.result
+            }
+            fn z(&self, _: &mut Host) -> u32 {
+                self.0.result
+            }
+            fn c(&self, _: &mut Host) -> bool {
+                self.0.c
+            }
+            fn v(&self, _: &mut Host) -> u32 {
+                self.0.v
+            }
+        }
+        let ops = operands();
+        let mut seen = [[0u32; 2]; 15];
+        for &x in &ops {
+            for &y in &ops {
+                for (f, (r, c, v)) in [
+                    (add(&mut Host, x, y), ddi0419_add_with_carry(x, y, false)),
+                    (sub(&mut Host, x, y), ddi0419_add_with_carry(x, !y, true)),
+                ] {
+                    let (n, z) = ((r as i32) < 0, r == 0);
+                    for cond in 0..15u8 {
+                        let want = ddi0419_condition(cond, n, z, c, v);
+                        assert_eq!(
+                            condition(&mut Host, &Lazy(f), cond),
+                            want,
+                            "cond {cond} after {x:#x}, {y:#x}"
+                        );
+                        seen[cond as usize][want as usize] += 1;
+                    }
+                }
+            }
+        }
+        // Each condition was seen both holding and failing (AL only holding).
+        for (cond, s) in seen.iter().enumerate() {
+            assert!(s[1] > 0 && (cond == 14 || s[0] > 0), "cond {cond}: {s:?}");
+        }
+    }
+}
