@@ -11,7 +11,7 @@ use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE
 use crate::core::{Core, Event, FaultKind, RunState};
 use crate::decode::{self, AluOp, Instr, MemOp};
 use crate::nvic::PPB_BASE;
-use crate::semantics::{self, Flagged, Host, Nzcv};
+use crate::semantics::{self, Flagged, Host, Nzcv, ShiftImm};
 use crate::sio::SIO_BASE;
 use crate::timing::EXCEPTION_RETURN;
 
@@ -199,33 +199,29 @@ impl Core {
     /// `LSLS Rd, Rm, #imm` (imm 0-31; 0 is `MOVS Rd, Rm`, carry unchanged).
     #[inline(always)]
     pub(crate) fn lsl_imm(&mut self, rd: u8, rm: u8, imm: u8) {
-        let x = self.r[(rm & 15) as usize];
-        let r = if imm == 0 {
-            x
-        } else {
-            self.c = (x >> (32 - imm as u32)) & 1 == 1;
-            x << imm
-        };
-        self.r[(rd & 15) as usize] = r;
-        self.nz(r);
+        self.shift_imm(ShiftImm::Lsl, rd, rm, imm);
     }
 
     /// `LSRS Rd, Rm, #imm` (imm 1-32).
     #[inline(always)]
     pub(crate) fn lsr_imm(&mut self, rd: u8, rm: u8, imm: u8) {
-        let x = self.r[(rm & 15) as usize];
-        self.c = (x >> (imm as u32 - 1)) & 1 == 1;
-        let r = if imm == 32 { 0 } else { x >> imm };
-        self.r[(rd & 15) as usize] = r;
-        self.nz(r);
+        self.shift_imm(ShiftImm::Lsr, rd, rm, imm);
     }
 
     /// `ASRS Rd, Rm, #imm` (imm 1-32).
     #[inline(always)]
     pub(crate) fn asr_imm(&mut self, rd: u8, rm: u8, imm: u8) {
+        self.shift_imm(ShiftImm::Asr, rd, rm, imm);
+    }
+
+    /// A shift by an immediate: [`semantics::shift_imm`], N, Z and (unless LSL #0) C.
+    #[inline(always)]
+    fn shift_imm(&mut self, kind: ShiftImm, rd: u8, rm: u8, imm: u8) {
         let x = self.r[(rm & 15) as usize];
-        self.c = ((x as i32) >> (imm as u32 - 1)) & 1 == 1;
-        let r = ((x as i32) >> (imm as u32).min(31)) as u32;
+        let (r, c) = semantics::shift_imm(&mut Host, kind, x, imm);
+        if let Some(c) = c {
+            self.c = c;
+        }
         self.r[(rd & 15) as usize] = r;
         self.nz(r);
     }

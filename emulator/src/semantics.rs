@@ -51,6 +51,57 @@ pub trait Domain {
     fn and_not(&mut self, a: Self::Bit, b: Self::Bit) -> Self::Bit;
     /// The constant true.
     fn one(&mut self) -> Self::Bit;
+    /// The constant word `k`.
+    fn word(&mut self, k: u32) -> Self::Word;
+    /// Bit `i` (0-31) of `w`.
+    fn bit(&mut self, w: Self::Word, i: u8) -> Self::Bit;
+    /// `w << n` (n 1-31).
+    fn shl_imm(&mut self, w: Self::Word, n: u8) -> Self::Word;
+    /// `w >> n`, logical (n 1-31).
+    fn ushr_imm(&mut self, w: Self::Word, n: u8) -> Self::Word;
+    /// `w >> n`, arithmetic (n 1-31).
+    fn sshr_imm(&mut self, w: Self::Word, n: u8) -> Self::Word;
+}
+
+/// A shift by an immediate (LSLS, LSRS, ASRS with `imm5`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShiftImm {
+    /// `LSLS Rd, Rm, #n`, n 0-31 (0 is `MOVS Rd, Rm`: carry unchanged).
+    Lsl,
+    /// `LSRS Rd, Rm, #n`, n 1-32.
+    Lsr,
+    /// `ASRS Rd, Rm, #n`, n 1-32.
+    Asr,
+}
+
+/// `Shift_C(x, type, n, carry)` for an immediate amount (DDI0419 A2.2.2; the decoded `n`
+/// of A6.7.36/68/10): the result and the carry out, `None` where the carry is unchanged
+/// (LSL #0). The carry out is the last bit shifted out: bit `32 - n` of `x` to the left,
+/// bit `n - 1` to the right (for ASR too: `n - 1` is at most 31, below the copies of the
+/// sign).
+#[inline(always)]
+pub fn shift_imm<D: Domain>(
+    d: &mut D,
+    kind: ShiftImm,
+    x: D::Word,
+    n: u8,
+) -> (D::Word, Option<D::Bit>) {
+    match kind {
+        ShiftImm::Lsl if n == 0 => (x, None),
+        ShiftImm::Lsl => {
+            let c = d.bit(x, 32 - n);
+            (d.shl_imm(x, n), Some(c))
+        }
+        ShiftImm::Lsr => {
+            let c = d.bit(x, n - 1);
+            let r = if n == 32 { d.word(0) } else { d.ushr_imm(x, n) };
+            (r, Some(c))
+        }
+        ShiftImm::Asr => {
+            let c = d.bit(x, n - 1);
+            (d.sshr_imm(x, n.min(31)), Some(c))
+        }
+    }
 }
 
 /// The result of a flag-setting add or subtract: the result word (N and Z come from it),
@@ -233,6 +284,26 @@ impl Domain for Host {
     fn one(&mut self) -> bool {
         true
     }
+    #[inline(always)]
+    fn word(&mut self, k: u32) -> u32 {
+        k
+    }
+    #[inline(always)]
+    fn bit(&mut self, w: u32, i: u8) -> bool {
+        (w >> i) & 1 == 1
+    }
+    #[inline(always)]
+    fn shl_imm(&mut self, w: u32, n: u8) -> u32 {
+        w << n
+    }
+    #[inline(always)]
+    fn ushr_imm(&mut self, w: u32, n: u8) -> u32 {
+        w >> n
+    }
+    #[inline(always)]
+    fn sshr_imm(&mut self, w: u32, n: u8) -> u32 {
+        ((w as i32) >> n) as u32
+    }
 }
 
 /// Four flags as bools (the interpreter's [`crate::core::Core`] holds them so), read in the
@@ -356,6 +427,47 @@ mod tests {
                     ddi0419_add_with_carry(x, !y, true),
                     "SUBS {x:#x} {y:#x}"
                 );
+            }
+        }
+    }
+
+    /// DDI0419 A2.2.2 `LSL_C`, `LSR_C`, `ASR_C` literally: the operand extended to 64 + n
+    /// bits, shifted, the result its low word, the carry the bit just past it.
+    fn ddi0419_shift_c(kind: ShiftImm, x: u32, n: u8) -> (u32, Option<bool>) {
+        let n = n as u32;
+        match kind {
+            ShiftImm::Lsl if n == 0 => (x, None),
+            ShiftImm::Lsl => {
+                let extended = (x as u64) << n;
+                (extended as u32, Some((extended >> 32) & 1 == 1))
+            }
+            ShiftImm::Lsr | ShiftImm::Asr => {
+                let extended = if kind == ShiftImm::Lsr {
+                    x as u64
+                } else {
+                    x as i32 as i64 as u64
+                };
+                ((extended >> n) as u32, Some((extended >> (n - 1)) & 1 == 1))
+            }
+        }
+    }
+
+    #[test]
+    fn immediate_shifts_are_ddi0419s_shift_c() {
+        for &x in &operands() {
+            for n in 0..=32u8 {
+                let kinds: &[ShiftImm] = match n {
+                    0 => &[ShiftImm::Lsl],
+                    32 => &[ShiftImm::Lsr, ShiftImm::Asr],
+                    _ => &[ShiftImm::Lsl, ShiftImm::Lsr, ShiftImm::Asr],
+                };
+                for &kind in kinds {
+                    assert_eq!(
+                        shift_imm(&mut Host, kind, x, n),
+                        ddi0419_shift_c(kind, x, n),
+                        "{kind:?} {x:#x} #{n}"
+                    );
+                }
             }
         }
     }

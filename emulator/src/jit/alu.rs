@@ -6,7 +6,7 @@
 
 use super::translate::{Flags, Translator, C};
 use crate::decode::AluOp;
-use crate::semantics::{self, Domain, Flagged, HeldFlags};
+use crate::semantics::{self, Domain, Flagged, HeldFlags, ShiftImm};
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, InstBuilder, Value};
 
@@ -40,6 +40,16 @@ impl Translator<'_> {
         self.b.def_var(self.flags.v, f.v);
         self.nz(f.result);
         f.result
+    }
+
+    /// `Core::shift_imm`: LSLS, LSRS, ASRS by an immediate ([`semantics::shift_imm`]).
+    pub(super) fn shift_imm(&mut self, kind: ShiftImm, rd: u8, x: Value, imm: u8) {
+        let (r, c) = semantics::shift_imm(self, kind, x, imm);
+        if let Some(c) = c {
+            self.set_c(c);
+        }
+        self.set(rd, r);
+        self.nz(r);
     }
 
     /// `Core::condition`: 1 when `cond` (0-13) holds ([`semantics::condition`] on the
@@ -216,5 +226,22 @@ impl Domain for Translator<'_> {
     }
     fn one(&mut self) -> Value {
         self.b.ins().iconst(types::I8, 1)
+    }
+    fn word(&mut self, k: u32) -> Value {
+        self.c32(k)
+    }
+    fn bit(&mut self, w: Value, i: u8) -> Value {
+        let bit = self.b.ins().ushr_imm_u(w, i as i64);
+        let bit = self.b.ins().band_imm_u(bit, 1);
+        self.b.ins().ireduce(types::I8, bit)
+    }
+    fn shl_imm(&mut self, w: Value, n: u8) -> Value {
+        self.b.ins().ishl_imm_u(w, n as i64)
+    }
+    fn ushr_imm(&mut self, w: Value, n: u8) -> Value {
+        self.b.ins().ushr_imm_u(w, n as i64)
+    }
+    fn sshr_imm(&mut self, w: Value, n: u8) -> Value {
+        self.b.ins().sshr_imm_u(w, n as i64)
     }
 }

@@ -9,6 +9,7 @@ use crate::bus::SRAM_ALIAS_BASE;
 use crate::core::Core;
 use crate::decode::{Instr, MemOp};
 use crate::exec::{branch_target, literal_address};
+use crate::semantics::ShiftImm;
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, Block, InstBuilder, MemFlagsData, Value};
 use cranelift_frontend::{FunctionBuilder, Variable};
@@ -558,41 +559,15 @@ impl<'a> Translator<'a> {
         match ins.instr {
             LslImm { rd, rm, imm } => {
                 let x = self.reg(rm, pc);
-                let r = if imm == 0 {
-                    x
-                } else {
-                    let bit = self.b.ins().ushr_imm_u(x, 32 - imm as i64);
-                    let bit = self.b.ins().band_imm_u(bit, 1);
-                    let c = self.b.ins().ireduce(types::I8, bit);
-                    self.set_c(c);
-                    self.b.ins().ishl_imm_u(x, imm as i64)
-                };
-                self.set(rd, r);
-                self.nz(r);
+                self.shift_imm(ShiftImm::Lsl, rd, x, imm);
             }
             LsrImm { rd, rm, imm } => {
                 let x = self.reg(rm, pc);
-                let bit = self.b.ins().ushr_imm_u(x, imm as i64 - 1);
-                let bit = self.b.ins().band_imm_u(bit, 1);
-                let c = self.b.ins().ireduce(types::I8, bit);
-                self.set_c(c);
-                let r = if imm == 32 {
-                    self.c32(0)
-                } else {
-                    self.b.ins().ushr_imm_u(x, imm as i64)
-                };
-                self.set(rd, r);
-                self.nz(r);
+                self.shift_imm(ShiftImm::Lsr, rd, x, imm);
             }
             AsrImm { rd, rm, imm } => {
                 let x = self.reg(rm, pc);
-                let bit = self.b.ins().sshr_imm_u(x, imm as i64 - 1);
-                let bit = self.b.ins().band_imm_u(bit, 1);
-                let c = self.b.ins().ireduce(types::I8, bit);
-                self.set_c(c);
-                let r = self.b.ins().sshr_imm_u(x, (imm as i64).min(31));
-                self.set(rd, r);
-                self.nz(r);
+                self.shift_imm(ShiftImm::Asr, rd, x, imm);
             }
             AddReg { rd, rn, rm } => {
                 let (x, y) = (self.reg(rn, pc), self.reg(rm, pc));
