@@ -11,7 +11,7 @@ use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE
 use crate::core::{Core, Event, FaultKind, RunState};
 use crate::decode::{self, AluOp, Instr, MemOp};
 use crate::nvic::PPB_BASE;
-use crate::semantics::{self, Flagged, Host, Nzcv, ShiftImm};
+use crate::semantics::{self, Flagged, Host, Nzcv, ShiftImm, ShiftReg};
 use crate::sio::SIO_BASE;
 use crate::timing::EXCEPTION_RETURN;
 
@@ -791,7 +791,6 @@ impl Core {
     #[inline(always)]
     pub(crate) fn alu(&mut self, op: AluOp, d: usize, m: u32) {
         let x = self.r[d];
-        let shift = m & 0xff;
         let r = match op {
             AluOp::And => x & m,
             AluOp::Eor => x ^ m,
@@ -802,55 +801,16 @@ impl Core {
                 self.nz(x & m);
                 return;
             }
-            AluOp::Lsl => match shift {
-                0 => x,
-                1..=31 => {
-                    self.c = (x >> (32 - shift)) & 1 == 1;
-                    x << shift
-                }
-                32 => {
-                    self.c = x & 1 == 1;
-                    0
-                }
-                _ => {
-                    self.c = false;
-                    0
-                }
-            },
-            AluOp::Lsr => match shift {
-                0 => x,
-                1..=31 => {
-                    self.c = (x >> (shift - 1)) & 1 == 1;
-                    x >> shift
-                }
-                32 => {
-                    self.c = x >> 31 == 1;
-                    0
-                }
-                _ => {
-                    self.c = false;
-                    0
-                }
-            },
-            AluOp::Asr => match shift {
-                0 => x,
-                1..=31 => {
-                    self.c = ((x as i32) >> (shift - 1)) & 1 == 1;
-                    ((x as i32) >> shift) as u32
-                }
-                _ => {
-                    self.c = x >> 31 == 1;
-                    ((x as i32) >> 31) as u32
-                }
-            },
-            AluOp::Ror => {
-                if shift == 0 {
-                    x
-                } else {
-                    let r = x.rotate_right(shift & 31);
-                    self.c = r >> 31 == 1;
-                    r
-                }
+            AluOp::Lsl | AluOp::Lsr | AluOp::Asr | AluOp::Ror => {
+                let kind = match op {
+                    AluOp::Lsl => ShiftReg::Lsl,
+                    AluOp::Lsr => ShiftReg::Lsr,
+                    AluOp::Asr => ShiftReg::Asr,
+                    _ => ShiftReg::Ror,
+                };
+                let (r, c) = semantics::shift_reg(&mut Host, kind, x, m, self.c);
+                self.c = c;
+                r
             }
             AluOp::Adc => self.adds(x, m, self.c),
             AluOp::Sbc => self.adds(x, !m, self.c),

@@ -61,6 +61,99 @@ pub trait Domain {
     fn ushr_imm(&mut self, w: Self::Word, n: u8) -> Self::Word;
     /// `w >> n`, arithmetic (n 1-31).
     fn sshr_imm(&mut self, w: Self::Word, n: u8) -> Self::Word;
+    /// `w & k`.
+    fn and_imm(&mut self, w: Self::Word, k: u32) -> Self::Word;
+    /// The unsigned minimum of `w` and `k`.
+    fn umin_imm(&mut self, w: Self::Word, k: u32) -> Self::Word;
+    /// `w` rotated right by `s` (0-31).
+    fn rotr(&mut self, w: Self::Word, s: Self::Word) -> Self::Word;
+    /// `a` if `cond` else `b`.
+    fn select(&mut self, cond: Self::Bit, a: Self::Bit, b: Self::Bit) -> Self::Bit;
+
+    /// A 64-bit word (the register shifts' carry rides in it).
+    type Wide: Copy;
+    /// `w` zero-extended to 64 bits.
+    fn zext(&mut self, w: Self::Word) -> Self::Wide;
+    /// `w` sign-extended to 64 bits.
+    fn sext(&mut self, w: Self::Word) -> Self::Wide;
+    /// The low 32 bits of `w`.
+    fn low(&mut self, w: Self::Wide) -> Self::Word;
+    /// Bit `i` (0-63) of `w`.
+    fn wide_bit(&mut self, w: Self::Wide, i: u8) -> Self::Bit;
+    /// `w << s` (s 0-33).
+    fn wide_shl(&mut self, w: Self::Wide, s: Self::Wide) -> Self::Wide;
+    /// `w >> s`, logical (s 0-33).
+    fn wide_ushr(&mut self, w: Self::Wide, s: Self::Wide) -> Self::Wide;
+    /// `w >> s`, arithmetic (s 0-33).
+    fn wide_sshr(&mut self, w: Self::Wide, s: Self::Wide) -> Self::Wide;
+    /// `w << n` (n 1-63).
+    fn wide_shl_imm(&mut self, w: Self::Wide, n: u8) -> Self::Wide;
+    /// `w >> n`, arithmetic (n 1-63).
+    fn wide_sshr_imm(&mut self, w: Self::Wide, n: u8) -> Self::Wide;
+}
+
+/// A shift or rotate by a register (the ALU group's LSLS, LSRS, ASRS, RORS).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShiftReg {
+    /// `LSLS Rdn, Rm`.
+    Lsl,
+    /// `LSRS Rdn, Rm`.
+    Lsr,
+    /// `ASRS Rdn, Rm`.
+    Asr,
+    /// `RORS Rdn, Rm`.
+    Ror,
+}
+
+/// `Shift_C(x, type, m<7:0>, carry)` for a shift by a register (DDI0419 A2.2.2, A6.7.37,
+/// A6.7.69, A6.7.11, A6.7.57): the result and the carry out; an amount of 0 keeps `carry`.
+/// The amount is clamped to 33, which shifts everything out as any larger one does, and
+/// the shift is done in 64 bits so the last bit shifted out stays in the word: bit 32
+/// after a left shift; bit 0 after a right shift of the operand moved up by one (`ASR`
+/// extends the sign, so amounts past 32 leave copies of it). A rotate's carry is the
+/// result's bit 31.
+#[inline(always)]
+pub fn shift_reg<D: Domain>(
+    d: &mut D,
+    kind: ShiftReg,
+    x: D::Word,
+    m: D::Word,
+    carry: D::Bit,
+) -> (D::Word, D::Bit) {
+    let s = d.and_imm(m, 0xff);
+    let (r, c) = match kind {
+        ShiftReg::Ror => {
+            let s31 = d.and_imm(m, 31);
+            let r = d.rotr(x, s31);
+            (r, d.sign_is(r, true))
+        }
+        ShiftReg::Lsl => {
+            let s = d.umin_imm(s, 33);
+            let s64 = d.zext(s);
+            let w = d.zext(x);
+            let w = d.wide_shl(w, s64);
+            (d.low(w), d.wide_bit(w, 32))
+        }
+        ShiftReg::Lsr | ShiftReg::Asr => {
+            let s = d.umin_imm(s, 33);
+            let s64 = d.zext(s);
+            let w = if kind == ShiftReg::Lsr {
+                d.zext(x)
+            } else {
+                d.sext(x)
+            };
+            let w = d.wide_shl_imm(w, 1);
+            let u = if kind == ShiftReg::Lsr {
+                d.wide_ushr(w, s64)
+            } else {
+                d.wide_sshr(w, s64)
+            };
+            let r = d.wide_sshr_imm(u, 1);
+            (d.low(r), d.wide_bit(u, 0))
+        }
+    };
+    let zero = d.zero_is(s, true);
+    (r, d.select(zero, carry, c))
 }
 
 /// A shift by an immediate (LSLS, LSRS, ASRS with `imm5`).
@@ -304,6 +397,63 @@ impl Domain for Host {
     fn sshr_imm(&mut self, w: u32, n: u8) -> u32 {
         ((w as i32) >> n) as u32
     }
+    #[inline(always)]
+    fn and_imm(&mut self, w: u32, k: u32) -> u32 {
+        w & k
+    }
+    #[inline(always)]
+    fn umin_imm(&mut self, w: u32, k: u32) -> u32 {
+        w.min(k)
+    }
+    #[inline(always)]
+    fn rotr(&mut self, w: u32, s: u32) -> u32 {
+        w.rotate_right(s)
+    }
+    #[inline(always)]
+    fn select(&mut self, cond: bool, a: bool, b: bool) -> bool {
+        if cond {
+            a
+        } else {
+            b
+        }
+    }
+    type Wide = u64;
+    #[inline(always)]
+    fn zext(&mut self, w: u32) -> u64 {
+        w as u64
+    }
+    #[inline(always)]
+    fn sext(&mut self, w: u32) -> u64 {
+        w as i32 as i64 as u64
+    }
+    #[inline(always)]
+    fn low(&mut self, w: u64) -> u32 {
+        w as u32
+    }
+    #[inline(always)]
+    fn wide_bit(&mut self, w: u64, i: u8) -> bool {
+        (w >> i) & 1 == 1
+    }
+    #[inline(always)]
+    fn wide_shl(&mut self, w: u64, s: u64) -> u64 {
+        w << s
+    }
+    #[inline(always)]
+    fn wide_ushr(&mut self, w: u64, s: u64) -> u64 {
+        w >> s
+    }
+    #[inline(always)]
+    fn wide_sshr(&mut self, w: u64, s: u64) -> u64 {
+        ((w as i64) >> s) as u64
+    }
+    #[inline(always)]
+    fn wide_shl_imm(&mut self, w: u64, n: u8) -> u64 {
+        w << n
+    }
+    #[inline(always)]
+    fn wide_sshr_imm(&mut self, w: u64, n: u8) -> u64 {
+        ((w as i64) >> n) as u64
+    }
 }
 
 /// Four flags as bools (the interpreter's [`crate::core::Core`] holds them so), read in the
@@ -467,6 +617,40 @@ mod tests {
                         ddi0419_shift_c(kind, x, n),
                         "{kind:?} {x:#x} #{n}"
                     );
+                }
+            }
+        }
+    }
+
+    /// DDI0419's register shifts, one bit at a time: the carry is the last bit shifted
+    /// (or rotated) out; an amount of 0 keeps it.
+    fn ddi0419_shift_reg(kind: ShiftReg, x: u32, m: u32, carry: bool) -> (u32, bool) {
+        let (mut r, mut c) = (x, carry);
+        for _ in 0..m & 0xff {
+            match kind {
+                ShiftReg::Lsl => (r, c) = (r << 1, r >> 31 == 1),
+                ShiftReg::Lsr => (r, c) = (r >> 1, r & 1 == 1),
+                ShiftReg::Asr => (r, c) = (((r as i32) >> 1) as u32, r & 1 == 1),
+                ShiftReg::Ror => (r, c) = (r.rotate_right(1), r & 1 == 1),
+            }
+        }
+        (r, c)
+    }
+
+    #[test]
+    fn register_shifts_are_ddi0419s() {
+        let mut amounts: Vec<u32> = (0..=40).chain([63, 64, 127, 128, 255, 256, 257]).collect();
+        amounts.extend(operands().into_iter().take(40));
+        for &x in &operands() {
+            for &m in &amounts {
+                for kind in [ShiftReg::Lsl, ShiftReg::Lsr, ShiftReg::Asr, ShiftReg::Ror] {
+                    for carry in [false, true] {
+                        assert_eq!(
+                            shift_reg(&mut Host, kind, x, m, carry),
+                            ddi0419_shift_reg(kind, x, m, carry),
+                            "{kind:?} {x:#x} by {m:#x}, carry {carry}"
+                        );
+                    }
                 }
             }
         }

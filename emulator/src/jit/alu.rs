@@ -6,7 +6,7 @@
 
 use super::translate::{Flags, Translator, C};
 use crate::decode::AluOp;
-use crate::semantics::{self, Domain, Flagged, HeldFlags, ShiftImm};
+use crate::semantics::{self, Domain, Flagged, HeldFlags, ShiftImm, ShiftReg};
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, InstBuilder, Value};
 
@@ -74,55 +74,15 @@ impl Translator<'_> {
                 self.nz(r);
                 return;
             }
-            AluOp::Lsl | AluOp::Lsr | AluOp::Asr => {
-                // Shift by the bottom byte of Rm, through a 64-bit word (see the
-                // module tests): the carry is the last bit shifted out.
-                let s = self.b.ins().band_imm_u(m, 0xff);
-                let s33 = self.c32(33);
-                let s = self.b.ins().umin(s, s33);
-                let s64 = self.b.ins().uextend(types::I64, s);
-                let (r, c) = match op {
-                    AluOp::Lsl => {
-                        let w = self.b.ins().uextend(types::I64, x);
-                        let w = self.b.ins().ishl(w, s64);
-                        let r = self.b.ins().ireduce(types::I32, w);
-                        let c = self.b.ins().ushr_imm_u(w, 32);
-                        let c = self.b.ins().band_imm_u(c, 1);
-                        (r, c)
-                    }
-                    _ => {
-                        let w = if op == AluOp::Lsr {
-                            self.b.ins().uextend(types::I64, x)
-                        } else {
-                            self.b.ins().sextend(types::I64, x)
-                        };
-                        let w = self.b.ins().ishl_imm_u(w, 1);
-                        let u = if op == AluOp::Lsr {
-                            self.b.ins().ushr(w, s64)
-                        } else {
-                            self.b.ins().sshr(w, s64)
-                        };
-                        let r = self.b.ins().sshr_imm_u(u, 1);
-                        let r = self.b.ins().ireduce(types::I32, r);
-                        let c = self.b.ins().band_imm_u(u, 1);
-                        (r, c)
-                    }
+            AluOp::Lsl | AluOp::Lsr | AluOp::Asr | AluOp::Ror => {
+                let kind = match op {
+                    AluOp::Lsl => ShiftReg::Lsl,
+                    AluOp::Lsr => ShiftReg::Lsr,
+                    AluOp::Asr => ShiftReg::Asr,
+                    _ => ShiftReg::Ror,
                 };
-                let c = self.b.ins().ireduce(types::I8, c);
-                let zero = self.b.ins().icmp_imm_u(IntCC::Equal, s, 0);
                 let old = self.flag(C);
-                let c = self.b.ins().select(zero, old, c);
-                self.set_c(c);
-                r
-            }
-            AluOp::Ror => {
-                let s = self.b.ins().band_imm_u(m, 0xff);
-                let s31 = self.b.ins().band_imm_u(m, 31);
-                let r = self.b.ins().rotr(x, s31);
-                let c = self.b.ins().icmp_imm_s(IntCC::SignedLessThan, r, 0);
-                let zero = self.b.ins().icmp_imm_u(IntCC::Equal, s, 0);
-                let old = self.flag(C);
-                let c = self.b.ins().select(zero, old, c);
+                let (r, c) = semantics::shift_reg(self, kind, x, m, old);
                 self.set_c(c);
                 r
             }
@@ -242,6 +202,53 @@ impl Domain for Translator<'_> {
         self.b.ins().ushr_imm_u(w, n as i64)
     }
     fn sshr_imm(&mut self, w: Value, n: u8) -> Value {
+        self.b.ins().sshr_imm_u(w, n as i64)
+    }
+    fn and_imm(&mut self, w: Value, k: u32) -> Value {
+        self.b.ins().band_imm_u(w, k as i64)
+    }
+    fn umin_imm(&mut self, w: Value, k: u32) -> Value {
+        let k = self.c32(k);
+        self.b.ins().umin(w, k)
+    }
+    fn rotr(&mut self, w: Value, s: Value) -> Value {
+        self.b.ins().rotr(w, s)
+    }
+    fn select(&mut self, cond: Value, a: Value, b: Value) -> Value {
+        self.b.ins().select(cond, a, b)
+    }
+    type Wide = Value;
+    fn zext(&mut self, w: Value) -> Value {
+        self.b.ins().uextend(types::I64, w)
+    }
+    fn sext(&mut self, w: Value) -> Value {
+        self.b.ins().sextend(types::I64, w)
+    }
+    fn low(&mut self, w: Value) -> Value {
+        self.b.ins().ireduce(types::I32, w)
+    }
+    fn wide_bit(&mut self, w: Value, i: u8) -> Value {
+        let w = if i == 0 {
+            w
+        } else {
+            self.b.ins().ushr_imm_u(w, i as i64)
+        };
+        let bit = self.b.ins().band_imm_u(w, 1);
+        self.b.ins().ireduce(types::I8, bit)
+    }
+    fn wide_shl(&mut self, w: Value, s: Value) -> Value {
+        self.b.ins().ishl(w, s)
+    }
+    fn wide_ushr(&mut self, w: Value, s: Value) -> Value {
+        self.b.ins().ushr(w, s)
+    }
+    fn wide_sshr(&mut self, w: Value, s: Value) -> Value {
+        self.b.ins().sshr(w, s)
+    }
+    fn wide_shl_imm(&mut self, w: Value, n: u8) -> Value {
+        self.b.ins().ishl_imm_u(w, n as i64)
+    }
+    fn wide_sshr_imm(&mut self, w: Value, n: u8) -> Value {
         self.b.ins().sshr_imm_u(w, n as i64)
     }
 }
