@@ -125,10 +125,12 @@ pub(crate) struct Blocks {
     /// The same regions compiled for a core whose every access is later than the other
     /// core's last bank claim ([`jit::Flavour::Solo`]).
     pub(crate) solo: Jit,
-    /// The same regions compiled confined, for running ahead ([`run_confined`]).
-    pub(crate) confined: Jit,
-    /// Confined without arbitration ([`jit::Flavour::ConfinedSolo`]).
-    pub(crate) confined_solo: Jit,
+    /// The same regions compiled confined, for running ahead ([`run_confined`]): one
+    /// cache per bank mask met (the masks come from [`crate::Config::own_banks`] and their
+    /// complements, so a few).
+    pub(crate) confined: Vec<Jit>,
+    /// Confined without arbitration ([`jit::Flavour::ConfinedSolo`]), per bank mask.
+    pub(crate) confined_solo: Vec<Jit>,
     /// The undo journal of the core running ahead (entries as [`crate::jit`] writes them).
     pub(crate) journal: Vec<u64>,
     /// The core running ahead at each exit of its native code ([`run_confined`]).
@@ -184,11 +186,35 @@ impl Blocks {
             decoded: 0,
             jit: Jit::new(jit::Flavour::Shared),
             solo: Jit::new(jit::Flavour::Solo),
-            confined: Jit::new(jit::Flavour::Confined),
-            confined_solo: Jit::new(jit::Flavour::ConfinedSolo),
+            confined: Vec::new(),
+            confined_solo: Vec::new(),
             journal: Vec::with_capacity(JOURNAL),
             marks: Vec::new(),
         }
+    }
+
+    /// The confined cache (`solo`: without arbitration) for bank mask `mask`, with or
+    /// without journal code, made on first use with the board's compile threshold.
+    fn confined_for(&mut self, solo: bool, mask: u8, journaled: bool) -> &mut Jit {
+        let threshold = self.jit.threshold;
+        let (list, flavour) = if solo {
+            (
+                &mut self.confined_solo,
+                jit::Flavour::ConfinedSolo(mask, journaled),
+            )
+        } else {
+            (&mut self.confined, jit::Flavour::Confined(mask, journaled))
+        };
+        let at = match list.iter().position(|j| j.flavour() == flavour) {
+            Some(at) => at,
+            None => {
+                let mut j = Jit::new(flavour);
+                j.threshold = threshold;
+                list.push(j);
+                list.len() - 1
+            }
+        };
+        &mut list[at]
     }
 
     fn clear(&mut self, epoch: u32) {
@@ -509,11 +535,7 @@ pub(crate) fn run_confined(
         }
         let pc = core.r[15];
         if native {
-            let cache = if core.cycle >= quiet_from {
-                &mut blocks.confined_solo
-            } else {
-                &mut blocks.confined
-            };
+            let cache = blocks.confined_for(core.cycle >= quiet_from, allowed, journal.is_some());
             if let Some(region) = cache.lookup(sys, pc) {
                 if core.cycle.saturating_add(region.bound) <= limit && region.banks & !allowed == 0
                 {

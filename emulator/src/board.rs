@@ -721,7 +721,13 @@ impl Board {
     /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
     pub fn regions_compiled(&self) -> u64 {
         let b = &self.blocks;
-        b.jit.count + b.solo.count + b.confined.count + b.confined_solo.count
+        let confined: u64 = b
+            .confined
+            .iter()
+            .chain(&b.confined_solo)
+            .map(|j| j.count)
+            .sum();
+        b.jit.count + b.solo.count + confined
     }
 
     /// Run-ahead windows so far ("Running ahead" in the module documentation): (kept,
@@ -743,8 +749,10 @@ impl Board {
     pub fn set_compile_threshold(&mut self, times: u32) {
         self.blocks.jit.threshold = times;
         self.blocks.solo.threshold = times;
-        self.blocks.confined.threshold = times;
-        self.blocks.confined_solo.threshold = times;
+        let b = &mut self.blocks;
+        for j in b.confined.iter_mut().chain(b.confined_solo.iter_mut()) {
+            j.threshold = times;
+        }
     }
 
     /// Total cycles elapsed: the lower of the running cores' counters.

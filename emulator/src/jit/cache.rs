@@ -145,6 +145,11 @@ fn tag(pc: u32, epoch: u32) -> u64 {
 }
 
 impl Jit {
+    /// The variant of each region this cache holds.
+    pub(crate) fn flavour(&self) -> Flavour {
+        self.flavour
+    }
+
     /// An empty cache compiling regions of `flavour`.
     pub(crate) fn new(flavour: Flavour) -> Jit {
         Jit {

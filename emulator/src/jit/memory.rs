@@ -86,11 +86,19 @@ impl Translator<'_> {
     /// Nothing when the code is not confined.
     /// `aligned`: the offsets are word-aligned already (word accesses).
     fn confine(&mut self, ins: &RegionInstr, at: &[(Value, Value)], store: bool, aligned: bool) {
+        let boffs: Vec<Value> = at.iter().map(|&(_, boff)| boff).collect();
+        self.confine_banks(ins, &boffs);
+        self.journal(at, store, aligned);
+    }
+
+    /// Confined code only: leaves before the instruction at `ins` unless every bank offset
+    /// in `boffs` is of an allowed bank.
+    fn confine_banks(&mut self, ins: &RegionInstr, boffs: &[Value]) {
         let Some(c) = self.confined else {
             return;
         };
         let mut allowed = None;
-        for &(_, boff) in at {
+        for &boff in boffs {
             let bank = self.b.ins().ushr_imm_u(boff, 4);
             let bank = self.b.ins().ireduce(types::I32, bank);
             let bit = self.b.ins().ushr(c.allowed, bank);
@@ -103,11 +111,18 @@ impl Translator<'_> {
             let ok = self.b.ins().band_imm_u(a, 1);
             self.general_unless(ok, ins.pc);
         }
+    }
+
+    /// Confined code only: for a store with a journal, journals the old words at the
+    /// offsets of `at` (see [`Translator::confine`]).
+    fn journal(&mut self, at: &[(Value, Value)], store: bool, aligned: bool) {
+        let Some(c) = self.confined.filter(|c| c.journaled) else {
+            return;
+        };
         if store {
-            // No journal (a core catching up needs no undo): no entries.
             let write = self.b.create_block();
             let done = self.b.create_block();
-            self.b.ins().brif(c.journal, write, &[], done, &[]);
+            self.b.ins().jump(write, &[]);
             self.b.switch_to_block(write);
             let len = self.b.use_var(c.len);
             let slot = self.b.ins().ishl_imm_u(len, 3);
@@ -160,6 +175,27 @@ impl Translator<'_> {
 
     /// A single load or store (`Core::mem_fast`): SRAM (striped, SRAM4/5 or the
     /// non-striped aliases) or a flash load; anything else leaves before it.
+    /// Branches on whether `rel`, an offset into a view of `len` bytes, is inside it and a
+    /// multiple of `1 << shift` (the access size): rotated right by `shift`, the alignment
+    /// bits land on top, so one unsigned comparison with `len >> shift` checks both. Leaves
+    /// the builder in the taken block and returns the block for the other case.
+    fn in_view(&mut self, rel: Value, shift: i64, len: i64) -> cranelift_codegen::ir::Block {
+        let key = if shift == 0 {
+            rel
+        } else {
+            self.b.ins().rotr_imm_u(rel, shift)
+        };
+        let ok = self
+            .b
+            .ins()
+            .icmp_imm_u(IntCC::UnsignedLessThan, key, len >> shift);
+        let hit = self.b.create_block();
+        let next = self.b.create_block();
+        self.b.ins().brif(ok, hit, &[], next, &[]);
+        self.b.switch_to_block(hit);
+        next
+    }
+
     pub(super) fn mem(&mut self, ins: &RegionInstr, op: MemOp, rt: u8, addr: Value) -> bool {
         let pc = ins.pc;
         let size = op.size();
@@ -170,6 +206,10 @@ impl Translator<'_> {
         let in_sram = self.b.create_block();
         self.b.append_block_param(in_sram, types::I64);
         self.b.append_block_param(in_sram, types::I64);
+        // Past the confined code's bank check.
+        let in_sram_ok = self.b.create_block();
+        self.b.append_block_param(in_sram_ok, types::I64);
+        self.b.append_block_param(in_sram_ok, types::I64);
         let join = self.b.create_block();
         self.b.append_block_param(join, types::I32);
         if !solo {
@@ -183,6 +223,37 @@ impl Translator<'_> {
         // exactly when the offset is below 0x40000 and a multiple of the size.
         let off = self.b.ins().iadd_imm_s(addr, -(SRAM_BASE as i64));
         let shift = size.trailing_zeros() as i64;
+        // Confined code allowed exactly one of SRAM0-3: first that bank through the alias,
+        // in one comparison that is the view, the alignment and the bank check at once
+        // (its bank offset a constant).
+        let own = self
+            .confined
+            .map(|c| c.mask & 0xf)
+            .filter(|a| a.count_ones() == 1);
+        if let Some(a) = own {
+            let bank = a.trailing_zeros();
+            let rel = self
+                .b
+                .ins()
+                .iadd_imm_s(addr, -((SRAM_ALIAS_BASE + (bank << 16)) as i64));
+            let next = self.in_view(rel, shift, 0x1_0000);
+            // Word w of bank b is at physical offset (4w + b)·4.
+            let word = self.b.ins().band_imm_u(rel, 0xfffc);
+            let phys = self.b.ins().iadd_imm_s(word, bank as i64);
+            let phys = self.b.ins().ishl_imm_u(phys, 2);
+            let phys = if size < 4 {
+                let low = self.b.ins().band_imm_u(rel, 3);
+                self.b.ins().bor(phys, low)
+            } else {
+                phys
+            };
+            let phys = self.b.ins().uextend(types::I64, phys);
+            let boff = self.b.ins().iconst(types::I64, 16 * bank as i64);
+            self.b
+                .ins()
+                .jump(in_sram_ok, &[BlockArg::Value(phys), BlockArg::Value(boff)]);
+            self.b.switch_to_block(next);
+        }
         let order = if self.alias_first {
             [true, false]
         } else {
@@ -194,19 +265,7 @@ impl Translator<'_> {
             } else {
                 off
             };
-            let key = if shift == 0 {
-                rel
-            } else {
-                self.b.ins().rotr_imm_u(rel, shift)
-            };
-            let ok = self
-                .b
-                .ins()
-                .icmp_imm_u(IntCC::UnsignedLessThan, key, 0x4_0000 >> shift);
-            let hit = self.b.create_block();
-            let next = self.b.create_block();
-            self.b.ins().brif(ok, hit, &[], next, &[]);
-            self.b.switch_to_block(hit);
+            let next = self.in_view(rel, shift, 0x4_0000);
             let phys = if alias {
                 let bank = self.b.ins().ushr_imm_u(rel, 16);
                 let word = self.b.ins().band_imm_u(rel, 0xfffc);
@@ -280,7 +339,14 @@ impl Translator<'_> {
         self.b.switch_to_block(in_sram);
         let off = self.b.block_params(in_sram)[0];
         let boff = self.b.block_params(in_sram)[1];
-        self.confine(ins, &[(off, boff)], op.is_store(), op.size() == 4);
+        self.confine_banks(ins, &[boff]);
+        self.b
+            .ins()
+            .jump(in_sram_ok, &[BlockArg::Value(off), BlockArg::Value(boff)]);
+        self.b.switch_to_block(in_sram_ok);
+        let off = self.b.block_params(in_sram_ok)[0];
+        let boff = self.b.block_params(in_sram_ok)[1];
+        self.journal(&[(off, boff)], op.is_store(), op.size() == 4);
         let c = self.b.use_var(self.cyc);
         let at = self.b.ins().iadd_imm_s(c, 1);
         let wait = self.arbitrate(boff, at);

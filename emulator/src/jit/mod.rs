@@ -52,12 +52,16 @@
 //! around a loop.
 //!
 //! **Confinement.** For two cores running ahead of each other ([`crate::board`], "Running
-//! ahead") each region is also compiled *confined* (a second cache): every SRAM access
-//! checks its bank against the context's mask and leaves before the instruction when the
-//! bank is not allowed, and every store appends `(word offset, old word)` to the context's
-//! undo journal; the entry and each back edge check that the journal has room for every
-//! store word of the region, so no store checks it. The runner also refuses a region
-//! fetched from a bank outside the mask ([`cache::Region::banks`]).
+//! ahead") each region is also compiled *confined*, for one bank mask (a cache per mask;
+//! the code is called only with that mask in the context): every SRAM access checks its
+//! bank against the mask and leaves before the instruction when the bank is not allowed
+//! (with exactly one of SRAM0-3 allowed, an access through the alias to that bank passes
+//! one comparison that is the view, alignment and bank check at once), and, in the variant
+//! called with a journal (the core running ahead), every store appends `(word offset, old
+//! word)` to the context's undo journal; the entry and each back edge check that the
+//! journal has room for every store word of the region, so no store checks it. The
+//! variant without (the other core catching up) has no journal code. The runner also
+//! refuses a region fetched from a bank outside the mask ([`cache::Region::banks`]).
 //!
 //! **Modules.** [`scan`] finds a region (which instructions are translated, where it ends,
 //! the cycle bound of each instruction); [`translate`] builds a region's function (the
@@ -68,12 +72,12 @@
 //! [`cache`] keeps the compiled regions (a board's lookup, the compile threshold,
 //! invalidation by code epoch; the process's store of machine code, shared by every board).
 //!
-//! **Flavours.** Each region is compiled in up to four variants ([`Flavour`]): arbitrating
+//! **Flavours.** Each region is compiled in several variants ([`Flavour`]): arbitrating
 //! against the other core's bank claims or *solo* (the other core's claims are all older
 //! than the core's cycle, so no access can wait and each only records its claim), each
-//! plain or confined. The runner picks solo code once the core's cycle has passed the other
-//! core's last claim (of the banks it may touch, when confined), which it cannot change
-//! while this core runs.
+//! plain or confined (per bank mask, with or without journal code). The runner picks
+//! solo code once the core's cycle has passed the other core's last claim (of the banks
+//! it may touch, when confined), which it cannot change while this core runs.
 
 mod abi;
 mod alu;

@@ -50,12 +50,17 @@ pub(crate) enum Flavour {
     /// only records its own claim (the other core reads it when it runs again).
     Solo,
     /// Running ahead ([`crate::board`], "Running ahead"): arbitrated, every access checked
-    /// against the allowed banks, every store journaled (see the parent module).
-    Confined,
+    /// against the allowed banks (the bank mask, bit per bank, as [`abi::Ctx::allowed`]
+    /// at every call of this code), and, when the second field is true (the code is only
+    /// called with a journal), every store journaled (see the parent module); when false
+    /// (a core catching up, called without a journal), no journal code at all.
+    ///
+    /// [`abi::Ctx::allowed`]: super::abi::Ctx::allowed
+    Confined(u8, bool),
     /// [`Flavour::Confined`] for a core whose accesses all come after the other core's last
     /// claims (as [`Flavour::Solo`]): in a window the other core does not touch the banks
     /// this core may, so their claims stay as they were.
-    ConfinedSolo,
+    ConfinedSolo(u8, bool),
 }
 
 pub(super) struct Translator<'a> {
@@ -111,6 +116,10 @@ pub(super) struct Confined {
     /// `cap - room`, once the entry has checked that the journal has the room (so it does
     /// not wrap): each back edge compares the length with it.
     pub(super) cap_room: Option<Value>,
+    /// The bank mask the code is compiled for (the same as `allowed` at run time).
+    pub(super) mask: u8,
+    /// The code is called with a journal (else without: no journal code).
+    pub(super) journaled: bool,
 }
 
 impl<'a> Translator<'a> {
@@ -121,8 +130,12 @@ impl<'a> Translator<'a> {
         instrs: &[RegionInstr],
         flavour: Flavour,
     ) -> (FunctionBuilder<'a>, u64) {
-        let confined = matches!(flavour, Flavour::Confined | Flavour::ConfinedSolo);
-        let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo);
+        let (mask, journaled) = match flavour {
+            Flavour::Confined(m, j) | Flavour::ConfinedSolo(m, j) => (Some(m), j),
+            _ => (None, false),
+        };
+        let confined = mask.is_some();
+        let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo(..));
         let index: HashMap<u32, usize> =
             instrs.iter().enumerate().map(|(i, x)| (x.pc, i)).collect();
         let targets: Vec<Option<usize>> = instrs
@@ -231,6 +244,8 @@ impl<'a> Translator<'a> {
                 len,
                 room,
                 cap_room: None,
+                mask: mask.unwrap_or(0),
+                journaled,
             }
         });
         let exit = b.create_block();
@@ -267,7 +282,7 @@ impl<'a> Translator<'a> {
             }
         }
         // Confined: no store checks the journal's capacity; the entry checks room for all.
-        if let Some(c) = t.confined {
+        if let Some(c) = t.confined.filter(|c| c.journaled) {
             let room = t.journal_room();
             t.general_unless(room, instrs[0].pc);
             let cap_room = t.b.ins().iadd_imm_s(c.cap, -(c.room as i64));
@@ -510,7 +525,7 @@ impl<'a> Translator<'a> {
                         self.b
                             .ins()
                             .icmp(IntCC::UnsignedLessThanOrEqual, end, self.limit);
-                    if self.confined.is_some() {
+                    if self.confined.is_some_and(|c| c.journaled) {
                         let room = self.journal_room();
                         fits = self.b.ins().band(fits, room);
                     }
