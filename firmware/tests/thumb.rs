@@ -273,6 +273,9 @@ fn thumb_matches_the_fixed_interpreter_on_operation_corners() {
         // `if`) and as words, each sense and side: the finer word floored to the coarser
         // grid (`⌊(a−1)/2^d⌋ ≥ b` for `a > b·2^d`).
         ("compare_branch", "instrument t {\n sensor a: m in [-1e-3 m, 1e-3 m]\n sensor b: m in [-100 m, 100 m]\n state k = 0 m in [-200 m, 200 m]\n output gt = a > b\n output le = a <= b\n output bg = b > a\n output bl = b <= a\n output s1 = if a > b { a * b / 1 m } else { b * b / 1 m }\n output s2 = if b <= a { a * a / 1 m } else { a * b / 1 m }\n output s3 = if a >= b { b * 3 } else { a * b / 1 m }\n output s4 = if b < a { b * 3 } else { a * b / 1 m }\n while a > k { k = b }\n while k <= a { k = a * 1000 }\n output kk = k\n}\n"),
+        // A state store's clamp fused with the saturating shift into the state's finer
+        // format (`s`, `u`: both sides, one side proven), min/max against a known 0.
+        ("store_clamp", "instrument t {\n sensor a: m in [-100 m, 100 m]\n sensor b: m in [-1e-3 m, 1e-3 m]\n state s = 0 m in [-2 m, 3 m]\n state u = 0 m in [0 m, 5e-4 m]\n state w = 0 m in [-0.5 m, 0.5 m]\n while a > -1000 m {\n  s = a * 37\n  u = max(b, 0 m) * 3\n  w = min(a, 0 m) * 0.01\n }\n output ss = s\n output uu = u\n output ww = w\n output mx = max(a * 3, 0 m)\n output mn = min(0 m, b)\n}\n"),
     ];
     for (name, text) in cases {
         let (fp, obj) = compile(text);
