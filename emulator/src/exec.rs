@@ -6,6 +6,9 @@
 //! states, plus [`crate::timing::EXCEPTION_RETURN`] when it returns from an exception. A fault is
 //! returned as an error *before* any register is written, so the HardFault handler sees the
 //! state the faulting instruction started from (multi-word loads read everything first).
+//! The flag rules (AddWithCarry's C and V, the condition codes, the shifts' carry out) are
+//! not written here: they are [`crate::semantics`]' generic functions, run on plain values,
+//! and the block compiler runs the same functions to build its IR.
 
 use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
 use crate::core::{Core, Event, FaultKind, RunState};
