@@ -805,12 +805,7 @@ impl Core {
                 return;
             }
             AluOp::Lsl | AluOp::Lsr | AluOp::Asr | AluOp::Ror => {
-                let kind = match op {
-                    AluOp::Lsl => ShiftReg::Lsl,
-                    AluOp::Lsr => ShiftReg::Lsr,
-                    AluOp::Asr => ShiftReg::Asr,
-                    _ => ShiftReg::Ror,
-                };
+                let kind = ShiftReg::of(op).expect("a shift or rotate");
                 let (r, c) = semantics::shift_reg(&mut Host, kind, x, m, self.c);
                 self.c = c;
                 r

@@ -105,6 +105,20 @@ pub enum ShiftReg {
     Ror,
 }
 
+impl ShiftReg {
+    /// The shift or rotate of an ALU-group operation, `None` for the others.
+    pub fn of(op: crate::decode::AluOp) -> Option<ShiftReg> {
+        use crate::decode::AluOp;
+        match op {
+            AluOp::Lsl => Some(ShiftReg::Lsl),
+            AluOp::Lsr => Some(ShiftReg::Lsr),
+            AluOp::Asr => Some(ShiftReg::Asr),
+            AluOp::Ror => Some(ShiftReg::Ror),
+            _ => None,
+        }
+    }
+}
+
 /// `Shift_C(x, type, m<7:0>, carry)` for a shift by a register (DDI0419 A2.2.2, A6.7.37,
 /// A6.7.69, A6.7.11, A6.7.57): the result and the carry out; an amount of 0 keeps `carry`.
 /// The amount is clamped to 33, which shifts everything out as any larger one does, and

@@ -75,12 +75,7 @@ impl Translator<'_> {
                 return;
             }
             AluOp::Lsl | AluOp::Lsr | AluOp::Asr | AluOp::Ror => {
-                let kind = match op {
-                    AluOp::Lsl => ShiftReg::Lsl,
-                    AluOp::Lsr => ShiftReg::Lsr,
-                    AluOp::Asr => ShiftReg::Asr,
-                    _ => ShiftReg::Ror,
-                };
+                let kind = ShiftReg::of(op).expect("a shift or rotate");
                 let old = self.flag(C);
                 let (r, c) = semantics::shift_reg(self, kind, x, m, old);
                 self.set_c(c);
