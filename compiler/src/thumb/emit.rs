@@ -191,53 +191,43 @@ impl Lower<'_> {
     }
 
     /// A register holding `v` for reading: its own, a scratch register that already holds
-    /// its slot, or scratch `k` (the other one if `k` holds an operand of this instruction)
-    /// after a reload.
+    /// its slot's value or its rematerialised word, or scratch `k` (the other one if `k`
+    /// holds an operand of this instruction, else the one [`Lower::victim`] picks) after a
+    /// reload.
     fn read(&mut self, v: V, k: usize) -> u8 {
-        match self.loc(v) {
-            Loc::Reg(r) => r,
-            Loc::Remat(how) => {
-                if let Some(j) = (0..2).find(|&j| self.holds[j] == Some(Held::Remat(how))) {
-                    self.pinned[j] = true;
-                    return self.alloc.scratch[j];
-                }
-                let k = self.victim(k);
-                self.pinned[k] = true;
-                let r = self.alloc.scratch[k];
-                self.holds[k] = Some(Held::Remat(how));
-                match how {
-                    Remat::Const(imm) => self.movi(r, imm),
-                    Remat::State(op, off) => self.i(Instr::MemImm {
-                        op,
-                        rt: r,
-                        rn: 7,
-                        imm: off,
-                    }),
-                }
-                r
-            }
-            Loc::Slot(s) => {
-                if let Some(j) = (0..2).find(|&j| self.holds[j] == Some(Held::Slot(s))) {
-                    self.pinned[j] = true;
-                    return self.alloc.scratch[j];
-                }
-                let k = self.victim(k);
-                self.pinned[k] = true;
-                let r = self.alloc.scratch[k];
-                match (self.copy, self.home[s as usize]) {
-                    (Some((c, cs)), _) if cs == s => self.i(Instr::MovHi { rd: r, rm: c }),
-                    (_, Home::Hi(h)) => self.i(Instr::MovHi { rd: r, rm: h }),
-                    (_, Home::Stack(w)) => self.i(Instr::MemImm {
-                        op: MemOp::Ldr,
-                        rt: r,
-                        rn: 13,
-                        imm: 4 * w,
-                    }),
-                }
-                self.holds[k] = Some(Held::Slot(s));
-                r
-            }
+        let held = match self.loc(v) {
+            Loc::Reg(r) => return r,
+            Loc::Remat(how) => Held::Remat(how),
+            Loc::Slot(s) => Held::Slot(s),
+        };
+        if let Some(j) = (0..2).find(|&j| self.holds[j] == Some(held)) {
+            self.pinned[j] = true;
+            return self.alloc.scratch[j];
         }
+        let k = self.victim(k);
+        self.pinned[k] = true;
+        let r = self.alloc.scratch[k];
+        match held {
+            Held::Remat(Remat::Const(imm)) => self.movi(r, imm),
+            Held::Remat(Remat::State(op, off)) => self.i(Instr::MemImm {
+                op,
+                rt: r,
+                rn: 7,
+                imm: off,
+            }),
+            Held::Slot(s) => match (self.copy, self.home[s as usize]) {
+                (Some((c, cs)), _) if cs == s => self.i(Instr::MovHi { rd: r, rm: c }),
+                (_, Home::Hi(h)) => self.i(Instr::MovHi { rd: r, rm: h }),
+                (_, Home::Stack(w)) => self.i(Instr::MemImm {
+                    op: MemOp::Ldr,
+                    rt: r,
+                    rn: 13,
+                    imm: 4 * w,
+                }),
+            },
+        }
+        self.holds[k] = Some(held);
+        r
     }
 
     /// The register to write `v` into (when spilled: scratch 0, or scratch 1 if scratch 0
