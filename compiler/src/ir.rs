@@ -420,6 +420,30 @@ pub fn defined_values(stmts: &[Stmt], n: usize) -> Vec<bool> {
     d
 }
 
+/// Which of a program's `n` states a `SetState` in `stmts` writes (`if` bodies included): a
+/// flag per state.
+pub fn written_states(stmts: &[Stmt], n: usize) -> Vec<bool> {
+    let mut w = vec![false; n];
+    walk_stmts(stmts, &mut |s| {
+        if let Stmt::SetState(st, _) = s {
+            w[st.index()] = true;
+        }
+    });
+    w
+}
+
+/// Which of a program's `n` states a top-level `SetState` of `stmts` writes, i.e. every
+/// sample (integrated or assigned unconditionally): a flag per state.
+pub fn states_set_every_sample(stmts: &[Stmt], n: usize) -> Vec<bool> {
+    let mut w = vec![false; n];
+    for s in stmts {
+        if let Stmt::SetState(st, _) = s {
+            w[st.index()] = true;
+        }
+    }
+    w
+}
+
 /// One instrument, lowered and checked.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Program {

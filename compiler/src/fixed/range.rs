@@ -85,12 +85,15 @@ pub fn deriv_interval(lo: f64, hi: f64, order: u8, fs: f64) -> Interval {
 
 /// Computes the interval of every value of `p`, a state read bounded by its declared range.
 pub fn analyse(p: &Program) -> Ranges {
-    let declared: Vec<Interval> = p
-        .states
+    analyse_with(p, &declared(p))
+}
+
+/// Each state's declared range, as an interval.
+fn declared(p: &Program) -> Vec<Interval> {
+    p.states
         .iter()
         .map(|s| Interval::new(s.range.0, s.range.1))
-        .collect();
-    analyse_with(p, &declared)
+        .collect()
 }
 
 /// [`analyse`] with each state read bounded by `states` (one interval per state).
@@ -148,17 +151,8 @@ pub const NARROWING_MARGIN: f64 = 1.0 / (1u64 << 20) as f64;
 /// no alignment shift.
 pub fn state_hulls(p: &Program) -> Vec<(f64, f64)> {
     let ns = p.states.len();
-    let declared: Vec<Interval> = p
-        .states
-        .iter()
-        .map(|s| Interval::new(s.range.0, s.range.1))
-        .collect();
-    let mut top_level = vec![false; ns];
-    for s in &p.body {
-        if let Stmt::SetState(st, _) = s {
-            top_level[st.index()] = true;
-        }
-    }
+    let declared = declared(p);
+    let top_level = crate::ir::states_set_every_sample(&p.body, ns);
     let mut writes: Vec<(usize, Value)> = Vec::new();
     walk_stmts(&p.body, &mut |s| {
         if let Stmt::SetState(st, v) = s {

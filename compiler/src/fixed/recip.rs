@@ -106,12 +106,7 @@ pub fn reciprocals(p: &Program) -> Reciprocals {
             }
         }
     }
-    let mut top_level = vec![false; ns];
-    for s in &p.body {
-        if let Stmt::SetState(st, _) = s {
-            top_level[st.index()] = true;
-        }
-    }
+    let top_level = crate::ir::states_set_every_sample(&p.body, ns);
     let mut out = Reciprocals {
         program: p.clone(),
         recips: Vec::new(),

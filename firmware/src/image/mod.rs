@@ -164,12 +164,7 @@ impl Program {
         // update writes keeps the word `init` gave it (a state carried by its reciprocal,
         // `tactus_compiler::fixed::recip`: the piano's `tau`), so it always equals its
         // shadow after the first update and is not compared either.
-        let mut written = vec![false; p.states.len()];
-        tactus_compiler::ir::walk_stmts(&p.body, &mut |s| {
-            if let tactus_compiler::ir::Stmt::SetState(i, _) = s {
-                written[i.index()] = true;
-            }
-        });
+        let written = tactus_compiler::ir::written_states(&p.body, p.states.len());
         let mut words: Vec<u32> = (0..p.states.len() as u32)
             .filter(|&i| written[i as usize])
             .map(|i| st.states as u32 + 4 * i)
