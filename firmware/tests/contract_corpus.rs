@@ -168,7 +168,7 @@ const KNOWN_BREAKS: &[(u8, &str, &str)] = &[
 /// shares them (`compile_layout`), and the contract checked over the corpus at the param
 /// values of the keys the planner's search simulates (`fixed::simulated_keys`: A0 and C8,
 /// the grading's ends; E4 and D♯6, the keys nearest the middles of the two run-time
-/// params' intervals; D♯2 and G♯3, evenly spaced).
+/// params' intervals; D2 and G♯3, evenly spaced).
 ///
 /// **Not met** at three of the six (found here, `KNOWN_BREAKS`): a switch of the model that
 /// closes a sample apart in fixed point and f64, decided by nanometres, so a force step
@@ -178,7 +178,7 @@ const KNOWN_BREAKS: &[(u8, &str, &str)] = &[
 /// it closes a sample later (2,046 DAC LSB for one sample; 8.4 LSB against the f64 force
 /// anywhere within the events' 0.5 ms, `ContractCheck::max_force_lsb_within_time`, since
 /// the contact spring's step depends on where between samples it closes); D♯6's 90 % half
-/// dip is the same contact (2,535 LSB; 10.3 within 0.5 ms); at D♯2 a rest-felt landing
+/// dip is the same contact (2,535 LSB; 10.3 within 0.5 ms); at D2 a rest-felt landing
 /// under sensor noise fires at another sample (a 0.034 N pulse: 22.7 LSB). It is not the
 /// plan: with every product 64-bit the same keys break, and over all 88 keys the quick
 /// corpus breaks the strict force clause at 21 keys with the planner's plan, 23 with the
