@@ -16,7 +16,8 @@
 //!   shift; a 64-bit product is four 16×16 `MULS` partial products combined with
 //!   `ADDS`/`ADCS` (ARMv6-M has no `SMULL`);
 //! * a right shift rounding half up by `m ≤ 31` is `ASRS #m-1; ADDS #1; ASRS #1`
-//!   (`floor((floor(x/2^(m-1)) + 1)/2) = floor(x/2^m + 1/2)`);
+//!   (`floor((floor(x/2^(m-1)) + 1)/2) = floor(x/2^m + 1/2)`), or `ADDS #2^(m-1); ASRS #m`
+//!   where `m ≤ 8` and the bound proves the sum fits;
 //! * a `select` whose arms cost more than a branch is a diamond, the values only one arm
 //!   uses computed inside it ([`arms`]); the others stay branch-free.
 //!
