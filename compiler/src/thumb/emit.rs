@@ -204,6 +204,13 @@ impl Lower<'_> {
             self.pinned[j] = true;
             return self.alloc.scratch[j];
         }
+        // The low register a stack slot was just stored from still holds its value (an
+        // instruction writing it cleared `copy` before its operands are read): read it there.
+        if let (Held::Slot(s), Some((c, cs))) = (held, self.copy) {
+            if cs == s {
+                return c;
+            }
+        }
         let k = self.victim(k);
         self.pinned[k] = true;
         let r = self.alloc.scratch[k];
@@ -215,10 +222,9 @@ impl Lower<'_> {
                 rn: 7,
                 imm: off,
             }),
-            Held::Slot(s) => match (self.copy, self.home[s as usize]) {
-                (Some((c, cs)), _) if cs == s => self.i(Instr::MovHi { rd: r, rm: c }),
-                (_, Home::Hi(h)) => self.i(Instr::MovHi { rd: r, rm: h }),
-                (_, Home::Stack(w)) => self.i(Instr::MemImm {
+            Held::Slot(s) => match self.home[s as usize] {
+                Home::Hi(h) => self.i(Instr::MovHi { rd: r, rm: h }),
+                Home::Stack(w) => self.i(Instr::MemImm {
                     op: MemOp::Ldr,
                     rt: r,
                     rn: 13,
@@ -228,6 +234,21 @@ impl Lower<'_> {
         }
         self.holds[k] = Some(held);
         r
+    }
+
+    /// The high register `v`'s spill slot lives in, when no low register holds its value
+    /// now: an instruction with a high-register form (`CMP`, `MOV`) reads it there, without
+    /// a `MOV` into a scratch register first.
+    fn hi_home(&self, v: V) -> Option<u8> {
+        let Loc::Slot(s) = self.loc(v) else {
+            return None;
+        };
+        let cached = self.holds.contains(&Some(Held::Slot(s)))
+            || self.copy.is_some_and(|(_, cs)| cs == s);
+        match self.home[s as usize] {
+            Home::Hi(h) if !cached => Some(h),
+            _ => None,
+        }
     }
 
     /// The register to write `v` into (when spilled: scratch 0, or scratch 1 if scratch 0
@@ -248,6 +269,7 @@ impl Lower<'_> {
     /// last reference; no other register is defined here but the instruction's own).
     fn ends_here_in(&self, v: V, r: u8) -> bool {
         v != STATE_V
+            && self.loc(v) == Loc::Reg(r)
             && self.at > 0
             && self.last.get(v.0 as usize) == Some(&self.at)
             && !self.alloc.scratch.contains(&r)
@@ -385,7 +407,10 @@ impl Lower<'_> {
                 self.spill_from(src, slot);
             }
             M::Mov { d, s } => {
-                let src = self.read(s, 1);
+                let src = match self.hi_home(s) {
+                    Some(h) => h,
+                    None => self.read(s, 1),
+                };
                 let (r, sl) = self.write(d, None);
                 if r != src {
                     self.i(Instr::MovHi { rd: r, rm: src });
@@ -427,6 +452,19 @@ impl Lower<'_> {
                 self.spill(r, s);
             }
             M::Alu2 { op, d, a, m } => {
+                // `a` homed in a high register while `d` has a low register of its own: the
+                // two-address `MOV d, a` copies it from there (no reload into a scratch
+                // register first).
+                if let (Some(h), Loc::Reg(r)) = (self.hi_home(a), self.loc(d)) {
+                    if a != m {
+                        let rm = self.read(m, 1);
+                        if r != rm {
+                            self.i(Instr::MovHi { rd: r, rm: h });
+                            self.i(Instr::Alu { op, rdn: r, rm });
+                            return;
+                        }
+                    }
+                }
                 let ra = self.read(a, 0);
                 let rm = if m == a { ra } else { self.read(m, 1) };
                 let commutative = super::mir::commutative(op);
@@ -492,11 +530,23 @@ impl Lower<'_> {
                 self.spill(rd, s);
             }
             M::Cmp { a, b } => {
-                let (ra, rb) = (self.read(a, 0), self.read(b, 1));
-                self.i(Instr::Alu {
-                    op: AluOp::Cmp,
-                    rdn: ra,
-                    rm: rb,
+                // `CMP Rn, Rm` takes high registers (one of them is enough; ARMv6-M ARM
+                // A6.7.17, encoding T2): a slot homed in one is compared in place.
+                let (ha, hb) = (self.hi_home(a), self.hi_home(b));
+                let (ra, rb) = match (ha, hb) {
+                    (Some(h), Some(k)) => (h, k),
+                    (Some(h), None) => (h, if b == a { h } else { self.read(b, 1) }),
+                    (None, Some(h)) => (self.read(a, 0), h),
+                    (None, None) => (self.read(a, 0), self.read(b, 1)),
+                };
+                self.i(if ra < 8 && rb < 8 {
+                    Instr::Alu {
+                        op: AluOp::Cmp,
+                        rdn: ra,
+                        rm: rb,
+                    }
+                } else {
+                    Instr::CmpHi { rn: ra, rm: rb }
                 });
             }
             M::CmpI { a, imm } => {
