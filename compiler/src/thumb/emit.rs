@@ -83,21 +83,31 @@ fn meet(a: [Option<Held>; 2], b: [Option<Held>; 2]) -> [Option<Held>; 2] {
 /// The home of a spill slot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Home {
-    /// A high register (`r8`–`r12`).
+    /// A high register (`r8`–`r12`, `LR`).
     Hi(u8),
     /// A word of the stack frame (index from SP).
     Stack(u16),
 }
 
 /// Spill slots get the high registers, most referenced first: `r12` (caller-saved, free),
+/// `LR` where [`Homes::lr`] allows (the prologue pushes it and the epilogue pops its word
+/// into PC, so the body may use it for free unless a long branch, a `BL`, writes it),
 /// then `r8`–`r11` (callee-saved: each costs two `MOV`s and a share of a `PUSH`/`POP` pair,
 /// about 4 cycles, so it is first taken only for a slot referenced at least this many
 /// times). Slots whose live spans are disjoint share a high register (a second linear
 /// scan, over the slots, most referenced first).
 const HI_MIN_REFS: u32 = 6;
 
+/// Which high registers spill slots may live in.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Homes {
+    /// `LR` is free in the body: no branch of the function may be relaxed to `BL` (the
+    /// buffer then refuses one, and the caller lowers again without it).
+    pub lr: bool,
+}
+
 /// The homes of `alloc`'s spill slots, from their static reference counts in `code`.
-fn homes(code: &[M], alloc: &Allocation) -> Vec<Home> {
+fn homes(code: &[M], alloc: &Allocation, cfg: Homes) -> Vec<Home> {
     let n = alloc.slots as usize;
     let mut refs = vec![0u32; n];
     let slot = |v: V| match alloc.loc.get(v.0 as usize).copied().flatten() {
@@ -117,7 +127,11 @@ fn homes(code: &[M], alloc: &Allocation) -> Vec<Home> {
     // The spans each high register holds (`r12` first; a callee-saved one is opened only
     // for a slot with HI_MIN_REFS references, then shared by any disjoint slot).
     let mut hi: Vec<(u8, Vec<(usize, usize)>)> = Vec::new();
-    let closed = [12u8, 8, 9, 10, 11];
+    let closed: &[u8] = if cfg.lr {
+        &[12, 14, 8, 9, 10, 11]
+    } else {
+        &[12, 8, 9, 10, 11]
+    };
     let mut next_stack = 0u16;
     for s in order {
         let span = alloc.slot_span[s];
@@ -129,7 +143,7 @@ fn homes(code: &[M], alloc: &Allocation) -> Vec<Home> {
             spans.push(span);
             Some(*r)
         } else if let Some(&r) = closed.get(hi.len()) {
-            (r == 12 || refs[s] >= HI_MIN_REFS).then(|| {
+            (matches!(r, 12 | 14) || refs[s] >= HI_MIN_REFS).then(|| {
                 hi.push((r, vec![span]));
                 r
             })
@@ -243,8 +257,8 @@ impl Lower<'_> {
         let Loc::Slot(s) = self.loc(v) else {
             return None;
         };
-        let cached = self.holds.contains(&Some(Held::Slot(s)))
-            || self.copy.is_some_and(|(_, cs)| cs == s);
+        let cached =
+            self.holds.contains(&Some(Held::Slot(s))) || self.copy.is_some_and(|(_, cs)| cs == s);
         match self.home[s as usize] {
             Home::Hi(h) if !cached => Some(h),
             _ => None,
@@ -624,8 +638,8 @@ impl Lower<'_> {
 /// the frame for spill slots, store spilled arguments; at the end, free the frame and
 /// `POP {…, PC}`. The buffer must relax long branches with [`buffer::LongBranch::Bl`]
 /// (LR is saved).
-pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Allocation) {
-    let home = homes(code, alloc);
+pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Allocation, cfg: Homes) {
+    let home = homes(code, alloc, cfg);
     let frame = home.iter().filter(|h| matches!(h, Home::Stack(_))).count() as u16;
     // Callee-saved high registers used as spill homes, saved in pairs through r0 and r3
     // (free after `r7 = r0`; r3 is no argument) so the stack stays 8-byte aligned.
