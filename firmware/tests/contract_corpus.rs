@@ -115,8 +115,10 @@ fn check_corpus(
     let mut broken = Vec::new();
     for run in corpus::corpus(fp, Size::Quick) {
         let raw: Vec<i32> = run.records.iter().map(|r| r[0]).collect();
-        let reference = contract::reference_raw(p, fp, &raw, params);
-        let r = contract::compare(p, fp, &reference, lsb, c, false);
+        let reference = contract::reference_raw(p, fp, &raw, params)
+            .unwrap_or_else(|e| panic!("{what}/{}: {e}", run.label));
+        let r = contract::compare(p, fp, &reference, lsb, c, false)
+            .unwrap_or_else(|e| panic!("{what}/{}: {e}", run.label));
         assert_eq!(r.samples, raw.len(), "{what}/{}", run.label);
         worst.add(&run.label, &r, bound);
         for v in r.violations(c, p.sample_rate_hz) {
@@ -202,7 +204,7 @@ fn the_contract_over_the_budget_corpus_for_grand88s_graded_masses() {
     let fp = FixedProgram::new(&shared.program);
     let mut unexpected = Vec::new();
     let mut seen = vec![false; KNOWN_BREAKS.len()];
-    for (k, values) in keys.iter().zip(&shared.values) {
+    for (k, values) in keys.iter().zip(&shared.values()) {
         let what = format!("grand88 key {} ({:?})", k.key, k.params);
         let (broken, _) = check_corpus(&what, &shared.program, &fp, values);
         for v in broken {

@@ -173,10 +173,7 @@ impl<'a> Sel<'a> {
                         )
                     } else if self.is_const(x) {
                         // The plan's shifts are in operand order: (constant, variable) here.
-                        let kind = match kind {
-                            MulKind::Muls(sc, sv) => MulKind::Muls(sv, sc),
-                            k => k,
-                        };
+                        let kind = kind.swapped();
                         let a = self.word(y);
                         self.mul(
                             a,
