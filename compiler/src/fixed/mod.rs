@@ -355,7 +355,11 @@ struct MulOperands {
     free_x: i32,
     y: (i32, Interval),
     free_y: i32,
+    /// Whether `y` is a constant (its word known at compile time).
+    constant: bool,
     result: Interval,
+    /// The result's fraction bits.
+    fr: i32,
 }
 
 impl MulOperands {
@@ -404,6 +408,64 @@ impl MulOperands {
         })
     }
 
+    /// The 32×16 form ([`MulKind::Mul32x16`]) cutting the pair's second operand (`cut_y`) or
+    /// its first: the smallest pre-shift `b` that leaves the cut word a signed 16-bit half
+    /// (`|word| < 2^(15+b)`); the unit `2^k` of the partial-product sum `p` of
+    /// [`tactus_runtime::fixed::mul_32x16`] that makes `p`'s format the result's (its floor
+    /// then is the rounding, one `ASRS` instead of a rounding shift after the sum: an error
+    /// of one result LSB where the cut costs 2^15 times more), within 0..=16 and not below
+    /// the smallest `k` for which every part of `p` and `p` itself fit a signed 32-bit word;
+    /// and the absolute error (SI): the kept operand's magnitude times one LSB of the cut
+    /// word (`|x|·2^(b − fy)`, 0 when the dropped bits are known zeros) plus the floor's
+    /// `2^(b + k − fx − fy)`. `None` when an operand is unbounded.
+    fn half(&self, cut_y: bool) -> Option<(u8, u8, f64)> {
+        let ((fk, rk), (fc, rc), free) = if cut_y {
+            (self.x, self.y, self.free_y)
+        } else {
+            (self.y, self.x, self.free_x)
+        };
+        let word = |f: i32, r: Interval| (r.mag() * 2f64.powi(f) * (1.0 + 1e-9)).ceil() + 1.0;
+        let (bk, bc) = (word(fk, rk), word(fc, rc));
+        if !(bk.is_finite() && bc.is_finite()) || bk > 2147483648.0 || bc > 2147483648.0 {
+            return None;
+        }
+        let b = (0..=16).find(|&b| bc < 2f64.powi(15 + b))?;
+        // Bounds of |ys| (≤ 2^15) and of the kept word's high half |xh|.
+        let ys = ((bc / 2f64.powi(b)).floor() + 1.0).min(32768.0);
+        let hk = (bk / 65536.0).floor() + 1.0;
+        let kmin = (0..=16).find(|&k| {
+            let high = hk * ys * 2f64.powi(16 - k);
+            let low = (65535.0 * ys / 2f64.powi(k)).ceil();
+            high + low + 1.0 < 2147483647.0
+        })?;
+        let k = (fk + fc - b - self.fr).clamp(kmin, 16);
+        let cut = if b > free {
+            rk.mag() * 2f64.powi(b - fc)
+        } else {
+            0.0
+        };
+        Some((b as u8, k as u8, cut + 2f64.powi(b + k - fk - fc)))
+    }
+
+    /// The 32×16 forms of the product in operand order (`swapped`: the plan's pair is
+    /// (y, x)), the smaller error first: a product by a constant cuts the constant; two
+    /// run-time operands may cut either, and the error analysis decides
+    /// ([`FixedProgram::spend_precision_budget`]).
+    fn halves(&self, swapped: bool) -> Vec<MulKind> {
+        let mut out: Vec<(f64, MulKind)> = [true, false]
+            .into_iter()
+            .filter(|&cut_y| cut_y || !self.constant)
+            .filter_map(|cut_y| {
+                let (b, k, err) = self.half(cut_y)?;
+                let second = cut_y != swapped;
+                let cut = if second { Cut::Second } else { Cut::First };
+                Some((err, MulKind::Mul32x16 { cut, b, k }))
+            })
+            .collect();
+        out.sort_by(|a, b| a.0.total_cmp(&b.0));
+        out.into_iter().map(|(_, k)| k).collect()
+    }
+
     /// Plans the product: shift free bits first, then the operand with more significant
     /// bits, until the product fits 31 bits. With `tolerance`, accept only when the floor
     /// shifts cost at most [`MULS_REL_TOLERANCE`] of the result's magnitude, else the 64-bit
@@ -426,6 +488,27 @@ impl MulOperands {
     }
 }
 
+/// Which operand of a product a [`MulKind::Mul32x16`] cuts to 16 bits, in operand order
+/// (`x · y`: `First` is `x`; for a division by a constant, `Second` is the reciprocal).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cut {
+    /// The first operand.
+    First,
+    /// The second operand.
+    Second,
+}
+
+impl Cut {
+    /// The operands `(x, y)` of a product as `(kept, cut)`: how every engine passes them to
+    /// [`tactus_runtime::fixed::mul_32x16`] (its `y` is the cut one).
+    pub fn kept_cut<T>(self, x: T, y: T) -> (T, T) {
+        match self {
+            Cut::First => (y, x),
+            Cut::Second => (x, y),
+        }
+    }
+}
+
 /// How a multiplication is done on a 32-bit core without a 64-bit product instruction,
 /// cheapest first. A 16×16 product is `Muls(0, 0)` (its operands already fit).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -433,6 +516,17 @@ pub enum MulKind {
     /// Operands pre-shifted right by (a, b) bits so the product fits 32 bits: one `MULS`
     /// plus shifts ([`tactus_runtime::fixed::mul_shifted`]).
     Muls(u8, u8),
+    /// One operand (`cut`) pre-shifted right by `b` bits to a signed 16-bit half, the other
+    /// kept whole as its two halves: two 16×16 `MULS`, the low one floored by `k` bits
+    /// ([`tactus_runtime::fixed::mul_32x16`]).
+    Mul32x16 {
+        /// The operand cut to 16 bits.
+        cut: Cut,
+        /// Its pre-shift (bits).
+        b: u8,
+        /// The sum's unit `2^k` (0..=16).
+        k: u8,
+    },
     /// The high word of the 32×32 product in units of `2^k`: three 16×16 `MULS` partial
     /// products, two floored, the low one dropped, summed in 32 bits
     /// ([`tactus_runtime::fixed::mul_high`]).
@@ -451,8 +545,26 @@ impl MulKind {
     pub fn cycles(self) -> u32 {
         match self {
             MulKind::Muls(..) => 6,
+            MulKind::Mul32x16 { .. } => 9,
             MulKind::High(_) => 14,
             MulKind::Wide => 23,
+        }
+    }
+
+    /// The same form with the operands exchanged (`y · x` for `x · y`): the pre-shifts and
+    /// the cut side follow their operands.
+    pub fn swapped(self) -> MulKind {
+        match self {
+            MulKind::Muls(a, b) => MulKind::Muls(b, a),
+            MulKind::Mul32x16 { cut, b, k } => MulKind::Mul32x16 {
+                cut: match cut {
+                    Cut::First => Cut::Second,
+                    Cut::Second => Cut::First,
+                },
+                b,
+                k,
+            },
+            k => k,
         }
     }
 
@@ -461,9 +573,42 @@ impl MulKind {
         match self {
             MulKind::Muls(0, 0) => "MULS 32×32→32 (operands fit)".into(),
             MulKind::Muls(a, b) => format!("pre-shifted MULS (>>{a}, >>{b})"),
+            MulKind::Mul32x16 { cut, b, k } => format!(
+                "32×16 (2 MULS, {} >>{b}, units of 2^{k})",
+                match cut {
+                    Cut::First => "x",
+                    Cut::Second => "y",
+                }
+            ),
             MulKind::High(k) => format!("high word of 32×32 (3 MULS, units of 2^{k})"),
             MulKind::Wide => "64-bit product (4 MULS)".into(),
         }
+    }
+}
+
+/// Products per form ([`MulKind`]) of a plan and their estimated Cortex-M0+ cycles
+/// ([`FixedProgram::mul_forms`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MulForms {
+    /// `MULS` products (16×16 or pre-shifted).
+    pub muls: usize,
+    /// 32×16 products.
+    pub m32x16: usize,
+    /// High words of 32×32.
+    pub high: usize,
+    /// Full 64-bit products.
+    pub wide: usize,
+    /// Estimated cycles of all ([`MulKind::cycles`]).
+    pub cycles: u32,
+}
+
+impl std::fmt::Display for MulForms {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} MULS, {} 32×16, {} high word, {} 64-bit (≈ {} cycles)",
+            self.muls, self.m32x16, self.high, self.wide, self.cycles
+        )
     }
 }
 
@@ -764,7 +909,9 @@ impl FixedProgram {
                         free_x: 0,
                         y: (fc, Interval::point(tactus_runtime::fixed::to_f64(raw, fc))),
                         free_y: free,
+                        constant: true,
                         result: ranges.values[i],
+                        fr: frac[i],
                     };
                     // The constant operand is the second one of the planned pair; the shifts
                     // are stored in operand order (x, y), which is what every engine applies.
@@ -777,7 +924,9 @@ impl FixedProgram {
                         free_x: 0,
                         y: fx_of(y),
                         free_y: 0,
+                        constant: false,
                         result: ranges.values[i],
+                        fr: frac[i],
                     },
                     false,
                 ),
@@ -789,8 +938,9 @@ impl FixedProgram {
         let mut mul_options = vec![Vec::new(); n];
         for (i, ops, swapped) in &planned {
             let muls = Some(ops.plan(*swapped, false)).filter(|k| matches!(k, MulKind::Muls(..)));
+            let halves = ops.halves(*swapped);
             let high = ops.high().map(|(k, _)| MulKind::High(k));
-            mul_options[*i] = muls.into_iter().chain(high).collect();
+            mul_options[*i] = muls.into_iter().chain(halves).chain(high).collect();
         }
         let sensor_frac: Vec<i32> = program
             .sensors
@@ -1029,22 +1179,29 @@ impl FixedProgram {
             true
         };
         {
-            // Round 0: every product not yet `MULS` tries its `MULS` form; round 1: every
+            // Round 0: every product not yet `MULS` tries its `MULS` form; rounds 1 and 2:
+            // every product still high word or 64-bit its first, then its second 32×16 form
+            // (the smaller error first; two run-time operands have two); round 3: every
             // product still 64-bit its high word — the forms `mul_options` lists.
-            for round in 0..2 {
+            for round in 0..4 {
                 let candidates: Vec<(usize, MulKind)> = planned
                     .iter()
                     .filter_map(|&(i, _, _)| {
                         let now = self.mul_kind[i];
-                        let option = |f: fn(&MulKind) -> bool| {
-                            self.mul_options[i].iter().copied().find(f).map(|k| (i, k))
+                        let options = &self.mul_options[i];
+                        let option = |f: fn(&MulKind) -> bool, nth: usize| {
+                            options.iter().copied().filter(f).nth(nth).map(|k| (i, k))
                         };
+                        let above_half = matches!(now, Some(MulKind::High(_) | MulKind::Wide));
                         match round {
                             0 if !matches!(now, Some(MulKind::Muls(..))) => {
-                                option(|k| matches!(k, MulKind::Muls(..)))
+                                option(|k| matches!(k, MulKind::Muls(..)), 0)
                             }
-                            1 if now == Some(MulKind::Wide) => {
-                                option(|k| matches!(k, MulKind::High(_)))
+                            1 | 2 if above_half => {
+                                option(|k| matches!(k, MulKind::Mul32x16 { .. }), round - 1)
+                            }
+                            3 if now == Some(MulKind::Wide) => {
+                                option(|k| matches!(k, MulKind::High(_)), 0)
                             }
                             _ => None,
                         }
@@ -1159,6 +1316,26 @@ impl FixedProgram {
                 self.mul_kind[i] = Some(k);
                 if !within(&report::analyse(self)) {
                     self.mul_kind[i] = Some(was);
+                }
+            }
+            // Then the 32×16 forms for every product still 64-bit, the smaller error first
+            // (its floors and cut are a bias like the high word's: no growth of an
+            // integrated state), one analysis each.
+            for (i, _, _) in planned {
+                if self.mul_kind[*i] != Some(MulKind::Wide) {
+                    continue;
+                }
+                let halves: Vec<MulKind> = self.mul_options[*i]
+                    .iter()
+                    .copied()
+                    .filter(|k| matches!(k, MulKind::Mul32x16 { .. }))
+                    .collect();
+                for h in halves {
+                    self.mul_kind[*i] = Some(h);
+                    if within_high(&report::analyse(self)) {
+                        break;
+                    }
+                    self.mul_kind[*i] = Some(MulKind::Wide);
                 }
             }
             // Then the high-word form for every product still 64-bit (also those with no
@@ -1304,25 +1481,26 @@ impl FixedProgram {
         out
     }
 
-    /// Number of multiplications of each kind — (`MULS`, high word, 64-bit) — and their
-    /// estimated cycles on a Cortex-M0+ ([`MulKind::cycles`]).
-    pub fn mul_forms(&self) -> (usize, usize, usize, u32) {
-        let (mut m, mut h, mut w, mut c) = (0, 0, 0, 0);
+    /// Number of multiplications of each form and their estimated cycles on a Cortex-M0+
+    /// ([`MulKind::cycles`]).
+    pub fn mul_forms(&self) -> MulForms {
+        let mut f = MulForms::default();
         for k in self.mul_kind.iter().flatten() {
             match k {
-                MulKind::Muls(..) => m += 1,
-                MulKind::High(_) => h += 1,
-                MulKind::Wide => w += 1,
+                MulKind::Muls(..) => f.muls += 1,
+                MulKind::Mul32x16 { .. } => f.m32x16 += 1,
+                MulKind::High(_) => f.high += 1,
+                MulKind::Wide => f.wide += 1,
             }
-            c += k.cycles();
+            f.cycles += k.cycles();
         }
-        (m, h, w, c)
+        f
     }
 
-    /// Number of `MULS` products, of products needing more (high word or 64-bit), and the
-    /// estimated cycles of all ([`FixedProgram::mul_forms`]).
+    /// Number of `MULS` products, of products needing more (32×16, high word or 64-bit),
+    /// and the estimated cycles of all ([`FixedProgram::mul_forms`]).
     pub fn mul_cost(&self) -> (usize, usize, u32) {
-        let (m, h, w, c) = self.mul_forms();
-        (m, h + w, c)
+        let f = self.mul_forms();
+        (f.muls, f.m32x16 + f.high + f.wide, f.cycles)
     }
 }
