@@ -115,6 +115,11 @@ fn plan_div_shift(fy: i32, ry: Interval, fr: i32, rv: Interval, tolerance: f64) 
     b as u8
 }
 
+/// The largest local error bound, relative to a value's magnitude, by which
+/// [`FixedProgram::widen_by_local_errors`] widens its interval (2^-10: 64 times a 32×16
+/// product's cut).
+pub const WIDEN_MAX_REL: f64 = 1.0 / 1024.0;
+
 /// Precision budget of the `MULS` plan: a force term's or the total's error bound may grow
 /// to this many DAC LSB (a quarter: the quantisation stays below what the DAC resolves).
 pub const BUDGET_FORCE_LSB: f64 = 0.25;
@@ -1026,7 +1031,34 @@ impl FixedProgram {
         if config.simulate {
             fp.spend_by_simulation(original, &planned, config);
         }
+        fp.widen_by_local_errors();
         fp
+    }
+
+    /// Widens every real value's interval by its local error bound
+    /// ([`report::local_errors`]), once the plan is final: the interval of the exact result
+    /// then also holds the word every fixed engine computes — a cut 32×16 product or a
+    /// pre-shifted `MULS` lies up to 2^-15 of its magnitude outside the exact one. Backends
+    /// that drop a saturation or a state store's clamp where the interval proves it dead
+    /// (the Thumb code) rely on this. Formats are not changed: a widened interval beyond its
+    /// format's reach only makes those backends keep the saturation. Values whose bound is
+    /// not finite or above [`WIDEN_MAX_REL`] of their magnitude keep their interval (as
+    /// before the widening): there the bound is the analysis' looseness over long chains
+    /// (a bowed string's divisors would all seem to reach 0), not a form's error.
+    fn widen_by_local_errors(&mut self) {
+        let errors = report::local_errors(self);
+        for ((iv, e), vd) in self
+            .ranges
+            .values
+            .iter_mut()
+            .zip(errors)
+            .zip(&self.program.values)
+        {
+            let small = e <= WIDEN_MAX_REL * iv.mag();
+            if matches!(vd.ty, Ty::Real(_)) && e.is_finite() && e > 0.0 && small {
+                *iv = Interval::new(iv.lo - e, iv.hi + e);
+            }
+        }
     }
 
     /// The planner's second pass: cheaper product forms than the error analysis could prove,
