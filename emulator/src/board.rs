@@ -345,6 +345,9 @@ pub struct Board {
     /// Each core's active exceptions at its last [`Board::profile_step`] that ran its loop
     /// (`u64::MAX`, which no core has, before any).
     profiled_active: [u64; 2],
+    /// No profile watches an address (none, or handler profiles only): the fast path's
+    /// watch sets are empty ([`Board::watch_set`]).
+    watch_free: bool,
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
@@ -363,6 +366,7 @@ impl Board {
             launch: None,
             lines: 0,
             profiled_active: [u64::MAX; 2],
+            watch_free: true,
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
             windows: [0; 3],
@@ -674,6 +678,7 @@ impl Board {
     /// A new profile of the code at `addr` (Thumb bit ignored); its handle.
     fn add_profile(&mut self, addr: u32, handler_only: bool) -> usize {
         self.profiled_active = [u64::MAX; 2];
+        self.watch_free &= handler_only;
         self.profiles.push(Profile {
             entry: addr & !1,
             handler_only,
@@ -1040,13 +1045,20 @@ impl Board {
     /// start (the PC is no profiled entry) and none can end (the PC is not the return
     /// address of the innermost open call, and a call ending with an exception return
     /// leaves the fast path anyway).
+    #[inline(always)]
     fn watch_set(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
-        let mut watch = [NO_WATCH; WATCH_SLOTS];
         // Handler profiles ([`Board::profile_handler`]) watch nothing: they open and close
         // at exception entry and return, on the general path.
-        if self.profiles.iter().all(|p| p.handler_only) {
-            return Some(watch);
+        if self.watch_free {
+            return Some([NO_WATCH; WATCH_SLOTS]);
         }
+        self.watched(k)
+    }
+
+    /// [`Board::watch_set`] when some profile watches an address.
+    #[inline(never)]
+    fn watched(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
+        let mut watch = [NO_WATCH; WATCH_SLOTS];
         let mut n = 0;
         for p in &self.profiles {
             let addrs = [
