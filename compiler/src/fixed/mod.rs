@@ -1076,8 +1076,10 @@ impl FixedProgram {
     /// holding the contract; there a cheaper plan must be no worse than the analysis' plan
     /// clause by clause, with the force read within the events' time tolerance
     /// ([`contract::ContractCheck::max_force_lsb_within_time`]), plus the search's share of
-    /// each clause ([`within_base`]). Two rounds: every product not yet `MULS` tries its
-    /// `MULS` plan, then every product still 64-bit tries the high word. Each round tests
+    /// each clause ([`within_base`]); this holds for every form's round. Four rounds: every
+    /// product not yet `MULS` tries its `MULS` plan, every product still high word or 64-bit
+    /// its first then its second 32×16 form, every product still 64-bit its high word.
+    /// Each round tests
     /// groups of products, breadth first (the whole round, then the halves of a failing
     /// group), with at most [`MAX_SIMULATIONS`] simulations a round; a failing simulation
     /// stops at its first broken sample, and the stimulus that failed is tried first next
