@@ -70,7 +70,10 @@ fn a_planner_greedier_than_the_contract_breaks_it() {
     let exact = FixedProgram::new(&p);
     let (g, e) = (greedy.mul_forms(), exact.mul_forms());
     println!("greedy plan: {g}; default plan: {e}");
-    assert!(g.muls > e.muls, "the greedy plan must use more MULS products");
+    assert!(
+        g.muls > e.muls,
+        "the greedy plan must use more MULS products"
+    );
     let broken: Vec<String> = runs(&p, &greedy)
         .into_iter()
         .flat_map(|(stim, r)| {
@@ -142,7 +145,8 @@ fn graded_piano(masses: &[&str]) -> (Program, Vec<Vec<f64>>) {
         })
         .collect();
     let shared = tactus_compiler::share::share(&irs).unwrap();
-    (shared.program, shared.values)
+    let values = shared.values();
+    (shared.program, values)
 }
 
 /// The contract holds with run-time params: grand88's hammer masses (11 g in the bass to
@@ -164,8 +168,8 @@ fn the_contract_holds_over_the_graded_hammer_masses() {
         for (stim, _) in stimulus::builtin_names() {
             let s =
                 stimulus::builtin(stim, shared.sensors[0].range.1, shared.sample_rate_hz).unwrap();
-            let run = contract::reference(&shared, &fp, &s.key, v);
-            let r = contract::compare(&shared, &fp, &run, lsb, &shared.contract, false);
+            let run = contract::reference(&shared, &fp, &s.key, v).unwrap();
+            let r = contract::compare(&shared, &fp, &run, lsb, &shared.contract, false).unwrap();
             assert!(r.samples > 0);
             for e in r.violations(&shared.contract, shared.sample_rate_hz) {
                 broken.push(format!("M_h {m}/{stim}: {e}"));
@@ -216,7 +220,7 @@ fn a_plan_greedier_than_the_simulated_search_breaks_the_contract() {
         .iter()
         .map(|(stim, _)| {
             let s = stimulus::builtin(stim, p.sensors[0].range.1, p.sample_rate_hz).unwrap();
-            (*stim, contract::reference(&p, &fp, &s.key, &[]))
+            (*stim, contract::reference(&p, &fp, &s.key, &[]).unwrap())
         })
         .collect();
     let mut breaking = 0;
@@ -237,7 +241,7 @@ fn a_plan_greedier_than_the_simulated_search_breaks_the_contract() {
         tried += 1;
         // The first broken clause on any stimulus (each run stops at its first bad sample).
         let broken = refs.iter().find_map(|(stim, run)| {
-            let r = contract::compare(&p, &q, run, lsb, &c, true);
+            let r = contract::compare(&p, &q, run, lsb, &c, true).unwrap();
             r.violations(&c, p.sample_rate_hz)
                 .first()
                 .map(|v| format!("{stim}: {v}"))
@@ -369,14 +373,16 @@ fn every_refused_32x16_form_breaks_the_contract() {
         })
         .collect();
     for t in SIMULATED_DESCENTS_S {
-        let k = stimulus::dip(t, 0.1, 0.06, dip, p.sample_rate_hz).unwrap().key;
+        let k = stimulus::dip(t, 0.1, 0.06, dip, p.sample_rate_hz)
+            .unwrap()
+            .key;
         keys.push((format!("dip {} ms", t * 1e3), k));
     }
     // The shortest first, as the planner orders them.
     keys.sort_by_key(|(_, k)| k.len());
     let refs: Vec<(String, contract::ReferenceRun)> = keys
         .iter()
-        .map(|(s, k)| (s.clone(), contract::reference(&p, &fp, k, &[])))
+        .map(|(s, k)| (s.clone(), contract::reference(&p, &fp, k, &[]).unwrap()))
         .collect();
     let (mut tried, mut broken_full) = (0, 0);
     for (i, k) in fp.mul_kind.iter().enumerate() {
@@ -392,7 +398,7 @@ fn every_refused_32x16_form_breaks_the_contract() {
             tried += 1;
             let first_break = |c: &Contract| {
                 refs.iter().find_map(|(stim, run)| {
-                    let r = contract::compare(&p, &q, run, lsb, c, true);
+                    let r = contract::compare(&p, &q, run, lsb, c, true).unwrap();
                     r.violations(c, p.sample_rate_hz)
                         .first()
                         .map(|v| format!("{stim}: {v}"))
@@ -414,5 +420,92 @@ fn every_refused_32x16_form_breaks_the_contract() {
     }
     println!("{broken_full} of {tried} refused 32×16 forms break the whole contract");
     assert!(tried > 0, "no refused 32×16 form: the test shows nothing");
-    assert!(broken_full > 0, "no refused 32×16 form breaks the whole contract");
+    assert!(
+        broken_full > 0,
+        "no refused 32×16 form breaks the whole contract"
+    );
+}
+
+/// A comparison is refused, naming the param, when the run's param values do not fit the
+/// plan: a value outside the interval the plan was planned for, or a plan with another
+/// number of run-time params (`contract::compare` used to fall back to the nominal param
+/// block then, comparing the f64 run of one key with the fixed run of another).
+#[test]
+fn a_run_whose_params_do_not_fit_the_plan_is_refused() {
+    let analysis = PlanConfig {
+        simulate: false,
+        ..PlanConfig::default()
+    };
+    let (wide, values) = graded_piano(&["11 g", "3.5 g"]);
+    let (narrow, _) = graded_piano(&["8 g", "7 g"]);
+    let plain = program("grand_piano");
+    let (fw, fn_, fp) = (
+        FixedProgram::with_config(&wide, &analysis),
+        FixedProgram::with_config(&narrow, &analysis),
+        FixedProgram::with_config(&plain, &analysis),
+    );
+    assert_eq!(fw.param_words.len(), fn_.param_words.len());
+    let lsb = report::analyse(&fw).dac_lsb_n();
+    let s = stimulus::builtin("ff-dip", wide.sensors[0].range.1, wide.sample_rate_hz).unwrap();
+    // The 11 g key's run, recorded with the plan it fits, compares.
+    let run = contract::reference(&wide, &fw, &s.key, &values[0]).unwrap();
+    let r = contract::compare(&wide, &fw, &run, lsb, &wide.contract, false).unwrap();
+    assert_eq!(r.samples, s.key.len());
+    // Against the plan of 7–8 g hammers: 11 g lies outside its intervals.
+    let e = contract::compare(&wide, &fn_, &run, lsb, &wide.contract, false).unwrap_err();
+    let msg = e.to_string();
+    println!("{msg}");
+    assert!(
+        msg.contains("param `") && msg.contains("M_h") && msg.contains("outside"),
+        "{msg}"
+    );
+    // Against the piano with constant params: no param block takes two values.
+    let e = contract::compare(&wide, &fp, &run, lsb, &wide.contract, false).unwrap_err();
+    assert!(e.to_string().contains("2 param values"), "{e}");
+    // And refused when recording, before the f64 run.
+    let mut off = values[0].clone();
+    off[0] *= 10.0;
+    let e = contract::reference(&wide, &fw, &s.key, &off).unwrap_err();
+    assert!(e.to_string().contains("M_h"), "{e}");
+}
+
+/// The planner simulates a shared program at real keys' param values: all of them when few,
+/// else the grading's ends, the key nearest each run-time param's interval middle and
+/// evenly spaced keys, at most `MAX_SIMULATED_KEYS` (grand88: A0, C8 and E4, the middle of
+/// `M_h·grav·l4`'s interval, among six).
+#[test]
+fn the_planner_simulates_the_layouts_own_keys() {
+    use tactus_compiler::fixed::{simulated_keys, MAX_SIMULATED_KEYS};
+    let (three, _) = graded_piano(&["11 g", "7.25 g", "3.5 g"]);
+    assert_eq!(simulated_keys(&three), vec![0, 1, 2]);
+    let layout = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments/layouts/grand88.toml");
+    let (_, assigned) = tactus_runtime::keyboard::read_layout(&layout).unwrap();
+    let masses: Vec<String> = assigned
+        .iter()
+        .map(|k| {
+            assert_eq!(k.params[0].0, "M_h");
+            k.params[0].1.clone()
+        })
+        .collect();
+    let masses: Vec<&str> = masses.iter().map(|m| m.as_str()).collect();
+    let (p, values) = graded_piano(&masses);
+    assert_eq!(p.runtime_keys, values);
+    let keys = simulated_keys(&p);
+    println!(
+        "grand88's simulated keys: {:?}",
+        keys.iter().map(|&k| assigned[k].key).collect::<Vec<_>>()
+    );
+    assert_eq!(keys.len(), MAX_SIMULATED_KEYS);
+    assert!(keys.windows(2).all(|w| w[0] < w[1]));
+    assert_eq!((keys[0], keys[keys.len() - 1]), (0, 87));
+    // E4 (MIDI 64): its 7.29 g gives the `M_h·grav·l4` nearest its interval's middle.
+    assert!(keys.iter().any(|&k| assigned[k].key == 64), "{keys:?}");
+    // Each simulated point is one key's own values: `M_h·grav·l4 · dt/I_h` is the same
+    // (grav/l4 · dt) for every real hammer, not for independent interval middles.
+    assert_eq!(p.runtime_keys[0].len(), 2, "M_h·grav·l4 and dt/I_h");
+    let product = |v: &[f64]| v[0] * v[1];
+    for &k in &keys {
+        let r = product(&p.runtime_keys[k]) / product(&p.runtime_keys[0]);
+        assert!((r - 1.0).abs() < 1e-9, "key {k}: {r}");
+    }
 }

@@ -342,6 +342,12 @@ pub struct Board {
     blocks: Blocks,
     /// Run-ahead windows kept, rolled back and partly kept ([`Board::run_ahead_windows`]).
     windows: [u64; 3],
+    /// Each core's active exceptions at its last [`Board::profile_step`] that ran its loop
+    /// (`u64::MAX`, which no core has, before any).
+    profiled_active: [u64; 2],
+    /// No profile watches an address (none, or handler profiles only): the fast path's
+    /// watch sets are empty ([`Board::watch_set`]).
+    watch_free: bool,
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
@@ -359,6 +365,8 @@ impl Board {
             profiles: Vec::new(),
             launch: None,
             lines: 0,
+            profiled_active: [u64::MAX; 2],
+            watch_free: true,
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
             windows: [0; 3],
@@ -530,6 +538,56 @@ impl Board {
         Ok(())
     }
 
+    /// Reads `out.len()` little-endian words from `addr`, `addr + 4`, … (host access, no
+    /// cycles): [`Board::read_bytes`] without the byte buffer — a harness reading records
+    /// and windows every sample takes the words straight from SRAM when they lie in one
+    /// view (striped, SRAM4/5, one bank of the non-striped alias). Errors: as
+    /// [`Board::read_bytes`].
+    pub fn read_words(&mut self, addr: u32, out: &mut [u32]) -> Result<(), EmuError> {
+        let run = u32::try_from(out.len())
+            .ok()
+            .and_then(|n| n.checked_mul(4))
+            .and_then(|len| crate::bus::sram_word_run(addr, len));
+        if let Some((off, stride)) = run {
+            // One bounds check for the run, then a word per `stride` bytes.
+            let (off, stride) = (off as usize, stride as usize);
+            let end = off + stride * out.len().saturating_sub(1) + 4;
+            if let Some(region) = self.system.sram.get(off..end) {
+                for (w, c) in out.iter_mut().zip(region.chunks(stride)) {
+                    *w = u32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+                }
+                return Ok(());
+            }
+        }
+        for (i, w) in out.iter_mut().enumerate() {
+            *w = self.read_u32(addr.wrapping_add(4 * i as u32))?;
+        }
+        Ok(())
+    }
+
+    /// Writes `words` little-endian at `addr`, `addr + 4`, … without cycles and, like
+    /// [`Board::write_data`], without invalidating decoded code (for the sensor words a
+    /// harness refills every sample; no instruction may live there). Errors: as
+    /// [`Board::write_data`].
+    pub fn write_words(&mut self, addr: u32, words: &[u32]) -> Result<(), EmuError> {
+        let run = u32::try_from(words.len())
+            .ok()
+            .and_then(|n| n.checked_mul(4))
+            .and_then(|len| crate::bus::sram_word_run(addr, len));
+        if let Some((off, stride)) = run {
+            let sram = &mut self.system.sram;
+            for (i, w) in words.iter().enumerate() {
+                let o = off as usize + stride as usize * i;
+                sram[o..o + 4].copy_from_slice(&w.to_le_bytes());
+            }
+            return Ok(());
+        }
+        for (i, w) in words.iter().enumerate() {
+            self.write_data(addr.wrapping_add(4 * i as u32), &w.to_le_bytes())?;
+        }
+        Ok(())
+    }
+
     /// Reads a little-endian word (host access).
     pub fn read_u32(&mut self, addr: u32) -> Result<u32, EmuError> {
         let mut b = [0; 4];
@@ -619,6 +677,8 @@ impl Board {
 
     /// A new profile of the code at `addr` (Thumb bit ignored); its handle.
     fn add_profile(&mut self, addr: u32, handler_only: bool) -> usize {
+        self.profiled_active = [u64::MAX; 2];
+        self.watch_free &= handler_only;
         self.profiles.push(Profile {
             entry: addr & !1,
             handler_only,
@@ -678,6 +738,19 @@ impl Board {
     fn profile_step(&mut self, k: usize) {
         let core = &self.cores[k];
         let (pc, sp, now) = (core.r[15], core.r[13], core.cycle);
+        // Handler profiles only, the core's active exceptions as at this core's last call
+        // and no profiled entry at the PC: no activation can open or close (an open one
+        // closes when its exception's active bit clears; one opens at an entry), so the
+        // loop below would do nothing.
+        if self.profiled_active[k] == core.nvic.active
+            && self
+                .profiles
+                .iter()
+                .all(|p| p.handler_only && p.entry != pc)
+        {
+            return;
+        }
+        self.profiled_active[k] = core.nvic.active;
         for p in &mut self.profiles {
             while let Some(&(ret, entry_sp, start)) = p.open[k].last() {
                 let done = match ret {
@@ -975,13 +1048,20 @@ impl Board {
     /// start (the PC is no profiled entry) and none can end (the PC is not the return
     /// address of the innermost open call, and a call ending with an exception return
     /// leaves the fast path anyway).
+    #[inline(always)]
     fn watch_set(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
-        let mut watch = [NO_WATCH; WATCH_SLOTS];
         // Handler profiles ([`Board::profile_handler`]) watch nothing: they open and close
         // at exception entry and return, on the general path.
-        if self.profiles.iter().all(|p| p.handler_only) {
-            return Some(watch);
+        if self.watch_free {
+            return Some([NO_WATCH; WATCH_SLOTS]);
         }
+        self.watched(k)
+    }
+
+    /// [`Board::watch_set`] when some profile watches an address.
+    #[inline(never)]
+    fn watched(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
+        let mut watch = [NO_WATCH; WATCH_SLOTS];
         let mut n = 0;
         for p in &self.profiles {
             let addrs = [

@@ -170,6 +170,8 @@ pub struct BoardEngine<'p> {
     /// Per key: the out word of `hammer_pos` and its format.
     hammer: Vec<Option<(usize, i32)>>,
     sensors: Vec<i32>,
+    /// Per key: the travel (`f64` bits, `None` for none given) `sensors` was converted from.
+    last_travel: Vec<Option<Option<u64>>>,
     samples: Vec<KeySample>,
     report: BoardRun,
     decimation: usize,
@@ -230,6 +232,7 @@ impl<'p> BoardEngine<'p> {
                 })
                 .collect(),
             sensors: vec![0; bkeys.len()],
+            last_travel: vec![None; bkeys.len()],
             samples: vec![KeySample::default(); bkeys.len()],
             programs: key_programs,
             report,
@@ -251,7 +254,14 @@ impl<'p> BoardEngine<'p> {
 impl KeyEngine for BoardEngine<'_> {
     fn step(&mut self, travel_m: &[f64]) -> Result<&[KeySample], String> {
         for (k, p) in self.programs.iter().enumerate() {
-            self.sensors[k] = FixedInstance::sensor_raw(&p.fixed, 0, travel_m.get(k).copied());
+            // A key at rest reads the same travel sample after sample: the conversion is a
+            // pure function of it, kept from the last sample.
+            let x = travel_m.get(k).copied();
+            let bits = x.map(f64::to_bits);
+            if self.last_travel[k] != Some(bits) {
+                self.sensors[k] = FixedInstance::sensor_raw(&p.fixed, 0, x);
+                self.last_travel[k] = Some(bits);
+            }
         }
         let i = self.steps;
         let out = self

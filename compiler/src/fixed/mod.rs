@@ -210,9 +210,100 @@ pub const SIMULATION_MARGIN: f64 = 0.5;
 /// (DESIGN.md's grand-action reference numbers).
 pub const SIMULATED_DESCENTS_S: [f64; 7] = [0.025, 0.03, 0.04, 0.06, 0.1, 0.16, 0.2];
 
+/// Most keys of a shared program ([`Program::runtime_keys`]) whose param values the
+/// planner's search simulates ([`simulated_keys`]).
+pub const MAX_SIMULATED_KEYS: usize = 6;
+
+/// The keys (indices into [`Program::runtime_keys`]) at whose param values the planner's
+/// search simulates the contract: every key when there are at most [`MAX_SIMULATED_KEYS`];
+/// otherwise the first and the last key (a grading's ends: for grand88 the 11 g and 3.5 g
+/// hammers, the ends of every run-time param's interval), per run-time param the key whose
+/// value lies nearest the middle of its interval (grand88: E4 for `M_h·grav·l4`, 7.29 g;
+/// D♯6, MIDI 87, for `dt/I_h`, 5.31 g), then evenly spaced keys (`j·(n−1)/(m−1)`) until
+/// [`MAX_SIMULATED_KEYS`]. Real keys, not each param's interval taken alone: a param's
+/// middle combined with another's is no hammer (7.25 g's `M_h·grav·l4` with 5.3 g's
+/// `dt/I_h`). In ascending order; empty without recorded keys.
+pub fn simulated_keys(p: &Program) -> Vec<usize> {
+    let keys = &p.runtime_keys;
+    let n = keys.len();
+    if n <= MAX_SIMULATED_KEYS {
+        return (0..n).collect();
+    }
+    let mut chosen = vec![0, n - 1];
+    let ids: Vec<ParamId> = p.runtime_params().collect();
+    for (j, id) in ids.iter().enumerate() {
+        let (lo, hi) = p.params[id.index()].runtime.unwrap_or((0.0, 0.0));
+        let mid = 0.5 * (lo + hi);
+        let nearest = (0..n)
+            .filter(|&k| keys[k].len() == ids.len())
+            .min_by(|&a, &b| {
+                (keys[a][j] - mid)
+                    .abs()
+                    .total_cmp(&(keys[b][j] - mid).abs())
+            });
+        if let Some(k) = nearest {
+            if !chosen.contains(&k) && chosen.len() < MAX_SIMULATED_KEYS {
+                chosen.push(k);
+            }
+        }
+    }
+    let m = MAX_SIMULATED_KEYS;
+    for j in 1..m - 1 {
+        if chosen.len() == m {
+            break;
+        }
+        let k = (j * (n - 1) + (m - 1) / 2) / (m - 1);
+        if !chosen.contains(&k) {
+            chosen.push(k);
+        }
+    }
+    chosen.sort_unstable();
+    chosen
+}
+
+/// Whether a plan's check `c` of a run is no worse than `base`, the analysis' plan's check
+/// of the same run, which breaks `strict` (the half-tolerance contract both were measured
+/// against): clause by clause at most the base's figure plus the clause's `strict` bound —
+/// the total force read within the events' time tolerance
+/// ([`contract::ContractCheck::max_force_lsb_within_time`]: a switch a sample apart is what
+/// broke the base), each force term and output as measured, the event shift and argument
+/// ratios plus one tolerance — and no more events lost or added, samples out of range or
+/// saturations than the base.
+pub fn within_base(
+    c: &contract::ContractCheck,
+    base: &contract::ContractCheck,
+    strict: &contract::Contract,
+) -> bool {
+    let lsb = c.dac_lsb_n;
+    let force =
+        c.max_force_lsb_within_time <= base.max_force_lsb_within_time + strict.force.lsb(lsb);
+    let terms = strict
+        .terms
+        .iter()
+        .zip(c.term_lsb.iter().zip(&base.term_lsb))
+        .all(|((_, b), (x, y))| *x <= *y + b.lsb(lsb));
+    let outputs = strict
+        .outputs
+        .iter()
+        .zip(c.output_err.iter().zip(&base.output_err))
+        .all(|((_, b), (x, y))| *x <= *y + *b);
+    force
+        && terms
+        && outputs
+        && c.unmatched <= base.unmatched
+        && c.shift_ratio <= base.shift_ratio + 1.0
+        && c.arg_ratio <= base.arg_ratio + 1.0
+        && c.state_out_of_range <= base.state_out_of_range
+        && c.overflowed <= base.overflowed
+}
+
 /// Most contract simulations per round of the planner's search
 /// ([`FixedProgram::with_config`]).
 pub const MAX_SIMULATIONS: usize = 40;
+
+/// Most passes of the planner's rounds ([`FixedProgram::with_config`]): a second pass tries
+/// again, in the plan the first settled in, the forms refused beside others.
+pub const SEARCH_PASSES: usize = 2;
 
 /// Programs with more IR values than this are not simulated by the planner (a rubbed bank
 /// or a bowed string: a simulation of the built-in stimuli would take minutes).
@@ -979,11 +1070,17 @@ impl FixedProgram {
     /// [`SIMULATION_MARGIN`] of every clause to spare, simulated against the f64 reference
     /// on every built-in stimulus and full dips of [`SIMULATED_DESCENTS_S`] (where the
     /// analysis proves the force clause for every input, also keeping that proof), with
-    /// the params' own values and, for a program with
-    /// run-time params, also at the middle of their intervals and at the far corner (a
-    /// shared program's first key is its nominal point; `compiler/tests/contract.rs` checks
-    /// the whole contract over grand88's hammer masses). It starts from the analysis' plan (which
-    /// the contract test checks too). Two rounds: every product not yet `MULS` tries its
+    /// the params' own values — for a shared program, at the param values of the keys
+    /// [`simulated_keys`] picks (physical points: each key's values come from its own fold;
+    /// a program with run-time params but no recorded keys also at the far corner of the
+    /// intervals). It starts from the analysis' plan. A run on which that plan already breaks
+    /// the half-tolerance contract (a contact switch decided by nanometres after a long free
+    /// flight: grand88's E4 half dip closes the hammer–key contact with 11 nm to spare in
+    /// f64, and every product 64-bit closes it a sample late too) cannot tell plans apart by
+    /// holding the contract; there a cheaper plan must be no worse than the analysis' plan
+    /// clause by clause, with the force read within the events' time tolerance
+    /// ([`contract::ContractCheck::max_force_lsb_within_time`]), plus the search's share of
+    /// each clause ([`within_base`]). Two rounds: every product not yet `MULS` tries its
     /// `MULS` plan, then every product still 64-bit tries the high word. Each round tests
     /// groups of products, breadth first (the whole round, then the halves of a failing
     /// group), with at most [`MAX_SIMULATIONS`] simulations a round; a failing simulation
@@ -1019,28 +1116,33 @@ impl FixedProgram {
         let strict = original.contract.scaled(SIMULATION_MARGIN);
         let lsb = report::analyse(self).dac_lsb_n();
         let dip = original.sensors[0].range.1;
-        // The params' own values; with run-time params also the middle of their intervals
-        // and the far corner (each param at the end farther from its own value: for a
-        // grading planned from its first key, the last key).
-        let mut points: Vec<Vec<f64>> = vec![Vec::new()];
+        // The params' own values; for a shared program the param values of real keys
+        // (`simulated_keys`); with run-time params but no keys also the far corner (each
+        // param at the end farther from its own value).
         let ids: Vec<ParamId> = original.runtime_params().collect();
-        if !ids.is_empty() {
-            let at = |pick: &dyn Fn(f64, (f64, f64)) -> f64| -> Vec<f64> {
-                ids.iter()
-                    .map(|id| {
-                        let d = &original.params[id.index()];
-                        pick(d.value, d.runtime.unwrap_or((d.value, d.value)))
-                    })
-                    .collect()
-            };
-            points.push(at(&|_, (lo, hi)| 0.5 * (lo + hi)));
-            points.push(at(&|v, (lo, hi)| {
-                if (v - lo).abs() > (hi - v).abs() {
-                    lo
-                } else {
-                    hi
-                }
-            }));
+        let keys = simulated_keys(original);
+        let mut points: Vec<Vec<f64>> = keys
+            .iter()
+            .map(|&k| original.runtime_keys[k].clone())
+            .filter(|v| v.len() == ids.len())
+            .collect();
+        if points.is_empty() {
+            points.push(Vec::new());
+            if !ids.is_empty() {
+                points.push(
+                    ids.iter()
+                        .map(|id| {
+                            let d = &original.params[id.index()];
+                            let (lo, hi) = d.runtime.unwrap_or((d.value, d.value));
+                            if (d.value - lo).abs() > (hi - d.value).abs() {
+                                lo
+                            } else {
+                                hi
+                            }
+                        })
+                        .collect(),
+                );
+            }
         }
         let mut stimuli: Vec<Vec<f64>> = tactus_runtime::stimulus::builtin_names()
             .iter()
@@ -1062,11 +1164,24 @@ impl FixedProgram {
         let mut runs: Vec<contract::ReferenceRun> = Vec::new();
         for keys in &stimuli {
             for point in &points {
-                runs.push(contract::reference(original, self, keys, point));
+                // Every point lies within the intervals the program was planned for.
+                if let Ok(r) = contract::reference(original, self, keys, point) {
+                    runs.push(r);
+                }
             }
         }
         // The shortest runs first: a failing plan is found sooner.
         runs.sort_by_key(|r| r.len());
+        // What the analysis' plan shows on each run, where it breaks the half-tolerance
+        // contract (`None` where it holds).
+        let base: Vec<Option<contract::ContractCheck>> = runs
+            .iter()
+            .map(|r| {
+                let c = contract::compare(original, self, r, lsb, &strict, false).ok()?;
+                let broken = !c.violations(&strict, original.sample_rate_hz).is_empty();
+                broken.then_some(c)
+            })
+            .collect();
         let mut order: Vec<usize> = (0..runs.len()).collect();
         // Where the analysis proves the force clause for every input (no integrated state
         // feeds the total), the search keeps it proven: simulation only adds to a proof.
@@ -1082,9 +1197,16 @@ impl FixedProgram {
                 }
             }
             for pos in 0..order.len() {
-                let r = &runs[order[pos]];
-                let c = contract::compare(original, fp, r, lsb, &strict, true);
-                if !c.violations(&strict, original.sample_rate_hz).is_empty() {
+                let (r, b) = (&runs[order[pos]], &base[order[pos]]);
+                // A run the analysis' plan breaks is compared whole (the force within the
+                // time tolerance needs every sample).
+                let check = contract::compare(original, fp, r, lsb, &strict, b.is_none());
+                let ok = match (b, check) {
+                    (_, Err(_)) => false,
+                    (None, Ok(c)) => c.violations(&strict, original.sample_rate_hz).is_empty(),
+                    (Some(b), Ok(c)) => within_base(&c, b, &strict),
+                };
+                if !ok {
                     let i = order.remove(pos);
                     order.insert(0, i);
                     return false;
@@ -1096,54 +1218,62 @@ impl FixedProgram {
             // Round 0: every product not yet `MULS` tries its `MULS` form; rounds 1 and 2:
             // every product still high word or 64-bit its first, then its second 32×16 form
             // (the smaller error first; two run-time operands have two); round 3: every
-            // product still 64-bit its high word — the forms `mul_options` lists.
-            for round in 0..4 {
-                let candidates: Vec<(usize, MulKind)> = planned
-                    .iter()
-                    .filter_map(|&(i, _, _)| {
-                        let now = self.mul_kind[i];
-                        let options = &self.mul_options[i];
-                        let option = |f: fn(&MulKind) -> bool, nth: usize| {
-                            options.iter().copied().filter(f).nth(nth).map(|k| (i, k))
-                        };
-                        let above_half = matches!(now, Some(MulKind::High(_) | MulKind::Wide));
-                        match round {
-                            0 if !matches!(now, Some(MulKind::Muls(..))) => {
-                                option(|k| matches!(k, MulKind::Muls(..)), 0)
+            // product still 64-bit its high word — the forms `mul_options` lists. Then the
+            // rounds again while a pass changed something (at most [`SEARCH_PASSES`]): a
+            // product refused beside others may pass in the plan they settled in.
+            for _ in 0..SEARCH_PASSES {
+                let before = self.mul_kind.clone();
+                for round in 0..4 {
+                    let candidates: Vec<(usize, MulKind)> = planned
+                        .iter()
+                        .filter_map(|&(i, _, _)| {
+                            let now = self.mul_kind[i];
+                            let options = &self.mul_options[i];
+                            let option = |f: fn(&MulKind) -> bool, nth: usize| {
+                                options.iter().copied().filter(f).nth(nth).map(|k| (i, k))
+                            };
+                            let above_half = matches!(now, Some(MulKind::High(_) | MulKind::Wide));
+                            match round {
+                                0 if !matches!(now, Some(MulKind::Muls(..))) => {
+                                    option(|k| matches!(k, MulKind::Muls(..)), 0)
+                                }
+                                1 | 2 if above_half => {
+                                    option(|k| matches!(k, MulKind::Mul32x16 { .. }), round - 1)
+                                }
+                                3 if now == Some(MulKind::Wide) => {
+                                    option(|k| matches!(k, MulKind::High(_)), 0)
+                                }
+                                _ => None,
                             }
-                            1 | 2 if above_half => {
-                                option(|k| matches!(k, MulKind::Mul32x16 { .. }), round - 1)
+                        })
+                        .collect();
+                    let mut queue: std::collections::VecDeque<&[(usize, MulKind)]> =
+                        std::collections::VecDeque::from([&candidates[..]]);
+                    let mut done = 0;
+                    while let Some(group) = queue.pop_front() {
+                        if group.is_empty() || done == MAX_SIMULATIONS {
+                            continue;
+                        }
+                        done += 1;
+                        let was: Vec<Option<MulKind>> =
+                            group.iter().map(|(i, _)| self.mul_kind[*i]).collect();
+                        for &(i, k) in group {
+                            self.mul_kind[i] = Some(k);
+                        }
+                        if !holds(self) {
+                            for (&(i, _), w) in group.iter().zip(was) {
+                                self.mul_kind[i] = w;
                             }
-                            3 if now == Some(MulKind::Wide) => {
-                                option(|k| matches!(k, MulKind::High(_)), 0)
+                            if group.len() > 1 {
+                                let (a, b) = group.split_at(group.len() / 2);
+                                queue.push_back(a);
+                                queue.push_back(b);
                             }
-                            _ => None,
-                        }
-                    })
-                    .collect();
-                let mut queue: std::collections::VecDeque<&[(usize, MulKind)]> =
-                    std::collections::VecDeque::from([&candidates[..]]);
-                let mut done = 0;
-                while let Some(group) = queue.pop_front() {
-                    if group.is_empty() || done == MAX_SIMULATIONS {
-                        continue;
-                    }
-                    done += 1;
-                    let was: Vec<Option<MulKind>> =
-                        group.iter().map(|(i, _)| self.mul_kind[*i]).collect();
-                    for &(i, k) in group {
-                        self.mul_kind[i] = Some(k);
-                    }
-                    if !holds(self) {
-                        for (&(i, _), w) in group.iter().zip(was) {
-                            self.mul_kind[i] = w;
-                        }
-                        if group.len() > 1 {
-                            let (a, b) = group.split_at(group.len() / 2);
-                            queue.push_back(a);
-                            queue.push_back(b);
                         }
                     }
+                }
+                if self.mul_kind == before {
+                    break;
                 }
             }
         }

@@ -81,9 +81,33 @@ pub struct ImageRun {
     out_words: Vec<Vec<i32>>,
     sample: SampleOut,
     stalls: [u64; 2],
-    scratch: Vec<u8>,
+    scratch: Vec<u32>,
+    out_scratch: Vec<u32>,
+    /// The keys' sensor words as one run of window words from this address, when the keys
+    /// (in key-list order) take consecutive words: one host write per sample.
+    sensor_run: Option<u32>,
+    /// The keys' DAC words as one run of window words from this address, likewise.
+    dac_run: Option<u32>,
     /// The limiter's constants: the current of each DAC code written.
     limiter: LimiterConstants,
+}
+
+/// The first address of the window words that `words(key)` words per key from each key's
+/// slot fill, in key-list order, when they are consecutive (no gap, no overlap).
+fn consecutive_run(
+    image: &FirmwareImage,
+    base: u32,
+    words: impl Fn(usize) -> usize,
+) -> Option<u32> {
+    let first = image.keys.first()?.spec.slot;
+    let mut next = first;
+    for (i, k) in image.keys.iter().enumerate() {
+        if k.spec.slot != next {
+            return None;
+        }
+        next += words(i);
+    }
+    Some(base + 4 * first as u32)
 }
 
 /// Host access failure as an image error.
@@ -167,6 +191,9 @@ impl ImageRun {
             },
             stalls: [0; 2],
             scratch: Vec::new(),
+            out_scratch: Vec::new(),
+            sensor_run: consecutive_run(image, SENSOR_BASE, |i| image.keys[i].sensors),
+            dac_run: consecutive_run(image, DAC_BASE, |i| image.keys[i].drives.len()),
             limiter: Limiter::new(&image.limiter)
                 .map_err(ImageError::Limiter)?
                 .constants(),
@@ -216,7 +243,9 @@ impl ImageRun {
 
     fn core_word(&mut self, core: usize, off: u16) -> Result<u32, ImageError> {
         let a = self.image.cores[core].ctrl + off as u32;
-        self.board.read_u32(a).map_err(emu)
+        let mut w = [0];
+        self.board.read_words(a, &mut w).map_err(emu)?;
+        Ok(w[0])
     }
 
     /// Runs one sample: `sensors` holds the raw sensor words of every key in key-list
@@ -234,13 +263,19 @@ impl ImageRun {
                 got: sensors.len(),
             });
         }
-        let mut at = 0;
-        for k in &self.image.keys {
-            for (i, w) in sensors[at..at + k.sensors].iter().enumerate() {
-                let a = SENSOR_BASE + 4 * (k.spec.slot + i) as u32;
-                self.board.write_data(a, &w.to_le_bytes()).map_err(emu)?;
+        self.scratch.clear();
+        self.scratch.extend(sensors.iter().map(|&w| w as u32));
+        match self.sensor_run {
+            Some(addr) => self.board.write_words(addr, &self.scratch).map_err(emu)?,
+            None => {
+                let mut at = 0;
+                for k in &self.image.keys {
+                    let a = SENSOR_BASE + 4 * k.spec.slot as u32;
+                    let words = &self.scratch[at..at + k.sensors];
+                    self.board.write_words(a, words).map_err(emu)?;
+                    at += k.sensors;
+                }
             }
-            at += k.sensors;
         }
         let want = self.samples + 1;
         let limit = self.cycle_of(self.tick_us(want));
@@ -282,40 +317,52 @@ impl ImageRun {
                 .sum();
             s.handler_runs[c] = calls.len() as u32;
             self.board.clear_calls(self.profiles[c]);
-            s.misses[c] = self
-                .board
-                .read_u32(place.ctrl + ctrl::MISSES as u32)
+            let mut w = [0; 1];
+            let misses = place.ctrl + ctrl::MISSES as u32;
+            self.board.read_words(misses, &mut w).map_err(emu)?;
+            s.misses[c] = w[0];
+            self.board
+                .read_words(place.stack_bottom, &mut w)
                 .map_err(emu)?;
-            if self.board.read_u32(place.stack_bottom).map_err(emu)? != STACK_CANARY {
+            if w[0] != STACK_CANARY {
                 return Err(ImageError::Run(format!("core {c} overflowed its stack")));
             }
             let now = self.board.system.contention_stalls[c];
             s.stalls[c] = now - self.stalls[c];
             self.stalls[c] = now;
         }
+        // Every key's DAC words: one read when they are one run of window words.
+        let dac = &mut self.scratch;
+        dac.clear();
+        if let Some(addr) = self.dac_run {
+            dac.resize(self.image.keys.iter().map(|k| k.drives.len()).sum(), 0);
+            self.board.read_words(addr, dac).map_err(emu)?;
+        } else {
+            for k in &self.image.keys {
+                let at = dac.len();
+                dac.resize(at + k.drives.len(), 0);
+                let addr = DAC_BASE + 4 * k.spec.slot as u32;
+                self.board.read_words(addr, &mut dac[at..]).map_err(emu)?;
+            }
+        }
+        let mut at = 0;
         for (i, k) in self.image.keys.iter().enumerate() {
-            let len = k.out_offset as usize + 4 * k.out_len;
-            self.scratch.resize(len, 0);
+            let words = &mut self.out_scratch;
+            words.resize(k.out_len, 0);
             self.board
-                .read_bytes(k.record, &mut self.scratch)
+                .read_words(k.record + k.out_offset, words)
                 .map_err(emu)?;
-            let word = |b: &[u8], off: usize| {
-                i32::from_le_bytes([b[off], b[off + 1], b[off + 2], b[off + 3]])
-            };
             let out = &mut self.out_words[i];
-            for (j, o) in out.iter_mut().enumerate() {
-                *o = word(&self.scratch, k.out_offset as usize + 4 * j);
+            for (o, &w) in out.iter_mut().zip(words.iter()) {
+                *o = w as i32;
             }
             for (j, (d, _)) in k.drives.iter().enumerate() {
-                let dac = self
-                    .board
-                    .read_u32(DAC_BASE + 4 * (k.spec.slot + j) as u32)
-                    .map_err(emu)?;
                 let o = &mut s.drives[i][j];
                 o.force = out[d.out_index];
-                o.dac = dac as i32 as i16;
+                o.dac = dac[at + j] as i32 as i16;
                 o.current_ua = self.limiter.current_ua(i32::from(o.dac));
             }
+            at += k.drives.len();
             if let Some(first) = s.drives[i].first() {
                 s.force[i] = first.force;
                 s.current_ua[i] = first.current_ua;
