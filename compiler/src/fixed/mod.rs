@@ -301,6 +301,10 @@ pub fn within_base(
 /// ([`FixedProgram::with_config`]).
 pub const MAX_SIMULATIONS: usize = 40;
 
+/// Most passes of the planner's rounds ([`FixedProgram::with_config`]): a second pass tries
+/// again, in the plan the first settled in, the forms refused beside others.
+pub const SEARCH_PASSES: usize = 2;
+
 /// Programs with more IR values than this are not simulated by the planner (a rubbed bank
 /// or a bowed string: a simulation of the built-in stimuli would take minutes).
 pub const MAX_SIMULATED_VALUES: usize = 1500;
@@ -1216,54 +1220,62 @@ impl FixedProgram {
             // Round 0: every product not yet `MULS` tries its `MULS` form; rounds 1 and 2:
             // every product still high word or 64-bit its first, then its second 32×16 form
             // (the smaller error first; two run-time operands have two); round 3: every
-            // product still 64-bit its high word — the forms `mul_options` lists.
-            for round in 0..4 {
-                let candidates: Vec<(usize, MulKind)> = planned
-                    .iter()
-                    .filter_map(|&(i, _, _)| {
-                        let now = self.mul_kind[i];
-                        let options = &self.mul_options[i];
-                        let option = |f: fn(&MulKind) -> bool, nth: usize| {
-                            options.iter().copied().filter(f).nth(nth).map(|k| (i, k))
-                        };
-                        let above_half = matches!(now, Some(MulKind::High(_) | MulKind::Wide));
-                        match round {
-                            0 if !matches!(now, Some(MulKind::Muls(..))) => {
-                                option(|k| matches!(k, MulKind::Muls(..)), 0)
+            // product still 64-bit its high word — the forms `mul_options` lists. Then the
+            // rounds again while a pass changed something (at most [`SEARCH_PASSES`]): a
+            // product refused beside others may pass in the plan they settled in.
+            for _ in 0..SEARCH_PASSES {
+                let before = self.mul_kind.clone();
+                for round in 0..4 {
+                    let candidates: Vec<(usize, MulKind)> = planned
+                        .iter()
+                        .filter_map(|&(i, _, _)| {
+                            let now = self.mul_kind[i];
+                            let options = &self.mul_options[i];
+                            let option = |f: fn(&MulKind) -> bool, nth: usize| {
+                                options.iter().copied().filter(f).nth(nth).map(|k| (i, k))
+                            };
+                            let above_half = matches!(now, Some(MulKind::High(_) | MulKind::Wide));
+                            match round {
+                                0 if !matches!(now, Some(MulKind::Muls(..))) => {
+                                    option(|k| matches!(k, MulKind::Muls(..)), 0)
+                                }
+                                1 | 2 if above_half => {
+                                    option(|k| matches!(k, MulKind::Mul32x16 { .. }), round - 1)
+                                }
+                                3 if now == Some(MulKind::Wide) => {
+                                    option(|k| matches!(k, MulKind::High(_)), 0)
+                                }
+                                _ => None,
                             }
-                            1 | 2 if above_half => {
-                                option(|k| matches!(k, MulKind::Mul32x16 { .. }), round - 1)
+                        })
+                        .collect();
+                    let mut queue: std::collections::VecDeque<&[(usize, MulKind)]> =
+                        std::collections::VecDeque::from([&candidates[..]]);
+                    let mut done = 0;
+                    while let Some(group) = queue.pop_front() {
+                        if group.is_empty() || done == MAX_SIMULATIONS {
+                            continue;
+                        }
+                        done += 1;
+                        let was: Vec<Option<MulKind>> =
+                            group.iter().map(|(i, _)| self.mul_kind[*i]).collect();
+                        for &(i, k) in group {
+                            self.mul_kind[i] = Some(k);
+                        }
+                        if !holds(self) {
+                            for (&(i, _), w) in group.iter().zip(was) {
+                                self.mul_kind[i] = w;
                             }
-                            3 if now == Some(MulKind::Wide) => {
-                                option(|k| matches!(k, MulKind::High(_)), 0)
+                            if group.len() > 1 {
+                                let (a, b) = group.split_at(group.len() / 2);
+                                queue.push_back(a);
+                                queue.push_back(b);
                             }
-                            _ => None,
-                        }
-                    })
-                    .collect();
-                let mut queue: std::collections::VecDeque<&[(usize, MulKind)]> =
-                    std::collections::VecDeque::from([&candidates[..]]);
-                let mut done = 0;
-                while let Some(group) = queue.pop_front() {
-                    if group.is_empty() || done == MAX_SIMULATIONS {
-                        continue;
-                    }
-                    done += 1;
-                    let was: Vec<Option<MulKind>> =
-                        group.iter().map(|(i, _)| self.mul_kind[*i]).collect();
-                    for &(i, k) in group {
-                        self.mul_kind[i] = Some(k);
-                    }
-                    if !holds(self) {
-                        for (&(i, _), w) in group.iter().zip(was) {
-                            self.mul_kind[i] = w;
-                        }
-                        if group.len() > 1 {
-                            let (a, b) = group.split_at(group.len() / 2);
-                            queue.push_back(a);
-                            queue.push_back(b);
                         }
                     }
+                }
+                if self.mul_kind == before {
+                    break;
                 }
             }
         }
