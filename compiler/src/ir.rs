@@ -481,6 +481,13 @@ pub struct Program {
     /// semantics (`fixed::contract`): the defaults, or what the instrument's `tolerance`
     /// lines state.
     pub contract: Contract,
+    /// For a program several keys share ([`crate::share`]): per key, in the keys' order, the
+    /// SI value of each run-time param ([`Program::runtime_params`] order), each computed by
+    /// that key's own constant fold — so values derived from one param (the piano's
+    /// `M_h·grav·l4` and `dt/I_h`) belong to one real hammer. The planner simulates the
+    /// accuracy contract at these physical points (`fixed::FixedProgram::with_config`).
+    /// Empty for a program without run-time params.
+    pub runtime_keys: Vec<Vec<f64>>,
 }
 
 impl Program {

@@ -26,11 +26,24 @@ use std::collections::{BTreeMap, HashMap};
 pub struct Shared {
     /// The shared program: the first input's (its constant chains folded,
     /// `fixed::chains`), with every differing constant a run-time param
-    /// ([`ParamDecl::runtime`]). Plans exactly as the first input when all agree.
+    /// ([`ParamDecl::runtime`]) and each input's values of them in
+    /// [`Program::runtime_keys`]. Plans exactly as the first input when all agree.
     pub program: Program,
+    /// Number of input programs.
+    keys: usize,
+}
+
+impl Shared {
     /// Per input program (in input order), the SI value of each run-time param of
-    /// `program`, in [`Program::runtime_params`] order.
-    pub values: Vec<Vec<f64>>,
+    /// `program`, in [`Program::runtime_params`] order: [`Program::runtime_keys`], or one
+    /// empty list per input when all agree.
+    pub fn values(&self) -> Vec<Vec<f64>> {
+        if self.program.runtime_keys.is_empty() {
+            vec![Vec::new(); self.keys]
+        } else {
+            self.program.runtime_keys.clone()
+        }
+    }
 }
 
 /// Shares one program among `programs` (each the same instrument lowered with its own param
@@ -76,7 +89,7 @@ fn share_as_lowered(programs: &[Program]) -> Result<Shared, String> {
     if varying.is_empty() {
         return Ok(Shared {
             program: p,
-            values: vec![Vec::new(); programs.len()],
+            keys: programs.len(),
         });
     }
     // Divisions by a differing constant of one sign: multiplications by its reciprocal.
@@ -169,10 +182,13 @@ fn share_as_lowered(programs: &[Program]) -> Result<Shared, String> {
         runtime.push((id, vals.clone()));
     }
     runtime.sort_by_key(|(id, _)| *id);
-    let values = (0..programs.len())
+    p.runtime_keys = (0..programs.len())
         .map(|k| runtime.iter().map(|(_, v)| v[k]).collect())
         .collect();
-    Ok(Shared { program: p, values })
+    Ok(Shared {
+        program: p,
+        keys: programs.len(),
+    })
 }
 
 /// `body` with `Def(n)` inserted before each `Def(i)` of `before` (`i → n`).

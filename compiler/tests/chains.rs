@@ -128,6 +128,6 @@ fn keys_with_different_masses_share_one_folded_constant_as_a_runtime_param() {
     assert_eq!(ids.len(), 1, "{:?}", q.params);
     for (k, m) in [3.7e-3, 5.3e-3].iter().enumerate() {
         let want = h / m;
-        assert!(((shared.values[k][0] - want) / want).abs() < 1e-12);
+        assert!(((shared.values()[k][0] - want) / want).abs() < 1e-12);
     }
 }

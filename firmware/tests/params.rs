@@ -86,7 +86,8 @@ fn shared_piano() -> (Ir, Vec<Vec<f64>>) {
         })
         .collect();
     let shared = tactus_compiler::share::share(&irs).unwrap();
-    (shared.program, shared.values)
+    let values = shared.values();
+    (shared.program, values)
 }
 
 #[test]

@@ -11,8 +11,9 @@
 //! analysis proved the result fits, it never fires. Exceptions, each defined below: division
 //! truncates toward zero (what the RP2040's SIO divider computes), `sqrt` and `exp` are the
 //! integer algorithms given here, a multiplication the compiler fits into `MULS` pre-shifts
-//! its operands ([`mul_shifted`]) or keeps three of its four 16×16 partial products
-//! ([`mul_high`]), a run-time division may pre-shift its divisor
+//! its operands ([`mul_shifted`]), cuts one operand to 16 bits and keeps the other's 32
+//! ([`mul_32x16`]) or keeps three of its four 16×16 partial products ([`mul_high`]), a
+//! run-time division may pre-shift its divisor
 //! ([`div_shifted`]), and a comparison with a constant compares exact values
 //! ([`cmp_const`]).
 //!
@@ -183,6 +184,39 @@ pub fn mul_high(x: i32, fx: i32, y: i32, fy: i32, k: u8, fr: i32) -> Sat {
     let (yh, yl) = ((y >> 16) as i128, (y & 0xffff) as i128);
     let p = ((xh * yh) << (32 - k)) + ((xh * yl) >> (k - 16)) + ((xl * yh) >> (k - 16));
     sat32(rescale(p, fx + fy - k as i32, fr))
+}
+
+/// `x · (y >> b)` from two 16×16 partial products, as a Cortex-M0+ computes a 32×16 product
+/// in 32-bit registers: `y` is cut to `ys = y >> b` (arithmetic shift: floor; the compiler
+/// picks `b` so that `ys` fits a signed 16-bit half, `−2^15 ≤ ys < 2^15`), `x` keeps its 32
+/// bits as `x = xh·2^16 + xl` (`xh = x >> 16` signed, `xl = x & 0xffff`), and
+/// `p = xh·ys·2^(16−k) + floor(xl·ys / 2^k)`, `0 ≤ k ≤ 16`: `x·ys / 2^k` with one floor.
+/// `p` has `fx + fy − b − k` fraction bits and is rounded once to `fr` (half up, saturated).
+///
+/// Error before that rounding, in units of `2^(b + k − fx − fy)`: the floor loses
+/// `0 ≤ δ < 1`; against the exact `x·y`, the cut adds `x·(ys·2^b − y) / 2^(b+k)`, with
+/// `0 ≤ y − ys·2^b < 2^b` — below `|x| / 2^k` units, i.e. `|x|·2^(b − fy)` in SI, relative
+/// at most `2^b / |y|` (≤ 2^-15 when `y` has its full 16 significant bits after the cut),
+/// and nothing when the `b` dropped bits of `y` are zero (a constant's trailing zeros).
+///
+/// Which operand is cut: the one whose relative error matters less — for a product by a
+/// constant the constant (its error is fixed and known at compile time), for two run-time
+/// operands the side the compiler's error analysis picks. Callers pass the cut operand
+/// as `y` (the product commutes).
+///
+/// Why both partial products fit a signed 32-bit word for *any* `x` when `ys` is a 16-bit
+/// half: `|xh·ys| ≤ 2^15·2^15 = 2^30` and `|xl·ys| ≤ (2^16 − 1)·2^15 < 2^31` (`0 ≤ xl <
+/// 2^16`); the compiler picks `k` so that the shifted high part and `p` fit too, and where
+/// it can so that `p`'s format is `fr` (the floor then is the only rounding: an error of one
+/// LSB of `fr`, far below the cut's). Two `MULS` instead of [`mul_high`]'s three, and one
+/// half-split fewer. Computed here in `i128`, exact for every word (also a `ys` wider
+/// than 16 bits, which a planned program never has).
+pub fn mul_32x16(x: i32, fx: i32, y: i32, fy: i32, b: u8, k: u8, fr: i32) -> Sat {
+    let (b, k) = (b.min(31), k.min(16));
+    let ys = (y >> b) as i128;
+    let (xh, xl) = ((x >> 16) as i128, (x & 0xffff) as i128);
+    let p = ((xh * ys) << (16 - k)) + ((xl * ys) >> k);
+    sat32(rescale(p, fx + fy - b as i32 - k as i32, fr))
 }
 
 /// `x / (y >> b)` into format `fr`: the divisor's word shifted right by `b` bits first
@@ -471,6 +505,52 @@ mod tests {
             );
         }
         assert_eq!(mul_high(1 << 20, 10, 3 << 20, 10, 32, 0), (3 << 20, false));
+    }
+
+    /// `mul_32x16` is `x·(y >> b)` within one unit of `2^k` below the exact product before
+    /// its rounding (one floor); against `x·y` it is within `|x|·2^b` more; it equals `mul`
+    /// when `y`'s dropped bits are zero and `k = 0`; edge words included.
+    #[test]
+    fn mul_32x16_is_the_product_by_the_cut_operand_with_one_floor() {
+        let mut rng = crate::rng::XorShift64::new(0x3216);
+        let edges = [i32::MIN, i32::MIN + 1, -65536, -65535, -1, 0, 1, 0xffff, 0x10000, i32::MAX];
+        let mut cases: Vec<(i32, i32, u8, u8)> = Vec::new();
+        for &x in &edges {
+            for &ys in &[-32768i32, -32767, -1, 0, 1, 32767] {
+                for (b, k) in [(0u8, 16u8), (16, 16), (15, 0), (3, 7)] {
+                    cases.push((x, ys.wrapping_shl(b as u32) | ((1 << b) - 1), b, k));
+                }
+            }
+        }
+        for n in 0..50_000u32 {
+            let b = (n % 17) as u8;
+            let y = ((rng.next_u64() as i32) >> 16) << b | (rng.next_u64() as i32 & ((1 << b) - 1));
+            cases.push(((rng.next_u64() as i32) >> (n % 5), y, b, (n % 17) as u8));
+        }
+        for (x, y, b, k) in cases {
+            let ys = (y >> b) as i64;
+            assert!((-32768..32768).contains(&ys), "{y} >> {b}");
+            // p in its own format (fr = fx + fy − b − k): no final rounding.
+            let (p, sat) = mul_32x16(x, 0, y, 0, b, k, -(b as i32) - (k as i32));
+            let exact_cut = x as i128 * ys as i128; // units of 2^b
+            if sat {
+                assert!((exact_cut >> k).abs() >= 1 << 31, "{x} {y} {b} {k}");
+                continue;
+            }
+            // One floor: exact_cut/2^k − 1 < p ≤ exact_cut/2^k.
+            let scaled = (p as i128) << k;
+            assert!(scaled <= exact_cut && exact_cut < scaled + (1 << k), "{x} {y} {b} {k}: {p}");
+            // Against the uncut product: within |x|·2^b + 2^(b+k).
+            let err = (((p as i128) << (b + k)) - x as i128 * y as i128).abs();
+            assert!(err <= (x as i128).abs() * (1 << b) + (1i128 << (b + k)), "{x} {y} {b} {k}");
+        }
+        // Exact when nothing is dropped: y's low bits zero and k = 0 (in range).
+        assert_eq!(mul_32x16(123_456, 10, 3 << 12, 20, 12, 0, 12), mul(123_456, 10, 3 << 12, 20, 12));
+        assert_eq!(mul_32x16(-7 << 20, 3, -5 << 8, 1, 8, 0, -2), mul(-7 << 20, 3, -5 << 8, 1, -2));
+        // Rounded once to fr (half up) from p's format.
+        let (p, _) = mul_32x16(3, 0, 1, 0, 0, 1, -1); // 3·1/2 = 1.5 units of 2: p = 1
+        assert_eq!(p, 1);
+        assert_eq!(mul_32x16(3, 0, 1, 0, 0, 0, -1), (2, false)); // 3/2 = 1.5 → 2
     }
 
     /// `div_shifted` is `div` by the floor-shifted divisor: exact for that divisor, and

@@ -572,6 +572,10 @@ impl<'a, 'f> Translator<'a, 'f> {
                     ArithOp::Mul => match fp.mul_kind[v.index()] {
                         Some(MulKind::Muls(sa, sb)) => self.mul(a, fa, sa, c, fc, sb, fr),
                         Some(MulKind::High(k)) => self.mul_high(a, fa, c, fc, k, fr),
+                        Some(MulKind::Mul32x16 { cut, b, k }) => {
+                            let ((a, fa), (c, fc)) = cut.kept_cut((a, fa), (c, fc));
+                            self.mul_32x16(a, fa, c, fc, b, k, fr)
+                        }
                         _ => self.mul(a, fa, 0, c, fc, 0, fr),
                     },
                     ArithOp::Div => match (fp.recip[v.index()], fp.mul_kind[v.index()]) {
@@ -582,6 +586,11 @@ impl<'a, 'f> Translator<'a, 'f> {
                         (Some((r, f)), Some(MulKind::High(k))) => {
                             let r = self.iconst(r);
                             self.mul_high(a, fa, r, f, k, fr)
+                        }
+                        (Some((r, f)), Some(MulKind::Mul32x16 { cut, b, k })) => {
+                            let r = self.iconst(r);
+                            let ((a, fa), (c, fc)) = cut.kept_cut((a, fa), (r, f));
+                            self.mul_32x16(a, fa, c, fc, b, k, fr)
                         }
                         (Some((r, f)), _) => {
                             let r = self.iconst(r);
@@ -883,6 +892,45 @@ impl<'a, 'f> Translator<'a, 'f> {
             lo: -m,
             hi: m,
             frac: fa + fc - k as i32,
+            narrow: None,
+        };
+        self.rescale(w, fr)
+    }
+
+    /// `fixed::mul_32x16`: `c` cut to `ys = c >> b`, `a` split into its halves, the two
+    /// partial products `xh·ys·2^(16−k)` and `floor(xl·ys / 2^k)` summed in an `i64` (exact
+    /// for any words: `|xh·ys| ≤ 2^46`, `0 ≤ xl < 2^16`), then rounded to `fr`. The bounds
+    /// come from the words' own (`a`'s, and `c`'s shifted), not from the plan.
+    #[allow(clippy::too_many_arguments)]
+    fn mul_32x16(&mut self, a: Word, fa: i32, c: Word, fc: i32, b: u8, k: u8, fr: i32) -> Word {
+        let (b, k) = (u32::from(b.min(31)), i64::from(k.min(16)));
+        let ys = self.sshr(c, b);
+        let bb = &mut self.b;
+        let xh = bb.ins().sshr_imm_s(a.v, 16);
+        let xl = bb.ins().band_imm_u(a.v, 0xffff);
+        let (xh, xl) = (
+            bb.ins().sextend(types::I64, xh),
+            bb.ins().sextend(types::I64, xl),
+        );
+        let y64 = bb.ins().sextend(types::I64, ys.v);
+        let hh = bb.ins().imul(xh, y64);
+        let hh = bb.ins().ishl_imm_s(hh, 16 - k);
+        let ll = bb.ins().imul(xl, y64);
+        let ll = bb.ins().sshr_imm_s(ll, k);
+        let p = bb.ins().iadd(hh, ll);
+        // Bounds: the corners of xh (a's high halves) and of [0, 2^16) against ys.
+        let corners = |lo: i128, hi: i128| {
+            let c = [lo * ys.lo, lo * ys.hi, hi * ys.lo, hi * ys.hi];
+            (*c.iter().min().unwrap_or(&0), *c.iter().max().unwrap_or(&0))
+        };
+        let (hlo, hhi) = corners(a.lo >> 16, a.hi >> 16);
+        let (llo, lhi) = corners(0, 0xffff);
+        let w = Wide {
+            v: p,
+            ty: types::I64,
+            lo: (hlo << (16 - k)) + (llo >> k),
+            hi: (hhi << (16 - k)) + (lhi >> k),
+            frac: fa + fc - b as i32 - k as i32,
             narrow: None,
         };
         self.rescale(w, fr)

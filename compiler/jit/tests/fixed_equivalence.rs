@@ -360,7 +360,7 @@ fn shared_program_with_each_keys_param_block_bit_for_bit() {
     let jit = FixedJitProgram::compile(&fp).unwrap();
     let dip = fp.program.sensors[0].range.1;
     let mut total = Stats::default();
-    for values in &shared.values {
+    for values in &shared.values() {
         let block = fp.param_block(values).unwrap();
         for &(name, _) in stimulus::builtin_names() {
             let stim = stimulus::builtin(name, dip, 44_100.0).unwrap();

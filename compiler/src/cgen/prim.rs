@@ -84,6 +84,15 @@ static inline int64_t tx_mul_high(int32_t x, int32_t y, int k) {
         + tx_floor_shr((int64_t)(xh * yl), k - 16) + tx_floor_shr((int64_t)(xl * yh), k - 16);
 }
 
+/* x*(y >> b) in units of 2^k (0 <= k <= 16) from two 16x16 partial products, y cut to
+   ys = floor(y / 2^b): xh*ys*2^(16-k) + floor(xl*ys / 2^k). Exact in int64_t for any words
+   (|xh*ys| <= 2^46, 0 <= xl < 2^16); a planned program's ys is a 16-bit half. */
+static inline int64_t tx_mul_32x16(int32_t x, int32_t y, int b, int k) {
+    int32_t xl = (int32_t)((uint32_t)x & 0xffffu), xh = (x - xl) / 65536;
+    int64_t ys = tx_floor_shr((int64_t)y, b);
+    return (int64_t)xh * ys * ((int64_t)1 << (16 - k)) + tx_floor_shr((int64_t)xl * ys, k);
+}
+
 /* x * 2^k / y truncated toward zero, saturated; y = 0 saturates to the sign of x. */
 static inline int32_t tx_div(int32_t x, int32_t y, int k) {
     uint64_t ax, ay, q;
@@ -256,6 +265,19 @@ pub fn mul_high(x: &str, fx: i32, y: &str, fy: i32, k: u8, fr: i32) -> String {
     round_expr(
         &format!("tx_mul_high({x}, {y}, {k})"),
         fr - (fx + fy - k as i32),
+    )
+}
+
+/// [`fx::mul_32x16`]: `x · (y >> b)` from two 16×16 partial products in units of `2^k`,
+/// rounded to `fr` (`y` is the cut operand; `tx_mul_32x16` computes the sum exactly in 64
+/// bits).
+///
+/// [`fx::mul_32x16`]: tactus_runtime::fixed::mul_32x16
+pub fn mul_32x16(x: &str, fx: i32, y: &str, fy: i32, b: u8, k: u8, fr: i32) -> String {
+    let (b, k) = (b.min(31), k.min(16));
+    round_expr(
+        &format!("tx_mul_32x16({x}, {y}, {b}, {k})"),
+        fr - (fx + fy - b as i32 - k as i32),
     )
 }
 

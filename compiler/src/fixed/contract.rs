@@ -14,7 +14,7 @@
 //! many plans as the planner's search needs ([`compare`]).
 
 use super::interp::FixedInstance;
-use super::FixedProgram;
+use super::{FixedProgram, ParamBlockError};
 use crate::interp::Instance;
 use crate::ir::Program;
 use tactus_runtime::fixed as fx;
@@ -215,7 +215,15 @@ impl ReferenceRun {
 /// quantised to the sensor words of `fp`), with the run-time params at `params` (SI, in
 /// [`Program::runtime_params`] order; empty: the params' own values), recording what the
 /// clauses of `p.contract` need.
-pub fn reference(p: &Program, fp: &FixedProgram, keys: &[f64], params: &[f64]) -> ReferenceRun {
+///
+/// Errors: [`ParamBlockError`] (naming the param) when `params` is not empty and does not
+/// give one value within its planned interval per run-time param of `fp`.
+pub fn reference(
+    p: &Program,
+    fp: &FixedProgram,
+    keys: &[f64],
+    params: &[f64],
+) -> Result<ReferenceRun, ParamBlockError> {
     let raw: Vec<i32> = keys
         .iter()
         .map(|&k| FixedInstance::sensor_raw(fp, 0, Some(k)))
@@ -223,11 +231,36 @@ pub fn reference(p: &Program, fp: &FixedProgram, keys: &[f64], params: &[f64]) -
     reference_raw(p, fp, &raw, params)
 }
 
+/// The param block a run with run-time params `params` (SI; empty: the params' own values)
+/// gives `fp`'s fixed engines.
+fn block_of(fp: &FixedProgram, params: &[f64]) -> Result<Vec<i32>, ParamBlockError> {
+    if params.is_empty() {
+        Ok(fp.nominal_param_block())
+    } else {
+        fp.param_block(params)
+    }
+}
+
 /// [`reference`] from raw words of the first sensor, as a sensor delivers them (the budget
 /// corpus: glitches, words outside the declared range, arbitrary words). Both engines read
 /// each word as the fixed engines do: the f64 interpreter gets the word's value in the
 /// sensor's format, clamped to the declared range as every engine clamps a reading.
-pub fn reference_raw(p: &Program, fp: &FixedProgram, raw: &[i32], params: &[f64]) -> ReferenceRun {
+///
+/// Errors: as [`reference`].
+pub fn reference_raw(
+    p: &Program,
+    fp: &FixedProgram,
+    raw: &[i32],
+    params: &[f64],
+) -> Result<ReferenceRun, ParamBlockError> {
+    // The fixed engines will need these values as a param block: refused here, before the
+    // f64 run, rather than compared against another program's params.
+    block_of(fp, params)?;
+    Ok(record(p, fp, raw, params))
+}
+
+/// [`reference_raw`] once `params` is known to fit `fp`.
+fn record(p: &Program, fp: &FixedProgram, raw: &[i32], params: &[f64]) -> ReferenceRun {
     let mut q;
     let prog = if params.is_empty() {
         p
@@ -271,7 +304,12 @@ pub fn reference_raw(p: &Program, fp: &FixedProgram, raw: &[i32], params: &[f64]
 /// measures each clause of `c` against it (`c` must have the clauses of `p.contract` the run
 /// recorded, scaled or not). With `stop`, the run ends at the first sample whose force,
 /// terms, outputs or states break `c` (the planner's search only needs to know that a plan
-/// fails); the events are compared over the samples run.
+/// fails); the events are compared over the samples run. The fixed engine runs with the
+/// param block of the run's params ([`FixedProgram::param_block`]).
+///
+/// Errors: [`ParamBlockError`] (naming the param) when the run's params do not fit `fp`'s
+/// run-time params (their number, or a value outside its planned interval): `fp` is then
+/// not the program the run was recorded for, and no comparison is made.
 pub fn compare(
     p: &Program,
     fp: &FixedProgram,
@@ -279,15 +317,21 @@ pub fn compare(
     dac_lsb_n: f64,
     c: &Contract,
     stop: bool,
+) -> Result<ContractCheck, ParamBlockError> {
+    let block = block_of(fp, &run.params)?;
+    Ok(compare_block(p, fp, run, block, dac_lsb_n, c, stop))
+}
+
+/// [`compare`] with the param block given.
+fn compare_block(
+    p: &Program,
+    fp: &FixedProgram,
+    run: &ReferenceRun,
+    block: Vec<i32>,
+    dac_lsb_n: f64,
+    c: &Contract,
+    stop: bool,
 ) -> ContractCheck {
-    let block = if run.params.is_empty() {
-        fp.nominal_param_block()
-    } else {
-        match fp.param_block(&run.params) {
-            Ok(b) => b,
-            Err(_) => fp.nominal_param_block(),
-        }
-    };
     let mut b = FixedInstance::with_params(fp, block);
     let mut out = ContractCheck {
         dac_lsb_n,
@@ -402,8 +446,20 @@ fn closeness(a: &[f64], b: &[f64], window: usize) -> f64 {
 /// trajectory `keys` (metres, first sensor; the f64 engine reads the same quantised samples)
 /// and measures each clause of `p.contract`. `dac_lsb_n` is one DAC LSB in newtons.
 pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> ContractCheck {
-    let run = reference(p, fp, keys, &[]);
-    compare(p, fp, &run, dac_lsb_n, &p.contract, false)
+    let raw: Vec<i32> = keys
+        .iter()
+        .map(|&k| FixedInstance::sensor_raw(fp, 0, Some(k)))
+        .collect();
+    let run = record(p, fp, &raw, &[]);
+    compare_block(
+        p,
+        fp,
+        &run,
+        fp.nominal_param_block(),
+        dac_lsb_n,
+        &p.contract,
+        false,
+    )
 }
 
 /// Every built-in stimulus of a keyboard program (one sensor) through both engines,

@@ -211,6 +211,9 @@ impl<'f> FixedInstance<'f> {
                             fx::mul_shifted(a, fa, sa, c, fc, sb, fr)
                         }
                         Some(super::MulKind::High(k)) => fx::mul_high(a, fa, c, fc, k, fr),
+                        Some(super::MulKind::Mul32x16 { cut, b, k }) => {
+                            mul_32x16(cut, (a, fa), (c, fc), b, k, fr)
+                        }
                         _ => fx::mul(a, fa, c, fc, fr),
                     },
                     ArithOp::Div => match (fp.recip[v.index()], fp.mul_kind[v.index()]) {
@@ -219,6 +222,9 @@ impl<'f> FixedInstance<'f> {
                         }
                         (Some((r, f)), Some(super::MulKind::High(k))) => {
                             fx::mul_high(a, fa, r, f, k, fr)
+                        }
+                        (Some((r, f)), Some(super::MulKind::Mul32x16 { cut, b, k })) => {
+                            mul_32x16(cut, (a, fa), (r, f), b, k, fr)
                         }
                         (Some((r, f)), _) => fx::mul(a, fa, r, f, fr),
                         (None, _) => fx::div_shifted(a, fa, c, fc, fp.div_shift[v.index()], fr),
@@ -341,4 +347,11 @@ impl RawOut {
                 .collect(),
         }
     }
+}
+
+/// [`fx::mul_32x16`] of operands `x`, `y` (word, fraction bits) in operand order, the `cut`
+/// one cut to 16 bits.
+fn mul_32x16(cut: super::Cut, x: (i32, i32), y: (i32, i32), b: u8, k: u8, fr: i32) -> fx::Sat {
+    let ((a, fa), (c, fc)) = cut.kept_cut(x, y);
+    fx::mul_32x16(a, fa, c, fc, b, k, fr)
 }

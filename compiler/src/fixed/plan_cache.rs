@@ -18,7 +18,7 @@
 //! uncached. An entry is written to a temporary file and renamed into place, so processes
 //! running at once never read half an entry.
 
-use super::MulKind;
+use super::{Cut, MulKind};
 use sha3::{Digest, Sha3_256};
 use std::path::{Path, PathBuf};
 
@@ -47,11 +47,19 @@ fn file_name(key: &str) -> String {
     format!("{hex}.forms")
 }
 
-/// One value's form as a token: `-` (not a product), `m A B`, `h K`, `w`.
+/// One value's form as a token: `-` (not a product), `m A B`, `t C B K` (32×16: `C` the
+/// cut operand, 1 or 2), `h K`, `w`.
 fn encode(k: &Option<MulKind>) -> String {
     match k {
         None => "-".into(),
         Some(MulKind::Muls(a, b)) => format!("m {a} {b}"),
+        Some(MulKind::Mul32x16 { cut, b, k }) => {
+            let c = match cut {
+                Cut::First => 1,
+                Cut::Second => 2,
+            };
+            format!("t {c} {b} {k}")
+        }
         Some(MulKind::High(k)) => format!("h {k}"),
         Some(MulKind::Wide) => "w".into(),
     }
@@ -65,6 +73,18 @@ fn decode(line: &str) -> Option<Option<MulKind>> {
             t.next()?.parse().ok()?,
             t.next()?.parse().ok()?,
         )),
+        "t" => {
+            let cut = match t.next()? {
+                "1" => Cut::First,
+                "2" => Cut::Second,
+                _ => return None,
+            };
+            Some(MulKind::Mul32x16 {
+                cut,
+                b: t.next()?.parse().ok()?,
+                k: t.next()?.parse().ok()?,
+            })
+        }
         "h" => Some(MulKind::High(t.next()?.parse().ok()?)),
         "w" => Some(MulKind::Wide),
         _ => return None,
@@ -126,12 +146,22 @@ mod tests {
             None,
             Some(MulKind::Muls(3, 15)),
             Some(MulKind::High(17)),
+            Some(MulKind::Mul32x16 {
+                cut: Cut::First,
+                b: 16,
+                k: 9,
+            }),
+            Some(MulKind::Mul32x16 {
+                cut: Cut::Second,
+                b: 0,
+                k: 16,
+            }),
             Some(MulKind::Wide),
         ];
         for k in &kinds {
             assert_eq!(decode(&encode(k)), Some(*k));
         }
-        for bad in ["", "x", "m 1", "m 1 2 3", "h 300", "w 1"] {
+        for bad in ["", "x", "m 1", "m 1 2 3", "h 300", "w 1", "t 3 1 1", "t 1 1", "t 2 1 1 1"] {
             assert_eq!(decode(bad), None, "{bad:?}");
         }
     }

@@ -154,6 +154,16 @@ fn collect(stmts: &[Stmt], value: &[f64], force: &mut [f64], total: &mut f64) {
     }
 }
 
+/// Each value's local error bound (SI): how far the fixed engines' word can lie from the
+/// exact result of its operation on exact operands within their intervals, every state word
+/// taken as exact (a state word is clamped into its range on every write, so a read lies in
+/// its interval). So the value lies within its analysed interval widened by this bound —
+/// what [`super::FixedProgram::widen_by_local_errors`] makes the interval say. Infinite
+/// where the analysis has no bound (a division whose divisor may round to 0).
+pub fn local_errors(fp: &FixedProgram) -> Vec<f64> {
+    pass(fp, &vec![0.0; fp.program.states.len()]).0
+}
+
 /// One propagation pass: value bounds given state bounds, and the bound of each state's
 /// writes (max over its `SetState`s, including the write's rounding).
 fn pass(fp: &FixedProgram, state: &[f64]) -> (Vec<f64>, Vec<f64>) {
@@ -297,22 +307,34 @@ fn op_error(fp: &FixedProgram, v: Value, state: &[f64], e: &[f64]) -> f64 {
 }
 
 /// The error of a high-word product ([`tactus_runtime::fixed::mul_high`]) before its
-/// rounding: below `2 + 2^(32−k)` units of `2^(k − fx − fy)`; 0 for the other forms.
+/// rounding: below `2 + 2^(32−k)` units of `2^(k − fx − fy)`; of a 32×16 product
+/// ([`tactus_runtime::fixed::mul_32x16`]), its floor: below one unit of
+/// `2^(b + k − fx − fy)` (its cut is an operand error, [`shift_errors`]); 0 for the other
+/// forms.
 fn high_error(fp: &FixedProgram, v: Value, fx: i32, fy: i32) -> f64 {
     match fp.mul_kind[v.index()] {
         Some(super::MulKind::High(k)) => {
             let k = k as i32;
             (2.0 + pow2(32 - k)) * pow2(k - fx - fy)
         }
+        Some(super::MulKind::Mul32x16 { b, k, .. }) => pow2(b as i32 + k as i32 - fx - fy),
         _ => 0.0,
     }
 }
 
-/// The errors the pre-shifts of a `MULS` product add to its operands (floor: < 1 LSB of the
-/// shifted operand).
+/// The errors the pre-shifts of a `MULS` product, or the cut of a 32×16 product, add to its
+/// operands (floor: < 1 LSB of the shifted operand).
 fn shift_errors(fp: &FixedProgram, v: Value, fx: i32, fy: i32) -> (f64, f64) {
-    match fp.mul_kind[v.index()] {
-        Some(super::MulKind::Muls(a, b)) => {
+    let shifts = match fp.mul_kind[v.index()] {
+        Some(super::MulKind::Muls(a, b)) => Some((a, b)),
+        Some(super::MulKind::Mul32x16 { cut, b, .. }) => Some(match cut {
+            super::Cut::First => (b, 0),
+            super::Cut::Second => (0, b),
+        }),
+        _ => None,
+    };
+    match shifts {
+        Some((a, b)) => {
             // A floor shift of a word loses less than one LSB of the shifted word, nothing
             // when the dropped bits are known zeros (a constant's trailing zeros).
             let (x, y) = match fp.program.values[v.index()].op {
@@ -597,10 +619,11 @@ fn render_arithmetic(s: &mut String, fp: &FixedProgram) {
             }
         );
     }
-    let (m, h, w, cycles) = fp.mul_forms();
+    let forms = fp.mul_forms();
     let _ = writeln!(
         s,
-        "multiplications: {m} MULS (32×32→32, operands pre-shifted where needed), {h} high word of 32×32, {w} 64-bit (ARMv6-M has no SMULL): ≈ {cycles} Cortex-M0+ cycles"
+        "multiplications: {} MULS (32×32→32, operands pre-shifted where needed), {} 32×16 (one operand cut to 16 bits, 2 MULS), {} high word of 32×32, {} 64-bit (ARMv6-M has no SMULL): ≈ {} Cortex-M0+ cycles",
+        forms.muls, forms.m32x16, forms.high, forms.wide, forms.cycles
     );
     for (i, vd) in p.values.iter().enumerate() {
         let Op::Arith(ArithOp::Div, _, y) = vd.op else {

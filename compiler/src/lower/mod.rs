@@ -155,6 +155,7 @@ impl<'a> Lowerer<'a> {
                 body: vec![],
                 force_axes: vec![],
                 contract: Contract::default(),
+                runtime_keys: vec![],
             },
             diags: vec![],
             unknown_reported: HashSet::new(),

@@ -83,21 +83,31 @@ fn meet(a: [Option<Held>; 2], b: [Option<Held>; 2]) -> [Option<Held>; 2] {
 /// The home of a spill slot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Home {
-    /// A high register (`r8`–`r12`).
+    /// A high register (`r8`–`r12`, `LR`).
     Hi(u8),
     /// A word of the stack frame (index from SP).
     Stack(u16),
 }
 
 /// Spill slots get the high registers, most referenced first: `r12` (caller-saved, free),
+/// `LR` where [`Homes::lr`] allows (the prologue pushes it and the epilogue pops its word
+/// into PC, so the body may use it for free unless a long branch, a `BL`, writes it),
 /// then `r8`–`r11` (callee-saved: each costs two `MOV`s and a share of a `PUSH`/`POP` pair,
 /// about 4 cycles, so it is first taken only for a slot referenced at least this many
 /// times). Slots whose live spans are disjoint share a high register (a second linear
 /// scan, over the slots, most referenced first).
 const HI_MIN_REFS: u32 = 6;
 
+/// Which high registers spill slots may live in.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Homes {
+    /// `LR` is free in the body: no branch of the function may be relaxed to `BL` (the
+    /// buffer then refuses one, and the caller lowers again without it).
+    pub lr: bool,
+}
+
 /// The homes of `alloc`'s spill slots, from their static reference counts in `code`.
-fn homes(code: &[M], alloc: &Allocation) -> Vec<Home> {
+fn homes(code: &[M], alloc: &Allocation, cfg: Homes) -> Vec<Home> {
     let n = alloc.slots as usize;
     let mut refs = vec![0u32; n];
     let slot = |v: V| match alloc.loc.get(v.0 as usize).copied().flatten() {
@@ -117,7 +127,11 @@ fn homes(code: &[M], alloc: &Allocation) -> Vec<Home> {
     // The spans each high register holds (`r12` first; a callee-saved one is opened only
     // for a slot with HI_MIN_REFS references, then shared by any disjoint slot).
     let mut hi: Vec<(u8, Vec<(usize, usize)>)> = Vec::new();
-    let closed = [12u8, 8, 9, 10, 11];
+    let closed: &[u8] = if cfg.lr {
+        &[12, 14, 8, 9, 10, 11]
+    } else {
+        &[12, 8, 9, 10, 11]
+    };
     let mut next_stack = 0u16;
     for s in order {
         let span = alloc.slot_span[s];
@@ -129,7 +143,7 @@ fn homes(code: &[M], alloc: &Allocation) -> Vec<Home> {
             spans.push(span);
             Some(*r)
         } else if let Some(&r) = closed.get(hi.len()) {
-            (r == 12 || refs[s] >= HI_MIN_REFS).then(|| {
+            (matches!(r, 12 | 14) || refs[s] >= HI_MIN_REFS).then(|| {
                 hi.push((r, vec![span]));
                 r
             })
@@ -204,6 +218,13 @@ impl Lower<'_> {
             self.pinned[j] = true;
             return self.alloc.scratch[j];
         }
+        // The low register a stack slot was just stored from still holds its value (an
+        // instruction writing it cleared `copy` before its operands are read): read it there.
+        if let (Held::Slot(s), Some((c, cs))) = (held, self.copy) {
+            if cs == s {
+                return c;
+            }
+        }
         let k = self.victim(k);
         self.pinned[k] = true;
         let r = self.alloc.scratch[k];
@@ -215,10 +236,9 @@ impl Lower<'_> {
                 rn: 7,
                 imm: off,
             }),
-            Held::Slot(s) => match (self.copy, self.home[s as usize]) {
-                (Some((c, cs)), _) if cs == s => self.i(Instr::MovHi { rd: r, rm: c }),
-                (_, Home::Hi(h)) => self.i(Instr::MovHi { rd: r, rm: h }),
-                (_, Home::Stack(w)) => self.i(Instr::MemImm {
+            Held::Slot(s) => match self.home[s as usize] {
+                Home::Hi(h) => self.i(Instr::MovHi { rd: r, rm: h }),
+                Home::Stack(w) => self.i(Instr::MemImm {
                     op: MemOp::Ldr,
                     rt: r,
                     rn: 13,
@@ -228,6 +248,21 @@ impl Lower<'_> {
         }
         self.holds[k] = Some(held);
         r
+    }
+
+    /// The high register `v`'s spill slot lives in, when no low register holds its value
+    /// now: an instruction with a high-register form (`CMP`, `MOV`) reads it there, without
+    /// a `MOV` into a scratch register first.
+    fn hi_home(&self, v: V) -> Option<u8> {
+        let Loc::Slot(s) = self.loc(v) else {
+            return None;
+        };
+        let cached =
+            self.holds.contains(&Some(Held::Slot(s))) || self.copy.is_some_and(|(_, cs)| cs == s);
+        match self.home[s as usize] {
+            Home::Hi(h) if !cached => Some(h),
+            _ => None,
+        }
     }
 
     /// The register to write `v` into (when spilled: scratch 0, or scratch 1 if scratch 0
@@ -248,6 +283,7 @@ impl Lower<'_> {
     /// last reference; no other register is defined here but the instruction's own).
     fn ends_here_in(&self, v: V, r: u8) -> bool {
         v != STATE_V
+            && self.loc(v) == Loc::Reg(r)
             && self.at > 0
             && self.last.get(v.0 as usize) == Some(&self.at)
             && !self.alloc.scratch.contains(&r)
@@ -385,7 +421,10 @@ impl Lower<'_> {
                 self.spill_from(src, slot);
             }
             M::Mov { d, s } => {
-                let src = self.read(s, 1);
+                let src = match self.hi_home(s) {
+                    Some(h) => h,
+                    None => self.read(s, 1),
+                };
                 let (r, sl) = self.write(d, None);
                 if r != src {
                     self.i(Instr::MovHi { rd: r, rm: src });
@@ -427,6 +466,19 @@ impl Lower<'_> {
                 self.spill(r, s);
             }
             M::Alu2 { op, d, a, m } => {
+                // `a` homed in a high register while `d` has a low register of its own: the
+                // two-address `MOV d, a` copies it from there (no reload into a scratch
+                // register first).
+                if let (Some(h), Loc::Reg(r)) = (self.hi_home(a), self.loc(d)) {
+                    if a != m {
+                        let rm = self.read(m, 1);
+                        if r != rm {
+                            self.i(Instr::MovHi { rd: r, rm: h });
+                            self.i(Instr::Alu { op, rdn: r, rm });
+                            return;
+                        }
+                    }
+                }
                 let ra = self.read(a, 0);
                 let rm = if m == a { ra } else { self.read(m, 1) };
                 let commutative = super::mir::commutative(op);
@@ -492,11 +544,23 @@ impl Lower<'_> {
                 self.spill(rd, s);
             }
             M::Cmp { a, b } => {
-                let (ra, rb) = (self.read(a, 0), self.read(b, 1));
-                self.i(Instr::Alu {
-                    op: AluOp::Cmp,
-                    rdn: ra,
-                    rm: rb,
+                // `CMP Rn, Rm` takes high registers (one of them is enough; ARMv6-M ARM
+                // A6.7.17, encoding T2): a slot homed in one is compared in place.
+                let (ha, hb) = (self.hi_home(a), self.hi_home(b));
+                let (ra, rb) = match (ha, hb) {
+                    (Some(h), Some(k)) => (h, k),
+                    (Some(h), None) => (h, if b == a { h } else { self.read(b, 1) }),
+                    (None, Some(h)) => (self.read(a, 0), h),
+                    (None, None) => (self.read(a, 0), self.read(b, 1)),
+                };
+                self.i(if ra < 8 && rb < 8 {
+                    Instr::Alu {
+                        op: AluOp::Cmp,
+                        rdn: ra,
+                        rm: rb,
+                    }
+                } else {
+                    Instr::CmpHi { rn: ra, rm: rb }
                 });
             }
             M::CmpI { a, imm } => {
@@ -574,8 +638,8 @@ impl Lower<'_> {
 /// the frame for spill slots, store spilled arguments; at the end, free the frame and
 /// `POP {…, PC}`. The buffer must relax long branches with [`buffer::LongBranch::Bl`]
 /// (LR is saved).
-pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Allocation) {
-    let home = homes(code, alloc);
+pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Allocation, cfg: Homes) {
+    let home = homes(code, alloc, cfg);
     let frame = home.iter().filter(|h| matches!(h, Home::Stack(_))).count() as u16;
     // Callee-saved high registers used as spill homes, saved in pairs through r0 and r3
     // (free after `r7 = r0`; r3 is no argument) so the stack stays 8-byte aligned.

@@ -138,17 +138,31 @@ pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
         return Err(too_big(at_least));
     }
     let ini = select::Sel::new(fp, &st, &c.layout, used).init_body();
-    let mut buf = buffer::CodeBuffer::new(buffer::LongBranch::Bl);
-    let mut exclusive = Vec::new();
-    for (name, sel) in [
+    let functions = [
         (format!("tactus_{}_init", c.stem), ini),
         (format!("tactus_{}_update", c.stem), upd),
-    ] {
-        let alloc = regalloc::allocate(&sel.code, sel.nregs);
-        emit::lower(&mut buf, &name, &sel.code, &alloc);
-        exclusive.extend(sel.exclusive);
-    }
-    let code = emit::assemble(&buf, &exclusive)?;
+    ];
+    let allocs: Vec<_> = functions
+        .iter()
+        .map(|(_, sel)| regalloc::allocate(&sel.code, sel.nregs))
+        .collect();
+    let exclusive: Vec<_> = functions
+        .iter()
+        .flat_map(|(_, sel)| sel.exclusive.iter().copied())
+        .collect();
+    // First with LR as a free spill home, which no branch may then be relaxed into a `BL`
+    // for; where one must (a long body), again with LR left alone.
+    let lower = |homes: emit::Homes, long: buffer::LongBranch| {
+        let mut buf = buffer::CodeBuffer::new(long);
+        for ((name, sel), alloc) in functions.iter().zip(&allocs) {
+            emit::lower(&mut buf, name, &sel.code, alloc, homes);
+        }
+        emit::assemble(&buf, &exclusive)
+    };
+    let code = match lower(emit::Homes { lr: true }, buffer::LongBranch::Refuse) {
+        Ok(code) => code,
+        Err(_) => lower(emit::Homes { lr: false }, buffer::LongBranch::Bl)?,
+    };
     if code.text.len() > MAX_CODE_BYTES {
         return Err(too_big(code.text.len()));
     }

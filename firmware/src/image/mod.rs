@@ -342,7 +342,7 @@ pub fn compile_shared(
         match tactus_compiler::share::share(&irs) {
             Ok(shared) if members.len() > 1 => {
                 let code = Program::of_ir(&shared.program).map_err(|e| (members[0], e))?;
-                for (&i, values) in members.iter().zip(&shared.values) {
+                for (&i, values) in members.iter().zip(&shared.values()) {
                     let block = code
                         .fixed
                         .param_block(values)

@@ -460,8 +460,18 @@ impl<'a> Sel<'a> {
         W { v, b: 1 }
     }
 
-    /// [`fx::cmp_const`]: `x OP c` (or `c OP x`) as thresholds on the word grid.
-    pub(super) fn cmp_const(&mut self, o: CmpOp, x: W, fx_: i32, c: f64, const_left: bool) -> W {
+    /// [`fx::cmp_const`]: `x OP c` (or `c OP x`) as thresholds on the word grid. `x` comes
+    /// with signed bounds on its word ([`Sel::signed_range`]): where `x − t` cannot
+    /// overflow, `x < t` is the sign of that difference (branch-free) even when the
+    /// magnitudes of `x` and `t` together reach 2^31.
+    pub(super) fn cmp_const(
+        &mut self,
+        o: CmpOp,
+        (x, (xlo, xhi)): (W, (i64, i64)),
+        fx_: i32,
+        c: f64,
+        const_left: bool,
+    ) -> W {
         let (ge, gt) = prim::thresholds(fx_, c);
         let o = if const_left { o.mirrored() } else { o };
         let (lo, hi) = (i32::MIN as i64, i32::MAX as i64);
@@ -470,6 +480,21 @@ impl<'a> Sel<'a> {
             if t <= lo || t > hi {
                 return W {
                     v: this.movi(((t <= lo) != neg) as i32),
+                    b: 1,
+                };
+            }
+            let fits = |d: i64| (i32::MIN as i64..=i32::MAX as i64).contains(&d);
+            if x.b + t.unsigned_abs() >= LIM && fits(xlo - t) && fits(xhi - t) {
+                // `x − t` fits although the magnitudes do not prove it: its sign decides.
+                let d = if (0..=255).contains(&t) {
+                    this.addi(true, x.v, t as u8)
+                } else {
+                    let k = this.movi(t as i32);
+                    this.addsub(true, x.v, k)
+                };
+                let d = if neg { d } else { this.unary(AluOp::Mvn, d) };
+                return W {
+                    v: this.sh(Shift::Lsr, d, 31),
                     b: 1,
                 };
             }

@@ -16,7 +16,8 @@
 //!   shift; a 64-bit product is four 16×16 `MULS` partial products combined with
 //!   `ADDS`/`ADCS` (ARMv6-M has no `SMULL`);
 //! * a right shift rounding half up by `m ≤ 31` is `ASRS #m-1; ADDS #1; ASRS #1`
-//!   (`floor((floor(x/2^(m-1)) + 1)/2) = floor(x/2^m + 1/2)`);
+//!   (`floor((floor(x/2^(m-1)) + 1)/2) = floor(x/2^m + 1/2)`), or `ADDS #2^(m-1); ASRS #m`
+//!   where `m ≤ 8` and the bound proves the sum fits;
 //! * a `select` whose arms cost more than a branch is a diamond, the values only one arm
 //!   uses computed inside it ([`arms`]); the others stay branch-free.
 //!
@@ -121,6 +122,68 @@ pub(crate) struct Sel<'a> {
     store_clamped: Vec<bool>,
     /// The last saturating left shift emitted ([`Sel::shl_sat`]), while it ends the code.
     last_shl: Option<ShlSat>,
+    /// Per value: an edge handler's condition `c` whose only readers are `SetEdge(e, c)`
+    /// and the `If(c and not edge(e))` right after it ([`edge_conditions`]): no word of its
+    /// own, each path of its compare-and-branch chain stores the edge's constant.
+    edge_cond: Vec<bool>,
+}
+
+/// The conditions of edge handlers (`on c { … }`, lowered to `SetEdge(e, c)` then
+/// `If(c and not edge(e), body)`) that nothing else reads and that [`Sel::branch_op`] can
+/// test: [`Sel::edge_handler`] branches on them once, storing 1 or 0 on each way.
+fn edge_conditions(p: &Program, used: &[bool], fused: &[bool]) -> Vec<bool> {
+    let n = p.values.len();
+    let mut uses = vec![0u32; n];
+    for (vd, _) in p.values.iter().zip(used).filter(|(_, u)| **u) {
+        for x in crate::cgen::operands(&vd.op) {
+            uses[x.index()] += 1;
+        }
+    }
+    walk_stmts(&p.body, &mut |s| {
+        s.reads().iter().for_each(|v| uses[v.index()] += 1)
+    });
+    let mut edge = vec![false; n];
+    fn walk(stmts: &[Stmt], p: &Program, f: &mut dyn FnMut(&Stmt, Option<&Stmt>)) {
+        for (k, s) in stmts.iter().enumerate() {
+            f(s, stmts.get(k + 1));
+            if let Stmt::If(_, body) = s {
+                walk(body, p, f);
+            }
+        }
+    }
+    walk(&p.body, p, &mut |s, next| {
+        if let (Stmt::SetEdge(e, c), Some(Stmt::If(fire, _))) = (s, next) {
+            if edge_fire(p, *e, *fire) == Some(*c)
+                && fused[fire.index()]
+                && uses[c.index()] == 2
+                && matches!(
+                    p.values[c.index()].op,
+                    Op::And(..) | Op::Or(..) | Op::Not(_) | Op::Cmp(..)
+                )
+            {
+                edge[c.index()] = true;
+            }
+        }
+    });
+    edge
+}
+
+/// Where `fire` is `c and not edge(e)` (either order): `c`.
+fn edge_fire(p: &Program, e: EdgeId, fire: Value) -> Option<Value> {
+    let Op::And(x, y) = p.values[fire.index()].op else {
+        return None;
+    };
+    let was_false = |v: Value| match p.values[v.index()].op {
+        Op::Not(prev) => p.values[prev.index()].op == Op::Edge(e),
+        _ => false,
+    };
+    if was_false(y) {
+        Some(x)
+    } else if was_false(x) {
+        Some(y)
+    } else {
+        None
+    }
 }
 
 /// A saturating left shift `d = sat(x · 2^e)` occupying `code[start..end]`.
@@ -212,7 +275,12 @@ impl<'a> Sel<'a> {
         let direct = count.iter().map(|&(n, nested)| n == 1 && !nested).collect();
         let arms = arms::plan(fp, &used);
         let used_for_stores = used.clone();
-        let fused = fused_conditions(p, &used, &arms.conditions(p));
+        let mut fused = fused_conditions(p, &used, &arms.conditions(p));
+        let edge_cond = edge_conditions(p, &used, &fused);
+        // An edge handler's condition is branched on like a fused one.
+        for (f, e) in fused.iter_mut().zip(&edge_cond) {
+            *f |= *e;
+        }
         Sel {
             fp,
             p,
@@ -238,6 +306,7 @@ impl<'a> Sel<'a> {
             sole_store: sole_stores(fp, &used_for_stores),
             store_clamped: vec![false; p.values.len()],
             last_shl: None,
+            edge_cond,
         }
     }
 
@@ -388,8 +457,19 @@ impl<'a> Sel<'a> {
     fn stmts(&mut self, stmts: &[Stmt]) -> Result<(), ThumbError> {
         let (p, fp, st) = (self.p, self.fp, self.st);
         let top = std::mem::replace(&mut self.top, false);
+        let mut threaded = None;
         for (k, s) in stmts.iter().enumerate() {
+            if threaded == Some(k) {
+                continue;
+            }
             match s {
+                Stmt::SetEdge(e, c) if self.edge_cond[c.index()] => {
+                    let Some(Stmt::If(fire, body)) = stmts.get(k + 1) else {
+                        unreachable!("an edge condition is followed by its handler")
+                    };
+                    self.edge_handler(*e, *c, *fire, body, top.then_some(k as u32 + 1))?;
+                    threaded = Some(k + 1);
+                }
                 // (A value computed in a branching select's arm waits for it.)
                 Stmt::Def(v) if self.arms.home[v.index()].is_none() => {
                     let since = self.code.len();
@@ -555,6 +635,52 @@ impl<'a> Sel<'a> {
         }
         self.push(M::Label(done));
         Ok(W { v: d, b })
+    }
+}
+
+impl<'a> Sel<'a> {
+    /// `SetEdge(e, c); If(c and not edge(e), body)` with `c` tested once: the edge's old
+    /// byte (loaded where `edge(e)` was defined), then `c`'s compare-and-branch chain to
+    /// `yes`; the fall-through stores 0 and skips the body, `yes` stores 1 and runs the body
+    /// when the old byte was 0. (The generic form stores the 0/1 word of `c` and tests it
+    /// again.) `mark`: the top-level statement index of the `if`, for the flow facts.
+    fn edge_handler(
+        &mut self,
+        e: EdgeId,
+        c: Value,
+        fire: Value,
+        body: &[Stmt],
+        mark: Option<u32>,
+    ) -> Result<(), ThumbError> {
+        let (p, st) = (self.p, self.st);
+        let Op::And(x, y) = p.values[fire.index()].op else {
+            unreachable!("an edge handler fires on `c and not edge`")
+        };
+        let prev = [x, y]
+            .into_iter()
+            .find_map(|v| match p.values[v.index()].op {
+                Op::Not(prev) if p.values[prev.index()].op == Op::Edge(e) => Some(prev),
+                _ => None,
+            })
+            .expect("an edge handler's condition reads its edge");
+        let old = self.word(prev);
+        let (yes, skip) = (self.label(), self.label());
+        self.branch(c, true, yes)?;
+        let z = self.movi(0);
+        self.store(MemOp::Strb, z, Base::State, st.edges + e.index());
+        self.push(M::B(skip));
+        self.push(M::Label(yes));
+        let one = self.movi(1);
+        self.store(MemOp::Strb, one, Base::State, st.edges + e.index());
+        self.push(M::CmpI { a: old.v, imm: 0 });
+        self.push(M::Bc(Cond::Ne, skip));
+        if let Some(k) = mark {
+            self.push(M::Mark(k));
+        }
+        self.push(M::Note(format!("if {}", describe(p, c))));
+        self.stmts(body)?;
+        self.push(M::Label(skip));
+        Ok(())
     }
 }
 

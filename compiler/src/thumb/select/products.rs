@@ -1,8 +1,9 @@
-//! Products: the plan's forms ([`MulKind`]) as ARMv6-M sequences — a pre-shifted `MULS`, the
-//! high word of 32×32 from three 16×16 partial products, the full 64-bit product from four
-//! (ARMv6-M has no `SMULL`).
+//! Products: the plan's forms ([`MulKind`]) as ARMv6-M sequences — a pre-shifted `MULS`, a
+//! 32×16 product from two 16×16 partial products, the high word of 32×32 from three, the
+//! full 64-bit product from four (ARMv6-M has no `SMULL`).
 
 use super::*;
+use crate::fixed::Cut;
 
 /// The second operand of a multiplication.
 #[derive(Clone, Copy, Debug)]
@@ -92,6 +93,19 @@ impl<'a> Sel<'a> {
                 };
                 self.round(prod, e)
             }
+            MulKind::Mul32x16 { cut, b, k } => {
+                // The operand order of `mul` is (word, operand); the cut one is `c`.
+                let (kept, fk, c, fc) = match (cut, y) {
+                    (Cut::Second, y) => (x, fx_, y, fy),
+                    (Cut::First, Operand::Word(w)) => (w, fy, Operand::Word(x), fx_),
+                    (Cut::First, Operand::Const(_)) => {
+                        // The planner cuts the constant of a product by a constant.
+                        self.unsupported("a 32×16 product that cuts its run-time operand against a constant");
+                        return W { v: self.movi(0), b: 0 };
+                    }
+                };
+                self.mul_32x16(kept, fk, c, fc, b, k, fr)
+            }
             MulKind::High(k) => {
                 // fixed::mul_high: xh·yh·2^(32−k) + floor(xh·yl / 2^(k−16)) +
                 // floor(xl·yh / 2^(k−16)), each partial product one MULS.
@@ -169,6 +183,65 @@ impl<'a> Sel<'a> {
                 self.round64(p, fr - fx_ - fy, rb)
             }
         }
+    }
+
+    /// `fixed::mul_32x16`: `ys = c >> b` (a signed 16-bit half), `x = xh·2^16 + xl`, and
+    /// `xh·ys·2^(16−k) + floor(xl·ys / 2^k)` from two `MULS`, rounded to `fr`. `x` has
+    /// `fx_` fraction bits, `c` `fc`.
+    ///
+    /// `ASRS xh, x, #16; UXTH xl, x;` the cut word's `ASRS` (or its constant's load);
+    /// `MULS` twice (each overwrites an operand at its last use: `xh`, then `xl` or `ys`);
+    /// `LSLS #(16−k)`, `ASRS #k`, `ADDS`; then the rounding shift, if the plan left one.
+    #[allow(clippy::too_many_arguments)]
+    fn mul_32x16(&mut self, x: W, fx_: i32, c: Operand, fc: i32, b: u8, k: u8, fr: i32) -> W {
+        let (b, k) = (b.min(31) as i32, k.min(16) as i32);
+        let (ys, ysb) = match c {
+            Operand::Const(c) => {
+                let ys = c >> b;
+                if ys == 0 {
+                    return W {
+                        v: self.movi(0),
+                        b: 0,
+                    };
+                }
+                (self.movi(ys), ys.unsigned_abs() as u64)
+            }
+            Operand::Word(w) => {
+                let v = if b > 0 {
+                    self.sh(Shift::Asr, w.v, b as u8)
+                } else {
+                    w.v
+                };
+                (v, (w.b.min(LIM) >> b) + 1)
+            }
+        };
+        // The planner's bounds (`MulOperands::half`): `ys` a 16-bit half, every part of
+        // the sum and the sum within an i32.
+        let hx = (x.b.min(LIM) >> 16) + 1;
+        let high = (hx * ysb) << (16 - k);
+        let pb = high + ((65535 * ysb) >> k) + 2;
+        if ysb > 1 << 15 || pb >= LIM {
+            self.unsupported("a 32×16 product whose partial sum may not fit 32 bits");
+        }
+        let xh = self.sh(Shift::Asr, x.v, 16);
+        let xl = self.nv();
+        self.push(M::Uxth { d: xl, m: x.v });
+        let mut hh = self.alu2(AluOp::Mul, xh, ys);
+        let mut ll = self.alu2(AluOp::Mul, xl, ys);
+        if k < 16 {
+            hh = self.sh(Shift::Lsl, hh, (16 - k) as u8);
+        }
+        if k > 0 {
+            ll = self.sh(Shift::Asr, ll, k as u8);
+        }
+        let p = self.addsub(false, hh, ll);
+        self.round(
+            W {
+                v: p,
+                b: pb.min(LIM),
+            },
+            fr - (fx_ + fc - b - k),
+        )
     }
 
     /// `floor(p · r / 2^32)` for `0 ≤ p < 2^31` and the word `r` given as its halves

@@ -22,6 +22,24 @@ impl<'a> Sel<'a> {
         }
     }
 
+    /// Signed bounds `[lo, hi]` on the word of real value `v`: its exact range
+    /// ([`Sel::exact_word_range`]) where it has one, else its interval in its format widened
+    /// as [`Sel::bound_of`] widens the magnitude, within `±bound_of(v)`.
+    pub(super) fn signed_range(&self, v: Value) -> (i64, i64) {
+        if let Some((lo, hi)) = self.exact_word_range(v) {
+            return (lo as i64, hi as i64);
+        }
+        let b = self.bound_of(v) as i64;
+        let iv = self.fp.ranges.values[v.index()];
+        let scale = 2f64.powi(self.fp.frac[v.index()]);
+        let margin = 2.0 + 1e-9 * iv.mag() * scale;
+        let (lo, hi) = ((iv.lo * scale - margin).floor(), (iv.hi * scale + margin).ceil());
+        if !(lo.is_finite() && hi.is_finite()) {
+            return (-b, b);
+        }
+        ((lo.max(-(b as f64)) as i64), (hi.min(b as f64) as i64))
+    }
+
     /// The word of an operand value (constants are rematerialised at each use).
     pub(super) fn word(&mut self, v: Value) -> W {
         if let Some(k) = self.fp.param_word_of(v) {
@@ -155,10 +173,7 @@ impl<'a> Sel<'a> {
                         )
                     } else if self.is_const(x) {
                         // The plan's shifts are in operand order: (constant, variable) here.
-                        let kind = match kind {
-                            MulKind::Muls(sc, sv) => MulKind::Muls(sv, sc),
-                            k => k,
-                        };
+                        let kind = kind.swapped();
                         let a = self.word(y);
                         self.mul(
                             a,
@@ -234,11 +249,13 @@ impl<'a> Sel<'a> {
             Op::Cmp(o, x, y) => match (fp.exact_const(x), fp.exact_const(y)) {
                 (_, Some(k)) if real(&x) => {
                     let a = self.word(x);
-                    self.cmp_const(o, a, f(&x), k, false)
+                    let r = self.signed_range(x);
+                    self.cmp_const(o, (a, r), f(&x), k, false)
                 }
                 (Some(k), _) if real(&y) => {
                     let a = self.word(y);
-                    self.cmp_const(o, a, f(&y), k, true)
+                    let r = self.signed_range(y);
+                    self.cmp_const(o, (a, r), f(&y), k, true)
                 }
                 _ => {
                     let (a, b) = (self.word(x), self.word(y));

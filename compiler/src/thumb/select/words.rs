@@ -34,6 +34,16 @@ impl<'a> Sel<'a> {
             return self.known((((c as i64 >> (m - 1)) + 1) >> 1) as i32);
         }
         let b = (x.b >> m) + 1;
+        let half = 1u64 << (m - 1);
+        if m <= 8 && x.b + half < LIM {
+            // The half added first where it cannot overflow: `ADDS #2^(m-1); ASRS #m`
+            // (`floor((x + 2^(m-1)) / 2^m)`, one instruction fewer than the shifted form).
+            let t = self.addi(false, x.v, half as u8);
+            return W {
+                v: self.sh(Shift::Asr, t, m as u8),
+                b,
+            };
+        }
         if m >= 2 || x.b < LIM - 1 {
             let t = if m >= 2 {
                 self.sh(Shift::Asr, x.v, (m - 1) as u8)
