@@ -738,7 +738,10 @@ impl Board {
         // closes when its exception's active bit clears; one opens at an entry), so the
         // loop below would do nothing.
         if self.profiled_active[k] == core.nvic.active
-            && self.profiles.iter().all(|p| p.handler_only && p.entry != pc)
+            && self
+                .profiles
+                .iter()
+                .all(|p| p.handler_only && p.entry != pc)
         {
             return;
         }

@@ -513,7 +513,18 @@ mod tests {
     #[test]
     fn mul_32x16_is_the_product_by_the_cut_operand_with_one_floor() {
         let mut rng = crate::rng::XorShift64::new(0x3216);
-        let edges = [i32::MIN, i32::MIN + 1, -65536, -65535, -1, 0, 1, 0xffff, 0x10000, i32::MAX];
+        let edges = [
+            i32::MIN,
+            i32::MIN + 1,
+            -65536,
+            -65535,
+            -1,
+            0,
+            1,
+            0xffff,
+            0x10000,
+            i32::MAX,
+        ];
         let mut cases: Vec<(i32, i32, u8, u8)> = Vec::new();
         for &x in &edges {
             for &ys in &[-32768i32, -32767, -1, 0, 1, 32767] {
@@ -539,14 +550,26 @@ mod tests {
             }
             // One floor: exact_cut/2^k − 1 < p ≤ exact_cut/2^k.
             let scaled = (p as i128) << k;
-            assert!(scaled <= exact_cut && exact_cut < scaled + (1 << k), "{x} {y} {b} {k}: {p}");
+            assert!(
+                scaled <= exact_cut && exact_cut < scaled + (1 << k),
+                "{x} {y} {b} {k}: {p}"
+            );
             // Against the uncut product: within |x|·2^b + 2^(b+k).
             let err = (((p as i128) << (b + k)) - x as i128 * y as i128).abs();
-            assert!(err <= (x as i128).abs() * (1 << b) + (1i128 << (b + k)), "{x} {y} {b} {k}");
+            assert!(
+                err <= (x as i128).abs() * (1 << b) + (1i128 << (b + k)),
+                "{x} {y} {b} {k}"
+            );
         }
         // Exact when nothing is dropped: y's low bits zero and k = 0 (in range).
-        assert_eq!(mul_32x16(123_456, 10, 3 << 12, 20, 12, 0, 12), mul(123_456, 10, 3 << 12, 20, 12));
-        assert_eq!(mul_32x16(-7 << 20, 3, -5 << 8, 1, 8, 0, -2), mul(-7 << 20, 3, -5 << 8, 1, -2));
+        assert_eq!(
+            mul_32x16(123_456, 10, 3 << 12, 20, 12, 0, 12),
+            mul(123_456, 10, 3 << 12, 20, 12)
+        );
+        assert_eq!(
+            mul_32x16(-7 << 20, 3, -5 << 8, 1, 8, 0, -2),
+            mul(-7 << 20, 3, -5 << 8, 1, -2)
+        );
         // Rounded once to fr (half up) from p's format.
         let (p, _) = mul_32x16(3, 0, 1, 0, 0, 1, -1); // 3·1/2 = 1.5 units of 2: p = 1
         assert_eq!(p, 1);

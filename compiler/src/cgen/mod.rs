@@ -953,8 +953,7 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
                 ArithOp::Mul => match fp.mul_kind[v.index()] {
                     Some(MulKind::High(k)) => prim::mul_high(&name(x), f(x), &name(y), f(y), k, fr),
                     Some(MulKind::Mul32x16 { cut, b, k }) => {
-                        let ((a, fa), (c, fc)) =
-                            cut.kept_cut((name(x), f(x)), (name(y), f(y)));
+                        let ((a, fa), (c, fc)) = cut.kept_cut((name(x), f(x)), (name(y), f(y)));
                         prim::mul_32x16(&a, fa, &c, fc, b, k, fr)
                     }
                     Some(MulKind::Muls(a, b)) => {

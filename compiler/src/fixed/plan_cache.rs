@@ -161,7 +161,17 @@ mod tests {
         for k in &kinds {
             assert_eq!(decode(&encode(k)), Some(*k));
         }
-        for bad in ["", "x", "m 1", "m 1 2 3", "h 300", "w 1", "t 3 1 1", "t 1 1", "t 2 1 1 1"] {
+        for bad in [
+            "",
+            "x",
+            "m 1",
+            "m 1 2 3",
+            "h 300",
+            "w 1",
+            "t 3 1 1",
+            "t 1 1",
+            "t 2 1 1 1",
+        ] {
             assert_eq!(decode(bad), None, "{bad:?}");
         }
     }

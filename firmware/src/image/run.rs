@@ -94,7 +94,11 @@ pub struct ImageRun {
 
 /// The first address of the window words that `words(key)` words per key from each key's
 /// slot fill, in key-list order, when they are consecutive (no gap, no overlap).
-fn consecutive_run(image: &FirmwareImage, base: u32, words: impl Fn(usize) -> usize) -> Option<u32> {
+fn consecutive_run(
+    image: &FirmwareImage,
+    base: u32,
+    words: impl Fn(usize) -> usize,
+) -> Option<u32> {
     let first = image.keys.first()?.spec.slot;
     let mut next = first;
     for (i, k) in image.keys.iter().enumerate() {

@@ -100,8 +100,13 @@ impl<'a> Sel<'a> {
                     (Cut::First, Operand::Word(w)) => (w, fy, Operand::Word(x), fx_),
                     (Cut::First, Operand::Const(_)) => {
                         // The planner cuts the constant of a product by a constant.
-                        self.unsupported("a 32×16 product that cuts its run-time operand against a constant");
-                        return W { v: self.movi(0), b: 0 };
+                        self.unsupported(
+                            "a 32×16 product that cuts its run-time operand against a constant",
+                        );
+                        return W {
+                            v: self.movi(0),
+                            b: 0,
+                        };
                     }
                 };
                 self.mul_32x16(kept, fk, c, fc, b, k, fr)

@@ -33,7 +33,10 @@ impl<'a> Sel<'a> {
         let iv = self.fp.ranges.values[v.index()];
         let scale = 2f64.powi(self.fp.frac[v.index()]);
         let margin = 2.0 + 1e-9 * iv.mag() * scale;
-        let (lo, hi) = ((iv.lo * scale - margin).floor(), (iv.hi * scale + margin).ceil());
+        let (lo, hi) = (
+            (iv.lo * scale - margin).floor(),
+            (iv.hi * scale + margin).ceil(),
+        );
         if !(lo.is_finite() && hi.is_finite()) {
             return (-b, b);
         }
