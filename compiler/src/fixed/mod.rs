@@ -555,7 +555,10 @@ pub enum MulKind {
 impl MulKind {
     /// Estimated Cortex-M0+ cycles, operand splitting and the final rounding included (the
     /// Cortex-M0+ TRM's single-cycle ALU and fast multiplier): `Muls` 6 (pre-shifts, a
-    /// constant load, `MULS`, the rounding shift); `High` 14 (halves of each operand, 3
+    /// constant load, `MULS`, the rounding shift); `Mul32x16` 9 (`ASRS`/`UXTH` for the kept
+    /// operand's halves, the cut operand's `ASRS` or its constant's 2-cycle `LDR`, 2 `MULS`,
+    /// `LSLS`, `ASRS`, `ADDS`; its unit `k` is chosen so that no rounding shift follows —
+    /// the piano's listing has exactly these 8 instructions); `High` 14 (halves of each operand, 3
     /// `MULS`, 3 shifts, 2 adds, the rounding); `Wide` 23 (a literal load, halves, 4 `MULS`,
     /// the cross terms into a 64-bit pair with `ADDS`/`ADCS`, a 64-bit rounding shift).
     pub fn cycles(self) -> u32 {
