@@ -137,5 +137,5 @@ fn main() {
         );
     }
     println!("  (sum {total} cycles; calls out of the update: {calls})");
-    println!("products: {}", fp.mul_forms());
+    println!("products: {} if all ran", fp.mul_forms());
 }
