@@ -140,6 +140,20 @@ fn cases(rng: &mut XorShift64, per_kind: usize) -> Vec<Case> {
             }),
             what: format!("mul_shifted {fx_}>>{a} {fy}>>{b} -> {frm}"),
         });
+        // The 32×16 product on any words (also a cut word wider than 16 bits, which a
+        // planned program never has) and the high word.
+        let (bc, kc) = (rng.below(20) as u8, rng.below(17) as u8);
+        v.push(Case {
+            c: body(prim::mul_32x16("x", fx_, "y", fy, bc, kc, frm)),
+            want: Box::new(move |x, y| fx::mul_32x16(x, fx_, y, fy, bc, kc, frm).0),
+            what: format!("mul_32x16 {fx_} {fy}>>{bc} k {kc} -> {frm}"),
+        });
+        let kh = 16 + rng.below(17) as u8;
+        v.push(Case {
+            c: body(prim::mul_high("x", fx_, "y", fy, kh, frm)),
+            want: Box::new(move |x, y| fx::mul_high(x, fx_, y, fy, kh, frm).0),
+            what: format!("mul_high {fx_} {fy} k {kh} -> {frm}"),
+        });
         let frd = frac(rng, Some(fx_ - fy));
         v.push(Case {
             c: body(prim::div("x", fx_, "y", fy, 0, frd)),

@@ -69,11 +69,11 @@ fn a_planner_greedier_than_the_contract_breaks_it() {
     let greedy = FixedProgram::with_config(&p, &PlanConfig::unlimited());
     let exact = FixedProgram::new(&p);
     let (g, e) = (greedy.mul_forms(), exact.mul_forms());
-    println!(
-        "greedy plan: {} MULS, {} high word, {} 64-bit; default plan: {} MULS, {} high word, {} 64-bit",
-        g.0, g.1, g.2, e.0, e.1, e.2
+    println!("greedy plan: {g}; default plan: {e}");
+    assert!(
+        g.muls > e.muls,
+        "the greedy plan must use more MULS products"
     );
-    assert!(g.0 > e.0, "the greedy plan must use more MULS products");
     let broken: Vec<String> = runs(&p, &greedy)
         .into_iter()
         .flat_map(|(stim, r)| {
@@ -210,12 +210,9 @@ fn a_plan_greedier_than_the_simulated_search_breaks_the_contract() {
         },
     );
     let (s, a) = (fp.mul_forms(), analysed.mul_forms());
-    println!(
-        "simulated search: {} MULS, {} high word, {} 64-bit, {} estimated cycles; analysis only: {} MULS, {} high word, {} 64-bit, {} cycles",
-        s.0, s.1, s.2, s.3, a.0, a.1, a.2, a.3
-    );
+    println!("simulated search: {s}; analysis only: {a}");
     assert!(
-        s.3 < a.3,
+        s.cycles < a.cycles,
         "the search must find cheaper products than the analysis"
     );
     let lsb = report::analyse(&fp).dac_lsb_n();
@@ -353,6 +350,80 @@ fn an_output_tolerance_is_measured_and_enforced() {
         println!("output `depth` within {tol}: worst {worst:e} m, holds {ok}");
         assert_eq!(ok, holds, "{tol}: worst {worst:e}");
     }
+}
+
+/// The 32×16 products the planner refused are refused by the contract: on the piano, every
+/// product left a high word or 64-bit whose 32×16 form the planner considered is forced to
+/// that form alone and simulated as the planner's search simulates it (the built-in stimuli
+/// and the full dips of `SIMULATED_DESCENTS_S`, half of every tolerance). Each breaks it —
+/// that is why it was refused — and at least one breaks the whole contract.
+#[test]
+fn every_refused_32x16_form_breaks_the_contract() {
+    use tactus_compiler::fixed::{MulKind, SIMULATED_DESCENTS_S, SIMULATION_MARGIN};
+    let p = program("grand_piano");
+    let fp = FixedProgram::new(&p);
+    let (full, strict) = (p.contract.clone(), p.contract.scaled(SIMULATION_MARGIN));
+    let lsb = report::analyse(&fp).dac_lsb_n();
+    let dip = p.sensors[0].range.1;
+    let mut keys: Vec<(String, Vec<f64>)> = stimulus::builtin_names()
+        .iter()
+        .map(|(s, _)| {
+            let k = stimulus::builtin(s, dip, p.sample_rate_hz).unwrap().key;
+            (s.to_string(), k)
+        })
+        .collect();
+    for t in SIMULATED_DESCENTS_S {
+        let k = stimulus::dip(t, 0.1, 0.06, dip, p.sample_rate_hz)
+            .unwrap()
+            .key;
+        keys.push((format!("dip {} ms", t * 1e3), k));
+    }
+    // The shortest first, as the planner orders them.
+    keys.sort_by_key(|(_, k)| k.len());
+    let refs: Vec<(String, contract::ReferenceRun)> = keys
+        .iter()
+        .map(|(s, k)| (s.clone(), contract::reference(&p, &fp, k, &[]).unwrap()))
+        .collect();
+    let (mut tried, mut broken_full) = (0, 0);
+    for (i, k) in fp.mul_kind.iter().enumerate() {
+        let Some(k @ (MulKind::High(_) | MulKind::Wide)) = *k else {
+            continue;
+        };
+        for &h in fp.mul_options[i]
+            .iter()
+            .filter(|o| matches!(o, MulKind::Mul32x16 { .. }))
+        {
+            let mut q = fp.clone();
+            q.mul_kind[i] = Some(h);
+            tried += 1;
+            let first_break = |c: &Contract| {
+                refs.iter().find_map(|(stim, run)| {
+                    let r = contract::compare(&p, &q, run, lsb, c, true).unwrap();
+                    r.violations(c, p.sample_rate_hz)
+                        .first()
+                        .map(|v| format!("{stim}: {v}"))
+                })
+            };
+            let strict_break = first_break(&strict);
+            let full_break = first_break(&full);
+            println!(
+                "v{i}: {k:?} → {h:?}: half contract {}; whole contract {}",
+                strict_break.as_deref().unwrap_or("holds"),
+                full_break.as_deref().unwrap_or("holds")
+            );
+            assert!(
+                strict_break.is_some(),
+                "v{i} → {h:?} keeps the planner's contract but was refused"
+            );
+            broken_full += usize::from(full_break.is_some());
+        }
+    }
+    println!("{broken_full} of {tried} refused 32×16 forms break the whole contract");
+    assert!(tried > 0, "no refused 32×16 form: the test shows nothing");
+    assert!(
+        broken_full > 0,
+        "no refused 32×16 form breaks the whole contract"
+    );
 }
 
 /// A comparison is refused, naming the param, when the run's param values do not fit the

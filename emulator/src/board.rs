@@ -345,6 +345,9 @@ pub struct Board {
     /// Each core's active exceptions at its last [`Board::profile_step`] that ran its loop
     /// (`u64::MAX`, which no core has, before any).
     profiled_active: [u64; 2],
+    /// No profile watches an address (none, or handler profiles only): the fast path's
+    /// watch sets are empty ([`Board::watch_set`]).
+    watch_free: bool,
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
@@ -363,6 +366,7 @@ impl Board {
             launch: None,
             lines: 0,
             profiled_active: [u64::MAX; 2],
+            watch_free: true,
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
             windows: [0; 3],
@@ -674,6 +678,7 @@ impl Board {
     /// A new profile of the code at `addr` (Thumb bit ignored); its handle.
     fn add_profile(&mut self, addr: u32, handler_only: bool) -> usize {
         self.profiled_active = [u64::MAX; 2];
+        self.watch_free &= handler_only;
         self.profiles.push(Profile {
             entry: addr & !1,
             handler_only,
@@ -865,13 +870,12 @@ impl Board {
                         .min(c.nvic.syst_next)
                 };
                 let deadline = [deadline(&self.cores[0]), deadline(&self.cores[1])];
-                if let (true, Some(w0), Some(w1)) =
-                    (now < deadline[k], self.watch_set(0), self.watch_set(1))
-                {
+                let mut slots = NO_WATCHES;
+                if let (true, Some(watch)) = (now < deadline[k], self.watch_sets(&mut slots)) {
                     let mut deadline = deadline;
                     if self.config.engine == Engine::Block
-                        && w0[0] == NO_WATCH
-                        && w1[0] == NO_WATCH
+                        && watch[0][0] == NO_WATCH
+                        && watch[1][0] == NO_WATCH
                         && self.config.own_banks[k] != 0
                     {
                         let retry = match self.run_ahead(k, deadline) {
@@ -885,7 +889,7 @@ impl Board {
                         let now = self.cores[0].cycle.min(self.cores[1].cycle);
                         deadline = deadline.map(|d| d.min(now.saturating_add(retry)));
                     }
-                    let (k, ran) = self.fast_run::<true>(k, deadline, [w0, w1]);
+                    let (k, ran) = self.fast_run::<true>(k, deadline, watch);
                     if let Some(event) = ran {
                         if !self.profiles.is_empty() {
                             self.profile_step(k);
@@ -994,12 +998,21 @@ impl Board {
                 self.lines_epoch = self.system.irq_epoch;
             }
             // The fast path when it can run; a single general step otherwise.
-            if let (true, Some(watch)) = (self.fast_ready(k), self.watch_set(k)) {
+            let slots;
+            let watch = match self.watch_set(k) {
+                _ if self.watch_free => Some(&NO_WATCHES),
+                Some(w) => {
+                    slots = [w; 2];
+                    Some(&slots)
+                }
+                None => None,
+            };
+            if let (true, Some(watch)) = (self.fast_ready(k), watch) {
                 let deadline = horizon
                     .min(self.system.timer.next_event)
                     .min(self.cores[k].nvic.syst_next);
                 if self.cores[k].cycle < deadline {
-                    let (_, ran) = self.fast_run::<false>(k, [deadline; 2], [watch; 2]);
+                    let (_, ran) = self.fast_run::<false>(k, [deadline; 2], watch);
                     if let Some(event) = ran {
                         if !self.profiles.is_empty() {
                             self.profile_step(k);
@@ -1043,13 +1056,35 @@ impl Board {
     /// start (the PC is no profiled entry) and none can end (the PC is not the return
     /// address of the innermost open call, and a call ending with an exception return
     /// leaves the fast path anyway).
+    #[inline(always)]
     fn watch_set(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
-        let mut watch = [NO_WATCH; WATCH_SLOTS];
         // Handler profiles ([`Board::profile_handler`]) watch nothing: they open and close
         // at exception entry and return, on the general path.
-        if self.profiles.iter().all(|p| p.handler_only) {
-            return Some(watch);
+        if self.watch_free {
+            return Some([NO_WATCH; WATCH_SLOTS]);
         }
+        self.watched(k)
+    }
+
+    /// Both cores' watch sets ([`Board::watch_set`]): the constant empty sets when nothing
+    /// is watched (no copy: the hot loop of [`Board::run_until`] passes them on by
+    /// reference), else built in `slots`; `None` when there are too many.
+    #[inline(always)]
+    fn watch_sets<'a>(
+        &self,
+        slots: &'a mut [[u32; WATCH_SLOTS]; 2],
+    ) -> Option<&'a [[u32; WATCH_SLOTS]; 2]> {
+        if self.watch_free {
+            return Some(&NO_WATCHES);
+        }
+        *slots = [self.watched(0)?, self.watched(1)?];
+        Some(slots)
+    }
+
+    /// [`Board::watch_set`] when some profile watches an address.
+    #[inline(never)]
+    fn watched(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
+        let mut watch = [NO_WATCH; WATCH_SLOTS];
         let mut n = 0;
         for p in &self.profiles {
             let addrs = [
@@ -1080,7 +1115,7 @@ impl Board {
         &mut self,
         k: usize,
         deadline: [u64; 2],
-        watch: [[u32; WATCH_SLOTS]; 2],
+        watch: &[[u32; WATCH_SLOTS]; 2],
     ) -> (usize, Option<Event>) {
         // Slots fill from the first: nothing to watch when it is empty.
         let unwatched = if BOTH {
@@ -1108,8 +1143,8 @@ impl Board {
         }
         let (cores, sys, cache) = (&mut self.cores, &mut self.system, &self.cache);
         let (k, exit) = match (BOTH, unwatched) {
-            (true, true) => run_both::<false>(cores, sys, cache, deadline, &watch),
-            (true, false) => run_both::<true>(cores, sys, cache, deadline, &watch),
+            (true, true) => run_both::<false>(cores, sys, cache, deadline, watch),
+            (true, false) => run_both::<true>(cores, sys, cache, deadline, watch),
             (false, true) => (
                 k,
                 run_one::<false>(&mut cores[k], sys, cache, deadline[k], &watch[k]),
@@ -1491,6 +1526,9 @@ const NO_WATCH: u32 = 1;
 
 /// Most addresses the fast path watches for profiling ([`Board::watch_set`]).
 const WATCH_SLOTS: usize = 8;
+
+/// Both cores' watch sets when nothing is watched.
+static NO_WATCHES: [[u32; WATCH_SLOTS]; 2] = [[NO_WATCH; WATCH_SLOTS]; 2];
 
 /// One step of the fast path for `core`: false (and nothing done) with the reason when
 /// it must leave.

@@ -239,8 +239,31 @@ fn word_runs_read_and_write_what_single_bytes_do() {
             let mut words = vec![0; len];
             b.read_bytes(start, &mut words).unwrap();
             assert_eq!(words, data, "byte writes, word read at {start:#x}+{len}");
+            // `read_words`/`write_words` (the harness's `u32` runs) against bytes.
+            let mut got = vec![0u32; len / 4];
+            b.read_words(start, &mut got).unwrap();
+            let want: Vec<u32> = data
+                .chunks(4)
+                .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect();
+            assert_eq!(got, want, "byte writes, read_words at {start:#x}+{len}");
+            let put: Vec<u32> = (0..len / 4).map(|_| next()).collect();
+            b.write_words(start, &put).unwrap();
+            let mut bytes = vec![0; len];
+            for (i, x) in bytes.iter_mut().enumerate() {
+                let mut one = [0u8];
+                b.read_bytes(start + i as u32, &mut one).unwrap();
+                *x = one[0];
+            }
+            let want: Vec<u8> = put.iter().flat_map(|w| w.to_le_bytes()).collect();
+            assert_eq!(bytes, want, "write_words, byte reads at {start:#x}+{len}");
         }
     }
+    // Runs that leave mapped memory are errors, not panics, whichever path they take.
+    let mut w = [0u32; 4];
+    assert!(b.read_words(0x2004_1ff8, &mut w).is_err());
+    assert!(b.write_words(0x2004_1ff8, &w).is_err());
+    assert!(b.read_words(0x2103_fff8 + 0x1_0000, &mut w).is_err());
     // The alias and the striped view are one memory: bank 1's word 3 is striped word 13.
     b.write_u32(0x2101_000c, 0xdead_beef).unwrap();
     assert_eq!(b.read_u32(0x2000_0034).unwrap(), 0xdead_beef);

@@ -278,9 +278,9 @@ fn run_block_matches_step_raw() {
 
 /// The fixed interpreter defines the bits for any format plan, not only the one the range
 /// analysis picks: every program again under 12 plans with each real value's format moved by
-/// up to ±12 or ±60 bits (within `FRAC_RANGE`), event formats moved likewise and `MULS` pre-shifts
-/// re-drawn, under random raw words. This drives every rounding and saturation path of the
-/// JIT — wide alignments, 128-bit intermediates, results rounding to 0, shifts that
+/// up to ±12 or ±60 bits (within `FRAC_RANGE`), event formats moved likewise, `MULS`
+/// pre-shifts and 32×16 products' cut shifts and units re-drawn, under random raw words.
+/// This drives every rounding and saturation path of the JIT — wide alignments, 128-bit intermediates, results rounding to 0, shifts that
 /// saturate — against the runtime's definition.
 #[test]
 fn random_format_plans_bit_for_bit() {
@@ -308,8 +308,20 @@ fn random_format_plans_bit_for_bit() {
                 if matches!(vd.ty, Ty::Real(_)) {
                     fp.frac[i] = jiggle(&mut rng, fp.frac[i]);
                 }
-                if let Some(MulKind::Muls(..)) = fp.mul_kind[i] {
-                    fp.mul_kind[i] = Some(MulKind::Muls(rng.below(20) as u8, rng.below(20) as u8));
+                match fp.mul_kind[i] {
+                    Some(MulKind::Muls(..)) => {
+                        fp.mul_kind[i] =
+                            Some(MulKind::Muls(rng.below(20) as u8, rng.below(20) as u8));
+                    }
+                    // The 32×16 form's cut and unit re-drawn: any words, any `b`, `k`.
+                    Some(MulKind::Mul32x16 { cut, .. }) => {
+                        fp.mul_kind[i] = Some(MulKind::Mul32x16 {
+                            cut,
+                            b: rng.below(20) as u8,
+                            k: rng.below(17) as u8,
+                        });
+                    }
+                    _ => {}
                 }
             }
             for f in fp.event_frac.iter_mut().flatten() {

@@ -115,6 +115,11 @@ fn plan_div_shift(fy: i32, ry: Interval, fr: i32, rv: Interval, tolerance: f64) 
     b as u8
 }
 
+/// The largest local error bound, relative to a value's magnitude, by which
+/// [`FixedProgram::widen_by_local_errors`] widens its interval (2^-10: 64 times a 32×16
+/// product's cut).
+pub const WIDEN_MAX_REL: f64 = 1.0 / 1024.0;
+
 /// Precision budget of the `MULS` plan: a force term's or the total's error bound may grow
 /// to this many DAC LSB (a quarter: the quantisation stays below what the DAC resolves).
 pub const BUDGET_FORCE_LSB: f64 = 0.25;
@@ -302,6 +307,10 @@ pub const ADVERSARIAL_SEED: u64 = 0x9e37_79b9_7f4a_7c15;
 /// Most contract simulations per round of the planner's search
 /// ([`FixedProgram::with_config`]).
 pub const MAX_SIMULATIONS: usize = 40;
+
+/// Most passes of the planner's rounds ([`FixedProgram::with_config`]): a second pass tries
+/// again, in the plan the first settled in, the forms refused beside others.
+pub const SEARCH_PASSES: usize = 2;
 
 /// Programs with more IR values than this are not simulated by the planner (a rubbed bank
 /// or a bowed string: a simulation of the built-in stimuli would take minutes).
@@ -546,7 +555,10 @@ pub enum MulKind {
 impl MulKind {
     /// Estimated Cortex-M0+ cycles, operand splitting and the final rounding included (the
     /// Cortex-M0+ TRM's single-cycle ALU and fast multiplier): `Muls` 6 (pre-shifts, a
-    /// constant load, `MULS`, the rounding shift); `High` 14 (halves of each operand, 3
+    /// constant load, `MULS`, the rounding shift); `Mul32x16` 9 (`ASRS`/`UXTH` for the kept
+    /// operand's halves, the cut operand's `ASRS` or its constant's 2-cycle `LDR`, 2 `MULS`,
+    /// `LSLS`, `ASRS`, `ADDS`; its unit `k` is chosen so that no rounding shift follows —
+    /// the piano's listing has exactly these 8 instructions); `High` 14 (halves of each operand, 3
     /// `MULS`, 3 shifts, 2 adds, the rounding); `Wide` 23 (a literal load, halves, 4 `MULS`,
     /// the cross terms into a 64-bit pair with `ADDS`/`ADCS`, a 64-bit rounding shift).
     pub fn cycles(self) -> u32 {
@@ -1033,7 +1045,34 @@ impl FixedProgram {
         if config.simulate {
             fp.spend_by_simulation(original, &planned, config);
         }
+        fp.widen_by_local_errors();
         fp
+    }
+
+    /// Widens every real value's interval by its local error bound
+    /// ([`report::local_errors`]), once the plan is final: the interval of the exact result
+    /// then also holds the word every fixed engine computes — a cut 32×16 product or a
+    /// pre-shifted `MULS` lies up to 2^-15 of its magnitude outside the exact one. Backends
+    /// that drop a saturation or a state store's clamp where the interval proves it dead
+    /// (the Thumb code) rely on this. Formats are not changed: a widened interval beyond its
+    /// format's reach only makes those backends keep the saturation. Values whose bound is
+    /// not finite or above [`WIDEN_MAX_REL`] of their magnitude keep their interval (as
+    /// before the widening): there the bound is the analysis' looseness over long chains
+    /// (a bowed string's divisors would all seem to reach 0), not a form's error.
+    fn widen_by_local_errors(&mut self) {
+        let errors = report::local_errors(self);
+        for ((iv, e), vd) in self
+            .ranges
+            .values
+            .iter_mut()
+            .zip(errors)
+            .zip(&self.program.values)
+        {
+            let small = e <= WIDEN_MAX_REL * iv.mag();
+            if matches!(vd.ty, Ty::Real(_)) && e.is_finite() && e > 0.0 && small {
+                *iv = Interval::new(iv.lo - e, iv.hi + e);
+            }
+        }
     }
 
     /// The planner's second pass: cheaper product forms than the error analysis could prove,
@@ -1054,8 +1093,8 @@ impl FixedProgram {
     /// ([`contract::ContractCheck::max_force_lsb_within_time`]), plus the search's share of
     /// each clause ([`within_base`]); this holds for every form's round. Four rounds: every
     /// product not yet `MULS` tries its `MULS` plan, every product still high word or 64-bit
-    /// its first then its second 32×16 form, every product still 64-bit its high word.
-    /// Each round tests
+    /// its first then its second 32×16 form, every product still 64-bit its high word; the
+    /// rounds again while a pass changed the plan (at most [`SEARCH_PASSES`]). Each round tests
     /// groups of products, breadth first (the whole round, then the halves of a failing
     /// group), with at most [`MAX_SIMULATIONS`] simulations a round; a failing simulation
     /// stops at its first broken sample, and the stimulus that failed is tried first next
@@ -1208,54 +1247,62 @@ impl FixedProgram {
             // Round 0: every product not yet `MULS` tries its `MULS` form; rounds 1 and 2:
             // every product still high word or 64-bit its first, then its second 32×16 form
             // (the smaller error first; two run-time operands have two); round 3: every
-            // product still 64-bit its high word — the forms `mul_options` lists.
-            for round in 0..4 {
-                let candidates: Vec<(usize, MulKind)> = planned
-                    .iter()
-                    .filter_map(|&(i, _, _)| {
-                        let now = self.mul_kind[i];
-                        let options = &self.mul_options[i];
-                        let option = |f: fn(&MulKind) -> bool, nth: usize| {
-                            options.iter().copied().filter(f).nth(nth).map(|k| (i, k))
-                        };
-                        let above_half = matches!(now, Some(MulKind::High(_) | MulKind::Wide));
-                        match round {
-                            0 if !matches!(now, Some(MulKind::Muls(..))) => {
-                                option(|k| matches!(k, MulKind::Muls(..)), 0)
+            // product still 64-bit its high word — the forms `mul_options` lists. Then the
+            // rounds again while a pass changed something (at most [`SEARCH_PASSES`]): a
+            // product refused beside others may pass in the plan they settled in.
+            for _ in 0..SEARCH_PASSES {
+                let before = self.mul_kind.clone();
+                for round in 0..4 {
+                    let candidates: Vec<(usize, MulKind)> = planned
+                        .iter()
+                        .filter_map(|&(i, _, _)| {
+                            let now = self.mul_kind[i];
+                            let options = &self.mul_options[i];
+                            let option = |f: fn(&MulKind) -> bool, nth: usize| {
+                                options.iter().copied().filter(f).nth(nth).map(|k| (i, k))
+                            };
+                            let above_half = matches!(now, Some(MulKind::High(_) | MulKind::Wide));
+                            match round {
+                                0 if !matches!(now, Some(MulKind::Muls(..))) => {
+                                    option(|k| matches!(k, MulKind::Muls(..)), 0)
+                                }
+                                1 | 2 if above_half => {
+                                    option(|k| matches!(k, MulKind::Mul32x16 { .. }), round - 1)
+                                }
+                                3 if now == Some(MulKind::Wide) => {
+                                    option(|k| matches!(k, MulKind::High(_)), 0)
+                                }
+                                _ => None,
                             }
-                            1 | 2 if above_half => {
-                                option(|k| matches!(k, MulKind::Mul32x16 { .. }), round - 1)
+                        })
+                        .collect();
+                    let mut queue: std::collections::VecDeque<&[(usize, MulKind)]> =
+                        std::collections::VecDeque::from([&candidates[..]]);
+                    let mut done = 0;
+                    while let Some(group) = queue.pop_front() {
+                        if group.is_empty() || done == MAX_SIMULATIONS {
+                            continue;
+                        }
+                        done += 1;
+                        let was: Vec<Option<MulKind>> =
+                            group.iter().map(|(i, _)| self.mul_kind[*i]).collect();
+                        for &(i, k) in group {
+                            self.mul_kind[i] = Some(k);
+                        }
+                        if !holds(self) {
+                            for (&(i, _), w) in group.iter().zip(was) {
+                                self.mul_kind[i] = w;
                             }
-                            3 if now == Some(MulKind::Wide) => {
-                                option(|k| matches!(k, MulKind::High(_)), 0)
+                            if group.len() > 1 {
+                                let (a, b) = group.split_at(group.len() / 2);
+                                queue.push_back(a);
+                                queue.push_back(b);
                             }
-                            _ => None,
-                        }
-                    })
-                    .collect();
-                let mut queue: std::collections::VecDeque<&[(usize, MulKind)]> =
-                    std::collections::VecDeque::from([&candidates[..]]);
-                let mut done = 0;
-                while let Some(group) = queue.pop_front() {
-                    if group.is_empty() || done == MAX_SIMULATIONS {
-                        continue;
-                    }
-                    done += 1;
-                    let was: Vec<Option<MulKind>> =
-                        group.iter().map(|(i, _)| self.mul_kind[*i]).collect();
-                    for &(i, k) in group {
-                        self.mul_kind[i] = Some(k);
-                    }
-                    if !holds(self) {
-                        for (&(i, _), w) in group.iter().zip(was) {
-                            self.mul_kind[i] = w;
-                        }
-                        if group.len() > 1 {
-                            let (a, b) = group.split_at(group.len() / 2);
-                            queue.push_back(a);
-                            queue.push_back(b);
                         }
                     }
+                }
+                if self.mul_kind == before {
+                    break;
                 }
             }
         }

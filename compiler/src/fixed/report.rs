@@ -154,6 +154,16 @@ fn collect(stmts: &[Stmt], value: &[f64], force: &mut [f64], total: &mut f64) {
     }
 }
 
+/// Each value's local error bound (SI): how far the fixed engines' word can lie from the
+/// exact result of its operation on exact operands within their intervals, every state word
+/// taken as exact (a state word is clamped into its range on every write, so a read lies in
+/// its interval). So the value lies within its analysed interval widened by this bound —
+/// what [`super::FixedProgram::widen_by_local_errors`] makes the interval say. Infinite
+/// where the analysis has no bound (a division whose divisor may round to 0).
+pub fn local_errors(fp: &FixedProgram) -> Vec<f64> {
+    pass(fp, &vec![0.0; fp.program.states.len()]).0
+}
+
 /// One propagation pass: value bounds given state bounds, and the bound of each state's
 /// writes (max over its `SetState`s, including the write's rounding).
 fn pass(fp: &FixedProgram, state: &[f64]) -> (Vec<f64>, Vec<f64>) {

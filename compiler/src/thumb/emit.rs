@@ -265,6 +265,29 @@ impl Lower<'_> {
         }
     }
 
+    /// Where `v` lives in a spill slot that no low register holds now: copies it straight
+    /// into low register `r` from its home (`MOV` from a high register, `LDR` from the stack)
+    /// and returns true — a two-address instruction's `MOV d, a` then needs no reload into a
+    /// scratch register first.
+    fn reload_into(&mut self, v: V, r: u8) -> bool {
+        let Loc::Slot(s) = self.loc(v) else {
+            return false;
+        };
+        if self.holds.contains(&Some(Held::Slot(s))) || self.copy.is_some_and(|(_, cs)| cs == s) {
+            return false;
+        }
+        match self.home[s as usize] {
+            Home::Hi(h) => self.i(Instr::MovHi { rd: r, rm: h }),
+            Home::Stack(w) => self.i(Instr::MemImm {
+                op: MemOp::Ldr,
+                rt: r,
+                rn: 13,
+                imm: 4 * w,
+            }),
+        }
+        true
+    }
+
     /// The register to write `v` into (when spilled: scratch 0, or scratch 1 if scratch 0
     /// is `avoid`), and the store to do after.
     fn write(&mut self, v: V, avoid: Option<u8>) -> (u8, Option<u16>) {
@@ -421,10 +444,12 @@ impl Lower<'_> {
                 self.spill_from(src, slot);
             }
             M::Mov { d, s } => {
-                let src = match self.hi_home(s) {
-                    Some(h) => h,
-                    None => self.read(s, 1),
-                };
+                if let Loc::Reg(r) = self.loc(d) {
+                    if self.reload_into(s, r) {
+                        return;
+                    }
+                }
+                let src = self.read(s, 1);
                 let (r, sl) = self.write(d, None);
                 if r != src {
                     self.i(Instr::MovHi { rd: r, rm: src });
@@ -450,6 +475,17 @@ impl Lower<'_> {
                 self.spill(r, s);
             }
             M::AddSubI { sub, d, a, imm } => {
+                // The 8-bit form is two-address: a spilled `a` goes straight into `d`.
+                if let Loc::Reg(r) = self.loc(d) {
+                    if imm > 7 && self.reload_into(a, r) {
+                        self.i(if sub {
+                            Instr::SubImm { rd: r, rn: r, imm }
+                        } else {
+                            Instr::AddImm { rd: r, rn: r, imm }
+                        });
+                        return;
+                    }
+                }
                 let ra = self.read(a, 0);
                 let (r, s) = self.write(d, None);
                 let rn = if imm > 7 && r != ra {
@@ -469,11 +505,10 @@ impl Lower<'_> {
                 // `a` homed in a high register while `d` has a low register of its own: the
                 // two-address `MOV d, a` copies it from there (no reload into a scratch
                 // register first).
-                if let (Some(h), Loc::Reg(r)) = (self.hi_home(a), self.loc(d)) {
+                if let (Loc::Slot(_), Loc::Reg(r)) = (self.loc(a), self.loc(d)) {
                     if a != m {
                         let rm = self.read(m, 1);
-                        if r != rm {
-                            self.i(Instr::MovHi { rd: r, rm: h });
+                        if r != rm && self.reload_into(a, r) {
                             self.i(Instr::Alu { op, rdn: r, rm });
                             return;
                         }

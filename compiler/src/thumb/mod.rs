@@ -24,6 +24,7 @@ pub mod buffer;
 mod dce;
 pub mod elf;
 pub mod emit;
+mod forward;
 pub mod ins;
 mod literals;
 pub mod mir;

@@ -290,7 +290,10 @@ impl<'a> Sel<'a> {
 
     /// `c ? a : b` for a 0/1 word `c`, branch-free: `b ^ ((a ^ b) & -c)`.
     pub(super) fn select(&mut self, c: V, a: W, b: W) -> W {
-        let m = self.unary(AluOp::Rsb, c);
+        let m = match self.masks.get(&c) {
+            Some(&m) => m,
+            None => self.unary(AluOp::Rsb, c),
+        };
         // One side a known 0: `a & -c` or `b & ~(-c)` (`BICS`).
         let b_zero = self.konst.get(&b.v) == Some(&0);
         if b_zero || self.konst.get(&a.v) == Some(&0) {

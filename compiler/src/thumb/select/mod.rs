@@ -126,6 +126,12 @@ pub(crate) struct Sel<'a> {
     /// and the `If(c and not edge(e))` right after it ([`edge_conditions`]): no word of its
     /// own, each path of its compare-and-branch chain stores the edge's constant.
     edge_cond: Vec<bool>,
+    /// Per value: how many branch-free `select`s test it; a truth value tested by two or
+    /// more gets its mask `-c` once, where it is defined ([`Sel::masks`]).
+    select_uses: Vec<u32>,
+    /// The mask `-c` of a 0/1 word `c` ([`Sel::select`]), computed right after `c`'s
+    /// definition (so it dominates every use of `c`), until `c`'s register is redefined.
+    masks: std::collections::HashMap<V, V>,
 }
 
 /// The conditions of edge handlers (`on c { … }`, lowered to `SetEdge(e, c)` then
@@ -277,6 +283,14 @@ impl<'a> Sel<'a> {
         let used_for_stores = used.clone();
         let mut fused = fused_conditions(p, &used, &arms.conditions(p));
         let edge_cond = edge_conditions(p, &used, &fused);
+        let mut select_uses = vec![0u32; p.values.len()];
+        for (i, vd) in p.values.iter().enumerate() {
+            if let Op::Select(c, ..) = vd.op {
+                if used[i] && !arms.branchy[i] {
+                    select_uses[c.index()] += 1;
+                }
+            }
+        }
         // An edge handler's condition is branched on like a fused one.
         for (f, e) in fused.iter_mut().zip(&edge_cond) {
             *f |= *e;
@@ -307,6 +321,8 @@ impl<'a> Sel<'a> {
             store_clamped: vec![false; p.values.len()],
             last_shl: None,
             edge_cond,
+            select_uses,
+            masks: std::collections::HashMap::new(),
         }
     }
 
@@ -326,6 +342,7 @@ impl<'a> Sel<'a> {
         }
         if let Some(d) = m.def() {
             self.konst.remove(&d);
+            self.masks.remove(&d);
         }
         self.code.push(m);
     }
@@ -436,6 +453,7 @@ impl<'a> Sel<'a> {
         }
         // Words nothing reads (the zero side of a `select` folded to `ANDS`/`BICS`, a
         // negated term of a difference that took the 64-bit path, …) and their flags.
+        super::forward::forward(&mut self.code);
         super::dce::remove_dead(&mut self.code, self.nv);
         super::literals::share(&mut self.code, self.nv);
         // Flow facts: exclusive `if` bodies, then the history primings (the first call)
@@ -590,6 +608,10 @@ impl<'a> Sel<'a> {
         if self.used[v.index()] && !word_only && !self.fused[v.index()] {
             let w = self.def(v)?;
             self.val[v.index()] = Some(w);
+            if self.select_uses[v.index()] >= 2 && !self.konst.contains_key(&w.v) {
+                let m = self.unary(AluOp::Rsb, w.v);
+                self.masks.insert(w.v, m);
+            }
         }
         Ok(())
     }
