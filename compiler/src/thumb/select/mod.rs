@@ -149,15 +149,15 @@ fn edge_conditions(p: &Program, used: &[bool], fused: &[bool]) -> Vec<bool> {
         s.reads().iter().for_each(|v| uses[v.index()] += 1)
     });
     let mut edge = vec![false; n];
-    fn walk(stmts: &[Stmt], p: &Program, f: &mut dyn FnMut(&Stmt, Option<&Stmt>)) {
+    fn walk(stmts: &[Stmt], f: &mut dyn FnMut(&Stmt, Option<&Stmt>)) {
         for (k, s) in stmts.iter().enumerate() {
             f(s, stmts.get(k + 1));
             if let Stmt::If(_, body) = s {
-                walk(body, p, f);
+                walk(body, f);
             }
         }
     }
-    walk(&p.body, p, &mut |s, next| {
+    walk(&p.body, &mut |s, next| {
         if let (Stmt::SetEdge(e, c), Some(Stmt::If(fire, _))) = (s, next) {
             if edge_fire(p, *e, *fire) == Some(*c)
                 && fused[fire.index()]
