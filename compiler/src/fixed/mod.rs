@@ -308,6 +308,12 @@ pub const ADVERSARIAL_SEED: u64 = 0x9e37_79b9_7f4a_7c15;
 /// ([`FixedProgram::with_config`]).
 pub const MAX_SIMULATIONS: usize = 40;
 
+/// Runs of adversarial raw sensor words the planner's search simulates besides the key
+/// stimuli, and their samples each (the budget corpus's kind of input, reproducibly seeded).
+pub const SIMULATED_RANDOM_RUNS: usize = 2;
+/// Samples of each of [`SIMULATED_RANDOM_RUNS`].
+pub const SIMULATED_RANDOM_SAMPLES: usize = 4000;
+
 /// Most passes of the planner's rounds ([`FixedProgram::with_config`]): a second pass tries
 /// again, in the plan the first settled in, the forms refused beside others.
 pub const SEARCH_PASSES: usize = 2;
@@ -1195,6 +1201,25 @@ impl FixedProgram {
             for point in &points {
                 // Every point lies within the intervals the program was planned for.
                 if let Ok(r) = contract::reference(original, self, keys, point) {
+                    runs.push(r);
+                }
+            }
+        }
+        // Adversarial raw sensor words as the budget corpus has them (arbitrary words,
+        // corners, in-range walks; `XorShift64::sensor_word`): a product cut to 16 bits
+        // can be harmless on every key travel and break the force at an extreme word.
+        for r in 0..SIMULATED_RANDOM_RUNS {
+            let mut rng = tactus_runtime::rng::XorShift64::new(0x5EED_3216 ^ r as u64);
+            let range = self.sensor_raw_range[0];
+            let mut w = range.0;
+            let raw: Vec<i32> = (0..SIMULATED_RANDOM_SAMPLES)
+                .map(|_| {
+                    w = rng.sensor_word(w, range);
+                    w
+                })
+                .collect();
+            for point in &points {
+                if let Ok(r) = contract::reference_raw(original, self, &raw, point) {
                     runs.push(r);
                 }
             }
