@@ -238,9 +238,20 @@ fn engines_agree_and_the_default_runs_without_arguments() {
 }
 
 /// The fixed-point engine (the bits the firmware computes) plays the demo like the f64
-/// engines: a strike for the same notes on the same samples, hammer speeds within 0.1 %.
+/// engines, within the piano's accuracy contract (`Program::contract`, issue 16's defaults:
+/// the same strikes in the same order, each within 0.5 ms of f64 and its hammer speed within
+/// 1 %). Same-sample strikes are not promised: a 32×16 product (session 12) moves key 60's
+/// strike at 3.4968 s one sample (22.7 µs) later.
 #[test]
 fn the_fixed_point_engine_strikes_like_the_f64_engine() {
+    let src = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("instruments/grand_piano.tactus"),
+    )
+    .unwrap();
+    let contract = tactus_compiler::compile(&src, &Default::default())
+        .unwrap()
+        .program
+        .contract;
     let dir = temp_dir("play-fixed");
     let run = |engine: &str| {
         let out = tactus()
@@ -255,10 +266,17 @@ fn the_fixed_point_engine_strikes_like_the_f64_engine() {
     assert!(f64s.len() > 20, "{} strikes", f64s.len());
     assert_eq!(f64s.len(), fixed.len(), "strike counts differ");
     for (a, b) in f64s.iter().zip(&fixed) {
-        assert_eq!((a.0, a.1), (b.0, b.1), "a strike on another key or sample");
+        assert_eq!(a.0, b.0, "a strike on another key");
+        assert!(
+            (a.1 - b.1).abs() <= contract.event_time_s,
+            "key {}: a strike at {} s in f64, {} s in fixed point",
+            a.0,
+            a.1,
+            b.1
+        );
         let rel = (a.2 - b.2).abs() / a.2.abs();
         assert!(
-            rel < 1e-3,
+            rel <= contract.event_arg_rel,
             "key {} at {} s: {} vs {} m/s",
             a.0,
             a.1,
