@@ -308,6 +308,12 @@ pub const ADVERSARIAL_SEED: u64 = 0x9e37_79b9_7f4a_7c15;
 /// ([`FixedProgram::with_config`]).
 pub const MAX_SIMULATIONS: usize = 40;
 
+/// Runs of adversarial raw sensor words the planner's search simulates besides the key
+/// stimuli, and their samples each (the budget corpus's kind of input, reproducibly seeded).
+pub const SIMULATED_RANDOM_RUNS: usize = 2;
+/// Samples of each of [`SIMULATED_RANDOM_RUNS`].
+pub const SIMULATED_RANDOM_SAMPLES: usize = 4000;
+
 /// Most passes of the planner's rounds ([`FixedProgram::with_config`]): a second pass tries
 /// again, in the plan the first settled in, the forms refused beside others.
 pub const SEARCH_PASSES: usize = 2;
@@ -555,7 +561,10 @@ pub enum MulKind {
 impl MulKind {
     /// Estimated Cortex-M0+ cycles, operand splitting and the final rounding included (the
     /// Cortex-M0+ TRM's single-cycle ALU and fast multiplier): `Muls` 6 (pre-shifts, a
-    /// constant load, `MULS`, the rounding shift); `High` 14 (halves of each operand, 3
+    /// constant load, `MULS`, the rounding shift); `Mul32x16` 9 (`ASRS`/`UXTH` for the kept
+    /// operand's halves, the cut operand's `ASRS` or its constant's 2-cycle `LDR`, 2 `MULS`,
+    /// `LSLS`, `ASRS`, `ADDS`; its unit `k` is chosen so that no rounding shift follows —
+    /// the piano's listing has exactly these 8 instructions); `High` 14 (halves of each operand, 3
     /// `MULS`, 3 shifts, 2 adds, the rounding); `Wide` 23 (a literal load, halves, 4 `MULS`,
     /// the cross terms into a 64-bit pair with `ADDS`/`ADCS`, a 64-bit rounding shift).
     pub fn cycles(self) -> u32 {
@@ -1090,8 +1099,8 @@ impl FixedProgram {
     /// ([`contract::ContractCheck::max_force_lsb_within_time`]), plus the search's share of
     /// each clause ([`within_base`]); this holds for every form's round. Four rounds: every
     /// product not yet `MULS` tries its `MULS` plan, every product still high word or 64-bit
-    /// its first then its second 32×16 form, every product still 64-bit its high word.
-    /// Each round tests
+    /// its first then its second 32×16 form, every product still 64-bit its high word; the
+    /// rounds again while a pass changed the plan (at most [`SEARCH_PASSES`]). Each round tests
     /// groups of products, breadth first (the whole round, then the halves of a failing
     /// group), with at most [`MAX_SIMULATIONS`] simulations a round; a failing simulation
     /// stops at its first broken sample, and the stimulus that failed is tried first next
@@ -1192,6 +1201,25 @@ impl FixedProgram {
             for point in &points {
                 // Every point lies within the intervals the program was planned for.
                 if let Ok(r) = contract::reference(original, self, keys, point) {
+                    runs.push(r);
+                }
+            }
+        }
+        // Adversarial raw sensor words as the budget corpus has them (arbitrary words,
+        // corners, in-range walks; `XorShift64::sensor_word`): a product cut to 16 bits
+        // can be harmless on every key travel and break the force at an extreme word.
+        for r in 0..SIMULATED_RANDOM_RUNS {
+            let mut rng = tactus_runtime::rng::XorShift64::new(0x5EED_3216 ^ r as u64);
+            let range = self.sensor_raw_range[0];
+            let mut w = range.0;
+            let raw: Vec<i32> = (0..SIMULATED_RANDOM_SAMPLES)
+                .map(|_| {
+                    w = rng.sensor_word(w, range);
+                    w
+                })
+                .collect();
+            for point in &points {
+                if let Ok(r) = contract::reference_raw(original, self, &raw, point) {
                     runs.push(r);
                 }
             }
