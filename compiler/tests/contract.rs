@@ -354,12 +354,16 @@ fn an_output_tolerance_is_measured_and_enforced() {
 
 /// The 32×16 products the planner refused are refused by the contract: on the piano, every
 /// product left a high word or 64-bit whose 32×16 form the planner considered is forced to
-/// that form alone and simulated as the planner's search simulates it (the built-in stimuli
-/// and the full dips of `SIMULATED_DESCENTS_S`, half of every tolerance). Each breaks it —
+/// that form alone and simulated as the planner's search simulates it (the built-in stimuli,
+/// the full dips of `SIMULATED_DESCENTS_S` and the runs of random sensor words, half of
+/// every tolerance). Each breaks it —
 /// that is why it was refused — and at least one breaks the whole contract.
 #[test]
 fn every_refused_32x16_form_breaks_the_contract() {
-    use tactus_compiler::fixed::{MulKind, SIMULATED_DESCENTS_S, SIMULATION_MARGIN};
+    use tactus_compiler::fixed::{
+        simulated_random_words, MulKind, SIMULATED_DESCENTS_S, SIMULATED_RANDOM_RUNS,
+        SIMULATION_MARGIN,
+    };
     let p = program("grand_piano");
     let fp = FixedProgram::new(&p);
     let (full, strict) = (p.contract.clone(), p.contract.scaled(SIMULATION_MARGIN));
@@ -380,10 +384,16 @@ fn every_refused_32x16_form_breaks_the_contract() {
     }
     // The shortest first, as the planner orders them.
     keys.sort_by_key(|(_, k)| k.len());
-    let refs: Vec<(String, contract::ReferenceRun)> = keys
+    let mut refs: Vec<(String, contract::ReferenceRun)> = keys
         .iter()
         .map(|(s, k)| (s.clone(), contract::reference(&p, &fp, k, &[]).unwrap()))
         .collect();
+    // And the search's runs of random sensor words.
+    for r in 0..SIMULATED_RANDOM_RUNS {
+        let raw = simulated_random_words(fp.sensor_raw_range[0], r);
+        let run = contract::reference_raw(&p, &fp, &raw, &[]).unwrap();
+        refs.push((format!("random words {r}"), run));
+    }
     let (mut tried, mut broken_full) = (0, 0);
     for (i, k) in fp.mul_kind.iter().enumerate() {
         let Some(k @ (MulKind::High(_) | MulKind::Wide)) = *k else {

@@ -314,6 +314,20 @@ pub const SIMULATED_RANDOM_RUNS: usize = 2;
 /// Samples of each of [`SIMULATED_RANDOM_RUNS`].
 pub const SIMULATED_RANDOM_SAMPLES: usize = 4000;
 
+/// The raw sensor words of the planner's random run `run` (< [`SIMULATED_RANDOM_RUNS`]) for
+/// a sensor of raw range `range`: [`SIMULATED_RANDOM_SAMPLES`] words of
+/// `XorShift64::sensor_word`, from the range's lower bound, seeded by `run`.
+pub fn simulated_random_words(range: (i32, i32), run: usize) -> Vec<i32> {
+    let mut rng = tactus_runtime::rng::XorShift64::new(0x5EED_3216 ^ run as u64);
+    let mut w = range.0;
+    (0..SIMULATED_RANDOM_SAMPLES)
+        .map(|_| {
+            w = rng.sensor_word(w, range);
+            w
+        })
+        .collect()
+}
+
 /// Most passes of the planner's rounds ([`FixedProgram::with_config`]): a second pass tries
 /// again, in the plan the first settled in, the forms refused beside others.
 pub const SEARCH_PASSES: usize = 2;
@@ -1209,15 +1223,7 @@ impl FixedProgram {
         // corners, in-range walks; `XorShift64::sensor_word`): a product cut to 16 bits
         // can be harmless on every key travel and break the force at an extreme word.
         for r in 0..SIMULATED_RANDOM_RUNS {
-            let mut rng = tactus_runtime::rng::XorShift64::new(0x5EED_3216 ^ r as u64);
-            let range = self.sensor_raw_range[0];
-            let mut w = range.0;
-            let raw: Vec<i32> = (0..SIMULATED_RANDOM_SAMPLES)
-                .map(|_| {
-                    w = rng.sensor_word(w, range);
-                    w
-                })
-                .collect();
+            let raw = simulated_random_words(self.sensor_raw_range[0], r);
             for point in &points {
                 if let Ok(r) = contract::reference_raw(original, self, &raw, point) {
                     runs.push(r);
