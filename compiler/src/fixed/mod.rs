@@ -297,13 +297,6 @@ pub fn within_base(
         && c.overflowed <= base.overflowed
 }
 
-/// Samples of the adversarial sensor words the planner's search simulates besides key
-/// motions (`FixedProgram::spend_by_simulation`).
-pub const ADVERSARIAL_SAMPLES: usize = 2000;
-
-/// Seed of those words (fixed: the plan is deterministic).
-pub const ADVERSARIAL_SEED: u64 = 0x9e37_79b9_7f4a_7c15;
-
 /// Most contract simulations per round of the planner's search
 /// ([`FixedProgram::with_config`]).
 pub const MAX_SIMULATIONS: usize = 40;
@@ -1099,7 +1092,7 @@ impl FixedProgram {
     /// each kept only when the accuracy contract ([`contract`]) still holds with
     /// [`SIMULATION_MARGIN`] of every clause to spare, simulated against the f64 reference
     /// on every built-in stimulus, full dips of [`SIMULATED_DESCENTS_S`] and
-    /// [`ADVERSARIAL_SAMPLES`] adversarial sensor words (where the
+    /// [`SIMULATED_RANDOM_RUNS`] runs of adversarial raw sensor words (where the
     /// analysis proves the force clause for every input, also keeping that proof), with
     /// the params' own values — for a shared program, at the param values of the keys
     /// [`simulated_keys`] picks (physical points: each key's values come from its own fold;
@@ -1194,22 +1187,6 @@ impl FixedProgram {
                 stimuli.push(s.key);
             }
         }
-        // Adversarial sensor words ([`ADVERSARIAL_SAMPLES`] of
-        // `XorShift64::sensor_word`: arbitrary words, corner words, random walks), read
-        // clamped as every engine reads them: they reach the ends of the differentiators'
-        // and products' ranges that smooth dips never reach (the budget corpus's random runs
-        // and glitches do).
-        let (lo, hi) = self.sensor_raw_range[0];
-        let mut rng = tactus_runtime::rng::XorShift64::new(ADVERSARIAL_SEED);
-        let mut word = lo / 2 + hi / 2;
-        stimuli.push(
-            (0..ADVERSARIAL_SAMPLES)
-                .map(|_| {
-                    word = rng.sensor_word(word, (lo, hi));
-                    fx::to_f64(word.clamp(lo, hi), self.sensor_frac[0])
-                })
-                .collect(),
-        );
         let mut runs: Vec<contract::ReferenceRun> = Vec::new();
         for keys in &stimuli {
             for point in &points {
