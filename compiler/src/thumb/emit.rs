@@ -236,15 +236,7 @@ impl Lower<'_> {
                 rn: 7,
                 imm: off,
             }),
-            Held::Slot(s) => match self.home[s as usize] {
-                Home::Hi(h) => self.i(Instr::MovHi { rd: r, rm: h }),
-                Home::Stack(w) => self.i(Instr::MemImm {
-                    op: MemOp::Ldr,
-                    rt: r,
-                    rn: 13,
-                    imm: 4 * w,
-                }),
-            },
+            Held::Slot(s) => self.transfer_home(MemOp::Ldr, r, s),
         }
         self.holds[k] = Some(held);
         r
@@ -257,8 +249,7 @@ impl Lower<'_> {
         let Loc::Slot(s) = self.loc(v) else {
             return None;
         };
-        let cached =
-            self.holds.contains(&Some(Held::Slot(s))) || self.copy.is_some_and(|(_, cs)| cs == s);
+        let cached = self.cached(s);
         match self.home[s as usize] {
             Home::Hi(h) if !cached => Some(h),
             _ => None,
@@ -273,18 +264,10 @@ impl Lower<'_> {
         let Loc::Slot(s) = self.loc(v) else {
             return false;
         };
-        if self.holds.contains(&Some(Held::Slot(s))) || self.copy.is_some_and(|(_, cs)| cs == s) {
+        if self.cached(s) {
             return false;
         }
-        match self.home[s as usize] {
-            Home::Hi(h) => self.i(Instr::MovHi { rd: r, rm: h }),
-            Home::Stack(w) => self.i(Instr::MemImm {
-                op: MemOp::Ldr,
-                rt: r,
-                rn: 13,
-                imm: 4 * w,
-            }),
-        }
+        self.transfer_home(MemOp::Ldr, r, s);
         true
     }
 
@@ -376,10 +359,23 @@ impl Lower<'_> {
         if self.copy.is_some_and(|(_, cs)| cs == s) {
             self.copy = None;
         }
+        self.transfer_home(MemOp::Str, r, s);
+    }
+
+    /// Whether a low register holds spill slot `s`'s value now (a scratch register's
+    /// cache, or the copy of the slot just stored).
+    fn cached(&self, s: u16) -> bool {
+        self.holds.contains(&Some(Held::Slot(s))) || self.copy.is_some_and(|(_, cs)| cs == s)
+    }
+
+    /// Moves low register `r` and spill slot `s`'s home: `op` [`MemOp::Ldr`] reads the home
+    /// into `r` (`MOV r, hi` or `LDR r, [sp, #…]`), [`MemOp::Str`] writes `r` to it.
+    fn transfer_home(&mut self, op: MemOp, r: u8, s: u16) {
         match self.home[s as usize] {
+            Home::Hi(h) if op == MemOp::Ldr => self.i(Instr::MovHi { rd: r, rm: h }),
             Home::Hi(h) => self.i(Instr::MovHi { rd: h, rm: r }),
             Home::Stack(w) => self.i(Instr::MemImm {
-                op: MemOp::Str,
+                op,
                 rt: r,
                 rn: 13,
                 imm: 4 * w,
