@@ -1223,3 +1223,27 @@ fn the_block_engine_runs_every_instruments_image_exactly_as_the_interpreter() {
     assert!(checked >= 6, "only {checked} instruments checked");
     assert!(kept_total > 0, "the cores never ran ahead");
 }
+
+/// The static glue of one keyboard key alone on its core (`FirmwareImage::key_glue`: sensor
+/// copy, call set-up, the guard, the limiter and the DAC store), with and without the
+/// quiescent-key guard, for each shipped keyboard instrument; the guard's share grows with
+/// the state words it compares. Prints the figures of BENCHMARKS.md "Session 13 (glue16)".
+#[test]
+fn key_glue_with_and_without_the_guard_per_instrument() {
+    let lim = LimiterConfig::default();
+    for name in ["grand_piano", "harpsichord", "harpsichord_2x8", "hammond"] {
+        let guarded = instrument(name, &[]);
+        let mut plain = guarded.clone();
+        plain.quiescent_guard = false;
+        let g = FirmwareImage::key_glue(&guarded, &rp2040(), &lim).unwrap();
+        let p = FirmwareImage::key_glue(&plain, &rp2040(), &lim).unwrap();
+        let words = guarded.guard_words().unwrap();
+        println!(
+            "{name}: glue {} cycles with the guard ({words} state words compared), {} without",
+            g.cycles, p.cycles
+        );
+        assert_eq!(plain.guard_words(), None);
+        assert!(g.cycles > p.cycles, "{name}: the bound counts the guard");
+        assert_eq!(g.window_words, p.window_words);
+    }
+}

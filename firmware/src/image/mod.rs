@@ -191,6 +191,13 @@ impl Program {
         })
     }
 
+    /// Words of the key's state struct the quiescent-key guard compares after each update
+    /// ([`glue::GuardCode::words`]: the states the update writes and the words of its mode
+    /// and edge bytes); `None` when the program runs without the guard.
+    pub fn guard_words(&self) -> Option<usize> {
+        self.guard(0).map(|g| g.words.len())
+    }
+
     /// Compiles instrument source `text` with `config` (sample rate, `--param`
     /// overrides) to a fixed-point program and Thumb code. Errors are the rendered
     /// diagnostics' messages or the Thumb backend's error.
