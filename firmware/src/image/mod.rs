@@ -595,6 +595,31 @@ pub fn limiter_routine(
     Ok((out.text, out.labels[entry.index()]))
 }
 
+/// The quiescent-key guard's bookkeeping after an update ([`glue::guard_record`]) alone, as
+/// a function assembled at `base`, for tests: the state words at byte offsets `words`
+/// (ascending) of a state struct whose shadow lies directly below it. Calling convention:
+/// `r0` = the address of a two-word record (the state struct's address, then the calm
+/// counter); returns nothing. Returns the code and the routine's address.
+///
+/// Errors: [`ImageError::Assemble`].
+pub fn guard_record_routine(words: &[u32], base: u32) -> Result<(Vec<u8>, u32), ImageError> {
+    let g = glue::GuardCode {
+        calm_offset: 4,
+        calm_needed: 2,
+        words: words.to_vec(),
+    };
+    let mut a = CodeBuffer::new(LongBranch::Refuse);
+    let entry = a.label();
+    a.bind(entry);
+    a.i(tactus_compiler::thumb::ins::push_lr(0xf0));
+    a.i(tactus_compiler::thumb::ins::mov(4, 0));
+    glue::guard_record(&mut a, &g, 0, 0, false);
+    a.i(tactus_compiler::thumb::ins::pop_pc(0xf0));
+    a.pool();
+    let out = a.finish(base)?;
+    Ok((out.text, out.labels[entry.index()]))
+}
+
 /// Static worst case of one core's sample interrupt, in core clock cycles, from the
 /// exception being taken to its return completing.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
