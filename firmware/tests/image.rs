@@ -1266,7 +1266,11 @@ fn the_guards_shadow_always_ends_equal_to_the_state() {
         let mut at = 4 * rng.below(4) as u32;
         for _ in 0..n {
             words.push(at);
-            at += if rng.below(3) == 0 { 4 * (1 + rng.below(40) as u32) } else { 4 };
+            at += if rng.below(3) == 0 {
+                4 * (1 + rng.below(40) as u32)
+            } else {
+                4
+            };
         }
         let (code, entry) = guard_record_routine(&words, base).unwrap();
         b.write_bytes(base, &code).unwrap();
@@ -1307,8 +1311,15 @@ fn the_guards_shadow_always_ends_equal_to_the_state() {
         let got: Vec<u32> = (0..mem.len())
             .map(|k| b.read_u32(mem_base + 4 * k as u32).unwrap())
             .collect();
-        assert!(got == want, "case {case}: words {words:?}, {differ} changed");
-        let expect = if same || words.is_empty() { calm + 1 } else { 0 };
+        assert!(
+            got == want,
+            "case {case}: words {words:?}, {differ} changed"
+        );
+        let expect = if same || words.is_empty() {
+            calm + 1
+        } else {
+            0
+        };
         assert_eq!(
             (b.read_u32(record).unwrap(), b.read_u32(record + 4).unwrap()),
             (state, expect),

@@ -719,7 +719,10 @@ pub fn core_code(
         a.pool_inline();
         Ok(())
     })?;
-    if keys.iter().any(|k| k.guard.as_ref().is_some_and(guard_uses_r5)) {
+    if keys
+        .iter()
+        .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5))
+    {
         a.ldr_const(5, ctrl_addr);
     }
     a.ldr_const(0, TIMER_BASE);
