@@ -630,13 +630,17 @@ pub fn core_code(
     a.i(asm::str(2, 5, ctrl::ACC));
     apb_here(a);
     a.i(asm::ldr(3, 0, reg::TIMERAWL as u16));
-    a.i(asm::subs(3, 1, 3)); // target - now
-    a.i(asm::cmp_imm(3, tick.margin));
+    a.i(asm::subs(2, 1, 3)); // target - now
+    a.i(asm::cmp_imm(2, tick.margin));
     a.bc(cond::GE, armed);
-    // Late by a whole period already (only after a miss): re-synchronise.
-    apb_here(a);
-    a.i(asm::ldr(1, 0, reg::TIMERAWL as u16));
-    a.i(asm::adds_imm(1, 1, tick.margin));
+    // Late by a whole period already (only after a miss): re-synchronise to the time just
+    // read plus the margin (which covers the few cycles until the alarm is armed).
+    if tick.margin <= 7 {
+        a.i(asm::adds_imm(1, 3, tick.margin));
+    } else {
+        a.i(asm::mov(1, 3));
+        a.i(asm::adds_imm(1, 1, tick.margin));
+    }
     a.bind(armed);
     a.i(asm::str(1, 5, ctrl::TARGET));
     apb_here(a);
