@@ -24,7 +24,8 @@ use tactus_runtime::limiter::{DacScale, LimiterConstants};
 pub mod ctrl {
     /// Microsecond time of the next sample tick (the armed alarm).
     pub const TARGET: u16 = 0;
-    /// Remainder accumulator of the tick schedule (in 1/fs µs).
+    /// Remainder accumulator of the tick schedule (in 1/fs µs), kept less fs: in
+    /// `[-fs, 0)`, so that its sign after adding the remainder says whether it carried.
     pub const ACC: u16 = 4;
     /// Samples whose handler has completed.
     pub const SAMPLES: u16 = 8;
@@ -614,17 +615,27 @@ pub fn core_code(
     apb_here(a);
     a.i(asm::str(1, 0, reg::INTR as u16)); // acknowledge the alarm
                                            // Next tick: target += q (+1 when the remainder accumulator overflows).
+                                           // The accumulator is kept less fs ([`ctrl::ACC`]), so its sign is the carry.
     a.i(asm::ldr(1, 5, ctrl::TARGET));
     a.i(asm::ldr(2, 5, ctrl::ACC));
-    a.mov_const(3, tick.q);
-    a.i(asm::adds(1, 1, 3));
-    a.mov_const(3, tick.rem);
-    a.i(asm::adds(2, 2, 3));
-    a.mov_const(3, tick.fs);
+    let add = |a: &mut CodeBuffer, rd: u8, n: u32| {
+        if n <= 255 {
+            a.i(asm::adds_imm(rd, rd, n as u8));
+        } else {
+            a.mov_const(3, n);
+            a.i(asm::adds(rd, rd, 3));
+        }
+    };
+    add(a, 1, tick.q);
+    add(a, 2, tick.rem);
     let (no_carry, armed) = (a.label(), a.label());
-    a.i(asm::cmp(2, 3));
-    a.bc(cond::LT, no_carry);
-    a.i(asm::subs(2, 2, 3));
+    a.bc(cond::MI, no_carry);
+    if tick.fs <= 255 {
+        a.i(asm::subs_imm(2, 2, tick.fs as u8));
+    } else {
+        a.mov_const(3, tick.fs);
+        a.i(asm::subs(2, 2, 3));
+    }
     a.i(asm::adds_imm(1, 1, 1));
     a.bind(no_carry);
     a.i(asm::str(2, 5, ctrl::ACC));
