@@ -455,4 +455,51 @@ mod tests {
         );
         assert!(!first.contains(&k[2]) && !first.contains(&k[3]) && !first.contains(&k[4]));
     }
+
+    #[test]
+    fn a_state_stored_from_a_sensor_moves_with_it() {
+        // `m = x` then `x < m - 0.03 mm` is false whatever x is (intervals alone cannot
+        // see it: both sides span [0, 10 mm]); `x < m + 0.03 mm` can hold (x = m), and
+        // with `m` stored only maybe (a `while` before), the read is a word of its own.
+        let fp = fixed(
+            "instrument t {\n sensor x: m in [0 mm, 10 mm]\n state m = 0 mm in [0 mm, 10 mm]\n state a = 0 in [0, 1]\n while x > m { m = x }\n on x < m - 0.03 mm { a = 1 }\n on x < m + 0.03 mm { a = 0.5 }\n while x > 5 mm { a = 0.25 }\n force f = a * 1 N\n}\n",
+        );
+        let k = ifs(&fp);
+        assert_eq!(k.len(), 4);
+        let ex = exclusions(&fp);
+        assert!(ex.contains(&(k[0], k[1])), "{ex:?} of {k:?}");
+        assert!(!ex.contains(&(k[0], k[2])), "{ex:?} of {k:?}");
+        assert!(!ex.contains(&(k[0], k[3])), "{ex:?} of {k:?}");
+        // Whether (1, 2) may run together: `x < m − slack` and `x < m + slack` with the
+        // same m: yes.
+        assert!(!ex.contains(&(k[1], k[2])), "{ex:?} of {k:?}");
+    }
+
+    #[test]
+    fn a_clamped_store_is_its_value_off_the_range_ends() {
+        // The escapement's hold (m from a second sensor, in an `if` that may run): `h =
+        // 2250 N/m · (9.4 mm − m)` (clamped into [0, 5 N], live at both ends) is stored when `x > 9 mm` and `x < m − 0.03 mm`, so m > 9.03 mm and
+        // h < 0.83 N; `1125 N/m · (x − 8.2 mm) <= h` needs h ≥ 0.9 N: never both. With
+        // `x > 8.9 mm` instead, x = 8.91 mm, m = 8.95 mm gives h = 1.01 N ≥ 0.80 N: feasible,
+        // and not excluded.
+        let src = |lo: &str| {
+            format!(
+                "instrument t {{\n sensor x: m in [0 mm, 10 mm]\n state m = 0 mm in [0 mm, 20 mm]\n state h = 0 N in [0 N, 5 N]\n state a = 0 in [0, 1]\n sensor y: m in [0 mm, 20 mm]\n while y > 1 mm {{ m = y }}\n on x > {lo} and x < m - 0.03 mm {{ h = 2250 N/m * (9.4 mm - m) }}\n while 1125 N/m * (x - 8.2 mm) <= h {{ a = 1 }}\n force f = a * 1 N + h\n}}\n"
+            )
+        };
+        let fp = fixed(&src("9 mm"));
+        let k = ifs(&fp);
+        assert!(
+            exclusions(&fp).contains(&(k[1], k[2])),
+            "{:?}",
+            exclusions(&fp)
+        );
+        let fp = fixed(&src("8.9 mm"));
+        let k = ifs(&fp);
+        assert!(
+            !exclusions(&fp).contains(&(k[1], k[2])),
+            "{:?}",
+            exclusions(&fp)
+        );
+    }
 }
