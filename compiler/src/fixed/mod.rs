@@ -329,15 +329,6 @@ pub const SEARCH_PASSES: usize = 2;
 /// or a bowed string: a simulation of the built-in stimuli would take minutes).
 pub const MAX_SIMULATED_VALUES: usize = 1500;
 
-/// Plans already searched by simulation in this process, by program.
-fn simulation_cache(
-) -> &'static std::sync::Mutex<std::collections::HashMap<String, Vec<Option<MulKind>>>> {
-    static CACHE: std::sync::OnceLock<
-        std::sync::Mutex<std::collections::HashMap<String, Vec<Option<MulKind>>>>,
-    > = std::sync::OnceLock::new();
-    CACHE.get_or_init(Default::default)
-}
-
 /// Work (candidate products × IR values) up to which the precision budget is spent one
 /// product at a time, one error analysis each (every shipped keyboard instrument, the bank
 /// and the plucked string: at most 3.6 M). Above it, products are tried in groups
@@ -1113,7 +1104,9 @@ impl FixedProgram {
     /// stops at its first broken sample, and the stimulus that failed is tried first next
     /// time. Only keyboard programs (one sensor) of at most [`MAX_SIMULATED_VALUES`] values
     /// are simulated. Results are kept per process and on disk ([`plan_cache`]: the same
-    /// program planned again by the same compiler costs nothing).
+    /// program planned again by the same compiler costs nothing), and threads or processes
+    /// planning the same program at once wait for one search
+    /// ([`plan_cache::searched_once`]).
     fn spend_by_simulation(
         &mut self,
         original: &Program,
@@ -1124,21 +1117,15 @@ impl FixedProgram {
             return;
         }
         let key = format!("{config:?}{original:?}");
-        if let Some(kinds) = simulation_cache()
-            .lock()
-            .ok()
-            .and_then(|c| c.get(&key).cloned())
-        {
-            self.mul_kind = kinds;
-            return;
-        }
-        if let Some(kinds) = plan_cache::load(&key, &self.mul_kind) {
-            if let Ok(mut c) = simulation_cache().lock() {
-                c.insert(key, kinds.clone());
-            }
-            self.mul_kind = kinds;
-            return;
-        }
+        let start = self.mul_kind.clone();
+        self.mul_kind = plan_cache::searched_once(&key, &start, || {
+            self.search_by_simulation(original, planned);
+            self.mul_kind.clone()
+        });
+    }
+
+    /// The search of [`Self::spend_by_simulation`], uncached.
+    fn search_by_simulation(&mut self, original: &Program, planned: &[(usize, MulOperands, bool)]) {
         let strict = original.contract.scaled(SIMULATION_MARGIN);
         let lsb = report::analyse(self).dac_lsb_n();
         let dip = original.sensors[0].range.1;
@@ -1313,10 +1300,6 @@ impl FixedProgram {
                     break;
                 }
             }
-        }
-        plan_cache::store(&key, &self.mul_kind);
-        if let Ok(mut c) = simulation_cache().lock() {
-            c.insert(key, self.mul_kind.clone());
         }
     }
 
