@@ -19,6 +19,7 @@ pub mod plan_cache;
 pub mod range;
 pub mod recip;
 pub mod report;
+mod workers;
 
 use crate::diagnostics::Diagnostic;
 use crate::ir::*;
@@ -1174,38 +1175,38 @@ impl FixedProgram {
                 stimuli.push(s.key);
             }
         }
-        let mut runs: Vec<contract::ReferenceRun> = Vec::new();
-        for keys in &stimuli {
-            for point in &points {
-                // Every point lies within the intervals the program was planned for.
-                if let Ok(r) = contract::reference(original, self, keys, point) {
-                    runs.push(r);
-                }
-            }
-        }
+        // The reference runs (f64), each independent: on every core, in a fixed order.
+        let this = &*self;
+        let np = points.len();
+        let mut runs: Vec<contract::ReferenceRun> = workers::map(stimuli.len() * np, |j| {
+            // Every point lies within the intervals the program was planned for.
+            contract::reference(original, this, &stimuli[j / np], &points[j % np]).ok()
+        })
+        .into_iter()
+        .flatten()
+        .collect();
         // Adversarial raw sensor words as the budget corpus has them (arbitrary words,
         // corners, in-range walks; `XorShift64::sensor_word`): a product cut to 16 bits
         // can be harmless on every key travel and break the force at an extreme word.
-        for r in 0..SIMULATED_RANDOM_RUNS {
-            let raw = simulated_random_words(self.sensor_raw_range[0], r);
-            for point in &points {
-                if let Ok(r) = contract::reference_raw(original, self, &raw, point) {
-                    runs.push(r);
-                }
-            }
-        }
+        let raws: Vec<Vec<i32>> = (0..SIMULATED_RANDOM_RUNS)
+            .map(|r| simulated_random_words(this.sensor_raw_range[0], r))
+            .collect();
+        runs.extend(
+            workers::map(raws.len() * np, |j| {
+                contract::reference_raw(original, this, &raws[j / np], &points[j % np]).ok()
+            })
+            .into_iter()
+            .flatten(),
+        );
         // The shortest runs first: a failing plan is found sooner.
         runs.sort_by_key(|r| r.len());
         // What the analysis' plan shows on each run, where it breaks the half-tolerance
         // contract (`None` where it holds).
-        let base: Vec<Option<contract::ContractCheck>> = runs
-            .iter()
-            .map(|r| {
-                let c = contract::compare(original, self, r, lsb, &strict, false).ok()?;
-                let broken = !c.violations(&strict, original.sample_rate_hz).is_empty();
-                broken.then_some(c)
-            })
-            .collect();
+        let base: Vec<Option<contract::ContractCheck>> = workers::map(runs.len(), |i| {
+            let c = contract::compare(original, this, &runs[i], lsb, &strict, false).ok()?;
+            let broken = !c.violations(&strict, original.sample_rate_hz).is_empty();
+            broken.then_some(c)
+        });
         let mut order: Vec<usize> = (0..runs.len()).collect();
         // Where the analysis proves the force clause for every input (no integrated state
         // feeds the total), the search keeps it proven: simulation only adds to a proof.
@@ -1220,21 +1221,29 @@ impl FixedProgram {
                     return false;
                 }
             }
-            for pos in 0..order.len() {
-                let (r, b) = (&runs[order[pos]], &base[order[pos]]);
+            let fails = |&i: &usize| {
+                let (r, b) = (&runs[i], &base[i]);
                 // A run the analysis' plan breaks is compared whole (the force within the
                 // time tolerance needs every sample).
                 let check = contract::compare(original, fp, r, lsb, &strict, b.is_none());
-                let ok = match (b, check) {
+                !match (b, check) {
                     (_, Err(_)) => false,
                     (None, Ok(c)) => c.violations(&strict, original.sample_rate_hz).is_empty(),
                     (Some(b), Ok(c)) => within_base(&c, b, &strict),
-                };
-                if !ok {
-                    let i = order.remove(pos);
-                    order.insert(0, i);
-                    return false;
                 }
+            };
+            // The run that broke the last refused plan first (it often breaks this one too),
+            // then the others on every core ([`workers::find`]); a failing run goes first
+            // next time.
+            let failed = match order.first() {
+                Some(i) if fails(i) => Some(0),
+                Some(_) => workers::find(&order[1..], fails).map(|pos| pos + 1),
+                None => None,
+            };
+            if let Some(pos) = failed {
+                let i = order.remove(pos);
+                order.insert(0, i);
+                return false;
             }
             true
         };
