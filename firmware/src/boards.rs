@@ -70,6 +70,10 @@ pub struct BoardVerdict {
     /// Why no image could be built (e.g. the code does not fit a bank): the board does not
     /// fit.
     pub error: Option<String>,
+    /// Whether the board's image leaves out the quiescent-key guard its programs ask for
+    /// ([`Program::quiescent_guard`]): with the guard's static cost the board would miss the
+    /// deadline, and [`plan`] found that keeping it would cost boards.
+    pub guard_off: bool,
 }
 
 impl BoardVerdict {
@@ -237,6 +241,18 @@ pub fn board_image(
     board: &Board,
     limiter: &LimiterConfig,
 ) -> Result<(Vec<usize>, Result<FirmwareImage, ImageError>), BoardsError> {
+    image_of(programs, costs, keys, board, limiter, true)
+}
+
+/// [`board_image`], with the fallback to an unguarded image only when `may_drop_guard`.
+fn image_of(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    keys: &[PlanKey],
+    board: &Board,
+    limiter: &LimiterConfig,
+    may_drop_guard: bool,
+) -> Result<(Vec<usize>, Result<FirmwareImage, ImageError>), BoardsError> {
     let mut used: Vec<usize> = Vec::new();
     let mut specs = Vec::with_capacity(keys.len());
     let mut slot = 0;
@@ -288,7 +304,7 @@ pub fn board_image(
     let fits =
         |i: &FirmwareImage| (0..i.cores()).all(|c| i.wcet(c).is_none_or(|w| w.bound() <= cps));
     let guarded = local.iter().any(|p| p.quiescent_guard);
-    if guarded && !image.as_ref().is_ok_and(fits) {
+    if may_drop_guard && guarded && !image.as_ref().is_ok_and(fits) {
         let plain: Vec<Program> = local
             .iter()
             .map(|p| {
@@ -319,9 +335,24 @@ pub fn check_board(
     board: &Board,
     limiter: &LimiterConfig,
 ) -> Result<BoardVerdict, BoardsError> {
+    verdict_of(programs, costs, keys, board, limiter, true)
+}
+
+/// [`check_board`], the guard dropped only when `may_drop_guard` ([`image_of`]).
+fn verdict_of(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    keys: &[PlanKey],
+    board: &Board,
+    limiter: &LimiterConfig,
+    may_drop_guard: bool,
+) -> Result<BoardVerdict, BoardsError> {
     let cps = board.cycles_per_sample();
-    let (core, image) = board_image(programs, costs, keys, board, limiter)?;
+    let (core, image) = image_of(programs, costs, keys, board, limiter, may_drop_guard)?;
     let key_list: Vec<u8> = keys.iter().map(|k| k.key).collect();
+    let asked = keys
+        .iter()
+        .any(|k| programs.get(k.program).is_some_and(|p| p.quiescent_guard));
     let image = match image {
         Ok(i) => i,
         Err(e) => {
@@ -330,6 +361,7 @@ pub fn check_board(
                 cores: Vec::new(),
                 code_bytes: Vec::new(),
                 error: Some(e.to_string()),
+                guard_off: false,
             })
         }
     };
@@ -359,6 +391,7 @@ pub fn check_board(
         cores,
         code_bytes: (0..image.cores()).map(|c| image.code_bytes(c)).collect(),
         error: None,
+        guard_off: asked && !image.programs().iter().any(|p| p.quiescent_guard),
     })
 }
 
@@ -366,6 +399,13 @@ pub fn check_board(
 /// as still fits (see the module documentation for why this is optimal). A key that does
 /// not fit even alone gets a board of its own, which does not fit (the verdict says so).
 /// `progress` is called with (keys placed, keys in all).
+///
+/// **The quiescent-key guard is a planned choice.** The sweep lets a board leave the guard
+/// out where only that makes it fit ([`board_image`]), so the count is the fewest with or
+/// without the guard. When some board of that plan leaves it out, the sweep runs again with
+/// the guard kept on every board: if that plan has as many boards and all fit, it is the
+/// plan (the guard cost no board, and idle keys stay cheap to run); otherwise the first
+/// plan stands and its boards without the guard say so ([`BoardVerdict::guard_off`]).
 ///
 /// Errors: as [`board_image`].
 pub fn plan(
@@ -376,14 +416,36 @@ pub fn plan(
     limiter: &LimiterConfig,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<BoardVerdict>, BoardsError> {
+    let fewest = sweep(programs, costs, keys, board, limiter, true, progress)?;
+    if !fewest.iter().any(|b| b.guard_off) {
+        return Ok(fewest);
+    }
+    let guarded = sweep(programs, costs, keys, board, limiter, false, &mut |_, _| {})?;
+    if guarded.len() <= fewest.len() && guarded.iter().all(BoardVerdict::fits) {
+        return Ok(guarded);
+    }
+    Ok(fewest)
+}
+
+/// The greedy sweep of [`plan`], boards without the guard allowed when `may_drop_guard`.
+fn sweep(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    keys: &[PlanKey],
+    board: &Board,
+    limiter: &LimiterConfig,
+    may_drop_guard: bool,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<BoardVerdict>, BoardsError> {
+    let check = |ks: &[PlanKey]| verdict_of(programs, costs, ks, board, limiter, may_drop_guard);
     let mut boards = Vec::new();
     let mut i = 0;
     while i < keys.len() {
-        let mut best = check_board(programs, costs, &keys[i..=i], board, limiter)?;
+        let mut best = check(&keys[i..=i])?;
         let mut j = i;
         if best.fits() {
             while j + 1 < keys.len() {
-                let next = check_board(programs, costs, &keys[i..=j + 1], board, limiter)?;
+                let next = check(&keys[i..=j + 1])?;
                 if !next.fits() {
                     break;
                 }

@@ -238,6 +238,39 @@ impl BudgetReport {
         l
     }
 
+    /// The one line saying which boards leave the quiescent-key guard out
+    /// ([`boards::BoardVerdict::guard_off`]), `None` when every board keeps what its
+    /// programs ask for.
+    pub fn guard_line(&self) -> Option<String> {
+        let off: Vec<usize> = (0..self.boards.len())
+            .filter(|&i| self.boards[i].guard_off)
+            .collect();
+        if off.is_empty() {
+            return None;
+        }
+        // Board numbers (from 1) as ranges: "1–18, 20".
+        let mut runs: Vec<(usize, usize)> = Vec::new();
+        for &i in &off {
+            match runs.last_mut() {
+                Some((_, b)) if *b + 1 == i => *b = i,
+                _ => runs.push((i, i)),
+            }
+        }
+        let list = runs
+            .iter()
+            .map(|&(a, b)| match a == b {
+                true => format!("{}", a + 1),
+                false => format!("{}–{}", a + 1, b + 1),
+            })
+            .collect::<Vec<_>>()
+            .join(", ");
+        let (n, all) = (off.len(), self.boards.len());
+        Some(format!(
+            "quiescent-key guard: left out on board{} {list} ({n} of {all}): its static cost would cost boards (docs/language.md, \"Quiescent keys\")",
+            if n == 1 { "" } else { "s" }
+        ))
+    }
+
     /// The report as text: per instrument static / measured, per board one row (keys, keys
     /// per core, cycles per core, utilisation, headroom), the board count, the verdict, the
     /// worst board and key with its worst path, what fits.
@@ -347,6 +380,9 @@ impl BudgetReport {
                 join(&|c| c.headroom.to_string()),
                 if bv.fits() { "" } else { "  OVER" }
             );
+        }
+        if let Some(line) = self.guard_line() {
+            let _ = writeln!(s, "{line}");
         }
         let _ = writeln!(s);
         let over = self.boards.iter().filter(|b| !b.fits()).count();

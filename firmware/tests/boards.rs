@@ -315,3 +315,83 @@ fn the_quiescent_guard_never_costs_a_board() {
     let plain_most = most_keys(&plain, &plain_costs);
     assert_eq!(most, plain_most, "the guard cost a key per board");
 }
+
+/// The guard as a planned choice, on a synthetic board whose deadline is exactly what six
+/// unguarded harpsichord keys (three per core) need: there the guard costs a board, so a
+/// six-key keyboard is planned on one board without it (`guard_off`); a keyboard of twice
+/// the guarded board's keys needs two boards either way, so every board keeps the guard.
+#[test]
+fn the_planner_drops_the_guard_only_where_it_saves_a_board() {
+    let program = Program::compile(&shipped("harpsichord").unwrap(), &Default::default()).unwrap();
+    let plain = {
+        let mut p = program.clone();
+        p.quiescent_guard = false;
+        p
+    };
+    let keys = |n: usize| -> Vec<PlanKey> {
+        (0..n)
+            .map(|k| PlanKey {
+                key: 40 + k as u8,
+                program: 0,
+            })
+            .collect()
+    };
+    // The deadline: the fullest core of six unguarded keys on the stock board.
+    let stock = board("rp2040");
+    let plain_costs =
+        ProgramCosts::new(std::slice::from_ref(&plain), &stock, &limiter(&stock)).unwrap();
+    let six = check_board(
+        std::slice::from_ref(&plain),
+        &plain_costs,
+        &keys(6),
+        &stock,
+        &limiter(&stock),
+    )
+    .unwrap();
+    let need = six.cores.iter().map(|c| c.cycles).max().unwrap();
+    let b = Board {
+        name: "six unguarded harpsichord keys".into(),
+        clock_hz: (need as f64 * 1e6 / 22.0).ceil(),
+        ..stock.clone()
+    };
+    assert_eq!(b.cycles_per_sample(), need);
+    let lim = limiter(&b);
+    let programs = vec![program];
+    let costs = ProgramCosts::new(&programs, &b, &lim).unwrap();
+    let plan =
+        |n: usize| boards::plan(&programs, &costs, &keys(n), &b, &lim, &mut |_, _| {}).unwrap();
+    // With the guard on every board (the board's image, no fallback), how many keys fit.
+    let guarded_fit = |n: usize| {
+        let local = boards::board_image(&programs, &costs, &keys(n), &b, &lim)
+            .unwrap()
+            .1
+            .unwrap();
+        local.programs()[0].quiescent_guard
+            && (0..local.cores()).all(|c| local.wcet(c).unwrap().bound() <= need)
+    };
+    let most_guarded = (1..=6).take_while(|&n| guarded_fit(n)).last().unwrap();
+    assert!(
+        most_guarded < 6,
+        "the guard fits six keys: the choice does not matter here"
+    );
+    assert!(
+        2 * most_guarded > 6,
+        "{most_guarded}: case two needs more than six keys"
+    );
+
+    let one = plan(6);
+    assert_eq!(one.len(), 1, "six keys fit one board without the guard");
+    assert!(one[0].fits() && one[0].guard_off);
+
+    let two = plan(2 * most_guarded);
+    assert_eq!(two.len(), 2);
+    assert!(
+        two.iter().all(|v| v.fits() && !v.guard_off),
+        "two boards either way: the guard stays on both"
+    );
+    println!(
+        "deadline {need}: 6 keys on one board without the guard (at most {most_guarded} with it); {} keys: boards of {:?} keys, all guarded",
+        2 * most_guarded,
+        two.iter().map(|v| v.keys.len()).collect::<Vec<_>>()
+    );
+}

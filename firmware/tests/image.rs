@@ -20,8 +20,8 @@ use tactus_compiler::lower::Config;
 use tactus_emulator::timer::reg;
 use tactus_emulator::{Board, Config as BoardConfig, Engine};
 use tactus_firmware::image::{
-    assign_cores, compile_layout, key_specs, limiter_routine, FirmwareImage, ImageRun, KeySpec,
-    Program,
+    assign_cores, compile_layout, guard_record_routine, key_specs, limiter_routine, FirmwareImage,
+    ImageRun, KeySpec, Program,
 };
 use tactus_runtime::keyboard::{assign, parse_layout, read_board, Board as BoardSpec};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
@@ -1222,4 +1222,109 @@ fn the_block_engine_runs_every_instruments_image_exactly_as_the_interpreter() {
     }
     assert!(checked >= 6, "only {checked} instruments checked");
     assert!(kept_total > 0, "the cores never ran ahead");
+}
+
+/// The static glue of one keyboard key alone on its core (`FirmwareImage::key_glue`: sensor
+/// copy, call set-up, the guard, the limiter and the DAC store), with and without the
+/// quiescent-key guard, for each shipped keyboard instrument; the guard's share grows with
+/// the state words it compares. Prints the figures of BENCHMARKS.md "Session 13 (glue16)".
+#[test]
+fn key_glue_with_and_without_the_guard_per_instrument() {
+    let lim = LimiterConfig::default();
+    for name in ["grand_piano", "harpsichord", "harpsichord_2x8", "hammond"] {
+        let guarded = instrument(name, &[]);
+        let mut plain = guarded.clone();
+        plain.quiescent_guard = false;
+        let g = FirmwareImage::key_glue(&guarded, &rp2040(), &lim).unwrap();
+        let p = FirmwareImage::key_glue(&plain, &rp2040(), &lim).unwrap();
+        let words = guarded.guard_words().unwrap();
+        println!(
+            "{name}: glue {} cycles with the guard ({words} state words compared), {} without",
+            g.cycles, p.cycles
+        );
+        assert_eq!(plain.guard_words(), None);
+        assert!(g.cycles > p.cycles, "{name}: the bound counts the guard");
+        assert_eq!(g.window_words, p.window_words);
+    }
+}
+
+/// The guard's bookkeeping after an update on random word sets (runs and gaps, single words
+/// and pairs), states and shadows differing in none, one or several words, at every chunk:
+/// afterwards the shadow equals the compared state words, the counter is one more when
+/// nothing differed and 0 otherwise, and nothing else in memory changed.
+#[test]
+fn the_guards_shadow_always_ends_equal_to_the_state() {
+    let base = 0x2000_1000;
+    let (record, shadow_end) = (0x2000_8000u32, 0x2000_9000u32);
+    let mut rng = XorShift64::new(0x6a09_e667);
+    let mut b = Board::new(BoardConfig::default());
+    let mut differing_cases = 0;
+    for case in 0..1500 {
+        // Up to 40 word offsets in 0..400 bytes, clustered into runs.
+        let n = rng.below(14);
+        let mut words: Vec<u32> = Vec::new();
+        let mut at = 4 * rng.below(4) as u32;
+        for _ in 0..n {
+            words.push(at);
+            at += if rng.below(3) == 0 {
+                4 * (1 + rng.below(40) as u32)
+            } else {
+                4
+            };
+        }
+        let (code, entry) = guard_record_routine(&words, base).unwrap();
+        b.write_bytes(base, &code).unwrap();
+        let state = shadow_end;
+        let shadow = state - 4 * words.len() as u32;
+        let span = at as usize + 64;
+        // The memory around: random words from below the shadow to past the state.
+        let below = 16usize;
+        let mut mem: Vec<u32> = (0..(below + words.len() + span / 4))
+            .map(|_| rng.next_u64() as u32)
+            .collect();
+        let mem_base = shadow - 4 * below as u32;
+        let idx = |addr: u32| ((addr - mem_base) / 4) as usize;
+        for (j, &o) in words.iter().enumerate() {
+            mem[idx(shadow) + j] = mem[idx(state + o)];
+        }
+        let mut differ = 0;
+        if !words.is_empty() && rng.below(3) > 0 {
+            for _ in 0..1 + rng.below(3) {
+                let j = rng.below(words.len());
+                mem[idx(shadow) + j] ^= 1 << rng.below(32);
+                differ += 1;
+            }
+        }
+        for (k, w) in mem.iter().enumerate() {
+            b.write_u32(mem_base + 4 * k as u32, *w).unwrap();
+        }
+        let calm = rng.below(1000) as u32;
+        b.write_u32(record, state).unwrap();
+        b.write_u32(record + 4, calm).unwrap();
+        b.call(0, entry, &[record], 0x2002_0000, 10_000).unwrap();
+        let mut want = mem.clone();
+        for (j, &o) in words.iter().enumerate() {
+            want[idx(shadow) + j] = mem[idx(state + o)];
+        }
+        let same = (0..words.len()).all(|j| mem[idx(shadow) + j] == want[idx(shadow) + j]);
+        differing_cases += !same as usize;
+        let got: Vec<u32> = (0..mem.len())
+            .map(|k| b.read_u32(mem_base + 4 * k as u32).unwrap())
+            .collect();
+        assert!(
+            got == want,
+            "case {case}: words {words:?}, {differ} changed"
+        );
+        let expect = if same || words.is_empty() {
+            calm + 1
+        } else {
+            0
+        };
+        assert_eq!(
+            (b.read_u32(record).unwrap(), b.read_u32(record + 4).unwrap()),
+            (state, expect),
+            "case {case}: words {words:?}"
+        );
+    }
+    assert!(differing_cases > 500, "{differing_cases}");
 }

@@ -10,6 +10,8 @@ use super::range::Interval;
 use super::FixedProgram;
 use crate::ir::*;
 
+mod linear;
+
 /// What one sample may hold in a state or mode after some statements: `None` = anything.
 #[derive(Clone, Default)]
 struct Known {
@@ -81,20 +83,22 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
     let ifs: Vec<usize> = (0..p.body.len())
         .filter(|&k| matches!(p.body[k], Stmt::If(..)))
         .collect();
+    // The linear facts ([`linear`]) where the program is small enough to ask them.
+    let work = p.body.len() * p.values.len().max(p.states.len());
+    let err = (work <= linear::MAX_WORK).then(|| super::report::local_errors(fp));
     let mut out = Vec::new();
     for &i in &ifs {
-        let Stmt::If(_, body_i) = &p.body[i] else {
-            continue;
-        };
-        let Stmt::If(cond_i, _) = &p.body[i] else {
+        let Stmt::If(cond_i, body_i) = &p.body[i] else {
             continue;
         };
         let mut known = Known::default();
         known.apply(fp, body_i, true);
         let facts = sample_facts(fp, *cond_i);
-        if known.state.is_empty() && known.mode.is_empty() && facts.is_empty() {
+        let nothing = known.state.is_empty() && known.mode.is_empty() && facts.is_empty();
+        if nothing && err.is_none() {
             continue;
         }
+        let src = err.as_ref().map(|_| linear::sources(p, i));
         // What is known before each top-level statement: nothing up to `i` (a read there
         // saw the sample before `i`'s body), then what `i`'s body and the statements since
         // left. A read is evaluated with what was known where it was read, not at the later
@@ -109,12 +113,23 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
                     facts: &facts,
                     at: &at,
                 };
-                if ev.tri(*c) == Tri::False {
+                let excluded = ev.tri(*c) == Tri::False
+                    || match (&err, &src) {
+                        (Some(err), Some(src)) => {
+                            let mut l = linear::Linear::new(fp, err, &ev, src);
+                            l.assume(*cond_i);
+                            l.assume(*c);
+                            l.infeasible()
+                        }
+                        _ => false,
+                    };
+                if excluded {
                     out.push((i as u32, k as u32));
                 }
             }
             known.apply(fp, std::slice::from_ref(&p.body[k]), true);
-            if known.state.is_empty() && known.mode.is_empty() && facts.is_empty() {
+            if err.is_none() && known.state.is_empty() && known.mode.is_empty() && facts.is_empty()
+            {
                 break;
             }
         }

@@ -24,7 +24,8 @@ use tactus_runtime::limiter::{DacScale, LimiterConstants};
 pub mod ctrl {
     /// Microsecond time of the next sample tick (the armed alarm).
     pub const TARGET: u16 = 0;
-    /// Remainder accumulator of the tick schedule (in 1/fs µs).
+    /// Remainder accumulator of the tick schedule (in 1/fs µs), kept less fs: in
+    /// `[-fs, 0)`, so that its sign after adding the remainder says whether it carried.
     pub const ACC: u16 = 4;
     /// Samples whose handler has completed.
     pub const SAMPLES: u16 = 8;
@@ -296,76 +297,172 @@ impl GuardCode {
 /// The guard's test before the update: `r3` holds the OR of the XORs of each new sensor
 /// word with its record copy (0: unchanged). Resets the calm counter when the sensors
 /// moved; branches to `skip` when the key is quiescent. Clobbers r1.
-/// Static cost: 10 cycles on the path that runs the update (sensors moved), 10 to `skip`.
+/// Static cost: 7 cycles on the path that runs the update (6 when the sensors moved).
 pub fn guard_check(a: &mut CodeBuffer, g: &GuardCode, skip: Label) {
-    let same = a.label();
-    a.i(asm::ldr(1, 4, g.calm_offset as u16));
+    let (moved, run) = (a.label(), a.label());
     a.i(asm::cmp_imm(3, 0));
-    a.bc(cond::EQ, same);
+    a.bc(cond::NE, moved);
+    a.i(asm::ldr(1, 4, g.calm_offset as u16));
+    a.i(asm::cmp_imm(1, g.calm_needed));
+    a.bc(cond::LT, run);
+    // `skip` lies beyond the update's call and the comparison: out of a `B<cc>`'s reach.
+    a.b(skip);
+    a.bind(moved);
     a.i(asm::movs(1, 0));
     a.i(asm::str(1, 4, g.calm_offset as u16));
-    a.bind(same);
-    a.i(asm::cmp_imm(1, g.calm_needed));
-    // `skip` lies beyond the update's call and the comparison: out of a `B<cc>`'s reach.
-    let run = a.label();
-    a.bc(cond::LT, run);
-    a.b(skip);
     a.bind(run);
 }
 
+/// The compared words of a guard in chunks of at most `k` words that are consecutive in
+/// the state struct: (byte offset in the struct, words).
+fn guard_chunks(words: &[u32], k: usize) -> Vec<(u32, usize)> {
+    let mut chunks: Vec<(u32, usize)> = Vec::new();
+    for &o in words {
+        match chunks.last_mut() {
+            Some((at, n)) if *n < k && *at + 4 * *n as u32 == o => *n += 1,
+            _ => chunks.push((o, 1)),
+        }
+    }
+    chunks
+}
+
+/// A register list of LDM/STM.
+fn reg_list(regs: &[u8]) -> u8 {
+    regs.iter().fold(0, |m, &r| m | 1 << r)
+}
+
+/// Whether [`guard_record`] of `g` uses r5 and r6 (it then restores r6 itself, and the
+/// handler reloads r5 before its epilogue).
+pub fn guard_uses_r5(g: &GuardCode) -> bool {
+    g.words.len() >= 3
+}
+
 /// The guard's bookkeeping after the update: compares the state words with the shadow
-/// copy below the struct (and refreshes it), then counts a calm update or resets the
-/// counter. Uses r6 as the accumulator and restores it to `sensor_base`. Clobbers r0-r3.
-/// Static cost: 8 cycles per compared word plus 16 (5 without state words).
-pub fn guard_record(a: &mut CodeBuffer, g: &GuardCode, state_offset: u32, sensor_base: u32) {
-    use AluOp::*;
+/// copy below the struct, then counts a calm update or — at the first word that differs —
+/// refreshes the shadow from there on and resets the counter.
+///
+/// The words go in chunks of up to two consecutive words: `LDM` of the state chunk
+/// (pointer r0), `LDM` of its shadow (r1), a `CMP`/`BNE` per word; nothing is stored while
+/// the words agree (the shadow already holds them). A difference branches to the chunk's
+/// fix-up, which stores the chunk over its shadow (`STM`) and copies the remaining chunks
+/// (`LDM`/`STM`), so the shadow always ends equal to the state. With three words or more
+/// the chunks are pairs in r2-r3 against r5-r6 (r6 is reloaded with `sensor_base` when
+/// `restore_r6`; r5 by the handler, [`guard_uses_r5`]); else single words in r2 against r3.
+/// Clobbers r0-r3.
+///
+/// Static cost (piano, 8 words in 4 pairs): 10 cycles per pair plus about 12 (see
+/// BENCHMARKS.md, "Session 13 (glue16)"); 5 cycles without state words.
+pub fn guard_record(
+    a: &mut CodeBuffer,
+    g: &GuardCode,
+    state_offset: u32,
+    sensor_base: u32,
+    restore_r6: bool,
+) {
+    let calm = g.calm_offset as u16;
     if g.words.is_empty() {
         // Nothing but the history rings persists: every update with unchanged sensors is
         // calm.
-        a.i(asm::ldr(1, 4, g.calm_offset as u16));
+        a.i(asm::ldr(1, 4, calm));
         a.i(asm::adds_imm(1, 1, 1));
-        a.i(asm::str(1, 4, g.calm_offset as u16));
+        a.i(asm::str(1, 4, calm));
         return;
     }
+    let pairs = guard_uses_r5(g);
+    let (a_regs, c_regs): (&[u8], &[u8]) = if pairs {
+        (&[2, 3], &[5, 6])
+    } else {
+        (&[2], &[3])
+    };
+    let chunks = guard_chunks(&g.words, a_regs.len());
+    // r0 = the state, r1 = the shadow (below the state, one word per compared word).
     ldr_rec(a, 0, state_offset);
-    // r3 = the shadow (below the state), r0 = the state; each advances when its next
-    // offset would leave an LDR immediate's reach.
-    a.i(asm::mov(3, 0));
+    a.i(asm::mov(1, 0));
     let back = g.shadow_bytes();
     if back <= 255 {
-        a.i(asm::subs_imm(3, 3, back as u8));
+        a.i(asm::subs_imm(1, 1, back as u8));
     } else {
-        a.mov_const(1, back);
-        a.i(asm::subs(3, 3, 1));
+        a.mov_const(2, back);
+        a.i(asm::subs(1, 1, 2));
     }
-    a.i(asm::movs(6, 0));
-    let (mut adv0, mut adv3) = (0u32, 0u32);
-    for (j, &o) in g.words.iter().enumerate() {
-        if o - adv0 > 124 {
-            add_big(a, 0, o - adv0);
-            adv0 = o;
+    // The state pointer's offset in the struct before each chunk (gaps between runs are
+    // stepped over with ADDS).
+    let step_to = |a: &mut CodeBuffer, at: &mut u32, o: u32| {
+        if o > *at {
+            add_big(a, 0, o - *at);
         }
-        let s = 4 * j as u32;
-        if s - adv3 > 124 {
-            add_big(a, 3, s - adv3);
-            adv3 = s;
+        *at = o;
+    };
+    let fixes: Vec<Label> = chunks.iter().map(|_| a.label()).collect();
+    let copies: Vec<Label> = chunks.iter().map(|_| a.label()).collect();
+    let (tail, join) = (a.label(), a.label());
+    let mut at = 0u32;
+    for (&(o, n), &fix) in chunks.iter().zip(&fixes) {
+        step_to(a, &mut at, o);
+        a.i(Instr::Ldm {
+            rn: 0,
+            list: reg_list(&a_regs[..n]),
+        });
+        a.i(Instr::Ldm {
+            rn: 1,
+            list: reg_list(&c_regs[..n]),
+        });
+        at += 4 * n as u32;
+        for j in 0..n {
+            a.i(asm::cmp(a_regs[j], c_regs[j]));
+            a.bc(cond::NE, fix);
         }
-        let (o0, o3) = ((o - adv0) as u16, (s - adv3) as u16);
-        a.i(asm::ldr(1, 0, o0));
-        a.i(asm::ldr(2, 3, o3));
-        a.i(asm::str(1, 3, o3));
-        a.i(asm::alu(Eor, 2, 1));
-        a.i(asm::alu(Orr, 6, 2));
     }
-    let keep = a.label();
-    a.i(asm::ldr(1, 4, g.calm_offset as u16));
-    a.i(asm::adds_imm(1, 1, 1));
-    a.i(asm::cmp_imm(6, 0));
-    a.bc(cond::EQ, keep);
-    a.i(asm::movs(1, 0));
-    a.bind(keep);
-    a.i(asm::str(1, 4, g.calm_offset as u16));
-    a.ldr_const(6, sensor_base);
+    // Every word as it was: one more calm update.
+    a.i(asm::ldr(2, 4, calm));
+    a.i(asm::adds_imm(2, 2, 1));
+    a.i(asm::str(2, 4, calm));
+    a.b(join);
+    // Fix-ups: the differing chunk is in registers; store it over its shadow, then copy the
+    // rest. The last chunk's fix-up falls into the counter's reset.
+    let last = chunks.len() - 1;
+    let store_chunk = |a: &mut CodeBuffer, n: usize| {
+        a.i(asm::subs_imm(1, 1, 4 * n as u8));
+        a.i(Instr::Stm {
+            rn: 1,
+            list: reg_list(&a_regs[..n]),
+        });
+    };
+    for (i, &(_, n)) in chunks.iter().enumerate().take(last) {
+        a.bind(fixes[i]);
+        store_chunk(a, n);
+        a.b(copies[i + 1]);
+    }
+    if last > 0 {
+        // The copy chain: chunk i from `copies[i]`, the pointers just past chunk i - 1.
+        let mut at = chunks[0].0 + 4 * chunks[0].1 as u32;
+        for (i, &(o, n)) in chunks.iter().enumerate().skip(1) {
+            // Entered from chunk i - 1's fix-up or copy, r0 just past that chunk.
+            a.bind(copies[i]);
+            if o > at {
+                add_big(a, 0, o - at);
+            }
+            at = o + 4 * n as u32;
+            a.i(Instr::Ldm {
+                rn: 0,
+                list: reg_list(&a_regs[..n]),
+            });
+            a.i(Instr::Stm {
+                rn: 1,
+                list: reg_list(&a_regs[..n]),
+            });
+        }
+        a.b(tail);
+    }
+    a.bind(fixes[last]);
+    store_chunk(a, chunks[last].1);
+    a.bind(tail);
+    a.i(asm::movs(2, 0));
+    a.i(asm::str(2, 4, calm));
+    a.bind(join);
+    if pairs && restore_r6 {
+        a.ldr_const(6, sensor_base);
+    }
 }
 
 /// One force word of a key on its way to the DAC, as the handler sees it.
@@ -518,29 +615,43 @@ pub fn core_code(
     apb_here(a);
     a.i(asm::str(1, 0, reg::INTR as u16)); // acknowledge the alarm
                                            // Next tick: target += q (+1 when the remainder accumulator overflows).
+                                           // The accumulator is kept less fs ([`ctrl::ACC`]), so its sign is the carry.
     a.i(asm::ldr(1, 5, ctrl::TARGET));
     a.i(asm::ldr(2, 5, ctrl::ACC));
-    a.mov_const(3, tick.q);
-    a.i(asm::adds(1, 1, 3));
-    a.mov_const(3, tick.rem);
-    a.i(asm::adds(2, 2, 3));
-    a.mov_const(3, tick.fs);
+    let add = |a: &mut CodeBuffer, rd: u8, n: u32| {
+        if n <= 255 {
+            a.i(asm::adds_imm(rd, rd, n as u8));
+        } else {
+            a.mov_const(3, n);
+            a.i(asm::adds(rd, rd, 3));
+        }
+    };
+    add(a, 1, tick.q);
+    add(a, 2, tick.rem);
     let (no_carry, armed) = (a.label(), a.label());
-    a.i(asm::cmp(2, 3));
-    a.bc(cond::LT, no_carry);
-    a.i(asm::subs(2, 2, 3));
+    a.bc(cond::MI, no_carry);
+    if tick.fs <= 255 {
+        a.i(asm::subs_imm(2, 2, tick.fs as u8));
+    } else {
+        a.mov_const(3, tick.fs);
+        a.i(asm::subs(2, 2, 3));
+    }
     a.i(asm::adds_imm(1, 1, 1));
     a.bind(no_carry);
     a.i(asm::str(2, 5, ctrl::ACC));
     apb_here(a);
     a.i(asm::ldr(3, 0, reg::TIMERAWL as u16));
-    a.i(asm::subs(3, 1, 3)); // target - now
-    a.i(asm::cmp_imm(3, tick.margin));
+    a.i(asm::subs(2, 1, 3)); // target - now
+    a.i(asm::cmp_imm(2, tick.margin));
     a.bc(cond::GE, armed);
-    // Late by a whole period already (only after a miss): re-synchronise.
-    apb_here(a);
-    a.i(asm::ldr(1, 0, reg::TIMERAWL as u16));
-    a.i(asm::adds_imm(1, 1, tick.margin));
+    // Late by a whole period already (only after a miss): re-synchronise to the time just
+    // read plus the margin (which covers the few cycles until the alarm is armed).
+    if tick.margin <= 7 {
+        a.i(asm::adds_imm(1, 3, tick.margin));
+    } else {
+        a.i(asm::mov(1, 3));
+        a.i(asm::adds_imm(1, 1, tick.margin));
+    }
     a.bind(armed);
     a.i(asm::str(1, 5, ctrl::TARGET));
     apb_here(a);
@@ -551,10 +662,9 @@ pub fn core_code(
     }
     a.pool_inline();
     // Every key: sensors → record, update, then each force word: limiter, DAC.
+    let mut left = keys.len();
     walk(a, keys, &mut |a, k| {
-        if k.guard.is_some() {
-            a.i(asm::movs(3, 0));
-        }
+        left -= 1;
         for (i, &w) in k.sensor_words.iter().enumerate() {
             let off = w.wrapping_sub(sensor_base);
             if off <= 124 && off % 4 == 0 {
@@ -564,10 +674,16 @@ pub fn core_code(
                 a.i(asm::ldr(0, 0, 0));
             }
             if k.guard.is_some() {
-                // r3 |= new ^ old (the image keeps at most 24 sensors: offsets ≤ 92).
-                a.i(asm::ldr(1, 4, 4 * i as u16));
-                a.i(asm::alu(AluOp::Eor, 1, 0));
-                a.i(asm::alu(AluOp::Orr, 3, 1));
+                // r3 = new ^ old for the first word, r3 |= new ^ old for the others (the
+                // image keeps at most 24 sensors: offsets ≤ 92).
+                if i == 0 {
+                    a.i(asm::ldr(3, 4, 0));
+                    a.i(asm::alu(AluOp::Eor, 3, 0));
+                } else {
+                    a.i(asm::ldr(1, 4, 4 * i as u16));
+                    a.i(asm::alu(AluOp::Eor, 1, 0));
+                    a.i(asm::alu(AluOp::Orr, 3, 1));
+                }
             }
             if 4 * i <= 124 {
                 a.i(asm::str(0, 4, 4 * i as u16));
@@ -595,7 +711,7 @@ pub fn core_code(
         }
         a.bl_addr(k.update);
         if let Some(g) = &k.guard {
-            guard_record(a, g, k.state_offset, sensor_base);
+            guard_record(a, g, k.state_offset, sensor_base, left > 0);
         }
         a.bind(skip);
         for d in &k.drives {
@@ -618,6 +734,12 @@ pub fn core_code(
         a.pool_inline();
         Ok(())
     })?;
+    if keys
+        .iter()
+        .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5))
+    {
+        a.ldr_const(5, ctrl_addr);
+    }
     a.ldr_const(0, TIMER_BASE);
     apb_here(a);
     a.i(asm::ldr(2, 0, reg::TIMERAWL as u16));

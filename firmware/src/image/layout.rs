@@ -424,7 +424,7 @@ pub(super) fn data_block(
     let mut data = Vec::new();
     let word = |v: u32| v.to_le_bytes();
     data.extend(word(first_tick_us)); // TARGET
-    data.extend(word(0)); // ACC
+    data.extend(word(l.tick.fs.wrapping_neg())); // ACC: 0, less fs
     data.extend(word(0)); // SAMPLES
     data.extend(word(0)); // MISSES
     data.extend(word(0)); // READY

@@ -191,6 +191,13 @@ impl Program {
         })
     }
 
+    /// Words of the key's state struct the quiescent-key guard compares after each update
+    /// ([`glue::GuardCode::words`]: the states the update writes and the words of its mode
+    /// and edge bytes); `None` when the program runs without the guard.
+    pub fn guard_words(&self) -> Option<usize> {
+        self.guard(0).map(|g| g.words.len())
+    }
+
     /// Compiles instrument source `text` with `config` (sample rate, `--param`
     /// overrides) to a fixed-point program and Thumb code. Errors are the rendered
     /// diagnostics' messages or the Thumb backend's error.
@@ -584,6 +591,31 @@ pub fn limiter_routine(
     let mut a = CodeBuffer::new(LongBranch::Refuse);
     let entry = a.label();
     glue::limiter_function(&mut a, entry, &consts, &scale)?;
+    let out = a.finish(base)?;
+    Ok((out.text, out.labels[entry.index()]))
+}
+
+/// The quiescent-key guard's bookkeeping after an update ([`glue::guard_record`]) alone, as
+/// a function assembled at `base`, for tests: the state words at byte offsets `words`
+/// (ascending) of a state struct whose shadow lies directly below it. Calling convention:
+/// `r0` = the address of a two-word record (the state struct's address, then the calm
+/// counter); returns nothing. Returns the code and the routine's address.
+///
+/// Errors: [`ImageError::Assemble`].
+pub fn guard_record_routine(words: &[u32], base: u32) -> Result<(Vec<u8>, u32), ImageError> {
+    let g = glue::GuardCode {
+        calm_offset: 4,
+        calm_needed: 2,
+        words: words.to_vec(),
+    };
+    let mut a = CodeBuffer::new(LongBranch::Refuse);
+    let entry = a.label();
+    a.bind(entry);
+    a.i(tactus_compiler::thumb::ins::push_lr(0xf0));
+    a.i(tactus_compiler::thumb::ins::mov(4, 0));
+    glue::guard_record(&mut a, &g, 0, 0, false);
+    a.i(tactus_compiler::thumb::ins::pop_pc(0xf0));
+    a.pool();
     let out = a.finish(base)?;
     Ok((out.text, out.labels[entry.index()]))
 }
