@@ -152,19 +152,16 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
             // A body that cannot run with `i`'s changes nothing after it.
             let mut skip = false;
             match &p.body[k] {
-                Stmt::If(c, _) => {
-                    if never(*c, false) {
-                        out.push((i as u32, k as u32));
-                        skip = true;
-                    }
+                Stmt::If(c, _) if never(*c, false) => {
+                    out.push((i as u32, k as u32));
+                    skip = true;
                 }
                 Stmt::Def(v) => {
                     if let Op::Select(c, _, _) = p.values[v.index()].op {
                         for side in [true, false] {
-                            if let Some(m) = arm_mark(*v, side) {
-                                if never(c, !side) {
-                                    out.push((i as u32, m));
-                                }
+                            match arm_mark(*v, side) {
+                                Some(m) if never(c, !side) => out.push((i as u32, m)),
+                                _ => {}
                             }
                         }
                     }
