@@ -82,7 +82,10 @@ impl Worst {
         self.unmatched += r.unmatched;
         self.out_of_range += r.state_out_of_range;
         self.overflowed += r.overflowed;
-        if r.switches.iter().any(|w| w.after_samples > 0 || w.force_lsb > w.bound_lsb) {
+        if r.switches
+            .iter()
+            .any(|w| w.after_samples > 0 || w.force_lsb > w.bound_lsb)
+        {
             self.literal_broken += 1;
         }
         if r.max_force_lsb_all > force_bound {
@@ -235,7 +238,15 @@ fn grand88() -> (
 
 /// The contract at every one of grand88's 88 keys over the quick corpus, with the shared
 /// program's plan (the planner's search simulates six of them): every clause on every run.
+/// It costs about 3 CPU-minutes in the test profile (1,320 runs, 26 million samples through
+/// both interpreters), over CI's budget, so it is ignored there — CI checks the six keys the
+/// planner simulates ([`the_contract_over_the_budget_corpus_for_grand88s_graded_masses`]) —
+/// and run by hand: `cargo test -p tactus-firmware --test contract_corpus --
+/// --ignored --nocapture the_contract_at_every_grand88_key` (BENCHMARKS.md, "Session 13
+/// (switch16)"). It prints how many keys hold, also under the brief's form of the switch
+/// clause (no after-effect) and under the per-sample force clause alone.
 #[test]
+#[ignore = "3 CPU-minutes in the test profile: run by hand (BENCHMARKS.md, Session 13 (switch16))"]
 fn the_contract_at_every_grand88_key() {
     let (assigned, shared, values) = grand88();
     let fp = FixedProgram::new(&shared.program);

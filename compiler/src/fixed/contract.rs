@@ -92,6 +92,9 @@ pub struct ContractCheck {
     /// Switches whose discrete states did not agree again within the window: a switch lost
     /// or added.
     pub switches_unresolved: usize,
+    /// Switches that started within a window's length of the previous one or in its
+    /// after-effect (chatter): the per-sample clause holds at their samples.
+    pub switch_chatter: usize,
     /// Samples where some fixed state lay outside its declared range.
     pub state_out_of_range: usize,
     /// Values that saturated (the range analysis claimed they cannot).
@@ -125,7 +128,11 @@ pub const MAX_SWITCHES_KEPT: usize = 64;
 ///   sample the per-sample clause breaks is held to the same (τ, ε) distance with ε the
 ///   force tolerance alone: a time shift within τ and nothing more
 ///   ([`Switch::after_lsb`]);
-/// * elsewhere the per-sample clause holds unchanged.
+/// * elsewhere the per-sample clause holds unchanged — also at a switch that starts within
+///   τ of the last window or in its after-effect ([`ContractCheck::switch_chatter`]): a
+///   contact chattering under sensor noise or arbitrary sensor words has no one switch time,
+///   and a window there would excuse what the per-sample clause must catch (the planner's
+///   runs of random sensor words are what refuse a product cut too far).
 ///
 /// ε's second part is the reference's own discretisation uncertainty: the f64 run decides
 /// a switch at a sample, so its contact closes anywhere within a sample period before it,
@@ -556,6 +563,8 @@ fn compare_block(
     // window's length (the switch's after-effect), per window.
     let mut after: Vec<Vec<usize>> = Vec::new();
     let mut agreeing = window;
+    let mut last_window: Option<usize> = None;
+    let mut chattered: Vec<bool> = Vec::new();
     for (n, (&raw, &total)) in run.raw.iter().zip(&run.total).enumerate() {
         let ob = b.step_raw(&[raw]);
         out.samples += 1;
@@ -605,9 +614,21 @@ fn compare_block(
                 open = Some(windows.len());
                 windows.push((n, i, None, false));
                 after.push(Vec::new());
-                cover_end = n + window;
-                agreeing = 0;
                 out.switch_count += 1;
+                // An isolated switch gets its window; one that starts within a window's
+                // length of the last window, or in its after-effect, is chatter (a contact
+                // bouncing under sensor noise or arbitrary words has no one switch time):
+                // the per-sample clause holds there.
+                let chatter = last_window.is_some_and(|e| n < e + window) || agreeing < window;
+                chattered.push(chatter);
+                if chatter {
+                    agreeing = window;
+                    out.switch_chatter += 1;
+                } else {
+                    cover_end = n + window;
+                    agreeing = 0;
+                }
+                last_window = Some(n + window);
             }
             (None, Some(w)) => {
                 windows[w].2 = Some(n - windows[w].0);
@@ -650,8 +671,10 @@ fn compare_block(
         }
     }
     // The switch windows' force clause, now that both runs are known around them.
-    for ((start, site, len, unresolved), after) in windows.into_iter().zip(after) {
-        let s = switch_window(
+    for (((start, site, len, unresolved), after), chatter) in
+        windows.into_iter().zip(after).zip(chattered)
+    {
+        let mut s = switch_window(
             run,
             (&fixed_total, &fixed_driven),
             start,
@@ -659,6 +682,10 @@ fn compare_block(
             force_limit * dac_lsb_n,
             dac_lsb_n,
         );
+        if chatter {
+            // The per-sample clause measured its samples.
+            s.force_lsb = 0.0;
+        }
         // The after-effect: each sample within the force tolerance of a time shift.
         let near = |x: f64, other: &[f64], n: usize| {
             other[n.saturating_sub(window)..(n + window + 1).min(other.len())]

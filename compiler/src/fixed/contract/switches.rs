@@ -8,9 +8,11 @@
 //! The f64 reference runs the lowered program and the fixed engines the planned one
 //! ([`crate::fixed::FixedProgram::program`]), whose values are renumbered by the passes
 //! before the plan (`common.rs`, `recip.rs`, `chains.rs`). A decision is therefore named by
-//! what survives those passes: its kind, its source span (the condition's, or the edge's
-//! handler), the spans of the `if` bodies around it and its rank among the decisions of
-//! that kind and place in body order (a component's instances share spans). A decision of
+//! what survives those passes: its kind, its source span (the `if … else` expression's, or
+//! the edge's handler; a body by its rank among the bodies, which the passes keep in order
+//! while a condition may become an equal one from elsewhere), the bodies around it and its
+//! rank among the decisions of that kind and place in body order (a component's instances
+//! share spans). A decision of
 //! one program with no partner in the other (`common.rs` computes two equal conditions
 //! once: a `let` read in a handler's body and outside it is lowered twice) is not
 //! compared: its partner's bit is the same decision. `min`/`max` are not decisions here: they are continuous, so a
@@ -42,9 +44,10 @@ pub struct Site {
     /// The conditions of the `if` bodies around it, outermost first: it is decided this
     /// sample only when all hold (else its bit is 0).
     guards: Vec<Value>,
-    /// Their source spans (part of the decision's name).
-    guard_spans: Vec<Span>,
-    /// The source span of the condition, of the handler (an edge) or of the mode.
+    /// Their ranks among the program's bodies (part of the decision's name).
+    place: Vec<usize>,
+    /// The source span of the `if … else` expression, of the handler (an edge) or of the
+    /// mode; a body's rank `r` as the empty span `r..r`.
     pub span: Span,
 }
 
@@ -53,7 +56,16 @@ impl Site {
     pub fn describe(&self, p: &Program) -> String {
         let at = format!("source bytes {}..{}", self.span.start, self.span.end);
         match &self.kind {
-            Kind::Body => format!("the condition of an `if`/`on`/`while` body at {at}"),
+            Kind::Body => {
+                let c = self.cond.map(|c| p.values[c.index()].span.clone());
+                let c = c.map_or(String::new(), |c| {
+                    format!(" at source bytes {}..{}", c.start, c.end)
+                });
+                format!(
+                    "the condition of `if`/`on`/`while` body {}{c}",
+                    self.span.start
+                )
+            }
             Kind::Select => format!("the condition of an `if … else` expression at {at}"),
             Kind::Edge(_) => format!("the edge memory of the `on` handler at {at}"),
             Kind::Mode(m, v) => {
@@ -67,31 +79,37 @@ impl Site {
 
 /// Every decision of `p`'s update, in body order, then the modes' variants.
 pub fn sites(p: &Program) -> Vec<Site> {
-    fn walk(p: &Program, stmts: &[Stmt], guards: &mut Vec<Value>, out: &mut Vec<Site>) {
-        let site = |kind, cond: Value, span: &Span, guards: &Vec<Value>| Site {
+    fn walk(
+        p: &Program,
+        stmts: &[Stmt],
+        guards: &mut Vec<(Value, usize)>,
+        bodies: &mut usize,
+        out: &mut Vec<Site>,
+    ) {
+        let site = |kind, cond: Value, span: &Span, guards: &Vec<(Value, usize)>| Site {
             kind,
             cond: Some(cond),
-            guards: guards.clone(),
-            guard_spans: guards
-                .iter()
-                .map(|g| p.values[g.index()].span.clone())
-                .collect(),
+            guards: guards.iter().map(|g| g.0).collect(),
+            place: guards.iter().map(|g| g.1).collect(),
             span: span.clone(),
         };
         for s in stmts {
             match s {
                 Stmt::Def(v) => {
                     if let Op::Select(c, _, _) = p.values[v.index()].op {
-                        out.push(site(Kind::Select, c, &p.values[c.index()].span, guards));
+                        out.push(site(Kind::Select, c, &p.values[v.index()].span, guards));
                     }
                 }
                 Stmt::SetEdge(e, v) => {
                     out.push(site(Kind::Edge(*e), *v, &p.edges[e.index()].span, guards))
                 }
                 Stmt::If(c, body) => {
-                    out.push(site(Kind::Body, *c, &p.values[c.index()].span, guards));
-                    guards.push(*c);
-                    walk(p, body, guards, out);
+                    // A body is named by its rank: the passes keep every `if` in order, but
+                    // its condition may be an equal one from elsewhere (`common.rs`).
+                    out.push(site(Kind::Body, *c, &(*bodies..*bodies), guards));
+                    guards.push((*c, *bodies));
+                    *bodies += 1;
+                    walk(p, body, guards, bodies, out);
                     guards.pop();
                 }
                 _ => {}
@@ -99,14 +117,14 @@ pub fn sites(p: &Program) -> Vec<Site> {
         }
     }
     let mut out = Vec::new();
-    walk(p, &p.body, &mut Vec::new(), &mut out);
+    walk(p, &p.body, &mut Vec::new(), &mut 0, &mut out);
     for (m, d) in p.modes.iter().enumerate() {
         for v in 0..d.variants.len() as u32 {
             out.push(Site {
                 kind: Kind::Mode(ModeId(m as u32), v),
                 cond: None,
                 guards: Vec::new(),
-                guard_spans: Vec::new(),
+                place: Vec::new(),
                 span: d.span.clone(),
             });
         }
@@ -163,8 +181,8 @@ pub fn state_driven_terms(p: &Program) -> Vec<bool> {
     terms
 }
 
-/// A decision's name: kind, span, the spans of the bodies around it, rank.
-type Key = (Kind, Span, Vec<Span>, usize);
+/// A decision's name: kind, span, the bodies around it, rank.
+type Key = (Kind, Span, Vec<usize>, usize);
 
 /// Each decision's name: (kind, span, the bodies around it, rank among the decisions of
 /// that kind and place).
@@ -173,9 +191,9 @@ fn keys(sites: &[Site]) -> Vec<Key> {
     for s in sites {
         let rank = out
             .iter()
-            .filter(|(k, sp, g, _)| *k == s.kind && *sp == s.span && *g == s.guard_spans)
+            .filter(|(k, sp, g, _)| *k == s.kind && *sp == s.span && *g == s.place)
             .count();
-        out.push((s.kind.clone(), s.span.clone(), s.guard_spans.clone(), rank));
+        out.push((s.kind.clone(), s.span.clone(), s.place.clone(), rank));
     }
     out
 }
@@ -198,12 +216,7 @@ pub fn words(n: usize) -> usize {
 /// Writes the signature of one sample — bit `i` set when decision `i` of `sites` holds —
 /// into `out` ([`words`] long), reading each truth value with `truth` (the value as the
 /// engine left it this sample) and the modes' variants from `modes`.
-pub fn signature(
-    sites: &[Site],
-    truth: impl Fn(Value) -> bool,
-    modes: &[u32],
-    out: &mut [u64],
-) {
+pub fn signature(sites: &[Site], truth: impl Fn(Value) -> bool, modes: &[u32], out: &mut [u64]) {
     out.iter_mut().for_each(|w| *w = 0);
     for (i, s) in sites.iter().enumerate() {
         let on = match (&s.kind, s.cond) {
