@@ -296,6 +296,11 @@ impl<'f> FixedInstance<'f> {
     pub fn saturations(&self) -> &[u64] {
         &self.saturations
     }
+    /// Every value's raw word as the last sample left it (truth values 0/1), indexed by
+    /// [`Value`]: a value defined in an `if` body that did not run keeps an older sample's.
+    pub fn values(&self) -> &[i32] {
+        &self.vals
+    }
 }
 
 impl RawOut {

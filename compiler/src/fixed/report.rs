@@ -588,6 +588,12 @@ fn render_contract(s: &mut String, fp: &FixedProgram, pr: &Precision) {
         c.event_time_s * p.sample_rate_hz,
         c.event_arg_rel * 100.0
     );
+    let _ = writeln!(
+        s,
+        "  switches: where the runs are in different discrete states (a mode, an `on` edge, a body's or an `if … else`'s condition) they agree again within {} ms ({:.0} samples), and for that long the force of each is within the force bound plus the f64 force's own one-sample change there of the other's at some sample within it; the per-sample force clause elsewhere",
+        c.switch_time_s * 1e3,
+        (c.switch_time_s * p.sample_rate_hz).ceil()
+    );
     for e in &c.events {
         let d = &p.events[e.event.index()];
         let args: Vec<String> = e

@@ -798,9 +798,18 @@ pub(crate) fn assemble(buf: &CodeBuffer, exclusive: &[(u32, u32)]) -> Result<Cod
     let a = buf
         .finish(0)
         .map_err(|e| ThumbError::Encoding(e.to_string()))?;
+    // A select arm's facts only where the arm has code of its own: its end mark apart from
+    // its start (an empty arm's start is the join after it).
+    let at = |m: &u32| -> Option<usize> {
+        let start = *a.marks.get(m)?;
+        match crate::fixed::flow::arm_end(*m) {
+            Some(end) if a.marks.get(&end).is_none_or(|&e| e == start) => None,
+            _ => Some(start),
+        }
+    };
     let exclusive = exclusive
         .iter()
-        .filter_map(|(x, y)| Some((*a.marks.get(x)?, *a.marks.get(y)?)))
+        .filter_map(|(x, y)| Some((at(x)?, at(y)?)))
         .collect();
     Ok(Code {
         text: a.text,
