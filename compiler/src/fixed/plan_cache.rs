@@ -1,7 +1,7 @@
 //! The on-disk cache of the planner's simulated search
 //! (`FixedProgram::spend_by_simulation`): the product forms it chose for a program, so that
 //! the next process planning the same program (every `tactus play`, `budget` or `build` of a
-//! piano) reads them instead of simulating again (≈ 15 CPU-s for the piano in a debug
+//! piano) reads them instead of simulating again (≈ 26 CPU-s for the piano in a debug
 //! build, ≈ 3 × that for grand88's shared program).
 //!
 //! **Key.** SHA3-256 of the planner's inputs (the plan configuration and the whole IR
@@ -23,7 +23,9 @@
 //! side) that ask for the same program wait for the one search that runs instead of each
 //! running it: a per-process slot per key, and across processes an exclusive `flock` on the
 //! entry's `.lock` file (released by the kernel when its process ends, so a crashed search
-//! never blocks another). Without a cache directory only the per-process slot applies.
+//! never blocks another). The empty `.lock` files stay: one removed while another process waits
+//! on it would let a third process lock a new file and search at the same time. Without a
+//! cache directory only the per-process slot applies.
 
 use super::{Cut, MulKind};
 use sha3::{Digest, Sha3_256};
