@@ -678,8 +678,8 @@ const STATIC_CEILING: &[(&str, u64)] = &[
     ("hammond", 242),
     ("harpsichord", 294),
     ("harpsichord_2x8", 470),
-    ("plucked_string", 1864),
-    ("rubbed_bank", 5911),
+    ("plucked_string", 1861),
+    ("rubbed_bank", 5909),
 ];
 
 #[test]
