@@ -136,7 +136,10 @@ mod tests {
     }
 
     fn def(v: u32) -> M {
-        M::Movi { d: V(v), imm: 1 << 20 }
+        M::Movi {
+            d: V(v),
+            imm: 1 << 20,
+        }
     }
 
     /// A load right after the store of its word reads the stored register (the last
@@ -148,7 +151,14 @@ mod tests {
         let mut code = vec![def(3), store(3, 16), load(4, 8), load(5, 16), cmp(5)];
         forward(&mut code, 8);
         assert_eq!(code, vec![def(3), store(3, 16), load(4, 8), cmp(3)]);
-        let mut code = vec![def(3), def(6), store(3, 16), store(6, 16), load(5, 16), cmp(5)];
+        let mut code = vec![
+            def(3),
+            def(6),
+            store(3, 16),
+            store(6, 16),
+            load(5, 16),
+            cmp(5),
+        ];
         forward(&mut code, 8);
         assert_eq!(code[4..], [cmp(6)]);
         let mut code = vec![load(3, 16), cmp(3), load(5, 16), cmp(5)];
@@ -173,7 +183,12 @@ mod tests {
             assert_eq!(code[2], load(5, 16), "{between:?}");
         }
         // A register defined twice (the arms of a diamond) is copied, not renamed.
-        let mut code = vec![load(3, 16), load(5, 16), cmp(5), M::Movi { d: V(5), imm: 1 }];
+        let mut code = vec![
+            load(3, 16),
+            load(5, 16),
+            cmp(5),
+            M::Movi { d: V(5), imm: 1 },
+        ];
         forward(&mut code, 8);
         assert_eq!(code[1], M::Mov { d: V(5), s: V(3) });
     }
