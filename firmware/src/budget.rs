@@ -189,7 +189,7 @@ fn long_branch_sites(text: &[u8], off: usize, size: usize) -> Vec<usize> {
 /// Most distinct blocks of the backend's exclusion facts used (2^n subsets are
 /// enumerated); facts about further blocks are left out (the bound stays sound, only
 /// looser).
-pub const MAX_FACT_BLOCKS: usize = 16;
+pub const MAX_FACT_BLOCKS: usize = 20;
 
 /// The backend's flow facts (`Code::exclusive`: pairs of `if` bodies no call runs both of)
 /// applied: for every maximal set of fact blocks that may run together, the analysis with

@@ -677,7 +677,7 @@ const STATIC_CEILING: &[(&str, u64)] = &[
     ("grand_piano", 920),
     ("hammond", 242),
     ("harpsichord", 294),
-    ("harpsichord_2x8", 470),
+    ("harpsichord_2x8", 453),
     ("plucked_string", 1861),
     ("rubbed_bank", 5909),
 ];
