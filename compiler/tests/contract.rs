@@ -521,6 +521,34 @@ fn the_planner_simulates_the_layouts_own_keys() {
     }
 }
 
+/// The error analysis proves the piano's per-sample force within the contract's 1 DAC LSB
+/// (given exact states, as `--report precision` states it): the contact stiffness and damping
+/// are selects of two constants (`k_jack`/`k_rep`, `b_jack`/`b_rep`) whose words the 32×16
+/// products cut to 16 bits exactly, so the contact term's bound is its products' floors and
+/// roundings (`report::analyse`, known zero bits), not one LSB of the cut damping times the
+/// closing speed's whole range (0.11 N, 72.2 LSB, before).
+#[test]
+fn the_pianos_static_force_bound_is_within_one_lsb() {
+    let p = program("grand_piano");
+    let fp = FixedProgram::new(&p);
+    let pr = report::analyse(&fp);
+    let lsb = pr.dac_lsb_n();
+    let contact = p.forces.iter().position(|f| f.name == "contact").unwrap();
+    println!(
+        "contact {:.4e} N ({:.4} LSB), total {:.4e} N ({:.4} LSB)",
+        pr.force[contact],
+        pr.force[contact] / lsb,
+        pr.total,
+        pr.total / lsb
+    );
+    assert!(
+        pr.force[contact] / lsb < 0.05,
+        "contact bound {} LSB",
+        pr.force[contact] / lsb
+    );
+    assert!(pr.total / lsb < 1.0, "total bound {} LSB", pr.total / lsb);
+}
+
 /// The switch clause compares every branch decision of the planned program with the f64
 /// run's: each decision of the piano's planned update (contact, lever, back-check, rest
 /// felt, the let-off's mode and edges) has its partner in the lowered program, and the

@@ -76,7 +76,14 @@ enum Tri {
 /// piano's strike sets the hammer angle to the string's, so neither the back-check
 /// (`s <= s_check`) nor the rest felt (`s <= 0`) can follow it in the same sample.
 /// Comparisons count as decided only with a margin of 10⁻⁴ of the operands' magnitude, far
-/// above the fixed-point errors of the compared words.
+/// above the fixed-point errors of the compared words. Where the interval evaluation leaves
+/// `j` open, [`linear`] asks whether both conditions can hold at once, with the values'
+/// linear relations (after `xmax = x`, `x < xmax - slack` cannot).
+///
+/// Also pairs `(i, arm_mark(v, side))`: when `i`'s body runs, the top-level `select` `v`
+/// after it does not take that arm ([`arm_mark`]; a backend that branches on the select
+/// marks each arm's code). Example: the escapement's `hold` handler sets the mode that its
+/// output's first `if phase == hold` tests, so the output's costlier else-arm cannot follow.
 pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
     let p = &fp.program;
     let pos = def_positions(p);
@@ -98,7 +105,14 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
         if nothing && err.is_none() {
             continue;
         }
-        let src = err.as_ref().map(|_| linear::sources(p, i));
+        // What the states hold up to and through `i`'s body, for the linear facts.
+        let mut src = err.as_ref().map(|_| linear::Sources::new(p));
+        if let Some(src) = src.as_mut() {
+            for k in 0..=i {
+                src.before();
+                src.apply(&p.body[k], k == i, false);
+            }
+        }
         // What is known before each top-level statement: nothing up to `i` (a read there
         // saw the sample before `i`'s body), then what `i`'s body and the statements since
         // left. A read is evaluated with what was known where it was read, not at the later
@@ -106,28 +120,60 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
         let mut at: Vec<Known> = vec![Known::default(); i + 1];
         for k in i + 1..p.body.len() {
             at.push(known.clone());
-            if let Stmt::If(c, _) = &p.body[k] {
-                let ev = Eval {
-                    fp,
-                    pos: &pos,
-                    facts: &facts,
-                    at: &at,
-                };
-                let excluded = ev.tri(*c) == Tri::False
-                    || match (&err, &src) {
-                        (Some(err), Some(src)) => {
-                            let mut l = linear::Linear::new(fp, err, &ev, src);
-                            l.assume(*cond_i);
-                            l.assume(*c);
-                            l.infeasible()
-                        }
-                        _ => false,
-                    };
-                if excluded {
-                    out.push((i as u32, k as u32));
-                }
+            if let Some(src) = src.as_mut() {
+                src.before();
             }
-            known.apply(fp, std::slice::from_ref(&p.body[k]), true);
+            let ev = Eval {
+                fp,
+                pos: &pos,
+                facts: &facts,
+                at: &at,
+            };
+            // Whether `c` (negated: `not`) cannot hold in a sample that runs `i`'s body.
+            let never = |c: Value, not: bool| {
+                let t = ev.tri(c);
+                if t == if not { Tri::True } else { Tri::False } {
+                    return true;
+                }
+                let (Some(err), Some(src)) = (&err, &src) else {
+                    return false;
+                };
+                let mut l = linear::Linear::new(fp, err, &ev, &src.snap);
+                l.assume(*cond_i);
+                if not {
+                    if !l.assume_not(c) {
+                        return false;
+                    }
+                } else {
+                    l.assume(c);
+                }
+                l.infeasible()
+            };
+            // A body that cannot run with `i`'s changes nothing after it.
+            let mut skip = false;
+            match &p.body[k] {
+                Stmt::If(c, _) if never(*c, false) => {
+                    out.push((i as u32, k as u32));
+                    skip = true;
+                }
+                Stmt::Def(v) => {
+                    if let Op::Select(c, _, _) = p.values[v.index()].op {
+                        for side in [true, false] {
+                            match arm_mark(*v, side) {
+                                Some(m) if never(c, !side) => out.push((i as u32, m)),
+                                _ => {}
+                            }
+                        }
+                    }
+                }
+                _ => {}
+            }
+            if !skip {
+                known.apply(fp, std::slice::from_ref(&p.body[k]), true);
+            }
+            if let Some(src) = src.as_mut() {
+                src.apply(&p.body[k], false, skip);
+            }
             if err.is_none() && known.state.is_empty() && known.mode.is_empty() && facts.is_empty()
             {
                 break;
@@ -141,6 +187,27 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
 /// with the first reading, once after `init`): `FIRST_SAMPLE_MARK - h`, beside the top-level
 /// `if` indices of [`exclusions`].
 pub const FIRST_SAMPLE_MARK: u32 = u32::MAX;
+
+/// The first mark of the select arms ([`arm_mark`]), above every top-level index.
+pub const ARM_MARK: u32 = 1 << 30;
+
+/// The mark of the arm `side` (`true`: the value if the condition holds) of select `v`,
+/// beside the top-level `if` indices of [`exclusions`]: `ARM_MARK + 4·v + 2·side`, or `None`
+/// where the value index does not fit below [`FIRST_SAMPLE_MARK`]'s range. A backend marks
+/// the arm's first instruction with it and the arm's end with the next number
+/// ([`arm_end`]); an arm whose marks meet has no code of its own (its start is the join),
+/// and its facts must not be used.
+pub fn arm_mark(v: Value, side: bool) -> Option<u32> {
+    let m = (v.0 as u64) * 4 + 2 * side as u64 + ARM_MARK as u64;
+    (m + 1 < (FIRST_SAMPLE_MARK - (1 << 16)) as u64).then_some(m as u32)
+}
+
+/// The end mark of the arm whose start mark is `mark` (`Some` for an [`arm_mark`] only).
+pub fn arm_end(mark: u32) -> Option<u32> {
+    (ARM_MARK..FIRST_SAMPLE_MARK - (1 << 16))
+        .contains(&mark)
+        .then_some(mark | 1)
+}
 
 /// Top-level `if` statements (indices into the body) whose bodies cannot run in the first
 /// call after `init`: every state and mode holds its initial value when the call starts,
@@ -454,5 +521,52 @@ mod tests {
             "{first:?} of {k:?}"
         );
         assert!(!first.contains(&k[2]) && !first.contains(&k[3]) && !first.contains(&k[4]));
+    }
+
+    #[test]
+    fn a_state_stored_from_a_sensor_moves_with_it() {
+        // `m = x` then `x < m - 0.03 mm` is false whatever x is (intervals alone cannot
+        // see it: both sides span [0, 10 mm]); `x < m + 0.03 mm` can hold (x = m), and
+        // with `m` stored only maybe (a `while` before), the read is a word of its own.
+        let fp = fixed(
+            "instrument t {\n sensor x: m in [0 mm, 10 mm]\n state m = 0 mm in [0 mm, 10 mm]\n state a = 0 in [0, 1]\n while x > m { m = x }\n on x < m - 0.03 mm { a = 1 }\n on x < m + 0.03 mm { a = 0.5 }\n while x > 5 mm { a = 0.25 }\n force f = a * 1 N\n}\n",
+        );
+        let k = ifs(&fp);
+        assert_eq!(k.len(), 4);
+        let ex = exclusions(&fp);
+        assert!(ex.contains(&(k[0], k[1])), "{ex:?} of {k:?}");
+        assert!(!ex.contains(&(k[0], k[2])), "{ex:?} of {k:?}");
+        assert!(!ex.contains(&(k[0], k[3])), "{ex:?} of {k:?}");
+        // Whether (1, 2) may run together: `x < m − slack` and `x < m + slack` with the
+        // same m: yes.
+        assert!(!ex.contains(&(k[1], k[2])), "{ex:?} of {k:?}");
+    }
+
+    #[test]
+    fn a_clamped_store_is_its_value_off_the_range_ends() {
+        // The escapement's hold (m from a second sensor, in an `if` that may run): `h =
+        // 2250 N/m · (9.4 mm − m)` (clamped into [0, 5 N], live at both ends) is stored when `x > 9 mm` and `x < m − 0.03 mm`, so m > 9.03 mm and
+        // h < 0.83 N; `1125 N/m · (x − 8.2 mm) <= h` needs h ≥ 0.9 N: never both. With
+        // `x > 8.9 mm` instead, x = 8.91 mm, m = 8.95 mm gives h = 1.01 N ≥ 0.80 N: feasible,
+        // and not excluded.
+        let src = |lo: &str| {
+            format!(
+                "instrument t {{\n sensor x: m in [0 mm, 10 mm]\n state m = 0 mm in [0 mm, 20 mm]\n state h = 0 N in [0 N, 5 N]\n state a = 0 in [0, 1]\n sensor y: m in [0 mm, 20 mm]\n while y > 1 mm {{ m = y }}\n on x > {lo} and x < m - 0.03 mm {{ h = 2250 N/m * (9.4 mm - m) }}\n while 1125 N/m * (x - 8.2 mm) <= h {{ a = 1 }}\n force f = a * 1 N + h\n}}\n"
+            )
+        };
+        let fp = fixed(&src("9 mm"));
+        let k = ifs(&fp);
+        assert!(
+            exclusions(&fp).contains(&(k[1], k[2])),
+            "{:?}",
+            exclusions(&fp)
+        );
+        let fp = fixed(&src("8.9 mm"));
+        let k = ifs(&fp);
+        assert!(
+            !exclusions(&fp).contains(&(k[1], k[2])),
+            "{:?}",
+            exclusions(&fp)
+        );
     }
 }

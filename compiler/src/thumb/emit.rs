@@ -52,7 +52,8 @@ struct Lower<'a> {
     reads: HashMap<Held, Vec<usize>>,
     /// A low register other than the scratch registers that holds a spill slot's value
     /// (the register a slot was just stored from), until that register is written: a
-    /// reload is then a `MOV` (1 cycle) instead of an `LDR` (2).
+    /// read of the slot is then that register (no `LDR` from a stack home, 2 cycles, no
+    /// `MOV` from a high one, 1).
     copy: Option<(u8, u16)>,
     /// Scratch registers holding an operand of the instruction being lowered (a second
     /// spilled operand is reloaded into the other one).
@@ -92,11 +93,17 @@ enum Home {
 /// Spill slots get the high registers, most referenced first: `r12` (caller-saved, free),
 /// `LR` where [`Homes::lr`] allows (the prologue pushes it and the epilogue pops its word
 /// into PC, so the body may use it for free unless a long branch, a `BL`, writes it),
-/// then `r8`–`r11` (callee-saved: each costs two `MOV`s and a share of a `PUSH`/`POP` pair,
-/// about 4 cycles, so it is first taken only for a slot referenced at least this many
-/// times). Slots whose live spans are disjoint share a high register (a second linear
-/// scan, over the slots, most referenced first).
-const HI_MIN_REFS: u32 = 6;
+/// then `r8`–`r11`. Each high register in turn takes every slot it can (most referenced
+/// first, each disjoint in its live span from those it holds). A reference to a slot in a
+/// high register is a `MOV` (1 cycle) where a stack slot's is an `LDR`/`STR` (2); a
+/// callee-saved register costs its save and restore: two `MOV`s and a `PUSH`/`POP` of its
+/// own, about 6 cycles, for the first of a pair, two `MOV`s and a register more in the
+/// pair's `PUSH`/`POP`, about 4, for the second. So the first is taken only for slots with
+/// this many static references in all (the static count over-counts the worst path, which
+/// passes only some of them) …
+const HI_FIRST_REFS: u32 = 10;
+/// … and the second of a pair for this many.
+const HI_PAIR_REFS: u32 = 6;
 
 /// Which high registers spill slots may live in.
 #[derive(Clone, Copy, Debug, Default)]
@@ -121,42 +128,54 @@ fn homes(code: &[M], alloc: &Allocation, cfg: Homes) -> Vec<Home> {
             }
         }
     }
-    let mut order: Vec<usize> = (0..n).collect();
+    let mut order: Vec<usize> = (0..n).filter(|&s| refs[s] > 0).collect();
     order.sort_by_key(|&s| (std::cmp::Reverse(refs[s]), s));
     let mut home = vec![Home::Stack(0); n];
-    // The spans each high register holds (`r12` first; a callee-saved one is opened only
-    // for a slot with HI_MIN_REFS references, then shared by any disjoint slot).
-    let mut hi: Vec<(u8, Vec<(usize, usize)>)> = Vec::new();
     let closed: &[u8] = if cfg.lr {
         &[12, 14, 8, 9, 10, 11]
     } else {
         &[12, 8, 9, 10, 11]
     };
-    let mut next_stack = 0u16;
-    for s in order {
-        let span = alloc.slot_span[s];
-        let disjoint =
-            |spans: &[(usize, usize)]| spans.iter().all(|&(a, b)| b < span.0 || span.1 < a);
-        let h = if refs[s] == 0 {
-            None
-        } else if let Some((r, spans)) = hi.iter_mut().find(|(_, spans)| disjoint(spans)) {
-            spans.push(span);
-            Some(*r)
-        } else if let Some(&r) = closed.get(hi.len()) {
-            (matches!(r, 12 | 14) || refs[s] >= HI_MIN_REFS).then(|| {
-                hi.push((r, vec![span]));
-                r
-            })
-        } else {
-            None
-        };
-        home[s] = match h {
-            Some(r) => Home::Hi(r),
-            None => {
-                next_stack += 1;
-                Home::Stack(next_stack - 1)
+    let mut taken = vec![false; n];
+    // Each high register in turn takes the slots it can hold (most referenced first, each
+    // disjoint from those it holds already); a callee-saved one only when those slots are
+    // referenced at least HI_FIRST_REFS (HI_PAIR_REFS) times in all.
+    for &r in closed {
+        let mut spans: Vec<(usize, usize)> = Vec::new();
+        let mut mine = Vec::new();
+        for &s in &order {
+            let span = alloc.slot_span[s];
+            if !taken[s] && spans.iter().all(|&(a, b)| b < span.0 || span.1 < a) {
+                spans.push(span);
+                mine.push(s);
             }
+        }
+        let total: u32 = mine.iter().map(|&s| refs[s]).sum();
+        // Callee-saved registers are saved and restored in pairs: the second of a pair
+        // costs less than the first.
+        let opened = closed
+            .iter()
+            .filter(|&&h| (8..=11).contains(&h) && home.contains(&Home::Hi(h)))
+            .count();
+        let need = if opened % 2 == 1 {
+            HI_PAIR_REFS
+        } else {
+            HI_FIRST_REFS
         };
+        if mine.is_empty() || (!matches!(r, 12 | 14) && total < need) {
+            continue;
+        }
+        for s in mine {
+            taken[s] = true;
+            home[s] = Home::Hi(r);
+        }
+    }
+    let mut next_stack = 0u16;
+    for s in 0..n {
+        if !taken[s] {
+            home[s] = Home::Stack(next_stack);
+            next_stack += 1;
+        }
     }
     home
 }
@@ -229,13 +248,7 @@ impl Lower<'_> {
         self.pinned[k] = true;
         let r = self.alloc.scratch[k];
         match held {
-            Held::Remat(Remat::Const(imm)) => self.movi(r, imm),
-            Held::Remat(Remat::State(op, off)) => self.i(Instr::MemImm {
-                op,
-                rt: r,
-                rn: 7,
-                imm: off,
-            }),
+            Held::Remat(how) => self.remat(r, how),
             Held::Slot(s) => self.transfer_home(MemOp::Ldr, r, s),
         }
         self.holds[k] = Some(held);
@@ -261,14 +274,31 @@ impl Lower<'_> {
     /// and returns true — a two-address instruction's `MOV d, a` then needs no reload into a
     /// scratch register first.
     fn reload_into(&mut self, v: V, r: u8) -> bool {
-        let Loc::Slot(s) = self.loc(v) else {
-            return false;
-        };
-        if self.cached(s) {
-            return false;
+        match self.loc(v) {
+            Loc::Slot(s) if !self.cached(s) => {
+                self.transfer_home(MemOp::Ldr, r, s);
+                true
+            }
+            // A rematerialised word no scratch register holds: recomputed straight into `r`.
+            Loc::Remat(how) if !self.holds.contains(&Some(Held::Remat(how))) => {
+                self.remat(r, how);
+                true
+            }
+            _ => false,
         }
-        self.transfer_home(MemOp::Ldr, r, s);
-        true
+    }
+
+    /// Recomputes a rematerialised word into low register `r`.
+    fn remat(&mut self, r: u8, how: Remat) {
+        match how {
+            Remat::Const(imm) => self.movi(r, imm),
+            Remat::State(op, off) => self.i(Instr::MemImm {
+                op,
+                rt: r,
+                rn: 7,
+                imm: off,
+            }),
+        }
     }
 
     /// The register to write `v` into (when spilled: scratch 0, or scratch 1 if scratch 0
@@ -306,9 +336,9 @@ impl Lower<'_> {
         self.store_home(r, s);
         match self.alloc.scratch.iter().position(|&x| x == r) {
             Some(j) => self.holds[j] = Some(Held::Slot(s)),
-            // A stack home: a reload before `r` is written again copies it instead.
-            None if matches!(self.home[s as usize], Home::Stack(_)) => self.copy = Some((r, s)),
-            None => {}
+            // A reload before `r` is written again reads it there instead (no `LDR` from a
+            // stack home, no `MOV` from a high one).
+            None => self.copy = Some((r, s)),
         }
     }
 
@@ -798,9 +828,18 @@ pub(crate) fn assemble(buf: &CodeBuffer, exclusive: &[(u32, u32)]) -> Result<Cod
     let a = buf
         .finish(0)
         .map_err(|e| ThumbError::Encoding(e.to_string()))?;
+    // A select arm's facts only where the arm has code of its own: its end mark apart from
+    // its start (an empty arm's start is the join after it).
+    let at = |m: &u32| -> Option<usize> {
+        let start = *a.marks.get(m)?;
+        match crate::fixed::flow::arm_end(*m) {
+            Some(end) if a.marks.get(&end).is_none_or(|&e| e == start) => None,
+            _ => Some(start),
+        }
+    };
     let exclusive = exclusive
         .iter()
-        .filter_map(|(x, y)| Some((*a.marks.get(x)?, *a.marks.get(y)?)))
+        .filter_map(|(x, y)| Some((at(x)?, at(y)?)))
         .collect();
     Ok(Code {
         text: a.text,

@@ -93,30 +93,50 @@ pub(super) enum Source {
     Inside,
 }
 
-/// What each state holds before each top-level statement when the body of the top-level
-/// `if` at `sure` certainly runs (and any other `if` may or may not).
-pub(super) fn sources(p: &Program, sure: usize) -> Vec<Vec<Source>> {
-    let mut cur = vec![Source::Initial; p.states.len()];
-    let mut out = Vec::with_capacity(p.body.len());
-    let mut version = 0;
-    for (k, s) in p.body.iter().enumerate() {
-        out.push(cur.clone());
+/// What each state holds before each top-level statement (`snap`, filled in order by
+/// [`Sources::before`] and [`Sources::apply`]) in the scenario being examined.
+pub(super) struct Sources {
+    cur: Vec<Source>,
+    version: u32,
+    /// Per top-level statement so far, what each state holds before it.
+    pub(super) snap: Vec<Vec<Source>>,
+}
+
+impl Sources {
+    pub(super) fn new(p: &Program) -> Self {
+        Sources {
+            cur: vec![Source::Initial; p.states.len()],
+            version: 0,
+            snap: Vec::with_capacity(p.body.len()),
+        }
+    }
+
+    /// Records what holds before the next top-level statement.
+    pub(super) fn before(&mut self) {
+        self.snap.push(self.cur.clone());
+    }
+
+    /// The effect of top-level statement `s`: an `if` whose body certainly runs (`sure`),
+    /// cannot run (`skip`: nothing changes), or may run (what it writes is unknown).
+    pub(super) fn apply(&mut self, s: &Stmt, sure: bool, skip: bool) {
         match s {
-            Stmt::SetState(st, v) => cur[st.index()] = Source::Stored(*v),
-            Stmt::If(_, body) if k == sure => {
+            Stmt::SetState(st, v) => self.cur[st.index()] = Source::Stored(*v),
+            Stmt::If(..) if skip => {}
+            Stmt::If(_, body) if sure => {
                 for t in body {
                     match t {
-                        Stmt::SetState(st, v) => cur[st.index()] = Source::Stored(*v),
-                        Stmt::If(..) => forget(std::slice::from_ref(t), &mut cur, &mut version),
+                        Stmt::SetState(st, v) => self.cur[st.index()] = Source::Stored(*v),
+                        Stmt::If(..) => {
+                            forget(std::slice::from_ref(t), &mut self.cur, &mut self.version)
+                        }
                         _ => {}
                     }
                 }
             }
-            Stmt::If(..) => forget(std::slice::from_ref(s), &mut cur, &mut version),
+            Stmt::If(..) => forget(std::slice::from_ref(s), &mut self.cur, &mut self.version),
             _ => {}
         }
     }
-    out
 }
 
 /// Marks every state `stmts` may write (at any depth) unknown, each with a new version.
@@ -184,7 +204,7 @@ pub(super) struct Linear<'a, 'e> {
 
 impl<'a, 'e> Linear<'a, 'e> {
     /// `err`: [`super::super::report::local_errors`]; `ev`: the interval evaluation of the
-    /// same scenario (modes, select conditions); `src`: [`sources`] of the scenario.
+    /// same scenario (modes, select conditions); `src`: [`Sources::snap`] of the scenario.
     pub(super) fn new(
         fp: &'a FixedProgram,
         err: &'a [f64],
@@ -406,6 +426,30 @@ impl<'a, 'e> Linear<'a, 'e> {
                 _ => {}
             }
         }
+    }
+
+    /// Adds what `cond` being false says, where that is one comparison of real values
+    /// (`not (x < y)`: `x >= y`); returns whether it could.
+    pub(super) fn assume_not(&mut self, cond: Value) -> bool {
+        let p = &self.fp.program;
+        let Op::Cmp(o, x, y) = p.values[cond.index()].op else {
+            return false;
+        };
+        if !matches!(p.values[x.index()].ty, Ty::Real(_)) {
+            return false;
+        }
+        let m = self.margin(x, y);
+        if !m.is_finite() {
+            return false;
+        }
+        let (fx, fy) = (self.form(x, 0), self.form(y, 0));
+        match o {
+            // not (x < y), not (x <= y): x ≥ y (within the margin).
+            CmpOp::Lt | CmpOp::Le => self.cons.push(fx.add_scaled(&fy, -1.0).widen(m)),
+            CmpOp::Gt | CmpOp::Ge => self.cons.push(fy.add_scaled(&fx, -1.0).widen(m)),
+            CmpOp::Eq | CmpOp::Ne => return false,
+        }
+        true
     }
 
     /// How far apart the exact forms of `x` and `y` may be when their words compare the

@@ -633,6 +633,10 @@ impl<'a> Sel<'a> {
                 self.push(M::B(done));
                 self.push(M::Label(second));
             }
+            // Each arm's first block, for the flow facts (`fixed::flow::arm_mark`).
+            if let Some(m) = crate::fixed::flow::arm_mark(v, side) {
+                self.push(M::Mark(m));
+            }
             let members = self
                 .arms
                 .members
@@ -652,6 +656,9 @@ impl<'a> Sel<'a> {
             match self.konst.get(&w.v) {
                 Some(&imm) => self.push(M::Movi { d, imm }),
                 None => self.push(M::Mov { d, s: w.v }),
+            }
+            if let Some(m) = crate::fixed::flow::arm_mark(v, side) {
+                self.push(M::Mark(m + 1));
             }
             b = b.max(w.b);
         }
