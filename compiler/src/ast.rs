@@ -199,13 +199,14 @@ pub enum Decl {
     /// A clause of the instrument's accuracy contract (docs/language.md, "Tolerances"):
     /// `tolerance force [TERM] = EXPR` (newtons, or a plain number of DAC LSB),
     /// `tolerance output NAME = EXPR` (the output's unit),
-    /// `tolerance event NAME { time = EXPR, ARG = EXPR, … }` (seconds; a fraction per argument).
+    /// `tolerance event NAME { time = EXPR, ARG = EXPR, … }` (seconds; a fraction per argument),
+    /// `tolerance switch = EXPR` (seconds: the switch clause's window).
     Tolerance {
         /// What the clause bounds: `force`, `output` or the word before the event's name.
         kind: ToleranceKind,
         /// The force term, output or event named (none: the total force).
         name: Option<Name>,
-        /// The bound of a force or output clause.
+        /// The bound of a force, output or switch clause.
         value: Option<Expr>,
         /// The fields of an event clause.
         fields: Vec<(Name, Expr)>,
@@ -220,7 +221,8 @@ pub enum ToleranceKind {
     Force,
     /// `tolerance output …`
     Output,
-    /// `tolerance WORD NAME { … }`: `event` is the one word allowed (anything else is E0313).
+    /// `tolerance WORD NAME { … }` or `tolerance WORD = …`: `event` (with a name and fields)
+    /// and `switch` (with a value) are the words allowed (anything else is E0314).
     Word(Name),
 }
 

@@ -235,4 +235,9 @@ impl<'p> Instance<'p> {
     pub fn saturations(&self) -> &[u64] {
         &self.saturations
     }
+    /// Every value as the last sample left it (SI; truth values 0/1), indexed by
+    /// [`Value`]: a value defined in an `if` body that did not run keeps an older sample's.
+    pub fn values(&self) -> &[f64] {
+        &self.vals
+    }
 }

@@ -554,6 +554,12 @@ pub struct Contract {
     pub outputs: Vec<(OutputId, f64)>,
     /// Clauses on single events (`tolerance event NAME { time = …, ARG = … }`).
     pub events: Vec<EventTolerance>,
+    /// The switch clause's window, seconds (0.5 ms, the events' default; `tolerance switch =
+    /// …`): where the two runs are in different discrete states (a branch decision of the
+    /// update differs), they must agree again within it, and for this long after the
+    /// disagreement began the total force is held to the switch clause instead of the
+    /// per-sample one (`fixed::contract::ContractCheck::switches`).
+    pub switch_time_s: f64,
 }
 
 /// A bound on a force: LSBs of a 16-bit DAC at `full_scale` (the report's
@@ -614,6 +620,7 @@ impl Default for Contract {
             terms: Vec::new(),
             outputs: Vec::new(),
             events: Vec::new(),
+            switch_time_s: 0.5e-3,
         }
     }
 }
@@ -641,6 +648,7 @@ impl Contract {
                     args_rel: e.args_rel.iter().map(|&(i, t)| (i, t * factor)).collect(),
                 })
                 .collect(),
+            switch_time_s: self.switch_time_s * factor,
         }
     }
 

@@ -273,7 +273,7 @@ fn tolerance_lines_state_the_contract() {
     let text = std::fs::read_to_string(path).unwrap();
     let end = text.rfind('}').unwrap();
     let with = format!(
-        "{}    tolerance force = 2\n    tolerance force plectrum = 1 mN\n    tolerance event pluck {{ time = 1 ms, key_speed = 0.02 }}\n}}\n",
+        "{}    tolerance force = 2\n    tolerance force plectrum = 1 mN\n    tolerance event pluck {{ time = 1 ms, key_speed = 0.02 }}\n    tolerance switch = 0.25 ms\n}}\n",
         &text[..end]
     );
     let p = tactus_compiler::compile(&with, &Config::default())
@@ -288,6 +288,7 @@ fn tolerance_lines_state_the_contract() {
     assert_eq!(p.events[pluck].name, "pluck");
     assert!((c.time_of(pluck) - 1e-3).abs() < 1e-15);
     assert!((c.arg_rel_of(pluck, 0) - 0.02).abs() < 1e-15);
+    assert!((c.switch_time_s - 0.25e-3).abs() < 1e-15);
     // The unchanged clauses keep their defaults.
     assert_eq!(c.event_arg_rel, Contract::default().event_arg_rel);
     let fp = FixedProgram::new(&p);
@@ -518,4 +519,121 @@ fn the_planner_simulates_the_layouts_own_keys() {
         let r = product(&p.runtime_keys[k]) / product(&p.runtime_keys[0]);
         assert!((r - 1.0).abs() < 1e-9, "key {k}: {r}");
     }
+}
+
+/// The error analysis proves the piano's per-sample force within the contract's 1 DAC LSB
+/// (given exact states, as `--report precision` states it): the contact stiffness and damping
+/// are selects of two constants (`k_jack`/`k_rep`, `b_jack`/`b_rep`) whose words the 32×16
+/// products cut to 16 bits exactly, so the contact term's bound is its products' floors and
+/// roundings (`report::analyse`, known zero bits), not one LSB of the cut damping times the
+/// closing speed's whole range (0.11 N, 72.2 LSB, before).
+#[test]
+fn the_pianos_static_force_bound_is_within_one_lsb() {
+    let p = program("grand_piano");
+    let fp = FixedProgram::new(&p);
+    let pr = report::analyse(&fp);
+    let lsb = pr.dac_lsb_n();
+    let contact = p.forces.iter().position(|f| f.name == "contact").unwrap();
+    println!(
+        "contact {:.4e} N ({:.4} LSB), total {:.4e} N ({:.4} LSB)",
+        pr.force[contact],
+        pr.force[contact] / lsb,
+        pr.total,
+        pr.total / lsb
+    );
+    assert!(
+        pr.force[contact] / lsb < 0.05,
+        "contact bound {} LSB",
+        pr.force[contact] / lsb
+    );
+    assert!(pr.total / lsb < 1.0, "total bound {} LSB", pr.total / lsb);
+}
+
+/// The switch clause compares every branch decision of the planned program with the f64
+/// run's: each decision of the piano's planned update (contact, lever, back-check, rest
+/// felt, the let-off's mode and edges) has its partner in the lowered program, and the
+/// Heaviside contact `c > 0 m` is among them.
+#[test]
+fn every_decision_of_the_planned_program_is_compared() {
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments/grand_piano.tactus"),
+    )
+    .unwrap();
+    let p = program("grand_piano");
+    let fp = FixedProgram::new(&p);
+    let (a, b) = (contract::decisions(&p), contract::decisions(&fp.program));
+    let pairs = contract::matched_decisions(&a, &b);
+    println!(
+        "{} decisions lowered, {} planned, {} compared",
+        a.len(),
+        b.len(),
+        pairs.len()
+    );
+    let unmatched: Vec<String> = (0..b.len())
+        .filter(|j| !pairs.iter().any(|x| x.1 == *j))
+        .map(|j| b[j].describe(&fp.program))
+        .collect();
+    assert!(unmatched.is_empty(), "not compared: {unmatched:?}");
+    let contact = a
+        .iter()
+        .position(|d| {
+            d.kind == contract::DecisionKind::Select
+                && text[d.span.clone()].starts_with("if c > 0 m {")
+        })
+        .expect("the contact's Heaviside switch is a decision");
+    assert!(pairs.iter().any(|x| x.0 == contact));
+    assert!(a
+        .iter()
+        .any(|d| matches!(d.kind, contract::DecisionKind::Mode(..))));
+    assert!(a
+        .iter()
+        .any(|d| matches!(d.kind, contract::DecisionKind::Edge(..))));
+}
+
+/// A wrong plan at a switch is caught by the switch clause: the piano's plan with its
+/// hammer–key contact closing at 0.1 mm of compression instead of 0 (in the fixed program
+/// only) keeps its discrete state apart from f64's for longer than 0.5 ms — a switch lost
+/// or added — where the plan itself holds every clause.
+#[test]
+fn a_switch_moved_by_a_wrong_plan_breaks_the_switch_clause() {
+    use tactus_compiler::ir::{CmpOp, Op};
+    let p = program("grand_piano");
+    let fp = FixedProgram::new(&p);
+    let mut q = fp.clone();
+    let contact = q
+        .program
+        .values
+        .iter()
+        .find_map(|v| match v.op {
+            Op::Select(c, _, _) => match q.program.values[c.index()].op {
+                Op::Cmp(CmpOp::Gt, _, z) if q.program.const_value(z) == Some(0.0) => Some(z),
+                _ => None,
+            },
+            _ => None,
+        })
+        .expect("the contact `c > 0 m`");
+    q.program.values[contact.index()].op = Op::Const(1e-4);
+    let c = &p.contract;
+    let mut lost = 0;
+    for (stim, r) in contract::check_builtin(&p, &fp) {
+        assert!(
+            r.violations(c, p.sample_rate_hz).is_empty(),
+            "{stim}: {:?}",
+            r.violations(c, p.sample_rate_hz)
+        );
+    }
+    for (stim, r) in contract::check_builtin(&p, &q) {
+        let v = r.violations(c, p.sample_rate_hz);
+        println!(
+            "{stim}: {} switches, {} lost or added, worst {:.3} of its bound: {v:?}",
+            r.switch_count, r.switches_unresolved, r.switch_ratio
+        );
+        if v.iter().any(|x| x.contains("a switch lost or added")) {
+            lost += 1;
+        }
+    }
+    assert!(
+        lost > 0,
+        "no stimulus saw the moved contact as a lost switch"
+    );
 }

@@ -569,34 +569,14 @@ impl<'a, 'f> Translator<'a, 'f> {
                         let w = self.add(wa, wc);
                         self.rescale(w, fr)
                     }
-                    ArithOp::Mul => match fp.mul_kind[v.index()] {
-                        Some(MulKind::Muls(sa, sb)) => self.mul(a, fa, sa, c, fc, sb, fr),
-                        Some(MulKind::High(k)) => self.mul_high(a, fa, c, fc, k, fr),
-                        Some(MulKind::Mul32x16 { cut, b, k }) => {
-                            let ((a, fa), (c, fc)) = cut.kept_cut((a, fa), (c, fc));
-                            self.mul_32x16(a, fa, c, fc, b, k, fr)
-                        }
-                        _ => self.mul(a, fa, 0, c, fc, 0, fr),
-                    },
-                    ArithOp::Div => match (fp.recip[v.index()], fp.mul_kind[v.index()]) {
-                        (Some((r, f)), Some(MulKind::Muls(sa, sb))) => {
+                    ArithOp::Mul => self.product(fp.mul_kind[v.index()], (a, fa), (c, fc), fr),
+                    ArithOp::Div => match fp.recip[v.index()] {
+                        // A division by a constant: the product by its reciprocal word.
+                        Some((r, f)) => {
                             let r = self.iconst(r);
-                            self.mul(a, fa, sa, r, f, sb, fr)
+                            self.product(fp.mul_kind[v.index()], (a, fa), (r, f), fr)
                         }
-                        (Some((r, f)), Some(MulKind::High(k))) => {
-                            let r = self.iconst(r);
-                            self.mul_high(a, fa, r, f, k, fr)
-                        }
-                        (Some((r, f)), Some(MulKind::Mul32x16 { cut, b, k })) => {
-                            let r = self.iconst(r);
-                            let ((a, fa), (c, fc)) = cut.kept_cut((a, fa), (r, f));
-                            self.mul_32x16(a, fa, c, fc, b, k, fr)
-                        }
-                        (Some((r, f)), _) => {
-                            let r = self.iconst(r);
-                            self.mul(a, fa, 0, r, f, 0, fr)
-                        }
-                        (None, _) => {
+                        None => {
                             let b = fp.div_shift[v.index()].min(31);
                             let c = self.sshr(c, u32::from(b));
                             self.div(a, fa, c, fc - i32::from(b), fr)
@@ -834,6 +814,23 @@ impl<'a, 'f> Translator<'a, 'f> {
             narrow: None,
         };
         self.rescale(w, fr)
+    }
+
+    /// A product `x·y` (words with their fraction bits) into `fr` fraction bits in the form the
+    /// plan chose for it (`kind`: pre-shifted `MULS`, 32×16 with its cut operand, high word,
+    /// else exact): the one dispatch for a product and a product by a reciprocal, as
+    /// [`tactus_compiler::fixed::interp`] has it.
+    fn product(&mut self, kind: Option<MulKind>, x: (Word, i32), y: (Word, i32), fr: i32) -> Word {
+        let ((a, fa), (c, fc)) = (x, y);
+        match kind {
+            Some(MulKind::Muls(sa, sb)) => self.mul(a, fa, sa, c, fc, sb, fr),
+            Some(MulKind::High(k)) => self.mul_high(a, fa, c, fc, k, fr),
+            Some(MulKind::Mul32x16 { cut, b, k }) => {
+                let ((a, fa), (c, fc)) = cut.kept_cut(x, y);
+                self.mul_32x16(a, fa, c, fc, b, k, fr)
+            }
+            _ => self.mul(a, fa, 0, c, fc, 0, fr),
+        }
     }
 
     /// `fixed::mul_shifted` (`fixed::mul` when `sa = sb = 0`): operands floored by `sa`,

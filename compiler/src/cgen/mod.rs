@@ -224,6 +224,22 @@ fn upper(name: &str) -> String {
     s
 }
 
+/// A product `x·y` (C expressions with their fraction bits) into `fr` fraction bits in the
+/// form the plan chose for it (`kind`: pre-shifted `MULS`, 32×16 with its cut operand, high
+/// word, else exact): the one dispatch for a product and a product by a reciprocal, as the
+/// fixed interpreter has it.
+fn product(kind: Option<MulKind>, x: (String, i32), y: (String, i32), fr: i32) -> String {
+    match kind {
+        Some(MulKind::High(k)) => prim::mul_high(&x.0, x.1, &y.0, y.1, k, fr),
+        Some(MulKind::Mul32x16 { cut, b, k }) => {
+            let ((a, fa), (c, fc)) = cut.kept_cut(x, y);
+            prim::mul_32x16(&a, fa, &c, fc, b, k, fr)
+        }
+        Some(MulKind::Muls(sa, sb)) => prim::mul(&x.0, x.1, &y.0, y.1, fr, Some((sa, sb))),
+        _ => prim::mul(&x.0, x.1, &y.0, y.1, fr, None),
+    }
+}
+
 /// An `int32_t` literal (C has no negative literals; `-2147483648` is not an `int`).
 fn lit(x: i32) -> String {
     if x == i32::MIN {
@@ -950,39 +966,17 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
             Op::Arith(o, x, y) => match o {
                 ArithOp::Add => prim::add(&name(x), f(x), &name(y), f(y), fr, false),
                 ArithOp::Sub => prim::add(&name(x), f(x), &name(y), f(y), fr, true),
-                ArithOp::Mul => match fp.mul_kind[v.index()] {
-                    Some(MulKind::High(k)) => prim::mul_high(&name(x), f(x), &name(y), f(y), k, fr),
-                    Some(MulKind::Mul32x16 { cut, b, k }) => {
-                        let ((a, fa), (c, fc)) = cut.kept_cut((name(x), f(x)), (name(y), f(y)));
-                        prim::mul_32x16(&a, fa, &c, fc, b, k, fr)
-                    }
-                    Some(MulKind::Muls(a, b)) => {
-                        prim::mul(&name(x), f(x), &name(y), f(y), fr, Some((a, b)))
-                    }
-                    _ => prim::mul(&name(x), f(x), &name(y), f(y), fr, None),
-                },
-                ArithOp::Div => match (fp.recip[v.index()], fp.mul_kind[v.index()]) {
-                    (Some((r, fr_r)), kind) => {
-                        let prod = match kind {
-                            Some(MulKind::High(k)) => {
-                                prim::mul_high(&name(x), f(x), &lit(r), fr_r, k, fr)
-                            }
-                            Some(MulKind::Mul32x16 { cut, b, k }) => {
-                                let ((a, fa), (c, fc)) =
-                                    cut.kept_cut((name(x), f(x)), (lit(r), fr_r));
-                                prim::mul_32x16(&a, fa, &c, fc, b, k, fr)
-                            }
-                            Some(MulKind::Muls(a, b)) => {
-                                prim::mul(&name(x), f(x), &lit(r), fr_r, fr, Some((a, b)))
-                            }
-                            _ => prim::mul(&name(x), f(x), &lit(r), fr_r, fr, None),
-                        };
+                ArithOp::Mul => {
+                    product(fp.mul_kind[v.index()], (name(x), f(x)), (name(y), f(y)), fr)
+                }
+                ArithOp::Div => match fp.recip[v.index()] {
+                    Some((r, fr_r)) => {
+                        let prod =
+                            product(fp.mul_kind[v.index()], (name(x), f(x)), (lit(r), fr_r), fr);
                         // The divisor's word is not read: keep it used for the C compiler.
                         format!("((void){}, {})", name(y), prod)
                     }
-                    (None, _) => {
-                        prim::div(&name(x), f(x), &name(y), f(y), fp.div_shift[v.index()], fr)
-                    }
+                    None => prim::div(&name(x), f(x), &name(y), f(y), fp.div_shift[v.index()], fr),
                 },
             },
             Op::Cmp(o, x, y) => match (fp.exact_const(*x), fp.exact_const(*y)) {

@@ -85,11 +85,20 @@ static inline int64_t tx_mul_high(int32_t x, int32_t y, int k) {
 }
 
 /* x*(y >> b) in units of 2^k (0 <= k <= 16) from two 16x16 partial products, y cut to
-   ys = floor(y / 2^b): xh*ys*2^(16-k) + floor(xl*ys / 2^k). Exact in int64_t for any words
-   (|xh*ys| <= 2^46, 0 <= xl < 2^16); a planned program's ys is a 16-bit half. */
+   ys = floor(y / 2^b): xh*ys*2^(16-k) + floor(xl*ys / 2^k). A planned program's ys is a
+   signed 16-bit half: then both partial products fit an int32_t (|xh| <= 2^15,
+   0 <= xl < 2^16, |ys| <= 2^15) and are 32-bit multiplies (two MULS on a Cortex-M0+, no
+   64-bit multiply), floored in 32 bits; only their sum is formed in int64_t (a shift and an
+   add). A wider ys (other words) takes the same sum in int64_t products, exact for any words
+   (|xh*ys| <= 2^46). */
 static inline int64_t tx_mul_32x16(int32_t x, int32_t y, int b, int k) {
     int32_t xl = (int32_t)((uint32_t)x & 0xffffu), xh = (x - xl) / 65536;
-    int64_t ys = tx_floor_shr((int64_t)y, b);
+    int32_t ys = y < 0 ? ~(~y >> b) : y >> b, hi, lo;
+    if (ys >= -32768 && ys <= 32767) {
+        hi = xh * ys;
+        lo = xl * ys;
+        return (int64_t)hi * ((int64_t)1 << (16 - k)) + (lo < 0 ? ~(~lo >> k) : lo >> k);
+    }
     return (int64_t)xh * ys * ((int64_t)1 << (16 - k)) + tx_floor_shr((int64_t)xl * ys, k);
 }
 
@@ -269,8 +278,8 @@ pub fn mul_high(x: &str, fx: i32, y: &str, fy: i32, k: u8, fr: i32) -> String {
 }
 
 /// [`fx::mul_32x16`]: `x · (y >> b)` from two 16×16 partial products in units of `2^k`,
-/// rounded to `fr` (`y` is the cut operand; `tx_mul_32x16` computes the sum exactly in 64
-/// bits).
+/// rounded to `fr` (`y` is the cut operand; `tx_mul_32x16` multiplies in 32 bits when the
+/// cut word is a 16-bit half, as in every planned program, and sums exactly in 64 bits).
 ///
 /// [`fx::mul_32x16`]: tactus_runtime::fixed::mul_32x16
 pub fn mul_32x16(x: &str, fx: i32, y: &str, fy: i32, b: u8, k: u8, fr: i32) -> String {

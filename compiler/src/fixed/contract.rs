@@ -13,6 +13,23 @@
 //! terms, outputs and events. A run is recorded once ([`reference`]) and compared with as
 //! many plans as the planner's search needs ([`compare`]).
 
+mod switches;
+
+pub use switches::{Kind as DecisionKind, Site as Decision};
+
+/// Every branch decision of `p`'s update the switch clause compares, in body order, then
+/// the modes' variants ([`Decision`]).
+pub fn decisions(p: &Program) -> Vec<Decision> {
+    switches::sites(p)
+}
+
+/// The decisions of `a` and `b` (the lowered and the planned program) that are the same
+/// decision of the source, as (index in `a`, index in `b`): named by kind, source span and
+/// rank (see [`Decision`]).
+pub fn matched_decisions(a: &[Decision], b: &[Decision]) -> Vec<(usize, usize)> {
+    switches::matched(a, b)
+}
+
 use super::interp::FixedInstance;
 use super::{FixedProgram, ParamBlockError};
 use crate::interp::Instance;
@@ -28,8 +45,11 @@ pub struct ContractCheck {
     pub samples: usize,
     /// One DAC LSB in newtons (what force bounds in newtons are converted with).
     pub dac_lsb_n: f64,
-    /// Largest |total force difference|, in DAC LSB.
+    /// Largest |total force difference| at the samples the per-sample force clause holds
+    /// (every sample but those of a switch's window, [`ContractCheck::switches`]), DAC LSB.
     pub max_force_lsb: f64,
+    /// Largest |total force difference| at any sample, switch windows included, DAC LSB.
+    pub max_force_lsb_all: f64,
     /// Per clause of [`Contract::terms`]: the largest |term difference|, DAC LSB.
     pub term_lsb: Vec<f64>,
     /// Per clause of [`Contract::outputs`]: the largest |output difference|, SI.
@@ -59,10 +79,98 @@ pub struct ContractCheck {
     /// ([`ContractCheck::max_force_lsb`]) sees the whole step, this one the step's shift as
     /// the event clause sees an event's. Measured only by a full comparison (`stop` off).
     pub max_force_lsb_within_time: f64,
+    /// Samples where the two runs were in different discrete states.
+    pub switch_samples: usize,
+    /// How many times the runs fell into different discrete states (each the start of a
+    /// switch window).
+    pub switch_count: usize,
+    /// The switches, in order (at most [`MAX_SWITCHES_KEPT`]; the worst is always kept).
+    pub switches: Vec<Switch>,
+    /// The worst switch's force as a fraction of its bound ([`Switch::force_lsb`] over
+    /// [`Switch::bound_lsb`]; 0 without switches).
+    pub switch_ratio: f64,
+    /// Switches whose discrete states did not agree again within the window: a switch lost
+    /// or added.
+    pub switches_unresolved: usize,
+    /// Switches that started within a window's length of the previous one or in its
+    /// after-effect (chatter): the per-sample clause holds at their samples.
+    pub switch_chatter: usize,
     /// Samples where some fixed state lay outside its declared range.
     pub state_out_of_range: usize,
     /// Values that saturated (the range analysis claimed they cannot).
     pub overflowed: usize,
+}
+
+/// Most switches a [`ContractCheck`] keeps (a run of random sensor words can switch the
+/// piano's contact every few samples); the count is [`ContractCheck::switch_count`].
+pub const MAX_SWITCHES_KEPT: usize = 64;
+
+/// One switch window of the contract's switch clause: the two runs fell into different
+/// discrete states at `sample` (some branch decision of the update differed — a mode, an
+/// `on` handler's edge, a body's or an `if … else`'s condition such as a Heaviside
+/// contact), which is how a hybrid system's two simulations differ when one switches a
+/// sample after the other (H. Abbas, G. Fainekos et al., "Conformance testing as
+/// falsification for cyber-physical systems", ACM TECS 2014: (τ, ε)-closeness, a
+/// trajectory within ε of the other's values within τ of each time).
+///
+/// The clause, with τ the switch window ([`Contract::switch_time_s`], 0.5 ms) and ε the
+/// force tolerance plus the f64 force's own largest one-sample change near the switch:
+/// * the discrete states agree again within τ ([`Switch::resolved`]);
+/// * for τ from `sample` on, the state-driven part of each run's total force (the terms
+///   that read a state, mode or edge: the piano's contact, impact pulse and let-off; the
+///   other terms read only the sensor, whose words both runs share) lies within ε of the
+///   other run's at some sample within τ, and the rest differs by at most ε minus that
+///   distance at the same sample ([`Switch::force_lsb`] ≤ [`Switch::bound_lsb`]), instead
+///   of the per-sample clause;
+/// * after the window, until the per-sample clause holds again for a whole window's length
+///   (the switch's after-effect: the runs go on from states a sample apart — the piano's
+///   impact pulse, set at the landing a sample later, decays over milliseconds), each
+///   sample the per-sample clause breaks is held to the same (τ, ε) distance with ε the
+///   force tolerance alone: a time shift within τ and nothing more
+///   ([`Switch::after_lsb`]);
+/// * elsewhere the per-sample clause holds unchanged — also at a switch that starts within
+///   τ of the last window or in its after-effect ([`ContractCheck::switch_chatter`]): a
+///   contact chattering under sensor noise or arbitrary sensor words has no one switch time,
+///   and a window there would excuse what the per-sample clause must catch (the planner's
+///   runs of random sensor words are what refuse a product cut too far).
+///
+/// ε's second part is the reference's own discretisation uncertainty: the f64 run decides
+/// a switch at a sample, so its contact closes anywhere within a sample period before it,
+/// and the force right after the switch is uncertain by what the force changes in one
+/// sample there — for a contact spring `k·ċ·T` (stiffness × closing speed × sample
+/// period), which is what the largest one-sample change of the f64 force's state-driven
+/// part within τ of the window measures, counted only where the f64 run itself does not
+/// switch (a switch's own step is a time shift, which τ absorbs).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Switch {
+    /// The sample where the discrete states first differed.
+    pub sample: usize,
+    /// How many samples they differed before agreeing again (to the end of the run when
+    /// they never did).
+    pub samples: usize,
+    /// Whether they agreed again within the window.
+    pub resolved: bool,
+    /// The first decision that differed, in words ([`Decision::describe`]).
+    pub decision: String,
+    /// Over the window: the largest distance from either run's total force to the other
+    /// run's nearest total force within the window's length, DAC LSB.
+    pub force_lsb: f64,
+    /// The clause's bound there: the force tolerance plus [`Switch::slope_lsb`], DAC LSB.
+    pub bound_lsb: f64,
+    /// The f64 force's largest one-sample change within a window's length of the switch,
+    /// where the f64 run does not switch, DAC LSB.
+    pub slope_lsb: f64,
+    /// Over the window: the largest |total force difference| at one sample, DAC LSB (what
+    /// the per-sample clause would have seen).
+    pub strict_lsb: f64,
+    /// The after-effect: samples from the window's end to the last one the per-sample
+    /// clause breaks before it holds for a whole window's length again (0: none).
+    pub after_samples: usize,
+    /// Over the after-effect's samples the per-sample clause breaks: the largest (τ, ε)
+    /// distance as in the window (state-driven part to the other run's within τ, plus the
+    /// rest's difference at the sample), DAC LSB; the clause bounds it by the force
+    /// tolerance itself.
+    pub after_lsb: f64,
 }
 
 /// One clause's worst case against its bound, for the precision report: (clause, worst,
@@ -94,6 +202,18 @@ impl ContractCheck {
                 "SI",
             ));
         }
+        m.push((
+            "force at switches (of its bound)".into(),
+            self.switch_ratio,
+            1.0,
+            "",
+        ));
+        m.push((
+            "switches lost or added".into(),
+            self.switches_unresolved as f64,
+            0.0,
+            "",
+        ));
         m.push((
             "events lost or added".into(),
             self.unmatched as f64,
@@ -129,6 +249,56 @@ impl ContractCheck {
             v.push(format!(
                 "force differs by {:.3} DAC LSB (contract {})",
                 self.max_force_lsb, c.force
+            ));
+        }
+        let window = (c.switch_time_s * sample_rate_hz).ceil();
+        for w in self.switches.iter().filter(|w| !w.resolved) {
+            v.push(format!(
+                "a switch lost or added: the discrete states differ for {} samples from sample {} ({}), more than the switch tolerance {} ms ({window} samples)",
+                w.samples,
+                w.sample,
+                w.decision,
+                c.switch_time_s * 1e3
+            ));
+        }
+        if self.switches_unresolved > self.switches.iter().filter(|w| !w.resolved).count() {
+            v.push(format!(
+                "{} switch(es) lost or added in all",
+                self.switches_unresolved
+            ));
+        }
+        if let Some(w) = self
+            .switches
+            .iter()
+            .filter(|w| w.force_lsb > w.bound_lsb)
+            .max_by(|a, b| (a.force_lsb / a.bound_lsb).total_cmp(&(b.force_lsb / b.bound_lsb)))
+        {
+            v.push(format!(
+                "at a switch at sample {} ({}; states apart {} samples) the force is {:.3} DAC LSB from the f64 force within {} ms, bound {:.3} (contract {} + the f64 force's own one-sample change there, {:.3})",
+                w.sample,
+                w.decision,
+                w.samples,
+                w.force_lsb,
+                c.switch_time_s * 1e3,
+                w.bound_lsb,
+                c.force,
+                w.slope_lsb
+            ));
+        }
+        if let Some(w) = self
+            .switches
+            .iter()
+            .filter(|w| w.after_lsb > c.force.lsb(lsb))
+            .max_by(|a, b| a.after_lsb.total_cmp(&b.after_lsb))
+        {
+            v.push(format!(
+                "after a switch at sample {} ({}) the force is {:.3} DAC LSB from the f64 force within {} ms over its after-effect of {} samples (contract {})",
+                w.sample,
+                w.decision,
+                w.after_lsb,
+                c.switch_time_s * 1e3,
+                w.after_samples,
+                c.force
             ));
         }
         for ((f, b), w) in c.terms.iter().zip(&self.term_lsb) {
@@ -197,6 +367,14 @@ pub struct ReferenceRun {
     /// The run-time params' values (SI, [`Program::runtime_params`] order) this run used;
     /// empty for the params' own values.
     params: Vec<f64>,
+    /// The discrete state of each sample: [`switches::words`] words per sample, bit `i` for
+    /// decision `i` of [`switches::sites`] of the program.
+    sig: Vec<u64>,
+    /// Words per sample of `sig`.
+    sig_words: usize,
+    /// The state-driven part of the f64 total force of each sample, newtons: the sum of the
+    /// terms [`switches::state_driven_terms`] marks (the rest reads only sensors).
+    driven: Vec<f64>,
 }
 
 impl ReferenceRun {
@@ -259,6 +437,17 @@ pub fn reference_raw(
     Ok(record(p, fp, raw, params))
 }
 
+/// The state-driven force terms of `p` that its total sums (a pen's `z` axis, a keyboard's
+/// every term), as indices.
+fn total_terms(p: &Program) -> Vec<usize> {
+    switches::state_driven_terms(p)
+        .into_iter()
+        .enumerate()
+        .filter(|&(i, d)| d && matches!(p.forces[i].axis, None | Some(crate::ir::Axis::Z)))
+        .map(|(i, _)| i)
+        .collect()
+}
+
 /// [`reference_raw`] once `params` is known to fit `fp`.
 fn record(p: &Program, fp: &FixedProgram, raw: &[i32], params: &[f64]) -> ReferenceRun {
     let mut q;
@@ -275,6 +464,8 @@ fn record(p: &Program, fp: &FixedProgram, raw: &[i32], params: &[f64]) -> Refere
     let c = &p.contract;
     let mut a = Instance::new(prog);
     let n = raw.len();
+    let sites = switches::sites(prog);
+    let sig_words = switches::words(sites.len());
     let mut run = ReferenceRun {
         raw: Vec::with_capacity(n),
         total: Vec::with_capacity(n),
@@ -282,12 +473,18 @@ fn record(p: &Program, fp: &FixedProgram, raw: &[i32], params: &[f64]) -> Refere
         outputs: vec![Vec::with_capacity(n); c.outputs.len()],
         events: Vec::new(),
         params: params.to_vec(),
+        sig: vec![0; n * sig_words],
+        sig_words,
+        driven: Vec::with_capacity(n),
     };
+    let driven = total_terms(prog);
     let (lo, hi) = fp.sensor_raw_range[0];
     for (n, &w) in raw.iter().enumerate() {
         let oa = a.step(&[fx::to_f64(w.clamp(lo, hi), fp.sensor_frac[0])]);
         run.raw.push(w);
         run.total.push(oa.total);
+        run.driven
+            .push(driven.iter().map(|f| oa.forces[*f]).sum::<f64>());
         for (t, (f, _)) in run.terms.iter_mut().zip(&c.terms) {
             t.push(oa.forces[f.index()]);
         }
@@ -296,6 +493,13 @@ fn record(p: &Program, fp: &FixedProgram, raw: &[i32], params: &[f64]) -> Refere
         }
         run.events
             .extend(oa.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
+        let vals = a.values();
+        switches::signature(
+            &sites,
+            |v| vals[v.index()] != 0.0,
+            a.modes(),
+            &mut run.sig[n * sig_words..(n + 1) * sig_words],
+        );
     }
     run
 }
@@ -342,16 +546,39 @@ fn compare_block(
     let force_limit = c.force.lsb(dac_lsb_n);
     let mut ev_b: Vec<(usize, usize, Vec<f64>)> = Vec::new();
     let mut ran = run.raw.len();
-    let mut fixed_total: Vec<f64> = Vec::with_capacity(if stop { 0 } else { run.raw.len() });
+    let mut fixed_total: Vec<f64> = Vec::with_capacity(run.raw.len());
+    let mut fixed_driven: Vec<f64> = Vec::with_capacity(run.raw.len());
+    let driven = total_terms(p);
+    // The switch clause: the decisions both programs have, the fixed run's signature, the
+    // open disagreement (its first sample) and the end of the last switch window.
+    let sites_a = switches::sites(p);
+    let sites_b = switches::sites(&fp.program);
+    let pairs = switches::matched(&sites_a, &sites_b);
+    let mut sig_b = vec![0u64; switches::words(sites_b.len())];
+    let window = (c.switch_time_s * p.sample_rate_hz).ceil() as usize;
+    let mut open: Option<usize> = None;
+    let mut windows: Vec<(usize, usize, Option<usize>, bool)> = Vec::new();
+    let mut cover_end = 0;
+    // After a window, the samples the per-sample clause breaks until it holds for a whole
+    // window's length (the switch's after-effect), per window.
+    let mut after: Vec<Vec<usize>> = Vec::new();
+    let mut agreeing = window;
+    let mut last_window: Option<usize> = None;
+    let mut chattered: Vec<bool> = Vec::new();
     for (n, (&raw, &total)) in run.raw.iter().zip(&run.total).enumerate() {
         let ob = b.step_raw(&[raw]);
         out.samples += 1;
         let ft = fx::to_f64(ob.total, fp.total_frac);
-        out.max_force_lsb = out.max_force_lsb.max((total - ft).abs() / dac_lsb_n);
-        if !stop {
-            fixed_total.push(ft);
-        }
-        let mut broken = out.max_force_lsb > force_limit;
+        let diff = (total - ft).abs() / dac_lsb_n;
+        out.max_force_lsb_all = out.max_force_lsb_all.max(diff);
+        fixed_total.push(ft);
+        fixed_driven.push(
+            driven
+                .iter()
+                .map(|&i| fx::to_f64(ob.forces[i], fp.force_frac[i]))
+                .sum::<f64>(),
+        );
+        let mut broken = false;
         for (k, ((f, bound), series)) in c.terms.iter().zip(&run.terms).enumerate() {
             let i = f.index();
             let x = fx::to_f64(ob.forces[i], fp.force_frac[i]);
@@ -375,6 +602,63 @@ fn compare_block(
                 .collect();
             ev_b.push((n, e.index(), si));
         }
+        // The discrete states of this sample.
+        let vals = b.values();
+        switches::signature(&sites_b, |v| vals[v.index()] != 0, b.modes(), &mut sig_b);
+        let sa = &run.sig[n * run.sig_words..(n + 1) * run.sig_words];
+        let differ = pairs
+            .iter()
+            .find(|&&(i, j)| switches::bit(sa, i) != switches::bit(&sig_b, j));
+        match (differ, open) {
+            (Some(&(i, _)), None) => {
+                open = Some(windows.len());
+                windows.push((n, i, None, false));
+                after.push(Vec::new());
+                out.switch_count += 1;
+                // An isolated switch gets its window; one that starts within a window's
+                // length of the last window, or in its after-effect, is chatter (a contact
+                // bouncing under sensor noise or arbitrary words has no one switch time):
+                // the per-sample clause holds there.
+                let chatter = last_window.is_some_and(|e| n < e + window) || agreeing < window;
+                chattered.push(chatter);
+                if chatter {
+                    agreeing = window;
+                    out.switch_chatter += 1;
+                } else {
+                    cover_end = n + window;
+                    agreeing = 0;
+                }
+                last_window = Some(n + window);
+            }
+            (None, Some(w)) => {
+                windows[w].2 = Some(n - windows[w].0);
+                open = None;
+            }
+            _ => {}
+        }
+        if differ.is_some() {
+            out.switch_samples += 1;
+        }
+        if let Some(w) = open {
+            // Still apart when the window closes: a switch lost or added.
+            if n + 1 - windows[w].0 > window && !windows[w].3 {
+                windows[w].3 = true;
+                out.switches_unresolved += 1;
+                broken = true;
+            }
+        }
+        // The per-sample force clause, outside the switch windows and their after-effects.
+        if n >= cover_end {
+            if agreeing >= window {
+                out.max_force_lsb = out.max_force_lsb.max(diff);
+                broken |= diff > force_limit;
+            } else if diff > force_limit {
+                agreeing = 0;
+                after.last_mut().expect("a window").push(n);
+            } else {
+                agreeing += 1;
+            }
+        }
         let outside = b.states().iter().enumerate().any(|(i, &w)| {
             let x = fx::to_f64(w, fp.state_frac[i]);
             let (lo, hi) = fp.program.states[i].range;
@@ -384,6 +668,58 @@ fn compare_block(
         if stop && (broken || outside) {
             ran = n + 1;
             break;
+        }
+    }
+    // The switch windows' force clause, now that both runs are known around them.
+    for (((start, site, len, unresolved), after), chatter) in
+        windows.into_iter().zip(after).zip(chattered)
+    {
+        let mut s = switch_window(
+            run,
+            (&fixed_total, &fixed_driven),
+            start,
+            window,
+            force_limit * dac_lsb_n,
+            dac_lsb_n,
+        );
+        if chatter {
+            // The per-sample clause measured its samples.
+            s.force_lsb = 0.0;
+        }
+        // The after-effect: each sample within the force tolerance of a time shift.
+        let near = |x: f64, other: &[f64], n: usize| {
+            other[n.saturating_sub(window)..(n + window + 1).min(other.len())]
+                .iter()
+                .map(|&y| (x - y).abs())
+                .fold(f64::INFINITY, f64::min)
+        };
+        let after_lsb = after
+            .iter()
+            .map(|&n| {
+                let q = ((run.total[n] - run.driven[n]) - (fixed_total[n] - fixed_driven[n])).abs();
+                near(fixed_driven[n], &run.driven, n).max(near(run.driven[n], &fixed_driven, n)) + q
+            })
+            .fold(0.0, f64::max)
+            / dac_lsb_n;
+        let s = Switch {
+            after_samples: after.last().map_or(0, |&l| l + 1 - (start + window)),
+            after_lsb,
+            ..s
+        };
+        let ratio = (s.force_lsb / s.bound_lsb).max(s.after_lsb / force_limit);
+        let w = Switch {
+            samples: len.unwrap_or(ran - start),
+            resolved: !unresolved,
+            decision: sites_a[site].describe(p),
+            ..s
+        };
+        let worst = ratio > out.switch_ratio;
+        out.switch_ratio = out.switch_ratio.max(ratio);
+        if out.switches.len() < MAX_SWITCHES_KEPT {
+            out.switches.push(w);
+        } else if worst || unresolved {
+            // Keep the worst (and the lost ones) in place of the last kept.
+            *out.switches.last_mut().expect("kept") = w;
         }
     }
     if !stop {
@@ -423,6 +759,54 @@ fn compare_block(
     }
     out.unmatched += used.iter().filter(|u| !**u).count();
     out
+}
+
+/// The force figures of the switch window of `window` samples from `start` ([`Switch`]),
+/// DAC LSB of `lsb` newtons, from the f64 run and the fixed run's (total, state-driven
+/// part) per sample (newtons). Each total is split into its state-driven part `S` (the
+/// terms a switch moves) and the rest `Q` (terms of sensors only, which both runs compute
+/// from the same words at the same sample): at each sample of the window the distance is
+/// the (τ, ε) distance of either run's `S` to the other's nearest `S` within `window`
+/// samples, plus `|ΔQ|` at that sample. The bound is `tol_n` plus the f64 run's largest
+/// one-sample change of `S` within `window` samples of the window where its discrete state
+/// does not change. `decision`, `samples` and `resolved` are left to the caller.
+fn switch_window(
+    run: &ReferenceRun,
+    (fixed, fixed_s): (&[f64], &[f64]),
+    start: usize,
+    window: usize,
+    tol_n: f64,
+    lsb: f64,
+) -> Switch {
+    let sa = &run.driven;
+    let end = (start + window).min(fixed.len());
+    let near = |x: f64, other: &[f64], n: usize| {
+        other[n.saturating_sub(window)..(n + window + 1).min(other.len())]
+            .iter()
+            .map(|&y| (x - y).abs())
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (mut force, mut strict) = (0.0f64, 0.0f64);
+    for n in start..end {
+        let q = ((run.total[n] - sa[n]) - (fixed[n] - fixed_s[n])).abs();
+        let d = near(fixed_s[n], sa, n).max(near(sa[n], fixed_s, n)) + q;
+        force = force.max(d);
+        strict = strict.max((run.total[n] - fixed[n]).abs());
+    }
+    let w = run.sig_words;
+    let same = |m: usize| run.sig[(m - 1) * w..m * w] == run.sig[m * w..(m + 1) * w];
+    let slope = (start.saturating_sub(window).max(1)..(start + 2 * window + 1).min(sa.len()))
+        .filter(|&m| same(m))
+        .map(|m| (sa[m] - sa[m - 1]).abs())
+        .fold(0.0, f64::max);
+    Switch {
+        sample: start,
+        force_lsb: force / lsb,
+        bound_lsb: (tol_n + slope) / lsb,
+        slope_lsb: slope / lsb,
+        strict_lsb: strict / lsb,
+        ..Switch::default()
+    }
 }
 
 /// The largest distance from a sample of `a` to the nearest sample of `b` at most `window`

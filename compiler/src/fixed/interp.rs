@@ -206,28 +206,11 @@ impl<'f> FixedInstance<'f> {
                 match o {
                     ArithOp::Add => fx::add(a, fa, c, fc, fr),
                     ArithOp::Sub => fx::sub(a, fa, c, fc, fr),
-                    ArithOp::Mul => match fp.mul_kind[v.index()] {
-                        Some(super::MulKind::Muls(sa, sb)) => {
-                            fx::mul_shifted(a, fa, sa, c, fc, sb, fr)
-                        }
-                        Some(super::MulKind::High(k)) => fx::mul_high(a, fa, c, fc, k, fr),
-                        Some(super::MulKind::Mul32x16 { cut, b, k }) => {
-                            mul_32x16(cut, (a, fa), (c, fc), b, k, fr)
-                        }
-                        _ => fx::mul(a, fa, c, fc, fr),
-                    },
-                    ArithOp::Div => match (fp.recip[v.index()], fp.mul_kind[v.index()]) {
-                        (Some((r, f)), Some(super::MulKind::Muls(sa, sb))) => {
-                            fx::mul_shifted(a, fa, sa, r, f, sb, fr)
-                        }
-                        (Some((r, f)), Some(super::MulKind::High(k))) => {
-                            fx::mul_high(a, fa, r, f, k, fr)
-                        }
-                        (Some((r, f)), Some(super::MulKind::Mul32x16 { cut, b, k })) => {
-                            mul_32x16(cut, (a, fa), (r, f), b, k, fr)
-                        }
-                        (Some((r, f)), _) => fx::mul(a, fa, r, f, fr),
-                        (None, _) => fx::div_shifted(a, fa, c, fc, fp.div_shift[v.index()], fr),
+                    ArithOp::Mul => product(fp.mul_kind[v.index()], (a, fa), (c, fc), fr),
+                    ArithOp::Div => match fp.recip[v.index()] {
+                        // A division by a constant: the product by its reciprocal word.
+                        Some(r) => product(fp.mul_kind[v.index()], (a, fa), r, fr),
+                        None => fx::div_shifted(a, fa, c, fc, fp.div_shift[v.index()], fr),
                     },
                 }
             }
@@ -313,6 +296,11 @@ impl<'f> FixedInstance<'f> {
     pub fn saturations(&self) -> &[u64] {
         &self.saturations
     }
+    /// Every value's raw word as the last sample left it (truth values 0/1), indexed by
+    /// [`Value`]: a value defined in an `if` body that did not run keeps an older sample's.
+    pub fn values(&self) -> &[i32] {
+        &self.vals
+    }
 }
 
 impl RawOut {
@@ -349,9 +337,20 @@ impl RawOut {
     }
 }
 
-/// [`fx::mul_32x16`] of operands `x`, `y` (word, fraction bits) in operand order, the `cut`
-/// one cut to 16 bits.
-fn mul_32x16(cut: super::Cut, x: (i32, i32), y: (i32, i32), b: u8, k: u8, fr: i32) -> fx::Sat {
-    let ((a, fa), (c, fc)) = cut.kept_cut(x, y);
-    fx::mul_32x16(a, fa, c, fc, b, k, fr)
+/// A product `x·y` (words with their fraction bits, in operand order) into `fr` fraction
+/// bits in the form the plan chose for it (`kind`): [`fx::mul_shifted`] for a pre-shifted
+/// `MULS`, [`fx::mul_32x16`] with the `cut` operand cut to 16 bits, [`fx::mul_high`], else
+/// the exact [`fx::mul`]. The one dispatch for a product and a product by a reciprocal; the
+/// JIT and the C output have one each, tested bit for bit against this one.
+fn product(kind: Option<super::MulKind>, x: (i32, i32), y: (i32, i32), fr: i32) -> fx::Sat {
+    let ((a, fa), (c, fc)) = (x, y);
+    match kind {
+        Some(super::MulKind::Muls(sa, sb)) => fx::mul_shifted(a, fa, sa, c, fc, sb, fr),
+        Some(super::MulKind::High(k)) => fx::mul_high(a, fa, c, fc, k, fr),
+        Some(super::MulKind::Mul32x16 { cut, b, k }) => {
+            let ((a, fa), (c, fc)) = cut.kept_cut(x, y);
+            fx::mul_32x16(a, fa, c, fc, b, k, fr)
+        }
+        _ => fx::mul(a, fa, c, fc, fr),
+    }
 }

@@ -19,6 +19,7 @@ pub mod plan_cache;
 pub mod range;
 pub mod recip;
 pub mod report;
+mod workers;
 
 use crate::diagnostics::Diagnostic;
 use crate::ir::*;
@@ -328,15 +329,6 @@ pub const SEARCH_PASSES: usize = 2;
 /// Programs with more IR values than this are not simulated by the planner (a rubbed bank
 /// or a bowed string: a simulation of the built-in stimuli would take minutes).
 pub const MAX_SIMULATED_VALUES: usize = 1500;
-
-/// Plans already searched by simulation in this process, by program.
-fn simulation_cache(
-) -> &'static std::sync::Mutex<std::collections::HashMap<String, Vec<Option<MulKind>>>> {
-    static CACHE: std::sync::OnceLock<
-        std::sync::Mutex<std::collections::HashMap<String, Vec<Option<MulKind>>>>,
-    > = std::sync::OnceLock::new();
-    CACHE.get_or_init(Default::default)
-}
 
 /// Work (candidate products × IR values) up to which the precision budget is spent one
 /// product at a time, one error analysis each (every shipped keyboard instrument, the bank
@@ -1113,7 +1105,9 @@ impl FixedProgram {
     /// stops at its first broken sample, and the stimulus that failed is tried first next
     /// time. Only keyboard programs (one sensor) of at most [`MAX_SIMULATED_VALUES`] values
     /// are simulated. Results are kept per process and on disk ([`plan_cache`]: the same
-    /// program planned again by the same compiler costs nothing).
+    /// program planned again by the same compiler costs nothing), and threads or processes
+    /// planning the same program at once wait for one search
+    /// ([`plan_cache::searched_once`]).
     fn spend_by_simulation(
         &mut self,
         original: &Program,
@@ -1124,21 +1118,15 @@ impl FixedProgram {
             return;
         }
         let key = format!("{config:?}{original:?}");
-        if let Some(kinds) = simulation_cache()
-            .lock()
-            .ok()
-            .and_then(|c| c.get(&key).cloned())
-        {
-            self.mul_kind = kinds;
-            return;
-        }
-        if let Some(kinds) = plan_cache::load(&key, &self.mul_kind) {
-            if let Ok(mut c) = simulation_cache().lock() {
-                c.insert(key, kinds.clone());
-            }
-            self.mul_kind = kinds;
-            return;
-        }
+        let start = self.mul_kind.clone();
+        self.mul_kind = plan_cache::searched_once(&key, &start, || {
+            self.search_by_simulation(original, planned);
+            self.mul_kind.clone()
+        });
+    }
+
+    /// The search of [`Self::spend_by_simulation`], uncached.
+    fn search_by_simulation(&mut self, original: &Program, planned: &[(usize, MulOperands, bool)]) {
         let strict = original.contract.scaled(SIMULATION_MARGIN);
         let lsb = report::analyse(self).dac_lsb_n();
         let dip = original.sensors[0].range.1;
@@ -1187,38 +1175,38 @@ impl FixedProgram {
                 stimuli.push(s.key);
             }
         }
-        let mut runs: Vec<contract::ReferenceRun> = Vec::new();
-        for keys in &stimuli {
-            for point in &points {
-                // Every point lies within the intervals the program was planned for.
-                if let Ok(r) = contract::reference(original, self, keys, point) {
-                    runs.push(r);
-                }
-            }
-        }
+        // The reference runs (f64), each independent: on every core, in a fixed order.
+        let this = &*self;
+        let np = points.len();
+        let mut runs: Vec<contract::ReferenceRun> = workers::map(stimuli.len() * np, |j| {
+            // Every point lies within the intervals the program was planned for.
+            contract::reference(original, this, &stimuli[j / np], &points[j % np]).ok()
+        })
+        .into_iter()
+        .flatten()
+        .collect();
         // Adversarial raw sensor words as the budget corpus has them (arbitrary words,
         // corners, in-range walks; `XorShift64::sensor_word`): a product cut to 16 bits
         // can be harmless on every key travel and break the force at an extreme word.
-        for r in 0..SIMULATED_RANDOM_RUNS {
-            let raw = simulated_random_words(self.sensor_raw_range[0], r);
-            for point in &points {
-                if let Ok(r) = contract::reference_raw(original, self, &raw, point) {
-                    runs.push(r);
-                }
-            }
-        }
+        let raws: Vec<Vec<i32>> = (0..SIMULATED_RANDOM_RUNS)
+            .map(|r| simulated_random_words(this.sensor_raw_range[0], r))
+            .collect();
+        runs.extend(
+            workers::map(raws.len() * np, |j| {
+                contract::reference_raw(original, this, &raws[j / np], &points[j % np]).ok()
+            })
+            .into_iter()
+            .flatten(),
+        );
         // The shortest runs first: a failing plan is found sooner.
         runs.sort_by_key(|r| r.len());
         // What the analysis' plan shows on each run, where it breaks the half-tolerance
         // contract (`None` where it holds).
-        let base: Vec<Option<contract::ContractCheck>> = runs
-            .iter()
-            .map(|r| {
-                let c = contract::compare(original, self, r, lsb, &strict, false).ok()?;
-                let broken = !c.violations(&strict, original.sample_rate_hz).is_empty();
-                broken.then_some(c)
-            })
-            .collect();
+        let base: Vec<Option<contract::ContractCheck>> = workers::map(runs.len(), |i| {
+            let c = contract::compare(original, this, &runs[i], lsb, &strict, false).ok()?;
+            let broken = !c.violations(&strict, original.sample_rate_hz).is_empty();
+            broken.then_some(c)
+        });
         let mut order: Vec<usize> = (0..runs.len()).collect();
         // Where the analysis proves the force clause for every input (no integrated state
         // feeds the total), the search keeps it proven: simulation only adds to a proof.
@@ -1233,21 +1221,29 @@ impl FixedProgram {
                     return false;
                 }
             }
-            for pos in 0..order.len() {
-                let (r, b) = (&runs[order[pos]], &base[order[pos]]);
+            let fails = |&i: &usize| {
+                let (r, b) = (&runs[i], &base[i]);
                 // A run the analysis' plan breaks is compared whole (the force within the
                 // time tolerance needs every sample).
                 let check = contract::compare(original, fp, r, lsb, &strict, b.is_none());
-                let ok = match (b, check) {
+                !match (b, check) {
                     (_, Err(_)) => false,
                     (None, Ok(c)) => c.violations(&strict, original.sample_rate_hz).is_empty(),
                     (Some(b), Ok(c)) => within_base(&c, b, &strict),
-                };
-                if !ok {
-                    let i = order.remove(pos);
-                    order.insert(0, i);
-                    return false;
                 }
+            };
+            // The run that broke the last refused plan first (it often breaks this one too),
+            // then the others on every core ([`workers::find`]); a failing run goes first
+            // next time.
+            let failed = match order.first() {
+                Some(i) if fails(i) => Some(0),
+                Some(_) => workers::find(&order[1..], fails).map(|pos| pos + 1),
+                None => None,
+            };
+            if let Some(pos) = failed {
+                let i = order.remove(pos);
+                order.insert(0, i);
+                return false;
             }
             true
         };
@@ -1313,10 +1309,6 @@ impl FixedProgram {
                     break;
                 }
             }
-        }
-        plan_cache::store(&key, &self.mul_kind);
-        if let Ok(mut c) = simulation_cache().lock() {
-            c.insert(key, self.mul_kind.clone());
         }
     }
 

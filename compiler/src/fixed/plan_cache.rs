@@ -1,7 +1,7 @@
 //! The on-disk cache of the planner's simulated search
 //! (`FixedProgram::spend_by_simulation`): the product forms it chose for a program, so that
 //! the next process planning the same program (every `tactus play`, `budget` or `build` of a
-//! piano) reads them instead of simulating again (≈ 15 CPU-s for the piano in a debug
+//! piano) reads them instead of simulating again (≈ 26 CPU-s for the piano in a debug
 //! build, ≈ 3 × that for grand88's shared program).
 //!
 //! **Key.** SHA3-256 of the planner's inputs (the plan configuration and the whole IR
@@ -17,6 +17,15 @@
 //! (the search runs and rewrites it); a directory that cannot be written leaves the plan
 //! uncached. An entry is written to a temporary file and renamed into place, so processes
 //! running at once never read half an entry.
+//!
+//! **One search per program** ([`searched_once`]). Threads of one process and processes
+//! running at once (the test binaries' parallel tests, the CLI runs a test spawns side by
+//! side) that ask for the same program wait for the one search that runs instead of each
+//! running it: a per-process slot per key, and across processes an exclusive `flock` on the
+//! entry's `.lock` file (released by the kernel when its process ends, so a crashed search
+//! never blocks another). The empty `.lock` files stay: one removed while another process waits
+//! on it would let a third process lock a new file and search at the same time. Without a
+//! cache directory only the per-process slot applies.
 
 use super::{Cut, MulKind};
 use sha3::{Digest, Sha3_256};
@@ -92,12 +101,67 @@ fn decode(line: &str) -> Option<Option<MulKind>> {
     t.next().is_none().then_some(k)
 }
 
-/// The forms cached for `key`, if an entry exists with one form per value of `like` and a
-/// product exactly where `like` has one; otherwise `None`.
-pub(crate) fn load(key: &str, like: &[Option<MulKind>]) -> Option<Vec<Option<MulKind>>> {
-    load_in(&dir()?, key, like)
+/// The forms for the planner's input `key`: from this process' memo, else from the disk
+/// entry, else from `search` (then stored in both). `like` is the plan the search starts from
+/// (an entry of another shape is a miss). At most one `search` per key runs at a time in this
+/// process, and, with a cache directory, in every process sharing it; the others wait for it
+/// and read its result.
+pub(crate) fn searched_once(
+    key: &str,
+    like: &[Option<MulKind>],
+    search: impl FnOnce() -> Vec<Option<MulKind>>,
+) -> Vec<Option<MulKind>> {
+    type Slot = std::sync::Arc<std::sync::Mutex<Option<Vec<Option<MulKind>>>>>;
+    static SLOTS: std::sync::OnceLock<std::sync::Mutex<std::collections::HashMap<String, Slot>>> =
+        std::sync::OnceLock::new();
+    let slot: Slot = {
+        let mut slots = SLOTS
+            .get_or_init(Default::default)
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        slots.entry(key.to_string()).or_default().clone()
+    };
+    // Held for the whole search: this process' other threads asking for `key` wait here.
+    let mut memo = slot.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(kinds) = memo.as_ref() {
+        return kinds.clone();
+    }
+    let dir = dir();
+    if let Some(kinds) = dir.as_deref().and_then(|d| load_in(d, key, like)) {
+        *memo = Some(kinds.clone());
+        return kinds;
+    }
+    // Other processes: the entry's lock file, then the entry again (the search that held
+    // the lock may have just written it). A lock that cannot be taken only costs a search.
+    let _lock = dir.as_deref().and_then(|d| lock_in(d, key));
+    if let Some(kinds) = dir.as_deref().and_then(|d| load_in(d, key, like)) {
+        *memo = Some(kinds.clone());
+        return kinds;
+    }
+    let kinds = search();
+    if let Some(d) = dir.as_deref() {
+        store_in(d, key, &kinds);
+    }
+    *memo = Some(kinds.clone());
+    kinds
 }
 
+/// An exclusive lock on `key`'s lock file in `dir` (blocking until the process holding it
+/// releases it or ends), or `None` when the file cannot be created or locked.
+fn lock_in(dir: &Path, key: &str) -> Option<std::fs::File> {
+    std::fs::create_dir_all(dir).ok()?;
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(dir.join(format!("{}.lock", file_name(key))))
+        .ok()?;
+    file.lock().ok()?;
+    Some(file)
+}
+
+/// The forms cached for `key` in `dir`, if an entry exists with one form per value of `like` and a
+/// product exactly where `like` has one; otherwise `None`.
 fn load_in(dir: &Path, key: &str, like: &[Option<MulKind>]) -> Option<Vec<Option<MulKind>>> {
     let text = std::fs::read_to_string(dir.join(file_name(key))).ok()?;
     let mut lines = text.lines();
@@ -113,13 +177,7 @@ fn load_in(dir: &Path, key: &str, like: &[Option<MulKind>]) -> Option<Vec<Option
     same_shape.then_some(kinds)
 }
 
-/// Stores `kinds` for `key`; silently does nothing when the directory cannot be written.
-pub(crate) fn store(key: &str, kinds: &[Option<MulKind>]) {
-    if let Some(dir) = dir() {
-        store_in(&dir, key, kinds);
-    }
-}
-
+/// Stores `kinds` for `key` in `dir`; silently does nothing when it cannot be written.
 fn store_in(dir: &Path, key: &str, kinds: &[Option<MulKind>]) {
     if std::fs::create_dir_all(dir).is_err() {
         return;
@@ -188,6 +246,55 @@ mod tests {
         assert_eq!(load_in(&dir, "program A", &shifted), None);
         std::fs::write(dir.join(file_name("program C")), "junk").unwrap();
         assert_eq!(load_in(&dir, "program C", &kinds), None);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn threads_asking_for_one_program_share_one_search() {
+        // A key no other test uses, so the memo starts empty for it.
+        let key = format!("one search {}", std::process::id());
+        let like = vec![None, Some(MulKind::Wide)];
+        let searches = std::sync::atomic::AtomicUsize::new(0);
+        let results: Vec<Vec<Option<MulKind>>> = std::thread::scope(|s| {
+            let handles: Vec<_> = (0..4)
+                .map(|_| {
+                    s.spawn(|| {
+                        searched_once(&key, &like, || {
+                            searches.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                            std::thread::sleep(std::time::Duration::from_millis(50));
+                            vec![None, Some(MulKind::High(16))]
+                        })
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        assert_eq!(searches.load(std::sync::atomic::Ordering::SeqCst), 1);
+        assert!(results
+            .iter()
+            .all(|r| r == &vec![None, Some(MulKind::High(16))]));
+    }
+
+    #[test]
+    fn a_held_lock_blocks_another_holder_until_released() {
+        let dir = std::env::temp_dir().join(format!("tactus-plan-lock-{}", std::process::id()));
+        let first = lock_in(&dir, "program L").expect("a lock in a writable directory");
+        let (tx, rx) = std::sync::mpsc::channel();
+        let d = dir.clone();
+        let waiter = std::thread::spawn(move || {
+            let second = lock_in(&d, "program L");
+            tx.send(second.is_some()).unwrap();
+        });
+        // The second lock (another open file description: as another process) waits.
+        assert!(rx
+            .recv_timeout(std::time::Duration::from_millis(200))
+            .is_err());
+        drop(first);
+        assert_eq!(
+            rx.recv_timeout(std::time::Duration::from_secs(10)),
+            Ok(true)
+        );
+        waiter.join().unwrap();
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -322,6 +322,60 @@ fn high_error(fp: &FixedProgram, v: Value, fx: i32, fy: i32) -> f64 {
     }
 }
 
+/// How many low bits of `w`'s word are known to be zero on every sample: a constant's (or
+/// compile-time param's) trailing zero bits; for a `select` whose arms are, recursively, such
+/// values, the fewest trailing zeros of any arm's value on the select's own grid, when every
+/// arm's value is exact there (the select converts the chosen arm's word to its format:
+/// exact, so its word is that value's). 0 for every other value. Why: a pre-shift or a 32×16
+/// cut drops these bits, and a floor of known zeros loses nothing — the piano's contact
+/// stiffness and damping are selects of two constants (`k_jack`/`k_rep`, `b_jack`/`b_rep`)
+/// whose words cut to 16 bits exactly, so their cut error is 0, not 1 LSB of the cut word
+/// times the other operand's range (0.22 N of the contact force's bound before).
+fn known_zero_bits(fp: &FixedProgram, w: Value) -> u8 {
+    /// The values `v`'s word can hold, each exact on `v`'s grid, or `None` when not known.
+    fn exact_values(fp: &FixedProgram, v: Value, depth: u32, out: &mut Vec<f64>) -> Option<()> {
+        let f = fp.frac[v.index()];
+        match fp.program.values[v.index()].op {
+            Op::Select(_, a, b) if depth > 0 => {
+                let start = out.len();
+                exact_values(fp, a, depth - 1, out)?;
+                exact_values(fp, b, depth - 1, out)?;
+                // Each arm's value must be exact on the select's grid too.
+                out[start..]
+                    .iter()
+                    .all(|&c| {
+                        let word = c * pow2(f);
+                        word.fract() == 0.0 && word.abs() < 2147483648.0
+                    })
+                    .then_some(())
+            }
+            _ => {
+                let c = fp.program.const_value(v)?;
+                (tactus_runtime::fixed::to_f64(fp.consts[v.index()], f) == c).then(|| out.push(c))
+            }
+        }
+    }
+    if matches!(fp.program.values[w.index()].op, Op::Select(..)) {
+        if !matches!(fp.program.values[w.index()].ty, Ty::Real(_)) {
+            return 0;
+        }
+        let mut values = Vec::new();
+        if exact_values(fp, w, 8, &mut values).is_none() {
+            return 0;
+        }
+        let f = fp.frac[w.index()];
+        values
+            .iter()
+            .map(|&c| ((c * pow2(f)) as i64).trailing_zeros().min(32) as u8)
+            .min()
+            .unwrap_or(0)
+    } else if fp.program.const_value(w).is_some() {
+        fp.consts[w.index()].trailing_zeros() as u8
+    } else {
+        0
+    }
+}
+
 /// The errors the pre-shifts of a `MULS` product, or the cut of a 32×16 product, add to its
 /// operands (floor: < 1 LSB of the shifted operand).
 fn shift_errors(fp: &FixedProgram, v: Value, fx: i32, fy: i32) -> (f64, f64) {
@@ -336,15 +390,13 @@ fn shift_errors(fp: &FixedProgram, v: Value, fx: i32, fy: i32) -> (f64, f64) {
     match shifts {
         Some((a, b)) => {
             // A floor shift of a word loses less than one LSB of the shifted word, nothing
-            // when the dropped bits are known zeros (a constant's trailing zeros).
+            // when the dropped bits are known zeros (`known_zero_bits`: a constant's trailing
+            // zeros, or those of every constant a select chooses from).
             let (x, y) = match fp.program.values[v.index()].op {
                 Op::Arith(_, x, y) => (x, y),
                 _ => return (0.0, 0.0),
             };
-            let free = |w: Value| match fp.program.const_value(w) {
-                Some(_) => fp.consts[w.index()].trailing_zeros() as u8,
-                None => 0,
-            };
+            let free = |w: Value| known_zero_bits(fp, w);
             let fy_free = match fp.recip[v.index()] {
                 Some((r, _)) => r.trailing_zeros() as u8,
                 None => free(y),
@@ -535,6 +587,12 @@ fn render_contract(s: &mut String, fp: &FixedProgram, pr: &Precision) {
         c.event_time_s * 1e3,
         c.event_time_s * p.sample_rate_hz,
         c.event_arg_rel * 100.0
+    );
+    let _ = writeln!(
+        s,
+        "  switches: where the runs are in different discrete states (a mode, an `on` edge, a body's or an `if … else`'s condition) they agree again within {} ms ({:.0} samples), and for that long the force of each is within the force bound plus the f64 force's own one-sample change there of the other's at some sample within it; the per-sample force clause elsewhere",
+        c.switch_time_s * 1e3,
+        (c.switch_time_s * p.sample_rate_hz).ceil()
     );
     for e in &c.events {
         let d = &p.events[e.event.index()];

@@ -2,7 +2,8 @@
 //! it. Their bounds are compile-time constants, evaluated with the other constants
 //! ([`Lowerer::evaluate_tolerance`]); the force terms, outputs and events they name exist
 //! only once the body is lowered, so the names are resolved last
-//! ([`Lowerer::resolve_tolerances`]). Errors E0313–E0317 (docs/language.md, "Tolerances").
+//! ([`Lowerer::resolve_tolerances`]). `tolerance switch = T` sets the switch clause's
+//! window ([`Contract::switch_time_s`]). Errors E0313–E0317 (docs/language.md, "Tolerances").
 
 use super::{Lowerer, ScopeId};
 use crate::ast::{self, ToleranceKind};
@@ -80,9 +81,8 @@ impl<'a> Lowerer<'a> {
                 (ToleranceKind::Force, None) => "force".to_string(),
                 (ToleranceKind::Force, Some(n)) => format!("force {}", n.node),
                 (ToleranceKind::Output, Some(n)) => format!("output {}", n.node),
-                (ToleranceKind::Word(w), n) => {
-                    format!("{} {}", w.node, n.map_or(String::new(), |n| n.node.clone()))
-                }
+                (ToleranceKind::Word(w), Some(n)) => format!("{} {}", w.node, n.node),
+                (ToleranceKind::Word(w), None) => w.node.clone(),
                 (ToleranceKind::Output, None) => "output".into(),
             };
             if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
@@ -93,7 +93,7 @@ impl<'a> Lowerer<'a> {
                         t.span.clone(),
                     )
                     .with_secondary(first.clone(), "first stated here")
-                    .hint("keep one line per force term, output and event"),
+                    .hint("keep one line per force term, output and event, and one `tolerance switch`"),
                 );
                 continue;
             }
@@ -101,16 +101,35 @@ impl<'a> Lowerer<'a> {
             match t.kind {
                 ToleranceKind::Force => self.force_tolerance(&t, &mut contract),
                 ToleranceKind::Output => self.output_tolerance(&t, &mut contract),
-                ToleranceKind::Word(w) if w.node == "event" => {
+                ToleranceKind::Word(w) if w.node == "event" && t.name.is_some() => {
                     self.event_tolerance(&t, &mut contract)
                 }
+                ToleranceKind::Word(w) if w.node == "switch" && t.name.is_none() => {
+                    self.switch_tolerance(&t, &mut contract)
+                }
+                ToleranceKind::Word(w) if w.node == "event" => self.err(
+                    Diagnostic::error(
+                        "E0314",
+                        "`tolerance event` names its event and gives its fields",
+                        t.span.clone(),
+                    )
+                    .hint("write `tolerance event NAME { time = 1 ms, ARG = 0.01 }`; the events' default time tolerance is 0.5 ms"),
+                ),
+                ToleranceKind::Word(w) if w.node == "switch" => self.err(
+                    Diagnostic::error(
+                        "E0314",
+                        "`tolerance switch` is one clause for every switch of the instrument: it takes no name and no fields",
+                        t.span.clone(),
+                    )
+                    .hint("write `tolerance switch = 0.5 ms`: how long the fixed-point and f64 runs may be in different discrete states"),
+                ),
                 ToleranceKind::Word(w) => self.err(
                     Diagnostic::error(
                         "E0314",
                         format!("`tolerance {}` is not a clause of the contract", w.node),
                         w.span.clone(),
                     )
-                    .hint("write `tolerance force [TERM] = …`, `tolerance output NAME = …` or `tolerance event NAME { time = …, ARG = … }`"),
+                    .hint("write `tolerance force [TERM] = …`, `tolerance output NAME = …`, `tolerance event NAME { time = …, ARG = … }` or `tolerance switch = …`"),
                 ),
             }
         }
@@ -207,6 +226,25 @@ impl<'a> Lowerer<'a> {
         }
         if self.positive(v, &span) {
             c.outputs.push((OutputId(i as u32), v));
+        }
+    }
+
+    /// `tolerance switch = T`: the switch clause's window, a positive time (E0316).
+    fn switch_tolerance(&mut self, t: &PendingTolerance<'a>, c: &mut Contract) {
+        let Some((v, dim, span)) = t.value.clone() else {
+            return;
+        };
+        if dim != Dim::TIME {
+            self.err(
+                Diagnostic::error(
+                    "E0316",
+                    format!("the switch tolerance is a time, not {dim}"),
+                    span,
+                )
+                .hint("write e.g. `tolerance switch = 0.5 ms`: how long the two runs may be in different discrete states"),
+            );
+        } else if self.positive(v, &span) {
+            c.switch_time_s = v;
         }
     }
 
