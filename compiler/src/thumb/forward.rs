@@ -22,22 +22,9 @@ use tactus_emulator::decode::MemOp;
 /// Replaces loads of a state word some register holds (see the module comment) by copies
 /// or renamings.
 pub(crate) fn forward(code: &mut Vec<M>, nregs: u32) {
-    let mut defs = vec![0u32; nregs as usize];
-    for m in code.iter() {
-        if let Some(d) = m.def() {
-            if let Some(n) = defs.get_mut(d.0 as usize) {
-                *n += 1;
-            }
-        }
-    }
+    let defs = def_counts(code, nregs);
     let once = |v: V| defs.get(v.0 as usize) == Some(&1);
-    // The first branch source of each label.
-    let mut first_src: HashMap<u32, usize> = HashMap::new();
-    for (i, m) in code.iter().enumerate() {
-        if let M::B(l) | M::Bc(_, l) = m {
-            first_src.entry(l.0).or_insert(i);
-        }
-    }
+    let first_src = first_branch_sources(code);
     // Per (load kind, byte offset): the register holding the word and where it got it.
     let mut avail: HashMap<(MemOp, u16), (V, usize)> = HashMap::new();
     let mut rename: HashMap<V, V> = HashMap::new();
@@ -102,11 +89,7 @@ pub(crate) fn forward(code: &mut Vec<M>, nregs: u32) {
     if rename.is_empty() {
         return;
     }
-    let mut k = 0;
-    code.retain(|_| {
-        k += 1;
-        !drop[k - 1]
-    });
+    remove_marked(code, &drop);
 }
 
 #[cfg(test)]

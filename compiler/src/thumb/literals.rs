@@ -26,21 +26,8 @@ fn literal(imm: i32) -> bool {
 /// Replaces dominated reloads of the same literal word in `code` by the first load's
 /// register.
 pub(crate) fn share(code: &mut Vec<M>, nregs: u32) {
-    let mut defs = vec![0u32; nregs as usize];
-    for m in code.iter() {
-        if let Some(d) = m.def() {
-            if let Some(n) = defs.get_mut(d.0 as usize) {
-                *n += 1;
-            }
-        }
-    }
-    // The first branch source of each label.
-    let mut first_src: HashMap<u32, usize> = HashMap::new();
-    for (i, m) in code.iter().enumerate() {
-        if let M::B(l) | M::Bc(_, l) = m {
-            first_src.entry(l.0).or_insert(i);
-        }
-    }
+    let defs = def_counts(code, nregs);
+    let first_src = first_branch_sources(code);
     let mut avail: HashMap<i32, (V, usize)> = HashMap::new();
     let mut rename: HashMap<V, V> = HashMap::new();
     let mut drop = vec![false; code.len()];
@@ -75,11 +62,7 @@ pub(crate) fn share(code: &mut Vec<M>, nregs: u32) {
     if rename.is_empty() {
         return;
     }
-    let mut k = 0;
-    code.retain(|_| {
-        k += 1;
-        !drop[k - 1]
-    });
+    remove_marked(code, &drop);
     for m in code.iter_mut() {
         for v in m.uses_mut() {
             if let Some(&n) = rename.get(v) {

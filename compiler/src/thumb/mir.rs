@@ -8,6 +8,7 @@
 //! live range is the interval from its first definition to its last use in program order;
 //! a register may be defined again later in that interval (the arms of a diamond).
 
+use std::collections::HashMap;
 use tactus_emulator::decode::{AluOp, MemOp};
 
 /// A virtual register (32-bit word).
@@ -242,6 +243,42 @@ pub fn commutative(op: AluOp) -> bool {
         op,
         AluOp::And | AluOp::Orr | AluOp::Eor | AluOp::Adc | AluOp::Mul
     )
+}
+
+/// How many instructions of `code` define each virtual register below `nregs` (1: defined
+/// once, so a rename of it is safe).
+pub(crate) fn def_counts(code: &[M], nregs: u32) -> Vec<u32> {
+    let mut defs = vec![0u32; nregs as usize];
+    for m in code {
+        if let Some(d) = m.def() {
+            if let Some(n) = defs.get_mut(d.0 as usize) {
+                *n += 1;
+            }
+        }
+    }
+    defs
+}
+
+/// The first branch source of each label of `code` (label number → instruction index).
+/// The code only branches forward, so instruction `i` dominates `j > i` exactly when no
+/// label in `(i, j]` is the target of a branch from before `i`.
+pub(crate) fn first_branch_sources(code: &[M]) -> HashMap<u32, usize> {
+    let mut first_src: HashMap<u32, usize> = HashMap::new();
+    for (i, m) in code.iter().enumerate() {
+        if let M::B(l) | M::Bc(_, l) = m {
+            first_src.entry(l.0).or_insert(i);
+        }
+    }
+    first_src
+}
+
+/// Removes the instructions of `code` whose `drop` flag is set (`drop` as long as `code`).
+pub(crate) fn remove_marked(code: &mut Vec<M>, drop: &[bool]) {
+    let mut k = 0;
+    code.retain(|_| {
+        k += 1;
+        !drop[k - 1]
+    });
 }
 
 #[cfg(test)]
