@@ -5,9 +5,9 @@
 //! build, ≈ 3 × that for grand88's shared program).
 //!
 //! **Key.** SHA3-256 of the planner's inputs (the plan configuration and the whole IR
-//! program, as printed by `Debug`) and of every source of this crate and of the runtime
-//! (`TACTUS_PLANNER_SOURCE_SHA3`, computed by `build.rs`), so a changed compiler never reads
-//! an older compiler's choice. The entry is only a memo of a deterministic computation: with
+//! program, as printed by `Debug`) and of every source of this crate but the Thumb backend
+//! (which only reads plans) and of the runtime (`TACTUS_PLANNER_SOURCE_SHA3`, computed by
+//! `build.rs`), so a changed planner never reads an older planner's choice. The entry is only a memo of a deterministic computation: with
 //! or without it the plan is the same.
 //!
 //! **Where.** `$TACTUS_CACHE_DIR`, else `$XDG_CACHE_HOME/tactus`, else `$HOME/.cache/tactus`,
