@@ -313,6 +313,35 @@ fn same_expr(p: &Program, a: Value, b: Value) -> bool {
 fn sample_facts(fp: &FixedProgram, cond: Value) -> Vec<(Value, Interval)> {
     let p = &fp.program;
     let mut out = Vec::new();
+    for (o, x, y) in real_comparisons(p, cond) {
+        let (a, b) = (fp.ranges.values[x.index()], fp.ranges.values[y.index()]);
+        // x o y: bounds on x from y's range, and on y from x's.
+        let (ax, by) = match o {
+            CmpOp::Ge | CmpOp::Gt => (
+                Interval::new(a.lo.max(b.lo), a.hi),
+                Interval::new(b.lo, b.hi.min(a.hi)),
+            ),
+            CmpOp::Le | CmpOp::Lt => (
+                Interval::new(a.lo, a.hi.min(b.hi)),
+                Interval::new(b.lo.max(a.lo), b.hi),
+            ),
+            _ => continue,
+        };
+        if sample_constant(p, x) && ax.lo <= ax.hi {
+            out.push((x, ax));
+        }
+        if sample_constant(p, y) && by.lo <= by.hi {
+            out.push((y, by));
+        }
+    }
+    out
+}
+
+/// The comparisons of real values that `cond` — a tree of `and`s — requires, each as
+/// (operator, left, right), right operands of an `and` first. What a true condition says,
+/// for the interval facts ([`sample_facts`]) and the linear ones (`linear::Facts::assume`).
+fn real_comparisons(p: &Program, cond: Value) -> Vec<(CmpOp, Value, Value)> {
+    let mut out = Vec::new();
     let mut stack = vec![cond];
     while let Some(v) = stack.pop() {
         match p.values[v.index()].op {
@@ -321,25 +350,7 @@ fn sample_facts(fp: &FixedProgram, cond: Value) -> Vec<(Value, Interval)> {
                 stack.push(y);
             }
             Op::Cmp(o, x, y) if matches!(p.values[x.index()].ty, Ty::Real(_)) => {
-                let (a, b) = (fp.ranges.values[x.index()], fp.ranges.values[y.index()]);
-                // x o y: bounds on x from y's range, and on y from x's.
-                let (ax, by) = match o {
-                    CmpOp::Ge | CmpOp::Gt => (
-                        Interval::new(a.lo.max(b.lo), a.hi),
-                        Interval::new(b.lo, b.hi.min(a.hi)),
-                    ),
-                    CmpOp::Le | CmpOp::Lt => (
-                        Interval::new(a.lo, a.hi.min(b.hi)),
-                        Interval::new(b.lo.max(a.lo), b.hi),
-                    ),
-                    _ => continue,
-                };
-                if sample_constant(p, x) && ax.lo <= ax.hi {
-                    out.push((x, ax));
-                }
-                if sample_constant(p, y) && by.lo <= by.hi {
-                    out.push((y, by));
-                }
+                out.push((o, x, y))
             }
             _ => {}
         }

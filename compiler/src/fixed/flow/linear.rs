@@ -396,34 +396,23 @@ impl<'a, 'e> Linear<'a, 'e> {
     /// Adds what `cond` being true says: each `and`-ed comparison of real values as a
     /// linear constraint.
     pub(super) fn assume(&mut self, cond: Value) {
-        let p = &self.fp.program;
-        let mut stack = vec![cond];
-        while let Some(v) = stack.pop() {
-            match p.values[v.index()].op {
-                Op::And(x, y) => {
-                    stack.push(x);
-                    stack.push(y);
+        for (o, x, y) in super::real_comparisons(&self.fp.program, cond) {
+            let m = self.margin(x, y);
+            if !m.is_finite() {
+                continue;
+            }
+            let (fx, fy) = (self.form(x, 0), self.form(y, 0));
+            // x ≥ y: x − y + m ≥ 0; x ≤ y: y − x + m ≥ 0.
+            let ge = fx.add_scaled(&fy, -1.0).widen(m);
+            let le = fy.add_scaled(&fx, -1.0).widen(m);
+            match o {
+                CmpOp::Ge | CmpOp::Gt => self.cons.push(ge),
+                CmpOp::Le | CmpOp::Lt => self.cons.push(le),
+                CmpOp::Eq => {
+                    self.cons.push(ge);
+                    self.cons.push(le);
                 }
-                Op::Cmp(o, x, y) if matches!(p.values[x.index()].ty, Ty::Real(_)) => {
-                    let m = self.margin(x, y);
-                    if !m.is_finite() {
-                        continue;
-                    }
-                    let (fx, fy) = (self.form(x, 0), self.form(y, 0));
-                    // x ≥ y: x − y + m ≥ 0; x ≤ y: y − x + m ≥ 0.
-                    let ge = fx.add_scaled(&fy, -1.0).widen(m);
-                    let le = fy.add_scaled(&fx, -1.0).widen(m);
-                    match o {
-                        CmpOp::Ge | CmpOp::Gt => self.cons.push(ge),
-                        CmpOp::Le | CmpOp::Lt => self.cons.push(le),
-                        CmpOp::Eq => {
-                            self.cons.push(ge);
-                            self.cons.push(le);
-                        }
-                        CmpOp::Ne => {}
-                    }
-                }
-                _ => {}
+                CmpOp::Ne => {}
             }
         }
     }
