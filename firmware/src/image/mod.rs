@@ -56,19 +56,20 @@
 //! `sensors`), its out words, one limiter budget per force word and its state's address
 //! (the budgets and the address before the out words when the out words would push them
 //! beyond an `LDR` immediate). [`FirmwareImage::key_glue`] prices one key's glue
-//! statically (at the time of writing: a keyboard key 41 cycles alone on its core, 39 per
-//! key with two; a pen with three sensors and three axes 108). A program's
+//! statically (at the time of writing: a keyboard key 33 cycles, the step to its record
+//! included; a pen with three sensors and three axes more, per sensor and per axis). A program's
 //! `.text` must fit a core's bank: `plucked_string` (≈100 KB) does not
 //! ([`ImageError::NoRoom`]).
 //!
 //! **The sample interrupt** (per core, straight-line code: no loop, so the static WCET
-//! needs no loop bounds): acknowledge the alarm; arm the next tick (`q + rem/fs` µs later,
-//! the remainder kept exactly, so tick *n* is at `first + ⌊n·10⁶/fs⌋` µs); then for each key
+//! needs no loop bounds; it saves no register and loads no base, `glue`'s module
+//! documentation says why): acknowledge the alarm; arm the next tick (`q + rem/den` µs
+//! later, the remainder kept exactly, so tick *n* is at `first + ⌊n·10⁶/fs⌋` µs); then for each key
 //! of the core: copy its sensor window words into the key's record, `BL` the program's
 //! update (state, &sensors, out in the record), and per force word run the limiter on the
 //! word (`out[total]`, or a pen's `force.x`/`force.y` output) and store the DAC code in its
-//! DAC window word. Finally: if the timer already
-//! reached the next tick, the deadline was missed and the core's miss counter is
+//! DAC window word. Finally: if the next tick's alarm has already fired (its `INTR` bit),
+//! the deadline was missed and the core's miss counter is
 //! incremented; the sample counter is incremented last. A handler that starts more than a
 //! period late (only after a miss) re-synchronises the tick to now + a margin.
 
@@ -575,22 +576,24 @@ impl std::error::Error for ImageError {}
 /// have `force_frac` fraction bits: returns the code and the routine's address. Calling
 /// convention: `r0` = force word, `r1` = address of the budget word (it starts full:
 /// `Limiter::constants().budget_max`); returns the DAC code in `r0`. The image inlines
-/// exactly this limiter ([`glue::limiter_inline`]) per force word; tests call the routine
-/// with arbitrary words.
+/// exactly this limiter ([`glue::limiter_inline`]) per force word, its scale's constants in
+/// registers or (a key whose force format is not its core's main one) from literals, as
+/// `scale` says; tests call the routine with arbitrary words.
 ///
 /// Errors: [`ImageError::Limiter`], [`ImageError::Assemble`].
 pub fn limiter_routine(
     limiter: &LimiterConfig,
     force_frac: i32,
+    scale: glue::Scale,
     base: u32,
 ) -> Result<(Vec<u8>, u32), ImageError> {
     let consts = Limiter::new(limiter)
         .map_err(ImageError::Limiter)?
         .constants();
-    let scale = consts.dac_scale(force_frac).map_err(ImageError::Limiter)?;
+    let dac = consts.dac_scale(force_frac).map_err(ImageError::Limiter)?;
     let mut a = CodeBuffer::new(LongBranch::Refuse);
     let entry = a.label();
-    glue::limiter_function(&mut a, entry, &consts, &scale)?;
+    glue::limiter_function(&mut a, entry, &consts, &dac, scale)?;
     let out = a.finish(base)?;
     Ok((out.text, out.labels[entry.index()]))
 }
@@ -858,11 +861,13 @@ impl FirmwareImage {
     }
 
     /// Static cost of one key of `program` in the sample interrupt beyond its update: its
-    /// sensor copies, the update's call set-up, per force word the limiter call and the DAC
-    /// store ([`KeyGlue`]). Measured from the generated glue: the static WCET of core 0's
-    /// handler of an image with this one key on `board`, minus its update calls, minus the
-    /// handler of the same image without keys. A keyboard key costs the same whatever its
-    /// program (41 cycles at the time of writing); a pen more, per sensor and per axis.
+    /// sensor copies, the update's call set-up, per force word the limiter and the DAC
+    /// store, the step to the next key's record ([`KeyGlue`]). Measured from the generated
+    /// glue, as the most one such key adds to core 0's handler on `board` (static WCET
+    /// minus the update calls): the first key over the handler without keys, or a second
+    /// over the first. So a core with `n` such keys costs at most the handler without keys
+    /// plus `n` times this. A keyboard key costs the same whatever its program (33 cycles
+    /// at the time of writing); a pen more, per sensor and per axis.
     ///
     /// Errors: those of [`FirmwareImage::build`] (e.g. [`ImageError::NoRoom`] for a
     /// program too large for a core's bank).
@@ -872,17 +877,26 @@ impl FirmwareImage {
         limiter: &LimiterConfig,
     ) -> Result<KeyGlue, ImageError> {
         let programs = [program.clone()];
-        let key = KeySpec {
-            slot: 0,
-            program: 0,
-            core: 0,
+        let drives = program.drives()?.len();
+        let width = program.sensor_words().max(drives);
+        let keys: Vec<KeySpec> = (0..2)
+            .map(|i| KeySpec {
+                slot: i * width,
+                program: 0,
+                core: 0,
+            })
+            .collect();
+        // The handler's own cycles with 0, 1 and 2 keys.
+        let own = |n: usize| -> Result<u64, ImageError> {
+            let w = FirmwareImage::build(&programs, &keys[..n], board, limiter)?.wcet[0];
+            Ok(w.analysed.saturating_sub(w.updates))
         };
-        let with = FirmwareImage::build(&programs, &[key], board, limiter)?;
-        let without = FirmwareImage::build(&programs, &[], board, limiter)?;
-        let (w, e) = (with.wcet[0], without.wcet[0]);
+        let (none, one) = (own(0)?, own(1)?);
+        // Two keys may not fit a bank where one does: then one key is all a core holds.
+        let second = own(2).map_or(0, |two| two.saturating_sub(one));
         Ok(KeyGlue {
-            cycles: w.analysed.saturating_sub(w.updates + e.analysed),
-            window_words: (program.sensor_words() + program.drives()?.len()) as u64,
+            cycles: one.saturating_sub(none).max(second),
+            window_words: (program.sensor_words() + drives) as u64,
         })
     }
 
