@@ -578,17 +578,14 @@ pub fn core_code(
             None => scales.push((d.scale, 1)),
         }
     }
-    let scale = scales
-        .iter()
-        .max_by_key(|g| g.1)
-        .map_or(
-            DacScale {
-                pre_shift: 0,
-                gain: 1,
-                post_shift: 0,
-            },
-            |g| g.0,
-        );
+    let scale = scales.iter().max_by_key(|g| g.1).map_or(
+        DacScale {
+            pre_shift: 0,
+            gain: 1,
+            post_shift: 0,
+        },
+        |g| g.0,
+    );
     // Window bases: the lowest word of each window the core's keys use, so that a board's
     // keys (consecutive slots) are reached by immediate offsets.
     let sensor_base = keys
@@ -658,8 +655,9 @@ pub fn core_code(
     a.bind(labels.isr);
     a.ldr_const(0, TIMER_BASE);
     a.i(asm::movs(1, 1 << core));
+    // Acknowledge the alarm.
     apb_here(a);
-    a.i(asm::str(1, 0, reg::INTR as u16)); // acknowledge the alarm
+    a.i(asm::str(1, 0, reg::INTR as u16));
     // Next tick: target += q, plus one µs when the accumulator reaches den.
     a.i(asm::ldr(1, 5, ctrl::TARGET));
     tick_step(a, &tick);
