@@ -460,30 +460,33 @@ fn sweep(
     Ok(boards)
 }
 
-/// The most keys of program `program` that one board holds (0 if not even one fits), found
-/// by building boards of identical keys (at most [`MAX_KEYS`]).
+/// The densest board of one program's keys: the most keys of program `program` that one
+/// board holds (found by building boards of identical keys, at most [`MAX_KEYS`]) and that
+/// board's verdict, which says whether it keeps the quiescent-key guard
+/// ([`BoardVerdict::guard_off`]); `None` when not even one key fits.
 ///
 /// Errors: as [`board_image`].
-pub fn max_keys_per_board(
+pub fn densest_board(
     programs: &[Program],
     costs: &ProgramCosts,
     program: usize,
     board: &Board,
     limiter: &LimiterConfig,
-) -> Result<usize, BoardsError> {
-    let fits = |n: usize| -> Result<bool, BoardsError> {
+) -> Result<Option<BoardVerdict>, BoardsError> {
+    let check = |n: usize| {
         let keys: Vec<PlanKey> = (0..n)
             .map(|i| PlanKey {
                 key: i as u8,
                 program,
             })
             .collect();
-        Ok(check_board(programs, costs, &keys, board, limiter)?.fits())
+        check_board(programs, costs, &keys, board, limiter)
     };
+    let fits = |n: usize| -> Result<bool, BoardsError> { Ok(check(n)?.fits()) };
     let width = costs.slots.get(program).copied().unwrap_or(1).max(1);
     let (mut lo, mut hi) = (0usize, MAX_KEYS / width);
     if !fits(1)? {
-        return Ok(0);
+        return Ok(None);
     }
     lo = lo.max(1);
     // Largest n in [lo, hi] that fits (fits is hereditary in n).
@@ -495,7 +498,7 @@ pub fn max_keys_per_board(
             hi = mid - 1;
         }
     }
-    Ok(lo)
+    check(lo).map(Some)
 }
 
 #[cfg(test)]

@@ -165,8 +165,15 @@ pub struct WorstKey {
 pub struct WhatFits {
     /// The instrument (its costliest param set).
     pub instrument: String,
-    /// Static cycles of one key (update + glue).
+    /// Static cycles of one key (update + glue) as the densest board builds it: without the
+    /// quiescent-key guard when `guard_off`.
     pub cycles_per_key: u64,
+    /// Whether the densest board leaves out the quiescent-key guard the program asks for
+    /// (the plan's choice, [`BoardVerdict::guard_off`]).
+    pub guard_off: bool,
+    /// Static cycles of one key with the guard (equal to `cycles_per_key` when the board
+    /// keeps it or the program has none).
+    pub guarded_cycles_per_key: u64,
     /// The most such keys one board holds.
     pub keys_per_board: u64,
     /// Boards for this instrument's keys of the layout at that density.
@@ -474,9 +481,17 @@ impl BudgetReport {
                 .filter(|p| p.instrument == w.instrument)
                 .map(|p| p.keys.len())
                 .sum();
+            let guard = if w.guard_off {
+                format!(
+                    ", the quiescent-key guard left out: {} with it",
+                    w.guarded_cycles_per_key
+                )
+            } else {
+                String::new()
+            };
             let _ = writeln!(
                 s,
-                "  {}: {} {u}{} ({} cycles per {u} with its glue); its {count} {u}{} of this layout need{} {} board{}",
+                "  {}: {} {u}{} ({} cycles per {u} with its glue{guard}); its {count} {u}{} of this layout need{} {} board{}",
                 w.instrument,
                 w.keys_per_board,
                 if w.keys_per_board == 1 { "" } else { "s" },
@@ -753,8 +768,10 @@ pub fn keyboard_budget(
             .max_by_key(|&j| (costs.key_cycles[j], std::cmp::Reverse(j)))
             .unwrap_or(i);
         progress("what fits", what_fits.len(), input.programs.len());
-        let n = boards::max_keys_per_board(&programs, &costs, rep, board, &input.limiter)
-            .map_err(|e| bad(&pi.instrument, &e))? as u64;
+        let densest = boards::densest_board(&programs, &costs, rep, board, &input.limiter)
+            .map_err(|e| bad(&pi.instrument, &e))?;
+        let n = densest.as_ref().map_or(0, |b| b.keys.len()) as u64;
+        let guard_off = densest.is_some_and(|b| b.guard_off);
         let count = input
             .keys
             .iter()
@@ -762,7 +779,12 @@ pub fn keyboard_budget(
             .count() as u64;
         what_fits.push(WhatFits {
             instrument: pi.instrument.clone(),
-            cycles_per_key: costs.key_cycles[rep],
+            cycles_per_key: match guard_off {
+                true => costs.plain_key_cycles[rep],
+                false => costs.key_cycles[rep],
+            },
+            guard_off,
+            guarded_cycles_per_key: costs.key_cycles[rep],
             keys_per_board: n,
             boards_for_its_keys: if n == 0 { 0 } else { count.div_ceil(n) },
         });

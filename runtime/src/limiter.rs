@@ -102,6 +102,16 @@ impl DacScale {
         let c = c as i32;
         (if force < 0 { -c } else { c }, sat)
     }
+
+    /// The largest shifted magnitude `x` in `[0, 32767]` whose code `(x · g) >> b` is at
+    /// most `code` (≥ 0): since the code grows with `x`, `|F| >> a` above it means a code
+    /// above `code` or a saturated force. The firmware's limiter compares magnitudes with
+    /// these thresholds (of the rated and the peak code) before it multiplies, so it
+    /// multiplies only magnitudes it keeps.
+    pub fn last_magnitude_within(&self, code: i32) -> u32 {
+        let limit = ((i64::from(code.max(0)) + 1) << self.post_shift) - 1;
+        (limit / i64::from(self.gain.max(1))).min(32767) as u32
+    }
 }
 
 /// The limiter of one key: its integer constants and its state (the time budget).
@@ -466,6 +476,30 @@ mod tests {
             let got = I32F32::from_num(s.code(w).0);
             assert!((got - exact).abs() < 3, "{w}: {got} against {exact}");
         }
+    }
+
+    /// The magnitude thresholds against the scale itself, over every 15-bit magnitude.
+    #[test]
+    fn magnitude_thresholds_split_the_codes() {
+        let lim = Limiter::new(&LimiterConfig::default()).unwrap();
+        let c = lim.constants();
+        for frac in [8, 16, 24, 28] {
+            let s = c.dac_scale(frac).unwrap();
+            for code in [1, c.rated_code, c.peak_code, 32767] {
+                let m = s.last_magnitude_within(code);
+                let at = |x: u32| ((x * s.gain) >> s.post_shift) as i32;
+                assert!(at(m) <= code, "{frac}: {code}");
+                assert!(m == 32767 || at(m + 1) > code, "{frac}: {code}");
+                assert!((0..=32767).all(|x| (at(x) <= code) == (x <= m)));
+            }
+        }
+        let tiny = DacScale {
+            pre_shift: 0,
+            gain: 65535,
+            post_shift: 0,
+        };
+        assert_eq!(tiny.last_magnitude_within(0), 0);
+        assert_eq!(tiny.last_magnitude_within(65535), 1);
     }
 
     #[test]

@@ -3,15 +3,18 @@
 //!
 //! **Registers.** The per-key updates (compiled code) follow AAPCS: they may clobber r0-r3
 //! and r12 and preserve r4-r11. The handler keeps its record pointer in r4, its control
-//! block in r5, the sensor and DAC window bases in r6 and r7. The limiter's board-wide
-//! constants live in r8-r11 for the whole run ([`hi`]): the reset handler sets them once,
+//! block in r5, the sensor and DAC window bases in r6 and r7; r5-r7 and the limiter's
+//! constants in r8-r11 ([`hi`]) hold for the whole run: the reset handler sets them once,
 //! every update preserves them, and the only code a sample interrupt ever interrupts is the
-//! reset handler's idle loop (`WFI; B`), which touches no register — so the handler saves
-//! only what exception entry does not (LR, with r4 for an 8-byte aligned stack) and never
-//! reloads a constant.
+//! reset handler's idle loop (`WFI; B`), which touches no register. So the handler saves
+//! nothing and loads no base: it clobbers r0-r4 freely, puts back the one constant the
+//! quiescent-key guard borrows (r5 and r6 with [`guard_uses_r5`]), and returns with
+//! `BX LR` after setting LR to EXC_RETURN `0xfffffff9` (Thread mode, main stack: the only
+//! state it ever interrupts; DDI0419 B1.5.8). Without a push the stack stays as exception
+//! entry aligned it, on 8 bytes (DDI0419 B1.5.7), for the AAPCS updates.
 //!
 //! **The limiter** is [`limiter_inline`]: `runtime/src/limiter.rs` on the 16-bit DAC code,
-//! one `MULS`, no call; at the time of writing 25 cycles on its worst path.
+//! one `MULS`, no call; at the time of writing 20 cycles on its worst path.
 
 use super::ImageError;
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label};
@@ -24,8 +27,8 @@ use tactus_runtime::limiter::{DacScale, LimiterConstants};
 pub mod ctrl {
     /// Microsecond time of the next sample tick (the armed alarm).
     pub const TARGET: u16 = 0;
-    /// Remainder accumulator of the tick schedule (in 1/fs µs), kept less fs: in
-    /// `[-fs, 0)`, so that its sign after adding the remainder says whether it carried.
+    /// Remainder accumulator of the tick schedule ([`super::Tick`]: in 1/`den` µs, in
+    /// `[0, den)`; unused when the period is a whole number of µs).
     pub const ACC: u16 = 4;
     /// Samples whose handler has completed.
     pub const SAMPLES: u16 = 8;
@@ -37,17 +40,22 @@ pub mod ctrl {
     pub const SIZE: u32 = 20;
 }
 
-/// The high registers that hold the limiter's constants for the whole run.
+/// The high registers that hold the limiter's constants for the whole run: the full budget,
+/// and the scale of the core's most used force format ([`super::Scale::InRegisters`]).
 pub mod hi {
-    /// The rated current as a DAC code (`LimiterConstants::rated_code`).
-    pub const RATED: u8 = 8;
-    /// The peak current as a DAC code (`LimiterConstants::peak_code`).
-    pub const PEAK: u8 = 9;
+    /// The largest shifted force magnitude whose code is at most the rated code
+    /// (`DacScale::last_magnitude_within(rated_code)`).
+    pub const RATED_MAG: u8 = 8;
+    /// The largest shifted force magnitude whose code is at most the peak code.
+    pub const PEAK_MAG: u8 = 9;
     /// The full time budget (`LimiterConstants::budget_max`).
     pub const BUDGET_MAX: u8 = 10;
-    /// The gain of the core's most used force format ([`super::Gain::InRegister`]).
+    /// The gain of the scale (`DacScale::gain`).
     pub const GAIN: u8 = 11;
 }
+
+/// EXC_RETURN for a return to Thread mode on the main stack (DDI0419 B1.5.8): `MVNS` of 6.
+const EXC_RETURN_NOT: u8 = 6;
 
 /// NVIC_ISER (DDI0419 B3.4.3).
 const NVIC_ISER: u32 = 0xe000_e100;
@@ -76,13 +84,14 @@ fn ldr_rec(a: &mut CodeBuffer, rt: u8, off: u32) {
     }
 }
 
-/// Where [`limiter_inline`] finds the gain of its force format.
+/// Where [`limiter_inline`] finds the constants of its force format's scale (the gain and
+/// the two magnitude thresholds).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Gain {
-    /// In [`hi::GAIN`] (`MOV`, 1 cycle).
-    InRegister,
-    /// From the literal pool (`LDR`, 2 cycles): a key whose force format is not the one
-    /// the core keeps in the register.
+pub enum Scale {
+    /// In [`hi`] (`CMP`/`MOV` with a high register, 1 cycle each).
+    InRegisters,
+    /// From the literal pool (`LDR`, 2 cycles each): a key whose force format is not the
+    /// one the core keeps in the registers.
     Literal,
 }
 
@@ -104,16 +113,28 @@ fn check_constants(c: &LimiterConstants) -> Result<(), ImageError> {
 
 /// The limiter of one force word, inline: `r0` = the force word in, the DAC code out
 /// (sign-extended); the budget word at `[r<base> + budget_off]` updated. Exactly
-/// `Limiter::step` (runtime/src/limiter.rs) with scale `s`. Needs [`hi`] set; clobbers
-/// r1-r3; `base` must be r4-r7 and `budget_off` ≤ 124.
+/// `Limiter::step` (runtime/src/limiter.rs) with scale `s`. Needs [`hi`] set (for `s` when
+/// `scale` is [`Scale::InRegisters`]); clobbers r1-r3; `base` must be r4-r7 and
+/// `budget_off` ≤ 124. Places the literal pool open so far (behind a branch, free).
 ///
-/// Worst path (the budget spent, clamped to rated): 25 cycles, from the sign to the
-/// budget's store.
+/// It decides on the shifted magnitude `m = |F| >> a` before multiplying: `m` above
+/// [`hi::RATED_MAG`] ⇔ a saturated force or a code above rated, `m` above [`hi::PEAK_MAG`]
+/// ⇔ saturated or above the peak (`DacScale::last_magnitude_within`), so no saturation
+/// test is needed and only a kept magnitude (≤ 32767) is multiplied. Four paths, each a
+/// case of `Limiter::step`:
+///
+/// - at or below rated: earn one unit up to the full budget; the code asked;
+/// - above rated, budget spent (`budget − recovery < 0`): earn one; the rated code;
+/// - above rated with budget, at or below the peak: spend; the code asked;
+/// - above the peak with budget: spend; the peak code.
+///
+/// Worst path 20 cycles (with both shifts): 6 for the magnitude and the budget's load, 4
+/// for the sign and the budget's store, the rest the decisions and the product.
 pub fn limiter_inline(
     a: &mut CodeBuffer,
     c: &LimiterConstants,
     s: &DacScale,
-    gain: Gain,
+    scale: Scale,
     base: u8,
     budget_off: u16,
 ) -> Result<(), ImageError> {
@@ -128,64 +149,63 @@ pub fn limiter_inline(
         return Err(ImageError::Limiter(format!("scale {s:?} out of range")));
     }
     let rec = c.recovery as u8;
-    let (sat, above, spent, apply) = (a.label(), a.label(), a.label(), a.label());
-    // r2 = sign mask, r0 = |force| (i32::MIN stays 2^31 as an unsigned magnitude).
+    let (earn, spent, mul, apply) = (a.label(), a.label(), a.label(), a.label());
+    // Compares r0 with a magnitude threshold: its register, or a literal through r3.
+    let cmp_mag = |a: &mut CodeBuffer, reg: u8, code: i32| match scale {
+        Scale::InRegisters => a.i(Instr::CmpHi { rn: 0, rm: reg }),
+        Scale::Literal => {
+            a.ldr_const(3, s.last_magnitude_within(code));
+            a.i(asm::cmp(0, 3));
+        }
+    };
+    // r2 = sign mask, r0 = |force| >> a (i32::MIN is 2^31 as an unsigned magnitude),
+    // r1 = the budget.
     a.i(asm::asrs(2, 0, 31));
     a.i(asm::alu(Eor, 0, 2));
     a.i(asm::subs(0, 0, 2));
     if s.pre_shift > 0 {
         a.i(asm::lsrs(0, 0, s.pre_shift as u8));
     }
-    // |x| ≥ 2^15: saturated, above the peak.
-    a.i(asm::lsrs(1, 0, 15));
-    a.bc(cond::NE, sat);
-    match gain {
-        Gain::InRegister => a.i(mov_hi(1, hi::GAIN)),
-        Gain::Literal => a.ldr_const(1, s.gain),
-    }
-    a.i(asm::alu(Mul, 0, 1));
-    if s.post_shift > 0 {
-        a.i(asm::lsrs(0, 0, s.post_shift as u8));
-    }
     a.i(asm::ldr(1, base, budget_off));
-    a.i(Instr::CmpHi {
-        rn: 0,
-        rm: hi::RATED,
-    });
-    a.bc(cond::GT, above);
-    // At or below rated: earn one unit, up to the full budget.
-    a.i(asm::adds_imm(1, 1, 1));
+    cmp_mag(a, hi::RATED_MAG, c.rated_code);
+    a.bc(cond::LS, earn);
+    // Above rated (or saturated): spend, if the budget allows.
+    a.i(asm::subs_imm(1, 1, rec));
+    a.bc(cond::MI, spent);
+    cmp_mag(a, hi::PEAK_MAG, c.peak_code);
+    a.bc(cond::LS, mul);
+    a.ldr_const(0, c.peak_code as u32);
+    a.b(apply);
+    // Budget spent: back to the old budget plus one; the rated code.
+    a.bind(spent);
+    match rec.checked_add(1) {
+        Some(back) => a.i(asm::adds_imm(1, 1, back)),
+        None => {
+            a.i(asm::adds_imm(1, 1, rec));
+            a.i(asm::adds_imm(1, 1, 1));
+        }
+    }
+    a.ldr_const(0, c.rated_code as u32);
+    a.b(apply);
+    a.pool();
+    // At or below rated: earn one unit, up to the full budget (never above it).
+    a.bind(earn);
     a.i(Instr::CmpHi {
         rn: 1,
         rm: hi::BUDGET_MAX,
     });
-    a.bc(cond::LE, apply);
-    a.i(mov_hi(1, hi::BUDGET_MAX));
-    a.b(apply);
-    // Saturated: above the peak whatever the exact value.
-    a.bind(sat);
-    a.i(asm::ldr(1, base, budget_off));
-    a.i(asm::cmp_imm(1, rec));
-    a.bc(cond::LT, spent);
-    a.i(asm::subs_imm(1, 1, rec));
-    a.i(mov_hi(0, hi::PEAK));
-    a.b(apply);
-    // Budget spent: clamp to rated, which earns.
-    a.bind(spent);
-    a.i(mov_hi(0, hi::RATED));
+    a.bc(cond::GE, mul);
     a.i(asm::adds_imm(1, 1, 1));
-    a.b(apply);
-    // Above rated with budget: spend, clamp to the peak.
-    a.bind(above);
-    a.i(asm::cmp_imm(1, rec));
-    a.bc(cond::LT, spent);
-    a.i(asm::subs_imm(1, 1, rec));
-    a.i(Instr::CmpHi {
-        rn: 0,
-        rm: hi::PEAK,
-    });
-    a.bc(cond::LE, apply);
-    a.i(mov_hi(0, hi::PEAK));
+    // The code asked: m ≤ 32767, so the product fits.
+    a.bind(mul);
+    match scale {
+        Scale::InRegisters => a.i(mov_hi(3, hi::GAIN)),
+        Scale::Literal => a.ldr_const(3, s.gain),
+    }
+    a.i(asm::alu(Mul, 0, 3));
+    if s.post_shift > 0 {
+        a.i(asm::lsrs(0, 0, s.post_shift as u8));
+    }
     a.bind(apply);
     // The sign back.
     a.i(asm::alu(Eor, 0, 2));
@@ -194,13 +214,13 @@ pub fn limiter_inline(
     Ok(())
 }
 
-/// Sets [`hi`] for `c` with `gain` in [`hi::GAIN`] (clobbers r0).
-pub fn set_limiter_registers(a: &mut CodeBuffer, c: &LimiterConstants, gain: u32) {
+/// Sets [`hi`] for `c` and the scale `s` (clobbers r0).
+pub fn set_limiter_registers(a: &mut CodeBuffer, c: &LimiterConstants, s: &DacScale) {
     for (reg, v) in [
-        (hi::RATED, c.rated_code as u32),
-        (hi::PEAK, c.peak_code as u32),
+        (hi::RATED_MAG, s.last_magnitude_within(c.rated_code)),
+        (hi::PEAK_MAG, s.last_magnitude_within(c.peak_code)),
         (hi::BUDGET_MAX, c.budget_max as u32),
-        (hi::GAIN, gain),
+        (hi::GAIN, s.gain),
     ] {
         a.mov_const(0, v);
         a.i(mov_hi(reg, 0));
@@ -208,12 +228,15 @@ pub fn set_limiter_registers(a: &mut CodeBuffer, c: &LimiterConstants, gain: u32
 }
 
 /// The limiter as a function, for tests: `r0` = force word, `r1` = address of the budget
-/// word; returns the DAC code in `r0` (sign-extended). Preserves r4-r11 (AAPCS).
+/// word; returns the DAC code in `r0` (sign-extended). Preserves r4-r11 (AAPCS). With
+/// [`Scale::Literal`] the registers hold another scale's constants, which the code must
+/// not use.
 pub fn limiter_function(
     a: &mut CodeBuffer,
     entry: Label,
     c: &LimiterConstants,
     s: &DacScale,
+    scale: Scale,
 ) -> Result<(), ImageError> {
     a.bind(entry);
     a.i(asm::push_lr(0xf0));
@@ -223,9 +246,18 @@ pub fn limiter_function(
     a.i(Instr::Push { list: 0xf0 });
     a.i(asm::mov(4, 1));
     a.i(asm::mov(5, 0));
-    set_limiter_registers(a, c, s.gain);
+    let other = DacScale {
+        pre_shift: 0,
+        gain: 1,
+        post_shift: 0,
+    };
+    let kept = match scale {
+        Scale::InRegisters => s,
+        Scale::Literal => &other,
+    };
+    set_limiter_registers(a, c, kept);
     a.i(asm::mov(0, 5));
-    limiter_inline(a, c, s, Gain::InRegister, 4, 0)?;
+    limiter_inline(a, c, s, scale, 4, 0)?;
     a.i(Instr::Pop { list: 0xf0 });
     for r in 8..12 {
         a.i(mov_hi(r, r - 4));
@@ -477,15 +509,17 @@ pub struct DriveCode {
     pub scale: DacScale,
 }
 
-/// The tick schedule: `period_us = q + rem/fs` µs, kept exactly by a remainder accumulator.
+/// The tick schedule: `period_us = q + rem/den` µs, kept exactly by a remainder
+/// accumulator `acc` in `[0, den)` ([`ctrl::ACC`]): each tick adds `rem` and carries one
+/// µs when it reaches `den`, so tick *n* is at `first + ⌊n·10⁶/fs⌋` µs.
 #[derive(Clone, Copy, Debug)]
 pub struct Tick {
     /// Whole microseconds per period (`1e6 div fs`).
     pub q: u32,
-    /// Remainder (`1e6 mod fs`), in 1/fs µs.
+    /// The fraction's numerator: `1e6 mod fs` over the fraction's gcd (0: whole µs).
     pub rem: u32,
-    /// Sample rate, Hz.
-    pub fs: u32,
+    /// The fraction's denominator: `fs` over the same gcd (44.1 kHz: 298/441).
+    pub den: u32,
     /// Smallest lead (µs) with which an alarm is armed: a handler that starts later than
     /// that re-synchronises to now + `margin` (the alarm would otherwise wait for the
     /// 32-bit count to wrap).
@@ -536,15 +570,22 @@ pub fn core_code(
         apb.push(l);
     };
     let alarm = reg::ALARM0 as u16 + 4 * core as u16;
-    // The gain kept in a register: the most used force format's.
-    let mut gains: Vec<(u32, usize)> = Vec::new();
+    // The scale kept in registers: the most used force format's.
+    let mut scales: Vec<(DacScale, usize)> = Vec::new();
     for d in keys.iter().flat_map(|k| &k.drives) {
-        match gains.iter_mut().find(|g| g.0 == d.scale.gain) {
+        match scales.iter_mut().find(|g| g.0 == d.scale) {
             Some(g) => g.1 += 1,
-            None => gains.push((d.scale.gain, 1)),
+            None => scales.push((d.scale, 1)),
         }
     }
-    let gain = gains.iter().max_by_key(|g| g.1).map_or(1, |g| g.0);
+    let scale = scales.iter().max_by_key(|g| g.1).map_or(
+        DacScale {
+            pre_shift: 0,
+            gain: 1,
+            post_shift: 0,
+        },
+        |g| g.0,
+    );
     // Window bases: the lowest word of each window the core's keys use, so that a board's
     // keys (consecutive slots) are reached by immediate offsets.
     let sensor_base = keys
@@ -589,7 +630,11 @@ pub fn core_code(
     }
     a.i(asm::ldr(1, 5, ctrl::TARGET));
     a.i(asm::str(1, 0, alarm));
-    set_limiter_registers(a, limiter, gain);
+    set_limiter_registers(a, limiter, &scale);
+    if !keys.is_empty() {
+        a.ldr_const(6, sensor_base);
+        a.ldr_const(7, dac_base);
+    }
     a.i(asm::movs(1, 1));
     a.i(asm::str(1, 5, ctrl::READY));
     // From here on only the idle loop runs between interrupts: it uses no register.
@@ -608,39 +653,17 @@ pub fn core_code(
     // ---- the sample interrupt ----
     a.align4();
     a.bind(labels.isr);
-    a.i(asm::push_lr(0x10)); // r4 (keeps the stack 8-aligned), lr
-    a.ldr_const(5, ctrl_addr);
     a.ldr_const(0, TIMER_BASE);
     a.i(asm::movs(1, 1 << core));
+    // Acknowledge the alarm.
     apb_here(a);
-    a.i(asm::str(1, 0, reg::INTR as u16)); // acknowledge the alarm
-                                           // Next tick: target += q (+1 when the remainder accumulator overflows).
-                                           // The accumulator is kept less fs ([`ctrl::ACC`]), so its sign is the carry.
+    a.i(asm::str(1, 0, reg::INTR as u16));
+    // Next tick: target += q, plus one µs when the accumulator reaches den.
     a.i(asm::ldr(1, 5, ctrl::TARGET));
-    a.i(asm::ldr(2, 5, ctrl::ACC));
-    let add = |a: &mut CodeBuffer, rd: u8, n: u32| {
-        if n <= 255 {
-            a.i(asm::adds_imm(rd, rd, n as u8));
-        } else {
-            a.mov_const(3, n);
-            a.i(asm::adds(rd, rd, 3));
-        }
-    };
-    add(a, 1, tick.q);
-    add(a, 2, tick.rem);
-    let (no_carry, armed) = (a.label(), a.label());
-    a.bc(cond::MI, no_carry);
-    if tick.fs <= 255 {
-        a.i(asm::subs_imm(2, 2, tick.fs as u8));
-    } else {
-        a.mov_const(3, tick.fs);
-        a.i(asm::subs(2, 2, 3));
-    }
-    a.i(asm::adds_imm(1, 1, 1));
-    a.bind(no_carry);
-    a.i(asm::str(2, 5, ctrl::ACC));
+    tick_step(a, &tick);
     apb_here(a);
     a.i(asm::ldr(3, 0, reg::TIMERAWL as u16));
+    let armed = a.label();
     a.i(asm::subs(2, 1, 3)); // target - now
     a.i(asm::cmp_imm(2, tick.margin));
     a.bc(cond::GE, armed);
@@ -656,15 +679,8 @@ pub fn core_code(
     a.i(asm::str(1, 5, ctrl::TARGET));
     apb_here(a);
     a.i(asm::str(1, 0, alarm));
-    if !keys.is_empty() {
-        a.ldr_const(6, sensor_base);
-        a.ldr_const(7, dac_base);
-    }
-    a.pool_inline();
     // Every key: sensors → record, update, then each force word: limiter, DAC.
-    let mut left = keys.len();
     walk(a, keys, &mut |a, k| {
-        left -= 1;
         for (i, &w) in k.sensor_words.iter().enumerate() {
             let off = w.wrapping_sub(sensor_base);
             if off <= 124 && off % 4 == 0 {
@@ -711,17 +727,17 @@ pub fn core_code(
         }
         a.bl_addr(k.update);
         if let Some(g) = &k.guard {
-            guard_record(a, g, k.state_offset, sensor_base, left > 0);
+            guard_record(a, g, k.state_offset, sensor_base, true);
         }
         a.bind(skip);
         for d in &k.drives {
             ldr_rec(a, 0, d.force_offset);
-            let g = if d.scale.gain == gain {
-                Gain::InRegister
+            let in_regs = if d.scale == scale {
+                Scale::InRegisters
             } else {
-                Gain::Literal
+                Scale::Literal
             };
-            limiter_inline(a, limiter, &d.scale, g, 4, d.budget_offset as u16)?;
+            limiter_inline(a, limiter, &d.scale, in_regs, 4, d.budget_offset as u16)?;
             let off = d.dac_word.wrapping_sub(dac_base);
             if off <= 124 && off % 4 == 0 {
                 a.i(asm::str(0, 7, off as u16));
@@ -730,8 +746,8 @@ pub fn core_code(
                 a.i(asm::str(0, 1, 0));
             }
         }
-        // Literals this key needed (a far window word or offset, another format's gain).
-        a.pool_inline();
+        // The literals this key needs after its last limiter (a far DAC word, another
+        // format's gain) wait for the next key's limiter's pool, or the end's.
         Ok(())
     })?;
     if keys
@@ -740,13 +756,14 @@ pub fn core_code(
     {
         a.ldr_const(5, ctrl_addr);
     }
+    // A miss: the next tick's alarm has already fired (its bit in INTR, raised when the
+    // timer reaches the target: the handler ends at or after the next tick).
     a.ldr_const(0, TIMER_BASE);
     apb_here(a);
-    a.i(asm::ldr(2, 0, reg::TIMERAWL as u16));
-    a.i(asm::ldr(1, 5, ctrl::TARGET));
-    a.i(asm::subs(2, 2, 1)); // now - next tick
+    a.i(asm::ldr(2, 0, reg::INTR as u16));
+    a.i(asm::lsrs(2, 2, core as u8 + 1)); // C = this core's bit
     let on_time = a.label();
-    a.bc(cond::MI, on_time);
+    a.bc(cond::CC, on_time);
     a.i(asm::ldr(1, 5, ctrl::MISSES));
     a.i(asm::adds_imm(1, 1, 1));
     a.i(asm::str(1, 5, ctrl::MISSES));
@@ -754,7 +771,46 @@ pub fn core_code(
     a.i(asm::ldr(1, 5, ctrl::SAMPLES));
     a.i(asm::adds_imm(1, 1, 1));
     a.i(asm::str(1, 5, ctrl::SAMPLES));
-    a.i(asm::pop_pc(0x10));
+    a.i(asm::movs(0, EXC_RETURN_NOT));
+    a.i(asm::alu(AluOp::Mvn, 0, 0));
+    a.i(mov_hi(14, 0));
+    a.i(Instr::Bx { rm: 14 });
     a.pool();
     Ok(CoreLabels { apb, ..labels })
+}
+
+/// `rd += n` through r3 when `n` is beyond two `ADDS #imm8`.
+fn add_const(a: &mut CodeBuffer, rd: u8, n: u32) {
+    if n <= 510 {
+        add_big(a, rd, n);
+    } else {
+        a.ldr_const(3, n);
+        a.i(asm::adds(rd, rd, 3));
+    }
+}
+
+/// The tick's arithmetic: `r1` = the target µs in, the next tick's out; the accumulator
+/// ([`ctrl::ACC`]) updated through r2 (clobbers r3; r0 and r5 kept). With `d = den − rem`:
+/// `acc − d ≥ 0` exactly when `acc + rem` reaches `den` (a carry, and the new `acc`);
+/// else the new `acc` is `acc − d + den`. 44.1 kHz: 10 cycles on the worst path (no carry).
+fn tick_step(a: &mut CodeBuffer, t: &Tick) {
+    if t.rem == 0 {
+        add_const(a, 1, t.q);
+        return;
+    }
+    let done = a.label();
+    a.i(asm::ldr(2, 5, ctrl::ACC));
+    add_const(a, 1, t.q + 1);
+    let d = t.den - t.rem;
+    if d <= 255 {
+        a.i(asm::subs_imm(2, 2, d as u8));
+    } else {
+        a.ldr_const(3, d);
+        a.i(asm::subs(2, 2, 3));
+    }
+    a.bc(cond::PL, done);
+    add_const(a, 2, t.den);
+    a.i(asm::subs_imm(1, 1, 1));
+    a.bind(done);
+    a.i(asm::str(2, 5, ctrl::ACC));
 }

@@ -177,10 +177,15 @@ pub(super) fn check_code_fits(
 /// between reading the time and arming the alarm.
 pub(super) fn tick_schedule(fs: u32, clock_hz: u64) -> Tick {
     let margin = (1 + (64 * 1_000_000u64).div_ceil(clock_hz)).min(200) as u8;
+    let rem = 1_000_000 % fs;
+    let (mut x, mut y) = (rem, fs);
+    while y != 0 {
+        (x, y) = (y, x % y);
+    }
     Tick {
         q: 1_000_000 / fs,
-        rem: 1_000_000 % fs,
-        fs,
+        rem: rem / x,
+        den: fs / x,
         margin,
     }
 }
@@ -424,7 +429,7 @@ pub(super) fn data_block(
     let mut data = Vec::new();
     let word = |v: u32| v.to_le_bytes();
     data.extend(word(first_tick_us)); // TARGET
-    data.extend(word(l.tick.fs.wrapping_neg())); // ACC: 0, less fs
+    data.extend(word(0)); // ACC
     data.extend(word(0)); // SAMPLES
     data.extend(word(0)); // MISSES
     data.extend(word(0)); // READY

@@ -19,8 +19,10 @@
 //! and their state structs (each holding its key's param block, which `init` leaves
 //! alone). Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
 //! core 1). So the only SRAM accesses two cores can contend for are the sensor loads and
-//! DAC stores in the striped sensor/DAC windows: at most one wait cycle each
-//! (`bus.rs`: the other core's claim lasts one cycle), which [`IsrWcet::contention`] adds.
+//! DAC stores in the striped sensor/DAC windows (a bank per word, address bits 3:2): at
+//! most one wait cycle each (`bus.rs`: the other core's claim lasts one cycle), and a
+//! window word in a core's home bank can delay one of that core's own accesses by one;
+//! [`IsrWcet::contention`] adds the smaller of the two ways of counting them.
 //! Code and data occupy disjoint ranges of bank offsets in both banks (core 1's code
 //! block follows core 0's in bank offsets, the data of both starts after both blocks), so
 //! no data store ever lands in a physical 256-byte page that holds code (the emulator's
@@ -56,19 +58,20 @@
 //! `sensors`), its out words, one limiter budget per force word and its state's address
 //! (the budgets and the address before the out words when the out words would push them
 //! beyond an `LDR` immediate). [`FirmwareImage::key_glue`] prices one key's glue
-//! statically (at the time of writing: a keyboard key 41 cycles alone on its core, 39 per
-//! key with two; a pen with three sensors and three axes 108). A program's
+//! statically (at the time of writing: a keyboard key 33 cycles, the step to its record
+//! included; a pen with three sensors and three axes more, per sensor and per axis). A program's
 //! `.text` must fit a core's bank: `plucked_string` (≈100 KB) does not
 //! ([`ImageError::NoRoom`]).
 //!
 //! **The sample interrupt** (per core, straight-line code: no loop, so the static WCET
-//! needs no loop bounds): acknowledge the alarm; arm the next tick (`q + rem/fs` µs later,
-//! the remainder kept exactly, so tick *n* is at `first + ⌊n·10⁶/fs⌋` µs); then for each key
+//! needs no loop bounds; it saves no register and loads no base, `glue`'s module
+//! documentation says why): acknowledge the alarm; arm the next tick (`q + rem/den` µs
+//! later, the remainder kept exactly, so tick *n* is at `first + ⌊n·10⁶/fs⌋` µs); then for each key
 //! of the core: copy its sensor window words into the key's record, `BL` the program's
 //! update (state, &sensors, out in the record), and per force word run the limiter on the
 //! word (`out[total]`, or a pen's `force.x`/`force.y` output) and store the DAC code in its
-//! DAC window word. Finally: if the timer already
-//! reached the next tick, the deadline was missed and the core's miss counter is
+//! DAC window word. Finally: if the next tick's alarm has already fired (its `INTR` bit),
+//! the deadline was missed and the core's miss counter is
 //! incremented; the sample counter is incremented last. A handler that starts more than a
 //! period late (only after a miss) re-synchronises the tick to now + a margin.
 
@@ -89,7 +92,7 @@ use tactus_compiler::thumb::buffer::{BufferError, CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ThumbObject;
 use tactus_emulator::bus::SRAM_ALIAS_BASE;
 
-use tactus_emulator::SENSOR_BASE;
+use tactus_emulator::{DAC_BASE, SENSOR_BASE};
 use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 
@@ -575,22 +578,24 @@ impl std::error::Error for ImageError {}
 /// have `force_frac` fraction bits: returns the code and the routine's address. Calling
 /// convention: `r0` = force word, `r1` = address of the budget word (it starts full:
 /// `Limiter::constants().budget_max`); returns the DAC code in `r0`. The image inlines
-/// exactly this limiter ([`glue::limiter_inline`]) per force word; tests call the routine
-/// with arbitrary words.
+/// exactly this limiter ([`glue::limiter_inline`]) per force word, its scale's constants in
+/// registers or (a key whose force format is not its core's main one) from literals, as
+/// `scale` says; tests call the routine with arbitrary words.
 ///
 /// Errors: [`ImageError::Limiter`], [`ImageError::Assemble`].
 pub fn limiter_routine(
     limiter: &LimiterConfig,
     force_frac: i32,
+    scale: glue::Scale,
     base: u32,
 ) -> Result<(Vec<u8>, u32), ImageError> {
     let consts = Limiter::new(limiter)
         .map_err(ImageError::Limiter)?
         .constants();
-    let scale = consts.dac_scale(force_frac).map_err(ImageError::Limiter)?;
+    let dac = consts.dac_scale(force_frac).map_err(ImageError::Limiter)?;
     let mut a = CodeBuffer::new(LongBranch::Refuse);
     let entry = a.label();
-    glue::limiter_function(&mut a, entry, &consts, &scale)?;
+    glue::limiter_function(&mut a, entry, &consts, &dac, scale)?;
     let out = a.finish(base)?;
     Ok((out.text, out.labels[entry.index()]))
 }
@@ -627,10 +632,11 @@ pub struct IsrWcet {
     /// [`tactus_emulator::wcet::analyse_isr`] of the handler with every key's update and limiter call
     /// (no bank contention).
     pub analysed: u64,
-    /// Bank-contention allowance: one wait cycle per sensor-window or DAC-window access of
-    /// this core's handler and per such access of the other core's handler in the same
-    /// sample (the only SRAM accesses that share a bank with another master; see the
-    /// module documentation).
+    /// Bank-contention allowance (the window words are the only SRAM two cores share; see
+    /// the module documentation): one wait cycle per window access of this core's handler
+    /// plus one per window word of the other core's in this core's home bank, or one per
+    /// window access of the other core's plus one per window word of this core's in the
+    /// other's home bank, whichever is fewer (`contention`).
     pub contention: u64,
     /// Of `analysed`: the keys' update calls (each `BL` and the update's WCET). The rest,
     /// `analysed - updates`, is the handler's own cost: exception entry and return, the
@@ -723,6 +729,34 @@ const MAX_SENSORS: usize = 24;
 /// A word written at the bottom of each stack; the run checks it after every sample.
 pub(crate) const STACK_CANARY: u32 = 0x57AC_CA11;
 
+/// The arbitration bank of a window word (striped SRAM: address bits 3:2).
+fn window_bank(word: u32) -> usize {
+    ((word >> 2) & 3) as usize
+}
+
+/// The stall cycles core `core`'s handler may lose to the other core in one sample, from
+/// each core's window accesses by bank (`accesses[c][bank]`). Only data accesses contend
+/// (instruction fetches do not: `tactus_emulator::bus`), each claims its bank for one
+/// cycle, so each stall of ours is one cycle of an access of ours that meets one claim of
+/// the other core in its bank. A core's data lie in its home bank (bank `core` of the
+/// non-striped alias) or its scratch bank, which the other core touches only through the
+/// window words there. So a stall is either one of our window accesses waiting (at most
+/// one cycle each), or one of our home-bank accesses meeting one of the other core's
+/// window words in our home bank; and, counted from the other side, either one of the
+/// other core's window accesses, or one of ours in the other core's home bank meeting its
+/// data. The allowance is the smaller count.
+fn contention(accesses: &[[u64; 4]], core: usize) -> u64 {
+    let total = |c: usize| accesses[c].iter().sum::<u64>();
+    (0..accesses.len())
+        .filter(|&o| o != core)
+        .map(|o| {
+            let ours = total(core) + accesses[o].get(core).copied().unwrap_or(0);
+            let theirs = total(o) + accesses[core].get(o).copied().unwrap_or(0);
+            ours.min(theirs)
+        })
+        .sum()
+}
+
 fn bank_base(core: usize) -> u32 {
     SRAM_ALIAS_BASE + 0x1_0000 * core as u32
 }
@@ -776,7 +810,8 @@ impl FirmwareImage {
         let mut places: Vec<CorePlace> = Vec::with_capacity(cores);
         let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
         let mut wcet = Vec::with_capacity(cores);
-        let mut window_accesses = vec![0u64; cores];
+        // Per core: its window accesses per sample, by arbitration bank.
+        let mut window_accesses = vec![[0u64; 4]; cores];
         let mut code_bytes = vec![0u32; cores];
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
@@ -810,11 +845,14 @@ impl FirmwareImage {
                 &g.keys,
                 &update_wcets,
             )?);
-            window_accesses[core] = g
-                .keys
-                .iter()
-                .map(|k| (k.sensors + k.drives.len()) as u64)
-                .sum();
+            for k in &g.keys {
+                let slot = k.spec.slot as u32;
+                let sensors = (0..k.sensors as u32).map(|j| SENSOR_BASE + 4 * (slot + j));
+                let dacs = (0..k.drives.len() as u32).map(|j| DAC_BASE + 4 * (slot + j));
+                for w in sensors.chain(dacs) {
+                    window_accesses[core][window_bank(w)] += 1;
+                }
+            }
             segments.push((base, code));
             segments.push((ctrl_addr, data));
             let mut place = layout::core_place(core, c, &g.labels, &addr, ctrl_addr);
@@ -827,10 +865,12 @@ impl FirmwareImage {
             }
             places.push(place);
         }
-        // Bank contention: every window access of both cores' handlers, on a core with keys.
-        let total: u64 = window_accesses.iter().sum();
-        for (w, p) in wcet.iter_mut().zip(&places) {
-            w.contention = if p.keys.is_empty() { 0 } else { total };
+        // Bank contention, on a core with keys ([`IsrWcet::contention`]).
+        for (core, (w, p)) in wcet.iter_mut().zip(&places).enumerate() {
+            w.contention = match p.keys.is_empty() {
+                true => 0,
+                false => contention(&window_accesses, core),
+            };
         }
         let keys = key_places
             .into_iter()
@@ -858,11 +898,13 @@ impl FirmwareImage {
     }
 
     /// Static cost of one key of `program` in the sample interrupt beyond its update: its
-    /// sensor copies, the update's call set-up, per force word the limiter call and the DAC
-    /// store ([`KeyGlue`]). Measured from the generated glue: the static WCET of core 0's
-    /// handler of an image with this one key on `board`, minus its update calls, minus the
-    /// handler of the same image without keys. A keyboard key costs the same whatever its
-    /// program (41 cycles at the time of writing); a pen more, per sensor and per axis.
+    /// sensor copies, the update's call set-up, per force word the limiter and the DAC
+    /// store, the step to the next key's record ([`KeyGlue`]). Measured from the generated
+    /// glue, as the most one such key adds to core 0's handler on `board` (static WCET
+    /// minus the update calls): the first key over the handler without keys, or a second
+    /// over the first. So a core with `n` such keys costs at most the handler without keys
+    /// plus `n` times this. A keyboard key costs the same whatever its program (33 cycles
+    /// at the time of writing); a pen more, per sensor and per axis.
     ///
     /// Errors: those of [`FirmwareImage::build`] (e.g. [`ImageError::NoRoom`] for a
     /// program too large for a core's bank).
@@ -872,17 +914,26 @@ impl FirmwareImage {
         limiter: &LimiterConfig,
     ) -> Result<KeyGlue, ImageError> {
         let programs = [program.clone()];
-        let key = KeySpec {
-            slot: 0,
-            program: 0,
-            core: 0,
+        let drives = program.drives()?.len();
+        let width = program.sensor_words().max(drives);
+        let keys: Vec<KeySpec> = (0..2)
+            .map(|i| KeySpec {
+                slot: i * width,
+                program: 0,
+                core: 0,
+            })
+            .collect();
+        // The handler's own cycles with 0, 1 and 2 keys.
+        let own = |n: usize| -> Result<u64, ImageError> {
+            let w = FirmwareImage::build(&programs, &keys[..n], board, limiter)?.wcet[0];
+            Ok(w.analysed.saturating_sub(w.updates))
         };
-        let with = FirmwareImage::build(&programs, &[key], board, limiter)?;
-        let without = FirmwareImage::build(&programs, &[], board, limiter)?;
-        let (w, e) = (with.wcet[0], without.wcet[0]);
+        let (none, one) = (own(0)?, own(1)?);
+        // Two keys may not fit a bank where one does: then one key is all a core holds.
+        let second = own(2).map_or(0, |two| two.saturating_sub(one));
         Ok(KeyGlue {
-            cycles: w.analysed.saturating_sub(w.updates + e.analysed),
-            window_words: (program.sensor_words() + program.drives()?.len()) as u64,
+            cycles: one.saturating_sub(none).max(second),
+            window_words: (program.sensor_words() + drives) as u64,
         })
     }
 
