@@ -19,10 +19,8 @@
 //! and their state structs (each holding its key's param block, which `init` leaves
 //! alone). Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
 //! core 1). So the only SRAM accesses two cores can contend for are the sensor loads and
-//! DAC stores in the striped sensor/DAC windows (a bank per word, address bits 3:2): at
-//! most one wait cycle each (`bus.rs`: the other core's claim lasts one cycle), and a
-//! window word in a core's home bank can delay one of that core's own accesses by one;
-//! [`IsrWcet::contention`] adds the smaller of the two ways of counting them.
+//! DAC stores in the striped sensor/DAC windows: at most one wait cycle each
+//! (`bus.rs`: the other core's claim lasts one cycle), which [`IsrWcet::contention`] adds.
 //! Code and data occupy disjoint ranges of bank offsets in both banks (core 1's code
 //! block follows core 0's in bank offsets, the data of both starts after both blocks), so
 //! no data store ever lands in a physical 256-byte page that holds code (the emulator's
@@ -92,7 +90,7 @@ use tactus_compiler::thumb::buffer::{BufferError, CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ThumbObject;
 use tactus_emulator::bus::SRAM_ALIAS_BASE;
 
-use tactus_emulator::{DAC_BASE, SENSOR_BASE};
+use tactus_emulator::SENSOR_BASE;
 use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 
@@ -632,11 +630,10 @@ pub struct IsrWcet {
     /// [`tactus_emulator::wcet::analyse_isr`] of the handler with every key's update and limiter call
     /// (no bank contention).
     pub analysed: u64,
-    /// Bank-contention allowance (the window words are the only SRAM two cores share; see
-    /// the module documentation): one wait cycle per window access of this core's handler
-    /// plus one per window word of the other core's in this core's home bank, or one per
-    /// window access of the other core's plus one per window word of this core's in the
-    /// other's home bank, whichever is fewer (`contention`).
+    /// Bank-contention allowance: one wait cycle per sensor-window or DAC-window access of
+    /// this core's handler and per such access of the other core's handler in the same
+    /// sample (the only SRAM accesses that share a bank with another master; see the
+    /// module documentation).
     pub contention: u64,
     /// Of `analysed`: the keys' update calls (each `BL` and the update's WCET). The rest,
     /// `analysed - updates`, is the handler's own cost: exception entry and return, the
@@ -729,34 +726,6 @@ const MAX_SENSORS: usize = 24;
 /// A word written at the bottom of each stack; the run checks it after every sample.
 pub(crate) const STACK_CANARY: u32 = 0x57AC_CA11;
 
-/// The arbitration bank of a window word (striped SRAM: address bits 3:2).
-fn window_bank(word: u32) -> usize {
-    ((word >> 2) & 3) as usize
-}
-
-/// The stall cycles core `core`'s handler may lose to the other core in one sample, from
-/// each core's window accesses by bank (`accesses[c][bank]`). Only data accesses contend
-/// (instruction fetches do not: `tactus_emulator::bus`), each claims its bank for one
-/// cycle, so each stall of ours is one cycle of an access of ours that meets one claim of
-/// the other core in its bank. A core's data lie in its home bank (bank `core` of the
-/// non-striped alias) or its scratch bank, which the other core touches only through the
-/// window words there. So a stall is either one of our window accesses waiting (at most
-/// one cycle each), or one of our home-bank accesses meeting one of the other core's
-/// window words in our home bank; and, counted from the other side, either one of the
-/// other core's window accesses, or one of ours in the other core's home bank meeting its
-/// data. The allowance is the smaller count.
-fn contention(accesses: &[[u64; 4]], core: usize) -> u64 {
-    let total = |c: usize| accesses[c].iter().sum::<u64>();
-    (0..accesses.len())
-        .filter(|&o| o != core)
-        .map(|o| {
-            let ours = total(core) + accesses[o].get(core).copied().unwrap_or(0);
-            let theirs = total(o) + accesses[core].get(o).copied().unwrap_or(0);
-            ours.min(theirs)
-        })
-        .sum()
-}
-
 fn bank_base(core: usize) -> u32 {
     SRAM_ALIAS_BASE + 0x1_0000 * core as u32
 }
@@ -810,8 +779,7 @@ impl FirmwareImage {
         let mut places: Vec<CorePlace> = Vec::with_capacity(cores);
         let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
         let mut wcet = Vec::with_capacity(cores);
-        // Per core: its window accesses per sample, by arbitration bank.
-        let mut window_accesses = vec![[0u64; 4]; cores];
+        let mut window_accesses = vec![0u64; cores];
         let mut code_bytes = vec![0u32; cores];
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
@@ -845,14 +813,11 @@ impl FirmwareImage {
                 &g.keys,
                 &update_wcets,
             )?);
-            for k in &g.keys {
-                let slot = k.spec.slot as u32;
-                let sensors = (0..k.sensors as u32).map(|j| SENSOR_BASE + 4 * (slot + j));
-                let dacs = (0..k.drives.len() as u32).map(|j| DAC_BASE + 4 * (slot + j));
-                for w in sensors.chain(dacs) {
-                    window_accesses[core][window_bank(w)] += 1;
-                }
-            }
+            window_accesses[core] = g
+                .keys
+                .iter()
+                .map(|k| (k.sensors + k.drives.len()) as u64)
+                .sum();
             segments.push((base, code));
             segments.push((ctrl_addr, data));
             let mut place = layout::core_place(core, c, &g.labels, &addr, ctrl_addr);
@@ -865,12 +830,10 @@ impl FirmwareImage {
             }
             places.push(place);
         }
-        // Bank contention, on a core with keys ([`IsrWcet::contention`]).
-        for (core, (w, p)) in wcet.iter_mut().zip(&places).enumerate() {
-            w.contention = match p.keys.is_empty() {
-                true => 0,
-                false => contention(&window_accesses, core),
-            };
+        // Bank contention: every window access of both cores' handlers, on a core with keys.
+        let total: u64 = window_accesses.iter().sum();
+        for (w, p) in wcet.iter_mut().zip(&places) {
+            w.contention = if p.keys.is_empty() { 0 } else { total };
         }
         let keys = key_places
             .into_iter()
