@@ -114,9 +114,15 @@ pub(crate) struct Sel<'a> {
     fused: Vec<bool>,
     /// The selects emitted as diamonds and the values computed inside their arms.
     arms: arms::Arms,
-    /// Per value: the state it is stored into, when that store is its only reader and
-    /// keeps its format (its word may then be clamped where it is computed).
+    /// Per value: the state it is stored into, when that store is its only reader (its word
+    /// may then be clamped where it is computed, where the state keeps its format, or
+    /// rounded to the state's format there: [`Sel::product_into_store`]).
     sole_store: Vec<Option<usize>>,
+    /// Per value: how many operands of used values and statements read it.
+    readers: Vec<u32>,
+    /// Values whose word is already in the format of the state that is their one reader
+    /// ([`Sel::product_into_store`]): their store converts nothing.
+    store_converted: Vec<bool>,
     /// Values whose word was clamped to their state's range where computed
     /// ([`Sel::fuse_store_clamp`]): their store clamps nothing.
     store_clamped: Vec<bool>,
@@ -203,9 +209,9 @@ struct ShlSat {
 }
 
 /// Per value of `fp`: the state `SetState` stores it into where that store is the value's
-/// only reader (no operand of a used value, no other statement) and the state has the
-/// value's format.
-fn sole_stores(fp: &FixedProgram, used: &[bool]) -> Vec<Option<usize>> {
+/// only reader (no operand of a used value, no other statement); and per value its number
+/// of readers (operands of used values and statements' reads).
+fn sole_stores(fp: &FixedProgram, used: &[bool]) -> (Vec<Option<usize>>, Vec<u32>) {
     let p = &fp.program;
     let n = p.values.len();
     let mut readers = vec![0u32; n];
@@ -225,9 +231,10 @@ fn sole_stores(fp: &FixedProgram, used: &[bool]) -> Vec<Option<usize>> {
             store[v.index()] = Some(sid.index());
         }
     });
-    (0..n)
-        .map(|i| store[i].filter(|&s| readers[i] == 1 && fp.frac[i] == fp.state_frac[s]))
-        .collect()
+    let sole = (0..n)
+        .map(|i| store[i].filter(|_| readers[i] == 1))
+        .collect();
+    (sole, readers)
 }
 
 fn pow2(e: i32) -> u64 {
@@ -280,7 +287,7 @@ impl<'a> Sel<'a> {
         walk(&p.body, p, false, &mut count);
         let direct = count.iter().map(|&(n, nested)| n == 1 && !nested).collect();
         let arms = arms::plan(fp, &used);
-        let used_for_stores = used.clone();
+        let (sole_store, readers) = sole_stores(fp, &used);
         let mut fused = fused_conditions(p, &used, &arms.conditions(p));
         let edge_cond = edge_conditions(p, &used, &fused);
         let mut select_uses = vec![0u32; p.values.len()];
@@ -317,8 +324,10 @@ impl<'a> Sel<'a> {
             fused,
             arms,
             top: false,
-            sole_store: sole_stores(fp, &used_for_stores),
+            sole_store,
+            readers,
             store_clamped: vec![false; p.values.len()],
+            store_converted: vec![false; p.values.len()],
             last_shl: None,
             edge_cond,
             select_uses,
@@ -499,7 +508,11 @@ impl<'a> Sel<'a> {
                     let i = sid.index();
                     let x = self.word(*v);
                     let since = self.code.len();
-                    let t = self.convert(x, fp.frac[v.index()], fp.state_frac[i]);
+                    let t = if self.store_converted[v.index()] {
+                        x
+                    } else {
+                        self.convert(x, fp.frac[v.index()], fp.state_frac[i])
+                    };
                     let (lo, hi) = fp.state_raw_range[i];
                     // The clamp is omitted where the value's interval proves it inside.
                     let iv = fp.ranges.values[v.index()];
