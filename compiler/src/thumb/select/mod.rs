@@ -120,9 +120,17 @@ pub(crate) struct Sel<'a> {
     sole_store: Vec<Option<usize>>,
     /// Per value: how many operands of used values and statements read it.
     readers: Vec<u32>,
-    /// Values whose word is already in the format of the state that is their one reader
-    /// ([`Sel::product_into_store`]): their store converts nothing.
-    store_converted: Vec<bool>,
+    /// Per value: the real `select` that reads it as an arm, where that is its one reader.
+    select_reader: Vec<Option<Value>>,
+    /// Per real `select` whose one reader stores it into a state of a coarser format, and
+    /// whose arms are constants or words of its own format: that state's format. The select
+    /// then picks between its arms converted to it (a conversion commutes with a select;
+    /// each arm is rounded once, as the store would round the select) and the store
+    /// converts nothing.
+    select_store_frac: Vec<Option<i32>>,
+    /// Values whose word is already in the format of their one reader, a state's store or a
+    /// `select` ([`Sel::product_into_store`]): that reader converts nothing.
+    preconverted: Vec<bool>,
     /// Values whose word was clamped to their state's range where computed
     /// ([`Sel::fuse_store_clamp`]): their store clamps nothing.
     store_clamped: Vec<bool>,
@@ -288,6 +296,32 @@ impl<'a> Sel<'a> {
         let direct = count.iter().map(|&(n, nested)| n == 1 && !nested).collect();
         let arms = arms::plan(fp, &used);
         let (sole_store, readers) = sole_stores(fp, &used);
+        let mut select_reader = vec![None; p.values.len()];
+        for (i, vd) in p.values.iter().enumerate() {
+            if let (Op::Select(_, x, y), Ty::Real(_), true) = (&vd.op, &vd.ty, used[i]) {
+                for a in [x, y] {
+                    if readers[a.index()] == 1 {
+                        select_reader[a.index()] = Some(Value(i as u32));
+                    }
+                }
+            }
+        }
+        let mut select_store_frac = vec![None; p.values.len()];
+        for (i, vd) in p.values.iter().enumerate() {
+            let (Op::Select(_, x, y), Ty::Real(_), true, Some(st)) =
+                (&vd.op, &vd.ty, used[i], sole_store[i])
+            else {
+                continue;
+            };
+            let own = |a: &Value| {
+                fp.frac[a.index()] == fp.frac[i]
+                    || (matches!(p.values[a.index()].op, Op::Const(_) | Op::Param(_))
+                        && fp.param_word_of(*a).is_none())
+            };
+            if fp.state_frac[st] < fp.frac[i] && own(x) && own(y) {
+                select_store_frac[i] = Some(fp.state_frac[st]);
+            }
+        }
         let mut fused = fused_conditions(p, &used, &arms.conditions(p));
         let edge_cond = edge_conditions(p, &used, &fused);
         let mut select_uses = vec![0u32; p.values.len()];
@@ -327,7 +361,9 @@ impl<'a> Sel<'a> {
             sole_store,
             readers,
             store_clamped: vec![false; p.values.len()],
-            store_converted: vec![false; p.values.len()],
+            select_reader,
+            select_store_frac,
+            preconverted: vec![false; p.values.len()],
             last_shl: None,
             edge_cond,
             select_uses,
@@ -508,7 +544,7 @@ impl<'a> Sel<'a> {
                     let i = sid.index();
                     let x = self.word(*v);
                     let since = self.code.len();
-                    let t = if self.store_converted[v.index()] {
+                    let t = if self.preconverted[v.index()] {
                         x
                     } else {
                         self.convert(x, fp.frac[v.index()], fp.state_frac[i])
@@ -634,7 +670,6 @@ impl<'a> Sel<'a> {
     /// branch costs what the other arm's `B` over it does, minus the not-taken cycle).
     fn select_branch(&mut self, v: Value, c: Value, x: Value, y: Value) -> Result<W, ThumbError> {
         let (p, fp) = (self.p, self.fp);
-        let fr = fp.frac[v.index()];
         let real = matches!(p.values[v.index()].ty, Ty::Real(_));
         let d = self.nv();
         let (second, done) = (self.label(), self.label());
@@ -660,11 +695,10 @@ impl<'a> Sel<'a> {
                 self.define(m)?;
             }
             let a = if side { x } else { y };
-            let w = self.word(a);
             let w = if real {
-                self.convert(w, fp.frac[a.index()], fr)
+                self.arm_word(v, a)
             } else {
-                w
+                self.word(a)
             };
             match self.konst.get(&w.v) {
                 Some(&imm) => self.push(M::Movi { d, imm }),
@@ -676,7 +710,26 @@ impl<'a> Sel<'a> {
             b = b.max(w.b);
         }
         self.push(M::Label(done));
+        if real && self.select_store_frac[v.index()].is_some() {
+            self.preconverted[v.index()] = true;
+        }
         Ok(W { v: d, b })
+    }
+
+    /// The word of arm `a` of the real select `sel` in the select's format — or in its
+    /// store's format ([`Sel::select_store_frac`]), where the arm's own format is the
+    /// select's (one rounding) or the arm is a constant (folded exactly, both roundings).
+    fn arm_word(&mut self, sel: Value, a: Value) -> W {
+        let w = self.word(a);
+        if self.preconverted[a.index()] {
+            return w;
+        }
+        let (fa, fs) = (self.fp.frac[a.index()], self.fp.frac[sel.index()]);
+        let w = self.convert(w, fa, fs);
+        match self.select_store_frac[sel.index()] {
+            Some(t) => self.convert(w, fs, t),
+            None => w,
+        }
     }
 }
 

@@ -195,13 +195,28 @@ impl<'a> Sel<'a> {
                 // floor(xl·yh / 2^(k−16)), each partial product one MULS.
                 let k = k.clamp(16, 32) as i32;
                 let xh = self.sh(Shift::Asr, x.v, 16);
+                // A constant's high half pre-shifted: `Y = yh·2^(32−k)` makes `xh·yh·2^(32−k)`
+                // one `MULS` (no `LSLS`) and `floor(xl·yh / 2^(k−16)) = floor(xl·Y / 2^16)`
+                // (the same `ASRS`), where both products fit and `Y` loads no dearer.
+                let lifted = match y {
+                    Operand::Const(c) if k > 16 && k < 32 && c >> 16 != 0 => {
+                        let (yh, y2) = ((c >> 16) as i64, ((c >> 16) as i64) << (32 - k));
+                        let hx = (x.b.min(LIM) >> 16) + 1;
+                        let load = |v: i64| if (0..=255).contains(&v) { 1 } else { 2 };
+                        (65535 * y2.unsigned_abs() < LIM
+                            && hx * y2.unsigned_abs() < LIM
+                            && load(y2) <= load(yh))
+                        .then_some(y2 as i32)
+                    }
+                    _ => None,
+                };
                 // A constant's zero half contributes nothing: its partial products are 0
                 // (`None`), and its register is never loaded.
                 let (yh, yl, yb) = match y {
                     Operand::Const(c) => {
                         let half = |this: &mut Self, h: i32| (h != 0).then(|| this.movi(h));
                         (
-                            half(self, c >> 16),
+                            half(self, lifted.unwrap_or(c >> 16)),
                             half(self, c & 0xffff),
                             c.unsigned_abs() as u64,
                         )
@@ -222,17 +237,19 @@ impl<'a> Sel<'a> {
                 // The mixed products first, `xh·yh` last: each `MULS` then overwrites an
                 // operand at its last use (`yl`, then `xl`, then both), and no `MOV` copies
                 // one (the sum is the same word in any order: the bound proves it fits).
-                for (a, b) in [(Some(xh), yl), (xl, yh)] {
+                // `xl·Y` by 2^16 where `Y` carries the 2^(32−k).
+                let s_low = if lifted.is_some() { 16 } else { k - 16 };
+                for (a, b, s) in [(Some(xh), yl, k - 16), (xl, yh, s_low)] {
                     let (Some(a), Some(b)) = (a, b) else { continue };
                     let mut t = self.alu2(AluOp::Mul, a, b);
-                    if k > 16 {
-                        t = self.sh(Shift::Asr, t, (k - 16) as u8);
+                    if s > 0 {
+                        t = self.sh(Shift::Asr, t, s as u8);
                     }
                     parts.push(t);
                 }
                 if let Some(yh) = yh {
                     let mut hh = self.alu2(AluOp::Mul, xh, yh);
-                    if k < 32 {
+                    if k < 32 && lifted.is_none() {
                         hh = self.sh(Shift::Lsl, hh, (32 - k) as u8);
                     }
                     parts.push(hh);
@@ -321,7 +338,13 @@ impl<'a> Sel<'a> {
         if e < 0 {
             // `round(p / 2^s)` with `p = floor(Q / 2^k)` is `round(Q / 2^(k+s))`: one
             // rounding of the partial products ([`Sel::round_halves`]).
-            let (hh, ll) = (W { v: hh, b: hx * ysb }, W { v: ll, b: 65535 * ysb });
+            let (hh, ll) = (
+                W { v: hh, b: hx * ysb },
+                W {
+                    v: ll,
+                    b: 65535 * ysb,
+                },
+            );
             let pb = pb.min(LIM);
             let direct = (k < 16) as u32 + (k > 0) as u32 + 1 + Self::rshr_len(pb, -e);
             if let Some(w) = self.round_halves(hh, ll, k - e, direct, (pb >> -e) + 1) {

@@ -88,16 +88,25 @@ impl<'a> Sel<'a> {
     }
 
     /// Where product `v` is a 32×16 product whose word is its unrounded sum (`p` in the
-    /// format `fx + fy − b − k`, `fxy = fx + fy`) and its one reader stores it into a state of
-    /// a coarser format: that format. The product then rounds `p` once into it, which is
-    /// exactly the store's conversion (round half up; the word only gets smaller), and
-    /// [`Sel::round_halves`] folds that rounding into the partial products.
+    /// format `fx + fy − b − k`, `fxy = fx + fy`) and its one reader converts it to a coarser
+    /// format — a store into a state, or a real `select` of which it is an arm: that format.
+    /// The product then rounds `p` once into it, which is exactly the reader's conversion
+    /// (round half up; the word only gets smaller), and [`Sel::round_halves`] folds that
+    /// rounding into the partial products.
     pub(super) fn product_into_store(&self, v: Value, kind: MulKind, fxy: i32) -> Option<i32> {
         let MulKind::Mul32x16 { b, k, .. } = kind else {
             return None;
         };
-        let i = self.sole_store[v.index()]?;
-        let (fr, sf) = (self.fp.frac[v.index()], self.fp.state_frac[i]);
+        let fr = self.fp.frac[v.index()];
+        let sf = match (self.sole_store[v.index()], self.select_reader[v.index()]) {
+            (Some(i), _) => self.fp.state_frac[i],
+            // The select's arm in its store's format where that rounds only once.
+            (None, Some(sel)) => match self.select_store_frac[sel.index()] {
+                Some(t) if self.fp.frac[sel.index()] == fr => t,
+                _ => self.fp.frac[sel.index()],
+            },
+            (None, None) => return None,
+        };
         (fr == fxy - b.min(31) as i32 - k.min(16) as i32 && sf < fr).then_some(sf)
     }
 
@@ -216,7 +225,7 @@ impl<'a> Sel<'a> {
                     let kind = fp.mul_kind[v.index()].unwrap_or(MulKind::Wide);
                     let fr = match self.product_into_store(v, kind, f(&x) + f(&y)) {
                         Some(sf) => {
-                            self.store_converted[v.index()] = true;
+                            self.preconverted[v.index()] = true;
                             sf
                         }
                         None => fr,
@@ -338,11 +347,13 @@ impl<'a> Sel<'a> {
             }
             Op::Select(c, x, y) => {
                 let cw = self.word(c);
-                let (a, b) = (self.word(x), self.word(y));
                 let (a, b) = if real(&v) {
-                    (self.convert(a, f(&x), fr), self.convert(b, f(&y), fr))
+                    if self.select_store_frac[v.index()].is_some() {
+                        self.preconverted[v.index()] = true;
+                    }
+                    (self.arm_word(v, x), self.arm_word(v, y))
                 } else {
-                    (a, b)
+                    (self.word(x), self.word(y))
                 };
                 self.select(cw.v, a, b)
             }
