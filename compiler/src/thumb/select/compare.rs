@@ -307,7 +307,11 @@ impl<'a> Sel<'a> {
                 b: keep.b,
             };
         }
-        let t = self.alu2(AluOp::Eor, a.v, b.v);
+        // Two known words: their `EOR` is known too (one literal instead of two).
+        let t = match (self.konst.get(&a.v), self.konst.get(&b.v)) {
+            (Some(&ka), Some(&kb)) => self.movi(ka ^ kb),
+            _ => self.alu2(AluOp::Eor, a.v, b.v),
+        };
         let t = self.alu2(AluOp::And, t, m);
         W {
             v: self.alu2(AluOp::Eor, t, b.v),

@@ -114,9 +114,23 @@ pub(crate) struct Sel<'a> {
     fused: Vec<bool>,
     /// The selects emitted as diamonds and the values computed inside their arms.
     arms: arms::Arms,
-    /// Per value: the state it is stored into, when that store is its only reader and
-    /// keeps its format (its word may then be clamped where it is computed).
+    /// Per value: the state it is stored into, when that store is its only reader (its word
+    /// may then be clamped where it is computed, where the state keeps its format, or
+    /// rounded to the state's format there: [`Sel::product_into_store`]).
     sole_store: Vec<Option<usize>>,
+    /// Per value: how many operands of used values and statements read it.
+    readers: Vec<u32>,
+    /// Per value: the real `select` that reads it as an arm, where that is its one reader.
+    select_reader: Vec<Option<Value>>,
+    /// Per real `select` whose one reader stores it into a state of a coarser format, and
+    /// whose arms are constants or words of its own format: that state's format. The select
+    /// then picks between its arms converted to it (a conversion commutes with a select;
+    /// each arm is rounded once, as the store would round the select) and the store
+    /// converts nothing.
+    select_store_frac: Vec<Option<i32>>,
+    /// Values whose word is already in the format of their one reader, a state's store or a
+    /// `select` ([`Sel::product_into_store`]): that reader converts nothing.
+    preconverted: Vec<bool>,
     /// Values whose word was clamped to their state's range where computed
     /// ([`Sel::fuse_store_clamp`]): their store clamps nothing.
     store_clamped: Vec<bool>,
@@ -203,9 +217,9 @@ struct ShlSat {
 }
 
 /// Per value of `fp`: the state `SetState` stores it into where that store is the value's
-/// only reader (no operand of a used value, no other statement) and the state has the
-/// value's format.
-fn sole_stores(fp: &FixedProgram, used: &[bool]) -> Vec<Option<usize>> {
+/// only reader (no operand of a used value, no other statement); and per value its number
+/// of readers (operands of used values and statements' reads).
+fn sole_stores(fp: &FixedProgram, used: &[bool]) -> (Vec<Option<usize>>, Vec<u32>) {
     let p = &fp.program;
     let n = p.values.len();
     let mut readers = vec![0u32; n];
@@ -225,9 +239,10 @@ fn sole_stores(fp: &FixedProgram, used: &[bool]) -> Vec<Option<usize>> {
             store[v.index()] = Some(sid.index());
         }
     });
-    (0..n)
-        .map(|i| store[i].filter(|&s| readers[i] == 1 && fp.frac[i] == fp.state_frac[s]))
-        .collect()
+    let sole = (0..n)
+        .map(|i| store[i].filter(|_| readers[i] == 1))
+        .collect();
+    (sole, readers)
 }
 
 fn pow2(e: i32) -> u64 {
@@ -280,7 +295,33 @@ impl<'a> Sel<'a> {
         walk(&p.body, p, false, &mut count);
         let direct = count.iter().map(|&(n, nested)| n == 1 && !nested).collect();
         let arms = arms::plan(fp, &used);
-        let used_for_stores = used.clone();
+        let (sole_store, readers) = sole_stores(fp, &used);
+        let mut select_reader = vec![None; p.values.len()];
+        for (i, vd) in p.values.iter().enumerate() {
+            if let (Op::Select(_, x, y), Ty::Real(_), true) = (&vd.op, &vd.ty, used[i]) {
+                for a in [x, y] {
+                    if readers[a.index()] == 1 {
+                        select_reader[a.index()] = Some(Value(i as u32));
+                    }
+                }
+            }
+        }
+        let mut select_store_frac = vec![None; p.values.len()];
+        for (i, vd) in p.values.iter().enumerate() {
+            let (Op::Select(_, x, y), Ty::Real(_), true, Some(st)) =
+                (&vd.op, &vd.ty, used[i], sole_store[i])
+            else {
+                continue;
+            };
+            let own = |a: &Value| {
+                fp.frac[a.index()] == fp.frac[i]
+                    || (matches!(p.values[a.index()].op, Op::Const(_) | Op::Param(_))
+                        && fp.param_word_of(*a).is_none())
+            };
+            if fp.state_frac[st] < fp.frac[i] && own(x) && own(y) {
+                select_store_frac[i] = Some(fp.state_frac[st]);
+            }
+        }
         let mut fused = fused_conditions(p, &used, &arms.conditions(p));
         let edge_cond = edge_conditions(p, &used, &fused);
         let mut select_uses = vec![0u32; p.values.len()];
@@ -317,8 +358,12 @@ impl<'a> Sel<'a> {
             fused,
             arms,
             top: false,
-            sole_store: sole_stores(fp, &used_for_stores),
+            sole_store,
+            readers,
             store_clamped: vec![false; p.values.len()],
+            select_reader,
+            select_store_frac,
+            preconverted: vec![false; p.values.len()],
             last_shl: None,
             edge_cond,
             select_uses,
@@ -499,7 +544,11 @@ impl<'a> Sel<'a> {
                     let i = sid.index();
                     let x = self.word(*v);
                     let since = self.code.len();
-                    let t = self.convert(x, fp.frac[v.index()], fp.state_frac[i]);
+                    let t = if self.preconverted[v.index()] {
+                        x
+                    } else {
+                        self.convert(x, fp.frac[v.index()], fp.state_frac[i])
+                    };
                     let (lo, hi) = fp.state_raw_range[i];
                     // The clamp is omitted where the value's interval proves it inside.
                     let iv = fp.ranges.values[v.index()];
@@ -621,7 +670,6 @@ impl<'a> Sel<'a> {
     /// branch costs what the other arm's `B` over it does, minus the not-taken cycle).
     fn select_branch(&mut self, v: Value, c: Value, x: Value, y: Value) -> Result<W, ThumbError> {
         let (p, fp) = (self.p, self.fp);
-        let fr = fp.frac[v.index()];
         let real = matches!(p.values[v.index()].ty, Ty::Real(_));
         let d = self.nv();
         let (second, done) = (self.label(), self.label());
@@ -647,11 +695,10 @@ impl<'a> Sel<'a> {
                 self.define(m)?;
             }
             let a = if side { x } else { y };
-            let w = self.word(a);
             let w = if real {
-                self.convert(w, fp.frac[a.index()], fr)
+                self.arm_word(v, a)
             } else {
-                w
+                self.word(a)
             };
             match self.konst.get(&w.v) {
                 Some(&imm) => self.push(M::Movi { d, imm }),
@@ -663,7 +710,26 @@ impl<'a> Sel<'a> {
             b = b.max(w.b);
         }
         self.push(M::Label(done));
+        if real && self.select_store_frac[v.index()].is_some() {
+            self.preconverted[v.index()] = true;
+        }
         Ok(W { v: d, b })
+    }
+
+    /// The word of arm `a` of the real select `sel` in the select's format — or in its
+    /// store's format ([`Sel::select_store_frac`]), where the arm's own format is the
+    /// select's (one rounding) or the arm is a constant (folded exactly, both roundings).
+    fn arm_word(&mut self, sel: Value, a: Value) -> W {
+        let w = self.word(a);
+        if self.preconverted[a.index()] {
+            return w;
+        }
+        let (fa, fs) = (self.fp.frac[a.index()], self.fp.frac[sel.index()]);
+        let w = self.convert(w, fa, fs);
+        match self.select_store_frac[sel.index()] {
+            Some(t) => self.convert(w, fs, t),
+            None => w,
+        }
     }
 }
 

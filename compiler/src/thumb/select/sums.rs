@@ -17,15 +17,22 @@ impl<'a> Sel<'a> {
         };
         if e1 >= 0 && shl_bound(coarse.b, e1) < LIM {
             let cb = shl_bound(coarse.b, e1);
-            // The fine term, negated first when it is the subtrahend.
-            let fine_signed = if sub && fine_is_y {
-                self.neg(fine)
-            } else {
-                fine
-            };
             let fb = shl_bound(fine.b, e2.max(0)) + 1;
             let fine_fits = e2 < 0 || shl_bound(fine.b, e2) < LIM;
             if fine_fits && cb + (fb >> (-e2).max(0)) + 1 < LIM {
+                if sub && fine_is_y && e2 < 0 {
+                    if let Some(f) = self.round_negated(fine, -e2) {
+                        let c = self.round(coarse, e1);
+                        let v = self.addsub(true, c.v, f);
+                        return W { v, b: rb.min(LIM) };
+                    }
+                }
+                // The fine term, negated first when it is the subtrahend.
+                let fine_signed = if sub && fine_is_y {
+                    self.neg(fine)
+                } else {
+                    fine
+                };
                 let f = if e2 >= 0 {
                     self.round(fine_signed, e2)
                 } else {
@@ -78,6 +85,24 @@ impl<'a> Sel<'a> {
             };
         }
         self.add64_path(x, fx_, y, fy, fr, sub, rb)
+    }
+
+    /// `−round(−y / 2^m)` (round half up, as [`Sel::rshr`]) without negating `y`, where that
+    /// is one `ADDS` and one `ASRS` (`m ≤ 8`, no overflow): `round(−y / 2^m) =
+    /// floor((−y + 2^(m−1)) / 2^m) = −floor((y + 2^(m−1) − 1) / 2^m)`. So a difference
+    /// `c − y` rounded to a coarser grid is `SUBS c, floor((y + 2^(m−1) − 1) / 2^m)`
+    /// instead of `RSBS`, the rounding and `ADDS`. `None` (nothing emitted) otherwise.
+    fn round_negated(&mut self, y: W, m: i32) -> Option<V> {
+        let half = (1u64 << (m.clamp(1, 8) - 1)) - 1;
+        if !(1..=8).contains(&m) || y.b + half >= LIM || self.konst.contains_key(&y.v) {
+            return None;
+        }
+        let t = if half > 0 {
+            self.addi(false, y.v, half as u8)
+        } else {
+            y.v
+        };
+        Some(self.sh(Shift::Asr, t, m as u8))
     }
 
     /// The sum in 64 bits (both terms extended and shifted to the finer grid, which is at

@@ -87,6 +87,70 @@ impl<'a> Sel<'a> {
         self.p.const_value(v).is_some()
     }
 
+    /// Where product `v` is a 32×16 product whose word is its unrounded sum (`p` in the
+    /// format `fx + fy − b − k`, `fxy = fx + fy`) and its one reader converts it to a coarser
+    /// format — a store into a state, or a real `select` of which it is an arm: that format.
+    /// The product then rounds `p` once into it, which is exactly the reader's conversion
+    /// (round half up; the word only gets smaller), and [`Sel::round_halves`] folds that
+    /// rounding into the partial products.
+    pub(super) fn product_into_store(&self, v: Value, kind: MulKind, fxy: i32) -> Option<i32> {
+        let MulKind::Mul32x16 { b, k, .. } = kind else {
+            return None;
+        };
+        let fr = self.fp.frac[v.index()];
+        let sf = match (self.sole_store[v.index()], self.select_reader[v.index()]) {
+            (Some(i), _) => self.fp.state_frac[i],
+            // The select's arm in its store's format where that rounds only once.
+            (None, Some(sel)) => match self.select_store_frac[sel.index()] {
+                Some(t) if self.fp.frac[sel.index()] == fr => t,
+                _ => self.fp.frac[sel.index()],
+            },
+            (None, None) => return None,
+        };
+        (fr == fxy - b.min(31) as i32 - k.min(16) as i32 && sf < fr).then_some(sf)
+    }
+
+    /// Where `n = −x0` on `x0`'s grid (exact: `x0`'s word is not `i32::MIN`) is read only by
+    /// a 32×16 product that cuts the constant `c` to `ys = c >> b`: `(x0, c')` with
+    /// `c' >> b = −ys`. The product is `floor(x·ys / 2^k)` with one floor (`fixed::mul_32x16`),
+    /// so `(−x0)·ys` and `x0·(−ys)` give the same word, and `−x0`'s `RSBS` is gone (`−ys`
+    /// is a 16-bit half: `ys ≠ −2^15`).
+    pub(super) fn neg_into_constant(
+        &self,
+        n: Value,
+        c: i32,
+        kind: MulKind,
+    ) -> Option<(Value, i32)> {
+        let MulKind::Mul32x16 {
+            cut: crate::fixed::Cut::Second,
+            b,
+            ..
+        } = kind
+        else {
+            return None;
+        };
+        let Op::Neg(x0) = self.p.values[n.index()].op else {
+            return None;
+        };
+        let fp = self.fp;
+        let x0_bound = self.val[x0.index()].map_or(LIM, |w| w.b);
+        if self.readers[n.index()] != 1
+            || fp.frac[n.index()] != fp.frac[x0.index()]
+            || x0_bound >= LIM
+            || fp.param_word_of(x0).is_some()
+            || self.is_const(x0)
+        {
+            return None;
+        }
+        let b = b.min(31) as u32;
+        let ys = c >> b;
+        if !(-32767..=32767).contains(&ys) {
+            return None;
+        }
+        let c2 = i32::try_from(-(ys as i64) << b).ok()?;
+        Some((x0, c2))
+    }
+
     /// The word of a value's definition.
     pub(super) fn def(&mut self, v: Value) -> Result<W, ThumbError> {
         let (p, fp, st) = (self.p, self.fp, self.st);
@@ -109,11 +173,7 @@ impl<'a> Sel<'a> {
                 let (d1, e) = self.d2_parts[s.index()].expect("checked");
                 let (k, fk) = fp.deriv_gain[1];
                 let sh = fr - (fp.sensor_frac[s.index()] + fk);
-                let kv = self.movi(k);
-                let a = self.smull(d1.v, kv);
-                let kv = self.movi(k);
-                let b = self.smull(e.v, kv);
-                let diff = self.add64(a, b, true);
+                let diff = self.smull_diff_const(d1.v, e.v, k);
                 self.round64(diff, sh, rb)
             }
             Op::Deriv(s, order) => {
@@ -163,30 +223,25 @@ impl<'a> Sel<'a> {
                 }
                 ArithOp::Mul => {
                     let kind = fp.mul_kind[v.index()].unwrap_or(MulKind::Wide);
-                    if self.is_const(y) {
+                    let fr = match self.product_into_store(v, kind, f(&x) + f(&y)) {
+                        Some(sf) => {
+                            self.preconverted[v.index()] = true;
+                            sf
+                        }
+                        None => fr,
+                    };
+                    if self.is_const(y) || self.is_const(x) {
+                        // The plan's shifts are in operand order: (variable, constant) here.
+                        let (x, y, kind) = if self.is_const(y) {
+                            (x, y, kind)
+                        } else {
+                            (y, x, kind.swapped())
+                        };
+                        let (x, c) = self
+                            .neg_into_constant(x, fp.consts[y.index()], kind)
+                            .unwrap_or((x, fp.consts[y.index()]));
                         let a = self.word(x);
-                        self.mul(
-                            a,
-                            f(&x),
-                            Operand::Const(fp.consts[y.index()]),
-                            f(&y),
-                            fr,
-                            kind,
-                            rb,
-                        )
-                    } else if self.is_const(x) {
-                        // The plan's shifts are in operand order: (constant, variable) here.
-                        let kind = kind.swapped();
-                        let a = self.word(y);
-                        self.mul(
-                            a,
-                            f(&y),
-                            Operand::Const(fp.consts[x.index()]),
-                            f(&x),
-                            fr,
-                            kind,
-                            rb,
-                        )
+                        self.mul(a, f(&x), Operand::Const(c), f(&y), fr, kind, rb)
                     } else {
                         let (a, b) = (self.word(x), self.word(y));
                         self.mul(a, f(&x), Operand::Word(b), f(&y), fr, kind, rb)
@@ -292,11 +347,13 @@ impl<'a> Sel<'a> {
             }
             Op::Select(c, x, y) => {
                 let cw = self.word(c);
-                let (a, b) = (self.word(x), self.word(y));
                 let (a, b) = if real(&v) {
-                    (self.convert(a, f(&x), fr), self.convert(b, f(&y), fr))
+                    if self.select_store_frac[v.index()].is_some() {
+                        self.preconverted[v.index()] = true;
+                    }
+                    (self.arm_word(v, x), self.arm_word(v, y))
                 } else {
-                    (a, b)
+                    (self.word(x), self.word(y))
                 };
                 self.select(cw.v, a, b)
             }

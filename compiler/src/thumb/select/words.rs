@@ -66,6 +66,22 @@ impl<'a> Sel<'a> {
         }
     }
 
+    /// How many instructions [`Sel::rshr`] emits for a word of bound `b` shifted by `m`
+    /// (a known word aside): what a sequence that folds a rounding compares against.
+    pub(super) fn rshr_len(b: u64, m: i32) -> u32 {
+        if m >= 32 {
+            1
+        } else if m <= 8 && b + (1u64 << (m - 1)) < LIM {
+            2
+        } else if m >= 2 {
+            3
+        } else if b < LIM - 1 {
+            2
+        } else {
+            3
+        }
+    }
+
     /// `x · 2^e` saturated to i32, `e ≥ 1`.
     pub(super) fn shl_sat(&mut self, x: W, e: i32) -> W {
         let b = shl_bound(x.b, e);
@@ -109,6 +125,9 @@ impl<'a> Sel<'a> {
         let Some(i) = self.sole_store[v.index()] else {
             return;
         };
+        if self.fp.frac[v.index()] != self.fp.state_frac[i] {
+            return;
+        }
         let Some(w) = self.val[v.index()] else {
             return;
         };
