@@ -95,6 +95,10 @@ pub struct ContractCheck {
     /// Switches that started within a window's length of the previous one or in its
     /// after-effect (chatter): the per-sample clause holds at their samples.
     pub switch_chatter: usize,
+    /// Disagreements that started again inside an open switch window: the other run's side
+    /// of the same switch (one run's hammer lands three samples before the other's, and the
+    /// runs agree in between). The window measures them and its after-effect goes on.
+    pub switch_rejoined: usize,
     /// Samples where some fixed state lay outside its declared range.
     pub state_out_of_range: usize,
     /// Values that saturated (the range analysis claimed they cannot).
@@ -128,6 +132,13 @@ pub const MAX_SWITCHES_KEPT: usize = 64;
 ///   sample the per-sample clause breaks is held to the same (τ, ε) distance with ε the
 ///   force tolerance alone: a time shift within τ and nothing more
 ///   ([`Switch::after_lsb`]);
+/// * a disagreement that starts again before the window closes is the other run's side of
+///   the same switch, not a new one ([`ContractCheck::switch_rejoined`]): one run's hammer
+///   lands on the rest felt three samples before the other's and bounces, so the runs agree
+///   for the two samples between the landings and disagree again at the second. The window
+///   measures its samples (each disagreement must still end within τ) and the after-effect
+///   goes on: after both landings the runs are a time shift of three samples apart, and the
+///   pulse set by the landings decays over hundreds of samples;
 /// * elsewhere the per-sample clause holds unchanged — also at a switch that starts within
 ///   τ of the last window or in its after-effect ([`ContractCheck::switch_chatter`]): a
 ///   contact chattering under sensor noise or arbitrary sensor words has no one switch time,
@@ -565,6 +576,8 @@ fn compare_block(
     let mut agreeing = window;
     let mut last_window: Option<usize> = None;
     let mut chattered: Vec<bool> = Vec::new();
+    // The window whose after-effect runs (the last one a switch opened).
+    let mut owner = 0;
     for (n, (&raw, &total)) in run.raw.iter().zip(&run.total).enumerate() {
         let ob = b.step_raw(&[raw]);
         out.samples += 1;
@@ -615,20 +628,31 @@ fn compare_block(
                 windows.push((n, i, None, false));
                 after.push(Vec::new());
                 out.switch_count += 1;
-                // An isolated switch gets its window; one that starts within a window's
-                // length of the last window, or in its after-effect, is chatter (a contact
-                // bouncing under sensor noise or arbitrary words has no one switch time):
-                // the per-sample clause holds there.
-                let chatter = last_window.is_some_and(|e| n < e + window) || agreeing < window;
-                chattered.push(chatter);
-                if chatter {
+                // A disagreement that starts again inside the open window is the other
+                // side of that window's switch (one run's hammer lands at n, the other's
+                // at n + 3: the runs agree in between, both in the air or both landed and
+                // bounced): the window measures its samples and the switch's after-effect
+                // goes on. An isolated switch gets its window; one that starts within a
+                // window's length after the last window, or in its after-effect, is
+                // chatter (a contact bouncing under sensor noise or arbitrary words has no
+                // one switch time): the per-sample clause holds there.
+                let rejoined = n < cover_end;
+                let chatter =
+                    !rejoined && (last_window.is_some_and(|e| n < e + window) || agreeing < window);
+                chattered.push(chatter || rejoined);
+                if rejoined {
+                    out.switch_rejoined += 1;
+                } else if chatter {
                     agreeing = window;
                     out.switch_chatter += 1;
                 } else {
                     cover_end = n + window;
                     agreeing = 0;
+                    owner = windows.len() - 1;
                 }
-                last_window = Some(n + window);
+                if !rejoined {
+                    last_window = Some(n + window);
+                }
             }
             (None, Some(w)) => {
                 windows[w].2 = Some(n - windows[w].0);
@@ -654,7 +678,7 @@ fn compare_block(
                 broken |= diff > force_limit;
             } else if diff > force_limit {
                 agreeing = 0;
-                after.last_mut().expect("a window").push(n);
+                after[owner].push(n);
             } else {
                 agreeing += 1;
             }

@@ -322,6 +322,20 @@ pub fn simulated_random_words(range: (i32, i32), run: usize) -> Vec<i32> {
         .collect()
 }
 
+/// Uniform sensor noise of the planner's noisy press, as a fraction of the dip (±0.5 %: a
+/// noisy key sensor; the budget corpus's quick noise amplitude).
+pub const SIMULATED_NOISE_REL: f64 = 0.005;
+
+/// The planner's noisy press: key travel `key` (metres) with uniform noise of
+/// ±[`SIMULATED_NOISE_REL`] of `dip_m` added to every sample, from a fixed seed (its own,
+/// not the budget corpus's: the corpus checks what the planner did not see).
+pub fn simulated_noisy(key: &[f64], dip_m: f64) -> Vec<f64> {
+    let mut rng = tactus_runtime::rng::XorShift64::new(0x5EED_0015);
+    key.iter()
+        .map(|&x| x + dip_m * SIMULATED_NOISE_REL * (2.0 * rng.unit() - 1.0))
+        .collect()
+}
+
 /// Most passes of the planner's rounds ([`FixedProgram::with_config`]): a second pass tries
 /// again, in the plan the first settled in, the forms refused beside others.
 pub const SEARCH_PASSES: usize = 2;
@@ -1174,6 +1188,13 @@ impl FixedProgram {
             {
                 stimuli.push(s.key);
             }
+        }
+        // A press under sensor noise (the budget corpus's kind of input): a product cut
+        // that holds on clean key travel can break under noise, where the contact switches
+        // on the noise and the switch clause reads the runs' disagreements.
+        if let Ok(s) = tactus_runtime::stimulus::dip(0.04, 0.1, 0.04, dip, original.sample_rate_hz)
+        {
+            stimuli.push(simulated_noisy(&s.key, dip));
         }
         // The reference runs (f64), each independent: on every core, in a fixed order.
         let this = &*self;
