@@ -19,14 +19,14 @@
 //! operations; compares; branches; prologue and epilogue (`PUSH`/`POP`, `SP` adjustments).
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::lower::Config;
 use tactus_compiler::thumb;
+use tactus_compiler::thumb::ThumbObject;
 use tactus_emulator::decode::{decode, AluOp, Instr};
 use tactus_emulator::timing;
-use tactus_compiler::thumb::ThumbObject;
 use tactus_firmware::budget::{self, LOAD_ADDR};
-use std::path::{Path, PathBuf};
 
 fn category(i: &Instr) -> &'static str {
     match i {

@@ -2,18 +2,21 @@
 //! stores a velocity and reads it again for the position (`w' = …; s' = w`), and the IR
 //! reads a state afresh at each use (the piano's key angle and hammer words are read by
 //! every handler that tests them). A load of a state word becomes a copy of the register
-//! that holds the word — the register of an earlier load of it, or the register an earlier
-//! `STR` wrote it from — where that earlier instruction dominates the load and nothing
-//! between may write the word or redefine the register. The code branches only forward, so
-//! instruction `i` dominates `j > i` exactly when no label in `(i, j]` is the target of a
-//! branch from before `i`, and every way from `i` to `j` runs through instructions between
-//! them in program order: a store that may write the word anywhere in `(i, j)` ends the
-//! reuse, whichever way it lies on (a byte store only that of the bytes it writes: the
-//! piano's handlers set edge bytes beside the mode byte every handler reads). The copy is a renaming where both registers are
-//! defined once (no instruction at all), else a `MOV` (flags kept, as the load kept them);
-//! a renamed load register the allocator must spill is rematerialised from the state
-//! struct when no store in its live range may write the word (`regalloc::Remat::State`),
-//! so a longer live range costs no more than the load it replaced.
+//! that holds the word on every way to it — the register of an earlier load of it, the
+//! register an earlier `STR` wrote it from, or the `MOVS #imm` (0–255) an earlier `STRB`
+//! stored — where nothing between may write its bytes or redefine the register. The code
+//! branches only forward, so one pass in program order knows every way into a label when
+//! it reaches it (the branches recorded what they knew; a label keeps what all ways agree
+//! on); a byte store ends only the reuse of the bytes it writes (the piano's handlers set
+//! edge bytes beside the mode byte every handler reads). A handler that sets the mode byte
+//! in its arm makes the register of the byte's load before the arm take the stored
+//! constant instead of a register of its own ([`phi_at`]), so that after the join the
+//! register holds the byte on both ways. The copy is a renaming where both registers are
+//! defined once by the selector (no instruction at all), else a `MOV` (flags kept, as the
+//! load kept them); a renamed load register the allocator must spill is rematerialised
+//! from the state struct when no store in its live range may write the word
+//! (`regalloc::Remat::State`), so a longer live range costs no more than the load it
+//! replaced.
 
 use super::mir::*;
 use super::select::ARG2;
@@ -50,12 +53,13 @@ pub(crate) fn forward(code: &mut Vec<M>, nregs: u32) {
     let mut reachable = true;
     let mut rename: HashMap<V, V> = HashMap::new();
     let mut drop = vec![false; code.len()];
-    let branch = |pending: &mut HashMap<u32, HashMap<Key, V>>, l: Label, avail: &HashMap<Key, V>| {
-        pending
-            .entry(l.0)
-            .and_modify(|w| w.retain(|k, v| avail.get(k) == Some(v)))
-            .or_insert_with(|| avail.clone());
-    };
+    let branch =
+        |pending: &mut HashMap<u32, HashMap<Key, V>>, l: Label, avail: &HashMap<Key, V>| {
+            pending
+                .entry(l.0)
+                .and_modify(|w| w.retain(|k, v| avail.get(k) == Some(v)))
+                .or_insert_with(|| avail.clone());
+        };
     for j in 0..code.len() {
         // Operands renamed so far read their new register.
         for u in code[j].uses_mut() {
@@ -204,9 +208,9 @@ fn phi_at(code: &[M], def_at: &[usize], last_use: &[usize], v: V, t: V, j: usize
     if q >= j || last_use[v.0 as usize] >= q {
         return None;
     }
-    let clear = code[q + 1..j].iter().all(|m| {
-        !m.uses().contains(&t) && !matches!(m, M::Label(_) | M::B(_) | M::Bc(..))
-    });
+    let clear = code[q + 1..j]
+        .iter()
+        .all(|m| !m.uses().contains(&t) && !matches!(m, M::Label(_) | M::B(_) | M::Bc(..)));
     clear.then_some(q)
 }
 
@@ -339,7 +343,12 @@ mod tests {
             ]
         );
         // A constant beyond a byte is not what `LDRB` reads back.
-        let mut code = vec![M::Movi { d: V(4), imm: 300 }, strb(4, 1), ldrb(6, 1), cmp(6)];
+        let mut code = vec![
+            M::Movi { d: V(4), imm: 300 },
+            strb(4, 1),
+            ldrb(6, 1),
+            cmp(6),
+        ];
         forward(&mut code, 8);
         assert_eq!(code[2], ldrb(6, 1));
     }
