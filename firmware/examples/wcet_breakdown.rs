@@ -153,7 +153,7 @@ fn breakdown(path: &str, fp: &FixedProgram, obj: &ThumbObject, list: bool, asm: 
         println!("{}", obj.code.listing);
     }
     let name = obj.update_name();
-    let w = budget::function_wcet(&obj, &name).unwrap_or_else(|e| {
+    let w = budget::function_wcet(obj, &name).unwrap_or_else(|e| {
         eprintln!("{path}: {e}");
         std::process::exit(1)
     });
