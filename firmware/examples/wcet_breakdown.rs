@@ -6,15 +6,24 @@
 //! (`--list`: the worst path instruction by instruction; `--asm`: the whole object's GNU
 //! assembler listing first, to compare the code of two compiler versions).
 //!
+//! `… -- --layout instruments/layouts/grand88.toml [--list] [--asm]` analyses the programs
+//! of a keyboard layout as `tactus budget` compiles them
+//! (`tactus_firmware::image::compile_layout`: the param sets of one instrument share one
+//! code, graded params as run-time data), one breakdown per distinct code. A layout's
+//! instrument names a file beside the layout, `instruments/NAME.tactus` under the layout's
+//! parent directory, or `instruments/NAME.tactus` under the current one.
+//!
 //! Categories are by instruction: `MULS`; operand splitting for multi-word products
 //! (`UXTH`); 64-bit carries (`ADCS`/`SBCS`); state loads and stores (`[r7, …]` and other
 //! registers); spills (`[sp, …]`); literal-pool loads; register moves; shifts; other ALU
 //! operations; compares; branches; prologue and epilogue (`PUSH`/`POP`, `SP` adjustments).
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::lower::Config;
 use tactus_compiler::thumb;
+use tactus_compiler::thumb::ThumbObject;
 use tactus_emulator::decode::{decode, AluOp, Instr};
 use tactus_emulator::timing;
 use tactus_firmware::budget::{self, LOAD_ADDR};
@@ -54,12 +63,19 @@ fn category(i: &Instr) -> &'static str {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let Some(path) = args.iter().find(|a| !a.starts_with("--")) else {
-        eprintln!("usage: wcet_breakdown INSTRUMENT.tactus [--list] [--asm]");
-        std::process::exit(2);
-    };
     let list = args.iter().any(|a| a == "--list");
     let asm = args.iter().any(|a| a == "--asm");
+    if let Some(k) = args.iter().position(|a| a == "--layout") {
+        let Some(layout) = args.get(k + 1) else {
+            eprintln!("usage: wcet_breakdown --layout LAYOUT.toml [--list] [--asm]");
+            std::process::exit(2);
+        };
+        return analyse_layout(Path::new(layout), list, asm);
+    }
+    let Some(path) = args.iter().find(|a| !a.starts_with("--")) else {
+        eprintln!("usage: wcet_breakdown INSTRUMENT.tactus [--list] [--asm] | --layout LAYOUT.toml [--list] [--asm]");
+        std::process::exit(2);
+    };
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| {
         eprintln!("{path}: {e}");
         std::process::exit(2)
@@ -76,11 +92,68 @@ fn main() {
         eprintln!("{path}: {e}");
         std::process::exit(1)
     });
+    breakdown(path, &fp, &obj, list, asm);
+}
+
+/// The source file of instrument `name` of the layout at `layout` (see the module's doc).
+fn instrument_path(layout: &Path, name: &str) -> Option<PathBuf> {
+    let dir = layout.parent().unwrap_or(Path::new("."));
+    let file = format!("{name}.tactus");
+    [
+        dir.join(name),
+        dir.join(&file),
+        dir.join("..").join(&file),
+        dir.join("../instruments").join(&file),
+        Path::new("instruments").join(&file),
+    ]
+    .into_iter()
+    .find(|p| p.is_file())
+}
+
+/// Breaks down each distinct code of the layout at `path` as the budget compiles it.
+fn analyse_layout(path: &Path, list: bool, asm: bool) {
+    let shown = path.display().to_string();
+    let (_, keys) = tactus_runtime::keyboard::read_layout(path).unwrap_or_else(|e| {
+        eprintln!("{e}");
+        std::process::exit(2)
+    });
+    let source = |name: &str| -> Result<String, String> {
+        let p = instrument_path(path, name)
+            .ok_or_else(|| format!("no source file for instrument `{name}`"))?;
+        std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))
+    };
+    let fs = Config::default().sample_rate_hz;
+    let (programs, key_programs) = tactus_firmware::image::compile_layout(&keys, &source, fs)
+        .unwrap_or_else(|e| {
+            eprintln!("{shown}: {e}");
+            std::process::exit(1)
+        });
+    for (i, p) in programs.iter().enumerate() {
+        if programs[..i].iter().any(|q| q.same_code(p)) {
+            continue;
+        }
+        let n = (0..programs.len())
+            .filter(|&j| programs[j].same_code(p))
+            .map(|j| key_programs.iter().filter(|&&k| k == j).count())
+            .sum::<usize>();
+        println!(
+            "{shown}: program {i} ({} keys, {} run-time params)",
+            n,
+            p.params.len()
+        );
+        breakdown(&shown, &p.fixed, &p.thumb, list, asm);
+    }
+}
+
+/// Prints the worst path of `obj`'s update by category (and instruction by instruction
+/// with `list`, after the whole listing with `asm`); `path` names it in errors.
+fn breakdown(path: &str, fp: &FixedProgram, obj: &ThumbObject, list: bool, asm: bool) {
+    let program = &fp.program;
     if asm {
         println!("{}", obj.code.listing);
     }
     let name = obj.update_name();
-    let w = budget::function_wcet(&obj, &name).unwrap_or_else(|e| {
+    let w = budget::function_wcet(obj, &name).unwrap_or_else(|e| {
         eprintln!("{path}: {e}");
         std::process::exit(1)
     });

@@ -42,8 +42,8 @@ struct Lower<'a> {
     /// instruction before is a `B`).
     holds: [Option<Held>; 2],
     /// Per machine-IR label: what the branches to it lowered so far agree the scratch
-    /// registers hold.
-    pending: HashMap<u32, [Option<Held>; 2]>,
+    /// registers hold, and the copy of a spill slot they agree on ([`Lower::copy`]).
+    pending: HashMap<u32, Ways>,
     /// Whether the instruction being lowered can be reached by falling through (not right
     /// after an unconditional `B`).
     reachable: bool,
@@ -53,8 +53,12 @@ struct Lower<'a> {
     /// A low register other than the scratch registers that holds a spill slot's value
     /// (the register a slot was just stored from), until that register is written: a
     /// read of the slot is then that register (no `LDR` from a stack home, 2 cycles, no
-    /// `MOV` from a high one, 1).
+    /// `MOV` from a high one, 1). The instruction that writes it may still read it (its
+    /// operands are read first), and a label keeps it when every way in agrees.
     copy: Option<(u8, u16)>,
+    /// The register the instruction being lowered writes when that ends [`Lower::copy`]
+    /// (cleared once the instruction is lowered).
+    copy_ends: Option<u8>,
     /// Scratch registers holding an operand of the instruction being lowered (a second
     /// spilled operand is reloaded into the other one).
     pinned: [bool; 2],
@@ -76,9 +80,26 @@ enum Held {
     Remat(Remat),
 }
 
+/// What a way into a label knows: what the scratch registers hold ([`Lower::holds`]) and
+/// the copy of a spill slot in another low register ([`Lower::copy`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Ways {
+    holds: [Option<Held>; 2],
+    copy: Option<(u8, u16)>,
+}
+
 /// Where both `a` and `b` agree.
-fn meet(a: [Option<Held>; 2], b: [Option<Held>; 2]) -> [Option<Held>; 2] {
-    [0, 1].map(|j| if a[j] == b[j] { a[j] } else { None })
+fn meet(a: Ways, b: Ways) -> Ways {
+    Ways {
+        holds: [0, 1].map(|j| {
+            if a.holds[j] == b.holds[j] {
+                a.holds[j]
+            } else {
+                None
+            }
+        }),
+        copy: if a.copy == b.copy { a.copy } else { None },
+    }
 }
 
 /// The home of a spill slot.
@@ -237,8 +258,8 @@ impl Lower<'_> {
             self.pinned[j] = true;
             return self.alloc.scratch[j];
         }
-        // The low register a stack slot was just stored from still holds its value (an
-        // instruction writing it cleared `copy` before its operands are read): read it there.
+        // The low register a stack slot was just stored from still holds its value (the
+        // instruction writing it reads its operands first): read it there.
         if let (Held::Slot(s), Some((c, cs))) = (held, self.copy) {
             if cs == s {
                 return c;
@@ -253,6 +274,18 @@ impl Lower<'_> {
         }
         self.holds[k] = Some(held);
         r
+    }
+
+    /// [`Lower::read`], but never the copy of a spill slot in low register `r` (an
+    /// instruction writes `r` before reading `v`).
+    fn read_not_in(&mut self, v: V, k: usize, r: u8) -> u8 {
+        let copy = self.copy;
+        if copy.is_some_and(|(c, _)| c == r) {
+            self.copy = None;
+        }
+        let got = self.read(v, k);
+        self.copy = copy;
+        got
     }
 
     /// The high register `v`'s spill slot lives in, when no low register holds its value
@@ -347,15 +380,16 @@ impl Lower<'_> {
     fn invalidate(&mut self, m: &M) {
         if let (Some((c, _)), Some(Loc::Reg(r))) = (self.copy, m.def().map(|d| self.loc(d))) {
             if c == r {
-                self.copy = None;
+                self.copy_ends = Some(c);
             }
         }
-        let word = match *m {
+        let written = match *m {
             M::Store {
+                op,
                 base: Base::State,
                 off,
                 ..
-            } => Some(off / 4),
+            } => Some((op, off)),
             M::Store {
                 base: Base::V(b), ..
             } if b == ARG2 => return,
@@ -363,8 +397,8 @@ impl Lower<'_> {
             _ => return,
         };
         for h in &mut self.holds {
-            if let Some(Held::Remat(Remat::State(_, o))) = *h {
-                if word.is_none_or(|w| w == o / 4) {
+            if let Some(Held::Remat(Remat::State(k, o))) = *h {
+                if written.is_none_or(|w| super::mir::accesses_overlap(w, (k, o))) {
                     *h = None;
                 }
             }
@@ -434,7 +468,10 @@ impl Lower<'_> {
 
     /// Records the reload cache on a branch to `l` (the body branches only forward).
     fn branch_to(&mut self, l: Label) {
-        let h = self.holds;
+        let h = Ways {
+            holds: self.holds,
+            copy: self.copy,
+        };
         self.pending
             .entry(l.0)
             .and_modify(|w| *w = meet(*w, h))
@@ -448,7 +485,18 @@ impl Lower<'_> {
         }
     }
 
+    /// Lowers `m`; a copy its destination register held ends after it.
     fn one(&mut self, m: &M) {
+        self.copy_ends = None;
+        self.one_inner(m);
+        if let Some(c) = self.copy_ends.take() {
+            if self.copy.is_some_and(|(r, _)| r == c) {
+                self.copy = None;
+            }
+        }
+    }
+
+    fn one_inner(&mut self, m: &M) {
         self.pinned = [false, false];
         self.invalidate(m);
         if let Some(Loc::Remat(_)) = m.def().map(|d| self.loc(d)) {
@@ -541,8 +589,14 @@ impl Lower<'_> {
                     }
                 }
                 let ra = self.read(a, 0);
-                let rm = if m == a { ra } else { self.read(m, 1) };
                 let commutative = super::mir::commutative(op);
+                // `MOV d, a` would overwrite a copy of `m` in `d`'s register: `m` is then
+                // reloaded instead.
+                let rm = match self.loc(d) {
+                    _ if m == a => ra,
+                    Loc::Reg(r) if !commutative && r != ra => self.read_not_in(m, 1, r),
+                    _ => self.read(m, 1),
+                };
                 // A spilled result computed in the register of an operand that ends here
                 // (no `MOV` into a scratch register first), then stored.
                 if let Loc::Slot(slot) = self.loc(d) {
@@ -663,14 +717,22 @@ impl Lower<'_> {
             }
             M::Label(l) => {
                 let ways = self.pending.remove(&l.0);
-                self.holds = match (self.reachable, ways) {
-                    (true, Some(w)) => meet(self.holds, w),
-                    (true, None) => self.holds,
-                    (false, Some(w)) => w,
-                    (false, None) => [None, None],
+                let here = Ways {
+                    holds: self.holds,
+                    copy: self.copy,
                 };
+                let known = match (self.reachable, ways) {
+                    (true, Some(w)) => meet(here, w),
+                    (true, None) => here,
+                    (false, Some(w)) => w,
+                    (false, None) => Ways {
+                        holds: [None, None],
+                        copy: None,
+                    },
+                };
+                self.holds = known.holds;
+                self.copy = known.copy;
                 self.reachable = true;
-                self.copy = None;
                 let l = self.label(l);
                 self.buf.bind(l);
             }
@@ -722,6 +784,7 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
         pending: HashMap::new(),
         reachable: true,
         copy: None,
+        copy_ends: None,
         reads: reads(code, alloc),
         pinned: [false, false],
         last: last_refs(code, alloc.loc.len()),

@@ -272,6 +272,14 @@ pub(crate) fn first_branch_sources(code: &[M]) -> HashMap<u32, usize> {
     first_src
 }
 
+/// Whether an access `a` and an access `b` of the state struct, each (kind, byte offset),
+/// touch a common byte: a byte store into a word leaves the word's other bytes (a mode byte
+/// beside the edge bytes a handler sets) as they were.
+pub(crate) fn accesses_overlap(a: (MemOp, u16), b: (MemOp, u16)) -> bool {
+    let (sa, sb) = (a.0.size() as u16, b.0.size() as u16);
+    a.1 < b.1 + sb && b.1 < a.1 + sa
+}
+
 /// Removes the instructions of `code` whose `drop` flag is set (`drop` as long as `code`).
 pub(crate) fn remove_marked(code: &mut Vec<M>, drop: &[bool]) {
     let mut k = 0;

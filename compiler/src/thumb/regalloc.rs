@@ -153,7 +153,7 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
                 base: Base::State,
                 off,
                 ..
-            } if !stores.may_write(off, iv.start, iv.end) => Some(Remat::State(op, off)),
+            } if !stores.may_write((op, off), iv.start, iv.end) => Some(Remat::State(op, off)),
             _ => None,
         };
     }
@@ -170,29 +170,33 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
 }
 
 /// The stores of a body that may write the state struct, for [`Remat::State`]: stores at
-/// a known offset from r7 by word, and the others (through a computed address: a region
+/// a known offset from r7 by word (with their kind and offset: a byte store writes only
+/// its byte), and the others (through a computed address: a region
 /// base or `STR Rt, [r7, Rm]`) counted by position. Stores through the `out` pointer
 /// ([`ARG2`]) write the caller's output array, never the state.
 struct StateStores {
-    /// Instruction indices of stores to each state word (by `off / 4`), ascending.
-    by_word: std::collections::HashMap<u16, Vec<usize>>,
+    /// The stores to each state word (by `off / 4`): instruction index, kind and byte
+    /// offset, by ascending index.
+    by_word: std::collections::HashMap<u16, Vec<(usize, MemOp, u16)>>,
     /// `unknown[i]`: stores at an unknown address before instruction `i`.
     unknown: Vec<u32>,
 }
 
 impl StateStores {
     fn new(code: &[M]) -> Self {
-        let mut by_word: std::collections::HashMap<u16, Vec<usize>> = Default::default();
+        let mut by_word: std::collections::HashMap<u16, Vec<(usize, MemOp, u16)>> =
+            Default::default();
         let mut unknown = Vec::with_capacity(code.len() + 1);
         let mut n = 0u32;
         for (i, m) in code.iter().enumerate() {
             unknown.push(n);
             match m {
                 M::Store {
+                    op,
                     base: Base::State,
                     off,
                     ..
-                } => by_word.entry(off / 4).or_default().push(i),
+                } => by_word.entry(off / 4).or_default().push((i, *op, *off)),
                 M::Store {
                     base: Base::V(b), ..
                 } if *b == ARG2 => {}
@@ -204,15 +208,19 @@ impl StateStores {
         StateStores { by_word, unknown }
     }
 
-    /// Whether a store in instructions `start..=end` may write the word holding byte `off`.
-    fn may_write(&self, off: u16, start: usize, end: usize) -> bool {
+    /// Whether a store in instructions `start..=end` may write a byte that access `at`
+    /// (kind, byte offset) reads.
+    fn may_write(&self, at: (MemOp, u16), start: usize, end: usize) -> bool {
         let end = end.min(self.unknown.len() - 2);
         if self.unknown[end + 1] > self.unknown[start] {
             return true;
         }
-        self.by_word.get(&(off / 4)).is_some_and(|at| {
-            let p = at.partition_point(|&i| i < start);
-            at.get(p).is_some_and(|&i| i <= end)
+        self.by_word.get(&(at.1 / 4)).is_some_and(|stores| {
+            let p = stores.partition_point(|&(i, _, _)| i < start);
+            stores[p..]
+                .iter()
+                .take_while(|&&(i, _, _)| i <= end)
+                .any(|&(_, op, off)| accesses_overlap((op, off), at))
         })
     }
 }
