@@ -5,9 +5,20 @@
 //! [`tactus_runtime::fixed`]. The JIT, the Thumb code and the C code must reproduce its
 //! output bit for bit. In overflow-detecting mode it records every value whose computation
 //! saturated, so tests can check the range analysis's claim that nothing else ever does.
+//!
+//! An instance runs its program's body as resolved once by [`flat::Code`] (operand slots,
+//! shifts and product forms decided per plan, the hot operations on `i64` in [`word`], each
+//! held bit for bit to its runtime definition by tests); the values that have no such form
+//! are evaluated on the IR by `FixedInstance::eval`, the runtime's functions called as they
+//! stand.
+
+mod flat;
+mod word;
 
 use super::FixedProgram;
 use crate::ir::*;
+use flat::{Code, Ins};
+use std::sync::Arc;
 use tactus_runtime::differentiator::RawHistory;
 use tactus_runtime::fixed as fx;
 
@@ -34,9 +45,12 @@ pub struct FixedInstance<'f> {
     modes: Vec<u32>,
     edges: Vec<bool>,
     sensors: Vec<i32>,
+    /// The body, resolved for this program ([`flat::Code`]); shared by clones.
+    code: Arc<Code>,
     /// Buffer for [`FixedInstance::step`]'s converted readings.
     input: Vec<i32>,
     hist: Vec<RawHistory>,
+    /// Every value's word, then the constant operands' ([`flat::Code::consts`]).
     vals: Vec<i32>,
     overflowed: Vec<bool>,
     saturations: Vec<u64>,
@@ -55,17 +69,36 @@ impl<'f> FixedInstance<'f> {
     /// A fresh instance of one key of a shared program: `params` is the key's param block
     /// ([`FixedProgram::param_block`]; a missing word reads as 0).
     pub fn with_params(fp: &'f FixedProgram, params: Vec<i32>) -> Self {
+        Self::resolved(fp, params, false)
+    }
+
+    /// [`Self::with_params`] with the body resolved by [`flat::Code::new`] (`slow`: every
+    /// value evaluated on the IR).
+    fn resolved(fp: &'f FixedProgram, params: Vec<i32>, slow: bool) -> Self {
         let p = &fp.program;
+        let code = Code::new(fp, slow);
+        let mut vals = vec![0; p.values.len()];
+        vals.extend_from_slice(&code.consts);
+        for i in &code.preset {
+            match *i {
+                Ins::Word { dst, w } => vals[dst as usize] = w,
+                Ins::Param { dst, slot } => {
+                    vals[dst as usize] = params.get(slot as usize).copied().unwrap_or(0)
+                }
+                _ => {}
+            }
+        }
         FixedInstance {
             params,
             fp,
+            code: Arc::new(code),
             states: fp.state_init.clone(),
             modes: p.modes.iter().map(|m| m.init).collect(),
             edges: vec![false; p.edges.len()],
             sensors: vec![0; p.sensors.len()],
             input: Vec::with_capacity(p.sensors.len()),
             hist: vec![RawHistory::default(); p.sensors.len()],
-            vals: vec![0; p.values.len()],
+            vals,
             overflowed: vec![false; p.values.len()],
             saturations: vec![0; p.states.len()],
             out: RawOut {
@@ -114,60 +147,166 @@ impl<'f> FixedInstance<'f> {
             }
         }
         self.out.events.clear();
-        let body = &self.fp.program.body;
-        self.exec(body);
+        self.run();
         &self.out
     }
 
-    fn exec(&mut self, stmts: &[Stmt]) {
-        for s in stmts {
-            match s {
-                Stmt::Def(v) => {
-                    let (x, o) = self.eval(*v);
-                    self.vals[v.index()] = x;
-                    if o {
-                        self.overflowed[v.index()] = true;
+    /// Runs the resolved body once.
+    fn run(&mut self) {
+        let code = &*self.code;
+        let ins = &code.ins[..];
+        let mut pc = 0;
+        while let Some(&i) = ins.get(pc) {
+            pc += 1;
+            let (dst, (x, o)) = match i {
+                Ins::Word { dst, w } => (dst, (w, false)),
+                Ins::Param { dst, slot } => (
+                    dst,
+                    (self.params.get(slot as usize).copied().unwrap_or(0), false),
+                ),
+                Ins::Sensor { dst, s, sh } => (dst, flat::convert(self.sensors[s as usize], sh)),
+                Ins::State { dst, s, sh } => (dst, flat::convert(self.states[s as usize], sh)),
+                Ins::Mode { dst, m } => (dst, (self.modes[m as usize] as i32, false)),
+                Ins::Edge { dst, e } => (dst, (i32::from(self.edges[e as usize]), false)),
+                Ins::Neg { dst, x, sh } => (
+                    dst,
+                    word::round_shift(-i64::from(self.vals[x as usize]), sh),
+                ),
+                Ins::Abs { dst, x, sh } => (
+                    dst,
+                    word::round_shift(i64::from(self.vals[x as usize]).abs(), sh),
+                ),
+                Ins::Not { dst, x } => (dst, (i32::from(self.vals[x as usize] == 0), false)),
+                Ins::And { dst, x, y } => (
+                    dst,
+                    (
+                        i32::from(self.vals[x as usize] != 0 && self.vals[y as usize] != 0),
+                        false,
+                    ),
+                ),
+                Ins::Or { dst, x, y } => (
+                    dst,
+                    (
+                        i32::from(self.vals[x as usize] != 0 || self.vals[y as usize] != 0),
+                        false,
+                    ),
+                ),
+                Ins::Add { dst, x, y, al } => {
+                    (dst, al.add(self.vals[x as usize], self.vals[y as usize]))
+                }
+                Ins::Sub { dst, x, y, al } => {
+                    (dst, al.sub(self.vals[x as usize], self.vals[y as usize]))
+                }
+                Ins::Mul { dst, x, y, p } => {
+                    (dst, p.eval(self.vals[x as usize], self.vals[y as usize]))
+                }
+                Ins::Cmp {
+                    dst,
+                    x,
+                    y,
+                    al,
+                    mask,
+                } => {
+                    let ord = al.cmp(self.vals[x as usize], self.vals[y as usize]);
+                    (dst, (flat::holds(mask, ord), false))
+                }
+                Ins::CmpConst { dst, x, t, mask } => (
+                    dst,
+                    (flat::holds(mask, t.cmp(self.vals[x as usize])), false),
+                ),
+                Ins::Select {
+                    dst,
+                    c,
+                    x,
+                    y,
+                    shx,
+                    shy,
+                } => {
+                    let (w, sh) = if self.vals[c as usize] != 0 {
+                        (x, shx)
+                    } else {
+                        (y, shy)
+                    };
+                    (dst, flat::convert(self.vals[w as usize], sh))
+                }
+                Ins::MinMax {
+                    dst,
+                    x,
+                    y,
+                    al,
+                    shx,
+                    shy,
+                    min,
+                } => {
+                    let (a, c) = (self.vals[x as usize], self.vals[y as usize]);
+                    let ord = al.cmp(a, c);
+                    let take_a = if min {
+                        ord != std::cmp::Ordering::Greater
+                    } else {
+                        ord != std::cmp::Ordering::Less
+                    };
+                    if take_a {
+                        (dst, flat::convert(a, shx))
+                    } else {
+                        (dst, flat::convert(c, shy))
                     }
                 }
-                Stmt::SetState(st, v) => {
-                    let i = st.index();
-                    let (x, _) = fx::convert(
-                        self.vals[v.index()],
-                        self.fp.frac[v.index()],
-                        self.fp.state_frac[i],
-                    );
-                    let (lo, hi) = self.fp.state_raw_range[i];
+                Ins::Slow { dst } => (dst, self.eval(Value(dst))),
+                Ins::SetState { st, v, sh, lo, hi } => {
+                    let (x, _) = flat::convert(self.vals[v as usize], sh);
                     let y = x.clamp(lo, hi);
                     if y != x {
-                        self.saturations[i] += 1;
+                        self.saturations[st as usize] += 1;
                     }
-                    self.states[i] = y;
+                    self.states[st as usize] = y;
+                    continue;
                 }
-                Stmt::SetMode(m, i) => self.modes[m.index()] = *i,
-                Stmt::SetEdge(e, v) => self.edges[e.index()] = self.vals[v.index()] != 0,
-                Stmt::If(c, body) => {
-                    if self.vals[c.index()] != 0 {
-                        self.exec(body);
+                Ins::SetMode { m, i } => {
+                    self.modes[m as usize] = i;
+                    continue;
+                }
+                Ins::SetEdge { e, v } => {
+                    self.edges[e as usize] = self.vals[v as usize] != 0;
+                    continue;
+                }
+                Ins::Skip { c, to } => {
+                    if self.vals[c as usize] == 0 {
+                        pc = to as usize;
                     }
+                    continue;
                 }
-                Stmt::Emit(e, args) => {
-                    let formats = &self.fp.event_frac[e.index()];
+                Ins::Emit { e, start, n } => {
+                    let args = &code.args[start as usize..(start + n) as usize];
                     let a = args
                         .iter()
-                        .zip(formats)
-                        .map(|(v, &f)| {
-                            fx::convert(self.vals[v.index()], self.fp.frac[v.index()], f).0
-                        })
+                        .map(|&(v, sh)| flat::convert(self.vals[v as usize], sh).0)
                         .collect();
-                    self.out.events.push((*e, a));
+                    self.out.events.push((EventId(e), a));
+                    continue;
                 }
-                Stmt::Force(f, v) => self.out.forces[f.index()] = self.vals[v.index()],
-                Stmt::Output(o, v) => self.out.outputs[o.index()] = self.vals[v.index()],
-                Stmt::Total(v) => self.out.total = self.vals[v.index()],
+                Ins::Force { f, v } => {
+                    self.out.forces[f as usize] = self.vals[v as usize];
+                    continue;
+                }
+                Ins::Output { o, v } => {
+                    self.out.outputs[o as usize] = self.vals[v as usize];
+                    continue;
+                }
+                Ins::Total { v } => {
+                    self.out.total = self.vals[v as usize];
+                    continue;
+                }
+            };
+            self.vals[dst as usize] = x;
+            if o {
+                self.overflowed[dst as usize] = true;
             }
         }
     }
 
+    /// The word of `v` by the definition on the IR: the runtime's function for its operation
+    /// called with the operands' words and formats (the values [`flat::Code`] leaves
+    /// [`Ins::Slow`]).
     fn eval(&self, v: Value) -> fx::Sat {
         let fp = self.fp;
         let p = &fp.program;
@@ -297,9 +436,11 @@ impl<'f> FixedInstance<'f> {
         &self.saturations
     }
     /// Every value's raw word as the last sample left it (truth values 0/1), indexed by
-    /// [`Value`]: a value defined in an `if` body that did not run keeps an older sample's.
+    /// [`Value`]: a value defined in an `if` body that did not run keeps an older sample's
+    /// (before the first sample: 0, except the constants and params the body defines outside
+    /// every `if`, which hold their words from the start).
     pub fn values(&self) -> &[i32] {
-        &self.vals
+        &self.vals[..self.fp.program.values.len()]
     }
 }
 
@@ -352,5 +493,134 @@ fn product(kind: Option<super::MulKind>, x: (i32, i32), y: (i32, i32), fr: i32) 
             fx::mul_32x16(a, fa, c, fc, b, k, fr)
         }
         _ => fx::mul(a, fa, c, fc, fr),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixed::PlanConfig;
+    use crate::lower::Config;
+    use std::path::Path;
+    use tactus_runtime::stimulus;
+
+    /// Every instrument with the plan its error analysis proves (no simulated search: the
+    /// test covers the interpreter, not the planner), and again with every product in each
+    /// cheaper form the planner considered, so that every product form runs.
+    fn plans() -> Vec<(String, FixedProgram)> {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
+        let mut names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter_map(|e| e.ok()?.file_name().into_string().ok())
+            .filter_map(|n| n.strip_suffix(".tactus").map(str::to_string))
+            .collect();
+        names.sort();
+        assert!(names.len() >= 5, "instruments: {names:?}");
+        let config = PlanConfig {
+            simulate: false,
+            ..PlanConfig::default()
+        };
+        let mut out = Vec::new();
+        for name in names {
+            let src = std::fs::read_to_string(dir.join(format!("{name}.tactus"))).unwrap();
+            let p = crate::compile(&src, &Config::default()).unwrap().program;
+            let fp = FixedProgram::with_config(&p, &config);
+            for nth in 0..3 {
+                let mut q = fp.clone();
+                let mut changed = false;
+                for (k, options) in q.mul_kind.iter_mut().zip(&fp.mul_options) {
+                    if let Some(&o) = options.get(nth) {
+                        *k = Some(o);
+                        changed = true;
+                    }
+                }
+                if changed {
+                    out.push((format!("{name} (form {nth})"), q));
+                }
+            }
+            out.push((name, fp));
+        }
+        // grand88's kind of program: the piano shared by two hammer masses, run-time params.
+        let src = std::fs::read_to_string(dir.join("grand_piano.tactus")).unwrap();
+        let keys: Vec<_> = ["11 g", "3.5 g"]
+            .iter()
+            .map(|m| {
+                let c = Config {
+                    overrides: vec![("M_h".into(), (*m).into())],
+                    ..Config::default()
+                };
+                crate::compile(&src, &c).unwrap().program
+            })
+            .collect();
+        let shared = crate::share::share(&keys).unwrap().program;
+        assert!(shared.runtime_params().count() > 0);
+        out.push((
+            "shared piano".into(),
+            FixedProgram::with_config(&shared, &config),
+        ));
+        out
+    }
+
+    /// The resolved body ([`flat::Code`]) against the definition on the IR (every value
+    /// [`Ins::Slow`]): the same outputs, events, values, states, modes, overflow flags and
+    /// saturation counts at every sample of two built-in stimuli (a strike and a half dip
+    /// onto a stop) and of arbitrary sensor words (clamped to each sensor's range as every
+    /// engine clamps them), on every instrument, a shared program and each product form.
+    #[test]
+    fn the_resolved_body_is_the_definition_on_the_ir() {
+        let mut resolved = 0;
+        for (name, fp) in plans() {
+            let p = &fp.program;
+            let code = Code::new(&fp, false);
+            resolved += code
+                .ins
+                .iter()
+                .filter(|i| !matches!(i, Ins::Slow { .. }))
+                .count();
+            let mut fast = FixedInstance::with_params(&fp, fp.nominal_param_block());
+            let mut slow = FixedInstance::resolved(&fp, fp.nominal_param_block(), true);
+            let mut inputs: Vec<Vec<i32>> = Vec::new();
+            for stim in ["ff-dip", "half-dip"] {
+                let s = stimulus::builtin(stim, p.sensors[0].range.1, p.sample_rate_hz).unwrap();
+                inputs.extend(s.key.iter().map(|&k| {
+                    (0..p.sensors.len())
+                        .map(|i| {
+                            FixedInstance::sensor_raw(&fp, i, Some(if i == 0 { k } else { 0.0 }))
+                        })
+                        .collect()
+                }));
+            }
+            let mut r = 0x9e37_79b9_7f4a_7c15u64;
+            for _ in 0..1000 {
+                inputs.push(
+                    (0..p.sensors.len())
+                        .map(|_| {
+                            r ^= r << 13;
+                            r ^= r >> 7;
+                            r ^= r << 17;
+                            r as i32 >> (r >> 59)
+                        })
+                        .collect(),
+                );
+            }
+            // The other product forms on the first 4000 samples (a strike): what they add is
+            // the resolution of each form, whose arithmetic `word`'s tests cover.
+            let limit = if name.contains("form") {
+                4000
+            } else {
+                inputs.len()
+            };
+            for (n, x) in inputs.iter().take(limit).enumerate() {
+                let a = fast.step_raw(x).clone();
+                let b = slow.step_raw(x);
+                assert_eq!(&a, b, "{name}: sample {n}");
+                assert_eq!(fast.values(), slow.values(), "{name}: sample {n}");
+                assert_eq!(fast.states(), slow.states(), "{name}: sample {n}");
+                assert_eq!(fast.modes(), slow.modes(), "{name}: sample {n}");
+                assert_eq!(fast.overflowed(), slow.overflowed(), "{name}: sample {n}");
+                assert_eq!(fast.saturations(), slow.saturations(), "{name}: sample {n}");
+            }
+        }
+        assert!(resolved > 1000, "only {resolved} resolved instructions");
     }
 }
