@@ -226,7 +226,7 @@ fn build_firmware_from_a_tactus_file_then_boot_it_in_the_emulator() {
             "build",
             "instruments/hammond.tactus",
             "--keys",
-            "20",
+            "30",
             "--target",
             "rp2040",
             "-o",
@@ -249,7 +249,7 @@ fn build_firmware_from_a_tactus_file_then_boot_it_in_the_emulator() {
         .collect();
     assert!(
         boards.len() >= 2,
-        "20 organ keys need more than one board: {boards:?}"
+        "30 organ keys need more than one board (22 fit on one): {boards:?}"
     );
     for b in &boards {
         for f in ["firmware.elf", "firmware.uf2", "keys.json", "README.md"] {
