@@ -1082,7 +1082,7 @@ fn a_truncated_midi_file_plays_as_far_as_it_goes_on_every_board_with_a_warning()
 /// `cargo test --release --test play whole_maestro -- --ignored --nocapture`
 /// (BENCHMARKS.md has the figures).
 #[test]
-#[ignore = "tens of minutes per piece in release; run on request"]
+#[ignore = "tens of minutes per piece in release (more since the planned boards leave the guard out); run on request"]
 fn whole_maestro_pieces_on_every_board_of_grand88_without_misses() {
     for name in ["Maestro_1.mid", "Maestro_2.mid", "Maestro_3.mid"] {
         let Some(midi) = performance(name) else {
@@ -1102,7 +1102,7 @@ fn whole_maestro_pieces_on_every_board_of_grand88_without_misses() {
             .lines()
             .filter(|l| l.trim_start().starts_with("board "))
             .collect();
-        assert_eq!(boards.len(), 22, "{name}: {stdout}");
+        assert_eq!(boards.len(), 15, "{name}: {stdout}");
         for l in &boards {
             assert_eq!(l.matches("deadline misses 0").count(), 2, "{name}: {l}");
         }
