@@ -154,3 +154,26 @@ fn mutated_sources_compile_or_give_diagnostics() {
     eprintln!("fuzz_source: {run} cases, {compiled} compiled, the rest diagnostics");
     assert!(run >= cases, "{run} of {cases} cases ran");
 }
+
+/// A case the fuzzer found (session 14): the bowed string's friction residual, inside a
+/// `solve`, made a product of 40 factors, 19 of them calls of an unknown function. The
+/// solve's symbolic slope copies the product's factors into every term, and lowering
+/// re-lowered the copies until it ran out of memory (2.3 GB). Lowering now stops at
+/// `MAX_LOWERED_VALUES` (E0139) and reports each error once.
+#[test]
+fn a_long_product_in_a_solve_with_unknown_calls_is_bounded() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let src = std::fs::read_to_string(root.join("../instruments/bowed_string.tactus")).unwrap();
+    let from = "sqrt(2 * a) * w * exp(";
+    assert!(src.contains(from), "the bowed string's residual changed");
+    let long = format!("sqrt(2 * a) * w * {}exp(", "t(2 * a) * w * ".repeat(19));
+    let src = src.replacen(from, &long, 1);
+    let (r, dt, peak) =
+        fuzz::measured(|| tactus_compiler::compile(&src, &Config::default()).map(|_| ()));
+    let d = r.expect_err("`t` is unknown");
+    assert!(d.iter().any(|d| d.code == "E0217"), "{d:?}");
+    let unknown = d.iter().filter(|d| d.code == "E0217").count();
+    assert!(unknown <= 19, "each unknown call reported once: {unknown}");
+    assert!(dt < Duration::from_secs(10), "{dt:?}");
+    assert!(peak < 1 << 30, "{peak} bytes");
+}

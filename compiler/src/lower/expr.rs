@@ -71,6 +71,21 @@ fn levenshtein(a: &str, b: &str) -> usize {
 impl<'a> Lowerer<'a> {
     /// Lowers an expression into the current block; `None` after reporting an error.
     pub(super) fn lower_expr(&mut self, scope: ScopeId, e: &'a ast::Expr) -> Option<Value> {
+        if self.prog.values.len() > super::MAX_LOWERED_VALUES {
+            self.err(
+                Diagnostic::error(
+                    "E0139",
+                    format!(
+                        "the program lowers to more than {} values",
+                        super::MAX_LOWERED_VALUES
+                    ),
+                    e.span.clone(),
+                )
+                .label("lowering went over the budget here")
+                .hint("a definition used in many places is code in each (a `solve`'s slope copies its residual's products): name shared parts, shorten long products"),
+            );
+            return None;
+        }
         let outer = std::mem::replace(&mut self.cur_span, e.span.clone());
         let v = self.lower_expr_inner(scope, e);
         self.cur_span = outer;

@@ -55,13 +55,18 @@ pub struct Lowered {
     pub warnings: Vec<Diagnostic>,
 }
 
+/// The most IR values lowering may produce (E0139; hostile input — a definition re-lowered
+/// in every place it is used, copies of copies — must not grow the program without bound).
+/// The largest shipped instrument, the bowed string, has about 19,000.
+pub const MAX_LOWERED_VALUES: usize = 1 << 19;
+
 /// Lowers a parsed file. Fails with every error found (and the warnings) when any error
 /// is found.
 pub fn lower(file: &ast::File, config: &Config) -> Result<Lowered, Vec<Diagnostic>> {
     let file = crate::expand::expand(file, &config.overrides)?;
     let mut l = Lowerer::new(config);
     l.run(&file);
-    // A definition lowered several times (once per memo epoch) reports its errors once.
+    // A diagnostic pushed past `err` (E0118) is deduplicated here too.
     let mut seen = HashSet::new();
     let diags: Vec<Diagnostic> = l
         .diags
@@ -111,6 +116,11 @@ struct Lowerer<'a> {
     components: HashMap<&'a str, &'a ast::Body>,
     prog: Program,
     diags: Vec<Diagnostic>,
+    /// What `diags` holds, by (code, primary span, message): a definition lowered several
+    /// times (once per memo epoch, or once per copy in an expansion — a `solve`'s symbolic
+    /// slope copies its residual's factors) reports each error once, so the list is bounded
+    /// by the source's size, not by how often lowering meets the same node.
+    diag_keys: HashSet<(&'static str, std::ops::Range<usize>, String)>,
     /// Spans already reported as unknown names (E0201): a name in a loop body is looked up
     /// once per index, but reported once.
     unknown_reported: HashSet<Span>,
@@ -158,6 +168,7 @@ impl<'a> Lowerer<'a> {
                 runtime_keys: vec![],
             },
             diags: vec![],
+            diag_keys: HashSet::new(),
             unknown_reported: HashSet::new(),
             instanced: 0,
             scopes: vec![],
@@ -175,7 +186,12 @@ impl<'a> Lowerer<'a> {
     }
 
     fn err(&mut self, d: Diagnostic) {
-        self.diags.push(d);
+        if self
+            .diag_keys
+            .insert((d.code, d.primary.0.clone(), d.message.clone()))
+        {
+            self.diags.push(d);
+        }
     }
 
     fn run(&mut self, file: &'a ast::File) {
