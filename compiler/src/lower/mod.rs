@@ -66,14 +66,7 @@ pub fn lower(file: &ast::File, config: &Config) -> Result<Lowered, Vec<Diagnosti
     let file = crate::expand::expand(file, &config.overrides)?;
     let mut l = Lowerer::new(config);
     l.run(&file);
-    // A diagnostic pushed past `err` (E0118) is deduplicated here too.
-    let mut seen = HashSet::new();
-    let diags: Vec<Diagnostic> = l
-        .diags
-        .into_iter()
-        .filter(|d| seen.insert((d.code, d.primary.0.clone(), d.message.clone())))
-        .collect();
-    let (errors, warnings): (Vec<_>, Vec<_>) = diags.into_iter().partition(|d| d.is_error());
+    let (errors, warnings): (Vec<_>, Vec<_>) = l.diags.into_iter().partition(|d| d.is_error());
     if errors.is_empty() {
         Ok(Lowered {
             program: l.prog,

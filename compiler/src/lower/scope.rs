@@ -474,21 +474,25 @@ impl<'a> Lowerer<'a> {
             }
         }
         if is_component {
-            for inp in &self.scopes[id.0].inputs {
-                if inp.arg.is_none() {
-                    self.diags.push(
-                        Diagnostic::error(
-                            "E0118",
-                            format!(
-                                "input `{}` of component `{}` is not connected",
-                                inp.name.node, body.name.node
-                            ),
-                            use_span.clone(),
-                        )
-                        .with_secondary(inp.name.span.clone(), "input declared here")
-                        .hint(format!("pass it in the `use`: `{} = …`", inp.name.node)),
-                    );
-                }
+            let unconnected: Vec<Diagnostic> = self.scopes[id.0]
+                .inputs
+                .iter()
+                .filter(|inp| inp.arg.is_none())
+                .map(|inp| {
+                    Diagnostic::error(
+                        "E0118",
+                        format!(
+                            "input `{}` of component `{}` is not connected",
+                            inp.name.node, body.name.node
+                        ),
+                        use_span.clone(),
+                    )
+                    .with_secondary(inp.name.span.clone(), "input declared here")
+                    .hint(format!("pass it in the `use`: `{} = …`", inp.name.node))
+                })
+                .collect();
+            for d in unconnected {
+                self.err(d);
             }
         }
         id
