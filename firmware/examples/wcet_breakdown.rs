@@ -188,7 +188,17 @@ fn breakdown(path: &str, fp: &FixedProgram, obj: &ThumbObject, list: bool, asm: 
             e.1 += c;
             total += c;
             if list {
-                println!("{off:6x}  {c}  {i:<28} {cat}");
+                // A literal-pool load shows its word, to spot constants a path loads twice.
+                let word = match i {
+                    Instr::LdrLit { imm, .. } => {
+                        let at = (((off + 4) & !3) + u32::from(imm)) as usize;
+                        text.get(at..at + 4).map_or(String::new(), |b| {
+                            format!(" ={}", i32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                        })
+                    }
+                    _ => String::new(),
+                };
+                println!("{off:6x}  {c}  {:<28} {cat}", format!("{i}{word}"));
             }
             a += size;
         }

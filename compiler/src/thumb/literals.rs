@@ -112,7 +112,7 @@ fn derived(avail: &HashMap<i32, (V, usize)>, d: V, imm: i32, j: usize, code: &[M
 /// Whether the flags after `code[j]` are set again (by `CMP`, `ADDS`/`SUBS`, `RSBS`) before
 /// anything reads them (a conditional branch, `ADCS`/`SBCS`), along the fall-through; an
 /// unconditional branch or the end ends the search (conservatively: read).
-fn flags_dead_after(code: &[M], j: usize) -> bool {
+pub(crate) fn flags_dead_after(code: &[M], j: usize) -> bool {
     use tactus_emulator::decode::AluOp;
     for m in &code[j + 1..] {
         match m {

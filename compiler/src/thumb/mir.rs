@@ -29,7 +29,7 @@ pub enum Base {
 }
 
 /// Shift-by-immediate operations.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Shift {
     /// `LSLS` (0–31)
     Lsl,

@@ -21,6 +21,7 @@
 //! the object needs no relocations: it can run from SRAM or flash at any word address.
 
 pub mod buffer;
+mod cse;
 mod dce;
 pub mod elf;
 pub mod emit;

@@ -354,7 +354,13 @@ impl<'a> Sel<'a> {
                     CmpOp::Ge => (a, b, true),
                     _ => (b, a, true), // Le: !(b < a)
                 };
-                let d = self.addsub(true, x.v, y.v);
+                // A known small `y` is the immediate of `SUBS` (no `MOVS` of it), and 0 is
+                // no subtraction at all.
+                let d = match self.konst.get(&y.v) {
+                    Some(0) => x.v,
+                    Some(&k) if (1..=255).contains(&k) => self.addi(true, x.v, k as u8),
+                    _ => self.addsub(true, x.v, y.v),
+                };
                 let d = if invert { self.unary(AluOp::Mvn, d) } else { d };
                 self.sh(Shift::Lsr, d, 31)
             }

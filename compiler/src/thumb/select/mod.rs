@@ -499,6 +499,7 @@ impl<'a> Sel<'a> {
         // Words nothing reads (the zero side of a `select` folded to `ANDS`/`BICS`, a
         // negated term of a difference that took the 64-bit path, …) and their flags.
         super::forward::forward(&mut self.code, self.nv);
+        super::cse::share(&mut self.code, self.nv);
         super::dce::remove_dead(&mut self.code, self.nv);
         super::literals::share(&mut self.code, self.nv);
         // Flow facts: exclusive `if` bodies, then the history primings (the first call)

@@ -5,6 +5,16 @@
 use super::*;
 use crate::fixed::Cut;
 
+/// Cycles to load the word `imm` into a register (`emit::Emitter::movi`): `MOVS #imm8`
+/// 1; `MOVS`+`MVNS` or a literal-pool `LDR` 2.
+pub(super) fn load_cost(imm: i32) -> u32 {
+    if (0..=255).contains(&imm) {
+        1
+    } else {
+        2
+    }
+}
+
 /// The second operand of a multiplication.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum Operand {
@@ -156,10 +166,24 @@ impl<'a> Sel<'a> {
                             let base = if c < 0 { self.neg(xs) } else { xs };
                             return self.round(base, e + j);
                         }
+                        let pb = xs.b.saturating_mul(k as u64);
+                        // A left rounding shift folded into the constant: `(x·c)·2^e` is
+                        // `x·(c·2^e)` where the bound proves the product fits (the shift
+                        // would be a plain `LSLS`) and `c·2^e` loads no dearer.
+                        if e > 0 && e < 31 && shl_bound(pb, e) < LIM {
+                            let lifted = (c as i64) << e;
+                            if i32::try_from(lifted).is_ok_and(|l| load_cost(l) <= load_cost(c)) {
+                                let cv = self.movi(lifted as i32);
+                                return W {
+                                    v: self.alu2(AluOp::Mul, xs.v, cv),
+                                    b: shl_bound(pb, e),
+                                };
+                            }
+                        }
                         let cv = self.movi(c);
                         W {
                             v: self.alu2(AluOp::Mul, xs.v, cv),
-                            b: xs.b.saturating_mul(k as u64),
+                            b: pb,
                         }
                     }
                     Operand::Word(y) => {
@@ -198,17 +222,26 @@ impl<'a> Sel<'a> {
                 // A constant's high half pre-shifted: `Y = yh·2^(32−k)` makes `xh·yh·2^(32−k)`
                 // one `MULS` (no `LSLS`) and `floor(xl·yh / 2^(k−16)) = floor(xl·Y / 2^16)`
                 // (the same `ASRS`), where both products fit and `Y` loads no dearer.
-                let lifted = match y {
+                //
+                // Where `xl·Y` may not fit a signed word but `0 < Y < 2^16` (a positive
+                // constant, `k = 31` mostly), it fits an unsigned one (`xl < 2^16`): the
+                // `MULS` low word is the exact product, and `LSRS #16` its floor
+                // (`unsigned_low`); `|xh·Y| ≤ 2^15·Y < 2^31` still.
+                let (lifted, unsigned_low) = match y {
                     Operand::Const(c) if k > 16 && k < 32 && c >> 16 != 0 => {
                         let (yh, y2) = ((c >> 16) as i64, ((c >> 16) as i64) << (32 - k));
-                        let hx = (x.b.min(LIM) >> 16) + 1;
-                        let load = |v: i64| if (0..=255).contains(&v) { 1 } else { 2 };
-                        (65535 * y2.unsigned_abs() < LIM
-                            && hx * y2.unsigned_abs() < LIM
-                            && load(y2) <= load(yh))
-                        .then_some(y2 as i32)
+                        let hx = ((x.b.min(LIM) >> 16) + 1).min(1 << 15);
+                        let cheap =
+                            i32::try_from(y2).is_ok_and(|l| load_cost(l) <= load_cost(yh as i32));
+                        let signed = 65535 * y2.unsigned_abs() < LIM;
+                        let unsigned = y2 > 0 && y2 < 1 << 16;
+                        if cheap && hx * y2.unsigned_abs() < LIM && (signed || unsigned) {
+                            (Some(y2 as i32), !signed)
+                        } else {
+                            (None, false)
+                        }
                     }
-                    _ => None,
+                    _ => (None, false),
                 };
                 // A constant's zero half contributes nothing: its partial products are 0
                 // (`None`), and its register is never loaded.
@@ -239,11 +272,19 @@ impl<'a> Sel<'a> {
                 // one (the sum is the same word in any order: the bound proves it fits).
                 // `xl·Y` by 2^16 where `Y` carries the 2^(32−k).
                 let s_low = if lifted.is_some() { 16 } else { k - 16 };
-                for (a, b, s) in [(Some(xh), yl, k - 16), (xl, yh, s_low)] {
+                for (a, b, s, op) in [
+                    (Some(xh), yl, k - 16, Shift::Asr),
+                    (
+                        xl,
+                        yh,
+                        s_low,
+                        if unsigned_low { Shift::Lsr } else { Shift::Asr },
+                    ),
+                ] {
                     let (Some(a), Some(b)) = (a, b) else { continue };
                     let mut t = self.alu2(AluOp::Mul, a, b);
                     if s > 0 {
-                        t = self.sh(Shift::Asr, t, s as u8);
+                        t = self.sh(op, t, s as u8);
                     }
                     parts.push(t);
                 }
@@ -329,12 +370,37 @@ impl<'a> Sel<'a> {
         if ysb > 1 << 15 || pb >= LIM {
             self.unsupported("a 32×16 product whose partial sum may not fit 32 bits");
         }
+        let e = fr - (fx_ + fc - b - k);
+        // A positive constant half lifted by the high part's shift: with
+        // `Y = ys·2^(16−k) < 2^16`, `xh·Y` is the shifted high part (no `LSLS`) and
+        // `floor(xl·ys / 2^k) = floor(xl·Y / 2^16)`, `xl·Y < 2^32` exact in the `MULS`
+        // low word read unsigned (`LSRS #16`); where `Y` loads no dearer and no rounding
+        // of the halves follows (that one reads `xl·ys` signed).
+        if let (Some(&c), true, 0..) = (self.konst.get(&ys), k < 16, e) {
+            let lifted = (c as i64) << (16 - k);
+            if c > 0 && lifted < 1 << 16 && load_cost(lifted as i32) <= load_cost(c) {
+                let yv = self.movi(lifted as i32);
+                let xh = self.sh(Shift::Asr, x.v, 16);
+                let xl = self.nv();
+                self.push(M::Uxth { d: xl, m: x.v });
+                let hh = self.alu2(AluOp::Mul, xh, yv);
+                let ll = self.alu2(AluOp::Mul, xl, yv);
+                let ll = self.sh(Shift::Lsr, ll, 16);
+                let p = self.addsub(false, hh, ll);
+                return self.round(
+                    W {
+                        v: p,
+                        b: pb.min(LIM),
+                    },
+                    e,
+                );
+            }
+        }
         let xh = self.sh(Shift::Asr, x.v, 16);
         let xl = self.nv();
         self.push(M::Uxth { d: xl, m: x.v });
         let mut hh = self.alu2(AluOp::Mul, xh, ys);
         let mut ll = self.alu2(AluOp::Mul, xl, ys);
-        let e = fr - (fx_ + fc - b - k);
         if e < 0 {
             // `round(p / 2^s)` with `p = floor(Q / 2^k)` is `round(Q / 2^(k+s))`: one
             // rounding of the partial products ([`Sel::round_halves`]).

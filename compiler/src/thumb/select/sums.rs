@@ -50,6 +50,12 @@ impl<'a> Sel<'a> {
                 return W { v, b: rb.min(LIM) };
             }
         }
+        // Both one bit finer than the result: the rounded half of a sum that may not fit.
+        if ex == -1 && ey == -1 {
+            if let Some(w) = self.halved_sum(x, y, sub, rb) {
+                return w;
+            }
+        }
         // Both finer than the result (or no 32-bit proof): the definition's reduction.
         let g = e2.max(e1.min(-1));
         let sy = (g - e2).min(63);
@@ -103,6 +109,32 @@ impl<'a> Sel<'a> {
             y.v
         };
         Some(self.sh(Shift::Asr, t, m as u8))
+    }
+
+    /// `round((a ± b) / 2)` (half up) of two words on one grid whose sum may not fit 32
+    /// bits, without the 64-bit sum: with `a = 2p + x` (`x` its low bit),
+    /// `floor((a + b + 1) / 2) = p + floor((b + x + 1) / 2)` and
+    /// `floor((a − b + 1) / 2) = p + floor((x + 1 − b) / 2)`. `ASRS t, a, #1` leaves `x` in
+    /// the carry; `MOVS k, #1` (`#2`) keeps it, and `ADCS k, b` (`SBCS k, b`: `2 − b −
+    /// (1 − x)`) adds it; `ASRS #1`, `ADDS`: five instructions where the 64-bit sum and
+    /// its rounding take nine. `b` (the subtrahend, or the smaller term) must leave room
+    /// for the 2 added; the result `|a ± b| / 2` always fits. `None` (nothing emitted)
+    /// otherwise.
+    fn halved_sum(&mut self, x: W, y: W, sub: bool, rb: u64) -> Option<W> {
+        let (a, b) = if sub || x.b >= y.b { (x, y) } else { (y, x) };
+        if b.b + 2 >= LIM || self.konst.contains_key(&a.v) || self.konst.contains_key(&b.v) {
+            return None;
+        }
+        let p = self.sh(Shift::Asr, a.v, 1);
+        let k = self.movi(if sub { 2 } else { 1 });
+        let op = if sub { AluOp::Sbc } else { AluOp::Adc };
+        let t = self.alu2(op, k, b.v);
+        let h = self.sh(Shift::Asr, t, 1);
+        let v = self.addsub(false, p, h);
+        Some(W {
+            v,
+            b: rb.min(((a.b + b.b) >> 1) + 1).min(LIM),
+        })
     }
 
     /// The sum in 64 bits (both terms extended and shifted to the finer grid, which is at
