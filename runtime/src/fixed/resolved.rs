@@ -331,6 +331,17 @@ mod tests {
         }
     }
 
+    /// A pre-shift beyond 31 bits clamps the shift, not the product's format (as
+    /// [`fx::mul_shifted`] does): proptest's first find, kept as a case.
+    #[test]
+    fn a_preshift_beyond_31_bits_keeps_its_format() {
+        assert_eq!(
+            Product::shifted(0, 32, 0, 0, -12).eval(-1, -1),
+            fx::mul_shifted(-1, 0, 32, -1, 0, 0, -12)
+        );
+        assert_eq!(Product::shifted(0, 32, 0, 0, -12).eval(-1, -1), (1 << 20, false));
+    }
+
     /// A threshold equal to a word's exact value, and its neighbours, on a fine and a
     /// coarse grid.
     #[test]
