@@ -5,11 +5,12 @@
 //! types and its plan (product form, reciprocal, constant operands) every sample cost more
 //! than the arithmetic. [`Code::new`] does that matching once per instance: each statement
 //! becomes one [`Ins`] with its operands' slots and its shifts resolved (the runtime's
-//! [`tactus_runtime::fixed::resolved`] forms), an `if` a forward jump over its body. What has no `i64` form (divisions, square roots,
-//! exponentials, derivatives, operands more than 31 bits apart) stays [`Ins::Slow`]: the
-//! value evaluated by the interpreter's definition on the IR, as before.
+//! [`tactus_runtime::fixed::resolved`] forms), an `if` a forward jump over its body. What has
+//! no `i64` form (divisions, square roots, exponentials, derivatives, operands more than 31
+//! bits apart) stays [`Ins::Slow`]: the value evaluated by the interpreter's definition on
+//! the IR, as before.
 
-use crate::fixed::{Cut, FixedProgram, MulKind};
+use crate::fixed::{FixedProgram, MulKind};
 use crate::ir::*;
 use std::cmp::Ordering;
 use tactus_runtime::fixed::resolved::{Align, Product, Threshold};
@@ -376,7 +377,7 @@ pub(super) fn holds(mask: u8, ord: Ordering) -> i32 {
 /// The product `x·y` (slots with their fraction bits, in operand order) into `fr` fraction
 /// bits in the form the plan chose (`kind`; `None`: the exact product), resolved: the slots
 /// in the order the form's runtime function takes them (a 32×16 product's cut operand
-/// second, [`Cut::kept_cut`]) and the [`Product`]. The resolved twin of
+/// second, [`crate::fixed::Cut::kept_cut`]) and the [`Product`]. The resolved twin of
 /// [`super::product`], held to it by this module's tests.
 fn product(kind: Option<MulKind>, x: (u32, i32), y: (u32, i32), fr: i32) -> (u32, u32, Product) {
     let ((sx, fx), (sy, fy)) = (x, y);
@@ -394,6 +395,7 @@ fn product(kind: Option<MulKind>, x: (u32, i32), y: (u32, i32), fr: i32) -> (u32
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fixed::Cut;
     use proptest::prelude::*;
     use tactus_runtime::fixed::FRAC_RANGE;
 
