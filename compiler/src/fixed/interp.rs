@@ -205,7 +205,7 @@ impl<'f> FixedInstance<'f> {
                 }
                 Ins::CmpConst { dst, x, t, mask } => (
                     dst,
-                    (flat::holds(mask, t.cmp(self.vals[x as usize])), false),
+                    (flat::holds(mask, t.order(self.vals[x as usize])), false),
                 ),
                 Ins::Select {
                     dst,

@@ -224,9 +224,9 @@ impl Threshold {
         Threshold { ge, gt }
     }
 
-    /// [`super::cmp_const`] of the word `x`.
+    /// [`super::cmp_const`] of the word `x`: its value's order against the constant.
     #[inline(always)]
-    pub fn cmp(self, x: i32) -> Ordering {
+    pub fn order(self, x: i32) -> Ordering {
         let x = i64::from(x);
         if x < self.ge {
             Ordering::Less
@@ -327,7 +327,7 @@ mod tests {
                 Just(f64::NEG_INFINITY),
             ],
         ) {
-            prop_assert_eq!(Threshold::new(fx_, c).cmp(x), fx::cmp_const(x, fx_, c));
+            prop_assert_eq!(Threshold::new(fx_, c).order(x), fx::cmp_const(x, fx_, c));
         }
     }
 
@@ -339,7 +339,10 @@ mod tests {
             Product::shifted(0, 32, 0, 0, -12).eval(-1, -1),
             fx::mul_shifted(-1, 0, 32, -1, 0, 0, -12)
         );
-        assert_eq!(Product::shifted(0, 32, 0, 0, -12).eval(-1, -1), (1 << 20, false));
+        assert_eq!(
+            Product::shifted(0, 32, 0, 0, -12).eval(-1, -1),
+            (1 << 20, false)
+        );
     }
 
     /// A threshold equal to a word's exact value, and its neighbours, on a fine and a
@@ -351,7 +354,7 @@ mod tests {
                 let c = fx::to_f64(w, f);
                 let t = Threshold::new(f, c);
                 for x in w - 2..=w + 2 {
-                    assert_eq!(t.cmp(x), fx::cmp_const(x, f, c), "f {f} w {w} x {x}");
+                    assert_eq!(t.order(x), fx::cmp_const(x, f, c), "f {f} w {w} x {x}");
                 }
             }
         }
