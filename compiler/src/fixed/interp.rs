@@ -7,13 +7,11 @@
 //! saturated, so tests can check the range analysis's claim that nothing else ever does.
 //!
 //! An instance runs its program's body as resolved once by [`flat::Code`] (operand slots,
-//! shifts and product forms decided per plan, the hot operations on `i64` in [`word`], each
-//! held bit for bit to its runtime definition by tests); the values that have no such form
-//! are evaluated on the IR by `FixedInstance::eval`, the runtime's functions called as they
-//! stand.
+//! shifts and product forms decided per plan, the hot operations evaluated by the runtime's
+//! resolved forms, [`fx::resolved`]); the values that have no such form are evaluated on the
+//! IR by `FixedInstance::eval`, the runtime's general functions called as they stand.
 
 mod flat;
-mod word;
 
 use super::FixedProgram;
 use crate::ir::*;
@@ -21,6 +19,7 @@ use flat::{Code, Ins};
 use std::sync::Arc;
 use tactus_runtime::differentiator::RawHistory;
 use tactus_runtime::fixed as fx;
+use tactus_runtime::fixed::resolved as rs;
 
 /// What one sample produced, as raw words: forces in [`FixedProgram::force_frac`], the total
 /// in [`FixedProgram::total_frac`], outputs in [`FixedProgram::output_frac`], event
@@ -164,18 +163,12 @@ impl<'f> FixedInstance<'f> {
                     dst,
                     (self.params.get(slot as usize).copied().unwrap_or(0), false),
                 ),
-                Ins::Sensor { dst, s, sh } => (dst, flat::convert(self.sensors[s as usize], sh)),
-                Ins::State { dst, s, sh } => (dst, flat::convert(self.states[s as usize], sh)),
+                Ins::Sensor { dst, s, sh } => (dst, rs::convert(self.sensors[s as usize], sh)),
+                Ins::State { dst, s, sh } => (dst, rs::convert(self.states[s as usize], sh)),
                 Ins::Mode { dst, m } => (dst, (self.modes[m as usize] as i32, false)),
                 Ins::Edge { dst, e } => (dst, (i32::from(self.edges[e as usize]), false)),
-                Ins::Neg { dst, x, sh } => (
-                    dst,
-                    word::round_shift(-i64::from(self.vals[x as usize]), sh),
-                ),
-                Ins::Abs { dst, x, sh } => (
-                    dst,
-                    word::round_shift(i64::from(self.vals[x as usize]).abs(), sh),
-                ),
+                Ins::Neg { dst, x, sh } => (dst, rs::neg(self.vals[x as usize], sh)),
+                Ins::Abs { dst, x, sh } => (dst, rs::abs(self.vals[x as usize], sh)),
                 Ins::Not { dst, x } => (dst, (i32::from(self.vals[x as usize] == 0), false)),
                 Ins::And { dst, x, y } => (
                     dst,
@@ -212,7 +205,7 @@ impl<'f> FixedInstance<'f> {
                 }
                 Ins::CmpConst { dst, x, t, mask } => (
                     dst,
-                    (flat::holds(mask, t.cmp(self.vals[x as usize])), false),
+                    (flat::holds(mask, t.order(self.vals[x as usize])), false),
                 ),
                 Ins::Select {
                     dst,
@@ -227,7 +220,7 @@ impl<'f> FixedInstance<'f> {
                     } else {
                         (y, shy)
                     };
-                    (dst, flat::convert(self.vals[w as usize], sh))
+                    (dst, rs::convert(self.vals[w as usize], sh))
                 }
                 Ins::MinMax {
                     dst,
@@ -246,14 +239,14 @@ impl<'f> FixedInstance<'f> {
                         ord != std::cmp::Ordering::Less
                     };
                     if take_a {
-                        (dst, flat::convert(a, shx))
+                        (dst, rs::convert(a, shx))
                     } else {
-                        (dst, flat::convert(c, shy))
+                        (dst, rs::convert(c, shy))
                     }
                 }
                 Ins::Slow { dst } => (dst, self.eval(Value(dst))),
                 Ins::SetState { st, v, sh, lo, hi } => {
-                    let (x, _) = flat::convert(self.vals[v as usize], sh);
+                    let (x, _) = rs::convert(self.vals[v as usize], sh);
                     let y = x.clamp(lo, hi);
                     if y != x {
                         self.saturations[st as usize] += 1;
@@ -279,7 +272,7 @@ impl<'f> FixedInstance<'f> {
                     let args = &code.args[start as usize..(start + n) as usize];
                     let a = args
                         .iter()
-                        .map(|&(v, sh)| flat::convert(self.vals[v as usize], sh).0)
+                        .map(|&(v, sh)| rs::convert(self.vals[v as usize], sh).0)
                         .collect();
                     self.out.events.push((EventId(e), a));
                     continue;
@@ -387,13 +380,7 @@ impl<'f> FixedInstance<'f> {
             Op::Call(func, x, y) => {
                 let (a, fa) = val(x);
                 match func {
-                    Builtin::Abs => {
-                        if a < 0 {
-                            fx::neg(a, fa, fr)
-                        } else {
-                            fx::convert(a, fa, fr)
-                        }
-                    }
+                    Builtin::Abs => fx::abs(a, fa, fr),
                     Builtin::Sqrt => fx::sqrt(a, fa, fr),
                     Builtin::Exp => fx::exp(a, fa, fr),
                     Builtin::Min | Builtin::Max => {
@@ -604,7 +591,7 @@ mod tests {
                 );
             }
             // The other product forms on the first 4000 samples (a strike): what they add is
-            // the resolution of each form, whose arithmetic `word`'s tests cover.
+            // the resolution of each form, whose arithmetic the runtime's tests cover.
             let limit = if name.contains("form") {
                 4000
             } else {

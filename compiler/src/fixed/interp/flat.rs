@@ -4,15 +4,16 @@
 //! candidate plan; walking the IR's statement tree and matching each value's [`Op`], its
 //! types and its plan (product form, reciprocal, constant operands) every sample cost more
 //! than the arithmetic. [`Code::new`] does that matching once per instance: each statement
-//! becomes one [`Ins`] with its operands' slots and its shifts resolved ([`super::word`]),
-//! an `if` a forward jump over its body. What has no `i64` form (divisions, square roots,
-//! exponentials, derivatives, operands more than 31 bits apart) stays [`Ins::Slow`]: the
-//! value evaluated by the interpreter's definition on the IR, as before.
+//! becomes one [`Ins`] with its operands' slots and its shifts resolved (the runtime's
+//! [`tactus_runtime::fixed::resolved`] forms), an `if` a forward jump over its body. What has
+//! no `i64` form (divisions, square roots, exponentials, derivatives, operands more than 31
+//! bits apart) stays [`Ins::Slow`]: the value evaluated by the interpreter's definition on
+//! the IR, as before.
 
-use super::word::{round_shift, Align, Product, Threshold};
-use crate::fixed::FixedProgram;
+use crate::fixed::{FixedProgram, MulKind};
 use crate::ir::*;
 use std::cmp::Ordering;
+use tactus_runtime::fixed::resolved::{Align, Product, Threshold};
 
 /// One resolved statement. Slots (`dst`, `x`, `y`, `c`, `v`) index the instance's words:
 /// the program's values, then the constant operands [`Code::consts`] adds.
@@ -44,7 +45,8 @@ pub(super) enum Ins {
     Add { dst: u32, x: u32, y: u32, al: Align },
     /// `x − y`.
     Sub { dst: u32, x: u32, y: u32, al: Align },
-    /// `x · y` (a division by a constant: `y` is its reciprocal's slot).
+    /// `x · y` in the operand order of the product's form ([`product`]; a division by a
+    /// constant: one operand is its reciprocal's slot).
     Mul {
         dst: u32,
         x: u32,
@@ -276,24 +278,18 @@ impl Code {
                         y: y.0,
                         al: Align::new(fa, fc, fr)?,
                     },
-                    ArithOp::Mul => Ins::Mul {
-                        dst,
-                        x: x.0,
-                        y: y.0,
-                        p: Product::new(fp.mul_kind[v.index()], fa, fc, fr),
-                    },
+                    ArithOp::Mul => {
+                        let (x, y, p) = product(fp.mul_kind[v.index()], (x.0, fa), (y.0, fc), fr);
+                        Ins::Mul { dst, x, y, p }
+                    }
                     ArithOp::Div => {
                         // A division by a constant: the product by its reciprocal word, which
                         // gets a constant slot; a run-time division stays on the IR.
                         let (w, fw) = fp.recip[v.index()]?;
                         let y = (p.values.len() + self.consts.len()) as u32;
                         self.consts.push(w);
-                        Ins::Mul {
-                            dst,
-                            x: x.0,
-                            y,
-                            p: Product::new(fp.mul_kind[v.index()], fa, fw, fr),
-                        }
+                        let (x, y, p) = product(fp.mul_kind[v.index()], (x.0, fa), (y, fw), fr);
+                        Ins::Mul { dst, x, y, p }
                     }
                 }
             }
@@ -378,8 +374,61 @@ pub(super) fn holds(mask: u8, ord: Ordering) -> i32 {
     i32::from(mask & ordering_bit(ord) != 0)
 }
 
-/// `round_shift` of a word, for the interpreter's conversions.
-#[inline(always)]
-pub(super) fn convert(x: i32, sh: i32) -> tactus_runtime::fixed::Sat {
-    round_shift(i64::from(x), sh)
+/// The product `x·y` (slots with their fraction bits, in operand order) into `fr` fraction
+/// bits in the form the plan chose (`kind`; `None`: the exact product), resolved: the slots
+/// in the order the form's runtime function takes them (a 32×16 product's cut operand
+/// second, [`crate::fixed::Cut::kept_cut`]) and the [`Product`]. The resolved twin of
+/// [`super::product`], held to it by this module's tests.
+fn product(kind: Option<MulKind>, x: (u32, i32), y: (u32, i32), fr: i32) -> (u32, u32, Product) {
+    let ((sx, fx), (sy, fy)) = (x, y);
+    match kind {
+        Some(MulKind::Muls(a, b)) => (sx, sy, Product::shifted(fx, a, fy, b, fr)),
+        Some(MulKind::High(k)) => (sx, sy, Product::high(fx, fy, k, fr)),
+        Some(MulKind::Mul32x16 { cut, b, k }) => {
+            let ((sa, fa), (sc, fc)) = cut.kept_cut(x, y);
+            (sa, sc, Product::cut_32x16(fa, fc, b, k, fr))
+        }
+        _ => (sx, sy, Product::exact(fx, fy, fr)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixed::Cut;
+    use proptest::prelude::*;
+    use tactus_runtime::fixed::FRAC_RANGE;
+
+    fn kind() -> impl Strategy<Value = Option<MulKind>> {
+        prop_oneof![
+            Just(None),
+            Just(Some(MulKind::Wide)),
+            (0u8..40, 0u8..40).prop_map(|(a, b)| Some(MulKind::Muls(a, b))),
+            (0u8..40).prop_map(|k| Some(MulKind::High(k))),
+            (any::<bool>(), 0u8..40, 0u8..20).prop_map(|(first, b, k)| {
+                let cut = if first { Cut::First } else { Cut::Second };
+                Some(MulKind::Mul32x16 { cut, b, k })
+            }),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(5_000))]
+
+        /// A resolved product, its operands taken from the slots it names, is the
+        /// interpreter's product on the IR (every form, either cut operand).
+        #[test]
+        fn products_resolve_as_the_ir_dispatches(
+            x in any::<i32>(), y in any::<i32>(),
+            fx in FRAC_RANGE.0..FRAC_RANGE.1, fy in FRAC_RANGE.0..FRAC_RANGE.1,
+            fr in FRAC_RANGE.0..FRAC_RANGE.1, kind in kind(),
+        ) {
+            let words = [x, y];
+            let (a, c, p) = product(kind, (0, fx), (1, fy), fr);
+            prop_assert_eq!(
+                p.eval(words[a as usize], words[c as usize]),
+                super::super::product(kind, (x, fx), (y, fy), fr)
+            );
+        }
+    }
 }

@@ -19,7 +19,12 @@
 //!
 //! Every engine (fixed interpreter, JIT, Thumb, C) must produce exactly these bits; the
 //! functions here are the executable definition, computed in `i128` so that nothing is
-//! lost before the single rounding.
+//! lost before the single rounding. They take the formats as run-time arguments; an engine
+//! that runs one operation in one set of formats many times resolves its shifts once and
+//! evaluates it on `i64` with [`resolved`], whose every form is held to its function here
+//! bit for bit (overflow flag included) by that module's tests.
+
+pub mod resolved;
 
 /// Largest shift the primitives perform on an `i128` (larger shifts saturate or give 0).
 const MAX_SHIFT: i32 = 94;
@@ -179,11 +184,24 @@ pub fn div(x: i32, fx: i32, y: i32, fy: i32, fr: i32) -> Sat {
 /// partial product fits a signed 32-bit word (`|xh| ≤ 2^15`, `0 ≤ yl < 2^16`); the compiler
 /// picks `k` so that `p` does too.
 pub fn mul_high(x: i32, fx: i32, y: i32, fy: i32, k: u8, fr: i32) -> Sat {
-    let k = k.clamp(16, 32) as u32;
-    let (xh, xl) = ((x >> 16) as i128, (x & 0xffff) as i128);
-    let (yh, yl) = ((y >> 16) as i128, (y & 0xffff) as i128);
-    let p = ((xh * yh) << (32 - k)) + ((xh * yl) >> (k - 16)) + ((xl * yh) >> (k - 16));
-    sat32(rescale(p, fx + fy - k as i32, fr))
+    let k = k.clamp(16, 32);
+    sat32(rescale(
+        high_partial(x, y, k) as i128,
+        fx + fy - k as i32,
+        fr,
+    ))
+}
+
+/// [`mul_high`]'s partial sum `p` (in units of `2^k`, `16 ≤ k ≤ 32`): the one definition of
+/// which partial products it keeps and how it floors them, shared with [`resolved`]. Exact in
+/// an `i64` for every pair of words: `|xh·yh| ≤ 2^30` shifted by at most 16 bits, each cross
+/// term below `2^31`.
+#[inline(always)]
+fn high_partial(x: i32, y: i32, k: u8) -> i64 {
+    let k = u32::from(k);
+    let (xh, xl) = (i64::from(x >> 16), i64::from(x & 0xffff));
+    let (yh, yl) = (i64::from(y >> 16), i64::from(y & 0xffff));
+    ((xh * yh) << (32 - k)) + ((xh * yl) >> (k - 16)) + ((xl * yh) >> (k - 16))
 }
 
 /// `x · (y >> b)` from two 16×16 partial products, as a Cortex-M0+ computes a 32×16 product
@@ -209,14 +227,26 @@ pub fn mul_high(x: i32, fx: i32, y: i32, fy: i32, k: u8, fr: i32) -> Sat {
 /// 2^16`); the compiler picks `k` so that the shifted high part and `p` fit too, and where
 /// it can so that `p`'s format is `fr` (the floor then is the only rounding: an error of one
 /// LSB of `fr`, far below the cut's). Two `MULS` instead of [`mul_high`]'s three, and one
-/// half-split fewer. Computed here in `i128`, exact for every word (also a `ys` wider
-/// than 16 bits, which a planned program never has).
+/// half-split fewer. Computed here exactly for every word (`cut_partial`; also a `ys`
+/// wider than 16 bits, which a planned program never has).
 pub fn mul_32x16(x: i32, fx: i32, y: i32, fy: i32, b: u8, k: u8, fr: i32) -> Sat {
     let (b, k) = (b.min(31), k.min(16));
-    let ys = (y >> b) as i128;
-    let (xh, xl) = ((x >> 16) as i128, (x & 0xffff) as i128);
-    let p = ((xh * ys) << (16 - k)) + ((xl * ys) >> k);
-    sat32(rescale(p, fx + fy - b as i32 - k as i32, fr))
+    sat32(rescale(
+        cut_partial(x, y >> b, k) as i128,
+        fx + fy - b as i32 - k as i32,
+        fr,
+    ))
+}
+
+/// [`mul_32x16`]'s partial sum `p = xh·ys·2^(16−k) + floor(xl·ys / 2^k)` of the kept word
+/// `x` and the cut word `ys = y >> b` (`k ≤ 16`): the one definition of the form, shared with
+/// [`resolved`]. Exact in an `i64` for every pair of words (also a `ys` wider than 16 bits):
+/// `|xh·ys| ≤ 2^15·2^31` shifted by at most 16 bits is at most `2^62`, `|xl·ys| < 2^47`.
+#[inline(always)]
+fn cut_partial(x: i32, ys: i32, k: u8) -> i64 {
+    let (ys, k) = (i64::from(ys), u32::from(k));
+    let (xh, xl) = (i64::from(x >> 16), i64::from(x & 0xffff));
+    ((xh * ys) << (16 - k)) + ((xl * ys) >> k)
 }
 
 /// `x / (y >> b)` into format `fr`: the divisor's word shifted right by `b` bits first
@@ -282,6 +312,11 @@ pub fn cmp_const_thresholds(fx: i32, c: f64) -> (i64, i64) {
 /// `-x` in format `fr`.
 pub fn neg(x: i32, fx: i32, fr: i32) -> Sat {
     sat32(rescale(-(x as i128), fx, fr))
+}
+
+/// `|x|` in format `fr` ([`neg`] of a negative word, else [`convert`]).
+pub fn abs(x: i32, fx: i32, fr: i32) -> Sat {
+    sat32(rescale((x as i128).abs(), fx, fr))
 }
 
 /// `sqrt(max(x, 0))` into format `fr`: the exact square root, rounded half up.
