@@ -49,9 +49,9 @@ call set-up, safety limiter, DAC store); `measured` the worst and mean of the up
 the stimulus corpus in the emulator (always ≤ static, else the analysis has a bug). Per
 board, per core: the static bound of that core's whole sample interrupt as the firmware
 image lays it out (entry, tick, every key's glue and update, window contention, return)
-against the cycles of the shortest interval between two sample ticks (the firmware ticks
-on whole microseconds: 22 µs = 2,926 cycles at 133 MHz and 44.1 kHz, not the mean 3,015),
-its utilisation and headroom.
+against the cycles of the shortest interval between two sample ticks (each core's SysTick
+ticks every ⌊clock/fs⌋ cycles or one more, exactly fs times a second: 3,015 cycles at
+133 MHz and 44.1 kHz, whose mean period is 3,015.87), its utilisation and headroom.
 `what fits` is the most keys of each instrument one board holds. The costliest param set
 of each instrument is measured over the full corpus (presses, repeated notes, trills, half
 dips, noise, glitches, random words), its other param sets over a brief one; `--quick`

@@ -357,9 +357,14 @@ impl Board {
     /// A board with zeroed memory and both cores parked (core 1 in the launch protocol).
     pub fn new(config: Config) -> Self {
         let system = System::new(config.clock_hz);
+        let mut cores = [Core::new(0), Core::new(1)];
+        for c in &mut cores {
+            // SysTick's reference: the 1 µs pulse of the watchdog's tick generator.
+            c.nvic.clock_hz = config.clock_hz;
+        }
         let mut board = Board {
             config,
-            cores: [Core::new(0), Core::new(1)],
+            cores,
             system,
             image: Image::default(),
             profiles: Vec::new(),
@@ -1593,19 +1598,30 @@ fn run_one<const WATCH: bool>(
 /// single load (a timer read, on the firmware images), runs it on the general path as
 /// [`Board::finish_fast`] would; `None` when it left everything the caller's next
 /// decision depends on as it was — no event, the interrupt-line epoch, the next timer
-/// event and SysTick wrap, the core running — so the fast path goes on exactly as
-/// [`Board::run_until`] would resume it; else the event, for the caller to return
-/// ([`Exit::Ran`]). (A load changes no NVIC state; a fault is an event; a peripheral read
-/// that could change a line bumps the epoch.) Any other instruction runs the same way
+/// event and SysTick wrap, the pending exceptions, the core running — so the fast path
+/// goes on exactly as [`Board::run_until`] would resume it; else the event, for the caller
+/// to return ([`Exit::Ran`]). (A load of a PPB register may signal a SysTick count at 0,
+/// pending the exception; a fault is an event; a peripheral read that could change a line
+/// bumps the epoch.) Any other instruction runs the same way
 /// and returns its event.
 #[inline(never)]
 fn general_load(core: &mut Core, sys: &mut System, cache: &[Cached; CACHE_SLOTS]) -> Option<Event> {
     let pc = core.r[15];
     let slot = &cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
     let load = crate::timing::class(&slot.instr) == crate::timing::Class::Load;
-    let before = (sys.irq_epoch, sys.timer.next_event, core.nvic.syst_next);
+    let before = (
+        sys.irq_epoch,
+        sys.timer.next_event,
+        core.nvic.syst_next,
+        core.nvic.pending,
+    );
     let event = core.run_priced::<_, false>(sys, pc, slot.instr, slot.size, Some(slot.cost));
-    let same = (sys.irq_epoch, sys.timer.next_event, core.nvic.syst_next) == before;
+    let same = (
+        sys.irq_epoch,
+        sys.timer.next_event,
+        core.nvic.syst_next,
+        core.nvic.pending,
+    ) == before;
     let quiet = load && same && event == Event::None && core.state == RunState::Running;
     (!quiet).then_some(event)
 }

@@ -209,9 +209,10 @@ impl Core {
     /// Starts the core at `pc` (Thumb bit optional) with main stack pointer `sp`, in thread
     /// mode with no exception active, keeping its cycle counter.
     pub fn reset_to(&mut self, pc: u32, sp: u32) {
-        let cycle = self.cycle;
+        let (cycle, clock_hz) = (self.cycle, self.nvic.clock_hz);
         *self = Core::new(self.id);
         self.cycle = cycle;
+        self.nvic.clock_hz = clock_hz;
         self.r[13] = sp & !3;
         self.r[15] = pc & !1;
         self.thumb = pc & 1 == 1;

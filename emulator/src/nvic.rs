@@ -5,9 +5,21 @@
 //! without going through the shared [`crate::bus::Bus`]. Exception state is kept as bit masks
 //! indexed by exception number (2 NMI, 3 HardFault, 11 SVCall, 14 PendSV, 15 SysTick, 16+n
 //! external interrupt n; DDI0419 B1.5.2), so "anything pending?" is one AND. Priorities are
-//! the two implemented bits (0-3) of the 8-bit priority fields (DDI0419 B3.4). SysTick counts
-//! processor cycles and is evaluated lazily: we store the cycle of the next wrap, not a
-//! counter that ticks (DDI0419 B3.3).
+//! the two implemented bits (0-3) of the 8-bit priority fields (DDI0419 B3.4).
+//!
+//! **SysTick** (DDI0419 B3.3; "each Cortex M0+ is equipped with a 24-bit SysTick timer",
+//! RP2040 datasheet, the Timer chapter's overview) is evaluated lazily: we store the cycle
+//! at which the counter next reaches 0, not a counter that ticks. It counts the processor
+//! clock with SYST_CSR.CLKSOURCE = 1 and the 1 µs pulse of the watchdog's tick generator
+//! with CLKSOURCE = 0 (RP2040 datasheet, Cortex-M0+ section: "The SysTick timer uses a 1 µs
+//! pulse as a clock enable. This is generated in the watchdog block as timer_tick";
+//! SYST_CALIB reads 0, NOREF clear; here the pulse is the timer's microsecond,
+//! `⌊cycle · 10⁶ / clock⌋`, whatever the watchdog's TICK register holds). Counting from 1 to 0 sets
+//! COUNTFLAG and, with TICKINT, pends the SysTick exception; the counter holds 0 for one
+//! count and is reloaded from SYST_RVR on the next, so the period is RVR + 1 counts and a
+//! write to RVR takes effect at the next reload — also when it lands on the count at 0,
+//! whose reload follows it. Reading SYST_CSR clears COUNTFLAG; any write to SYST_CVR clears
+//! the counter and COUNTFLAG, and the counter reloads on the next count.
 
 /// Exception number of NMI.
 pub const NMI: u32 = 2;
@@ -49,15 +61,23 @@ pub struct Nvic {
     /// SCR (SEVONPEND bit 4 honoured by WFE; SLEEPDEEP/SLEEPONEXIT stored only).
     pub scr: u32,
     /// SYST_CSR bits ENABLE(0), TICKINT(1), CLKSOURCE(2); COUNTFLAG kept in `countflag`.
+    /// Set it directly only with the counter's state ([`Nvic::syst_next`]) to match.
     pub syst_csr: u32,
     /// SYST_RVR (24 bits).
     pub syst_rvr: u32,
     /// COUNTFLAG: set by a wrap, cleared by reading SYST_CSR.
     pub countflag: bool,
-    /// Cycle at which the counter next reaches 0 (meaningful while enabled).
+    /// Cycle at which the counter next reaches 0 (meaningful while enabled; `u64::MAX`:
+    /// never). With CLKSOURCE = 0 the cycle of that 1 µs pulse.
     pub syst_next: u64,
+    /// Whether the count at 0 at [`Nvic::syst_next`] has been signalled (COUNTFLAG, the
+    /// exception): the counter is at 0 and its reload, on the next count, is still to come.
+    pub syst_fired: bool,
     /// Counter value while disabled.
     pub syst_cvr: u32,
+    /// The processor clock in Hz, for the 1 µs reference pulse (CLKSOURCE = 0); 0: no
+    /// reference connected (a core outside a board), the counter then holds.
+    pub clock_hz: u64,
 }
 
 impl Default for Nvic {
@@ -76,7 +96,9 @@ impl Default for Nvic {
             syst_rvr: 0,
             countflag: false,
             syst_next: u64::MAX,
+            syst_fired: false,
             syst_cvr: 0,
+            clock_hz: 0,
         }
     }
 }
@@ -112,22 +134,95 @@ impl Nvic {
         best
     }
 
-    /// Advances SysTick to cycle `now`, pending the SysTick exception on a wrap when TICKINT.
+    /// Advances SysTick to cycle `now`: signals the count at 0 (COUNTFLAG; the exception,
+    /// with TICKINT) when `now` has reached it, and performs the reloads up to `now` with
+    /// RVR as it is (a write to RVR first advances to the cycle of the write).
     #[inline]
     pub fn tick(&mut self, now: u64) {
         if now >= self.syst_next {
-            let period = self.syst_rvr as u64 + 1;
-            if self.syst_rvr == 0 {
-                self.syst_next = u64::MAX;
-            } else {
-                let wraps = (now - self.syst_next) / period + 1;
-                self.syst_next += wraps * period;
-            }
-            self.countflag = true;
-            if self.syst_csr & 2 != 0 {
-                self.pending |= 1 << SYSTICK;
-            }
+            self.syst_wrap(now);
         }
+    }
+
+    #[inline(never)]
+    fn syst_wrap(&mut self, now: u64) {
+        let t = self.count_at(now);
+        let zero = self.count_at(self.syst_next);
+        if !self.syst_fired {
+            self.signal();
+        }
+        if t == zero {
+            // At 0: the reload follows on the next count.
+            self.syst_fired = true;
+            return;
+        }
+        // Reloaded at zero + 1 with RVR, then every RVR + 1 counts.
+        if self.syst_rvr == 0 {
+            // A reload value of 0 stops the counter at 0 without another signal.
+            self.syst_next = u64::MAX;
+            self.syst_fired = false;
+            return;
+        }
+        let period = self.syst_rvr as u64 + 1;
+        let k = (t - zero) / period;
+        let last = zero + k * period;
+        if k >= 1 {
+            self.signal();
+        }
+        if last == t {
+            self.syst_next = self.cycle_of_count(last);
+            self.syst_fired = true;
+        } else {
+            self.syst_next = self.cycle_of_count(last + period);
+            self.syst_fired = false;
+        }
+    }
+
+    /// COUNTFLAG and, with TICKINT, the exception.
+    fn signal(&mut self) {
+        self.countflag = true;
+        if self.syst_csr & 2 != 0 {
+            self.pending |= 1 << SYSTICK;
+        }
+    }
+
+    /// The counter's clock: its counts by cycle `now` (the cycle itself with CLKSOURCE = 1;
+    /// the 1 µs pulses, `⌊now · 10⁶ / clock⌋`, with CLKSOURCE = 0).
+    fn count_at(&self, now: u64) -> u64 {
+        if self.syst_csr & 4 != 0 || now == u64::MAX {
+            return now;
+        }
+        if self.clock_hz == 0 {
+            return 0;
+        }
+        (now as u128 * 1_000_000 / self.clock_hz as u128) as u64
+    }
+
+    /// The first cycle at which the counter's clock has made `count` counts (inverse of
+    /// `count_at`; `u64::MAX` when the reference pulse is not connected).
+    fn cycle_of_count(&self, count: u64) -> u64 {
+        if self.syst_csr & 4 != 0 {
+            return count;
+        }
+        if self.clock_hz == 0 {
+            return u64::MAX;
+        }
+        let c = (count as u128 * self.clock_hz as u128).div_ceil(1_000_000);
+        c.min(u64::MAX as u128 - 1) as u64
+    }
+
+    /// (Re)starts the counter at cycle `now` from value `cvr`: a counter at 0 reloads from
+    /// RVR on the next count.
+    fn syst_start(&mut self, now: u64, cvr: u32) {
+        let t = self.count_at(now);
+        self.syst_fired = false;
+        self.syst_next = if cvr == 0 && self.syst_rvr == 0 {
+            u64::MAX
+        } else if cvr == 0 {
+            self.cycle_of_count(t + 1 + self.syst_rvr as u64)
+        } else {
+            self.cycle_of_count(t + cvr as u64)
+        };
     }
 
     /// Pending exceptions that may be taken: external interrupts must be enabled.
@@ -160,7 +255,12 @@ impl Nvic {
 
     fn syst_cvr(&self, now: u64) -> u32 {
         if self.syst_csr & 1 != 0 && self.syst_next != u64::MAX {
-            (self.syst_next.saturating_sub(now)) as u32 & 0x00ff_ffff
+            let left = self
+                .count_at(self.syst_next)
+                .saturating_sub(self.count_at(now));
+            left as u32 & 0x00ff_ffff
+        } else if self.syst_csr & 1 != 0 {
+            0
         } else {
             self.syst_cvr
         }
@@ -209,32 +309,27 @@ impl Nvic {
             0xe000_e010 => {
                 let was_on = self.syst_csr & 1 != 0;
                 let cvr = self.syst_cvr(now);
+                let clock_changed = (self.syst_csr ^ value) & 4 != 0;
                 self.syst_csr = value & 7;
-                if value & 1 != 0 && !was_on {
-                    // Counting starts: a zero counter reloads from RVR on the next cycle.
-                    self.syst_next = if self.syst_rvr == 0 && cvr == 0 {
-                        u64::MAX
-                    } else if cvr == 0 {
-                        now + 1 + self.syst_rvr as u64
-                    } else {
-                        now + cvr as u64
-                    };
-                } else if value & 1 == 0 {
+                if value & 1 == 0 {
                     self.syst_cvr = cvr;
                     self.syst_next = u64::MAX;
+                    self.syst_fired = false;
+                } else if !was_on {
+                    // Counting starts: a zero counter reloads from RVR on the next count.
+                    self.syst_start(now, cvr);
+                } else if clock_changed && !(self.syst_fired && cvr == 0) {
+                    // The same value, counted on the other clock from here.
+                    self.syst_start(now, cvr);
                 }
             }
             0xe000_e014 => self.syst_rvr = value & 0x00ff_ffff,
             0xe000_e018 => {
-                // Any write clears the counter and COUNTFLAG; it reloads on the next cycle.
+                // Any write clears the counter and COUNTFLAG; it reloads on the next count.
                 self.countflag = false;
                 self.syst_cvr = 0;
                 if self.syst_csr & 1 != 0 {
-                    self.syst_next = if self.syst_rvr == 0 {
-                        u64::MAX
-                    } else {
-                        now + 1 + self.syst_rvr as u64
-                    };
+                    self.syst_start(now, 0);
                 }
             }
             0xe000_e100 => self.set_enabled(self.enabled | value),

@@ -240,7 +240,7 @@ fn board(seed: u64, case: Case, engine: Engine) -> Board {
         c.r[7] = 4 * rng.below(16) as u32;
         if case.systick {
             c.nvic.syst_rvr = 700 + 37 * core as u32;
-            c.nvic.syst_csr = 3;
+            c.nvic.syst_csr = 7;
             c.nvic.syst_next = 900 + core as u64;
         }
     }

@@ -200,7 +200,7 @@ fn board(
         c.r[7] = 4 * rng.below(16) as u32;
         if systick {
             c.nvic.syst_rvr = 300 + 37 * core as u32;
-            c.nvic.syst_csr = 3;
+            c.nvic.syst_csr = 7;
             c.nvic.syst_next = 500 + core as u64;
         }
     }

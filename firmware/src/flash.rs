@@ -28,8 +28,16 @@ pub struct KeyMap {
     pub sample_rate_hz: u32,
     /// Where the boot ROM enters the image (the entry stub, Thumb bit set).
     pub entry: String,
-    /// Timer time of the first sample tick, µs after the timer's release.
-    pub first_tick_us: u32,
+    /// Timer time of the start alarm, µs after the timer's release: at it both cores start
+    /// their SysTick, the sample tick; the first tick follows `period_cycles` cycles and
+    /// the start handler's latency later (tens of cycles).
+    pub start_alarm_us: u32,
+    /// Core clock cycles per sample tick, whole part: the period is `period_cycles` or one
+    /// more, `period_cycles + period_fraction[0] / period_fraction[1]` on average (tick `n`
+    /// at cycle `first + ⌊n·clock/fs⌋`).
+    pub period_cycles: u32,
+    /// The fractional cycle of the mean period, as numerator and denominator.
+    pub period_fraction: [u32; 2],
     /// The sensor window: one 32-bit word per sensor, the ADC sample in the low 16 bits,
     /// written by a driver, DMA channel or PIO program before each tick.
     pub sensor_window: String,
@@ -51,9 +59,10 @@ pub struct CoreMap {
     pub vector_table: String,
     /// Its reset handler.
     pub reset: String,
-    /// Its sample interrupt (TIMER_IRQ_core).
+    /// Its sample interrupt (its SysTick's exception).
     pub sample_isr: String,
-    /// Its control block: next tick (µs), tick remainder, samples, misses, ready (words).
+    /// Its control block: start alarm (µs), tick accumulator, samples, misses, ready
+    /// (words).
     pub control: String,
     /// Its initial stack pointer.
     pub stack_top: String,
@@ -279,7 +288,9 @@ fn key_map(
         clock_hz: input.board.clock_hz as u64,
         sample_rate_hz: input.board.sample_rate_hz as u32,
         entry: hex(crate::image::boot::ENTRY | 1),
-        first_tick_us: image.first_tick_us(),
+        start_alarm_us: image.start_alarm_us(),
+        period_cycles: image.tick().q,
+        period_fraction: [image.tick().rem, image.tick().den],
         sensor_window: hex(SENSOR_BASE),
         dac_window: hex(DAC_BASE),
         cores,
@@ -335,9 +346,11 @@ after a power cycle; copy it again after each power-up.\n\
 ## What runs\n\
 \n\
 Core 0 sets the clocks to {mhz} MHz (PLL_SYS from the 12 MHz crystal), starts the timer's\n\
-1 µs tick and launches core 1 through the boot ROM's FIFO protocol. Each core then runs its\n\
-keys' sample interrupt at {fs} Hz: read each key's sensor word, run its update, pass each\n\
-force word through the safety limiter, write the DAC word.\n\
+1 µs tick and launches core 1 through the boot ROM's FIFO protocol. At a timer alarm both\n\
+cores start their SysTick on the same cycle; each then runs its keys' sample interrupt at\n\
+{fs} Hz on its SysTick (every {q} or {q1} processor cycles, {fs} per second exactly): read\n\
+each key's sensor word, run its update, pass each force word through the safety limiter,\n\
+write the DAC word.\n\
 \n\
 | MIDI | instrument | core | sensor words | DAC words |\n\
 |---|---|---|---|---|\n\
@@ -357,6 +370,8 @@ force word through the safety limiter, write the DAC word.\n\
         cmd = input.command,
         mhz = m.clock_hz as f64 / 1e6,
         fs = m.sample_rate_hz,
+        q = m.period_cycles,
+        q1 = m.period_cycles + 1,
         sw = m.sensor_window,
         dw = m.dac_window,
     )
@@ -462,8 +477,6 @@ pub fn run_elf(
             .collect();
         words.push(w?);
     }
-    let cycle_of = |us: u64| keyboard::cycle_at_us(us, map.clock_hz);
-    let tick = |n: u64| keyboard::tick_us(map.first_tick_us as u64, n, map.sample_rate_hz);
     let check = |stop: StopReason, board: &tactus_emulator::Board| match stop {
         StopReason::CycleLimit => Ok(()),
         other => Err(format!(
@@ -471,7 +484,8 @@ pub fn run_elf(
             board.cores[0].r[15], board.cores[1].r[15]
         )),
     };
-    let stop = board.run_until(cycle_of(tick(0)));
+    let alarm = u64::from(map.start_alarm_us);
+    let stop = board.run_until(keyboard::cycle_at_us(alarm, map.clock_hz));
     check(stop, &board)?;
     for (i, (_, ctrl)) in cores.iter().enumerate() {
         let ready = board
@@ -479,10 +493,12 @@ pub fn run_elf(
             .map_err(|e| e.to_string())?;
         if ready != 1 {
             return Err(format!(
-                "core {i} did not finish its start-up before the first tick"
+                "core {i} did not finish its start-up before the start alarm"
             ));
         }
     }
+    let first = crate::image::run_to_first_tick(&mut board, alarm, map.clock_hz, cores.len())?;
+    let tick = |n: u64| keyboard::tick_cycle(first, n, map.clock_hz, map.sample_rate_hz);
     let mut totals = vec![(0u64, 0u64, 0u64); cores.len()];
     for n in 0..samples {
         for (k, w) in words.iter().enumerate() {
@@ -494,7 +510,7 @@ pub fn run_elf(
                     .map_err(|e| e.to_string())?;
             }
         }
-        let stop = board.run_until(cycle_of(tick(n as u64 + 1)));
+        let stop = board.run_until(tick(n as u64 + 1));
         check(stop, &board)?;
         for (c, (h, _)) in cores.iter().enumerate() {
             for call in board.calls(*h) {

@@ -351,7 +351,7 @@ fn the_planner_drops_the_guard_only_where_it_saves_a_board() {
     let need = six.cores.iter().map(|c| c.cycles).max().unwrap();
     let b = Board {
         name: "six unguarded harpsichord keys".into(),
-        clock_hz: (need as f64 * 1e6 / 22.0).ceil(),
+        clock_hz: need as f64 * stock.sample_rate_hz,
         ..stock.clone()
     };
     assert_eq!(b.cycles_per_sample(), need);

@@ -17,7 +17,6 @@ use std::path::Path;
 use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_compiler::ir::{Axis, AxisTotal};
 use tactus_compiler::lower::Config;
-use tactus_emulator::timer::reg;
 use tactus_emulator::{Board, Config as BoardConfig, Engine};
 use tactus_firmware::image::glue::Scale;
 use tactus_firmware::image::{
@@ -302,11 +301,84 @@ fn a_layout_that_fits_runs_a_second_without_misses_bit_exact_within_its_wcet() {
     println!("{} events (plucks)", st.events);
     assert!(st.events > 0, "no event to compare");
     assert_eq!(run.samples(), samples as u64 + 1);
-    // The image's tick schedule is the host's: after sample n (from 0) the armed alarm is
-    // tick n+1's.
-    let now = run.board().cycle();
-    let alarm = run.board().system.timer.read(now, reg::ALARM0).unwrap();
-    assert_eq!(alarm as u64, run.tick_us(run.samples()));
+    // The image's tick schedule is the host's: after sample n (from 0) each core's SysTick
+    // next reaches 0 at tick n+1's cycle.
+    let next = run.tick_cycle(run.samples());
+    for c in 0..2 {
+        assert_eq!(run.board().cores[c].nvic.syst_next, next, "core {c}");
+    }
+}
+
+/// The sample tick is each core's SysTick: both cores' handlers are entered on the same
+/// cycle, exactly one exception entry after tick n's cycle `first + ⌊n·clock/fs⌋`; the
+/// periods are `⌊clock/fs⌋` (the deadline) or one more, and 63 of them at 133 MHz and
+/// 44.1 kHz take exactly 63 · 133e6 / 44100 cycles (3015 + 55/63 each). At 200 MHz the
+/// same with 4535 + 65/441.
+#[test]
+fn the_sample_tick_is_cycle_exact_and_the_same_on_both_cores() {
+    use tactus_emulator::timing::EXCEPTION_ENTRY;
+    let programs = vec![instrument("hammond", &[])];
+    let keys: Vec<KeySpec> = (0..2)
+        .map(|i| KeySpec {
+            slot: 60 + i,
+            program: 0,
+            core: i,
+        })
+        .collect();
+    for (file, q, rem, den) in [
+        ("rp2040", 3015u64, 55u64, 63u64),
+        ("rp2040_200mhz", 4535, 65, 441),
+    ] {
+        let board = read_board(&root().join(format!("boards/{file}.toml"))).unwrap();
+        let image =
+            FirmwareImage::build(&programs, &keys, &board, &LimiterConfig::default()).unwrap();
+        assert_eq!(image.cycles_per_sample(), q);
+        let t = image.tick();
+        assert_eq!((t.q as u64, t.rem as u64, t.den as u64), (q, rem, den));
+        let mut run = image.run().unwrap();
+        let handlers: Vec<usize> = (0..2)
+            .map(|c| {
+                let isr = image.core_addresses(c).unwrap()[2];
+                run.board().profile_handler(isr)
+            })
+            .collect();
+        let samples = 2 * den as usize + 1;
+        for _ in 0..samples {
+            run.step(&[0, 0]).unwrap();
+        }
+        let starts: Vec<Vec<u64>> = handlers
+            .iter()
+            .map(|&h| run.board().calls(h).iter().map(|c| c.start).collect())
+            .collect();
+        assert_eq!(starts[0].len(), samples, "{file}");
+        assert_eq!(
+            starts[0], starts[1],
+            "{file}: the cores tick on the same cycles"
+        );
+        for (n, &at) in starts[0].iter().enumerate() {
+            assert_eq!(
+                at,
+                run.tick_cycle(n as u64) + EXCEPTION_ENTRY as u64,
+                "{file}: tick {n}"
+            );
+        }
+        let gaps: Vec<u64> = starts[0].windows(2).map(|w| w[1] - w[0]).collect();
+        assert!(
+            gaps.iter().all(|&g| g == q || g == q + 1),
+            "{file}: {gaps:?}"
+        );
+        assert_eq!(*gaps.iter().min().unwrap(), q);
+        assert_eq!(
+            starts[0][den as usize] - starts[0][0],
+            den * q + rem,
+            "{file}"
+        );
+        println!(
+            "{file}: periods of {q} and {} cycles, {} of the longer in {den}",
+            q + 1,
+            gaps[..den as usize].iter().filter(|&&g| g == q + 1).count()
+        );
+    }
 }
 
 #[test]

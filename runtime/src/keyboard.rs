@@ -127,30 +127,35 @@ pub const MAX_CORES: u32 = 64;
 
 impl Board {
     /// Cycles available per sample per core: the shortest interval between two sample
-    /// ticks. The firmware's timer ticks on whole microseconds (tick `n` at
-    /// `⌊n·10⁶/fs⌋` µs, `firmware/src/image/layout.rs`, `tick_schedule`), so the intervals
-    /// are `⌊10⁶/fs⌋` or one µs more, and a handler must end within the shorter:
-    /// `⌊⌊10⁶/fs⌋ µs · clock⌋` (2,926 cycles at 133 MHz and 44.1 kHz, not the mean 3,015:
-    /// a core whose interrupt took 2,958 cycles missed deadlines in the emulator).
+    /// ticks, [`deadline_cycles`] (3,015 at 133 MHz and 44.1 kHz).
     pub fn cycles_per_sample(&self) -> u64 {
         deadline_cycles(self.clock_hz, self.sample_rate_hz)
     }
 }
 
-/// Cycles from one sample tick to the next in the worst case: the shortest interval of
-/// the whole-microsecond tick schedule ([`tick_us`]), `⌊⌊10⁶/fs⌋ µs · clock⌋`, for a
-/// `clock_hz` core clock and an `fs_hz` sample rate (both positive; the board file's
-/// reader checks them). The one definition of the per-sample deadline: the budget, the
-/// board planner, the image's run and the ELF runner all use it.
+/// Cycles from one sample tick to the next in the worst case, for a `clock_hz` core clock
+/// and an `fs_hz` sample rate (both positive; the board file's reader checks them):
+/// `⌊clock/fs⌋`. The firmware's sample tick is each core's SysTick counting the processor
+/// clock, its period alternating between `⌊clock/fs⌋` and one cycle more so that tick `n`
+/// falls on cycle `first + ⌊n·clock/fs⌋` ([`tick_cycle`]; `firmware/src/image/glue.rs`,
+/// `Tick`): the shorter period is the deadline (3,015 cycles at 133 MHz and 44.1 kHz,
+/// whose mean period is 3,015.87; 4,535 at 200 MHz). The one definition of the per-sample
+/// deadline: the budget, the board planner, the image's run, the ELF runner and
+/// `tactus play` all use it.
 pub fn deadline_cycles(clock_hz: f64, fs_hz: f64) -> u64 {
-    let us = (1e6 / fs_hz).floor();
-    (us * clock_hz / 1e6).floor() as u64
+    let whole = |v: f64| v.fract() == 0.0 && (1.0..=u64::MAX as f64 / 2.0).contains(&v);
+    if whole(clock_hz) && whole(fs_hz) {
+        clock_hz as u64 / fs_hz as u64
+    } else {
+        (clock_hz / fs_hz).floor() as u64
+    }
 }
 
-/// Microsecond time of sample tick `n` when tick 0 is at `first_us`: `first + ⌊n·10⁶/fs⌋`,
-/// as the firmware's sample interrupt arms its next alarm (`fs_hz` > 0).
-pub fn tick_us(first_us: u64, n: u64, fs_hz: u32) -> u64 {
-    first_us + n * 1_000_000 / u64::from(fs_hz.max(1))
+/// Core clock cycle of sample tick `n` when tick 0 is at cycle `first`:
+/// `first + ⌊n·clock/fs⌋` (`fs_hz` > 0), as each core's SysTick ticks
+/// ([`deadline_cycles`]).
+pub fn tick_cycle(first: u64, n: u64, clock_hz: u64, fs_hz: u32) -> u64 {
+    first + (n as u128 * clock_hz as u128 / u128::from(fs_hz.max(1))) as u64
 }
 
 /// The first core clock cycle at which the RP2040 timer (1 MHz) reads `us` microseconds,
@@ -476,13 +481,13 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
             read_board(&root.join("boards/rp2040.toml"))
                 .unwrap()
                 .cycles_per_sample(),
-            2926
+            3015
         );
         assert_eq!(
             read_board(&root.join("boards/rp2040_200mhz.toml"))
                 .unwrap()
                 .cycles_per_sample(),
-            4400
+            4535
         );
         let e = read_board(&root.join("boards/none.toml")).unwrap_err();
         assert!(e.contains("none.toml") && e.contains("cannot read"), "{e}");
@@ -491,7 +496,7 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
     #[test]
     fn boards_check_their_fields() {
         let ok = "name = \"rp2040\"\nclock_hz = 133e6\ncores = 2\nsample_rate_hz = 44100\n";
-        assert_eq!(parse_board(ok, "b.toml").unwrap().cycles_per_sample(), 2926);
+        assert_eq!(parse_board(ok, "b.toml").unwrap().cycles_per_sample(), 3015);
         let e = parse_board(&ok.replace("cores = 2", "cores = 0"), "b.toml").unwrap_err();
         assert!(e.contains("b.toml") && e.contains("cores"), "{e}");
         let e = parse_board(
@@ -573,5 +578,33 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
         let back = parse_layout(&toml::to_string(&l).unwrap(), "r2.toml").unwrap();
         assert_eq!(l, back);
         assert_eq!(back.board_kind.as_deref(), Some("rp2040"));
+    }
+
+    #[test]
+    fn the_tick_schedule_alternates_the_deadline_and_one_more_with_the_exact_mean() {
+        for (clock, fs) in [
+            (133_000_000u64, 44_100u32),
+            (200_000_000, 44_100),
+            (20_000_000, 44_100),
+            (48_000_000, 8_000),
+        ] {
+            let d = deadline_cycles(clock as f64, fs as f64);
+            assert_eq!(d, clock / fs as u64);
+            let mut shortest = u64::MAX;
+            for n in 0..fs as u64 {
+                let gap = tick_cycle(7, n + 1, clock, fs) - tick_cycle(7, n, clock, fs);
+                assert!(gap == d || gap == d + 1, "{clock}/{fs}: tick {n}: {gap}");
+                shortest = shortest.min(gap);
+            }
+            assert_eq!(shortest, d, "{clock}/{fs}");
+            // One second of ticks is exactly one second of cycles.
+            assert_eq!(tick_cycle(7, fs as u64, clock, fs), 7 + clock);
+        }
+        assert_eq!(deadline_cycles(133e6, 44100.0), 3015);
+        assert_eq!(deadline_cycles(200e6, 44100.0), 4535);
+        assert_eq!(
+            deadline_cycles(133.5e6, 44100.5),
+            (133.5e6f64 / 44100.5).floor() as u64
+        );
     }
 }

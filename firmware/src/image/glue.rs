@@ -25,19 +25,35 @@ use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
 /// Byte offsets in a core's control block (words in the core's own SRAM bank).
 pub mod ctrl {
-    /// Microsecond time of the next sample tick (the armed alarm).
-    pub const TARGET: u16 = 0;
-    /// Remainder accumulator of the tick schedule ([`super::Tick`]: in 1/`den` µs, in
-    /// `[0, den)`; unused when the period is a whole number of µs).
+    /// Timer time (µs) of the start alarm, at which both cores start their SysTick.
+    pub const START: u16 = 0;
+    /// Remainder accumulator of the tick schedule ([`super::Tick`]: in `[0, den)`, the
+    /// next period's; unused when the period is a whole number of cycles).
     pub const ACC: u16 = 4;
     /// Samples whose handler has completed.
     pub const SAMPLES: u16 = 8;
     /// Deadline misses: handlers that finished after the next tick.
     pub const MISSES: u16 = 12;
-    /// 1 once the reset handler has initialised every key and armed the timer.
+    /// 1 once the reset handler has initialised every key and prepared the tick.
     pub const READY: u16 = 16;
     /// Size of the block; the key records follow it.
     pub const SIZE: u32 = 20;
+}
+
+/// SysTick's registers (DDI0419 B3.3.2) and the ICSR (B3.2.4), each core's own.
+pub mod syst {
+    /// SYST_CSR: ENABLE (bit 0), TICKINT (1), CLKSOURCE (2); COUNTFLAG (16).
+    pub const CSR: u32 = 0xe000_e010;
+    /// SYST_RVR: the reload value, 24 bits.
+    pub const RVR: u32 = 0xe000_e014;
+    /// SYST_CVR: the current value; any write clears it.
+    pub const CVR: u32 = 0xe000_e018;
+    /// ENABLE | TICKINT | CLKSOURCE = 1 (the processor clock).
+    pub const ON: u8 = 7;
+    /// ICSR; PENDSTSET is bit 26.
+    pub const ICSR: u32 = 0xe000_ed04;
+    /// Bit of PENDSTSET in ICSR.
+    pub const PENDSTSET_BIT: u8 = 26;
 }
 
 /// The high registers that hold the limiter's constants for the whole run: the full budget,
@@ -59,6 +75,8 @@ const EXC_RETURN_NOT: u8 = 6;
 
 /// NVIC_ISER (DDI0419 B3.4.3).
 const NVIC_ISER: u32 = 0xe000_e100;
+/// NVIC_ICER (DDI0419 B3.4.4).
+const NVIC_ICER: u32 = 0xe000_e180;
 
 /// `rd += n` for any `n` (ADDS #imm8 steps).
 fn add_big(a: &mut CodeBuffer, rd: u8, mut n: u32) {
@@ -509,41 +527,58 @@ pub struct DriveCode {
     pub scale: DacScale,
 }
 
-/// The tick schedule: `period_us = q + rem/den` µs, kept exactly by a remainder
-/// accumulator `acc` in `[0, den)` ([`ctrl::ACC`]): each tick adds `rem` and carries one
-/// µs when it reaches `den`, so tick *n* is at `first + ⌊n·10⁶/fs⌋` µs.
-#[derive(Clone, Copy, Debug)]
+/// The tick schedule in core clock cycles: the period is `q + rem/den` cycles
+/// (`clock/fs`), each core's SysTick counting the processor clock with a reload value of
+/// `q − 1` or `q` (periods of `q` or `q + 1` cycles) chosen by a remainder accumulator
+/// `acc` in `[0, den)` ([`ctrl::ACC`]): each period adds `rem` and is one cycle longer
+/// when `acc` reaches `den`, so tick *n* is at cycle `first + ⌊n·clock/fs⌋`
+/// (`tactus_runtime::keyboard::tick_cycle`) and the shortest period, the deadline, is `q`
+/// (`tactus_runtime::keyboard::deadline_cycles`).
+///
+/// A write to SYST_RVR takes effect at the next reload (DDI0419 B3.3.1): the handler of
+/// tick *n*, which runs after the reload that started period *n*, sets the reload value of
+/// period *n* + 1. The start handler leaves `q − 1` for the first two periods (the first
+/// accumulator step never carries: `rem < den`), and the control block's accumulator
+/// starts at `rem`, period 1's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Tick {
-    /// Whole microseconds per period (`1e6 div fs`).
+    /// Whole cycles per period: `clock div fs` (2 to 2²⁴).
     pub q: u32,
-    /// The fraction's numerator: `1e6 mod fs` over the fraction's gcd (0: whole µs).
+    /// The fraction's numerator: `clock mod fs` over the fraction's gcd (0: whole cycles).
     pub rem: u32,
-    /// The fraction's denominator: `fs` over the same gcd (44.1 kHz: 298/441).
+    /// The fraction's denominator: `fs` over the same gcd (133 MHz / 44.1 kHz: 55/63).
     pub den: u32,
-    /// Smallest lead (µs) with which an alarm is armed: a handler that starts later than
-    /// that re-synchronises to now + `margin` (the alarm would otherwise wait for the
-    /// 32-bit count to wrap).
-    pub margin: u8,
 }
 
 /// Labels of a core's code, bound by [`core_code`].
 pub struct CoreLabels {
     /// The reset handler.
     pub reset: Label,
-    /// The sample interrupt handler.
+    /// The sample interrupt handler (SysTick, exception 15).
     pub isr: Label,
+    /// The start handler (TIMER_IRQ_0 on both cores: starts the core's SysTick at the
+    /// start alarm, then disables the interrupt).
+    pub start: Label,
     /// The default handler (`B .`) of every other vector.
     pub default: Label,
-    /// Instructions of the handler that access the timer (APB), for the WCET's bounds.
-    pub apb: Vec<Label>,
 }
 
-/// The reset and sample-interrupt handlers of core `core` with `keys`, its control block
-/// at `ctrl_addr`. `inte` is written to the timer's INTE by core 0 (one alarm per core).
-/// `limiter` gives the constants kept in [`hi`]. `start` emits what the reset handler does
-/// before its keys' `init`s (`super::boot::core_start`: the stack canary; on core 0 the
-/// clocks and core 1's launch); the reset handler is the first code emitted, so its
-/// address is where `a` is assembled.
+/// The reset, start and sample-interrupt handlers of core `core` with `keys`, its control
+/// block at `ctrl_addr`. `limiter` gives the constants kept in [`hi`]. `start` emits what
+/// the reset handler does before its keys' `init`s (`super::boot::core_start`: the stack
+/// canary; on core 0 the clocks and core 1's launch); the reset handler is the first code
+/// emitted, so its address is where `a` is assembled.
+///
+/// **The tick.** Each core's sample tick is its own SysTick ([`Tick`]). To tick on the
+/// same cycles, both cores start it at the same event: the reset handler of each prepares
+/// it (RVR = `q − 1`, the counter cleared, not yet enabled), core 0 arms the timer's
+/// ALARM0 for the control block's [`ctrl::START`], each core enables TIMER_IRQ_0 and
+/// sleeps in `WFI`. The alarm wakes both cores on the same cycle; each enters its start
+/// handler (identical code in its own bank, its stack in its own scratch bank: no shared
+/// access before the enabling store), which enables its SysTick on the same cycle, then
+/// disables TIMER_IRQ_0 in its own NVIC; core 0 also acknowledges the alarm. So both
+/// SysTicks count the same periods from the same cycle: tick 0 is `q` cycles after the
+/// enabling store, and the cores' ticks coincide ever after.
 ///
 /// Errors: [`ImageError::Limiter`] (constants the Thumb limiter cannot use).
 #[allow(clippy::too_many_arguments)]
@@ -553,23 +588,15 @@ pub fn core_code(
     keys: &[KeyCode],
     ctrl_addr: u32,
     tick: Tick,
-    inte: u32,
     limiter: &LimiterConstants,
     start: &dyn Fn(&mut CodeBuffer),
 ) -> Result<CoreLabels, ImageError> {
     let labels = CoreLabels {
         reset: a.label(),
         isr: a.label(),
+        start: a.label(),
         default: a.label(),
-        apb: Vec::new(),
     };
-    let mut apb = Vec::new();
-    let mut apb_here = |a: &mut CodeBuffer| {
-        let l = a.label();
-        a.bind(l);
-        apb.push(l);
-    };
-    let alarm = reg::ALARM0 as u16 + 4 * core as u16;
     // The scale kept in registers: the most used force format's.
     let mut scales: Vec<(DacScale, usize)> = Vec::new();
     for d in keys.iter().flat_map(|k| &k.drives) {
@@ -613,8 +640,8 @@ pub fn core_code(
         Ok(())
     };
 
-    // ---- reset: init every key, arm the first tick, set the limiter's registers, mark
-    // the core ready, enable the interrupt, sleep ----
+    // ---- reset: init every key, prepare the tick, set the limiter's registers, mark the
+    // core ready, enable the start interrupt, sleep ----
     a.bind(labels.reset);
     start(a);
     a.ldr_const(5, ctrl_addr);
@@ -623,13 +650,22 @@ pub fn core_code(
         a.bl_addr(k.init);
         Ok(())
     })?;
-    a.ldr_const(0, TIMER_BASE);
+    // SysTick: RVR = q − 1, the counter cleared (its reset value is UNKNOWN), off.
+    a.ldr_const(0, syst::CSR);
+    a.i(asm::movs(1, 0));
+    a.i(asm::str(1, 0, 0));
+    a.ldr_const(1, tick.q - 1);
+    a.i(asm::str(1, 0, (syst::RVR - syst::CSR) as u16));
+    a.i(asm::str(1, 0, (syst::CVR - syst::CSR) as u16));
     if core == 0 {
-        a.mov_const(1, inte);
+        // The start alarm: ALARM0 at START, its interrupt enabled (TIMER_IRQ_0 reaches
+        // both cores' NVICs).
+        a.ldr_const(0, TIMER_BASE);
+        a.i(asm::movs(1, 1));
         a.i(asm::str(1, 0, reg::INTE as u16));
+        a.i(asm::ldr(1, 5, ctrl::START));
+        a.i(asm::str(1, 0, reg::ALARM0 as u16));
     }
-    a.i(asm::ldr(1, 5, ctrl::TARGET));
-    a.i(asm::str(1, 0, alarm));
     set_limiter_registers(a, limiter, &scale);
     if !keys.is_empty() {
         a.ldr_const(6, sensor_base);
@@ -639,7 +675,7 @@ pub fn core_code(
     a.i(asm::str(1, 5, ctrl::READY));
     // From here on only the idle loop runs between interrupts: it uses no register.
     a.ldr_const(0, NVIC_ISER);
-    a.i(asm::movs(1, 1 << core));
+    a.i(asm::movs(1, 1));
     a.i(asm::str(1, 0, 0));
     a.i(Instr::Cps { disable: false });
     let idle = a.label();
@@ -650,35 +686,27 @@ pub fn core_code(
     a.bind(labels.default);
     a.b(labels.default);
 
+    // ---- the start handler: both cores at once, from the same alarm (see above) ----
+    a.align4();
+    a.bind(labels.start);
+    a.ldr_const(0, syst::CSR);
+    a.i(asm::movs(1, syst::ON));
+    a.i(asm::str(1, 0, 0));
+    a.ldr_const(0, NVIC_ICER);
+    a.i(asm::movs(1, 1));
+    a.i(asm::str(1, 0, 0));
+    if core == 0 {
+        a.ldr_const(0, TIMER_BASE);
+        a.i(asm::str(1, 0, reg::INTR as u16));
+    }
+    a.i(Instr::Bx { rm: 14 });
+    a.pool();
+
     // ---- the sample interrupt ----
     a.align4();
     a.bind(labels.isr);
-    a.ldr_const(0, TIMER_BASE);
-    a.i(asm::movs(1, 1 << core));
-    // Acknowledge the alarm.
-    apb_here(a);
-    a.i(asm::str(1, 0, reg::INTR as u16));
-    // Next tick: target += q, plus one µs when the accumulator reaches den.
-    a.i(asm::ldr(1, 5, ctrl::TARGET));
+    // The reload value of the period after this one.
     tick_step(a, &tick);
-    apb_here(a);
-    a.i(asm::ldr(3, 0, reg::TIMERAWL as u16));
-    let armed = a.label();
-    a.i(asm::subs(2, 1, 3)); // target - now
-    a.i(asm::cmp_imm(2, tick.margin));
-    a.bc(cond::GE, armed);
-    // Late by a whole period already (only after a miss): re-synchronise to the time just
-    // read plus the margin (which covers the few cycles until the alarm is armed).
-    if tick.margin <= 7 {
-        a.i(asm::adds_imm(1, 3, tick.margin));
-    } else {
-        a.i(asm::mov(1, 3));
-        a.i(asm::adds_imm(1, 1, tick.margin));
-    }
-    a.bind(armed);
-    a.i(asm::str(1, 5, ctrl::TARGET));
-    apb_here(a);
-    a.i(asm::str(1, 0, alarm));
     // Every key: sensors → record, update, then each force word: limiter, DAC.
     walk(a, keys, &mut |a, k| {
         for (i, &w) in k.sensor_words.iter().enumerate() {
@@ -756,14 +784,13 @@ pub fn core_code(
     {
         a.ldr_const(5, ctrl_addr);
     }
-    // A miss: the next tick's alarm has already fired (its bit in INTR, raised when the
-    // timer reaches the target: the handler ends at or after the next tick).
-    a.ldr_const(0, TIMER_BASE);
-    apb_here(a);
-    a.i(asm::ldr(2, 0, reg::INTR as u16));
-    a.i(asm::lsrs(2, 2, core as u8 + 1)); // C = this core's bit
+    // A miss: the next tick's wrap has already pended SysTick again (ICSR.PENDSTSET: the
+    // entry cleared it), so the handler ends at or after the next tick.
+    a.ldr_const(0, syst::ICSR);
+    a.i(asm::ldr(2, 0, 0));
+    a.i(asm::lsls(2, 2, 31 - syst::PENDSTSET_BIT)); // N = PENDSTSET
     let on_time = a.label();
-    a.bc(cond::CC, on_time);
+    a.bc(cond::PL, on_time);
     a.i(asm::ldr(1, 5, ctrl::MISSES));
     a.i(asm::adds_imm(1, 1, 1));
     a.i(asm::str(1, 5, ctrl::MISSES));
@@ -776,7 +803,7 @@ pub fn core_code(
     a.i(mov_hi(14, 0));
     a.i(Instr::Bx { rm: 14 });
     a.pool();
-    Ok(CoreLabels { apb, ..labels })
+    Ok(labels)
 }
 
 /// `rd += n` through r3 when `n` is beyond two `ADDS #imm8`.
@@ -789,18 +816,18 @@ fn add_const(a: &mut CodeBuffer, rd: u8, n: u32) {
     }
 }
 
-/// The tick's arithmetic: `r1` = the target µs in, the next tick's out; the accumulator
-/// ([`ctrl::ACC`]) updated through r2 (clobbers r3; r0 and r5 kept). With `d = den − rem`:
-/// `acc − d ≥ 0` exactly when `acc + rem` reaches `den` (a carry, and the new `acc`);
-/// else the new `acc` is `acc − d + den`. 44.1 kHz: 10 cycles on the worst path (no carry).
+/// The tick's step: SYST_RVR = `q − 1`, plus one when the accumulator ([`ctrl::ACC`],
+/// through r2) carries (clobbers r0-r3; r5 kept). With `d = den − rem`: `acc − d ≥ 0`
+/// exactly when `acc + rem` reaches `den` (a carry, and the new `acc`); else the new `acc`
+/// is `acc − d + den`. Nothing when the period is a whole number of cycles (the reload
+/// value set at reset stays). 44.1 kHz at 133 MHz: 14 cycles on the worst path (no carry).
 fn tick_step(a: &mut CodeBuffer, t: &Tick) {
     if t.rem == 0 {
-        add_const(a, 1, t.q);
         return;
     }
     let done = a.label();
     a.i(asm::ldr(2, 5, ctrl::ACC));
-    add_const(a, 1, t.q + 1);
+    a.mov_const(1, t.q);
     let d = t.den - t.rem;
     if d <= 255 {
         a.i(asm::subs_imm(2, 2, d as u8));
@@ -813,4 +840,6 @@ fn tick_step(a: &mut CodeBuffer, t: &Tick) {
     a.i(asm::subs_imm(1, 1, 1));
     a.bind(done);
     a.i(asm::str(2, 5, ctrl::ACC));
+    a.ldr_const(0, syst::RVR);
+    a.i(asm::str(1, 0, 0));
 }

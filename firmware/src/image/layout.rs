@@ -2,8 +2,8 @@
 //!
 //! The order is forced by what each step needs: the board and the keys are checked first
 //! ([`check_board`], [`check_keys`], [`check_code_fits`]: nothing is analysed for a program
-//! that cannot be placed); the tick schedule ([`tick_schedule`]) and the first tick
-//! ([`first_tick_us`]) follow from the board and the programs' `init` costs. Then the code:
+//! that cannot be placed); the tick schedule ([`tick_schedule`]) and the start alarm
+//! ([`start_alarm_us`]) follow from the board and the programs' `init` costs. Then the code:
 //! per core a block of vector table and program copies ([`place_programs`]), whose glue's
 //! size is measured at provisional addresses ([`place_code_blocks`], which also fixes where
 //! the data starts: the same bank offset in every bank, past every core's block); then per
@@ -21,7 +21,7 @@ use super::{
 use std::collections::BTreeMap;
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label, LongBranch};
 use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE};
-use tactus_emulator::wcet::{self, Bounds, Region};
+use tactus_emulator::wcet::{self, Bounds};
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use tactus_runtime::keyboard::Board as BoardSpec;
 use tactus_runtime::limiter::{DacScale, LimiterConstants};
@@ -30,8 +30,6 @@ use tactus_runtime::limiter::{DacScale, LimiterConstants};
 pub(super) struct Layout<'a> {
     pub programs: &'a [Program],
     pub keys: &'a [KeySpec],
-    /// Cores of the board (1 or 2).
-    pub cores: usize,
     /// The limiter's constants at the board's sample rate.
     pub consts: LimiterConstants,
     /// Per key, the force words it drives ([`Program::drives`]).
@@ -173,30 +171,49 @@ pub(super) fn check_code_fits(
     Ok(())
 }
 
-/// The tick schedule at `fs` Hz on a `clock_hz` core clock; its margin covers the cycles
-/// between reading the time and arming the alarm.
-pub(super) fn tick_schedule(fs: u32, clock_hz: u64) -> Tick {
-    let margin = (1 + (64 * 1_000_000u64).div_ceil(clock_hz)).min(200) as u8;
-    let rem = 1_000_000 % fs;
-    let (mut x, mut y) = (rem, fs);
+/// The tick schedule at `fs` Hz on a `clock_hz` core clock ([`Tick`]).
+///
+/// Errors: [`ImageError::Board`] when the shortest period is beyond SysTick's 24-bit
+/// reload value (2²⁴ cycles) or below [`MIN_PERIOD`] cycles.
+pub(super) fn tick_schedule(fs: u32, clock_hz: u64) -> Result<Tick, ImageError> {
+    let q = clock_hz / u64::from(fs);
+    if !(MIN_PERIOD..=1 << 24).contains(&q) {
+        return Err(ImageError::Board(format!(
+            "{q} cycles per sample ({clock_hz} Hz / {fs} Hz): the sample tick (SysTick, a \
+             24-bit counter) needs {MIN_PERIOD} to {} cycles",
+            1u64 << 24
+        )));
+    }
+    let rem = clock_hz % u64::from(fs);
+    let (mut x, mut y) = (rem, u64::from(fs));
     while y != 0 {
         (x, y) = (y, x % y);
     }
-    Tick {
-        q: 1_000_000 / fs,
-        rem: rem / x,
-        den: fs / x,
-        margin,
-    }
+    Ok(Tick {
+        q: q as u32,
+        rem: (rem / x) as u32,
+        den: (u64::from(fs) / x) as u32,
+    })
 }
 
-/// Microsecond time of the first tick: after every core's start-up (the run checks that
-/// both were ready). Start-up is the boot (clock set-up and core 1's launch: a few hundred
+/// Fewest cycles per sample the image accepts: the start handler must have enabled each
+/// core's SysTick ([`START_CYCLES`] after the alarm) before the first tick, `q` cycles
+/// after the enabling store.
+pub const MIN_PERIOD: u64 = 100;
+
+/// Cycles after the start alarm by which both cores have enabled their SysTick (the
+/// exception entry and the start handler's first three instructions take about 20); the
+/// run reads each core's first tick then, before it falls due.
+pub const START_CYCLES: u64 = 64;
+
+/// Microsecond time of the start alarm, at which both cores start their SysTick (the first
+/// tick follows `q` cycles later, [`Tick`]): after every core's start-up (the run checks
+/// that both were ready). Start-up is the boot (clock set-up and core 1's launch: a few hundred
 /// cycles in the emulator, which does not model oscillator start-up or PLL lock times;
 /// the timer counts from its release after them), the keys' `init` calls (their static
 /// WCET; 4000 cycles for one that cannot be analysed) plus a few dozen cycles per key and
 /// for the timer set-up.
-pub(super) fn first_tick_us(programs: &[Program], keys: &[KeySpec], clock_hz: u64) -> u32 {
+pub(super) fn start_alarm_us(programs: &[Program], keys: &[KeySpec], clock_hz: u64) -> u32 {
     let mut init_cycles = Vec::with_capacity(programs.len());
     for p in programs {
         init_cycles.push(p.init_wcet().unwrap_or(4000));
@@ -367,12 +384,9 @@ pub(super) fn assemble_glue(
     let ctrl_addr = bank_base(core) + data_off;
     let (kc, kp, data_end) = key_records(l, core, ctrl_addr, cc)?;
     let mut a = CodeBuffer::new(LongBranch::Refuse);
-    let inte = if l.cores == 2 { 3 } else { 1 };
     let bottom = stack(core).0;
     let start = |a: &mut CodeBuffer| boot::core_start(a, core, boot, bottom, STACK_CANARY);
-    let labels = glue::core_code(
-        &mut a, core, &kc, ctrl_addr, l.tick, inte, &l.consts, &start,
-    )?;
+    let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, l.tick, &l.consts, &start)?;
     Ok(Glue {
         asm: a,
         labels,
@@ -411,7 +425,8 @@ pub(super) fn place_code_blocks(
     Ok(block_off)
 }
 
-/// Core `core`'s data: its control block (first tick, counters; the data's start), its keys'
+/// Core `core`'s data: its control block (start alarm, tick accumulator, counters; the
+/// data's start), its keys'
 /// records from there and their state structs from `data_end` (zeroed; each record's
 /// budgets full and its state address set). Returns the bytes and the address after the
 /// last state.
@@ -422,14 +437,15 @@ pub(super) fn data_block(
     core: usize,
     kp: &[KeyPlace],
     data_end: u32,
-    first_tick_us: u32,
+    start_us: u32,
+    tick: &Tick,
 ) -> Result<Vec<u8>, ImageError> {
     let bank = bank_base(core);
     let mut at = data_end.next_multiple_of(4);
     let mut data = Vec::new();
     let word = |v: u32| v.to_le_bytes();
-    data.extend(word(first_tick_us)); // TARGET
-    data.extend(word(0)); // ACC
+    data.extend(word(start_us)); // START
+    data.extend(word(tick.rem)); // ACC: period 1's (period 0's step never carries)
     data.extend(word(0)); // SAMPLES
     data.extend(word(0)); // MISSES
     data.extend(word(0)); // READY
@@ -488,8 +504,8 @@ pub(super) fn stack(core: usize) -> (u32, u32) {
 }
 
 /// The bytes of core `core`'s code block `cc`: its vector table (initial SP, reset
-/// handler, the sample interrupt at IRQ `core` — TIMER_IRQ_`core` — and the default
-/// handler everywhere else), its program copies and its glue. `addr` gives each glue
+/// handler, the sample interrupt at SysTick — exception 15 —, the start handler at
+/// TIMER_IRQ_0 — exception 16 — and the default handler everywhere else), its program copies and its glue. `addr` gives each glue
 /// label's address.
 pub(super) fn vector_table(
     core: usize,
@@ -503,7 +519,8 @@ pub(super) fn vector_table(
     let mut vt = vec![lab(labels.default) | 1; 48];
     vt[0] = stack(core).1;
     vt[1] = lab(labels.reset) | 1;
-    vt[16 + core] = lab(labels.isr) | 1;
+    vt[15] = lab(labels.isr) | 1;
+    vt[16] = lab(labels.start) | 1;
     let mut code = Vec::new();
     for w in &vt {
         code.extend(w.to_le_bytes());
@@ -519,7 +536,8 @@ pub(super) fn vector_table(
 
 /// The static WCET of core `core`'s sample interrupt over its whole code (`code` at
 /// `base`): each key's update priced by its own analysis (long branches, flow facts: one
-/// call's worst case), the timer accesses as APB. Returns the handler's analysed cycles
+/// call's worst case; SysTick's and the ICSR's registers on the private peripheral bus,
+/// no wait states). Returns the handler's analysed cycles
 /// and, of those, the update calls' (each `BL` and the update).
 ///
 /// Errors: [`ImageError::Wcet`].
@@ -536,9 +554,6 @@ pub(super) fn analyse_handler(
     let mut bounds = Bounds::new();
     for k in kp {
         bounds = bounds.with_call(k.update, update_wcets[k.spec.program]);
-    }
-    for &l in &labels.apb {
-        bounds = bounds.with_access(lab(l), Region::Apb);
     }
     let image = wcet::Image { base, bytes: code };
     let w = wcet::analyse_isr(&image, lab(labels.isr), &bounds)

@@ -37,11 +37,20 @@
 //! the timer released from reset) and launches core 1 over the SIO FIFOs (0, 0, 1, vector
 //! table, stack pointer, entry: RP2040 datasheet 2.8.2), where core 1 waits in the boot
 //! ROM; core 1's reset handler, the first code of its glue, writes its canary. Then each
-//! reset handler calls `init` for its keys, arms its timer alarm (core *c* uses ALARM*c* /
-//! TIMER_IRQ_*c*, so each core has its own interrupt and clears only its own bit; core 0
-//! writes INTE for both) for the first tick [`FirmwareImage::first_tick_us`], enables the
-//! interrupt, and sleeps in `WFI`. The ticks are absolute times both cores wait for, so
-//! core 1's later start changes nothing after the first tick.
+//! reset handler calls `init` for its keys, prepares its SysTick (the sample tick, below),
+//! enables TIMER_IRQ_0 and sleeps in `WFI`; core 0 arms the timer's ALARM0 for the start
+//! alarm [`FirmwareImage::start_alarm_us`], after both cores' start-up. The alarm wakes both
+//! cores on the same cycle, and each core's start handler enables its SysTick on the same
+//! cycle ([`glue::core_code`]), so core 1's later start changes nothing after it.
+//!
+//! **The sample tick** is each core's own SysTick counting the processor clock
+//! (CLKSOURCE = 1), its period alternating between `⌊clock/fs⌋` and one cycle more by a
+//! remainder accumulator ([`glue::Tick`]) so that the mean period is exactly `1/fs` and
+//! tick *n* falls on cycle `first + ⌊n·clock/fs⌋`
+//! (`tactus_runtime::keyboard::tick_cycle`), the same cycle on both cores; the deadline is
+//! the shorter period, `⌊clock/fs⌋` cycles (`tactus_runtime::keyboard::deadline_cycles`:
+//! 3,015 at 133 MHz and 44.1 kHz). The handler starts a fixed exception entry after each
+//! tick: no jitter but the cycle of the alternating periods.
 //!
 //! **Keys and pens.** A key occupies consecutive words of the sensor and DAC windows from
 //! its [`KeySpec::slot`]: one sensor word per sensor of its program, in the program's
@@ -61,17 +70,18 @@
 //! `.text` must fit a core's bank: `plucked_string` (≈100 KB) does not
 //! ([`ImageError::NoRoom`]).
 //!
-//! **The sample interrupt** (per core, straight-line code: no loop, so the static WCET
-//! needs no loop bounds; it saves no register and loads no base, `glue`'s module
-//! documentation says why): acknowledge the alarm; arm the next tick (`q + rem/den` µs
-//! later, the remainder kept exactly, so tick *n* is at `first + ⌊n·10⁶/fs⌋` µs); then for each key
-//! of the core: copy its sensor window words into the key's record, `BL` the program's
-//! update (state, &sensors, out in the record), and per force word run the limiter on the
-//! word (`out[total]`, or a pen's `force.x`/`force.y` output) and store the DAC code in its
-//! DAC window word. Finally: if the next tick's alarm has already fired (its `INTR` bit),
-//! the deadline was missed and the core's miss counter is
-//! incremented; the sample counter is incremented last. A handler that starts more than a
-//! period late (only after a miss) re-synchronises the tick to now + a margin.
+//! **The sample interrupt** (per core, SysTick's exception, straight-line code: no loop, so
+//! the static WCET needs no loop bounds; it saves no register and loads no base, `glue`'s
+//! module documentation says why): set the reload value of the period after the current
+//! one (SysTick takes a new RVR at its next reload); then for each key of the core: copy
+//! its sensor window words into the key's record, `BL` the program's update (state,
+//! &sensors, out in the record), and per force word run the limiter on the word
+//! (`out[total]`, or a pen's `force.x`/`force.y` output) and store the DAC code in its DAC
+//! window word. Finally: if SysTick is pending again (ICSR.PENDSTSET: the next tick came
+//! while the handler ran), the deadline was missed and the core's miss counter is
+//! incremented; the sample counter is incremented last. SysTick reloads by itself, so a
+//! late handler needs no re-synchronisation: the schedule stands (after a handler longer
+//! than a period, the one tick that came during it is served late).
 
 pub mod boot;
 mod elf;
@@ -79,7 +89,7 @@ pub mod glue;
 mod layout;
 mod run;
 
-pub use run::{DriveOut, ImageRun, KeyEvent, SampleOut};
+pub use run::{run_to_first_tick, DriveOut, ImageRun, KeyEvent, SampleOut};
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -705,8 +715,9 @@ pub struct FirmwareImage {
     pub(crate) programs: Vec<Program>,
     pub(crate) clock_hz: u64,
     pub(crate) sample_rate_hz: u32,
-    pub(crate) first_tick_us: u32,
+    pub(crate) start_alarm_us: u32,
     pub(crate) wcet: Vec<IsrWcet>,
+    pub(crate) tick: glue::Tick,
     pub(crate) limiter: LimiterConfig,
     code_bytes: Vec<u32>,
     /// How core 0's reset handler boots the board.
@@ -760,12 +771,11 @@ impl FirmwareImage {
         let l = layout::Layout {
             programs,
             keys,
-            cores,
             consts,
             key_drives,
-            tick: layout::tick_schedule(fs, clock_hz),
+            tick: layout::tick_schedule(fs, clock_hz)?,
         };
-        let first_tick_us = layout::first_tick_us(programs, keys, clock_hz);
+        let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
 
         let mut cc = layout::place_programs(programs, keys, cores);
         let data_off = layout::place_code_blocks(&l, &mut cc, clock_hz)?;
@@ -802,7 +812,7 @@ impl FirmwareImage {
             }
             code_bytes[core] = code_end - base;
             let ctrl_addr = bank + data_off;
-            let data = layout::data_block(&l, core, &g.keys, g.data_end, first_tick_us)?;
+            let data = layout::data_block(&l, core, &g.keys, g.data_end, start_alarm_us, &l.tick)?;
             let code = layout::vector_table(core, c, programs, &g.labels, &addr, &glue_bytes);
             wcet.push(layout::analyse_handler(
                 core,
@@ -852,8 +862,9 @@ impl FirmwareImage {
             programs: programs.to_vec(),
             clock_hz,
             sample_rate_hz: fs,
-            first_tick_us,
+            start_alarm_us,
             wcet,
+            tick: l.tick,
             limiter: lim_cfg,
             code_bytes,
             boot,
@@ -978,9 +989,17 @@ impl FirmwareImage {
         self.code_bytes.get(core).copied().unwrap_or(0)
     }
 
-    /// Microsecond time of the first sample tick.
-    pub fn first_tick_us(&self) -> u32 {
-        self.first_tick_us
+    /// Timer time (µs after the timer's release) of the start alarm, at which both cores
+    /// start their SysTick; the first sample tick follows `⌊clock/fs⌋` cycles after the
+    /// start handler's enabling store ([`glue::core_code`]).
+    pub fn start_alarm_us(&self) -> u32 {
+        self.start_alarm_us
+    }
+
+    /// The tick schedule: `⌊clock/fs⌋` cycles per period and the fraction `rem/den` of a
+    /// cycle more on average ([`glue::Tick`]).
+    pub fn tick(&self) -> glue::Tick {
+        self.tick
     }
 
     /// Core clock cycles per sample: the deadline, the shortest interval between two

@@ -1,9 +1,12 @@
 //! [`ImageRun`]: a [`FirmwareImage`] running on an emulated RP2040, stepped one sample at a
 //! time from the host.
 //!
-//! Per [`ImageRun::step`]: the host writes every key's sensor words into the sensor window
-//! (as the sensor DMA would, before the tick), runs the board up to the *next* sample's
-//! tick — both cores sleep in `WFI` between their handlers, and the emulator skips sleep in
+//! The run starts from reset, through each core's start-up and the start alarm, at which
+//! both cores start their SysTick ([`run_to_first_tick`]), and stops at the first sample
+//! tick; tick *n* then falls on cycle `first + ⌊n·clock/fs⌋`
+//! (`tactus_runtime::keyboard::tick_cycle`), on both cores. Per [`ImageRun::step`]: the
+//! host writes every key's sensor words into the sensor window (as the sensor DMA would,
+//! before the tick), runs the board up to the *next* sample's tick — both cores sleep in `WFI` between their handlers, and the emulator skips sleep in
 //! one jump — and reads back each key's out words, and per force word it drives (one for a
 //! keyboard key, one per axis for a pen) the limited current and the DAC word, each
 //! core's handler cycles (measured by profiling the handler: exception entry + first
@@ -12,10 +15,12 @@
 //! handler may then already have started with the previous sensor words.
 
 use super::glue::ctrl;
+use super::layout::START_CYCLES;
 use super::{FirmwareImage, ImageError, STACK_CANARY};
 use tactus_compiler::ir::{Axis, EventId};
 use tactus_emulator::timing::EXCEPTION_ENTRY;
 use tactus_emulator::{Board, Config, StopReason, DAC_BASE, SENSOR_BASE};
+use tactus_runtime::keyboard::cycle_at_us;
 use tactus_runtime::limiter::{Limiter, LimiterConstants};
 
 /// One event a key's update emitted this sample.
@@ -77,6 +82,8 @@ pub struct ImageRun {
     image: FirmwareImage,
     /// Samples completed on every core.
     samples: u64,
+    /// Cycle of the first sample tick (tick 0).
+    first_tick: u64,
     profiles: Vec<usize>,
     out_words: Vec<Vec<i32>>,
     sample: SampleOut,
@@ -113,6 +120,59 @@ fn consecutive_run(
 /// Host access failure as an image error.
 fn emu(e: impl std::fmt::Display) -> ImageError {
     ImageError::Emu(e.to_string())
+}
+
+/// Runs `board` — booted into a [`FirmwareImage`]'s firmware, at or before its start
+/// alarm at `alarm_us` µs — until each of its first `cores` cores has started its SysTick
+/// ([`START_CYCLES`] after the alarm), then to the first sample tick; returns that tick's
+/// cycle. The tick is the board's own state: the cycle at which each core's SysTick next
+/// reaches 0 (the emulated `SYST_CVR`, as a logic analyser would see the first
+/// interrupt), which must be the same on every core.
+///
+/// Errors: a message when the board stops otherwise (a fault), a core's SysTick is not
+/// counting the processor clock with its interrupt enabled by then, or the cores' first
+/// ticks differ.
+pub fn run_to_first_tick(
+    board: &mut Board,
+    alarm_us: u64,
+    clock_hz: u64,
+    cores: usize,
+) -> Result<u64, String> {
+    let check = |stop: StopReason, board: &Board| match stop {
+        StopReason::CycleLimit => Ok(()),
+        other => Err(format!(
+            "the board stopped: {other:?} (core pcs {:#010x}, {:#010x})",
+            board.cores[0].r[15], board.cores[1].r[15]
+        )),
+    };
+    let started = cycle_at_us(alarm_us, clock_hz) + START_CYCLES;
+    let stop = board.run_until(started);
+    check(stop, board)?;
+    let mut first = None;
+    for (k, c) in board.cores.iter().take(cores).enumerate() {
+        let n = &c.nvic;
+        if n.syst_csr & 7 != 7 || n.syst_next == u64::MAX || n.syst_next <= started {
+            return Err(format!(
+                "core {k}: SysTick not started by {START_CYCLES} cycles after the start \
+                 alarm ({alarm_us} µs): SYST_CSR {:#x}",
+                n.syst_csr
+            ));
+        }
+        match first {
+            None => first = Some(n.syst_next),
+            Some(t) if t != n.syst_next => {
+                return Err(format!(
+                    "the cores' first sample ticks differ: cycle {t} on core 0, {} on core {k}",
+                    n.syst_next
+                ))
+            }
+            Some(_) => {}
+        }
+    }
+    let first = first.ok_or("no core")?;
+    let stop = board.run_until(first);
+    check(stop, board)?;
+    Ok(first)
 }
 
 /// How many eighths of a sample period a step may run past the next tick for an
@@ -162,6 +222,7 @@ impl ImageRun {
             board,
             image: image.clone(),
             samples: 0,
+            first_tick: 0,
             profiles,
             out_words: image.keys.iter().map(|k| vec![0; k.out_len]).collect(),
             sample: SampleOut {
@@ -198,8 +259,8 @@ impl ImageRun {
                 .map_err(ImageError::Limiter)?
                 .constants(),
         };
-        let start = run.cycle_of(run.image.first_tick_us as u64);
-        let stop = run.board.run_until(start);
+        let alarm = run.image.start_alarm_us as u64;
+        let stop = run.board.run_until(cycle_at_us(alarm, run.image.clock_hz));
         run.check_stop(stop)?;
         for (k, c) in run.image.cores.iter().enumerate() {
             let ready = run
@@ -208,25 +269,24 @@ impl ImageRun {
                 .map_err(emu)?;
             if ready != 1 {
                 return Err(ImageError::Run(format!(
-                    "core {k} did not finish its start-up before the first tick ({} µs)",
-                    run.image.first_tick_us
+                    "core {k} did not finish its start-up before the start alarm ({alarm} µs)"
                 )));
             }
         }
+        let cores = run.image.cores.len();
+        run.first_tick = run_to_first_tick(&mut run.board, alarm, run.image.clock_hz, cores)
+            .map_err(ImageError::Run)?;
         run.stalls = run.board.system.contention_stalls;
         Ok(run)
     }
 
-    /// First cycle at which the timer reads `us` microseconds.
-    fn cycle_of(&self, us: u64) -> u64 {
-        tactus_runtime::keyboard::cycle_at_us(us, self.image.clock_hz)
-    }
-
-    /// Microsecond time of tick `n` (sample `n`'s interrupt), as the firmware schedules it.
-    pub fn tick_us(&self, n: u64) -> u64 {
-        tactus_runtime::keyboard::tick_us(
-            self.image.first_tick_us as u64,
+    /// Cycle of sample tick `n` (sample `n`'s interrupt, from 0), as the cores' SysTicks
+    /// tick: `first + ⌊n·clock/fs⌋` (`tactus_runtime::keyboard::tick_cycle`).
+    pub fn tick_cycle(&self, n: u64) -> u64 {
+        tactus_runtime::keyboard::tick_cycle(
+            self.first_tick,
             n,
+            self.image.clock_hz,
             self.image.sample_rate_hz,
         )
     }
@@ -278,7 +338,7 @@ impl ImageRun {
             }
         }
         let want = self.samples + 1;
-        let limit = self.cycle_of(self.tick_us(want));
+        let limit = self.tick_cycle(want);
         let stop = self.board.run_until(limit);
         self.check_stop(stop)?;
         let eighth = (self.image.cycles_per_sample() / 8).max(1);
