@@ -72,9 +72,8 @@ fn json_parses_and_adds_up() {
     let (code, v) = json(&["harpsichord", "--keys", "20", "--quick"]);
     let b = &v["board"];
     let cps = n(&b["cycles_per_sample"]);
-    // The shortest interval between the firmware's whole-microsecond ticks.
-    let us = 1_000_000 / n(&b["sample_rate_hz"]);
-    assert_eq!(cps, us * n(&b["clock_hz"]) / 1_000_000);
+    // The shortest interval between the cores' SysTick ticks: ⌊clock/fs⌋ cycles.
+    assert_eq!(cps, n(&b["clock_hz"]) / n(&b["sample_rate_hz"]));
     let isr = n(&b["isr_cycles"]);
     assert!(isr > 15 && isr < cps, "{b}");
     let p = &v["programs"][0];
