@@ -79,9 +79,12 @@ pub struct StateLayout {
     pub modes: usize,
     /// `uint8_t edges[]`.
     pub edges: usize,
-    /// `int32_t hist[][2N+1]`.
+    /// `int32_t hist[][2·(2N+1)]`: per differentiated sensor a ring of the last `2N + 1`
+    /// readings, kept twice (word `k` and word `k + 2N + 1` hold the same reading), so the
+    /// readings up to `2N` samples before the newest follow it without a wrap.
     pub hist: usize,
-    /// `uint8_t hist_pos[]`.
+    /// `uint8_t hist_pos[]`: the byte offset in its ring (4 × the index) of the newest
+    /// reading's first copy; it counts down, from `4·2N` to 0 and round again.
     pub hist_pos: usize,
     /// `uint8_t hist_primed[]`.
     pub hist_primed: usize,
@@ -110,7 +113,7 @@ impl StateLayout {
         let states = align4(hist_primed + n(nh));
         let params = states + 4 * n(p.states.len());
         let hist = params + 4 * p.runtime_params().count();
-        let published = hist + 4 * (2 * WINDOW + 1) * n(nh);
+        let published = hist + 8 * (2 * WINDOW + 1) * n(nh);
         let size = published + 4 * (p.forces.len() + 1 + p.outputs.len());
         StateLayout {
             states,
@@ -123,6 +126,17 @@ impl StateLayout {
             published,
             size,
         }
+    }
+}
+
+impl StateLayout {
+    /// The words of a ring (indices into `hist[h]`) that the first sample's priming sets to
+    /// its reading: those the first `2N + 1` samples read before writing them. The first
+    /// sample's position is `2N` (`init` leaves 0, and it counts down), so the readings it
+    /// and the next `2N` samples take from before the first one lie in the second copy,
+    /// words `2N + 1 … 4N`, each read from one word only.
+    pub fn primed_slots() -> std::ops::Range<usize> {
+        2 * WINDOW + 1..4 * WINDOW + 1
     }
 }
 
@@ -647,12 +661,16 @@ impl<'a> Gen<'a> {
  *   states[i]       raw word of state i, in {m}_STATE_<NAME>_FRAC, within its declared range
  *   modes[i]        current variant index of mode i ({m}_MODE_<NAME>_<VARIANT>)
  *   edges[i]        condition of the i-th `on` handler at the previous sample (0/1)
- *   hist_pos[i]     newest slot of the i-th ring below; hist_primed[i] 0 until the first sample
+ *   hist_pos[i]     byte offset (4 x the slot) of the newest reading in the i-th ring below,
+ *                   counting down from {hoff} to 0; hist_primed[i] 0 until the first sample
  *   params[i]       (only with run-time params) the key's param block: set it before
  *                   init (which leaves it alone); word i in {m}_PARAM_<i>_FRAC
- *   hist[i][17]     raw readings of the i-th differentiated sensor for d()/d2(): a ring of
- *                   2N+1 = 17 words (N = {WINDOW}), newest at hist_pos[i]; before the first
- *                   sample it is filled with the first reading (hist_primed[i] = 0 until then)
+ *   hist[i][{hlen2}]     raw readings of the i-th differentiated sensor for d()/d2(): a ring of
+ *                   2N+1 = {hlen} words (N = {WINDOW}) kept twice (slots k and k + {hlen} hold one
+ *                   reading), newest at slot hist_pos[i]/4, the one j samples earlier at slot
+ *                   hist_pos[i]/4 + j (j <= 2N, no wrap); the first sample (at slot 2N)
+ *                   sets the slots 2N+1 .. 4N, which hold the readings before it, to its
+ *                   reading (hist_primed[i] = 0 until then)
  *   published[]     force terms, total and outputs as last computed (copied to out[])
  */
 struct tactus_{st}_state {{
@@ -696,8 +714,11 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
                 k => format!("\n    int32_t params[{k}];"),
             },
             cnt(nh),
-            2 * WINDOW + 1,
-            np
+            2 * (2 * WINDOW + 1),
+            np,
+            hlen = 2 * WINDOW + 1,
+            hlen2 = 2 * (2 * WINDOW + 1),
+            hoff = 8 * WINDOW,
         );
         Ok(h)
     }
@@ -740,7 +761,9 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
         );
         let _ = writeln!(
             c,
-            "        for (j = 0; j < {hlen}; j++) w[i * {hlen} + j] = 0;\n    }}"
+            "        for (j = 0; j < {}; j++) w[i * {} + j] = 0;\n    }}",
+            2 * hlen,
+            2 * hlen
         );
         let _ = writeln!(c, "    for (i = 0; i < (int)(sizeof s->published / sizeof s->published[0]); i++) s->published[i] = 0;");
         for (i, (sd, init)) in p.states.iter().zip(&fp.state_init).enumerate() {
@@ -784,25 +807,33 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
                 self.line(1, &format!("if (!s->hist_primed[{h}]) {{"));
                 self.line(
                     2,
-                    &format!("for (i = 0; i < {hlen}; i++) s->hist[{h}][i] = s{i};"),
+                    &format!(
+                        "for (i = {}; i < {}; i++) s->hist[{h}][i] = s{i};",
+                        StateLayout::primed_slots().start,
+                        StateLayout::primed_slots().end
+                    ),
                 );
                 self.line(2, &format!("s->hist_primed[{h}] = 1;"));
                 self.line(1, "}");
+                // The ring kept twice, its position a byte offset counting down (the
+                // layout's `hist_pos`): the readings N and 2N samples back need no wrap.
                 self.line(
                     1,
-                    &format!("s->hist_pos[{h}] = (uint8_t)((s->hist_pos[{h}] + 1) % {hlen});"),
+                    &format!(
+                        "s->hist_pos[{h}] = (uint8_t)(s->hist_pos[{h}] == 0 ? {} : s->hist_pos[{h}] - 4);",
+                        4 * (hlen - 1)
+                    ),
                 );
-                self.line(1, &format!("s->hist[{h}][s->hist_pos[{h}]] = s{i};"));
+                self.line(
+                    1,
+                    &format!("int32_t *h{h} = &s->hist[{h}][s->hist_pos[{h}] / 4];"),
+                );
+                self.line(1, &format!("h{h}[0] = s{i};"));
+                self.line(1, &format!("h{h}[{hlen}] = s{i};"));
                 let (ago0, agon, ago2n) = (
-                    format!("(int64_t)s->hist[{h}][s->hist_pos[{h}]]"),
-                    format!(
-                        "(int64_t)s->hist[{h}][(s->hist_pos[{h}] + {}) % {hlen}]",
-                        hlen - WINDOW
-                    ),
-                    format!(
-                        "(int64_t)s->hist[{h}][(s->hist_pos[{h}] + {}) % {hlen}]",
-                        hlen - 2 * WINDOW
-                    ),
+                    format!("(int64_t)h{h}[0]"),
+                    format!("(int64_t)h{h}[{WINDOW}]"),
+                    format!("(int64_t)h{h}[{}]", 2 * WINDOW),
                 );
                 if self.deriv_used.contains(&(i, 1)) {
                     self.line(1, &format!("int64_t d{i}_1 = {ago0} - {agon};"));

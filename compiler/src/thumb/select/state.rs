@@ -138,104 +138,71 @@ impl<'a> Sel<'a> {
     }
 
     /// The differentiator ring of sensor `i` (history slot `h`): prime, advance, store,
-    /// and the raw differences `d()`/`d2()` need.
+    /// and the raw differences `d()`/`d2()` need. The ring's `2N + 1` words are kept twice
+    /// (`cgen::StateLayout::hist`): the newest reading at byte offset `pos` (its position
+    /// byte, counting down) and `pos + 4·(2N + 1)`, so the readings `N` and `2N` samples ago
+    /// are at `pos + 4N` and `pos + 8N` without a wrap. One address `r7 + pos` serves the
+    /// two stores and the two loads as immediate offsets.
     pub(super) fn history(&mut self, i: usize, h: usize) -> Result<(), ThumbError> {
         let (p, st) = (self.p, self.st);
         let hlen = 2 * WINDOW + 1;
         let s = self.sensors[i];
-        let base = st.hist + 4 * hlen * h;
-        // Prime on the first sample: fill the ring with this reading.
+        let base = st.hist + 8 * hlen * h;
+        // Prime on the first sample: the words the first 2N samples read (the first one's
+        // position is 2N, after `init`'s 0) hold this reading.
         let primed = self.load(MemOp::Ldrb, Base::State, st.hist_primed + h);
         let skip = self.label();
         self.push(M::CmpI { a: primed, imm: 0 });
         self.push(M::Bc(Cond::Ne, skip));
         // (The first call after `init`: a flow fact's block, `fixed::flow::first_sample_exclusions`.)
         self.push(M::Mark(crate::fixed::flow::FIRST_SAMPLE_MARK - h as u32));
-        for k in 0..hlen {
+        for k in crate::cgen::StateLayout::primed_slots() {
             self.store(MemOp::Str, s.v, Base::State, base + 4 * k);
         }
         let one = self.movi(1);
         self.store(MemOp::Strb, one, Base::State, st.hist_primed + h);
         self.push(M::Label(skip));
-        // pos = (pos + 1) mod 17
+        // pos = pos − 4, or 4·2N below 0 (the flags of `SUBS`).
         let pos = self.load(MemOp::Ldrb, Base::State, st.hist_pos + h);
-        let pos1 = self.addi(false, pos, 1);
+        let pos1 = self.addi(true, pos, 4);
         let wrap = self.label();
-        self.push(M::CmpI {
-            a: pos1,
-            imm: hlen as u8,
+        self.push(M::Bc(Cond::Pl, wrap));
+        self.push(M::Movi {
+            d: pos1,
+            imm: 4 * (hlen as i32 - 1),
         });
-        self.push(M::Bc(Cond::Ne, wrap));
-        self.push(M::Movi { d: pos1, imm: 0 });
         self.push(M::Label(wrap));
         self.store(MemOp::Strb, pos1, Base::State, st.hist_pos + h);
-        // Within an `ADDS` immediate of r7 the ring's words are `[r7, index · 4 + base]`
-        // (`[r7, (index + base/4) · 4]`): no register holds the ring's address.
-        let q = base / 4;
-        let near = base <= 255;
-        let ring = if near {
-            STATE_V
+        // The newest word's address less `base` (`r7 + pos`), or its address where the
+        // ring's far words lie beyond an immediate offset's reach.
+        let at = self.addsub(false, pos1, STATE_V);
+        let (at, off) = if base + 4 * hlen <= 124 {
+            (at, base as u16)
+        } else if base <= 255 {
+            (self.addi(false, at, base as u8), 0)
         } else {
-            // Address of the ring: state + base.
-            let sv = self.nv();
-            self.push(M::Mov { d: sv, s: STATE_V });
-            if base <= 255 {
-                self.addi(false, sv, base as u8)
-            } else {
-                let o = self.movi(base as i32);
-                self.addsub(false, sv, o)
-            }
+            let o = self.movi(base as i32);
+            (self.addsub(false, at, o), 0)
         };
-        if near {
-            let t = self.sh(Shift::Lsl, pos1, 2);
-            let off0 = self.addi(false, t, base as u8);
-            self.push(M::StoreR {
-                op: MemOp::Str,
-                t: s.v,
-                idx: off0,
-            });
-        } else {
-            let off0 = self.sh(Shift::Lsl, pos1, 2);
-            let addr = self.addsub(false, ring, off0);
+        for copy in [0, 4 * hlen as u16] {
             self.push(M::Store {
                 op: MemOp::Str,
                 t: s.v,
-                base: Base::V(addr),
-                off: 0,
+                base: Base::V(at),
+                off: off + copy,
             });
         }
-        let (q, ring_base) = if near {
-            (q, Base::State)
-        } else {
-            (0, Base::V(ring))
-        };
         let span = {
             let (lo, hi) = self.fp.sensor_raw_range[i];
             (hi as i64 - lo as i64).unsigned_abs()
         };
         let ago = |this: &mut Self, back: usize| -> V {
-            // index (pos + hlen - back) mod hlen (plus q)
-            let t = this.addi(false, pos1, (q + hlen - back) as u8);
-            let ok = this.label();
-            this.push(M::CmpI {
-                a: t,
-                imm: (q + hlen) as u8,
-            });
-            this.push(M::Bc(Cond::Lt, ok));
-            this.push(M::AddSubI {
-                sub: true,
-                d: t,
-                a: t,
-                imm: hlen as u8,
-            });
-            this.push(M::Label(ok));
-            let off = this.sh(Shift::Lsl, t, 2);
             let w = this.nv();
-            this.push(M::LoadR {
+            this.push(M::Load {
                 op: MemOp::Ldr,
                 t: w,
-                base: ring_base,
-                idx: off,
+                base: Base::V(at),
+                off: off + 4 * back as u16,
             });
             w
         };
