@@ -795,8 +795,8 @@ impl<'a> Sel<'a> {
 impl<'a> Sel<'a> {
     /// `SetEdge(e, c); If(c and not edge(e), body)` with `c` tested once: the edge's old
     /// byte (loaded where `edge(e)` was defined), then `c`'s compare-and-branch chain to
-    /// `yes`; the fall-through stores 0 and skips the body, `yes` stores 1 and runs the body
-    /// when the old byte was 0. (The generic form stores the 0/1 word of `c` and tests it
+    /// `yes`; the fall-through stores 0 and skips the body, `yes` skips the body when the old
+    /// byte is 1 (which it keeps), else stores 1 and runs the body. (The generic form stores the 0/1 word of `c` and tests it
     /// again.) `mark`: the top-level statement index of the `if`, for the flow facts.
     fn edge_handler(
         &mut self,
@@ -824,13 +824,15 @@ impl<'a> Sel<'a> {
         self.store(MemOp::Strb, z, Base::State, st.edges + e.index());
         self.push(M::B(skip));
         self.push(M::Label(yes));
-        let one = self.movi(1);
-        self.store(MemOp::Strb, one, Base::State, st.edges + e.index());
+        // Where the old byte is 1 already, the body is skipped and no store is needed.
         self.push(M::CmpI { a: old.v, imm: 0 });
         self.push(M::Bc(Cond::Ne, skip));
+        // (The mark starts the block after the branch: the flow facts name block starts.)
         if let Some(k) = mark {
             self.push(M::Mark(k));
         }
+        let one = self.movi(1);
+        self.store(MemOp::Strb, one, Base::State, st.edges + e.index());
         self.push(M::Note(format!("if {}", describe(p, c))));
         self.stmts(body)?;
         self.push(M::Label(skip));
