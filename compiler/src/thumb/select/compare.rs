@@ -378,14 +378,28 @@ impl<'a> Sel<'a> {
 
     /// `a OP b` of two 32-bit words on the same grid.
     pub(super) fn cmp32(&mut self, o: CmpOp, a: W, b: W) -> W {
+        // `a − b`, zero exactly when they are equal: a known 0–7 on either side is the
+        // immediate of `SUBS` (no `MOVS` of it), and 0 no subtraction at all.
+        let differ = |this: &mut Self| {
+            let (x, k) = match (this.konst.get(&a.v), this.konst.get(&b.v)) {
+                (_, Some(&k)) => (a.v, k),
+                (Some(&k), None) => (b.v, k),
+                (None, None) => return this.addsub(true, a.v, b.v),
+            };
+            match k {
+                0 => x,
+                1..=7 => this.addi(true, x, k as u8),
+                _ => this.addsub(true, a.v, b.v),
+            }
+        };
         let v = match o {
             CmpOp::Eq => {
-                let d = self.addsub(true, a.v, b.v);
+                let d = differ(self);
                 let n = self.unary(AluOp::Rsb, d);
                 self.alu2(AluOp::Adc, d, n)
             }
             CmpOp::Ne => {
-                let d = self.addsub(true, a.v, b.v);
+                let d = differ(self);
                 let n = self.unary(AluOp::Rsb, d);
                 let t = self.alu2(AluOp::Orr, n, d);
                 self.sh(Shift::Lsr, t, 31)
