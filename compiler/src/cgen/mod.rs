@@ -83,11 +83,11 @@ pub struct StateLayout {
     /// readings, kept twice (word `k` and word `k + 2N + 1` hold the same reading), so the
     /// readings up to `2N` samples before the newest follow it without a wrap.
     pub hist: usize,
-    /// `uint8_t hist_pos[]`: the byte offset in its ring (4 × the index) of the newest
-    /// reading's first copy; it counts down, from `4·2N` to 0 and round again.
+    /// `uint8_t hist_pos[]`: 0 before the first sample (the ring not primed yet), then
+    /// `4·(k + 1)` with `k` the slot of the newest reading's first copy, which counts down
+    /// (from `2N` in the first sample to 0, and round again): `r7 + hist_pos` is the newest
+    /// reading's address less `hist - 4`.
     pub hist_pos: usize,
-    /// `uint8_t hist_primed[]`.
-    pub hist_primed: usize,
     /// `int32_t published[]`.
     pub published: usize,
     /// `sizeof` the struct, bytes (a multiple of 4).
@@ -109,8 +109,7 @@ impl StateLayout {
         let modes = 0;
         let edges = modes + n(p.modes.len());
         let hist_pos = align4(edges + n(p.edges.len()));
-        let hist_primed = hist_pos + n(nh);
-        let states = align4(hist_primed + n(nh));
+        let states = align4(hist_pos + n(nh));
         let params = states + 4 * n(p.states.len());
         let hist = params + 4 * p.runtime_params().count();
         let published = hist + 8 * (2 * WINDOW + 1) * n(nh);
@@ -122,7 +121,6 @@ impl StateLayout {
             edges,
             hist,
             hist_pos,
-            hist_primed,
             published,
             size,
         }
@@ -132,7 +130,7 @@ impl StateLayout {
 impl StateLayout {
     /// The words of a ring (indices into `hist[h]`) that the first sample's priming sets to
     /// its reading: those the first `2N + 1` samples read before writing them. The first
-    /// sample's position is `2N` (`init` leaves 0, and it counts down), so the readings it
+    /// sample's position is `2N` (as after slot 0: it counts down), so the readings it
     /// and the next `2N` samples take from before the first one lie in the second copy,
     /// words `2N + 1 … 4N`, each read from one word only.
     pub fn primed_slots() -> std::ops::Range<usize> {
@@ -661,23 +659,22 @@ impl<'a> Gen<'a> {
  *   states[i]       raw word of state i, in {m}_STATE_<NAME>_FRAC, within its declared range
  *   modes[i]        current variant index of mode i ({m}_MODE_<NAME>_<VARIANT>)
  *   edges[i]        condition of the i-th `on` handler at the previous sample (0/1)
- *   hist_pos[i]     byte offset (4 x the slot) of the newest reading in the i-th ring below,
- *                   counting down from {hoff} to 0; hist_primed[i] 0 until the first sample
+ *   hist_pos[i]     0 before the first sample, then 4 x (1 + the slot of the newest reading
+ *                   in the i-th ring below), the slot counting down from 2N to 0
  *   params[i]       (only with run-time params) the key's param block: set it before
  *                   init (which leaves it alone); word i in {m}_PARAM_<i>_FRAC
  *   hist[i][{hlen2}]     raw readings of the i-th differentiated sensor for d()/d2(): a ring of
  *                   2N+1 = {hlen} words (N = {WINDOW}) kept twice (slots k and k + {hlen} hold one
- *                   reading), newest at slot hist_pos[i]/4, the one j samples earlier at slot
- *                   hist_pos[i]/4 + j (j <= 2N, no wrap); the first sample (at slot 2N)
- *                   sets the slots 2N+1 .. 4N, which hold the readings before it, to its
- *                   reading (hist_primed[i] = 0 until then)
+ *                   reading), newest at slot hist_pos[i]/4 - 1, the one j samples earlier at
+ *                   slot hist_pos[i]/4 - 1 + j (j <= 2N, no wrap); the first sample (at slot
+ *                   2N) sets the slots 2N+1 .. 4N, which hold the readings before it, to its
+ *                   reading
  *   published[]     force terms, total and outputs as last computed (copied to out[])
  */
 struct tactus_{st}_state {{
     uint8_t modes[{}];
     uint8_t edges[{}];{}
     uint8_t hist_pos[{}];
-    uint8_t hist_primed[{}];
     int32_t states[{}];{}
     int32_t hist[{}][{}];
     int32_t published[{}];
@@ -707,7 +704,6 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
                 k => format!("\n    uint8_t pad_[{k}];  /* hist_pos starts a word */"),
             },
             cnt(nh),
-            cnt(nh),
             cnt(ns),
             match fp_params {
                 0 => String::new(),
@@ -718,7 +714,6 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
             np,
             hlen = 2 * WINDOW + 1,
             hlen2 = 2 * (2 * WINDOW + 1),
-            hoff = 8 * WINDOW,
         );
         Ok(h)
     }
@@ -755,10 +750,7 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
             "    for (i = 0; i < (int)sizeof s->edges; i++) s->edges[i] = 0;"
         );
         let _ = writeln!(c, "    for (i = 0; i < (int)sizeof s->hist_pos; i++) {{");
-        let _ = writeln!(
-            c,
-            "        s->hist_pos[i] = 0;\n        s->hist_primed[i] = 0;"
-        );
+        let _ = writeln!(c, "        s->hist_pos[i] = 0;");
         let _ = writeln!(
             c,
             "        for (j = 0; j < {}; j++) w[i * {} + j] = 0;\n    }}",
@@ -804,30 +796,24 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
                 self.line(1, &format!("if (s{i} > {}) s{i} = {};", lit(hi), lit(hi)));
             }
             if let Some(h) = self.hist_slot[i] {
-                self.line(1, &format!("if (!s->hist_primed[{h}]) {{"));
+                // The ring kept twice, its position counting down (the layout's
+                // `hist_pos`, 0 before the first sample): the readings N and 2N samples
+                // back need no wrap.
+                self.line(1, &format!("int q{h} = s->hist_pos[{h}] - 4;"));
+                self.line(1, &format!("if (q{h} <= 0) {{"));
+                self.line(2, &format!("if (q{h} < 0)"));
                 self.line(
-                    2,
+                    3,
                     &format!(
                         "for (i = {}; i < {}; i++) s->hist[{h}][i] = s{i};",
                         StateLayout::primed_slots().start,
                         StateLayout::primed_slots().end
                     ),
                 );
-                self.line(2, &format!("s->hist_primed[{h}] = 1;"));
+                self.line(2, &format!("q{h} = {};", 4 * hlen));
                 self.line(1, "}");
-                // The ring kept twice, its position a byte offset counting down (the
-                // layout's `hist_pos`): the readings N and 2N samples back need no wrap.
-                self.line(
-                    1,
-                    &format!(
-                        "s->hist_pos[{h}] = (uint8_t)(s->hist_pos[{h}] == 0 ? {} : s->hist_pos[{h}] - 4);",
-                        4 * (hlen - 1)
-                    ),
-                );
-                self.line(
-                    1,
-                    &format!("int32_t *h{h} = &s->hist[{h}][s->hist_pos[{h}] / 4];"),
-                );
+                self.line(1, &format!("s->hist_pos[{h}] = (uint8_t)q{h};"));
+                self.line(1, &format!("int32_t *h{h} = &s->hist[{h}][q{h} / 4 - 1];"));
                 self.line(1, &format!("h{h}[0] = s{i};"));
                 self.line(1, &format!("h{h}[{hlen}] = s{i};"));
                 let (ago0, agon, ago2n) = (

@@ -139,49 +139,44 @@ impl<'a> Sel<'a> {
 
     /// The differentiator ring of sensor `i` (history slot `h`): prime, advance, store,
     /// and the raw differences `d()`/`d2()` need. The ring's `2N + 1` words are kept twice
-    /// (`cgen::StateLayout::hist`): the newest reading at byte offset `pos` (its position
-    /// byte, counting down) and `pos + 4·(2N + 1)`, so the readings `N` and `2N` samples ago
-    /// are at `pos + 4N` and `pos + 8N` without a wrap. One address `r7 + pos` serves the
-    /// two stores and the two loads as immediate offsets.
+    /// (`cgen::StateLayout::hist`): the newest reading at byte offset `pos − 4` (its
+    /// position byte, counting down; 0 before the first sample) and `pos − 4 + 4·(2N + 1)`,
+    /// so the readings `N` and `2N` samples ago are `4N` and `8N` bytes on, without a wrap.
+    /// One address `r7 + pos` serves the two stores and the two loads as immediate offsets.
     pub(super) fn history(&mut self, i: usize, h: usize) -> Result<(), ThumbError> {
         let (p, st) = (self.p, self.st);
         let hlen = 2 * WINDOW + 1;
         let s = self.sensors[i];
         let base = st.hist + 8 * hlen * h;
-        // Prime on the first sample: the words the first 2N samples read (the first one's
-        // position is 2N, after `init`'s 0) hold this reading.
-        let primed = self.load(MemOp::Ldrb, Base::State, st.hist_primed + h);
-        let skip = self.label();
-        self.push(M::CmpI { a: primed, imm: 0 });
-        self.push(M::Bc(Cond::Ne, skip));
+        // q = pos − 4: positive, the new position; 0, the wrap to 2N; negative, the first
+        // sample (pos 0 before it), which primes the words the next 2N samples read with
+        // this reading and then starts at 2N like a wrap.
+        let pos = self.load(MemOp::Ldrb, Base::State, st.hist_pos + h);
+        let q = self.addi(true, pos, 4);
+        let (ok, wrap) = (self.label(), self.label());
+        self.push(M::Bc(Cond::Gt, ok));
+        self.push(M::Bc(Cond::Pl, wrap));
         // (The first call after `init`: a flow fact's block, `fixed::flow::first_sample_exclusions`.)
         self.push(M::Mark(crate::fixed::flow::FIRST_SAMPLE_MARK - h as u32));
         for k in crate::cgen::StateLayout::primed_slots() {
             self.store(MemOp::Str, s.v, Base::State, base + 4 * k);
         }
-        let one = self.movi(1);
-        self.store(MemOp::Strb, one, Base::State, st.hist_primed + h);
-        self.push(M::Label(skip));
-        // pos = pos − 4, or 4·2N below 0 (the flags of `SUBS`).
-        let pos = self.load(MemOp::Ldrb, Base::State, st.hist_pos + h);
-        let pos1 = self.addi(true, pos, 4);
-        let wrap = self.label();
-        self.push(M::Bc(Cond::Pl, wrap));
-        self.push(M::Movi {
-            d: pos1,
-            imm: 4 * (hlen as i32 - 1),
-        });
         self.push(M::Label(wrap));
-        self.store(MemOp::Strb, pos1, Base::State, st.hist_pos + h);
-        // The newest word's address less `base` (`r7 + pos`), or its address where the
+        self.push(M::Movi {
+            d: q,
+            imm: 4 * hlen as i32,
+        });
+        self.push(M::Label(ok));
+        self.store(MemOp::Strb, q, Base::State, st.hist_pos + h);
+        // `r7 + q` is the newest word's address less `base − 4`; or its address, where the
         // ring's far words lie beyond an immediate offset's reach.
-        let at = self.addsub(false, pos1, STATE_V);
-        let (at, off) = if base + 4 * hlen <= 124 {
-            (at, base as u16)
-        } else if base <= 255 {
-            (self.addi(false, at, base as u8), 0)
+        let at = self.addsub(false, q, STATE_V);
+        let (at, off) = if base - 4 + 4 * hlen <= 124 {
+            (at, (base - 4) as u16)
+        } else if base - 4 <= 255 {
+            (self.addi(false, at, (base - 4) as u8), 0)
         } else {
-            let o = self.movi(base as i32);
+            let o = self.movi(base as i32 - 4);
             (self.addsub(false, at, o), 0)
         };
         for copy in [0, 4 * hlen as u16] {
