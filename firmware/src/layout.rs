@@ -7,10 +7,9 @@
 //!     uint8_t edges[max(ne,1)];
 //!     uint8_t pad_[…];              // to a word boundary, when needed
 //!     uint8_t hist_pos[max(nh,1)];
-//!     uint8_t hist_primed[max(nh,1)];
 //!     int32_t states[max(ns,1)];
 //!     int32_t params[npar];        // only with run-time params
-//!     int32_t hist[max(nh,1)][17];
+//!     int32_t hist[max(nh,1)][34];  // a ring of 17 readings, kept twice
 //!     int32_t published[np];
 //! };
 //! void tactus_<stem>_init(struct tactus_<stem>_state *s);

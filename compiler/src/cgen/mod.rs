@@ -79,12 +79,15 @@ pub struct StateLayout {
     pub modes: usize,
     /// `uint8_t edges[]`.
     pub edges: usize,
-    /// `int32_t hist[][2N+1]`.
+    /// `int32_t hist[][2·(2N+1)]`: per differentiated sensor a ring of the last `2N + 1`
+    /// readings, kept twice (word `k` and word `k + 2N + 1` hold the same reading), so the
+    /// readings up to `2N` samples before the newest follow it without a wrap.
     pub hist: usize,
-    /// `uint8_t hist_pos[]`.
+    /// `uint8_t hist_pos[]`: 0 before the first sample (the ring not primed yet), then
+    /// `4·(k + 1)` with `k` the slot of the newest reading's first copy, which counts down
+    /// (from `2N` in the first sample to 0, and round again): `r7 + hist_pos` is the newest
+    /// reading's address less `hist - 4`.
     pub hist_pos: usize,
-    /// `uint8_t hist_primed[]`.
-    pub hist_primed: usize,
     /// `int32_t published[]`.
     pub published: usize,
     /// `sizeof` the struct, bytes (a multiple of 4).
@@ -106,11 +109,10 @@ impl StateLayout {
         let modes = 0;
         let edges = modes + n(p.modes.len());
         let hist_pos = align4(edges + n(p.edges.len()));
-        let hist_primed = hist_pos + n(nh);
-        let states = align4(hist_primed + n(nh));
+        let states = align4(hist_pos + n(nh));
         let params = states + 4 * n(p.states.len());
         let hist = params + 4 * p.runtime_params().count();
-        let published = hist + 4 * (2 * WINDOW + 1) * n(nh);
+        let published = hist + 8 * (2 * WINDOW + 1) * n(nh);
         let size = published + 4 * (p.forces.len() + 1 + p.outputs.len());
         StateLayout {
             states,
@@ -119,10 +121,20 @@ impl StateLayout {
             edges,
             hist,
             hist_pos,
-            hist_primed,
             published,
             size,
         }
+    }
+}
+
+impl StateLayout {
+    /// The words of a ring (indices into `hist[h]`) that the first sample's priming sets to
+    /// its reading: those the first `2N + 1` samples read before writing them. The first
+    /// sample's position is `2N` (as after slot 0: it counts down), so the readings it
+    /// and the next `2N` samples take from before the first one lie in the second copy,
+    /// words `2N + 1 … 4N`, each read from one word only.
+    pub fn primed_slots() -> std::ops::Range<usize> {
+        2 * WINDOW + 1..4 * WINDOW + 1
     }
 }
 
@@ -647,19 +659,22 @@ impl<'a> Gen<'a> {
  *   states[i]       raw word of state i, in {m}_STATE_<NAME>_FRAC, within its declared range
  *   modes[i]        current variant index of mode i ({m}_MODE_<NAME>_<VARIANT>)
  *   edges[i]        condition of the i-th `on` handler at the previous sample (0/1)
- *   hist_pos[i]     newest slot of the i-th ring below; hist_primed[i] 0 until the first sample
+ *   hist_pos[i]     0 before the first sample, then 4 x (1 + the slot of the newest reading
+ *                   in the i-th ring below), the slot counting down from 2N to 0
  *   params[i]       (only with run-time params) the key's param block: set it before
  *                   init (which leaves it alone); word i in {m}_PARAM_<i>_FRAC
- *   hist[i][17]     raw readings of the i-th differentiated sensor for d()/d2(): a ring of
- *                   2N+1 = 17 words (N = {WINDOW}), newest at hist_pos[i]; before the first
- *                   sample it is filled with the first reading (hist_primed[i] = 0 until then)
+ *   hist[i][{hlen2}]     raw readings of the i-th differentiated sensor for d()/d2(): a ring of
+ *                   2N+1 = {hlen} words (N = {WINDOW}) kept twice (slots k and k + {hlen} hold one
+ *                   reading), newest at slot hist_pos[i]/4 - 1, the one j samples earlier at
+ *                   slot hist_pos[i]/4 - 1 + j (j <= 2N, no wrap); the first sample (at slot
+ *                   2N) sets the slots 2N+1 .. 4N, which hold the readings before it, to its
+ *                   reading
  *   published[]     force terms, total and outputs as last computed (copied to out[])
  */
 struct tactus_{st}_state {{
     uint8_t modes[{}];
     uint8_t edges[{}];{}
     uint8_t hist_pos[{}];
-    uint8_t hist_primed[{}];
     int32_t states[{}];{}
     int32_t hist[{}][{}];
     int32_t published[{}];
@@ -689,15 +704,16 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
                 k => format!("\n    uint8_t pad_[{k}];  /* hist_pos starts a word */"),
             },
             cnt(nh),
-            cnt(nh),
             cnt(ns),
             match fp_params {
                 0 => String::new(),
                 k => format!("\n    int32_t params[{k}];"),
             },
             cnt(nh),
-            2 * WINDOW + 1,
-            np
+            2 * (2 * WINDOW + 1),
+            np,
+            hlen = 2 * WINDOW + 1,
+            hlen2 = 2 * (2 * WINDOW + 1),
         );
         Ok(h)
     }
@@ -734,13 +750,12 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
             "    for (i = 0; i < (int)sizeof s->edges; i++) s->edges[i] = 0;"
         );
         let _ = writeln!(c, "    for (i = 0; i < (int)sizeof s->hist_pos; i++) {{");
+        let _ = writeln!(c, "        s->hist_pos[i] = 0;");
         let _ = writeln!(
             c,
-            "        s->hist_pos[i] = 0;\n        s->hist_primed[i] = 0;"
-        );
-        let _ = writeln!(
-            c,
-            "        for (j = 0; j < {hlen}; j++) w[i * {hlen} + j] = 0;\n    }}"
+            "        for (j = 0; j < {}; j++) w[i * {} + j] = 0;\n    }}",
+            2 * hlen,
+            2 * hlen
         );
         let _ = writeln!(c, "    for (i = 0; i < (int)(sizeof s->published / sizeof s->published[0]); i++) s->published[i] = 0;");
         for (i, (sd, init)) in p.states.iter().zip(&fp.state_init).enumerate() {
@@ -781,28 +796,30 @@ void tactus_{st}_update(struct tactus_{st}_state *s, const int32_t *sensors, int
                 self.line(1, &format!("if (s{i} > {}) s{i} = {};", lit(hi), lit(hi)));
             }
             if let Some(h) = self.hist_slot[i] {
-                self.line(1, &format!("if (!s->hist_primed[{h}]) {{"));
+                // The ring kept twice, its position counting down (the layout's
+                // `hist_pos`, 0 before the first sample): the readings N and 2N samples
+                // back need no wrap.
+                self.line(1, &format!("int q{h} = s->hist_pos[{h}] - 4;"));
+                self.line(1, &format!("if (q{h} <= 0) {{"));
+                self.line(2, &format!("if (q{h} < 0)"));
                 self.line(
-                    2,
-                    &format!("for (i = 0; i < {hlen}; i++) s->hist[{h}][i] = s{i};"),
+                    3,
+                    &format!(
+                        "for (i = {}; i < {}; i++) s->hist[{h}][i] = s{i};",
+                        StateLayout::primed_slots().start,
+                        StateLayout::primed_slots().end
+                    ),
                 );
-                self.line(2, &format!("s->hist_primed[{h}] = 1;"));
+                self.line(2, &format!("q{h} = {};", 4 * hlen));
                 self.line(1, "}");
-                self.line(
-                    1,
-                    &format!("s->hist_pos[{h}] = (uint8_t)((s->hist_pos[{h}] + 1) % {hlen});"),
-                );
-                self.line(1, &format!("s->hist[{h}][s->hist_pos[{h}]] = s{i};"));
+                self.line(1, &format!("s->hist_pos[{h}] = (uint8_t)q{h};"));
+                self.line(1, &format!("int32_t *h{h} = &s->hist[{h}][q{h} / 4 - 1];"));
+                self.line(1, &format!("h{h}[0] = s{i};"));
+                self.line(1, &format!("h{h}[{hlen}] = s{i};"));
                 let (ago0, agon, ago2n) = (
-                    format!("(int64_t)s->hist[{h}][s->hist_pos[{h}]]"),
-                    format!(
-                        "(int64_t)s->hist[{h}][(s->hist_pos[{h}] + {}) % {hlen}]",
-                        hlen - WINDOW
-                    ),
-                    format!(
-                        "(int64_t)s->hist[{h}][(s->hist_pos[{h}] + {}) % {hlen}]",
-                        hlen - 2 * WINDOW
-                    ),
+                    format!("(int64_t)h{h}[0]"),
+                    format!("(int64_t)h{h}[{WINDOW}]"),
+                    format!("(int64_t)h{h}[{}]", 2 * WINDOW),
                 );
                 if self.deriv_used.contains(&(i, 1)) {
                     self.line(1, &format!("int64_t d{i}_1 = {ago0} - {agon};"));

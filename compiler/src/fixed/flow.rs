@@ -10,6 +10,7 @@ use super::range::Interval;
 use super::FixedProgram;
 use crate::ir::*;
 
+pub mod edges;
 mod linear;
 
 /// What one sample may hold in a state or mode after some statements: `None` = anything.

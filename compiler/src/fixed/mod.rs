@@ -165,6 +165,10 @@ pub struct PlanConfig {
     /// Whether states only events write are narrowed to the hull of what they are assigned
     /// ([`range::state_hulls`]). Off only to measure what the narrowing saves.
     pub narrow_states: bool,
+    /// Whether `on` handlers whose edge memory is provably false whenever their condition
+    /// holds are run as `while` handlers ([`flow::edges`]: no edge load or store). Off only
+    /// to measure what it saves and to check that both programs run alike.
+    pub level_edges: bool,
 }
 
 impl Default for PlanConfig {
@@ -178,6 +182,7 @@ impl Default for PlanConfig {
             simulate: true,
             reciprocals: true,
             narrow_states: true,
+            level_edges: true,
         }
     }
 }
@@ -196,6 +201,7 @@ impl PlanConfig {
             simulate: false,
             reciprocals: true,
             narrow_states: true,
+            level_edges: true,
         }
     }
 }
@@ -1065,6 +1071,11 @@ impl FixedProgram {
             fp.spend_by_simulation(original, &planned, config);
         }
         fp.widen_by_local_errors();
+        // Once the plan (and with it every value's error bound) is final: the flow facts
+        // the rewrite rests on hold for the words every fixed engine computes.
+        if config.level_edges {
+            flow::edges::level_edges(&mut fp);
+        }
         fp
     }
 

@@ -68,6 +68,13 @@ struct Interval {
     tied: [Option<V>; 2],
     /// Recomputed at each use instead of spilled, if it must leave the registers.
     remat: Option<Remat>,
+    /// A diamond's result ([`holes`]): not live from the `B` that ends its first arm up to
+    /// its definition in the second, `(b, def)` — another interval inside may take its
+    /// register.
+    hole: Option<(usize, usize)>,
+    /// The diamond result whose second definition copies this register where it ends
+    /// (`MOV d, this`): this one takes `d`'s register inside `d`'s hole, so the copy goes.
+    host: Option<u32>,
 }
 
 impl Interval {
@@ -138,8 +145,25 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
             refs: refs[k],
             tied: tied[k],
             remat: None,
+            hole: None,
+            host: None,
         })
         .collect();
+    let hole = holes(code, nregs, &first, &def_at, &defs);
+    for iv in &mut intervals {
+        iv.hole = hole[iv.v as usize];
+        // The last use of this register is the copy into a diamond's result at the end of
+        // that result's hole, and it starts inside the hole.
+        if let Some(M::Mov { d, s }) = code.get(iv.end) {
+            if s.0 == iv.v {
+                if let Some(Some((b, h))) = hole.get(d.0 as usize) {
+                    if *h == iv.end && iv.start > *b {
+                        iv.host = Some(d.0);
+                    }
+                }
+            }
+        }
+    }
     let stores = StateStores::new(code);
     for iv in &mut intervals {
         let k = iv.v as usize;
@@ -167,6 +191,49 @@ pub fn allocate(code: &[M], nregs: u32) -> Allocation {
         return a;
     }
     scan(&intervals, nregs, &[0, 1, 2, 3, 4], &[5, 6], true).expect("spilling always succeeds")
+}
+
+/// Per register: its hole `(b, def)` where it is a diamond's result (`select`s emitted as
+/// branches, 0/1 words from flags): defined exactly twice, the first definition followed by
+/// a `B` (the end of the first arm) before the second, no read of it after that `B` up to
+/// the second definition, and no branch from the first definition to that `B` into the
+/// hole. The second arm is entered only where the register holds nothing yet, so it is
+/// dead from the `B` up to its second definition.
+fn holes(
+    code: &[M],
+    nregs: u32,
+    first: &[usize],
+    last_def: &[usize],
+    defs: &[u32],
+) -> Vec<Option<(usize, usize)>> {
+    let mut out = vec![None; nregs as usize];
+    let mut at_label = std::collections::HashMap::new();
+    for (i, m) in code.iter().enumerate() {
+        if let M::Label(l) = m {
+            at_label.insert(l.0, i);
+        }
+    }
+    for k in 0..nregs as usize {
+        if defs[k] != 2 {
+            continue;
+        }
+        let (d1, d2) = (first[k], last_def[k]);
+        if d1 >= d2 || code[d1].def() != Some(V(k as u32)) {
+            continue;
+        }
+        let Some(b) = (d1 + 1..d2).find(|&i| matches!(code[i], M::B(_))) else {
+            continue;
+        };
+        let read = (b + 1..=d2).any(|i| code[i].uses().contains(&V(k as u32)));
+        let into = (d1..=b).any(|i| match code[i] {
+            M::B(l) | M::Bc(_, l) => at_label.get(&l.0).is_some_and(|&t| t > b && t <= d2),
+            _ => false,
+        });
+        if !read && !into {
+            out[k] = Some((b, d2));
+        }
+    }
+    out
 }
 
 /// The stores of a body that may write the state struct, for [`Remat::State`]: stores at
@@ -267,6 +334,8 @@ fn scan(
     let mut free: Vec<u8> = regs.iter().rev().copied().collect();
     // Active intervals with their register, sorted by end.
     let mut active: Vec<(Interval, u8)> = Vec::new();
+    // Per register: the end of the interval living in its holder's hole, if any.
+    let mut tenant_until: [Option<usize>; 8] = [None; 8];
     let mut used_mask = 0u8;
     let pre = |v: u32| -> Option<u8> {
         if v == ARG1.0 {
@@ -296,6 +365,22 @@ fn scan(
                 _ => None,
             }
         });
+        // The register of the diamond result this interval is copied into at the end of
+        // its hole, when nothing else lives in that hole: the copy then goes. (Lodging any
+        // interval in a hole instead of spilling: plucked_string 2 cycles worse.)
+        let host_reg = iv.host.filter(|_| pre(iv.v).is_none()).and_then(|host| {
+            active.iter().find_map(|(a, r)| {
+                let (b, h) = a.hole?;
+                let fits = a.v == host && b < iv.start && iv.end <= h;
+                let vacant = tenant_until[*r as usize].is_none_or(|e| e < iv.start);
+                (fits && vacant).then_some(*r)
+            })
+        });
+        if let Some(r) = host_reg {
+            loc[iv.v as usize] = Some(Loc::Reg(r));
+            tenant_until[r as usize] = Some(iv.end);
+            continue;
+        }
         let want = pre(iv.v).or(tied_reg);
         let reg = match want.and_then(|w| free.iter().position(|&r| r == w)) {
             Some(p) => Some(free.remove(p)),
@@ -312,14 +397,23 @@ fn scan(
                     return None;
                 }
                 // Spill the interval with the fewest references per instruction (ties: the
-                // one that ends last).
-                let (k, _) = active
+                // one that ends last) — not one whose register an interval in its hole
+                // still holds.
+                let lodged = |r: u8| tenant_until[r as usize].is_some_and(|e| e >= iv.start);
+                let Some((k, _)) = active
                     .iter()
                     .enumerate()
+                    .filter(|(_, (_, r))| !lodged(*r))
                     .min_by(|(_, (a, _)), (_, (b, _))| {
                         a.weight().total_cmp(&b.weight()).then(b.end.cmp(&a.end))
                     })
-                    .expect("no register free implies active intervals");
+                else {
+                    loc[iv.v as usize] = Some(match iv.remat {
+                        Some(r) => Loc::Remat(r),
+                        None => Loc::Slot(take_slot(&iv)),
+                    });
+                    continue;
+                };
                 let victim_first = active[k].0.weight() < iv.weight()
                     || (active[k].0.weight() == iv.weight() && active[k].0.end > iv.end);
                 let mut spill = |iv: &Interval| match iv.remat {

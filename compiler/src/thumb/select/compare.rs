@@ -83,6 +83,50 @@ pub(super) fn fused_conditions(p: &Program, used: &[bool], selects: &[Value]) ->
             }
         }
     }
+    // A mode tested against a variant (`CMP r, #imm`, the mode's byte in a register) by
+    // several conditions that are all branched on: tested again at each of them rather
+    // than kept as a 0/1 word (2 instructions, then `CMP r, #0` at each use anyway).
+    let roots: std::collections::HashSet<Value> = {
+        let mut r: std::collections::HashSet<Value> = selects.iter().copied().collect();
+        walk_stmts(&p.body, &mut |s| {
+            if let Stmt::If(c, _) = s {
+                r.insert(*c);
+            }
+        });
+        r
+    };
+    let mut readers: Vec<Vec<Value>> = vec![Vec::new(); n];
+    for (i, vd) in p.values.iter().enumerate() {
+        if used[i] {
+            for x in crate::cgen::operands(&vd.op) {
+                readers[x.index()].push(Value(i as u32));
+            }
+        }
+    }
+    let mut other_reads = vec![0u32; n];
+    walk_stmts(&p.body, &mut |s| match s {
+        Stmt::If(..) => {}
+        _ => s.reads().iter().for_each(|v| other_reads[v.index()] += 1),
+    });
+    for (i, vd) in p.values.iter().enumerate() {
+        let Op::Cmp(CmpOp::Eq | CmpOp::Ne, x, y) = vd.op else {
+            continue;
+        };
+        let mode_test = matches!(
+            (&p.values[x.index()].op, &p.values[y.index()].op),
+            (Op::Mode(_), Op::Variant(_, k)) | (Op::Variant(_, k), Op::Mode(_)) if *k <= 255
+        );
+        let v = Value(i as u32);
+        if !used[i] || fused[i] || !mode_test || other_reads[i] > 0 {
+            continue;
+        }
+        let branched = readers[i].iter().all(|r| {
+            fused[r.index()] && matches!(p.values[r.index()].op, Op::And(..) | Op::Or(..))
+        });
+        if branched && (uses[i] as usize) <= readers[i].len() + usize::from(roots.contains(&v)) {
+            fused[i] = true;
+        }
+    }
     fused
 }
 
@@ -334,14 +378,28 @@ impl<'a> Sel<'a> {
 
     /// `a OP b` of two 32-bit words on the same grid.
     pub(super) fn cmp32(&mut self, o: CmpOp, a: W, b: W) -> W {
+        // `a − b`, zero exactly when they are equal: a known 0–7 on either side is the
+        // immediate of `SUBS` (no `MOVS` of it), and 0 no subtraction at all.
+        let differ = |this: &mut Self| {
+            let (x, k) = match (this.konst.get(&a.v), this.konst.get(&b.v)) {
+                (_, Some(&k)) => (a.v, k),
+                (Some(&k), None) => (b.v, k),
+                (None, None) => return this.addsub(true, a.v, b.v),
+            };
+            match k {
+                0 => x,
+                1..=7 => this.addi(true, x, k as u8),
+                _ => this.addsub(true, a.v, b.v),
+            }
+        };
         let v = match o {
             CmpOp::Eq => {
-                let d = self.addsub(true, a.v, b.v);
+                let d = differ(self);
                 let n = self.unary(AluOp::Rsb, d);
                 self.alu2(AluOp::Adc, d, n)
             }
             CmpOp::Ne => {
-                let d = self.addsub(true, a.v, b.v);
+                let d = differ(self);
                 let n = self.unary(AluOp::Rsb, d);
                 let t = self.alu2(AluOp::Orr, n, d);
                 self.sh(Shift::Lsr, t, 31)

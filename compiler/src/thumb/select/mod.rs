@@ -146,6 +146,10 @@ pub(crate) struct Sel<'a> {
     /// The mask `-c` of a 0/1 word `c` ([`Sel::select`]), computed right after `c`'s
     /// definition (so it dominates every use of `c`), until `c`'s register is redefined.
     masks: std::collections::HashMap<V, V>,
+    /// Scaled derivatives computed once, before the body ([`Sel::hoist_derivatives`]): per
+    /// (sensor, order, fraction bits, bound) the word every `d()`/`d2()` value of that
+    /// format reads.
+    derivs_scaled: std::collections::HashMap<(usize, u8, i32, u64), W>,
 }
 
 /// The conditions of edge handlers (`on c { … }`, lowered to `SetEdge(e, c)` then
@@ -368,6 +372,7 @@ impl<'a> Sel<'a> {
             edge_cond,
             select_uses,
             masks: std::collections::HashMap::new(),
+            derivs_scaled: std::collections::HashMap::new(),
         }
     }
 
@@ -472,6 +477,7 @@ impl<'a> Sel<'a> {
             self.history(i, slot)?;
             slot += 1;
         }
+        self.hoist_derivatives()?;
         // Clear the emit slots of out[].
         if !self.out.emits.is_empty() {
             let z = self.movi(0);
@@ -648,6 +654,58 @@ impl<'a> Sel<'a> {
 }
 
 impl<'a> Sel<'a> {
+    /// The scaled derivatives (`d(x)`, `d2(x)`: a raw difference times `fs/N` or `(fs/N)²`,
+    /// rounded) that the body computes at its top level and that an `if` body before that
+    /// computes too, computed once before the body: the `if` body then reads that word
+    /// instead of computing it again (the piano's impact pulse and its contact damping both
+    /// read `d(key)`). A word computed at the top level runs on every path anyway, so no
+    /// path gets longer; the raw difference usually dies there instead of living on. So are
+    /// the derivatives of a sensor whose second difference needs 33 bits (two raw words live
+    /// up to its use, one scaled word instead). Others stay where they are: a longer live
+    /// range for nothing (hammond: 2 cycles more).
+    fn hoist_derivatives(&mut self) -> Result<(), ThumbError> {
+        let p = self.p;
+        type Key = (usize, u8, i32, u64);
+        let key = |this: &Self, v: Value| -> Option<Key> {
+            match p.values[v.index()].op {
+                Op::Deriv(x, o) if this.used[v.index()] => {
+                    Some((x.index(), o, this.fp.frac[v.index()], this.bound_of(v)))
+                }
+                _ => None,
+            }
+        };
+        // Keys an `if` body has computed so far, and the top-level definitions to hoist.
+        let mut nested: Vec<Key> = Vec::new();
+        let mut hoist: Vec<(Key, Value)> = Vec::new();
+        for s in &p.body {
+            match s {
+                Stmt::Def(v) if self.arms.home[v.index()].is_none() => {
+                    if let Some(k) = key(self, *v) {
+                        // A 33-bit second difference keeps two raw words (`d2_parts`) alive
+                        // up to its use: its scaled word is one.
+                        let wide = k.1 == 2 && self.d2_parts[k.0].is_some();
+                        if (wide || nested.contains(&k)) && !hoist.iter().any(|(h, _)| *h == k) {
+                            hoist.push((k, *v));
+                        }
+                    }
+                }
+                Stmt::If(_, body) => walk_stmts(body, &mut |t| {
+                    if let Stmt::Def(v) = t {
+                        if let Some(k) = key(self, *v) {
+                            nested.push(k);
+                        }
+                    }
+                }),
+                _ => {}
+            }
+        }
+        for (k, v) in hoist {
+            let w = self.def(v)?;
+            self.derivs_scaled.insert(k, w);
+        }
+        Ok(())
+    }
+
     /// Computes `v` into [`Sel::val`] where it has a word of its own (not a constant,
     /// rematerialised at each use, nor a condition fused into its branch).
     fn define(&mut self, v: Value) -> Result<(), ThumbError> {
@@ -737,8 +795,8 @@ impl<'a> Sel<'a> {
 impl<'a> Sel<'a> {
     /// `SetEdge(e, c); If(c and not edge(e), body)` with `c` tested once: the edge's old
     /// byte (loaded where `edge(e)` was defined), then `c`'s compare-and-branch chain to
-    /// `yes`; the fall-through stores 0 and skips the body, `yes` stores 1 and runs the body
-    /// when the old byte was 0. (The generic form stores the 0/1 word of `c` and tests it
+    /// `yes`; the fall-through stores 0 and skips the body, `yes` skips the body when the old
+    /// byte is 1 (which it keeps), else stores 1 and runs the body. (The generic form stores the 0/1 word of `c` and tests it
     /// again.) `mark`: the top-level statement index of the `if`, for the flow facts.
     fn edge_handler(
         &mut self,
@@ -766,13 +824,15 @@ impl<'a> Sel<'a> {
         self.store(MemOp::Strb, z, Base::State, st.edges + e.index());
         self.push(M::B(skip));
         self.push(M::Label(yes));
-        let one = self.movi(1);
-        self.store(MemOp::Strb, one, Base::State, st.edges + e.index());
+        // Where the old byte is 1 already, the body is skipped and no store is needed.
         self.push(M::CmpI { a: old.v, imm: 0 });
         self.push(M::Bc(Cond::Ne, skip));
+        // (The mark starts the block after the branch: the flow facts name block starts.)
         if let Some(k) = mark {
             self.push(M::Mark(k));
         }
+        let one = self.movi(1);
+        self.store(MemOp::Strb, one, Base::State, st.edges + e.index());
         self.push(M::Note(format!("if {}", describe(p, c))));
         self.stmts(body)?;
         self.push(M::Label(skip));

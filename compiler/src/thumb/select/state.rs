@@ -138,104 +138,66 @@ impl<'a> Sel<'a> {
     }
 
     /// The differentiator ring of sensor `i` (history slot `h`): prime, advance, store,
-    /// and the raw differences `d()`/`d2()` need.
+    /// and the raw differences `d()`/`d2()` need. The ring's `2N + 1` words are kept twice
+    /// (`cgen::StateLayout::hist`): the newest reading at byte offset `pos − 4` (its
+    /// position byte, counting down; 0 before the first sample) and `pos − 4 + 4·(2N + 1)`,
+    /// so the readings `N` and `2N` samples ago are `4N` and `8N` bytes on, without a wrap.
+    /// One address `r7 + pos` serves the two stores and the two loads as immediate offsets.
     pub(super) fn history(&mut self, i: usize, h: usize) -> Result<(), ThumbError> {
         let (p, st) = (self.p, self.st);
         let hlen = 2 * WINDOW + 1;
         let s = self.sensors[i];
-        let base = st.hist + 4 * hlen * h;
-        // Prime on the first sample: fill the ring with this reading.
-        let primed = self.load(MemOp::Ldrb, Base::State, st.hist_primed + h);
-        let skip = self.label();
-        self.push(M::CmpI { a: primed, imm: 0 });
-        self.push(M::Bc(Cond::Ne, skip));
+        let base = st.hist + 8 * hlen * h;
+        // q = pos − 4: positive, the new position; 0, the wrap to 2N; negative, the first
+        // sample (pos 0 before it), which primes the words the next 2N samples read with
+        // this reading and then starts at 2N like a wrap.
+        let pos = self.load(MemOp::Ldrb, Base::State, st.hist_pos + h);
+        let q = self.addi(true, pos, 4);
+        let (ok, wrap) = (self.label(), self.label());
+        self.push(M::Bc(Cond::Gt, ok));
+        self.push(M::Bc(Cond::Pl, wrap));
         // (The first call after `init`: a flow fact's block, `fixed::flow::first_sample_exclusions`.)
         self.push(M::Mark(crate::fixed::flow::FIRST_SAMPLE_MARK - h as u32));
-        for k in 0..hlen {
+        for k in crate::cgen::StateLayout::primed_slots() {
             self.store(MemOp::Str, s.v, Base::State, base + 4 * k);
         }
-        let one = self.movi(1);
-        self.store(MemOp::Strb, one, Base::State, st.hist_primed + h);
-        self.push(M::Label(skip));
-        // pos = (pos + 1) mod 17
-        let pos = self.load(MemOp::Ldrb, Base::State, st.hist_pos + h);
-        let pos1 = self.addi(false, pos, 1);
-        let wrap = self.label();
-        self.push(M::CmpI {
-            a: pos1,
-            imm: hlen as u8,
-        });
-        self.push(M::Bc(Cond::Ne, wrap));
-        self.push(M::Movi { d: pos1, imm: 0 });
         self.push(M::Label(wrap));
-        self.store(MemOp::Strb, pos1, Base::State, st.hist_pos + h);
-        // Within an `ADDS` immediate of r7 the ring's words are `[r7, index · 4 + base]`
-        // (`[r7, (index + base/4) · 4]`): no register holds the ring's address.
-        let q = base / 4;
-        let near = base <= 255;
-        let ring = if near {
-            STATE_V
+        self.push(M::Movi {
+            d: q,
+            imm: 4 * hlen as i32,
+        });
+        self.push(M::Label(ok));
+        self.store(MemOp::Strb, q, Base::State, st.hist_pos + h);
+        // `r7 + q` is the newest word's address less `base − 4`; or its address, where the
+        // ring's far words lie beyond an immediate offset's reach.
+        let at = self.addsub(false, q, STATE_V);
+        let (at, off) = if base - 4 + 4 * hlen <= 124 {
+            (at, (base - 4) as u16)
+        } else if base - 4 <= 255 {
+            (self.addi(false, at, (base - 4) as u8), 0)
         } else {
-            // Address of the ring: state + base.
-            let sv = self.nv();
-            self.push(M::Mov { d: sv, s: STATE_V });
-            if base <= 255 {
-                self.addi(false, sv, base as u8)
-            } else {
-                let o = self.movi(base as i32);
-                self.addsub(false, sv, o)
-            }
+            let o = self.movi(base as i32 - 4);
+            (self.addsub(false, at, o), 0)
         };
-        if near {
-            let t = self.sh(Shift::Lsl, pos1, 2);
-            let off0 = self.addi(false, t, base as u8);
-            self.push(M::StoreR {
-                op: MemOp::Str,
-                t: s.v,
-                idx: off0,
-            });
-        } else {
-            let off0 = self.sh(Shift::Lsl, pos1, 2);
-            let addr = self.addsub(false, ring, off0);
+        for copy in [0, 4 * hlen as u16] {
             self.push(M::Store {
                 op: MemOp::Str,
                 t: s.v,
-                base: Base::V(addr),
-                off: 0,
+                base: Base::V(at),
+                off: off + copy,
             });
         }
-        let (q, ring_base) = if near {
-            (q, Base::State)
-        } else {
-            (0, Base::V(ring))
-        };
         let span = {
             let (lo, hi) = self.fp.sensor_raw_range[i];
             (hi as i64 - lo as i64).unsigned_abs()
         };
         let ago = |this: &mut Self, back: usize| -> V {
-            // index (pos + hlen - back) mod hlen (plus q)
-            let t = this.addi(false, pos1, (q + hlen - back) as u8);
-            let ok = this.label();
-            this.push(M::CmpI {
-                a: t,
-                imm: (q + hlen) as u8,
-            });
-            this.push(M::Bc(Cond::Lt, ok));
-            this.push(M::AddSubI {
-                sub: true,
-                d: t,
-                a: t,
-                imm: hlen as u8,
-            });
-            this.push(M::Label(ok));
-            let off = this.sh(Shift::Lsl, t, 2);
             let w = this.nv();
-            this.push(M::LoadR {
+            this.push(M::Load {
                 op: MemOp::Ldr,
                 t: w,
-                base: ring_base,
-                idx: off,
+                base: Base::V(at),
+                off: off + 4 * back as u16,
             });
             w
         };

@@ -169,6 +169,9 @@ impl<'a> Sel<'a> {
                     b: w.b.min(rb),
                 }
             }
+            Op::Deriv(s, order) if self.derivs_scaled.contains_key(&(s.index(), order, fr, rb)) => {
+                self.derivs_scaled[&(s.index(), order, fr, rb)]
+            }
             Op::Deriv(s, 2) if self.d2_parts[s.index()].is_some() => {
                 let (d1, e) = self.d2_parts[s.index()].expect("checked");
                 let (k, fk) = fp.deriv_gain[1];
