@@ -115,8 +115,8 @@ enum Home {
 /// `LR` where [`Homes::lr`] allows (the prologue pushes it and the epilogue pops its word
 /// into PC, so the body may use it for free unless a long branch, a `BL`, writes it),
 /// then those of `r8`–`r11` the convention leaves free ([`Homes::free`], from `r11` down),
-/// then the others from `r8` up. Each high register in turn takes every slot it can (most referenced
-/// first, each disjoint in its live span from those it holds). A reference to a slot in a
+/// then the others from `r8` up. Each high register in turn takes every slot it can (most
+/// referenced first, each disjoint in its live span from those it holds). A reference to a slot in a
 /// high register is a `MOV` (1 cycle) where a stack slot's is an `LDR`/`STR` (2); a
 /// callee-saved register costs its save and restore: two `MOV`s and a `PUSH`/`POP` of its
 /// own, about 6 cycles, for the first of a pair, two `MOV`s and a register more in the

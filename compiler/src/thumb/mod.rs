@@ -20,8 +20,9 @@
 //! [`compile`]'s; [`compile_with`] takes a [`Convention`] that leaves some callee-saved
 //! registers free — the firmware image's own ([`Convention::SAMPLE_ISR`]), where only its
 //! glue calls the update — and the object records which it leaves modified
-//! ([`ThumbObject::clobbers`]). The code is position independent (PC-relative branches and literal loads only, no data sections), so
-//! the object needs no relocations: it can run from SRAM or flash at any word address.
+//! ([`ThumbObject::clobbers`]). The code is position independent (PC-relative branches and
+//! literal loads only, no data sections), so the object needs no relocations: it can run
+//! from SRAM or flash at any word address.
 
 pub mod buffer;
 mod cse;

@@ -137,8 +137,9 @@ fn check_constants(c: &LimiterConstants) -> Result<(), ImageError> {
 /// The limiter of one force word, inline: `r0` = the force word in, the DAC code out
 /// (sign-extended); the budget word at `[r<base> + budget_off]` updated. Exactly
 /// `Limiter::step` (runtime/src/limiter.rs) with scale `s`. Needs [`hi`] set (for `s` when
-/// `scale` is [`Scale::InRegisters`]; not at all with [`Scale::Clobbered`]); clobbers r1-r3; `base` must be r4-r7 and
-/// `budget_off` ≤ 124. Places the literal pool open so far (behind a branch, free).
+/// `scale` is [`Scale::InRegisters`]; not at all with [`Scale::Clobbered`]); clobbers
+/// r1-r3; `base` must be r4-r7 and `budget_off` ≤ 124. Places the literal pool open so far
+/// (behind a branch, free).
 ///
 /// It decides on the shifted magnitude `m = |F| >> a` before multiplying: `m` above
 /// [`hi::RATED_MAG`] ⇔ a saturated force or a code above rated, `m` above [`hi::PEAK_MAG`]
