@@ -2,14 +2,16 @@
 //! `budget::static_update` finds it) summed by category, each priced by the emulator's
 //! timing table (`emulator/src/timing.rs`, taken or not as the path goes).
 //!
-//! `cargo run -p tactus-firmware --example wcet_breakdown -- instruments/grand_piano.tactus [--list] [--asm]`
+//! `cargo run -p tactus-firmware --example wcet_breakdown -- instruments/grand_piano.tactus [--list] [--asm] [--isr]`
 //! (`--list`: the worst path instruction by instruction; `--asm`: the whole object's GNU
-//! assembler listing first, to compare the code of two compiler versions).
+//! assembler listing first, to compare the code of two compiler versions; `--isr`: the
+//! firmware image's calling convention, `thumb::Convention::SAMPLE_ISR`, instead of AAPCS).
 //!
 //! `… -- --layout instruments/layouts/grand88.toml [--list] [--asm]` analyses the programs
 //! of a keyboard layout as `tactus budget` compiles them
 //! (`tactus_firmware::image::compile_layout`: the param sets of one instrument share one
-//! code, graded params as run-time data), one breakdown per distinct code. A layout's
+//! code, graded params as run-time data, the image's calling convention), one breakdown per
+//! distinct code. A layout's
 //! instrument names a file beside the layout, `instruments/NAME.tactus` under the layout's
 //! parent directory, or `instruments/NAME.tactus` under the current one.
 //!
@@ -88,7 +90,12 @@ fn main() {
         }
     };
     let fp = FixedProgram::new(&program);
-    let obj = thumb::compile(&fp).unwrap_or_else(|e| {
+    let conv = if args.iter().any(|a| a == "--isr") {
+        thumb::Convention::SAMPLE_ISR
+    } else {
+        thumb::Convention::AAPCS
+    };
+    let obj = thumb::compile_with(&fp, conv).unwrap_or_else(|e| {
         eprintln!("{path}: {e}");
         std::process::exit(1)
     });

@@ -521,6 +521,10 @@ fn the_firmware_limiter_equals_the_reference_on_adversarial_words() {
         cases.push((LimiterConfig::default(), frac, Scale::Literal, 5_000));
         cases.push((short(255), frac, Scale::InRegisters, 5_000));
         cases.push((short(1), frac, Scale::Literal, 5_000));
+        // The registers clobbered by the update (every constant a literal or immediate).
+        cases.push((LimiterConfig::default(), frac, Scale::Clobbered, 5_000));
+        cases.push((short(255), frac, Scale::Clobbered, 5_000));
+        cases.push((short(1), frac, Scale::Clobbered, 5_000));
     }
     for (cfg, frac, scale, count) in cases {
         let base = 0x2000_1000;
@@ -1329,9 +1333,14 @@ fn key_glue_with_and_without_the_guard_per_instrument() {
         let g = FirmwareImage::key_glue(&guarded, &rp2040(), &lim).unwrap();
         let p = FirmwareImage::key_glue(&plain, &rp2040(), &lim).unwrap();
         let words = guarded.guard_words().unwrap();
+        let update = guarded.static_cost().unwrap().cycles;
         println!(
-            "{name}: glue {} cycles with the guard ({words} state words compared), {} without",
-            g.cycles, p.cycles
+            "{name}: glue {} cycles with the guard ({words} state words compared), {} without; \
+             update {update} (the call included, clobbers {:#06x}): {} per key without the guard",
+            g.cycles,
+            p.cycles,
+            guarded.thumb.clobbers,
+            update + p.cycles
         );
         assert_eq!(plain.guard_words(), None);
         assert!(g.cycles > p.cycles, "{name}: the bound counts the guard");

@@ -114,8 +114,9 @@ enum Home {
 /// Spill slots get the high registers, most referenced first: `r12` (caller-saved, free),
 /// `LR` where [`Homes::lr`] allows (the prologue pushes it and the epilogue pops its word
 /// into PC, so the body may use it for free unless a long branch, a `BL`, writes it),
-/// then `r8`–`r11`. Each high register in turn takes every slot it can (most referenced
-/// first, each disjoint in its live span from those it holds). A reference to a slot in a
+/// then those of `r8`–`r11` the convention leaves free ([`Homes::free`], from `r11` down),
+/// then the others from `r8` up. Each high register in turn takes every slot it can (most
+/// referenced first, each disjoint in its live span from those it holds). A reference to a slot in a
 /// high register is a `MOV` (1 cycle) where a stack slot's is an `LDR`/`STR` (2); a
 /// callee-saved register costs its save and restore: two `MOV`s and a `PUSH`/`POP` of its
 /// own, about 6 cycles, for the first of a pair, two `MOV`s and a register more in the
@@ -125,13 +126,22 @@ enum Home {
 const HI_FIRST_REFS: u32 = 10;
 /// … and the second of a pair for this many.
 const HI_PAIR_REFS: u32 = 6;
+/// A high register the convention leaves free ([`Homes::free`]: not saved, not restored)
+/// costs no save and restore, only what its caller pays to re-establish it (the firmware
+/// glue: a limiter constant loaded from the literal pool, a cycle or two per key), so it
+/// is taken for slots with this many static references in all.
+const HI_FREE_REFS: u32 = 3;
 
-/// Which high registers spill slots may live in.
+/// Which high registers spill slots may live in, and which callee-saved registers need no
+/// saving.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Homes {
     /// `LR` is free in the body: no branch of the function may be relaxed to `BL` (the
     /// buffer then refuses one, and the caller lowers again without it).
     pub lr: bool,
+    /// Callee-saved registers (bit *n* = r*n*, r4–r11) the calling convention lets the
+    /// function leave modified ([`super::Convention::free`]): neither saved nor restored.
+    pub free: u16,
 }
 
 /// The homes of `alloc`'s spill slots, from their static reference counts in `code`.
@@ -152,11 +162,13 @@ fn homes(code: &[M], alloc: &Allocation, cfg: Homes) -> Vec<Home> {
     let mut order: Vec<usize> = (0..n).filter(|&s| refs[s] > 0).collect();
     order.sort_by_key(|&s| (std::cmp::Reverse(refs[s]), s));
     let mut home = vec![Home::Stack(0); n];
-    let closed: &[u8] = if cfg.lr {
-        &[12, 14, 8, 9, 10, 11]
-    } else {
-        &[12, 8, 9, 10, 11]
-    };
+    // r12 and LR first (free), then the high registers the convention leaves free, from
+    // r11 down (the firmware glue re-establishes the limiter's gain in r11 most cheaply,
+    // `hi`), then the callee-saved ones from r8 up.
+    let mut closed: Vec<u8> = if cfg.lr { vec![12, 14] } else { vec![12] };
+    closed.extend((8..12u8).rev().filter(|&r| cfg.free & 1 << r != 0));
+    closed.extend((8..12u8).filter(|&r| cfg.free & 1 << r == 0));
+    let closed = &closed[..];
     let mut taken = vec![false; n];
     // Each high register in turn takes the slots it can hold (most referenced first, each
     // disjoint from those it holds already); a callee-saved one only when those slots are
@@ -176,9 +188,13 @@ fn homes(code: &[M], alloc: &Allocation, cfg: Homes) -> Vec<Home> {
         // costs less than the first.
         let opened = closed
             .iter()
-            .filter(|&&h| (8..=11).contains(&h) && home.contains(&Home::Hi(h)))
+            .filter(|&&h| {
+                (8..=11).contains(&h) && cfg.free & 1 << h == 0 && home.contains(&Home::Hi(h))
+            })
             .count();
-        let need = if opened % 2 == 1 {
+        let need = if cfg.free & 1 << r != 0 {
+            HI_FREE_REFS
+        } else if opened % 2 == 1 {
             HI_PAIR_REFS
         } else {
             HI_FIRST_REFS
@@ -756,25 +772,38 @@ impl Lower<'_> {
     }
 }
 
-/// Lowers an allocated body into `buf` as function `name`, with the AAPCS prologue and
-/// epilogue: save the callee-saved registers used and LR, `r7 = r0` (the state pointer),
-/// the frame for spill slots, store spilled arguments; at the end, free the frame and
-/// `POP {…, PC}`. The buffer must relax long branches with [`buffer::LongBranch::Bl`]
-/// (LR is saved).
-pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Allocation, cfg: Homes) {
+/// Lowers an allocated body into `buf` as function `name`, with the prologue and epilogue
+/// of its calling convention: save the callee-saved registers used (but those
+/// [`Homes::free`] leaves free) and LR, `r7 = r0` (the state pointer), the frame for spill
+/// slots, store spilled arguments; at the end, free the frame and `POP {…, PC}`. The
+/// buffer must relax long branches with [`buffer::LongBranch::Bl`] (LR is saved). Returns
+/// the callee-saved registers the function leaves modified (bit *n* = r*n*; within
+/// [`Homes::free`]).
+pub(crate) fn lower(
+    buf: &mut CodeBuffer,
+    name: &str,
+    code: &[M],
+    alloc: &Allocation,
+    cfg: Homes,
+) -> u16 {
     let home = homes(code, alloc, cfg);
     let frame = home.iter().filter(|h| matches!(h, Home::Stack(_))).count() as u16;
     // Callee-saved high registers used as spill homes, saved in pairs through r0 and r3
-    // (free after `r7 = r0`; r3 is no argument) so the stack stays 8-byte aligned.
-    let mut high: Vec<u8> = home
+    // (free after `r7 = r0`; r3 is no argument) so the stack stays 8-byte aligned; those
+    // the convention leaves free are clobbered, not saved.
+    let mut used_high: Vec<u8> = home
         .iter()
         .filter_map(|h| match h {
             Home::Hi(r) if (8..=11).contains(r) => Some(*r),
             _ => None,
         })
         .collect();
-    high.sort_unstable();
-    high.dedup();
+    used_high.sort_unstable();
+    used_high.dedup();
+    let (free_high, high): (Vec<u8>, Vec<u8>) =
+        used_high.iter().partition(|&&r| cfg.free & 1 << r != 0);
+    let used_low = (alloc.used_mask | 0x80) & 0xf0;
+    let clobbered = (used_low as u16 & cfg.free) | free_high.iter().fold(0, |m, &r| m | 1 << r);
     buf.begin_function(name);
     let mut l = Lower {
         alloc,
@@ -791,7 +820,7 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
         at: 0,
         home,
     };
-    let saved = (alloc.used_mask | 0x80) & 0xf0;
+    let saved = used_low & !(cfg.free as u8);
     l.i(Instr::Push {
         list: saved as u16 | 1 << 14,
     });
@@ -841,6 +870,7 @@ pub(crate) fn lower(buf: &mut CodeBuffer, name: &str, code: &[M], alloc: &Alloca
         list: saved as u16 | 1 << 15,
     });
     l.buf.end_function();
+    clobbered
 }
 
 /// The instructions reading each spilled or rematerialised value of `code`, ascending.

@@ -15,10 +15,14 @@
 //! void tactus_<name>_update(struct tactus_<name>_state *s, const int32_t *sensors, int32_t *out);
 //! ```
 //!
-//! AAPCS (ARM IHI 0042): arguments in r0–r2; r4–r7 and SP preserved; LR is saved and the
-//! return is `POP {…, PC}`. The state pointer lives in r7 for the whole update. The code is
-//! position independent (PC-relative branches and literal loads only, no data sections), so
-//! the object needs no relocations: it can run from SRAM or flash at any word address.
+//! AAPCS (ARM IHI 0042): arguments in r0–r2; r4–r11 and SP preserved; LR is saved and the
+//! return is `POP {…, PC}`. The state pointer lives in r7 for the whole update. That is
+//! [`compile`]'s; [`compile_with`] takes a [`Convention`] that leaves some callee-saved
+//! registers free — the firmware image's own ([`Convention::SAMPLE_ISR`]), where only its
+//! glue calls the update — and the object records which it leaves modified
+//! ([`ThumbObject::clobbers`]). The code is position independent (PC-relative branches and
+//! literal loads only, no data sections), so the object needs no relocations: it can run
+//! from SRAM or flash at any word address.
 
 pub mod buffer;
 mod cse;
@@ -77,6 +81,29 @@ pub struct ThumbObject {
     pub out: OutLayout,
     /// Layout of the state struct.
     pub state: StateLayout,
+    /// Callee-saved registers (bit *n* = r*n*) its functions may leave modified: 0 under
+    /// AAPCS; under another [`Convention`] the free registers they use.
+    pub clobbers: u16,
+}
+
+/// The calling convention of the generated functions: which AAPCS callee-saved registers
+/// (r4–r11) they may leave modified, so that their prologue neither saves nor restores
+/// them (the backend's config; [`compile_with`]). Arguments, the state pointer in r7, SP
+/// and the return through the saved LR are AAPCS's in every convention.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Convention {
+    /// Free callee-saved registers, bit *n* = r*n* (only r4–r11 mean anything).
+    pub free: u16,
+}
+
+impl Convention {
+    /// AAPCS: r4–r11 preserved (the ELF object and header users link against).
+    pub const AAPCS: Convention = Convention { free: 0 };
+    /// The firmware image's sample interrupt, which alone calls the update there: r8–r11
+    /// (the limiter's constants, which the glue then takes from its literal pool or an
+    /// immediate) are free; r4–r7 (the key's record, the control block, the window bases)
+    /// are preserved. The figures: BENCHMARKS.md, "Session 16: tick19".
+    pub const SAMPLE_ISR: Convention = Convention { free: 0xf << 8 };
 }
 
 impl ThumbObject {
@@ -124,6 +151,15 @@ fn too_big(bytes: usize) -> ThumbError {
 /// them), and code larger than [`MAX_CODE_BYTES`]; `sqrt` and `exp` are inlined (see
 /// [`select`]).
 pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
+    compile_with(fp, Convention::AAPCS)
+}
+
+/// [`compile`] under calling convention `conv`: the same code but for the prologues and
+/// epilogues (the free registers are not saved) and the spill homes (a free high register
+/// is cheaper).
+///
+/// Errors: as [`compile`].
+pub fn compile_with(fp: &FixedProgram, conv: Convention) -> Result<ThumbObject, ThumbError> {
     crate::verify::verify(&fp.program).map_err(|e| ThumbError::Ir(e.to_string()))?;
     let c: CSource = cgen::emit_c(fp).map_err(|e| ThumbError::Interface(e.to_string()))?;
     let p = &fp.program;
@@ -154,16 +190,18 @@ pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
         .collect();
     // First with LR as a free spill home, which no branch may then be relaxed into a `BL`
     // for; where one must (a long body), again with LR left alone.
+    let free = conv.free & 0x0ff0;
     let lower = |homes: emit::Homes, long: buffer::LongBranch| {
         let mut buf = buffer::CodeBuffer::new(long);
+        let mut clobbers = 0;
         for ((name, sel), alloc) in functions.iter().zip(&allocs) {
-            emit::lower(&mut buf, name, &sel.code, alloc, homes);
+            clobbers |= emit::lower(&mut buf, name, &sel.code, alloc, homes);
         }
-        emit::assemble(&buf, &exclusive)
+        emit::assemble(&buf, &exclusive).map(|code| (code, clobbers))
     };
-    let code = match lower(emit::Homes { lr: true }, buffer::LongBranch::Refuse) {
-        Ok(code) => code,
-        Err(_) => lower(emit::Homes { lr: false }, buffer::LongBranch::Bl)?,
+    let (code, clobbers) = match lower(emit::Homes { lr: true, free }, buffer::LongBranch::Refuse) {
+        Ok(done) => done,
+        Err(_) => lower(emit::Homes { lr: false, free }, buffer::LongBranch::Bl)?,
     };
     if code.text.len() > MAX_CODE_BYTES {
         return Err(too_big(code.text.len()));
@@ -174,5 +212,6 @@ pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
         stem: c.stem,
         out: c.layout,
         state: st,
+        clobbers,
     })
 }

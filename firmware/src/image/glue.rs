@@ -103,14 +103,19 @@ fn ldr_rec(a: &mut CodeBuffer, rt: u8, off: u32) {
 }
 
 /// Where [`limiter_inline`] finds the constants of its force format's scale (the gain and
-/// the two magnitude thresholds).
+/// the two magnitude thresholds) and the full budget.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Scale {
     /// In [`hi`] (`CMP`/`MOV` with a high register, 1 cycle each).
     InRegisters,
-    /// From the literal pool (`LDR`, 2 cycles each): a key whose force format is not the
-    /// one the core keeps in the registers.
+    /// The scale's from the literal pool (`LDR`, 2 cycles each), the full budget in
+    /// [`hi::BUDGET_MAX`]: a key whose force format is not the one the core keeps in the
+    /// registers.
     Literal,
+    /// Every constant from the literal pool (or an immediate, where it fits 8 bits): the
+    /// registers in [`hi`] hold nothing, an update having clobbered them (a program
+    /// compiled under `Convention::SAMPLE_ISR`, [`KeyCode::clobbers`]).
+    Clobbered,
 }
 
 /// Checks that the Thumb limiter can use `c`; errors say which constant does not fit.
@@ -132,8 +137,9 @@ fn check_constants(c: &LimiterConstants) -> Result<(), ImageError> {
 /// The limiter of one force word, inline: `r0` = the force word in, the DAC code out
 /// (sign-extended); the budget word at `[r<base> + budget_off]` updated. Exactly
 /// `Limiter::step` (runtime/src/limiter.rs) with scale `s`. Needs [`hi`] set (for `s` when
-/// `scale` is [`Scale::InRegisters`]); clobbers r1-r3; `base` must be r4-r7 and
-/// `budget_off` ≤ 124. Places the literal pool open so far (behind a branch, free).
+/// `scale` is [`Scale::InRegisters`]; not at all with [`Scale::Clobbered`]); clobbers
+/// r1-r3; `base` must be r4-r7 and `budget_off` ≤ 124. Places the literal pool open so far
+/// (behind a branch, free).
 ///
 /// It decides on the shifted magnitude `m = |F| >> a` before multiplying: `m` above
 /// [`hi::RATED_MAG`] ⇔ a saturated force or a code above rated, `m` above [`hi::PEAK_MAG`]
@@ -146,13 +152,37 @@ fn check_constants(c: &LimiterConstants) -> Result<(), ImageError> {
 /// - above rated with budget, at or below the peak: spend; the code asked;
 /// - above the peak with budget: spend; the peak code.
 ///
-/// Worst path 20 cycles (with both shifts): 6 for the magnitude and the budget's load, 4
-/// for the sign and the budget's store, the rest the decisions and the product.
+/// Worst path 20 cycles (with both shifts) with its constants in registers, 25 with
+/// [`Scale::Clobbered`] (three of them on each path, each a literal load more): 6 for the
+/// magnitude and the budget's load, 4 for the sign and the budget's store, the rest the
+/// decisions and the product.
 pub fn limiter_inline(
     a: &mut CodeBuffer,
     c: &LimiterConstants,
     s: &DacScale,
     scale: Scale,
+    base: u8,
+    budget_off: u16,
+) -> Result<(), ImageError> {
+    let lost = match scale {
+        Scale::Clobbered => HI_REGISTERS,
+        _ => 0,
+    };
+    limiter_with(a, c, s, scale, lost, base, budget_off)
+}
+
+/// Bits of [`hi`]'s registers in a register mask.
+const HI_REGISTERS: u16 = 0xf << 8;
+
+/// [`limiter_inline`] where the registers of [`hi`] in `lost` (bit *n* = r*n*) hold
+/// nothing: their constants come from the literal pool, or an immediate where one fits
+/// (`CMP #imm8`, `MOVS #imm8`: 1 cycle, as the register).
+fn limiter_with(
+    a: &mut CodeBuffer,
+    c: &LimiterConstants,
+    s: &DacScale,
+    scale: Scale,
+    lost: u16,
     base: u8,
     budget_off: u16,
 ) -> Result<(), ImageError> {
@@ -166,14 +196,20 @@ pub fn limiter_inline(
     if s.pre_shift > 31 || s.post_shift > 31 || !(1..=65535).contains(&s.gain) {
         return Err(ImageError::Limiter(format!("scale {s:?} out of range")));
     }
+    let in_reg = |reg: u8, of_scale: bool| {
+        lost & 1 << reg == 0 && (!of_scale || scale == Scale::InRegisters)
+    };
     let rec = c.recovery as u8;
     let (earn, spent, mul, apply) = (a.label(), a.label(), a.label(), a.label());
-    // Compares r0 with a magnitude threshold: its register, or a literal through r3.
-    let cmp_mag = |a: &mut CodeBuffer, reg: u8, code: i32| match scale {
-        Scale::InRegisters => a.i(Instr::CmpHi { rn: 0, rm: reg }),
-        Scale::Literal => {
-            a.ldr_const(3, s.last_magnitude_within(code));
-            a.i(asm::cmp(0, 3));
+    // Compares r`rn` with a constant: its register, an immediate, or a literal through r3.
+    let cmp_const = |a: &mut CodeBuffer, rn: u8, reg: u8, of_scale: bool, v: u32| {
+        if in_reg(reg, of_scale) {
+            a.i(Instr::CmpHi { rn, rm: reg });
+        } else if v <= 255 {
+            a.i(asm::cmp_imm(rn, v as u8));
+        } else {
+            a.ldr_const(3, v);
+            a.i(asm::cmp(rn, 3));
         }
     };
     // r2 = sign mask, r0 = |force| >> a (i32::MIN is 2^31 as an unsigned magnitude),
@@ -185,12 +221,24 @@ pub fn limiter_inline(
         a.i(asm::lsrs(0, 0, s.pre_shift as u8));
     }
     a.i(asm::ldr(1, base, budget_off));
-    cmp_mag(a, hi::RATED_MAG, c.rated_code);
+    cmp_const(
+        a,
+        0,
+        hi::RATED_MAG,
+        true,
+        s.last_magnitude_within(c.rated_code),
+    );
     a.bc(cond::LS, earn);
     // Above rated (or saturated): spend, if the budget allows.
     a.i(asm::subs_imm(1, 1, rec));
     a.bc(cond::MI, spent);
-    cmp_mag(a, hi::PEAK_MAG, c.peak_code);
+    cmp_const(
+        a,
+        0,
+        hi::PEAK_MAG,
+        true,
+        s.last_magnitude_within(c.peak_code),
+    );
     a.bc(cond::LS, mul);
     a.ldr_const(0, c.peak_code as u32);
     a.b(apply);
@@ -208,17 +256,15 @@ pub fn limiter_inline(
     a.pool();
     // At or below rated: earn one unit, up to the full budget (never above it).
     a.bind(earn);
-    a.i(Instr::CmpHi {
-        rn: 1,
-        rm: hi::BUDGET_MAX,
-    });
+    cmp_const(a, 1, hi::BUDGET_MAX, false, c.budget_max as u32);
     a.bc(cond::GE, mul);
     a.i(asm::adds_imm(1, 1, 1));
     // The code asked: m ≤ 32767, so the product fits.
     a.bind(mul);
-    match scale {
-        Scale::InRegisters => a.i(mov_hi(3, hi::GAIN)),
-        Scale::Literal => a.ldr_const(3, s.gain),
+    if in_reg(hi::GAIN, true) {
+        a.i(mov_hi(3, hi::GAIN));
+    } else {
+        a.mov_const(3, s.gain);
     }
     a.i(asm::alu(Mul, 0, 3));
     if s.post_shift > 0 {
@@ -271,9 +317,14 @@ pub fn limiter_function(
     };
     let kept = match scale {
         Scale::InRegisters => s,
-        Scale::Literal => &other,
+        Scale::Literal | Scale::Clobbered => &other,
     };
     set_limiter_registers(a, c, kept);
+    if scale == Scale::Clobbered {
+        // Nothing the limiter may use: r10 (the full budget) off by one.
+        a.mov_const(0, c.budget_max as u32 + 1);
+        a.i(mov_hi(hi::BUDGET_MAX, 0));
+    }
     a.i(asm::mov(0, 5));
     limiter_inline(a, c, s, scale, 4, 0)?;
     a.i(Instr::Pop { list: 0xf0 });
@@ -309,7 +360,16 @@ pub struct KeyCode {
     pub init: u32,
     /// The quiescent-key guard around the update, if the program has one.
     pub guard: Option<GuardCode>,
+    /// Registers the key's update (and init) may leave modified beyond r0–r3, r12 and LR
+    /// (`ThumbObject::clobbers`: r5 and r8–r11 at most, `Convention::SAMPLE_ISR`): the
+    /// handler reloads r5 before its end, and on a core where any key clobbers one of
+    /// [`hi`], every limiter takes that constant from the literal pool.
+    pub clobbers: u16,
 }
+
+/// Registers an update may clobber in the image: r5 and [`hi`]'s (r4, r6, r7 the handler
+/// keeps across the calls).
+pub const CLOBBERABLE: u16 = 1 << 5 | HI_REGISTERS;
 
 /// The quiescent-key guard of one key (docs/language.md, "Quiescent keys").
 ///
@@ -597,6 +657,15 @@ pub fn core_code(
         start: a.label(),
         default: a.label(),
     };
+    if let Some(k) = keys.iter().find(|k| k.clobbers & !CLOBBERABLE != 0) {
+        return Err(ImageError::Compile(format!(
+            "an update clobbers registers {:#06x}; the image's glue allows only {CLOBBERABLE:#06x}",
+            k.clobbers
+        )));
+    }
+    let clobbered = keys.iter().fold(0, |m, k| m | k.clobbers);
+    // The limiter's constants no update on this core touches stay in their registers.
+    let lost = clobbered & HI_REGISTERS;
     // The scale kept in registers: the most used force format's.
     let mut scales: Vec<(DacScale, usize)> = Vec::new();
     for d in keys.iter().flat_map(|k| &k.drives) {
@@ -650,6 +719,9 @@ pub fn core_code(
         a.bl_addr(k.init);
         Ok(())
     })?;
+    if clobbered & 1 << 5 != 0 {
+        a.ldr_const(5, ctrl_addr);
+    }
     // SysTick: RVR = q − 1, the counter cleared (its reset value is UNKNOWN), off.
     a.ldr_const(0, syst::CSR);
     a.i(asm::movs(1, 0));
@@ -765,7 +837,8 @@ pub fn core_code(
             } else {
                 Scale::Literal
             };
-            limiter_inline(a, limiter, &d.scale, in_regs, 4, d.budget_offset as u16)?;
+            let off = d.budget_offset as u16;
+            limiter_with(a, limiter, &d.scale, in_regs, lost, 4, off)?;
             let off = d.dac_word.wrapping_sub(dac_base);
             if off <= 124 && off % 4 == 0 {
                 a.i(asm::str(0, 7, off as u16));
@@ -778,9 +851,10 @@ pub fn core_code(
         // format's gain) wait for the next key's limiter's pool, or the end's.
         Ok(())
     })?;
-    if keys
-        .iter()
-        .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5))
+    if clobbered & 1 << 5 != 0
+        || keys
+            .iter()
+            .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5))
     {
         a.ldr_const(5, ctrl_addr);
     }

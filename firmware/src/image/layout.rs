@@ -344,6 +344,7 @@ pub(super) fn key_records(
             update,
             init: sym(p.thumb.init_name())?,
             guard: p.guard(calm_offset),
+            clobbers: p.thumb.clobbers,
         });
         kp.push(KeyPlace {
             index: i,

@@ -220,10 +220,14 @@ impl Program {
         Program::of_ir(&lowered)
     }
 
-    /// Plans formats for an IR program and compiles it to Thumb code.
+    /// Plans formats for an IR program and compiles it to Thumb code under the image's
+    /// calling convention (`Convention::SAMPLE_ISR`: only the image's glue calls the
+    /// update; it keeps r4, r6 and r7 across the call and re-establishes r5 and the
+    /// limiter's constants itself, [`glue::KeyCode::clobbers`]).
     fn of_ir(ir: &tactus_compiler::ir::Program) -> Result<Program, ImageError> {
         let fixed = FixedProgram::new(ir);
-        let thumb = tactus_compiler::thumb::compile(&fixed)
+        let conv = tactus_compiler::thumb::Convention::SAMPLE_ISR;
+        let thumb = tactus_compiler::thumb::compile_with(&fixed, conv)
             .map_err(|e| ImageError::Compile(e.to_string()))?;
         Ok(Program::new(fixed, thumb))
     }
