@@ -594,6 +594,11 @@ fn render_contract(s: &mut String, fp: &FixedProgram, pr: &Precision) {
         c.switch_time_s * 1e3,
         (c.switch_time_s * p.sample_rate_hz).ceil()
     );
+    let _ = writeln!(
+        s,
+        "  or, where that reading breaks, every clause sample by sample against the f64 run re-timed to the fixed run's switches: the f64 semantics taking the fixed run's branch decisions where its own differ, for at most {} ms at a time — the switch's timing excused, not its arithmetic",
+        c.switch_time_s * 1e3
+    );
     for e in &c.events {
         let d = &p.events[e.event.index()];
         let args: Vec<String> = e
@@ -630,6 +635,14 @@ pub fn render_margins(p: &Program, runs: &[(&str, super::contract::ContractCheck
                 None => worst.push((clause, w, b, unit, stim)),
             }
         }
+    }
+    let retimed: Vec<&str> = runs.iter().filter(|(_, r)| r.retimed).map(|r| r.0).collect();
+    if !retimed.is_empty() {
+        let _ = writeln!(
+            s,
+            "  (read against the f64 run re-timed to the fixed run's switches: {})",
+            retimed.join(", ")
+        );
     }
     for (clause, w, b, unit, stim) in worst {
         let verdict = if w <= b { "holds" } else { "BROKEN" };
