@@ -672,7 +672,11 @@ fn the_retimed_reference_excuses_a_late_switch_but_not_an_arithmetic_error() {
         })
         .collect();
     let n0 = xs.iter().position(|&x| x < -1e-5).expect("the mass lands");
-    println!("the f64 contact closes at sample {n0}: x {:e}, {:e} m", xs[n0 - 1], xs[n0]);
+    println!(
+        "the f64 contact closes at sample {n0}: x {:e}, {:e} m",
+        xs[n0 - 1],
+        xs[n0]
+    );
     // The planned threshold, and the damping.
     let threshold = fp
         .program
@@ -720,7 +724,11 @@ fn the_retimed_reference_excuses_a_late_switch_but_not_an_arithmetic_error() {
     };
     let check = |q: &FixedProgram| contract::compare(&p, q, &run, lsb, c, false).unwrap();
     let exact = check(&fp);
-    assert!(exact.violations(c, p.sample_rate_hz).is_empty(), "{:?}", exact.violations(c, p.sample_rate_hz));
+    assert!(
+        exact.violations(c, p.sample_rate_hz).is_empty(),
+        "{:?}",
+        exact.violations(c, p.sample_rate_hz)
+    );
     let r = check(&late(&fp));
     println!(
         "contact a sample late: switches {}, re-timed reading {}, {} samples re-timed, force {:.3} LSB: {:?}",
@@ -742,10 +750,23 @@ fn the_retimed_reference_excuses_a_late_switch_but_not_an_arithmetic_error() {
         r.retimed && r.retimed_samples == 1,
         "the recorded reading (a time shift) must break here, or the test shows nothing"
     );
-    for (what, q) in [("b·v with 18 bits of the speed dropped", off(&fp)), ("both", late(&off(&fp)))] {
+    // `--report precision` says which reading the run held by.
+    let margins = report::render_margins(&p, &[("late contact", r.clone())]);
+    print!("{margins}");
+    assert!(
+        margins.contains("0 run(s) against the recorded f64 run; 1 against the f64 run re-timed to the fixed run's switches (late contact)"),
+        "{margins}"
+    );
+    for (what, q) in [
+        ("b·v with 18 bits of the speed dropped", off(&fp)),
+        ("both", late(&off(&fp))),
+    ] {
         let r = check(&q);
         let v = r.violations(c, p.sample_rate_hz);
-        println!("{what}: force {:.3} LSB, re-timed {}: {v:?}", r.max_force_lsb, r.retimed);
+        println!(
+            "{what}: force {:.3} LSB, re-timed {}: {v:?}",
+            r.max_force_lsb, r.retimed
+        );
         assert!(!v.is_empty(), "{what}: the contract did not catch it");
         assert!(
             !r.retimed && r.retimed_force_lsb.is_none_or(|f| f > 1.0),
@@ -754,5 +775,9 @@ fn the_retimed_reference_excuses_a_late_switch_but_not_an_arithmetic_error() {
     }
     // With the late switch, the re-timed reading was tried, and broke by the error itself.
     let r = check(&late(&off(&fp)));
-    assert!(r.retimed_force_lsb.is_some_and(|f| f > 2.0), "{:?}", r.retimed_force_lsb);
+    assert!(
+        r.retimed_force_lsb.is_some_and(|f| f > 2.0),
+        "{:?}",
+        r.retimed_force_lsb
+    );
 }

@@ -284,7 +284,8 @@ fn grand88() -> (
 /// million samples through both interpreters, on every core). Among them the keys the
 /// planner's search simulates (`fixed::simulated_keys`: A0 and C8, the grading's ends; E4
 /// and D♯6, the keys nearest the middles of the two run-time params' intervals; D2 and
-/// G♯3, evenly spaced), which are printed run by run.
+/// G♯3, evenly spaced), whose worst figures are printed, and the runs that broke the
+/// contract before session 16 ([`FORMERLY_BROKEN`]), printed with the reading they hold by.
 ///
 /// A switch of the model closing a sample apart in fixed point and f64 (at E4's half dip
 /// the hammer–key contact `c > 0 m` closes after ≈ 150 ms of free flight with 11 nm to
@@ -294,6 +295,20 @@ fn grand88() -> (
 /// what the f64 semantics does with that timing too). It also prints how many keys hold
 /// under the brief's form of the switch clause (no after-effect allowed) and under the
 /// per-sample force clause at every sample.
+/// The (key, run) pairs of the ledger of known breaks this test kept until session 16
+/// (`KNOWN_BREAKS`, session 14: five clauses on three runs): D2's rest-felt landing under
+/// noise (after-effect 19.2 DAC LSB over 390 samples: the f64 hammer's re-landing at rest
+/// overwrote its landing's pulse, a model fault fixed in `grand_piano.tactus`), E4's half
+/// dip (window 8.38 LSB against a bound of 6.40, after-effect 2.09, per sample 1.11: the
+/// hammer–key contact closing a sample late, read against the re-timed reference) and D♯6's
+/// half dip to 90 % (after-effect 3.5 LSB over 335 samples). They must hold now like every
+/// run; their figures and the reading they hold by are printed.
+const FORMERLY_BROKEN: &[(u8, &str)] = &[
+    (38, "noisy-rest-0.5%"),
+    (64, "half-dip"),
+    (87, "half-dip-90%"),
+];
+
 #[test]
 fn the_contract_holds_at_every_grand88_key() {
     let (assigned, shared, values) = grand88();
@@ -330,6 +345,30 @@ fn the_contract_holds_at_every_grand88_key() {
         broken.extend(b);
     }
     all.print("grand88, all keys", bound);
+    for &(key, run) in FORMERLY_BROKEN {
+        let k = assigned
+            .iter()
+            .position(|a| a.key == key)
+            .expect("a grand88 key");
+        let r = words.iter().position(|w| w.0 == run).expect("a corpus run");
+        let c = &checks[k * words.len() + r];
+        let worst = c
+            .switches
+            .iter()
+            .max_by(|a, b| (a.force_lsb / a.bound_lsb).total_cmp(&(b.force_lsb / b.bound_lsb)));
+        println!(
+            "formerly broken: key {key} {run}: holds by the {} reading; force {:.3} DAC LSB per sample, {} switch(es), {} re-timed sample(s){}; broken: {:?}",
+            if c.retimed { "re-timed" } else { "recorded" },
+            c.max_force_lsb,
+            c.switch_count,
+            c.retimed_samples,
+            worst.map_or(String::new(), |w| format!(
+                "; worst switch at sample {}: window {:.3} of {:.3} LSB, after-effect {:.3} LSB over {} samples, apart {} samples",
+                w.sample, w.force_lsb, w.bound_lsb, w.after_lsb, w.after_samples, w.samples
+            )),
+            c.violations(&p.contract, p.sample_rate_hz)
+        );
+    }
     println!(
         "{holding} of {} keys hold every clause; {literal} without the after-effect allowance; {strict} with the per-sample force clause at every sample",
         assigned.len()

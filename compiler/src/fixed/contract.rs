@@ -108,7 +108,9 @@ pub struct ContractCheck {
     ///
     /// The re-timed reference is the f64 semantics stepped beside the fixed run, which
     /// takes the fixed run's branch decisions at the samples where its own differ, for at
-    /// most the switch tolerance at a time (longer: a switch lost or added): a switch
+    /// most the switch tolerance at a time (longer: a switch lost or added), and only
+    /// decisions the f64 semantics itself takes within the switch tolerance of that sample
+    /// (else a switch added, not moved): a switch
     /// decided a sample later — within the switch tolerance — and what the f64 semantics
     /// itself does with that timing. Its continuous values are the f64 semantics' own
     /// throughout, so an arithmetic error shows against it as against the recorded run.

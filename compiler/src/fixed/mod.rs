@@ -1269,7 +1269,10 @@ impl FixedProgram {
         let np = points.len();
         let mut runs: Vec<contract::ReferenceRun> = workers::map(inputs.len() * np, |j| {
             // Every point lies within the intervals the program was planned for.
-            inputs[j / np].1.reference(original, this, &points[j % np]).ok()
+            inputs[j / np]
+                .1
+                .reference(original, this, &points[j % np])
+                .ok()
         })
         .into_iter()
         .flatten()

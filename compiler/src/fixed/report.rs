@@ -636,14 +636,30 @@ pub fn render_margins(p: &Program, runs: &[(&str, super::contract::ContractCheck
             }
         }
     }
-    let retimed: Vec<&str> = runs.iter().filter(|(_, r)| r.retimed).map(|r| r.0).collect();
-    if !retimed.is_empty() {
-        let _ = writeln!(
-            s,
-            "  (read against the f64 run re-timed to the fixed run's switches: {})",
-            retimed.join(", ")
-        );
-    }
+    // Which reading each run is measured by ([`super::contract::ContractCheck::retimed`]):
+    // the recorded f64 run (switches as time shifts), or, where that broke, the f64 run
+    // re-timed to the fixed run's switches; a run broken in both is shown by the first.
+    let names = |f: &dyn Fn(&super::contract::ContractCheck) -> bool| -> Vec<&str> {
+        runs.iter().filter(|(_, r)| f(r)).map(|r| r.0).collect()
+    };
+    let retimed = names(&|r| r.retimed);
+    let both = names(&|r| r.retimed_force_lsb.is_some());
+    let _ = writeln!(
+        s,
+        "  reading: {} run(s) against the recorded f64 run; {} against the f64 run re-timed to the fixed run's switches{}{}",
+        runs.len() - retimed.len(),
+        retimed.len(),
+        if retimed.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", retimed.join(", "))
+        },
+        if both.is_empty() {
+            String::new()
+        } else {
+            format!("; broken in both readings: {}", both.join(", "))
+        }
+    );
     for (clause, w, b, unit, stim) in worst {
         let verdict = if w <= b { "holds" } else { "BROKEN" };
         let _ = writeln!(

@@ -13,7 +13,10 @@
 //! fixed run's timing: its interpreter is stepped beside the fixed run and, at each sample
 //! where its own branch decisions differ from the fixed run's, the sample is run again with
 //! the fixed run's — for at most the switch tolerance at a time (a disagreement longer than
-//! that is a switch lost or added, as in the recorded reading). The re-timed run's
+//! that is a switch lost or added, as in the recorded reading), and only where the f64
+//! semantics itself takes the fixed run's decision within the switch tolerance of that
+//! sample, in its own last or next samples (a decision it does not take there is a switch
+//! added, not moved, and breaks this reading). The re-timed run's
 //! continuous values are the f64 semantics' throughout; only the timing of its switches is
 //! the fixed run's. Every clause is then held against it sample by sample: the force within
 //! its tolerance at every sample (no time-shift reading), the terms and outputs, the events
@@ -80,8 +83,12 @@ pub(super) fn compare(
     let mut ev_a: Vec<(usize, usize, Vec<f64>)> = Vec::new();
     let mut ev_b: Vec<(usize, usize, Vec<f64>)> = Vec::new();
     let (mut totals_a, mut totals_b) = (Vec::new(), Vec::new());
+    // The f64 semantics' own decisions over the last `window` samples, newest last.
+    let mut history: std::collections::VecDeque<Vec<u64>> = std::collections::VecDeque::new();
     // The open disagreement: its switch's index in `out.switches` (if kept) and start.
     let mut open: Option<(Option<usize>, usize)> = None;
+    // Whether the open disagreement holds a decision that is no time shift.
+    let mut refused = false;
     for (n, &raw) in run.raw.iter().enumerate() {
         // (A copy: the fixed run's decisions are read from it below.)
         let ob = b.step_raw(&[raw]).clone();
@@ -91,11 +98,32 @@ pub(super) fn compare(
         before.copy_from(&a);
         a.step(&x);
         let vals_a = a.values();
-        switches::signature(&sites_a, |v| vals_a[v.index()] != 0.0, a.modes(), &mut sig_a);
+        switches::signature(
+            &sites_a,
+            |v| vals_a[v.index()] != 0.0,
+            a.modes(),
+            &mut sig_a,
+        );
         let differ = pairs
             .iter()
             .find(|&&(i, j)| switches::bit(&sig_a, i) != switches::bit(&sig_b, j));
         let mut broken = false;
+        // Each decision the fixed run takes apart from the f64 semantics must be one the
+        // f64 semantics itself takes within the switch tolerance of this sample — in its
+        // last `window` samples (the fixed run is late) or its next `window` (early) — or
+        // it is no switch moved in time but a decision of the fixed run's own: a switch
+        // added, never taken over.
+        let shifted = differ.is_none()
+            || pairs.iter().all(|&(i, j)| {
+                let x = switches::bit(&sig_b, j);
+                switches::bit(&sig_a, i) == x
+                    || history.iter().any(|h| switches::bit(h, i) == x)
+                    || takes_within(&a, &run.raw[n + 1..], window, &sites_a, i, x, run)
+            });
+        history.push_back(sig_a.clone());
+        if history.len() > window {
+            history.pop_front();
+        }
         match (differ, open) {
             (Some(&(i, _)), None) => {
                 out.switch_count += 1;
@@ -117,15 +145,31 @@ pub(super) fn compare(
                     out.switches[k].samples = n - start;
                 }
                 open = None;
+                refused = false;
             }
             _ => {}
         }
         if let Some((kept, start)) = open {
-            if n - start < window {
+            if !shifted && n - start < window {
+                // A decision the f64 semantics does not take within the tolerance: not
+                // taken over, a switch added or lost (once per disagreement).
+                if !refused {
+                    out.switches_unresolved += 1;
+                    if let Some(k) = kept {
+                        out.switches[k].resolved = false;
+                    }
+                    refused = true;
+                }
+                broken = true;
+            } else if refused {
+                broken = true;
+            } else if n - start < window {
                 // The re-timed run takes the fixed run's decisions this sample.
                 a.copy_from(&before);
                 let vals_b = b.values();
-                a.step_deciding(&x, &|v| decided[v.index()].map(|cb| vals_b[cb.index()] != 0));
+                a.step_deciding(&x, &|v| {
+                    decided[v.index()].map(|cb| vals_b[cb.index()] != 0)
+                });
                 out.retimed_samples += 1;
             } else if n - start == window {
                 // Still apart when the window closes: a switch lost or added.
@@ -163,7 +207,11 @@ pub(super) fn compare(
         ev_a.extend(oa.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
         for (e, args) in &ob.events {
             let f = &fp.event_frac[e.index()];
-            let si = args.iter().zip(f).map(|(&x, &f)| fx::to_f64(x, f)).collect();
+            let si = args
+                .iter()
+                .zip(f)
+                .map(|(&x, &f)| fx::to_f64(x, f))
+                .collect();
             ev_b.push((n, e.index(), si));
         }
         if !stop {
@@ -193,4 +241,26 @@ pub(super) fn compare(
     let ev_a: Vec<&(usize, usize, Vec<f64>)> = ev_a.iter().collect();
     pair_events(&mut out, &ev_a, &ev_b, c, p.sample_rate_hz);
     out
+}
+
+/// Whether the f64 semantics, stepped on from `a` (its own decisions, nothing taken over)
+/// over at most `window` of the sensor words `raw`, takes decision `i` of `sites` as `x` at
+/// some sample: a decision the fixed run took early.
+fn takes_within(
+    a: &Instance,
+    raw: &[i32],
+    window: usize,
+    sites: &[switches::Site],
+    i: usize,
+    x: bool,
+    run: &super::ReferenceRun,
+) -> bool {
+    let mut ahead = a.clone();
+    let mut sig = vec![0u64; switches::words(sites.len())];
+    raw.iter().take(window).any(|&w| {
+        ahead.step(&[run.reading(w)]);
+        let vals = ahead.values();
+        switches::signature(sites, |v| vals[v.index()] != 0.0, ahead.modes(), &mut sig);
+        switches::bit(&sig, i) == x
+    })
 }
