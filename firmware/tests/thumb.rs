@@ -673,8 +673,14 @@ const STATIC_BEFORE: &[(&str, u64)] = &[
 /// instrument may get slower than this; when a change makes one faster, lower its figure
 /// here. (The grand piano's issue-16 bound, 930, is not met yet: the test prints the
 /// figure.)
+///
+/// Raised once, in session 16 (contract19): grand_piano 835 → 849, the cost of a model
+/// fix, not of the code generator — the rest felt keeps a landing's pulse against the
+/// re-landings of a hammer at rest (`pulse = max(pulse, …)` in `grand_piano.tactus`; the
+/// same compiler gives 835 on the model before it, `wcet_breakdown`: +1 state load, +2
+/// shifts, +5 ALU, +2 branches, +1 move, +1 compare on the worst path).
 const STATIC_CEILING: &[(&str, u64)] = &[
-    ("grand_piano", 835),
+    ("grand_piano", 849),
     ("hammond", 203),
     ("harpsichord", 261),
     ("harpsichord_2x8", 415),
