@@ -12,6 +12,7 @@ use tactus_runtime::differentiator::Differentiator;
 
 /// The value of a pure operation given its operands' values; reads of sensors, states,
 /// modes and edges go through `read`. Shared with compile-time constant folding.
+#[inline(always)]
 pub fn eval_op(
     op: &Op,
     val: impl Fn(Value) -> f64,
@@ -154,6 +155,31 @@ impl<'p> Instance<'p> {
     /// readings are taken as the sensor's lower bound, and every reading is saturated to
     /// the declared range.
     pub fn step(&mut self, sensors: &[f64]) -> &SampleOut {
+        self.read(sensors);
+        let body = &self.program.body;
+        self.exec(body, &|_| None);
+        &self.out
+    }
+
+    /// [`Self::step`] with some truth values decided from outside: each value `v` for which
+    /// `decide(v)` is `Some(t)` is taken as `t` (1.0 or 0.0) wherever it is read, instead of
+    /// what its operation computes. The accuracy contract's re-timed reference
+    /// (`fixed::contract`) runs the f64 semantics with the branch decisions of another run
+    /// this way: what its continuous values do with a switch taken a sample earlier or later.
+    pub fn step_deciding(
+        &mut self,
+        sensors: &[f64],
+        decide: &dyn Fn(Value) -> Option<bool>,
+    ) -> &SampleOut {
+        self.read(sensors);
+        let body = &self.program.body;
+        self.exec(body, decide);
+        &self.out
+    }
+
+    /// Takes one sample's sensor readings: missing ones as the lower bound, each saturated
+    /// to its declared range, the differentiated ones into their histories.
+    fn read(&mut self, sensors: &[f64]) {
         for (i, s) in self.program.sensors.iter().enumerate() {
             let x = sensors.get(i).copied().unwrap_or(s.range.0);
             let x = if x.is_nan() {
@@ -167,12 +193,9 @@ impl<'p> Instance<'p> {
             }
         }
         self.out.events.clear();
-        let body = &self.program.body;
-        self.exec(body);
-        &self.out
     }
 
-    fn exec(&mut self, stmts: &[Stmt]) {
+    fn exec<F: Fn(Value) -> Option<bool> + ?Sized>(&mut self, stmts: &[Stmt], decide: &F) {
         let fs = self.program.sample_rate_hz;
         for s in stmts {
             match s {
@@ -188,12 +211,15 @@ impl<'p> Instance<'p> {
                         Op::Edge(e) => f64::from(u8::from(self.edges[e.index()])),
                         _ => f64::NAN,
                     };
-                    let x = eval_op(
-                        op,
-                        |x| vals[x.index()],
-                        |p| self.program.params[p.index()].value,
-                        &read,
-                    );
+                    let x = match decide(*v) {
+                        Some(t) => f64::from(u8::from(t)),
+                        None => eval_op(
+                            op,
+                            |x| vals[x.index()],
+                            |p| self.program.params[p.index()].value,
+                            &read,
+                        ),
+                    };
                     self.vals[v.index()] = x;
                 }
                 Stmt::SetState(st, v) => {
@@ -209,7 +235,7 @@ impl<'p> Instance<'p> {
                 Stmt::SetEdge(e, v) => self.edges[e.index()] = self.vals[v.index()] != 0.0,
                 Stmt::If(c, body) => {
                     if self.vals[c.index()] != 0.0 {
-                        self.exec(body);
+                        self.exec(body, decide);
                     }
                 }
                 Stmt::Emit(e, args) => {
@@ -221,6 +247,28 @@ impl<'p> Instance<'p> {
                 Stmt::Total(v) => self.out.total = self.vals[v.index()],
             }
         }
+    }
+
+    /// Makes this instance what `other.clone()` is (an instance of the same program),
+    /// reusing its buffers: a step can be undone by copying back a copy taken before it.
+    pub fn copy_from(&mut self, other: &Self) {
+        self.program = other.program;
+        self.states.clone_from(&other.states);
+        self.modes.clone_from(&other.modes);
+        self.edges.clone_from(&other.edges);
+        self.sensors.clone_from(&other.sensors);
+        self.diffs.clone_from(&other.diffs);
+        self.vals.clone_from(&other.vals);
+        self.saturations.clone_from(&other.saturations);
+        self.out.forces.clone_from(&other.out.forces);
+        self.out.total = other.out.total;
+        self.out.outputs.clone_from(&other.out.outputs);
+        self.out.events.clone_from(&other.out.events);
+    }
+
+    /// What the last step produced (nothing before the first).
+    pub fn last(&self) -> &SampleOut {
+        &self.out
     }
 
     /// Current state values (SI), in the program's state order.

@@ -355,46 +355,29 @@ fn an_output_tolerance_is_measured_and_enforced() {
 
 /// The 32×16 products the planner refused are refused by the contract: on the piano, every
 /// product left a high word or 64-bit whose 32×16 form the planner considered is forced to
-/// that form alone and simulated as the planner's search simulates it (the built-in stimuli,
-/// the full dips of `SIMULATED_DESCENTS_S` and the runs of random sensor words, half of
-/// every tolerance). Each breaks it —
-/// that is why it was refused — and at least one breaks the whole contract.
+/// that form alone and simulated as the planner's search simulates it — on its own inputs
+/// (`fixed::simulated_inputs`: the built-in stimuli, the full dips, the noisy press and the
+/// runs of random sensor words), with half of every tolerance. Each breaks it — that is
+/// why it was refused: a planner greedier than the contract fails it — and at least one
+/// breaks the whole contract.
 #[test]
 fn every_refused_32x16_form_breaks_the_contract() {
-    use tactus_compiler::fixed::{
-        simulated_random_words, MulKind, SIMULATED_DESCENTS_S, SIMULATED_RANDOM_RUNS,
-        SIMULATION_MARGIN,
-    };
+    use tactus_compiler::fixed::{simulated_inputs, MulKind, SIMULATION_MARGIN};
     let p = program("grand_piano");
     let fp = FixedProgram::new(&p);
     let (full, strict) = (p.contract.clone(), p.contract.scaled(SIMULATION_MARGIN));
     let lsb = report::analyse(&fp).dac_lsb_n();
-    let dip = p.sensors[0].range.1;
-    let mut keys: Vec<(String, Vec<f64>)> = stimulus::builtin_names()
-        .iter()
-        .map(|(s, _)| {
-            let k = stimulus::builtin(s, dip, p.sample_rate_hz).unwrap().key;
-            (s.to_string(), k)
-        })
-        .collect();
-    for t in SIMULATED_DESCENTS_S {
-        let k = stimulus::dip(t, 0.1, 0.06, dip, p.sample_rate_hz)
-            .unwrap()
-            .key;
-        keys.push((format!("dip {} ms", t * 1e3), k));
-    }
+    let mut inputs = simulated_inputs(&p, fp.sensor_raw_range[0]);
+    assert!(
+        inputs.iter().any(|(name, _)| name.starts_with("noisy")),
+        "the search's noisy press is among its inputs"
+    );
     // The shortest first, as the planner orders them.
-    keys.sort_by_key(|(_, k)| k.len());
-    let mut refs: Vec<(String, contract::ReferenceRun)> = keys
+    inputs.sort_by_key(|(_, input)| input.len());
+    let refs: Vec<(String, contract::ReferenceRun)> = inputs
         .iter()
-        .map(|(s, k)| (s.clone(), contract::reference(&p, &fp, k, &[]).unwrap()))
+        .map(|(name, input)| (name.clone(), input.reference(&p, &fp, &[]).unwrap()))
         .collect();
-    // And the search's runs of random sensor words.
-    for r in 0..SIMULATED_RANDOM_RUNS {
-        let raw = simulated_random_words(fp.sensor_raw_range[0], r);
-        let run = contract::reference_raw(&p, &fp, &raw, &[]).unwrap();
-        refs.push((format!("random words {r}"), run));
-    }
     let (mut tried, mut broken_full) = (0, 0);
     for (i, k) in fp.mul_kind.iter().enumerate() {
         let Some(k @ (MulKind::High(_) | MulKind::Wide)) = *k else {
@@ -635,5 +618,166 @@ fn a_switch_moved_by_a_wrong_plan_breaks_the_switch_clause() {
     assert!(
         lost > 0,
         "no stimulus saw the moved contact as a lost switch"
+    );
+}
+
+/// A mass falling onto a stiff, damped floor: the contact `x < floor` is a switch whose
+/// after-effect is not a time shift — a run that closes it a sample late misses a sample
+/// of the floor's deceleration and keeps the speed it did not lose.
+const DROP: &str = "instrument drop {
+    sensor key: m in [0 mm, 10 mm]
+    param full_scale = 5 N
+    param mass = 10 g
+    param k = 2000 N/m
+    param b = 2.5 N*s/m
+    param grav = 9.81 m/s^2
+    state x = 0.2 mm in [-1 mm, 1 mm]
+    state v = 0 m/s in [-1 m/s, 1 m/s]
+    let f = if x < -0.01 mm { max(-k * x - b * v, 0 N) } else { 0 N }
+    dynamics {
+        v' = f / mass - grav
+        x' = v
+    }
+    force floor = f
+}
+";
+
+/// The re-timed reference excuses a switch's timing, not arithmetic: the falling mass of
+/// [`DROP`] with its fixed-point contact closing exactly one sample after the f64 run's
+/// (the plan's threshold moved between the f64 run's positions at those two samples) holds
+/// the contract — against the f64 run re-timed to that switch, where its recorded reading
+/// breaks (the window's force 25.7 DAC LSB from the recorded run against a bound of 16.9)
+/// — and the same plan with a greedier product for the floor's damping (18 bits of the
+/// speed dropped, ≈ 4 LSB) breaks it in both readings, as that error alone does.
+#[test]
+fn the_retimed_reference_excuses_a_late_switch_but_not_an_arithmetic_error() {
+    use tactus_compiler::fixed::MulKind;
+    use tactus_compiler::interp::Instance;
+    use tactus_compiler::ir::{CmpOp, Op};
+    let p = tactus_compiler::compile(DROP, &Config::default())
+        .unwrap()
+        .program;
+    let fp = FixedProgram::new(&p);
+    let lsb = report::analyse(&fp).dac_lsb_n();
+    let c = &p.contract;
+    let keys = vec![0.0; 4410];
+    let run = contract::reference(&p, &fp, &keys, &[]).unwrap();
+    // The f64 run's positions: the contact closes at `n0`.
+    let mut a = Instance::new(&p);
+    let xs: Vec<f64> = keys
+        .iter()
+        .map(|&k| {
+            a.step(&[k]);
+            a.states()[0]
+        })
+        .collect();
+    let n0 = xs.iter().position(|&x| x < -1e-5).expect("the mass lands");
+    println!(
+        "the f64 contact closes at sample {n0}: x {:e}, {:e} m",
+        xs[n0 - 1],
+        xs[n0]
+    );
+    // The planned threshold, and the damping.
+    let threshold = fp
+        .program
+        .values
+        .iter()
+        .find_map(|v| match v.op {
+            Op::Cmp(CmpOp::Lt, _, t) if fp.program.const_value(t) == Some(-1e-5) => Some(t),
+            _ => None,
+        })
+        .expect("the contact `x < -0.01 mm`");
+    let late = |fp: &FixedProgram| {
+        let mut q = fp.clone();
+        q.program.values[threshold.index()].op = Op::Const(0.5 * (xs[n0] + xs[n0 + 1]));
+        q
+    };
+    // The floor's damping product `b·v` computed with the speed's lowest 18 bits dropped (a
+    // `MULS` form the planner would refuse): an error of up to 2^-12 m/s × 2.5 N·s/m ≈ 4 DAC
+    // LSB while the mass touches the floor, nothing in the air.
+    let damping = fp
+        .program
+        .values
+        .iter()
+        .position(|v| match v.op {
+            Op::Arith(tactus_compiler::ir::ArithOp::Mul, x, y) => [x, y].iter().any(|w| {
+                matches!(fp.program.values[w.index()].op, Op::Param(id) if fp.program.params[id.index()].name == "b")
+            }),
+            _ => false,
+        })
+        .expect("the product b·v");
+    println!("b·v: {:?}", fp.mul_kind[damping]);
+    let off = |fp: &FixedProgram| {
+        let mut q = fp.clone();
+        let Op::Arith(_, x, _) = q.program.values[damping].op else {
+            unreachable!()
+        };
+        let b_first = matches!(q.program.values[x.index()].op, Op::Param(_));
+        // The constant 2.5 (0b101 · 2^-1, its word at 29 fraction bits) loses nothing to a
+        // pre-shift by 28 bits; the speed loses 18.
+        q.mul_kind[damping] = Some(if b_first {
+            MulKind::Muls(28, 18)
+        } else {
+            MulKind::Muls(18, 28)
+        });
+        q
+    };
+    let check = |q: &FixedProgram| contract::compare(&p, q, &run, lsb, c, false).unwrap();
+    let exact = check(&fp);
+    assert!(
+        exact.violations(c, p.sample_rate_hz).is_empty(),
+        "{:?}",
+        exact.violations(c, p.sample_rate_hz)
+    );
+    let r = check(&late(&fp));
+    println!(
+        "contact a sample late: switches {}, re-timed reading {}, {} samples re-timed, force {:.3} LSB: {:?}",
+        r.switch_count,
+        r.retimed,
+        r.retimed_samples,
+        r.max_force_lsb,
+        r.violations(c, p.sample_rate_hz)
+    );
+    // A sample's decision reads the state the sample before left: the f64 contact is
+    // decided closed at `n0 + 1`, the moved one at `n0 + 2`.
+    assert!(
+        r.switch_count == 1 && r.switches[0].sample == n0 + 1 && r.switches[0].samples == 1,
+        "{:?}",
+        r.switches
+    );
+    assert!(r.violations(c, p.sample_rate_hz).is_empty());
+    assert!(
+        r.retimed && r.retimed_samples == 1,
+        "the recorded reading (a time shift) must break here, or the test shows nothing"
+    );
+    // `--report precision` says which reading the run held by.
+    let margins = report::render_margins(&p, &[("late contact", r.clone())]);
+    print!("{margins}");
+    assert!(
+        margins.contains("0 run(s) against the recorded f64 run; 1 against the f64 run re-timed to the fixed run's switches (late contact)"),
+        "{margins}"
+    );
+    for (what, q) in [
+        ("b·v with 18 bits of the speed dropped", off(&fp)),
+        ("both", late(&off(&fp))),
+    ] {
+        let r = check(&q);
+        let v = r.violations(c, p.sample_rate_hz);
+        println!(
+            "{what}: force {:.3} LSB, re-timed {}: {v:?}",
+            r.max_force_lsb, r.retimed
+        );
+        assert!(!v.is_empty(), "{what}: the contract did not catch it");
+        assert!(
+            !r.retimed && r.retimed_force_lsb.is_none_or(|f| f > 1.0),
+            "{what}: neither reading may hold"
+        );
+    }
+    // With the late switch, the re-timed reading was tried, and broke by the error itself.
+    let r = check(&late(&off(&fp)));
+    assert!(
+        r.retimed_force_lsb.is_some_and(|f| f > 2.0),
+        "{:?}",
+        r.retimed_force_lsb
     );
 }

@@ -669,11 +669,16 @@ const STATIC_BEFORE: &[(&str, u64)] = &[
 ];
 
 /// The ratchet: each instrument's static WCET as last measured by this test (session 16,
-/// branch code19). No instrument may get slower than this; when a change makes one faster,
-/// lower its figure here. (The grand piano's issue-16 bound, 930, is met; its target, 680,
-/// is not yet: the test prints the figure.)
+/// branches code19 and contract19). No instrument may get slower than this; when a change
+/// makes one faster, lower its figure here. (The grand piano's issue-16 bound, 930, is met;
+/// its target, 680, is not yet: the test prints the figure.)
+///
+/// The piano's figure includes a model fix of session 16 (contract19), not a code generator
+/// change: the rest felt keeps a landing's pulse against the re-landings of a hammer at rest
+/// (`pulse = max(pulse, …)` in `grand_piano.tactus`), 14 cycles (750 → 764) on the same
+/// compiler (`wcet_breakdown` on the model before and after).
 const STATIC_CEILING: &[(&str, u64)] = &[
-    ("grand_piano", 750),
+    ("grand_piano", 764),
     ("hammond", 185),
     ("harpsichord", 229),
     ("harpsichord_2x8", 355),

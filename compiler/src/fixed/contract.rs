@@ -13,6 +13,7 @@
 //! terms, outputs and events. A run is recorded once ([`reference`]) and compared with as
 //! many plans as the planner's search needs ([`compare`]).
 
+mod retimed;
 mod switches;
 
 pub use switches::{Kind as DecisionKind, Site as Decision};
@@ -99,6 +100,27 @@ pub struct ContractCheck {
     /// of the same switch (one run's hammer lands three samples before the other's, and the
     /// runs agree in between). The window measures them and its after-effect goes on.
     pub switch_rejoined: usize,
+    /// Whether the fixed run was read against the reference re-timed to its switches
+    /// ([`retimed::compare`]) — because against the recorded reference, its switches read
+    /// as time shifts, some clause broke — and held there. Then every figure of this check
+    /// is that reading's: the force per sample against the re-timed run at every sample,
+    /// and each switch a disagreement with the re-timed run's own decisions.
+    ///
+    /// The re-timed reference is the f64 semantics stepped beside the fixed run, which
+    /// takes the fixed run's branch decisions at the samples where its own differ, for at
+    /// most the switch tolerance at a time (longer: a switch lost or added), and only
+    /// decisions the f64 semantics itself takes within the switch tolerance of that sample
+    /// (else a switch added, not moved): a switch
+    /// decided a sample later — within the switch tolerance — and what the f64 semantics
+    /// itself does with that timing. Its continuous values are the f64 semantics' own
+    /// throughout, so an arithmetic error shows against it as against the recorded run.
+    pub retimed: bool,
+    /// Samples where the re-timed reference took the fixed run's decisions (0 unless
+    /// [`ContractCheck::retimed`]).
+    pub retimed_samples: usize,
+    /// Where the recorded reading broke and the re-timed one broke too: the re-timed
+    /// reading's largest per-sample force difference, DAC LSB (for the violation's message).
+    pub retimed_force_lsb: Option<f64>,
     /// Samples where some fixed state lay outside its declared range.
     pub state_out_of_range: usize,
     /// Values that saturated (the range analysis claimed they cannot).
@@ -258,8 +280,20 @@ impl ContractCheck {
         let lsb = self.dac_lsb_n;
         if self.max_force_lsb > c.force.lsb(lsb) {
             v.push(format!(
-                "force differs by {:.3} DAC LSB (contract {})",
-                self.max_force_lsb, c.force
+                "force differs by {:.3} DAC LSB{} (contract {})",
+                self.max_force_lsb,
+                if self.retimed {
+                    " from the f64 run re-timed to the fixed run's switches"
+                } else {
+                    ""
+                },
+                c.force
+            ));
+        }
+        if let Some(r) = self.retimed_force_lsb {
+            v.push(format!(
+                "and against the f64 run re-timed to the fixed run's switches the force differs by {r:.3} DAC LSB (contract {})",
+                c.force
             ));
         }
         let window = (c.switch_time_s * sample_rate_hz).ceil();
@@ -383,6 +417,10 @@ pub struct ReferenceRun {
     sig: Vec<u64>,
     /// Words per sample of `sig`.
     sig_words: usize,
+    /// How the f64 run read each word: (lowest, highest raw word, fraction bits) — the
+    /// word clamped to the sensor's raw range, in the sensor's format. The re-timed
+    /// reference ([`ContractCheck::retimed`]) reads them the same way.
+    sensor: (i32, i32, i32),
     /// The state-driven part of the f64 total force of each sample, newtons: the sum of the
     /// terms [`switches::state_driven_terms`] marks (the rest reads only sensors).
     driven: Vec<f64>,
@@ -397,6 +435,12 @@ impl ReferenceRun {
     /// Whether the run has no sample.
     pub fn is_empty(&self) -> bool {
         self.raw.is_empty()
+    }
+
+    /// The f64 reading of sensor word `w` (SI), as the run read it.
+    fn reading(&self, w: i32) -> f64 {
+        let (lo, hi, frac) = self.sensor;
+        fx::to_f64(w.clamp(lo, hi), frac)
     }
 }
 
@@ -459,19 +503,24 @@ fn total_terms(p: &Program) -> Vec<usize> {
         .collect()
 }
 
+/// `p` with its run-time params at `params` (SI, [`Program::runtime_params`] order; empty:
+/// `p` itself), the program a reference run of those params interprets.
+fn with_params<'p>(p: &'p Program, params: &[f64]) -> std::borrow::Cow<'p, Program> {
+    if params.is_empty() {
+        return std::borrow::Cow::Borrowed(p);
+    }
+    let mut q = p.clone();
+    let ids: Vec<_> = q.runtime_params().collect();
+    for (id, &v) in ids.iter().zip(params) {
+        q.params[id.index()].value = v;
+    }
+    std::borrow::Cow::Owned(q)
+}
+
 /// [`reference_raw`] once `params` is known to fit `fp`.
 fn record(p: &Program, fp: &FixedProgram, raw: &[i32], params: &[f64]) -> ReferenceRun {
-    let mut q;
-    let prog = if params.is_empty() {
-        p
-    } else {
-        q = p.clone();
-        let ids: Vec<_> = q.runtime_params().collect();
-        for (id, &v) in ids.iter().zip(params) {
-            q.params[id.index()].value = v;
-        }
-        &q
-    };
+    let prog = with_params(p, params);
+    let prog = &*prog;
     let c = &p.contract;
     let mut a = Instance::new(prog);
     let n = raw.len();
@@ -487,11 +536,15 @@ fn record(p: &Program, fp: &FixedProgram, raw: &[i32], params: &[f64]) -> Refere
         sig: vec![0; n * sig_words],
         sig_words,
         driven: Vec::with_capacity(n),
+        sensor: (
+            fp.sensor_raw_range[0].0,
+            fp.sensor_raw_range[0].1,
+            fp.sensor_frac[0],
+        ),
     };
     let driven = total_terms(prog);
-    let (lo, hi) = fp.sensor_raw_range[0];
     for (n, &w) in raw.iter().enumerate() {
-        let oa = a.step(&[fx::to_f64(w.clamp(lo, hi), fp.sensor_frac[0])]);
+        let oa = a.step(&[run.reading(w)]);
         run.raw.push(w);
         run.total.push(oa.total);
         run.driven
@@ -537,8 +590,38 @@ pub fn compare(
     Ok(compare_block(p, fp, run, block, dac_lsb_n, c, stop))
 }
 
-/// [`compare`] with the param block given.
+/// [`compare`] with the param block given: the fixed run against the recorded reference,
+/// switches read as time shifts ([`Switch`]); where that breaks a clause after the runs fell
+/// into different discrete states, against the reference re-timed to the fixed run's
+/// switches ([`ContractCheck::retimed`], [`retimed::compare`]) — the run holds if either
+/// reading holds.
 fn compare_block(
+    p: &Program,
+    fp: &FixedProgram,
+    run: &ReferenceRun,
+    block: Vec<i32>,
+    dac_lsb_n: f64,
+    c: &Contract,
+    stop: bool,
+) -> ContractCheck {
+    let first = compare_recorded(p, fp, run, block.clone(), dac_lsb_n, c, stop);
+    if first.switch_count == 0 || first.violations(c, p.sample_rate_hz).is_empty() {
+        return first;
+    }
+    let second = retimed::compare(p, fp, run, block, dac_lsb_n, c, stop);
+    if second.violations(c, p.sample_rate_hz).is_empty() {
+        second
+    } else {
+        ContractCheck {
+            retimed_force_lsb: Some(second.max_force_lsb),
+            ..first
+        }
+    }
+}
+
+/// The fixed run of `fp` with param block `block` against the recorded reference `run`,
+/// switches read as time shifts (see [`compare`]).
+fn compare_recorded(
     p: &Program,
     fp: &FixedProgram,
     run: &ReferenceRun,
@@ -754,13 +837,26 @@ fn compare_block(
     }
     out.overflowed = b.overflowed().iter().filter(|o| **o).count();
     let ev_a: Vec<&(usize, usize, Vec<f64>)> = run.events.iter().filter(|e| e.0 < ran).collect();
+    pair_events(&mut out, &ev_a, &ev_b, c, p.sample_rate_hz);
+    out
+}
+
+/// The event clauses of a comparison: the f64 run's events `ev_a` and the fixed run's
+/// `ev_b` as (sample, event, arguments SI), paired in order, per kind, within the kind's
+/// time tolerance (a larger shift counts as a lost plus an added event), into `out`'s
+/// counts, shifts and argument errors.
+fn pair_events(
+    out: &mut ContractCheck,
+    ev_a: &[&(usize, usize, Vec<f64>)],
+    ev_b: &[(usize, usize, Vec<f64>)],
+    c: &Contract,
+    sample_rate_hz: f64,
+) {
     out.events_f64 = ev_a.len();
     out.events_fixed = ev_b.len();
-    // Pair events in order, per kind, within the kind's time tolerance (a larger shift
-    // counts as a lost plus an added event).
     let mut used = vec![false; ev_b.len()];
-    for (na, ka, args_a) in ev_a {
-        let tol = c.time_of(*ka) * p.sample_rate_hz;
+    for &(na, ka, args_a) in ev_a {
+        let tol = c.time_of(*ka) * sample_rate_hz;
         let window = tol.ceil() as usize;
         let partner = ev_b
             .iter()
@@ -782,7 +878,6 @@ fn compare_block(
         }
     }
     out.unmatched += used.iter().filter(|u| !**u).count();
-    out
 }
 
 /// The force figures of the switch window of `window` samples from `start` ([`Switch`]),

@@ -342,6 +342,97 @@ pub fn simulated_noisy(key: &[f64], dip_m: f64) -> Vec<f64> {
         .collect()
 }
 
+/// One input of the planner's simulation ([`simulated_inputs`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum SimulatedInput {
+    /// Key travel, metres per sample (first sensor; both engines read its quantised words).
+    Key(Vec<f64>),
+    /// Raw words of the first sensor, as a sensor delivers them (arbitrary words included).
+    Words(Vec<i32>),
+}
+
+impl SimulatedInput {
+    /// Samples of the input.
+    pub fn len(&self) -> usize {
+        match self {
+            SimulatedInput::Key(k) => k.len(),
+            SimulatedInput::Words(w) => w.len(),
+        }
+    }
+
+    /// Whether the input has no sample.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The f64 reference run of `p` on this input for the plan `fp`, with the run-time
+    /// params at `params` (SI; empty: their own values): [`contract::reference`] or
+    /// [`contract::reference_raw`].
+    ///
+    /// Errors: [`ParamBlockError`] when `params` do not fit `fp`'s run-time params.
+    pub fn reference(
+        &self,
+        p: &Program,
+        fp: &FixedProgram,
+        params: &[f64],
+    ) -> Result<contract::ReferenceRun, ParamBlockError> {
+        match self {
+            SimulatedInput::Key(k) => contract::reference(p, fp, k, params),
+            SimulatedInput::Words(w) => contract::reference_raw(p, fp, w, params),
+        }
+    }
+}
+
+/// Every input the planner's search simulates for a keyboard program `p` (one sensor) whose
+/// plan reads raw sensor words in `raw_range`, named: the built-in stimuli, the full dips of
+/// [`SIMULATED_DESCENTS_S`], a press under sensor noise ([`simulated_noisy`]) and the runs
+/// of random sensor words ([`simulated_random_words`]). The one definition of that set:
+/// the search runs exactly these, and a test that shows what the search refused runs them
+/// too.
+pub fn simulated_inputs(p: &Program, raw_range: (i32, i32)) -> Vec<(String, SimulatedInput)> {
+    let Some(sensor) = p.sensors.first() else {
+        return Vec::new();
+    };
+    let (dip, fs) = (sensor.range.1, p.sample_rate_hz);
+    let mut out: Vec<(String, SimulatedInput)> = tactus_runtime::stimulus::builtin_names()
+        .iter()
+        .filter_map(|(name, _)| {
+            let s = tactus_runtime::stimulus::builtin(name, dip, fs).ok()?;
+            Some((name.to_string(), SimulatedInput::Key(s.key)))
+        })
+        .collect();
+    // Full dips over the range of key descent times (an event's arguments, a strike's
+    // hammer speed, are most sensitive to the slow ones, where the hammer barely reaches
+    // the string).
+    for descent in SIMULATED_DESCENTS_S {
+        if let Ok(s) = tactus_runtime::stimulus::dip(descent, 0.1, 0.06, dip, fs) {
+            out.push((
+                format!("dip {} ms", descent * 1e3),
+                SimulatedInput::Key(s.key),
+            ));
+        }
+    }
+    // A press under sensor noise (the budget corpus's kind of input): a product cut that
+    // holds on clean key travel can break under noise, where the contact switches on the
+    // noise and the switch clause reads the runs' disagreements.
+    if let Ok(s) = tactus_runtime::stimulus::dip(0.04, 0.1, 0.04, dip, fs) {
+        out.push((
+            "noisy press".to_string(),
+            SimulatedInput::Key(simulated_noisy(&s.key, dip)),
+        ));
+    }
+    // Adversarial raw sensor words as the budget corpus has them (arbitrary words,
+    // corners, in-range walks; `XorShift64::sensor_word`): a product cut to 16 bits can be
+    // harmless on every key travel and break the force at an extreme word.
+    for r in 0..SIMULATED_RANDOM_RUNS {
+        out.push((
+            format!("random words {r}"),
+            SimulatedInput::Words(simulated_random_words(raw_range, r)),
+        ));
+    }
+    out
+}
+
 /// Most passes of the planner's rounds ([`FixedProgram::with_config`]): a second pass tries
 /// again, in the plan the first settled in, the forms refused beside others.
 pub const SEARCH_PASSES: usize = 2;
@@ -1154,7 +1245,6 @@ impl FixedProgram {
     fn search_by_simulation(&mut self, original: &Program, planned: &[(usize, MulOperands, bool)]) {
         let strict = original.contract.scaled(SIMULATION_MARGIN);
         let lsb = report::analyse(self).dac_lsb_n();
-        let dip = original.sensors[0].range.1;
         // The params' own values; for a shared program the param values of real keys
         // (`simulated_keys`); with run-time params but no keys also the far corner (each
         // param at the end farther from its own value).
@@ -1183,53 +1273,21 @@ impl FixedProgram {
                 );
             }
         }
-        let mut stimuli: Vec<Vec<f64>> = tactus_runtime::stimulus::builtin_names()
-            .iter()
-            .filter_map(|(name, _)| {
-                tactus_runtime::stimulus::builtin(name, dip, original.sample_rate_hz).ok()
-            })
-            .map(|s| s.key)
-            .collect();
-        // Full dips over the range of key descent times (an event's arguments, a strike's
-        // hammer speed, are most sensitive to the slow ones, where the hammer barely
-        // reaches the string).
-        for descent in SIMULATED_DESCENTS_S {
-            if let Ok(s) =
-                tactus_runtime::stimulus::dip(descent, 0.1, 0.06, dip, original.sample_rate_hz)
-            {
-                stimuli.push(s.key);
-            }
-        }
-        // A press under sensor noise (the budget corpus's kind of input): a product cut
-        // that holds on clean key travel can break under noise, where the contact switches
-        // on the noise and the switch clause reads the runs' disagreements.
-        if let Ok(s) = tactus_runtime::stimulus::dip(0.04, 0.1, 0.04, dip, original.sample_rate_hz)
-        {
-            stimuli.push(simulated_noisy(&s.key, dip));
-        }
-        // The reference runs (f64), each independent: on every core, in a fixed order.
+        // The inputs ([`simulated_inputs`]) at every point, recorded once (f64), each
+        // independent: on every core, in a fixed order.
+        let inputs = simulated_inputs(original, self.sensor_raw_range[0]);
         let this = &*self;
         let np = points.len();
-        let mut runs: Vec<contract::ReferenceRun> = workers::map(stimuli.len() * np, |j| {
+        let mut runs: Vec<contract::ReferenceRun> = workers::map(inputs.len() * np, |j| {
             // Every point lies within the intervals the program was planned for.
-            contract::reference(original, this, &stimuli[j / np], &points[j % np]).ok()
+            inputs[j / np]
+                .1
+                .reference(original, this, &points[j % np])
+                .ok()
         })
         .into_iter()
         .flatten()
         .collect();
-        // Adversarial raw sensor words as the budget corpus has them (arbitrary words,
-        // corners, in-range walks; `XorShift64::sensor_word`): a product cut to 16 bits
-        // can be harmless on every key travel and break the force at an extreme word.
-        let raws: Vec<Vec<i32>> = (0..SIMULATED_RANDOM_RUNS)
-            .map(|r| simulated_random_words(this.sensor_raw_range[0], r))
-            .collect();
-        runs.extend(
-            workers::map(raws.len() * np, |j| {
-                contract::reference_raw(original, this, &raws[j / np], &points[j % np]).ok()
-            })
-            .into_iter()
-            .flatten(),
-        );
         // The shortest runs first: a failing plan is found sooner.
         runs.sort_by_key(|r| r.len());
         // What the analysis' plan shows on each run, where it breaks the half-tolerance

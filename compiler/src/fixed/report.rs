@@ -594,6 +594,11 @@ fn render_contract(s: &mut String, fp: &FixedProgram, pr: &Precision) {
         c.switch_time_s * 1e3,
         (c.switch_time_s * p.sample_rate_hz).ceil()
     );
+    let _ = writeln!(
+        s,
+        "  or, where that reading breaks, every clause sample by sample against the f64 run re-timed to the fixed run's switches: the f64 semantics taking the fixed run's branch decisions where its own differ, for at most {} ms at a time — the switch's timing excused, not its arithmetic",
+        c.switch_time_s * 1e3
+    );
     for e in &c.events {
         let d = &p.events[e.event.index()];
         let args: Vec<String> = e
@@ -631,6 +636,30 @@ pub fn render_margins(p: &Program, runs: &[(&str, super::contract::ContractCheck
             }
         }
     }
+    // Which reading each run is measured by ([`super::contract::ContractCheck::retimed`]):
+    // the recorded f64 run (switches as time shifts), or, where that broke, the f64 run
+    // re-timed to the fixed run's switches; a run broken in both is shown by the first.
+    let names = |f: &dyn Fn(&super::contract::ContractCheck) -> bool| -> Vec<&str> {
+        runs.iter().filter(|(_, r)| f(r)).map(|r| r.0).collect()
+    };
+    let retimed = names(&|r| r.retimed);
+    let both = names(&|r| r.retimed_force_lsb.is_some());
+    let _ = writeln!(
+        s,
+        "  reading: {} run(s) against the recorded f64 run; {} against the f64 run re-timed to the fixed run's switches{}{}",
+        runs.len() - retimed.len(),
+        retimed.len(),
+        if retimed.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", retimed.join(", "))
+        },
+        if both.is_empty() {
+            String::new()
+        } else {
+            format!("; broken in both readings: {}", both.join(", "))
+        }
+    );
     for (clause, w, b, unit, stim) in worst {
         let verdict = if w <= b { "holds" } else { "BROKEN" };
         let _ = writeln!(

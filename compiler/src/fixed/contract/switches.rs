@@ -52,6 +52,12 @@ pub struct Site {
 }
 
 impl Site {
+    /// The truth value deciding it (none for a mode, which follows from the bodies that set
+    /// it).
+    pub fn cond(&self) -> Option<Value> {
+        self.cond
+    }
+
     /// The decision in words, for a violation: its kind and source span (byte offsets).
     pub fn describe(&self, p: &Program) -> String {
         let at = format!("source bytes {}..{}", self.span.start, self.span.end);
