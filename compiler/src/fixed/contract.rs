@@ -689,15 +689,7 @@ fn compare_recorded(
             out.output_err[k] = out.output_err[k].max(e);
             broken |= e > *bound;
         }
-        for (e, args) in &ob.events {
-            let f = &fp.event_frac[e.index()];
-            let si = args
-                .iter()
-                .zip(f)
-                .map(|(&x, &f)| fx::to_f64(x, f))
-                .collect();
-            ev_b.push((n, e.index(), si));
-        }
+        push_fixed_events(fp, n, &ob.events, &mut ev_b);
         // The discrete states of this sample.
         let vals = b.values();
         switches::signature(&sites_b, |v| vals[v.index()] != 0, b.modes(), &mut sig_b);
@@ -839,6 +831,26 @@ fn compare_recorded(
     let ev_a: Vec<&(usize, usize, Vec<f64>)> = run.events.iter().filter(|e| e.0 < ran).collect();
     pair_events(&mut out, &ev_a, &ev_b, c, p.sample_rate_hz);
     out
+}
+
+/// The fixed run's events of sample `n` (`events`: each event and its raw argument words)
+/// appended to `out` as (sample, event index, arguments in SI units, each word read in its
+/// argument's format, `fp.event_frac`).
+fn push_fixed_events(
+    fp: &FixedProgram,
+    n: usize,
+    events: &[(EventId, Vec<i32>)],
+    out: &mut Vec<(usize, usize, Vec<f64>)>,
+) {
+    for (e, args) in events {
+        let f = &fp.event_frac[e.index()];
+        let si = args
+            .iter()
+            .zip(f)
+            .map(|(&x, &f)| fx::to_f64(x, f))
+            .collect();
+        out.push((n, e.index(), si));
+    }
 }
 
 /// The event clauses of a comparison: the f64 run's events `ev_a` and the fixed run's

@@ -28,8 +28,8 @@
 //! wrong for longer than the switch tolerance is a lost or added switch.
 
 use super::{
-    closeness, pair_events, switches, with_params, Contract, ContractCheck, FixedInstance,
-    FixedProgram, Switch, MAX_SWITCHES_KEPT,
+    closeness, pair_events, push_fixed_events, switches, with_params, Contract, ContractCheck,
+    FixedInstance, FixedProgram, Switch, MAX_SWITCHES_KEPT,
 };
 use crate::interp::Instance;
 use crate::ir::{Program, Value};
@@ -205,15 +205,7 @@ pub(super) fn compare(
             broken |= e > *bound;
         }
         ev_a.extend(oa.events.iter().map(|e| (n, e.0.index(), e.1.clone())));
-        for (e, args) in &ob.events {
-            let f = &fp.event_frac[e.index()];
-            let si = args
-                .iter()
-                .zip(f)
-                .map(|(&x, &f)| fx::to_f64(x, f))
-                .collect();
-            ev_b.push((n, e.index(), si));
-        }
+        push_fixed_events(fp, n, &ob.events, &mut ev_b);
         if !stop {
             totals_a.push(oa.total);
             totals_b.push(ft);

@@ -177,7 +177,7 @@ fn edge_conditions(p: &Program, used: &[bool], fused: &[bool]) -> Vec<bool> {
     }
     walk(&p.body, &mut |s, next| {
         if let (Stmt::SetEdge(e, c), Some(Stmt::If(fire, _))) = (s, next) {
-            if edge_fire(p, *e, *fire) == Some(*c)
+            if crate::fixed::flow::edges::edge_fire(p, *e, *fire).map(|(x, _)| x) == Some(*c)
                 && fused[fire.index()]
                 && uses[c.index()] == 2
                 && matches!(
@@ -190,24 +190,6 @@ fn edge_conditions(p: &Program, used: &[bool], fused: &[bool]) -> Vec<bool> {
         }
     });
     edge
-}
-
-/// Where `fire` is `c and not edge(e)` (either order): `c`.
-fn edge_fire(p: &Program, e: EdgeId, fire: Value) -> Option<Value> {
-    let Op::And(x, y) = p.values[fire.index()].op else {
-        return None;
-    };
-    let was_false = |v: Value| match p.values[v.index()].op {
-        Op::Not(prev) => p.values[prev.index()].op == Op::Edge(e),
-        _ => false,
-    };
-    if was_false(y) {
-        Some(x)
-    } else if was_false(x) {
-        Some(y)
-    } else {
-        None
-    }
 }
 
 /// A saturating left shift `d = sat(x · 2^e)` occupying `code[start..end]`.
