@@ -34,7 +34,7 @@ pub fn matched_decisions(a: &[Decision], b: &[Decision]) -> Vec<(usize, usize)> 
 use super::interp::FixedInstance;
 use super::{FixedProgram, ParamBlockError};
 use crate::interp::Instance;
-use crate::ir::Program;
+use crate::ir::{EventId, Program};
 use tactus_runtime::fixed as fx;
 
 pub use crate::ir::Contract;
