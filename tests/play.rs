@@ -362,7 +362,7 @@ fn the_emulated_board_strikes_like_the_fixed_point_jit_without_missing_a_deadlin
             "play",
             "--no-wav",
             "--seconds",
-            "1",
+            "0.3", // the misses start at the first sample
             "--engine",
             "emu",
             "--layout",
