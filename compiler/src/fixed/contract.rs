@@ -758,11 +758,7 @@ fn compare_recorded(
                 agreeing += 1;
             }
         }
-        let outside = b.states().iter().enumerate().any(|(i, &w)| {
-            let x = fx::to_f64(w, fp.state_frac[i]);
-            let (lo, hi) = fp.program.states[i].range;
-            x < lo || x > hi
-        });
+        let outside = states_out_of_range(fp, b.states());
         out.state_out_of_range += outside as usize;
         if stop && (broken || outside) {
             ran = n + 1;
@@ -831,6 +827,16 @@ fn compare_recorded(
     let ev_a: Vec<&(usize, usize, Vec<f64>)> = run.events.iter().filter(|e| e.0 < ran).collect();
     pair_events(&mut out, &ev_a, &ev_b, c, p.sample_rate_hz);
     out
+}
+
+/// Whether a state word of the fixed run (`states`, raw words in `fp.state_frac`) lies
+/// outside its state's declared range (SI) — the contract's state clause for one sample.
+fn states_out_of_range(fp: &FixedProgram, states: &[i32]) -> bool {
+    states.iter().enumerate().any(|(i, &w)| {
+        let x = fx::to_f64(w, fp.state_frac[i]);
+        let (lo, hi) = fp.program.states[i].range;
+        x < lo || x > hi
+    })
 }
 
 /// The fixed run's events of sample `n` (`events`: each event and its raw argument words)

@@ -28,8 +28,8 @@
 //! wrong for longer than the switch tolerance is a lost or added switch.
 
 use super::{
-    closeness, pair_events, push_fixed_events, switches, with_params, Contract, ContractCheck,
-    FixedInstance, FixedProgram, Switch, MAX_SWITCHES_KEPT,
+    closeness, pair_events, push_fixed_events, states_out_of_range, switches, with_params,
+    Contract, ContractCheck, FixedInstance, FixedProgram, Switch, MAX_SWITCHES_KEPT,
 };
 use crate::interp::Instance;
 use crate::ir::{Program, Value};
@@ -210,11 +210,7 @@ pub(super) fn compare(
             totals_a.push(oa.total);
             totals_b.push(ft);
         }
-        let outside = b.states().iter().enumerate().any(|(i, &w)| {
-            let x = fx::to_f64(w, fp.state_frac[i]);
-            let (lo, hi) = fp.program.states[i].range;
-            x < lo || x > hi
-        });
+        let outside = states_out_of_range(fp, b.states());
         out.state_out_of_range += outside as usize;
         if stop && (broken || outside) {
             break;
