@@ -158,8 +158,8 @@ fn self_modifying_code_is_seen() {
 /// `Board::call` runs an AAPCS function and returns r0 and its cycles (return included).
 #[test]
 fn call_runs_a_function_and_counts_its_cycles() {
-    use tactus_emulator::encode::encode;
-    use tactus_emulator::Instr;
+    use tactus_isa::decode::Instr;
+    use tactus_isa::encode::encode;
     let mut b = tactus_emulator::Board::new(Default::default());
     // r0 = r0 + r1; r0 = r0 * r2; bx lr  → 1 + 1 + 2 cycles (BX: 2, Cortex-M0+ TRM 3.3)
     let code = [
@@ -169,7 +169,7 @@ fn call_runs_a_function_and_counts_its_cycles() {
             rm: 1,
         },
         Instr::Alu {
-            op: tactus_emulator::decode::AluOp::Mul,
+            op: tactus_isa::decode::AluOp::Mul,
             rdn: 0,
             rm: 2,
         },

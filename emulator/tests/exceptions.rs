@@ -5,8 +5,8 @@
 
 mod common;
 
-use tactus_emulator::timing::{EXCEPTION_ENTRY, EXCEPTION_RETURN};
 use tactus_emulator::{Board, Config, StopReason};
+use tactus_isa::timing::{EXCEPTION_ENTRY, EXCEPTION_RETURN};
 
 const LINK: [&str; 6] = [
     "--section-start=.vectors=0x20000000",

@@ -196,29 +196,30 @@ fn every_halfword_decodes_prices_and_prints() {
     // Every first halfword decodes, prices and prints without panicking, and 32-bit
     // prefixes never decode as 16-bit instructions.
     for hw in 0..=u16::MAX {
-        let i = tactus_emulator::decode(hw, 0xf800);
+        let i = tactus_isa::decode::decode(hw, 0xf800);
         assert!(!i.to_string().is_empty());
-        if tactus_emulator::decode::is_32bit(hw) {
+        if tactus_isa::decode::is_32bit(hw) {
             assert!(
                 matches!(
                     i,
-                    tactus_emulator::Instr::Bl { .. } | tactus_emulator::Instr::Undefined { .. }
+                    tactus_isa::decode::Instr::Bl { .. }
+                        | tactus_isa::decode::Instr::Undefined { .. }
                 ),
                 "{hw:04x} f800 decoded as {i:?}"
             );
         }
-        let _ = tactus_emulator::timing::cycles(&i, true, false);
+        let _ = tactus_isa::timing::cycles(&i, true, false);
     }
 }
 
 #[test]
 fn every_timing_class_has_a_cycle_row() {
     use std::collections::HashSet;
-    use tactus_emulator::timing::{class, Class};
+    use tactus_isa::timing::{class, Class};
     let covered: HashSet<Class> = rows()
         .iter()
         .map(|r| {
-            class(&tactus_emulator::decode(
+            class(&tactus_isa::decode::decode(
                 r.hex[0],
                 r.hex.get(1).copied().unwrap_or(0),
             ))
@@ -246,7 +247,7 @@ fn disassembly_reassembles_to_the_same_encoding() {
     let rows = rows();
     let mut src = String::from(".syntax unified\n.cpu cortex-m0\n.thumb\n.text\n");
     for row in &rows {
-        let instr = tactus_emulator::decode(row.hex[0], row.hex.get(1).copied().unwrap_or(0));
+        let instr = tactus_isa::decode::decode(row.hex[0], row.hex.get(1).copied().unwrap_or(0));
         src.push_str(&instr.to_string());
         src.push('\n');
     }
@@ -258,8 +259,8 @@ fn disassembly_reassembles_to_the_same_encoding() {
     let mut at = 0;
     for row in &rows {
         let n = row.hex.len();
-        let shown =
-            tactus_emulator::decode(row.hex[0], row.hex.get(1).copied().unwrap_or(0)).to_string();
+        let shown = tactus_isa::decode::decode(row.hex[0], row.hex.get(1).copied().unwrap_or(0))
+            .to_string();
         assert_eq!(
             &got[at..at + n],
             &row.hex[..],

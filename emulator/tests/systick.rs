@@ -13,8 +13,8 @@ mod common;
 use common::enc::*;
 use common::load_program;
 use tactus_emulator::nvic::{Nvic, SYSTICK};
-use tactus_emulator::timing::EXCEPTION_ENTRY;
 use tactus_emulator::{Board, Config, StopReason};
+use tactus_isa::timing::EXCEPTION_ENTRY;
 
 const CSR: u32 = 0xe000_e010;
 const RVR: u32 = 0xe000_e014;

@@ -3,11 +3,11 @@
 //! and static ≥ measured on every path.
 
 use std::collections::HashMap;
-use tactus_emulator::decode::{AluOp, Instr, MemOp};
-use tactus_emulator::encode::encode;
-use tactus_emulator::timing::{EXCEPTION_ENTRY, EXCEPTION_RETURN};
-use tactus_emulator::wcet::{analyse, analyse_isr, Bounds, Image, Region, WcetError};
 use tactus_emulator::{Board, Config};
+use tactus_isa::decode::{AluOp, Instr, MemOp};
+use tactus_isa::encode::encode;
+use tactus_isa::timing::{EXCEPTION_ENTRY, EXCEPTION_RETURN};
+use tactus_isa::wcet::{analyse, analyse_isr, Bounds, Image, Region, WcetError};
 
 const BASE: u32 = 0x2000_0000;
 const SP: u32 = 0x2004_0000;
@@ -68,7 +68,7 @@ fn bx_lr() -> It {
     I(Instr::Bx { rm: 14 })
 }
 fn nop() -> It {
-    I(Instr::Hint(tactus_emulator::decode::Hint::Nop))
+    I(Instr::Hint(tactus_isa::decode::Hint::Nop))
 }
 
 fn size(it: &It, addr: u32) -> u32 {
@@ -146,7 +146,7 @@ impl Prog {
     fn at(&self, label: &str) -> u32 {
         self.labels[label]
     }
-    fn wcet(&self, entry: &str, bounds: &Bounds) -> Result<tactus_emulator::wcet::Wcet, WcetError> {
+    fn wcet(&self, entry: &str, bounds: &Bounds) -> Result<tactus_isa::wcet::Wcet, WcetError> {
         analyse(
             &Image {
                 base: BASE,
@@ -497,7 +497,7 @@ fn isr_matches_a_timer_interrupt_on_the_board() {
             imm: 0x10,
         }), // ALARM0
         l("spin"),
-        I(Instr::Hint(tactus_emulator::decode::Hint::Wfi)),
+        I(Instr::Hint(tactus_isa::decode::Hint::Wfi)),
         b("spin"),
         l("isr"),
         Lit(0, "timer".into()),
@@ -737,7 +737,7 @@ fn unanalysable_code_is_an_error_with_its_address() {
         Instr::Svc { imm: 1 },
         Instr::Bkpt { imm: 0 },
         Instr::Udf { imm: 0 },
-        Instr::Hint(tactus_emulator::decode::Hint::Wfi),
+        Instr::Hint(tactus_isa::decode::Hint::Wfi),
     ] {
         let p = Prog::new(&[l("f"), nop(), l("x"), I(bad), bx_lr()]);
         match p.wcet("f", &Bounds::new()).unwrap_err() {

@@ -1,6 +1,6 @@
 //! Where an update's static WCET goes: the instructions of its worst path (as
 //! `budget::static_update` finds it) summed by category, each priced by the emulator's
-//! timing table (`emulator/src/timing.rs`, taken or not as the path goes).
+//! timing table (`isa/src/timing.rs`, taken or not as the path goes).
 //!
 //! `cargo run -p tactus-firmware --example wcet_breakdown -- instruments/grand_piano.tactus [--list] [--asm] [--isr]`
 //! (`--list`: the worst path instruction by instruction; `--asm`: the whole object's GNU
@@ -26,9 +26,9 @@ use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::lower::Config;
 use tactus_compiler::thumb;
 use tactus_compiler::thumb::ThumbObject;
-use tactus_emulator::decode::{decode, AluOp, Instr};
-use tactus_emulator::timing;
 use tactus_firmware::budget::{self, LOAD_ADDR};
+use tactus_isa::decode::{decode, AluOp, Instr};
+use tactus_isa::timing;
 
 fn category(i: &Instr) -> &'static str {
     match i {

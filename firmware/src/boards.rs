@@ -192,10 +192,7 @@ pub fn partition(costs: &[u64], cores: usize) -> Vec<usize> {
     }
     if cores > 2 || total > 1 << 22 {
         let mut core = vec![0; costs.len()];
-        for (c, load) in tactus_emulator::schedule::lpt(costs, cores)
-            .iter()
-            .enumerate()
-        {
+        for (c, load) in crate::schedule::lpt(costs, cores).iter().enumerate() {
             for &k in &load.keys {
                 core[k] = c;
             }

@@ -3,7 +3,7 @@
 //!
 //! Per compiled program (an instrument with one set of param overrides):
 //! - [`static_update`]: the static worst case of the Thumb update, from
-//!   [`tactus_emulator::wcet::analyse`] on the `.text` (loaded at [`LOAD_ADDR`], as the
+//!   [`tactus_isa::wcet::analyse`] on the `.text` (loaded at [`LOAD_ADDR`], as the
 //!   runner loads it), plus [`BL_CYCLES`] for the caller's `BL` — the same convention as the
 //!   runner's measured [`crate::runner::Sample::cycles`] (first instruction to return
 //!   inclusive, plus the `BL`), so the two compare directly. The backend's long branches
@@ -26,7 +26,7 @@ use crate::Interface;
 use std::fmt;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::thumb::{ThumbError, ThumbObject};
-use tactus_emulator::wcet::{self, Bounds, Image, WcetError};
+use tactus_isa::wcet::{self, Bounds, Image, WcetError};
 
 /// Where the runner loads the Thumb `.text` (start of SRAM); the static analysis uses the
 /// same addresses.
@@ -170,10 +170,10 @@ fn long_branch_sites(text: &[u8], off: usize, size: usize) -> Vec<usize> {
     let mut at = off;
     while at + 2 <= end {
         let hw1 = half(at);
-        let width = tactus_emulator::decode::size_of(hw1) as usize;
+        let width = tactus_isa::decode::size_of(hw1) as usize;
         if width == 4 {
-            if let tactus_emulator::decode::Instr::Bl { offset } =
-                tactus_emulator::decode::decode(hw1, half(at + 2))
+            if let tactus_isa::decode::Instr::Bl { offset } =
+                tactus_isa::decode::decode(hw1, half(at + 2))
             {
                 let target = at as i64 + 4 + i64::from(offset);
                 if (off as i64..end as i64).contains(&target) {

@@ -427,8 +427,8 @@ pub fn run_elf(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<ElfRun, String> {
     use crate::image::glue::ctrl;
-    use tactus_emulator::timing::EXCEPTION_ENTRY;
     use tactus_emulator::{Config, StopReason};
+    use tactus_isa::timing::EXCEPTION_ENTRY;
     if samples > MAX_RUN_SAMPLES {
         return Err(format!(
             "{samples} samples: at most {MAX_RUN_SAMPLES} (one emulated minute)"

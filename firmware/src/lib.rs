@@ -14,7 +14,9 @@
 //! - [`corpus`]: the stimulus corpus of the budget (presses, repetitions, trills, half
 //!   dips, noise, glitches, random words); [`budget`]: static WCET and measured cycles of
 //!   an update; [`boards`]: a keyboard as a set of boards — the planner and the verdict,
-//!   each board's sample interrupt as its image lays it out (`tactus budget`).
+//!   each board's sample interrupt as its image lays it out (`tactus budget`);
+//!   [`schedule`]: keys to cores by longest processing time first (the planner's fallback
+//!   beyond two cores or very large totals).
 //! - [`play`]: a recorded performance played through an instrument (`tactus play`): the
 //!   players, the one play loop over the one engine trait, the strike rule, the output files;
 //!   [`perform`]: its engine for the firmware of every board on emulated RP2040s.
@@ -31,6 +33,7 @@ pub mod perform;
 pub mod play;
 pub mod report;
 pub mod runner;
+pub mod schedule;
 
 pub mod flash;
 pub mod uf2;

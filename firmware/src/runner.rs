@@ -19,16 +19,16 @@ use crate::layout::Interface;
 use std::fmt;
 use tactus_emulator::board::StopReason;
 use tactus_emulator::bus::sram_location;
-use tactus_emulator::{
-    cycles, Board, CallError, CallResult, Config, EmuError, Instr, CALL_STUB, SENSOR_BASE,
-};
+use tactus_emulator::{Board, CallError, CallResult, Config, EmuError, CALL_STUB, SENSOR_BASE};
+use tactus_isa::decode::Instr;
+use tactus_isa::timing::cycles;
 
 /// The return stub [`Board::call`] writes at [`CALL_STUB`]: `SVC #0xCA; BKPT`.
 const STUB: [u8; 4] = [0xca, 0xdf, 0x00, 0xbe];
 
 /// Cycles a `BL` costs the caller (Cortex-M0+ TRM 3.3), added to every measured call: the
-/// timing table's row ([`tactus_emulator::timing::Class::Bl`]).
-pub const BL_CYCLES: u64 = tactus_emulator::timing::Class::Bl.cost().base as u64;
+/// timing table's row ([`tactus_isa::timing::Class::Bl`]).
+pub const BL_CYCLES: u64 = tactus_isa::timing::Class::Bl.cost().base as u64;
 
 /// Lowest address of SRAM (the runner's data must be at or above it).
 pub const SRAM_BASE: u32 = 0x2000_0000;

@@ -316,7 +316,7 @@ fn a_layout_that_fits_runs_a_second_without_misses_bit_exact_within_its_wcet() {
 /// same with 4535 + 65/441.
 #[test]
 fn the_sample_tick_is_cycle_exact_and_the_same_on_both_cores() {
-    use tactus_emulator::timing::EXCEPTION_ENTRY;
+    use tactus_isa::timing::EXCEPTION_ENTRY;
     let programs = vec![instrument("hammond", &[])];
     let keys: Vec<KeySpec> = (0..2)
         .map(|i| KeySpec {

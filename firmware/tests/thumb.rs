@@ -763,7 +763,7 @@ fn preserves_all_but_clobbers(
 ) -> usize {
     use tactus_compiler::thumb::buffer::{CodeBuffer, LongBranch};
     use tactus_compiler::thumb::ins as asm;
-    use tactus_emulator::decode::Instr;
+    use tactus_isa::decode::Instr;
     // Above every object's code, state and buffers, below the runner's stack.
     const HARNESS: u32 = 0x2003_8000;
     const SAVED: u32 = 0x2003_8800;

@@ -8,7 +8,7 @@
 //! Code is assembled at a known base address ([`CodeBuffer::finish`]): the backend's
 //! relocatable `.text` at 0, the image's glue where the image places it. Every size is
 //! known before encoding, so layout is a fixed point over the branch forms (short until out
-//! of range) and encoding is one pass with [`tactus_emulator::encode::encode`] — the ISA's
+//! of range) and encoding is one pass with [`tactus_isa::encode::encode`] — the ISA's
 //! bit layouts stay in the emulator crate.
 //!
 //! **Relocations.** The backend's code is position independent (PC-relative branches and
@@ -23,8 +23,8 @@
 
 use std::collections::HashMap;
 use std::fmt::{self, Write as _};
-use tactus_emulator::decode::Instr;
-use tactus_emulator::encode::{enc_imm8, encode};
+use tactus_isa::decode::Instr;
+use tactus_isa::encode::{enc_imm8, encode};
 
 /// A label: an index into the buffer's label table ([`Assembled::labels`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -633,7 +633,7 @@ pub struct Assembled {
 mod tests {
     use super::super::ins::{cond, movs};
     use super::*;
-    use tactus_emulator::decode;
+    use tactus_isa::decode::decode;
 
     fn dec(bytes: &[u8], off: usize) -> Instr {
         let h = |o: usize| u16::from_le_bytes([bytes[o], bytes[o + 1]]);

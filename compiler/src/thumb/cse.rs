@@ -17,7 +17,7 @@
 use super::literals::flags_dead_after;
 use super::mir::*;
 use std::collections::HashMap;
-use tactus_emulator::decode::AluOp;
+use tactus_isa::decode::AluOp;
 
 /// Instructions between a computation and a reuse of its register.
 pub(crate) const WINDOW: usize = 24;
@@ -187,13 +187,13 @@ mod tests {
             ]
         };
         let store = |t| M::Store {
-            op: tactus_emulator::decode::MemOp::Str,
+            op: tactus_isa::decode::MemOp::Str,
             t,
             base: Base::State,
             off: 0,
         };
         let load_x = M::Load {
-            op: tactus_emulator::decode::MemOp::Ldr,
+            op: tactus_isa::decode::MemOp::Ldr,
             t: x,
             base: Base::State,
             off: 4,

@@ -14,7 +14,7 @@
 //! quotient is not free of effects).
 
 use super::mir::*;
-use tactus_emulator::decode::AluOp;
+use tactus_isa::decode::AluOp;
 
 /// Flag bits.
 const FN: u8 = 1;
@@ -217,7 +217,7 @@ mod tests {
             M::Bc(Cond::Lt, Label(0)),
             M::Label(Label(0)),
             M::Store {
-                op: tactus_emulator::decode::MemOp::Str,
+                op: tactus_isa::decode::MemOp::Str,
                 t: v(4),
                 base: Base::State,
                 off: 0,

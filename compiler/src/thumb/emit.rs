@@ -9,7 +9,7 @@ use super::regalloc::{Allocation, Loc, Remat};
 use super::select::{ARG2, STATE_V};
 use super::ThumbError;
 use std::collections::HashMap;
-use tactus_emulator::decode::{AluOp, Instr, MemOp};
+use tactus_isa::decode::{AluOp, Instr, MemOp};
 
 /// Machine code of an object: bytes, symbols, the listing.
 #[derive(Clone, Debug)]

@@ -21,7 +21,7 @@
 use super::mir::*;
 use super::select::ARG2;
 use std::collections::HashMap;
-use tactus_emulator::decode::MemOp;
+use tactus_isa::decode::MemOp;
 
 /// A state access: its kind and byte offset.
 type Key = (MemOp, u16);

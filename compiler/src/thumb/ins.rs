@@ -3,7 +3,7 @@
 //! noted, and the branch condition codes. Emit them into a
 //! [`CodeBuffer`](super::buffer::CodeBuffer).
 
-use tactus_emulator::decode::{AluOp, Instr, MemOp};
+use tactus_isa::decode::{AluOp, Instr, MemOp};
 
 /// Branch conditions (ARMv6-M A6.3).
 pub mod cond {

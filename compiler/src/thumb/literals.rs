@@ -84,7 +84,7 @@ fn derived(avail: &HashMap<i32, (V, usize)>, d: V, imm: i32, j: usize, code: &[M
     for (&c, &(r, i)) in near {
         let m = if c != i32::MIN && imm == c.wrapping_neg() {
             M::Unary {
-                op: tactus_emulator::decode::AluOp::Rsb,
+                op: tactus_isa::decode::AluOp::Rsb,
                 d,
                 m: r,
             }
@@ -113,7 +113,7 @@ fn derived(avail: &HashMap<i32, (V, usize)>, d: V, imm: i32, j: usize, code: &[M
 /// anything reads them (a conditional branch, `ADCS`/`SBCS`), along the fall-through; an
 /// unconditional branch or the end ends the search (conservatively: read).
 pub(crate) fn flags_dead_after(code: &[M], j: usize) -> bool {
-    use tactus_emulator::decode::AluOp;
+    use tactus_isa::decode::AluOp;
     for m in &code[j + 1..] {
         match m {
             M::Bc(..) | M::B(_) => return false,
@@ -156,7 +156,7 @@ mod tests {
         assert_eq!(
             code[2],
             M::Unary {
-                op: tactus_emulator::decode::AluOp::Rsb,
+                op: tactus_isa::decode::AluOp::Rsb,
                 d: b,
                 m: a
             }

@@ -9,7 +9,7 @@
 //! a register may be defined again later in that interval (the arms of a diamond).
 
 use std::collections::HashMap;
-use tactus_emulator::decode::{AluOp, MemOp};
+use tactus_isa::decode::{AluOp, MemOp};
 
 /// A virtual register (32-bit word).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

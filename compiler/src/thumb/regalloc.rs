@@ -16,7 +16,7 @@
 
 use super::mir::*;
 use super::select::{ARG1, ARG2, STATE_V};
-use tactus_emulator::decode::MemOp;
+use tactus_isa::decode::MemOp;
 
 /// Where a virtual register lives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -32,8 +32,8 @@ use tactus_compiler::thumb::ins::{self as asm, cond};
 use tactus_emulator::clocks::{
     self, reg, CLOCKS_BASE, PLL_SYS_BASE, RESETS_BASE, WATCHDOG_BASE, XOSC_BASE,
 };
-use tactus_emulator::decode::{Hint, Instr};
 use tactus_emulator::sio::{reg as sio, SIO_BASE};
+use tactus_isa::decode::{Hint, Instr};
 
 /// Where the boot ROM enters a RAM image: its lowest address (the entry stub's).
 pub const ENTRY: u32 = 0x2000_0000;
@@ -109,7 +109,7 @@ fn wait(a: &mut CodeBuffer, addr: u32, mask: u32, want: u32) {
     a.mov_const(2, mask);
     a.bind(top);
     a.i(asm::ldr(1, 0, 0));
-    a.i(asm::alu(tactus_emulator::decode::AluOp::And, 1, 2));
+    a.i(asm::alu(tactus_isa::decode::AluOp::And, 1, 2));
     if want == 0 {
         a.bc(cond::NE, top);
     } else {

@@ -19,8 +19,8 @@
 use super::ImageError;
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label};
 use tactus_compiler::thumb::ins::{self as asm, cond};
-use tactus_emulator::decode::{AluOp, Hint, Instr};
 use tactus_emulator::timer::{reg, TIMER_BASE};
+use tactus_isa::decode::{AluOp, Hint, Instr};
 use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
 /// Byte offsets in a core's control block (words in the core's own SRAM bank).
@@ -806,7 +806,7 @@ pub fn core_code(
             } else {
                 a.mov_const(1, 4 * i as u32);
                 a.i(Instr::MemReg {
-                    op: tactus_emulator::decode::MemOp::Str,
+                    op: tactus_isa::decode::MemOp::Str,
                     rt: 0,
                     rn: 4,
                     rm: 1,

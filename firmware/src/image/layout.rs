@@ -21,8 +21,8 @@ use super::{
 use std::collections::BTreeMap;
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label, LongBranch};
 use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE};
-use tactus_emulator::wcet::{self, Bounds};
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
+use tactus_isa::wcet::{self, Bounds};
 use tactus_runtime::keyboard::Board as BoardSpec;
 use tactus_runtime::limiter::{DacScale, LimiterConstants};
 

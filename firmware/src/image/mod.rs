@@ -233,7 +233,7 @@ impl Program {
     }
 
     /// Static WCET (cycles, first instruction to return) of the program's update, as
-    /// [`tactus_emulator::wcet::analyse`] prices it (the code is position independent, so anywhere).
+    /// [`tactus_isa::wcet::analyse`] prices it (the code is position independent, so anywhere).
     pub fn update_wcet(&self) -> Result<u64, ImageError> {
         self.static_cost()
             .map(|c| c.cycles - crate::runner::BL_CYCLES)
@@ -641,7 +641,7 @@ pub fn guard_record_routine(words: &[u32], base: u32) -> Result<(Vec<u8>, u32), 
 /// exception being taken to its return completing.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct IsrWcet {
-    /// [`tactus_emulator::wcet::analyse_isr`] of the handler with every key's update and limiter call
+    /// [`tactus_isa::wcet::analyse_isr`] of the handler with every key's update and limiter call
     /// (no bank contention).
     pub analysed: u64,
     /// Bank-contention allowance: one wait cycle per sensor-window or DAC-window access of

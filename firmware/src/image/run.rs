@@ -18,8 +18,8 @@ use super::glue::ctrl;
 use super::layout::START_CYCLES;
 use super::{FirmwareImage, ImageError, STACK_CANARY};
 use tactus_compiler::ir::{Axis, EventId};
-use tactus_emulator::timing::EXCEPTION_ENTRY;
 use tactus_emulator::{Board, Config, StopReason, DAC_BASE, SENSOR_BASE};
+use tactus_isa::timing::EXCEPTION_ENTRY;
 use tactus_runtime::keyboard::cycle_at_us;
 use tactus_runtime::limiter::{Limiter, LimiterConstants};
 

@@ -4,9 +4,9 @@
 use super::*;
 
 /// Cycles between the SIO divider's operand write and a valid result read
-/// (`emulator/src/timing.rs`, the one table).
+/// (`isa/src/timing.rs`, the one table).
 pub(super) fn timing_divider_latency() -> u32 {
-    tactus_emulator::timing::DIVIDER_LATENCY
+    tactus_isa::timing::DIVIDER_LATENCY
 }
 
 impl<'a> Sel<'a> {

@@ -53,7 +53,7 @@ use crate::ir::*;
 use compare::fused_conditions;
 use products::Operand;
 use std::cmp::Ordering;
-use tactus_emulator::decode::{AluOp, MemOp};
+use tactus_isa::decode::{AluOp, MemOp};
 use tactus_runtime::differentiator::WINDOW;
 
 const LIM: u64 = 1 << 31;

@@ -1,8 +1,8 @@
 //! The encoder against the decoder on every 16-bit halfword and a spread of 32-bit ones, and
 //! against `arm-none-eabi-as` on a table of (instruction, hex, asm) rows.
 
-use tactus_emulator::decode::{decode, is_32bit, Instr};
-use tactus_emulator::encode::{encode, Encoding};
+use tactus_isa::decode::{decode, is_32bit, Instr};
+use tactus_isa::encode::{encode, Encoding};
 
 fn halves(e: Encoding) -> (u16, u16) {
     match e {

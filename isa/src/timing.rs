@@ -6,7 +6,7 @@
 //! Cortex-M0+ Technical Reference Manual, DDI0484C, section 3.3 "Instruction set summary",
 //! table 3-1), each variant's doc comment citing its row, and [`Class::cost`] is the table
 //! itself. All figures assume zero wait states (code and data in SRAM, RP2040 datasheet 2.6);
-//! the bus adds wait states on top (APB peripherals, bank contention), see [`crate::bus`].
+//! the bus adds wait states on top (APB peripherals, bank contention), see the emulator's `bus` module (`tactus_emulator::bus`).
 //!
 //! **POP {…, PC}.** Table 3-1 lists "`POP {<loreglist>, pc}`: 3+N". We read N as the number of
 //! registers in `<loreglist>`, *excluding* PC: the syntax column names PC separately from the
@@ -84,6 +84,7 @@ pub struct Cost {
 
 impl Class {
     /// The timing table (DDI0484C table 3-1, zero wait states): one row per class.
+    #[inline]
     pub const fn cost(self) -> Cost {
         const fn row(base: u32, per_register: u32, taken: u32, io_port: u32) -> Cost {
             Cost {
@@ -158,6 +159,7 @@ pub const APB_STORE_WAIT: u32 = 2;
 pub const DIVIDER_LATENCY: u32 = 8;
 
 /// The class of an instruction (its row in the table).
+#[inline]
 pub fn class(instr: &Instr) -> Class {
     use Instr::*;
     match *instr {
@@ -194,6 +196,7 @@ pub fn class(instr: &Instr) -> Class {
 /// Number of registers an instruction transfers in the sense of table 3-1's "N": the list
 /// size for LDM/STM/PUSH/POP (LR counted for PUSH, PC *not* counted for POP, see the module
 /// documentation), 0 otherwise.
+#[inline]
 pub fn registers(instr: &Instr) -> u32 {
     match *instr {
         Instr::Push { list } => list.count_ones(),
@@ -207,6 +210,7 @@ pub fn registers(instr: &Instr) -> u32 {
 /// branch is taken (ignored otherwise), `io_port` whether a single load/store addresses the
 /// single-cycle I/O port. Wait states from the bus (APB, bank contention) and exception
 /// entry/return come on top. This is the function the static WCET analysis uses.
+#[inline]
 pub fn cycles(instr: &Instr, taken: bool, io_port: bool) -> u32 {
     let class = class(instr);
     let cost = class.cost();

@@ -230,6 +230,7 @@ pub enum Instr {
 
 /// True when `hw1` is the first halfword of a 32-bit Thumb instruction (DDI0419 A5.1: bits
 /// 15:11 are 0b11101, 0b11110 or 0b11111).
+#[inline]
 pub const fn is_32bit(hw1: u16) -> bool {
     (hw1 >> 11) >= 0b11101
 }
@@ -250,6 +251,7 @@ fn sign_extend(value: u32, bits: u32) -> i32 {
 
 /// Decodes one instruction from its first halfword `hw1` and, for 32-bit encodings, the
 /// following halfword `hw2` (ignored for 16-bit encodings). Pure: needs no machine state.
+#[inline]
 pub fn decode(hw1: u16, hw2: u16) -> Instr {
     use Instr::*;
     let h = hw1 as u32;

@@ -1,6 +1,6 @@
 //! Key-to-core assignment: longest processing time first (LPT).
 //!
-//! Given each key's worst-case cycles per sample (e.g. from [`crate::wcet::analyse`]) and a
+//! Given each key's worst-case cycles per sample (e.g. from [`tactus_isa::wcet::analyse`]) and a
 //! number of cores, [`lpt`] sorts the keys by decreasing cost and gives each, in turn, to the
 //! core with the smallest total so far. The largest core total (the makespan) is at most
 //! 4/3 − 1/(3m) times the optimum for m cores (R. L. Graham, "Bounds on multiprocessing

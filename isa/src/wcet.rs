@@ -324,7 +324,7 @@ pub struct Wcet {
 }
 
 /// The WCET of the function at `entry` (Thumb bit ignored) in `code`, in cycles from its
-/// first instruction to its return inclusive — the figure [`crate::Board::call`] measures.
+/// first instruction to its return inclusive — the figure the emulator's `Board::call` measures.
 pub fn analyse(code: &dyn Code, entry: u32, bounds: &Bounds) -> Result<Wcet, WcetError> {
     let mut cx = Cx {
         code,
