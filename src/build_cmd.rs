@@ -20,7 +20,8 @@ use crate::source;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use tactus_compiler::cgen::{self, CConfig};
+use tactus_compiler::abi::CConfig;
+use tactus_compiler::cgen;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::thumb;
 use tactus_firmware::flash::{self, KeyboardInput};
@@ -171,13 +172,13 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
         write(path, text.as_bytes())?;
     }
     println!(
-        "{}: wrote {} and {} ({} + {} lines; call tactus_{}_update once per sample)",
+        "{}: wrote {} and {} ({} + {} lines; call {} once per sample)",
         src.name,
         h.display(),
         s.display(),
         c.header.lines().count(),
         c.source.lines().count(),
-        c.stem
+        tactus_compiler::abi::update_symbol(&c.stem)
     );
     Ok(())
 }

@@ -107,12 +107,12 @@ pub fn run(args: CheckArgs) -> ExitCode {
         let fp = tactus_compiler::fixed::FixedProgram::new(p);
         crate::source::report(&src, &fp.warnings);
         let pr = tactus_compiler::fixed::report::analyse(&fp);
-        print!("{}", tactus_compiler::fixed::report::render(&fp, &pr));
+        print!("{}", tactus_compiler::fixed::render::render(&fp, &pr));
         let runs = tactus_compiler::fixed::contract::check_builtin(p, &fp);
         if !runs.is_empty() {
             print!(
                 "{}",
-                tactus_compiler::fixed::report::render_margins(p, &runs)
+                tactus_compiler::fixed::render::render_margins(p, &runs)
             );
         }
     }

@@ -142,7 +142,7 @@ pub enum Decl {
         name: Name,
         index: Option<Expr>,
         value: Expr,
-        axis: Option<crate::ir::Axis>,
+        axis: Option<Axis>,
     },
     /// `force NAME = { x: EXPR, z: EXPR, … }`: a vector force term of a pen instrument, in
     /// newtons per component; components are `x`, `y`, `z`, each at most once, and a
@@ -317,4 +317,49 @@ pub enum ExprKind {
         /// The term, read once per index.
         body: Box<Expr>,
     },
+}
+
+/// An axis of a pen instrument's 3-DoF contact point (the pen of Onofrei, Fontana & Serafin
+/// 2023). `Z` is the depth into the surface (positive into the plane; a force on `z` is
+/// positive pushing the pen out of it, like a keyboard's force pushing the key up), `X` the
+/// stroke axis (rubbing, bowing, plucking), `Y` across it. Forces on `X` and `Y` are in
+/// newtons along the positive axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Axis {
+    /// The stroke axis.
+    X,
+    /// Across the stroke.
+    Y,
+    /// Depth into the surface (the normal axis).
+    Z,
+}
+
+impl Axis {
+    /// The three axes in the order `x, y, z`.
+    pub const ALL: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
+
+    /// The component name as written in the source: `"x"`, `"y"` or `"z"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Axis::X => "x",
+            Axis::Y => "y",
+            Axis::Z => "z",
+        }
+    }
+
+    /// The axis a component name denotes, or `None` for anything but `x`, `y`, `z`.
+    pub fn from_name(name: &str) -> Option<Axis> {
+        match name {
+            "x" => Some(Axis::X),
+            "y" => Some(Axis::Y),
+            "z" => Some(Axis::Z),
+            _ => None,
+        }
+    }
+}
+
+impl std::fmt::Display for Axis {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
 }

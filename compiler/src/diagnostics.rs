@@ -160,3 +160,30 @@ pub fn emit_to_string(file_name: &str, source: &str, diagnostics: &[Diagnostic])
     let _ = emit(&mut buf, file_name, source, diagnostics);
     String::from_utf8_lossy(&buf.into_inner()).into_owned()
 }
+
+/// The candidate closest to `name` by edit distance, if it is close enough to be a typo.
+pub fn closest<'s>(name: &str, candidates: impl Iterator<Item = &'s str>) -> Option<&'s str> {
+    candidates
+        .map(|c| (levenshtein(name, c), c))
+        .filter(|&(d, c)| d <= (name.len().max(c.len()) / 3).max(1))
+        .min()
+        .map(|(_, c)| c)
+}
+
+/// Edit distance (Levenshtein) between `a` and `b`, in characters.
+fn levenshtein(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut cur = vec![i + 1];
+        for (j, &cb) in b.iter().enumerate() {
+            cur.push(
+                (prev[j] + usize::from(ca != cb))
+                    .min(prev[j + 1] + 1)
+                    .min(cur[j] + 1),
+            );
+        }
+        prev = cur;
+    }
+    prev[b.len()]
+}

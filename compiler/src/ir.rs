@@ -166,50 +166,8 @@ pub struct NamedDecl {
     pub axis: Option<Axis>,
 }
 
-/// An axis of a pen instrument's 3-DoF contact point (the pen of Onofrei, Fontana & Serafin
-/// 2023). `Z` is the depth into the surface (positive into the plane; a force on `z` is
-/// positive pushing the pen out of it, like a keyboard's force pushing the key up), `X` the
-/// stroke axis (rubbing, bowing, plucking), `Y` across it. Forces on `X` and `Y` are in
-/// newtons along the positive axis.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Axis {
-    /// The stroke axis.
-    X,
-    /// Across the stroke.
-    Y,
-    /// Depth into the surface (the normal axis).
-    Z,
-}
-
-impl Axis {
-    /// The three axes in the order `x, y, z`.
-    pub const ALL: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
-
-    /// The component name as written in the source: `"x"`, `"y"` or `"z"`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Axis::X => "x",
-            Axis::Y => "y",
-            Axis::Z => "z",
-        }
-    }
-
-    /// The axis a component name denotes, or `None` for anything but `x`, `y`, `z`.
-    pub fn from_name(name: &str) -> Option<Axis> {
-        match name {
-            "x" => Some(Axis::X),
-            "y" => Some(Axis::Y),
-            "z" => Some(Axis::Z),
-            _ => None,
-        }
-    }
-}
-
-impl fmt::Display for Axis {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
+/// The axes of a pen instrument, as the AST has them (one definition, [`crate::ast::Axis`]).
+pub use crate::ast::Axis;
 
 /// Where the total of one axis of a pen instrument's commanded force is published.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -364,6 +322,31 @@ pub enum Stmt {
     Total(Value),
 }
 
+impl Op {
+    /// The values this operation reads, in operand order: none for a leaf (a constant, a
+    /// param, a sensor, a derivative, a state, a mode or an edge read). With
+    /// [`Stmt::reads`], the one answer to "what does this read" for every pass.
+    pub fn operands(&self) -> Vec<Value> {
+        match self {
+            Op::Neg(x) | Op::Not(x) => vec![*x],
+            Op::Arith(_, x, y) | Op::Cmp(_, x, y) | Op::And(x, y) | Op::Or(x, y) => {
+                vec![*x, *y]
+            }
+            Op::Select(c, x, y) => vec![*c, *x, *y],
+            Op::Call(_, x, y) => std::iter::once(*x).chain(*y).collect(),
+            Op::Const(_)
+            | Op::BoolConst(_)
+            | Op::Variant(..)
+            | Op::Param(_)
+            | Op::Sensor(_)
+            | Op::Deriv(..)
+            | Op::State(_)
+            | Op::Mode(_)
+            | Op::Edge(_) => vec![],
+        }
+    }
+}
+
 impl Stmt {
     /// The values this statement itself reads: the value it writes or publishes, an event's
     /// arguments, an `if`'s condition (not the statements of its body). A `Def` reads
@@ -380,6 +363,27 @@ impl Stmt {
             Stmt::Emit(_, args) => args,
         }
     }
+}
+
+/// Which values the body of `p` needs (read by a statement, or transitively by the
+/// operands of one), and the event of every `emit` statement in program order.
+pub fn live_values(p: &Program) -> (Vec<bool>, Vec<EventId>) {
+    let mut used = vec![false; p.values.len()];
+    let mut work = Vec::new();
+    let mut sites = Vec::new();
+    walk_stmts(&p.body, &mut |s| {
+        work.extend_from_slice(s.reads());
+        if let Stmt::Emit(e, _) = s {
+            sites.push(*e);
+        }
+    });
+    while let Some(v) = work.pop() {
+        if std::mem::replace(&mut used[v.index()], true) {
+            continue;
+        }
+        work.extend(p.values[v.index()].op.operands());
+    }
+    (used, sites)
 }
 
 /// Calls `f` on every statement of `stmts` in body order, each `if`'s body right after

@@ -39,6 +39,7 @@ pub fn compile(source: &str, config: &lower::Config) -> Result<lower::Lowered, V
     let file = parse::parse(source).map_err(|d| vec![*d])?;
     lower::lower(&file, config)
 }
+pub mod abi;
 pub mod cgen;
 pub mod fixed;
 pub mod thumb;

@@ -210,7 +210,7 @@ fn referenced(p: &Program) -> Vec<bool> {
     let mut r = vec![false; p.values.len()];
     let defined = defined_values(&p.body, p.values.len());
     for (vd, _) in p.values.iter().zip(&defined).filter(|(_, d)| **d) {
-        for x in crate::cgen::operands(&vd.op) {
+        for x in vd.op.operands() {
             r[x.index()] = true;
         }
     }

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 use tactus_compiler::fixed::contract::{self, Contract, ContractCheck};
-use tactus_compiler::fixed::{report, FixedProgram, PlanConfig};
+use tactus_compiler::fixed::{render, report, FixedProgram, PlanConfig};
 use tactus_compiler::ir::Program;
 use tactus_compiler::lower::Config;
 use tactus_runtime::stimulus;
@@ -307,7 +307,7 @@ fn tolerance_lines_state_the_contract() {
     }
     print!(
         "{}",
-        tactus_compiler::fixed::report::render_margins(&p, &runs)
+        tactus_compiler::fixed::render::render_margins(&p, &runs)
     );
     // A bound far below what fixed point can do breaks: the clause is enforced.
     let strict = with.replace(
@@ -751,7 +751,7 @@ fn the_retimed_reference_excuses_a_late_switch_but_not_an_arithmetic_error() {
         "the recorded reading (a time shift) must break here, or the test shows nothing"
     );
     // `--report precision` says which reading the run held by.
-    let margins = report::render_margins(&p, &[("late contact", r.clone())]);
+    let margins = render::render_margins(&p, &[("late contact", r.clone())]);
     print!("{margins}");
     assert!(
         margins.contains("0 run(s) against the recorded f64 run; 1 against the f64 run re-timed to the fixed run's switches (late contact)"),

@@ -75,7 +75,7 @@ fn the_plan_gives_a_narrowed_state_its_hulls_format() {
     assert!(declared.narrowed.iter().all(|n| n.is_none()));
     let x = p.states.iter().position(|s| s.name == "x").unwrap();
     assert_eq!(narrowed.narrowed[x], None);
-    let report = tactus_compiler::fixed::report::render(
+    let report = tactus_compiler::fixed::render::render(
         &narrowed,
         &tactus_compiler::fixed::report::analyse(&narrowed),
     );

@@ -301,8 +301,8 @@ pub fn build(c: &CSource, compiler: Compiler, opts: &Options) -> Result<Build, C
     }
     let script = dir.join("sram.ld");
     write(&script, &linker_script())?;
-    let init = format!("tactus_{}_init", c.stem);
-    let update = format!("tactus_{}_update", c.stem);
+    let init = tactus_compiler::abi::init_symbol(&c.stem);
+    let update = tactus_compiler::abi::update_symbol(&c.stem);
     let link = |out: &Path, keep: &[&str]| -> Result<Vec<u8>, CcError> {
         let mut cmd = Command::new("arm-none-eabi-ld");
         cmd.arg("-T")

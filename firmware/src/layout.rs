@@ -16,14 +16,14 @@
 //! void tactus_<stem>_update(struct tactus_<stem>_state *s, const int32_t *sensors, int32_t *out);
 //! ```
 //!
-//! The byte offsets of that struct are [`StateLayout`], defined once in the C backend
-//! (`tactus_compiler::cgen::StateLayout`, re-exported here; the test
+//! The byte offsets of that struct are [`StateLayout`], defined once in the compiler's ABI
+//! (`tactus_compiler::abi::StateLayout`, re-exported here; the test
 //! `state_layout_matches_the_compilers` checks it against clang's and gcc's `offsetof`);
 //! [`Interface`] adds what a caller needs beyond it: the function names and the numbers of
 //! sensor words, out words, states and modes.
 
-use tactus_compiler::cgen::OutLayout;
-pub use tactus_compiler::cgen::StateLayout;
+use tactus_compiler::abi::OutLayout;
+pub use tactus_compiler::abi::StateLayout;
 use tactus_compiler::fixed::FixedProgram;
 
 /// What a caller of `tactus_<stem>_init`/`_update` must know: the C identifier stem, how
@@ -49,7 +49,7 @@ pub struct Interface {
 
 impl Interface {
     /// The interface of a fixed-point program whose `out` array has layout `out` and whose
-    /// identifier stem is `stem` (both as `cgen::emit_c` reports them).
+    /// identifier stem is `stem` (both as `tactus_compiler::abi::Interface` gives them).
     pub fn new(fp: &FixedProgram, stem: &str, out: &OutLayout) -> Self {
         let p = &fp.program;
         Interface {
@@ -65,11 +65,11 @@ impl Interface {
 
     /// `tactus_<stem>_init`.
     pub fn init_symbol(&self) -> String {
-        format!("tactus_{}_init", self.stem)
+        tactus_compiler::abi::init_symbol(&self.stem)
     }
 
     /// `tactus_<stem>_update`.
     pub fn update_symbol(&self) -> String {
-        format!("tactus_{}_update", self.stem)
+        tactus_compiler::abi::update_symbol(&self.stem)
     }
 }

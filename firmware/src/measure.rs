@@ -5,7 +5,7 @@
 
 use crate::runner::{RunError, UpdateRunner};
 use std::fmt::Write as _;
-use tactus_compiler::cgen::OutLayout;
+use tactus_compiler::abi::OutLayout;
 use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_runtime::rng::XorShift64;

@@ -30,7 +30,7 @@ pub fn fold_constant_chains(p: &Program) -> Program {
     let mut q = p.clone();
     let mut uses = vec![0u32; q.values.len()];
     for vd in &q.values {
-        for x in crate::cgen::operands(&vd.op) {
+        for x in vd.op.operands() {
             uses[x.index()] += 1;
         }
     }

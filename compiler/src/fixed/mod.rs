@@ -12,13 +12,15 @@
 //!
 //! The modules, one job each: [`program`] (the program type), [`products`] and [`division`]
 //! (the forms of products and run-time divisions and their errors), [`cost`] (their cycles,
-//! from the timing table), [`plan`] (the planner and its precision budget), [`search`] (the
-//! planner's search by simulating the contract) with its [`stimuli`], [`params`] (param
-//! blocks); before the plan, the program transformations [`recip`], [`chains`], [`common`];
-//! the analyses [`range`], [`flow`], [`report`] (error bounds) and [`contract`]; the fixed
-//! interpreter [`interp`]; [`plan_cache`] keeps searched plans. Every item is also reachable
-//! as `fixed::NAME`.
+//! from the timing table), [`plan`] (the planner) and [`budget`] (its precision budget),
+//! [`search`] (the planner's search by simulating the contract) with its [`stimuli`],
+//! [`params`] (param blocks); before the plan, the program transformations [`recip`],
+//! [`chains`], [`common`]; the analyses [`range`], [`flow`], [`report`] (error bounds) and
+//! [`contract`], and [`render`] (the precision report as text); the fixed interpreter
+//! [`interp`]; [`plan_cache`] keeps searched plans. Every item is also reachable as
+//! `fixed::NAME`.
 
+pub mod budget;
 pub mod chains;
 pub mod common;
 pub mod contract;
@@ -33,11 +35,13 @@ pub mod products;
 pub mod program;
 pub mod range;
 pub mod recip;
+pub mod render;
 pub mod report;
 pub mod search;
 pub mod stimuli;
 mod workers;
 
+pub use budget::*;
 pub use cost::*;
 pub use division::*;
 pub use params::*;

@@ -4,17 +4,6 @@
 
 use super::*;
 
-/// The format of one word of a key's param block.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ParamWord {
-    /// The run-time param it holds.
-    pub param: ParamId,
-    /// Fraction bits.
-    pub frac: i32,
-    /// Raw bounds: the words of the param's interval ends in this format.
-    pub raw_range: (i32, i32),
-}
-
 /// Why a param block could not be made.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ParamBlockError {

@@ -75,6 +75,17 @@ pub struct FixedProgram {
     pub narrowed: Vec<Option<(f64, f64)>>,
 }
 
+/// The format of one word of a key's param block.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ParamWord {
+    /// The run-time param it holds.
+    pub param: ParamId,
+    /// Fraction bits.
+    pub frac: i32,
+    /// Raw bounds: the words of the param's interval ends in this format.
+    pub raw_range: (i32, i32),
+}
+
 /// Formats of what the body publishes.
 pub(super) struct Published {
     pub(super) force: Vec<i32>,

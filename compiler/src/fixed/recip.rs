@@ -435,7 +435,7 @@ fn scaled_readers(p: &Program, defined: &[bool]) -> Vec<Option<(usize, f64)>> {
         if !defined[j] {
             continue;
         }
-        for x in crate::cgen::operands(&vd.op) {
+        for x in vd.op.operands() {
             uses[x.index()] += 1;
             reader[x.index()] = j;
         }
@@ -457,7 +457,7 @@ fn scaled_readers(p: &Program, defined: &[bool]) -> Vec<Option<(usize, f64)>> {
 
 /// Which values something the body does (a write, a condition, a publication) needs.
 fn live_values(p: &Program) -> Vec<bool> {
-    crate::cgen::live_values(p).0
+    crate::ir::live_values(p).0
 }
 
 /// `stmts` without the statements `drop` picks, in `if` bodies too.

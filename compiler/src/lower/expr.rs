@@ -15,58 +15,17 @@
 //! the commonest modelling slip — and the error says which unit to write.
 
 use super::scope::Sym;
-use super::{Lowerer, Memo, ScopeId};
+use super::{Lowerer, Memo, ScopeId, BUILTINS};
 use crate::ast::{self, BinOp, ExprKind, Span};
+use crate::diagnostics::closest;
 use crate::diagnostics::Diagnostic;
 use crate::ir::*;
 use crate::units::Dim;
-
-const BUILTINS: &[(&str, &str)] = &[
-    ("abs", "abs(x)"),
-    ("sqrt", "sqrt(x)"),
-    ("exp", "exp(x)"),
-    ("min", "min(a, b)"),
-    ("max", "max(a, b)"),
-    ("clamp", "clamp(x, lo, hi)"),
-    ("d", "d(sensor)"),
-    ("d2", "d2(sensor)"),
-];
 
 /// The built-in constant `sample_rate`: the board's sample rate in Hz, the rate the dynamics
 /// are integrated at (so `1 / sample_rate` is the time step of stability conditions). A name
 /// declared in the instrument or component takes precedence.
 pub const SAMPLE_RATE: &str = "sample_rate";
-
-/// Whether `name` is a built-in function.
-pub fn is_builtin(name: &str) -> bool {
-    BUILTINS.iter().any(|(n, _)| *n == name)
-}
-
-/// The candidate closest to `name` by edit distance, if it is close enough to be a typo.
-pub fn closest<'s>(name: &str, candidates: impl Iterator<Item = &'s str>) -> Option<&'s str> {
-    candidates
-        .map(|c| (levenshtein(name, c), c))
-        .filter(|&(d, c)| d <= (name.len().max(c.len()) / 3).max(1))
-        .min()
-        .map(|(_, c)| c)
-}
-
-fn levenshtein(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut prev: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut cur = vec![i + 1];
-        for (j, &cb) in b.iter().enumerate() {
-            cur.push(
-                (prev[j] + usize::from(ca != cb))
-                    .min(prev[j + 1] + 1)
-                    .min(cur[j] + 1),
-            );
-        }
-        prev = cur;
-    }
-    prev[b.len()]
-}
 
 impl<'a> Lowerer<'a> {
     /// Lowers an expression into the current block; `None` after reporting an error.

@@ -27,7 +27,7 @@ fn walk(p: &mut Program, stmts: &[Stmt], konst: &mut [Option<f64>]) {
                     Op::Const(c) => Some(c),
                     Op::Param(id) => Some(p.params[id.index()].value),
                     Op::Neg(_) | Op::Arith(..) | Op::Call(..) | Op::Select(..) => {
-                        let operands = operands(&op);
+                        let operands = op.operands();
                         if operands.iter().all(|o| konst[o.index()].is_some())
                             && matches!(p.values[i].ty, Ty::Real(_))
                         {
@@ -49,15 +49,5 @@ fn walk(p: &mut Program, stmts: &[Stmt], konst: &mut [Option<f64>]) {
             Stmt::If(_, body) => walk(p, body, konst),
             _ => {}
         }
-    }
-}
-
-fn operands(op: &Op) -> Vec<Value> {
-    match *op {
-        Op::Neg(x) => vec![x],
-        Op::Arith(_, x, y) => vec![x, y],
-        Op::Select(c, x, y) => vec![c, x, y],
-        Op::Call(_, x, y) => std::iter::once(x).chain(y).collect(),
-        _ => vec![],
     }
 }

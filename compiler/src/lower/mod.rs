@@ -28,6 +28,23 @@ use std::collections::{HashMap, HashSet};
 pub use scope::ScopeId;
 use scope::{DefKind, Scope, Sym};
 
+/// The built-in functions: name and the signature shown in errors.
+pub(crate) const BUILTINS: &[(&str, &str)] = &[
+    ("abs", "abs(x)"),
+    ("sqrt", "sqrt(x)"),
+    ("exp", "exp(x)"),
+    ("min", "min(a, b)"),
+    ("max", "max(a, b)"),
+    ("clamp", "clamp(x, lo, hi)"),
+    ("d", "d(sensor)"),
+    ("d2", "d2(sensor)"),
+];
+
+/// Whether `name` is a built-in function.
+pub fn is_builtin(name: &str) -> bool {
+    BUILTINS.iter().any(|(n, _)| *n == name)
+}
+
 /// What lowering needs besides the source.
 #[derive(Clone, Debug)]
 pub struct Config {

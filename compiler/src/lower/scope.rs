@@ -115,7 +115,7 @@ impl<'a> Lowerer<'a> {
             );
             return;
         }
-        if crate::lower::expr::is_builtin(&name.node) {
+        if crate::lower::is_builtin(&name.node) {
             self.err(
                 Diagnostic::error(
                     "E0106",
@@ -354,7 +354,7 @@ impl<'a> Lowerer<'a> {
                 } => {
                     let Some(&comp) = self.components.get(component.node.as_str()) else {
                         let known: Vec<&str> = self.components.keys().copied().collect();
-                        let hint = match crate::lower::expr::closest(
+                        let hint = match crate::diagnostics::closest(
                             &component.node,
                             known.iter().copied(),
                         ) {
@@ -515,7 +515,7 @@ impl<'a> Lowerer<'a> {
             name.span.clone(),
         )
         .label("not defined here");
-        if let Some(c) = crate::lower::expr::closest(&name.node, names.iter().map(|s| s.as_str())) {
+        if let Some(c) = crate::diagnostics::closest(&name.node, names.iter().map(|s| s.as_str())) {
             d = d.hint(format!("did you mean `{c}`?"));
         } else if units::lookup(&name.node).is_some() {
             d = d.hint(format!(
@@ -534,7 +534,7 @@ impl<'a> Lowerer<'a> {
         for (name, text) in &self.config.overrides {
             let Some(pid) = self.prog.params.iter().position(|p| p.name == *name) else {
                 let known: Vec<&str> = self.prog.params.iter().map(|p| p.name.as_str()).collect();
-                let hint = match crate::lower::expr::closest(name, known.iter().copied()) {
+                let hint = match crate::diagnostics::closest(name, known.iter().copied()) {
                     Some(c) => format!("did you mean `{c}`?"),
                     None => format!("the params are: {}", known.join(", ")),
                 };

@@ -308,7 +308,7 @@ impl<'a> Lowerer<'a> {
 
 /// E0315: a `tolerance` line names something the instrument does not have.
 fn unknown(what: &str, n: &ast::Name, names: &[&str]) -> Diagnostic {
-    let hint = match super::expr::closest(&n.node, names.iter().copied()) {
+    let hint = match crate::diagnostics::closest(&n.node, names.iter().copied()) {
         Some(c) => format!("did you mean `{c}`?"),
         None if names.is_empty() => format!("this instrument has no {what}"),
         None => format!("the instrument's: {}", names.join(", ")),

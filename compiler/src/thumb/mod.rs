@@ -7,8 +7,8 @@
 //! assembler listing; the firmware image's glue uses the same buffer) → [`elf`] (a
 //! relocatable object).
 //!
-//! The generated functions have the C backend's interface and state layout exactly — the
-//! header [`crate::cgen`] writes describes both:
+//! The generated functions have the interface and state layout of [`crate::abi`] exactly,
+//! as the C backend's do — one header describes both:
 //!
 //! ```c
 //! void tactus_<name>_init(struct tactus_<name>_state *s);
@@ -36,7 +36,7 @@ pub mod mir;
 pub mod regalloc;
 pub mod select;
 
-use crate::cgen::{self, CSource, OutLayout, StateLayout};
+use crate::abi::{self, CConfig, Interface, OutLayout, StateLayout};
 use crate::fixed::FixedProgram;
 use std::fmt;
 
@@ -45,7 +45,7 @@ use std::fmt;
 pub enum ThumbError {
     /// A construct the Thumb backend does not implement yet (the C backend does).
     Unsupported(String),
-    /// The interface (header) could not be generated; see [`cgen::CgenError`].
+    /// The interface (header) could not be generated; see [`abi::InterfaceError`].
     Interface(String),
     /// An instruction did not encode (a backend bug: a field out of range).
     Encoding(String),
@@ -118,12 +118,12 @@ impl ThumbObject {
 
     /// Name of the update function.
     pub fn update_name(&self) -> String {
-        format!("tactus_{}_update", self.stem)
+        abi::update_symbol(&self.stem)
     }
 
     /// Name of the init function.
     pub fn init_name(&self) -> String {
-        format!("tactus_{}_init", self.stem)
+        abi::init_symbol(&self.stem)
     }
 
     /// The object as an ELF relocatable file (ARM, EABI 5).
@@ -161,10 +161,11 @@ pub fn compile(fp: &FixedProgram) -> Result<ThumbObject, ThumbError> {
 /// Errors: as [`compile`].
 pub fn compile_with(fp: &FixedProgram, conv: Convention) -> Result<ThumbObject, ThumbError> {
     crate::verify::verify(&fp.program).map_err(|e| ThumbError::Ir(e.to_string()))?;
-    let c: CSource = cgen::emit_c(fp).map_err(|e| ThumbError::Interface(e.to_string()))?;
+    let c = Interface::new(fp, &CConfig::default())
+        .map_err(|e| ThumbError::Interface(e.to_string()))?;
     let p = &fp.program;
     let st = StateLayout::new(p);
-    let (used, _) = cgen::live_values(p);
+    let (used, _) = crate::ir::live_values(p);
     let upd = select::Sel::new(fp, &st, &c.layout, used.clone()).run()?;
     // Every machine instruction takes at least 2 bytes: refuse early what cannot fit.
     let at_least = 2 * upd
@@ -177,8 +178,8 @@ pub fn compile_with(fp: &FixedProgram, conv: Convention) -> Result<ThumbObject, 
     }
     let ini = select::Sel::new(fp, &st, &c.layout, used).init_body();
     let functions = [
-        (format!("tactus_{}_init", c.stem), ini),
-        (format!("tactus_{}_update", c.stem), upd),
+        (abi::init_symbol(&c.stem), ini),
+        (abi::update_symbol(&c.stem), upd),
     ];
     let allocs: Vec<_> = functions
         .iter()

@@ -488,7 +488,7 @@ pub fn key_specs(keys: &[KeyAssignment], key_programs: &[usize], cores: &[usize]
         .collect()
 }
 
-/// Assigns keys to `cores` cores as the budget does ([`crate::boards::partition`]: an exact
+/// Assigns keys to `cores` cores as the budget does ([`crate::schedule::partition`]: an exact
 /// two-way partition) with each key's cost the static WCET of its program's update; returns
 /// the core of each key.
 pub fn assign_cores(
@@ -507,7 +507,7 @@ pub fn assign_cores(
             why: format!("program {p} does not exist"),
         })?);
     }
-    Ok(crate::boards::partition(&costs, cores))
+    Ok(crate::schedule::partition(&costs, cores))
 }
 
 /// Why an image could not be built or run.

@@ -95,7 +95,7 @@ fn readers(p: &Program) -> Vec<u32> {
     let mut n = vec![0u32; p.values.len()];
     let defined = defined_values(&p.body, p.values.len());
     for (vd, _) in p.values.iter().zip(&defined).filter(|(_, d)| **d) {
-        for x in crate::cgen::operands(&vd.op) {
+        for x in vd.op.operands() {
             n[x.index()] += 1;
         }
     }

@@ -92,7 +92,7 @@ pub(super) fn plan(fp: &FixedProgram, used: &[bool]) -> Arms {
     let mut users: Vec<Vec<Value>> = vec![Vec::new(); n];
     for &v in &order {
         if used[v.index()] {
-            for x in crate::cgen::operands(&p.values[v.index()].op) {
+            for x in p.values[v.index()].op.operands() {
                 users[x.index()].push(v);
             }
         }

@@ -40,7 +40,7 @@ pub(super) fn fused_conditions(p: &Program, used: &[bool], selects: &[Value]) ->
     let n = p.values.len();
     let mut uses = vec![0u32; n];
     for (vd, _) in p.values.iter().zip(used).filter(|(_, u)| **u) {
-        for x in crate::cgen::operands(&vd.op) {
+        for x in vd.op.operands() {
             uses[x.index()] += 1;
         }
     }
@@ -98,7 +98,7 @@ pub(super) fn fused_conditions(p: &Program, used: &[bool], selects: &[Value]) ->
     let mut readers: Vec<Vec<Value>> = vec![Vec::new(); n];
     for (i, vd) in p.values.iter().enumerate() {
         if used[i] {
-            for x in crate::cgen::operands(&vd.op) {
+            for x in vd.op.operands() {
                 readers[x.index()].push(Value(i as u32));
             }
         }

@@ -46,7 +46,8 @@ mod words;
 
 use super::mir::*;
 use super::ThumbError;
-use crate::cgen::{prim, OutLayout, StateLayout};
+use crate::abi::{OutLayout, StateLayout};
+use crate::cgen::prim;
 use crate::fixed::flow::exclusions;
 use crate::fixed::{FixedProgram, MulKind};
 use crate::ir::*;
@@ -159,7 +160,7 @@ fn edge_conditions(p: &Program, used: &[bool], fused: &[bool]) -> Vec<bool> {
     let n = p.values.len();
     let mut uses = vec![0u32; n];
     for (vd, _) in p.values.iter().zip(used).filter(|(_, u)| **u) {
-        for x in crate::cgen::operands(&vd.op) {
+        for x in vd.op.operands() {
             uses[x.index()] += 1;
         }
     }
@@ -211,7 +212,7 @@ fn sole_stores(fp: &FixedProgram, used: &[bool]) -> (Vec<Option<usize>>, Vec<u32
     let mut readers = vec![0u32; n];
     for (i, vd) in p.values.iter().enumerate() {
         if used[i] {
-            for x in crate::cgen::operands(&vd.op) {
+            for x in vd.op.operands() {
                 readers[x.index()] += 1;
             }
         }

@@ -139,7 +139,7 @@ impl<'a> Sel<'a> {
 
     /// The differentiator ring of sensor `i` (history slot `h`): prime, advance, store,
     /// and the raw differences `d()`/`d2()` need. The ring's `2N + 1` words are kept twice
-    /// (`cgen::StateLayout::hist`): the newest reading at byte offset `pos − 4` (its
+    /// (`abi::StateLayout::hist`): the newest reading at byte offset `pos − 4` (its
     /// position byte, counting down; 0 before the first sample) and `pos − 4 + 4·(2N + 1)`,
     /// so the readings `N` and `2N` samples ago are `4N` and `8N` bytes on, without a wrap.
     /// One address `r7 + pos` serves the two stores and the two loads as immediate offsets.
@@ -158,7 +158,7 @@ impl<'a> Sel<'a> {
         self.push(M::Bc(Cond::Pl, wrap));
         // (The first call after `init`: a flow fact's block, `fixed::flow::first_sample_exclusions`.)
         self.push(M::Mark(crate::fixed::flow::FIRST_SAMPLE_MARK - h as u32));
-        for k in crate::cgen::StateLayout::primed_slots() {
+        for k in crate::abi::StateLayout::primed_slots() {
             self.store(MemOp::Str, s.v, Base::State, base + 4 * k);
         }
         self.push(M::Label(wrap));
