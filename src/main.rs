@@ -5,6 +5,7 @@ mod budget_cmd;
 mod build_cmd;
 mod check_cmd;
 mod emu_cmd;
+mod lsp_cmd;
 mod play_cmd;
 mod plot;
 mod plot_cmd;
@@ -45,6 +46,10 @@ enum Command {
     /// Run ELF firmware on the emulated dual-core RP2040.
     #[command(subcommand)]
     Emu(emu_cmd::EmuCommand),
+    /// Language server for editors (LSP over stdin/stdout): diagnostics as `tactus check`
+    /// gives them, hover with units, ranges, Q-formats and error bounds, go to definition,
+    /// references, completion, outline. Editor set-up: docs/editors.md.
+    Lsp(lsp_cmd::LspArgs),
 }
 
 fn main() -> ExitCode {
@@ -57,5 +62,6 @@ fn main() -> ExitCode {
         Command::Play(args) => play_cmd::run(args),
         Command::Emu(cmd) => emu_cmd::run(cmd),
         Command::Plot(cmd) => plot_cmd::run(cmd),
+        Command::Lsp(args) => lsp_cmd::run(args),
     }
 }
