@@ -15,7 +15,8 @@ pub struct LspArgs {
 /// `shutdown` then `exit`, 1 otherwise (the protocol's rule); the log goes to stderr.
 pub fn run(_args: LspArgs) -> ExitCode {
     let stdin = std::io::BufReader::new(std::io::stdin());
-    let outcome = tactus_lsp::serve(stdin, std::io::stdout(), &mut |line| {
+    let config = tactus_lsp::Config::default();
+    let outcome = tactus_lsp::serve(stdin, std::io::stdout(), &config, &mut |line| {
         eprintln!("tactus lsp: {line}")
     });
     if outcome.clean_exit {

@@ -21,4 +21,4 @@ pub mod position;
 mod server;
 pub mod transport;
 
-pub use server::{serve, Outcome};
+pub use server::{serve, Config, Outcome};

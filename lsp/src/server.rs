@@ -15,9 +15,25 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tactus_compiler::query::{self, Analysis};
 
-/// How long a hover waits for the plan of the version it describes, before answering
-/// without ranges, formats and error bounds.
-pub const HOVER_WAIT: Duration = Duration::from_secs(10);
+/// How the server works.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// How long a hover waits for the plan of the version it describes before answering
+    /// without ranges, formats and error bounds (default 10 s).
+    pub hover_wait: Duration,
+    /// Whether profiles that compile get their format plan (default yes; off only in
+    /// tests of the protocol, where thousands of variants would each plan).
+    pub plans: bool,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            hover_wait: Duration::from_secs(10),
+            plans: true,
+        }
+    }
+}
 
 /// The largest document kept, bytes; a larger one is analysed as empty (with a diagnostic).
 pub const MAX_DOCUMENT_BYTES: usize = 16 << 20;
@@ -38,7 +54,7 @@ pub struct Outcome {
 
 /// The plan of a document's current version.
 pub enum PlanState {
-    /// The version does not compile.
+    /// The version does not compile (or plans are off).
     None,
     /// Being computed, as this generation.
     Pending(u64),
@@ -70,6 +86,7 @@ pub(crate) struct Server<'l> {
     planner: Planner,
     generation: u64,
     log: &'l mut dyn FnMut(&str),
+    config: Config,
     initialized: bool,
     shutdown: bool,
 }
@@ -82,6 +99,7 @@ pub(crate) struct Server<'l> {
 pub fn serve(
     input: impl BufRead + Send + 'static,
     output: impl Write + Send + 'static,
+    config: &Config,
     log: &mut dyn FnMut(&str),
 ) -> Outcome {
     let (frames_tx, frames) = crossbeam_channel::bounded::<Frame>(16);
@@ -106,6 +124,7 @@ pub fn serve(
         planner: Planner::start(),
         generation: 0,
         log,
+        config: config.clone(),
         initialized: false,
         shutdown: false,
     };
@@ -296,11 +315,11 @@ impl Server<'_> {
         };
         self.generation += 1;
         let plan = match analysis.lowered.as_mut() {
-            Some(l) => {
+            Some(l) if self.config.plans => {
                 self.planner.request(&key, self.generation, l.program.clone());
                 PlanState::Pending(self.generation)
             }
-            None => PlanState::None,
+            _ => PlanState::None,
         };
         let lines = LineIndex::new(&text);
         let diagnostics = crate::features::diagnostics(&uri, &text, &lines, &analysis.diagnostics);
@@ -330,9 +349,9 @@ impl Server<'_> {
         };
     }
 
-    /// Waits (at most [`HOVER_WAIT`]) for the plan of document `key`'s current version.
+    /// Waits (at most [`Config::hover_wait`]) for the plan of document `key`'s current version.
     pub(crate) fn wait_for_plan(&mut self, key: &str) {
-        let deadline = Instant::now() + HOVER_WAIT;
+        let deadline = Instant::now() + self.config.hover_wait;
         while matches!(self.docs.get(key).map(|d| &d.plan), Some(PlanState::Pending(_))) {
             let left = deadline.saturating_duration_since(Instant::now());
             match self.planner.done.recv_timeout(left) {

@@ -77,11 +77,17 @@ pub fn parse_frames(mut out: &[u8]) -> Vec<Value> {
 
 /// Runs a whole session on `input` (it must end, with `exit` or not).
 pub fn run_session(input: Vec<u8>) -> Session {
+    run_session_with(input, &tactus_lsp::Config::default())
+}
+
+/// [`run_session`] with a configuration.
+pub fn run_session_with(input: Vec<u8>, config: &tactus_lsp::Config) -> Session {
     let sink = Sink::default();
     let mut log = Vec::new();
     let outcome = tactus_lsp::serve(
         std::io::BufReader::new(std::io::Cursor::new(input)),
         sink.clone(),
+        config,
         &mut |l| log.push(l.to_string()),
     );
     let out = sink.0.lock().unwrap().clone();
