@@ -233,7 +233,14 @@ fn decl_symbols(decls: &[Decl], src: &str, out: &mut Vec<Symbol>) {
                 );
                 s.children = variants
                     .iter()
-                    .map(|v| sym(v, SymbolKind::Variant, None, format!("of mode `{}`", name.node)))
+                    .map(|v| {
+                        sym(
+                            v,
+                            SymbolKind::Variant,
+                            None,
+                            format!("of mode `{}`", name.node),
+                        )
+                    })
                     .collect();
                 out.push(s);
             }
@@ -269,9 +276,12 @@ fn decl_symbols(decls: &[Decl], src: &str, out: &mut Vec<Symbol>) {
                 Some(span),
                 format!("component `{}`", component.node),
             )),
-            Decl::Solve { name, span, .. } => {
-                out.push(sym(name, SymbolKind::Solve, Some(span), "Newton–Raphson".into()))
-            }
+            Decl::Solve { name, span, .. } => out.push(sym(
+                name,
+                SymbolKind::Solve,
+                Some(span),
+                "Newton–Raphson".into(),
+            )),
             Decl::For {
                 var,
                 range,
@@ -488,10 +498,7 @@ pub fn facts_at(
     value_rows(p, ir::Value(v as u32), plan, &mut rows);
     Some(Facts {
         span: data.span.clone(),
-        heading: format!(
-            "term `{}`",
-            src.get(data.span.clone()).unwrap_or("").trim()
-        ),
+        heading: format!("term `{}`", src.get(data.span.clone()).unwrap_or("").trim()),
         rows,
     })
 }
@@ -518,7 +525,10 @@ fn decl_facts(
                     }
                     rows.push(("unit".into(), unit_of(p, ty)));
                     rows.push(("declared range".into(), interval(s.range.0, s.range.1, ty)));
-                    rows.push(("initial value".into(), format!("{} {}", fmt_si(s.init), s.dim.unit_string())));
+                    rows.push((
+                        "initial value".into(),
+                        format!("{} {}", fmt_si(s.init), s.dim.unit_string()),
+                    ));
                     if let Some(pl) = plan {
                         let fp = pl.fixed;
                         if let Some(Some((lo, hi))) = fp.narrowed.get(i) {
@@ -526,7 +536,11 @@ fn decl_facts(
                                 "narrowed to".into(),
                                 format!(
                                     "{} (what it is assigned; declared {})",
-                                    interval(fp.program.states[i].range.0, fp.program.states[i].range.1, ty),
+                                    interval(
+                                        fp.program.states[i].range.0,
+                                        fp.program.states[i].range.1,
+                                        ty
+                                    ),
                                     interval(*lo, *hi, ty)
                                 ),
                             ));
@@ -538,7 +552,11 @@ fn decl_facts(
                             format!(
                                 "{}{}",
                                 error_text(pl.precision.state[i], ty, pl.precision),
-                                if acc { " per sample (accumulates: integrated state)" } else { "" }
+                                if acc {
+                                    " per sample (accumulates: integrated state)"
+                                } else {
+                                    ""
+                                }
                             ),
                         ));
                     }
@@ -561,12 +579,17 @@ fn decl_facts(
                         rows.push(("instance".into(), format!("`{}`", s.name)));
                     }
                     rows.push(("unit".into(), unit_of(p, ty)));
-                    rows.push(("value".into(), format!("{} {}", fmt_si(s.value), s.dim.unit_string())));
+                    rows.push((
+                        "value".into(),
+                        format!("{} {}", fmt_si(s.value), s.dim.unit_string()),
+                    ));
                     if let Some(pl) = plan {
                         let fp = pl.fixed;
-                        let read = fp.program.values.iter().position(|v| {
-                            v.op == ir::Op::Param(ir::ParamId(i as u32))
-                        });
+                        let read = fp
+                            .program
+                            .values
+                            .iter()
+                            .position(|v| v.op == ir::Op::Param(ir::ParamId(i as u32)));
                         if let Some(r) = read {
                             rows.push(("format".into(), q_name(fp.frac[r])));
                             rows.push((
@@ -587,9 +610,17 @@ fn decl_facts(
             }
             SymbolKind::Force | SymbolKind::Output => {
                 let named: Vec<(usize, &ir::NamedDecl)> = if d.kind == SymbolKind::Force {
-                    p.forces.iter().enumerate().filter(|(_, f)| f.span == *def).collect()
+                    p.forces
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, f)| f.span == *def)
+                        .collect()
                 } else {
-                    p.outputs.iter().enumerate().filter(|(_, f)| f.span == *def).collect()
+                    p.outputs
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, f)| f.span == *def)
+                        .collect()
                 };
                 for (i, f) in named {
                     if d.name != f.name {

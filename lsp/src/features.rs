@@ -70,10 +70,7 @@ pub fn diagnostics(uri: &Uri, text: &str, lines: &LineIndex, ds: &[Diag]) -> Vec
         .collect()
 }
 
-fn doc_at<'s>(
-    s: &'s Server,
-    p: &TextDocumentPositionParams,
-) -> Option<(&'s Doc, usize)> {
+fn doc_at<'s>(s: &'s Server, p: &TextDocumentPositionParams) -> Option<(&'s Doc, usize)> {
     let doc = s.docs.get(p.text_document.uri.as_str())?;
     let offset = doc.lines.offset(&doc.text, p.position);
     Some((doc, offset))
@@ -81,7 +78,12 @@ fn doc_at<'s>(
 
 /// Hover: the facts of the declaration a name denotes or of the term under the cursor.
 pub fn hover(s: &mut Server, p: HoverParams) -> Option<Hover> {
-    let key = p.text_document_position_params.text_document.uri.as_str().to_string();
+    let key = p
+        .text_document_position_params
+        .text_document
+        .uri
+        .as_str()
+        .to_string();
     s.wait_for_plan(&key);
     let (doc, offset) = doc_at(s, &p.text_document_position_params)?;
     let a = &doc.analysis;
@@ -117,11 +119,7 @@ pub fn hover(s: &mut Server, p: HoverParams) -> Option<Hover> {
 }
 
 fn flat(outline: &[query::Symbol]) -> Vec<query::Symbol> {
-    outline
-        .iter()
-        .flat_map(|s| s.flatten())
-        .cloned()
-        .collect()
+    outline.iter().flat_map(|s| s.flatten()).cloned().collect()
 }
 
 /// Go to definition: the declaration's name.
@@ -210,7 +208,9 @@ fn context(before: &str) -> Context<'_> {
     }
     // A number literal just before (`180 N`, `2.5e-3 m`): its unit comes next.
     let num_start = h
-        .trim_end_matches(|c: char| c.is_ascii_digit() || matches!(c, '.' | '_' | 'e' | 'E' | '+' | '-'))
+        .trim_end_matches(|c: char| {
+            c.is_ascii_digit() || matches!(c, '.' | '_' | 'e' | 'E' | '+' | '-')
+        })
         .len();
     let token = &h[num_start..];
     let token_start = h[..num_start].chars().next_back();
@@ -244,12 +244,14 @@ pub fn completion(s: &mut Server, p: CompletionParams) -> Option<CompletionRespo
             items.extend(query::members(outline, offset, inst).into_iter().map(item));
         }
         Context::Unit => {
-            items.extend(tactus_compiler::units::unit_names().map(|u| CompletionItem {
-                label: u.into(),
-                kind: Some(CompletionItemKind::UNIT),
-                detail: tactus_compiler::units::lookup(u).map(|x| x.dim.to_string()),
-                ..CompletionItem::default()
-            }));
+            items.extend(
+                tactus_compiler::units::unit_names().map(|u| CompletionItem {
+                    label: u.into(),
+                    kind: Some(CompletionItemKind::UNIT),
+                    detail: tactus_compiler::units::lookup(u).map(|x| x.dim.to_string()),
+                    ..CompletionItem::default()
+                }),
+            );
         }
         Context::Name => {
             let mut names = query::names_in_scope(outline, offset);
@@ -269,12 +271,16 @@ pub fn completion(s: &mut Server, p: CompletionParams) -> Option<CompletionRespo
                     .filter(|s| seen.insert(s.name.clone()))
                     .map(item),
             );
-            items.extend(tactus_compiler::lower::BUILTINS.iter().map(|(n, sig)| CompletionItem {
-                label: (*n).into(),
-                kind: Some(CompletionItemKind::FUNCTION),
-                detail: Some(format!("built-in {sig}")),
-                ..CompletionItem::default()
-            }));
+            items.extend(
+                tactus_compiler::lower::BUILTINS
+                    .iter()
+                    .map(|(n, sig)| CompletionItem {
+                        label: (*n).into(),
+                        kind: Some(CompletionItemKind::FUNCTION),
+                        detail: Some(format!("built-in {sig}")),
+                        ..CompletionItem::default()
+                    }),
+            );
             items.push(CompletionItem {
                 label: tactus_compiler::lower::SAMPLE_RATE.into(),
                 kind: Some(CompletionItemKind::CONSTANT),
@@ -324,8 +330,14 @@ mod tests {
 
     #[test]
     fn completion_contexts() {
-        assert!(matches!(context("  force f = esc."), Context::Member("esc")));
-        assert!(matches!(context("  force f = esc.ph"), Context::Member("esc")));
+        assert!(matches!(
+            context("  force f = esc."),
+            Context::Member("esc")
+        ));
+        assert!(matches!(
+            context("  force f = esc.ph"),
+            Context::Member("esc")
+        ));
         assert!(matches!(context("  param k = 180 "), Context::Unit));
         assert!(matches!(context("  param k = 180 N"), Context::Unit));
         assert!(matches!(context("  input x: "), Context::Unit));

@@ -213,35 +213,51 @@ impl Server<'_> {
     fn request(&mut self, r: Request) {
         if r.method == req::Initialize::METHOD {
             if self.initialized {
-                return self.error(r.id, ErrorCode::InvalidRequest, "initialize was already sent".into());
+                return self.error(
+                    r.id,
+                    ErrorCode::InvalidRequest,
+                    "initialize was already sent".into(),
+                );
             }
             self.initialized = true;
             return self.reply(r.id, crate::features::initialize_result());
         }
         if !self.initialized {
-            return self.error(r.id, ErrorCode::ServerNotInitialized, format!("`{}` before initialize", r.method));
+            return self.error(
+                r.id,
+                ErrorCode::ServerNotInitialized,
+                format!("`{}` before initialize", r.method),
+            );
         }
         if self.shutdown {
-            return self.error(r.id, ErrorCode::InvalidRequest, format!("`{}` after shutdown", r.method));
+            return self.error(
+                r.id,
+                ErrorCode::InvalidRequest,
+                format!("`{}` after shutdown", r.method),
+            );
         }
         let id = r.id.clone();
-        let result: Result<Value, (ErrorCode, String)> = match r.method.as_str() {
-            req::Shutdown::METHOD => {
-                self.shutdown = true;
-                Ok(Value::Null)
-            }
-            req::HoverRequest::METHOD => params::<req::HoverRequest>(r)
-                .map(|p| to_value(crate::features::hover(self, p))),
-            req::GotoDefinition::METHOD => params::<req::GotoDefinition>(r)
-                .map(|p| to_value(crate::features::definition(self, p))),
-            req::References::METHOD => params::<req::References>(r)
-                .map(|p| to_value(crate::features::references(self, p))),
-            req::Completion::METHOD => params::<req::Completion>(r)
-                .map(|p| to_value(crate::features::completion(self, p))),
-            req::DocumentSymbolRequest::METHOD => params::<req::DocumentSymbolRequest>(r)
-                .map(|p| to_value(crate::features::document_symbols(self, p))),
-            other => Err((ErrorCode::MethodNotFound, format!("`{other}` is not supported"))),
-        };
+        let result: Result<Value, (ErrorCode, String)> =
+            match r.method.as_str() {
+                req::Shutdown::METHOD => {
+                    self.shutdown = true;
+                    Ok(Value::Null)
+                }
+                req::HoverRequest::METHOD => params::<req::HoverRequest>(r)
+                    .map(|p| to_value(crate::features::hover(self, p))),
+                req::GotoDefinition::METHOD => params::<req::GotoDefinition>(r)
+                    .map(|p| to_value(crate::features::definition(self, p))),
+                req::References::METHOD => params::<req::References>(r)
+                    .map(|p| to_value(crate::features::references(self, p))),
+                req::Completion::METHOD => params::<req::Completion>(r)
+                    .map(|p| to_value(crate::features::completion(self, p))),
+                req::DocumentSymbolRequest::METHOD => params::<req::DocumentSymbolRequest>(r)
+                    .map(|p| to_value(crate::features::document_symbols(self, p))),
+                other => Err((
+                    ErrorCode::MethodNotFound,
+                    format!("`{other}` is not supported"),
+                )),
+            };
         match result {
             Ok(v) => self.reply(id, v),
             Err((code, msg)) => {
@@ -256,35 +272,40 @@ impl Server<'_> {
             return; // dropped before initialize (the protocol's rule)
         }
         let r = match n.method.as_str() {
-            note::DidOpenTextDocument::METHOD => note_params::<note::DidOpenTextDocument>(n).map(|p| {
-                let d = p.text_document;
-                self.set_text(d.uri, d.version, d.text);
-            }),
-            note::DidChangeTextDocument::METHOD => note_params::<note::DidChangeTextDocument>(n).map(|p| {
-                let key = p.text_document.uri.as_str().to_string();
-                let Some(doc) = self.docs.get(&key) else {
-                    (self.log)(&format!("didChange of {key}, which is not open: dropped"));
-                    return;
-                };
-                let mut text = doc.text.clone();
-                for c in p.content_changes {
-                    match c.range {
-                        None => text = c.text,
-                        Some(range) => {
-                            let li = LineIndex::new(&text);
-                            let a = li.offset(&text, range.start);
-                            let b = li.offset(&text, range.end).max(a);
-                            text.replace_range(a..b, &c.text);
+            note::DidOpenTextDocument::METHOD => {
+                note_params::<note::DidOpenTextDocument>(n).map(|p| {
+                    let d = p.text_document;
+                    self.set_text(d.uri, d.version, d.text);
+                })
+            }
+            note::DidChangeTextDocument::METHOD => note_params::<note::DidChangeTextDocument>(n)
+                .map(|p| {
+                    let key = p.text_document.uri.as_str().to_string();
+                    let Some(doc) = self.docs.get(&key) else {
+                        (self.log)(&format!("didChange of {key}, which is not open: dropped"));
+                        return;
+                    };
+                    let mut text = doc.text.clone();
+                    for c in p.content_changes {
+                        match c.range {
+                            None => text = c.text,
+                            Some(range) => {
+                                let li = LineIndex::new(&text);
+                                let a = li.offset(&text, range.start);
+                                let b = li.offset(&text, range.end).max(a);
+                                text.replace_range(a..b, &c.text);
+                            }
                         }
                     }
-                }
-                self.set_text(p.text_document.uri, p.text_document.version, text);
-            }),
-            note::DidCloseTextDocument::METHOD => note_params::<note::DidCloseTextDocument>(n).map(|p| {
-                if let Some(doc) = self.docs.remove(p.text_document.uri.as_str()) {
-                    self.publish(&doc.uri, Vec::new(), None);
-                }
-            }),
+                    self.set_text(p.text_document.uri, p.text_document.version, text);
+                }),
+            note::DidCloseTextDocument::METHOD => {
+                note_params::<note::DidCloseTextDocument>(n).map(|p| {
+                    if let Some(doc) = self.docs.remove(p.text_document.uri.as_str()) {
+                        self.publish(&doc.uri, Vec::new(), None);
+                    }
+                })
+            }
             _ => Ok(()), // didSave, $/cancelRequest, initialized, …: nothing to do
         };
         if let Err((_, msg)) = r {
@@ -316,7 +337,8 @@ impl Server<'_> {
         self.generation += 1;
         let plan = match analysis.lowered.as_mut() {
             Some(l) if self.config.plans => {
-                self.planner.request(&key, self.generation, l.program.clone());
+                self.planner
+                    .request(&key, self.generation, l.program.clone());
                 PlanState::Pending(self.generation)
             }
             _ => PlanState::None,
@@ -326,17 +348,35 @@ impl Server<'_> {
         self.publish(&uri, diagnostics, Some(version));
         self.docs.insert(
             key,
-            Doc { uri, text, lines, analysis, last_outline, plan },
+            Doc {
+                uri,
+                text,
+                lines,
+                analysis,
+                last_outline,
+                plan,
+            },
         );
     }
 
-    fn publish(&mut self, uri: &lsp_types::Uri, diagnostics: Vec<lsp_types::Diagnostic>, version: Option<i32>) {
-        let p = lsp_types::PublishDiagnosticsParams { uri: uri.clone(), diagnostics, version };
+    fn publish(
+        &mut self,
+        uri: &lsp_types::Uri,
+        diagnostics: Vec<lsp_types::Diagnostic>,
+        version: Option<i32>,
+    ) {
+        let p = lsp_types::PublishDiagnosticsParams {
+            uri: uri.clone(),
+            diagnostics,
+            version,
+        };
         self.send(Notification::new(note::PublishDiagnostics::METHOD.into(), p).into());
     }
 
     fn plan_done(&mut self, (uri, generation, planned): crate::plan::Done) {
-        let Some(doc) = self.docs.get_mut(&uri) else { return };
+        let Some(doc) = self.docs.get_mut(&uri) else {
+            return;
+        };
         if !matches!(doc.plan, PlanState::Pending(g) if g == generation) {
             return; // an older version's
         }
@@ -352,7 +392,10 @@ impl Server<'_> {
     /// Waits (at most [`Config::hover_wait`]) for the plan of document `key`'s current version.
     pub(crate) fn wait_for_plan(&mut self, key: &str) {
         let deadline = Instant::now() + self.config.hover_wait;
-        while matches!(self.docs.get(key).map(|d| &d.plan), Some(PlanState::Pending(_))) {
+        while matches!(
+            self.docs.get(key).map(|d| &d.plan),
+            Some(PlanState::Pending(_))
+        ) {
             let left = deadline.saturating_duration_since(Instant::now());
             match self.planner.done.recv_timeout(left) {
                 Ok(d) => self.plan_done(d),
@@ -363,11 +406,21 @@ impl Server<'_> {
 }
 
 fn params<R: req::Request>(r: Request) -> Result<R::Params, (ErrorCode, String)> {
-    serde_json::from_value(r.params).map_err(|e| (ErrorCode::InvalidParams, format!("`{}`: bad params: {e}", r.method)))
+    serde_json::from_value(r.params).map_err(|e| {
+        (
+            ErrorCode::InvalidParams,
+            format!("`{}`: bad params: {e}", r.method),
+        )
+    })
 }
 
 fn note_params<N: note::Notification>(n: Notification) -> Result<N::Params, (ErrorCode, String)> {
-    serde_json::from_value(n.params).map_err(|e| (ErrorCode::InvalidParams, format!("`{}`: bad params: {e}", n.method)))
+    serde_json::from_value(n.params).map_err(|e| {
+        (
+            ErrorCode::InvalidParams,
+            format!("`{}`: bad params: {e}", n.method),
+        )
+    })
 }
 
 fn to_value<T: serde::Serialize>(t: T) -> Value {

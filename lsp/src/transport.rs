@@ -53,13 +53,18 @@ fn header_line(inp: &mut dyn BufRead) -> std::io::Result<Option<(String, bool)>>
         let mut sink = Vec::new();
         loop {
             sink.clear();
-            let m = inp.take(MAX_HEADER_LINE as u64).read_until(b'\n', &mut sink)?;
+            let m = inp
+                .take(MAX_HEADER_LINE as u64)
+                .read_until(b'\n', &mut sink)?;
             if m == 0 || sink.ends_with(b"\n") {
                 break;
             }
         }
     }
-    Ok(Some((String::from_utf8_lossy(&line).into_owned(), too_long)))
+    Ok(Some((
+        String::from_utf8_lossy(&line).into_owned(),
+        too_long,
+    )))
 }
 
 /// Reads the next frame. I/O errors of the stream are the end of input.
@@ -162,10 +167,14 @@ mod tests {
         loop {
             match read_frame(&mut r) {
                 Frame::End => return out,
-                Frame::Message(m) => out.push(format!("msg {}", serde_json::to_string(&m).unwrap())),
-                Frame::Bad { why, reply } => {
-                    out.push(format!("bad {} {}", reply.is_some(), why.split(' ').next().unwrap()))
+                Frame::Message(m) => {
+                    out.push(format!("msg {}", serde_json::to_string(&m).unwrap()))
                 }
+                Frame::Bad { why, reply } => out.push(format!(
+                    "bad {} {}",
+                    reply.is_some(),
+                    why.split(' ').next().unwrap()
+                )),
             }
         }
     }

@@ -5,9 +5,9 @@
 //! end every session within its time bound, never panic, and write only well-formed
 //! frames. `TACTUS_FUZZ_CASES=100000` for a long run.
 
+mod common;
 #[path = "../../tests/common/fuzz.rs"]
 mod fuzz;
-mod common;
 
 use proptest::prelude::*;
 use serde_json::{json, Value};
@@ -48,8 +48,18 @@ const TOKENS: &[&[u8]] = &[
 
 /// Tokens for the profile's text.
 const SOURCE_TOKENS: &[&[u8]] = &[
-    b"component", b"use q = nothing()", b"state", b"in [", b"1e308 N", b"{", b"}", b"\xce\xb8",
-    b"esc.", b"for i in 0..100000 {", b"\n", b"mode m { a, a }",
+    b"component",
+    b"use q = nothing()",
+    b"state",
+    b"in [",
+    b"1e308 N",
+    b"{",
+    b"}",
+    b"\xce\xb8",
+    b"esc.",
+    b"for i in 0..100000 {",
+    b"\n",
+    b"mode m { a, a }",
 ];
 
 fn frame(v: &Value) -> Vec<u8> {
@@ -59,10 +69,16 @@ fn frame(v: &Value) -> Vec<u8> {
 fn session(text: &str, requests: &[(usize, u32, u32, bool)], edits_after: &[u8]) -> Vec<u8> {
     let uri = "file:///tmp/fuzz.tactus";
     let mut out = Vec::new();
-    out.extend(frame(&json!({"jsonrpc":"2.0","id":1,"method":"initialize","params":{"capabilities":{}}})));
-    out.extend(frame(&json!({"jsonrpc":"2.0","method":"initialized","params":{}})));
-    out.extend(frame(&json!({"jsonrpc":"2.0","method":"textDocument/didOpen","params":{"textDocument":{
-        "uri": uri, "languageId":"tactus","version":1,"text": text}}})));
+    out.extend(frame(
+        &json!({"jsonrpc":"2.0","id":1,"method":"initialize","params":{"capabilities":{}}}),
+    ));
+    out.extend(frame(
+        &json!({"jsonrpc":"2.0","method":"initialized","params":{}}),
+    ));
+    out.extend(frame(
+        &json!({"jsonrpc":"2.0","method":"textDocument/didOpen","params":{"textDocument":{
+        "uri": uri, "languageId":"tactus","version":1,"text": text}}}),
+    ));
     for (i, &(m, line, character, decl)) in requests.iter().enumerate() {
         let method = METHODS[m % METHODS.len()];
         let position = json!({"line": line, "character": character});
@@ -70,7 +86,9 @@ fn session(text: &str, requests: &[(usize, u32, u32, bool)], edits_after: &[u8])
             "textDocument/didChange" => json!({"textDocument":{"uri":uri,"version":2 + i},
                 "contentChanges":[{"range":{"start":position,"end":{"line":line / 2,"character":0}},
                                    "text": String::from_utf8_lossy(edits_after)}]}),
-            "textDocument/didClose" | "textDocument/documentSymbol" => json!({"textDocument":{"uri":uri}}),
+            "textDocument/didClose" | "textDocument/documentSymbol" => {
+                json!({"textDocument":{"uri":uri}})
+            }
             "textDocument/references" => json!({"textDocument":{"uri":uri},"position":position,
                 "context":{"includeDeclaration":decl}}),
             _ => json!({"textDocument":{"uri":uri},"position":position}),
@@ -105,40 +123,43 @@ fn random_and_truncated_lsp_traffic_never_panics_or_hangs() {
     let worst = std::cell::Cell::new(Duration::ZERO);
     let frames_bad = std::cell::Cell::new(0usize);
     runner
-        .run(&strategy, |(seed, source_edits, requests, stream_edits, plan_roll)| {
-            let text = fuzz::apply(SEEDS[seed].as_bytes(), &source_edits);
-            let text = String::from_utf8_lossy(&text).into_owned();
-            let clean = session(&text, &requests, b"force extra = 1 N\n");
-            let bytes = if stream_edits.len() % 3 == 0 {
-                clean // a third of the sessions arrive intact
-            } else {
-                fuzz::apply(&clean, &stream_edits)
-            };
-            let config = tactus_lsp::Config {
-                hover_wait: Duration::from_millis(50),
-                // Plans run (in the background) in one case of eight: every variant that
-                // compiles would otherwise start a plan search of its own.
-                plans: plan_roll == 0,
-            };
-            let (tx, rx) = std::sync::mpsc::channel();
-            std::thread::spawn(move || {
-                let t = std::time::Instant::now();
-                let s = common::run_session_with(bytes, &config);
-                let _ = tx.send((s, t.elapsed()));
-            });
-            let (s, dt) = rx.recv_timeout(SESSION_BOUND).map_err(|e| {
-                TestCaseError::fail(match e {
-                    std::sync::mpsc::RecvTimeoutError::Timeout => {
-                        "the session did not end within its bound"
-                    }
-                    _ => "the session panicked (or wrote a frame that is not JSON)",
-                })
-            })?;
-            worst.set(worst.get().max(dt));
-            frames_bad.set(frames_bad.get() + s.outcome.bad_frames);
-            prop_assert_eq!(s.outcome.panics, 0, "log: {:?}", s.log);
-            Ok(())
-        })
+        .run(
+            &strategy,
+            |(seed, source_edits, requests, stream_edits, plan_roll)| {
+                let text = fuzz::apply(SEEDS[seed].as_bytes(), &source_edits);
+                let text = String::from_utf8_lossy(&text).into_owned();
+                let clean = session(&text, &requests, b"force extra = 1 N\n");
+                let bytes = if stream_edits.len() % 3 == 0 {
+                    clean // a third of the sessions arrive intact
+                } else {
+                    fuzz::apply(&clean, &stream_edits)
+                };
+                let config = tactus_lsp::Config {
+                    hover_wait: Duration::from_millis(50),
+                    // Plans run (in the background) in one case of eight: every variant that
+                    // compiles would otherwise start a plan search of its own.
+                    plans: plan_roll == 0,
+                };
+                let (tx, rx) = std::sync::mpsc::channel();
+                std::thread::spawn(move || {
+                    let t = std::time::Instant::now();
+                    let s = common::run_session_with(bytes, &config);
+                    let _ = tx.send((s, t.elapsed()));
+                });
+                let (s, dt) = rx.recv_timeout(SESSION_BOUND).map_err(|e| {
+                    TestCaseError::fail(match e {
+                        std::sync::mpsc::RecvTimeoutError::Timeout => {
+                            "the session did not end within its bound"
+                        }
+                        _ => "the session panicked (or wrote a frame that is not JSON)",
+                    })
+                })?;
+                worst.set(worst.get().max(dt));
+                frames_bad.set(frames_bad.get() + s.outcome.bad_frames);
+                prop_assert_eq!(s.outcome.panics, 0, "log: {:?}", s.log);
+                Ok(())
+            },
+        )
         .unwrap();
     println!(
         "{cases} sessions, {} bad frames answered or dropped, slowest {:?}",

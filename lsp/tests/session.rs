@@ -54,7 +54,10 @@ fn a_unit_error_is_a_diagnostic_at_its_span() {
         .find(|d| d["code"] == "E0202")
         .unwrap_or_else(|| panic!("no E0202 in {diags}"));
     assert_eq!(d["severity"], 1);
-    assert!(d["message"].as_str().unwrap().starts_with("dimension mismatch"));
+    assert!(d["message"]
+        .as_str()
+        .unwrap()
+        .starts_with("dimension mismatch"));
     // The range is the sum `B * key + G` on its line.
     let start = pos(&bad, "B * key + G", 0, 0);
     assert_eq!(d["range"]["start"], start);
@@ -109,12 +112,18 @@ fn hover_definition_references_completion_outline() {
         ],
     );
     assert_eq!(s.outcome.panics, 0);
-    let hover = s.result(100)["contents"]["value"].as_str().unwrap().to_string();
+    let hover = s.result(100)["contents"]["value"]
+        .as_str()
+        .unwrap()
+        .to_string();
     println!("{hover}");
     assert!(hover.contains("param `B`"), "{hover}");
     assert!(hover.contains("unit: N*s/m"), "{hover}");
     assert!(hover.contains("format: Q"), "{hover}");
-    let hover = s.result(101)["contents"]["value"].as_str().unwrap().to_string();
+    let hover = s.result(101)["contents"]["value"]
+        .as_str()
+        .unwrap()
+        .to_string();
     println!("{hover}");
     assert!(hover.contains("state `xmax`"), "{hover}");
     assert!(hover.contains("declared range: [0, 0.02] m"), "{hover}");
@@ -126,31 +135,60 @@ fn hover_definition_references_completion_outline() {
     // The declaration and its uses (`bend`, two conditions, `fhold`, `f`).
     assert!(refs.len() >= 5, "{refs:?}");
     assert_eq!(refs[0]["range"]["start"], pos(text, "touch = 4.0", 0, 0));
-    let labels: Vec<String> = s.result(104).as_array().unwrap().iter()
+    let labels: Vec<String> = s
+        .result(104)
+        .as_array()
+        .unwrap()
+        .iter()
         .map(|i| i["label"].as_str().unwrap().to_string())
         .collect();
     for want in ["B", "G", "key", "jack", "viscous", "d", "sqrt"] {
-        assert!(labels.contains(&want.to_string()), "{want} not in {labels:?}");
+        assert!(
+            labels.contains(&want.to_string()),
+            "{want} not in {labels:?}"
+        );
     }
-    assert!(!labels.contains(&"xmax".to_string()), "a component's state completed outside it");
+    assert!(
+        !labels.contains(&"xmax".to_string()),
+        "a component's state completed outside it"
+    );
     let outline = s.result(105);
-    let names: Vec<&str> = outline.as_array().unwrap().iter().map(|s| s["name"].as_str().unwrap()).collect();
+    let names: Vec<&str> = outline
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
     assert_eq!(names, ["plectrum", "harpsichord"]);
-    let members: Vec<String> = s.result(106).as_array().unwrap().iter()
+    let members: Vec<String> = s
+        .result(106)
+        .as_array()
+        .unwrap()
+        .iter()
         .map(|i| i["label"].as_str().unwrap().to_string())
         .collect();
-    assert!(members.contains(&"f".into()) && members.contains(&"phase".into()), "{members:?}");
-    assert!(!members.contains(&"bend".into()), "a let is not visible outside: {members:?}");
+    assert!(
+        members.contains(&"f".into()) && members.contains(&"phase".into()),
+        "{members:?}"
+    );
+    assert!(
+        !members.contains(&"bend".into()),
+        "a let is not visible outside: {members:?}"
+    );
     assert_eq!(s.error(107)["code"], -32601);
 }
 
 #[test]
 fn bad_frames_are_answered_and_the_session_goes_on() {
     let mut input = Vec::new();
-    input.extend(frame(r#"{"jsonrpc":"2.0","id":1,"method":"initialize","params":{"capabilities":{}}}"#));
+    input.extend(frame(
+        r#"{"jsonrpc":"2.0","id":1,"method":"initialize","params":{"capabilities":{}}}"#,
+    ));
     input.extend(frame("{not json"));
     input.extend(b"Content-Length: nope\r\n\r\n");
-    input.extend(frame(r#"{"jsonrpc":"2.0","id":3,"method":"textDocument/hover","params":{"bogus":1}}"#));
+    input.extend(frame(
+        r#"{"jsonrpc":"2.0","id":3,"method":"textDocument/hover","params":{"bogus":1}}"#,
+    ));
     input.extend(frame(r#"{"jsonrpc":"2.0","id":4,"method":"textDocument/hover","params":{"textDocument":{"uri":"file:///nope"},"position":{"line":4000000000,"character":7}}}"#));
     input.extend(frame(r#"{"jsonrpc":"2.0","id":2,"method":"shutdown"}"#));
     input.extend(frame(r#"{"jsonrpc":"2.0","method":"exit"}"#));
@@ -158,7 +196,10 @@ fn bad_frames_are_answered_and_the_session_goes_on() {
     assert!(s.outcome.clean_exit);
     assert_eq!(s.outcome.bad_frames, 2);
     assert_eq!(s.outcome.panics, 0);
-    assert!(s.messages.iter().any(|m| m["error"]["code"] == -32700 && m["id"].is_null()));
+    assert!(s
+        .messages
+        .iter()
+        .any(|m| m["error"]["code"] == -32700 && m["id"].is_null()));
     assert_eq!(s.error(3)["code"], -32602);
     assert!(s.result(4).is_null());
     assert!(s.log.iter().any(|l| l.contains("bad frame")), "{:?}", s.log);
@@ -167,7 +208,9 @@ fn bad_frames_are_answered_and_the_session_goes_on() {
 #[test]
 fn a_client_that_goes_away_ends_the_session() {
     let mut input = Vec::new();
-    input.extend(frame(r#"{"jsonrpc":"2.0","id":1,"method":"initialize","params":{"capabilities":{}}}"#));
+    input.extend(frame(
+        r#"{"jsonrpc":"2.0","id":1,"method":"initialize","params":{"capabilities":{}}}"#,
+    ));
     input.extend(b"Content-Length: 100\r\n\r\n{\"jsonrpc\"");
     let s = run_session(input);
     assert!(!s.outcome.clean_exit);
