@@ -500,16 +500,24 @@ enum Went {
     Stuck,
 }
 
-/// Runs `key` under a constant finger force `push_n` (reached over the finger's rise time)
-/// from the player `p` until the key's travel passes `goal` (`down`: at or beyond it; else
-/// at or above it), stops, or [`WEIGHT_TIMEOUT_S`] passes.
+/// Where a weight must take a key.
+#[derive(Clone, Copy)]
+enum Goal {
+    /// Down to at least this travel, m (reaching it once is enough).
+    DownTo(f64),
+    /// Back to this travel or above, m, and stay there: the key must come to rest there (a
+    /// key that bounces off its rest stop and sinks again has not returned).
+    BackTo(f64),
+}
+
+/// Runs `key` under a constant finger force `push_n` (reached over `rise_s`) from the
+/// player `p` until `goal` is met, the key stops, or [`WEIGHT_TIMEOUT_S`] passes.
 fn under_weight<E: Engine + Clone>(
     mut key: Key<E>,
     mut p: ForcePlayer,
     push_n: f64,
     rise_s: f64,
-    goal: f64,
-    down: bool,
+    goal: Goal,
 ) -> Result<Went, String> {
     let fs = key.fs;
     let stall = (STALL_S * fs) as usize;
@@ -524,19 +532,24 @@ fn under_weight<E: Engine + Clone>(
         };
         key.finger(&mut p, push_n * ramp)?;
         let x = p.x_m;
-        if (down && x >= goal) || (!down && x <= goal) {
-            return Ok(Went::There);
+        if let Goal::DownTo(g) = goal {
+            if x >= g {
+                return Ok(Went::There);
+            }
         }
         if (x - anchor).abs() > STALL_M {
             (anchor, since) = (x, 0);
         } else {
             since += 1;
             if since > stall {
-                return Ok(Went::Stuck);
+                break;
             }
         }
     }
-    Ok(Went::Stuck)
+    Ok(match goal {
+        Goal::BackTo(g) if p.x_m <= g => Went::There,
+        _ => Went::Stuck,
+    })
 }
 
 /// The boundary weight (gf) between weights that fail below and weights that `goes` above,
@@ -651,7 +664,7 @@ fn stroke<E: Engine + Clone>(
 }
 
 /// Repeated strokes of `push_n` with period `period_s` (push for half, lift for half), five
-/// notes: whether each strikes exactly once, and the lowest travel between the first
+/// notes: whether each strikes (and none more often than the first), and the lowest travel between the first
 /// strike and the last push (m).
 fn repeats<E: Engine + Clone>(
     rest: &Key<E>,
@@ -696,7 +709,12 @@ fn repeats<E: Engine + Clone>(
             lowest = lowest.min(p.x_m);
         }
     }
-    Ok((strikes.iter().all(|&s| s == 1), lowest))
+    // Every note strikes, and none more often than the first (an instrument may strike
+    // several times a note: two plectra).
+    Ok((
+        strikes[0] >= 1 && strikes.iter().all(|&s| s >= 1 && s <= strikes[0]),
+        lowest,
+    ))
 }
 
 /// Measures the regulation sheet of `program` on `engine` (a fresh instance at rest of that
@@ -762,7 +780,7 @@ pub fn measure<E: Engine + Clone>(
         move |w: f64| -> Result<bool, String> {
             let p = ForcePlayer::new(dip, m, fs);
             Ok(matches!(
-                under_weight(rest.clone(), p, gf_to_n(w), rise, goal, true)?,
+                under_weight(rest.clone(), p, gf_to_n(w), rise, Goal::DownTo(goal))?,
                 Went::There
             ))
         }
@@ -812,7 +830,13 @@ pub fn measure<E: Engine + Clone>(
         p.x_m = dip;
         // `returns` is decreasing in the weight; bisect wants "goes" increasing.
         Ok(!matches!(
-            under_weight(dipped.at_bottom.clone(), p, gf_to_n(w), 0.0, home, false)?,
+            under_weight(
+                dipped.at_bottom.clone(),
+                p,
+                gf_to_n(w),
+                0.0,
+                Goal::BackTo(home)
+            )?,
             Went::There
         ))
     };
@@ -825,7 +849,7 @@ pub fn measure<E: Engine + Clone>(
             figure: Figure::UpWeight,
             value: w,
             how: format!(
-                "most constant weight under which the key, held at the bottom after a quasi-static dip ({speed_mm_s} mm/s, {BOTTOM_HOLD_S} s at the bottom), returns to rest (≤ {:.2} mm) within {WEIGHT_TIMEOUT_S} s",
+                "most constant weight under which the key, held at the bottom after a quasi-static dip ({speed_mm_s} mm/s, {BOTTOM_HOLD_S} s at the bottom), comes back to rest (≤ {:.2} mm) and stays there (within {WEIGHT_TIMEOUT_S} s)",
                 mm(home)
             ),
         }),
@@ -862,13 +886,21 @@ pub fn measure<E: Engine + Clone>(
             ),
         });
     }
-    if let Some((gap, at)) = lp.least_gap(0.1 * dip, goal) {
+    // To the let-off zone, or short of the bottom's last 10 % (where the key's reversal,
+    // seen through the differentiator's lag, mixes both directions).
+    if let Some((gap, at)) = lp.least_gap(0.1 * dip, goal.min(0.9 * dip)) {
         figures.push(Measured {
             figure: Figure::HysteresisToLetoff,
             value: n_to_gf(gap),
             how: format!(
-                "as above, over {:.1} mm {goal_text}; least at {:.2} mm",
+                "as above, from {:.1} mm to {:.2} mm ({}); least at {:.2} mm",
                 mm(0.1 * dip),
+                mm(goal.min(0.9 * dip)),
+                if letoff_zone.is_some() {
+                    "the let-off zone"
+                } else {
+                    "90 % of the dip"
+                },
                 mm(at)
             ),
         });
@@ -1058,13 +1090,13 @@ pub fn measure<E: Engine + Clone>(
                 figure: Figure::Repetition,
                 value: 1.0 / slow,
                 how: format!(
-                    "shortest period ({:.1} ms) at which 5 notes of a {push} N push (pushed for half the period, released for half) each strike once; the key {released}",
+                    "shortest period ({:.1} ms) at which 5 notes of a {push} N push (pushed for half the period, released for half) all strike; the key {released}",
                     slow * 1e3
                 ),
             });
         } else {
             notes.push(format!(
-                "repetition: 5 notes of a {push} N push at 2 notes/s do not each strike once"
+                "repetition: 5 notes of a {push} N push at 2 notes/s do not all strike"
             ));
         }
     }
