@@ -17,7 +17,7 @@
 //! the struct (`params[]` after the states; written before `init`, which leaves it alone),
 //! so every engine reads a run-time param as one load from the state pointer.
 
-use crate::fixed::FixedProgram;
+use crate::fixed::{q_name as q, FixedProgram};
 use crate::ir::*;
 use std::collections::HashSet;
 use std::fmt::{self, Write as _};
@@ -630,9 +630,4 @@ fn unit(ty: Ty) -> String {
         Ty::Bool => "bool (0/1)".into(),
         Ty::Mode(_) => "mode variant index".into(),
     }
-}
-
-/// Q-format text of a fraction-bit count.
-fn q(frac: i32) -> String {
-    format!("Q{}.{}", 31 - frac, frac)
 }

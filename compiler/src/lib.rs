@@ -24,6 +24,7 @@ pub mod lexer;
 pub mod lower;
 pub mod parse;
 pub mod print;
+pub mod query;
 pub mod share;
 pub mod sim;
 pub mod units;

@@ -96,7 +96,7 @@ fn the_division_by_an_event_set_state_leaves_the_per_sample_body() {
         "tau0 / (1 + …) is computed for nothing else"
     );
     let report =
-        tactus_compiler::fixed::report::render(&fp, &tactus_compiler::fixed::report::analyse(&fp));
+        tactus_compiler::fixed::render::render(&fp, &tactus_compiler::fixed::report::analyse(&fp));
     assert!(
         report.contains("/tau of state `tau` (1/tau scaled by"),
         "{report}"

@@ -5,6 +5,11 @@
 
 use super::*;
 
+/// The Q-format name of a fraction-bit count: `Q{31−frac}.{frac}` (sign bit not counted).
+pub fn q_name(frac: i32) -> String {
+    format!("Q{}.{}", 31 - frac, frac)
+}
+
 /// The finest format holding `iv` in an `i32`: fraction bits ([`tactus_runtime::fixed::frac_for`]).
 pub fn frac_for(iv: Interval) -> i32 {
     tactus_runtime::fixed::frac_for(iv.mag())

@@ -4,14 +4,9 @@
 //! measured ([`super::contract`]).
 
 use super::report::{force_values, pow2, Precision};
-use super::FixedProgram;
+use super::{q_name, FixedProgram};
 use crate::ir::*;
 use std::fmt::Write;
-
-/// The Q-format name of a fraction-bit count: `Q{31−frac}.{frac}` (sign bit not counted).
-pub fn q_name(frac: i32) -> String {
-    format!("Q{}.{}", 31 - frac, frac)
-}
 
 /// Renders the precision report as text (the output of `tactus check --report precision`).
 pub fn render(fp: &FixedProgram, pr: &Precision) -> String {
