@@ -19,8 +19,10 @@ pub enum EmuCommand {
     /// Run an ELF file on the emulated dual-core RP2040 and print each core's registers
     /// and cycle count.
     Run {
-        /// ELF executable (ARM, Thumb) to load. Core 0 starts from its vector table
-        /// (`.vectors` section) or else at its entry point with SP at the top of SRAM.
+        /// ELF executable (ARM, Thumb) to load. An image with a `.boot2` section (flash
+        /// firmware from `tactus build`, pico-sdk binaries) boots from flash through the
+        /// emulated boot ROM (boot2's CRC checked); otherwise core 0 starts from its vector
+        /// table (`.vectors` section) or else at its entry point with SP at the top of SRAM.
         file: std::path::PathBuf,
         /// Stop after this many cycles (133 MHz: 133 000 000 cycles = 1 s).
         #[arg(long, default_value_t = 10_000_000)]

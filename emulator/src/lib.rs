@@ -29,6 +29,7 @@ pub mod sio;
 pub mod timer;
 pub mod timing;
 pub mod wcet;
+pub mod xip;
 
 pub use board::{
     Board, Call, CallError, CallResult, Config, EmuError, Engine, StopReason, CALL_STUB, DAC_BASE,

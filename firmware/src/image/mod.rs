@@ -84,12 +84,15 @@
 //! than a period, the one tick that came during it is served late).
 
 pub mod boot;
+pub mod boot2;
 mod elf;
+mod flash_image;
 pub mod glue;
 mod layout;
 mod run;
 
-pub use run::{run_to_first_tick, DriveOut, ImageRun, KeyEvent, SampleOut};
+pub use flash_image::{FlashImage, FlashPiece};
+pub use run::{run_to_first_tick, run_to_timer, DriveOut, ImageRun, KeyEvent, SampleOut};
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -782,8 +785,8 @@ impl FirmwareImage {
         let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
 
         let mut cc = layout::place_programs(programs, keys, cores);
-        let data_off = layout::place_code_blocks(&l, &mut cc, clock_hz)?;
-        let boot = layout::boot_of(&cc, clock_hz);
+        let data_off = layout::place_code_blocks(&l, &mut cc, clock_hz, board.core_mv())?;
+        let boot = layout::boot_of(&cc, clock_hz, board.core_mv());
         let update_wcets: Vec<u64> = programs
             .iter()
             .map(Program::update_wcet)
@@ -918,17 +921,38 @@ impl FirmwareImage {
     /// Whether the image can run on a chip, not only in the emulator: `Err` naming the
     /// board's clock when no PLL_SYS setting makes it from the 12 MHz crystal (the reset
     /// handler then leaves the clocks alone; the emulator runs at the board's clock from
-    /// power-on whatever the firmware sets).
+    /// power-on whatever the firmware sets), or when the board's core voltage is too low
+    /// for it ([`tactus_emulator::clocks::min_core_mv`]: the emulator refuses such an
+    /// image when it switches clk_sys).
     ///
     /// Errors: [`ImageError::Board`].
     pub fn flashable(&self) -> Result<(), ImageError> {
-        match self.boot.pll {
-            Some(_) => Ok(()),
-            None => Err(ImageError::Board(format!(
+        if self.boot.pll.is_none() {
+            return Err(ImageError::Board(format!(
                 "clock {} Hz: no PLL_SYS setting makes it from the 12 MHz crystal \
                  (REFDIV 1, FBDIV 16-320, VCO 750-1600 MHz, post dividers 1-7)",
                 self.clock_hz
+            )));
+        }
+        let core_mv = self.boot.vsel.map_or(
+            tactus_emulator::clocks::DEFAULT_CORE_MV,
+            tactus_emulator::clocks::vsel_mv,
+        );
+        match tactus_emulator::clocks::min_core_mv(self.clock_hz) {
+            None => Err(ImageError::Board(format!(
+                "clock {} MHz: beyond the 200 MHz the RP2040 is specified for (at 1.15 V, \
+                 pico-sdk 2.1.1)",
+                self.clock_hz as f64 / 1e6
             ))),
+            Some(need) if core_mv < need => Err(ImageError::Board(format!(
+                "clock {} MHz at a core voltage of {:.2} V: the RP2040 needs {:.2} V for it \
+                 (pico-sdk 2.1.1); add `core_voltage_v = {:.2}` to the board file",
+                self.clock_hz as f64 / 1e6,
+                core_mv as f64 / 1e3,
+                need as f64 / 1e3,
+                need as f64 / 1e3
+            ))),
+            Some(_) => Ok(()),
         }
     }
 
