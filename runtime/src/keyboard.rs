@@ -535,7 +535,10 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
         assert_eq!(v("0.8").unwrap().core_mv(), Some(800));
         for bad in ["1.17", "1.35", "0.75", "nan", "\"high\""] {
             let e = v(bad).unwrap_err();
-            assert!(e.contains("v.toml") && e.contains("core_voltage_v"), "{bad}: {e}");
+            assert!(
+                e.contains("v.toml") && e.contains("core_voltage_v"),
+                "{bad}: {e}"
+            );
         }
         // Issue 19 class 6: a clock whose cycles per sample exceed any integer was reported as
         // "over by 8446744073709552191"; it is now an error naming the field.
