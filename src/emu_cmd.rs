@@ -125,12 +125,12 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
             println!("stopped: core {core} executed svc #{imm}");
             ExitCode::SUCCESS
         }
-        StopReason::Fault { core, fault } => {
-            eprintln!("error: {}: core {core} HardFault: {fault}", file.display());
+        StopReason::Fault { .. } => {
+            eprintln!("error: {}: {}", file.display(), board.describe_stop(&stop));
             ExitCode::from(2)
         }
-        StopReason::Lockup { core, fault } => {
-            eprintln!("error: {}: core {core} locked up: {fault}", file.display());
+        StopReason::Lockup { .. } | StopReason::Refused { .. } => {
+            eprintln!("error: {}: {}", file.display(), board.describe_stop(&stop));
             ExitCode::from(2)
         }
     }

@@ -630,7 +630,8 @@ impl Xip {
                 None
             }
         };
-        for k in 0..frames {
+        // Frames beyond the RX FIFO's depth overflow it (lost, as on the chip).
+        for k in 0..frames.min(FIFO_DEPTH as u64) {
             let w = match (addr.as_mut(), array.is_empty()) {
                 (Some(a), false) => {
                     let mut v = 0u32;
@@ -638,7 +639,8 @@ impl Xip {
                         v = v << 8 | array[*a % array.len()] as u32;
                         *a += 1;
                     }
-                    v.swap_bytes() >> (32 - 8 * bits.div_ceil(8).min(4)) as u32
+                    // The first byte shifted in is the frame's most significant.
+                    v
                 }
                 _ => u32::MAX,
             };

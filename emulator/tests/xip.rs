@@ -84,7 +84,8 @@ fn status_registers_over_standard_spi_with_their_serial_timing() {
 /// with, or refuses with a reason.
 #[test]
 fn xip_reads_the_flash_only_as_set_up() {
-    let array = vec![0u8; 4096];
+    let mut array = vec![0u8; 4096];
+    array[..4].copy_from_slice(&[1, 2, 3, 4]);
     let mut x = ssi();
     assert!(x.xip_read(None).unwrap_err().contains("disabled"));
     std_spi(&mut x, 0, &array);
@@ -133,6 +134,8 @@ fn xip_reads_the_flash_only_as_set_up() {
     assert_eq!(x.read(52, reg::SR).unwrap() & reg::SR_BUSY, reg::SR_BUSY);
     assert_eq!(x.read(51 + 28 * 4, reg::SR).unwrap() & reg::SR_BUSY, 0);
     assert!(x.chip.continuous);
+    // The data frame: flash bytes 0-3, the first shifted in most significant.
+    assert_eq!(x.read(51 + 28 * 4, reg::DR0), Some(0x0102_0304));
     quad(&mut x, 200, continuous);
     assert_eq!(x.xip_read(None), Ok(XipRead::QuadContinuous));
     // Mode bits that end continuous-read mode: refused.

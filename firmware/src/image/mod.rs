@@ -29,12 +29,17 @@
 //! sample of six hammond keys steps in about 35 µs of host time in a debug build, against
 //! 290 µs with both blocks at bank offset 0).
 //!
+//! **Flash** (modules [`boot2`], `flash_image`): [`FirmwareImage::flash_image`] puts the
+//! image in flash behind a second-stage boot loader, with a reset handler that copies
+//! every segment below to its SRAM address and jumps to the entry stub; from there on the
+//! boot is the RAM image's.
+//!
 //! **Start** (module [`boot`]): from reset, as on the chip. The image's lowest address,
 //! the striped 0x20000000 where the boot ROM enters a RAM image, holds an entry stub that
 //! enters core 0's vector table (core 0's block therefore starts at bank offset
 //! [`boot::ENTRY_RESERVE`]). Core 0's reset handler writes its stack canary, sets the
-//! clocks up (PLL_SYS to the board's clock from the 12 MHz crystal, the timer's 1 µs tick,
-//! the timer released from reset) and launches core 1 over the SIO FIFOs (0, 0, 1, vector
+//! clocks up (the core voltage the board file gives, PLL_SYS to the board's clock from the
+//! 12 MHz crystal, the timer's 1 µs tick, the timer released from reset) and launches core 1 over the SIO FIFOs (0, 0, 1, vector
 //! table, stack pointer, entry: RP2040 datasheet 2.8.2), where core 1 waits in the boot
 //! ROM; core 1's reset handler, the first code of its glue, writes its canary. Then each
 //! reset handler calls `init` for its keys, prepares its SysTick (the sample tick, below),
