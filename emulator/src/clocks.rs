@@ -97,7 +97,7 @@ pub fn vsel_mv(vsel: u32) -> u32 {
 /// The VREG.VSEL that gives `mv` (0.85 V to 1.30 V in 50 mV steps; 0.80 V is 0b0101),
 /// `None` for a voltage the regulator does not make.
 pub fn vsel_of_mv(mv: u32) -> Option<u32> {
-    ((800..=1300).contains(&mv) && mv % 50 == 0).then(|| (mv - 800) / 50 + 5)
+    ((800..=1300).contains(&mv) && mv.is_multiple_of(50)).then(|| (mv - 800) / 50 + 5)
 }
 
 /// The least core voltage at which the RP2040 is specified to run clk_sys at `clk_hz`, mV:

@@ -139,7 +139,7 @@ fn xip_reads_the_flash_only_as_set_up() {
     quad(&mut x, 200, continuous);
     assert_eq!(x.xip_read(None), Ok(XipRead::QuadContinuous));
     // Mode bits that end continuous-read mode: refused.
-    quad(&mut x, 300, 0x00 << 24 | 8 << 2 | 4 << 11 | reg::TT_2C2A);
+    quad(&mut x, 300, 8 << 2 | 4 << 11 | reg::TT_2C2A); // mode bits 0x00
     assert!(x.xip_read(None).unwrap_err().contains("mode bits"));
     // Power-on: the chip keeps QE, leaves continuous-read mode; the SSI is at reset.
     x.power_on();

@@ -174,10 +174,12 @@ impl Board {
                 };
                 let mut s = format!("core {core} {what}: {fault}");
                 if let crate::core::FaultKind::Bus { addr } = fault.kind {
-                    let flash =
-                        addr.wrapping_sub(crate::bus::FLASH_BASE) < crate::bus::FLASH_SIZE;
+                    let flash = addr.wrapping_sub(crate::bus::FLASH_BASE) < crate::bus::FLASH_SIZE;
                     if let (true, Some(why)) = (flash, self.system.xip_error()) {
                         s.push_str(&format!(" (the XIP window does not read the flash: {why})"));
+                        if let Some(p) = &self.system.xip.problem {
+                            s.push_str(&format!(" (the last SSI use not modelled: {p})"));
+                        }
                     }
                 }
                 format!("{s} ({pcs})")
