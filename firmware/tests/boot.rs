@@ -40,6 +40,18 @@ fn image(b: &BoardSpec) -> FirmwareImage {
     FirmwareImage::build(&[p], &keys, b, &lim).unwrap()
 }
 
+/// A 133 MHz board whose flash holds `flash` (a factory-fresh chip), not yet powered on.
+fn flash_board(flash: &[u8]) -> Board {
+    let mut board = Board::new(BoardConfig {
+        clock_hz: 133_000_000,
+        ..BoardConfig::default()
+    });
+    board
+        .write_bytes(tactus_emulator::bus::FLASH_BASE, flash)
+        .unwrap();
+    board
+}
+
 /// A few samples of key travel for each key (raw sensor words), the same for both runs.
 fn sensors(n: usize, keys: usize) -> Vec<Vec<i32>> {
     (0..n)
@@ -105,13 +117,7 @@ fn a_flash_image_boots_through_boot2_and_runs_as_the_ram_image() {
     let flash = img.flash_image().unwrap();
     assert_eq!(&flash.bytes[..BOOT2_SIZE], &boot2::bytes().unwrap()[..]);
     // Up to the RAM image's entry stub: boot2, then the copy.
-    let mut board = Board::new(BoardConfig {
-        clock_hz: 133_000_000,
-        ..BoardConfig::default()
-    });
-    board
-        .write_bytes(tactus_emulator::bus::FLASH_BASE, &flash.bytes)
-        .unwrap();
+    let mut board = flash_board(&flash.bytes);
     board.boot_from_flash().unwrap();
     while board.cores[0].r[15] != tactus_firmware::image::boot::ENTRY {
         assert_eq!(board.step(u64::MAX).unwrap(), Ok(0));
@@ -211,13 +217,7 @@ fn boot2_sets_qe_once() {
     let b = board("rp2040");
     let img = image(&b);
     let flash = img.flash_image().unwrap();
-    let mut board = Board::new(BoardConfig {
-        clock_hz: 133_000_000,
-        ..BoardConfig::default()
-    });
-    board
-        .write_bytes(tactus_emulator::bus::FLASH_BASE, &flash.bytes)
-        .unwrap();
+    let mut board = flash_board(&flash.bytes);
     assert_eq!(board.system.xip.chip.sr2 & xip::QE, 0);
     let boot = |board: &mut Board| {
         board.boot_from_flash().unwrap();
