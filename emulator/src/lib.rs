@@ -18,6 +18,7 @@ pub mod board;
 pub mod bus;
 pub mod clocks;
 pub mod core;
+pub mod debug;
 pub mod decode;
 pub mod elf;
 pub mod encode;

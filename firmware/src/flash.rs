@@ -489,6 +489,13 @@ pub struct ElfRun {
     pub cores: Vec<CoreRun>,
     /// Core clock cycles per sample period.
     pub cycles_per_sample: u64,
+    /// Each core's cycle counter at the end.
+    pub final_cycles: [u64; 2],
+    /// Every key's DAC words at the end, in key-map order.
+    pub dac_final: Vec<u32>,
+    /// FNV-1a (64-bit) over every key's DAC words after every sample: one number that
+    /// changes when any word of the run does.
+    pub dac_digest: u64,
 }
 
 /// Most samples [`run_elf`] runs (one emulated minute at 44.1 kHz).
@@ -515,6 +522,7 @@ pub fn run_elf(
     sensors: &[&[i32]],
     samples: usize,
     progress: &mut dyn FnMut(usize, usize),
+    debugger: Option<Box<dyn tactus_emulator::debug::Debugger>>,
 ) -> Result<ElfRun, String> {
     use crate::image::glue::ctrl;
     use tactus_emulator::timing::EXCEPTION_ENTRY;
@@ -552,6 +560,9 @@ pub fn run_elf(
     board
         .load_elf(elf)
         .map_err(|e| format!("cannot load the ELF: {e}"))?;
+    if let Some(d) = debugger {
+        board.attach_debugger(d);
+    }
     let mut cores = Vec::new();
     for c in &map.cores {
         let isr = addr(&c.sample_isr, "sample_isr")? & !1;
@@ -567,6 +578,14 @@ pub fn run_elf(
             .collect();
         words.push(w?);
     }
+    let mut dac_addrs = Vec::new();
+    for k in &map.keys {
+        for d in &k.dac_words {
+            dac_addrs.push(addr(d, &format!("key {}", k.midi))?);
+        }
+    }
+    let mut dac = vec![0u32; dac_addrs.len()];
+    let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
     let check = |stop: StopReason, board: &tactus_emulator::Board| match stop {
         StopReason::CycleLimit => Ok(()),
         other => Err(format!(
@@ -601,6 +620,12 @@ pub fn run_elf(
         }
         let stop = board.run_until(tick(n as u64 + 1));
         check(stop, &board)?;
+        for (w, &a) in dac.iter_mut().zip(&dac_addrs) {
+            *w = board.read_u32(a).map_err(|e| e.to_string())?;
+            for b in w.to_le_bytes() {
+                digest = (digest ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
         for (c, (h, _)) in cores.iter().enumerate() {
             for call in board.calls(*h) {
                 let cyc = call.cycles + EXCEPTION_ENTRY as u64;
@@ -615,6 +640,7 @@ pub fn run_elf(
         }
     }
     progress(samples, samples);
+    board.finish_debugging();
     let mut out = Vec::new();
     for (c, (_, ctrl)) in cores.iter().enumerate() {
         let done = board
@@ -637,5 +663,8 @@ pub fn run_elf(
             map.clock_hz as f64,
             map.sample_rate_hz as f64,
         ),
+        final_cycles: [board.cores[0].cycle, board.cores[1].cycle],
+        dac_final: dac,
+        dac_digest: digest,
     })
 }

@@ -173,6 +173,9 @@ pub struct Board {
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
+    /// The debugger in charge of [`Board::run_until`] and what it watches, if any
+    /// ([`crate::debug`]).
+    pub(crate) debug: crate::debug::Attachment,
 }
 
 impl Board {
@@ -197,6 +200,7 @@ impl Board {
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
             windows: [0; 3],
+            debug: Default::default(),
             cache: run::empty_cache(),
         };
         // Core 1 reaches `wait_for_vector` a few cycles after reset, long before core 0

@@ -358,7 +358,17 @@ impl Board {
     /// Runs until both running cores reach cycle `limit`, or a stop. Instructions are not
     /// split: each core stops at its first instruction boundary at or after `limit` (a
     /// multi-cycle instruction that starts before the limit completes).
+    ///
+    /// With a debugger attached ([`Board::attach_debugger`]) the debugger runs the board
+    /// there instead, stopping on the way as its client asks, with the same results.
     pub fn run_until(&mut self, limit: u64) -> StopReason {
+        if let Some(mut d) = self.debug.hook.take() {
+            let stop = d.run_until(self, limit);
+            if !d.detached() {
+                self.debug.hook = Some(d);
+            }
+            return stop;
+        }
         self.lines_epoch = u64::MAX; // the host may have touched SIO or the timer
         loop {
             let Some(k) = self.next_core() else {
