@@ -12,7 +12,8 @@
 //! `--target rp2040` on a keyboard — a layout (`.toml`), or an instrument with `--keys N` —
 //! writes flashable firmware per board (the layout's boards, or planned as `tactus budget`
 //! plans them): `DIR/board-NN/firmware.elf`, `firmware.uf2`, `keys.json` and `README.md`
-//! (`tactus_firmware::flash`).
+//! (`tactus_firmware::flash`): a flash image that boots at power-on, or with `--ram` a
+//! RAM-only image for development.
 
 use crate::budget_cmd::{compile_keyboard, KeyboardSpec};
 use crate::check_cmd::{compile_reporting, parse_override};
@@ -24,7 +25,7 @@ use tactus_compiler::abi::CConfig;
 use tactus_compiler::cgen;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::thumb;
-use tactus_firmware::flash::{self, KeyboardInput};
+use tactus_firmware::flash::{self, KeyboardInput, Load};
 use tactus_runtime::limiter::LimiterConfig;
 
 /// Arguments of `tactus build`.
@@ -36,13 +37,20 @@ Examples:
   tactus build instruments/layouts/grand88.toml --target rp2040 -o out/grand88   # firmware per board
   tactus build instruments/hammond.tactus --keys 61 --target rp2040 -o out/organ
 
+  tactus build instruments/layouts/grand88.toml --target rp2040 --board rp2040_200mhz -o out/g200
+
 Firmware per board: for a layout (or an instrument on --keys N keys), each board — the
 layout's [[board]]s, or the fewest that fit, planned as `tactus budget` plans them — gets a
-directory board-NN/ with firmware.uf2 (RAM-only, for the RP2040 boot ROM: hold BOOTSEL, plug
-in, copy it onto the RPI-RP2 drive), firmware.elf (the same image, for a debugger or
-`tactus emu run`), keys.json (each key's MIDI number, instrument, core, sensor and DAC word
-addresses) and README.md. The sensor and DAC words are memory locations a converter driver
-(or DMA, or PIO) must fill and drain; the firmware contains no ADC/DAC driver.")]
+directory board-NN/ with firmware.uf2 (for the RP2040 boot ROM: hold BOOTSEL, plug in, copy
+it onto the RPI-RP2 drive; it is written to flash and boots at every power-on: boot2, then
+the image copies itself to SRAM and runs from there), firmware.elf (the same image, for a
+debugger or `tactus emu run`, which boots it through the emulated boot ROM), keys.json (each
+key's MIDI number, instrument, core, sensor and DAC word addresses) and README.md. With
+--ram, the UF2 and ELF are RAM-only instead (loaded straight into SRAM, gone at power-off).
+A board file above 133 MHz needs its core voltage (`core_voltage_v = 1.15` for 200 MHz):
+the firmware raises it before the PLL. The sensor and DAC words are memory locations a
+converter driver (or DMA, or PIO) must fill and drain; the firmware contains no ADC/DAC
+driver.")]
 pub struct BuildArgs {
     /// Instrument file (`instruments/grand_piano.tactus`), built-in name (`grand_piano`),
     /// or keyboard layout (`instruments/layouts/grand88.toml`, rp2040 target only).
@@ -66,6 +74,10 @@ pub struct BuildArgs {
     /// firmware; default: the layout's, else `rp2040`.
     #[arg(long, value_name = "NAME_OR_FILE")]
     pub board: Option<String>,
+    /// Firmware that lives in SRAM only (a RAM UF2 and ELF, for development: gone at
+    /// power-off) instead of a flash image that boots at power-on.
+    #[arg(long)]
+    pub ram: bool,
 }
 
 /// Code generation targets.
@@ -107,9 +119,9 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
         }
         return build_firmware(args, dir);
     }
-    if args.board.is_some() {
+    if args.board.is_some() || args.ram {
         return Err(Some(format!(
-            "{}: --board is for firmware (a layout, or an instrument with --keys N)",
+            "{}: --board and --ram are for firmware (a layout, or an instrument with --keys N)",
             args.file
         )));
     }
@@ -212,6 +224,7 @@ fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<
         board: &kb.board,
         boards: kb.boards(),
         limiter: &limiter,
+        load: if args.ram { Load::Ram } else { Load::Flash },
         command: &command,
     };
     let bar = ProgressBar::new(1);
@@ -261,9 +274,14 @@ fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<
             cores.join(", ")
         );
     }
+    let (kind, then) = if args.ram {
+        ("RAM-only", "it runs until power-off")
+    } else {
+        ("flash", "it boots from flash at every power-on")
+    };
     println!(
-        "{}: {} boards of {} at {} MHz in {}, each with firmware.uf2, firmware.elf, keys.json, README.md\n\
-         flash a board: hold BOOTSEL, plug it in, copy its firmware.uf2 onto the RPI-RP2 drive",
+        "{}: {} boards of {} at {} MHz in {}, each with firmware.uf2 ({kind}), firmware.elf, keys.json, README.md\n\
+         flash a board: hold BOOTSEL, plug it in, copy its firmware.uf2 onto the RPI-RP2 drive; {then}",
         kb.name(),
         boards.len(),
         kb.board.name,

@@ -19,8 +19,10 @@ pub enum EmuCommand {
     /// Run an ELF file on the emulated dual-core RP2040 and print each core's registers
     /// and cycle count.
     Run {
-        /// ELF executable (ARM, Thumb) to load. Core 0 starts from its vector table
-        /// (`.vectors` section) or else at its entry point with SP at the top of SRAM.
+        /// ELF executable (ARM, Thumb) to load. An image with a `.boot2` section (flash
+        /// firmware from `tactus build`, pico-sdk binaries) boots from flash through the
+        /// emulated boot ROM (boot2's CRC checked); otherwise core 0 starts from its vector
+        /// table (`.vectors` section) or else at its entry point with SP at the top of SRAM.
         file: std::path::PathBuf,
         /// Stop after this many cycles (133 MHz: 133 000 000 cycles = 1 s).
         #[arg(long, default_value_t = 10_000_000)]
@@ -42,7 +44,30 @@ pub enum EmuCommand {
         /// Emulated seconds to run with `--stimulus` (at most 60).
         #[arg(long, default_value_t = 1.0)]
         seconds: f64,
+        /// Serve GDB on 127.0.0.1:PORT and wait for it before running (0: any free port,
+        /// printed). Both cores are threads; breakpoints, watchpoints, stepping and
+        /// `monitor cycles` leave every cycle count as it is (docs/firmware.md).
+        #[arg(long, value_name = "PORT")]
+        gdb: Option<u16>,
     },
+}
+
+/// Listens on 127.0.0.1:`port` and waits for one GDB client.
+fn wait_for_gdb(port: u16) -> Result<Box<dyn tactus_emulator::debug::Debugger>, String> {
+    use tactus_emulator::debug::gdb;
+    let listener = gdb::listen(port).map_err(|e| format!("--gdb {port}: cannot listen: {e}"))?;
+    let addr = listener
+        .local_addr()
+        .map_err(|e| format!("--gdb {port}: {e}"))?;
+    eprintln!("tactus emu: waiting for gdb on {addr} (in gdb: target remote {addr})");
+    let (conn, peer) = listener
+        .accept()
+        .map_err(|e| format!("--gdb {port}: {e}"))?;
+    eprintln!("tactus emu: gdb connected from {peer}");
+    Ok(Box::new(gdb::GdbSession::new(
+        conn,
+        Box::new(|line| eprintln!("tactus emu: {line}")),
+    )))
 }
 
 /// Runs an `emu` subcommand; returns the process exit code (1 for an unloadable file, 2
@@ -56,9 +81,10 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
         stimulus,
         keys,
         seconds,
+        gdb,
     } = cmd;
     if let Some(stimulus) = stimulus {
-        return match run_firmware(&file, &stimulus, keys.as_deref(), seconds) {
+        return match run_firmware(&file, &stimulus, keys.as_deref(), seconds, gdb) {
             Ok(code) => code,
             Err(e) => {
                 eprintln!("error: {e}");
@@ -88,11 +114,21 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
             }
         }
     }
+    if let Some(port) = gdb {
+        match wait_for_gdb(port) {
+            Ok(d) => board.attach_debugger(d),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
     let stop = if trace {
         run_traced(&mut board, cycles)
     } else {
         board.run_for(cycles)
     };
+    board.finish_debugging();
     for core in &board.cores {
         print_core(core);
     }
@@ -123,12 +159,12 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
             println!("stopped: core {core} executed svc #{imm}");
             ExitCode::SUCCESS
         }
-        StopReason::Fault { core, fault } => {
-            eprintln!("error: {}: core {core} HardFault: {fault}", file.display());
+        StopReason::Fault { .. } => {
+            eprintln!("error: {}: {}", file.display(), board.describe_stop(&stop));
             ExitCode::from(2)
         }
-        StopReason::Lockup { core, fault } => {
-            eprintln!("error: {}: core {core} locked up: {fault}", file.display());
+        StopReason::Lockup { .. } | StopReason::Refused { .. } => {
+            eprintln!("error: {}: {}", file.display(), board.describe_stop(&stop));
             ExitCode::from(2)
         }
     }
@@ -231,6 +267,7 @@ fn run_firmware(
     stimulus: &str,
     keys: Option<&std::path::Path>,
     seconds: f64,
+    gdb: Option<u16>,
 ) -> Result<ExitCode, String> {
     use tactus_firmware::flash::{self, KeyMap};
     let elf = std::fs::read(file).map_err(|e| format!("cannot read {}: {e}", file.display()))?;
@@ -327,10 +364,20 @@ fn run_firmware(
         distinct.push((id, words));
     }
     let sensors: Vec<&[i32]> = which.iter().map(|&i| distinct[i].1.as_slice()).collect();
-    let bar = indicatif::ProgressBar::new(samples as u64);
-    let run = flash::run_elf(&elf, &map, &sensors, samples, &mut |d, _| {
-        bar.set_position(d as u64)
-    })
+    let debugger = gdb.map(wait_for_gdb).transpose()?;
+    let bar = if debugger.is_some() {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(samples as u64)
+    };
+    let run = flash::run_elf(
+        &elf,
+        &map,
+        &sensors,
+        samples,
+        &mut |d, _| bar.set_position(d as u64),
+        debugger,
+    )
     .map_err(|e| format!("{}: {e}", file.display()))?;
     bar.finish_and_clear();
     println!(
@@ -353,6 +400,14 @@ fn run_firmware(
             core.misses
         );
     }
+    println!(
+        "final cycles: core 0 {}, core 1 {}",
+        run.final_cycles[0], run.final_cycles[1]
+    );
+    println!(
+        "DAC words at the end: {:08x?}; digest of every sample's words {:016x}",
+        run.dac_final, run.dac_digest
+    );
     let missed = run.cores.iter().any(|c| c.misses > 0);
     Ok(if missed {
         ExitCode::from(2)
@@ -400,6 +455,7 @@ mod tests {
             stimulus: None,
             keys: None,
             seconds: 1.0,
+            gdb: None,
         })
     }
 
@@ -429,6 +485,7 @@ mod tests {
             stimulus: None,
             keys: None,
             seconds: 1.0,
+            gdb: None,
         };
         assert_eq!(run(cmd), ExitCode::FAILURE);
     }

@@ -218,8 +218,8 @@ fn build_rp2040_writes_object_header_and_listing() {
 
 #[test]
 fn build_firmware_from_a_tactus_file_then_boot_it_in_the_emulator() {
-    // One command from a .tactus file to a UF2 per board, then the ELF booted from reset
-    // with every key on a stimulus.
+    // One command from a .tactus file to a flash UF2 per board, then the ELF booted from
+    // power-on (boot ROM, boot2, the copy to SRAM) with every key on a stimulus.
     let dir = temp_dir("cli-build-firmware");
     let out = tactus()
         .args([
@@ -292,6 +292,86 @@ fn build_firmware_from_a_tactus_file_then_boot_it_in_the_emulator() {
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--target rp2040"));
+}
+
+#[test]
+fn build_firmware_at_200_mhz_and_ram_only() {
+    let dir = temp_dir("cli-build-200");
+    // A flash image at 200 MHz: its UF2 writes flash, its ELF boots through boot2 and the
+    // core voltage before the PLL.
+    let out = tactus()
+        .args([
+            "build",
+            "hammond",
+            "--keys",
+            "4",
+            "--target",
+            "rp2040",
+            "--board",
+            "rp2040_200mhz",
+            "-o",
+        ])
+        .arg(dir.join("fast"))
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("at 200 MHz") && stdout.contains("(flash)"),
+        "{stdout}"
+    );
+    let board = dir.join("fast/board-01");
+    let uf2 = std::fs::read(board.join("firmware.uf2")).unwrap();
+    assert_eq!(&uf2[12..16], &0x1000_0000u32.to_le_bytes(), "a flash block");
+    let readme = std::fs::read_to_string(board.join("README.md")).unwrap();
+    assert!(
+        readme.contains("1.15 V") && readme.contains("writes it to flash"),
+        "{readme}"
+    );
+    let out = tactus()
+        .args(["emu", "run"])
+        .arg(board.join("firmware.elf"))
+        .args(["--stimulus", "mf-dip", "--seconds", "0.05"])
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stdout)
+            .matches("misses 0")
+            .count(),
+        2
+    );
+    // RAM-only with --ram.
+    let out = tactus()
+        .args([
+            "build", "hammond", "--keys", "4", "--target", "rp2040", "--ram", "-o",
+        ])
+        .arg(dir.join("ram"))
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let uf2 = std::fs::read(dir.join("ram/board-01/firmware.uf2")).unwrap();
+    assert_eq!(&uf2[12..16], &0x2000_0000u32.to_le_bytes(), "a RAM block");
+    // A board file at 200 MHz without its core voltage: an error naming the field.
+    let file = dir.join("fast.toml");
+    std::fs::write(
+        &file,
+        "name = \"fast\"\nclock_hz = 200e6\ncores = 2\nsample_rate_hz = 44100\n",
+    )
+    .unwrap();
+    let out = tactus()
+        .args([
+            "build", "hammond", "--keys", "4", "--target", "rp2040", "--board",
+        ])
+        .arg(&file)
+        .arg("-o")
+        .arg(dir.join("low"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("core_voltage_v = 1.15"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Runs `tactus sim FILE --stimulus STIMULUS --out DIR --wav DIR/WAV EXTRA…`, checks it

@@ -19,16 +19,20 @@
 //! contend either. APB accesses cost [`crate::timing::APB_LOAD_WAIT`] /
 //! [`crate::timing::APB_STORE_WAIT`] extra cycles.
 
-use crate::clocks::SysCtl;
+use crate::clocks::{self, SysCtl};
 use crate::sio::{Sio, SIO_BASE};
 use crate::timer::{Timer, TIMER_BASE};
 use crate::timing::{APB_LOAD_WAIT, APB_STORE_WAIT};
+use crate::xip::{Xip, XIP_SSI_BASE, XIP_SSI_SIZE};
 
 /// Boot ROM: 0x00000000, 16 KB.
 pub const ROM_BASE: u32 = 0x0000_0000;
 /// Boot ROM size in bytes.
 pub const ROM_SIZE: u32 = 16 * 1024;
-/// XIP flash: 0x10000000 (modelled as 2 MB of zero-wait-state memory; the XIP cache is not).
+/// XIP flash: 0x10000000 (2 MB, zero-wait-state: the XIP cache and the serial transfer are
+/// not timed). It reads only while the SSI and the flash chip are set up for XIP
+/// ([`crate::xip`]): a board from [`System::new`] finds them set up for 03h reads, a board
+/// booted through the boot ROM ([`crate::Board::boot_from_flash`]) as boot2 leaves them.
 pub const FLASH_BASE: u32 = 0x1000_0000;
 /// Flash size in bytes.
 pub const FLASH_SIZE: u32 = 2 * 1024 * 1024;
@@ -167,9 +171,15 @@ pub struct System {
     pub sio: Sio,
     /// System timer.
     pub timer: Timer,
-    /// RESETS, XOSC, PLL_SYS, CLOCKS and the watchdog tick: the start-up's registers
+    /// RESETS, XOSC, PLL_SYS, CLOCKS, VREG and the watchdog tick: the start-up's registers
     /// (`clocks.rs`, a minimal model).
     pub sysctl: SysCtl,
+    /// The SSI and the flash chip behind the XIP window ([`crate::xip`]).
+    pub xip: Xip,
+    /// Whether an XIP access reads the flash now ([`Xip::xip_read`] with the programmed
+    /// clock), kept current by every SSI and clock write. While it is false every core runs
+    /// on the general path, whose flash accesses fault.
+    pub(crate) xip_answers: bool,
     /// Last cycle in which each core claimed each bank.
     pub(crate) bank_claim: [[u64; 2]; BANKS],
     /// Cycles each core has lost to bank contention.
@@ -281,6 +291,8 @@ impl System {
             sio: Sio::default(),
             timer: Timer::new(clock_hz),
             sysctl: SysCtl::default(),
+            xip: Xip::configured_03h(clock_hz),
+            xip_answers: true,
             bank_claim: [[u64::MAX; 2]; BANKS],
             contention_stalls: [0; 2],
             irq_epoch: 0,
@@ -317,6 +329,22 @@ impl System {
             return Some((&mut self.rom, addr as usize));
         }
         None
+    }
+
+    /// Why an XIP access does not read the flash now, `None` when it does ([`Xip::xip_read`]
+    /// with the programmed clk_sys).
+    pub fn xip_error(&self) -> Option<String> {
+        self.xip.xip_read(self.sysctl.clk_sys_hz()).err()
+    }
+
+    /// Recomputes [`System::xip_answers`] after an SSI or clock write; a change to "no"
+    /// drops the decode cache, whose flash instructions must not run any more.
+    pub(crate) fn refresh_xip(&mut self) {
+        let answers = self.xip_error().is_none();
+        if self.xip_answers && !answers {
+            self.invalidate_code();
+        }
+        self.xip_answers = answers;
     }
 
     /// Marks every cached instruction stale (self-modifying code, host writes).
@@ -436,8 +464,22 @@ impl System {
             }
             return self.timer.read(cycle, addr & 0xfff);
         }
-        // RESETS, clocks, PLL, XOSC, watchdog: no interrupt lines.
+        // RESETS, clocks, PLL, XOSC, VREG, watchdog: no interrupt lines.
         self.sysctl.read(addr)
+    }
+
+    /// The SSI's register at `addr` (any of its words), read at `cycle`.
+    fn ssi_read(&mut self, cycle: u64, addr: u32) -> Option<u32> {
+        self.xip.read(cycle, addr - XIP_SSI_BASE)
+    }
+
+    /// Writes the SSI's register at `addr` at `cycle`; false for no register.
+    fn ssi_write(&mut self, cycle: u64, addr: u32, value: u32) -> bool {
+        let ok = self
+            .xip
+            .write(cycle, addr - XIP_SSI_BASE, value, &self.flash);
+        self.refresh_xip();
+        ok
     }
 
     fn peripheral_write(&mut self, core: usize, cycle: u64, addr: u32, value: u32) -> bool {
@@ -463,7 +505,20 @@ impl System {
             };
             return self.timer.write(cycle, reg, value);
         }
-        self.sysctl.write(addr, value)
+        let was_held = self.sysctl.held_in_reset(clocks::reg::RESET_TIMER);
+        let ok = self.sysctl.write(addr, value);
+        // The timer counts from its release from reset (datasheet 4.6: held in reset it
+        // reads 0 and its alarms are disarmed).
+        match (
+            was_held,
+            self.sysctl.held_in_reset(clocks::reg::RESET_TIMER),
+        ) {
+            (false, true) => self.timer.hold(),
+            (true, false) => self.timer.release(cycle),
+            _ => {}
+        }
+        self.refresh_xip();
+        ok
     }
 }
 
@@ -482,8 +537,17 @@ impl Bus for System {
         }
         match addr >> 28 {
             0x0 if addr < ROM_SIZE => Ok((load_le(&self.rom, addr as usize, size), 0)),
-            0x1 if addr - FLASH_BASE < FLASH_SIZE => {
+            0x1 if addr - FLASH_BASE < FLASH_SIZE && self.xip_answers => {
                 Ok((load_le(&self.flash, (addr - FLASH_BASE) as usize, size), 0))
+            }
+            0x1 if addr.wrapping_sub(XIP_SSI_BASE) < XIP_SSI_SIZE => {
+                match self.ssi_read(cycle, addr & !3) {
+                    Some(v) => Ok((
+                        v >> ((addr & 3) * 8) & (u32::MAX >> (32 - 8 * size)),
+                        APB_LOAD_WAIT,
+                    )),
+                    None => Err(BusFault { addr }),
+                }
             }
             0x4 | 0xd => {
                 let wait = if addr >> 28 == 4 { APB_LOAD_WAIT } else { 0 };
@@ -526,6 +590,13 @@ impl Bus for System {
                 };
                 if self.peripheral_write(core, cycle, addr & !3, value) {
                     Ok(wait)
+                } else {
+                    Err(BusFault { addr })
+                }
+            }
+            0x1 if addr.wrapping_sub(XIP_SSI_BASE) < XIP_SSI_SIZE => {
+                if self.ssi_write(cycle, addr & !3, value) {
+                    Ok(APB_STORE_WAIT)
                 } else {
                     Err(BusFault { addr })
                 }
@@ -590,7 +661,7 @@ impl Bus for System {
             return Ok(load_le(&self.rom, addr as usize, 2) as u16);
         }
         let off = addr.wrapping_sub(FLASH_BASE);
-        if off < FLASH_SIZE {
+        if off < FLASH_SIZE && self.xip_answers {
             return Ok(load_le(&self.flash, off as usize, 2) as u16);
         }
         Err(BusFault { addr })

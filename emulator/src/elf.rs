@@ -75,6 +75,9 @@ pub struct Image {
     /// Address of a vector table, if a section named `.vectors`, `.vector_table` or
     /// `.isr_vector` exists.
     pub vector_table: Option<u32>,
+    /// Whether a section named `.boot2` exists (pico-sdk's name for the second-stage boot
+    /// loader at the start of flash): the image boots from flash through the boot ROM.
+    pub boot2: bool,
 }
 
 impl Image {
@@ -217,6 +220,9 @@ pub fn parse(bytes: &[u8]) -> Result<Image, ElfError> {
             Ok(".vectors" | ".vector_table" | ".isr_vector")
         ) {
             image.vector_table = Some(section.address() as u32);
+        }
+        if section.name() == Ok(".boot2") {
+            image.boot2 = true;
         }
     }
     Ok(image)

@@ -4,9 +4,11 @@
 //! [`decode::decode`] turns halfwords into an [`decode::Instr`] and [`timing::cycles`] prices
 //! it from the one timing table. On them, [`core::Core`] executes instructions against the
 //! [`bus::Bus`] trait, [`bus::System`] is the RP2040's memory map (striped SRAM banks with
-//! contention, [`sio`], [`timer`]), and [`board::Board`] runs two cores in lock-step and
-//! offers the host API: load an ELF ([`elf`]), run N cycles, read and write memory, feed
-//! sensors, read the DAC, and count cycles per function. [`block`] is the default
+//! contention, [`sio`], [`timer`], the start-up's registers in [`clocks`], the XIP path to
+//! the flash in [`xip`]), and [`board::Board`] runs two cores in lock-step and offers the
+//! host API: load an ELF ([`elf`]), power on from flash through the boot ROM's path, run N
+//! cycles, read and write memory, feed sensors, read the DAC, and count cycles per
+//! function. [`block`] is the default
 //! engine of the board's fast path: Thumb regions compiled to native code with cranelift
 //! (module `jit`), pre-decoded basic blocks otherwise ([`board::Engine`]).
 #![deny(missing_docs)]
@@ -16,6 +18,7 @@ pub mod board;
 pub mod bus;
 pub mod clocks;
 pub mod core;
+pub mod debug;
 pub mod elf;
 pub mod exec;
 mod fast;
@@ -24,6 +27,7 @@ pub mod nvic;
 pub mod semantics;
 pub mod sio;
 pub mod timer;
+pub mod xip;
 
 pub use board::{
     Board, Call, CallError, CallResult, Config, EmuError, Engine, StopReason, CALL_STUB, DAC_BASE,

@@ -5,6 +5,13 @@
 //! armed alarm into the cycle at which it fires, so the board only has to compare the current
 //! cycle with [`Timer::next_event`]. A 44.1 kHz sample tick is paced by advancing ALARM0 by 22
 //! or 23 µs alternately (mean 22.676 µs) in the alarm's interrupt handler.
+//!
+//! **Reset.** RESETS holds the timer in reset or releases it (`crate::clocks`; the bus
+//! calls [`Timer::hold`] and [`Timer::release`]): held, it reads 0 and its alarms and
+//! interrupts are cleared; released at cycle *r*, it counts the microsecond ticks after *r*
+//! (the ticks come from the watchdog's tick generator, which runs on: the count is the
+//! ticks since power-on minus those up to *r*). At power-on it runs, as the boot ROM leaves
+//! it (it pulses the timer's reset, pico-bootrom `bootrom_main.c`, `main`).
 
 /// Base address of the timer.
 pub const TIMER_BASE: u32 = 0x4005_4000;
@@ -55,6 +62,10 @@ pub struct Timer {
     intf: u32,
     /// Earliest `fire_at`.
     pub next_event: u64,
+    /// Held in reset by RESETS.
+    in_reset: bool,
+    /// Cycle of the last release from reset (`None` before any).
+    released_at: Option<u64>,
 }
 
 impl Timer {
@@ -71,7 +82,39 @@ impl Timer {
             inte: 0,
             intf: 0,
             next_event: u64::MAX,
+            in_reset: false,
+            released_at: None,
         }
+    }
+
+    /// RESETS holds the timer in reset: its count, alarms and interrupts are cleared.
+    pub fn hold(&mut self) {
+        *self = Timer {
+            in_reset: true,
+            released_at: self.released_at,
+            ..Timer::new(self.clock_hz)
+        };
+    }
+
+    /// RESETS releases the timer at cycle `now`: it counts the microsecond ticks from
+    /// there, from 0.
+    pub fn release(&mut self, now: u64) {
+        self.in_reset = false;
+        self.released_at = Some(now);
+        self.offset = 0;
+        self.offset = 0u64.wrapping_sub(self.micros(now));
+    }
+
+    /// The cycle of the timer's last release from reset, `None` while it has run since
+    /// power-on.
+    pub fn released_at(&self) -> Option<u64> {
+        self.released_at
+    }
+
+    /// First cycle at which the count reaches `us` (as the timer runs now: a later release
+    /// from reset moves it).
+    pub fn cycle_at_us(&self, us: u64) -> u64 {
+        self.cycle_of(us)
     }
 
     /// Microsecond count at cycle `now`.
@@ -128,6 +171,9 @@ impl Timer {
 
     /// Reads register `offset` at cycle `now`; `None` if unmapped.
     pub fn read(&mut self, now: u64, offset: u32) -> Option<u32> {
+        if self.in_reset {
+            return (offset <= reg::INTS).then_some(0);
+        }
         self.update(now);
         let t = self.micros(now);
         Some(match offset {
@@ -151,6 +197,9 @@ impl Timer {
 
     /// Writes register `offset` at cycle `now`; false if unmapped.
     pub fn write(&mut self, now: u64, offset: u32, value: u32) -> bool {
+        if self.in_reset {
+            return offset <= reg::INTS;
+        }
         self.update(now);
         match offset {
             reg::TIMELW => self.written_low = value,

@@ -1,14 +1,18 @@
-//! Firmware a user can flash: per board of a keyboard, the linked ELF, its RAM-only UF2,
-//! a key map and a README (what `tactus build LAYOUT --target rp2040 -o DIR` writes).
+//! Firmware a user can flash: per board of a keyboard, the linked ELF, its UF2, a key map
+//! and a README (what `tactus build LAYOUT --target rp2040 -o DIR` writes).
 //!
 //! The boards are the layout's own (`[[board]]`) or planned as `tactus budget` plans them
 //! ([`crate::boards::plan`]); each board's image is [`crate::boards::board_image`], the
 //! very image whose sample interrupt the budget proved, so a board that does not fit is an
-//! error here rather than firmware that misses its deadline. The image boots from reset
-//! ([`crate::image::boot`]); [`crate::uf2`] says why the UF2 is RAM-only.
+//! error here rather than firmware that misses its deadline. By default the firmware lives
+//! in flash and boots at power-on through its second-stage boot loader, copying itself to
+//! SRAM ([`Load::Flash`], `crate::image::flash_image`); [`Load::Ram`] writes the RAM-only
+//! image of earlier versions (for development: [`crate::uf2`] says what each costs). From
+//! the RAM image's entry stub on both run the same code at the same addresses
+//! ([`crate::image::boot`]).
 
 use crate::boards::{self, PlanKey, ProgramCosts};
-use crate::image::{FirmwareImage, Program};
+use crate::image::{FirmwareImage, FlashImage, Program};
 use serde::{Deserialize, Serialize};
 use tactus_emulator::{DAC_BASE, SENSOR_BASE};
 use tactus_runtime::keyboard::{self, Board};
@@ -26,7 +30,12 @@ pub struct KeyMap {
     pub clock_hz: u64,
     /// Sample rate, Hz.
     pub sample_rate_hz: u32,
-    /// Where the boot ROM enters the image (the entry stub, Thumb bit set).
+    /// The core voltage the image sets before its PLL, V (`None`: the regulator's 1.10 V).
+    #[serde(default)]
+    pub core_voltage_v: Option<f64>,
+    /// Where the image starts (Thumb bit set): the flash reset handler that boot2 enters
+    /// (a flash image), or the entry stub at 0x20000000 that the boot ROM enters (a RAM
+    /// image).
     pub entry: String,
     /// Timer time of the start alarm, µs after the timer's release: at it both cores start
     /// their SysTick, the sample tick; the first tick follows `period_cycles` cycles and
@@ -95,6 +104,16 @@ pub struct KeyMapEntry {
     pub param_block: Option<String>,
 }
 
+/// Where a board's firmware lives (module documentation).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Load {
+    /// In flash: boots at power-on through boot2 and copies itself to SRAM.
+    #[default]
+    Flash,
+    /// In SRAM only: loaded by the boot ROM over USB, gone at power-off (development).
+    Ram,
+}
+
 /// Everything written for one board.
 #[derive(Clone, Debug)]
 pub struct BoardFirmware {
@@ -104,9 +123,13 @@ pub struct BoardFirmware {
     pub keys: Vec<u8>,
     /// The image.
     pub image: FirmwareImage,
-    /// The linked ELF ([`FirmwareImage::elf`]).
+    /// The image in flash ([`FirmwareImage::flash_image`]; `None` for [`Load::Ram`]).
+    pub flash: Option<FlashImage>,
+    /// The linked ELF ([`FirmwareImage::flash_elf`], or [`FirmwareImage::elf`] for
+    /// [`Load::Ram`]).
     pub elf: Vec<u8>,
-    /// The RAM-only UF2 ([`crate::uf2::rp2040_ram`]).
+    /// The UF2: flash ([`crate::uf2::rp2040_flash`]) or RAM-only
+    /// ([`crate::uf2::rp2040_ram`]).
     pub uf2: Vec<u8>,
     /// The key map.
     pub key_map: KeyMap,
@@ -118,6 +141,14 @@ impl BoardFirmware {
     /// The board's directory name: `board-01`, …
     pub fn dir_name(&self) -> String {
         format!("board-{:02}", self.index)
+    }
+
+    /// Where this firmware lives.
+    pub fn load(&self) -> Load {
+        match self.flash {
+            Some(_) => Load::Flash,
+            None => Load::Ram,
+        }
     }
 }
 
@@ -137,6 +168,8 @@ pub struct KeyboardInput<'a> {
     pub boards: Option<&'a [Vec<u8>]>,
     /// The safety limiter.
     pub limiter: &'a LimiterConfig,
+    /// Flash (the default) or RAM-only firmware.
+    pub load: Load,
     /// The command that built it, for the README.
     pub command: &'a str,
 }
@@ -204,14 +237,29 @@ pub fn keyboard_firmware(
             .map_err(|e| format!("{}: {e}", what()))?;
         let image = image.map_err(|e| format!("{}: {e}", what()))?;
         image.flashable().map_err(|e| format!("{}: {e}", what()))?;
-        let elf = image.elf().map_err(|e| format!("{}: {e}", what()))?;
-        let uf2 =
-            crate::uf2::rp2040_ram(image.segments()).map_err(|e| format!("{}: {e}", what()))?;
-        let key_map = key_map(input, i + 1, &image, &bkeys, &core_of);
+        let fail = |e: crate::image::ImageError| format!("{}: {e}", what());
+        let (flash, elf, uf2) = match input.load {
+            Load::Flash => {
+                let flash = image.flash_image().map_err(fail)?;
+                let elf = image.flash_elf(&flash).map_err(fail)?;
+                let uf2 = crate::uf2::rp2040_flash(&flash.bytes);
+                (Some(flash), elf, uf2)
+            }
+            Load::Ram => {
+                let uf2 = crate::uf2::rp2040_ram(image.segments())
+                    .map_err(|e| format!("{}: {e}", what()))?;
+                (None, image.elf().map_err(fail)?, uf2)
+            }
+        };
+        let entry = flash
+            .as_ref()
+            .map_or(crate::image::boot::ENTRY, |f| f.reset);
+        let key_map = key_map(input, i + 1, &image, &bkeys, &core_of, entry);
         let mut fw = BoardFirmware {
             index: i + 1,
             keys: list.clone(),
             image,
+            flash,
             elf,
             uf2,
             key_map,
@@ -225,13 +273,14 @@ pub fn keyboard_firmware(
 }
 
 /// The key map of board `index`, whose image holds `bkeys` (slots in order) on the cores
-/// `core_of`.
+/// `core_of` and starts at `entry`.
 fn key_map(
     input: &KeyboardInput,
     index: usize,
     image: &FirmwareImage,
     bkeys: &[PlanKey],
     core_of: &[usize],
+    entry: u32,
 ) -> KeyMap {
     let specs = image.keys();
     let programs = image.programs();
@@ -287,7 +336,8 @@ fn key_map(
         board_kind: input.board.name.clone(),
         clock_hz: input.board.clock_hz as u64,
         sample_rate_hz: input.board.sample_rate_hz as u32,
-        entry: hex(crate::image::boot::ENTRY | 1),
+        core_voltage_v: input.board.core_voltage_v,
+        entry: hex(entry | 1),
         start_alarm_us: image.start_alarm_us(),
         period_cycles: image.tick().q,
         period_fraction: [image.tick().rem, image.tick().den],
@@ -318,37 +368,74 @@ fn readme(input: &KeyboardInput, fw: &BoardFirmware, boards: usize) -> String {
             k.dac_words.join(" ")
         ));
     }
+    let (files, flashing) = match fw.load() {
+        Load::Flash => (
+            format!(
+                "- `firmware.uf2`: the flash image as a UF2 for the RP2040 boot ROM ({blocks} blocks of\n  \
+                 256 bytes, family ID 0xe48bff56, written to flash from 0x10000000): boot2, then the\n  \
+                 image that copies itself to SRAM at power-on.\n\
+                 - `firmware.elf`: the same image as a linked ELF (sections loaded from flash, run\n  \
+                 from SRAM: for a debugger, `objdump`, or `tactus emu run firmware.elf --stimulus\n  \
+                 mf-dip`, which boots it through the emulated boot ROM).\n"
+            ),
+            "1. Hold BOOTSEL while plugging the board in (or while pressing RESET): it appears as a USB\n   \
+             drive named `RPI-RP2`.\n\
+             2. Copy `firmware.uf2` onto that drive. The boot ROM writes it to flash and reboots.\n\
+             \n\
+             Or, with picotool: `picotool load firmware.uf2 && picotool reboot`, or over SWD with a\n\
+             debugger that programs flash (OpenOCD: `program firmware.elf verify reset`).\n\
+             \n\
+             The image stays in flash: at every power-on the boot ROM checks boot2's CRC and runs it,\n\
+             boot2 sets the flash up for fast quad reads (XIP) and enters the image, which copies its\n\
+             code and data to SRAM (the per-sample code never runs from flash) and starts as below.\n"
+                .to_string(),
+        ),
+        Load::Ram => (
+            format!(
+                "- `firmware.uf2`: a RAM-only UF2 for the RP2040 boot ROM ({blocks} blocks of 256 bytes,\n  \
+                 family ID 0xe48bff56, written to 0x20000000 upwards).\n\
+                 - `firmware.elf`: the same image as a linked ELF (for a debugger, `objdump`, or\n  \
+                 `tactus emu run firmware.elf --stimulus mf-dip`).\n"
+            ),
+            "1. Hold BOOTSEL while plugging the board in (or while pressing RESET): it appears as a USB\n   \
+             drive named `RPI-RP2`.\n\
+             2. Copy `firmware.uf2` onto that drive. The boot ROM loads it into SRAM and starts it.\n\
+             \n\
+             Or, with picotool: `picotool load firmware.uf2 && picotool reboot` (a RAM image: picotool\n\
+             loads it into SRAM and runs it), or over SWD: `arm-none-eabi-gdb firmware.elf`, `load`,\n\
+             `jump _entry_point`.\n\
+             \n\
+             This image lives in SRAM only (built with `--ram`: nothing in flash): it is gone after a\n\
+             power cycle; copy it again after each power-up. Without `--ram`, `tactus build` writes a\n\
+             flash image that boots at power-on.\n"
+                .to_string(),
+        ),
+    };
+    let vreg = match m.core_voltage_v {
+        Some(v) => {
+            format!("raises the core voltage to {v:.2} V (VREG) and waits 1 ms for it to settle, ")
+        }
+        None => String::new(),
+    };
     format!(
         "# {name}: board {b} of {boards} (keys {range})\n\
 \n\
 Built by `{cmd}`.\n\
 \n\
-- `firmware.uf2`: a RAM-only UF2 for the RP2040 boot ROM ({blocks} blocks of 256 bytes,\n\
-  family ID 0xe48bff56, written to 0x20000000 upwards).\n\
-- `firmware.elf`: the same image as a linked ELF (for a debugger, `objdump`, or\n\
-  `tactus emu run firmware.elf --stimulus mf-dip`).\n\
-- `keys.json`: each key's MIDI number, instrument, core, sensor and DAC words, record and\n\
-  state addresses.\n\
+{files}\
+- `keys.json`: each key's MIDI number, instrument, core, sensor and DAC words, record and\n  \
+state addresses.\n\
 \n\
 ## Flashing\n\
 \n\
-1. Hold BOOTSEL while plugging the board in (or while pressing RESET): it appears as a USB\n\
-   drive named `RPI-RP2`.\n\
-2. Copy `firmware.uf2` onto that drive. The boot ROM loads it into SRAM and starts it.\n\
-\n\
-Or, with picotool: `picotool load firmware.uf2 && picotool reboot` (a RAM image: picotool\n\
-loads it into SRAM and runs it), or over SWD: `arm-none-eabi-gdb firmware.elf`, `load`,\n\
-`jump _entry_point`.\n\
-\n\
-The image lives in SRAM only (no second-stage boot loader, nothing in flash): it is gone\n\
-after a power cycle; copy it again after each power-up.\n\
+{flashing}\
 \n\
 ## What runs\n\
 \n\
-Core 0 sets the clocks to {mhz} MHz (PLL_SYS from the 12 MHz crystal), starts the timer's\n\
-1 µs tick and launches core 1 through the boot ROM's FIFO protocol. At a timer alarm both\n\
-cores start their SysTick on the same cycle; each then runs its keys' sample interrupt at\n\
-{fs} Hz on its SysTick (every {q} or {q1} processor cycles, {fs} per second exactly): read\n\
+Core 0 {vreg}sets the clocks to {mhz} MHz (PLL_SYS from the 12 MHz crystal), starts the\n\
+timer's 1 µs tick and launches core 1 through the boot ROM's FIFO protocol. At a timer alarm\n\
+both cores start their SysTick on the same cycle; each then runs its keys' sample interrupt\n\
+at {fs} Hz on its SysTick (every {q} or {q1} processor cycles, {fs} per second exactly): read\n\
 each key's sensor word, run its update, pass each force word through the safety limiter,\n\
 write the DAC word.\n\
 \n\
@@ -357,13 +444,16 @@ write the DAC word.\n\
 {keys}\n\
 ## What is not in this firmware\n\
 \n\
-- **ADC and DAC drivers.** The sensor and DAC words are plain SRAM words (sensor window\n\
-  {sw}, DAC window {dw}, one 32-bit word each); a driver, a DMA channel or a PIO program\n\
-  must fill the sensor words from the converters before each sample tick and send the DAC\n\
-  words out after it. Without one the keys read 0 and the motors get nothing.\n\
-- **Flash.** Nothing is written to flash; no boot2, no XIP timing.\n\
-- Verified in Tactus's cycle-accurate emulator, not on hardware: the emulator does not\n\
-  model oscillator start-up or PLL lock times, which only delay the first tick.\n",
+- **ADC and DAC drivers.** The sensor and DAC words are plain SRAM words (sensor window\n  \
+{sw}, DAC window {dw}, one 32-bit word each); a driver, a DMA channel or a PIO program\n  \
+must fill the sensor words from the converters before each sample tick and send the DAC\n  \
+words out after it. Without one the keys read 0 and the motors get nothing.\n\
+- Verified in Tactus's cycle-accurate emulator, not on hardware. The emulator does not\n  \
+model oscillator start-up, PLL lock or regulator settling times, the boot ROM's own run,\n  \
+the XIP cache or the flash's read timing: they delay the first tick, never a sample (the\n  \
+image runs from SRAM once copied). boot2 is written for the Pico's W25Q16JV (any\n  \
+W25Q-family part with the 01h status write and EBh quad reads); another flash chip may\n  \
+need another boot2.\n",
         name = input.name,
         b = fw.index,
         range = crate::verdict::key_ranges(&fw.keys),
@@ -399,6 +489,13 @@ pub struct ElfRun {
     pub cores: Vec<CoreRun>,
     /// Core clock cycles per sample period.
     pub cycles_per_sample: u64,
+    /// Each core's cycle counter at the end.
+    pub final_cycles: [u64; 2],
+    /// Every key's DAC words at the end, in key-map order.
+    pub dac_final: Vec<u32>,
+    /// FNV-1a (64-bit) over every key's DAC words after every sample: one number that
+    /// changes when any word of the run does.
+    pub dac_digest: u64,
 }
 
 /// Most samples [`run_elf`] runs (one emulated minute at 44.1 kHz).
@@ -425,6 +522,7 @@ pub fn run_elf(
     sensors: &[&[i32]],
     samples: usize,
     progress: &mut dyn FnMut(usize, usize),
+    debugger: Option<Box<dyn tactus_emulator::debug::Debugger>>,
 ) -> Result<ElfRun, String> {
     use crate::image::glue::ctrl;
     use tactus_emulator::{Config, StopReason};
@@ -462,6 +560,9 @@ pub fn run_elf(
     board
         .load_elf(elf)
         .map_err(|e| format!("cannot load the ELF: {e}"))?;
+    if let Some(d) = debugger {
+        board.attach_debugger(d);
+    }
     let mut cores = Vec::new();
     for c in &map.cores {
         let isr = addr(&c.sample_isr, "sample_isr")? & !1;
@@ -477,16 +578,23 @@ pub fn run_elf(
             .collect();
         words.push(w?);
     }
+    let mut dac_addrs = Vec::new();
+    for k in &map.keys {
+        for d in &k.dac_words {
+            dac_addrs.push(addr(d, &format!("key {}", k.midi))?);
+        }
+    }
+    let mut dac = vec![0u32; dac_addrs.len()];
+    let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
     let check = |stop: StopReason, board: &tactus_emulator::Board| match stop {
         StopReason::CycleLimit => Ok(()),
         other => Err(format!(
-            "the firmware stopped: {other:?} (core pcs {:#010x}, {:#010x})",
-            board.cores[0].r[15], board.cores[1].r[15]
+            "the firmware stopped: {}",
+            board.describe_stop(&other)
         )),
     };
     let alarm = u64::from(map.start_alarm_us);
-    let stop = board.run_until(keyboard::cycle_at_us(alarm, map.clock_hz));
-    check(stop, &board)?;
+    crate::image::run_to_timer(&mut board, alarm)?;
     for (i, (_, ctrl)) in cores.iter().enumerate() {
         let ready = board
             .read_u32(ctrl + u32::from(ctrl::READY))
@@ -497,7 +605,7 @@ pub fn run_elf(
             ));
         }
     }
-    let first = crate::image::run_to_first_tick(&mut board, alarm, map.clock_hz, cores.len())?;
+    let first = crate::image::run_to_first_tick(&mut board, alarm, cores.len())?;
     let tick = |n: u64| keyboard::tick_cycle(first, n, map.clock_hz, map.sample_rate_hz);
     let mut totals = vec![(0u64, 0u64, 0u64); cores.len()];
     for n in 0..samples {
@@ -512,6 +620,12 @@ pub fn run_elf(
         }
         let stop = board.run_until(tick(n as u64 + 1));
         check(stop, &board)?;
+        for (w, &a) in dac.iter_mut().zip(&dac_addrs) {
+            *w = board.read_u32(a).map_err(|e| e.to_string())?;
+            for b in w.to_le_bytes() {
+                digest = (digest ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
         for (c, (h, _)) in cores.iter().enumerate() {
             for call in board.calls(*h) {
                 let cyc = call.cycles + EXCEPTION_ENTRY as u64;
@@ -526,6 +640,7 @@ pub fn run_elf(
         }
     }
     progress(samples, samples);
+    board.finish_debugging();
     let mut out = Vec::new();
     for (c, (_, ctrl)) in cores.iter().enumerate() {
         let done = board
@@ -548,5 +663,8 @@ pub fn run_elf(
             map.clock_hz as f64,
             map.sample_rate_hz as f64,
         ),
+        final_cycles: [board.cores[0].cycle, board.cores[1].cycle],
+        dac_final: dac,
+        dac_digest: digest,
     })
 }

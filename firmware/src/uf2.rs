@@ -1,4 +1,6 @@
-//! UF2 files for the RP2040's USB boot ROM (BOOTSEL drag-and-drop), RAM-only.
+//! UF2 files for the RP2040's USB boot ROM (BOOTSEL drag-and-drop): a flash image
+//! ([`rp2040_flash`], what `tactus build` writes) or a RAM-only one ([`rp2040_ram`], for
+//! development).
 //!
 //! **Format** (microsoft/uf2 `README.md`, "File format"): 512-byte blocks, each a 32-byte
 //! header — magic `0x0A324655`, magic `0x9E5D5157`, flags, target address, payload size,
@@ -8,12 +10,16 @@
 //! without the "not main flash" flag, with a 256-byte payload (pico-bootrom
 //! `bootrom/virtual_disk.c`, `vd_write_block`), so every block carries 256 bytes.
 //!
-//! **Why RAM-only.** The per-sample code must run from SRAM (a flash fetch through the XIP
-//! cache has no bounded latency, and the WCET is priced for zero-wait SRAM), so a flash
-//! image would need a second-stage boot loader and a copy to SRAM before doing anything
-//! else; a RAM image, like pico-sdk's `no_flash` binaries, is loaded by the boot ROM
-//! straight where it runs and started at its lowest address (`super::image::boot`). The
-//! price: it does not survive a power cycle — the board must be put in BOOTSEL mode and the
+//! **Flash.** The per-sample code must run from SRAM (a flash fetch through the XIP cache
+//! has no bounded latency, and the WCET is priced for zero-wait SRAM), so the flash image
+//! holds a second-stage boot loader and copies itself to SRAM before anything else
+//! (`super::image::flash_image`). The boot ROM writes flash blocks (256-byte payloads at
+//! 256-byte aligned addresses from 0x10000000, erasing each 4 KB sector first) and reboots
+//! into the image; it survives a power cycle.
+//!
+//! **RAM.** A RAM image, like pico-sdk's `no_flash` binaries, is loaded by the boot ROM
+//! straight where it runs and started at its lowest address (`super::image::boot`): no
+//! flash wear, but it is gone at power-off — the board must be put in BOOTSEL mode and the
 //! file copied again after each power-up (or loaded by `picotool load`, or over SWD).
 //!
 //! **Striped addresses.** The boot ROM accepts RAM blocks only in 0x20000000–0x20042000
@@ -25,7 +31,7 @@
 //! with [`tactus_emulator::bus::sram_location`], the emulator's one definition of the
 //! mapping.
 
-use tactus_emulator::bus::{sram_location, SRAM_BASE, SRAM_END};
+use tactus_emulator::bus::{sram_location, FLASH_BASE, SRAM_BASE, SRAM_END};
 
 /// First magic number (`"UF2\n"`).
 pub const MAGIC_START0: u32 = 0x0A32_4655;
@@ -142,4 +148,10 @@ pub fn write(start: u32, payload: &[u8], family: u32) -> Vec<u8> {
 pub fn rp2040_ram(segments: &[(u32, Vec<u8>)]) -> Result<Vec<u8>, Uf2Error> {
     let (start, bytes) = striped_image(segments)?;
     Ok(write(start, &bytes, RP2040_FAMILY_ID))
+}
+
+/// A flash UF2 of `bytes` (a flash image from 0x10000000): [`write`] at [`FLASH_BASE`] with
+/// [`RP2040_FAMILY_ID`], the last block zero-padded.
+pub fn rp2040_flash(bytes: &[u8]) -> Vec<u8> {
+    write(FLASH_BASE, bytes, RP2040_FAMILY_ID)
 }

@@ -119,6 +119,12 @@ pub struct Board {
     pub cores: u32,
     /// Sensor sample rate, Hz.
     pub sample_rate_hz: f64,
+    /// The core voltage the firmware sets before it switches the clock to the PLL, V
+    /// (the RP2040's regulator, VREG.VSEL: 0.80 to 1.30 V in 0.05 V steps); absent, the
+    /// regulator stays at its reset value, 1.10 V. The RP2040 needs 1.15 V above 133 MHz
+    /// (pico-sdk 2.1.1, for its 200 MHz clock).
+    #[serde(default)]
+    pub core_voltage_v: Option<f64>,
 }
 
 /// Most cores a board file may declare (the RP2040 image runs on 1 or 2; a larger count
@@ -130,6 +136,12 @@ impl Board {
     /// ticks, [`deadline_cycles`] (3,015 at 133 MHz and 44.1 kHz).
     pub fn cycles_per_sample(&self) -> u64 {
         deadline_cycles(self.clock_hz, self.sample_rate_hz)
+    }
+
+    /// [`Board::core_voltage_v`] in millivolts (the reader checked it is a whole number of
+    /// 50 mV steps).
+    pub fn core_mv(&self) -> Option<u32> {
+        self.core_voltage_v.map(|v| (v * 1000.0).round() as u32)
     }
 }
 
@@ -209,6 +221,15 @@ pub fn parse_board(text: &str, name: &str) -> Result<Board, String> {
             "{name}: need `clock_hz` ≤ 1 THz and `sample_rate_hz` ≥ 1 Hz, got {} and {}",
             b.clock_hz, b.sample_rate_hz
         ));
+    }
+    if let Some(v) = b.core_voltage_v {
+        let steps = v * 20.0;
+        if !(0.8..=1.3).contains(&v) || (steps - steps.round()).abs() > 1e-6 {
+            return Err(format!(
+                "{name}: `core_voltage_v` must be one of the RP2040 regulator's voltages, 0.80 \
+                 to 1.30 V in steps of 0.05 V (VREG.VSEL, RP2040 datasheet 2.10.7), got {v}"
+            ));
+        }
     }
     if b.sample_rate_hz > b.clock_hz {
         return Err(format!(
@@ -507,6 +528,18 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
         assert!(e.contains("c.toml") && e.contains("clock_hz"), "{e}");
         let e = parse_board(&ok.replace("cores = 2", "cores = 4294967295"), "b.toml").unwrap_err();
         assert!(e.contains("b.toml") && e.contains("cores"), "{e}");
+        // The core voltage: absent, or one of the regulator's 50 mV steps.
+        assert_eq!(parse_board(ok, "b.toml").unwrap().core_mv(), None);
+        let v = |text: &str| parse_board(&format!("{ok}core_voltage_v = {text}\n"), "v.toml");
+        assert_eq!(v("1.15").unwrap().core_mv(), Some(1150));
+        assert_eq!(v("0.8").unwrap().core_mv(), Some(800));
+        for bad in ["1.17", "1.35", "0.75", "nan", "\"high\""] {
+            let e = v(bad).unwrap_err();
+            assert!(
+                e.contains("v.toml") && e.contains("core_voltage_v"),
+                "{bad}: {e}"
+            );
+        }
         // Issue 19 class 6: a clock whose cycles per sample exceed any integer was reported as
         // "over by 8446744073709552191"; it is now an error naming the field.
         let e = parse_board(&ok.replace("133e6", "1e30"), "huge.toml").unwrap_err();

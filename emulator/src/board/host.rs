@@ -61,6 +61,13 @@ pub enum EmuError {
     Unmapped(u32),
     /// No symbol of that name.
     NoSymbol(String),
+    /// The boot ROM's check of boot2 failed (`crate::xip::check_boot2`).
+    Boot2Checksum {
+        /// CRC-32 of the first 252 bytes of flash.
+        computed: u32,
+        /// The word stored after them.
+        stored: u32,
+    },
 }
 
 impl fmt::Display for EmuError {
@@ -69,6 +76,12 @@ impl fmt::Display for EmuError {
             EmuError::Elf(e) => e.fmt(f),
             EmuError::Unmapped(a) => write!(f, "no memory at {a:#010x}"),
             EmuError::NoSymbol(s) => write!(f, "no symbol named `{s}`"),
+            EmuError::Boot2Checksum { computed, stored } => write!(
+                f,
+                "the boot ROM rejects boot2 (the first 256 bytes of flash): their CRC-32 is \
+                 {computed:#010x} but the last word says {stored:#010x}; on the chip the ROM \
+                 retries 128 times and then starts USB boot (BOOTSEL mode) instead of the image"
+            ),
         }
     }
 }
@@ -96,11 +109,83 @@ impl Board {
             })?;
         }
         match image.vector_table {
+            _ if image.boot2 => self.boot_from_flash()?,
             Some(vt) => self.boot_from_vectors(0, vt)?,
             None => self.enter_ram_image(image.entry),
         }
         self.image = image;
         Ok(())
+    }
+
+    /// Powers the board on from flash, as the boot ROM's flash path does on core 0
+    /// (pico-bootrom `bootrom/bootrom_main.c`, `_flash_boot`): the SSI set to plain serial
+    /// reads, the flash chip out of continuous-read mode, its first 256 bytes read into the
+    /// top of SRAM5 ([`crate::xip::BOOT2_LOAD`]) and checked against their CRC-32
+    /// ([`crate::xip::check_boot2`]), and core 0 entered there in Thumb state with LR = 0
+    /// ("entered from the boot ROM": boot2 then enters the image through the vector table at
+    /// 0x10000100) and SP at the ROM's stack top. Core 1 stays in the boot ROM's launch
+    /// protocol. The flash holds what the host wrote (a UF2's blocks, an ELF's segments).
+    ///
+    /// SRAM powers up holding garbage: the rest of SRAM is filled with a fixed pseudo-random
+    /// pattern, so firmware that relies on zeroed SRAM fails here as on the chip. The boot
+    /// ROM's own instructions are not run: core 0 enters boot2 at the board's current cycle.
+    ///
+    /// Errors: [`EmuError::Boot2Checksum`] (the chip's ROM would retry and start USB boot).
+    pub fn boot_from_flash(&mut self) -> Result<(), EmuError> {
+        let mut x = 0x2545_f491u32;
+        for w in self.system.sram.chunks_mut(4) {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            for (b, v) in w.iter_mut().zip(x.to_le_bytes()) {
+                *b = v;
+            }
+        }
+        self.system.invalidate_code();
+        self.system.xip.power_on();
+        let boot2 = self.system.xip.boot_rom_read_boot2(&self.system.flash);
+        self.write_bytes(crate::xip::BOOT2_LOAD, &boot2)?;
+        self.system.refresh_xip();
+        if let Err((computed, stored)) = crate::xip::check_boot2(&boot2) {
+            return Err(EmuError::Boot2Checksum { computed, stored });
+        }
+        let core = &mut self.cores[0];
+        core.reset_to(crate::xip::BOOT2_LOAD | 1, crate::xip::BOOT_ROM_STACK_TOP);
+        core.r[14] = 0;
+        core.nvic.vtor = 0;
+        Ok(())
+    }
+
+    /// `stop` in words, with what the emulator knows beyond it: why a refused write was
+    /// refused, why a bus fault in the flash window found no flash (the XIP path's state,
+    /// `crate::xip`), and where the cores were.
+    pub fn describe_stop(&self, stop: &StopReason) -> String {
+        let pcs = format!(
+            "core pcs {:#010x}, {:#010x}",
+            self.cores[0].r[15], self.cores[1].r[15]
+        );
+        match stop {
+            StopReason::Refused { core, why } => format!("core {core}: refused: {why} ({pcs})"),
+            StopReason::Fault { core, fault } | StopReason::Lockup { core, fault } => {
+                let what = if matches!(stop, StopReason::Fault { .. }) {
+                    "HardFault"
+                } else {
+                    "locked up"
+                };
+                let mut s = format!("core {core} {what}: {fault}");
+                if let crate::core::FaultKind::Bus { addr } = fault.kind {
+                    let flash = addr.wrapping_sub(crate::bus::FLASH_BASE) < crate::bus::FLASH_SIZE;
+                    if let (true, Some(why)) = (flash, self.system.xip_error()) {
+                        s.push_str(&format!(" (the XIP window does not read the flash: {why})"));
+                        if let Some(p) = &self.system.xip.problem {
+                            s.push_str(&format!(" (the last SSI use not modelled: {p})"));
+                        }
+                    }
+                }
+                format!("{s} ({pcs})")
+            }
+            other => format!("{other:?} ({pcs})"),
+        }
     }
 
     /// Starts core 0 at `entry` (Thumb bit set) with SP at the top of SRAM and VTOR 0 (the

@@ -138,6 +138,14 @@ pub enum StopReason {
     },
     /// No core can run (all parked or locked up).
     Idle,
+    /// The emulator refused what a core did: a clock or voltage write that would run clk_sys
+    /// faster than the core voltage allows (`crate::clocks`). The store faulted.
+    Refused {
+        /// The core.
+        core: usize,
+        /// Why.
+        why: crate::clocks::Refusal,
+    },
 }
 
 /// The emulated RP2040.
@@ -165,6 +173,9 @@ pub struct Board {
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
+    /// The debugger in charge of [`Board::run_until`] and what it watches, if any
+    /// ([`crate::debug`]).
+    pub(crate) debug: crate::debug::Attachment,
 }
 
 impl Board {
@@ -189,6 +200,7 @@ impl Board {
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
             windows: [0; 3],
+            debug: Default::default(),
             cache: run::empty_cache(),
         };
         // Core 1 reaches `wait_for_vector` a few cycles after reset, long before core 0

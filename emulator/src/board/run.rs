@@ -358,7 +358,17 @@ impl Board {
     /// Runs until both running cores reach cycle `limit`, or a stop. Instructions are not
     /// split: each core stops at its first instruction boundary at or after `limit` (a
     /// multi-cycle instruction that starts before the limit completes).
+    ///
+    /// With a debugger attached ([`Board::attach_debugger`]) the debugger runs the board
+    /// there instead, stopping on the way as its client asks, with the same results.
     pub fn run_until(&mut self, limit: u64) -> StopReason {
+        if let Some(mut d) = self.debug.hook.take() {
+            let stop = d.run_until(self, limit);
+            if !d.detached() {
+                self.debug.hook = Some(d);
+            }
+            return stop;
+        }
         self.lines_epoch = u64::MAX; // the host may have touched SIO or the timer
         loop {
             let Some(k) = self.next_core() else {
@@ -540,7 +550,9 @@ impl Board {
     /// True when core `k`'s next instructions may take the fast path ([`Board::fast_run`]):
     /// it is running in Thumb state with no exception it could take, the interrupt lines
     /// are current and already pending on it (so the per-instruction "OR the lines into
-    /// pending" of [`Board::step_cached`] would change nothing).
+    /// pending" of [`Board::step_cached`] would change nothing), and the XIP window reads
+    /// the flash (the fast paths read flash bytes directly; without XIP only the general
+    /// path's accesses fault as they must, `crate::xip`).
     /// Everything the fast path executes leaves these conditions true; everything that
     /// could change them leaves the fast path.
     #[inline]
@@ -551,6 +563,7 @@ impl Board {
             && c.nvic.takeable() == 0
             && ((self.lines as u64) << IRQ0) & !c.nvic.active & !c.nvic.pending == 0
             && self.lines_epoch == self.system.irq_epoch
+            && self.system.xip_answers
     }
 
     /// The fast path: runs core `k` (or, with `BOTH`, whichever core is behind, core 0 on
@@ -667,6 +680,11 @@ impl Board {
                     None
                 }
             }
+            Event::Fault | Event::Lockup if self.system.sysctl.refusal.is_some() => self
+                .system
+                .sysctl
+                .take_refusal()
+                .map(|why| StopReason::Refused { core: k, why }),
             Event::Fault => {
                 let fault = self.cores[k].fault?;
                 self.config

@@ -11,13 +11,21 @@
 //! (`crt0.S`, `PICO_NO_FLASH`), it points VTOR at core 0's vector table and enters the
 //! reset handler through it with the table's stack pointer.
 //!
-//! **Clocks** ([`clock_set_up`]): the 12 MHz crystal (XOSC, datasheet 2.16), PLL_SYS to
-//! the board's clock (2.18.2: REFDIV 1, FBDIV, POSTDIV1 × POSTDIV2, from
-//! [`tactus_emulator::clocks::pll_sys_dividers`]), clk_sys switched to it through the
+//! From flash, the boot ROM enters boot2 instead (`super::boot2`), which enters the flash
+//! image's reset handler, which copies the image to SRAM and jumps to the same entry stub
+//! (`super::flash_image`): from the stub on, both boots are the same.
+//!
+//! **Clocks** ([`clock_set_up`]): the 12 MHz crystal (XOSC, datasheet 2.16), clk_ref on it;
+//! where the board file gives a core voltage, VREG set to it and 1 ms (12,000 crystal
+//! cycles) waited for it to settle, as pico-sdk 2.1.1's `runtime_init_clocks` does before
+//! it switches clk_sys to a 200 MHz PLL (datasheet 2.10; the RP2040 needs 1.15 V above
+//! 133 MHz); PLL_SYS to the board's clock (2.18.2: REFDIV 1, FBDIV, POSTDIV1 × POSTDIV2,
+//! from [`tactus_emulator::clocks::pll_sys_dividers`]), clk_sys switched to it through the
 //! auxiliary mux (2.15.3.2), the watchdog tick at 12 reference cycles so the timer counts
 //! microseconds (4.7.2), and the timer pulsed through reset so it counts from 0 (its
-//! ticks are then absolute times the image schedules). The emulator models these
-//! registers minimally (`emulator/src/clocks.rs`).
+//! ticks are then times from its release that the image schedules). The emulator models
+//! these registers minimally (`emulator/src/clocks.rs`) and refuses clk_sys above 133 MHz
+//! at a lower voltage.
 //!
 //! **Core 1** ([`launch_core1`]): pico-sdk's `multicore_launch_core1_raw`
 //! (`pico_multicore/multicore.c`): the words 0, 0, 1, vector table, stack pointer, entry
@@ -30,7 +38,8 @@ use super::ImageError;
 use tactus_compiler::thumb::buffer::{CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ins::{self as asm, cond};
 use tactus_emulator::clocks::{
-    self, reg, CLOCKS_BASE, PLL_SYS_BASE, RESETS_BASE, WATCHDOG_BASE, XOSC_BASE,
+    self, reg, CLOCKS_BASE, PLL_SYS_BASE, RESETS_BASE, VREG_AND_CHIP_RESET_BASE, WATCHDOG_BASE,
+    XOSC_BASE,
 };
 use tactus_emulator::sio::{reg as sio, SIO_BASE};
 use tactus_isa::decode::{Hint, Instr};
@@ -48,23 +57,33 @@ const VTOR: u32 = 0xe000_ed08;
 const SET: u32 = 0x2000;
 const CLR: u32 = 0x3000;
 
-/// What core 0's reset handler starts before its keys: the PLL dividers of the board's
-/// clock and, on a two-core image, core 1's launch words.
+/// The settling time waited after raising VREG, in 12 MHz crystal cycles: pico-sdk 2.1.1's
+/// `SYS_CLK_VREG_VOLTAGE_AUTO_ADJUST_DELAY_US` (1000 µs) at `XOSC_HZ`.
+pub const VREG_SETTLE_XOSC_CYCLES: u32 = 12_000;
+
+/// What core 0's reset handler starts before its keys: the core voltage and PLL dividers
+/// of the board's clock and, on a two-core image, core 1's launch words.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Boot {
     /// (FBDIV, POSTDIV1, POSTDIV2) of the board's clock; `None` when no PLL setting gives
     /// it exactly (the image then runs only in the emulator, whose clock is the board's
     /// from power-on: [`super::FirmwareImage::flashable`] says why).
     pub pll: Option<(u32, u32, u32)>,
+    /// The VREG.VSEL set before the PLL (the board file's core voltage); `None` leaves the
+    /// regulator at its reset value, 1.10 V.
+    pub vsel: Option<u32>,
     /// Core 1's vector table, initial stack pointer and entry point (Thumb bit set).
     pub core1: Option<[u32; 3]>,
 }
 
 impl Boot {
-    /// The boot of a board clocked at `clock_hz`.
-    pub fn new(clock_hz: u64, core1: Option<[u32; 3]>) -> Boot {
+    /// The boot of a board clocked at `clock_hz` with the core at `core_mv` (mV; `None`:
+    /// the regulator's default; a voltage VSEL cannot make is left at the default too, the
+    /// board file's reader rejects those).
+    pub fn new(clock_hz: u64, core_mv: Option<u32>, core1: Option<[u32; 3]>) -> Boot {
         Boot {
             pll: clocks::pll_sys_dividers(clock_hz),
+            vsel: core_mv.and_then(clocks::vsel_of_mv),
             core1,
         }
     }
@@ -126,9 +145,27 @@ fn pulse_reset(a: &mut CodeBuffer, bit: u32) {
     wait(a, RESETS_BASE + reg::RESET_DONE, bit, bit);
 }
 
+/// Sets VREG.VSEL to `vsel` (a read-modify-write, as pico-sdk's `vreg_set_voltage`) and
+/// waits [`VREG_SETTLE_XOSC_CYCLES`] cycles of clk_sys (3 per loop: `SUBS`, taken `BNE`).
+/// Clobbers r0-r2.
+fn set_core_voltage(a: &mut CodeBuffer, vsel: u32) {
+    a.ldr_const(0, VREG_AND_CHIP_RESET_BASE + reg::VREG);
+    a.i(asm::ldr(1, 0, 0));
+    a.mov_const(2, reg::VREG_VSEL_BITS);
+    a.i(asm::alu(tactus_isa::decode::AluOp::Bic, 1, 2));
+    a.mov_const(2, vsel << 4);
+    a.i(asm::alu(tactus_isa::decode::AluOp::Orr, 1, 2));
+    a.i(asm::str(1, 0, 0));
+    let settle = a.label();
+    a.mov_const(0, VREG_SETTLE_XOSC_CYCLES / 3);
+    a.bind(settle);
+    a.i(asm::subs_imm(0, 0, 1));
+    a.bc(cond::NE, settle);
+}
+
 /// The clock set-up (module documentation); without PLL dividers only the timer's tick
 /// and reset. Clobbers r0-r2.
-pub fn clock_set_up(a: &mut CodeBuffer, pll: Option<(u32, u32, u32)>) {
+pub fn clock_set_up(a: &mut CodeBuffer, pll: Option<(u32, u32, u32)>, vsel: Option<u32>) {
     if let Some((fbdiv, pd1, pd2)) = pll {
         // XOSC: 1-15 MHz range, start-up delay 1 ms (12 MHz × 1 ms / 256), enable.
         store(a, XOSC_BASE + reg::XOSC_CTRL, 0xaa0);
@@ -140,6 +177,10 @@ pub fn clock_set_up(a: &mut CodeBuffer, pll: Option<(u32, u32, u32)>) {
         wait(a, CLOCKS_BASE + reg::CLK_SYS_SELECTED, 1, 1);
         store(a, CLOCKS_BASE + reg::CLK_REF_CTRL, 2);
         wait(a, CLOCKS_BASE + reg::CLK_REF_SELECTED, 4, 4);
+        // The core voltage the clock needs, settled while clk_sys runs from the crystal.
+        if let Some(vsel) = vsel {
+            set_core_voltage(a, vsel);
+        }
         // PLL_SYS: reset, REFDIV 1, FBDIV, power up the PLL and its VCO, lock, post
         // dividers, power them up.
         pulse_reset(a, reg::RESET_PLL_SYS);
@@ -212,7 +253,7 @@ pub fn launch_core1(a: &mut CodeBuffer, [vectors, sp, entry]: [u32; 3]) {
 pub fn core_start(a: &mut CodeBuffer, core: usize, boot: &Boot, stack_bottom: u32, canary: u32) {
     store(a, stack_bottom, canary);
     if core == 0 {
-        clock_set_up(a, boot.pll);
+        clock_set_up(a, boot.pll, boot.vsel);
         if let Some(words) = boot.core1 {
             launch_core1(a, words);
         }

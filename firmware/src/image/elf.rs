@@ -1,21 +1,32 @@
 //! The image as a linked ELF executable (`ET_EXEC`, ARM, EABI version 5), written with the
 //! `object` crate's ELF writer.
 //!
-//! One `PT_LOAD` segment and one section per piece of the image, at its run address
-//! (virtual = physical): `.entry` (the stub at 0x20000000 the boot ROM enters,
-//! [`super::boot`]), per core `.coreN.text` (vector table, program copies, glue: read and
-//! execute) and `.coreN.data` (control block, key records, states: read and write). The
-//! entry point is the stub. Symbols name what a debugger or the key map needs: the stub
+//! One `PT_LOAD` segment and one section per piece of the image. [`FirmwareImage::elf`],
+//! the RAM image, has them at their run addresses (virtual = physical): `.entry` (the stub
+//! at 0x20000000 the boot ROM enters, [`super::boot`]), per core `.coreN.text` (vector
+//! table, program copies, glue: read and execute) and `.coreN.data` (control block, key
+//! records, states: read and write); its entry point is the stub.
+//! [`FirmwareImage::flash_elf`], the flash image (`super::flash_image`), adds `.boot2` and
+//! `.flash_entry` (the flash vector table, reset handler and copy table) at 0x10000000 and
+//! 0x10000100, and loads the same SRAM sections from flash: their virtual address is where
+//! they run, their physical (load) address where their bytes are in flash, as a
+//! `copy_to_ram` binary's `.data` — a flash programmer (or `tactus emu run`) writes the
+//! physical bytes, a debugger sees the code where it runs. Its entry point is the flash
+//! reset handler. Symbols name what a debugger or the key map needs: the stub
 //! (`_entry_point`), per core its vector table, reset handler, sample interrupt, control
 //! block and each program copy's `init`/`update` (functions with the Thumb bit, ARM IHI
-//! 0044 §5.5.3), per key its record (`keyN_record`, N its window slot); the mapping
-//! symbols `$t`/`$d` (IHI 0044 §5.5.5) mark the vector tables, the programs' literal pools
-//! and the data as data for disassemblers.
+//! 0044 §5.5.3), per key its record (`keyN_record`, N its window slot), in flash boot2
+//! (`_stage2_boot`) and the flash reset handler (`_flash_reset`); the mapping symbols
+//! `$t`/`$d` (IHI 0044 §5.5.5) mark the vector tables, literal pools, boot2's padding and
+//! CRC, the copy table and the data as data for disassemblers.
 
+use super::boot2::FLASH_VECTORS;
+use super::flash_image::FlashImage;
 use super::{boot, FirmwareImage, ImageError, VECTORS};
 use object::elf;
 use object::write::elf::{FileHeader, ProgramHeader, SectionHeader, Sym, Writer};
 use object::Endianness;
+use tactus_emulator::bus::FLASH_BASE;
 
 /// `EF_ARM_EABI_VER5` (IHI 0044 §5.2).
 const EF_ARM_EABI_VER5: u32 = 0x0500_0000;
@@ -29,155 +40,249 @@ struct Symbol {
     local: bool,
 }
 
-impl FirmwareImage {
-    /// The image as an ELF executable (see the module documentation).
-    ///
-    /// Errors: [`ImageError::Assemble`] when the writer fails (it should not).
-    pub fn elf(&self) -> Result<Vec<u8>, ImageError> {
-        // Section names, in segment order: the stub, then per core its code and data.
-        let mut names: Vec<String> = Vec::new();
-        for (i, _) in self.segments.iter().enumerate() {
-            names.push(match i {
+/// One section and its `PT_LOAD` segment.
+struct Piece<'a> {
+    name: String,
+    /// Run address.
+    vaddr: u32,
+    /// Load address.
+    paddr: u32,
+    data: &'a [u8],
+    code: bool,
+}
+
+/// The RAM image's sections, in segment order: the stub, then per core its code and data.
+fn ram_pieces(image: &FirmwareImage) -> Vec<Piece<'_>> {
+    image
+        .segments
+        .iter()
+        .enumerate()
+        .map(|(i, (addr, data))| Piece {
+            name: match i {
                 0 => ".entry".to_string(),
                 i if i % 2 == 1 => format!(".core{}.text", (i - 1) / 2),
                 i => format!(".core{}.data", (i - 1) / 2),
-            });
-        }
-        let symbols = self.elf_symbols();
-        let section_of = |addr: u32| {
-            self.segments
-                .iter()
-                .position(|(b, d)| addr >= *b && addr < b + d.len() as u32)
-        };
-
-        let fail = |e: object::write::Error| ImageError::Assemble(format!("writing the ELF: {e}"));
-        let mut buf = Vec::new();
-        let mut w = Writer::new(Endianness::Little, false, &mut buf);
-        w.reserve_file_header();
-        w.reserve_program_headers(self.segments.len() as u32);
-        let offsets: Vec<u64> = self
-            .segments
-            .iter()
-            .map(|(_, d)| w.reserve(d.len() as u64, 4))
-            .collect();
-        w.reserve_null_section_index();
-        let mut sections = Vec::new();
-        for n in &names {
-            let name = w.add_section_name(n.as_bytes());
-            sections.push((name, w.reserve_section_index()));
-        }
-        w.reserve_null_symbol_index();
-        let mut syms = Vec::new();
-        for s in &symbols {
-            let sec = section_of(s.value & !1).map(|i| sections[i].1);
-            let name = w.add_string(s.name.as_bytes());
-            w.reserve_symbol_index(sec);
-            syms.push((name, sec));
-        }
-        w.reserve_symtab_section_index();
-        w.reserve_symtab();
-        w.reserve_strtab_section_index();
-        w.reserve_strtab().map_err(fail)?;
-        w.reserve_shstrtab_section_index();
-        w.reserve_shstrtab().map_err(fail)?;
-        w.reserve_section_headers();
-
-        w.write_file_header(&FileHeader {
-            os_abi: elf::ELFOSABI_NONE,
-            abi_version: 0,
-            e_type: elf::ET_EXEC,
-            e_machine: elf::EM_ARM,
-            e_entry: u64::from(boot::ENTRY | 1),
-            e_flags: elf::FileFlags(EF_ARM_EABI_VER5),
+            },
+            vaddr: *addr,
+            paddr: *addr,
+            data,
+            code: i == 0 || i % 2 == 1,
         })
-        .map_err(fail)?;
-        w.write_align_program_headers();
-        for (i, (addr, data)) in self.segments.iter().enumerate() {
-            let code = i == 0 || i % 2 == 1;
-            w.write_program_header(&ProgramHeader {
-                p_type: elf::PT_LOAD,
-                p_flags: if code {
-                    elf::ProgramFlags(elf::PF_R.0 | elf::PF_X.0)
-                } else {
-                    elf::ProgramFlags(elf::PF_R.0 | elf::PF_W.0)
-                },
-                p_offset: offsets[i],
-                p_vaddr: u64::from(*addr),
-                p_paddr: u64::from(*addr),
-                p_filesz: data.len() as u64,
-                p_memsz: data.len() as u64,
-                p_align: 4,
-            });
-        }
-        for (_, data) in &self.segments {
-            w.write_align(4);
-            w.write(data);
-        }
-        w.write_null_symbol();
-        for (s, (name, sec)) in symbols.iter().zip(&syms) {
-            let bind = if s.local {
-                elf::STB_LOCAL
+        .collect()
+}
+
+fn mapping(name: &str, value: u32) -> Symbol {
+    Symbol {
+        name: name.to_string(),
+        value,
+        size: 0,
+        kind: elf::STT_NOTYPE,
+        local: true,
+    }
+}
+
+fn function(name: String, value: u32, size: u32) -> Symbol {
+    Symbol {
+        name,
+        value: value | 1,
+        size,
+        kind: elf::STT_FUNC,
+        local: false,
+    }
+}
+
+/// Writes `pieces` with `symbols` (locals first) and entry point `entry`.
+fn write_elf(pieces: &[Piece], symbols: &[Symbol], entry: u32) -> Result<Vec<u8>, ImageError> {
+    let section_of = |addr: u32| {
+        pieces
+            .iter()
+            .position(|p| addr >= p.vaddr && addr < p.vaddr + p.data.len() as u32)
+    };
+    let fail = |e: object::write::Error| ImageError::Assemble(format!("writing the ELF: {e}"));
+    let mut buf = Vec::new();
+    let mut w = Writer::new(Endianness::Little, false, &mut buf);
+    w.reserve_file_header();
+    w.reserve_program_headers(pieces.len() as u32);
+    let offsets: Vec<u64> = pieces
+        .iter()
+        .map(|p| w.reserve(p.data.len() as u64, 4))
+        .collect();
+    w.reserve_null_section_index();
+    let mut sections = Vec::new();
+    for p in pieces {
+        let name = w.add_section_name(p.name.as_bytes());
+        sections.push((name, w.reserve_section_index()));
+    }
+    w.reserve_null_symbol_index();
+    let mut syms = Vec::new();
+    for s in symbols {
+        let sec = section_of(s.value & !1).map(|i| sections[i].1);
+        let name = w.add_string(s.name.as_bytes());
+        w.reserve_symbol_index(sec);
+        syms.push((name, sec));
+    }
+    w.reserve_symtab_section_index();
+    w.reserve_symtab();
+    w.reserve_strtab_section_index();
+    w.reserve_strtab().map_err(fail)?;
+    w.reserve_shstrtab_section_index();
+    w.reserve_shstrtab().map_err(fail)?;
+    w.reserve_section_headers();
+
+    w.write_file_header(&FileHeader {
+        os_abi: elf::ELFOSABI_NONE,
+        abi_version: 0,
+        e_type: elf::ET_EXEC,
+        e_machine: elf::EM_ARM,
+        e_entry: u64::from(entry),
+        e_flags: elf::FileFlags(EF_ARM_EABI_VER5),
+    })
+    .map_err(fail)?;
+    w.write_align_program_headers();
+    for (p, &offset) in pieces.iter().zip(&offsets) {
+        w.write_program_header(&ProgramHeader {
+            p_type: elf::PT_LOAD,
+            p_flags: if p.code {
+                elf::ProgramFlags(elf::PF_R.0 | elf::PF_X.0)
             } else {
-                elf::STB_GLOBAL
-            };
-            w.write_symbol(&Sym {
-                section: sec.map(|s| s.0),
-                st_name: w.string_offset(Some(*name)),
-                st_info: elf::SymbolInfo::new(bind, s.kind),
-                st_other: elf::SymbolOther(0),
-                st_shndx: elf::SymbolSection(0),
-                st_value: u64::from(s.value),
-                st_size: u64::from(s.size),
-            });
-        }
-        w.write_strtab();
-        w.write_shstrtab();
-        w.write_null_section_header();
-        for (i, ((addr, data), (name, _))) in self.segments.iter().zip(&sections).enumerate() {
-            let code = i == 0 || i % 2 == 1;
-            let flags = if code {
-                elf::SHF_ALLOC.0 | elf::SHF_EXECINSTR.0
-            } else {
-                elf::SHF_ALLOC.0 | elf::SHF_WRITE.0
-            };
-            w.write_section_header(&SectionHeader {
-                sh_name: w.section_name_offset(Some(*name)),
-                sh_type: elf::SHT_PROGBITS,
-                sh_flags: elf::SectionFlags(flags),
-                sh_addr: u64::from(*addr),
-                sh_offset: offsets[i],
-                sh_size: data.len() as u64,
-                sh_link: 0,
-                sh_info: 0,
-                sh_addralign: 4,
-                sh_entsize: 0,
-            });
-        }
-        let locals = symbols.iter().filter(|s| s.local).count() as u32;
-        w.write_symtab_section_header(locals + 1);
-        w.write_strtab_section_header();
-        w.write_shstrtab_section_header();
-        Ok(buf)
+                elf::ProgramFlags(elf::PF_R.0 | elf::PF_W.0)
+            },
+            p_offset: offset,
+            p_vaddr: u64::from(p.vaddr),
+            p_paddr: u64::from(p.paddr),
+            p_filesz: p.data.len() as u64,
+            p_memsz: p.data.len() as u64,
+            p_align: 4,
+        });
+    }
+    for p in pieces {
+        w.write_align(4);
+        w.write(p.data);
+    }
+    w.write_null_symbol();
+    for (s, (name, sec)) in symbols.iter().zip(&syms) {
+        let bind = if s.local {
+            elf::STB_LOCAL
+        } else {
+            elf::STB_GLOBAL
+        };
+        w.write_symbol(&Sym {
+            section: sec.map(|s| s.0),
+            st_name: w.string_offset(Some(*name)),
+            st_info: elf::SymbolInfo::new(bind, s.kind),
+            st_other: elf::SymbolOther(0),
+            st_shndx: elf::SymbolSection(0),
+            st_value: u64::from(s.value),
+            st_size: u64::from(s.size),
+        });
+    }
+    w.write_strtab();
+    w.write_shstrtab();
+    w.write_null_section_header();
+    for ((p, (name, _)), &offset) in pieces.iter().zip(&sections).zip(&offsets) {
+        let flags = if p.code {
+            elf::SHF_ALLOC.0 | elf::SHF_EXECINSTR.0
+        } else {
+            elf::SHF_ALLOC.0 | elf::SHF_WRITE.0
+        };
+        w.write_section_header(&SectionHeader {
+            sh_name: w.section_name_offset(Some(*name)),
+            sh_type: elf::SHT_PROGBITS,
+            sh_flags: elf::SectionFlags(flags),
+            sh_addr: u64::from(p.vaddr),
+            sh_offset: offset,
+            sh_size: p.data.len() as u64,
+            sh_link: 0,
+            sh_info: 0,
+            sh_addralign: 4,
+            sh_entsize: 0,
+        });
+    }
+    let locals = symbols.iter().filter(|s| s.local).count() as u32;
+    w.write_symtab_section_header(locals + 1);
+    w.write_strtab_section_header();
+    w.write_shstrtab_section_header();
+    Ok(buf)
+}
+
+impl FirmwareImage {
+    /// The RAM image as an ELF executable (see the module documentation).
+    ///
+    /// Errors: [`ImageError::Assemble`] when the writer fails (it should not).
+    pub fn elf(&self) -> Result<Vec<u8>, ImageError> {
+        write_elf(&ram_pieces(self), &self.elf_symbols(&[]), boot::ENTRY | 1)
     }
 
-    /// The symbols of [`FirmwareImage::elf`], locals (the mapping symbols) first.
-    fn elf_symbols(&self) -> Vec<Symbol> {
+    /// The flash image `flash` ([`FirmwareImage::flash_image`] of this image) as an ELF
+    /// executable (see the module documentation).
+    ///
+    /// Errors: [`ImageError::Assemble`] when the writer fails (it should not) or `flash`
+    /// is not this image's.
+    pub fn flash_elf(&self, flash: &FlashImage) -> Result<Vec<u8>, ImageError> {
+        if flash.pieces.len() != self.segments.len() {
+            return Err(ImageError::Assemble(
+                "the flash image is not this image's".into(),
+            ));
+        }
+        let at = |addr: u32| (addr - FLASH_BASE) as usize;
+        let entry_end = flash.table.1;
+        let mut pieces = vec![
+            Piece {
+                name: ".boot2".into(),
+                vaddr: FLASH_BASE,
+                paddr: FLASH_BASE,
+                data: &flash.bytes[..at(FLASH_VECTORS)],
+                code: true,
+            },
+            Piece {
+                name: ".flash_entry".into(),
+                vaddr: FLASH_VECTORS,
+                paddr: FLASH_VECTORS,
+                data: &flash.bytes[at(FLASH_VECTORS)..at(entry_end)],
+                code: true,
+            },
+        ];
+        for (p, fp) in ram_pieces(self).into_iter().zip(&flash.pieces) {
+            pieces.push(Piece {
+                paddr: fp.flash,
+                ..p
+            });
+        }
+        let mut extra = vec![mapping("$t", FLASH_BASE), mapping("$t", flash.reset)];
+        for &(off, _) in &flash.boot2_data {
+            extra.push(mapping("$d", FLASH_BASE + off as u32));
+        }
+        extra.push(mapping("$d", FLASH_BASE + flash.boot2_code as u32));
+        for &(addr, _) in &flash.data {
+            extra.push(mapping("$d", addr));
+        }
+        extra.push(function(
+            "_stage2_boot".into(),
+            FLASH_BASE,
+            flash.boot2_code as u32,
+        ));
+        extra.push(function("_flash_reset".into(), flash.reset, 0));
+        write_elf(&pieces, &self.elf_symbols(&extra), flash.reset | 1)
+    }
+
+    /// The symbols of [`FirmwareImage::elf`] and `extra`, locals (the mapping symbols)
+    /// first.
+    fn elf_symbols(&self, extra: &[Symbol]) -> Vec<Symbol> {
         let mut locals = Vec::new();
         let mut globals = Vec::new();
-        let map = |name: &str, value: u32| Symbol {
-            name: name.to_string(),
-            value,
-            size: 0,
-            kind: elf::STT_NOTYPE,
-            local: true,
-        };
-        let func = |name: String, value: u32, size: u32| Symbol {
-            name,
-            value: value | 1,
-            size,
-            kind: elf::STT_FUNC,
-            local: false,
-        };
+        for s in extra {
+            let copy = Symbol {
+                name: s.name.clone(),
+                ..*s
+            };
+            if s.local {
+                locals.push(copy);
+            } else {
+                globals.push(copy);
+            }
+        }
+        let map = mapping;
+        let func = function;
         let object = |name: String, value: u32, size: u32| Symbol {
             name,
             value,

@@ -410,10 +410,12 @@ pub(super) fn place_code_blocks(
     l: &Layout,
     cc: &mut [CoreCode],
     clock_hz: u64,
+    core_mv: Option<u32>,
 ) -> Result<u32, ImageError> {
     // Provisional launch words: large and distinct, as the final ones (same sizes).
     let provisional = Boot::new(
         clock_hz,
+        core_mv,
         (cc.len() == 2).then_some([0x2101_0100, 0x2004_2000, 0x2101_0201]),
     );
     let mut block_off = boot::ENTRY_RESERVE;
@@ -598,9 +600,9 @@ pub(super) fn core_place(
 /// The boot of an image whose blocks are placed (`cc` after [`place_code_blocks`]): the
 /// board's PLL dividers and, with two cores, core 1's vector table, stack top and reset
 /// handler (the first code of its glue, [`glue::core_code`]).
-pub(super) fn boot_of(cc: &[CoreCode], clock_hz: u64) -> Boot {
+pub(super) fn boot_of(cc: &[CoreCode], clock_hz: u64, core_mv: Option<u32>) -> Boot {
     let core1 = cc
         .get(1)
         .map(|c| [c.start, stack(1).1, (c.start + c.glue) | 1]);
-    Boot::new(clock_hz, core1)
+    Boot::new(clock_hz, core_mv, core1)
 }

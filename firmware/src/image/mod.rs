@@ -29,12 +29,17 @@
 //! sample of six hammond keys steps in about 35 µs of host time in a debug build, against
 //! 290 µs with both blocks at bank offset 0).
 //!
+//! **Flash** (modules [`boot2`], `flash_image`): [`FirmwareImage::flash_image`] puts the
+//! image in flash behind a second-stage boot loader, with a reset handler that copies
+//! every segment below to its SRAM address and jumps to the entry stub; from there on the
+//! boot is the RAM image's.
+//!
 //! **Start** (module [`boot`]): from reset, as on the chip. The image's lowest address,
 //! the striped 0x20000000 where the boot ROM enters a RAM image, holds an entry stub that
 //! enters core 0's vector table (core 0's block therefore starts at bank offset
 //! [`boot::ENTRY_RESERVE`]). Core 0's reset handler writes its stack canary, sets the
-//! clocks up (PLL_SYS to the board's clock from the 12 MHz crystal, the timer's 1 µs tick,
-//! the timer released from reset) and launches core 1 over the SIO FIFOs (0, 0, 1, vector
+//! clocks up (the core voltage the board file gives, PLL_SYS to the board's clock from the
+//! 12 MHz crystal, the timer's 1 µs tick, the timer released from reset) and launches core 1 over the SIO FIFOs (0, 0, 1, vector
 //! table, stack pointer, entry: RP2040 datasheet 2.8.2), where core 1 waits in the boot
 //! ROM; core 1's reset handler, the first code of its glue, writes its canary. Then each
 //! reset handler calls `init` for its keys, prepares its SysTick (the sample tick, below),
@@ -84,12 +89,15 @@
 //! than a period, the one tick that came during it is served late).
 
 pub mod boot;
+pub mod boot2;
 mod elf;
+mod flash_image;
 pub mod glue;
 mod layout;
 mod run;
 
-pub use run::{run_to_first_tick, DriveOut, ImageRun, KeyEvent, SampleOut};
+pub use flash_image::{FlashImage, FlashPiece};
+pub use run::{run_to_first_tick, run_to_timer, DriveOut, ImageRun, KeyEvent, SampleOut};
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -782,8 +790,8 @@ impl FirmwareImage {
         let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
 
         let mut cc = layout::place_programs(programs, keys, cores);
-        let data_off = layout::place_code_blocks(&l, &mut cc, clock_hz)?;
-        let boot = layout::boot_of(&cc, clock_hz);
+        let data_off = layout::place_code_blocks(&l, &mut cc, clock_hz, board.core_mv())?;
+        let boot = layout::boot_of(&cc, clock_hz, board.core_mv());
         let update_wcets: Vec<u64> = programs
             .iter()
             .map(Program::update_wcet)
@@ -918,17 +926,38 @@ impl FirmwareImage {
     /// Whether the image can run on a chip, not only in the emulator: `Err` naming the
     /// board's clock when no PLL_SYS setting makes it from the 12 MHz crystal (the reset
     /// handler then leaves the clocks alone; the emulator runs at the board's clock from
-    /// power-on whatever the firmware sets).
+    /// power-on whatever the firmware sets), or when the board's core voltage is too low
+    /// for it ([`tactus_emulator::clocks::min_core_mv`]: the emulator refuses such an
+    /// image when it switches clk_sys).
     ///
     /// Errors: [`ImageError::Board`].
     pub fn flashable(&self) -> Result<(), ImageError> {
-        match self.boot.pll {
-            Some(_) => Ok(()),
-            None => Err(ImageError::Board(format!(
+        if self.boot.pll.is_none() {
+            return Err(ImageError::Board(format!(
                 "clock {} Hz: no PLL_SYS setting makes it from the 12 MHz crystal \
                  (REFDIV 1, FBDIV 16-320, VCO 750-1600 MHz, post dividers 1-7)",
                 self.clock_hz
+            )));
+        }
+        let core_mv = self.boot.vsel.map_or(
+            tactus_emulator::clocks::DEFAULT_CORE_MV,
+            tactus_emulator::clocks::vsel_mv,
+        );
+        match tactus_emulator::clocks::min_core_mv(self.clock_hz) {
+            None => Err(ImageError::Board(format!(
+                "clock {} MHz: beyond the 200 MHz the RP2040 is specified for (at 1.15 V, \
+                 pico-sdk 2.1.1)",
+                self.clock_hz as f64 / 1e6
             ))),
+            Some(need) if core_mv < need => Err(ImageError::Board(format!(
+                "clock {} MHz at a core voltage of {:.2} V: the RP2040 needs {:.2} V for it \
+                 (pico-sdk 2.1.1); add `core_voltage_v = {:.2}` to the board file",
+                self.clock_hz as f64 / 1e6,
+                core_mv as f64 / 1e3,
+                need as f64 / 1e3,
+                need as f64 / 1e3
+            ))),
+            Some(_) => Ok(()),
         }
     }
 

@@ -20,7 +20,6 @@ use super::{FirmwareImage, ImageError, STACK_CANARY};
 use tactus_compiler::ir::{Axis, EventId};
 use tactus_emulator::{Board, Config, StopReason, DAC_BASE, SENSOR_BASE};
 use tactus_isa::timing::EXCEPTION_ENTRY;
-use tactus_runtime::keyboard::cycle_at_us;
 use tactus_runtime::limiter::{Limiter, LimiterConstants};
 
 /// One event a key's update emitted this sample.
@@ -122,30 +121,71 @@ fn emu(e: impl std::fmt::Display) -> ImageError {
     ImageError::Emu(e.to_string())
 }
 
+/// How often [`run_to_timer`] follows the timer's restarts before it gives up.
+const MAX_TIMER_RESTARTS: usize = 16;
+/// How long [`run_to_timer`] waits for the firmware to release the timer, µs of the
+/// board's clock (a fresh flash chip's status write alone takes 10 ms).
+const MAX_BOOT_US: u64 = 1_000_000;
+
+/// Runs `board` until its timer, once the firmware's reset handler has released it from
+/// reset (which restarts its count, `tactus_emulator::timer`), reads `us` µs, and returns
+/// that cycle: a boot of any length before the release (boot2, the copy from flash, the
+/// core voltage's settling) is followed to the firmware's own time. The run goes in
+/// steps of half of `us` until the release (so it stops before the timer reaches `us`
+/// after it), then to where the timer would reach `us`, again while that moves.
+///
+/// Errors: a message when the board stops otherwise ([`Board::describe_stop`]), when the
+/// firmware has not released the timer within a second of the board's clock, or when
+/// it restarts the timer more than 16 times.
+pub fn run_to_timer(board: &mut Board, us: u64) -> Result<u64, String> {
+    let step = (us * board.config.clock_hz / 2_000_000).max(1);
+    let give_up = board.cycle() + MAX_BOOT_US * (board.config.clock_hz / 1_000_000);
+    while board.system.timer.released_at().is_none() {
+        if board.cycle() > give_up {
+            return Err(format!(
+                "the firmware did not release the timer from reset within {} ms of power-on",
+                MAX_BOOT_US / 1000
+            ));
+        }
+        let stop = board.run_for(step);
+        if stop != StopReason::CycleLimit {
+            return Err(format!("the board stopped: {}", board.describe_stop(&stop)));
+        }
+    }
+    for _ in 0..MAX_TIMER_RESTARTS {
+        let at = board.system.timer.cycle_at_us(us);
+        let stop = board.run_until(at);
+        if stop != StopReason::CycleLimit {
+            return Err(format!("the board stopped: {}", board.describe_stop(&stop)));
+        }
+        if board.system.timer.cycle_at_us(us) == at {
+            return Ok(at);
+        }
+    }
+    Err(format!(
+        "the timer was restarted more than {MAX_TIMER_RESTARTS} times before reading {us} µs"
+    ))
+}
+
 /// Runs `board` — booted into a [`FirmwareImage`]'s firmware, at or before its start
-/// alarm at `alarm_us` µs — until each of its first `cores` cores has started its SysTick
-/// ([`START_CYCLES`] after the alarm), then to the first sample tick; returns that tick's
-/// cycle. The tick is the board's own state: the cycle at which each core's SysTick next
-/// reaches 0 (the emulated `SYST_CVR`, as a logic analyser would see the first
-/// interrupt), which must be the same on every core.
+/// alarm at `alarm_us` µs of its timer — until each of its first `cores` cores has started
+/// its SysTick ([`START_CYCLES`] after the alarm), then to the first sample tick; returns
+/// that tick's cycle. The tick is the board's own state: the cycle at which each core's
+/// SysTick next reaches 0 (the emulated `SYST_CVR`, as a logic analyser would see the
+/// first interrupt), which must be the same on every core.
 ///
 /// Errors: a message when the board stops otherwise (a fault), a core's SysTick is not
 /// counting the processor clock with its interrupt enabled by then, or the cores' first
 /// ticks differ.
-pub fn run_to_first_tick(
-    board: &mut Board,
-    alarm_us: u64,
-    clock_hz: u64,
-    cores: usize,
-) -> Result<u64, String> {
+pub fn run_to_first_tick(board: &mut Board, alarm_us: u64, cores: usize) -> Result<u64, String> {
     let check = |stop: StopReason, board: &Board| match stop {
         StopReason::CycleLimit => Ok(()),
         other => Err(format!(
-            "the board stopped: {other:?} (core pcs {:#010x}, {:#010x})",
-            board.cores[0].r[15], board.cores[1].r[15]
+            "the board stopped: {}",
+            board.describe_stop(&other)
         )),
     };
-    let started = cycle_at_us(alarm_us, clock_hz) + START_CYCLES;
+    let started = run_to_timer(board, alarm_us)? + START_CYCLES;
     let stop = board.run_until(started);
     check(stop, board)?;
     let mut first = None;
@@ -195,10 +235,31 @@ impl ImageRun {
         ImageRun::start(board, image)
     }
 
-    /// Loads `elf` (the image's [`FirmwareImage::elf`], or a file claiming to be) into a
-    /// fresh emulated board, which enters it at its entry point as the boot ROM enters a
-    /// RAM image ([`Board::load_elf`]), and runs it up to the first tick; `image` tells
-    /// where its keys and counters are.
+    /// Writes `flash` (bytes from 0x10000000: the image's [`FirmwareImage::flash_image`], or
+    /// a corrupted copy) into the flash of a fresh emulated board and powers it on through
+    /// the boot ROM's flash path ([`Board::boot_from_flash`]: boot2's CRC checked, boot2,
+    /// the image's copy of itself to SRAM, then its reset handlers as in [`FirmwareImage::run`]),
+    /// and runs it up to the first tick.
+    ///
+    /// Errors: [`ImageError::Emu`] when the boot ROM rejects boot2 or `flash` passes the
+    /// flash; those of [`FirmwareImage::run`].
+    pub fn from_flash(image: &FirmwareImage, flash: &[u8]) -> Result<ImageRun, ImageError> {
+        let mut board = Board::new(Config {
+            clock_hz: image.clock_hz,
+            ..Config::default()
+        });
+        board
+            .write_bytes(tactus_emulator::bus::FLASH_BASE, flash)
+            .map_err(emu)?;
+        board.boot_from_flash().map_err(emu)?;
+        ImageRun::start(board, image)
+    }
+
+    /// Loads `elf` (the image's [`FirmwareImage::elf`] or [`FirmwareImage::flash_elf`], or a
+    /// file claiming to be) into a fresh emulated board, which boots it as the boot ROM
+    /// would ([`Board::load_elf`]: from flash through boot2, or at the entry point of a RAM
+    /// image), and runs it up to the first tick; `image` tells where its keys and counters
+    /// are.
     ///
     /// Errors: [`ImageError::Emu`] for a file the loader rejects; those of
     /// [`FirmwareImage::run`].
@@ -260,8 +321,7 @@ impl ImageRun {
                 .constants(),
         };
         let alarm = run.image.start_alarm_us as u64;
-        let stop = run.board.run_until(cycle_at_us(alarm, run.image.clock_hz));
-        run.check_stop(stop)?;
+        run_to_timer(&mut run.board, alarm).map_err(ImageError::Run)?;
         for (k, c) in run.image.cores.iter().enumerate() {
             let ready = run
                 .board
@@ -274,8 +334,8 @@ impl ImageRun {
             }
         }
         let cores = run.image.cores.len();
-        run.first_tick = run_to_first_tick(&mut run.board, alarm, run.image.clock_hz, cores)
-            .map_err(ImageError::Run)?;
+        run.first_tick =
+            run_to_first_tick(&mut run.board, alarm, cores).map_err(ImageError::Run)?;
         run.stalls = run.board.system.contention_stalls;
         Ok(run)
     }
@@ -295,8 +355,8 @@ impl ImageRun {
         match stop {
             StopReason::CycleLimit => Ok(()),
             other => Err(ImageError::Run(format!(
-                "the board stopped: {other:?} (core pcs {:#010x}, {:#010x})",
-                self.board.cores[0].r[15], self.board.cores[1].r[15]
+                "the board stopped: {}",
+                self.board.describe_stop(&other)
             ))),
         }
     }
