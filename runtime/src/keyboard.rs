@@ -125,6 +125,12 @@ pub struct Board {
     /// (pico-sdk 2.1.1, for its 200 MHz clock).
     #[serde(default)]
     pub core_voltage_v: Option<f64>,
+    /// The converters the firmware drives (per core one ADC for the key positions and one
+    /// DAC for the motor currents, [`crate::converters`]); absent, the firmware leaves the
+    /// sensor and DAC words in SRAM for the host (the emulator's own harness) to fill and
+    /// read.
+    #[serde(default)]
+    pub converters: Option<crate::converters::Converters>,
 }
 
 /// Most cores a board file may declare (the RP2040 image runs on 1 or 2; a larger count
@@ -132,6 +138,18 @@ pub struct Board {
 pub const MAX_CORES: u32 = 64;
 
 impl Board {
+    /// The board's ADC and DAC parts, when its file names converters (the reader checked
+    /// that the firmware drives both).
+    pub fn converter_parts(
+        &self,
+    ) -> Option<(
+        &'static crate::converters::AdcPart,
+        &'static crate::converters::DacPart,
+    )> {
+        let c = self.converters.as_ref()?;
+        Some((c.adc_part()?, c.dac_part()?))
+    }
+
     /// Cycles available per sample per core: the shortest interval between two sample
     /// ticks, [`deadline_cycles`] (3,015 at 133 MHz and 44.1 kHz).
     pub fn cycles_per_sample(&self) -> u64 {
@@ -236,6 +254,9 @@ pub fn parse_board(text: &str, name: &str) -> Result<Board, String> {
             "{name}: `sample_rate_hz` ({}) exceeds `clock_hz` ({})",
             b.sample_rate_hz, b.clock_hz
         ));
+    }
+    if let Some(c) = &b.converters {
+        c.check(name)?;
     }
     Ok(b)
 }
@@ -546,6 +567,33 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
         assert!(e.contains("huge.toml") && e.contains("clock_hz"), "{e}");
         let e = parse_board(&format!("{ok}io_cycles_per_key = 163\n"), "old.toml").unwrap_err();
         assert!(e.contains("old.toml") && e.contains("no longer"), "{e}");
+        // Converters: parts the firmware drives, by name; anything else names the field.
+        let conv = |adc: &str, dac: &str| {
+            parse_board(
+                &format!("{ok}[converters]\nadc = \"{adc}\"\ndac = \"{dac}\"\n"),
+                "io.toml",
+            )
+        };
+        let b = conv("ADS8688", "DAC8568").unwrap();
+        let (adc, dac) = b.converter_parts().unwrap();
+        assert_eq!((adc.channels, dac.channels), (8, 8));
+        assert_eq!(parse_board(ok, "b.toml").unwrap().converter_parts(), None);
+        let e = conv("PCM3168A", "DAC8568").unwrap_err();
+        assert!(e.contains("io.toml") && e.contains("converters.adc"), "{e}");
+        let e = conv("ADS8688", "AD5686R").unwrap_err();
+        assert!(e.contains("io.toml") && e.contains("converters.dac"), "{e}");
+        let e = parse_board(
+            &format!("{ok}[converters]\nadc = \"ADS8688\"\n"),
+            "half.toml",
+        )
+        .unwrap_err();
+        assert!(e.contains("half.toml") && e.contains("dac"), "{e}");
+        let e = parse_board(
+            &format!("{ok}[converters]\nadc = \"ADS8688\"\ndac = \"DAC8568\"\nsclk = 1\n"),
+            "extra.toml",
+        )
+        .unwrap_err();
+        assert!(e.contains("extra.toml") && e.contains("sclk"), "{e}");
     }
 
     fn layout_with(boards: &str) -> Result<Option<Vec<Vec<u8>>>, String> {

@@ -5,6 +5,7 @@
 //! the built-in key stimuli, and the traces a simulation writes.
 #![deny(missing_docs)]
 
+pub mod converters;
 pub mod differentiator;
 pub mod fixed;
 pub mod keyboard;
