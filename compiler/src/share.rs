@@ -63,6 +63,14 @@ pub fn share(programs: &[Program]) -> Result<Shared, String> {
     share_as_lowered(&folded).or_else(|_| share_as_lowered(programs))
 }
 
+/// Whether two keys' values of one folded constant differ: by more than the rounding of
+/// their folds (10⁻¹² relative, far below a 32-bit word's resolution). Equal in exact
+/// arithmetic but not in f64 — the piano's `M_h·grav·l4 · h/I_h`, which is `grav·h/l4`
+/// for every hammer — they stay one constant, not a run-time param.
+fn differs(a: f64, b: f64) -> bool {
+    a.to_bits() != b.to_bits() && !((a - b).abs() <= 1e-12 * a.abs().max(b.abs()))
+}
+
 fn share_as_lowered(programs: &[Program]) -> Result<Shared, String> {
     let Some(first) = programs.first() else {
         return Err("no programs to share".into());
@@ -83,7 +91,7 @@ fn share_as_lowered(programs: &[Program]) -> Result<Shared, String> {
             })
             .collect();
         let is_const = matches!(p.values[i].op, Op::Const(_) | Op::Param(_));
-        if is_const && vals.iter().any(|v| v.to_bits() != vals[0].to_bits()) {
+        if is_const && vals.iter().any(|&v| differs(v, vals[0])) {
             varying.insert(i, vals);
         }
     }

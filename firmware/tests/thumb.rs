@@ -668,29 +668,38 @@ const STATIC_BEFORE: &[(&str, u64)] = &[
     ("rubbed_bank", 12971),
 ];
 
-/// The ratchet: each instrument's static WCET as last measured by this test (session 16,
-/// branches code19 and contract19). No instrument may get slower than this; when a change
-/// makes one faster, lower its figure here. (The grand piano's issue-16 bound, 930, is met;
-/// its target, 680, is not yet: the test prints the figure.)
+/// The ratchet: each instrument's static WCET as last measured by this test (issue 38:
+/// the constant factors of the piano's hammer and contact distributed into their terms,
+/// `fixed::distribute`). No instrument may get slower than this; when a change makes one
+/// faster, lower its figure here.
 ///
 /// The piano's figure includes a model fix of session 16 (contract19), not a code generator
 /// change: the rest felt keeps a landing's pulse against the re-landings of a hammer at rest
 /// (`pulse = max(pulse, …)` in `grand_piano.tactus`), 14 cycles (750 → 764) on the same
-/// compiler (`wcet_breakdown` on the model before and after).
+/// compiler (`wcet_breakdown` on the model before and after). `bowed_string` is not
+/// emulated here ([`NOT_EMULATED`]) but analysed: its static bound is ratcheted too.
 const STATIC_CEILING: &[(&str, u64)] = &[
-    ("grand_piano", 764),
+    ("grand_piano", 733),
     ("hammond", 185),
     ("harpsichord", 229),
     ("harpsichord_2x8", 355),
-    ("plucked_string", 1785),
-    ("rubbed_bank", 5804),
+    ("plucked_string", 1758),
+    ("rubbed_bank", 5771),
+    ("bowed_string", BOWED_CEILING),
 ];
+
+/// `bowed_string`'s ceiling (see [`STATIC_CEILING`]).
+const BOWED_CEILING: u64 = 100_042;
 
 #[test]
 fn static_wcet_does_not_regress() {
     let mut worse = Vec::new();
     let lookup = |t: &[(&str, u64)], name: &str| t.iter().find(|(n, _)| *n == name).map(|x| x.1);
-    for (name, text) in thumb_instruments() {
+    // Every instrument the backend compiles, the ones too long to emulate too.
+    let all = instruments()
+        .into_iter()
+        .filter(|(name, _)| NOT_FOR_THUMB.iter().all(|(n, _)| n != name));
+    for (name, text) in all {
         let (_fp, obj) = compile(&text);
         let cost =
             tactus_firmware::budget::static_update(&obj).unwrap_or_else(|e| panic!("{name}: {e}"));

@@ -18,8 +18,11 @@
 //! by its parent. One reader's constant `K` (a long one: a short factor such as `· 1000` is
 //! a cheap exact `MULS` partner, see [`super::chains::SHORT_BITS`]) is multiplied into every
 //! constant of the tree; that reader becomes `a` itself, and every other reader's factor is
-//! divided by `K`. A leaf whose short constant factor would become a long one is not
-//! rewritten (nor its tree): its product would cost more than the one saved.
+//! divided by `K`. The rewrite is made only where it saves by a rough price of each
+//! product by its factor (none for ±1, a `MULS` for a short constant, more for a long one):
+//! the product gone against the leaves' and the other readers' factors that a short
+//! constant turns into a long one (the piano's impact pulse `20 · max(ċ, 0)` keeps its
+//! `MULS` rather than give its long decay product away).
 //!
 //! As with the chains, the f64 reference keeps the source's order of operations and defines
 //! the meaning; in exact arithmetic the two are equal, and the fixed program rounds each
@@ -54,12 +57,37 @@ pub fn fold_constants(p: &Program) -> Program {
 pub fn distribute_constant_factors(p: &Program) -> Program {
     let mut q = p.clone();
     // Each application removes one product; the bound only guards against a bug.
+    let mut any = false;
     for _ in 0..q.values.len() {
         if !distribute_one(&mut q) {
             break;
         }
+        any = true;
+    }
+    if any {
+        drop_dead_defs(&mut q);
     }
     q
+}
+
+/// Removes the definitions nothing reads any more (a factor `select` whose product now
+/// multiplies by a scaled copy): the switch clause would otherwise see a decision the
+/// lowered program has no partner for, and the plan a value to format for nothing.
+fn drop_dead_defs(q: &mut Program) {
+    loop {
+        let (readers, stmt) = readers(q);
+        let dead: Vec<bool> = (0..q.values.len())
+            .map(|i| readers[i].is_empty() && stmt[i] == 0)
+            .collect();
+        let defined = defined_values(&q.body, q.values.len());
+        if !(0..q.values.len()).any(|i| dead[i] && defined[i]) {
+            return;
+        }
+        q.body = rebuild_stmts(&q.body, &mut |s, out| match s {
+            Stmt::Def(v) if dead[v.index()] => {}
+            other => out.push(other.clone()),
+        });
+    }
 }
 
 /// Readers of each value among the defined values, and per value how many statements read it.
@@ -155,24 +183,78 @@ fn tree(
             sub(x, nodes)?;
             sub(y, nodes)
         }
-        Op::Arith(ArithOp::Mul, x, y) => {
-            let (f, _) = [(y, x), (x, y)]
-                .into_iter()
-                .find_map(|(f, other)| factor(p, f).map(|f| (f, other)))?;
-            // A short constant that would become a long one: its product costs more.
-            if let Factor::Const(c) = f {
-                if significant_bits(c) <= SHORT_BITS && significant_bits(c * k) > SHORT_BITS {
-                    return None;
-                }
-            }
-            Some(())
-        }
+        Op::Arith(ArithOp::Mul, x, y) => [y, x].into_iter().find_map(|f| factor(p, f)).map(|_| ()),
         Op::Arith(ArithOp::Div, _, y) => {
             let c = p.const_value(y)?;
             (c != 0.0 && (k / c).is_finite()).then_some(())
         }
         _ => None,
     }
+}
+
+/// What a product by a constant factor `c` roughly costs, in cycles of the Cortex-M0+: none
+/// for ±1, a `MULS` for a short constant (at most [`SHORT_BITS`] significant bits), a
+/// multi-`MULS` product for a long one ([`super::MulKind`]'s forms).
+fn factor_cost(c: f64) -> i32 {
+    if c.abs() == 1.0 {
+        0
+    } else if significant_bits(c) <= SHORT_BITS {
+        4
+    } else {
+        12
+    }
+}
+
+/// The cost of a factor: a `select`'s the costlier arm's.
+fn cost_of(f: Factor) -> i32 {
+    match f {
+        Factor::Const(c) => factor_cost(c),
+        Factor::Select(_, a, b) => factor_cost(a).max(factor_cost(b)),
+    }
+}
+
+/// A factor scaled by `s`.
+fn scaled(f: Factor, s: f64) -> Factor {
+    match f {
+        Factor::Const(c) => Factor::Const(c * s),
+        Factor::Select(v, a, b) => Factor::Select(v, a * s, b * s),
+    }
+}
+
+/// What the distribution of `k` over `nodes` with `readers` saves (negative) or costs
+/// (positive), by [`factor_cost`]: the product of the reader whose constant goes in is
+/// gone; each leaf's and each other reader's factor changes. A short `MULS` partner that
+/// becomes a long constant costs more than it did (the rubbed bank's `· 1000` folded into a
+/// `/ M`: 126 cycles slower, see [`super::chains`]).
+fn score(
+    p: &Program,
+    k: f64,
+    nodes: &[Value],
+    facs: &[(usize, (Option<Value>, Factor))],
+    r0: usize,
+) -> i32 {
+    let mut d = -factor_cost(k);
+    for &n in nodes {
+        match p.values[n.index()].op {
+            Op::Arith(ArithOp::Mul, x, y) => {
+                if let Some(f) = factor(p, y).or_else(|| factor(p, x)) {
+                    d += cost_of(scaled(f, k)) - cost_of(f);
+                }
+            }
+            Op::Arith(ArithOp::Div, _, y) => {
+                if let Some(c) = p.const_value(y) {
+                    d += factor_cost(k / c) - factor_cost(1.0 / c);
+                }
+            }
+            _ => {}
+        }
+    }
+    for &(r, (_, f)) in facs {
+        if r != r0 {
+            d += cost_of(scaled(f, 1.0 / k)) - cost_of(f);
+        }
+    }
+    d
 }
 
 /// Defines a new constant `c` of dimension `dim` (spanned as `like`), to be defined before
@@ -270,6 +352,9 @@ fn distribute_one(q: &mut Program) -> bool {
         };
         let mut nodes = Vec::new();
         if tree(q, a, k, &readers, &stmt, &mut nodes).is_none() {
+            continue;
+        }
+        if score(q, k, &nodes, &facs, r0) >= 0 {
             continue;
         }
         // A node read twice in the tree would be scaled twice.
