@@ -131,7 +131,7 @@ fn c_code_with_param_blocks_is_bit_exact_with_the_fixed_interpreter() {
     let (ir, values) = shared_piano();
     let fp = tactus_compiler::fixed::FixedProgram::new(&ir);
     let c = cgen::emit_c(&fp).unwrap();
-    assert!(c.header.contains("int32_t params[2];"), "{}", c.header);
+    assert!(c.header.contains("int32_t params[3];"), "{}", c.header);
     let b = cc::build(&c, Compiler::Clang, &Options::default()).unwrap();
     let runs = builtin_runs(&fp);
     for v in &values {
