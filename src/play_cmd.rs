@@ -207,6 +207,10 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             ));
         }
     }
+    // The board (checked before anything is compiled for it): every program is compiled
+    // for its sample rate.
+    let board = crate::budget_cmd::board_named(&args.board)?;
+    let fs = board.sample_rate_hz;
     // Which instrument (with which overrides) on which key.
     let mut layout_boards = None;
     let assignments = match &args.layout {
@@ -245,6 +249,17 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         );
     }
     let skipped = outside.len();
+    if inside.is_empty() {
+        let keys: Vec<u8> = assignments.iter().map(|a| a.key).collect();
+        return Err(format!(
+            "{}: none of its {} notes is on a key of the layout (its keys: {}): nothing to play",
+            args.performance
+                .as_ref()
+                .map_or("the demo".to_string(), |p| p.display().to_string()),
+            outside.len(),
+            tactus_firmware::verdict::key_ranges(&keys)
+        ));
+    }
     let perf = Performance {
         notes: inside.into_iter().copied().collect(),
         ..perf
@@ -265,7 +280,11 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             Some(i) => i,
             None => {
                 let src = source::load(&a.instrument)?;
-                let Some(lowered) = compile_reporting(&src, &params) else {
+                let Some(lowered) = compile_reporting(&src, &params, fs) else {
+                    eprintln!(
+                        "error: `{}` (key {}) does not compile for the board's sample rate, {fs} Hz (`{}`)",
+                        a.instrument, a.key, args.board
+                    );
                     return Ok(ExitCode::FAILURE);
                 };
                 let program = lowered.program;
@@ -336,7 +355,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             from_s: args.trace_from,
             to_s: args.trace_to.unwrap_or(f64::INFINITY),
         },
-        board: crate::budget_cmd::board_named(&args.board)?,
+        board,
         emulator: args.emu.into(),
         quiescent_guard: !args.no_quiescent_guard,
     };
@@ -349,12 +368,6 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let played = play::play(&perf, &keyboard, &config, &bar)?;
     bar.0.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
-    let fs = keyboard
-        .programs
-        .first()
-        .map_or(tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, |p| {
-            p.program.sample_rate_hz
-        });
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;

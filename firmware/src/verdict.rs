@@ -176,8 +176,11 @@ pub struct WhatFits {
     pub guarded_cycles_per_key: u64,
     /// The most such keys one board holds.
     pub keys_per_board: u64,
-    /// Boards for this instrument's keys of the layout at that density.
+    /// Boards for this instrument's keys of the layout at that density (0 when none fits).
     pub boards_for_its_keys: u64,
+    /// Why not even one key fits a board of this kind (`keys_per_board` is 0), from
+    /// [`boards::fits_no_board`]; `None` when one does.
+    pub fits_no_board: Option<String>,
 }
 
 /// The budget of a keyboard.
@@ -404,6 +407,14 @@ impl BudgetReport {
                 cps as i64 - self.min_headroom,
                 self.min_headroom
             );
+        } else if let Some(w) = self.what_fits.iter().find(|w| w.fits_no_board.is_some()) {
+            let _ = writeln!(
+                s,
+                "verdict: DOES NOT FIT — {} fits no {} board: {}",
+                w.instrument,
+                b.name,
+                w.fits_no_board.as_deref().unwrap_or("")
+            );
         } else if wb.error.is_some() {
             let _ = writeln!(
                 s,
@@ -489,6 +500,16 @@ impl BudgetReport {
             } else {
                 String::new()
             };
+            if let Some(why) = &w.fits_no_board {
+                let _ = writeln!(
+                    s,
+                    "  {}: no {u} fits one {} board, so its {count} {u}{} of this layout fit none: {why}",
+                    w.instrument,
+                    b.name,
+                    if count == 1 { "" } else { "s" },
+                );
+                continue;
+            }
             let _ = writeln!(
                 s,
                 "  {}: {} {u}{} ({} cycles per {u} with its glue{guard}); its {count} {u}{} of this layout need{} {} board{}",
@@ -770,6 +791,11 @@ pub fn keyboard_budget(
         progress("what fits", what_fits.len(), input.programs.len());
         let densest = boards::densest_board(&programs, &costs, rep, board, &input.limiter)
             .map_err(|e| bad(&pi.instrument, &e))?;
+        let fits_no_board = match densest {
+            Some(_) => None,
+            None => boards::fits_no_board(&programs, &costs, rep, board, &input.limiter)
+                .map_err(|e| bad(&pi.instrument, &e))?,
+        };
         let n = densest.as_ref().map_or(0, |b| b.keys.len()) as u64;
         let guard_off = densest.is_some_and(|b| b.guard_off);
         let count = input
@@ -787,6 +813,7 @@ pub fn keyboard_budget(
             guarded_cycles_per_key: costs.key_cycles[rep],
             keys_per_board: n,
             boards_for_its_keys: if n == 0 { 0 } else { count.div_ceil(n) },
+            fits_no_board,
         });
     }
 

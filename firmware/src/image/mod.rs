@@ -724,8 +724,6 @@ pub struct FirmwareImage {
     pub(crate) tick: glue::Tick,
     pub(crate) limiter: LimiterConfig,
     code_bytes: Vec<u32>,
-    /// How core 0's reset handler boots the board.
-    pub(crate) boot: boot::Boot,
 }
 
 /// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
@@ -762,7 +760,8 @@ impl FirmwareImage {
         board: &BoardSpec,
         limiter: &LimiterConfig,
     ) -> Result<FirmwareImage, ImageError> {
-        let (cores, fs, clock_hz) = layout::check_board(board)?;
+        let chip = layout::check_board(board)?;
+        let (cores, fs, clock_hz) = (chip.cores, chip.sample_rate_hz, chip.clock_hz);
         let lim_cfg = LimiterConfig {
             sample_rate_hz: fs as f64,
             ..*limiter
@@ -777,7 +776,7 @@ impl FirmwareImage {
             keys,
             consts,
             key_drives,
-            tick: layout::tick_schedule(fs, clock_hz)?,
+            tick: chip.tick,
         };
         let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
 
@@ -871,7 +870,6 @@ impl FirmwareImage {
             tick: l.tick,
             limiter: lim_cfg,
             code_bytes,
-            boot,
         })
     }
 
@@ -922,13 +920,9 @@ impl FirmwareImage {
     ///
     /// Errors: [`ImageError::Board`].
     pub fn flashable(&self) -> Result<(), ImageError> {
-        match self.boot.pll {
-            Some(_) => Ok(()),
-            None => Err(ImageError::Board(format!(
-                "clock {} Hz: no PLL_SYS setting makes it from the 12 MHz crystal \
-                 (REFDIV 1, FBDIV 16-320, VCO 750-1600 MHz, post dividers 1-7)",
-                self.clock_hz
-            ))),
+        match crate::board_file::pll_error(self.clock_hz) {
+            None => Ok(()),
+            Some(why) => Err(ImageError::Board(format!("clock {why}"))),
         }
     }
 

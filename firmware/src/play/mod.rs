@@ -100,7 +100,8 @@ pub struct PlayConfig {
     pub finger: FingerConfig,
     /// What to trace.
     pub trace: TraceWindow,
-    /// The board of `Emu`.
+    /// The board: its sample rate is every engine's (the programs are compiled for it);
+    /// `Emu` runs its firmware.
     pub board: Board,
     /// The emulator's engine (the same cycles and strikes either way).
     pub emulator: tactus_emulator::Engine,
@@ -205,11 +206,14 @@ pub fn play(
     progress: &dyn Progress,
 ) -> Result<Played, String> {
     let programs = &keyboard.programs;
-    let fs = programs
-        .first()
-        .map_or(tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, |p| {
-            p.program.sample_rate_hz
-        });
+    // Every program runs at the board's sample rate, compiled for it.
+    let fs = config.board.sample_rate_hz;
+    if let Some(p) = programs.iter().find(|p| p.program.sample_rate_hz != fs) {
+        return Err(format!(
+            "`{}` is compiled for {} Hz, the board `{}` samples at {fs} Hz",
+            p.name, p.program.sample_rate_hz, config.board.name
+        ));
+    }
     // The fixed-point JIT runs the keys with `Fixed`, and calibrates the force player for
     // `Emu` (the same bits as the firmware's update).
     let fixed_needed = config.engine == PlayEngine::Fixed
