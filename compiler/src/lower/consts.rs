@@ -88,6 +88,10 @@ impl<'a> Lowerer<'a> {
                         (s.init, s.range, s.dim) = (v, (lo, hi), dim);
                     }
                     ast::Decl::Require { cond, .. } => self.check_requirement(scope, cond),
+                    // A solve's range: folded and checked (E0306, E0308) as any range.
+                    ast::Decl::SolveRange { range, .. } => {
+                        self.const_range(scope, range, None);
+                    }
                     ast::Decl::Tolerance { .. } => self.evaluate_tolerance(scope, d),
                     ast::Decl::Dynamics { eqs, .. } => self.check_oscillators(scope, eqs),
                     _ => {}
