@@ -119,6 +119,9 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
     if !fp.warnings.is_empty() {
         crate::source::report(&src, &fp.warnings);
     }
+    // No firmware from an instrument whose own accuracy contract the plan breaks.
+    tactus_compiler::fixed::contract::verdict(&lowered.program, &fp)
+        .map_err(|b| Some(format!("{}: {b}; nothing written", src.name)))?;
     let config = CConfig {
         source_name: Some(src.name.clone()),
         overrides: args

@@ -119,6 +119,11 @@ pub fn run(args: CheckArgs) -> ExitCode {
                 tactus_compiler::fixed::report::render_margins(p, &runs)
             );
         }
+        // A broken contract is a failure, as `build` refuses the instrument.
+        if let Err(b) = tactus_compiler::fixed::contract::holds_on(p, &runs) {
+            eprintln!("error: {}: {b}", src.name);
+            return ExitCode::FAILURE;
+        }
     }
     ExitCode::SUCCESS
 }

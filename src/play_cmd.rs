@@ -498,10 +498,37 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             if outside == 1 { "" } else { "s" },
         );
     }
+    // Notes the players could not play as recorded: said, not silently distorted.
+    let mut rushed = played.rushed.clone();
+    rushed.sort_by(|a, b| a.1.on_s.total_cmp(&b.1.on_s));
+    for (key, r) in rushed.iter().take(5) {
+        eprintln!(
+            "warning: note {key} at {:.3} s (velocity {}) could not be placed as recorded: pressed in {:.1} ms where its velocity asks {:.1} ms{} ({})",
+            r.on_s,
+            r.velocity,
+            r.pressed_s * 1e3,
+            r.wanted_s * 1e3,
+            if r.late_s > 1e-4 { format!(", reaching the bottom {:.1} ms late", r.late_s * 1e3) } else { String::new() },
+            if r.on_s < r.wanted_s { "the piece starts too soon after it" } else { "the key was still moving for the previous note" }
+        );
+    }
+    if rushed.len() > 5 {
+        eprintln!(
+            "warning: … {} notes in all could not be placed as recorded (pressed faster or late: louder, or late, than the recording)",
+            rushed.len()
+        );
+    }
     let r = played.restrikes;
-    if r.restrikes > 0 {
+    if r.dropped > 0 {
+        eprintln!(
+            "warning: {} note{} left out: the key was still busy with earlier notes of a repetition past the note-on and the end of the piece",
+            r.dropped,
+            if r.dropped == 1 { "" } else { "s" }
+        );
+    }
+    if r.restrikes > 0 || r.late > 0 {
         println!(
-            "  force player: {} notes re-struck before their key was back at rest; {} of them had no time for the asked softness and were played louder, {} started late",
+            "  force player: {} notes re-struck before their key was back at rest, {} of them with no time for the asked softness, played louder; {} notes started late (no calibrated push fit before the note-on)",
             r.restrikes, r.raised, r.late
         );
     }

@@ -349,7 +349,9 @@ fn lower(
 /// instrument has several and they differ only in param values, else each set gets its own.
 ///
 /// Errors: the index of the set and [`ImageError::Compile`] when the Thumb backend fails or
-/// a set's param values do not fit its shared program's intervals (a bug).
+/// a set's param values do not fit its shared program's intervals (a bug), or
+/// [`ImageError::Contract`] when a plan breaks its instrument's accuracy contract on a
+/// built-in stimulus.
 pub fn compile_shared(
     sets: &[(&str, &tactus_compiler::ir::Program)],
 ) -> Result<Vec<Program>, (usize, ImageError)> {
@@ -361,9 +363,16 @@ pub fn compile_shared(
         let members: Vec<usize> = (0..sets.len()).filter(|&i| sets[i].0 == name).collect();
         let irs: Vec<tactus_compiler::ir::Program> =
             members.iter().map(|&i| sets[i].1.clone()).collect();
+        // No program whose accuracy contract its plan breaks (at its own param values;
+        // a shared code at its nominal block).
+        let contract = |ir: &tactus_compiler::ir::Program, code: &Program| {
+            tactus_compiler::fixed::contract::verdict(ir, &code.fixed)
+                .map_err(|b| ImageError::Contract(b.to_string()))
+        };
         match tactus_compiler::share::share(&irs) {
             Ok(shared) if members.len() > 1 => {
                 let code = Program::of_ir(&shared.program).map_err(|e| (members[0], e))?;
+                contract(&shared.program, &code).map_err(|e| (members[0], e))?;
                 for (&i, values) in members.iter().zip(&shared.values()) {
                     let block = code
                         .fixed
@@ -374,7 +383,9 @@ pub fn compile_shared(
             }
             _ => {
                 for &i in &members {
-                    programs[i] = Some(Program::of_ir(sets[i].1).map_err(|e| (i, e))?);
+                    let code = Program::of_ir(sets[i].1).map_err(|e| (i, e))?;
+                    contract(sets[i].1, &code).map_err(|e| (i, e))?;
+                    programs[i] = Some(code);
                 }
             }
         }
@@ -524,6 +535,9 @@ pub enum ImageError {
     },
     /// The board cannot run an image (clock, sample rate or core count).
     Board(String),
+    /// A program's plan breaks its instrument's accuracy contract
+    /// (`tactus_compiler::fixed::contract::verdict`): no firmware is made from it.
+    Contract(String),
     /// The limiter configuration cannot be built, or not in the firmware's arithmetic.
     Limiter(String),
     /// A core's code and data do not fit its SRAM bank.
@@ -559,6 +573,7 @@ impl fmt::Display for ImageError {
             ImageError::Compile(e) => write!(f, "cannot compile a key program: {e}"),
             ImageError::BadKey { key, why } => write!(f, "key {key}: {why}"),
             ImageError::Board(e) => write!(f, "board: {e}"),
+            ImageError::Contract(e) => f.write_str(e),
             ImageError::Limiter(e) => write!(f, "limiter: {e}"),
             ImageError::NoRoom { core, need, have } => write!(
                 f,

@@ -184,8 +184,13 @@ pub struct Played {
     pub traces: Traces,
     /// The force player's calibration per program (`None` with the position player).
     pub calibrations: Vec<Option<FingerCalibration>>,
-    /// How the force player played repeated notes.
+    /// How the force player played repeated notes, and the notes either player left out
+    /// ([`Restrikes::dropped`]).
     pub restrikes: Restrikes,
+    /// The position player's notes it could not place as recorded, with their keys
+    /// (`tactus_runtime::performance::KeyTrack::rushed`): pressed faster than their
+    /// velocity asks, or late.
+    pub rushed: Vec<(u8, tactus_runtime::performance::Rushed)>,
     /// Key-samples simulated.
     pub key_samples: u64,
     /// With `Emu`: the boards' budget over the run.
@@ -310,6 +315,7 @@ pub fn play(
     // Each played key's motion and the stretches it moves.
     let mut motions: BTreeMap<u8, (Motion, Vec<(f64, f64)>)> = BTreeMap::new();
     let mut restrikes = Restrikes::default();
+    let mut rushed = Vec::new();
     for (&key, &pi) in &keyboard.key_program {
         let notes: Vec<Note> = perf
             .notes
@@ -320,6 +326,9 @@ pub fn play(
         let force = calibrations[pi].as_ref().map(|c| (c, finger));
         let (motion, busy, counts) = key_motion(&notes, dip_of(pi), perf.duration_s, force);
         restrikes += counts;
+        if let Motion::Track(t) = &motion {
+            rushed.extend(t.rushed.iter().map(|r| (key, *r)));
+        }
         motions.insert(key, (motion, busy_stretches(busy)));
     }
     let mut strikes = Vec::new();
@@ -449,6 +458,7 @@ pub fn play(
         traces,
         calibrations,
         restrikes,
+        rushed,
         key_samples,
         boards,
     })
