@@ -392,6 +392,25 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
     } else {
         print!("{}", report.text());
     }
+    if !report.fits {
+        // The verdict's one line on stderr too (stdout may be JSON).
+        let why = match report.what_fits.iter().find_map(|w| {
+            w.fits_no_board.as_ref().map(|why| {
+                format!(
+                    "{} fits no {} board: {why}",
+                    w.instrument, report.board.name
+                )
+            })
+        }) {
+            Some(line) => line,
+            None => format!(
+                "{} of {} boards over budget",
+                report.boards.iter().filter(|b| !b.fits()).count(),
+                report.board_count
+            ),
+        };
+        eprintln!("error: {}: does not fit: {why}", r.name);
+    }
     for p in report.unsound() {
         eprintln!(
             "BUG: {} ({} keys): measured {} cycles at {} sample {} exceed the static worst case {} — the WCET analysis or the emulator's timing is wrong",

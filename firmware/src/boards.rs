@@ -511,6 +511,30 @@ pub fn fits_no_board(
     }))
 }
 
+/// [`fits_no_board`] of every program (`None`: one key of it fits), computed once per
+/// distinct code ([`Program::same_code`]: 88 graded piano keys are one check).
+///
+/// Errors: as [`board_image`].
+pub fn fits_no_board_each(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    board: &Board,
+    limiter: &LimiterConfig,
+) -> Result<Vec<Option<String>>, BoardsError> {
+    let mut out: Vec<Option<Option<String>>> = vec![None; programs.len()];
+    for i in 0..programs.len() {
+        if out[i].is_none() {
+            let why = fits_no_board(programs, costs, i, board, limiter)?;
+            for j in i..programs.len() {
+                if programs[j].same_code(&programs[i]) {
+                    out[j] = Some(why.clone());
+                }
+            }
+        }
+    }
+    Ok(out.into_iter().map(Option::flatten).collect())
+}
+
 /// The densest board of one program's keys: the most keys of program `program` that one
 /// board holds (found by building boards of identical keys, at most [`MAX_KEYS`]) and that
 /// board's verdict, which says whether it keeps the quiescent-key guard
