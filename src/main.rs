@@ -5,9 +5,11 @@ mod budget_cmd;
 mod build_cmd;
 mod check_cmd;
 mod emu_cmd;
+mod lsp_cmd;
 mod play_cmd;
 mod plot;
 mod plot_cmd;
+mod regulate_cmd;
 mod sim_cmd;
 mod source;
 
@@ -38,6 +40,10 @@ enum Command {
     /// Check a keyboard's timing budget: static WCET and measured cycles per key, keys on
     /// the board's cores, fits or not (exit 0/1; 2 on bad input).
     Budget(budget_cmd::BudgetArgs),
+    /// The regulation sheet of a key instrument, as a piano technician measures an action:
+    /// down- and up-weight, friction, let-off, drop, blow, back-check, key-bottom times,
+    /// repetition; with `--spec`, a verdict per figure (exit 1 when one is out of range).
+    Regulate(regulate_cmd::RegulateArgs),
     /// Plot the models behind the instruments (e.g. `tactus plot friction`: Bilbao's
     /// friction characteristic, Onofrei et al. 2023 Fig. 9).
     #[command(subcommand)]
@@ -45,6 +51,10 @@ enum Command {
     /// Run ELF firmware on the emulated dual-core RP2040.
     #[command(subcommand)]
     Emu(emu_cmd::EmuCommand),
+    /// Language server for editors (LSP over stdin/stdout): diagnostics as `tactus check`
+    /// gives them, hover with units, ranges, Q-formats and error bounds, go to definition,
+    /// references, completion, outline. Editor set-up: docs/editors.md.
+    Lsp(lsp_cmd::LspArgs),
 }
 
 fn main() -> ExitCode {
@@ -57,5 +67,7 @@ fn main() -> ExitCode {
         Command::Play(args) => play_cmd::run(args),
         Command::Emu(cmd) => emu_cmd::run(cmd),
         Command::Plot(cmd) => plot_cmd::run(cmd),
+        Command::Lsp(args) => lsp_cmd::run(args),
+        Command::Regulate(args) => regulate_cmd::run(args),
     }
 }

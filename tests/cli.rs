@@ -454,3 +454,65 @@ fn sim_writes_a_wav_of_a_pen_instrument() {
         );
     }
 }
+
+#[test]
+fn regulate_prints_a_sheet_judges_it_against_a_spec_and_rejects_bad_input() {
+    let dir = temp_dir("cli-regulate");
+    let out = tactus()
+        .args(["regulate", "harpsichord", "-o"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("harpsichord — regulation sheet")
+            && stdout.contains("down-weight")
+            && stdout.contains("note: let-off"),
+        "{stdout}"
+    );
+    assert!(dir.join("harpsichord-loop.svg").exists() && dir.join("harpsichord-loop.csv").exists());
+    // A spec the harpsichord meets, and one it does not (a hammer figure it cannot have).
+    let spec = dir.join("spec.toml");
+    std::fs::write(&spec, "name = \"light\"\nkey_dip = { min = 6, max = 8 }\n").unwrap();
+    let out = tactus()
+        .args(["regulate", "harpsichord", "-o"])
+        .arg(&dir)
+        .arg("--spec")
+        .arg(&spec)
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("within spec `light`"));
+    std::fs::write(
+        &spec,
+        "name = \"grand\"\nkey_dip = { min = 9.5, max = 10.5 }\nlet_off = { min = 1, max = 3 }\n",
+    )
+    .unwrap();
+    let out = tactus()
+        .args(["regulate", "harpsichord", "-o"])
+        .arg(&dir)
+        .arg("--spec")
+        .arg(&spec)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("OUTSIDE spec `grand`: 2 of 2 figures (key_dip, let_off)")
+            && stdout.contains("not measured"),
+        "{stdout}"
+    );
+    // Bad input: exit 2 with the file and the field named.
+    std::fs::write(&spec, "name = \"x\"\ndownweight = { min = 1 }\n").unwrap();
+    let out = tactus()
+        .args(["regulate", "harpsichord", "--spec"])
+        .arg(&spec)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("`downweight` is no figure"));
+    let out = tactus().args(["regulate", "rubbed_bank"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("pen instrument"));
+}

@@ -4,6 +4,15 @@
 //! Pipeline: [`parse::parse`] (logos + lalrpop) → [`ast::File`] → [`lower::lower`] (name
 //! resolution, dimension check, component instancing) → [`ir::Program`] →
 //! [`interp::Instance`] (per sample: sensors in; forces, outputs, states and events out).
+//! [`fixed`] plans the fixed-point formats; [`cgen`] and [`thumb`] are the backends.
+//!
+//! **Hostile input.** [`parse`] measures nesting as the grammar builds the tree and stops at
+//! [`parse::MAX_NESTING`] (E0008), so no later recursive pass meets an unbounded depth;
+//! lowering walks left-nested operator chains (a `sum` over 4096 indices) in a loop; [`expand`]
+//! charges every node it produces to one budget per file ([`expand::MAX_EXPANDED_NODES`],
+//! E0137); lowering stops at [`lower::MAX_LOWERED_VALUES`] IR values (E0139) and reports each
+//! error once; `lower/scope.rs` bounds component instances by depth, count and total size
+//! (E0135, E0136).
 #![deny(missing_docs)]
 
 pub mod ast;
@@ -15,6 +24,7 @@ pub mod lexer;
 pub mod lower;
 pub mod parse;
 pub mod print;
+pub mod query;
 pub mod share;
 pub mod sim;
 pub mod units;

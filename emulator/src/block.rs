@@ -13,7 +13,7 @@
 //! `Core::execute_op`, the interpreter's executor. Both layers are checked against the
 //! interpreter instruction by instruction (`tests/block_jit.rs`) and on whole programs
 //! (`tests/block_engine.rs`, the firmware images in `firmware/tests/image.rs`).
-//! Measured: see BENCHMARKS.md, "the block compiler".
+//! Measured: see docs/benchmarks-log.md, "the block compiler".
 //!
 //! **Cycles.** Each instruction's cost comes from the one timing table
 //! ([`crate::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block

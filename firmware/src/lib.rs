@@ -21,6 +21,9 @@
 //! - [`play`]: a recorded performance played through an instrument (`tactus play`): the
 //!   players, the one play loop over the one engine trait, the strike rule, the output files;
 //!   [`perform`]: its engine for the firmware of every board on emulated RP2040s.
+//! - [`regulate`]: the regulation sheet of a key instrument (`tactus regulate`): down- and
+//!   up-weight, friction, let-off, drop, blow, back-check, key-bottom times, repetition,
+//!   measured with the closed-loop key model, and a spec's verdict.
 #![deny(missing_docs)]
 
 pub mod board_file;
@@ -34,6 +37,7 @@ pub mod layout;
 pub mod measure;
 pub mod perform;
 pub mod play;
+pub mod regulate;
 pub mod report;
 pub mod runner;
 

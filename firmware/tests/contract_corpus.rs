@@ -333,10 +333,10 @@ fn the_contract_holds_at_the_simulated_grand88_keys() {
 /// [`grand88_contract`] at all 88 keys: 1,320 runs, 26 million samples through both
 /// interpreters and both readings (about 6 CPU-minutes in release, more in the test
 /// profile: over CI's budget, so run by hand, `cargo test --release -p tactus-firmware
-/// --test contract_corpus -- --ignored --nocapture`; BENCHMARKS.md, "Session 16:
+/// --test contract_corpus -- --ignored --nocapture`; docs/benchmarks-log.md, "Session 16:
 /// contract19").
 #[test]
-#[ignore = "6 CPU-minutes in release: run by hand (BENCHMARKS.md, Session 16: contract19)"]
+#[ignore = "6 CPU-minutes in release: run by hand (docs/benchmarks-log.md, Session 16: contract19)"]
 fn the_contract_holds_at_every_grand88_key() {
     grand88_contract(|_| true);
 }

@@ -1322,7 +1322,7 @@ fn the_block_engine_runs_every_instruments_image_exactly_as_the_interpreter() {
 /// The static glue of one keyboard key alone on its core (`FirmwareImage::key_glue`: sensor
 /// copy, call set-up, the guard, the limiter and the DAC store), with and without the
 /// quiescent-key guard, for each shipped keyboard instrument; the guard's share grows with
-/// the state words it compares. Prints the figures of BENCHMARKS.md "Session 13 (glue16)".
+/// the state words it compares. Prints the figures of docs/benchmarks-log.md "Session 13 (glue16)".
 #[test]
 fn key_glue_with_and_without_the_guard_per_instrument() {
     let lim = LimiterConfig::default();

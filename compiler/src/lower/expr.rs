@@ -21,7 +21,8 @@ use crate::diagnostics::Diagnostic;
 use crate::ir::*;
 use crate::units::Dim;
 
-const BUILTINS: &[(&str, &str)] = &[
+/// The built-in functions: (name, signature as written).
+pub const BUILTINS: &[(&str, &str)] = &[
     ("abs", "abs(x)"),
     ("sqrt", "sqrt(x)"),
     ("exp", "exp(x)"),

@@ -25,6 +25,7 @@ use crate::ir::*;
 use crate::units::Dim;
 use std::collections::{HashMap, HashSet};
 
+pub use expr::{BUILTINS, SAMPLE_RATE};
 pub use scope::ScopeId;
 use scope::{DefKind, Scope, Sym};
 
@@ -63,9 +64,26 @@ pub const MAX_LOWERED_VALUES: usize = 1 << 19;
 /// Lowers a parsed file. Fails with every error found (and the warnings) when any error
 /// is found.
 pub fn lower(file: &ast::File, config: &Config) -> Result<Lowered, Vec<Diagnostic>> {
+    lower_indexed(file, config, None)
+}
+
+/// [`lower`], also recording every name the resolver resolves into `names` (what an editor
+/// asks for "go to definition" and "find references": [`crate::query::NameIndex`]). The
+/// index is filled whether or not lowering succeeds; it stays empty when expansion fails.
+pub fn lower_indexed(
+    file: &ast::File,
+    config: &Config,
+    names: Option<&mut crate::query::NameIndex>,
+) -> Result<Lowered, Vec<Diagnostic>> {
     let file = crate::expand::expand(file, &config.overrides)?;
     let mut l = Lowerer::new(config);
+    if names.is_some() {
+        l.refs = Some(Vec::new());
+    }
     l.run(&file);
+    if let (Some(index), Some(refs)) = (names, l.refs.take()) {
+        index.add(refs);
+    }
     let (errors, warnings): (Vec<_>, Vec<_>) = l.diags.into_iter().partition(|d| d.is_error());
     if errors.is_empty() {
         Ok(Lowered {
@@ -136,6 +154,9 @@ struct Lowerer<'a> {
     overrides: HashMap<usize, (f64, Dim, String)>,
     /// `tolerance` lines evaluated, resolved after the body ([`tolerance`]).
     tolerances: Vec<tolerance::PendingTolerance<'a>>,
+    /// When indexing ([`lower_indexed`]): every resolved name, (where it is written, the
+    /// span of the declaration's name it denotes).
+    refs: Option<Vec<(Span, Span)>>,
 }
 
 impl<'a> Lowerer<'a> {
@@ -175,6 +196,15 @@ impl<'a> Lowerer<'a> {
             overrides: HashMap::new(),
             tolerances: Vec::new(),
             cur_span: 0..0,
+            refs: None,
+        }
+    }
+
+    /// Records that the name written at `at` denotes the declaration named at `def` (only
+    /// when indexing).
+    fn record_ref(&mut self, at: &Span, def: &Span) {
+        if let Some(refs) = &mut self.refs {
+            refs.push((at.clone(), def.clone()));
         }
     }
 

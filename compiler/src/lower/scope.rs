@@ -353,6 +353,10 @@ impl<'a> Lowerer<'a> {
                     args: uargs,
                     span,
                 } => {
+                    if let Some(comp) = self.components.get(component.node.as_str()) {
+                        let def = comp.name.span.clone();
+                        self.record_ref(&component.span, &def);
+                    }
                     let Some(&comp) = self.components.get(component.node.as_str()) else {
                         let known: Vec<&str> = self.components.keys().copied().collect();
                         let hint = match crate::lower::expr::closest(
@@ -454,7 +458,12 @@ impl<'a> Lowerer<'a> {
         }
         // Arguments that name nothing, and inputs left unbound.
         for (i, (n, _)) in args.iter().enumerate() {
-            if !arg_used[i] {
+            if arg_used[i] {
+                if let Some((_, def)) = self.scopes[id.0].syms.get(&n.node) {
+                    let def = def.clone();
+                    self.record_ref(&n.span, &def);
+                }
+            } else {
                 let kinds: Vec<String> = self.scopes[id.0]
                     .syms
                     .iter()
@@ -501,8 +510,10 @@ impl<'a> Lowerer<'a> {
 
     /// Resolves a single name in a scope; reports unknown names with a suggestion.
     pub(super) fn lookup(&mut self, scope: ScopeId, name: &ast::Name) -> Option<Sym> {
-        if let Some((s, _)) = self.scopes[scope.0].syms.get(&name.node) {
-            return Some(*s);
+        if let Some((s, def)) = self.scopes[scope.0].syms.get(&name.node) {
+            let (s, def) = (*s, def.clone());
+            self.record_ref(&name.span, &def);
+            return Some(s);
         }
         // A name inside a loop is looked up once per index: report (and search for a
         // suggestion among thousands of names) once per place, not once per index.

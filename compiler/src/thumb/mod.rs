@@ -102,7 +102,7 @@ impl Convention {
     /// The firmware image's sample interrupt, which alone calls the update there: r8–r11
     /// (the limiter's constants, which the glue then takes from its literal pool or an
     /// immediate) are free; r4–r7 (the key's record, the control block, the window bases)
-    /// are preserved. The figures: BENCHMARKS.md, "Session 16: tick19".
+    /// are preserved. The figures: docs/benchmarks-log.md, "Session 16: tick19".
     pub const SAMPLE_ISR: Convention = Convention { free: 0xf << 8 };
 }
 

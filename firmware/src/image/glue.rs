@@ -461,7 +461,7 @@ pub fn guard_uses_r5(g: &GuardCode) -> bool {
 /// Clobbers r0-r3.
 ///
 /// Static cost (piano, 8 words in 4 pairs): 10 cycles per pair plus about 12 (see
-/// BENCHMARKS.md, "Session 13 (glue16)"); 5 cycles without state words.
+/// docs/benchmarks-log.md, "Session 13 (glue16)"); 5 cycles without state words.
 pub fn guard_record(
     a: &mut CodeBuffer,
     g: &GuardCode,

@@ -99,6 +99,7 @@ impl KeyEngine for HostKey<'_> {
 }
 
 /// The f64 JIT seen as a simulation engine.
+#[derive(Clone)]
 pub struct JitEngine<'j>(pub tactus_jit::JitInstance<'j>);
 
 impl Engine for JitEngine<'_> {
@@ -118,6 +119,7 @@ impl Engine for JitEngine<'_> {
 
 /// The fixed-point JIT seen as a simulation engine (SI through the format plan, as
 /// `FixedInstance` is).
+#[derive(Clone)]
 pub struct FixedJitEngine<'j>(
     pub tactus_jit::fixed::FixedJitInstance<'j>,
     pub &'j FixedProgram,

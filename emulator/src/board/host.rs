@@ -1,0 +1,362 @@
+//! The host's side of the board: loading an image, starting cores, reading and writing
+//! memory without cycles, the sensor and DAC words, and calling one function.
+
+use super::*;
+use crate::bus::SRAM_END;
+use crate::decode::Instr;
+use crate::elf::{self, ElfError};
+use crate::timing::cycles;
+use std::fmt;
+/// Where [`Board::call`] puts its return stub: the last word of SRAM (the stack given to a
+/// call must be below it).
+pub const CALL_STUB: u32 = SRAM_END - 4;
+
+/// What a function called with [`Board::call`] returned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CallResult {
+    /// r0 at return (the AAPCS result word).
+    pub r0: u32,
+    /// r1 at return (the high word of a 64-bit result).
+    pub r1: u32,
+    /// Cycles from the first instruction to the return, the return included.
+    pub cycles: u64,
+}
+
+/// Why [`Board::call`] did not return normally.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum CallError {
+    /// The board stopped before the function returned.
+    Stopped {
+        /// Why it stopped.
+        reason: StopReason,
+        /// The core's PC then.
+        pc: u32,
+    },
+    /// A host access failed.
+    Emu(EmuError),
+}
+
+impl fmt::Display for CallError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CallError::Stopped { reason, pc } => {
+                write!(
+                    f,
+                    "the called function did not return: {reason:?} at pc {pc:#010x}"
+                )
+            }
+            CallError::Emu(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for CallError {}
+
+/// A host-side error.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum EmuError {
+    /// The ELF file could not be loaded.
+    Elf(ElfError),
+    /// A host access to an address outside ROM, flash and SRAM.
+    Unmapped(u32),
+    /// No symbol of that name.
+    NoSymbol(String),
+}
+
+impl fmt::Display for EmuError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EmuError::Elf(e) => e.fmt(f),
+            EmuError::Unmapped(a) => write!(f, "no memory at {a:#010x}"),
+            EmuError::NoSymbol(s) => write!(f, "no symbol named `{s}`"),
+        }
+    }
+}
+
+impl std::error::Error for EmuError {}
+
+impl From<ElfError> for EmuError {
+    fn from(e: ElfError) -> Self {
+        EmuError::Elf(e)
+    }
+}
+
+impl Board {
+    /// Parses and loads an ELF executable, then starts core 0: from its vector table if the
+    /// image has one (`.vectors`/`.vector_table`/`.isr_vector` section), else at the entry
+    /// point with SP at the top of SRAM.
+    pub fn load_elf(&mut self, bytes: &[u8]) -> Result<(), EmuError> {
+        let image = elf::parse(bytes)?;
+        for seg in &image.segments {
+            self.write_bytes(seg.addr, &seg.data).map_err(|_| {
+                EmuError::Elf(ElfError::Unmapped {
+                    addr: seg.addr,
+                    size: seg.data.len() as u32,
+                })
+            })?;
+        }
+        match image.vector_table {
+            Some(vt) => self.boot_from_vectors(0, vt)?,
+            None => self.enter_ram_image(image.entry),
+        }
+        self.image = image;
+        Ok(())
+    }
+
+    /// Starts core 0 at `entry` (Thumb bit set) with SP at the top of SRAM and VTOR 0 (the
+    /// boot ROM's table), as the boot ROM enters a RAM image after a UF2 download: it
+    /// reboots through the watchdog with `entry` = the lowest address the UF2 wrote and
+    /// SP = 0x20042000 (pico-bootrom `bootrom/virtual_disk.c`,
+    /// `safe_reboot(lowest_addr, SRAM_END, …)`; `bootrom/bootrom_rt0.S`, `check_wdog`).
+    /// Core 1 stays in the boot ROM's launch protocol.
+    pub fn enter_ram_image(&mut self, entry: u32) {
+        self.cores[0].reset_to(entry, SRAM_END);
+        self.cores[0].nvic.vtor = 0;
+    }
+
+    /// Starts `core` from the vector table at `vtor` (SP = word 0, PC = word 1), as the boot
+    /// ROM does; the core stops taking part in the launch protocol.
+    pub fn boot_from_vectors(&mut self, core: usize, vtor: u32) -> Result<(), EmuError> {
+        let sp = self.read_u32(vtor)?;
+        let pc = self.read_u32(vtor.wrapping_add(4))?;
+        self.start_core(core, pc, sp, vtor);
+        Ok(())
+    }
+
+    /// Starts `core` at `pc` with stack pointer `sp` and VTOR `vtor`, at the current cycle,
+    /// as a debugger would. Core 1 taken from the boot ROM's wait loop this way is started
+    /// as if it had never entered it: what the ROM sent core 0 (its handshake 0) is
+    /// withdrawn from core 0's RX FIFO. (A launch over the FIFOs keeps the echoes.)
+    pub fn start_core(&mut self, core: usize, pc: u32, sp: u32, vtor: u32) {
+        if core == 1 && self.launch.is_some() {
+            while self.system.sio.fifo_status(0) & 1 != 0 {
+                self.system.sio.fifo_pop(0);
+            }
+        }
+        self.start_core_at(core, pc, sp, vtor);
+    }
+
+    pub(super) fn start_core_at(&mut self, core: usize, pc: u32, sp: u32, vtor: u32) {
+        let now = self.cores[1 - core].cycle.max(self.cores[core].cycle);
+        let c = &mut self.cores[core];
+        c.cycle = now;
+        c.reset_to(pc, sp);
+        c.nvic.vtor = vtor;
+        if core == 1 {
+            self.launch = None;
+        }
+    }
+
+    /// Address of symbol `name` in the loaded image.
+    pub fn symbol(&self, name: &str) -> Result<u32, EmuError> {
+        self.image
+            .symbol(name)
+            .map(|s| s.addr)
+            .ok_or_else(|| EmuError::NoSymbol(name.to_string()))
+    }
+
+    /// Reads bytes without side effects or cycles (ROM, flash, SRAM only).
+    pub fn read_bytes(&mut self, addr: u32, out: &mut [u8]) -> Result<(), EmuError> {
+        // Words of one SRAM view (the records and windows a harness reads every sample):
+        // no address decode per word.
+        if let Some((off, stride)) = u32::try_from(out.len())
+            .ok()
+            .and_then(|n| crate::bus::sram_word_run(addr, n))
+        {
+            let sram = &self.system.sram;
+            for (i, w) in out.chunks_exact_mut(4).enumerate() {
+                let o = off as usize + stride as usize * i;
+                w.copy_from_slice(&sram[o..o + 4]);
+            }
+            return Ok(());
+        }
+        // Whole aligned words map to four consecutive bytes of one memory (the regions and
+        // the SRAM banks' words are aligned): one address decode per word.
+        if addr & 3 == 0 && out.len().is_multiple_of(4) {
+            for (i, w) in out.chunks_exact_mut(4).enumerate() {
+                let a = addr.wrapping_add(4 * i as u32);
+                let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
+                w.copy_from_slice(&mem[off..off + 4]);
+            }
+            return Ok(());
+        }
+        for (i, b) in out.iter_mut().enumerate() {
+            let a = addr.wrapping_add(i as u32);
+            let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
+            *b = mem[off];
+        }
+        Ok(())
+    }
+
+    /// Writes bytes without cycles (ROM, flash, SRAM only), as a loader or DMA would.
+    pub fn write_bytes(&mut self, addr: u32, data: &[u8]) -> Result<(), EmuError> {
+        self.write_data(addr, data)?;
+        self.system.invalidate_code();
+        Ok(())
+    }
+
+    /// Writes data bytes without cycles and without invalidating decoded code: for buffers
+    /// the host refills often (sensor words, arguments). The caller guarantees that no
+    /// instruction lives in the range (else the core may run stale code).
+    pub fn write_data(&mut self, addr: u32, data: &[u8]) -> Result<(), EmuError> {
+        if let Some((off, stride)) = u32::try_from(data.len())
+            .ok()
+            .and_then(|n| crate::bus::sram_word_run(addr, n))
+        {
+            let sram = &mut self.system.sram;
+            for (i, w) in data.chunks_exact(4).enumerate() {
+                let o = off as usize + stride as usize * i;
+                sram[o..o + 4].copy_from_slice(w);
+            }
+            return Ok(());
+        }
+        // Whole aligned words: one address decode per word, as in `read_bytes`.
+        if addr & 3 == 0 && data.len().is_multiple_of(4) {
+            for (i, w) in data.chunks_exact(4).enumerate() {
+                let a = addr.wrapping_add(4 * i as u32);
+                let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
+                mem[off..off + 4].copy_from_slice(w);
+            }
+            return Ok(());
+        }
+        for (i, b) in data.iter().enumerate() {
+            let a = addr.wrapping_add(i as u32);
+            let (mem, off) = self.system.backing(a).ok_or(EmuError::Unmapped(a))?;
+            mem[off] = *b;
+        }
+        Ok(())
+    }
+
+    /// Reads `out.len()` little-endian words from `addr`, `addr + 4`, … (host access, no
+    /// cycles): [`Board::read_bytes`] without the byte buffer — a harness reading records
+    /// and windows every sample takes the words straight from SRAM when they lie in one
+    /// view (striped, SRAM4/5, one bank of the non-striped alias). Errors: as
+    /// [`Board::read_bytes`].
+    pub fn read_words(&mut self, addr: u32, out: &mut [u32]) -> Result<(), EmuError> {
+        let run = u32::try_from(out.len())
+            .ok()
+            .and_then(|n| n.checked_mul(4))
+            .and_then(|len| crate::bus::sram_word_run(addr, len));
+        if let Some((off, stride)) = run {
+            // One bounds check for the run, then a word per `stride` bytes.
+            let (off, stride) = (off as usize, stride as usize);
+            let end = off + stride * out.len().saturating_sub(1) + 4;
+            if let Some(region) = self.system.sram.get(off..end) {
+                for (w, c) in out.iter_mut().zip(region.chunks(stride)) {
+                    *w = u32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+                }
+                return Ok(());
+            }
+        }
+        for (i, w) in out.iter_mut().enumerate() {
+            *w = self.read_u32(addr.wrapping_add(4 * i as u32))?;
+        }
+        Ok(())
+    }
+
+    /// Writes `words` little-endian at `addr`, `addr + 4`, … without cycles and, like
+    /// [`Board::write_data`], without invalidating decoded code (for the sensor words a
+    /// harness refills every sample; no instruction may live there). Errors: as
+    /// [`Board::write_data`].
+    pub fn write_words(&mut self, addr: u32, words: &[u32]) -> Result<(), EmuError> {
+        let run = u32::try_from(words.len())
+            .ok()
+            .and_then(|n| n.checked_mul(4))
+            .and_then(|len| crate::bus::sram_word_run(addr, len));
+        if let Some((off, stride)) = run {
+            let sram = &mut self.system.sram;
+            for (i, w) in words.iter().enumerate() {
+                let o = off as usize + stride as usize * i;
+                sram[o..o + 4].copy_from_slice(&w.to_le_bytes());
+            }
+            return Ok(());
+        }
+        for (i, w) in words.iter().enumerate() {
+            self.write_data(addr.wrapping_add(4 * i as u32), &w.to_le_bytes())?;
+        }
+        Ok(())
+    }
+
+    /// Reads a little-endian word (host access).
+    pub fn read_u32(&mut self, addr: u32) -> Result<u32, EmuError> {
+        let mut b = [0; 4];
+        self.read_bytes(addr, &mut b)?;
+        Ok(u32::from_le_bytes(b))
+    }
+
+    /// Writes a little-endian word (host access).
+    pub fn write_u32(&mut self, addr: u32, value: u32) -> Result<(), EmuError> {
+        self.write_bytes(addr, &value.to_le_bytes())
+    }
+
+    /// Sets key `key`'s sensor word (what the sensor DMA would deliver). Panics-free: keys
+    /// beyond [`MAX_KEYS`] are an error.
+    pub fn set_sensor(&mut self, key: usize, value: u32) -> Result<(), EmuError> {
+        if key >= MAX_KEYS {
+            return Err(EmuError::Unmapped(SENSOR_BASE + 4 * key as u32));
+        }
+        self.write_u32(SENSOR_BASE + 4 * key as u32, value)
+    }
+
+    /// Key `key`'s DAC word (the force the firmware last wrote).
+    pub fn dac(&mut self, key: usize) -> Result<u32, EmuError> {
+        if key >= MAX_KEYS {
+            return Err(EmuError::Unmapped(DAC_BASE + 4 * key as u32));
+        }
+        self.read_u32(DAC_BASE + 4 * key as u32)
+    }
+
+    /// Calls the Thumb function at `addr` on `core` as AAPCS code would (arguments in r0–r3,
+    /// at most 4), with the stack at `sp`, and runs until it returns or `limit` cycles pass.
+    ///
+    /// The return address is a stub at [`CALL_STUB`] (an `SVC #0xCA`, written by this call)
+    /// that stops the board; the other core keeps running meanwhile. Returns r0 and r1 and the
+    /// cycles from the function's first instruction to its return (the return instruction
+    /// included, the stub and the caller's `BL` not: add 3 for a `BL`, Cortex-M0+ TRM 3.3).
+    ///
+    /// Errors: [`CallError::Stopped`] when the function faults, hits the cycle limit or the
+    /// board stops for another reason; [`CallError::Emu`] when the stub cannot be written.
+    pub fn call(
+        &mut self,
+        core: usize,
+        addr: u32,
+        args: &[u32],
+        sp: u32,
+        limit: u64,
+    ) -> Result<CallResult, CallError> {
+        const STUB_SVC: u8 = 0xca;
+        // Rewriting an unchanged stub would empty the decode cache on every call.
+        let stub = [STUB_SVC, 0xdf, 0, 0xbe];
+        let mut now = [0u8; 4];
+        self.read_bytes(CALL_STUB, &mut now)
+            .map_err(CallError::Emu)?;
+        if now != stub {
+            self.write_bytes(CALL_STUB, &stub).map_err(CallError::Emu)?;
+        }
+        let halts = std::mem::replace(&mut self.config.svc_halts, true);
+        let c = &mut self.cores[core];
+        c.reset_to(addr | 1, sp);
+        for (i, a) in args.iter().take(4).enumerate() {
+            c.r[i] = *a;
+        }
+        c.r[14] = CALL_STUB | 1;
+        let start = c.cycle;
+        let stop = self.run_until(start.saturating_add(limit));
+        self.config.svc_halts = halts;
+        let c = &self.cores[core];
+        match stop {
+            StopReason::Svc { core: k, imm } if k == core && imm == STUB_SVC => {
+                let svc = cycles(&Instr::Svc { imm }, false, false) as u64;
+                Ok(CallResult {
+                    r0: c.r[0],
+                    r1: c.r[1],
+                    cycles: c.cycle - start - svc,
+                })
+            }
+            other => Err(CallError::Stopped {
+                reason: other,
+                pc: c.r[15],
+            }),
+        }
+    }
+}

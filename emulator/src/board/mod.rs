@@ -1,0 +1,222 @@
+//! The RP2040 board: two cores and the system, run in lock-step, plus the host API (load,
+//! run for N cycles, read/write memory, feed sensors, read forces, count cycles per function).
+//!
+//! **Lock-step.** Each core has its own cycle counter; the board always executes the next
+//! instruction of the core whose counter is lower (core 0 on a tie), so every shared-state
+//! access (SRAM banks, SIO FIFOs, spinlocks, timer) happens in global cycle order and a run
+//! is a pure function of the initial state: deterministic, whatever the host. A sleeping core
+//! (WFI/WFE) skips ahead to the next cycle at which something could wake it. Core 1 starts
+//! parked in the boot ROM's launch protocol (RP2040 datasheet 2.8.2): it echoes the FIFO
+//! sequence `0, 0, 1, vector table, stack pointer, entry` and then starts.
+//!
+//!
+//! **Modules, by job.** `host`: the host API (loading an image, memory reads and writes
+//! that cost the cores nothing, calling one function); `run`: scheduling the two cores
+//! (the lock-step loop, the fast paths, the engines); `window`: running ahead, with its
+//! undo journal; `launch`: core 1's boot ROM launch protocol; `profile`: cycles per
+//! function and per interrupt handler. The cores reach memory only through
+//! [`crate::bus::Bus`].
+//!
+//! **Sensors and DAC.** Firmware sees the key sensors and the motor drivers the way a DMA from
+//! SPI converters would leave them: word arrays in SRAM at [`SENSOR_BASE`] and [`DAC_BASE`],
+//! one 32-bit word per key (ADC sample, or DAC code, in the low 16 bits). The host writes
+//! sensors and reads forces with [`Board::set_sensor`] / [`Board::dac`], which cost the
+//! cores nothing; firmware loads and stores them as ordinary SRAM (2 cycles, bank 3:2
+//! striping and contention apply). Link firmware so nothing else lives there.
+
+mod host;
+mod launch;
+mod profile;
+mod run;
+mod window;
+
+pub use host::{CallError, CallResult, EmuError, CALL_STUB};
+pub use profile::Call;
+
+use crate::block::Blocks;
+use crate::bus::System;
+use crate::core::{Core, Fault, RunState};
+use crate::elf::Image;
+use launch::Launch;
+use profile::Profile;
+use run::{Cached, CACHE_SLOTS};
+
+/// Sensor block: `MAX_KEYS` words from 0x2003f000 (last 4 KB of striped SRAM), word k = key
+/// k's latest ADC sample.
+pub const SENSOR_BASE: u32 = 0x2003_f000;
+
+/// DAC block: `MAX_KEYS` words from 0x2003f400, word k = the force (DAC code) for key k's
+/// motor.
+pub const DAC_BASE: u32 = 0x2003_f400;
+
+/// Keys the sensor and DAC blocks have room for.
+pub const MAX_KEYS: usize = 128;
+
+/// Board configuration.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// System clock in Hz (RP2040: 133 MHz); drives the microsecond timer.
+    pub clock_hz: u64,
+    /// Stop [`Board::run_until`] at every SVC with [`StopReason::Svc`] (for host calls such as a
+    /// test harness's `write`/`exit`) instead of taking the SVCall exception.
+    pub svc_halts: bool,
+    /// Stop [`Board::run_until`] with [`StopReason::Fault`] after a core takes a HardFault, instead
+    /// of running the firmware's HardFault handler.
+    pub stop_on_fault: bool,
+    /// Which engine runs the fast path of [`Board::run_until`] / [`Board::run_for`]
+    /// (default [`Engine::Block`], the faster: see BENCHMARKS.md, "the block compiler").
+    /// Both give the same cycles, registers and memory; [`Board::step`] is always the
+    /// general path.
+    pub engine: Engine,
+    /// The SRAM banks each core may run ahead in (bit per bank: 0-3 SRAM0-3, 4 SRAM4,
+    /// 5 SRAM5). With both cores running on [`Engine::Block`], the core that is behind may
+    /// run compiled code ahead of the other while it touches only its own banks, the other
+    /// then catching up while it touches none of them (see "Running ahead" in this
+    /// module). Default `[0, 0]`: the two cores in lock-step on the interpreter — on the
+    /// firmware images, whose own banks are [`FIRMWARE_OWN_BANKS`], running ahead cost more
+    /// than it saved (BENCHMARKS.md, issue 18: the README demo took 53.6 CPU-s with it and
+    /// 45.2 without, the same strikes). Results never depend on it, only speed.
+    pub own_banks: [u8; 2],
+}
+
+/// The banks each core of a firmware image owns (`tactus-firmware`, `image/mod.rs`: core 0
+/// SRAM0 and SRAM4, core 1 SRAM1 and SRAM5), for [`Config::own_banks`].
+pub const FIRMWARE_OWN_BANKS: [u8; 2] = [0b01_0001, 0b10_0010];
+
+/// The engine behind [`Board::run_until`]'s fast path.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Engine {
+    /// The interpreter: one instruction at a time from the decode cache (module `fast`).
+    Interp,
+    /// The block engine (module [`crate::block`]): code regions compiled to native code
+    /// with cranelift (module `jit`) once warm, pre-decoded basic blocks otherwise, the
+    /// same cycles and results as [`Engine::Interp`]. It runs one core at a time; with both
+    /// cores running and [`Config::own_banks`] set, the core behind runs ahead in its own
+    /// banks ("Running ahead" in [`crate::board`]) and the interpreter's lock-step turns run where
+    /// that is not possible, as while functions are profiled with [`Board::profile_addr`].
+    #[default]
+    Block,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            clock_hz: 133_000_000,
+            svc_halts: false,
+            stop_on_fault: true,
+            engine: Engine::default(),
+            own_banks: [0, 0],
+        }
+    }
+}
+
+/// Why [`Board::run_until`] returned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StopReason {
+    /// Both cores reached the cycle limit.
+    CycleLimit,
+    /// A core executed SVC with [`Config::svc_halts`] set (its PC is past the SVC).
+    Svc {
+        /// The core.
+        core: usize,
+        /// The SVC immediate.
+        imm: u8,
+    },
+    /// A core faulted (with [`Config::stop_on_fault`]); it has entered its HardFault handler.
+    Fault {
+        /// The core.
+        core: usize,
+        /// The fault.
+        fault: Fault,
+    },
+    /// A core locked up (fault while handling HardFault, or failed stacking).
+    Lockup {
+        /// The core.
+        core: usize,
+        /// The fault.
+        fault: Fault,
+    },
+    /// No core can run (all parked or locked up).
+    Idle,
+}
+
+/// The emulated RP2040.
+pub struct Board {
+    /// Configuration.
+    pub config: Config,
+    /// The two cores.
+    pub cores: [Core; 2],
+    /// Memories and peripherals.
+    pub system: System,
+    /// The loaded image's symbols etc. (empty until [`Board::load_elf`]).
+    pub image: Image,
+    profiles: Vec<Profile>,
+    launch: Option<Launch>,
+    cache: Box<[Cached; CACHE_SLOTS]>,
+    blocks: Blocks,
+    /// Run-ahead windows kept, rolled back and partly kept ([`Board::run_ahead_windows`]).
+    windows: [u64; 3],
+    /// Each core's active exceptions at its last [`Board::profile_step`] that ran its loop
+    /// (`u64::MAX`, which no core has, before any).
+    profiled_active: [u64; 2],
+    /// No profile watches an address (none, or handler profiles only): the fast path's
+    /// watch sets are empty ([`Board::watch_set`]).
+    watch_free: bool,
+    /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
+    lines: u32,
+    lines_epoch: u64,
+}
+
+impl Board {
+    /// A board with zeroed memory and both cores parked (core 1 in the launch protocol).
+    pub fn new(config: Config) -> Self {
+        let system = System::new(config.clock_hz);
+        let mut cores = [Core::new(0), Core::new(1)];
+        for c in &mut cores {
+            // SysTick's reference: the 1 µs pulse of the watchdog's tick generator.
+            c.nvic.clock_hz = config.clock_hz;
+        }
+        let mut board = Board {
+            config,
+            cores,
+            system,
+            image: Image::default(),
+            profiles: Vec::new(),
+            launch: None,
+            lines: 0,
+            profiled_active: [u64::MAX; 2],
+            watch_free: true,
+            lines_epoch: u64::MAX,
+            blocks: Blocks::new(),
+            windows: [0; 3],
+            cache: run::empty_cache(),
+        };
+        // Core 1 reaches `wait_for_vector` a few cycles after reset, long before core 0
+        // can send anything: its first handshake is part of the power-on state.
+        board.launch = Some(Launch::default());
+        board.launch_handshake();
+        board
+    }
+
+    /// Total cycles elapsed: the lower of the running cores' counters.
+    pub fn cycle(&self) -> u64 {
+        match self.next_core() {
+            Some(k) => self.cores[k].cycle,
+            None => self.cores[0].cycle.max(self.cores[1].cycle),
+        }
+    }
+
+    /// The core whose turn it is: the active core with the lower cycle, core 0 on ties.
+    fn next_core(&self) -> Option<usize> {
+        match (active(&self.cores[0]), active(&self.cores[1])) {
+            (true, true) => Some((self.cores[1].cycle < self.cores[0].cycle) as usize),
+            (true, false) => Some(0),
+            (false, true) => Some(1),
+            (false, false) => None,
+        }
+    }
+}
+
+pub(super) fn active(c: &Core) -> bool {
+    matches!(c.state, RunState::Running | RunState::Sleeping { .. })
+}

@@ -1,0 +1,205 @@
+//! Profiling: every call of a function, or every activation of an exception handler, with
+//! its cycles, on both cores.
+
+use super::*;
+/// One measured call of a profiled function.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Call {
+    /// Core that made the call.
+    pub core: usize,
+    /// Cycle at which the function's first instruction started.
+    pub start: u64,
+    /// Cycles from the function's first instruction to the first instruction after its
+    /// return (the return instruction and any exception taken meanwhile included; the call
+    /// instruction excluded).
+    pub cycles: u64,
+}
+
+#[derive(Clone, Debug)]
+pub(super) struct Profile {
+    entry: u32,
+    /// Measures only activations entered by exception entry ([`Board::profile_handler`]):
+    /// the fast path need not watch the entry, which only the general path reaches then.
+    handler_only: bool,
+    /// Open calls per core: (return address or exception number, SP at entry, start cycle).
+    open: [Vec<(Return, u32, u64)>; 2],
+    calls: Vec<Call>,
+    /// Times the entry was reached (calls open or completed, both cores).
+    entries: u64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Return {
+    To(u32),
+    FromException(u32),
+}
+
+/// An unused slot of a watch set ([`Board::watch_set`]): odd, so no PC equals it.
+pub(super) const NO_WATCH: u32 = 1;
+
+/// Most addresses the fast path watches for profiling ([`Board::watch_set`]).
+pub(super) const WATCH_SLOTS: usize = 8;
+
+/// Both cores' watch sets when nothing is watched.
+pub(super) static NO_WATCHES: [[u32; WATCH_SLOTS]; 2] = [[NO_WATCH; WATCH_SLOTS]; 2];
+
+impl Board {
+    /// A new profile of the code at `addr` (Thumb bit ignored); its handle.
+    pub(super) fn add_profile(&mut self, addr: u32, handler_only: bool) -> usize {
+        self.profiled_active = [u64::MAX; 2];
+        self.watch_free &= handler_only;
+        self.profiles.push(Profile {
+            entry: addr & !1,
+            handler_only,
+            open: [Vec::new(), Vec::new()],
+            calls: Vec::new(),
+            entries: 0,
+        });
+        self.profiles.len() - 1
+    }
+
+    /// Starts measuring every call of the function at `addr` (Thumb bit ignored) on both
+    /// cores; see [`Board::calls`]. Returns a handle.
+    pub fn profile_addr(&mut self, addr: u32) -> usize {
+        self.add_profile(addr, false)
+    }
+
+    /// Starts measuring the exception handler at `addr` (Thumb bit ignored) on both cores:
+    /// like [`Board::profile_addr`], but only activations entered by exception entry are
+    /// measured (from the handler's first instruction to the first instruction after the
+    /// exception return that deactivates it, as `profile_addr` measures them); a branch or
+    /// call to `addr` is not. Both ends of such an activation are exception entry and
+    /// return, which the general path executes, so unlike `profile_addr` this costs the
+    /// fast path nothing: use it for interrupt handlers. Returns a handle for
+    /// [`Board::calls`].
+    pub fn profile_handler(&mut self, addr: u32) -> usize {
+        self.add_profile(addr, true)
+    }
+
+    /// Starts measuring the function named `name`.
+    pub fn profile(&mut self, name: &str) -> Result<usize, EmuError> {
+        let addr = self.symbol(name)?;
+        Ok(self.profile_addr(addr))
+    }
+
+    /// The completed calls of profiled function `handle`.
+    pub fn calls(&self, handle: usize) -> &[Call] {
+        self.profiles.get(handle).map_or(&[], |p| &p.calls)
+    }
+
+    /// How many times the entry of profiled address `handle` has been reached (0 for an
+    /// unknown handle). Unlike [`Board::calls`], which completes a call when control returns
+    /// to the link register it was entered with, this counts a block that is not a function
+    /// (a code generator's `BL` long branches change LR inside one) at the moment it runs.
+    pub fn entries(&self, handle: usize) -> u64 {
+        self.profiles.get(handle).map_or(0, |p| p.entries)
+    }
+
+    /// Forgets the completed calls of profiled function `handle` (read them with
+    /// [`Board::calls`] first); measuring continues. Long runs call this now and then so the
+    /// record does not grow without bound. An unknown handle is ignored.
+    pub fn clear_calls(&mut self, handle: usize) {
+        if let Some(p) = self.profiles.get_mut(handle) {
+            p.calls.clear();
+        }
+    }
+
+    pub(super) fn profile_step(&mut self, k: usize) {
+        let core = &self.cores[k];
+        let (pc, sp, now) = (core.r[15], core.r[13], core.cycle);
+        // Handler profiles only, the core's active exceptions as at this core's last call
+        // and no profiled entry at the PC: no activation can open or close (an open one
+        // closes when its exception's active bit clears; one opens at an entry), so the
+        // loop below would do nothing.
+        if self.profiled_active[k] == core.nvic.active
+            && self
+                .profiles
+                .iter()
+                .all(|p| p.handler_only && p.entry != pc)
+        {
+            return;
+        }
+        self.profiled_active[k] = core.nvic.active;
+        for p in &mut self.profiles {
+            while let Some(&(ret, entry_sp, start)) = p.open[k].last() {
+                let done = match ret {
+                    Return::To(addr) => pc == addr && sp >= entry_sp,
+                    Return::FromException(exc) => core.nvic.active & (1 << exc) == 0,
+                };
+                if !done {
+                    break;
+                }
+                p.open[k].pop();
+                p.calls.push(Call {
+                    core: k,
+                    start,
+                    cycles: now - start,
+                });
+            }
+            if pc == p.entry && core.thumb {
+                p.entries += 1;
+                let lr = core.r[14];
+                let ret = if lr >> 28 == 0xf && core.ipsr != 0 {
+                    Return::FromException(core.ipsr)
+                } else if p.handler_only {
+                    continue;
+                } else {
+                    Return::To(lr & !1)
+                };
+                p.open[k].push((ret, sp, now));
+            }
+        }
+    }
+
+    /// The addresses at which core `k`'s fast path must stop for [`Board::profile_step`]
+    /// (unused slots hold 1, which no PC equals), or `None` when there are too many. After
+    /// any other instruction of the fast path `profile_step` would do nothing: no call can
+    /// start (the PC is no profiled entry) and none can end (the PC is not the return
+    /// address of the innermost open call, and a call ending with an exception return
+    /// leaves the fast path anyway).
+    #[inline(always)]
+    pub(super) fn watch_set(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
+        // Handler profiles ([`Board::profile_handler`]) watch nothing: they open and close
+        // at exception entry and return, on the general path.
+        if self.watch_free {
+            return Some([NO_WATCH; WATCH_SLOTS]);
+        }
+        self.watched(k)
+    }
+
+    /// Both cores' watch sets ([`Board::watch_set`]): the constant empty sets when nothing
+    /// is watched (no copy: the hot loop of [`Board::run_until`] passes them on by
+    /// reference), else built in `slots`; `None` when there are too many.
+    #[inline(always)]
+    pub(super) fn watch_sets<'a>(
+        &self,
+        slots: &'a mut [[u32; WATCH_SLOTS]; 2],
+    ) -> Option<&'a [[u32; WATCH_SLOTS]; 2]> {
+        if self.watch_free {
+            return Some(&NO_WATCHES);
+        }
+        *slots = [self.watched(0)?, self.watched(1)?];
+        Some(slots)
+    }
+
+    /// [`Board::watch_set`] when some profile watches an address.
+    #[inline(never)]
+    pub(super) fn watched(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
+        let mut watch = [NO_WATCH; WATCH_SLOTS];
+        let mut n = 0;
+        for p in &self.profiles {
+            let addrs = [
+                (!p.handler_only).then_some(p.entry),
+                match p.open[k].last() {
+                    Some(&(Return::To(addr), _, _)) => Some(addr),
+                    _ => None,
+                },
+            ];
+            for a in addrs.into_iter().flatten() {
+                *watch.get_mut(n)? = a;
+                n += 1;
+            }
+        }
+        Some(watch)
+    }
+}

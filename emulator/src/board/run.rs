@@ -1,0 +1,772 @@
+//! Scheduling the two cores: the lock-step loop of [`Board::run_until`] and its fast paths.
+//!
+//! **Speed.** [`Board::run_until`] lets the core whose turn it is run a burst of
+//! instructions until it gets ahead of the other core, taking instructions from a
+//! direct-mapped decode cache that also holds their timing-table costs and a pre-decoded
+//! form (module `fast`); a store into an SRAM page holding cached code, or any host write,
+//! invalidates the cache (an epoch), so self-modifying code stays correct. Interrupt lines
+//! are recomputed only when a peripheral was accessed or a timer event is due. Once a core
+//! is in a state where its next instructions cannot take an exception (running, Thumb,
+//! nothing takeable pending, the current interrupt lines already pending on it), the fast
+//! path runs it in a tight loop (`Core::execute_op`): common instructions with SRAM and
+//! flash accesses complete there; anything else (peripherals, SIO, PPB, faults, sleep,
+//! SEV, SVC, exception return, a cache miss) runs through the general path and ends the
+//! loop, after which every condition is checked again — except a single load that leaves
+//! every such condition as it was (a timer read: no event, the same interrupt-line epoch,
+//! timer event and SysTick wrap), after which the loop goes on as the board would. The loop also stops at each core's
+//! deadline: the run's limit, the next timer event and its next SysTick wrap. With both
+//! cores running, one loop alternates between them in the lock-step order (whichever is
+//! behind, core 0 on ties); with one core asleep and nothing able to wake it, the loop runs
+//! the other core and moves the sleeper's cycle counter exactly as its sleep steps would.
+//! While functions are profiled, the loop also stops after any instruction that lands on a
+//! profiled entry or on the return address of the innermost open call, the only places
+//! where the per-instruction profiling bookkeeping can do anything; exception handlers
+//! profiled with [`Board::profile_handler`] are entered and left only by exception entry
+//! and return, in the general path, so they cost the loop no such check.
+//! So the order of all shared-state accesses, and every result, is the same as stepping
+//! one instruction at a time.
+//!
+//! [`Config::engine`] selects what runs that fast path for one
+//! core: the interpreter above ([`Engine::Interp`]) or the block engine ([`Engine::Block`],
+//! the default; module [`crate::block`]: code regions compiled to native code with
+//! cranelift, pre-decoded basic blocks where they do not fit; the same results).
+//! [`Board::step`] is the same machine one instruction at a time, recording
+//! [`Core::last`] for traces.
+
+use super::profile::{NO_WATCH, NO_WATCHES, WATCH_SLOTS};
+use super::window::{Window, RETRY};
+use super::*;
+use crate::block;
+use crate::bus::{sram_location, Bus};
+use crate::core::Event;
+use crate::decode::{decode, Instr};
+use crate::fast::Op;
+use crate::nvic::{IRQ0, SVCALL};
+use crate::timing::cycles;
+/// Decode cache entry: the instruction, its pre-decoded fast-path form and its size,
+/// tagged by its address and the code epoch.
+#[derive(Clone, Copy)]
+pub(super) struct Cached {
+    /// [`cache_key`] of the address and the [`System::code_epoch`] when decoded.
+    key: u64,
+    op: Op,
+    instr: Instr,
+    size: u32,
+    /// Cycles from the timing table: (not taken, taken).
+    cost: (u8, u8),
+}
+
+/// Decode cache tag: the instruction's address and the code epoch in one word (addresses
+/// are even, so the empty tag `u64::MAX` never matches).
+#[inline(always)]
+pub(super) fn cache_key(pc: u32, epoch: u32) -> u64 {
+    (epoch as u64) << 32 | pc as u64
+}
+
+pub(super) const CACHE_SLOTS: usize = 1 << 14;
+
+/// A decode cache with every slot empty.
+pub(super) fn empty_cache() -> Box<[Cached; CACHE_SLOTS]> {
+    vec![
+        Cached {
+            key: u64::MAX,
+            op: Op::Other,
+            instr: Instr::Undefined { hw1: 0, hw2: 0 },
+            size: 2,
+            cost: (0, 0)
+        };
+        CACHE_SLOTS
+    ]
+    .into_boxed_slice()
+    .try_into()
+    .unwrap_or_else(|_| unreachable!())
+}
+
+/// Why a fast-path run ([`run_one`], [`run_both`]) returned.
+pub(super) enum Exit {
+    /// The core to run reached its deadline.
+    Deadline,
+    /// The core's next instruction is not in the decode cache.
+    Miss,
+    /// The core's next instruction (in the cache) needs the general path.
+    General,
+    /// The core executed an instruction that left it at a watched address (profiling).
+    Watch,
+    /// The core's next instruction needed the general path and has run there, with this
+    /// event ([`general_load`]).
+    Ran(Event),
+}
+
+/// Turns shorter than this many cycles run on the interpreter's loop even with the block
+/// engine ([`Board::fast_run`]); the results are the same either way.
+pub(super) const SHORT_TURN: u64 = 32;
+
+/// One step of the fast path for `core`: false (and nothing done) with the reason when
+/// it must leave.
+///
+/// With `WATCH`, an instruction that leaves the PC at an address in `watch` is counted here
+/// and ends the run with [`Exit::Watch`].
+#[inline(always)]
+pub(super) fn fast_step<const WATCH: bool>(
+    core: &mut Core,
+    sys: &mut System,
+    cache: &[Cached; CACHE_SLOTS],
+    deadline: u64,
+    watch: &[u32; WATCH_SLOTS],
+) -> Result<(), Exit> {
+    if core.cycle >= deadline {
+        return Err(Exit::Deadline);
+    }
+    let pc = core.r[15];
+    let slot = &cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+    if slot.key != cache_key(pc, sys.code_epoch) {
+        return Err(Exit::Miss);
+    }
+    if !core.execute_op(sys, &slot.op, &slot.instr, pc, slot.size, slot.cost) {
+        return Err(Exit::General);
+    }
+    if WATCH && watch.contains(&core.r[15]) {
+        core.instructions += 1;
+        return Err(Exit::Watch);
+    }
+    Ok(())
+}
+
+/// The fast path on one core until it must leave. A separate function whose arguments
+/// cannot alias, so the compiler may keep the core's counters in registers.
+#[inline(never)]
+pub(super) fn run_one<const WATCH: bool>(
+    core: &mut Core,
+    sys: &mut System,
+    cache: &[Cached; CACHE_SLOTS],
+    deadline: u64,
+    watch: &[u32; WATCH_SLOTS],
+) -> Exit {
+    let mut retired = 0;
+    loop {
+        match fast_step::<WATCH>(core, sys, cache, deadline, watch) {
+            Ok(()) => retired += 1,
+            Err(Exit::General) if !WATCH => {
+                if let Some(event) = general_load(core, sys, cache) {
+                    core.instructions += retired;
+                    return Exit::Ran(event);
+                }
+            }
+            Err(exit) => {
+                core.instructions += retired;
+                return exit;
+            }
+        }
+    }
+}
+
+/// On [`Exit::General`] in a loop without watched addresses: when the instruction is a
+/// single load (a timer read, on the firmware images), runs it on the general path as
+/// [`Board::finish_fast`] would; `None` when it left everything the caller's next
+/// decision depends on as it was — no event, the interrupt-line epoch, the next timer
+/// event and SysTick wrap, the pending exceptions, the core running — so the fast path
+/// goes on exactly as [`Board::run_until`] would resume it; else the event, for the caller
+/// to return ([`Exit::Ran`]). (A load of a PPB register may signal a SysTick count at 0,
+/// pending the exception; a fault is an event; a peripheral read that could change a line
+/// bumps the epoch.) Any other instruction runs the same way
+/// and returns its event.
+#[inline(never)]
+pub(super) fn general_load(
+    core: &mut Core,
+    sys: &mut System,
+    cache: &[Cached; CACHE_SLOTS],
+) -> Option<Event> {
+    let pc = core.r[15];
+    let slot = &cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+    let load = crate::timing::class(&slot.instr) == crate::timing::Class::Load;
+    let before = (
+        sys.irq_epoch,
+        sys.timer.next_event,
+        core.nvic.syst_next,
+        core.nvic.pending,
+    );
+    let event = core.run_priced::<_, false>(sys, pc, slot.instr, slot.size, Some(slot.cost));
+    let same = (
+        sys.irq_epoch,
+        sys.timer.next_event,
+        core.nvic.syst_next,
+        core.nvic.pending,
+    ) == before;
+    let quiet = load && same && event == Event::None && core.state == RunState::Running;
+    (!quiet).then_some(event)
+}
+
+/// The fast path on both cores in lock-step order (the core that is behind, core 0 on
+/// ties) until the core whose turn it is must leave; returns that core.
+#[inline(never)]
+pub(super) fn run_both<const WATCH: bool>(
+    cores: &mut [Core; 2],
+    sys: &mut System,
+    cache: &[Cached; CACHE_SLOTS],
+    deadline: [u64; 2],
+    watch: &[[u32; WATCH_SLOTS]; 2],
+) -> (usize, Exit) {
+    let [c0, c1] = cores;
+    let mut retired = [0; 2];
+    let exit = loop {
+        // Two copies of the step, chosen by a branch rather than an index: the choice is
+        // then predicted instead of making every instruction wait for the previous one's
+        // cycle count (and each core gets its own, better predicted, dispatch).
+        if c1.cycle < c0.cycle {
+            match fast_step::<WATCH>(c1, sys, cache, deadline[1], &watch[1]) {
+                Ok(()) => retired[1] += 1,
+                Err(Exit::General) if !WATCH => {
+                    if let Some(event) = general_load(c1, sys, cache) {
+                        break (1, Exit::Ran(event));
+                    }
+                }
+                Err(exit) => break (1, exit),
+            }
+        } else {
+            match fast_step::<WATCH>(c0, sys, cache, deadline[0], &watch[0]) {
+                Ok(()) => retired[0] += 1,
+                Err(Exit::General) if !WATCH => {
+                    if let Some(event) = general_load(c0, sys, cache) {
+                        break (0, Exit::Ran(event));
+                    }
+                }
+                Err(exit) => break (0, exit),
+            }
+        }
+    };
+    c0.instructions += retired[0];
+    c1.instructions += retired[1];
+    exit
+}
+
+/// The fast path on core `r` while the other core sleeps soundly ([`Board::sleeps_soundly`]),
+/// in lock-step order: on the sleeper's turns, its step — skip to the next cycle at which
+/// something could wake it: a timer event, its SysTick, the limit, or the cycle after the
+/// running core's — is done here while its cycle is below `wake_check` (the first of
+/// those), so nothing else about it can change. `Ok` when the sleeper reached
+/// `wake_check`, `Err` when the running core must leave.
+#[inline(never)]
+pub(super) fn run_beside_sleeper<const SLEEPER_IS_0: bool, const WATCH: bool>(
+    run: &mut Core,
+    sleep: &mut Core,
+    sys: &mut System,
+    cache: &[Cached; CACHE_SLOTS],
+    deadline: u64,
+    wake_check: u64,
+    watch: &[u32; WATCH_SLOTS],
+) -> Result<(), Exit> {
+    loop {
+        // The sleeper's turn: it is behind, or level and core 0.
+        if sleep.cycle < run.cycle || (SLEEPER_IS_0 && sleep.cycle == run.cycle) {
+            let now = sleep.cycle;
+            if now >= wake_check {
+                return Ok(());
+            }
+            sleep.cycle = wake_check.min(run.cycle + 1).max(now + 1);
+        } else {
+            match fast_step::<WATCH>(run, sys, cache, deadline, watch) {
+                Ok(()) => run.instructions += 1,
+                Err(exit) => return Err(exit),
+            }
+        }
+    }
+}
+
+/// [`run_beside_sleeper`] on the block engine (nothing watched): the same interleaving.
+/// The running core keeps the turn while its cycle is below the sleeper's (`+ 1` when the
+/// sleeper is core 1, which loses ties); each sleeper turn before its wake check only sets
+/// its cycle to `min(wake_check, run.cycle + 1)`, which makes the turn the running core's
+/// again, so those turns are replayed after each instruction of a block (`after`). The
+/// block runs up to the cycle from which the sleeper's turn would find it at its wake
+/// check (the later of `wake_check` and the sleeper's cycle, `+ 1` when the sleeper is
+/// core 1) and the deadline; the loop then takes the turns exactly as
+/// [`run_beside_sleeper`] does.
+#[inline(never)]
+pub(super) fn blocks_beside_sleeper<const SLEEPER_IS_0: bool>(
+    run: &mut Core,
+    sleep: &mut Core,
+    sys: &mut System,
+    blocks: &mut Blocks,
+    deadline: u64,
+    wake_check: u64,
+) -> Result<(), Exit> {
+    let loses_ties = !SLEEPER_IS_0 as u64;
+    loop {
+        if sleep.cycle < run.cycle || (SLEEPER_IS_0 && sleep.cycle == run.cycle) {
+            let now = sleep.cycle;
+            if now >= wake_check {
+                return Ok(());
+            }
+            sleep.cycle = wake_check.min(run.cycle + 1).max(now + 1);
+        } else {
+            if run.cycle >= deadline {
+                return Err(Exit::Deadline);
+            }
+            // From this cycle on, the sleeper's turn would find it at (or past) its wake
+            // check: the loop must take that turn.
+            let limit = deadline.min(wake_check.max(sleep.cycle) + loses_ties);
+            let mut turns = block::Sleeper {
+                cycle: &mut sleep.cycle,
+                wake: wake_check,
+                loses_ties: !SLEEPER_IS_0,
+            };
+            if block::run(run, sys, blocks, limit, &mut turns).is_err() {
+                return Err(Exit::Miss);
+            }
+        }
+    }
+}
+
+impl Board {
+    /// Basic blocks the block engine ([`Engine::Block`]) has decoded so far (0 with
+    /// [`Engine::Interp`]): a block is decoded again after a store into a page holding
+    /// decoded code or a host write drops them all.
+    pub fn blocks_decoded(&self) -> u64 {
+        self.blocks.decoded
+    }
+
+    /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
+    pub fn regions_compiled(&self) -> u64 {
+        let b = &self.blocks;
+        let confined: u64 = b
+            .confined
+            .iter()
+            .chain(&b.confined_solo)
+            .map(|j| j.count)
+            .sum();
+        b.jit.count + b.solo.count + confined
+    }
+
+    /// The block engine compiles a code region to native code once its entry has been
+    /// reached `times` times (default 16; 0 compiles every region at once — the tests use
+    /// it to run everything natively). Results never depend on it, only speed.
+    pub fn set_compile_threshold(&mut self, times: u32) {
+        self.blocks.jit.threshold = times;
+        self.blocks.solo.threshold = times;
+        let b = &mut self.blocks;
+        for j in b.confined.iter_mut().chain(b.confined_solo.iter_mut()) {
+            j.threshold = times;
+        }
+    }
+
+    /// Runs for `cycles` more cycles (from [`Board::cycle`]) or until a stop.
+    pub fn run_for(&mut self, cycles: u64) -> StopReason {
+        let limit = self.cycle().saturating_add(cycles);
+        self.run_until(limit)
+    }
+
+    /// Runs until both running cores reach cycle `limit`, or a stop. Instructions are not
+    /// split: each core stops at its first instruction boundary at or after `limit` (a
+    /// multi-cycle instruction that starts before the limit completes).
+    pub fn run_until(&mut self, limit: u64) -> StopReason {
+        self.lines_epoch = u64::MAX; // the host may have touched SIO or the timer
+        loop {
+            let Some(k) = self.next_core() else {
+                return StopReason::Idle;
+            };
+            let now = self.cores[k].cycle;
+            if now >= limit {
+                return StopReason::CycleLimit;
+            }
+            if self.cores[k].state != RunState::Running {
+                match self.step(limit) {
+                    Some(Ok(_)) => continue,
+                    Some(Err(stop)) => return stop,
+                    None => return StopReason::CycleLimit,
+                }
+            }
+            // Both cores running the fast path: interleave them there, in lock-step order.
+            if self.fast_ready(0) && self.fast_ready(1) {
+                let deadline = |c: &Core| {
+                    limit
+                        .min(self.system.timer.next_event)
+                        .min(c.nvic.syst_next)
+                };
+                let deadline = [deadline(&self.cores[0]), deadline(&self.cores[1])];
+                let mut slots = NO_WATCHES;
+                if let (true, Some(watch)) = (now < deadline[k], self.watch_sets(&mut slots)) {
+                    let mut deadline = deadline;
+                    if self.config.engine == Engine::Block
+                        && watch[0][0] == NO_WATCH
+                        && watch[1][0] == NO_WATCH
+                        && self.config.own_banks[k] != 0
+                    {
+                        let retry = match self.run_ahead(k, deadline) {
+                            Window::Kept => continue,
+                            // The core behind needs the general path (or cold code) at
+                            // once: a short lock-step stretch runs it.
+                            Window::Idle => RETRY,
+                            Window::RolledBack => RETRY,
+                        };
+                        // Lock-step for a while before the next attempt.
+                        let now = self.cores[0].cycle.min(self.cores[1].cycle);
+                        deadline = deadline.map(|d| d.min(now.saturating_add(retry)));
+                    }
+                    let (k, ran) = self.fast_run::<true>(k, deadline, watch);
+                    if let Some(event) = ran {
+                        if !self.profiles.is_empty() {
+                            self.profile_step(k);
+                        }
+                        if let Some(stop) = self.handle_event(k, event) {
+                            return stop;
+                        }
+                    }
+                    continue;
+                }
+            }
+            // Core k running the fast path while the other core sleeps and nothing can
+            // wake it: the sleeper's steps only move its cycle counter, done in the loop.
+            if self.fast_ready(k) && self.launch.is_none() && self.sleeps_soundly(1 - k) {
+                let s = &self.cores[1 - k];
+                let deadline = limit
+                    .min(self.system.timer.next_event)
+                    .min(self.cores[k].nvic.syst_next);
+                let wake_check = limit
+                    .min(self.system.timer.next_event)
+                    .min(s.nvic.syst_next);
+                if let (true, Some(watch)) = (now < deadline, self.watch_set(k)) {
+                    let [c0, c1] = &mut self.cores;
+                    let (sys, cache) = (&mut self.system, &self.cache);
+                    let blocks = &mut self.blocks;
+                    let on_blocks = self.config.engine == Engine::Block;
+                    let run = match (k == 0, watch[0] == NO_WATCH) {
+                        (true, true) if on_blocks => blocks_beside_sleeper::<false>(
+                            c0, c1, sys, blocks, deadline, wake_check,
+                        ),
+                        (false, true) if on_blocks => {
+                            blocks_beside_sleeper::<true>(c1, c0, sys, blocks, deadline, wake_check)
+                        }
+                        (true, true) => run_beside_sleeper::<false, false>(
+                            c0, c1, sys, cache, deadline, wake_check, &watch,
+                        ),
+                        (true, false) => run_beside_sleeper::<false, true>(
+                            c0, c1, sys, cache, deadline, wake_check, &watch,
+                        ),
+                        (false, true) => run_beside_sleeper::<true, false>(
+                            c1, c0, sys, cache, deadline, wake_check, &watch,
+                        ),
+                        (false, false) => run_beside_sleeper::<true, true>(
+                            c1, c0, sys, cache, deadline, wake_check, &watch,
+                        ),
+                    };
+                    // Ok: the sleeper reached its wake check; Err: core k must leave.
+                    if let Err(exit) = run {
+                        if let Some(event) = self.finish_fast(k, exit) {
+                            if !self.profiles.is_empty() {
+                                self.profile_step(k);
+                            }
+                            if let Some(stop) = self.handle_event(k, event) {
+                                return stop;
+                            }
+                        }
+                    }
+                    continue;
+                }
+            }
+            // Core k keeps the turn while it stays behind the other core (core 0 on ties).
+            let other = &self.cores[1 - k];
+            let horizon = if active(other) {
+                other.cycle + (k == 0) as u64
+            } else {
+                u64::MAX
+            };
+            let event = self.burst(k, horizon.min(limit));
+            if let Some(stop) = self.handle_event(k, event) {
+                return stop;
+            }
+        }
+    }
+
+    /// Runs core `k` while its cycle is below `horizon` and it is running; returns early with
+    /// any event other than `None`. The fast path: interrupt lines are recomputed only when a
+    /// peripheral was touched or a timer event is due, and instructions come from the
+    /// decode cache with their cycle costs.
+    pub(super) fn burst(&mut self, k: usize, horizon: u64) -> Event {
+        loop {
+            let core = &mut self.cores[k];
+            if core.cycle >= horizon || core.state != RunState::Running {
+                return Event::None;
+            }
+            if self.system.irq_epoch != self.lines_epoch
+                || core.cycle >= self.system.timer.next_event
+            {
+                let now = core.cycle;
+                if self.launch.is_some() {
+                    self.poll_launch();
+                    if self.launch.is_none() {
+                        return Event::None; // core 1 started: re-pick whose turn it is
+                    }
+                }
+                self.lines = self.system.irq_lines(k, now);
+                self.lines_epoch = self.system.irq_epoch;
+            }
+            // The fast path when it can run; a single general step otherwise.
+            let slots;
+            let watch = match self.watch_set(k) {
+                _ if self.watch_free => Some(&NO_WATCHES),
+                Some(w) => {
+                    slots = [w; 2];
+                    Some(&slots)
+                }
+                None => None,
+            };
+            if let (true, Some(watch)) = (self.fast_ready(k), watch) {
+                let deadline = horizon
+                    .min(self.system.timer.next_event)
+                    .min(self.cores[k].nvic.syst_next);
+                if self.cores[k].cycle < deadline {
+                    let (_, ran) = self.fast_run::<false>(k, [deadline; 2], watch);
+                    if let Some(event) = ran {
+                        if !self.profiles.is_empty() {
+                            self.profile_step(k);
+                        }
+                        if event != Event::None {
+                            return event;
+                        }
+                    }
+                    continue;
+                }
+            }
+            let event = self.step_cached::<false>(k, self.lines);
+            if !self.profiles.is_empty() {
+                self.profile_step(k);
+            }
+            if event != Event::None {
+                return event;
+            }
+        }
+    }
+
+    /// True when core `k`'s next instructions may take the fast path ([`Board::fast_run`]):
+    /// it is running in Thumb state with no exception it could take, the interrupt lines
+    /// are current and already pending on it (so the per-instruction "OR the lines into
+    /// pending" of [`Board::step_cached`] would change nothing).
+    /// Everything the fast path executes leaves these conditions true; everything that
+    /// could change them leaves the fast path.
+    #[inline]
+    pub(super) fn fast_ready(&self, k: usize) -> bool {
+        let c = &self.cores[k];
+        c.state == RunState::Running
+            && c.thumb
+            && c.nvic.takeable() == 0
+            && ((self.lines as u64) << IRQ0) & !c.nvic.active & !c.nvic.pending == 0
+            && self.lines_epoch == self.system.irq_epoch
+    }
+
+    /// The fast path: runs core `k` (or, with `BOTH`, whichever core is behind, core 0 on
+    /// ties: the lock-step order) while the core to run is below its `deadline` (its
+    /// horizon, the next timer event and its next SysTick wrap; see [`Board::fast_ready`]
+    /// for the other conditions). Instructions come from the decode cache and run through
+    /// [`Core::execute_fast`]; the first one that needs the general path (a decode-cache
+    /// miss, a peripheral access, anything that could fault or change exception state) is
+    /// executed exactly as [`Board::step_cached`] would and ends the run, so the caller
+    /// re-checks everything as before. Returns the core that ran last and its event.
+    #[inline(always)]
+    pub(super) fn fast_run<const BOTH: bool>(
+        &mut self,
+        k: usize,
+        deadline: [u64; 2],
+        watch: &[[u32; WATCH_SLOTS]; 2],
+    ) -> (usize, Option<Event>) {
+        // Slots fill from the first: nothing to watch when it is empty.
+        let unwatched = if BOTH {
+            watch[0][0] == NO_WATCH && watch[1][0] == NO_WATCH
+        } else {
+            watch[k][0] == NO_WATCH
+        };
+        // Both cores running: lock-step turns of one or two instructions, too short for
+        // a compiled region to fit in; the interpreter's loop below is the faster there
+        // (BENCHMARKS.md, "the block compiler").
+        // A short turn (the other core's cycle a few cycles on, as in `burst`) fits no
+        // compiled region: the interpreter's loop costs less per call.
+        if unwatched
+            && !BOTH
+            && self.config.engine == Engine::Block
+            && deadline[k] >= self.cores[k].cycle.saturating_add(SHORT_TURN)
+        {
+            let (sys, blocks) = (&mut self.system, &mut self.blocks);
+            let core = &mut self.cores[k];
+            let exit = match block::run(core, sys, blocks, deadline[k], &mut block::Alone) {
+                Ok(()) => Exit::Deadline,
+                Err(_) => Exit::Miss,
+            };
+            return (k, self.finish_fast(k, exit));
+        }
+        let (cores, sys, cache) = (&mut self.cores, &mut self.system, &self.cache);
+        let (k, exit) = match (BOTH, unwatched) {
+            (true, true) => run_both::<false>(cores, sys, cache, deadline, watch),
+            (true, false) => run_both::<true>(cores, sys, cache, deadline, watch),
+            (false, true) => (
+                k,
+                run_one::<false>(&mut cores[k], sys, cache, deadline[k], &watch[k]),
+            ),
+            (false, false) => (
+                k,
+                run_one::<true>(&mut cores[k], sys, cache, deadline[k], &watch[k]),
+            ),
+        };
+        (k, self.finish_fast(k, exit))
+    }
+
+    /// Completes a fast-path run of core `k` that left with `exit`: the instruction that
+    /// needs the general path runs as [`Board::step_cached`] would run it. Returns the event
+    /// of the instruction the run ended with, `None` when it ended before one.
+    pub(super) fn finish_fast(&mut self, k: usize, exit: Exit) -> Option<Event> {
+        Some(match exit {
+            Exit::Deadline => return None,
+            Exit::Watch => Event::None,
+            Exit::Ran(event) => event,
+            Exit::Miss => self.step_cached::<false>(k, self.lines),
+            Exit::General => {
+                let core = &mut self.cores[k];
+                let pc = core.r[15];
+                let slot = &self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+                let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
+                core.run_priced::<_, false>(&mut self.system, pc, instr, size, Some(cost))
+            }
+        })
+    }
+
+    /// True when core `s` is asleep and its sleep steps ([`Board::step`]) would only move
+    /// its cycle counter as long as nothing changes the interrupt lines, its NVIC or its
+    /// event register and no timer event or SysTick wrap is due: no wake-up event, the
+    /// current lines already pending on it, and no pending exception that would wake it.
+    pub(super) fn sleeps_soundly(&self, s: usize) -> bool {
+        let c = &self.cores[s];
+        let RunState::Sleeping { wfe } = c.state else {
+            return false;
+        };
+        let lines = self.system.current_irq_lines();
+        !(wfe && c.event)
+            && ((lines as u64) << IRQ0) & !c.nvic.active & !c.nvic.pending == 0
+            && c.nvic
+                .highest_pending()
+                .is_none_or(|(_, p)| p >= c.nvic.active_priority())
+    }
+
+    /// Applies a step's event; `Some` when the run must stop.
+    pub(super) fn handle_event(&mut self, k: usize, event: Event) -> Option<StopReason> {
+        match event {
+            Event::None => None,
+            Event::Sev => {
+                // The event reaches the other core at the end of the SEV's cycle: a core
+                // sleeping in WFE resumes no earlier than the next cycle.
+                let after = self.cores[k].cycle;
+                let other = &mut self.cores[1 - k];
+                other.event = true;
+                if matches!(other.state, RunState::Sleeping { .. }) {
+                    other.cycle = other.cycle.max(after);
+                }
+                None
+            }
+            Event::Svc(imm) => {
+                if self.config.svc_halts {
+                    Some(StopReason::Svc { core: k, imm })
+                } else {
+                    self.cores[k].nvic.pending |= 1 << SVCALL;
+                    None
+                }
+            }
+            Event::Fault => {
+                let fault = self.cores[k].fault?;
+                self.config
+                    .stop_on_fault
+                    .then_some(StopReason::Fault { core: k, fault })
+            }
+            Event::Lockup => self.cores[k]
+                .fault
+                .map(|fault| StopReason::Lockup { core: k, fault }),
+        }
+    }
+
+    /// Executes one instruction (or exception entry, or a sleep interval) on the core that
+    /// is behind, if it is before `limit`. `None` when both running cores are at `limit`;
+    /// `Some(Ok(core))` names the core that acted (its [`Core::last`] is the instruction).
+    pub fn step(&mut self, limit: u64) -> Option<Result<usize, StopReason>> {
+        let Some(k) = self.next_core() else {
+            return Some(Err(StopReason::Idle));
+        };
+        let now = self.cores[k].cycle;
+        if now >= limit {
+            return None;
+        }
+        if self.launch.is_some() && k == 0 {
+            self.poll_launch();
+        }
+        let lines = self.system.irq_lines(k, now);
+        if let RunState::Sleeping { wfe } = self.cores[k].state {
+            let (other_running, other_cycle) = (
+                self.cores[1 - k].state == RunState::Running,
+                self.cores[1 - k].cycle,
+            );
+            let core = &mut self.cores[k];
+            if (wfe && core.event) || core.wakes_from_sleep(lines) {
+                if wfe {
+                    core.event = false;
+                }
+                core.state = RunState::Running;
+            } else {
+                // Skip to the next cycle at which something could wake this core.
+                let mut next = self
+                    .system
+                    .timer
+                    .next_event
+                    .min(core.nvic.syst_next)
+                    .min(limit);
+                if other_running {
+                    next = next.min(other_cycle + 1);
+                }
+                core.cycle = next.max(now + 1);
+            }
+            return Some(Ok(k));
+        }
+        let event = self.step_cached::<true>(k, lines);
+        if !self.profiles.is_empty() {
+            self.profile_step(k);
+        }
+        match self.handle_event(k, event) {
+            None => Some(Ok(k)),
+            Some(stop) => Some(Err(stop)),
+        }
+    }
+
+    /// Steps core `k` through the decode cache: an instruction is decoded once per address
+    /// and reused until a store hits an SRAM page holding cached code or the host writes
+    /// memory (both bump [`System::code_epoch`]), so self-modifying code stays correct.
+    #[inline(always)]
+    pub(super) fn step_cached<const TRACE: bool>(&mut self, k: usize, lines: u32) -> Event {
+        let core = &mut self.cores[k];
+        let pc = core.r[15];
+        if lines != 0 {
+            core.nvic.pending |= ((lines as u64) << IRQ0) & !core.nvic.active;
+        }
+        if core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb {
+            return core.step(&mut self.system, lines);
+        }
+        let slot = &mut self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+        if slot.key != cache_key(pc, self.system.code_epoch) {
+            let Ok((hw1, hw2, size)) = self.system.fetch_instr(pc) else {
+                return core.step(&mut self.system, lines);
+            };
+            for a in [pc, pc.wrapping_add(size - 2)] {
+                if let Some((off, _)) = sram_location(a) {
+                    self.system.code_pages[off >> 8] = true;
+                }
+            }
+            let instr = decode(hw1, hw2);
+            let cost = (
+                cycles(&instr, false, false) as u8,
+                cycles(&instr, true, false) as u8,
+            );
+            *slot = Cached {
+                key: cache_key(pc, self.system.code_epoch),
+                op: Op::new(&instr, pc),
+                instr,
+                size,
+                cost,
+            };
+        }
+        let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
+        core.run_priced::<_, TRACE>(&mut self.system, pc, instr, size, Some(cost))
+    }
+}

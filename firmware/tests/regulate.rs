@@ -1,0 +1,152 @@
+//! The regulation sheet (`tactus_firmware::regulate`): measured figures against what the
+//! model says they must be, on a toy key whose answers are known, and on every shipped key
+//! instrument (figures that do not apply left out with a note).
+
+use std::path::Path;
+use tactus_compiler::ir::Program;
+use tactus_compiler::lower::Config as LowerConfig;
+use tactus_firmware::play::engine::JitEngine;
+use tactus_firmware::regulate::{self, gf_to_n, n_to_gf, Config, Figure, Sheet};
+
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+}
+
+fn compile(source: &str, overrides: &[(&str, &str)]) -> Program {
+    let config = LowerConfig {
+        overrides: overrides
+            .iter()
+            .map(|(n, v)| (n.to_string(), v.to_string()))
+            .collect(),
+        ..LowerConfig::default()
+    };
+    tactus_compiler::compile(source, &config)
+        .unwrap_or_else(|d| panic!("{d:?}"))
+        .program
+}
+
+fn shipped(name: &str, overrides: &[(&str, &str)]) -> Program {
+    let text = std::fs::read_to_string(root().join(format!("instruments/{name}.tactus"))).unwrap();
+    compile(&text, overrides)
+}
+
+/// The sheet on the f64 JIT (bit-identical to the f64 interpreter, and faster).
+fn sheet(program: &Program) -> Sheet {
+    let jit = tactus_jit::JitProgram::compile(program).unwrap();
+    regulate::measure(
+        program,
+        JitEngine(tactus_jit::JitInstance::new(&jit)),
+        &Config::default(),
+    )
+    .unwrap()
+}
+
+fn figure(sheet: &Sheet, f: Figure) -> f64 {
+    sheet
+        .get(f)
+        .unwrap_or_else(|| panic!("{:?} not measured: {:?}", f, sheet.notes))
+}
+
+/// A key with only a constant weight `G` (and a little viscosity): a weight above `G` takes
+/// it down, one below lets it rise, so down-weight = up-weight = balance weight = G, no
+/// friction, and a key held by G stays put.
+#[test]
+fn a_key_of_constant_weight_regulates_to_that_weight() {
+    let p = compile(
+        "instrument toy {\n  sensor key: m in [0 mm, 10 mm]\n  param G = 0.5 N\n  force weight = G\n  force viscous = 0.05 N*s/m * d(key)\n}\n",
+        &[],
+    );
+    let s = sheet(&p);
+    let g = n_to_gf(0.5);
+    for f in [Figure::DownWeight, Figure::UpWeight, Figure::BalanceWeight] {
+        let v = figure(&s, f);
+        assert!((v - g).abs() <= 0.15, "{f:?} {v} gf, G = {g} gf");
+    }
+    assert!(figure(&s, Figure::Friction).abs() <= 0.15);
+    assert!(figure(&s, Figure::Creep) < 0.01, "{s:?}");
+    assert_eq!(figure(&s, Figure::KeyDip), 10.0);
+    // Hammer figures do not apply: left out, with a note.
+    for f in [Figure::LetOff, Figure::BlowDistance, Figure::Repetition] {
+        assert_eq!(s.get(f), None);
+    }
+    assert!(
+        s.notes.iter().any(|n| n.contains("no hammer")),
+        "{:?}",
+        s.notes
+    );
+    // Constant force: the loop's two branches agree (up to the viscous 0.25 mN).
+    let (gap, _) = s.force_loop.least_gap(0.002, 0.007).unwrap();
+    assert!(gap.abs() < gf_to_n(0.1), "{gap}");
+    // A finger of 0.8 N against 0.5 N: free fall over 10 mm with 0.3 N on 30 g ≈ 45 ms
+    // (plus half the 5 ms rise).
+    let t = figure(&s, Figure::KeyBottomPp);
+    assert!((44.0..51.0).contains(&t), "{t} ms");
+}
+
+/// The heavier weight regulates heavier: the toy with G doubled.
+#[test]
+fn down_weight_follows_the_weight() {
+    let src = "instrument toy {\n  sensor key: m in [0 mm, 10 mm]\n  param G = 0.5 N\n  force weight = G\n}\n";
+    let light = sheet(&compile(src, &[]));
+    let heavy = sheet(&compile(src, &[("G", "1 N")]));
+    let (l, h) = (
+        figure(&light, Figure::DownWeight),
+        figure(&heavy, Figure::DownWeight),
+    );
+    assert!((h - 2.0 * l).abs() < 0.3, "{l} {h}");
+}
+
+#[test]
+fn every_shipped_key_instrument_prints_its_sheet() {
+    // The grand piano: every figure applies.
+    let piano = sheet(&shipped("grand_piano", &[]));
+    for f in Figure::ALL {
+        if f == Figure::Creep || f == Figure::Friction || f == Figure::BalanceWeight {
+            continue; // need both weights; checked by the piano's own test
+        }
+        assert!(piano.get(f).is_some(), "{f:?}: {:?}", piano.notes);
+    }
+    assert_eq!(figure(&piano, Figure::BlowDistance).round(), 45.0);
+    // The harpsichords pluck but have no hammer; the organ key has neither, and sinks
+    // unloaded (MIKEY's removed weight ΔG), so it has no up-weight.
+    for name in ["harpsichord", "harpsichord_2x8"] {
+        let s = sheet(&shipped(name, &[]));
+        assert_eq!(figure(&s, Figure::KeyDip), 7.0);
+        assert!(s.get(Figure::DownWeight).is_some() && s.get(Figure::StrikeSpeedFf).is_some());
+        assert_eq!(s.get(Figure::LetOff), None, "{name}");
+    }
+    let organ = sheet(&shipped("hammond", &[]));
+    assert_eq!(organ.get(Figure::UpWeight), None);
+    assert!(
+        organ.notes.iter().any(|n| n.starts_with("up-weight")),
+        "{:?}",
+        organ.notes
+    );
+    assert_eq!(organ.get(Figure::StrikeSpeedPp), None);
+}
+
+/// The interpreter defines the meaning; the JIT reproduces it bit for bit, so the sheet is
+/// the same figure for figure.
+#[test]
+fn the_interpreter_and_the_jit_measure_the_same_sheet() {
+    let p = shipped("harpsichord", &[]);
+    let interp = regulate::measure(
+        &p,
+        tactus_compiler::interp::Instance::new(&p),
+        &Config::default(),
+    )
+    .unwrap();
+    assert_eq!(interp, sheet(&p));
+}
+
+#[test]
+fn a_pen_instrument_is_refused() {
+    let p = shipped("rubbed_bank", &[]);
+    let err = regulate::measure(
+        &p,
+        tactus_compiler::interp::Instance::new(&p),
+        &Config::default(),
+    )
+    .unwrap_err();
+    assert!(err.contains("pen instrument"), "{err}");
+}
