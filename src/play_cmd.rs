@@ -189,15 +189,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         None => performance::demo(),
     };
     if let Some(s) = args.seconds {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(format!("--seconds must be a positive number, got {s}"));
-        }
-        perf.notes.retain(|n| n.on_s < s);
         // `--seconds` bounds the simulated time: a note still held at `s` is released there.
-        for n in &mut perf.notes {
-            n.off_s = n.off_s.min(s);
-        }
-        perf.duration_s = perf.duration_s.min(s);
+        perf.cut(s)?;
         if perf.notes.is_empty() {
             return Err(format!(
                 "{}: no note starts in the first {s} s",

@@ -72,7 +72,7 @@ pub fn image_board(board: &Board) -> Result<Chip, BoardError> {
     if !(1..=2).contains(&cores) {
         return Err(bad(
             "cores",
-            format!("{cores}: the RP2040 has 2 cores; the firmware runs keys on 1 or 2"),
+            format!("{cores} cores: the RP2040 has 2; the firmware runs keys on 1 or 2"),
         ));
     }
     let fs = board.sample_rate_hz;

@@ -412,7 +412,9 @@ impl BudgetReport {
         } else if let Some(w) = self.what_fits.iter().find(|w| w.fits_no_board.is_some()) {
             let _ = writeln!(
                 s,
-                "verdict: DOES NOT FIT — {} fits no {} board: {}",
+                "verdict: DOES NOT FIT — {over} of {} board{} over budget; {} fits no {} board: {}",
+                self.board_count,
+                if self.board_count == 1 { "" } else { "s" },
                 w.instrument,
                 b.name,
                 w.fits_no_board.as_deref().unwrap_or("")

@@ -92,6 +92,27 @@ pub struct Performance {
     pub duration_s: f64,
 }
 
+impl Performance {
+    /// The first `seconds` of the performance (`tactus play --seconds`): the notes that
+    /// start before it, each still held then released there (the pedal is left as it is:
+    /// it only decides when dampers fall in the rendering).
+    ///
+    /// Errors: `seconds` not a positive number.
+    pub fn cut(&mut self, seconds: f64) -> Result<(), String> {
+        if !(seconds.is_finite() && seconds > 0.0) {
+            return Err(format!(
+                "--seconds must be a positive number, got {seconds}"
+            ));
+        }
+        self.notes.retain(|n| n.on_s < seconds);
+        for n in &mut self.notes {
+            n.off_s = n.off_s.min(seconds);
+        }
+        self.duration_s = self.duration_s.min(seconds);
+        Ok(())
+    }
+}
+
 /// Why a MIDI file could not be read.
 #[derive(Debug)]
 pub enum MidiError {
