@@ -35,6 +35,7 @@ fn firmware() -> (Vec<u8>, String) {
         clock_hz: 133e6,
         cores: 2,
         sample_rate_hz: 44_100.0,
+        core_voltage_v: None,
     };
     let keys: Vec<KeyAssignment> = [60, 61]
         .map(|key| KeyAssignment {
@@ -60,6 +61,7 @@ fn firmware() -> (Vec<u8>, String) {
             boards: None,
             limiter: &limiter,
             command: "fuzz",
+            load: flash::Load::Ram,
         },
         &mut |_, _, _| {},
     )
