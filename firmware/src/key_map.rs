@@ -63,10 +63,12 @@ fn addr(s: &str, field: &str) -> Result<u32, String> {
         .map_err(|_| format!("`{field}` = {s:?} is not a 32-bit hexadecimal address"))
 }
 
-/// The `len` bytes at `at` of one loaded segment of `image`, if one holds them all.
+/// The `len` bytes at `at` of one loaded segment of `image` as the program runs (its
+/// virtual address: a flash image's pieces at the SRAM addresses its reset handler copies
+/// them to), if one holds them all.
 fn bytes(image: &Image, at: u32, len: u32) -> Option<&[u8]> {
     image.segments.iter().find_map(|s| {
-        let off = at.checked_sub(s.addr)? as usize;
+        let off = at.checked_sub(s.run_addr)? as usize;
         s.data.get(off..off.checked_add(len as usize)?)
     })
 }
