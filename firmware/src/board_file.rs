@@ -208,6 +208,7 @@ mod tests {
             cores,
             sample_rate_hz,
             core_voltage_v: None,
+        converters: None,
         }
     }
 

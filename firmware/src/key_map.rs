@@ -90,6 +90,7 @@ pub fn check(map: &KeyMap, image: &Image) -> Result<CheckedMap, String> {
         cores: u32::try_from(map.cores.len()).unwrap_or(u32::MAX),
         sample_rate_hz: f64::from(map.sample_rate_hz),
         core_voltage_v: None,
+        converters: None,
     };
     // The board's fields; `cores` is the length of the map's list.
     let chip = board_file::check_clock(&board).map_err(|e| e.to_string())?;

@@ -36,6 +36,7 @@ fn firmware() -> (Vec<u8>, String) {
         cores: 2,
         sample_rate_hz: 44_100.0,
         core_voltage_v: None,
+        converters: None,
     };
     let keys: Vec<KeyAssignment> = [60, 61]
         .map(|key| KeyAssignment {

@@ -111,6 +111,7 @@ fn mutated_performances_play_and_render_or_say_why_not() {
         cores: 2,
         sample_rate_hz: 44_100.0,
         core_voltage_v: None,
+        converters: None,
     };
     let wav = std::env::temp_dir().join(format!("tactus-fuzz-play-{}.wav", std::process::id()));
     let (mut runner, cases) = fuzz::runner(40);
