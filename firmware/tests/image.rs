@@ -442,9 +442,8 @@ fn the_emulators_block_engine_runs_an_image_exactly_as_its_interpreter() {
     assert!(b.board().blocks_decoded() > 0, "the block engine never ran");
     // The key programs run in each core's own bank and scratch bank: the cores run ahead
     // of each other there (`tactus_emulator::board`, "Running ahead").
-    let (kept, rolled_back) = b.board().run_ahead_windows();
-    let partly = b.board().run_ahead_partly_kept();
-    eprintln!("run-ahead windows: {kept} kept, {rolled_back} rolled back, {partly} partly kept");
+    let (kept, undone) = b.board().run_ahead_windows();
+    eprintln!("windows: {kept} kept, {undone} undone");
     assert!(kept > 0, "the cores never ran ahead");
     let mut sram = [vec![0u8; 0x4_2000], vec![0u8; 0x4_2000]];
     a.board().read_bytes(0x2000_0000, &mut sram[0]).unwrap();
@@ -1306,12 +1305,8 @@ fn the_block_engine_runs_every_instruments_image_exactly_as_the_interpreter() {
         a.board().read_bytes(0x2000_0000, &mut sram[0]).unwrap();
         b.board().read_bytes(0x2000_0000, &mut sram[1]).unwrap();
         assert!(sram[0] == sram[1], "{name}: SRAM differs");
-        let (kept, rolled_back) = b.board().run_ahead_windows();
-        let partly = b.board().run_ahead_partly_kept();
-        eprintln!(
-            "{name}: exact; run-ahead windows {kept} kept, {rolled_back} rolled back, \
-             {partly} partly kept"
-        );
+        let (kept, undone) = b.board().run_ahead_windows();
+        eprintln!("{name}: exact; windows {kept} kept, {undone} undone");
         kept_total += kept;
         checked += 1;
     }

@@ -154,8 +154,10 @@ pub struct Board {
     launch: Option<Launch>,
     cache: Box<[Cached; CACHE_SLOTS]>,
     blocks: Blocks,
-    /// Run-ahead windows kept, rolled back and partly kept ([`Board::run_ahead_windows`]).
-    windows: [u64; 3],
+    /// Windows kept and undone ([`Board::run_ahead_windows`]).
+    windows: [u64; 2],
+    /// No window before either core reaches this cycle (after one that ran nothing).
+    window_at: u64,
     /// Each core's active exceptions at its last [`Board::profile_step`] that ran its loop
     /// (`u64::MAX`, which no core has, before any).
     profiled_active: [u64; 2],
@@ -188,7 +190,8 @@ impl Board {
             watch_free: true,
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
-            windows: [0; 3],
+            windows: [0; 2],
+            window_at: 0,
             cache: run::empty_cache(),
         };
         // Core 1 reaches `wait_for_vector` a few cycles after reset, long before core 0
