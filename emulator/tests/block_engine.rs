@@ -177,12 +177,12 @@ fn bank(core: usize) -> u32 {
 
 fn board(seed: u64, case: Case, engine: Engine) -> Board {
     let mut rng = Rng(seed);
-    // The firmware images' banks (one of SRAM0-3 each: the confined code's one-comparison
-    // path), or in a third of the programs two of SRAM0-3 each (its general bank check).
+    // One of SRAM0-3 each (the confined code's one-comparison path), or in a third of the
+    // programs the firmware images' banks, two of SRAM0-3 each (its general bank check).
     let own_banks = if seed.is_multiple_of(3) {
-        [0b01_0101, 0b10_1010]
-    } else {
         FIRMWARE_OWN_BANKS
+    } else {
+        [0b01_0001, 0b10_0010]
     };
     let mut b = Board::new(Config {
         engine,
