@@ -11,10 +11,10 @@
 //! in WFI or WFE up to its next wake-up (its own SysTick; the interrupt lines are those at
 //! the window's start, since no timer event falls in it and no one touches a peripheral).
 //! Each is *confined* to its own SRAM banks: every load, store, instruction fetch and
-//! exception frame is checked, and a core stops *before* an instruction that would touch
-//! anything else (another bank, a peripheral, the FIFOs, the spinlocks), that signals
-//! (SEV), faults or traps (SVC, BKPT), or whose store finds its undo journal full. Every
-//! store journals the word it overwrites. If both cores reach E the window is kept;
+//! exception frame is checked, and a core stops at an instruction that touches anything
+//! else (another bank, a peripheral, the FIFOs, the spinlocks), that signals (SEV), faults
+//! or traps (SVC, BKPT), or whose store finds its undo journal full. Every store journals
+//! the word it overwrites. If both cores reach E the window is kept;
 //! otherwise both are put back as they were at its start — their stores undone from the
 //! journals, newest first; their cores, bank claims, stalls, dividers and profiling
 //! restored — and the lock-step loop runs the stretch instead (for [`RETRY`] cycles before
@@ -33,9 +33,8 @@
 //! limit or a timer event, at which a sleeping core's cycle counter is that limit in both
 //! (in between, the lock-step loop moves a sleeper's counter along with the other core's
 //! instructions, which a window does not reproduce: hence no window ends anywhere else,
-//! and one that cannot reach E is undone whole). A single instruction that turns out not
-//! to be confined is undone the same way (its core, claims, stalls, divider and journal as
-//! before it), so a core stops *before* it.
+//! and one that cannot reach E is undone whole, with the instruction that was not confined
+//! or that signalled, faulted or trapped).
 //!
 //! On the firmware images each core's code, data, stack and sensor and DAC window words
 //! lie in its own banks, so a window spans a whole sample period of both cores' sample
@@ -91,7 +90,7 @@ struct Saved {
 struct Confined<'a> {
     sys: &'a mut System,
     banks: u8,
-    journal: Option<&'a mut Vec<u64>>,
+    journal: &'a mut Vec<u64>,
     foreign: bool,
 }
 
@@ -154,13 +153,12 @@ impl Bus for Confined<'_> {
                 if !self.bank_ok(bank) {
                     return Err(self.refuse(addr));
                 }
-                if let Some(j) = self.journal.as_deref_mut() {
-                    if j.len() >= JOURNAL {
-                        return Err(self.refuse(addr));
-                    }
-                    let word = off & !3;
-                    j.push((word as u64) << 32 | self.sys.sram_peek(word as u32) as u64);
+                if self.journal.len() >= JOURNAL {
+                    return Err(self.refuse(addr));
                 }
+                let word = off & !3;
+                let old = self.sys.sram_peek(word as u32);
+                self.journal.push((word as u64) << 32 | old as u64);
             }
             None if !Self::private(addr) => return Err(self.refuse(addr)),
             None => {}
@@ -358,10 +356,9 @@ impl Board {
     }
 
     /// One general step of core `k` (as [`Board::step_cached`]) on the [`Confined`] bus;
-    /// false, with the step undone, when it was not confined or had an event.
+    /// false when it was not confined or had an event (the caller undoes the whole window).
     fn step_confined(&mut self, k: usize, lines: u32, banks: u8, journal: &mut Vec<u64>) -> bool {
         let pc = self.cores[k].r[15];
-        let saved = self.save(k, journal.len());
         let core = &mut self.cores[k];
         if lines != 0 {
             core.nvic.pending |= ((lines as u64) << IRQ0) & !core.nvic.active;
@@ -374,17 +371,14 @@ impl Board {
             let in_banks = |a: u32| sram_location(a).is_none_or(|(_, bank)| banks >> bank & 1 != 0);
             match cached(&mut self.cache, &mut self.system, pc) {
                 Some(d) if in_banks(pc) && in_banks(pc.wrapping_add(d.1 - 2)) => Some(d),
-                Some(_) => {
-                    self.restore(k, saved, journal);
-                    return false;
-                }
+                Some(_) => return false,
                 None => None,
             }
         };
         let mut bus = Confined {
             sys: &mut self.system,
             banks,
-            journal: Some(&mut *journal),
+            journal,
             foreign: false,
         };
         let event = match fetched {
@@ -393,10 +387,6 @@ impl Board {
             }
             None => core.step(&mut bus, lines),
         };
-        if bus.foreign || event != Event::None {
-            self.restore(k, saved, journal);
-            return false;
-        }
-        true
+        !bus.foreign && event == Event::None
     }
 }
