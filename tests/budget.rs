@@ -220,16 +220,16 @@ fn a_small_split_layout_with_grading() {
     assert_eq!(v2["boards"], v["boards"], "{text}");
 }
 
-/// A listed board over budget is reported as such (exit 1), naming the board (eight piano
-/// keys: four per core, where three fit).
+/// A listed board over budget is reported as such (exit 1), naming the board (ten piano
+/// keys: five per core, where four fit).
 #[test]
 fn a_listed_board_over_budget_does_not_fit() {
     let dir = temp_dir("budget-over");
     let f = dir.join("over.toml");
     std::fs::write(
         &f,
-        "name = \"over\"\n[[range]]\nkeys = [60, 69]\ninstrument = \"grand_piano\"\n\
-         [[board]]\nkeys = [60, 61]\n[[board]]\nkeys = [62, 69]\n",
+        "name = \"over\"\n[[range]]\nkeys = [60, 71]\ninstrument = \"grand_piano\"\n\
+         [[board]]\nkeys = [60, 61]\n[[board]]\nkeys = [62, 71]\n",
     )
     .unwrap();
     let out = budget(&[f.to_str().unwrap(), "--quick"]);
@@ -240,9 +240,9 @@ fn a_listed_board_over_budget_does_not_fit() {
         stdout.contains("DOES NOT FIT — 1 of 2 boards over budget"),
         "{stdout}"
     );
-    // Eight piano keys: four on a core, over its budget (six fit since session 14's
-    // cheaper products and glue; four since issue 16's reciprocals).
-    assert!(stdout.contains("board 2 (62–69"), "{stdout}");
+    // Ten piano keys: five on a core, over its budget (six fit since session 14's
+    // cheaper products and glue; eight since issue 38's distributed constants).
+    assert!(stdout.contains("board 2 (62–71"), "{stdout}");
 }
 
 #[test]

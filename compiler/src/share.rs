@@ -24,8 +24,8 @@ use std::collections::{BTreeMap, HashMap};
 /// One program for several parameter sets of one instrument.
 #[derive(Clone, Debug)]
 pub struct Shared {
-    /// The shared program: the first input's (its constant chains folded,
-    /// `fixed::chains`), with every differing constant a run-time param
+    /// The shared program: the first input's (its constants folded,
+    /// `fixed::distribute::fold_constants`), with every differing constant a run-time param
     /// ([`ParamDecl::runtime`]) and each input's values of them in
     /// [`Program::runtime_keys`]. Plans exactly as the first input when all agree.
     pub program: Program,
@@ -52,14 +52,23 @@ impl Shared {
 /// Errors: a sentence saying what differs beyond constants (then each needs its own
 /// program), or that `programs` is empty.
 pub fn share(programs: &[Program]) -> Result<Shared, String> {
-    // Constant chains folded first (`fixed::chains`): a folded constant that differs between
-    // keys (`h/I_h`) becomes one run-time param, not a run-time param times a constant.
-    // Keys whose chains fold differently (a factor short for some keys only) share unfolded.
+    // Constants folded first (`fixed::distribute::fold_constants`: chains, common values,
+    // distributed factors): a folded constant that differs between keys (`h/I_h`,
+    // `l3·h/I_h`) becomes one run-time param, not a run-time param times a constant. Keys
+    // whose constants fold differently (a factor short for some keys only) share unfolded.
     let folded: Vec<Program> = programs
         .iter()
-        .map(crate::fixed::chains::fold_constant_chains)
+        .map(crate::fixed::distribute::fold_constants)
         .collect();
     share_as_lowered(&folded).or_else(|_| share_as_lowered(programs))
+}
+
+/// Whether two keys' values of one folded constant differ: by more than the rounding of
+/// their folds (10⁻¹² relative, far below a 32-bit word's resolution). Equal in exact
+/// arithmetic but not in f64 — the piano's `M_h·grav·l4 · h/I_h`, which is `grav·h/l4`
+/// for every hammer — they stay one constant, not a run-time param.
+fn differs(a: f64, b: f64) -> bool {
+    a.to_bits() != b.to_bits() && !((a - b).abs() <= 1e-12 * a.abs().max(b.abs()))
 }
 
 fn share_as_lowered(programs: &[Program]) -> Result<Shared, String> {
@@ -82,7 +91,7 @@ fn share_as_lowered(programs: &[Program]) -> Result<Shared, String> {
             })
             .collect();
         let is_const = matches!(p.values[i].op, Op::Const(_) | Op::Param(_));
-        if is_const && vals.iter().any(|v| v.to_bits() != vals[0].to_bits()) {
+        if is_const && vals.iter().any(|&v| differs(v, vals[0])) {
             varying.insert(i, vals);
         }
     }

@@ -455,7 +455,8 @@ fn a_run_whose_params_do_not_fit_the_plan_is_refused() {
     );
     // Against the piano with constant params: no param block takes two values.
     let e = contract::compare(&wide, &fp, &run, lsb, &wide.contract, false).unwrap_err();
-    assert!(e.to_string().contains("2 param values"), "{e}");
+    let given = format!("{} param values", values[0].len());
+    assert!(e.to_string().contains(&given), "{e}");
     // And refused when recording, before the f64 run.
     let mut off = values[0].clone();
     off[0] *= 10.0;
@@ -465,8 +466,8 @@ fn a_run_whose_params_do_not_fit_the_plan_is_refused() {
 
 /// The planner simulates a shared program at real keys' param values: all of them when few,
 /// else the grading's ends, the key nearest each run-time param's interval middle and
-/// evenly spaced keys, at most `MAX_SIMULATED_KEYS` (grand88: A0, C8 and E4, the middle of
-/// `M_h·grav·l4`'s interval, among six).
+/// evenly spaced keys, at most `MAX_SIMULATED_KEYS` (grand88: A0, C8 and D♯6, the middle of
+/// the `h/I_h`-scaled params' intervals, among six).
 #[test]
 fn the_planner_simulates_the_layouts_own_keys() {
     use tactus_compiler::fixed::{simulated_keys, MAX_SIMULATED_KEYS};
@@ -492,15 +493,20 @@ fn the_planner_simulates_the_layouts_own_keys() {
     assert_eq!(keys.len(), MAX_SIMULATED_KEYS);
     assert!(keys.windows(2).all(|w| w[0] < w[1]));
     assert_eq!((keys[0], keys[keys.len() - 1]), (0, 87));
-    // E4 (MIDI 64): its 7.29 g gives the `M_h·grav·l4` nearest its interval's middle.
-    assert!(keys.iter().any(|&k| assigned[k].key == 64), "{keys:?}");
-    // Each simulated point is one key's own values: `M_h·grav·l4 · dt/I_h` is the same
-    // (grav/l4 · dt) for every real hammer, not for independent interval middles.
-    assert_eq!(p.runtime_keys[0].len(), 2, "M_h·grav·l4 and dt/I_h");
-    let product = |v: &[f64]| v[0] * v[1];
+    // D♯6 (MIDI 87): its 5.31 g gives the `h/I_h`-scaled params nearest their intervals'
+    // middles (each ∝ 1/M_h: `B_h·h/I_h` and the lever's `l3·h/I_h` per arm, the constant
+    // factors distributed into the hammer's sum, `fixed::distribute`).
+    assert!(keys.iter().any(|&k| assigned[k].key == 87), "{keys:?}");
+    // Each simulated point is one key's own values: the params' ratios are the same for
+    // every real hammer, not for independent interval middles; and `M_h·grav·l4 · h/I_h`,
+    // `grav·h/l4` for every hammer, is no run-time param.
+    assert_eq!(p.runtime_keys[0].len(), 3, "{:?}", p.runtime_keys[0]);
     for &k in &keys {
-        let r = product(&p.runtime_keys[k]) / product(&p.runtime_keys[0]);
-        assert!((r - 1.0).abs() < 1e-9, "key {k}: {r}");
+        for j in 1..3 {
+            let r = (p.runtime_keys[k][j] / p.runtime_keys[k][0])
+                / (p.runtime_keys[0][j] / p.runtime_keys[0][0]);
+            assert!((r - 1.0).abs() < 1e-9, "key {k}: {r}");
+        }
     }
 }
 

@@ -148,7 +148,32 @@ fn analyse_layout(path: &Path, list: bool, asm: bool) {
             n,
             p.params.len()
         );
+        if std::env::args().any(|a| a == "--report") {
+            let fp = &p.fixed;
+            print!(
+                "{}",
+                tactus_compiler::fixed::render::render(
+                    fp,
+                    &tactus_compiler::fixed::report::analyse(fp)
+                )
+            );
+        }
         breakdown(&shown, &p.fixed, &p.thumb, list, asm);
+        // The glue a key of it costs beside its update, on the built-in 133 MHz board.
+        if let Ok(board) = tactus_runtime::keyboard::read_board(Path::new("boards/rp2040.toml")) {
+            let lim = tactus_runtime::limiter::LimiterConfig::default();
+            let mut plain = p.clone();
+            plain.quiescent_guard = false;
+            let glue = |q: &tactus_firmware::image::Program| {
+                tactus_firmware::image::FirmwareImage::key_glue(q, &board, &lim)
+                    .map_or("—".to_string(), |g| g.cycles.to_string())
+            };
+            println!(
+                "glue per key (boards/rp2040.toml): {} without the quiescent-key guard, {} with it",
+                glue(&plain),
+                glue(p)
+            );
+        }
     }
 }
 

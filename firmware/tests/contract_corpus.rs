@@ -282,9 +282,10 @@ fn grand88() -> (
 /// shares them (`compile_layout`, one plan for the whole grading), and the contract checked
 /// over the corpus at every key's param values — every clause on every run (1,320 runs, 26
 /// million samples through both interpreters, on every core). Among them the keys the
-/// planner's search simulates (`fixed::simulated_keys`: A0 and C8, the grading's ends; E4
-/// and D♯6, the keys nearest the middles of the two run-time params' intervals; D2 and
-/// G♯3, evenly spaced), whose worst figures are printed, and the runs that broke the
+/// planner's search simulates (`fixed::simulated_keys`: A0 and C8, the grading's ends;
+/// D♯6, the key nearest the middles of the run-time params' intervals; evenly spaced ones),
+/// whose worst figures are printed (every key's, when a dozen or fewer are checked), and
+/// the runs that broke the
 /// contract before session 16 ([`FORMERLY_BROKEN`]), printed with the reading they hold by.
 ///
 /// A switch of the model closing a sample apart in fixed point and f64 (at E4's half dip
@@ -309,25 +310,32 @@ const FORMERLY_BROKEN: &[(u8, &str)] = &[
     (87, "half-dip-90%"),
 ];
 
+/// The keys the whole keyboard's run ([`the_contract_holds_at_every_grand88_key`]) found
+/// closest to breaking, checked in CI beside the simulated ones: 97 (C♯7) for the force
+/// (0.84 of its DAC LSB on the let-off reversals, session 16) and 91 (G6) for a switch
+/// window (0.9994 of its bound on the noisy rest).
+const CLOSEST_CALLS: &[u8] = &[97, 91];
+
 /// In CI: [`grand88_contract`] at the keys the planner's search simulates (six of the 88:
-/// the grading's ends, the params' middles, evenly spaced ones — which include every key of
-/// [`FORMERLY_BROKEN`]). The whole keyboard is
+/// the grading's ends, the params' middles, evenly spaced ones), every key of
+/// [`FORMERLY_BROKEN`] and the [`CLOSEST_CALLS`]. The whole keyboard is
 /// [`the_contract_holds_at_every_grand88_key`], run by hand.
 #[test]
-fn the_contract_holds_at_the_simulated_grand88_keys() {
+fn the_contract_holds_at_the_simulated_and_closest_grand88_keys() {
     let (assigned, shared, _) = grand88();
     let simulated = simulated_keys(&shared.program);
-    for &(key, _) in FORMERLY_BROKEN {
-        let k = assigned
-            .iter()
-            .position(|a| a.key == key)
-            .expect("a grand88 key");
-        assert!(
-            simulated.contains(&k),
-            "formerly broken key {key} is not simulated: {simulated:?}"
-        );
-    }
-    grand88_contract(|k| simulated.contains(&k));
+    let named: Vec<usize> = FORMERLY_BROKEN
+        .iter()
+        .map(|&(key, _)| key)
+        .chain(CLOSEST_CALLS.iter().copied())
+        .map(|key| {
+            assigned
+                .iter()
+                .position(|a| a.key == key)
+                .expect("a grand88 key")
+        })
+        .collect();
+    grand88_contract(|k| simulated.contains(&k) || named.contains(&k));
 }
 
 /// [`grand88_contract`] at all 88 keys: 1,320 runs, 26 million samples through both
@@ -367,7 +375,7 @@ fn grand88_contract(which: impl Fn(usize) -> bool) {
     let (mut holding, mut literal, mut strict) = (0, 0, 0);
     for (&k, checks) in keys.iter().zip(checks.chunks(words.len())) {
         let (b, worst) = summarise(&what(k), p, &words, checks, bound);
-        if simulated.contains(&k) {
+        if simulated.contains(&k) || keys.len() <= 12 {
             worst.print(&what(k), bound);
         }
         holding += usize::from(b.is_empty());

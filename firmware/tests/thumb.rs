@@ -668,29 +668,38 @@ const STATIC_BEFORE: &[(&str, u64)] = &[
     ("rubbed_bank", 12971),
 ];
 
-/// The ratchet: each instrument's static WCET as last measured by this test (session 16,
-/// branches code19 and contract19). No instrument may get slower than this; when a change
-/// makes one faster, lower its figure here. (The grand piano's issue-16 bound, 930, is met;
-/// its target, 680, is not yet: the test prints the figure.)
+/// The ratchet: each instrument's static WCET as last measured by this test (issue 38:
+/// the constant factors of the piano's hammer and contact distributed into their terms,
+/// `fixed::distribute`). No instrument may get slower than this; when a change makes one
+/// faster, lower its figure here.
 ///
 /// The piano's figure includes a model fix of session 16 (contract19), not a code generator
 /// change: the rest felt keeps a landing's pulse against the re-landings of a hammer at rest
 /// (`pulse = max(pulse, …)` in `grand_piano.tactus`), 14 cycles (750 → 764) on the same
-/// compiler (`wcet_breakdown` on the model before and after).
+/// compiler (`wcet_breakdown` on the model before and after). `bowed_string` is not
+/// emulated here ([`NOT_EMULATED`]) but analysed: its static bound is ratcheted too.
 const STATIC_CEILING: &[(&str, u64)] = &[
-    ("grand_piano", 764),
+    ("grand_piano", 733),
     ("hammond", 185),
     ("harpsichord", 229),
     ("harpsichord_2x8", 355),
-    ("plucked_string", 1785),
-    ("rubbed_bank", 5804),
+    ("plucked_string", 1758),
+    ("rubbed_bank", 5771),
+    ("bowed_string", BOWED_CEILING),
 ];
+
+/// `bowed_string`'s ceiling (see [`STATIC_CEILING`]).
+const BOWED_CEILING: u64 = 102_606;
 
 #[test]
 fn static_wcet_does_not_regress() {
     let mut worse = Vec::new();
     let lookup = |t: &[(&str, u64)], name: &str| t.iter().find(|(n, _)| *n == name).map(|x| x.1);
-    for (name, text) in thumb_instruments() {
+    // Every instrument the backend compiles, the ones too long to emulate too.
+    let all = instruments()
+        .into_iter()
+        .filter(|(name, _)| NOT_FOR_THUMB.iter().all(|(n, _)| n != name));
+    for (name, text) in all {
         let (_fp, obj) = compile(&text);
         let cost =
             tactus_firmware::budget::static_update(&obj).unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -715,8 +724,9 @@ fn static_wcet_does_not_regress() {
 /// update called from a harness that sets r4–r11 to marks leaves every register outside
 /// its object's declared `clobbers` as it found it — under AAPCS (nothing declared) all of
 /// r4–r11; under the image's `thumb::Convention::SAMPLE_ISR` all but its declared set,
-/// which lies within the convention's free registers (r4–r7 always kept) — and both
-/// objects, so called, give the out words, states and modes of the AAPCS object called
+/// which lies within the convention's free registers (r4, r6 and r7 always kept) — and both
+/// objects, so called, give the out words (the force terms' only where the convention
+/// writes them), states and modes of the AAPCS object called
 /// plainly (which `thumb_matches_the_fixed_interpreter_bit_for_bit` checks against the
 /// interpreter) bit for bit on the built-in stimuli (every k-th sample, about 2,000 a
 /// stimulus) and random words.
@@ -737,7 +747,7 @@ fn each_convention_preserves_all_but_its_declared_clobbers() {
             "{name}: clobbers {:#x}",
             isr.clobbers
         );
-        assert_eq!(isr.clobbers & 0xf0, 0, "{name}: r4–r7 are always kept");
+        assert_eq!(isr.clobbers & 0xd0, 0, "{name}: r4, r6, r7 are always kept");
         let mut runs = stimulus_runs(&fp, &isr);
         runs.extend(random_runs(&fp, 0x15C ^ name.len() as u64, 2, 500));
         let samples = preserves_all_but_clobbers(&name, &fp, &aapcs, &[&aapcs, &isr], &runs);
@@ -833,7 +843,23 @@ fn preserves_all_but_clobbers(
                     .chunks(4)
                     .map(|c| i32::from_le_bytes(c.try_into().unwrap()))
                     .collect();
-                assert_eq!(got, want.out, "{name}: {} out words", run.label);
+                // The force terms' words only where the convention writes them.
+                let terms = match obj.convention.skip_terms {
+                    true => obj.out.forces..obj.out.forces + fp.program.forces.len(),
+                    false => 0..0,
+                };
+                let written = |w: &[i32]| -> Vec<i32> {
+                    (0..w.len())
+                        .filter(|i| !terms.contains(i))
+                        .map(|i| w[i])
+                        .collect()
+                };
+                assert_eq!(
+                    written(&got),
+                    written(&want.out),
+                    "{name}: {} out words",
+                    run.label
+                );
                 let (states, modes) = r.read_state().unwrap();
                 assert_eq!(
                     (states, modes),

@@ -83,7 +83,7 @@ struct Key {
     generation: u32,
 }
 
-fn map_op(op: &Op, f: impl Fn(Value) -> Value) -> Op {
+pub(crate) fn map_op(op: &Op, f: impl Fn(Value) -> Value) -> Op {
     match *op {
         Op::Neg(x) => Op::Neg(f(x)),
         Op::Not(x) => Op::Not(f(x)),

@@ -100,6 +100,7 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
             continue;
         };
         let mut known = Known::default();
+        known.mode = mode_facts(p, &pos, i, *cond_i);
         known.apply(fp, body_i, true);
         let facts = sample_facts(fp, *cond_i);
         let nothing = known.state.is_empty() && known.mode.is_empty() && facts.is_empty();
@@ -338,6 +339,57 @@ fn sample_facts(fp: &FixedProgram, cond: Value) -> Vec<(Value, Interval)> {
     out
 }
 
+/// What the top-level `if` at body index `i` says about the modes where its body starts,
+/// when its condition `cond` — a tree of `and`s — requires `mode == variant` (or `!=`) of
+/// a mode read that no statement between the read and the `if` may set: the mode holds
+/// that variant (or one of the others). With the bodies [`exclusions`] already rules out
+/// skipped, that chains: the escapement's `phase == ready` handler excludes its `hold`
+/// handler that sets `phase = hold`, and so the later `phase == hold` handlers.
+fn mode_facts(
+    p: &Program,
+    pos: &[usize],
+    i: usize,
+    cond: Value,
+) -> std::collections::HashMap<usize, Vec<u32>> {
+    let mut out = std::collections::HashMap::new();
+    let mut stack = vec![cond];
+    while let Some(v) = stack.pop() {
+        match p.values[v.index()].op {
+            Op::And(x, y) => {
+                stack.push(x);
+                stack.push(y);
+            }
+            Op::Cmp(o @ (CmpOp::Eq | CmpOp::Ne), x, y) => {
+                let (m, read, k) = match (&p.values[x.index()].op, &p.values[y.index()].op) {
+                    (Op::Mode(m), Op::Variant(_, k)) => (*m, x, *k),
+                    (Op::Variant(_, k), Op::Mode(m)) => (*m, y, *k),
+                    _ => continue,
+                };
+                let at = pos[read.index()];
+                if at > i {
+                    continue;
+                }
+                let mut set_between = false;
+                walk_stmts(&p.body[at..i], &mut |s| {
+                    set_between |= matches!(s, Stmt::SetMode(n, _) if *n == m);
+                });
+                if set_between {
+                    continue;
+                }
+                let all = p.modes[m.index()].variants.len() as u32;
+                let allowed: Vec<u32> = match o {
+                    CmpOp::Eq => vec![k],
+                    _ => (0..all).filter(|&j| j != k).collect(),
+                };
+                let e: &mut Vec<u32> = out.entry(m.index()).or_insert_with(|| (0..all).collect());
+                e.retain(|j| allowed.contains(j));
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
 /// The comparisons of real values that `cond` — a tree of `and`s — requires, each as
 /// (operator, left, right), right operands of an `and` first. What a true condition says,
 /// for the interval facts ([`sample_facts`]) and the linear ones (`linear::Facts::assume`).
@@ -552,6 +604,29 @@ mod tests {
         // Whether (1, 2) may run together: `x < m − slack` and `x < m + slack` with the
         // same m: yes.
         assert!(!ex.contains(&(k[1], k[2])), "{ex:?} of {k:?}");
+    }
+
+    #[test]
+    fn a_mode_tested_by_a_body_holds_there_until_a_later_body_sets_it() {
+        // The escapement's chain: the `ready` handler that raises m runs only where the
+        // mode is `ready`; the handler that sets `hold` cannot follow it (x < m − slack after
+        // m = x), so neither can the `hold` handler. The `escaped` one can: `x >= 9 mm` may
+        // set the mode between.
+        let fp = fixed(
+            "instrument t {\n sensor x: m in [0 mm, 10 mm]\n mode ph { ready, hold, escaped } = ready\n state m = 0 mm in [0 mm, 10 mm]\n state a = 0 in [0, 1]\n while ph == ready and x > m { m = x }\n on ph == ready and x > 5 mm and x < m - 0.03 mm { ph = hold }\n on ph == ready and x >= 9 mm { ph = escaped }\n while ph == hold and x < 4 mm { a = 1 }\n while ph == escaped and x < 8 mm { a = 0.5 }\n force f = a * 1 N\n}\n",
+        );
+        let k = ifs(&fp);
+        assert_eq!(k.len(), 5);
+        let ex = exclusions(&fp);
+        assert!(ex.contains(&(k[0], k[1])), "{ex:?} of {k:?}");
+        assert!(ex.contains(&(k[0], k[3])), "{ex:?} of {k:?}");
+        assert!(!ex.contains(&(k[0], k[4])), "{ex:?} of {k:?}");
+        // Without the `ready` test on the first handler nothing says the mode there.
+        let fp = fixed(
+            "instrument t {\n sensor x: m in [0 mm, 10 mm]\n mode ph { ready, hold, escaped } = ready\n state m = 0 mm in [0 mm, 10 mm]\n state a = 0 in [0, 1]\n while x > m { m = x }\n on ph == ready and x > 5 mm and x < m - 0.03 mm { ph = hold }\n on ph == ready and x >= 9 mm { ph = escaped }\n while ph == hold and x < 4 mm { a = 1 }\n while ph == escaped and x < 8 mm { a = 0.5 }\n force f = a * 1 N\n}\n",
+        );
+        let k = ifs(&fp);
+        assert!(!exclusions(&fp).contains(&(k[0], k[3])));
     }
 
     #[test]

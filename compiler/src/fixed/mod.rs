@@ -24,6 +24,7 @@ pub mod budget;
 pub mod chains;
 pub mod common;
 pub mod contract;
+pub mod distribute;
 pub mod cost;
 pub mod division;
 pub mod flow;

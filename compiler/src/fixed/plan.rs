@@ -69,10 +69,10 @@ impl FixedProgram {
                 refused: Vec::new(),
             }
         };
-        // Products of products by constants: one product by the constants' product (`chains`).
-        let folded = chains::fold_constant_chains(&recips.program);
-        // Each common value once (`common`): the same meaning, fewer products to plan and run.
-        let mut shared = common::share_common_values(&folded);
+        // Products of products by constants: one product by the constants' product (`chains`);
+        // each common value once (`common`): the same meaning, fewer products to plan and
+        // run; constant factors of sums distributed into their terms (`distribute`).
+        let mut shared = distribute::fold_constants(&recips.program);
         // States only events set: the hull of what they are assigned, within their declared
         // ranges (`range::state_hulls`); their words take that hull's format.
         let mut narrowed = vec![None; shared.states.len()];

@@ -18,11 +18,11 @@ pub const MAX_SIMULATED_KEYS: usize = 6;
 /// search simulates the contract: every key when there are at most [`MAX_SIMULATED_KEYS`];
 /// otherwise the first and the last key (a grading's ends: for grand88 the 11 g and 3.5 g
 /// hammers, the ends of every run-time param's interval), per run-time param the key whose
-/// value lies nearest the middle of its interval (grand88: E4 for `M_h·grav·l4`, 7.29 g;
-/// D♯6, MIDI 87, for `dt/I_h`, 5.31 g), then evenly spaced keys (`j·(n−1)/(m−1)`) until
+/// value lies nearest the middle of its interval (grand88: D♯6, MIDI 87, 5.31 g, for each
+/// of its `h/I_h`-scaled params), then evenly spaced keys (`j·(n−1)/(m−1)`) until
 /// [`MAX_SIMULATED_KEYS`]. Real keys, not each param's interval taken alone: a param's
-/// middle combined with another's is no hammer (7.25 g's `M_h·grav·l4` with 5.3 g's
-/// `dt/I_h`). In ascending order; empty without recorded keys.
+/// middle combined with another's is no hammer. In ascending order; empty without recorded
+/// keys.
 pub fn simulated_keys(p: &Program) -> Vec<usize> {
     let keys = &p.runtime_keys;
     let n = keys.len();

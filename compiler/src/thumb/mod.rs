@@ -84,26 +84,43 @@ pub struct ThumbObject {
     /// Callee-saved registers (bit *n* = r*n*) its functions may leave modified: 0 under
     /// AAPCS; under another [`Convention`] the free registers they use.
     pub clobbers: u16,
+    /// The convention it was compiled for.
+    pub convention: Convention,
 }
 
 /// The calling convention of the generated functions: which AAPCS callee-saved registers
 /// (r4–r11) they may leave modified, so that their prologue neither saves nor restores
-/// them (the backend's config; [`compile_with`]). Arguments, the state pointer in r7, SP
-/// and the return through the saved LR are AAPCS's in every convention.
+/// them, and which words of `out[]` the update writes (the backend's config;
+/// [`compile_with`]). Arguments, the state pointer in r7, SP and the return through the
+/// saved LR are AAPCS's in every convention, and so is the layout of `out[]`
+/// ([`crate::abi::OutLayout`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Convention {
     /// Free callee-saved registers, bit *n* = r*n* (only r4–r11 mean anything).
     pub free: u16,
+    /// The update leaves the force terms' words of `out[]` (`OutLayout::forces`…)
+    /// unwritten: its caller reads only the total (what drives the motor), the outputs and
+    /// the events. Under AAPCS (`false`) it writes every word the header names.
+    pub skip_terms: bool,
 }
 
 impl Convention {
-    /// AAPCS: r4–r11 preserved (the ELF object and header users link against).
-    pub const AAPCS: Convention = Convention { free: 0 };
-    /// The firmware image's sample interrupt, which alone calls the update there: r8–r11
-    /// (the limiter's constants, which the glue then takes from its literal pool or an
-    /// immediate) are free; r4–r7 (the key's record, the control block, the window bases)
-    /// are preserved. The figures: docs/benchmarks-log.md, "Session 16: tick19".
-    pub const SAMPLE_ISR: Convention = Convention { free: 0xf << 8 };
+    /// AAPCS: r4–r11 preserved, every word of `out[]` written (the ELF object and header
+    /// users link against).
+    pub const AAPCS: Convention = Convention {
+        free: 0,
+        skip_terms: false,
+    };
+    /// The firmware image's sample interrupt, which alone calls the update there: r5 (the
+    /// control block, which the handler loads again once before its end) and r8–r11 (the
+    /// limiter's constants, which the glue then takes from its literal pool or an
+    /// immediate) are free; r4, r6 and r7 (the key's record, the window bases) are
+    /// preserved. The force terms' words are not written: the glue drives the DAC from the
+    /// total, and the terms are the host engines' traces. The figures: BENCHMARKS.md.
+    pub const SAMPLE_ISR: Convention = Convention {
+        free: 1 << 5 | 0xf << 8,
+        skip_terms: true,
+    };
 }
 
 impl ThumbObject {
@@ -166,7 +183,9 @@ pub fn compile_with(fp: &FixedProgram, conv: Convention) -> Result<ThumbObject, 
     let p = &fp.program;
     let st = StateLayout::new(p);
     let (used, _) = crate::ir::live_values(p);
-    let upd = select::Sel::new(fp, &st, &c.layout, used.clone()).run()?;
+    let upd = select::Sel::new(fp, &st, &c.layout, used.clone())
+        .skip_terms(conv.skip_terms)
+        .run()?;
     // Every machine instruction takes at least 2 bytes: refuse early what cannot fit.
     let at_least = 2 * upd
         .code
@@ -214,5 +233,6 @@ pub fn compile_with(fp: &FixedProgram, conv: Convention) -> Result<ThumbObject, 
         out: c.layout,
         state: st,
         clobbers,
+        convention: conv,
     })
 }

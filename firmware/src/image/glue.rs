@@ -1,14 +1,16 @@
 //! The image's hand-written Thumb: the safety limiter, the sample interrupt handler and the
 //! reset handler of one core, emitted through [`CodeBuffer`] (the compiler's code buffer).
 //!
-//! **Registers.** The per-key updates (compiled code) follow AAPCS: they may clobber r0-r3
-//! and r12 and preserve r4-r11. The handler keeps its record pointer in r4, its control
-//! block in r5, the sensor and DAC window bases in r6 and r7; r5-r7 and the limiter's
-//! constants in r8-r11 ([`hi`]) hold for the whole run: the reset handler sets them once,
-//! every update preserves them, and the only code a sample interrupt ever interrupts is the
-//! reset handler's idle loop (`WFI; B`), which touches no register. So the handler saves
-//! nothing and loads no base: it clobbers r0-r4 freely, puts back the one constant the
-//! quiescent-key guard borrows (r5 and r6 with [`guard_uses_r5`]), and returns with
+//! **Registers.** The per-key updates (compiled code) may clobber r0-r3 and r12, and
+//! preserve r4-r11 but those their object declares ([`KeyCode::clobbers`]: under the
+//! image's convention, `thumb::Convention::SAMPLE_ISR`, r5 and r8-r11). The handler keeps
+//! its record pointer in r4, its control block in r5, the sensor and DAC window bases in r6
+//! and r7; r5-r7 and the limiter's constants in r8-r11 ([`hi`]) hold for the whole run
+//! where no update clobbers them: the reset handler sets them once, and the only code a
+//! sample interrupt ever interrupts is the reset handler's idle loop (`WFI; B`), which
+//! touches no register. So the handler saves nothing: it clobbers r0-r4 freely, loads r5
+//! again once before its end where an update or the quiescent-key guard took it, restores
+//! r6 where the guard borrowed it ([`guard_uses_r5`]), and returns with
 //! `BX LR` after setting LR to EXC_RETURN `0xfffffff9` (Thread mode, main stack: the only
 //! state it ever interrupts; DDI0419 B1.5.8). Without a push the stack stays as exception
 //! entry aligned it, on 8 bytes (DDI0419 B1.5.7), for the AAPCS updates.
@@ -781,7 +783,11 @@ pub fn core_code(
     tick_step(a, &tick);
     // Every key: sensors → record, update, then each force word: limiter, DAC.
     walk(a, keys, &mut |a, k| {
-        for (i, &w) in k.sensor_words.iter().enumerate() {
+        // Without the guard the update reads its sensor words straight from the window
+        // (they are consecutive words: the key's slots); the guard compares a copy.
+        let in_window = k.guard.is_none() && !k.sensor_words.is_empty();
+        let copied: &[u32] = if in_window { &[] } else { &k.sensor_words };
+        for (i, &w) in copied.iter().enumerate() {
             let off = w.wrapping_sub(sensor_base);
             if off <= 124 && off % 4 == 0 {
                 a.i(asm::ldr(0, 6, off as u16));
@@ -818,7 +824,19 @@ pub fn core_code(
             guard_check(a, g, skip);
         }
         ldr_rec(a, 0, k.state_offset);
-        a.i(asm::mov(1, 4));
+        if in_window {
+            let off = k.sensor_words[0].wrapping_sub(sensor_base);
+            if off <= 7 {
+                a.i(asm::adds_imm(1, 6, off as u8));
+            } else if off <= 255 {
+                a.i(asm::mov(1, 6));
+                a.i(asm::adds_imm(1, 1, off as u8));
+            } else {
+                a.ldr_const(1, k.sensor_words[0]);
+            }
+        } else {
+            a.i(asm::mov(1, 4));
+        }
         if k.out_offset <= 7 {
             a.i(asm::adds_imm(2, 4, k.out_offset as u8));
         } else {

@@ -939,13 +939,14 @@ impl FirmwareImage {
     }
 
     /// Static cost of one key of `program` in the sample interrupt beyond its update: its
-    /// sensor copies, the update's call set-up, per force word the limiter and the DAC
+    /// sensor copies (with the quiescent-key guard; without it the update reads its window
+    /// words in place), the update's call set-up, per force word the limiter and the DAC
     /// store, the step to the next key's record ([`KeyGlue`]). Measured from the generated
     /// glue, as the most one such key adds to core 0's handler on `board` (static WCET
     /// minus the update calls): the first key over the handler without keys, or a second
     /// over the first. So a core with `n` such keys costs at most the handler without keys
-    /// plus `n` times this. A keyboard key costs the same whatever its program (33 cycles
-    /// at the time of writing); a pen more, per sensor and per axis.
+    /// plus `n` times this. A keyboard key costs the same whatever its program; a pen more,
+    /// per sensor and per axis.
     ///
     /// Errors: those of [`FirmwareImage::build`] (e.g. [`ImageError::NoRoom`] for a
     /// program too large for a core's bank).
@@ -957,9 +958,11 @@ impl FirmwareImage {
         let programs = [program.clone()];
         let drives = program.drives()?.len();
         let width = program.sensor_words().max(drives);
+        // The second key two widths on: its window words beyond an `ADDS #imm3` of the
+        // first's (what a third or fourth key of a core pays to point at its sensors).
         let keys: Vec<KeySpec> = (0..2)
             .map(|i| KeySpec {
-                slot: i * width,
+                slot: 2 * i * width,
                 program: 0,
                 core: 0,
             })

@@ -147,6 +147,8 @@ pub(crate) struct Sel<'a> {
     /// The mask `-c` of a 0/1 word `c` ([`Sel::select`]), computed right after `c`'s
     /// definition (so it dominates every use of `c`), until `c`'s register is redefined.
     masks: std::collections::HashMap<V, V>,
+    /// The force terms' words of `out[]` are left unwritten ([`super::Convention::skip_terms`]).
+    skip_terms: bool,
     /// Scaled derivatives computed once, before the body ([`Sel::hoist_derivatives`]): per
     /// (sensor, order, fraction bits, bound) the word every `d()`/`d2()` value of that
     /// format reads.
@@ -356,6 +358,7 @@ impl<'a> Sel<'a> {
             select_uses,
             masks: std::collections::HashMap::new(),
             derivs_scaled: std::collections::HashMap::new(),
+            skip_terms: false,
         }
     }
 
@@ -437,6 +440,12 @@ impl<'a> Sel<'a> {
 pub(crate) const STATE_V: V = V(u32::MAX);
 
 impl<'a> Sel<'a> {
+    /// Leaves the force terms' words of `out[]` unwritten (or not): [`super::Convention::skip_terms`].
+    pub(crate) fn skip_terms(mut self, skip: bool) -> Self {
+        self.skip_terms = skip;
+        self
+    }
+
     /// Selects the whole update body.
     pub(crate) fn run(mut self) -> Result<Selected, ThumbError> {
         let (p, fp, st) = (self.p, self.fp, self.st);
@@ -476,7 +485,8 @@ impl<'a> Sel<'a> {
         self.stmts(&body)?;
         // Published slots not stored directly: copy published[] to out[].
         let np = p.forces.len() + 1 + p.outputs.len();
-        for i in 0..np {
+        let first = if self.skip_terms { p.forces.len() } else { 0 };
+        for i in first..np {
             if !self.direct[i] {
                 let w = self.load(MemOp::Ldr, Base::State, st.published + 4 * i);
                 self.store(MemOp::Str, w, Base::V(self.out_ptr), 4 * i);
@@ -627,6 +637,7 @@ impl<'a> Sel<'a> {
                         );
                     }
                 }
+                Stmt::Force(_, _) if self.skip_terms => {}
                 Stmt::Force(f, v) => self.publish(f.index(), *v),
                 Stmt::Total(v) => self.publish(p.forces.len(), *v),
                 Stmt::Output(o, v) => self.publish(p.forces.len() + 1 + o.index(), *v),
