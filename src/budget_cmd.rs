@@ -125,15 +125,17 @@ pub fn run(args: BudgetArgs) -> ExitCode {
     }
 }
 
-/// The board named `arg`: a board file, or a built-in board's name; errors name the file or
-/// list the built-ins.
+/// The board named `arg`: a board file, or a built-in board's name, checked by
+/// `tactus_firmware::board_file::read_board` (the one validation of boards); errors name the
+/// file and the field, or list the built-ins.
 pub(crate) fn board_named(arg: &str) -> Result<Board, String> {
     if Path::new(arg).exists() {
-        return keyboard::read_board(Path::new(arg));
+        let text = keyboard::read_text(Path::new(arg))?;
+        return tactus_firmware::board_file::read_board(&text, arg);
     }
     let stem = arg.trim_end_matches(".toml").replace('-', "_");
     match BUILTIN_BOARDS.iter().find(|(n, _)| *n == stem) {
-        Some((n, text)) => keyboard::parse_board(text, &format!("builtin:{n}")),
+        Some((n, text)) => tactus_firmware::board_file::read_board(text, &format!("builtin:{n}")),
         None => Err(format!(
             "no board file `{arg}`, and no built-in board of that name (built-ins: {})",
             BUILTIN_BOARDS
@@ -236,28 +238,19 @@ impl Keyboard {
 /// Errors: a message naming the input (a bad layout or board, an instrument that does not
 /// compile).
 pub(crate) fn compile_keyboard(args: &KeyboardSpec) -> Result<Keyboard, String> {
-    // A single instrument is compiled once, here (whether it is a pen decides the default
-    // number of keys), and reused for its keys below, so its diagnostics print once.
-    let mut precompiled = None;
-    if !args.input.ends_with(".toml") {
-        let src = source::load(args.input)?;
-        let lowered = compile_reporting(&src, args.params);
-        precompiled = Some((src, lowered));
-    }
-    let single_is_pen = matches!(&precompiled, Some((_, Some(l))) if l.program.is_pen());
-    let r = resolve(args, single_is_pen).map_err(|b| b.0)?;
+    // A layout is resolved first (it may name the board kind).
+    let layout_input = args.input.ends_with(".toml");
+    let resolved = match layout_input {
+        true => Some(resolve(args, false).map_err(|b| b.0)?),
+        false => None,
+    };
+    let layout = resolved.as_ref().and_then(|r| r.layout.as_ref());
     // The board kind: --board, else the layout's, else rp2040 (a layout's board file is
     // relative to the layout).
-    let kind = match (
-        &args.board,
-        r.layout.as_ref().and_then(|(l, _)| l.board_kind.clone()),
-    ) {
+    let kind = match (&args.board, layout.and_then(|(l, _)| l.board_kind.clone())) {
         (Some(b), _) => b.to_string(),
         (None, Some(k)) => {
-            let dir = r
-                .layout
-                .as_ref()
-                .and_then(|(_, p)| p.parent().map(Path::to_path_buf));
+            let dir = layout.and_then(|(_, p)| p.parent().map(Path::to_path_buf));
             match dir.map(|d| d.join(&k)).filter(|p| p.exists()) {
                 Some(p) => p.display().to_string(),
                 None => k,
@@ -265,10 +258,26 @@ pub(crate) fn compile_keyboard(args: &KeyboardSpec) -> Result<Keyboard, String> 
         }
         (None, None) => "rp2040".to_string(),
     };
-    let board = board_named(&kind).map_err(|e| match &r.layout {
+    let board = board_named(&kind).map_err(|e| match layout {
         Some((_, p)) if args.board.is_none() => format!("{}: `board_kind`: {e}", p.display()),
         _ => e,
     })?;
+    // Every program is compiled for the board's sample rate (its `require`s see it, its
+    // dynamics are discretised at it).
+    let fs = board.sample_rate_hz;
+    // A single instrument is compiled once, here (whether it is a pen decides the default
+    // number of keys), and reused for its keys below, so its diagnostics print once.
+    let mut precompiled = None;
+    if !layout_input {
+        let src = source::load(args.input)?;
+        let lowered = compile_reporting(&src, args.params, fs);
+        precompiled = Some((src, lowered));
+    }
+    let single_is_pen = matches!(&precompiled, Some((_, Some(l))) if l.program.is_pen());
+    let r = match resolved {
+        Some(r) => r,
+        None => resolve(args, single_is_pen).map_err(|b| b.0)?,
+    };
 
     // Distinct parameter sets, in order of first key: (instrument, params, source, IR).
     type ParamSet = (
@@ -293,13 +302,14 @@ pub(crate) fn compile_keyboard(args: &KeyboardSpec) -> Result<Keyboard, String> 
                     None => {
                         let src = source::load(&a.instrument)
                             .map_err(|e| format!("{}: key {}: {e}", args.input, a.key))?;
-                        let lowered = compile_reporting(&src, &params);
+                        let lowered = compile_reporting(&src, &params, fs);
                         (src, lowered)
                     }
                 };
                 let Some(lowered) = lowered else {
                     return Err(format!(
-                        "{}: key {}: `{}` does not compile with params {} (see the diagnostics above)",
+                        "{}: key {}: `{}` does not compile with params {} for the board's \
+                         sample rate, {fs} Hz (`{kind}`; see the diagnostics above)",
                         args.input,
                         a.key,
                         a.instrument,
@@ -382,6 +392,25 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
     } else {
         print!("{}", report.text());
     }
+    if !report.fits {
+        // The verdict's one line on stderr too (stdout may be JSON).
+        let why = match report.what_fits.iter().find_map(|w| {
+            w.fits_no_board.as_ref().map(|why| {
+                format!(
+                    "{} fits no {} board: {why}",
+                    w.instrument, report.board.name
+                )
+            })
+        }) {
+            Some(line) => line,
+            None => format!(
+                "{} of {} boards over budget",
+                report.boards.iter().filter(|b| !b.fits()).count(),
+                report.board_count
+            ),
+        };
+        eprintln!("error: {}: does not fit: {why}", r.name);
+    }
     for p in report.unsound() {
         eprintln!(
             "BUG: {} ({} keys): measured {} cycles at {} sample {} exceed the static worst case {} — the WCET analysis or the emulator's timing is wrong",
@@ -448,18 +477,18 @@ fn write_plan(
         }
     };
     layout = report.with_boards(&layout, &absolute(kind, None));
-    let text = toml::to_string(&layout)
-        .map_err(|e| Bad(format!("{}: cannot write the plan: {e}", out.display())))?;
+    // The header is one comment line whatever the names hold.
     let header = format!(
-        "# Planned by `tactus budget {}`: {} boards of kind {}, each a contiguous key range.\n",
+        "Planned by `tactus budget` for {}: {} boards of kind {}, each a contiguous key range.",
         r.name, report.board_count, report.board.name
     );
+    let text = keyboard::layout_text(&layout, &header)
+        .map_err(|e| Bad(format!("{}: {e}; nothing written", out.display())))?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .map_err(|e| Bad(format!("{}: cannot create: {e}", dir.display())))?;
     }
-    std::fs::write(out, header + &text)
-        .map_err(|e| Bad(format!("{}: cannot write: {e}", out.display())))
+    std::fs::write(out, text).map_err(|e| Bad(format!("{}: cannot write: {e}", out.display())))
 }
 
 #[cfg(test)]

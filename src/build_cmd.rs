@@ -126,11 +126,15 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
         )));
     }
     let src = source::load(&args.file).map_err(Some)?;
-    let lowered = compile_reporting(&src, &args.params).ok_or(None)?;
+    let lowered = compile_reporting(&src, &args.params, tactus_runtime::DEFAULT_SAMPLE_RATE_HZ)
+        .ok_or(None)?;
     let fp = FixedProgram::new(&lowered.program);
     if !fp.warnings.is_empty() {
         crate::source::report(&src, &fp.warnings);
     }
+    // No firmware from an instrument whose own accuracy contract the plan breaks.
+    tactus_compiler::fixed::contract::verdict(&lowered.program, &fp)
+        .map_err(|b| Some(format!("{}: {b}; nothing written", src.name)))?;
     let config = CConfig {
         source_name: Some(src.name.clone()),
         overrides: args

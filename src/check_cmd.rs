@@ -3,6 +3,7 @@
 use crate::source;
 use std::process::ExitCode;
 use tactus_compiler::lower::Config;
+use tactus_runtime::DEFAULT_SAMPLE_RATE_HZ;
 
 /// Arguments of `tactus check`.
 #[derive(Debug, clap::Args)]
@@ -47,14 +48,17 @@ pub fn parse_override(s: &str) -> Result<(String, String), String> {
     }
 }
 
-/// Compiles a source with overrides and prints its diagnostics to stderr; returns the IR.
+/// Compiles a source with overrides for a board sampling at `sample_rate_hz` (Hz; its
+/// `require`s see it, its dynamics are discretised at it) and prints its diagnostics to
+/// stderr; returns the IR.
 pub fn compile_reporting(
     src: &source::Source,
     params: &[(String, String)],
+    sample_rate_hz: f64,
 ) -> Option<tactus_compiler::lower::Lowered> {
     let config = Config {
         overrides: params.to_vec(),
-        ..Config::default()
+        sample_rate_hz,
     };
     match tactus_compiler::compile(&src.text, &config) {
         Ok(l) => {
@@ -83,7 +87,7 @@ pub fn run(args: CheckArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let Some(l) = compile_reporting(&src, &args.params) else {
+    let Some(l) = compile_reporting(&src, &args.params, DEFAULT_SAMPLE_RATE_HZ) else {
         return ExitCode::FAILURE;
     };
     let p = &l.program;
@@ -114,6 +118,11 @@ pub fn run(args: CheckArgs) -> ExitCode {
                 "{}",
                 tactus_compiler::fixed::render::render_margins(p, &runs)
             );
+        }
+        // A broken contract is a failure, as `build` refuses the instrument.
+        if let Err(b) = tactus_compiler::fixed::contract::holds_on(p, &runs) {
+            eprintln!("error: {}: {b}", src.name);
+            return ExitCode::FAILURE;
         }
     }
     ExitCode::SUCCESS

@@ -92,10 +92,10 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
             }
         };
     }
-    let bytes = match std::fs::read(&file) {
+    let bytes = match read_elf(&file) {
         Ok(b) => b,
         Err(e) => {
-            eprintln!("error: cannot read {}: {e}", file.display());
+            eprintln!("error: {e}");
             return ExitCode::FAILURE;
         }
     };
@@ -168,6 +168,29 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
             ExitCode::from(2)
         }
     }
+}
+
+/// The largest ELF file read, bytes: every memory an ELF may load into (ROM, 2 MB of
+/// flash, SRAM) is far smaller; a bound on what a mistaken path (`/dev/zero`) can make the
+/// command hold.
+const MAX_ELF_BYTES: u64 = 64 << 20;
+
+/// Reads an ELF file of at most [`MAX_ELF_BYTES`]; errors name the file.
+fn read_elf(path: &std::path::Path) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let f =
+        std::fs::File::open(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let mut bytes = Vec::new();
+    f.take(MAX_ELF_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    if bytes.len() as u64 > MAX_ELF_BYTES {
+        return Err(format!(
+            "{}: longer than {MAX_ELF_BYTES} bytes, not firmware for the RP2040",
+            path.display()
+        ));
+    }
+    Ok(bytes)
 }
 
 fn run_traced(board: &mut Board, cycles: u64) -> StopReason {
@@ -270,33 +293,34 @@ fn run_firmware(
     gdb: Option<u16>,
 ) -> Result<ExitCode, String> {
     use tactus_firmware::flash::{self, KeyMap};
-    let elf = std::fs::read(file).map_err(|e| format!("cannot read {}: {e}", file.display()))?;
+    let elf = read_elf(file)?;
     let map_path = keys.map_or_else(
         || file.with_file_name("keys.json"),
         std::path::Path::to_path_buf,
     );
-    let text = std::fs::read_to_string(&map_path).map_err(|e| {
+    let text = tactus_runtime::keyboard::read_text(&map_path).map_err(|e| {
         format!(
-            "{}: cannot read the key map {} ({e}); `tactus build LAYOUT --target rp2040` writes it beside the ELF, or name it with --keys",
-            file.display(),
-            map_path.display()
+            "{}: cannot read the key map ({e}); `tactus build LAYOUT --target rp2040` writes it beside the ELF, or name it with --keys",
+            file.display()
         )
     })?;
     let map: KeyMap = serde_json::from_str(&text)
         .map_err(|e| format!("{}: not a Tactus key map: {e}", map_path.display()))?;
-    let fs = map.sample_rate_hz as f64;
     if !(seconds > 0.0 && seconds <= 60.0) {
         return Err(format!("--seconds {seconds}: from just above 0 to 60"));
     }
-    let samples = (seconds * fs).round().max(1.0) as usize;
-    if map.keys.len() > tactus_emulator::MAX_KEYS {
-        return Err(format!(
-            "{}: {} keys; a board has at most {}",
+    // The map against the firmware it describes, before anything is made for its keys.
+    let image = tactus_emulator::elf::parse(&elf)
+        .map_err(|e| format!("{}: cannot load: {e}", file.display()))?;
+    tactus_firmware::key_map::check(&map, &image).map_err(|e| {
+        format!(
+            "{}: {e} (the key map of {})",
             map_path.display(),
-            map.keys.len(),
-            tactus_emulator::MAX_KEYS
-        ));
-    }
+            file.display()
+        )
+    })?;
+    let fs = f64::from(map.sample_rate_hz);
+    let samples = (seconds * fs).round().max(1.0) as usize;
     // Each key's stimulus in its own instrument's sensor words, once per distinct
     // instrument and params (a CSV read once).
     let csv = if std::path::Path::new(stimulus).exists() {
@@ -326,7 +350,7 @@ fn run_firmware(
                     .map(|(a, b)| (a.to_string(), b.to_string()))
             })
             .collect();
-        let lowered = crate::check_cmd::compile_reporting(&src, &params).ok_or_else(|| {
+        let lowered = crate::check_cmd::compile_reporting(&src, &params, fs).ok_or_else(|| {
             format!(
                 "{}: key {}: `{}` does not compile",
                 map_path.display(),

@@ -189,15 +189,8 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         None => performance::demo(),
     };
     if let Some(s) = args.seconds {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(format!("--seconds must be a positive number, got {s}"));
-        }
-        perf.notes.retain(|n| n.on_s < s);
         // `--seconds` bounds the simulated time: a note still held at `s` is released there.
-        for n in &mut perf.notes {
-            n.off_s = n.off_s.min(s);
-        }
-        perf.duration_s = perf.duration_s.min(s);
+        perf.cut(s)?;
         if perf.notes.is_empty() {
             return Err(format!(
                 "{}: no note starts in the first {s} s",
@@ -207,6 +200,10 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             ));
         }
     }
+    // The board (checked before anything is compiled for it): every program is compiled
+    // for its sample rate.
+    let board = crate::budget_cmd::board_named(&args.board)?;
+    let fs = board.sample_rate_hz;
     // Which instrument (with which overrides) on which key.
     let mut layout_boards = None;
     let assignments = match &args.layout {
@@ -245,6 +242,17 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         );
     }
     let skipped = outside.len();
+    if inside.is_empty() {
+        let keys: Vec<u8> = assignments.iter().map(|a| a.key).collect();
+        return Err(format!(
+            "{}: none of its {} notes is on a key of the layout (its keys: {}): nothing to play",
+            args.performance
+                .as_ref()
+                .map_or("the demo".to_string(), |p| p.display().to_string()),
+            outside.len(),
+            tactus_firmware::verdict::key_ranges(&keys)
+        ));
+    }
     let perf = Performance {
         notes: inside.into_iter().copied().collect(),
         ..perf
@@ -265,7 +273,11 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             Some(i) => i,
             None => {
                 let src = source::load(&a.instrument)?;
-                let Some(lowered) = compile_reporting(&src, &params) else {
+                let Some(lowered) = compile_reporting(&src, &params, fs) else {
+                    eprintln!(
+                        "error: `{}` (key {}) does not compile for the board's sample rate, {fs} Hz (`{}`)",
+                        a.instrument, a.key, args.board
+                    );
                     return Ok(ExitCode::FAILURE);
                 };
                 let program = lowered.program;
@@ -336,7 +348,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             from_s: args.trace_from,
             to_s: args.trace_to.unwrap_or(f64::INFINITY),
         },
-        board: crate::budget_cmd::board_named(&args.board)?,
+        board,
         emulator: args.emu.into(),
         quiescent_guard: !args.no_quiescent_guard,
     };
@@ -349,12 +361,6 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     let played = play::play(&perf, &keyboard, &config, &bar)?;
     bar.0.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
-    let fs = keyboard
-        .programs
-        .first()
-        .map_or(tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, |p| {
-            p.program.sample_rate_hz
-        });
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
@@ -485,10 +491,37 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             if outside == 1 { "" } else { "s" },
         );
     }
+    // Notes the players could not play as recorded: said, not silently distorted.
+    let mut rushed = played.rushed.clone();
+    rushed.sort_by(|a, b| a.1.on_s.total_cmp(&b.1.on_s));
+    for (key, r) in rushed.iter().take(5) {
+        eprintln!(
+            "warning: note {key} at {:.3} s (velocity {}) could not be placed as recorded: pressed in {:.1} ms where its velocity asks {:.1} ms{} ({})",
+            r.on_s,
+            r.velocity,
+            r.pressed_s * 1e3,
+            r.wanted_s * 1e3,
+            if r.late_s > 1e-4 { format!(", reaching the bottom {:.1} ms late", r.late_s * 1e3) } else { String::new() },
+            if r.on_s < r.wanted_s { "the piece starts too soon after it" } else { "the key was still moving for the previous note" }
+        );
+    }
+    if rushed.len() > 5 {
+        eprintln!(
+            "warning: … {} notes in all could not be placed as recorded (pressed faster or late: louder, or late, than the recording)",
+            rushed.len()
+        );
+    }
     let r = played.restrikes;
-    if r.restrikes > 0 {
+    if r.dropped > 0 {
+        eprintln!(
+            "warning: {} note{} left out: the key was still busy with earlier notes of a repetition past the note-on and the end of the piece",
+            r.dropped,
+            if r.dropped == 1 { "" } else { "s" }
+        );
+    }
+    if r.restrikes > 0 || r.late > 0 {
         println!(
-            "  force player: {} notes re-struck before their key was back at rest; {} of them had no time for the asked softness and were played louder, {} started late",
+            "  force player: {} notes re-struck before their key was back at rest, {} of them with no time for the asked softness, played louder; {} notes started late (no calibrated push fit before the note-on)",
             r.restrikes, r.raised, r.late
         );
     }

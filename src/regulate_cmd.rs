@@ -77,7 +77,9 @@ fn run_inner(args: &RegulateArgs) -> Result<ExitCode, String> {
     // The spec first: a mistake in it fails before the measuring.
     let spec = args.spec.as_deref().map(spec::read).transpose()?;
     let src = source::load(&args.file)?;
-    let Some(lowered) = compile_reporting(&src, &args.params) else {
+    let Some(lowered) =
+        compile_reporting(&src, &args.params, tactus_runtime::DEFAULT_SAMPLE_RATE_HZ)
+    else {
         return Ok(ExitCode::from(2));
     };
     let program = &lowered.program;

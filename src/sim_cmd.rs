@@ -274,7 +274,9 @@ fn write_wav(
 
 fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     let src = source::load(&args.file)?;
-    let Some(lowered) = compile_reporting(&src, &args.params) else {
+    let Some(lowered) =
+        compile_reporting(&src, &args.params, tactus_runtime::DEFAULT_SAMPLE_RATE_HZ)
+    else {
         return Ok(ExitCode::FAILURE);
     };
     let program = &lowered.program;

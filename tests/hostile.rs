@@ -445,3 +445,417 @@ fn class_5_unstable_mass_spring_is_diagnosed() {
     let err = expect(&["check", &ok], 0, "well-formed");
     assert!(!err.contains("W0003"), "{err}");
 }
+
+// Issue 36: the surfaces added since — board files, key maps, layouts and plans, play — and
+// nothing that says FITS, "0 misses" or writes firmware when that is not so.
+
+fn board_file(dir: &Path, name: &str, clock: &str, cores: u32, fs: u32) -> String {
+    write(
+        dir,
+        name,
+        format!("name = \"{name}\"\nclock_hz = {clock}\ncores = {cores}\nsample_rate_hz = {fs}\n"),
+    )
+}
+
+#[test]
+fn class_9_a_board_is_one_the_firmware_runs_on_or_bad_input() {
+    let dir = temp_dir("hostile-9");
+    let out = dir.display().to_string();
+    // 133.3 MHz: no PLL_SYS setting makes it. `budget` said FITS, `play` ran it.
+    let odd = board_file(&dir, "odd.toml", "133.3e6", 2, 44_100);
+    expect(
+        &[
+            "budget", "hammond", "--keys", "4", "--board", &odd, "--quick",
+        ],
+        2,
+        "`clock_hz`",
+    );
+    let fw = format!("{out}/fw");
+    let err = expect(
+        &[
+            "build", "hammond", "--keys", "4", "--board", &odd, "--target", "rp2040", "-o", &fw,
+        ],
+        1,
+        "no PLL_SYS setting",
+    );
+    assert!(err.contains("odd.toml"), "{err}");
+    assert!(
+        !Path::new(&fw).exists(),
+        "firmware written for a board that cannot be built"
+    );
+    expect(
+        &[
+            "play",
+            "--board",
+            &odd,
+            "--engine",
+            "jit",
+            "--out",
+            &out,
+            "--no-wav",
+            "--seconds",
+            "0.5",
+        ],
+        1,
+        "`clock_hz`",
+    );
+    // 64 cores: the keys "needed 0 boards" (exit 1); the chip has two.
+    let many = board_file(&dir, "many.toml", "133e6", 64, 44_100);
+    expect(
+        &[
+            "budget", "hammond", "--keys", "4", "--board", &many, "--quick",
+        ],
+        2,
+        "`cores`",
+    );
+    // The board's sample rate reaches the compiler: an instrument that requires 40 kHz is
+    // refused on an 8 kHz board by every command (it compiled for 44.1 kHz before).
+    let slow = board_file(&dir, "slow.toml", "133e6", 2, 8_000);
+    write(
+        &dir,
+        "fs.tactus",
+        "instrument fs {\n    sensor key: m in [0 mm, 10 mm]\n    require sample_rate >= 40 kHz\n    force f = key * 100 N/m\n    on key > 5 mm { emit strike(v = 1 m/s) }\n}\n",
+    );
+    let layout = write(
+        &dir,
+        "fs.toml",
+        "name = \"fs\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"fs.tactus\"\n",
+    );
+    let err = expect(
+        &["budget", &layout, "--board", &slow, "--quick"],
+        2,
+        "8000 Hz",
+    );
+    assert!(err.contains("E0310"), "{err}");
+    expect(
+        &[
+            "build", &layout, "--board", &slow, "--target", "rp2040", "-o", &fw,
+        ],
+        1,
+        "8000 Hz",
+    );
+    assert!(!Path::new(&fw).exists());
+    expect(
+        &[
+            "play", "--layout", &layout, "--board", &slow, "--engine", "jit", "--out", &out,
+            "--no-wav",
+        ],
+        1,
+        "8000 Hz",
+    );
+    // At 44.1 kHz the same layout is fine.
+    expect(&["budget", &layout, "--quick"], 0, "FITS");
+}
+
+#[test]
+fn class_10_a_key_map_is_checked_against_its_firmware() {
+    let dir = temp_dir("hostile-10");
+    let fw = dir.join("fw");
+    expect(
+        &[
+            "build",
+            "hammond",
+            "--keys",
+            "2",
+            "--target",
+            "rp2040",
+            "-o",
+            &fw.display().to_string(),
+        ],
+        0,
+        "1 boards",
+    );
+    let elf = fw.join("board-01/firmware.elf").display().to_string();
+    let good = std::fs::read_to_string(fw.join("board-01/keys.json")).unwrap();
+    let run = |name: &str, map: &str, code: i32, needle: &str| {
+        let f = write(&dir, name, map);
+        expect(
+            &[
+                "emu",
+                "run",
+                &elf,
+                "--stimulus",
+                "mf-dip",
+                "--keys",
+                &f,
+                "--seconds",
+                "0.2",
+            ],
+            code,
+            needle,
+        )
+    };
+    run("good.json", &good, 0, "misses 0");
+    let field = |from: &str, to: &str| {
+        assert!(good.contains(from), "{from} not in the key map");
+        good.replacen(from, to, 1)
+    };
+    // An absurd clock or start alarm allocated 3 GB; a 1 THz clock ran for ever.
+    run(
+        "clock.json",
+        &field(
+            "\"clock_hz\": 133000000",
+            "\"clock_hz\": 18446744073709551615",
+        ),
+        1,
+        "`clock_hz`",
+    );
+    run(
+        "thz.json",
+        &field("\"clock_hz\": 133000000", "\"clock_hz\": 1000000000000"),
+        1,
+        "`clock_hz`",
+    );
+    run(
+        "pll.json",
+        &field("\"clock_hz\": 133000000", "\"clock_hz\": 200000000"),
+        1,
+        "`period_cycles`",
+    );
+    let alarm = good
+        .lines()
+        .find(|l| l.contains("\"start_alarm_us\""))
+        .unwrap()
+        .trim()
+        .trim_end_matches(',')
+        .to_string();
+    run(
+        "alarm.json",
+        &field(&alarm, "\"start_alarm_us\": 4294967295"),
+        1,
+        "`start_alarm_us`",
+    );
+    // A late start alarm counted 449,818 samples in a run of 8,820.
+    run(
+        "late.json",
+        &field(&alarm, "\"start_alarm_us\": 500000"),
+        1,
+        "`start_alarm_us`",
+    );
+    // Keys that do not exist, an unmapped sample interrupt: 0 handler cycles, "0 misses".
+    let json: serde_json::Value = serde_json::from_str(&good).unwrap();
+    let mut ghost = json.clone();
+    ghost["cores"][0]["keys"] = serde_json::json!([99]);
+    run("ghost.json", &ghost.to_string(), 1, "cores[0].keys");
+    let mut isr = json.clone();
+    isr["cores"][0]["sample_isr"] = serde_json::json!("0x30000001");
+    run("isr.json", &isr.to_string(), 1, "cores[0].sample_isr");
+    let mut word = json.clone();
+    word["keys"][0]["sensor_words"] = serde_json::json!(["0x2003f100"]);
+    run("word.json", &word.to_string(), 1, "keys[0].sensor_words");
+    let mut core = json;
+    core["keys"][0]["core"] = serde_json::json!(7);
+    run("core.json", &core.to_string(), 1, "keys[0].core");
+}
+
+#[test]
+fn class_11_layouts_and_plans_are_whole() {
+    let dir = temp_dir("hostile-11");
+    let out = dir.display().to_string();
+    // An empty layout built 0 boards and exited 0; `play` failed to plot.
+    let empty = write(&dir, "empty.toml", "name = \"empty\"\nrange = []\n");
+    for args in [
+        vec!["build", &empty, "--target", "rp2040", "-o", &out],
+        vec!["play", "--layout", &empty, "--engine", "jit", "--out", &out],
+    ] {
+        expect(&args, 1, "lists no keys");
+    }
+    expect(&["budget", &empty], 2, "lists no keys");
+    // Every note off the layout: "cannot plot" before; now what is wrong.
+    let off = write(
+        &dir,
+        "off.mid",
+        midi(0, 1, 480, &[(0, &[0x90, 5, 100]), (480, &[0x80, 5, 0])]),
+    );
+    expect(
+        &["play", &off, "--out", &out],
+        1,
+        "none of its 1 notes is on a key",
+    );
+    // A name with a newline: the plan did not read back.
+    let nl = write(
+        &dir,
+        "nl.toml",
+        "name = \"a\\nb\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"hammond\"\n",
+    );
+    let plan = format!("{out}/plan.toml");
+    expect(
+        &["budget", &nl, "--quick", "--write-plan", &plan],
+        0,
+        "plan: 1 boards",
+    );
+    expect(&["budget", &plan, "--quick"], 0, "FITS on 1 board");
+    // A grade beyond f64 was reported as `M_h=NaN g`.
+    let big = write(
+        &dir,
+        "grade.toml",
+        "name = \"g\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"grand_piano\"\ngrade = [ { param = \"M_h\", from = \"1e400 g\", to = \"3 g\" } ]\n",
+    );
+    expect(
+        &["budget", &big, "--quick"],
+        2,
+        "`from` = \"1e400 g\" is not a finite number",
+    );
+    // A board file of a megabyte and more is not read whole.
+    let huge = write(&dir, "huge.toml", vec![b'#'; 2 << 20]);
+    expect(&["budget", "hammond", "--board", &huge], 2, "longer than");
+}
+
+#[test]
+fn class_12_fits_no_board_says_so_and_why() {
+    let dir = temp_dir("hostile-12");
+    // A piano key's update alone is over the 453 cycles of a 20 MHz board: "0 keys … need
+    // 0 boards" before.
+    let err = expect(
+        &[
+            "budget",
+            "grand_piano",
+            "--keys",
+            "2",
+            "--board",
+            "rp2040_20mhz",
+            "--quick",
+        ],
+        1,
+        "fits no rp2040-20mhz board",
+    );
+    assert!(!err.contains("need 0 boards"), "{err}");
+    let fw = dir.join("fw").display().to_string();
+    expect(
+        &[
+            "build",
+            "grand_piano",
+            "--keys",
+            "2",
+            "--board",
+            "rp2040_20mhz",
+            "--target",
+            "rp2040",
+            "-o",
+            &fw,
+        ],
+        1,
+        "fits no rp2040-20mhz board",
+    );
+    assert!(!Path::new(&fw).exists());
+}
+
+#[test]
+fn class_13_the_compiler_refuses_what_it_cannot_keep() {
+    let dir = temp_dir("hostile-13");
+    // A reversed solve range clamped every iterate to one end.
+    let f = write(
+        &dir,
+        "solve.tactus",
+        format!("{KEY}    solve x in [1 m, -1 m] {{\n        start = 0 m\n        residual = x - key\n        iterations = 3\n    }}\n    force f = x * 100 N/m\n}}\n"),
+    );
+    expect(&["check", &f], 1, "E0306");
+    // An accuracy contract the plan breaks: reported BROKEN with exit 0, and built.
+    let f = write(
+        &dir,
+        "tight.tactus",
+        format!("{KEY}    force f = 0.731 N * sqrt(key / 1 mm) + key * 12.37 N/m\n    on key > 5 mm {{ emit strike(v = 1 m/s) }}\n    tolerance force = 0.000001\n}}\n"),
+    );
+    expect(
+        &["check", &f, "--report", "precision"],
+        1,
+        "accuracy contract does not hold",
+    );
+    let c = dir.join("c").display().to_string();
+    expect(
+        &["build", &f, "-o", &c],
+        1,
+        "accuracy contract does not hold",
+    );
+    let fw = dir.join("fw").display().to_string();
+    expect(
+        &["build", &f, "--keys", "2", "--target", "rp2040", "-o", &fw],
+        1,
+        "accuracy contract does not hold",
+    );
+    expect(
+        &["budget", &f, "--keys", "2", "--quick"],
+        2,
+        "accuracy contract does not hold",
+    );
+    assert!(!Path::new(&c).exists() && !Path::new(&fw).exists());
+}
+
+#[test]
+fn class_14_play_ends_and_says_what_it_could_not_do() {
+    let dir = temp_dir("hostile-14");
+    let out = dir.display().to_string();
+    // An instrument that strikes every sample: the WAV of a 10 s note took minutes.
+    write(
+        &dir,
+        "every.tactus",
+        format!("{KEY}    force f = key * 100 N/m\n    while key > 1 mm {{ emit strike(v = 1 m/s) }}\n}}\n"),
+    );
+    let every = write(
+        &dir,
+        "every.toml",
+        "name = \"every\"\n[[range]]\nkeys = [60, 60]\ninstrument = \"every.tactus\"\n",
+    );
+    let long = write(
+        &dir,
+        "long.mid",
+        midi(0, 1, 480, &[(0, &[0x90, 60, 100]), (9600, &[0x80, 60, 0])]),
+    );
+    expect(
+        &[
+            "play", &long, "--layout", &every, "--engine", "jit", "--out", &out,
+        ],
+        1,
+        "use --no-wav",
+    );
+    // 20,000 notes on one key at once: the force player's re-strikes waited for each other
+    // for hours ("use --seconds" though it was given).
+    let mut dense: Vec<(u32, &[u8])> = Vec::new();
+    for _ in 0..20_000 {
+        dense.push((0, &[0x90, 60, 100]));
+        dense.push((0, &[0x80, 60, 0]));
+    }
+    let dense = write(&dir, "dense.mid", midi(0, 1, 480, &dense));
+    for player in ["force", "position"] {
+        expect(
+            &[
+                "play",
+                &dense,
+                "--instrument",
+                "grand_piano",
+                "--player",
+                player,
+                "--seconds",
+                "1",
+                "--engine",
+                "jit",
+                "--out",
+                &out,
+                "--no-wav",
+            ],
+            0,
+            "19999 notes left out",
+        );
+    }
+    // A note at 0 s cannot start its descent before the piece: said, not silent.
+    let first = write(
+        &dir,
+        "first.mid",
+        midi(0, 1, 480, &[(0, &[0x90, 60, 100]), (192, &[0x80, 60, 0])]),
+    );
+    expect(
+        &[
+            "play",
+            &first,
+            "--instrument",
+            "grand_piano",
+            "--engine",
+            "jit",
+            "--out",
+            &out,
+            "--no-wav",
+        ],
+        0,
+        "could not be placed as recorded",
+    );
+}

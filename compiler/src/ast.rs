@@ -196,6 +196,10 @@ pub enum Decl {
     },
     /// `require COND`: a compile-time condition on params (a stability bound, say).
     Require { cond: Expr, span: Span },
+    /// The range of a solve's unknown, left by `crate::expand` beside the iterates it
+    /// clamps into it, so that lowering folds and checks it as every other range (E0306 for
+    /// `[1 m, -1 m]`, E0308): not written in source.
+    SolveRange { name: Name, range: Range },
     /// A clause of the instrument's accuracy contract (docs/language.md, "Tolerances"):
     /// `tolerance force [TERM] = EXPR` (newtons, or a plain number of DAC LSB),
     /// `tolerance output NAME = EXPR` (the output's unit),

@@ -523,6 +523,10 @@ impl Expander<'_, '_> {
                 cond: self.expr(cond),
                 span: span.clone(),
             },
+            Decl::SolveRange { name, range } => Decl::SolveRange {
+                name: name.clone(),
+                range: self.bounds(range),
+            },
             Decl::Tolerance {
                 kind,
                 name,
@@ -1125,7 +1129,7 @@ fn substitute(e: &Expr, x: &str, by: &str) -> Expr {
 }
 
 /// Whether `e` reads the bare name `x`.
-fn mentions(e: &Expr, x: &str) -> bool {
+pub(crate) fn mentions(e: &Expr, x: &str) -> bool {
     let mut found = false;
     visit_paths(e, &mut |n| found |= n == x);
     found
@@ -1316,7 +1320,12 @@ fn desugar_solves(decls: Vec<Decl>, diags: &mut Vec<Diagnostic>) -> Vec<Decl> {
             continue;
         };
         match solve_lets(&name, range.as_ref(), &fields, &span, &lets) {
-            Ok(v) => out.extend(v),
+            Ok(v) => {
+                if let Some(range) = range {
+                    out.push(Decl::SolveRange { name, range });
+                }
+                out.extend(v)
+            }
             Err(d) => diags.push(d),
         }
     }

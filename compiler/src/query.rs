@@ -301,7 +301,8 @@ fn decl_symbols(decls: &[Decl], src: &str, out: &mut Vec<Symbol>) {
             Decl::Dynamics { .. }
             | Decl::Handler { .. }
             | Decl::Require { .. }
-            | Decl::Tolerance { .. } => {}
+            | Decl::Tolerance { .. }
+            | Decl::SolveRange { .. } => {}
         }
     }
 }

@@ -787,3 +787,103 @@ fn the_retimed_reference_excuses_a_late_switch_but_not_an_arithmetic_error() {
         r.retimed_force_lsb
     );
 }
+
+/// A click when the key passes 5 mm: one branch of the update, decided by the key alone.
+const CLICK: &str = "instrument click {
+    sensor key: m in [0 mm, 10 mm]
+    param full_scale = 5 N
+    force click = if key > 5 mm { 1 N } else { 0 N }
+}
+";
+
+/// The re-timed reading takes over only decisions the f64 semantics itself takes within
+/// the switch tolerance: a fixed-point threshold moved so that the click comes a sample
+/// early, on a dip that passes 5 mm, is a switch moved in time and holds; the same moved
+/// threshold on a dip that peaks at 4.95 mm — where the f64 semantics never clicks — flips a
+/// branch for two samples that no f64 run takes: a switch added, which both readings
+/// refuse — the re-timed run keeps its own decision and differs by the whole click, though
+/// taking the fixed run's decision over would make its force equal the fixed run's.
+#[test]
+fn the_retimed_reading_refuses_a_decision_the_f64_semantics_never_takes() {
+    use tactus_compiler::ir::{CmpOp, Op};
+    let p = tactus_compiler::compile(CLICK, &Config::default())
+        .unwrap()
+        .program;
+    let fp = FixedProgram::new(&p);
+    let lsb = report::analyse(&fp).dac_lsb_n();
+    let c = &p.contract;
+    // The planned threshold of `key > 5 mm`, moved down by `by` metres.
+    let threshold = fp
+        .program
+        .values
+        .iter()
+        .find_map(|v| match v.op {
+            Op::Cmp(CmpOp::Gt | CmpOp::Lt | CmpOp::Ge | CmpOp::Le, a, b) => [a, b]
+                .into_iter()
+                .find(|t| fp.program.const_value(*t) == Some(5e-3)),
+            _ => None,
+        })
+        .expect("the comparison `key > 5 mm`");
+    let moved = |by: f64| {
+        let mut q = fp.clone();
+        q.program.values[threshold.index()].op = Op::Const(5e-3 - by);
+        q
+    };
+    // A triangular dip to `peak` m and back, 0.05 mm a sample.
+    let dip = |peak: f64| -> Vec<f64> {
+        let up: Vec<f64> = (0..=(peak / 5e-5) as usize)
+            .map(|i| i as f64 * 5e-5)
+            .collect();
+        let mut keys = up.clone();
+        keys.extend(up.iter().rev());
+        keys.extend(vec![0.0; 400]);
+        keys
+    };
+    let check = |keys: &[f64], q: &FixedProgram| {
+        let run = contract::reference(&p, q, keys, &[]).unwrap();
+        contract::compare(&p, q, &run, lsb, c, false).unwrap()
+    };
+    // The unmoved plan holds on both dips.
+    for peak in [5.2e-3, 4.95e-3] {
+        let r = check(&dip(peak), &fp);
+        assert!(
+            r.violations(c, p.sample_rate_hz).is_empty(),
+            "{peak}: {r:?}"
+        );
+    }
+    // Passing 5 mm, the moved threshold clicks a sample early: a switch moved in time, held
+    // by the re-timed reading.
+    let early = check(&dip(5.2e-3), &moved(6e-5));
+    let v = early.violations(c, p.sample_rate_hz);
+    println!(
+        "moved switch: {} switches, re-timed {} ({} samples): {v:?}",
+        early.switch_count, early.retimed, early.retimed_samples
+    );
+    assert!(v.is_empty(), "a switch moved by a sample must hold: {v:?}");
+    // Peaking at 4.95 mm, the f64 semantics never clicks; the fixed run does for two
+    // samples, within the switch tolerance (23 samples): refused, a switch added.
+    let keys = dip(4.95e-3);
+    let spurious = check(&keys, &moved(6e-5));
+    let v = spurious.violations(c, p.sample_rate_hz);
+    println!(
+        "spurious decision: {} switches, {} lost or added, re-timed {}: {v:?}",
+        spurious.switch_count, spurious.switches_unresolved, spurious.retimed
+    );
+    assert!(!v.is_empty() && !spurious.retimed, "{v:?}");
+    // The re-timed run kept the f64 semantics' own decision — no click — so it differs
+    // from the fixed run by the whole click (1 N = 6553.6 DAC LSB at a 5 N full scale);
+    // taken over, the difference would have been 0.
+    let click_lsb = 1.0 / lsb;
+    assert!(
+        spurious
+            .retimed_force_lsb
+            .is_some_and(|f| f > 0.99 * click_lsb),
+        "the spurious decision was taken over: {:?} of {click_lsb}",
+        spurious.retimed_force_lsb
+    );
+    assert!(
+        spurious.switches.iter().all(|w| w.samples < 23),
+        "the flip must be shorter than the switch tolerance, or the test shows nothing: {:?}",
+        spurious.switches
+    );
+}

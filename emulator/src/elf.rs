@@ -59,6 +59,10 @@ pub struct Symbol {
 pub struct Segment {
     /// Physical (load) address.
     pub addr: u32,
+    /// Virtual address: where the running program finds these bytes. The load address for
+    /// an image that runs where it is loaded; for one that copies itself from flash to SRAM
+    /// (pico-sdk's `copy_to_ram`, `tactus build`'s flash images) the SRAM address.
+    pub run_addr: u32,
     /// Bytes to copy; the segment's `p_memsz - p_filesz` tail is zero-filled.
     pub data: Vec<u8>,
 }
@@ -197,7 +201,12 @@ pub fn parse(bytes: &[u8]) -> Result<Image, ElfError> {
         }
         let mut data = data.to_vec();
         data.resize(memsz as usize, 0);
-        image.segments.push(Segment { addr, data });
+        let run_addr = ph.p_vaddr(endian);
+        image.segments.push(Segment {
+            addr,
+            run_addr,
+            data,
+        });
     }
     let file = object::File::parse(bytes).map_err(|e| ElfError::Malformed(e.to_string()))?;
     for sym in file.symbols() {

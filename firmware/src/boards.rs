@@ -82,6 +82,29 @@ impl BoardVerdict {
         self.error.is_none() && self.cores.iter().all(|c| c.headroom >= 0)
     }
 
+    /// Why the board does not fit, for people (`None` when it fits): its image's error (code
+    /// and data beyond a core's SRAM bank, …), or each core whose sample interrupt needs
+    /// more than the `cycles_per_sample` between two ticks. The one wording `tactus budget`,
+    /// `build` and `play` give.
+    pub fn why_not(&self, cycles_per_sample: u64) -> Option<String> {
+        if let Some(e) = &self.error {
+            return Some(e.clone());
+        }
+        let over: Vec<String> = self
+            .cores
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.headroom < 0)
+            .map(|(i, c)| {
+                format!(
+                    "core {i}'s sample interrupt needs {} cycles per sample, {cycles_per_sample} available",
+                    c.cycles
+                )
+            })
+            .collect();
+        (!over.is_empty()).then(|| over.join("; "))
+    }
+
     /// The smallest headroom of any core (cycles; `i64::MIN` when there is no image).
     pub fn min_headroom(&self) -> i64 {
         if self.error.is_some() {
@@ -411,6 +434,58 @@ fn sweep(
         progress(i, keys.len());
     }
     Ok(boards)
+}
+
+/// Why no board of kind `board` holds even one key of program `program`, for people; `None`
+/// when one key fits (the rule is [`BoardVerdict::fits`] of a one-key board). The reason
+/// gives the key's static cost against the deadline when that alone is over, and the
+/// image's error (code beyond a bank) when there is one.
+///
+/// Errors: as [`board_image`].
+pub fn fits_no_board(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    program: usize,
+    board: &Board,
+    limiter: &LimiterConfig,
+) -> Result<Option<String>, BoardsError> {
+    let one = [PlanKey { key: 0, program }];
+    let v = check_board(programs, costs, &one, board, limiter)?;
+    let cps = board.cycles_per_sample();
+    let Some(why) = v.why_not(cps) else {
+        return Ok(None);
+    };
+    let cycles = costs.plain_key_cycles.get(program).copied().unwrap_or(0);
+    Ok(Some(match (v.error.is_some(), cycles > cps) {
+        (true, true) => format!(
+            "one key alone takes {cycles} static cycles per sample, {cps} available; and {why}"
+        ),
+        _ => why,
+    }))
+}
+
+/// [`fits_no_board`] of every program (`None`: one key of it fits), computed once per
+/// distinct code ([`Program::same_code`]: 88 graded piano keys are one check).
+///
+/// Errors: as [`board_image`].
+pub fn fits_no_board_each(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    board: &Board,
+    limiter: &LimiterConfig,
+) -> Result<Vec<Option<String>>, BoardsError> {
+    let mut out: Vec<Option<Option<String>>> = vec![None; programs.len()];
+    for i in 0..programs.len() {
+        if out[i].is_none() {
+            let why = fits_no_board(programs, costs, i, board, limiter)?;
+            for j in i..programs.len() {
+                if programs[j].same_code(&programs[i]) {
+                    out[j] = Some(why.clone());
+                }
+            }
+        }
+    }
+    Ok(out.into_iter().map(Option::flatten).collect())
 }
 
 /// The densest board of one program's keys: the most keys of program `program` that one

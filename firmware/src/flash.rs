@@ -189,6 +189,9 @@ pub fn keyboard_firmware(
     progress: &mut dyn FnMut(&str, usize, usize),
 ) -> Result<Vec<BoardFirmware>, String> {
     let (programs, board, lim) = (input.programs, input.board, input.limiter);
+    if input.keys.is_empty() {
+        return Err(format!("{}: no keys to build firmware for", input.name));
+    }
     let costs = ProgramCosts::new(programs, board, lim).map_err(|e| e.to_string())?;
     let keys: Vec<PlanKey> = input
         .keys
@@ -223,15 +226,31 @@ pub fn keyboard_firmware(
         let verdict = boards::check_board(programs, &costs, &bkeys, board, lim)
             .map_err(|e| format!("{}: {e}", what()))?;
         if !verdict.fits() {
-            return Err(format!(
-                "{}: does not fit the {} ({}); `tactus budget` shows why",
-                what(),
-                board.name,
-                verdict
-                    .error
-                    .clone()
-                    .unwrap_or_else(|| "a core's sample interrupt exceeds the period".into())
-            ));
+            // The budget's rule and words: a key that fits no board says why.
+            let alone = match bkeys.as_slice() {
+                [k] => boards::fits_no_board(programs, &costs, k.program, board, lim)
+                    .map_err(|e| format!("{}: {e}", what()))?,
+                _ => None,
+            };
+            return Err(match alone {
+                Some(why) => format!(
+                    "key {} (`{}`) fits no {} board: {why}",
+                    list.first().copied().unwrap_or(0),
+                    input
+                        .program_names
+                        .get(bkeys[0].program)
+                        .map_or("?", |n| n.0.as_str()),
+                    board.name
+                ),
+                None => format!(
+                    "{}: does not fit the {}: {}; `tactus budget` shows the plan",
+                    what(),
+                    board.name,
+                    verdict
+                        .why_not(board.cycles_per_sample())
+                        .unwrap_or_default()
+                ),
+            });
         }
         let (core_of, image) = boards::board_image(programs, &costs, &bkeys, board, lim)
             .map_err(|e| format!("{}: {e}", what()))?;
@@ -503,21 +522,17 @@ pub struct ElfRun {
 /// Most samples [`run_elf`] runs (one emulated minute at 44.1 kHz).
 pub const MAX_RUN_SAMPLES: usize = 60 * 44_100;
 
-fn addr(s: &str, what: &str) -> Result<u32, String> {
-    u32::from_str_radix(s.trim_start_matches("0x"), 16)
-        .map_err(|_| format!("{what}: `{s}` is not a hexadecimal address"))
-}
-
 /// Boots firmware `elf` from reset on an emulated RP2040 at the key map's clock (the boot
 /// ROM enters it at its entry point; it launches core 1 itself) and runs `samples` samples:
 /// before tick *n*, key *k*'s first sensor word gets `sensors[k][n mod len]` (a stimulus,
 /// repeated; its other sensor words stay 0; an empty list leaves the key at 0). Returns per
 /// core the handler's completed samples, worst and mean cycles, and misses.
 ///
-/// Errors: a message for an ELF the loader rejects, a key map that does not match it (a
-/// missing or bad address, more than [`tactus_emulator::MAX_KEYS`] keys or 2 cores), more
-/// than [`MAX_RUN_SAMPLES`] samples, sensor lists that do not match the keys, or firmware
-/// that faults or does not start.
+/// Errors: a message for an ELF the loader rejects, a key map that does not describe it
+/// ([`crate::key_map::check`] before anything runs; after the boot, a clock or tick the
+/// firmware did not set; after the run, more completed samples than ticks, or fewer without
+/// a miss), more than [`MAX_RUN_SAMPLES`] samples, sensor lists that do not match the keys,
+/// or firmware that faults or does not start.
 pub fn run_elf(
     elf: &[u8],
     map: &KeyMap,
@@ -534,14 +549,10 @@ pub fn run_elf(
             "{samples} samples: at most {MAX_RUN_SAMPLES} (one emulated minute)"
         ));
     }
-    if map.keys.len() > tactus_emulator::MAX_KEYS || map.cores.len() > 2 {
-        return Err(format!(
-            "key map: {} keys on {} cores; a board has at most {} keys and 2 cores",
-            map.keys.len(),
-            map.cores.len(),
-            tactus_emulator::MAX_KEYS
-        ));
-    }
+    // The map against the image, before anything is allocated or run for it.
+    let image =
+        tactus_emulator::elf::parse(elf).map_err(|e| format!("cannot load the ELF: {e}"))?;
+    let checked = crate::key_map::check(map, &image).map_err(|e| format!("key map: {e}"))?;
     if sensors.len() != map.keys.len() {
         return Err(format!(
             "{} sensor lists for the key map's {} keys",
@@ -549,14 +560,9 @@ pub fn run_elf(
             map.keys.len()
         ));
     }
-    if !(1..=1_000_000).contains(&map.sample_rate_hz) || map.clock_hz < 1_000_000 {
-        return Err(format!(
-            "key map: sample rate {} Hz, clock {} Hz",
-            map.sample_rate_hz, map.clock_hz
-        ));
-    }
+    let clock_hz = checked.chip.clock_hz;
     let mut board = tactus_emulator::Board::new(Config {
-        clock_hz: map.clock_hz,
+        clock_hz,
         ..Config::default()
     });
     board
@@ -565,27 +571,13 @@ pub fn run_elf(
     if let Some(d) = debugger {
         board.attach_debugger(d);
     }
-    let mut cores = Vec::new();
-    for c in &map.cores {
-        let isr = addr(&c.sample_isr, "sample_isr")? & !1;
-        let ctrl = addr(&c.control, "control")?;
-        cores.push((board.profile_handler(isr), ctrl));
-    }
-    let mut words = Vec::new();
-    for k in &map.keys {
-        let w: Result<Vec<u32>, String> = k
-            .sensor_words
-            .iter()
-            .map(|s| addr(s, &format!("key {}", k.midi)))
-            .collect();
-        words.push(w?);
-    }
-    let mut dac_addrs = Vec::new();
-    for k in &map.keys {
-        for d in &k.dac_words {
-            dac_addrs.push(addr(d, &format!("key {}", k.midi))?);
-        }
-    }
+    let cores: Vec<(usize, u32)> = checked
+        .cores
+        .iter()
+        .map(|&(isr, ctrl)| (board.profile_handler(isr), ctrl))
+        .collect();
+    let words = &checked.sensor_words;
+    let dac_addrs: Vec<u32> = checked.dac_words.iter().flatten().copied().collect();
     let mut dac = vec![0u32; dac_addrs.len()];
     let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
     let check = |stop: StopReason, board: &tactus_emulator::Board| match stop {
@@ -596,6 +588,7 @@ pub fn run_elf(
         )),
     };
     let alarm = u64::from(map.start_alarm_us);
+    // At most a second of boot (the checked start alarm), mostly asleep in WFI.
     crate::image::run_to_timer(&mut board, alarm)?;
     for (i, (_, ctrl)) in cores.iter().enumerate() {
         let ready = board
@@ -607,8 +600,26 @@ pub fn run_elf(
             ));
         }
     }
+    // What the firmware set up is what the map says: the clock and each core's tick.
+    if let Some(hz) = board.system.sysctl.clk_sys_hz() {
+        if hz != clock_hz {
+            return Err(format!(
+                "key map: `clock_hz` = {clock_hz}: the firmware sets clk_sys to {hz} Hz"
+            ));
+        }
+    }
+    for (i, core) in board.cores.iter().take(cores.len()).enumerate() {
+        let rvr = core.nvic.syst_rvr;
+        if rvr + 1 != map.period_cycles {
+            return Err(format!(
+                "key map: `period_cycles` = {}: core {i}'s firmware ticks every {} cycles",
+                map.period_cycles,
+                rvr + 1
+            ));
+        }
+    }
     let first = crate::image::run_to_first_tick(&mut board, alarm, cores.len())?;
-    let tick = |n: u64| keyboard::tick_cycle(first, n, map.clock_hz, map.sample_rate_hz);
+    let tick = |n: u64| keyboard::tick_cycle(first, n, clock_hz, map.sample_rate_hz);
     let mut totals = vec![(0u64, 0u64, 0u64); cores.len()];
     for n in 0..samples {
         for (k, w) in words.iter().enumerate() {
@@ -651,6 +662,16 @@ pub fn run_elf(
         let misses = board
             .read_u32(ctrl + u32::from(ctrl::MISSES))
             .map_err(|e| e.to_string())?;
+        // Each core completed no more samples than ticks came, and without misses all of
+        // them (the last one's handler may still be running): otherwise the map described
+        // another firmware.
+        let (done64, run) = (u64::from(done), samples as u64);
+        if done64 > run || (misses == 0 && done64 + 1 < run) {
+            return Err(format!(
+                "core {c} completed {done} samples in a run of {samples}: the key map does not \
+                 describe this firmware's tick"
+            ));
+        }
         out.push(CoreRun {
             samples: done,
             misses,
@@ -661,10 +682,7 @@ pub fn run_elf(
     Ok(ElfRun {
         samples,
         cores: out,
-        cycles_per_sample: keyboard::deadline_cycles(
-            map.clock_hz as f64,
-            map.sample_rate_hz as f64,
-        ),
+        cycles_per_sample: keyboard::deadline_cycles(clock_hz as f64, map.sample_rate_hz as f64),
         final_cycles: [board.cores[0].cycle, board.cores[1].cycle],
         dac_final: dac,
         dac_digest: digest,

@@ -11,6 +11,9 @@
 //!   Cortex-M0+ and links an ELF executable in SRAM, reporting code sizes.
 //! - [`measure`]: runs stimuli through a runner and the fixed interpreter side by side,
 //!   counting mismatches and collecting cycle statistics; [`report`] prints the table.
+//! - [`board_file`]: the one validation of a board (clock, cores, sample rate) the firmware
+//!   runs on.
+//! - [`key_map`]: the one validation of a key map (`keys.json`) against its firmware image.
 //! - [`corpus`]: the stimulus corpus of the budget (presses, repetitions, trills, half
 //!   dips, noise, glitches, random words); [`budget`]: static WCET and measured cycles of
 //!   an update; [`boards`]: a keyboard as a set of boards — the planner and the verdict,
@@ -25,11 +28,13 @@
 //!   measured with the closed-loop key model, and a spec's verdict.
 #![deny(missing_docs)]
 
+pub mod board_file;
 pub mod boards;
 pub mod budget;
 pub mod cc;
 pub mod corpus;
 pub mod image;
+pub mod key_map;
 pub mod layout;
 pub mod measure;
 pub mod perform;

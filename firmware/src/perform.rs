@@ -123,6 +123,19 @@ pub fn play_boards(
             .map(|b| b.keys)
             .collect(),
     };
+    // A key that fits no board of this kind stops the run with the budget's reason (a
+    // board over its deadline still runs: its misses are what the run shows).
+    let unfit =
+        boards::fits_no_board_each(programs, &costs, board, lim).map_err(|e| e.to_string())?;
+    if let Some((k, why)) = keys
+        .iter()
+        .find_map(|k| unfit.get(k.program)?.as_ref().map(|w| (k.key, w)))
+    {
+        return Err(format!(
+            "key {k} fits no {} board: {why} (`tactus budget` says the same)",
+            board.name
+        ));
+    }
     let decimation = opts.end.div_ceil(MAX_POINTS).max(1);
     // The boards share nothing: one rayon task each, on as many threads as the machine has
     // cores.

@@ -131,7 +131,9 @@ pub struct ProgramReport {
     pub static_over_measured: Option<f64>,
     /// Measured ≤ static.
     pub sound: bool,
-    /// The corpus size used (`full`, `quick`, `brief`).
+    /// The corpus size used (`full`, `quick`, `brief`; `token`: the first
+    /// [`TOKEN_SAMPLES`] samples of each brief run, for a program one key of which fits no
+    /// board).
     pub corpus: String,
     /// Samples measured.
     pub samples: usize,
@@ -176,8 +178,11 @@ pub struct WhatFits {
     pub guarded_cycles_per_key: u64,
     /// The most such keys one board holds.
     pub keys_per_board: u64,
-    /// Boards for this instrument's keys of the layout at that density.
+    /// Boards for this instrument's keys of the layout at that density (0 when none fits).
     pub boards_for_its_keys: u64,
+    /// Why not even one key fits a board of this kind (`keys_per_board` is 0), from
+    /// [`boards::fits_no_board`]; `None` when one does.
+    pub fits_no_board: Option<String>,
 }
 
 /// The budget of a keyboard.
@@ -404,6 +409,16 @@ impl BudgetReport {
                 cps as i64 - self.min_headroom,
                 self.min_headroom
             );
+        } else if let Some(w) = self.what_fits.iter().find(|w| w.fits_no_board.is_some()) {
+            let _ = writeln!(
+                s,
+                "verdict: DOES NOT FIT — {over} of {} board{} over budget; {} fits no {} board: {}",
+                self.board_count,
+                if self.board_count == 1 { "" } else { "s" },
+                w.instrument,
+                b.name,
+                w.fits_no_board.as_deref().unwrap_or("")
+            );
         } else if wb.error.is_some() {
             let _ = writeln!(
                 s,
@@ -489,6 +504,16 @@ impl BudgetReport {
             } else {
                 String::new()
             };
+            if let Some(why) = &w.fits_no_board {
+                let _ = writeln!(
+                    s,
+                    "  {}: no {u} fits one {} board, so its {count} {u}{} of this layout fit none: {why}",
+                    w.instrument,
+                    b.name,
+                    if count == 1 { "" } else { "s" },
+                );
+                continue;
+            }
             let _ = writeln!(
                 s,
                 "  {}: {} {u}{} ({} cycles per {u} with its glue{guard}); its {count} {u}{} of this layout need{} {} board{}",
@@ -615,6 +640,10 @@ pub fn collapse_runs(items: &[String]) -> Vec<String> {
     out
 }
 
+/// Samples of each corpus run measured for a program that fits no board ([`ProgramReport::corpus`]
+/// `token`): a few milliseconds of each run, enough to compare measured with static.
+pub const TOKEN_SAMPLES: usize = 200;
+
 /// Progress of [`keyboard_budget`]: a stage name, units done, units in all.
 pub type Progress<'a> = &'a mut dyn FnMut(&str, usize, usize);
 
@@ -642,19 +671,31 @@ pub fn keyboard_budget(
     for (p, pi) in programs.iter().zip(&input.programs) {
         statics.push(p.static_cost().map_err(|e| bad(&pi.instrument, &e))?);
     }
+    // Whether one key of each distinct code fits a board at all (the rule of
+    // `boards::fits_no_board`): one that does not is measured over a token corpus only —
+    // the verdict does not depend on the measurement, and the bowed string's 100,193 cycles
+    // a sample over the quick corpus took 270 CPU-s.
+    let unfit = boards::fits_no_board_each(&programs, &costs, board, &input.limiter)
+        .map_err(|e| bad(&input.input, &e))?;
     let mut reports = Vec::with_capacity(programs.len());
     for (i, pi) in input.programs.iter().enumerate() {
         progress("measuring", i, programs.len());
         let representative = !input.programs.iter().enumerate().any(|(j, q)| {
             q.instrument == pi.instrument && (statics[j].cycles, i) > (statics[i].cycles, j)
         });
-        let size = match (representative, input.quick) {
+        let token = unfit[i].is_some();
+        let size = match (representative && !token, input.quick) {
             (true, false) => Size::Full,
             (true, true) => Size::Quick,
             (false, _) => Size::Brief,
         };
         let fp = &pi.program.fixed;
-        let runs = corpus::corpus(fp, size);
+        let mut runs = corpus::corpus(fp, size);
+        if token {
+            for r in &mut runs {
+                r.records.truncate(TOKEN_SAMPLES);
+            }
+        }
         let measured = budget::measure_key_update(
             &pi.program.thumb,
             fp,
@@ -684,7 +725,10 @@ pub fn keyboard_budget(
             measured_mean: cost.measured.mean(),
             static_over_measured: cost.ratio(),
             sound: cost.sound(),
-            corpus: corpus_name(size).to_string(),
+            corpus: match token {
+                true => "token".to_string(),
+                false => corpus_name(size).to_string(),
+            },
             samples: corpus::samples(&runs),
             measured_max_at: WorstAt {
                 run: cost.measured.worst_at.0.clone(),
@@ -770,6 +814,10 @@ pub fn keyboard_budget(
         progress("what fits", what_fits.len(), input.programs.len());
         let densest = boards::densest_board(&programs, &costs, rep, board, &input.limiter)
             .map_err(|e| bad(&pi.instrument, &e))?;
+        let fits_no_board = match densest {
+            Some(_) => None,
+            None => unfit[rep].clone(),
+        };
         let n = densest.as_ref().map_or(0, |b| b.keys.len()) as u64;
         let guard_off = densest.is_some_and(|b| b.guard_off);
         let count = input
@@ -787,6 +835,7 @@ pub fn keyboard_budget(
             guarded_cycles_per_key: costs.key_cycles[rep],
             keys_per_board: n,
             boards_for_its_keys: if n == 0 { 0 } else { count.div_ceil(n) },
+            fits_no_board,
         });
     }
 

@@ -176,8 +176,34 @@ pub fn cycle_at_us(us: u64, clock_hz: u64) -> u64 {
     (us as u128 * clock_hz as u128).div_ceil(1_000_000) as u64
 }
 
+/// The largest layout, board file or key map read, bytes: far beyond any real one (an
+/// 88-key layout with a board per key is a few KB), and a bound on what a mistaken path
+/// (`/dev/zero`, a recording) can make a command hold.
+pub const MAX_TEXT_BYTES: u64 = 1 << 20;
+
+/// Reads a small text file (a layout, a board file, a key map) of at most
+/// [`MAX_TEXT_BYTES`], without reading more than that whatever the file claims.
+///
+/// Errors: a message naming the file (it cannot be read, is longer, or is not UTF-8).
+pub fn read_text(path: &Path) -> Result<String, String> {
+    use std::io::Read;
+    let f =
+        std::fs::File::open(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let mut bytes = Vec::new();
+    f.take(MAX_TEXT_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    if bytes.len() as u64 > MAX_TEXT_BYTES {
+        return Err(format!(
+            "{}: longer than the {MAX_TEXT_BYTES} bytes a layout, board file or key map may have",
+            path.display()
+        ));
+    }
+    String::from_utf8(bytes).map_err(|e| format!("{}: not UTF-8 text: {e}", path.display()))
+}
+
 fn read(path: &Path) -> Result<String, String> {
-    std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))
+    read_text(path)
 }
 
 /// Reads a board file. Errors name the file and, for bad values, the field.
@@ -254,9 +280,41 @@ pub fn parse_layout(text: &str, name: &str) -> Result<Layout, String> {
     toml::from_str(text).map_err(|e| format!("{name}: {e}"))
 }
 
+/// `layout` as a layout file: `header` as comment lines (each line of it, control
+/// characters escaped, so no name can end a comment early), then the TOML. The text is
+/// read back before it is returned: what `--write-plan` writes, `budget` and `play` read as
+/// the same layout.
+///
+/// Errors: a layout TOML cannot hold (never for a [`Layout`] read from a file), or text
+/// that does not read back as `layout` (a bug, reported rather than written).
+pub fn layout_text(layout: &Layout, header: &str) -> Result<String, String> {
+    let body = toml::to_string(layout).map_err(|e| format!("cannot write the layout: {e}"))?;
+    let mut text = String::new();
+    for line in header.lines() {
+        text.push_str("# ");
+        text.extend(line.chars().flat_map(|c| match c.is_control() {
+            true => c.escape_debug().collect::<Vec<_>>(),
+            false => vec![c],
+        }));
+        text.push('\n');
+    }
+    text.push_str(&body);
+    match parse_layout(&text, "the written layout") {
+        Ok(back) if back == *layout => Ok(text),
+        Ok(_) => Err("the written layout reads back differently".into()),
+        Err(e) => Err(format!("the written layout does not read back: {e}")),
+    }
+}
+
 /// Resolves a layout to one assignment per key, sorted by key. Instrument paths that exist
 /// relative to `dir` are made relative to it; other names are kept (built-ins).
 pub fn assign(layout: &Layout, name: &str, dir: &Path) -> Result<Vec<KeyAssignment>, String> {
+    if layout.ranges.is_empty() {
+        return Err(format!(
+            "{name}: `range`: the layout lists no keys (it needs at least one `[[range]]` with \
+             `keys = [first, last]` and an `instrument`)"
+        ));
+    }
     let mut out: BTreeMap<u8, (usize, KeyAssignment)> = BTreeMap::new();
     for (ri, r) in layout.ranges.iter().enumerate() {
         let [a, b] = r.keys;
@@ -284,7 +342,7 @@ pub fn assign(layout: &Layout, name: &str, dir: &Path) -> Result<Vec<KeyAssignme
             .map(|g| {
                 let (x, ux) = split_value(&g.from).ok_or_else(|| {
                     format!(
-                        "{name}: range {}: grade `{}`: `from` = {:?} is not a number with a unit",
+                        "{name}: range {}: grade `{}`: `from` = {:?} is not a finite number with a unit",
                         ri + 1,
                         g.param,
                         g.from
@@ -292,7 +350,7 @@ pub fn assign(layout: &Layout, name: &str, dir: &Path) -> Result<Vec<KeyAssignme
                 })?;
                 let (y, uy) = split_value(&g.to).ok_or_else(|| {
                     format!(
-                        "{name}: range {}: grade `{}`: `to` = {:?} is not a number with a unit",
+                        "{name}: range {}: grade `{}`: `to` = {:?} is not a finite number with a unit",
                         ri + 1,
                         g.param,
                         g.to
@@ -327,10 +385,15 @@ pub fn assign(layout: &Layout, name: &str, dir: &Path) -> Result<Vec<KeyAssignme
                 f64::from(k - a) / f64::from(b - a)
             };
             for (p, x, y, unit) in &grades {
-                params.push((
-                    p.clone(),
-                    format!("{} {unit}", x + (y - x) * u).trim().to_string(),
-                ));
+                let v = x + (y - x) * u;
+                if !v.is_finite() {
+                    return Err(format!(
+                        "{name}: range {}: grade `{p}`: the value at key {k} is beyond f64 \
+                         (from {x:e} to {y:e})",
+                        ri + 1
+                    ));
+                }
+                params.push((p.clone(), format!("{v} {unit}").trim().to_string()));
             }
             out.insert(
                 k,
@@ -405,14 +468,15 @@ pub fn board_keys(
     Ok(Some(out))
 }
 
-/// Splits `"11 g"` into (11, "g"); `"0.9"` into (0.9, "").
+/// Splits `"11 g"` into (11, "g"); `"0.9"` into (0.9, ""); `None` when the number is not
+/// one, or beyond f64 (`"1e400 g"`).
 fn split_value(s: &str) -> Option<(f64, String)> {
     let s = s.trim();
     let end = s
         .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | '-' | '+' | 'e' | 'E')))
         .unwrap_or(s.len());
     let (num, unit) = s.split_at(end);
-    let v: f64 = num.trim().parse().ok()?;
+    let v: f64 = num.trim().parse().ok().filter(|v: &f64| v.is_finite())?;
     Some((v, unit.trim().to_string()))
 }
 

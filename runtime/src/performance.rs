@@ -92,6 +92,27 @@ pub struct Performance {
     pub duration_s: f64,
 }
 
+impl Performance {
+    /// The first `seconds` of the performance (`tactus play --seconds`): the notes that
+    /// start before it, each still held then released there (the pedal is left as it is:
+    /// it only decides when dampers fall in the rendering).
+    ///
+    /// Errors: `seconds` not a positive number.
+    pub fn cut(&mut self, seconds: f64) -> Result<(), String> {
+        if !(seconds.is_finite() && seconds > 0.0) {
+            return Err(format!(
+                "--seconds must be a positive number, got {seconds}"
+            ));
+        }
+        self.notes.retain(|n| n.on_s < seconds);
+        for n in &mut self.notes {
+            n.off_s = n.off_s.min(seconds);
+        }
+        self.duration_s = self.duration_s.min(seconds);
+        Ok(())
+    }
+}
+
 /// Why a MIDI file could not be read.
 #[derive(Debug)]
 pub enum MidiError {
@@ -418,6 +439,29 @@ pub struct KeyTrack {
     moves: Vec<Move>,
     /// Note-on times of the notes played on this key, s, with their velocities.
     pub notes: Vec<(f64, u8)>,
+    /// Notes the model could not place as recorded ([`Rushed`]): pressed faster than their
+    /// velocity's descent (the piece starts too soon after them, or the key was still
+    /// moving for the previous note), or reaching the bottom after their note-on.
+    pub rushed: Vec<Rushed>,
+    /// Notes left out: their press could not start before the performance's end (the key
+    /// still busy with earlier notes of a dense repetition).
+    pub dropped: usize,
+}
+
+/// A note the key-motion model could not play as recorded: what it asked and what the key
+/// did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rushed {
+    /// Its note-on, s.
+    pub on_s: f64,
+    /// Its MIDI velocity.
+    pub velocity: u8,
+    /// The press it asked for (the descent time of its velocity for the travel left), s.
+    pub wanted_s: f64,
+    /// The press the key made, s.
+    pub pressed_s: f64,
+    /// How late the key reached the bottom after the note-on, s (0: on time).
+    pub late_s: f64,
 }
 
 impl KeyTrack {
@@ -438,7 +482,11 @@ impl KeyTrack {
 
 /// The key tracks of every key played in a performance, for a key dip `dip_m` (m).
 /// Presses end at the note-on time (the hammer reaches the string then); a note whose press
-/// would start before time 0 starts at 0.
+/// would start before time 0 starts at 0, pressed faster, and one whose press would start
+/// while the key still moves for the previous note waits for it; both are recorded in
+/// [`KeyTrack::rushed`]. A note whose key is busy beyond both its note-on and the piece's
+/// end is left out ([`KeyTrack::dropped`]), so a dense repetition cannot stretch the key's
+/// motion beyond the piece.
 pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
     let mut by_key: std::collections::BTreeMap<u8, Vec<Note>> = Default::default();
     for n in &perf.notes {
@@ -450,6 +498,8 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
             key,
             moves: Vec::new(),
             notes: Vec::new(),
+            rushed: Vec::new(),
+            dropped: 0,
         };
         for (i, n) in notes.iter().enumerate() {
             let descent = descent_time_s(n.velocity);
@@ -458,13 +508,30 @@ pub fn key_tracks(perf: &Performance, dip_m: f64) -> Vec<KeyTrack> {
             // fraction of the descent time (the key keeps the speed of its velocity); the
             // start depends on where the rising key is then, so it is found by iteration.
             let earliest = t.moves.last().map_or(0.0, |m| m.end_s);
+            if earliest >= perf.duration_s.max(n.on_s) && !t.moves.is_empty() {
+                // The key is busy past the note-on and the piece's end: no press for it.
+                t.dropped += 1;
+                continue;
+            }
             let mut start = (n.on_s - descent).max(earliest);
+            let mut remaining = 1.0;
             for _ in 0..3 {
-                let remaining = (1.0 - t.position(start) / dip_m).clamp(0.0, 1.0);
+                remaining = (1.0 - t.position(start) / dip_m).clamp(0.0, 1.0);
                 start = (n.on_s - descent * remaining).max(earliest);
             }
             let from = t.position(start);
             let bottom = n.on_s.max(start + 1e-3);
+            // Pressed faster than asked (more than 1 % or 0.1 ms), or late: reported.
+            let (wanted, pressed) = (descent * remaining, bottom - start);
+            if pressed < wanted * 0.99 - 1e-4 || bottom > n.on_s + 1e-4 {
+                t.rushed.push(Rushed {
+                    on_s: n.on_s,
+                    velocity: n.velocity,
+                    wanted_s: wanted,
+                    pressed_s: pressed,
+                    late_s: bottom - n.on_s,
+                });
+            }
             t.moves.push(Move {
                 start_s: start,
                 end_s: bottom,

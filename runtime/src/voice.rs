@@ -85,9 +85,55 @@ pub fn damper_time(off_s: f64, sustain: &[(f64, bool)]) -> f64 {
 /// at 44.1 kHz): callers check a length from input against it before rendering.
 pub const MAX_RENDER_SAMPLES: usize = 1 << 27;
 
+/// The most oscillator steps [`render`] should be asked for (a partial of a strike for one
+/// sample is one step; 2³³, tens of seconds): callers check [`render_work`] against it
+/// before rendering, so a run whose instrument strikes every sample (tens of thousands of
+/// strikes a second, each ringing for seconds) is refused rather than rendered for hours.
+/// A 10-minute recital of about 5,000 notes needs a few 10⁸.
+pub const MAX_RENDER_WORK: f64 = (1u64 << 33) as f64;
+
+/// The oscillator steps [`render`] takes for `strikes` over `seconds` at `sample_rate_hz`:
+/// per strike and partial, the samples until it falls below the silence threshold (or the
+/// buffer ends), computed from the decay rates without rendering.
+pub fn render_work(strikes: &[Strike], seconds: f64, sample_rate_hz: f64) -> f64 {
+    let n = (seconds.max(0.0) * sample_rate_hz).ceil();
+    let dt = 1.0 / sample_rate_hz;
+    let ln1000 = 1000f64.ln();
+    let damped = -ln1000 * dt / DAMPED_T60_S;
+    let mut work = 0.0;
+    for s in strikes {
+        let Some(i0) = first_sample(s.time_s, sample_rate_hz) else {
+            continue;
+        };
+        let i0 = i0 as f64;
+        if i0 >= n || s.speed_mps.is_nan() || s.speed_mps <= 0.0 {
+            continue;
+        }
+        let damp_after = match s.damp_s.is_finite() {
+            true => (s.damp_s * sample_rate_hz).round().max(i0) - i0,
+            false => f64::INFINITY,
+        };
+        for k in 1..=PARTIALS {
+            if partial_hz(s.key, k) >= 0.45 * sample_rate_hz {
+                break;
+            }
+            // ln(env/amp) per sample, before and after the damper.
+            let free = -ln1000 * dt / t60_s(s.key, k);
+            let silent = SILENCE.ln();
+            let steps = match silent / free <= damp_after {
+                true => silent / free,
+                false => damp_after + (silent - damp_after * free) / damped,
+            };
+            work += steps.ceil().min(n - i0);
+        }
+    }
+    work
+}
+
 /// Renders strikes into a mono buffer of `seconds` at `sample_rate_hz` (unnormalised: a
 /// 1 m/s strike's fundamental starts at amplitude about 1). The buffer is allocated whole:
-/// check `seconds · sample_rate_hz` against [`MAX_RENDER_SAMPLES`] first.
+/// check `seconds · sample_rate_hz` against [`MAX_RENDER_SAMPLES`] and [`render_work`]
+/// against [`MAX_RENDER_WORK`] first.
 pub fn render(strikes: &[Strike], seconds: f64, sample_rate_hz: f64) -> Vec<f32> {
     let n = (seconds.max(0.0) * sample_rate_hz).ceil() as usize;
     let mut buf = vec![0f32; n];

@@ -983,6 +983,82 @@ pub fn check(p: &Program, fp: &FixedProgram, keys: &[f64], dac_lsb_n: f64) -> Co
     )
 }
 
+/// The accuracy contract broken on a built-in stimulus: what `tactus check --report
+/// precision` exits 1 for and `tactus build`, `budget` and `play` refuse.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Broken {
+    /// The instrument.
+    pub instrument: String,
+    /// The first stimulus (of [`check_builtin`]'s order) on which a clause breaks.
+    pub stimulus: String,
+    /// The clauses it breaks, each a sentence with its numbers
+    /// ([`ContractCheck::violations`]).
+    pub violations: Vec<String>,
+}
+
+impl std::fmt::Display for Broken {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "`{}`: its accuracy contract does not hold in fixed point on the built-in stimulus `{}`: {} \
+             (`tactus check --report precision` gives every clause's margin; loosen a `tolerance`, or \
+             narrow the ranges the formats are planned for)",
+            self.instrument,
+            self.stimulus,
+            self.violations.join("; ")
+        )
+    }
+}
+
+impl std::error::Error for Broken {}
+
+/// The first of `runs` ([`check_builtin`]'s) that breaks `p`'s contract, as [`Broken`].
+///
+/// Errors: [`Broken`].
+pub fn holds_on(p: &Program, runs: &[(&str, ContractCheck)]) -> Result<(), Broken> {
+    for (stim, c) in runs {
+        let v = c.violations(&p.contract, p.sample_rate_hz);
+        if !v.is_empty() {
+            return Err(Broken {
+                instrument: p.name.clone(),
+                stimulus: stim.to_string(),
+                violations: v,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Whether `fp` keeps `p`'s accuracy contract on every built-in stimulus
+/// ([`check_builtin`], [`holds_on`]); a program of several sensors (a pen) has no built-in
+/// stimuli and passes.
+///
+/// Errors: [`Broken`].
+pub fn verdict(p: &Program, fp: &FixedProgram) -> Result<(), Broken> {
+    // A deterministic simulation of the program and its plan: memoised per process and on
+    // disk with the plans (`plan_cache`), so `tactus budget`, `build` and `play` of a piano
+    // pay it once.
+    let key = format!(
+        "{p:?}\n{:?}\n{:?}\n{:?}",
+        fp.mul_kind,
+        fp.frac,
+        fp.nominal_param_block()
+    );
+    let broken = super::plan_cache::verdict_once(&key, || {
+        holds_on(p, &check_builtin(p, fp))
+            .err()
+            .map(|b| (b.stimulus, b.violations))
+    });
+    match broken {
+        None => Ok(()),
+        Some((stimulus, violations)) => Err(Broken {
+            instrument: p.name.clone(),
+            stimulus,
+            violations,
+        }),
+    }
+}
+
 /// Every built-in stimulus of a keyboard program (one sensor) through both engines,
 /// clause by clause against `p.contract`: (stimulus, what it showed). Empty for a program of
 /// several sensors (a pen), whose stimuli are not key dips.

@@ -111,7 +111,63 @@ pub(crate) fn searched_once(
     like: &[Option<MulKind>],
     search: impl FnOnce() -> Vec<Option<MulKind>>,
 ) -> Vec<Option<MulKind>> {
-    type Slot = std::sync::Arc<std::sync::Mutex<Option<Vec<Option<MulKind>>>>>;
+    computed_once(
+        key,
+        MAGIC,
+        |body| parse_forms(body, like),
+        |k: &Vec<_>| render_forms(k),
+        search,
+    )
+}
+
+/// The contract's verdict on a planned program (`contract::verdict`), memoised like the
+/// forms: `key` is the program the verdict is about (its IR, from which the plan follows),
+/// `check` computes the verdict (`None`: holds; `Some((stimulus, violations))`).
+pub(crate) fn verdict_once(
+    key: &str,
+    check: impl FnOnce() -> Option<(String, Vec<String>)>,
+) -> Option<(String, Vec<String>)> {
+    computed_once(
+        &format!("contract verdict\n{key}"),
+        VERDICT_MAGIC,
+        |body| match body {
+            "holds" => Some(None),
+            _ => {
+                let mut lines = body.lines();
+                let stim = lines.next()?.strip_prefix("broken ")?.to_string();
+                Some(Some((stim, lines.map(str::to_string).collect())))
+            }
+        },
+        |v| match v {
+            None => "holds".to_string(),
+            Some((stim, why)) => {
+                let mut t = format!("broken {stim}");
+                for w in why {
+                    t.push('\n');
+                    t.push_str(&w.replace('\n', " "));
+                }
+                t
+            }
+        },
+        check,
+    )
+}
+
+/// First line of a verdict entry.
+const VERDICT_MAGIC: &str = "tactus-contract-verdict 1";
+
+/// The one memo behind [`searched_once`] and [`verdict_once`]: the value for `key` from
+/// this process' memo, else from the disk entry (first line `magic`, then `render`'s text,
+/// read by `parse`), else from `compute` (then stored in both); one `compute` per key at a
+/// time in this process and, with a cache directory, across processes.
+fn computed_once<T>(
+    key: &str,
+    magic: &str,
+    parse: impl Fn(&str) -> Option<T>,
+    render: impl Fn(&T) -> String,
+    compute: impl FnOnce() -> T,
+) -> T {
+    type Slot = std::sync::Arc<std::sync::Mutex<Option<String>>>;
     static SLOTS: std::sync::OnceLock<std::sync::Mutex<std::collections::HashMap<String, Slot>>> =
         std::sync::OnceLock::new();
     let slot: Slot = {
@@ -119,31 +175,37 @@ pub(crate) fn searched_once(
             .get_or_init(Default::default)
             .lock()
             .unwrap_or_else(|e| e.into_inner());
-        slots.entry(key.to_string()).or_default().clone()
+        slots.entry(format!("{magic}\n{key}")).or_default().clone()
     };
-    // Held for the whole search: this process' other threads asking for `key` wait here.
+    // Held for the whole computation: this process' other threads asking for `key` wait here.
     let mut memo = slot.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(kinds) = memo.as_ref() {
-        return kinds.clone();
+    if let Some(v) = memo.as_deref().and_then(&parse) {
+        return v;
     }
     let dir = dir();
-    if let Some(kinds) = dir.as_deref().and_then(|d| load_in(d, key, like)) {
-        *memo = Some(kinds.clone());
-        return kinds;
+    let from_disk = |memo: &mut Option<String>| {
+        let body = load_text(dir.as_deref()?, key, magic)?;
+        let v = parse(&body)?;
+        *memo = Some(body);
+        Some(v)
+    };
+    if let Some(v) = from_disk(&mut memo) {
+        return v;
     }
-    // Other processes: the entry's lock file, then the entry again (the search that held
-    // the lock may have just written it). A lock that cannot be taken only costs a search.
+    // Other processes: the entry's lock file, then the entry again (the computation that
+    // held the lock may have just written it). A lock that cannot be taken only costs a
+    // computation.
     let _lock = dir.as_deref().and_then(|d| lock_in(d, key));
-    if let Some(kinds) = dir.as_deref().and_then(|d| load_in(d, key, like)) {
-        *memo = Some(kinds.clone());
-        return kinds;
+    if let Some(v) = from_disk(&mut memo) {
+        return v;
     }
-    let kinds = search();
+    let v = compute();
+    let body = render(&v);
     if let Some(d) = dir.as_deref() {
-        store_in(d, key, &kinds);
+        store_text(d, key, magic, &body);
     }
-    *memo = Some(kinds.clone());
-    kinds
+    *memo = Some(body);
+    v
 }
 
 /// An exclusive lock on `key`'s lock file in `dir` (blocking until the process holding it
@@ -160,15 +222,17 @@ fn lock_in(dir: &Path, key: &str) -> Option<std::fs::File> {
     Some(file)
 }
 
-/// The forms cached for `key` in `dir`, if an entry exists with one form per value of `like` and a
-/// product exactly where `like` has one; otherwise `None`.
-fn load_in(dir: &Path, key: &str, like: &[Option<MulKind>]) -> Option<Vec<Option<MulKind>>> {
+/// The body of `key`'s entry in `dir` when its first line is `magic`.
+fn load_text(dir: &Path, key: &str, magic: &str) -> Option<String> {
     let text = std::fs::read_to_string(dir.join(file_name(key))).ok()?;
-    let mut lines = text.lines();
-    if lines.next()? != MAGIC {
-        return None;
-    }
-    let kinds: Vec<Option<MulKind>> = lines.map(decode).collect::<Option<_>>()?;
+    let (first, body) = text.split_once('\n').unwrap_or((&text, ""));
+    (first == magic).then(|| body.to_string())
+}
+
+/// Forms read from an entry's body: one per value of `like` and a product exactly where
+/// `like` has one; otherwise `None`.
+fn parse_forms(body: &str, like: &[Option<MulKind>]) -> Option<Vec<Option<MulKind>>> {
+    let kinds: Vec<Option<MulKind>> = body.lines().map(decode).collect::<Option<_>>()?;
     let same_shape = kinds.len() == like.len()
         && kinds
             .iter()
@@ -177,19 +241,34 @@ fn load_in(dir: &Path, key: &str, like: &[Option<MulKind>]) -> Option<Vec<Option
     same_shape.then_some(kinds)
 }
 
+fn render_forms(kinds: &[Option<MulKind>]) -> String {
+    kinds.iter().map(encode).collect::<Vec<_>>().join("\n")
+}
+
+#[cfg(test)]
+/// The forms cached for `key` in `dir`, if an entry exists with one form per value of `like` and a
+/// product exactly where `like` has one; otherwise `None`.
+fn load_in(dir: &Path, key: &str, like: &[Option<MulKind>]) -> Option<Vec<Option<MulKind>>> {
+    parse_forms(&load_text(dir, key, MAGIC)?, like)
+}
+
+#[cfg(test)]
 /// Stores `kinds` for `key` in `dir`; silently does nothing when it cannot be written.
 fn store_in(dir: &Path, key: &str, kinds: &[Option<MulKind>]) {
+    store_text(dir, key, MAGIC, &render_forms(kinds));
+}
+
+/// Stores `magic` and `body` as `key`'s entry in `dir` (through a temporary file, renamed
+/// into place); silently does nothing when it cannot be written.
+fn store_text(dir: &Path, key: &str, magic: &str, body: &str) {
     if std::fs::create_dir_all(dir).is_err() {
         return;
     }
-    let mut text = String::from(MAGIC);
-    for k in kinds {
-        text.push('\n');
-        text.push_str(&encode(k));
-    }
     let name = file_name(key);
     let tmp = dir.join(format!("{name}.{}.tmp", std::process::id()));
-    if std::fs::write(&tmp, text).is_ok() && std::fs::rename(&tmp, dir.join(&name)).is_err() {
+    if std::fs::write(&tmp, format!("{magic}\n{body}")).is_ok()
+        && std::fs::rename(&tmp, dir.join(&name)).is_err()
+    {
         let _ = std::fs::remove_file(&tmp);
     }
 }

@@ -88,6 +88,10 @@ impl<'a> Lowerer<'a> {
                         (s.init, s.range, s.dim) = (v, (lo, hi), dim);
                     }
                     ast::Decl::Require { cond, .. } => self.check_requirement(scope, cond),
+                    // A solve's range: folded and checked (E0306, E0308) as any range.
+                    ast::Decl::SolveRange { range, .. } => {
+                        self.const_range(scope, range, None);
+                    }
                     ast::Decl::Tolerance { .. } => self.evaluate_tolerance(scope, d),
                     ast::Decl::Dynamics { eqs, .. } => self.check_oscillators(scope, eqs),
                     _ => {}
@@ -160,14 +164,32 @@ impl<'a> Lowerer<'a> {
                     format!("{v:.6e} {unit}")
                 }
             };
+            // A requirement on the sample rate is about the board the program is built for.
+            let (label, hint) = match crate::expand::mentions(cond, super::SAMPLE_RATE) {
+                true => (
+                    format!(
+                        "does not hold for these params at a sample rate of {} Hz",
+                        self.config.sample_rate_hz
+                    ),
+                    "change the params (or `--param` overrides), or use a board whose `sample_rate_hz` meets it: requirements guard numerical stability and the uniqueness of solves",
+                ),
+                false => (
+                    "does not hold for these params".to_string(),
+                    "change the params (or `--param` overrides) so that it holds: requirements guard numerical stability and the uniqueness of solves",
+                ),
+            };
             self.err(
                 Diagnostic::error(
                     "E0310",
-                    format!("requirement not met: the left side is {}, the right side {}", show(va), show(vb)),
+                    format!(
+                        "requirement not met: the left side is {}, the right side {}",
+                        show(va),
+                        show(vb)
+                    ),
                     cond.span.clone(),
                 )
-                .label("does not hold for these params")
-                .hint("change the params (or `--param` overrides) so that it holds: requirements guard numerical stability and the uniqueness of solves"),
+                .label(label)
+                .hint(hint),
             );
         }
     }

@@ -339,7 +339,8 @@ impl<'a> Lowerer<'a> {
                 ast::Decl::Dynamics { .. }
                 | ast::Decl::Handler { .. }
                 | ast::Decl::Require { .. }
-                | ast::Decl::Tolerance { .. } => {}
+                | ast::Decl::Tolerance { .. }
+                | ast::Decl::SolveRange { .. } => {}
                 // Removed by `crate::expand` before lowering.
                 ast::Decl::For { .. }
                 | ast::Decl::Solve { .. }

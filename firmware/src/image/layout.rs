@@ -2,7 +2,7 @@
 //!
 //! The order is forced by what each step needs: the board and the keys are checked first
 //! ([`check_board`], [`check_keys`], [`check_code_fits`]: nothing is analysed for a program
-//! that cannot be placed); the tick schedule ([`tick_schedule`]) and the start alarm
+//! that cannot be placed); the tick schedule (`crate::board_file::tick_schedule`) and the start alarm
 //! ([`start_alarm_us`]) follow from the board and the programs' `init` costs. Then the code:
 //! per core a block of vector table and program copies ([`place_programs`]), whose glue's
 //! size is measured at provisional addresses ([`place_code_blocks`], which also fixes where
@@ -39,31 +39,12 @@ pub(super) struct Layout<'a> {
     pub cores: usize,
 }
 
-/// The board's cores, sample rate (Hz) and clock (Hz) as the image needs them.
+/// The board's cores, sample rate (Hz) and clock (Hz) as the image needs them
+/// ([`crate::board_file::image_board`], the one rule).
 ///
-/// Errors: [`ImageError::Board`] (not 1 or 2 cores, a sample rate that is not a whole
-/// number of Hz up to 1 MHz, a clock that is not a whole number of Hz from 1 MHz).
-pub(super) fn check_board(board: &BoardSpec) -> Result<(usize, u32, u64), ImageError> {
-    let cores = board.cores as usize;
-    if !(1..=2).contains(&cores) {
-        return Err(ImageError::Board(format!(
-            "{} cores; the RP2040 image runs on 1 or 2",
-            board.cores
-        )));
-    }
-    let fs = board.sample_rate_hz;
-    if !(fs >= 1.0 && fs.fract() == 0.0 && fs <= 1e6) {
-        return Err(ImageError::Board(format!(
-            "sample rate {fs} Hz: the tick schedule needs a whole number of Hz up to 1 MHz"
-        )));
-    }
-    let clock = board.clock_hz;
-    if !(clock >= 1e6 && clock.fract() == 0.0 && clock <= 1e10) {
-        return Err(ImageError::Board(format!(
-            "clock {clock} Hz: need a whole number of Hz from 1 MHz"
-        )));
-    }
-    Ok((cores, fs as u32, clock as u64))
+/// Errors: [`ImageError::Board`] naming the field.
+pub(super) fn check_board(board: &BoardSpec) -> Result<crate::board_file::Chip, ImageError> {
+    crate::board_file::image_board(board).map_err(|e| ImageError::Board(e.to_string()))
 }
 
 /// Checks every key — its program exists, its words in both windows are inside them and
@@ -172,36 +153,6 @@ pub(super) fn check_code_fits(
     }
     Ok(())
 }
-
-/// The tick schedule at `fs` Hz on a `clock_hz` core clock ([`Tick`]).
-///
-/// Errors: [`ImageError::Board`] when the shortest period is beyond SysTick's 24-bit
-/// reload value (2²⁴ cycles) or below [`MIN_PERIOD`] cycles.
-pub(super) fn tick_schedule(fs: u32, clock_hz: u64) -> Result<Tick, ImageError> {
-    let q = clock_hz / u64::from(fs);
-    if !(MIN_PERIOD..=1 << 24).contains(&q) {
-        return Err(ImageError::Board(format!(
-            "{q} cycles per sample ({clock_hz} Hz / {fs} Hz): the sample tick (SysTick, a \
-             24-bit counter) needs {MIN_PERIOD} to {} cycles",
-            1u64 << 24
-        )));
-    }
-    let rem = clock_hz % u64::from(fs);
-    let (mut x, mut y) = (rem, u64::from(fs));
-    while y != 0 {
-        (x, y) = (y, x % y);
-    }
-    Ok(Tick {
-        q: q as u32,
-        rem: (rem / x) as u32,
-        den: (u64::from(fs) / x) as u32,
-    })
-}
-
-/// Fewest cycles per sample the image accepts: the start handler must have enabled each
-/// core's SysTick ([`START_CYCLES`] after the alarm) before the first tick, `q` cycles
-/// after the enabling store.
-pub const MIN_PERIOD: u64 = 100;
 
 /// Cycles after the start alarm by which both cores have enabled their SysTick (the
 /// exception entry and the start handler's first three instructions take about 20); the

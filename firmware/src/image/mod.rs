@@ -369,7 +369,9 @@ fn lower(
 /// instrument has several and they differ only in param values, else each set gets its own.
 ///
 /// Errors: the index of the set and [`ImageError::Compile`] when the Thumb backend fails or
-/// a set's param values do not fit its shared program's intervals (a bug).
+/// a set's param values do not fit its shared program's intervals (a bug), or
+/// [`ImageError::Contract`] when a plan breaks its instrument's accuracy contract on a
+/// built-in stimulus.
 pub fn compile_shared(
     sets: &[(&str, &tactus_compiler::ir::Program)],
 ) -> Result<Vec<Program>, (usize, ImageError)> {
@@ -381,9 +383,16 @@ pub fn compile_shared(
         let members: Vec<usize> = (0..sets.len()).filter(|&i| sets[i].0 == name).collect();
         let irs: Vec<tactus_compiler::ir::Program> =
             members.iter().map(|&i| sets[i].1.clone()).collect();
+        // No program whose accuracy contract its plan breaks (at its own param values;
+        // a shared code at its nominal block).
+        let contract = |ir: &tactus_compiler::ir::Program, code: &Program| {
+            tactus_compiler::fixed::contract::verdict(ir, &code.fixed)
+                .map_err(|b| ImageError::Contract(b.to_string()))
+        };
         match tactus_compiler::share::share(&irs) {
             Ok(shared) if members.len() > 1 => {
                 let code = Program::of_ir(&shared.program).map_err(|e| (members[0], e))?;
+                contract(&shared.program, &code).map_err(|e| (members[0], e))?;
                 for (&i, values) in members.iter().zip(&shared.values()) {
                     let block = code
                         .fixed
@@ -394,7 +403,9 @@ pub fn compile_shared(
             }
             _ => {
                 for &i in &members {
-                    programs[i] = Some(Program::of_ir(sets[i].1).map_err(|e| (i, e))?);
+                    let code = Program::of_ir(sets[i].1).map_err(|e| (i, e))?;
+                    contract(sets[i].1, &code).map_err(|e| (i, e))?;
+                    programs[i] = Some(code);
                 }
             }
         }
@@ -544,6 +555,9 @@ pub enum ImageError {
     },
     /// The board cannot run an image (clock, sample rate or core count).
     Board(String),
+    /// A program's plan breaks its instrument's accuracy contract
+    /// (`tactus_compiler::fixed::contract::verdict`): no firmware is made from it.
+    Contract(String),
     /// The limiter configuration cannot be built, or not in the firmware's arithmetic.
     Limiter(String),
     /// A core's code and data do not fit its SRAM bank.
@@ -579,6 +593,7 @@ impl fmt::Display for ImageError {
             ImageError::Compile(e) => write!(f, "cannot compile a key program: {e}"),
             ImageError::BadKey { key, why } => write!(f, "key {key}: {why}"),
             ImageError::Board(e) => write!(f, "board: {e}"),
+            ImageError::Contract(e) => f.write_str(e),
             ImageError::Limiter(e) => write!(f, "limiter: {e}"),
             ImageError::NoRoom { core, need, have } => write!(
                 f,
@@ -810,7 +825,8 @@ impl FirmwareImage {
         board: &BoardSpec,
         limiter: &LimiterConfig,
     ) -> Result<FirmwareImage, ImageError> {
-        let (cores, fs, clock_hz) = layout::check_board(board)?;
+        let chip = layout::check_board(board)?;
+        let (cores, fs, clock_hz) = (chip.cores, chip.sample_rate_hz, chip.clock_hz);
         let lim_cfg = LimiterConfig {
             sample_rate_hz: fs as f64,
             ..*limiter
@@ -825,7 +841,7 @@ impl FirmwareImage {
             keys,
             consts,
             key_drives,
-            tick: layout::tick_schedule(fs, clock_hz)?,
+            tick: chip.tick,
             cores,
         };
         let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
@@ -990,12 +1006,8 @@ impl FirmwareImage {
     ///
     /// Errors: [`ImageError::Board`].
     pub fn flashable(&self) -> Result<(), ImageError> {
-        if self.boot.pll.is_none() {
-            return Err(ImageError::Board(format!(
-                "clock {} Hz: no PLL_SYS setting makes it from the 12 MHz crystal \
-                 (REFDIV 1, FBDIV 16-320, VCO 750-1600 MHz, post dividers 1-7)",
-                self.clock_hz
-            )));
+        if let Some(why) = crate::board_file::pll_error(self.clock_hz) {
+            return Err(ImageError::Board(format!("clock {why}")));
         }
         let core_mv = self.boot.vsel.map_or(
             tactus_emulator::clocks::DEFAULT_CORE_MV,

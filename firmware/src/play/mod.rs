@@ -100,7 +100,8 @@ pub struct PlayConfig {
     pub finger: FingerConfig,
     /// What to trace.
     pub trace: TraceWindow,
-    /// The board of `Emu`.
+    /// The board: its sample rate is every engine's (the programs are compiled for it);
+    /// `Emu` runs its firmware.
     pub board: Board,
     /// The emulator's engine (the same cycles and strikes either way).
     pub emulator: tactus_emulator::Engine,
@@ -183,8 +184,13 @@ pub struct Played {
     pub traces: Traces,
     /// The force player's calibration per program (`None` with the position player).
     pub calibrations: Vec<Option<FingerCalibration>>,
-    /// How the force player played repeated notes.
+    /// How the force player played repeated notes, and the notes either player left out
+    /// ([`Restrikes::dropped`]).
     pub restrikes: Restrikes,
+    /// The position player's notes it could not place as recorded, with their keys
+    /// (`tactus_runtime::performance::KeyTrack::rushed`): pressed faster than their
+    /// velocity asks, or late.
+    pub rushed: Vec<(u8, tactus_runtime::performance::Rushed)>,
     /// Key-samples simulated.
     pub key_samples: u64,
     /// With `Emu`: the boards' budget over the run.
@@ -205,11 +211,14 @@ pub fn play(
     progress: &dyn Progress,
 ) -> Result<Played, String> {
     let programs = &keyboard.programs;
-    let fs = programs
-        .first()
-        .map_or(tactus_runtime::DEFAULT_SAMPLE_RATE_HZ, |p| {
-            p.program.sample_rate_hz
-        });
+    // Every program runs at the board's sample rate, compiled for it.
+    let fs = config.board.sample_rate_hz;
+    if let Some(p) = programs.iter().find(|p| p.program.sample_rate_hz != fs) {
+        return Err(format!(
+            "`{}` is compiled for {} Hz, the board `{}` samples at {fs} Hz",
+            p.name, p.program.sample_rate_hz, config.board.name
+        ));
+    }
     // The fixed-point JIT runs the keys with `Fixed`, and calibrates the force player for
     // `Emu` (the same bits as the firmware's update).
     let fixed_needed = config.engine == PlayEngine::Fixed
@@ -306,6 +315,7 @@ pub fn play(
     // Each played key's motion and the stretches it moves.
     let mut motions: BTreeMap<u8, (Motion, Vec<(f64, f64)>)> = BTreeMap::new();
     let mut restrikes = Restrikes::default();
+    let mut rushed = Vec::new();
     for (&key, &pi) in &keyboard.key_program {
         let notes: Vec<Note> = perf
             .notes
@@ -316,6 +326,9 @@ pub fn play(
         let force = calibrations[pi].as_ref().map(|c| (c, finger));
         let (motion, busy, counts) = key_motion(&notes, dip_of(pi), perf.duration_s, force);
         restrikes += counts;
+        if let Motion::Track(t) = &motion {
+            rushed.extend(t.rushed.iter().map(|r| (key, *r)));
+        }
         motions.insert(key, (motion, busy_stretches(busy)));
     }
     let mut strikes = Vec::new();
@@ -445,6 +458,7 @@ pub fn play(
         traces,
         calibrations,
         restrikes,
+        rushed,
         key_samples,
         boards,
     })

@@ -170,6 +170,7 @@ pub fn finger_profile(
     notes: &[Note],
     cal: &FingerCalibration,
     finger: FingerConfig,
+    end_s: f64,
 ) -> (ForceProfile, Restrikes) {
     let mut strokes: Vec<Stroke> = Vec::with_capacity(notes.len());
     let mut counts = Restrikes::default();
@@ -177,6 +178,19 @@ pub fn finger_profile(
         let speed = speed_for_velocity(n.velocity);
         let (mut peak, lead) = cal.from_rest.for_speed(speed);
         let mut start = (n.on_s - lead).max(0.0);
+        // The key still busy with earlier strokes beyond this note-on and the piece's end
+        // (a dense repetition, each re-strike waiting for the last): the note is left out.
+        if strokes
+            .last()
+            .is_some_and(|p| p.push_end_s + RESTRIKE_RISE_S >= end_s.max(n.on_s))
+        {
+            counts.dropped += 1;
+            continue;
+        }
+        if strokes.is_empty() && n.on_s - lead < 0.0 {
+            // The piece starts sooner than the push needs: the stroke starts at 0, late.
+            counts.late += 1;
+        }
         if let Some(prev) = strokes.last_mut() {
             match &cal.restrike {
                 Some(re) if start < prev.lift_s + SETTLE_S => {
@@ -224,8 +238,12 @@ pub struct Restrikes {
     /// … of which the asked softness had no time: played with the weakest re-strike that
     /// fits, louder than asked.
     pub raised: usize,
-    /// … of which none fits: started late.
+    /// … of which none fits: started late (with the first note of a piece that starts
+    /// sooner than its push needs).
     pub late: usize,
+    /// Notes left out: the key still busy with earlier strokes beyond the note-on and the
+    /// piece's end.
+    pub dropped: usize,
 }
 
 impl std::ops::AddAssign for Restrikes {
@@ -233,6 +251,7 @@ impl std::ops::AddAssign for Restrikes {
         self.restrikes += o.restrikes;
         self.raised += o.raised;
         self.late += o.late;
+        self.dropped += o.dropped;
     }
 }
 
@@ -257,7 +276,7 @@ pub fn key_motion(
                 dip_m,
             )
             .remove(0);
-            let busy = notes
+            let mut busy: Vec<(f64, f64)> = notes
                 .iter()
                 .map(|n| {
                     (
@@ -266,10 +285,17 @@ pub fn key_motion(
                     )
                 })
                 .collect();
-            (Motion::Track(track), busy, Restrikes::default())
+            // A chain of waiting presses may end later than its notes' own intervals.
+            let end = track.last_move_end_s();
+            busy.push((end - performance::RELEASE_S, end));
+            let counts = Restrikes {
+                dropped: track.dropped,
+                ..Restrikes::default()
+            };
+            (Motion::Track(track), busy, counts)
         }
         Some((cal, finger)) => {
-            let (profile, counts) = finger_profile(notes, cal, finger);
+            let (profile, counts) = finger_profile(notes, cal, finger, duration_s);
             let busy = profile
                 .strokes()
                 .iter()

@@ -43,6 +43,21 @@ pub fn write_wav(
             voice::MAX_RENDER_SAMPLES as f64 / fs - 2.0
         ));
     }
+    let work = voice::render_work(&notes, last + 2.0, fs);
+    if work > voice::MAX_RENDER_WORK {
+        let most = (0..=127u8)
+            .map(|k| (strikes.iter().filter(|s| s.key == k).count(), k))
+            .max()
+            .unwrap_or_default();
+        return Err(format!(
+            "{}: {} strikes ({} of them on key {}) ring for {work:.2e} oscillator steps, more than the {:.1e} a WAV rendering may take; use --no-wav",
+            path.display(),
+            strikes.len(),
+            most.0,
+            most.1,
+            voice::MAX_RENDER_WORK
+        ));
+    }
     let samples = voice::render(&notes, last + 2.0, fs);
     let scale = voice::i16_scale(&samples, 0.9);
     let spec = hound::WavSpec {

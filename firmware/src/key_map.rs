@@ -1,0 +1,278 @@
+//! The one validation of a key map (`keys.json`) against the firmware image it describes,
+//! before `tactus emu run` allocates or loops on anything the map says.
+//!
+//! A key map is input like any other: a hand-edited or mismatched one must not make the
+//! run allocate for an absurd clock, spin for hours through a start alarm or a tick period
+//! the firmware never set, or report handler cycles and "0 misses" of a sample interrupt
+//! that is not the firmware's. So every field is checked against what the image's bytes
+//! hold, or against the rule by which [`crate::image::FirmwareImage::build`] laid it out:
+//!
+//! - the board fields (`clock_hz`, `sample_rate_hz`, the number of `cores`) by the one rule
+//!   for boards ([`crate::board_file::check_clock`]), and `period_cycles` /
+//!   `period_fraction` equal to the tick schedule they give;
+//! - `entry` equal to the ELF's entry point;
+//! - per core: its vector table's stack pointer, reset handler and SysTick vector (the
+//!   sample interrupt, exception 15) equal to `stack_top`, `reset` and `sample_isr`, its
+//!   control block inside the image with the start alarm word equal to `start_alarm_us`
+//!   (itself at most [`MAX_START_ALARM_US`]);
+//! - per key: a MIDI number at most 127 used once, a core of the map, listed in that
+//!   core's `keys` (and every listed key exists with that core), its sensor and DAC words
+//!   in their windows at the slots the image gives keys in window order (consecutive from
+//!   slot 0, a key taking the larger of its sensor and DAC word counts), its record and
+//!   state inside the image.
+//!
+//! What only running shows — that the firmware set PLL_SYS to `clock_hz` and each core's
+//! SysTick to `period_cycles` — [`crate::flash::run_elf`] checks after the boot (bounded by
+//! the checked start alarm) and before the first sample; and after the run, that each core
+//! completed the samples run.
+
+use crate::board_file::{self, Chip};
+use crate::flash::KeyMap;
+use crate::image::glue::ctrl;
+use tactus_emulator::elf::Image;
+use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
+use tactus_runtime::keyboard::Board;
+
+/// The latest start alarm a key map may name, µs after the timer's release: the images
+/// `tactus build` writes start their tick within tens of µs (the keys' `init`s and the
+/// boot); a second bounds the boot run whatever the map says.
+pub const MAX_START_ALARM_US: u32 = 1_000_000;
+
+/// A key map checked against its image: the addresses the run needs, parsed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CheckedMap {
+    /// The board as the firmware runs it.
+    pub chip: Chip,
+    /// Per core: (sample interrupt without the Thumb bit, control block).
+    pub cores: Vec<(u32, u32)>,
+    /// Per key, in window order: its sensor word addresses.
+    pub sensor_words: Vec<Vec<u32>>,
+    /// Per key, in window order: its DAC word addresses.
+    pub dac_words: Vec<Vec<u32>>,
+}
+
+/// An address field: `"0x2003f000"` (hexadecimal, the `0x` optional).
+fn addr(s: &str, field: &str) -> Result<u32, String> {
+    let digits = s.strip_prefix("0x").unwrap_or(s);
+    if digits.is_empty() || digits.len() > 8 {
+        return Err(format!(
+            "`{field}` = {s:?} is not a 32-bit hexadecimal address"
+        ));
+    }
+    u32::from_str_radix(digits, 16)
+        .map_err(|_| format!("`{field}` = {s:?} is not a 32-bit hexadecimal address"))
+}
+
+/// The `len` bytes at `at` of one loaded segment of `image` as the program runs (its
+/// virtual address: a flash image's pieces at the SRAM addresses its reset handler copies
+/// them to), if one holds them all.
+fn bytes(image: &Image, at: u32, len: u32) -> Option<&[u8]> {
+    image.segments.iter().find_map(|s| {
+        let off = at.checked_sub(s.run_addr)? as usize;
+        s.data.get(off..off.checked_add(len as usize)?)
+    })
+}
+
+/// The word at `at` in the image.
+fn word(image: &Image, at: u32) -> Option<u32> {
+    bytes(image, at, 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+}
+
+/// Checks `map` against `image` (the parsed ELF); see the module documentation. Nothing in
+/// it allocates or loops by more than the map's own length.
+///
+/// Errors: a message naming the field (`cores[1].sample_isr`, `keys[3].sensor_words`, …)
+/// and what the image holds instead.
+pub fn check(map: &KeyMap, image: &Image) -> Result<CheckedMap, String> {
+    let board = Board {
+        name: map.board_kind.clone(),
+        clock_hz: map.clock_hz as f64,
+        cores: u32::try_from(map.cores.len()).unwrap_or(u32::MAX),
+        sample_rate_hz: f64::from(map.sample_rate_hz),
+        core_voltage_v: None,
+    };
+    // The board's fields; `cores` is the length of the map's list.
+    let chip = board_file::check_clock(&board).map_err(|e| e.to_string())?;
+    let tick = chip.tick;
+    if map.period_cycles != tick.q || map.period_fraction != [tick.rem, tick.den] {
+        return Err(format!(
+            "`period_cycles` = {}, `period_fraction` = {:?}: {} Hz at {} Hz is {} cycles and {}/{} a period",
+            map.period_cycles, map.period_fraction, map.sample_rate_hz, map.clock_hz, tick.q, tick.rem, tick.den
+        ));
+    }
+    let entry = addr(&map.entry, "entry")?;
+    if entry != image.entry {
+        return Err(format!(
+            "`entry` = {}: the ELF's entry point is {:#010x}",
+            map.entry, image.entry
+        ));
+    }
+    if map.start_alarm_us > MAX_START_ALARM_US {
+        return Err(format!(
+            "`start_alarm_us` = {}: at most {MAX_START_ALARM_US} (the firmware `tactus build` \
+             writes starts its tick within tens of µs)",
+            map.start_alarm_us
+        ));
+    }
+    let mut cores = Vec::with_capacity(map.cores.len());
+    for (i, c) in map.cores.iter().enumerate() {
+        let f = |name: &str| format!("cores[{i}].{name}");
+        if c.core != i {
+            return Err(format!(
+                "`{}` = {}: the cores are listed 0, 1",
+                f("core"),
+                c.core
+            ));
+        }
+        let vt = addr(&c.vector_table, &f("vector_table"))?;
+        let vector = |n: u32, name: &str, want: u32| -> Result<(), String> {
+            match word(image, vt.wrapping_add(4 * n)) {
+                Some(w) if w == want => Ok(()),
+                Some(w) => Err(format!(
+                    "`{}` = {want:#010x}: the vector table at {:#010x} holds {w:#010x} there",
+                    f(name),
+                    vt
+                )),
+                None => Err(format!(
+                    "`{}` = {:#010x}: no vector table of the image is there",
+                    f("vector_table"),
+                    vt
+                )),
+            }
+        };
+        vector(0, "stack_top", addr(&c.stack_top, &f("stack_top"))?)?;
+        vector(1, "reset", addr(&c.reset, &f("reset"))?)?;
+        let isr = addr(&c.sample_isr, &f("sample_isr"))?;
+        // The sample interrupt is the SysTick exception's handler (exception 15).
+        vector(15, "sample_isr", isr)?;
+        let control = addr(&c.control, &f("control"))?;
+        match word(image, control.wrapping_add(u32::from(ctrl::START))) {
+            _ if bytes(image, control, ctrl::SIZE).is_none() => {
+                return Err(format!(
+                    "`{}` = {}: no control block of the image is there",
+                    f("control"),
+                    c.control
+                ))
+            }
+            Some(w) if w == map.start_alarm_us => {}
+            w => {
+                return Err(format!(
+                    "`start_alarm_us` = {}: core {i}'s control block holds {}",
+                    map.start_alarm_us,
+                    w.unwrap_or(0)
+                ))
+            }
+        }
+        cores.push((isr & !1, control));
+    }
+    if map.keys.len() > MAX_KEYS {
+        return Err(format!(
+            "`keys`: {} keys; a board has at most {MAX_KEYS}",
+            map.keys.len()
+        ));
+    }
+    let mut seen = [false; 128];
+    let mut slot = 0u32;
+    let mut sensor_words = Vec::with_capacity(map.keys.len());
+    let mut dac_words = Vec::with_capacity(map.keys.len());
+    for (i, k) in map.keys.iter().enumerate() {
+        let f = |name: &str| format!("keys[{i}].{name}");
+        let midi = usize::from(k.midi);
+        if midi > 127 || seen[midi] {
+            return Err(format!(
+                "`{}` = {}: a MIDI key number (0–127) used once",
+                f("midi"),
+                k.midi
+            ));
+        }
+        seen[midi] = true;
+        let Some(core) = map.cores.get(k.core) else {
+            return Err(format!(
+                "`{}` = {}: the map has {} cores",
+                f("core"),
+                k.core,
+                map.cores.len()
+            ));
+        };
+        if !core.keys.contains(&k.midi) {
+            return Err(format!(
+                "`{}` = {}: `cores[{}].keys` does not list key {}",
+                f("core"),
+                k.core,
+                k.core,
+                k.midi
+            ));
+        }
+        // Window words from the key's slot, in order (the image's layout).
+        let width = k.sensor_words.len().max(k.dac_words.len()) as u32;
+        if k.sensor_words.is_empty() || k.dac_words.is_empty() || slot + width > MAX_KEYS as u32 {
+            return Err(format!(
+                "`{}`, `{}`: {} and {} words from slot {slot}: each key has at least one of each, all within the windows' {MAX_KEYS} words",
+                f("sensor_words"),
+                f("dac_words"),
+                k.sensor_words.len(),
+                k.dac_words.len()
+            ));
+        }
+        let mut words = Vec::with_capacity(k.sensor_words.len());
+        for (j, w) in k.sensor_words.iter().enumerate() {
+            let a = addr(w, &f("sensor_words"))?;
+            let want = SENSOR_BASE + 4 * (slot + j as u32);
+            if a != want {
+                return Err(format!(
+                    "`{}[{j}]` = {w}: the image reads key slot {} at {want:#010x}",
+                    f("sensor_words"),
+                    slot + j as u32
+                ));
+            }
+            words.push(a);
+        }
+        let mut dacs = Vec::with_capacity(k.dac_words.len());
+        for (j, w) in k.dac_words.iter().enumerate() {
+            let want = DAC_BASE + 4 * (slot + j as u32);
+            dacs.push(want);
+            if addr(w, &f("dac_words"))? != want {
+                return Err(format!(
+                    "`{}[{j}]` = {w}: the image writes key slot {} at {want:#010x}",
+                    f("dac_words"),
+                    slot + j as u32
+                ));
+            }
+        }
+        slot += width;
+        for (name, v) in [("record", &k.record), ("state", &k.state)] {
+            let a = addr(v, &f(name))?;
+            if bytes(image, a, 4).is_none() {
+                return Err(format!("`{}` = {v}: not inside the image", f(name)));
+            }
+        }
+        if let Some(p) = &k.param_block {
+            let a = addr(p, &f("param_block"))?;
+            if bytes(image, a, 4).is_none() {
+                return Err(format!(
+                    "`{}` = {p}: not inside the image",
+                    f("param_block")
+                ));
+            }
+        }
+        sensor_words.push(words);
+        dac_words.push(dacs);
+    }
+    for (i, c) in map.cores.iter().enumerate() {
+        if let Some(m) = c
+            .keys
+            .iter()
+            .find(|&&m| !map.keys.iter().any(|k| k.midi == m && k.core == i))
+        {
+            return Err(format!(
+                "`cores[{i}].keys` lists key {m}, which is not a key of `keys` on core {i}"
+            ));
+        }
+    }
+    Ok(CheckedMap {
+        chip,
+        cores,
+        sensor_words,
+        dac_words,
+    })
+}
