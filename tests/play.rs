@@ -159,9 +159,9 @@ fn maestro_1_first_20_s_on_every_board_of_grand88_bit_exact_without_misses() {
         .lines()
         .filter(|l| l.trim_start().starts_with("board "))
         .collect();
-    // The budget's plan for grand88: three piano keys per core, six per board (the last
-    // board four), since session 14.
-    assert_eq!(boards.len(), 15, "grand88's planned boards: {stdout}");
+    // The budget's plan for grand88: four piano keys per core, eight per board, since
+    // issue 38.
+    assert_eq!(boards.len(), 11, "grand88's planned boards: {stdout}");
     for l in &boards {
         assert_eq!(l.matches("deadline misses 0").count(), 2, "{l}");
     }
@@ -1110,7 +1110,7 @@ fn whole_maestro_pieces_on_every_board_of_grand88_without_misses() {
             .lines()
             .filter(|l| l.trim_start().starts_with("board "))
             .collect();
-        assert_eq!(boards.len(), 15, "{name}: {stdout}");
+        assert_eq!(boards.len(), 11, "{name}: {stdout}");
         for l in &boards {
             assert_eq!(l.matches("deadline misses 0").count(), 2, "{name}: {l}");
         }

@@ -51,11 +51,10 @@
 //!   and the turns are replayed after each pre-decoded instruction ([`Sleeper::after`]), or
 //!   in closed form after native code ([`Sleeper::after_native`]), which needs only the
 //!   end cycle and that of the last instruction of two cycles or more;
-//! * both cores run: the core behind runs a window of confined compiled code ahead of the
-//!   other in its own banks, and the other catches up confined to the other banks
-//!   ([`run_confined`]; the argument and the rollback are in [`crate::board`], "Running
-//!   ahead"); where that fails, the board's lock-step loop on the interpreter.
-//!
+//! * both cores run on disjoint banks: each runs alone over a window, confined
+//!   ([`run_confined`]; the argument and the rollback are in [`crate::board`]'s
+//!   `window.rs`); where that fails, the board's lock-step loop on the interpreter.
+
 use crate::bus::{sram_location, Bus, System};
 use crate::core::Core;
 use crate::decode::{decode, Instr};
@@ -107,6 +106,9 @@ pub(crate) enum Leave {
     Miss,
 }
 
+/// Undo-journal entries the journal is made with (a window's stores beyond stop its core).
+const JOURNAL: usize = 1 << 16;
+
 /// The decoded blocks and their lookup.
 pub(crate) struct Blocks {
     /// (tag, index of the block's first op in `ops`, one past its last); the tag is the
@@ -131,31 +133,12 @@ pub(crate) struct Blocks {
     pub(crate) confined: Vec<Jit>,
     /// Confined without arbitration ([`jit::Flavour::ConfinedSolo`]), per bank mask.
     pub(crate) confined_solo: Vec<Jit>,
-    /// The undo journal of the core running ahead (entries as [`crate::jit`] writes them).
+    /// The undo journals of the two cores in a window (entries as [`crate::jit`] writes
+    /// them; [`crate::board`]'s `window.rs`).
     pub(crate) journal: Vec<u64>,
-    /// The core running ahead at each exit of its native code ([`run_confined`]).
-    pub(crate) marks: Vec<Mark>,
+    /// The other core's.
+    pub(crate) journal_other: Vec<u64>,
 }
-
-/// A core's state at an exit of native code while it runs ahead: where a window can be
-/// cut back to ([`crate::board`], "Running ahead").
-#[derive(Clone)]
-pub(crate) struct Mark {
-    /// The core.
-    pub(crate) core: Core,
-    /// Its last claim of each bank.
-    pub(crate) claims: [u64; crate::bus::BANKS],
-    /// Its contention stalls.
-    pub(crate) stalls: u64,
-    /// Undo-journal entries written before it.
-    pub(crate) journal: usize,
-}
-
-/// Undo-journal entries kept while a core runs ahead: a window that fills it ends there.
-const JOURNAL: usize = 1 << 16;
-
-/// Most marks ([`Mark`]) kept in one window (later exits are not marked).
-pub(crate) const MAX_MARKS: usize = 1024;
 
 #[inline(always)]
 fn tag(pc: u32, epoch: u32) -> u64 {
@@ -189,7 +172,7 @@ impl Blocks {
             confined: Vec::new(),
             confined_solo: Vec::new(),
             journal: Vec::with_capacity(JOURNAL),
-            marks: Vec::new(),
+            journal_other: Vec::with_capacity(JOURNAL),
         }
     }
 
@@ -500,22 +483,20 @@ fn fetch_allowed(sys: &System, pc: u32, size: u32) -> bool {
 }
 
 /// [`run`] confined to the SRAM banks in [`System::allowed_banks`] (set by the caller), for
-/// running ahead ([`crate::board`], "Running ahead"): compiled regions come from the
+/// a window ([`crate::board`]'s `window.rs`): compiled regions come from the
 /// confined cache, whose loads and stores leave before an access to another bank, and
 /// pre-decoded instructions run through the executor, whose fast path does the same; an
 /// instruction fetched from another bank leaves too. With `journal`, only native code runs
 /// (the run ends where a region does not fit or leaves, `Err(Leave::General)`), every
 /// store's old word is appended to `journal` (the run ends before a store that finds it
-/// full) so that the caller can undo the run, and the core's state after each native call
-/// is appended to `marks` (up to [`MAX_MARKS`]) so that it can undo part of it. `Ok` when
-/// the core reached `limit`.
+/// full, its capacity) so that the caller can undo the run. `Ok` when the core reached
+/// `limit`.
 pub(crate) fn run_confined(
     core: &mut Core,
     sys: &mut System,
     blocks: &mut Blocks,
     limit: u64,
     mut journal: Option<&mut Vec<u64>>,
-    mut marks: Option<&mut Vec<Mark>>,
 ) -> Result<(), Leave> {
     let allowed = sys.allowed_banks;
     let mut retired = 0u64;
@@ -545,18 +526,6 @@ pub(crate) fn run_confined(
                     };
                     let (exit, n, _) = jit::call(region.f, core, sys, limit, Some(&mut confine));
                     retired += n;
-                    if let (Some(m), Some(j)) = (marks.as_deref_mut(), journal.as_deref()) {
-                        if m.len() < MAX_MARKS {
-                            let mut c = core.clone();
-                            c.instructions += retired;
-                            m.push(Mark {
-                                core: c,
-                                claims: sys.bank_claim.map(|c| c[core.id & 1]),
-                                stalls: sys.contention_stalls[core.id & 1],
-                                journal: j.len(),
-                            });
-                        }
-                    }
                     match exit {
                         jit::Exit::Invalidate => sys.invalidate_code(),
                         jit::Exit::General => native = false,

@@ -1,42 +1,61 @@
-//! Whole-keyboard emulation speed: the first quarter second of the built-in demo (the
-//! scale's first notes) through the firmware of every board of grand88 (44 planned RP2040
-//! boards of two grand-piano keys, every key every sample, unplayed keys at rest, the
-//! quiescent-key guard on) with `tactus_firmware::perform::play_boards`, the boards as
-//! rayon tasks on the machine's cores — `tactus play`'s default run without its compile and
-//! plan. Criterion's "elements" are key-samples; real time is 88 × 44 100 = 3 880 800
-//! key-samples per second, so the real-time factor is the throughput divided by that.
-//! Two variants in the same run: the block engine (`tactus play`'s default) and, as the
-//! baseline, the interpreter (`--emu interp`). Compiled code is kept for the whole process
-//! (`tactus_emulator`'s code store), so the block engine's iterations after the first do
-//! not compile: the figure is the steady state of a long performance.
+//! Whole-keyboard emulation speed in emulated cycles per CPU-second, beside the emulator's
+//! one-core loop rate measured in the same run (issue 37's machine-independent ratio).
+//!
+//! The workload is `tactus play`'s default run without its compile, plan and boot: the
+//! first [`SECONDS`] of the built-in demo (the scale's first notes) through the firmware of
+//! every board of grand88 (planned as `tactus budget` plans them; every key every sample,
+//! unplayed keys at rest, the quiescent-key guard on), each board a [`BoardEngine`] stepped
+//! by the one play loop (`run_keys`). The boards are built and booted outside the timed
+//! part (criterion's `iter_batched`), and run one after the other on the bench's thread,
+//! so wall time is CPU time. Criterion's "elements" are the emulated cycles of the sample
+//! interrupts (every core's handler cycles, exception entry to return: the cycles the
+//! cores are not asleep), so the throughput is emulated cycles per CPU-second. The
+//! baseline in the same group is the emulator bench's speed loop on one core
+//! (`emulator/benches/common/mod.rs`, block engine: SRAM load and store, MULS, a taken
+//! branch, 10 cycles per iteration), elements = its emulated cycles. Both engines run the
+//! keyboard: the block engine (`tactus play`'s default) and the interpreter
+//! (`--emu interp`, the lock-step reference). Compiled code is kept for the whole process
+//! (`tactus_emulator`'s code store), so iterations after the first do not compile: the
+//! figure is the steady state of a long performance.
 //!
 //! With `KEYBOARD_BENCH_ONCE=block` (or `interp`) in the environment the bench instead runs
 //! that engine once and prints a summary that must not change between emulator versions
 //! (per board the handler cycles of each core, the strikes), for `valgrind
-//! --tool=callgrind --collect-atstart=no --toggle-collect='*play_boards*'`, whose
-//! instruction counts do not depend on the machine's load (`RAYON_NUM_THREADS=1`).
+//! --tool=callgrind --collect-atstart=no --toggle-collect='*run_keys*'`, whose
+//! instruction counts do not depend on the machine's load.
 
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use std::collections::BTreeMap;
 use std::path::Path;
-use tactus_firmware::image::compile_layout;
-use tactus_firmware::perform::{play_boards, Motion, PerformOptions};
+use tactus_emulator::Engine;
+use tactus_firmware::boards::{self, PlanKey, ProgramCosts};
+use tactus_firmware::image::{compile_layout, Program};
+use tactus_firmware::perform::{BoardEngine, BoardRun, Motion};
+use tactus_firmware::play::run::{run_keys, Drive, LoopConfig};
 use tactus_firmware::play::TraceWindow;
-use tactus_runtime::keyboard::{read_board, read_layout};
+use tactus_runtime::keyboard::{read_board, read_layout, Board};
 use tactus_runtime::limiter::LimiterConfig;
 use tactus_runtime::performance::{demo, key_tracks};
 use tactus_runtime::player::FingerConfig;
 
+#[path = "../../emulator/benches/common/mod.rs"]
+mod common;
+
 /// Music per criterion iteration, s.
 const SECONDS: f64 = 0.25;
+/// Sample rate, Hz.
+const FS: f64 = 44_100.0;
+/// Cycles per iteration of the one-core loop.
+const LOOP_CYCLES: u64 = 20_000_000;
 
-/// Everything a run needs: the programs, the keys, the board, the key motions, the samples.
+/// Everything a run needs: the programs, the planned boards (their keys), the board kind,
+/// the key motions, the samples.
 struct Setup {
-    programs: Vec<tactus_firmware::image::Program>,
-    key_programs: Vec<usize>,
-    board: tactus_runtime::keyboard::Board,
-    motions: Vec<(u8, Motion)>,
-    midi: Vec<u8>,
+    programs: Vec<Program>,
+    costs: ProgramCosts,
+    boards: Vec<Vec<PlanKey>>,
+    board: Board,
+    motions: BTreeMap<u8, Motion>,
     end: usize,
 }
 
@@ -47,102 +66,130 @@ fn setup() -> Setup {
         std::fs::read_to_string(root.join(format!("instruments/{name}.tactus")))
             .map_err(|e| e.to_string())
     };
-    let (programs, key_programs) = compile_layout(&keys, &source, 44_100.0).unwrap();
+    let (programs, key_programs) = compile_layout(&keys, &source, FS).unwrap();
     let board = read_board(&root.join("boards/rp2040.toml")).unwrap();
     let mut perf = demo();
     perf.notes.retain(|n| n.on_s < SECONDS);
     let dip = programs[0].fixed.program.sensors[0].range.1;
-    let motions: Vec<(u8, Motion)> = key_tracks(&perf, dip)
+    let motions = key_tracks(&perf, dip)
         .into_iter()
         .map(|t| (t.key, Motion::Track(t)))
         .collect();
-    let midi: Vec<u8> = keys.iter().map(|k| k.key).collect();
-    let end = (SECONDS * 44_100.0) as usize;
+    let lim = LimiterConfig::default();
+    let costs = ProgramCosts::new(&programs, &board, &lim).unwrap();
+    let keys: Vec<PlanKey> = keys
+        .iter()
+        .zip(&key_programs)
+        .map(|(k, &program)| PlanKey {
+            key: k.key,
+            program,
+        })
+        .collect();
+    let planned = boards::plan(&programs, &costs, &keys, &board, &lim, &mut |_, _| {}).unwrap();
+    let boards = planned
+        .iter()
+        .map(|b| {
+            keys.iter()
+                .filter(|k| b.keys.contains(&k.key))
+                .copied()
+                .collect()
+        })
+        .collect();
     Setup {
         programs,
-        key_programs,
+        costs,
+        boards,
         board,
         motions,
-        midi,
-        end,
+        end: (SECONDS * FS) as usize,
     }
 }
 
-fn options(end: usize, engine: tactus_emulator::Engine) -> PerformOptions {
-    PerformOptions {
-        end,
-        fs: 44_100.0,
+/// Every board built and booted on `engine`, with the drives of its keys.
+fn boot<'s>(s: &'s Setup, engine: Engine) -> Vec<(BoardEngine<'s>, Vec<Drive<'s>>)> {
+    let lim = LimiterConfig::default();
+    s.boards
+        .iter()
+        .map(|keys| {
+            let e =
+                BoardEngine::new(&s.programs, &s.costs, keys, &s.board, &lim, engine, 1).unwrap();
+            let drives = keys
+                .iter()
+                .map(|k| Drive {
+                    key: k.key,
+                    motion: s.motions.get(&k.key),
+                    dip_m: s.programs[k.program].fixed.program.sensors[0].range.1,
+                })
+                .collect();
+            (e, drives)
+        })
+        .collect()
+}
+
+/// Plays the demo through every booted board, one after the other; each board's report
+/// and its strikes.
+fn play(s: &Setup, boards: Vec<(BoardEngine, Vec<Drive>)>) -> Vec<(BoardRun, usize)> {
+    let trace = TraceWindow::default();
+    let config = LoopConfig {
+        fs: FS,
         finger: FingerConfig::default(),
-        trace: TraceWindow::default(),
-        boards: None,
-        limiter: LimiterConfig::default(),
-        engine,
-        quiescent_guard: true,
-    }
+        trace: &trace,
+        stop_at_strike_after_s: None,
+    };
+    boards
+        .into_iter()
+        .map(|(mut e, drives)| {
+            let run = run_keys(&mut e, &drives, 0..s.end, &config, &|_| {}).unwrap();
+            (e.finish(), run.strikes.len())
+        })
+        .collect()
+}
+
+/// Emulated cycles of every core's sample interrupts in a run.
+fn handler_cycles(runs: &[(BoardRun, usize)]) -> u64 {
+    runs.iter().map(|(r, _)| r.total.iter().sum::<u64>()).sum()
 }
 
 /// `KEYBOARD_BENCH_ONCE=engine`: one run, with a summary.
-fn once(engine: tactus_emulator::Engine) {
+fn once(engine: Engine) {
     let s = setup();
-    let motions: BTreeMap<u8, &Motion> = s.motions.iter().map(|(k, m)| (*k, m)).collect();
-    let run = play_boards(
-        &s.programs,
-        &s.midi,
-        &s.key_programs,
-        &s.board,
-        &motions,
-        &options(s.end, engine),
-        &|_| {},
-    )
-    .unwrap();
+    let runs = play(&s, boot(&s, engine));
     let mut strikes = 0;
-    for (i, b) in run.boards.iter().enumerate() {
-        strikes += b.strikes.len();
+    for (i, (b, n)) in runs.iter().enumerate() {
+        strikes += n;
         println!(
-            "board {i}: keys {:?} handler cycles {:?} max {:?} misses {:?} strikes {}",
-            b.keys,
-            b.total,
-            b.max,
-            b.misses,
-            b.strikes.len()
+            "board {i}: keys {:?} handler cycles {:?} max {:?} misses {:?} strikes {n}",
+            b.keys, b.total, b.max, b.misses
         );
     }
     println!(
-        "{engine:?}: {} samples, {} boards, {strikes} strikes",
+        "{engine:?}: {} samples, {} boards, {strikes} strikes, {} handler cycles",
         s.end,
-        run.boards.len()
+        runs.len(),
+        handler_cycles(&runs)
     );
 }
 
 fn bench(c: &mut Criterion) {
     let s = setup();
-    let (programs, key_programs, board, midi, end) =
-        (&s.programs, &s.key_programs, &s.board, &s.midi, s.end);
-    let motions: BTreeMap<u8, &Motion> = s.motions.iter().map(|(k, m)| (*k, m)).collect();
-    let mut group = c.benchmark_group("whole_keyboard");
+    let cycles = handler_cycles(&play(&s, boot(&s, Engine::Block)));
+    let mut group = c.benchmark_group("cycles_per_cpu_second");
     group.sample_size(10);
     group.warm_up_time(std::time::Duration::from_secs(1));
     group.measurement_time(std::time::Duration::from_secs(5));
-    group.throughput(Throughput::Elements((end * midi.len()) as u64));
-    for engine in [
-        tactus_emulator::Engine::Block,
-        tactus_emulator::Engine::Interp,
-    ] {
-        let opts = options(end, engine);
-        let name = format!("grand88_demo_{engine:?}");
-        group.bench_function(&name, |b| {
-            b.iter(|| {
-                play_boards(
-                    programs,
-                    midi,
-                    key_programs,
-                    board,
-                    &motions,
-                    &opts,
-                    &|_| {},
-                )
-                .unwrap()
-            })
+    group.throughput(Throughput::Elements(LOOP_CYCLES));
+    let mut b = common::speed_loop(Engine::Block, 1);
+    group.bench_function("loop_1_core_Block", |bench| {
+        bench.iter(|| b.run_for(LOOP_CYCLES))
+    });
+    group.throughput(Throughput::Elements(cycles));
+    for engine in [Engine::Block, Engine::Interp] {
+        group.bench_function(format!("grand88_demo_{engine:?}"), |bench| {
+            bench.iter_batched(
+                || boot(&s, engine),
+                |b| play(&s, b),
+                BatchSize::PerIteration,
+            )
         });
     }
     group.finish();
@@ -150,8 +197,8 @@ fn bench(c: &mut Criterion) {
 
 fn main_or_once(c: &mut Criterion) {
     match std::env::var("KEYBOARD_BENCH_ONCE").as_deref() {
-        Ok("block") => once(tactus_emulator::Engine::Block),
-        Ok("interp") => once(tactus_emulator::Engine::Interp),
+        Ok("block") => once(Engine::Block),
+        Ok("interp") => once(Engine::Interp),
         Ok(other) => eprintln!("KEYBOARD_BENCH_ONCE={other}: expected `block` or `interp`"),
         Err(_) => bench(c),
     }

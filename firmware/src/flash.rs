@@ -306,8 +306,8 @@ fn key_map(
     let mut keys = Vec::with_capacity(bkeys.len());
     for (i, (k, spec)) in bkeys.iter().zip(&specs).enumerate() {
         let p = &programs[spec.program];
-        let nd = p.drives().map_or(1, |d| d.len());
         let (record, state) = image.key_addresses(i).unwrap_or((0, 0));
+        let (sensor_words, dac_words) = image.window_words(i).unwrap_or_default();
         keys.push(KeyMapEntry {
             midi: k.key,
             instrument: input
@@ -321,11 +321,13 @@ fn key_map(
                 .map(|n| n.1.iter().map(|(a, b)| format!("{a}={b}")).collect())
                 .unwrap_or_default(),
             core: core_of.get(i).copied().unwrap_or(spec.core),
-            sensor_words: (0..p.sensor_words())
-                .map(|j| hex(SENSOR_BASE + 4 * (spec.slot + j) as u32))
+            sensor_words: sensor_words
+                .iter()
+                .map(|&w| hex(SENSOR_BASE + 4 * w as u32))
                 .collect(),
-            dac_words: (0..nd)
-                .map(|j| hex(DAC_BASE + 4 * (spec.slot + j) as u32))
+            dac_words: dac_words
+                .iter()
+                .map(|&w| hex(DAC_BASE + 4 * w as u32))
                 .collect(),
             record: hex(record),
             state: hex(state),

@@ -17,8 +17,9 @@
 //!   (itself at most [`MAX_START_ALARM_US`]);
 //! - per key: a MIDI number at most 127 used once, a core of the map, listed in that
 //!   core's `keys` (and every listed key exists with that core), its sensor and DAC words
-//!   in their windows at the slots the image gives keys in window order (consecutive from
-//!   slot 0, a key taking the larger of its sensor and DAC word counts), its record and
+//!   at the window words the image gives its core's keys in order (the split windows,
+//!   `crate::image::window_word`: each core's words in its own banks, a key taking the
+//!   larger of its sensor and DAC word counts), its record and
 //!   state inside the image.
 //!
 //! What only running shows — that the firmware set PLL_SYS to `clock_hz` and each core's
@@ -173,7 +174,7 @@ pub fn check(map: &KeyMap, image: &Image) -> Result<CheckedMap, String> {
         ));
     }
     let mut seen = [false; 128];
-    let mut slot = 0u32;
+    let mut next = vec![0usize; map.cores.len()];
     let mut sensor_words = Vec::with_capacity(map.keys.len());
     let mut dac_words = Vec::with_capacity(map.keys.len());
     for (i, k) in map.keys.iter().enumerate() {
@@ -204,43 +205,52 @@ pub fn check(map: &KeyMap, image: &Image) -> Result<CheckedMap, String> {
                 k.midi
             ));
         }
-        // Window words from the key's slot, in order (the image's layout).
-        let width = k.sensor_words.len().max(k.dac_words.len()) as u32;
-        if k.sensor_words.is_empty() || k.dac_words.is_empty() || slot + width > MAX_KEYS as u32 {
-            return Err(format!(
-                "`{}`, `{}`: {} and {} words from slot {slot}: each key has at least one of each, all within the windows' {MAX_KEYS} words",
-                f("sensor_words"),
-                f("dac_words"),
-                k.sensor_words.len(),
-                k.dac_words.len()
-            ));
-        }
+        // The core's next window words, in order (the image's split windows:
+        // `crate::image::window_word`).
+        let width = k.sensor_words.len().max(k.dac_words.len());
+        let from = next[k.core];
+        let window: Option<Vec<u32>> = (from..from + width)
+            .map(|j| crate::image::window_word(map.cores.len(), k.core, j).map(|w| w as u32))
+            .collect();
+        let window = match window {
+            Some(w) if !k.sensor_words.is_empty() && !k.dac_words.is_empty() => w,
+            _ => {
+                return Err(format!(
+                    "`{}`, `{}`: {} and {} words from core {}'s window word {from}: each key has at least one of each, all within its core's share of the windows' {MAX_KEYS} words",
+                    f("sensor_words"),
+                    f("dac_words"),
+                    k.sensor_words.len(),
+                    k.dac_words.len(),
+                    k.core
+                ))
+            }
+        };
         let mut words = Vec::with_capacity(k.sensor_words.len());
         for (j, w) in k.sensor_words.iter().enumerate() {
             let a = addr(w, &f("sensor_words"))?;
-            let want = SENSOR_BASE + 4 * (slot + j as u32);
+            let want = SENSOR_BASE + 4 * window[j];
             if a != want {
                 return Err(format!(
-                    "`{}[{j}]` = {w}: the image reads key slot {} at {want:#010x}",
+                    "`{}[{j}]` = {w}: the image reads that sensor at {want:#010x} (window word {})",
                     f("sensor_words"),
-                    slot + j as u32
+                    window[j]
                 ));
             }
             words.push(a);
         }
         let mut dacs = Vec::with_capacity(k.dac_words.len());
         for (j, w) in k.dac_words.iter().enumerate() {
-            let want = DAC_BASE + 4 * (slot + j as u32);
+            let want = DAC_BASE + 4 * window[j];
             dacs.push(want);
             if addr(w, &f("dac_words"))? != want {
                 return Err(format!(
-                    "`{}[{j}]` = {w}: the image writes key slot {} at {want:#010x}",
+                    "`{}[{j}]` = {w}: the image writes that force at {want:#010x} (window word {})",
                     f("dac_words"),
-                    slot + j as u32
+                    window[j]
                 ));
             }
         }
-        slot += width;
+        next[k.core] += width;
         for (name, v) in [("record", &k.record), ("state", &k.state)] {
             let a = addr(v, &f(name))?;
             if bytes(image, a, 4).is_none() {

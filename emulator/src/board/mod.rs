@@ -68,20 +68,20 @@ pub struct Config {
     /// Both give the same cycles, registers and memory; [`Board::step`] is always the
     /// general path.
     pub engine: Engine,
-    /// The SRAM banks each core may run ahead in (bit per bank: 0-3 SRAM0-3, 4 SRAM4,
-    /// 5 SRAM5). With both cores running on [`Engine::Block`], the core that is behind may
-    /// run compiled code ahead of the other while it touches only its own banks, the other
-    /// then catching up while it touches none of them (see "Running ahead" in this
-    /// module). Default `[0, 0]`: the two cores in lock-step on the interpreter — on the
-    /// firmware images, whose own banks are [`FIRMWARE_OWN_BANKS`], running ahead cost more
-    /// than it saved (BENCHMARKS.md, issue 18: the README demo took 53.6 CPU-s with it and
-    /// 45.2 without, the same strikes). Results never depend on it, only speed.
+    /// Each core's own SRAM banks (bit per bank: 0-3 SRAM0-3, 4 SRAM4, 5 SRAM5). When
+    /// they are disjoint and both set, [`Engine::Block`] runs the two cores as independent
+    /// machines over whole windows of cycles, each confined to its own banks and private
+    /// registers, undoing a window in which either touches anything else (`board/window.rs`;
+    /// the firmware images lay each core out in its own banks,
+    /// [`FIRMWARE_OWN_BANKS`]). Default `[0, 0]`: the two cores in lock-step. Results never
+    /// depend on it, only speed.
     pub own_banks: [u8; 2],
 }
 
-/// The banks each core of a firmware image owns (`tactus-firmware`, `image/mod.rs`: core 0
-/// SRAM0 and SRAM4, core 1 SRAM1 and SRAM5), for [`Config::own_banks`].
-pub const FIRMWARE_OWN_BANKS: [u8; 2] = [0b01_0001, 0b10_0010];
+/// The banks each core of a two-core firmware image owns (`tactus-firmware`, `image/mod.rs`:
+/// core 0 SRAM0, SRAM2 and SRAM4, core 1 SRAM1, SRAM3 and SRAM5: code, data, stack and its
+/// share of the sensor and DAC windows), for [`Config::own_banks`].
+pub const FIRMWARE_OWN_BANKS: [u8; 2] = [0b01_0101, 0b10_1010];
 
 /// The engine behind [`Board::run_until`]'s fast path.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -162,8 +162,10 @@ pub struct Board {
     launch: Option<Launch>,
     cache: Box<[Cached; CACHE_SLOTS]>,
     blocks: Blocks,
-    /// Run-ahead windows kept, rolled back and partly kept ([`Board::run_ahead_windows`]).
-    windows: [u64; 3],
+    /// Windows kept and undone ([`Board::run_ahead_windows`]).
+    windows: [u64; 2],
+    /// No window before either core reaches this cycle (after one that ran nothing).
+    window_at: u64,
     /// Each core's active exceptions at its last [`Board::profile_step`] that ran its loop
     /// (`u64::MAX`, which no core has, before any).
     profiled_active: [u64; 2],
@@ -199,7 +201,8 @@ impl Board {
             watch_free: true,
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
-            windows: [0; 3],
+            windows: [0; 2],
+            window_at: 0,
             debug: Default::default(),
             cache: run::empty_cache(),
         };

@@ -21,12 +21,15 @@ pub(super) struct Profile {
     /// Measures only activations entered by exception entry ([`Board::profile_handler`]):
     /// the fast path need not watch the entry, which only the general path reaches then.
     handler_only: bool,
-    /// Open calls per core: (return address or exception number, SP at entry, start cycle).
-    open: [Vec<(Return, u32, u64)>; 2],
+    /// Open calls per core.
+    open: [Vec<Open>; 2],
     calls: Vec<Call>,
     /// Times the entry was reached (calls open or completed, both cores).
-    entries: u64,
+    entries: [u64; 2],
 }
+
+/// An open call: (return address or exception number, SP at entry, start cycle).
+type Open = (Return, u32, u64);
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Return {
@@ -53,7 +56,7 @@ impl Board {
             handler_only,
             open: [Vec::new(), Vec::new()],
             calls: Vec::new(),
-            entries: 0,
+            entries: [0; 2],
         });
         self.profiles.len() - 1
     }
@@ -92,7 +95,9 @@ impl Board {
     /// to the link register it was entered with, this counts a block that is not a function
     /// (a code generator's `BL` long branches change LR inside one) at the moment it runs.
     pub fn entries(&self, handle: usize) -> u64 {
-        self.profiles.get(handle).map_or(0, |p| p.entries)
+        self.profiles
+            .get(handle)
+            .map_or(0, |p| p.entries[0] + p.entries[1])
     }
 
     /// Forgets the completed calls of profiled function `handle` (read them with
@@ -137,7 +142,7 @@ impl Board {
                 });
             }
             if pc == p.entry && core.thumb {
-                p.entries += 1;
+                p.entries[k] += 1;
                 let lr = core.r[14];
                 let ret = if lr >> 28 == 0xf && core.ipsr != 0 {
                     Return::FromException(core.ipsr)
@@ -201,5 +206,40 @@ impl Board {
             }
         }
         Some(watch)
+    }
+}
+
+/// Core `k`'s part of every profile at some moment ([`Board::profile_mark`]): what undoing
+/// its steps since then restores.
+pub(super) struct ProfileMark {
+    /// Per profile: completed calls then, core `k`'s open calls, core `k`'s entries.
+    each: Vec<(usize, Vec<Open>, u64)>,
+    active: u64,
+}
+
+impl Board {
+    /// Core `k`'s part of every profile now.
+    pub(super) fn profile_mark(&self, k: usize) -> ProfileMark {
+        ProfileMark {
+            each: self
+                .profiles
+                .iter()
+                .map(|p| (p.calls.len(), p.open[k].clone(), p.entries[k]))
+                .collect(),
+            active: self.profiled_active[k],
+        }
+    }
+
+    /// Undoes core `k`'s profiling since `mark`: its calls completed since then are
+    /// forgotten (the other core's stay, in their order), its open calls, entries and
+    /// active exceptions are as they were.
+    pub(super) fn profile_restore(&mut self, k: usize, mark: ProfileMark) {
+        for (p, (calls, open, entries)) in self.profiles.iter_mut().zip(mark.each) {
+            let later: Vec<Call> = p.calls.drain(calls.min(p.calls.len())..).collect();
+            p.calls.extend(later.into_iter().filter(|c| c.core != k));
+            p.open[k] = open;
+            p.entries[k] = entries;
+        }
+        self.profiled_active[k] = mark.active;
     }
 }

@@ -378,6 +378,14 @@ impl Board {
             if now >= limit {
                 return StopReason::CycleLimit;
             }
+            // Both cores as independent machines, where their banks allow
+            // (`board/window.rs`); the lock-step loop below otherwise.
+            if now >= self.window_at && self.windows_allowed() {
+                match self.window(limit) {
+                    Window::Kept => continue,
+                    Window::Idle => self.window_at = now.saturating_add(RETRY),
+                }
+            }
             if self.cores[k].state != RunState::Running {
                 match self.step(limit) {
                     Some(Ok(_)) => continue,
@@ -395,23 +403,6 @@ impl Board {
                 let deadline = [deadline(&self.cores[0]), deadline(&self.cores[1])];
                 let mut slots = NO_WATCHES;
                 if let (true, Some(watch)) = (now < deadline[k], self.watch_sets(&mut slots)) {
-                    let mut deadline = deadline;
-                    if self.config.engine == Engine::Block
-                        && watch[0][0] == NO_WATCH
-                        && watch[1][0] == NO_WATCH
-                        && self.config.own_banks[k] != 0
-                    {
-                        let retry = match self.run_ahead(k, deadline) {
-                            Window::Kept => continue,
-                            // The core behind needs the general path (or cold code) at
-                            // once: a short lock-step stretch runs it.
-                            Window::Idle => RETRY,
-                            Window::RolledBack => RETRY,
-                        };
-                        // Lock-step for a while before the next attempt.
-                        let now = self.cores[0].cycle.min(self.cores[1].cycle);
-                        deadline = deadline.map(|d| d.min(now.saturating_add(retry)));
-                    }
                     let (k, ran) = self.fast_run::<true>(k, deadline, watch);
                     if let Some(event) = ran {
                         if !self.profiles.is_empty() {
@@ -761,30 +752,42 @@ impl Board {
         if core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb {
             return core.step(&mut self.system, lines);
         }
-        let slot = &mut self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
-        if slot.key != cache_key(pc, self.system.code_epoch) {
-            let Ok((hw1, hw2, size)) = self.system.fetch_instr(pc) else {
-                return core.step(&mut self.system, lines);
-            };
-            for a in [pc, pc.wrapping_add(size - 2)] {
-                if let Some((off, _)) = sram_location(a) {
-                    self.system.code_pages[off >> 8] = true;
-                }
-            }
-            let instr = decode(hw1, hw2);
-            let cost = (
-                cycles(&instr, false, false) as u8,
-                cycles(&instr, true, false) as u8,
-            );
-            *slot = Cached {
-                key: cache_key(pc, self.system.code_epoch),
-                op: Op::new(&instr, pc),
-                instr,
-                size,
-                cost,
-            };
-        }
-        let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
+        let Some((instr, size, cost)) = cached(&mut self.cache, &mut self.system, pc) else {
+            return core.step(&mut self.system, lines);
+        };
         core.run_priced::<_, TRACE>(&mut self.system, pc, instr, size, Some(cost))
     }
+}
+
+/// The decode cache's entry for the instruction at `pc` (decoded now if need be, its SRAM
+/// pages marked as code pages): the instruction, its size and its `(not taken, taken)`
+/// cycles; `None` when it cannot be fetched.
+#[inline(always)]
+pub(super) fn cached(
+    cache: &mut [Cached; CACHE_SLOTS],
+    sys: &mut System,
+    pc: u32,
+) -> Option<(Instr, u32, (u8, u8))> {
+    let slot = &mut cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+    if slot.key != cache_key(pc, sys.code_epoch) {
+        let (hw1, hw2, size) = sys.fetch_instr(pc).ok()?;
+        for a in [pc, pc.wrapping_add(size - 2)] {
+            if let Some((off, _)) = sram_location(a) {
+                sys.code_pages[off >> 8] = true;
+            }
+        }
+        let instr = decode(hw1, hw2);
+        let cost = (
+            cycles(&instr, false, false) as u8,
+            cycles(&instr, true, false) as u8,
+        );
+        *slot = Cached {
+            key: cache_key(pc, sys.code_epoch),
+            op: Op::new(&instr, pc),
+            instr,
+            size,
+            cost,
+        };
+    }
+    Some((slot.instr, slot.size, slot.cost))
 }

@@ -1,188 +1,392 @@
-//! Running ahead: one core runs a window of compiled code ahead of the other, with an undo
-//! journal.
+//! Windows: the two cores as independent machines over a stretch of cycles, with undo
+//! journals.
 //!
-//! **Running ahead** ([`Config::own_banks`], block engine only). With both cores on the
-//! fast path, lock-step turns last an instruction or two. Instead, the core that is behind
-//! (A) runs a *window* of compiled code ahead, *confined* to its own SRAM banks S_A: every
-//! load and store, and every instruction fetch from SRAM, is checked against S_A and the
-//! code leaves before an instruction that would touch anything else (another bank,
-//! SIO, a peripheral, the PPB; flash and ROM are read-only and always allowed), and every
-//! store journals the word it overwrites. The window ends where A leaves, at the first
-//! deadline of either core (the run's limit, the next timer event, either core's SysTick),
-//! or when the journal is full. Then the other core (B) catches up to A's cycle (one past
-//! it when B is core 0, which goes first on a tie) confined to the *other* banks. If B
-//! gets there, the window is kept; if B stops before (it needs one of A's banks, SIO, a
-//! peripheral, an exception, a sleep, a fetch from A's banks), A is rolled back — its
-//! stores undone from the journal, newest first, its bank claims, stall count and core
-//! state restored — and the cores go on in lock-step from there, B's instructions
-//! standing. *Why this is the lock-step result:* in the window A touches only S_A, B
-//! touches none of S_A, and neither touches anything else the other can see (no SIO, no
-//! peripheral, no interrupt line, no event: those leave; the timer has no event and no
-//! SysTick wraps before the window's end; nothing is fetched from a bank the other core
-//! writes). So no word either core reads is written by the other in the window, and an
-//! access's arbitration depends only on the other core's last claim of the *same* bank,
-//! which the other core does not change in the window: it is the value it had at the
-//! window's start, whichever order the two cores' instructions run in. The instructions of
-//! the two cores in the window therefore commute, and running all of A's before all of
-//! B's gives the registers, memory, cycles and stalls of the interleaved order. A rollback
-//! is exact for the same reason: B's instructions commute with A's, and A re-runs from
-//! the same state. Tests: `tests/block_engine.rs` (random two-core programs on own banks
-//! with shared, other-bank and SIO traffic, SysTick, WFI/WFE/SEV; the own-bank speed
-//! loop), `firmware/tests/image.rs` (an image of every shipped instrument, both cores).
+//! **Windows** ([`Config::own_banks`], block engine only). Lock-step turns last an
+//! instruction or two, and every turn costs the scheduler. When the two cores touch
+//! disjoint memory, nothing one does can change what the other sees, so the board runs
+//! them one after the other instead, each over a whole *window* from where it is to E, the
+//! first of the run's limit and the next timer event. Each core runs *alone*: compiled
+//! code, pre-decoded blocks and the general path — exception entry and return, its own
+//! private peripheral bus (NVIC, SysTick, SCB), its own SIO divider and CPUID — and sleep
+//! in WFI or WFE up to its next wake-up (its own SysTick; the interrupt lines are those at
+//! the window's start, since no timer event falls in it and no one touches a peripheral).
+//! Each is *confined* to its own SRAM banks: every load, store, instruction fetch and
+//! exception frame is checked, and a core stops at an instruction that touches anything
+//! else (another bank, a peripheral, the FIFOs, the spinlocks), that signals (SEV), faults
+//! or traps (SVC, BKPT), or whose store finds its undo journal full. Every store journals
+//! the word it overwrites. If both cores reach E the window is kept;
+//! otherwise both are put back as they were at its start — their stores undone from the
+//! journals, newest first; their cores, bank claims, stalls, dividers and profiling
+//! restored — and the lock-step loop runs the stretch instead (for [`RETRY`] cycles before
+//! the next window).
+//!
+//! *Why this is the lock-step result.* In a kept window each core touched only its own
+//! banks and its own private state, and neither touched a shared peripheral or signalled
+//! the other. So no word or register either core reads is written by the other; the
+//! interrupt lines cannot change (no peripheral is touched and no timer event falls before
+//! E); a sleeping core wakes only by its own SysTick, its own event register or those
+//! lines. An access's arbitration depends only on the other core's last claim of the
+//! *same* bank, which the other core does not change in the window. The instructions of
+//! the two cores therefore commute, and running all of one core's before all of the
+//! other's gives the registers, memory, cycles, stalls, exceptions and sleeps of the
+//! interleaved order. The window ends where a lock-step run would stop too — the run's
+//! limit or a timer event, at which a sleeping core's cycle counter is that limit in both
+//! (in between, the lock-step loop moves a sleeper's counter along with the other core's
+//! instructions, which a window does not reproduce: hence no window ends anywhere else,
+//! and one that cannot reach E is undone whole, with the instruction that was not confined
+//! or that signalled, faulted or trapped).
+//!
+//! On the firmware images each core's code, data, stack and sensor and DAC window words
+//! lie in its own banks, so a window spans a whole sample period of both cores' sample
+//! interrupts (`tactus-firmware`, `image/mod.rs`). Tests: `tests/block_engine.rs` (random
+//! two-core programs on own banks with shared, other-bank and SIO traffic, SysTick,
+//! WFI/WFE/SEV; the own-bank speed loop; self-modifying code), `firmware/tests/image.rs`
+//! (an image of every shipped instrument, both cores) and `firmware/tests/keyboard_exact.rs`
+//! (every board of grand88 and the split layout against the lock-step interpreter).
 
+use super::run::cached;
 use super::*;
-use crate::block;
-use crate::bus::ALL_BANKS;
-/// What a run-ahead attempt ([`Board::run_ahead`]) did.
+use crate::block::{self, Leave};
+use crate::bus::{
+    sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE, FLASH_SIZE, ROM_SIZE,
+};
+use crate::core::Event;
+use crate::nvic::IRQ0;
+use crate::sio::{reg, Divider, SIO_BASE};
+
+/// What a window ([`Board::window`]) did.
 pub(super) enum Window {
-    /// The window was kept, or its first part (the core behind moved on).
+    /// Both cores reached its end.
     Kept,
-    /// The core behind ran nothing (its next instruction needs the general path, its code
-    /// is not compiled yet, or the deadlines leave no room).
+    /// Nothing ran: the window was undone, or would be too short.
     Idle,
-    /// The window was rolled back.
-    RolledBack,
 }
 
-/// Fewest cycles a run-ahead window may span ([`Board::run_ahead`]).
+/// Fewest cycles a window may span.
 pub(super) const MIN_WINDOW: u64 = 64;
 
-/// Lock-step cycles after a run-ahead window that could not be kept, before the next.
+/// Lock-step cycles after a window in which nothing or little ran, before the next.
 pub(super) const RETRY: u64 = 4096;
 
-/// A core's state at the start of a run-ahead window ([`Board::run_ahead`]).
-pub(super) struct Saved {
+/// Most undo-journal entries of one window: a store that finds it full stops the core.
+const JOURNAL: usize = 1 << 16;
+
+/// A core's state at some moment of a window, for undoing what it did since.
+struct Saved {
     core: Core,
-    claims: [u64; crate::bus::BANKS],
+    claims: [u64; BANKS],
     stalls: u64,
+    divider: Divider,
+    journal: usize,
+    profiles: super::profile::ProfileMark,
+    /// The code epoch ([`System::code_epoch`]): undone stores may change code back.
+    epoch: u32,
 }
 
-/// Undoes (the end of) core `a`'s run-ahead window: its stores in `journal` (newest
-/// first), its bank claims, stalls and state as `saved`; decoded code is dropped when a
-/// store in the window hit a code page (`epoch` moved), since the undo may have changed
-/// that memory back.
-pub(super) fn undo(
-    core: &mut Core,
-    sys: &mut System,
-    a: usize,
-    saved: &Saved,
-    journal: &[u64],
-    epoch: u32,
-) {
+/// The bus as a core in a window sees it ([`Board::window`]): its allowed SRAM banks, ROM
+/// and flash, its own SIO registers (CPUID, the divider); any other access is refused —
+/// a bus fault to the executor, which the caller undoes — and marked `foreign`. Stores
+/// into SRAM are journaled, when there is a journal.
+struct Confined<'a> {
+    sys: &'a mut System,
+    banks: u8,
+    journal: &'a mut Vec<u64>,
+    foreign: bool,
+}
+
+impl Confined<'_> {
+    /// Whether SRAM offset `off`'s bank is allowed.
+    #[inline(always)]
+    fn bank_ok(&self, bank: usize) -> bool {
+        self.banks >> bank & 1 != 0
+    }
+
+    /// Whether a load or store at `addr` (not SRAM) stays within the core: ROM and flash
+    /// (loads; a store faults, which stops the core anyway), its own SIO registers.
+    #[inline(always)]
+    fn private(addr: u32) -> bool {
+        match addr >> 28 {
+            0x0 => addr < ROM_SIZE,
+            0x1 => addr.wrapping_sub(FLASH_BASE) < FLASH_SIZE,
+            0xd => {
+                let off = (addr & !3).wrapping_sub(SIO_BASE);
+                off == reg::CPUID || (reg::DIV_UDIVIDEND..=reg::DIV_CSR).contains(&off)
+            }
+            _ => false,
+        }
+    }
+
+    fn refuse(&mut self, addr: u32) -> BusFault {
+        self.foreign = true;
+        BusFault { addr }
+    }
+}
+
+impl Bus for Confined<'_> {
+    fn read(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        size: u32,
+    ) -> Result<(u32, u32), BusFault> {
+        let ok = match sram_location(addr) {
+            Some((_, bank)) => self.bank_ok(bank),
+            None => Self::private(addr),
+        };
+        if !ok {
+            return Err(self.refuse(addr));
+        }
+        self.sys.read(core, cycle, addr, size)
+    }
+
+    fn write(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        size: u32,
+        value: u32,
+    ) -> Result<u32, BusFault> {
+        match sram_location(addr) {
+            Some((off, bank)) => {
+                if !self.bank_ok(bank) {
+                    return Err(self.refuse(addr));
+                }
+                if self.journal.len() >= JOURNAL {
+                    return Err(self.refuse(addr));
+                }
+                let word = off & !3;
+                let old = self.sys.sram_peek(word as u32);
+                self.journal.push((word as u64) << 32 | old as u64);
+            }
+            None if !Self::private(addr) => return Err(self.refuse(addr)),
+            None => {}
+        }
+        self.sys.write(core, cycle, addr, size, value)
+    }
+
+    fn fetch(&mut self, addr: u32) -> Result<u16, BusFault> {
+        if let Some((_, bank)) = sram_location(addr) {
+            if !self.bank_ok(bank) {
+                return Err(self.refuse(addr));
+            }
+        }
+        self.sys.fetch(addr)
+    }
+}
+
+/// Undoes journal entries, newest first.
+fn undo_stores(sys: &mut System, journal: &[u64]) {
     for &e in journal.iter().rev() {
         let off = (e >> 32) as usize;
         sys.sram[off..off + 4].copy_from_slice(&(e as u32).to_le_bytes());
     }
-    *core = saved.core.clone();
-    for (bank, c) in saved.claims.iter().enumerate() {
-        sys.bank_claim[bank][a] = *c;
-    }
-    sys.contention_stalls[a] = saved.stalls;
-    if sys.code_epoch != epoch {
-        sys.invalidate_code();
-    }
 }
 
 impl Board {
-    /// Run-ahead windows so far ("Running ahead" in the module documentation): (kept,
-    /// rolled back because the other core could not catch up confined). A window whose
-    /// first part was kept ([`Board::run_ahead_partly_kept`]) counts in neither.
+    /// Windows so far (module documentation): (kept, undone because a core could not
+    /// reach the window's end confined).
     pub fn run_ahead_windows(&self) -> (u64, u64) {
         (self.windows[0], self.windows[1])
     }
 
-    /// Run-ahead windows of which only the part before the other core's stop was kept
-    /// (the core that ran ahead rolled back and run again up to there).
-    pub fn run_ahead_partly_kept(&self) -> u64 {
-        self.windows[2]
+    /// Whether the cores may run in windows now: the block engine, disjoint own banks,
+    /// core 1 launched, no address watched for profiling, both cores running or asleep.
+    pub(super) fn windows_allowed(&self) -> bool {
+        let [a, b] = self.config.own_banks;
+        self.config.engine == Engine::Block
+            && a & ALL_BANKS != 0
+            && b & ALL_BANKS != 0
+            && a & b == 0
+            && self.launch.is_none()
+            && self.watch_free
+            && self
+                .cores
+                .iter()
+                .all(|c| matches!(c.state, RunState::Running | RunState::Sleeping { .. }))
     }
 
-    /// One window of running ahead (see "Running ahead" in the module documentation): core
-    /// `a` (the one behind, both cores on the fast path with `deadline`s as in
-    /// [`Board::run_until`]) runs compiled code confined to its own banks, the other core
-    /// then catches up confined to every other bank. When the other core stops before
-    /// catching up, core `a` is rolled back and runs again up to where the other stopped
-    /// (the window's first part is kept); it is rolled back for good when that part is
-    /// shorter than [`MIN_WINDOW`] (the other core's instructions stand either way: they
-    /// commute with the window).
-    pub(super) fn run_ahead(&mut self, a: usize, deadline: [u64; 2]) -> Window {
-        let b = 1 - a;
-        let start = self.cores[a].cycle;
-        // The other core must be able to reach the window's end (`+ 1` when it is core 0,
-        // which runs first on a tie) before its own deadline.
-        let end = deadline[a].min(deadline[b].saturating_sub((b == 0) as u64));
+    fn save(&self, k: usize, journal: usize) -> Saved {
+        Saved {
+            core: self.cores[k].clone(),
+            claims: self.system.bank_claim.map(|c| c[k]),
+            stalls: self.system.contention_stalls[k],
+            divider: self.system.sio.divider[k].clone(),
+            journal,
+            profiles: self.profile_mark(k),
+            epoch: self.system.code_epoch,
+        }
+    }
+
+    /// Puts core `k` back as `saved`, undoing the stores journaled since.
+    fn restore(&mut self, k: usize, saved: Saved, journal: &mut Vec<u64>) {
+        let from = saved.journal.min(journal.len());
+        undo_stores(&mut self.system, &journal[from..]);
+        journal.truncate(from);
+        self.cores[k] = saved.core;
+        for (bank, c) in saved.claims.iter().enumerate() {
+            self.system.bank_claim[bank][k] = *c;
+        }
+        self.system.contention_stalls[k] = saved.stalls;
+        self.system.sio.divider[k] = saved.divider;
+        self.profile_restore(k, saved.profiles);
+        if self.system.code_epoch != saved.epoch {
+            self.system.invalidate_code();
+        }
+    }
+
+    /// One window (module documentation), the run's `limit` bounding it.
+    pub(super) fn window(&mut self, limit: u64) -> Window {
+        let start = self.cores[0].cycle.min(self.cores[1].cycle);
+        let end = limit.min(self.system.timer.next_event);
         if start.saturating_add(MIN_WINDOW) > end {
             return Window::Idle;
         }
-        let saved = Saved {
-            core: self.cores[a].clone(),
-            claims: self.system.bank_claim.map(|c| c[a]),
-            stalls: self.system.contention_stalls[a],
-        };
-        let epoch = self.system.code_epoch;
-        let (sys, blocks) = (&mut self.system, &mut self.blocks);
-        let mut journal = std::mem::take(&mut blocks.journal);
-        let mut marks = std::mem::take(&mut blocks.marks);
-        journal.clear();
-        marks.clear();
-        sys.allowed_banks = self.config.own_banks[a] & ALL_BANKS;
-        let _ = block::run_confined(
-            &mut self.cores[a],
-            sys,
-            blocks,
-            end,
-            Some(&mut journal),
-            Some(&mut marks),
-        );
-        let reached = self.cores[a].cycle;
-        let mut kept = reached > start;
-        let mut partly = false;
-        if kept {
-            let target = reached + (b == 0) as u64;
-            sys.allowed_banks = ALL_BANKS & !self.config.own_banks[a];
-            let caught = block::run_confined(&mut self.cores[b], sys, blocks, target, None, None);
-            kept = caught.is_ok() && self.cores[b].cycle >= target;
-            if !kept {
-                // Core `b` stopped at `t`, before an instruction it could not run confined.
-                // Cut core `a` back to its last mark before `b`'s next instruction in the
-                // lock-step order (at or before `t`, `t + 1` when `a` is core 0): what it
-                // ran up to there is in the window and stands.
-                let redo = self.cores[b].cycle + (a == 0) as u64;
-                let mark = marks
-                    .iter()
-                    .rev()
-                    .find(|m| m.core.cycle <= redo)
-                    .filter(|m| m.core.cycle >= start.saturating_add(MIN_WINDOW));
-                let cut = match mark {
-                    Some(m) => Saved {
-                        core: m.core.clone(),
-                        claims: m.claims,
-                        stalls: m.stalls,
-                    },
-                    None => saved,
-                };
-                let from = mark.map_or(0, |m| m.journal);
-                partly = mark.is_some();
-                undo(&mut self.cores[a], sys, a, &cut, &journal[from..], epoch);
+        let lines = self.system.current_irq_lines();
+        let mut journals = [
+            std::mem::take(&mut self.blocks.journal),
+            std::mem::take(&mut self.blocks.journal_other),
+        ];
+        for j in &mut journals {
+            j.clear();
+        }
+        let saved = [self.save(0, 0), self.save(1, 0)];
+        let mut kept = true;
+        for (k, journal) in journals.iter_mut().enumerate() {
+            let own = self.config.own_banks[k] & ALL_BANKS;
+            if !self.run_alone(k, end, lines, own, journal) {
+                kept = false;
+                break;
             }
         }
-        sys.allowed_banks = ALL_BANKS;
-        blocks.journal = journal;
-        blocks.marks = marks;
-        if reached == start {
-            return Window::Idle;
+        if !kept {
+            // Newest first: core 1's stores, then core 0's.
+            for (k, s) in saved.into_iter().enumerate().rev() {
+                self.restore(k, s, &mut journals[k]);
+            }
         }
-        self.windows[if kept {
-            0
-        } else if partly {
-            2
-        } else {
-            1
-        }] += 1;
-        if kept || partly {
+        self.windows[if kept { 0 } else { 1 }] += 1;
+        let [j0, j1] = journals;
+        self.blocks.journal = j0;
+        self.blocks.journal_other = j1;
+        if kept {
             Window::Kept
         } else {
-            Window::RolledBack
+            Window::Idle
         }
+    }
+
+    /// Runs core `k` alone, confined to SRAM banks `banks`, while its cycle is below
+    /// `until` (it stops at its first instruction boundary at or after `until`) with the
+    /// interrupt lines `lines`; stores are journaled into `journal` when given. True when
+    /// it reached `until`; false when it stopped before an instruction it cannot run
+    /// confined (module documentation), with nothing of that instruction done.
+    fn run_alone(
+        &mut self,
+        k: usize,
+        until: u64,
+        lines: u32,
+        banks: u8,
+        journal: &mut Vec<u64>,
+    ) -> bool {
+        let pending_lines = (lines as u64) << IRQ0;
+        loop {
+            let core = &mut self.cores[k];
+            let now = core.cycle;
+            if now >= until {
+                return true;
+            }
+            match core.state {
+                RunState::Running => {}
+                RunState::Sleeping { wfe } => {
+                    // As `Board::step`: wake, or skip to the next cycle at which something
+                    // could wake the core (no timer event falls before `until`).
+                    if (wfe && core.event) || core.wakes_from_sleep(lines) {
+                        if wfe {
+                            core.event = false;
+                        }
+                        core.state = RunState::Running;
+                    } else {
+                        let next = self
+                            .system
+                            .timer
+                            .next_event
+                            .min(core.nvic.syst_next)
+                            .min(until);
+                        core.cycle = next.max(now + 1);
+                    }
+                    continue;
+                }
+                _ => return false,
+            }
+            // The fast path, where `Board::fast_ready` would allow it.
+            if core.thumb
+                && core.nvic.takeable() == 0
+                && pending_lines & !core.nvic.active & !core.nvic.pending == 0
+            {
+                let deadline = until.min(core.nvic.syst_next);
+                if now < deadline {
+                    let sys = &mut self.system;
+                    sys.allowed_banks = banks;
+                    let r = block::run_confined(
+                        core,
+                        sys,
+                        &mut self.blocks,
+                        deadline,
+                        Some(&mut *journal),
+                    );
+                    sys.allowed_banks = ALL_BANKS;
+                    match r {
+                        Ok(()) => continue,
+                        Err(Leave::General | Leave::Miss) => {}
+                    }
+                    if self.cores[k].cycle >= until {
+                        return true;
+                    }
+                }
+            }
+            if !self.step_confined(k, lines, banks, journal) {
+                return false;
+            }
+            if !self.profiles.is_empty() {
+                self.profile_step(k);
+            }
+        }
+    }
+
+    /// One general step of core `k` (as [`Board::step_cached`]) on the [`Confined`] bus;
+    /// false when it was not confined or had an event (the caller undoes the whole window).
+    fn step_confined(&mut self, k: usize, lines: u32, banks: u8, journal: &mut Vec<u64>) -> bool {
+        let pc = self.cores[k].r[15];
+        let core = &mut self.cores[k];
+        if lines != 0 {
+            core.nvic.pending |= ((lines as u64) << IRQ0) & !core.nvic.active;
+        }
+        let general = core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb;
+        // The instruction's fetch is confined too.
+        let fetched = if general {
+            None
+        } else {
+            let in_banks = |a: u32| sram_location(a).is_none_or(|(_, bank)| banks >> bank & 1 != 0);
+            match cached(&mut self.cache, &mut self.system, pc) {
+                Some(d) if in_banks(pc) && in_banks(pc.wrapping_add(d.1 - 2)) => Some(d),
+                Some(_) => return false,
+                None => None,
+            }
+        };
+        let mut bus = Confined {
+            sys: &mut self.system,
+            banks,
+            journal,
+            foreign: false,
+        };
+        let event = match fetched {
+            Some((instr, size, cost)) => {
+                core.run_priced::<_, false>(&mut bus, pc, instr, size, Some(cost))
+            }
+            None => core.step(&mut bus, lines),
+        };
+        !bus.foreign && event == Event::None
     }
 }

@@ -300,6 +300,10 @@ impl<'a> Translator<'a> {
                     t.flush_retired();
                     t.b.ins().jump(l, &[]);
                 }
+                // Every way into a label carries nothing pending: an exit before dead code
+                // (a `BL`, an unconditional exit) left its count pending for a side exit's
+                // sake, which must not reach the code after the label.
+                (t.pend_cyc, t.pend_n) = (0, 0);
                 t.b.switch_to_block(l);
                 live = true;
             }

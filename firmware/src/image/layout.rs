@@ -15,8 +15,8 @@
 use super::boot::{self, Boot};
 use super::glue::{self, ctrl, DriveCode, KeyCode, Tick};
 use super::{
-    bank_base, CorePlace, Drive, ImageError, IsrWcet, KeyPlace, KeySpec, Program, BANK_LIMIT,
-    MAX_SENSORS, STACK_BYTES, STACK_CANARY, VECTORS,
+    bank_base, window_alias, window_word, CorePlace, Drive, ImageError, IsrWcet, KeyPlace, KeySpec,
+    Program, BANK_LIMIT, MAX_SENSORS, STACK_BYTES, STACK_CANARY, VECTORS,
 };
 use std::collections::BTreeMap;
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label, LongBranch};
@@ -35,6 +35,8 @@ pub(super) struct Layout<'a> {
     /// Per key, the force words it drives ([`Program::drives`]).
     pub key_drives: Vec<Vec<Drive>>,
     pub tick: Tick,
+    /// The board's cores.
+    pub cores: usize,
 }
 
 /// The board's cores, sample rate (Hz) and clock (Hz) as the image needs them
@@ -243,6 +245,8 @@ pub(super) fn key_records(
     let mut kc = Vec::new();
     let mut kp = Vec::new();
     let code_of = code_of(programs);
+    // The core's next window word (module documentation, "Split windows").
+    let mut word = 0;
     for &i in &my {
         let p = &programs[keys[i].program];
         let text = cc
@@ -270,9 +274,28 @@ pub(super) fn key_records(
         let size = 4 * (ns + out_len + nd + 2);
         let budgets: Vec<u32> = (0..nd).map(|j| budgets_offset + 4 * j).collect();
         let update = sym(p.thumb.update_name())?;
-        let slot = keys[i].slot as u32;
+        let width = ns.max(nd) as usize;
+        let words: Vec<usize> = (word..word + width)
+            .map(|j| window_word(l.cores, core, j))
+            .collect::<Option<_>>()
+            .ok_or(ImageError::BadKey {
+                key: i,
+                why: format!(
+                    "core {core}'s keys need more than its {} window words",
+                    (word..)
+                        .take_while(|&j| window_word(l.cores, core, j).is_some())
+                        .count()
+                        + word
+                ),
+            })?;
+        word += width;
+        let sensor_words = words[..ns as usize].to_vec();
+        let dac_words = words[..nd as usize].to_vec();
         kc.push(KeyCode {
-            sensor_words: (0..ns).map(|j| SENSOR_BASE + 4 * (slot + j)).collect(),
+            sensor_words: sensor_words
+                .iter()
+                .map(|&w| window_alias(SENSOR_BASE, w))
+                .collect(),
             out_offset,
             state_offset,
             drives: drives
@@ -282,7 +305,7 @@ pub(super) fn key_records(
                 .map(|(j, (d, &b))| DriveCode {
                     force_offset: out_offset + 4 * d.out_index as u32,
                     budget_offset: b,
-                    dac_word: DAC_BASE + 4 * (slot + j as u32),
+                    dac_word: window_alias(DAC_BASE, dac_words[j]),
                     // Checked by `check_keys`, with the same constants.
                     scale: l.consts.dac_scale(d.frac).unwrap_or(DacScale {
                         pre_shift: 0,
@@ -304,6 +327,8 @@ pub(super) fn key_records(
             record: at,
             out_len: out_len as usize,
             sensors: ns as usize,
+            sensor_words,
+            dac_words,
             out_offset,
             state_offset,
             drives: drives.iter().copied().zip(budgets).collect(),

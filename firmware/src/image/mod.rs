@@ -18,9 +18,13 @@
 //! interrupt with the limiter inline per force word), its control block, its keys' records
 //! and their state structs (each holding its key's param block, which `init` leaves
 //! alone). Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
-//! core 1). So the only SRAM accesses two cores can contend for are the sensor loads and
-//! DAC stores in the striped sensor/DAC windows: at most one wait cycle each
-//! (`bus.rs`: the other core's claim lasts one cycle), which [`IsrWcet::contention`] adds.
+//! core 1). Its keys' words of the sensor and DAC windows lie in its own banks too (the
+//! *split windows*, below). So the two cores share no SRAM bank after the boot: no access
+//! ever waits for the other core ([`IsrWcet::contention`] is 0), and the emulator runs the
+//! two cores of a board as independent machines over each sample period
+//! (`tactus_emulator::Config::own_banks`, [`FirmwareImage::own_banks`]). Where the cores
+//! meet is the boot alone: core 1's launch over the SIO FIFOs and the start alarm, whose
+//! timer interrupt reaches both.
 //! Code and data occupy disjoint ranges of bank offsets in both banks (core 1's code
 //! block follows core 0's in bank offsets, the data of both starts after both blocks), so
 //! no data store ever lands in a physical 256-byte page that holds code (the emulator's
@@ -57,8 +61,16 @@
 //! 3,015 at 133 MHz and 44.1 kHz). The handler starts a fixed exception entry after each
 //! tick: no jitter but the cycle of the alternating periods.
 //!
-//! **Keys and pens.** A key occupies consecutive words of the sensor and DAC windows from
-//! its [`KeySpec::slot`]: one sensor word per sensor of its program, in the program's
+//! **Split windows.** The sensor and DAC windows are the 128 words each from
+//! `tactus_emulator::SENSOR_BASE` and `DAC_BASE`, in the striped SRAM, so window word *w*
+//! lies in bank *w* mod 4. The image gives each core's keys the words of the core's own
+//! banks ([`window_word`]: on a two-core board core *c* takes banks *c* and *c* + 2, 32
+//! words each; a one-core board's core all four), in key order, and its handler reads and
+//! writes them through the non-striped alias, where a bank's words are consecutive.
+//! [`FirmwareImage::window_words`] tells the host (and the key map) which words a key has.
+//!
+//! **Keys and pens.** A key occupies consecutive words of its core's share of the sensor
+//! and DAC windows ([`KeySpec::slot`] orders and names it): one sensor word per sensor of its program, in the program's
 //! sensor order ([`Program::sensor_words`]; a pen's vector sensor `pen: m in { z: …, x: …,
 //! y: … }` is `pen.z`, `pen.x`, `pen.y` in that order), and one DAC word per force word it
 //! drives ([`Program::drives`]): a keyboard program one, its total force `out[total]`; a pen
@@ -108,7 +120,7 @@ use tactus_compiler::thumb::buffer::{BufferError, CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ThumbObject;
 use tactus_emulator::bus::SRAM_ALIAS_BASE;
 
-use tactus_emulator::SENSOR_BASE;
+use tactus_emulator::{MAX_KEYS, SENSOR_BASE};
 use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 
@@ -667,10 +679,9 @@ pub struct IsrWcet {
     /// [`tactus_isa::wcet::analyse_isr`] of the handler with every key's update and limiter call
     /// (no bank contention).
     pub analysed: u64,
-    /// Bank-contention allowance: one wait cycle per sensor-window or DAC-window access of
-    /// this core's handler and per such access of the other core's handler in the same
-    /// sample (the only SRAM accesses that share a bank with another master; see the
-    /// module documentation).
+    /// Bank-contention allowance: one wait cycle per access of this core's handler, and of
+    /// the other core's handler in the same sample, to a window word in a bank both cores'
+    /// keys use (none with the split windows of the module documentation: 0).
     pub contention: u64,
     /// Of `analysed`: the keys' update calls (each `BL` and the update's WCET). The rest,
     /// `analysed - updates`, is the handler's own cost: exception entry and return, the
@@ -693,9 +704,8 @@ pub struct KeyGlue {
     /// Core clock cycles of the key's glue (static WCET, no bank contention).
     pub cycles: u64,
     /// Sensor and DAC window words the key accesses per sample (sensor words plus force
-    /// words): each may wait one cycle for the other core, and makes one access of the
-    /// other core's keys wait one ([`IsrWcet::contention`]), so the key's contention
-    /// allowance is `2 · window_words` cycles when both cores hold similar keys.
+    /// words); with the split windows none waits for the other core
+    /// ([`IsrWcet::contention`]).
     pub window_words: u64,
 }
 
@@ -710,6 +720,10 @@ pub(crate) struct KeyPlace {
     pub out_len: usize,
     /// Sensor words it reads ([`Program::sensor_words`]).
     pub sensors: usize,
+    /// Its sensor window words (indices from `SENSOR_BASE`), in sensor order.
+    pub sensor_words: Vec<usize>,
+    /// Its DAC window words (indices from `DAC_BASE`), one per force word it drives.
+    pub dac_words: Vec<usize>,
     /// Byte offset of the out words in the record.
     pub out_offset: u32,
     /// Byte offset of the state struct's address in the record.
@@ -768,6 +782,32 @@ fn bank_base(core: usize) -> u32 {
     SRAM_ALIAS_BASE + 0x1_0000 * core as u32
 }
 
+/// Rows of one bank in each window: window word *w* is row *w* / 4 of bank *w* mod 4.
+const WINDOW_ROWS: usize = MAX_KEYS / 4;
+
+/// The window word (index from `SENSOR_BASE` / `DAC_BASE`) of core `core`'s `j`-th word on
+/// a board of `cores` cores: its own banks' rows in order (core *c* of two: bank *c*, then
+/// bank *c* + 2; a single core: banks 0 to 3), `None` past them — the split windows of the
+/// module documentation.
+pub fn window_word(cores: usize, core: usize, j: usize) -> Option<usize> {
+    let banks: &[usize] = match (cores, core) {
+        (1, _) => &[0, 1, 2, 3],
+        (_, 0) => &[0, 2],
+        _ => &[1, 3],
+    };
+    let bank = *banks.get(j / WINDOW_ROWS)?;
+    Some(4 * (j % WINDOW_ROWS) + bank)
+}
+
+/// The address of window word `w` of the window at striped address `base` through the
+/// non-striped alias of its bank (RP2040 datasheet 2.6.1), where a bank's words are
+/// consecutive.
+fn window_alias(base: u32, w: usize) -> u32 {
+    let striped = base - 0x2000_0000 + 4 * w as u32;
+    let (bank, row) = ((striped >> 2) & 3, striped >> 4);
+    SRAM_ALIAS_BASE + 0x1_0000 * bank + 4 * row
+}
+
 impl FirmwareImage {
     /// Lays out and assembles the firmware for `keys` running `programs` on `board`, with
     /// every force word limited by a [`Limiter`] configured by `limiter` (its sample rate
@@ -802,6 +842,7 @@ impl FirmwareImage {
             consts,
             key_drives,
             tick: chip.tick,
+            cores,
         };
         let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
 
@@ -817,7 +858,9 @@ impl FirmwareImage {
         let mut places: Vec<CorePlace> = Vec::with_capacity(cores);
         let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
         let mut wcet = Vec::with_capacity(cores);
-        let mut window_accesses = vec![0u64; cores];
+        // Per core: window accesses per bank, and the banks its window words use.
+        let mut window_accesses = vec![[0u64; 4]; cores];
+        let mut window_banks = vec![0u8; cores];
         let mut code_bytes = vec![0u32; cores];
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
@@ -851,11 +894,12 @@ impl FirmwareImage {
                 &g.keys,
                 &update_wcets,
             )?);
-            window_accesses[core] = g
-                .keys
-                .iter()
-                .map(|k| (k.sensors + k.drives.len()) as u64)
-                .sum();
+            for k in &g.keys {
+                for &w in k.sensor_words.iter().chain(&k.dac_words) {
+                    window_accesses[core][w % 4] += 1;
+                    window_banks[core] |= 1 << (w % 4);
+                }
+            }
             segments.push((base, code));
             segments.push((ctrl_addr, data));
             let mut place = layout::core_place(core, c, &g.labels, &addr, ctrl_addr);
@@ -868,8 +912,19 @@ impl FirmwareImage {
             }
             places.push(place);
         }
-        // Bank contention: every window access of both cores' handlers, on a core with keys.
-        let total: u64 = window_accesses.iter().sum();
+        // Bank contention: the window accesses of both cores' handlers to banks both cores'
+        // window words use (none: each core's words lie in its own banks), on a core with
+        // keys.
+        let shared = window_banks[0] & window_banks.get(1).copied().unwrap_or(0);
+        let total: u64 = window_accesses
+            .iter()
+            .map(|by_bank| {
+                (0..4)
+                    .filter(|b| shared >> b & 1 != 0)
+                    .map(|b| by_bank[b])
+                    .sum::<u64>()
+            })
+            .sum();
         for (w, p) in wcet.iter_mut().zip(&places) {
             w.contention = if p.keys.is_empty() { 0 } else { total };
         }
@@ -1003,6 +1058,38 @@ impl FirmwareImage {
         let o = (at - base) as usize;
         let state = u32::from_le_bytes(data.get(o..o + 4)?.try_into().ok()?);
         Some((k.record, state))
+    }
+
+    /// Key `key`'s window words (in key-list order): its sensor words (indices from
+    /// `tactus_emulator::SENSOR_BASE`, in sensor order) and its DAC words (indices from
+    /// `tactus_emulator::DAC_BASE`, one per force word it drives); `None` for an unknown
+    /// key. Each core's keys have the words of the core's own banks (module documentation,
+    /// "Split windows").
+    pub fn window_words(&self, key: usize) -> Option<(&[usize], &[usize])> {
+        self.keys
+            .get(key)
+            .map(|k| (&k.sensor_words[..], &k.dac_words[..]))
+    }
+
+    /// The SRAM banks each core's code, data, stack and window words lie in (bit per
+    /// bank: 0-3 SRAM0-3, 4 SRAM4, 5 SRAM5): disjoint, so the emulator may run the cores
+    /// as independent machines (`tactus_emulator::Config::own_banks`).
+    pub fn own_banks(&self) -> [u8; 2] {
+        let mut banks = [0u8; 2];
+        for (c, own) in banks.iter_mut().enumerate().take(self.cores.len()) {
+            let stack = 4 + c as u8;
+            *own = 1 << c | 1 << stack;
+            for &i in &self.cores[c].keys {
+                for &w in self.keys[i]
+                    .sensor_words
+                    .iter()
+                    .chain(&self.keys[i].dac_words)
+                {
+                    *own |= 1 << (w % 4);
+                }
+            }
+        }
+        banks
     }
 
     /// Static WCET of core `core`'s sample interrupt (`None` for a core beyond the board's).

@@ -39,7 +39,8 @@ pub struct KeyEvent {
 pub struct DriveOut {
     /// The pen axis ([`super::Drive::axis`]); `None` for a keyboard key's force word.
     pub axis: Option<Axis>,
-    /// The DAC window word written (word index from `DAC_BASE`).
+    /// The DAC window word written (word index from `DAC_BASE`;
+    /// [`FirmwareImage::window_words`]).
     pub slot: usize,
     /// The force word the update computed, before the limiter (format [`super::Drive::frac`]).
     pub force: i32,
@@ -89,31 +90,40 @@ pub struct ImageRun {
     stalls: [u64; 2],
     scratch: Vec<u32>,
     out_scratch: Vec<u32>,
-    /// The keys' sensor words as one run of window words from this address, when the keys
-    /// (in key-list order) take consecutive words: one host write per sample.
-    sensor_run: Option<u32>,
-    /// The keys' DAC words as one run of window words from this address, likewise.
-    dac_run: Option<u32>,
+    /// The sensor words as runs of consecutive words of one bank through the non-striped
+    /// alias ([`WordRuns`]): one host write per run and sample.
+    sensor_runs: WordRuns,
+    /// The DAC words likewise: one host read per run and sample.
+    dac_runs: WordRuns,
     /// The limiter's constants: the current of each DAC code written.
     limiter: LimiterConstants,
 }
 
-/// The first address of the window words that `words(key)` words per key from each key's
-/// slot fill, in key-list order, when they are consecutive (no gap, no overlap).
-fn consecutive_run(
-    image: &FirmwareImage,
-    base: u32,
-    words: impl Fn(usize) -> usize,
-) -> Option<u32> {
-    let first = image.keys.first()?.spec.slot;
-    let mut next = first;
-    for (i, k) in image.keys.iter().enumerate() {
-        if k.spec.slot != next {
-            return None;
+/// Window words as runs the host reads or writes at once: each run is consecutive words of
+/// one bank through the non-striped alias (from its address), with the index of each of
+/// its words in the flat per-sample list (the keys' words in key-list order).
+#[derive(Clone, Debug, Default)]
+struct WordRuns(Vec<(u32, Vec<usize>)>);
+
+impl WordRuns {
+    /// The runs of `words` (window word indices from the window at striped `base`, in flat
+    /// order).
+    fn new(base: u32, words: &[usize]) -> WordRuns {
+        let mut order: Vec<usize> = (0..words.len()).collect();
+        // By bank, then row: a bank's words are consecutive through its alias.
+        order.sort_by_key(|&i| (words[i] % 4, words[i] / 4));
+        let mut runs: Vec<(u32, Vec<usize>)> = Vec::new();
+        let mut last = None;
+        for i in order {
+            let w = words[i];
+            match runs.last_mut() {
+                Some((_, flat)) if last == Some(w.wrapping_sub(4)) => flat.push(i),
+                _ => runs.push((super::window_alias(base, w), vec![i])),
+            }
+            last = Some(w);
         }
-        next += words(i);
+        WordRuns(runs)
     }
-    Some(base + 4 * first as u32)
 }
 
 /// Host access failure as an image error.
@@ -223,6 +233,7 @@ impl ImageRun {
     pub(crate) fn new(image: &FirmwareImage) -> Result<ImageRun, ImageError> {
         let mut board = Board::new(Config {
             clock_hz: image.clock_hz,
+            own_banks: image.own_banks(),
             ..Config::default()
         });
         for (addr, bytes) in &image.segments {
@@ -266,6 +277,7 @@ impl ImageRun {
     pub fn from_elf(image: &FirmwareImage, elf: &[u8]) -> Result<ImageRun, ImageError> {
         let mut board = Board::new(Config {
             clock_hz: image.clock_hz,
+            own_banks: image.own_banks(),
             ..Config::default()
         });
         board.load_elf(elf).map_err(emu)?;
@@ -299,7 +311,7 @@ impl ImageRun {
                             .enumerate()
                             .map(|(j, (d, _))| DriveOut {
                                 axis: d.axis,
-                                slot: k.spec.slot + j,
+                                slot: k.dac_words[j],
                                 ..DriveOut::default()
                             })
                             .collect()
@@ -314,8 +326,22 @@ impl ImageRun {
             stalls: [0; 2],
             scratch: Vec::new(),
             out_scratch: Vec::new(),
-            sensor_run: consecutive_run(image, SENSOR_BASE, |i| image.keys[i].sensors),
-            dac_run: consecutive_run(image, DAC_BASE, |i| image.keys[i].drives.len()),
+            sensor_runs: WordRuns::new(
+                SENSOR_BASE,
+                &image
+                    .keys
+                    .iter()
+                    .flat_map(|k| k.sensor_words.iter().copied())
+                    .collect::<Vec<_>>(),
+            ),
+            dac_runs: WordRuns::new(
+                DAC_BASE,
+                &image
+                    .keys
+                    .iter()
+                    .flat_map(|k| k.dac_words.iter().copied())
+                    .collect::<Vec<_>>(),
+            ),
             limiter: Limiter::new(&image.limiter)
                 .map_err(ImageError::Limiter)?
                 .constants(),
@@ -383,19 +409,10 @@ impl ImageRun {
                 got: sensors.len(),
             });
         }
-        self.scratch.clear();
-        self.scratch.extend(sensors.iter().map(|&w| w as u32));
-        match self.sensor_run {
-            Some(addr) => self.board.write_words(addr, &self.scratch).map_err(emu)?,
-            None => {
-                let mut at = 0;
-                for k in &self.image.keys {
-                    let a = SENSOR_BASE + 4 * k.spec.slot as u32;
-                    let words = &self.scratch[at..at + k.sensors];
-                    self.board.write_words(a, words).map_err(emu)?;
-                    at += k.sensors;
-                }
-            }
+        for (addr, flat) in &self.sensor_runs.0 {
+            self.scratch.clear();
+            self.scratch.extend(flat.iter().map(|&i| sensors[i] as u32));
+            self.board.write_words(*addr, &self.scratch).map_err(emu)?;
         }
         let want = self.samples + 1;
         let limit = self.tick_cycle(want);
@@ -451,18 +468,16 @@ impl ImageRun {
             s.stalls[c] = now - self.stalls[c];
             self.stalls[c] = now;
         }
-        // Every key's DAC words: one read when they are one run of window words.
+        // Every key's DAC words, in flat order: one read per run.
         let dac = &mut self.scratch;
         dac.clear();
-        if let Some(addr) = self.dac_run {
-            dac.resize(self.image.keys.iter().map(|k| k.drives.len()).sum(), 0);
-            self.board.read_words(addr, dac).map_err(emu)?;
-        } else {
-            for k in &self.image.keys {
-                let at = dac.len();
-                dac.resize(at + k.drives.len(), 0);
-                let addr = DAC_BASE + 4 * k.spec.slot as u32;
-                self.board.read_words(addr, &mut dac[at..]).map_err(emu)?;
+        dac.resize(self.image.keys.iter().map(|k| k.drives.len()).sum(), 0);
+        for (addr, flat) in &self.dac_runs.0 {
+            let words = &mut self.out_scratch;
+            words.resize(flat.len(), 0);
+            self.board.read_words(*addr, words).map_err(emu)?;
+            for (&i, &w) in flat.iter().zip(words.iter()) {
+                dac[i] = w;
             }
         }
         let mut at = 0;
