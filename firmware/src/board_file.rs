@@ -224,7 +224,7 @@ mod tests {
             cores,
             sample_rate_hz,
             core_voltage_v: None,
-        converters: None,
+            converters: None,
         }
     }
 
