@@ -150,3 +150,64 @@ fn a_pen_instrument_is_refused() {
     .unwrap_err();
     assert!(err.contains("pen instrument"), "{err}");
 }
+
+fn experimental(name: &str, overrides: &[(&str, &str)]) -> Program {
+    let text =
+        std::fs::read_to_string(root().join(format!("instruments/experimental/{name}.tactus")))
+            .unwrap();
+    compile(&text, overrides)
+}
+
+fn concert_grand() -> regulate::spec::Spec {
+    regulate::spec::read(&root().join("instruments/specs/concert_grand.toml")).unwrap()
+}
+
+fn outside(sheet: &Sheet) -> Vec<String> {
+    regulate::spec::check(sheet, &concert_grand())
+        .iter()
+        .filter(|v| !v.holds())
+        .map(|v| format!("{:?}: {:?} not in {}", v.range.figure, v.value, v.range.text()))
+        .collect()
+}
+
+/// Issue 35: the friction piano (Hayward–Armstrong key friction, weighed off, repetition
+/// lever with drop screw) is inside the regulated concert grand's ranges at grand88's bass,
+/// middle and treble hammer masses — down- and up-weight, friction, hysteresis, creep, the
+/// geometry, the key-bottom times and the repetition.
+#[test]
+fn the_friction_piano_regulates_inside_the_concert_grand_spec_at_bass_middle_and_treble() {
+    for m_h in ["11 g", "8 g", "3.5 g"] {
+        let s = sheet(&experimental("grand_piano_friction", &[("M_h", m_h)]));
+        assert_eq!(outside(&s), Vec::<String>::new(), "M_h = {m_h}");
+        // The friction itself, not the action's other hysteresis: up below down by ≥ 10 gf.
+        assert!(figure(&s, Figure::Hysteresis) >= 10.0, "M_h = {m_h}");
+        assert!(figure(&s, Figure::Creep) <= 0.05, "M_h = {m_h}");
+    }
+}
+
+/// The same sheet in the firmware's fixed point: the fixed interpreter and the fixed JIT
+/// measure the same figures bit for bit, and they are inside the spec too (the friction
+/// holds the key still in fixed point as in f64).
+#[test]
+fn the_friction_piano_in_fixed_point_regulates_the_same_on_the_interpreter_and_the_jit() {
+    let p = experimental("grand_piano_friction", &[]);
+    let fp = tactus_compiler::fixed::FixedProgram::new(&p);
+    let interp = regulate::measure(
+        &p,
+        tactus_compiler::fixed::interp::FixedInstance::new(&fp),
+        &Config::default(),
+    )
+    .unwrap();
+    let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp).unwrap();
+    let by_jit = regulate::measure(
+        &p,
+        tactus_firmware::play::engine::FixedJitEngine(
+            tactus_jit::fixed::FixedJitInstance::new(&jit),
+            &fp,
+        ),
+        &Config::default(),
+    )
+    .unwrap();
+    assert_eq!(interp, by_jit);
+    assert_eq!(outside(&interp), Vec::<String>::new());
+}
