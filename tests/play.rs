@@ -1125,3 +1125,42 @@ fn whole_maestro_pieces_on_every_board_of_grand88_without_misses() {
         );
     }
 }
+
+/// Issue 35: the friction piano (`instruments/experimental/grand_piano_friction.tactus`:
+/// Hayward–Armstrong key friction, weigh-off, a repetition lever with drop screw and a
+/// preloaded, damped spring) played position-driven on every key: each note of Maestro_1's
+/// first 20 s strikes exactly once within 50 ms of its note-on, and no strike answers no
+/// note (a held key whose lever threw a falling hammer back to the string would).
+#[test]
+fn the_friction_piano_strikes_once_per_note_of_maestro_1_first_20_s() {
+    let Some(midi) = performance("Maestro_1.mid") else {
+        return;
+    };
+    let piano = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("instruments/experimental/grand_piano_friction.tactus");
+    let dir = temp_dir("play-friction");
+    let out = tactus()
+        .args(["play", "--engine", "jit", "--no-wav", "--instrument"])
+        .arg(&piano)
+        .arg(&midi)
+        .args(["--seconds", "20", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let rows = strikes(&dir.join("Maestro_1-strikes.csv"));
+    let perf = read_midi(&midi).unwrap();
+    let notes: Vec<_> = perf.notes.iter().filter(|n| n.on_s < 20.0).collect();
+    assert!(notes.len() > 50, "{} notes", notes.len());
+    for n in &notes {
+        let hits = rows
+            .iter()
+            .filter(|s| s.0 == n.key && (s.1 - n.on_s).abs() <= 0.050)
+            .count();
+        assert_eq!(hits, 1, "note {} at {:.3} s: {hits} strikes", n.key, n.on_s);
+    }
+    assert!(
+        rows.iter().all(|s| s.3.is_some()),
+        "a strike answers no note"
+    );
+}
