@@ -8,12 +8,14 @@
 use crate::check_cmd::{compile_reporting, parse_override};
 use crate::plot;
 use crate::source;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-use tactus_firmware::play::{self as play, output, strike, HostProgram, Keyboard, PlayConfig};
+use tactus_firmware::play::{
+    self as play, corpus, output, strike, HostProgram, Keyboard, PlayConfig,
+};
 use tactus_firmware::play::{BoardsReport, TraceWindow, Traces};
 use tactus_runtime::performance::{self, Performance};
 use tactus_runtime::player::FingerConfig;
@@ -32,8 +34,12 @@ motor_current_a (the current the firmware's safety limiter allowed) and dac_code
 Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20 --trace-keys 60,64"
 )]
 pub struct PlayArgs {
-    /// MIDI performance to play [default: a built-in 4.5 s demo].
-    pub performance: Option<PathBuf>,
+    /// MIDI performance to play [default: a built-in 4.5 s demo]. Several files, or a
+    /// directory of them (its *.mid, sorted): corpus mode — each played in turn with the
+    /// same options, one progress bar over the corpus, and a summary of every piece in
+    /// OUT/corpus.csv and OUT/corpus.json (a file that cannot be played is a row with its
+    /// error; the run goes on).
+    pub performances: Vec<PathBuf>,
     /// Instrument on every key A0…C8 (file or built-in name), instead of the layout.
     #[arg(long, conflicts_with = "layout")]
     pub instrument: Option<String>,
@@ -143,12 +149,111 @@ type Compiled = (String, Vec<(String, String)>, tactus_compiler::ir::Program);
 
 /// Runs `tactus play`.
 pub fn run(args: PlayArgs) -> ExitCode {
-    match run_inner(&args) {
-        Ok(c) => c,
+    let files = match corpus::expand(&args.performances) {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let corpus = files.len() > 1 || args.performances.iter().any(|p| p.is_dir());
+    if corpus {
+        return run_corpus(&args, &files);
+    }
+    match run_inner(&args, files.first().map(PathBuf::as_path), None) {
+        Ok((c, _)) => c,
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Corpus mode: every file in turn, one row each, the table printed and written.
+fn run_corpus(args: &PlayArgs, files: &[PathBuf]) -> ExitCode {
+    let multi = MultiProgress::new();
+    let outer = multi.add(ProgressBar::new(files.len() as u64));
+    outer.set_style(
+        ProgressStyle::with_template(
+            "{msg} [{bar:30}] {pos}/{len} pieces, elapsed {elapsed}, eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut rows = Vec::with_capacity(files.len());
+    for f in files {
+        outer.set_message(format!("corpus: {}", f.display()));
+        let row = match run_inner(args, Some(f), Some(&multi)) {
+            Ok((_, row)) => row,
+            Err(e) => {
+                multi.suspend(|| eprintln!("error: {}: {e}", f.display()));
+                corpus::PieceRow::failed(f, e)
+            }
+        };
+        rows.push(row);
+        outer.inc(1);
+    }
+    outer.finish_and_clear();
+    if let Err(e) = std::fs::create_dir_all(&args.out) {
+        eprintln!("error: cannot create `{}`: {e}", args.out.display());
+        return ExitCode::FAILURE;
+    }
+    println!(
+        "corpus: {} performances ({})",
+        rows.len(),
+        match args.engine {
+            PlayEngine::Emu => "the firmware of every board, emulated",
+            _ => "host engine; no deadlines checked",
+        }
+    );
+    println!(
+        "  {:<32} {:>8} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6}  error",
+        "piece", "music s", "notes", "strikes", "silent", "misses", "worst cycles", "RTF"
+    );
+    for r in &rows {
+        let name = r.file.file_name().map_or_else(
+            || r.file.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        println!(
+            "  {:<32} {:>8.1} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6.2}  {}",
+            name,
+            r.music_s,
+            r.notes,
+            r.strikes,
+            r.silent,
+            r.misses_per_board.iter().sum::<u64>(),
+            r.worst_core_cycles.map_or("—".to_string(), |c| format!(
+                "{c}/{}",
+                r.deadline_cycles.unwrap_or(0)
+            )),
+            r.rtf,
+            r.error.as_deref().unwrap_or("")
+        );
+    }
+    for (path, write) in [
+        (
+            args.out.join("corpus.csv"),
+            corpus::write_csv as fn(&Path, &[corpus::PieceRow]) -> Result<(), String>,
+        ),
+        (args.out.join("corpus.json"), corpus::write_json),
+    ] {
+        match write(&path, &rows) {
+            Ok(()) => println!("  wrote {}", path.display()),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    if rows.iter().all(corpus::PieceRow::ok) {
+        ExitCode::SUCCESS
+    } else {
+        eprintln!(
+            "error: {} of {} performances failed or missed deadlines (see the table)",
+            rows.iter().filter(|r| !r.ok()).count(),
+            rows.len()
+        );
+        ExitCode::FAILURE
     }
 }
 
@@ -176,8 +281,14 @@ impl play::Progress for Bar {
     }
 }
 
-fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
-    let mut perf = match &args.performance {
+/// Plays one performance (`None`: the demo) and prints what it returns; the row is the
+/// corpus table's. `multi`: the corpus's progress bars, to which this piece's bar is added.
+fn run_inner(
+    args: &PlayArgs,
+    performance: Option<&Path>,
+    multi: Option<&MultiProgress>,
+) -> Result<(ExitCode, corpus::PieceRow), String> {
+    let mut perf = match performance {
         Some(p) => {
             let (perf, warnings) =
                 performance::read_midi_reporting(p).map_err(|e| e.to_string())?;
@@ -194,9 +305,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         if perf.notes.is_empty() {
             return Err(format!(
                 "{}: no note starts in the first {s} s",
-                args.performance
-                    .as_ref()
-                    .map_or("the demo".to_string(), |p| p.display().to_string())
+                performance.map_or("the demo".to_string(), |p| p.display().to_string())
             ));
         }
     }
@@ -246,9 +355,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         let keys: Vec<u8> = assignments.iter().map(|a| a.key).collect();
         return Err(format!(
             "{}: none of its {} notes is on a key of the layout (its keys: {}): nothing to play",
-            args.performance
-                .as_ref()
-                .map_or("the demo".to_string(), |p| p.display().to_string()),
+            performance.map_or("the demo".to_string(), |p| p.display().to_string()),
             outside.len(),
             tactus_firmware::verdict::key_ranges(&keys)
         ));
@@ -274,11 +381,10 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
             None => {
                 let src = source::load(&a.instrument)?;
                 let Some(lowered) = compile_reporting(&src, &params, fs) else {
-                    eprintln!(
-                        "error: `{}` (key {}) does not compile for the board's sample rate, {fs} Hz (`{}`)",
+                    return Err(format!(
+                        "`{}` (key {}) does not compile for the board's sample rate, {fs} Hz (`{}`)",
                         a.instrument, a.key, args.board
-                    );
-                    return Ok(ExitCode::FAILURE);
+                    ));
                 };
                 let program = lowered.program;
                 if program.is_pen() || program.sensors.len() > 1 {
@@ -352,7 +458,10 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
         emulator: args.emu.into(),
         quiescent_guard: !args.no_quiescent_guard,
     };
-    let bar = Bar(ProgressBar::new(0));
+    let bar = Bar(match multi {
+        Some(m) => m.add(ProgressBar::new(0)),
+        None => ProgressBar::new(0),
+    });
     bar.0.set_message(match args.engine {
         PlayEngine::Emu => format!("{} keys on their boards", keyboard.keys.len()),
         _ => format!("{} keys", keyboard.key_program.len()),
@@ -364,9 +473,7 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
-    let stem = args
-        .performance
-        .as_ref()
+    let stem = performance
         .and_then(|p| p.file_stem())
         .map_or("demo".to_string(), |s| s.to_string_lossy().into_owned());
     let strikes = &played.strikes;
@@ -528,22 +635,40 @@ fn run_inner(args: &PlayArgs) -> Result<ExitCode, String> {
     for w in &wrote {
         println!("  wrote {}", w.display());
     }
+    let mut row = corpus::PieceRow {
+        file: performance.map_or_else(|| PathBuf::from("demo"), Path::to_path_buf),
+        music_s: audio_s,
+        notes: perf.notes.len(),
+        strikes: strikes.len(),
+        answering: matched,
+        silent: silent.len(),
+        wall_s: wall,
+        rtf: audio_s / wall.max(1e-9),
+        ..corpus::PieceRow::default()
+    };
     match &played.boards {
         Some(r) => {
+            row.misses_per_board = r
+                .boards
+                .iter()
+                .map(|b| b.misses.iter().map(|&m| u64::from(m)).sum())
+                .collect();
+            row.worst_core_cycles = r.boards.iter().flat_map(|b| b.max.iter().copied()).max();
+            row.deadline_cycles = Some(r.deadline);
             let path = args.out.join(format!("{stem}-cycles.svg"));
             plot_cycles(r, fs, &stem, &path)?;
             println!("  wrote {}", path.display());
             print_budget(r);
             if r.missed() {
                 eprintln!("error: the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)");
-                return Ok(ExitCode::FAILURE);
+                return Ok((ExitCode::FAILURE, row));
             }
         }
         None => println!(
             "  budget: not checked (host engine; `--engine emu` runs the firmware on the emulated board)"
         ),
     }
-    Ok(ExitCode::SUCCESS)
+    Ok((ExitCode::SUCCESS, row))
 }
 
 /// Plots the cycles per sample of the busier core of each board (beyond eight boards, the

@@ -1164,3 +1164,48 @@ fn the_friction_piano_strikes_once_per_note_of_maestro_1_first_20_s() {
         "a strike answers no note"
     );
 }
+
+/// Issue 37, corpus mode: a list with a good performance and a file that is not MIDI plays
+/// the good one through every board of grand88, reports the bad one in its row and goes
+/// on; the summary is written as CSV and JSON with one row per piece, and the exit status
+/// says that a piece failed.
+#[test]
+fn corpus_mode_plays_each_piece_reports_a_bad_file_and_writes_one_summary() {
+    let Some(midi) = performance("Maestro_3.mid") else {
+        return;
+    };
+    let dir = temp_dir("play-corpus");
+    let bad = dir.join("bad.mid");
+    std::fs::write(&bad, b"not a MIDI file").unwrap();
+    let out = tactus()
+        .args(["play", "--no-wav", "--seconds", "2"])
+        .arg(&midi)
+        .arg(&bad)
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stdout}\n{stderr}");
+    assert!(stderr.contains("1 of 2 performances failed"), "{stderr}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("corpus.json")).unwrap()).unwrap();
+    let rows = json.as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    let good = &rows[0];
+    assert!(good["error"].is_null(), "{good}");
+    assert!(good["notes"].as_u64().unwrap() > 5, "{good}");
+    assert_eq!(good["strikes"], good["notes"], "{good}");
+    assert_eq!(good["silent"], 0, "{good}");
+    let misses = good["misses_per_board"].as_array().unwrap();
+    assert_eq!(misses.len(), 11, "grand88's boards: {good}");
+    assert!(misses.iter().all(|m| m == 0), "{good}");
+    assert!(
+        good["worst_core_cycles"].as_u64().unwrap() <= good["deadline_cycles"].as_u64().unwrap()
+    );
+    assert!(rows[1]["error"].as_str().unwrap().contains("not a standard MIDI file"));
+    let csv = std::fs::read_to_string(dir.join("corpus.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 3, "{csv}");
+    assert!(csv.lines().nth(2).unwrap().contains("bad.mid"), "{csv}");
+}

@@ -166,7 +166,14 @@ fn outside(sheet: &Sheet) -> Vec<String> {
     regulate::spec::check(sheet, &concert_grand())
         .iter()
         .filter(|v| !v.holds())
-        .map(|v| format!("{:?}: {:?} not in {}", v.range.figure, v.value, v.range.text()))
+        .map(|v| {
+            format!(
+                "{:?}: {:?} not in {}",
+                v.range.figure,
+                v.value,
+                v.range.text()
+            )
+        })
         .collect()
 }
 

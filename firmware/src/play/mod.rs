@@ -18,6 +18,7 @@
 //! The host engines simulate a key only around its movements ([`motion::busy_stretches`]).
 //! [`output`] writes the strikes as CSV, MIDI and WAV and the traces as CSV.
 
+pub mod corpus;
 pub mod engine;
 pub mod motion;
 pub mod output;

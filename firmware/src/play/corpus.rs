@@ -1,0 +1,188 @@
+//! Corpus mode of `tactus play`: the performances of a list or a directory, each played in
+//! turn, summarised one row per piece in one table — CSV for a spreadsheet, JSON for a
+//! script — so that a firmware change is validated over many performances at once.
+//!
+//! A piece that cannot be played (an unreadable or malformed MIDI file, no note on the
+//! layout, …) is a row with its error, not the end of the run.
+
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Most files a corpus may hold: a bound on what a directory or a list can make the run
+/// loop over (each piece is a whole emulated performance).
+pub const MAX_PIECES: usize = 10_000;
+
+/// One piece of a corpus run: what was played and how.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct PieceRow {
+    /// The MIDI file.
+    pub file: PathBuf,
+    /// Music played, seconds (after `--seconds`).
+    pub music_s: f64,
+    /// Notes on the layout's keys.
+    pub notes: usize,
+    /// Strikes (or plucks) the instruments emitted.
+    pub strikes: usize,
+    /// Strikes that answer a note within 50 ms.
+    pub answering: usize,
+    /// Notes no strike answers.
+    pub silent: usize,
+    /// Per board of the keyboard, in key order: deadline misses summed over its cores
+    /// (`--engine emu`; empty on a host engine).
+    pub misses_per_board: Vec<u64>,
+    /// Most cycles any core of any board took for one sample (`--engine emu`), and the
+    /// deadline in cycles per sample; `None` on a host engine.
+    pub worst_core_cycles: Option<u64>,
+    /// Cycles per sample per core available (`--engine emu`).
+    pub deadline_cycles: Option<u64>,
+    /// Wall-clock seconds of the run.
+    pub wall_s: f64,
+    /// Real-time factor: music seconds per wall second.
+    pub rtf: f64,
+    /// Why the piece was not played (then the figures above are zero).
+    pub error: Option<String>,
+}
+
+impl PieceRow {
+    /// A row for a piece that could not be played.
+    pub fn failed(file: &Path, error: String) -> PieceRow {
+        PieceRow {
+            file: file.to_path_buf(),
+            error: Some(error),
+            ..PieceRow::default()
+        }
+    }
+
+    /// Whether the piece played without an error and without a deadline miss.
+    pub fn ok(&self) -> bool {
+        self.error.is_none() && self.misses_per_board.iter().all(|&m| m == 0)
+    }
+}
+
+/// The files of a corpus: each argument a MIDI file, or a directory whose `*.mid` and
+/// `*.midi` files (sorted by name, not recursing) are taken.
+///
+/// Errors: a directory that cannot be read (naming it), or more than [`MAX_PIECES`] files.
+/// A file that does not exist is kept: playing it fails, and its row says so.
+pub fn expand(args: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
+    let mut files = Vec::new();
+    for a in args {
+        if a.is_dir() {
+            let entries =
+                std::fs::read_dir(a).map_err(|e| format!("cannot read `{}`: {e}", a.display()))?;
+            let mut mids: Vec<PathBuf> = entries
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| {
+                    p.is_file()
+                        && p.extension().is_some_and(|x| {
+                            x.eq_ignore_ascii_case("mid") || x.eq_ignore_ascii_case("midi")
+                        })
+                })
+                .take(MAX_PIECES + 1)
+                .collect();
+            mids.sort();
+            if mids.is_empty() {
+                return Err(format!(
+                    "`{}` holds no MIDI file (*.mid, *.midi)",
+                    a.display()
+                ));
+            }
+            files.extend(mids);
+        } else {
+            files.push(a.clone());
+        }
+        if files.len() > MAX_PIECES {
+            return Err(format!(
+                "a corpus holds at most {MAX_PIECES} performances; these arguments name more"
+            ));
+        }
+    }
+    Ok(files)
+}
+
+/// Writes the rows as CSV (header first; `misses_per_board` as `;`-separated counts).
+///
+/// Errors: the file cannot be written (naming it).
+pub fn write_csv(path: &Path, rows: &[PieceRow]) -> Result<(), String> {
+    let mut s = String::from(
+        "file,music_s,notes,strikes,answering,silent,misses_per_board,misses,worst_core_cycles,deadline_cycles,wall_s,rtf,error\n",
+    );
+    for r in rows {
+        let misses: Vec<String> = r.misses_per_board.iter().map(u64::to_string).collect();
+        let opt = |v: Option<u64>| v.map_or(String::new(), |v| v.to_string());
+        s.push_str(&format!(
+            "{},{:.3},{},{},{},{},{},{},{},{},{:.3},{:.3},{}\n",
+            csv_field(&r.file.display().to_string()),
+            r.music_s,
+            r.notes,
+            r.strikes,
+            r.answering,
+            r.silent,
+            misses.join(";"),
+            r.misses_per_board.iter().sum::<u64>(),
+            opt(r.worst_core_cycles),
+            opt(r.deadline_cycles),
+            r.wall_s,
+            r.rtf,
+            csv_field(r.error.as_deref().unwrap_or("")),
+        ));
+    }
+    write(path, s.as_bytes())
+}
+
+/// Writes the rows as one JSON array of objects (the fields of [`PieceRow`]).
+///
+/// Errors: the file cannot be written (naming it).
+pub fn write_json(path: &Path, rows: &[PieceRow]) -> Result<(), String> {
+    let text = serde_json::to_string_pretty(rows).map_err(|e| e.to_string())?;
+    write(path, text.as_bytes())
+}
+
+fn write(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    std::fs::File::create(path)
+        .and_then(|mut f| f.write_all(bytes))
+        .map_err(|e| format!("cannot write `{}`: {e}", path.display()))
+}
+
+/// A CSV field, quoted when it holds a comma, a quote or a line break (RFC 4180).
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_field_with_a_comma_or_a_quote_is_quoted() {
+        assert_eq!(csv_field("a.mid"), "a.mid");
+        assert_eq!(csv_field("bad, \"file\""), "\"bad, \"\"file\"\"\"");
+    }
+
+    #[test]
+    fn a_directory_gives_its_midi_files_sorted_and_a_missing_file_is_kept() {
+        let dir = std::env::temp_dir().join(format!("tactus-corpus-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for f in ["b.mid", "a.MID", "notes.txt"] {
+            std::fs::write(dir.join(f), b"").unwrap();
+        }
+        let files = expand(&[dir.clone(), PathBuf::from("/nonexistent/x.mid")]).unwrap();
+        assert_eq!(
+            files,
+            vec![
+                dir.join("a.MID"),
+                dir.join("b.mid"),
+                PathBuf::from("/nonexistent/x.mid")
+            ]
+        );
+        let empty = dir.join("empty");
+        std::fs::create_dir_all(&empty).unwrap();
+        assert!(expand(&[empty]).unwrap_err().contains("no MIDI file"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
