@@ -230,6 +230,9 @@ fn run_corpus(args: &PlayArgs, files: &[PathBuf]) -> ExitCode {
             r.error.as_deref().unwrap_or("")
         );
     }
+    if let Some(kb) = peak_memory() {
+        println!("  peak memory of the run: {:.1} MB", kb as f64 / 1024.0);
+    }
     for (path, write) in [
         (
             args.out.join("corpus.csv"),

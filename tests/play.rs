@@ -1204,7 +1204,10 @@ fn corpus_mode_plays_each_piece_reports_a_bad_file_and_writes_one_summary() {
     assert!(
         good["worst_core_cycles"].as_u64().unwrap() <= good["deadline_cycles"].as_u64().unwrap()
     );
-    assert!(rows[1]["error"].as_str().unwrap().contains("not a standard MIDI file"));
+    assert!(rows[1]["error"]
+        .as_str()
+        .unwrap()
+        .contains("not a standard MIDI file"));
     let csv = std::fs::read_to_string(dir.join("corpus.csv")).unwrap();
     assert_eq!(csv.lines().count(), 3, "{csv}");
     assert!(csv.lines().nth(2).unwrap().contains("bad.mid"), "{csv}");

@@ -612,9 +612,10 @@ fn listing_assembles_to_the_same_bytes_and_the_object_links() {
         let (fp, obj) = compile(&text);
         let ours = obj.elf().unwrap();
         assert_eq!(text_of(&ours), obj.code.text, "{name}: the ELF's .text");
-        let s = dir.join(format!("{name}.s"));
+        let stem = name.replace('/', "-");
+        let s = dir.join(format!("{stem}.s"));
         std::fs::write(&s, &obj.code.listing).unwrap();
-        let o = dir.join(format!("{name}-as.o"));
+        let o = dir.join(format!("{stem}-as.o"));
         run(
             std::process::Command::new("arm-none-eabi-as")
                 .args(["-mcpu=cortex-m0plus", "-o"])
@@ -628,11 +629,11 @@ fn listing_assembles_to_the_same_bytes_and_the_object_links() {
             panic!("{name}: as gives other bytes from offset {i:#x}");
         }
         // Link our object (not the assembler's) into an executable at the start of SRAM.
-        let ours_path = dir.join(format!("{name}.o"));
+        let ours_path = dir.join(format!("{stem}.o"));
         std::fs::write(&ours_path, &ours).unwrap();
         let ld = dir.join("link.ld");
         std::fs::write(&ld, "SECTIONS { . = 0x20000000; .text : { *(.text*) } }\n").unwrap();
-        let exe = dir.join(format!("{name}.elf"));
+        let exe = dir.join(format!("{stem}.elf"));
         run(
             std::process::Command::new("arm-none-eabi-ld")
                 .arg("-T")
