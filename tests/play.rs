@@ -12,6 +12,37 @@ use tactus_runtime::player::{FingerConfig, ForcePlayer, ForceProfile, Stroke};
 /// One row of a strikes CSV: (key, time, speed, note_on, note_velocity).
 type Row = (u8, f64, f64, Option<f64>, Option<u8>);
 
+/// Asserts that every note-on of `notes` has exactly one strike on its key within 50 ms, and
+/// that no strike answers no note; returns (note velocity, strike speed) per note.
+fn one_strike_per_note(
+    rows: &[Row],
+    notes: &[&tactus_runtime::performance::Note],
+) -> Vec<(f64, f64)> {
+    let pairs = notes
+        .iter()
+        .map(|n| {
+            let hits: Vec<_> = rows
+                .iter()
+                .filter(|s| s.0 == n.key && (s.1 - n.on_s).abs() <= 0.050)
+                .collect();
+            assert_eq!(
+                hits.len(),
+                1,
+                "note {} at {:.3} s: {} strikes",
+                n.key,
+                n.on_s,
+                hits.len()
+            );
+            (n.velocity as f64, hits[0].2)
+        })
+        .collect();
+    assert!(
+        rows.iter().all(|s| s.3.is_some()),
+        "a strike answers no note"
+    );
+    pairs
+}
+
 fn strikes(path: &PathBuf) -> Vec<Row> {
     let mut r = csv::Reader::from_path(path).unwrap();
     r.records()
@@ -189,30 +220,8 @@ fn maestro_1_first_20_s_one_strike_per_note() {
     let perf = read_midi(&midi).unwrap();
     let notes: Vec<_> = perf.notes.iter().filter(|n| n.on_s < 20.0).collect();
     assert!(notes.len() > 50, "{} notes", notes.len());
-    // Every note-on: exactly one strike on its key within 50 ms.
-    let mut vin = Vec::new();
-    let mut vout = Vec::new();
-    for n in &notes {
-        let hits: Vec<_> = rows
-            .iter()
-            .filter(|s| s.0 == n.key && (s.1 - n.on_s).abs() <= 0.050)
-            .collect();
-        assert_eq!(
-            hits.len(),
-            1,
-            "note {} at {:.3} s: {} strikes",
-            n.key,
-            n.on_s,
-            hits.len()
-        );
-        vin.push(n.velocity as f64);
-        vout.push(hits[0].2);
-    }
-    // No strike without a note.
-    assert!(
-        rows.iter().all(|s| s.3.is_some()),
-        "a strike answers no note"
-    );
+    // Every note-on: exactly one strike on its key within 50 ms; no strike without a note.
+    let (vin, vout): (Vec<f64>, Vec<f64>) = one_strike_per_note(&rows, &notes).into_iter().unzip();
     assert_eq!(rows.len(), notes.len());
     let rho = spearman(&vin, &vout);
     eprintln!(
@@ -1152,17 +1161,7 @@ fn the_friction_piano_strikes_once_per_note_of_maestro_1_first_20_s() {
     let perf = read_midi(&midi).unwrap();
     let notes: Vec<_> = perf.notes.iter().filter(|n| n.on_s < 20.0).collect();
     assert!(notes.len() > 50, "{} notes", notes.len());
-    for n in &notes {
-        let hits = rows
-            .iter()
-            .filter(|s| s.0 == n.key && (s.1 - n.on_s).abs() <= 0.050)
-            .count();
-        assert_eq!(hits, 1, "note {} at {:.3} s: {hits} strikes", n.key, n.on_s);
-    }
-    assert!(
-        rows.iter().all(|s| s.3.is_some()),
-        "a strike answers no note"
-    );
+    one_strike_per_note(&rows, &notes);
 }
 
 /// Issue 37, corpus mode: a list with a good performance and a file that is not MIDI plays
