@@ -9,24 +9,15 @@
 //!
 //! Exit codes: 0 fits; 1 does not fit (or measured > static, an analysis bug); 2 bad input.
 
-use crate::check_cmd::{compile_reporting, parse_override};
+use crate::check_cmd::parse_override;
 use crate::source;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use tactus_firmware::verdict::{self, BudgetInput, ProgramInput};
-use tactus_runtime::keyboard::{self, Board, KeyAssignment, Layout};
+use tactus_firmware::verdict::{self, BudgetInput};
+use tactus_host::keyboard::{self, Keyboard, KeyboardSpec};
+use tactus_runtime::keyboard as layout_file;
 use tactus_runtime::limiter::LimiterConfig;
-
-/// Boards shipped in the binary, by name (the file stem in `boards/`).
-pub const BUILTIN_BOARDS: &[(&str, &str)] = &[
-    ("rp2040", include_str!("../boards/rp2040.toml")),
-    (
-        "rp2040_200mhz",
-        include_str!("../boards/rp2040_200mhz.toml"),
-    ),
-    ("rp2040_20mhz", include_str!("../boards/rp2040_20mhz.toml")),
-];
 
 /// Arguments of `tactus budget`.
 #[derive(Debug, clap::Args)]
@@ -60,7 +51,8 @@ shrinks the full one (the static figures and the verdict do not change).
 Exit codes: 0 fits, 1 does not fit (or measured > static), 2 bad input.")]
 pub struct BudgetArgs {
     /// A layout (`instruments/layouts/grand88.toml`: which instrument on which keys, and
-    /// optionally on which boards), or one instrument (file or built-in name, e.g.
+    /// optionally on which boards; or a built-in layout's name: `grand88`,
+    /// `split_harpsichord_piano`), or one instrument (file or built-in name, e.g.
     /// `grand_piano`) on `--keys` keys.
     pub input: String,
     /// The board kind: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`) or a
@@ -125,249 +117,29 @@ pub fn run(args: BudgetArgs) -> ExitCode {
     }
 }
 
-/// The board named `arg`: a board file, or a built-in board's name, checked by
-/// `tactus_firmware::board_file::read_board` (the one validation of boards); errors name the
-/// file and the field, or list the built-ins.
-pub(crate) fn board_named(arg: &str) -> Result<Board, String> {
-    if Path::new(arg).exists() {
-        let text = keyboard::read_text(Path::new(arg))?;
-        return tactus_firmware::board_file::read_board(&text, arg);
-    }
-    let stem = arg.trim_end_matches(".toml").replace('-', "_");
-    match BUILTIN_BOARDS.iter().find(|(n, _)| *n == stem) {
-        Some((n, text)) => tactus_firmware::board_file::read_board(text, &format!("builtin:{n}")),
-        None => Err(format!(
-            "no board file `{arg}`, and no built-in board of that name (built-ins: {})",
-            BUILTIN_BOARDS
-                .iter()
-                .map(|(n, _)| *n)
-                .collect::<Vec<_>>()
-                .join(", ")
-        )),
-    }
-}
-
-/// The input resolved: name, keys, the layout (if one), its explicit boards.
-struct Resolved {
-    name: String,
-    keys: Vec<KeyAssignment>,
-    layout: Option<(Layout, PathBuf)>,
-    boards: Option<Vec<Vec<u8>>>,
-}
-
-fn resolve(args: &KeyboardSpec, single_is_pen: bool) -> Result<Resolved, Bad> {
-    if args.input.ends_with(".toml") {
-        if args.keys.is_some() {
-            return Err(Bad(format!(
-                "{}: --keys is for a single instrument; a layout lists its own keys",
-                args.input
-            )));
-        }
-        let path = Path::new(args.input);
-        let (l, keys) = keyboard::read_layout(path).map_err(Bad)?;
-        let boards = keyboard::board_keys(&l, args.input, &keys).map_err(Bad)?;
-        return Ok(Resolved {
-            name: l.name.clone(),
-            keys,
-            layout: Some((l, path.to_path_buf())),
-            boards,
-        });
-    }
-    // A pen instrument is budgeted as one pen unless told otherwise.
-    let n = args.keys.unwrap_or(if single_is_pen { 1 } else { 88 });
-    if !(1..=128).contains(&n) {
-        return Err(Bad(format!(
-            "--keys must be between 1 and 128 (MIDI keys), got {n}"
-        )));
-    }
-    // From A0 up, or from MIDI 0 when that would pass key 127.
-    let first = if 21 + n <= 128 { 21 } else { 0 };
-    Ok(Resolved {
-        name: format!("{} × {n}", args.input),
-        keys: (first..first + n)
-            .map(|k| KeyAssignment {
-                key: k as u8,
-                instrument: args.input.to_string(),
-                params: vec![],
-            })
-            .collect(),
-        layout: None,
-        boards: None,
-    })
-}
-
-/// A keyboard to compile: a layout file, or an instrument on `keys` keys.
-pub(crate) struct KeyboardSpec<'a> {
-    /// The layout file (`.toml`) or the instrument.
-    pub input: &'a str,
-    /// `--board`.
-    pub board: Option<&'a str>,
-    /// `--keys` (an instrument only).
-    pub keys: Option<u32>,
-    /// `--param` overrides for every key.
-    pub params: &'a [(String, String)],
-}
-
-/// A compiled keyboard: its keys resolved, its board, its distinct programs.
-pub(crate) struct Keyboard {
-    resolved: Resolved,
-    /// The board kind as given (a name or a path).
-    pub kind: String,
-    /// The board.
-    pub board: Board,
-    /// Distinct programs, in order of first key.
-    pub programs: Vec<ProgramInput>,
-    /// (MIDI key, program), ascending.
-    pub keys: Vec<(u8, usize)>,
-}
-
-impl Keyboard {
-    /// The layout's (or the instrument's) name.
-    pub fn name(&self) -> &str {
-        &self.resolved.name
-    }
-
-    /// The layout's own boards, if it lists them.
-    pub fn boards(&self) -> Option<&[Vec<u8>]> {
-        self.resolved.boards.as_deref()
-    }
-}
-
-/// Resolves and compiles a keyboard, printing each instrument's diagnostics once.
-///
-/// Errors: a message naming the input (a bad layout or board, an instrument that does not
-/// compile).
-pub(crate) fn compile_keyboard(args: &KeyboardSpec) -> Result<Keyboard, String> {
-    // A layout is resolved first (it may name the board kind).
-    let layout_input = args.input.ends_with(".toml");
-    let resolved = match layout_input {
-        true => Some(resolve(args, false).map_err(|b| b.0)?),
-        false => None,
-    };
-    let layout = resolved.as_ref().and_then(|r| r.layout.as_ref());
-    // The board kind: --board, else the layout's, else rp2040 (a layout's board file is
-    // relative to the layout).
-    let kind = match (&args.board, layout.and_then(|(l, _)| l.board_kind.clone())) {
-        (Some(b), _) => b.to_string(),
-        (None, Some(k)) => {
-            let dir = layout.and_then(|(_, p)| p.parent().map(Path::to_path_buf));
-            match dir.map(|d| d.join(&k)).filter(|p| p.exists()) {
-                Some(p) => p.display().to_string(),
-                None => k,
-            }
-        }
-        (None, None) => "rp2040".to_string(),
-    };
-    let board = board_named(&kind).map_err(|e| match layout {
-        Some((_, p)) if args.board.is_none() => format!("{}: `board_kind`: {e}", p.display()),
-        _ => e,
-    })?;
-    // Every program is compiled for the board's sample rate (its `require`s see it, its
-    // dynamics are discretised at it).
-    let fs = board.sample_rate_hz;
-    // A single instrument is compiled once, here (whether it is a pen decides the default
-    // number of keys), and reused for its keys below, so its diagnostics print once.
-    let mut precompiled = None;
-    if !layout_input {
-        let src = source::load(args.input)?;
-        let lowered = compile_reporting(&src, args.params, fs);
-        precompiled = Some((src, lowered));
-    }
-    let single_is_pen = matches!(&precompiled, Some((_, Some(l))) if l.program.is_pen());
-    let r = match resolved {
-        Some(r) => r,
-        None => resolve(args, single_is_pen).map_err(|b| b.0)?,
-    };
-
-    // Distinct parameter sets, in order of first key: (instrument, params, source, IR).
-    type ParamSet = (
-        String,
-        Vec<(String, String)>,
-        source::Source,
-        tactus_compiler::ir::Program,
-    );
-    let mut sets: Vec<ParamSet> = Vec::new();
-    let mut keys: Vec<(u8, usize)> = Vec::new();
-    for a in &r.keys {
-        let mut params = a.params.clone();
-        params.extend(args.params.iter().cloned());
-        let idx = match sets
-            .iter()
-            .position(|p: &ParamSet| p.0 == a.instrument && p.1 == params)
-        {
-            Some(i) => i,
-            None => {
-                let (src, lowered) = match precompiled.take() {
-                    Some(pre) => pre,
-                    None => {
-                        let src = source::load(&a.instrument)
-                            .map_err(|e| format!("{}: key {}: {e}", args.input, a.key))?;
-                        let lowered = compile_reporting(&src, &params, fs);
-                        (src, lowered)
-                    }
-                };
-                let Some(lowered) = lowered else {
-                    return Err(format!(
-                        "{}: key {}: `{}` does not compile with params {} for the board's \
-                         sample rate, {fs} Hz (`{kind}`; see the diagnostics above)",
-                        args.input,
-                        a.key,
-                        a.instrument,
-                        verdict::show_params(params.iter().map(|(n, v)| (n, v)))
-                    ));
-                };
-                sets.push((a.instrument.clone(), params, src, lowered.program));
-                sets.len() - 1
-            }
-        };
-        keys.push((a.key, idx));
-    }
-    keys.sort_unstable();
-    // One code per instrument: graded params become run-time data (a param block per set).
-    let lowered: Vec<(&str, &tactus_compiler::ir::Program)> =
-        sets.iter().map(|s| (s.0.as_str(), &s.3)).collect();
-    let compiled = tactus_firmware::image::compile_shared(&lowered)
-        .map_err(|(i, e)| format!("{}: {e}", sets[i].2.name))?;
-    let programs: Vec<ProgramInput> = sets
-        .into_iter()
-        .zip(compiled)
-        .map(|((instrument, params, src, _), program)| ProgramInput {
-            instrument,
-            params,
-            source: src.text,
-            program,
-        })
-        .collect();
-
-    Ok(Keyboard {
-        resolved: r,
-        kind,
-        board,
-        programs,
-        keys,
-    })
-}
-
 fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
-    let kb = compile_keyboard(&KeyboardSpec {
-        input: &args.input,
-        board: args.board.as_deref(),
-        keys: args.keys,
-        params: &args.params,
-    })
-    .map_err(Bad)?;
-    let (r, kind, board, programs, keys) = (kb.resolved, kb.kind, kb.board, kb.programs, kb.keys);
+    let kb = keyboard::compile(
+        &KeyboardSpec {
+            input: &args.input,
+            as_layout: None,
+            board: args.board.as_deref(),
+            keys: args.keys,
+            params: &args.params,
+        },
+        &mut source::report_compile,
+    )
+    .map_err(|e| Bad(e.to_string()))?;
     let input = BudgetInput {
-        name: r.name.clone(),
+        name: kb.name.clone(),
         input: args.input.clone(),
-        board: board.clone(),
-        programs,
-        keys,
-        boards: r.boards.clone(),
+        board: kb.board.clone(),
+        programs: kb.program_inputs().map_err(|e| Bad(e.to_string()))?,
+        keys: kb.key_programs(),
+        boards: kb.boards.clone(),
         quick: args.quick,
         engine: args.emu.into(),
         limiter: LimiterConfig {
-            sample_rate_hz: board.sample_rate_hz,
+            sample_rate_hz: kb.board.sample_rate_hz,
             ..LimiterConfig::default()
         },
     };
@@ -409,7 +181,7 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
                 report.board_count
             ),
         };
-        eprintln!("error: {}: does not fit: {why}", r.name);
+        eprintln!("error: {}: does not fit: {why}", kb.name);
     }
     for p in report.unsound() {
         eprintln!(
@@ -423,7 +195,7 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
         );
     }
     if let Some(out) = &args.write_plan {
-        write_plan(&report, &r, &kind, out)?;
+        write_plan(&report, &kb, out)?;
         if !args.json {
             println!(
                 "plan: {} boards written to {}",
@@ -438,12 +210,7 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
 /// Writes the planned layout: the input layout (or one range for a single instrument) with
 /// `board_kind` and explicit boards. Instrument and board paths are made absolute, so the
 /// file works wherever it is written.
-fn write_plan(
-    report: &verdict::BudgetReport,
-    r: &Resolved,
-    kind: &str,
-    out: &Path,
-) -> Result<(), Bad> {
+fn write_plan(report: &verdict::BudgetReport, r: &Keyboard, out: &Path) -> Result<(), Bad> {
     let absolute = |s: &str, dir: Option<&Path>| -> String {
         let p = dir.map_or_else(|| PathBuf::from(s), |d| d.join(s));
         match p.canonicalize() {
@@ -453,7 +220,7 @@ fn write_plan(
     };
     let mut layout = match &r.layout {
         Some((l, path)) => {
-            let dir = path.parent();
+            let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
             let mut l = l.clone();
             for range in &mut l.ranges {
                 range.instrument = absolute(&range.instrument, dir);
@@ -465,7 +232,7 @@ fn write_plan(
                 r.keys.first().map_or(0, |k| k.key),
                 r.keys.last().map_or(0, |k| k.key),
             );
-            keyboard::parse_layout(
+            layout_file::parse_layout(
                 &format!(
                     "name = {:?}\n[[range]]\nkeys = [{first}, {last}]\ninstrument = {:?}\n",
                     r.name,
@@ -476,30 +243,17 @@ fn write_plan(
             .map_err(Bad)?
         }
     };
-    layout = report.with_boards(&layout, &absolute(kind, None));
+    layout = report.with_boards(&layout, &absolute(&r.kind, None));
     // The header is one comment line whatever the names hold.
     let header = format!(
         "Planned by `tactus budget` for {}: {} boards of kind {}, each a contiguous key range.",
         r.name, report.board_count, report.board.name
     );
-    let text = keyboard::layout_text(&layout, &header)
+    let text = layout_file::layout_text(&layout, &header)
         .map_err(|e| Bad(format!("{}: {e}; nothing written", out.display())))?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .map_err(|e| Bad(format!("{}: cannot create: {e}", dir.display())))?;
     }
     std::fs::write(out, text).map_err(|e| Bad(format!("{}: cannot write: {e}", out.display())))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn builtin_boards_parse() {
-        for (n, text) in BUILTIN_BOARDS {
-            keyboard::parse_board(text, n).unwrap();
-        }
-        assert!(board_named("no-such-board").is_err());
-    }
 }

@@ -15,7 +15,6 @@
 //! (`tactus_firmware::flash`): a flash image that boots at power-on, or with `--ram` a
 //! RAM-only image for development.
 
-use crate::budget_cmd::{compile_keyboard, KeyboardSpec};
 use crate::check_cmd::{compile_reporting, parse_override};
 use crate::source;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -26,6 +25,7 @@ use tactus_compiler::cgen;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::thumb;
 use tactus_firmware::flash::{self, KeyboardInput, Load};
+use tactus_host::keyboard::{self, KeyboardSpec};
 use tactus_runtime::limiter::LimiterConfig;
 
 /// Arguments of `tactus build`.
@@ -109,8 +109,8 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
             args.file
         )));
     };
-    let keyboard = args.file.ends_with(".toml") || args.keys.is_some();
-    if keyboard {
+    let is_keyboard = keyboard::is_layout(&args.file) || args.keys.is_some();
+    if is_keyboard {
         if args.target != Target::Rp2040 {
             return Err(Some(format!(
                 "{}: a keyboard (a layout, or --keys) builds firmware per board: use --target rp2040",
@@ -201,19 +201,24 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
 
 /// Firmware per board of a keyboard (see the module documentation).
 fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<String>> {
-    let kb = compile_keyboard(&KeyboardSpec {
-        input: &args.file,
-        board: args.board.as_deref(),
-        keys: args.keys,
-        params: &args.params,
-    })
-    .map_err(Some)?;
-    let programs: Vec<_> = kb.programs.iter().map(|p| p.program.clone()).collect();
+    let kb = keyboard::compile(
+        &KeyboardSpec {
+            input: &args.file,
+            as_layout: None,
+            board: args.board.as_deref(),
+            keys: args.keys,
+            params: &args.params,
+        },
+        &mut crate::source::report_compile,
+    )
+    .map_err(|e| Some(e.to_string()))?;
+    let programs = kb.firmware().map_err(|e| Some(e.to_string()))?;
     let names: Vec<(String, Vec<(String, String)>)> = kb
-        .programs
+        .sets
         .iter()
-        .map(|p| (p.instrument.clone(), p.params.clone()))
+        .map(|s| (s.instrument.clone(), s.params.clone()))
         .collect();
+    let key_programs = kb.key_programs();
     let limiter = LimiterConfig {
         sample_rate_hz: kb.board.sample_rate_hz,
         ..LimiterConfig::default()
@@ -221,12 +226,12 @@ fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<
     let command: Vec<String> = std::env::args().skip(1).collect();
     let command = format!("tactus {}", command.join(" "));
     let input = KeyboardInput {
-        name: kb.name(),
+        name: &kb.name,
         programs: &programs,
         program_names: &names,
-        keys: &kb.keys,
+        keys: &key_programs,
         board: &kb.board,
-        boards: kb.boards(),
+        boards: kb.boards.as_deref(),
         limiter: &limiter,
         load: if args.ram { Load::Ram } else { Load::Flash },
         command: &command,
@@ -286,7 +291,7 @@ fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<
     println!(
         "{}: {} boards of {} at {} MHz in {}, each with firmware.uf2 ({kind}), firmware.elf, keys.json, README.md\n\
          flash a board: hold BOOTSEL, plug it in, copy its firmware.uf2 onto the RPI-RP2 drive; {then}",
-        kb.name(),
+        kb.name,
         boards.len(),
         kb.board.name,
         kb.board.clock_hz / 1e6,

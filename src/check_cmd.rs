@@ -2,7 +2,6 @@
 
 use crate::source;
 use std::process::ExitCode;
-use tactus_compiler::lower::Config;
 use tactus_runtime::DEFAULT_SAMPLE_RATE_HZ;
 
 /// Arguments of `tactus check`.
@@ -56,26 +55,7 @@ pub fn compile_reporting(
     params: &[(String, String)],
     sample_rate_hz: f64,
 ) -> Option<tactus_compiler::lower::Lowered> {
-    let config = Config {
-        overrides: params.to_vec(),
-        sample_rate_hz,
-    };
-    match tactus_compiler::compile(&src.text, &config) {
-        Ok(l) => {
-            source::report(src, &l.warnings);
-            Some(l)
-        }
-        Err(d) => {
-            source::report(src, &d);
-            let n = d.iter().filter(|d| d.is_error()).count();
-            eprintln!(
-                "error: {} has {n} error{}",
-                src.name,
-                if n == 1 { "" } else { "s" }
-            );
-            None
-        }
-    }
+    tactus_host::keyboard::lower(src, params, sample_rate_hz, &mut source::report_compile)
 }
 
 /// Runs `tactus check`.

@@ -5,18 +5,18 @@
 //! the traces' plots, the calibration of the force player and, with `--engine emu`, the
 //! budget of every board and core over the run.
 
-use crate::check_cmd::{compile_reporting, parse_override};
+use crate::check_cmd::parse_override;
 use crate::plot;
 use crate::source;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-use tactus_firmware::play::{
-    self as play, corpus, output, strike, HostProgram, Keyboard, PlayConfig,
-};
+use tactus_firmware::play::{self as play, corpus, output, strike, PlayConfig};
 use tactus_firmware::play::{BoardsReport, TraceWindow, Traces};
+use tactus_host::catalogue;
+use tactus_host::keyboard::{self, KeyboardSpec};
 use tactus_runtime::performance::{self, Performance};
 use tactus_runtime::player::FingerConfig;
 
@@ -58,10 +58,11 @@ pub struct PlayArgs {
     /// simulate only the played keys and check no budget.
     #[arg(long, value_enum, default_value = "emu")]
     pub engine: PlayEngine,
-    /// Board of `--engine emu`: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`)
-    /// or a board file.
-    #[arg(long, default_value = "rp2040", value_name = "NAME_OR_FILE")]
-    pub board: String,
+    /// Board: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`) or a board file;
+    /// every engine runs at its sample rate, `--engine emu` on its clock and cores
+    /// [default: the layout's `board_kind`, else rp2040].
+    #[arg(long, value_name = "NAME_OR_FILE")]
+    pub board: Option<String>,
     /// The emulator's engine for `--engine emu`: `block` (code compiled to native code with
     /// cranelift) or `interp` (the interpreter): the same cycles and strikes; compare their
     /// speed.
@@ -143,9 +144,6 @@ impl From<Player> for play::Player {
         }
     }
 }
-
-/// A compiled instrument: (instrument name or path, overrides, program).
-type Compiled = (String, Vec<(String, String)>, tactus_compiler::ir::Program);
 
 /// Runs `tactus play`.
 pub fn run(args: PlayArgs) -> ExitCode {
@@ -312,37 +310,26 @@ fn run_inner(
             ));
         }
     }
-    // The board (checked before anything is compiled for it): every program is compiled
-    // for its sample rate.
-    let board = crate::budget_cmd::board_named(&args.board)?;
-    let fs = board.sample_rate_hz;
-    // Which instrument (with which overrides) on which key.
-    let mut layout_boards = None;
-    let assignments = match &args.layout {
-        Some(l) => {
-            let (layout, keys) = tactus_runtime::keyboard::read_layout(l)?;
-            layout_boards =
-                tactus_runtime::keyboard::board_keys(&layout, &l.display().to_string(), &keys)?;
-            keys
-        }
-        None if args.instrument.is_none() => {
-            let name = "grand88 (built in)";
-            let layout = tactus_runtime::keyboard::parse_layout(source::GRAND88_LAYOUT, name)?;
-            let keys = tactus_runtime::keyboard::assign(&layout, name, Path::new(""))?;
-            layout_boards = tactus_runtime::keyboard::board_keys(&layout, name, &keys)?;
-            keys
-        }
-        None => {
-            let name = args.instrument.clone().unwrap_or_default();
-            (21u8..=108)
-                .map(|key| tactus_runtime::keyboard::KeyAssignment {
-                    key,
-                    instrument: name.clone(),
-                    params: vec![],
-                })
-                .collect()
-        }
+    // The keyboard (resolved and lowered as `tactus budget` and `tactus build` do): every
+    // program is compiled for its board's sample rate.
+    let input = match (&args.layout, &args.instrument) {
+        (Some(l), _) => l.display().to_string(),
+        (None, Some(i)) => i.clone(),
+        (None, None) => catalogue::DEFAULT_LAYOUT.to_string(),
     };
+    let kb = keyboard::compile(
+        &KeyboardSpec {
+            input: &input,
+            as_layout: Some(args.instrument.is_none()),
+            board: args.board.as_deref(),
+            keys: None,
+            params: &args.params,
+        },
+        &mut source::report_compile,
+    )
+    .map_err(|e| e.to_string())?;
+    let fs = kb.board.sample_rate_hz;
+    let assignments = &kb.keys;
     let (inside, outside): (Vec<&performance::Note>, Vec<&performance::Note>) = perf
         .notes
         .iter()
@@ -367,87 +354,11 @@ fn run_inner(
         notes: inside.into_iter().copied().collect(),
         ..perf
     };
-    // One compiled program per distinct (instrument, overrides), shared by its keys.
-    let mut programs: Vec<Compiled> = Vec::new();
-    let mut key_program = BTreeMap::new();
-    for a in assignments
-        .iter()
-        .filter(|a| perf.notes.iter().any(|n| n.key == a.key))
-    {
-        let mut params = a.params.clone();
-        params.extend(args.params.iter().cloned());
-        let idx = match programs
-            .iter()
-            .position(|(i, p, _)| *i == a.instrument && *p == params)
-        {
-            Some(i) => i,
-            None => {
-                let src = source::load(&a.instrument)?;
-                let Some(lowered) = compile_reporting(&src, &params, fs) else {
-                    return Err(format!(
-                        "`{}` (key {}) does not compile for the board's sample rate, {fs} Hz (`{}`)",
-                        a.instrument, a.key, args.board
-                    ));
-                };
-                let program = lowered.program;
-                if program.is_pen() || program.sensors.len() > 1 {
-                    return Err(format!(
-                        "instrument `{}` (key {}) reads {} sensors{}: `tactus play` moves one \
-                         key sensor per key; run a pen with \
-                         `tactus sim <instrument> --stimulus <pen gesture>`",
-                        program.name,
-                        a.key,
-                        program.sensors.len(),
-                        if program.is_pen() {
-                            " and pushes a 3-D force (a pen)"
-                        } else {
-                            ""
-                        }
-                    ));
-                }
-                if program.sensors.is_empty()
-                    || !program
-                        .events
-                        .iter()
-                        .any(|e| e.name == "strike" || e.name == "pluck")
-                {
-                    return Err(format!("instrument `{}` (key {}) has no sensor or emits no `strike`/`pluck` to play", program.name, a.key));
-                }
-                programs.push((a.instrument.clone(), params, program));
-                programs.len() - 1
-            }
-        };
-        key_program.insert(a.key, idx);
-    }
-    // Every key of the layout with its params (`--param` last): what the firmware runs,
-    // played or not (as on the hardware), and what `--engine fixed` compiles with it.
-    let all: Vec<tactus_runtime::keyboard::KeyAssignment> = assignments
-        .iter()
-        .map(|a| {
-            let mut a = a.clone();
-            a.params.extend(args.params.iter().cloned());
-            a
-        })
-        .collect();
     let traced: BTreeSet<u8> = args.trace_keys.iter().copied().collect();
-    for k in &traced {
-        if !key_program.contains_key(k) {
-            eprintln!(
-                "warning: traced key {k} is never played: it stays at rest, no trace written"
-            );
-        }
+    let played: BTreeSet<u8> = perf.notes.iter().map(|n| n.key).collect();
+    for k in traced.difference(&played) {
+        eprintln!("warning: traced key {k} is never played: it stays at rest, no trace written");
     }
-    let source = |name: &str| source::load(name).map(|s| s.text);
-    let keyboard = Keyboard {
-        keys: all,
-        programs: programs
-            .into_iter()
-            .map(|(name, _, program)| HostProgram { name, program })
-            .collect(),
-        key_program,
-        boards: layout_boards,
-        source: &source,
-    };
     let config = PlayConfig {
         engine: args.engine.into(),
         player: args.player.into(),
@@ -457,10 +368,17 @@ fn run_inner(
             from_s: args.trace_from,
             to_s: args.trace_to.unwrap_or(f64::INFINITY),
         },
-        board,
+        board: kb.board.clone(),
         emulator: args.emu.into(),
         quiescent_guard: !args.no_quiescent_guard,
     };
+    let firmware = match config.needs_firmware() {
+        true => Some(kb.firmware().map_err(|e| format!("firmware: {e}"))?),
+        false => None,
+    };
+    let keyboard = kb
+        .played(&played, firmware.as_deref())
+        .map_err(|e| e.to_string())?;
     let bar = Bar(match multi {
         Some(m) => m.add(ProgressBar::new(0)),
         None => ProgressBar::new(0),

@@ -240,12 +240,6 @@ fn write_wav(
     path: &std::path::Path,
 ) -> Result<(), String> {
     use tactus_runtime::trace::ColumnKind;
-    let rate = fs.round();
-    if !(1.0..=f64::from(u32::MAX)).contains(&rate) || (fs - rate).abs() > 1e-9 * fs {
-        return Err(format!(
-            "--wav: the sample rate {fs} Hz is not a whole number of hertz"
-        ));
-    }
     let mut mix = vec![0f32; trace.len()];
     for name in names {
         let col = trace
@@ -256,20 +250,7 @@ fn write_wav(
             *m += x as f32;
         }
     }
-    let scale = tactus_runtime::voice::i16_scale(&mix, 0.9);
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: rate as u32,
-        bits_per_sample: 16,
-        sample_format: hound::SampleFormat::Int,
-    };
-    let err = |e: hound::Error| format!("{}: cannot write: {e}", path.display());
-    let mut w = hound::WavWriter::create(path, spec).map_err(err)?;
-    for &x in &mix {
-        w.write_sample(tactus_runtime::voice::to_i16(x, scale))
-            .map_err(err)?;
-    }
-    w.finalize().map_err(err)
+    tactus_firmware::play::output::write_mono_wav(path, &mix, fs).map_err(|e| format!("--wav: {e}"))
 }
 
 fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {

@@ -596,3 +596,70 @@ fn regulate_prints_a_sheet_judges_it_against_a_spec_and_rejects_bad_input() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("pen instrument"));
 }
+
+/// `build`, `budget` and `play` resolve and compile a keyboard in one place
+/// (`tactus_host::keyboard`): on a built-in layout named bare, they plan the same boards with
+/// the same keys.
+#[test]
+fn build_budget_and_play_see_the_same_keyboard() {
+    let dir = temp_dir("same-keyboard");
+    let layout = "split_harpsichord_piano";
+    let budget = tactus()
+        .args(["budget", layout, "--quick", "--json"])
+        .output()
+        .unwrap();
+    assert_ok(&budget);
+    let v: serde_json::Value = serde_json::from_slice(&budget.stdout).unwrap();
+    let planned: Vec<String> = v["boards"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| {
+            let keys: Vec<u8> = b["keys"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|k| k.as_u64().unwrap() as u8)
+                .collect();
+            tactus_firmware::verdict::key_ranges(&keys)
+        })
+        .collect();
+    assert!(planned.len() >= 2, "{v}");
+    // Between two markers of each line that has the first.
+    let between = |out: &std::process::Output, start: &str, end: &str| -> Vec<String> {
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .filter_map(|l| {
+                let (_, rest) = l.split_once(start)?;
+                Some(rest.split_once(end)?.0.to_string())
+            })
+            .collect()
+    };
+    let build = tactus()
+        .args(["build", layout, "--target", "rp2040", "-o"])
+        .arg(dir.join("fw"))
+        .output()
+        .unwrap();
+    assert_ok(&build);
+    assert_eq!(
+        between(&build, ": keys ", ", UF2"),
+        planned,
+        "build vs budget"
+    );
+    let play = tactus()
+        .args([
+            "play",
+            "--layout",
+            layout,
+            "--seconds",
+            "0.3",
+            "--no-wav",
+            "-o",
+        ])
+        .arg(dir.join("play"))
+        .output()
+        .unwrap();
+    assert_ok(&play);
+    let played: Vec<String> = between(&play, "(keys ", "): core 0");
+    assert_eq!(played, planned, "play vs budget");
+}

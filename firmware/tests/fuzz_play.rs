@@ -104,7 +104,6 @@ fn mutated_performances_play_and_render_or_say_why_not() {
             params: vec![],
         })
         .collect();
-    let source = |_: &str| Ok(STRIKER.to_string());
     let board = Board {
         name: "rp2040".into(),
         clock_hz: 133e6,
@@ -144,7 +143,7 @@ fn mutated_performances_play_and_render_or_say_why_not() {
                         }],
                         key_program,
                         boards: None,
-                        source: &source,
+                        firmware: None,
                     };
                     let config = PlayConfig {
                         engine: PlayEngine::Interp,

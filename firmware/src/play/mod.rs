@@ -86,8 +86,21 @@ pub struct Keyboard<'a> {
     /// The layout's boards (MIDI keys per board), or `None` to plan them as `tactus budget`
     /// does.
     pub boards: Option<Vec<Vec<u8>>>,
-    /// An instrument's source text by its name in `keys`.
-    pub source: &'a (dyn Fn(&str) -> Result<String, String> + Sync),
+    /// The firmware's programs of the keys, when the engine runs them
+    /// ([`PlayConfig::needs_firmware`]); `None` otherwise.
+    pub firmware: Option<Firmware<'a>>,
+}
+
+/// The programs the firmware runs: every key of the layout compiled together, so that an
+/// instrument's graded params are run-time data planned over the interval all its keys span
+/// (`tactus_host::keyboard::Keyboard::firmware`, or
+/// [`crate::image::compile_layout`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Firmware<'a> {
+    /// The distinct programs.
+    pub programs: &'a [FirmwareProgram],
+    /// `programs[key_program[i]]` is [`Keyboard::keys`]`[i]`'s program.
+    pub key_program: &'a [usize],
 }
 
 /// How [`play`] runs.
@@ -108,6 +121,15 @@ pub struct PlayConfig {
     pub emulator: tactus_emulator::Engine,
     /// Whether the firmware guards quiescent keys (the same strikes either way).
     pub quiescent_guard: bool,
+}
+
+impl PlayConfig {
+    /// Whether [`play`] runs the firmware's programs ([`Keyboard::firmware`]): on the
+    /// emulated boards (`Emu`), and in the fixed-point JIT (`Fixed`, and the force player's
+    /// calibration for `Emu`).
+    pub fn needs_firmware(&self) -> bool {
+        matches!(self.engine, PlayEngine::Emu | PlayEngine::Fixed)
+    }
 }
 
 /// Reports a run's progress, in key-samples.
@@ -224,14 +246,35 @@ pub fn play(
     // `Emu` (the same bits as the firmware's update).
     let fixed_needed = config.engine == PlayEngine::Fixed
         || (config.engine == PlayEngine::Emu && config.player == Player::Force);
-    // The programs the firmware runs: every key of the layout compiled together, so that an
-    // instrument's graded params are run-time data planned over the interval all its keys
-    // span; each host program's is the shared code with the param block of its first key.
-    let (firmware, firmware_index) = match fixed_needed || config.engine == PlayEngine::Emu {
-        true => crate::image::compile_layout(&keyboard.keys, keyboard.source, fs)
-            .map_err(|e| format!("firmware: {e}"))?,
-        false => (Vec::new(), Vec::new()),
-    };
+    // The programs the firmware runs; each host program's is the shared code with the param
+    // block of its first key.
+    let (firmware, firmware_index): (&[FirmwareProgram], &[usize]) =
+        match (config.needs_firmware(), keyboard.firmware) {
+            (true, Some(f)) if f.key_program.len() == keyboard.keys.len() => {
+                match f.key_program.iter().all(|&i| i < f.programs.len()) {
+                    true => (f.programs, f.key_program),
+                    false => return Err("firmware: a key's program index is out of range".into()),
+                }
+            }
+            (true, Some(f)) => {
+                return Err(format!(
+                    "firmware: {} key programs for {} keys",
+                    f.key_program.len(),
+                    keyboard.keys.len()
+                ))
+            }
+            (true, None) => {
+                return Err(format!(
+                    "firmware: the {:?} engine{} runs the firmware's programs; none were given",
+                    config.engine,
+                    match config.player {
+                        Player::Force => " with the force player",
+                        Player::Position => "",
+                    }
+                ))
+            }
+            (false, _) => (&[], &[]),
+        };
     let fixed_programs: Vec<&FirmwareProgram> = match fixed_needed {
         true => (0..programs.len())
             .map(|pi| {
@@ -369,9 +412,9 @@ pub fn play(
         let key_motions: BTreeMap<u8, &Motion> =
             motions.iter().map(|(&k, (m, _))| (k, m)).collect();
         let run = play_boards(
-            &firmware,
+            firmware,
             &keys,
-            &firmware_index,
+            firmware_index,
             &config.board,
             &key_motions,
             &opts,

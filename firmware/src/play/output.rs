@@ -59,16 +59,33 @@ pub fn write_wav(
         ));
     }
     let samples = voice::render(&notes, last + 2.0, fs);
-    let scale = voice::i16_scale(&samples, 0.9);
+    write_mono_wav(path, &samples, fs)
+}
+
+/// Writes `samples` (any unit) as a 16-bit mono WAV at `fs` Hz, scaled so that the peak is
+/// at 90 % of full scale (silence stays silence): the one WAV writer of `tactus play` and
+/// `tactus sim`.
+///
+/// Errors: `fs` not a whole number of hertz from 1 to `u32::MAX`, or the file cannot be
+/// written (naming it).
+pub fn write_mono_wav(path: &Path, samples: &[f32], fs: f64) -> Result<(), String> {
+    let rate = fs.round();
+    if !(1.0..=f64::from(u32::MAX)).contains(&rate) || (fs - rate).abs() > 1e-9 * fs {
+        return Err(format!(
+            "{}: the sample rate {fs} Hz is not a whole number of hertz",
+            path.display()
+        ));
+    }
+    let scale = voice::i16_scale(samples, 0.9);
     let spec = hound::WavSpec {
         channels: 1,
-        sample_rate: fs.round() as u32,
+        sample_rate: rate as u32,
         bits_per_sample: 16,
         sample_format: hound::SampleFormat::Int,
     };
     let err = |e: hound::Error| format!("{}: cannot write: {e}", path.display());
     let mut w = hound::WavWriter::create(path, spec).map_err(err)?;
-    for &x in &samples {
+    for &x in samples {
         w.write_sample(voice::to_i16(x, scale)).map_err(err)?;
     }
     w.finalize().map_err(err)

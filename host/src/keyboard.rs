@@ -1,0 +1,427 @@
+//! The one resolution and compilation of a keyboard, for `tactus build`, `tactus budget`
+//! and `tactus play`.
+//!
+//! A keyboard is given as a [`KeyboardSpec`]: a layout file (`*.toml`), a built-in layout
+//! (`grand88`), or one instrument (a file or a built-in name) on N keys from A0 up, plus a
+//! board kind and `--param` overrides. [`compile`] resolves it to one
+//! [`KeyAssignment`] per key (the overrides last), reads the board (the spec's, else the
+//! layout's `board_kind`, else [`catalogue::DEFAULT_BOARD`]), and lowers every distinct
+//! (instrument, params) once, for the board's sample rate, reporting each source's
+//! diagnostics once. [`Keyboard::firmware`] compiles the distinct sets to the firmware's
+//! programs (an instrument's graded params become run-time data:
+//! [`tactus_firmware::image::compile_shared`]); [`Keyboard::played`] gives `play` the keys
+//! a performance plays.
+
+use crate::catalogue::{self, Source};
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use tactus_compiler::diagnostics::Diagnostic;
+use tactus_compiler::ir::Program;
+use tactus_firmware::image::Program as FirmwareProgram;
+use tactus_firmware::play::{self, HostProgram};
+use tactus_firmware::verdict::{self, ProgramInput};
+use tactus_runtime::keyboard::{self as layout_file, Board, KeyAssignment, Layout};
+
+/// The most keys a single instrument may be given (`--keys`): the MIDI key numbers.
+pub const MAX_KEYS: u32 = 128;
+
+/// What a keyboard is made of, as a command's arguments give it.
+#[derive(Clone, Copy, Debug)]
+pub struct KeyboardSpec<'a> {
+    /// A layout file (`.toml`), a built-in layout's name, or an instrument (a file or a
+    /// built-in name).
+    pub input: &'a str,
+    /// Whether `input` is a layout (`Some(true)`: `tactus play --layout`), an instrument
+    /// (`Some(false)`: `--instrument`), or to be told by its name (`None`: [`is_layout`]).
+    pub as_layout: Option<bool>,
+    /// The board kind (a built-in name or a board file); `None`: the layout's
+    /// `board_kind`, else [`catalogue::DEFAULT_BOARD`].
+    pub board: Option<&'a str>,
+    /// For an instrument: how many keys, from MIDI 21 (A0) up (from MIDI 0 when that would
+    /// pass key 127); `None`: 88, or 1 for a pen. An error with a layout.
+    pub keys: Option<u32>,
+    /// Overrides of every key's params, `(name, value with unit)`, applied after the
+    /// layout's own.
+    pub params: &'a [(String, String)],
+}
+
+/// Why a keyboard cannot be made. Every message names the input and, where there is one,
+/// the file and the field or the key.
+#[derive(Debug, thiserror::Error)]
+pub enum KeyboardError {
+    /// A bad layout, board, instrument name or count.
+    #[error("{0}")]
+    Input(String),
+    /// An instrument does not compile for one of its keys (its diagnostics went to the
+    /// reporter).
+    #[error(
+        "{input}: key {key}: `{instrument}` does not compile with params {params} for the \
+         board's sample rate, {fs} Hz (`{kind}`; see the diagnostics above)"
+    )]
+    Compile {
+        /// The keyboard's input.
+        input: String,
+        /// The first key (MIDI) of the set.
+        key: u8,
+        /// The instrument as the layout names it.
+        instrument: String,
+        /// The set's params, shown.
+        params: String,
+        /// The board's sample rate, Hz.
+        fs: f64,
+        /// The board kind.
+        kind: String,
+    },
+    /// The fixed-point or Thumb compilation of a set failed, or its plan breaks its
+    /// accuracy contract.
+    #[error("{source_name}: {message}")]
+    Firmware {
+        /// The source of the set.
+        source_name: String,
+        /// What failed.
+        message: String,
+    },
+    /// A played key's instrument is not one `play` can move.
+    #[error("{0}")]
+    NotPlayable(String),
+}
+
+/// One distinct (instrument, params) of a keyboard, lowered.
+#[derive(Clone, Debug)]
+pub struct ProgramSet {
+    /// The instrument as the layout names it (built-in name or path).
+    pub instrument: String,
+    /// Its params: the layout's, then the spec's overrides.
+    pub params: Vec<(String, String)>,
+    /// Its source.
+    pub source: Source,
+    /// Its program, lowered for the board's sample rate.
+    pub ir: Program,
+}
+
+/// A keyboard resolved and lowered: see the module documentation.
+#[derive(Clone, Debug)]
+pub struct Keyboard {
+    /// The layout's name, or `INSTRUMENT × N`.
+    pub name: String,
+    /// The input as given.
+    pub input: String,
+    /// The layout and its file (empty for a built-in layout), if the input is a layout.
+    pub layout: Option<(Layout, PathBuf)>,
+    /// The board kind as resolved (a name or a path).
+    pub kind: String,
+    /// The board.
+    pub board: Board,
+    /// Every key, ascending, with its instrument and params (the spec's overrides last).
+    pub keys: Vec<KeyAssignment>,
+    /// `sets[key_set[i]]` is `keys[i]`'s program.
+    pub key_set: Vec<usize>,
+    /// The distinct (instrument, params), in order of first key.
+    pub sets: Vec<ProgramSet>,
+    /// The layout's own boards (MIDI keys per board), or `None` to plan them.
+    pub boards: Option<Vec<Vec<u8>>>,
+}
+
+/// Receives a source's diagnostics: its warnings when it compiles, its errors (and
+/// warnings) when it does not. Called once per distinct set at most.
+pub type Reporter<'r> = dyn FnMut(&Source, &[Diagnostic]) + 'r;
+
+/// Lowers `src` with `params` for a board sampling at `fs` Hz, handing its diagnostics to
+/// `report`; `None` when it does not compile.
+pub fn lower(
+    src: &Source,
+    params: &[(String, String)],
+    fs: f64,
+    report: &mut Reporter,
+) -> Option<tactus_compiler::lower::Lowered> {
+    let config = tactus_compiler::lower::Config {
+        overrides: params.to_vec(),
+        sample_rate_hz: fs,
+    };
+    match tactus_compiler::compile(&src.text, &config) {
+        Ok(l) => {
+            if !l.warnings.is_empty() {
+                report(src, &l.warnings);
+            }
+            Some(l)
+        }
+        Err(d) => {
+            report(src, &d);
+            None
+        }
+    }
+}
+
+/// Whether `input` names a layout: a `.toml` path, or a built-in layout's name that is not
+/// a file or a built-in instrument.
+pub fn is_layout(input: &str) -> bool {
+    input.ends_with(".toml")
+        || (catalogue::layout(input).is_some()
+            && !Path::new(input).exists()
+            && !catalogue::INSTRUMENTS.iter().any(|(n, _)| *n == input))
+}
+
+/// A layout resolved key by key: (layout, its file, keys, its boards).
+type LayoutKeys = (Layout, PathBuf, Vec<KeyAssignment>, Option<Vec<Vec<u8>>>);
+
+fn read_layout(input: &str) -> Result<LayoutKeys, String> {
+    let (layout, path, keys, name) = match catalogue::layout(input) {
+        Some(text) if !Path::new(input).exists() => {
+            let name = format!("builtin:{input}");
+            let l = layout_file::parse_layout(text, &name)?;
+            let keys = layout_file::assign(&l, &name, Path::new(""))?;
+            (l, PathBuf::new(), keys, name)
+        }
+        _ => {
+            let path = Path::new(input);
+            let (l, keys) = layout_file::read_layout(path)?;
+            (l, path.to_path_buf(), keys, input.to_string())
+        }
+    };
+    let boards = layout_file::board_keys(&layout, &name, &keys)?;
+    Ok((layout, path, keys, boards))
+}
+
+/// Resolves and lowers the keyboard `spec` describes; see the module documentation.
+///
+/// Errors: [`KeyboardError::Input`] for a bad layout, board, instrument name or `keys`
+/// (naming the file and the field); [`KeyboardError::Compile`] when an instrument does not
+/// compile with a key's params (its diagnostics went to `report`).
+pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, KeyboardError> {
+    let bad = KeyboardError::Input;
+    // A layout is resolved first (it may name the board kind).
+    let layout = match spec.as_layout.unwrap_or_else(|| is_layout(spec.input)) {
+        true => {
+            if spec.keys.is_some() {
+                return Err(bad(format!(
+                    "{}: --keys is for a single instrument; a layout lists its own keys",
+                    spec.input
+                )));
+            }
+            Some(read_layout(spec.input).map_err(bad)?)
+        }
+        false => None,
+    };
+    // The board kind: the spec's, else the layout's, else the default (a layout's board
+    // file is relative to the layout).
+    let kind = match (
+        spec.board,
+        layout.as_ref().and_then(|l| l.0.board_kind.clone()),
+    ) {
+        (Some(b), _) => b.to_string(),
+        (None, Some(k)) => {
+            let dir = layout
+                .as_ref()
+                .and_then(|l| l.1.parent().map(Path::to_path_buf));
+            match dir.map(|d| d.join(&k)).filter(|p| p.exists()) {
+                Some(p) => p.display().to_string(),
+                None => k,
+            }
+        }
+        (None, None) => catalogue::DEFAULT_BOARD.to_string(),
+    };
+    let board = catalogue::board(&kind).map_err(|e| match &layout {
+        Some(l) if spec.board.is_none() => bad(format!("{}: `board_kind`: {e}", spec.input)),
+        _ => bad(e),
+    })?;
+    // Every program is compiled for the board's sample rate (its `require`s see it, its
+    // dynamics are discretised at it).
+    let fs = board.sample_rate_hz;
+    let mut sets: Vec<ProgramSet> = Vec::new();
+    let failed = |key: u8, instrument: &str, params: &[(String, String)]| KeyboardError::Compile {
+        input: spec.input.to_string(),
+        key,
+        instrument: instrument.to_string(),
+        params: verdict::show_params(params.iter().map(|(n, v)| (n, v))),
+        fs,
+        kind: kind.clone(),
+    };
+    let (name, keys, layout, boards) = match layout {
+        Some((l, path, keys, boards)) => (l.name.clone(), keys, Some((l, path)), boards),
+        None => {
+            // A single instrument is lowered first: whether it is a pen decides the
+            // default number of keys.
+            let src = catalogue::load(spec.input).map_err(bad)?;
+            let Some(lowered) = lower(&src, spec.params, fs, report) else {
+                return Err(failed(21, spec.input, spec.params));
+            };
+            let pen = lowered.program.is_pen();
+            sets.push(ProgramSet {
+                instrument: spec.input.to_string(),
+                params: spec.params.to_vec(),
+                source: src,
+                ir: lowered.program,
+            });
+            let n = spec.keys.unwrap_or(if pen { 1 } else { 88 });
+            if !(1..=MAX_KEYS).contains(&n) {
+                return Err(bad(format!(
+                    "--keys must be between 1 and {MAX_KEYS} (MIDI keys), got {n}"
+                )));
+            }
+            // From A0 up, or from MIDI 0 when that would pass key 127.
+            let first = if 21 + n <= 128 { 21 } else { 0 };
+            let keys = (first..first + n)
+                .map(|k| KeyAssignment {
+                    key: k as u8,
+                    instrument: spec.input.to_string(),
+                    params: vec![],
+                })
+                .collect();
+            (format!("{} × {n}", spec.input), keys, None, None)
+        }
+    };
+    let mut keys: Vec<KeyAssignment> = keys;
+    keys.sort_by_key(|a| a.key);
+    let mut key_set = Vec::with_capacity(keys.len());
+    for a in &mut keys {
+        a.params.extend(spec.params.iter().cloned());
+        let idx = match sets
+            .iter()
+            .position(|s| s.instrument == a.instrument && s.params == a.params)
+        {
+            Some(i) => i,
+            None => {
+                let src = catalogue::load(&a.instrument)
+                    .map_err(|e| bad(format!("{}: key {}: {e}", spec.input, a.key)))?;
+                let Some(lowered) = lower(&src, &a.params, fs, report) else {
+                    return Err(failed(a.key, &a.instrument, &a.params));
+                };
+                sets.push(ProgramSet {
+                    instrument: a.instrument.clone(),
+                    params: a.params.clone(),
+                    source: src,
+                    ir: lowered.program,
+                });
+                sets.len() - 1
+            }
+        };
+        key_set.push(idx);
+    }
+    Ok(Keyboard {
+        name,
+        input: spec.input.to_string(),
+        layout,
+        kind,
+        board,
+        keys,
+        key_set,
+        sets,
+        boards,
+    })
+}
+
+impl Keyboard {
+    /// The firmware's program of each set, in the order of [`Keyboard::sets`]: the sets of
+    /// one instrument share one code, their params a block each
+    /// ([`tactus_firmware::image::compile_shared`]).
+    ///
+    /// Errors: [`KeyboardError::Firmware`] naming the set's source when the fixed-point or
+    /// Thumb compilation fails or a plan breaks its instrument's accuracy contract.
+    pub fn firmware(&self) -> Result<Vec<FirmwareProgram>, KeyboardError> {
+        let lowered: Vec<(&str, &Program)> = self
+            .sets
+            .iter()
+            .map(|s| (s.instrument.as_str(), &s.ir))
+            .collect();
+        tactus_firmware::image::compile_shared(&lowered).map_err(|(i, e)| KeyboardError::Firmware {
+            source_name: self.sets[i].source.name.clone(),
+            message: e.to_string(),
+        })
+    }
+
+    /// Each key (MIDI, ascending) with the index of its set.
+    pub fn key_programs(&self) -> Vec<(u8, usize)> {
+        self.keys
+            .iter()
+            .map(|a| a.key)
+            .zip(self.key_set.iter().copied())
+            .collect()
+    }
+
+    /// The sets as `tactus budget` and `tactus build` take them, with their firmware
+    /// programs ([`Keyboard::firmware`]).
+    ///
+    /// Errors: as [`Keyboard::firmware`].
+    pub fn program_inputs(&self) -> Result<Vec<ProgramInput>, KeyboardError> {
+        Ok(self
+            .sets
+            .iter()
+            .zip(self.firmware()?)
+            .map(|(s, program)| ProgramInput {
+                instrument: s.instrument.clone(),
+                params: s.params.clone(),
+                source: s.source.text.clone(),
+                program,
+            })
+            .collect())
+    }
+
+    /// The keyboard as `play` takes it for a performance on `played` keys (MIDI): every key
+    /// (the firmware runs them all), the distinct programs of the played keys, and the
+    /// firmware's programs (`firmware`: [`Keyboard::firmware`]) when the engine runs them
+    /// ([`play::PlayConfig::needs_firmware`]).
+    ///
+    /// Errors: [`KeyboardError::NotPlayable`] naming the key when a played key's instrument
+    /// reads other than one key sensor (a pen, several sensors) or emits no strike event
+    /// ([`play::strike::strike_event`]).
+    pub fn played<'a>(
+        &'a self,
+        played: &BTreeSet<u8>,
+        firmware: Option<&'a [FirmwareProgram]>,
+    ) -> Result<play::Keyboard<'a>, KeyboardError> {
+        // Set index → index among the played programs.
+        let mut host: BTreeMap<usize, usize> = BTreeMap::new();
+        let mut programs = Vec::new();
+        let mut key_program = BTreeMap::new();
+        for (a, &s) in self.keys.iter().zip(&self.key_set) {
+            if !played.contains(&a.key) {
+                continue;
+            }
+            let p = match host.get(&s) {
+                Some(&p) => p,
+                None => {
+                    let program = &self.sets[s].ir;
+                    if program.is_pen() || program.sensors.len() > 1 {
+                        return Err(KeyboardError::NotPlayable(format!(
+                            "instrument `{}` (key {}) reads {} sensors{}: `tactus play` moves \
+                             one key sensor per key; run a pen with \
+                             `tactus sim <instrument> --stimulus <pen gesture>`",
+                            program.name,
+                            a.key,
+                            program.sensors.len(),
+                            if program.is_pen() {
+                                " and pushes a 3-D force (a pen)"
+                            } else {
+                                ""
+                            }
+                        )));
+                    }
+                    if program.sensors.is_empty() || play::strike::strike_event(program).is_none() {
+                        return Err(KeyboardError::NotPlayable(format!(
+                            "instrument `{}` (key {}) has no sensor or emits no `strike`/`pluck` \
+                             to play",
+                            program.name, a.key
+                        )));
+                    }
+                    programs.push(HostProgram {
+                        name: self.sets[s].instrument.clone(),
+                        program: program.clone(),
+                    });
+                    host.insert(s, programs.len() - 1);
+                    programs.len() - 1
+                }
+            };
+            key_program.insert(a.key, p);
+        }
+        Ok(play::Keyboard {
+            keys: self.keys.clone(),
+            programs,
+            key_program,
+            boards: self.boards.clone(),
+            firmware: firmware.map(|programs| play::Firmware {
+                programs,
+                key_program: &self.key_set,
+            }),
+        })
+    }
+}

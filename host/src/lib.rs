@@ -1,0 +1,14 @@
+//! The host side of Tactus, between the command line and the libraries below it.
+//!
+//! * [`catalogue`]: the instruments, layouts and boards built into the toolchain (so that
+//!   `tactus play` and `tactus budget grand_piano` work on a fresh machine from any
+//!   directory), and loading a source by path or built-in name.
+//! * [`keyboard`]: **the** resolution and compilation of a keyboard — a layout file, a
+//!   built-in layout, or one instrument on N keys, on a board kind — used by `tactus build`,
+//!   `tactus budget` and `tactus play`, so that they see the same keys, the same programs
+//!   and the same boards.
+//!
+//! This crate never prints: diagnostics go to a caller's reporter, errors are values.
+
+pub mod catalogue;
+pub mod keyboard;

@@ -1,0 +1,147 @@
+//! The one resolution of a keyboard: built-in and file layouts agree, a single instrument
+//! gets its keys and its board's sample rate, and bad input is an error naming the field.
+
+use tactus_host::keyboard::{self, KeyboardError, KeyboardSpec};
+
+fn spec(input: &str) -> KeyboardSpec<'_> {
+    KeyboardSpec {
+        input,
+        as_layout: None,
+        board: None,
+        keys: None,
+        params: &[],
+    }
+}
+
+fn quiet(
+) -> impl FnMut(&tactus_host::catalogue::Source, &[tactus_compiler::diagnostics::Diagnostic]) {
+    |_, _| {}
+}
+
+fn root(p: &str) -> String {
+    format!("{}/../{p}", env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn a_built_in_layout_is_its_file() {
+    let by_name = keyboard::compile(&spec("grand88"), &mut quiet()).unwrap();
+    let path = root("instruments/layouts/grand88.toml");
+    let by_file = keyboard::compile(&spec(&path), &mut quiet()).unwrap();
+    assert_eq!(by_name.name, "grand88");
+    assert_eq!(by_name.keys, by_file.keys);
+    assert_eq!(by_name.key_set, by_file.key_set);
+    assert_eq!(by_name.keys.len(), 88);
+    assert_eq!(by_name.keys[0].key, 21);
+    assert_eq!(by_name.keys[87].key, 108);
+    // The hammer mass is graded: one set per key, each lowered once.
+    assert_eq!(by_name.sets.len(), 88);
+    assert_eq!(by_name.board.name, "rp2040");
+    assert!(by_name.boards.is_none());
+    for (a, b) in by_name.sets.iter().zip(&by_file.sets) {
+        assert_eq!(a.params, b.params);
+        assert_eq!(a.ir, b.ir);
+    }
+}
+
+#[test]
+fn a_single_instrument_gets_88_keys_its_overrides_and_the_board_rate() {
+    let params = [("M_h".to_string(), "9 g".to_string())];
+    let kb = keyboard::compile(
+        &KeyboardSpec {
+            params: &params,
+            board: Some("rp2040_200mhz"),
+            ..spec("grand_piano")
+        },
+        &mut quiet(),
+    )
+    .unwrap();
+    assert_eq!(kb.name, "grand_piano × 88");
+    assert_eq!(kb.keys.len(), 88);
+    assert_eq!(kb.sets.len(), 1, "one instrument, one set, lowered once");
+    assert!(kb.keys.iter().all(|a| a.params == params));
+    assert_eq!(kb.sets[0].ir.sample_rate_hz, kb.board.sample_rate_hz);
+    let twelve = keyboard::compile(
+        &KeyboardSpec {
+            keys: Some(12),
+            ..spec("harpsichord")
+        },
+        &mut quiet(),
+    )
+    .unwrap();
+    let keys: Vec<u8> = twelve.keys.iter().map(|a| a.key).collect();
+    assert_eq!(keys, (21..33).collect::<Vec<u8>>());
+    assert_eq!(twelve.key_programs().len(), 12);
+}
+
+#[test]
+fn bad_input_names_the_field() {
+    let err = |s: KeyboardSpec| keyboard::compile(&s, &mut quiet()).unwrap_err().to_string();
+    assert!(err(KeyboardSpec {
+        keys: Some(4),
+        ..spec("grand88")
+    })
+    .contains("--keys is for a single instrument"));
+    assert!(err(KeyboardSpec {
+        keys: Some(0),
+        ..spec("grand_piano")
+    })
+    .contains("--keys must be between 1 and 128"));
+    assert!(err(KeyboardSpec {
+        board: Some("no_such_board"),
+        ..spec("grand88")
+    })
+    .contains("no built-in board"));
+    assert!(err(spec("no_such_instrument")).contains("no built-in instrument"));
+    // `--layout` forces a layout: an instrument's name is not one.
+    assert!(err(KeyboardSpec {
+        as_layout: Some(true),
+        ..spec("grand_piano")
+    })
+    .contains("grand_piano"));
+    // A layout whose board kind does not exist: the file and the field.
+    let dir = std::env::temp_dir().join(format!("tactus-host-kb-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("l.toml");
+    std::fs::write(
+        &path,
+        "name = \"l\"\nboard_kind = \"nope\"\n[[range]]\nkeys = [60, 61]\ninstrument = \"harpsichord\"\n",
+    )
+    .unwrap();
+    let e = err(spec(path.to_str().unwrap()));
+    assert!(e.contains("l.toml") && e.contains("`board_kind`"), "{e}");
+    // An instrument that does not compile: its diagnostics reported once, the key named.
+    let bad = dir.join("bad.tactus");
+    std::fs::write(&bad, "instrument bad { nonsense }").unwrap();
+    let mut reported = 0;
+    let e = keyboard::compile(&spec(bad.to_str().unwrap()), &mut |_, d| {
+        assert!(!d.is_empty());
+        reported += 1;
+    })
+    .unwrap_err();
+    assert!(matches!(e, KeyboardError::Compile { key: 21, .. }), "{e}");
+    assert_eq!(reported, 1);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn play_gets_the_played_keys_and_refuses_a_pen() {
+    let kb = keyboard::compile(&spec("split_harpsichord_piano"), &mut quiet()).unwrap();
+    let played = [30u8, 31, 70].into_iter().collect();
+    let p = kb.played(&played, None).unwrap();
+    assert_eq!(p.keys.len(), 88, "the firmware runs every key");
+    assert_eq!(p.key_program.len(), 3);
+    // Keys 30 and 31 share the harpsichord; 70 is a graded piano key.
+    assert_eq!(p.programs.len(), 2);
+    assert_eq!(p.key_program[&30], p.key_program[&31]);
+    assert!(p.firmware.is_none());
+    // A pen instrument is one pen, and `play` does not move pens.
+    let pen = keyboard::compile(&spec("bowed_string"), &mut quiet()).unwrap();
+    assert!(pen.sets[0].ir.is_pen());
+    assert_eq!(pen.keys.len(), 1, "a pen is one pen");
+    let one = pen.keys.iter().map(|a| a.key).collect();
+    let Err(e) = pen.played(&one, None) else {
+        panic!("play took a pen");
+    };
+    let e = e.to_string();
+    assert!(e.contains("a pen"), "{e}");
+}
