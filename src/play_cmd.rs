@@ -504,11 +504,7 @@ fn run_inner(
                 .notes
                 .iter()
                 .filter(|n| keyboard.key_program.get(&n.key) == Some(&pi))
-                .filter(|n| {
-                    let v = strike::speed_for_velocity(n.velocity);
-                    // Half a MIDI velocity step of slack: the ends are measured, not exact.
-                    v < a * 0.985 || v > b * 1.015
-                })
+                .filter(|n| play::outside_calibration(strike::speed_for_velocity(n.velocity), a, b))
                 .count();
         }
         println!(

@@ -220,6 +220,18 @@ pub struct Played {
     pub boards: Option<BoardsReport>,
 }
 
+/// The slack of a calibrated range of hammer speeds, as a fraction of the speed: about half
+/// a MIDI velocity step (the velocity map is logarithmic, 127 steps over a factor of 60 in
+/// speed: [`strike::speed_for_velocity`]), since the range's ends are measured, not exact.
+pub const CALIBRATION_SLACK: f64 = 0.015;
+
+/// Whether hammer speed `v` (m/s) lies outside the force player's calibrated range
+/// `lo..=hi` (m/s) by more than [`CALIBRATION_SLACK`]: a note the finger cannot play as
+/// recorded (below: too soft to reach the string; above: played at the loudest it can).
+pub fn outside_calibration(v: f64, lo: f64, hi: f64) -> bool {
+    v < lo * (1.0 - CALIBRATION_SLACK) || v > hi * (1.0 + CALIBRATION_SLACK)
+}
+
 /// Plays `perf` (its notes on keys of `keyboard.key_program`) on `keyboard` as `config`
 /// says; see the module documentation.
 ///
@@ -476,8 +488,12 @@ pub fn play(
                 .get(&note.key)
                 .and_then(|&pi| calibrations[pi].as_ref())
                 .is_some_and(|c| {
-                    // Half a MIDI velocity step of slack: the end is measured, not exact.
-                    strike::speed_for_velocity(note.velocity) < c.from_rest.levels()[0].2 * 0.985
+                    let lo = c.from_rest.levels()[0].2;
+                    outside_calibration(
+                        strike::speed_for_velocity(note.velocity),
+                        lo,
+                        f64::INFINITY,
+                    )
                 });
             let since_previous_s = perf
                 .notes
