@@ -9,15 +9,15 @@ use crate::check_cmd::parse_override;
 use crate::plot;
 use crate::source;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
-use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Instant;
-use tactus_firmware::play::{self as play, corpus, output, strike, PlayConfig};
+use tactus_firmware::image::Program as FirmwareProgram;
+use tactus_firmware::play::{self as play, corpus, strike, PlayConfig};
 use tactus_firmware::play::{BoardsReport, TraceWindow, Traces};
 use tactus_host::catalogue;
-use tactus_host::keyboard::{self, KeyboardSpec};
-use tactus_runtime::performance::{self, Performance};
+use tactus_host::keyboard::{self, Keyboard, KeyboardSpec};
+use tactus_host::play::{self as host_play, PieceOptions};
+
 use tactus_runtime::player::FingerConfig;
 
 /// Arguments of `tactus play`.
@@ -154,11 +154,19 @@ pub fn run(args: PlayArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    // The keyboard and its firmware, compiled once for every piece.
+    let setup = match Setup::new(&args) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
     let corpus = files.len() > 1 || args.performances.iter().any(|p| p.is_dir());
     if corpus {
-        return run_corpus(&args, &files);
+        return run_corpus(&args, &setup, &files);
     }
-    match run_inner(&args, files.first().map(PathBuf::as_path), None) {
+    match run_inner(&args, &setup, files.first().map(PathBuf::as_path), None) {
         Ok((c, _)) => c,
         Err(e) => {
             eprintln!("error: {e}");
@@ -167,8 +175,68 @@ pub fn run(args: PlayArgs) -> ExitCode {
     }
 }
 
+/// What every piece is played on and with.
+struct Setup {
+    kb: Keyboard,
+    firmware: Option<Vec<FirmwareProgram>>,
+    config: PlayConfig,
+    opts: PieceOptions,
+}
+
+impl Setup {
+    /// The keyboard (resolved and compiled as `tactus budget` and `tactus build` do: every
+    /// program for its board's sample rate), its firmware if the engine runs it, the run's
+    /// configuration.
+    fn new(args: &PlayArgs) -> Result<Setup, String> {
+        let input = match (&args.layout, &args.instrument) {
+            (Some(l), _) => l.display().to_string(),
+            (None, Some(i)) => i.clone(),
+            (None, None) => catalogue::DEFAULT_LAYOUT.to_string(),
+        };
+        let kb = keyboard::compile(
+            &KeyboardSpec {
+                input: &input,
+                as_layout: Some(args.instrument.is_none()),
+                board: args.board.as_deref(),
+                keys: None,
+                params: &args.params,
+            },
+            &mut source::report_compile,
+        )
+        .map_err(|e| e.to_string())?;
+        let config = PlayConfig {
+            engine: args.engine.into(),
+            player: args.player.into(),
+            finger: FingerConfig::default(),
+            trace: TraceWindow {
+                keys: args.trace_keys.iter().copied().collect(),
+                from_s: args.trace_from,
+                to_s: args.trace_to.unwrap_or(f64::INFINITY),
+            },
+            board: kb.board.clone(),
+            emulator: args.emu.into(),
+            quiescent_guard: !args.no_quiescent_guard,
+        };
+        let firmware = match config.needs_firmware() {
+            true => Some(kb.firmware().map_err(|e| format!("firmware: {e}"))?),
+            false => None,
+        };
+        let opts = PieceOptions {
+            seconds: args.seconds,
+            out: args.out.clone(),
+            wav: !args.no_wav,
+        };
+        Ok(Setup {
+            kb,
+            firmware,
+            config,
+            opts,
+        })
+    }
+}
+
 /// Corpus mode: every file in turn, one row each, the table printed and written.
-fn run_corpus(args: &PlayArgs, files: &[PathBuf]) -> ExitCode {
+fn run_corpus(args: &PlayArgs, setup: &Setup, files: &[PathBuf]) -> ExitCode {
     let multi = MultiProgress::new();
     let outer = multi.add(ProgressBar::new(files.len() as u64));
     outer.set_style(
@@ -180,7 +248,7 @@ fn run_corpus(args: &PlayArgs, files: &[PathBuf]) -> ExitCode {
     let mut rows = Vec::with_capacity(files.len());
     for f in files {
         outer.set_message(format!("corpus: {}", f.display()));
-        let row = match run_inner(args, Some(f), Some(&multi)) {
+        let row = match run_inner(args, setup, Some(f), Some(&multi)) {
             Ok((_, row)) => row,
             Err(e) => {
                 multi.suspend(|| eprintln!("error: {}: {e}", f.display()));
@@ -286,139 +354,34 @@ impl play::Progress for Bar {
 /// corpus table's. `multi`: the corpus's progress bars, to which this piece's bar is added.
 fn run_inner(
     args: &PlayArgs,
+    setup: &Setup,
     performance: Option<&Path>,
     multi: Option<&MultiProgress>,
 ) -> Result<(ExitCode, corpus::PieceRow), String> {
-    let mut perf = match performance {
-        Some(p) => {
-            let (perf, warnings) =
-                performance::read_midi_reporting(p).map_err(|e| e.to_string())?;
-            for w in warnings {
-                eprintln!("warning: {w}");
-            }
-            perf
-        }
-        None => performance::demo(),
-    };
-    if let Some(s) = args.seconds {
-        // `--seconds` bounds the simulated time: a note still held at `s` is released there.
-        perf.cut(s)?;
-        if perf.notes.is_empty() {
-            return Err(format!(
-                "{}: no note starts in the first {s} s",
-                performance.map_or("the demo".to_string(), |p| p.display().to_string())
-            ));
-        }
-    }
-    // The keyboard (resolved and lowered as `tactus budget` and `tactus build` do): every
-    // program is compiled for its board's sample rate.
-    let input = match (&args.layout, &args.instrument) {
-        (Some(l), _) => l.display().to_string(),
-        (None, Some(i)) => i.clone(),
-        (None, None) => catalogue::DEFAULT_LAYOUT.to_string(),
-    };
-    let kb = keyboard::compile(
-        &KeyboardSpec {
-            input: &input,
-            as_layout: Some(args.instrument.is_none()),
-            board: args.board.as_deref(),
-            keys: None,
-            params: &args.params,
-        },
-        &mut source::report_compile,
-    )
-    .map_err(|e| e.to_string())?;
-    let fs = kb.board.sample_rate_hz;
-    let assignments = &kb.keys;
-    let (inside, outside): (Vec<&performance::Note>, Vec<&performance::Note>) = perf
-        .notes
-        .iter()
-        .partition(|n| assignments.iter().any(|a| a.key == n.key));
-    for n in &outside {
-        eprintln!(
-            "warning: note {} at {:.3} s is on no key of the layout: skipped",
-            n.key, n.on_s
-        );
-    }
-    let skipped = outside.len();
-    if inside.is_empty() {
-        let keys: Vec<u8> = assignments.iter().map(|a| a.key).collect();
-        return Err(format!(
-            "{}: none of its {} notes is on a key of the layout (its keys: {}): nothing to play",
-            performance.map_or("the demo".to_string(), |p| p.display().to_string()),
-            outside.len(),
-            tactus_firmware::verdict::key_ranges(&keys)
-        ));
-    }
-    let perf = Performance {
-        notes: inside.into_iter().copied().collect(),
-        ..perf
-    };
-    let traced: BTreeSet<u8> = args.trace_keys.iter().copied().collect();
-    let played: BTreeSet<u8> = perf.notes.iter().map(|n| n.key).collect();
-    for k in traced.difference(&played) {
-        eprintln!("warning: traced key {k} is never played: it stays at rest, no trace written");
-    }
-    let config = PlayConfig {
-        engine: args.engine.into(),
-        player: args.player.into(),
-        finger: FingerConfig::default(),
-        trace: TraceWindow {
-            keys: traced,
-            from_s: args.trace_from,
-            to_s: args.trace_to.unwrap_or(f64::INFINITY),
-        },
-        board: kb.board.clone(),
-        emulator: args.emu.into(),
-        quiescent_guard: !args.no_quiescent_guard,
-    };
-    let firmware = match config.needs_firmware() {
-        true => Some(kb.firmware().map_err(|e| format!("firmware: {e}"))?),
-        false => None,
-    };
-    let keyboard = kb
-        .played(&played, firmware.as_deref())
-        .map_err(|e| e.to_string())?;
     let bar = Bar(match multi {
         Some(m) => m.add(ProgressBar::new(0)),
         None => ProgressBar::new(0),
     });
     bar.0.set_message(match args.engine {
-        PlayEngine::Emu => format!("{} keys on their boards", keyboard.keys.len()),
-        _ => format!("{} keys", keyboard.key_program.len()),
+        PlayEngine::Emu => format!("{} keys on their boards", setup.kb.keys.len()),
+        _ => "played keys".to_string(),
     });
-    let started = Instant::now();
-    let played = play::play(&perf, &keyboard, &config, &bar)?;
+    let mut warn = |w: String| bar.0.suspend(|| eprintln!("warning: {w}"));
+    let piece = host_play::play_piece(
+        &setup.kb,
+        setup.firmware.as_deref(),
+        performance,
+        &setup.config,
+        &setup.opts,
+        &mut warn,
+        &bar,
+    )?;
     bar.0.finish_and_clear();
-    let wall = started.elapsed().as_secs_f64();
-
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
-    let stem = performance
-        .and_then(|p| p.file_stem())
-        .map_or("demo".to_string(), |s| s.to_string_lossy().into_owned());
-    let strikes = &played.strikes;
-    let mut wrote = Vec::new();
-    let csv = args.out.join(format!("{stem}-strikes.csv"));
-    let matched = output::write_strikes_csv(&csv, strikes)?;
-    wrote.push(csv);
-    let mid = args.out.join(format!("{stem}-strikes.mid"));
-    output::write_midi(&mid, strikes)?;
-    wrote.push(mid);
-    if !args.no_wav {
-        let wav = args.out.join(format!("{stem}.wav"));
-        output::write_wav(&wav, strikes, &perf, fs)?;
-        wrote.push(wav);
-    }
+    let (played, perf, stem) = (&piece.played, &piece.perf, &piece.stem);
+    let fs = setup.kb.board.sample_rate_hz;
+    let mut wrote = piece.written.clone();
     if !played.traces.is_empty() {
-        let firmware = args.engine == PlayEngine::Emu;
-        wrote.extend(output::write_trace_csvs(
-            &args.out,
-            &stem,
-            &played.traces,
-            firmware,
-        )?);
-        wrote.extend(plot_traces(&args.out, &stem, &played.traces)?);
+        wrote.extend(plot_traces(&args.out, stem, &played.traces)?);
     }
     // Notes no strike answers: the instrument did not sound them.
     let silent = &played.silent;
@@ -448,12 +411,13 @@ fn run_inner(
             silent.len() - too_soft - 10
         );
     }
-    let audio_s = perf.duration_s;
+    let (audio_s, wall, skipped) = (perf.duration_s, piece.wall_s, piece.skipped.len());
+    let (strikes, matched) = (&played.strikes, piece.answering);
     println!(
         "{}: {} notes on {} keys ({} player) → {} strikes ({} answer a note within 50 ms; {} note{} without a strike{}); {} note{} outside the layout skipped",
         stem,
         perf.notes.len(),
-        keyboard.key_program.len(),
+        piece.key_program.len(),
         match args.player {
             Player::Position => "position",
             Player::Force => "force",
@@ -484,7 +448,7 @@ fn run_inner(
     // how many notes asked for more.
     let mut names: Vec<&str> = Vec::new();
     for (pi, cal) in played.calibrations.iter().enumerate() {
-        let name = keyboard.programs[pi].name.as_str();
+        let name = piece.program_names[pi].as_str();
         if cal.is_some() && !names.contains(&name) {
             names.push(name);
         }
@@ -493,7 +457,7 @@ fn run_inner(
         let (mut lo, mut hi, mut sets, mut outside) = (0.0f64, f64::INFINITY, 0, 0);
         let (mut push_lo, mut push_hi) = (f64::INFINITY, 0.0f64);
         for (pi, cal) in played.calibrations.iter().enumerate() {
-            let Some(cal) = cal.as_ref().filter(|_| keyboard.programs[pi].name == name) else {
+            let Some(cal) = cal.as_ref().filter(|_| piece.program_names[pi] == name) else {
                 continue;
             };
             let l = cal.from_rest.levels();
@@ -503,7 +467,7 @@ fn run_inner(
             outside += perf
                 .notes
                 .iter()
-                .filter(|n| keyboard.key_program.get(&n.key) == Some(&pi))
+                .filter(|n| piece.key_program.get(&n.key) == Some(&pi))
                 .filter(|n| play::outside_calibration(strike::speed_for_velocity(n.velocity), a, b))
                 .count();
         }
@@ -552,28 +516,11 @@ fn run_inner(
     for w in &wrote {
         println!("  wrote {}", w.display());
     }
-    let mut row = corpus::PieceRow {
-        file: performance.map_or_else(|| PathBuf::from("demo"), Path::to_path_buf),
-        music_s: audio_s,
-        notes: perf.notes.len(),
-        strikes: strikes.len(),
-        answering: matched,
-        silent: silent.len(),
-        wall_s: wall,
-        rtf: audio_s / wall.max(1e-9),
-        ..corpus::PieceRow::default()
-    };
+    let row = piece.row(performance.unwrap_or(Path::new("demo")));
     match &played.boards {
         Some(r) => {
-            row.misses_per_board = r
-                .boards
-                .iter()
-                .map(|b| b.misses.iter().map(|&m| u64::from(m)).sum())
-                .collect();
-            row.worst_core_cycles = r.boards.iter().flat_map(|b| b.max.iter().copied()).max();
-            row.deadline_cycles = Some(r.deadline);
             let path = args.out.join(format!("{stem}-cycles.svg"));
-            plot_cycles(r, fs, &stem, &path)?;
+            plot_cycles(r, fs, stem, &path)?;
             println!("  wrote {}", path.display());
             print_budget(r);
             if r.missed() {

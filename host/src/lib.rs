@@ -7,8 +7,12 @@
 //!   built-in layout, or one instrument on N keys, on a board kind — used by `tactus build`,
 //!   `tactus budget` and `tactus play`, so that they see the same keys, the same programs
 //!   and the same boards.
+//! * [`play`]: one performance through a compiled keyboard as `tactus play` runs it (read,
+//!   cut, keep the notes on the keyboard, play, write the strikes and traces), a row of the
+//!   corpus table.
 //!
 //! This crate never prints: diagnostics go to a caller's reporter, errors are values.
 
 pub mod catalogue;
 pub mod keyboard;
+pub mod play;
