@@ -16,7 +16,6 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tactus_firmware::verdict::{self, BudgetInput};
 use tactus_host::keyboard::{self, Keyboard, KeyboardSpec};
-use tactus_runtime::keyboard as layout_file;
 use tactus_runtime::limiter::LimiterConfig;
 
 /// Arguments of `tactus budget`.
@@ -207,49 +206,10 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
     Ok(ExitCode::from(report.exit_code()))
 }
 
-/// Writes the planned layout: the input layout (or one range for a single instrument) with
-/// `board_kind` and explicit boards. Instrument and board paths are made absolute, so the
-/// file works wherever it is written.
-fn write_plan(report: &verdict::BudgetReport, r: &Keyboard, out: &Path) -> Result<(), Bad> {
-    let absolute = |s: &str, dir: Option<&Path>| -> String {
-        let p = dir.map_or_else(|| PathBuf::from(s), |d| d.join(s));
-        match p.canonicalize() {
-            Ok(abs) if p.exists() => abs.display().to_string(),
-            _ => s.to_string(),
-        }
-    };
-    let mut layout = match &r.layout {
-        Some((l, path)) => {
-            let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
-            let mut l = l.clone();
-            for range in &mut l.ranges {
-                range.instrument = absolute(&range.instrument, dir);
-            }
-            l
-        }
-        None => {
-            let (first, last) = (
-                r.keys.first().map_or(0, |k| k.key),
-                r.keys.last().map_or(0, |k| k.key),
-            );
-            layout_file::parse_layout(
-                &format!(
-                    "name = {:?}\n[[range]]\nkeys = [{first}, {last}]\ninstrument = {:?}\n",
-                    r.name,
-                    absolute(&r.keys[0].instrument, None)
-                ),
-                "plan",
-            )
-            .map_err(Bad)?
-        }
-    };
-    layout = report.with_boards(&layout, &absolute(&r.kind, None));
-    // The header is one comment line whatever the names hold.
-    let header = format!(
-        "Planned by `tactus budget` for {}: {} boards of kind {}, each a contiguous key range.",
-        r.name, report.board_count, report.board.name
-    );
-    let text = layout_file::layout_text(&layout, &header)
+/// Writes the planned layout (`Keyboard::plan_text`) to `out`, creating its directory.
+fn write_plan(report: &verdict::BudgetReport, kb: &Keyboard, out: &Path) -> Result<(), Bad> {
+    let text = kb
+        .plan_text(report)
         .map_err(|e| Bad(format!("{}: {e}; nothing written", out.display())))?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)

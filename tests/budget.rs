@@ -414,3 +414,31 @@ fn a_pen_is_budgeted_as_one_pen_with_its_own_glue() {
         "{stdout}"
     );
 }
+
+/// `--write-plan` keeps the `--param` overrides: the plan alone budgets the keys the run
+/// budgeted (the override replaces a grade of the same param).
+#[test]
+fn a_plan_keeps_the_param_overrides() {
+    let dir = temp_dir("budget-plan-params");
+    let plan = dir.join("plan.toml");
+    let (code, v) = json(&[
+        "grand88",
+        "--quick",
+        "--param",
+        "M_h=9 g",
+        "--write-plan",
+        plan.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&plan).unwrap();
+    assert!(
+        text.contains("M_h = \"9 g\"") && !text.contains("grade"),
+        "{text}"
+    );
+    // One hammer mass on every key: one program.
+    assert_eq!(v["programs"].as_array().unwrap().len(), 1, "{v}");
+    assert_eq!(v["programs"][0]["params"]["M_h"], "9 g");
+    let (code2, v2) = json(&[plan.to_str().unwrap(), "--quick"]);
+    assert_eq!(code2, code);
+    assert_eq!(v2["programs"][0]["params"], v["programs"][0]["params"]);
+    assert_eq!(v2["boards"], v["boards"], "{text}");
+}

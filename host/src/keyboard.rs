@@ -22,6 +22,16 @@ use tactus_firmware::play::{self, HostProgram};
 use tactus_firmware::verdict::{self, ProgramInput};
 use tactus_runtime::keyboard::{self as layout_file, Board, KeyAssignment, Layout};
 
+/// A path as written into a plan: absolute when it names an existing file (relative to
+/// `dir` when given), else as it is (a built-in name).
+fn absolute(s: &str, dir: Option<&Path>) -> String {
+    let p = dir.map_or_else(|| PathBuf::from(s), |d| d.join(s));
+    match p.canonicalize() {
+        Ok(abs) if p.exists() => abs.display().to_string(),
+        _ => s.to_string(),
+    }
+}
+
 /// The most keys a single instrument may be given (`--keys`): the MIDI key numbers.
 pub const MAX_KEYS: u32 = 128;
 
@@ -91,7 +101,7 @@ pub enum KeyboardError {
 pub struct ProgramSet {
     /// The instrument as the layout names it (built-in name or path).
     pub instrument: String,
-    /// Its params: the layout's, then the spec's overrides.
+    /// Its params: the layout's, then the spec's overrides ([`with_overrides`]).
     pub params: Vec<(String, String)>,
     /// Its source.
     pub source: Source,
@@ -112,7 +122,8 @@ pub struct Keyboard {
     pub kind: String,
     /// The board.
     pub board: Board,
-    /// Every key, ascending, with its instrument and params (the spec's overrides last).
+    /// Every key, ascending, with its instrument and params (the spec's overrides last,
+    /// replacing the layout's values of the same params: [`with_overrides`]).
     pub keys: Vec<KeyAssignment>,
     /// `sets[key_set[i]]` is `keys[i]`'s program.
     pub key_set: Vec<usize>,
@@ -120,6 +131,8 @@ pub struct Keyboard {
     pub sets: Vec<ProgramSet>,
     /// The layout's own boards (MIDI keys per board), or `None` to plan them.
     pub boards: Option<Vec<Vec<u8>>>,
+    /// The spec's overrides of every key's params (already in [`Keyboard::keys`]).
+    pub overrides: Vec<(String, String)>,
 }
 
 /// Receives a source's diagnostics: its warnings when it compiles, its errors (and
@@ -182,6 +195,22 @@ fn read_layout(input: &str) -> Result<LayoutKeys, String> {
     Ok((layout, path, keys, boards))
 }
 
+/// `params` with `overrides` applied in turn: each replaces every earlier value of its
+/// param (the compiler's rule, the last value wins), so that keys whose params differ only
+/// in values an override replaces have equal lists and share one program (`--param M_h=9 g`
+/// on grand88, whose hammer mass is graded, is one set, not 88).
+pub fn with_overrides(
+    params: &[(String, String)],
+    overrides: &[(String, String)],
+) -> Vec<(String, String)> {
+    let mut out = params.to_vec();
+    for (name, value) in overrides {
+        out.retain(|(n, _)| n != name);
+        out.push((name.clone(), value.clone()));
+    }
+    out
+}
+
 /// Resolves and lowers the keyboard `spec` describes; see the module documentation.
 ///
 /// Errors: [`KeyboardError::Input`] for a bad layout, board, instrument name or `keys`
@@ -242,13 +271,14 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
             // A single instrument is lowered first: whether it is a pen decides the
             // default number of keys.
             let src = catalogue::load(spec.input).map_err(bad)?;
-            let Some(lowered) = lower(&src, spec.params, fs, report) else {
-                return Err(failed(21, spec.input, spec.params));
+            let params = with_overrides(&[], spec.params);
+            let Some(lowered) = lower(&src, &params, fs, report) else {
+                return Err(failed(21, spec.input, &params));
             };
             let pen = lowered.program.is_pen();
             sets.push(ProgramSet {
                 instrument: spec.input.to_string(),
-                params: spec.params.to_vec(),
+                params,
                 source: src,
                 ir: lowered.program,
             });
@@ -274,7 +304,7 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
     keys.sort_by_key(|a| a.key);
     let mut key_set = Vec::with_capacity(keys.len());
     for a in &mut keys {
-        a.params.extend(spec.params.iter().cloned());
+        a.params = with_overrides(&a.params, spec.params);
         let idx = match sets
             .iter()
             .position(|s| s.instrument == a.instrument && s.params == a.params)
@@ -307,6 +337,7 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
         key_set,
         sets,
         boards,
+        overrides: spec.params.to_vec(),
     })
 }
 
@@ -327,6 +358,61 @@ impl Keyboard {
             source_name: self.sets[i].source.name.clone(),
             message: e.to_string(),
         })
+    }
+
+    /// The keyboard as a layout file with `report`'s boards: the layout (or one range for a
+    /// single instrument) with `board_kind` and one `[[board]]` per board, the spec's
+    /// overrides written into every range (replacing a grade of the same param), so that the
+    /// file alone gives the keys `report` budgeted. Instrument and board paths are made
+    /// absolute, so the file works wherever it is written. What `tactus budget
+    /// --write-plan` writes.
+    ///
+    /// Errors: [`KeyboardError::Input`] when the layout cannot be written as TOML or does
+    /// not read back as itself (a bug, reported rather than written).
+    pub fn plan_text(&self, report: &verdict::BudgetReport) -> Result<String, KeyboardError> {
+        let bad = KeyboardError::Input;
+        let mut layout = match &self.layout {
+            Some((l, path)) => {
+                let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+                let mut l = l.clone();
+                for range in &mut l.ranges {
+                    range.instrument = absolute(&range.instrument, dir);
+                }
+                l
+            }
+            None => {
+                let (first, last) = (
+                    self.keys.first().map_or(0, |k| k.key),
+                    self.keys.last().map_or(0, |k| k.key),
+                );
+                let instrument = self
+                    .keys
+                    .first()
+                    .map_or(String::new(), |k| k.instrument.clone());
+                layout_file::parse_layout(
+                    &format!(
+                        "name = {:?}\n[[range]]\nkeys = [{first}, {last}]\ninstrument = {:?}\n",
+                        self.name,
+                        absolute(&instrument, None)
+                    ),
+                    "plan",
+                )
+                .map_err(bad)?
+            }
+        };
+        for range in &mut layout.ranges {
+            for (name, value) in &self.overrides {
+                range.grade.retain(|g| &g.param != name);
+                range.params.insert(name.clone(), value.clone());
+            }
+        }
+        let layout = report.with_boards(&layout, &absolute(&self.kind, None));
+        // The header is one comment line whatever the names hold.
+        let header = format!(
+            "Planned by `tactus budget` for {}: {} boards of kind {}, each a contiguous key range.",
+            self.name, report.board_count, report.board.name
+        );
+        layout_file::layout_text(&layout, &header).map_err(bad)
     }
 
     /// Each key (MIDI, ascending) with the index of its set.

@@ -44,6 +44,39 @@ fn a_built_in_layout_is_its_file() {
 }
 
 #[test]
+fn an_override_replaces_a_graded_param_on_every_key() {
+    let params = [("M_h".to_string(), "9 g".to_string())];
+    let kb = keyboard::compile(
+        &KeyboardSpec {
+            params: &params,
+            ..spec("grand88")
+        },
+        &mut quiet(),
+    )
+    .unwrap();
+    assert_eq!(
+        kb.sets.len(),
+        1,
+        "one hammer mass on every key: one program"
+    );
+    assert!(
+        kb.keys.iter().all(|a| a.params == params),
+        "{:?}",
+        kb.keys[0]
+    );
+    assert_eq!(
+        keyboard::with_overrides(
+            &[("a".into(), "1 m".into()), ("b".into(), "2 m".into())],
+            &[("a".into(), "3 m".into())]
+        ),
+        [
+            ("b".to_string(), "2 m".to_string()),
+            ("a".into(), "3 m".into())
+        ]
+    );
+}
+
+#[test]
 fn a_single_instrument_gets_88_keys_its_overrides_and_the_board_rate() {
     let params = [("M_h".to_string(), "9 g".to_string())];
     let kb = keyboard::compile(
