@@ -33,7 +33,7 @@ use tactus_firmware::image::{compile_layout, Program};
 use tactus_firmware::perform::{BoardEngine, BoardRun, Motion};
 use tactus_firmware::play::run::{run_keys, Drive, LoopConfig};
 use tactus_firmware::play::TraceWindow;
-use tactus_runtime::keyboard::{read_board, read_layout, Board};
+use tactus_runtime::keyboard::{read_board, read_layout, BoardSpec};
 use tactus_runtime::limiter::LimiterConfig;
 use tactus_runtime::performance::{demo, key_tracks};
 use tactus_runtime::player::FingerConfig;
@@ -54,7 +54,7 @@ struct Setup {
     programs: Vec<Program>,
     costs: ProgramCosts,
     boards: Vec<Vec<PlanKey>>,
-    board: Board,
+    board: BoardSpec,
     motions: BTreeMap<u8, Motion>,
     end: usize,
 }

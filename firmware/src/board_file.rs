@@ -5,7 +5,7 @@
 //! flashed for — and then every verdict about it is about real firmware — or bad input
 //! naming the file and the field.
 //!
-//! A board file describes the machine only (`tactus_runtime::keyboard::Board`: name,
+//! A board file describes the machine only (`tactus_runtime::keyboard::BoardSpec`: name,
 //! clock, cores, sample rate). Two levels:
 //!
 //! - [`image_board`]: what [`crate::image::FirmwareImage::build`] needs to lay an image
@@ -24,7 +24,7 @@
 //! where they are compiled, at that rate (`tactus_compiler::lower::Config::sample_rate_hz`).
 
 use crate::image::glue::Tick;
-use tactus_runtime::keyboard::{self, Board};
+use tactus_runtime::keyboard::{self, BoardSpec};
 
 /// Fewest cycles per sample the image accepts: the start handler must have enabled each
 /// core's SysTick before the first tick, `q` cycles after the enabling store.
@@ -67,7 +67,7 @@ fn bad(field: &'static str, why: String) -> BoardError {
 /// What an image needs of `board` (the module documentation's first level).
 ///
 /// Errors: [`BoardError`] naming the field.
-pub fn image_board(board: &Board) -> Result<Chip, BoardError> {
+pub fn image_board(board: &BoardSpec) -> Result<Chip, BoardError> {
     let cores = board.cores;
     if !(1..=2).contains(&cores) {
         return Err(bad(
@@ -145,7 +145,7 @@ pub fn pll_error(clock_hz: u64) -> Option<String> {
 /// clk_sys).
 ///
 /// Errors: [`BoardError`] naming the field.
-pub fn check_clock(board: &Board) -> Result<Chip, BoardError> {
+pub fn check_clock(board: &BoardSpec) -> Result<Chip, BoardError> {
     let chip = image_board(board)?;
     if let Some(why) = pll_error(chip.clock_hz) {
         return Err(bad("clock_hz", why));
@@ -162,7 +162,7 @@ pub fn check_clock(board: &Board) -> Result<Chip, BoardError> {
 /// A board that names `[converters]` is refused for now: no image drives them.
 ///
 /// Errors: [`BoardError`] naming the field.
-pub fn check_board(board: &Board) -> Result<Chip, BoardError> {
+pub fn check_board(board: &BoardSpec) -> Result<Chip, BoardError> {
     use tactus_emulator::clocks::{min_core_mv, DEFAULT_CORE_MV};
     if let Some(c) = &board.converters {
         // Read and checked against the parts' data sheets (`tactus_runtime::converters`),
@@ -203,7 +203,7 @@ pub fn check_board(board: &Board) -> Result<Chip, BoardError> {
 /// `builtin:NAME`) starts every error.
 ///
 /// Errors: a message naming the file and, for a bad value, the field.
-pub fn read_board(text: &str, name: &str) -> Result<Board, String> {
+pub fn read_board(text: &str, name: &str) -> Result<BoardSpec, String> {
     let b = keyboard::parse_board(text, name)?;
     check_board(&b).map_err(|e| {
         format!(
@@ -217,8 +217,8 @@ pub fn read_board(text: &str, name: &str) -> Result<Board, String> {
 mod tests {
     use super::*;
 
-    fn board(clock_hz: f64, cores: u32, sample_rate_hz: f64) -> Board {
-        Board {
+    fn board(clock_hz: f64, cores: u32, sample_rate_hz: f64) -> BoardSpec {
+        BoardSpec {
             name: "t".into(),
             clock_hz,
             cores,
@@ -230,7 +230,7 @@ mod tests {
 
     #[test]
     fn each_field_is_named() {
-        let field = |b: Board| check_board(&b).unwrap_err().field;
+        let field = |b: BoardSpec| check_board(&b).unwrap_err().field;
         assert_eq!(field(board(133.3e6, 2, 44_100.0)), "clock_hz");
         assert_eq!(field(board(133e6, 64, 44_100.0)), "cores");
         assert_eq!(field(board(133e6, 0, 44_100.0)), "cores");
@@ -244,7 +244,7 @@ mod tests {
         assert!(image_board(&board(133.3e6, 2, 44_100.0)).is_ok());
         // 200 MHz needs 1.15 V; converters are read but no image drives them yet.
         assert_eq!(field(board(200e6, 2, 44_100.0)), "core_voltage_v");
-        let b = Board {
+        let b = BoardSpec {
             core_voltage_v: Some(1.15),
             ..board(200e6, 2, 44_100.0)
         };

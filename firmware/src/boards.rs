@@ -5,7 +5,7 @@
 //! board, on its cores**. The verdict for a board is the static WCET of its actual sample
 //! interrupt, per core, as [`FirmwareImage::build`] lays it out ([`IsrWcet::bound`]: the
 //! handler with every key's update call, sensor copy, inline limiter and DAC store, plus
-//! the window contention) against `Board::cycles_per_sample` cycles (the shortest tick
+//! the window contention) against `BoardSpec::cycles_per_sample` cycles (the shortest tick
 //! interval, `tactus_runtime::keyboard::deadline_cycles`). Nothing else prices
 //! a key: the board file describes the machine only.
 //!
@@ -29,7 +29,7 @@
 use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
 use serde::Serialize;
 use tactus_emulator::MAX_KEYS;
-use tactus_runtime::keyboard::Board;
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
 
 /// One key of a keyboard, as the planner sees it.
@@ -154,7 +154,7 @@ impl ProgramCosts {
     /// Errors: [`BoardsError::Image`] (a program whose code cannot be analysed or placed).
     pub fn new(
         programs: &[Program],
-        board: &Board,
+        board: &BoardSpec,
         limiter: &LimiterConfig,
     ) -> Result<ProgramCosts, BoardsError> {
         let mut key_cycles = Vec::with_capacity(programs.len());
@@ -214,7 +214,7 @@ pub fn board_image(
     programs: &[Program],
     costs: &ProgramCosts,
     keys: &[PlanKey],
-    board: &Board,
+    board: &BoardSpec,
     limiter: &LimiterConfig,
 ) -> Result<(Vec<usize>, Result<FirmwareImage, ImageError>), BoardsError> {
     image_of(programs, costs, keys, board, limiter, true)
@@ -225,7 +225,7 @@ fn image_of(
     programs: &[Program],
     costs: &ProgramCosts,
     keys: &[PlanKey],
-    board: &Board,
+    board: &BoardSpec,
     limiter: &LimiterConfig,
     may_drop_guard: bool,
 ) -> Result<(Vec<usize>, Result<FirmwareImage, ImageError>), BoardsError> {
@@ -308,7 +308,7 @@ pub fn check_board(
     programs: &[Program],
     costs: &ProgramCosts,
     keys: &[PlanKey],
-    board: &Board,
+    board: &BoardSpec,
     limiter: &LimiterConfig,
 ) -> Result<BoardVerdict, BoardsError> {
     verdict_of(programs, costs, keys, board, limiter, true)
@@ -319,7 +319,7 @@ fn verdict_of(
     programs: &[Program],
     costs: &ProgramCosts,
     keys: &[PlanKey],
-    board: &Board,
+    board: &BoardSpec,
     limiter: &LimiterConfig,
     may_drop_guard: bool,
 ) -> Result<BoardVerdict, BoardsError> {
@@ -388,7 +388,7 @@ pub fn plan(
     programs: &[Program],
     costs: &ProgramCosts,
     keys: &[PlanKey],
-    board: &Board,
+    board: &BoardSpec,
     limiter: &LimiterConfig,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<BoardVerdict>, BoardsError> {
@@ -408,7 +408,7 @@ fn sweep(
     programs: &[Program],
     costs: &ProgramCosts,
     keys: &[PlanKey],
-    board: &Board,
+    board: &BoardSpec,
     limiter: &LimiterConfig,
     may_drop_guard: bool,
     progress: &mut dyn FnMut(usize, usize),
@@ -446,7 +446,7 @@ pub fn fits_no_board(
     programs: &[Program],
     costs: &ProgramCosts,
     program: usize,
-    board: &Board,
+    board: &BoardSpec,
     limiter: &LimiterConfig,
 ) -> Result<Option<String>, BoardsError> {
     let one = [PlanKey { key: 0, program }];
@@ -471,7 +471,7 @@ pub fn fits_no_board(
 pub fn fits_no_board_each(
     programs: &[Program],
     costs: &ProgramCosts,
-    board: &Board,
+    board: &BoardSpec,
     limiter: &LimiterConfig,
 ) -> Result<Vec<Option<String>>, BoardsError> {
     let mut out: Vec<Option<Option<String>>> = vec![None; programs.len()];
@@ -498,7 +498,7 @@ pub fn densest_board(
     programs: &[Program],
     costs: &ProgramCosts,
     program: usize,
-    board: &Board,
+    board: &BoardSpec,
     limiter: &LimiterConfig,
 ) -> Result<Option<BoardVerdict>, BoardsError> {
     let check = |n: usize| {

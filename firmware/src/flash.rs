@@ -15,7 +15,7 @@ use crate::boards::{self, PlanKey, ProgramCosts};
 use crate::image::{FirmwareImage, FlashImage, Program};
 use serde::{Deserialize, Serialize};
 use tactus_emulator::{DAC_BASE, SENSOR_BASE};
-use tactus_runtime::keyboard::{self, Board};
+use tactus_runtime::keyboard::{self, BoardSpec};
 use tactus_runtime::limiter::LimiterConfig;
 
 /// The key map of one board (`keys.json`): where each key's words live and what runs it.
@@ -163,7 +163,7 @@ pub struct KeyboardInput<'a> {
     /// (MIDI key, program), ascending by key.
     pub keys: &'a [(u8, usize)],
     /// The board kind.
-    pub board: &'a Board,
+    pub board: &'a BoardSpec,
     /// The layout's boards (MIDI keys each), or `None` to plan them.
     pub boards: Option<&'a [Vec<u8>]>,
     /// The safety limiter.

@@ -32,7 +32,7 @@ use crate::flash::KeyMap;
 use crate::image::glue::ctrl;
 use tactus_emulator::elf::Image;
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
-use tactus_runtime::keyboard::Board;
+use tactus_runtime::keyboard::BoardSpec;
 
 /// The latest start alarm a key map may name, µs after the timer's release: the images
 /// `tactus build` writes start their tick within tens of µs (the keys' `init`s and the
@@ -85,7 +85,7 @@ fn word(image: &Image, at: u32) -> Option<u32> {
 /// Errors: a message naming the field (`cores[1].sample_isr`, `keys[3].sensor_words`, …)
 /// and what the image holds instead.
 pub fn check(map: &KeyMap, image: &Image) -> Result<CheckedMap, String> {
-    let board = Board {
+    let board = BoardSpec {
         name: map.board_kind.clone(),
         clock_hz: map.clock_hz as f64,
         cores: u32::try_from(map.cores.len()).unwrap_or(u32::MAX),

@@ -19,7 +19,7 @@ use crate::play::strike::{strike_event, Strike};
 use std::collections::BTreeMap;
 use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_runtime::fixed::to_f64;
-use tactus_runtime::keyboard::Board;
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
 use tactus_runtime::player::FingerConfig;
 
@@ -94,7 +94,7 @@ pub fn play_boards(
     programs: &[Program],
     keys: &[u8],
     key_programs: &[usize],
-    board: &Board,
+    board: &BoardSpec,
     motions: &BTreeMap<u8, &Motion>,
     opts: &PerformOptions,
     progress: &(dyn Fn(u64) + Sync),
@@ -202,7 +202,7 @@ impl<'p> BoardEngine<'p> {
         programs: &'p [Program],
         costs: &ProgramCosts,
         bkeys: &[PlanKey],
-        board: &Board,
+        board: &BoardSpec,
         limiter: &LimiterConfig,
         engine: tactus_emulator::Engine,
         decimation: usize,
@@ -330,7 +330,7 @@ fn run_board(
     programs: &[Program],
     costs: &ProgramCosts,
     bkeys: &[PlanKey],
-    board: &Board,
+    board: &BoardSpec,
     motions: &BTreeMap<u8, &Motion>,
     opts: &PerformOptions,
     progress: &(dyn Fn(u64) + Sync),

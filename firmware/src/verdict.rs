@@ -16,7 +16,7 @@ use crate::image::{FirmwareImage, Program};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use tactus_runtime::keyboard::Board;
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
 
 /// One distinct program of the keyboard (an instrument with one set of params), as given to
@@ -41,7 +41,7 @@ pub struct BudgetInput {
     /// What the user gave (a path or an instrument name).
     pub input: String,
     /// The board kind.
-    pub board: Board,
+    pub board: BoardSpec,
     /// The distinct programs.
     pub programs: Vec<ProgramInput>,
     /// The keys, ascending: (MIDI key, index into `programs`).
@@ -79,7 +79,7 @@ pub struct BoardKind {
     pub cores: u32,
     /// Sample rate, Hz.
     pub sample_rate_hz: f64,
-    /// Cycles per sample per core: the deadline (`Board::cycles_per_sample`, the shortest tick interval).
+    /// Cycles per sample per core: the deadline (`BoardSpec::cycles_per_sample`, the shortest tick interval).
     pub cycles_per_sample: u64,
     /// Static cycles of a core's sample interrupt with no key (entry, tick, miss check,
     /// return).

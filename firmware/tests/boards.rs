@@ -14,7 +14,7 @@ use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_firmware::boards::{self, board_image, check_board, PlanKey, ProgramCosts};
 use tactus_firmware::corpus::{self, Size};
 use tactus_firmware::image::{compile_layout, Program};
-use tactus_runtime::keyboard::{read_board, read_layout, Board};
+use tactus_runtime::keyboard::{read_board, read_layout, BoardSpec};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 use tactus_runtime::rng::XorShift64;
 
@@ -27,11 +27,11 @@ fn shipped(name: &str) -> Result<String, String> {
         .map_err(|e| format!("{name}: {e}"))
 }
 
-fn board(name: &str) -> Board {
+fn board(name: &str) -> BoardSpec {
     read_board(&root().join(format!("boards/{name}.toml"))).unwrap()
 }
 
-fn limiter(b: &Board) -> LimiterConfig {
+fn limiter(b: &BoardSpec) -> LimiterConfig {
     LimiterConfig {
         sample_rate_hz: b.sample_rate_hz,
         ..LimiterConfig::default()
@@ -41,7 +41,12 @@ fn limiter(b: &Board) -> LimiterConfig {
 /// The fewest boards of any contiguous split of `keys` whose every board fits, by brute
 /// force over all 2^(n−1) splits (the fit of each range computed once).
 #[allow(clippy::needless_range_loop)] // `end` indexes the split, not one slice
-fn brute_force(programs: &[Program], costs: &ProgramCosts, keys: &[PlanKey], b: &Board) -> usize {
+fn brute_force(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    keys: &[PlanKey],
+    b: &BoardSpec,
+) -> usize {
     let n = keys.len();
     let lim = limiter(b);
     let mut fits = vec![vec![false; n]; n];
@@ -356,7 +361,7 @@ fn the_planner_drops_the_guard_only_where_it_saves_a_board() {
     )
     .unwrap();
     let need = six.cores.iter().map(|c| c.cycles).max().unwrap();
-    let b = Board {
+    let b = BoardSpec {
         name: "six unguarded harpsichord keys".into(),
         clock_hz: need as f64 * stock.sample_rate_hz,
         ..stock.clone()

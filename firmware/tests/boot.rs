@@ -11,7 +11,7 @@ use tactus_emulator::xip::{self, BOOT2_LOAD, BOOT2_SIZE};
 use tactus_emulator::{Board, Config as BoardConfig, StopReason};
 use tactus_firmware::image::boot2::{self, FLASH_VECTORS};
 use tactus_firmware::image::{FirmwareImage, ImageRun, KeySpec, Program};
-use tactus_runtime::keyboard::{read_board, Board as BoardSpec};
+use tactus_runtime::keyboard::{read_board, BoardSpec};
 use tactus_runtime::limiter::LimiterConfig;
 
 fn root() -> &'static Path {

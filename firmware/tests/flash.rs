@@ -23,7 +23,7 @@ use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_firmware::corpus::{self, Size};
 use tactus_firmware::flash::{self, BoardFirmware, KeyboardInput, Load};
 use tactus_firmware::image::{compile_layout, ImageRun, Program};
-use tactus_runtime::keyboard::{read_board, read_layout, Board};
+use tactus_runtime::keyboard::{read_board, read_layout, BoardSpec};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 
 /// Samples every board runs in CI (the first and last board of each layout run a second).
@@ -58,7 +58,7 @@ fn tool(name: &str) -> bool {
 
 /// Every board of `layout` as `tactus build` makes it (boards planned when the layout lists
 /// none) on the board file `kind` (default: the layout's), with the board kind it uses.
-fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmware>, Board) {
+fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmware>, BoardSpec) {
     let path = root().join(layout);
     let (l, keys) = read_layout(&path).unwrap();
     let kind = kind
@@ -216,7 +216,7 @@ fn uf2_flash(bytes: &[u8]) -> Vec<u8> {
 /// samples; also checks what the boot left: the clock and core voltage the board file
 /// names, core 1 launched with the key map's vector table, the code in SRAM the image's,
 /// each key's param block.
-fn boot_and_run(fw: &BoardFirmware, board: &Board, samples: usize, trace: bool) -> Outcome {
+fn boot_and_run(fw: &BoardFirmware, board: &BoardSpec, samples: usize, trace: bool) -> Outcome {
     let image = &fw.image;
     let flash = uf2_flash(&fw.uf2);
     let mut run =

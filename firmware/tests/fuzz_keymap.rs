@@ -16,7 +16,7 @@ use std::path::Path;
 use std::time::Duration;
 use tactus_firmware::flash::{self, KeyMap, KeyboardInput};
 use tactus_firmware::image::compile_layout;
-use tactus_runtime::keyboard::{Board, KeyAssignment};
+use tactus_runtime::keyboard::{BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::LimiterConfig;
 
 /// Samples each accepted case runs (the key map's checks come before any of them).
@@ -30,7 +30,7 @@ fn shipped(name: &str) -> Result<String, String> {
 
 /// Two hammond keys on one rp2040 board: its ELF and key map (as `keys.json` text).
 fn firmware() -> (Vec<u8>, String) {
-    let board = Board {
+    let board = BoardSpec {
         name: "rp2040".into(),
         clock_hz: 133e6,
         cores: 2,

@@ -18,7 +18,7 @@ use std::time::Duration;
 use tactus_firmware::play::{
     self, output, HostProgram, Keyboard, PlayConfig, PlayEngine, Player, TraceWindow,
 };
-use tactus_runtime::keyboard::{Board, KeyAssignment};
+use tactus_runtime::keyboard::{BoardSpec, KeyAssignment};
 use tactus_runtime::performance::{demo, parse_midi_reporting};
 use tactus_runtime::player::FingerConfig;
 
@@ -104,7 +104,7 @@ fn mutated_performances_play_and_render_or_say_why_not() {
             params: vec![],
         })
         .collect();
-    let board = Board {
+    let board = BoardSpec {
         name: "rp2040".into(),
         clock_hz: 133e6,
         cores: 2,

@@ -23,7 +23,7 @@ use tactus_firmware::image::{
     assign_cores, compile_layout, guard_record_routine, key_specs, limiter_routine, FirmwareImage,
     ImageRun, KeySpec, Program,
 };
-use tactus_runtime::keyboard::{assign, parse_layout, read_board, Board as BoardSpec};
+use tactus_runtime::keyboard::{assign, parse_layout, read_board, BoardSpec};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 use tactus_runtime::rng::XorShift64;
 use tactus_runtime::stimulus;

@@ -7,7 +7,7 @@
 //! is at most [`MAX_SOURCE_BYTES`] long.
 
 use std::path::Path;
-use tactus_runtime::keyboard::Board;
+use tactus_runtime::keyboard::BoardSpec;
 
 /// Instruments shipped in the toolchain, by name (the file stem in `instruments/`).
 pub const INSTRUMENTS: &[(&str, &str)] = &[
@@ -144,7 +144,7 @@ pub fn layout(name: &str) -> Option<&'static str> {
 /// `tactus_firmware::board_file::read_board` (the one validation of boards).
 ///
 /// Errors name the file and the field, or list the built-ins.
-pub fn board(arg: &str) -> Result<Board, String> {
+pub fn board(arg: &str) -> Result<BoardSpec, String> {
     if Path::new(arg).exists() {
         let text = tactus_runtime::keyboard::read_text(Path::new(arg))?;
         return tactus_firmware::board_file::read_board(&text, arg);

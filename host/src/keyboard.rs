@@ -20,7 +20,7 @@ use tactus_compiler::ir::Program;
 use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_firmware::play::{self, HostProgram};
 use tactus_firmware::verdict::{self, ProgramInput};
-use tactus_runtime::keyboard::{self as layout_file, Board, KeyAssignment, Layout};
+use tactus_runtime::keyboard::{self as layout_file, BoardSpec, KeyAssignment, Layout};
 
 /// A path as written into a plan: absolute when it names an existing file (relative to
 /// `dir` when given), else as it is (a built-in name).
@@ -121,7 +121,7 @@ pub struct Keyboard {
     /// The board kind as resolved (a name or a path).
     pub kind: String,
     /// The board.
-    pub board: Board,
+    pub board: BoardSpec,
     /// Every key, ascending, with its instrument and params (the spec's overrides last,
     /// replacing the layout's values of the same params: [`with_overrides`]).
     pub keys: Vec<KeyAssignment>,

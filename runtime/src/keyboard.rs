@@ -106,11 +106,13 @@ pub struct KeyAssignment {
     pub params: Vec<(String, String)>,
 }
 
-/// A board the firmware runs on: the machine, nothing about the code (what a key costs is
-/// the static analysis of the board's actual sample interrupt).
+/// A board kind as a board file describes it (`boards/*.toml`): the machine, nothing about
+/// the code (what a key costs is the static analysis of the board's actual sample
+/// interrupt). Not the emulated machine (`tactus_emulator::Board`) nor the budget report's
+/// summary of it (`tactus_firmware::verdict::BoardKind`).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-pub struct Board {
+pub struct BoardSpec {
     /// Board name.
     pub name: String,
     /// Core clock, Hz.
@@ -137,7 +139,7 @@ pub struct Board {
 /// is rejected when the board is read rather than allocated for).
 pub const MAX_CORES: u32 = 64;
 
-impl Board {
+impl BoardSpec {
     /// The board's ADC and DAC parts, when its file names converters (the reader checked
     /// that the firmware drives both).
     pub fn converter_parts(
@@ -225,13 +227,13 @@ fn read(path: &Path) -> Result<String, String> {
 }
 
 /// Reads a board file. Errors name the file and, for bad values, the field.
-pub fn read_board(path: &Path) -> Result<Board, String> {
+pub fn read_board(path: &Path) -> Result<BoardSpec, String> {
     parse_board(&read(path)?, &path.display().to_string())
 }
 
 /// Parses a board from TOML text; `name` is used in errors.
-pub fn parse_board(text: &str, name: &str) -> Result<Board, String> {
-    let b: Board = toml::from_str(text).map_err(|e| {
+pub fn parse_board(text: &str, name: &str) -> Result<BoardSpec, String> {
+    let b: BoardSpec = toml::from_str(text).map_err(|e| {
         let e = e.to_string();
         match ["io_cycles_per_key", "isr_overhead_cycles"]
             .iter()

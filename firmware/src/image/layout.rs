@@ -23,7 +23,7 @@ use tactus_compiler::thumb::buffer::{CodeBuffer, Label, LongBranch};
 use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE};
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use tactus_isa::wcet::{self, Bounds};
-use tactus_runtime::keyboard::Board as BoardSpec;
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
 /// What the steps share: the inputs of the build and what the checks derived from them.

@@ -121,7 +121,7 @@ use tactus_compiler::thumb::ThumbObject;
 use tactus_emulator::bus::SRAM_ALIAS_BASE;
 
 use tactus_emulator::{MAX_KEYS, SENSOR_BASE};
-use tactus_runtime::keyboard::{Board as BoardSpec, KeyAssignment};
+use tactus_runtime::keyboard::{BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 
 /// Most state words (states, modes, edges) the quiescent-key guard compares; a program

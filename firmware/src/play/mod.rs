@@ -38,7 +38,7 @@ pub use motion::{FingerCalibration, Restrikes};
 use run::{run_keys, Drive};
 use std::collections::BTreeMap;
 use tactus_compiler::ir::Program;
-use tactus_runtime::keyboard::{Board, KeyAssignment};
+use tactus_runtime::keyboard::{BoardSpec, KeyAssignment};
 use tactus_runtime::performance::{Note, Performance};
 use tactus_runtime::player::FingerConfig;
 
@@ -116,7 +116,7 @@ pub struct PlayConfig {
     pub trace: TraceWindow,
     /// The board: its sample rate is every engine's (the programs are compiled for it);
     /// `Emu` runs its firmware.
-    pub board: Board,
+    pub board: BoardSpec,
     /// The emulator's engine (the same cycles and strikes either way).
     pub emulator: tactus_emulator::Engine,
     /// Whether the firmware guards quiescent keys (the same strikes either way).
