@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_firmware::play::{self as play, corpus, strike, PlayConfig};
-use tactus_firmware::play::{BoardsReport, TraceWindow, Traces};
+use tactus_firmware::play::{BoardsReport, TraceWindow};
 use tactus_host::catalogue;
 use tactus_host::keyboard::{self, Keyboard, KeyboardSpec};
 use tactus_host::play::{self as host_play, PieceOptions};
@@ -271,31 +271,7 @@ fn run_corpus(args: &PlayArgs, setup: &Setup, files: &[PathBuf]) -> ExitCode {
             _ => "host engine; no deadlines checked",
         }
     );
-    println!(
-        "  {:<32} {:>8} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6}  error",
-        "piece", "music s", "notes", "strikes", "silent", "misses", "worst cycles", "RTF"
-    );
-    for r in &rows {
-        let name = r.file.file_name().map_or_else(
-            || r.file.display().to_string(),
-            |n| n.to_string_lossy().into_owned(),
-        );
-        println!(
-            "  {:<32} {:>8.1} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6.2}  {}",
-            name,
-            r.music_s,
-            r.notes,
-            r.strikes,
-            r.silent,
-            r.misses_per_board.iter().sum::<u64>(),
-            r.worst_core_cycles.map_or("—".to_string(), |c| format!(
-                "{c}/{}",
-                r.deadline_cycles.unwrap_or(0)
-            )),
-            r.rtf,
-            r.error.as_deref().unwrap_or("")
-        );
-    }
+    print!("{}", corpus::table_text(&rows));
     if let Some(kb) = peak_memory() {
         println!("  peak memory of the run: {:.1} MB", kb as f64 / 1024.0);
     }
@@ -381,7 +357,7 @@ fn run_inner(
     let fs = setup.kb.board.sample_rate_hz;
     let mut wrote = piece.written.clone();
     if !played.traces.is_empty() {
-        wrote.extend(plot_traces(&args.out, stem, &played.traces)?);
+        wrote.extend(plot::plot_play_traces(&args.out, stem, &played.traces)?);
     }
     // Notes no strike answers: the instrument did not sound them.
     let silent = &played.silent;
@@ -444,39 +420,17 @@ fn run_inner(
         audio_s,
         peak_memory().map_or("unknown".to_string(), |kb| format!("{:.1} MB", kb as f64 / 1024.0)),
     );
-    // What the finger can do on each instrument (the range every key of it covers), and
-    // how many notes asked for more.
-    let mut names: Vec<&str> = Vec::new();
-    for (pi, cal) in played.calibrations.iter().enumerate() {
-        let name = piece.program_names[pi].as_str();
-        if cal.is_some() && !names.contains(&name) {
-            names.push(name);
-        }
-    }
-    for name in names {
-        let (mut lo, mut hi, mut sets, mut outside) = (0.0f64, f64::INFINITY, 0, 0);
-        let (mut push_lo, mut push_hi) = (f64::INFINITY, 0.0f64);
-        for (pi, cal) in played.calibrations.iter().enumerate() {
-            let Some(cal) = cal.as_ref().filter(|_| piece.program_names[pi] == name) else {
-                continue;
-            };
-            let l = cal.from_rest.levels();
-            let (a, b) = (l[0].2, l[l.len() - 1].2);
-            (lo, hi, sets) = (lo.max(a), hi.min(b), sets + 1);
-            (push_lo, push_hi) = (push_lo.min(l[0].0), push_hi.max(l[l.len() - 1].0));
-            outside += perf
-                .notes
-                .iter()
-                .filter(|n| piece.key_program.get(&n.key) == Some(&pi))
-                .filter(|n| play::outside_calibration(strike::speed_for_velocity(n.velocity), a, b))
-                .count();
-        }
+    // What the finger can do on each instrument, and how many notes asked for more.
+    for r in piece.finger_ranges() {
+        let ((push_lo, push_hi), (lo, hi)) = (r.push_n, r.speed_mps);
         println!(
-            "  force player on `{name}`{}: finger pushes {push_lo:.2}–{push_hi:.1} N give hammer speeds {lo:.2}–{hi:.2} m/s on every key (MIDI {}–{}); {outside} note{} outside its key's range played at its nearest end",
-            if sets > 1 { format!(" ({sets} parameter sets)") } else { String::new() },
+            "  force player on `{}`{}: finger pushes {push_lo:.2}–{push_hi:.1} N give hammer speeds {lo:.2}–{hi:.2} m/s on every key (MIDI {}–{}); {} note{} outside its key's range played at its nearest end",
+            r.instrument,
+            if r.sets > 1 { format!(" ({} parameter sets)", r.sets) } else { String::new() },
             strike::midi_velocity(lo),
             strike::midi_velocity(hi),
-            if outside == 1 { "" } else { "s" },
+            r.outside,
+            if r.outside == 1 { "" } else { "s" },
         );
     }
     // Notes the players could not play as recorded: said, not silently distorted.
@@ -520,7 +474,7 @@ fn run_inner(
     match &played.boards {
         Some(r) => {
             let path = args.out.join(format!("{stem}-cycles.svg"));
-            plot_cycles(r, fs, stem, &path)?;
+            plot::plot_play_cycles(r, fs, stem, &path)?;
             println!("  wrote {}", path.display());
             print_budget(r);
             if r.missed() {
@@ -533,61 +487,6 @@ fn run_inner(
         ),
     }
     Ok((ExitCode::SUCCESS, row))
-}
-
-/// Plots the cycles per sample of the busier core of each board (beyond eight boards, the
-/// busiest and the mean of all) against the deadline.
-fn plot_cycles(r: &BoardsReport, fs: f64, stem: &str, path: &Path) -> Result<(), String> {
-    let named: Vec<(String, Vec<u64>)> = if r.boards.len() <= 8 {
-        r.boards
-            .iter()
-            .enumerate()
-            .map(|(i, b)| {
-                (
-                    format!(
-                        "board {} ({})",
-                        i + 1,
-                        tactus_firmware::verdict::key_ranges(&b.keys)
-                    ),
-                    b.cycles.clone(),
-                )
-            })
-            .collect()
-    } else {
-        let n = r.boards.iter().map(|b| b.cycles.len()).max().unwrap_or(0);
-        let at = |i: usize| {
-            r.boards
-                .iter()
-                .filter_map(move |b| b.cycles.get(i).copied())
-        };
-        vec![
-            (
-                format!("busiest of {} boards", r.boards.len()),
-                (0..n).map(|i| at(i).max().unwrap_or(0)).collect(),
-            ),
-            (
-                "mean of the boards".to_string(),
-                (0..n)
-                    .map(|i| at(i).sum::<u64>() / r.boards.len().max(1) as u64)
-                    .collect(),
-            ),
-        ]
-    };
-    let series: Vec<(String, &[u64])> = named
-        .iter()
-        .map(|(l, v)| (l.clone(), v.as_slice()))
-        .collect();
-    plot::plot_cycle_series(
-        &series,
-        fs / r.decimation as f64,
-        r.deadline,
-        &format!(
-            "{stem}: cycles per sample, busier core of each board (max per {} samples)",
-            r.decimation
-        ),
-        path,
-    )
-    .map_err(|e| e.to_string())
 }
 
 /// Prints the budget of the run: per board and core the keys, the largest and mean cycles
@@ -657,81 +556,4 @@ fn peak_memory() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     line.split_whitespace().nth(1)?.parse().ok()
-}
-
-/// Plots the traces: `STEM-force.svg` (instrument force, and the finger's with the force
-/// player, vs time), `STEM-key.svg` (key travel vs time) and `STEM-hammer.svg` (hammer
-/// position vs time); returns the files written.
-fn plot_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathBuf>, String> {
-    let mut wrote = Vec::new();
-    let lines = |col: usize, scale: f64| -> Vec<plot::Line> {
-        traces
-            .iter()
-            .map(|(key, rows)| {
-                // A break (NaN) where the key rested unsimulated between two stretches.
-                let (mut x, mut y) = (Vec::new(), Vec::new());
-                for (i, r) in rows.iter().enumerate() {
-                    if i > 0 && r[0] - rows[i - 1][0] > 1e-3 {
-                        x.push(f64::NAN);
-                        y.push(f64::NAN);
-                    }
-                    x.push(r[0]);
-                    y.push(r[col] * scale);
-                }
-                plot::Line {
-                    label: format!("key {key}"),
-                    x,
-                    y,
-                }
-            })
-            .collect()
-    };
-    let force = out.join(format!("{stem}-force.svg"));
-    let mut force_lines = lines(2, 1.0);
-    for l in &mut force_lines {
-        l.label.push_str(" instrument");
-    }
-    // With the force player, the finger's push beside the instrument's force.
-    if traces.values().flatten().any(|r| r[4] != 0.0) {
-        force_lines.extend(lines(4, 1.0).into_iter().map(|mut l| {
-            l.label.push_str(" finger");
-            l
-        }));
-    }
-    plot::plot_lines(
-        &force_lines,
-        &format!("{stem}: force at the key"),
-        "time [s]",
-        "force [N]",
-        &force,
-    )
-    .map_err(|e| e.to_string())?;
-    wrote.push(force);
-    let key = out.join(format!("{stem}-key.svg"));
-    plot::plot_lines(
-        &lines(1, 1e3),
-        &format!("{stem}: key travel"),
-        "time [s]",
-        "key travel [mm]",
-        &key,
-    )
-    .map_err(|e| e.to_string())?;
-    wrote.push(key);
-    let hammer_lines = lines(3, 1e3);
-    if hammer_lines
-        .iter()
-        .any(|l| l.y.iter().any(|v| v.is_finite()))
-    {
-        let hammer = out.join(format!("{stem}-hammer.svg"));
-        plot::plot_lines(
-            &hammer_lines,
-            &format!("{stem}: hammer position"),
-            "time [s]",
-            "hammer travel [mm]",
-            &hammer,
-        )
-        .map_err(|e| e.to_string())?;
-        wrote.push(hammer);
-    }
-    Ok(wrote)
 }

@@ -21,6 +21,7 @@ use std::path::{Path, PathBuf};
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use tactus_firmware::play::{BoardsReport, Traces};
 use tactus_runtime::trace::{Column, ColumnKind, Trace};
 
 /// Width of every plot, pixels.
@@ -631,6 +632,139 @@ fn events_panel(
         .border_style(BLACK)
         .draw()
         .map_err(|e| e.to_string())
+}
+
+/// `tactus play`'s plots.
+/// Plots the cycles per sample of the busier core of each board (beyond eight boards, the
+/// busiest and the mean of all) against the deadline.
+pub fn plot_play_cycles(r: &BoardsReport, fs: f64, stem: &str, path: &Path) -> Result<(), String> {
+    let named: Vec<(String, Vec<u64>)> = if r.boards.len() <= 8 {
+        r.boards
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                (
+                    format!(
+                        "board {} ({})",
+                        i + 1,
+                        tactus_firmware::verdict::key_ranges(&b.keys)
+                    ),
+                    b.cycles.clone(),
+                )
+            })
+            .collect()
+    } else {
+        let n = r.boards.iter().map(|b| b.cycles.len()).max().unwrap_or(0);
+        let at = |i: usize| {
+            r.boards
+                .iter()
+                .filter_map(move |b| b.cycles.get(i).copied())
+        };
+        vec![
+            (
+                format!("busiest of {} boards", r.boards.len()),
+                (0..n).map(|i| at(i).max().unwrap_or(0)).collect(),
+            ),
+            (
+                "mean of the boards".to_string(),
+                (0..n)
+                    .map(|i| at(i).sum::<u64>() / r.boards.len().max(1) as u64)
+                    .collect(),
+            ),
+        ]
+    };
+    let series: Vec<(String, &[u64])> = named
+        .iter()
+        .map(|(l, v)| (l.clone(), v.as_slice()))
+        .collect();
+    plot_cycle_series(
+        &series,
+        fs / r.decimation as f64,
+        r.deadline,
+        &format!(
+            "{stem}: cycles per sample, busier core of each board (max per {} samples)",
+            r.decimation
+        ),
+        path,
+    )
+    .map_err(|e| e.to_string())
+}
+
+/// Plots the traces: `STEM-force.svg` (instrument force, and the finger's with the force
+/// player, vs time), `STEM-key.svg` (key travel vs time) and `STEM-hammer.svg` (hammer
+/// position vs time); returns the files written.
+pub fn plot_play_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathBuf>, String> {
+    let mut wrote = Vec::new();
+    let lines = |col: usize, scale: f64| -> Vec<Line> {
+        traces
+            .iter()
+            .map(|(key, rows)| {
+                // A break (NaN) where the key rested unsimulated between two stretches.
+                let (mut x, mut y) = (Vec::new(), Vec::new());
+                for (i, r) in rows.iter().enumerate() {
+                    if i > 0 && r[0] - rows[i - 1][0] > 1e-3 {
+                        x.push(f64::NAN);
+                        y.push(f64::NAN);
+                    }
+                    x.push(r[0]);
+                    y.push(r[col] * scale);
+                }
+                Line {
+                    label: format!("key {key}"),
+                    x,
+                    y,
+                }
+            })
+            .collect()
+    };
+    let force = out.join(format!("{stem}-force.svg"));
+    let mut force_lines = lines(2, 1.0);
+    for l in &mut force_lines {
+        l.label.push_str(" instrument");
+    }
+    // With the force player, the finger's push beside the instrument's force.
+    if traces.values().flatten().any(|r| r[4] != 0.0) {
+        force_lines.extend(lines(4, 1.0).into_iter().map(|mut l| {
+            l.label.push_str(" finger");
+            l
+        }));
+    }
+    plot_lines(
+        &force_lines,
+        &format!("{stem}: force at the key"),
+        "time [s]",
+        "force [N]",
+        &force,
+    )
+    .map_err(|e| e.to_string())?;
+    wrote.push(force);
+    let key = out.join(format!("{stem}-key.svg"));
+    plot_lines(
+        &lines(1, 1e3),
+        &format!("{stem}: key travel"),
+        "time [s]",
+        "key travel [mm]",
+        &key,
+    )
+    .map_err(|e| e.to_string())?;
+    wrote.push(key);
+    let hammer_lines = lines(3, 1e3);
+    if hammer_lines
+        .iter()
+        .any(|l| l.y.iter().any(|v| v.is_finite()))
+    {
+        let hammer = out.join(format!("{stem}-hammer.svg"));
+        plot_lines(
+            &hammer_lines,
+            &format!("{stem}: hammer position"),
+            "time [s]",
+            "hammer travel [mm]",
+            &hammer,
+        )
+        .map_err(|e| e.to_string())?;
+        wrote.push(hammer);
+    }
+    Ok(wrote)
 }
 
 #[cfg(test)]

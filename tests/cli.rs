@@ -598,68 +598,139 @@ fn regulate_prints_a_sheet_judges_it_against_a_spec_and_rejects_bad_input() {
 }
 
 /// `build`, `budget` and `play` resolve and compile a keyboard in one place
-/// (`tactus_host::keyboard`): on a built-in layout named bare, they plan the same boards with
-/// the same keys.
+/// (`tactus_host::keyboard`): on a built-in layout named bare and on a bare instrument, they
+/// plan the same boards with the same keys, and `build` and `budget` give every key the
+/// same instrument and params.
 #[test]
 fn build_budget_and_play_see_the_same_keyboard() {
     let dir = temp_dir("same-keyboard");
-    let layout = "split_harpsichord_piano";
-    let budget = tactus()
-        .args(["budget", layout, "--quick", "--json"])
-        .output()
-        .unwrap();
-    assert_ok(&budget);
-    let v: serde_json::Value = serde_json::from_slice(&budget.stdout).unwrap();
-    let planned: Vec<String> = v["boards"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|b| {
-            let keys: Vec<u8> = b["keys"]
+    for (i, (budget_args, build_args, play_args)) in [
+        (
+            vec!["split_harpsichord_piano"],
+            vec!["split_harpsichord_piano"],
+            vec!["--layout", "split_harpsichord_piano"],
+        ),
+        (
+            vec!["harpsichord"],
+            vec!["harpsichord", "--keys", "88"],
+            vec!["--instrument", "harpsichord"],
+        ),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let budget = tactus()
+            .arg("budget")
+            .args(&budget_args)
+            .args(["--quick", "--json"])
+            .output()
+            .unwrap();
+        assert_ok(&budget);
+        let v: serde_json::Value = serde_json::from_slice(&budget.stdout).unwrap();
+        let keys_of = |b: &serde_json::Value| -> Vec<u8> {
+            b["keys"]
                 .as_array()
                 .unwrap()
                 .iter()
                 .map(|k| k.as_u64().unwrap() as u8)
+                .collect()
+        };
+        let planned: Vec<String> = v["boards"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|b| tactus_firmware::verdict::key_ranges(&keys_of(b)))
+            .collect();
+        assert!(planned.len() >= 2, "{v}");
+        // Every key's instrument and params, as `name=value` sorted.
+        let mut budgeted = std::collections::BTreeMap::new();
+        for p in v["programs"].as_array().unwrap() {
+            let mut params: Vec<String> = p["params"]
+                .as_object()
+                .unwrap()
+                .iter()
+                .map(|(n, x)| format!("{n}={}", x.as_str().unwrap()))
                 .collect();
-            tactus_firmware::verdict::key_ranges(&keys)
-        })
-        .collect();
-    assert!(planned.len() >= 2, "{v}");
-    // Between two markers of each line that has the first.
-    let between = |out: &std::process::Output, start: &str, end: &str| -> Vec<String> {
-        String::from_utf8_lossy(&out.stdout)
-            .lines()
-            .filter_map(|l| {
-                let (_, rest) = l.split_once(start)?;
-                Some(rest.split_once(end)?.0.to_string())
-            })
-            .collect()
-    };
-    let build = tactus()
-        .args(["build", layout, "--target", "rp2040", "-o"])
-        .arg(dir.join("fw"))
-        .output()
-        .unwrap();
-    assert_ok(&build);
-    assert_eq!(
-        between(&build, ": keys ", ", UF2"),
-        planned,
-        "build vs budget"
-    );
-    let play = tactus()
-        .args([
-            "play",
-            "--layout",
-            layout,
-            "--seconds",
-            "0.3",
-            "--no-wav",
-            "-o",
-        ])
-        .arg(dir.join("play"))
-        .output()
-        .unwrap();
-    assert_ok(&play);
-    let played: Vec<String> = between(&play, "(keys ", "): core 0");
-    assert_eq!(played, planned, "play vs budget");
+            params.sort();
+            for k in keys_of(p) {
+                budgeted.insert(
+                    k,
+                    (
+                        p["instrument"].as_str().unwrap().to_string(),
+                        params.clone(),
+                    ),
+                );
+            }
+        }
+        assert_eq!(budgeted.len(), 88);
+        // Between two markers of each line that has the first.
+        let between = |out: &std::process::Output, start: &str, end: &str| -> Vec<String> {
+            String::from_utf8_lossy(&out.stdout)
+                .lines()
+                .filter_map(|l| {
+                    let (_, rest) = l.split_once(start)?;
+                    Some(rest.split_once(end)?.0.to_string())
+                })
+                .collect()
+        };
+        let fw = dir.join(format!("fw{i}"));
+        let build = tactus()
+            .arg("build")
+            .args(&build_args)
+            .args(["--target", "rp2040", "-o"])
+            .arg(&fw)
+            .output()
+            .unwrap();
+        assert_ok(&build);
+        assert_eq!(
+            between(&build, ": keys ", ", UF2"),
+            planned,
+            "build vs budget"
+        );
+        let mut built = std::collections::BTreeMap::new();
+        for board in std::fs::read_dir(&fw).unwrap() {
+            let map = board.unwrap().path().join("keys.json");
+            let map: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&map).unwrap()).unwrap();
+            for k in map["keys"].as_array().unwrap() {
+                let mut params: Vec<String> = k["params"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|p| p.as_str().unwrap().to_string())
+                    .collect();
+                params.sort();
+                built.insert(
+                    k["midi"].as_u64().unwrap() as u8,
+                    (k["instrument"].as_str().unwrap().to_string(), params),
+                );
+            }
+        }
+        let squeeze = |m: &std::collections::BTreeMap<u8, (String, Vec<String>)>| {
+            m.iter()
+                .map(|(k, (i, p))| {
+                    (
+                        *k,
+                        i.clone(),
+                        p.iter().map(|x| x.replace(' ', "")).collect(),
+                    )
+                })
+                .collect::<Vec<(u8, String, Vec<String>)>>()
+        };
+        assert_eq!(
+            squeeze(&built),
+            squeeze(&budgeted),
+            "build vs budget: keys and programs"
+        );
+        let play = tactus()
+            .arg("play")
+            .args(&play_args)
+            .args(["--seconds", "0.3", "--no-wav", "-o"])
+            .arg(dir.join(format!("play{i}")))
+            .output()
+            .unwrap();
+        assert_ok(&play);
+        let played: Vec<String> = between(&play, "(keys ", "): core 0");
+        assert_eq!(played, planned, "play vs budget");
+    }
 }

@@ -723,12 +723,13 @@ pub fn analyse(src: &str, config: &crate::lower::Config) -> Analysis {
         }
     };
     let outline = symbols(&file, src);
-    let mut names = NameIndex::default();
-    let (diagnostics, lowered) = match crate::lower::lower_indexed(&file, config, Some(&mut names))
-    {
+    let mut refs = Vec::new();
+    let (diagnostics, lowered) = match crate::lower::lower_indexed(&file, config, Some(&mut refs)) {
         Ok(l) => (l.warnings.clone(), Some(l)),
         Err(d) => (d, None),
     };
+    let mut names = NameIndex::default();
+    names.add(refs);
     Analysis {
         diagnostics,
         lowered,

@@ -30,7 +30,7 @@ use std::path::Path;
 use tactus_emulator::Engine;
 use tactus_firmware::boards::{self, PlanKey, ProgramCosts};
 use tactus_firmware::image::{compile_layout, Program};
-use tactus_firmware::perform::{BoardEngine, BoardRun, Motion};
+use tactus_firmware::play::emulated::{BoardEngine, BoardRun, Motion};
 use tactus_firmware::play::run::{run_keys, Drive, LoopConfig};
 use tactus_firmware::play::TraceWindow;
 use tactus_runtime::keyboard::{read_board, read_layout, BoardSpec};

@@ -23,8 +23,30 @@
 //! Whether the instruments accept the board's sample rate (their `require`s) is decided
 //! where they are compiled, at that rate (`tactus_compiler::lower::Config::sample_rate_hz`).
 
-use crate::image::glue::Tick;
 use tactus_runtime::keyboard::{self, BoardSpec};
+
+/// The tick schedule in core clock cycles: the period is `q + rem/den` cycles
+/// (`clock/fs`), each core's SysTick counting the processor clock with a reload value of
+/// `q − 1` or `q` (periods of `q` or `q + 1` cycles) chosen by a remainder accumulator
+/// `acc` in `[0, den)` (`image::glue::ctrl::ACC`): each period adds `rem` and is one cycle longer
+/// when `acc` reaches `den`, so tick *n* is at cycle `first + ⌊n·clock/fs⌋`
+/// (`tactus_runtime::keyboard::tick_cycle`) and the shortest period, the deadline, is `q`
+/// (`tactus_runtime::keyboard::deadline_cycles`).
+///
+/// A write to SYST_RVR takes effect at the next reload (DDI0419 B3.3.1): the handler of
+/// tick *n*, which runs after the reload that started period *n*, sets the reload value of
+/// period *n* + 1. The start handler leaves `q − 1` for the first two periods (the first
+/// accumulator step never carries: `rem < den`), and the control block's accumulator
+/// starts at `rem`, period 1's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tick {
+    /// Whole cycles per period: `clock div fs` (2 to 2²⁴).
+    pub q: u32,
+    /// The fraction's numerator: `clock mod fs` over the fraction's gcd (0: whole cycles).
+    pub rem: u32,
+    /// The fraction's denominator: `fs` over the same gcd (133 MHz / 44.1 kHz: 55/63).
+    pub den: u32,
+}
 
 /// Fewest cycles per sample the image accepts: the start handler must have enabled each
 /// core's SysTick before the first tick, `q` cycles after the enabling store.

@@ -28,11 +28,97 @@
 //! completed the samples run.
 
 use crate::board_file::{self, Chip};
-use crate::flash::KeyMap;
 use crate::image::glue::ctrl;
+use serde::{Deserialize, Serialize};
 use tactus_emulator::elf::Image;
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use tactus_runtime::keyboard::BoardSpec;
+
+/// The key map of one board (`keys.json`): where each key's words live and what runs it.
+/// Addresses are hexadecimal strings (`"0x2003f000"`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct KeyMap {
+    /// Board number, from 1 along the keyboard.
+    pub board: usize,
+    /// The board file's name (`rp2040`, …).
+    pub board_kind: String,
+    /// Core clock the image sets up, Hz.
+    pub clock_hz: u64,
+    /// Sample rate, Hz.
+    pub sample_rate_hz: u32,
+    /// The core voltage the image sets before its PLL, V (`None`: the regulator's 1.10 V).
+    #[serde(default)]
+    pub core_voltage_v: Option<f64>,
+    /// Where the image starts (Thumb bit set): the flash reset handler that boot2 enters
+    /// (a flash image), or the entry stub at 0x20000000 that the boot ROM enters (a RAM
+    /// image).
+    pub entry: String,
+    /// Timer time of the start alarm, µs after the timer's release: at it both cores start
+    /// their SysTick, the sample tick; the first tick follows `period_cycles` cycles and
+    /// the start handler's latency later (tens of cycles).
+    pub start_alarm_us: u32,
+    /// Core clock cycles per sample tick, whole part: the period is `period_cycles` or one
+    /// more, `period_cycles + period_fraction[0] / period_fraction[1]` on average (tick `n`
+    /// at cycle `first + ⌊n·clock/fs⌋`).
+    pub period_cycles: u32,
+    /// The fractional cycle of the mean period, as numerator and denominator.
+    pub period_fraction: [u32; 2],
+    /// The sensor window: one 32-bit word per sensor, the ADC sample in the low 16 bits,
+    /// written by a driver, DMA channel or PIO program before each tick.
+    pub sensor_window: String,
+    /// The DAC window: one 32-bit word per force word, the signed 16-bit DAC code, read by
+    /// a driver after each sample.
+    pub dac_window: String,
+    /// Per core: its entry points, control block and keys.
+    pub cores: Vec<CoreMap>,
+    /// Per key, in window order.
+    pub keys: Vec<KeyMapEntry>,
+}
+
+/// One core in a [`KeyMap`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CoreMap {
+    /// The core (0 or 1).
+    pub core: usize,
+    /// Its vector table (VTOR).
+    pub vector_table: String,
+    /// Its reset handler.
+    pub reset: String,
+    /// Its sample interrupt (its SysTick's exception).
+    pub sample_isr: String,
+    /// Its control block: start alarm (µs), tick accumulator, samples, misses, ready
+    /// (words).
+    pub control: String,
+    /// Its initial stack pointer.
+    pub stack_top: String,
+    /// The MIDI keys it runs.
+    pub keys: Vec<u8>,
+}
+
+/// One key in a [`KeyMap`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct KeyMapEntry {
+    /// MIDI key number.
+    pub midi: u8,
+    /// Instrument (a built-in name or a path, as the layout names it).
+    pub instrument: String,
+    /// Its param overrides, `name=value unit`.
+    pub params: Vec<String>,
+    /// The core that runs it.
+    pub core: usize,
+    /// Its sensor words (one per sensor, in the program's sensor order).
+    pub sensor_words: Vec<String>,
+    /// Its DAC words (one per force word: a keyboard key one, a pen z, x, y).
+    pub dac_words: Vec<String>,
+    /// Its record: the update's sensor copy, out words, limiter budgets, state address.
+    pub record: String,
+    /// Its state struct.
+    pub state: String,
+    /// Its param block (inside its state struct, at `StateLayout::params`: one word per
+    /// run-time param, its graded values in their planned formats); `null` when the
+    /// program has no run-time params (every value compiled in as a constant).
+    pub param_block: Option<String>,
+}
 
 /// The latest start alarm a key map may name, µs after the timer's release: the images
 /// `tactus build` writes start their tick within tens of µs (the keys' `init`s and the

@@ -22,7 +22,7 @@
 //!   beyond two cores or very large totals).
 //! - [`play`]: a recorded performance played through an instrument (`tactus play`): the
 //!   players, the one play loop over the one engine trait, the strike rule, the output files;
-//!   [`perform`]: its engine for the firmware of every board on emulated RP2040s.
+//!   `play::emulated`: its engine for the firmware of every board on emulated RP2040s.
 //! - [`regulate`]: the regulation sheet of a key instrument (`tactus regulate`): down- and
 //!   up-weight, friction, let-off, drop, blow, back-check, key-bottom times, repetition,
 //!   measured with the closed-loop key model, and a spec's verdict.
@@ -37,7 +37,6 @@ pub mod image;
 pub mod key_map;
 pub mod layout;
 pub mod measure;
-pub mod perform;
 pub mod play;
 pub mod regulate;
 pub mod report;

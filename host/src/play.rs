@@ -50,7 +50,65 @@ pub struct Piece {
     pub written: Vec<PathBuf>,
 }
 
+/// What the force player's finger can do on one instrument: the range of hammer speeds
+/// every key of it covers, and how many notes asked for more.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FingerRange {
+    /// The instrument as the layout names it.
+    pub instrument: String,
+    /// Its parameter sets among the played keys.
+    pub sets: usize,
+    /// The smallest and largest finger push calibrated, N.
+    pub push_n: (f64, f64),
+    /// The hammer speeds every set reaches, m/s: the largest of the sets' slowest and the
+    /// smallest of their fastest.
+    pub speed_mps: (f64, f64),
+    /// Notes whose velocity asks a hammer speed outside their key's calibrated range
+    /// ([`play::outside_calibration`]): played at the nearest end.
+    pub outside: usize,
+}
+
 impl Piece {
+    /// Per instrument the force player calibrated (none with the position player), in
+    /// order of first program: what the finger can do ([`FingerRange`]).
+    pub fn finger_ranges(&self) -> Vec<FingerRange> {
+        let mut out: Vec<FingerRange> = Vec::new();
+        for (pi, cal) in self.played.calibrations.iter().enumerate() {
+            let Some(cal) = cal else { continue };
+            let name = &self.program_names[pi];
+            let l = cal.from_rest.levels();
+            let (Some(first), Some(last)) = (l.first(), l.last()) else {
+                continue;
+            };
+            let (a, b) = (first.2, last.2);
+            let outside = self
+                .perf
+                .notes
+                .iter()
+                .filter(|n| self.key_program.get(&n.key) == Some(&pi))
+                .filter(|n| {
+                    play::outside_calibration(play::strike::speed_for_velocity(n.velocity), a, b)
+                })
+                .count();
+            match out.iter_mut().find(|r| &r.instrument == name) {
+                Some(r) => {
+                    r.sets += 1;
+                    r.push_n = (r.push_n.0.min(first.0), r.push_n.1.max(last.0));
+                    r.speed_mps = (r.speed_mps.0.max(a), r.speed_mps.1.min(b));
+                    r.outside += outside;
+                }
+                None => out.push(FingerRange {
+                    instrument: name.clone(),
+                    sets: 1,
+                    push_n: (first.0, last.0),
+                    speed_mps: (a, b),
+                    outside,
+                }),
+            }
+        }
+        out
+    }
+
     /// The piece's row of the corpus table, for the performance `file`.
     pub fn row(&self, file: &Path) -> PieceRow {
         let music_s = self.perf.duration_s;

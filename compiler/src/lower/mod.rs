@@ -84,13 +84,14 @@ pub fn lower(file: &ast::File, config: &Config) -> Result<Lowered, Vec<Diagnosti
     lower_indexed(file, config, None)
 }
 
-/// [`lower`], also recording every name the resolver resolves into `names` (what an editor
-/// asks for "go to definition" and "find references": [`crate::query::NameIndex`]). The
-/// index is filled whether or not lowering succeeds; it stays empty when expansion fails.
+/// [`lower`], also appending every name the resolver resolves to `names`, as (where it is
+/// written, the span of its declaration's name): what an editor asks for "go to
+/// definition" and "find references" (`crate::query::NameIndex` sorts them). They are
+/// recorded whether or not lowering succeeds; none when expansion fails.
 pub fn lower_indexed(
     file: &ast::File,
     config: &Config,
-    names: Option<&mut crate::query::NameIndex>,
+    names: Option<&mut Vec<(Span, Span)>>,
 ) -> Result<Lowered, Vec<Diagnostic>> {
     let file = crate::expand::expand(file, &config.overrides)?;
     let mut l = Lowerer::new(config);
@@ -98,8 +99,8 @@ pub fn lower_indexed(
         l.refs = Some(Vec::new());
     }
     l.run(&file);
-    if let (Some(index), Some(refs)) = (names, l.refs.take()) {
-        index.add(refs);
+    if let (Some(out), Some(mut refs)) = (names, l.refs.take()) {
+        out.append(&mut refs);
     }
     let (errors, warnings): (Vec<_>, Vec<_>) = l.diags.into_iter().partition(|d| d.is_error());
     if errors.is_empty() {

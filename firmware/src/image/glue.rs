@@ -19,6 +19,7 @@
 //! one `MULS`, no call; at the time of writing 20 cycles on its worst path.
 
 use super::ImageError;
+pub use crate::board_file::Tick;
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label};
 use tactus_compiler::thumb::ins::{self as asm, cond};
 use tactus_emulator::timer::{reg, TIMER_BASE};
@@ -587,29 +588,6 @@ pub struct DriveCode {
     pub dac_word: u32,
     /// The force → DAC code scale of its force format.
     pub scale: DacScale,
-}
-
-/// The tick schedule in core clock cycles: the period is `q + rem/den` cycles
-/// (`clock/fs`), each core's SysTick counting the processor clock with a reload value of
-/// `q − 1` or `q` (periods of `q` or `q + 1` cycles) chosen by a remainder accumulator
-/// `acc` in `[0, den)` ([`ctrl::ACC`]): each period adds `rem` and is one cycle longer
-/// when `acc` reaches `den`, so tick *n* is at cycle `first + ⌊n·clock/fs⌋`
-/// (`tactus_runtime::keyboard::tick_cycle`) and the shortest period, the deadline, is `q`
-/// (`tactus_runtime::keyboard::deadline_cycles`).
-///
-/// A write to SYST_RVR takes effect at the next reload (DDI0419 B3.3.1): the handler of
-/// tick *n*, which runs after the reload that started period *n*, sets the reload value of
-/// period *n* + 1. The start handler leaves `q − 1` for the first two periods (the first
-/// accumulator step never carries: `rem < den`), and the control block's accumulator
-/// starts at `rem`, period 1's.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Tick {
-    /// Whole cycles per period: `clock div fs` (2 to 2²⁴).
-    pub q: u32,
-    /// The fraction's numerator: `clock mod fs` over the fraction's gcd (0: whole cycles).
-    pub rem: u32,
-    /// The fraction's denominator: `fs` over the same gcd (133 MHz / 44.1 kHz: 55/63).
-    pub den: u32,
 }
 
 /// Labels of a core's code, bound by [`core_code`].

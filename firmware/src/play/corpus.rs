@@ -101,6 +101,41 @@ pub fn expand(args: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
     Ok(files)
 }
 
+/// The summary table as text, one line per piece after a header line, each indented two
+/// spaces: piece (file name), music s, notes, strikes, silent notes, misses (all boards),
+/// worst core cycles / deadline (`—` on a host engine), RTF, error.
+pub fn table_text(rows: &[PieceRow]) -> String {
+    use std::fmt::Write;
+    let mut t = format!(
+        "  {:<32} {:>8} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6}  error\n",
+        "piece", "music s", "notes", "strikes", "silent", "misses", "worst cycles", "RTF"
+    );
+    for r in rows {
+        let name = r.file.file_name().map_or_else(
+            || r.file.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        // Writing to a String cannot fail.
+        let _ = writeln!(
+            t,
+            "  {:<32} {:>8.1} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6.2}  {}",
+            name,
+            r.music_s,
+            r.notes,
+            r.strikes,
+            r.silent,
+            r.misses_per_board.iter().sum::<u64>(),
+            r.worst_core_cycles.map_or("—".to_string(), |c| format!(
+                "{c}/{}",
+                r.deadline_cycles.unwrap_or(0)
+            )),
+            r.rtf,
+            r.error.as_deref().unwrap_or("")
+        );
+    }
+    t
+}
+
 /// Writes the rows as CSV (header first; `misses_per_board` as `;`-separated counts).
 ///
 /// Errors: the file cannot be written (naming it).

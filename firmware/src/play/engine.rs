@@ -2,7 +2,7 @@
 //! sample with each key's travel. A host engine is one key's instance of any
 //! [`tactus_compiler::sim::Engine`] (the f64 interpreter, the f64 JIT, the fixed-point
 //! JIT, all seen in SI); the firmware of a board on the emulated RP2040
-//! ([`crate::perform::BoardEngine`]) is all the keys of that board, since its sample
+//! ([`super::emulated::BoardEngine`]) is all the keys of that board, since its sample
 //! interrupt runs them together.
 //!
 //! Strikes are read through [`super::strike::strike_event`], the one strike rule.

@@ -9,7 +9,7 @@
 //!
 //! * `Emu` (the default of `tactus play`): the compiled firmware of every board of the
 //!   keyboard on emulated RP2040s, every key every sample, idle keys included
-//!   ([`crate::perform::play_boards`]);
+//!   ([`emulated::play_boards`]);
 //! * `Fixed`: the fixed-point JIT of the programs the firmware runs (the layout compiled
 //!   together, each key with its param block): the firmware's bits on the host, played keys
 //!   only;
@@ -19,6 +19,7 @@
 //! [`output`] writes the strikes as CSV, MIDI and WAV and the traces as CSV.
 
 pub mod corpus;
+pub mod emulated;
 pub mod engine;
 pub mod motion;
 pub mod output;
@@ -31,7 +32,7 @@ pub use run::{TraceRows, TraceWindow, Traces};
 pub use strike::Strike;
 
 use crate::image::Program as FirmwareProgram;
-use crate::perform::{play_boards, BoardRun, PerformOptions};
+use emulated::{play_boards, BoardRun, PerformOptions};
 use engine::{FixedJitEngine, HostKey, JitEngine};
 use motion::{busy_stretches, calibrate, key_motion, stretch_samples, CALIBRATION_LEVELS_N};
 pub use motion::{FingerCalibration, Restrikes};
