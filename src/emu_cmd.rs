@@ -321,73 +321,14 @@ fn run_firmware(
     })?;
     let fs = f64::from(map.sample_rate_hz);
     let samples = (seconds * fs).round().max(1.0) as usize;
-    // Each key's stimulus in its own instrument's sensor words, once per distinct
-    // instrument and params (a CSV read once).
-    let csv = if std::path::Path::new(stimulus).exists() {
-        let st = tactus_runtime::stimulus::from_csv(std::path::Path::new(stimulus), fs)
-            .map_err(|e| format!("--stimulus {stimulus}: {e}"))?;
-        Some(st)
-    } else {
-        None
-    };
-    // ((instrument, params), the stimulus in its sensor words)
-    type Words<'m> = ((&'m str, &'m [String]), Vec<i32>);
-    let mut distinct: Vec<Words> = Vec::new();
-    let mut which = Vec::with_capacity(map.keys.len());
-    for k in &map.keys {
-        let id = (k.instrument.as_str(), k.params.as_slice());
-        if let Some(i) = distinct.iter().position(|d| d.0 == id) {
-            which.push(i);
-            continue;
-        }
-        let src = crate::source::load(&k.instrument)
-            .map_err(|e| format!("{}: key {}: {e}", map_path.display(), k.midi))?;
-        let params: Vec<(String, String)> = k
-            .params
-            .iter()
-            .filter_map(|p| {
-                p.split_once('=')
-                    .map(|(a, b)| (a.to_string(), b.to_string()))
-            })
-            .collect();
-        let lowered = crate::check_cmd::compile_reporting(&src, &params, fs).ok_or_else(|| {
-            format!(
-                "{}: key {}: `{}` does not compile",
-                map_path.display(),
-                k.midi,
-                k.instrument
-            )
-        })?;
-        let fp = tactus_compiler::fixed::FixedProgram::new(&lowered.program);
-        let words = match fp.program.sensors.first() {
-            None => Vec::new(),
-            Some(s0) => {
-                let builtin;
-                let st = match &csv {
-                    Some(st) => st,
-                    None => {
-                        builtin = tactus_runtime::stimulus::builtin(stimulus, s0.range.1, fs)
-                            .map_err(|e| format!("--stimulus {stimulus}: {e}"))?;
-                        &builtin
-                    }
-                };
-                if st.key.is_empty() {
-                    return Err(format!("--stimulus {stimulus}: no samples"));
-                }
-                // One run of the stimulus, at most the samples to run.
-                st.key
-                    .iter()
-                    .take(samples)
-                    .map(|&x| {
-                        tactus_compiler::fixed::interp::FixedInstance::sensor_raw(&fp, 0, Some(x))
-                    })
-                    .collect()
-            }
-        };
-        which.push(distinct.len());
-        distinct.push((id, words));
-    }
-    let sensors: Vec<&[i32]> = which.iter().map(|&i| distinct[i].1.as_slice()).collect();
+    let (words, which) = tactus_host::keyboard::key_map_sensor_words(
+        &map,
+        &map_path.display().to_string(),
+        stimulus,
+        samples,
+        &mut crate::source::report_compile,
+    )?;
+    let sensors: Vec<&[i32]> = which.iter().map(|&i| words[i].as_slice()).collect();
     let debugger = gdb.map(wait_for_gdb).transpose()?;
     let bar = if debugger.is_some() {
         indicatif::ProgressBar::hidden()

@@ -11,6 +11,7 @@
 use crate::plot;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use tactus_runtime::friction;
 
 /// Subcommands of `tactus plot`.
 #[derive(Debug, clap::Subcommand)]
@@ -37,38 +38,6 @@ pub struct FrictionArgs {
     pub v_max: f64,
 }
 
-/// The default values of `a`, s²/m²: Onofrei et al. 2023's range, 0.01 to 15000.
-pub const DEFAULT_A: [f64; 4] = [0.01, 1.0, 100.0, 15000.0];
-
-/// Uniform grid points over [−v_max, v_max] (the extremes ±1/√(2a) inside it are added).
-const GRID: usize = 4001;
-
-/// Bilbao's friction characteristic φ(v, a) = √(2a)·v·exp(−a·v² + ½), dimensionless, for
-/// relative velocity `v` (m/s) and `a` (s²/m²): odd in `v`, extremes ±1 at `v = ±1/√(2a)`
-/// (Bilbao, Numerical Sound Synthesis, 2009; Onofrei, Fontana, Serafin 2023, eq. of the
-/// rubbing and bowing models).
-pub fn bilbao_phi(v: f64, a: f64) -> f64 {
-    (2.0 * a).sqrt() * v * (-a * v * v + 0.5).exp()
-}
-
-/// The sample velocities for `a_values`: a uniform grid over [−v_max, v_max] plus every
-/// extreme ±1/√(2a) that falls inside it, sorted.
-fn velocities(a_values: &[f64], v_max: f64) -> Vec<f64> {
-    let mut v: Vec<f64> = (0..GRID)
-        .map(|i| -v_max + 2.0 * v_max * i as f64 / (GRID - 1) as f64)
-        .collect();
-    for &a in a_values {
-        let peak = 1.0 / (2.0 * a).sqrt();
-        if peak <= v_max {
-            v.push(peak);
-            v.push(-peak);
-        }
-    }
-    v.sort_by(f64::total_cmp);
-    v.dedup();
-    v
-}
-
 /// Runs `tactus plot`.
 pub fn run(cmd: PlotCommand) -> ExitCode {
     let result = match cmd {
@@ -85,7 +54,7 @@ pub fn run(cmd: PlotCommand) -> ExitCode {
 
 fn friction(args: &FrictionArgs) -> Result<(), String> {
     let a_values: Vec<f64> = if args.a.is_empty() {
-        DEFAULT_A.to_vec()
+        friction::DEFAULT_A.to_vec()
     } else {
         args.a.clone()
     };
@@ -100,13 +69,13 @@ fn friction(args: &FrictionArgs) -> Result<(), String> {
             args.v_max
         ));
     }
-    let v = velocities(&a_values, args.v_max);
+    let v = friction::velocities(&a_values, args.v_max);
     let lines: Vec<plot::Line> = a_values
         .iter()
         .map(|&a| plot::Line {
             label: format!("a = {a} s²/m²"),
             x: v.clone(),
-            y: v.iter().map(|&x| bilbao_phi(x, a)).collect(),
+            y: v.iter().map(|&x| friction::bilbao_phi(x, a)).collect(),
         })
         .collect();
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {

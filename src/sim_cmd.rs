@@ -87,7 +87,7 @@ pub enum EngineKind {
     Jit,
 }
 
-use tactus_firmware::play::engine::{FixedJitEngine, JitEngine};
+use tactus_host::sim as host_sim;
 
 fn stimulus_help() -> String {
     let mut s = String::from(
@@ -187,72 +187,6 @@ pub fn run(args: SimArgs) -> ExitCode {
     }
 }
 
-/// The outputs `--wav` writes: `chosen` (each must be a numeric output of `program`), or
-/// else every output whose name starts with `audio`, in declaration order.
-fn wav_outputs(
-    program: &tactus_compiler::ir::Program,
-    chosen: &[String],
-) -> Result<Vec<String>, String> {
-    use tactus_compiler::ir::Ty;
-    let numeric: Vec<&str> = program
-        .outputs
-        .iter()
-        .filter(|o| matches!(o.ty, Ty::Real(_)))
-        .map(|o| o.name.as_str())
-        .collect();
-    if chosen.is_empty() {
-        let audio: Vec<String> = numeric
-            .iter()
-            .filter(|n| n.starts_with("audio"))
-            .map(|n| n.to_string())
-            .collect();
-        if audio.is_empty() {
-            return Err(format!(
-                "--wav: instrument `{}` has no output named `audio*`; choose one with --wav-output NAME (outputs: {})",
-                program.name,
-                if numeric.is_empty() { "none".to_string() } else { numeric.join(", ") }
-            ));
-        }
-        return Ok(audio);
-    }
-    for c in chosen {
-        if !numeric.contains(&c.as_str()) {
-            return Err(format!(
-                "--wav-output: `{c}` is not a numeric output of `{}` (outputs: {})",
-                program.name,
-                if numeric.is_empty() {
-                    "none".to_string()
-                } else {
-                    numeric.join(", ")
-                }
-            ));
-        }
-    }
-    Ok(chosen.to_vec())
-}
-
-/// Writes the sum of the trace's output columns `names` (SI, one per sample) as a 16-bit
-/// mono WAV at `fs` Hz, with its peak at 90 % of full scale (silence stays silence).
-fn write_wav(
-    trace: &tactus_runtime::trace::Trace,
-    names: &[String],
-    fs: f64,
-    path: &std::path::Path,
-) -> Result<(), String> {
-    use tactus_runtime::trace::ColumnKind;
-    let mut mix = vec![0f32; trace.len()];
-    for name in names {
-        let col = trace
-            .columns_of(ColumnKind::Output)
-            .find(|c| &c.name == name)
-            .ok_or_else(|| format!("--wav: no output column `{name}` in the trace"))?;
-        for (m, &x) in mix.iter_mut().zip(&col.values) {
-            *m += x as f32;
-        }
-    }
-    tactus_firmware::play::output::write_mono_wav(path, &mix, fs).map_err(|e| format!("--wav: {e}"))
-}
-
 fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     let src = source::load(&args.file)?;
     let Some(lowered) =
@@ -262,33 +196,6 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
     };
     let program = &lowered.program;
     let fs = program.sample_rate_hz;
-    if program.sensors.is_empty() {
-        return Err(format!(
-            "instrument `{}` has no sensor to drive",
-            program.name
-        ));
-    }
-    // Checked before the simulation, so that a misspelt output fails at once.
-    let wav_names = match &args.wav {
-        Some(_) => Some(wav_outputs(program, &args.wav_outputs)?),
-        None => None,
-    };
-    let columns = tactus_compiler::sim::trace_columns(program);
-    for name in &args.plots {
-        if name == "time" || columns.column(name).is_none() {
-            let available: Vec<&str> = columns
-                .columns
-                .iter()
-                .filter(|c| c.name != "time")
-                .map(|c| c.name.as_str())
-                .collect();
-            return Err(format!(
-                "--plot: `{name}` is not a column of the trace of `{}` (available: {})",
-                program.name,
-                available.join(", ")
-            ));
-        }
-    }
     let word = args.stimulus.as_str();
     let is_file = std::path::Path::new(word).is_file();
     let gesture = !is_file && tactus_compiler::sim::is_gesture(word);
@@ -312,72 +219,42 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
             if gesture { " (use --depth)" } else { "" }
         ));
     }
-    let config = tactus_compiler::sim::GestureConfig {
-        depth_m: args.depth.map(|mm| mm * 1e-3),
-        speed_m_per_s: args.speed,
-        stroke_m: args.stroke.map(|mm| mm * 1e-3),
-        across_m: args.across.map(|mm| mm * 1e-3),
-    };
-    let stim =
-        tactus_compiler::sim::resolve(program, word, args.dip.map(|mm| mm * 1e-3), &config, fs)
-            .map_err(|e| e.to_string())?;
-    for note in &stim.notes {
+    let run = host_sim::simulate(
+        program,
+        &host_sim::SimRequest {
+            stimulus: word,
+            dip_m: args.dip.map(|mm| mm * 1e-3),
+            gesture: tactus_compiler::sim::GestureConfig {
+                depth_m: args.depth.map(|mm| mm * 1e-3),
+                speed_m_per_s: args.speed,
+                stroke_m: args.stroke.map(|mm| mm * 1e-3),
+                across_m: args.across.map(|mm| mm * 1e-3),
+            },
+            numeric: match args.numeric {
+                Numeric::F64 => host_sim::Numeric::F64,
+                Numeric::Fixed => host_sim::Numeric::Fixed,
+            },
+            engine: match args.engine {
+                EngineKind::Interp => host_sim::Engine::Interp,
+                EngineKind::Jit => host_sim::Engine::Jit,
+            },
+            plots: &args.plots,
+            wav: args.wav.as_ref().map(|_| args.wav_outputs.as_slice()),
+        },
+    )?;
+    for note in &run.notes {
         eprintln!("warning: {note}");
     }
-    let values = tactus_compiler::sim::trace_values(program, stim.len());
-    if values > tactus_compiler::sim::MAX_TRACE_VALUES {
-        return Err(format!(
-            "{}: {} samples × {} trace columns is {values} values, more than the {} a trace may hold; shorten the stimulus",
-            stim.name,
-            stim.len(),
-            columns.columns.len(),
-            tactus_compiler::sim::MAX_TRACE_VALUES
-        ));
-    }
-    let (trace, summary) = match (args.numeric, args.engine) {
-        (Numeric::F64, EngineKind::Interp) => {
-            tactus_compiler::sim::simulate_sensors(program, &stim)
-        }
-        (Numeric::F64, EngineKind::Jit) => {
-            let jit = tactus_jit::JitProgram::compile(program).map_err(|e| format!("JIT: {e}"))?;
-            let mut engine = JitEngine(tactus_jit::JitInstance::new(&jit));
-            tactus_compiler::sim::simulate_sensors_with(program, &mut engine, &stim)
-        }
-        (Numeric::Fixed, engine) => {
-            let fp = tactus_compiler::fixed::FixedProgram::new(program);
-            crate::source::report(&src, &fp.warnings);
-            if engine == EngineKind::Jit {
-                let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp)
-                    .map_err(|e| format!("JIT: {e}"))?;
-                let mut engine =
-                    FixedJitEngine(tactus_jit::fixed::FixedJitInstance::new(&jit), &fp);
-                tactus_compiler::sim::simulate_sensors_with(program, &mut engine, &stim)
-            } else {
-                let mut inst = tactus_compiler::fixed::interp::FixedInstance::new(&fp);
-                tactus_compiler::sim::simulate_sensors_with(program, &mut inst, &stim)
-            }
-        }
-    };
-
+    crate::source::report(&src, &run.fixed_warnings);
+    let (trace, summary, stem) = (&run.trace, &run.summary, &run.stem);
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create `{}`: {e}", args.out.display()))?;
-    let suffix = match (args.numeric, args.engine) {
-        (Numeric::Fixed, EngineKind::Interp) => "-fixed",
-        (Numeric::Fixed, EngineKind::Jit) => "-fixed-jit",
-        (Numeric::F64, EngineKind::Jit) => "-jit",
-        (Numeric::F64, EngineKind::Interp) => "",
-    };
-    let stem = format!(
-        "{}-{}{suffix}",
-        program.name,
-        stim.name.trim_end_matches(".csv")
-    );
     let csv = args.out.join(format!("{stem}.csv"));
     trace.write_csv_file(&csv).map_err(|e| e.to_string())?;
-    let title = format!("{} — {}", program.name, stim.name);
+    let title = format!("{} — {}", program.name, run.stimulus);
     // A NaN or ∞ means the run lost the program's meaning (the fixed engines saturate, so
     // this is the f64 engines'): keep the CSV to look at, plot nothing, fail.
-    if let Some((column, n, v)) = tactus_compiler::sim::first_non_finite(&trace) {
+    if let Some((column, n, v)) = tactus_compiler::sim::first_non_finite(trace) {
         return Err(format!(
             "{title}: `{column}` is {v} at sample {n} (t = {:.6} s): the simulation computed a non-finite value (a division by zero, an overflow or an unstable scheme); the trace up to there is in {}",
             n as f64 / fs,
@@ -385,46 +262,37 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
         ));
     }
     let forces_svg = args.out.join(format!("{stem}-forces.svg"));
-    plot::plot_forces(&trace, &title, &forces_svg).map_err(|e| e.to_string())?;
+    plot::plot_forces(trace, &title, &forces_svg).map_err(|e| e.to_string())?;
     let mut written = vec![csv, forces_svg];
-    if let (Some(wav), Some(names)) = (&args.wav, &wav_names) {
-        write_wav(&trace, names, fs, wav)?;
+    if let (Some(wav), Some(names)) = (&args.wav, &run.wav_outputs) {
+        host_sim::write_wav(trace, names, fs, wav)?;
         written.push(wav.clone());
     }
     if !program.outputs.is_empty() {
         let names: Vec<&str> = program.outputs.iter().map(|o| o.name.as_str()).collect();
         let svg = args.out.join(format!("{stem}-outputs.svg"));
-        plot::plot_columns(&trace, &names, &title, &svg).map_err(|e| e.to_string())?;
+        plot::plot_columns(trace, &names, &title, &svg).map_err(|e| e.to_string())?;
         written.push(svg);
     }
     if !args.plots.is_empty() {
         let svg = args.out.join(format!("{stem}-plot.svg"));
-        plot_named(&trace, &args.plots, &title, &svg)?;
+        plot_named(trace, &args.plots, &title, &svg)?;
         written.push(svg);
     }
 
     // The total force's range: one for a keyboard, one per axis for a pen instrument.
-    let totals: Vec<String> = if program.is_pen() {
-        ["force.x", "force.y", "force.z"].to_vec()
-    } else {
-        vec!["total"]
-    }
-    .into_iter()
-    .map(|name| {
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for &f in trace.column(name).map_or(&[][..], |c| &c.values[..]) {
-            lo = lo.min(f);
-            hi = hi.max(f);
-        }
-        let what = if name == "total" { "total force" } else { name };
-        format!("{what} {lo:.3} N … {hi:.3} N")
-    })
-    .collect();
+    let totals: Vec<String> = host_sim::force_ranges(program, trace)
+        .into_iter()
+        .map(|(name, lo, hi)| {
+            let what = if name == "total" { "total force" } else { name };
+            format!("{what} {lo:.3} N … {hi:.3} N")
+        })
+        .collect();
     println!(
         "{}: {} samples ({:.3} s at {} Hz), {}",
         title,
-        stim.len(),
-        stim.duration_s(),
+        run.samples,
+        run.duration_s,
         fs,
         totals.join(", ")
     );

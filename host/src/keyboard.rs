@@ -511,3 +511,87 @@ impl Keyboard {
         })
     }
 }
+
+/// The sensor words of every key of a built board's key map (`keys.json`, named `map_name`
+/// in errors) over `stimulus` (a built-in key stimulus, in each key's own sensor range, or a
+/// CSV file of key positions, read once), at most `samples` of them: what `tactus emu run`
+/// feeds the firmware. Each distinct (instrument, params) of the map is lowered once for
+/// the map's sample rate (its diagnostics to `report`) and converted by the fixed-point
+/// program's sensor format; a key without a sensor gets no words. Returns the words of each
+/// distinct (instrument, params) and, per key of the map, the index of its words (so a
+/// 60 s stimulus is held once per instrument, not once per key).
+///
+/// Errors, as messages: an instrument that cannot be loaded or does not compile (naming
+/// the map and the key), a stimulus that cannot be read or has no samples.
+pub fn key_map_sensor_words(
+    map: &tactus_firmware::flash::KeyMap,
+    map_name: &str,
+    stimulus: &str,
+    samples: usize,
+    report: &mut Reporter,
+) -> Result<(Vec<Vec<i32>>, Vec<usize>), String> {
+    let fs = f64::from(map.sample_rate_hz);
+    let csv = match Path::new(stimulus).exists() {
+        true => Some(
+            tactus_runtime::stimulus::from_csv(Path::new(stimulus), fs)
+                .map_err(|e| format!("--stimulus {stimulus}: {e}"))?,
+        ),
+        false => None,
+    };
+    // ((instrument, params), the stimulus in its sensor words)
+    type Words<'m> = ((&'m str, &'m [String]), Vec<i32>);
+    let mut distinct: Vec<Words> = Vec::new();
+    let mut which = Vec::with_capacity(map.keys.len());
+    for k in &map.keys {
+        let id = (k.instrument.as_str(), k.params.as_slice());
+        if let Some(i) = distinct.iter().position(|d| d.0 == id) {
+            which.push(i);
+            continue;
+        }
+        let src = catalogue::load(&k.instrument)
+            .map_err(|e| format!("{map_name}: key {}: {e}", k.midi))?;
+        let params: Vec<(String, String)> = k
+            .params
+            .iter()
+            .filter_map(|p| {
+                p.split_once('=')
+                    .map(|(a, b)| (a.to_string(), b.to_string()))
+            })
+            .collect();
+        let lowered = lower(&src, &params, fs, report).ok_or_else(|| {
+            format!(
+                "{map_name}: key {}: `{}` does not compile",
+                k.midi, k.instrument
+            )
+        })?;
+        let fp = tactus_compiler::fixed::FixedProgram::new(&lowered.program);
+        let words = match fp.program.sensors.first() {
+            None => Vec::new(),
+            Some(s0) => {
+                let builtin;
+                let st = match &csv {
+                    Some(st) => st,
+                    None => {
+                        builtin = tactus_runtime::stimulus::builtin(stimulus, s0.range.1, fs)
+                            .map_err(|e| format!("--stimulus {stimulus}: {e}"))?;
+                        &builtin
+                    }
+                };
+                if st.key.is_empty() {
+                    return Err(format!("--stimulus {stimulus}: no samples"));
+                }
+                // One run of the stimulus, at most the samples to run.
+                st.key
+                    .iter()
+                    .take(samples)
+                    .map(|&x| {
+                        tactus_compiler::fixed::interp::FixedInstance::sensor_raw(&fp, 0, Some(x))
+                    })
+                    .collect()
+            }
+        };
+        which.push(distinct.len());
+        distinct.push((id, words));
+    }
+    Ok((distinct.into_iter().map(|d| d.1).collect(), which))
+}

@@ -10,9 +10,12 @@
 //! * [`play`]: one performance through a compiled keyboard as `tactus play` runs it (read,
 //!   cut, keep the notes on the keyboard, play, write the strikes and traces), a row of the
 //!   corpus table.
+//! * [`sim`]: one instrument over a stimulus on the host (`tactus sim`): the stimulus
+//!   resolved, the requested columns and WAV outputs checked, the run, the WAV mix.
 //!
 //! This crate never prints: diagnostics go to a caller's reporter, errors are values.
 
 pub mod catalogue;
 pub mod keyboard;
 pub mod play;
+pub mod sim;

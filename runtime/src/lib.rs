@@ -8,6 +8,7 @@
 pub mod converters;
 pub mod differentiator;
 pub mod fixed;
+pub mod friction;
 pub mod keyboard;
 pub mod limiter;
 pub mod performance;
