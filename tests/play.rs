@@ -121,28 +121,7 @@ fn check_one_strike_per_note(midi: &Path, rows: &[Row], seconds: f64) -> f64 {
     let perf = read_midi(midi).unwrap();
     let notes: Vec<_> = perf.notes.iter().filter(|n| n.on_s < seconds).collect();
     assert!(notes.len() > 50, "{} notes", notes.len());
-    let mut vin = Vec::new();
-    let mut vout = Vec::new();
-    for n in &notes {
-        let hits: Vec<_> = rows
-            .iter()
-            .filter(|s| s.0 == n.key && (s.1 - n.on_s).abs() <= 0.050)
-            .collect();
-        assert_eq!(
-            hits.len(),
-            1,
-            "note {} at {:.3} s: {} strikes",
-            n.key,
-            n.on_s,
-            hits.len()
-        );
-        vin.push(n.velocity as f64);
-        vout.push(hits[0].2);
-    }
-    assert!(
-        rows.iter().all(|s| s.3.is_some()),
-        "a strike answers no note"
-    );
+    let (vin, vout): (Vec<f64>, Vec<f64>) = one_strike_per_note(rows, &notes).into_iter().unzip();
     assert_eq!(rows.len(), notes.len());
     let rho = spearman(&vin, &vout);
     assert!(rho >= 0.95, "Spearman rank correlation {rho}");
