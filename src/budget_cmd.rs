@@ -10,8 +10,8 @@
 //! Exit codes: 0 fits; 1 does not fit (or measured > static, an analysis bug); 2 bad input.
 
 use crate::check_cmd::parse_override;
+use crate::progress::StageBar;
 use crate::source;
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tactus_firmware::verdict::{self, BudgetInput};
@@ -142,19 +142,12 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
             ..LimiterConfig::default()
         },
     };
-    let bar = ProgressBar::new(1);
-    bar.set_style(
-        ProgressStyle::with_template("{msg:>16} [{bar:30}] {pos}/{len}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
+    let bar = StageBar::new();
     let report = verdict::keyboard_budget(&input, &mut |stage, done, total| {
-        bar.set_message(stage.to_string());
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
+        bar.update(stage, done, total)
     })
     .map_err(|e| Bad(e.0))?;
-    bar.finish_and_clear();
+    bar.finish();
 
     if args.json {
         let json = serde_json::to_string_pretty(&report)
@@ -163,35 +156,8 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
     } else {
         print!("{}", report.text());
     }
-    if !report.fits {
-        // The verdict's one line on stderr too (stdout may be JSON).
-        let why = match report.what_fits.iter().find_map(|w| {
-            w.fits_no_board.as_ref().map(|why| {
-                format!(
-                    "{} fits no {} board: {why}",
-                    w.instrument, report.board.name
-                )
-            })
-        }) {
-            Some(line) => line,
-            None => format!(
-                "{} of {} boards over budget",
-                report.boards.iter().filter(|b| !b.fits()).count(),
-                report.board_count
-            ),
-        };
-        eprintln!("error: {}: does not fit: {why}", kb.name);
-    }
-    for p in report.unsound() {
-        eprintln!(
-            "BUG: {} ({} keys): measured {} cycles at {} sample {} exceed the static worst case {} — the WCET analysis or the emulator's timing is wrong",
-            p.instrument,
-            p.keys.len(),
-            p.measured_max,
-            p.measured_max_at.run,
-            p.measured_max_at.sample,
-            p.static_cycles
-        );
+    for line in report.error_lines(&kb.name) {
+        eprintln!("{line}");
     }
     if let Some(out) = &args.write_plan {
         write_plan(&report, &kb, out)?;

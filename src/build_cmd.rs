@@ -16,17 +16,12 @@
 //! RAM-only image for development.
 
 use crate::check_cmd::{compile_reporting, parse_override};
+use crate::progress::StageBar;
 use crate::source;
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use tactus_compiler::abi::CConfig;
-use tactus_compiler::cgen;
-use tactus_compiler::fixed::FixedProgram;
-use tactus_compiler::thumb;
-use tactus_firmware::flash::{self, KeyboardInput, Load};
+use tactus_host::build;
 use tactus_host::keyboard::{self, KeyboardSpec};
-use tactus_runtime::limiter::LimiterConfig;
 
 /// Arguments of `tactus build`.
 #[derive(Debug, clap::Args)]
@@ -128,74 +123,19 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
     let src = source::load(&args.file).map_err(Some)?;
     let lowered = compile_reporting(&src, &args.params, tactus_runtime::DEFAULT_SAMPLE_RATE_HZ)
         .ok_or(None)?;
-    let fp = FixedProgram::new(&lowered.program);
-    if !fp.warnings.is_empty() {
-        crate::source::report(&src, &fp.warnings);
-    }
-    // No firmware from an instrument whose own accuracy contract the plan breaks.
-    tactus_compiler::fixed::contract::verdict(&lowered.program, &fp)
-        .map_err(|b| Some(format!("{}: {b}; nothing written", src.name)))?;
-    let config = CConfig {
-        source_name: Some(src.name.clone()),
-        overrides: args
-            .params
-            .iter()
-            .map(|(n, v)| format!("{n}={v}"))
-            .collect(),
+    let target = match args.target {
+        Target::C => build::Target::C,
+        Target::Rp2040 => build::Target::Rp2040,
     };
-    std::fs::create_dir_all(dir).map_err(|e| {
-        Some(format!(
-            "{}: cannot create `{}`: {e}",
-            src.name,
-            dir.display()
-        ))
-    })?;
-    let write = |path: &std::path::Path, bytes: &[u8]| {
-        std::fs::write(path, bytes).map_err(|e| {
-            Some(format!(
-                "{}: cannot write `{}`: {e}",
-                src.name,
-                path.display()
-            ))
-        })
-    };
-    if args.target == Target::Rp2040 {
-        let obj = thumb::compile(&fp).map_err(|e| Some(format!("{}: {e}", src.name)))?;
-        let elf = obj.elf().map_err(|e| Some(format!("{}: {e}", src.name)))?;
-        let o = dir.join(format!("{}.o", obj.stem));
-        let h = dir.join(format!("{}.h", obj.stem));
-        let s = dir.join(format!("{}.s", obj.stem));
-        write(&o, &elf)?;
-        write(&h, obj.header.as_bytes())?;
-        write(&s, obj.code.listing.as_bytes())?;
-        let (_, size) = obj.symbol(&obj.update_name()).unwrap_or((0, 0));
-        println!(
-            "{}: wrote {}, {} and {} (.text {} bytes, update {} bytes; link the object and call {} once per sample)",
-            src.name,
-            o.display(),
-            h.display(),
-            s.display(),
-            obj.code.text.len(),
-            size,
-            obj.update_name()
-        );
-        return Ok(());
-    }
-    let c = cgen::emit_c_with(&fp, &config).map_err(|e| Some(format!("{}: {e}", src.name)))?;
-    let h = dir.join(format!("{}.h", c.stem));
-    let s = dir.join(format!("{}.c", c.stem));
-    for (path, text) in [(&h, &c.header), (&s, &c.source)] {
-        write(path, text.as_bytes())?;
-    }
-    println!(
-        "{}: wrote {} and {} ({} + {} lines; call {} once per sample)",
-        src.name,
-        h.display(),
-        s.display(),
-        c.header.lines().count(),
-        c.source.lines().count(),
-        tactus_compiler::abi::update_symbol(&c.stem)
-    );
+    let line = build::build_instrument(
+        &src,
+        &lowered.program,
+        &args.params,
+        target,
+        dir,
+        &mut source::report,
+    )?;
+    println!("{line}");
     Ok(())
 }
 
@@ -209,93 +149,23 @@ fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<
             keys: args.keys,
             params: &args.params,
         },
-        &mut crate::source::report_compile,
+        &mut source::report_compile,
     )
     .map_err(|e| Some(e.to_string()))?;
-    let programs = kb.firmware().map_err(|e| Some(e.to_string()))?;
-    let names: Vec<(String, Vec<(String, String)>)> = kb
-        .sets
-        .iter()
-        .map(|s| (s.instrument.clone(), s.params.clone()))
-        .collect();
-    let key_programs = kb.key_programs();
-    let limiter = LimiterConfig {
-        sample_rate_hz: kb.board.sample_rate_hz,
-        ..LimiterConfig::default()
-    };
     let command: Vec<String> = std::env::args().skip(1).collect();
     let command = format!("tactus {}", command.join(" "));
-    let input = KeyboardInput {
-        name: &kb.name,
-        programs: &programs,
-        program_names: &names,
-        keys: &key_programs,
-        board: &kb.board,
-        boards: kb.boards.as_deref(),
-        limiter: &limiter,
-        load: if args.ram { Load::Ram } else { Load::Flash },
-        command: &command,
-    };
-    let bar = ProgressBar::new(1);
-    bar.set_style(
-        ProgressStyle::with_template("{msg:>16} [{bar:30}] {pos}/{len}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    let boards = flash::keyboard_firmware(&input, &mut |stage, done, total| {
-        bar.set_message(stage.to_string());
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })
-    .map_err(|e| Some(format!("{}: {e}", args.file)))?;
-    bar.finish_and_clear();
-    let write = |path: &std::path::Path, bytes: &[u8]| {
-        if let Some(d) = path.parent() {
-            std::fs::create_dir_all(d)
-                .map_err(|e| Some(format!("cannot create `{}`: {e}", d.display())))?;
-        }
-        std::fs::write(path, bytes)
-            .map_err(|e| Some(format!("cannot write `{}`: {e}", path.display())))
-    };
-    for b in &boards {
-        let d = dir.join(b.dir_name());
-        let json = serde_json::to_string_pretty(&b.key_map)
-            .map_err(|e| Some(format!("cannot write the key map: {e}")))?;
-        write(&d.join("firmware.elf"), &b.elf)?;
-        write(&d.join("firmware.uf2"), &b.uf2)?;
-        write(&d.join("keys.json"), json.as_bytes())?;
-        write(&d.join("README.md"), b.readme.as_bytes())?;
-        let cores: Vec<String> = (0..b.image.cores())
-            .map(|c| {
-                let w = b.image.wcet(c).unwrap_or_default();
-                format!(
-                    "core {c} {} / {} cycles",
-                    w.bound(),
-                    b.image.cycles_per_sample()
-                )
-            })
-            .collect();
-        println!(
-            "{}: keys {}, UF2 {} blocks; sample interrupt {}",
-            d.display(),
-            tactus_firmware::verdict::key_ranges(&b.keys),
-            b.uf2.len() / tactus_firmware::uf2::BLOCK,
-            cores.join(", ")
-        );
+    let bar = StageBar::new();
+    let lines = build::build_firmware(
+        &args.file,
+        &kb,
+        args.ram,
+        &command,
+        dir,
+        &mut |stage, done, total| bar.update(stage, done, total),
+    )?;
+    bar.finish();
+    for line in lines {
+        println!("{line}");
     }
-    let (kind, then) = if args.ram {
-        ("RAM-only", "it runs until power-off")
-    } else {
-        ("flash", "it boots from flash at every power-on")
-    };
-    println!(
-        "{}: {} boards of {} at {} MHz in {}, each with firmware.uf2 ({kind}), firmware.elf, keys.json, README.md\n\
-         flash a board: hold BOOTSEL, plug it in, copy its firmware.uf2 onto the RPI-RP2 drive; {then}",
-        kb.name,
-        boards.len(),
-        kb.board.name,
-        kb.board.clock_hz / 1e6,
-        dir.display()
-    );
     Ok(())
 }

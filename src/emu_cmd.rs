@@ -9,9 +9,10 @@
 //! The only place the emulator's results are printed: the library returns values, this
 //! module formats them.
 
+use std::path::Path;
 use std::process::ExitCode;
-use tactus_emulator::core::{Core, RunState};
-use tactus_emulator::{Board, Config, StopReason};
+use tactus_emulator::{Board, Config};
+use tactus_host::emu;
 
 /// Subcommands of `tactus emu`.
 #[derive(Debug, clap::Subcommand)]
@@ -71,7 +72,7 @@ fn wait_for_gdb(port: u16) -> Result<Box<dyn tactus_emulator::debug::Debugger>, 
 }
 
 /// Runs an `emu` subcommand; returns the process exit code (1 for an unloadable file, 2
-/// when the firmware faults or locks up).
+/// when the firmware faults or locks up, or misses a deadline with `--stimulus`).
 pub fn run(cmd: EmuCommand) -> ExitCode {
     let EmuCommand::Run {
         file,
@@ -83,403 +84,91 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
         seconds,
         gdb,
     } = cmd;
-    if let Some(stimulus) = stimulus {
-        return match run_firmware(&file, &stimulus, keys.as_deref(), seconds, gdb) {
-            Ok(code) => code,
-            Err(e) => {
-                eprintln!("error: {e}");
-                ExitCode::FAILURE
-            }
-        };
-    }
-    let bytes = match read_elf(&file) {
-        Ok(b) => b,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::FAILURE;
-        }
+    let result = match stimulus {
+        Some(stimulus) => run_firmware(&file, &stimulus, keys.as_deref(), seconds, gdb),
+        None => run_elf(&file, cycles, trace, &profile, gdb),
     };
+    result.unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        ExitCode::FAILURE
+    })
+}
+
+/// `tactus emu run FILE`: the ELF on a board for `cycles` cycles, then every core, every
+/// profiled function and why it stopped.
+fn run_elf(
+    file: &Path,
+    cycles: u64,
+    trace: bool,
+    profile: &[String],
+    gdb: Option<u16>,
+) -> Result<ExitCode, String> {
+    let bytes = emu::read_elf(file)?;
     let mut board = Board::new(Config::default());
-    if let Err(e) = board.load_elf(&bytes) {
-        eprintln!("error: cannot load {}: {e}", file.display());
-        return ExitCode::FAILURE;
-    }
+    board
+        .load_elf(&bytes)
+        .map_err(|e| format!("cannot load {}: {e}", file.display()))?;
     let mut profiles = Vec::new();
-    for name in &profile {
-        match board.profile(name) {
-            Ok(handle) => profiles.push((name, handle)),
-            Err(e) => {
-                eprintln!("error: {}: {e}", file.display());
-                return ExitCode::FAILURE;
-            }
-        }
+    for name in profile {
+        let handle = board
+            .profile(name)
+            .map_err(|e| format!("{}: {e}", file.display()))?;
+        profiles.push((name, handle));
     }
     if let Some(port) = gdb {
-        match wait_for_gdb(port) {
-            Ok(d) => board.attach_debugger(d),
-            Err(e) => {
-                eprintln!("error: {e}");
-                return ExitCode::FAILURE;
-            }
-        }
+        board.attach_debugger(wait_for_gdb(port)?);
     }
-    let stop = if trace {
-        run_traced(&mut board, cycles)
-    } else {
-        board.run_for(cycles)
+    let stop = match trace {
+        true => emu::run_traced(&mut board, cycles, &mut |l| println!("{l}")),
+        false => board.run_for(cycles),
     };
     board.finish_debugging();
     for core in &board.cores {
-        print_core(core);
+        print!("{}", emu::core_text(core));
     }
     for (name, handle) in profiles {
-        let calls = board.calls(handle);
-        let cycles: Vec<u64> = calls.iter().map(|c| c.cycles).collect();
-        match (cycles.iter().min(), cycles.iter().max()) {
-            (Some(min), Some(max)) => {
-                let mean = cycles.iter().sum::<u64>() as f64 / cycles.len() as f64;
-                println!(
-                    "{name}: {} calls, cycles min {min} mean {mean:.1} max {max}",
-                    cycles.len()
-                );
-            }
-            _ => println!("{name}: no completed calls"),
+        println!("{}", emu::profile_line(name, board.calls(handle)));
+    }
+    match emu::stop_line(&board, &stop, cycles) {
+        (true, line) => {
+            println!("{line}");
+            Ok(ExitCode::SUCCESS)
+        }
+        (false, line) => {
+            eprintln!("error: {}: {line}", file.display());
+            Ok(ExitCode::from(2))
         }
     }
-    match stop {
-        StopReason::CycleLimit => {
-            println!("stopped: cycle limit {cycles} reached");
-            ExitCode::SUCCESS
-        }
-        StopReason::Idle => {
-            println!("stopped: no core running");
-            ExitCode::SUCCESS
-        }
-        StopReason::Svc { core, imm } => {
-            println!("stopped: core {core} executed svc #{imm}");
-            ExitCode::SUCCESS
-        }
-        StopReason::Fault { .. } => {
-            eprintln!("error: {}: {}", file.display(), board.describe_stop(&stop));
-            ExitCode::from(2)
-        }
-        StopReason::Lockup { .. } | StopReason::Refused { .. } => {
-            eprintln!("error: {}: {}", file.display(), board.describe_stop(&stop));
-            ExitCode::from(2)
-        }
-    }
-}
-
-/// The largest ELF file read, bytes: every memory an ELF may load into (ROM, 2 MB of
-/// flash, SRAM) is far smaller; a bound on what a mistaken path (`/dev/zero`) can make the
-/// command hold.
-const MAX_ELF_BYTES: u64 = 64 << 20;
-
-/// Reads an ELF file of at most [`MAX_ELF_BYTES`]; errors name the file.
-fn read_elf(path: &std::path::Path) -> Result<Vec<u8>, String> {
-    use std::io::Read;
-    let f =
-        std::fs::File::open(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let mut bytes = Vec::new();
-    f.take(MAX_ELF_BYTES + 1)
-        .read_to_end(&mut bytes)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    if bytes.len() as u64 > MAX_ELF_BYTES {
-        return Err(format!(
-            "{}: longer than {MAX_ELF_BYTES} bytes, not firmware for the RP2040",
-            path.display()
-        ));
-    }
-    Ok(bytes)
-}
-
-fn run_traced(board: &mut Board, cycles: u64) -> StopReason {
-    let limit = board.cycle().saturating_add(cycles);
-    loop {
-        let before = [board.cores[0].cycle, board.cores[1].cycle];
-        let before_count = [board.cores[0].instructions, board.cores[1].instructions];
-        match board.step(limit) {
-            None => return StopReason::CycleLimit,
-            Some(result) => {
-                let k = match result {
-                    Ok(k) => k,
-                    Err(StopReason::Fault { core, .. }) | Err(StopReason::Svc { core, .. }) => core,
-                    Err(stop) => return stop,
-                };
-                let core = &board.cores[k];
-                if core.instructions != before_count[k] {
-                    if let Some(last) = core.last {
-                        let func = board
-                            .image
-                            .function_at(last.pc)
-                            .map(|s| s.name.as_str())
-                            .unwrap_or("");
-                        println!(
-                            "core{k} {:>10} {:08x} {:<20} {:<28} {} cycles",
-                            before[k],
-                            last.pc,
-                            func,
-                            last.instr.to_string(),
-                            last.cycles
-                        );
-                    }
-                } else if core.cycle != before[k] {
-                    let what = if matches!(core.state, RunState::Sleeping { .. }) {
-                        "sleep"
-                    } else {
-                        "exception entry"
-                    };
-                    println!(
-                        "core{k} {:>10} {what} ({} cycles)",
-                        before[k],
-                        core.cycle - before[k]
-                    );
-                }
-                if let Err(stop) = result {
-                    return stop;
-                }
-            }
-        }
-    }
-}
-
-fn print_core(core: &Core) {
-    let state = match core.state {
-        RunState::Running => "running",
-        RunState::Sleeping { wfe: false } => "sleeping (WFI)",
-        RunState::Sleeping { wfe: true } => "sleeping (WFE)",
-        RunState::Parked => "parked",
-        RunState::Lockup => "locked up",
-    };
-    println!(
-        "core {}: {state}, {} cycles, {} instructions",
-        core.id, core.cycle, core.instructions
-    );
-    for row in 0..4 {
-        let regs: Vec<String> = (0..4)
-            .map(|i| {
-                let n = row * 4 + i;
-                let name = match n {
-                    13 => "sp".to_string(),
-                    14 => "lr".to_string(),
-                    15 => "pc".to_string(),
-                    _ => format!("r{n}"),
-                };
-                format!("{name:>3}={:08x}", core.r[n])
-            })
-            .collect();
-        println!("  {}", regs.join("  "));
-    }
-    let flag = |b: bool, c: char| if b { c.to_ascii_uppercase() } else { c };
-    println!(
-        "  xpsr={:08x} [{}{}{}{}] primask={} ipsr={}",
-        core.xpsr(),
-        flag(core.n, 'n'),
-        flag(core.z, 'z'),
-        flag(core.c, 'c'),
-        flag(core.v, 'v'),
-        core.primask as u8,
-        core.ipsr
-    );
 }
 
 /// `tactus emu run FIRMWARE.elf --stimulus S`: see the module documentation. Exit code 0
 /// without misses, 2 with.
 fn run_firmware(
-    file: &std::path::Path,
+    file: &Path,
     stimulus: &str,
-    keys: Option<&std::path::Path>,
+    keys: Option<&Path>,
     seconds: f64,
     gdb: Option<u16>,
 ) -> Result<ExitCode, String> {
-    use tactus_firmware::flash::{self, KeyMap};
-    let elf = read_elf(file)?;
-    let map_path = keys.map_or_else(
-        || file.with_file_name("keys.json"),
-        std::path::Path::to_path_buf,
-    );
-    let text = tactus_runtime::keyboard::read_text(&map_path).map_err(|e| {
-        format!(
-            "{}: cannot read the key map ({e}); `tactus build LAYOUT --target rp2040` writes it beside the ELF, or name it with --keys",
-            file.display()
-        )
-    })?;
-    let map: KeyMap = serde_json::from_str(&text)
-        .map_err(|e| format!("{}: not a Tactus key map: {e}", map_path.display()))?;
-    if !(seconds > 0.0 && seconds <= 60.0) {
-        return Err(format!("--seconds {seconds}: from just above 0 to 60"));
-    }
-    // The map against the firmware it describes, before anything is made for its keys.
-    let image = tactus_emulator::elf::parse(&elf)
-        .map_err(|e| format!("{}: cannot load: {e}", file.display()))?;
-    tactus_firmware::key_map::check(&map, &image).map_err(|e| {
-        format!(
-            "{}: {e} (the key map of {})",
-            map_path.display(),
-            file.display()
-        )
-    })?;
-    let fs = f64::from(map.sample_rate_hz);
-    let samples = (seconds * fs).round().max(1.0) as usize;
-    let (words, which) = tactus_host::keyboard::key_map_sensor_words(
-        &map,
-        &map_path.display().to_string(),
+    let job = emu::FirmwareJob::new(
+        file,
         stimulus,
-        samples,
+        keys,
+        seconds,
         &mut crate::source::report_compile,
     )?;
-    let sensors: Vec<&[i32]> = which.iter().map(|&i| words[i].as_slice()).collect();
     let debugger = gdb.map(wait_for_gdb).transpose()?;
-    let bar = if debugger.is_some() {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(samples as u64)
+    let bar = match debugger {
+        Some(_) => indicatif::ProgressBar::hidden(),
+        None => indicatif::ProgressBar::new(job.samples as u64),
     };
-    let run = flash::run_elf(
-        &elf,
-        &map,
-        &sensors,
-        samples,
-        &mut |d, _| bar.set_position(d as u64),
-        debugger,
-    )
-    .map_err(|e| format!("{}: {e}", file.display()))?;
+    let run = job.run(debugger, &mut |d, _| bar.set_position(d as u64))?;
     bar.finish_and_clear();
-    println!(
-        "{}: board {} ({} keys), {} samples of `{stimulus}` at {} Hz, {} cycles per sample",
-        file.display(),
-        map.board,
-        map.keys.len(),
-        run.samples,
-        map.sample_rate_hz,
-        run.cycles_per_sample
-    );
-    for (c, core) in run.cores.iter().enumerate() {
-        println!(
-            "core {c}: keys {:?}, {} samples, handler cycles mean {:.1} worst {} ({:.1} % of the period), misses {}",
-            map.cores.get(c).map(|m| m.keys.clone()).unwrap_or_default(),
-            core.samples,
-            core.mean_cycles,
-            core.worst_cycles,
-            100.0 * core.worst_cycles as f64 / run.cycles_per_sample.max(1) as f64,
-            core.misses
-        );
+    for line in &run.lines {
+        println!("{line}");
     }
-    println!(
-        "final cycles: core 0 {}, core 1 {}",
-        run.final_cycles[0], run.final_cycles[1]
-    );
-    println!(
-        "DAC words at the end: {:08x?}; digest of every sample's words {:016x}",
-        run.dac_final, run.dac_digest
-    );
-    let missed = run.cores.iter().any(|c| c.misses > 0);
-    Ok(if missed {
-        ExitCode::from(2)
-    } else {
-        ExitCode::SUCCESS
+    Ok(match run.missed {
+        true => ExitCode::from(2),
+        false => ExitCode::SUCCESS,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A minimal ARM ELF32 executable with `code` (halfwords) at 0x20000000.
-    fn elf(code: &[u16]) -> Vec<u8> {
-        let code: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
-        let mut f = vec![0x7f, b'E', b'L', b'F', 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0];
-        for v in [2u16, 40] {
-            f.extend(v.to_le_bytes()); // ET_EXEC, EM_ARM
-        }
-        for v in [1u32, 0x2000_0001, 52, 0, 0x0500_0000] {
-            f.extend(v.to_le_bytes()); // version, entry, phoff, shoff, flags
-        }
-        for v in [52u16, 32, 1, 40, 0, 0] {
-            f.extend(v.to_le_bytes());
-        }
-        let n = code.len() as u32;
-        for v in [1u32, 84, 0x2000_0000, 0x2000_0000, n, n, 5, 4] {
-            f.extend(v.to_le_bytes()); // PT_LOAD
-        }
-        f.extend(code);
-        f
-    }
-
-    fn run_file(name: &str, bytes: Option<&[u8]>, trace: bool) -> ExitCode {
-        let path =
-            std::env::temp_dir().join(format!("tactus-emu-cli-{}-{name}", std::process::id()));
-        if let Some(b) = bytes {
-            std::fs::write(&path, b).unwrap();
-        }
-        run(EmuCommand::Run {
-            file: path,
-            cycles: 1000,
-            trace,
-            profile: Vec::new(),
-            stimulus: None,
-            keys: None,
-            seconds: 1.0,
-            gdb: None,
-        })
-    }
-
-    #[test]
-    fn runs_to_the_cycle_limit() {
-        // movs r0, #42; b .
-        assert_eq!(
-            run_file("ok.elf", Some(&elf(&[0x202a, 0xe7fe])), false),
-            ExitCode::SUCCESS
-        );
-        assert_eq!(
-            run_file("trace.elf", Some(&elf(&[0x202a, 0xe7fe])), true),
-            ExitCode::SUCCESS
-        );
-    }
-
-    #[test]
-    fn unknown_profile_symbol_exits_1() {
-        let path =
-            std::env::temp_dir().join(format!("tactus-emu-cli-{}-prof.elf", std::process::id()));
-        std::fs::write(&path, elf(&[0xe7fe])).unwrap();
-        let cmd = EmuCommand::Run {
-            file: path,
-            cycles: 10,
-            trace: false,
-            profile: vec!["main".into()],
-            stimulus: None,
-            keys: None,
-            seconds: 1.0,
-            gdb: None,
-        };
-        assert_eq!(run(cmd), ExitCode::FAILURE);
-    }
-
-    #[test]
-    fn unloadable_files_exit_1() {
-        assert_eq!(run_file("missing.elf", None, false), ExitCode::FAILURE);
-        assert_eq!(
-            run_file("text.elf", Some(b"not an elf"), false),
-            ExitCode::FAILURE
-        );
-        let good = elf(&[0xe7fe]);
-        assert_eq!(
-            run_file("short.elf", Some(&good[..60]), false),
-            ExitCode::FAILURE
-        );
-    }
-
-    #[test]
-    fn firmware_faults_exit_2() {
-        // udf #0
-        assert_eq!(
-            run_file("udf.elf", Some(&elf(&[0xde00])), false),
-            ExitCode::from(2)
-        );
-        // bx r0 with r0 = 0 (even): ARM state
-        assert_eq!(
-            run_file("bx.elf", Some(&elf(&[0x4700])), true),
-            ExitCode::from(2)
-        );
-    }
 }

@@ -8,9 +8,9 @@
 //! a)`, odd in `v`, with its extremes ±1 at `v = ±1/√(2a)`; small `a` is "slippery" (a
 //! gentle slope over the whole range), large `a` "sticky" (a sharp peak near `v = 0`).
 
-use crate::plot;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use tactus_host::plot;
 use tactus_runtime::friction;
 
 /// Subcommands of `tactus plot`.

@@ -3,10 +3,12 @@
 //! force–travel loop plotted, and with `--spec` a verdict per figure.
 
 use crate::check_cmd::{compile_reporting, parse_override};
-use crate::{plot, source};
+use crate::source;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tactus_firmware::regulate::{self, spec, Config, Figure, Sheet};
+use tactus_host::plot;
+use tactus_host::regulate as host_regulate;
 
 /// Arguments of `tactus regulate`.
 #[derive(Debug, clap::Args)]
@@ -82,44 +84,14 @@ fn run_inner(args: &RegulateArgs) -> Result<ExitCode, String> {
     else {
         return Ok(ExitCode::from(2));
     };
-    let program = &lowered.program;
     let config = Config::default();
-    use crate::sim_cmd::{EngineKind, Numeric};
-    use tactus_firmware::play::engine::{FixedJitEngine, JitEngine};
-    let sheet = match (args.numeric, args.engine) {
-        (Numeric::F64, EngineKind::Interp) => regulate::measure(
-            program,
-            tactus_compiler::interp::Instance::new(program),
-            &config,
-        )?,
-        (Numeric::F64, EngineKind::Jit) => {
-            let jit = tactus_jit::JitProgram::compile(program).map_err(|e| format!("JIT: {e}"))?;
-            regulate::measure(
-                program,
-                JitEngine(tactus_jit::JitInstance::new(&jit)),
-                &config,
-            )?
-        }
-        (Numeric::Fixed, engine) => {
-            let fp = tactus_compiler::fixed::FixedProgram::new(program);
-            source::report(&src, &fp.warnings);
-            if engine == EngineKind::Jit {
-                let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp)
-                    .map_err(|e| format!("JIT: {e}"))?;
-                regulate::measure(
-                    program,
-                    FixedJitEngine(tactus_jit::fixed::FixedJitInstance::new(&jit), &fp),
-                    &config,
-                )?
-            } else {
-                regulate::measure(
-                    program,
-                    tactus_compiler::fixed::interp::FixedInstance::new(&fp),
-                    &config,
-                )?
-            }
-        }
-    };
+    let (sheet, warnings) = host_regulate::measure(
+        &lowered.program,
+        args.numeric.into(),
+        args.engine.into(),
+        &config,
+    )?;
+    source::report(&src, &warnings);
     let numeric = match args.numeric {
         crate::sim_cmd::Numeric::F64 => "f64 semantics",
         crate::sim_cmd::Numeric::Fixed => "fixed point",
@@ -130,81 +102,24 @@ fn run_inner(args: &RegulateArgs) -> Result<ExitCode, String> {
         config.finger.mass_kg * 1e3
     );
     let verdicts = spec.as_ref().map(|s| spec::check(&sheet, s));
-    print_sheet(&sheet, verdicts.as_deref());
+    print!("{}", host_regulate::sheet_text(&sheet, verdicts.as_deref()));
     let (svg, csv) = write_loop(&sheet, &args.out)?;
     println!("  wrote {} (force–travel loop)", svg.display());
     println!("  wrote {}", csv.display());
-    let Some(verdicts) = verdicts else {
+    let (Some(spec), Some(verdicts)) = (spec, verdicts) else {
         return Ok(ExitCode::SUCCESS);
     };
-    let spec = spec.expect("verdicts come from a spec");
-    let failed: Vec<&spec::Verdict> = verdicts.iter().filter(|v| !v.holds()).collect();
-    if failed.is_empty() {
-        println!(
-            "within spec `{}`: all {} figures in range",
-            spec.name,
-            verdicts.len()
-        );
-        Ok(ExitCode::SUCCESS)
+    let (holds, line) = host_regulate::spec_line(&spec, &verdicts);
+    println!("{line}");
+    Ok(if holds {
+        ExitCode::SUCCESS
     } else {
-        println!(
-            "OUTSIDE spec `{}`: {} of {} figures ({})",
-            spec.name,
-            failed.len(),
-            verdicts.len(),
-            failed
-                .iter()
-                .map(|v| v.range.figure.key())
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-        Ok(ExitCode::FAILURE)
-    }
-}
-
-/// Prints the sheet: one line per figure (value, unit, the spec's range and verdict when
-/// given, how it was measured), then the spec's figures not measured, then the notes.
-fn print_sheet(sheet: &Sheet, verdicts: Option<&[spec::Verdict]>) {
-    let range_of = |f: Figure| verdicts.and_then(|v| v.iter().find(|v| v.range.figure == f));
-    println!(
-        "  {:<26} {:>9} {:<8} {:<14} how it was measured",
-        "figure",
-        "value",
-        "unit",
-        if verdicts.is_some() { "spec" } else { "" }
-    );
-    for m in &sheet.figures {
-        let (range, verdict) = match range_of(m.figure) {
-            Some(v) => (v.range.text(), if v.holds() { "ok  " } else { "OUT " }),
-            None => (String::new(), "    "),
-        };
-        println!(
-            "  {:<26} {:>9} {:<8} {:<14} {verdict}{}",
-            m.figure.title(),
-            format!("{:.2}", m.value),
-            m.figure.unit(),
-            range,
-            m.how
-        );
-    }
-    if let Some(verdicts) = verdicts {
-        for v in verdicts.iter().filter(|v| v.value.is_none()) {
-            println!(
-                "  {:<26} {:>9} {:<8} {:<14} OUT not measured",
-                v.range.figure.title(),
-                "—",
-                v.range.figure.unit(),
-                v.range.text()
-            );
-        }
-    }
-    for n in &sheet.notes {
-        println!("  note: {n}");
-    }
+        ExitCode::FAILURE
+    })
 }
 
 /// Writes the loop as `OUT/NAME-loop.svg` (force in gf against travel in mm, down and up
-/// in two colours) and `OUT/NAME-loop.csv` (the binned means).
+/// in two colours) and `OUT/NAME-loop.csv` (`host_regulate::loop_csv`).
 fn write_loop(sheet: &Sheet, out: &std::path::Path) -> Result<(PathBuf, PathBuf), String> {
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create `{}`: {e}", out.display()))?;
     let lp = &sheet.force_loop;
@@ -227,19 +142,7 @@ fn write_loop(sheet: &Sheet, out: &std::path::Path) -> Result<(PathBuf, PathBuf)
     )
     .map_err(|e| e.to_string())?;
     let csv = out.join(format!("{}-loop.csv", sheet.instrument));
-    let mut text = String::from("travel [mm],down [gf],up [gf]\n");
-    for (i, (d, u)) in lp.down_bins.iter().zip(&lp.up_bins).enumerate() {
-        let cell = |v: &Option<f64>| {
-            v.map(|f| format!("{:.3}", regulate::n_to_gf(f)))
-                .unwrap_or_default()
-        };
-        text.push_str(&format!(
-            "{:.3},{},{}\n",
-            (i as f64 + 0.5) * lp.bin_m * 1e3,
-            cell(d),
-            cell(u)
-        ));
-    }
-    std::fs::write(&csv, text).map_err(|e| format!("{}: cannot write: {e}", csv.display()))?;
+    std::fs::write(&csv, host_regulate::loop_csv(sheet))
+        .map_err(|e| format!("{}: cannot write: {e}", csv.display()))?;
     Ok((svg, csv))
 }

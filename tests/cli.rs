@@ -734,3 +734,72 @@ fn build_budget_and_play_see_the_same_keyboard() {
         assert_eq!(played, planned, "play vs budget");
     }
 }
+
+/// A minimal ARM ELF32 executable with `code` (halfwords) at 0x20000000.
+fn tiny_elf(code: &[u16]) -> Vec<u8> {
+    let code: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+    let mut f = vec![0x7f, b'E', b'L', b'F', 1, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+    for v in [2u16, 40] {
+        f.extend(v.to_le_bytes()); // ET_EXEC, EM_ARM
+    }
+    for v in [1u32, 0x2000_0001, 52, 0, 0x0500_0000] {
+        f.extend(v.to_le_bytes()); // version, entry, phoff, shoff, flags
+    }
+    for v in [52u16, 32, 1, 40, 0, 0] {
+        f.extend(v.to_le_bytes());
+    }
+    let n = code.len() as u32;
+    for v in [1u32, 84, 0x2000_0000, 0x2000_0000, n, n, 5, 4] {
+        f.extend(v.to_le_bytes()); // PT_LOAD
+    }
+    f.extend(code);
+    f
+}
+
+/// `tactus emu run FILE --cycles 1000 [extra]` on `bytes` written to a file (`None`: no
+/// file); its exit code and output.
+fn emu_run(name: &str, bytes: Option<&[u8]>, extra: &[&str]) -> (Option<i32>, String) {
+    let path = temp_dir("cli-emu").join(name);
+    if let Some(b) = bytes {
+        std::fs::write(&path, b).unwrap();
+    }
+    let out = tactus()
+        .args(["emu", "run"])
+        .arg(&path)
+        .args(["--cycles", "1000"])
+        .args(extra)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.code(), text)
+}
+
+#[test]
+fn emu_run_exit_codes() {
+    // movs r0, #42; b .: runs to the cycle limit, traced or not.
+    let ok = tiny_elf(&[0x202a, 0xe7fe]);
+    let (code, text) = emu_run("ok.elf", Some(&ok), &[]);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(
+        text.contains("r0=0000002a") && text.contains("stopped: cycle limit 1000"),
+        "{text}"
+    );
+    let (code, text) = emu_run("trace.elf", Some(&ok), &["--trace"]);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.contains("movs"), "{text}");
+    // An unknown profiled symbol, a missing, a non-ELF and a truncated file: 1.
+    let (code, text) = emu_run("prof.elf", Some(&ok), &["--profile", "main"]);
+    assert_eq!(code, Some(1), "{text}");
+    assert_eq!(emu_run("missing.elf", None, &[]).0, Some(1));
+    assert_eq!(emu_run("text.elf", Some(b"not an elf"), &[]).0, Some(1));
+    assert_eq!(emu_run("short.elf", Some(&ok[..60]), &[]).0, Some(1));
+    // Firmware that faults: udf #0, and bx r0 with r0 = 0 (ARM state): 2.
+    let (code, text) = emu_run("udf.elf", Some(&tiny_elf(&[0xde00])), &[]);
+    assert_eq!(code, Some(2), "{text}");
+    let (code, text) = emu_run("bx.elf", Some(&tiny_elf(&[0x4700])), &["--trace"]);
+    assert_eq!(code, Some(2), "{text}");
+}

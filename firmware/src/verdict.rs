@@ -220,6 +220,44 @@ impl BudgetReport {
         self.programs.iter().filter(|p| !p.sound).collect()
     }
 
+    /// The errors to show beside the report (on stderr, as stdout may be JSON): when the
+    /// keyboard does not fit, one line saying why (the instrument that fits no board, or
+    /// how many boards are over budget), prefixed with `name`; and one line per program
+    /// whose measured worst case exceeds the static one (a bug of the WCET analysis or of
+    /// the emulator's timing).
+    pub fn error_lines(&self, name: &str) -> Vec<String> {
+        let mut lines = Vec::new();
+        if !self.fits {
+            let no_board = self.what_fits.iter().find_map(|w| {
+                let why = w.fits_no_board.as_ref()?;
+                Some(format!(
+                    "{} fits no {} board: {why}",
+                    w.instrument, self.board.name
+                ))
+            });
+            let why = no_board.unwrap_or_else(|| {
+                format!(
+                    "{} of {} boards over budget",
+                    self.boards.iter().filter(|b| !b.fits()).count(),
+                    self.board_count
+                )
+            });
+            lines.push(format!("error: {name}: does not fit: {why}"));
+        }
+        for p in self.unsound() {
+            lines.push(format!(
+                "BUG: {} ({} keys): measured {} cycles at {} sample {} exceed the static worst case {} — the WCET analysis or the emulator's timing is wrong",
+                p.instrument,
+                p.keys.len(),
+                p.measured_max,
+                p.measured_max_at.run,
+                p.measured_max_at.sample,
+                p.static_cycles
+            ));
+        }
+        lines
+    }
+
     /// The exit code `tactus budget` gives: 0 fits (and sound), 1 otherwise.
     pub fn exit_code(&self) -> u8 {
         if self.fits && self.unsound().is_empty() {

@@ -5,13 +5,33 @@
 //! [`Keyboard::firmware`] when [`PlayConfig::needs_firmware`]) for a whole corpus, and
 //! prints.
 
-use crate::keyboard::Keyboard;
+use crate::keyboard::{Keyboard, KeyboardError, KeyboardSpec, Reporter};
+use crate::plot;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tactus_firmware::image::Program as FirmwareProgram;
-use tactus_firmware::play::{self, corpus::PieceRow, output, PlayConfig, Played, Progress};
+use tactus_firmware::play::{self, corpus::PieceRow, output, strike, PlayConfig, Played, Progress};
+use tactus_firmware::play::{BoardsReport, Silence};
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::performance::{self, Note, Performance};
+
+/// Why a piece (or a session) cannot be played. Every message names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum PlayError {
+    /// The keyboard cannot be made, or its firmware compiled.
+    #[error(transparent)]
+    Keyboard(#[from] KeyboardError),
+    /// The performance cannot be read, or has nothing to play on this keyboard.
+    #[error("{0}")]
+    Performance(String),
+    /// The play loop refused or failed (an instrument it cannot move, a firmware fault).
+    #[error("{0}")]
+    Run(String),
+    /// A file of the piece cannot be written.
+    #[error("{0}")]
+    Write(String),
+}
 
 /// What to do with a piece besides playing it.
 #[derive(Clone, Debug)]
@@ -28,6 +48,8 @@ pub struct PieceOptions {
 /// A piece played: what [`play_piece`] returns.
 #[derive(Debug)]
 pub struct Piece {
+    /// The player that moved the keys.
+    pub player: play::Player,
     /// The file stem of the performance (`demo` for the built-in one): the files' names.
     pub stem: String,
     /// The performance as played: the notes on the keyboard's keys, after the cut.
@@ -46,7 +68,8 @@ pub struct Piece {
     pub answering: usize,
     /// Wall-clock seconds of the play loop.
     pub wall_s: f64,
-    /// The files written: the strikes' CSV, MIDI and WAV, then one CSV per traced key.
+    /// The files written: the strikes' CSV, MIDI and WAV, one CSV per traced key and the
+    /// traces' plots, and with the emulated boards the plot of their cycles per sample.
     pub written: Vec<PathBuf>,
 }
 
@@ -109,6 +132,117 @@ impl Piece {
         out
     }
 
+    /// What the piece says, as `tactus play` prints it: the lines (notes, keys, strikes and
+    /// silent notes; key-samples, wall time and real-time factor; per instrument the force
+    /// player's range; re-struck notes; the budget of the run on the emulated boards) and
+    /// the warnings (notes without a strike, notes not placed as recorded, notes left out).
+    pub fn report(&self) -> (Vec<String>, Vec<String>) {
+        let (played, perf) = (&self.played, &self.perf);
+        let (mut lines, mut warnings) = (Vec::new(), Vec::new());
+        let plural = |n: usize| if n == 1 { "" } else { "s" };
+        // Notes no strike answers: the instrument did not sound them.
+        let silent = &played.silent;
+        let too_soft = silent
+            .iter()
+            .filter(|s| s.cause == Silence::TooSoft)
+            .count();
+        for s in silent.iter().filter(|s| s.cause == Silence::Other).take(10) {
+            warnings.push(format!(
+                "note {} at {:.3} s (velocity {}{}) produced no strike within 50 ms",
+                s.note.key,
+                s.note.on_s,
+                s.note.velocity,
+                s.since_previous_s.map_or(String::new(), |d| format!(
+                    ", {:.0} ms after the key's last note-on",
+                    d * 1e3
+                ))
+            ));
+        }
+        if silent.len() - too_soft > 10 {
+            warnings.push(format!(
+                "… and {} more notes without a strike",
+                silent.len() - too_soft - 10
+            ));
+        }
+        let force = self.player == play::Player::Force;
+        let skipped = self.skipped.len();
+        lines.push(format!(
+            "{}: {} notes on {} keys ({} player) → {} strikes ({} answer a note within 50 ms; {} note{} without a strike{}); {} note{} outside the layout skipped",
+            self.stem,
+            perf.notes.len(),
+            self.key_program.len(),
+            if force { "force" } else { "position" },
+            played.strikes.len(),
+            self.answering,
+            silent.len(),
+            plural(silent.len()),
+            match force && !silent.is_empty() {
+                true => format!(
+                    ": {too_soft} too soft to reach the string, below the calibrated minimum; {} other",
+                    silent.len() - too_soft
+                ),
+                false => String::new(),
+            },
+            skipped,
+            plural(skipped),
+        ));
+        let (audio_s, wall) = (perf.duration_s, self.wall_s);
+        lines.push(format!(
+            "  {} key-samples in {wall:.2} s: real-time factor {:.2} ({audio_s:.2} s of music; above 1 is faster than real time); peak memory {}",
+            played.key_samples,
+            audio_s / wall.max(1e-9),
+            peak_memory_kb().map_or("unknown".to_string(), |kb| format!("{:.1} MB", kb as f64 / 1024.0)),
+        ));
+        // What the finger can do on each instrument, and how many notes asked for more.
+        for r in self.finger_ranges() {
+            let ((push_lo, push_hi), (lo, hi)) = (r.push_n, r.speed_mps);
+            lines.push(format!(
+                "  force player on `{}`{}: finger pushes {push_lo:.2}–{push_hi:.1} N give hammer speeds {lo:.2}–{hi:.2} m/s on every key (MIDI {}–{}); {} note{} outside its key's range played at its nearest end",
+                r.instrument,
+                if r.sets > 1 { format!(" ({} parameter sets)", r.sets) } else { String::new() },
+                strike::midi_velocity(lo),
+                strike::midi_velocity(hi),
+                r.outside,
+                plural(r.outside),
+            ));
+        }
+        // Notes the players could not play as recorded: said, not silently distorted.
+        let mut rushed = played.rushed.clone();
+        rushed.sort_by(|a, b| a.1.on_s.total_cmp(&b.1.on_s));
+        for (key, r) in rushed.iter().take(5) {
+            warnings.push(format!(
+                "note {key} at {:.3} s (velocity {}) could not be placed as recorded: pressed in {:.1} ms where its velocity asks {:.1} ms{} ({})",
+                r.on_s,
+                r.velocity,
+                r.pressed_s * 1e3,
+                r.wanted_s * 1e3,
+                if r.late_s > 1e-4 { format!(", reaching the bottom {:.1} ms late", r.late_s * 1e3) } else { String::new() },
+                if r.on_s < r.wanted_s { "the piece starts too soon after it" } else { "the key was still moving for the previous note" }
+            ));
+        }
+        if rushed.len() > 5 {
+            warnings.push(format!(
+                "… {} notes in all could not be placed as recorded (pressed faster or late: louder, or late, than the recording)",
+                rushed.len()
+            ));
+        }
+        let r = played.restrikes;
+        if r.dropped > 0 {
+            warnings.push(format!(
+                "{} note{} left out: the key was still busy with earlier notes of a repetition past the note-on and the end of the piece",
+                r.dropped,
+                plural(r.dropped)
+            ));
+        }
+        if r.restrikes > 0 || r.late > 0 {
+            lines.push(format!(
+                "  force player: {} notes re-struck before their key was back at rest, {} of them with no time for the asked softness, played louder; {} notes started late (no calibrated push fit before the note-on)",
+                r.restrikes, r.raised, r.late
+            ));
+        }
+        (lines, warnings)
+    }
+
     /// The piece's row of the corpus table, for the performance `file`.
     pub fn row(&self, file: &Path) -> PieceRow {
         let music_s = self.perf.duration_s;
@@ -136,112 +270,217 @@ impl Piece {
     }
 }
 
-/// Plays `performance` (a MIDI file; `None`: the built-in demo) on `kb` as `config` says and
-/// writes its files to `opts.out`; `firmware` is [`Keyboard::firmware`] when
-/// [`PlayConfig::needs_firmware`]. Warnings (a MIDI file's oddities, notes on no key,
-/// traced keys never played) go to `warn` as they arise.
-///
-/// Errors, as messages naming the file: a MIDI file that cannot be read, no note in the
-/// first `seconds`, no note on a key of the keyboard, a played key's instrument `play`
-/// cannot move, and [`tactus_firmware::play::play`]'s and the writers' errors.
-pub fn play_piece(
-    kb: &Keyboard,
-    firmware: Option<&[FirmwareProgram]>,
-    performance: Option<&Path>,
-    config: &PlayConfig,
-    opts: &PieceOptions,
-    warn: &mut dyn FnMut(String),
-    progress: &dyn Progress,
-) -> Result<Piece, String> {
-    let name = || performance.map_or("the demo".to_string(), |p| p.display().to_string());
-    let mut perf = match performance {
-        Some(p) => {
-            let (perf, warnings) =
-                performance::read_midi_reporting(p).map_err(|e| e.to_string())?;
-            warnings.into_iter().for_each(|w| warn(w.to_string()));
-            perf
-        }
-        None => performance::demo(),
-    };
-    if let Some(s) = opts.seconds {
-        perf.cut(s)?;
-        if perf.notes.is_empty() {
-            return Err(format!("{}: no note starts in the first {s} s", name()));
-        }
-    }
-    let on_keyboard: BTreeSet<u8> = kb.keys.iter().map(|a| a.key).collect();
-    let (inside, skipped): (Vec<Note>, Vec<Note>) = perf
-        .notes
-        .iter()
-        .partition(|n| on_keyboard.contains(&n.key));
-    for n in &skipped {
-        warn(format!(
-            "note {} at {:.3} s is on no key of the layout: skipped",
-            n.key, n.on_s
-        ));
-    }
-    if inside.is_empty() {
-        let keys: Vec<u8> = on_keyboard.iter().copied().collect();
-        return Err(format!(
-            "{}: none of its {} notes is on a key of the layout (its keys: {}): nothing to play",
-            name(),
-            skipped.len(),
-            tactus_firmware::verdict::key_ranges(&keys)
-        ));
-    }
-    let perf = Performance {
-        notes: inside,
-        ..perf
-    };
-    let played_keys: BTreeSet<u8> = perf.notes.iter().map(|n| n.key).collect();
-    for k in config.trace.keys.difference(&played_keys) {
-        warn(format!(
-            "traced key {k} is never played: it stays at rest, no trace written"
-        ));
-    }
-    let keyboard = kb
-        .played(&played_keys, firmware)
-        .map_err(|e| e.to_string())?;
-    let started = Instant::now();
-    let played = play::play(&perf, &keyboard, config, progress)?;
-    let wall_s = started.elapsed().as_secs_f64();
+/// What every piece of a `tactus play` run is played on and with: the keyboard compiled
+/// once, its firmware (compiled once, when the first piece that needs it gets past its own
+/// checks: a bad performance fails before the long compilation), the run's configuration
+/// and options.
+pub struct Session {
+    /// The keyboard.
+    pub kb: Keyboard,
+    /// Its firmware's programs, once compiled ([`PlayConfig::needs_firmware`]).
+    firmware: std::cell::OnceCell<Vec<FirmwareProgram>>,
+    /// The run's configuration (its board is the keyboard's).
+    pub config: PlayConfig,
+    /// What to do with each piece besides playing it.
+    pub opts: PieceOptions,
+}
 
-    let out = &opts.out;
-    std::fs::create_dir_all(out).map_err(|e| format!("cannot create `{}`: {e}", out.display()))?;
-    let stem = performance
-        .and_then(|p| p.file_stem())
-        .map_or("demo".to_string(), |s| s.to_string_lossy().into_owned());
-    let mut written = Vec::new();
-    let csv = out.join(format!("{stem}-strikes.csv"));
-    let answering = output::write_strikes_csv(&csv, &played.strikes)?;
-    written.push(csv);
-    let mid = out.join(format!("{stem}-strikes.mid"));
-    output::write_midi(&mid, &played.strikes)?;
-    written.push(mid);
-    if opts.wav {
-        let wav = out.join(format!("{stem}.wav"));
-        output::write_wav(&wav, &played.strikes, &perf, kb.board.sample_rate_hz)?;
-        written.push(wav);
+impl Session {
+    /// Compiles the keyboard of `spec` as `tactus budget` and `tactus build` do (every
+    /// program for its board's sample rate; diagnostics to `report`) and makes the run's
+    /// configuration from its board (`config`).
+    ///
+    /// Errors: [`PlayError::Keyboard`], what [`crate::keyboard::compile`] reports.
+    pub fn new(
+        spec: &KeyboardSpec,
+        config: impl FnOnce(BoardSpec) -> PlayConfig,
+        opts: PieceOptions,
+        report: &mut Reporter,
+    ) -> Result<Session, PlayError> {
+        let kb = crate::keyboard::compile(spec, report)?;
+        let config = config(kb.board.clone());
+        Ok(Session {
+            kb,
+            firmware: std::cell::OnceCell::new(),
+            config,
+            opts,
+        })
     }
-    if !played.traces.is_empty() {
-        let from_firmware = config.engine == play::PlayEngine::Emu;
-        written.extend(output::write_trace_csvs(
-            out,
-            &stem,
-            &played.traces,
-            from_firmware,
-        )?);
+
+    /// The firmware's programs when the engine runs them ([`Keyboard::firmware`], compiled
+    /// on the first call).
+    fn firmware(&self) -> Result<Option<&[FirmwareProgram]>, PlayError> {
+        if !self.config.needs_firmware() {
+            return Ok(None);
+        }
+        if self.firmware.get().is_none() {
+            let _ = self.firmware.set(self.kb.firmware()?);
+        }
+        Ok(self.firmware.get().map(Vec::as_slice))
     }
-    Ok(Piece {
-        stem,
-        perf,
-        skipped,
-        program_names: keyboard.programs.iter().map(|p| p.name.clone()).collect(),
-        key_program: keyboard.key_program.clone(),
-        keys: keyboard.keys.len(),
-        played,
-        answering,
-        wall_s,
-        written,
-    })
+
+    /// Plays `performance` (a MIDI file; `None`: the built-in demo) on the keyboard and
+    /// writes its files to `opts.out`. Warnings (a MIDI file's oddities, notes on no key,
+    /// traced keys never played) go to `warn` as they arise.
+    ///
+    /// Errors, naming the file: [`PlayError::Performance`] for a MIDI file that cannot be read,
+    /// no note in the first `seconds` or no note on a key of the keyboard;
+    /// [`PlayError::Keyboard`] for a played key's instrument `play` cannot move, or firmware
+    /// that does not compile (the first time a piece needs it);
+    /// [`PlayError::Run`] for [`tactus_firmware::play::play`]'s errors; [`PlayError::Write`]
+    /// for the writers'.
+    pub fn play(
+        &self,
+        performance: Option<&Path>,
+        warn: &mut dyn FnMut(String),
+        progress: &dyn Progress,
+    ) -> Result<Piece, PlayError> {
+        let (kb, config, opts) = (&self.kb, &self.config, &self.opts);
+        let name = || performance.map_or("the demo".to_string(), |p| p.display().to_string());
+        let mut perf = match performance {
+            Some(p) => {
+                let (perf, warnings) = performance::read_midi_reporting(p)
+                    .map_err(|e| PlayError::Performance(e.to_string()))?;
+                warnings.into_iter().for_each(|w| warn(w.to_string()));
+                perf
+            }
+            None => performance::demo(),
+        };
+        if let Some(s) = opts.seconds {
+            perf.cut(s).map_err(PlayError::Performance)?;
+            if perf.notes.is_empty() {
+                return Err(PlayError::Performance(format!(
+                    "{}: no note starts in the first {s} s",
+                    name()
+                )));
+            }
+        }
+        let on_keyboard: BTreeSet<u8> = kb.keys.iter().map(|a| a.key).collect();
+        let (inside, skipped): (Vec<Note>, Vec<Note>) = perf
+            .notes
+            .iter()
+            .partition(|n| on_keyboard.contains(&n.key));
+        for n in &skipped {
+            warn(format!(
+                "note {} at {:.3} s is on no key of the layout: skipped",
+                n.key, n.on_s
+            ));
+        }
+        if inside.is_empty() {
+            let keys: Vec<u8> = on_keyboard.iter().copied().collect();
+            return Err(PlayError::Performance(format!(
+                "{}: none of its {} notes is on a key of the layout (its keys: {}): nothing to play",
+                name(),
+                skipped.len(),
+                tactus_firmware::verdict::key_ranges(&keys)
+            )));
+        }
+        let perf = Performance {
+            notes: inside,
+            ..perf
+        };
+        let played_keys: BTreeSet<u8> = perf.notes.iter().map(|n| n.key).collect();
+        for k in config.trace.keys.difference(&played_keys) {
+            warn(format!(
+                "traced key {k} is never played: it stays at rest, no trace written"
+            ));
+        }
+        let keyboard = kb.played(&played_keys, self.firmware()?)?;
+        let started = Instant::now();
+        let played = play::play(&perf, &keyboard, config, progress).map_err(PlayError::Run)?;
+        let wall_s = started.elapsed().as_secs_f64();
+
+        let out = &opts.out;
+        std::fs::create_dir_all(out)
+            .map_err(|e| PlayError::Write(format!("cannot create `{}`: {e}", out.display())))?;
+        let stem = performance
+            .and_then(|p| p.file_stem())
+            .map_or("demo".to_string(), |s| s.to_string_lossy().into_owned());
+        let mut written = Vec::new();
+        let csv = out.join(format!("{stem}-strikes.csv"));
+        let answering =
+            output::write_strikes_csv(&csv, &played.strikes).map_err(PlayError::Write)?;
+        written.push(csv);
+        let mid = out.join(format!("{stem}-strikes.mid"));
+        output::write_midi(&mid, &played.strikes).map_err(PlayError::Write)?;
+        written.push(mid);
+        if opts.wav {
+            let wav = out.join(format!("{stem}.wav"));
+            output::write_wav(&wav, &played.strikes, &perf, kb.board.sample_rate_hz)
+                .map_err(PlayError::Write)?;
+            written.push(wav);
+        }
+        if !played.traces.is_empty() {
+            let from_firmware = config.engine == play::PlayEngine::Emu;
+            written.extend(
+                output::write_trace_csvs(out, &stem, &played.traces, from_firmware)
+                    .map_err(PlayError::Write)?,
+            );
+            written.extend(
+                plot::plot_play_traces(out, &stem, &played.traces).map_err(PlayError::Write)?,
+            );
+        }
+        if let Some(r) = &played.boards {
+            let svg = out.join(format!("{stem}-cycles.svg"));
+            plot::plot_play_cycles(r, kb.board.sample_rate_hz, &stem, &svg)
+                .map_err(PlayError::Write)?;
+            written.push(svg);
+        }
+        Ok(Piece {
+            player: config.player,
+            stem,
+            perf,
+            skipped,
+            program_names: keyboard.programs.iter().map(|p| p.name.clone()).collect(),
+            key_program: keyboard.key_program.clone(),
+            keys: keyboard.keys.len(),
+            played,
+            answering,
+            wall_s,
+            written,
+        })
+    }
+}
+
+/// The budget of a run on the emulated boards as text: a header, then per board and core
+/// the keys, the largest and mean cycles per sample, the static bound, the headroom and the
+/// deadline misses. Lines end in `\n`.
+pub fn budget_text(r: &BoardsReport) -> String {
+    let mut s = format!(
+        "  budget of the run on {} {} boards ({} cycles per sample per core; every key of every board every sample):\n",
+        r.boards.len(),
+        r.board,
+        r.deadline
+    );
+    for (i, b) in r.boards.iter().enumerate() {
+        let cores: Vec<String> = (0..b.max.len())
+            .map(|c| {
+                format!(
+                    "core {c}: {} keys, max {} cycles per sample ({:.1} %, static {}, mean {:.1} %), headroom {}, deadline misses {}",
+                    b.core_keys[c],
+                    b.max[c],
+                    100.0 * b.max[c] as f64 / r.deadline as f64,
+                    b.bound[c],
+                    100.0 * b.total[c] as f64 / (r.samples.max(1) * r.deadline) as f64,
+                    r.deadline as i64 - b.max[c] as i64,
+                    b.misses[c]
+                )
+            })
+            .collect();
+        s.push_str(&format!(
+            "    board {} (keys {}): {}\n",
+            i + 1,
+            tactus_firmware::verdict::key_ranges(&b.keys),
+            cores.join("; ")
+        ));
+    }
+    s
+}
+
+/// Peak resident memory of this process (`VmHWM` of `/proc/self/status`), kB; `None` where
+/// there is no such file (not Linux).
+pub fn peak_memory_kb() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }

@@ -4,6 +4,8 @@
 //! anything runs, the trace bounded, and the run on the chosen arithmetic and engine. The
 //! caller writes the CSV and the plots, and prints.
 
+use crate::plot;
+use std::path::{Path, PathBuf};
 use tactus_compiler::diagnostics::Diagnostic;
 use tactus_compiler::ir::{Program, Ty};
 use tactus_compiler::sim::{GestureConfig, SimSummary};
@@ -67,13 +69,17 @@ pub struct SimRun {
     pub summary: SimSummary,
     /// The outputs the WAV sums, when one is asked for.
     pub wav_outputs: Option<Vec<String>>,
+    /// `INSTRUMENT — STIMULUS`: the plots' title.
+    pub title: String,
     /// `INSTRUMENT-STIMULUS` and a suffix for the arithmetic and engine: the files' stem.
     pub stem: String,
 }
 
 /// Runs `program` as `req` says.
 ///
-/// Errors, as messages: the program has no sensor; a WAV output or plotted column that
+/// Errors, as messages: the program has no sensor; a pen gesture's option (`gesture`) with
+/// a stimulus that is not a pen gesture, or `dip_m` with one that is not a built-in key
+/// stimulus; a WAV output or plotted column that
 /// does not exist (naming the ones that do); a stimulus that does not resolve; a trace
 /// longer than `tactus_compiler::sim::MAX_TRACE_VALUES`; a JIT that does not compile.
 pub fn simulate(program: &Program, req: &SimRequest) -> Result<SimRun, String> {
@@ -81,6 +87,35 @@ pub fn simulate(program: &Program, req: &SimRequest) -> Result<SimRun, String> {
         return Err(format!(
             "instrument `{}` has no sensor to drive",
             program.name
+        ));
+    }
+    // Options that apply to one kind of stimulus only: an error, not a silent no-op.
+    let word = req.stimulus;
+    let is_file = std::path::Path::new(word).is_file();
+    let gesture = !is_file && tactus_compiler::sim::is_gesture(word);
+    let g = &req.gesture;
+    let pen_options = [
+        ("--depth", g.depth_m),
+        ("--speed", g.speed_m_per_s),
+        ("--stroke", g.stroke_m),
+        ("--across", g.across_m),
+    ];
+    if !gesture {
+        if let Some((flag, _)) = pen_options.iter().find(|(_, v)| v.is_some()) {
+            let names: Vec<&str> = tactus_compiler::sim::gesture_names()
+                .iter()
+                .map(|(n, _)| *n)
+                .collect();
+            return Err(format!(
+                "{flag} applies to the pen gestures ({}), not to `{word}`",
+                names.join(", ")
+            ));
+        }
+    }
+    if req.dip_m.is_some() && (gesture || is_file) {
+        return Err(format!(
+            "--dip applies to the built-in key stimuli, not to `{word}`{}",
+            if gesture { " (use --depth)" } else { "" }
         ));
     }
     // Checked before the simulation, so that a misspelt output fails at once.
@@ -147,6 +182,7 @@ pub fn simulate(program: &Program, req: &SimRequest) -> Result<SimRun, String> {
         (Numeric::F64, Engine::Interp) => "",
     };
     Ok(SimRun {
+        title: format!("{} — {}", program.name, stim.name),
         stem: format!(
             "{}-{}{suffix}",
             program.name,
@@ -249,4 +285,139 @@ pub fn write_wav(
         }
     }
     tactus_firmware::play::output::write_mono_wav(path, &mix, fs).map_err(|e| format!("--wav: {e}"))
+}
+
+/// Writes a run's files into `out` (created if missing): `STEM.csv` (the trace),
+/// `STEM-forces.svg`, the WAV at `wav` when the run has WAV outputs, `STEM-outputs.svg`
+/// when the program has outputs, and `STEM-plot.svg` of `plots` when some are asked for.
+/// Returns the paths written, in that order.
+///
+/// Errors, as messages naming the file: one that cannot be written or plotted; and a
+/// non-finite value in the trace (a division by zero, an overflow or an unstable scheme in
+/// an f64 engine; the fixed engines saturate): then only the CSV is written, to look at.
+pub fn write_files(
+    program: &Program,
+    run: &SimRun,
+    plots: &[String],
+    out: &Path,
+    wav: Option<&Path>,
+) -> Result<Vec<PathBuf>, String> {
+    let (trace, stem, title) = (&run.trace, &run.stem, &run.title);
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create `{}`: {e}", out.display()))?;
+    let csv = out.join(format!("{stem}.csv"));
+    trace.write_csv_file(&csv).map_err(|e| e.to_string())?;
+    if let Some((column, n, v)) = tactus_compiler::sim::first_non_finite(trace) {
+        return Err(format!(
+            "{title}: `{column}` is {v} at sample {n} (t = {:.6} s): the simulation computed a non-finite value (a division by zero, an overflow or an unstable scheme); the trace up to there is in {}",
+            n as f64 / program.sample_rate_hz,
+            csv.display(),
+        ));
+    }
+    let forces_svg = out.join(format!("{stem}-forces.svg"));
+    plot::plot_forces(trace, title, &forces_svg).map_err(|e| e.to_string())?;
+    let mut written = vec![csv, forces_svg];
+    if let (Some(wav), Some(names)) = (wav, &run.wav_outputs) {
+        write_wav(trace, names, program.sample_rate_hz, wav)?;
+        written.push(wav.to_path_buf());
+    }
+    if !program.outputs.is_empty() {
+        let names: Vec<&str> = program.outputs.iter().map(|o| o.name.as_str()).collect();
+        let svg = out.join(format!("{stem}-outputs.svg"));
+        plot::plot_columns(trace, &names, title, &svg).map_err(|e| e.to_string())?;
+        written.push(svg);
+    }
+    if !plots.is_empty() {
+        let svg = out.join(format!("{stem}-plot.svg"));
+        plot::plot_named(trace, plots, title, &svg)?;
+        written.push(svg);
+    }
+    Ok(written)
+}
+
+/// What a run says: the lines to print (the title with the samples, duration and the total
+/// force's range — per axis for a pen —, then each event with its arguments) and the
+/// warnings (each state saturated to its range, with how often).
+pub fn report(program: &Program, run: &SimRun) -> (Vec<String>, Vec<String>) {
+    let fs = program.sample_rate_hz;
+    let totals: Vec<String> = force_ranges(program, &run.trace)
+        .into_iter()
+        .map(|(name, lo, hi)| {
+            let what = if name == "total" { "total force" } else { name };
+            format!("{what} {lo:.3} N … {hi:.3} N")
+        })
+        .collect();
+    let mut lines = vec![format!(
+        "{}: {} samples ({:.3} s at {} Hz), {}",
+        run.title,
+        run.samples,
+        run.duration_s,
+        fs,
+        totals.join(", ")
+    )];
+    for (n, name, a) in &run.summary.events {
+        let ev = program.events.iter().find(|e| &e.name == name);
+        let args_text: Vec<String> = ev
+            .map(|e| {
+                e.args
+                    .iter()
+                    .zip(a)
+                    .map(|((an, d), v)| format!("{an} = {v:.4} {}", d.unit_string()))
+                    .collect()
+            })
+            .unwrap_or_default();
+        lines.push(format!(
+            "  event {name} at {:.2} ms: {}",
+            *n as f64 / fs * 1e3,
+            args_text.join(", ")
+        ));
+    }
+    let warnings = program
+        .states
+        .iter()
+        .zip(&run.summary.saturations)
+        .filter(|(_, &count)| count > 0)
+        .map(|(s, count)| {
+            format!(
+                "state `{}` was saturated to its range [{}, {}] {} {count} times; widen the range if this is not intended",
+                s.name, s.range.0, s.range.1, s.dim.unit_string()
+            )
+        })
+        .collect();
+    (lines, warnings)
+}
+
+/// The stimuli `tactus sim` takes, for its `--help`: the built-in key stimuli and pen
+/// gestures with their descriptions, the CSV formats, the files written, examples.
+pub fn stimulus_help() -> String {
+    let mut s = String::from(
+        "Built-in key stimuli (key travel at the front, position-driven, first sensor only;\n\
+         the other sensors read their lower bound):\n",
+    );
+    for (n, d) in tactus_runtime::stimulus::builtin_names() {
+        s.push_str(&format!("  {n:<10} {d}\n"));
+    }
+    s.push_str(
+        "\nPen gestures, for contact-point instruments (a vector sensor `pen: m in { z: …,\n\
+         x: …, y: … }`: z = penetration, x = position along the stroke, optional y =\n\
+         position across; without one, sensors 1, 2 and 3; --depth MM, --speed M_PER_S,\n\
+         --stroke MM, --across MM; smooth ramps, clamped to the ranges):\n",
+    );
+    for (n, d) in tactus_compiler::sim::gesture_names() {
+        s.push_str(&format!("  {n:<10} {d}\n"));
+    }
+    s.push_str(
+        "\nA CSV stimulus has a header `key_mm` (one row per sample at 44.1 kHz) or\n\
+         `time_s,key_mm` (any increasing times, linearly interpolated): key travel in mm,\n\
+         first sensor. Or one column per sensor, named as in the trace: an optional first\n\
+         column `time [s]`, then e.g. `pen.z [m],pen.x [m]`, values in SI units (metres, not\n\
+         mm); sensors without a column read their lower bound, values outside a range are\n\
+         clamped (with a warning).\n\n\
+         Outputs: OUT/NAME-STIMULUS.csv (every force term, total — force.x, force.y,\n\
+         force.z for a pen instrument —, states, modes, outputs, events), OUT/NAME-STIMULUS-forces.svg (force vs time, force vs key position), when\n\
+         the instrument has outputs OUT/NAME-STIMULUS-outputs.svg, and with --plot\n\
+         OUT/NAME-STIMULUS-plot.svg.\n\n\
+         Examples: tactus sim instruments/grand_piano.tactus --stimulus half-dip --param G=0.2 N\n\
+         \x20         tactus sim rubbed_bank --stimulus press-rub --depth 5 --speed 0.1 --plot force.x",
+    );
+    s
 }

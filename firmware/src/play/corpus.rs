@@ -221,3 +221,15 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
+
+/// Writes `DIR/corpus.csv` ([`write_csv`]) and `DIR/corpus.json` ([`write_json`]),
+/// creating `dir`; returns their paths.
+///
+/// Errors: a message naming the directory or file that cannot be written.
+pub fn write_tables(dir: &Path, rows: &[PieceRow]) -> Result<Vec<PathBuf>, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create `{}`: {e}", dir.display()))?;
+    let (csv, json) = (dir.join("corpus.csv"), dir.join("corpus.json"));
+    write_csv(&csv, rows)?;
+    write_json(&json, rows)?;
+    Ok(vec![csv, json])
+}
