@@ -80,26 +80,7 @@ pub struct BudgetArgs {
     /// The emulator's engine for the measurements: `block` (code compiled to native code
     /// with cranelift) or `interp` (the interpreter): the same cycles; compare their speed.
     #[arg(long, value_enum, default_value = "block")]
-    pub emu: EmuEngine,
-}
-
-/// The emulator's engine (`--emu`): both are exact; the block engine is the faster.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-pub enum EmuEngine {
-    /// One pre-decoded instruction at a time.
-    Interp,
-    /// Code regions compiled to native code (the default).
-    #[default]
-    Block,
-}
-
-impl From<EmuEngine> for tactus_emulator::Engine {
-    fn from(e: EmuEngine) -> Self {
-        match e {
-            EmuEngine::Interp => tactus_emulator::Engine::Interp,
-            EmuEngine::Block => tactus_emulator::Engine::Block,
-        }
-    }
+    pub emu: crate::values::EmuEngine,
 }
 
 /// A failure: bad input (exit 2) with its message.

@@ -12,6 +12,7 @@ mod progress;
 mod regulate_cmd;
 mod sim_cmd;
 mod source;
+mod values;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

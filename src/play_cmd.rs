@@ -8,10 +8,11 @@
 use crate::check_cmd::parse_override;
 use crate::progress::PlayBar;
 use crate::source;
+use crate::values;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use tactus_firmware::play::{self as play, corpus, PlayConfig, TraceWindow};
+use tactus_firmware::play::{corpus, PlayConfig, TraceWindow};
 use tactus_host::catalogue;
 use tactus_host::keyboard::KeyboardSpec;
 use tactus_host::play::{self as host_play, PieceOptions, Session};
@@ -55,7 +56,7 @@ pub struct PlayArgs {
     /// bits), `jit` (cranelift f64) or `interp` (the f64 reference interpreter), which
     /// simulate only the played keys and check no budget.
     #[arg(long, value_enum, default_value = "emu")]
-    pub engine: PlayEngine,
+    pub engine: values::PlayEngine,
     /// Board: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`) or a board file;
     /// every engine runs at its sample rate, `--engine emu` on its clock and cores
     /// [default: the layout's `board_kind`, else rp2040].
@@ -65,12 +66,12 @@ pub struct PlayArgs {
     /// cranelift) or `interp` (the interpreter): the same cycles and strikes; compare their
     /// speed.
     #[arg(long, value_enum, default_value = "block")]
-    pub emu: crate::budget_cmd::EmuEngine,
+    pub emu: values::EmuEngine,
     /// Player: `position` (prescribed key trajectories) or `force` (a finger force profile
     /// against the instrument's force: the closed loop; with `--engine emu` against the
     /// firmware's force word each sample, calibrated with the fixed-point JIT).
     #[arg(long, value_enum, default_value = "position")]
-    pub player: Player,
+    pub player: values::Player,
     /// Override a param on every key: `--param M_h=10 g`.
     #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
     pub params: Vec<(String, String)>,
@@ -96,51 +97,6 @@ pub struct PlayArgs {
     /// Output directory.
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
-}
-
-/// Engines of `tactus play`: what computes a key's instrument each sample.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum PlayEngine {
-    /// Cranelift JIT (f64).
-    Jit,
-    /// The f64 reference interpreter.
-    Interp,
-    /// Cranelift JIT of the fixed-point program: the bits the firmware computes (the Thumb
-    /// code in the emulator equals it bit for bit).
-    Fixed,
-    /// The firmware of every board of the keyboard (`tactus_firmware::image`: Thumb updates,
-    /// the safety limiter, a timer interrupt per core) on emulated RP2040s, every key every
-    /// sample; reports cycles per core and deadline misses.
-    Emu,
-}
-
-impl From<PlayEngine> for play::PlayEngine {
-    fn from(e: PlayEngine) -> Self {
-        match e {
-            PlayEngine::Jit => play::PlayEngine::Jit,
-            PlayEngine::Interp => play::PlayEngine::Interp,
-            PlayEngine::Fixed => play::PlayEngine::Fixed,
-            PlayEngine::Emu => play::PlayEngine::Emu,
-        }
-    }
-}
-
-/// Players of `tactus play`: what moves the keys.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Player {
-    /// Key trajectories prescribed by the key-motion model (open loop).
-    Position,
-    /// A finger force profile against the instrument's force (closed loop).
-    Force,
-}
-
-impl From<Player> for play::Player {
-    fn from(p: Player) -> Self {
-        match p {
-            Player::Position => play::Player::Position,
-            Player::Force => play::Player::Force,
-        }
-    }
 }
 
 /// Runs `tactus play`.
@@ -235,7 +191,7 @@ fn run_corpus(args: &PlayArgs, session: &Session, files: &[PathBuf]) -> ExitCode
         "corpus: {} performances ({})",
         rows.len(),
         match args.engine {
-            PlayEngine::Emu => "the firmware of every board, emulated",
+            values::PlayEngine::Emu => "the firmware of every board, emulated",
             _ => "host engine; no deadlines checked",
         }
     );
@@ -276,7 +232,7 @@ fn run_piece(
         None => ProgressBar::new(0),
     });
     bar.0.set_message(match args.engine {
-        PlayEngine::Emu => format!("{} keys on their boards", session.kb.keys.len()),
+        values::PlayEngine::Emu => format!("{} keys on their boards", session.kb.keys.len()),
         _ => "played keys".to_string(),
     });
     let mut warn = |w: String| bar.0.suspend(|| eprintln!("warning: {w}"));

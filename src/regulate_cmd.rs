@@ -27,11 +27,11 @@ pub struct RegulateArgs {
     /// Arithmetic: `f64` (the reference semantics) or `fixed` (the firmware's fixed point,
     /// the fixed-point interpreter's bits).
     #[arg(long, value_enum, default_value = "f64")]
-    pub numeric: crate::sim_cmd::Numeric,
+    pub numeric: crate::values::Numeric,
     /// Engine: `jit` (cranelift, bit-identical to the interpreter of the same numeric, and
     /// many times faster) or `interp` (the interpreters that define the semantics).
     #[arg(long, value_enum, default_value = "jit")]
-    pub engine: crate::sim_cmd::EngineKind,
+    pub engine: crate::values::EngineKind,
     /// Directory for the force–travel loop (`NAME-loop.svg`, `NAME-loop.csv`).
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
@@ -93,8 +93,8 @@ fn run_inner(args: &RegulateArgs) -> Result<ExitCode, String> {
     )?;
     source::report(&src, &warnings);
     let numeric = match args.numeric {
-        crate::sim_cmd::Numeric::F64 => "f64 semantics",
-        crate::sim_cmd::Numeric::Fixed => "fixed point",
+        crate::values::Numeric::F64 => "f64 semantics",
+        crate::values::Numeric::Fixed => "fixed point",
     };
     println!(
         "{} — regulation sheet ({numeric}; closed-loop key of {:.0} g at the key front)",

@@ -50,11 +50,11 @@ pub struct SimArgs {
     /// Arithmetic: `f64` (the reference semantics) or `fixed` (32-bit fixed point, the bits
     /// the firmware computes).
     #[arg(long, value_enum, default_value = "f64")]
-    pub numeric: Numeric,
+    pub numeric: crate::values::Numeric,
     /// Engine: `interp` (the interpreters that define the semantics) or `jit` (cranelift,
     /// native code on this machine, bit-identical to the interpreter of the same numeric).
     #[arg(long, value_enum, default_value = "interp")]
-    pub engine: EngineKind,
+    pub engine: crate::values::EngineKind,
     /// Directory for the trace and plots (created if missing).
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
@@ -68,43 +68,7 @@ pub struct SimArgs {
     pub wav_outputs: Vec<String>,
 }
 
-/// Arithmetic of `tactus sim`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Numeric {
-    /// Double precision, the reference semantics.
-    F64,
-    /// 32-bit fixed point with the compiler's formats.
-    Fixed,
-}
-
-/// Engine of `tactus sim`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum EngineKind {
-    /// The reference interpreters.
-    Interp,
-    /// Cranelift JIT.
-    Jit,
-}
-
 use tactus_host::sim as host_sim;
-
-impl From<Numeric> for host_sim::Numeric {
-    fn from(n: Numeric) -> Self {
-        match n {
-            Numeric::F64 => host_sim::Numeric::F64,
-            Numeric::Fixed => host_sim::Numeric::Fixed,
-        }
-    }
-}
-
-impl From<EngineKind> for host_sim::Engine {
-    fn from(e: EngineKind) -> Self {
-        match e {
-            EngineKind::Interp => host_sim::Engine::Interp,
-            EngineKind::Jit => host_sim::Engine::Jit,
-        }
-    }
-}
 
 /// Runs `tactus sim`.
 pub fn run(args: SimArgs) -> ExitCode {
