@@ -1,9 +1,9 @@
-//! `tactus play`: parses the arguments, reads the performance and the layout, compiles the
-//! played keys' instruments (rendering their diagnostics), hands the run to
-//! [`tactus_firmware::play::play`] — the players, the one play loop, the strike rule and
-//! the firmware of every board live there — and prints what it returns: the strikes' files,
-//! the traces' plots, the calibration of the force player and, with `--engine emu`, the
-//! budget of every board and core over the run.
+//! `tactus play`: parses the arguments, makes the keyboard's [`Session`]
+//! (`tactus_host::play`) and plays each performance through it — the players, the one play
+//! loop, the strike rule and the firmware of every board live in the libraries — then
+//! prints what it returns: the strikes, the files written, the force player's range and,
+//! with `--engine emu`, the budget of every board and core over the run; in corpus mode,
+//! the table of every piece.
 
 use crate::check_cmd::parse_override;
 use crate::progress::PlayBar;

@@ -1,9 +1,9 @@
-//! One performance through a compiled keyboard, as `tactus play` runs it: read and cut the
-//! performance, keep the notes on the keyboard's keys, play them
-//! ([`tactus_firmware::play::play`]) and write the strikes (CSV, MIDI, WAV) and the traces
-//! (CSV). The caller compiles the keyboard once ([`crate::keyboard::compile`], and
-//! [`Keyboard::firmware`] when [`PlayConfig::needs_firmware`]) for a whole corpus, and
-//! prints.
+//! Performances through a compiled keyboard, as `tactus play` runs them: a [`Session`]
+//! compiles the keyboard once for a whole corpus (and its firmware once, when the first
+//! piece needs it); [`Session::play`] reads and cuts a performance, keeps the notes on the
+//! keyboard's keys, plays them ([`tactus_firmware::play::play`]) and writes the strikes
+//! (CSV, MIDI, WAV), the traces (CSV, SVG) and the boards' cycles (SVG); [`Piece::report`]
+//! and [`budget_text`] give what to print, [`Piece::row`] the corpus table's row.
 
 use crate::keyboard::{Keyboard, KeyboardError, KeyboardSpec, Reporter};
 use crate::plot;
@@ -45,7 +45,7 @@ pub struct PieceOptions {
     pub wav: bool,
 }
 
-/// A piece played: what [`play_piece`] returns.
+/// A piece played: what [`Session::play`] returns.
 #[derive(Debug)]
 pub struct Piece {
     /// The player that moved the keys.

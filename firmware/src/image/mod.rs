@@ -428,6 +428,11 @@ pub fn compile_shared(
 /// per set. `source` returns an instrument's text by the name the layout gives (a built-in
 /// name or a path). Returns the programs and, per key, the index of its program.
 ///
+/// This is the firmware's own tests', benches' and examples' way to a layout's programs;
+/// the toolchain resolves and compiles a keyboard in one place, `tactus_host::keyboard`
+/// (with diagnostics and overrides), which hands its distinct sets to [`compile_shared`]
+/// as this does.
+///
 /// Errors: [`ImageError::Compile`] naming the key and instrument when `source` fails or the
 /// instrument does not compile (a `require` a key's param value breaks among them).
 pub fn compile_layout(
