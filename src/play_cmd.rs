@@ -12,10 +12,10 @@ use crate::values;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use tactus_firmware::play::{corpus, PlayConfig, TraceWindow};
 use tactus_host::catalogue;
 use tactus_host::keyboard::KeyboardSpec;
-use tactus_host::play::{self as host_play, PieceOptions, Session};
+use tactus_host::play::{corpus, PlayConfig, TraceWindow};
+use tactus_host::session::{self as host_play, PieceOptions, Session};
 
 use tactus_runtime::player::FingerConfig;
 

@@ -34,10 +34,10 @@ impl StageBar {
     }
 }
 
-/// The play loop's bar ([`tactus_firmware::play::Progress`]).
+/// The play loop's bar ([`tactus_host::play::Progress`]).
 pub struct PlayBar(pub ProgressBar);
 
-impl tactus_firmware::play::Progress for PlayBar {
+impl tactus_host::play::Progress for PlayBar {
     fn start(&self, total: u64, per_second: Option<f64>) {
         self.0.set_length(total);
         self.0.set_style(match per_second {

@@ -1,14 +1,14 @@
 //! `tactus regulate`: the regulation sheet of a key instrument
-//! (`tactus_firmware::regulate::measure`), printed as a technician's table, the
+//! (`tactus_host::regulate::measure`), printed as a technician's table, the
 //! force–travel loop plotted, and with `--spec` a verdict per figure.
 
 use crate::check_cmd::{compile_reporting, parse_override};
 use crate::source;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use tactus_firmware::regulate::{self, spec, Config, Figure, Sheet};
 use tactus_host::plot;
-use tactus_host::regulate as host_regulate;
+use tactus_host::regulate::sheet as host_regulate;
+use tactus_host::regulate::{self, spec, Config, Figure, Sheet};
 
 /// Arguments of `tactus regulate`.
 #[derive(Debug, clap::Args)]

@@ -1,7 +1,7 @@
 //! The command line's value enums (`--engine`, `--player`, `--emu`, `--numeric`): clap's
 //! view of the libraries' enums, each with its help text and its conversion.
 
-use tactus_firmware::play;
+use tactus_host::play;
 
 /// Engines of `tactus play`: what computes a key's instrument each sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]

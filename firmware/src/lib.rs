@@ -20,12 +20,9 @@
 //!   each board's sample interrupt as its image lays it out (`tactus budget`);
 //!   [`schedule`]: keys to cores by longest processing time first (the planner's fallback
 //!   beyond two cores or very large totals).
-//! - [`play`]: a recorded performance played through an instrument (`tactus play`): the
-//!   players, the one play loop over the one engine trait, the strike rule, the output files;
-//!   `play::emulated`: its engine for the firmware of every board on emulated RP2040s.
-//! - [`regulate`]: the regulation sheet of a key instrument (`tactus regulate`): down- and
-//!   up-weight, friction, let-off, drop, blow, back-check, key-bottom times, repetition,
-//!   measured with the closed-loop key model, and a spec's verdict.
+//!
+//! Playing performances and the regulation sheet run on top of this crate, in
+//! `tactus_host::play` and `tactus_host::regulate`.
 #![deny(missing_docs)]
 
 pub mod board_file;
@@ -37,8 +34,6 @@ pub mod image;
 pub mod key_map;
 pub mod layout;
 pub mod measure;
-pub mod play;
-pub mod regulate;
 pub mod report;
 pub mod runner;
 pub mod schedule;

@@ -13,12 +13,12 @@
 //! a performance plays.
 
 use crate::catalogue::{self, Source};
+use crate::play::{self, HostProgram};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use tactus_compiler::diagnostics::Diagnostic;
 use tactus_compiler::ir::Program;
 use tactus_firmware::image::Program as FirmwareProgram;
-use tactus_firmware::play::{self, HostProgram};
 use tactus_firmware::verdict::{self, ProgramInput};
 use tactus_runtime::keyboard::{self as layout_file, BoardSpec, KeyAssignment, Layout};
 

@@ -11,16 +11,17 @@
 //!   built-in layout, or one instrument on N keys, on a board kind — used by `tactus build`,
 //!   `tactus budget` and `tactus play`, so that they see the same keys, the same programs
 //!   and the same boards.
-//! * [`play`]: one performance through a compiled keyboard as `tactus play` runs it (read,
-//!   cut, keep the notes on the keyboard, play, write the strikes and traces), a row of the
-//!   corpus table.
+//! * [`play`]: a recorded performance played through an instrument: the players, the one
+//!   play loop over the one engine trait (the host engines, and `play::emulated` the
+//!   firmware of every board on emulated RP2040s), the strike rule, the output files (CSV,
+//!   MIDI, WAV) and the corpus table.
+//! * [`plot`]: SVG plots of traces and curves, in the units an instrument maker reads.
+//! * [`regulate`]: the regulation sheet of a key instrument, measured with the closed-loop
+//!   key model, a spec's verdict, and (`regulate::sheet`) `tactus regulate`'s run and text.
+//! * [`session`]: `tactus play`'s run: a keyboard compiled once for a corpus, each piece
+//!   read, checked, played and written, what to print.
 //! * [`sim`]: one instrument over a stimulus on the host (`tactus sim`): the stimulus
-//!   resolved, the requested columns and WAV outputs checked, the run, the WAV mix.
-//!
-//! * [`plot`]: SVG plots of traces, of a run's cycles per sample and of curves, in the
-//!   units an instrument maker reads.
-//! * [`regulate`]: the regulation sheet of a key instrument (`tactus regulate`) on an
-//!   arithmetic and engine, as text, with a spec's verdicts.
+//!   resolved, the requested columns and WAV outputs checked, the run, the files, the text.
 //!
 //! This crate never prints: diagnostics go to a caller's reporter, errors are values.
 
@@ -31,4 +32,5 @@ pub mod keyboard;
 pub mod play;
 pub mod plot;
 pub mod regulate;
+pub mod session;
 pub mod sim;

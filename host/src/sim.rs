@@ -4,12 +4,12 @@
 //! anything runs, the trace bounded, and the run on the chosen arithmetic and engine. The
 //! caller writes the CSV and the plots, and prints.
 
+use crate::play::engine::{FixedJitEngine, JitEngine};
 use crate::plot;
 use std::path::{Path, PathBuf};
 use tactus_compiler::diagnostics::Diagnostic;
 use tactus_compiler::ir::{Program, Ty};
 use tactus_compiler::sim::{GestureConfig, SimSummary};
-use tactus_firmware::play::engine::{FixedJitEngine, JitEngine};
 use tactus_runtime::trace::{ColumnKind, Trace};
 
 /// The arithmetic of a run.
@@ -284,7 +284,7 @@ pub fn write_wav(
             *m += x as f32;
         }
     }
-    tactus_firmware::play::output::write_mono_wav(path, &mix, fs).map_err(|e| format!("--wav: {e}"))
+    crate::play::output::write_mono_wav(path, &mix, fs).map_err(|e| format!("--wav: {e}"))
 }
 
 /// Writes a run's files into `out` (created if missing): `STEM.csv` (the trace),

@@ -15,7 +15,7 @@ use proptest::test_runner::TestCaseError;
 use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::time::Duration;
-use tactus_firmware::play::{
+use tactus_host::play::{
     self, output, HostProgram, Keyboard, PlayConfig, PlayEngine, Player, TraceWindow,
 };
 use tactus_runtime::keyboard::{BoardSpec, KeyAssignment};

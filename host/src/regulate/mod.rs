@@ -29,6 +29,7 @@
 //! lifts back to rest; friction `(down − up)/2`; balance weight `(down + up)/2` (D. Stanwood,
 //! "The New Touchweight Metrology", PTG Journal, June 1996 and February 2000).
 
+pub mod sheet;
 pub mod spec;
 
 use crate::play::strike::strike_event;

@@ -1,18 +1,18 @@
-//! Performances through a compiled keyboard, as `tactus play` runs them: a [`Session`]
+//! `tactus play`'s run: performances through a compiled keyboard. a [`Session`]
 //! compiles the keyboard once for a whole corpus (and its firmware once, when the first
 //! piece needs it); [`Session::play`] reads and cuts a performance, keeps the notes on the
-//! keyboard's keys, plays them ([`tactus_firmware::play::play`]) and writes the strikes
+//! keyboard's keys, plays them ([`crate::play::play`]) and writes the strikes
 //! (CSV, MIDI, WAV), the traces (CSV, SVG) and the boards' cycles (SVG); [`Piece::report`]
 //! and [`budget_text`] give what to print, [`Piece::row`] the corpus table's row.
 
 use crate::keyboard::{Keyboard, KeyboardError, KeyboardSpec, Reporter};
-use crate::plot;
+use crate::play::{self, corpus::PieceRow, output, strike, PlayConfig, Played, Progress};
+use crate::play::{BoardsReport, Silence, Traces};
+use crate::plot::{plot_cycle_series, plot_lines, Line};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tactus_firmware::image::Program as FirmwareProgram;
-use tactus_firmware::play::{self, corpus::PieceRow, output, strike, PlayConfig, Played, Progress};
-use tactus_firmware::play::{BoardsReport, Silence};
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::performance::{self, Note, Performance};
 
@@ -327,7 +327,7 @@ impl Session {
     /// no note in the first `seconds` or no note on a key of the keyboard;
     /// [`PlayError::Keyboard`] for a played key's instrument `play` cannot move, or firmware
     /// that does not compile (the first time a piece needs it);
-    /// [`PlayError::Run`] for [`tactus_firmware::play::play`]'s errors; [`PlayError::Write`]
+    /// [`PlayError::Run`] for [`crate::play::play`]'s errors; [`PlayError::Write`]
     /// for the writers'.
     pub fn play(
         &self,
@@ -416,14 +416,11 @@ impl Session {
                 output::write_trace_csvs(out, &stem, &played.traces, from_firmware)
                     .map_err(PlayError::Write)?,
             );
-            written.extend(
-                plot::plot_play_traces(out, &stem, &played.traces).map_err(PlayError::Write)?,
-            );
+            written.extend(plot_play_traces(out, &stem, &played.traces).map_err(PlayError::Write)?);
         }
         if let Some(r) = &played.boards {
             let svg = out.join(format!("{stem}-cycles.svg"));
-            plot::plot_play_cycles(r, kb.board.sample_rate_hz, &stem, &svg)
-                .map_err(PlayError::Write)?;
+            plot_play_cycles(r, kb.board.sample_rate_hz, &stem, &svg).map_err(PlayError::Write)?;
             written.push(svg);
         }
         Ok(Piece {
@@ -483,4 +480,136 @@ pub fn peak_memory_kb() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// Plots the cycles per sample of the busier core of each board (beyond eight boards, the
+/// busiest and the mean of all) against the deadline.
+fn plot_play_cycles(r: &BoardsReport, fs: f64, stem: &str, path: &Path) -> Result<(), String> {
+    let named: Vec<(String, Vec<u64>)> = if r.boards.len() <= 8 {
+        r.boards
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                (
+                    format!(
+                        "board {} ({})",
+                        i + 1,
+                        tactus_firmware::verdict::key_ranges(&b.keys)
+                    ),
+                    b.cycles.clone(),
+                )
+            })
+            .collect()
+    } else {
+        let n = r.boards.iter().map(|b| b.cycles.len()).max().unwrap_or(0);
+        let at = |i: usize| {
+            r.boards
+                .iter()
+                .filter_map(move |b| b.cycles.get(i).copied())
+        };
+        vec![
+            (
+                format!("busiest of {} boards", r.boards.len()),
+                (0..n).map(|i| at(i).max().unwrap_or(0)).collect(),
+            ),
+            (
+                "mean of the boards".to_string(),
+                (0..n)
+                    .map(|i| at(i).sum::<u64>() / r.boards.len().max(1) as u64)
+                    .collect(),
+            ),
+        ]
+    };
+    let series: Vec<(String, &[u64])> = named
+        .iter()
+        .map(|(l, v)| (l.clone(), v.as_slice()))
+        .collect();
+    plot_cycle_series(
+        &series,
+        fs / r.decimation as f64,
+        r.deadline,
+        &format!(
+            "{stem}: cycles per sample, busier core of each board (max per {} samples)",
+            r.decimation
+        ),
+        path,
+    )
+    .map_err(|e| e.to_string())
+}
+
+/// Plots the traces: `STEM-force.svg` (instrument force, and the finger's with the force
+/// player, vs time), `STEM-key.svg` (key travel vs time) and `STEM-hammer.svg` (hammer
+/// position vs time); returns the files written.
+fn plot_play_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathBuf>, String> {
+    let mut wrote = Vec::new();
+    let lines = |col: usize, scale: f64| -> Vec<Line> {
+        traces
+            .iter()
+            .map(|(key, rows)| {
+                // A break (NaN) where the key rested unsimulated between two stretches.
+                let (mut x, mut y) = (Vec::new(), Vec::new());
+                for (i, r) in rows.iter().enumerate() {
+                    if i > 0 && r[0] - rows[i - 1][0] > 1e-3 {
+                        x.push(f64::NAN);
+                        y.push(f64::NAN);
+                    }
+                    x.push(r[0]);
+                    y.push(r[col] * scale);
+                }
+                Line {
+                    label: format!("key {key}"),
+                    x,
+                    y,
+                }
+            })
+            .collect()
+    };
+    let force = out.join(format!("{stem}-force.svg"));
+    let mut force_lines = lines(2, 1.0);
+    for l in &mut force_lines {
+        l.label.push_str(" instrument");
+    }
+    // With the force player, the finger's push beside the instrument's force.
+    if traces.values().flatten().any(|r| r[4] != 0.0) {
+        force_lines.extend(lines(4, 1.0).into_iter().map(|mut l| {
+            l.label.push_str(" finger");
+            l
+        }));
+    }
+    plot_lines(
+        &force_lines,
+        &format!("{stem}: force at the key"),
+        "time [s]",
+        "force [N]",
+        &force,
+    )
+    .map_err(|e| e.to_string())?;
+    wrote.push(force);
+    let key = out.join(format!("{stem}-key.svg"));
+    plot_lines(
+        &lines(1, 1e3),
+        &format!("{stem}: key travel"),
+        "time [s]",
+        "key travel [mm]",
+        &key,
+    )
+    .map_err(|e| e.to_string())?;
+    wrote.push(key);
+    let hammer_lines = lines(3, 1e3);
+    if hammer_lines
+        .iter()
+        .any(|l| l.y.iter().any(|v| v.is_finite()))
+    {
+        let hammer = out.join(format!("{stem}-hammer.svg"));
+        plot_lines(
+            &hammer_lines,
+            &format!("{stem}: hammer position"),
+            "time [s]",
+            "hammer travel [mm]",
+            &hammer,
+        )
+        .map_err(|e| e.to_string())?;
+        wrote.push(hammer);
+    }
+    Ok(wrote)
 }

@@ -11,13 +11,13 @@
 //! static bound and, decimated to at most [`MAX_POINTS`] points, the cycles of the busier
 //! core.
 
-use crate::boards::{self, PlanKey, ProgramCosts};
-use crate::image::Program;
 use crate::play::engine::{KeyEngine, KeySample};
 use crate::play::run::{run_keys, Drive, LoopConfig, TraceWindow};
 use crate::play::strike::{strike_event, Strike};
 use std::collections::BTreeMap;
 use tactus_compiler::fixed::interp::FixedInstance;
+use tactus_firmware::boards::{self, PlanKey, ProgramCosts};
+use tactus_firmware::image::Program;
 use tactus_runtime::fixed::to_f64;
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
@@ -157,7 +157,7 @@ pub fn play_boards(
                 format!(
                     "board {} ({}): {e}",
                     i + 1,
-                    crate::verdict::key_ranges(list)
+                    tactus_firmware::verdict::key_ranges(list)
                 )
             })
         })
@@ -175,7 +175,7 @@ pub fn play_boards(
 /// sum of the handlers, the misses the firmware counted and the busier core's largest
 /// handler of each `decimation` samples.
 pub struct BoardEngine<'p> {
-    run: crate::image::ImageRun,
+    run: tactus_firmware::image::ImageRun,
     /// Per key of the board: its program.
     programs: Vec<&'p Program>,
     /// Per key: the strike event ([`strike_event`]).

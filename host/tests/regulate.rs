@@ -1,12 +1,12 @@
-//! The regulation sheet (`tactus_firmware::regulate`): measured figures against what the
+//! The regulation sheet (`tactus_host::regulate`): measured figures against what the
 //! model says they must be, on a toy key whose answers are known, and on every shipped key
 //! instrument (figures that do not apply left out with a note).
 
 use std::path::Path;
 use tactus_compiler::ir::Program;
 use tactus_compiler::lower::Config as LowerConfig;
-use tactus_firmware::play::engine::JitEngine;
-use tactus_firmware::regulate::{self, gf_to_n, n_to_gf, Config, Figure, Sheet};
+use tactus_host::play::engine::JitEngine;
+use tactus_host::regulate::{self, gf_to_n, n_to_gf, Config, Figure, Sheet};
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
@@ -208,7 +208,7 @@ fn the_friction_piano_in_fixed_point_regulates_the_same_on_the_interpreter_and_t
     let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp).unwrap();
     let by_jit = regulate::measure(
         &p,
-        tactus_firmware::play::engine::FixedJitEngine(
+        tactus_host::play::engine::FixedJitEngine(
             tactus_jit::fixed::FixedJitInstance::new(&jit),
             &fp,
         ),

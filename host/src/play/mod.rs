@@ -31,7 +31,6 @@ pub use motion::Motion;
 pub use run::{TraceRows, TraceWindow, Traces};
 pub use strike::Strike;
 
-use crate::image::Program as FirmwareProgram;
 use emulated::{play_boards, BoardRun, PerformOptions};
 use engine::{FixedJitEngine, HostKey, JitEngine};
 use motion::{busy_stretches, calibrate, key_motion, stretch_samples, CALIBRATION_LEVELS_N};
@@ -39,6 +38,7 @@ pub use motion::{FingerCalibration, Restrikes};
 use run::{run_keys, Drive};
 use std::collections::BTreeMap;
 use tactus_compiler::ir::Program;
+use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_runtime::keyboard::{BoardSpec, KeyAssignment};
 use tactus_runtime::performance::{Note, Performance};
 use tactus_runtime::player::FingerConfig;
@@ -95,7 +95,7 @@ pub struct Keyboard<'a> {
 /// The programs the firmware runs: every key of the layout compiled together, so that an
 /// instrument's graded params are run-time data planned over the interval all its keys span
 /// (`tactus_host::keyboard::Keyboard::firmware`, or
-/// [`crate::image::compile_layout`]).
+/// [`tactus_firmware::image::compile_layout`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Firmware<'a> {
     /// The distinct programs.

@@ -1,14 +1,14 @@
 //! The regulation sheet of a key instrument as `tactus regulate` measures it: the sheet on
 //! the chosen arithmetic and engine ([`measure`], over
-//! [`tactus_firmware::regulate::measure`]), its text with a spec's verdicts
+//! [`crate::regulate::measure`]), its text with a spec's verdicts
 //! ([`sheet_text`], [`spec_line`]) and the force–travel loop's table ([`loop_csv`]). The
 //! caller plots the loop and prints.
 
+use crate::play::engine::{FixedJitEngine, JitEngine};
+use crate::regulate::{self, spec, Config, Figure, Sheet};
 use crate::sim::{Engine, Numeric};
 use tactus_compiler::diagnostics::Diagnostic;
 use tactus_compiler::ir::Program;
-use tactus_firmware::play::engine::{FixedJitEngine, JitEngine};
-use tactus_firmware::regulate::{self, spec, Config, Figure, Sheet};
 
 /// Measures the regulation sheet of `program` on `numeric` and `engine` (the JIT and the
 /// interpreter of one arithmetic give the same bits). Returns the sheet and, with
