@@ -1,5 +1,5 @@
 //! `tactus play`: parses the arguments, makes the keyboard's [`Session`]
-//! (`tactus_host::play`) and plays each performance through it — the players, the one play
+//! (`tactus_host::session`) and plays each performance through it — the players, the one play
 //! loop, the strike rule and the firmware of every board live in the libraries — then
 //! prints what it returns: the strikes, the files written, the force player's range and,
 //! with `--engine emu`, the budget of every board and core over the run; in corpus mode,
