@@ -633,6 +633,49 @@ fn events_panel(
         .map_err(|e| e.to_string())
 }
 
+/// Writes the trace columns `names` against time into one SVG: one panel with every series
+/// when they share a unit (y label `a, b [unit]`, display units: m as mm), otherwise (or
+/// with an event column) one panel per column, each labelled with its unit.
+pub fn plot_named(
+    trace: &Trace,
+    names: &[String],
+    title: &str,
+    path: &std::path::Path,
+) -> Result<(), String> {
+    let mut columns = Vec::with_capacity(names.len());
+    for name in names {
+        let c = trace
+            .column(name)
+            .ok_or_else(|| format!("--plot: no column `{name}` in the trace"))?;
+        columns.push(c);
+    }
+    let unit = &columns[0].unit;
+    let shared = columns
+        .iter()
+        .all(|c| &c.unit == unit && c.kind != ColumnKind::Event);
+    if !shared {
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        return plot_columns(trace, &refs, title, path).map_err(|e| e.to_string());
+    }
+    let (scale, shown) = display_unit(unit);
+    let time_ms: Vec<f64> = trace.times_s().iter().map(|t| t * 1e3).collect();
+    let lines: Vec<Line> = columns
+        .iter()
+        .map(|c| Line {
+            label: c.name.clone(),
+            x: time_ms.clone(),
+            y: c.values.iter().map(|v| v * scale).collect(),
+        })
+        .collect();
+    let joined = names.join(", ");
+    let y_desc = if shown.is_empty() {
+        joined
+    } else {
+        format!("{joined} [{shown}]")
+    };
+    plot_lines(&lines, title, "time [ms]", &y_desc, path).map_err(|e| e.to_string())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -851,47 +894,4 @@ mod tests {
         let e = plot_cycle_series(&[], fs, 100, "x", &cpath).unwrap_err();
         assert!(matches!(e, PlotError::EmptyTrace { .. }), "{e}");
     }
-}
-
-/// Writes the trace columns `names` against time into one SVG: one panel with every series
-/// when they share a unit (y label `a, b [unit]`, display units: m as mm), otherwise (or
-/// with an event column) one panel per column, each labelled with its unit.
-pub fn plot_named(
-    trace: &Trace,
-    names: &[String],
-    title: &str,
-    path: &std::path::Path,
-) -> Result<(), String> {
-    let mut columns = Vec::with_capacity(names.len());
-    for name in names {
-        let c = trace
-            .column(name)
-            .ok_or_else(|| format!("--plot: no column `{name}` in the trace"))?;
-        columns.push(c);
-    }
-    let unit = &columns[0].unit;
-    let shared = columns
-        .iter()
-        .all(|c| &c.unit == unit && c.kind != ColumnKind::Event);
-    if !shared {
-        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
-        return plot_columns(trace, &refs, title, path).map_err(|e| e.to_string());
-    }
-    let (scale, shown) = display_unit(unit);
-    let time_ms: Vec<f64> = trace.times_s().iter().map(|t| t * 1e3).collect();
-    let lines: Vec<Line> = columns
-        .iter()
-        .map(|c| Line {
-            label: c.name.clone(),
-            x: time_ms.clone(),
-            y: c.values.iter().map(|v| v * scale).collect(),
-        })
-        .collect();
-    let joined = names.join(", ");
-    let y_desc = if shown.is_empty() {
-        joined
-    } else {
-        format!("{joined} [{shown}]")
-    };
-    plot_lines(&lines, title, "time [ms]", &y_desc, path).map_err(|e| e.to_string())
 }

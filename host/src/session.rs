@@ -19,9 +19,13 @@ use tactus_runtime::performance::{self, Note, Performance};
 /// Why a piece (or a session) cannot be played. Every message names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum PlayError {
-    /// The keyboard cannot be made, or its firmware compiled.
+    /// The keyboard cannot be made, or a played key's instrument cannot be played.
     #[error(transparent)]
     Keyboard(#[from] KeyboardError),
+    /// The keyboard's firmware does not compile ([`Keyboard::firmware`]'s message; the same
+    /// for every piece of a session, compiled once).
+    #[error("{0}")]
+    Firmware(String),
     /// The performance cannot be read, or has nothing to play on this keyboard.
     #[error("{0}")]
     Performance(String),
@@ -277,8 +281,9 @@ impl Piece {
 pub struct Session {
     /// The keyboard.
     pub kb: Keyboard,
-    /// Its firmware's programs, once compiled ([`PlayConfig::needs_firmware`]).
-    firmware: std::cell::OnceCell<Vec<FirmwareProgram>>,
+    /// Its firmware's programs or why they do not compile, once tried
+    /// ([`PlayConfig::needs_firmware`]): a corpus tries once, not once per piece.
+    firmware: std::cell::OnceCell<Result<Vec<FirmwareProgram>, String>>,
     /// The run's configuration (its board is the keyboard's).
     pub config: PlayConfig,
     /// What to do with each piece besides playing it.
@@ -308,15 +313,18 @@ impl Session {
     }
 
     /// The firmware's programs when the engine runs them ([`Keyboard::firmware`], compiled
-    /// on the first call).
+    /// on the first call; its failure, too, is kept).
     fn firmware(&self) -> Result<Option<&[FirmwareProgram]>, PlayError> {
         if !self.config.needs_firmware() {
             return Ok(None);
         }
-        if self.firmware.get().is_none() {
-            let _ = self.firmware.set(self.kb.firmware()?);
+        let compiled = self
+            .firmware
+            .get_or_init(|| self.kb.firmware().map_err(|e| e.to_string()));
+        match compiled {
+            Ok(programs) => Ok(Some(programs)),
+            Err(e) => Err(PlayError::Firmware(e.clone())),
         }
-        Ok(self.firmware.get().map(Vec::as_slice))
     }
 
     /// Plays `performance` (a MIDI file; `None`: the built-in demo) on the keyboard and
@@ -325,8 +333,8 @@ impl Session {
     ///
     /// Errors, naming the file: [`PlayError::Performance`] for a MIDI file that cannot be read,
     /// no note in the first `seconds` or no note on a key of the keyboard;
-    /// [`PlayError::Keyboard`] for a played key's instrument `play` cannot move, or firmware
-    /// that does not compile (the first time a piece needs it);
+    /// [`PlayError::Keyboard`] for a played key's instrument `play` cannot move;
+    /// [`PlayError::Firmware`] for firmware that does not compile;
     /// [`PlayError::Run`] for [`crate::play::play`]'s errors; [`PlayError::Write`]
     /// for the writers'.
     pub fn play(

@@ -189,6 +189,18 @@ fn csv_field(s: &str) -> String {
     }
 }
 
+/// Writes `DIR/corpus.csv` ([`write_csv`]) and `DIR/corpus.json` ([`write_json`]),
+/// creating `dir`; returns their paths.
+///
+/// Errors: a message naming the directory or file that cannot be written.
+pub fn write_tables(dir: &Path, rows: &[PieceRow]) -> Result<Vec<PathBuf>, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create `{}`: {e}", dir.display()))?;
+    let (csv, json) = (dir.join("corpus.csv"), dir.join("corpus.json"));
+    write_csv(&csv, rows)?;
+    write_json(&json, rows)?;
+    Ok(vec![csv, json])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -220,16 +232,4 @@ mod tests {
         assert!(expand(&[empty]).unwrap_err().contains("no MIDI file"));
         let _ = std::fs::remove_dir_all(&dir);
     }
-}
-
-/// Writes `DIR/corpus.csv` ([`write_csv`]) and `DIR/corpus.json` ([`write_json`]),
-/// creating `dir`; returns their paths.
-///
-/// Errors: a message naming the directory or file that cannot be written.
-pub fn write_tables(dir: &Path, rows: &[PieceRow]) -> Result<Vec<PathBuf>, String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create `{}`: {e}", dir.display()))?;
-    let (csv, json) = (dir.join("corpus.csv"), dir.join("corpus.json"));
-    write_csv(&csv, rows)?;
-    write_json(&json, rows)?;
-    Ok(vec![csv, json])
 }
