@@ -824,7 +824,7 @@ fn preserves_all_but_clobbers(
             for (r, obj) in rs.iter_mut().zip(objs) {
                 let (sensors, out) = r.buffers();
                 let words: Vec<u8> = rec.iter().flat_map(|w| w.to_le_bytes()).collect();
-                r.board().write_bytes(sensors, &words).unwrap();
+                r.board().write_data(sensors, &words).unwrap();
                 r.call_via_board(HARNESS, &[])
                     .unwrap_or_else(|e| panic!("{name}: the harness: {e:?}"));
                 for reg in 4..12u32 {

@@ -62,6 +62,36 @@ impl Known {
     }
 }
 
+/// What is known before each top-level statement, a snapshot stored only where it changed
+/// (a body of thousands of value definitions between two state assignments shares one).
+#[derive(Default)]
+struct KnownAt {
+    snaps: Vec<Known>,
+    /// Per statement pushed, its snapshot's index.
+    at: Vec<u32>,
+}
+
+impl KnownAt {
+    /// What is known before the next statement: `known`, which differs from the last
+    /// snapshot only if `fresh`.
+    fn push(&mut self, known: &Known, fresh: bool) {
+        if fresh || self.snaps.is_empty() {
+            self.snaps.push(known.clone());
+        }
+        self.at.push(self.snaps.len() as u32 - 1);
+    }
+
+    /// What was known before statement `k`, if it was pushed.
+    fn get(&self, k: usize) -> Option<&Known> {
+        self.at.get(k).map(|&i| &self.snaps[i as usize])
+    }
+}
+
+/// Whether [`Known::apply`] of `s` can change what is known.
+fn changes_known(s: &Stmt) -> bool {
+    matches!(s, Stmt::SetState(..) | Stmt::SetMode(..) | Stmt::If(..))
+}
+
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Tri {
     True,
@@ -119,9 +149,14 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
         // saw the sample before `i`'s body), then what `i`'s body and the statements since
         // left. A read is evaluated with what was known where it was read, not at the later
         // `if`: a state read before an assignment that certainly runs saw the older value.
-        let mut at: Vec<Known> = vec![Known::default(); i + 1];
+        let mut at = KnownAt::default();
+        for _ in 0..=i {
+            at.push(&Known::default(), false);
+        }
+        let mut fresh = true;
         for k in i + 1..p.body.len() {
-            at.push(known.clone());
+            at.push(&known, fresh);
+            fresh = false;
             if let Some(src) = src.as_mut() {
                 src.before();
             }
@@ -172,6 +207,7 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
             }
             if !skip {
                 known.apply(fp, std::slice::from_ref(&p.body[k]), true);
+                fresh = changes_known(&p.body[k]);
             }
             if let Some(src) = src.as_mut() {
                 src.apply(&p.body[k], false, skip);
@@ -232,10 +268,12 @@ pub fn first_sample_exclusions(fp: &FixedProgram) -> Vec<u32> {
     for (m, md) in p.modes.iter().enumerate() {
         known.mode.insert(m, vec![md.init]);
     }
-    let mut at: Vec<Known> = Vec::with_capacity(p.body.len());
+    let mut at = KnownAt::default();
+    let mut fresh = true;
     let mut out = Vec::new();
     for (k, st) in p.body.iter().enumerate() {
-        at.push(known.clone());
+        at.push(&known, fresh);
+        fresh = false;
         if let Stmt::If(c, _) = st {
             let ev = Eval {
                 fp,
@@ -249,6 +287,7 @@ pub fn first_sample_exclusions(fp: &FixedProgram) -> Vec<u32> {
             }
         }
         known.apply(fp, std::slice::from_ref(st), true);
+        fresh = changes_known(st);
     }
     out
 }
@@ -418,7 +457,7 @@ struct Eval<'a> {
     facts: &'a [(Value, Interval)],
     /// What is known before each top-level statement (up to the `if` being evaluated): a
     /// value is read with what was known at its definition's position.
-    at: &'a [Known],
+    at: &'a KnownAt,
 }
 
 impl Eval<'_> {

@@ -38,7 +38,7 @@ use crate::bus::System;
 use crate::core::{Core, Fault, RunState};
 use crate::elf::Image;
 use launch::Launch;
-use profile::Profile;
+use profile::{Profile, NO_WATCH, WATCH_SLOTS};
 use run::{Cached, CACHE_SLOTS};
 
 /// Sensor block: `MAX_KEYS` words from 0x2003f000 (last 4 KB of striped SRAM), word k = key
@@ -172,6 +172,17 @@ pub struct Board {
     /// No profile watches an address (none, or handler profiles only): the fast path's
     /// watch sets are empty ([`Board::watch_set`]).
     watch_free: bool,
+    /// Every profiled entry, sorted, and per core the distinct return addresses of each
+    /// profile's innermost open call: the only PCs at which [`Board::profile_step`] can open
+    /// or close a call (besides a change of active exceptions). With them, per core, the
+    /// fast path's watch set ([`Board::watch_set`]), `None` when it has too many. Rebuilt
+    /// when a profile is added or an open call changes.
+    profile_entries: Vec<u32>,
+    profile_returns: [Vec<u32>; 2],
+    /// Per core, a 4096-bit filter of those PCs (bit `(pc >> 1) mod 4096`): a clear bit
+    /// rules a PC out in one load.
+    profile_filter: [[u64; 64]; 2],
+    profile_watch: [Option<[u32; WATCH_SLOTS]>; 2],
     /// Interrupt lines as of `lines_epoch` (a [`System::irq_epoch`] value).
     lines: u32,
     lines_epoch: u64,
@@ -199,6 +210,10 @@ impl Board {
             lines: 0,
             profiled_active: [u64::MAX; 2],
             watch_free: true,
+            profile_entries: Vec::new(),
+            profile_returns: [Vec::new(), Vec::new()],
+            profile_filter: [[0; 64]; 2],
+            profile_watch: [Some([NO_WATCH; WATCH_SLOTS]); 2],
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
             windows: [0; 2],

@@ -58,6 +58,8 @@ impl Board {
             calls: Vec::new(),
             entries: [0; 2],
         });
+        self.profile_index(0);
+        self.profile_returns_index(1);
         self.profiles.len() - 1
     }
 
@@ -112,19 +114,20 @@ impl Board {
     pub(super) fn profile_step(&mut self, k: usize) {
         let core = &self.cores[k];
         let (pc, sp, now) = (core.r[15], core.r[13], core.cycle);
-        // Handler profiles only, the core's active exceptions as at this core's last call
-        // and no profiled entry at the PC: no activation can open or close (an open one
-        // closes when its exception's active bit clears; one opens at an entry), so the
-        // loop below would do nothing.
+        // The core's active exceptions as at this core's last call, and the PC neither a
+        // profiled entry nor the return address of an innermost open call: no activation
+        // can open or close (an open one closes when its exception's active bit clears or
+        // at its return address; one opens at an entry), so the loop below would do
+        // nothing.
         if self.profiled_active[k] == core.nvic.active
-            && self
-                .profiles
-                .iter()
-                .all(|p| p.handler_only && p.entry != pc)
+            && (self.profile_filter[k][(pc as usize >> 7) & 63] >> ((pc >> 1) & 63) & 1 == 0
+                || (self.profile_entries.binary_search(&pc).is_err()
+                    && !self.profile_returns[k].contains(&pc)))
         {
             return;
         }
         self.profiled_active[k] = core.nvic.active;
+        let mut changed = false;
         for p in &mut self.profiles {
             while let Some(&(ret, entry_sp, start)) = p.open[k].last() {
                 let done = match ret {
@@ -135,6 +138,7 @@ impl Board {
                     break;
                 }
                 p.open[k].pop();
+                changed = true;
                 p.calls.push(Call {
                     core: k,
                     start,
@@ -152,8 +156,66 @@ impl Board {
                     Return::To(lr & !1)
                 };
                 p.open[k].push((ret, sp, now));
+                changed = true;
             }
         }
+        if changed {
+            self.profile_returns_index(k);
+        }
+    }
+
+    /// Rebuilds core `k`'s hit sets and watch set (`profile_entries`, `profile_returns`,
+    /// `profile_watch`) from the profiles and their open calls.
+    fn profile_index(&mut self, k: usize) {
+        let mut entries = std::mem::take(&mut self.profile_entries);
+        entries.clear();
+        entries.extend(self.profiles.iter().map(|p| p.entry));
+        entries.sort_unstable();
+        entries.dedup();
+        self.profile_entries = entries;
+        self.profile_returns_index(k);
+    }
+
+    /// Rebuilds core `k`'s `profile_returns` and `profile_watch` (the profiled entries are
+    /// as they were).
+    fn profile_returns_index(&mut self, k: usize) {
+        let mut returns = std::mem::take(&mut self.profile_returns[k]);
+        returns.clear();
+        let mut watch = Some([NO_WATCH; WATCH_SLOTS]);
+        let mut n = 0;
+        for p in &self.profiles {
+            let ret = match p.open[k].last() {
+                Some(&(Return::To(addr), _, _)) => Some(addr),
+                _ => None,
+            };
+            if let Some(a) = ret {
+                // Typically every open call returns to one of a few addresses.
+                if !returns.contains(&a) {
+                    returns.push(a);
+                }
+            }
+            // Handler profiles watch nothing on the fast path: they open and close at
+            // exception entry and return, on the general path.
+            for a in [(!p.handler_only).then_some(p.entry), ret]
+                .into_iter()
+                .flatten()
+            {
+                if let Some(w) = &mut watch {
+                    match w.get_mut(n) {
+                        Some(slot) => *slot = a,
+                        None => watch = None,
+                    }
+                    n += 1;
+                }
+            }
+        }
+        let mut filter = [0u64; 64];
+        for &a in self.profile_entries.iter().chain(&returns) {
+            filter[(a as usize >> 7) & 63] |= 1 << ((a >> 1) & 63);
+        }
+        self.profile_filter[k] = filter;
+        self.profile_returns[k] = returns;
+        self.profile_watch[k] = watch;
     }
 
     /// The addresses at which core `k`'s fast path must stop for [`Board::profile_step`]
@@ -188,24 +250,9 @@ impl Board {
     }
 
     /// [`Board::watch_set`] when some profile watches an address.
-    #[inline(never)]
+    #[inline(always)]
     pub(super) fn watched(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
-        let mut watch = [NO_WATCH; WATCH_SLOTS];
-        let mut n = 0;
-        for p in &self.profiles {
-            let addrs = [
-                (!p.handler_only).then_some(p.entry),
-                match p.open[k].last() {
-                    Some(&(Return::To(addr), _, _)) => Some(addr),
-                    _ => None,
-                },
-            ];
-            for a in addrs.into_iter().flatten() {
-                *watch.get_mut(n)? = a;
-                n += 1;
-            }
-        }
-        Some(watch)
+        self.profile_watch[k]
     }
 }
 
@@ -241,5 +288,6 @@ impl Board {
             p.entries[k] = entries;
         }
         self.profiled_active[k] = mark.active;
+        self.profile_returns_index(k);
     }
 }

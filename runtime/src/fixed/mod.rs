@@ -99,7 +99,7 @@ pub fn from_f64(v: f64, frac: i32) -> Sat {
     if v.is_nan() {
         return (0, true);
     }
-    let scaled = (v * 2f64.powi(frac) + 0.5).floor();
+    let scaled = (v * pow2(frac) + 0.5).floor();
     if scaled >= 2147483647.0 {
         (i32::MAX, scaled > 2147483647.0)
     } else if scaled <= -2147483648.0 {
@@ -111,7 +111,19 @@ pub fn from_f64(v: f64, frac: i32) -> Sat {
 
 /// The real value of a raw word.
 pub fn to_f64(x: i32, frac: i32) -> f64 {
-    x as f64 * 2f64.powi(-frac)
+    x as f64 * pow2(-frac)
+}
+
+/// `2^n`, exactly: built from its exponent bits for a normal `n` (−1022 to 1023), which is
+/// what `2f64.powi(n)` gives there (a product of twos is exact) without its loop;
+/// `powi` outside that range.
+#[inline]
+fn pow2(n: i32) -> f64 {
+    if (-1022..=1023).contains(&n) {
+        f64::from_bits(((n + 1023) as u64) << 52)
+    } else {
+        2f64.powi(n)
+    }
 }
 
 /// Aligns two operands to their finer format: (x', y', frac).
@@ -458,6 +470,13 @@ pub fn exp(x: i32, fx: i32, fr: i32) -> Sat {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pow2_is_powi_of_two() {
+        for n in -1100..=1100 {
+            assert_eq!(pow2(n).to_bits(), 2f64.powi(n).to_bits(), "2^{n}");
+        }
+    }
 
     fn val(s: Sat, f: i32) -> f64 {
         assert!(!s.1, "overflow");
