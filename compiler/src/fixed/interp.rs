@@ -551,8 +551,9 @@ mod tests {
     /// The resolved body ([`flat::Code`]) against the definition on the IR (every value
     /// [`Ins::Slow`]): the same outputs, events, values, states, modes, overflow flags and
     /// saturation counts at every sample of two built-in stimuli (a strike and a half dip
-    /// onto a stop; every k-th sample for a program of thousands of values) and of arbitrary sensor words (clamped to each sensor's range as every
-    /// engine clamps them), on every instrument, a shared program and each product form.
+    /// onto a stop; every k-th sample for a program of thousands of values) and of
+    /// arbitrary sensor words (clamped to each sensor's range as every engine clamps them),
+    /// on every instrument, a shared program and each product form.
     #[test]
     fn the_resolved_body_is_the_definition_on_the_ir() {
         let mut resolved = 0;

@@ -58,8 +58,7 @@ impl Board {
             calls: Vec::new(),
             entries: [0; 2],
         });
-        self.profile_index(0);
-        self.profile_returns_index(1);
+        self.profile_index();
         self.profiles.len() - 1
     }
 
@@ -164,20 +163,21 @@ impl Board {
         }
     }
 
-    /// Rebuilds core `k`'s hit sets and watch set (`profile_entries`, `profile_returns`,
-    /// `profile_watch`) from the profiles and their open calls.
-    fn profile_index(&mut self, k: usize) {
+    /// Rebuilds the sorted profiled entries and both cores' return addresses, filters and
+    /// watch sets ([`Board::profile_returns_index`]) from the profiles and their open calls.
+    fn profile_index(&mut self) {
         let mut entries = std::mem::take(&mut self.profile_entries);
         entries.clear();
         entries.extend(self.profiles.iter().map(|p| p.entry));
         entries.sort_unstable();
         entries.dedup();
         self.profile_entries = entries;
-        self.profile_returns_index(k);
+        self.profile_returns_index(0);
+        self.profile_returns_index(1);
     }
 
-    /// Rebuilds core `k`'s `profile_returns` and `profile_watch` (the profiled entries are
-    /// as they were).
+    /// Rebuilds core `k`'s `profile_returns`, `profile_filter` and `profile_watch` (the
+    /// profiled entries are as they were).
     fn profile_returns_index(&mut self, k: usize) {
         let mut returns = std::mem::take(&mut self.profile_returns[k]);
         returns.clear();
