@@ -6,32 +6,22 @@
 //! the table of every piece.
 
 use crate::check_cmd::parse_override;
-use crate::progress::PlayBar;
+use crate::progress::{CorpusBar, PlayBar};
 use crate::source;
 use crate::values;
-use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use indicatif::MultiProgress;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tactus_host::catalogue;
 use tactus_host::keyboard::KeyboardSpec;
 use tactus_host::play::{corpus, PlayConfig, TraceWindow};
-use tactus_host::session::{self as host_play, PieceOptions, Session};
+use tactus_host::session::{self as host_play, PieceOptions, PlayError, Session};
 
 use tactus_runtime::player::FingerConfig;
 
 /// Arguments of `tactus play`.
 #[derive(Debug, clap::Args)]
-#[command(
-    after_long_help = "Writes OUT/NAME-strikes.csv (one row per strike: key, time, hammer speed, MIDI velocity, \
-the input note it answers), OUT/NAME-strikes.mid (the strikes as MIDI with velocities from the simulated hammer \
-speed: 1 at 0.1 m/s to 127 at 6 m/s, logarithmic) and OUT/NAME.wav (the strikes through a synthesized modal \
-piano voice, 44.1 kHz 16-bit mono, normalised). With --trace-keys: OUT/NAME-key<K>.csv per traced key (time, key \
-travel, instrument force, hammer position, finger force), OUT/NAME-force.svg, OUT/NAME-key.svg and OUT/NAME-hammer.svg; \
-with --engine emu the force is the firmware's force word (before the safety limiter), the hammer its hammer_pos \
-output word, every sample of the trace window (the emulated keys run all the time), and two more columns: \
-motor_current_a (the current the firmware's safety limiter allowed) and dac_code (the word it wrote to the DAC). \
-Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20 --trace-keys 60,64"
-)]
+#[command(after_long_help = host_play::FILES_HELP)]
 pub struct PlayArgs {
     /// MIDI performance to play [default: a built-in 4.5 s demo]. Several files, or a
     /// directory of them (its *.mid, sorted): corpus mode — each played in turn with the
@@ -101,36 +91,31 @@ pub struct PlayArgs {
 
 /// Runs `tactus play`.
 pub fn run(args: PlayArgs) -> ExitCode {
-    let files = match corpus::expand(&args.performances) {
-        Ok(f) => f,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::FAILURE;
+    // The pieces, and the keyboard with its firmware, compiled once for every piece.
+    let made = corpus::expand(&args.performances)
+        .and_then(|files| Ok((session(&args).map_err(|e| e.to_string())?, files)));
+    let result = match made {
+        Ok((session, files)) if files.len() > 1 || args.performances.iter().any(|p| p.is_dir()) => {
+            return run_corpus(&args, &session, &files)
         }
-    };
-    // The keyboard and its firmware, compiled once for every piece.
-    let session = match session(&args) {
-        Ok(s) => s,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::FAILURE;
+        Ok((session, files)) => {
+            run_piece(&args, &session, files.first().map(PathBuf::as_path), None)
+                .map_err(|e| e.to_string())
         }
+        Err(e) => Err(e),
     };
-    if files.len() > 1 || args.performances.iter().any(|p| p.is_dir()) {
-        return run_corpus(&args, &session, &files);
-    }
-    match run_piece(&args, &session, files.first().map(PathBuf::as_path), None) {
-        Ok((c, _)) => c,
-        Err(e) => {
+    result.map_or_else(
+        |e| {
             eprintln!("error: {e}");
             ExitCode::FAILURE
-        }
-    }
+        },
+        |(code, _)| code,
+    )
 }
 
 /// The keyboard of the arguments (the layout, the instrument on every key, or the built-in
 /// default layout), the run's configuration and options.
-fn session(args: &PlayArgs) -> Result<Session, host_play::PlayError> {
+fn session(args: &PlayArgs) -> Result<Session, PlayError> {
     let input = match (&args.layout, &args.instrument) {
         (Some(l), _) => l.display().to_string(),
         (None, Some(i)) => i.clone(),
@@ -166,39 +151,23 @@ fn session(args: &PlayArgs) -> Result<Session, host_play::PlayError> {
 
 /// Corpus mode: every file in turn, one row each, the table printed and written.
 fn run_corpus(args: &PlayArgs, session: &Session, files: &[PathBuf]) -> ExitCode {
-    let multi = MultiProgress::new();
-    let outer = multi.add(ProgressBar::new(files.len() as u64));
-    outer.set_style(
-        ProgressStyle::with_template(
-            "{msg} [{bar:30}] {pos}/{len} pieces, elapsed {elapsed}, eta {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = CorpusBar::new(files.len());
     let mut rows = Vec::with_capacity(files.len());
     for f in files {
-        outer.set_message(format!("corpus: {}", f.display()));
-        rows.push(match run_piece(args, session, Some(f), Some(&multi)) {
+        bar.piece(f);
+        rows.push(match run_piece(args, session, Some(f), Some(&bar.multi)) {
             Ok((_, row)) => row,
             Err(e) => {
-                multi.suspend(|| eprintln!("error: {}: {e}", f.display()));
-                corpus::PieceRow::failed(f, e)
+                bar.multi
+                    .suspend(|| eprintln!("error: {}: {e}", f.display()));
+                corpus::PieceRow::failed(f, e.to_string())
             }
         });
-        outer.inc(1);
+        bar.inc();
     }
-    outer.finish_and_clear();
-    println!(
-        "corpus: {} performances ({})",
-        rows.len(),
-        match args.engine {
-            values::PlayEngine::Emu => "the firmware of every board, emulated",
-            _ => "host engine; no deadlines checked",
-        }
-    );
-    print!("{}", corpus::table_text(&rows));
-    if let Some(kb) = host_play::peak_memory_kb() {
-        println!("  peak memory of the run: {:.1} MB", kb as f64 / 1024.0);
-    }
+    bar.finish();
+    let emulated = matches!(args.engine, values::PlayEngine::Emu);
+    print!("{}", corpus::summary_text(&rows, emulated));
     match corpus::write_tables(&args.out, &rows) {
         Ok(paths) => paths
             .iter()
@@ -208,15 +177,16 @@ fn run_corpus(args: &PlayArgs, session: &Session, files: &[PathBuf]) -> ExitCode
             return ExitCode::FAILURE;
         }
     }
-    let failed = rows.iter().filter(|r| !r.ok()).count();
-    if failed == 0 {
-        return ExitCode::SUCCESS;
+    match rows.iter().filter(|r| !r.ok()).count() {
+        0 => ExitCode::SUCCESS,
+        failed => {
+            eprintln!(
+                "error: {failed} of {} performances failed or missed deadlines (see the table)",
+                rows.len()
+            );
+            ExitCode::FAILURE
+        }
     }
-    eprintln!(
-        "error: {failed} of {} performances failed or missed deadlines (see the table)",
-        rows.len()
-    );
-    ExitCode::FAILURE
 }
 
 /// Plays one performance (`None`: the demo) and prints what it returns; the row is the
@@ -226,38 +196,33 @@ fn run_piece(
     session: &Session,
     performance: Option<&Path>,
     multi: Option<&MultiProgress>,
-) -> Result<(ExitCode, corpus::PieceRow), String> {
-    let bar = PlayBar(match multi {
-        Some(m) => m.add(ProgressBar::new(0)),
-        None => ProgressBar::new(0),
-    });
-    bar.0.set_message(match args.engine {
-        values::PlayEngine::Emu => format!("{} keys on their boards", session.kb.keys.len()),
-        _ => "played keys".to_string(),
-    });
+) -> Result<(ExitCode, corpus::PieceRow), PlayError> {
+    let bar = PlayBar::new(
+        multi,
+        match args.engine {
+            values::PlayEngine::Emu => format!("{} keys on their boards", session.kb.keys.len()),
+            _ => "played keys".to_string(),
+        },
+    );
     let mut warn = |w: String| bar.0.suspend(|| eprintln!("warning: {w}"));
-    let piece = session
-        .play(performance, &mut warn, &bar)
-        .map_err(|e| e.to_string())?;
+    let piece = session.play(performance, &mut warn, &bar)?;
     bar.0.finish_and_clear();
     let (lines, warnings) = piece.report();
     warnings.iter().for_each(|w| eprintln!("warning: {w}"));
     lines.iter().for_each(|l| println!("{l}"));
-    for w in &piece.written {
-        println!("  wrote {}", w.display());
-    }
+    piece
+        .written
+        .iter()
+        .for_each(|w| println!("  wrote {}", w.display()));
     let row = piece.row(performance.unwrap_or(Path::new("demo")));
-    match &piece.played.boards {
-        Some(r) => {
-            print!("{}", host_play::budget_text(r));
-            if r.missed() {
-                eprintln!("error: the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)");
-                return Ok((ExitCode::FAILURE, row));
-            }
-        }
-        None => println!(
-            "  budget: not checked (host engine; `--engine emu` runs the firmware on the emulated board)"
-        ),
+    let Some(r) = &piece.played.boards else {
+        println!("  budget: not checked (host engine; `--engine emu` runs the firmware on the emulated board)");
+        return Ok((ExitCode::SUCCESS, row));
+    };
+    print!("{}", host_play::budget_text(r));
+    if r.missed() {
+        eprintln!("error: the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)");
+        return Ok((ExitCode::FAILURE, row));
     }
     Ok((ExitCode::SUCCESS, row))
 }

@@ -2,7 +2,7 @@
 //! and the play loop's bar (`tactus play`: key-samples on a host engine; music time,
 //! real-time factor and ETA on the emulated boards).
 
-use indicatif::{ProgressBar, ProgressState, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressState, ProgressStyle};
 use std::fmt::Write;
 
 /// A bar for a library's `progress(stage, done, total)` callback: the stage's name, then
@@ -36,6 +36,56 @@ impl StageBar {
 
 /// The play loop's bar ([`tactus_host::play::Progress`]).
 pub struct PlayBar(pub ProgressBar);
+
+impl PlayBar {
+    /// A new bar showing `msg`, on stderr or below the corpus bar of `multi`.
+    pub fn new(multi: Option<&MultiProgress>, msg: String) -> PlayBar {
+        let bar = match multi {
+            Some(m) => m.add(ProgressBar::new(0)),
+            None => ProgressBar::new(0),
+        };
+        bar.set_message(msg);
+        PlayBar(bar)
+    }
+}
+
+/// Corpus mode's bar over the pieces, with each piece's [`PlayBar`] below it.
+pub struct CorpusBar {
+    /// The bars, so that messages printed while they run do not tear them.
+    pub multi: MultiProgress,
+    outer: ProgressBar,
+}
+
+impl CorpusBar {
+    /// A bar over `pieces` pieces.
+    pub fn new(pieces: usize) -> CorpusBar {
+        let multi = MultiProgress::new();
+        let outer = multi.add(ProgressBar::new(pieces as u64));
+        outer.set_style(
+            ProgressStyle::with_template(
+                "{msg} [{bar:30}] {pos}/{len} pieces, elapsed {elapsed}, eta {eta}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        CorpusBar { multi, outer }
+    }
+
+    /// Shows the piece being played.
+    pub fn piece(&self, file: &std::path::Path) {
+        self.outer
+            .set_message(format!("corpus: {}", file.display()));
+    }
+
+    /// Counts a piece done.
+    pub fn inc(&self) {
+        self.outer.inc(1);
+    }
+
+    /// Removes the bars.
+    pub fn finish(&self) {
+        self.outer.finish_and_clear();
+    }
+}
 
 impl tactus_host::play::Progress for PlayBar {
     fn start(&self, total: u64, per_second: Option<f64>) {

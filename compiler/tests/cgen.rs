@@ -13,27 +13,13 @@ use tactus_compiler::lower::Config;
 use tactus_runtime::rng::XorShift64;
 use tactus_runtime::stimulus;
 
+#[path = "support/shipped.rs"]
+mod shipped;
+
 /// The instruments: every `instruments/*.tactus` and `instruments/experimental/*.tactus`
 /// (named `experimental/STEM`).
 fn instruments() -> Vec<(String, String)> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
-    let mut v = Vec::new();
-    for (dir, prefix) in [
-        (root.clone(), ""),
-        (root.join("experimental"), "experimental/"),
-    ] {
-        for p in std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()) {
-            if p.extension().is_some_and(|e| e == "tactus") {
-                v.push((
-                    format!("{prefix}{}", p.file_stem().unwrap().to_string_lossy()),
-                    std::fs::read_to_string(&p).unwrap(),
-                ));
-            }
-        }
-    }
-    v.sort();
-    assert!(!v.is_empty());
-    v
+    shipped::instrument_sources(true)
 }
 
 fn have_cc() -> bool {

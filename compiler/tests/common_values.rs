@@ -4,25 +4,22 @@
 //! piano's repeated products (a state read after a write is a new value: the piano's hammer
 //! states are written by its impact handlers between reads, which this also exercises).
 
-use std::path::Path;
 use tactus_compiler::fixed::common::share_common_values;
 use tactus_compiler::ir::{ArithOp, Op, Program, Stmt};
 use tactus_compiler::lower::Config;
 use tactus_compiler::sim::simulate;
 use tactus_runtime::stimulus;
 
+#[path = "support/shipped.rs"]
+mod shipped;
+
 fn instruments() -> Vec<(String, Program)> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
     let mut out = Vec::new();
-    for e in std::fs::read_dir(&dir).unwrap() {
-        let path = e.unwrap().path();
-        if path.extension().is_some_and(|x| x == "tactus") {
-            let text = std::fs::read_to_string(&path).unwrap();
-            let p = tactus_compiler::compile(&text, &Config::default())
-                .unwrap_or_else(|_| panic!("{} does not compile", path.display()))
-                .program;
-            out.push((p.name.clone(), p));
-        }
+    for (name, text) in shipped::instrument_sources(false) {
+        let p = tactus_compiler::compile(&text, &Config::default())
+            .unwrap_or_else(|_| panic!("{name} does not compile"))
+            .program;
+        out.push((p.name.clone(), p));
     }
     out.sort_by(|a, b| a.0.cmp(&b.0));
     out

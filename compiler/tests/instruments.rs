@@ -2,20 +2,19 @@
 //! a mutation test feeds 10,000+ damaged versions of them to the front end, which must
 //! answer with diagnostics, never a panic.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use tactus_compiler::ir::{Axis, AxisTotal, Stmt};
 use tactus_compiler::lower::Config;
 use tactus_runtime::rng::XorShift64;
 
+#[path = "support/shipped.rs"]
+mod shipped;
+
 fn instrument_files() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
-    let mut v: Vec<_> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    v.retain(|p| p.extension().is_some_and(|e| e == "tactus"));
-    v.sort();
-    v
+    shipped::instrument_files(false)
+        .into_iter()
+        .map(|(_, p)| p)
+        .collect()
 }
 
 /// Lines of an instrument's IR kept in its snapshot.

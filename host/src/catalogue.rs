@@ -101,20 +101,16 @@ fn names(list: &[(&str, &str)]) -> String {
 pub fn load(arg: &str) -> Result<Source, String> {
     let path = Path::new(arg);
     if path.exists() {
-        let len = std::fs::metadata(path)
-            .map_err(|e| format!("cannot read `{arg}`: {e}"))?
-            .len();
-        if len > MAX_SOURCE_BYTES {
-            return Err(format!(
-                "`{arg}` is {len} bytes, more than the {MAX_SOURCE_BYTES} an instrument source may have"
-            ));
-        }
-        return std::fs::read_to_string(path)
-            .map(|text| Source {
-                name: arg.to_string(),
-                text,
-            })
-            .map_err(|e| format!("cannot read `{arg}`: {e}"));
+        return tactus_runtime::files::read_text_bounded(
+            path,
+            MAX_SOURCE_BYTES,
+            "an instrument source",
+        )
+        .map(|text| Source {
+            name: arg.to_string(),
+            text,
+        })
+        .map_err(|e| e.to_string());
     }
     if !is_bare_name(arg) {
         return Err(format!(

@@ -22,20 +22,8 @@ pub const MAX_FIRMWARE_SECONDS: f64 = 60.0;
 ///
 /// Errors, as messages naming the file: unreadable, or longer than the bound.
 pub fn read_elf(path: &Path) -> Result<Vec<u8>, String> {
-    use std::io::Read;
-    let f =
-        std::fs::File::open(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let mut bytes = Vec::new();
-    f.take(MAX_ELF_BYTES + 1)
-        .read_to_end(&mut bytes)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    if bytes.len() as u64 > MAX_ELF_BYTES {
-        return Err(format!(
-            "{}: longer than {MAX_ELF_BYTES} bytes, not firmware for the RP2040",
-            path.display()
-        ));
-    }
-    Ok(bytes)
+    tactus_runtime::files::read_bounded(path, MAX_ELF_BYTES, "firmware for the RP2040")
+        .map_err(|e| e.to_string())
 }
 
 /// Runs `board` for `cycles` cycles one step at a time, handing `line` one line per

@@ -7,14 +7,14 @@
 
 use crate::keyboard::{Keyboard, KeyboardError, KeyboardSpec, Reporter};
 use crate::play::{self, corpus::PieceRow, output, strike, PlayConfig, Played, Progress};
-use crate::play::{BoardsReport, Silence, Traces};
+use crate::play::{BoardsReport, RunError, Silence, Traces};
 use crate::plot::{plot_cycle_series, plot_lines, Line};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_runtime::keyboard::BoardSpec;
-use tactus_runtime::performance::{self, Note, Performance};
+use tactus_runtime::performance::{self, MidiError, Note, Performance};
 
 /// Why a piece (or a session) cannot be played. Every message names the file.
 #[derive(Debug, thiserror::Error)]
@@ -26,16 +26,48 @@ pub enum PlayError {
     /// for every piece of a session, compiled once).
     #[error("{0}")]
     Firmware(String),
-    /// The performance cannot be read, or has nothing to play on this keyboard.
+    /// The MIDI file cannot be read.
+    #[error(transparent)]
+    Midi(#[from] MidiError),
+    /// `--seconds` is not a positive number.
     #[error("{0}")]
-    Performance(String),
+    Seconds(String),
+    /// No note of the piece starts before the cut.
+    #[error("{piece}: no note starts in the first {seconds} s")]
+    NoNoteBeforeCut {
+        /// The piece (its path, or `the demo`).
+        piece: String,
+        /// Where it was cut, s.
+        seconds: f64,
+    },
+    /// No note of the piece is on a key of the keyboard.
+    #[error("{piece}: none of its {notes} notes is on a key of the layout (its keys: {keys}): nothing to play")]
+    NoNoteOnKeyboard {
+        /// The piece (its path, or `the demo`).
+        piece: String,
+        /// Its notes.
+        notes: usize,
+        /// The keyboard's keys, as ranges.
+        keys: String,
+    },
     /// The play loop refused or failed (an instrument it cannot move, a firmware fault).
-    #[error("{0}")]
-    Run(String),
+    #[error(transparent)]
+    Run(#[from] RunError),
     /// A file of the piece cannot be written.
     #[error("{0}")]
     Write(String),
 }
+
+/// The files [`Session::play`] writes for a piece, as `tactus play --help` explains them.
+pub const FILES_HELP: &str = "Writes OUT/NAME-strikes.csv (one row per strike: key, time, hammer speed, MIDI velocity, \
+the input note it answers), OUT/NAME-strikes.mid (the strikes as MIDI with velocities from the simulated hammer \
+speed: 1 at 0.1 m/s to 127 at 6 m/s, logarithmic) and OUT/NAME.wav (the strikes through a synthesized modal \
+piano voice, 44.1 kHz 16-bit mono, normalised). With --trace-keys: OUT/NAME-key<K>.csv per traced key (time, key \
+travel, instrument force, hammer position, finger force), OUT/NAME-force.svg, OUT/NAME-key.svg and OUT/NAME-hammer.svg; \
+with --engine emu the force is the firmware's force word (before the safety limiter), the hammer its hammer_pos \
+output word, every sample of the trace window (the emulated keys run all the time), and two more columns: \
+motor_current_a (the current the firmware's safety limiter allowed) and dac_code (the word it wrote to the DAC). \
+Example: tactus play ../shared/data/performances/Maestro_1.mid --seconds 20 --trace-keys 60,64";
 
 /// What to do with a piece besides playing it.
 #[derive(Clone, Debug)]
@@ -331,8 +363,9 @@ impl Session {
     /// writes its files to `opts.out`. Warnings (a MIDI file's oddities, notes on no key,
     /// traced keys never played) go to `warn` as they arise.
     ///
-    /// Errors, naming the file: [`PlayError::Performance`] for a MIDI file that cannot be read,
-    /// no note in the first `seconds` or no note on a key of the keyboard;
+    /// Errors, naming the file: [`PlayError::Midi`] for a MIDI file that cannot be read,
+    /// [`PlayError::Seconds`] for a `seconds` that is not positive,
+    /// [`PlayError::NoNoteBeforeCut`] and [`PlayError::NoNoteOnKeyboard`] for nothing to play;
     /// [`PlayError::Keyboard`] for a played key's instrument `play` cannot move;
     /// [`PlayError::Firmware`] for firmware that does not compile;
     /// [`PlayError::Run`] for [`crate::play::play`]'s errors; [`PlayError::Write`]
@@ -347,20 +380,19 @@ impl Session {
         let name = || performance.map_or("the demo".to_string(), |p| p.display().to_string());
         let mut perf = match performance {
             Some(p) => {
-                let (perf, warnings) = performance::read_midi_reporting(p)
-                    .map_err(|e| PlayError::Performance(e.to_string()))?;
+                let (perf, warnings) = performance::read_midi_reporting(p)?;
                 warnings.into_iter().for_each(|w| warn(w.to_string()));
                 perf
             }
             None => performance::demo(),
         };
         if let Some(s) = opts.seconds {
-            perf.cut(s).map_err(PlayError::Performance)?;
+            perf.cut(s).map_err(PlayError::Seconds)?;
             if perf.notes.is_empty() {
-                return Err(PlayError::Performance(format!(
-                    "{}: no note starts in the first {s} s",
-                    name()
-                )));
+                return Err(PlayError::NoNoteBeforeCut {
+                    piece: name(),
+                    seconds: s,
+                });
             }
         }
         let on_keyboard: BTreeSet<u8> = kb.keys.iter().map(|a| a.key).collect();
@@ -376,12 +408,11 @@ impl Session {
         }
         if inside.is_empty() {
             let keys: Vec<u8> = on_keyboard.iter().copied().collect();
-            return Err(PlayError::Performance(format!(
-                "{}: none of its {} notes is on a key of the layout (its keys: {}): nothing to play",
-                name(),
-                skipped.len(),
-                tactus_firmware::verdict::key_ranges(&keys)
-            )));
+            return Err(PlayError::NoNoteOnKeyboard {
+                piece: name(),
+                notes: skipped.len(),
+                keys: tactus_firmware::verdict::key_ranges(&keys),
+            });
         }
         let perf = Performance {
             notes: inside,
@@ -395,7 +426,7 @@ impl Session {
         }
         let keyboard = kb.played(&played_keys, self.firmware()?)?;
         let started = Instant::now();
-        let played = play::play(&perf, &keyboard, config, progress).map_err(PlayError::Run)?;
+        let played = play::play(&perf, &keyboard, config, progress)?;
         let wall_s = started.elapsed().as_secs_f64();
 
         let out = &opts.out;

@@ -206,20 +206,8 @@ pub const MAX_TEXT_BYTES: u64 = 1 << 20;
 ///
 /// Errors: a message naming the file (it cannot be read, is longer, or is not UTF-8).
 pub fn read_text(path: &Path) -> Result<String, String> {
-    use std::io::Read;
-    let f =
-        std::fs::File::open(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    let mut bytes = Vec::new();
-    f.take(MAX_TEXT_BYTES + 1)
-        .read_to_end(&mut bytes)
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    if bytes.len() as u64 > MAX_TEXT_BYTES {
-        return Err(format!(
-            "{}: longer than the {MAX_TEXT_BYTES} bytes a layout, board file or key map may have",
-            path.display()
-        ));
-    }
-    String::from_utf8(bytes).map_err(|e| format!("{}: not UTF-8 text: {e}", path.display()))
+    crate::files::read_text_bounded(path, MAX_TEXT_BYTES, "a layout, board file or key map")
+        .map_err(|e| e.to_string())
 }
 
 fn read(path: &Path) -> Result<String, String> {

@@ -7,6 +7,7 @@
 
 pub mod converters;
 pub mod differentiator;
+pub mod files;
 pub mod fixed;
 pub mod friction;
 pub mod keyboard;

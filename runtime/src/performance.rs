@@ -144,16 +144,16 @@ pub fn read_midi(path: &Path) -> Result<Performance, MidiError> {
 /// Reads a MIDI file from disk, with a warning (naming the file) per repair made.
 pub fn read_midi_reporting(path: &Path) -> Result<(Performance, Vec<String>), MidiError> {
     let name = path.display().to_string();
-    let len = std::fs::metadata(path)
-        .map_err(|e| MidiError::Io(name.clone(), e))?
-        .len();
-    if len > MAX_MIDI_BYTES {
-        return Err(MidiError::Parse(
-            name,
-            format!("{len} bytes, more than the {MAX_MIDI_BYTES} a MIDI file may have"),
-        ));
-    }
-    let bytes = std::fs::read(path).map_err(|e| MidiError::Io(name.clone(), e))?;
+    let bytes =
+        crate::files::read_bounded(path, MAX_MIDI_BYTES, "a MIDI file").map_err(|e| {
+            match e.kind {
+                crate::files::ReadErrorKind::Io(io) => MidiError::Io(name.clone(), io),
+                _ => MidiError::Parse(
+                    name.clone(),
+                    format!("more than the {MAX_MIDI_BYTES} bytes a MIDI file may have"),
+                ),
+            }
+        })?;
     parse_midi_reporting(&bytes, &name)
 }
 

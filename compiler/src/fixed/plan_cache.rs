@@ -276,6 +276,81 @@ fn store_text(dir: &Path, key: &str, magic: &str, body: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::collections::BTreeSet;
+
+    /// The names `pattern` (`tactus_runtime::` or `crate::`) is followed by in the `.rs`
+    /// files under `path`.
+    fn modules_named(path: &std::path::Path, pattern: &str, out: &mut BTreeSet<String>) {
+        let files: Vec<std::path::PathBuf> = match path.is_dir() {
+            true => std::fs::read_dir(path)
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .collect(),
+            false => vec![path.to_path_buf()],
+        };
+        for f in files {
+            if f.is_dir() {
+                modules_named(&f, pattern, out);
+                continue;
+            }
+            if f.extension().is_none_or(|x| x != "rs") {
+                continue;
+            }
+            let text = std::fs::read_to_string(&f).unwrap();
+            for (i, _) in text.match_indices(pattern) {
+                let name: String = text[i + pattern.len()..]
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                    .collect();
+                if !name.is_empty() {
+                    out.insert(name);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn planner_key_covers_every_runtime_module_the_compiler_uses() {
+        // The cache key (build.rs) hashes the compiler's sources and these runtime files:
+        // every runtime module the compiler names, and every one those name in turn, must
+        // be among them, or a change there would keep stale plans.
+        let listed: BTreeSet<String> = env!("TACTUS_PLANNER_RUNTIME_MODULES")
+            .split(',')
+            .map(|m| m.trim_end_matches(".rs").to_string())
+            .collect();
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let runtime = root.join("../runtime/src");
+        let mut used = BTreeSet::new();
+        modules_named(&root.join("src"), "tactus_runtime::", &mut used);
+        // Constants at the runtime's root (`DEFAULT_SAMPLE_RATE_HZ`) are in lib.rs.
+        used.retain(|m| runtime.join(format!("{m}.rs")).is_file() || runtime.join(m).is_dir());
+        assert!(
+            used.contains("fixed") && used.contains("stimulus"),
+            "{used:?}"
+        );
+        let mut todo: Vec<String> = used.iter().cloned().collect();
+        while let Some(m) = todo.pop() {
+            let path = match runtime.join(&m).is_dir() {
+                true => runtime.join(&m),
+                false => runtime.join(format!("{m}.rs")),
+            };
+            let mut next = BTreeSet::new();
+            modules_named(&path, "crate::", &mut next);
+            for n in next {
+                let is_module =
+                    runtime.join(format!("{n}.rs")).is_file() || runtime.join(&n).is_dir();
+                if is_module && used.insert(n.clone()) {
+                    todo.push(n);
+                }
+            }
+        }
+        let missing: Vec<&String> = used.iter().filter(|m| !listed.contains(*m)).collect();
+        assert!(
+            missing.is_empty(),
+            "runtime modules the planner reads but its cache key (compiler/build.rs RUNTIME_MODULES) leaves out: {missing:?}"
+        );
+        assert!(listed.contains("lib"), "{listed:?}");
+    }
 
     #[test]
     fn every_form_round_trips_and_garbage_is_a_miss() {

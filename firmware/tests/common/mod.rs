@@ -1,29 +1,13 @@
 //! Helpers shared by the firmware tests.
 
-use std::path::Path;
+#[path = "../../../compiler/tests/support/shipped.rs"]
+mod shipped;
 
 /// The shipped instruments, `(file stem, source)`, sorted by name: every
 /// `instruments/*.tactus`, and the experimental ones (`instruments/experimental/*.tactus`,
 /// named `experimental/STEM`): every engine must agree on those too.
 pub fn instruments() -> Vec<(String, String)> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../instruments");
-    let mut v = Vec::new();
-    for (dir, prefix) in [
-        (root.clone(), ""),
-        (root.join("experimental"), "experimental/"),
-    ] {
-        for p in std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()) {
-            if p.extension().is_some_and(|e| e == "tactus") {
-                v.push((
-                    format!("{prefix}{}", p.file_stem().unwrap().to_string_lossy()),
-                    std::fs::read_to_string(&p).unwrap(),
-                ));
-            }
-        }
-    }
-    v.sort();
-    assert!(!v.is_empty());
-    v
+    shipped::instrument_sources(true)
 }
 
 /// Programs with more IR values than this are left out of the tests that build them with

@@ -101,6 +101,28 @@ pub fn expand(args: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
     Ok(files)
 }
 
+/// What `tactus play` prints after a corpus: a line naming how many performances and on
+/// what (`emulated`: the firmware of every board; else a host engine, no deadlines), the
+/// [`table_text`], and the run's peak memory where the platform tells it.
+pub fn summary_text(rows: &[PieceRow], emulated: bool) -> String {
+    let mut t = format!(
+        "corpus: {} performances ({})\n",
+        rows.len(),
+        match emulated {
+            true => "the firmware of every board, emulated",
+            false => "host engine; no deadlines checked",
+        }
+    );
+    t.push_str(&table_text(rows));
+    if let Some(kb) = crate::session::peak_memory_kb() {
+        t.push_str(&format!(
+            "  peak memory of the run: {:.1} MB\n",
+            kb as f64 / 1024.0
+        ));
+    }
+    t
+}
+
 /// The summary table as text, one line per piece after a header line, each indented two
 /// spaces: piece (file name), music s, notes, strikes, silent notes, misses (all boards),
 /// worst core cycles / deadline (`—` on a host engine), RTF, error.

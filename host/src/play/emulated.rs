@@ -12,6 +12,7 @@
 //! core.
 
 use crate::play::engine::{KeyEngine, KeySample};
+use crate::play::error::{BoardError, RunError};
 use crate::play::run::{run_keys, Drive, LoopConfig, TraceWindow};
 use crate::play::strike::{strike_event, Strike};
 use std::collections::BTreeMap;
@@ -98,7 +99,7 @@ pub fn play_boards(
     motions: &BTreeMap<u8, &Motion>,
     opts: &PerformOptions,
     progress: &(dyn Fn(u64) + Sync),
-) -> Result<KeyboardRun, String> {
+) -> Result<KeyboardRun, RunError> {
     let lim = &opts.limiter;
     let guarded: Vec<Program> = programs
         .iter()
@@ -109,7 +110,7 @@ pub fn play_boards(
         })
         .collect();
     let programs = &guarded[..];
-    let costs = ProgramCosts::new(programs, board, lim).map_err(|e| e.to_string())?;
+    let costs = ProgramCosts::new(programs, board, lim)?;
     let keys: Vec<PlanKey> = keys
         .iter()
         .zip(key_programs)
@@ -117,30 +118,29 @@ pub fn play_boards(
         .collect();
     let lists: Vec<Vec<u8>> = match &opts.boards {
         Some(l) => l.clone(),
-        None => boards::plan(programs, &costs, &keys, board, lim, &mut |_, _| {})
-            .map_err(|e| e.to_string())?
+        None => boards::plan(programs, &costs, &keys, board, lim, &mut |_, _| {})?
             .into_iter()
             .map(|b| b.keys)
             .collect(),
     };
     // A key that fits no board of this kind stops the run with the budget's reason (a
     // board over its deadline still runs: its misses are what the run shows).
-    let unfit =
-        boards::fits_no_board_each(programs, &costs, board, lim).map_err(|e| e.to_string())?;
+    let unfit = boards::fits_no_board_each(programs, &costs, board, lim)?;
     if let Some((k, why)) = keys
         .iter()
         .find_map(|k| unfit.get(k.program)?.as_ref().map(|w| (k.key, w)))
     {
-        return Err(format!(
-            "key {k} fits no {} board: {why} (`tactus budget` says the same)",
-            board.name
-        ));
+        return Err(RunError::Unfit {
+            key: k,
+            board: board.name.clone(),
+            why: why.clone(),
+        });
     }
     let decimation = opts.end.div_ceil(MAX_POINTS).max(1);
     // The boards share nothing: one rayon task each, on as many threads as the machine has
     // cores.
     use rayon::prelude::*;
-    let results: Vec<Result<(usize, BoardRun), String>> = lists
+    let results: Vec<Result<(usize, BoardRun), RunError>> = lists
         .par_iter()
         .enumerate()
         .map(|(i, list)| {
@@ -153,12 +153,10 @@ pub fn play_boards(
                 programs, &costs, &bkeys, board, motions, opts, progress, decimation,
             )
             .map(|r| (i, r))
-            .map_err(|e| {
-                format!(
-                    "board {} ({}): {e}",
-                    i + 1,
-                    tactus_firmware::verdict::key_ranges(list)
-                )
+            .map_err(|source| RunError::Board {
+                board: i + 1,
+                keys: tactus_firmware::verdict::key_ranges(list),
+                source,
             })
         })
         .collect();
@@ -206,11 +204,10 @@ impl<'p> BoardEngine<'p> {
         limiter: &LimiterConfig,
         engine: tactus_emulator::Engine,
         decimation: usize,
-    ) -> Result<Self, String> {
-        let (core_of, image) = boards::board_image(programs, costs, bkeys, board, limiter)
-            .map_err(|e| e.to_string())?;
-        let image = image.map_err(|e| e.to_string())?;
-        let mut run = image.run().map_err(|e| e.to_string())?;
+    ) -> Result<Self, BoardError> {
+        let (core_of, image) = boards::board_image(programs, costs, bkeys, board, limiter)?;
+        let image = image?;
+        let mut run = image.run()?;
         run.board().config.engine = engine;
         let n_cores = image.cores();
         let key_programs: Vec<&Program> = bkeys.iter().map(|k| &programs[k.program]).collect();
@@ -265,7 +262,7 @@ impl<'p> BoardEngine<'p> {
 }
 
 impl KeyEngine for BoardEngine<'_> {
-    fn step(&mut self, travel_m: &[f64]) -> Result<&[KeySample], String> {
+    fn step(&mut self, travel_m: &[f64]) -> Result<&[KeySample], RunError> {
         for (k, p) in self.programs.iter().enumerate() {
             // A key at rest reads the same travel sample after sample: the conversion is a
             // pure function of it, kept from the last sample.
@@ -280,7 +277,7 @@ impl KeyEngine for BoardEngine<'_> {
         let out = self
             .run
             .step(&self.sensors)
-            .map_err(|e| format!("sample {i}: {e}"))?;
+            .map_err(|source| RunError::Sample { sample: i, source })?;
         for (k, p) in self.programs.iter().enumerate() {
             self.samples[k] = KeySample {
                 force_n: to_f64(out.force[k], p.fixed.total_frac),
@@ -335,7 +332,7 @@ fn run_board(
     opts: &PerformOptions,
     progress: &(dyn Fn(u64) + Sync),
     decimation: usize,
-) -> Result<BoardRun, String> {
+) -> Result<BoardRun, BoardError> {
     let mut engine = BoardEngine::new(
         programs,
         costs,

@@ -7,6 +7,7 @@
 //!
 //! Strikes are read through [`super::strike::strike_event`], the one strike rule.
 
+use super::error::RunError;
 use super::strike::strike_event;
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::interp::SampleOut;
@@ -46,7 +47,7 @@ pub trait KeyEngine {
     ///
     /// Errors: a message when the engine cannot run the sample (an emulated board that
     /// faults).
-    fn step(&mut self, travel_m: &[f64]) -> Result<&[KeySample], String>;
+    fn step(&mut self, travel_m: &[f64]) -> Result<&[KeySample], RunError>;
     /// Key `k`'s hammer-head travel from rest after the last step, m (`NaN` when its
     /// instrument has no `hammer_pos` output). Read only for traced keys.
     fn hammer_m(&self, k: usize) -> f64;
@@ -76,7 +77,7 @@ impl<'a> HostKey<'a> {
 }
 
 impl KeyEngine for HostKey<'_> {
-    fn step(&mut self, travel_m: &[f64]) -> Result<&[KeySample], String> {
+    fn step(&mut self, travel_m: &[f64]) -> Result<&[KeySample], RunError> {
         self.last = self.engine.step_si(&travel_m[..1]);
         let out = &self.last;
         self.sample[0] = KeySample {

@@ -21,12 +21,14 @@
 pub mod corpus;
 pub mod emulated;
 pub mod engine;
+pub mod error;
 pub mod motion;
 pub mod output;
 pub mod run;
 pub mod strike;
 
 pub use engine::{KeyEngine, KeySample};
+pub use error::{BoardError, RunError};
 pub use motion::Motion;
 pub use run::{TraceRows, TraceWindow, Traces};
 pub use strike::Strike;
@@ -245,15 +247,17 @@ pub fn play(
     keyboard: &Keyboard,
     config: &PlayConfig,
     progress: &dyn Progress,
-) -> Result<Played, String> {
+) -> Result<Played, RunError> {
     let programs = &keyboard.programs;
     // Every program runs at the board's sample rate, compiled for it.
     let fs = config.board.sample_rate_hz;
     if let Some(p) = programs.iter().find(|p| p.program.sample_rate_hz != fs) {
-        return Err(format!(
-            "`{}` is compiled for {} Hz, the board `{}` samples at {fs} Hz",
-            p.name, p.program.sample_rate_hz, config.board.name
-        ));
+        return Err(RunError::SampleRate {
+            program: p.name.clone(),
+            program_hz: p.program.sample_rate_hz,
+            board: config.board.name.clone(),
+            board_hz: fs,
+        });
     }
     // The fixed-point JIT runs the keys with `Fixed`, and calibrates the force player for
     // `Emu` (the same bits as the firmware's update).
@@ -266,25 +270,29 @@ pub fn play(
             (true, Some(f)) if f.key_program.len() == keyboard.keys.len() => {
                 match f.key_program.iter().all(|&i| i < f.programs.len()) {
                     true => (f.programs, f.key_program),
-                    false => return Err("firmware: a key's program index is out of range".into()),
+                    false => {
+                        return Err(RunError::FirmwareMismatch(
+                            "a key's program index is out of range".into(),
+                        ))
+                    }
                 }
             }
             (true, Some(f)) => {
-                return Err(format!(
-                    "firmware: {} key programs for {} keys",
+                return Err(RunError::FirmwareMismatch(format!(
+                    "{} key programs for {} keys",
                     f.key_program.len(),
                     keyboard.keys.len()
-                ))
+                )))
             }
             (true, None) => {
-                return Err(format!(
-                    "firmware: the {:?} engine{} runs the firmware's programs; none were given",
+                return Err(RunError::FirmwareMismatch(format!(
+                    "the {:?} engine{} runs the firmware's programs; none were given",
                     config.engine,
                     match config.player {
                         Player::Force => " with the force player",
                         Player::Position => "",
                     }
-                ))
+                )))
             }
             (false, _) => (&[], &[]),
         };
@@ -296,7 +304,7 @@ pub fn play(
                     .iter()
                     .position(|a| keyboard.key_program.get(&a.key) == Some(&pi))
                     .map(|i| &firmware[firmware_index[i]])
-                    .ok_or_else(|| format!("program {pi} has no key"))
+                    .ok_or_else(|| RunError::FirmwareMismatch(format!("program {pi} has no key")))
             })
             .collect::<Result<_, _>>()?,
         false => Vec::new(),
@@ -308,8 +316,12 @@ pub fn play(
             .iter()
             .any(|(q, _)| fixed_programs[*q].same_code(p))
         {
-            let j = tactus_jit::fixed::FixedJitProgram::compile(&p.fixed)
-                .map_err(|e| format!("fixed JIT: {e}"))?;
+            let j = tactus_jit::fixed::FixedJitProgram::compile(&p.fixed).map_err(|e| {
+                RunError::Jit {
+                    engine: "fixed JIT",
+                    message: e.to_string(),
+                }
+            })?;
             fixed_jits.push((pi, j));
         }
     }
@@ -319,7 +331,10 @@ pub fn play(
             .map(|p| {
                 tactus_jit::JitProgram::compile(&p.program)
                     .map(Some)
-                    .map_err(|e| format!("JIT: {e}"))
+                    .map_err(|e| RunError::Jit {
+                        engine: "JIT",
+                        message: e.to_string(),
+                    })
             })
             .collect::<Result<_, _>>()?,
         _ => programs.iter().map(|_| None).collect(),
@@ -360,14 +375,14 @@ pub fn play(
         Player::Position => programs.iter().map(|_| None).collect(),
         Player::Force => (0..programs.len())
             .map(|pi| {
-                calibrate(&|| host_key(pi), dip_of(pi), finger, fs)?.map(Some).ok_or_else(|| {
-                    format!(
-                        "instrument `{}`: no calibration stroke of {:?} N struck; the force player cannot play it",
-                        programs[pi].name, CALIBRATION_LEVELS_N
-                    )
-                })
+                calibrate(&|| host_key(pi), dip_of(pi), finger, fs)?
+                    .map(Some)
+                    .ok_or_else(|| RunError::Calibration {
+                        instrument: programs[pi].name.clone(),
+                        levels: CALIBRATION_LEVELS_N.to_vec(),
+                    })
             })
-            .collect::<Result<_, String>>()?,
+            .collect::<Result<_, RunError>>()?,
     };
     // Each played key's motion and the stretches it moves.
     let mut motions: BTreeMap<u8, (Motion, Vec<(f64, f64)>)> = BTreeMap::new();
@@ -400,11 +415,11 @@ pub fn play(
             .unwrap_or(0);
         // Bounded before anything runs or is allocated per sample.
         if end > MAX_EMU_SAMPLES {
-            return Err(format!(
-                "--engine emu: the piece is {:.1} s long, more than the {:.0} s ({MAX_EMU_SAMPLES} samples) one emulated run may cover; play a part of it with --seconds",
-                end as f64 / fs,
-                MAX_EMU_SAMPLES as f64 / fs
-            ));
+            return Err(RunError::TooLong {
+                seconds: end as f64 / fs,
+                max_seconds: MAX_EMU_SAMPLES as f64 / fs,
+                max_samples: MAX_EMU_SAMPLES,
+            });
         }
         let keys: Vec<u8> = keyboard.keys.iter().map(|a| a.key).collect();
         key_samples = end as u64 * keys.len() as u64;
@@ -432,8 +447,7 @@ pub fn play(
             &key_motions,
             &opts,
             &|n| progress.inc(n),
-        )
-        .map_err(|e| format!("firmware: {e}"))?;
+        )?;
         let mut runs = Vec::with_capacity(run.boards.len());
         for mut b in run.boards {
             strikes.append(&mut b.strikes);

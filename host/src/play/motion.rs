@@ -19,6 +19,7 @@
 //! every sample, as the hardware does.
 
 use super::engine::KeyEngine;
+use super::error::RunError;
 use super::run::{run_keys, Drive, LoopConfig, TraceWindow};
 use super::strike::speed_for_velocity;
 use tactus_runtime::performance::{self, KeyTrack, Note, Performance};
@@ -96,8 +97,8 @@ pub fn calibrate<'e>(
     dip_m: f64,
     finger: FingerConfig,
     fs: f64,
-) -> Result<Option<FingerCalibration>, String> {
-    let measure = |first: Option<Stroke>, start: f64| -> Result<Vec<(f64, f64, f64)>, String> {
+) -> Result<Option<FingerCalibration>, RunError> {
+    let measure = |first: Option<Stroke>, start: f64| -> Result<Vec<(f64, f64, f64)>, RunError> {
         let mut levels = Vec::new();
         for &peak in &CALIBRATION_LEVELS_N {
             let push = Stroke {

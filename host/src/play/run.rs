@@ -9,6 +9,7 @@
 //! calibration one stroke at a time.
 
 use super::engine::KeyEngine;
+use super::error::RunError;
 use super::motion::Motion;
 use super::strike::Strike;
 use std::collections::{BTreeMap, BTreeSet};
@@ -83,7 +84,7 @@ pub fn run_keys(
     samples: Range<usize>,
     config: &LoopConfig,
     progress: &dyn Fn(u64),
-) -> Result<KeysRun, String> {
+) -> Result<KeysRun, RunError> {
     let (fs, finger, trace) = (config.fs, &config.finger, config.trace);
     let n = drives.len();
     let mut players: Vec<Option<ForcePlayer>> = drives
@@ -110,10 +111,13 @@ pub fn run_keys(
         for (k, d) in drives.iter().enumerate() {
             let s = out[k];
             if !s.force_n.is_finite() || s.strike_mps.is_some_and(|v| !v.is_finite()) {
-                return Err(format!(
-                    "key {}: the simulation computed a non-finite value at sample {i} (t = {time:.6} s): force {} N, strike speed {:?} m/s",
-                    d.key, s.force_n, s.strike_mps
-                ));
+                return Err(RunError::NonFinite {
+                    key: d.key,
+                    sample: i,
+                    time_s: time,
+                    force_n: s.force_n,
+                    strike_mps: s.strike_mps,
+                });
             }
             if let Some(speed) = s.strike_mps {
                 run.strikes.push(Strike {

@@ -79,16 +79,8 @@ impl Verdict {
 /// [`parse`] rejects.
 pub fn read(path: &std::path::Path) -> Result<Spec, String> {
     let name = path.display().to_string();
-    let len = std::fs::metadata(path)
-        .map_err(|e| format!("cannot read spec `{name}`: {e}"))?
-        .len();
-    if len > MAX_SPEC_BYTES {
-        return Err(format!(
-            "spec `{name}` is {len} bytes, more than the {MAX_SPEC_BYTES} a spec may have"
-        ));
-    }
-    let text =
-        std::fs::read_to_string(path).map_err(|e| format!("cannot read spec `{name}`: {e}"))?;
+    let text = tactus_runtime::files::read_text_bounded(path, MAX_SPEC_BYTES, "a spec")
+        .map_err(|e| format!("spec {e}"))?;
     parse(&text, &name)
 }
 

@@ -6,6 +6,9 @@ use std::path::{Path, PathBuf};
 use tactus_compiler::ir::Program;
 use tactus_compiler::lower::Config;
 
+#[path = "../../../tests/support/shipped.rs"]
+mod shipped;
+
 /// The `.tactus` files of a folder, sorted.
 pub fn tactus_files(dir: &Path) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -27,10 +30,9 @@ pub const LARGE_PROGRAM_VALUES: usize = 50_000;
 /// The shipped instruments, without those over [`LARGE_PROGRAM_VALUES`] (each one left out
 /// is printed).
 pub fn instruments() -> Vec<PathBuf> {
-    let files = tactus_files(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../instruments"));
-    assert!(files.len() >= 4, "instruments not found: {files:?}");
-    files
+    shipped::instrument_files(false)
         .into_iter()
+        .map(|(_, p)| p)
         .filter(|p| {
             let n = load_program(p).values.len();
             if n > LARGE_PROGRAM_VALUES {
