@@ -8,7 +8,9 @@
 //! the flash in [`xip`]), and [`board::Board`] runs two cores in lock-step and offers the
 //! host API: load an ELF ([`elf`]), power on from flash through the boot ROM's path, run N
 //! cycles, read and write memory, feed sensors, read the DAC, and count cycles per
-//! function. [`block`] is the default
+//! function. [`pio`] models a PIO block (state machines, FIFOs, side-set, the clock
+//! divider), stepped by its caller; it is not on the bus yet (issue 40). [`block`] is the
+//! default
 //! engine of the board's fast path: Thumb regions compiled to native code with cranelift
 //! (module `jit`), pre-decoded basic blocks otherwise ([`board::Engine`]).
 #![deny(missing_docs)]
@@ -24,6 +26,7 @@ pub mod exec;
 mod fast;
 mod jit;
 pub mod nvic;
+pub mod pio;
 pub mod semantics;
 pub mod sio;
 pub mod timer;

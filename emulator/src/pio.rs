@@ -1,0 +1,862 @@
+//! One RP2040 PIO block (PIO0 at 0x50200000, PIO1 at 0x50300000; RP2040 datasheet
+//! chapter 3): four state machines sharing 32 instruction words, each with its clock
+//! divider, scratch registers X and Y, shift registers ISR and OSR with their counters and
+//! autopush/autopull, 4-word TX and RX FIFOs (joinable to 8), side-set and delay, the eight
+//! IRQ flags, and the GPIO they drive and sample.
+//!
+//! This is the model issue 40's converter drivers run on: a board's firmware clocks its
+//! SPI ADC and DAC frames out of state machines (`tactus_runtime::converters`), so the
+//! emulator must give each frame's edges at the cycle the chip would. The model is stepped
+//! once per system clock cycle ([`Pio::tick`]) with the GPIO input levels of that cycle; it
+//! returns nothing, and the pins it drives are read with [`Pio::pin_values`] and
+//! [`Pio::pin_dirs`]. Its registers are read and written through [`Pio::read`] and
+//! [`Pio::write`] (offsets of datasheet 3.7); the DMA request lines are [`Pio::tx_dreq`] and
+//! [`Pio::rx_dreq`] (datasheet 2.5.3.1: TX while the TX FIFO is not full, RX while the RX
+//! FIFO is not empty).
+//!
+//! What each cycle does, as datasheet 3.4 and 3.5 give it:
+//! - The clock divider (SMx_CLKDIV, INT + FRAC/256, INT 0 meaning 65536) enables the state
+//!   machine on average once every INT + FRAC/256 cycles: a first-order fractional divider
+//!   (an accumulator of 256 a cycle against the divisor). Its phase after CLKDIV_RESTART is
+//!   this model's choice; the datasheet does not give it.
+//! - On an enabled cycle, a pending delay counts down; otherwise the instruction at PC (or
+//!   one forced through SMx_INSTR, OUT EXEC or MOV EXEC) runs. Its side-set is asserted
+//!   whether or not it stalls (3.5.1); a stalled instruction runs again on the next enabled
+//!   cycle and its delay starts only once it completes; PC advances through the wrap
+//!   (EXECCTRL WRAP_TOP → WRAP_BOTTOM).
+//! - Autopull and autopush follow the pseudocode of 3.5.4.1 and 3.5.4.2: an OUT with the
+//!   OSR at its threshold refills it and stalls that cycle (an empty OSR cannot be filled
+//!   and shifted out in one cycle), and on every other cycle an OSR at its threshold refills
+//!   from a non-empty TX FIFO; an IN that reaches the push threshold with the RX FIFO full
+//!   stalls (modelled as not shifting until the push can happen, so its retry is the same
+//!   instruction).
+//! - GPIO inputs pass a two-flop synchroniser (3.5.6.3) unless INPUT_SYNC_BYPASS has the
+//!   pin: a state machine sees a level two cycles after it is applied.
+//! - When several state machines write one pin in a cycle, the highest-numbered wins
+//!   (3.5.6.1).
+//!
+//! Not modelled yet: the interrupt outputs (IRQ0/IRQ1 INTE/INTF/INTS), FDEBUG's stall and
+//! overflow flags, SMx_EXECCTRL STATUS_SEL's RX level variant is modelled but OUT_STICKY and
+//! INLINE_OUT_EN are not, and the model is not on the bus yet.
+
+/// Base address of PIO0 (datasheet 2.2).
+pub const PIO0_BASE: u32 = 0x5020_0000;
+/// Base address of PIO1.
+pub const PIO1_BASE: u32 = 0x5030_0000;
+
+/// Register offsets (datasheet 3.7).
+pub mod reg {
+    /// State machine enables, restarts and clock-divider restarts.
+    pub const CTRL: u32 = 0x000;
+    /// FIFO status: RXFULL 3:0, RXEMPTY 11:8, TXFULL 19:16, TXEMPTY 27:24.
+    pub const FSTAT: u32 = 0x004;
+    /// FIFO debug (stall and overflow flags; reads 0 here).
+    pub const FDEBUG: u32 = 0x008;
+    /// FIFO levels: TX n at bits 8n+3:8n, RX n at 8n+7:8n+4.
+    pub const FLEVEL: u32 = 0x00c;
+    /// TX FIFO of state machine 0 (TXFn at `TXF0 + 4n`); write only.
+    pub const TXF0: u32 = 0x010;
+    /// RX FIFO of state machine 0 (RXFn at `RXF0 + 4n`); read only.
+    pub const RXF0: u32 = 0x020;
+    /// The eight IRQ flags; write 1 to clear.
+    pub const IRQ: u32 = 0x030;
+    /// Write 1 to set IRQ flags.
+    pub const IRQ_FORCE: u32 = 0x034;
+    /// GPIOs whose input synchroniser is bypassed.
+    pub const INPUT_SYNC_BYPASS: u32 = 0x038;
+    /// First instruction word (INSTR_MEMn at `INSTR_MEM0 + 4n`, n < 32); write only.
+    pub const INSTR_MEM0: u32 = 0x048;
+    /// State machine 0's clock divider (state machine n's registers at `+ 0x18 n`).
+    pub const SM0_CLKDIV: u32 = 0x0c8;
+    /// State machine 0's execution settings.
+    pub const SM0_EXECCTRL: u32 = 0x0cc;
+    /// State machine 0's shift settings.
+    pub const SM0_SHIFTCTRL: u32 = 0x0d0;
+    /// State machine 0's program counter (read only).
+    pub const SM0_ADDR: u32 = 0x0d4;
+    /// State machine 0's current instruction; a write executes one immediately.
+    pub const SM0_INSTR: u32 = 0x0d8;
+    /// State machine 0's pin mapping.
+    pub const SM0_PINCTRL: u32 = 0x0dc;
+    /// Distance between two state machines' register groups.
+    pub const SM_STRIDE: u32 = 0x18;
+}
+
+/// Reset value of SMx_CLKDIV: INT = 1 (datasheet 3.7).
+const CLKDIV_RESET: u32 = 0x0001_0000;
+/// Reset value of SMx_EXECCTRL: WRAP_TOP = 31.
+const EXECCTRL_RESET: u32 = 0x0001_f000;
+/// Reset value of SMx_SHIFTCTRL: IN_SHIFTDIR and OUT_SHIFTDIR right.
+const SHIFTCTRL_RESET: u32 = 0x000c_0000;
+/// Reset value of SMx_PINCTRL: SET_COUNT = 5.
+const PINCTRL_RESET: u32 = 0x1400_0000;
+
+/// Bits `lo..lo+n` of `v`.
+fn bits(v: u32, lo: u32, n: u32) -> u32 {
+    (v >> lo) & ((1u32 << n) - 1)
+}
+
+/// A bit count field where 0 means 32.
+fn count32(c: u32) -> u32 {
+    if c == 0 {
+        32
+    } else {
+        c
+    }
+}
+
+/// A FIFO of up to 8 words.
+#[derive(Clone, Debug, Default)]
+struct Fifo {
+    words: std::collections::VecDeque<u32>,
+}
+
+impl Fifo {
+    fn len(&self) -> usize {
+        self.words.len()
+    }
+    fn pop(&mut self) -> Option<u32> {
+        self.words.pop_front()
+    }
+}
+
+/// One state machine.
+#[derive(Clone, Debug)]
+struct StateMachine {
+    clkdiv: u32,
+    execctrl: u32,
+    shiftctrl: u32,
+    pinctrl: u32,
+    pc: u32,
+    x: u32,
+    y: u32,
+    isr: u32,
+    osr: u32,
+    isr_count: u32,
+    osr_count: u32,
+    tx: Fifo,
+    rx: Fifo,
+    /// Delay cycles left of the last instruction.
+    delay: u32,
+    /// An instruction to run instead of the one at PC (SMx_INSTR, OUT/MOV EXEC).
+    exec: Option<u16>,
+    /// The instruction last executed or stalled (SMx_INSTR reads it).
+    current: u16,
+    /// The clock divider's accumulator, in 1/256 cycle.
+    acc: u32,
+    /// An `IRQ … wait` that has set its flag and waits for it to clear.
+    irq_waiting: bool,
+}
+
+impl StateMachine {
+    fn new() -> Self {
+        StateMachine {
+            clkdiv: CLKDIV_RESET,
+            execctrl: EXECCTRL_RESET,
+            shiftctrl: SHIFTCTRL_RESET,
+            pinctrl: PINCTRL_RESET,
+            pc: 0,
+            x: 0,
+            y: 0,
+            isr: 0,
+            osr: 0,
+            isr_count: 0,
+            osr_count: 32,
+            tx: Fifo::default(),
+            rx: Fifo::default(),
+            delay: 0,
+            exec: None,
+            current: 0,
+            acc: 0,
+            irq_waiting: false,
+        }
+    }
+
+    /// The FIFO depths (TX, RX): 4 each, or 8 and 0 when joined (SHIFTCTRL FJOIN_TX bit 30,
+    /// FJOIN_RX bit 31).
+    fn depths(&self) -> (usize, usize) {
+        match (self.shiftctrl >> 30) & 3 {
+            1 => (8, 0),
+            2 => (0, 8),
+            _ => (4, 4),
+        }
+    }
+    fn tx_full(&self) -> bool {
+        self.tx.len() >= self.depths().0
+    }
+    fn rx_full(&self) -> bool {
+        self.rx.len() >= self.depths().1
+    }
+    fn autopush(&self) -> bool {
+        self.shiftctrl & (1 << 16) != 0
+    }
+    fn autopull(&self) -> bool {
+        self.shiftctrl & (1 << 17) != 0
+    }
+    fn in_right(&self) -> bool {
+        self.shiftctrl & (1 << 18) != 0
+    }
+    fn out_right(&self) -> bool {
+        self.shiftctrl & (1 << 19) != 0
+    }
+    fn push_thresh(&self) -> u32 {
+        count32(bits(self.shiftctrl, 20, 5))
+    }
+    fn pull_thresh(&self) -> u32 {
+        count32(bits(self.shiftctrl, 25, 5))
+    }
+    fn wrap_top(&self) -> u32 {
+        bits(self.execctrl, 12, 5)
+    }
+    fn wrap_bottom(&self) -> u32 {
+        bits(self.execctrl, 7, 5)
+    }
+    fn sideset_count(&self) -> u32 {
+        bits(self.pinctrl, 29, 3)
+    }
+    fn side_en(&self) -> bool {
+        self.execctrl & (1 << 30) != 0
+    }
+    fn side_pindir(&self) -> bool {
+        self.execctrl & (1 << 29) != 0
+    }
+
+    /// The divisor in 1/256 cycle (INT 0 is 65536).
+    fn divisor(&self) -> u32 {
+        let int = self.clkdiv >> 16;
+        let frac = bits(self.clkdiv, 8, 8);
+        let int = if int == 0 { 65_536 } else { int };
+        int * 256 + frac
+    }
+
+    /// The pins of `value` (a word whose low `count` bits go to pins `base..`, wrapping at
+    /// 32) as (mask, levels).
+    fn map(base: u32, count: u32, value: u32) -> (u32, u32) {
+        let mask = if count >= 32 {
+            u32::MAX
+        } else {
+            (1u32 << count) - 1
+        };
+        ((mask).rotate_left(base), (value & mask).rotate_left(base))
+    }
+
+    fn advance(&mut self) {
+        self.pc = if self.pc == self.wrap_top() {
+            self.wrap_bottom()
+        } else {
+            (self.pc + 1) & 31
+        };
+    }
+
+    fn restart(&mut self) {
+        self.isr = 0;
+        self.isr_count = 0;
+        self.osr_count = 32;
+        self.delay = 0;
+        self.exec = None;
+        self.irq_waiting = false;
+    }
+}
+
+/// What one instruction did to the pins in a cycle: (mask, levels) written to the pin
+/// values and directions by the instruction (OUT, SET, MOV) and by its side-set, which
+/// wins where both write a pin (datasheet 3.5.6.1).
+#[derive(Default)]
+struct Effects {
+    values: (u32, u32),
+    dirs: (u32, u32),
+    side_values: (u32, u32),
+    side_dirs: (u32, u32),
+}
+
+/// One PIO block. See the module documentation.
+#[derive(Clone, Debug)]
+pub struct Pio {
+    instr: [u16; 32],
+    sm: [StateMachine; 4],
+    /// SM_ENABLE bits.
+    enabled: u32,
+    irq: u8,
+    sync_bypass: u32,
+    /// The synchroniser's two flops: what the state machines see is `sync[1]`.
+    sync: [u32; 2],
+    /// Pin output levels and directions as the state machines left them.
+    out_values: u32,
+    out_dirs: u32,
+}
+
+impl Default for Pio {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Pio {
+    /// A PIO block out of reset: every state machine disabled, its registers at their reset
+    /// values, the FIFOs empty, pins low and inputs.
+    pub fn new() -> Self {
+        Pio {
+            instr: [0; 32],
+            sm: std::array::from_fn(|_| StateMachine::new()),
+            enabled: 0,
+            irq: 0,
+            sync_bypass: 0,
+            sync: [0; 2],
+            out_values: 0,
+            out_dirs: 0,
+        }
+    }
+
+    /// The output levels the state machines drive (bit n: GPIO n), whatever the pin's
+    /// direction.
+    pub fn pin_values(&self) -> u32 {
+        self.out_values
+    }
+
+    /// The pin directions the state machines set (bit n: GPIO n is an output).
+    pub fn pin_dirs(&self) -> u32 {
+        self.out_dirs
+    }
+
+    /// Whether state machine `sm` (0–3) requests a DMA write: its TX FIFO is not full.
+    pub fn tx_dreq(&self, sm: usize) -> bool {
+        self.sm.get(sm).is_some_and(|s| !s.tx_full())
+    }
+
+    /// Whether state machine `sm` (0–3) requests a DMA read: its RX FIFO is not empty.
+    pub fn rx_dreq(&self, sm: usize) -> bool {
+        self.sm.get(sm).is_some_and(|s| !s.rx.words.is_empty())
+    }
+
+    /// Reads register `offset` (datasheet 3.7; reading an RXF pops it, an empty one reads
+    /// 0; write-only and unknown offsets read 0).
+    pub fn read(&mut self, offset: u32) -> u32 {
+        match offset {
+            reg::CTRL => self.enabled,
+            reg::FSTAT => (0..4).fold(0, |acc, n| {
+                let s = &self.sm[n];
+                acc | u32::from(s.rx_full()) << n
+                    | u32::from(s.rx.len() == 0) << (8 + n)
+                    | u32::from(s.tx_full()) << (16 + n)
+                    | u32::from(s.tx.len() == 0) << (24 + n)
+            }),
+            reg::FLEVEL => (0..4).fold(0, |acc, n| {
+                let s = &self.sm[n];
+                acc | (s.tx.len() as u32) << (8 * n) | (s.rx.len() as u32) << (8 * n + 4)
+            }),
+            reg::IRQ => u32::from(self.irq),
+            reg::INPUT_SYNC_BYPASS => self.sync_bypass,
+            o if (reg::RXF0..reg::RXF0 + 16).contains(&o) => self.sm
+                [((o - reg::RXF0) / 4) as usize]
+                .rx
+                .pop()
+                .unwrap_or(0),
+            o if (reg::SM0_CLKDIV..reg::SM0_CLKDIV + 4 * reg::SM_STRIDE).contains(&o) => {
+                let n = ((o - reg::SM0_CLKDIV) / reg::SM_STRIDE) as usize;
+                let s = &self.sm[n];
+                match (o - reg::SM0_CLKDIV) % reg::SM_STRIDE {
+                    0x00 => s.clkdiv,
+                    0x04 => s.execctrl & !(1 << 31) | u32::from(s.exec.is_some()) << 31,
+                    0x08 => s.shiftctrl,
+                    0x0c => s.pc,
+                    0x10 => u32::from(s.current),
+                    _ => s.pinctrl,
+                }
+            }
+            _ => 0,
+        }
+    }
+
+    /// Writes register `offset` (datasheet 3.7; a write to a full TX FIFO is dropped, as
+    /// the hardware does, setting a TXOVER flag this model does not keep).
+    pub fn write(&mut self, offset: u32, value: u32) {
+        match offset {
+            reg::CTRL => {
+                self.enabled = value & 0xf;
+                for n in 0..4 {
+                    if value & (1 << (4 + n)) != 0 {
+                        self.sm[n].restart();
+                    }
+                    if value & (1 << (8 + n)) != 0 {
+                        self.sm[n].acc = 0;
+                    }
+                }
+            }
+            reg::IRQ => self.irq &= !(value as u8),
+            reg::IRQ_FORCE => self.irq |= value as u8,
+            reg::INPUT_SYNC_BYPASS => self.sync_bypass = value,
+            o if (reg::TXF0..reg::TXF0 + 16).contains(&o) => {
+                let s = &mut self.sm[((o - reg::TXF0) / 4) as usize];
+                if !s.tx_full() {
+                    s.tx.words.push_back(value);
+                }
+            }
+            o if (reg::INSTR_MEM0..reg::INSTR_MEM0 + 128).contains(&o) => {
+                self.instr[((o - reg::INSTR_MEM0) / 4) as usize] = value as u16;
+            }
+            o if (reg::SM0_CLKDIV..reg::SM0_CLKDIV + 4 * reg::SM_STRIDE).contains(&o) => {
+                let n = ((o - reg::SM0_CLKDIV) / reg::SM_STRIDE) as usize;
+                match (o - reg::SM0_CLKDIV) % reg::SM_STRIDE {
+                    0x00 => self.sm[n].clkdiv = value & 0xffff_ff00,
+                    0x04 => self.sm[n].execctrl = value & 0x7fff_ffff,
+                    0x08 => {
+                        let s = &mut self.sm[n];
+                        // Changing FJOIN discards the FIFOs' data (datasheet 3.5.3).
+                        if (s.shiftctrl ^ value) >> 30 != 0 {
+                            s.tx.words.clear();
+                            s.rx.words.clear();
+                        }
+                        s.shiftctrl = value & 0xffff_0000;
+                    }
+                    0x0c => {}
+                    0x10 => {
+                        // Executed at once, on the next enabled cycle or now when disabled.
+                        self.sm[n].exec = Some(value as u16);
+                        if self.enabled & (1 << n) == 0 {
+                            let gpio = self.sync[1];
+                            let fx = self.execute(n, gpio);
+                            self.apply(&fx);
+                        }
+                    }
+                    _ => self.sm[n].pinctrl = value,
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Advances the block one system clock cycle; `gpio_in` is the GPIO input levels of
+    /// this cycle (bit n: GPIO n).
+    pub fn tick(&mut self, gpio_in: u32) {
+        // What the state machines see this cycle: synchronised, or direct where bypassed.
+        let seen = (self.sync[1] & !self.sync_bypass) | (gpio_in & self.sync_bypass);
+        self.sync = [gpio_in, self.sync[0]];
+        let mut all = Vec::with_capacity(4);
+        for n in 0..4 {
+            if self.enabled & (1 << n) == 0 {
+                continue;
+            }
+            let s = &mut self.sm[n];
+            s.acc += 256;
+            if s.acc < s.divisor() {
+                continue;
+            }
+            s.acc -= s.divisor();
+            all.push(self.execute(n, seen));
+        }
+        // In state machine order: the highest-numbered writes last and wins.
+        for fx in &all {
+            self.apply(fx);
+        }
+    }
+
+    fn apply(&mut self, fx: &Effects) {
+        let set = |old: u32, (m, v): (u32, u32)| old & !m | v;
+        self.out_values = set(set(self.out_values, fx.values), fx.side_values);
+        self.out_dirs = set(set(self.out_dirs, fx.dirs), fx.side_dirs);
+    }
+
+    /// Runs one enabled cycle of state machine `n`, the state machines seeing `gpio`.
+    fn execute(&mut self, n: usize, gpio: u32) -> Effects {
+        let mut fx = Effects::default();
+        let forced = self.sm[n].exec.is_some();
+        if self.sm[n].delay > 0 && !forced {
+            self.sm[n].delay -= 1;
+            self.background_pull(n);
+            return fx;
+        }
+        let ins = match self.sm[n].exec.take() {
+            Some(i) => i,
+            None => self.instr[self.sm[n].pc as usize],
+        };
+        self.sm[n].current = ins;
+        // Side-set and delay (datasheet 3.5.1): asserted even when the instruction stalls.
+        let s = &self.sm[n];
+        let field = bits(u32::from(ins), 8, 5);
+        let count = s.sideset_count();
+        let delay_bits = 5 - count.min(5);
+        let delay = bits(field, 0, delay_bits);
+        let side_bits = if s.side_en() {
+            count.saturating_sub(1)
+        } else {
+            count
+        };
+        let side_on = !s.side_en() || (count > 0 && field & (1 << 4) != 0);
+        if side_on && side_bits > 0 {
+            let side = bits(field >> delay_bits, 0, side_bits);
+            let m = StateMachine::map(bits(s.pinctrl, 10, 5), side_bits, side);
+            if s.side_pindir() {
+                fx.side_dirs = m;
+            } else {
+                fx.side_values = m;
+            }
+        }
+        let done = self.run(n, ins, gpio, &mut fx);
+        let s = &mut self.sm[n];
+        match done {
+            Flow::Stall => {
+                // The instruction runs again next time (kept as the forced one if it was).
+                if forced {
+                    s.exec = Some(ins);
+                }
+                return fx;
+            }
+            Flow::Next => s.advance(),
+            Flow::Jump(to) => s.pc = to & 31,
+            Flow::Stay => {}
+        }
+        // OUT EXEC and MOV EXEC ignore their own delay (datasheet 3.4.5.2).
+        if !matches!(done, Flow::Stay) {
+            s.delay = delay;
+        }
+        fx
+    }
+
+    /// Autopull on a cycle that is not an OUT's (datasheet 3.5.4.2).
+    fn background_pull(&mut self, n: usize) {
+        let s = &mut self.sm[n];
+        if !s.autopull() {
+            return;
+        }
+        if s.osr_count >= s.pull_thresh() {
+            if let Some(w) = s.tx.pop() {
+                s.osr = w;
+                s.osr_count = 0;
+            }
+        }
+    }
+
+    /// Executes `ins` on state machine `n`; what happens to PC.
+    fn run(&mut self, n: usize, ins: u16, gpio: u32, fx: &mut Effects) -> Flow {
+        let ins = u32::from(ins);
+        let op = ins >> 13;
+        let arg1 = bits(ins, 5, 3);
+        let arg2 = bits(ins, 0, 5);
+        let sm_n = n as u32;
+        let irq_index = |idx: u32| -> u32 {
+            // Bit 4 (REL): add the state machine number to the low two bits.
+            if idx & 0x10 != 0 {
+                (idx & 4) | ((idx + sm_n) & 3)
+            } else {
+                idx & 7
+            }
+        };
+        let in_base = bits(self.sm[n].pinctrl, 15, 5);
+        let pins_in = gpio.rotate_right(in_base);
+        let flow = match op {
+            // JMP
+            0 => {
+                let s = &mut self.sm[n];
+                let take = match arg1 {
+                    0 => true,
+                    1 => s.x == 0,
+                    2 => {
+                        let t = s.x != 0;
+                        s.x = s.x.wrapping_sub(1);
+                        t
+                    }
+                    3 => s.y == 0,
+                    4 => {
+                        let t = s.y != 0;
+                        s.y = s.y.wrapping_sub(1);
+                        t
+                    }
+                    5 => s.x != s.y,
+                    6 => gpio & (1 << bits(s.execctrl, 24, 5)) != 0,
+                    _ => s.osr_count < s.pull_thresh(),
+                };
+                match take {
+                    true => Flow::Jump(arg2),
+                    false => Flow::Next,
+                }
+            }
+            // WAIT
+            1 => {
+                let pol = ins & 0x80 != 0;
+                let idx = arg2;
+                let met = match bits(ins, 5, 2) {
+                    0 => (gpio >> idx) & 1 == u32::from(pol),
+                    1 => (pins_in >> idx) & 1 == u32::from(pol),
+                    2 => {
+                        let f = irq_index(idx);
+                        let set = self.irq & (1 << f) != 0;
+                        if pol && set {
+                            // WAIT 1 IRQ clears the flag it waited for.
+                            self.irq &= !(1 << f);
+                        }
+                        set == pol
+                    }
+                    _ => true,
+                };
+                match met {
+                    true => Flow::Next,
+                    false => Flow::Stall,
+                }
+            }
+            // IN
+            2 => {
+                let c = count32(arg2);
+                let s = &self.sm[n];
+                let data = match arg1 {
+                    0 => pins_in,
+                    1 => s.x,
+                    2 => s.y,
+                    6 => s.isr,
+                    7 => s.osr,
+                    _ => 0,
+                };
+                let after = (s.isr_count + c).min(32);
+                if s.autopush() && after >= s.push_thresh() && s.rx_full() {
+                    Flow::Stall
+                } else {
+                    let s = &mut self.sm[n];
+                    let data = if c == 32 { data } else { data & ((1 << c) - 1) };
+                    s.isr = match (s.in_right(), c) {
+                        (_, 32) => data,
+                        (true, _) => (s.isr >> c) | (data << (32 - c)),
+                        (false, _) => (s.isr << c) | data,
+                    };
+                    s.isr_count = after;
+                    if s.autopush() && s.isr_count >= s.push_thresh() {
+                        s.rx.words.push_back(s.isr);
+                        s.isr = 0;
+                        s.isr_count = 0;
+                    }
+                    self.background_pull(n);
+                    Flow::Next
+                }
+            }
+            // OUT
+            3 => {
+                let c = count32(arg2);
+                let s = &mut self.sm[n];
+                if s.autopull() && s.osr_count >= s.pull_thresh() {
+                    // Refill (or wait for data), and stall this cycle either way.
+                    if let Some(w) = s.tx.pop() {
+                        s.osr = w;
+                        s.osr_count = 0;
+                    }
+                    return Flow::Stall;
+                }
+                let data = match (s.out_right(), c) {
+                    (_, 32) => s.osr,
+                    (true, _) => s.osr & ((1 << c) - 1),
+                    (false, _) => s.osr >> (32 - c),
+                };
+                s.osr = match (s.out_right(), c) {
+                    (_, 32) => 0,
+                    (true, _) => s.osr >> c,
+                    (false, _) => s.osr << c,
+                };
+                s.osr_count = (s.osr_count + c).min(32);
+                let (out_base, out_count) = (bits(s.pinctrl, 0, 5), bits(s.pinctrl, 20, 6));
+                let flow = match arg1 {
+                    0 => {
+                        fx.values = StateMachine::map(out_base, out_count, data);
+                        Flow::Next
+                    }
+                    1 => {
+                        s.x = data;
+                        Flow::Next
+                    }
+                    2 => {
+                        s.y = data;
+                        Flow::Next
+                    }
+                    4 => {
+                        fx.dirs = StateMachine::map(out_base, out_count, data);
+                        Flow::Next
+                    }
+                    5 => Flow::Jump(data),
+                    6 => {
+                        s.isr = data;
+                        s.isr_count = c;
+                        Flow::Next
+                    }
+                    7 => {
+                        s.exec = Some(data as u16);
+                        s.advance();
+                        Flow::Stay
+                    }
+                    _ => Flow::Next,
+                };
+                // After the shift, refill at once when data is there (3.5.4.2, lines 11–14).
+                if s.autopull() && s.osr_count >= s.pull_thresh() {
+                    if let Some(w) = s.tx.pop() {
+                        s.osr = w;
+                        s.osr_count = 0;
+                    }
+                }
+                flow
+            }
+            // PUSH / PULL
+            4 => {
+                let if_flag = ins & 0x40 != 0;
+                let block = ins & 0x20 != 0;
+                let s = &mut self.sm[n];
+                if ins & 0x80 == 0 {
+                    // PUSH
+                    if if_flag && s.isr_count < s.push_thresh() {
+                        Flow::Next
+                    } else if s.rx_full() {
+                        match block {
+                            true => Flow::Stall,
+                            false => {
+                                s.isr = 0;
+                                s.isr_count = 0;
+                                Flow::Next
+                            }
+                        }
+                    } else {
+                        s.rx.words.push_back(s.isr);
+                        s.isr = 0;
+                        s.isr_count = 0;
+                        Flow::Next
+                    }
+                } else if if_flag && s.osr_count < s.pull_thresh() {
+                    Flow::Next
+                } else {
+                    // PULL
+                    match s.tx.pop() {
+                        Some(w) => {
+                            s.osr = w;
+                            s.osr_count = 0;
+                            Flow::Next
+                        }
+                        None if block => Flow::Stall,
+                        None => {
+                            s.osr = s.x;
+                            s.osr_count = 0;
+                            Flow::Next
+                        }
+                    }
+                }
+            }
+            // MOV
+            5 => {
+                let s = &self.sm[n];
+                let src = match arg2 & 7 {
+                    0 => pins_in,
+                    1 => s.x,
+                    2 => s.y,
+                    3 => 0,
+                    5 => {
+                        // STATUS: all ones when the chosen FIFO level is below STATUS_N.
+                        let level = bits(s.execctrl, 0, 4) as usize;
+                        let below = match s.execctrl & (1 << 4) != 0 {
+                            false => s.tx.len() < level,
+                            true => s.rx.len() < level,
+                        };
+                        if below {
+                            u32::MAX
+                        } else {
+                            0
+                        }
+                    }
+                    6 => s.isr,
+                    7 => s.osr,
+                    _ => 0,
+                };
+                let v = match bits(ins, 3, 2) {
+                    1 => !src,
+                    2 => src.reverse_bits(),
+                    _ => src,
+                };
+                let (out_base, out_count) = (bits(s.pinctrl, 0, 5), bits(s.pinctrl, 20, 6));
+                let s = &mut self.sm[n];
+                match arg1 {
+                    0 => {
+                        fx.values = StateMachine::map(out_base, out_count, v);
+                        Flow::Next
+                    }
+                    1 => {
+                        s.x = v;
+                        Flow::Next
+                    }
+                    2 => {
+                        s.y = v;
+                        Flow::Next
+                    }
+                    4 => {
+                        s.exec = Some(v as u16);
+                        s.advance();
+                        Flow::Stay
+                    }
+                    5 => Flow::Jump(v),
+                    6 => {
+                        s.isr = v;
+                        s.isr_count = 0;
+                        Flow::Next
+                    }
+                    7 => {
+                        s.osr = v;
+                        s.osr_count = 0;
+                        Flow::Next
+                    }
+                    _ => Flow::Next,
+                }
+            }
+            // IRQ
+            6 => {
+                let f = irq_index(arg2);
+                let clear = ins & 0x40 != 0;
+                let wait = ins & 0x20 != 0;
+                let s = &mut self.sm[n];
+                if clear {
+                    self.irq &= !(1 << f);
+                    Flow::Next
+                } else if s.irq_waiting {
+                    // Set on an earlier cycle of this instruction: wait for it to clear.
+                    match self.irq & (1 << f) != 0 {
+                        true => Flow::Stall,
+                        false => {
+                            s.irq_waiting = false;
+                            Flow::Next
+                        }
+                    }
+                } else {
+                    self.irq |= 1 << f;
+                    match wait {
+                        true => {
+                            s.irq_waiting = true;
+                            Flow::Stall
+                        }
+                        false => Flow::Next,
+                    }
+                }
+            }
+            // SET
+            _ => {
+                let s = &mut self.sm[n];
+                let (set_base, set_count) = (bits(s.pinctrl, 5, 5), bits(s.pinctrl, 26, 3));
+                match arg1 {
+                    0 => fx.values = StateMachine::map(set_base, set_count, arg2),
+                    1 => s.x = arg2,
+                    2 => s.y = arg2,
+                    4 => fx.dirs = StateMachine::map(set_base, set_count, arg2),
+                    _ => {}
+                }
+                Flow::Next
+            }
+        };
+        if op != 3 && op != 2 {
+            // Every cycle but an OUT's may autopull (PULL and MOV OSR have just set the
+            // output count to 0 themselves).
+            self.background_pull(n);
+        }
+        flow
+    }
+}
+
+/// What an executed instruction does to PC.
+#[derive(Clone, Copy, Debug)]
+enum Flow {
+    /// It stalled: it runs again next time, PC unchanged, no delay.
+    Stall,
+    /// PC advances through the wrap.
+    Next,
+    /// PC is set.
+    Jump(u32),
+    /// PC was already handled (OUT/MOV EXEC: the next cycle runs the executee).
+    Stay,
+}

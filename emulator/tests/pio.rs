@@ -1,0 +1,332 @@
+//! The PIO model (`tactus_emulator::pio`) against the RP2040 datasheet's chapter 3: an SPI
+//! mode-0 master (pico-examples' `spi_cpha0`, the program the converter drivers will use)
+//! exchanging bytes with a device model at the datasheet's rate of four state-machine cycles
+//! a bit, with SCK held low while it waits for data; the clock divider's fractional rate; a
+//! `jmp x--` loop's count and timing; autopush stalling on a full RX FIFO; non-blocking
+//! PULL; FIFO joining and levels; the input synchroniser's two cycles.
+
+use tactus_emulator::pio::{reg, Pio};
+
+/// pioasm's encodings (pico-examples `spi.pio`, `.side_set 1`):
+/// `out pins, 1 side 0 [1]` and `in pins, 1 side 1 [1]`.
+const SPI_CPHA0: [u16; 2] = [0x6101, 0x5101];
+
+const SCK: u32 = 2;
+const MOSI: u32 = 3;
+const MISO: u32 = 4;
+
+/// Loads `program` at 0 into `pio` and configures state machine 0 from the fields given.
+fn load(pio: &mut Pio, program: &[u16]) {
+    for (i, &w) in program.iter().enumerate() {
+        pio.write(reg::INSTR_MEM0 + 4 * i as u32, u32::from(w));
+    }
+}
+
+/// An SPI mode-0 device: samples MOSI on SCK's rising edge and presents the next bit of
+/// `tx` (MSB first) on MISO after each falling edge, the first before the first rising edge.
+struct Device {
+    tx: u8,
+    rx: u8,
+    bits: u32,
+    last_sck: bool,
+    miso: bool,
+    rising_edges: Vec<u64>,
+}
+
+impl Device {
+    fn new(tx: u8) -> Self {
+        Device {
+            tx,
+            rx: 0,
+            bits: 0,
+            last_sck: false,
+            miso: tx & 0x80 != 0,
+            rising_edges: Vec::new(),
+        }
+    }
+
+    /// What the device drives this cycle.
+    fn gpio_in(&self) -> u32 {
+        u32::from(self.miso) << MISO
+    }
+
+    /// Sees the pins after cycle `t`.
+    fn observe(&mut self, t: u64, pins: u32) {
+        let sck = pins & (1 << SCK) != 0;
+        let mosi = pins & (1 << MOSI) != 0;
+        if sck && !self.last_sck {
+            self.rx = self.rx << 1 | u8::from(mosi);
+            self.bits += 1;
+            self.rising_edges.push(t);
+        }
+        if !sck && self.last_sck && self.bits < 8 {
+            self.miso = (self.tx >> (7 - self.bits)) & 1 != 0;
+        }
+        self.last_sck = sck;
+    }
+}
+
+/// State machine 0 as an SPI master: SCK the side-set pin, MOSI the OUT pin, MISO the IN
+/// pin, 8-bit frames MSB first with autopull and autopush, clock divider `div`.
+fn spi_master(div: u32) -> Pio {
+    let mut pio = Pio::new();
+    load(&mut pio, &SPI_CPHA0);
+    let sm = 0;
+    let base = reg::SM0_CLKDIV + sm * reg::SM_STRIDE;
+    pio.write(base, div << 16);
+    // EXECCTRL: WRAP_TOP 1, WRAP_BOTTOM 0.
+    pio.write(base + 4, 1 << 12);
+    // SHIFTCTRL: autopush, autopull, both shifts left, thresholds 8.
+    pio.write(base + 8, 1 << 16 | 1 << 17 | 8 << 20 | 8 << 25);
+    // PINCTRL: one side-set pin at SCK, one OUT pin at MOSI, IN from MISO.
+    pio.write(
+        base + 0x14,
+        1 << 29 | SCK << 10 | 1 << 20 | MOSI | MISO << 15,
+    );
+    pio.write(reg::CTRL, 1);
+    pio
+}
+
+/// Runs `pio` with `device` for `cycles` cycles from cycle `t0`.
+fn run(pio: &mut Pio, device: &mut Device, t0: u64, cycles: u64) {
+    for t in t0..t0 + cycles {
+        pio.tick(device.gpio_in());
+        device.observe(t, pio.pin_values());
+    }
+}
+
+#[test]
+fn spi_cpha0_exchanges_a_byte_at_four_state_machine_cycles_a_bit() {
+    for (div, sent, answer) in [(2u32, 0xa5u8, 0x3cu8), (4, 0x81, 0x7e), (2, 0xff, 0x00)] {
+        let mut pio = spi_master(div);
+        let mut dev = Device::new(answer);
+        // No data: the OUT stalls with its side-set asserted, SCK low, for as long as it
+        // waits.
+        run(&mut pio, &mut dev, 0, 100);
+        assert_eq!(pio.pin_values() & (1 << SCK), 0);
+        assert!(dev.rising_edges.is_empty());
+        assert_eq!(pio.read(reg::SM0_ADDR), 0, "stalled on the OUT");
+        // A byte, left-justified (the bus replicates a byte write into all lanes).
+        pio.write(reg::TXF0, u32::from(sent) << 24);
+        run(&mut pio, &mut dev, 100, 200);
+        assert_eq!(dev.bits, 8, "div {div}: {:?}", dev.rising_edges);
+        assert_eq!(dev.rx, sent, "div {div}: the device read MOSI");
+        assert_eq!(pio.read(reg::FLEVEL) >> 4 & 0xf, 1, "one word pushed");
+        assert_eq!(pio.read(reg::RXF0), u32::from(answer), "div {div}: MISO");
+        // SCK period: 4 state-machine cycles of `div` system cycles (datasheet 3.6.1's
+        // SPI example: "4 cycles per bit").
+        let periods: Vec<u64> = dev.rising_edges.windows(2).map(|w| w[1] - w[0]).collect();
+        assert!(
+            periods.iter().all(|&p| p == 4 * u64::from(div)),
+            "{periods:?}"
+        );
+        // The first rising edge: the autopull's stall cycle, the OUT and its delay cycle,
+        // then the IN's side-set (3 state-machine cycles after the one that saw data).
+        let first = dev.rising_edges[0] - 100;
+        assert!(
+            (3 * u64::from(div)..=4 * u64::from(div)).contains(&first),
+            "first rising edge {first} cycles after the write"
+        );
+        // Back to waiting with SCK low.
+        assert_eq!(pio.pin_values() & (1 << SCK), 0);
+        assert_eq!(pio.read(reg::FSTAT) >> 24 & 1, 1, "TX empty");
+    }
+}
+
+#[test]
+fn back_to_back_bytes_keep_the_clock_running() {
+    let mut pio = spi_master(2);
+    let mut dev = Device::new(0);
+    pio.write(reg::TXF0, 0x1200_0000);
+    pio.write(reg::TXF0, 0x3400_0000);
+    run(&mut pio, &mut dev, 0, 200);
+    // The second word is pulled while the first's last bit shifts (3.5.4.2): no gap.
+    assert_eq!(dev.rising_edges.len(), 16);
+    let periods: Vec<u64> = dev.rising_edges.windows(2).map(|w| w[1] - w[0]).collect();
+    assert!(periods.iter().all(|&p| p == 8), "{periods:?}");
+    assert_eq!(pio.read(reg::FLEVEL) >> 4 & 0xf, 2);
+}
+
+#[test]
+fn the_input_synchroniser_delays_what_a_state_machine_sees_by_two_cycles() {
+    // `wait 1 gpio 4` (0x2084), then `set x, 1` (0xe021): X becomes 1 three cycles after
+    // the level rises (two synchroniser flops, then the WAIT's cycle that sees it), or one
+    // cycle with the synchroniser bypassed.
+    for (bypass, expected) in [(false, 3u64), (true, 1)] {
+        let mut pio = Pio::new();
+        load(&mut pio, &[0x2084, 0xe021, 0x0002]);
+        if bypass {
+            pio.write(reg::INPUT_SYNC_BYPASS, 1 << 4);
+        }
+        pio.write(reg::CTRL, 1);
+        for _ in 0..10 {
+            pio.tick(0);
+        }
+        assert_eq!(pio.read(reg::SM0_ADDR), 0, "waiting");
+        let mut t = 0;
+        while pio.read(reg::SM0_ADDR) == 0 {
+            pio.tick(1 << 4);
+            t += 1;
+            assert!(t < 10);
+        }
+        assert_eq!(t, expected, "bypass {bypass}");
+    }
+}
+
+#[test]
+fn a_fractional_divider_enables_the_machine_at_its_average_rate() {
+    // `set pins, 1` / `set pins, 0` on the wrap: one pin edge per enabled cycle.
+    for (int, frac, cycles) in [
+        (1u32, 0u32, 1000u64),
+        (2, 128, 1000),
+        (3, 64, 1300),
+        (0, 0, 200_000),
+    ] {
+        let mut pio = Pio::new();
+        load(&mut pio, &[0xe001, 0xe000]);
+        pio.write(reg::SM0_CLKDIV, int << 16 | frac << 8);
+        pio.write(reg::SM0_EXECCTRL, 1 << 12);
+        pio.write(reg::SM0_PINCTRL, 1 << 26); // one SET pin at GPIO 0
+        pio.write(reg::CTRL, 1);
+        let mut edges = 0u64;
+        let mut last = 0;
+        for _ in 0..cycles {
+            pio.tick(0);
+            let now = pio.pin_values() & 1;
+            edges += u64::from(now != last);
+            last = now;
+        }
+        let divisor = if int == 0 {
+            65_536.0
+        } else {
+            int as f64 + frac as f64 / 256.0
+        };
+        let expected = cycles as f64 / divisor;
+        assert!(
+            (edges as f64 - expected).abs() <= 1.0,
+            "INT {int} FRAC {frac}: {edges} enabled cycles in {cycles}, expected {expected:.2}"
+        );
+    }
+}
+
+#[test]
+fn jmp_x_decrement_loops_x_plus_one_times() {
+    // set x, 5; loop: jmp x-- loop; irq set 0; jmp 3 (halt)
+    let mut pio = Pio::new();
+    load(&mut pio, &[0xe025, 0x0041, 0xc000, 0x0003]);
+    pio.write(reg::CTRL, 1);
+    let mut t = 0;
+    while pio.read(reg::IRQ) & 1 == 0 {
+        pio.tick(0);
+        t += 1;
+        assert!(t < 100);
+    }
+    // SET, six JMPs (X = 5 … 0), the IRQ.
+    assert_eq!(t, 1 + 6 + 1);
+    // X wrapped to all ones on the last, untaken, decrement: `mov isr, x; push` shows it.
+    // (An SMx_INSTR write runs on the machine's next cycle.)
+    pio.write(reg::SM0_INSTR, 0xa0c1); // mov isr, x
+    pio.tick(0);
+    pio.write(reg::SM0_INSTR, 0x8020); // push block
+    pio.tick(0);
+    assert_eq!(pio.read(reg::RXF0), u32::MAX);
+    // IRQ is write-one-to-clear.
+    pio.write(reg::IRQ, 1);
+    assert_eq!(pio.read(reg::IRQ), 0);
+}
+
+#[test]
+fn autopush_stalls_on_a_full_rx_fifo_and_loses_nothing() {
+    // in x, 32 forever with autopush at 32: one word a cycle until the FIFO holds 4.
+    let mut pio = Pio::new();
+    load(&mut pio, &[0x4020]); // in x, 32
+    pio.write(reg::SM0_EXECCTRL, 0); // wrap at 0
+    pio.write(reg::SM0_SHIFTCTRL, 1 << 16);
+    pio.write(reg::SM0_INSTR, 0xe02a); // set x, 10 (executed at once: disabled)
+    pio.write(reg::CTRL, 1);
+    for _ in 0..20 {
+        pio.tick(0);
+    }
+    assert_eq!(pio.read(reg::FLEVEL) >> 4 & 0xf, 4);
+    assert_eq!(pio.read(reg::FSTAT) & 1, 1, "RX full");
+    assert!(pio.rx_dreq(0));
+    for _ in 0..4 {
+        assert_eq!(pio.read(reg::RXF0), 10);
+    }
+    assert!(!pio.rx_dreq(0));
+    // The stalled IN goes on as soon as there is room.
+    pio.tick(0);
+    assert_eq!(pio.read(reg::FLEVEL) >> 4 & 0xf, 1);
+}
+
+#[test]
+fn pull_noblock_on_an_empty_fifo_copies_x() {
+    let mut pio = Pio::new();
+    pio.write(reg::SM0_INSTR, 0xe03f); // set x, 31
+    pio.write(reg::SM0_INSTR, 0x8080); // pull noblock
+    pio.write(reg::SM0_INSTR, 0xa0c7); // mov isr, osr
+    pio.write(reg::SM0_INSTR, 0x8020); // push block
+    assert_eq!(pio.read(reg::RXF0), 31);
+}
+
+#[test]
+fn joined_fifos_hold_eight_words_and_levels_read_back() {
+    let mut pio = Pio::new();
+    assert!(pio.tx_dreq(0));
+    for i in 0..6 {
+        pio.write(reg::TXF0, i);
+    }
+    // Four words fit; the rest are dropped.
+    assert_eq!(pio.read(reg::FLEVEL) & 0xf, 4);
+    assert!(!pio.tx_dreq(0));
+    assert_eq!(pio.read(reg::FSTAT) >> 16 & 1, 1, "TX full");
+    // Joining discards the FIFOs (datasheet 3.5.3) and doubles TX.
+    pio.write(reg::SM0_SHIFTCTRL, 1 << 30);
+    assert_eq!(pio.read(reg::FLEVEL) & 0xf, 0);
+    for i in 0..9 {
+        pio.write(reg::TXF0, i);
+    }
+    assert_eq!(pio.read(reg::FLEVEL) & 0xf, 8);
+    // No RX FIFO: it reads both full and empty.
+    assert_eq!(pio.read(reg::FSTAT) & 0x101, 0x101);
+    // Other state machines are untouched.
+    assert_eq!(pio.read(reg::FLEVEL) >> 8, 0);
+}
+
+#[test]
+fn random_programs_and_register_writes_never_panic() {
+    // Any instruction word and any register value is legal input to the block: a firmware
+    // under test may write garbage, and the model must answer as hardware would, not stop.
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed
+    };
+    for _ in 0..200 {
+        let mut pio = Pio::new();
+        for i in 0..32 {
+            pio.write(reg::INSTR_MEM0 + 4 * i, next() as u32);
+        }
+        for _ in 0..64 {
+            let offset = (next() % 0x140) as u32 & !3;
+            pio.write(offset, next() as u32);
+        }
+        pio.write(reg::CTRL, 0xf);
+        for t in 0..2_000u32 {
+            pio.tick(next() as u32);
+            if t % 97 == 0 {
+                let offset = (next() % 0x140) as u32;
+                let _ = pio.read(offset);
+                pio.write(offset & !3, next() as u32);
+            }
+        }
+        let _ = (
+            pio.pin_values(),
+            pio.pin_dirs(),
+            pio.tx_dreq(3),
+            pio.rx_dreq(7),
+        );
+    }
+}
