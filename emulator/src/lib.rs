@@ -19,6 +19,7 @@ pub mod block;
 pub mod board;
 pub mod bus;
 pub mod clocks;
+pub mod converters;
 pub mod core;
 pub mod debug;
 pub mod elf;

@@ -20,7 +20,8 @@
 //!   (an accumulator of 256 a cycle against the divisor). Its phase after CLKDIV_RESTART is
 //!   this model's choice; the datasheet does not give it.
 //! - On an enabled cycle, a pending delay counts down; otherwise the instruction at PC (or
-//!   one forced through SMx_INSTR, OUT EXEC or MOV EXEC) runs. Its side-set is asserted
+//!   one forced through SMx_INSTR, OUT EXEC or MOV EXEC, which moves PC only if it jumps)
+//!   runs. Its side-set is asserted
 //!   whether or not it stalls (3.5.1); a stalled instruction runs again on the next enabled
 //!   cycle and its delay starts only once it completes; PC advances through the wrap
 //!   (EXECCTRL WRAP_TOP → WRAP_BOTTOM).
@@ -501,6 +502,9 @@ impl Pio {
                 }
                 return fx;
             }
+            // An instruction run through SMx_INSTR or EXEC leaves PC as it was, unless it
+            // jumps (pico-sdk's pio_sm_set_pins runs SETs this way between init and enable).
+            Flow::Next if forced => {}
             Flow::Next => s.advance(),
             Flow::Jump(to) => s.pc = to & 31,
             Flow::Stay => {}

@@ -1,0 +1,301 @@
+//! The board's SPI converters at the pins (issue 40): an ADC that the firmware's PIO
+//! drivers clock frames out of, modelled edge by edge and checked against its data sheet's
+//! timing, the numbers of `tactus_runtime::converters` (one definition of each part).
+//!
+//! [`Ads8688`] is TI's 8-channel 16-bit SAR ADC (SBAS582) in SPI mode 1 (CPOL 0, CPHA 1:
+//! data launched on SCLK rising edges, latched on falling edges), as its "Data Acquisition
+//! Example" gives a frame: CS falling samples the selected channel; the first 16 SCLK
+//! falling edges latch the 16-bit command on SDI, which selects the channel of the *next*
+//! frame (AUTO_RST restarts the sequence at channel 0, NO_OP advances it in auto mode or
+//! keeps the manual channel, MAN_Ch_n selects n); from the 17th rising edge the result of
+//! this frame's sample leaves on SDO, MSB first, 32 SCLKs in all. The part powers up on
+//! channel 0 in manual mode.
+//!
+//! Every frame is recorded ([`AdcFrame`]) and every breach of the part's timing is a
+//! [`TimingViolation`] naming the cycle and the limit: SCLK faster than `sclk_max_hz`, two
+//! CS falling edges closer than `frame_period_min_s` (the 500 kS/s throughput), a result
+//! clocked out before `conversion_max_s` has passed since its sample, a frame that is not
+//! `frame_bits` SCLKs. A firmware whose frames break the part's timing is an error the
+//! emulator reports, not a silent success.
+//!
+//! The model is pin-level and stepped by its caller: [`Ads8688::observe`] after each system
+//! cycle with the pins the RP2040 drives, [`Ads8688::gpio_in`] for the level it drives back.
+//! Not modelled: the programmable input ranges and the other register commands (recorded,
+//! no effect), SDO's launch delay (the level changes with the edge's cycle), the analogue
+//! front end (a channel's code is what [`Ads8688::set_code`] last gave).
+
+use tactus_runtime::converters::AdcPart;
+
+/// The pins of an SPI converter (GPIO numbers, 0–29).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SpiPins {
+    /// Chip select, active low (CS on the ADS8688, SYNC on the DAC8568).
+    pub cs: u32,
+    /// Serial clock.
+    pub sclk: u32,
+    /// Data into the part (the RP2040's MOSI).
+    pub sdi: u32,
+    /// Data out of the part (the RP2040's MISO); unused by a DAC.
+    pub sdo: u32,
+}
+
+/// One frame the ADC saw, CS low to CS high.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct AdcFrame {
+    /// The system cycle of its CS falling edge (the sample instant).
+    pub cs_fall: u64,
+    /// The channel it sampled.
+    pub channel: u8,
+    /// The code it sampled (sent in this frame's last 16 SCLKs).
+    pub code: u16,
+    /// The 16-bit command latched on SDI (0 when the frame had fewer than 16 SCLKs).
+    pub command: u16,
+    /// The SCLK rising edges it had.
+    pub sclks: u32,
+}
+
+/// A breach of a converter's data-sheet timing.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TimingViolation {
+    /// The system cycle it was seen at.
+    pub cycle: u64,
+    /// What was breached, with the measured value and the limit.
+    pub what: String,
+}
+
+/// The ADS8688 at the pins. See the module documentation.
+#[derive(Clone, Debug)]
+pub struct Ads8688 {
+    part: &'static AdcPart,
+    pins: SpiPins,
+    clock_hz: f64,
+    /// The code each channel reads.
+    codes: [u16; 8],
+    /// The channel the next frame samples; whether the sequencer advances on NO_OP.
+    next: u8,
+    auto: bool,
+    /// Levels after the last cycle.
+    cs_low: bool,
+    sclk_high: bool,
+    sdo: bool,
+    /// The frame under way.
+    frame: Option<AdcFrame>,
+    falling: u32,
+    shift_in: u32,
+    last_rise: Option<u64>,
+    last_cs_fall: Option<u64>,
+    frames: Vec<AdcFrame>,
+    violations: Vec<TimingViolation>,
+}
+
+/// The most frames and violations kept (a bound on what a long run holds; the counts go on).
+pub const MAX_KEPT: usize = 1 << 16;
+
+impl Ads8688 {
+    /// An ADC of `part` (its timing limits) on `pins`, on a system clocked at `clock_hz`,
+    /// every channel reading code 0.
+    pub fn new(part: &'static AdcPart, pins: SpiPins, clock_hz: f64) -> Self {
+        Ads8688 {
+            part,
+            pins,
+            clock_hz,
+            codes: [0; 8],
+            next: 0,
+            auto: false,
+            cs_low: false,
+            sclk_high: false,
+            sdo: false,
+            frame: None,
+            falling: 0,
+            shift_in: 0,
+            last_rise: None,
+            last_cs_fall: None,
+            frames: Vec::new(),
+            violations: Vec::new(),
+        }
+    }
+
+    /// Sets the code `channel` (0–7; others are ignored) reads from now on.
+    pub fn set_code(&mut self, channel: usize, code: u16) {
+        if let Some(c) = self.codes.get_mut(channel) {
+            *c = code;
+        }
+    }
+
+    /// The GPIO input levels the part drives (its SDO pin), to OR into the RP2040's inputs.
+    pub fn gpio_in(&self) -> u32 {
+        u32::from(self.sdo) << self.pins.sdo
+    }
+
+    /// The frames seen so far (at most [`MAX_KEPT`]).
+    pub fn frames(&self) -> &[AdcFrame] {
+        &self.frames
+    }
+
+    /// The timing breaches seen so far (at most [`MAX_KEPT`]).
+    pub fn violations(&self) -> &[TimingViolation] {
+        &self.violations
+    }
+
+    fn violate(&mut self, cycle: u64, what: String) {
+        if self.violations.len() < MAX_KEPT {
+            self.violations.push(TimingViolation { cycle, what });
+        }
+    }
+
+    fn seconds(&self, cycles: u64) -> f64 {
+        cycles as f64 / self.clock_hz
+    }
+
+    /// Sees the pins after system cycle `cycle`: `values` the levels the RP2040 drives and
+    /// `dirs` the pins it drives (bit n: GPIO n). An undriven CS reads high (the board's
+    /// pull-up keeps the part deselected while the RP2040 boots), an undriven SCLK or SDI
+    /// low.
+    pub fn observe(&mut self, cycle: u64, values: u32, dirs: u32) {
+        let level = |p: u32| values & dirs & (1 << p) != 0;
+        let cs_low = dirs & (1 << self.pins.cs) != 0 && !level(self.pins.cs);
+        let sclk_high = level(self.pins.sclk);
+        if cs_low && !self.cs_low {
+            self.cs_fall(cycle);
+        }
+        if !cs_low && self.cs_low {
+            self.cs_rise(cycle);
+        }
+        if cs_low && sclk_high && !self.sclk_high {
+            self.rise(cycle);
+        }
+        if cs_low && !sclk_high && self.sclk_high {
+            self.fall(level(self.pins.sdi));
+        }
+        self.cs_low = cs_low;
+        self.sclk_high = sclk_high;
+    }
+
+    fn cs_fall(&mut self, cycle: u64) {
+        if let Some(prev) = self.last_cs_fall {
+            let t = self.seconds(cycle - prev);
+            if t < self.part.frame_period_min_s {
+                self.violate(
+                    cycle,
+                    format!(
+                        "{}: CS falling edges {:.3} µs apart, under the {:.3} µs of its {:.0} kS/s",
+                        self.part.name,
+                        t * 1e6,
+                        self.part.frame_period_min_s * 1e6,
+                        1e-3 / self.part.frame_period_min_s
+                    ),
+                );
+            }
+        }
+        self.last_cs_fall = Some(cycle);
+        let channel = self.next;
+        self.frame = Some(AdcFrame {
+            cs_fall: cycle,
+            channel,
+            code: self.codes[channel as usize],
+            command: 0,
+            sclks: 0,
+        });
+        self.falling = 0;
+        self.shift_in = 0;
+        self.last_rise = None;
+        self.sdo = false;
+    }
+
+    fn cs_rise(&mut self, cycle: u64) {
+        self.sdo = false;
+        if let Some(f) = self.frame.take() {
+            if f.sclks != self.part.frame_bits {
+                self.violate(
+                    cycle,
+                    format!(
+                        "{}: a frame of {} SCLKs, not {}",
+                        self.part.name, f.sclks, self.part.frame_bits
+                    ),
+                );
+            }
+            if self.frames.len() < MAX_KEPT {
+                self.frames.push(f);
+            }
+        }
+    }
+
+    fn rise(&mut self, cycle: u64) {
+        let Some(mut f) = self.frame.take() else {
+            return;
+        };
+        if let Some(prev) = self.last_rise {
+            let hz = self.clock_hz / (cycle - prev) as f64;
+            if hz > self.part.sclk_max_hz {
+                self.violate(
+                    cycle,
+                    format!(
+                        "{}: SCLK at {:.2} MHz, over its {:.2} MHz",
+                        self.part.name,
+                        hz / 1e6,
+                        self.part.sclk_max_hz / 1e6
+                    ),
+                );
+            }
+        }
+        self.last_rise = Some(cycle);
+        f.sclks += 1;
+        // Rising edges 17…32 launch the result, MSB first.
+        let half = self.part.frame_bits / 2;
+        if f.sclks > half && f.sclks <= self.part.frame_bits {
+            if f.sclks == half + 1 {
+                let t = self.seconds(cycle - f.cs_fall);
+                if t < self.part.conversion_max_s {
+                    self.violate(
+                        cycle,
+                        format!(
+                            "{}: result clocked out {:.0} ns after its sample, before the {:.0} ns conversion",
+                            self.part.name,
+                            t * 1e9,
+                            self.part.conversion_max_s * 1e9
+                        ),
+                    );
+                }
+            }
+            let bit = self.part.frame_bits - f.sclks;
+            self.sdo = (f.code >> bit) & 1 != 0;
+        } else {
+            self.sdo = false;
+        }
+        self.frame = Some(f);
+    }
+
+    fn fall(&mut self, sdi: bool) {
+        let half = self.part.frame_bits / 2;
+        if self.falling < half {
+            self.shift_in = self.shift_in << 1 | u32::from(sdi);
+            self.falling += 1;
+            if self.falling == half {
+                let command = self.shift_in as u16;
+                if let Some(f) = self.frame.as_mut() {
+                    f.command = command;
+                }
+                self.command(command);
+            }
+        }
+    }
+
+    /// The command register (SBAS582, "Command Register Description"): AUTO_RST 0xA000,
+    /// MAN_Ch_n 0xC000 + n·0x400, NO_OP 0x0000; the others leave the channel as it is.
+    fn command(&mut self, command: u16) {
+        let current = self.frame.as_ref().map_or(self.next, |f| f.channel);
+        match command {
+            0xa000 => {
+                self.auto = true;
+                self.next = 0;
+            }
+            0x0000 if self.auto => self.next = (current + 1) % self.part.channels.clamp(1, 8) as u8,
+            0x0000 => self.next = current,
+            c if c & 0xe000 == 0xc000 && c & 0x3ff == 0 => {
+                self.auto = false;
+                self.next = ((c >> 10) & 7) as u8;
+            }
+            _ => {}
+        }
+    }
+}
