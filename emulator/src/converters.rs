@@ -1,6 +1,7 @@
-//! The board's SPI converters at the pins (issue 40): an ADC that the firmware's PIO
-//! drivers clock frames out of, modelled edge by edge and checked against its data sheet's
-//! timing, the numbers of `tactus_runtime::converters` (one definition of each part).
+//! The board's SPI converters at the pins (issue 40): the ADC and the DAC that the
+//! firmware's PIO drivers clock frames through, modelled edge by edge and checked against
+//! their data sheets' timing, the numbers of `tactus_runtime::converters` (one definition
+//! of each part). [`Dac8568`] is documented at its type.
 //!
 //! [`Ads8688`] is TI's 8-channel 16-bit SAR ADC (SBAS582) in SPI mode 1 (CPOL 0, CPHA 1:
 //! data launched on SCLK rising edges, latched on falling edges), as its "Data Acquisition
@@ -296,6 +297,218 @@ impl Ads8688 {
                 self.next = ((c >> 10) & 7) as u8;
             }
             _ => {}
+        }
+    }
+}
+
+/// One DAC output change: the channel's output register took `code` at `cycle`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DacUpdate {
+    /// The system cycle of the frame's 32nd SCLK falling edge.
+    pub cycle: u64,
+    /// The channel (0–7, A–H).
+    pub channel: u8,
+    /// Its new code (straight binary).
+    pub code: u16,
+}
+
+/// The DAC8568 at the pins: TI's 8-channel 16-bit DAC (SBAS430F), SPI with data latched on
+/// SCLK falling edges, 32-bit frames (8.2.6: prefix DB31–28, control DB27–24, address
+/// DB23–20, data DB19–4, feature bits DB3–0). Modelled controls: 0000 write input register
+/// n, 0001 update DAC register n from its input register, 0010 write input register n and
+/// update all, 0011 write and update n; address 1111 is every channel. A write takes effect
+/// on the 32nd falling edge; SYNC rising before it abandons the frame (a violation). The
+/// outputs power up at midscale (the DAC8568's B and D grades; with the board's
+/// transconductance amplifier centred there, 0 A). Timing checked against
+/// `tactus_runtime::converters::DAC8568`: SCLK ≤ 50 MHz, SYNC high ≥ 80 ns between frames,
+/// SYNC falling to the first SCLK falling edge ≥ 13 ns. Not modelled: LDAC, CLR, power
+/// down, the internal reference and the other controls (recorded, no effect).
+#[derive(Clone, Debug)]
+pub struct Dac8568 {
+    part: &'static tactus_runtime::converters::DacPart,
+    pins: SpiPins,
+    clock_hz: f64,
+    input: [u16; 8],
+    output: [u16; 8],
+    sync_low: bool,
+    sclk_high: bool,
+    bits: u32,
+    shift: u32,
+    sync_fell: Option<u64>,
+    sync_rose: Option<u64>,
+    last_fall: Option<u64>,
+    updates: Vec<DacUpdate>,
+    violations: Vec<TimingViolation>,
+}
+
+impl Dac8568 {
+    /// A DAC of `part` on `pins` (its `sdo` unused), on a system clocked at `clock_hz`,
+    /// every output at midscale.
+    pub fn new(
+        part: &'static tactus_runtime::converters::DacPart,
+        pins: SpiPins,
+        clock_hz: f64,
+    ) -> Self {
+        Dac8568 {
+            part,
+            pins,
+            clock_hz,
+            input: [0x8000; 8],
+            output: [0x8000; 8],
+            sync_low: false,
+            sclk_high: false,
+            bits: 0,
+            shift: 0,
+            sync_fell: None,
+            sync_rose: None,
+            last_fall: None,
+            updates: Vec::new(),
+            violations: Vec::new(),
+        }
+    }
+
+    /// The output codes of channels A–H.
+    pub fn outputs(&self) -> [u16; 8] {
+        self.output
+    }
+
+    /// The output changes so far (at most [`MAX_KEPT`]).
+    pub fn updates(&self) -> &[DacUpdate] {
+        &self.updates
+    }
+
+    /// The timing breaches so far (at most [`MAX_KEPT`]).
+    pub fn violations(&self) -> &[TimingViolation] {
+        &self.violations
+    }
+
+    fn violate(&mut self, cycle: u64, what: String) {
+        if self.violations.len() < MAX_KEPT {
+            self.violations.push(TimingViolation { cycle, what });
+        }
+    }
+
+    /// Sees the pins after system cycle `cycle` (as [`Ads8688::observe`]: an undriven SYNC
+    /// reads high).
+    pub fn observe(&mut self, cycle: u64, values: u32, dirs: u32) {
+        let level = |p: u32| values & dirs & (1 << p) != 0;
+        let sync_low = dirs & (1 << self.pins.cs) != 0 && !level(self.pins.cs);
+        let sclk_high = level(self.pins.sclk);
+        let name = self.part.name;
+        if sync_low && !self.sync_low {
+            if let Some(rose) = self.sync_rose {
+                let t = (cycle - rose) as f64 / self.clock_hz;
+                if t < self.part.sync_high_min_s {
+                    self.violate(
+                        cycle,
+                        format!(
+                            "{name}: SYNC high {:.0} ns between frames, under its {:.0} ns",
+                            t * 1e9,
+                            self.part.sync_high_min_s * 1e9
+                        ),
+                    );
+                }
+            }
+            self.sync_fell = Some(cycle);
+            self.bits = 0;
+            self.shift = 0;
+            self.last_fall = None;
+        }
+        if !sync_low && self.sync_low {
+            self.sync_rose = Some(cycle);
+            if self.bits != 0 && self.bits < self.part.frame_bits {
+                self.violate(
+                    cycle,
+                    format!(
+                        "{name}: SYNC rose after {} SCLKs, before the {}th: the write is lost",
+                        self.bits, self.part.frame_bits
+                    ),
+                );
+            }
+        }
+        if sync_low && !sclk_high && self.sclk_high {
+            self.fall(cycle, level(self.pins.sdi));
+        }
+        self.sync_low = sync_low;
+        self.sclk_high = sclk_high;
+    }
+
+    fn fall(&mut self, cycle: u64, sdi: bool) {
+        let name = self.part.name;
+        match self.last_fall {
+            Some(prev) => {
+                let hz = self.clock_hz / (cycle - prev) as f64;
+                if hz > self.part.sclk_max_hz {
+                    self.violate(
+                        cycle,
+                        format!(
+                            "{name}: SCLK at {:.2} MHz, over its {:.2} MHz",
+                            hz / 1e6,
+                            self.part.sclk_max_hz / 1e6
+                        ),
+                    );
+                }
+            }
+            None => {
+                let t = self
+                    .sync_fell
+                    .map_or(f64::INFINITY, |f| (cycle - f) as f64 / self.clock_hz);
+                if t < self.part.sync_setup_min_s {
+                    self.violate(
+                        cycle,
+                        format!(
+                            "{name}: first SCLK falling edge {:.0} ns after SYNC fell, under its {:.0} ns",
+                            t * 1e9,
+                            self.part.sync_setup_min_s * 1e9
+                        ),
+                    );
+                }
+            }
+        }
+        self.last_fall = Some(cycle);
+        if self.bits >= self.part.frame_bits {
+            return;
+        }
+        self.shift = self.shift << 1 | u32::from(sdi);
+        self.bits += 1;
+        if self.bits == self.part.frame_bits {
+            self.write(cycle, self.shift);
+        }
+    }
+
+    /// A whole frame (8.2.6, Table 2 "Control Matrix").
+    fn write(&mut self, cycle: u64, word: u32) {
+        let control = (word >> 24) & 0xf;
+        let address = (word >> 20) & 0xf;
+        let data = ((word >> 4) & 0xffff) as u16;
+        let channels: Vec<usize> = match address {
+            0..=7 => vec![address as usize],
+            15 => (0..8).collect(),
+            _ => Vec::new(),
+        };
+        let mut changed = Vec::new();
+        match control {
+            0 => channels.iter().for_each(|&c| self.input[c] = data),
+            1 => changed = channels,
+            2 => {
+                channels.iter().for_each(|&c| self.input[c] = data);
+                changed = (0..8).collect();
+            }
+            3 => {
+                channels.iter().for_each(|&c| self.input[c] = data);
+                changed = channels;
+            }
+            _ => {}
+        }
+        for c in changed {
+            self.output[c] = self.input[c];
+            if self.updates.len() < MAX_KEPT {
+                self.updates.push(DacUpdate {
+                    cycle,
+                    channel: c as u8,
+                    code: self.output[c],
+                });
+            }
         }
     }
 }

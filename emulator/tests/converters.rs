@@ -6,9 +6,9 @@
 //! 850 ns conversion) is enforced: at 133 MHz a driver must divide the PIO clock by at
 //! least 2 and pad its frames to 2 µs, and the model says so when it does not.
 
-use tactus_emulator::converters::{Ads8688, SpiPins};
+use tactus_emulator::converters::{Ads8688, Dac8568, SpiPins};
 use tactus_emulator::pio::{reg, Pio};
-use tactus_runtime::converters::ADS8688;
+use tactus_runtime::converters::{ADS8688, DAC8568};
 
 const PINS: SpiPins = SpiPins {
     cs: 11,
@@ -181,4 +181,83 @@ fn a_short_frame_is_a_violation() {
     assert!(adc.violations()[0]
         .what
         .contains("a frame of 3 SCLKs, not 32"));
+}
+
+/// A DAC frame: `control` (4 bits), `address` (4 bits), a 16-bit `code`.
+fn dac_word(control: u32, address: u32, code: u16) -> u32 {
+    control << 24 | address << 20 | u32::from(code) << 4
+}
+
+/// Sends `words` through the mode-1 master (32-bit frames, MSB first) to `dac`.
+fn send(pio: &mut Pio, dac: &mut Dac8568, words: &[u32], cycle: &mut u64) {
+    for &w in words {
+        pio.write(reg::TXF0, w);
+        let start = *cycle;
+        while pio.read(reg::FLEVEL) >> 4 & 0xf == 0 {
+            pio.tick(0);
+            dac.observe(*cycle, pio.pin_values(), pio.pin_dirs());
+            *cycle += 1;
+            assert!(*cycle - start < 10_000, "no frame came back");
+        }
+        pio.read(reg::RXF0);
+    }
+    for _ in 0..40 {
+        pio.tick(0);
+        dac.observe(*cycle, pio.pin_values(), pio.pin_dirs());
+        *cycle += 1;
+    }
+}
+
+#[test]
+fn dac_frames_write_input_registers_and_update_outputs_on_the_32nd_edge() {
+    let mut dac = Dac8568::new(&DAC8568, PINS, CLOCK_HZ);
+    assert_eq!(dac.outputs(), [0x8000; 8], "midscale at power-up");
+    let mut pio = master(2, 5);
+    let mut cycle = 0;
+    send(
+        &mut pio,
+        &mut dac,
+        &[
+            dac_word(3, 2, 0x1234),  // write and update C
+            dac_word(0, 5, 0xbeef),  // write F's input register only
+            dac_word(3, 15, 0x0100), // write and update every channel
+            dac_word(0, 7, 0x7777),  // H's input register
+            dac_word(1, 7, 0),       // update H from it
+        ],
+        &mut cycle,
+    );
+    assert!(dac.violations().is_empty(), "{:?}", dac.violations());
+    let mut expected = [0x0100u16; 8];
+    expected[7] = 0x7777;
+    assert_eq!(dac.outputs(), expected);
+    let u = dac.updates();
+    assert_eq!((u[0].channel, u[0].code), (2, 0x1234));
+    // F's write alone changed nothing: the next update is the broadcast.
+    assert_eq!(u.len(), 1 + 8 + 1);
+    assert_eq!((u[9].channel, u[9].code), (7, 0x7777));
+}
+
+#[test]
+fn dac_timing_is_checked_against_its_data_sheet() {
+    let run = |div: u32, pad: u16| {
+        let mut dac = Dac8568::new(&DAC8568, PINS, CLOCK_HZ);
+        let mut pio = master(div, pad);
+        let mut cycle = 0;
+        send(
+            &mut pio,
+            &mut dac,
+            &[dac_word(3, 0, 1), dac_word(3, 1, 2)],
+            &mut cycle,
+        );
+        dac.violations().to_vec()
+    };
+    // Undivided, SCLK at 33 MHz is inside the DAC's 50 MHz, but SYNC is high only 8 cycles
+    // (60 ns) between frames even at the longest delay: under its 80 ns.
+    let v = run(1, 7);
+    assert!(
+        !v.is_empty() && v.iter().all(|v| v.what.contains("SYNC high 60 ns")),
+        "{v:?}"
+    );
+    // Divided by 2 with 6 cycles of CS high (90 ns): nothing.
+    assert!(run(2, 5).is_empty());
 }
