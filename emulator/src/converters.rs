@@ -89,8 +89,15 @@ pub struct Ads8688 {
     violations: Vec<TimingViolation>,
 }
 
-/// The most frames and violations kept (a bound on what a long run holds; the counts go on).
+/// The most frames, updates and violations kept (a bound on what a long run holds).
 pub const MAX_KEPT: usize = 1 << 16;
+
+/// Appends `item` to `list` while it holds fewer than [`MAX_KEPT`].
+fn keep<T>(list: &mut Vec<T>, item: T) {
+    if list.len() < MAX_KEPT {
+        list.push(item);
+    }
+}
 
 impl Ads8688 {
     /// An ADC of `part` (its timing limits) on `pins`, on a system clocked at `clock_hz`,
@@ -139,9 +146,7 @@ impl Ads8688 {
     }
 
     fn violate(&mut self, cycle: u64, what: String) {
-        if self.violations.len() < MAX_KEPT {
-            self.violations.push(TimingViolation { cycle, what });
-        }
+        keep(&mut self.violations, TimingViolation { cycle, what });
     }
 
     fn seconds(&self, cycles: u64) -> f64 {
@@ -215,9 +220,7 @@ impl Ads8688 {
                     ),
                 );
             }
-            if self.frames.len() < MAX_KEPT {
-                self.frames.push(f);
-            }
+            keep(&mut self.frames, f);
         }
     }
 
@@ -383,9 +386,7 @@ impl Dac8568 {
     }
 
     fn violate(&mut self, cycle: u64, what: String) {
-        if self.violations.len() < MAX_KEPT {
-            self.violations.push(TimingViolation { cycle, what });
-        }
+        keep(&mut self.violations, TimingViolation { cycle, what });
     }
 
     /// Sees the pins after system cycle `cycle` (as [`Ads8688::observe`]: an undriven SYNC
@@ -502,13 +503,15 @@ impl Dac8568 {
         }
         for c in changed {
             self.output[c] = self.input[c];
-            if self.updates.len() < MAX_KEPT {
-                self.updates.push(DacUpdate {
+            let code = self.output[c];
+            keep(
+                &mut self.updates,
+                DacUpdate {
                     cycle,
                     channel: c as u8,
-                    code: self.output[c],
-                });
-            }
+                    code,
+                },
+            );
         }
     }
 }

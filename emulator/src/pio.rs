@@ -241,6 +241,19 @@ impl StateMachine {
         ((mask).rotate_left(base), (value & mask).rotate_left(base))
     }
 
+    /// OUT's and MOV's destinations 0 (the OUT pins), 1 (X) and 2 (Y).
+    fn write_pins_x_y(&mut self, dest: u32, v: u32, fx: &mut Effects) -> Flow {
+        match dest {
+            0 => {
+                let (base, count) = (bits(self.pinctrl, 0, 5), bits(self.pinctrl, 20, 6));
+                fx.values = StateMachine::map(base, count, v);
+            }
+            1 => self.x = v,
+            _ => self.y = v,
+        }
+        Flow::Next
+    }
+
     fn advance(&mut self) {
         self.pc = if self.pc == self.wrap_top() {
             self.wrap_bottom()
@@ -655,18 +668,7 @@ impl Pio {
                 s.osr_count = (s.osr_count + c).min(32);
                 let (out_base, out_count) = (bits(s.pinctrl, 0, 5), bits(s.pinctrl, 20, 6));
                 let flow = match arg1 {
-                    0 => {
-                        fx.values = StateMachine::map(out_base, out_count, data);
-                        Flow::Next
-                    }
-                    1 => {
-                        s.x = data;
-                        Flow::Next
-                    }
-                    2 => {
-                        s.y = data;
-                        Flow::Next
-                    }
+                    0..=2 => s.write_pins_x_y(arg1, data, fx),
                     4 => {
                         fx.dirs = StateMachine::map(out_base, out_count, data);
                         Flow::Next
@@ -766,21 +768,9 @@ impl Pio {
                     2 => src.reverse_bits(),
                     _ => src,
                 };
-                let (out_base, out_count) = (bits(s.pinctrl, 0, 5), bits(s.pinctrl, 20, 6));
                 let s = &mut self.sm[n];
                 match arg1 {
-                    0 => {
-                        fx.values = StateMachine::map(out_base, out_count, v);
-                        Flow::Next
-                    }
-                    1 => {
-                        s.x = v;
-                        Flow::Next
-                    }
-                    2 => {
-                        s.y = v;
-                        Flow::Next
-                    }
+                    0..=2 => s.write_pins_x_y(arg1, v, fx),
                     4 => {
                         s.exec = Some(v as u16);
                         s.advance();
