@@ -167,7 +167,8 @@ fn run_corpus(args: &PlayArgs, session: &Session, files: &[PathBuf]) -> ExitCode
     }
     bar.finish();
     let emulated = matches!(args.engine, values::PlayEngine::Emu);
-    print!("{}", corpus::summary_text(&rows, emulated));
+    let peak_kb = host_play::peak_memory_kb();
+    print!("{}", corpus::summary_text(&rows, emulated, peak_kb));
     match corpus::write_tables(&args.out, &rows) {
         Ok(paths) => paths
             .iter()

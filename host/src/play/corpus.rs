@@ -103,8 +103,9 @@ pub fn expand(args: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
 
 /// What `tactus play` prints after a corpus: a line naming how many performances and on
 /// what (`emulated`: the firmware of every board; else a host engine, no deadlines), the
-/// [`table_text`], and the run's peak memory where the platform tells it.
-pub fn summary_text(rows: &[PieceRow], emulated: bool) -> String {
+/// [`table_text`], and the run's peak memory `peak_kb` (kB) when known
+/// (`crate::session::peak_memory_kb`).
+pub fn summary_text(rows: &[PieceRow], emulated: bool, peak_kb: Option<u64>) -> String {
     let mut t = format!(
         "corpus: {} performances ({})\n",
         rows.len(),
@@ -114,7 +115,7 @@ pub fn summary_text(rows: &[PieceRow], emulated: bool) -> String {
         }
     );
     t.push_str(&table_text(rows));
-    if let Some(kb) = crate::session::peak_memory_kb() {
+    if let Some(kb) = peak_kb {
         t.push_str(&format!(
             "  peak memory of the run: {:.1} MB\n",
             kb as f64 / 1024.0
