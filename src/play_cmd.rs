@@ -92,35 +92,27 @@ pub struct PlayArgs {
 /// Runs `tactus play`.
 pub fn run(args: PlayArgs) -> ExitCode {
     // The pieces, and the keyboard with its firmware, compiled once for every piece.
-    let made = corpus::expand(&args.performances)
-        .and_then(|files| Ok((session(&args).map_err(|e| e.to_string())?, files)));
-    let result = match made {
-        Ok((session, files)) if files.len() > 1 || args.performances.iter().any(|p| p.is_dir()) => {
-            return run_corpus(&args, &session, &files)
+    let result = corpus::expand(&args.performances).and_then(|files| {
+        let session = session(&args).map_err(|e| e.to_string())?;
+        match files.len() > 1 || args.performances.iter().any(|p| p.is_dir()) {
+            true => Ok(run_corpus(&args, &session, &files)),
+            false => run_piece(&args, &session, files.first().map(PathBuf::as_path), None)
+                .map(|(code, _)| code)
+                .map_err(|e| e.to_string()),
         }
-        Ok((session, files)) => {
-            run_piece(&args, &session, files.first().map(PathBuf::as_path), None)
-                .map_err(|e| e.to_string())
-        }
-        Err(e) => Err(e),
-    };
-    result.map_or_else(
-        |e| {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
-        },
-        |(code, _)| code,
-    )
+    });
+    result.unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        ExitCode::FAILURE
+    })
 }
 
 /// The keyboard of the arguments (the layout, the instrument on every key, or the built-in
 /// default layout), the run's configuration and options.
 fn session(args: &PlayArgs) -> Result<Session, PlayError> {
-    let input = match (&args.layout, &args.instrument) {
-        (Some(l), _) => l.display().to_string(),
-        (None, Some(i)) => i.clone(),
-        (None, None) => catalogue::DEFAULT_LAYOUT.to_string(),
-    };
+    let input = (args.layout.as_ref().map(|l| l.display().to_string()))
+        .or_else(|| args.instrument.clone())
+        .unwrap_or_else(|| catalogue::DEFAULT_LAYOUT.to_string());
     let spec = KeyboardSpec {
         input: &input,
         as_layout: Some(args.instrument.is_none()),
@@ -178,13 +170,10 @@ fn run_corpus(args: &PlayArgs, session: &Session, files: &[PathBuf]) -> ExitCode
             return ExitCode::FAILURE;
         }
     }
-    match rows.iter().filter(|r| !r.ok()).count() {
-        0 => ExitCode::SUCCESS,
-        failed => {
-            eprintln!(
-                "error: {failed} of {} performances failed or missed deadlines (see the table)",
-                rows.len()
-            );
+    match corpus::failures_text(&rows) {
+        None => ExitCode::SUCCESS,
+        Some(e) => {
+            eprintln!("error: {e}");
             ExitCode::FAILURE
         }
     }
@@ -216,14 +205,13 @@ fn run_piece(
         .iter()
         .for_each(|w| println!("  wrote {}", w.display()));
     let row = piece.row(performance.unwrap_or(Path::new("demo")));
-    let Some(r) = &piece.played.boards else {
-        println!("  budget: not checked (host engine; `--engine emu` runs the firmware on the emulated board)");
-        return Ok((ExitCode::SUCCESS, row));
-    };
-    print!("{}", host_play::budget_text(r));
-    if r.missed() {
-        eprintln!("error: the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)");
-        return Ok((ExitCode::FAILURE, row));
+    let (budget, missed) = piece.budget_report();
+    print!("{budget}");
+    match missed {
+        None => Ok((ExitCode::SUCCESS, row)),
+        Some(e) => {
+            eprintln!("error: {e}");
+            Ok((ExitCode::FAILURE, row))
+        }
     }
-    Ok((ExitCode::SUCCESS, row))
 }

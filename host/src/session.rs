@@ -3,7 +3,7 @@
 //! piece needs it); [`Session::play`] reads and cuts a performance, keeps the notes on the
 //! keyboard's keys, plays them ([`crate::play::play`]) and writes the strikes
 //! (CSV, MIDI, WAV), the traces (CSV, SVG) and the boards' cycles (SVG); [`Piece::report`]
-//! and [`budget_text`] give what to print, [`Piece::row`] the corpus table's row.
+//! and [`Piece::budget_report`] give what to print, [`Piece::row`] the corpus table's row.
 
 use crate::keyboard::{Keyboard, KeyboardError, KeyboardSpec, Reporter};
 use crate::play::{self, corpus::PieceRow, output, strike, PlayConfig, Played, Progress};
@@ -475,6 +475,25 @@ impl Session {
             wall_s,
             written,
         })
+    }
+}
+
+impl Piece {
+    /// What to print of the boards' budget over the run ([`budget_text`], or a line saying
+    /// a host engine checks none), and the error when a core missed a deadline.
+    pub fn budget_report(&self) -> (String, Option<String>) {
+        match &self.played.boards {
+            None => (
+                "  budget: not checked (host engine; `--engine emu` runs the firmware on the emulated board)\n".to_string(),
+                None,
+            ),
+            Some(r) => (
+                budget_text(r),
+                r.missed().then(|| {
+                    "the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string()
+                }),
+            ),
+        }
     }
 }
 

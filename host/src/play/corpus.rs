@@ -124,6 +124,17 @@ pub fn summary_text(rows: &[PieceRow], emulated: bool, peak_kb: Option<u64>) -> 
     t
 }
 
+/// The corpus run's error, if any piece failed or missed a deadline: how many of how many.
+pub fn failures_text(rows: &[PieceRow]) -> Option<String> {
+    match rows.iter().filter(|r| !r.ok()).count() {
+        0 => None,
+        failed => Some(format!(
+            "{failed} of {} performances failed or missed deadlines (see the table)",
+            rows.len()
+        )),
+    }
+}
+
 /// The summary table as text, one line per piece after a header line, each indented two
 /// spaces: piece (file name), music s, notes, strikes, silent notes, misses (all boards),
 /// worst core cycles / deadline (`—` on a host engine), RTF, error.
