@@ -40,6 +40,44 @@ pub struct SpiPins {
     pub sdo: u32,
 }
 
+/// The select and clock levels an SPI part saw last, from which [`SpiLines::edges`] finds
+/// the edges of the next cycle.
+#[derive(Clone, Copy, Debug, Default)]
+struct SpiLines {
+    cs_low: bool,
+    sclk_high: bool,
+}
+
+/// The edges an SPI part sees in one cycle, and its SDI level then.
+struct Edges {
+    cs_fell: bool,
+    cs_rose: bool,
+    /// SCLK edges count only while the part is selected.
+    sclk_rose: bool,
+    sclk_fell: bool,
+    sdi: bool,
+}
+
+impl SpiLines {
+    /// The edges on `pins` given the levels the RP2040 drives (`values`) on the pins it
+    /// drives (`dirs`): an undriven CS reads high (the board's pull-up keeps the part
+    /// deselected while the RP2040 boots), an undriven SCLK or SDI low.
+    fn edges(&mut self, pins: &SpiPins, values: u32, dirs: u32) -> Edges {
+        let level = |p: u32| values & dirs & (1 << p) != 0;
+        let cs_low = dirs & (1 << pins.cs) != 0 && !level(pins.cs);
+        let sclk_high = level(pins.sclk);
+        let e = Edges {
+            cs_fell: cs_low && !self.cs_low,
+            cs_rose: !cs_low && self.cs_low,
+            sclk_rose: cs_low && sclk_high && !self.sclk_high,
+            sclk_fell: cs_low && !sclk_high && self.sclk_high,
+            sdi: level(pins.sdi),
+        };
+        *self = SpiLines { cs_low, sclk_high };
+        e
+    }
+}
+
 /// One frame the ADC saw, CS low to CS high.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct AdcFrame {
@@ -75,9 +113,9 @@ pub struct Ads8688 {
     /// The channel the next frame samples; whether the sequencer advances on NO_OP.
     next: u8,
     auto: bool,
-    /// Levels after the last cycle.
-    cs_low: bool,
-    sclk_high: bool,
+    /// CS and SCLK as last seen.
+    lines: SpiLines,
+    /// The level it drives on SDO.
     sdo: bool,
     /// The frame under way.
     frame: Option<AdcFrame>,
@@ -110,8 +148,7 @@ impl Ads8688 {
             codes: [0; 8],
             next: 0,
             auto: false,
-            cs_low: false,
-            sclk_high: false,
+            lines: SpiLines::default(),
             sdo: false,
             frame: None,
             falling: 0,
@@ -155,26 +192,21 @@ impl Ads8688 {
 
     /// Sees the pins after system cycle `cycle`: `values` the levels the RP2040 drives and
     /// `dirs` the pins it drives (bit n: GPIO n). An undriven CS reads high (the board's
-    /// pull-up keeps the part deselected while the RP2040 boots), an undriven SCLK or SDI
-    /// low.
+    /// pull-up), an undriven SCLK or SDI low.
     pub fn observe(&mut self, cycle: u64, values: u32, dirs: u32) {
-        let level = |p: u32| values & dirs & (1 << p) != 0;
-        let cs_low = dirs & (1 << self.pins.cs) != 0 && !level(self.pins.cs);
-        let sclk_high = level(self.pins.sclk);
-        if cs_low && !self.cs_low {
+        let e = self.lines.edges(&self.pins, values, dirs);
+        if e.cs_fell {
             self.cs_fall(cycle);
         }
-        if !cs_low && self.cs_low {
+        if e.cs_rose {
             self.cs_rise(cycle);
         }
-        if cs_low && sclk_high && !self.sclk_high {
+        if e.sclk_rose {
             self.rise(cycle);
         }
-        if cs_low && !sclk_high && self.sclk_high {
-            self.fall(level(self.pins.sdi));
+        if e.sclk_fell {
+            self.fall(e.sdi);
         }
-        self.cs_low = cs_low;
-        self.sclk_high = sclk_high;
     }
 
     fn cs_fall(&mut self, cycle: u64) {
@@ -333,8 +365,7 @@ pub struct Dac8568 {
     clock_hz: f64,
     input: [u16; 8],
     output: [u16; 8],
-    sync_low: bool,
-    sclk_high: bool,
+    lines: SpiLines,
     bits: u32,
     shift: u32,
     sync_fell: Option<u64>,
@@ -358,8 +389,7 @@ impl Dac8568 {
             clock_hz,
             input: [0x8000; 8],
             output: [0x8000; 8],
-            sync_low: false,
-            sclk_high: false,
+            lines: SpiLines::default(),
             bits: 0,
             shift: 0,
             sync_fell: None,
@@ -392,11 +422,9 @@ impl Dac8568 {
     /// Sees the pins after system cycle `cycle` (as [`Ads8688::observe`]: an undriven SYNC
     /// reads high).
     pub fn observe(&mut self, cycle: u64, values: u32, dirs: u32) {
-        let level = |p: u32| values & dirs & (1 << p) != 0;
-        let sync_low = dirs & (1 << self.pins.cs) != 0 && !level(self.pins.cs);
-        let sclk_high = level(self.pins.sclk);
+        let e = self.lines.edges(&self.pins, values, dirs);
         let name = self.part.name;
-        if sync_low && !self.sync_low {
+        if e.cs_fell {
             if let Some(rose) = self.sync_rose {
                 let t = (cycle - rose) as f64 / self.clock_hz;
                 if t < self.part.sync_high_min_s {
@@ -415,7 +443,7 @@ impl Dac8568 {
             self.shift = 0;
             self.last_fall = None;
         }
-        if !sync_low && self.sync_low {
+        if e.cs_rose {
             self.sync_rose = Some(cycle);
             if self.bits != 0 && self.bits < self.part.frame_bits {
                 self.violate(
@@ -427,11 +455,9 @@ impl Dac8568 {
                 );
             }
         }
-        if sync_low && !sclk_high && self.sclk_high {
-            self.fall(cycle, level(self.pins.sdi));
+        if e.sclk_fell {
+            self.fall(cycle, e.sdi);
         }
-        self.sync_low = sync_low;
-        self.sclk_high = sclk_high;
     }
 
     fn fall(&mut self, cycle: u64, sdi: bool) {

@@ -21,10 +21,9 @@
 //!   this model's choice; the datasheet does not give it.
 //! - On an enabled cycle, a pending delay counts down; otherwise the instruction at PC (or
 //!   one forced through SMx_INSTR, OUT EXEC or MOV EXEC, which moves PC only if it jumps)
-//!   runs. Its side-set is asserted
-//!   whether or not it stalls (3.5.1); a stalled instruction runs again on the next enabled
-//!   cycle and its delay starts only once it completes; PC advances through the wrap
-//!   (EXECCTRL WRAP_TOP → WRAP_BOTTOM).
+//!   runs. Its side-set is asserted whether or not it stalls (3.5.1); a stalled
+//!   instruction runs again on the next enabled cycle and its delay starts only once it
+//!   completes; PC advances through the wrap (EXECCTRL WRAP_TOP → WRAP_BOTTOM).
 //! - Autopull and autopush follow the pseudocode of 3.5.4.1 and 3.5.4.2: an OUT with the
 //!   OSR at its threshold refills it and stalls that cycle (an empty OSR cannot be filled
 //!   and shifted out in one cycle), and on every other cycle an OSR at its threshold refills
@@ -37,8 +36,8 @@
 //!   (3.5.6.1).
 //!
 //! Not modelled yet: the interrupt outputs (IRQ0/IRQ1 INTE/INTF/INTS), FDEBUG's stall and
-//! overflow flags, SMx_EXECCTRL STATUS_SEL's RX level variant is modelled but OUT_STICKY and
-//! INLINE_OUT_EN are not, and the model is not on the bus yet.
+//! overflow flags, EXECCTRL's OUT_STICKY and INLINE_OUT_EN; and the model is not on the
+//! bus yet.
 
 /// Base address of PIO0 (datasheet 2.2).
 pub const PIO0_BASE: u32 = 0x5020_0000;
@@ -275,7 +274,7 @@ impl StateMachine {
 /// What one instruction did to the pins in a cycle: (mask, levels) written to the pin
 /// values and directions by the instruction (OUT, SET, MOV) and by its side-set, which
 /// wins where both write a pin (datasheet 3.5.6.1).
-#[derive(Default)]
+#[derive(Clone, Copy, Default)]
 struct Effects {
     values: (u32, u32),
     dirs: (u32, u32),
@@ -445,8 +444,9 @@ impl Pio {
         // What the state machines see this cycle: synchronised, or direct where bypassed.
         let seen = (self.sync[1] & !self.sync_bypass) | (gpio_in & self.sync_bypass);
         self.sync = [gpio_in, self.sync[0]];
-        let mut all = Vec::with_capacity(4);
-        for n in 0..4 {
+        // A machine that does not run this cycle writes nothing (empty masks).
+        let mut all = [Effects::default(); 4];
+        for (n, fx) in all.iter_mut().enumerate() {
             if self.enabled & (1 << n) == 0 {
                 continue;
             }
@@ -456,7 +456,7 @@ impl Pio {
                 continue;
             }
             s.acc -= s.divisor();
-            all.push(self.execute(n, seen));
+            *fx = self.execute(n, seen);
         }
         // In state machine order: the highest-numbered writes last and wins.
         for fx in &all {

@@ -128,6 +128,23 @@ pub struct FingerRange {
 }
 
 impl Piece {
+    /// What to print of the boards' budget over the run ([`budget_text`], or a line saying
+    /// a host engine checks none), and the error when a core missed a deadline.
+    pub fn budget_report(&self) -> (String, Option<String>) {
+        match &self.played.boards {
+            None => (
+                "  budget: not checked (host engine; `--engine emu` runs the firmware on the emulated board)\n".to_string(),
+                None,
+            ),
+            Some(r) => (
+                budget_text(r),
+                r.missed().then(|| {
+                    "the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string()
+                }),
+            ),
+        }
+    }
+
     /// Per instrument the force player calibrated (none with the position player), in
     /// order of first program: what the finger can do ([`FingerRange`]).
     pub fn finger_ranges(&self) -> Vec<FingerRange> {
@@ -475,25 +492,6 @@ impl Session {
             wall_s,
             written,
         })
-    }
-}
-
-impl Piece {
-    /// What to print of the boards' budget over the run ([`budget_text`], or a line saying
-    /// a host engine checks none), and the error when a core missed a deadline.
-    pub fn budget_report(&self) -> (String, Option<String>) {
-        match &self.played.boards {
-            None => (
-                "  budget: not checked (host engine; `--engine emu` runs the firmware on the emulated board)\n".to_string(),
-                None,
-            ),
-            Some(r) => (
-                budget_text(r),
-                r.missed().then(|| {
-                    "the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string()
-                }),
-            ),
-        }
     }
 }
 
