@@ -256,7 +256,8 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
     // Every program is compiled for the board's sample rate (its `require`s see it, its
     // dynamics are discretised at it).
     let fs = board.sample_rate_hz;
-    let mut sets: Vec<ProgramSet> = Vec::new();
+    // A single instrument's set, lowered before its keys are known.
+    let mut first: Option<ProgramSet> = None;
     let failed = |key: u8, instrument: &str, params: &[(String, String)]| KeyboardError::Compile {
         input: spec.input.to_string(),
         key,
@@ -276,7 +277,7 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
                 return Err(failed(21, spec.input, &params));
             };
             let pen = lowered.program.is_pen();
-            sets.push(ProgramSet {
+            first = Some(ProgramSet {
                 instrument: spec.input.to_string(),
                 params,
                 source: src,
@@ -302,31 +303,26 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
     };
     let mut keys: Vec<KeyAssignment> = keys;
     keys.sort_by_key(|a| a.key);
-    let mut key_set = Vec::with_capacity(keys.len());
     for a in &mut keys {
         a.params = with_overrides(&a.params, spec.params);
-        let idx = match sets
-            .iter()
-            .position(|s| s.instrument == a.instrument && s.params == a.params)
-        {
-            Some(i) => i,
-            None => {
-                let src = catalogue::load(&a.instrument)
-                    .map_err(|e| bad(format!("{}: key {}: {e}", spec.input, a.key)))?;
-                let Some(lowered) = lower(&src, &a.params, fs, report) else {
-                    return Err(failed(a.key, &a.instrument, &a.params));
-                };
-                sets.push(ProgramSet {
-                    instrument: a.instrument.clone(),
-                    params: a.params.clone(),
-                    source: src,
-                    ir: lowered.program,
-                });
-                sets.len() - 1
-            }
-        };
-        key_set.push(idx);
     }
+    // Which keys share a program: the one rule, as the firmware's own tests group them.
+    let (sets, key_set) = layout_file::group_sets(&keys, |a| {
+        if let Some(set) = first.take_if(|s| s.instrument == a.instrument && s.params == a.params) {
+            return Ok(set);
+        }
+        let src = catalogue::load(&a.instrument)
+            .map_err(|e| bad(format!("{}: key {}: {e}", spec.input, a.key)))?;
+        let Some(lowered) = lower(&src, &a.params, fs, report) else {
+            return Err(failed(a.key, &a.instrument, &a.params));
+        };
+        Ok(ProgramSet {
+            instrument: a.instrument.clone(),
+            params: a.params.clone(),
+            source: src,
+            ir: lowered.program,
+        })
+    })?;
     Ok(Keyboard {
         name,
         input: spec.input.to_string(),

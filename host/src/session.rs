@@ -6,9 +6,10 @@
 //! and [`Piece::budget_report`] give what to print, [`Piece::row`] the corpus table's row.
 
 use crate::keyboard::{Keyboard, KeyboardError, KeyboardSpec, Reporter};
-use crate::play::{self, corpus::PieceRow, output, strike, PlayConfig, Played, Progress};
+use crate::play::output::{self, WriteError};
+use crate::play::{self, corpus::PieceRow, strike, PlayConfig, Played, Progress};
 use crate::play::{BoardsReport, RunError, Silence, Traces};
-use crate::plot::{plot_cycle_series, plot_lines, Line};
+use crate::plot::{plot_cycle_series, plot_lines, Line, PlotError};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -54,8 +55,11 @@ pub enum PlayError {
     #[error(transparent)]
     Run(#[from] RunError),
     /// A file of the piece cannot be written.
-    #[error("{0}")]
-    Write(String),
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    /// A plot of the piece cannot be drawn or written.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
 }
 
 /// The files [`Session::play`] writes for a piece, as `tactus play --help` explains them.
@@ -385,8 +389,8 @@ impl Session {
     /// [`PlayError::NoNoteBeforeCut`] and [`PlayError::NoNoteOnKeyboard`] for nothing to play;
     /// [`PlayError::Keyboard`] for a played key's instrument `play` cannot move;
     /// [`PlayError::Firmware`] for firmware that does not compile;
-    /// [`PlayError::Run`] for [`crate::play::play`]'s errors; [`PlayError::Write`]
-    /// for the writers'.
+    /// [`PlayError::Run`] for [`crate::play::play`]'s errors; [`PlayError::Write`] and
+    /// [`PlayError::Plot`] for a file that cannot be written.
     pub fn play(
         &self,
         performance: Option<&Path>,
@@ -447,36 +451,35 @@ impl Session {
         let wall_s = started.elapsed().as_secs_f64();
 
         let out = &opts.out;
-        std::fs::create_dir_all(out)
-            .map_err(|e| PlayError::Write(format!("cannot create `{}`: {e}", out.display())))?;
+        std::fs::create_dir_all(out).map_err(|e| WriteError::io(out, e))?;
         let stem = performance
             .and_then(|p| p.file_stem())
             .map_or("demo".to_string(), |s| s.to_string_lossy().into_owned());
         let mut written = Vec::new();
         let csv = out.join(format!("{stem}-strikes.csv"));
-        let answering =
-            output::write_strikes_csv(&csv, &played.strikes).map_err(PlayError::Write)?;
+        let answering = output::write_strikes_csv(&csv, &played.strikes)?;
         written.push(csv);
         let mid = out.join(format!("{stem}-strikes.mid"));
-        output::write_midi(&mid, &played.strikes).map_err(PlayError::Write)?;
+        output::write_midi(&mid, &played.strikes)?;
         written.push(mid);
         if opts.wav {
             let wav = out.join(format!("{stem}.wav"));
-            output::write_wav(&wav, &played.strikes, &perf, kb.board.sample_rate_hz)
-                .map_err(PlayError::Write)?;
+            output::write_wav(&wav, &played.strikes, &perf, kb.board.sample_rate_hz)?;
             written.push(wav);
         }
         if !played.traces.is_empty() {
             let from_firmware = config.engine == play::PlayEngine::Emu;
-            written.extend(
-                output::write_trace_csvs(out, &stem, &played.traces, from_firmware)
-                    .map_err(PlayError::Write)?,
-            );
-            written.extend(plot_play_traces(out, &stem, &played.traces).map_err(PlayError::Write)?);
+            written.extend(output::write_trace_csvs(
+                out,
+                &stem,
+                &played.traces,
+                from_firmware,
+            )?);
+            written.extend(plot_play_traces(out, &stem, &played.traces)?);
         }
         if let Some(r) = &played.boards {
             let svg = out.join(format!("{stem}-cycles.svg"));
-            plot_play_cycles(r, kb.board.sample_rate_hz, &stem, &svg).map_err(PlayError::Write)?;
+            plot_play_cycles(r, kb.board.sample_rate_hz, &stem, &svg)?;
             written.push(svg);
         }
         Ok(Piece {
@@ -540,7 +543,7 @@ pub fn peak_memory_kb() -> Option<u64> {
 
 /// Plots the cycles per sample of the busier core of each board (beyond eight boards, the
 /// busiest and the mean of all) against the deadline.
-fn plot_play_cycles(r: &BoardsReport, fs: f64, stem: &str, path: &Path) -> Result<(), String> {
+fn plot_play_cycles(r: &BoardsReport, fs: f64, stem: &str, path: &Path) -> Result<(), PlotError> {
     let named: Vec<(String, Vec<u64>)> = if r.boards.len() <= 8 {
         r.boards
             .iter()
@@ -590,13 +593,12 @@ fn plot_play_cycles(r: &BoardsReport, fs: f64, stem: &str, path: &Path) -> Resul
         ),
         path,
     )
-    .map_err(|e| e.to_string())
 }
 
 /// Plots the traces: `STEM-force.svg` (instrument force, and the finger's with the force
 /// player, vs time), `STEM-key.svg` (key travel vs time) and `STEM-hammer.svg` (hammer
 /// position vs time); returns the files written.
-fn plot_play_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathBuf>, String> {
+fn plot_play_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathBuf>, PlotError> {
     let mut wrote = Vec::new();
     let lines = |col: usize, scale: f64| -> Vec<Line> {
         traces
@@ -638,8 +640,7 @@ fn plot_play_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathB
         "time [s]",
         "force [N]",
         &force,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     wrote.push(force);
     let key = out.join(format!("{stem}-key.svg"));
     plot_lines(
@@ -648,8 +649,7 @@ fn plot_play_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathB
         "time [s]",
         "key travel [mm]",
         &key,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     wrote.push(key);
     let hammer_lines = lines(3, 1e3);
     if hammer_lines
@@ -663,8 +663,7 @@ fn plot_play_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathB
             "time [s]",
             "hammer travel [mm]",
             &hammer,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         wrote.push(hammer);
     }
     Ok(wrote)

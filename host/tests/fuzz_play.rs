@@ -183,6 +183,7 @@ fn mutated_performances_play_and_render_or_say_why_not() {
                     match output::write_wav(&wav, &played.strikes, &perf, 44_100.0) {
                         Ok(()) => 3,
                         Err(e) => {
+                            let e = e.to_string();
                             assert!(e.contains("use --no-wav"), "{e}");
                             2
                         }

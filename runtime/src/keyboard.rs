@@ -422,6 +422,40 @@ pub fn assign(layout: &Layout, name: &str, dir: &Path) -> Result<Vec<KeyAssignme
     Ok(out.into_values().map(|(_, a)| a).collect())
 }
 
+/// The one rule of which keys share a program: keys with the same instrument and the same
+/// params (name and value, in order) are one *set*. Returns, in the order of each set's
+/// first key in `keys`, what `make` gives for that first key, and for every key the index of
+/// its set. `make` runs once per set, so a set is lowered (and its diagnostics reported)
+/// once however many keys it has.
+///
+/// Used by `tactus_host::keyboard::compile` (the toolchain's keyboard) and
+/// `tactus_firmware::image::compile_layout` (the firmware's tests and benches), so both
+/// share the same programs among the same keys.
+///
+/// Errors: the first error `make` returns, unchanged.
+pub fn group_sets<'k, T, E>(
+    keys: &'k [KeyAssignment],
+    mut make: impl FnMut(&'k KeyAssignment) -> Result<T, E>,
+) -> Result<(Vec<T>, Vec<usize>), E> {
+    type Id<'a> = (&'a str, &'a [(String, String)]);
+    let mut seen: BTreeMap<Id, usize> = BTreeMap::new();
+    let mut sets = Vec::new();
+    let mut index = Vec::with_capacity(keys.len());
+    for k in keys {
+        let id = (k.instrument.as_str(), k.params.as_slice());
+        let i = match seen.get(&id) {
+            Some(&i) => i,
+            None => {
+                sets.push(make(k)?);
+                seen.insert(id, sets.len() - 1);
+                sets.len() - 1
+            }
+        };
+        index.push(i);
+    }
+    Ok((sets, index))
+}
+
 /// The layout's explicit boards checked against its resolved `keys`: per `[[board]]`, in
 /// file order, the MIDI keys on it (ascending). `None` when the layout lists no boards (they
 /// are to be planned).
@@ -516,6 +550,41 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
         assert_eq!(keys[87].params[1], ("M_h".into(), "3.5 g".into()));
         let mid: f64 = keys[44].params[1].1.trim_end_matches(" g").parse().unwrap();
         assert!(mid < 11.0 && mid > 3.5);
+    }
+
+    #[test]
+    fn keys_with_equal_instrument_and_params_share_a_set_made_once() {
+        let key = |key, instrument: &str, p: &[(&str, &str)]| KeyAssignment {
+            key,
+            instrument: instrument.into(),
+            params: p
+                .iter()
+                .map(|(n, v)| (n.to_string(), v.to_string()))
+                .collect(),
+        };
+        let keys = [
+            key(21, "grand_piano", &[("M_h", "11 g")]),
+            key(22, "harpsichord", &[]),
+            key(23, "grand_piano", &[("M_h", "11 g")]),
+            key(24, "grand_piano", &[("M_h", "9 g")]),
+            key(25, "harpsichord", &[]),
+        ];
+        let mut made = Vec::new();
+        let (sets, index) = group_sets(&keys, |k| {
+            made.push(k.key);
+            Ok::<_, ()>(k.key)
+        })
+        .unwrap();
+        assert_eq!(
+            sets,
+            [21, 22, 24],
+            "one set per distinct pair, in first-key order"
+        );
+        assert_eq!(index, [0, 1, 0, 2, 1]);
+        assert_eq!(made, [21, 22, 24], "made once per set");
+        // The first error stops the grouping and is returned as it is.
+        let e = group_sets(&keys, |k| if k.key == 24 { Err(k.key) } else { Ok(()) });
+        assert_eq!(e, Err(24));
     }
 
     #[test]

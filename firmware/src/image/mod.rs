@@ -111,7 +111,6 @@ mod run;
 pub use flash_image::{FlashImage, FlashPiece};
 pub use run::{run_to_first_tick, run_to_timer, DriveOut, ImageRun, KeyEvent, SampleOut};
 
-use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::{Arc, OnceLock};
 use tactus_compiler::fixed::FixedProgram;
@@ -440,38 +439,28 @@ pub fn compile_layout(
     source: &dyn Fn(&str) -> Result<String, String>,
     sample_rate_hz: f64,
 ) -> Result<(Vec<Program>, Vec<usize>), ImageError> {
-    // (instrument, overrides) → index of the distinct set; sets in first-key order.
-    type Id<'a> = (&'a str, &'a [(String, String)]);
-    let mut seen: BTreeMap<Id, usize> = BTreeMap::new();
-    let mut sets: Vec<(&KeyAssignment, tactus_compiler::ir::Program)> = Vec::new();
-    let mut index = Vec::with_capacity(keys.len());
-    for k in keys {
-        let id = (k.instrument.as_str(), k.params.as_slice());
-        if let Some(&p) = seen.get(&id) {
-            index.push(p);
-            continue;
-        }
-        let fail =
-            |e: String| ImageError::Compile(format!("key {} (`{}`): {e}", k.key, k.instrument));
-        let text = source(&k.instrument).map_err(fail)?;
+    // Which keys share a program: the one rule (`group_sets`), as the toolchain's keyboard.
+    let (sets, index) = tactus_runtime::keyboard::group_sets(keys, |k| {
+        let text = source(&k.instrument).map_err(|e| compile_error(k, &e))?;
         let config = tactus_compiler::lower::Config {
             sample_rate_hz,
             overrides: k.params.clone(),
         };
-        let ir = lower(&text, &config).map_err(|e| fail(e.to_string()))?;
-        seen.insert(id, sets.len());
-        index.push(sets.len());
-        sets.push((k, ir));
-    }
+        let ir = lower(&text, &config).map_err(|e| compile_error(k, &e.to_string()))?;
+        Ok::<_, ImageError>((k, ir))
+    })?;
     let lowered: Vec<(&str, &tactus_compiler::ir::Program)> = sets
         .iter()
         .map(|(k, ir)| (k.instrument.as_str(), ir))
         .collect();
-    let programs = compile_shared(&lowered).map_err(|(i, e)| {
-        let k = sets[i].0;
-        ImageError::Compile(format!("key {} (`{}`): {e}", k.key, k.instrument))
-    })?;
+    let programs =
+        compile_shared(&lowered).map_err(|(i, e)| compile_error(sets[i].0, &e.to_string()))?;
     Ok((programs, index))
+}
+
+/// A key's compile failure, naming the key and its instrument.
+fn compile_error(k: &KeyAssignment, e: &str) -> ImageError {
+    ImageError::Compile(format!("key {} (`{}`): {e}", k.key, k.instrument))
 }
 
 /// One force word a key drives to a DAC window word ([`Program::drives`]).

@@ -1,13 +1,48 @@
 //! The files of a played performance: the strikes as CSV (each with the note it answers),
 //! as a standard MIDI file (velocities from the simulated hammer speed,
 //! [`midi_velocity`]) and as a WAV rendering through the modal voice of
-//! `tactus_runtime::voice`; the traced keys' samples as CSV. Errors name the file.
+//! `tactus_runtime::voice`; the traced keys' samples as CSV. Errors name the file
+//! ([`WriteError`]).
 
 use super::run::Traces;
 use super::strike::{midi_velocity, Strike};
 use std::path::{Path, PathBuf};
 use tactus_runtime::performance::Performance;
 use tactus_runtime::voice;
+
+/// A file of a played performance that was not written, naming it.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// The file (or its folder) cannot be created or written: the system's or the encoder's
+    /// reason.
+    #[error("{}: cannot write: {reason}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// Why, as the system or the encoder says it.
+        reason: String,
+    },
+    /// Writing it would pass a bound of the writer (a WAV longer, or costlier to render,
+    /// than [`tactus_runtime::voice`] allows; a sample rate that is not a whole number of
+    /// hertz): nothing was written.
+    #[error("{}: {reason}", path.display())]
+    Refused {
+        /// The file.
+        path: PathBuf,
+        /// The bound and what to do (`use --no-wav`).
+        reason: String,
+    },
+}
+
+impl WriteError {
+    /// An I/O or encoder failure on `path`.
+    pub fn io(path: &Path, reason: impl std::fmt::Display) -> WriteError {
+        WriteError::Io {
+            path: path.to_path_buf(),
+            reason: reason.to_string(),
+        }
+    }
+}
 
 /// Writes the strikes through the modal voice of `tactus_runtime::voice` as a 16-bit mono
 /// WAV at the sample rate `fs` (Hz), normalised to 90 % of full scale. A strike's damper
@@ -18,7 +53,7 @@ pub fn write_wav(
     strikes: &[Strike],
     perf: &Performance,
     fs: f64,
-) -> Result<(), String> {
+) -> Result<(), WriteError> {
     let notes: Vec<voice::Strike> = strikes
         .iter()
         .map(|s| voice::Strike {
@@ -37,11 +72,13 @@ pub fn write_wav(
         .fold(perf.duration_s, f64::max);
     let wanted = (last + 2.0) * fs;
     if wanted.is_nan() || wanted > voice::MAX_RENDER_SAMPLES as f64 {
-        return Err(format!(
-            "{}: the piece is {last:.1} s long, more than the {:.0} s a WAV rendering may have; use --no-wav or --seconds",
-            path.display(),
-            voice::MAX_RENDER_SAMPLES as f64 / fs - 2.0
-        ));
+        return Err(WriteError::Refused {
+            path: path.to_path_buf(),
+            reason: format!(
+                "the piece is {last:.1} s long, more than the {:.0} s a WAV rendering may have; use --no-wav or --seconds",
+                voice::MAX_RENDER_SAMPLES as f64 / fs - 2.0
+            ),
+        });
     }
     let work = voice::render_work(&notes, last + 2.0, fs);
     if work > voice::MAX_RENDER_WORK {
@@ -49,14 +86,16 @@ pub fn write_wav(
             .map(|k| (strikes.iter().filter(|s| s.key == k).count(), k))
             .max()
             .unwrap_or_default();
-        return Err(format!(
-            "{}: {} strikes ({} of them on key {}) ring for {work:.2e} oscillator steps, more than the {:.1e} a WAV rendering may take; use --no-wav",
-            path.display(),
-            strikes.len(),
-            most.0,
-            most.1,
-            voice::MAX_RENDER_WORK
-        ));
+        return Err(WriteError::Refused {
+            path: path.to_path_buf(),
+            reason: format!(
+                "{} strikes ({} of them on key {}) ring for {work:.2e} oscillator steps, more than the {:.1e} a WAV rendering may take; use --no-wav",
+                strikes.len(),
+                most.0,
+                most.1,
+                voice::MAX_RENDER_WORK
+            ),
+        });
     }
     let samples = voice::render(&notes, last + 2.0, fs);
     write_mono_wav(path, &samples, fs)
@@ -68,13 +107,13 @@ pub fn write_wav(
 ///
 /// Errors: `fs` not a whole number of hertz from 1 to `u32::MAX`, or the file cannot be
 /// written (naming it).
-pub fn write_mono_wav(path: &Path, samples: &[f32], fs: f64) -> Result<(), String> {
+pub fn write_mono_wav(path: &Path, samples: &[f32], fs: f64) -> Result<(), WriteError> {
     let rate = fs.round();
     if !(1.0..=f64::from(u32::MAX)).contains(&rate) || (fs - rate).abs() > 1e-9 * fs {
-        return Err(format!(
-            "{}: the sample rate {fs} Hz is not a whole number of hertz",
-            path.display()
-        ));
+        return Err(WriteError::Refused {
+            path: path.to_path_buf(),
+            reason: format!("the sample rate {fs} Hz is not a whole number of hertz"),
+        });
     }
     let scale = voice::i16_scale(samples, 0.9);
     let spec = hound::WavSpec {
@@ -83,7 +122,7 @@ pub fn write_mono_wav(path: &Path, samples: &[f32], fs: f64) -> Result<(), Strin
         bits_per_sample: 16,
         sample_format: hound::SampleFormat::Int,
     };
-    let err = |e: hound::Error| format!("{}: cannot write: {e}", path.display());
+    let err = |e: hound::Error| WriteError::io(path, e);
     let mut w = hound::WavWriter::create(path, spec).map_err(err)?;
     for &x in samples {
         w.write_sample(voice::to_i16(x, scale)).map_err(err)?;
@@ -99,7 +138,7 @@ pub fn write_trace_csvs(
     stem: &str,
     traces: &Traces,
     firmware: bool,
-) -> Result<Vec<PathBuf>, String> {
+) -> Result<Vec<PathBuf>, WriteError> {
     let mut wrote = Vec::new();
     let header = [
         "time_s",
@@ -114,23 +153,23 @@ pub fn write_trace_csvs(
     let columns = if firmware { 7 } else { 5 };
     for (key, rows) in traces {
         let path = out.join(format!("{stem}-key{key}.csv"));
-        let err = |e: csv::Error| format!("{}: {e}", path.display());
+        let err = |e: csv::Error| WriteError::io(&path, e);
         let mut w = csv::Writer::from_path(&path).map_err(err)?;
         w.write_record(&header[..columns]).map_err(err)?;
         for r in rows {
             w.write_record(r[..columns].iter().map(|v| v.to_string()))
                 .map_err(err)?;
         }
-        w.flush().map_err(|e| format!("{}: {e}", path.display()))?;
+        w.flush().map_err(|e| WriteError::io(&path, e))?;
         wrote.push(path);
     }
     Ok(wrote)
 }
 
 /// Writes one row per strike with the input note it answers; returns how many answer one.
-pub fn write_strikes_csv(path: &Path, strikes: &[Strike]) -> Result<usize, String> {
-    let mut w = csv::Writer::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let err = |e: csv::Error| format!("{}: {e}", path.display());
+pub fn write_strikes_csv(path: &Path, strikes: &[Strike]) -> Result<usize, WriteError> {
+    let err = |e: csv::Error| WriteError::io(path, e);
+    let mut w = csv::Writer::from_path(path).map_err(err)?;
     w.write_record([
         "key",
         "time_s",
@@ -159,14 +198,14 @@ pub fn write_strikes_csv(path: &Path, strikes: &[Strike]) -> Result<usize, Strin
         ])
         .map_err(err)?;
     }
-    w.flush().map_err(|e| format!("{}: {e}", path.display()))?;
+    w.flush().map_err(|e| WriteError::io(path, e))?;
     Ok(matched)
 }
 
 /// Writes the strikes as a format-0 MIDI file (480 ticks per quarter at 120 bpm: 960 ticks
 /// per second); each strike lasts until the note-off of the note it answers (300 ms for a
 /// strike that answers none).
-pub fn write_midi(path: &Path, strikes: &[Strike]) -> Result<(), String> {
+pub fn write_midi(path: &Path, strikes: &[Strike]) -> Result<(), WriteError> {
     use midly::num::{u15, u28, u4, u7};
     use midly::{Format, Header, MidiMessage, Smf, Timing, TrackEvent, TrackEventKind};
     let mut evs: Vec<(u64, bool, u8, u8)> = Vec::new();
@@ -209,6 +248,5 @@ pub fn write_midi(path: &Path, strikes: &[Strike]) -> Result<(), String> {
         header: Header::new(Format::SingleTrack, Timing::Metrical(u15::new(480))),
         tracks: vec![track],
     };
-    smf.save(path)
-        .map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    smf.save(path).map_err(|e| WriteError::io(path, e))
 }
