@@ -9,9 +9,9 @@
 //! host API: load an ELF ([`elf`]), power on from flash through the boot ROM's path, run N
 //! cycles, read and write memory, feed sensors, read the DAC, and count cycles per
 //! function. [`pio`] models a PIO block (state machines, FIFOs, side-set, the clock
-//! divider), stepped by its caller; it is not on the bus yet (issue 40). [`block`] is the
-//! default
-//! engine of the board's fast path: Thumb regions compiled to native code with cranelift
+//! divider) and [`dma`] the DMA controller (channels, triggers, chaining, DREQ pacing),
+//! each stepped by its caller; neither is on the bus yet (issue 40). [`block`] is the
+//! default engine of the board's fast path: Thumb regions compiled to native code with cranelift
 //! (module `jit`), pre-decoded basic blocks otherwise ([`board::Engine`]).
 #![deny(missing_docs)]
 
@@ -22,6 +22,7 @@ pub mod clocks;
 pub mod converters;
 pub mod core;
 pub mod debug;
+pub mod dma;
 pub mod elf;
 pub mod exec;
 mod fast;

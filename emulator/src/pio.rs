@@ -341,6 +341,20 @@ impl Pio {
         self.sm.get(sm).is_some_and(|s| !s.rx.words.is_empty())
     }
 
+    /// How many more words state machine `sm`'s TX FIFO takes now (its free entries; 0 for
+    /// no such machine): the DMA's credits on its TX DREQ (datasheet 2.5.3.2).
+    pub fn tx_room(&self, sm: usize) -> u32 {
+        self.sm
+            .get(sm)
+            .map_or(0, |s| s.depths().0.saturating_sub(s.tx.len()) as u32)
+    }
+
+    /// How many words state machine `sm`'s RX FIFO holds (0 for no such machine): the DMA's
+    /// credits on its RX DREQ.
+    pub fn rx_level(&self, sm: usize) -> u32 {
+        self.sm.get(sm).map_or(0, |s| s.rx.len() as u32)
+    }
+
     /// Reads register `offset` (datasheet 3.7; reading an RXF pops it, an empty one reads
     /// 0; write-only and unknown offsets read 0).
     pub fn read(&mut self, offset: u32) -> u32 {
