@@ -8,10 +8,9 @@
 //! a)`, odd in `v`, with its extremes ±1 at `v = ±1/√(2a)`; small `a` is "slippery" (a
 //! gentle slope over the whole range), large `a` "sticky" (a sharp peak near `v = 0`).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use tactus_host::plot;
-use tactus_runtime::friction;
 
 /// Subcommands of `tactus plot`.
 #[derive(Debug, clap::Subcommand)]
@@ -53,76 +52,15 @@ pub fn run(cmd: PlotCommand) -> ExitCode {
 }
 
 fn friction(args: &FrictionArgs) -> Result<(), String> {
-    let a_values: Vec<f64> = if args.a.is_empty() {
-        friction::DEFAULT_A.to_vec()
-    } else {
-        args.a.clone()
-    };
-    for &a in &a_values {
-        if !(a.is_finite() && a > 0.0) {
-            return Err(format!("--a {a}: must be finite and > 0 (s²/m²)"));
-        }
-    }
-    if !(args.v_max.is_finite() && args.v_max > 0.0) {
-        return Err(format!(
-            "--v-max {}: must be finite and > 0 (m/s)",
-            args.v_max
-        ));
-    }
-    let v = friction::velocities(&a_values, args.v_max);
-    let lines: Vec<plot::Line> = a_values
-        .iter()
-        .map(|&a| plot::Line {
-            label: format!("a = {a} s²/m²"),
-            x: v.clone(),
-            y: v.iter().map(|&x| friction::bilbao_phi(x, a)).collect(),
-        })
-        .collect();
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| format!("cannot create `{}`: {e}", dir.display()))?;
-    }
-    plot::plot_lines(
-        &lines,
-        "Bilbao's friction characteristic φ(v, a) = √(2a)·v·exp(−a·v² + ½)",
-        "relative velocity v [m/s]",
-        "φ(v, a)",
-        &args.out,
-    )
-    .map_err(|e| e.to_string())?;
-    let csv = args.out.with_extension("csv");
-    write_csv(&csv, &v, &a_values, &lines)?;
+    let done = plot::plot_friction(&args.a, args.v_max, &args.out)?;
+    let list =
+        |f: &dyn Fn(&(f64, f64)) -> String| done.peaks.iter().map(f).collect::<Vec<_>>().join(", ");
     println!(
         "friction characteristic for a = {} s²/m² (extremes ±1 at v = ±1/√(2a): {} m/s)",
-        a_values
-            .iter()
-            .map(f64::to_string)
-            .collect::<Vec<_>>()
-            .join(", "),
-        a_values
-            .iter()
-            .map(|a| format!("{:.4}", 1.0 / (2.0 * a).sqrt()))
-            .collect::<Vec<_>>()
-            .join(", ")
+        list(&|(a, _)| a.to_string()),
+        list(&|(_, v)| format!("{v:.4}")),
     );
     println!("  wrote {}", args.out.display());
-    println!("  wrote {}", csv.display());
+    println!("  wrote {}", done.csv.display());
     Ok(())
-}
-
-fn write_csv(path: &Path, v: &[f64], a_values: &[f64], lines: &[plot::Line]) -> Result<(), String> {
-    use std::fmt::Write as _;
-    let mut text = String::from("v [m/s]");
-    for a in a_values {
-        let _ = write!(text, ",phi(a={a})");
-    }
-    text.push('\n');
-    for (i, x) in v.iter().enumerate() {
-        let _ = write!(text, "{x}");
-        for l in lines {
-            let _ = write!(text, ",{}", l.y[i]);
-        }
-        text.push('\n');
-    }
-    std::fs::write(path, text).map_err(|e| format!("{}: cannot write: {e}", path.display()))
 }

@@ -676,6 +676,82 @@ pub fn plot_named(
     plot_lines(&lines, title, "time [ms]", &y_desc, path).map_err(|e| e.to_string())
 }
 
+/// What [`plot_friction`] wrote: the CSV beside the SVG, and each `a` (s²/m²) with the
+/// velocity of its extreme (m/s, [`tactus_runtime::friction::bilbao_peak_velocity`]).
+#[derive(Clone, Debug)]
+pub struct FrictionPlot {
+    /// The curves as CSV: `v [m/s]`, then `phi(a=…)` per a.
+    pub csv: PathBuf,
+    /// Each a with the velocity of φ's positive extreme.
+    pub peaks: Vec<(f64, f64)>,
+}
+
+/// `tactus plot friction`: Bilbao's friction characteristic φ(v, a) over [−v_max, v_max]
+/// (m/s) for each `a` (s²/m²; [`tactus_runtime::friction::DEFAULT_A`] when empty), drawn to
+/// the SVG `out` (its folder created) with the curves in a CSV beside it.
+///
+/// Errors: an `a` or `v_max` that is not finite and positive (naming the option), or a file
+/// that cannot be written (naming it).
+pub fn plot_friction(a: &[f64], v_max: f64, out: &Path) -> Result<FrictionPlot, String> {
+    use std::fmt::Write as _;
+    use tactus_runtime::friction;
+    let a_values: Vec<f64> = if a.is_empty() {
+        friction::DEFAULT_A.to_vec()
+    } else {
+        a.to_vec()
+    };
+    for &a in &a_values {
+        if !(a.is_finite() && a > 0.0) {
+            return Err(format!("--a {a}: must be finite and > 0 (s²/m²)"));
+        }
+    }
+    if !(v_max.is_finite() && v_max > 0.0) {
+        return Err(format!("--v-max {v_max}: must be finite and > 0 (m/s)"));
+    }
+    let v = friction::velocities(&a_values, v_max);
+    let lines: Vec<Line> = a_values
+        .iter()
+        .map(|&a| Line {
+            label: format!("a = {a} s²/m²"),
+            x: v.clone(),
+            y: v.iter().map(|&x| friction::bilbao_phi(x, a)).collect(),
+        })
+        .collect();
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create `{}`: {e}", dir.display()))?;
+    }
+    plot_lines(
+        &lines,
+        "Bilbao's friction characteristic φ(v, a) = √(2a)·v·exp(−a·v² + ½)",
+        "relative velocity v [m/s]",
+        "φ(v, a)",
+        out,
+    )
+    .map_err(|e| e.to_string())?;
+    let csv = out.with_extension("csv");
+    let mut text = String::from("v [m/s]");
+    for a in &a_values {
+        let _ = write!(text, ",phi(a={a})");
+    }
+    text.push('\n');
+    for (i, x) in v.iter().enumerate() {
+        let _ = write!(text, "{x}");
+        for l in &lines {
+            let _ = write!(text, ",{}", l.y[i]);
+        }
+        text.push('\n');
+    }
+    std::fs::write(&csv, text).map_err(|e| format!("{}: cannot write: {e}", csv.display()))?;
+    Ok(FrictionPlot {
+        csv,
+        peaks: a_values
+            .iter()
+            .map(|&a| (a, friction::bilbao_peak_velocity(a)))
+            .collect(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

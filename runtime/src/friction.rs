@@ -17,6 +17,12 @@ pub fn bilbao_phi(v: f64, a: f64) -> f64 {
     (2.0 * a).sqrt() * v * (-a * v * v + 0.5).exp()
 }
 
+/// The relative velocity (m/s) of φ's positive extreme, `1/√(2a)` for `a` in s²/m² (where
+/// `d φ/dv ∝ 1 − 2a·v²` vanishes; Bilbao 2009).
+pub fn bilbao_peak_velocity(a: f64) -> f64 {
+    1.0 / (2.0 * a).sqrt()
+}
+
 /// The sample velocities for `a_values`: a uniform grid over [−v_max, v_max] plus every
 /// extreme ±1/√(2a) that falls inside it, sorted.
 pub fn velocities(a_values: &[f64], v_max: f64) -> Vec<f64> {
@@ -24,7 +30,7 @@ pub fn velocities(a_values: &[f64], v_max: f64) -> Vec<f64> {
         .map(|i| -v_max + 2.0 * v_max * i as f64 / (GRID - 1) as f64)
         .collect();
     for &a in a_values {
-        let peak = 1.0 / (2.0 * a).sqrt();
+        let peak = bilbao_peak_velocity(a);
         if peak <= v_max {
             v.push(peak);
             v.push(-peak);
