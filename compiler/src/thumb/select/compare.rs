@@ -332,6 +332,85 @@ impl<'a> Sel<'a> {
         ))
     }
 
+    /// `min(a, b)` (`o` = `≤`) or `max(a, b)` (`o` = `≥`) in format `fr`: `a` where
+    /// `a o b` holds (exactly, across the formats), `b` otherwise, each converted to `fr`.
+    /// A branch over a copy: `d = first; CMP; B<cond> done; d = second; done:` — at most
+    /// 3 cycles beside the comparison and the conversions, against 5–7 for a 0/1 word and
+    /// the branch-free [`Sel::select`]. The second operand is converted inside the branch,
+    /// where it is the result, so its word is bounded by the result's bound `rb`: a left
+    /// shift that would need saturation on its own range needs none there (the clamp of a
+    /// wide difference into a narrow, finer state). So that operand goes second.
+    pub(super) fn min_max(&mut self, o: CmpOp, a: (W, i32), b: (W, i32), fr: i32, rb: u64) -> W {
+        let known = |this: &Self, w: &W| this.konst.contains_key(&w.v);
+        // A left shift that its own bound cannot prove in range.
+        let saturates = |this: &Self, (w, f): (W, i32)| {
+            fr > f && !known(this, &w) && shl_bound(w.b, fr - f) >= LIM
+        };
+        let swap = saturates(self, a) && !saturates(self, b);
+        let ((first, ff), (second, fs)) = if swap { (b, a) } else { (a, b) };
+        let cf = self.convert(first, ff, fr);
+        let d = self.nv();
+        match self.konst.get(&cf.v) {
+            Some(&imm) => self.push(M::Movi { d, imm }),
+            None => self.push(M::Mov { d, s: cf.v }),
+        }
+        let keep_first = match self.cmp_words_flags(o, a, b) {
+            Flags::Known(holds) => Some(holds != swap),
+            Flags::Cond(c) => {
+                let done = self.label();
+                self.push(M::Bc(if swap { c.invert() } else { c }, done));
+                let sb = if fr > fs { second.b.min(rb >> (fr - fs)) } else { second.b };
+                let cs = self.convert(W { v: second.v, b: sb }, fs, fr);
+                match self.konst.get(&cs.v) {
+                    Some(&imm) => self.push(M::Movi { d, imm }),
+                    None => self.push(M::Mov { d, s: cs.v }),
+                }
+                self.push(M::Label(done));
+                None
+            }
+        };
+        match keep_first {
+            Some(true) | None => W { v: d, b: rb },
+            Some(false) => {
+                let cs = self.convert(second, fs, fr);
+                W { v: cs.v, b: rb }
+            }
+        }
+    }
+
+    /// `a OP b` for words of formats `a.1`, `b.1` as flags (an exact comparison, as
+    /// [`Sel::cmp`]); ordered comparisons only.
+    fn cmp_words_flags(&mut self, o: CmpOp, a: (W, i32), b: (W, i32)) -> Flags {
+        if a.0.v == b.0.v && a.1 == b.1 {
+            return Flags::Known(matches!(o, CmpOp::Eq | CmpOp::Le | CmpOp::Ge));
+        }
+        match self.common_grid(a.0, a.1, b.0, b.1) {
+            Grid::Words(x, y) => {
+                // A known 0–255 on either side: `CMP #imm` (mirrored on the left).
+                let small = |this: &Self, w: &W| {
+                    this.konst.get(&w.v).copied().filter(|k| (0..=255).contains(k))
+                };
+                if let Some(k) = small(self, &y) {
+                    self.push(M::CmpI { a: x.v, imm: k as u8 });
+                    Flags::Cond(cond_of(o))
+                } else if let Some(k) = small(self, &x) {
+                    self.push(M::CmpI { a: y.v, imm: k as u8 });
+                    Flags::Cond(cond_of(o.mirrored()))
+                } else {
+                    self.push(M::Cmp { a: x.v, b: y.v });
+                    Flags::Cond(cond_of(o))
+                }
+            }
+            Grid::Wide(x, y) => match self.floor_align(o, x, y) {
+                Some((x, y, o2)) => {
+                    self.push(M::Cmp { a: x.v, b: y.v });
+                    Flags::Cond(cond_of(o2))
+                }
+                None => Flags::Cond(self.cmp64_ordered(o, x, y)),
+            },
+        }
+    }
+
     /// `c ? a : b` for a 0/1 word `c`, branch-free: `b ^ ((a ^ b) & -c)`.
     pub(super) fn select(&mut self, c: V, a: W, b: W) -> W {
         let m = match self.masks.get(&c) {

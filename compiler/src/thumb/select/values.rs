@@ -405,10 +405,7 @@ impl<'a> Sel<'a> {
                         } else {
                             CmpOp::Ge
                         };
-                        let c = self.cmp(cop, a, fa, b, fb);
-                        let (ca, cb) = (self.convert(a, fa, fr), self.convert(b, fb, fr));
-                        let r = self.select(c.v, ca, cb);
-                        W { v: r.v, b: rb }
+                        self.min_max(cop, (a, fa), (b, fb), fr, rb)
                     }
                     Builtin::Exp => self.exp(a, fa, fr, rb),
                     Builtin::Sqrt => self.sqrt(a, fa, fr, rb),
