@@ -16,10 +16,9 @@ use tactus_runtime::stimulus;
 #[path = "support/shipped.rs"]
 mod shipped;
 
-/// The instruments: every `instruments/*.tactus` and `instruments/experimental/*.tactus`
-/// (named `experimental/STEM`).
+/// The instruments: every `instruments/*.tactus`.
 fn instruments() -> Vec<(String, String)> {
-    shipped::instrument_sources(true)
+    shipped::instrument_sources()
 }
 
 fn have_cc() -> bool {

@@ -4,10 +4,9 @@
 mod shipped;
 
 /// The shipped instruments, `(file stem, source)`, sorted by name: every
-/// `instruments/*.tactus`, and the experimental ones (`instruments/experimental/*.tactus`,
-/// named `experimental/STEM`): every engine must agree on those too.
+/// `instruments/*.tactus`.
 pub fn instruments() -> Vec<(String, String)> {
-    shipped::instrument_sources(true)
+    shipped::instrument_sources()
 }
 
 /// Programs with more IR values than this are left out of the tests that build them with
