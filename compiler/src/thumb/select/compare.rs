@@ -359,7 +359,11 @@ impl<'a> Sel<'a> {
             Flags::Cond(c) => {
                 let done = self.label();
                 self.push(M::Bc(if swap { c.invert() } else { c }, done));
-                let sb = if fr > fs { second.b.min(rb >> (fr - fs)) } else { second.b };
+                let sb = if fr > fs {
+                    second.b.min(rb.checked_shr((fr - fs) as u32).unwrap_or(0))
+                } else {
+                    second.b
+                };
                 let cs = self.convert(W { v: second.v, b: sb }, fs, fr);
                 match self.konst.get(&cs.v) {
                     Some(&imm) => self.push(M::Movi { d, imm }),
