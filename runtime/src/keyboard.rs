@@ -272,7 +272,7 @@ pub fn parse_board(text: &str, name: &str) -> Result<BoardSpec, String> {
         ));
     }
     if let Some(c) = &b.converters {
-        c.check(name)?;
+        c.check(name, b.cores)?;
     }
     Ok(b)
 }
