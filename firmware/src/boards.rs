@@ -74,6 +74,10 @@ pub struct BoardVerdict {
     /// ([`Program::quiescent_guard`]): with the guard's static cost the board would miss the
     /// deadline, and [`plan`] found that keeping it would cost boards.
     pub guard_off: bool,
+    /// On a board with converters: the worst static latency of its keys, core clock cycles
+    /// from a key's position being sampled to the motor command that answers it
+    /// ([`FirmwareImage::latency_cycles`]); `None` without converters.
+    pub latency_cycles: Option<u64>,
 }
 
 impl BoardVerdict {
@@ -338,6 +342,7 @@ fn verdict_of(
                 code_bytes: Vec::new(),
                 error: Some(e.to_string()),
                 guard_off: false,
+                latency_cycles: None,
             })
         }
     };
@@ -368,6 +373,9 @@ fn verdict_of(
         code_bytes: (0..image.cores()).map(|c| image.code_bytes(c)).collect(),
         error: None,
         guard_off: asked && !image.programs().iter().any(|p| p.quiescent_guard),
+        latency_cycles: (0..keys.len())
+            .filter_map(|k| image.latency_cycles(k))
+            .max(),
     })
 }
 

@@ -185,6 +185,13 @@ fn converters_carry_the_same_positions_in_and_codes_out() {
                 hi - lo <= 3,
                 "the latency is the same every sample but a few cycles"
             );
+            // The static latency (what `tactus budget` reports) bounds it, tightly.
+            let key = keys.iter().filter(|s| s.core < c).count() + k;
+            let bound = with.latency_cycles(key).unwrap();
+            assert!(
+                *hi <= bound && bound - hi <= 4,
+                "key {key}: {lo}–{hi} against {bound}"
+            );
         }
     }
 }

@@ -420,6 +420,32 @@ impl IoPlan {
         u64::from(self.dac_program.frame_pio_cycles * self.dac_div)
     }
 
+    /// The static latency of a key whose position is ADC channel `adc_ch` and whose motor
+    /// is DAC channel `dac_ch` of its core, on a sample tick of `tick`: the most system
+    /// cycles from the position's sample (its frame's chip select falling) to the DAC
+    /// output that answers it (its frame's 32nd SCLK falling edge), two ticks later
+    /// (module documentation). Both bursts start a fixed [`TRIGGER_GAP`] apart after a
+    /// tick; each word lands in its state machine's TX FIFO the cycle after its trigger
+    /// (the DMA's read, then its write; the DAC's may wait [`DMA_SHARED_WAIT`] for the
+    /// other core's); a state machine takes it at its next enabled
+    /// cycle (0 to `div − 1` cycles: the ADC at once, the DAC last, for the bound), stays
+    /// in its chip-select padding, then clocks the frame; frame *k* of a burst follows
+    /// *k* frame periods after the first. Two tick periods are at most `2q +
+    /// ⌈2·rem/den⌉` cycles.
+    pub fn latency_cycles(&self, adc_ch: u32, dac_ch: u32, tick: &super::glue::Tick) -> u64 {
+        let periods =
+            2 * u64::from(tick.q) + (2 * u64::from(tick.rem)).div_ceil(u64::from(tick.den.max(1)));
+        let (da, dd) = (u64::from(self.adc_div), u64::from(self.dac_div));
+        let dac = TRIGGER_GAP
+            + DMA_SHARED_WAIT
+            + (dd - 1)
+            + (u64::from(self.dac_program.cs_high_pio_cycles) + DAC_LAST_FALL) * dd
+            + u64::from(dac_ch) * self.dac_frame_cycles();
+        let adc = u64::from(self.adc_program.cs_high_pio_cycles) * da
+            + u64::from(adc_ch) * self.adc_frame_cycles();
+        (periods + dac).saturating_sub(adc)
+    }
+
     /// The emulator's wiring of the parts (`tactus_emulator::io::IoConfig`): core 0's ADC
     /// and DAC first.
     pub fn emulator_config(&self) -> tactus_emulator::io::IoConfig {
@@ -447,6 +473,22 @@ impl IoPlan {
         words.iter().flat_map(|w| w.to_le_bytes()).collect()
     }
 }
+
+/// System cycles from the data phase of the handler's store that starts the ADC's commands
+/// to that of its store that starts the DAC frames ([`IoPlan::handler_start`]: `STR`,
+/// `ADDS`, `STR`).
+pub const TRIGGER_GAP: u64 = 3;
+
+/// Cycles the first transfer of a core's DAC frames may wait for the DMA's read port: the
+/// one place the two cores' converters meet. The DAC channels are the only high-priority
+/// ones, served round-robin before the others (RP2040 datasheet 2.5.1 and CH_CTRL's
+/// HIGH_PRIORITY), so only the other core's DAC channel, triggered in the same cycle, goes
+/// first, once. (An ADC burst that starts a cycle late shortens the latency.)
+pub const DMA_SHARED_WAIT: u64 = 1;
+
+/// PIO cycles from the DAC program's `set x, 31` (SYNC falls) to its 32nd SCLK falling edge
+/// (`1 + 31·4 + 2`): the update of the channel.
+const DAC_LAST_FALL: u64 = 127;
 
 /// Cycles allowed from the tick to the first frame of a burst (exception entry, the
 /// handler's triggers, the DMA's first transfers).
@@ -575,7 +617,9 @@ impl IoPlan {
             ),
             (
                 dac,
-                dctrl::INCR_READ | (dreq + 1) << dctrl::TREQ_SEL_SHIFT,
+                // High priority: the first frame waits for nothing but the other core's
+                // DAC channel on the DMA's read port ([`DMA_SHARED_WAIT`]).
+                dctrl::HIGH_PRIORITY | dctrl::INCR_READ | (dreq + 1) << dctrl::TREQ_SEL_SHIFT,
                 base + DAC_FRAMES,
                 pio + preg::TXF0 + 4,
                 c.dac_channels,

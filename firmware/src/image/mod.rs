@@ -1124,6 +1124,20 @@ impl FirmwareImage {
             .map(|k| (&k.adc_channels[..], &k.dac_channels[..]))
     }
 
+    /// The static latency of key `key` (in key-list order) on a board with converters:
+    /// the most core clock cycles from its position's sample to the DAC output that
+    /// answers it ([`io::IoPlan::latency_cycles`] of its first ADC and DAC channels);
+    /// `None` without converters or for an unknown key.
+    pub fn latency_cycles(&self, key: usize) -> Option<u64> {
+        let plan = self.io.as_ref()?;
+        let k = self.keys.get(key)?;
+        Some(plan.latency_cycles(
+            *k.adc_channels.first()?,
+            *k.dac_channels.first()?,
+            &self.tick,
+        ))
+    }
+
     /// Static WCET of core `core`'s sample interrupt (`None` for a core beyond the board's).
     pub fn wcet(&self, core: usize) -> Option<IsrWcet> {
         self.wcet.get(core).copied()
