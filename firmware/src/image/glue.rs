@@ -349,9 +349,11 @@ pub struct KeyCode {
     /// Addresses of the sensor window words the handler copies, in order, to the record's
     /// first words.
     pub sensor_words: Vec<u32>,
-    /// On a board with converters ([`super::io`]): per sensor word, in order, the ADC
-    /// channel it is read from and the scale that makes it of the code (then
-    /// `sensor_words` is not read); empty otherwise.
+    /// On a board with converters whose ADC does not push the sensor words themselves
+    /// ([`super::io::CoreIo::direct`]): per sensor word, in order, the ADC channel it is
+    /// read from and the scale that makes it of the code (then `sensor_words` is not
+    /// read); empty otherwise (with converters, `sensor_words` are then the words in
+    /// results buffer A, read relative to `r6`).
     pub sensor_channels: Vec<(u32, tactus_runtime::converters::AdcScale)>,
     /// Byte offset of the update's `out` words in the record.
     pub out_offset: u32,
@@ -779,7 +781,10 @@ pub fn core_code(
     a.bind(labels.isr);
     if let Some(p) = io {
         // Converters: start this sample's bursts first (`super::io`); r6 = the results.
-        p.handler_start(a, core);
+        let borrow_r6 = keys
+            .iter()
+            .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5));
+        p.handler_start(a, core, borrow_r6);
     }
     // The reload value of the period after this one.
     tick_step(a, &tick);
@@ -787,15 +792,18 @@ pub fn core_code(
     walk(a, keys, &mut |a, k| {
         // Without the guard the update reads its sensor words straight from the window
         // (they are consecutive words: the key's slots); the guard compares a copy.
-        // With converters every sensor word is made of its ADC code into the record.
-        let in_window = io.is_none() && k.guard.is_none() && !k.sensor_words.is_empty();
-        let copied = match (in_window, io) {
+        // With converters whose ADC does not push the words themselves, every sensor word
+        // is made of its ADC code into the record (`super::io::read_sensor`); otherwise
+        // the words lie in the window or this sample's results (r6).
+        let convert = !k.sensor_channels.is_empty();
+        let in_window = !convert && k.guard.is_none() && !k.sensor_words.is_empty();
+        let copied = match (in_window, convert) {
             (true, _) => 0,
-            (false, Some(_)) => k.sensor_channels.len(),
-            (false, None) => k.sensor_words.len(),
+            (false, true) => k.sensor_channels.len(),
+            (false, false) => k.sensor_words.len(),
         };
         for i in 0..copied {
-            if io.is_some() {
+            if convert {
                 let (ch, scale) = &k.sensor_channels[i];
                 super::io::read_sensor(a, *ch, scale);
             } else {

@@ -99,7 +99,7 @@ fn ins(op: u16, side: u16, delay: u16) -> u16 {
 
 /// pioasm's encodings (datasheet 3.4): `pull block`, `push block`, `set x, n`, `out pins, 1`,
 /// `in pins, 1`, `jmp x--, addr`, `nop` (`mov y, y`), `set pins, n`, `set pindirs, n`,
-/// `jmp addr`.
+/// `jmp addr`, `in null, n`, `out null, n`, `out x, n`, `mov pins, !x`.
 mod op {
     pub const PULL_BLOCK: u16 = 0x80a0;
     pub const PUSH_BLOCK: u16 = 0x8020;
@@ -111,6 +111,10 @@ mod op {
     pub const SET_PINS: u16 = 0xe000;
     pub const SET_PINDIRS: u16 = 0xe080;
     pub const JMP: u16 = 0x0000;
+    pub const IN_NULL: u16 = 0x4060;
+    pub const OUT_NULL: u16 = 0x6060;
+    pub const OUT_X: u16 = 0x6020;
+    pub const MOV_PINS_NOT_X: u16 = 0xa009;
 }
 
 /// Side-set values: SCLK bit 0, CS bit 1.
@@ -118,7 +122,7 @@ const CS_HIGH: u16 = 0b10;
 const SCLK_HIGH: u16 = 0b01;
 
 /// A state machine's program: its words (from `origin` in instruction memory), where it
-/// wraps, and the PIO cycles of one frame with data waiting.
+/// wraps, and its timing in PIO cycles.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PioProgram {
     /// Instruction words.
@@ -129,6 +133,10 @@ pub struct PioProgram {
     pub frame_pio_cycles: u32,
     /// PIO cycles the chip select stays high between two frames.
     pub cs_high_pio_cycles: u32,
+    /// PIO cycles from the chip select's fall to the edge that matters: the ADC's 17th
+    /// SCLK rise (its result's first bit, after the conversion), the DAC's 32nd SCLK fall
+    /// (the channel's update).
+    pub edge_pio_cycles: u32,
 }
 
 impl PioProgram {
@@ -160,7 +168,19 @@ fn padding(cycles: u32) -> Result<Vec<u16>, ImageError> {
     Ok(words)
 }
 
-/// The ADC's state machine program at `origin`, chip select high `cs_high` PIO cycles:
+/// PIO cycles of the ADC program's frame beyond its chip-select padding: 129, or with
+/// `direct` 130 (+ 1 with a shift).
+fn adc_frame_body(direct: Option<u32>) -> u32 {
+    match direct {
+        None => 129,
+        Some(0) => 130,
+        Some(_) => 131,
+    }
+}
+
+/// The ADC's state machine program at `origin`, chip select high `cs_high` PIO cycles.
+/// Without `direct` the word it pushes is the frame's 32 bits as they come (the result in
+/// the low half; the handler makes the sensor word of it):
 ///
 /// ```text
 ///     pull block   side 0b10 [..]  ; CS high, waiting for a command (padding: + nops)
@@ -172,51 +192,127 @@ fn padding(cycles: u32) -> Result<Vec<u16>, ImageError> {
 ///     in pins, 1   side 0b00
 ///     push block   side 0b00       ; the frame's word to the RX FIFO
 /// ```
-pub fn adc_program(origin: u32, cs_high: u32) -> Result<PioProgram, ImageError> {
+///
+/// With `direct = Some(shift)` (shift ≤ 16) it pushes the sensor word itself, `code <<
+/// shift`, which the update reads where it lies:
+///
+/// ```text
+///     pull block   side 0b10 [..]
+///     set x, 15    side 0b00       ; CS falls
+/// c:  out pins, 1  side 0b01 [1]   ; the 16 command bits
+///     jmp x--, c   side 0b00 [1]
+///     set x, 15    side 0b00
+/// r:  out pins, 1  side 0b01 [1]   ; the 16 result bits (SDI 0)
+///     in pins, 1   side 0b00
+///     jmp x--, r   side 0b00
+///     in null, s   side 0b00       ; (without a shift: none)
+///     push block   side 0b00
+/// ```
+pub fn adc_program(
+    origin: u32,
+    cs_high: u32,
+    direct: Option<u32>,
+) -> Result<PioProgram, ImageError> {
     let mut words = padding(cs_high)?;
-    words.push(ins(op::SET_X | 30, 0, 0));
-    let b = origin + words.len() as u32;
-    words.extend([
-        ins(op::OUT_PINS_1, SCLK_HIGH, 1),
-        ins(op::IN_PINS_1, 0, 0),
-        ins(op::JMP_X_DEC | b as u16, 0, 0),
-        ins(op::OUT_PINS_1, SCLK_HIGH, 1),
-        ins(op::IN_PINS_1, 0, 0),
-        ins(op::PUSH_BLOCK, 0, 0),
-    ]);
+    let edge = match direct {
+        None => {
+            words.push(ins(op::SET_X | 30, 0, 0));
+            let b = origin + words.len() as u32;
+            words.extend([
+                ins(op::OUT_PINS_1, SCLK_HIGH, 1),
+                ins(op::IN_PINS_1, 0, 0),
+                ins(op::JMP_X_DEC | b as u16, 0, 0),
+                ins(op::OUT_PINS_1, SCLK_HIGH, 1),
+                ins(op::IN_PINS_1, 0, 0),
+                ins(op::PUSH_BLOCK, 0, 0),
+            ]);
+            1 + 16 * 4
+        }
+        Some(shift) => {
+            words.push(ins(op::SET_X | 15, 0, 0));
+            let c = origin + words.len() as u32;
+            words.extend([
+                ins(op::OUT_PINS_1, SCLK_HIGH, 1),
+                ins(op::JMP_X_DEC | c as u16, 0, 1),
+                ins(op::SET_X | 15, 0, 0),
+            ]);
+            let r = origin + words.len() as u32;
+            words.extend([
+                ins(op::OUT_PINS_1, SCLK_HIGH, 1),
+                ins(op::IN_PINS_1, 0, 0),
+                ins(op::JMP_X_DEC | r as u16, 0, 0),
+            ]);
+            if shift > 0 {
+                words.push(ins(op::IN_NULL | (shift & 31) as u16, 0, 0));
+            }
+            words.push(ins(op::PUSH_BLOCK, 0, 0));
+            1 + 16 * 4 + 1
+        }
+    };
     Ok(PioProgram {
         words,
         origin,
-        frame_pio_cycles: cs_high.max(1) + 1 + 31 * 4 + 4,
+        frame_pio_cycles: cs_high.max(1) + adc_frame_body(direct),
         cs_high_pio_cycles: cs_high.max(1),
+        edge_pio_cycles: edge,
     })
 }
 
-/// The DAC's state machine program at `origin`, SYNC high `cs_high` PIO cycles:
+/// The DAC's state machine program at `origin`, SYNC high `cs_high` PIO cycles. Each word
+/// it takes is a DAC channel's frame header in bits 31:20 (prefix 0000, control, address:
+/// [`dac_word`]) and the limiter's signed code in bits 15:0, which the handler stores with
+/// one `STRH`; the program sends the header, then the code's sign bit inverted (straight
+/// binary: code + 0x8000), its other 15 bits, and four zero don't-care bits:
 ///
 /// ```text
-///     pull block   side 0b10 [..]  ; SYNC high, waiting for a frame (padding: + nops)
-///     set x, 31    side 0b00       ; SYNC falls
-/// b:  out pins, 1  side 0b01 [1]   ; SCLK rises: a bit launched
-///     jmp x--, b   side 0b00 [1]   ; SCLK falls: the part latches it
+///     pull block   side 0b10 [..]  ; SYNC high, waiting for a word (padding: + nops)
+///     set x, 11    side 0b00       ; SYNC falls
+/// h:  out pins, 1  side 0b01 [1]   ; the 12 header bits
+///     jmp x--, h   side 0b00 [1]
+///     out null, 4  side 0b00       ; bits 19:16, not sent
+///     out x, 1     side 0b00       ; the code's sign
+///     mov pins, !x side 0b01 [1]   ; … inverted
+///     set x, 14    side 0b00 [1]
+/// d:  out pins, 1  side 0b01 [1]   ; its 15 other bits
+///     jmp x--, d   side 0b00 [1]
+///     set x, 3     side 0b00
+/// f:  set pins, 0  side 0b01 [1]   ; 4 don't-care bits
+///     jmp x--, f   side 0b00 [1]   ; the 32nd falls: the channel updates
 /// ```
 pub fn dac_program(origin: u32, cs_high: u32) -> Result<PioProgram, ImageError> {
     let mut words = padding(cs_high)?;
-    words.push(ins(op::SET_X | 31, 0, 0));
-    let b = origin + words.len() as u32;
+    words.push(ins(op::SET_X | 11, 0, 0));
+    let h = origin + words.len() as u32;
     words.extend([
         ins(op::OUT_PINS_1, SCLK_HIGH, 1),
-        ins(op::JMP_X_DEC | b as u16, 0, 1),
+        ins(op::JMP_X_DEC | h as u16, 0, 1),
+        ins(op::OUT_NULL | 4, 0, 0),
+        ins(op::OUT_X | 1, 0, 0),
+        ins(op::MOV_PINS_NOT_X, SCLK_HIGH, 1),
+        ins(op::SET_X | 14, 0, 1),
+    ]);
+    let d = origin + words.len() as u32;
+    words.extend([
+        ins(op::OUT_PINS_1, SCLK_HIGH, 1),
+        ins(op::JMP_X_DEC | d as u16, 0, 1),
+        ins(op::SET_X | 3, 0, 0),
+    ]);
+    let f = origin + words.len() as u32;
+    words.extend([
+        ins(op::SET_PINS, SCLK_HIGH, 1),
+        ins(op::JMP_X_DEC | f as u16, 0, 1),
     ]);
     Ok(PioProgram {
         words,
         origin,
-        frame_pio_cycles: cs_high.max(1) + 1 + 32 * 4,
+        frame_pio_cycles: cs_high.max(1) + 132,
         cs_high_pio_cycles: cs_high.max(1),
+        edge_pio_cycles: 130,
     })
 }
 
-/// One core's converters: pins, the channels its keys use, each ADC channel's scale.
+/// One core's converters: pins, the channels its keys use, each ADC channel's scale, its
+/// ADC program.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct CoreIo {
     /// The ADC's pins.
@@ -228,6 +324,12 @@ pub struct CoreIo {
     pub scales: Vec<AdcScale>,
     /// DAC channels its keys drive.
     pub dac_channels: u32,
+    /// The ADC's program (after the DAC's in the core's PIO block).
+    pub adc_program: PioProgram,
+    /// Whether its ADC pushes the sensor words themselves (every channel's scale has the
+    /// same shift, at most 16, and `lo` 0: [`adc_program`]'s `direct`), which the keys
+    /// read where they lie; else the handler makes each word of its code.
+    pub direct: bool,
 }
 
 impl CoreIo {
@@ -253,9 +355,7 @@ pub struct IoPlan {
     pub adc: &'static AdcPart,
     /// The DAC part.
     pub dac: &'static DacPart,
-    /// The ADC's program (at 0 in each core's PIO block).
-    pub adc_program: PioProgram,
-    /// The DAC's program (after the ADC's).
+    /// The DAC's program (at 0 in each core's PIO block; each core's ADC program follows).
     pub dac_program: PioProgram,
     /// The ADC's and DAC's PIO clock dividers (whole numbers).
     pub adc_div: u32,
@@ -267,6 +367,13 @@ pub struct IoPlan {
 
 fn board_err(field: &str, why: String) -> ImageError {
     ImageError::Board(format!("`converters.{field}`: {why}"))
+}
+
+/// The shift every scale of `scales` shares when the ADC can push their sensor words
+/// directly (`lo` 0, one shift at most 16); `None` otherwise.
+fn direct_shift(scales: &[AdcScale]) -> Option<u32> {
+    let shift = scales.first().map_or(0, |s| s.shift);
+    (shift <= 16 && scales.iter().all(|s| s.lo == 0 && s.shift == shift)).then_some(shift)
 }
 
 impl IoPlan {
@@ -302,35 +409,11 @@ impl IoPlan {
                 "the board's clock is too fast to divide".into(),
             ));
         }
-        // The ADC: a frame at most every frame_period_min_s, strictly (the program's frame
-        // is its chip-select cycles + 129); the result not clocked out before the
-        // conversion.
-        let min_frame = (adc.frame_period_min_s * clock / f64::from(adc_div)).floor() as u32 + 1;
-        let adc_cs = min_frame.saturating_sub(129).max(1);
-        let adc_program = adc_program(0, adc_cs)?;
-        let to_17th = f64::from((adc_cs + 1 + 16 * 4) * adc_div) / clock;
-        if to_17th < adc.conversion_max_s {
-            return Err(board_err(
-                "adc",
-                format!(
-                    "{}: its result would leave {:.0} ns after the sample, before its {:.0} ns \
-                     conversion",
-                    adc.name,
-                    to_17th * 1e9,
-                    adc.conversion_max_s * 1e9
-                ),
-            ));
-        }
-        // The DAC: SYNC high at least sync_high_min_s, strictly.
+        // The DAC: SYNC high at least sync_high_min_s, strictly; SYNC falling to the first
+        // SCLK falling edge (its `set`, then the first bit's two high cycles) at least
+        // sync_setup_min_s.
         let dac_cs = (dac.sync_high_min_s * clock / f64::from(dac_div)).floor() as u32 + 1;
-        let origin = adc_program.words.len() as u32;
-        let dac_program = dac_program(origin, dac_cs)?;
-        if origin + dac_program.words.len() as u32 > 32 {
-            return Err(board_err(
-                "dac",
-                "the two programs do not fit a PIO block's 32 instructions".into(),
-            ));
-        }
+        let dac_program = dac_program(0, dac_cs)?;
         let setup = f64::from(3 * dac_div) / clock;
         if setup < dac.sync_setup_min_s {
             return Err(board_err(
@@ -343,6 +426,8 @@ impl IoPlan {
                 ),
             ));
         }
+        // The ADC: a frame at most every frame_period_min_s, strictly.
+        let min_frame = (adc.frame_period_min_s * clock / f64::from(adc_div)).floor() as u32 + 1;
         let mut cores = Vec::new();
         for (c, (scales, dacs)) in scales.into_iter().zip(dacs).enumerate() {
             let max = adc.channels.min(MAX_CHANNELS);
@@ -365,6 +450,30 @@ impl IoPlan {
                         "core {c}'s keys drive {dacs} motors, more than the {max} channels of \
                          its {}",
                         dac.name
+                    ),
+                ));
+            }
+            let direct = direct_shift(&scales);
+            let adc_cs = min_frame.saturating_sub(adc_frame_body(direct)).max(1);
+            let origin = dac_program.words.len() as u32;
+            let adc_program = adc_program(origin, adc_cs, direct)?;
+            if origin + adc_program.words.len() as u32 > 32 {
+                return Err(board_err(
+                    "adc",
+                    "the two programs do not fit a PIO block's 32 instructions".into(),
+                ));
+            }
+            // The result is not clocked out before the conversion ends.
+            let to_17th = f64::from(adc_program.edge_pio_cycles * adc_div) / clock;
+            if to_17th < adc.conversion_max_s {
+                return Err(board_err(
+                    "adc",
+                    format!(
+                        "{}: its result would leave {:.0} ns after the sample, before its \
+                         {:.0} ns conversion",
+                        adc.name,
+                        to_17th * 1e9,
+                        adc.conversion_max_s * 1e9
                     ),
                 ));
             }
@@ -397,12 +506,13 @@ impl IoPlan {
                 dac_pins: pins(&conv.dac_pins[c], conv.dac_pins[c][2]),
                 scales,
                 dac_channels: dacs,
+                adc_program,
+                direct: direct.is_some(),
             });
         }
         Ok(Some(IoPlan {
             adc,
             dac,
-            adc_program,
             dac_program,
             adc_div,
             dac_div,
@@ -410,9 +520,12 @@ impl IoPlan {
         }))
     }
 
-    /// The ADC's frame period, system cycles (CS fall to CS fall, commands waiting).
-    pub fn adc_frame_cycles(&self) -> u64 {
-        u64::from(self.adc_program.frame_pio_cycles * self.adc_div)
+    /// Core `core`'s ADC frame period, system cycles (CS fall to CS fall, commands
+    /// waiting); 0 for no such core.
+    pub fn adc_frame_cycles(&self, core: usize) -> u64 {
+        self.cores.get(core).map_or(0, |c| {
+            u64::from(c.adc_program.frame_pio_cycles * self.adc_div)
+        })
     }
 
     /// The DAC's frame period, system cycles.
@@ -420,29 +533,39 @@ impl IoPlan {
         u64::from(self.dac_program.frame_pio_cycles * self.dac_div)
     }
 
-    /// The static latency of a key whose position is ADC channel `adc_ch` and whose motor
-    /// is DAC channel `dac_ch` of its core, on a sample tick of `tick`: the most system
-    /// cycles from the position's sample (its frame's chip select falling) to the DAC
-    /// output that answers it (its frame's 32nd SCLK falling edge), two ticks later
+    /// The static latency of a key of core `core` whose position is ADC channel `adc_ch`
+    /// and whose motor is DAC channel `dac_ch`, on a sample tick of `tick`: the most
+    /// system cycles from the position's sample (its frame's chip select falling) to the
+    /// DAC output that answers it (its frame's 32nd SCLK falling edge), two ticks later
     /// (module documentation). Both bursts start a fixed [`TRIGGER_GAP`] apart after a
     /// tick; each word lands in its state machine's TX FIFO the cycle after its trigger
     /// (the DMA's read, then its write; the DAC's may wait [`DMA_SHARED_WAIT`] for the
-    /// other core's); a state machine takes it at its next enabled
-    /// cycle (0 to `div − 1` cycles: the ADC at once, the DAC last, for the bound), stays
-    /// in its chip-select padding, then clocks the frame; frame *k* of a burst follows
-    /// *k* frame periods after the first. Two tick periods are at most `2q +
-    /// ⌈2·rem/den⌉` cycles.
-    pub fn latency_cycles(&self, adc_ch: u32, dac_ch: u32, tick: &super::glue::Tick) -> u64 {
+    /// other core's); a state machine takes it at its next enabled cycle (0 to `div − 1`
+    /// cycles: the ADC at once, the DAC last, for the bound), stays in its chip-select
+    /// padding, then clocks the frame; frame *k* of a burst follows *k* frame periods after
+    /// the first. Two tick periods are at most `2q + ⌈2·rem/den⌉` cycles. 0 for no such
+    /// core.
+    pub fn latency_cycles(
+        &self,
+        core: usize,
+        adc_ch: u32,
+        dac_ch: u32,
+        tick: &super::glue::Tick,
+    ) -> u64 {
+        let Some(c) = self.cores.get(core) else {
+            return 0;
+        };
         let periods =
             2 * u64::from(tick.q) + (2 * u64::from(tick.rem)).div_ceil(u64::from(tick.den.max(1)));
         let (da, dd) = (u64::from(self.adc_div), u64::from(self.dac_div));
+        let d = &self.dac_program;
         let dac = TRIGGER_GAP
             + DMA_SHARED_WAIT
             + (dd - 1)
-            + (u64::from(self.dac_program.cs_high_pio_cycles) + DAC_LAST_FALL) * dd
+            + u64::from(d.cs_high_pio_cycles + d.edge_pio_cycles) * dd
             + u64::from(dac_ch) * self.dac_frame_cycles();
-        let adc = u64::from(self.adc_program.cs_high_pio_cycles) * da
-            + u64::from(adc_ch) * self.adc_frame_cycles();
+        let adc = u64::from(c.adc_program.cs_high_pio_cycles) * da
+            + u64::from(adc_ch) * self.adc_frame_cycles(core);
         (periods + dac).saturating_sub(adc)
     }
 
@@ -465,7 +588,7 @@ impl IoPlan {
             words[(COMMANDS / 4 + i) as usize] = adc_command((i + 1) % n);
         }
         for ch in 0..c.dac_channels {
-            words[(DAC_FRAMES / 4 + ch) as usize] = dac_frame(ch, 0);
+            words[(DAC_FRAMES / 4 + ch) as usize] = dac_word(ch, 0);
         }
         let base = io_base(core);
         words[(READ_NEXT / 4) as usize] = base + RESULTS_A;
@@ -486,10 +609,6 @@ pub const TRIGGER_GAP: u64 = 3;
 /// first, once. (An ADC burst that starts a cycle late shortens the latency.)
 pub const DMA_SHARED_WAIT: u64 = 1;
 
-/// PIO cycles from the DAC program's `set x, 31` (SYNC falls) to its 32nd SCLK falling edge
-/// (`1 + 31·4 + 2`): the update of the channel.
-const DAC_LAST_FALL: u64 = 127;
-
 /// Cycles allowed from the tick to the first frame of a burst (exception entry, the
 /// handler's triggers, the DMA's first transfers).
 const START_SLACK: u64 = 64;
@@ -500,22 +619,23 @@ pub fn adc_command(ch: u32) -> u32 {
     (0xc000 | (ch & 7) << 10) << 16
 }
 
-/// The DAC8568's frame writing and updating channel `ch` (control 0011) with the limiter's
-/// signed code `code` (SBAS430F 8.2.6: DB27–24 control, DB23–20 address, DB19–4 data,
-/// straight binary: `code + 0x8000`).
+/// The DAC word of channel `ch` carrying the limiter's signed code `code`, as the DAC's
+/// state machine takes it ([`dac_program`]): the frame's header in bits 31:20 — prefix
+/// 0000, control 0011 (write and update the channel), the channel's address (SBAS430F
+/// 8.2.6) — and the code in bits 15:0, stored there by the handler with one `STRH`.
+pub fn dac_word(ch: u32, code: i16) -> u32 {
+    3 << 24 | (ch & 0xf) << 20 | u32::from(code as u16)
+}
+
+/// The code a DAC word carries.
+pub fn word_code(word: u32) -> i16 {
+    word as u16 as i16
+}
+
+/// The 32-bit frame the DAC receives for [`dac_word`]`(ch, code)`: straight binary data
+/// `code + 0x8000` in DB19–4, the don't-care bits DB3–0 zero.
 pub fn dac_frame(ch: u32, code: i16) -> u32 {
-    dac_frame_bits(ch) ^ (u32::from(code as u16) << 4)
-}
-
-/// [`dac_frame`]'s constant part, XORed by the handler with the code's low 16 bits shifted
-/// by 4: control, address, and the code's sign bit flipped (`+ 0x8000` modulo 2¹⁶).
-fn dac_frame_bits(ch: u32) -> u32 {
-    3 << 24 | (ch & 0xf) << 20 | 0x8000 << 4
-}
-
-/// The code a DAC frame carries, back as the limiter's signed code.
-pub fn frame_code(frame: u32) -> i16 {
-    (((frame >> 4) & 0xffff) ^ 0x8000) as u16 as i16
+    3 << 24 | (ch & 0xf) << 20 | u32::from((code as u16) ^ 0x8000) << 4
 }
 
 /// `[addr] = value` (clobbers r0, r1).
@@ -550,7 +670,7 @@ impl IoPlan {
                 store(a, IO_BANK0_BASE + 8 * pin + 4, funcsel);
             }
         }
-        for prog in [&self.adc_program, &self.dac_program] {
+        for prog in [&self.dac_program, &c.adc_program] {
             for (i, &w) in prog.words.iter().enumerate() {
                 store(
                     a,
@@ -560,7 +680,7 @@ impl IoPlan {
             }
         }
         for (sm, prog, div, pins, fjoin_tx) in [
-            (0, &self.adc_program, self.adc_div, c.adc_pins, false),
+            (0, &c.adc_program, self.adc_div, c.adc_pins, false),
             (1, &self.dac_program, self.dac_div, c.dac_pins, true),
         ] {
             let r = |off: u32| pio + off + preg::SM_STRIDE * sm;
@@ -581,11 +701,17 @@ impl IoPlan {
             store(a, r(preg::SM0_PINCTRL), 1 << 26 | pins.sdi << 5);
             store(a, r(preg::SM0_INSTR), u32::from(op::SET_PINS));
             store(a, r(preg::SM0_INSTR), u32::from(op::SET_PINDIRS | 1));
-            // Side-set SCLK and CS, OUT to SDI, IN from SDO.
+            // Side-set SCLK and CS, OUT and SET to SDI, IN from SDO.
             store(
                 a,
                 r(preg::SM0_PINCTRL),
-                2 << 29 | pins.sclk << 10 | 1 << 20 | pins.sdi | pins.sdo << 15,
+                2 << 29
+                    | 1 << 26
+                    | pins.sclk << 10
+                    | 1 << 20
+                    | pins.sdi << 5
+                    | pins.sdi
+                    | pins.sdo << 15,
             );
             // To the program's start, CS kept high by this instruction's side-set.
             store(
@@ -657,16 +783,19 @@ impl IoPlan {
         ));
     }
 
-    /// The handler's first act (module documentation): `r6` = this sample's results, the
-    /// next ADC burst into the other buffer, the commands, the last sample's DAC frames.
-    /// Needs `r7`; clobbers r0, r1. At the time of writing 20 cycles (with the I/O bank's
+    /// The handler's first act (module documentation): `r6` = this sample's results (kept
+    /// for [`restore_r6`] with `keep_now`), the next ADC burst into the other buffer, the
+    /// commands, the last sample's DAC frames. Needs `r7`; clobbers r0, r1. At the time of writing 20 cycles (with the I/O bank's
     /// accesses through the bus: each may wait for the DMA, [`CoreIo::contention`]).
-    pub fn handler_start(&self, a: &mut CodeBuffer, core: usize) {
+    pub fn handler_start(&self, a: &mut CodeBuffer, core: usize, keep_now: bool) {
         let [res, ..] = dma_channels(core);
         let from_r7 = |off: u32| (off - DAC_FRAMES) as u16;
         a.ldr_const(0, DMA_BASE + res * dreg::CH_STRIDE);
         a.i(asm::ldr(6, 7, from_r7(READ_NEXT)));
-        a.i(asm::str(6, 7, from_r7(READ_NOW)));
+        if keep_now {
+            // For `restore_r6`.
+            a.i(asm::str(6, 7, from_r7(READ_NOW)));
+        }
         a.i(asm::movs(1, (RESULTS_A ^ RESULTS_B) as u8));
         a.i(asm::alu(AluOp::Eor, 1, 6));
         a.i(asm::str(1, 7, from_r7(READ_NEXT)));
@@ -689,7 +818,8 @@ pub fn restore_r6(a: &mut CodeBuffer) {
 }
 
 /// `r0` = the sensor word of ADC channel `ch` of this sample's results (`r6`), as `scale`
-/// makes it of the code. Clobbers r1.
+/// makes it of the code (a core whose ADC does not push the words themselves,
+/// [`CoreIo::direct`]). Clobbers r1.
 pub fn read_sensor(a: &mut CodeBuffer, ch: u32, scale: &AdcScale) {
     a.i(Instr::MemImm {
         op: MemOp::Ldrh,
@@ -706,14 +836,16 @@ pub fn read_sensor(a: &mut CodeBuffer, ch: u32, scale: &AdcScale) {
     }
 }
 
-/// Stores the DAC frame of DAC channel `ch` for the limiter's code in `r0` (sign-extended)
-/// into the core's DAC frames (`r7`). Clobbers r0, r1.
+/// Stores the limiter's code in `r0` into DAC channel `ch`'s word of the core's DAC words
+/// (`r7`): one `STRH` under the word's header ([`dac_word`]), as a DAC word without
+/// converters is one `STR`.
 pub fn write_dac(a: &mut CodeBuffer, ch: u32) {
-    a.i(asm::lsls(0, 0, 16));
-    a.i(asm::lsrs(0, 0, 12));
-    a.ldr_const(1, dac_frame_bits(ch));
-    a.i(asm::alu(AluOp::Eor, 0, 1));
-    a.i(asm::str(0, 7, (4 * ch) as u16));
+    a.i(Instr::MemImm {
+        op: MemOp::Strh,
+        rt: 0,
+        rn: 7,
+        imm: (4 * ch) as u16,
+    });
 }
 
 #[cfg(test)]
@@ -723,23 +855,35 @@ mod tests {
     #[test]
     fn frames_carry_the_codes_and_programs_their_padding() {
         for code in [i16::MIN, -1, 0, 1, 1234, i16::MAX] {
+            let w = dac_word(5, code);
+            assert_eq!(word_code(w), code);
             let f = dac_frame(5, code);
             assert_eq!(f >> 24, 3);
             assert_eq!(f >> 20 & 0xf, 5);
             assert_eq!((f >> 4 & 0xffff) as u16, (code as u16).wrapping_add(0x8000));
-            assert_eq!(frame_code(f), code);
+            assert_eq!(f & 0xfff0_0000, w & 0xfff0_0000, "the header as stored");
         }
         assert_eq!(adc_command(5) >> 16, 0xd400);
         // The pads: a pull with its delay, nops beyond 8 cycles.
-        let p = adc_program(0, 4).unwrap();
+        let p = adc_program(0, 4, None).unwrap();
         assert_eq!(p.words.len(), 8);
         assert_eq!(p.words[0], 0x80a0 | 0b10 << 11 | 3 << 8);
         assert_eq!(p.frame_pio_cycles, 133);
-        let p = dac_program(8, 11).unwrap();
-        assert_eq!(p.words.len(), 5);
+        let p = adc_program(20, 4, Some(15)).unwrap();
+        assert_eq!(p.words.len(), 10);
+        assert_eq!(p.words[8], 0x4060 | 15, "in null, 15");
+        assert_eq!(p.frame_pio_cycles, 4 + 131);
+        assert_eq!(adc_program(20, 4, Some(0)).unwrap().words.len(), 9);
+        let p = dac_program(0, 11).unwrap();
+        assert_eq!(p.words.len(), 14);
         assert_eq!(p.words[1], 0xa042 | 0b10 << 11 | 2 << 8);
-        assert_eq!(p.words[4], 0x0040 | 11 | 1 << 8, "jmp x--, 11 [1]");
-        assert_eq!(p.top(), 12);
+        assert_eq!(p.words[4], 0x0040 | 3 | 1 << 8, "jmp x--, 3 [1]");
+        assert_eq!(
+            p.words[7],
+            0xa009 | 0b01 << 11 | 1 << 8,
+            "mov pins, !x side 1 [1]"
+        );
+        assert_eq!(p.top(), 13);
         assert!(padding(80).is_err());
     }
 }

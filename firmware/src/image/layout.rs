@@ -345,8 +345,23 @@ pub(super) fn key_records(
         } else {
             (Vec::new(), Vec::new())
         };
+        // With converters: the channels' words in results buffer A when the ADC pushes
+        // them (`io::CoreIo::direct`), else each channel with its scale.
+        let core_io = l.io.as_ref().and_then(|p| p.cores.get(core));
+        let direct = core_io.is_some_and(|c| c.direct);
+        let sensor_addrs: Vec<u32> = match core_io {
+            Some(_) => adc_channels
+                .iter()
+                .map(|&ch| super::io::io_base(core) + super::io::RESULTS_A + 4 * ch)
+                .collect(),
+            None => sensor_words
+                .iter()
+                .map(|&w| window_alias(SENSOR_BASE, w))
+                .collect(),
+        };
         let sensor_channels = adc_channels
             .iter()
+            .filter(|_| !direct)
             .map(|&ch| {
                 let scale = scales
                     .get(ch as usize)
@@ -356,10 +371,7 @@ pub(super) fn key_records(
             })
             .collect();
         kc.push(KeyCode {
-            sensor_words: sensor_words
-                .iter()
-                .map(|&w| window_alias(SENSOR_BASE, w))
-                .collect(),
+            sensor_words: sensor_addrs,
             sensor_channels,
             out_offset,
             state_offset,

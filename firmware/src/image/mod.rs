@@ -1132,6 +1132,7 @@ impl FirmwareImage {
         let plan = self.io.as_ref()?;
         let k = self.keys.get(key)?;
         Some(plan.latency_cycles(
+            k.spec.core,
             *k.adc_channels.first()?,
             *k.dac_channels.first()?,
             &self.tick,

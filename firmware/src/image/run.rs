@@ -507,7 +507,7 @@ impl ImageRun {
                 let frames = super::io::io_base(k.spec.core) + super::io::DAC_FRAMES;
                 for &ch in &k.dac_channels {
                     let w = self.board.read_u32(frames + 4 * ch).map_err(emu)?;
-                    dac[at] = super::io::frame_code(w) as i32 as u32;
+                    dac[at] = super::io::word_code(w) as i32 as u32;
                     at += 1;
                 }
             }
