@@ -28,8 +28,9 @@
 //! the board at the end of each run. While every enabled state machine is stalled in a way
 //! that repeats without effect ([`Pio::quiet`]) and the DMA has nothing it could do
 //! ([`Dma::quiet`]), nothing can happen until a core writes a register: the whole stretch is
-//! skipped in one step ([`Pio::skip`] moves the clock dividers). Between those, it steps
-//! cycle by cycle.
+//! skipped in one step ([`Pio::skip`] moves the clock dividers). So are the cycles in which
+//! the DMA is quiet and no state machine's divider lets it run ([`Pio::idle_cycles`]).
+//! Between those, it steps cycle by cycle.
 //!
 //! **The DMA against the cores.** The DMA's two masters (read and write ports) arbitrate
 //! for SRAM banks with the cores (a bank serves one master a cycle). With DMA_R and DMA_W
@@ -535,6 +536,20 @@ impl Io {
                 }
                 self.cycle = to;
                 return;
+            }
+            if dma_quiet && !self.stepwise {
+                // Cycles in which no state machine runs but FIFO-stalled ones.
+                let n = port.pio[0]
+                    .idle_cycles()
+                    .min(port.pio[1].idle_cycles())
+                    .min(to - c);
+                if n > 0 {
+                    for p in port.pio.iter_mut() {
+                        p.skip(n, self.gpio_in);
+                    }
+                    self.cycle = c + n;
+                    continue;
+                }
             }
             if !dma_quiet {
                 self.dma.tick(c, &mut port);

@@ -373,6 +373,29 @@ impl Pio {
         (0..4).all(|n| self.enabled & (1 << n) == 0 || self.stable_stall(n))
     }
 
+    /// How many of the coming system cycles change nothing while the FIFOs stay as they
+    /// are: until the first in which an enabled state machine that is not stalled on a
+    /// FIFO ([`Pio::quiet`]'s `PULL`/`OUT` on an empty TX FIFO, `PUSH`/`IN` on a full RX
+    /// FIFO) is enabled by its clock divider (0: the next cycle); `u64::MAX` when there is
+    /// none. [`Pio::skip`] advances the block over them exactly.
+    pub fn idle_cycles(&self) -> u64 {
+        let mut idle = u64::MAX;
+        for n in 0..4 {
+            if self.enabled & (1 << n) == 0 {
+                continue;
+            }
+            let s = &self.sm[n];
+            let fifo_stall = self.stable_stall(n) && matches!(u32::from(s.current) >> 13, 2..=4);
+            if fifo_stall {
+                continue;
+            }
+            // The first k ≥ 0 with acc + 256·(k + 1) ≥ divisor.
+            let k = u64::from(s.divisor() - s.acc).div_ceil(256) - 1;
+            idle = idle.min(k);
+        }
+        idle
+    }
+
     /// Whether state machine `n` is stalled as [`Pio::quiet`] says.
     fn stable_stall(&self, n: usize) -> bool {
         let s = &self.sm[n];
@@ -405,9 +428,10 @@ impl Pio {
         }
     }
 
-    /// Advances a [`Pio::quiet`] block `cycles` system cycles with the GPIO inputs
-    /// `gpio_in` throughout: exactly what as many [`Pio::tick`]s would do (the clock
-    /// dividers' accumulators, the synchroniser; the stalled instructions change nothing).
+    /// Advances a [`Pio::quiet`] block `cycles` system cycles, or any block at most
+    /// [`Pio::idle_cycles`], with the GPIO inputs `gpio_in` throughout: exactly what as many
+    /// [`Pio::tick`]s would do (the clock dividers' accumulators, the synchroniser; the
+    /// stalled instructions change nothing, the others do not run).
     pub fn skip(&mut self, cycles: u64, gpio_in: u32) {
         match cycles {
             0 => return,

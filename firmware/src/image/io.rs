@@ -37,8 +37,16 @@
 //! cycles a bit; each part's clock divider and chip-select padding come from its data sheet
 //! (`tactus_runtime::converters`) at the board's clock.
 //!
-//! **A code as a sensor word**: `lo + (code << shift)` (`AdcScale`), per sensor from its
-//! declared range: an `LDRH`, an `LSLS`, an `ADDS` from a literal where `lo` is not 0.
+//! **The words the keys see.** A sensor word is `lo + (code << shift)` (`AdcScale`, per
+//! sensor from its declared range). Where every sensor of a core has `lo` 0 and one shift
+//! of at most 16 (a keyboard of one instrument), the ADC's state machine pushes that word
+//! itself ([`adc_program`]'s `direct`) and the keys read it where it lies, as they read a
+//! window word without converters; otherwise the handler makes each word of its code (an
+//! `LDRH`, an `LSLS`, an `ADDS` from a literal where `lo` is not 0). The DAC's state
+//! machine assembles each frame from a word whose header the image wrote and whose low half
+//! the handler stores with one `STRH` ([`dac_word`], [`dac_program`]). So on such a core the
+//! drivers cost the handler its first 17 to 19 cycles and nothing per key but the DMA's
+//! contention.
 
 use super::ImageError;
 use tactus_compiler::thumb::buffer::CodeBuffer;
