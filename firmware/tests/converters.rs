@@ -194,6 +194,16 @@ fn converters_carry_the_same_positions_in_and_codes_out() {
             );
         }
     }
+    // The I/O trace's records (`tactus play --io-trace`): every frame once, then drained.
+    let (records, breaches) = a.take_io();
+    assert!(breaches.is_empty(), "{breaches:?}");
+    let count = |dac: bool| records.iter().filter(|r| r.dac == dac).count();
+    assert_eq!((count(false), count(true)), ((N + 1) * 5, N * 5));
+    assert!(records
+        .iter()
+        .filter(|r| !r.dac)
+        .all(|r| r.command >> 13 == 0b110 && r.channel < 3));
+    assert!(a.take_io().0.is_empty());
 }
 
 #[test]

@@ -110,7 +110,7 @@ mod layout;
 mod run;
 
 pub use flash_image::{FlashImage, FlashPiece};
-pub use run::{run_to_first_tick, run_to_timer, DriveOut, ImageRun, KeyEvent, SampleOut};
+pub use run::{run_to_first_tick, run_to_timer, DriveOut, ImageRun, IoRecord, KeyEvent, SampleOut};
 
 use std::fmt;
 use std::sync::{Arc, OnceLock};

@@ -76,6 +76,25 @@ pub struct SampleOut {
     pub stalls: Vec<u64>,
 }
 
+/// One frame at a converter's pins ([`ImageRun::take_io`]): an ADC frame (the channel it
+/// sampled at its chip select's fall, the code, the command it carried) or a DAC output
+/// change (at the frame's 32nd SCLK falling edge, the channel's new code).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IoRecord {
+    /// The core whose converter it is.
+    pub core: usize,
+    /// `true` for the DAC, `false` for the ADC.
+    pub dac: bool,
+    /// The board's cycle of the edge.
+    pub cycle: u64,
+    /// The channel.
+    pub channel: u8,
+    /// The code (the ADC's sample; the DAC's output, straight binary).
+    pub code: u16,
+    /// The ADC frame's command (0 for the DAC).
+    pub command: u16,
+}
+
 /// A firmware image on an emulated board.
 pub struct ImageRun {
     board: Board,
@@ -557,6 +576,40 @@ impl ImageRun {
             }
         }
         Ok(())
+    }
+
+    /// The converters' frames since the last call (every core's ADC frames, then its DAC
+    /// updates, in cycle order per part), removed from the emulated parts; empty without
+    /// converters. Also the parts' data-sheet breaches so far, as text.
+    pub fn take_io(&mut self) -> (Vec<IoRecord>, Vec<String>) {
+        let Some(io) = self.board.io_mut() else {
+            return (Vec::new(), Vec::new());
+        };
+        let mut out = Vec::new();
+        let mut breaches = Vec::new();
+        for (core, adc) in io.adcs.iter_mut().enumerate() {
+            out.extend(adc.take_frames().into_iter().map(|f| IoRecord {
+                core,
+                dac: false,
+                cycle: f.cs_fall,
+                channel: f.channel,
+                code: f.code,
+                command: f.command,
+            }));
+            breaches.extend(adc.violations().iter().map(|v| v.what.clone()));
+        }
+        for (core, dac) in io.dacs.iter_mut().enumerate() {
+            out.extend(dac.take_updates().into_iter().map(|u| IoRecord {
+                core,
+                dac: true,
+                cycle: u.cycle,
+                channel: u.channel,
+                code: u.code,
+                command: 0,
+            }));
+            breaches.extend(dac.violations().iter().map(|v| v.what.clone()));
+        }
+        (out, breaches)
     }
 
     /// Key `key`'s out words after the last sample (the update's `out[]`, `OutLayout`).

@@ -113,6 +113,14 @@ pub enum BoardError {
     /// Its run stopped (a fault at a sample, a non-finite value).
     #[error("{0}")]
     Run(Box<RunError>),
+    /// Its I/O trace (`--io-trace`) could not be written.
+    #[error("I/O trace {path}: {message}")]
+    Trace {
+        /// The file.
+        path: String,
+        /// The system's message.
+        message: String,
+    },
 }
 
 impl From<RunError> for BoardError {
