@@ -146,6 +146,11 @@ pub fn play_boards(
             why: why.clone(),
         });
     }
+    if opts.io_trace.is_some() && board.converters.is_none() {
+        return Err(RunError::NoConverters {
+            board: board.name.clone(),
+        });
+    }
     let decimation = opts.end.div_ceil(MAX_POINTS).max(1);
     // The boards share nothing: one rayon task each, on as many threads as the machine has
     // cores.
@@ -216,6 +221,9 @@ impl<'p> BoardEngine<'p> {
             path: name.clone(),
             message: e.to_string(),
         };
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).map_err(fail)?;
+        }
         let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(fail)?);
         writeln!(w, "{IO_TRACE_HEADER}").map_err(fail)?;
         self.io_trace = Some((board, name.clone(), w));

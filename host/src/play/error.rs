@@ -54,6 +54,12 @@ pub enum RunError {
         /// The longest run, samples.
         max_samples: usize,
     },
+    /// `--io-trace` on a board without converters: there are no frames to write.
+    #[error("--io-trace: the board `{board}` has no converters (its file names no `[converters]`; the reference board with them is `rp2040_io`)")]
+    NoConverters {
+        /// The board kind's name.
+        board: String,
+    },
     /// The boards of the keyboard cannot be costed or planned.
     #[error("firmware: {0}")]
     Boards(#[from] BoardsError),
