@@ -247,3 +247,53 @@ fn the_drivers_keep_each_parts_timing_at_each_clock() {
         assert!(sync > plan.dac.sync_high_min_s, "{name}: {sync}");
     }
 }
+
+#[test]
+fn a_board_with_converters_boots_from_flash_as_from_ram() {
+    // One harpsichord key a core: boot2, the copy to SRAM (the I/O blocks with it), the
+    // drivers' set-up; then the same samples as the RAM image, frame for frame.
+    let p = instrument("harpsichord");
+    let keys: Vec<KeySpec> = (0..2)
+        .map(|i| KeySpec {
+            slot: 60 + i,
+            program: 0,
+            core: i,
+        })
+        .collect();
+    let lim = LimiterConfig::default();
+    let image =
+        FirmwareImage::build(std::slice::from_ref(&p), &keys, &board("rp2040_io"), &lim).unwrap();
+    let flash = image.flash_image().unwrap().bytes;
+    let mut ram = image.run().unwrap();
+    let mut rom = tactus_firmware::image::ImageRun::from_flash(&image, &flash).unwrap();
+    let words: Vec<Vec<i32>> = (0..2).map(|i| stimulus_words(&p, i, 2500, 8)).collect();
+    for n in 0..8 {
+        let now: Vec<i32> = words.iter().map(|w| w[n]).collect();
+        let a = ram.step(&now).unwrap().clone();
+        let b = rom.step(&now).unwrap().clone();
+        assert_eq!(
+            (a.force, a.dac, a.core_cycles),
+            (b.force, b.dac, b.core_cycles)
+        );
+    }
+    let (ra, _) = ram.take_io();
+    let (rb, breaches) = rom.take_io();
+    assert!(breaches.is_empty(), "{breaches:?}");
+    // The same frames from each board's first tick (the flash boot takes longer): the
+    // same codes in the same order; the DAC's at the same cycles, the ADC's within its
+    // state machine's clock phase (÷ 2: which of two cycles the divider lets it run in
+    // depends on how long the boot took).
+    assert_eq!(ra.len(), rb.len());
+    assert!(!ra.is_empty());
+    let div = image.io().unwrap().adc_div as i64;
+    let (t0a, t0b) = (ram.tick_cycle(0) as i64, rom.tick_cycle(0) as i64);
+    for (x, y) in ra.iter().zip(&rb) {
+        assert_eq!(
+            (x.core, x.dac, x.channel, x.code, x.command),
+            (y.core, y.dac, y.channel, y.code, y.command)
+        );
+        let (dx, dy) = (x.cycle as i64 - t0a, y.cycle as i64 - t0b);
+        let slack = if x.dac { 0 } else { div - 1 };
+        assert!((dx - dy).abs() <= slack, "{x:?} at {dx}, {y:?} at {dy}");
+    }
+}
