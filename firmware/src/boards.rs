@@ -13,7 +13,10 @@
 //! as many consecutive slots as it has sensor or DAC words). They go to the cores by an
 //! exact two-way partition ([`crate::schedule::partition`]) of their costs (update WCET + call + glue, each
 //! from the image), so no core assignment of the same keys needs fewer cycles on its
-//! fullest core.
+//! fullest core; on a board with converters, among the assignments that give no core more
+//! keys (slots) than its parts have channels ([`crate::schedule::partition_capped`]), so
+//! the argument below holds there too: a sub-range's capped optimum is at most the range's
+//! restricted to it.
 //!
 //! **Planning** ([`plan`]): boards take contiguous key ranges (the wiring runs along the
 //! keyboard). A greedy sweep gives each board, from the lowest key up, as many further keys
@@ -267,8 +270,23 @@ fn image_of(
             ))),
         ));
     }
+    // With converters a core holds keys of at most its parts' channels (one per sensor
+    // word and per force word): the partition keeps within them where it can (else the
+    // image says which part has too few).
+    let cap = board.converter_parts().map(|(a, d)| {
+        a.channels
+            .min(d.channels)
+            .min(crate::image::io::MAX_CHANNELS)
+    });
+    let widths: Vec<u32> = keys
+        .iter()
+        .map(|k| costs.slots.get(k.program).copied().unwrap_or(1) as u32)
+        .collect();
     let build = |local: &[Program], cycles: &[u64], specs: &mut [KeySpec]| {
-        let core = crate::schedule::partition(cycles, board.cores as usize);
+        let cores = board.cores as usize;
+        let core = cap
+            .and_then(|cap| crate::schedule::partition_capped(cycles, &widths, cores, cap))
+            .unwrap_or_else(|| crate::schedule::partition(cycles, cores));
         for (s, &c) in specs.iter_mut().zip(&core) {
             s.core = c;
         }
