@@ -385,8 +385,7 @@ impl Pio {
                 continue;
             }
             let s = &self.sm[n];
-            let fifo_stall = self.stable_stall(n) && matches!(u32::from(s.current) >> 13, 2..=4);
-            if fifo_stall {
+            if self.fifo_stall(n) {
                 continue;
             }
             // The first k ≥ 0 with acc + 256·(k + 1) ≥ divisor.
@@ -394,6 +393,13 @@ impl Pio {
             idle = idle.min(k);
         }
         idle
+    }
+
+    /// Whether state machine `n` is stalled on a FIFO as [`Pio::quiet`] says: `PULL` or an
+    /// autopulling `OUT` on an empty TX FIFO, `PUSH` or an autopushing `IN` on a full RX
+    /// FIFO; it stalls again, without effect, until that FIFO changes.
+    fn fifo_stall(&self, n: usize) -> bool {
+        matches!(u32::from(self.sm[n].current) >> 13, 2..=4) && self.stable_stall(n)
     }
 
     /// Whether state machine `n` is stalled as [`Pio::quiet`] says.
@@ -411,17 +417,25 @@ impl Pio {
         }
         // A stalled cycle other than an OUT's or IN's may autopull (`background_pull`).
         let refills = s.autopull() && s.osr_count >= s.pull_thresh() && !s.tx.words.is_empty();
+        // Each case: the instruction's stall condition holds now (a stall that refilled
+        // the OSR, say, does not repeat).
         let ins = u32::from(s.current);
+        let if_flag = ins & 0x40 != 0;
         match ins >> 13 {
             // WAIT: its condition is re-evaluated against the same flags and inputs.
             1 => !refills,
             // IN stalls only autopushing into a full RX FIFO.
-            2 => s.rx_full(),
+            2 => {
+                let after = (s.isr_count + count32(bits(ins, 0, 5))).min(32);
+                s.autopush() && after >= s.push_thresh() && s.rx_full()
+            }
             // OUT stalls only autopulling from an empty TX FIFO.
-            3 => s.tx.words.is_empty(),
+            3 => s.autopull() && s.osr_count >= s.pull_thresh() && s.tx.words.is_empty(),
             // PULL block on an empty TX FIFO; PUSH block on a full RX FIFO.
-            4 if ins & 0x80 != 0 => s.tx.words.is_empty(),
-            4 => s.rx_full() && !refills,
+            4 if ins & 0x80 != 0 => {
+                s.tx.words.is_empty() && !(if_flag && s.osr_count < s.pull_thresh())
+            }
+            4 => s.rx_full() && !(if_flag && s.isr_count < s.push_thresh()) && !refills,
             // IRQ wait: its flag still set.
             6 => s.irq_waiting && !refills,
             _ => false,
@@ -570,6 +584,12 @@ impl Pio {
                 continue;
             }
             s.acc -= s.divisor();
+            // A machine stalled on a FIFO that has not changed stalls again without
+            // effect ([`Pio::idle_cycles`]): its side-set, re-asserted, is already on the
+            // pins, so it writes nothing this cycle either way.
+            if self.fifo_stall(n) {
+                continue;
+            }
             *fx = self.execute(n, seen);
         }
         // In state machine order: the highest-numbered writes last and wins.
