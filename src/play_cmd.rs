@@ -84,6 +84,11 @@ pub struct PlayArgs {
     /// Do not write the WAV rendering.
     #[arg(long)]
     pub no_wav: bool,
+    /// With `--engine emu` on a board with converters (`--board rp2040_io`): write every
+    /// board's frames at the pins (each ADC sample, each DAC update, with their cycles)
+    /// into DIR/board-NN.csv.
+    #[arg(long, value_name = "DIR")]
+    pub io_trace: Option<PathBuf>,
     /// Output directory.
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
@@ -132,6 +137,7 @@ fn session(args: &PlayArgs) -> Result<Session, PlayError> {
         board,
         emulator: args.emu.into(),
         quiescent_guard: !args.no_quiescent_guard,
+        io_trace: args.io_trace.clone(),
     };
     let opts = PieceOptions {
         seconds: args.seconds,

@@ -197,6 +197,13 @@ pub struct System {
     /// 5 SRAM5): [`ALL_BANKS`] except while a core runs confined to some banks
     /// ([`crate::board`], "Running ahead"); an access elsewhere leaves the fast path.
     pub(crate) allowed_banks: u8,
+    /// The converters' I/O (PIO, DMA, the parts at the pins), on a board that has them
+    /// ([`crate::Board::attach_io`]); `None` otherwise, which costs nothing.
+    pub io: Option<Box<crate::io::Io>>,
+    /// SRAM banks the I/O's DMA may reach now ([`crate::io::Io::reach_banks`], 0 without
+    /// I/O): the fast path leaves them ([`System::fast_banks`]), and every core access to one
+    /// runs the I/O up to it first.
+    pub(crate) io_banks: u8,
 }
 
 /// Every SRAM bank ([`System::allowed_banks`]).
@@ -299,7 +306,58 @@ impl System {
             code_pages: vec![false; (SRAM_SIZE / 256) as usize],
             code_epoch: 0,
             allowed_banks: ALL_BANKS,
+            io: None,
+            io_banks: 0,
         }
+    }
+
+    /// The SRAM banks the fast path may access outside windows: every bank but those the
+    /// I/O's DMA may reach ([`System::io_banks`]).
+    #[inline(always)]
+    pub(crate) fn fast_banks(&self) -> u8 {
+        ALL_BANKS & !self.io_banks
+    }
+
+    /// Runs the I/O (if any) through cycle `to − 1` ([`crate::io`]).
+    pub fn io_advance(&mut self, to: u64) {
+        if let Some(io) = self.io.as_mut() {
+            let mut mem = crate::io::Memory {
+                sram: &mut self.sram,
+                code_pages: &mut self.code_pages,
+                code_epoch: &mut self.code_epoch,
+                bank_claim: &self.bank_claim,
+                rom: &self.rom,
+                flash: &self.flash,
+                xip_answers: self.xip_answers,
+            };
+            io.advance(to, &mut mem);
+        }
+    }
+
+    /// Core `core`'s access to SRAM bank `bank` (one the DMA may reach) in `cycle`: the I/O
+    /// run up to it; where the DMA wins against the core, also through the cycles in which
+    /// the DMA claims the bank, each a wait state. Returns the wait states.
+    fn io_sram(&mut self, core: usize, cycle: u64, bank: usize) -> u32 {
+        let wins = self.io.as_ref().is_some_and(|io| io.dma_wins(core));
+        if !wins {
+            self.io_advance(cycle);
+            return 0;
+        }
+        let mut at = cycle;
+        loop {
+            self.io_advance(at + 1);
+            match self.io.as_ref() {
+                Some(io) if io.dma_claims(bank, at) => at += 1,
+                _ => return (at - cycle) as u32,
+            }
+        }
+    }
+
+    /// After a write to the I/O's registers: the banks the DMA may reach now, and the fast
+    /// path's banks with them.
+    fn io_refresh(&mut self) {
+        self.io_banks = self.io.as_ref().map_or(0, |io| io.reach_banks());
+        self.allowed_banks = self.fast_banks();
     }
 
     /// Whether the fast path may access SRAM offset `off` (below [`SRAM_SIZE`]) now
@@ -464,6 +522,11 @@ impl System {
             }
             return self.timer.read(cycle, addr & 0xfff);
         }
+        if crate::io::Io::owns(addr) && self.io.is_some() {
+            // IO_BANK0, BUSCTRL: the I/O as of this cycle.
+            self.io_advance(cycle);
+            return self.io.as_mut()?.read(addr);
+        }
         // RESETS, clocks, PLL, XOSC, VREG, watchdog: no interrupt lines.
         self.sysctl.read(addr)
     }
@@ -505,8 +568,23 @@ impl System {
             };
             return self.timer.write(cycle, reg, value);
         }
+        if crate::io::Io::owns(addr) && self.io.is_some() {
+            self.io_advance(cycle);
+            let ok = self.io.as_mut().is_some_and(|io| io.write(addr, value));
+            self.io_refresh();
+            return ok;
+        }
         let was_held = self.sysctl.held_in_reset(clocks::reg::RESET_TIMER);
         let ok = self.sysctl.write(addr, value);
+        if self.io.is_some() && clocks::block_of(addr) == Some(clocks::RESETS_BASE) {
+            // PIO0, PIO1, the DMA, IO_BANK0 and BUSCTRL follow RESETS.
+            self.io_advance(cycle);
+            let held = self.sysctl.read(clocks::RESETS_BASE).unwrap_or(0);
+            if let Some(io) = self.io.as_mut() {
+                io.set_resets(held);
+            }
+            self.io_refresh();
+        }
         // The timer counts from its release from reset (datasheet 4.6: held in reset it
         // reads 0 and its alarms are disarmed).
         match (
@@ -532,10 +610,27 @@ impl Bus for System {
         size: u32,
     ) -> Result<(u32, u32), BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
-            let wait = self.arbitrate(core, cycle, bank);
+            let io = if self.io_banks >> bank & 1 != 0 {
+                self.io_sram(core, cycle, bank)
+            } else {
+                0
+            };
+            let wait = io + self.arbitrate(core, cycle + u64::from(io), bank);
             return Ok((load_le(&self.sram, off, size), wait));
         }
         match addr >> 28 {
+            0x5 if self.io.is_some() && crate::io::Io::owns(addr) => {
+                // The DMA and the PIOs (AHB-Lite), as of this cycle.
+                self.io_advance(cycle);
+                let io = self.io.as_mut().ok_or(BusFault { addr })?;
+                match io.read(addr & !3) {
+                    Some(v) => Ok((
+                        v >> ((addr & 3) * 8) & (u32::MAX >> (32 - 8 * size)),
+                        crate::io::AHB_PERIPHERAL_WAIT,
+                    )),
+                    None => Err(BusFault { addr }),
+                }
+            }
             0x0 if addr < ROM_SIZE => Ok((load_le(&self.rom, addr as usize, size), 0)),
             0x1 if addr - FLASH_BASE < FLASH_SIZE && self.xip_answers => {
                 Ok((load_le(&self.flash, (addr - FLASH_BASE) as usize, size), 0))
@@ -571,7 +666,12 @@ impl Bus for System {
         value: u32,
     ) -> Result<u32, BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
-            let wait = self.arbitrate(core, cycle, bank);
+            let io = if self.io_banks >> bank & 1 != 0 {
+                self.io_sram(core, cycle, bank)
+            } else {
+                0
+            };
+            let wait = io + self.arbitrate(core, cycle + u64::from(io), bank);
             store_le(&mut self.sram, off, size, value);
             if self.code_pages[off >> 8] {
                 self.invalidate_code();
@@ -579,6 +679,24 @@ impl Bus for System {
             return Ok(wait);
         }
         match addr >> 28 {
+            0x5 if self.io.is_some() && crate::io::Io::owns(addr) => {
+                let value = match size {
+                    1 => (value & 0xff) * 0x0101_0101,
+                    2 => (value & 0xffff) * 0x0001_0001,
+                    _ => value,
+                };
+                self.io_advance(cycle);
+                let ok = self
+                    .io
+                    .as_mut()
+                    .is_some_and(|io| io.write(addr & !3, value));
+                self.io_refresh();
+                if ok {
+                    Ok(crate::io::AHB_PERIPHERAL_WAIT)
+                } else {
+                    Err(BusFault { addr })
+                }
+            }
             0x4 | 0xd => {
                 let wait = if addr >> 28 == 4 { APB_STORE_WAIT } else { 0 };
                 // Narrow stores to 32-bit registers replicate the data across the word
@@ -618,7 +736,9 @@ impl Bus for System {
         addr: u32,
         words: &[u32],
     ) -> Result<(), BusFault> {
-        let Some(off) = plain_sram_span(addr, 4 * words.len() as u32) else {
+        let Some(off) =
+            plain_sram_span(addr, 4 * words.len() as u32).filter(|_| self.io_banks == 0)
+        else {
             return write_each_word(self, core, cycle, addr, words);
         };
         for (i, &w) in words.iter().enumerate() {
@@ -641,7 +761,8 @@ impl Bus for System {
         addr: u32,
         out: &mut [u32],
     ) -> Result<(), BusFault> {
-        let Some(off) = plain_sram_span(addr, 4 * out.len() as u32) else {
+        let Some(off) = plain_sram_span(addr, 4 * out.len() as u32).filter(|_| self.io_banks == 0)
+        else {
             return read_each_word(self, core, cycle, addr, out);
         };
         for (i, w) in out.iter_mut().enumerate() {

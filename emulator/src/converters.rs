@@ -182,6 +182,12 @@ impl Ads8688 {
         &self.violations
     }
 
+    /// The frames seen since the last call (at most [`MAX_KEPT`]), removed: a long run's
+    /// trace drains them as it goes.
+    pub fn take_frames(&mut self) -> Vec<AdcFrame> {
+        std::mem::take(&mut self.frames)
+    }
+
     fn violate(&mut self, cycle: u64, what: String) {
         keep(&mut self.violations, TimingViolation { cycle, what });
     }
@@ -413,6 +419,11 @@ impl Dac8568 {
     /// The timing breaches so far (at most [`MAX_KEPT`]).
     pub fn violations(&self) -> &[TimingViolation] {
         &self.violations
+    }
+
+    /// The output changes since the last call (at most [`MAX_KEPT`]), removed.
+    pub fn take_updates(&mut self) -> Vec<DacUpdate> {
+        std::mem::take(&mut self.updates)
     }
 
     fn violate(&mut self, cycle: u64, what: String) {

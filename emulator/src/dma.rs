@@ -53,7 +53,8 @@
 //!
 //! Not modelled: the sniffer (`SNIFF_CTRL`, `SNIFF_DATA`), `CHAN_ABORT`'s in-flight wait
 //! (an abort here ends the channel at once, dropping its queued transfers), the
-//! `FIFO_LEVELS` and debug counters beyond `DBG_TCR`; and the model is not on the bus yet.
+//! `FIFO_LEVELS` and debug counters beyond `DBG_TCR`. On the bus (`crate::io`), a board
+//! with converters runs it against SRAM and the two PIO blocks.
 
 /// Base address of the DMA's registers (datasheet 2.2).
 pub const DMA_BASE: u32 = 0x5000_0000;
@@ -328,6 +329,50 @@ impl Dma {
     /// A caller may skip [`Dma::tick`] while this holds and no register is written.
     pub fn idle(&self) -> bool {
         self.queue.is_empty() && self.ch.iter().all(|c| !c.busy)
+    }
+
+    /// Whether ticking the DMA changes nothing while the DREQs `port` reports stay as they
+    /// are: no transfer between the ports, no sequence started empty, no pacing timer
+    /// running (its accumulator moves every cycle), and no channel ready to issue. A caller
+    /// may then skip [`Dma::tick`] until a register is written or a DREQ changes.
+    pub fn quiet(&self, port: &dyn DmaPort) -> bool {
+        self.queue.is_empty()
+            && self.timer.iter().all(|&(x, y)| x == 0 || y == 0)
+            && (0..CHANNELS).all(|n| !self.ch[n].empty_start && !self.ready(n, port))
+    }
+
+    /// The addresses every enabled channel may read or write before software next writes
+    /// a DMA register: per channel and direction `(first address, bytes)` from its current
+    /// address — one transfer's bytes where it does not increment, the ring where it wraps,
+    /// its transfers left (or the reload count, a restart's) where it increments, and
+    /// `u64::MAX` bytes for an incrementing channel that chains to another (a chain may
+    /// restart it from where it stopped, again and again).
+    pub fn reach(&self) -> Vec<(u32, u64)> {
+        let mut v = Vec::new();
+        for (n, c) in self.ch.iter().enumerate() {
+            if c.ctrl & ctrl::EN == 0 {
+                continue;
+            }
+            let ring_bits = (c.ctrl >> ctrl::RING_SIZE_SHIFT) & 0xf;
+            let ring_write = c.ctrl & ctrl::RING_SEL != 0;
+            let count = u64::from(c.to_issue.max(c.reload));
+            for (addr, incr, ringed) in [
+                (c.read_addr, c.ctrl & ctrl::INCR_READ != 0, !ring_write),
+                (c.write_addr, c.ctrl & ctrl::INCR_WRITE != 0, ring_write),
+            ] {
+                let size = u64::from(c.size());
+                v.push(if !incr {
+                    (addr, size)
+                } else if ringed && ring_bits > 0 {
+                    (addr & !((1u32 << ring_bits) - 1), 1u64 << ring_bits)
+                } else if c.chain_to() != n {
+                    (addr, u64::MAX)
+                } else {
+                    (addr, size * count.max(1))
+                });
+            }
+        }
+        v
     }
 
     fn ctrl_value(&self, n: usize) -> u32 {

@@ -9,8 +9,9 @@
 //! host API: load an ELF ([`elf`]), power on from flash through the boot ROM's path, run N
 //! cycles, read and write memory, feed sensors, read the DAC, and count cycles per
 //! function. [`pio`] models a PIO block (state machines, FIFOs, side-set, the clock
-//! divider) and [`dma`] the DMA controller (channels, triggers, chaining, DREQ pacing),
-//! each stepped by its caller; neither is on the bus yet (issue 40). [`block`] is the
+//! divider), [`dma`] the DMA controller (channels, triggers, chaining, DREQ pacing) and
+//! [`converters`] the SPI converters at the pins; [`io`] puts them on the bus of a board
+//! that has converters ([`board::Board::attach_io`], issue 40). [`block`] is the
 //! default engine of the board's fast path: Thumb regions compiled to native code with cranelift
 //! (module `jit`), pre-decoded basic blocks otherwise ([`board::Engine`]).
 #![deny(missing_docs)]
@@ -26,6 +27,7 @@ pub mod dma;
 pub mod elf;
 pub mod exec;
 mod fast;
+pub mod io;
 mod jit;
 pub mod nvic;
 pub mod pio;

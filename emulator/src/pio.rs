@@ -36,8 +36,9 @@
 //!   (3.5.6.1).
 //!
 //! Not modelled yet: the interrupt outputs (IRQ0/IRQ1 INTE/INTF/INTS), FDEBUG's stall and
-//! overflow flags, EXECCTRL's OUT_STICKY and INLINE_OUT_EN; and the model is not on the
-//! bus yet.
+//! overflow flags, EXECCTRL's OUT_STICKY and INLINE_OUT_EN. On the bus, `crate::io` runs
+//! both blocks, skipping stretches in which every enabled state machine stalls without
+//! effect ([`Pio::quiet`], [`Pio::skip`]).
 
 /// Base address of PIO0 (datasheet 2.2).
 pub const PIO0_BASE: u32 = 0x5020_0000;
@@ -146,6 +147,9 @@ struct StateMachine {
     acc: u32,
     /// An `IRQ … wait` that has set its flag and waits for it to clear.
     irq_waiting: bool,
+    /// The last enabled cycle ran an instruction that stalled, with these pin effects (its
+    /// side-set): what [`Pio::quiet`] needs to know that running it again changes nothing.
+    stalled: Option<Effects>,
 }
 
 impl StateMachine {
@@ -169,6 +173,7 @@ impl StateMachine {
             current: 0,
             acc: 0,
             irq_waiting: false,
+            stalled: None,
         }
     }
 
@@ -262,6 +267,7 @@ impl StateMachine {
     }
 
     fn restart(&mut self) {
+        self.stalled = None;
         self.isr = 0;
         self.isr_count = 0;
         self.osr_count = 32;
@@ -274,7 +280,7 @@ impl StateMachine {
 /// What one instruction did to the pins in a cycle: (mask, levels) written to the pin
 /// values and directions by the instruction (OUT, SET, MOV) and by its side-set, which
 /// wins where both write a pin (datasheet 3.5.6.1).
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct Effects {
     values: (u32, u32),
     dirs: (u32, u32),
@@ -353,6 +359,114 @@ impl Pio {
     /// credits on its RX DREQ.
     pub fn rx_level(&self, sm: usize) -> u32 {
         self.sm.get(sm).map_or(0, |s| s.rx.len() as u32)
+    }
+
+    /// Whether running the block changes nothing while its FIFOs, its IRQ flags and the GPIO
+    /// inputs stay as they are: every enabled state machine is stalled (on its last enabled
+    /// cycle) on an instruction that stalls again without touching any state — `PULL
+    /// block` or an autopulling `OUT` on an empty TX FIFO, `PUSH block` or an autopushing
+    /// `IN` on a full RX FIFO, an unmet `WAIT`, an `IRQ wait` whose flag is still set — and
+    /// whose side-set leaves the pins as they are. Then only the clock dividers and the input
+    /// synchroniser move, which [`Pio::skip`] does in one step. (The caller keeps the FIFOs,
+    /// flags and inputs as they are: nothing else runs against the block meanwhile.)
+    pub fn quiet(&self) -> bool {
+        (0..4).all(|n| self.enabled & (1 << n) == 0 || self.stable_stall(n))
+    }
+
+    /// How many of the coming system cycles change nothing while the FIFOs stay as they
+    /// are: until the first in which an enabled state machine that is not stalled on a
+    /// FIFO ([`Pio::quiet`]'s `PULL`/`OUT` on an empty TX FIFO, `PUSH`/`IN` on a full RX
+    /// FIFO) is enabled by its clock divider (0: the next cycle); `u64::MAX` when there is
+    /// none. [`Pio::skip`] advances the block over them exactly.
+    pub fn idle_cycles(&self) -> u64 {
+        let mut idle = u64::MAX;
+        for n in 0..4 {
+            if self.enabled & (1 << n) == 0 {
+                continue;
+            }
+            let s = &self.sm[n];
+            if self.fifo_stall(n) {
+                continue;
+            }
+            // The first k ≥ 0 with acc + 256·(k + 1) ≥ divisor.
+            let k = u64::from(s.divisor() - s.acc).div_ceil(256) - 1;
+            idle = idle.min(k);
+        }
+        idle
+    }
+
+    /// Whether state machine `n` is stalled on a FIFO as [`Pio::quiet`] says: `PULL` or an
+    /// autopulling `OUT` on an empty TX FIFO, `PUSH` or an autopushing `IN` on a full RX
+    /// FIFO; it stalls again, without effect, until that FIFO changes.
+    fn fifo_stall(&self, n: usize) -> bool {
+        matches!(u32::from(self.sm[n].current) >> 13, 2..=4) && self.stable_stall(n)
+    }
+
+    /// Whether state machine `n` is stalled as [`Pio::quiet`] says.
+    fn stable_stall(&self, n: usize) -> bool {
+        let s = &self.sm[n];
+        let Some(fx) = s.stalled else {
+            return false;
+        };
+        if s.delay > 0 || s.exec.is_some() || self.instr[s.pc as usize] != s.current {
+            return false;
+        }
+        let unchanged = |old: u32, (m, v): (u32, u32)| old & !m | v == old;
+        if !unchanged(self.out_values, fx.side_values) || !unchanged(self.out_dirs, fx.side_dirs) {
+            return false;
+        }
+        // A stalled cycle other than an OUT's or IN's may autopull (`background_pull`).
+        let refills = s.autopull() && s.osr_count >= s.pull_thresh() && !s.tx.words.is_empty();
+        // Each case: the instruction's stall condition holds now (a stall that refilled
+        // the OSR, say, does not repeat).
+        let ins = u32::from(s.current);
+        let if_flag = ins & 0x40 != 0;
+        match ins >> 13 {
+            // WAIT: its condition is re-evaluated against the same flags and inputs.
+            1 => !refills,
+            // IN stalls only autopushing into a full RX FIFO.
+            2 => {
+                let after = (s.isr_count + count32(bits(ins, 0, 5))).min(32);
+                s.autopush() && after >= s.push_thresh() && s.rx_full()
+            }
+            // OUT stalls only autopulling from an empty TX FIFO.
+            3 => s.autopull() && s.osr_count >= s.pull_thresh() && s.tx.words.is_empty(),
+            // PULL block on an empty TX FIFO; PUSH block on a full RX FIFO.
+            4 if ins & 0x80 != 0 => {
+                s.tx.words.is_empty() && !(if_flag && s.osr_count < s.pull_thresh())
+            }
+            4 => s.rx_full() && !(if_flag && s.isr_count < s.push_thresh()) && !refills,
+            // IRQ wait: its flag still set.
+            6 => s.irq_waiting && !refills,
+            _ => false,
+        }
+    }
+
+    /// Advances a [`Pio::quiet`] block `cycles` system cycles, or any block at most
+    /// [`Pio::idle_cycles`], with the GPIO inputs `gpio_in` throughout: exactly what as many
+    /// [`Pio::tick`]s would do (the clock dividers' accumulators, the synchroniser; the
+    /// stalled instructions change nothing, the others do not run).
+    pub fn skip(&mut self, cycles: u64, gpio_in: u32) {
+        match cycles {
+            0 => return,
+            1 => self.sync = [gpio_in, self.sync[0]],
+            _ => self.sync = [gpio_in; 2],
+        }
+        for n in 0..4 {
+            if self.enabled & (1 << n) == 0 {
+                continue;
+            }
+            let s = &mut self.sm[n];
+            // acc stays below the divisor (≥ 256): each cycle is acc ← (acc + 256) mod div.
+            let div = u64::from(s.divisor());
+            let adv = (256 * (cycles % div)) % div;
+            s.acc = ((u64::from(s.acc) + adv) % div) as u32;
+        }
+    }
+
+    /// Whether state machine `sm` (0–3) is enabled (CTRL.SM_ENABLE).
+    pub fn enabled(&self, sm: usize) -> bool {
+        sm < 4 && self.enabled & (1 << sm) != 0
     }
 
     /// Reads register `offset` (datasheet 3.7; reading an RXF pops it, an empty one reads
@@ -470,6 +584,12 @@ impl Pio {
                 continue;
             }
             s.acc -= s.divisor();
+            // A machine stalled on a FIFO that has not changed stalls again without
+            // effect ([`Pio::idle_cycles`]): its side-set, re-asserted, is already on the
+            // pins, so it writes nothing this cycle either way.
+            if self.fifo_stall(n) {
+                continue;
+            }
             *fx = self.execute(n, seen);
         }
         // In state machine order: the highest-numbered writes last and wins.
@@ -489,6 +609,7 @@ impl Pio {
         let mut fx = Effects::default();
         let forced = self.sm[n].exec.is_some();
         if self.sm[n].delay > 0 && !forced {
+            self.sm[n].stalled = None;
             self.sm[n].delay -= 1;
             self.background_pull(n);
             return fx;
@@ -521,6 +642,7 @@ impl Pio {
         }
         let done = self.run(n, ins, gpio, &mut fx);
         let s = &mut self.sm[n];
+        s.stalled = matches!(done, Flow::Stall).then_some(fx);
         match done {
             Flow::Stall => {
                 // The instruction runs again next time (kept as the forced one if it was).

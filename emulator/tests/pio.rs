@@ -330,3 +330,65 @@ fn random_programs_and_register_writes_never_panic() {
         );
     }
 }
+
+/// What a caller running by events does (`tactus_emulator::io`): skip a quiet block, or the
+/// cycles in which only FIFO-stalled machines would run, in one step; the same pins, FIFOs,
+/// PCs and device as ticking every cycle, on the autopulling and autopushing SPI master
+/// with bytes written and words read at random cycles (some while it runs, some after it
+/// stalled) and its RX FIFO left to fill.
+#[test]
+fn skipping_by_events_equals_ticking_every_cycle() {
+    let mut rng = tactus_runtime::rng::XorShift64::new(0x0dd_ba11);
+    for div in [1u32, 2, 3] {
+        let (mut a, mut b) = (spi_master(div), spi_master(div));
+        let (mut da, mut db) = (Device::new(0x5a), Device::new(0x5a));
+        let mut t = 0u64;
+        for step in 0..60 {
+            // A stretch of up to 120 cycles, then perhaps a write or a read.
+            let end = t + 1 + rng.below(120) as u64;
+            for c in t..end {
+                a.tick(da.gpio_in());
+                da.observe(c, a.pin_values());
+            }
+            let mut c = t;
+            while c < end {
+                let idle = if b.quiet() { u64::MAX } else { b.idle_cycles() };
+                if idle > 0 {
+                    let n = idle.min(end - c);
+                    b.skip(n, db.gpio_in());
+                    c += n;
+                    continue;
+                }
+                b.tick(db.gpio_in());
+                db.observe(c, b.pin_values());
+                c += 1;
+            }
+            t = end;
+            for p in [reg::FLEVEL, reg::FSTAT, reg::SM0_ADDR, reg::SM0_INSTR] {
+                assert_eq!(
+                    a.read(p),
+                    b.read(p),
+                    "div {div} step {step} register {p:#x}"
+                );
+            }
+            assert_eq!(
+                (a.pin_values(), a.pin_dirs()),
+                (b.pin_values(), b.pin_dirs())
+            );
+            assert_eq!((da.rx, da.bits), (db.rx, db.bits));
+            assert_eq!(da.rising_edges, db.rising_edges, "div {div} step {step}");
+            match rng.below(4) {
+                0 | 1 => {
+                    let w = (rng.next_u64() as u32) << 24;
+                    a.write(reg::TXF0, w);
+                    b.write(reg::TXF0, w);
+                    da.bits = 0;
+                    db.bits = 0;
+                }
+                2 => assert_eq!(a.read(reg::RXF0), b.read(reg::RXF0)),
+                _ => {}
+            }
+        }
+        assert!(da.rising_edges.len() > 40, "div {div}: the master ran");
+    }
+}

@@ -181,24 +181,17 @@ pub fn check_clock(board: &BoardSpec) -> Result<Chip, BoardError> {
 /// 1.10 V to 133 MHz, 1.15 V to 200 MHz, nothing above; pico-sdk 2.1.1) — the rule of
 /// [`crate::image::FirmwareImage::flashable`].
 ///
-/// A board that names `[converters]` is refused for now: no image drives them.
+/// A board that names `[converters]` must name parts the firmware drives, wired as its
+/// drivers need (`tactus_runtime::converters::Converters::check`).
 ///
 /// Errors: [`BoardError`] naming the field.
 pub fn check_board(board: &BoardSpec) -> Result<Chip, BoardError> {
     use tactus_emulator::clocks::{min_core_mv, DEFAULT_CORE_MV};
     if let Some(c) = &board.converters {
-        // Read and checked against the parts' data sheets (`tactus_runtime::converters`),
-        // but no image drives them yet: firmware built for this board would leave the
-        // sensor and DAC words to a host that is not there.
-        return Err(bad(
-            "converters",
-            format!(
-                "{} and {}: the firmware does not drive external converters yet (the sensor \
-                 and DAC words are filled and read by the host); remove `[converters]` to \
-                 build for the board without them",
-                c.adc, c.dac
-            ),
-        ));
+        // The parts the firmware drives and their wiring (`tactus_runtime::converters`);
+        // what the keys need of them is checked where they are placed (`image::io`).
+        c.check(&board.name, board.cores)
+            .map_err(|why| bad("converters", why))?;
     }
     let chip = check_clock(board)?;
     let mhz = chip.clock_hz as f64 / 1e6;
@@ -264,16 +257,28 @@ mod tests {
         assert_eq!((chip.tick.q, chip.tick.rem, chip.tick.den), (3015, 55, 63));
         // Emulator-only clocks pass the image's level, not the board file's.
         assert!(image_board(&board(133.3e6, 2, 44_100.0)).is_ok());
-        // 200 MHz needs 1.15 V; converters are read but no image drives them yet.
+        // 200 MHz needs 1.15 V.
         assert_eq!(field(board(200e6, 2, 44_100.0)), "core_voltage_v");
         let b = BoardSpec {
             core_voltage_v: Some(1.15),
             ..board(200e6, 2, 44_100.0)
         };
         assert!(check_board(&b).is_ok());
-        let text = "name = \"io\"\nclock_hz = 133e6\ncores = 2\nsample_rate_hz = 44100\n\
-                    [converters]\nadc = \"ADS8688\"\ndac = \"DAC8568\"\n";
-        let e = read_board(text, "io.toml").unwrap_err();
-        assert!(e.contains("io.toml") && e.contains("`converters`"), "{e}");
+        // Converters: parts the firmware drives, wired as its drivers need.
+        let io = "name = \"io\"\nclock_hz = 133e6\ncores = 2\nsample_rate_hz = 44100\n\
+                  [converters]\nadc = \"ADS8688\"\ndac = \"DAC8568\"\n\
+                  adc_pins = [[2, 3, 4, 5], [10, 11, 12, 13]]\n\
+                  dac_pins = [[6, 7, 8], [14, 15, 16]]\n";
+        assert!(read_board(io, "io.toml").is_ok());
+        let e = read_board(&io.replace("ADS8688", "ADS1278"), "io.toml").unwrap_err();
+        assert!(
+            e.contains("io.toml") && e.contains("`converters.adc`"),
+            "{e}"
+        );
+        let e = read_board(&io.replace("[14, 15, 16]", "[14, 16, 15]"), "io.toml").unwrap_err();
+        assert!(
+            e.contains("io.toml") && e.contains("`converters.dac_pins`"),
+            "{e}"
+        );
     }
 }

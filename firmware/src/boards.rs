@@ -13,7 +13,10 @@
 //! as many consecutive slots as it has sensor or DAC words). They go to the cores by an
 //! exact two-way partition ([`crate::schedule::partition`]) of their costs (update WCET + call + glue, each
 //! from the image), so no core assignment of the same keys needs fewer cycles on its
-//! fullest core.
+//! fullest core; on a board with converters, among the assignments that give no core more
+//! keys (slots) than its parts have channels ([`crate::schedule::partition_capped`]), so
+//! the argument below holds there too: a sub-range's capped optimum is at most the range's
+//! restricted to it.
 //!
 //! **Planning** ([`plan`]): boards take contiguous key ranges (the wiring runs along the
 //! keyboard). A greedy sweep gives each board, from the lowest key up, as many further keys
@@ -74,6 +77,10 @@ pub struct BoardVerdict {
     /// ([`Program::quiescent_guard`]): with the guard's static cost the board would miss the
     /// deadline, and [`plan`] found that keeping it would cost boards.
     pub guard_off: bool,
+    /// On a board with converters: the worst static latency of its keys, core clock cycles
+    /// from a key's position being sampled to the motor command that answers it
+    /// ([`FirmwareImage::latency_cycles`]); `None` without converters.
+    pub latency_cycles: Option<u64>,
 }
 
 impl BoardVerdict {
@@ -263,8 +270,23 @@ fn image_of(
             ))),
         ));
     }
+    // With converters a core holds keys of at most its parts' channels (one per sensor
+    // word and per force word): the partition keeps within them where it can (else the
+    // image says which part has too few).
+    let cap = board.converter_parts().map(|(a, d)| {
+        a.channels
+            .min(d.channels)
+            .min(crate::image::io::MAX_CHANNELS)
+    });
+    let widths: Vec<u32> = keys
+        .iter()
+        .map(|k| costs.slots.get(k.program).copied().unwrap_or(1) as u32)
+        .collect();
     let build = |local: &[Program], cycles: &[u64], specs: &mut [KeySpec]| {
-        let core = crate::schedule::partition(cycles, board.cores as usize);
+        let cores = board.cores as usize;
+        let core = cap
+            .and_then(|cap| crate::schedule::partition_capped(cycles, &widths, cores, cap))
+            .unwrap_or_else(|| crate::schedule::partition(cycles, cores));
         for (s, &c) in specs.iter_mut().zip(&core) {
             s.core = c;
         }
@@ -338,6 +360,7 @@ fn verdict_of(
                 code_bytes: Vec::new(),
                 error: Some(e.to_string()),
                 guard_off: false,
+                latency_cycles: None,
             })
         }
     };
@@ -368,6 +391,9 @@ fn verdict_of(
         code_bytes: (0..image.cores()).map(|c| image.code_bytes(c)).collect(),
         error: None,
         guard_off: asked && !image.programs().iter().any(|p| p.quiescent_guard),
+        latency_cycles: (0..keys.len())
+            .filter_map(|k| image.latency_cycles(k))
+            .max(),
     })
 }
 

@@ -223,6 +223,7 @@ fn key_map(
         let p = &programs[spec.program];
         let (record, state) = image.key_addresses(i).unwrap_or((0, 0));
         let (sensor_words, dac_words) = image.window_words(i).unwrap_or_default();
+        let (adc_channels, dac_channels) = image.channels(i).unwrap_or_default();
         keys.push(KeyMapEntry {
             midi: k.key,
             instrument: input
@@ -244,6 +245,8 @@ fn key_map(
                 .iter()
                 .map(|&w| hex(DAC_BASE + 4 * w as u32))
                 .collect(),
+            adc_channels: adc_channels.to_vec(),
+            dac_channels: dac_channels.to_vec(),
             record: hex(record),
             state: hex(state),
             param_block: (!p.params.is_empty()).then(|| hex(state + p.thumb.state.params as u32)),
@@ -281,6 +284,7 @@ fn key_map(
         dac_window: hex(DAC_BASE),
         cores,
         keys,
+        converters: image.io().and(input.board.converters.clone()),
     }
 }
 

@@ -73,6 +73,11 @@ pub struct KeyMap {
     pub cores: Vec<CoreMap>,
     /// Per key, in window order.
     pub keys: Vec<KeyMapEntry>,
+    /// The board's converters (the board file's `[converters]`: the parts and their GPIOs)
+    /// when the firmware drives them: its keys then read ADC channels and drive DAC
+    /// channels (each key's `adc_channels`, `dac_channels`), not the windows.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub converters: Option<tactus_runtime::converters::Converters>,
 }
 
 /// One core in a [`KeyMap`].
@@ -110,6 +115,12 @@ pub struct KeyMapEntry {
     pub sensor_words: Vec<String>,
     /// Its DAC words (one per force word: a keyboard key one, a pen z, x, y).
     pub dac_words: Vec<String>,
+    /// With converters: its core's ADC channels, one per sensor word.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub adc_channels: Vec<u32>,
+    /// With converters: its core's DAC channels, one per force word.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub dac_channels: Vec<u32>,
     /// Its record: the update's sensor copy, out words, limiter budgets, state address.
     pub record: String,
     /// Its state struct.

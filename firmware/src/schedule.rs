@@ -83,9 +83,106 @@ pub fn partition(costs: &[u64], cores: usize) -> Vec<usize> {
     core
 }
 
+/// [`partition`] with every core holding keys of at most `cap` in all of `widths` (a key's
+/// converter channels: a board with converters holds as many keys a core as its parts have
+/// channels): the assignment minimising the fullest core's total among those that respect
+/// the cap, exact for one or two cores; `None` when none does, or (two cores, a subset-sum
+/// table of more than 2^25 entries) beyond what it tabulates. Without a binding cap it is
+/// [`partition`].
+pub fn partition_capped(
+    costs: &[u64],
+    widths: &[u32],
+    cores: usize,
+    cap: u32,
+) -> Option<Vec<usize>> {
+    let width: u64 = widths.iter().map(|&w| u64::from(w)).sum();
+    if width <= u64::from(cap) || costs.len() != widths.len() {
+        return (costs.len() == widths.len()).then(|| partition(costs, cores));
+    }
+    if cores != 2 {
+        return None;
+    }
+    let total: u64 = costs.iter().sum();
+    let cap = u64::from(cap);
+    let (n, w_all) = (costs.len(), width as usize);
+    let cells = (n as u64 + 1) * (width + 1) * (total + 1);
+    if cells > 1 << 25 {
+        return None;
+    }
+    // reach[i][w][s]: some subset of the first i keys has width w and cost s (core 1's).
+    let (wn, sn) = (w_all + 1, total as usize + 1);
+    let at = |i: usize, w: usize, s: usize| (i * wn + w) * sn + s;
+    let mut reach = vec![false; (n + 1) * wn * sn];
+    reach[at(0, 0, 0)] = true;
+    for i in 0..n {
+        let (c, k) = (costs[i] as usize, widths[i] as usize);
+        for w in 0..wn {
+            for s in 0..sn {
+                let take = w >= k && s >= c && reach[at(i, w - k, s - c)];
+                reach[at(i + 1, w, s)] = reach[at(i, w, s)] || take;
+            }
+        }
+    }
+    // Core 1's (width, cost) with both cores within the cap, the fullest core least.
+    let (w1, s1) = (0..wn)
+        .filter(|&w| w as u64 <= cap && width - w as u64 <= cap)
+        .flat_map(|w| (0..sn).map(move |s| (w, s)))
+        .filter(|&(w, s)| reach[at(n, w, s)])
+        .min_by_key(|&(_, s)| (s as u64).max(total - s as u64))?;
+    let mut core = vec![0; n];
+    let (mut w, mut s) = (w1, s1);
+    for i in (0..n).rev() {
+        if !reach[at(i, w, s)] {
+            core[i] = 1;
+            w -= widths[i] as usize;
+            s -= costs[i] as usize;
+        }
+    }
+    Some(core)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The capped partition is optimal among the assignments within the cap: brute force.
+    #[test]
+    fn the_capped_partition_is_exact_within_its_cap() {
+        let mut rng = tactus_runtime::rng::XorShift64::new(0x51ed_27c3);
+        for _ in 0..300 {
+            let n = 1 + rng.below(10);
+            let costs: Vec<u64> = (0..n).map(|_| 1 + rng.below(300) as u64).collect();
+            let widths: Vec<u32> = (0..n).map(|_| 1 + rng.below(3) as u32).collect();
+            let cap = 2 + rng.below(8) as u32;
+            let eval = |core: &[usize]| {
+                let (mut t, mut w) = ([0u64; 2], [0u32; 2]);
+                for i in 0..n {
+                    t[core[i]] += costs[i];
+                    w[core[i]] += widths[i];
+                }
+                (w[0] <= cap && w[1] <= cap).then_some(t[0].max(t[1]))
+            };
+            let best = (0..1u32 << n)
+                .filter_map(|m| {
+                    let a: Vec<usize> = (0..n).map(|i| (m >> i & 1) as usize).collect();
+                    eval(&a)
+                })
+                .min();
+            let got = partition_capped(&costs, &widths, 2, cap);
+            assert_eq!(
+                got.as_deref().and_then(eval),
+                best,
+                "{costs:?} {widths:?} cap {cap}"
+            );
+        }
+        // Nine cheap keys and one dear: the plain partition puts the nine on one core.
+        let costs = [900, 100, 100, 100, 100, 100, 100, 100, 100, 100];
+        let plain = partition(&costs, 2);
+        assert_eq!(plain.iter().filter(|&&c| c == plain[1]).count(), 9);
+        let capped = partition_capped(&costs, &[1; 10], 2, 8).unwrap();
+        assert!((0..2).all(|c| capped.iter().filter(|&&k| k == c).count() <= 8));
+        assert_eq!(partition_capped(&costs, &[1; 10], 2, 4), None);
+    }
 
     #[test]
     fn lpt_balances_and_covers_every_key() {

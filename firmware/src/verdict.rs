@@ -434,6 +434,21 @@ impl BudgetReport {
         if let Some(line) = self.guard_line() {
             let _ = writeln!(s, "{line}");
         }
+        if let Some((i, cycles)) = self
+            .boards
+            .iter()
+            .enumerate()
+            .filter_map(|(i, bv)| bv.latency_cycles.map(|c| (i, c)))
+            .max_by_key(|&(i, c)| (c, std::cmp::Reverse(i)))
+        {
+            let _ = writeln!(
+                s,
+                "latency (a key's position sampled by its ADC → the DAC output that answers it): at most {:.2} µs ({cycles} cycles, board {} {})",
+                cycles as f64 / b.clock_hz * 1e6,
+                i + 1,
+                key_ranges(&self.boards[i].keys)
+            );
+        }
         let _ = writeln!(s);
         let over = self.boards.iter().filter(|b| !b.fits()).count();
         let wb = &self.boards[self.worst_board];

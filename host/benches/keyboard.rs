@@ -140,7 +140,7 @@ fn play(s: &Setup, boards: Vec<(BoardEngine, Vec<Drive>)>) -> Vec<(BoardRun, usi
         .into_iter()
         .map(|(mut e, drives)| {
             let run = run_keys(&mut e, &drives, 0..s.end, &config, &|_| {}).unwrap();
-            (e.finish(), run.strikes.len())
+            (e.finish().unwrap(), run.strikes.len())
         })
         .collect()
 }

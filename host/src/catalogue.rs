@@ -66,6 +66,11 @@ pub const BOARDS: &[(&str, &str)] = &[
         "rp2040_20mhz",
         include_str!("../../boards/rp2040_20mhz.toml"),
     ),
+    ("rp2040_io", include_str!("../../boards/rp2040_io.toml")),
+    (
+        "rp2040_io_200mhz",
+        include_str!("../../boards/rp2040_io_200mhz.toml"),
+    ),
 ];
 
 /// The default board kind: [`BOARDS`]' `rp2040` (133 MHz, two cores, 44.1 kHz).

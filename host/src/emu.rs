@@ -203,6 +203,19 @@ impl FirmwareJob {
         })?;
         let map: KeyMap = serde_json::from_str(&text)
             .map_err(|e| format!("{}: not a Tactus key map: {e}", map_path.display()))?;
+        if let Some(c) = &map.converters {
+            return Err(format!(
+                "{}: board {} drives converters ({} and {}, `converters` in {}): `tactus emu \
+                 run` feeds the sensor window and does not wire the emulated parts yet; \
+                 `tactus play --board {}` plays such boards through them",
+                file.display(),
+                map.board,
+                c.adc,
+                c.dac,
+                map_path.display(),
+                map.board_kind
+            ));
+        }
         if !(seconds > 0.0 && seconds <= MAX_FIRMWARE_SECONDS) {
             return Err(format!(
                 "--seconds {seconds}: from just above 0 to {MAX_FIRMWARE_SECONDS}"

@@ -131,13 +131,22 @@ pub const ADCS: &[AdcPart] = &[ADS8688];
 pub const DACS: &[DacPart] = &[DAC8568];
 
 /// A board's converters as its file names them: per core one ADC (key positions) and one
-/// DAC (motor currents).
+/// DAC (motor currents), each on its own PIO state machine of the core's PIO block (core 0
+/// PIO0, core 1 PIO1), with the GPIO pins they are wired to.
 ///
 /// ```toml
 /// [converters]
 /// adc = "ADS8688"   # per core: 8 position channels, 16 bits
 /// dac = "DAC8568"   # per core: 8 motor channels, 16 bits
+/// # per core, core 0 first: [SCLK, CS, SDI, SDO] and [SCLK, SYNC, SDI]; CS (SYNC) is SCLK + 1,
+/// # the pair a state machine's side-set drives
+/// adc_pins = [[2, 3, 4, 5], [10, 11, 12, 13]]
+/// dac_pins = [[6, 7, 8], [14, 15, 16]]
 /// ```
+///
+/// Key *k* of a core (in the order the image places its keys) reads ADC channel *k* and
+/// drives DAC channel *k*; a key with several sensors (a pen) or force words takes as many
+/// consecutive channels.
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq, Eq)]
 #[serde(deny_unknown_fields)]
 pub struct Converters {
@@ -145,7 +154,14 @@ pub struct Converters {
     pub adc: String,
     /// The DAC part, one of [`DACS`] by name.
     pub dac: String,
+    /// Per core, the ADC's GPIOs: SCLK, CS, SDI (the RP2040's MOSI), SDO (its MISO).
+    pub adc_pins: Vec<[u32; 4]>,
+    /// Per core, the DAC's GPIOs: SCLK, SYNC, SDI.
+    pub dac_pins: Vec<[u32; 3]>,
 }
+
+/// GPIOs of the RP2040 (pins 0–29).
+pub const GPIOS: u32 = 30;
 
 impl Converters {
     /// The ADC part (`None` for a name no driver exists for; the board reader rejects it).
@@ -158,8 +174,11 @@ impl Converters {
         DACS.iter().find(|p| p.name.eq_ignore_ascii_case(&self.dac))
     }
 
-    /// Checks that the firmware drives both parts. Errors name `file` and the field.
-    pub fn check(&self, file: &str) -> Result<(), String> {
+    /// Checks that the firmware drives both parts and that the pins can be wired as its
+    /// drivers need on a board of `cores` cores: one set per core, GPIOs 0–29, CS (SYNC)
+    /// next above SCLK (the side-set pair), no pin used twice. Errors name `file` and the
+    /// field.
+    pub fn check(&self, file: &str, cores: u32) -> Result<(), String> {
         let names = |l: &[&str]| l.join(", ");
         if self.adc_part().is_none() {
             return Err(format!(
@@ -176,6 +195,57 @@ impl Converters {
                 self.dac,
                 names(&DACS.iter().map(|p| p.name).collect::<Vec<_>>())
             ));
+        }
+        let mut used = std::collections::BTreeMap::new();
+        let sets = self
+            .adc_pins
+            .iter()
+            .map(|p| ("adc_pins", &p[..], ["SCLK", "CS", "SDI", "SDO"].as_slice()))
+            .chain(
+                self.dac_pins
+                    .iter()
+                    .map(|p| ("dac_pins", &p[..], ["SCLK", "SYNC", "SDI"].as_slice())),
+            );
+        for (field, n) in [
+            ("adc_pins", self.adc_pins.len()),
+            ("dac_pins", self.dac_pins.len()),
+        ] {
+            if n != cores as usize {
+                return Err(format!(
+                    "{file}: `converters.{field}` has {n} pin sets; the board has {cores} \
+                     cores, each with its own converters (one set per core, core 0 first)"
+                ));
+            }
+        }
+        for (core, (field, pins, names)) in sets.enumerate() {
+            let core = core % cores.max(1) as usize;
+            for (&pin, name) in pins.iter().zip(names) {
+                if pin >= GPIOS {
+                    return Err(format!(
+                        "{file}: `converters.{field}`: core {core}'s {name} on GPIO {pin}; \
+                         the RP2040 has GPIOs 0 to {}",
+                        GPIOS - 1
+                    ));
+                }
+                if let Some(other) = used.insert(pin, format!("core {core}'s {field} {name}")) {
+                    return Err(format!(
+                        "{file}: `converters.{field}`: GPIO {pin} is core {core}'s {name} \
+                         and {other}"
+                    ));
+                }
+            }
+            if pins[1] != pins[0] + 1 {
+                return Err(format!(
+                    "{file}: `converters.{field}`: core {core}'s {} is GPIO {}, SCLK GPIO {}: \
+                     the driver's state machine drives them as a side-set pair, so {} must \
+                     be GPIO {}",
+                    names[1],
+                    pins[1],
+                    pins[0],
+                    names[1],
+                    pins[0] + 1
+                ));
+            }
         }
         Ok(())
     }
@@ -279,23 +349,49 @@ mod tests {
         let ok = Converters {
             adc: "ADS8688".into(),
             dac: "dac8568".into(),
+            adc_pins: vec![[2, 3, 4, 5], [10, 11, 12, 13]],
+            dac_pins: vec![[6, 7, 8], [14, 15, 16]],
         };
-        assert!(ok.check("b.toml").is_ok());
+        assert!(ok.check("b.toml", 2).is_ok());
         assert_eq!(ok.adc_part(), Some(&ADS8688));
         let bad = Converters {
             adc: "PCM3168A".into(),
             ..ok.clone()
         };
-        let e = bad.check("b.toml").unwrap_err();
+        let e = bad.check("b.toml", 2).unwrap_err();
         assert!(
             e.contains("b.toml") && e.contains("converters.adc") && e.contains("ADS8688"),
             "{e}"
         );
         let bad = Converters {
             dac: "AD5686R".into(),
-            ..ok
+            ..ok.clone()
         };
-        let e = bad.check("b.toml").unwrap_err();
+        let e = bad.check("b.toml", 2).unwrap_err();
         assert!(e.contains("converters.dac") && e.contains("DAC8568"), "{e}");
+        // Pins: one set per core, in range, CS next to SCLK, each pin once.
+        let e = ok.check("b.toml", 1).unwrap_err();
+        assert!(e.contains("`converters.adc_pins` has 2 pin sets"), "{e}");
+        let mut bad = ok.clone();
+        bad.dac_pins[1] = [14, 15, 30];
+        let e = bad.check("b.toml", 2).unwrap_err();
+        assert!(
+            e.contains("converters.dac_pins") && e.contains("GPIO 30"),
+            "{e}"
+        );
+        let mut bad = ok.clone();
+        bad.adc_pins[0] = [2, 4, 3, 5];
+        let e = bad.check("b.toml", 2).unwrap_err();
+        assert!(
+            e.contains("converters.adc_pins") && e.contains("must be GPIO 3"),
+            "{e}"
+        );
+        let mut bad = ok;
+        bad.dac_pins[0] = [6, 7, 5];
+        let e = bad.check("b.toml", 2).unwrap_err();
+        assert!(
+            e.contains("GPIO 5 is core 0's SDI and core 0's adc_pins SDO"),
+            "{e}"
+        );
     }
 }

@@ -272,7 +272,7 @@ pub fn parse_board(text: &str, name: &str) -> Result<BoardSpec, String> {
         ));
     }
     if let Some(c) = &b.converters {
-        c.check(name)?;
+        c.check(name, b.cores)?;
     }
     Ok(b)
 }
@@ -691,9 +691,11 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
         let e = parse_board(&format!("{ok}io_cycles_per_key = 163\n"), "old.toml").unwrap_err();
         assert!(e.contains("old.toml") && e.contains("no longer"), "{e}");
         // Converters: parts the firmware drives, by name; anything else names the field.
+        let pins =
+            "adc_pins = [[2, 3, 4, 5], [10, 11, 12, 13]]\ndac_pins = [[6, 7, 8], [14, 15, 16]]\n";
         let conv = |adc: &str, dac: &str| {
             parse_board(
-                &format!("{ok}[converters]\nadc = \"{adc}\"\ndac = \"{dac}\"\n"),
+                &format!("{ok}[converters]\nadc = \"{adc}\"\ndac = \"{dac}\"\n{pins}"),
                 "io.toml",
             )
         };
@@ -712,11 +714,24 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
         .unwrap_err();
         assert!(e.contains("half.toml") && e.contains("dac"), "{e}");
         let e = parse_board(
-            &format!("{ok}[converters]\nadc = \"ADS8688\"\ndac = \"DAC8568\"\nsclk = 1\n"),
+            &format!("{ok}[converters]\nadc = \"ADS8688\"\ndac = \"DAC8568\"\n{pins}sclk = 1\n"),
             "extra.toml",
         )
         .unwrap_err();
         assert!(e.contains("extra.toml") && e.contains("sclk"), "{e}");
+        // Pins: a set per core, each a GPIO once.
+        let e = parse_board(
+            &format!(
+                "{ok}[converters]\nadc = \"ADS8688\"\ndac = \"DAC8568\"\n{}",
+                pins.replace("[14, 15, 16]", "[14, 15, 2]")
+            ),
+            "pins.toml",
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("pins.toml") && e.contains("converters.dac_pins"),
+            "{e}"
+        );
     }
 
     fn layout_with(boards: &str) -> Result<Option<Vec<Vec<u8>>>, String> {

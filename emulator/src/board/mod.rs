@@ -228,6 +228,26 @@ impl Board {
         board
     }
 
+    /// Attaches the converters' I/O of `config` (`crate::io`: both PIO blocks, the DMA,
+    /// IO_BANK0's function select, BUS_PRIORITY and the parts at their pins), out of reset,
+    /// its clock at the board's cycle; replaces any attached before.
+    pub fn attach_io(&mut self, config: &crate::io::IoConfig) {
+        let io = crate::io::Io::new(config, self.config.clock_hz as f64, self.cycle());
+        self.system.io = Some(Box::new(io));
+        self.system.io_banks = 0;
+        self.system.allowed_banks = self.system.fast_banks();
+    }
+
+    /// The attached I/O (`None` without [`Board::attach_io`]), run up to the board's cycle.
+    pub fn io(&self) -> Option<&crate::io::Io> {
+        self.system.io.as_deref()
+    }
+
+    /// The attached I/O, to set what the ADCs read (`Ads8688::set_code`).
+    pub fn io_mut(&mut self) -> Option<&mut crate::io::Io> {
+        self.system.io.as_deref_mut()
+    }
+
     /// Total cycles elapsed: the lower of the running cores' counters.
     pub fn cycle(&self) -> u64 {
         match self.next_core() {

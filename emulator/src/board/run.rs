@@ -355,13 +355,31 @@ impl Board {
         self.run_until(limit)
     }
 
+    /// Whether the fast path may run the block engine's unconfined code: [`Engine::Block`]
+    /// and no I/O attached (that code does not leave the banks the I/O's DMA may reach,
+    /// `crate::io`; the interpreter's fast path does).
+    #[inline]
+    fn blocks_run(&self) -> bool {
+        self.config.engine == Engine::Block && self.system.io.is_none()
+    }
+
     /// Runs until both running cores reach cycle `limit`, or a stop. Instructions are not
     /// split: each core stops at its first instruction boundary at or after `limit` (a
-    /// multi-cycle instruction that starts before the limit completes).
+    /// multi-cycle instruction that starts before the limit completes). The I/O, if any
+    /// ([`Board::attach_io`]), has run up to the board's cycle when it returns.
     ///
     /// With a debugger attached ([`Board::attach_debugger`]) the debugger runs the board
     /// there instead, stopping on the way as its client asks, with the same results.
     pub fn run_until(&mut self, limit: u64) -> StopReason {
+        let stop = self.run_until_inner(limit);
+        if self.system.io.is_some() {
+            let now = self.cycle();
+            self.system.io_advance(now);
+        }
+        stop
+    }
+
+    fn run_until_inner(&mut self, limit: u64) -> StopReason {
         if let Some(mut d) = self.debug.hook.take() {
             let stop = d.run_until(self, limit);
             if !d.detached() {
@@ -426,10 +444,10 @@ impl Board {
                     .min(self.system.timer.next_event)
                     .min(s.nvic.syst_next);
                 if let (true, Some(watch)) = (now < deadline, self.watch_set(k)) {
+                    let on_blocks = self.blocks_run();
                     let [c0, c1] = &mut self.cores;
                     let (sys, cache) = (&mut self.system, &self.cache);
                     let blocks = &mut self.blocks;
-                    let on_blocks = self.config.engine == Engine::Block;
                     let run = match (k == 0, watch[0] == NO_WATCH) {
                         (true, true) if on_blocks => blocks_beside_sleeper::<false>(
                             c0, c1, sys, blocks, deadline, wake_check,
@@ -585,7 +603,7 @@ impl Board {
         // compiled region: the interpreter's loop costs less per call.
         if unwatched
             && !BOTH
-            && self.config.engine == Engine::Block
+            && self.blocks_run()
             && deadline[k] >= self.cores[k].cycle.saturating_add(SHORT_TURN)
         {
             let (sys, blocks) = (&mut self.system, &mut self.blocks);

@@ -192,7 +192,9 @@ impl Board {
     }
 
     /// Whether the cores may run in windows now: the block engine, disjoint own banks,
-    /// core 1 launched, no address watched for profiling, both cores running or asleep.
+    /// core 1 launched, no address watched for profiling, no I/O attached (`crate::io`:
+    /// its DMA's accesses would have to be ordered with both cores'), both cores running
+    /// or asleep.
     pub(super) fn windows_allowed(&self) -> bool {
         let [a, b] = self.config.own_banks;
         self.config.engine == Engine::Block
@@ -201,6 +203,7 @@ impl Board {
             && a & b == 0
             && self.launch.is_none()
             && self.watch_free
+            && self.system.io.is_none()
             && self
                 .cores
                 .iter()
@@ -336,7 +339,7 @@ impl Board {
                         deadline,
                         Some(&mut *journal),
                     );
-                    sys.allowed_banks = ALL_BANKS;
+                    sys.allowed_banks = sys.fast_banks();
                     match r {
                         Ok(()) => continue,
                         Err(Leave::General | Leave::Miss) => {}

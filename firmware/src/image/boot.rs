@@ -74,6 +74,9 @@ pub struct Boot {
     pub vsel: Option<u32>,
     /// Core 1's vector table, initial stack pointer and entry point (Thumb bit set).
     pub core1: Option<[u32; 3]>,
+    /// Whether the image drives converters: core 0 then resets their blocks and sets the
+    /// DMA's bus priority before it launches core 1 ([`super::io::boot`]).
+    pub io: bool,
 }
 
 impl Boot {
@@ -85,6 +88,7 @@ impl Boot {
             pll: clocks::pll_sys_dividers(clock_hz),
             vsel: core_mv.and_then(clocks::vsel_of_mv),
             core1,
+            io: false,
         }
     }
 }
@@ -139,7 +143,7 @@ fn wait(a: &mut CodeBuffer, addr: u32, mask: u32, want: u32) {
 }
 
 /// Pulses block `bit` of RESETS and waits until it is out of reset (clobbers r0-r2).
-fn pulse_reset(a: &mut CodeBuffer, bit: u32) {
+pub(super) fn pulse_reset(a: &mut CodeBuffer, bit: u32) {
     store(a, RESETS_BASE + SET + reg::RESET, bit);
     store(a, RESETS_BASE + CLR + reg::RESET, bit);
     wait(a, RESETS_BASE + reg::RESET_DONE, bit, bit);
@@ -254,6 +258,9 @@ pub fn core_start(a: &mut CodeBuffer, core: usize, boot: &Boot, stack_bottom: u3
     store(a, stack_bottom, canary);
     if core == 0 {
         clock_set_up(a, boot.pll, boot.vsel);
+        if boot.io {
+            super::io::boot(a);
+        }
         if let Some(words) = boot.core1 {
             launch_core1(a, words);
         }

@@ -349,6 +349,12 @@ pub struct KeyCode {
     /// Addresses of the sensor window words the handler copies, in order, to the record's
     /// first words.
     pub sensor_words: Vec<u32>,
+    /// On a board with converters whose ADC does not push the sensor words themselves
+    /// ([`super::io::CoreIo::direct`]): per sensor word, in order, the ADC channel it is
+    /// read from and the scale that makes it of the code (then `sensor_words` is not
+    /// read); empty otherwise (with converters, `sensor_words` are then the words in
+    /// results buffer A, read relative to `r6`).
+    pub sensor_channels: Vec<(u32, tactus_runtime::converters::AdcScale)>,
     /// Byte offset of the update's `out` words in the record.
     pub out_offset: u32,
     /// Byte offset of the state struct's address in the record (≤ 124).
@@ -459,8 +465,8 @@ pub fn guard_uses_r5(g: &GuardCode) -> bool {
 /// the words agree (the shadow already holds them). A difference branches to the chunk's
 /// fix-up, which stores the chunk over its shadow (`STM`) and copies the remaining chunks
 /// (`LDM`/`STM`), so the shadow always ends equal to the state. With three words or more
-/// the chunks are pairs in r2-r3 against r5-r6 (r6 is reloaded with `sensor_base` when
-/// `restore_r6`; r5 by the handler, [`guard_uses_r5`]); else single words in r2 against r3.
+/// the chunks are pairs in r2-r3 against r5-r6 (r6 is set again by `restore_r6` when given;
+/// r5 by the handler, [`guard_uses_r5`]); else single words in r2 against r3.
 /// Clobbers r0-r3.
 ///
 /// Static cost (piano, 8 words in 4 pairs): 10 cycles per pair plus about 12 (see
@@ -469,8 +475,7 @@ pub fn guard_record(
     a: &mut CodeBuffer,
     g: &GuardCode,
     state_offset: u32,
-    sensor_base: u32,
-    restore_r6: bool,
+    restore_r6: Option<&dyn Fn(&mut CodeBuffer)>,
 ) {
     let calm = g.calm_offset as u16;
     if g.words.is_empty() {
@@ -573,8 +578,8 @@ pub fn guard_record(
     a.i(asm::movs(2, 0));
     a.i(asm::str(2, 4, calm));
     a.bind(join);
-    if pairs && restore_r6 {
-        a.ldr_const(6, sensor_base);
+    if let (true, Some(restore)) = (pairs, restore_r6) {
+        restore(a);
     }
 }
 
@@ -588,6 +593,9 @@ pub struct DriveCode {
     pub dac_word: u32,
     /// The force → DAC code scale of its force format.
     pub scale: DacScale,
+    /// On a board with converters: the DAC channel whose frame it writes (then `dac_word`
+    /// is not written).
+    pub dac_channel: Option<u32>,
 }
 
 /// Labels of a core's code, bound by [`core_code`].
@@ -630,6 +638,7 @@ pub fn core_code(
     tick: Tick,
     limiter: &LimiterConstants,
     start: &dyn Fn(&mut CodeBuffer),
+    io: Option<&super::io::IoPlan>,
 ) -> Result<CoreLabels, ImageError> {
     let labels = CoreLabels {
         reset: a.label(),
@@ -643,6 +652,12 @@ pub fn core_code(
             k.clobbers
         )));
     }
+    // The core's converters, when the board has them and its keys use them.
+    let io = io.filter(|p| {
+        p.cores
+            .get(core)
+            .is_some_and(|c| c.adc_channels() + c.dac_channels > 0)
+    });
     let clobbered = keys.iter().fold(0, |m, k| m | k.clobbers);
     // The limiter's constants no update on this core touches stay in their registers.
     let lost = clobbered & HI_REGISTERS;
@@ -719,7 +734,10 @@ pub fn core_code(
         a.i(asm::str(1, 0, reg::ALARM0 as u16));
     }
     set_limiter_registers(a, limiter, &scale);
-    if !keys.is_empty() {
+    if let Some(p) = io {
+        // Its converters' drivers; r7 = its DAC frames (r6 is each sample's results).
+        p.core_set_up(a, core);
+    } else if !keys.is_empty() {
         a.ldr_const(6, sensor_base);
         a.ldr_const(7, dac_base);
     }
@@ -751,27 +769,52 @@ pub fn core_code(
         a.ldr_const(0, TIMER_BASE);
         a.i(asm::str(1, 0, reg::INTR as u16));
     }
+    if let Some(p) = io {
+        // The first ADC burst, for the first sample.
+        p.start_burst(a, core);
+    }
     a.i(Instr::Bx { rm: 14 });
     a.pool();
 
     // ---- the sample interrupt ----
     a.align4();
     a.bind(labels.isr);
+    if let Some(p) = io {
+        // Converters: start this sample's bursts first (`super::io`); r6 = the results.
+        let borrow_r6 = keys
+            .iter()
+            .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5));
+        p.handler_start(a, core, borrow_r6);
+    }
     // The reload value of the period after this one.
     tick_step(a, &tick);
     // Every key: sensors → record, update, then each force word: limiter, DAC.
     walk(a, keys, &mut |a, k| {
         // Without the guard the update reads its sensor words straight from the window
         // (they are consecutive words: the key's slots); the guard compares a copy.
-        let in_window = k.guard.is_none() && !k.sensor_words.is_empty();
-        let copied: &[u32] = if in_window { &[] } else { &k.sensor_words };
-        for (i, &w) in copied.iter().enumerate() {
-            let off = w.wrapping_sub(sensor_base);
-            if off <= 124 && off % 4 == 0 {
-                a.i(asm::ldr(0, 6, off as u16));
+        // With converters whose ADC does not push the words themselves, every sensor word
+        // is made of its ADC code into the record (`super::io::read_sensor`); otherwise
+        // the words lie in the window or this sample's results (r6).
+        let convert = !k.sensor_channels.is_empty();
+        let in_window = !convert && k.guard.is_none() && !k.sensor_words.is_empty();
+        let copied = match (in_window, convert) {
+            (true, _) => 0,
+            (false, true) => k.sensor_channels.len(),
+            (false, false) => k.sensor_words.len(),
+        };
+        for i in 0..copied {
+            if convert {
+                let (ch, scale) = &k.sensor_channels[i];
+                super::io::read_sensor(a, *ch, scale);
             } else {
-                a.ldr_const(0, w);
-                a.i(asm::ldr(0, 0, 0));
+                let w = k.sensor_words[i];
+                let off = w.wrapping_sub(sensor_base);
+                if off <= 124 && off % 4 == 0 {
+                    a.i(asm::ldr(0, 6, off as u16));
+                } else {
+                    a.ldr_const(0, w);
+                    a.i(asm::ldr(0, 0, 0));
+                }
             }
             if k.guard.is_some() {
                 // r3 = new ^ old for the first word, r3 |= new ^ old for the others (the
@@ -823,7 +866,12 @@ pub fn core_code(
         }
         a.bl_addr(k.update);
         if let Some(g) = &k.guard {
-            guard_record(a, g, k.state_offset, sensor_base, true);
+            let window = |a: &mut CodeBuffer| a.ldr_const(6, sensor_base);
+            let restore: &dyn Fn(&mut CodeBuffer) = match io {
+                Some(_) => &super::io::restore_r6,
+                None => &window,
+            };
+            guard_record(a, g, k.state_offset, Some(restore));
         }
         a.bind(skip);
         for d in &k.drives {
@@ -836,7 +884,9 @@ pub fn core_code(
             let off = d.budget_offset as u16;
             limiter_with(a, limiter, &d.scale, in_regs, lost, 4, off)?;
             let off = d.dac_word.wrapping_sub(dac_base);
-            if off <= 124 && off % 4 == 0 {
+            if let (Some(ch), Some(_)) = (d.dac_channel, io) {
+                super::io::write_dac(a, ch);
+            } else if off <= 124 && off % 4 == 0 {
                 a.i(asm::str(0, 7, off as u16));
             } else {
                 a.ldr_const(1, d.dac_word);

@@ -23,6 +23,7 @@ use tactus_compiler::thumb::buffer::{CodeBuffer, Label, LongBranch};
 use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE};
 use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use tactus_isa::wcet::{self, Bounds};
+use tactus_runtime::converters::AdcScale;
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
@@ -37,6 +38,44 @@ pub(super) struct Layout<'a> {
     pub tick: Tick,
     /// The board's cores.
     pub cores: usize,
+    /// The converters' drivers, on a board that has them.
+    pub io: Option<super::io::IoPlan>,
+}
+
+/// The converters' drivers of `board` ([`super::io::IoPlan::new`]) for `keys` on `cores`
+/// cores: per core, in key order, an ADC channel per sensor word of each key (its scale
+/// from the sensor's declared range; a program without sensors reads 0) and a DAC channel
+/// per force word. `None` for a board without converters.
+///
+/// Errors: those of [`super::io::IoPlan::new`].
+pub(super) fn io_plan(
+    board: &BoardSpec,
+    chip: &crate::board_file::Chip,
+    programs: &[Program],
+    keys: &[KeySpec],
+    key_drives: &[Vec<Drive>],
+) -> Result<Option<super::io::IoPlan>, ImageError> {
+    let Some((adc, _)) = board.converter_parts() else {
+        if board.converters.is_some() {
+            // Unknown parts: the plan names the field.
+            return super::io::IoPlan::new(board, chip.clock_hz, 0, vec![], vec![]);
+        }
+        return Ok(None);
+    };
+    let mut scales = vec![Vec::new(); chip.cores];
+    let mut dacs = vec![0u32; chip.cores];
+    for (k, drives) in keys.iter().zip(key_drives) {
+        let (Some(p), Some(sc)) = (programs.get(k.program), scales.get_mut(k.core)) else {
+            continue;
+        };
+        let fp = &p.fixed;
+        for i in 0..p.sensor_words() {
+            let (lo, hi) = fp.sensor_raw_range.get(i).copied().unwrap_or((0, 0));
+            sc.push(tactus_runtime::converters::AdcScale::new(lo, hi, adc.bits));
+        }
+        dacs[k.core] += drives.len() as u32;
+    }
+    super::io::IoPlan::new(board, chip.clock_hz, u64::from(chip.tick.q), scales, dacs)
 }
 
 /// The board's cores, sample rate (Hz) and clock (Hz) as the image needs them
@@ -245,8 +284,14 @@ pub(super) fn key_records(
     let mut kc = Vec::new();
     let mut kp = Vec::new();
     let code_of = code_of(programs);
-    // The core's next window word (module documentation, "Split windows").
+    // The core's next window word (module documentation, "Split windows"), and with
+    // converters its next ADC and DAC channels.
     let mut word = 0;
+    let (mut adc_ch, mut dac_ch) = (0u32, 0u32);
+    let scales: &[AdcScale] =
+        l.io.as_ref()
+            .and_then(|p| p.cores.get(core))
+            .map_or(&[], |c| &c.scales[..]);
     for &i in &my {
         let p = &programs[keys[i].program];
         let text = cc
@@ -291,11 +336,43 @@ pub(super) fn key_records(
         word += width;
         let sensor_words = words[..ns as usize].to_vec();
         let dac_words = words[..nd as usize].to_vec();
-        kc.push(KeyCode {
-            sensor_words: sensor_words
+        let (adc_channels, dac_channels): (Vec<u32>, Vec<u32>) = if l.io.is_some() {
+            let a = (adc_ch..adc_ch + ns).collect();
+            let d = (dac_ch..dac_ch + nd).collect();
+            adc_ch += ns;
+            dac_ch += nd;
+            (a, d)
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        // With converters: the channels' words in results buffer A when the ADC pushes
+        // them (`io::CoreIo::direct`), else each channel with its scale.
+        let core_io = l.io.as_ref().and_then(|p| p.cores.get(core));
+        let direct = core_io.is_some_and(|c| c.direct);
+        let sensor_addrs: Vec<u32> = match core_io {
+            Some(_) => adc_channels
+                .iter()
+                .map(|&ch| super::io::io_base(core) + super::io::RESULTS_A + 4 * ch)
+                .collect(),
+            None => sensor_words
                 .iter()
                 .map(|&w| window_alias(SENSOR_BASE, w))
                 .collect(),
+        };
+        let sensor_channels = adc_channels
+            .iter()
+            .filter(|_| !direct)
+            .map(|&ch| {
+                let scale = scales
+                    .get(ch as usize)
+                    .copied()
+                    .unwrap_or(AdcScale::new(0, 0, 16));
+                (ch, scale)
+            })
+            .collect();
+        kc.push(KeyCode {
+            sensor_words: sensor_addrs,
+            sensor_channels,
             out_offset,
             state_offset,
             drives: drives
@@ -303,6 +380,7 @@ pub(super) fn key_records(
                 .zip(&budgets)
                 .enumerate()
                 .map(|(j, (d, &b))| DriveCode {
+                    dac_channel: dac_channels.get(j).copied(),
                     force_offset: out_offset + 4 * d.out_index as u32,
                     budget_offset: b,
                     dac_word: window_alias(DAC_BASE, dac_words[j]),
@@ -329,6 +407,8 @@ pub(super) fn key_records(
             sensors: ns as usize,
             sensor_words,
             dac_words,
+            adc_channels,
+            dac_channels,
             out_offset,
             state_offset,
             drives: drives.iter().copied().zip(budgets).collect(),
@@ -363,7 +443,16 @@ pub(super) fn assemble_glue(
     let mut a = CodeBuffer::new(LongBranch::Refuse);
     let bottom = stack(core).0;
     let start = |a: &mut CodeBuffer| boot::core_start(a, core, boot, bottom, STACK_CANARY);
-    let labels = glue::core_code(&mut a, core, &kc, ctrl_addr, l.tick, &l.consts, &start)?;
+    let labels = glue::core_code(
+        &mut a,
+        core,
+        &kc,
+        ctrl_addr,
+        l.tick,
+        &l.consts,
+        &start,
+        l.io.as_ref(),
+    )?;
     Ok(Glue {
         asm: a,
         labels,
@@ -389,11 +478,14 @@ pub(super) fn place_code_blocks(
     core_mv: Option<u32>,
 ) -> Result<u32, ImageError> {
     // Provisional launch words: large and distinct, as the final ones (same sizes).
-    let provisional = Boot::new(
-        clock_hz,
-        core_mv,
-        (cc.len() == 2).then_some([0x2101_0100, 0x2004_2000, 0x2101_0201]),
-    );
+    let provisional = Boot {
+        io: l.io.is_some(),
+        ..Boot::new(
+            clock_hz,
+            core_mv,
+            (cc.len() == 2).then_some([0x2101_0100, 0x2004_2000, 0x2101_0201]),
+        )
+    };
     let mut block_off = boot::ENTRY_RESERVE;
     for (core, c) in cc.iter_mut().enumerate() {
         let g = assemble_glue(l, core, BANK_LIMIT / 2, c, &provisional)?;
@@ -549,6 +641,8 @@ pub(super) fn analyse_handler(
         contention: 0,
         updates,
     })
+    // (`FirmwareImage::build` adds the contention: the other core's window words, or the
+    // DMA's accesses to the core's I/O bank.)
 }
 
 /// The place of core `core`'s pieces (its key list filled by the caller).
@@ -576,9 +670,12 @@ pub(super) fn core_place(
 /// The boot of an image whose blocks are placed (`cc` after [`place_code_blocks`]): the
 /// board's PLL dividers and, with two cores, core 1's vector table, stack top and reset
 /// handler (the first code of its glue, [`glue::core_code`]).
-pub(super) fn boot_of(cc: &[CoreCode], clock_hz: u64, core_mv: Option<u32>) -> Boot {
+pub(super) fn boot_of(cc: &[CoreCode], clock_hz: u64, core_mv: Option<u32>, io: bool) -> Boot {
     let core1 = cc
         .get(1)
         .map(|c| [c.start, stack(1).1, (c.start + c.glue) | 1]);
-    Boot::new(clock_hz, core_mv, core1)
+    Boot {
+        io,
+        ..Boot::new(clock_hz, core_mv, core1)
+    }
 }

@@ -105,11 +105,12 @@ pub mod boot2;
 mod elf;
 mod flash_image;
 pub mod glue;
+pub mod io;
 mod layout;
 mod run;
 
 pub use flash_image::{FlashImage, FlashPiece};
-pub use run::{run_to_first_tick, run_to_timer, DriveOut, ImageRun, KeyEvent, SampleOut};
+pub use run::{run_to_first_tick, run_to_timer, DriveOut, ImageRun, IoRecord, KeyEvent, SampleOut};
 
 use std::fmt;
 use std::sync::{Arc, OnceLock};
@@ -659,7 +660,7 @@ pub fn guard_record_routine(words: &[u32], base: u32) -> Result<(Vec<u8>, u32), 
     a.bind(entry);
     a.i(tactus_compiler::thumb::ins::push_lr(0xf0));
     a.i(tactus_compiler::thumb::ins::mov(4, 0));
-    glue::guard_record(&mut a, &g, 0, 0, false);
+    glue::guard_record(&mut a, &g, 0, None);
     a.i(tactus_compiler::thumb::ins::pop_pc(0xf0));
     a.pool();
     let out = a.finish(base)?;
@@ -718,6 +719,10 @@ pub(crate) struct KeyPlace {
     pub sensor_words: Vec<usize>,
     /// Its DAC window words (indices from `DAC_BASE`), one per force word it drives.
     pub dac_words: Vec<usize>,
+    /// With converters: its core's ADC channels, one per sensor word (else empty).
+    pub adc_channels: Vec<u32>,
+    /// With converters: its core's DAC channels, one per force word (else empty).
+    pub dac_channels: Vec<u32>,
     /// Byte offset of the out words in the record.
     pub out_offset: u32,
     /// Byte offset of the state struct's address in the record.
@@ -757,6 +762,8 @@ pub struct FirmwareImage {
     code_bytes: Vec<u32>,
     /// How core 0's reset handler boots the board.
     pub(crate) boot: boot::Boot,
+    /// The converters' drivers, on a board that has them.
+    pub(crate) io: Option<io::IoPlan>,
 }
 
 /// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
@@ -830,6 +837,7 @@ impl FirmwareImage {
             .constants();
         let key_drives = layout::check_keys(programs, keys, cores, &consts)?;
         layout::check_code_fits(programs, keys, cores)?;
+        let io = layout::io_plan(board, &chip, programs, keys, &key_drives)?;
         let l = layout::Layout {
             programs,
             keys,
@@ -837,12 +845,13 @@ impl FirmwareImage {
             key_drives,
             tick: chip.tick,
             cores,
+            io,
         };
         let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
 
         let mut cc = layout::place_programs(programs, keys, cores);
         let data_off = layout::place_code_blocks(&l, &mut cc, clock_hz, board.core_mv())?;
-        let boot = layout::boot_of(&cc, clock_hz, board.core_mv());
+        let boot = layout::boot_of(&cc, clock_hz, board.core_mv(), l.io.is_some());
         let update_wcets: Vec<u64> = programs
             .iter()
             .map(Program::update_wcet)
@@ -919,8 +928,18 @@ impl FirmwareImage {
                     .sum::<u64>()
             })
             .sum();
-        for (w, p) in wcet.iter_mut().zip(&places) {
+        for (c, (w, p)) in wcet.iter_mut().zip(&places).enumerate() {
             w.contention = if p.keys.is_empty() { 0 } else { total };
+            // With converters, the DMA's accesses to the core's I/O bank (`io.rs`).
+            if let Some(cio) = l.io.as_ref().and_then(|io| io.cores.get(c)) {
+                w.contention += cio.contention();
+            }
+        }
+        // Each core's I/O block (results, commands, DAC frames) in bank 2 + core.
+        if let Some(io) = &l.io {
+            for c in 0..io.cores.len() {
+                segments.push((io::io_base(c), io.io_block(c)));
+            }
         }
         let keys = key_places
             .into_iter()
@@ -945,6 +964,7 @@ impl FirmwareImage {
             limiter: lim_cfg,
             code_bytes,
             boot,
+            io: l.io,
         })
     }
 
@@ -1073,6 +1093,9 @@ impl FirmwareImage {
         for (c, own) in banks.iter_mut().enumerate().take(self.cores.len()) {
             let stack = 4 + c as u8;
             *own = 1 << c | 1 << stack;
+            if self.io.is_some() {
+                *own |= 1 << (2 + c);
+            }
             for &i in &self.cores[c].keys {
                 for &w in self.keys[i]
                     .sensor_words
@@ -1084,6 +1107,36 @@ impl FirmwareImage {
             }
         }
         banks
+    }
+
+    /// The converters' drivers (`None` for a board without converters: the host fills the
+    /// sensor words and reads the DAC words).
+    pub fn io(&self) -> Option<&io::IoPlan> {
+        self.io.as_ref()
+    }
+
+    /// Key `key`'s converter channels (in key-list order): its ADC channels (one per sensor
+    /// word) and DAC channels (one per force word) on its core's parts; `None` for an
+    /// unknown key, empty without converters.
+    pub fn channels(&self, key: usize) -> Option<(&[u32], &[u32])> {
+        self.keys
+            .get(key)
+            .map(|k| (&k.adc_channels[..], &k.dac_channels[..]))
+    }
+
+    /// The static latency of key `key` (in key-list order) on a board with converters:
+    /// the most core clock cycles from its position's sample to the DAC output that
+    /// answers it ([`io::IoPlan::latency_cycles`] of its first ADC and DAC channels);
+    /// `None` without converters or for an unknown key.
+    pub fn latency_cycles(&self, key: usize) -> Option<u64> {
+        let plan = self.io.as_ref()?;
+        let k = self.keys.get(key)?;
+        Some(plan.latency_cycles(
+            k.spec.core,
+            *k.adc_channels.first()?,
+            *k.dac_channels.first()?,
+            &self.tick,
+        ))
     }
 
     /// Static WCET of core `core`'s sample interrupt (`None` for a core beyond the board's).

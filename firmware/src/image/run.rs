@@ -76,6 +76,25 @@ pub struct SampleOut {
     pub stalls: Vec<u64>,
 }
 
+/// One frame at a converter's pins ([`ImageRun::take_io`]): an ADC frame (the channel it
+/// sampled at its chip select's fall, the code, the command it carried) or a DAC output
+/// change (at the frame's 32nd SCLK falling edge, the channel's new code).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IoRecord {
+    /// The core whose converter it is.
+    pub core: usize,
+    /// `true` for the DAC, `false` for the ADC.
+    pub dac: bool,
+    /// The board's cycle of the edge.
+    pub cycle: u64,
+    /// The channel.
+    pub channel: u8,
+    /// The code (the ADC's sample; the DAC's output, straight binary).
+    pub code: u16,
+    /// The ADC frame's command (0 for the DAC).
+    pub command: u16,
+}
+
 /// A firmware image on an emulated board.
 pub struct ImageRun {
     board: Board,
@@ -230,12 +249,21 @@ pub fn run_to_first_tick(board: &mut Board, alarm_us: u64, cores: usize) -> Resu
 const MAX_EXTRA_EIGHTHS: u32 = 8 * 1000;
 
 impl ImageRun {
-    pub(crate) fn new(image: &FirmwareImage) -> Result<ImageRun, ImageError> {
+    /// A fresh board for `image`: its converters at their pins when it drives some.
+    fn fresh_board(image: &FirmwareImage, own_banks: [u8; 2]) -> Board {
         let mut board = Board::new(Config {
             clock_hz: image.clock_hz,
-            own_banks: image.own_banks(),
+            own_banks,
             ..Config::default()
         });
+        if let Some(io) = &image.io {
+            board.attach_io(&io.emulator_config());
+        }
+        board
+    }
+
+    pub(crate) fn new(image: &FirmwareImage) -> Result<ImageRun, ImageError> {
+        let mut board = ImageRun::fresh_board(image, image.own_banks());
         for (addr, bytes) in &image.segments {
             board.write_bytes(*addr, bytes).map_err(emu)?;
         }
@@ -255,10 +283,7 @@ impl ImageRun {
     /// Errors: [`ImageError::Emu`] when the boot ROM rejects boot2 or `flash` passes the
     /// flash; those of [`FirmwareImage::run`].
     pub fn from_flash(image: &FirmwareImage, flash: &[u8]) -> Result<ImageRun, ImageError> {
-        let mut board = Board::new(Config {
-            clock_hz: image.clock_hz,
-            ..Config::default()
-        });
+        let mut board = ImageRun::fresh_board(image, [0, 0]);
         board
             .write_bytes(tactus_emulator::bus::FLASH_BASE, flash)
             .map_err(emu)?;
@@ -275,11 +300,7 @@ impl ImageRun {
     /// Errors: [`ImageError::Emu`] for a file the loader rejects; those of
     /// [`FirmwareImage::run`].
     pub fn from_elf(image: &FirmwareImage, elf: &[u8]) -> Result<ImageRun, ImageError> {
-        let mut board = Board::new(Config {
-            clock_hz: image.clock_hz,
-            own_banks: image.own_banks(),
-            ..Config::default()
-        });
+        let mut board = ImageRun::fresh_board(image, image.own_banks());
         board.load_elf(elf).map_err(emu)?;
         ImageRun::start(board, image)
     }
@@ -409,10 +430,14 @@ impl ImageRun {
                 got: sensors.len(),
             });
         }
-        for (addr, flat) in &self.sensor_runs.0 {
-            self.scratch.clear();
-            self.scratch.extend(flat.iter().map(|&i| sensors[i] as u32));
-            self.board.write_words(*addr, &self.scratch).map_err(emu)?;
+        if self.image.io.is_some() {
+            self.set_codes(sensors);
+        } else {
+            for (addr, flat) in &self.sensor_runs.0 {
+                self.scratch.clear();
+                self.scratch.extend(flat.iter().map(|&i| sensors[i] as u32));
+                self.board.write_words(*addr, &self.scratch).map_err(emu)?;
+            }
         }
         let want = self.samples + 1;
         let limit = self.tick_cycle(want);
@@ -443,6 +468,28 @@ impl ImageRun {
         Ok(&self.sample)
     }
 
+    /// With converters: each key's sensor words as its ADC channels' codes
+    /// (`AdcScale::code`), which the ADC samples from now on: the burst of this step's
+    /// period, which the next sample's handler reads (module documentation of
+    /// `super::io`: a position reaches the firmware one sample later than a host-written
+    /// window word).
+    fn set_codes(&mut self, sensors: &[i32]) {
+        let (Some(plan), Some(io)) = (&self.image.io, self.board.io_mut()) else {
+            return;
+        };
+        let mut flat = 0;
+        for k in &self.image.keys {
+            let core = k.spec.core;
+            for &ch in &k.adc_channels {
+                let scale = &plan.cores[core].scales[ch as usize];
+                if let (Some(adc), Some(&w)) = (io.adcs.get_mut(core), sensors.get(flat)) {
+                    adc.set_code(ch as usize, scale.code(w) as u16);
+                }
+                flat += 1;
+            }
+        }
+    }
+
     fn collect(&mut self) -> Result<(), ImageError> {
         let s = &mut self.sample;
         s.events.clear();
@@ -468,16 +515,29 @@ impl ImageRun {
             s.stalls[c] = now - self.stalls[c];
             self.stalls[c] = now;
         }
-        // Every key's DAC words, in flat order: one read per run.
+        // Every key's DAC words, in flat order: one read per run; with converters the
+        // codes of the DAC frames the handler wrote (they go out at the next tick).
         let dac = &mut self.scratch;
         dac.clear();
         dac.resize(self.image.keys.iter().map(|k| k.drives.len()).sum(), 0);
-        for (addr, flat) in &self.dac_runs.0 {
-            let words = &mut self.out_scratch;
-            words.resize(flat.len(), 0);
-            self.board.read_words(*addr, words).map_err(emu)?;
-            for (&i, &w) in flat.iter().zip(words.iter()) {
-                dac[i] = w;
+        if self.image.io.is_some() {
+            let mut at = 0;
+            for k in &self.image.keys {
+                let frames = super::io::io_base(k.spec.core) + super::io::DAC_FRAMES;
+                for &ch in &k.dac_channels {
+                    let w = self.board.read_u32(frames + 4 * ch).map_err(emu)?;
+                    dac[at] = super::io::word_code(w) as i32 as u32;
+                    at += 1;
+                }
+            }
+        } else {
+            for (addr, flat) in &self.dac_runs.0 {
+                let words = &mut self.out_scratch;
+                words.resize(flat.len(), 0);
+                self.board.read_words(*addr, words).map_err(emu)?;
+                for (&i, &w) in flat.iter().zip(words.iter()) {
+                    dac[i] = w;
+                }
             }
         }
         let mut at = 0;
@@ -516,6 +576,40 @@ impl ImageRun {
             }
         }
         Ok(())
+    }
+
+    /// The converters' frames since the last call (every core's ADC frames, then its DAC
+    /// updates, in cycle order per part), removed from the emulated parts; empty without
+    /// converters. Also the parts' data-sheet breaches so far, as text.
+    pub fn take_io(&mut self) -> (Vec<IoRecord>, Vec<String>) {
+        let Some(io) = self.board.io_mut() else {
+            return (Vec::new(), Vec::new());
+        };
+        let mut out = Vec::new();
+        let mut breaches = Vec::new();
+        for (core, adc) in io.adcs.iter_mut().enumerate() {
+            out.extend(adc.take_frames().into_iter().map(|f| IoRecord {
+                core,
+                dac: false,
+                cycle: f.cs_fall,
+                channel: f.channel,
+                code: f.code,
+                command: f.command,
+            }));
+            breaches.extend(adc.violations().iter().map(|v| v.what.clone()));
+        }
+        for (core, dac) in io.dacs.iter_mut().enumerate() {
+            out.extend(dac.take_updates().into_iter().map(|u| IoRecord {
+                core,
+                dac: true,
+                cycle: u.cycle,
+                channel: u.channel,
+                code: u.code,
+                command: 0,
+            }));
+            breaches.extend(dac.violations().iter().map(|v| v.what.clone()));
+        }
+        (out, breaches)
     }
 
     /// Key `key`'s out words after the last sample (the update's `out[]`, `OutLayout`).

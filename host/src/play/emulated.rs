@@ -51,7 +51,17 @@ pub struct PerformOptions {
     /// Whether the images guard quiescent keys ([`Program::quiescent_guard`]: the same
     /// outputs either way; fewer cycles and a faster emulation with it).
     pub quiescent_guard: bool,
+    /// On boards with converters: a directory to write each board's frames at the pins
+    /// into (`board-NN.csv`, [`IO_TRACE_HEADER`]); `None` writes none.
+    pub io_trace: Option<std::path::PathBuf>,
 }
+
+/// The columns of an I/O trace file (`--io-trace`): one row per ADC frame (its chip
+/// select's fall: the sample instant) and per DAC output change (its 32nd SCLK falling
+/// edge), the board's cycle and µs, the core, the part, the channel, the code (the ADC's
+/// sample, the DAC's output in straight binary: midscale 32768 is 0 A) and the ADC frame's
+/// command word.
+pub const IO_TRACE_HEADER: &str = "cycle,time_us,core,part,channel,code,command";
 
 /// One board's run.
 #[derive(Clone, Debug, Default)]
@@ -136,6 +146,11 @@ pub fn play_boards(
             why: why.clone(),
         });
     }
+    if opts.io_trace.is_some() && board.converters.is_none() {
+        return Err(RunError::NoConverters {
+            board: board.name.clone(),
+        });
+    }
     let decimation = opts.end.div_ceil(MAX_POINTS).max(1);
     // The boards share nothing: one rayon task each, on as many threads as the machine has
     // cores.
@@ -150,7 +165,7 @@ pub fn play_boards(
                 .copied()
                 .collect();
             run_board(
-                programs, &costs, &bkeys, board, motions, opts, progress, decimation,
+                programs, &costs, &bkeys, board, motions, opts, progress, decimation, i,
             )
             .map(|r| (i, r))
             .map_err(|source| RunError::Board {
@@ -188,9 +203,63 @@ pub struct BoardEngine<'p> {
     decimation: usize,
     steps: usize,
     block_max: u64,
+    /// The I/O trace being written (`--io-trace`): the board's number (from 1), the file's
+    /// name and its writer.
+    io_trace: Option<(usize, String, std::io::BufWriter<std::fs::File>)>,
+    clock_hz: f64,
 }
 
 impl<'p> BoardEngine<'p> {
+    /// Writes the board's converter frames from now on into `path` (header first),
+    /// replacing the file; `board` numbers the board (from 1) in errors.
+    ///
+    /// Errors: [`BoardError::Trace`] naming the file.
+    pub fn trace_io(&mut self, path: &std::path::Path, board: usize) -> Result<(), BoardError> {
+        use std::io::Write;
+        let name = path.display().to_string();
+        let fail = |e: std::io::Error| BoardError::Trace {
+            path: name.clone(),
+            message: e.to_string(),
+        };
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).map_err(fail)?;
+        }
+        let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(fail)?);
+        writeln!(w, "{IO_TRACE_HEADER}").map_err(fail)?;
+        self.io_trace = Some((board, name.clone(), w));
+        Ok(())
+    }
+
+    /// Writes the frames the last step's run left at the pins (nothing without a trace).
+    fn write_io(&mut self) -> Result<(), BoardError> {
+        use std::io::Write;
+        let Some((_, name, w)) = self.io_trace.as_mut() else {
+            return Ok(());
+        };
+        let (records, _) = self.run.take_io();
+        for r in records {
+            writeln!(
+                w,
+                "{},{:.3},{},{},{},{},{}",
+                r.cycle,
+                r.cycle as f64 / self.clock_hz * 1e6,
+                r.core,
+                if r.dac { "dac" } else { "adc" },
+                r.channel,
+                r.code,
+                if r.dac {
+                    String::new()
+                } else {
+                    format!("{:#06x}", r.command)
+                }
+            )
+            .map_err(|e| BoardError::Trace {
+                path: name.clone(),
+                message: e.to_string(),
+            })?;
+        }
+        Ok(())
+    }
     /// Builds the image of the board whose keys are `bkeys` (as [`boards::board_image`]
     /// does for `tactus budget`) and boots it on an emulated RP2040 with the emulator's
     /// engine `engine`; its cycle series keeps the largest of each `decimation` samples.
@@ -249,15 +318,26 @@ impl<'p> BoardEngine<'p> {
             decimation: decimation.max(1),
             steps: 0,
             block_max: 0,
+            io_trace: None,
+            clock_hz: board.clock_hz,
         })
     }
 
     /// What the board reported so far; its strikes and traces are the play loop's.
-    pub fn finish(mut self) -> BoardRun {
+    ///
+    /// Errors: [`BoardError::Trace`] when the I/O trace's last rows cannot be written.
+    pub fn finish(mut self) -> Result<BoardRun, BoardError> {
         if !self.steps.is_multiple_of(self.decimation) {
             self.report.cycles.push(self.block_max);
         }
-        self.report
+        if let Some((_, name, mut w)) = self.io_trace.take() {
+            use std::io::Write;
+            w.flush().map_err(|e| BoardError::Trace {
+                path: name,
+                message: e.to_string(),
+            })?;
+        }
+        Ok(self.report)
     }
 }
 
@@ -306,6 +386,13 @@ impl KeyEngine for BoardEngine<'_> {
             r.cycles.push(self.block_max);
             self.block_max = 0;
         }
+        if let Some(board) = self.io_trace.as_ref().map(|t| t.0) {
+            self.write_io().map_err(|source| RunError::Board {
+                board,
+                keys: tactus_firmware::verdict::key_ranges(&self.report.keys),
+                source,
+            })?;
+        }
         Ok(&self.samples)
     }
 
@@ -332,6 +419,7 @@ fn run_board(
     opts: &PerformOptions,
     progress: &(dyn Fn(u64) + Sync),
     decimation: usize,
+    index: usize,
 ) -> Result<BoardRun, BoardError> {
     let mut engine = BoardEngine::new(
         programs,
@@ -342,6 +430,9 @@ fn run_board(
         opts.engine,
         decimation,
     )?;
+    if let (Some(dir), Some(_)) = (&opts.io_trace, &board.converters) {
+        engine.trace_io(&dir.join(format!("board-{:02}.csv", index + 1)), index + 1)?;
+    }
     let drives: Vec<Drive> = bkeys
         .iter()
         .map(|k| Drive {
@@ -362,7 +453,7 @@ fn run_board(
         },
         &|n| progress(n),
     )?;
-    let mut report = engine.finish();
+    let mut report = engine.finish()?;
     report.strikes = run.strikes;
     report.traces = run.traces;
     Ok(report)

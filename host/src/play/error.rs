@@ -54,6 +54,12 @@ pub enum RunError {
         /// The longest run, samples.
         max_samples: usize,
     },
+    /// `--io-trace` on a board without converters: there are no frames to write.
+    #[error("--io-trace: the board `{board}` has no converters (its file names no `[converters]`; the reference board with them is `rp2040_io`)")]
+    NoConverters {
+        /// The board kind's name.
+        board: String,
+    },
     /// The boards of the keyboard cannot be costed or planned.
     #[error("firmware: {0}")]
     Boards(#[from] BoardsError),
@@ -113,6 +119,14 @@ pub enum BoardError {
     /// Its run stopped (a fault at a sample, a non-finite value).
     #[error("{0}")]
     Run(Box<RunError>),
+    /// Its I/O trace (`--io-trace`) could not be written.
+    #[error("I/O trace {path}: {message}")]
+    Trace {
+        /// The file.
+        path: String,
+        /// The system's message.
+        message: String,
+    },
 }
 
 impl From<RunError> for BoardError {

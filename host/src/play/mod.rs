@@ -124,6 +124,9 @@ pub struct PlayConfig {
     pub emulator: tactus_emulator::Engine,
     /// Whether the firmware guards quiescent keys (the same strikes either way).
     pub quiescent_guard: bool,
+    /// With `--engine emu` on a board with converters: the directory of the boards' I/O
+    /// traces (their frames at the pins, `emulated::IO_TRACE_HEADER`).
+    pub io_trace: Option<std::path::PathBuf>,
 }
 
 impl PlayConfig {
@@ -436,6 +439,7 @@ pub fn play(
             },
             engine: config.emulator,
             quiescent_guard: config.quiescent_guard,
+            io_trace: config.io_trace.clone(),
         };
         let key_motions: BTreeMap<u8, &Motion> =
             motions.iter().map(|(&k, (m, _))| (k, m)).collect();

@@ -1,0 +1,565 @@
+//! The board's converter I/O on the bus (issue 40): the two PIO blocks ([`crate::pio`]), the
+//! DMA controller ([`crate::dma`]), the GPIO function select of IO_BANK0, the bus fabric's
+//! BUS_PRIORITY, and the SPI converters at the pins ([`crate::converters`]), as one machine
+//! the cores reach through their registers and, by the DMA, through SRAM.
+//!
+//! A board without converters has no [`Io`] ([`crate::bus::System::io`] is `None`): none
+//! of this costs it anything but a test of that `None` on the general path.
+//!
+//! **Registers** (RP2040 datasheet 2.2): the DMA at 0x50000000, PIO0 at 0x50200000, PIO1
+//! at 0x50300000 (AHB-Lite peripherals: a core's access takes no wait state, as an SRAM
+//! access, [`AHB_PERIPHERAL_WAIT`]), IO_BANK0 at 0x40014000 (GPIOn_CTRL's FUNCSEL: 6 gives
+//! the pad to PIO0, 7 to PIO1; other fields stored, no effect) and BUSCTRL at 0x40030000
+//! (BUS_PRIORITY), each with the atomic XOR, SET and CLR aliases at +0x1000, +0x2000 and
+//! +0x3000 (2.1.2). RESETS holds PIO0 (bit 10), PIO1 (11), DMA (2), IO_BANK0 (5) and
+//! BUSCTRL (1): a block put into reset returns to its reset state, and an access to a block
+//! held in reset is a bus fault (the emulator's way of refusing it; the chip's bus would
+//! stall). Interrupts of the DMA and the PIOs do not reach the NVIC (not modelled).
+//!
+//! **The machine's cycle.** Each system cycle, in this order: the DMA ticks (its read and
+//! write ports against SRAM and the PIO FIFOs, paced by the PIOs' DREQs: PIO0 TX0–3 are
+//! DREQ 0–3, RX0–3 4–7, PIO1 8–15 likewise); both PIO blocks tick with the GPIO inputs the
+//! converters drive; the converters see the pins if any driven level or direction changed.
+//! A pin is driven by PIO *b* when its FUNCSEL is PIO *b*'s and the state machines set it
+//! as an output; an undriven CS reads high (the board's pull-up).
+//!
+//! **By events.** The machine runs lazily: [`crate::bus::System`] advances it to a cycle
+//! only when a core accesses one of its registers or an SRAM bank its DMA may touch, and
+//! the board at the end of each run. While every enabled state machine is stalled in a way
+//! that repeats without effect ([`Pio::quiet`]) and the DMA has nothing it could do
+//! ([`Dma::quiet`]), nothing can happen until a core writes a register: the whole stretch is
+//! skipped in one step ([`Pio::skip`] moves the clock dividers). So are the cycles in which
+//! the DMA is quiet and no state machine's divider lets it run ([`Pio::idle_cycles`]).
+//! Between those, it steps cycle by cycle.
+//!
+//! **The DMA against the cores.** The DMA's two masters (read and write ports) arbitrate
+//! for SRAM banks with the cores (a bank serves one master a cycle). With DMA_R and DMA_W
+//! both high in BUS_PRIORITY and the core's bit low, the DMA wins: a core access to a bank
+//! the DMA claims in that cycle waits a cycle (and again while it claims it). Otherwise the
+//! core wins and the DMA waits a cycle (the round-robin among masters of equal priority is
+//! not modelled: the core wins such ties). The DMA's read master wins over its write master
+//! in one cycle. To see the DMA's accesses in cycle order, every core access to a bank an
+//! enabled channel may reach ([`Dma::reach`], recomputed at each DMA register write) leaves
+//! the fast path ([`crate::bus::System::allowed_banks`]) and advances the machine first; the
+//! block engine's unconfined code, which does not check banks, does not run while an
+//! [`Io`] is attached, nor do windows of independent cores (`board/window.rs`). The cores'
+//! accesses are served in the lock-step's issue order: an access whose data phase is earlier
+//! than one of the other core's already served finds the machine where that one left it.
+//!
+//! Not modelled: the DMA reaching peripherals other than the PIO FIFOs (its own registers,
+//! APB), the DMA's and PIOs' interrupts, GPIO overrides, pads, and the SIO's GPIO outputs.
+
+use crate::bus::{sram_location, BusFault, BANKS};
+use crate::converters::{Ads8688, Dac8568, SpiPins};
+use crate::dma::{Dma, DmaPort, DMA_BASE};
+use crate::pio::{Pio, PIO0_BASE, PIO1_BASE};
+use tactus_runtime::converters::{AdcPart, DacPart};
+
+/// IO_BANK0 (datasheet 2.19.6.1): GPIOn_STATUS at `8n`, GPIOn_CTRL at `8n + 4`.
+pub const IO_BANK0_BASE: u32 = 0x4001_4000;
+/// BUSCTRL (datasheet 2.1.5): BUS_PRIORITY at 0.
+pub const BUSCTRL_BASE: u32 = 0x4003_0000;
+/// GPIOn_CTRL's FUNCSEL giving the pad to PIO0 (PIO1 is 7; 31, the reset value, is none).
+pub const FUNCSEL_PIO0: u32 = 6;
+/// GPIOs of the RP2040.
+pub const GPIOS: usize = 30;
+/// Wait states of a core's access to a DMA or PIO register (AHB-Lite peripherals,
+/// datasheet 2.1: not behind the APB bridge).
+pub const AHB_PERIPHERAL_WAIT: u32 = 0;
+
+/// BUS_PRIORITY's fields (datasheet 2.1.5): 1 is high priority.
+pub mod priority {
+    /// Core 0.
+    pub const PROC0: u32 = 1 << 0;
+    /// Core 1.
+    pub const PROC1: u32 = 1 << 4;
+    /// The DMA's read master.
+    pub const DMA_R: u32 = 1 << 8;
+    /// The DMA's write master.
+    pub const DMA_W: u32 = 1 << 12;
+}
+
+/// RESETS bits of the blocks here (datasheet 2.14.3).
+pub mod resets {
+    /// BUSCTRL.
+    pub const BUSCTRL: u32 = 1 << 1;
+    /// The DMA.
+    pub const DMA: u32 = 1 << 2;
+    /// IO_BANK0.
+    pub const IO_BANK0: u32 = 1 << 5;
+    /// PIO0.
+    pub const PIO0: u32 = 1 << 10;
+    /// PIO1.
+    pub const PIO1: u32 = 1 << 11;
+    /// All of them.
+    pub const ALL: u32 = BUSCTRL | DMA | IO_BANK0 | PIO0 | PIO1;
+}
+
+/// The converters a board carries, with their pins: what [`crate::Board::attach_io`] wires.
+#[derive(Clone, Debug, Default)]
+pub struct IoConfig {
+    /// ADCs (key positions), each with its pins.
+    pub adcs: Vec<(&'static AdcPart, SpiPins)>,
+    /// DACs (motor currents), each with its pins (`sdo` unused).
+    pub dacs: Vec<(&'static DacPart, SpiPins)>,
+}
+
+/// The I/O machine. See the module documentation.
+#[derive(Clone, Debug)]
+pub struct Io {
+    /// PIO0 and PIO1.
+    pub pio: [Pio; 2],
+    /// The DMA controller.
+    pub dma: Dma,
+    /// The ADCs at their pins, in [`IoConfig::adcs`] order.
+    pub adcs: Vec<Ads8688>,
+    /// The DACs at their pins, in [`IoConfig::dacs`] order.
+    pub dacs: Vec<Dac8568>,
+    /// The first cycle not yet run.
+    cycle: u64,
+    gpio_ctrl: [u32; GPIOS],
+    /// Per PIO block, the pins whose FUNCSEL is its.
+    pio_pins: [u32; 2],
+    bus_priority: u32,
+    /// The blocks held in reset (RESETS bits of [`resets::ALL`]).
+    held: u32,
+    /// Driven levels and directions as the converters saw them last.
+    pins: (u32, u32),
+    /// The levels the converters drive (their SDO pins).
+    gpio_in: u32,
+    /// Per DMA master (read, write), the last cycle it claimed each SRAM bank.
+    dma_claim: [[u64; BANKS]; 2],
+    /// SRAM banks an enabled channel may reach ([`Dma::reach`]).
+    reach_banks: u8,
+    /// Tick every cycle, never skipping a quiet stretch: the reference the skipping is
+    /// tested against (`tests/io.rs`). Results never depend on it.
+    pub stepwise: bool,
+}
+
+/// What the machine reaches of the rest of the system while it runs: SRAM (with the cores'
+/// bank claims and the decode cache's code pages), ROM and flash.
+pub(crate) struct Memory<'a> {
+    pub sram: &'a mut [u8],
+    pub code_pages: &'a mut [bool],
+    pub code_epoch: &'a mut u32,
+    pub bank_claim: &'a [[u64; 2]; BANKS],
+    pub rom: &'a [u8],
+    pub flash: &'a [u8],
+    pub xip_answers: bool,
+}
+
+/// The DMA's side of the machine for one tick: memory, the PIO FIFOs and DREQs.
+struct Port<'m, 'a> {
+    mem: &'m mut Memory<'a>,
+    pio: &'m mut [Pio; 2],
+    claim: &'m mut [[u64; BANKS]; 2],
+    /// Whether each DMA master (read, write) wins a bank against core 0 and core 1.
+    wins: [[bool; 2]; 2],
+}
+
+/// Which PIO block `addr` is in (0 or 1) and the register offset (the atomic aliases of
+/// DMA transfers are not decoded: an offset within the first 4 KB).
+fn pio_of(addr: u32) -> Option<(usize, u32)> {
+    match addr & !0xfff {
+        PIO0_BASE => Some((0, addr & 0xfff)),
+        PIO1_BASE => Some((1, addr & 0xfff)),
+        _ => None,
+    }
+}
+
+impl Port<'_, '_> {
+    /// The wait states of master `m`'s access to `bank` in `cycle`, claiming it.
+    fn claim_bank(&mut self, m: usize, bank: usize, cycle: u64) -> u32 {
+        let mut wait = 0u32;
+        let core_claims =
+            |at: u64, k: usize| self.mem.bank_claim[bank][k] == at && !self.wins[m][k];
+        while core_claims(cycle + u64::from(wait), 0)
+            || core_claims(cycle + u64::from(wait), 1)
+            || (m == 1 && self.claim[0][bank] == cycle + u64::from(wait))
+        {
+            wait += 1;
+        }
+        self.claim[m][bank] = cycle + u64::from(wait);
+        wait
+    }
+}
+
+fn load(mem: &[u8], off: usize, size: u32) -> u32 {
+    let mut b = [0u8; 4];
+    b[..size as usize].copy_from_slice(&mem[off..off + size as usize]);
+    u32::from_le_bytes(b)
+}
+
+impl DmaPort for Port<'_, '_> {
+    fn read(&mut self, cycle: u64, addr: u32, size: u32) -> Result<(u32, u32), BusFault> {
+        if let Some((off, bank)) = sram_location(addr) {
+            let wait = self.claim_bank(0, bank, cycle);
+            return Ok((load(self.mem.sram, off, size), wait));
+        }
+        if let Some((b, off)) = pio_of(addr) {
+            let v = self.pio[b].read(off & !3);
+            let v = v >> (8 * (addr & 3)) & (u32::MAX >> (32 - 8 * size));
+            return Ok((v, 0));
+        }
+        let flash = addr.wrapping_sub(crate::bus::FLASH_BASE);
+        if addr < crate::bus::ROM_SIZE {
+            return Ok((load(self.mem.rom, addr as usize, size), 0));
+        }
+        if flash < crate::bus::FLASH_SIZE && self.mem.xip_answers {
+            return Ok((load(self.mem.flash, flash as usize, size), 0));
+        }
+        Err(BusFault { addr })
+    }
+
+    fn write(&mut self, cycle: u64, addr: u32, size: u32, value: u32) -> Result<u32, BusFault> {
+        if let Some((off, bank)) = sram_location(addr) {
+            let wait = self.claim_bank(1, bank, cycle);
+            let bytes = value.to_le_bytes();
+            self.mem.sram[off..off + size as usize].copy_from_slice(&bytes[..size as usize]);
+            if self.mem.code_pages[off >> 8] {
+                *self.mem.code_epoch = self.mem.code_epoch.wrapping_add(1);
+                self.mem.code_pages.fill(false);
+            }
+            return Ok(wait);
+        }
+        if let Some((b, off)) = pio_of(addr) {
+            // A narrow write reaches a 32-bit register replicated (datasheet 2.1.4).
+            let v = match size {
+                1 => (value & 0xff) * 0x0101_0101,
+                2 => (value & 0xffff) * 0x0001_0001,
+                _ => value,
+            };
+            self.pio[b].write(off & !3, v);
+            return Ok(0);
+        }
+        Err(BusFault { addr })
+    }
+
+    fn dreq_room(&self, n: u32) -> u32 {
+        let (b, i) = ((n / 8) as usize, (n % 8) as usize);
+        match (b, i) {
+            (0 | 1, 0..=3) => self.pio[b].tx_room(i),
+            (0 | 1, _) => self.pio[b].rx_level(i - 4),
+            _ => 0,
+        }
+    }
+}
+
+/// The SRAM banks the bytes `[addr, addr + len)` of the address space touch.
+fn banks_of(addr: u32, len: u64) -> u8 {
+    let (lo, hi) = (u64::from(addr), u64::from(addr).saturating_add(len));
+    let overlaps = |a: u64, b: u64| lo < b && a < hi;
+    let mut banks = 0u8;
+    // The striped view: four or more bytes past a word boundary reach more banks; 16
+    // bytes reach all four.
+    let (s0, s1) = (0x2000_0000u64, 0x2004_0000u64);
+    if overlaps(s0, s1) {
+        let (a, b) = (lo.max(s0), hi.min(s1));
+        if b - a >= 16 {
+            banks |= 0xf;
+        } else {
+            let mut w = a & !3;
+            while w < b {
+                banks |= 1 << ((w >> 2) & 3);
+                w += 4;
+            }
+        }
+    }
+    for (bank, base) in [(4, 0x2004_0000u64), (5, 0x2004_1000)] {
+        if overlaps(base, base + 0x1000) {
+            banks |= 1 << bank;
+        }
+    }
+    for bank in 0..4u64 {
+        let base = 0x2100_0000 + bank * 0x1_0000;
+        if overlaps(base, base + 0x1_0000) {
+            banks |= 1 << bank;
+        }
+    }
+    banks
+}
+
+impl Io {
+    /// The machine out of reset, on a system clocked at `clock_hz`, with `config`'s
+    /// converters at their pins; its clock at `cycle`.
+    pub fn new(config: &IoConfig, clock_hz: f64, cycle: u64) -> Io {
+        Io {
+            pio: [Pio::new(), Pio::new()],
+            dma: Dma::new(),
+            adcs: config
+                .adcs
+                .iter()
+                .map(|&(part, pins)| Ads8688::new(part, pins, clock_hz))
+                .collect(),
+            dacs: config
+                .dacs
+                .iter()
+                .map(|&(part, pins)| Dac8568::new(part, pins, clock_hz))
+                .collect(),
+            cycle,
+            gpio_ctrl: [31; GPIOS],
+            pio_pins: [0; 2],
+            bus_priority: 0,
+            held: 0,
+            pins: (0, 0),
+            gpio_in: 0,
+            dma_claim: [[u64::MAX; BANKS]; 2],
+            reach_banks: 0,
+            stepwise: false,
+        }
+    }
+
+    /// The first cycle the machine has not run yet.
+    pub fn cycle(&self) -> u64 {
+        self.cycle
+    }
+
+    /// SRAM banks an enabled DMA channel may reach before the next DMA register write.
+    pub fn reach_banks(&self) -> u8 {
+        self.reach_banks
+    }
+
+    /// Whether the DMA's masters win a bank against core `core` (module documentation).
+    pub fn dma_wins(&self, core: usize) -> bool {
+        let p = self.bus_priority;
+        let dma_high = p & priority::DMA_R != 0 && p & priority::DMA_W != 0;
+        let core_bit = if core == 0 {
+            priority::PROC0
+        } else {
+            priority::PROC1
+        };
+        dma_high && p & core_bit == 0
+    }
+
+    /// Whether a DMA master claimed `bank` in `cycle`.
+    pub(crate) fn dma_claims(&self, bank: usize, cycle: u64) -> bool {
+        self.dma_claim[0][bank] == cycle || self.dma_claim[1][bank] == cycle
+    }
+
+    /// Whether `addr` (any atomic alias) is one of this machine's registers.
+    pub fn owns(addr: u32) -> bool {
+        let base = addr & !0x3fff;
+        matches!(
+            base,
+            DMA_BASE | PIO0_BASE | PIO1_BASE | IO_BANK0_BASE | BUSCTRL_BASE
+        )
+    }
+
+    /// The RESETS bit of the block at `base`.
+    fn reset_bit(base: u32) -> u32 {
+        match base {
+            DMA_BASE => resets::DMA,
+            PIO0_BASE => resets::PIO0,
+            PIO1_BASE => resets::PIO1,
+            IO_BANK0_BASE => resets::IO_BANK0,
+            _ => resets::BUSCTRL,
+        }
+    }
+
+    /// The register at `addr` (any alias) without side effects where reading has some (a
+    /// PIO RX FIFO reads 0 here).
+    fn peek(&mut self, base: u32, off: u32) -> u32 {
+        match base {
+            DMA_BASE => self.dma.read(off),
+            PIO0_BASE | PIO1_BASE if (0x20..0x30).contains(&off) => 0,
+            PIO0_BASE => self.pio[0].read(off),
+            PIO1_BASE => self.pio[1].read(off),
+            IO_BANK0_BASE => self.gpio_read(off),
+            _ => self.busctrl_read(off),
+        }
+    }
+
+    fn gpio_read(&self, off: u32) -> u32 {
+        let n = (off / 8) as usize;
+        match (n < GPIOS, off % 8) {
+            (true, 4) => self.gpio_ctrl[n],
+            // GPIOn_STATUS: OUTTOPAD (bit 9), OETOPAD (13), INFROMPAD (17).
+            (true, 0) => {
+                let bit = |m: u32| (m >> n) & 1;
+                bit(self.pins.0) << 9 | bit(self.pins.1) << 13 | bit(self.gpio_in) << 17
+            }
+            _ => 0,
+        }
+    }
+
+    fn busctrl_read(&self, off: u32) -> u32 {
+        match off {
+            0 => self.bus_priority,
+            // BUS_PRIORITY_ACK: the new priorities are in force at once here.
+            4 => 1,
+            _ => 0,
+        }
+    }
+
+    /// A core reads the register at `addr` (the machine run up to the access's cycle);
+    /// `None` for a block held in reset (a bus fault).
+    pub(crate) fn read(&mut self, addr: u32) -> Option<u32> {
+        let base = addr & !0x3fff;
+        if self.held & Self::reset_bit(base) != 0 {
+            return None;
+        }
+        let off = addr & 0xfff;
+        Some(match base {
+            DMA_BASE => self.dma.read(off),
+            PIO0_BASE => self.pio[0].read(off),
+            PIO1_BASE => self.pio[1].read(off),
+            _ => self.peek(base, off),
+        })
+    }
+
+    /// A core writes the register at `addr` (any alias); false for a block held in reset.
+    pub(crate) fn write(&mut self, addr: u32, value: u32) -> bool {
+        let base = addr & !0x3fff;
+        if self.held & Self::reset_bit(base) != 0 {
+            return false;
+        }
+        let off = addr & 0xfff;
+        let value = match (addr >> 12) & 3 {
+            0 => value,
+            alias => {
+                let old = self.peek(base, off);
+                match alias {
+                    1 => old ^ value,
+                    2 => old | value,
+                    _ => old & !value,
+                }
+            }
+        };
+        match base {
+            DMA_BASE => {
+                self.dma.write(off, value);
+                self.reach_banks = self
+                    .dma
+                    .reach()
+                    .into_iter()
+                    .fold(0, |m, (a, len)| m | banks_of(a, len));
+            }
+            PIO0_BASE => self.pio[0].write(off, value),
+            PIO1_BASE => self.pio[1].write(off, value),
+            IO_BANK0_BASE => {
+                let n = (off / 8) as usize;
+                if n < GPIOS && off % 8 == 4 {
+                    self.gpio_ctrl[n] = value & 0x3303_331f;
+                    self.refresh_funcsel();
+                }
+            }
+            _ => {
+                if off == 0 {
+                    self.bus_priority = value & 0x1111;
+                }
+            }
+        }
+        true
+    }
+
+    fn refresh_funcsel(&mut self) {
+        self.pio_pins = [0; 2];
+        for (n, c) in self.gpio_ctrl.iter().enumerate() {
+            match c & 0x1f {
+                6 => self.pio_pins[0] |= 1 << n,
+                7 => self.pio_pins[1] |= 1 << n,
+                _ => {}
+            }
+        }
+    }
+
+    /// RESETS now holds `held` (its RESET register): a block newly put into reset returns
+    /// to its reset state.
+    pub(crate) fn set_resets(&mut self, held: u32) {
+        let held = held & resets::ALL;
+        let entering = held & !self.held;
+        if entering & resets::PIO0 != 0 {
+            self.pio[0] = Pio::new();
+        }
+        if entering & resets::PIO1 != 0 {
+            self.pio[1] = Pio::new();
+        }
+        if entering & resets::DMA != 0 {
+            self.dma = Dma::new();
+            self.reach_banks = 0;
+        }
+        if entering & resets::IO_BANK0 != 0 {
+            self.gpio_ctrl = [31; GPIOS];
+            self.refresh_funcsel();
+        }
+        if entering & resets::BUSCTRL != 0 {
+            self.bus_priority = 0;
+        }
+        self.held = held;
+    }
+
+    /// The pins as the PIOs drive them through IO_BANK0: (levels, directions).
+    fn driven(&self) -> (u32, u32) {
+        let [m0, m1] = self.pio_pins;
+        let (p0, p1) = (&self.pio[0], &self.pio[1]);
+        (
+            (p0.pin_values() & m0) | (p1.pin_values() & m1),
+            (p0.pin_dirs() & m0) | (p1.pin_dirs() & m1),
+        )
+    }
+
+    /// Shows the converters the pins after `cycle` if they changed.
+    fn observe(&mut self, cycle: u64) {
+        let now = self.driven();
+        if now == self.pins {
+            return;
+        }
+        self.pins = now;
+        let mut gpio_in = 0;
+        for a in &mut self.adcs {
+            a.observe(cycle, now.0, now.1);
+            gpio_in |= a.gpio_in();
+        }
+        for d in &mut self.dacs {
+            d.observe(cycle, now.0, now.1);
+        }
+        self.gpio_in = gpio_in;
+    }
+
+    /// Runs the machine through cycle `to − 1` (nothing when it is there already).
+    pub(crate) fn advance(&mut self, to: u64, mem: &mut Memory) {
+        let wins = [[self.dma_wins(0), self.dma_wins(1)]; 2];
+        while self.cycle < to {
+            let c = self.cycle;
+            let mut port = Port {
+                mem: &mut *mem,
+                pio: &mut self.pio,
+                claim: &mut self.dma_claim,
+                wins,
+            };
+            let dma_quiet = self.dma.quiet(&port);
+            if dma_quiet && !self.stepwise && port.pio[0].quiet() && port.pio[1].quiet() {
+                // Nothing can happen before a core writes a register (module documentation).
+                let n = to - c;
+                for p in port.pio.iter_mut() {
+                    p.skip(n, self.gpio_in);
+                }
+                self.cycle = to;
+                return;
+            }
+            if dma_quiet && !self.stepwise {
+                // Cycles in which no state machine runs but FIFO-stalled ones.
+                let n = port.pio[0]
+                    .idle_cycles()
+                    .min(port.pio[1].idle_cycles())
+                    .min(to - c);
+                if n > 0 {
+                    for p in port.pio.iter_mut() {
+                        p.skip(n, self.gpio_in);
+                    }
+                    self.cycle = c + n;
+                    continue;
+                }
+            }
+            if !dma_quiet {
+                self.dma.tick(c, &mut port);
+            }
+            let gpio_in = self.gpio_in;
+            for p in &mut self.pio {
+                p.tick(gpio_in);
+            }
+            self.observe(c);
+            self.cycle = c + 1;
+        }
+    }
+}

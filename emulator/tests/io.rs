@@ -1,0 +1,277 @@
+//! The converters' I/O on the emulated bus (`tactus_emulator::io`): a core programs PIO0,
+//! IO_BANK0, BUS_PRIORITY and two DMA channels through their registers, and an ADS8688's
+//! frames come back into SRAM by DMA, paced by the PIO's DREQs, inside the part's timing.
+//! The machine skips quiet stretches in one step: the same frames, words and cycles as
+//! ticking it every cycle. A core's access to a bank the DMA writes in the same cycle waits
+//! when the DMA has the higher bus priority, and wins otherwise.
+
+use tactus_emulator::bus::{Bus, System};
+use tactus_emulator::converters::SpiPins;
+use tactus_emulator::dma::{ctrl, reg as dreg, DMA_BASE};
+use tactus_emulator::io::{priority, Io, IoConfig, BUSCTRL_BASE, FUNCSEL_PIO0, IO_BANK0_BASE};
+use tactus_emulator::pio::{reg, PIO0_BASE};
+use tactus_runtime::converters::ADS8688;
+
+const PINS: SpiPins = SpiPins {
+    cs: 11,
+    sclk: 10,
+    sdi: 12,
+    sdo: 13,
+};
+const CLOCK_HZ: u64 = 133_000_000;
+/// The results' buffer: bank 2 through its non-striped alias.
+const RESULTS: u32 = 0x2102_0000;
+/// The commands: further up bank 2.
+const COMMANDS: u32 = 0x2102_0100;
+const FRAMES: u32 = 8;
+
+/// The SPI mode-1 master of `tests/converters.rs` (`.side_set 2`: SCLK, CSn), divided by 2,
+/// CS high for 6 PIO cycles between frames.
+const PROGRAM: [u16; 8] = [
+    0x80a0 | 0b10 << 11 | 5 << 8,
+    0xe03e,
+    0x6001 | 0b01 << 11 | 1 << 8,
+    0x4001,
+    0x0042,
+    0x6001 | 0b01 << 11 | 1 << 8,
+    0x4001,
+    0x8020,
+];
+
+/// Core 0's stores, two cycles apart from `*t`.
+struct Cpu<'a> {
+    sys: &'a mut System,
+    t: u64,
+}
+
+impl Cpu<'_> {
+    fn store(&mut self, addr: u32, value: u32) {
+        self.sys.write(0, self.t, addr, 4, value).expect("store");
+        self.t += 2;
+    }
+}
+
+/// A system with an ADS8688 on PIO0's pins, its channels reading `0x1000·ch + 0x0abc`,
+/// `priority` in BUS_PRIORITY, and core 0 having set up the master and two DMA channels
+/// (commands in, results out) and started them: returns the system and the cycle after the
+/// last store.
+fn set_up(bus_priority: u32, stepwise: bool) -> (System, u64) {
+    let mut sys = System::new(CLOCK_HZ);
+    let mut io = Io::new(
+        &IoConfig {
+            adcs: vec![(&ADS8688, PINS)],
+            dacs: vec![],
+        },
+        CLOCK_HZ as f64,
+        0,
+    );
+    io.stepwise = stepwise;
+    for ch in 0..8 {
+        io.adcs[0].set_code(ch, 0x1000 * ch as u16 + 0x0abc);
+    }
+    sys.io = Some(Box::new(io));
+    // Frame i commands MAN_Ch_(i+1): frame i samples channel i (channel 0 at power-up).
+    for i in 0..FRAMES {
+        let command = 0xc000 | ((i + 1) % 8) << 10;
+        let (mem, off) = sys.backing(COMMANDS + 4 * i).expect("SRAM");
+        mem[off..off + 4].copy_from_slice(&(command << 16).to_le_bytes());
+    }
+    let mut cpu = Cpu {
+        sys: &mut sys,
+        t: 100,
+    };
+    cpu.store(BUSCTRL_BASE, bus_priority);
+    for pin in [PINS.cs, PINS.sclk, PINS.sdi] {
+        cpu.store(IO_BANK0_BASE + 8 * pin + 4, FUNCSEL_PIO0);
+    }
+    for (i, w) in PROGRAM.iter().enumerate() {
+        cpu.store(PIO0_BASE + reg::INSTR_MEM0 + 4 * i as u32, u32::from(*w));
+    }
+    cpu.store(PIO0_BASE + reg::SM0_CLKDIV, 2 << 16);
+    cpu.store(PIO0_BASE + reg::SM0_EXECCTRL, 7 << 12);
+    cpu.store(PIO0_BASE + reg::SM0_SHIFTCTRL, 0);
+    cpu.store(PIO0_BASE + reg::SM0_PINCTRL, 2 << 26 | PINS.sclk << 5);
+    cpu.store(PIO0_BASE + reg::SM0_INSTR, 0xe002); // set pins, 0b10: CSn high
+    cpu.store(PIO0_BASE + reg::SM0_INSTR, 0xe083); // set pindirs, 0b11
+    cpu.store(PIO0_BASE + reg::SM0_PINCTRL, 1 << 26 | PINS.sdi << 5);
+    cpu.store(PIO0_BASE + reg::SM0_INSTR, 0xe081); // set pindirs, 1
+    cpu.store(
+        PIO0_BASE + reg::SM0_PINCTRL,
+        2 << 29 | PINS.sclk << 10 | 1 << 20 | PINS.sdi | PINS.sdo << 15,
+    );
+    cpu.store(PIO0_BASE + reg::CTRL, 1);
+    // Channel 0: RX FIFO 0 → the results (DREQ 4); channel 1: the commands → TX FIFO 0
+    // (DREQ 0). Each started by the write of its address through its trigger alias.
+    let word = 2 << ctrl::DATA_SIZE_SHIFT | ctrl::EN;
+    let ch = |n: u32, off: u32| DMA_BASE + n * dreg::CH_STRIDE + off;
+    cpu.store(
+        ch(0, dreg::AL1_CTRL),
+        word | ctrl::INCR_WRITE | 4 << ctrl::TREQ_SEL_SHIFT,
+    );
+    cpu.store(ch(0, dreg::READ_ADDR), PIO0_BASE + reg::RXF0);
+    cpu.store(ch(0, dreg::TRANS_COUNT), FRAMES);
+    cpu.store(
+        ch(1, dreg::AL1_CTRL),
+        word | ctrl::INCR_READ | 1 << ctrl::CHAIN_TO_SHIFT,
+    );
+    cpu.store(ch(1, dreg::WRITE_ADDR), PIO0_BASE + reg::TXF0);
+    cpu.store(ch(1, dreg::TRANS_COUNT), FRAMES);
+    cpu.store(ch(0, dreg::AL2_WRITE_ADDR_TRIG), RESULTS);
+    cpu.store(ch(1, dreg::AL3_READ_ADDR_TRIG), COMMANDS);
+    let t = cpu.t;
+    (sys, t)
+}
+
+/// The word at `addr` as the host sees it (no cycle, no claim).
+fn peek(sys: &mut System, addr: u32) -> u32 {
+    let (mem, off) = sys.backing(addr).expect("SRAM");
+    u32::from_le_bytes(mem[off..off + 4].try_into().expect("word"))
+}
+
+/// Cycles of eight frames of 2.03 µs at 133 MHz, with room to spare.
+const RUN: u64 = 8 * 300 + 200;
+
+#[test]
+fn frames_come_back_into_sram_by_dma_inside_the_parts_timing() {
+    let (mut sys, t) = set_up(priority::DMA_R | priority::DMA_W, false);
+    // The channels' banks leave the fast path: bank 2 only.
+    sys.io_advance(t + RUN);
+    let io = sys.io.as_ref().expect("io");
+    let adc = &io.adcs[0];
+    assert!(adc.violations().is_empty(), "{:?}", adc.violations());
+    assert_eq!(adc.frames().len(), FRAMES as usize);
+    for (i, f) in adc.frames().iter().enumerate() {
+        assert_eq!(f.channel, i as u8);
+        assert_eq!(f.sclks, 32);
+    }
+    assert_eq!(io.reach_banks(), 1 << 2);
+    for i in 0..FRAMES {
+        let w = peek(&mut sys, RESULTS + 4 * i);
+        assert_eq!(w & 0xffff, 0x1000 * i + 0x0abc, "word {i}: {w:#x}");
+    }
+    // Both channels done.
+    let io = sys.io.as_mut().expect("io");
+    assert!(!io.dma.busy(0) && !io.dma.busy(1));
+    // A core's read of the last word, through the bus, sees it too.
+    let (v, wait) = sys.read(0, t + RUN + 1, RESULTS + 28, 4).expect("read");
+    assert_eq!((v & 0xffff, wait), (0x7abc, 0));
+}
+
+/// Everything observable of the machine and its memory, for comparing two runs.
+fn snapshot(sys: &mut System) -> (Vec<u64>, Vec<u32>, [u32; 4]) {
+    let words = (0..FRAMES)
+        .map(|i| peek(sys, RESULTS + 4 * i))
+        .collect::<Vec<_>>();
+    let io = sys.io.as_mut().expect("io");
+    let frames = io.adcs[0].frames().iter().map(|f| f.cs_fall).collect();
+    let regs = [
+        io.pio[0].read(reg::FLEVEL),
+        io.pio[0].read(reg::SM0_ADDR),
+        io.dma.read(dreg::TRANS_COUNT),
+        io.dma.read(dreg::CH_STRIDE + dreg::TRANS_COUNT),
+    ];
+    (frames, words, regs)
+}
+
+#[test]
+fn skipping_quiet_stretches_changes_nothing() {
+    let (mut fast, t) = set_up(priority::DMA_R | priority::DMA_W, false);
+    let (mut slow, _) = set_up(priority::DMA_R | priority::DMA_W, true);
+    // The slow one a cycle at a time, the fast one in strides that end anywhere (mid-frame,
+    // in a quiet stretch); both observed at the same points.
+    let mut at = t;
+    let mut stride = 1;
+    while at < t + RUN + 500 {
+        let next = at + stride;
+        while slow.io.as_ref().expect("io").cycle() < next {
+            let c = slow.io.as_ref().expect("io").cycle();
+            slow.io_advance(c + 1);
+        }
+        fast.io_advance(next);
+        assert_eq!(snapshot(&mut fast), snapshot(&mut slow), "at cycle {next}");
+        at = next;
+        stride = stride * 7 % 509 + 1;
+    }
+    // A second burst after the quiet stretch: restart both channels.
+    for sys in [&mut fast, &mut slow] {
+        let mut cpu = Cpu { sys, t: at };
+        let ch = |n: u32, off: u32| DMA_BASE + n * dreg::CH_STRIDE + off;
+        cpu.store(ch(0, dreg::AL2_WRITE_ADDR_TRIG), RESULTS);
+        cpu.store(ch(1, dreg::AL3_READ_ADDR_TRIG), COMMANDS);
+    }
+    let end = at + 4 + RUN;
+    while slow.io.as_ref().expect("io").cycle() < end {
+        let c = slow.io.as_ref().expect("io").cycle();
+        slow.io_advance(c + 1);
+    }
+    fast.io_advance(end);
+    let (frames, _, _) = snapshot(&mut fast);
+    assert_eq!(frames.len(), 2 * FRAMES as usize);
+    assert_eq!(snapshot(&mut fast), snapshot(&mut slow));
+}
+
+/// The cycle in which the DMA writes results word `i` (its new value visible from the
+/// next), found by running a copy cycle by cycle.
+fn dma_write_cycle(sys: &System, t: u64, i: u32) -> u64 {
+    let mut probe = sys.clone();
+    let mut c = t;
+    loop {
+        probe.io_advance(c + 1);
+        if peek(&mut probe, RESULTS + 4 * i) != 0 {
+            return c;
+        }
+        c += 1;
+        assert!(c < t + RUN, "word {i} never written");
+    }
+}
+
+#[test]
+fn the_dma_and_a_core_meet_on_a_bank_as_bus_priority_says() {
+    // DMA high: a core reading the word in the DMA's cycle waits one cycle and sees it.
+    let (sys, t) = set_up(priority::DMA_R | priority::DMA_W, false);
+    let w = dma_write_cycle(&sys, t, 3);
+    let mut a = sys.clone();
+    let (v, wait) = a.read(0, w - 1, RESULTS + 12, 4).expect("read");
+    assert_eq!((v, wait), (0, 0), "a cycle early: the old word, no wait");
+    let mut b = sys.clone();
+    let (v, wait) = b.read(0, w, RESULTS + 12, 4).expect("read");
+    assert_eq!(
+        (v & 0xffff, wait),
+        (0x3abc, 1),
+        "in the DMA's cycle: waits, sees it"
+    );
+    // Another bank in the same cycle: no wait.
+    let mut c = sys.clone();
+    let (_, wait) = c.read(0, w, 0x2101_0000, 4).expect("read");
+    assert_eq!(wait, 0);
+    // Equal priorities: the core wins its cycle (the old word, no wait); the DMA's write
+    // waits, and the word is there a cycle later.
+    let (sys, t) = set_up(0, false);
+    assert_eq!(
+        dma_write_cycle(&sys, t, 3),
+        w,
+        "the same frames without contention"
+    );
+    let mut d = sys.clone();
+    let (v, wait) = d.read(0, w, RESULTS + 12, 4).expect("read");
+    assert_eq!((v, wait), (0, 0));
+    let (v, wait) = d.read(0, w + 1, RESULTS + 12, 4).expect("read");
+    assert_eq!((v & 0xffff, wait), (0x3abc, 0));
+}
+
+#[test]
+fn blocks_in_reset_refuse_access_and_come_back_at_reset_values() {
+    let (mut sys, t) = set_up(priority::DMA_R | priority::DMA_W, false);
+    const RESETS: u32 = 0x4000_c000;
+    // Hold PIO0 in reset (RESETS' SET alias): its registers fault, its state is gone.
+    sys.write(0, t, RESETS + 0x2000, 4, 1 << 10).expect("reset");
+    assert!(sys.read(0, t + 2, PIO0_BASE + reg::CTRL, 4).is_err());
+    sys.write(0, t + 4, RESETS + 0x3000, 4, 1 << 10)
+        .expect("release");
+    let (ctrl, _) = sys.read(0, t + 6, PIO0_BASE + reg::CTRL, 4).expect("read");
+    assert_eq!(ctrl, 0, "state machines disabled again");
+    let (clkdiv, _) = sys
+        .read(0, t + 8, PIO0_BASE + reg::SM0_CLKDIV, 4)
+        .expect("read");
+    assert_eq!(clkdiv, 1 << 16);
+}

@@ -1,0 +1,299 @@
+//! A board with converters (`boards/rp2040_io.toml`: per core an ADS8688 and a DAC8568 on
+//! the core's PIO block, frames moved by DMA; `tactus_firmware::image::io`) on the emulated
+//! RP2040 with the parts at its pins (`tactus_emulator::io`):
+//!
+//! - the keys' positions go in as ADC codes and the firmware computes, sample for sample,
+//!   what the same image without converters computes from the same positions (quantised to
+//!   the ADC's codes, one sample later: a burst sampled in one period is read at the next
+//!   tick), and its DAC frames reach the DAC's outputs at the tick after;
+//! - every frame keeps the parts' data-sheet timing, no deadline is missed, and each core's
+//!   measured handler stays within its static bound, which counts the DMA's accesses to the
+//!   core's I/O bank;
+//! - more keys than a part has channels is an error naming the field.
+
+use std::path::Path;
+use tactus_compiler::fixed::interp::FixedInstance;
+use tactus_compiler::lower::Config;
+use tactus_firmware::image::{io, FirmwareImage, ImageError, KeySpec, Program};
+use tactus_runtime::converters::AdcScale;
+use tactus_runtime::keyboard::{read_board, BoardSpec};
+use tactus_runtime::limiter::LimiterConfig;
+use tactus_runtime::stimulus;
+
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+}
+
+fn board(name: &str) -> BoardSpec {
+    read_board(&root().join(format!("boards/{name}.toml"))).unwrap()
+}
+
+fn instrument(name: &str) -> Program {
+    let text = std::fs::read_to_string(root().join(format!("instruments/{name}.tactus"))).unwrap();
+    Program::compile(&text, &Config::default()).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// Key `i`'s sensor words: the built-in stimuli in turn, from sample `from`.
+fn stimulus_words(p: &Program, i: usize, from: usize, len: usize) -> Vec<i32> {
+    let names = stimulus::builtin_names();
+    let s0 = &p.fixed.program.sensors[0];
+    let (name, _) = names[(i + 2) % names.len()];
+    let s = stimulus::builtin(name, s0.range.1, 44_100.0).unwrap();
+    (from..from + len)
+        .map(|n| FixedInstance::sensor_raw(&p.fixed, 0, Some(s.key[n % s.key.len()])))
+        .collect()
+}
+
+/// Keys 60–64 of `program`: three on core 0, two on core 1.
+fn keys() -> Vec<KeySpec> {
+    (0..5)
+        .map(|i| KeySpec {
+            slot: 60 + i,
+            program: 0,
+            core: usize::from(i >= 3),
+        })
+        .collect()
+}
+
+#[test]
+fn converters_carry_the_same_positions_in_and_codes_out() {
+    let p = instrument("harpsichord");
+    let lim = LimiterConfig::default();
+    let keys = keys();
+    let with =
+        FirmwareImage::build(std::slice::from_ref(&p), &keys, &board("rp2040_io"), &lim).unwrap();
+    let without =
+        FirmwareImage::build(std::slice::from_ref(&p), &keys, &board("rp2040"), &lim).unwrap();
+    let plan = with.io().expect("the reference board names converters");
+    assert_eq!(
+        plan.cores
+            .iter()
+            .map(|c| (c.adc_channels(), c.dac_channels))
+            .collect::<Vec<_>>(),
+        [(3, 3), (2, 2)]
+    );
+    let (lo, hi) = p.fixed.sensor_raw_range[0];
+    let scale = AdcScale::new(lo, hi, 16);
+    // Samples of the stimuli from where they move (the harpsichord's plectra).
+    const N: usize = 48;
+    let words: Vec<Vec<i32>> = (0..keys.len())
+        .map(|i| stimulus_words(&p, i, 2000 + 300 * i, N))
+        .collect();
+    let mut a = with.run().unwrap();
+    let mut b = without.run().unwrap();
+    let mut moved = 0;
+    let mut sent = vec![vec![0i16; 3]; 2];
+    for n in 0..N {
+        let now: Vec<i32> = words.iter().map(|w| w[n]).collect();
+        // Without converters the handler of tick n reads what the host wrote before it:
+        // the positions the ADC sampled in the period before (n − 1), quantised; at tick 0
+        // the burst the start handler started (code 0 everywhere: nothing set yet).
+        let seen: Vec<i32> = words
+            .iter()
+            .map(|w| match n {
+                0 => scale.word(0),
+                _ => scale.quantise(w[n - 1]),
+            })
+            .collect();
+        let ga = a.step(&now).unwrap().clone();
+        let gb = b.step(&seen).unwrap().clone();
+        assert_eq!(ga.force, gb.force, "sample {n}: the updates' forces");
+        assert_eq!(ga.dac, gb.dac, "sample {n}: the limiter's codes");
+        assert_eq!(ga.events, gb.events, "sample {n}");
+        for k in 0..keys.len() {
+            assert_eq!(a.out(k), b.out(k), "sample {n} key {k}: out words");
+        }
+        assert_eq!(ga.misses, vec![0, 0], "sample {n}");
+        for c in 0..2 {
+            let w = with.wcet(c).unwrap();
+            assert_eq!(ga.handler_runs[c], 1);
+            assert!(
+                ga.core_cycles[c] <= w.bound(),
+                "sample {n} core {c}: measured {} over the static {}",
+                ga.core_cycles[c],
+                w.bound()
+            );
+        }
+        // The DAC's outputs: the frames the handler of tick n sent, the codes of sample
+        // n − 1 (midscale before any).
+        let io = a.board().io().unwrap();
+        for (k, spec) in keys.iter().enumerate() {
+            let (_, dacs) = with.channels(k).unwrap();
+            let out = io.dacs[spec.core].outputs()[dacs[0] as usize];
+            let ch = dacs[0] as usize;
+            assert_eq!(
+                out,
+                (sent[spec.core][ch] as u16).wrapping_add(0x8000),
+                "sample {n} key {k}"
+            );
+            sent[spec.core][ch] = ga.dac[k];
+        }
+        moved += usize::from(ga.dac.iter().any(|&d| d != 0));
+    }
+    assert!(
+        moved > N / 4,
+        "the stimuli move the motors ({moved} samples)"
+    );
+    // Every frame inside the parts' timing: N + 1 bursts of each core's channels.
+    let io = a.board().io().unwrap();
+    for (c, n) in [(0, 3), (1, 2)] {
+        let adc = &io.adcs[c];
+        assert!(adc.violations().is_empty(), "{:?}", adc.violations());
+        assert!(
+            io.dacs[c].violations().is_empty(),
+            "{:?}",
+            io.dacs[c].violations()
+        );
+        assert_eq!(adc.frames().len(), (N + 1) * n, "core {c}");
+        assert!(adc
+            .frames()
+            .iter()
+            .enumerate()
+            .all(|(i, f)| usize::from(f.channel) == i % n && f.sclks == 32));
+        assert_eq!(io.dacs[c].updates().len(), N * n, "core {c}");
+    }
+    // The static bound counts the DMA's accesses to each core's I/O bank.
+    for (c, n) in [(0u64, 3u64), (1, 2)] {
+        let w = with.wcet(c as usize).unwrap();
+        assert_eq!(w.contention, 3 * n, "core {c}");
+        let wo = without.wcet(c as usize).unwrap();
+        assert!(w.analysed > wo.analysed);
+        println!(
+            "core {c}, {n} harpsichord keys: static {} + {} contention with converters, {} without",
+            w.analysed, w.contention, wo.analysed
+        );
+    }
+    // Latency: from a key's sample (its frame's CS falling edge) to the DAC update that
+    // answers it (the 32nd SCLK of its channel's frame), per key over the run.
+    let clock = board("rp2040_io").clock_hz;
+    for (c, n) in [(0usize, 3usize), (1, 2)] {
+        let (frames, updates) = (io.adcs[c].frames(), io.dacs[c].updates());
+        for k in 0..n {
+            // Burst b (read at tick b) is answered by DAC burst b + 1; burst 0 is the start
+            // handler's (its own offset from the tick).
+            let lat: Vec<u64> = (1..N - 1)
+                .map(|b| updates[(b + 1) * n + k].cycle - frames[b * n + k].cs_fall)
+                .collect();
+            let (lo, hi) = (lat.iter().min().unwrap(), lat.iter().max().unwrap());
+            println!(
+                "core {c} key {k}: latency {lo}–{hi} cycles, {:.2}–{:.2} µs",
+                *lo as f64 / clock * 1e6,
+                *hi as f64 / clock * 1e6
+            );
+            // The ticks' alternating periods and the state machines' clock phases.
+            assert!(
+                hi - lo <= 3,
+                "the latency is the same every sample but a few cycles"
+            );
+            // The static latency (what `tactus budget` reports) bounds it, tightly.
+            let key = keys.iter().filter(|s| s.core < c).count() + k;
+            let bound = with.latency_cycles(key).unwrap();
+            assert!(
+                *hi <= bound && bound - hi <= 4,
+                "key {key}: {lo}–{hi} against {bound}"
+            );
+        }
+    }
+    // The I/O trace's records (`tactus play --io-trace`): every frame once, then drained.
+    let (records, breaches) = a.take_io();
+    assert!(breaches.is_empty(), "{breaches:?}");
+    let count = |dac: bool| records.iter().filter(|r| r.dac == dac).count();
+    assert_eq!((count(false), count(true)), ((N + 1) * 5, N * 5));
+    assert!(records
+        .iter()
+        .filter(|r| !r.dac)
+        .all(|r| r.command >> 13 == 0b110 && r.channel < 3));
+    assert!(a.take_io().0.is_empty());
+}
+
+#[test]
+fn more_keys_than_converter_channels_is_an_error_naming_the_field() {
+    let p = instrument("hammond");
+    let keys: Vec<KeySpec> = (0..9)
+        .map(|i| KeySpec {
+            slot: 40 + i,
+            program: 0,
+            core: 0,
+        })
+        .collect();
+    let lim = LimiterConfig::default();
+    let e = FirmwareImage::build(std::slice::from_ref(&p), &keys, &board("rp2040_io"), &lim)
+        .unwrap_err();
+    match &e {
+        ImageError::Board(why) => assert!(
+            why.contains("`converters.adc`") && why.contains("9 sensors") && why.contains('8'),
+            "{why}"
+        ),
+        other => panic!("{other:?}"),
+    }
+    // Eight fit.
+    assert!(FirmwareImage::build(&[p], &keys[..8], &board("rp2040_io"), &lim).is_ok());
+}
+
+#[test]
+fn the_drivers_keep_each_parts_timing_at_each_clock() {
+    for name in ["rp2040_io", "rp2040_io_200mhz"] {
+        let b = board(name);
+        let clock = b.clock_hz;
+        let plan = io::IoPlan::new(&b, clock as u64, 3000, vec![vec![]; 2], vec![0; 2])
+            .unwrap()
+            .unwrap();
+        let adc_sclk = clock / f64::from(4 * plan.adc_div);
+        let dac_sclk = clock / f64::from(4 * plan.dac_div);
+        assert!(adc_sclk <= plan.adc.sclk_max_hz, "{name}: {adc_sclk}");
+        assert!(dac_sclk <= plan.dac.sclk_max_hz, "{name}: {dac_sclk}");
+        assert!(plan.adc_frame_cycles(0) as f64 / clock > plan.adc.frame_period_min_s);
+        let sync = f64::from(plan.dac_program.cs_high_pio_cycles * plan.dac_div) / clock;
+        assert!(sync > plan.dac.sync_high_min_s, "{name}: {sync}");
+    }
+}
+
+#[test]
+fn a_board_with_converters_boots_from_flash_as_from_ram() {
+    // One harpsichord key a core: boot2, the copy to SRAM (the I/O blocks with it), the
+    // drivers' set-up; then the same samples as the RAM image, frame for frame.
+    let p = instrument("harpsichord");
+    let keys: Vec<KeySpec> = (0..2)
+        .map(|i| KeySpec {
+            slot: 60 + i,
+            program: 0,
+            core: i,
+        })
+        .collect();
+    let lim = LimiterConfig::default();
+    let image =
+        FirmwareImage::build(std::slice::from_ref(&p), &keys, &board("rp2040_io"), &lim).unwrap();
+    let flash = image.flash_image().unwrap().bytes;
+    let mut ram = image.run().unwrap();
+    let mut rom = tactus_firmware::image::ImageRun::from_flash(&image, &flash).unwrap();
+    let words: Vec<Vec<i32>> = (0..2).map(|i| stimulus_words(&p, i, 2500, 8)).collect();
+    for n in 0..8 {
+        let now: Vec<i32> = words.iter().map(|w| w[n]).collect();
+        let a = ram.step(&now).unwrap().clone();
+        let b = rom.step(&now).unwrap().clone();
+        assert_eq!(
+            (a.force, a.dac, a.core_cycles),
+            (b.force, b.dac, b.core_cycles)
+        );
+    }
+    let (ra, _) = ram.take_io();
+    let (rb, breaches) = rom.take_io();
+    assert!(breaches.is_empty(), "{breaches:?}");
+    // The same frames from each board's first tick (the flash boot takes longer): the
+    // same codes in the same order; the DAC's at the same cycles, the ADC's within its
+    // state machine's clock phase (÷ 2: which of two cycles the divider lets it run in
+    // depends on how long the boot took).
+    assert_eq!(ra.len(), rb.len());
+    assert!(!ra.is_empty());
+    let div = image.io().unwrap().adc_div as i64;
+    let (t0a, t0b) = (ram.tick_cycle(0) as i64, rom.tick_cycle(0) as i64);
+    for (x, y) in ra.iter().zip(&rb) {
+        assert_eq!(
+            (x.core, x.dac, x.channel, x.code, x.command),
+            (y.core, y.dac, y.channel, y.code, y.command)
+        );
+        let (dx, dy) = (x.cycle as i64 - t0a, y.cycle as i64 - t0b);
+        let slack = if x.dac { 0 } else { div - 1 };
+        assert!((dx - dy).abs() <= slack, "{x:?} at {dx}, {y:?} at {dy}");
+    }
+}
