@@ -54,12 +54,19 @@
 //! * both cores run on disjoint banks: each runs alone over a window, confined
 //!   ([`run_confined`]; the argument and the rollback are in [`crate::board`]'s
 //!   `window.rs`); where that fails, the board's lock-step loop on the interpreter.
+//!
+//! **Memoized calls.** In a window, a core at the entry of a watched function
+//! ([`crate::Board::memoize_calls`]) whose inputs are those of a recorded call takes that
+//! call's effect instead of running it ([`crate::memo`]); a call to record leaves
+//! [`run_confined`] ([`Leave::Record`]) for the board's general path, which runs it one
+//! instruction at a time while recording it.
 
 use crate::bus::{sram_location, Bus, System};
 use crate::core::Core;
 use crate::decode::{decode, Instr};
 use crate::fast::Op;
 use crate::jit::{self, Jit};
+use crate::memo::{Memos, Try};
 use crate::timing::{self, Class};
 
 /// Most instructions in one block.
@@ -104,6 +111,9 @@ pub(crate) enum Leave {
     General,
     /// No block can be decoded at the core's PC (a fetch would fault).
     Miss,
+    /// The core is at a watched entry ([`crate::memo`]) whose call is to be recorded
+    /// (nothing of it was done).
+    Record,
 }
 
 /// Undo-journal entries the journal is made with (a window's stores beyond stop its core).
@@ -138,6 +148,8 @@ pub(crate) struct Blocks {
     pub(crate) journal: Vec<u64>,
     /// The other core's.
     pub(crate) journal_other: Vec<u64>,
+    /// The memoized calls ([`crate::memo`]).
+    pub(crate) memo: Memos,
 }
 
 #[inline(always)]
@@ -173,6 +185,7 @@ impl Blocks {
             confined_solo: Vec::new(),
             journal: Vec::with_capacity(JOURNAL),
             journal_other: Vec::with_capacity(JOURNAL),
+            memo: Memos::default(),
         }
     }
 
@@ -515,6 +528,17 @@ pub(crate) fn run_confined(
             break Ok(());
         }
         let pc = core.r[15];
+        if blocks.memo.watches(pc) {
+            let solo = core.cycle >= quiet_from;
+            match blocks
+                .memo
+                .call(core, sys, limit, solo, allowed, journal.as_deref_mut())
+            {
+                Try::Applied => continue,
+                Try::Record => break Err(Leave::Record),
+                Try::Run => {}
+            }
+        }
         if native {
             let cache = blocks.confined_for(core.cycle >= quiet_from, allowed, journal.is_some());
             if let Some(region) = cache.lookup(sys, pc) {

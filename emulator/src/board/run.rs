@@ -325,6 +325,23 @@ impl Board {
         self.blocks.decoded
     }
 
+    /// Memoizes calls to the functions at `entries` (addresses, the Thumb bit ignored; at
+    /// most 64) on the block engine while the cores run in windows ([`Config::own_banks`]):
+    /// a call whose inputs — the registers and flags it reads, the SRAM bytes it loads, the
+    /// code — are those of a call recorded before is replaced by that call's effect
+    /// (registers, flags, stores, cycles, instructions, bank claims; module `memo`).
+    /// Results never depend on it, only speed: a call that touches anything but registers
+    /// and SRAM, or whose inputs differ, runs as before. An empty list stops it. Forgets
+    /// every memo.
+    pub fn memoize_calls(&mut self, entries: &[u32]) {
+        self.blocks.memo.watch(entries);
+    }
+
+    /// What the memoized calls did so far ([`Board::memoize_calls`]).
+    pub fn memo_stats(&self) -> crate::MemoStats {
+        self.blocks.memo.stats
+    }
+
     /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
     pub fn regions_compiled(&self) -> u64 {
         let b = &self.blocks;

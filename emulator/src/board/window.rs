@@ -51,6 +51,7 @@ use crate::bus::{
     sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE, FLASH_SIZE, ROM_SIZE,
 };
 use crate::core::Event;
+use crate::memo::Recording;
 use crate::nvic::IRQ0;
 use crate::sio::{reg, Divider, SIO_BASE};
 
@@ -92,6 +93,9 @@ struct Confined<'a> {
     banks: u8,
     journal: &'a mut Vec<u64>,
     foreign: bool,
+    /// A call being recorded ([`crate::memo`]): its SRAM accesses are logged, any other
+    /// access spoils it.
+    log: Option<&'a mut Recording>,
 }
 
 impl Confined<'_> {
@@ -137,7 +141,17 @@ impl Bus for Confined<'_> {
         if !ok {
             return Err(self.refuse(addr));
         }
-        self.sys.read(core, cycle, addr, size)
+        let r = self.sys.read(core, cycle, addr, size);
+        if let Some(rec) = self.log.as_deref_mut() {
+            match (sram_location(addr), r) {
+                (Some((off, _)), Ok((value, _))) => {
+                    let code = self.sys.code_pages[off >> 8];
+                    rec.load(off as u32, size, value, code);
+                }
+                _ => rec.spoil(),
+            }
+        }
+        r
     }
 
     fn write(
@@ -163,10 +177,21 @@ impl Bus for Confined<'_> {
             None if !Self::private(addr) => return Err(self.refuse(addr)),
             None => {}
         }
-        self.sys.write(core, cycle, addr, size, value)
+        let r = self.sys.write(core, cycle, addr, size, value);
+        if let Some(rec) = self.log.as_deref_mut() {
+            match (sram_location(addr), r) {
+                (Some((off, _)), Ok(_)) => rec.store(off as u32, size),
+                _ => rec.spoil(),
+            }
+        }
+        r
     }
 
     fn fetch(&mut self, addr: u32) -> Result<u16, BusFault> {
+        if let Some(rec) = self.log.as_deref_mut() {
+            // Only the general path fetches through the bus (exception entry, a fault).
+            rec.spoil();
+        }
         if let Some((_, bank)) = sram_location(addr) {
             if !self.bank_ok(bank) {
                 return Err(self.refuse(addr));
@@ -339,6 +364,12 @@ impl Board {
                     sys.allowed_banks = ALL_BANKS;
                     match r {
                         Ok(()) => continue,
+                        Err(Leave::Record) => {
+                            if !self.record_call(k, deadline, lines, banks, journal) {
+                                return false;
+                            }
+                            continue;
+                        }
                         Err(Leave::General | Leave::Miss) => {}
                     }
                     if self.cores[k].cycle >= until {
@@ -346,7 +377,7 @@ impl Board {
                     }
                 }
             }
-            if !self.step_confined(k, lines, banks, journal) {
+            if !self.step_confined(k, lines, banks, journal, None) {
                 return false;
             }
             if !self.profiles.is_empty() {
@@ -355,9 +386,65 @@ impl Board {
         }
     }
 
+    /// Runs the call core `k` is about to make (its PC at a watched entry, [`crate::memo`])
+    /// one general step at a time as [`Board::run_alone`] would, recording it, until it
+    /// returns (the memo is kept), something a memo cannot hold happens or the core reaches
+    /// `deadline` (the recording is given up; the core has run exactly as without it).
+    /// False as [`Board::step_confined`]: the window is undone.
+    fn record_call(
+        &mut self,
+        k: usize,
+        deadline: u64,
+        lines: u32,
+        banks: u8,
+        journal: &mut Vec<u64>,
+    ) -> bool {
+        let mut rec = self.blocks.memo.begin(&self.cores[k], &self.system);
+        loop {
+            let core = &self.cores[k];
+            if rec.returned(core) {
+                self.blocks.memo.finish(rec, core, &self.system);
+                return true;
+            }
+            let general =
+                core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb;
+            if core.cycle >= deadline || general {
+                self.blocks.memo.abandon(rec);
+                return true;
+            }
+            let pc = core.r[15];
+            let admitted = match cached(&mut self.cache, &mut self.system, pc) {
+                Some((instr, size, _)) => rec.admit(&self.cores[k], &instr, size),
+                None => false,
+            };
+            if !admitted {
+                self.blocks.memo.abandon(rec);
+                return true;
+            }
+            if !self.step_confined(k, lines, banks, journal, Some(&mut rec)) {
+                self.blocks.memo.abandon(rec);
+                return false;
+            }
+            if !self.profiles.is_empty() {
+                self.profile_step(k);
+            }
+            if !rec.after(&self.cores[k]) {
+                self.blocks.memo.abandon(rec);
+                return true;
+            }
+        }
+    }
+
     /// One general step of core `k` (as [`Board::step_cached`]) on the [`Confined`] bus;
     /// false when it was not confined or had an event (the caller undoes the whole window).
-    fn step_confined(&mut self, k: usize, lines: u32, banks: u8, journal: &mut Vec<u64>) -> bool {
+    fn step_confined(
+        &mut self,
+        k: usize,
+        lines: u32,
+        banks: u8,
+        journal: &mut Vec<u64>,
+        log: Option<&mut Recording>,
+    ) -> bool {
         let pc = self.cores[k].r[15];
         let core = &mut self.cores[k];
         if lines != 0 {
@@ -380,6 +467,7 @@ impl Board {
             banks,
             journal,
             foreign: false,
+            log,
         };
         let event = match fetched {
             Some((instr, size, cost)) => {
