@@ -56,7 +56,7 @@
 //!   `window.rs`); where that fails, the board's lock-step loop on the interpreter.
 //!
 //! **Memoized calls.** In a window, a core at the entry of a watched function
-//! ([`crate::Board::memoize_calls`]) whose inputs are those of a recorded call takes that
+//! ([`crate::Board::memoize`]) whose inputs are those of a recorded call takes that
 //! call's effect instead of running it ([`crate::memo`]); a call to record leaves
 //! [`run_confined`] ([`Leave::Record`]) for the board's general path, which runs it one
 //! instruction at a time while recording it.
@@ -116,6 +116,9 @@ pub(crate) enum Leave {
     Record,
 }
 
+/// A bank mask, whether journaled, and the indices of its confined caches (solo, shared).
+type ConfinedAt = (u8, bool, (usize, usize));
+
 /// Undo-journal entries the journal is made with (a window's stores beyond stop its core).
 const JOURNAL: usize = 1 << 16;
 
@@ -143,6 +146,9 @@ pub(crate) struct Blocks {
     pub(crate) confined: Vec<Jit>,
     /// Confined without arbitration ([`jit::Flavour::ConfinedSolo`]), per bank mask.
     pub(crate) confined_solo: Vec<Jit>,
+    /// Per core, the last bank mask and journaling [`run_confined`] ran it with, and their
+    /// caches' indices in `confined_solo` and `confined` (the lists only grow).
+    confined_last: [Option<ConfinedAt>; 2],
     /// The undo journals of the two cores in a window (entries as [`crate::jit`] writes
     /// them; [`crate::board`]'s `window.rs`).
     pub(crate) journal: Vec<u64>,
@@ -183,15 +189,17 @@ impl Blocks {
             solo: Jit::new(jit::Flavour::Solo),
             confined: Vec::new(),
             confined_solo: Vec::new(),
+            confined_last: [None; 2],
             journal: Vec::with_capacity(JOURNAL),
             journal_other: Vec::with_capacity(JOURNAL),
             memo: Memos::default(),
         }
     }
 
-    /// The confined cache (`solo`: without arbitration) for bank mask `mask`, with or
-    /// without journal code, made on first use with the board's compile threshold.
-    fn confined_for(&mut self, solo: bool, mask: u8, journaled: bool) -> &mut Jit {
+    /// The index of the confined cache (`solo`: without arbitration, in
+    /// `confined_solo`; else in `confined`) for bank mask `mask`, with or without journal
+    /// code, made on first use with the board's compile threshold.
+    fn confined_index(&mut self, solo: bool, mask: u8, journaled: bool) -> usize {
         let threshold = self.jit.threshold;
         let (list, flavour) = if solo {
             (
@@ -201,7 +209,7 @@ impl Blocks {
         } else {
             (&mut self.confined, jit::Flavour::Confined(mask, journaled))
         };
-        let at = match list.iter().position(|j| j.flavour() == flavour) {
+        match list.iter().position(|j| j.flavour() == flavour) {
             Some(at) => at,
             None => {
                 let mut j = Jit::new(flavour);
@@ -209,8 +217,7 @@ impl Blocks {
                 list.push(j);
                 list.len() - 1
             }
-        };
-        &mut list[at]
+        }
     }
 
     fn clear(&mut self, epoch: u32) {
@@ -523,6 +530,18 @@ pub(crate) fn run_confined(
         .filter(|&c| c != u64::MAX)
         .max()
         .unwrap_or(0);
+    let journaled = journal.is_some();
+    let (solo_at, shared_at) = match blocks.confined_last[core.id & 1] {
+        Some((mask, j, at)) if mask == allowed && j == journaled => at,
+        _ => {
+            let at = (
+                blocks.confined_index(true, allowed, journaled),
+                blocks.confined_index(false, allowed, journaled),
+            );
+            blocks.confined_last[core.id & 1] = Some((allowed, journaled, at));
+            at
+        }
+    };
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
@@ -540,7 +559,11 @@ pub(crate) fn run_confined(
             }
         }
         if native {
-            let cache = blocks.confined_for(core.cycle >= quiet_from, allowed, journal.is_some());
+            let cache = if core.cycle >= quiet_from {
+                &mut blocks.confined_solo[solo_at]
+            } else {
+                &mut blocks.confined[shared_at]
+            };
             if let Some(region) = cache.lookup(sys, pc) {
                 if core.cycle.saturating_add(region.bound) <= limit && region.banks & !allowed == 0
                 {

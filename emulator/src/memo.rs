@@ -4,7 +4,7 @@
 //! **Why.** A keyboard's keys are at rest most of the time, and a key at rest reads the same
 //! sensor word and the same state sample after sample: its update computes, cycle for cycle,
 //! what it computed the sample before. Emulating it again is the bulk of a performance's
-//! work. The board is told which functions to watch ([`crate::Board::memoize_calls`]: the
+//! work. The board is told which functions to watch ([`crate::Board::memoize`]: the
 //! image's key updates); a call is what runs from such an entry (the core's PC at it, LR the
 //! return address) until the PC is at the return address with SP as at the entry.
 //!
@@ -61,7 +61,11 @@ const MAX_INSTRUCTIONS: u64 = 50_000;
 /// Most SRAM accesses a recording logs.
 const MAX_ACCESSES: usize = 16_384;
 /// A call site waits at most `2^MAX_BACKOFF - 1` calls between recordings.
-const MAX_BACKOFF: u32 = 6;
+const MAX_BACKOFF: u32 = 12;
+/// A site tries all its memos (not only the predicted one) within this many calls of its
+/// last hit or recording: a key at rest finds its states, a moving one costs no scan of
+/// memos that do not match.
+const SCAN_AFTER: u32 = 64;
 /// Most watched entries.
 pub const MAX_ENTRIES: usize = 64;
 
@@ -78,6 +82,9 @@ const NZCV: u8 = N | Z | C | V;
 pub struct MemoStats {
     /// Calls replaced by a memo.
     pub hits: u64,
+    /// Of those, the hits whose memo was not the one predicted (the one applied after the
+    /// site's last memo the time before), found by trying the site's others.
+    pub unpredicted: u64,
     /// Emulated cycles of those calls.
     pub hit_cycles: u64,
     /// Watched entries reached with no memo matching.
@@ -249,21 +256,28 @@ fn words(bytes: impl Iterator<Item = (u32, u8)>) -> Vec<Word> {
     v
 }
 
-/// The word at `off` (aligned, in range by construction; 0 otherwise, which no caller
-/// meets).
+/// The word at byte `off` of `sram`.
+///
+/// # Safety
+/// `off + 4 <= sram.len()`.
 #[inline(always)]
-fn peek(sram: &[u8], off: u32) -> u32 {
-    let o = off as usize;
-    sram.get(o..o + 4)
-        .and_then(|b| b.try_into().ok())
-        .map_or(0, u32::from_le_bytes)
+unsafe fn peek(sram: &[u8], off: u32) -> u32 {
+    // SAFETY: the caller's bound.
+    unsafe { std::ptr::read_unaligned(sram.as_ptr().add(off as usize) as *const u32) }.to_le()
 }
 
+/// Stores `value` at byte `off` of `sram`.
+///
+/// # Safety
+/// `off + 4 <= sram.len()`.
 #[inline(always)]
-fn poke(sram: &mut [u8], off: u32, value: u32) {
-    let o = off as usize;
-    if let Some(b) = sram.get_mut(o..o + 4) {
-        b.copy_from_slice(&value.to_le_bytes());
+unsafe fn poke(sram: &mut [u8], off: u32, value: u32) {
+    // SAFETY: the caller's bound.
+    unsafe {
+        std::ptr::write_unaligned(
+            sram.as_mut_ptr().add(off as usize) as *mut u32,
+            value.to_le(),
+        )
     }
 }
 
@@ -301,7 +315,8 @@ fn special_of(core: &Core) -> (bool, u32, bool, u32, u32, bool) {
 /// flags it has read before writing them and those it has written, and its SRAM accesses.
 pub(crate) struct Recording {
     site: usize,
-    lr: u32,
+    /// Where the call ends: its return address, or the span's end.
+    end: u32,
     entry: Entry,
     live_regs: u16,
     def_regs: u16,
@@ -314,9 +329,10 @@ pub(crate) struct Recording {
 }
 
 impl Recording {
-    /// Whether the call has returned: PC at the return address, SP as at the entry.
+    /// Whether the call has returned (or the span ended): PC at its end, SP as at the
+    /// entry.
     pub(crate) fn returned(&self, core: &Core) -> bool {
-        core.r[15] == self.lr & !1 && core.r[13] == self.entry.r[13]
+        core.r[15] == self.end && core.r[13] == self.entry.r[13]
     }
 
     /// Before `core` executes `instr` (`size` bytes at its PC) in the recorded call: false
@@ -394,6 +410,9 @@ struct Memo {
     reads: Vec<Word>,
     /// Stored bytes, by word, with their final values.
     writes: Vec<Word>,
+    /// One past the last byte of any of those words (checked against the SRAM's length
+    /// once per use).
+    end: usize,
     /// 256-byte pages of the stored bytes (each once).
     pages: Vec<u32>,
     /// Registers and flags set by the call (r15 among them), and their values.
@@ -431,30 +450,41 @@ impl Memo {
             return false;
         }
         let sram = &sys.sram[..];
+        if self.end > sram.len() {
+            return false;
+        }
+        // SAFETY: every word's offset + 4 is at most `self.end`.
         self.reads
             .iter()
-            .all(|w| peek(sram, w.off) & w.mask == w.value)
+            .all(|w| unsafe { peek(sram, w.off) } & w.mask == w.value)
     }
 
     fn apply(&self, core: &mut Core, sys: &mut System, journal: Option<&mut Vec<u64>>) {
         // A word that already holds its final bytes is left alone (a key at rest rewrites
         // the same state): no store, no journal entry (undoing it would change nothing).
         let sram = &mut sys.sram[..];
+        // `inputs_match` has checked `self.end` against the SRAM's length (which never
+        // changes): only a memo whose inputs matched is applied.
+        assert!(self.end <= sram.len());
         match journal {
             Some(j) => {
                 for w in &self.writes {
-                    let old = peek(sram, w.off);
+                    // SAFETY: every word's offset + 4 is at most `self.end`.
+                    let old = unsafe { peek(sram, w.off) };
                     if old & w.mask != w.value {
                         j.push((w.off as u64) << 32 | old as u64);
-                        poke(sram, w.off, old & !w.mask | w.value);
+                        // SAFETY: as above.
+                        unsafe { poke(sram, w.off, old & !w.mask | w.value) };
                     }
                 }
             }
             None => {
                 for w in &self.writes {
-                    let old = peek(sram, w.off);
+                    // SAFETY: every word's offset + 4 is at most `self.end`.
+                    let old = unsafe { peek(sram, w.off) };
                     if old & w.mask != w.value {
-                        poke(sram, w.off, old & !w.mask | w.value);
+                        // SAFETY: as above.
+                        unsafe { poke(sram, w.off, old & !w.mask | w.value) };
                     }
                 }
             }
@@ -486,7 +516,8 @@ impl Memo {
 struct Site {
     core: usize,
     pc: u32,
-    lr: u32,
+    /// Where its calls end (the return address, or the span's end).
+    end: u32,
     memos: Vec<Memo>,
     /// Index in `memos` of the memo applied last (`usize::MAX`: none).
     last: usize,
@@ -494,6 +525,9 @@ struct Site {
     wait: u32,
     /// Recordings since the last hit.
     fails: u32,
+    /// Calls since the last hit or recording (saturating): past [`SCAN_AFTER`] a miss
+    /// tries the predicted memo only.
+    quiet: u32,
 }
 
 /// What [`Memos::call`] found at a watched entry.
@@ -510,47 +544,67 @@ pub(crate) enum Try {
 /// A board's memos (see the module documentation).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Memos {
-    /// The watched entries (addresses without the Thumb bit).
-    entries: Vec<u32>,
+    /// The watched entries (addresses without the Thumb bit), and where their calls end:
+    /// `None` at the return address in LR (a function), else the span's end.
+    entries: Vec<(u32, Option<u32>)>,
+    /// Bit `(entry >> 1) % 64` of every entry: a clear bit rules a PC out at once.
+    filter: u64,
     sites: Vec<Site>,
     clock: u64,
     pub(crate) stats: MemoStats,
 }
 
 impl Memos {
-    /// Watches the functions at `entries` (the Thumb bit ignored; at most [`MAX_ENTRIES`],
-    /// the rest ignored), forgetting every memo.
-    pub(crate) fn watch(&mut self, entries: &[u32]) {
-        self.entries = entries.iter().map(|e| e & !1).take(MAX_ENTRIES).collect();
-        self.entries.sort_unstable();
-        self.entries.dedup();
+    /// Watches the functions at `calls` and the spans `spans` (start, end) (the Thumb bit
+    /// ignored; at most [`MAX_ENTRIES`] in all, the rest ignored), forgetting every memo.
+    pub(crate) fn watch(&mut self, calls: &[u32], spans: &[(u32, u32)]) {
+        let mut e: Vec<(u32, Option<u32>)> = calls
+            .iter()
+            .map(|c| (c & !1, None))
+            .chain(
+                spans
+                    .iter()
+                    .filter(|(a, b)| a & !1 != b & !1)
+                    .map(|&(a, b)| (a & !1, Some(b & !1))),
+            )
+            .collect();
+        e.sort_unstable();
+        e.dedup_by_key(|x| x.0);
+        e.truncate(MAX_ENTRIES);
+        self.filter = e.iter().fold(0, |f, x| f | 1 << ((x.0 >> 1) & 63));
+        self.entries = e;
         self.sites.clear();
     }
 
     /// Whether `pc` is a watched entry.
     #[inline(always)]
     pub(crate) fn watches(&self, pc: u32) -> bool {
-        !self.entries.is_empty() && self.entries.contains(&pc)
+        self.filter >> ((pc >> 1) & 63) & 1 != 0 && self.entries.iter().any(|e| e.0 == pc)
     }
 
-    /// The call site of `core`'s call (its PC at a watched entry, LR the return address).
+    /// The call site of `core`'s call (its PC at a watched entry).
     fn site(&mut self, core: &Core) -> usize {
-        let (id, pc, lr) = (core.id, core.r[15], core.r[14]);
+        let (id, pc) = (core.id, core.r[15]);
+        let end = match self.entries.iter().find(|e| e.0 == pc) {
+            Some(&(_, Some(end))) => end,
+            _ => core.r[14] & !1,
+        };
         match self
             .sites
             .iter()
-            .position(|s| s.lr == lr && s.pc == pc && s.core == id)
+            .position(|s| s.end == end && s.pc == pc && s.core == id)
         {
             Some(i) => i,
             None => {
                 self.sites.push(Site {
                     core: id,
                     pc,
-                    lr,
+                    end,
                     memos: Vec::new(),
                     last: usize::MAX,
                     wait: 0,
                     fails: 0,
+                    quiet: 0,
                 });
                 self.sites.len() - 1
             }
@@ -577,10 +631,15 @@ impl Memos {
         let next = site.memos.get(site.last).map_or(usize::MAX, |m| m.next);
         let found = match site.memos.get(next) {
             Some(m) if m.inputs_match(core, sys) => Some(next),
-            _ => {
-                (0..site.memos.len()).find(|&i| i != next && site.memos[i].inputs_match(core, sys))
+            _ if site.quiet < SCAN_AFTER => {
+                let i = (0..site.memos.len())
+                    .find(|&i| i != next && site.memos[i].inputs_match(core, sys));
+                self.stats.unpredicted += i.is_some() as u64;
+                i
             }
+            _ => None,
         };
+        site.quiet = site.quiet.saturating_add(1);
         if let Some(i) = found {
             let m = &mut site.memos[i];
             let room = journal
@@ -603,6 +662,7 @@ impl Memos {
             site.last = i;
             site.fails = 0;
             site.wait = 0;
+            site.quiet = 0;
             self.stats.hits += 1;
             return Try::Applied;
         }
@@ -613,15 +673,17 @@ impl Memos {
         }
         site.wait = (1u32 << site.fails.min(MAX_BACKOFF)) - 1;
         site.fails += 1;
+        site.quiet = 0;
         Try::Record
     }
 
     /// Starts recording the call `core` is about to make (its PC at a watched entry).
     pub(crate) fn begin(&mut self, core: &Core, sys: &System) -> Recording {
         let k = core.id & 1;
+        let site = self.site(core);
         Recording {
-            site: self.site(core),
-            lr: core.r[14],
+            site,
+            end: self.sites[site].end,
             entry: Entry {
                 r: core.r,
                 flags: flags_of(core),
@@ -695,6 +757,12 @@ impl Memos {
             regs_in: e.r,
             live_flags: rec.live_flags,
             flags_in: e.flags & rec.live_flags,
+            end: reads
+                .iter()
+                .chain(&writes)
+                .map(|w| w.off as usize + 4)
+                .max()
+                .unwrap_or(0),
             reads,
             writes,
             pages,

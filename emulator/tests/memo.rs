@@ -1,4 +1,4 @@
-//! Memoized calls (`Board::memoize_calls`, `src/memo.rs`) against the interpreter: random
+//! Memoized calls (`Board::memoize`, `src/memo.rs`) against the interpreter: random
 //! functions called from a `BL`, each case four calls — the same inputs twice (the second
 //! replayed from the first's recording when the function can be memoized), then twice
 //! with one input changed: a register, a flag, a data byte or the bytes of the stack the
@@ -88,7 +88,7 @@ fn board(engine: Engine) -> Board {
         caller.extend(h.to_le_bytes()); // bl FUNC; b .
     }
     b.write_bytes(CALLER, &caller).unwrap();
-    b.memoize_calls(&[FUNC | 1]);
+    b.memoize(&[FUNC | 1], &[]);
     b
 }
 

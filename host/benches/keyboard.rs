@@ -161,6 +161,7 @@ fn once(engine: Engine) {
             "board {i}: keys {:?} handler cycles {:?} max {:?} misses {:?} strikes {n}",
             b.keys, b.total, b.max, b.misses
         );
+        eprintln!("board {i}: {:?}", b.memo);
     }
     println!(
         "{engine:?}: {} samples, {} boards, {strikes} strikes, {} handler cycles",

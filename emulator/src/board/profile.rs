@@ -126,6 +126,9 @@ impl Board {
             return;
         }
         self.profiled_active[k] = core.nvic.active;
+        // Whether an innermost open call changed where it returns to (a handler's return
+        // is no address: opening or closing one over another handler changes nothing the
+        // index holds).
         let mut changed = false;
         for p in &mut self.profiles {
             while let Some(&(ret, entry_sp, start)) = p.open[k].last() {
@@ -137,7 +140,8 @@ impl Board {
                     break;
                 }
                 p.open[k].pop();
-                changed = true;
+                changed |= matches!(ret, Return::To(_))
+                    || matches!(p.open[k].last(), Some((Return::To(_), ..)));
                 p.calls.push(Call {
                     core: k,
                     start,
@@ -154,8 +158,9 @@ impl Board {
                 } else {
                     Return::To(lr & !1)
                 };
+                changed |= matches!(ret, Return::To(_))
+                    || matches!(p.open[k].last(), Some((Return::To(_), ..)));
                 p.open[k].push((ret, sp, now));
-                changed = true;
             }
         }
         if changed {

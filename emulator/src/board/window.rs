@@ -48,7 +48,8 @@ use super::run::cached;
 use super::*;
 use crate::block::{self, Leave};
 use crate::bus::{
-    sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE, FLASH_SIZE, ROM_SIZE,
+    plain_sram_span, sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE, FLASH_SIZE,
+    ROM_SIZE,
 };
 use crate::core::Event;
 use crate::memo::Recording;
@@ -187,6 +188,66 @@ impl Bus for Confined<'_> {
         r
     }
 
+    /// Exception entry's frame: when it lies in plain SRAM of allowed banks and the journal
+    /// has room (and no call is being recorded), journaled and stored in one go by
+    /// [`System`]'s [`Bus::write_words`]; else word by word.
+    fn write_words(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        words: &[u32],
+    ) -> Result<(), BusFault> {
+        let n = words.len() as u32;
+        match plain_sram_span(addr, 4 * n) {
+            Some(off)
+                if self.log.is_none()
+                    && self.journal.len() + words.len() <= JOURNAL
+                    && (0..n).all(|i| self.bank_ok(bank_of(off + 4 * i))) =>
+            {
+                for i in 0..n {
+                    let o = off + 4 * i;
+                    let old = self.sys.sram_peek(o);
+                    self.journal.push((o as u64) << 32 | old as u64);
+                }
+                self.sys.write_words(core, cycle, addr, words)
+            }
+            _ => {
+                for (i, &w) in words.iter().enumerate() {
+                    self.write(core, cycle, addr.wrapping_add(4 * i as u32), 4, w)?;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// Exception return's frame: in one go by [`System`]'s [`Bus::read_words`] when it lies
+    /// in plain SRAM of allowed banks (and no call is being recorded); else word by word.
+    fn read_words(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        out: &mut [u32],
+    ) -> Result<(), BusFault> {
+        let n = out.len() as u32;
+        match plain_sram_span(addr, 4 * n) {
+            Some(off)
+                if self.log.is_none() && (0..n).all(|i| self.bank_ok(bank_of(off + 4 * i))) =>
+            {
+                self.sys.read_words(core, cycle, addr, out)
+            }
+            _ => {
+                for (i, w) in out.iter_mut().enumerate() {
+                    *w = self
+                        .read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?
+                        .0;
+                }
+                Ok(())
+            }
+        }
+    }
+
     fn fetch(&mut self, addr: u32) -> Result<u16, BusFault> {
         if let Some(rec) = self.log.as_deref_mut() {
             // Only the general path fetches through the bus (exception entry, a fault).
@@ -198,6 +259,16 @@ impl Bus for Confined<'_> {
             }
         }
         self.sys.fetch(addr)
+    }
+}
+
+/// Arbitration bank of plain SRAM offset `off` (the striped banks by address bits 3:2,
+/// then SRAM4 and SRAM5), as the bus's.
+fn bank_of(off: u32) -> usize {
+    if off < 0x4_0000 {
+        ((off >> 2) & 3) as usize
+    } else {
+        (4 + ((off >> 12) & 1)) as usize
     }
 }
 
@@ -344,6 +415,13 @@ impl Board {
                     continue;
                 }
                 _ => return false,
+            }
+            // A SysTick whose count reached 0 at or before `now` (the wrap that pended the
+            // exception being handled: it reloads on the next count) first brings its next
+            // wrap up to date, as the general step's exception check would at this cycle;
+            // else the handler's first instruction would take the general path.
+            if core.nvic.syst_next <= now {
+                core.nvic.tick(now);
             }
             // The fast path, where `Board::fast_ready` would allow it.
             if core.thumb

@@ -75,6 +75,8 @@ pub struct BoardRun {
     pub strikes: Vec<Strike>,
     /// Its traced keys' samples.
     pub traces: Traces,
+    /// What the emulator's memoized key updates did (`tactus_emulator::Board::memoize`).
+    pub memo: tactus_emulator::MemoStats,
 }
 
 /// The whole keyboard's run.
@@ -254,6 +256,7 @@ impl<'p> BoardEngine<'p> {
 
     /// What the board reported so far; its strikes and traces are the play loop's.
     pub fn finish(mut self) -> BoardRun {
+        self.report.memo = self.run.board().memo_stats();
         if !self.steps.is_multiple_of(self.decimation) {
             self.report.cycles.push(self.block_max);
         }
