@@ -80,7 +80,6 @@ struct Saved {
     stalls: u64,
     divider: Divider,
     journal: usize,
-    profiles: super::profile::ProfileMark,
     /// The code epoch ([`System::code_epoch`]): undone stores may change code back.
     epoch: u32,
 }
@@ -310,7 +309,6 @@ impl Board {
             stalls: self.system.contention_stalls[k],
             divider: self.system.sio.divider[k].clone(),
             journal,
-            profiles: self.profile_mark(k),
             epoch: self.system.code_epoch,
         }
     }
@@ -326,7 +324,9 @@ impl Board {
         }
         self.system.contention_stalls[k] = saved.stalls;
         self.system.sio.divider[k] = saved.divider;
-        self.profile_restore(k, saved.profiles);
+        let mark = std::mem::take(&mut self.marks[k]);
+        self.profile_restore(k, &mark);
+        self.marks[k] = mark;
         if self.system.code_epoch != saved.epoch {
             self.system.invalidate_code();
         }
@@ -348,6 +348,11 @@ impl Board {
             j.clear();
         }
         let saved = [self.save(0, 0), self.save(1, 0)];
+        for k in 0..2 {
+            let mut mark = std::mem::take(&mut self.marks[k]);
+            self.profile_mark(k, &mut mark);
+            self.marks[k] = mark;
+        }
         let mut kept = true;
         for (k, journal) in journals.iter_mut().enumerate() {
             let own = self.config.own_banks[k] & ALL_BANKS;

@@ -182,6 +182,8 @@ pub struct BoardEngine<'p> {
     strike: Vec<Option<tactus_compiler::ir::EventId>>,
     /// Per key: the out word of `hammer_pos` and its format.
     hammer: Vec<Option<(usize, i32)>>,
+    /// Per key: the real value of one unit of its force word (`to_f64(1, total_frac)`).
+    force_scale: Vec<f64>,
     sensors: Vec<i32>,
     /// Per key: the travel (`f64` bits, `None` for none given) `sensors` was converted from.
     last_travel: Vec<Option<Option<u64>>>,
@@ -243,6 +245,10 @@ impl<'p> BoardEngine<'p> {
                         .map(|i| (p.thumb.out.outputs + i, fp.output_frac[i]))
                 })
                 .collect(),
+            force_scale: key_programs
+                .iter()
+                .map(|p| to_f64(1, p.fixed.total_frac))
+                .collect(),
             sensors: vec![0; bkeys.len()],
             last_travel: vec![None; bkeys.len()],
             samples: vec![KeySample::default(); bkeys.len()],
@@ -281,9 +287,10 @@ impl KeyEngine for BoardEngine<'_> {
             .run
             .step(&self.sensors)
             .map_err(|source| RunError::Sample { sample: i, source })?;
-        for (k, p) in self.programs.iter().enumerate() {
+        for (k, &scale) in self.force_scale.iter().enumerate() {
             self.samples[k] = KeySample {
-                force_n: to_f64(out.force[k], p.fixed.total_frac),
+                // `to_f64(force, total_frac)`: the word times 2^-frac, the power taken once.
+                force_n: out.force[k] as f64 * scale,
                 strike_mps: None,
                 current_a: out.current_ua[k] as f64 * 1e-6,
                 dac: out.dac[k] as f64,
