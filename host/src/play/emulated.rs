@@ -260,6 +260,13 @@ impl<'p> BoardEngine<'p> {
         })
     }
 
+    /// The same board with the emulator's memoized calls off (`tactus_emulator::Board::memoize`:
+    /// the same results, every update emulated; for measuring what they save).
+    pub fn without_memos(mut self) -> Self {
+        self.run.board().memoize(&[], &[]);
+        self
+    }
+
     /// What the board reported so far; its strikes and traces are the play loop's.
     pub fn finish(mut self) -> BoardRun {
         self.report.memo = self.run.board().memo_stats();
