@@ -54,12 +54,19 @@
 //! * both cores run on disjoint banks: each runs alone over a window, confined
 //!   ([`run_confined`]; the argument and the rollback are in [`crate::board`]'s
 //!   `window.rs`); where that fails, the board's lock-step loop on the interpreter.
+//!
+//! **Memoized calls.** In a window, a core at the entry of a watched function
+//! ([`crate::Board::memoize`]) whose inputs are those of a recorded call takes that
+//! call's effect instead of running it ([`crate::memo`]); a call to record leaves
+//! [`run_confined`] ([`Leave::Record`]) for the board's general path, which runs it one
+//! instruction at a time while recording it.
 
 use crate::bus::{sram_location, Bus, System};
 use crate::core::Core;
 use crate::decode::{decode, Instr};
 use crate::fast::Op;
 use crate::jit::{self, Jit};
+use crate::memo::{Memos, Try};
 use crate::timing::{self, Class};
 
 /// Most instructions in one block.
@@ -104,7 +111,13 @@ pub(crate) enum Leave {
     General,
     /// No block can be decoded at the core's PC (a fetch would fault).
     Miss,
+    /// The core is at a watched entry ([`crate::memo`]) whose call is to be recorded
+    /// (nothing of it was done).
+    Record,
 }
+
+/// A bank mask, whether journaled, and the indices of its confined caches (solo, shared).
+type ConfinedAt = (u8, bool, (usize, usize));
 
 /// Undo-journal entries the journal is made with (a window's stores beyond stop its core).
 const JOURNAL: usize = 1 << 16;
@@ -133,11 +146,16 @@ pub(crate) struct Blocks {
     pub(crate) confined: Vec<Jit>,
     /// Confined without arbitration ([`jit::Flavour::ConfinedSolo`]), per bank mask.
     pub(crate) confined_solo: Vec<Jit>,
+    /// Per core, the last bank mask and journaling [`run_confined`] ran it with, and their
+    /// caches' indices in `confined_solo` and `confined` (the lists only grow).
+    confined_last: [Option<ConfinedAt>; 2],
     /// The undo journals of the two cores in a window (entries as [`crate::jit`] writes
     /// them; [`crate::board`]'s `window.rs`).
     pub(crate) journal: Vec<u64>,
     /// The other core's.
     pub(crate) journal_other: Vec<u64>,
+    /// The memoized calls ([`crate::memo`]).
+    pub(crate) memo: Memos,
 }
 
 #[inline(always)]
@@ -171,14 +189,17 @@ impl Blocks {
             solo: Jit::new(jit::Flavour::Solo),
             confined: Vec::new(),
             confined_solo: Vec::new(),
+            confined_last: [None; 2],
             journal: Vec::with_capacity(JOURNAL),
             journal_other: Vec::with_capacity(JOURNAL),
+            memo: Memos::default(),
         }
     }
 
-    /// The confined cache (`solo`: without arbitration) for bank mask `mask`, with or
-    /// without journal code, made on first use with the board's compile threshold.
-    fn confined_for(&mut self, solo: bool, mask: u8, journaled: bool) -> &mut Jit {
+    /// The index of the confined cache (`solo`: without arbitration, in
+    /// `confined_solo`; else in `confined`) for bank mask `mask`, with or without journal
+    /// code, made on first use with the board's compile threshold.
+    fn confined_index(&mut self, solo: bool, mask: u8, journaled: bool) -> usize {
         let threshold = self.jit.threshold;
         let (list, flavour) = if solo {
             (
@@ -188,7 +209,7 @@ impl Blocks {
         } else {
             (&mut self.confined, jit::Flavour::Confined(mask, journaled))
         };
-        let at = match list.iter().position(|j| j.flavour() == flavour) {
+        match list.iter().position(|j| j.flavour() == flavour) {
             Some(at) => at,
             None => {
                 let mut j = Jit::new(flavour);
@@ -196,8 +217,7 @@ impl Blocks {
                 list.push(j);
                 list.len() - 1
             }
-        };
-        &mut list[at]
+        }
     }
 
     fn clear(&mut self, epoch: u32) {
@@ -510,13 +530,40 @@ pub(crate) fn run_confined(
         .filter(|&c| c != u64::MAX)
         .max()
         .unwrap_or(0);
+    let journaled = journal.is_some();
+    let (solo_at, shared_at) = match blocks.confined_last[core.id & 1] {
+        Some((mask, j, at)) if mask == allowed && j == journaled => at,
+        _ => {
+            let at = (
+                blocks.confined_index(true, allowed, journaled),
+                blocks.confined_index(false, allowed, journaled),
+            );
+            blocks.confined_last[core.id & 1] = Some((allowed, journaled, at));
+            at
+        }
+    };
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
         }
         let pc = core.r[15];
+        if blocks.memo.watches(pc) {
+            let solo = core.cycle >= quiet_from;
+            match blocks
+                .memo
+                .call(core, sys, limit, solo, allowed, journal.as_deref_mut())
+            {
+                Try::Applied => continue,
+                Try::Record => break Err(Leave::Record),
+                Try::Run => {}
+            }
+        }
         if native {
-            let cache = blocks.confined_for(core.cycle >= quiet_from, allowed, journal.is_some());
+            let cache = if core.cycle >= quiet_from {
+                &mut blocks.confined_solo[solo_at]
+            } else {
+                &mut blocks.confined[shared_at]
+            };
             if let Some(region) = cache.lookup(sys, pc) {
                 if core.cycle.saturating_add(region.bound) <= limit && region.banks & !allowed == 0
                 {

@@ -29,6 +29,7 @@ pub mod exec;
 mod fast;
 pub mod io;
 mod jit;
+mod memo;
 pub mod nvic;
 pub mod pio;
 pub mod semantics;
@@ -40,6 +41,7 @@ pub use board::{
     Board, Call, CallError, CallResult, Config, EmuError, Engine, StopReason, CALL_STUB, DAC_BASE,
     FIRMWARE_OWN_BANKS, MAX_KEYS, SENSOR_BASE,
 };
+pub use memo::MemoStats;
 // TEMPORARY (issue 34, one landing only): the ISA modules under their old paths, so that
 // branches written against `tactus_emulator::{decode, encode, timing, wcet}` still build.
 // Import them from `tactus_isa`. (The emulator's own modules use `crate::decode`, `crate::timing`.)

@@ -20,27 +20,17 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use tactus_compiler::fixed::interp::FixedInstance;
-use tactus_firmware::corpus::{self, Size};
-use tactus_firmware::flash::{self, BoardFirmware, KeyboardInput, Load};
-use tactus_firmware::image::{compile_layout, ImageRun, Program};
-use tactus_runtime::keyboard::{read_board, read_layout, BoardSpec};
-use tactus_runtime::limiter::{Limiter, LimiterConfig};
+use tactus_firmware::flash::{BoardFirmware, Load};
+use tactus_firmware::image::ImageRun;
+use tactus_runtime::keyboard::BoardSpec;
+use tactus_runtime::limiter::Limiter;
+
+#[path = "common/layouts.rs"]
+mod layouts;
+use layouts::{corpus_words, firmware, root};
 
 /// Samples every board runs in CI (the first and last board of each layout run a second).
 const SHORT: usize = 2_205;
-
-fn root() -> &'static Path {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-}
-
-fn shipped(name: &str) -> Result<String, String> {
-    let p = if name.ends_with(".tactus") {
-        root().join(name)
-    } else {
-        root().join(format!("instruments/{name}.tactus"))
-    };
-    std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))
-}
 
 /// A tool the CI installs (`.ci/run`): a missing one fails under `CI`, else says loudly
 /// that the check is skipped.
@@ -54,56 +44,6 @@ fn tool(name: &str) -> bool {
         eprintln!("SKIPPED: {name} is not installed; its check did not run");
     }
     ok
-}
-
-/// Every board of `layout` as `tactus build` makes it (boards planned when the layout lists
-/// none) on the board file `kind` (default: the layout's), with the board kind it uses.
-fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmware>, BoardSpec) {
-    let path = root().join(layout);
-    let (l, keys) = read_layout(&path).unwrap();
-    let kind = kind
-        .map(str::to_string)
-        .or(l.board_kind.clone())
-        .unwrap_or_else(|| "rp2040".into());
-    let board = read_board(&root().join(format!("boards/{}.toml", kind.trim_end_matches(".toml"))))
-        .unwrap();
-    let (programs, index) = compile_layout(&keys, &shipped, board.sample_rate_hz).unwrap();
-    let mut names = vec![(String::new(), Vec::new()); programs.len()];
-    for (k, &p) in keys.iter().zip(&index) {
-        names[p] = (k.instrument.clone(), k.params.clone());
-    }
-    let mut pairs: Vec<(u8, usize)> = keys.iter().map(|k| k.key).zip(index).collect();
-    pairs.sort_unstable();
-    let boards = tactus_runtime::keyboard::board_keys(&l, layout, &keys).unwrap();
-    let limiter = LimiterConfig {
-        sample_rate_hz: board.sample_rate_hz,
-        ..LimiterConfig::default()
-    };
-    let input = KeyboardInput {
-        name: &l.name,
-        programs: &programs,
-        program_names: &names,
-        keys: &pairs,
-        board: &board,
-        boards: boards.as_deref(),
-        limiter: &limiter,
-        load,
-        command: "test",
-    };
-    let fw = flash::keyboard_firmware(&input, &mut |_, _, _| {}).unwrap();
-    (fw, board)
-}
-
-/// The budget corpus (quick) for each key, its runs concatenated and repeated, each key
-/// starting at its own offset.
-fn corpus_words(p: &Program, key: usize, samples: usize) -> Vec<i32> {
-    let runs = corpus::corpus(&p.fixed, Size::Quick);
-    let all: Vec<i32> = runs
-        .iter()
-        .flat_map(|r| r.records.iter().map(|w| w.first().copied().unwrap_or(0)))
-        .collect();
-    let off = key * 7919;
-    (0..samples).map(|n| all[(off + n) % all.len()]).collect()
 }
 
 /// What one board's run measured.

@@ -444,6 +444,7 @@ fn the_emulators_block_engine_runs_an_image_exactly_as_its_interpreter() {
     // of each other there (`tactus_emulator::board`, "Running ahead").
     let (kept, undone) = b.board().run_ahead_windows();
     eprintln!("windows: {kept} kept, {undone} undone");
+    eprintln!("memo: {:?}", b.board().memo_stats());
     assert!(kept > 0, "the cores never ran ahead");
     let mut sram = [vec![0u8; 0x4_2000], vec![0u8; 0x4_2000]];
     a.board().read_bytes(0x2000_0000, &mut sram[0]).unwrap();

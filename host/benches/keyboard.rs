@@ -12,9 +12,10 @@
 //! cores are not asleep), so the throughput is emulated cycles per CPU-second. The
 //! baseline in the same group is the emulator bench's speed loop on one core
 //! (`emulator/benches/common/mod.rs`, block engine: SRAM load and store, MULS, a taken
-//! branch, 10 cycles per iteration), elements = its emulated cycles. Both engines run the
-//! keyboard: the block engine (`tactus play`'s default) and the interpreter
-//! (`--emu interp`, the lock-step reference). Compiled code is kept for the whole process
+//! branch, 10 cycles per iteration), elements = its emulated cycles. The keyboard runs on
+//! the block engine as `tactus play` runs it (key updates and each core's keys part of the
+//! handler memoized: `tactus_emulator::Board::memoize`), on the block engine with the
+//! memos off, and on the interpreter (`--emu interp`, the lock-step reference). Compiled code is kept for the whole process
 //! (`tactus_emulator`'s code store), so iterations after the first do not compile: the
 //! figure is the steady state of a long performance.
 //!
@@ -105,14 +106,16 @@ fn setup() -> Setup {
     }
 }
 
-/// Every board built and booted on `engine`, with the drives of its keys.
-fn boot<'s>(s: &'s Setup, engine: Engine) -> Vec<(BoardEngine<'s>, Vec<Drive<'s>>)> {
+/// Every board built and booted on `engine` (`memos`: with the emulator's memoized calls,
+/// as `tactus play` runs), with the drives of its keys.
+fn boot<'s>(s: &'s Setup, engine: Engine, memos: bool) -> Vec<(BoardEngine<'s>, Vec<Drive<'s>>)> {
     let lim = LimiterConfig::default();
     s.boards
         .iter()
         .map(|keys| {
             let e =
                 BoardEngine::new(&s.programs, &s.costs, keys, &s.board, &lim, engine, 1).unwrap();
+            let e = if memos { e } else { e.without_memos() };
             let drives = keys
                 .iter()
                 .map(|k| Drive {
@@ -153,7 +156,7 @@ fn handler_cycles(runs: &[(BoardRun, usize)]) -> u64 {
 /// `KEYBOARD_BENCH_ONCE=engine`: one run, with a summary.
 fn once(engine: Engine) {
     let s = setup();
-    let runs = play(&s, boot(&s, engine));
+    let runs = play(&s, boot(&s, engine, true));
     let mut strikes = 0;
     for (i, (b, n)) in runs.iter().enumerate() {
         strikes += n;
@@ -161,6 +164,7 @@ fn once(engine: Engine) {
             "board {i}: keys {:?} handler cycles {:?} max {:?} misses {:?} strikes {n}",
             b.keys, b.total, b.max, b.misses
         );
+        eprintln!("board {i}: {:?}", b.memo);
     }
     println!(
         "{engine:?}: {} samples, {} boards, {strikes} strikes, {} handler cycles",
@@ -172,7 +176,7 @@ fn once(engine: Engine) {
 
 fn bench(c: &mut Criterion) {
     let s = setup();
-    let cycles = handler_cycles(&play(&s, boot(&s, Engine::Block)));
+    let cycles = handler_cycles(&play(&s, boot(&s, Engine::Block, true)));
     let mut group = c.benchmark_group("cycles_per_cpu_second");
     group.sample_size(10);
     group.warm_up_time(std::time::Duration::from_secs(1));
@@ -183,10 +187,14 @@ fn bench(c: &mut Criterion) {
         bench.iter(|| b.run_for(LOOP_CYCLES))
     });
     group.throughput(Throughput::Elements(cycles));
-    for engine in [Engine::Block, Engine::Interp] {
-        group.bench_function(format!("grand88_demo_{engine:?}"), |bench| {
+    for (engine, memos, name) in [
+        (Engine::Block, true, "Block"),
+        (Engine::Block, false, "Block_unmemoized"),
+        (Engine::Interp, true, "Interp"),
+    ] {
+        group.bench_function(format!("grand88_demo_{name}"), |bench| {
             bench.iter_batched(
-                || boot(&s, engine),
+                || boot(&s, engine, memos),
                 |b| play(&s, b),
                 BatchSize::PerIteration,
             )

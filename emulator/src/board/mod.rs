@@ -159,6 +159,9 @@ pub struct Board {
     /// The loaded image's symbols etc. (empty until [`Board::load_elf`]).
     pub image: Image,
     profiles: Vec<Profile>,
+    /// Each core's profiling at the start of the current window (`window.rs`), kept to
+    /// reuse its vectors.
+    marks: [profile::ProfileMark; 2],
     launch: Option<Launch>,
     cache: Box<[Cached; CACHE_SLOTS]>,
     blocks: Blocks,
@@ -206,6 +209,7 @@ impl Board {
             system,
             image: Image::default(),
             profiles: Vec::new(),
+            marks: Default::default(),
             launch: None,
             lines: 0,
             profiled_active: [u64::MAX; 2],

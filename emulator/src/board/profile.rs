@@ -126,6 +126,9 @@ impl Board {
             return;
         }
         self.profiled_active[k] = core.nvic.active;
+        // Whether an innermost open call changed where it returns to (a handler's return
+        // is no address: opening or closing one over another handler changes nothing the
+        // index holds).
         let mut changed = false;
         for p in &mut self.profiles {
             while let Some(&(ret, entry_sp, start)) = p.open[k].last() {
@@ -137,7 +140,8 @@ impl Board {
                     break;
                 }
                 p.open[k].pop();
-                changed = true;
+                changed |= matches!(ret, Return::To(_))
+                    || matches!(p.open[k].last(), Some((Return::To(_), ..)));
                 p.calls.push(Call {
                     core: k,
                     start,
@@ -154,8 +158,9 @@ impl Board {
                 } else {
                     Return::To(lr & !1)
                 };
+                changed |= matches!(ret, Return::To(_))
+                    || matches!(p.open[k].last(), Some((Return::To(_), ..)));
                 p.open[k].push((ret, sp, now));
-                changed = true;
             }
         }
         if changed {
@@ -258,6 +263,7 @@ impl Board {
 
 /// Core `k`'s part of every profile at some moment ([`Board::profile_mark`]): what undoing
 /// its steps since then restores.
+#[derive(Default)]
 pub(super) struct ProfileMark {
     /// Per profile: completed calls then, core `k`'s open calls, core `k`'s entries.
     each: Vec<(usize, Vec<Open>, u64)>,
@@ -265,27 +271,31 @@ pub(super) struct ProfileMark {
 }
 
 impl Board {
-    /// Core `k`'s part of every profile now.
-    pub(super) fn profile_mark(&self, k: usize) -> ProfileMark {
-        ProfileMark {
-            each: self
-                .profiles
-                .iter()
-                .map(|p| (p.calls.len(), p.open[k].clone(), p.entries[k]))
-                .collect(),
-            active: self.profiled_active[k],
+    /// Core `k`'s part of every profile now, into `mark` (its vectors reused: a window
+    /// marks both cores every time).
+    pub(super) fn profile_mark(&self, k: usize, mark: &mut ProfileMark) {
+        mark.each.truncate(self.profiles.len());
+        while mark.each.len() < self.profiles.len() {
+            mark.each.push((0, Vec::new(), 0));
         }
+        for (m, p) in mark.each.iter_mut().zip(&self.profiles) {
+            m.0 = p.calls.len();
+            m.1.clear();
+            m.1.extend_from_slice(&p.open[k]);
+            m.2 = p.entries[k];
+        }
+        mark.active = self.profiled_active[k];
     }
 
     /// Undoes core `k`'s profiling since `mark`: its calls completed since then are
     /// forgotten (the other core's stay, in their order), its open calls, entries and
     /// active exceptions are as they were.
-    pub(super) fn profile_restore(&mut self, k: usize, mark: ProfileMark) {
-        for (p, (calls, open, entries)) in self.profiles.iter_mut().zip(mark.each) {
-            let later: Vec<Call> = p.calls.drain(calls.min(p.calls.len())..).collect();
+    pub(super) fn profile_restore(&mut self, k: usize, mark: &ProfileMark) {
+        for (p, (calls, open, entries)) in self.profiles.iter_mut().zip(&mark.each) {
+            let later: Vec<Call> = p.calls.drain((*calls).min(p.calls.len())..).collect();
             p.calls.extend(later.into_iter().filter(|c| c.core != k));
-            p.open[k] = open;
-            p.entries[k] = entries;
+            p.open[k].clone_from(open);
+            p.entries[k] = *entries;
         }
         self.profiled_active[k] = mark.active;
         self.profile_returns_index(k);

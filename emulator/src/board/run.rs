@@ -325,6 +325,25 @@ impl Board {
         self.blocks.decoded
     }
 
+    /// Memoizes calls to the functions at `calls` and runs of the spans `spans` (from each
+    /// `start` to its `end`; addresses, the Thumb bit ignored; at most 64 in all) on the
+    /// block engine while the cores run in windows ([`Config::own_banks`]): a call (from
+    /// the entry to the return address LR held there, SP back as it was) or a span run
+    /// (from its start to its end, SP back as it was) whose inputs — the registers and
+    /// flags it reads, the SRAM bytes it loads, the code — are those of one recorded before
+    /// is replaced by that one's effect (registers, flags, stores, cycles, instructions,
+    /// bank claims; module `memo`). Results never depend on it, only speed: a call that
+    /// touches anything but registers and SRAM, or whose inputs differ, runs as before.
+    /// Empty lists stop it. Forgets every memo.
+    pub fn memoize(&mut self, calls: &[u32], spans: &[(u32, u32)]) {
+        self.blocks.memo.watch(calls, spans);
+    }
+
+    /// What the memoized calls did so far ([`Board::memoize`]).
+    pub fn memo_stats(&self) -> crate::MemoStats {
+        self.blocks.memo.stats
+    }
+
     /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
     pub fn regions_compiled(&self) -> u64 {
         let b = &self.blocks;

@@ -48,9 +48,11 @@ use super::run::cached;
 use super::*;
 use crate::block::{self, Leave};
 use crate::bus::{
-    sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE, FLASH_SIZE, ROM_SIZE,
+    plain_sram_span, sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE, FLASH_SIZE,
+    ROM_SIZE,
 };
 use crate::core::Event;
+use crate::memo::Recording;
 use crate::nvic::IRQ0;
 use crate::sio::{reg, Divider, SIO_BASE};
 
@@ -78,7 +80,6 @@ struct Saved {
     stalls: u64,
     divider: Divider,
     journal: usize,
-    profiles: super::profile::ProfileMark,
     /// The code epoch ([`System::code_epoch`]): undone stores may change code back.
     epoch: u32,
 }
@@ -92,6 +93,9 @@ struct Confined<'a> {
     banks: u8,
     journal: &'a mut Vec<u64>,
     foreign: bool,
+    /// A call being recorded ([`crate::memo`]): its SRAM accesses are logged, any other
+    /// access spoils it.
+    log: Option<&'a mut Recording>,
 }
 
 impl Confined<'_> {
@@ -137,7 +141,17 @@ impl Bus for Confined<'_> {
         if !ok {
             return Err(self.refuse(addr));
         }
-        self.sys.read(core, cycle, addr, size)
+        let r = self.sys.read(core, cycle, addr, size);
+        if let Some(rec) = self.log.as_deref_mut() {
+            match (sram_location(addr), r) {
+                (Some((off, _)), Ok((value, _))) => {
+                    let code = self.sys.code_pages[off >> 8];
+                    rec.load(off as u32, size, value, code);
+                }
+                _ => rec.spoil(),
+            }
+        }
+        r
     }
 
     fn write(
@@ -163,16 +177,97 @@ impl Bus for Confined<'_> {
             None if !Self::private(addr) => return Err(self.refuse(addr)),
             None => {}
         }
-        self.sys.write(core, cycle, addr, size, value)
+        let r = self.sys.write(core, cycle, addr, size, value);
+        if let Some(rec) = self.log.as_deref_mut() {
+            match (sram_location(addr), r) {
+                (Some((off, _)), Ok(_)) => rec.store(off as u32, size),
+                _ => rec.spoil(),
+            }
+        }
+        r
+    }
+
+    /// Exception entry's frame: when it lies in plain SRAM of allowed banks and the journal
+    /// has room (and no call is being recorded), journaled and stored in one go by
+    /// [`System`]'s [`Bus::write_words`]; else word by word.
+    fn write_words(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        words: &[u32],
+    ) -> Result<(), BusFault> {
+        let n = words.len() as u32;
+        match plain_sram_span(addr, 4 * n) {
+            Some(off)
+                if self.log.is_none()
+                    && self.journal.len() + words.len() <= JOURNAL
+                    && (0..n).all(|i| self.bank_ok(bank_of(off + 4 * i))) =>
+            {
+                for i in 0..n {
+                    let o = off + 4 * i;
+                    let old = self.sys.sram_peek(o);
+                    self.journal.push((o as u64) << 32 | old as u64);
+                }
+                self.sys.write_words(core, cycle, addr, words)
+            }
+            _ => {
+                for (i, &w) in words.iter().enumerate() {
+                    self.write(core, cycle, addr.wrapping_add(4 * i as u32), 4, w)?;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// Exception return's frame: in one go by [`System`]'s [`Bus::read_words`] when it lies
+    /// in plain SRAM of allowed banks (and no call is being recorded); else word by word.
+    fn read_words(
+        &mut self,
+        core: usize,
+        cycle: u64,
+        addr: u32,
+        out: &mut [u32],
+    ) -> Result<(), BusFault> {
+        let n = out.len() as u32;
+        match plain_sram_span(addr, 4 * n) {
+            Some(off)
+                if self.log.is_none() && (0..n).all(|i| self.bank_ok(bank_of(off + 4 * i))) =>
+            {
+                self.sys.read_words(core, cycle, addr, out)
+            }
+            _ => {
+                for (i, w) in out.iter_mut().enumerate() {
+                    *w = self
+                        .read(core, cycle, addr.wrapping_add(4 * i as u32), 4)?
+                        .0;
+                }
+                Ok(())
+            }
+        }
     }
 
     fn fetch(&mut self, addr: u32) -> Result<u16, BusFault> {
+        if let Some(rec) = self.log.as_deref_mut() {
+            // Only the general path fetches through the bus (exception entry, a fault).
+            rec.spoil();
+        }
         if let Some((_, bank)) = sram_location(addr) {
             if !self.bank_ok(bank) {
                 return Err(self.refuse(addr));
             }
         }
         self.sys.fetch(addr)
+    }
+}
+
+/// Arbitration bank of plain SRAM offset `off` (the striped banks by address bits 3:2,
+/// then SRAM4 and SRAM5), as the bus's.
+fn bank_of(off: u32) -> usize {
+    if off < 0x4_0000 {
+        ((off >> 2) & 3) as usize
+    } else {
+        (4 + ((off >> 12) & 1)) as usize
     }
 }
 
@@ -217,7 +312,6 @@ impl Board {
             stalls: self.system.contention_stalls[k],
             divider: self.system.sio.divider[k].clone(),
             journal,
-            profiles: self.profile_mark(k),
             epoch: self.system.code_epoch,
         }
     }
@@ -233,7 +327,9 @@ impl Board {
         }
         self.system.contention_stalls[k] = saved.stalls;
         self.system.sio.divider[k] = saved.divider;
-        self.profile_restore(k, saved.profiles);
+        let mark = std::mem::take(&mut self.marks[k]);
+        self.profile_restore(k, &mark);
+        self.marks[k] = mark;
         if self.system.code_epoch != saved.epoch {
             self.system.invalidate_code();
         }
@@ -255,6 +351,11 @@ impl Board {
             j.clear();
         }
         let saved = [self.save(0, 0), self.save(1, 0)];
+        for k in 0..2 {
+            let mut mark = std::mem::take(&mut self.marks[k]);
+            self.profile_mark(k, &mut mark);
+            self.marks[k] = mark;
+        }
         let mut kept = true;
         for (k, journal) in journals.iter_mut().enumerate() {
             let own = self.config.own_banks[k] & ALL_BANKS;
@@ -323,6 +424,13 @@ impl Board {
                 }
                 _ => return false,
             }
+            // A SysTick whose count reached 0 at or before `now` (the wrap that pended the
+            // exception being handled: it reloads on the next count) first brings its next
+            // wrap up to date, as the general step's exception check would at this cycle;
+            // else the handler's first instruction would take the general path.
+            if core.nvic.syst_next <= now {
+                core.nvic.tick(now);
+            }
             // The fast path, where `Board::fast_ready` would allow it.
             if core.thumb
                 && core.nvic.takeable() == 0
@@ -342,6 +450,12 @@ impl Board {
                     sys.allowed_banks = sys.fast_banks();
                     match r {
                         Ok(()) => continue,
+                        Err(Leave::Record) => {
+                            if !self.record_call(k, deadline, lines, banks, journal) {
+                                return false;
+                            }
+                            continue;
+                        }
                         Err(Leave::General | Leave::Miss) => {}
                     }
                     if self.cores[k].cycle >= until {
@@ -349,7 +463,7 @@ impl Board {
                     }
                 }
             }
-            if !self.step_confined(k, lines, banks, journal) {
+            if !self.step_confined(k, lines, banks, journal, None) {
                 return false;
             }
             if !self.profiles.is_empty() {
@@ -358,9 +472,65 @@ impl Board {
         }
     }
 
+    /// Runs the call core `k` is about to make (its PC at a watched entry, [`crate::memo`])
+    /// one general step at a time as [`Board::run_alone`] would, recording it, until it
+    /// returns (the memo is kept), something a memo cannot hold happens or the core reaches
+    /// `deadline` (the recording is given up; the core has run exactly as without it).
+    /// False as [`Board::step_confined`]: the window is undone.
+    fn record_call(
+        &mut self,
+        k: usize,
+        deadline: u64,
+        lines: u32,
+        banks: u8,
+        journal: &mut Vec<u64>,
+    ) -> bool {
+        let mut rec = self.blocks.memo.begin(&self.cores[k], &self.system);
+        loop {
+            let core = &self.cores[k];
+            if rec.returned(core) {
+                self.blocks.memo.finish(rec, core, &self.system);
+                return true;
+            }
+            let general =
+                core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb;
+            if core.cycle >= deadline || general {
+                self.blocks.memo.abandon(rec);
+                return true;
+            }
+            let pc = core.r[15];
+            let admitted = match cached(&mut self.cache, &mut self.system, pc) {
+                Some((instr, size, _)) => rec.admit(&self.cores[k], &instr, size),
+                None => false,
+            };
+            if !admitted {
+                self.blocks.memo.abandon(rec);
+                return true;
+            }
+            if !self.step_confined(k, lines, banks, journal, Some(&mut rec)) {
+                self.blocks.memo.abandon(rec);
+                return false;
+            }
+            if !self.profiles.is_empty() {
+                self.profile_step(k);
+            }
+            if !rec.after(&self.cores[k]) {
+                self.blocks.memo.abandon(rec);
+                return true;
+            }
+        }
+    }
+
     /// One general step of core `k` (as [`Board::step_cached`]) on the [`Confined`] bus;
     /// false when it was not confined or had an event (the caller undoes the whole window).
-    fn step_confined(&mut self, k: usize, lines: u32, banks: u8, journal: &mut Vec<u64>) -> bool {
+    fn step_confined(
+        &mut self,
+        k: usize,
+        lines: u32,
+        banks: u8,
+        journal: &mut Vec<u64>,
+        log: Option<&mut Recording>,
+    ) -> bool {
         let pc = self.cores[k].r[15];
         let core = &mut self.cores[k];
         if lines != 0 {
@@ -383,6 +553,7 @@ impl Board {
             banks,
             journal,
             foreign: false,
+            log,
         };
         let event = match fetched {
             Some((instr, size, cost)) => {

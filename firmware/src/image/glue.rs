@@ -609,6 +609,12 @@ pub struct CoreLabels {
     pub start: Label,
     /// The default handler (`B .`) of every other vector.
     pub default: Label,
+    /// The sample interrupt's keys: from after the tick's step (the SYST_RVR store) to the
+    /// ICSR load that checks for a miss. Everything between touches only the core's own
+    /// SRAM; the emulator memoizes it (`ImageRun`).
+    pub keys: Label,
+    /// See [`CoreLabels::keys`].
+    pub keys_end: Label,
 }
 
 /// The reset, start and sample-interrupt handlers of core `core` with `keys`, its control
@@ -645,6 +651,8 @@ pub fn core_code(
         isr: a.label(),
         start: a.label(),
         default: a.label(),
+        keys: a.label(),
+        keys_end: a.label(),
     };
     if let Some(k) = keys.iter().find(|k| k.clobbers & !CLOBBERABLE != 0) {
         return Err(ImageError::Compile(format!(
@@ -788,6 +796,7 @@ pub fn core_code(
     }
     // The reload value of the period after this one.
     tick_step(a, &tick);
+    a.bind(labels.keys);
     // Every key: sensors → record, update, then each force word: limiter, DAC.
     walk(a, keys, &mut |a, k| {
         // Without the guard the update reads its sensor words straight from the window
@@ -907,6 +916,7 @@ pub fn core_code(
     // A miss: the next tick's wrap has already pended SysTick again (ICSR.PENDSTSET: the
     // entry cleared it), so the handler ends at or after the next tick.
     a.ldr_const(0, syst::ICSR);
+    a.bind(labels.keys_end);
     a.i(asm::ldr(2, 0, 0));
     a.i(asm::lsls(2, 2, 31 - syst::PENDSTSET_BIT)); // N = PENDSTSET
     let on_time = a.label();

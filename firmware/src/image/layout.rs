@@ -659,6 +659,7 @@ pub(super) fn core_place(
         vtor: cc.start,
         reset: lab(labels.reset),
         isr: lab(labels.isr),
+        keys_span: (lab(labels.keys), lab(labels.keys_end)),
         ctrl: ctrl_addr,
         stack_top,
         stack_bottom,

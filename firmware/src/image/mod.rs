@@ -737,6 +737,8 @@ pub(crate) struct CorePlace {
     pub vtor: u32,
     pub reset: u32,
     pub isr: u32,
+    /// The sample interrupt's keys part ([`glue::CoreLabels::keys`]): start and end.
+    pub keys_span: (u32, u32),
     pub ctrl: u32,
     pub stack_top: u32,
     pub stack_bottom: u32,

@@ -18,6 +18,7 @@ use super::glue::ctrl;
 use super::layout::START_CYCLES;
 use super::{FirmwareImage, ImageError, STACK_CANARY};
 use tactus_compiler::ir::{Axis, EventId};
+use tactus_emulator::bus::sram_location;
 use tactus_emulator::{Board, Config, StopReason, DAC_BASE, SENSOR_BASE};
 use tactus_isa::timing::EXCEPTION_ENTRY;
 use tactus_runtime::limiter::{Limiter, LimiterConstants};
@@ -104,45 +105,97 @@ pub struct ImageRun {
     /// Cycle of the first sample tick (tick 0).
     first_tick: u64,
     profiles: Vec<usize>,
-    out_words: Vec<Vec<i32>>,
     sample: SampleOut,
     stalls: [u64; 2],
     scratch: Vec<u32>,
-    out_scratch: Vec<u32>,
-    /// The sensor words as runs of consecutive words of one bank through the non-striped
-    /// alias ([`WordRuns`]): one host write per run and sample.
-    sensor_runs: WordRuns,
-    /// The DAC words likewise: one host read per run and sample.
-    dac_runs: WordRuns,
+    /// Where the words the host touches every sample lie in the emulated SRAM
+    /// ([`tactus_emulator::bus::System::sram`], byte offsets): read and written there
+    /// directly, as [`Board::read_words`] and [`Board::write_words`] would (no cycles, the
+    /// decoded code left alone: no instruction lives in them).
+    at: HostWords,
     /// The limiter's constants: the current of each DAC code written.
     limiter: LimiterConstants,
 }
 
-/// Window words as runs the host reads or writes at once: each run is consecutive words of
-/// one bank through the non-striped alias (from its address), with the index of each of
-/// its words in the flat per-sample list (the keys' words in key-list order).
+/// SRAM byte offsets of the words [`ImageRun::step`] reads and writes (see
+/// [`ImageRun::at`]).
 #[derive(Clone, Debug, Default)]
-struct WordRuns(Vec<(u32, Vec<usize>)>);
+struct HostWords {
+    /// Every key's sensor window words, in flat order (the keys' words in key-list order).
+    sensors: Vec<usize>,
+    /// Every key's DAC window words, in flat order.
+    dacs: Vec<usize>,
+    /// Per key, its out words.
+    outs: Vec<Vec<usize>>,
+    /// Per core: its sample counter, its miss counter, its stack canary.
+    samples: Vec<usize>,
+    misses: Vec<usize>,
+    canaries: Vec<usize>,
+}
 
-impl WordRuns {
-    /// The runs of `words` (window word indices from the window at striped `base`, in flat
-    /// order).
-    fn new(base: u32, words: &[usize]) -> WordRuns {
-        let mut order: Vec<usize> = (0..words.len()).collect();
-        // By bank, then row: a bank's words are consecutive through its alias.
-        order.sort_by_key(|&i| (words[i] % 4, words[i] / 4));
-        let mut runs: Vec<(u32, Vec<usize>)> = Vec::new();
-        let mut last = None;
-        for i in order {
-            let w = words[i];
-            match runs.last_mut() {
-                Some((_, flat)) if last == Some(w.wrapping_sub(4)) => flat.push(i),
-                _ => runs.push((super::window_alias(base, w), vec![i])),
-            }
-            last = Some(w);
-        }
-        WordRuns(runs)
+impl HostWords {
+    fn new(image: &FirmwareImage) -> Result<HostWords, ImageError> {
+        let off = |addr: u32| match sram_location(addr) {
+            Some((o, _)) if o + 4 <= tactus_emulator::bus::SRAM_SIZE as usize => Ok(o),
+            _ => Err(ImageError::Run(format!("{addr:#010x} is not an SRAM word"))),
+        };
+        let window = |base: u32, w: &usize| off(base + 4 * *w as u32);
+        Ok(HostWords {
+            sensors: image
+                .keys
+                .iter()
+                .flat_map(|k| k.sensor_words.iter())
+                .map(|w| window(SENSOR_BASE, w))
+                .collect::<Result<_, _>>()?,
+            dacs: if image.io.is_some() {
+                // The DAC frames the handler writes, one word a channel.
+                (image.keys.iter())
+                    .flat_map(|k| {
+                        let frames = super::io::io_base(k.spec.core) + super::io::DAC_FRAMES;
+                        k.dac_channels
+                            .iter()
+                            .map(move |&ch| off(frames + 4 * ch as u32))
+                    })
+                    .collect::<Result<_, _>>()?
+            } else {
+                (image.keys.iter())
+                    .flat_map(|k| k.dac_words.iter())
+                    .map(|w| window(DAC_BASE, w))
+                    .collect::<Result<_, _>>()?
+            },
+            outs: image
+                .keys
+                .iter()
+                .map(|k| {
+                    (0..k.out_len as u32)
+                        .map(|i| off(k.record + k.out_offset + 4 * i))
+                        .collect()
+                })
+                .collect::<Result<_, _>>()?,
+            samples: image
+                .cores
+                .iter()
+                .map(|c| off(c.ctrl + ctrl::SAMPLES as u32))
+                .collect::<Result<_, _>>()?,
+            misses: image
+                .cores
+                .iter()
+                .map(|c| off(c.ctrl + ctrl::MISSES as u32))
+                .collect::<Result<_, _>>()?,
+            canaries: image
+                .cores
+                .iter()
+                .map(|c| off(c.stack_bottom))
+                .collect::<Result<_, _>>()?,
+        })
     }
+}
+
+/// The little-endian word at byte `o` of `sram` (`o + 4` within it: [`HostWords`]' offsets
+/// are).
+#[inline(always)]
+fn word(sram: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes([sram[o], sram[o + 1], sram[o + 2], sram[o + 3]])
 }
 
 /// Host access failure as an image error.
@@ -310,6 +363,12 @@ impl ImageRun {
         for c in &image.cores {
             profiles.push(board.profile_handler(c.isr));
         }
+        // Keys at rest compute the same update sample after sample: the emulator replays
+        // such calls, and a core's whole keys part of the handler, from recordings
+        // (exactly; `tactus_emulator::Board::memoize`).
+        let updates: Vec<u32> = image.keys.iter().map(|k| k.update).collect();
+        let spans: Vec<(u32, u32)> = image.cores.iter().map(|c| c.keys_span).collect();
+        board.memoize(&updates, &spans);
         let n = image.keys.len();
         let cores = image.cores.len();
         let mut run = ImageRun {
@@ -318,7 +377,6 @@ impl ImageRun {
             samples: 0,
             first_tick: 0,
             profiles,
-            out_words: image.keys.iter().map(|k| vec![0; k.out_len]).collect(),
             sample: SampleOut {
                 force: vec![0; n],
                 current_ua: vec![0; n],
@@ -346,23 +404,7 @@ impl ImageRun {
             },
             stalls: [0; 2],
             scratch: Vec::new(),
-            out_scratch: Vec::new(),
-            sensor_runs: WordRuns::new(
-                SENSOR_BASE,
-                &image
-                    .keys
-                    .iter()
-                    .flat_map(|k| k.sensor_words.iter().copied())
-                    .collect::<Vec<_>>(),
-            ),
-            dac_runs: WordRuns::new(
-                DAC_BASE,
-                &image
-                    .keys
-                    .iter()
-                    .flat_map(|k| k.dac_words.iter().copied())
-                    .collect::<Vec<_>>(),
-            ),
+            at: HostWords::new(image)?,
             limiter: Limiter::new(&image.limiter)
                 .map_err(ImageError::Limiter)?
                 .constants(),
@@ -408,13 +450,6 @@ impl ImageRun {
         }
     }
 
-    fn core_word(&mut self, core: usize, off: u16) -> Result<u32, ImageError> {
-        let a = self.image.cores[core].ctrl + off as u32;
-        let mut w = [0];
-        self.board.read_words(a, &mut w).map_err(emu)?;
-        Ok(w[0])
-    }
-
     /// Runs one sample: `sensors` holds the raw sensor words of every key in key-list
     /// order, each key's [`super::Program::sensor_words`] words in its program's sensor
     /// order (one per keyboard key; a pen's `z`, `x`, … as declared), written to the key's
@@ -433,10 +468,9 @@ impl ImageRun {
         if self.image.io.is_some() {
             self.set_codes(sensors);
         } else {
-            for (addr, flat) in &self.sensor_runs.0 {
-                self.scratch.clear();
-                self.scratch.extend(flat.iter().map(|&i| sensors[i] as u32));
-                self.board.write_words(*addr, &self.scratch).map_err(emu)?;
+            let sram = &mut self.board.system.sram;
+            for (&o, &w) in self.at.sensors.iter().zip(sensors) {
+                sram[o..o + 4].copy_from_slice(&w.to_le_bytes());
             }
         }
         let want = self.samples + 1;
@@ -446,10 +480,12 @@ impl ImageRun {
         let eighth = (self.image.cycles_per_sample() / 8).max(1);
         let mut extra = 0;
         loop {
-            let mut done = true;
-            for c in 0..self.image.cores.len() {
-                done &= self.core_word(c, ctrl::SAMPLES)? as u64 >= want;
-            }
+            let sram = &self.board.system.sram;
+            let done = self
+                .at
+                .samples
+                .iter()
+                .all(|&o| word(sram, o) as u64 >= want);
             if done {
                 break;
             }
@@ -493,7 +529,7 @@ impl ImageRun {
     fn collect(&mut self) -> Result<(), ImageError> {
         let s = &mut self.sample;
         s.events.clear();
-        for (c, place) in self.image.cores.iter().enumerate() {
+        for c in 0..self.image.cores.len() {
             let calls = self.board.calls(self.profiles[c]);
             s.core_cycles[c] = calls
                 .iter()
@@ -501,59 +537,36 @@ impl ImageRun {
                 .sum();
             s.handler_runs[c] = calls.len() as u32;
             self.board.clear_calls(self.profiles[c]);
-            let mut w = [0; 1];
-            let misses = place.ctrl + ctrl::MISSES as u32;
-            self.board.read_words(misses, &mut w).map_err(emu)?;
-            s.misses[c] = w[0];
-            self.board
-                .read_words(place.stack_bottom, &mut w)
-                .map_err(emu)?;
-            if w[0] != STACK_CANARY {
+            let sram = &self.board.system.sram;
+            s.misses[c] = word(sram, self.at.misses[c]);
+            if word(sram, self.at.canaries[c]) != STACK_CANARY {
                 return Err(ImageError::Run(format!("core {c} overflowed its stack")));
             }
             let now = self.board.system.contention_stalls[c];
             s.stalls[c] = now - self.stalls[c];
             self.stalls[c] = now;
         }
-        // Every key's DAC words, in flat order: one read per run; with converters the
-        // codes of the DAC frames the handler wrote (they go out at the next tick).
+        let sram = &self.board.system.sram;
+        // Every key's DAC words, in flat order; with converters the codes of the DAC frames
+        // the handler wrote (they go out at the next tick).
         let dac = &mut self.scratch;
         dac.clear();
-        dac.resize(self.image.keys.iter().map(|k| k.drives.len()).sum(), 0);
         if self.image.io.is_some() {
-            let mut at = 0;
-            for k in &self.image.keys {
-                let frames = super::io::io_base(k.spec.core) + super::io::DAC_FRAMES;
-                for &ch in &k.dac_channels {
-                    let w = self.board.read_u32(frames + 4 * ch).map_err(emu)?;
-                    dac[at] = super::io::word_code(w) as i32 as u32;
-                    at += 1;
-                }
-            }
+            dac.extend(
+                (self.at.dacs.iter()).map(|&o| super::io::word_code(word(sram, o)) as i32 as u32),
+            );
         } else {
-            for (addr, flat) in &self.dac_runs.0 {
-                let words = &mut self.out_scratch;
-                words.resize(flat.len(), 0);
-                self.board.read_words(*addr, words).map_err(emu)?;
-                for (&i, &w) in flat.iter().zip(words.iter()) {
-                    dac[i] = w;
-                }
-            }
+            dac.extend(self.at.dacs.iter().map(|&o| word(sram, o)));
         }
         let mut at = 0;
         for (i, k) in self.image.keys.iter().enumerate() {
-            let words = &mut self.out_scratch;
-            words.resize(k.out_len, 0);
-            self.board
-                .read_words(k.record + k.out_offset, words)
-                .map_err(emu)?;
-            let out = &mut self.out_words[i];
-            for (o, &w) in out.iter_mut().zip(words.iter()) {
-                *o = w as i32;
-            }
+            // Only the words a sample reports: each force word, each event's flag and, when
+            // set, its arguments (`out` reads the others on demand).
+            let outs = &self.at.outs[i];
+            let out = |j: usize| outs.get(j).map_or(0, |&o| word(sram, o) as i32);
             for (j, (d, _)) in k.drives.iter().enumerate() {
                 let o = &mut s.drives[i][j];
-                o.force = out[d.out_index];
+                o.force = out(d.out_index);
                 o.dac = dac[at + j] as i32 as i16;
                 o.current_ua = self.limiter.current_ua(i32::from(o.dac));
             }
@@ -565,12 +578,14 @@ impl ImageRun {
             }
             let p = &self.image.programs[k.spec.program];
             for site in &p.thumb.out.emits {
-                if out[site.offset] == 1 {
+                if out(site.offset) == 1 {
                     let nargs = p.fixed.program.events[site.event.index()].args.len();
                     s.events.push(KeyEvent {
                         key: i,
                         event: site.event,
-                        args: out[site.offset + 1..site.offset + 1 + nargs].to_vec(),
+                        args: (site.offset + 1..site.offset + 1 + nargs)
+                            .map(out)
+                            .collect(),
                     });
                 }
             }
@@ -612,9 +627,13 @@ impl ImageRun {
         (out, breaches)
     }
 
-    /// Key `key`'s out words after the last sample (the update's `out[]`, `OutLayout`).
-    pub fn out(&self, key: usize) -> &[i32] {
-        self.out_words.get(key).map_or(&[], |v| v)
+    /// Key `key`'s out words after the last sample (the update's `out[]`, `OutLayout`),
+    /// read from the emulated SRAM (empty for an unknown key).
+    pub fn out(&self, key: usize) -> Vec<i32> {
+        let sram = &self.board.system.sram;
+        self.at.outs.get(key).map_or(Vec::new(), |w| {
+            w.iter().map(|&o| word(sram, o) as i32).collect()
+        })
     }
 
     /// Samples completed.

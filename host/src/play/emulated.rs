@@ -85,6 +85,8 @@ pub struct BoardRun {
     pub strikes: Vec<Strike>,
     /// Its traced keys' samples.
     pub traces: Traces,
+    /// What the emulator's memoized key updates did (`tactus_emulator::Board::memoize`).
+    pub memo: tactus_emulator::MemoStats,
 }
 
 /// The whole keyboard's run.
@@ -195,6 +197,8 @@ pub struct BoardEngine<'p> {
     strike: Vec<Option<tactus_compiler::ir::EventId>>,
     /// Per key: the out word of `hammer_pos` and its format.
     hammer: Vec<Option<(usize, i32)>>,
+    /// Per key: the real value of one unit of its force word (`to_f64(1, total_frac)`).
+    force_scale: Vec<f64>,
     sensors: Vec<i32>,
     /// Per key: the travel (`f64` bits, `None` for none given) `sensors` was converted from.
     last_travel: Vec<Option<Option<u64>>>,
@@ -310,6 +314,10 @@ impl<'p> BoardEngine<'p> {
                         .map(|i| (p.thumb.out.outputs + i, fp.output_frac[i]))
                 })
                 .collect(),
+            force_scale: key_programs
+                .iter()
+                .map(|p| to_f64(1, p.fixed.total_frac))
+                .collect(),
             sensors: vec![0; bkeys.len()],
             last_travel: vec![None; bkeys.len()],
             samples: vec![KeySample::default(); bkeys.len()],
@@ -323,10 +331,18 @@ impl<'p> BoardEngine<'p> {
         })
     }
 
+    /// The same board with the emulator's memoized calls off (`tactus_emulator::Board::memoize`:
+    /// the same results, every update emulated; for measuring what they save).
+    pub fn without_memos(mut self) -> Self {
+        self.run.board().memoize(&[], &[]);
+        self
+    }
+
     /// What the board reported so far; its strikes and traces are the play loop's.
     ///
     /// Errors: [`BoardError::Trace`] when the I/O trace's last rows cannot be written.
     pub fn finish(mut self) -> Result<BoardRun, BoardError> {
+        self.report.memo = self.run.board().memo_stats();
         if !self.steps.is_multiple_of(self.decimation) {
             self.report.cycles.push(self.block_max);
         }
@@ -358,9 +374,10 @@ impl KeyEngine for BoardEngine<'_> {
             .run
             .step(&self.sensors)
             .map_err(|source| RunError::Sample { sample: i, source })?;
-        for (k, p) in self.programs.iter().enumerate() {
+        for (k, &scale) in self.force_scale.iter().enumerate() {
             self.samples[k] = KeySample {
-                force_n: to_f64(out.force[k], p.fixed.total_frac),
+                // `to_f64(force, total_frac)`: the word times 2^-frac, the power taken once.
+                force_n: out.force[k] as f64 * scale,
                 strike_mps: None,
                 current_a: out.current_ua[k] as f64 * 1e-6,
                 dac: out.dac[k] as f64,

@@ -392,13 +392,22 @@ impl<'a> Sel<'a> {
             Grid::Words(x, y) => {
                 // A known 0–255 on either side: `CMP #imm` (mirrored on the left).
                 let small = |this: &Self, w: &W| {
-                    this.konst.get(&w.v).copied().filter(|k| (0..=255).contains(k))
+                    this.konst
+                        .get(&w.v)
+                        .copied()
+                        .filter(|k| (0..=255).contains(k))
                 };
                 if let Some(k) = small(self, &y) {
-                    self.push(M::CmpI { a: x.v, imm: k as u8 });
+                    self.push(M::CmpI {
+                        a: x.v,
+                        imm: k as u8,
+                    });
                     Flags::Cond(cond_of(o))
                 } else if let Some(k) = small(self, &x) {
-                    self.push(M::CmpI { a: y.v, imm: k as u8 });
+                    self.push(M::CmpI {
+                        a: y.v,
+                        imm: k as u8,
+                    });
                     Flags::Cond(cond_of(o.mirrored()))
                 } else {
                     self.push(M::Cmp { a: x.v, b: y.v });

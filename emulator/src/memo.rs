@@ -1,0 +1,805 @@
+//! Memoized calls: a call whose every input is as it was at a recorded call is replaced by
+//! that call's effect, exactly.
+//!
+//! **Why.** A keyboard's keys are at rest most of the time, and a key at rest reads the same
+//! sensor word and the same state sample after sample: its update computes, cycle for cycle,
+//! what it computed the sample before. Emulating it again is the bulk of a performance's
+//! work. The board is told which functions to watch ([`crate::Board::memoize`]: the
+//! image's key updates); a call is what runs from such an entry (the core's PC at it, LR the
+//! return address) until the PC is at the return address with SP as at the entry.
+//!
+//! **A memo** is one call, recorded on the interpreter as it ran: its *inputs* — the
+//! registers and flags it read before writing them (each instruction's reads and writes,
+//! [`usage`]), the code epoch, and every SRAM byte it loaded before storing to it — and its
+//! *effect*: the registers and flags it wrote, the final value of every SRAM byte it stored
+//! to, its cycles and instructions, and each bank's last claim as an offset from the entry
+//! cycle. At a watched entry, a memo whose inputs equal the core's registers and memory now
+//! is applied instead of running the call: the same code on the same inputs takes the same
+//! path, reads the same words and writes the same values in the same cycles, so the effect
+//! is the call's. That rests on what a call may touch while it is recorded, enforced there:
+//!
+//! * only SRAM data (a load or store elsewhere — flash, ROM, SIO, a peripheral, the private
+//!   peripheral bus, checked before the instruction from its address — gives the recording
+//!   up: those answer by time or have side effects); code fetched from SRAM, flash or ROM
+//!   is the code of the epoch, and a store into a page holding decoded code starts a new
+//!   epoch ([`System::code_epoch`]), which voids every memo of the old one;
+//! * only the instructions [`usage`] knows (no MRS/MSR/CPS, no hint but NOP and YIELD, no
+//!   SVC, BKPT, UDF or barrier), and no change of IPSR, PRIMASK, CONTROL, the other stack
+//!   pointer, the event register, the Thumb bit or the run state (an exception return, a
+//!   sleep);
+//! * no wait state (the recording is dropped when the core's contention stalls grew), and
+//!   no exception taken: the call runs confined in a window before the core's deadline, and
+//!   the recording ends at the deadline.
+//!
+//! A memo is applied only under the same conditions: no access can wait (the core's cycle
+//! at or past the other core's last claim of its banks, [`crate::block`]'s solo
+//! condition), every instruction starts before the run's limit (entry cycle + the call's
+//! cycles at most the limit), its banks allowed, its stores journaled like native code's
+//! (room for every word), and no page it stores to holding decoded code (else the store
+//! would have started a new epoch). Loads from a page that held decoded code when they
+//! were recorded are not compared: until the epoch changes no store reaches that page.
+//!
+//! **When to record.** Recording runs the call on the interpreter, several times the
+//! native code's cost; a moving key's inputs differ every sample. So per call site (the
+//! function, the core and the return address) a recording that is not followed by a hit
+//! doubles the calls to wait before the next one, up to 63: a key that comes to rest is
+//! memoized within a few dozen samples, and a moving one costs a recording every 64th
+//! call. Tests: `tests/memo.rs` (random calls against the interpreter, one input changed
+//! at a time), `firmware/tests/image.rs` and the keyboard comparisons (firmware images on
+//! the block engine, memoized, against the interpreter).
+
+use crate::bus::{sram_location, System, BANKS};
+use crate::core::{Core, RunState};
+use crate::decode::{self, AluOp, Instr};
+use crate::exec::literal_address;
+use std::collections::{BTreeMap, BTreeSet};
+
+/// Memos kept per call site (the least recently used goes first).
+const PER_SITE: usize = 48;
+/// Most instructions a recorded call may run.
+const MAX_INSTRUCTIONS: u64 = 50_000;
+/// Most SRAM accesses a recording logs.
+const MAX_ACCESSES: usize = 16_384;
+/// A call site waits at most `2^MAX_BACKOFF - 1` calls between recordings.
+const MAX_BACKOFF: u32 = 12;
+/// A site tries all its memos (not only the predicted one) within this many calls of its
+/// last hit or recording: a key at rest finds its states, a moving one costs no scan of
+/// memos that do not match.
+const SCAN_AFTER: u32 = 64;
+/// Most watched entries.
+pub const MAX_ENTRIES: usize = 64;
+
+/// Flag bits of [`Usage`]: N, Z, C, V.
+const N: u8 = 8;
+const Z: u8 = 4;
+const C: u8 = 2;
+const V: u8 = 1;
+const NZ: u8 = N | Z;
+const NZCV: u8 = N | Z | C | V;
+
+/// What the memos did (for tests and reports).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoStats {
+    /// Calls replaced by a memo.
+    pub hits: u64,
+    /// Of those, the hits whose memo was not the one predicted (the one applied after the
+    /// site's last memo the time before), found by trying the site's others.
+    pub unpredicted: u64,
+    /// Emulated cycles of those calls.
+    pub hit_cycles: u64,
+    /// Watched entries reached with no memo matching.
+    pub misses: u64,
+    /// Calls recorded into a memo.
+    pub recorded: u64,
+    /// Recordings given up (the call touched something a memo cannot hold, or did not
+    /// return before the deadline).
+    pub abandoned: u64,
+}
+
+/// The registers (bit *n*: r*n*, r0-r14; PC is never an input, its value is the code's)
+/// and flags (N 8, Z 4, C 2, V 1) an instruction may read, and those it writes. A register
+/// or flag an instruction writes only sometimes (the carry of a shift by a register) is
+/// among its reads too, so that a write counts only where it always happens.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Usage {
+    pub reads: u16,
+    pub writes: u16,
+    pub flag_reads: u8,
+    pub flag_writes: u8,
+}
+
+/// The [`Usage`] of `instr` (DDI0419 A6.7, as `exec.rs` executes it), `None` for an
+/// instruction a memoized call may not contain.
+pub(crate) fn usage(instr: &Instr) -> Option<Usage> {
+    use Instr::*;
+    let b = |r: u8| 1u16 << (r & 15);
+    let u = |reads: u16, writes: u16, flag_reads: u8, flag_writes: u8| {
+        Some(Usage {
+            reads: reads & 0x7fff,
+            writes: writes & 0x7fff,
+            flag_reads,
+            flag_writes,
+        })
+    };
+    match *instr {
+        // LSLS #0 is MOVS: the carry is left alone.
+        LslImm { rd, rm, imm } => u(b(rm), b(rd), 0, if imm == 0 { NZ } else { NZ | C }),
+        LsrImm { rd, rm, .. } | AsrImm { rd, rm, .. } => u(b(rm), b(rd), 0, NZ | C),
+        AddReg { rd, rn, rm } | SubReg { rd, rn, rm } => u(b(rn) | b(rm), b(rd), 0, NZCV),
+        AddImm { rd, rn, .. } | SubImm { rd, rn, .. } => u(b(rn), b(rd), 0, NZCV),
+        MovImm { rd, .. } => u(0, b(rd), 0, NZ),
+        CmpImm { rn, .. } => u(b(rn), 0, 0, NZCV),
+        Alu { op, rdn, rm } => {
+            let both = b(rdn) | b(rm);
+            match op {
+                AluOp::And | AluOp::Eor | AluOp::Orr | AluOp::Bic | AluOp::Mul | AluOp::Mvn => {
+                    u(both, b(rdn), 0, NZ)
+                }
+                // A shift by zero leaves the carry: read and written.
+                AluOp::Lsl | AluOp::Lsr | AluOp::Asr | AluOp::Ror => u(both, b(rdn), C, NZ | C),
+                AluOp::Adc | AluOp::Sbc => u(both, b(rdn), C, NZCV),
+                AluOp::Rsb => u(both, b(rdn), 0, NZCV),
+                AluOp::Tst => u(both, 0, 0, NZ),
+                AluOp::Cmp | AluOp::Cmn => u(both, 0, 0, NZCV),
+            }
+        }
+        AddHi { rdn, rm } => u(b(rdn) | b(rm), b(rdn), 0, 0),
+        CmpHi { rn, rm } => u(b(rn) | b(rm), 0, 0, NZCV),
+        MovHi { rd, rm } => u(b(rm), b(rd), 0, 0),
+        Bx { rm } => u(b(rm), 0, 0, 0),
+        Blx { rm } => u(b(rm), b(14), 0, 0),
+        LdrLit { rt, .. } => u(0, b(rt), 0, 0),
+        MemReg { op, rt, rn, rm } if op.is_store() => u(b(rt) | b(rn) | b(rm), 0, 0, 0),
+        MemReg { rt, rn, rm, .. } => u(b(rn) | b(rm), b(rt), 0, 0),
+        MemImm { op, rt, rn, .. } if op.is_store() => u(b(rt) | b(rn), 0, 0, 0),
+        MemImm { rt, rn, .. } => u(b(rn), b(rt), 0, 0),
+        Adr { rd, .. } => u(0, b(rd), 0, 0),
+        AddSpImm { rd, .. } => u(b(13), b(rd), 0, 0),
+        AddSp { .. } | SubSp { .. } => u(b(13), b(13), 0, 0),
+        Sxth { rd, rm }
+        | Sxtb { rd, rm }
+        | Uxth { rd, rm }
+        | Uxtb { rd, rm }
+        | Rev { rd, rm }
+        | Rev16 { rd, rm }
+        | Revsh { rd, rm } => u(b(rm), b(rd), 0, 0),
+        Push { list } => u(b(13) | (list & 0x40ff), b(13), 0, 0),
+        Pop { list } => u(b(13), b(13) | (list & 0xff), 0, 0),
+        Stm { rn, list } => u(b(rn) | list as u16, b(rn), 0, 0),
+        // Written back, or loaded when in the list: written either way.
+        Ldm { rn, list } => u(b(rn), b(rn) | list as u16, 0, 0),
+        BCond { .. } => u(0, 0, NZCV, 0),
+        B { .. } | Hint(decode::Hint::Nop | decode::Hint::Yield) => u(0, 0, 0, 0),
+        Bl { .. } => u(0, b(14), 0, 0),
+        Cps { .. }
+        | Bkpt { .. }
+        | Hint(_)
+        | Svc { .. }
+        | Udf { .. }
+        | Msr { .. }
+        | Mrs { .. }
+        | Barrier(_)
+        | Undefined { .. } => None,
+    }
+}
+
+/// Whether every data address `instr` at `pc` would load or store, on `core`'s registers
+/// now, is in SRAM (so none reaches the private peripheral bus, which `Core` answers
+/// without the bus that logs the recording).
+fn data_in_sram(instr: &Instr, core: &Core, pc: u32) -> bool {
+    use Instr::*;
+    let r = |x: u8| core.r[(x & 15) as usize];
+    let (addr, len) = match *instr {
+        LdrLit { imm, .. } => (literal_address(pc, imm), 4),
+        MemReg { op, rn, rm, .. } => (r(rn).wrapping_add(r(rm)), op.size()),
+        MemImm { op, rn, imm, .. } => (r(rn).wrapping_add(imm as u32), op.size()),
+        Push { list } => {
+            let n = 4 * list.count_ones();
+            (r(13).wrapping_sub(n), n)
+        }
+        Pop { list } => (r(13), 4 * list.count_ones()),
+        Stm { rn, list } | Ldm { rn, list } => (r(rn), 4 * list.count_ones()),
+        _ => return true,
+    };
+    let last = addr.wrapping_add(len.max(1) - 1);
+    last >= addr && sram_location(addr).is_some() && sram_location(last).is_some()
+}
+
+/// Arbitration bank of SRAM offset `off` (as the bus's).
+fn bank_of(off: u32) -> usize {
+    if off < 0x4_0000 {
+        ((off >> 2) & 3) as usize
+    } else {
+        (4 + ((off >> 12) & 1)) as usize
+    }
+}
+
+/// One SRAM access of a recording: byte offset into [`System::sram`], size, the value
+/// loaded (loads), and whether its page held decoded code (loads: then it is not an input
+/// to compare, see the module documentation).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Access {
+    off: u32,
+    size: u8,
+    store: bool,
+    code: bool,
+    value: u32,
+}
+
+/// Bytes of one SRAM word: its offset in [`System::sram`] (aligned), which bytes (a mask)
+/// and their values (the other bits 0).
+#[derive(Clone, Copy, Debug)]
+struct Word {
+    off: u32,
+    mask: u32,
+    value: u32,
+}
+
+/// The [`Word`]s of `bytes` (offsets ascending) with their values.
+fn words(bytes: impl Iterator<Item = (u32, u8)>) -> Vec<Word> {
+    let mut v: Vec<Word> = Vec::new();
+    for (b, x) in bytes {
+        let (off, shift) = (b & !3, 8 * (b & 3));
+        match v.last_mut() {
+            Some(w) if w.off == off => {}
+            _ => v.push(Word {
+                off,
+                mask: 0,
+                value: 0,
+            }),
+        }
+        if let Some(w) = v.last_mut() {
+            w.mask |= 0xff << shift;
+            w.value |= (x as u32) << shift;
+        }
+    }
+    v
+}
+
+/// The word at byte `off` of `sram`.
+///
+/// # Safety
+/// `off + 4 <= sram.len()`.
+#[inline(always)]
+unsafe fn peek(sram: &[u8], off: u32) -> u32 {
+    // SAFETY: the caller's bound.
+    unsafe { std::ptr::read_unaligned(sram.as_ptr().add(off as usize) as *const u32) }.to_le()
+}
+
+/// Stores `value` at byte `off` of `sram`.
+///
+/// # Safety
+/// `off + 4 <= sram.len()`.
+#[inline(always)]
+unsafe fn poke(sram: &mut [u8], off: u32, value: u32) {
+    // SAFETY: the caller's bound.
+    unsafe {
+        std::ptr::write_unaligned(
+            sram.as_mut_ptr().add(off as usize) as *mut u32,
+            value.to_le(),
+        )
+    }
+}
+
+/// The architectural state a recording starts from.
+#[derive(Clone, Debug)]
+struct Entry {
+    r: [u32; 16],
+    flags: u8,
+    cycle: u64,
+    instructions: u64,
+    stalls: u64,
+    claims: [u64; BANKS],
+    epoch: u32,
+    special: (bool, u32, bool, u32, u32, bool),
+}
+
+fn flags_of(core: &Core) -> u8 {
+    (core.n as u8) << 3 | (core.z as u8) << 2 | (core.c as u8) << 1 | core.v as u8
+}
+
+/// What a call may not change: Thumb bit, IPSR, PRIMASK, CONTROL, the other SP, the event
+/// register.
+fn special_of(core: &Core) -> (bool, u32, bool, u32, u32, bool) {
+    (
+        core.thumb,
+        core.ipsr,
+        core.primask,
+        core.control,
+        core.other_sp,
+        core.event,
+    )
+}
+
+/// A call being recorded (see the module documentation): its entry, the registers and
+/// flags it has read before writing them and those it has written, and its SRAM accesses.
+pub(crate) struct Recording {
+    site: usize,
+    /// Where the call ends: its return address, or the span's end.
+    end: u32,
+    entry: Entry,
+    live_regs: u16,
+    def_regs: u16,
+    live_flags: u8,
+    def_flags: u8,
+    fetch_banks: u8,
+    log: Vec<Access>,
+    /// Something a memo cannot hold happened: the recording is given up.
+    spoiled: bool,
+}
+
+impl Recording {
+    /// Whether the call has returned (or the span ended): PC at its end, SP as at the
+    /// entry.
+    pub(crate) fn returned(&self, core: &Core) -> bool {
+        core.r[15] == self.end && core.r[13] == self.entry.r[13]
+    }
+
+    /// Before `core` executes `instr` (`size` bytes at its PC) in the recorded call: false
+    /// (the recording is given up, the instruction not run by it) when a memo cannot hold
+    /// it; else notes its register and flag usage and the bank it is fetched from.
+    pub(crate) fn admit(&mut self, core: &Core, instr: &Instr, size: u32) -> bool {
+        let pc = core.r[15];
+        let Some(u) = usage(instr) else {
+            return false;
+        };
+        if !data_in_sram(instr, core, pc)
+            || self.log.len() >= MAX_ACCESSES
+            || core.instructions - self.entry.instructions >= MAX_INSTRUCTIONS
+        {
+            return false;
+        }
+        self.live_regs |= u.reads & !self.def_regs;
+        self.def_regs |= u.writes;
+        self.live_flags |= u.flag_reads & !self.def_flags;
+        self.def_flags |= u.flag_writes;
+        for a in [pc, pc.wrapping_add(size - 2)] {
+            if let Some((off, _)) = sram_location(a) {
+                self.fetch_banks |= 1 << bank_of(off as u32);
+            }
+        }
+        true
+    }
+
+    /// After the instruction: false when it changed what a call may not.
+    pub(crate) fn after(&self, core: &Core) -> bool {
+        !self.spoiled && core.state == RunState::Running && special_of(core) == self.entry.special
+    }
+
+    /// A load of `size` bytes at SRAM offset `off` gave `value`; `code`: its page holds
+    /// decoded code.
+    #[inline]
+    pub(crate) fn load(&mut self, off: u32, size: u32, value: u32, code: bool) {
+        self.log.push(Access {
+            off,
+            size: size as u8,
+            store: false,
+            code,
+            value,
+        });
+    }
+
+    /// A store of `size` bytes at SRAM offset `off`.
+    #[inline]
+    pub(crate) fn store(&mut self, off: u32, size: u32) {
+        self.log.push(Access {
+            off,
+            size: size as u8,
+            store: true,
+            code: false,
+            value: 0,
+        });
+    }
+
+    /// An access a memo cannot hold (outside SRAM).
+    #[inline]
+    pub(crate) fn spoil(&mut self) {
+        self.spoiled = true;
+    }
+}
+
+/// One recorded call (see the module documentation).
+#[derive(Clone, Debug)]
+struct Memo {
+    epoch: u32,
+    live_regs: u16,
+    regs_in: [u32; 16],
+    live_flags: u8,
+    flags_in: u8,
+    /// Input bytes, by word.
+    reads: Vec<Word>,
+    /// Stored bytes, by word, with their final values.
+    writes: Vec<Word>,
+    /// One past the last byte of any of those words (checked against the SRAM's length
+    /// once per use).
+    end: usize,
+    /// 256-byte pages of the stored bytes (each once).
+    pages: Vec<u32>,
+    /// Registers and flags set by the call (r15 among them), and their values.
+    out_regs: u16,
+    regs_out: [u32; 16],
+    out_flags: u8,
+    flags_out: u8,
+    cycles: u64,
+    instructions: u64,
+    /// Each bank's last claim by the core, from the entry cycle (`u64::MAX`: none).
+    claims: [u64; BANKS],
+    /// SRAM banks the call fetched from, loaded from or stored to.
+    banks: u8,
+    /// [`Memos`]' clock at its last use.
+    used: u64,
+    /// Index in its site of the memo applied after it last (`usize::MAX`: none yet).
+    next: usize,
+}
+
+impl Memo {
+    #[inline]
+    fn inputs_match(&self, core: &Core, sys: &System) -> bool {
+        if self.epoch != sys.code_epoch {
+            return false;
+        }
+        let mut live = self.live_regs;
+        while live != 0 {
+            let i = live.trailing_zeros() as usize;
+            live &= live - 1;
+            if core.r[i] != self.regs_in[i] {
+                return false;
+            }
+        }
+        if flags_of(core) & self.live_flags != self.flags_in {
+            return false;
+        }
+        let sram = &sys.sram[..];
+        if self.end > sram.len() {
+            return false;
+        }
+        // SAFETY: every word's offset + 4 is at most `self.end`.
+        self.reads
+            .iter()
+            .all(|w| unsafe { peek(sram, w.off) } & w.mask == w.value)
+    }
+
+    fn apply(&self, core: &mut Core, sys: &mut System, journal: Option<&mut Vec<u64>>) {
+        // A word that already holds its final bytes is left alone (a key at rest rewrites
+        // the same state): no store, no journal entry (undoing it would change nothing).
+        let sram = &mut sys.sram[..];
+        // `inputs_match` has checked `self.end` against the SRAM's length (which never
+        // changes): only a memo whose inputs matched is applied.
+        assert!(self.end <= sram.len());
+        match journal {
+            Some(j) => {
+                for w in &self.writes {
+                    // SAFETY: every word's offset + 4 is at most `self.end`.
+                    let old = unsafe { peek(sram, w.off) };
+                    if old & w.mask != w.value {
+                        j.push((w.off as u64) << 32 | old as u64);
+                        // SAFETY: as above.
+                        unsafe { poke(sram, w.off, old & !w.mask | w.value) };
+                    }
+                }
+            }
+            None => {
+                for w in &self.writes {
+                    // SAFETY: every word's offset + 4 is at most `self.end`.
+                    let old = unsafe { peek(sram, w.off) };
+                    if old & w.mask != w.value {
+                        // SAFETY: as above.
+                        unsafe { poke(sram, w.off, old & !w.mask | w.value) };
+                    }
+                }
+            }
+        }
+        let mut out = self.out_regs;
+        while out != 0 {
+            let i = out.trailing_zeros() as usize;
+            out &= out - 1;
+            core.r[i] = self.regs_out[i];
+        }
+        let f = (flags_of(core) & !self.out_flags) | self.flags_out;
+        (core.n, core.z, core.c, core.v) = (f & N != 0, f & Z != 0, f & C != 0, f & V != 0);
+        let entry = core.cycle;
+        let k = core.id & 1;
+        for (b, &d) in self.claims.iter().enumerate() {
+            if d != u64::MAX {
+                sys.bank_claim[b][k] = entry + d;
+            }
+        }
+        core.cycle = entry + self.cycles;
+        core.instructions += self.instructions;
+    }
+}
+
+/// A call site: a watched function called on one core with one return address (a key of
+/// the image). Its memos, newest last, the one applied last, and how many calls to let run
+/// before the next recording.
+#[derive(Clone, Debug)]
+struct Site {
+    core: usize,
+    pc: u32,
+    /// Where its calls end (the return address, or the span's end).
+    end: u32,
+    memos: Vec<Memo>,
+    /// Index in `memos` of the memo applied last (`usize::MAX`: none).
+    last: usize,
+    /// Calls to let run before the next recording.
+    wait: u32,
+    /// Recordings since the last hit.
+    fails: u32,
+    /// Calls since the last hit or recording (saturating): past [`SCAN_AFTER`] a miss
+    /// tries the predicted memo only.
+    quiet: u32,
+}
+
+/// What [`Memos::call`] found at a watched entry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Try {
+    /// A memo was applied: the call is done.
+    Applied,
+    /// No memo applies: record this call ([`Memos::begin`]).
+    Record,
+    /// Run the call as usual.
+    Run,
+}
+
+/// A board's memos (see the module documentation).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Memos {
+    /// The watched entries (addresses without the Thumb bit), and where their calls end:
+    /// `None` at the return address in LR (a function), else the span's end.
+    entries: Vec<(u32, Option<u32>)>,
+    /// Bit `(entry >> 1) % 64` of every entry: a clear bit rules a PC out at once.
+    filter: u64,
+    sites: Vec<Site>,
+    clock: u64,
+    pub(crate) stats: MemoStats,
+}
+
+impl Memos {
+    /// Watches the functions at `calls` and the spans `spans` (start, end) (the Thumb bit
+    /// ignored; at most [`MAX_ENTRIES`] in all, the rest ignored), forgetting every memo.
+    pub(crate) fn watch(&mut self, calls: &[u32], spans: &[(u32, u32)]) {
+        let mut e: Vec<(u32, Option<u32>)> = calls
+            .iter()
+            .map(|c| (c & !1, None))
+            .chain(
+                spans
+                    .iter()
+                    .filter(|(a, b)| a & !1 != b & !1)
+                    .map(|&(a, b)| (a & !1, Some(b & !1))),
+            )
+            .collect();
+        e.sort_unstable();
+        e.dedup_by_key(|x| x.0);
+        e.truncate(MAX_ENTRIES);
+        self.filter = e.iter().fold(0, |f, x| f | 1 << ((x.0 >> 1) & 63));
+        self.entries = e;
+        self.sites.clear();
+    }
+
+    /// Whether `pc` is a watched entry.
+    #[inline(always)]
+    pub(crate) fn watches(&self, pc: u32) -> bool {
+        self.filter >> ((pc >> 1) & 63) & 1 != 0 && self.entries.iter().any(|e| e.0 == pc)
+    }
+
+    /// The call site of `core`'s call (its PC at a watched entry).
+    fn site(&mut self, core: &Core) -> usize {
+        let (id, pc) = (core.id, core.r[15]);
+        let end = match self.entries.iter().find(|e| e.0 == pc) {
+            Some(&(_, Some(end))) => end,
+            _ => core.r[14] & !1,
+        };
+        match self
+            .sites
+            .iter()
+            .position(|s| s.end == end && s.pc == pc && s.core == id)
+        {
+            Some(i) => i,
+            None => {
+                self.sites.push(Site {
+                    core: id,
+                    pc,
+                    end,
+                    memos: Vec::new(),
+                    last: usize::MAX,
+                    wait: 0,
+                    fails: 0,
+                    quiet: 0,
+                });
+                self.sites.len() - 1
+            }
+        }
+    }
+
+    /// At a watched entry (`core`'s PC): applies a memo whose inputs match and which fits
+    /// (module documentation: `limit`, the run's; `solo`, no access can wait; `allowed`,
+    /// the banks; `journal`, when stores are journaled), or says whether to record the
+    /// call. The memo recorded after the one applied last is tried first (a key at rest
+    /// cycles through a few states, as a ring buffer's index does).
+    pub(crate) fn call(
+        &mut self,
+        core: &mut Core,
+        sys: &mut System,
+        limit: u64,
+        solo: bool,
+        allowed: u8,
+        journal: Option<&mut Vec<u64>>,
+    ) -> Try {
+        let s = self.site(core);
+        self.clock += 1;
+        let site = &mut self.sites[s];
+        let next = site.memos.get(site.last).map_or(usize::MAX, |m| m.next);
+        let found = match site.memos.get(next) {
+            Some(m) if m.inputs_match(core, sys) => Some(next),
+            _ if site.quiet < SCAN_AFTER => {
+                let i = (0..site.memos.len())
+                    .find(|&i| i != next && site.memos[i].inputs_match(core, sys));
+                self.stats.unpredicted += i.is_some() as u64;
+                i
+            }
+            _ => None,
+        };
+        site.quiet = site.quiet.saturating_add(1);
+        if let Some(i) = found {
+            let m = &mut site.memos[i];
+            let room = journal
+                .as_deref()
+                .is_none_or(|j| j.capacity() - j.len() >= m.writes.len());
+            let fits = solo
+                && core.cycle.saturating_add(m.cycles) <= limit
+                && m.banks & !allowed == 0
+                && room
+                && m.pages.iter().all(|&p| !sys.code_pages[p as usize]);
+            if !fits {
+                return Try::Run;
+            }
+            m.apply(core, sys, journal);
+            m.used = self.clock;
+            self.stats.hit_cycles += m.cycles;
+            if let Some(l) = site.memos.get_mut(site.last) {
+                l.next = i;
+            }
+            site.last = i;
+            site.fails = 0;
+            site.wait = 0;
+            site.quiet = 0;
+            self.stats.hits += 1;
+            return Try::Applied;
+        }
+        self.stats.misses += 1;
+        if site.wait > 0 || !solo {
+            site.wait = site.wait.saturating_sub(1);
+            return Try::Run;
+        }
+        site.wait = (1u32 << site.fails.min(MAX_BACKOFF)) - 1;
+        site.fails += 1;
+        site.quiet = 0;
+        Try::Record
+    }
+
+    /// Starts recording the call `core` is about to make (its PC at a watched entry).
+    pub(crate) fn begin(&mut self, core: &Core, sys: &System) -> Recording {
+        let k = core.id & 1;
+        let site = self.site(core);
+        Recording {
+            site,
+            end: self.sites[site].end,
+            entry: Entry {
+                r: core.r,
+                flags: flags_of(core),
+                cycle: core.cycle,
+                instructions: core.instructions,
+                stalls: sys.contention_stalls[k],
+                claims: sys.bank_claim.map(|c| c[k]),
+                epoch: sys.code_epoch,
+                special: special_of(core),
+            },
+            live_regs: 0,
+            def_regs: 0,
+            live_flags: 0,
+            def_flags: 0,
+            fetch_banks: 0,
+            log: Vec::new(),
+            spoiled: false,
+        }
+    }
+
+    /// Gives a recording up.
+    pub(crate) fn abandon(&mut self, _rec: Recording) {
+        self.stats.abandoned += 1;
+    }
+
+    /// Ends a recording whose call has returned ([`Recording::returned`]) on `core`: keeps
+    /// its memo, unless the call waited for a bank or changed the code epoch.
+    pub(crate) fn finish(&mut self, rec: Recording, core: &Core, sys: &System) {
+        let k = core.id & 1;
+        let e = &rec.entry;
+        if rec.spoiled
+            || sys.contention_stalls[k] != e.stalls
+            || sys.code_epoch != e.epoch
+            || !rec.after(core)
+        {
+            self.stats.abandoned += 1;
+            return;
+        }
+        // The inputs: bytes loaded before any store of the call to them, outside pages of
+        // code; the outputs: every byte stored.
+        let mut stored: BTreeSet<u32> = BTreeSet::new();
+        let mut inputs: BTreeMap<u32, u8> = BTreeMap::new();
+        let mut banks = rec.fetch_banks;
+        for a in &rec.log {
+            banks |= 1 << bank_of(a.off);
+            for i in 0..a.size as u32 {
+                let byte = a.off + i;
+                if a.store {
+                    stored.insert(byte);
+                } else if !a.code && !stored.contains(&byte) {
+                    inputs.entry(byte).or_insert((a.value >> (8 * i)) as u8);
+                }
+            }
+        }
+        let reads = words(inputs.iter().map(|(&b, &x)| (b, x)));
+        let writes = words(stored.iter().map(|&b| (b, sys.sram[b as usize])));
+        let mut pages: Vec<u32> = writes.iter().map(|w| w.off >> 8).collect();
+        pages.dedup();
+        let out_regs = rec.live_regs | rec.def_regs | 1 << 15;
+        let out_flags = rec.live_flags | rec.def_flags;
+        let mut claims = [u64::MAX; BANKS];
+        for (b, c) in claims.iter_mut().enumerate() {
+            let now = sys.bank_claim[b][k];
+            if now != e.claims[b] {
+                *c = now - e.cycle;
+            }
+        }
+        let memo = Memo {
+            epoch: e.epoch,
+            live_regs: rec.live_regs,
+            regs_in: e.r,
+            live_flags: rec.live_flags,
+            flags_in: e.flags & rec.live_flags,
+            end: reads
+                .iter()
+                .chain(&writes)
+                .map(|w| w.off as usize + 4)
+                .max()
+                .unwrap_or(0),
+            reads,
+            writes,
+            pages,
+            out_regs,
+            regs_out: core.r,
+            out_flags,
+            flags_out: flags_of(core) & out_flags,
+            cycles: core.cycle - e.cycle,
+            instructions: core.instructions - e.instructions,
+            claims,
+            banks,
+            used: self.clock,
+            next: usize::MAX,
+        };
+        self.stats.recorded += 1;
+        let site = &mut self.sites[rec.site];
+        // Memos of a past epoch never match again.
+        let before = site.memos.len();
+        site.memos.retain(|m| m.epoch == sys.code_epoch);
+        if site.memos.len() >= PER_SITE {
+            if let Some(old) = (0..site.memos.len()).min_by_key(|&i| site.memos[i].used) {
+                site.memos.swap_remove(old);
+            }
+        }
+        if site.memos.len() != before {
+            // Indices moved: forget the successors.
+            site.last = usize::MAX;
+            for m in &mut site.memos {
+                m.next = usize::MAX;
+            }
+        }
+        // The new memo follows the one applied last (a cycle of states comes round in order).
+        let at = site.memos.len();
+        if let Some(l) = site.memos.get_mut(site.last) {
+            l.next = at;
+        }
+        site.last = site.memos.len();
+        site.memos.push(memo);
+    }
+}
