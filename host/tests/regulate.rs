@@ -195,22 +195,18 @@ fn the_grand_piano_in_fixed_point_regulates_the_same_on_the_interpreter_and_the_
         &Config::default(),
     )
     .unwrap();
-    assert_eq!(interp, fixed_jit_sheet(&p, &fp));
-    assert_eq!(outside(&interp), Vec::<String>::new());
-}
-
-/// The sheet on the fixed JIT (bit-identical to the fixed interpreter).
-fn fixed_jit_sheet(p: &Program, fp: &tactus_compiler::fixed::FixedProgram) -> Sheet {
-    let jit = tactus_jit::fixed::FixedJitProgram::compile(fp).unwrap();
-    regulate::measure(
-        p,
+    let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp).unwrap();
+    let by_jit = regulate::measure(
+        &p,
         tactus_host::play::engine::FixedJitEngine(
             tactus_jit::fixed::FixedJitInstance::new(&jit),
-            fp,
+            &fp,
         ),
         &Config::default(),
     )
-    .unwrap()
+    .unwrap();
+    assert_eq!(interp, by_jit);
+    assert_eq!(outside(&interp), Vec::<String>::new());
 }
 
 /// grand88's bass and treble hammers in the firmware's fixed point (on the fixed JIT, which
@@ -220,7 +216,17 @@ fn fixed_jit_sheet(p: &Program, fp: &tactus_compiler::fixed::FixedProgram) -> Sh
 fn the_grand_piano_in_fixed_point_regulates_inside_the_spec_at_bass_and_treble() {
     for m_h in ["11 g", "3.5 g"] {
         let p = shipped("grand_piano", &[("M_h", m_h)]);
-        let s = fixed_jit_sheet(&p, &tactus_compiler::fixed::FixedProgram::new(&p));
+        let fp = tactus_compiler::fixed::FixedProgram::new(&p);
+        let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp).unwrap();
+        let s = regulate::measure(
+            &p,
+            tactus_host::play::engine::FixedJitEngine(
+                tactus_jit::fixed::FixedJitInstance::new(&jit),
+                &fp,
+            ),
+            &Config::default(),
+        )
+        .unwrap();
         assert_eq!(outside(&s), Vec::<String>::new(), "M_h = {m_h}");
         assert!(figure(&s, Figure::Creep) <= 0.05, "M_h = {m_h}");
     }
