@@ -16,9 +16,10 @@ use tactus_runtime::stimulus;
 #[path = "support/shipped.rs"]
 mod shipped;
 
-/// The instruments: every `instruments/*.tactus`.
+/// The instruments: every `instruments/*.tactus` and `instruments/experimental/*.tactus`
+/// (named `experimental/STEM`).
 fn instruments() -> Vec<(String, String)> {
-    shipped::instrument_sources()
+    shipped::instrument_sources(true)
 }
 
 fn have_cc() -> bool {

@@ -15,7 +15,7 @@ mod shipped;
 
 fn instruments() -> Vec<(String, Program)> {
     let mut out = Vec::new();
-    for (name, text) in shipped::instrument_sources() {
+    for (name, text) in shipped::instrument_sources(false) {
         let p = tactus_compiler::compile(&text, &Config::default())
             .unwrap_or_else(|_| panic!("{name} does not compile"))
             .program;

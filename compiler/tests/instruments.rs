@@ -11,7 +11,7 @@ use tactus_runtime::rng::XorShift64;
 mod shipped;
 
 fn instrument_files() -> Vec<PathBuf> {
-    shipped::instrument_files()
+    shipped::instrument_files(false)
         .into_iter()
         .map(|(_, p)| p)
         .collect()

@@ -1,7 +1,8 @@
 //! The shipped instruments as every crate's tests see them: one definition, included by
 //! path (`#[path = ".../compiler/tests/support/shipped.rs"] mod shipped;`) into the
 //! compiler's, the JIT's and the firmware's tests. No library can serve it: the catalogue
-//! (`tactus_host::catalogue`) sits above the compiler.
+//! (`tactus_host::catalogue`) sits above the compiler, and the tests also need the
+//! experimental instruments, which ship in no catalogue.
 
 #![allow(dead_code)] // each test binary uses a part
 
@@ -22,15 +23,22 @@ pub fn instruments_dir() -> PathBuf {
 }
 
 /// The shipped instruments' files, `(name, path)`, sorted by name: every
-/// `instruments/*.tactus`, named by its stem.
-pub fn instrument_files() -> Vec<(String, PathBuf)> {
+/// `instruments/*.tactus` (named by its stem) and, with `experimental`, every
+/// `instruments/experimental/*.tactus` (named `experimental/STEM`).
+pub fn instrument_files(experimental: bool) -> Vec<(String, PathBuf)> {
     let root = instruments_dir();
-    let entries = std::fs::read_dir(&root).unwrap_or_else(|e| panic!("{}: {e}", root.display()));
+    let mut dirs = vec![(root.clone(), "")];
+    if experimental {
+        dirs.push((root.join("experimental"), "experimental/"));
+    }
     let mut v = Vec::new();
-    for p in entries.map(|e| e.expect("directory entry").path()) {
-        if p.extension().is_some_and(|e| e == "tactus") {
-            let stem = p.file_stem().unwrap().to_string_lossy().into_owned();
-            v.push((stem, p));
+    for (dir, prefix) in dirs {
+        let entries = std::fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+        for p in entries.map(|e| e.expect("directory entry").path()) {
+            if p.extension().is_some_and(|e| e == "tactus") {
+                let stem = p.file_stem().unwrap().to_string_lossy().into_owned();
+                v.push((format!("{prefix}{stem}"), p));
+            }
         }
     }
     v.sort();
@@ -43,8 +51,8 @@ pub fn instrument_files() -> Vec<(String, PathBuf)> {
 }
 
 /// [`instrument_files`] with their sources, `(name, source)`.
-pub fn instrument_sources() -> Vec<(String, String)> {
-    instrument_files()
+pub fn instrument_sources(experimental: bool) -> Vec<(String, String)> {
+    instrument_files(experimental)
         .into_iter()
         .map(|(n, p)| {
             let text =

@@ -4,9 +4,10 @@
 mod shipped;
 
 /// The shipped instruments, `(file stem, source)`, sorted by name: every
-/// `instruments/*.tactus`.
+/// `instruments/*.tactus`, and the experimental ones (`instruments/experimental/*.tactus`,
+/// named `experimental/STEM`): every engine must agree on those too.
 pub fn instruments() -> Vec<(String, String)> {
-    shipped::instrument_sources()
+    shipped::instrument_sources(true)
 }
 
 /// Programs with more IR values than this are left out of the tests that build them with

@@ -30,7 +30,7 @@ pub const LARGE_PROGRAM_VALUES: usize = 50_000;
 /// The shipped instruments, without those over [`LARGE_PROGRAM_VALUES`] (each one left out
 /// is printed).
 pub fn instruments() -> Vec<PathBuf> {
-    shipped::instrument_files()
+    shipped::instrument_files(false)
         .into_iter()
         .map(|(_, p)| p)
         .filter(|p| {
