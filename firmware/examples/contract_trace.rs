@@ -5,7 +5,8 @@
 //! total force, each force term's difference in DAC LSB, the modes, and each state in f64
 //! and in fixed point — every `--every` samples and wherever the total differs by more than
 //! `--above` DAC LSB, and every event of either run with its arguments (SI). `--csv FILE`
-//! writes every sample (n, key m, f64 and fixed total N, then per state its f64 and fixed value, SI). `--exact v193,v195` plans those products
+//! writes every sample (n, key m, f64 and fixed total N, then per state its f64 and fixed
+//! value, SI). `--exact v193,v195` plans those products
 //! (the value numbers of `tactus check --report precision`) in their most precise form
 //! (64-bit, else high word) to see which product's format moves the run.
 //!
