@@ -1,9 +1,6 @@
 //! `tactus play`: parses the arguments, makes the keyboard's [`Session`]
-//! (`tactus_host::session`) and plays each performance through it — the players, the one play
-//! loop, the strike rule and the firmware of every board live in the libraries — then
-//! prints what it returns: the strikes, the files written, the force player's range and,
-//! with `--engine emu`, the budget of every board and core over the run; in corpus mode,
-//! the table of every piece.
+//! (`tactus_host::session`: the players, the play loop, the strike rule and the firmware live
+//! there), plays each performance through it and prints what it returns.
 
 use crate::check_cmd::parse_override;
 use crate::progress::{CorpusBar, PlayBar};
@@ -16,7 +13,6 @@ use tactus_host::catalogue;
 use tactus_host::keyboard::KeyboardSpec;
 use tactus_host::play::{corpus, PlayConfig, TraceWindow};
 use tactus_host::session::{self as host_play, PieceOptions, PlayError, Session};
-
 use tactus_runtime::player::FingerConfig;
 
 /// Arguments of `tactus play`.
@@ -167,16 +163,9 @@ fn run_corpus(args: &PlayArgs, session: &Session, files: &[PathBuf]) -> ExitCode
     let emulated = matches!(args.engine, values::PlayEngine::Emu);
     let peak_kb = host_play::peak_memory_kb();
     print!("{}", corpus::summary_text(&rows, emulated, peak_kb));
-    match corpus::write_tables(&args.out, &rows) {
-        Ok(paths) => paths
-            .iter()
-            .for_each(|p| println!("  wrote {}", p.display())),
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::FAILURE;
-        }
-    }
-    match corpus::failures_text(&rows) {
+    let written = corpus::write_tables(&args.out, &rows);
+    (written.iter().flatten()).for_each(|p| println!("  wrote {}", p.display()));
+    match written.err().or_else(|| corpus::failures_text(&rows)) {
         None => ExitCode::SUCCESS,
         Some(e) => {
             eprintln!("error: {e}");
@@ -193,31 +182,24 @@ fn run_piece(
     performance: Option<&Path>,
     multi: Option<&MultiProgress>,
 ) -> Result<(ExitCode, corpus::PieceRow), PlayError> {
-    let bar = PlayBar::new(
-        multi,
-        match args.engine {
-            values::PlayEngine::Emu => format!("{} keys on their boards", session.kb.keys.len()),
-            _ => "played keys".to_string(),
-        },
-    );
+    let emulated = matches!(args.engine, values::PlayEngine::Emu);
+    let what = format!("{} keys on their boards", session.kb.keys.len());
+    let bar = PlayBar::new(multi, if emulated { what } else { "played keys".into() });
     let mut warn = |w: String| bar.0.suspend(|| eprintln!("warning: {w}"));
     let piece = session.play(performance, &mut warn, &bar)?;
     bar.0.finish_and_clear();
     let (lines, warnings) = piece.report();
     warnings.iter().for_each(|w| eprintln!("warning: {w}"));
     lines.iter().for_each(|l| println!("{l}"));
-    piece
-        .written
-        .iter()
-        .for_each(|w| println!("  wrote {}", w.display()));
+    (piece.written.iter()).for_each(|w| println!("  wrote {}", w.display()));
     let row = piece.row(performance.unwrap_or(Path::new("demo")));
     let (budget, missed) = piece.budget_report();
     print!("{budget}");
-    match missed {
-        None => Ok((ExitCode::SUCCESS, row)),
-        Some(e) => {
-            eprintln!("error: {e}");
-            Ok((ExitCode::FAILURE, row))
-        }
-    }
+    missed.iter().for_each(|e| eprintln!("error: {e}"));
+    let code = if missed.is_some() {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    };
+    Ok((code, row))
 }
