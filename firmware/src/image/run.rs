@@ -152,9 +152,7 @@ impl HostWords {
                 (image.keys.iter())
                     .flat_map(|k| {
                         let frames = super::io::io_base(k.spec.core) + super::io::DAC_FRAMES;
-                        k.dac_channels
-                            .iter()
-                            .map(move |&ch| off(frames + 4 * ch as u32))
+                        k.dac_channels.iter().map(move |&ch| off(frames + 4 * ch))
                     })
                     .collect::<Result<_, _>>()?
             } else {
