@@ -27,10 +27,11 @@ pub fn tactus_files(dir: &Path) -> Vec<PathBuf> {
 /// products tried in groups it compiles in seconds and every instrument is compared.
 pub const LARGE_PROGRAM_VALUES: usize = 50_000;
 
-/// The shipped instruments, without those over [`LARGE_PROGRAM_VALUES`] (each one left out
-/// is printed).
+/// The shipped instruments and the experimental ones (`instruments/experimental/`: every
+/// engine must agree on those too, as the firmware tests check them on Thumb and C), without
+/// those over [`LARGE_PROGRAM_VALUES`] (each one left out is printed).
 pub fn instruments() -> Vec<PathBuf> {
-    shipped::instrument_files(false)
+    shipped::instrument_files(true)
         .into_iter()
         .map(|(_, p)| p)
         .filter(|p| {
