@@ -55,12 +55,16 @@ pub const IDLE_GAP_S: f64 = 1.0;
 /// How long a calibration stroke is simulated, s.
 const CALIBRATION_S: f64 = 0.6;
 
-/// How long the finger lets the key rise before a re-strike, s: the finger lifts this long
-/// before the re-striking push starts, as in the re-strike calibration. 40 ms bring a
-/// grand-piano key from the bottom back through the let-off zone, above the point where the
-/// jack re-arms under the knuckle of the hammer the repetition lever holds up (the
-/// escapement's `theta1`, 8.2 mm): the double escapement's purpose.
-pub const RESTRIKE_RISE_S: f64 = 0.040;
+/// How long the finger lets the key rise before a re-strike, s, the shortest first: the
+/// finger lifts this long before the re-striking push starts. The calibration keeps the
+/// shortest that re-strikes at as many levels as the longest ([`FingerCalibration::rise_s`]).
+/// A grand-piano key released at the bottom rises through the let-off zone, above the point
+/// where the jack re-arms under the knuckle of the hammer the repetition lever holds up (the
+/// escapement's `theta1`, ≈ 7.7 mm): the double escapement's purpose. How fast depends on
+/// the hammer: the key rises no faster than the hammer on the lever falls back with it (the
+/// key and wippen alone are nearly balanced by the leads, and friction holds them), so
+/// 40 ms suffice for some keys and states, not all.
+pub const RESTRIKE_RISES_S: [f64; 3] = [0.040, 0.055, 0.070];
 
 /// A stroke is played from rest only when its push starts at least this long after the
 /// previous stroke's finger lifted, s: the key is back up and the hammer back on its rest
@@ -68,9 +72,19 @@ pub const RESTRIKE_RISE_S: f64 = 0.040;
 /// lift). A sooner stroke is a re-strike ([`FingerCalibration::restrike`]).
 pub const SETTLE_S: f64 = 0.100;
 
-/// When the first stroke of a re-strike calibration lifts, s: its strike is long past and
-/// the back-check holds the hammer.
-const RESTRIKE_FIRST_LIFT_S: f64 = 0.25;
+/// The first stroke of a re-strike calibration is a *mezzo-forte* note (MIDI velocity
+/// [`RESTRIKE_FIRST_VELOCITY`]) played from rest, lifted this long after its strike, s: the
+/// state a performance's repeated note leaves. Repetitions 170–250 ms apart (the force
+/// player's tests) lift the previous finger [`FingerCalibration::rise_s`] before a push that starts a
+/// re-strike's lead (≈ 40–60 ms) before the note-on: 70–150 ms after the previous strike.
+/// Then a *mf* hammer has fallen back onto the repetition lever or the back-check, not
+/// always checked; a stroke held much longer (the calibration's first stroke was held 0.25 s
+/// at 3 N) leaves it checked, the lever's spring compressed, and the key rises faster from
+/// there than in the performance.
+const RESTRIKE_FIRST_HOLD_S: f64 = 0.100;
+
+/// MIDI velocity of the re-strike calibration's first stroke (*mezzo-forte*).
+const RESTRIKE_FIRST_VELOCITY: u8 = 64;
 
 /// The force player's calibration of one instrument: strokes from rest and re-strikes.
 #[derive(Clone, Debug, PartialEq)]
@@ -78,16 +92,20 @@ pub struct FingerCalibration {
     /// Strokes from rest: (peak N, lead s, hammer speed m/s); the lead from the start of
     /// the push to the strike.
     pub from_rest: Calibration,
-    /// Re-strikes: the key held down after a strike, released for [`RESTRIKE_RISE_S`] and
+    /// Re-strikes: the key held down after a strike, released for [`Self::rise_s`] and
     /// pushed again from where it rose to, the hammer still on the repetition lever. `None`
     /// when fewer than two levels re-strike.
     pub restrike: Option<Calibration>,
+    /// How long the finger lifts before a re-strike's push, s: the shortest of
+    /// [`RESTRIKE_RISES_S`] after which as many levels re-strike as after the longest.
+    pub rise_s: f64,
 }
 
 /// Measures strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
 /// (`fresh()`: one key at rest; its dip `dip_m`): from rest (the push held until the strike
-/// or 0.6 s), and re-strikes (a 3 N stroke held down until 0.25 s, the finger lifted for
-/// [`RESTRIKE_RISE_S`], then the measured push). Each gives the lead from the start of the
+/// or 0.6 s), and re-strikes (a *mf* stroke from rest lifted [`RESTRIKE_FIRST_HOLD_S`]
+/// after its strike, the finger lifted for each of [`RESTRIKE_RISES_S`], then the measured
+/// push; the shortest rise that re-strikes as many levels as the longest is kept). Each gives the lead from the start of the
 /// push to the strike and the strike's hammer speed. `None` when fewer than two levels
 /// strike from rest.
 ///
@@ -137,19 +155,33 @@ pub fn calibrate<'e>(
     let Some(from_rest) = Calibration::new(measure(None, 0.01)?) else {
         return Ok(None);
     };
+    // The first stroke as the force player plays a note: its push until 10 ms after the
+    // strike, held, lifted RESTRIKE_FIRST_HOLD_S after the strike.
+    let (peak, lead) = from_rest.for_speed(speed_for_velocity(RESTRIKE_FIRST_VELOCITY));
+    let strike = 0.01 + lead;
     let first = Stroke {
         start_s: 0.01,
-        peak_n: 3.0,
-        push_end_s: 0.1,
-        lift_s: RESTRIKE_FIRST_LIFT_S,
+        peak_n: peak,
+        push_end_s: strike + 0.010,
+        lift_s: strike + RESTRIKE_FIRST_HOLD_S,
     };
-    let restrike = Calibration::new(measure(
-        Some(first),
-        RESTRIKE_FIRST_LIFT_S + RESTRIKE_RISE_S,
-    )?);
+    // The shortest rise after which as many levels re-strike as after the longest.
+    let mut tries = Vec::with_capacity(RESTRIKE_RISES_S.len());
+    for &rise in RESTRIKE_RISES_S.iter().rev() {
+        let levels = measure(Some(first), first.lift_s + rise)?;
+        let enough = tries
+            .first()
+            .is_none_or(|(_, l): &(f64, Vec<_>)| levels.len() >= l.len());
+        if !enough {
+            break;
+        }
+        tries.push((rise, levels));
+    }
+    let (rise_s, levels) = tries.pop().expect("the longest rise is always kept");
     Ok(Some(FingerCalibration {
         from_rest,
-        restrike,
+        restrike: Calibration::new(levels),
+        rise_s,
     }))
 }
 
@@ -161,7 +193,7 @@ pub fn calibrate<'e>(
 /// A stroke whose push would start less than [`SETTLE_S`] after the previous finger lifted
 /// finds the key not yet back at rest: it is a **re-strike**, played as the re-strike
 /// calibration measured it — with its force and lead, the previous finger lifted
-/// [`RESTRIKE_RISE_S`] before the push (holding the previous note that much longer, or
+/// [`FingerCalibration::rise_s`] before the push (holding the previous note that much longer, or
 /// releasing it sooner), and never before the previous push has ended. A re-strike whose
 /// calibrated lead does not fit in the time left takes the weakest calibrated re-strike
 /// whose lead does (louder than asked, on time); when none does, it starts late. Without a re-strike calibration (or for the first
@@ -183,7 +215,7 @@ pub fn finger_profile(
         // (a dense repetition, each re-strike waiting for the last): the note is left out.
         if strokes
             .last()
-            .is_some_and(|p| p.push_end_s + RESTRIKE_RISE_S >= end_s.max(n.on_s))
+            .is_some_and(|p| p.push_end_s + cal.rise_s >= end_s.max(n.on_s))
         {
             counts.dropped += 1;
             continue;
@@ -195,7 +227,7 @@ pub fn finger_profile(
         if let Some(prev) = strokes.last_mut() {
             match &cal.restrike {
                 Some(re) if start < prev.lift_s + SETTLE_S => {
-                    let earliest = prev.push_end_s + RESTRIKE_RISE_S;
+                    let earliest = prev.push_end_s + cal.rise_s;
                     let (mut p, mut lead) = re.for_speed(speed);
                     counts.restrikes += 1;
                     if n.on_s - lead < earliest {
@@ -212,7 +244,7 @@ pub fn finger_profile(
                         counts.late += 1;
                     }
                     start = (n.on_s - lead).max(earliest);
-                    prev.lift_s = start - RESTRIKE_RISE_S;
+                    prev.lift_s = start - cal.rise_s;
                 }
                 _ => {
                     prev.lift_s = prev.lift_s.min(start - RISE_GAP_S).max(prev.start_s);
