@@ -57,7 +57,7 @@ const CALIBRATION_S: f64 = 0.6;
 
 /// How long the finger lets the key rise before a re-strike, s, the shortest first: the
 /// finger lifts this long before the re-striking push starts. The calibration keeps the
-/// shortest that re-strikes at as many levels as the longest ([`FingerCalibration::rise_s`]).
+/// shortest that re-strikes at as many levels as the longer ones ([`FingerCalibration::rise_s`]).
 /// A grand-piano key released at the bottom rises through the let-off zone, above the point
 /// where the jack re-arms under the knuckle of the hammer the repetition lever holds up (the
 /// escapement's `theta1`, ≈ 7.7 mm): the double escapement's purpose. How fast depends on
@@ -97,7 +97,7 @@ pub struct FingerCalibration {
     /// when fewer than two levels re-strike.
     pub restrike: Option<Calibration>,
     /// How long the finger lifts before a re-strike's push, s: the shortest of
-    /// [`RESTRIKE_RISES_S`] after which as many levels re-strike as after the longest.
+    /// [`RESTRIKE_RISES_S`] after which as many levels re-strike as after the longer ones.
     pub rise_s: f64,
 }
 
@@ -165,19 +165,17 @@ pub fn calibrate<'e>(
         push_end_s: strike + 0.010,
         lift_s: strike + RESTRIKE_FIRST_HOLD_S,
     };
-    // The shortest rise after which as many levels re-strike as after the longest.
-    let mut tries = Vec::with_capacity(RESTRIKE_RISES_S.len());
-    for &rise in RESTRIKE_RISES_S.iter().rev() {
-        let levels = measure(Some(first), first.lift_s + rise)?;
-        let enough = tries
-            .first()
-            .is_none_or(|(_, l): &(f64, Vec<_>)| levels.len() >= l.len());
-        if !enough {
+    // The shortest rise after which as many levels re-strike as after the longer ones kept.
+    let [shortest @ .., longest] = RESTRIKE_RISES_S;
+    let mut levels = measure(Some(first), first.lift_s + longest)?;
+    let mut rise_s = longest;
+    for &rise in shortest.iter().rev() {
+        let sooner = measure(Some(first), first.lift_s + rise)?;
+        if sooner.len() < levels.len() {
             break;
         }
-        tries.push((rise, levels));
+        (rise_s, levels) = (rise, sooner);
     }
-    let (rise_s, levels) = tries.pop().expect("the longest rise is always kept");
     Ok(Some(FingerCalibration {
         from_rest,
         restrike: Calibration::new(levels),
