@@ -408,7 +408,8 @@ struct Memo {
     flags_in: u8,
     /// Input bytes, by word.
     reads: Vec<Word>,
-    /// Stored bytes, by word, with their final values.
+    /// Stored bytes, by word, with their final values (but for words stored back as they
+    /// were read, which the inputs' match already guarantees).
     writes: Vec<Word>,
     /// One past the last byte of any of those words (checked against the SRAM's length
     /// once per use).
@@ -742,6 +743,26 @@ impl Memos {
         let writes = words(stored.iter().map(|&b| (b, sys.sram[b as usize])));
         let mut pages: Vec<u32> = writes.iter().map(|w| w.off >> 8).collect();
         pages.dedup();
+        // A stored word whose bytes are all inputs, stored back with the values they were
+        // read with, already holds them whenever the inputs match: applying it would
+        // change nothing (a key at rest rewrites its state), so it is left out of the
+        // effect. Its page stays in `pages`, its bytes in `end`.
+        let end = reads
+            .iter()
+            .chain(&writes)
+            .map(|w| w.off as usize + 4)
+            .max()
+            .unwrap_or(0);
+        let writes: Vec<Word> = writes
+            .into_iter()
+            .filter(|w| {
+                let r = reads.binary_search_by_key(&w.off, |r| r.off);
+                !r.is_ok_and(|i| {
+                    let r = &reads[i];
+                    w.mask & !r.mask == 0 && r.value & w.mask == w.value
+                })
+            })
+            .collect();
         let out_regs = rec.live_regs | rec.def_regs | 1 << 15;
         let out_flags = rec.live_flags | rec.def_flags;
         let mut claims = [u64::MAX; BANKS];
@@ -757,12 +778,7 @@ impl Memos {
             regs_in: e.r,
             live_flags: rec.live_flags,
             flags_in: e.flags & rec.live_flags,
-            end: reads
-                .iter()
-                .chain(&writes)
-                .map(|w| w.off as usize + 4)
-                .max()
-                .unwrap_or(0),
+            end,
             reads,
             writes,
             pages,

@@ -193,7 +193,10 @@ impl HostWords {
 /// are).
 #[inline(always)]
 fn word(sram: &[u8], o: usize) -> u32 {
-    u32::from_le_bytes([sram[o], sram[o + 1], sram[o + 2], sram[o + 3]])
+    // One bounds check and one load (four byte indexes compile to four of each).
+    sram.get(o..o + 4)
+        .and_then(|b| b.try_into().ok())
+        .map_or(0, u32::from_le_bytes)
 }
 
 /// Host access failure as an image error.

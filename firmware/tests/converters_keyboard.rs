@@ -1,0 +1,166 @@
+//! Every board of grand88 and of the split layout on the reference board with converters
+//! (`boards/rp2040_io.toml`), as `tactus build --board rp2040_io` makes it, against the same
+//! keys' image without converters (issue 40's "every board plays the corpus through the
+//! converters"): the key positions go in as ADC codes, and every sample the forces, the
+//! limiter's DAC codes, the events (the strikes among them) and every key's out words equal
+//! those of the image without converters fed the same positions quantised to the ADC's
+//! codes one sample later (a burst sampled in one period is read at the next tick:
+//! `converters.rs`); no deadline is missed; each core's measured handler stays within its
+//! static bound (which counts the DMA's accesses); no frame breaks its part's data-sheet
+//! timing.
+//!
+//! In CI: [`SHORT`] samples on the first board of each layout. `cargo test --release -p
+//! tactus-firmware --test converters_keyboard -- --ignored` runs a whole emulated second
+//! of the budget corpus on every board (minutes: the converters run on the lock-step
+//! interpreter, the PIO state machines cycle by cycle).
+
+use tactus_compiler::fixed::interp::FixedInstance;
+use tactus_firmware::flash::{BoardFirmware, Load};
+use tactus_firmware::image::FirmwareImage;
+use tactus_runtime::keyboard::read_board;
+use tactus_runtime::limiter::LimiterConfig;
+
+#[path = "common/layouts.rs"]
+mod layouts;
+use layouts::{corpus_words, firmware, root};
+
+/// Samples per board in CI.
+const SHORT: usize = 150;
+
+const LAYOUTS: [&str; 2] = [
+    "instruments/layouts/grand88.toml",
+    "instruments/layouts/split_harpsichord_piano.toml",
+];
+
+/// What one board did: strikes (events) and samples run.
+struct Played {
+    events: usize,
+    samples: usize,
+}
+
+/// Board `fw` (built with converters) against its keys without converters, `samples`
+/// samples of the budget corpus.
+fn play(fw: &BoardFirmware, samples: usize) -> Played {
+    let with = &fw.image;
+    let plan = with
+        .io()
+        .unwrap_or_else(|| panic!("board {}: rp2040_io names converters", fw.index));
+    let plain = read_board(&root().join("boards/rp2040.toml")).unwrap();
+    let limiter = LimiterConfig {
+        sample_rate_hz: plain.sample_rate_hz,
+        ..LimiterConfig::default()
+    };
+    let keys = with.keys();
+    let without = FirmwareImage::build(with.programs(), &keys, &plain, &limiter)
+        .unwrap_or_else(|e| panic!("board {}: the keys without converters: {e}", fw.index));
+    // Each key's corpus words and the scale of its ADC channel.
+    let streams: Vec<(Vec<i32>, _)> = keys
+        .iter()
+        .enumerate()
+        .map(|(i, k)| {
+            let p = &with.programs()[k.program];
+            assert_eq!(p.fixed.program.sensors.len(), 1, "one sensor per key");
+            let (adcs, _) = with.channels(i).unwrap();
+            let scale = plan.cores[k.core].scales[adcs[0] as usize];
+            let rest = FixedInstance::sensor_raw(&p.fixed, 0, Some(0.0));
+            let words = corpus_words(p, fw.keys[0] as usize + i, samples);
+            // Stretches of the corpus and of rest, as `keyboard_exact.rs`.
+            let words = words
+                .iter()
+                .enumerate()
+                .map(|(n, &w)| if (n / 300) % 2 == 0 { w } else { rest })
+                .collect();
+            (words, scale)
+        })
+        .collect();
+    let mut a = with.run().unwrap();
+    let mut b = without.run().unwrap();
+    let mut events = 0;
+    for n in 0..samples {
+        let now: Vec<i32> = streams.iter().map(|(w, _)| w[n]).collect();
+        let seen: Vec<i32> = streams
+            .iter()
+            .map(|(w, s)| match n {
+                0 => s.word(0),
+                _ => s.quantise(w[n - 1]),
+            })
+            .collect();
+        let ga = a.step(&now).unwrap().clone();
+        let gb = b.step(&seen).unwrap();
+        let at = |what: &str| format!("board {} sample {n}: {what}", fw.index);
+        assert_eq!(ga.force, gb.force, "{}", at("the updates' forces"));
+        assert_eq!(ga.dac, gb.dac, "{}", at("the limiter's codes"));
+        assert_eq!(ga.events, gb.events, "{}", at("events"));
+        assert!(
+            ga.misses.iter().all(|&m| m == 0),
+            "{}",
+            at("a missed deadline")
+        );
+        for c in 0..ga.core_cycles.len() {
+            let bound = with.wcet(c).unwrap().bound();
+            assert_eq!(ga.handler_runs[c], 1, "{}", at("one handler run per core"));
+            assert!(
+                ga.core_cycles[c] <= bound,
+                "{}: core {c} measured {} over the static {bound}",
+                at("WCET"),
+                ga.core_cycles[c]
+            );
+        }
+        events += ga.events.len();
+    }
+    for k in 0..keys.len() {
+        assert_eq!(a.out(k), b.out(k), "board {} key {k}: out words", fw.index);
+    }
+    let (_, breaches) = a.take_io();
+    assert!(breaches.is_empty(), "board {}: {breaches:?}", fw.index);
+    Played { events, samples }
+}
+
+/// `boards` of each layout (all when `None`), `samples` samples each, on the host's
+/// threads; the events of each layout's boards.
+fn run(boards: Option<usize>, samples: usize) -> Vec<usize> {
+    let mut all = Vec::new();
+    for layout in LAYOUTS {
+        let (fws, _) = firmware(layout, Some("rp2040_io"), Load::Ram);
+        let fws = &fws[..boards.unwrap_or(fws.len()).min(fws.len())];
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let played: Vec<Played> = std::thread::scope(|s| {
+            let handles: Vec<_> = (0..threads)
+                .map(|t| {
+                    s.spawn(move || {
+                        fws.iter()
+                            .skip(t)
+                            .step_by(threads)
+                            .map(|fw| play(fw, samples))
+                            .collect::<Vec<_>>()
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .flat_map(|h| h.join().unwrap())
+                .collect()
+        });
+        let events: usize = played.iter().map(|p| p.events).sum();
+        eprintln!(
+            "{layout} on rp2040_io: {} boards × {} samples through the converters, {events} events, \
+             as without them",
+            played.len(),
+            played.first().map_or(0, |p| p.samples)
+        );
+        all.push(events);
+    }
+    all
+}
+
+#[test]
+fn the_first_board_of_each_layout_plays_the_corpus_through_its_converters() {
+    run(Some(1), SHORT);
+}
+
+#[test]
+#[ignore = "a second of the corpus on every board through the converters (minutes, release)"]
+fn every_board_plays_a_second_of_the_corpus_through_its_converters() {
+    // The corpus strikes and lets off on every layout: the comparison covers events.
+    assert!(run(None, 44_100).iter().all(|&e| e > 0));
+}
