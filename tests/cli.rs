@@ -170,8 +170,19 @@ fn sim_engines_agree_on_the_strike() {
             .to_string();
         strikes.push(line);
     }
-    // Printed to 4 decimals: the f64 JIT is bit-identical, fixed point agrees to ~1e-6.
-    assert!(strikes.iter().all(|s| *s == strikes[0]), "{strikes:?}");
+    // The f64 JIT is bit-identical to the interpreter, the fixed JIT to the fixed
+    // interpreter; fixed point strikes at the same sample with a hammer speed within the
+    // accuracy contract's 1 % of the f64 one (docs/language.md, "the accuracy contract").
+    assert_eq!(strikes[0], strikes[1], "{strikes:?}");
+    assert_eq!(strikes[2], strikes[3], "{strikes:?}");
+    let time_speed = |line: &str| {
+        let (at, v) = line.split_once(": velocity = ").unwrap();
+        let v: f64 = v.trim_end_matches(" m/s").parse().unwrap();
+        (at.to_string(), v)
+    };
+    let ((t64, v64), (tfx, vfx)) = (time_speed(&strikes[0]), time_speed(&strikes[2]));
+    assert_eq!(t64, tfx, "{strikes:?}");
+    assert!((vfx - v64).abs() <= 0.01 * v64, "{strikes:?}");
     for f in [
         "grand_piano-mf-dip.csv",
         "grand_piano-mf-dip-jit.csv",

@@ -16,7 +16,7 @@
 //!
 //! It found a friction piano's 1.09 DAC LSB at grand88's C8 on a half dip to 90 %: the jack
 //! felt's floored products biasing the hammer's velocity (the header of
-//! `instruments/experimental/grand_piano_friction.tactus`).
+//! `instruments/grand_piano.tactus`).
 //! Only straight differences per sample: the contract's switch clause and re-timed reading
 //! are `contract::compare`'s.
 

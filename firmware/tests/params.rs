@@ -49,12 +49,15 @@ fn graded_grand88_is_one_program_with_a_param_block_per_key() {
         .map(|p| fp.program.params[p.index()].name.as_str())
         .collect();
     println!("run-time params of the graded piano: {names:?}");
-    // The hammer's `(l3·f − B_h·w − M_h·grav·l4) / I_h · h` (I_h = M_h·l4²) with its
-    // constant factor h/I_h distributed into the terms (`fixed::distribute`): `B_h·h/I_h`
-    // and the lever's `l3·h/I_h` for each arm of its `select` (the weight torque's
-    // `M_h·grav·l4·h/I_h` is `grav·h/l4` for every hammer: a constant). Nothing else depends
-    // on the hammer mass, and nothing divides by it at run time.
-    assert_eq!(names.len(), 3, "{names:?}");
+    // The repetition spring's preload and damping (`rep_pre`, `b_rep`, ∝ M_h), the key leads
+    // (`G = balance − M_h·grav·ratio`: the key weighed off at every hammer mass), the rest
+    // felt's height below the jack (∝ M_h: the jack's compression under its share of the
+    // hammer's weight), as the landing's threshold and as the angle it sets, and the hammer's
+    // `(l3·f − B_h·w − M_h·grav·l4) / I_h · h` (I_h = M_h·l4²) with its constant factor h/I_h
+    // distributed into the terms (`fixed::distribute`): `B_h·h/I_h` and `l3·h/I_h` (the
+    // weight torque's `M_h·grav·l4·h/I_h` is `grav·h/l4` for every hammer: a constant).
+    // Nothing else depends on the hammer mass, and nothing divides by it at run time.
+    assert_eq!(names.len(), 7, "{names:?}");
     let p = &fp.program;
     assert!(
         !p.values.iter().any(|vd| matches!(vd.op,
@@ -69,7 +72,7 @@ fn graded_grand88_is_one_program_with_a_param_block_per_key() {
     };
     let (bass, mid, treble) = (block(21), block(64), block(108));
     println!("param blocks: A0 {bass:?}, E4 {mid:?}, C8 {treble:?}");
-    // Each word scales with the reciprocal inertia: monotonic from bass to treble.
+    // Each word is monotonic in the hammer mass, so from bass to treble.
     assert!(bass[0] > mid[0] && mid[0] > treble[0] || bass[0] < mid[0] && mid[0] < treble[0]);
     assert_ne!(bass, treble);
 }
@@ -131,7 +134,7 @@ fn c_code_with_param_blocks_is_bit_exact_with_the_fixed_interpreter() {
     let (ir, values) = shared_piano();
     let fp = tactus_compiler::fixed::FixedProgram::new(&ir);
     let c = cgen::emit_c(&fp).unwrap();
-    assert!(c.header.contains("int32_t params[3];"), "{}", c.header);
+    assert!(c.header.contains("int32_t params[7];"), "{}", c.header);
     let b = cc::build(&c, Compiler::Clang, &Options::default()).unwrap();
     let runs = builtin_runs(&fp);
     for v in &values {

@@ -24,11 +24,12 @@ pub fn instruments_dir() -> PathBuf {
 
 /// The shipped instruments' files, `(name, path)`, sorted by name: every
 /// `instruments/*.tactus` (named by its stem) and, with `experimental`, every
-/// `instruments/experimental/*.tactus` (named `experimental/STEM`).
+/// `instruments/experimental/*.tactus` (named `experimental/STEM`; none while that directory
+/// does not exist, as when the last experimental instrument shipped).
 pub fn instrument_files(experimental: bool) -> Vec<(String, PathBuf)> {
     let root = instruments_dir();
     let mut dirs = vec![(root.clone(), "")];
-    if experimental {
+    if experimental && root.join("experimental").is_dir() {
         dirs.push((root.join("experimental"), "experimental/"));
     }
     let mut v = Vec::new();
