@@ -19,6 +19,7 @@
 //! caller compiles one program per parameter set as before.
 
 use crate::ir::*;
+use std::cmp::Ordering;
 use std::collections::{BTreeMap, HashMap};
 
 /// One program for several parameter sets of one instrument.
@@ -68,7 +69,9 @@ pub fn share(programs: &[Program]) -> Result<Shared, String> {
 /// arithmetic but not in f64 — the piano's `M_h·grav·l4 · h/I_h`, which is `grav·h/l4`
 /// for every hammer — they stay one constant, not a run-time param.
 fn differs(a: f64, b: f64) -> bool {
-    a.to_bits() != b.to_bits() && !((a - b).abs() <= 1e-12 * a.abs().max(b.abs()))
+    // Not "≤ the rounding": a NaN difference (an infinite value) differs too.
+    let within = (a - b).abs().partial_cmp(&(1e-12 * a.abs().max(b.abs())));
+    a.to_bits() != b.to_bits() && !matches!(within, Some(Ordering::Less | Ordering::Equal))
 }
 
 fn share_as_lowered(programs: &[Program]) -> Result<Shared, String> {

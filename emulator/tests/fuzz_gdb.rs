@@ -135,10 +135,14 @@ fn bytes(pieces: &[Piece], writes: bool) -> Vec<u8> {
     v
 }
 
+/// A board's final state as the tests compare it: both cores' cycles, then each core's
+/// registers.
+type Final = ([u64; 2], [u32; 16], [u32; 16]);
+
 /// Runs the board under a session fed `input`; the client reads what the stub says (so
 /// it never blocks on a full socket) and leaves when its input is sent. Returns the
 /// board's final cycles and registers, or None if the run did not end in time.
-fn run_with_client(input: Vec<u8>) -> Option<(([u64; 2], [u32; 16], [u32; 16]), usize)> {
+fn run_with_client(input: Vec<u8>) -> Option<(Final, usize)> {
     let listener = listen(0).ok()?;
     let addr = listener.local_addr().ok()?;
     let client = std::thread::spawn(move || {

@@ -129,8 +129,10 @@ pub fn exclusions(fp: &FixedProgram) -> Vec<(u32, u32)> {
         let Stmt::If(cond_i, body_i) = &p.body[i] else {
             continue;
         };
-        let mut known = Known::default();
-        known.mode = mode_facts(p, &pos, i, *cond_i);
+        let mut known = Known {
+            mode: mode_facts(p, &pos, i, *cond_i),
+            ..Known::default()
+        };
         known.apply(fp, body_i, true);
         let facts = sample_facts(fp, *cond_i);
         let nothing = known.state.is_empty() && known.mode.is_empty() && facts.is_empty();
