@@ -182,6 +182,20 @@ fn the_grand_piano_regulates_inside_the_concert_grand_spec_at_bass_middle_and_tr
     }
 }
 
+/// The sheet of `p` measured on the fixed JIT of its fixed-point program `fp`.
+fn fixed_jit_sheet(p: &Program, fp: &tactus_compiler::fixed::FixedProgram) -> Sheet {
+    let jit = tactus_jit::fixed::FixedJitProgram::compile(fp).unwrap();
+    regulate::measure(
+        p,
+        tactus_host::play::engine::FixedJitEngine(
+            tactus_jit::fixed::FixedJitInstance::new(&jit),
+            fp,
+        ),
+        &Config::default(),
+    )
+    .unwrap()
+}
+
 /// The same sheet in the firmware's fixed point: the fixed interpreter and the fixed JIT
 /// measure the same figures bit for bit, and they are inside the spec too (the friction
 /// holds the key still in fixed point as in f64).
@@ -195,16 +209,7 @@ fn the_grand_piano_in_fixed_point_regulates_the_same_on_the_interpreter_and_the_
         &Config::default(),
     )
     .unwrap();
-    let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp).unwrap();
-    let by_jit = regulate::measure(
-        &p,
-        tactus_host::play::engine::FixedJitEngine(
-            tactus_jit::fixed::FixedJitInstance::new(&jit),
-            &fp,
-        ),
-        &Config::default(),
-    )
-    .unwrap();
+    let by_jit = fixed_jit_sheet(&p, &fp);
     assert_eq!(interp, by_jit);
     assert_eq!(outside(&interp), Vec::<String>::new());
 }
@@ -216,17 +221,7 @@ fn the_grand_piano_in_fixed_point_regulates_the_same_on_the_interpreter_and_the_
 fn the_grand_piano_in_fixed_point_regulates_inside_the_spec_at_bass_and_treble() {
     for m_h in ["11 g", "3.5 g"] {
         let p = shipped("grand_piano", &[("M_h", m_h)]);
-        let fp = tactus_compiler::fixed::FixedProgram::new(&p);
-        let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp).unwrap();
-        let s = regulate::measure(
-            &p,
-            tactus_host::play::engine::FixedJitEngine(
-                tactus_jit::fixed::FixedJitInstance::new(&jit),
-                &fp,
-            ),
-            &Config::default(),
-        )
-        .unwrap();
+        let s = fixed_jit_sheet(&p, &tactus_compiler::fixed::FixedProgram::new(&p));
         assert_eq!(outside(&s), Vec::<String>::new(), "M_h = {m_h}");
         assert!(figure(&s, Figure::Creep) <= 0.05, "M_h = {m_h}");
     }
