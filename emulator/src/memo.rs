@@ -41,10 +41,12 @@
 //!
 //! **When to record.** Recording runs the call on the interpreter, several times the
 //! native code's cost; a moving key's inputs differ every sample. So per call site (the
-//! function, the core and the return address) a recording that is not followed by a hit
-//! doubles the calls to wait before the next one, up to 63: a key that comes to rest is
-//! memoized within a few dozen samples, and a moving one costs a recording every 64th
-//! call. Tests: `tests/memo.rs` (random calls against the interpreter, one input changed
+//! function, the core and the return address) each recording doubles the misses to wait
+//! before the next one, up to 4,095; a hit makes the next miss record (a key that moved
+//! and stopped is memoized at once) but takes only one halving off the wait per 256 hits in
+//! a row, so a key that keeps changing between hits (settling slowly on its felts, or
+//! cycling through more states than a site keeps) is not interpreted at every miss; new
+//! code at the site starts its backoff afresh. Tests: `tests/memo.rs` (random calls against the interpreter, one input changed
 //! at a time), `firmware/tests/image.rs` and the keyboard comparisons (firmware images on
 //! the block engine, memoized, against the interpreter).
 
@@ -62,6 +64,8 @@ const MAX_INSTRUCTIONS: u64 = 50_000;
 const MAX_ACCESSES: usize = 16_384;
 /// A call site waits at most `2^MAX_BACKOFF - 1` calls between recordings.
 const MAX_BACKOFF: u32 = 12;
+/// Hits in a row that take one halving off a site's backoff.
+const DECAY: u32 = 256;
 /// A site tries all its memos (not only the predicted one) within this many calls of its
 /// last hit or recording: a key at rest finds its states, a moving one costs no scan of
 /// memos that do not match.
@@ -524,8 +528,13 @@ struct Site {
     last: usize,
     /// Calls to let run before the next recording.
     wait: u32,
-    /// Recordings since the last hit.
+    /// Recordings not followed by a hit, less one per [`DECAY`] hits in a row: the
+    /// exponent of the wait after the next recording.
     fails: u32,
+    /// Hits since the last miss.
+    streak: u32,
+    /// The code epoch of its backoff: new code starts it afresh.
+    epoch: u32,
     /// Calls since the last hit or recording (saturating): past [`SCAN_AFTER`] a miss
     /// tries the predicted memo only.
     quiet: u32,
@@ -605,6 +614,8 @@ impl Memos {
                     last: usize::MAX,
                     wait: 0,
                     fails: 0,
+                    streak: 0,
+                    epoch: u32::MAX,
                     quiet: 0,
                 });
                 self.sites.len() - 1
@@ -629,6 +640,10 @@ impl Memos {
         let s = self.site(core);
         self.clock += 1;
         let site = &mut self.sites[s];
+        if site.epoch != sys.code_epoch {
+            // New code at the site: its calls' past says nothing of these.
+            (site.epoch, site.fails, site.wait, site.streak) = (sys.code_epoch, 0, 0, 0);
+        }
         let next = site.memos.get(site.last).map_or(usize::MAX, |m| m.next);
         let found = match site.memos.get(next) {
             Some(m) if m.inputs_match(core, sys) => Some(next),
@@ -661,13 +676,23 @@ impl Memos {
                 l.next = i;
             }
             site.last = i;
-            site.fails = 0;
+            // The next miss records (a key that moved and stopped again is memoized at
+            // once), but a hit does not end the backoff: a key whose state keeps changing
+            // between hits (settling slowly, or cycling through more states than a site
+            // keeps) would otherwise record — interpret a whole call — at every miss after
+            // a hit, and wait no longer after each. A site earns back one halving per
+            // [`DECAY`] hits in a row.
+            site.streak = site.streak.saturating_add(1);
+            if site.streak.is_multiple_of(DECAY) {
+                site.fails = site.fails.saturating_sub(1);
+            }
             site.wait = 0;
             site.quiet = 0;
             self.stats.hits += 1;
             return Try::Applied;
         }
         self.stats.misses += 1;
+        site.streak = 0;
         if site.wait > 0 || !solo {
             site.wait = site.wait.saturating_sub(1);
             return Try::Run;
