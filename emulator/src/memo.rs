@@ -46,9 +46,10 @@
 //! and stopped is memoized at once) but takes only one halving off the wait per 256 hits in
 //! a row, so a key that keeps changing between hits (settling slowly on its felts, or
 //! cycling through more states than a site keeps) is not interpreted at every miss; new
-//! code at the site starts its backoff afresh. Tests: `tests/memo.rs` (random calls against the interpreter, one input changed
-//! at a time), `firmware/tests/image.rs` and the keyboard comparisons (firmware images on
-//! the block engine, memoized, against the interpreter).
+//! code at the site starts its backoff afresh. Tests: `tests/memo.rs` (random calls
+//! against the interpreter, one input changed at a time), `firmware/tests/image.rs` and the
+//! keyboard comparisons (firmware images on the block engine, memoized, against the
+//! interpreter).
 
 use crate::bus::{sram_location, System, BANKS};
 use crate::core::{Core, RunState};

@@ -22,7 +22,7 @@ use tactus_runtime::limiter::LimiterConfig;
 
 #[path = "common/layouts.rs"]
 mod layouts;
-use layouts::{corpus_words, firmware, root};
+use layouts::{corpus_words, firmware, on_host_threads, root};
 
 /// Samples per board in CI.
 const SHORT: usize = 150;
@@ -116,31 +116,14 @@ fn play(fw: &BoardFirmware, samples: usize) -> Played {
     Played { events, samples }
 }
 
-/// `boards` of each layout (all when `None`), `samples` samples each, on the host's
+/// `boards` of each layout (all when `None`), `samples` samples each, on two host
 /// threads; the events of each layout's boards.
 fn run(boards: Option<usize>, samples: usize) -> Vec<usize> {
     let mut all = Vec::new();
     for layout in LAYOUTS {
         let (fws, _) = firmware(layout, Some("rp2040_io"), Load::Ram);
         let fws = &fws[..boards.unwrap_or(fws.len()).min(fws.len())];
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let played: Vec<Played> = std::thread::scope(|s| {
-            let handles: Vec<_> = (0..threads)
-                .map(|t| {
-                    s.spawn(move || {
-                        fws.iter()
-                            .skip(t)
-                            .step_by(threads)
-                            .map(|fw| play(fw, samples))
-                            .collect::<Vec<_>>()
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .flat_map(|h| h.join().unwrap())
-                .collect()
-        });
+        let played = on_host_threads(fws, |fw| play(fw, samples));
         let events: usize = played.iter().map(|p| p.events).sum();
         eprintln!(
             "{layout} on rp2040_io: {} boards × {} samples through the converters, {events} events, \

@@ -27,7 +27,7 @@ use tactus_runtime::limiter::Limiter;
 
 #[path = "common/layouts.rs"]
 mod layouts;
-use layouts::{corpus_words, firmware, root};
+use layouts::{corpus_words, firmware, on_host_threads, root};
 
 /// Samples every board runs in CI (the first and last board of each layout run a second).
 const SHORT: usize = 2_205;
@@ -431,30 +431,13 @@ fn check_layout(
     let second = board.sample_rate_hz as usize;
     let n = boards.len();
     // Boards on the host's cores.
-    let results: Vec<(Outcome, Option<Outcome>)> = std::thread::scope(|s| {
-        let chunks: Vec<_> = boards.chunks(n.div_ceil(2).max(1)).collect();
-        let handles: Vec<_> = chunks
-            .into_iter()
-            .map(|c| {
-                let board = &board;
-                s.spawn(move || {
-                    c.iter()
-                        .map(|fw| {
-                            let whole = full(fw.index - 1, n);
-                            let samples = if whole { second } else { SHORT };
-                            let flash = boot_and_run(fw, board, samples, compare && whole);
-                            let ram = (compare && whole)
-                                .then(|| run_corpus(fw, fw.image.run().unwrap(), samples, true));
-                            (flash, ram)
-                        })
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap())
-            .collect()
+    let results: Vec<(Outcome, Option<Outcome>)> = on_host_threads(&boards, |fw| {
+        let whole = full(fw.index - 1, n);
+        let samples = if whole { second } else { SHORT };
+        let flash = boot_and_run(fw, &board, samples, compare && whole);
+        let ram =
+            (compare && whole).then(|| run_corpus(fw, fw.image.run().unwrap(), samples, true));
+        (flash, ram)
     });
     for (fw, (o, ram)) in boards.iter().zip(&results) {
         println!(

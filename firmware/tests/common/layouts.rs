@@ -73,3 +73,22 @@ pub fn corpus_words(p: &Program, key: usize, samples: usize) -> Vec<i32> {
     let off = key * 7919;
     (0..samples).map(|n| all[(off + n) % all.len()]).collect()
 }
+
+/// `run` of each board, the boards shared out in board order over two host threads (a
+/// board's two cores on one thread; CI has two cores): the results in board order.
+pub fn on_host_threads<T: Send>(
+    boards: &[BoardFirmware],
+    run: impl Fn(&BoardFirmware) -> T + Sync,
+) -> Vec<T> {
+    let run = &run;
+    std::thread::scope(|s| {
+        let handles: Vec<_> = boards
+            .chunks(boards.len().div_ceil(2).max(1))
+            .map(|c| s.spawn(move || c.iter().map(run).collect::<Vec<_>>()))
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap())
+            .collect()
+    })
+}
