@@ -75,8 +75,9 @@ pub const SETTLE_S: f64 = 0.100;
 /// The first stroke of a re-strike calibration is a *mezzo-forte* note (MIDI velocity
 /// [`RESTRIKE_FIRST_VELOCITY`]) played from rest, lifted this long after its strike, s: the
 /// state a performance's repeated note leaves. Repetitions 170–250 ms apart (the force
-/// player's tests) lift the previous finger [`FingerCalibration::rise_s`] before a push that starts a
-/// re-strike's lead (≈ 40–60 ms) before the note-on: 70–150 ms after the previous strike.
+/// player's tests) lift the previous finger [`FingerCalibration::rise_s`] before a push
+/// that starts a re-strike's lead (≈ 40–60 ms) before the note-on: 70–150 ms after the
+/// previous strike.
 /// Then a *mf* hammer has fallen back onto the repetition lever or the back-check, not
 /// always checked; a stroke held much longer (the calibration's first stroke was held 0.25 s
 /// at 3 N) leaves it checked, the lever's spring compressed, and the key rises faster from
@@ -105,9 +106,9 @@ pub struct FingerCalibration {
 /// (`fresh()`: one key at rest; its dip `dip_m`): from rest (the push held until the strike
 /// or 0.6 s), and re-strikes (a *mf* stroke from rest lifted [`RESTRIKE_FIRST_HOLD_S`]
 /// after its strike, the finger lifted for each of [`RESTRIKE_RISES_S`], then the measured
-/// push; the shortest rise that re-strikes as many levels as the longest is kept). Each gives the lead from the start of the
-/// push to the strike and the strike's hammer speed. `None` when fewer than two levels
-/// strike from rest.
+/// push; the shortest rise that re-strikes as many levels as the longest is kept). Each
+/// gives the lead from the start of the push to the strike and the strike's hammer speed.
+/// `None` when fewer than two levels strike from rest.
 ///
 /// Errors: the engine's (see [`run_keys`]).
 pub fn calibrate<'e>(
