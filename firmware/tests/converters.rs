@@ -297,3 +297,55 @@ fn a_board_with_converters_boots_from_flash_as_from_ram() {
         assert!((dx - dy).abs() <= slack, "{x:?} at {dx}, {y:?} at {dy}");
     }
 }
+
+#[test]
+fn skipping_the_io_machine_equals_ticking_it_every_cycle() {
+    // The I/O machine run by events (quiet stretches, idle divider cycles and delays
+    // skipped in one step) against the same machine ticked every cycle
+    // (`tactus_emulator::io::Io::stepwise`): sample for sample the same outputs, cycles and
+    // stalls, the same SRAM, the same frames, and the same state of every PIO, DMA channel
+    // and converter.
+    let p = instrument("harpsichord");
+    let lim = LimiterConfig::default();
+    let keys = keys();
+    let image =
+        FirmwareImage::build(std::slice::from_ref(&p), &keys, &board("rp2040_io"), &lim).unwrap();
+    let mut fast = image.run().unwrap();
+    let mut slow = image.run().unwrap();
+    slow.board().io_mut().unwrap().stepwise = true;
+    const N: usize = 120;
+    let words: Vec<Vec<i32>> = (0..keys.len())
+        .map(|i| stimulus_words(&p, i, 2000 + 300 * i, N))
+        .collect();
+    let state = |run: &mut tactus_firmware::image::ImageRun| {
+        let io = run.board().io_mut().unwrap();
+        let stepwise = std::mem::replace(&mut io.stepwise, false);
+        let text = format!("{io:?}");
+        io.stepwise = stepwise;
+        text
+    };
+    let mut frames = 0;
+    for n in 0..N {
+        let now: Vec<i32> = words.iter().map(|w| w[n]).collect();
+        let a = fast.step(&now).unwrap().clone();
+        let b = slow.step(&now).unwrap().clone();
+        assert_eq!(a, b, "sample {n}");
+        assert_eq!(fast.board().cycle(), slow.board().cycle(), "sample {n}");
+        assert!(
+            fast.board().system.sram == slow.board().system.sram,
+            "sample {n}: SRAM"
+        );
+        assert_eq!(
+            state(&mut fast),
+            state(&mut slow),
+            "sample {n}: the I/O machine"
+        );
+        let (ra, ba) = fast.take_io();
+        let (rb, bb) = slow.take_io();
+        assert_eq!((&ra, &ba), (&rb, &bb), "sample {n}: frames");
+        assert!(ba.is_empty(), "{ba:?}");
+        frames += ra.len();
+    }
+    // 5 ADC frames a sample (and one burst at start), 5 DAC updates.
+    assert_eq!(frames, (N + 1) * 5 + N * 5);
+}
