@@ -40,6 +40,14 @@ pub struct SpiPins {
     pub sdo: u32,
 }
 
+impl SpiPins {
+    /// The pins whose levels and directions the part sees (CS, SCLK, SDI): nothing else
+    /// at the pins changes what it does.
+    pub fn observed(&self) -> u32 {
+        1 << self.cs | 1 << self.sclk | 1 << self.sdi
+    }
+}
+
 /// The select and clock levels an SPI part saw last, from which [`SpiLines::edges`] finds
 /// the edges of the next cycle.
 #[derive(Clone, Copy, Debug, Default)]
@@ -165,6 +173,11 @@ impl Ads8688 {
         if let Some(c) = self.codes.get_mut(channel) {
             *c = code;
         }
+    }
+
+    /// Its pins.
+    pub fn pins(&self) -> SpiPins {
+        self.pins
     }
 
     /// The GPIO input levels the part drives (its SDO pin), to OR into the RP2040's inputs.
@@ -404,6 +417,11 @@ impl Dac8568 {
             updates: Vec::new(),
             violations: Vec::new(),
         }
+    }
+
+    /// Its pins.
+    pub fn pins(&self) -> SpiPins {
+        self.pins
     }
 
     /// The output codes of channels A–H.

@@ -132,8 +132,13 @@ pub struct Io {
     /// SRAM banks an enabled channel may reach ([`Dma::reach`]).
     reach_banks: u8,
     /// Tick every cycle, never skipping a quiet stretch: the reference the skipping is
-    /// tested against (`tests/io.rs`). Results never depend on it.
+    /// tested against (`tests/io.rs`, the firmware's `tests/converters.rs`). Results never
+    /// depend on it.
     pub stepwise: bool,
+    /// Per PIO block, the first cycle not yet applied to it: behind [`Io::cycle`] only
+    /// inside [`Io::advance`], while the cycles between change nothing in it but its clock
+    /// dividers, delays and input synchroniser ([`Pio::skip`]).
+    pio_clock: [u64; 2],
 }
 
 /// What the machine reaches of the rest of the system while it runs: SRAM (with the cores'
@@ -155,6 +160,8 @@ struct Port<'m, 'a> {
     claim: &'m mut [[u64; BANKS]; 2],
     /// Whether each DMA master (read, write) wins a bank against core 0 and core 1.
     wins: [[bool; 2]; 2],
+    /// The PIO blocks whose registers (FIFOs) the DMA read or wrote (bit b: PIO b).
+    touched: u8,
 }
 
 /// Which PIO block `addr` is in (0 or 1) and the register offset (the atomic aliases of
@@ -197,6 +204,7 @@ impl DmaPort for Port<'_, '_> {
             return Ok((load(self.mem.sram, off, size), wait));
         }
         if let Some((b, off)) = pio_of(addr) {
+            self.touched |= 1 << b;
             let v = self.pio[b].read(off & !3);
             let v = v >> (8 * (addr & 3)) & (u32::MAX >> (32 - 8 * size));
             return Ok((v, 0));
@@ -229,6 +237,7 @@ impl DmaPort for Port<'_, '_> {
                 2 => (value & 0xffff) * 0x0001_0001,
                 _ => value,
             };
+            self.touched |= 1 << b;
             self.pio[b].write(off & !3, v);
             return Ok(0);
         }
@@ -306,6 +315,7 @@ impl Io {
             dma_claim: [[u64::MAX; BANKS]; 2],
             reach_banks: 0,
             stepwise: false,
+            pio_clock: [cycle; 2],
         }
     }
 
@@ -518,6 +528,16 @@ impl Io {
 
     /// Runs the machine through cycle `to − 1` (nothing when it is there already).
     pub(crate) fn advance(&mut self, to: u64, mem: &mut Memory) {
+        if self.stepwise {
+            self.advance_stepwise(to, mem);
+        } else {
+            self.advance_by_events(to, mem);
+        }
+    }
+
+    /// [`Io::advance`] a cycle at a time: every cycle the DMA (unless it is quiet), both PIO
+    /// blocks and the converters (when a pin changed).
+    fn advance_stepwise(&mut self, to: u64, mem: &mut Memory) {
         let wins = [[self.dma_wins(0), self.dma_wins(1)]; 2];
         while self.cycle < to {
             let c = self.cycle;
@@ -526,32 +546,9 @@ impl Io {
                 pio: &mut self.pio,
                 claim: &mut self.dma_claim,
                 wins,
+                touched: 0,
             };
-            let dma_quiet = self.dma.quiet(&port);
-            if dma_quiet && !self.stepwise && port.pio[0].quiet() && port.pio[1].quiet() {
-                // Nothing can happen before a core writes a register (module documentation).
-                let n = to - c;
-                for p in port.pio.iter_mut() {
-                    p.skip(n, self.gpio_in);
-                }
-                self.cycle = to;
-                return;
-            }
-            if dma_quiet && !self.stepwise {
-                // Cycles in which no state machine runs but FIFO-stalled ones.
-                let n = port.pio[0]
-                    .idle_cycles()
-                    .min(port.pio[1].idle_cycles())
-                    .min(to - c);
-                if n > 0 {
-                    for p in port.pio.iter_mut() {
-                        p.skip(n, self.gpio_in);
-                    }
-                    self.cycle = c + n;
-                    continue;
-                }
-            }
-            if !dma_quiet {
+            if !self.dma.quiet(&port) {
                 self.dma.tick(c, &mut port);
             }
             let gpio_in = self.gpio_in;
@@ -561,5 +558,152 @@ impl Io {
             self.observe(c);
             self.cycle = c + 1;
         }
+        self.pio_clock = [self.cycle; 2];
+    }
+
+    /// Applies the cycles of PIO block `b` before `t` that change nothing in it but its
+    /// clocks ([`Io::pio_clock`]).
+    fn catch_up(&mut self, b: usize, t: u64) {
+        let n = t - self.pio_clock[b];
+        self.pio[b].skip(n, self.gpio_in);
+        self.pio_clock[b] = t;
+    }
+
+    /// The next cycle PIO block `b` may change anything but its clocks, from its state at
+    /// its clock while its FIFOs and the GPIO inputs stay as they are: `u64::MAX` when
+    /// every enabled state machine is stalled without effect ([`Pio::quiet`], with what
+    /// it sees of the inputs settled), else the first cycle an enabled state machine not
+    /// stalled on a FIFO runs an instruction ([`Pio::idle_cycles`]).
+    fn next_action(&self, b: usize) -> u64 {
+        let p = &self.pio[b];
+        if p.quiet() && p.settled(self.gpio_in) {
+            return u64::MAX;
+        }
+        self.pio_clock[b].saturating_add(p.idle_cycles())
+    }
+
+    /// [`Io::advance`] by events: the next cycle anything can happen is the present one
+    /// while the DMA is not quiet ([`Dma::quiet`]: it has a transfer to move or issue),
+    /// else the first in which a PIO block runs an instruction ([`Io::next_action`]); the
+    /// cycles between are applied to each block only when something needs it
+    /// ([`Io::catch_up`]). A block's next action stands until its own tick, the DMA
+    /// moving one of its FIFOs, or a change of the GPIO inputs; the DMA's quietness until
+    /// the DMA ticks or a FIFO level changes. A converter sees the pins only when one of
+    /// its own changed (its `observe` does nothing otherwise).
+    fn advance_by_events(&mut self, to: u64, mem: &mut Memory) {
+        let wins = [[self.dma_wins(0), self.dma_wins(1)]; 2];
+        let mut next: [Option<u64>; 2] = [None; 2];
+        // The DMA's quietness and the FIFO levels it was found at.
+        let mut dma_quiet: Option<([u32; 2], bool)> = None;
+        while self.cycle < to {
+            let c = self.cycle;
+            let levels = [self.pio[0].levels(), self.pio[1].levels()];
+            let quiet = match dma_quiet {
+                Some((at, q)) if at == levels => q,
+                _ => {
+                    let port = Port {
+                        mem: &mut *mem,
+                        pio: &mut self.pio,
+                        claim: &mut self.dma_claim,
+                        wins,
+                        touched: 0,
+                    };
+                    let q = self.dma.quiet(&port);
+                    dma_quiet = Some((levels, q));
+                    q
+                }
+            };
+            let t = match quiet {
+                false => c,
+                true => {
+                    for b in 0..2 {
+                        if next[b].is_none() {
+                            next[b] = Some(self.next_action(b));
+                        }
+                    }
+                    next[0].unwrap_or(c).min(next[1].unwrap_or(c)).max(c)
+                }
+            };
+            if t >= to {
+                break;
+            }
+            if !quiet {
+                // The DMA's cycle sees the blocks as the cycles before it left them.
+                self.catch_up(0, t);
+                self.catch_up(1, t);
+                let mut port = Port {
+                    mem: &mut *mem,
+                    pio: &mut self.pio,
+                    claim: &mut self.dma_claim,
+                    wins,
+                    touched: 0,
+                };
+                self.dma.tick(t, &mut port);
+                let touched = port.touched;
+                dma_quiet = None;
+                for (b, n) in next.iter_mut().enumerate() {
+                    if touched & (1 << b) != 0 {
+                        *n = None;
+                    }
+                }
+            }
+            for b in 0..2 {
+                let due = match next[b] {
+                    Some(n) => n,
+                    None => {
+                        self.catch_up(b, t);
+                        let n = self.next_action(b);
+                        next[b] = Some(n);
+                        n
+                    }
+                };
+                if due <= t {
+                    self.catch_up(b, t);
+                    let gpio_in = self.gpio_in;
+                    self.pio[b].tick(gpio_in);
+                    self.pio_clock[b] = t + 1;
+                    next[b] = None;
+                }
+            }
+            if self.observe_changed(t) {
+                // What the blocks see changed: their quiet stalls and plans with it.
+                next = [None; 2];
+            }
+            self.cycle = t + 1;
+        }
+        self.cycle = self.cycle.max(to);
+        self.catch_up(0, self.cycle);
+        self.catch_up(1, self.cycle);
+    }
+
+    /// [`Io::observe`] by events: only the converters one of whose pins changed see them;
+    /// before the GPIO inputs change, every block is brought to the cycle after `cycle`
+    /// with the inputs it had. Whether the inputs changed.
+    fn observe_changed(&mut self, cycle: u64) -> bool {
+        let now = self.driven();
+        if now == self.pins {
+            return false;
+        }
+        let changed = (now.0 ^ self.pins.0) | (now.1 ^ self.pins.1);
+        self.pins = now;
+        let mut gpio_in = 0;
+        for a in &mut self.adcs {
+            if a.pins().observed() & changed != 0 {
+                a.observe(cycle, now.0, now.1);
+            }
+            gpio_in |= a.gpio_in();
+        }
+        for d in &mut self.dacs {
+            if d.pins().observed() & changed != 0 {
+                d.observe(cycle, now.0, now.1);
+            }
+        }
+        if gpio_in == self.gpio_in {
+            return false;
+        }
+        self.catch_up(0, cycle + 1);
+        self.catch_up(1, cycle + 1);
+        self.gpio_in = gpio_in;
+        true
     }
 }

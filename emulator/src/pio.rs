@@ -374,9 +374,10 @@ impl Pio {
     }
 
     /// How many of the coming system cycles change nothing while the FIFOs stay as they
-    /// are: until the first in which an enabled state machine that is not stalled on a
-    /// FIFO ([`Pio::quiet`]'s `PULL`/`OUT` on an empty TX FIFO, `PUSH`/`IN` on a full RX
-    /// FIFO) is enabled by its clock divider (0: the next cycle); `u64::MAX` when there is
+    /// are but the clock dividers and pending delays: until the first in which an enabled
+    /// state machine that is not stalled on a FIFO ([`Pio::quiet`]'s `PULL`/`OUT` on an
+    /// empty TX FIFO, `PUSH`/`IN` on a full RX FIFO) runs an instruction — its next enabled
+    /// cycle, or the one after its delay's (0: the next cycle); `u64::MAX` when there is
     /// none. [`Pio::skip`] advances the block over them exactly.
     pub fn idle_cycles(&self) -> u64 {
         let mut idle = u64::MAX;
@@ -388,8 +389,15 @@ impl Pio {
             if self.fifo_stall(n) {
                 continue;
             }
-            // The first k ≥ 0 with acc + 256·(k + 1) ≥ divisor.
-            let k = u64::from(s.divisor() - s.acc).div_ceil(256) - 1;
+            // The enabled cycle that runs an instruction: the next one, or after a pending
+            // delay the (delay + 1)-th, when its delay cycles do nothing else (no forced
+            // instruction, no autopull that could refill the OSR meanwhile).
+            let j = match s.delay > 0 && s.exec.is_none() && !s.autopull() {
+                true => u64::from(s.delay) + 1,
+                false => 1,
+            };
+            // The first k ≥ 0 with acc + 256·(k + 1) ≥ j·divisor.
+            let k = (j * u64::from(s.divisor()) - u64::from(s.acc)).div_ceil(256) - 1;
             idle = idle.min(k);
         }
         idle
@@ -444,8 +452,8 @@ impl Pio {
 
     /// Advances a [`Pio::quiet`] block `cycles` system cycles, or any block at most
     /// [`Pio::idle_cycles`], with the GPIO inputs `gpio_in` throughout: exactly what as many
-    /// [`Pio::tick`]s would do (the clock dividers' accumulators, the synchroniser; the
-    /// stalled instructions change nothing, the others do not run).
+    /// [`Pio::tick`]s would do (the clock dividers' accumulators, the pending delays, the
+    /// synchroniser; the stalled instructions change nothing, the others do not run).
     pub fn skip(&mut self, cycles: u64, gpio_in: u32) {
         match cycles {
             0 => return,
@@ -457,11 +465,45 @@ impl Pio {
                 continue;
             }
             let s = &mut self.sm[n];
-            // acc stays below the divisor (≥ 256): each cycle is acc ← (acc + 256) mod div.
+            // acc stays below the divisor (≥ 256, < 2^24): each cycle is acc ← (acc + 256)
+            // mod div, and an enabled one when it wraps: one that counts a pending delay
+            // down (the skipped cycles end before the instruction after it, `idle_cycles`).
             let div = u64::from(s.divisor());
-            let adv = (256 * (cycles % div)) % div;
-            s.acc = ((u64::from(s.acc) + adv) % div) as u32;
+            let (enabled, acc) = match cycles < 1 << 32 {
+                true => {
+                    let total = u64::from(s.acc) + 256 * cycles;
+                    (total / div, total % div)
+                }
+                false => {
+                    let total = u128::from(s.acc) + 256 * u128::from(cycles);
+                    let div = u128::from(div);
+                    (
+                        (total / div).min(u128::from(u32::MAX)) as u64,
+                        (total % div) as u64,
+                    )
+                }
+            };
+            s.acc = acc as u32;
+            if s.delay > 0 && s.exec.is_none() {
+                debug_assert!(enabled <= u64::from(s.delay));
+                s.delay -= enabled.min(u64::from(s.delay)) as u32;
+            }
         }
+    }
+
+    /// Whether the input synchroniser holds `gpio_in` in both flops: what the state
+    /// machines see stays as it is while the inputs do.
+    pub fn settled(&self, gpio_in: u32) -> bool {
+        self.sync == [gpio_in; 2]
+    }
+
+    /// The FIFO levels (FLEVEL: TX n at bits 8n+3:8n, RX n at 8n+7:8n+4): what the DMA's
+    /// DREQs see of the block.
+    pub fn levels(&self) -> u32 {
+        (0..4).fold(0, |acc, n| {
+            let s = &self.sm[n];
+            acc | (s.tx.len() as u32) << (8 * n) | (s.rx.len() as u32) << (8 * n + 4)
+        })
     }
 
     /// Whether state machine `sm` (0–3) is enabled (CTRL.SM_ENABLE).
@@ -481,10 +523,7 @@ impl Pio {
                     | u32::from(s.tx_full()) << (16 + n)
                     | u32::from(s.tx.len() == 0) << (24 + n)
             }),
-            reg::FLEVEL => (0..4).fold(0, |acc, n| {
-                let s = &self.sm[n];
-                acc | (s.tx.len() as u32) << (8 * n) | (s.rx.len() as u32) << (8 * n + 4)
-            }),
+            reg::FLEVEL => self.levels(),
             reg::IRQ => u32::from(self.irq),
             reg::INPUT_SYNC_BYPASS => self.sync_bypass,
             o if (reg::RXF0..reg::RXF0 + 16).contains(&o) => self.sm
