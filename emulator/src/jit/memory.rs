@@ -18,7 +18,7 @@ use crate::bus::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
 use crate::decode::MemOp;
 use crate::nvic::PPB_BASE;
 use cranelift_codegen::ir::condcodes::IntCC;
-use cranelift_codegen::ir::{types, AbiParam, Block, BlockArg, InstBuilder, Signature, Value};
+use cranelift_codegen::ir::{types, AbiParam, BlockArg, InstBuilder, Signature, Value};
 use cranelift_frontend::FunctionBuilder;
 
 impl Translator<'_> {
@@ -312,7 +312,7 @@ impl Translator<'_> {
         self.b.switch_to_block(elsewhere);
         if op.is_store() {
             if size == 4 {
-                self.ppb_store(pc, rt, addr, join, solo);
+                self.ppb_store(ins, rt, addr);
             }
             let p = self.c32(pc);
             self.leave(p, Exit::General);
@@ -327,7 +327,7 @@ impl Translator<'_> {
             self.b.ins().brif(ok, in_flash, &[], out, &[]);
             self.b.switch_to_block(out);
             if size == 4 {
-                self.ppb_load(addr, join, solo);
+                self.ppb_load(ins, rt, addr);
             }
             let p = self.c32(pc);
             self.leave(p, Exit::General);
@@ -388,13 +388,16 @@ impl Translator<'_> {
         true
     }
 
-    /// The private peripheral bus for a word load at `addr` (not SRAM nor flash; the
-    /// builder in the block that found it so): when `addr` is in the PPB, calls
-    /// [`ppb_load`] and, when it did the load, jumps to `join` with the value (no wait);
-    /// otherwise leaves the builder in a block that goes on to the general path. Confined
-    /// code only: a window's core runs with its interrupt lines already pending, as the
-    /// executor's general step would make them (see [`crate::board`]'s windows).
-    fn ppb_load(&mut self, addr: Value, join: Block, solo: bool) {
+    /// The private peripheral bus for a word load at `addr` by `ins` into `rt` (not SRAM
+    /// nor flash; the builder in the block that found it so): when `addr` is in the PPB,
+    /// calls [`ppb_load`] and, when it did the load, completes the instruction (no wait)
+    /// and leaves the region after it ([`Exit::Out`]), so that the runner looks at the
+    /// next address afresh (a memoized span may start there: the firmware images' sample
+    /// interrupt memoizes its keys from the SYST_RVR store to the ICSR load); otherwise
+    /// leaves the builder in a block that goes on to the general path. Confined code only:
+    /// a window's core runs with its interrupt lines already pending, as the executor's
+    /// general step would make them (see [`crate::board`]'s windows).
+    fn ppb_load(&mut self, ins: &RegionInstr, rt: u8, addr: Value) {
         if self.confined.is_none() {
             return;
         }
@@ -424,17 +427,16 @@ impl Translator<'_> {
         let r = self.b.inst_results(r)[0];
         let done = self.b.ins().ushr_imm_u(r, 32);
         let v = self.b.ins().ireduce(types::I32, r);
-        let mut args = vec![BlockArg::Value(v)];
-        if !solo {
-            args.push(BlockArg::Value(self.b.ins().iconst(types::I64, 0)));
-        }
-        self.b.ins().brif(done, join, &args, general, &[]);
+        let complete = self.b.create_block();
+        self.b.ins().brif(done, complete, &[], general, &[]);
+        self.b.switch_to_block(complete);
+        self.set(rt, v);
+        self.complete_and_leave(ins);
         self.b.switch_to_block(general);
     }
 
-    /// As [`Translator::ppb_load`] for a word store of `rt` to [`SYST_RVR`] ([`ppb_store`]):
-    /// `join` gets 0 as the code-page flag.
-    fn ppb_store(&mut self, pc: u32, rt: u8, addr: Value, join: Block, solo: bool) {
+    /// As [`Translator::ppb_load`] for a word store of `rt` to [`SYST_RVR`] ([`ppb_store`]).
+    fn ppb_store(&mut self, ins: &RegionInstr, rt: u8, addr: Value) {
         if self.confined.is_none() {
             return;
         }
@@ -445,7 +447,7 @@ impl Translator<'_> {
         self.b.switch_to_block(call);
         let c = self.b.use_var(self.cyc);
         let at = self.b.ins().iadd_imm_s(c, 1);
-        let value = self.reg(rt, pc);
+        let value = self.reg(rt, ins.pc);
         let sig = self.b.import_signature({
             let mut s = Signature::new(self.b.func.signature.call_conv);
             s.params.push(AbiParam::new(types::I64));
@@ -460,13 +462,22 @@ impl Translator<'_> {
             .iconst(types::I64, ppb_store as *const () as usize as i64);
         let r = self.b.ins().call_indirect(sig, f, &[self.core, at, value]);
         let done = self.b.inst_results(r)[0];
-        let zero = self.b.ins().iconst(types::I32, 0);
-        let mut args = vec![BlockArg::Value(zero)];
-        if !solo {
-            args.push(BlockArg::Value(self.b.ins().iconst(types::I64, 0)));
-        }
-        self.b.ins().brif(done, join, &args, general, &[]);
+        let complete = self.b.create_block();
+        self.b.ins().brif(done, complete, &[], general, &[]);
+        self.b.switch_to_block(complete);
+        self.complete_and_leave(ins);
         self.b.switch_to_block(general);
+    }
+
+    /// In a side block: retires `ins` (its static cycles, no wait) and leaves the region
+    /// at the next instruction ([`Exit::Out`]); the straight-line counts pending for the
+    /// code after `ins` on the main path stay as they were.
+    fn complete_and_leave(&mut self, ins: &RegionInstr) {
+        let pending = (self.pend_cyc, self.pend_n);
+        self.retire(ins.cost.0, None);
+        let next = self.c32(ins.pc.wrapping_add(ins.size));
+        self.leave(next, Exit::Out);
+        (self.pend_cyc, self.pend_n) = pending;
     }
 
     /// After a store: leaves with [`Exit::Invalidate`] when it hit a code page.
