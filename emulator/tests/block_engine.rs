@@ -531,3 +531,105 @@ fn running_ahead_rolls_back_self_modifying_code_exactly() {
         "{kept} kept, {rolled_back} rolled back"
     );
 }
+
+/// Each core's SysTick handler reads SysTick's and the SCB's registers (SYST_CSR, which
+/// clears COUNTFLAG; SYST_CVR, SYST_RVR, ICSR), stores SYST_RVR (a reload alternating by
+/// one, as the firmware images' fractional sample period does) and SYST_CSR, and sums what
+/// it read into its own bank, between WFIs: the sample interrupt's private peripheral
+/// accesses, which native code makes in windows (`jit::abi::ppb_load`, `ppb_store`; the
+/// CSR store leaves for the general path). Every slice agrees with the interpreter's
+/// lock-step — registers, SysTick's state, the sums — and the windows are kept.
+#[test]
+fn private_peripheral_accesses_in_windows_match_the_interpreter() {
+    let bytes = |code: &[u16]| -> Vec<u8> { code.iter().flat_map(|h| h.to_le_bytes()).collect() };
+    let setup = |engine| {
+        let mut b = Board::new(Config {
+            engine,
+            own_banks: FIRMWARE_OWN_BANKS,
+            ..Config::default()
+        });
+        b.set_compile_threshold(0);
+        for core in 0..2 {
+            let base = bank(core);
+            let handler = base + 0x100 + 0x400 * core as u32;
+            let main = handler + 0x200;
+            let data = base + 0x8000;
+            let mut h: Vec<u16> = vec![
+                0x4800, // ldr r0, =SYST_CSR
+                0x6801, // ldr r1, [r0]      SYST_CSR (clears COUNTFLAG)
+                0x6882, // ldr r2, [r0, #8]  SYST_CVR
+                0x6843, // ldr r3, [r0, #4]  SYST_RVR
+                0x4c00, // ldr r4, =ICSR
+                0x6824, // ldr r4, [r4]
+                0x2501, // movs r5, #1
+                0x406b, // eors r3, r5
+                0x6043, // str r3, [r0, #4]  SYST_RVR
+                0x2507, // movs r5, #7
+                0x6005, // str r5, [r0]      SYST_CSR (the general path)
+                0x4e00, // ldr r6, =data
+                0x6837, // ldr r7, [r6]
+                0x187f, // adds r7, r7, r1
+                0x18bf, // adds r7, r7, r2
+                0x193f, // adds r7, r7, r4
+                0x6037, // str r7, [r6]
+                0x6877, // ldr r7, [r6, #4]
+                0x3701, // adds r7, #1
+                0x6077, // str r7, [r6, #4]
+                0x4770, // bx lr
+                0xbf00, // nop (the pool word-aligned)
+            ];
+            let pool = h.len();
+            for (i, at) in [0usize, 4, 11].into_iter().enumerate() {
+                let pc = handler + 2 * at as u32;
+                let lit = handler + 2 * pool as u32 + 4 * i as u32;
+                h[at] |= ((lit - ((pc + 4) & !3)) / 4) as u16;
+            }
+            let mut code = bytes(&h);
+            for l in [0xe000_e010u32, 0xe000_ed04, data] {
+                code.extend(l.to_le_bytes());
+            }
+            b.write_bytes(handler, &code).unwrap();
+            b.write_bytes(main, &bytes(&[0xbf30, 0xe7fd])).unwrap(); // wfi; b .-2
+            b.write_u32(base + 4 * 15, handler | 1).unwrap();
+            b.start_core(core, main | 1, 0x2004_1000 + 0x1000 * core as u32, base);
+            let c = &mut b.cores[core];
+            c.nvic.syst_rvr = 700 + 37 * core as u32;
+            c.nvic.syst_csr = 7;
+            c.nvic.syst_next = 900 + core as u64;
+        }
+        b
+    };
+    let mut block = setup(Engine::Block);
+    let mut interp = setup(Engine::Interp);
+    let nvic = |b: &Board| -> String {
+        b.cores
+            .iter()
+            .map(|c| {
+                let n = &c.nvic;
+                format!(
+                    "rvr {} csr {} countflag {} next {} fired {} pending {:x} active {:x}\n",
+                    n.syst_rvr,
+                    n.syst_csr,
+                    n.countflag,
+                    n.syst_next,
+                    n.syst_fired,
+                    n.pending,
+                    n.active
+                )
+            })
+            .collect()
+    };
+    let mut rng = Rng(0x5157_5452);
+    while block.cycle() < 300_000 {
+        let limit = block.cycle() + 1 + rng.below(8000) as u64;
+        assert_eq!(block.run_until(limit), interp.run_until(limit));
+        assert_eq!(state(&mut block), state(&mut interp), "at {limit}");
+        assert_eq!(nvic(&block), nvic(&interp), "at {limit}");
+    }
+    for core in 0..2 {
+        let count = block.read_u32(bank(core) + 0x8004).unwrap();
+        assert!(count > 300, "core {core}: {count} handler runs");
+    }
+    let (kept, _) = block.run_ahead_windows();
+    assert!(kept > 30, "{kept} windows kept");
+}

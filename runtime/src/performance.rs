@@ -473,7 +473,31 @@ impl KeyTrack {
     /// Key travel at time `t` (s), m; 0 before the first press.
     pub fn position(&self, t: f64) -> f64 {
         // The last move that has started by t decides.
-        match self.moves.partition_point(|m| m.start_s <= t) {
+        self.travel(self.moves.partition_point(|m| m.start_s <= t), t)
+    }
+
+    /// [`KeyTrack::position`] for a caller that asks at times that rarely go back (a play
+    /// loop, sample after sample): `cursor` (start it at 0; the caller keeps it between
+    /// calls) is the number of moves started by the last time asked, and moves on from
+    /// there instead of searching all the moves again. The same value as `position(t)` for
+    /// any `t` and any cursor.
+    pub fn position_from(&self, t: f64, cursor: &mut usize) -> f64 {
+        let m = &self.moves;
+        let mut i = (*cursor).min(m.len());
+        if i > 0 && m[i - 1].start_s > t {
+            // Back in time: search again.
+            i = m.partition_point(|m| m.start_s <= t);
+        }
+        while i < m.len() && m[i].start_s <= t {
+            i += 1;
+        }
+        *cursor = i;
+        self.travel(i, t)
+    }
+
+    /// Key travel at time `t` when `started` moves have started by then.
+    fn travel(&self, started: usize, t: f64) -> f64 {
+        match started {
             0 => 0.0,
             i => self.moves[i - 1].at(t),
         }
@@ -764,5 +788,36 @@ mod tests {
             "re-strike {mean_speed} m/s, full press {full_speed} m/s"
         );
         assert!((t.position(0.68) - dip).abs() < 1e-12);
+    }
+
+    #[test]
+    fn position_from_a_cursor_equals_position_forward_and_back() {
+        let note = |on_s: f64, off_s: f64| Note {
+            key: 60,
+            velocity: 40,
+            on_s,
+            off_s,
+        };
+        let perf = Performance {
+            notes: vec![
+                note(0.3, 0.4),
+                note(0.5, 0.52),
+                note(0.68, 1.0),
+                note(1.2, 1.3),
+            ],
+            sustain: vec![],
+            duration_s: 1.5,
+        };
+        let t = &key_tracks(&perf, 0.01)[0];
+        let mut cursor = 0;
+        // Forward sample by sample, then jumps back and forth (bit-for-bit equal).
+        let times = (0..16_000)
+            .map(|i| i as f64 * 1e-4)
+            .chain([1.0, 0.2, 0.69, 0.0, 1.45, 0.31, 0.31, -1.0, 3.0]);
+        for time in times {
+            let a = t.position(time);
+            let b = t.position_from(time, &mut cursor);
+            assert_eq!(a.to_bits(), b.to_bits(), "at {time} s");
+        }
     }
 }

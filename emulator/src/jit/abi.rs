@@ -72,6 +72,49 @@ impl Exit {
     }
 }
 
+/// SYST_RVR (DDI0419 B3.3.4): the one private peripheral register native code stores to
+/// ([`ppb_store`]).
+pub(crate) const SYST_RVR: u32 = 0xe000_e014;
+
+/// A word load from the core's private peripheral bus (NVIC, SysTick, SCB) at data-phase
+/// cycle `at`, for native code: what the executor's load does there (`Nvic::read`, no
+/// wait state). Returns `1 << 32 | value`, or 0 — nothing done — for an address the NVIC
+/// does not implement (a bus fault) or a cycle at or after SysTick's next wrap (the
+/// caller's deadline keeps native code before it; the general path handles the wrap).
+///
+/// # Safety
+/// `core` points to the [`Core`] the native code runs, not otherwise borrowed during the
+/// call.
+pub(crate) unsafe extern "C" fn ppb_load(core: *mut Core, at: u64, addr: u32) -> u64 {
+    // SAFETY: the caller's.
+    let core = unsafe { &mut *core };
+    if at >= core.nvic.syst_next {
+        return 0;
+    }
+    let ipsr = core.ipsr;
+    core.nvic
+        .read(at, addr, ipsr)
+        .map_or(0, |v| 1 << 32 | v as u64)
+}
+
+/// A word store of `value` to [`SYST_RVR`] at data-phase cycle `at`, for native code:
+/// what the executor's store does there (`Nvic::write`: the reload value of the next
+/// wrap; it changes neither the next wrap's cycle nor any exception's state). Returns 1,
+/// or 0 — nothing done — at or after SysTick's next wrap (as [`ppb_load`]). Other private
+/// peripheral registers can pend, enable or restart things, so native code leaves
+/// before storing to them.
+///
+/// # Safety
+/// As [`ppb_load`].
+pub(crate) unsafe extern "C" fn ppb_store(core: *mut Core, at: u64, value: u32) -> u32 {
+    // SAFETY: the caller's.
+    let core = unsafe { &mut *core };
+    if at >= core.nvic.syst_next {
+        return 0;
+    }
+    core.nvic.write(at, SYST_RVR, value) as u32
+}
+
 /// A compiled region: `fn(core, ctx, limit) -> Exit`.
 pub(crate) type NativeFn = unsafe extern "C" fn(*mut Core, *mut Ctx, u64) -> u32;
 

@@ -11,13 +11,14 @@
 //! aligned one try SRAM4/5 and flash. Offsets and bank offsets are 64-bit from the view on,
 //! so the common path widens nothing twice.
 
-use super::abi::Exit;
+use super::abi::{ppb_load, ppb_store, Exit, SYST_RVR};
 use super::scan::RegionInstr;
 use super::translate::Translator;
 use crate::bus::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
 use crate::decode::MemOp;
+use crate::nvic::PPB_BASE;
 use cranelift_codegen::ir::condcodes::IntCC;
-use cranelift_codegen::ir::{types, BlockArg, InstBuilder, Value};
+use cranelift_codegen::ir::{types, AbiParam, BlockArg, InstBuilder, Signature, Value};
 use cranelift_frontend::FunctionBuilder;
 
 impl Translator<'_> {
@@ -310,6 +311,9 @@ impl Translator<'_> {
             .jump(in_sram, &[BlockArg::Value(off64), BlockArg::Value(boff)]);
         self.b.switch_to_block(elsewhere);
         if op.is_store() {
+            if size == 4 {
+                self.ppb_store(ins, rt, addr);
+            }
             let p = self.c32(pc);
             self.leave(p, Exit::General);
         } else {
@@ -322,6 +326,9 @@ impl Translator<'_> {
             let out = self.b.create_block();
             self.b.ins().brif(ok, in_flash, &[], out, &[]);
             self.b.switch_to_block(out);
+            if size == 4 {
+                self.ppb_load(ins, rt, addr);
+            }
             let p = self.c32(pc);
             self.leave(p, Exit::General);
             self.b.switch_to_block(in_flash);
@@ -379,6 +386,98 @@ impl Translator<'_> {
             self.invalidate_if(v, ins);
         }
         true
+    }
+
+    /// The private peripheral bus for a word load at `addr` by `ins` into `rt` (not SRAM
+    /// nor flash; the builder in the block that found it so): when `addr` is in the PPB,
+    /// calls [`ppb_load`] and, when it did the load, completes the instruction (no wait)
+    /// and leaves the region after it ([`Exit::Out`]), so that the runner looks at the
+    /// next address afresh (a memoized span may start there: the firmware images' sample
+    /// interrupt memoizes its keys from the SYST_RVR store to the ICSR load); otherwise
+    /// leaves the builder in a block that goes on to the general path. Confined code only:
+    /// a window's core runs with its interrupt lines already pending, as the executor's
+    /// general step would make them (see [`crate::board`]'s windows).
+    fn ppb_load(&mut self, ins: &RegionInstr, rt: u8, addr: Value) {
+        if self.confined.is_none() {
+            return;
+        }
+        let on_ppb =
+            self.b
+                .ins()
+                .icmp_imm_u(IntCC::UnsignedGreaterThanOrEqual, addr, PPB_BASE as i64);
+        let call = self.b.create_block();
+        let general = self.b.create_block();
+        self.b.ins().brif(on_ppb, call, &[], general, &[]);
+        self.b.switch_to_block(call);
+        let c = self.b.use_var(self.cyc);
+        let at = self.b.ins().iadd_imm_s(c, 1);
+        let sig = self.b.import_signature({
+            let mut s = Signature::new(self.b.func.signature.call_conv);
+            s.params.push(AbiParam::new(types::I64));
+            s.params.push(AbiParam::new(types::I64));
+            s.params.push(AbiParam::new(types::I32));
+            s.returns.push(AbiParam::new(types::I64));
+            s
+        });
+        let f = self
+            .b
+            .ins()
+            .iconst(types::I64, ppb_load as *const () as usize as i64);
+        let r = self.b.ins().call_indirect(sig, f, &[self.core, at, addr]);
+        let r = self.b.inst_results(r)[0];
+        let done = self.b.ins().ushr_imm_u(r, 32);
+        let v = self.b.ins().ireduce(types::I32, r);
+        let complete = self.b.create_block();
+        self.b.ins().brif(done, complete, &[], general, &[]);
+        self.b.switch_to_block(complete);
+        self.set(rt, v);
+        self.complete_and_leave(ins);
+        self.b.switch_to_block(general);
+    }
+
+    /// As [`Translator::ppb_load`] for a word store of `rt` to [`SYST_RVR`] ([`ppb_store`]).
+    fn ppb_store(&mut self, ins: &RegionInstr, rt: u8, addr: Value) {
+        if self.confined.is_none() {
+            return;
+        }
+        let is_rvr = self.b.ins().icmp_imm_u(IntCC::Equal, addr, SYST_RVR as i64);
+        let call = self.b.create_block();
+        let general = self.b.create_block();
+        self.b.ins().brif(is_rvr, call, &[], general, &[]);
+        self.b.switch_to_block(call);
+        let c = self.b.use_var(self.cyc);
+        let at = self.b.ins().iadd_imm_s(c, 1);
+        let value = self.reg(rt, ins.pc);
+        let sig = self.b.import_signature({
+            let mut s = Signature::new(self.b.func.signature.call_conv);
+            s.params.push(AbiParam::new(types::I64));
+            s.params.push(AbiParam::new(types::I64));
+            s.params.push(AbiParam::new(types::I32));
+            s.returns.push(AbiParam::new(types::I32));
+            s
+        });
+        let f = self
+            .b
+            .ins()
+            .iconst(types::I64, ppb_store as *const () as usize as i64);
+        let r = self.b.ins().call_indirect(sig, f, &[self.core, at, value]);
+        let done = self.b.inst_results(r)[0];
+        let complete = self.b.create_block();
+        self.b.ins().brif(done, complete, &[], general, &[]);
+        self.b.switch_to_block(complete);
+        self.complete_and_leave(ins);
+        self.b.switch_to_block(general);
+    }
+
+    /// In a side block: retires `ins` (its static cycles, no wait) and leaves the region
+    /// at the next instruction ([`Exit::Out`]); the straight-line counts pending for the
+    /// code after `ins` on the main path stay as they were.
+    fn complete_and_leave(&mut self, ins: &RegionInstr) {
+        let pending = (self.pend_cyc, self.pend_n);
+        self.retire(ins.cost.0, None);
+        let next = self.c32(ins.pc.wrapping_add(ins.size));
+        self.leave(next, Exit::Out);
+        (self.pend_cyc, self.pend_n) = pending;
     }
 
     /// After a store: leaves with [`Exit::Invalidate`] when it hit a code page.

@@ -24,8 +24,12 @@
 //! summed at compile time along straight-line code; the run-time additions are only the
 //! data-dependent ones: which way a conditional branch went, and the wait state of an SRAM
 //! access that finds its bank claimed by the other core in the same cycle (the arbiter of
-//! [`crate::bus`], done inline on the same `bank_claim` table). Flash never waits; any
-//! other address (peripherals, SIO, PPB, the boot ROM, an unaligned or unmapped access)
+//! [`crate::bus`], done inline on the same `bank_claim` table). Flash never waits. In
+//! confined code (windows), a word load from the core's private peripheral bus and a word
+//! store to SYST_RVR call the NVIC as the executor does ([`abi::ppb_load`],
+//! [`abi::ppb_store`]: the sample interrupt's SysTick and ICSR accesses; no other PPB
+//! store, since those can pend, enable or restart something). Any other address
+//! (peripherals, SIO, other PPB stores, the boot ROM, an unaligned or unmapped access)
 //! leaves the native code *before* the instruction, with every register, flag and counter
 //! as at its start, and the board's general path executes it. The caller runs a region
 //! only when the core's cycle plus the region's bound — the longest path from its entry to

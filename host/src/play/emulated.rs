@@ -154,29 +154,54 @@ pub fn play_boards(
         });
     }
     let decimation = opts.end.div_ceil(MAX_POINTS).max(1);
-    // The boards share nothing: one rayon task each, on as many threads as the machine has
-    // cores.
-    use rayon::prelude::*;
-    let results: Vec<Result<(usize, BoardRun), RunError>> = lists
-        .par_iter()
-        .enumerate()
-        .map(|(i, list)| {
-            let bkeys: Vec<PlanKey> = keys
-                .iter()
-                .filter(|k| list.contains(&k.key))
-                .copied()
-                .collect();
-            run_board(
-                programs, &costs, &bkeys, board, motions, opts, progress, decimation, i,
-            )
-            .map(|r| (i, r))
-            .map_err(|source| RunError::Board {
-                board: i + 1,
-                keys: tactus_firmware::verdict::key_ranges(list),
-                source,
-            })
-        })
-        .collect();
+    // The boards share nothing: each runs whole on one of as many threads as the machine
+    // has cores. A board whose keys play many notes takes several times as long as one at
+    // rest, so they start longest first (by notes played), each thread taking the next
+    // board when it is free: no thread is left with a long board when the others are done.
+    let notes = |list: &Vec<u8>| -> usize {
+        list.iter()
+            .filter_map(|k| motions.get(k))
+            .map(|m| m.notes())
+            .sum()
+    };
+    let mut order: Vec<usize> = (0..lists.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(notes(&lists[i])));
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results = std::sync::Mutex::new(Vec::with_capacity(lists.len()));
+    let threads = rayon::current_num_threads().clamp(1, lists.len().max(1));
+    rayon::scope(|s| {
+        for _ in 0..threads {
+            s.spawn(|_| loop {
+                let n = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&i) = order.get(n) else {
+                    break;
+                };
+                let list = &lists[i];
+                let bkeys: Vec<PlanKey> = keys
+                    .iter()
+                    .filter(|k| list.contains(&k.key))
+                    .copied()
+                    .collect();
+                let r = run_board(
+                    programs, &costs, &bkeys, board, motions, opts, progress, decimation, i,
+                )
+                .map(|r| (i, r))
+                .map_err(|source| RunError::Board {
+                    board: i + 1,
+                    keys: tactus_firmware::verdict::key_ranges(list),
+                    source,
+                });
+                results.lock().unwrap_or_else(|e| e.into_inner()).push(r);
+            });
+        }
+    });
+    let mut results = results.into_inner().unwrap_or_else(|e| e.into_inner());
+    // The first board's error, as before (boards in order).
+    results.sort_by_key(|r| match r {
+        Ok((i, _)) => (*i, 1),
+        Err(RunError::Board { board, .. }) => (board - 1, 0),
+        Err(_) => (0, 0),
+    });
     let mut runs: Vec<(usize, BoardRun)> = results.into_iter().collect::<Result<_, _>>()?;
     runs.sort_by_key(|r| r.0);
     Ok(KeyboardRun {

@@ -34,6 +34,17 @@ pub enum Motion {
     Finger(ForceProfile),
 }
 
+impl Motion {
+    /// Notes the key plays (a track's notes, a finger's strokes): what makes a board's run
+    /// long, since a key at rest costs the emulator little (its calls are memoized).
+    pub fn notes(&self) -> usize {
+        match self {
+            Motion::Track(t) => t.notes.len(),
+            Motion::Finger(f) => f.strokes().len(),
+        }
+    }
+}
+
 /// Peak finger forces of the calibration strokes, N (log-spaced from a push barely above a
 /// piano key's down-weight to a hard *fff* blow).
 pub const CALIBRATION_LEVELS_N: [f64; 14] = [

@@ -98,11 +98,13 @@ pub fn run_keys(
     let mut run = KeysRun::default();
     let mut xs = vec![0.0; n];
     let mut pending = 0usize;
+    // Per key, the moves of its track started so far (`KeyTrack::position_from`).
+    let mut cursors = vec![0usize; n];
     for i in samples {
         let time = i as f64 / fs;
         for (k, d) in drives.iter().enumerate() {
             xs[k] = match (d.motion, &players[k]) {
-                (Some(Motion::Track(t)), _) => t.position(time),
+                (Some(Motion::Track(t)), _) => t.position_from(time, &mut cursors[k]),
                 (_, Some(p)) => p.x_m,
                 _ => 0.0,
             };
