@@ -25,12 +25,15 @@
 //!
 //! **By events.** The machine runs lazily: [`crate::bus::System`] advances it to a cycle
 //! only when a core accesses one of its registers or an SRAM bank its DMA may touch, and
-//! the board at the end of each run. While every enabled state machine is stalled in a way
-//! that repeats without effect ([`Pio::quiet`]) and the DMA has nothing it could do
-//! ([`Dma::quiet`]), nothing can happen until a core writes a register: the whole stretch is
-//! skipped in one step ([`Pio::skip`] moves the clock dividers). So are the cycles in which
-//! the DMA is quiet and no state machine's divider lets it run ([`Pio::idle_cycles`]).
-//! Between those, it steps cycle by cycle.
+//! the board at the end of each run. Inside a run it goes from event to event
+//! (`Io::advance_by_events`): while the DMA has nothing it could do ([`Dma::quiet`]), the
+//! next cycle anything can happen is the first in which a state machine runs an
+//! instruction ([`Pio::idle_cycles`]: the cycles its clock divider skips and those of a
+//! pending delay change nothing else), or never while every enabled state machine is
+//! stalled in a way that repeats without effect ([`Pio::quiet`]); only the block that runs
+//! ticks, and each block's cycles between are applied in one step ([`Pio::skip`]) when
+//! something needs them. A converter sees the pins when one of its own changed. The
+//! reference it is tested against ticks everything every cycle ([`Io::stepwise`]).
 //!
 //! **The DMA against the cores.** The DMA's two masters (read and write ports) arbitrate
 //! for SRAM banks with the cores (a bank serves one master a cycle). With DMA_R and DMA_W
@@ -616,9 +619,9 @@ impl Io {
             let t = match quiet {
                 false => c,
                 true => {
-                    for b in 0..2 {
-                        if next[b].is_none() {
-                            next[b] = Some(self.next_action(b));
+                    for (b, n) in next.iter_mut().enumerate() {
+                        if n.is_none() {
+                            *n = Some(self.next_action(b));
                         }
                     }
                     next[0].unwrap_or(c).min(next[1].unwrap_or(c)).max(c)
@@ -647,13 +650,13 @@ impl Io {
                     }
                 }
             }
-            for b in 0..2 {
-                let due = match next[b] {
+            for (b, next_b) in next.iter_mut().enumerate() {
+                let due = match *next_b {
                     Some(n) => n,
                     None => {
                         self.catch_up(b, t);
                         let n = self.next_action(b);
-                        next[b] = Some(n);
+                        *next_b = Some(n);
                         n
                     }
                 };
@@ -662,7 +665,7 @@ impl Io {
                     let gpio_in = self.gpio_in;
                     self.pio[b].tick(gpio_in);
                     self.pio_clock[b] = t + 1;
-                    next[b] = None;
+                    *next_b = None;
                 }
             }
             if self.observe_changed(t) {
