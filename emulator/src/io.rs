@@ -177,7 +177,24 @@ fn pio_of(addr: u32) -> Option<(usize, u32)> {
     }
 }
 
-impl Port<'_, '_> {
+impl<'m, 'a> Port<'m, 'a> {
+    /// The DMA's side of `mem` and the blocks `pio` for a tick, the masters' bank claims in
+    /// `claim`, winning banks against the cores as `wins` says.
+    fn new(
+        mem: &'m mut Memory<'a>,
+        pio: &'m mut [Pio; 2],
+        claim: &'m mut [[u64; BANKS]; 2],
+        wins: [[bool; 2]; 2],
+    ) -> Self {
+        Port {
+            mem,
+            pio,
+            claim,
+            wins,
+            touched: 0,
+        }
+    }
+
     /// The wait states of master `m`'s access to `bank` in `cycle`, claiming it.
     fn claim_bank(&mut self, m: usize, bank: usize, cycle: u64) -> u32 {
         let mut wait = 0u32;
@@ -544,13 +561,7 @@ impl Io {
         let wins = [[self.dma_wins(0), self.dma_wins(1)]; 2];
         while self.cycle < to {
             let c = self.cycle;
-            let mut port = Port {
-                mem: &mut *mem,
-                pio: &mut self.pio,
-                claim: &mut self.dma_claim,
-                wins,
-                touched: 0,
-            };
+            let mut port = Port::new(mem, &mut self.pio, &mut self.dma_claim, wins);
             if !self.dma.quiet(&port) {
                 self.dma.tick(c, &mut port);
             }
@@ -604,13 +615,7 @@ impl Io {
             let quiet = match dma_quiet {
                 Some((at, q)) if at == levels => q,
                 _ => {
-                    let port = Port {
-                        mem: &mut *mem,
-                        pio: &mut self.pio,
-                        claim: &mut self.dma_claim,
-                        wins,
-                        touched: 0,
-                    };
+                    let port = Port::new(mem, &mut self.pio, &mut self.dma_claim, wins);
                     let q = self.dma.quiet(&port);
                     dma_quiet = Some((levels, q));
                     q
@@ -634,13 +639,7 @@ impl Io {
                 // The DMA's cycle sees the blocks as the cycles before it left them.
                 self.catch_up(0, t);
                 self.catch_up(1, t);
-                let mut port = Port {
-                    mem: &mut *mem,
-                    pio: &mut self.pio,
-                    claim: &mut self.dma_claim,
-                    wins,
-                    touched: 0,
-                };
+                let mut port = Port::new(mem, &mut self.pio, &mut self.dma_claim, wins);
                 self.dma.tick(t, &mut port);
                 let touched = port.touched;
                 dma_quiet = None;
