@@ -28,11 +28,11 @@
 //! the board at the end of each run. Inside a run it goes from event to event
 //! (`Io::advance_by_events`): while the DMA has nothing it could do ([`Dma::quiet`]), the
 //! next cycle anything can happen is the first in which a state machine runs an
-//! instruction ([`Pio::idle_cycles`]: the cycles its clock divider skips and those of a
-//! pending delay change nothing else), or never while every enabled state machine is
-//! stalled in a way that repeats without effect ([`Pio::quiet`]); only the block that runs
-//! ticks, and each block's cycles between are applied in one step ([`Pio::skip`]) when
-//! something needs them. A converter sees the pins when one of its own changed. The
+//! instruction ([`Pio::sm_idle`]: the cycles its clock divider skips and those of a pending
+//! delay change nothing else), and only the state machines due then run ([`Pio::sm_tick`]);
+//! each has its own clock, brought forward in one step ([`Pio::sm_skip`]) when something
+//! needs it. A state machine that alone drives its converters runs ahead of the rest with
+//! them (`Io::run_ahead`). A converter sees the pins when one of its own changed. The
 //! reference it is tested against ticks everything every cycle ([`Io::stepwise`]).
 //!
 //! **The DMA against the cores.** The DMA's two masters (read and write ports) arbitrate
@@ -138,10 +138,28 @@ pub struct Io {
     /// tested against (`tests/io.rs`, the firmware's `tests/converters.rs`). Results never
     /// depend on it.
     pub stepwise: bool,
-    /// Per PIO block, the first cycle not yet applied to it: behind [`Io::cycle`] only
-    /// inside [`Io::advance`], while the cycles between change nothing in it but its clock
-    /// dividers, delays and input synchroniser ([`Pio::skip`]).
-    pio_clock: [u64; 2],
+    /// Per PIO block and state machine, the first cycle not yet applied to it: behind
+    /// [`Io::cycle`] only inside [`Io::advance`], while the cycles between change nothing
+    /// in it but its clock divider and delay ([`Pio::sm_skip`]).
+    sm_clock: [[u64; 4]; 2],
+    /// Inside [`Io::advance`], per ADC the GPIO inputs it drives from the cycle it started
+    /// at: (first cycle, levels) at each change, oldest first; the synchronisers' flops
+    /// follow from them.
+    sdo_log: Vec<Vec<(u64, u32)>>,
+    /// Per PIO block and state machine, what [`Io::run_ahead`] may run of it, found for the
+    /// blocks' configuration epochs ([`Pio::config_epoch`]) and the I/O's register writes.
+    ahead: Option<Ahead>,
+}
+
+/// Which state machines may run ahead of the rest ([`Io::run_ahead`]), and the converters
+/// each drives.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct Ahead {
+    /// The blocks' [`Pio::config_epoch`] it was found at.
+    epochs: [u64; 2],
+    /// Per block and state machine: `None`, or the ADCs and the DACs (bit k: the k-th)
+    /// that see its pins and no other state machine's, and the pins it drives.
+    sm: [[Option<(u32, u32, u32)>; 4]; 2],
 }
 
 /// What the machine reaches of the rest of the system while it runs: SRAM (with the cores'
@@ -335,7 +353,9 @@ impl Io {
             dma_claim: [[u64::MAX; BANKS]; 2],
             reach_banks: 0,
             stepwise: false,
-            pio_clock: [cycle; 2],
+            sm_clock: [[cycle; 4]; 2],
+            sdo_log: Vec::new(),
+            ahead: None,
         }
     }
 
@@ -467,6 +487,7 @@ impl Io {
             PIO0_BASE => self.pio[0].write(off, value),
             PIO1_BASE => self.pio[1].write(off, value),
             IO_BANK0_BASE => {
+                self.ahead = None;
                 let n = (off / 8) as usize;
                 if n < GPIOS && off % 8 == 4 {
                     self.gpio_ctrl[n] = value & 0x3303_331f;
@@ -498,6 +519,7 @@ impl Io {
     pub(crate) fn set_resets(&mut self, held: u32) {
         let held = held & resets::ALL;
         let entering = held & !self.held;
+        self.ahead = None;
         if entering & resets::PIO0 != 0 {
             self.pio[0] = Pio::new();
         }
@@ -572,41 +594,223 @@ impl Io {
             self.observe(c);
             self.cycle = c + 1;
         }
-        self.pio_clock = [self.cycle; 2];
+        self.sm_clock = [[self.cycle; 4]; 2];
     }
 
-    /// Applies the cycles of PIO block `b` before `t` that change nothing in it but its
-    /// clocks ([`Io::pio_clock`]).
-    fn catch_up(&mut self, b: usize, t: u64) {
-        let n = t - self.pio_clock[b];
-        self.pio[b].skip(n, self.gpio_in);
-        self.pio_clock[b] = t;
-    }
-
-    /// The next cycle PIO block `b` may change anything but its clocks, from its state at
-    /// its clock while its FIFOs and the GPIO inputs stay as they are: `u64::MAX` when
-    /// every enabled state machine is stalled without effect ([`Pio::quiet`], with what
-    /// it sees of the inputs settled), else the first cycle an enabled state machine not
-    /// stalled on a FIFO runs an instruction ([`Pio::idle_cycles`]).
-    fn next_action(&self, b: usize) -> u64 {
-        let p = &self.pio[b];
-        if p.quiet() && p.settled(self.gpio_in) {
-            return u64::MAX;
+    /// The GPIO inputs of cycle `x` (what [`Pio::tick`] of that cycle is given) as PIO
+    /// block `b` had them, for `x` from two cycles before `start`, the cycle the current
+    /// [`Io::advance`] started at, whose synchroniser flops `flops` hold the two before it.
+    fn inputs_at(&self, x: u64, start: u64, flops: &[[u32; 2]; 2], b: usize) -> u32 {
+        if x.wrapping_add(2) == start {
+            return flops[b][1];
         }
-        self.pio_clock[b].saturating_add(p.idle_cycles())
+        if x.wrapping_add(1) == start {
+            return flops[b][0];
+        }
+        self.sdo_log.iter().fold(0, |m, log| {
+            m | log
+                .iter()
+                .rev()
+                .find(|&&(since, _)| since <= x)
+                .map_or(0, |&(_, v)| v)
+        })
+    }
+
+    /// Brings state machine `n` of PIO block `b` to cycle `at` (from its clock, over
+    /// cycles in which it runs no instruction) and returns its next cycle from there.
+    fn sm_resync(&mut self, b: usize, n: usize, at: u64) -> u64 {
+        let skipped = at.saturating_sub(self.sm_clock[b][n]);
+        self.pio[b].sm_skip(n, skipped);
+        self.sm_clock[b][n] = self.sm_clock[b][n].max(at);
+        self.sm_next(b, n)
+    }
+
+    /// The next cycle state machine `n` of PIO block `b` runs an instruction, from its
+    /// state at its clock ([`Pio::sm_idle`]); `u64::MAX` for never.
+    fn sm_next(&self, b: usize, n: usize) -> u64 {
+        self.pio[b]
+            .sm_idle(n)
+            .map_or(u64::MAX, |k| self.sm_clock[b][n].saturating_add(k))
+    }
+
+    /// Which state machines may run ahead ([`Ahead`]): an enabled state machine whose pins
+    /// (as IO_BANK0 gives them to its block) no other enabled one writes; whose
+    /// converters (those seeing any of them) see only those pins; which reads no input
+    /// another converter drives; and whose converters' outputs no other state machine
+    /// reads.
+    fn find_ahead(&self) -> Ahead {
+        let epochs = [self.pio[0].config_epoch(), self.pio[1].config_epoch()];
+        let pins: [[(u32, u32); 4]; 2] = std::array::from_fn(|b| {
+            std::array::from_fn(|n| match self.pio[b].enabled(n) {
+                true => {
+                    let (w, r) = self.pio[b].sm_pins(n);
+                    (w & self.pio_pins[b], r)
+                }
+                false => (0, 0),
+            })
+        });
+        let sdo = |k: usize| 1u32 << self.adcs[k].pins().sdo;
+        let mut sm = [[None; 4]; 2];
+        for b in 0..2 {
+            for n in 0..4 {
+                if !self.pio[b].enabled(n) {
+                    continue;
+                }
+                let (w, r) = pins[b][n];
+                let others = (0..8)
+                    .filter(|&i| i != 4 * b + n)
+                    .map(|i| pins[i / 4][i % 4])
+                    .fold((0, 0), |(ow, or), (w, r)| (ow | w, or | r));
+                if w & others.0 != 0 {
+                    continue;
+                }
+                let mut adcs = 0u32;
+                let mut own_sdo = 0u32;
+                let mut fits = true;
+                for (k, a) in self.adcs.iter().enumerate() {
+                    let seen = a.pins().observed();
+                    if seen & w != 0 {
+                        fits &= seen & !w == 0;
+                        adcs |= 1 << k;
+                        own_sdo |= sdo(k);
+                    }
+                }
+                let mut dacs = 0u32;
+                for (k, d) in self.dacs.iter().enumerate() {
+                    let seen = d.pins().observed();
+                    if seen & w != 0 {
+                        fits &= seen & !w == 0;
+                        dacs |= 1 << k;
+                    }
+                }
+                let foreign_sdo = (0..self.adcs.len())
+                    .filter(|k| adcs & (1 << k) == 0)
+                    .fold(0, |m, k| m | sdo(k));
+                if fits && r & foreign_sdo == 0 && others.1 & own_sdo == 0 {
+                    sm[b][n] = Some((adcs, dacs, w));
+                }
+            }
+        }
+        Ahead { epochs, sm }
+    }
+
+    /// Runs state machine `n` of PIO block `b`, due at cycle `t`, and the converters that
+    /// see its pins ([`Ahead`]: `adcs`, `dacs`), ahead of the rest of the machine: its
+    /// instructions one by one ([`Pio::sm_tick`], [`Pio::sm_skip`]) until one that touches
+    /// more than itself and its pins ([`Pio::sm_local`]) or cycle `to`. Nothing else sees
+    /// what it does meanwhile, nor does anything else change what it does: its pins are
+    /// its own, what it reads its converters', and its FIFOs untouched by it. Returns its
+    /// next cycle.
+    #[allow(clippy::too_many_arguments)]
+    fn run_ahead(
+        &mut self,
+        (b, n): (usize, usize),
+        (adcs, dacs, own): (u32, u32, u32),
+        t: u64,
+        to: u64,
+        start: u64,
+        flops: &[[u32; 2]; 2],
+    ) -> u64 {
+        // It reads no input but its own ADCs' (or constant ones: none).
+        let own_in = |io: &Io, x: u64| -> u32 {
+            if x.wrapping_add(2) <= start.wrapping_add(1) {
+                return io.inputs_at(x, start, flops, b);
+            }
+            let mut m = 0;
+            for (k, log) in io.sdo_log.iter().enumerate() {
+                if adcs & (1 << k) != 0 {
+                    m |= log
+                        .iter()
+                        .rev()
+                        .find(|&&(since, _)| since <= x)
+                        .map_or(0, |&(_, v)| v);
+                }
+            }
+            m
+        };
+        let mut x = t;
+        while x < to && self.pio[b].sm_local(n) {
+            let seen = self.pio[b].seen(own_in(self, x.wrapping_sub(2)), own_in(self, x));
+            let before = (self.pio[b].pin_values(), self.pio[b].pin_dirs());
+            let fast = self.pio[b].sm_fast(n).filter(|&c| x + c <= to);
+            match fast {
+                Some(c) => {
+                    self.pio[b].sm_exec(n, seen);
+                    self.sm_clock[b][n] = x + c;
+                }
+                None => {
+                    self.pio[b].sm_tick(1 << n, seen);
+                    self.sm_clock[b][n] = x + 1;
+                }
+            }
+            let after = (self.pio[b].pin_values(), self.pio[b].pin_dirs());
+            if after != before {
+                let (v, d) = (after.0 & own, after.1 & own);
+                self.pins = (self.pins.0 & !own | v, self.pins.1 & !own | d);
+                let now = self.pins;
+                for (k, a) in self.adcs.iter_mut().enumerate() {
+                    if adcs & (1 << k) != 0 {
+                        let was = a.gpio_in();
+                        a.observe(x, now.0, now.1);
+                        if a.gpio_in() != was {
+                            self.sdo_log[k].push((x + 1, a.gpio_in()));
+                        }
+                    }
+                }
+                for (k, d) in self.dacs.iter_mut().enumerate() {
+                    if dacs & (1 << k) != 0 {
+                        d.observe(x, now.0, now.1);
+                    }
+                }
+            }
+            if let Some(c) = fast {
+                x += c;
+                continue;
+            }
+            let Some(k) = self.pio[b].sm_idle(n) else {
+                return u64::MAX;
+            };
+            let next = x + 1 + k;
+            let skipped = next.min(to) - (x + 1);
+            self.pio[b].sm_skip(n, skipped);
+            self.sm_clock[b][n] = x + 1 + skipped;
+            x = next;
+        }
+        x
     }
 
     /// [`Io::advance`] by events: the next cycle anything can happen is the present one
     /// while the DMA is not quiet ([`Dma::quiet`]: it has a transfer to move or issue),
-    /// else the first in which a PIO block runs an instruction ([`Io::next_action`]); the
-    /// cycles between are applied to each block only when something needs it
-    /// ([`Io::catch_up`]). A block's next action stands until its own tick, the DMA
-    /// moving one of its FIFOs, or a change of the GPIO inputs; the DMA's quietness until
-    /// the DMA ticks or a FIFO level changes. A converter sees the pins only when one of
-    /// its own changed (its `observe` does nothing otherwise).
+    /// else the first in which a state machine runs an instruction ([`Io::sm_next`]), and
+    /// in that cycle only those state machines run ([`Pio::sm_tick`]); the cycles between
+    /// are applied to each state machine when it runs next or at the end ([`Pio::sm_skip`]),
+    /// and the synchronisers' flops follow from the inputs' changes ([`Io::sdo_log`]). A
+    /// state machine's next cycle stands until it runs, the DMA moves one of its block's
+    /// FIFOs, or (for one stalled on a FIFO, whose side-set must already be on the pins)
+    /// another state machine of its block changes a pin; the DMA's quietness until the DMA
+    /// ticks or a FIFO level changes. A converter sees the pins only when one of its own
+    /// changed (its `observe` does nothing otherwise). A state machine that drives its
+    /// converters alone runs ahead of the rest with them ([`Io::run_ahead`]).
     fn advance_by_events(&mut self, to: u64, mem: &mut Memory) {
         let wins = [[self.dma_wins(0), self.dma_wins(1)]; 2];
-        let mut next: [Option<u64>; 2] = [None; 2];
+        let start = self.cycle;
+        let flops = [self.pio[0].sync(), self.pio[1].sync()];
+        let epochs = [self.pio[0].config_epoch(), self.pio[1].config_epoch()];
+        if self.ahead.as_ref().is_none_or(|a| a.epochs != epochs) {
+            self.ahead = Some(self.find_ahead());
+        }
+        let ahead = self.ahead.as_ref().map_or([[None; 4]; 2], |a| a.sm);
+        self.sdo_log.resize_with(self.adcs.len(), Vec::new);
+        for (log, a) in self.sdo_log.iter_mut().zip(&self.adcs) {
+            log.clear();
+            log.push((start, a.gpio_in()));
+        }
+        let mut next = [[u64::MAX; 4]; 2];
+        for (b, nb) in next.iter_mut().enumerate() {
+            for (n, x) in nb.iter_mut().enumerate() {
+                *x = self.sm_next(b, n);
+            }
+        }
         // The DMA's quietness and the FIFO levels it was found at.
         let mut dma_quiet: Option<([u32; 2], bool)> = None;
         while self.cycle < to {
@@ -623,89 +827,113 @@ impl Io {
             };
             let t = match quiet {
                 false => c,
-                true => {
-                    for (b, n) in next.iter_mut().enumerate() {
-                        if n.is_none() {
-                            *n = Some(self.next_action(b));
-                        }
-                    }
-                    next[0].unwrap_or(c).min(next[1].unwrap_or(c)).max(c)
-                }
+                true => next
+                    .iter()
+                    .flatten()
+                    .copied()
+                    .min()
+                    .unwrap_or(u64::MAX)
+                    .max(c),
             };
             if t >= to {
                 break;
             }
             if !quiet {
-                // The DMA's cycle sees the blocks as the cycles before it left them.
-                self.catch_up(0, t);
-                self.catch_up(1, t);
+                // The FIFOs are as the cycles before left them: the state machines behind
+                // their clocks run no instruction, so move none.
                 let mut port = Port::new(mem, &mut self.pio, &mut self.dma_claim, wins);
                 self.dma.tick(t, &mut port);
                 let touched = port.touched;
                 dma_quiet = None;
-                for (b, n) in next.iter_mut().enumerate() {
+                for (b, nb) in next.iter_mut().enumerate() {
                     if touched & (1 << b) != 0 {
-                        *n = None;
+                        for (n, x) in nb.iter_mut().enumerate() {
+                            *x = self.sm_resync(b, n, t);
+                        }
                     }
                 }
             }
-            for (b, next_b) in next.iter_mut().enumerate() {
-                let due = match *next_b {
-                    Some(n) => n,
-                    None => {
-                        self.catch_up(b, t);
-                        let n = self.next_action(b);
-                        *next_b = Some(n);
-                        n
+            for (b, nb) in next.iter_mut().enumerate() {
+                let mut mask = 0u8;
+                for (n, x) in nb.iter_mut().enumerate() {
+                    if *x > t {
+                        continue;
                     }
-                };
-                if due <= t {
-                    self.catch_up(b, t);
-                    let gpio_in = self.gpio_in;
-                    self.pio[b].tick(gpio_in);
-                    self.pio_clock[b] = t + 1;
-                    *next_b = None;
+                    let skipped = t - self.sm_clock[b][n];
+                    self.pio[b].sm_skip(n, skipped);
+                    self.sm_clock[b][n] = t;
+                    match ahead[b][n] {
+                        Some(conv) if self.pio[b].sm_local(n) => {
+                            *x = self.run_ahead((b, n), conv, t, to, start, &flops);
+                        }
+                        _ => mask |= 1 << n,
+                    }
+                }
+                if mask == 0 {
+                    continue;
+                }
+                let pins = (self.pio[b].pin_values(), self.pio[b].pin_dirs());
+                let seen = self.pio[b].seen(
+                    self.inputs_at(t.wrapping_sub(2), start, &flops, b),
+                    self.inputs_at(t, start, &flops, b),
+                );
+                self.pio[b].sm_tick(mask, seen);
+                let moved = pins != (self.pio[b].pin_values(), self.pio[b].pin_dirs());
+                for (n, x) in nb.iter_mut().enumerate() {
+                    if mask & (1 << n) != 0 {
+                        self.sm_clock[b][n] = t + 1;
+                        *x = self.sm_next(b, n);
+                    } else if moved && *x == u64::MAX {
+                        // A FIFO stall holds only while its side-set is on the pins.
+                        *x = self.sm_resync(b, n, t + 1);
+                    }
                 }
             }
-            if self.observe_changed(t) {
-                // What the blocks see changed: their quiet stalls and plans with it.
-                next = [None; 2];
-            }
+            self.observe_changed(t);
             self.cycle = t + 1;
         }
         self.cycle = self.cycle.max(to);
-        self.catch_up(0, self.cycle);
-        self.catch_up(1, self.cycle);
+        let end = self.cycle;
+        for b in 0..2 {
+            for n in 0..4 {
+                let skipped = end.saturating_sub(self.sm_clock[b][n]);
+                self.pio[b].sm_skip(n, skipped);
+                self.sm_clock[b][n] = end;
+            }
+            let flops = [
+                self.inputs_at(end.wrapping_sub(1), start, &flops, b),
+                self.inputs_at(end.wrapping_sub(2), start, &flops, b),
+            ];
+            self.pio[b].set_sync(flops);
+        }
+        self.gpio_in = self.adcs.iter().fold(0, |m, a| m | a.gpio_in());
+        for log in &mut self.sdo_log {
+            log.clear();
+        }
     }
 
     /// [`Io::observe`] by events: only the converters one of whose pins changed see them;
-    /// before the GPIO inputs change, every block is brought to the cycle after `cycle`
-    /// with the inputs it had. Whether the inputs changed.
-    fn observe_changed(&mut self, cycle: u64) -> bool {
+    /// a change of an ADC's output is logged ([`Io::sdo_log`]).
+    fn observe_changed(&mut self, cycle: u64) {
         let now = self.driven();
         if now == self.pins {
-            return false;
+            return;
         }
         let changed = (now.0 ^ self.pins.0) | (now.1 ^ self.pins.1);
         self.pins = now;
-        let mut gpio_in = 0;
-        for a in &mut self.adcs {
+        for (k, a) in self.adcs.iter_mut().enumerate() {
             if a.pins().observed() & changed != 0 {
+                let was = a.gpio_in();
                 a.observe(cycle, now.0, now.1);
+                if a.gpio_in() != was {
+                    self.sdo_log[k].push((cycle + 1, a.gpio_in()));
+                }
             }
-            gpio_in |= a.gpio_in();
         }
         for d in &mut self.dacs {
             if d.pins().observed() & changed != 0 {
                 d.observe(cycle, now.0, now.1);
             }
         }
-        if gpio_in == self.gpio_in {
-            return false;
-        }
-        self.catch_up(0, cycle + 1);
-        self.catch_up(1, cycle + 1);
-        self.gpio_in = gpio_in;
-        true
     }
 }

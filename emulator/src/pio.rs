@@ -302,6 +302,9 @@ pub struct Pio {
     /// Pin output levels and directions as the state machines left them.
     out_values: u32,
     out_dirs: u32,
+    /// Register writes other than to a TX FIFO or the IRQ flags, counted: what
+    /// [`Pio::sm_pins`] answers changes only with it.
+    config_epoch: u64,
 }
 
 impl Default for Pio {
@@ -323,6 +326,7 @@ impl Pio {
             sync: [0; 2],
             out_values: 0,
             out_dirs: 0,
+            config_epoch: 0,
         }
     }
 
@@ -491,6 +495,217 @@ impl Pio {
         }
     }
 
+    /// How many system cycles from now state machine `n` runs no instruction while its
+    /// FIFOs, the block's pins and its instruction memory stay as they are: until its next
+    /// enabled cycle, or the one after a pending delay's ([`Pio::idle_cycles`]); `None` when
+    /// it runs none at all: disabled, or stalled on a FIFO ([`Pio::quiet`]'s `PULL`/`OUT` on
+    /// an empty TX FIFO, `PUSH`/`IN` on a full RX FIFO, side-set already on the pins).
+    /// Every other state machine (a `WAIT` or `IRQ` stall among them) runs at each of its
+    /// enabled cycles, as [`Pio::tick`] runs it.
+    pub fn sm_idle(&self, n: usize) -> Option<u64> {
+        if self.enabled & (1 << n) == 0 || self.fifo_stall(n) {
+            return None;
+        }
+        let s = &self.sm[n];
+        let j = match s.delay > 0 && s.exec.is_none() && !s.autopull() {
+            true => u64::from(s.delay) + 1,
+            false => 1,
+        };
+        Some((j * u64::from(s.divisor()) - u64::from(s.acc)).div_ceil(256) - 1)
+    }
+
+    /// Advances state machine `n` over `cycles` system cycles in which it runs no
+    /// instruction (at most [`Pio::sm_idle`], or any number when that is `None`): its clock
+    /// divider and pending delay, as [`Pio::skip`] does for the block (the input
+    /// synchroniser is the caller's: [`Pio::set_sync`]).
+    pub fn sm_skip(&mut self, n: usize, cycles: u64) {
+        if cycles == 0 || self.enabled & (1 << n) == 0 {
+            return;
+        }
+        let s = &mut self.sm[n];
+        let div = s.divisor();
+        let enabled = if cycles <= 4 {
+            // The usual few cycles: no division.
+            let mut fired = 0;
+            for _ in 0..cycles {
+                s.acc += 256;
+                if s.acc >= div {
+                    s.acc -= div;
+                    fired += 1;
+                }
+            }
+            fired
+        } else {
+            let total = u128::from(s.acc) + 256 * u128::from(cycles);
+            let div = u128::from(div);
+            s.acc = (total % div) as u32;
+            (total / div).min(u128::from(u32::MAX)) as u64
+        };
+        if s.delay > 0 && s.exec.is_none() {
+            debug_assert!(enabled <= u64::from(s.delay));
+            s.delay -= enabled.min(u64::from(s.delay)) as u32;
+        }
+    }
+
+    /// Runs one system cycle of the state machines in `mask` (bit n: state machine n, each
+    /// enabled, brought to this cycle by [`Pio::sm_skip`]), seeing the GPIO inputs `seen`
+    /// (through the synchroniser, or direct where bypassed: [`Pio::seen`]): what
+    /// [`Pio::tick`] does to them; the others do nothing in this cycle (the caller knows:
+    /// [`Pio::sm_idle`]). Their pin writes land in state machine order.
+    pub fn sm_tick(&mut self, mask: u8, seen: u32) {
+        let mut all = [Effects::default(); 4];
+        let mut ran = 0u8;
+        #[allow(clippy::needless_range_loop)] // `all[n]` is written after `self` is used
+        for n in 0..4 {
+            if mask & (1 << n) == 0 || self.enabled & (1 << n) == 0 {
+                continue;
+            }
+            let s = &mut self.sm[n];
+            s.acc += 256;
+            if s.acc < s.divisor() {
+                continue;
+            }
+            s.acc -= s.divisor();
+            if self.fifo_stall(n) {
+                continue;
+            }
+            all[n] = self.execute(n, seen);
+            ran |= 1 << n;
+        }
+        for (n, fx) in all.iter().enumerate() {
+            if ran & (1 << n) != 0 {
+                self.apply(fx);
+            }
+        }
+    }
+
+    /// Counts the register writes that may change [`Pio::sm_pins`] (all but TX FIFO and
+    /// IRQ flag writes).
+    pub fn config_epoch(&self) -> u64 {
+        self.config_epoch
+    }
+
+    /// The GPIOs state machine `n` may write (its OUT, SET and side-set pins) and those it
+    /// may read (`IN PINS`, `MOV` from `PINS`, `WAIT GPIO`/`PIN`, `JMP PIN`), by its pin
+    /// mapping over every word of the instruction memory (bit n: GPIO n); every pin both
+    /// ways when an instruction may be forced or executed from data (`OUT EXEC`, `MOV
+    /// EXEC`, SMx_INSTR). Until the next [`Pio::config_epoch`].
+    pub fn sm_pins(&self, n: usize) -> (u32, u32) {
+        let s = &self.sm[n];
+        let p = s.pinctrl;
+        let ranges = [
+            (bits(p, 0, 5), bits(p, 20, 6)),
+            (bits(p, 5, 5), bits(p, 26, 3)),
+            (
+                bits(p, 10, 5),
+                match s.side_en() {
+                    true => s.sideset_count().saturating_sub(1),
+                    false => s.sideset_count(),
+                },
+            ),
+        ];
+        let written = ranges.iter().fold(0, |m, &(base, count)| {
+            m | StateMachine::map(base, count, 0).0
+        });
+        let in_base = bits(p, 15, 5);
+        let mut read = 0u32;
+        let mut any = s.exec.is_some();
+        for &w in &self.instr {
+            let w = u32::from(w);
+            let (arg1, arg2) = (bits(w, 5, 3), bits(w, 0, 5));
+            match w >> 13 {
+                0 if arg1 == 6 => read |= 1 << bits(s.execctrl, 24, 5),
+                1 => match bits(w, 5, 2) {
+                    0 => read |= 1 << arg2,
+                    1 => read |= 1u32.rotate_left(in_base + arg2),
+                    _ => {}
+                },
+                2 if arg1 == 0 => read |= StateMachine::map(in_base, count32(arg2), 0).0,
+                3 if arg1 == 7 => any = true,
+                5 if arg1 == 4 => any = true,
+                5 if arg2 & 7 == 0 => read = u32::MAX,
+                _ => {}
+            }
+        }
+        match any {
+            true => (u32::MAX, u32::MAX),
+            false => (written, read),
+        }
+    }
+
+    /// Whether the instruction state machine `n` runs next touches nothing outside itself
+    /// and the pins: not a `PUSH`/`PULL`, an `IRQ`, a `WAIT IRQ` or a `MOV` from `STATUS`,
+    /// with autopush and autopull off.
+    pub fn sm_local(&self, n: usize) -> bool {
+        let s = &self.sm[n];
+        if s.autopull() || s.autopush() {
+            return false;
+        }
+        let ins = u32::from(s.exec.unwrap_or(self.instr[s.pc as usize]));
+        match ins >> 13 {
+            4 | 6 => false,
+            1 => bits(ins, 5, 2) != 2,
+            5 => bits(ins, 0, 3) != 5,
+            _ => true,
+        }
+    }
+
+    /// When state machine `n` is due (its divider lets it run this cycle) with nothing
+    /// pending, an integer clock divider, no autopush or autopull, and an instruction next
+    /// that neither stalls nor forces another (not `WAIT`, `OUT EXEC`, `MOV EXEC`; the
+    /// caller has checked [`Pio::sm_local`]): the system cycles from this one to the one
+    /// it runs its next instruction in, `INT · (1 + delay)`. [`Pio::sm_exec`] runs it.
+    pub fn sm_fast(&self, n: usize) -> Option<u64> {
+        let s = &self.sm[n];
+        let div = s.divisor();
+        if !div.is_multiple_of(256)
+            || s.delay > 0
+            || s.exec.is_some()
+            || s.autopull()
+            || s.autopush()
+            || s.acc + 256 < div
+        {
+            return None;
+        }
+        let ins = u32::from(self.instr[s.pc as usize]);
+        let (op, dest) = (ins >> 13, bits(ins, 5, 3));
+        if op == 1 || (op == 3 && dest == 7) || (op == 5 && dest == 4) {
+            return None;
+        }
+        let delay_bits = 5 - s.sideset_count().min(5);
+        let delay = bits(bits(ins, 8, 5), 0, delay_bits);
+        Some(u64::from(div / 256) * u64::from(1 + delay))
+    }
+
+    /// Runs state machine `n`'s next instruction as [`Pio::sm_fast`] allows, seeing `seen`,
+    /// and the cycles up to the next (its divider's and its delay's, which change nothing
+    /// else: the divider's accumulator comes back to where it was): what [`Pio::sm_tick`]
+    /// and [`Pio::sm_skip`] do over those cycles.
+    pub fn sm_exec(&mut self, n: usize, seen: u32) {
+        let fx = self.execute(n, seen);
+        self.apply(&fx);
+        self.sm[n].delay = 0;
+    }
+
+    /// What the state machines see in a cycle whose GPIO inputs are `now`, when those of
+    /// two cycles before were `before`: the synchronised level, or the direct one on the
+    /// pins INPUT_SYNC_BYPASS names.
+    pub fn seen(&self, before: u32, now: u32) -> u32 {
+        (before & !self.sync_bypass) | (now & self.sync_bypass)
+    }
+
+    /// The input synchroniser's flops: the GPIO inputs of the last cycle and of the one
+    /// before it.
+    pub fn sync(&self) -> [u32; 2] {
+        self.sync
+    }
+
+    /// Sets the input synchroniser's flops ([`Pio::sync`]): where a caller running the
+    /// state machines by [`Pio::sm_tick`] leaves them.
+    pub fn set_sync(&mut self, flops: [u32; 2]) {
+        self.sync = flops;
+    }
+
     /// Whether the input synchroniser holds `gpio_in` in both flops: what the state
     /// machines see stays as it is while the inputs do.
     pub fn settled(&self, gpio_in: u32) -> bool {
@@ -550,6 +765,9 @@ impl Pio {
     /// Writes register `offset` (datasheet 3.7; a write to a full TX FIFO is dropped, as
     /// the hardware does, setting a TXOVER flag this model does not keep).
     pub fn write(&mut self, offset: u32, value: u32) {
+        if !(reg::TXF0..reg::TXF0 + 16).contains(&offset) && offset != reg::IRQ {
+            self.config_epoch += 1;
+        }
         match offset {
             reg::CTRL => {
                 self.enabled = value & 0xf;
@@ -644,6 +862,7 @@ impl Pio {
     }
 
     /// Runs one enabled cycle of state machine `n`, the state machines seeing `gpio`.
+    #[inline(always)]
     fn execute(&mut self, n: usize, gpio: u32) -> Effects {
         let mut fx = Effects::default();
         let forced = self.sm[n].exec.is_some();
