@@ -730,7 +730,10 @@ impl Io {
         };
         let mut x = t;
         while x < to && self.pio[b].sm_local(n) {
-            let seen = self.pio[b].seen(own_in(self, x.wrapping_sub(2)), own_in(self, x));
+            let seen = match self.pio[b].sm_reads_pins(n) {
+                true => self.pio[b].seen(own_in(self, x.wrapping_sub(2)), own_in(self, x)),
+                false => 0,
+            };
             let before = (self.pio[b].pin_values(), self.pio[b].pin_dirs());
             let fast = self.pio[b].sm_fast(n).filter(|&c| x + c <= to);
             match fast {

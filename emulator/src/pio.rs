@@ -650,6 +650,22 @@ impl Pio {
         }
     }
 
+    /// Whether the instruction state machine `n` runs next reads the GPIO inputs (`IN`
+    /// or `MOV` from `PINS`, `WAIT GPIO`/`PIN`, `JMP PIN`): if not, what it is given as
+    /// inputs does not matter.
+    pub fn sm_reads_pins(&self, n: usize) -> bool {
+        let s = &self.sm[n];
+        let ins = u32::from(s.exec.unwrap_or(self.instr[s.pc as usize]));
+        let (arg1, arg2) = (bits(ins, 5, 3), bits(ins, 0, 5));
+        match ins >> 13 {
+            0 => arg1 == 6,
+            1 => bits(ins, 5, 2) < 2,
+            2 => arg1 == 0,
+            5 => arg2 & 7 == 0,
+            _ => false,
+        }
+    }
+
     /// When state machine `n` is due (its divider lets it run this cycle) with nothing
     /// pending, an integer clock divider, no autopush or autopull, and an instruction next
     /// that neither stalls nor forces another (not `WAIT`, `OUT EXEC`, `MOV EXEC`; the
