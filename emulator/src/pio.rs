@@ -722,12 +722,6 @@ impl Pio {
         self.sync = flops;
     }
 
-    /// Whether the input synchroniser holds `gpio_in` in both flops: what the state
-    /// machines see stays as it is while the inputs do.
-    pub fn settled(&self, gpio_in: u32) -> bool {
-        self.sync == [gpio_in; 2]
-    }
-
     /// The FIFO levels (FLEVEL: TX n at bits 8n+3:8n, RX n at 8n+7:8n+4): what the DMA's
     /// DREQs see of the block.
     pub fn levels(&self) -> u32 {
