@@ -553,10 +553,9 @@ impl Pio {
     /// [`Pio::tick`] does to them; the others do nothing in this cycle (the caller knows:
     /// [`Pio::sm_idle`]). Their pin writes land in state machine order.
     pub fn sm_tick(&mut self, mask: u8, seen: u32) {
+        // A machine that does not run this cycle writes nothing (empty masks).
         let mut all = [Effects::default(); 4];
-        let mut ran = 0u8;
-        #[allow(clippy::needless_range_loop)] // `all[n]` is written after `self` is used
-        for n in 0..4 {
+        for (n, fx) in all.iter_mut().enumerate() {
             if mask & (1 << n) == 0 || self.enabled & (1 << n) == 0 {
                 continue;
             }
@@ -566,16 +565,17 @@ impl Pio {
                 continue;
             }
             s.acc -= s.divisor();
+            // A machine stalled on a FIFO that has not changed stalls again without
+            // effect ([`Pio::idle_cycles`]): its side-set, re-asserted, is already on the
+            // pins, so it writes nothing this cycle either way.
             if self.fifo_stall(n) {
                 continue;
             }
-            all[n] = self.execute(n, seen);
-            ran |= 1 << n;
+            *fx = self.execute(n, seen);
         }
-        for (n, fx) in all.iter().enumerate() {
-            if ran & (1 << n) != 0 {
-                self.apply(fx);
-            }
+        // In state machine order: the highest-numbered writes last and wins.
+        for fx in &all {
+            self.apply(fx);
         }
     }
 
@@ -839,30 +839,7 @@ impl Pio {
         // What the state machines see this cycle: synchronised, or direct where bypassed.
         let seen = (self.sync[1] & !self.sync_bypass) | (gpio_in & self.sync_bypass);
         self.sync = [gpio_in, self.sync[0]];
-        // A machine that does not run this cycle writes nothing (empty masks).
-        let mut all = [Effects::default(); 4];
-        for (n, fx) in all.iter_mut().enumerate() {
-            if self.enabled & (1 << n) == 0 {
-                continue;
-            }
-            let s = &mut self.sm[n];
-            s.acc += 256;
-            if s.acc < s.divisor() {
-                continue;
-            }
-            s.acc -= s.divisor();
-            // A machine stalled on a FIFO that has not changed stalls again without
-            // effect ([`Pio::idle_cycles`]): its side-set, re-asserted, is already on the
-            // pins, so it writes nothing this cycle either way.
-            if self.fifo_stall(n) {
-                continue;
-            }
-            *fx = self.execute(n, seen);
-        }
-        // In state machine order: the highest-numbered writes last and wins.
-        for fx in &all {
-            self.apply(fx);
-        }
+        self.sm_tick(0xf, seen);
     }
 
     fn apply(&mut self, fx: &Effects) {
