@@ -45,6 +45,12 @@ fn stimulus_words(p: &Program, i: usize, from: usize, len: usize) -> Vec<i32> {
 }
 
 /// Keys 60–64 of `program`: three on core 0, two on core 1.
+/// `p` on `keys` for board `name`, with the default limiter.
+fn image(p: &Program, keys: &[KeySpec], name: &str) -> FirmwareImage {
+    let lim = LimiterConfig::default();
+    FirmwareImage::build(std::slice::from_ref(p), keys, &board(name), &lim).unwrap()
+}
+
 fn keys() -> Vec<KeySpec> {
     (0..5)
         .map(|i| KeySpec {
@@ -58,12 +64,9 @@ fn keys() -> Vec<KeySpec> {
 #[test]
 fn converters_carry_the_same_positions_in_and_codes_out() {
     let p = instrument("harpsichord");
-    let lim = LimiterConfig::default();
     let keys = keys();
-    let with =
-        FirmwareImage::build(std::slice::from_ref(&p), &keys, &board("rp2040_io"), &lim).unwrap();
-    let without =
-        FirmwareImage::build(std::slice::from_ref(&p), &keys, &board("rp2040"), &lim).unwrap();
+    let with = image(&p, &keys, "rp2040_io");
+    let without = image(&p, &keys, "rp2040");
     let plan = with.io().expect("the reference board names converters");
     assert_eq!(
         plan.cores
@@ -260,9 +263,7 @@ fn a_board_with_converters_boots_from_flash_as_from_ram() {
             core: i,
         })
         .collect();
-    let lim = LimiterConfig::default();
-    let image =
-        FirmwareImage::build(std::slice::from_ref(&p), &keys, &board("rp2040_io"), &lim).unwrap();
+    let image = image(&p, &keys, "rp2040_io");
     let flash = image.flash_image().unwrap().bytes;
     let mut ram = image.run().unwrap();
     let mut rom = tactus_firmware::image::ImageRun::from_flash(&image, &flash).unwrap();
@@ -306,10 +307,8 @@ fn skipping_the_io_machine_equals_ticking_it_every_cycle() {
     // stalls, the same SRAM, the same frames, and the same state of every PIO, DMA channel
     // and converter.
     let p = instrument("harpsichord");
-    let lim = LimiterConfig::default();
     let keys = keys();
-    let image =
-        FirmwareImage::build(std::slice::from_ref(&p), &keys, &board("rp2040_io"), &lim).unwrap();
+    let image = image(&p, &keys, "rp2040_io");
     let mut fast = image.run().unwrap();
     let mut slow = image.run().unwrap();
     slow.board().io_mut().unwrap().stepwise = true;

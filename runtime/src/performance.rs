@@ -760,19 +760,26 @@ mod tests {
         assert_eq!(t.position(2.0), 0.0);
         assert!(descent_time_s(100) < descent_time_s(60) && descent_time_s(30) == 0.160);
     }
+    /// A performance of `notes` (on, off, s) on key 60 at `velocity`, `duration_s` long.
+    fn one_key(velocity: u8, notes: &[(f64, f64)], duration_s: f64) -> Performance {
+        Performance {
+            notes: notes
+                .iter()
+                .map(|&(on_s, off_s)| Note {
+                    key: 60,
+                    velocity,
+                    on_s,
+                    off_s,
+                })
+                .collect(),
+            sustain: vec![],
+            duration_s,
+        }
+    }
+
     #[test]
     fn a_restrike_from_a_half_released_key_keeps_the_speed_of_its_velocity() {
-        let note = |on_s: f64, off_s: f64| Note {
-            key: 60,
-            velocity: 25,
-            on_s,
-            off_s,
-        };
-        let perf = Performance {
-            notes: vec![note(0.5, 0.52), note(0.68, 1.0)],
-            sustain: vec![],
-            duration_s: 1.5,
-        };
+        let perf = one_key(25, &[(0.5, 0.52), (0.68, 1.0)], 1.5);
         let dip = 0.01;
         let t = &key_tracks(&perf, dip)[0];
         // The last lowest point between the notes is where the second press starts.
@@ -792,22 +799,8 @@ mod tests {
 
     #[test]
     fn position_from_a_cursor_equals_position_forward_and_back() {
-        let note = |on_s: f64, off_s: f64| Note {
-            key: 60,
-            velocity: 40,
-            on_s,
-            off_s,
-        };
-        let perf = Performance {
-            notes: vec![
-                note(0.3, 0.4),
-                note(0.5, 0.52),
-                note(0.68, 1.0),
-                note(1.2, 1.3),
-            ],
-            sustain: vec![],
-            duration_s: 1.5,
-        };
+        let notes = [(0.3, 0.4), (0.5, 0.52), (0.68, 1.0), (1.2, 1.3)];
+        let perf = one_key(40, &notes, 1.5);
         let t = &key_tracks(&perf, 0.01)[0];
         let mut cursor = 0;
         // Forward sample by sample, then jumps back and forth (bit-for-bit equal).

@@ -405,34 +405,11 @@ impl Translator<'_> {
             self.b
                 .ins()
                 .icmp_imm_u(IntCC::UnsignedGreaterThanOrEqual, addr, PPB_BASE as i64);
-        let call = self.b.create_block();
-        let general = self.b.create_block();
-        self.b.ins().brif(on_ppb, call, &[], general, &[]);
-        self.b.switch_to_block(call);
-        let c = self.b.use_var(self.cyc);
-        let at = self.b.ins().iadd_imm_s(c, 1);
-        let sig = self.b.import_signature({
-            let mut s = Signature::new(self.b.func.signature.call_conv);
-            s.params.push(AbiParam::new(types::I64));
-            s.params.push(AbiParam::new(types::I64));
-            s.params.push(AbiParam::new(types::I32));
-            s.returns.push(AbiParam::new(types::I64));
-            s
-        });
-        let f = self
-            .b
-            .ins()
-            .iconst(types::I64, ppb_load as *const () as usize as i64);
-        let r = self.b.ins().call_indirect(sig, f, &[self.core, at, addr]);
-        let r = self.b.inst_results(r)[0];
+        let f = ppb_load as *const ();
+        let (r, general) = self.ppb_call(on_ppb, f, addr, types::I64);
         let done = self.b.ins().ushr_imm_u(r, 32);
         let v = self.b.ins().ireduce(types::I32, r);
-        let complete = self.b.create_block();
-        self.b.ins().brif(done, complete, &[], general, &[]);
-        self.b.switch_to_block(complete);
-        self.set(rt, v);
-        self.complete_and_leave(ins);
-        self.b.switch_to_block(general);
+        self.ppb_complete(ins, done, general, Some((rt, v)));
     }
 
     /// As [`Translator::ppb_load`] for a word store of `rt` to [`SYST_RVR`] ([`ppb_store`]).
@@ -441,30 +418,58 @@ impl Translator<'_> {
             return;
         }
         let is_rvr = self.b.ins().icmp_imm_u(IntCC::Equal, addr, SYST_RVR as i64);
+        let value = self.reg(rt, ins.pc);
+        let f = ppb_store as *const ();
+        let (done, general) = self.ppb_call(is_rvr, f, value, types::I32);
+        self.ppb_complete(ins, done, general, None);
+    }
+
+    /// When `take` holds, calls the helper `f` (`extern "C" fn(core, at, x) -> ret`, as
+    /// [`ppb_load`] and [`ppb_store`]) with the access's data-phase cycle (`cyc + 1`, as
+    /// the SRAM path's) and `x`; returns its result, the builder in the calling block, and
+    /// the block where the general path goes on (`take` false, or the helper did nothing).
+    fn ppb_call(
+        &mut self,
+        take: Value,
+        f: *const (),
+        x: Value,
+        ret: types::Type,
+    ) -> (Value, cranelift_codegen::ir::Block) {
         let call = self.b.create_block();
         let general = self.b.create_block();
-        self.b.ins().brif(is_rvr, call, &[], general, &[]);
+        self.b.ins().brif(take, call, &[], general, &[]);
         self.b.switch_to_block(call);
         let c = self.b.use_var(self.cyc);
         let at = self.b.ins().iadd_imm_s(c, 1);
-        let value = self.reg(rt, ins.pc);
         let sig = self.b.import_signature({
             let mut s = Signature::new(self.b.func.signature.call_conv);
             s.params.push(AbiParam::new(types::I64));
             s.params.push(AbiParam::new(types::I64));
             s.params.push(AbiParam::new(types::I32));
-            s.returns.push(AbiParam::new(types::I32));
+            s.returns.push(AbiParam::new(ret));
             s
         });
-        let f = self
-            .b
-            .ins()
-            .iconst(types::I64, ppb_store as *const () as usize as i64);
-        let r = self.b.ins().call_indirect(sig, f, &[self.core, at, value]);
-        let done = self.b.inst_results(r)[0];
+        let f = self.b.ins().iconst(types::I64, f as usize as i64);
+        let r = self.b.ins().call_indirect(sig, f, &[self.core, at, x]);
+        (self.b.inst_results(r)[0], general)
+    }
+
+    /// After [`Translator::ppb_call`]: when `done` is non-zero, sets the loaded register
+    /// (`load`), completes `ins` and leaves after it ([`Translator::complete_and_leave`]);
+    /// the builder ends in `general`.
+    fn ppb_complete(
+        &mut self,
+        ins: &RegionInstr,
+        done: Value,
+        general: cranelift_codegen::ir::Block,
+        load: Option<(u8, Value)>,
+    ) {
         let complete = self.b.create_block();
         self.b.ins().brif(done, complete, &[], general, &[]);
         self.b.switch_to_block(complete);
+        if let Some((rt, v)) = load {
+            self.set(rt, v);
+        }
         self.complete_and_leave(ins);
         self.b.switch_to_block(general);
     }
