@@ -210,43 +210,7 @@ pub fn check_board(board: &BoardSpec) -> Result<Chip, BoardError> {
                 f64::from(need) / 1e3
             ),
         )),
-        Some(_) => {
-            check_drivers(board, &chip)?;
-            Ok(chip)
-        }
-    }
-}
-
-/// A board with `[converters]`: its drivers planned for one key a core (one ADC and one
-/// DAC channel each, [`crate::image::io::IoPlan::new`]), so that a board no key can run
-/// on — a clock the SPI clocks cannot be divided from, a sample period shorter than one
-/// frame's burst, a conversion the frame would outrun — is refused where it is read, not
-/// when a key's firmware is built.
-///
-/// Errors: [`BoardError`] on `converters.adc`, `converters.dac` or `converters`.
-fn check_drivers(board: &BoardSpec, chip: &Chip) -> Result<(), BoardError> {
-    let Some((adc, _)) = board.converter_parts() else {
-        return Ok(());
-    };
-    let one = tactus_runtime::converters::AdcScale::new(0, 0, adc.bits);
-    let plan = crate::image::io::IoPlan::new(
-        board,
-        chip.clock_hz,
-        u64::from(chip.tick.q),
-        vec![vec![one]; chip.cores],
-        vec![1; chip.cores],
-    );
-    match plan {
-        Ok(_) => Ok(()),
-        Err(crate::image::ImageError::Board(why)) => {
-            for field in ["converters.adc", "converters.dac"] {
-                if let Some(rest) = why.strip_prefix(&format!("`{field}`: ")) {
-                    return Err(bad(field, rest.to_string()));
-                }
-            }
-            Err(bad("converters", why))
-        }
-        Err(e) => Err(bad("converters", e.to_string())),
+        Some(_) => Ok(chip),
     }
 }
 
@@ -277,23 +241,6 @@ mod tests {
             core_voltage_v: None,
             converters: None,
         }
-    }
-
-    #[test]
-    fn a_converter_board_whose_sample_period_is_shorter_than_one_frame_is_refused() {
-        let text = include_str!("../../boards/rp2040_io.toml");
-        let io = keyboard::parse_board(text, "io.toml").unwrap();
-        assert!(check_board(&io).is_ok());
-        // 500 kHz: 266 cycles a sample, less than one ADC frame's burst (332 cycles at
-        // 133 MHz): no key could run, so the board is refused when it is read.
-        let mut fast = io.clone();
-        fast.sample_rate_hz = 500_000.0;
-        let e = check_board(&fast).unwrap_err();
-        assert_eq!(e.field, "converters.adc", "{e}");
-        assert!(e.why.contains("sample period"), "{e}");
-        // Without converters the same clock and rate are a board.
-        fast.converters = None;
-        assert!(check_board(&fast).is_ok());
     }
 
     #[test]
