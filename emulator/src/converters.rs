@@ -50,7 +50,7 @@ impl SpiPins {
 
 /// The select and clock levels an SPI part saw last, from which [`SpiLines::edges`] finds
 /// the edges of the next cycle.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct SpiLines {
     cs_low: bool,
     sclk_high: bool,
@@ -67,13 +67,22 @@ struct Edges {
 }
 
 impl SpiLines {
+    /// The select and clock levels of `pins` given the driven `values` and `dirs` (as
+    /// [`SpiLines::edges`] reads them).
+    fn of(pins: &SpiPins, values: u32, dirs: u32) -> SpiLines {
+        let level = |p: u32| values & dirs & (1 << p) != 0;
+        SpiLines {
+            cs_low: dirs & (1 << pins.cs) != 0 && !level(pins.cs),
+            sclk_high: level(pins.sclk),
+        }
+    }
+
     /// The edges on `pins` given the levels the RP2040 drives (`values`) on the pins it
     /// drives (`dirs`): an undriven CS reads high (the board's pull-up keeps the part
     /// deselected while the RP2040 boots), an undriven SCLK or SDI low.
     fn edges(&mut self, pins: &SpiPins, values: u32, dirs: u32) -> Edges {
         let level = |p: u32| values & dirs & (1 << p) != 0;
-        let cs_low = dirs & (1 << pins.cs) != 0 && !level(pins.cs);
-        let sclk_high = level(pins.sclk);
+        let SpiLines { cs_low, sclk_high } = SpiLines::of(pins, values, dirs);
         let e = Edges {
             cs_fell: cs_low && !self.cs_low,
             cs_rose: !cs_low && self.cs_low,
@@ -221,11 +230,49 @@ impl Ads8688 {
             self.cs_rise(cycle);
         }
         if e.sclk_rose {
-            self.rise(cycle);
+            self.rise(cycle, true);
         }
         if e.sclk_fell {
             self.fall(e.sdi);
         }
+    }
+
+    /// Whether the pins driven `values` and `dirs` (as [`Ads8688::observe`] takes them) are
+    /// where it saw them last: then they show it no edge.
+    pub fn sees(&self, values: u32, dirs: u32) -> bool {
+        self.lines == SpiLines::of(&self.pins, values, dirs)
+    }
+
+    /// The SCLK rate of rises `cycles` apart, when it is over the part's maximum.
+    fn sclk_too_fast(&self, cycles: u64) -> Option<f64> {
+        let hz = self.clock_hz / cycles as f64;
+        (hz > self.part.sclk_max_hz).then_some(hz)
+    }
+
+    /// Whether [`Ads8688::clock_bits`] may clock the frame under way with rises `period`
+    /// cycles apart: the part selected with SCLK low as it last saw them, and that rate
+    /// within its maximum.
+    pub fn clocks_ok(&self, period: u64) -> bool {
+        self.lines.cs_low
+            && !self.lines.sclk_high
+            && self.frame.is_some()
+            && self.sclk_too_fast(period).is_none()
+    }
+
+    /// `k` SCLK periods (1 ≤ k ≤ 64) of the frame under way, CS low throughout: a rise at
+    /// `first + i·period` and a fall `fall` cycles later (0 < fall < period) latching bit
+    /// i of `sdi`, for i in 0..k. Exactly what [`Ads8688::observe`] does with them edge by
+    /// edge (the rate checked once for the equal periods: [`Ads8688::clocks_ok`], which
+    /// must hold); returns the level it drives on SDO after each rise (bit i: the i-th).
+    pub fn clock_bits(&mut self, first: u64, fall: u64, period: u64, k: u32, sdi: u64) -> u64 {
+        debug_assert!(self.clocks_ok(period) && (1..=64).contains(&k) && fall < period);
+        let mut sdo = 0u64;
+        for i in 0..k {
+            self.rise(first + u64::from(i) * period, i == 0);
+            sdo |= u64::from(self.sdo) << i;
+            self.fall(sdi >> i & 1 != 0);
+        }
+        sdo
     }
 
     fn cs_fall(&mut self, cycle: u64) {
@@ -275,13 +322,14 @@ impl Ads8688 {
         }
     }
 
-    fn rise(&mut self, cycle: u64) {
+    /// An SCLK rise at `cycle`; its rate checked against the last with `check_rate` (else
+    /// known to be within it).
+    fn rise(&mut self, cycle: u64, check_rate: bool) {
         let Some(mut f) = self.frame.take() else {
             return;
         };
-        if let Some(prev) = self.last_rise {
-            let hz = self.clock_hz / (cycle - prev) as f64;
-            if hz > self.part.sclk_max_hz {
+        if let Some(prev) = self.last_rise.filter(|_| check_rate) {
+            if let Some(hz) = self.sclk_too_fast(cycle - prev) {
                 self.violate(
                     cycle,
                     format!(
@@ -485,16 +533,48 @@ impl Dac8568 {
             }
         }
         if e.sclk_fell {
-            self.fall(cycle, e.sdi);
+            self.fall(cycle, e.sdi, true);
         }
     }
 
-    fn fall(&mut self, cycle: u64, sdi: bool) {
+    /// Whether the pins driven `values` and `dirs` (as [`Dac8568::observe`] takes them) are
+    /// where it saw them last: then they show it no edge.
+    pub fn sees(&self, values: u32, dirs: u32) -> bool {
+        self.lines == SpiLines::of(&self.pins, values, dirs)
+    }
+
+    /// The SCLK rate of falls `cycles` apart, when it is over the part's maximum.
+    fn sclk_too_fast(&self, cycles: u64) -> Option<f64> {
+        let hz = self.clock_hz / cycles as f64;
+        (hz > self.part.sclk_max_hz).then_some(hz)
+    }
+
+    /// Whether [`Dac8568::clock_bits`] may clock a frame with falls `period` cycles apart:
+    /// the part selected with SCLK low as it last saw them, and that rate within its
+    /// maximum.
+    pub fn clocks_ok(&self, period: u64) -> bool {
+        self.lines.cs_low && !self.lines.sclk_high && self.sclk_too_fast(period).is_none()
+    }
+
+    /// `k` SCLK periods (1 ≤ k ≤ 64), SYNC low throughout: a fall at `first + i·period`
+    /// latching bit i of `sdi`, for i in 0..k (the rises between change nothing). Exactly
+    /// what [`Dac8568::observe`] does with them edge by edge (the rate checked once for the
+    /// equal periods: [`Dac8568::clocks_ok`], which must hold).
+    pub fn clock_bits(&mut self, first: u64, period: u64, k: u32, sdi: u64) {
+        debug_assert!(self.clocks_ok(period) && (1..=64).contains(&k));
+        for i in 0..k {
+            self.fall(first + u64::from(i) * period, sdi >> i & 1 != 0, i == 0);
+        }
+    }
+
+    /// An SCLK fall at `cycle` latching `sdi`; its rate checked against the last with
+    /// `check_rate` (else known to be within it).
+    fn fall(&mut self, cycle: u64, sdi: bool, check_rate: bool) {
         let name = self.part.name;
         match self.last_fall {
+            Some(_) if !check_rate => {}
             Some(prev) => {
-                let hz = self.clock_hz / (cycle - prev) as f64;
-                if hz > self.part.sclk_max_hz {
+                if let Some(hz) = self.sclk_too_fast(cycle - prev) {
                     self.violate(
                         cycle,
                         format!(

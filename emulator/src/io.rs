@@ -32,7 +32,10 @@
 //! delay change nothing else), and only the state machines due then run ([`Pio::sm_tick`]);
 //! each has its own clock, brought forward in one step ([`Pio::sm_skip`]) when something
 //! needs it. A state machine that alone drives its converters runs ahead of the rest with
-//! them (`Io::run_ahead`). A converter sees the pins when one of its own changed. The
+//! them (`Io::run_ahead`), and a bit loop of its program ([`crate::pio::BitLoop`]: the SPI
+//! drivers' `OUT`/`IN` … `JMP X--` loops) as many times round as fit in one step, its
+//! converters taking the clock edges in bulk (`Io::run_loop`). A converter sees the pins
+//! when one of its own changed. The
 //! reference it is tested against ticks everything every cycle ([`Io::stepwise`]).
 //!
 //! **The DMA against the cores.** The DMA's two masters (read and write ports) arbitrate
@@ -55,7 +58,7 @@
 use crate::bus::{sram_location, BusFault, BANKS};
 use crate::converters::{Ads8688, Dac8568, SpiPins};
 use crate::dma::{Dma, DmaPort, DMA_BASE};
-use crate::pio::{Pio, PIO0_BASE, PIO1_BASE};
+use crate::pio::{BitLoop, LoopClock, Pio, LOOP_MAX, PIO0_BASE, PIO1_BASE};
 use tactus_runtime::converters::{AdcPart, DacPart};
 
 /// IO_BANK0 (datasheet 2.19.6.1): GPIOn_STATUS at `8n`, GPIOn_CTRL at `8n + 4`.
@@ -160,6 +163,24 @@ struct Ahead {
     /// Per block and state machine: `None`, or the ADCs and the DACs (bit k: the k-th)
     /// that see its pins and no other state machine's, and the pins it drives.
     sm: [[Option<(u32, u32, u32)>; 4]; 2],
+    /// Per block and state machine, the addresses (bit a) at which one of `loops` starts.
+    heads: [[u32; 4]; 2],
+    /// The bit loops of the state machines that may run ahead, with their converters' edges
+    /// ([`Io::run_loop`]).
+    loops: Vec<LoopPlan>,
+}
+
+/// A bit loop ([`BitLoop`]) of a state machine that may run ahead, and what it does to the
+/// pins of each of its converters ([`BitLoop::clock`]): what [`Io::run_loop`] runs in one
+/// step.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct LoopPlan {
+    /// The PIO block and state machine.
+    sm: (usize, usize),
+    lp: BitLoop,
+    /// Per ADC and per DAC it drives (their indices), the loop's clock on its pins.
+    adcs: Vec<(usize, LoopClock)>,
+    dacs: Vec<(usize, LoopClock)>,
 }
 
 /// What the machine reaches of the rest of the system while it runs: SRAM (with the cores'
@@ -324,6 +345,23 @@ fn banks_of(addr: u32, len: u64) -> u8 {
         }
     }
     banks
+}
+
+/// The level an ADC's output log (`Io::sdo_log`: (first cycle, levels) at each change,
+/// in cycle order) gives for cycle `x`: its last entry from `x` or before, 0 before the
+/// first.
+fn level_at(log: &[(u64, u32)], x: u64) -> u32 {
+    match log.partition_point(|&(since, _)| since <= x) {
+        0 => 0,
+        i => log[i - 1].1,
+    }
+}
+
+/// Logs an ADC's output change to `levels` from cycle `since` (the log in cycle order,
+/// as [`level_at`] needs it).
+fn log_change(log: &mut Vec<(u64, u32)>, since: u64, levels: u32) {
+    debug_assert!(log.last().is_none_or(|&(s, _)| s <= since));
+    log.push((since, levels));
 }
 
 impl Io {
@@ -607,13 +645,7 @@ impl Io {
         if x.wrapping_add(1) == start {
             return flops[b][0];
         }
-        self.sdo_log.iter().fold(0, |m, log| {
-            m | log
-                .iter()
-                .rev()
-                .find(|&&(since, _)| since <= x)
-                .map_or(0, |&(_, v)| v)
-        })
+        self.sdo_log.iter().fold(0, |m, log| m | level_at(log, x))
     }
 
     /// Brings state machine `n` of PIO block `b` to cycle `at` (from its clock, over
@@ -691,7 +723,172 @@ impl Io {
                 }
             }
         }
-        Ahead { epochs, sm }
+        let mut heads = [[0u32; 4]; 2];
+        let mut loops = Vec::new();
+        for (b, n) in (0..8).map(|i| (i / 4, i % 4)) {
+            let Some((adcs, dacs, _)) = sm[b][n] else {
+                continue;
+            };
+            let clocks = |mask: u32, pins: &mut dyn Iterator<Item = SpiPins>, lp: &BitLoop| {
+                pins.enumerate()
+                    .filter(|&(k, _)| mask & (1 << k) != 0)
+                    .map(|(k, p)| Some((k, lp.clock(p.cs, p.sclk, p.sdi)?)))
+                    .collect::<Option<Vec<_>>>()
+            };
+            for head in 0..32 {
+                let Some(lp) = self.pio[b].sm_loop(n, head) else {
+                    continue;
+                };
+                let a = clocks(adcs, &mut self.adcs.iter().map(Ads8688::pins), &lp);
+                let d = clocks(dacs, &mut self.dacs.iter().map(Dac8568::pins), &lp);
+                if let (Some(adcs), Some(dacs)) = (a, d) {
+                    heads[b][n] |= 1 << head;
+                    loops.push(LoopPlan {
+                        sm: (b, n),
+                        lp,
+                        adcs,
+                        dacs,
+                    });
+                }
+            }
+        }
+        Ahead {
+            epochs,
+            sm,
+            heads,
+            loops,
+        }
+    }
+
+    /// The GPIO inputs of cycle `x` that matter to a state machine of PIO block `b` which
+    /// reads no input but those of the ADCs in `adcs` (bit k: the k-th; the others read
+    /// 0), for `x` from two cycles before `start`, the cycle the current [`Io::advance`]
+    /// started at, whose synchroniser flops are `flops` ([`Io::inputs_at`]).
+    fn own_in(&self, adcs: u32, b: usize, x: u64, start: u64, flops: &[[u32; 2]; 2]) -> u32 {
+        if x.wrapping_add(2) <= start.wrapping_add(1) {
+            return self.inputs_at(x, start, flops, b);
+        }
+        let mut m = 0;
+        for (k, log) in self.sdo_log.iter().enumerate() {
+            if adcs & (1 << k) != 0 {
+                m |= level_at(log, x);
+            }
+        }
+        m
+    }
+
+    /// Runs the bit loop `plan` (its state machine due at cycle `x` at its head, running
+    /// ahead: [`Io::run_ahead`]) as many times round as it goes and as end by cycle `to`
+    /// (at most 64), with its converters, in one step: the converters take its clock
+    /// edges in bulk (`Ads8688::clock_bits`, `Dac8568::clock_bits`) with the data levels
+    /// [`Pio::sm_loop_pin`] gives, the ADCs' outputs are logged, the `IN`s read them from
+    /// the log as they would one by one, and the state machine takes its times round in
+    /// one step ([`Pio::sm_loop_run`]). Exactly what [`Io::run_ahead`] does instruction by
+    /// instruction. Returns the cycle it is due next; `None` (nothing done) when it goes no
+    /// time round before `to`, or when its converters are not where the plan needs them
+    /// (a select or clock at another level, a part that has not seen the pins as they are,
+    /// an SCLK rate over the part's: then the instructions run one by one and the part
+    /// reports it).
+    #[allow(clippy::too_many_arguments)]
+    fn run_loop(
+        &mut self,
+        plan: &LoopPlan,
+        (adc_mask, own): (u32, u32),
+        x: u64,
+        to: u64,
+        start: u64,
+        flops: &[[u32; 2]; 2],
+    ) -> Option<u64> {
+        let ((b, n), lp) = (plan.sm, &plan.lp);
+        let pio = &self.pio[b];
+        let k = pio.sm_loop_left(n).min((to - x) / lp.period).min(64);
+        if k == 0 {
+            return None;
+        }
+        let (values, dirs) = (pio.pin_values(), pio.pin_dirs());
+        let view = (
+            self.pins.0 & !own | values & own,
+            self.pins.1 & !own | dirs & own,
+        );
+        // The clock edges (steps of the rise and the fall) a part sees: with its select
+        // driven low and its clock driven; none otherwise.
+        let edges = |c: &LoopClock, p: SpiPins| {
+            let selected = view.1 >> p.cs & 1 != 0 && view.0 >> p.cs & 1 == 0;
+            c.edges.filter(|_| selected && view.1 >> p.sclk & 1 != 0)
+        };
+        for (i, c) in &plan.adcs {
+            let a = &self.adcs[*i];
+            let p = a.pins();
+            if !c.holds((p.cs, p.sclk), values) || !a.sees(view.0, view.1) {
+                return None;
+            }
+            if edges(c, p).is_some() && !a.clocks_ok(lp.period) {
+                return None;
+            }
+        }
+        for (i, c) in &plan.dacs {
+            let d = &self.dacs[*i];
+            let p = d.pins();
+            if !c.holds((p.cs, p.sclk), values) || !d.sees(view.0, view.1) {
+                return None;
+            }
+            if edges(c, p).is_some() && !d.clocks_ok(lp.period) {
+                return None;
+            }
+        }
+        // SDI at the fall of each time round.
+        let sdi_bits = |pio: &Pio, fall: usize, sdi: u32| {
+            let driven = view.1 >> sdi & 1 != 0;
+            (0..k).fold(0u64, |m, i| {
+                let l = driven && pio.sm_loop_pin(n, lp, i, fall, sdi) == Some(true);
+                m | u64::from(l) << i
+            })
+        };
+        for (i, c) in &plan.adcs {
+            let p = self.adcs[*i].pins();
+            let Some((rise, fall)) = edges(c, p) else {
+                continue;
+            };
+            let sdi = sdi_bits(&self.pio[b], fall, p.sdi);
+            let first = x + lp.at(rise);
+            let a = &mut self.adcs[*i];
+            let mut was = a.gpio_in();
+            let sdo = a.clock_bits(first, lp.at(fall) - lp.at(rise), lp.period, k as u32, sdi);
+            for r in 0..k {
+                let level = ((sdo >> r) as u32 & 1) << p.sdo;
+                if level != was {
+                    log_change(&mut self.sdo_log[*i], first + r * lp.period + 1, level);
+                    was = level;
+                }
+            }
+        }
+        for (i, c) in &plan.dacs {
+            let p = self.dacs[*i].pins();
+            let Some((_, fall)) = edges(c, p) else {
+                continue;
+            };
+            let sdi = sdi_bits(&self.pio[b], fall, p.sdi);
+            self.dacs[*i].clock_bits(x + lp.at(fall), lp.period, k as u32, sdi);
+        }
+        // What each IN PINS reads: its pin two cycles before, or in the cycle where the
+        // synchroniser is bypassed.
+        let mut in_bits = [0u64; LOOP_MAX];
+        for j in lp.reads() {
+            for i in 0..k {
+                let y = x + i * lp.period + lp.at(j);
+                let before = self.own_in(adc_mask, b, y.wrapping_sub(2), start, flops);
+                let now = self.own_in(adc_mask, b, y, start, flops);
+                let seen = self.pio[b].seen(before, now);
+                in_bits[j] |= u64::from(seen >> lp.in_pin & 1) << i;
+            }
+        }
+        self.pio[b].sm_loop_run(n, lp, k, &in_bits);
+        let pio = &self.pio[b];
+        let (v, d) = (pio.pin_values() & own, pio.pin_dirs() & own);
+        self.pins = (self.pins.0 & !own | v, self.pins.1 & !own | d);
+        let next = x + k * lp.period;
+        self.sm_clock[b][n] = next;
+        Some(next)
     }
 
     /// Runs state machine `n` of PIO block `b`, due at cycle `t`, and the converters that
@@ -712,24 +909,24 @@ impl Io {
         flops: &[[u32; 2]; 2],
     ) -> u64 {
         // It reads no input but its own ADCs' (or constant ones: none).
-        let own_in = |io: &Io, x: u64| -> u32 {
-            if x.wrapping_add(2) <= start.wrapping_add(1) {
-                return io.inputs_at(x, start, flops, b);
-            }
-            let mut m = 0;
-            for (k, log) in io.sdo_log.iter().enumerate() {
-                if adcs & (1 << k) != 0 {
-                    m |= log
-                        .iter()
-                        .rev()
-                        .find(|&&(since, _)| since <= x)
-                        .map_or(0, |&(_, v)| v);
-                }
-            }
-            m
-        };
+        let own_in = |io: &Io, x: u64| io.own_in(adcs, b, x, start, flops);
+        let heads = self.ahead.as_ref().map_or(0, |a| a.heads[b][n]);
         let mut x = t;
         while x < to && self.pio[b].sm_local(n) {
+            let pc = self.pio[b].sm_pc(n);
+            if heads & (1 << pc) != 0 && self.pio[b].sm_fast(n).is_some() {
+                // The plan is the ahead's, which the loop leaves alone.
+                let ahead = self.ahead.take();
+                let plan = ahead
+                    .as_ref()
+                    .and_then(|a| a.loops.iter().find(|p| p.sm == (b, n) && p.lp.head == pc));
+                let done = plan.and_then(|p| self.run_loop(p, (adcs, own), x, to, start, flops));
+                self.ahead = ahead;
+                if let Some(next) = done {
+                    x = next;
+                    continue;
+                }
+            }
             let seen = match self.pio[b].sm_reads_pins(n) {
                 true => self.pio[b].seen(own_in(self, x.wrapping_sub(2)), own_in(self, x)),
                 false => 0,
@@ -756,7 +953,7 @@ impl Io {
                         let was = a.gpio_in();
                         a.observe(x, now.0, now.1);
                         if a.gpio_in() != was {
-                            self.sdo_log[k].push((x + 1, a.gpio_in()));
+                            log_change(&mut self.sdo_log[k], x + 1, a.gpio_in());
                         }
                     }
                 }
@@ -929,7 +1126,7 @@ impl Io {
                 let was = a.gpio_in();
                 a.observe(cycle, now.0, now.1);
                 if a.gpio_in() != was {
-                    self.sdo_log[k].push((cycle + 1, a.gpio_in()));
+                    log_change(&mut self.sdo_log[k], cycle + 1, a.gpio_in());
                 }
             }
         }

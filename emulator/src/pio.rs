@@ -226,6 +226,77 @@ impl StateMachine {
         self.execctrl & (1 << 29) != 0
     }
 
+    /// Instruction `ins`'s side-set as (mask, levels) of the pins it sets ((0, 0) for none)
+    /// and its delay (datasheet 3.5.1: the delay/side-set field's SIDESET_COUNT high bits,
+    /// the first an enable with SIDE_EN).
+    fn side_set(&self, ins: u16) -> ((u32, u32), u32) {
+        let field = bits(u32::from(ins), 8, 5);
+        let count = self.sideset_count();
+        let delay_bits = 5 - count.min(5);
+        let delay = bits(field, 0, delay_bits);
+        let side_bits = if self.side_en() {
+            count.saturating_sub(1)
+        } else {
+            count
+        };
+        let side_on = !self.side_en() || (count > 0 && field & (1 << 4) != 0);
+        if side_on && side_bits > 0 {
+            let side = bits(field >> delay_bits, 0, side_bits);
+            (
+                StateMachine::map(bits(self.pinctrl, 10, 5), side_bits, side),
+                delay,
+            )
+        } else {
+            ((0, 0), delay)
+        }
+    }
+
+    /// The `count` bits an `OUT` takes from an OSR holding `osr` (0 < count ≤ 32), shifting
+    /// left (MSB first) or right (datasheet 3.5.4).
+    fn out_data(osr: u32, count: u32, right: bool) -> u32 {
+        match (right, count) {
+            (_, 32) => osr,
+            (true, _) => osr & ((1 << count) - 1),
+            (false, _) => osr >> (32 - count),
+        }
+    }
+
+    /// An OSR holding `osr` after `bits` bits have been shifted out of it (any number: the
+    /// shifts of several `OUT`s add up, zeros coming in).
+    fn osr_after(osr: u32, bits: u64, right: bool) -> u32 {
+        match (right, bits) {
+            (_, 32..) => 0,
+            (true, b) => osr >> b,
+            (false, b) => osr << b,
+        }
+    }
+
+    /// An `OUT` of `count` bits (0 < count ≤ 32) without autopull: the data, the OSR shifted
+    /// and its counter saturating at 32.
+    fn shift_out(&mut self, count: u32) -> u32 {
+        let right = self.out_right();
+        let data = StateMachine::out_data(self.osr, count, right);
+        self.osr = StateMachine::osr_after(self.osr, u64::from(count), right);
+        self.osr_count = (self.osr_count + count).min(32);
+        data
+    }
+
+    /// An `IN` of the low `count` bits of `data` (0 < count ≤ 32) without autopush: the ISR
+    /// shifted and its counter saturating at 32.
+    fn shift_in(&mut self, count: u32, data: u32) {
+        let data = if count == 32 {
+            data
+        } else {
+            data & ((1 << count) - 1)
+        };
+        self.isr = match (self.in_right(), count) {
+            (_, 32) => data,
+            (true, _) => (self.isr >> count) | (data << (32 - count)),
+            (false, _) => (self.isr << count) | data,
+        };
+        self.isr_count = (self.isr_count + count).min(32);
+    }
+
     /// The divisor in 1/256 cycle (INT 0 is 65536).
     fn divisor(&self) -> u32 {
         let int = self.clkdiv >> 16;
@@ -286,6 +357,161 @@ struct Effects {
     dirs: (u32, u32),
     side_values: (u32, u32),
     side_dirs: (u32, u32),
+}
+
+/// Most instructions of a [`BitLoop`], its `JMP X--` included.
+pub const LOOP_MAX: usize = 8;
+
+/// One instruction of a [`BitLoop`], decoded once.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct LoopStep {
+    /// The instruction word (what SMx_INSTR reads after it).
+    word: u16,
+    /// System cycles from the start of a time round to this instruction's.
+    at: u64,
+    /// The pins `SET PINS` sets (mask, levels).
+    set: (u32, u32),
+    /// The pins its side-set sets (mask, levels): they win over the instruction's own.
+    side: (u32, u32),
+    /// `OUT`'s bit count (0: not an `OUT`), the pins it sets (0 for `OUT NULL`), and the
+    /// bits a time round shifts out of the OSR before it.
+    out: u32,
+    out_mask: u32,
+    out_at: u32,
+    /// `IN`'s bit count (0: not an `IN`), and whether it reads the pins (`IN PINS, 1`; else
+    /// `IN NULL`).
+    inn: u32,
+    in_pins: bool,
+}
+
+/// A bit loop of a state machine: `OUT PINS`/`OUT NULL`, `IN PINS, 1`/`IN NULL`, `SET
+/// PINS` and `NOP` (`MOV Y, Y`), each with any side-set and delay, ending in a `JMP X--`
+/// back to the first (the SPI drivers' bit loops), with no wrap inside, on a state machine
+/// with an integer clock divider, no autopush or autopull and side-set to the pin levels.
+/// It touches nothing but the pins, X, the OSR and the ISR, and each time round runs the
+/// same instructions at the same system cycles from its start (the divider's accumulator
+/// comes back to where it was after each): so the level of a pin at each instruction of
+/// any time round is known before it runs ([`Pio::sm_loop_pin`]), which pins it toggles
+/// when is fixed ([`BitLoop::clock`]), and `k` times round are one step
+/// ([`Pio::sm_loop_run`]). Found by [`Pio::sm_loop`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BitLoop {
+    /// Its first instruction's address (the `JMP`'s target).
+    pub head: u32,
+    /// The `JMP X--`'s address.
+    jmp: u32,
+    /// System cycles of one time round.
+    pub period: u64,
+    len: usize,
+    steps: [LoopStep; LOOP_MAX],
+    /// Bits shifted out of the OSR each time round.
+    out_bits: u64,
+    /// `OUT PINS`' pins: PINCTRL's OUT_BASE and OUT_COUNT.
+    out_map: (u32, u32),
+    /// The pin `IN PINS, 1` reads: PINCTRL's IN_BASE.
+    pub in_pin: u32,
+}
+
+/// What a [`BitLoop`] does to an SPI part's chip select, clock and data pins each time
+/// round ([`BitLoop::clock`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LoopClock {
+    /// The chip select's level throughout (`None`: the loop does not write it), which it
+    /// must have at the loop's entry ([`LoopClock::holds`]).
+    pub cs: Option<bool>,
+    /// The clock's level at the start and end of each time round (`None`: the loop does
+    /// not write it), which it must have at the loop's entry.
+    pub sclk: Option<bool>,
+    /// With the clock low at the start: the steps of its one rise and its one fall (the
+    /// data pin written at or before the fall's); `None` when the clock does not move.
+    pub edges: Option<(usize, usize)>,
+}
+
+impl LoopClock {
+    /// Whether the pin levels `values` at the loop's entry are the ones it assumes.
+    pub fn holds(&self, pins: (u32, u32), values: u32) -> bool {
+        let at = |p: u32, l: Option<bool>| l.is_none_or(|l| (values >> p & 1 != 0) == l);
+        at(pins.0, self.cs) && at(pins.1, self.sclk)
+    }
+}
+
+impl BitLoop {
+    /// System cycles from the start of a time round to step `j`'s instruction.
+    pub fn at(&self, j: usize) -> u64 {
+        self.steps[j].at
+    }
+
+    /// The steps that read a pin (`IN PINS, 1`).
+    pub fn reads(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.len).filter(|&j| self.steps[j].in_pins)
+    }
+
+    /// What the loop does to the pins `cs`, `sclk` and `sdi` of an SPI part: its chip
+    /// select held at one level, its clock either left alone or low at each time round's
+    /// start and end with one rise and then one fall in between, and its data pin written
+    /// at or before the fall's step ([`LoopClock`]); `None` when it does more (a pin set
+    /// from data but the data pin, a second clock edge, a select that moves).
+    pub fn clock(&self, cs: u32, sclk: u32, sdi: u32) -> Option<LoopClock> {
+        let steps = &self.steps[..self.len];
+        // The level step `st` gives pin `p`: Some(Some(level)), Some(None) from data.
+        let write = |st: &LoopStep, p: u32| -> Option<Option<bool>> {
+            let bit = 1u32 << p;
+            if st.side.0 & bit != 0 {
+                Some(Some(st.side.1 & bit != 0))
+            } else if st.out_mask & bit != 0 {
+                Some(None)
+            } else if st.set.0 & bit != 0 {
+                Some(Some(st.set.1 & bit != 0))
+            } else {
+                None
+            }
+        };
+        let mut cs_level = None;
+        for st in steps {
+            match write(st, cs) {
+                None => {}
+                Some(None) => return None,
+                Some(Some(l)) if cs_level.is_some_and(|c| c != l) => return None,
+                Some(l) => cs_level = l,
+            }
+        }
+        let mut sclk_level = None;
+        for st in steps {
+            match write(st, sclk) {
+                None => {}
+                Some(None) => return None,
+                Some(l) => sclk_level = l,
+            }
+        }
+        let (mut rise, mut fall) = (None, None);
+        if let Some(mut level) = sclk_level {
+            for (j, st) in steps.iter().enumerate() {
+                let Some(Some(l)) = write(st, sclk) else {
+                    continue;
+                };
+                match (level, l) {
+                    (false, true) if rise.is_none() => rise = Some(j),
+                    (true, false) if fall.is_none() && rise.is_some() => fall = Some(j),
+                    (a, b) if a == b => {}
+                    _ => return None,
+                }
+                level = l;
+            }
+        }
+        let edges = match (rise, fall) {
+            (None, None) => None,
+            (Some(r), Some(f)) => {
+                steps[..=f].iter().find(|st| write(st, sdi).is_some())?;
+                Some((r, f))
+            }
+            _ => return None,
+        };
+        Some(LoopClock {
+            cs: cs_level,
+            sclk: sclk_level,
+            edges,
+        })
+    }
 }
 
 /// One PIO block. See the module documentation.
@@ -703,6 +929,155 @@ impl Pio {
         self.sm[n].delay = 0;
     }
 
+    /// State machine `n`'s program counter.
+    pub fn sm_pc(&self, n: usize) -> u32 {
+        self.sm[n].pc
+    }
+
+    /// The bit loop ([`BitLoop`]) whose first instruction is at `head` in state machine
+    /// `n`'s program, as its configuration stands (until the next [`Pio::config_epoch`]);
+    /// `None` when the instructions from `head` are not one.
+    pub fn sm_loop(&self, n: usize, head: u32) -> Option<BitLoop> {
+        let s = &self.sm[n];
+        let div = s.divisor();
+        if !div.is_multiple_of(256) || s.autopull() || s.autopush() || s.side_pindir() {
+            return None;
+        }
+        let int = u64::from(div / 256);
+        let (out_base, out_count) = (bits(s.pinctrl, 0, 5), bits(s.pinctrl, 20, 6));
+        let (set_base, set_count) = (bits(s.pinctrl, 5, 5), bits(s.pinctrl, 26, 3));
+        let out_mask = StateMachine::map(out_base, out_count, 0).0;
+        let mut steps = [LoopStep::default(); LOOP_MAX];
+        let (mut pc, mut at, mut out_bits) = (head & 31, 0u64, 0u32);
+        for (j, step) in steps.iter_mut().enumerate() {
+            let word = self.instr[pc as usize];
+            let ins = u32::from(word);
+            let (arg1, arg2) = (bits(ins, 5, 3), bits(ins, 0, 5));
+            let (side, delay) = s.side_set(word);
+            *step = LoopStep {
+                word,
+                at,
+                side,
+                ..LoopStep::default()
+            };
+            at += int * u64::from(1 + delay);
+            match ins >> 13 {
+                // JMP X-- back to the head ends it.
+                0 if arg1 == 2 && arg2 == head & 31 => {
+                    return Some(BitLoop {
+                        head: head & 31,
+                        jmp: pc,
+                        period: at,
+                        len: j + 1,
+                        steps,
+                        out_bits: u64::from(out_bits),
+                        out_map: (out_base, out_count),
+                        in_pin: bits(s.pinctrl, 15, 5),
+                    });
+                }
+                // OUT PINS, OUT NULL.
+                3 if arg1 == 0 || arg1 == 3 => {
+                    step.out = count32(arg2);
+                    step.out_at = out_bits;
+                    step.out_mask = if arg1 == 0 { out_mask } else { 0 };
+                    out_bits += step.out;
+                }
+                // IN PINS, 1; IN NULL.
+                2 if (arg1 == 0 && arg2 == 1) || arg1 == 3 => {
+                    step.inn = count32(arg2);
+                    step.in_pins = arg1 == 0;
+                }
+                // SET PINS.
+                7 if arg1 == 0 => step.set = StateMachine::map(set_base, set_count, arg2),
+                // NOP (MOV Y, Y).
+                5 if ins & 0xff == 0x42 => {}
+                _ => return None,
+            }
+            if pc == s.wrap_top() {
+                return None;
+            }
+            pc = (pc + 1) & 31;
+        }
+        None
+    }
+
+    /// How many times round a [`BitLoop`] of state machine `n` goes from here, this one
+    /// included: its X + 1.
+    pub fn sm_loop_left(&self, n: usize) -> u64 {
+        u64::from(self.sm[n].x) + 1
+    }
+
+    /// The level of `pin` (as [`Pio::pin_values`] gives it, whatever its direction) after
+    /// step `j` of time round `i` (from 0: the one state machine `n` is at, at the loop's
+    /// head) of `lp`, its loop, from the last write to it among steps `0..=j`; `None` when
+    /// none writes it.
+    pub fn sm_loop_pin(&self, n: usize, lp: &BitLoop, i: u64, j: usize, pin: u32) -> Option<bool> {
+        let s = &self.sm[n];
+        let bit = 1u32 << pin;
+        for st in lp.steps[..=j].iter().rev() {
+            let levels = if st.side.0 & bit != 0 {
+                st.side.1
+            } else if st.out_mask & bit != 0 {
+                let shifted = u64::from(st.out_at) + i * lp.out_bits;
+                let osr = StateMachine::osr_after(s.osr, shifted, s.out_right());
+                let data = StateMachine::out_data(osr, st.out, s.out_right());
+                StateMachine::map(lp.out_map.0, lp.out_map.1, data).1
+            } else if st.set.0 & bit != 0 {
+                st.set.1
+            } else {
+                continue;
+            };
+            return Some(levels & bit != 0);
+        }
+        None
+    }
+
+    /// Runs `k` times round (1 ≤ k ≤ 64, at most [`Pio::sm_loop_left`]) of `lp`, the bit
+    /// loop state machine `n` is at the head of, due this cycle with nothing pending
+    /// ([`Pio::sm_fast`]); `in_bits[j]` holds, bit i, what step j's `IN PINS, 1` reads in
+    /// time round i. What as many [`Pio::sm_exec`]s of its instructions do: X counted down,
+    /// the OSR and ISR shifted, the pins as the last time round leaves them, PC at the head
+    /// again or past the `JMP` when X ran out, the divider's accumulator where it was.
+    pub fn sm_loop_run(&mut self, n: usize, lp: &BitLoop, k: u64, in_bits: &[u64; LOOP_MAX]) {
+        debug_assert!((1..=64).contains(&k) && k <= self.sm_loop_left(n));
+        let mut values = self.out_values;
+        let s = &mut self.sm[n];
+        let set = |old: u32, (m, v): (u32, u32)| old & !m | v;
+        for i in 0..k {
+            let last = i + 1 == k;
+            for (j, st) in lp.steps[..lp.len].iter().enumerate() {
+                if st.out > 0 {
+                    let data = s.shift_out(st.out);
+                    if last && st.out_mask != 0 {
+                        values = set(values, StateMachine::map(lp.out_map.0, lp.out_map.1, data));
+                    }
+                }
+                if st.inn > 0 {
+                    let data = match st.in_pins {
+                        true => (in_bits[j] >> i) as u32 & 1,
+                        false => 0,
+                    };
+                    s.shift_in(st.inn, data);
+                }
+                if last {
+                    values = set(set(values, st.set), st.side);
+                }
+            }
+        }
+        let x = s.x;
+        s.x = x.wrapping_sub(k as u32);
+        if k == u64::from(x) + 1 {
+            s.pc = lp.jmp;
+            s.advance();
+        } else {
+            s.pc = lp.head;
+        }
+        s.current = lp.steps[lp.len - 1].word;
+        s.stalled = None;
+        s.delay = 0;
+        self.out_values = values;
+    }
+
     /// What the state machines see in a cycle whose GPIO inputs are `now`, when those of
     /// two cycles before were `before`: the synchronised level, or the direct one on the
     /// pins INPUT_SYNC_BYPASS names.
@@ -866,24 +1241,11 @@ impl Pio {
         self.sm[n].current = ins;
         // Side-set and delay (datasheet 3.5.1): asserted even when the instruction stalls.
         let s = &self.sm[n];
-        let field = bits(u32::from(ins), 8, 5);
-        let count = s.sideset_count();
-        let delay_bits = 5 - count.min(5);
-        let delay = bits(field, 0, delay_bits);
-        let side_bits = if s.side_en() {
-            count.saturating_sub(1)
+        let (side, delay) = s.side_set(ins);
+        if s.side_pindir() {
+            fx.side_dirs = side;
         } else {
-            count
-        };
-        let side_on = !s.side_en() || (count > 0 && field & (1 << 4) != 0);
-        if side_on && side_bits > 0 {
-            let side = bits(field >> delay_bits, 0, side_bits);
-            let m = StateMachine::map(bits(s.pinctrl, 10, 5), side_bits, side);
-            if s.side_pindir() {
-                fx.side_dirs = m;
-            } else {
-                fx.side_values = m;
-            }
+            fx.side_values = side;
         }
         let done = self.run(n, ins, gpio, &mut fx);
         let s = &mut self.sm[n];
@@ -1008,13 +1370,7 @@ impl Pio {
                     Flow::Stall
                 } else {
                     let s = &mut self.sm[n];
-                    let data = if c == 32 { data } else { data & ((1 << c) - 1) };
-                    s.isr = match (s.in_right(), c) {
-                        (_, 32) => data,
-                        (true, _) => (s.isr >> c) | (data << (32 - c)),
-                        (false, _) => (s.isr << c) | data,
-                    };
-                    s.isr_count = after;
+                    s.shift_in(c, data);
                     if s.autopush() && s.isr_count >= s.push_thresh() {
                         s.rx.words.push_back(s.isr);
                         s.isr = 0;
@@ -1036,17 +1392,7 @@ impl Pio {
                     }
                     return Flow::Stall;
                 }
-                let data = match (s.out_right(), c) {
-                    (_, 32) => s.osr,
-                    (true, _) => s.osr & ((1 << c) - 1),
-                    (false, _) => s.osr >> (32 - c),
-                };
-                s.osr = match (s.out_right(), c) {
-                    (_, 32) => 0,
-                    (true, _) => s.osr >> c,
-                    (false, _) => s.osr << c,
-                };
-                s.osr_count = (s.osr_count + c).min(32);
+                let data = s.shift_out(c);
                 let (out_base, out_count) = (bits(s.pinctrl, 0, 5), bits(s.pinctrl, 20, 6));
                 let flow = match arg1 {
                     0..=2 => s.write_pins_x_y(arg1, data, fx),

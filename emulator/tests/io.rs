@@ -157,8 +157,10 @@ fn frames_come_back_into_sram_by_dma_inside_the_parts_timing() {
     assert_eq!((v & 0xffff, wait), (0x7abc, 0));
 }
 
-/// Everything observable of the machine and its memory, for comparing two runs.
-fn snapshot(sys: &mut System) -> (Vec<u64>, Vec<u32>, [u32; 4]) {
+/// Everything observable of the machine and its memory, for comparing two runs: the
+/// frames, the words in SRAM, registers, and the whole state of the PIO blocks, the DMA
+/// and the converters.
+fn snapshot(sys: &mut System) -> (Vec<u64>, Vec<u32>, [u32; 4], String) {
     let words = (0..FRAMES)
         .map(|i| peek(sys, RESULTS + 4 * i))
         .collect::<Vec<_>>();
@@ -170,7 +172,8 @@ fn snapshot(sys: &mut System) -> (Vec<u64>, Vec<u32>, [u32; 4]) {
         io.dma.read(dreg::TRANS_COUNT),
         io.dma.read(dreg::CH_STRIDE + dreg::TRANS_COUNT),
     ];
-    (frames, words, regs)
+    let state = format!("{:?} {:?} {:?} {:?}", io.pio, io.dma, io.adcs, io.dacs);
+    (frames, words, regs, state)
 }
 
 #[test]
@@ -205,7 +208,7 @@ fn skipping_quiet_stretches_changes_nothing() {
         slow.io_advance(c + 1);
     }
     fast.io_advance(end);
-    let (frames, _, _) = snapshot(&mut fast);
+    let (frames, ..) = snapshot(&mut fast);
     assert_eq!(frames.len(), 2 * FRAMES as usize);
     assert_eq!(snapshot(&mut fast), snapshot(&mut slow));
 }
