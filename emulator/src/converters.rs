@@ -266,12 +266,25 @@ impl Ads8688 {
     /// must hold); returns the level it drives on SDO after each rise (bit i: the i-th).
     pub fn clock_bits(&mut self, first: u64, fall: u64, period: u64, k: u32, sdi: u64) -> u64 {
         debug_assert!(self.clocks_ok(period) && (1..=64).contains(&k) && fall < period);
+        let (half, bits) = (self.part.frame_bits / 2, self.part.frame_bits);
         let mut sdo = 0u64;
         for i in 0..k {
-            self.rise(first + u64::from(i) * period, i == 0);
+            let cycle = first + u64::from(i) * period;
+            match self.frame.as_mut() {
+                // A rise that checks nothing (not the first, whose rate is checked against
+                // the last rise before, nor the result's first, which checks the
+                // conversion): `rise`'s count and SDO.
+                Some(f) if i > 0 && f.sclks != half => {
+                    f.sclks += 1;
+                    self.sdo =
+                        f.sclks > half && f.sclks <= bits && (f.code >> (bits - f.sclks)) & 1 != 0;
+                }
+                _ => self.rise(cycle, i == 0),
+            }
             sdo |= u64::from(self.sdo) << i;
             self.fall(sdi >> i & 1 != 0);
         }
+        self.last_rise = Some(first + u64::from(k - 1) * period);
         sdo
     }
 

@@ -837,15 +837,17 @@ impl Io {
             }
         }
         // SDI at the fall of each time round.
-        let sdi_bits = |pio: &Pio, fall: usize, sdi: u32| {
-            let driven = view.1 >> sdi & 1 != 0;
-            (0..k).fold(0u64, |m, i| {
-                let l = driven && pio.sm_loop_pin(n, lp, i, fall, sdi) == Some(true);
-                m | u64::from(l) << i
-            })
+        let sdi_bits = |pio: &Pio, fall: usize, sdi: u32| match view.1 >> sdi & 1 {
+            0 => 0,
+            _ => pio.sm_loop_pin(n, lp, k, fall, sdi).unwrap_or(0),
         };
+        // Per pin, the ADCs driving it (any: bit 0; two or more: bit 1), and the first rise
+        // and SDO levels of the one clocked.
+        let mut sdo_pins = [0u8; 32];
+        let mut clocked: Option<(u32, u64, u64)> = None;
         for (i, c) in &plan.adcs {
             let p = self.adcs[*i].pins();
+            sdo_pins[p.sdo as usize] = (sdo_pins[p.sdo as usize] << 1) | 1;
             let Some((rise, fall)) = edges(c, p) else {
                 continue;
             };
@@ -861,6 +863,7 @@ impl Io {
                     was = level;
                 }
             }
+            clocked = Some((p.sdo, first, sdo));
         }
         for (i, c) in &plan.dacs {
             let p = self.dacs[*i].pins();
@@ -871,15 +874,20 @@ impl Io {
             self.dacs[*i].clock_bits(x + lp.at(fall), lp.period, k as u32, sdi);
         }
         // What each IN PINS reads: its pin two cycles before, or in the cycle where the
-        // synchroniser is bypassed.
+        // synchroniser is bypassed: the level the log gives then, which for the one ADC
+        // clocked on that pin after its first rise is the SDO of its last rise before.
+        let pin = lp.in_pin;
+        let lag = 2 * u64::from(self.pio[b].seen(u32::MAX, 0) >> pin & 1);
+        let one = clocked.filter(|&(p, ..)| p == pin && sdo_pins[pin as usize] == 1);
         let mut in_bits = [0u64; LOOP_MAX];
         for j in lp.reads() {
             for i in 0..k {
-                let y = x + i * lp.period + lp.at(j);
-                let before = self.own_in(adc_mask, b, y.wrapping_sub(2), start, flops);
-                let now = self.own_in(adc_mask, b, y, start, flops);
-                let seen = self.pio[b].seen(before, now);
-                in_bits[j] |= u64::from(seen >> lp.in_pin & 1) << i;
+                let at = (x + i * lp.period + lp.at(j)).wrapping_sub(lag);
+                let level = match one {
+                    Some((_, first, sdo)) if at > first => sdo >> ((at - first - 1) / lp.period),
+                    _ => u64::from(self.own_in(adc_mask, b, at, start, flops) >> pin),
+                };
+                in_bits[j] |= (level & 1) << i;
             }
         }
         self.pio[b].sm_loop_run(n, lp, k, &in_bits);

@@ -404,8 +404,9 @@ pub struct BitLoop {
     pub period: u64,
     len: usize,
     steps: [LoopStep; LOOP_MAX],
-    /// Bits shifted out of the OSR each time round.
+    /// Bits shifted out of the OSR each time round, and into the ISR.
     out_bits: u64,
+    in_bits: u32,
     /// `OUT PINS`' pins: PINCTRL's OUT_BASE and OUT_COUNT.
     out_map: (u32, u32),
     /// The pin `IN PINS, 1` reads: PINCTRL's IN_BASE.
@@ -948,7 +949,7 @@ impl Pio {
         let (set_base, set_count) = (bits(s.pinctrl, 5, 5), bits(s.pinctrl, 26, 3));
         let out_mask = StateMachine::map(out_base, out_count, 0).0;
         let mut steps = [LoopStep::default(); LOOP_MAX];
-        let (mut pc, mut at, mut out_bits) = (head & 31, 0u64, 0u32);
+        let (mut pc, mut at, mut out_bits, mut in_bits) = (head & 31, 0u64, 0u32, 0u32);
         for (j, step) in steps.iter_mut().enumerate() {
             let word = self.instr[pc as usize];
             let ins = u32::from(word);
@@ -971,6 +972,7 @@ impl Pio {
                         len: j + 1,
                         steps,
                         out_bits: u64::from(out_bits),
+                        in_bits,
                         out_map: (out_base, out_count),
                         in_pin: bits(s.pinctrl, 15, 5),
                     });
@@ -986,6 +988,7 @@ impl Pio {
                 2 if (arg1 == 0 && arg2 == 1) || arg1 == 3 => {
                     step.inn = count32(arg2);
                     step.in_pins = arg1 == 0;
+                    in_bits += step.inn;
                 }
                 // SET PINS.
                 7 if arg1 == 0 => step.set = StateMachine::map(set_base, set_count, arg2),
@@ -1007,29 +1010,35 @@ impl Pio {
         u64::from(self.sm[n].x) + 1
     }
 
-    /// The level of `pin` (as [`Pio::pin_values`] gives it, whatever its direction) after
-    /// step `j` of time round `i` (from 0: the one state machine `n` is at, at the loop's
-    /// head) of `lp`, its loop, from the last write to it among steps `0..=j`; `None` when
-    /// none writes it.
-    pub fn sm_loop_pin(&self, n: usize, lp: &BitLoop, i: u64, j: usize, pin: u32) -> Option<bool> {
+    /// The levels of `pin` (as [`Pio::pin_values`] gives it, whatever its direction) after
+    /// step `j` of the first `k` times round (1 ≤ k ≤ 64; bit i: time round i, from 0: the
+    /// one state machine `n` is at, at the head) of `lp`, its loop, from the last write to it
+    /// among steps `0..=j`; `None` when none writes it.
+    pub fn sm_loop_pin(&self, n: usize, lp: &BitLoop, k: u64, j: usize, pin: u32) -> Option<u64> {
         let s = &self.sm[n];
         let bit = 1u32 << pin;
-        for st in lp.steps[..=j].iter().rev() {
-            let levels = if st.side.0 & bit != 0 {
-                st.side.1
-            } else if st.out_mask & bit != 0 {
-                let shifted = u64::from(st.out_at) + i * lp.out_bits;
-                let osr = StateMachine::osr_after(s.osr, shifted, s.out_right());
-                let data = StateMachine::out_data(osr, st.out, s.out_right());
-                StateMachine::map(lp.out_map.0, lp.out_map.1, data).1
-            } else if st.set.0 & bit != 0 {
-                st.set.1
-            } else {
-                continue;
-            };
-            return Some(levels & bit != 0);
+        let st = lp.steps[..=j]
+            .iter()
+            .rev()
+            .find(|st| (st.side.0 | st.out_mask | st.set.0) & bit != 0)?;
+        let all = |level: u32| match level & bit {
+            0 => 0,
+            _ => u64::MAX >> (64 - k),
+        };
+        if st.side.0 & bit != 0 {
+            return Some(all(st.side.1));
         }
-        None
+        if st.out_mask == 0 {
+            return Some(all(st.set.1));
+        }
+        let right = s.out_right();
+        Some((0..k).fold(0, |m, i| {
+            let shifted = u64::from(st.out_at) + i * lp.out_bits;
+            let osr = StateMachine::osr_after(s.osr, shifted, right);
+            let data = StateMachine::out_data(osr, st.out, right);
+            let level = StateMachine::map(lp.out_map.0, lp.out_map.1, data).1 & bit;
+            m | u64::from(level != 0) << i
+        }))
     }
 
     /// Runs `k` times round (1 ≤ k ≤ 64, at most [`Pio::sm_loop_left`]) of `lp`, the bit
@@ -1043,24 +1052,31 @@ impl Pio {
         let mut values = self.out_values;
         let s = &mut self.sm[n];
         let set = |old: u32, (m, v): (u32, u32)| old & !m | v;
-        for i in 0..k {
-            let last = i + 1 == k;
-            for (j, st) in lp.steps[..lp.len].iter().enumerate() {
-                if st.out > 0 {
-                    let data = s.shift_out(st.out);
-                    if last && st.out_mask != 0 {
-                        values = set(values, StateMachine::map(lp.out_map.0, lp.out_map.1, data));
+        let right = s.out_right();
+        // The last time round's pin writes, its OUTs' data from the OSR as it stands before
+        // it (the shifts of several OUTs add up: `StateMachine::osr_after`).
+        let before_last = (k - 1) * lp.out_bits;
+        for st in &lp.steps[..lp.len] {
+            if st.out_mask != 0 {
+                let osr = StateMachine::osr_after(s.osr, before_last + u64::from(st.out_at), right);
+                let data = StateMachine::out_data(osr, st.out, right);
+                values = set(values, StateMachine::map(lp.out_map.0, lp.out_map.1, data));
+            }
+            values = set(set(values, st.set), st.side);
+        }
+        let shifted = k * lp.out_bits;
+        s.osr = StateMachine::osr_after(s.osr, shifted, right);
+        s.osr_count = (u64::from(s.osr_count) + shifted).min(32) as u32;
+        if lp.in_bits > 0 {
+            for i in 0..k {
+                for (j, st) in lp.steps[..lp.len].iter().enumerate() {
+                    if st.inn > 0 {
+                        let data = match st.in_pins {
+                            true => (in_bits[j] >> i) as u32 & 1,
+                            false => 0,
+                        };
+                        s.shift_in(st.inn, data);
                     }
-                }
-                if st.inn > 0 {
-                    let data = match st.in_pins {
-                        true => (in_bits[j] >> i) as u32 & 1,
-                        false => 0,
-                    };
-                    s.shift_in(st.inn, data);
-                }
-                if last {
-                    values = set(set(values, st.set), st.side);
                 }
             }
         }

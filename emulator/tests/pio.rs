@@ -392,3 +392,108 @@ fn skipping_by_events_equals_ticking_every_cycle() {
         assert!(da.rising_edges.len() > 40, "div {div}: the master ran");
     }
 }
+
+/// A bit loop run in one step (`Pio::sm_loop`, `sm_loop_run`, the run-ahead's bulk path in
+/// `tactus_emulator::io`) against its instructions ticked one cycle at a time, on loops of
+/// the converter drivers' kinds and odder ones (two-bit OUTs, `SET PINS`, `NOP`, `IN NULL`,
+/// `OUT NULL`, optional side-set, a one-instruction loop), both shift directions, dividers
+/// 1–3: for every number of times round the whole block's state is the same, and so are the
+/// pin levels `sm_loop_pin` gives at each step of each time round.
+#[test]
+fn a_bit_loop_in_one_step_equals_its_instructions() {
+    const IN_PIN: u32 = 4;
+    // pull block; set x, 9; the loop from 2; jmp 31 (halt at the end of memory).
+    let loops: [(&[u16], u32); 3] = [
+        // .side_set 1 (SCLK on pin 2): out pins, 1 side 1 [1]; in pins, 1 side 0;
+        // jmp x--, 2 side 0.
+        (&[0x6001 | 1 << 12 | 1 << 8, 0x4001, 0x0042], 1),
+        // .side_set 1 opt: out pins, 2 side 1 [2]; set pins, 1; nop side 0 [1];
+        // in null, 3; out null, 1; in pins, 1; jmp x--, 2.
+        (
+            &[
+                0x6002 | 0b11 << 11 | 2 << 8,
+                0xe001,
+                0xa042 | 0b10 << 11 | 1 << 8,
+                0x4063,
+                0x6061,
+                0x4001,
+                0x0042,
+            ],
+            2 | 1 << 3,
+        ),
+        // .side_set 1: jmp x--, 2 side 1 [3].
+        (&[0x0042 | 1 << 12 | 3 << 8], 1),
+    ];
+    let gpio = |c: u64| (((c * 0x9e37_79b9) >> 7) as u32 & 1) << IN_PIN;
+    for (body, side) in loops {
+        for div in 1..=3u32 {
+            for shift in [0u32, 3 << 18] {
+                let mut pio = Pio::new();
+                let mut program = vec![0x80a0, 0xe029];
+                program.extend_from_slice(body);
+                load(&mut pio, &program);
+                pio.write(reg::INSTR_MEM0 + 4 * 31, 0x001f);
+                let base = reg::SM0_CLKDIV;
+                pio.write(base, div << 16);
+                // SIDE_EN for the optional side-set; WRAP_TOP 31.
+                pio.write(base + 4, u32::from(side & 8 != 0) << 30 | 31 << 12);
+                pio.write(base + 8, shift);
+                // OUT 3-4, SET 5, side-set 2, IN 4; side-set count as the program has it.
+                let side_count = side & 7;
+                pio.write(
+                    base + 0x14,
+                    side_count << 29 | 1 << 26 | 2 << 20 | IN_PIN << 15 | 2 << 10 | 5 << 5 | 3,
+                );
+                pio.write(reg::TXF0, 0xb5c3_96e1);
+                pio.write(reg::CTRL, 1);
+                let mut t = 0u64;
+                while pio.sm_pc(0) != 2 || pio.sm_fast(0).is_none() {
+                    pio.tick(gpio(t));
+                    t += 1;
+                    assert!(t < 100);
+                }
+                let lp = pio.sm_loop(0, 2).expect("a bit loop");
+                assert_eq!(pio.sm_loop_left(0), 10);
+                for k in 1..=10u64 {
+                    let what = format!("loop {body:x?} div {div} shift {shift:#x} k {k}");
+                    let mut a = pio.clone();
+                    let mut levels = vec![[0u32; 8]; k as usize];
+                    for c in t..t + k * lp.period {
+                        a.tick(gpio(c));
+                        let (i, at) = ((c - t) / lp.period, (c - t) % lp.period);
+                        for (j, l) in levels[i as usize].iter_mut().enumerate() {
+                            if j < body.len() && lp.at(j) == at {
+                                *l = a.pin_values();
+                            }
+                        }
+                    }
+                    let mut in_bits = [0u64; tactus_emulator::pio::LOOP_MAX];
+                    for j in lp.reads() {
+                        for i in 0..k {
+                            let c = t + i * lp.period + lp.at(j);
+                            in_bits[j] |= u64::from(gpio(c - 2) >> IN_PIN & 1) << i;
+                        }
+                    }
+                    let mut b = pio.clone();
+                    b.sm_loop_run(0, &lp, k, &in_bits);
+                    b.set_sync(a.sync());
+                    assert_eq!(format!("{a:?}"), format!("{b:?}"), "{what}");
+                    for j in 0..body.len() {
+                        for pin in 2..6 {
+                            let Some(bits) = pio.sm_loop_pin(0, &lp, k, j, pin) else {
+                                continue;
+                            };
+                            for (i, l) in levels.iter().enumerate() {
+                                assert_eq!(
+                                    bits >> i & 1,
+                                    u64::from(l[j] >> pin & 1),
+                                    "{what} step {j} pin {pin}"
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
