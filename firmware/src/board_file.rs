@@ -1,6 +1,7 @@
 //! The one validation of a board: what a board file (or a key map's board fields) may ask of
 //! the RP2040 the firmware runs on. `tactus budget`, `build` and `play` read every board
-//! through [`read_board`], and `tactus emu run` checks a key map's clock, sample rate and
+//! through [`crate::boards::read_board`] (this check, then the converter drivers planned
+//! for one key a core), and `tactus emu run` checks a key map's clock, sample rate and
 //! cores with [`check_board`], so a board is either one the firmware can be built and
 //! flashed for — and then every verdict about it is about real firmware — or bad input
 //! naming the file and the field.
@@ -23,7 +24,7 @@
 //! Whether the instruments accept the board's sample rate (their `require`s) is decided
 //! where they are compiled, at that rate (`tactus_compiler::lower::Config::sample_rate_hz`).
 
-use tactus_runtime::keyboard::{self, BoardSpec};
+use tactus_runtime::keyboard::BoardSpec;
 
 /// The tick schedule in core clock cycles: the period is `q + rem/den` cycles
 /// (`clock/fs`), each core's SysTick counting the processor clock with a reload value of
@@ -214,20 +215,6 @@ pub fn check_board(board: &BoardSpec) -> Result<Chip, BoardError> {
     }
 }
 
-/// Parses a board file's `text` and checks it with [`check_board`]; `name` (the file, or
-/// `builtin:NAME`) starts every error.
-///
-/// Errors: a message naming the file and, for a bad value, the field.
-pub fn read_board(text: &str, name: &str) -> Result<BoardSpec, String> {
-    let b = keyboard::parse_board(text, name)?;
-    check_board(&b).map_err(|e| {
-        format!(
-            "{name}: {e} (a board file describes an RP2040 board the firmware can be built for)"
-        )
-    })?;
-    Ok(b)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -264,21 +251,5 @@ mod tests {
             ..board(200e6, 2, 44_100.0)
         };
         assert!(check_board(&b).is_ok());
-        // Converters: parts the firmware drives, wired as its drivers need.
-        let io = "name = \"io\"\nclock_hz = 133e6\ncores = 2\nsample_rate_hz = 44100\n\
-                  [converters]\nadc = \"ADS8688\"\ndac = \"DAC8568\"\n\
-                  adc_pins = [[2, 3, 4, 5], [10, 11, 12, 13]]\n\
-                  dac_pins = [[6, 7, 8], [14, 15, 16]]\n";
-        assert!(read_board(io, "io.toml").is_ok());
-        let e = read_board(&io.replace("ADS8688", "ADS1278"), "io.toml").unwrap_err();
-        assert!(
-            e.contains("io.toml") && e.contains("`converters.adc`"),
-            "{e}"
-        );
-        let e = read_board(&io.replace("[14, 15, 16]", "[14, 16, 15]"), "io.toml").unwrap_err();
-        assert!(
-            e.contains("io.toml") && e.contains("`converters.dac_pins`"),
-            "{e}"
-        );
     }
 }

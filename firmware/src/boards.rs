@@ -323,6 +323,65 @@ fn image_of(
     Ok((core, image))
 }
 
+/// Parses a board file's `text` and checks it: the chip
+/// ([`crate::board_file::check_board`]: cores, sample rate, a clock PLL_SYS makes, the core
+/// voltage, the converter parts and their wiring), then, on a board with `[converters]`,
+/// its drivers planned for one key a core ([`check_drivers`]). `name` (the file, or
+/// `builtin:NAME`) starts every error. This is the one validation of a board file:
+/// `tactus budget`, `build` and `play` read every board through it.
+///
+/// Errors: a message naming the file and the field.
+pub fn read_board(text: &str, name: &str) -> Result<BoardSpec, String> {
+    let b = tactus_runtime::keyboard::parse_board(text, name)?;
+    let explain = |e: crate::board_file::BoardError| {
+        format!(
+            "{name}: {e} (a board file describes an RP2040 board the firmware can be built for)"
+        )
+    };
+    let chip = crate::board_file::check_board(&b).map_err(explain)?;
+    check_drivers(&b, &chip).map_err(explain)?;
+    Ok(b)
+}
+
+/// A board with `[converters]`: its drivers planned for one key a core (one ADC and one
+/// DAC channel each, [`crate::image::io::IoPlan::new`], the plan every image of the board
+/// starts from), so that a board no key can run on — a clock the SPI clocks cannot be
+/// divided from, a sample period shorter than one frame's burst, a conversion the frame
+/// would outrun — is refused where it is read, not when a key's firmware is built.
+///
+/// Errors: [`crate::board_file::BoardError`] on `converters.adc`, `converters.dac` or
+/// `converters`.
+pub fn check_drivers(
+    board: &BoardSpec,
+    chip: &crate::board_file::Chip,
+) -> Result<(), crate::board_file::BoardError> {
+    use crate::board_file::BoardError;
+    let Some((adc, _)) = board.converter_parts() else {
+        return Ok(());
+    };
+    let one = tactus_runtime::converters::AdcScale::new(0, 0, adc.bits);
+    let plan = crate::image::io::IoPlan::new(
+        board,
+        chip.clock_hz,
+        u64::from(chip.tick.q),
+        vec![vec![one]; chip.cores],
+        vec![1; chip.cores],
+    );
+    let err = |field: &'static str, why: String| BoardError { field, why };
+    match plan {
+        Ok(_) => Ok(()),
+        Err(ImageError::Board(why)) => {
+            for field in ["converters.adc", "converters.dac"] {
+                if let Some(rest) = why.strip_prefix(&format!("`{field}`: ")) {
+                    return Err(err(field, rest.to_string()));
+                }
+            }
+            Err(err("converters", why))
+        }
+        Err(e) => Err(err("converters", e.to_string())),
+    }
+}
+
 /// The verdict of one board holding `keys`: its image's static bound per core.
 ///
 /// Errors: as [`board_image`].
@@ -553,4 +612,47 @@ pub fn densest_board(
         }
     }
     check(lo).map(Some)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::read_board;
+
+    const IO: &str = "name = \"io\"\nclock_hz = 133e6\ncores = 2\nsample_rate_hz = 44100\n\
+                      [converters]\nadc = \"ADS8688\"\ndac = \"DAC8568\"\n\
+                      adc_pins = [[2, 3, 4, 5], [10, 11, 12, 13]]\n\
+                      dac_pins = [[6, 7, 8], [14, 15, 16]]\n";
+
+    #[test]
+    fn converters_are_parts_the_firmware_drives_wired_as_its_drivers_need() {
+        assert!(read_board(IO, "io.toml").is_ok());
+        let e = read_board(&IO.replace("ADS8688", "ADS1278"), "io.toml").unwrap_err();
+        assert!(
+            e.contains("io.toml") && e.contains("`converters.adc`"),
+            "{e}"
+        );
+        let e = read_board(&IO.replace("[14, 15, 16]", "[14, 16, 15]"), "io.toml").unwrap_err();
+        assert!(
+            e.contains("io.toml") && e.contains("`converters.dac_pins`"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_converter_board_whose_sample_period_is_shorter_than_one_frame_is_refused() {
+        // 500 kHz at 133 MHz: 266 cycles a sample, less than one ADC frame's burst (332
+        // cycles): no key could run, so the board is refused where it is read.
+        let fast = IO.replace("sample_rate_hz = 44100", "sample_rate_hz = 500000");
+        let e = read_board(&fast, "io.toml").unwrap_err();
+        assert!(
+            e.contains("io.toml") && e.contains("`converters.adc`") && e.contains("sample period"),
+            "{e}"
+        );
+        // Without converters the same clock and rate are a board.
+        let plain = &fast[..fast.find("[converters]").unwrap()];
+        assert!(read_board(plain, "io.toml").is_ok());
+        // The shipped converter board is read.
+        let shipped = include_str!("../../boards/rp2040_io.toml");
+        assert!(read_board(shipped, "rp2040_io.toml").is_ok());
+    }
 }

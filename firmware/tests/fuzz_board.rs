@@ -1,6 +1,6 @@
 //! Fuzzing board files as `tactus budget`, `build` and `play` read them (issue 36): the
 //! shipped boards and a few more, mutated at the byte level and with extreme values, are
-//! read by the one validation of boards (`board_file::read_board`) or give an error naming
+//! read by the one validation of boards (`boards::read_board`) or give an error naming
 //! the file; a board it accepts is one the firmware is built for — a key's image on it
 //! builds, is flashable (a PLL_SYS setting makes its clock), ticks every `⌊clock/fs⌋` or
 //! one more cycles as the deadline says, and its verdict is the budget's. Never a panic,
@@ -14,7 +14,7 @@ use proptest::test_runner::TestCaseError;
 use std::cell::Cell;
 use std::path::Path;
 use std::time::Duration;
-use tactus_firmware::board_file::read_board;
+use tactus_firmware::boards::read_board;
 use tactus_firmware::boards::{self, PlanKey, ProgramCosts};
 use tactus_firmware::image::Program;
 use tactus_runtime::limiter::LimiterConfig;

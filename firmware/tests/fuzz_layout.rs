@@ -117,7 +117,7 @@ fn one_case(
     };
     let kind = l.board_kind.clone().unwrap_or_else(|| "rp2040".into());
     let board = match std::fs::read_to_string(root().join(format!("boards/{kind}.toml"))) {
-        Ok(t) => match tactus_firmware::board_file::read_board(&t, &kind) {
+        Ok(t) => match tactus_firmware::boards::read_board(&t, &kind) {
             Ok(b) => b,
             Err(e) => panic!("a shipped board refused: {e}"),
         },

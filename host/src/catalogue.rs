@@ -142,17 +142,17 @@ pub fn layout(name: &str) -> Option<&'static str> {
 
 /// The board named `arg`: a board file, or a built-in board's name (`rp2040-200mhz` and
 /// `rp2040_200mhz.toml` name `rp2040_200mhz` too), checked by
-/// `tactus_firmware::board_file::read_board` (the one validation of boards).
+/// `tactus_firmware::boards::read_board` (the one validation of boards).
 ///
 /// Errors name the file and the field, or list the built-ins.
 pub fn board(arg: &str) -> Result<BoardSpec, String> {
     if Path::new(arg).exists() {
         let text = tactus_runtime::keyboard::read_text(Path::new(arg))?;
-        return tactus_firmware::board_file::read_board(&text, arg);
+        return tactus_firmware::boards::read_board(&text, arg);
     }
     let stem = arg.trim_end_matches(".toml").replace('-', "_");
     match BOARDS.iter().find(|(n, _)| *n == stem) {
-        Some((n, text)) => tactus_firmware::board_file::read_board(text, &format!("builtin:{n}")),
+        Some((n, text)) => tactus_firmware::boards::read_board(text, &format!("builtin:{n}")),
         None => Err(format!(
             "no board file `{arg}`, and no built-in board of that name (built-ins: {})",
             names(BOARDS)
