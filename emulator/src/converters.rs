@@ -625,31 +625,41 @@ impl Dac8568 {
         }
     }
 
+    /// The input registers of `channels` (bit c: channel c) take `data`.
+    fn write_inputs(&mut self, channels: u8, data: u16) {
+        for (c, input) in self.input.iter_mut().enumerate() {
+            if channels & (1 << c) != 0 {
+                *input = data;
+            }
+        }
+    }
+
     /// A whole frame (8.2.6, Table 2 "Control Matrix").
     fn write(&mut self, cycle: u64, word: u32) {
         let control = (word >> 24) & 0xf;
         let address = (word >> 20) & 0xf;
         let data = ((word >> 4) & 0xffff) as u16;
-        let channels: Vec<usize> = match address {
-            0..=7 => vec![address as usize],
-            15 => (0..8).collect(),
-            _ => Vec::new(),
+        // Channels as bits (bit c: channel c).
+        let channels: u8 = match address {
+            0..=7 => 1 << address,
+            15 => 0xff,
+            _ => 0,
         };
-        let mut changed = Vec::new();
+        let mut changed = 0u8;
         match control {
-            0 => channels.iter().for_each(|&c| self.input[c] = data),
+            0 => self.write_inputs(channels, data),
             1 => changed = channels,
             2 => {
-                channels.iter().for_each(|&c| self.input[c] = data);
-                changed = (0..8).collect();
+                self.write_inputs(channels, data);
+                changed = 0xff;
             }
             3 => {
-                channels.iter().for_each(|&c| self.input[c] = data);
+                self.write_inputs(channels, data);
                 changed = channels;
             }
             _ => {}
         }
-        for c in changed {
+        for c in (0..8).filter(|c| changed & (1 << c) != 0) {
             self.output[c] = self.input[c];
             let code = self.output[c];
             keep(
