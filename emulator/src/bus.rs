@@ -318,8 +318,15 @@ impl System {
         ALL_BANKS & !self.io_banks
     }
 
-    /// Runs the I/O (if any) through cycle `to − 1` ([`crate::io`]).
+    /// Runs the I/O (if any) through cycle `to − 1` ([`crate::io`]), everything in it as of
+    /// that cycle.
     pub fn io_advance(&mut self, to: u64) {
+        self.io_advance_to(to, true);
+    }
+
+    /// [`System::io_advance`]; without `settle`, a state machine that alone drives its
+    /// converters may stay behind at a bit loop's head (`crate::io::Io::advance`).
+    fn io_advance_to(&mut self, to: u64, settle: bool) {
         if let Some(io) = self.io.as_mut() {
             let mut mem = crate::io::Memory {
                 sram: &mut self.sram,
@@ -330,7 +337,7 @@ impl System {
                 flash: &self.flash,
                 xip_answers: self.xip_answers,
             };
-            io.advance(to, &mut mem);
+            io.advance(to, &mut mem, settle);
         }
     }
 
@@ -340,12 +347,12 @@ impl System {
     fn io_sram(&mut self, core: usize, cycle: u64, bank: usize) -> u32 {
         let wins = self.io.as_ref().is_some_and(|io| io.dma_wins(core));
         if !wins {
-            self.io_advance(cycle);
+            self.io_advance_to(cycle, false);
             return 0;
         }
         let mut at = cycle;
         loop {
-            self.io_advance(at + 1);
+            self.io_advance_to(at + 1, false);
             match self.io.as_ref() {
                 Some(io) if io.dma_claims(bank, at) => at += 1,
                 _ => return (at - cycle) as u32,

@@ -34,8 +34,11 @@
 //! needs it. A state machine that alone drives its converters runs ahead of the rest with
 //! them (`Io::run_ahead`), and a bit loop of its program ([`crate::pio::BitLoop`]: the SPI
 //! drivers' `OUT`/`IN` … `JMP X--` loops) as many times round as fit in one step, its
-//! converters taking the clock edges in bulk (`Io::run_loop`). A converter sees the pins
-//! when one of its own changed. The
+//! converters taking the clock edges in bulk (`Io::run_loop`). The cores' accesses to the
+//! DMA's banks need only the DMA as of their cycle: there (`Io::advance` without
+//! `settle`) such a state machine at a loop's head that ends later stays behind, held at its
+//! clock, and runs the loop whole in a later advance (`Io::behind`); every other advance
+//! settles it first. A converter sees the pins when one of its own changed. The
 //! reference it is tested against ticks everything every cycle ([`Io::stepwise`]).
 //!
 //! **The DMA against the cores.** The DMA's two masters (read and write ports) arbitrate
@@ -152,6 +155,13 @@ pub struct Io {
     /// Per PIO block and state machine, what [`Io::run_ahead`] may run of it, found for the
     /// blocks' configuration epochs ([`Pio::config_epoch`]) and the I/O's register writes.
     ahead: Option<Ahead>,
+    /// The state machines held at the head of a bit loop behind [`Io::cycle`] (bit 4b + n),
+    /// at their clocks, by an advance that did not settle ([`Io::advance`]): nothing sees
+    /// them until they run on; [`Io::sdo_log`] keeps their ADCs' outputs meanwhile.
+    behind: u8,
+    /// Per PIO block and state machine held behind, the cycle its loop ends at: until an
+    /// advance reaches it (or settles), it stays held without a look.
+    held_until: [[u64; 4]; 2],
 }
 
 /// Which state machines may run ahead of the rest ([`Io::run_ahead`]), and the converters
@@ -168,6 +178,20 @@ struct Ahead {
     /// The bit loops of the state machines that may run ahead, with their converters' edges
     /// ([`Io::run_loop`]).
     loops: Vec<LoopPlan>,
+}
+
+/// What a run ahead ([`Io::run_ahead`]) needs of the advance it is part of.
+struct Run<'f> {
+    /// The cycle the advance started at, and its end.
+    start: u64,
+    to: u64,
+    /// The synchroniser flops at `start`.
+    flops: &'f [[u32; 2]; 2],
+    /// Whether the advance settles (every state machine brought to `to`), or may leave one
+    /// behind at a bit loop's head ([`Io::behind`]).
+    settle: bool,
+    /// Whether the state machine reads its inputs from the ADCs' logs alone ([`Io::own_in`]).
+    logs: bool,
 }
 
 /// A bit loop ([`BitLoop`]) of a state machine that may run ahead, and what it does to the
@@ -347,6 +371,14 @@ fn banks_of(addr: u32, len: u64) -> u8 {
     banks
 }
 
+/// The clock edges (steps of the rise and the fall) of `c` that a part on pins `p` sees
+/// with the pins `view` (levels, directions) at the loop's entry: with its select driven
+/// low and its clock driven; none otherwise.
+fn loop_edges(c: &LoopClock, p: SpiPins, view: (u32, u32)) -> Option<(usize, usize)> {
+    let selected = view.1 >> p.cs & 1 != 0 && view.0 >> p.cs & 1 == 0;
+    c.edges.filter(|_| selected && view.1 >> p.sclk & 1 != 0)
+}
+
 /// The level an ADC's output log (`Io::sdo_log`: (first cycle, levels) at each change,
 /// in cycle order) gives for cycle `x`: its last entry from `x` or before, 0 before the
 /// first.
@@ -394,6 +426,8 @@ impl Io {
             sm_clock: [[cycle; 4]; 2],
             sdo_log: Vec::new(),
             ahead: None,
+            behind: 0,
+            held_until: [[0; 4]; 2],
         }
     }
 
@@ -606,12 +640,17 @@ impl Io {
         self.gpio_in = gpio_in;
     }
 
-    /// Runs the machine through cycle `to − 1` (nothing when it is there already).
-    pub(crate) fn advance(&mut self, to: u64, mem: &mut Memory) {
+    /// Runs the machine through cycle `to − 1` (nothing when it is there already). With
+    /// `settle`, everything is then as of that cycle; without, a state machine at the head
+    /// of a bit loop that ends later may stay behind, held at its clock ([`Io::behind`]),
+    /// when it alone drives its converters and nothing else reads them: what the DMA and
+    /// SRAM do is the same either way, and the next advance runs it on.
+    pub(crate) fn advance(&mut self, to: u64, mem: &mut Memory, settle: bool) {
         if self.stepwise {
+            debug_assert_eq!(self.behind, 0);
             self.advance_stepwise(to, mem);
         } else {
-            self.advance_by_events(to, mem);
+            self.advance_by_events(to, mem, settle);
         }
     }
 
@@ -762,10 +801,13 @@ impl Io {
 
     /// The GPIO inputs of cycle `x` that matter to a state machine of PIO block `b` which
     /// reads no input but those of the ADCs in `adcs` (bit k: the k-th; the others read
-    /// 0), for `x` from two cycles before `start`, the cycle the current [`Io::advance`]
-    /// started at, whose synchroniser flops are `flops` ([`Io::inputs_at`]).
-    fn own_in(&self, adcs: u32, b: usize, x: u64, start: u64, flops: &[[u32; 2]; 2]) -> u32 {
-        if x.wrapping_add(2) <= start.wrapping_add(1) {
+    /// 0), for `x` from two cycles before the cycle the current [`Io::advance`] started at,
+    /// whose synchroniser flops are `run.flops` ([`Io::inputs_at`]); from the ADCs' logs
+    /// alone for a state machine that was behind (`run.logs`: its reads are from its clock
+    /// on, which the logs kept cover).
+    fn own_in(&self, adcs: u32, b: usize, x: u64, run: &Run) -> u32 {
+        let (start, flops) = (run.start, run.flops);
+        if !run.logs && x.wrapping_add(2) <= start.wrapping_add(1) {
             return self.inputs_at(x, start, flops, b);
         }
         let mut m = 0;
@@ -777,52 +819,46 @@ impl Io {
         m
     }
 
-    /// Runs the bit loop `plan` (its state machine due at cycle `x` at its head, running
-    /// ahead: [`Io::run_ahead`]) as many times round as it goes and as end by cycle `to`
-    /// (at most 64), with its converters, in one step: the converters take its clock
-    /// edges in bulk (`Ads8688::clock_bits`, `Dac8568::clock_bits`) with the data levels
-    /// [`Pio::sm_loop_pin`] gives, the ADCs' outputs are logged, the `IN`s read them from
-    /// the log as they would one by one, and the state machine takes its times round in
-    /// one step ([`Pio::sm_loop_run`]). Exactly what [`Io::run_ahead`] does instruction by
-    /// instruction. Returns the cycle it is due next; `None` (nothing done) when it goes no
-    /// time round before `to`, or when its converters are not where the plan needs them
-    /// (a select or clock at another level, a part that has not seen the pins as they are,
-    /// an SCLK rate over the part's: then the instructions run one by one and the part
-    /// reports it).
-    #[allow(clippy::too_many_arguments)]
-    fn run_loop(
-        &mut self,
-        plan: &LoopPlan,
-        (adc_mask, own): (u32, u32),
-        x: u64,
-        to: u64,
-        start: u64,
-        flops: &[[u32; 2]; 2],
-    ) -> Option<u64> {
+    /// When the state machine of `plan`, due at cycle `x` at its bit loop's head, may be
+    /// held there behind the machine ([`Io::behind`]) by an advance to `to` that does not
+    /// settle: the loop (up to 64 times round, what [`Io::run_loop`] takes in one step)
+    /// ends after `to`, it can run as a whole ([`Io::loop_ready`]), none of its `IN`s reads
+    /// before `x` (each at least two cycles after the head: the logs kept cover its reads),
+    /// and no other ADC drives its ADCs' outputs (`adcs`: those ADCs, bit k the k-th; the
+    /// synchroniser flops patched for them stand for them alone): then the loop's end.
+    fn may_hold(&self, plan: &LoopPlan, (adcs, own): (u32, u32), x: u64, to: u64) -> Option<u64> {
         let ((b, n), lp) = (plan.sm, &plan.lp);
-        let pio = &self.pio[b];
-        let k = pio.sm_loop_left(n).min((to - x) / lp.period).min(64);
-        if k == 0 {
+        let end = x + self.pio[b].sm_loop_left(n).min(64) * lp.period;
+        if end <= to || lp.reads().any(|j| lp.at(j) < 2) {
             return None;
         }
+        let sdo = |k: usize| self.adcs[k].pins().sdo;
+        let shared = (0..self.adcs.len())
+            .filter(|&k| adcs & (1 << k) != 0)
+            .any(|k| (0..self.adcs.len()).any(|m| m != k && sdo(m) == sdo(k)));
+        (!shared && self.loop_ready(plan, own).is_some()).then_some(end)
+    }
+
+    /// The pins as `plan`'s converters see them now (levels, directions), when they are
+    /// where the plan needs them: its select and clock levels at the loop's entry
+    /// ([`LoopClock::holds`]), each part having seen them as they are, and the SCLK rate of
+    /// the parts it clocks within their maximum; `None` otherwise. `own`: the pins its
+    /// state machine drives.
+    fn loop_ready(&self, plan: &LoopPlan, own: u32) -> Option<(u32, u32)> {
+        let ((b, _), lp) = (plan.sm, &plan.lp);
+        let pio = &self.pio[b];
         let (values, dirs) = (pio.pin_values(), pio.pin_dirs());
         let view = (
             self.pins.0 & !own | values & own,
             self.pins.1 & !own | dirs & own,
         );
-        // The clock edges (steps of the rise and the fall) a part sees: with its select
-        // driven low and its clock driven; none otherwise.
-        let edges = |c: &LoopClock, p: SpiPins| {
-            let selected = view.1 >> p.cs & 1 != 0 && view.0 >> p.cs & 1 == 0;
-            c.edges.filter(|_| selected && view.1 >> p.sclk & 1 != 0)
-        };
         for (i, c) in &plan.adcs {
             let a = &self.adcs[*i];
             let p = a.pins();
             if !c.holds((p.cs, p.sclk), values) || !a.sees(view.0, view.1) {
                 return None;
             }
-            if edges(c, p).is_some() && !a.clocks_ok(lp.period) {
+            if loop_edges(c, p, view).is_some() && !a.clocks_ok(lp.period) {
                 return None;
             }
         }
@@ -832,10 +868,42 @@ impl Io {
             if !c.holds((p.cs, p.sclk), values) || !d.sees(view.0, view.1) {
                 return None;
             }
-            if edges(c, p).is_some() && !d.clocks_ok(lp.period) {
+            if loop_edges(c, p, view).is_some() && !d.clocks_ok(lp.period) {
                 return None;
             }
         }
+        Some(view)
+    }
+
+    /// Runs the bit loop `plan` (its state machine due at cycle `x` at its head, running
+    /// ahead: [`Io::run_ahead`]) as many times round as it goes and as end by cycle `run.to`
+    /// (at most 64), with its converters, in one step: the converters take its clock
+    /// edges in bulk (`Ads8688::clock_bits`, `Dac8568::clock_bits`) with the data levels
+    /// [`Pio::sm_loop_pin`] gives, the ADCs' outputs are logged, the `IN`s read them from
+    /// the log as they would one by one, and the state machine takes its times round in
+    /// one step ([`Pio::sm_loop_run`]). Exactly what [`Io::run_ahead`] does instruction by
+    /// instruction. Returns the cycle it is due next; `None` (nothing done) when it goes no
+    /// time round before `run.to`, or when its converters are not where the plan needs them
+    /// (a select or clock at another level, a part that has not seen the pins as they are,
+    /// an SCLK rate over the part's: then the instructions run one by one and the part
+    /// reports it).
+    fn run_loop(
+        &mut self,
+        plan: &LoopPlan,
+        (adc_mask, own): (u32, u32),
+        x: u64,
+        run: &Run,
+    ) -> Option<u64> {
+        let ((b, n), lp) = (plan.sm, &plan.lp);
+        let k = self.pio[b]
+            .sm_loop_left(n)
+            .min((run.to - x) / lp.period)
+            .min(64);
+        if k == 0 {
+            return None;
+        }
+        let view = self.loop_ready(plan, own)?;
+        let edges = |c: &LoopClock, p: SpiPins| loop_edges(c, p, view);
         // SDI at the fall of each time round.
         let sdi_bits = |pio: &Pio, fall: usize, sdi: u32| match view.1 >> sdi & 1 {
             0 => 0,
@@ -885,7 +953,7 @@ impl Io {
                 let at = (x + i * lp.period + lp.at(j)).wrapping_sub(lag);
                 let level = match one {
                     Some((_, first, sdo)) if at > first => sdo >> ((at - first - 1) / lp.period),
-                    _ => u64::from(self.own_in(adc_mask, b, at, start, flops) >> pin),
+                    _ => u64::from(self.own_in(adc_mask, b, at, run) >> pin),
                 };
                 in_bits[j] |= (level & 1) << i;
             }
@@ -901,23 +969,23 @@ impl Io {
 
     /// Runs state machine `n` of PIO block `b`, due at cycle `t`, and the converters that
     /// see its pins ([`Ahead`]: `adcs`, `dacs`), ahead of the rest of the machine: its
-    /// instructions one by one ([`Pio::sm_tick`], [`Pio::sm_skip`]) until one that touches
-    /// more than itself and its pins ([`Pio::sm_local`]) or cycle `to`. Nothing else sees
-    /// what it does meanwhile, nor does anything else change what it does: its pins are
-    /// its own, what it reads its converters', and its FIFOs untouched by it. Returns its
-    /// next cycle.
-    #[allow(clippy::too_many_arguments)]
+    /// instructions one by one ([`Pio::sm_tick`], [`Pio::sm_skip`]), a bit loop's times
+    /// round in one step ([`Io::run_loop`]), until one that touches more than itself and
+    /// its pins ([`Pio::sm_local`]) or cycle `run.to`. Nothing else sees what it does
+    /// meanwhile, nor does anything else change what it does: its pins are its own, what it
+    /// reads its converters', and its FIFOs untouched by it. In an advance that does not
+    /// settle, it is held at a bit loop's head that ends after `run.to` ([`Io::may_hold`],
+    /// [`Io::behind`]). Returns its next cycle (its clock when held).
     fn run_ahead(
         &mut self,
         (b, n): (usize, usize),
         (adcs, dacs, own): (u32, u32, u32),
         t: u64,
-        to: u64,
-        start: u64,
-        flops: &[[u32; 2]; 2],
+        run: &Run,
     ) -> u64 {
+        let to = run.to;
         // It reads no input but its own ADCs' (or constant ones: none).
-        let own_in = |io: &Io, x: u64| io.own_in(adcs, b, x, start, flops);
+        let own_in = |io: &Io, x: u64| io.own_in(adcs, b, x, run);
         let heads = self.ahead.as_ref().map_or(0, |a| a.heads[b][n]);
         let mut x = t;
         while x < to && self.pio[b].sm_local(n) {
@@ -928,7 +996,18 @@ impl Io {
                 let plan = ahead
                     .as_ref()
                     .and_then(|a| a.loops.iter().find(|p| p.sm == (b, n) && p.lp.head == pc));
-                let done = plan.and_then(|p| self.run_loop(p, (adcs, own), x, to, start, flops));
+                let hold = plan.and_then(|p| match run.settle {
+                    true => None,
+                    false => self.may_hold(p, (adcs, own), x, to),
+                });
+                if let Some(until) = hold {
+                    // Held at the head until an advance reaches the loop's end or settles.
+                    self.behind |= 1 << (4 * b + n);
+                    self.held_until[b][n] = until;
+                    self.ahead = ahead;
+                    return x;
+                }
+                let done = plan.and_then(|p| self.run_loop(p, (adcs, own), x, run));
                 self.ahead = ahead;
                 if let Some(next) = done {
                     x = next;
@@ -999,26 +1078,37 @@ impl Io {
     /// ticks or a FIFO level changes. A converter sees the pins only when one of its own
     /// changed (its `observe` does nothing otherwise). A state machine that drives its
     /// converters alone runs ahead of the rest with them ([`Io::run_ahead`]).
-    fn advance_by_events(&mut self, to: u64, mem: &mut Memory) {
+    fn advance_by_events(&mut self, to: u64, mem: &mut Memory, settle: bool) {
         let wins = [[self.dma_wins(0), self.dma_wins(1)]; 2];
         let start = self.cycle;
-        let flops = [self.pio[0].sync(), self.pio[1].sync()];
+        let mut flops = [self.pio[0].sync(), self.pio[1].sync()];
         let epochs = [self.pio[0].config_epoch(), self.pio[1].config_epoch()];
         if self.ahead.as_ref().is_none_or(|a| a.epochs != epochs) {
             self.ahead = Some(self.find_ahead());
         }
         let ahead = self.ahead.as_ref().map_or([[None; 4]; 2], |a| a.sm);
         self.sdo_log.resize_with(self.adcs.len(), Vec::new);
-        if to <= start {
+        if to <= start && (self.behind == 0 || !settle) {
             // Nothing to run (a core's access to a bank the DMA may reach, in a cycle the
             // machine has reached already: about half the calls): every state machine's
-            // clock is where the last advance left it, at `start`, and so are the flops.
-            debug_assert!(self.sm_clock.iter().flatten().all(|&c| c == start));
+            // clock is where the last advance left it, at `start` (or behind it, held), and
+            // so are the flops.
+            debug_assert!(
+                (0..8).all(|i| self.behind & (1 << i) != 0 || self.sm_clock[i / 4][i % 4] == start)
+            );
             return;
         }
-        for (log, a) in self.sdo_log.iter_mut().zip(&self.adcs) {
-            log.clear();
-            log.push((start, a.gpio_in()));
+        let to = to.max(start);
+        // The ADCs of the state machines held behind keep their logs (from before their
+        // clocks); the others' start here.
+        let held_adcs = (0..8)
+            .filter(|&i| self.behind & (1 << i) != 0)
+            .fold(0, |m, i| m | ahead[i / 4][i % 4].map_or(0, |(a, ..)| a));
+        for (k, (log, a)) in self.sdo_log.iter_mut().zip(&self.adcs).enumerate() {
+            if held_adcs & (1 << k) == 0 {
+                log.clear();
+                log.push((start, a.gpio_in()));
+            }
         }
         let mut next = [[u64::MAX; 4]; 2];
         for (b, nb) in next.iter_mut().enumerate() {
@@ -1026,6 +1116,57 @@ impl Io {
                 *x = self.sm_next(b, n);
             }
         }
+        // The state machines held behind go on first, from their clocks (before `start`):
+        // nothing else sees them, nor changes what they do (`Io::run_ahead`). Then the
+        // flops at `start` take their ADCs' outputs as they now are before it.
+        let behind = std::mem::take(&mut self.behind);
+        if behind != 0 {
+            let lens: Vec<usize> = self.sdo_log.iter().map(Vec::len).collect();
+            for i in (0..8).filter(|&i| behind & (1 << i) != 0) {
+                let (b, n) = (i / 4, i % 4);
+                let Some(conv) = ahead[b][n] else {
+                    continue;
+                };
+                if !settle && to < self.held_until[b][n] {
+                    // Still inside its loop's span: held on, as it was.
+                    self.behind |= 1 << i;
+                    next[b][n] = u64::MAX;
+                    continue;
+                }
+                let run = Run {
+                    start,
+                    to,
+                    flops: &flops,
+                    settle,
+                    logs: true,
+                };
+                let x = self.run_ahead((b, n), conv, self.sm_clock[b][n], &run);
+                next[b][n] = match self.behind & (1 << i) {
+                    0 => x,
+                    _ => u64::MAX,
+                };
+            }
+            for (k, log) in self.sdo_log.iter().enumerate() {
+                if held_adcs & (1 << k) == 0 {
+                    continue;
+                }
+                let pin = 1u32 << self.adcs[k].pins().sdo;
+                for (f, c) in [(0, start.wrapping_sub(1)), (1, start.wrapping_sub(2))] {
+                    if let Some(&(_, v)) = log[lens[k]..].iter().rev().find(|&&(at, _)| at <= c) {
+                        for fb in &mut flops {
+                            fb[f] = fb[f] & !pin | v;
+                        }
+                    }
+                }
+            }
+        }
+        let run = Run {
+            start,
+            to,
+            flops: &flops,
+            settle,
+            logs: false,
+        };
         // The DMA's quietness and the FIFO levels it was found at.
         let mut dma_quiet: Option<([u32; 2], bool)> = None;
         while self.cycle < to {
@@ -1063,7 +1204,9 @@ impl Io {
                 for (b, nb) in next.iter_mut().enumerate() {
                     if touched & (1 << b) != 0 {
                         for (n, x) in nb.iter_mut().enumerate() {
-                            *x = self.sm_resync(b, n, t);
+                            if self.behind & (1 << (4 * b + n)) == 0 {
+                                *x = self.sm_resync(b, n, t);
+                            }
                         }
                     }
                 }
@@ -1079,7 +1222,10 @@ impl Io {
                     self.sm_clock[b][n] = t;
                     match ahead[b][n] {
                         Some(conv) if self.pio[b].sm_local(n) => {
-                            *x = self.run_ahead((b, n), conv, t, to, start, &flops);
+                            *x = self.run_ahead((b, n), conv, t, &run);
+                            if self.behind & (1 << (4 * b + n)) != 0 {
+                                *x = u64::MAX;
+                            }
                         }
                         _ => mask |= 1 << n,
                     }
@@ -1098,7 +1244,7 @@ impl Io {
                     if mask & (1 << n) != 0 {
                         self.sm_clock[b][n] = t + 1;
                         *x = self.sm_next(b, n);
-                    } else if moved && *x == u64::MAX {
+                    } else if moved && *x == u64::MAX && self.behind & (1 << (4 * b + n)) == 0 {
                         // A FIFO stall holds only while its side-set is on the pins.
                         *x = self.sm_resync(b, n, t + 1);
                     }
@@ -1111,6 +1257,10 @@ impl Io {
         let end = self.cycle;
         for b in 0..2 {
             for n in 0..4 {
+                if self.behind & (1 << (4 * b + n)) != 0 {
+                    continue;
+                }
+                self.held_until[b][n] = 0;
                 let skipped = end.saturating_sub(self.sm_clock[b][n]);
                 self.pio[b].sm_skip(n, skipped);
                 self.sm_clock[b][n] = end;
@@ -1122,8 +1272,13 @@ impl Io {
             self.pio[b].set_sync(flops);
         }
         self.gpio_in = self.adcs.iter().fold(0, |m, a| m | a.gpio_in());
-        for log in &mut self.sdo_log {
-            log.clear();
+        let held_adcs = (0..8)
+            .filter(|&i| self.behind & (1 << i) != 0)
+            .fold(0, |m, i| m | ahead[i / 4][i % 4].map_or(0, |(a, ..)| a));
+        for (k, log) in self.sdo_log.iter_mut().enumerate() {
+            if held_adcs & (1 << k) == 0 {
+                log.clear();
+            }
         }
     }
 

@@ -56,6 +56,11 @@ impl Cpu<'_> {
 /// (commands in, results out) and started them: returns the system and the cycle after the
 /// last store.
 fn set_up(bus_priority: u32, stepwise: bool) -> (System, u64) {
+    set_up_with(&PROGRAM, bus_priority, stepwise)
+}
+
+/// [`set_up`] with the master's program `program` (at 0, wrapping at 7).
+fn set_up_with(program: &[u16; 8], bus_priority: u32, stepwise: bool) -> (System, u64) {
     let mut sys = System::new(CLOCK_HZ);
     let mut io = Io::new(
         &IoConfig {
@@ -84,7 +89,7 @@ fn set_up(bus_priority: u32, stepwise: bool) -> (System, u64) {
     for pin in [PINS.cs, PINS.sclk, PINS.sdi] {
         cpu.store(IO_BANK0_BASE + 8 * pin + 4, FUNCSEL_PIO0);
     }
-    for (i, w) in PROGRAM.iter().enumerate() {
+    for (i, w) in program.iter().enumerate() {
         cpu.store(PIO0_BASE + reg::INSTR_MEM0 + 4 * i as u32, u32::from(*w));
     }
     cpu.store(PIO0_BASE + reg::SM0_CLKDIV, 2 << 16);
@@ -211,6 +216,58 @@ fn skipping_quiet_stretches_changes_nothing() {
     let (frames, ..) = snapshot(&mut fast);
     assert_eq!(frames.len(), 2 * FRAMES as usize);
     assert_eq!(snapshot(&mut fast), snapshot(&mut slow));
+}
+
+/// Brings `sys`, a machine ticked every cycle, to `cycle` one cycle at a time.
+fn tick_to(sys: &mut System, cycle: u64) {
+    while sys.io.as_ref().expect("io").cycle() < cycle {
+        let c = sys.io.as_ref().expect("io").cycle();
+        sys.io_advance(c + 1);
+    }
+}
+
+#[test]
+fn state_machines_left_behind_by_the_cores_bank_accesses_change_nothing() {
+    // A core's access to a bank the DMA may reach runs the machine to its cycle without
+    // settling it: the ADC's state machine may stay behind at a bit loop's head, its frame
+    // half clocked, until an advance reaches the loop's end (`Io::advance`). Core 0 reads
+    // the results' bank every few cycles; the same reads, waits and states as ticking the
+    // machine every cycle, observed where `io_advance` settles it.
+    // Also with a loop that reads at its head (the level of two cycles before it).
+    let mut reading = PROGRAM;
+    reading[2..5].copy_from_slice(&[0x4001, PROGRAM[2], 0x0042]);
+    for program in [PROGRAM, reading] {
+        left_behind_changes_nothing(&program);
+    }
+}
+
+fn left_behind_changes_nothing(program: &[u16; 8]) {
+    let (mut fast, t) = set_up_with(program, priority::DMA_R | priority::DMA_W, false);
+    let (mut slow, _) = set_up_with(program, priority::DMA_R | priority::DMA_W, true);
+    let (mut at, mut stride, mut gap) = (t, 1u64, 1u64);
+    let mut reads = 0;
+    while at < t + RUN + 500 {
+        let next = at + stride;
+        let mut c = at;
+        while c < next {
+            tick_to(&mut slow, c);
+            let a = fast.read(0, c, RESULTS + 0x800, 4).expect("read");
+            let b = slow.read(0, c, RESULTS + 0x800, 4).expect("read");
+            assert_eq!(a, b, "read at cycle {c}");
+            reads += 1;
+            gap = gap * 5 % 13 + 1;
+            c += gap + u64::from(a.1);
+        }
+        let next = next.max(c);
+        tick_to(&mut slow, next);
+        fast.io_advance(next);
+        assert_eq!(snapshot(&mut fast), snapshot(&mut slow), "at cycle {next}");
+        at = next;
+        stride = stride * 7 % 127 + 1;
+    }
+    assert!(reads > 200, "{reads} reads");
+    let (frames, ..) = snapshot(&mut fast);
+    assert_eq!(frames.len(), FRAMES as usize);
 }
 
 /// The cycle in which the DMA writes results word `i` (its new value visible from the
