@@ -546,7 +546,7 @@ impl Dac8568 {
             }
         }
         if e.sclk_fell {
-            self.fall(cycle, e.sdi, true);
+            self.fall(cycle, e.sdi);
         }
     }
 
@@ -575,17 +575,25 @@ impl Dac8568 {
     /// equal periods: [`Dac8568::clocks_ok`], which must hold).
     pub fn clock_bits(&mut self, first: u64, period: u64, k: u32, sdi: u64) {
         debug_assert!(self.clocks_ok(period) && (1..=64).contains(&k));
-        for i in 0..k {
-            self.fall(first + u64::from(i) * period, sdi >> i & 1 != 0, i == 0);
+        self.fall(first, sdi & 1 != 0);
+        for i in 1..k {
+            let cycle = first + u64::from(i) * period;
+            // `fall` without its checks (the rate known to be within the part's).
+            if self.bits < self.part.frame_bits {
+                self.shift = self.shift << 1 | (sdi >> i) as u32 & 1;
+                self.bits += 1;
+                if self.bits == self.part.frame_bits {
+                    self.write(cycle, self.shift);
+                }
+            }
         }
+        self.last_fall = Some(first + u64::from(k - 1) * period);
     }
 
-    /// An SCLK fall at `cycle` latching `sdi`; its rate checked against the last with
-    /// `check_rate` (else known to be within it).
-    fn fall(&mut self, cycle: u64, sdi: bool, check_rate: bool) {
+    /// An SCLK fall at `cycle` latching `sdi`.
+    fn fall(&mut self, cycle: u64, sdi: bool) {
         let name = self.part.name;
         match self.last_fall {
-            Some(_) if !check_rate => {}
             Some(prev) => {
                 if let Some(hz) = self.sclk_too_fast(cycle - prev) {
                     self.violate(
