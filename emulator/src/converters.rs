@@ -77,6 +77,12 @@ impl SpiLines {
         }
     }
 
+    /// Whether the pins driven `values` and `dirs` are where a part on `pins` that saw
+    /// `self` last saw them: then they show it no edge.
+    fn sees(&self, pins: &SpiPins, values: u32, dirs: u32) -> bool {
+        *self == SpiLines::of(pins, values, dirs)
+    }
+
     /// The edges on `pins` given the levels the RP2040 drives (`values`) on the pins it
     /// drives (`dirs`): an undriven CS reads high (the board's pull-up keeps the part
     /// deselected while the RP2040 boots), an undriven SCLK or SDI low.
@@ -93,6 +99,13 @@ impl SpiLines {
         *self = SpiLines { cs_low, sclk_high };
         e
     }
+}
+
+/// The SCLK rate of edges `cycles` apart on a system clocked at `clock_hz`, when it is over
+/// `max_hz`.
+fn sclk_too_fast(clock_hz: f64, max_hz: f64, cycles: u64) -> Option<f64> {
+    let hz = clock_hz / cycles as f64;
+    (hz > max_hz).then_some(hz)
 }
 
 /// One frame the ADC saw, CS low to CS high.
@@ -240,13 +253,12 @@ impl Ads8688 {
     /// Whether the pins driven `values` and `dirs` (as [`Ads8688::observe`] takes them) are
     /// where it saw them last: then they show it no edge.
     pub fn sees(&self, values: u32, dirs: u32) -> bool {
-        self.lines == SpiLines::of(&self.pins, values, dirs)
+        self.lines.sees(&self.pins, values, dirs)
     }
 
     /// The SCLK rate of rises `cycles` apart, when it is over the part's maximum.
     fn sclk_too_fast(&self, cycles: u64) -> Option<f64> {
-        let hz = self.clock_hz / cycles as f64;
-        (hz > self.part.sclk_max_hz).then_some(hz)
+        sclk_too_fast(self.clock_hz, self.part.sclk_max_hz, cycles)
     }
 
     /// Whether [`Ads8688::clock_bits`] may clock the frame under way with rises `period`
@@ -553,13 +565,12 @@ impl Dac8568 {
     /// Whether the pins driven `values` and `dirs` (as [`Dac8568::observe`] takes them) are
     /// where it saw them last: then they show it no edge.
     pub fn sees(&self, values: u32, dirs: u32) -> bool {
-        self.lines == SpiLines::of(&self.pins, values, dirs)
+        self.lines.sees(&self.pins, values, dirs)
     }
 
     /// The SCLK rate of falls `cycles` apart, when it is over the part's maximum.
     fn sclk_too_fast(&self, cycles: u64) -> Option<f64> {
-        let hz = self.clock_hz / cycles as f64;
-        (hz > self.part.sclk_max_hz).then_some(hz)
+        sclk_too_fast(self.clock_hz, self.part.sclk_max_hz, cycles)
     }
 
     /// Whether [`Dac8568::clock_bits`] may clock a frame with falls `period` cycles apart:

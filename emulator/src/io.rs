@@ -852,23 +852,19 @@ impl Io {
             self.pins.0 & !own | values & own,
             self.pins.1 & !own | dirs & own,
         );
-        for (i, c) in &plan.adcs {
+        // Each part: its loop clock, pins, whether it has seen the pins as they are, and
+        // whether it may be clocked at the loop's period.
+        let adcs = plan.adcs.iter().map(|(i, c)| {
             let a = &self.adcs[*i];
-            let p = a.pins();
-            if !c.holds((p.cs, p.sclk), values) || !a.sees(view.0, view.1) {
-                return None;
-            }
-            if loop_edges(c, p, view).is_some() && !a.clocks_ok(lp.period) {
-                return None;
-            }
-        }
-        for (i, c) in &plan.dacs {
+            (c, a.pins(), a.sees(view.0, view.1), a.clocks_ok(lp.period))
+        });
+        let dacs = plan.dacs.iter().map(|(i, c)| {
             let d = &self.dacs[*i];
-            let p = d.pins();
-            if !c.holds((p.cs, p.sclk), values) || !d.sees(view.0, view.1) {
-                return None;
-            }
-            if loop_edges(c, p, view).is_some() && !d.clocks_ok(lp.period) {
+            (c, d.pins(), d.sees(view.0, view.1), d.clocks_ok(lp.period))
+        });
+        for (c, p, sees, clocks) in adcs.chain(dacs) {
+            let clocked = loop_edges(c, p, view).is_some();
+            if !c.holds((p.cs, p.sclk), values) || !sees || (clocked && !clocks) {
                 return None;
             }
         }
