@@ -1,10 +1,10 @@
-//! The one validation of a board: what a board file (or a key map's board fields) may ask of
-//! the RP2040 the firmware runs on. `tactus budget`, `build` and `play` read every board
-//! through [`crate::boards::read_board`] (this check, then the converter drivers planned
-//! for one key a core), and `tactus emu run` checks a key map's clock, sample rate and
-//! cores with [`check_board`], so a board is either one the firmware can be built and
-//! flashed for — and then every verdict about it is about real firmware — or bad input
-//! naming the file and the field.
+//! What a board file (or a key map's board fields) may ask of the RP2040 the firmware runs
+//! on: the chip's part of the one validation of a board. `tactus budget`, `build` and
+//! `play` read every board through [`crate::boards::read_board`] (this check, then the
+//! converter drivers planned for one key a core), and `tactus emu run` checks a key map's
+//! clock, sample rate and cores with [`check_board`], so a board is either one the firmware
+//! can be built and flashed for — and then every verdict about it is about real firmware —
+//! or bad input naming the file and the field.
 //!
 //! A board file describes the machine only (`tactus_runtime::keyboard::BoardSpec`: name,
 //! clock, cores, sample rate). Two levels:

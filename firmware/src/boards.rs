@@ -344,7 +344,7 @@ pub fn read_board(text: &str, name: &str) -> Result<BoardSpec, String> {
 }
 
 /// A board with `[converters]`: its drivers planned for one key a core (one ADC and one
-/// DAC channel each, [`crate::image::io::IoPlan::new`], the plan every image of the board
+/// DAC channel each, [`crate::image::io::IoPlan::plan`], the plan every image of the board
 /// starts from), so that a board no key can run on — a clock the SPI clocks cannot be
 /// divided from, a sample period shorter than one frame's burst, a conversion the frame
 /// would outrun — is refused where it is read, not when a key's firmware is built.
@@ -355,31 +355,18 @@ pub fn check_drivers(
     board: &BoardSpec,
     chip: &crate::board_file::Chip,
 ) -> Result<(), crate::board_file::BoardError> {
-    use crate::board_file::BoardError;
     let Some((adc, _)) = board.converter_parts() else {
         return Ok(());
     };
     let one = tactus_runtime::converters::AdcScale::new(0, 0, adc.bits);
-    let plan = crate::image::io::IoPlan::new(
+    crate::image::io::IoPlan::plan(
         board,
         chip.clock_hz,
         u64::from(chip.tick.q),
         vec![vec![one]; chip.cores],
         vec![1; chip.cores],
-    );
-    let err = |field: &'static str, why: String| BoardError { field, why };
-    match plan {
-        Ok(_) => Ok(()),
-        Err(ImageError::Board(why)) => {
-            for field in ["converters.adc", "converters.dac"] {
-                if let Some(rest) = why.strip_prefix(&format!("`{field}`: ")) {
-                    return Err(err(field, rest.to_string()));
-                }
-            }
-            Err(err("converters", why))
-        }
-        Err(e) => Err(err("converters", e.to_string())),
-    }
+    )
+    .map(|_| ())
 }
 
 /// The verdict of one board holding `keys`: its image's static bound per core.

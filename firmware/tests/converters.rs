@@ -44,13 +44,13 @@ fn stimulus_words(p: &Program, i: usize, from: usize, len: usize) -> Vec<i32> {
         .collect()
 }
 
-/// Keys 60–64 of `program`: three on core 0, two on core 1.
 /// `p` on `keys` for board `name`, with the default limiter.
 fn image(p: &Program, keys: &[KeySpec], name: &str) -> FirmwareImage {
     let lim = LimiterConfig::default();
     FirmwareImage::build(std::slice::from_ref(p), keys, &board(name), &lim).unwrap()
 }
 
+/// Keys 60–64 of `program`: three on core 0, two on core 1.
 fn keys() -> Vec<KeySpec> {
     (0..5)
         .map(|i| KeySpec {

@@ -14,8 +14,7 @@ use proptest::test_runner::TestCaseError;
 use std::cell::Cell;
 use std::path::Path;
 use std::time::Duration;
-use tactus_firmware::boards::read_board;
-use tactus_firmware::boards::{self, PlanKey, ProgramCosts};
+use tactus_firmware::boards::{self, read_board, PlanKey, ProgramCosts};
 use tactus_firmware::image::Program;
 use tactus_runtime::limiter::LimiterConfig;
 

@@ -49,6 +49,7 @@
 //! contention.
 
 use super::ImageError;
+use crate::board_file::BoardError;
 use tactus_compiler::thumb::buffer::CodeBuffer;
 use tactus_compiler::thumb::ins as asm;
 use tactus_emulator::converters::SpiPins;
@@ -56,7 +57,7 @@ use tactus_emulator::dma::{ctrl as dctrl, reg as dreg, DMA_BASE};
 use tactus_emulator::io::{priority, BUSCTRL_BASE, FUNCSEL_PIO0, IO_BANK0_BASE};
 use tactus_emulator::pio::{reg as preg, PIO0_BASE, PIO1_BASE};
 use tactus_isa::decode::{AluOp, Instr, MemOp};
-use tactus_runtime::converters::{AdcPart, AdcScale, DacPart};
+use tactus_runtime::converters::{AdcPart, AdcScale, Converters, DacPart};
 use tactus_runtime::keyboard::BoardSpec;
 
 /// Bank offset of each core's I/O block (in bank 2 + core, below the windows at 0xfc00).
@@ -156,7 +157,7 @@ impl PioProgram {
 
 /// The chip-select padding of `cycles` PIO cycles high (at least 1): a `pull block` with up
 /// to 7 cycles of delay and `nop`s of up to 8 more.
-fn padding(cycles: u32) -> Result<Vec<u16>, ImageError> {
+fn padding(cycles: u32) -> Result<Vec<u16>, BoardError> {
     let mut words = vec![ins(
         op::PULL_BLOCK,
         CS_HIGH,
@@ -169,8 +170,9 @@ fn padding(cycles: u32) -> Result<Vec<u16>, ImageError> {
         left -= d + 1;
     }
     if words.len() > 8 {
-        return Err(ImageError::Board(
-            "`converters`: the chip select's padding needs more than 8 PIO instructions".into(),
+        return Err(board_err(
+            "converters",
+            "the chip select's padding needs more than 8 PIO instructions".into(),
         ));
     }
     Ok(words)
@@ -220,7 +222,7 @@ pub fn adc_program(
     origin: u32,
     cs_high: u32,
     direct: Option<u32>,
-) -> Result<PioProgram, ImageError> {
+) -> Result<PioProgram, BoardError> {
     let mut words = padding(cs_high)?;
     let edge = match direct {
         None => {
@@ -287,7 +289,7 @@ pub fn adc_program(
 /// f:  set pins, 0  side 0b01 [1]   ; 4 don't-care bits
 ///     jmp x--, f   side 0b00 [1]   ; the 32nd falls: the channel updates
 /// ```
-pub fn dac_program(origin: u32, cs_high: u32) -> Result<PioProgram, ImageError> {
+pub fn dac_program(origin: u32, cs_high: u32) -> Result<PioProgram, BoardError> {
     let mut words = padding(cs_high)?;
     words.push(ins(op::SET_X | 11, 0, 0));
     let h = origin + words.len() as u32;
@@ -373,8 +375,8 @@ pub struct IoPlan {
     pub cores: Vec<CoreIo>,
 }
 
-fn board_err(field: &str, why: String) -> ImageError {
-    ImageError::Board(format!("`converters.{field}`: {why}"))
+fn board_err(field: &'static str, why: String) -> BoardError {
+    BoardError { field, why }
 }
 
 /// The shift every scale of `scales` shares when the ADC can push their sensor words
@@ -404,8 +406,42 @@ impl IoPlan {
         };
         conv.check(&board.name, board.cores)
             .map_err(ImageError::Board)?;
+        IoPlan::checked(conv, clock_hz, q, scales, dacs)
+            .map(Some)
+            .map_err(|e| ImageError::Board(e.to_string()))
+    }
+
+    /// [`IoPlan::new`] with its errors as a board file's fields (what
+    /// `crate::boards::check_drivers` reports): `converters` for the parts or their wiring
+    /// (`Converters::check`) or the PIO programs, else `converters.adc` or `converters.dac`.
+    ///
+    /// Errors: [`BoardError`] naming the field.
+    pub fn plan(
+        board: &BoardSpec,
+        clock_hz: u64,
+        q: u64,
+        scales: Vec<Vec<AdcScale>>,
+        dacs: Vec<u32>,
+    ) -> Result<Option<IoPlan>, BoardError> {
+        let Some(conv) = &board.converters else {
+            return Ok(None);
+        };
+        conv.check(&board.name, board.cores)
+            .map_err(|why| board_err("converters", why))?;
+        IoPlan::checked(conv, clock_hz, q, scales, dacs).map(Some)
+    }
+
+    /// The plan for converters `conv` that `Converters::check` has accepted (parts the
+    /// firmware drives, each core's pins), with errors as in [`IoPlan::plan`].
+    fn checked(
+        conv: &Converters,
+        clock_hz: u64,
+        q: u64,
+        scales: Vec<Vec<AdcScale>>,
+        dacs: Vec<u32>,
+    ) -> Result<IoPlan, BoardError> {
         let (Some(adc), Some(dac)) = (conv.adc_part(), conv.dac_part()) else {
-            return Err(board_err("adc", "no driver for the part".into()));
+            return Err(board_err("converters.adc", "no driver for the part".into()));
         };
         let clock = clock_hz as f64;
         // Four PIO cycles a bit: the divider that keeps SCLK at or below the part's limit.
@@ -413,7 +449,7 @@ impl IoPlan {
         let (adc_div, dac_div) = (div(adc.sclk_max_hz), div(dac.sclk_max_hz));
         if adc_div > 0xffff || dac_div > 0xffff {
             return Err(board_err(
-                "adc",
+                "converters.adc",
                 "the board's clock is too fast to divide".into(),
             ));
         }
@@ -425,7 +461,7 @@ impl IoPlan {
         let setup = f64::from(3 * dac_div) / clock;
         if setup < dac.sync_setup_min_s {
             return Err(board_err(
-                "dac",
+                "converters.dac",
                 format!(
                     "{}: SYNC falls {:.0} ns before SCLK, under its {:.0} ns",
                     dac.name,
@@ -441,7 +477,7 @@ impl IoPlan {
             let max = adc.channels.min(MAX_CHANNELS);
             if scales.len() as u32 > max {
                 return Err(board_err(
-                    "adc",
+                    "converters.adc",
                     format!(
                         "core {c}'s keys read {} sensors, more than the {max} channels of its \
                          {} (one channel per sensor word: fewer keys per core, or more boards)",
@@ -453,7 +489,7 @@ impl IoPlan {
             let max = dac.channels.min(MAX_CHANNELS);
             if dacs > max {
                 return Err(board_err(
-                    "dac",
+                    "converters.dac",
                     format!(
                         "core {c}'s keys drive {dacs} motors, more than the {max} channels of \
                          its {}",
@@ -467,7 +503,7 @@ impl IoPlan {
             let adc_program = adc_program(origin, adc_cs, direct)?;
             if origin + adc_program.words.len() as u32 > 32 {
                 return Err(board_err(
-                    "adc",
+                    "converters.adc",
                     "the two programs do not fit a PIO block's 32 instructions".into(),
                 ));
             }
@@ -475,7 +511,7 @@ impl IoPlan {
             let to_17th = f64::from(adc_program.edge_pio_cycles * adc_div) / clock;
             if to_17th < adc.conversion_max_s {
                 return Err(board_err(
-                    "adc",
+                    "converters.adc",
                     format!(
                         "{}: its result would leave {:.0} ns after the sample, before its \
                          {:.0} ns conversion",
@@ -491,7 +527,7 @@ impl IoPlan {
                 + START_SLACK;
             let dac_burst =
                 u64::from(dac_program.frame_pio_cycles * dac_div) * u64::from(dacs) + START_SLACK;
-            for (field, burst) in [("adc", adc_burst), ("dac", dac_burst)] {
+            for (field, burst) in [("converters.adc", adc_burst), ("converters.dac", dac_burst)] {
                 if burst > q {
                     return Err(board_err(
                         field,
@@ -518,14 +554,14 @@ impl IoPlan {
                 direct: direct.is_some(),
             });
         }
-        Ok(Some(IoPlan {
+        Ok(IoPlan {
             adc,
             dac,
             dac_program,
             adc_div,
             dac_div,
             cores,
-        }))
+        })
     }
 
     /// Core `core`'s ADC frame period, system cycles (CS fall to CS fall, commands
