@@ -123,6 +123,17 @@ pub struct AdcFrame {
     pub sclks: u32,
 }
 
+impl AdcFrame {
+    /// The level SDO shows after the frame's `sclks`-th rise, of a `frame_bits`-SCLK frame:
+    /// rises 17…32 (of 32) launch the code, MSB first; low otherwise.
+    fn sdo(&self, frame_bits: u32) -> bool {
+        let half = frame_bits / 2;
+        self.sclks > half
+            && self.sclks <= frame_bits
+            && (self.code >> (frame_bits - self.sclks)) & 1 != 0
+    }
+}
+
 /// A breach of a converter's data-sheet timing.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TimingViolation {
@@ -288,8 +299,7 @@ impl Ads8688 {
                 // conversion): `rise`'s count and SDO.
                 Some(f) if i > 0 && f.sclks != half => {
                     f.sclks += 1;
-                    self.sdo =
-                        f.sclks > half && f.sclks <= bits && (f.code >> (bits - f.sclks)) & 1 != 0;
+                    self.sdo = f.sdo(bits);
                 }
                 _ => self.rise(cycle, i == 0),
             }
@@ -368,28 +378,22 @@ impl Ads8688 {
         }
         self.last_rise = Some(cycle);
         f.sclks += 1;
-        // Rising edges 17…32 launch the result, MSB first.
-        let half = self.part.frame_bits / 2;
-        if f.sclks > half && f.sclks <= self.part.frame_bits {
-            if f.sclks == half + 1 {
-                let t = self.seconds(cycle - f.cs_fall);
-                if t < self.part.conversion_max_s {
-                    self.violate(
-                        cycle,
-                        format!(
-                            "{}: result clocked out {:.0} ns after its sample, before the {:.0} ns conversion",
-                            self.part.name,
-                            t * 1e9,
-                            self.part.conversion_max_s * 1e9
-                        ),
-                    );
-                }
+        // The result's first rise: the conversion must be over.
+        if f.sclks == self.part.frame_bits / 2 + 1 {
+            let t = self.seconds(cycle - f.cs_fall);
+            if t < self.part.conversion_max_s {
+                self.violate(
+                    cycle,
+                    format!(
+                        "{}: result clocked out {:.0} ns after its sample, before the {:.0} ns conversion",
+                        self.part.name,
+                        t * 1e9,
+                        self.part.conversion_max_s * 1e9
+                    ),
+                );
             }
-            let bit = self.part.frame_bits - f.sclks;
-            self.sdo = (f.code >> bit) & 1 != 0;
-        } else {
-            self.sdo = false;
         }
+        self.sdo = f.sdo(self.part.frame_bits);
         self.frame = Some(f);
     }
 
@@ -588,15 +592,8 @@ impl Dac8568 {
         debug_assert!(self.clocks_ok(period) && (1..=64).contains(&k));
         self.fall(first, sdi & 1 != 0);
         for i in 1..k {
-            let cycle = first + u64::from(i) * period;
             // `fall` without its checks (the rate known to be within the part's).
-            if self.bits < self.part.frame_bits {
-                self.shift = self.shift << 1 | (sdi >> i) as u32 & 1;
-                self.bits += 1;
-                if self.bits == self.part.frame_bits {
-                    self.write(cycle, self.shift);
-                }
-            }
+            self.latch(first + u64::from(i) * period, sdi >> i & 1 != 0);
         }
         self.last_fall = Some(first + u64::from(k - 1) * period);
     }
@@ -634,6 +631,12 @@ impl Dac8568 {
             }
         }
         self.last_fall = Some(cycle);
+        self.latch(cycle, sdi);
+    }
+
+    /// The frame's next bit, `sdi`, latched at an SCLK fall at `cycle` (past the frame's
+    /// bits, nothing): the 32nd writes the frame.
+    fn latch(&mut self, cycle: u64, sdi: bool) {
         if self.bits >= self.part.frame_bits {
             return;
         }
