@@ -179,6 +179,37 @@ fn keep<T>(list: &mut Vec<T>, item: T) {
 }
 
 impl Ads8688 {
+    /// How many frames and violations it has recorded ([`Io::checkpoint`]).
+    ///
+    /// [`Io::checkpoint`]: crate::io::Io::checkpoint
+    pub(crate) fn record_counts(&self) -> [usize; 2] {
+        [self.frames.len(), self.violations.len()]
+    }
+
+    /// A clone without its records: what a checkpoint keeps ([`Io::checkpoint`]; the
+    /// records only grow until the host drains them).
+    ///
+    /// [`Io::checkpoint`]: crate::io::Io::checkpoint
+    pub(crate) fn without_records(&mut self) -> Self {
+        let frames = std::mem::take(&mut self.frames);
+        let violations = std::mem::take(&mut self.violations);
+        let copy = self.clone();
+        self.frames = frames;
+        self.violations = violations;
+        copy
+    }
+
+    /// Back to `then` (from [`Self::without_records`]), its records those of now cut to
+    /// `counts` ([`Self::record_counts`] then).
+    pub(crate) fn rewind(&mut self, then: Self, counts: [usize; 2]) {
+        let mut frames = std::mem::take(&mut self.frames);
+        let mut violations = std::mem::take(&mut self.violations);
+        frames.truncate(counts[0]);
+        violations.truncate(counts[1]);
+        *self = then;
+        self.frames = frames;
+        self.violations = violations;
+    }
     /// An ADC of `part` (its timing limits) on `pins`, on a system clocked at `clock_hz`,
     /// every channel reading code 0.
     pub fn new(part: &'static AdcPart, pins: SpiPins, clock_hz: f64) -> Self {
@@ -472,6 +503,37 @@ pub struct Dac8568 {
 }
 
 impl Dac8568 {
+    /// How many updates and violations it has recorded ([`Io::checkpoint`]).
+    ///
+    /// [`Io::checkpoint`]: crate::io::Io::checkpoint
+    pub(crate) fn record_counts(&self) -> [usize; 2] {
+        [self.updates.len(), self.violations.len()]
+    }
+
+    /// A clone without its records: what a checkpoint keeps ([`Io::checkpoint`]; the
+    /// records only grow until the host drains them).
+    ///
+    /// [`Io::checkpoint`]: crate::io::Io::checkpoint
+    pub(crate) fn without_records(&mut self) -> Self {
+        let updates = std::mem::take(&mut self.updates);
+        let violations = std::mem::take(&mut self.violations);
+        let copy = self.clone();
+        self.updates = updates;
+        self.violations = violations;
+        copy
+    }
+
+    /// Back to `then` (from [`Self::without_records`]), its records those of now cut to
+    /// `counts` ([`Self::record_counts`] then).
+    pub(crate) fn rewind(&mut self, then: Self, counts: [usize; 2]) {
+        let mut updates = std::mem::take(&mut self.updates);
+        let mut violations = std::mem::take(&mut self.violations);
+        updates.truncate(counts[0]);
+        violations.truncate(counts[1]);
+        *self = then;
+        self.updates = updates;
+        self.violations = violations;
+    }
     /// A DAC of `part` on `pins` (its `sdo` unused), on a system clocked at `clock_hz`,
     /// every output at midscale.
     pub fn new(

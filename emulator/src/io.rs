@@ -164,6 +164,14 @@ pub struct Io {
     held_until: [[u64; 4]; 2],
 }
 
+/// The machine at some moment, to go back to ([`Io::checkpoint`], [`Io::rewind`]).
+pub(crate) struct Checkpoint {
+    /// The machine then, its parts without their records.
+    io: Box<Io>,
+    /// Per ADC, then per DAC, its [`Ads8688::record_counts`] then.
+    counts: Vec<[usize; 2]>,
+}
+
 /// Which state machines may run ahead of the rest ([`Io::run_ahead`]), and the converters
 /// each drives.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -217,6 +225,9 @@ pub(crate) struct Memory<'a> {
     pub rom: &'a [u8],
     pub flash: &'a [u8],
     pub xip_answers: bool,
+    /// Where the DMA's SRAM writes journal the word they overwrite (`offset << 32 | old`),
+    /// while a window's I/O is replayed (`System::io_journal`).
+    pub journal: Option<&'a mut Vec<u64>>,
 }
 
 /// The DMA's side of the machine for one tick: memory, the PIO FIFOs and DREQs.
@@ -305,6 +316,10 @@ impl DmaPort for Port<'_, '_> {
     fn write(&mut self, cycle: u64, addr: u32, size: u32, value: u32) -> Result<u32, BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.claim_bank(1, bank, cycle);
+            if let Some(j) = self.mem.journal.as_deref_mut() {
+                let word = off & !3;
+                j.push((word as u64) << 32 | u64::from(load(self.mem.sram, word, 4)));
+            }
             let bytes = value.to_le_bytes();
             self.mem.sram[off..off + size as usize].copy_from_slice(&bytes[..size as usize]);
             if self.mem.code_pages[off >> 8] {
@@ -431,6 +446,41 @@ impl Io {
         }
     }
 
+    /// The machine as it is now, to go back to with [`Io::rewind`] (a window's undo,
+    /// `board/io_window.rs`): a clone but for the parts' records (frames, updates,
+    /// violations), which only grow meanwhile, of which it keeps the counts.
+    pub(crate) fn checkpoint(&mut self) -> Checkpoint {
+        let adcs: Vec<Ads8688> = self.adcs.iter_mut().map(|a| a.without_records()).collect();
+        let dacs: Vec<Dac8568> = self.dacs.iter_mut().map(|d| d.without_records()).collect();
+        let counts = (self.adcs.iter().map(Ads8688::record_counts))
+            .chain(self.dacs.iter().map(Dac8568::record_counts))
+            .collect();
+        let (adcs, dacs) = (
+            std::mem::replace(&mut self.adcs, adcs),
+            std::mem::replace(&mut self.dacs, dacs),
+        );
+        let io = Box::new(self.clone());
+        self.adcs = adcs;
+        self.dacs = dacs;
+        Checkpoint { io, counts }
+    }
+
+    /// Back to `checkpoint` ([`Io::checkpoint`]), the parts' records cut to their counts then.
+    pub(crate) fn rewind(&mut self, checkpoint: Checkpoint) {
+        let Checkpoint { mut io, counts } = checkpoint;
+        let (adcs, dacs) = (std::mem::take(&mut io.adcs), std::mem::take(&mut io.dacs));
+        let mut counts = counts.into_iter();
+        for (a, then) in self.adcs.iter_mut().zip(adcs) {
+            a.rewind(then, counts.next().unwrap_or_default());
+        }
+        for (d, then) in self.dacs.iter_mut().zip(dacs) {
+            d.rewind(then, counts.next().unwrap_or_default());
+        }
+        io.adcs = std::mem::take(&mut self.adcs);
+        io.dacs = std::mem::take(&mut self.dacs);
+        *self = *io;
+    }
+
     /// The first cycle the machine has not run yet.
     pub fn cycle(&self) -> u64 {
         self.cycle
@@ -456,6 +506,12 @@ impl Io {
     /// Whether a DMA master claimed `bank` in `cycle`.
     pub(crate) fn dma_claims(&self, bank: usize, cycle: u64) -> bool {
         self.dma_claim[0][bank] == cycle || self.dma_claim[1][bank] == cycle
+    }
+
+    /// Whether a core's store to `addr` (one of this machine's registers, [`Io::owns`])
+    /// would be taken now: its block is not held in reset.
+    pub(crate) fn accepts(&self, addr: u32) -> bool {
+        Self::owns(addr) && self.held & Self::reset_bit(addr & !0x3fff) == 0
     }
 
     /// Whether `addr` (any atomic alias) is one of this machine's registers.
