@@ -51,9 +51,12 @@
 //! enabled channel may reach ([`Dma::reach`], recomputed at each DMA register write) leaves
 //! the fast path ([`crate::bus::System::allowed_banks`]) and advances the machine first; the
 //! block engine's unconfined code, which does not check banks, does not run while an
-//! [`Io`] is attached, nor do windows of independent cores (`board/window.rs`). The cores'
-//! accesses are served in the lock-step's issue order: an access whose data phase is earlier
-//! than one of the other core's already served finds the machine where that one left it.
+//! [`Io`] is attached. The cores' accesses are served in the lock-step's issue order: an
+//! access whose data phase is earlier than one of the other core's already served finds the
+//! machine where that one left it. Where the DMA wins against both cores, the cores run in
+//! windows ahead of the machine (`board/window.rs`), which then replays their accesses to
+//! its banks and their stores to its registers in that order, the window undone where the
+//! lock-step run would have differed (`board/io_window.rs`).
 //!
 //! Not modelled: the DMA reaching peripherals other than the PIO FIFOs (its own registers,
 //! APB), the DMA's and PIOs' interrupts, GPIO overrides, pads, and the SIO's GPIO outputs.

@@ -5,11 +5,15 @@
 //! drivers do: core 0 reads an ADC's results (DMA from a PIO state machine into its bank 2)
 //! and restarts the burst through two trigger aliases; core 1 reads last sample's copy, restarts
 //! a memory-to-memory channel on its bank 3 and then writes the words the DMA has just read
-//! (so the DMA must see them as they were before the window). In the busy variant core 0's
+//! (so the DMA must see them as they were before the window); a fourth channel, paced by a
+//! DMA timer, copies a word of bank 2 every 128 cycles (so some of core 0's accesses meet
+//! it: those windows are undone). The first part of each
+//! handler (its loads of the DMA's words and a store beside them) is memoized: a hit logs
+//! those accesses for the replay as the run it stands for would. In the busy variant core 0's
 //! main loop reads and writes bank 2 while the DMA writes it: windows are undone. After
 //! every slice both boards agree on everything: cores, stalls, all of SRAM, the whole I/O.
 
-use tactus_emulator::dma::{ctrl, reg as dreg, DMA_BASE, TREQ_PERMANENT};
+use tactus_emulator::dma::{ctrl, reg as dreg, DMA_BASE, TREQ_PERMANENT, TREQ_TIMER0};
 use tactus_emulator::io::{priority, IoConfig};
 use tactus_emulator::{Board, Config, Engine, FIRMWARE_OWN_BANKS};
 use tactus_runtime::converters::ADS8688;
@@ -30,6 +34,8 @@ const SCRATCH2: u32 = 0x2102_0200;
 const SRC: u32 = 0x2103_0000;
 const DST: u32 = 0x2103_0100;
 const COPY: u32 = 2;
+/// The channel paced by a DMA timer on bank 2.
+const PACED: u32 = 3;
 
 fn ch(n: u32, off: u32) -> u32 {
     DMA_BASE + n * dreg::CH_STRIDE + off
@@ -73,12 +79,18 @@ impl Asm {
     }
 }
 
-/// Core 0's handler: sums three results words into its data, restarts the ADC burst
+/// The memoized spans of each core's handler (from its start, bytes): its loads of the
+/// DMA's words and its store of their sum beside them.
+const SPANS: [u32; 2] = [28, 10];
+
+/// Core 0's handler: sums six results words (into bank 2, then its data), restarts the ADC burst
 /// (two trigger-alias stores), counts in bank 2 (a halfword and a word store).
 fn handler0(data: u32) -> Asm {
     let mut a = Asm::default();
     a.lit(0, RESULTS)
-        .op(&[0x6801, 0x6842, 0x1889, 0x69c2, 0x1889]) // ldr r1,[r0]; ldr r2,[r0,#4]; adds; ldr r2,[r0,#28]; adds
+        .op(&[0x6801, 0x6842, 0x1889, 0x6882, 0x1889, 0x68c2, 0x1889]) // ldr r1,[r0]; ldr r2,[r0,#4]; adds; #8; #12
+        .op(&[0x6902, 0x1889, 0x69c2, 0x1889]) // ldr r2,[r0,#16]; adds; ldr r2,[r0,#28]; adds
+        .op(&[0x6401, 0x6441]) // str r1,[r0,#0x40]; str r1,[r0,#0x44] (the span's end, SPANS)
         .lit(3, data)
         .op(&[0x681a, 0x1852, 0x601a]) // ldr r2,[r3]; adds r2,r2,r1; str r2,[r3]
         .lit(0, ch(0, dreg::AL2_WRITE_ADDR_TRIG))
@@ -93,12 +105,12 @@ fn handler0(data: u32) -> Asm {
     a
 }
 
-/// Core 1's handler: sums last sample's copy into its data, restarts the copy, waits
+/// Core 1's handler: sums last sample's copy (into bank 3, then its data), restarts the copy, waits
 /// ~80 cycles (the DMA has read the source by then), then writes new source words.
 fn handler1(data: u32) -> Asm {
     let mut a = Asm::default();
     a.lit(0, DST)
-        .op(&[0x6801, 0x69c2, 0x1889]) // ldr r1,[r0]; ldr r2,[r0,#28]; adds r1,r1,r2
+        .op(&[0x6801, 0x69c2, 0x1889, 0x6401]) // ldr r1,[r0]; ldr r2,[r0,#28]; adds r1,r1,r2; str r1,[r0,#0x40]
         .lit(3, data)
         .op(&[0x681a, 0x1852, 0x601a])
         .lit(0, ch(COPY, dreg::WRITE_ADDR))
@@ -152,6 +164,18 @@ fn board(engine: Engine, busy: bool) -> Board {
     cpu.store(ch(COPY, dreg::WRITE_ADDR), DST);
     cpu.store(ch(COPY, dreg::TRANS_COUNT), 8);
     cpu.store(ch(COPY, dreg::AL1_CTRL), copy);
+    // Channel 3 copies a word of bank 2 to the next one every 128 cycles (its pacing timer):
+    // now and then in a cycle in which core 0 reads or writes the bank, memoized or not.
+    let paced = 2 << ctrl::DATA_SIZE_SHIFT
+        | ctrl::EN
+        | PACED << ctrl::CHAIN_TO_SHIFT
+        | TREQ_TIMER0 << ctrl::TREQ_SEL_SHIFT;
+    cpu.store(DMA_BASE + dreg::TIMER0, 1 << 16 | 128);
+    cpu.store(ch(PACED, dreg::READ_ADDR), SCRATCH2 + 0x100);
+    cpu.store(ch(PACED, dreg::WRITE_ADDR), SCRATCH2 + 0x104);
+    cpu.store(ch(PACED, dreg::TRANS_COUNT), 1 << 20);
+    cpu.store(ch(PACED, dreg::CTRL_TRIG), paced);
+    let mut spans = Vec::new();
     for core in 0..2 {
         let base = bank(core);
         let handler = base + 0x100 + 0x400 * core as u32;
@@ -171,6 +195,7 @@ fn board(engine: Engine, busy: bool) -> Board {
         let idle: Vec<u8> = idle.iter().flat_map(|h| h.to_le_bytes()).collect();
         b.write_bytes(main, &idle).unwrap();
         b.write_u32(base + 4 * 15, handler | 1).unwrap();
+        spans.push((handler, handler + SPANS[core]));
         b.start_core(core, main | 1, 0x2004_1000 + 0x1000 * core as u32, base);
         let c = &mut b.cores[core];
         c.r[6] = RESULTS;
@@ -179,6 +204,7 @@ fn board(engine: Engine, busy: bool) -> Board {
         c.nvic.syst_csr = 7;
         c.nvic.syst_next = 900 + core as u64;
     }
+    b.memoize(&[], &spans);
     b
 }
 
@@ -221,12 +247,13 @@ fn compare(busy: bool, cycles: u64) -> Board {
     let mut slice = 0u16;
     while block.cycle() < cycles {
         let limit = block.cycle() + 1 + rng.below(9000) as u64;
-        // What the ADC reads changes between slices, as the host's key positions do.
+        // What the ADC reads changes every few slices, as the host's key positions do
+        // (and rests in between: the spans' memos hit).
         slice += 1;
         for b in [&mut block, &mut interp] {
             let io = b.io_mut().expect("io");
             for c in 0..8 {
-                io.adcs[0].set_code(c, slice.wrapping_mul(97) ^ (c as u16) << 12);
+                io.adcs[0].set_code(c, (slice / 6).wrapping_mul(97) ^ (c as u16) << 12);
             }
         }
         assert_eq!(block.run_until(limit), interp.run_until(limit));
@@ -242,10 +269,13 @@ fn compare(busy: bool, cycles: u64) -> Board {
 
 #[test]
 fn windows_with_the_dma_equal_the_lock_step() {
-    let block = compare(false, 300_000);
+    let block = compare(false, 600_000);
     let io = block.io_windows();
-    eprintln!("{:?} {io:?}", block.run_ahead_windows());
+    let memo = block.memo_stats();
+    eprintln!("{:?} {io:?} {memo:?}", block.run_ahead_windows());
     assert!(io.kept > 40, "{io:?}");
+    // Memos of the span that reads and writes the DMA's bank apply, logged for the replay.
+    assert!(memo.hits > 10, "{memo:?}");
 }
 
 #[test]

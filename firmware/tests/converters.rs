@@ -388,7 +388,10 @@ fn windows_on_a_board_with_converters_equal_the_lock_step() {
     }
     let io = win.board().io_windows();
     let (kept, undone) = win.board().run_ahead_windows();
-    eprintln!("windows: {kept} kept, {undone} undone; on the I/O: {io:?}");
+    eprintln!(
+        "windows: {kept} kept, {undone} undone; on the I/O: {io:?}; memo: {:?}",
+        win.board().memo_stats()
+    );
     assert!(io.kept > N as u64 / 2, "{io:?}");
     assert_eq!(lock.board().io_windows().kept, 0);
 }

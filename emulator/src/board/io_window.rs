@@ -10,9 +10,12 @@
 //! **The cores' run.** At the window's start the I/O is run up to it (as a core's access
 //! there would) and kept ([`crate::io::Io::checkpoint`]). Each core then runs alone as in any window, its
 //! accesses to the banks the DMA may reach (`L`, [`crate::bus::System::io_banks`] at the
-//! start) taking the general path — not compiled code, memos or fetches — served as if no
-//! DMA were there, and logged: the instruction's start cycle, the data phase, the SRAM
-//! offset, size, value and, for a store, the word it overwrote ([`IoAccess`]). A store to
+//! start) taking the general path — not compiled code or fetches — served as if no DMA
+//! were there, and logged: the instruction's start cycle, the data phase, the SRAM offset,
+//! size, value and, for a store, the word it overwrote ([`IoAccess`]). A memoized call
+//! ([`crate::memo`]) recorded in such a window keeps its accesses to `L` (cycles from its
+//! entry); a hit under the same `L` logs them at the hit's cycles, each store with the word
+//! before the memo (the replay needs only the oldest version of a word). A store to
 //! the DMA's or the PIOs' registers is logged instead of done (a load of them stops the
 //! core, as any peripheral access).
 //!
@@ -45,7 +48,7 @@ use crate::io::Checkpoint;
 
 /// What a window's core access to the I/O is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum IoKind {
+pub(crate) enum IoKind {
     /// A load from a bank the DMA may reach.
     Load,
     /// A store to a bank the DMA may reach.
@@ -56,19 +59,19 @@ pub(super) enum IoKind {
 
 /// One logged access (module documentation).
 #[derive(Clone, Copy, Debug)]
-pub(super) struct IoAccess {
+pub(crate) struct IoAccess {
     /// The cycle at which the instruction (or exception entry) started: the lock-step order.
-    start: u64,
+    pub(crate) start: u64,
     /// The data phase's cycle.
-    cycle: u64,
+    pub(crate) cycle: u64,
     /// SRAM offset (loads, stores) or the register's address.
-    addr: u32,
+    pub(crate) addr: u32,
     /// The value loaded or stored (the bytes of `size`).
     value: u32,
     /// A store's word before it (the word at `addr & !3`).
-    old: u32,
+    pub(crate) old: u32,
     size: u8,
-    kind: IoKind,
+    pub(crate) kind: IoKind,
 }
 
 /// The log a window's [`super::window`] bus writes for one core.
@@ -81,8 +84,17 @@ pub(super) struct IoLog<'a> {
 }
 
 impl IoLog<'_> {
-    pub fn push(&mut self, cycle: u64, kind: IoKind, addr: u32, size: u32, value: u32, old: u32) {
-        self.log.push(IoAccess {
+    /// Logs an access of the instruction being run; returns it.
+    pub fn push(
+        &mut self,
+        cycle: u64,
+        kind: IoKind,
+        addr: u32,
+        size: u32,
+        value: u32,
+        old: u32,
+    ) -> IoAccess {
+        let a = IoAccess {
             start: self.start,
             cycle,
             addr,
@@ -90,7 +102,9 @@ impl IoLog<'_> {
             old,
             size: size as u8,
             kind,
-        });
+        };
+        self.log.push(a);
+        a
     }
 }
 

@@ -32,6 +32,7 @@ mod run;
 mod window;
 
 pub use host::{CallError, CallResult, EmuError, CALL_STUB};
+pub(crate) use io_window::IoAccess;
 pub use io_window::IoWindows;
 pub use profile::Call;
 

@@ -159,14 +159,12 @@ impl Bus for Confined<'_> {
         let r = self.sys.read(core, cycle, addr, size);
         if let (Some((off, bank)), Ok((value, _))) = (sram_location(addr), r) {
             if self.io_bank(bank) {
-                if let Some(l) = self.io.as_mut() {
+                if let (Some(l), Some(rec)) = (self.io.as_mut(), self.log.as_deref_mut()) {
+                    let a = l.push(cycle, IoKind::Load, off as u32, size, value, 0);
+                    rec.io_access(a);
+                } else if let Some(l) = self.io.as_mut() {
                     l.push(cycle, IoKind::Load, off as u32, size, value, 0);
                 }
-                // A memo of a call that reads the DMA's banks would never apply.
-                if let Some(rec) = self.log.as_deref_mut() {
-                    rec.spoil();
-                }
-                return r;
             }
         }
         if let Some(rec) = self.log.as_deref_mut() {
@@ -202,10 +200,10 @@ impl Bus for Confined<'_> {
                 self.journal.push((word as u64) << 32 | old as u64);
                 if self.io_bank(bank) {
                     if let Some(l) = self.io.as_mut() {
-                        l.push(cycle, IoKind::Store, off as u32, size, value, old);
-                    }
-                    if let Some(rec) = self.log.as_deref_mut() {
-                        rec.spoil();
+                        let a = l.push(cycle, IoKind::Store, off as u32, size, value, old);
+                        if let Some(rec) = self.log.as_deref_mut() {
+                            rec.io_access(a);
+                        }
                     }
                 }
             }
@@ -502,12 +500,14 @@ impl Board {
                     let sys = &mut self.system;
                     // Not the DMA's banks: their accesses go through `Confined`, logged.
                     sys.allowed_banks = banks & !self.io_window.unwrap_or(0);
+                    let io = self.io_window.map(|l| (&mut self.io_logs[k], l));
                     let r = block::run_confined(
                         core,
                         sys,
                         &mut self.blocks,
                         deadline,
                         Some(&mut *journal),
+                        io,
                     );
                     sys.allowed_banks = sys.fast_banks();
                     match r {
@@ -548,6 +548,7 @@ impl Board {
         journal: &mut Vec<u64>,
     ) -> bool {
         let mut rec = self.blocks.memo.begin(&self.cores[k], &self.system);
+        rec.io_banks = self.io_window.unwrap_or(0);
         loop {
             let core = &self.cores[k];
             if rec.returned(core) {
