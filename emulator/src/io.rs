@@ -156,8 +156,9 @@ pub struct Io {
     /// follow from them.
     sdo_log: Vec<Vec<(u64, u32)>>,
     /// Per PIO block and state machine, what [`Io::run_ahead`] may run of it, found for the
-    /// blocks' configuration epochs ([`Pio::config_epoch`]) and the I/O's register writes.
-    ahead: Option<Ahead>,
+    /// blocks' configuration epochs ([`Pio::config_epoch`]) and the I/O's register writes;
+    /// shared, not copied, by a clone ([`Io::checkpoint`]).
+    ahead: Option<std::sync::Arc<Ahead>>,
     /// The state machines held at the head of a bit loop behind [`Io::cycle`] (bit 4b + n),
     /// at their clocks, by an advance that did not settle ([`Io::advance`]): nothing sees
     /// them until they run on; [`Io::sdo_log`] keeps their ADCs' outputs meanwhile.
@@ -1139,7 +1140,7 @@ impl Io {
         let mut flops = [self.pio[0].sync(), self.pio[1].sync()];
         let epochs = [self.pio[0].config_epoch(), self.pio[1].config_epoch()];
         if self.ahead.as_ref().is_none_or(|a| a.epochs != epochs) {
-            self.ahead = Some(self.find_ahead());
+            self.ahead = Some(std::sync::Arc::new(self.find_ahead()));
         }
         let ahead = self.ahead.as_ref().map_or([[None; 4]; 2], |a| a.sm);
         self.sdo_log.resize_with(self.adcs.len(), Vec::new);
