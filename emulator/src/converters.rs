@@ -168,6 +168,45 @@ pub struct Ads8688 {
     violations: Vec<TimingViolation>,
 }
 
+/// A part's records — frames or updates, and timing violations — which only grow until
+/// the host drains them: a checkpoint of the I/O ([`crate::io::Io::checkpoint`]) keeps their
+/// counts instead of copying them.
+pub(crate) trait Recorded: Clone {
+    /// What it records besides violations.
+    type Item;
+
+    /// Its records.
+    fn records(&mut self) -> (&mut Vec<Self::Item>, &mut Vec<TimingViolation>);
+
+    /// How many of each it has recorded.
+    fn record_counts(&mut self) -> [usize; 2] {
+        let (items, violations) = self.records();
+        [items.len(), violations.len()]
+    }
+
+    /// A clone without its records.
+    fn without_records(&mut self) -> Self {
+        let (items, violations) = self.records();
+        let kept = (std::mem::take(items), std::mem::take(violations));
+        let copy = self.clone();
+        let (items, violations) = self.records();
+        (*items, *violations) = kept;
+        copy
+    }
+
+    /// Back to `then` (from [`Recorded::without_records`]), its records those of now cut
+    /// to `counts` ([`Recorded::record_counts`] then).
+    fn rewind(&mut self, then: Self, counts: [usize; 2]) {
+        let (items, violations) = self.records();
+        let (mut items, mut violations) = (std::mem::take(items), std::mem::take(violations));
+        items.truncate(counts[0]);
+        violations.truncate(counts[1]);
+        *self = then;
+        let (i, v) = self.records();
+        (*i, *v) = (items, violations);
+    }
+}
+
 /// The most frames, updates and violations kept (a bound on what a long run holds).
 pub const MAX_KEPT: usize = 1 << 16;
 
@@ -178,38 +217,14 @@ fn keep<T>(list: &mut Vec<T>, item: T) {
     }
 }
 
+impl Recorded for Ads8688 {
+    type Item = AdcFrame;
+    fn records(&mut self) -> (&mut Vec<AdcFrame>, &mut Vec<TimingViolation>) {
+        (&mut self.frames, &mut self.violations)
+    }
+}
+
 impl Ads8688 {
-    /// How many frames and violations it has recorded ([`Io::checkpoint`]).
-    ///
-    /// [`Io::checkpoint`]: crate::io::Io::checkpoint
-    pub(crate) fn record_counts(&self) -> [usize; 2] {
-        [self.frames.len(), self.violations.len()]
-    }
-
-    /// A clone without its records: what a checkpoint keeps ([`Io::checkpoint`]; the
-    /// records only grow until the host drains them).
-    ///
-    /// [`Io::checkpoint`]: crate::io::Io::checkpoint
-    pub(crate) fn without_records(&mut self) -> Self {
-        let frames = std::mem::take(&mut self.frames);
-        let violations = std::mem::take(&mut self.violations);
-        let copy = self.clone();
-        self.frames = frames;
-        self.violations = violations;
-        copy
-    }
-
-    /// Back to `then` (from [`Self::without_records`]), its records those of now cut to
-    /// `counts` ([`Self::record_counts`] then).
-    pub(crate) fn rewind(&mut self, then: Self, counts: [usize; 2]) {
-        let mut frames = std::mem::take(&mut self.frames);
-        let mut violations = std::mem::take(&mut self.violations);
-        frames.truncate(counts[0]);
-        violations.truncate(counts[1]);
-        *self = then;
-        self.frames = frames;
-        self.violations = violations;
-    }
     /// An ADC of `part` (its timing limits) on `pins`, on a system clocked at `clock_hz`,
     /// every channel reading code 0.
     pub fn new(part: &'static AdcPart, pins: SpiPins, clock_hz: f64) -> Self {
@@ -502,38 +517,14 @@ pub struct Dac8568 {
     violations: Vec<TimingViolation>,
 }
 
+impl Recorded for Dac8568 {
+    type Item = DacUpdate;
+    fn records(&mut self) -> (&mut Vec<DacUpdate>, &mut Vec<TimingViolation>) {
+        (&mut self.updates, &mut self.violations)
+    }
+}
+
 impl Dac8568 {
-    /// How many updates and violations it has recorded ([`Io::checkpoint`]).
-    ///
-    /// [`Io::checkpoint`]: crate::io::Io::checkpoint
-    pub(crate) fn record_counts(&self) -> [usize; 2] {
-        [self.updates.len(), self.violations.len()]
-    }
-
-    /// A clone without its records: what a checkpoint keeps ([`Io::checkpoint`]; the
-    /// records only grow until the host drains them).
-    ///
-    /// [`Io::checkpoint`]: crate::io::Io::checkpoint
-    pub(crate) fn without_records(&mut self) -> Self {
-        let updates = std::mem::take(&mut self.updates);
-        let violations = std::mem::take(&mut self.violations);
-        let copy = self.clone();
-        self.updates = updates;
-        self.violations = violations;
-        copy
-    }
-
-    /// Back to `then` (from [`Self::without_records`]), its records those of now cut to
-    /// `counts` ([`Self::record_counts`] then).
-    pub(crate) fn rewind(&mut self, then: Self, counts: [usize; 2]) {
-        let mut updates = std::mem::take(&mut self.updates);
-        let mut violations = std::mem::take(&mut self.violations);
-        updates.truncate(counts[0]);
-        violations.truncate(counts[1]);
-        *self = then;
-        self.updates = updates;
-        self.violations = violations;
-    }
     /// A DAC of `part` on `pins` (its `sdo` unused), on a system clocked at `clock_hz`,
     /// every output at midscale.
     pub fn new(

@@ -62,7 +62,7 @@
 //! APB), the DMA's and PIOs' interrupts, GPIO overrides, pads, and the SIO's GPIO outputs.
 
 use crate::bus::{sram_location, BusFault, BANKS};
-use crate::converters::{Ads8688, Dac8568, SpiPins};
+use crate::converters::{Ads8688, Dac8568, Recorded, SpiPins};
 use crate::dma::{Dma, DmaPort, DMA_BASE};
 use crate::pio::{BitLoop, LoopClock, Pio, LOOP_MAX, PIO0_BASE, PIO1_BASE};
 use tactus_runtime::converters::{AdcPart, DacPart};
@@ -172,7 +172,7 @@ pub struct Io {
 pub(crate) struct Checkpoint {
     /// The machine then, its parts without their records.
     io: Box<Io>,
-    /// Per ADC, then per DAC, its [`Ads8688::record_counts`] then.
+    /// Per ADC, then per DAC, its [`Recorded::record_counts`] then.
     counts: Vec<[usize; 2]>,
 }
 
@@ -456,8 +456,8 @@ impl Io {
     pub(crate) fn checkpoint(&mut self) -> Checkpoint {
         let adcs: Vec<Ads8688> = self.adcs.iter_mut().map(|a| a.without_records()).collect();
         let dacs: Vec<Dac8568> = self.dacs.iter_mut().map(|d| d.without_records()).collect();
-        let counts = (self.adcs.iter().map(Ads8688::record_counts))
-            .chain(self.dacs.iter().map(Dac8568::record_counts))
+        let counts = (self.adcs.iter_mut().map(Recorded::record_counts))
+            .chain(self.dacs.iter_mut().map(Recorded::record_counts))
             .collect();
         let (adcs, dacs) = (
             std::mem::replace(&mut self.adcs, adcs),

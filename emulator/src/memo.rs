@@ -663,6 +663,9 @@ impl Memos {
     /// the banks; `journal`, when stores are journaled), or says whether to record the
     /// call. The memo recorded after the one applied last is tried first (a key at rest
     /// cycles through a few states, as a ring buffer's index does).
+    // The run's state (core, system, limit, solo, allowed banks) and its two sinks (undo
+    // journal, I/O log), as `block::run_confined` holds them.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn call(
         &mut self,
         core: &mut Core,

@@ -176,7 +176,7 @@ fn board(engine: Engine, busy: bool) -> Board {
     cpu.store(ch(PACED, dreg::TRANS_COUNT), 1 << 20);
     cpu.store(ch(PACED, dreg::CTRL_TRIG), paced);
     let mut spans = Vec::new();
-    for core in 0..2 {
+    for (core, span) in SPANS.into_iter().enumerate() {
         let base = bank(core);
         let handler = base + 0x100 + 0x400 * core as u32;
         let main = handler + 0x200;
@@ -195,7 +195,7 @@ fn board(engine: Engine, busy: bool) -> Board {
         let idle: Vec<u8> = idle.iter().flat_map(|h| h.to_le_bytes()).collect();
         b.write_bytes(main, &idle).unwrap();
         b.write_u32(base + 4 * 15, handler | 1).unwrap();
-        spans.push((handler, handler + SPANS[core]));
+        spans.push((handler, handler + span));
         b.start_core(core, main | 1, 0x2004_1000 + 0x1000 * core as u32, base);
         let c = &mut b.cores[core];
         c.r[6] = RESULTS;
@@ -210,23 +210,7 @@ fn board(engine: Engine, busy: bool) -> Board {
 
 /// Everything the two runs must agree on.
 fn state(b: &mut Board) -> String {
-    let mut s = String::new();
-    for c in &b.cores {
-        s += &format!(
-            "core {}: cycle {} instr {} r {:08x?} nzcv {}{}{}{} ipsr {} state {:?}\n",
-            c.id,
-            c.cycle,
-            c.instructions,
-            c.r,
-            c.n as u8,
-            c.z as u8,
-            c.c as u8,
-            c.v as u8,
-            c.ipsr,
-            c.state
-        );
-    }
-    s += &format!("stalls {:?}\n", b.system.contention_stalls);
+    let mut s = common::cores_state(b);
     let hash = b
         .system
         .sram
