@@ -16,7 +16,7 @@
 //! reference for the windows in which the cores run ahead of the I/O).
 
 use tactus_compiler::fixed::interp::FixedInstance;
-use tactus_emulator::Engine;
+use tactus_emulator::{Engine, IoWindows};
 use tactus_firmware::flash::{BoardFirmware, Load};
 use tactus_firmware::image::FirmwareImage;
 use tactus_runtime::converters::AdcScale;
@@ -39,6 +39,8 @@ const LAYOUTS: [&str; 2] = [
 struct Played {
     events: usize,
     samples: usize,
+    /// The windows the cores ran ahead of the I/O in, kept and undone.
+    windows: IoWindows,
 }
 
 /// Each key of board `fw`'s corpus words (`samples` of them) and the scale of its ADC
@@ -123,7 +125,12 @@ fn play(fw: &BoardFirmware, samples: usize) -> Played {
     }
     let (_, breaches) = a.take_io();
     assert!(breaches.is_empty(), "board {}: {breaches:?}", fw.index);
-    Played { events, samples }
+    let windows = a.board().io_windows();
+    Played {
+        events,
+        samples,
+        windows,
+    }
 }
 
 /// `boards` of each layout (all when `None`), `samples` samples each, on two host
@@ -135,6 +142,13 @@ fn run(boards: Option<usize>, samples: usize) -> Vec<usize> {
         let fws = &fws[..boards.unwrap_or(fws.len()).min(fws.len())];
         let played = on_host_threads(fws, |fw| play(fw, samples));
         let events: usize = played.iter().map(|p| p.events).sum();
+        for (fw, p) in fws.iter().zip(&played) {
+            let w = p.windows;
+            eprintln!(
+                "  board {}: windows ahead of the I/O {} kept, undone {} (DMA claim), {} (stale load), {} (reach)",
+                fw.index, w.kept, w.waited, w.stale, w.reach
+            );
+        }
         eprintln!(
             "{layout} on rp2040_io: {} boards × {} samples through the converters, {events} events, \
              as without them",

@@ -36,6 +36,10 @@
 //! and one that cannot reach E is undone whole, with the instruction that was not confined
 //! or that signalled, faulted or trapped).
 //!
+//! On a board with converters (`crate::io`) the banks its DMA may reach are the cores' own
+//! too: there their accesses are logged and the I/O replays them after the cores' run, the
+//! window undone where the lock-step run would have differed (`board/io_window.rs`).
+//!
 //! On the firmware images each core's code, data, stack and sensor and DAC window words
 //! lie in its own banks, so a window spans a whole sample period of both cores' sample
 //! interrupts (`tactus-firmware`, `image/mod.rs`). Tests: `tests/block_engine.rs` (random
