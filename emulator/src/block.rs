@@ -509,14 +509,16 @@ fn fetch_allowed(sys: &System, pc: u32, size: u32) -> bool {
 /// instruction fetched from another bank leaves too. With `journal`, only native code runs
 /// (the run ends where a region does not fit or leaves, `Err(Leave::General)`), every
 /// store's old word is appended to `journal` (the run ends before a store that finds it
-/// full, its capacity) so that the caller can undo the run. `Ok` when the core reached
-/// `limit`.
+/// full, its capacity) so that the caller can undo the run. With `io` (a window on a board
+/// with an I/O: its log and the DMA's banks, `board/io_window.rs`), memos that touch those
+/// banks apply too, logging their accesses there. `Ok` when the core reached `limit`.
 pub(crate) fn run_confined(
     core: &mut Core,
     sys: &mut System,
     blocks: &mut Blocks,
     limit: u64,
     mut journal: Option<&mut Vec<u64>>,
+    mut io: Option<(&mut Vec<crate::board::IoAccess>, u8)>,
 ) -> Result<(), Leave> {
     let allowed = sys.allowed_banks;
     let mut retired = 0u64;
@@ -549,10 +551,15 @@ pub(crate) fn run_confined(
         let pc = core.r[15];
         if blocks.memo.watches(pc) {
             let solo = core.cycle >= quiet_from;
-            match blocks
-                .memo
-                .call(core, sys, limit, solo, allowed, journal.as_deref_mut())
-            {
+            match blocks.memo.call(
+                core,
+                sys,
+                limit,
+                solo,
+                allowed,
+                journal.as_deref_mut(),
+                io.as_mut().map(|(log, l)| (&mut **log, *l)),
+            ) {
                 Try::Applied => continue,
                 Try::Record => break Err(Leave::Record),
                 Try::Run => {}

@@ -204,6 +204,10 @@ pub struct System {
     /// I/O): the fast path leaves them ([`System::fast_banks`]), and every core access to one
     /// runs the I/O up to it first.
     pub(crate) io_banks: u8,
+    /// While a window's I/O is replayed (`board/io_window.rs`): each SRAM word the DMA
+    /// writes, before it is written (`offset << 32 | old word`), so that the replay can be
+    /// undone; `None` otherwise.
+    pub(crate) io_journal: Option<Vec<u64>>,
 }
 
 /// Every SRAM bank ([`System::allowed_banks`]).
@@ -308,6 +312,7 @@ impl System {
             allowed_banks: ALL_BANKS,
             io: None,
             io_banks: 0,
+            io_journal: None,
         }
     }
 
@@ -326,7 +331,7 @@ impl System {
 
     /// [`System::io_advance`]; without `settle`, a state machine that alone drives its
     /// converters may stay behind at a bit loop's head (`crate::io::Io::advance`).
-    fn io_advance_to(&mut self, to: u64, settle: bool) {
+    pub(crate) fn io_advance_to(&mut self, to: u64, settle: bool) {
         if let Some(io) = self.io.as_mut() {
             let mut mem = crate::io::Memory {
                 sram: &mut self.sram,
@@ -336,6 +341,7 @@ impl System {
                 rom: &self.rom,
                 flash: &self.flash,
                 xip_answers: self.xip_answers,
+                journal: self.io_journal.as_mut(),
             };
             io.advance(to, &mut mem, settle);
         }
@@ -351,18 +357,51 @@ impl System {
             return 0;
         }
         let mut at = cycle;
-        loop {
-            self.io_advance_to(at + 1, false);
-            match self.io.as_ref() {
-                Some(io) if io.dma_claims(bank, at) => at += 1,
-                _ => return (at - cycle) as u32,
-            }
+        while self.io_claims(bank, at) {
+            at += 1;
+        }
+        (at - cycle) as u32
+    }
+
+    /// One try of [`System::io_sram`] where the DMA wins: the I/O run through `at`, and
+    /// whether the DMA claims `bank` in `at` (the core's access then waits a cycle).
+    pub(crate) fn io_claims(&mut self, bank: usize, at: u64) -> bool {
+        self.io_advance_to(at + 1, false);
+        self.io.as_ref().is_some_and(|io| io.dma_claims(bank, at))
+    }
+
+    /// A core's store of `size` bytes of `value` to the I/O's register at `addr` (one
+    /// [`crate::io::Io::owns`], in the AHB-Lite space) in `cycle`, as [`Bus::write`] does it:
+    /// a narrow value replicated across the word, the I/O run up to the cycle, the write,
+    /// the DMA's banks refreshed. Errors: a block held in reset.
+    pub(crate) fn io_store(
+        &mut self,
+        cycle: u64,
+        addr: u32,
+        size: u32,
+        value: u32,
+    ) -> Result<u32, BusFault> {
+        let value = match size {
+            1 => (value & 0xff) * 0x0101_0101,
+            2 => (value & 0xffff) * 0x0001_0001,
+            _ => value,
+        };
+        self.io_advance(cycle);
+        let ok = self
+            .io
+            .as_mut()
+            .is_some_and(|io| io.write(addr & !3, value));
+        self.io_refresh();
+        if ok {
+            Ok(crate::io::AHB_PERIPHERAL_WAIT)
+        } else {
+            Err(BusFault { addr })
         }
     }
 
     /// After a write to the I/O's registers: the banks the DMA may reach now, and the fast
     /// path's banks with them.
-    fn io_refresh(&mut self) {
+    pub(crate) fn io_refresh(&mut self) {
         self.io_banks = self.io.as_ref().map_or(0, |io| io.reach_banks());
         self.allowed_banks = self.fast_banks();
     }
@@ -687,22 +726,7 @@ impl Bus for System {
         }
         match addr >> 28 {
             0x5 if self.io.is_some() && crate::io::Io::owns(addr) => {
-                let value = match size {
-                    1 => (value & 0xff) * 0x0101_0101,
-                    2 => (value & 0xffff) * 0x0001_0001,
-                    _ => value,
-                };
-                self.io_advance(cycle);
-                let ok = self
-                    .io
-                    .as_mut()
-                    .is_some_and(|io| io.write(addr & !3, value));
-                self.io_refresh();
-                if ok {
-                    Ok(crate::io::AHB_PERIPHERAL_WAIT)
-                } else {
-                    Err(BusFault { addr })
-                }
+                self.io_store(cycle, addr, size, value)
             }
             0x4 | 0xd => {
                 let wait = if addr >> 28 == 4 { APB_STORE_WAIT } else { 0 };

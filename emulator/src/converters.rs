@@ -168,6 +168,45 @@ pub struct Ads8688 {
     violations: Vec<TimingViolation>,
 }
 
+/// A part's records — frames or updates, and timing violations — which only grow until
+/// the host drains them: a checkpoint of the I/O ([`crate::io::Io::checkpoint`]) keeps their
+/// counts instead of copying them.
+pub(crate) trait Recorded: Clone {
+    /// What it records besides violations.
+    type Item;
+
+    /// Its records.
+    fn records(&mut self) -> (&mut Vec<Self::Item>, &mut Vec<TimingViolation>);
+
+    /// How many of each it has recorded.
+    fn record_counts(&mut self) -> [usize; 2] {
+        let (items, violations) = self.records();
+        [items.len(), violations.len()]
+    }
+
+    /// A clone without its records.
+    fn without_records(&mut self) -> Self {
+        let (items, violations) = self.records();
+        let kept = (std::mem::take(items), std::mem::take(violations));
+        let copy = self.clone();
+        let (items, violations) = self.records();
+        (*items, *violations) = kept;
+        copy
+    }
+
+    /// Back to `then` (from [`Recorded::without_records`]), its records those of now cut
+    /// to `counts` ([`Recorded::record_counts`] then).
+    fn rewind(&mut self, then: Self, counts: [usize; 2]) {
+        let (items, violations) = self.records();
+        let (mut items, mut violations) = (std::mem::take(items), std::mem::take(violations));
+        items.truncate(counts[0]);
+        violations.truncate(counts[1]);
+        *self = then;
+        let (i, v) = self.records();
+        (*i, *v) = (items, violations);
+    }
+}
+
 /// The most frames, updates and violations kept (a bound on what a long run holds).
 pub const MAX_KEPT: usize = 1 << 16;
 
@@ -175,6 +214,13 @@ pub const MAX_KEPT: usize = 1 << 16;
 fn keep<T>(list: &mut Vec<T>, item: T) {
     if list.len() < MAX_KEPT {
         list.push(item);
+    }
+}
+
+impl Recorded for Ads8688 {
+    type Item = AdcFrame;
+    fn records(&mut self) -> (&mut Vec<AdcFrame>, &mut Vec<TimingViolation>) {
+        (&mut self.frames, &mut self.violations)
     }
 }
 
@@ -469,6 +515,13 @@ pub struct Dac8568 {
     last_fall: Option<u64>,
     updates: Vec<DacUpdate>,
     violations: Vec<TimingViolation>,
+}
+
+impl Recorded for Dac8568 {
+    type Item = DacUpdate;
+    fn records(&mut self) -> (&mut Vec<DacUpdate>, &mut Vec<TimingViolation>) {
+        (&mut self.updates, &mut self.violations)
+    }
 }
 
 impl Dac8568 {

@@ -51,15 +51,18 @@
 //! enabled channel may reach ([`Dma::reach`], recomputed at each DMA register write) leaves
 //! the fast path ([`crate::bus::System::allowed_banks`]) and advances the machine first; the
 //! block engine's unconfined code, which does not check banks, does not run while an
-//! [`Io`] is attached, nor do windows of independent cores (`board/window.rs`). The cores'
-//! accesses are served in the lock-step's issue order: an access whose data phase is earlier
-//! than one of the other core's already served finds the machine where that one left it.
+//! [`Io`] is attached. The cores' accesses are served in the lock-step's issue order: an
+//! access whose data phase is earlier than one of the other core's already served finds the
+//! machine where that one left it. Where the DMA wins against both cores, the cores run in
+//! windows ahead of the machine (`board/window.rs`), which then replays their accesses to
+//! its banks and their stores to its registers in that order, the window undone where the
+//! lock-step run would have differed (`board/io_window.rs`).
 //!
 //! Not modelled: the DMA reaching peripherals other than the PIO FIFOs (its own registers,
 //! APB), the DMA's and PIOs' interrupts, GPIO overrides, pads, and the SIO's GPIO outputs.
 
 use crate::bus::{sram_location, BusFault, BANKS};
-use crate::converters::{Ads8688, Dac8568, SpiPins};
+use crate::converters::{Ads8688, Dac8568, Recorded, SpiPins};
 use crate::dma::{Dma, DmaPort, DMA_BASE};
 use crate::pio::{BitLoop, LoopClock, Pio, LOOP_MAX, PIO0_BASE, PIO1_BASE};
 use tactus_runtime::converters::{AdcPart, DacPart};
@@ -153,8 +156,9 @@ pub struct Io {
     /// follow from them.
     sdo_log: Vec<Vec<(u64, u32)>>,
     /// Per PIO block and state machine, what [`Io::run_ahead`] may run of it, found for the
-    /// blocks' configuration epochs ([`Pio::config_epoch`]) and the I/O's register writes.
-    ahead: Option<Ahead>,
+    /// blocks' configuration epochs ([`Pio::config_epoch`]) and the I/O's register writes;
+    /// shared, not copied, by a clone ([`Io::checkpoint`]).
+    ahead: Option<std::sync::Arc<Ahead>>,
     /// The state machines held at the head of a bit loop behind [`Io::cycle`] (bit 4b + n),
     /// at their clocks, by an advance that did not settle ([`Io::advance`]): nothing sees
     /// them until they run on; [`Io::sdo_log`] keeps their ADCs' outputs meanwhile.
@@ -162,6 +166,14 @@ pub struct Io {
     /// Per PIO block and state machine held behind, the cycle its loop ends at: until an
     /// advance reaches it (or settles), it stays held without a look.
     held_until: [[u64; 4]; 2],
+}
+
+/// The machine at some moment, to go back to ([`Io::checkpoint`], [`Io::rewind`]).
+pub(crate) struct Checkpoint {
+    /// The machine then, its parts without their records.
+    io: Box<Io>,
+    /// Per ADC, then per DAC, its [`Recorded::record_counts`] then.
+    counts: Vec<[usize; 2]>,
 }
 
 /// Which state machines may run ahead of the rest ([`Io::run_ahead`]), and the converters
@@ -217,6 +229,9 @@ pub(crate) struct Memory<'a> {
     pub rom: &'a [u8],
     pub flash: &'a [u8],
     pub xip_answers: bool,
+    /// Where the DMA's SRAM writes journal the word they overwrite (`offset << 32 | old`),
+    /// while a window's I/O is replayed (`System::io_journal`).
+    pub journal: Option<&'a mut Vec<u64>>,
 }
 
 /// The DMA's side of the machine for one tick: memory, the PIO FIFOs and DREQs.
@@ -305,6 +320,10 @@ impl DmaPort for Port<'_, '_> {
     fn write(&mut self, cycle: u64, addr: u32, size: u32, value: u32) -> Result<u32, BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.claim_bank(1, bank, cycle);
+            if let Some(j) = self.mem.journal.as_deref_mut() {
+                let word = off & !3;
+                j.push((word as u64) << 32 | u64::from(load(self.mem.sram, word, 4)));
+            }
             let bytes = value.to_le_bytes();
             self.mem.sram[off..off + size as usize].copy_from_slice(&bytes[..size as usize]);
             if self.mem.code_pages[off >> 8] {
@@ -431,6 +450,41 @@ impl Io {
         }
     }
 
+    /// The machine as it is now, to go back to with [`Io::rewind`] (a window's undo,
+    /// `board/io_window.rs`): a clone but for the parts' records (frames, updates,
+    /// violations), which only grow meanwhile, of which it keeps the counts.
+    pub(crate) fn checkpoint(&mut self) -> Checkpoint {
+        let adcs: Vec<Ads8688> = self.adcs.iter_mut().map(|a| a.without_records()).collect();
+        let dacs: Vec<Dac8568> = self.dacs.iter_mut().map(|d| d.without_records()).collect();
+        let counts = (self.adcs.iter_mut().map(Recorded::record_counts))
+            .chain(self.dacs.iter_mut().map(Recorded::record_counts))
+            .collect();
+        let (adcs, dacs) = (
+            std::mem::replace(&mut self.adcs, adcs),
+            std::mem::replace(&mut self.dacs, dacs),
+        );
+        let io = Box::new(self.clone());
+        self.adcs = adcs;
+        self.dacs = dacs;
+        Checkpoint { io, counts }
+    }
+
+    /// Back to `checkpoint` ([`Io::checkpoint`]), the parts' records cut to their counts then.
+    pub(crate) fn rewind(&mut self, checkpoint: Checkpoint) {
+        let Checkpoint { mut io, counts } = checkpoint;
+        let (adcs, dacs) = (std::mem::take(&mut io.adcs), std::mem::take(&mut io.dacs));
+        let mut counts = counts.into_iter();
+        for (a, then) in self.adcs.iter_mut().zip(adcs) {
+            a.rewind(then, counts.next().unwrap_or_default());
+        }
+        for (d, then) in self.dacs.iter_mut().zip(dacs) {
+            d.rewind(then, counts.next().unwrap_or_default());
+        }
+        io.adcs = std::mem::take(&mut self.adcs);
+        io.dacs = std::mem::take(&mut self.dacs);
+        *self = *io;
+    }
+
     /// The first cycle the machine has not run yet.
     pub fn cycle(&self) -> u64 {
         self.cycle
@@ -456,6 +510,12 @@ impl Io {
     /// Whether a DMA master claimed `bank` in `cycle`.
     pub(crate) fn dma_claims(&self, bank: usize, cycle: u64) -> bool {
         self.dma_claim[0][bank] == cycle || self.dma_claim[1][bank] == cycle
+    }
+
+    /// Whether a core's store to `addr` (one of this machine's registers, [`Io::owns`])
+    /// would be taken now: its block is not held in reset.
+    pub(crate) fn accepts(&self, addr: u32) -> bool {
+        Self::owns(addr) && self.held & Self::reset_bit(addr & !0x3fff) == 0
     }
 
     /// Whether `addr` (any atomic alias) is one of this machine's registers.
@@ -1080,7 +1140,7 @@ impl Io {
         let mut flops = [self.pio[0].sync(), self.pio[1].sync()];
         let epochs = [self.pio[0].config_epoch(), self.pio[1].config_epoch()];
         if self.ahead.as_ref().is_none_or(|a| a.epochs != epochs) {
-            self.ahead = Some(self.find_ahead());
+            self.ahead = Some(std::sync::Arc::new(self.find_ahead()));
         }
         let ahead = self.ahead.as_ref().map_or([[None; 4]; 2], |a| a.sm);
         self.sdo_log.resize_with(self.adcs.len(), Vec::new);

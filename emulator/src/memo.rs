@@ -36,7 +36,10 @@
 //! condition), every instruction starts before the run's limit (entry cycle + the call's
 //! cycles at most the limit), its banks allowed, its stores journaled like native code's
 //! (room for every word), and no page it stores to holding decoded code (else the store
-//! would have started a new epoch). Loads from a page that held decoded code when they
+//! would have started a new epoch). In a window on a board with an I/O (`board/io_window.rs`)
+//! the banks its DMA may reach are not allowed, but a memo recorded there under the same
+//! banks holds its accesses to them (their cycles from the entry, values) and a hit logs
+//! them for the I/O's replay, which checks them as the run's own. Loads from a page that held decoded code when they
 //! were recorded are not compared: until the epoch changes no store reaches that page.
 //!
 //! **When to record.** Recording runs the call on the interpreter, several times the
@@ -51,6 +54,7 @@
 //! keyboard comparisons (firmware images on the block engine, memoized, against the
 //! interpreter).
 
+use crate::board::IoAccess;
 use crate::bus::{sram_location, System, BANKS};
 use crate::core::{Core, RunState};
 use crate::decode::{self, AluOp, Instr};
@@ -331,6 +335,11 @@ pub(crate) struct Recording {
     log: Vec<Access>,
     /// Something a memo cannot hold happened: the recording is given up.
     spoiled: bool,
+    /// In a window on a board with an I/O: the banks its DMA may reach (`L`), and the
+    /// call's accesses to them, as the window's log holds them but for cycles from the
+    /// entry (`board/io_window.rs`).
+    pub(crate) io_banks: u8,
+    io: Vec<IoAccess>,
 }
 
 impl Recording {
@@ -396,6 +405,14 @@ impl Recording {
         });
     }
 
+    /// An access of the call to a bank the I/O's DMA may reach, as the window logs it
+    /// (kept with the memo: a hit logs it again, at the hit's cycles).
+    pub(crate) fn io_access(&mut self, mut a: IoAccess) {
+        a.start -= self.entry.cycle;
+        a.cycle -= self.entry.cycle;
+        self.io.push(a);
+    }
+
     /// An access a memo cannot hold (outside SRAM).
     #[inline]
     pub(crate) fn spoil(&mut self) {
@@ -432,6 +449,10 @@ struct Memo {
     claims: [u64; BANKS],
     /// SRAM banks the call fetched from, loaded from or stored to.
     banks: u8,
+    /// The recording's [`Recording::io_banks`] and accesses to them (cycles from the
+    /// entry, stores' old words unset): a hit in a window on a board with an I/O logs them.
+    io_banks: u8,
+    io: Vec<IoAccess>,
     /// [`Memos`]' clock at its last use.
     used: u64,
     /// Index in its site of the memo applied after it last (`usize::MAX`: none yet).
@@ -463,6 +484,19 @@ impl Memo {
         self.reads
             .iter()
             .all(|w| unsafe { peek(sram, w.off) } & w.mask == w.value)
+    }
+
+    /// Before [`Memo::apply`] at `entry`: its accesses to the DMA's banks into a window's
+    /// `log`, at the hit's cycles, each store with the word as it is before the memo (the
+    /// replay takes the stored words back to the oldest of those, `board/io_window.rs`).
+    fn log_io(&self, entry: u64, sys: &System, log: &mut Vec<IoAccess>) {
+        for a in &self.io {
+            let mut a = *a;
+            a.start += entry;
+            a.cycle += entry;
+            a.old = sys.sram_peek(a.addr & !3);
+            log.push(a);
+        }
     }
 
     fn apply(&self, core: &mut Core, sys: &mut System, journal: Option<&mut Vec<u64>>) {
@@ -629,6 +663,9 @@ impl Memos {
     /// the banks; `journal`, when stores are journaled), or says whether to record the
     /// call. The memo recorded after the one applied last is tried first (a key at rest
     /// cycles through a few states, as a ring buffer's index does).
+    // The run's state (core, system, limit, solo, allowed banks) and its two sinks (undo
+    // journal, I/O log), as `block::run_confined` holds them.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn call(
         &mut self,
         core: &mut Core,
@@ -637,6 +674,7 @@ impl Memos {
         solo: bool,
         allowed: u8,
         journal: Option<&mut Vec<u64>>,
+        io: Option<(&mut Vec<IoAccess>, u8)>,
     ) -> Try {
         let s = self.site(core);
         self.clock += 1;
@@ -662,13 +700,21 @@ impl Memos {
             let room = journal
                 .as_deref()
                 .is_none_or(|j| j.capacity() - j.len() >= m.writes.len());
+            // The DMA's banks (`L`) are not allowed in a window on a board with an I/O,
+            // but a memo recorded with the same `L` holds its accesses to them for the
+            // window's log.
+            let io_banks = io.as_ref().map_or(0, |&(_, l)| l);
             let fits = solo
                 && core.cycle.saturating_add(m.cycles) <= limit
-                && m.banks & !allowed == 0
+                && m.banks & !(allowed | io_banks) == 0
+                && (m.banks & io_banks == 0 || m.io_banks == io_banks)
                 && room
                 && m.pages.iter().all(|&p| !sys.code_pages[p as usize]);
             if !fits {
                 return Try::Run;
+            }
+            if let Some((log, _)) = io {
+                m.log_io(core.cycle, sys, log);
             }
             m.apply(core, sys, journal);
             m.used = self.clock;
@@ -728,6 +774,8 @@ impl Memos {
             fetch_banks: 0,
             log: Vec::new(),
             spoiled: false,
+            io_banks: 0,
+            io: Vec::new(),
         }
     }
 
@@ -816,6 +864,8 @@ impl Memos {
             instructions: core.instructions - e.instructions,
             claims,
             banks,
+            io_banks: rec.io_banks,
+            io: rec.io,
             used: self.clock,
             next: usize::MAX,
         };

@@ -249,16 +249,7 @@ fn board(seed: u64, case: Case, engine: Engine) -> Board {
 
 /// Everything a slice must agree on, but all of SRAM (only the data areas, cheaply).
 fn state(b: &mut Board) -> String {
-    let mut s = String::new();
-    for c in &b.cores {
-        s +=
-            &format!(
-            "core {}: cycle {} instr {} r {:08x?} nzcv {}{}{}{} ipsr {} state {:?} fault {:?}\n",
-            c.id, c.cycle, c.instructions, c.r, c.n as u8, c.z as u8, c.c as u8, c.v as u8,
-            c.ipsr, c.state, c.fault
-        );
-    }
-    s += &format!("stalls {:?}\n", b.system.contention_stalls);
+    let mut s = common::cores_state(b);
     for area in [
         0x2002_0000u32,
         CODE + 0x1c0,

@@ -212,15 +212,7 @@ fn state(b: &mut Board, profiles: usize) -> String {
     for h in 0..profiles {
         s += &format!("calls {h}: {:?}\n", b.calls(h));
     }
-    for c in &b.cores {
-        s +=
-            &format!(
-            "core {}: cycle {} instr {} r {:08x?} nzcv {}{}{}{} ipsr {} state {:?} fault {:?}\n",
-            c.id, c.cycle, c.instructions, c.r, c.n as u8, c.z as u8, c.c as u8, c.v as u8,
-            c.ipsr, c.state, c.fault
-        );
-    }
-    s += &format!("stalls {:?}\n", b.system.contention_stalls);
+    s += &common::cores_state(b);
     let mut sram = vec![0u8; 0x4_2000];
     b.read_bytes(0x2000_0000, &mut sram).unwrap();
     let h = sram.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &x| {

@@ -14,6 +14,7 @@
 use std::path::Path;
 use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_compiler::lower::Config;
+use tactus_emulator::Engine;
 use tactus_firmware::image::{io, FirmwareImage, ImageError, KeySpec, Program};
 use tactus_runtime::converters::AdcScale;
 use tactus_runtime::keyboard::{read_board, BoardSpec};
@@ -347,4 +348,50 @@ fn skipping_the_io_machine_equals_ticking_it_every_cycle() {
     }
     // 5 ADC frames a sample (and one burst at start), 5 DAC updates.
     assert_eq!(frames, (N + 1) * 5 + N * 5);
+}
+
+#[test]
+fn windows_on_a_board_with_converters_equal_the_lock_step() {
+    // The block engine's windows (the cores run ahead of the I/O, which then replays
+    // their accesses to its DMA's banks and their register stores:
+    // `tactus_emulator::board`, `io_window.rs`) against the interpreter's lock-step run:
+    // sample for sample the same outputs, cycles and stalls, SRAM, frames and I/O state.
+    let p = instrument("harpsichord");
+    let keys = keys();
+    let image = image(&p, &keys, "rp2040_io");
+    let mut win = image.run().unwrap();
+    let mut lock = image.run().unwrap();
+    lock.board().config.engine = Engine::Interp;
+    const N: usize = 120;
+    let words: Vec<Vec<i32>> = (0..keys.len())
+        .map(|i| stimulus_words(&p, i, 2000 + 300 * i, N))
+        .collect();
+    for n in 0..N {
+        let now: Vec<i32> = words.iter().map(|w| w[n]).collect();
+        let a = win.step(&now).unwrap().clone();
+        let b = lock.step(&now).unwrap().clone();
+        assert_eq!(a, b, "sample {n}");
+        let (x, y) = (win.board(), lock.board());
+        for c in 0..2 {
+            let (p, q) = (&x.cores[c], &y.cores[c]);
+            assert_eq!(
+                (p.cycle, p.instructions, p.r),
+                (q.cycle, q.instructions, q.r),
+                "sample {n} core {c}"
+            );
+        }
+        assert_eq!(x.system.contention_stalls, y.system.contention_stalls);
+        assert!(x.system.sram == y.system.sram, "sample {n}: SRAM");
+        let (ix, iy) = (format!("{:?}", x.io()), format!("{:?}", y.io()));
+        assert!(ix == iy, "sample {n}: the I/O machine");
+        assert_eq!(win.take_io(), lock.take_io(), "sample {n}: frames");
+    }
+    let io = win.board().io_windows();
+    let (kept, undone) = win.board().run_ahead_windows();
+    eprintln!(
+        "windows: {kept} kept, {undone} undone; on the I/O: {io:?}; memo: {:?}",
+        win.board().memo_stats()
+    );
+    assert!(io.kept > N as u64 / 2, "{io:?}");
+    assert_eq!(lock.board().io_windows().kept, 0);
 }

@@ -11,12 +11,15 @@
 //!
 //! In CI: [`SHORT`] samples on the first board of each layout. `cargo test --release -p
 //! tactus-firmware --test converters_keyboard -- --ignored` runs a whole emulated second
-//! of the budget corpus on every board (minutes: the converters run on the lock-step
-//! interpreter, the PIO state machines cycle by cycle).
+//! of the budget corpus on every board (about half a minute on two cores), and 0.05 s of
+//! it on the first board of each layout against the interpreter's lock-step run (the
+//! reference for the windows in which the cores run ahead of the I/O).
 
 use tactus_compiler::fixed::interp::FixedInstance;
+use tactus_emulator::{Engine, IoWindows};
 use tactus_firmware::flash::{BoardFirmware, Load};
 use tactus_firmware::image::FirmwareImage;
+use tactus_runtime::converters::AdcScale;
 use tactus_runtime::keyboard::read_board;
 use tactus_runtime::limiter::LimiterConfig;
 
@@ -36,26 +39,20 @@ const LAYOUTS: [&str; 2] = [
 struct Played {
     events: usize,
     samples: usize,
+    /// The windows the cores ran ahead of the I/O in, kept and undone.
+    windows: IoWindows,
 }
 
-/// Board `fw` (built with converters) against its keys without converters, `samples`
-/// samples of the budget corpus.
-fn play(fw: &BoardFirmware, samples: usize) -> Played {
+/// Each key of board `fw`'s corpus words (`samples` of them) and the scale of its ADC
+/// channel.
+fn streams(fw: &BoardFirmware, samples: usize) -> Vec<(Vec<i32>, AdcScale)> {
     let with = &fw.image;
     let plan = with
         .io()
         .unwrap_or_else(|| panic!("board {}: rp2040_io names converters", fw.index));
-    let plain = read_board(&root().join("boards/rp2040.toml")).unwrap();
-    let limiter = LimiterConfig {
-        sample_rate_hz: plain.sample_rate_hz,
-        ..LimiterConfig::default()
-    };
     let keys = with.keys();
-    let without = FirmwareImage::build(with.programs(), &keys, &plain, &limiter)
-        .unwrap_or_else(|e| panic!("board {}: the keys without converters: {e}", fw.index));
     // Each key's corpus words and the scale of its ADC channel.
-    let streams: Vec<(Vec<i32>, _)> = keys
-        .iter()
+    keys.iter()
         .enumerate()
         .map(|(i, k)| {
             let p = &with.programs()[k.program];
@@ -72,7 +69,22 @@ fn play(fw: &BoardFirmware, samples: usize) -> Played {
                 .collect();
             (words, scale)
         })
-        .collect();
+        .collect()
+}
+
+/// Board `fw` (built with converters) against its keys without converters, `samples`
+/// samples of the budget corpus.
+fn play(fw: &BoardFirmware, samples: usize) -> Played {
+    let with = &fw.image;
+    let plain = read_board(&root().join("boards/rp2040.toml")).unwrap();
+    let limiter = LimiterConfig {
+        sample_rate_hz: plain.sample_rate_hz,
+        ..LimiterConfig::default()
+    };
+    let keys = with.keys();
+    let without = FirmwareImage::build(with.programs(), &keys, &plain, &limiter)
+        .unwrap_or_else(|e| panic!("board {}: the keys without converters: {e}", fw.index));
+    let streams = streams(fw, samples);
     let mut a = with.run().unwrap();
     let mut b = without.run().unwrap();
     let mut events = 0;
@@ -113,7 +125,12 @@ fn play(fw: &BoardFirmware, samples: usize) -> Played {
     }
     let (_, breaches) = a.take_io();
     assert!(breaches.is_empty(), "board {}: {breaches:?}", fw.index);
-    Played { events, samples }
+    let windows = a.board().io_windows();
+    Played {
+        events,
+        samples,
+        windows,
+    }
 }
 
 /// `boards` of each layout (all when `None`), `samples` samples each, on two host
@@ -125,6 +142,13 @@ fn run(boards: Option<usize>, samples: usize) -> Vec<usize> {
         let fws = &fws[..boards.unwrap_or(fws.len()).min(fws.len())];
         let played = on_host_threads(fws, |fw| play(fw, samples));
         let events: usize = played.iter().map(|p| p.events).sum();
+        for (fw, p) in fws.iter().zip(&played) {
+            let w = p.windows;
+            eprintln!(
+                "  board {}: windows ahead of the I/O {} kept, undone {} (DMA claim), {} (stale load), {} (reach)",
+                fw.index, w.kept, w.waited, w.stale, w.reach
+            );
+        }
         eprintln!(
             "{layout} on rp2040_io: {} boards × {} samples through the converters, {events} events, \
              as without them",
@@ -146,4 +170,48 @@ fn the_first_board_of_each_layout_plays_the_corpus_through_its_converters() {
 fn every_board_plays_a_second_of_the_corpus_through_its_converters() {
     // The corpus strikes and lets off on every layout: the comparison covers events.
     assert!(run(None, 44_100).iter().all(|&e| e > 0));
+}
+
+#[test]
+#[ignore = "0.05 s of the corpus on the first board of each layout, interpreted in lock-step (release)"]
+fn the_first_board_of_each_layout_through_its_converters_equals_the_lock_step() {
+    // The tests above compare the board with converters against the image without them,
+    // both on the default engine, where the cores run in windows ahead of the I/O
+    // (`tactus_emulator::board`, `io_window.rs`). Here the reference is the interpreter's
+    // lock-step run of the same image with converters: the same samples, cycles, SRAM,
+    // frames and I/O state.
+    const SAMPLES: usize = 2205;
+    for layout in LAYOUTS {
+        let (fws, _) = firmware(layout, Some("rp2040_io"), Load::Ram);
+        let fw = &fws[0];
+        let streams = streams(fw, SAMPLES);
+        let mut win = fw.image.run().unwrap();
+        let mut lock = fw.image.run().unwrap();
+        lock.board().config.engine = Engine::Interp;
+        for n in 0..SAMPLES {
+            let now: Vec<i32> = streams.iter().map(|(w, _)| w[n]).collect();
+            let a = win.step(&now).unwrap().clone();
+            let b = lock.step(&now).unwrap();
+            assert_eq!(&a, b, "{layout} sample {n}");
+            assert_eq!(win.take_io(), lock.take_io(), "{layout} sample {n}: frames");
+            let (x, y) = (win.board(), lock.board());
+            assert_eq!(x.cycle(), y.cycle(), "{layout} sample {n}");
+            if n % 100 == 99 {
+                assert!(x.system.sram == y.system.sram, "{layout} sample {n}: SRAM");
+            }
+        }
+        let (x, y) = (win.board(), lock.board());
+        assert!(x.system.sram == y.system.sram, "{layout}: SRAM");
+        assert_eq!(x.system.contention_stalls, y.system.contention_stalls);
+        assert!(
+            format!("{:?}", x.io()) == format!("{:?}", y.io()),
+            "{layout}: the I/O"
+        );
+        let io = x.io_windows();
+        eprintln!(
+            "{layout} board 0: {SAMPLES} samples as the lock-step; windows {:?}, on the I/O {io:?}",
+            x.run_ahead_windows()
+        );
+        assert!(io.kept > SAMPLES as u64 / 2, "{io:?}");
+    }
 }

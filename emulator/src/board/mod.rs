@@ -25,12 +25,15 @@
 //! striping and contention apply). Link firmware so nothing else lives there.
 
 mod host;
+mod io_window;
 mod launch;
 mod profile;
 mod run;
 mod window;
 
 pub use host::{CallError, CallResult, EmuError, CALL_STUB};
+pub(crate) use io_window::IoAccess;
+pub use io_window::IoWindows;
 pub use profile::Call;
 
 use crate::block::Blocks;
@@ -167,6 +170,15 @@ pub struct Board {
     blocks: Blocks,
     /// Windows kept and undone ([`Board::run_ahead_windows`]).
     windows: [u64; 2],
+    /// While a window runs on a board with an I/O: the banks its DMA may reach, whose
+    /// accesses the cores log (`board/io_window.rs`).
+    io_window: Option<u8>,
+    /// Per core, the accesses of the current window the I/O's replay needs.
+    io_logs: [Vec<io_window::IoAccess>; 2],
+    /// The replay's undo journal (SRAM words it overwrote).
+    io_journal: Vec<u64>,
+    /// What became of the windows on a board with an I/O ([`Board::io_windows`]).
+    io_windows: IoWindows,
     /// No window before either core reaches this cycle (after one that ran nothing).
     window_at: u64,
     /// Each core's active exceptions at its last [`Board::profile_step`] that ran its loop
@@ -221,6 +233,10 @@ impl Board {
             lines_epoch: u64::MAX,
             blocks: Blocks::new(),
             windows: [0; 2],
+            io_window: None,
+            io_logs: Default::default(),
+            io_journal: Vec::new(),
+            io_windows: IoWindows::default(),
             window_at: 0,
             debug: Default::default(),
             cache: run::empty_cache(),

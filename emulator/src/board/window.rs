@@ -36,6 +36,10 @@
 //! and one that cannot reach E is undone whole, with the instruction that was not confined
 //! or that signalled, faulted or trapped).
 //!
+//! On a board with converters (`crate::io`) the banks its DMA may reach are the cores' own
+//! too: there their accesses are logged and the I/O replays them after the cores' run, the
+//! window undone where the lock-step run would have differed (`board/io_window.rs`).
+//!
 //! On the firmware images each core's code, data, stack and sensor and DAC window words
 //! lie in its own banks, so a window spans a whole sample period of both cores' sample
 //! interrupts (`tactus-firmware`, `image/mod.rs`). Tests: `tests/block_engine.rs` (random
@@ -44,6 +48,7 @@
 //! (an image of every shipped instrument, both cores) and `firmware/tests/keyboard_exact.rs`
 //! (every board of grand88 and the split layout against the lock-step interpreter).
 
+use super::io_window::{IoKind, IoLog};
 use super::run::cached;
 use super::*;
 use crate::block::{self, Leave};
@@ -96,6 +101,8 @@ struct Confined<'a> {
     /// A call being recorded ([`crate::memo`]): its SRAM accesses are logged, any other
     /// access spoils it.
     log: Option<&'a mut Recording>,
+    /// On a board with an I/O (`board/io_window.rs`): the accesses the I/O's replay needs.
+    io: Option<IoLog<'a>>,
 }
 
 impl Confined<'_> {
@@ -124,6 +131,18 @@ impl Confined<'_> {
         self.foreign = true;
         BusFault { addr }
     }
+
+    /// Whether SRAM bank `bank` is one the I/O's DMA may reach (its accesses are logged).
+    #[inline(always)]
+    fn io_bank(&self, bank: usize) -> bool {
+        self.io.as_ref().is_some_and(|l| l.banks >> bank & 1 != 0)
+    }
+
+    /// Whether any of the `n` words from plain SRAM offset `off` is in a bank of
+    /// [`Confined::io_bank`].
+    fn io_words(&self, off: u32, n: u32) -> bool {
+        self.io.is_some() && (0..n).any(|i| self.io_bank(bank_of(off + 4 * i)))
+    }
 }
 
 impl Bus for Confined<'_> {
@@ -142,6 +161,16 @@ impl Bus for Confined<'_> {
             return Err(self.refuse(addr));
         }
         let r = self.sys.read(core, cycle, addr, size);
+        if let (Some((off, bank)), Ok((value, _))) = (sram_location(addr), r) {
+            if self.io_bank(bank) {
+                if let (Some(l), Some(rec)) = (self.io.as_mut(), self.log.as_deref_mut()) {
+                    let a = l.push(cycle, IoKind::Load, off as u32, size, value, 0);
+                    rec.io_access(a);
+                } else if let Some(l) = self.io.as_mut() {
+                    l.push(cycle, IoKind::Load, off as u32, size, value, 0);
+                }
+            }
+        }
         if let Some(rec) = self.log.as_deref_mut() {
             match (sram_location(addr), r) {
                 (Some((off, _)), Ok((value, _))) => {
@@ -173,6 +202,28 @@ impl Bus for Confined<'_> {
                 let word = off & !3;
                 let old = self.sys.sram_peek(word as u32);
                 self.journal.push((word as u64) << 32 | old as u64);
+                if self.io_bank(bank) {
+                    if let Some(l) = self.io.as_mut() {
+                        let a = l.push(cycle, IoKind::Store, off as u32, size, value, old);
+                        if let Some(rec) = self.log.as_deref_mut() {
+                            rec.io_access(a);
+                        }
+                    }
+                }
+            }
+            None if addr >> 28 == 0x5
+                && self.io.is_some()
+                && self.sys.io.as_ref().is_some_and(|io| io.accepts(addr)) =>
+            {
+                // A store to the DMA's or the PIOs' registers: applied by the replay, at
+                // its place among the DMA's accesses (`System::io_store`).
+                if let Some(l) = self.io.as_mut() {
+                    l.push(cycle, IoKind::Reg, addr, size, value, 0);
+                }
+                if let Some(rec) = self.log.as_deref_mut() {
+                    rec.spoil();
+                }
+                return Ok(crate::io::AHB_PERIPHERAL_WAIT);
             }
             None if !Self::private(addr) => return Err(self.refuse(addr)),
             None => {}
@@ -202,7 +253,8 @@ impl Bus for Confined<'_> {
             Some(off)
                 if self.log.is_none()
                     && self.journal.len() + words.len() <= JOURNAL
-                    && (0..n).all(|i| self.bank_ok(bank_of(off + 4 * i))) =>
+                    && (0..n).all(|i| self.bank_ok(bank_of(off + 4 * i)))
+                    && !self.io_words(off, n) =>
             {
                 for i in 0..n {
                     let o = off + 4 * i;
@@ -232,7 +284,9 @@ impl Bus for Confined<'_> {
         let n = out.len() as u32;
         match plain_sram_span(addr, 4 * n) {
             Some(off)
-                if self.log.is_none() && (0..n).all(|i| self.bank_ok(bank_of(off + 4 * i))) =>
+                if self.log.is_none()
+                    && (0..n).all(|i| self.bank_ok(bank_of(off + 4 * i)))
+                    && !self.io_words(off, n) =>
             {
                 self.sys.read_words(core, cycle, addr, out)
             }
@@ -253,7 +307,8 @@ impl Bus for Confined<'_> {
             rec.spoil();
         }
         if let Some((_, bank)) = sram_location(addr) {
-            if !self.bank_ok(bank) {
+            // Code in the DMA's banks is not run ahead of it.
+            if !self.bank_ok(bank) || self.io_bank(bank) {
                 return Err(self.refuse(addr));
             }
         }
@@ -272,7 +327,7 @@ fn bank_of(off: u32) -> usize {
 }
 
 /// Undoes journal entries, newest first.
-fn undo_stores(sys: &mut System, journal: &[u64]) {
+pub(super) fn undo_stores(sys: &mut System, journal: &[u64]) {
     for &e in journal.iter().rev() {
         let off = (e >> 32) as usize;
         sys.sram[off..off + 4].copy_from_slice(&(e as u32).to_le_bytes());
@@ -287,9 +342,9 @@ impl Board {
     }
 
     /// Whether the cores may run in windows now: the block engine, disjoint own banks,
-    /// core 1 launched, no address watched for profiling, no I/O attached (`crate::io`:
-    /// its DMA's accesses would have to be ordered with both cores'), both cores running
-    /// or asleep.
+    /// core 1 launched, no address watched for profiling, no I/O attached or one whose DMA
+    /// wins the banks against both cores (`board/io_window.rs`: its accesses then do not
+    /// depend on the cores'), both cores running or asleep.
     pub(super) fn windows_allowed(&self) -> bool {
         let [a, b] = self.config.own_banks;
         self.config.engine == Engine::Block
@@ -298,7 +353,11 @@ impl Board {
             && a & b == 0
             && self.launch.is_none()
             && self.watch_free
-            && self.system.io.is_none()
+            && self
+                .system
+                .io
+                .as_ref()
+                .is_none_or(|io| io.dma_wins(0) && io.dma_wins(1))
             && self
                 .cores
                 .iter()
@@ -356,6 +415,7 @@ impl Board {
             self.profile_mark(k, &mut mark);
             self.marks[k] = mark;
         }
+        let io = self.io_window_begin(start);
         let mut kept = true;
         for (k, journal) in journals.iter_mut().enumerate() {
             let own = self.config.own_banks[k] & ALL_BANKS;
@@ -363,6 +423,9 @@ impl Board {
                 kept = false;
                 break;
             }
+        }
+        if let Some(io) = io {
+            kept = self.io_window_end(io, kept);
         }
         if !kept {
             // Newest first: core 1's stores, then core 0's.
@@ -439,13 +502,16 @@ impl Board {
                 let deadline = until.min(core.nvic.syst_next);
                 if now < deadline {
                     let sys = &mut self.system;
-                    sys.allowed_banks = banks;
+                    // Not the DMA's banks: their accesses go through `Confined`, logged.
+                    sys.allowed_banks = banks & !self.io_window.unwrap_or(0);
+                    let io = self.io_window.map(|l| (&mut self.io_logs[k], l));
                     let r = block::run_confined(
                         core,
                         sys,
                         &mut self.blocks,
                         deadline,
                         Some(&mut *journal),
+                        io,
                     );
                     sys.allowed_banks = sys.fast_banks();
                     match r {
@@ -486,6 +552,7 @@ impl Board {
         journal: &mut Vec<u64>,
     ) -> bool {
         let mut rec = self.blocks.memo.begin(&self.cores[k], &self.system);
+        rec.io_banks = self.io_window.unwrap_or(0);
         loop {
             let core = &self.cores[k];
             if rec.returned(core) {
@@ -537,23 +604,32 @@ impl Board {
             core.nvic.pending |= ((lines as u64) << IRQ0) & !core.nvic.active;
         }
         let general = core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb;
-        // The instruction's fetch is confined too.
+        // The instruction's fetch is confined too (and not from the DMA's banks).
+        let io_banks = self.io_window.unwrap_or(0);
         let fetched = if general {
             None
         } else {
-            let in_banks = |a: u32| sram_location(a).is_none_or(|(_, bank)| banks >> bank & 1 != 0);
+            let in_banks = |a: u32| {
+                sram_location(a).is_none_or(|(_, bank)| (banks & !io_banks) >> bank & 1 != 0)
+            };
             match cached(&mut self.cache, &mut self.system, pc) {
                 Some(d) if in_banks(pc) && in_banks(pc.wrapping_add(d.1 - 2)) => Some(d),
                 Some(_) => return false,
                 None => None,
             }
         };
+        let start = core.cycle;
         let mut bus = Confined {
             sys: &mut self.system,
             banks,
             journal,
             foreign: false,
             log,
+            io: self.io_window.map(|banks| IoLog {
+                banks,
+                start,
+                log: &mut self.io_logs[k],
+            }),
         };
         let event = match fetched {
             Some((instr, size, cost)) => {

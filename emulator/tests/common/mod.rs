@@ -236,3 +236,18 @@ impl Rng {
         ((self.next() >> 33) as u32 % n) as u16
     }
 }
+
+/// Both cores of `b` and the contention stalls, as two boards that ran the same program
+/// must agree on them: cycle, instructions, registers, flags, IPSR, run state and fault.
+pub fn cores_state(b: &tactus_emulator::Board) -> String {
+    let mut s = String::new();
+    for c in &b.cores {
+        s +=
+            &format!(
+            "core {}: cycle {} instr {} r {:08x?} nzcv {}{}{}{} ipsr {} state {:?} fault {:?}\n",
+            c.id, c.cycle, c.instructions, c.r, c.n as u8, c.z as u8, c.c as u8, c.v as u8,
+            c.ipsr, c.state, c.fault
+        );
+    }
+    s + &format!("stalls {:?}\n", b.system.contention_stalls)
+}

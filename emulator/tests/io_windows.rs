@@ -1,0 +1,271 @@
+//! Windows on a board with converters (`tactus_emulator::board`, `io_window.rs`): the block
+//! engine runs the two cores ahead of the I/O over whole windows and the I/O replays their
+//! accesses to its DMA's banks and their stores to its registers; the interpreter's
+//! lock-step run is the reference. Both cores' SysTick handlers use the DMA as the firmware's
+//! drivers do: core 0 reads an ADC's results (DMA from a PIO state machine into its bank 2)
+//! and restarts the burst through two trigger aliases; core 1 reads last sample's copy, restarts
+//! a memory-to-memory channel on its bank 3 and then writes the words the DMA has just read
+//! (so the DMA must see them as they were before the window); a fourth channel, paced by a
+//! DMA timer, copies a word of bank 2 every 128 cycles (so some of core 0's accesses meet
+//! it: those windows are undone). The first part of each
+//! handler (its loads of the DMA's words and a store beside them) is memoized: a hit logs
+//! those accesses for the replay as the run it stands for would. In the busy variant core 0's
+//! main loop reads and writes bank 2 while the DMA writes it: windows are undone. After
+//! every slice both boards agree on everything: cores, stalls, all of SRAM, the whole I/O.
+
+use tactus_emulator::dma::{ctrl, reg as dreg, DMA_BASE, TREQ_PERMANENT, TREQ_TIMER0};
+use tactus_emulator::io::{priority, IoConfig};
+use tactus_emulator::{Board, Config, Engine, FIRMWARE_OWN_BANKS};
+use tactus_runtime::converters::ADS8688;
+
+mod common;
+mod io_setup;
+use common::Rng;
+use io_setup::{COMMANDS, PINS, PROGRAM, RESULTS};
+
+/// Core `core`'s bank through the non-striped alias.
+fn bank(core: usize) -> u32 {
+    0x2100_0000 + 0x1_0000 * core as u32
+}
+
+/// Core 0's own word in bank 2 (besides the DMA's buffers).
+const SCRATCH2: u32 = 0x2102_0200;
+/// Core 1's copy channel: from `SRC` to `DST`, both in bank 3.
+const SRC: u32 = 0x2103_0000;
+const DST: u32 = 0x2103_0100;
+const COPY: u32 = 2;
+/// The channel paced by a DMA timer on bank 2.
+const PACED: u32 = 3;
+
+fn ch(n: u32, off: u32) -> u32 {
+    DMA_BASE + n * dreg::CH_STRIDE + off
+}
+
+/// Thumb code with `ldr rd, =value` literals pooled after it.
+#[derive(Default)]
+struct Asm {
+    code: Vec<u16>,
+    lits: Vec<(usize, u32)>,
+}
+
+impl Asm {
+    fn op(&mut self, ops: &[u16]) -> &mut Self {
+        self.code.extend_from_slice(ops);
+        self
+    }
+
+    fn lit(&mut self, rd: u16, value: u32) -> &mut Self {
+        self.lits.push((self.code.len(), value));
+        self.code.push(0x4800 | rd << 8);
+        self
+    }
+
+    /// The bytes at `at` (word-aligned).
+    fn bytes(&mut self, at: u32) -> Vec<u8> {
+        if self.code.len() % 2 == 1 {
+            self.code.push(0xbf00);
+        }
+        let pool = at + 2 * self.code.len() as u32;
+        for (i, &(k, _)) in self.lits.iter().enumerate() {
+            let pc = at + 2 * k as u32;
+            let lit = pool + 4 * i as u32;
+            self.code[k] |= ((lit - ((pc + 4) & !3)) / 4) as u16;
+        }
+        let mut out: Vec<u8> = self.code.iter().flat_map(|h| h.to_le_bytes()).collect();
+        for &(_, v) in &self.lits {
+            out.extend(v.to_le_bytes());
+        }
+        out
+    }
+}
+
+/// The memoized spans of each core's handler (from its start, bytes): its loads of the
+/// DMA's words and its store of their sum beside them.
+const SPANS: [u32; 2] = [28, 10];
+
+/// Core 0's handler: sums six results words (into bank 2, then its data), restarts the ADC burst
+/// (two trigger-alias stores), counts in bank 2 (a halfword and a word store).
+fn handler0(data: u32) -> Asm {
+    let mut a = Asm::default();
+    a.lit(0, RESULTS)
+        .op(&[0x6801, 0x6842, 0x1889, 0x6882, 0x1889, 0x68c2, 0x1889]) // ldr r1,[r0]; ldr r2,[r0,#4]; adds; #8; #12
+        .op(&[0x6902, 0x1889, 0x69c2, 0x1889]) // ldr r2,[r0,#16]; adds; ldr r2,[r0,#28]; adds
+        .op(&[0x6401, 0x6441]) // str r1,[r0,#0x40]; str r1,[r0,#0x44] (the span's end, SPANS)
+        .lit(3, data)
+        .op(&[0x681a, 0x1852, 0x601a]) // ldr r2,[r3]; adds r2,r2,r1; str r2,[r3]
+        .lit(0, ch(0, dreg::AL2_WRITE_ADDR_TRIG))
+        .lit(1, RESULTS)
+        .op(&[0x6001]) // str r1,[r0]
+        .lit(0, ch(1, dreg::AL3_READ_ADDR_TRIG))
+        .lit(1, COMMANDS)
+        .op(&[0x6001])
+        .lit(0, SCRATCH2)
+        .op(&[0x6801, 0x3101, 0x8041, 0x6001]) // ldr r1,[r0]; adds r1,#1; strh r1,[r0,#2]; str r1,[r0]
+        .op(&[0x685a, 0x3201, 0x605a, 0x4770]); // ldr r2,[r3,#4]; adds #1; str; bx lr
+    a
+}
+
+/// Core 1's handler: sums last sample's copy (into bank 3, then its data), restarts the copy, waits
+/// ~80 cycles (the DMA has read the source by then), then writes new source words.
+fn handler1(data: u32) -> Asm {
+    let mut a = Asm::default();
+    a.lit(0, DST)
+        .op(&[0x6801, 0x69c2, 0x1889, 0x6401]) // ldr r1,[r0]; ldr r2,[r0,#28]; adds r1,r1,r2; str r1,[r0,#0x40]
+        .lit(3, data)
+        .op(&[0x681a, 0x1852, 0x601a])
+        .lit(0, ch(COPY, dreg::WRITE_ADDR))
+        .lit(1, DST)
+        .op(&[0x6001])
+        .lit(0, ch(COPY, dreg::AL3_READ_ADDR_TRIG))
+        .lit(1, SRC)
+        .op(&[0x6001])
+        .op(&[0x2214, 0x3a01, 0xd1fd]) // movs r2,#20; subs r2,#1; bne .-2
+        .lit(0, SRC)
+        .op(&[0x685a, 0x3201, 0x605a]) // ldr r2,[r3,#4]; adds #1; str
+        .op(&[0x6002, 0x61c2, 0x3203, 0x60c2, 0x4770]); // str r2,[r0]; str r2,[r0,#28]; adds #3; str r2,[r0,#12]; bx lr
+    a
+}
+
+/// A board on `engine` with the ADC, its DMA channels and the copy channel set up and
+/// the DMA winning the banks, both cores in their handlers' idle loops (core 0 in `busy`'s
+/// bank-2 loop instead).
+fn board(engine: Engine, busy: bool) -> Board {
+    let mut b = Board::new(Config {
+        engine,
+        own_banks: FIRMWARE_OWN_BANKS,
+        ..Config::default()
+    });
+    b.set_compile_threshold(0);
+    b.attach_io(&IoConfig {
+        adcs: vec![(&ADS8688, PINS)],
+        dacs: vec![],
+    });
+    let io = b.io_mut().expect("io");
+    for c in 0..8 {
+        io.adcs[0].set_code(c, 0x1000 * c as u16 + 0x0abc);
+    }
+    let t = io_setup::program_adc(
+        &mut b.system,
+        &PROGRAM,
+        priority::DMA_R | priority::DMA_W,
+        10,
+    );
+    let copy = 2 << ctrl::DATA_SIZE_SHIFT
+        | ctrl::EN
+        | ctrl::INCR_READ
+        | ctrl::INCR_WRITE
+        | COPY << ctrl::CHAIN_TO_SHIFT
+        | TREQ_PERMANENT << ctrl::TREQ_SEL_SHIFT;
+    let mut cpu = io_setup::Cpu {
+        sys: &mut b.system,
+        t,
+    };
+    cpu.store(ch(COPY, dreg::READ_ADDR), SRC);
+    cpu.store(ch(COPY, dreg::WRITE_ADDR), DST);
+    cpu.store(ch(COPY, dreg::TRANS_COUNT), 8);
+    cpu.store(ch(COPY, dreg::AL1_CTRL), copy);
+    // Channel 3 copies a word of bank 2 to the next one every 128 cycles (its pacing timer):
+    // now and then in a cycle in which core 0 reads or writes the bank, memoized or not.
+    let paced = 2 << ctrl::DATA_SIZE_SHIFT
+        | ctrl::EN
+        | PACED << ctrl::CHAIN_TO_SHIFT
+        | TREQ_TIMER0 << ctrl::TREQ_SEL_SHIFT;
+    cpu.store(DMA_BASE + dreg::TIMER0, 1 << 16 | 128);
+    cpu.store(ch(PACED, dreg::READ_ADDR), SCRATCH2 + 0x100);
+    cpu.store(ch(PACED, dreg::WRITE_ADDR), SCRATCH2 + 0x104);
+    cpu.store(ch(PACED, dreg::TRANS_COUNT), 1 << 20);
+    cpu.store(ch(PACED, dreg::CTRL_TRIG), paced);
+    let mut spans = Vec::new();
+    for (core, span) in SPANS.into_iter().enumerate() {
+        let base = bank(core);
+        let handler = base + 0x100 + 0x400 * core as u32;
+        let main = handler + 0x200;
+        let data = base + 0x8000;
+        let code = if core == 0 {
+            handler0(data).bytes(handler)
+        } else {
+            handler1(data).bytes(handler)
+        };
+        b.write_bytes(handler, &code).unwrap();
+        let idle: &[u16] = if busy && core == 0 {
+            &[0x69f1, 0x6039, 0x3101, 0xe7fb] // ldr r1,[r6,#28]; str r1,[r7]; adds r1,#1; b .-6
+        } else {
+            &[0xbf30, 0xe7fd] // wfi; b .-2
+        };
+        let idle: Vec<u8> = idle.iter().flat_map(|h| h.to_le_bytes()).collect();
+        b.write_bytes(main, &idle).unwrap();
+        b.write_u32(base + 4 * 15, handler | 1).unwrap();
+        spans.push((handler, handler + span));
+        b.start_core(core, main | 1, 0x2004_1000 + 0x1000 * core as u32, base);
+        let c = &mut b.cores[core];
+        c.r[6] = RESULTS;
+        c.r[7] = SCRATCH2 + 16;
+        c.nvic.syst_rvr = 3500 + 37 * core as u32;
+        c.nvic.syst_csr = 7;
+        c.nvic.syst_next = 900 + core as u64;
+    }
+    b.memoize(&[], &spans);
+    b
+}
+
+/// Everything the two runs must agree on.
+fn state(b: &mut Board) -> String {
+    let mut s = common::cores_state(b);
+    let hash = b
+        .system
+        .sram
+        .iter()
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, &x| {
+            (h ^ x as u64).wrapping_mul(0x100_0000_01b3)
+        });
+    s += &format!("sram {hash:016x}\n");
+    s += &format!("{:?}", b.io().expect("io"));
+    s
+}
+
+/// Runs both engines in random slices for `cycles`; returns the block board.
+fn compare(busy: bool, cycles: u64) -> Board {
+    let mut block = board(Engine::Block, busy);
+    let mut interp = board(Engine::Interp, busy);
+    let mut rng = Rng(0x10_40d + busy as u64);
+    let mut slice = 0u16;
+    while block.cycle() < cycles {
+        let limit = block.cycle() + 1 + rng.below(9000) as u64;
+        // What the ADC reads changes every few slices, as the host's key positions do
+        // (and rests in between: the spans' memos hit).
+        slice += 1;
+        for b in [&mut block, &mut interp] {
+            let io = b.io_mut().expect("io");
+            for c in 0..8 {
+                io.adcs[0].set_code(c, (slice / 6).wrapping_mul(97) ^ (c as u16) << 12);
+            }
+        }
+        assert_eq!(block.run_until(limit), interp.run_until(limit));
+        assert_eq!(state(&mut block), state(&mut interp), "at {limit}");
+    }
+    for core in 0..2 {
+        let count = block.read_u32(bank(core) + 0x8004).unwrap();
+        assert!(count > 50, "core {core}: {count} handler runs");
+    }
+    assert_eq!(interp.io_windows().kept, 0);
+    block
+}
+
+#[test]
+fn windows_with_the_dma_equal_the_lock_step() {
+    let block = compare(false, 600_000);
+    let io = block.io_windows();
+    let memo = block.memo_stats();
+    eprintln!("{:?} {io:?} {memo:?}", block.run_ahead_windows());
+    assert!(io.kept > 40, "{io:?}");
+    // Memos of the span that reads and writes the DMA's bank apply, logged for the replay.
+    assert!(memo.hits > 10, "{memo:?}");
+}
+
+#[test]
+fn windows_whose_core_meets_the_dma_are_undone() {
+    let block = compare(true, 300_000);
+    let io = block.io_windows();
+    eprintln!("{:?} {io:?}", block.run_ahead_windows());
+    assert!(io.waited + io.stale > 10, "{io:?}");
+}
