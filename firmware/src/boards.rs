@@ -497,10 +497,7 @@ fn sweep(
         // is the sequential one, in about half the time on two cores.
         'grow: while best.fits() && j + 1 < keys.len() {
             let (next, ahead) = if j + 2 < keys.len() {
-                let (a, b) = rayon::join(
-                    || check(&keys[i..=j + 1]),
-                    || check(&keys[i..=j + 2]),
-                );
+                let (a, b) = rayon::join(|| check(&keys[i..=j + 1]), || check(&keys[i..=j + 2]));
                 (a, Some(b))
             } else {
                 (check(&keys[i..=j + 1]), None)
