@@ -1166,9 +1166,9 @@ impl Pio {
             reg::FSTAT => (0..4).fold(0, |acc, n| {
                 let s = &self.sm[n];
                 acc | u32::from(s.rx_full()) << n
-                    | u32::from(s.rx.len() == 0) << (8 + n)
+                    | u32::from(s.rx.is_empty()) << (8 + n)
                     | u32::from(s.tx_full()) << (16 + n)
-                    | u32::from(s.tx.len() == 0) << (24 + n)
+                    | u32::from(s.tx.is_empty()) << (24 + n)
             }),
             reg::FLEVEL => self.levels(),
             reg::IRQ => u32::from(self.irq),
