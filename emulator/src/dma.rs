@@ -242,7 +242,7 @@ impl Channel {
 }
 
 /// A transfer between the two ports: read, waiting for the write port.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 struct Transfer {
     channel: usize,
     addr: u32,
@@ -250,6 +250,54 @@ struct Transfer {
     value: u32,
     /// The first cycle its write may be performed.
     ready: u64,
+}
+
+/// The transfer data FIFO ([`TRANSFER_FIFO_DEPTH`] entries), kept in place (a copy, not an
+/// allocation, when the DMA is cloned): the oldest first in `t[..len]`, the rest default.
+#[derive(Clone, Copy, Default)]
+struct Queue {
+    t: [Transfer; TRANSFER_FIFO_DEPTH],
+    len: usize,
+}
+
+impl std::fmt::Debug for Queue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(&self.t[..self.len]).finish()
+    }
+}
+
+impl Queue {
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    fn front(&self) -> Option<&Transfer> {
+        self.t[..self.len].first()
+    }
+    fn pop_front(&mut self) {
+        if self.len > 0 {
+            self.t.copy_within(1.., 0);
+            self.len -= 1;
+            self.t[self.len] = Transfer::default();
+        }
+    }
+    /// Appends `t`; the read port checks the room first.
+    fn push_back(&mut self, t: Transfer) {
+        debug_assert!(self.len < TRANSFER_FIFO_DEPTH);
+        if let Some(slot) = self.t.get_mut(self.len) {
+            *slot = t;
+            self.len += 1;
+        }
+    }
+    fn retain(&mut self, keep: impl Fn(&Transfer) -> bool) {
+        let mut q = Queue::default();
+        for t in self.t[..self.len].iter().filter(|t| keep(t)) {
+            q.push_back(*t);
+        }
+        *self = q;
+    }
 }
 
 /// The DMA controller. See the module documentation.
@@ -264,7 +312,7 @@ pub struct Dma {
     timer_acc: [u32; 4],
     timer_credit: [u32; 4],
     /// Transfers read, waiting for the write port (oldest first).
-    queue: std::collections::VecDeque<Transfer>,
+    queue: Queue,
     /// The first cycle the read port and the write port are free again.
     read_free: u64,
     write_free: u64,
@@ -297,7 +345,7 @@ impl Dma {
             timer: [(0, 0); 4],
             timer_acc: [0; 4],
             timer_credit: [0; 4],
-            queue: std::collections::VecDeque::new(),
+            queue: Queue::default(),
             read_free: 0,
             write_free: 0,
             last_high: CHANNELS - 1,
@@ -347,32 +395,32 @@ impl Dma {
     /// its transfers left (or the reload count, a restart's) where it increments, and
     /// `u64::MAX` bytes for an incrementing channel that chains to another (a chain may
     /// restart it from where it stopped, again and again).
-    pub fn reach(&self) -> Vec<(u32, u64)> {
-        let mut v = Vec::new();
-        for (n, c) in self.ch.iter().enumerate() {
-            if c.ctrl & ctrl::EN == 0 {
-                continue;
-            }
-            let ring_bits = (c.ctrl >> ctrl::RING_SIZE_SHIFT) & 0xf;
-            let ring_write = c.ctrl & ctrl::RING_SEL != 0;
-            let count = u64::from(c.to_issue.max(c.reload));
-            for (addr, incr, ringed) in [
-                (c.read_addr, c.ctrl & ctrl::INCR_READ != 0, !ring_write),
-                (c.write_addr, c.ctrl & ctrl::INCR_WRITE != 0, ring_write),
-            ] {
+    pub fn reach(&self) -> impl Iterator<Item = (u32, u64)> + '_ {
+        self.ch
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.ctrl & ctrl::EN != 0)
+            .flat_map(|(n, c)| {
+                let ring_bits = (c.ctrl >> ctrl::RING_SIZE_SHIFT) & 0xf;
+                let ring_write = c.ctrl & ctrl::RING_SEL != 0;
+                let count = u64::from(c.to_issue.max(c.reload));
                 let size = u64::from(c.size());
-                v.push(if !incr {
-                    (addr, size)
-                } else if ringed && ring_bits > 0 {
-                    (addr & !((1u32 << ring_bits) - 1), 1u64 << ring_bits)
-                } else if c.chain_to() != n {
-                    (addr, u64::MAX)
-                } else {
-                    (addr, size * count.max(1))
-                });
-            }
-        }
-        v
+                [
+                    (c.read_addr, c.ctrl & ctrl::INCR_READ != 0, !ring_write),
+                    (c.write_addr, c.ctrl & ctrl::INCR_WRITE != 0, ring_write),
+                ]
+                .map(|(addr, incr, ringed)| {
+                    if !incr {
+                        (addr, size)
+                    } else if ringed && ring_bits > 0 {
+                        (addr & !((1u32 << ring_bits) - 1), 1u64 << ring_bits)
+                    } else if c.chain_to() != n {
+                        (addr, u64::MAX)
+                    } else {
+                        (addr, size * count.max(1))
+                    }
+                })
+            })
     }
 
     fn ctrl_value(&self, n: usize) -> u32 {

@@ -610,11 +610,7 @@ impl Io {
         match base {
             DMA_BASE => {
                 self.dma.write(off, value);
-                self.reach_banks = self
-                    .dma
-                    .reach()
-                    .into_iter()
-                    .fold(0, |m, (a, len)| m | banks_of(a, len));
+                self.reach_banks = self.dma.reach().fold(0, |m, (a, len)| m | banks_of(a, len));
             }
             PIO0_BASE => self.pio[0].write(off, value),
             PIO1_BASE => self.pio[1].write(off, value),

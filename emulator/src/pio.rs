@@ -106,18 +106,51 @@ fn count32(c: u32) -> u32 {
     }
 }
 
-/// A FIFO of up to 8 words.
-#[derive(Clone, Debug, Default)]
+/// A FIFO of up to 8 words, kept in place (a copy, not an allocation, when the machine is
+/// cloned: a window's checkpoint, `crate::io::Io::checkpoint`): the oldest first in
+/// `words[..len]`, the rest 0, so that equal contents are equal states.
+#[derive(Clone, Copy, Default)]
 struct Fifo {
-    words: std::collections::VecDeque<u32>,
+    words: [u32; 8],
+    len: u8,
+}
+
+impl std::fmt::Debug for Fifo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Fifo")
+            .field("words", &&self.words[..self.len()])
+            .finish()
+    }
 }
 
 impl Fifo {
     fn len(&self) -> usize {
-        self.words.len()
+        usize::from(self.len)
+    }
+    fn is_empty(&self) -> bool {
+        self.len == 0
     }
     fn pop(&mut self) -> Option<u32> {
-        self.words.pop_front()
+        if self.len == 0 {
+            return None;
+        }
+        let w = self.words[0];
+        self.words.copy_within(1.., 0);
+        self.words[7] = 0;
+        self.len -= 1;
+        Some(w)
+    }
+    /// Appends `w`; a caller checks the depth first (at most 8: the FIFOs joined).
+    fn push(&mut self, w: u32) {
+        debug_assert!(self.len() < 8);
+        let len = self.len();
+        if let Some(slot) = self.words.get_mut(len) {
+            *slot = w;
+            self.len += 1;
+        }
+    }
+    fn clear(&mut self) {
+        *self = Fifo::default();
     }
 }
 
@@ -575,7 +608,7 @@ impl Pio {
 
     /// Whether state machine `sm` (0–3) requests a DMA read: its RX FIFO is not empty.
     pub fn rx_dreq(&self, sm: usize) -> bool {
-        self.sm.get(sm).is_some_and(|s| !s.rx.words.is_empty())
+        self.sm.get(sm).is_some_and(|s| !s.rx.is_empty())
     }
 
     /// How many more words state machine `sm`'s TX FIFO takes now (its free entries; 0 for
@@ -655,7 +688,7 @@ impl Pio {
             return false;
         }
         // A stalled cycle other than an OUT's or IN's may autopull (`background_pull`).
-        let refills = s.autopull() && s.osr_count >= s.pull_thresh() && !s.tx.words.is_empty();
+        let refills = s.autopull() && s.osr_count >= s.pull_thresh() && !s.tx.is_empty();
         // Each case: the instruction's stall condition holds now (a stall that refilled
         // the OSR, say, does not repeat).
         let ins = u32::from(s.current);
@@ -669,11 +702,9 @@ impl Pio {
                 s.autopush() && after >= s.push_thresh() && s.rx_full()
             }
             // OUT stalls only autopulling from an empty TX FIFO.
-            3 => s.autopull() && s.osr_count >= s.pull_thresh() && s.tx.words.is_empty(),
+            3 => s.autopull() && s.osr_count >= s.pull_thresh() && s.tx.is_empty(),
             // PULL block on an empty TX FIFO; PUSH block on a full RX FIFO.
-            4 if ins & 0x80 != 0 => {
-                s.tx.words.is_empty() && !(if_flag && s.osr_count < s.pull_thresh())
-            }
+            4 if ins & 0x80 != 0 => s.tx.is_empty() && !(if_flag && s.osr_count < s.pull_thresh()),
             4 => s.rx_full() && !(if_flag && s.isr_count < s.push_thresh()) && !refills,
             // IRQ wait: its flag still set.
             6 => s.irq_waiting && !refills,
@@ -1135,9 +1166,9 @@ impl Pio {
             reg::FSTAT => (0..4).fold(0, |acc, n| {
                 let s = &self.sm[n];
                 acc | u32::from(s.rx_full()) << n
-                    | u32::from(s.rx.len() == 0) << (8 + n)
+                    | u32::from(s.rx.is_empty()) << (8 + n)
                     | u32::from(s.tx_full()) << (16 + n)
-                    | u32::from(s.tx.len() == 0) << (24 + n)
+                    | u32::from(s.tx.is_empty()) << (24 + n)
             }),
             reg::FLEVEL => self.levels(),
             reg::IRQ => u32::from(self.irq),
@@ -1187,7 +1218,7 @@ impl Pio {
             o if (reg::TXF0..reg::TXF0 + 16).contains(&o) => {
                 let s = &mut self.sm[((o - reg::TXF0) / 4) as usize];
                 if !s.tx_full() {
-                    s.tx.words.push_back(value);
+                    s.tx.push(value);
                 }
             }
             o if (reg::INSTR_MEM0..reg::INSTR_MEM0 + 128).contains(&o) => {
@@ -1202,8 +1233,8 @@ impl Pio {
                         let s = &mut self.sm[n];
                         // Changing FJOIN discards the FIFOs' data (datasheet 3.5.3).
                         if (s.shiftctrl ^ value) >> 30 != 0 {
-                            s.tx.words.clear();
-                            s.rx.words.clear();
+                            s.tx.clear();
+                            s.rx.clear();
                         }
                         s.shiftctrl = value & 0xffff_0000;
                     }
@@ -1388,7 +1419,7 @@ impl Pio {
                     let s = &mut self.sm[n];
                     s.shift_in(c, data);
                     if s.autopush() && s.isr_count >= s.push_thresh() {
-                        s.rx.words.push_back(s.isr);
+                        s.rx.push(s.isr);
                         s.isr = 0;
                         s.isr_count = 0;
                     }
@@ -1457,7 +1488,7 @@ impl Pio {
                             }
                         }
                     } else {
-                        s.rx.words.push_back(s.isr);
+                        s.rx.push(s.isr);
                         s.isr = 0;
                         s.isr_count = 0;
                         Flow::Next
