@@ -213,8 +213,9 @@ pub struct System {
 /// Every SRAM bank ([`System::allowed_banks`]).
 pub(crate) const ALL_BANKS: u8 = (1 << BANKS) - 1;
 
+/// The `size` bytes (1, 2 or 4) at `off` of `mem`, little-endian, zero-extended.
 #[inline(always)]
-fn load_le(mem: &[u8], off: usize, size: u32) -> u32 {
+pub(crate) fn load_le(mem: &[u8], off: usize, size: u32) -> u32 {
     // One bounds check per access (the fixed-size conversions cannot fail).
     match size {
         1 => mem[off] as u32,
@@ -223,8 +224,9 @@ fn load_le(mem: &[u8], off: usize, size: u32) -> u32 {
     }
 }
 
+/// Stores the `size` (1, 2 or 4) low bytes of `value` at `off` of `mem`, little-endian.
 #[inline(always)]
-fn store_le(mem: &mut [u8], off: usize, size: u32, value: u32) {
+pub(crate) fn store_le(mem: &mut [u8], off: usize, size: u32, value: u32) {
     match size {
         1 => mem[off] = value as u8,
         2 => mem[off..off + 2].copy_from_slice(&(value as u16).to_le_bytes()),
@@ -284,7 +286,7 @@ pub(crate) fn sram_word_run(addr: u32, len: u32) -> Option<(u32, u32)> {
 /// Arbitration bank of SRAM offset `off` (below [`SRAM_SIZE`]): address bits 3:2 in the
 /// striped banks, then SRAM4 and SRAM5.
 #[inline(always)]
-fn sram_bank(off: u32) -> usize {
+pub(crate) fn sram_bank(off: u32) -> usize {
     if off < 0x4_0000 {
         ((off >> 2) & 3) as usize
     } else {

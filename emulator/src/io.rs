@@ -61,7 +61,7 @@
 //! Not modelled: the DMA reaching peripherals other than the PIO FIFOs (its own registers,
 //! APB), the DMA's and PIOs' interrupts, GPIO overrides, pads, and the SIO's GPIO outputs.
 
-use crate::bus::{sram_location, BusFault, BANKS};
+use crate::bus::{load_le, sram_location, store_le, BusFault, BANKS};
 use crate::converters::{Ads8688, Dac8568, Recorded, SpiPins};
 use crate::dma::{Dma, DmaPort, DMA_BASE};
 use crate::pio::{BitLoop, LoopClock, Pio, LOOP_MAX, PIO0_BASE, PIO1_BASE};
@@ -289,17 +289,11 @@ impl<'m, 'a> Port<'m, 'a> {
     }
 }
 
-fn load(mem: &[u8], off: usize, size: u32) -> u32 {
-    let mut b = [0u8; 4];
-    b[..size as usize].copy_from_slice(&mem[off..off + size as usize]);
-    u32::from_le_bytes(b)
-}
-
 impl DmaPort for Port<'_, '_> {
     fn read(&mut self, cycle: u64, addr: u32, size: u32) -> Result<(u32, u32), BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.claim_bank(0, bank, cycle);
-            return Ok((load(self.mem.sram, off, size), wait));
+            return Ok((load_le(self.mem.sram, off, size), wait));
         }
         if let Some((b, off)) = pio_of(addr) {
             self.touched |= 1 << b;
@@ -309,10 +303,10 @@ impl DmaPort for Port<'_, '_> {
         }
         let flash = addr.wrapping_sub(crate::bus::FLASH_BASE);
         if addr < crate::bus::ROM_SIZE {
-            return Ok((load(self.mem.rom, addr as usize, size), 0));
+            return Ok((load_le(self.mem.rom, addr as usize, size), 0));
         }
         if flash < crate::bus::FLASH_SIZE && self.mem.xip_answers {
-            return Ok((load(self.mem.flash, flash as usize, size), 0));
+            return Ok((load_le(self.mem.flash, flash as usize, size), 0));
         }
         Err(BusFault { addr })
     }
@@ -322,10 +316,9 @@ impl DmaPort for Port<'_, '_> {
             let wait = self.claim_bank(1, bank, cycle);
             if let Some(j) = self.mem.journal.as_deref_mut() {
                 let word = off & !3;
-                j.push((word as u64) << 32 | u64::from(load(self.mem.sram, word, 4)));
+                j.push((word as u64) << 32 | u64::from(load_le(self.mem.sram, word, 4)));
             }
-            let bytes = value.to_le_bytes();
-            self.mem.sram[off..off + size as usize].copy_from_slice(&bytes[..size as usize]);
+            store_le(self.mem.sram, off, size, value);
             if self.mem.code_pages[off >> 8] {
                 *self.mem.code_epoch = self.mem.code_epoch.wrapping_add(1);
                 self.mem.code_pages.fill(false);

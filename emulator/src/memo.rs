@@ -55,7 +55,7 @@
 //! interpreter).
 
 use crate::board::IoAccess;
-use crate::bus::{sram_location, System, BANKS};
+use crate::bus::{sram_bank, sram_location, System, BANKS};
 use crate::core::{Core, RunState};
 use crate::decode::{self, AluOp, Instr};
 use crate::exec::literal_address;
@@ -214,15 +214,6 @@ fn data_in_sram(instr: &Instr, core: &Core, pc: u32) -> bool {
     last >= addr && sram_location(addr).is_some() && sram_location(last).is_some()
 }
 
-/// Arbitration bank of SRAM offset `off` (as the bus's).
-fn bank_of(off: u32) -> usize {
-    if off < 0x4_0000 {
-        ((off >> 2) & 3) as usize
-    } else {
-        (4 + ((off >> 12) & 1)) as usize
-    }
-}
-
 /// One SRAM access of a recording: byte offset into [`System::sram`], size, the value
 /// loaded (loads), and whether its page held decoded code (loads: then it is not an input
 /// to compare, see the module documentation).
@@ -369,7 +360,7 @@ impl Recording {
         self.def_flags |= u.flag_writes;
         for a in [pc, pc.wrapping_add(size - 2)] {
             if let Some((off, _)) = sram_location(a) {
-                self.fetch_banks |= 1 << bank_of(off as u32);
+                self.fetch_banks |= 1 << sram_bank(off as u32);
             }
         }
         true
@@ -803,7 +794,7 @@ impl Memos {
         let mut inputs: BTreeMap<u32, u8> = BTreeMap::new();
         let mut banks = rec.fetch_banks;
         for a in &rec.log {
-            banks |= 1 << bank_of(a.off);
+            banks |= 1 << sram_bank(a.off);
             for i in 0..a.size as u32 {
                 let byte = a.off + i;
                 if a.store {

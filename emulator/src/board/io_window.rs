@@ -43,7 +43,7 @@
 
 use super::window::undo_stores;
 use super::*;
-use crate::bus::{sram_location, ALL_BANKS};
+use crate::bus::{load_le, sram_bank, store_le, ALL_BANKS};
 use crate::io::Checkpoint;
 
 /// What a window's core access to the I/O is.
@@ -137,14 +137,6 @@ pub(super) struct IoStart {
     banks: u8,
 }
 
-/// The `size` bytes at SRAM offset `off`, zero-extended.
-fn sram_load(sram: &[u8], off: u32, size: u8) -> u32 {
-    let mut b = [0u8; 4];
-    let off = off as usize;
-    b[..size as usize].copy_from_slice(&sram[off..off + size as usize]);
-    u32::from_le_bytes(b)
-}
-
 /// Stores the `size` low bytes of `value` at SRAM offset `off`, journaling the word into
 /// [`System::io_journal`].
 fn sram_put(sys: &mut System, off: u32, size: u8, value: u32) {
@@ -153,13 +145,7 @@ fn sram_put(sys: &mut System, off: u32, size: u8, value: u32) {
     if let Some(j) = sys.io_journal.as_mut() {
         j.push(u64::from(word) << 32 | u64::from(old));
     }
-    let off = off as usize;
-    sys.sram[off..off + size as usize].copy_from_slice(&value.to_le_bytes()[..size as usize]);
-}
-
-/// The arbitration bank of SRAM offset `off`.
-fn bank(off: u32) -> usize {
-    sram_location(crate::bus::SRAM_BASE + off).map_or(0, |(_, b)| b)
+    store_le(&mut sys.sram, off as usize, u32::from(size), value);
 }
 
 impl Board {
@@ -261,13 +247,13 @@ impl Board {
             let sys = &mut self.system;
             match e.kind {
                 IoKind::Load | IoKind::Store => {
-                    let b = bank(e.addr);
+                    let b = sram_bank(e.addr);
                     if sys.io_banks >> b & 1 != 0 && sys.io_claims(b, e.cycle) {
                         return Err(Violation::Wait);
                     }
                     if e.kind == IoKind::Store {
                         sram_put(sys, e.addr, e.size, e.value);
-                    } else if sram_load(&sys.sram, e.addr, e.size) != e.value {
+                    } else if load_le(&sys.sram, e.addr as usize, u32::from(e.size)) != e.value {
                         return Err(Violation::Stale);
                     }
                 }

@@ -53,8 +53,8 @@ use super::run::cached;
 use super::*;
 use crate::block::{self, Leave};
 use crate::bus::{
-    plain_sram_span, sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE, FLASH_SIZE,
-    ROM_SIZE,
+    plain_sram_span, sram_bank, sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE,
+    FLASH_SIZE, ROM_SIZE,
 };
 use crate::core::Event;
 use crate::memo::Recording;
@@ -141,7 +141,7 @@ impl Confined<'_> {
     /// Whether any of the `n` words from plain SRAM offset `off` is in a bank of
     /// [`Confined::io_bank`].
     fn io_words(&self, off: u32, n: u32) -> bool {
-        self.io.is_some() && (0..n).any(|i| self.io_bank(bank_of(off + 4 * i)))
+        self.io.is_some() && (0..n).any(|i| self.io_bank(sram_bank(off + 4 * i)))
     }
 }
 
@@ -163,11 +163,11 @@ impl Bus for Confined<'_> {
         let r = self.sys.read(core, cycle, addr, size);
         if let (Some((off, bank)), Ok((value, _))) = (sram_location(addr), r) {
             if self.io_bank(bank) {
-                if let (Some(l), Some(rec)) = (self.io.as_mut(), self.log.as_deref_mut()) {
+                if let Some(l) = self.io.as_mut() {
                     let a = l.push(cycle, IoKind::Load, off as u32, size, value, 0);
-                    rec.io_access(a);
-                } else if let Some(l) = self.io.as_mut() {
-                    l.push(cycle, IoKind::Load, off as u32, size, value, 0);
+                    if let Some(rec) = self.log.as_deref_mut() {
+                        rec.io_access(a);
+                    }
                 }
             }
         }
@@ -253,7 +253,7 @@ impl Bus for Confined<'_> {
             Some(off)
                 if self.log.is_none()
                     && self.journal.len() + words.len() <= JOURNAL
-                    && (0..n).all(|i| self.bank_ok(bank_of(off + 4 * i)))
+                    && (0..n).all(|i| self.bank_ok(sram_bank(off + 4 * i)))
                     && !self.io_words(off, n) =>
             {
                 for i in 0..n {
@@ -285,7 +285,7 @@ impl Bus for Confined<'_> {
         match plain_sram_span(addr, 4 * n) {
             Some(off)
                 if self.log.is_none()
-                    && (0..n).all(|i| self.bank_ok(bank_of(off + 4 * i)))
+                    && (0..n).all(|i| self.bank_ok(sram_bank(off + 4 * i)))
                     && !self.io_words(off, n) =>
             {
                 self.sys.read_words(core, cycle, addr, out)
@@ -313,16 +313,6 @@ impl Bus for Confined<'_> {
             }
         }
         self.sys.fetch(addr)
-    }
-}
-
-/// Arbitration bank of plain SRAM offset `off` (the striped banks by address bits 3:2,
-/// then SRAM4 and SRAM5), as the bus's.
-fn bank_of(off: u32) -> usize {
-    if off < 0x4_0000 {
-        ((off >> 2) & 3) as usize
-    } else {
-        (4 + ((off >> 12) & 1)) as usize
     }
 }
 
