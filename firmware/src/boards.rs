@@ -464,18 +464,53 @@ pub fn plan(
     limiter: &LimiterConfig,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<BoardVerdict>, BoardsError> {
-    let fewest = sweep(programs, costs, keys, board, limiter, true, progress)?;
+    let fewest = sweep(programs, costs, keys, board, limiter, true, None, progress)?;
     if !fewest.iter().any(|b| b.guard_off) {
         return Ok(fewest);
     }
-    let guarded = sweep(programs, costs, keys, board, limiter, false, &mut |_, _| {})?;
-    if guarded.len() <= fewest.len() && guarded.iter().all(BoardVerdict::fits) {
+    // The guarded plan counts only if it needs no more boards, all fitting: its sweep stops
+    // as soon as it cannot be that plan.
+    let guarded = sweep(
+        programs,
+        costs,
+        keys,
+        board,
+        limiter,
+        false,
+        Some(fewest.len()),
+        &mut |_, _| {},
+    )?;
+    let covered: usize = guarded.iter().map(|b| b.keys.len()).sum();
+    if covered == keys.len()
+        && guarded.len() <= fewest.len()
+        && guarded.iter().all(BoardVerdict::fits)
+    {
         return Ok(guarded);
     }
     Ok(fewest)
 }
 
 /// The greedy sweep of [`plan`], boards without the guard allowed when `may_drop_guard`.
+///
+/// Each board's end is the greedy one — the last key such that the board from its first
+/// key to it fits — found by a search instead of one key at a time: because "fits" is
+/// hereditary (module documentation), the fitting ends of a board are exactly those up to
+/// the greedy end, so knowing that the range to `g` fits and the range to `g + 1` does not
+/// is enough. The search starts from the previous board's key count (the boards of a
+/// layout are mostly alike) and checks two candidate ends at a time (one on another
+/// thread): usually one round a board instead of one per key. The plan, its verdicts and
+/// its errors are those of the one-key-at-a-time sweep: a board's verdict is its greedy
+/// range's, and an error is returned when that sweep would meet it (the range one key past
+/// the greedy end); an error on a range that sweep never checks counts as "does not fit".
+/// (Errors are per key — a key whose program does not exist — so every range holding an
+/// erring key errs, and the one-key-at-a-time sweep meets the first such range.)
+/// The first board's search starts from the keys its first key's program would fill by the
+/// keys' own costs alone ([`ProgramCosts::plain_key_cycles`] against the cores' cycles).
+///
+/// With `most: Some(m)` the sweep stops, returning the boards so far, as soon as a board
+/// does not fit or the plan would need more than `m` boards (the caller then has its
+/// answer: not a plan of at most `m` fitting boards).
+#[allow(clippy::too_many_arguments)] // the plan's inputs, and the two ways it is swept
 fn sweep(
     programs: &[Program],
     costs: &ProgramCosts,
@@ -483,39 +518,134 @@ fn sweep(
     board: &BoardSpec,
     limiter: &LimiterConfig,
     may_drop_guard: bool,
+    most: Option<usize>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<BoardVerdict>, BoardsError> {
     let check = |ks: &[PlanKey]| verdict_of(programs, costs, ks, board, limiter, may_drop_guard);
     let mut boards = Vec::new();
     let mut i = 0;
+    let cycles = board
+        .cycles_per_sample()
+        .saturating_mul(u64::from(board.cores));
+    let mut guess = keys
+        .first()
+        .and_then(|k| costs.plain_key_cycles.get(k.program))
+        .map_or(1, |&c| {
+            (cycles / c.max(1)).clamp(1, MAX_KEYS as u64) as usize
+        });
     while i < keys.len() {
-        let mut best = check(&keys[i..=i])?;
-        let mut j = i;
-        // Each step checks the board with one key more and, on another thread, the board
-        // with two more: the greedy rule's own next question when the first fits. Only the
-        // answers the sequential sweep asks for are used (an error included), so the plan
-        // is the sequential one, in about half the time on two cores.
-        'grow: while best.fits() && j + 1 < keys.len() {
-            let (next, ahead) = if j + 2 < keys.len() {
-                let (a, b) = rayon::join(|| check(&keys[i..=j + 1]), || check(&keys[i..=j + 2]));
-                (a, Some(b))
-            } else {
-                (check(&keys[i..=j + 1]), None)
-            };
-            for v in std::iter::once(next).chain(ahead) {
-                let v = v?;
-                if !v.fits() {
-                    break 'grow;
-                }
-                best = v;
-                j += 1;
-            }
+        if most.is_some_and(|m| boards.len() >= m) {
+            break;
         }
+        let (end, best) = greedy_end(&check, keys, i, guess)?;
+        let fits = best.fits();
         boards.push(best);
-        i = j + 1;
+        guess = end + 1 - i;
+        i = end + 1;
         progress(i, keys.len());
+        if most.is_some() && !fits {
+            break;
+        }
     }
     Ok(boards)
+}
+
+/// The greedy end of the board that starts at key `start` (the last index `e` such that
+/// `keys[start..=e]` fits, `start` itself when not even one key fits) and that board's
+/// verdict, searching from `start + guess − 1` with two checks a round ([`sweep`]).
+///
+/// Errors: the error of `keys[start..=e + 1]`'s check (or of `keys[start..=start]`'s when
+/// one key does not fit), as the one-key-at-a-time sweep would meet it.
+fn greedy_end(
+    check: &(dyn Fn(&[PlanKey]) -> Result<BoardVerdict, BoardsError> + Sync),
+    keys: &[PlanKey],
+    start: usize,
+    guess: usize,
+) -> Result<(usize, BoardVerdict), BoardsError> {
+    let n = keys.len();
+    // Checked ends and their answers; `lo` the last end known to fit (`None`: none yet),
+    // `hi` the first end known not to (`n`: past the keys, which "does not fit").
+    let mut seen: Vec<(usize, Result<BoardVerdict, BoardsError>)> = Vec::new();
+    let fits = |r: &Result<BoardVerdict, BoardsError>| r.as_ref().is_ok_and(BoardVerdict::fits);
+    let (mut lo, mut hi): (Option<usize>, usize) = (None, n);
+    let mut next = (start + guess.max(1) - 1).min(n - 1);
+    loop {
+        // Two candidates among the unknown ends `floor..hi`: `next` and its neighbour.
+        let floor = lo.map_or(start, |l| l + 1);
+        let a = next.clamp(floor, hi - 1);
+        let b = if a + 1 < hi {
+            Some(a + 1)
+        } else {
+            a.checked_sub(1).filter(|&b| b >= floor)
+        };
+        let (ra, rb) = match b {
+            Some(b) => {
+                let (ra, rb) = rayon::join(|| check(&keys[start..=a]), || check(&keys[start..=b]));
+                (ra, Some((b, rb)))
+            }
+            None => (check(&keys[start..=a]), None),
+        };
+        let mut all_fit = true;
+        for (end, r) in std::iter::once((a, ra)).chain(rb) {
+            if fits(&r) {
+                lo = Some(lo.map_or(end, |l| l.max(end)));
+            } else {
+                hi = hi.min(end);
+                all_fit = false;
+            }
+            seen.push((end, r));
+        }
+        match lo {
+            Some(l) if l >= hi => return first_miss(check, keys, start),
+            _ if lo.map_or(start, |l| l + 1) == hi => break,
+            _ => {}
+        }
+        // Up from the last fit while the candidates fit, else down to just below the
+        // first miss (the boards of a layout are mostly alike: one round settles).
+        next = match (all_fit, lo) {
+            (true, Some(l)) => l + 1,
+            _ => hi.saturating_sub(2),
+        };
+    }
+    let mut take = |end: usize| {
+        let k = seen.iter().position(|(e, _)| *e == end)?;
+        Some(seen.swap_remove(k).1)
+    };
+    match lo {
+        Some(e) => {
+            if let Some(Err(err)) = take(e + 1) {
+                return Err(err);
+            }
+            // Checked by the search (which settles only on checked ends).
+            let best = take(e).unwrap_or_else(|| check(&keys[start..=e]))?;
+            Ok((e, best))
+        }
+        None => Ok((
+            start,
+            take(start).unwrap_or_else(|| check(&keys[start..=start]))?,
+        )),
+    }
+}
+
+/// The one-key-at-a-time answer of [`greedy_end`]: what the search falls back on when its
+/// own checks show a range fitting beyond one that does not (which the module
+/// documentation's argument excludes), so that it never settles on a contradiction.
+fn first_miss(
+    check: &(dyn Fn(&[PlanKey]) -> Result<BoardVerdict, BoardsError> + Sync),
+    keys: &[PlanKey],
+    start: usize,
+) -> Result<(usize, BoardVerdict), BoardsError> {
+    let mut best = check(&keys[start..=start])?;
+    let mut end = start;
+    while best.fits() && end + 1 < keys.len() {
+        let next = check(&keys[start..=end + 1])?;
+        if !next.fits() {
+            break;
+        }
+        best = next;
+        end += 1;
+    }
+    Ok((end, best))
 }
 
 /// Why no board of kind `board` holds even one key of program `program`, for people; `None`
@@ -613,7 +743,65 @@ pub fn densest_board(
 
 #[cfg(test)]
 mod tests {
-    use super::read_board;
+    use super::{first_miss, greedy_end, read_board, BoardVerdict, BoardsError, PlanKey};
+    use tactus_runtime::rng::XorShift64;
+
+    /// A verdict that fits or not, for `len` keys.
+    fn verdict(len: usize, fits: bool) -> BoardVerdict {
+        BoardVerdict {
+            keys: vec![0; len],
+            cores: Vec::new(),
+            code_bytes: Vec::new(),
+            error: (!fits).then(|| "over".to_string()),
+            guard_off: false,
+            latency_cycles: None,
+        }
+    }
+
+    #[test]
+    fn the_search_for_a_boards_end_gives_the_one_key_at_a_time_answer() {
+        // Hereditary fits (a board from `start` fits up to some end), starts and guesses,
+        // and errors from some key on: the search's end, verdict and error are the
+        // sequential sweep's.
+        let keys: Vec<PlanKey> = (0..12).map(|k| PlanKey { key: k, program: 0 }).collect();
+        let mut rng = XorShift64::new(0x5EA4C4);
+        let mut compared = 0;
+        for trial in 0..400 {
+            let n = 1 + rng.below(keys.len());
+            let keys = &keys[..n];
+            let start = rng.below(n);
+            // The greedy end: `start - 1` (not even one key fits) up to the last key.
+            let last_fit = start as i64 - 1 + rng.below(n - start + 1) as i64;
+            let error_at = (trial % 3 == 0).then(|| start + rng.below(n - start));
+            let check = |ks: &[PlanKey]| -> Result<BoardVerdict, BoardsError> {
+                let end = start + ks.len() - 1;
+                // Errors are per key (a program that does not exist): every range that
+                // holds the erring key errs.
+                if error_at.is_some_and(|e| end >= e) {
+                    return Err(BoardsError::BadKey(format!("end {end}")));
+                }
+                Ok(verdict(ks.len(), end as i64 <= last_fit))
+            };
+            let want = first_miss(&check, keys, start);
+            for guess in [0, 1, 2, 3, 5, 8, 12, 40] {
+                let got = greedy_end(&check, keys, start, guess);
+                assert_eq!(got, want, "start {start} of {n}, fits to {last_fit}, error at {error_at:?}, guess {guess}");
+                compared += 1;
+            }
+        }
+        assert_eq!(compared, 3200);
+        // A fit that is not hereditary (ranges to 2 and 5 fit, 3 and 4 do not), which the
+        // module documentation's argument excludes: from any guess, a fitting board whose
+        // next range does not fit, and no panic or endless search.
+        let check = |ks: &[PlanKey]| -> Result<BoardVerdict, BoardsError> {
+            Ok(verdict(ks.len(), [0, 1, 2, 5].contains(&(ks.len() - 1))))
+        };
+        for guess in 1..8 {
+            let (end, v) = greedy_end(&check, &keys[..8], 0, guess).unwrap();
+            assert!(v.fits() && [2, 5].contains(&end), "guess {guess}: {end}");
+            assert_eq!(v.keys.len(), end + 1);
+        }
+    }
 
     const IO: &str = "name = \"io\"\nclock_hz = 133e6\ncores = 2\nsample_rate_hz = 44100\n\
                       [converters]\nadc = \"ADS8688\"\ndac = \"DAC8568\"\n\
