@@ -57,8 +57,10 @@ pub fn share(programs: &[Program]) -> Result<Shared, String> {
     // distributed factors): a folded constant that differs between keys (`h/I_h`,
     // `l3·h/I_h`) becomes one run-time param, not a run-time param times a constant. Keys
     // whose constants fold differently (a factor short for some keys only) share unfolded.
+    // Each program folded on its own (in parallel: a graded keyboard is one program per key).
+    use rayon::prelude::*;
     let folded: Vec<Program> = programs
-        .iter()
+        .par_iter()
         .map(crate::fixed::distribute::fold_constants)
         .collect();
     share_as_lowered(&folded).or_else(|_| share_as_lowered(programs))

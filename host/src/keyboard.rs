@@ -14,6 +14,7 @@
 
 use crate::catalogue::{self, Source};
 use crate::play::{self, HostProgram};
+use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use tactus_compiler::diagnostics::Diagnostic;
@@ -138,6 +139,12 @@ pub struct Keyboard {
 /// Receives a source's diagnostics: its warnings when it compiles, its errors (and
 /// warnings) when it does not. Called once per distinct set at most.
 pub type Reporter<'r> = dyn FnMut(&Source, &[Diagnostic]) + 'r;
+
+/// A parsed instrument, or the parser's diagnostic.
+type ParsedFile = Result<tactus_compiler::ast::File, Vec<Diagnostic>>;
+
+/// An instrument's source and its parse.
+type ReadFile = (Source, ParsedFile);
 
 /// Lowers `src` with `params` for a board sampling at `fs` Hz, handing its diagnostics to
 /// `report`; `None` when it does not compile.
@@ -307,22 +314,74 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
         a.params = with_overrides(&a.params, spec.params);
     }
     // Which keys share a program: the one rule, as the firmware's own tests group them.
-    let (sets, key_set) = layout_file::group_sets(&keys, |a| {
-        if let Some(set) = first.take_if(|s| s.instrument == a.instrument && s.params == a.params) {
-            return Ok(set);
+    let (firsts, key_set) = layout_file::group_sets(&keys, Ok::<_, KeyboardError>)?;
+    // Each instrument read and parsed once (in the order of its first set), the sets
+    // lowered in parallel, then taken in order: the diagnostics reported and the first
+    // failure returned as lowering them one by one would (a graded layout is one
+    // instrument and as many sets as keys).
+    let mut sources: Vec<(&str, Result<ReadFile, String>)> = Vec::new();
+    for a in &firsts {
+        let reused = first
+            .as_ref()
+            .is_some_and(|s| s.instrument == a.instrument && s.params == a.params);
+        if !reused && !sources.iter().any(|(n, _)| *n == a.instrument) {
+            let read = catalogue::load(&a.instrument).map(|src| {
+                let file = tactus_compiler::parse::parse(&src.text).map_err(|d| vec![*d]);
+                (src, file)
+            });
+            sources.push((a.instrument.as_str(), read));
         }
-        let src = catalogue::load(&a.instrument)
-            .map_err(|e| bad(format!("{}: key {}: {e}", spec.input, a.key)))?;
-        let Some(lowered) = lower(&src, &a.params, fs, report) else {
-            return Err(failed(a.key, &a.instrument, &a.params));
-        };
-        Ok(ProgramSet {
-            instrument: a.instrument.clone(),
-            params: a.params.clone(),
-            source: src,
-            ir: lowered.program,
+    }
+    let source_of = |a: &KeyAssignment| {
+        sources
+            .iter()
+            .find(|(n, _)| *n == a.instrument)
+            .map(|(_, r)| r)
+    };
+    let lowered: Vec<Option<Result<tactus_compiler::lower::Lowered, Vec<Diagnostic>>>> = firsts
+        .par_iter()
+        .map(|a| match source_of(a)? {
+            Ok((_, Ok(file))) => Some(tactus_compiler::lower::lower(
+                file,
+                &tactus_compiler::lower::Config {
+                    overrides: a.params.clone(),
+                    sample_rate_hz: fs,
+                },
+            )),
+            Ok((_, Err(d))) => Some(Err(d.clone())),
+            Err(_) => None,
         })
-    })?;
+        .collect();
+    let mut sets = Vec::with_capacity(firsts.len());
+    for (a, lowered) in firsts.iter().zip(lowered) {
+        if let Some(set) = first.take_if(|s| s.instrument == a.instrument && s.params == a.params) {
+            sets.push(set);
+            continue;
+        }
+        let src = match source_of(a) {
+            Some(Ok((src, _))) => src,
+            Some(Err(e)) => return Err(bad(format!("{}: key {}: {e}", spec.input, a.key))),
+            None => return Err(bad(format!("{}: key {}: not read", spec.input, a.key))),
+        };
+        match lowered {
+            Some(Ok(l)) => {
+                if !l.warnings.is_empty() {
+                    report(src, &l.warnings);
+                }
+                sets.push(ProgramSet {
+                    instrument: a.instrument.clone(),
+                    params: a.params.clone(),
+                    source: src.clone(),
+                    ir: l.program,
+                });
+            }
+            Some(Err(d)) => {
+                report(src, &d);
+                return Err(failed(a.key, &a.instrument, &a.params));
+            }
+            None => return Err(failed(a.key, &a.instrument, &a.params)),
+        }
+    }
     Ok(Keyboard {
         name,
         input: spec.input.to_string(),

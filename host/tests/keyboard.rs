@@ -153,6 +153,44 @@ fn bad_input_names_the_field() {
     .unwrap_err();
     assert!(matches!(e, KeyboardError::Compile { key: 21, .. }), "{e}");
     assert_eq!(reported, 1);
+    // In a layout (its sets lowered in parallel), the first bad key in key order is the
+    // error, and only its diagnostics are reported: a graded range that compiles, then a
+    // range that does not parse, then a file that cannot be read (not UTF-8).
+    let graded = "[[range]]\nkeys = [48, 59]\ninstrument = \"grand_piano\"\n\
+                  grade = [ { param = \"M_h\", from = \"11 g\", to = \"5 g\" } ]\n";
+    let layout = |ranges: &[(u8, u8, &str)]| {
+        let mut text = "name = \"l\"\n".to_string() + graded;
+        for (lo, hi, instrument) in ranges {
+            text += &format!("[[range]]\nkeys = [{lo}, {hi}]\ninstrument = {instrument:?}\n");
+        }
+        text
+    };
+    let unreadable = dir.join("binary.tactus");
+    std::fs::write(&unreadable, [0xff, 0xfe, 0x00, 0x80]).unwrap();
+    let bad_path = bad.to_str().unwrap();
+    let unreadable_path = unreadable.to_str().unwrap();
+    for (ranges, key, reports) in [
+        (vec![(60, 61, bad_path), (62, 62, unreadable_path)], 60, 1),
+        (vec![(60, 61, unreadable_path), (62, 63, bad_path)], 60, 0),
+    ] {
+        let path = dir.join("bad_layout.toml");
+        std::fs::write(&path, layout(&ranges)).unwrap();
+        let mut reported = 0;
+        let e = keyboard::compile(&spec(path.to_str().unwrap()), &mut |_, d| {
+            assert!(!d.is_empty());
+            reported += 1;
+        })
+        .unwrap_err();
+        let text = e.to_string();
+        match reports {
+            1 => assert!(
+                matches!(e, KeyboardError::Compile { key: k, .. } if k == key),
+                "{text}"
+            ),
+            _ => assert!(text.contains(&format!("key {key}")), "{text}"),
+        }
+        assert_eq!(reported, reports, "{text}");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
