@@ -27,7 +27,10 @@
 //! board of any valid plan (if greedy's board *i* starts no later, the other plan's board
 //! *i* restricted to greedy's start is a fitting sub-range), so no plan has fewer boards.
 //! The fit is decided by building each candidate board's image; a test checks the count
-//! against brute force over every contiguous split of small mixed layouts.
+//! against brute force over every contiguous split of small mixed layouts. Heredity also
+//! makes the sweep cheap: a board's end is settled by two answers (its range fits, one key
+//! more does not), so the sweep searches from the previous board's key count instead of
+//! growing each board from one key (`sweep`).
 
 use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
 use serde::Serialize;
