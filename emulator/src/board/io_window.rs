@@ -236,6 +236,15 @@ impl Board {
         self.io_windows
     }
 
+    /// Turns the period memo of the I/O's replays (module documentation) on or off; on by
+    /// default. Results never depend on it: what it gives is the replay's.
+    pub fn set_io_memo(&mut self, on: bool) {
+        self.io_memo.on = on;
+        if !on {
+            self.io_memo.entries.clear();
+        }
+    }
+
     /// At the start of a window from cycle `start`: on a board with an I/O, runs it up to
     /// `start`, keeps a clone and has the cores log their accesses to its DMA's banks;
     /// `None` without an I/O.
