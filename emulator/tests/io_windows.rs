@@ -107,7 +107,7 @@ fn handler0(data: u32) -> Asm {
 
 /// Core 1's handler: sums last sample's copy (into bank 3, then its data), restarts the copy, waits
 /// ~80 cycles (the DMA has read the source by then), then writes new source words (in
-/// `few` values: their count's low two bits).
+/// `few` values: bit 1 of their count, so that one sample's words do not tell the last's).
 fn handler1(data: u32, few: bool) -> Asm {
     let mut a = Asm::default();
     a.lit(0, DST)
@@ -124,7 +124,7 @@ fn handler1(data: u32, few: bool) -> Asm {
         .lit(0, SRC)
         .op(&[0x685a, 0x3201, 0x605a]); // ldr r2,[r3,#4]; adds #1; str
     if few {
-        a.op(&[0x2103, 0x400a]); // movs r1,#3; ands r2,r1
+        a.op(&[0x0852, 0x2101, 0x400a]); // lsrs r2,r2,#1; movs r1,#1; ands r2,r1
     }
     a.op(&[0x6002, 0x61c2, 0x3203, 0x60c2, 0x4770]); // str r2,[r0]; str r2,[r0,#28]; adds #3; str r2,[r0,#12]; bx lr
     a
@@ -132,7 +132,9 @@ fn handler1(data: u32, few: bool) -> Asm {
 
 /// What the boards of a comparison run: core 0's main loop on bank 2 under the DMA
 /// (`busy`); or the period memo's case (`periodic`): both SysTicks at [`PERIOD`], no
-/// paced channel, core 1's source words in a few values.
+/// paced channel, core 1's source words in a few values, core 0's main loop counting in
+/// a register (its handler's entry, and so its register stores, a cycle later when the
+/// tick lands in the loop's branch).
 #[derive(Clone, Copy)]
 struct Shape {
     busy: bool,
@@ -207,6 +209,8 @@ fn board(engine: Engine, Shape { busy, periodic }: Shape) -> Board {
         b.write_bytes(handler, &code).unwrap();
         let idle: &[u16] = if busy && core == 0 {
             &[0x69f1, 0x6039, 0x3101, 0xe7fb] // ldr r1,[r6,#28]; str r1,[r7]; adds r1,#1; b .-6
+        } else if periodic && core == 0 {
+            &[0x3101, 0xe7fd] // adds r1,#1; b .-2
         } else {
             &[0xbf30, 0xe7fd] // wfi; b .-2
         };
