@@ -141,8 +141,9 @@ struct Shape {
     periodic: bool,
 }
 
-/// The SysTick period of the periodic shape, cycles.
-const PERIOD: u64 = 3000;
+/// The SysTick period of the periodic shape, cycles (not a multiple of core 0's 3-cycle
+/// loop: the tick lands on each of its instructions in turn).
+const PERIOD: u64 = 3001;
 
 /// A board on `engine` with the ADC, its DMA channels and the copy channel set up and
 /// the DMA winning the banks, both cores in their handlers' idle loops (core 0 in `busy`'s
