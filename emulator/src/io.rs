@@ -56,7 +56,9 @@
 //! machine where that one left it. Where the DMA wins against both cores, the cores run in
 //! windows ahead of the machine (`board/window.rs`), which then replays their accesses to
 //! its banks and their stores to its registers in that order, the window undone where the
-//! lock-step run would have differed (`board/io_window.rs`).
+//! lock-step run would have differed (`board/io_window.rs`); a replay whose key repeats a
+//! recorded one takes its effect instead (the period memo there: `Io::rebased` and
+//! `Io::become_rebased` move the machine's cycles to the memo's time base and back).
 //!
 //! Not modelled: the DMA reaching peripherals other than the PIO FIFOs (its own registers,
 //! APB), the DMA's and PIOs' interrupts, GPIO overrides, pads, and the SIO's GPIO outputs.

@@ -40,6 +40,22 @@
 //! firmware's DMA moves at the tick, before the handler writes the next ones), one after
 //! the store the new. The I/O is left where the last logged access left it, as in
 //! lock-step. Counts: [`Board::io_windows`].
+//!
+//! **The period memo.** A firmware's windows are its sample periods (a window ends at the
+//! SysTick event), and once its keys rest the I/O does the same thing every period, in a
+//! handful of states (the ping-pong buffers, the PIO clock divider's phase at the tick, a
+//! period of 3,015 or 3,016 cycles). So a kept replay is recorded, and a later one whose key
+//! equals it takes its effect instead of running the I/O. The key: the I/O at the window's
+//! start with its cycles moved to the memo's time base ([`Rebase`]; its parts' records left
+//! out), compared whole — with the ADC codes and the DAC registers, so data is part of it;
+//! the cores' logs with their cycles from the start, their register stores' values and, of
+//! their SRAM accesses, the values only of stores to words the DMA reads (the replay checks
+//! the loads and does the stores with the values of now); and each SRAM word the DMA read,
+//! as it was before the replay. The effect: the DMA's SRAM writes and the cores' stores in
+//! the recorded order, the loads checked there as the replay does (a stale one undoes the
+//! window), the I/O's end state moved back to the window, and the frames and updates its
+//! parts recorded. A replay that recorded a timing violation is not kept. Counts:
+//! [`IoWindows::memo_hits`]; [`Board::set_io_memo`] turns it off.
 
 use super::window::undo_stores;
 use super::*;
