@@ -266,7 +266,7 @@ fn compare(shape: Shape, cycles: u64) -> Board {
         // (and rests in between: the spans' memos hit).
         slice += 1;
         let set = match shape.periodic {
-            true => rng.below(3) as u16,
+            true => rng.below(3),
             false => slice / 6,
         };
         for b in [&mut block, &mut interp] {
