@@ -201,6 +201,18 @@ pub(crate) trait Recorded: Clone {
         (violations.len() == counts[1]).then(|| items[counts[0].min(items.len())..].to_vec())
     }
 
+    /// Its records, taken out.
+    fn take_records(&mut self) -> (Vec<Self::Item>, Vec<TimingViolation>) {
+        let (items, violations) = self.records();
+        (std::mem::take(items), std::mem::take(violations))
+    }
+
+    /// Puts back records [`Recorded::take_records`] took.
+    fn put_records(&mut self, (i, v): (Vec<Self::Item>, Vec<TimingViolation>)) {
+        let (items, violations) = self.records();
+        (*items, *violations) = (i, v);
+    }
+
     /// Appends `items` to its records as a run that recorded them would ([`MAX_KEPT`]).
     fn append_records(&mut self, items: impl IntoIterator<Item = Self::Item>) {
         let (list, _) = self.records();

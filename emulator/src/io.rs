@@ -283,6 +283,12 @@ impl Rebase {
     }
 }
 
+/// The parts' whole records, taken out of them ([`Io::take_records`]).
+pub(crate) struct PartRecords {
+    adcs: Vec<(Vec<AdcFrame>, Vec<crate::converters::TimingViolation>)>,
+    dacs: Vec<(Vec<DacUpdate>, Vec<crate::converters::TimingViolation>)>,
+}
+
 /// The parts' records of a stretch (a period memo's, `board/io_window.rs`): per ADC its
 /// frames, per DAC its updates, in [`IoConfig`] order.
 #[derive(Clone, Debug, Default)]
@@ -587,6 +593,25 @@ impl Io {
         self.dma.rebase(r);
         self.adcs.iter_mut().for_each(|a| a.rebase(r));
         self.dacs.iter_mut().for_each(|d| d.rebase(r));
+    }
+
+    /// Its parts' records, taken out (to compare the machine with one without records,
+    /// `board/io_window.rs`); [`Io::put_records`] puts them back.
+    pub(crate) fn take_records(&mut self) -> PartRecords {
+        PartRecords {
+            adcs: (self.adcs.iter_mut().map(|a| a.take_records())).collect(),
+            dacs: (self.dacs.iter_mut().map(|d| d.take_records())).collect(),
+        }
+    }
+
+    /// Puts back the records [`Io::take_records`] took.
+    pub(crate) fn put_records(&mut self, records: PartRecords) {
+        for (a, r) in self.adcs.iter_mut().zip(records.adcs) {
+            a.put_records(r);
+        }
+        for (d, r) in self.dacs.iter_mut().zip(records.dacs) {
+            d.put_records(r);
+        }
     }
 
     /// Per ADC, then per DAC, its [`Recorded::record_counts`].

@@ -231,7 +231,6 @@ enum Violation {
 
 /// What [`Board::io_window_begin`] keeps for the end of the window.
 pub(super) struct IoStart {
-    io: Checkpoint,
     banks: u8,
 }
 
@@ -267,7 +266,6 @@ impl Board {
     pub(super) fn io_window_begin(&mut self, start: u64) -> Option<IoStart> {
         self.system.io.as_ref()?;
         self.system.io_advance_to(start, false);
-        let io = self.system.io.as_mut()?.checkpoint();
         let banks = self.system.io_banks;
         // The cores' run does not touch the I/O: their accesses are logged instead.
         self.system.io_banks = 0;
@@ -276,7 +274,7 @@ impl Board {
         for l in &mut self.io_logs {
             l.clear();
         }
-        Some(IoStart { io, banks })
+        Some(IoStart { banks })
     }
 
     /// At the end of the cores' run of a window (`kept`: both reached its end): replays
@@ -289,7 +287,7 @@ impl Board {
         if !kept {
             return false;
         }
-        let mut io = Some(start.io);
+        let mut io = None;
         let r = self.io_replay(start.banks, &mut io);
         let journal = self.system.io_journal.take().unwrap_or_default();
         let s = &mut self.io_windows;
@@ -315,8 +313,10 @@ impl Board {
     }
 
     /// The replay (module documentation), its SRAM writes journaled in
-    /// [`System::io_journal`]; `io` the I/O's checkpoint at the window's start (taken by a
-    /// recording into the period memo, which leaves it `None`: the replay is then kept).
+    /// [`System::io_journal`]; `io` becomes the I/O's checkpoint at the window's start
+    /// when the I/O is run (not on a hit of the period memo, which changes the I/O only
+    /// once it is kept; a recording takes it: the replay is then kept). The I/O is as the
+    /// window's start left it: the cores' run does not touch it.
     fn io_replay(&mut self, banks: u8, io: &mut Option<Checkpoint>) -> Result<(), Violation> {
         let mut journal = std::mem::take(&mut self.io_journal);
         journal.clear();
@@ -332,15 +332,18 @@ impl Board {
         let memo = self.io_memo.on && self.system.io.as_ref().is_some_and(|io| !io.stepwise);
         let r = match memo {
             true => self.io_memo_replay(&logs, banks, own, io),
-            false => self.io_merge(&logs, banks, own),
+            false => {
+                *io = self.system.io.as_mut().map(|now| now.checkpoint());
+                self.io_merge(&logs, banks, own)
+            }
         };
         self.io_logs = logs;
         r
     }
 
     /// The replay through the period memo (module documentation): a hit does what the
-    /// recorded replay did; a miss replays and records (when the replay is kept), taking
-    /// the I/O's checkpoint `io`.
+    /// recorded replay did; a miss checkpoints the I/O into `io`, replays and records
+    /// (when the replay is kept, taking the checkpoint).
     fn io_memo_replay(
         &mut self,
         logs: &[Vec<IoAccess>; 2],
@@ -348,10 +351,10 @@ impl Board {
         own: u8,
         io: &mut Option<Checkpoint>,
     ) -> Result<(), Violation> {
-        let Some(cp) = io.as_mut() else {
+        let Some(now) = self.system.io.as_mut() else {
             return self.io_merge(logs, banks, own);
         };
-        let base = cp.io.cycle();
+        let base = now.cycle();
         let to_memo = Rebase {
             from: base,
             to: Rebase::MEMO,
@@ -359,16 +362,25 @@ impl Board {
         let key = memo_logs(logs, to_memo);
         let hash = log_hash(&key);
         let xip = self.system.xip_answers;
-        cp.io.rebase_in_place(to_memo);
+        // The I/O itself at the memo's time base while it is compared (its records aside).
+        now.rebase_in_place(to_memo);
+        let records = now.take_records();
         let sys = &self.system;
+        let live = sys.io.as_deref();
         let hit = self.io_memo.entries.iter().position(|e| {
             e.hash == hash
                 && e.xip == xip
                 && e.logs == key
                 && (e.valued.iter()).all(|&(k, i, v)| logs[k][i as usize].value == v)
-                && *e.start == *cp.io
+                && live.is_some_and(|l| *e.start == *l)
                 && (e.pre.iter()).all(|&(w, v)| load_le(&sys.sram, w as usize, 4) == v)
         });
+        if let Some(now) = self.system.io.as_mut() {
+            now.put_records(records);
+            if hit.is_none() {
+                now.rebase_in_place(to_memo.back());
+            }
+        }
         if let Some(i) = hit {
             let e = &self.io_memo.entries[i];
             let mut merged = Merged::new(logs);
@@ -387,7 +399,9 @@ impl Board {
                                 let now =
                                     load_le(&self.system.sram, a.addr as usize, a.size.into());
                                 if now != a.value {
-                                    cp.io.rebase_in_place(to_memo.back());
+                                    if let Some(io) = self.system.io.as_mut() {
+                                        io.rebase_in_place(to_memo.back());
+                                    }
                                     return Err(Violation::Stale);
                                 }
                             }
@@ -404,7 +418,7 @@ impl Board {
             self.io_windows.memo_hits += 1;
             return Ok(());
         }
-        cp.io.rebase_in_place(to_memo.back());
+        *io = self.system.io.as_mut().map(|now| now.checkpoint());
         let restored = self.system.io_journal.as_ref().map_or(0, Vec::len);
         let counts = self.system.io.as_mut().map(|io| io.record_counts());
         self.system.io_trace = Some(Vec::new());
