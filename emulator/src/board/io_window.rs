@@ -8,7 +8,8 @@
 //! sees the I/O only through those words.
 //!
 //! **The cores' run.** At the window's start the I/O is run up to it (as a core's access
-//! there would) and kept ([`crate::io::Io::checkpoint`]). Each core then runs alone as in any window, its
+//! there would); the cores' run leaves it there, and the replay checkpoints it
+//! ([`crate::io::Io::checkpoint`]) before it runs it. Each core then runs alone as in any window, its
 //! accesses to the banks the DMA may reach (`L`, [`crate::bus::System::io_banks`] at the
 //! start) taking the general path — not compiled code or fetches — served as if no DMA
 //! were there, and logged: the instruction's start cycle, the data phase, the SRAM offset,
