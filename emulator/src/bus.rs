@@ -208,6 +208,9 @@ pub struct System {
     /// writes, before it is written (`offset << 32 | old word`), so that the replay can be
     /// undone; `None` otherwise.
     pub(crate) io_journal: Option<Vec<u64>>,
+    /// While a window's replay is recorded for the period memo, the DMA's SRAM accesses and
+    /// the cores' logged stores in the replay's order (`board/io_window.rs`).
+    pub(crate) io_trace: Option<Vec<crate::io::SramOp>>,
 }
 
 /// Every SRAM bank ([`System::allowed_banks`]).
@@ -315,6 +318,7 @@ impl System {
             io: None,
             io_banks: 0,
             io_journal: None,
+            io_trace: None,
         }
     }
 
@@ -334,19 +338,32 @@ impl System {
     /// [`System::io_advance`]; without `settle`, a state machine that alone drives its
     /// converters may stay behind at a bit loop's head (`crate::io::Io::advance`).
     pub(crate) fn io_advance_to(&mut self, to: u64, settle: bool) {
-        if let Some(io) = self.io.as_mut() {
-            let mut mem = crate::io::Memory {
-                sram: &mut self.sram,
-                code_pages: &mut self.code_pages,
-                code_epoch: &mut self.code_epoch,
-                bank_claim: &self.bank_claim,
-                rom: &self.rom,
-                flash: &self.flash,
-                xip_answers: self.xip_answers,
-                journal: self.io_journal.as_mut(),
-            };
+        if let (Some(io), mut mem) = self.io_parts() {
             io.advance(to, &mut mem, settle);
         }
+    }
+
+    /// The I/O, and what it reaches of the system ([`crate::io::Memory`]).
+    fn io_parts(&mut self) -> (Option<&mut crate::io::Io>, crate::io::Memory<'_>) {
+        let mem = crate::io::Memory {
+            sram: &mut self.sram,
+            code_pages: &mut self.code_pages,
+            code_epoch: &mut self.code_epoch,
+            bank_claim: &self.bank_claim,
+            rom: &self.rom,
+            flash: &self.flash,
+            xip_answers: self.xip_answers,
+            journal: self.io_journal.as_mut(),
+            trace: self.io_trace.as_mut(),
+        };
+        (self.io.as_deref_mut(), mem)
+    }
+
+    /// The DMA's write of `size` bytes of `value` at SRAM offset `off`, as the I/O's run
+    /// does it ([`crate::io::dma_sram_write`]): a period memo's hit (`board/io_window.rs`).
+    pub(crate) fn io_dma_write(&mut self, off: u32, size: u32, value: u32) {
+        let (_, mut mem) = self.io_parts();
+        crate::io::dma_sram_write(&mut mem, off as usize, size, value);
     }
 
     /// Core `core`'s access to SRAM bank `bank` (one the DMA may reach) in `cycle`: the I/O

@@ -144,7 +144,7 @@ pub struct TimingViolation {
 }
 
 /// The ADS8688 at the pins. See the module documentation.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Ads8688 {
     part: &'static AdcPart,
     pins: SpiPins,
@@ -173,7 +173,7 @@ pub struct Ads8688 {
 /// counts instead of copying them.
 pub(crate) trait Recorded: Clone {
     /// What it records besides violations.
-    type Item;
+    type Item: Clone;
 
     /// Its records.
     fn records(&mut self) -> (&mut Vec<Self::Item>, &mut Vec<TimingViolation>);
@@ -192,6 +192,33 @@ pub(crate) trait Recorded: Clone {
         let (items, violations) = self.records();
         (*items, *violations) = kept;
         copy
+    }
+
+    /// The records after the first `counts` ([`Recorded::record_counts`]), or `None` when
+    /// a violation is among them.
+    fn records_since(&mut self, counts: [usize; 2]) -> Option<Vec<Self::Item>> {
+        let (items, violations) = self.records();
+        (violations.len() == counts[1]).then(|| items[counts[0].min(items.len())..].to_vec())
+    }
+
+    /// Its records, taken out.
+    fn take_records(&mut self) -> (Vec<Self::Item>, Vec<TimingViolation>) {
+        let (items, violations) = self.records();
+        (std::mem::take(items), std::mem::take(violations))
+    }
+
+    /// Puts back records [`Recorded::take_records`] took.
+    fn put_records(&mut self, (i, v): (Vec<Self::Item>, Vec<TimingViolation>)) {
+        let (items, violations) = self.records();
+        (*items, *violations) = (i, v);
+    }
+
+    /// Appends `items` to its records as a run that recorded them would ([`MAX_KEPT`]).
+    fn append_records(&mut self, items: impl IntoIterator<Item = Self::Item>) {
+        let (list, _) = self.records();
+        for i in items {
+            keep(list, i);
+        }
     }
 
     /// Back to `then` (from [`Recorded::without_records`]), its records those of now cut
@@ -225,6 +252,16 @@ impl Recorded for Ads8688 {
 }
 
 impl Ads8688 {
+    /// Its cycles (the frame under way, the last edges) moved by `r`
+    /// (`crate::io::Io::rebased`); its records are not.
+    pub(crate) fn rebase(&mut self, r: crate::io::Rebase) {
+        if let Some(f) = self.frame.as_mut() {
+            f.cs_fall = r.at(f.cs_fall);
+        }
+        self.last_rise = self.last_rise.map(|c| r.at(c));
+        self.last_cs_fall = self.last_cs_fall.map(|c| r.at(c));
+    }
+
     /// An ADC of `part` (its timing limits) on `pins`, on a system clocked at `clock_hz`,
     /// every channel reading code 0.
     pub fn new(part: &'static AdcPart, pins: SpiPins, clock_hz: f64) -> Self {
@@ -500,7 +537,7 @@ pub struct DacUpdate {
 /// `tactus_runtime::converters::DAC8568`: SCLK ≤ 50 MHz, SYNC high ≥ 80 ns between frames,
 /// SYNC falling to the first SCLK falling edge ≥ 13 ns. Not modelled: LDAC, CLR, power
 /// down, the internal reference and the other controls (recorded, no effect).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Dac8568 {
     part: &'static tactus_runtime::converters::DacPart,
     pins: SpiPins,
@@ -525,6 +562,14 @@ impl Recorded for Dac8568 {
 }
 
 impl Dac8568 {
+    /// Its cycles (the last SYNC and SCLK edges) moved by `r` (`crate::io::Io::rebased`);
+    /// its records are not.
+    pub(crate) fn rebase(&mut self, r: crate::io::Rebase) {
+        self.sync_fell = self.sync_fell.map(|c| r.at(c));
+        self.sync_rose = self.sync_rose.map(|c| r.at(c));
+        self.last_fall = self.last_fall.map(|c| r.at(c));
+    }
+
     /// A DAC of `part` on `pins` (its `sdo` unused), on a system clocked at `clock_hz`,
     /// every output at midscale.
     pub fn new(

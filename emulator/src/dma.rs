@@ -196,7 +196,7 @@ pub trait DmaPort {
 }
 
 /// One channel's registers and sequence state.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 struct Channel {
     read_addr: u32,
     write_addr: u32,
@@ -242,7 +242,7 @@ impl Channel {
 }
 
 /// A transfer between the two ports: read, waiting for the write port.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct Transfer {
     channel: usize,
     addr: u32,
@@ -254,7 +254,7 @@ struct Transfer {
 
 /// The transfer data FIFO ([`TRANSFER_FIFO_DEPTH`] entries), kept in place (a copy, not an
 /// allocation, when the DMA is cloned): the oldest first in `t[..len]`, the rest default.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy, Default, PartialEq, Eq)]
 struct Queue {
     t: [Transfer; TRANSFER_FIFO_DEPTH],
     len: usize,
@@ -301,7 +301,7 @@ impl Queue {
 }
 
 /// The DMA controller. See the module documentation.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Dma {
     ch: [Channel; CHANNELS],
     intr: u32,
@@ -330,6 +330,16 @@ impl Default for Dma {
 }
 
 impl Dma {
+    /// Its cycles (the transfer FIFO's ready cycles, the ports' free cycles) moved by
+    /// `r` (a period memo of the I/O, `crate::io::Io::rebased`).
+    pub(crate) fn rebase(&mut self, r: crate::io::Rebase) {
+        for t in &mut self.queue.t[..self.queue.len] {
+            t.ready = r.at(t.ready);
+        }
+        self.read_free = r.at(self.read_free);
+        self.write_free = r.at(self.write_free);
+    }
+
     /// The DMA out of reset: every channel idle with CTRL 0 but `CHAIN_TO` naming itself
     /// (datasheet reset values), no interrupt flags.
     pub fn new() -> Self {

@@ -56,13 +56,15 @@
 //! machine where that one left it. Where the DMA wins against both cores, the cores run in
 //! windows ahead of the machine (`board/window.rs`), which then replays their accesses to
 //! its banks and their stores to its registers in that order, the window undone where the
-//! lock-step run would have differed (`board/io_window.rs`).
+//! lock-step run would have differed (`board/io_window.rs`); a replay whose key repeats a
+//! recorded one takes its effect instead (the period memo there: `Io::rebased` and
+//! `Io::become_rebased` move the machine's cycles to the memo's time base and back).
 //!
 //! Not modelled: the DMA reaching peripherals other than the PIO FIFOs (its own registers,
 //! APB), the DMA's and PIOs' interrupts, GPIO overrides, pads, and the SIO's GPIO outputs.
 
 use crate::bus::{load_le, sram_location, store_le, BusFault, BANKS};
-use crate::converters::{Ads8688, Dac8568, Recorded, SpiPins};
+use crate::converters::{AdcFrame, Ads8688, Dac8568, DacUpdate, Recorded, SpiPins};
 use crate::dma::{Dma, DmaPort, DMA_BASE};
 use crate::pio::{BitLoop, LoopClock, Pio, LOOP_MAX, PIO0_BASE, PIO1_BASE};
 use tactus_runtime::converters::{AdcPart, DacPart};
@@ -117,7 +119,7 @@ pub struct IoConfig {
 }
 
 /// The I/O machine. See the module documentation.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Io {
     /// PIO0 and PIO1.
     pub pio: [Pio; 2],
@@ -171,7 +173,7 @@ pub struct Io {
 /// The machine at some moment, to go back to ([`Io::checkpoint`], [`Io::rewind`]).
 pub(crate) struct Checkpoint {
     /// The machine then, its parts without their records.
-    io: Box<Io>,
+    pub(crate) io: Box<Io>,
     /// Per ADC, then per DAC, its [`Recorded::record_counts`] then.
     counts: Vec<[usize; 2]>,
 }
@@ -232,6 +234,81 @@ pub(crate) struct Memory<'a> {
     /// Where the DMA's SRAM writes journal the word they overwrite (`offset << 32 | old`),
     /// while a window's I/O is replayed (`System::io_journal`).
     pub journal: Option<&'a mut Vec<u64>>,
+    /// Where the DMA's SRAM accesses are traced while a window's replay is recorded for
+    /// the period memo (`System::io_trace`, `board/io_window.rs`).
+    pub trace: Option<&'a mut Vec<SramOp>>,
+}
+
+/// An SRAM access of a replayed window, in the replay's order: what the period memo
+/// (`board/io_window.rs`) keeps of a window it records.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum SramOp {
+    /// The DMA read the word at this SRAM offset.
+    Read { word: u32 },
+    /// The DMA wrote `size` bytes of `value` at SRAM offset `off`.
+    Dma { off: u32, size: u8, value: u32 },
+    /// The next of the cores' logged accesses in the lock-step order.
+    Entry,
+}
+
+/// Cycles moved from one time base to another (a window's start to a period memo's and
+/// back, [`Io::rebased`]): `from` goes to `to`, and the values no cycle can take — 0 (the
+/// DMA's ports before their first transfer, a state machine held nowhere) and `u64::MAX`
+/// (a bank no DMA master has claimed) — stay.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Rebase {
+    pub from: u64,
+    pub to: u64,
+}
+
+impl Rebase {
+    /// The time base the memo keeps its states at: far from 0 and `u64::MAX` either way,
+    /// so that no rebased cycle meets those two.
+    pub const MEMO: u64 = 1 << 62;
+
+    /// `v` in the new time base.
+    pub fn at(self, v: u64) -> u64 {
+        match v {
+            0 | u64::MAX => v,
+            _ => v.wrapping_sub(self.from).wrapping_add(self.to),
+        }
+    }
+
+    /// The move back.
+    pub fn back(self) -> Rebase {
+        Rebase {
+            from: self.to,
+            to: self.from,
+        }
+    }
+}
+
+/// The parts' whole records, taken out of them ([`Io::take_records`]).
+pub(crate) struct PartRecords {
+    adcs: Vec<(Vec<AdcFrame>, Vec<crate::converters::TimingViolation>)>,
+    dacs: Vec<(Vec<DacUpdate>, Vec<crate::converters::TimingViolation>)>,
+}
+
+/// The parts' records of a stretch (a period memo's, `board/io_window.rs`): per ADC its
+/// frames, per DAC its updates, in [`IoConfig`] order.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct IoRecords {
+    adcs: Vec<Vec<AdcFrame>>,
+    dacs: Vec<Vec<DacUpdate>>,
+}
+
+/// Writes `size` bytes of `value` at SRAM offset `off` for the DMA: journaled while a
+/// window is replayed, invalidating decoded code on the page.
+pub(crate) fn dma_sram_write(mem: &mut Memory, off: usize, size: u32, value: u32) {
+    if let Some(j) = mem.journal.as_deref_mut() {
+        let word = off & !3;
+        j.push((word as u64) << 32 | u64::from(load_le(mem.sram, word, 4)));
+    }
+    store_le(mem.sram, off, size, value);
+    if mem.code_pages[off >> 8] {
+        *mem.code_epoch = mem.code_epoch.wrapping_add(1);
+        mem.code_pages.fill(false);
+    }
 }
 
 /// The DMA's side of the machine for one tick: memory, the PIO FIFOs and DREQs.
@@ -293,6 +370,11 @@ impl DmaPort for Port<'_, '_> {
     fn read(&mut self, cycle: u64, addr: u32, size: u32) -> Result<(u32, u32), BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.claim_bank(0, bank, cycle);
+            if let Some(t) = self.mem.trace.as_deref_mut() {
+                t.push(SramOp::Read {
+                    word: off as u32 & !3,
+                });
+            }
             return Ok((load_le(self.mem.sram, off, size), wait));
         }
         if let Some((b, off)) = pio_of(addr) {
@@ -314,15 +396,14 @@ impl DmaPort for Port<'_, '_> {
     fn write(&mut self, cycle: u64, addr: u32, size: u32, value: u32) -> Result<u32, BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.claim_bank(1, bank, cycle);
-            if let Some(j) = self.mem.journal.as_deref_mut() {
-                let word = off & !3;
-                j.push((word as u64) << 32 | u64::from(load_le(self.mem.sram, word, 4)));
+            if let Some(t) = self.mem.trace.as_deref_mut() {
+                t.push(SramOp::Dma {
+                    off: off as u32,
+                    size: size as u8,
+                    value,
+                });
             }
-            store_le(self.mem.sram, off, size, value);
-            if self.mem.code_pages[off >> 8] {
-                *self.mem.code_epoch = self.mem.code_epoch.wrapping_add(1);
-                self.mem.code_pages.fill(false);
-            }
+            dma_sram_write(self.mem, off, size, value);
             return Ok(wait);
         }
         if let Some((b, off)) = pio_of(addr) {
@@ -476,6 +557,121 @@ impl Io {
         io.adcs = std::mem::take(&mut self.adcs);
         io.dacs = std::mem::take(&mut self.dacs);
         *self = *io;
+    }
+
+    /// Its cycles moved by `r`, its parts' records not (a period memo's key, end state, or
+    /// a checkpoint compared with one: `board/io_window.rs`).
+    pub(crate) fn rebase_in_place(&mut self, r: Rebase) {
+        self.rebase(r);
+    }
+
+    /// A clone of the machine without its parts' records (as [`Io::checkpoint`]), its
+    /// cycles moved by `r`: a period memo's key or end state (`board/io_window.rs`).
+    pub(crate) fn rebased(&mut self, r: Rebase) -> Box<Io> {
+        let mut io = self.checkpoint().io;
+        io.rebase(r);
+        io
+    }
+
+    /// Its cycles moved by `r`, its parts' records not.
+    fn rebase(&mut self, r: Rebase) {
+        self.cycle = r.at(self.cycle);
+        for c in self.dma_claim.iter_mut().flatten() {
+            *c = r.at(*c);
+        }
+        for c in self
+            .sm_clock
+            .iter_mut()
+            .chain(&mut self.held_until)
+            .flatten()
+        {
+            *c = r.at(*c);
+        }
+        for (c, _) in self.sdo_log.iter_mut().flatten() {
+            *c = r.at(*c);
+        }
+        self.dma.rebase(r);
+        self.adcs.iter_mut().for_each(|a| a.rebase(r));
+        self.dacs.iter_mut().for_each(|d| d.rebase(r));
+    }
+
+    /// Its parts' records, taken out (to compare the machine with one without records,
+    /// `board/io_window.rs`); [`Io::put_records`] puts them back.
+    pub(crate) fn take_records(&mut self) -> PartRecords {
+        PartRecords {
+            adcs: (self.adcs.iter_mut().map(|a| a.take_records())).collect(),
+            dacs: (self.dacs.iter_mut().map(|d| d.take_records())).collect(),
+        }
+    }
+
+    /// Puts back the records [`Io::take_records`] took.
+    pub(crate) fn put_records(&mut self, records: PartRecords) {
+        for (a, r) in self.adcs.iter_mut().zip(records.adcs) {
+            a.put_records(r);
+        }
+        for (d, r) in self.dacs.iter_mut().zip(records.dacs) {
+            d.put_records(r);
+        }
+    }
+
+    /// Per ADC, then per DAC, its [`Recorded::record_counts`].
+    pub(crate) fn record_counts(&mut self) -> Vec<[usize; 2]> {
+        (self.adcs.iter_mut().map(Recorded::record_counts))
+            .chain(self.dacs.iter_mut().map(Recorded::record_counts))
+            .collect()
+    }
+
+    /// The parts' records after `counts` ([`Io::record_counts`]), their cycles moved by
+    /// `r`; `None` when a timing violation is among them.
+    pub(crate) fn records_since(&mut self, counts: &[[usize; 2]], r: Rebase) -> Option<IoRecords> {
+        let (ca, cd) = counts.split_at(self.adcs.len());
+        let adcs = (self.adcs.iter_mut().zip(ca))
+            .map(|(a, &c)| a.records_since(c))
+            .collect::<Option<Vec<_>>>()?;
+        let dacs = (self.dacs.iter_mut().zip(cd))
+            .map(|(d, &c)| d.records_since(c))
+            .collect::<Option<Vec<_>>>()?;
+        let mut rec = IoRecords { adcs, dacs };
+        for f in rec.adcs.iter_mut().flatten() {
+            f.cs_fall = r.at(f.cs_fall);
+        }
+        for u in rec.dacs.iter_mut().flatten() {
+            u.cycle = r.at(u.cycle);
+        }
+        Some(rec)
+    }
+
+    /// Becomes `end` (from [`Io::rebased`]) moved by `r`, its parts' records kept and
+    /// `records` (moved by `r`) appended: a period memo's hit (`board/io_window.rs`).
+    pub(crate) fn become_rebased(&mut self, end: &Io, r: Rebase, records: &IoRecords) {
+        let mut io = end.clone();
+        io.rebase(r);
+        for (now, mut then) in self.adcs.iter_mut().zip(std::mem::take(&mut io.adcs)) {
+            std::mem::swap(now.records().0, then.records().0);
+            std::mem::swap(now.records().1, then.records().1);
+            *now = then;
+        }
+        for (now, mut then) in self.dacs.iter_mut().zip(std::mem::take(&mut io.dacs)) {
+            std::mem::swap(now.records().0, then.records().0);
+            std::mem::swap(now.records().1, then.records().1);
+            *now = then;
+        }
+        io.adcs = std::mem::take(&mut self.adcs);
+        io.dacs = std::mem::take(&mut self.dacs);
+        io.stepwise = self.stepwise;
+        *self = io;
+        for (a, frames) in self.adcs.iter_mut().zip(&records.adcs) {
+            a.append_records(frames.iter().map(|f| AdcFrame {
+                cs_fall: r.at(f.cs_fall),
+                ..f.clone()
+            }));
+        }
+        for (d, updates) in self.dacs.iter_mut().zip(&records.dacs) {
+            d.append_records(updates.iter().map(|u| DacUpdate {
+                cycle: r.at(u.cycle),
+                ..*u
+            }));
+        }
     }
 
     /// The first cycle the machine has not run yet.

@@ -109,7 +109,7 @@ fn count32(c: u32) -> u32 {
 /// A FIFO of up to 8 words, kept in place (a copy, not an allocation, when the machine is
 /// cloned: a window's checkpoint, `crate::io::Io::checkpoint`): the oldest first in
 /// `words[..len]`, the rest 0, so that equal contents are equal states.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy, Default, PartialEq, Eq)]
 struct Fifo {
     words: [u32; 8],
     len: u8,
@@ -155,7 +155,7 @@ impl Fifo {
 }
 
 /// One state machine.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 struct StateMachine {
     clkdiv: u32,
     execctrl: u32,
@@ -549,7 +549,7 @@ impl BitLoop {
 }
 
 /// One PIO block. See the module documentation.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Pio {
     instr: [u16; 32],
     sm: [StateMachine; 4],

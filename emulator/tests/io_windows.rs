@@ -106,8 +106,9 @@ fn handler0(data: u32) -> Asm {
 }
 
 /// Core 1's handler: sums last sample's copy (into bank 3, then its data), restarts the copy, waits
-/// ~80 cycles (the DMA has read the source by then), then writes new source words.
-fn handler1(data: u32) -> Asm {
+/// ~80 cycles (the DMA has read the source by then), then writes new source words (in
+/// `few` values: bit 1 of their count, so that one sample's words do not tell the last's).
+fn handler1(data: u32, few: bool) -> Asm {
     let mut a = Asm::default();
     a.lit(0, DST)
         .op(&[0x6801, 0x69c2, 0x1889, 0x6401]) // ldr r1,[r0]; ldr r2,[r0,#28]; adds r1,r1,r2; str r1,[r0,#0x40]
@@ -121,15 +122,37 @@ fn handler1(data: u32) -> Asm {
         .op(&[0x6001])
         .op(&[0x2214, 0x3a01, 0xd1fd]) // movs r2,#20; subs r2,#1; bne .-2
         .lit(0, SRC)
-        .op(&[0x685a, 0x3201, 0x605a]) // ldr r2,[r3,#4]; adds #1; str
-        .op(&[0x6002, 0x61c2, 0x3203, 0x60c2, 0x4770]); // str r2,[r0]; str r2,[r0,#28]; adds #3; str r2,[r0,#12]; bx lr
+        .op(&[0x685a, 0x3201, 0x605a]); // ldr r2,[r3,#4]; adds #1; str
+    if few {
+        a.op(&[0x0852, 0x2101, 0x400a]); // lsrs r2,r2,#1; movs r1,#1; ands r2,r1
+    }
+    a.op(&[0x6002, 0x61c2, 0x3203, 0x60c2, 0x4770]); // str r2,[r0]; str r2,[r0,#28]; adds #3; str r2,[r0,#12]; bx lr
     a
+}
+
+/// What the boards of a comparison run: core 0's main loop on bank 2 under the DMA
+/// (`busy`); or the period memo's case (`periodic`): both SysTicks at `period` cycles, no
+/// paced channel, core 1's source words in a few values, core 0's main loop counting in
+/// a register (3 cycles a time round: with a period not a multiple of 3 the tick lands on
+/// each of its instructions in turn, so its handler's entry and accesses move by a cycle).
+#[derive(Clone, Copy)]
+struct Shape {
+    busy: bool,
+    periodic: bool,
+    period: u64,
 }
 
 /// A board on `engine` with the ADC, its DMA channels and the copy channel set up and
 /// the DMA winning the banks, both cores in their handlers' idle loops (core 0 in `busy`'s
 /// bank-2 loop instead).
-fn board(engine: Engine, busy: bool) -> Board {
+fn board(
+    engine: Engine,
+    Shape {
+        busy,
+        periodic,
+        period,
+    }: Shape,
+) -> Board {
     let mut b = Board::new(Config {
         engine,
         own_banks: FIRMWARE_OWN_BANKS,
@@ -170,11 +193,13 @@ fn board(engine: Engine, busy: bool) -> Board {
         | ctrl::EN
         | PACED << ctrl::CHAIN_TO_SHIFT
         | TREQ_TIMER0 << ctrl::TREQ_SEL_SHIFT;
-    cpu.store(DMA_BASE + dreg::TIMER0, 1 << 16 | 128);
-    cpu.store(ch(PACED, dreg::READ_ADDR), SCRATCH2 + 0x100);
-    cpu.store(ch(PACED, dreg::WRITE_ADDR), SCRATCH2 + 0x104);
-    cpu.store(ch(PACED, dreg::TRANS_COUNT), 1 << 20);
-    cpu.store(ch(PACED, dreg::CTRL_TRIG), paced);
+    if !periodic {
+        cpu.store(DMA_BASE + dreg::TIMER0, 1 << 16 | 128);
+        cpu.store(ch(PACED, dreg::READ_ADDR), SCRATCH2 + 0x100);
+        cpu.store(ch(PACED, dreg::WRITE_ADDR), SCRATCH2 + 0x104);
+        cpu.store(ch(PACED, dreg::TRANS_COUNT), 1 << 20);
+        cpu.store(ch(PACED, dreg::CTRL_TRIG), paced);
+    }
     let mut spans = Vec::new();
     for (core, span) in SPANS.into_iter().enumerate() {
         let base = bank(core);
@@ -184,11 +209,13 @@ fn board(engine: Engine, busy: bool) -> Board {
         let code = if core == 0 {
             handler0(data).bytes(handler)
         } else {
-            handler1(data).bytes(handler)
+            handler1(data, periodic).bytes(handler)
         };
         b.write_bytes(handler, &code).unwrap();
         let idle: &[u16] = if busy && core == 0 {
             &[0x69f1, 0x6039, 0x3101, 0xe7fb] // ldr r1,[r6,#28]; str r1,[r7]; adds r1,#1; b .-6
+        } else if periodic && core == 0 {
+            &[0x3101, 0xe7fd] // adds r1,#1; b .-2
         } else {
             &[0xbf30, 0xe7fd] // wfi; b .-2
         };
@@ -200,9 +227,12 @@ fn board(engine: Engine, busy: bool) -> Board {
         let c = &mut b.cores[core];
         c.r[6] = RESULTS;
         c.r[7] = SCRATCH2 + 16;
-        c.nvic.syst_rvr = 3500 + 37 * core as u32;
+        c.nvic.syst_rvr = match periodic {
+            true => period as u32 - 1,
+            false => 3500 + 37 * core as u32,
+        };
         c.nvic.syst_csr = 7;
-        c.nvic.syst_next = 900 + core as u64;
+        c.nvic.syst_next = 900 + core as u64 * if periodic { 1500 } else { 1 };
     }
     b.memoize(&[], &spans);
     b
@@ -223,21 +253,30 @@ fn state(b: &mut Board) -> String {
     s
 }
 
-/// Runs both engines in random slices for `cycles`; returns the block board.
-fn compare(busy: bool, cycles: u64) -> Board {
-    let mut block = board(Engine::Block, busy);
-    let mut interp = board(Engine::Interp, busy);
-    let mut rng = Rng(0x10_40d + busy as u64);
+/// Runs both engines in random slices for `cycles`; returns the block board. In the
+/// periodic shape the slices end at SysTick periods (the windows are periods) and the ADC
+/// reads one of three code sets each slice.
+fn compare(shape: Shape, cycles: u64) -> Board {
+    let mut block = board(Engine::Block, shape);
+    let mut interp = board(Engine::Interp, shape);
+    let mut rng = Rng(0x10_40d + shape.busy as u64 + 2 * shape.periodic as u64);
     let mut slice = 0u16;
     while block.cycle() < cycles {
-        let limit = block.cycle() + 1 + rng.below(9000) as u64;
+        let limit = match shape.periodic {
+            true => (block.cycle() / shape.period + 1 + rng.below(3) as u64) * shape.period + 900,
+            false => block.cycle() + 1 + rng.below(9000) as u64,
+        };
         // What the ADC reads changes every few slices, as the host's key positions do
         // (and rests in between: the spans' memos hit).
         slice += 1;
+        let set = match shape.periodic {
+            true => rng.below(3),
+            false => slice / 6,
+        };
         for b in [&mut block, &mut interp] {
             let io = b.io_mut().expect("io");
             for c in 0..8 {
-                io.adcs[0].set_code(c, (slice / 6).wrapping_mul(97) ^ (c as u16) << 12);
+                io.adcs[0].set_code(c, set.wrapping_mul(97) ^ (c as u16) << 12);
             }
         }
         assert_eq!(block.run_until(limit), interp.run_until(limit));
@@ -253,7 +292,14 @@ fn compare(busy: bool, cycles: u64) -> Board {
 
 #[test]
 fn windows_with_the_dma_equal_the_lock_step() {
-    let block = compare(false, 600_000);
+    let block = compare(
+        Shape {
+            busy: false,
+            periodic: false,
+            period: 0,
+        },
+        600_000,
+    );
     let io = block.io_windows();
     let memo = block.memo_stats();
     eprintln!("{:?} {io:?} {memo:?}", block.run_ahead_windows());
@@ -264,8 +310,38 @@ fn windows_with_the_dma_equal_the_lock_step() {
 
 #[test]
 fn windows_whose_core_meets_the_dma_are_undone() {
-    let block = compare(true, 300_000);
+    let block = compare(
+        Shape {
+            busy: true,
+            periodic: false,
+            period: 0,
+        },
+        300_000,
+    );
     let io = block.io_windows();
     eprintln!("{:?} {io:?}", block.run_ahead_windows());
     assert!(io.waited + io.stale > 10, "{io:?}");
+}
+
+#[test]
+fn the_period_memo_of_the_io_equals_the_lock_step() {
+    // Windows that are SysTick periods, the ADC's codes and the words core 1 leaves for
+    // its copy channel each one of a few: the I/O's replays repeat (the period memo hits)
+    // with other data now and then (its key differs: a miss, recorded). At 3000 cycles
+    // core 1's windows are kept and hit (the words its copy channel reads decide a hit);
+    // at 3001 core 0's handler starts at three different latencies (they do).
+    for period in [3000, 3001] {
+        let block = compare(
+            Shape {
+                busy: false,
+                periodic: true,
+                period,
+            },
+            1_200_000,
+        );
+        let io = block.io_windows();
+        eprintln!("{period}: {:?} {io:?}", block.run_ahead_windows());
+        assert!(io.memo_hits > 40, "{period}: {io:?}");
+        assert!(io.memo_recorded > 10, "{period}: {io:?}");
+    }
 }

@@ -8,7 +8,8 @@
 //! sees the I/O only through those words.
 //!
 //! **The cores' run.** At the window's start the I/O is run up to it (as a core's access
-//! there would) and kept ([`crate::io::Io::checkpoint`]). Each core then runs alone as in any window, its
+//! there would); the cores' run leaves it there, and the replay checkpoints it
+//! ([`crate::io::Io::checkpoint`]) before it runs it. Each core then runs alone as in any window, its
 //! accesses to the banks the DMA may reach (`L`, [`crate::bus::System::io_banks`] at the
 //! start) taking the general path — not compiled code or fetches — served as if no DMA
 //! were there, and logged: the instruction's start cycle, the data phase, the SRAM offset,
@@ -40,11 +41,27 @@
 //! firmware's DMA moves at the tick, before the handler writes the next ones), one after
 //! the store the new. The I/O is left where the last logged access left it, as in
 //! lock-step. Counts: [`Board::io_windows`].
+//!
+//! **The period memo.** A firmware's windows are its sample periods (a window ends at the
+//! SysTick event), and once its keys rest the I/O does the same thing every period, in a
+//! handful of states (the ping-pong buffers, the PIO clock divider's phase at the tick, a
+//! period of 3,015 or 3,016 cycles). So a kept replay is recorded, and a later one whose key
+//! equals it takes its effect instead of running the I/O. The key: the I/O at the window's
+//! start with its cycles moved to the memo's time base ([`Rebase`]; its parts' records left
+//! out), compared whole — with the ADC codes and the DAC registers, so data is part of it;
+//! the cores' logs with their cycles from the start, their register stores' values and, of
+//! their SRAM accesses, the values only of stores to words the DMA reads (the replay checks
+//! the loads and does the stores with the values of now); and each SRAM word the DMA read,
+//! as it was before the replay. The effect: the DMA's SRAM writes and the cores' stores in
+//! the recorded order, the loads checked there as the replay does (a stale one undoes the
+//! window), the I/O's end state moved back to the window, and the frames and updates its
+//! parts recorded. A replay that recorded a timing violation is not kept. Counts:
+//! [`IoWindows::memo_hits`]; [`Board::set_io_memo`] turns it off.
 
 use super::window::undo_stores;
 use super::*;
 use crate::bus::{load_le, sram_bank, store_le, ALL_BANKS};
-use crate::io::Checkpoint;
+use crate::io::{Checkpoint, Io, IoRecords, Rebase, SramOp};
 
 /// What a window's core access to the I/O is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -58,7 +75,7 @@ pub(crate) enum IoKind {
 }
 
 /// One logged access (module documentation).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct IoAccess {
     /// The cycle at which the instruction (or exception entry) started: the lock-step order.
     pub(crate) start: u64,
@@ -122,6 +139,88 @@ pub struct IoWindows {
     /// Undone: a register store refused, or one that let the DMA reach a bank whose
     /// accesses were not logged.
     pub reach: u64,
+    /// Of the kept, those whose replay the period memo gave.
+    pub memo_hits: u64,
+    /// Replays recorded into the period memo.
+    pub memo_recorded: u64,
+}
+
+/// The period memo (module documentation): the replays recorded, newest last, at most
+/// [`MEMO_ENTRIES`].
+pub(crate) struct IoMemo {
+    /// Whether replays are looked up and recorded.
+    pub(crate) on: bool,
+    entries: Vec<MemoEntry>,
+    /// The entry the next recording replaces once the memo is full.
+    next: usize,
+}
+
+impl Default for IoMemo {
+    fn default() -> Self {
+        IoMemo {
+            on: true,
+            entries: Vec::new(),
+            next: 0,
+        }
+    }
+}
+
+/// The most replays the period memo keeps per board (a board at rest has a handful of
+/// keys; one whose keys move makes new ones, replacing the oldest).
+const MEMO_ENTRIES: usize = 64;
+
+/// One recorded replay: its key (the I/O at the window's start, the cores' logs, the
+/// words the DMA read as they were before the window) and what it did.
+struct MemoEntry {
+    /// [`log_hash`] of `logs`.
+    hash: u64,
+    /// The logs as [`memo_logs`] keys them, the window's start at [`Rebase::MEMO`].
+    logs: [Vec<IoAccess>; 2],
+    /// The cores' stores to a word the DMA read (core, index in its log, value).
+    valued: Vec<(usize, u32, u32)>,
+    xip: bool,
+    /// The I/O at the window's start and after the replay, at the memo's time base.
+    start: Box<Io>,
+    end: Box<Io>,
+    /// Each SRAM word the DMA read, with its value before the replay's first write.
+    pre: Vec<(u32, u32)>,
+    /// The replay's DMA writes and the logged accesses ([`SramOp::Entry`]) in order.
+    ops: Vec<SramOp>,
+    /// The parts' records of the replay.
+    records: IoRecords,
+}
+
+/// The logs of a window as a memo's key: their cycles moved by `r`, the values of loads
+/// and stores and the stores' old words left out (a replay checks the loads, does the
+/// stores, and its entry keys the stores whose words the DMA reads: [`MemoEntry::valued`]).
+fn memo_logs(logs: &[Vec<IoAccess>; 2], r: Rebase) -> [Vec<IoAccess>; 2] {
+    logs.clone().map(|mut l| {
+        for e in &mut l {
+            e.start = r.at(e.start);
+            e.cycle = r.at(e.cycle);
+            e.old = 0;
+            if e.kind != IoKind::Reg {
+                e.value = 0;
+            }
+        }
+        l
+    })
+}
+
+/// A hash of logs (FNV-1a over their fields).
+fn log_hash(logs: &[Vec<IoAccess>; 2]) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut mix = |v: u64| h = (h ^ v).wrapping_mul(0x0000_0100_0000_01b3);
+    for l in logs {
+        for e in l {
+            mix(e.start);
+            mix(e.cycle);
+            mix(u64::from(e.addr) << 32 | u64::from(e.value));
+            mix(u64::from(e.old) << 16 | u64::from(e.size) << 8 | e.kind as u64);
+        }
+        mix(u64::MAX);
+    }
+    h
 }
 
 /// Why a replay failed (module documentation).
@@ -133,7 +232,6 @@ enum Violation {
 
 /// What [`Board::io_window_begin`] keeps for the end of the window.
 pub(super) struct IoStart {
-    io: Checkpoint,
     banks: u8,
 }
 
@@ -154,13 +252,21 @@ impl Board {
         self.io_windows
     }
 
+    /// Turns the period memo of the I/O's replays (module documentation) on or off; on by
+    /// default. Results never depend on it: what it gives is the replay's.
+    pub fn set_io_memo(&mut self, on: bool) {
+        self.io_memo.on = on;
+        if !on {
+            self.io_memo.entries.clear();
+        }
+    }
+
     /// At the start of a window from cycle `start`: on a board with an I/O, runs it up to
     /// `start`, keeps a clone and has the cores log their accesses to its DMA's banks;
     /// `None` without an I/O.
     pub(super) fn io_window_begin(&mut self, start: u64) -> Option<IoStart> {
         self.system.io.as_ref()?;
         self.system.io_advance_to(start, false);
-        let io = self.system.io.as_mut()?.checkpoint();
         let banks = self.system.io_banks;
         // The cores' run does not touch the I/O: their accesses are logged instead.
         self.system.io_banks = 0;
@@ -169,7 +275,7 @@ impl Board {
         for l in &mut self.io_logs {
             l.clear();
         }
-        Some(IoStart { io, banks })
+        Some(IoStart { banks })
     }
 
     /// At the end of the cores' run of a window (`kept`: both reached its end): replays
@@ -182,7 +288,8 @@ impl Board {
         if !kept {
             return false;
         }
-        let r = self.io_replay(start.banks);
+        let mut io = None;
+        let r = self.io_replay(start.banks, &mut io);
         let journal = self.system.io_journal.take().unwrap_or_default();
         let s = &mut self.io_windows;
         let ok = r.is_ok();
@@ -195,8 +302,8 @@ impl Board {
                     Violation::Reach => s.reach += 1,
                 }
                 undo_stores(&mut self.system, &journal);
-                if let Some(io) = self.system.io.as_mut() {
-                    io.rewind(start.io);
+                if let (Some(now), Some(then)) = (self.system.io.as_mut(), io) {
+                    now.rewind(then);
                 }
                 self.system.io_banks = start.banks;
                 self.system.allowed_banks = self.system.fast_banks();
@@ -207,8 +314,11 @@ impl Board {
     }
 
     /// The replay (module documentation), its SRAM writes journaled in
-    /// [`System::io_journal`].
-    fn io_replay(&mut self, banks: u8) -> Result<(), Violation> {
+    /// [`System::io_journal`]; `io` becomes the I/O's checkpoint at the window's start
+    /// when the I/O is run (not on a hit of the period memo, which changes the I/O only
+    /// once it is kept; a recording takes it: the replay is then kept). The I/O is as the
+    /// window's start left it: the cores' run does not touch it.
+    fn io_replay(&mut self, banks: u8, io: &mut Option<Checkpoint>) -> Result<(), Violation> {
         let mut journal = std::mem::take(&mut self.io_journal);
         journal.clear();
         self.system.io_journal = Some(journal);
@@ -220,36 +330,173 @@ impl Board {
             }
         }
         let own = (self.config.own_banks[0] | self.config.own_banks[1]) & ALL_BANKS;
-        let r = self.io_merge(&logs, banks, own);
+        let memo = self.io_memo.on && self.system.io.as_ref().is_some_and(|io| !io.stepwise);
+        let r = match memo {
+            true => self.io_memo_replay(&logs, banks, own, io),
+            false => {
+                *io = self.system.io.as_mut().map(|now| now.checkpoint());
+                self.io_merge(&logs, banks, own)
+            }
+        };
         self.io_logs = logs;
+        r
+    }
+
+    /// The replay through the period memo (module documentation): a hit does what the
+    /// recorded replay did; a miss checkpoints the I/O into `io`, replays and records
+    /// (when the replay is kept, taking the checkpoint).
+    fn io_memo_replay(
+        &mut self,
+        logs: &[Vec<IoAccess>; 2],
+        banks: u8,
+        own: u8,
+        io: &mut Option<Checkpoint>,
+    ) -> Result<(), Violation> {
+        let Some(now) = self.system.io.as_mut() else {
+            return self.io_merge(logs, banks, own);
+        };
+        let base = now.cycle();
+        let to_memo = Rebase {
+            from: base,
+            to: Rebase::MEMO,
+        };
+        let key = memo_logs(logs, to_memo);
+        let hash = log_hash(&key);
+        let xip = self.system.xip_answers;
+        // The I/O itself at the memo's time base while it is compared (its records aside).
+        now.rebase_in_place(to_memo);
+        let records = now.take_records();
+        let sys = &self.system;
+        let live = sys.io.as_deref();
+        let hit = self.io_memo.entries.iter().position(|e| {
+            e.hash == hash
+                && e.xip == xip
+                && e.logs == key
+                && (e.valued.iter()).all(|&(k, i, v)| logs[k][i as usize].value == v)
+                && live.is_some_and(|l| *e.start == *l)
+                && (e.pre.iter()).all(|&(w, v)| load_le(&sys.sram, w as usize, 4) == v)
+        });
+        if let Some(now) = self.system.io.as_mut() {
+            now.put_records(records);
+            if hit.is_none() {
+                now.rebase_in_place(to_memo.back());
+            }
+        }
+        if let Some(i) = hit {
+            let e = &self.io_memo.entries[i];
+            let mut merged = Merged::new(logs);
+            for op in &e.ops {
+                match *op {
+                    SramOp::Dma { off, size, value } => {
+                        self.system.io_dma_write(off, u32::from(size), value)
+                    }
+                    SramOp::Entry => {
+                        let Some(a) = merged.next() else {
+                            continue;
+                        };
+                        match a.kind {
+                            IoKind::Store => sram_put(&mut self.system, a.addr, a.size, a.value),
+                            IoKind::Load => {
+                                let now =
+                                    load_le(&self.system.sram, a.addr as usize, a.size.into());
+                                if now != a.value {
+                                    if let Some(io) = self.system.io.as_mut() {
+                                        io.rebase_in_place(to_memo.back());
+                                    }
+                                    return Err(Violation::Stale);
+                                }
+                            }
+                            IoKind::Reg => {}
+                        }
+                    }
+                    SramOp::Read { .. } => {}
+                }
+            }
+            if let Some(now) = self.system.io.as_mut() {
+                now.become_rebased(&e.end, to_memo.back(), &e.records);
+            }
+            self.system.io_refresh();
+            self.io_windows.memo_hits += 1;
+            return Ok(());
+        }
+        *io = self.system.io.as_mut().map(|now| now.checkpoint());
+        let restored = self.system.io_journal.as_ref().map_or(0, Vec::len);
+        let counts = self.system.io.as_mut().map(|io| io.record_counts());
+        self.system.io_trace = Some(Vec::new());
+        let r = self.io_merge(logs, banks, own);
+        let trace = self.system.io_trace.take().unwrap_or_default();
+        let (Ok(()), Some(counts), Some(now)) = (&r, counts, self.system.io.as_mut()) else {
+            return r;
+        };
+        let Some(records) = now.records_since(&counts, to_memo) else {
+            return r;
+        };
+        let end = now.rebased(to_memo);
+        // Each word the DMA read, as it was before the replay's first write of it.
+        let journal = self.system.io_journal.as_deref().unwrap_or_default();
+        let mut pre: Vec<(u32, u32)> = Vec::new();
+        for op in &trace {
+            if let SramOp::Read { word } = *op {
+                if pre.iter().any(|&(w, _)| w == word) {
+                    continue;
+                }
+                let first = journal[restored.min(journal.len())..]
+                    .iter()
+                    .find(|&&j| (j >> 32) as u32 == word)
+                    .map(|&j| j as u32);
+                let v = first.unwrap_or_else(|| load_le(&self.system.sram, word as usize, 4));
+                pre.push((word, v));
+            }
+        }
+        // The cores' stores to a word the DMA read: their values are part of the key.
+        let valued = (0..2)
+            .flat_map(|k| logs[k].iter().enumerate().map(move |(i, a)| (k, i, a)))
+            .filter(|(_, _, a)| {
+                a.kind == IoKind::Store && pre.iter().any(|&(w, _)| w == a.addr & !3)
+            })
+            .map(|(k, i, a)| (k, i as u32, a.value))
+            .collect();
+        let Some(mut start) = io.take() else {
+            return r;
+        };
+        start.io.rebase_in_place(to_memo);
+        let entry = MemoEntry {
+            hash,
+            logs: key,
+            valued,
+            xip,
+            start: start.io,
+            end,
+            pre,
+            ops: trace
+                .into_iter()
+                .filter(|op| !matches!(op, SramOp::Read { .. }))
+                .collect(),
+            records,
+        };
+        let m = &mut self.io_memo;
+        if m.entries.len() < MEMO_ENTRIES {
+            m.entries.push(entry);
+        } else {
+            m.entries[m.next] = entry;
+            m.next = (m.next + 1) % MEMO_ENTRIES;
+        }
+        self.io_windows.memo_recorded += 1;
         r
     }
 
     /// Does the logged accesses of `logs` in the lock-step order.
     fn io_merge(&mut self, logs: &[Vec<IoAccess>; 2], banks: u8, own: u8) -> Result<(), Violation> {
-        let (mut i, mut j) = (0, 0);
-        loop {
-            let e = match (logs[0].get(i), logs[1].get(j)) {
-                (Some(a), Some(b)) if a.start <= b.start => {
-                    i += 1;
-                    a
-                }
-                (_, Some(b)) => {
-                    j += 1;
-                    b
-                }
-                (Some(a), None) => {
-                    i += 1;
-                    a
-                }
-                (None, None) => return Ok(()),
-            };
+        for e in Merged::new(logs) {
             let sys = &mut self.system;
             match e.kind {
                 IoKind::Load | IoKind::Store => {
                     let b = sram_bank(e.addr);
                     if sys.io_banks >> b & 1 != 0 && sys.io_claims(b, e.cycle) {
                         return Err(Violation::Wait);
+                    }
+                    if let Some(t) = sys.io_trace.as_mut() {
+                        t.push(SramOp::Entry);
                     }
                     if e.kind == IoKind::Store {
                         sram_put(sys, e.addr, e.size, e.value);
@@ -265,8 +512,39 @@ impl Board {
                     {
                         return Err(Violation::Reach);
                     }
+                    if let Some(t) = sys.io_trace.as_mut() {
+                        t.push(SramOp::Entry);
+                    }
                 }
             }
         }
+        Ok(())
+    }
+}
+
+/// The two cores' logs in the lock-step order: the instruction that starts first, core 0
+/// on ties, each core's accesses in their order.
+struct Merged<'l> {
+    logs: &'l [Vec<IoAccess>; 2],
+    at: [usize; 2],
+}
+
+impl<'l> Merged<'l> {
+    fn new(logs: &'l [Vec<IoAccess>; 2]) -> Self {
+        Merged { logs, at: [0, 0] }
+    }
+}
+
+impl<'l> Iterator for Merged<'l> {
+    type Item = &'l IoAccess;
+    fn next(&mut self) -> Option<&'l IoAccess> {
+        let k = match (self.logs[0].get(self.at[0]), self.logs[1].get(self.at[1])) {
+            (Some(a), Some(b)) if a.start <= b.start => 0,
+            (_, Some(_)) => 1,
+            (Some(_), None) => 0,
+            (None, None) => return None,
+        };
+        self.at[k] += 1;
+        self.logs[k].get(self.at[k] - 1)
     }
 }

@@ -179,6 +179,8 @@ pub struct Board {
     io_journal: Vec<u64>,
     /// What became of the windows on a board with an I/O ([`Board::io_windows`]).
     io_windows: IoWindows,
+    /// The period memo of the I/O's replays (`board/io_window.rs`).
+    io_memo: io_window::IoMemo,
     /// No window before either core reaches this cycle (after one that ran nothing).
     window_at: u64,
     /// Each core's active exceptions at its last [`Board::profile_step`] that ran its loop
@@ -237,6 +239,7 @@ impl Board {
             io_logs: Default::default(),
             io_journal: Vec::new(),
             io_windows: IoWindows::default(),
+            io_memo: Default::default(),
             window_at: 0,
             debug: Default::default(),
             cache: run::empty_cache(),
