@@ -559,12 +559,6 @@ impl Io {
         *self = *io;
     }
 
-    /// Its cycles moved by `r`, its parts' records not (a period memo's key, end state, or
-    /// a checkpoint compared with one: `board/io_window.rs`).
-    pub(crate) fn rebase_in_place(&mut self, r: Rebase) {
-        self.rebase(r);
-    }
-
     /// A clone of the machine without its parts' records (as [`Io::checkpoint`]), its
     /// cycles moved by `r`: a period memo's key or end state (`board/io_window.rs`).
     pub(crate) fn rebased(&mut self, r: Rebase) -> Box<Io> {
@@ -573,8 +567,9 @@ impl Io {
         io
     }
 
-    /// Its cycles moved by `r`, its parts' records not.
-    fn rebase(&mut self, r: Rebase) {
+    /// Its cycles moved by `r`, its parts' records not (a period memo's key, end state, or
+    /// the live machine compared with one: `board/io_window.rs`).
+    pub(crate) fn rebase(&mut self, r: Rebase) {
         self.cycle = r.at(self.cycle);
         for c in self.dma_claim.iter_mut().flatten() {
             *c = r.at(*c);
@@ -647,13 +642,11 @@ impl Io {
         let mut io = end.clone();
         io.rebase(r);
         for (now, mut then) in self.adcs.iter_mut().zip(std::mem::take(&mut io.adcs)) {
-            std::mem::swap(now.records().0, then.records().0);
-            std::mem::swap(now.records().1, then.records().1);
+            then.put_records(now.take_records());
             *now = then;
         }
         for (now, mut then) in self.dacs.iter_mut().zip(std::mem::take(&mut io.dacs)) {
-            std::mem::swap(now.records().0, then.records().0);
-            std::mem::swap(now.records().1, then.records().1);
+            then.put_records(now.take_records());
             *now = then;
         }
         io.adcs = std::mem::take(&mut self.adcs);

@@ -364,7 +364,7 @@ impl Board {
         let hash = log_hash(&key);
         let xip = self.system.xip_answers;
         // The I/O itself at the memo's time base while it is compared (its records aside).
-        now.rebase_in_place(to_memo);
+        now.rebase(to_memo);
         let records = now.take_records();
         let sys = &self.system;
         let live = sys.io.as_deref();
@@ -379,7 +379,7 @@ impl Board {
         if let Some(now) = self.system.io.as_mut() {
             now.put_records(records);
             if hit.is_none() {
-                now.rebase_in_place(to_memo.back());
+                now.rebase(to_memo.back());
             }
         }
         if let Some(i) = hit {
@@ -401,7 +401,7 @@ impl Board {
                                     load_le(&self.system.sram, a.addr as usize, a.size.into());
                                 if now != a.value {
                                     if let Some(io) = self.system.io.as_mut() {
-                                        io.rebase_in_place(to_memo.back());
+                                        io.rebase(to_memo.back());
                                     }
                                     return Err(Violation::Stale);
                                 }
@@ -459,7 +459,7 @@ impl Board {
         let Some(mut start) = io.take() else {
             return r;
         };
-        start.io.rebase_in_place(to_memo);
+        start.io.rebase(to_memo);
         let entry = MemoEntry {
             hash,
             logs: key,
