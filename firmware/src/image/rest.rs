@@ -36,7 +36,9 @@ pub(super) enum Phase {
     /// outputs of the samples since.
     Recording {
         start: Box<RestPoint>,
+        /// The first `filled` are this try's (the rest kept from an earlier try, to reuse).
         outs: Vec<SampleOut>,
+        filled: usize,
         /// Every key's out words after each of those samples, flat.
         words: Vec<u32>,
     },
@@ -67,6 +69,8 @@ pub(super) struct Rest {
     /// Samples given from recordings and periods skipped so far (reports, tests).
     pub given: u64,
     pub skipped: u64,
+    /// A recording's buffers kept for the next (their allocations reused).
+    pub spare: Vec<SampleOut>,
 }
 
 impl Rest {
@@ -80,6 +84,37 @@ impl Rest {
             phase: Phase::Watching,
             given: 0,
             skipped: 0,
+            spare: Vec::new(),
+        }
+    }
+
+    /// Whether samples are given from a recording now.
+    pub fn replaying(&self) -> bool {
+        matches!(self.phase, Phase::Replaying { .. })
+    }
+
+    /// The next sample of the recording being replayed (an empty one when none is:
+    /// call only when [`Rest::replaying`]).
+    pub fn give(&mut self) -> &SampleOut {
+        static NONE: SampleOut = SampleOut {
+            force: Vec::new(),
+            current_ua: Vec::new(),
+            dac: Vec::new(),
+            drives: Vec::new(),
+            events: Vec::new(),
+            core_cycles: Vec::new(),
+            handler_runs: Vec::new(),
+            misses: Vec::new(),
+            stalls: Vec::new(),
+        };
+        match &mut self.phase {
+            Phase::Replaying { outs, given, .. } if !outs.is_empty() => {
+                let i = (*given % outs.len() as u64) as usize;
+                *given += 1;
+                self.given += 1;
+                &outs[i]
+            }
+            _ => &NONE,
         }
     }
 

@@ -205,6 +205,19 @@ fn word(sram: &[u8], o: usize) -> u32 {
         .map_or(0, u32::from_le_bytes)
 }
 
+/// `from` into `to`, reusing `to`'s buffers.
+fn copy_sample(from: &SampleOut, to: &mut SampleOut) {
+    to.force.clone_from(&from.force);
+    to.current_ua.clone_from(&from.current_ua);
+    to.dac.clone_from(&from.dac);
+    to.drives.clone_from(&from.drives);
+    to.events.clone_from(&from.events);
+    to.core_cycles.clone_from(&from.core_cycles);
+    to.handler_runs.clone_from(&from.handler_runs);
+    to.misses.clone_from(&from.misses);
+    to.stalls.clone_from(&from.stalls);
+}
+
 /// Samples after which a board at rest repeats its state ([`super::rest`]): the tick
 /// schedule's remainder's period times the differentiator rings' length, their lcm.
 fn rest_period(image: &FirmwareImage) -> usize {
@@ -498,16 +511,11 @@ impl ImageRun {
             return Ok(&self.sample);
         }
         let same = self.rest.note(sensors);
-        if same {
-            if let Phase::Replaying { outs, given, .. } = &mut self.rest.phase {
-                let i = (*given % outs.len() as u64) as usize;
-                *given += 1;
-                self.sample.clone_from(&outs[i]);
-                self.samples += 1;
-                self.rest.given += 1;
-                return Ok(&self.sample);
-            }
-        } else {
+        if same && self.rest.replaying() {
+            self.samples += 1;
+            return Ok(self.rest.give());
+        }
+        if !same {
             self.leave_rest()?;
         }
         self.run_sample(sensors)?;
@@ -593,6 +601,7 @@ impl ImageRun {
                 self.samples
             )));
         }
+        self.rest.spare = outs;
         Ok(())
     }
 
@@ -600,7 +609,11 @@ impl ImageRun {
     /// sample's sensor words).
     fn after_sample(&mut self, same: bool) {
         if !same {
-            self.rest.phase = Phase::Watching;
+            if let Phase::Recording { outs, .. } =
+                std::mem::replace(&mut self.rest.phase, Phase::Watching)
+            {
+                self.rest.spare = outs;
+            }
             return;
         }
         let phase = std::mem::replace(&mut self.rest.phase, Phase::Watching);
@@ -608,7 +621,8 @@ impl ImageRun {
             Phase::Watching if self.rest.same >= SETTLE => match self.rest_point() {
                 Ok(start) => Phase::Recording {
                     start: Box::new(start),
-                    outs: Vec::with_capacity(self.rest.period),
+                    outs: std::mem::take(&mut self.rest.spare),
+                    filled: 0,
                     words: Vec::new(),
                 },
                 Err(e) => Phase::Refused(e),
@@ -616,14 +630,26 @@ impl ImageRun {
             Phase::Recording {
                 start,
                 mut outs,
+                mut filled,
                 mut words,
             } => {
-                outs.push(self.sample.clone());
+                // The recording's buffers are reused from try to try.
+                match outs.get_mut(filled) {
+                    Some(o) => copy_sample(&self.sample, o),
+                    None => outs.push(self.sample.clone()),
+                }
+                filled += 1;
                 let sram = &self.board.system.sram;
                 words.extend(self.at.outs.iter().flatten().map(|&o| word(sram, o)));
-                if outs.len() < self.rest.period {
-                    Phase::Recording { start, outs, words }
+                if filled < self.rest.period {
+                    Phase::Recording {
+                        start,
+                        outs,
+                        filled,
+                        words,
+                    }
                 } else {
+                    outs.truncate(filled);
                     match self.rest_point() {
                         Err(e) => Phase::Refused(e),
                         Ok(end) => match Period::new(&start, &end, self.image.clock_hz) {
@@ -636,11 +662,15 @@ impl ImageRun {
                                 given: 0,
                             },
                             // Not repeating yet: the next try from here.
-                            Err(_) => Phase::Recording {
-                                start: Box::new(end),
-                                outs: Vec::with_capacity(self.rest.period),
-                                words: Vec::new(),
-                            },
+                            Err(_) => {
+                                words.clear();
+                                Phase::Recording {
+                                    start: Box::new(end),
+                                    outs,
+                                    filled: 0,
+                                    words,
+                                }
+                            }
                         },
                     }
                 }
