@@ -77,6 +77,11 @@ pub struct PlayArgs {
     /// saves).
     #[arg(long)]
     pub no_quiescent_guard: bool,
+    /// With `--engine emu`: emulate every sample of a board at rest instead of replaying
+    /// the period its state repeats with (the same results, exactly; slower: to check, or
+    /// to time the emulator itself).
+    #[arg(long)]
+    pub no_rest_replay: bool,
     /// Do not write the WAV rendering.
     #[arg(long)]
     pub no_wav: bool,
@@ -133,6 +138,7 @@ fn session(args: &PlayArgs) -> Result<Session, PlayError> {
         board,
         emulator: args.emu.into(),
         quiescent_guard: !args.no_quiescent_guard,
+        rest_replay: !args.no_rest_replay,
         io_trace: args.io_trace.clone(),
     };
     let opts = PieceOptions {

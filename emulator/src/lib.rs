@@ -38,8 +38,8 @@ pub mod timer;
 pub mod xip;
 
 pub use board::{
-    Board, Call, CallError, CallResult, Config, EmuError, Engine, IoWindows, StopReason, CALL_STUB,
-    DAC_BASE, FIRMWARE_OWN_BANKS, MAX_KEYS, SENSOR_BASE,
+    Board, Call, CallError, CallResult, Config, EmuError, Engine, IoWindows, Period, RestPoint,
+    StopReason, CALL_STUB, DAC_BASE, FIRMWARE_OWN_BANKS, MAX_KEYS, SENSOR_BASE,
 };
 pub use memo::MemoStats;
 // TEMPORARY (issue 34, one landing only): the ISA modules under their old paths, so that

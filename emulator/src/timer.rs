@@ -66,6 +66,10 @@ pub struct Timer {
     in_reset: bool,
     /// Cycle of the last release from reset (`None` before any).
     released_at: Option<u64>,
+    /// Reads of the count (TIMEHR, TIMELR, TIMERAWH, TIMERAWL) so far: the only registers
+    /// whose value depends on the absolute time, so a run that made none is unchanged by a
+    /// shift of its start by whole microseconds (`Board::skip_periods`).
+    pub count_reads: u64,
 }
 
 impl Timer {
@@ -84,6 +88,7 @@ impl Timer {
             next_event: u64::MAX,
             in_reset: false,
             released_at: None,
+            count_reads: 0,
         }
     }
 
@@ -92,6 +97,7 @@ impl Timer {
         *self = Timer {
             in_reset: true,
             released_at: self.released_at,
+            count_reads: self.count_reads,
             ..Timer::new(self.clock_hz)
         };
     }
@@ -176,6 +182,12 @@ impl Timer {
         }
         self.update(now);
         let t = self.micros(now);
+        if matches!(
+            offset,
+            reg::TIMEHR | reg::TIMELR | reg::TIMERAWH | reg::TIMERAWL
+        ) {
+            self.count_reads += 1;
+        }
         Some(match offset {
             reg::TIMEHR => self.latched_high,
             reg::TIMELR => {

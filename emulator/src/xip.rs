@@ -352,6 +352,17 @@ pub struct Xip {
 }
 
 impl Xip {
+    /// Applies `f` to every cycle the SSI and the flash chip hold (frames in flight or
+    /// received, the chip's BUSY end): `Board::skip_periods` moves them with the clock.
+    pub(crate) fn move_time(&mut self, f: &mut dyn FnMut(u64) -> u64) {
+        self.busy_until = f(self.busy_until);
+        self.chip.busy_until = f(self.chip.busy_until);
+        for fr in self.tx.iter_mut().chain(self.rx.iter_mut()) {
+            fr.start = f(fr.start);
+            fr.done = f(fr.done);
+        }
+    }
+
     /// The SSI at reset (every register at its reset value, SPI_CTRLR0.XIP_CMD 03h) with a
     /// factory-fresh chip, clocked at `clock_hz`.
     pub fn new(clock_hz: u64) -> Self {

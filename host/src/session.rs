@@ -500,7 +500,7 @@ impl Session {
 
 /// The budget of a run on the emulated boards as text: a header, then per board and core
 /// the keys, the largest and mean cycles per sample, the static bound, the headroom and the
-/// deadline misses. Lines end in `\n`.
+/// deadline misses, and the share of board-samples the rest replay gave. Lines end in `\n`.
 pub fn budget_text(r: &BoardsReport) -> String {
     let mut s = format!(
         "  budget of the run on {} {} boards ({} cycles per sample per core; every key of every board every sample):\n",
@@ -528,6 +528,14 @@ pub fn budget_text(r: &BoardsReport) -> String {
             i + 1,
             tactus_firmware::verdict::key_ranges(&b.keys),
             cores.join("; ")
+        ));
+    }
+    let given: u64 = r.boards.iter().map(|b| b.rest_replayed.0).sum();
+    if given > 0 {
+        let all = r.samples * r.boards.len() as u64;
+        s.push_str(&format!(
+            "  rest replay: {given} of {all} board-samples ({:.1} %) given from recordings of boards at rest, the same results exactly (`--no-rest-replay` emulates them)\n",
+            100.0 * given as f64 / all.max(1) as f64
         ));
     }
     s

@@ -157,6 +157,7 @@ fn mutated_performances_play_and_render_or_say_why_not() {
                         board: board.clone(),
                         emulator: tactus_emulator::Engine::Interp,
                         quiescent_guard: true,
+                        rest_replay: true,
                         io_trace: None,
                     };
                     let played = match play::play(&perf, &keyboard, &config, &Quiet) {

@@ -28,6 +28,7 @@ mod host;
 mod io_window;
 mod launch;
 mod profile;
+mod rest;
 mod run;
 mod window;
 
@@ -35,6 +36,7 @@ pub use host::{CallError, CallResult, EmuError, CALL_STUB};
 pub(crate) use io_window::IoAccess;
 pub use io_window::IoWindows;
 pub use profile::Call;
+pub use rest::{Period, RestPoint};
 
 use crate::block::Blocks;
 use crate::bus::System;

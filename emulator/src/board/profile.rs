@@ -28,6 +28,25 @@ pub(super) struct Profile {
     entries: [u64; 2],
 }
 
+impl Profile {
+    /// Whether a call is open on either core.
+    pub(super) fn is_open(&self) -> bool {
+        self.open.iter().any(|o| !o.is_empty())
+    }
+
+    /// Times each core reached the entry.
+    pub(super) fn entries(&self) -> [u64; 2] {
+        self.entries
+    }
+
+    /// Counts `more` entries on each core (`rest.rs`: periods skipped).
+    pub(super) fn add_entries(&mut self, more: [u64; 2]) {
+        for (e, m) in self.entries.iter_mut().zip(more) {
+            *e = e.wrapping_add(m);
+        }
+    }
+}
+
 /// An open call: (return address or exception number, SP at entry, start cycle).
 type Open = (Return, u32, u64);
 

@@ -107,6 +107,7 @@ mod flash_image;
 pub mod glue;
 pub mod io;
 mod layout;
+mod rest;
 mod run;
 
 pub use flash_image::{FlashImage, FlashPiece};

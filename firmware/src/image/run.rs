@@ -16,10 +16,11 @@
 
 use super::glue::ctrl;
 use super::layout::START_CYCLES;
+use super::rest::{lcm, Phase, Rest, SETTLE};
 use super::{FirmwareImage, ImageError, STACK_CANARY};
 use tactus_compiler::ir::{Axis, EventId};
 use tactus_emulator::bus::sram_location;
-use tactus_emulator::{Board, Config, StopReason, DAC_BASE, SENSOR_BASE};
+use tactus_emulator::{Board, Config, Period, StopReason, DAC_BASE, SENSOR_BASE};
 use tactus_isa::timing::EXCEPTION_ENTRY;
 use tactus_runtime::limiter::{Limiter, LimiterConstants};
 
@@ -115,6 +116,11 @@ pub struct ImageRun {
     at: HostWords,
     /// The limiter's constants: the current of each DAC code written.
     limiter: LimiterConstants,
+    /// The rest replay ([`super::rest`]; off unless [`ImageRun::set_rest_replay`]).
+    rest: Rest,
+    /// An error of the rest replay met where none could be returned ([`ImageRun::board`]),
+    /// returned by the next [`ImageRun::step`] or [`ImageRun::settle`].
+    rest_error: Option<ImageError>,
 }
 
 /// SRAM byte offsets of the words [`ImageRun::step`] reads and writes (see
@@ -197,6 +203,32 @@ fn word(sram: &[u8], o: usize) -> u32 {
     sram.get(o..o + 4)
         .and_then(|b| b.try_into().ok())
         .map_or(0, u32::from_le_bytes)
+}
+
+/// `from` into `to`, reusing `to`'s buffers.
+fn copy_sample(from: &SampleOut, to: &mut SampleOut) {
+    to.force.clone_from(&from.force);
+    to.current_ua.clone_from(&from.current_ua);
+    to.dac.clone_from(&from.dac);
+    to.drives.clone_from(&from.drives);
+    to.events.clone_from(&from.events);
+    to.core_cycles.clone_from(&from.core_cycles);
+    to.handler_runs.clone_from(&from.handler_runs);
+    to.misses.clone_from(&from.misses);
+    to.stalls.clone_from(&from.stalls);
+}
+
+/// Samples after which a board at rest repeats its state ([`super::rest`]): the tick
+/// schedule's remainder's period times the differentiator rings' length, their lcm.
+fn rest_period(image: &FirmwareImage) -> usize {
+    let tick = image.tick();
+    let ticks = if tick.rem == 0 {
+        1
+    } else {
+        u64::from(tick.den)
+    };
+    let ring = 2 * tactus_runtime::differentiator::WINDOW as u64 + 1;
+    lcm(ticks, ring) as usize
 }
 
 /// Host access failure as an image error.
@@ -409,6 +441,8 @@ impl ImageRun {
             limiter: Limiter::new(&image.limiter)
                 .map_err(ImageError::Limiter)?
                 .constants(),
+            rest: Rest::new(rest_period(image)),
+            rest_error: None,
         };
         let alarm = run.image.start_alarm_us as u64;
         run_to_timer(&mut run.board, alarm).map_err(ImageError::Run)?;
@@ -455,9 +489,12 @@ impl ImageRun {
     /// order, each key's [`super::Program::sensor_words`] words in its program's sensor
     /// order (one per keyboard key; a pen's `z`, `x`, … as declared), written to the key's
     /// sensor window words before the sample's tick. Returns what the sample produced.
+    /// With the rest replay on ([`ImageRun::set_rest_replay`]) a sample of a board at rest
+    /// may be given from a recording instead: the same outputs, exactly.
     ///
     /// Errors: [`ImageError::SensorCount`]; [`ImageError::Run`] when the board faults, a
-    /// core never completes the sample, or a stack canary was overwritten.
+    /// core never completes the sample, a stack canary was overwritten, or the rest
+    /// replay's board differs from its recording.
     pub fn step(&mut self, sensors: &[i32]) -> Result<&SampleOut, ImageError> {
         let words = self.image.sensor_words();
         if sensors.len() != words {
@@ -466,6 +503,189 @@ impl ImageRun {
                 got: sensors.len(),
             });
         }
+        if let Some(e) = self.rest_error.take() {
+            return Err(e);
+        }
+        if !self.rest.on {
+            self.run_sample(sensors)?;
+            return Ok(&self.sample);
+        }
+        let same = self.rest.note(sensors);
+        if same && self.rest.replaying() {
+            self.samples += 1;
+            return Ok(self.rest.give());
+        }
+        if !same {
+            self.leave_rest()?;
+        }
+        self.run_sample(sensors)?;
+        self.after_sample(same);
+        Ok(&self.sample)
+    }
+
+    /// Turns the rest replay on or off (off by default; [`super::rest`]). Turning it off
+    /// first brings the board to the present (errors as [`ImageRun::settle`]).
+    pub fn set_rest_replay(&mut self, on: bool) -> Result<(), ImageError> {
+        if !on {
+            self.settle()?;
+        }
+        self.rest.on = on && self.image.io.is_none();
+        Ok(())
+    }
+
+    /// Samples given from recordings by the rest replay, and whole periods skipped.
+    pub fn rest_replayed(&self) -> (u64, u64) {
+        (self.rest.given, self.rest.skipped)
+    }
+
+    /// Why the board refused the rest replay a rest point during the current rest
+    /// ([`tactus_emulator::Board::rest_point`]'s error), if it did.
+    pub fn rest_refused(&self) -> Option<&str> {
+        match &self.rest.phase {
+            Phase::Refused(e) => Some(e),
+            _ => None,
+        }
+    }
+
+    /// Brings a board the rest replay has parked to the present (the periods skipped, the
+    /// rest run), so that [`ImageRun::board`] shows the state after the last sample;
+    /// nothing when it is not parked.
+    ///
+    /// Errors: [`ImageError::Run`] when the board cannot skip the periods or runs
+    /// differently from the recording (or an earlier such error met by
+    /// [`ImageRun::board`]).
+    pub fn settle(&mut self) -> Result<(), ImageError> {
+        if let Some(e) = self.rest_error.take() {
+            return Err(e);
+        }
+        self.leave_rest()
+    }
+
+    /// Ends a replay: the board skips the whole periods given and runs the samples of the
+    /// last one, each checked against its recording.
+    fn leave_rest(&mut self) -> Result<(), ImageError> {
+        let phase = std::mem::replace(&mut self.rest.phase, Phase::Watching);
+        let Phase::Replaying {
+            period,
+            outs,
+            sensors,
+            parked_at,
+            given,
+            ..
+        } = phase
+        else {
+            return Ok(());
+        };
+        let fail = |e: String| ImageError::Run(format!("the rest replay: {e}"));
+        let len = outs.len() as u64;
+        let (k, r) = (given / len, given % len);
+        if k > 0 {
+            self.board.skip_periods(&period, k).map_err(fail)?;
+            self.rest.skipped += k;
+        }
+        self.stalls = self.board.system.contention_stalls;
+        let now = self.samples;
+        self.samples = parked_at + k * len;
+        for out in outs.iter().take(r as usize) {
+            self.run_sample(&sensors)?;
+            if self.sample != *out {
+                return Err(fail(format!(
+                    "sample {} ran differently from its recording",
+                    self.samples
+                )));
+            }
+        }
+        if self.samples != now {
+            return Err(fail(format!(
+                "{} samples run where {now} were given",
+                self.samples
+            )));
+        }
+        self.rest.spare = outs;
+        Ok(())
+    }
+
+    /// The rest replay's bookkeeping after a sample the board ran (`same`: with the last
+    /// sample's sensor words).
+    fn after_sample(&mut self, same: bool) {
+        if !same {
+            if let Phase::Recording { outs, .. } =
+                std::mem::replace(&mut self.rest.phase, Phase::Watching)
+            {
+                self.rest.spare = outs;
+            }
+            return;
+        }
+        let phase = std::mem::replace(&mut self.rest.phase, Phase::Watching);
+        self.rest.phase = match phase {
+            Phase::Watching if self.rest.same >= SETTLE => match self.rest_point() {
+                Ok(start) => Phase::Recording {
+                    start: Box::new(start),
+                    outs: std::mem::take(&mut self.rest.spare),
+                    filled: 0,
+                    words: Vec::new(),
+                },
+                Err(e) => Phase::Refused(e),
+            },
+            Phase::Recording {
+                start,
+                mut outs,
+                mut filled,
+                mut words,
+            } => {
+                // The recording's buffers are reused from try to try.
+                match outs.get_mut(filled) {
+                    Some(o) => copy_sample(&self.sample, o),
+                    None => outs.push(self.sample.clone()),
+                }
+                filled += 1;
+                let sram = &self.board.system.sram;
+                words.extend(self.at.outs.iter().flatten().map(|&o| word(sram, o)));
+                if filled < self.rest.period {
+                    Phase::Recording {
+                        start,
+                        outs,
+                        filled,
+                        words,
+                    }
+                } else {
+                    outs.truncate(filled);
+                    match self.rest_point() {
+                        Err(e) => Phase::Refused(e),
+                        Ok(end) => match Period::new(&start, &end, self.image.clock_hz) {
+                            Ok(period) => Phase::Replaying {
+                                period: Box::new(period),
+                                outs,
+                                words,
+                                sensors: self.rest.last.clone(),
+                                parked_at: self.samples,
+                                given: 0,
+                            },
+                            // Not repeating yet: the next try from here.
+                            Err(_) => {
+                                words.clear();
+                                Phase::Recording {
+                                    start: Box::new(end),
+                                    outs,
+                                    filled: 0,
+                                    words,
+                                }
+                            }
+                        },
+                    }
+                }
+            }
+            other => other,
+        };
+    }
+
+    /// The board's rest point now, the cores' sample counters as its counters.
+    fn rest_point(&self) -> Result<tactus_emulator::RestPoint, String> {
+        self.board.rest_point(&self.at.samples)
+    }
+
+    /// One sample on the board (`step` without the rest replay).
+    fn run_sample(&mut self, sensors: &[i32]) -> Result<(), ImageError> {
         if self.image.io.is_some() {
             self.set_codes(sensors);
         } else {
@@ -501,8 +721,7 @@ impl ImageRun {
             self.check_stop(stop)?;
         }
         self.samples = want;
-        self.collect()?;
-        Ok(&self.sample)
+        self.collect()
     }
 
     /// With converters: each key's sensor words as its ADC channels' codes
@@ -629,12 +848,28 @@ impl ImageRun {
     }
 
     /// Key `key`'s out words after the last sample (the update's `out[]`, `OutLayout`),
-    /// read from the emulated SRAM (empty for an unknown key).
+    /// read from the emulated SRAM, or from the rest replay's recording of the sample it
+    /// gave (empty for an unknown key).
     pub fn out(&self, key: usize) -> Vec<i32> {
+        let Some(w) = self.at.outs.get(key) else {
+            return Vec::new();
+        };
+        if let Phase::Replaying {
+            outs, words, given, ..
+        } = &self.rest.phase
+        {
+            if *given > 0 {
+                let per: usize = self.at.outs.iter().map(Vec::len).sum();
+                let before: usize = self.at.outs[..key].iter().map(Vec::len).sum();
+                let i = ((*given - 1) % outs.len() as u64) as usize;
+                let at = i * per + before;
+                return (words.get(at..at + w.len()).unwrap_or(&[]).iter())
+                    .map(|&x| x as i32)
+                    .collect();
+            }
+        }
         let sram = &self.board.system.sram;
-        self.at.outs.get(key).map_or(Vec::new(), |w| {
-            w.iter().map(|&o| word(sram, o) as i32).collect()
-        })
+        w.iter().map(|&o| word(sram, o) as i32).collect()
     }
 
     /// Samples completed.
@@ -647,8 +882,13 @@ impl ImageRun {
         &self.image
     }
 
-    /// The emulated board (to inspect memory, cores and counters).
+    /// The emulated board (to inspect memory, cores and counters), brought to the present
+    /// first when the rest replay had parked it ([`ImageRun::settle`]; an error doing so is
+    /// returned by the next [`ImageRun::step`] or [`ImageRun::settle`]).
     pub fn board(&mut self) -> &mut Board {
+        if let Err(e) = self.leave_rest() {
+            self.rest_error.get_or_insert(e);
+        }
         &mut self.board
     }
 }

@@ -51,6 +51,9 @@ pub struct PerformOptions {
     /// Whether the images guard quiescent keys ([`Program::quiescent_guard`]: the same
     /// outputs either way; fewer cycles and a faster emulation with it).
     pub quiescent_guard: bool,
+    /// Whether a board at rest replays its repeating period instead of emulating it
+    /// ([`BoardEngine::rest_replay`]).
+    pub rest_replay: bool,
     /// On boards with converters: a directory to write each board's frames at the pins
     /// into (`board-NN.csv`, [`IO_TRACE_HEADER`]); `None` writes none.
     pub io_trace: Option<std::path::PathBuf>,
@@ -87,6 +90,9 @@ pub struct BoardRun {
     pub traces: Traces,
     /// What the emulator's memoized key updates did (`tactus_emulator::Board::memoize`).
     pub memo: tactus_emulator::MemoStats,
+    /// Samples the rest replay gave from recordings of the board at rest, and the whole
+    /// periods it skipped ([`BoardEngine::rest_replay`]).
+    pub rest_replayed: (u64, u64),
 }
 
 /// The whole keyboard's run.
@@ -356,6 +362,17 @@ impl<'p> BoardEngine<'p> {
         })
     }
 
+    /// The same board with the rest replay on or off
+    /// (`tactus_firmware::image::ImageRun::set_rest_replay`: a board whose sensor words stop
+    /// changing gives its samples from a recording of the period its state repeats with,
+    /// exactly; off by default).
+    ///
+    /// Errors: [`BoardError`] when turning it off cannot bring the board to the present.
+    pub fn rest_replay(mut self, on: bool) -> Result<Self, BoardError> {
+        self.run.set_rest_replay(on)?;
+        Ok(self)
+    }
+
     /// The same board with the emulator's memoized calls off (`tactus_emulator::Board::memoize`:
     /// the same results, every update emulated; for measuring what they save).
     pub fn without_memos(mut self) -> Self {
@@ -367,7 +384,9 @@ impl<'p> BoardEngine<'p> {
     ///
     /// Errors: [`BoardError::Trace`] when the I/O trace's last rows cannot be written.
     pub fn finish(mut self) -> Result<BoardRun, BoardError> {
+        self.run.settle()?;
         self.report.memo = self.run.board().memo_stats();
+        self.report.rest_replayed = self.run.rest_replayed();
         if !self.steps.is_multiple_of(self.decimation) {
             self.report.cycles.push(self.block_max);
         }
@@ -471,7 +490,8 @@ fn run_board(
         &opts.limiter,
         opts.engine,
         decimation,
-    )?;
+    )?
+    .rest_replay(opts.rest_replay)?;
     if let (Some(dir), Some(_)) = (&opts.io_trace, &board.converters) {
         engine.trace_io(&dir.join(format!("board-{:02}.csv", index + 1)), index + 1)?;
     }

@@ -124,6 +124,9 @@ pub struct PlayConfig {
     pub emulator: tactus_emulator::Engine,
     /// Whether the firmware guards quiescent keys (the same strikes either way).
     pub quiescent_guard: bool,
+    /// Whether a board at rest replays its repeating period instead of emulating it
+    /// (`tactus_firmware::image::ImageRun::set_rest_replay`: the same results exactly).
+    pub rest_replay: bool,
     /// With `--engine emu` on a board with converters: the directory of the boards' I/O
     /// traces (their frames at the pins, `emulated::IO_TRACE_HEADER`).
     pub io_trace: Option<std::path::PathBuf>,
@@ -439,6 +442,7 @@ pub fn play(
             },
             engine: config.emulator,
             quiescent_guard: config.quiescent_guard,
+            rest_replay: config.rest_replay,
             io_trace: config.io_trace.clone(),
         };
         let key_motions: BTreeMap<u8, &Motion> =

@@ -1,0 +1,149 @@
+//! The rest replay of [`super::ImageRun`]: a board whose sensor words stop changing is run
+//! until its state repeats, then its samples are given from the recorded period instead of
+//! being emulated, until the words change; the board then jumps over the whole periods
+//! ([`tactus_emulator::Board::skip_periods`]) and runs the rest of the last one, exactly.
+//!
+//! **The period** of the shipped firmware at rest: the tick schedule's remainder repeats
+//! after `den` samples (`super::glue::Tick`: 63 at 133 MHz and 44.1 kHz) and each
+//! differentiator ring's write position after its length (`2·WINDOW + 1` = 17,
+//! `tactus_runtime::differentiator`): every `lcm` of the two samples (1,071 at 133 MHz,
+//! 24 ms) the board's state repeats but for the cores' sample counters, which the handler
+//! only increments and the board never otherwise reads (`super::glue`, the handler's end):
+//! they are the rest points' counters. An image whose state repeats with another period
+//! (a program settling more slowly) simply does not repeat at this one: the check fails and
+//! the board is emulated.
+//!
+//! **Flow.** After [`SETTLE`] samples with the same sensor words a rest point is taken, the
+//! samples' outputs recorded, and a period later a second point; equal states
+//! ([`tactus_emulator::Period::new`]) start the replay, else the second point starts the
+//! next try. While the words stay, each sample is the recorded one of its place in the
+//! period, the board parked at the period's end. When they change (or the board is asked
+//! for), `k` whole periods are skipped and the remaining `r` samples run on the board, each
+//! checked against its recording (a difference is an error, never a silent result).
+//! Test: `firmware/tests/rest.rs` (boards replaying against boards running every sample).
+
+use super::run::SampleOut;
+use tactus_emulator::{Period, RestPoint};
+
+/// Samples with the same sensor words before the first rest point (the rings fill in 17).
+pub const SETTLE: u64 = 64;
+
+/// Where the rest replay stands.
+pub(super) enum Phase {
+    /// Waiting for [`SETTLE`] samples with the same sensor words.
+    Watching,
+    /// A rest point taken after the sample that ended the wait (or the last try); the
+    /// outputs of the samples since.
+    Recording {
+        start: Box<RestPoint>,
+        /// The first `filled` are this try's (the rest kept from an earlier try, to reuse).
+        outs: Vec<SampleOut>,
+        filled: usize,
+        /// Every key's out words after each of those samples, flat.
+        words: Vec<u32>,
+    },
+    /// The board parked at `period`'s end (after sample `parked_at`); `given` samples given
+    /// from `outs` (and `words`) since; `sensors` the words of the rest.
+    Replaying {
+        period: Box<Period>,
+        outs: Vec<SampleOut>,
+        words: Vec<u32>,
+        sensors: Vec<i32>,
+        parked_at: u64,
+        given: u64,
+    },
+    /// No rest points until the sensor words change (the board refused one: the error).
+    Refused(String),
+}
+
+/// The replay's state in an [`super::ImageRun`].
+pub(super) struct Rest {
+    /// Whether the replay is on ([`super::ImageRun::set_rest_replay`]).
+    pub on: bool,
+    /// Samples of the period tried.
+    pub period: usize,
+    /// The sensor words of the last sample and how many samples in a row had them.
+    pub last: Vec<i32>,
+    pub same: u64,
+    pub phase: Phase,
+    /// Samples given from recordings and periods skipped so far (reports, tests).
+    pub given: u64,
+    pub skipped: u64,
+    /// A recording's buffers kept for the next (their allocations reused).
+    pub spare: Vec<SampleOut>,
+}
+
+impl Rest {
+    /// Off, for an image whose period at rest is `period` samples.
+    pub fn new(period: usize) -> Rest {
+        Rest {
+            on: false,
+            period: period.max(1),
+            last: Vec::new(),
+            same: 0,
+            phase: Phase::Watching,
+            given: 0,
+            skipped: 0,
+            spare: Vec::new(),
+        }
+    }
+
+    /// Whether samples are given from a recording now.
+    pub fn replaying(&self) -> bool {
+        matches!(self.phase, Phase::Replaying { .. })
+    }
+
+    /// The next sample of the recording being replayed (an empty one when none is:
+    /// call only when [`Rest::replaying`]).
+    pub fn give(&mut self) -> &SampleOut {
+        static NONE: SampleOut = SampleOut {
+            force: Vec::new(),
+            current_ua: Vec::new(),
+            dac: Vec::new(),
+            drives: Vec::new(),
+            events: Vec::new(),
+            core_cycles: Vec::new(),
+            handler_runs: Vec::new(),
+            misses: Vec::new(),
+            stalls: Vec::new(),
+        };
+        match &mut self.phase {
+            Phase::Replaying { outs, given, .. } if !outs.is_empty() => {
+                let i = (*given % outs.len() as u64) as usize;
+                *given += 1;
+                self.given += 1;
+                &outs[i]
+            }
+            _ => &NONE,
+        }
+    }
+
+    /// Counts a sample with `sensors`: true when they are the last sample's.
+    pub fn note(&mut self, sensors: &[i32]) -> bool {
+        if self.last == sensors {
+            self.same += 1;
+            true
+        } else {
+            self.last.clear();
+            self.last.extend_from_slice(sensors);
+            self.same = 1;
+            false
+        }
+    }
+}
+
+/// Least common multiple (0 when either is 0).
+pub fn lcm(a: u64, b: u64) -> u64 {
+    fn gcd(a: u64, b: u64) -> u64 {
+        if b == 0 {
+            a
+        } else {
+            gcd(b, a % b)
+        }
+    }
+    if a == 0 || b == 0 {
+        0
+    } else {
+        a / gcd(a, b) * b
+    }
+}

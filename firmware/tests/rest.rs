@@ -1,0 +1,133 @@
+//! The rest replay (`firmware/src/image/rest.rs`, `emulator/src/board/rest.rs`): a board
+//! whose keys rest, move and rest again, run with the replay on against the same board
+//! emulating every sample — every sample's outputs and out words equal, and after the run
+//! every SRAM byte and each core's cycle, instruction count, registers, flags and contention
+//! stalls; the replay must have given samples and skipped whole periods. Boards: grand88's
+//! first (the grand piano) at 133 MHz (a period of 1,071 samples) and at 200 MHz (7,497), the
+//! split layout's first (the harpsichord).
+
+use tactus_compiler::fixed::interp::FixedInstance;
+use tactus_firmware::flash::Load;
+use tactus_firmware::image::ImageRun;
+
+#[path = "common/layouts.rs"]
+mod layouts;
+use layouts::{corpus_words, firmware};
+
+/// The boards' rest period at 133 MHz (lcm(63, 17)) and at 200 MHz (lcm(441, 17)).
+const PERIOD_133: usize = 1_071;
+const PERIOD_200: usize = 7_497;
+
+#[test]
+fn a_resting_piano_board_replays_exactly() {
+    replays_exactly("instruments/layouts/grand88.toml", None, PERIOD_133, 12);
+}
+
+#[test]
+fn a_resting_harpsichord_board_replays_exactly() {
+    replays_exactly(
+        "instruments/layouts/split_harpsichord_piano.toml",
+        None,
+        PERIOD_133,
+        12,
+    );
+}
+
+#[test]
+fn a_resting_piano_board_at_200_mhz_replays_exactly() {
+    replays_exactly(
+        "instruments/layouts/grand88.toml",
+        Some("rp2040_200mhz"),
+        PERIOD_200,
+        3,
+    );
+}
+
+/// The first board of `layout` on board kind `kind`, whose period at rest is `period`
+/// samples: rests of `periods` periods after each move.
+fn replays_exactly(layout: &str, kind: Option<&str>, period: usize, periods: usize) {
+    let (boards, _) = firmware(layout, kind, Load::Ram);
+    let fw = &boards[0];
+    let programs = fw.image.programs();
+    let keys = fw.image.keys();
+    let rest: Vec<i32> = keys
+        .iter()
+        .map(|k| FixedInstance::sensor_raw(&programs[k.program].fixed, 0, Some(0.0)))
+        .collect();
+    assert!(
+        keys.len() >= 3,
+        "{layout}: the board has {} keys",
+        keys.len()
+    );
+    let moving: Vec<Vec<i32>> = keys
+        .iter()
+        .enumerate()
+        .map(|(i, k)| corpus_words(&programs[k.program], i, 400))
+        .collect();
+    // Rest long enough for whole periods to be skipped, a move of one key then of all, rest
+    // that ends mid-period, and rest again to the end (the run ends parked).
+    let mut stream: Vec<Vec<i32>> = Vec::new();
+    stream.extend(std::iter::repeat_n(rest.clone(), 64 + 4 * period + 123));
+    for &x in &moving[2][..150] {
+        let mut w = rest.clone();
+        w[2] = x;
+        stream.push(w);
+    }
+    stream.extend(std::iter::repeat_n(rest.clone(), periods * period + 700));
+    for n in 0..300 {
+        stream.push(moving.iter().map(|m| m[n]).collect());
+    }
+    stream.extend(std::iter::repeat_n(rest.clone(), periods * period + 10));
+
+    let mut runs: [ImageRun; 2] = [fw.image.run().unwrap(), fw.image.run().unwrap()];
+    runs[0].set_rest_replay(true).unwrap();
+    for (n, w) in stream.iter().enumerate() {
+        let a = runs[0].step(w).unwrap().clone();
+        let b = runs[1].step(w).unwrap();
+        assert_eq!(&a, b, "sample {n}");
+        for k in 0..keys.len() {
+            assert_eq!(
+                runs[0].out(k),
+                runs[1].out(k),
+                "sample {n} key {k}: out words"
+            );
+        }
+    }
+    let (given, skipped) = runs[0].rest_replayed();
+    eprintln!(
+        "{} samples, {given} given from recordings, {skipped} periods skipped",
+        stream.len()
+    );
+    assert!(
+        runs[0].rest_refused().is_none(),
+        "{:?}",
+        runs[0].rest_refused()
+    );
+    assert!(
+        given > 2 * period as u64 && skipped >= 1,
+        "{layout}: given {given}, skipped {skipped}"
+    );
+    runs[0].settle().unwrap();
+    let [a, b] = &mut runs;
+    assert!(
+        a.board().system.sram == b.board().system.sram,
+        "SRAM differs"
+    );
+    assert_eq!(
+        a.board().system.contention_stalls,
+        b.board().system.contention_stalls
+    );
+    for c in 0..2 {
+        let (x, y) = (&a.board().cores[c], &b.board().cores[c]);
+        assert_eq!(
+            (x.cycle, x.instructions, x.r, x.n, x.z, x.c, x.v, x.state),
+            (y.cycle, y.instructions, y.r, y.n, y.z, y.c, y.v, y.state),
+            "core {c}"
+        );
+    }
+    // And on after the settle: the boards run on alike.
+    for (n, w) in stream.iter().take(200).enumerate() {
+        let a = runs[0].step(w).unwrap().clone();
+        assert_eq!(&a, runs[1].step(w).unwrap(), "after the settle, sample {n}");
+    }
+}
