@@ -429,7 +429,10 @@ impl Recording {
 #[derive(Clone, Debug)]
 struct Memo {
     epoch: u32,
-    live_regs: u16,
+    /// The registers it reads before writing them: per register all ones when it does,
+    /// else 0 ...
+    live: [u32; 16],
+    /// ... and their values at the entry (0 for the others): compared lane by lane.
     regs_in: [u32; 16],
     live_flags: u8,
     flags_in: u8,
@@ -474,13 +477,9 @@ impl Memo {
         if self.epoch != sys.code_epoch {
             return false;
         }
-        let mut live = self.live_regs;
-        while live != 0 {
-            let i = live.trailing_zeros() as usize;
-            live &= live - 1;
-            if core.r[i] != self.regs_in[i] {
-                return false;
-            }
+        let regs = core.r.iter().zip(&self.live).zip(&self.regs_in);
+        if regs.fold(0, |d, ((&r, &live), &v)| d | ((r & live) ^ v)) != 0 {
+            return false;
         }
         if flags_of(core) & self.live_flags != self.flags_in {
             return false;
@@ -891,8 +890,10 @@ impl Memos {
         }
         let memo = Memo {
             epoch: e.epoch,
-            live_regs: rec.live_regs,
-            regs_in: e.r,
+            live: std::array::from_fn(|i| 0u32.wrapping_sub(u32::from(rec.live_regs >> i & 1))),
+            regs_in: std::array::from_fn(|i| {
+                e.r[i] & 0u32.wrapping_sub(u32::from(rec.live_regs >> i & 1))
+            }),
             live_flags: rec.live_flags,
             flags_in: e.flags & rec.live_flags,
             end,

@@ -257,9 +257,11 @@ impl Bus for Confined<'_> {
         match self.span(addr, n) {
             Some(off) if self.journal.len() + words.len() <= JOURNAL => {
                 let sram = &self.sys.sram[off as usize..(off + 4 * n) as usize];
+                // An exact-size iterator: the journal grows once, not per entry.
                 self.journal
-                    .extend(sram.chunks_exact(4).zip((off..).step_by(4)).map(|(b, o)| {
-                        (o as u64) << 32 | u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as u64
+                    .extend(sram.chunks_exact(4).enumerate().map(|(i, b)| {
+                        let o = off as u64 + 4 * i as u64;
+                        o << 32 | u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as u64
                     }));
                 self.sys.store_span(core, cycle, off, words);
                 Ok(())
