@@ -286,6 +286,23 @@ pub(crate) fn sram_word_run(addr: u32, len: u32) -> Option<(u32, u32)> {
         .then_some((in_bank * 4 + (alias >> 16) * 4, 16))
 }
 
+/// The arbitration banks (bit b = bank b, as [`sram_bank`]) of the `n` words from plain
+/// SRAM offset `off` (a [`plain_sram_span`]: all in the striped banks or all in SRAM4/5).
+#[inline(always)]
+pub(crate) fn span_banks(off: u32, n: u32) -> u8 {
+    if n == 0 {
+        return 0;
+    }
+    if off >= 0x4_0000 {
+        // SRAM4 then SRAM5: the first word's bank and the last's.
+        1 << sram_bank(off) | 1 << sram_bank(off + 4 * (n - 1))
+    } else if n >= 4 {
+        0xf
+    } else {
+        (0..n).fold(0, |m, i| m | 1 << sram_bank(off + 4 * i))
+    }
+}
+
 /// Arbitration bank of SRAM offset `off` (below [`SRAM_SIZE`]): address bits 3:2 in the
 /// striped banks, then SRAM4 and SRAM5.
 #[inline(always)]
@@ -497,6 +514,67 @@ impl System {
         let stall = (at - cycle) as u32;
         self.contention_stalls[core] += stall as u64;
         stall
+    }
+
+    /// Claims for `core` in data phase `cycle` the banks of the `n` words from plain SRAM
+    /// offset `off` ([`plain_sram_span`]), as `n` [`System::arbitrate`]s of those words in
+    /// order would: a word's claim and stall depend only on the other core's claim of its
+    /// bank, which these claims do not change, so each bank is claimed once and its stall
+    /// counted once for every word in it.
+    #[inline(always)]
+    fn arbitrate_span(&mut self, core: usize, cycle: u64, off: u32, n: u32) {
+        let claim = |sys: &mut Self, bank: usize, words: u32| {
+            if words > 0 {
+                let stall = sys.arbitrate(core, cycle, bank);
+                sys.contention_stalls[core] += u64::from(stall) * u64::from(words - 1);
+            }
+        };
+        if off >= 0x4_0000 {
+            // SRAM4/5: the words up to the 4 KiB boundary, then the rest.
+            let first = ((0x1000 - (off & 0xfff)) / 4).min(n);
+            claim(self, sram_bank(off), first);
+            claim(self, sram_bank(off + 4 * first), n - first);
+        } else {
+            // Striped: word i is in the bank of word i mod 4.
+            for i in 0..n.min(4) {
+                claim(self, sram_bank(off + 4 * i), (n - i).div_ceil(4));
+            }
+        }
+    }
+
+    /// Stores `words` at plain SRAM offset `off` ([`plain_sram_span`], none of them in the
+    /// I/O's banks) for `core` in data phase `cycle`, as that many word [`Bus::write`]s do:
+    /// their claims and stalls ([`System::arbitrate_span`]), the data, and the decode cache
+    /// invalidated once when any of them lands in a code page (the first such store would
+    /// clear every code page, so the later ones find none).
+    #[inline(always)]
+    pub(crate) fn store_span(&mut self, core: usize, cycle: u64, off: u32, words: &[u32]) {
+        let n = words.len() as u32;
+        if n == 0 {
+            return;
+        }
+        self.arbitrate_span(core, cycle, off, n);
+        let bytes = &mut self.sram[off as usize..(off + 4 * n) as usize];
+        for (b, w) in bytes.chunks_exact_mut(4).zip(words) {
+            b.copy_from_slice(&w.to_le_bytes());
+        }
+        let (first, last) = (off >> 8, (off + 4 * n - 1) >> 8);
+        if (first..=last).any(|p| self.code_pages[p as usize]) {
+            self.invalidate_code();
+        }
+    }
+
+    /// Loads `out.len()` words from plain SRAM offset `off` ([`plain_sram_span`], none of
+    /// them in the I/O's banks) for `core` in data phase `cycle`, as that many word
+    /// [`Bus::read`]s do: their claims and stalls, then the data.
+    #[inline(always)]
+    pub(crate) fn load_span(&mut self, core: usize, cycle: u64, off: u32, out: &mut [u32]) {
+        let n = out.len() as u32;
+        self.arbitrate_span(core, cycle, off, n);
+        let bytes = &self.sram[off as usize..(off + 4 * n) as usize];
+        for (w, b) in out.iter_mut().zip(bytes.chunks_exact(4)) {
+            *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        }
     }
 
     /// Direct SRAM access for the executor's fast path (`off` from [`SRAM_BASE`], below
@@ -775,9 +853,9 @@ impl Bus for System {
     }
 
     /// Words in plain SRAM (the striped view or SRAM4/5, word-aligned, not crossing from
-    /// one to the other: contiguous bytes of [`System::sram`]) are stored directly, each
-    /// claimed by the same [`System::arbitrate`] and checked against the code pages as
-    /// [`Bus::write`] does; anything else takes the general path word by word.
+    /// one to the other: contiguous bytes of [`System::sram`]) outside the I/O's banks are
+    /// stored in one go ([`System::store_span`]: the claims, stalls, data and code-page
+    /// check of [`Bus::write`]); anything else takes the general path word by word.
     #[inline]
     fn write_words(
         &mut self,
@@ -786,19 +864,13 @@ impl Bus for System {
         addr: u32,
         words: &[u32],
     ) -> Result<(), BusFault> {
+        let n = words.len() as u32;
         let Some(off) =
-            plain_sram_span(addr, 4 * words.len() as u32).filter(|_| self.io_banks == 0)
+            plain_sram_span(addr, 4 * n).filter(|&off| span_banks(off, n) & self.io_banks == 0)
         else {
             return write_each_word(self, core, cycle, addr, words);
         };
-        for (i, &w) in words.iter().enumerate() {
-            let o = off + 4 * i as u32;
-            self.arbitrate(core, cycle, sram_bank(o));
-            store_le(&mut self.sram, o as usize, 4, w);
-            if self.code_pages[(o >> 8) as usize] {
-                self.invalidate_code();
-            }
-        }
+        self.store_span(core, cycle, off, words);
         Ok(())
     }
 
@@ -811,15 +883,13 @@ impl Bus for System {
         addr: u32,
         out: &mut [u32],
     ) -> Result<(), BusFault> {
-        let Some(off) = plain_sram_span(addr, 4 * out.len() as u32).filter(|_| self.io_banks == 0)
+        let n = out.len() as u32;
+        let Some(off) =
+            plain_sram_span(addr, 4 * n).filter(|&off| span_banks(off, n) & self.io_banks == 0)
         else {
             return read_each_word(self, core, cycle, addr, out);
         };
-        for (i, w) in out.iter_mut().enumerate() {
-            let o = off + 4 * i as u32;
-            self.arbitrate(core, cycle, sram_bank(o));
-            *w = load_le(&self.sram, o as usize, 4);
-        }
+        self.load_span(core, cycle, off, out);
         Ok(())
     }
 
@@ -859,9 +929,10 @@ mod tests {
         }
     }
 
-    /// Exception entry's and return's frames through [`System`]'s direct path equal the
-    /// general path word by word: data, both cores' bank claims, stalls, the code epoch
-    /// (a frame over a code page) and the fault of a frame that leaves memory.
+    /// Exception entry's and return's frames (and runs of 1 to 12 words) through
+    /// [`System`]'s direct path equal the general path word by word: data, both cores'
+    /// bank claims, stalls, the code epoch (a frame over a code page) and the fault of a
+    /// frame that leaves memory.
     #[test]
     fn frames_equal_word_by_word() {
         let mut seed = 0x9e37_79b9u32;
@@ -877,6 +948,7 @@ mod tests {
             0x2003_fff0, // crosses into SRAM4
             0x2004_0000,
             0x2004_0ff0, // crosses SRAM4 → SRAM5
+            0x2004_0ffc, // crosses SRAM4 → SRAM5 after one word
             0x2004_1fe0,
             0x2004_1ff0, // leaves SRAM
             0x2100_0100, // the non-striped alias
@@ -895,15 +967,22 @@ mod tests {
             let mut b = a.clone();
             let frame = frames[next() as usize % frames.len()];
             let (core, cycle) = ((next() & 1) as usize, 100 + (next() % 4) as u64);
-            let words: [u32; 8] = std::array::from_fn(|_| next());
+            // Mostly a frame's 8 words; also fewer (some striped banks only) and more.
+            let n = if next() % 2 == 0 {
+                8
+            } else {
+                1 + next() as usize % 12
+            };
+            let words: Vec<u32> = (0..n).map(|_| next()).collect();
             let ra = a.write_words(core, cycle, frame, &words);
             let rb = WordByWord(&mut b).write_words(core, cycle, frame, &words);
             assert_eq!(ra, rb);
-            let mut wa = [0; 8];
-            let mut wb = [0; 8];
-            let ra = a.read_words(1 - core, cycle, frame, &mut wa);
-            let rb = WordByWord(&mut b).read_words(1 - core, cycle, frame, &mut wb);
-            assert_eq!((ra, wa), (rb, wb), "frame {frame:#x}");
+            let mut wa = vec![0; n];
+            let mut wb = vec![0; n];
+            let other = if next() % 2 == 0 { core } else { 1 - core };
+            let ra = a.read_words(other, cycle, frame, &mut wa);
+            let rb = WordByWord(&mut b).read_words(other, cycle, frame, &mut wb);
+            assert_eq!((ra, wa), (rb, wb), "frame {frame:#x}, {n} words");
             assert_eq!(a.sram, b.sram);
             assert_eq!(a.bank_claim, b.bank_claim);
             assert_eq!(a.contention_stalls, b.contention_stalls);

@@ -281,6 +281,20 @@ unsafe fn poke(sram: &mut [u8], off: u32, value: u32) {
     }
 }
 
+/// The bits in which four words of `sram` differ from the bytes `ws` give them, ORed: 0
+/// when all four hold them. Without a branch per word: a memo's word lists are compared
+/// four at a time.
+///
+/// # Safety
+/// Each word's `off + 4 <= sram.len()`.
+#[inline(always)]
+unsafe fn differ(sram: &[u8], ws: &[Word; 4]) -> u32 {
+    // SAFETY: the caller's bound.
+    ws.iter().fold(0, |d, w| {
+        d | ((unsafe { peek(sram, w.off) } & w.mask) ^ w.value)
+    })
+}
+
 /// The architectural state a recording starts from.
 #[derive(Clone, Debug)]
 struct Entry {
@@ -415,7 +429,10 @@ impl Recording {
 #[derive(Clone, Debug)]
 struct Memo {
     epoch: u32,
-    live_regs: u16,
+    /// The registers it reads before writing them: per register all ones when it does,
+    /// else 0 ...
+    live: [u32; 16],
+    /// ... and their values at the entry (0 for the others): compared lane by lane.
     regs_in: [u32; 16],
     live_flags: u8,
     flags_in: u8,
@@ -429,9 +446,13 @@ struct Memo {
     end: usize,
     /// 256-byte pages of the stored bytes (each once).
     pages: Vec<u32>,
-    /// Registers and flags set by the call (r15 among them), and their values.
-    out_regs: u16,
+    /// Registers and flags set by the call (r15 among them), and their values: per
+    /// register, all ones when the call leaves it as it was, else 0 (r_i becomes
+    /// `r_i & keep[i] | regs_out[i]`, lane by lane with no branch) ...
+    keep: [u32; 16],
+    /// ... the values of the registers set (0 for the others) ...
     regs_out: [u32; 16],
+    /// ... and the flags.
     out_flags: u8,
     flags_out: u8,
     cycles: u64,
@@ -456,13 +477,9 @@ impl Memo {
         if self.epoch != sys.code_epoch {
             return false;
         }
-        let mut live = self.live_regs;
-        while live != 0 {
-            let i = live.trailing_zeros() as usize;
-            live &= live - 1;
-            if core.r[i] != self.regs_in[i] {
-                return false;
-            }
+        let regs = core.r.iter().zip(&self.live).zip(&self.regs_in);
+        if regs.fold(0, |d, ((&r, &live), &v)| d | ((r & live) ^ v)) != 0 {
+            return false;
         }
         if flags_of(core) & self.live_flags != self.flags_in {
             return false;
@@ -471,10 +488,12 @@ impl Memo {
         if self.end > sram.len() {
             return false;
         }
+        let (quads, rest) = self.reads.as_chunks::<4>();
         // SAFETY: every word's offset + 4 is at most `self.end`.
-        self.reads
-            .iter()
-            .all(|w| unsafe { peek(sram, w.off) } & w.mask == w.value)
+        quads.iter().all(|q| unsafe { differ(sram, q) } == 0)
+            && rest
+                .iter()
+                .all(|w| unsafe { peek(sram, w.off) } & w.mask == w.value)
     }
 
     /// Before [`Memo::apply`] at `entry`: its accesses to the DMA's banks into a window's
@@ -497,34 +516,30 @@ impl Memo {
         // `inputs_match` has checked `self.end` against the SRAM's length (which never
         // changes): only a memo whose inputs matched is applied.
         assert!(self.end <= sram.len());
-        match journal {
-            Some(j) => {
-                for w in &self.writes {
-                    // SAFETY: every word's offset + 4 is at most `self.end`.
-                    let old = unsafe { peek(sram, w.off) };
-                    if old & w.mask != w.value {
-                        j.push((w.off as u64) << 32 | old as u64);
-                        // SAFETY: as above.
-                        unsafe { poke(sram, w.off, old & !w.mask | w.value) };
-                    }
+        // Four words at a time are checked first: where all four hold their bytes already
+        // (no word of them is stored), the word-by-word loop would do nothing either.
+        let (quads, rest) = self.writes.as_chunks::<4>();
+        let mut j = journal;
+        let mut store = |sram: &mut [u8], w: &Word| {
+            // SAFETY: every word's offset + 4 is at most `self.end`.
+            let old = unsafe { peek(sram, w.off) };
+            if old & w.mask != w.value {
+                if let Some(j) = j.as_deref_mut() {
+                    j.push((w.off as u64) << 32 | old as u64);
                 }
+                // SAFETY: as above.
+                unsafe { poke(sram, w.off, old & !w.mask | w.value) };
             }
-            None => {
-                for w in &self.writes {
-                    // SAFETY: every word's offset + 4 is at most `self.end`.
-                    let old = unsafe { peek(sram, w.off) };
-                    if old & w.mask != w.value {
-                        // SAFETY: as above.
-                        unsafe { poke(sram, w.off, old & !w.mask | w.value) };
-                    }
-                }
+        };
+        for q in quads {
+            // SAFETY: as above.
+            if unsafe { differ(sram, q) } != 0 {
+                q.iter().for_each(|w| store(sram, w));
             }
         }
-        let mut out = self.out_regs;
-        while out != 0 {
-            let i = out.trailing_zeros() as usize;
-            out &= out - 1;
-            core.r[i] = self.regs_out[i];
+        rest.iter().for_each(|w| store(sram, w));
+        for ((r, &keep), &v) in core.r.iter_mut().zip(&self.keep).zip(&self.regs_out) {
+            *r = *r & keep | v;
         }
         let f = (flags_of(core) & !self.out_flags) | self.flags_out;
         (core.n, core.z, core.c, core.v) = (f & N != 0, f & Z != 0, f & C != 0, f & V != 0);
@@ -549,6 +564,9 @@ struct Site {
     pc: u32,
     /// Where its calls end (the return address, or the span's end).
     end: u32,
+    /// Whether its entry is a span's (its end fixed), not a function's (the return
+    /// address in LR).
+    span: bool,
     memos: Vec<Memo>,
     /// Index in `memos` of the memo applied last (`usize::MAX`: none).
     last: usize,
@@ -577,6 +595,16 @@ pub(crate) enum Try {
     Run,
 }
 
+/// [`Memos`]' site hints (`Default` is not derived for arrays of 64).
+#[derive(Clone, Debug)]
+struct SiteHints([[u32; 64]; 2]);
+
+impl Default for SiteHints {
+    fn default() -> Self {
+        SiteHints([[u32::MAX; 64]; 2])
+    }
+}
+
 /// A board's memos (see the module documentation).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Memos {
@@ -586,6 +614,9 @@ pub(crate) struct Memos {
     /// Bit `(entry >> 1) % 64` of every entry: a clear bit rules a PC out at once.
     filter: u64,
     sites: Vec<Site>,
+    /// Per core and entry bit (as `filter`), the index in `sites` of the site found there
+    /// last: tried first by [`Memos::site`] (a hint, checked before use).
+    hints: SiteHints,
     clock: u64,
     pub(crate) stats: MemoStats,
 }
@@ -619,11 +650,30 @@ impl Memos {
     }
 
     /// The call site of `core`'s call (its PC at a watched entry).
+    #[inline(always)]
     fn site(&mut self, core: &Core) -> usize {
         let (id, pc) = (core.id, core.r[15]);
-        let end = match self.entries.iter().find(|e| e.0 == pc) {
-            Some(&(_, Some(end))) => end,
-            _ => core.r[14] & !1,
+        let hint = &mut self.hints.0[id & 1][((pc >> 1) & 63) as usize];
+        // The hinted site is this call's when it has the core, the entry and the end (a
+        // span's end is its entry's, a function's the return address): sites are unique
+        // by those three.
+        if let Some(s) = self.sites.get(*hint as usize) {
+            if s.pc == pc && s.core == id && (s.span || s.end == core.r[14] & !1) {
+                return *hint as usize;
+            }
+        }
+        let i = self.find_site(core);
+        self.hints.0[id & 1][((pc >> 1) & 63) as usize] = i as u32;
+        i
+    }
+
+    /// [`Memos::site`] without the hint: found or made.
+    #[inline(never)]
+    fn find_site(&mut self, core: &Core) -> usize {
+        let (id, pc) = (core.id, core.r[15]);
+        let (end, span) = match self.entries.iter().find(|e| e.0 == pc) {
+            Some(&(_, Some(end))) => (end, true),
+            _ => (core.r[14] & !1, false),
         };
         match self
             .sites
@@ -636,6 +686,7 @@ impl Memos {
                     core: id,
                     pc,
                     end,
+                    span,
                     memos: Vec::new(),
                     last: usize::MAX,
                     wait: 0,
@@ -839,16 +890,18 @@ impl Memos {
         }
         let memo = Memo {
             epoch: e.epoch,
-            live_regs: rec.live_regs,
-            regs_in: e.r,
+            live: std::array::from_fn(|i| 0u32.wrapping_sub(u32::from(rec.live_regs >> i & 1))),
+            regs_in: std::array::from_fn(|i| {
+                e.r[i] & 0u32.wrapping_sub(u32::from(rec.live_regs >> i & 1))
+            }),
             live_flags: rec.live_flags,
             flags_in: e.flags & rec.live_flags,
             end,
             reads,
             writes,
             pages,
-            out_regs,
-            regs_out: core.r,
+            keep: std::array::from_fn(|i| if out_regs >> i & 1 != 0 { 0 } else { u32::MAX }),
+            regs_out: std::array::from_fn(|i| if out_regs >> i & 1 != 0 { core.r[i] } else { 0 }),
             out_flags,
             flags_out: flags_of(core) & out_flags,
             cycles: core.cycle - e.cycle,

@@ -139,7 +139,10 @@ impl Nvic {
     /// RVR as it is (a write to RVR first advances to the cycle of the write).
     #[inline]
     pub fn tick(&mut self, now: u64) {
-        if now >= self.syst_next {
+        // At the count at 0 already signalled, nothing is due until the next count
+        // (`syst_wrap` would find `now`'s count equal to that of `syst_next` and leave all
+        // as it is).
+        if now >= self.syst_next && (now != self.syst_next || !self.syst_fired) {
             self.syst_wrap(now);
         }
     }

@@ -129,14 +129,31 @@ impl Board {
         }
     }
 
+    /// After an instruction (or exception entry or return) of core `k`: opens and closes
+    /// the profiled calls it began or ended. The common case, a PC the filter rules out
+    /// with the core's active exceptions unchanged, costs its caller a few instructions;
+    /// the rest is [`Board::profile_step_slow`].
+    #[inline(always)]
     pub(super) fn profile_step(&mut self, k: usize) {
+        let core = &self.cores[k];
+        let pc = core.r[15];
+        if self.profiled_active[k] == core.nvic.active
+            && self.profile_filter[k][(pc as usize >> 7) & 63] >> ((pc >> 1) & 63) & 1 == 0
+        {
+            return;
+        }
+        self.profile_step_slow(k);
+    }
+
+    #[inline(never)]
+    fn profile_step_slow(&mut self, k: usize) {
         let core = &self.cores[k];
         let (pc, sp, now) = (core.r[15], core.r[13], core.cycle);
         // The core's active exceptions as at this core's last call, and the PC neither a
         // profiled entry nor the return address of an innermost open call: no activation
         // can open or close (an open one closes when its exception's active bit clears or
         // at its return address; one opens at an entry), so the loop below would do
-        // nothing.
+        // nothing. (The filter's half of this test is `profile_step`'s.)
         if self.profiled_active[k] == core.nvic.active
             && (self.profile_filter[k][(pc as usize >> 7) & 63] >> ((pc >> 1) & 63) & 1 == 0
                 || (self.profile_entries.binary_search(&pc).is_err()

@@ -53,7 +53,7 @@ use super::run::cached;
 use super::*;
 use crate::block::{self, Leave};
 use crate::bus::{
-    plain_sram_span, sram_bank, sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE,
+    plain_sram_span, span_banks, sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE,
     FLASH_SIZE, ROM_SIZE,
 };
 use crate::core::Event;
@@ -138,10 +138,15 @@ impl Confined<'_> {
         self.io.as_ref().is_some_and(|l| l.banks >> bank & 1 != 0)
     }
 
-    /// Whether any of the `n` words from plain SRAM offset `off` is in a bank of
-    /// [`Confined::io_bank`].
-    fn io_words(&self, off: u32, n: u32) -> bool {
-        self.io.is_some() && (0..n).any(|i| self.io_bank(sram_bank(off + 4 * i)))
+    /// The plain SRAM offset of the `n` words from `addr` when they can move in one go: a
+    /// [`plain_sram_span`] in allowed banks, none of them the I/O's (logged, or served by
+    /// [`System`]'s I/O), and no call being recorded (whose log needs each access).
+    #[inline(always)]
+    fn span(&self, addr: u32, n: u32) -> Option<u32> {
+        let off = plain_sram_span(addr, 4 * n)?;
+        let banks = span_banks(off, n);
+        let io = self.io.as_ref().map_or(0, |l| l.banks) | self.sys.io_banks;
+        (self.log.is_none() && banks & !self.banks == 0 && banks & io == 0).then_some(off)
     }
 }
 
@@ -238,9 +243,9 @@ impl Bus for Confined<'_> {
         r
     }
 
-    /// Exception entry's frame: when it lies in plain SRAM of allowed banks and the journal
-    /// has room (and no call is being recorded), journaled and stored in one go by
-    /// [`System`]'s [`Bus::write_words`]; else word by word.
+    /// Exception entry's frame: when it can move in one go ([`Confined::span`]) and the
+    /// journal has room, journaled and stored in one go ([`System::store_span`]); else word
+    /// by word.
     fn write_words(
         &mut self,
         core: usize,
@@ -249,19 +254,17 @@ impl Bus for Confined<'_> {
         words: &[u32],
     ) -> Result<(), BusFault> {
         let n = words.len() as u32;
-        match plain_sram_span(addr, 4 * n) {
-            Some(off)
-                if self.log.is_none()
-                    && self.journal.len() + words.len() <= JOURNAL
-                    && (0..n).all(|i| self.bank_ok(sram_bank(off + 4 * i)))
-                    && !self.io_words(off, n) =>
-            {
-                for i in 0..n {
-                    let o = off + 4 * i;
-                    let old = self.sys.sram_peek(o);
-                    self.journal.push((o as u64) << 32 | old as u64);
-                }
-                self.sys.write_words(core, cycle, addr, words)
+        match self.span(addr, n) {
+            Some(off) if self.journal.len() + words.len() <= JOURNAL => {
+                let sram = &self.sys.sram[off as usize..(off + 4 * n) as usize];
+                // An exact-size iterator: the journal grows once, not per entry.
+                self.journal
+                    .extend(sram.chunks_exact(4).enumerate().map(|(i, b)| {
+                        let o = off as u64 + 4 * i as u64;
+                        o << 32 | u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as u64
+                    }));
+                self.sys.store_span(core, cycle, off, words);
+                Ok(())
             }
             _ => {
                 for (i, &w) in words.iter().enumerate() {
@@ -272,8 +275,8 @@ impl Bus for Confined<'_> {
         }
     }
 
-    /// Exception return's frame: in one go by [`System`]'s [`Bus::read_words`] when it lies
-    /// in plain SRAM of allowed banks (and no call is being recorded); else word by word.
+    /// Exception return's frame: in one go ([`System::load_span`]) when it can move in one
+    /// go ([`Confined::span`]); else word by word.
     fn read_words(
         &mut self,
         core: usize,
@@ -281,14 +284,10 @@ impl Bus for Confined<'_> {
         addr: u32,
         out: &mut [u32],
     ) -> Result<(), BusFault> {
-        let n = out.len() as u32;
-        match plain_sram_span(addr, 4 * n) {
-            Some(off)
-                if self.log.is_none()
-                    && (0..n).all(|i| self.bank_ok(sram_bank(off + 4 * i)))
-                    && !self.io_words(off, n) =>
-            {
-                self.sys.read_words(core, cycle, addr, out)
+        match self.span(addr, out.len() as u32) {
+            Some(off) => {
+                self.sys.load_span(core, cycle, off, out);
+                Ok(())
             }
             _ => {
                 for (i, w) in out.iter_mut().enumerate() {
