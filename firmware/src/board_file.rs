@@ -121,6 +121,14 @@ pub fn image_board(board: &BoardSpec) -> Result<Chip, BoardError> {
     })
 }
 
+/// Greatest common divisor (Euclid; `gcd(0, b)` is `b`).
+pub(crate) fn gcd(mut a: u64, mut b: u64) -> u64 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
+}
+
 /// The sample tick of a `clock_hz` core at `fs` samples per second: `q = ⌊clock/fs⌋`
 /// cycles, and the fraction `rem/den` in lowest terms ([`Tick`]).
 ///
@@ -139,10 +147,7 @@ pub fn tick_schedule(fs: u32, clock_hz: u64) -> Result<Tick, BoardError> {
         ));
     }
     let rem = clock_hz % u64::from(fs);
-    let (mut x, mut y) = (rem, u64::from(fs));
-    while y != 0 {
-        (x, y) = (y, x % y);
-    }
+    let x = gcd(rem, u64::from(fs));
     Ok(Tick {
         q: q as u32,
         rem: (rem / x) as u32,

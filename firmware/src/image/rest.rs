@@ -134,16 +134,9 @@ impl Rest {
 
 /// Least common multiple (0 when either is 0).
 pub fn lcm(a: u64, b: u64) -> u64 {
-    fn gcd(a: u64, b: u64) -> u64 {
-        if b == 0 {
-            a
-        } else {
-            gcd(b, a % b)
-        }
-    }
     if a == 0 || b == 0 {
         0
     } else {
-        a / gcd(a, b) * b
+        a / crate::board_file::gcd(a, b) * b
     }
 }
