@@ -133,6 +133,8 @@ struct HostWords {
     dacs: Vec<usize>,
     /// Per key, its out words.
     outs: Vec<Vec<usize>>,
+    /// Every key's out words, in key order (`outs` flat: the rest replay's recording).
+    all_outs: Vec<usize>,
     /// Per core: its sample counter, its miss counter, its stack canary.
     samples: Vec<usize>,
     misses: Vec<usize>,
@@ -146,6 +148,15 @@ impl HostWords {
             _ => Err(ImageError::Run(format!("{addr:#010x} is not an SRAM word"))),
         };
         let window = |base: u32, w: &usize| off(base + 4 * *w as u32);
+        let outs: Vec<Vec<usize>> = image
+            .keys
+            .iter()
+            .map(|k| {
+                (0..k.out_len as u32)
+                    .map(|i| off(k.record + k.out_offset + 4 * i))
+                    .collect()
+            })
+            .collect::<Result<_, _>>()?;
         Ok(HostWords {
             sensors: image
                 .keys
@@ -167,15 +178,8 @@ impl HostWords {
                     .map(|w| window(DAC_BASE, w))
                     .collect::<Result<_, _>>()?
             },
-            outs: image
-                .keys
-                .iter()
-                .map(|k| {
-                    (0..k.out_len as u32)
-                        .map(|i| off(k.record + k.out_offset + 4 * i))
-                        .collect()
-                })
-                .collect::<Result<_, _>>()?,
+            all_outs: outs.iter().flatten().copied().collect(),
+            outs,
             samples: image
                 .cores
                 .iter()
@@ -640,7 +644,7 @@ impl ImageRun {
                 }
                 filled += 1;
                 let sram = &self.board.system.sram;
-                words.extend(self.at.outs.iter().flatten().map(|&o| word(sram, o)));
+                words.extend(self.at.all_outs.iter().map(|&o| word(sram, o)));
                 if filled < self.rest.period {
                     Phase::Recording {
                         start,
@@ -859,7 +863,7 @@ impl ImageRun {
         } = &self.rest.phase
         {
             if *given > 0 {
-                let per: usize = self.at.outs.iter().map(Vec::len).sum();
+                let per = self.at.all_outs.len();
                 let before: usize = self.at.outs[..key].iter().map(Vec::len).sum();
                 let i = ((*given - 1) % outs.len() as u64) as usize;
                 let at = i * per + before;

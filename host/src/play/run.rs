@@ -95,6 +95,7 @@ pub fn run_keys(
         })
         .collect();
     let traced: Vec<bool> = drives.iter().map(|d| trace.keys.contains(&d.key)).collect();
+    let any_traced = traced.contains(&true);
     let mut run = KeysRun::default();
     let mut xs = vec![0.0; n];
     let mut pending = 0usize;
@@ -111,7 +112,7 @@ pub fn run_keys(
         }
         let out = engine.step(&xs)?;
         for (k, d) in drives.iter().enumerate() {
-            let s = out[k];
+            let s = &out[k];
             if !s.force_n.is_finite() || s.strike_mps.is_some_and(|v| !v.is_finite()) {
                 return Err(RunError::NonFinite {
                     key: d.key,
@@ -150,7 +151,7 @@ pub fn run_keys(
         }
         // The hammer once the samples are done with (an emulated board reads it from the
         // key's out words).
-        for (k, d) in drives.iter().enumerate() {
+        for (k, d) in drives.iter().enumerate().filter(|_| any_traced) {
             if traced[k] && time >= trace.from_s && time <= trace.to_s {
                 if let Some(row) = run.traces.get_mut(&d.key).and_then(|r| r.last_mut()) {
                     row[3] = engine.hammer_m(k);
