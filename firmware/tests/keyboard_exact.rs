@@ -1,6 +1,7 @@
 //! Every board of grand88 and of the split layout, as `tactus build` makes it, on the
-//! emulator's block engine — the cores in windows, key updates memoized, what `tactus play`
-//! runs — against the lock-step interpreter (issue 37's "exact"): every sample's forces,
+//! emulator's block engine — the cores in windows, key updates memoized, boards at rest
+//! replayed from a recorded period (the rest replay), what `tactus play` runs — against the
+//! lock-step interpreter (issue 37's "exact"): every sample's forces,
 //! DAC words, events, handler cycles per core, contention stalls and miss counters equal,
 //! and after the run every SRAM byte and each core's cycle, instruction count, registers
 //! and flags. Two streams of sensor words: the budget corpus (each key's runs, with stretches
@@ -39,11 +40,15 @@ const LAYOUTS: [&str; 2] = [
 
 /// One board on both engines: every sample's outputs, then memory and cores, equal.
 /// `words(n)` gives the sensor words of sample `n`. Returns the memo hits of the block
-/// engine's run.
-fn compare(fw: &BoardFirmware, samples: usize, words: &dyn Fn(usize) -> Vec<i32>) -> u64 {
+/// engine's run (the rest replay on, as in `tactus play`), and the samples the rest
+/// replay gave.
+fn compare(fw: &BoardFirmware, samples: usize, words: &dyn Fn(usize) -> Vec<i32>) -> (u64, u64) {
     let mut runs: [ImageRun; 2] = [fw.image.run().unwrap(), fw.image.run().unwrap()];
     assert_eq!(runs[0].board().config.engine, Engine::Block);
     runs[1].board().config.engine = Engine::Interp;
+    // What `tactus play` runs: the rest replay on (a board at rest gives its samples from a
+    // recorded period and skips whole ones: `firmware/src/image/rest.rs`).
+    runs[0].set_rest_replay(true).unwrap();
     for n in 0..samples {
         let w = words(n);
         let a = runs[0].step(&w).unwrap().clone();
@@ -65,14 +70,14 @@ fn compare(fw: &BoardFirmware, samples: usize, words: &dyn Fn(usize) -> Vec<i32>
             fw.index
         );
     }
-    a.board().memo_stats().hits
+    (a.board().memo_stats().hits, a.rest_replayed().0)
 }
 
 /// The budget corpus on every board of every layout, `samples` samples each.
 fn corpus(samples: usize) {
     for layout in LAYOUTS {
         let (boards, _) = firmware(layout, None, Load::Ram);
-        let mut hits = 0;
+        let (mut hits, mut given) = (0, 0);
         for fw in &boards {
             let programs = fw.image.programs();
             let keys = fw.image.keys();
@@ -85,7 +90,7 @@ fn corpus(samples: usize) {
                     (corpus_words(p, fw.keys[0] as usize + i, samples), rest)
                 })
                 .collect();
-            hits += compare(fw, samples, &|n| {
+            let (h, g) = compare(fw, samples, &|n| {
                 stream
                     .iter()
                     .map(|(w, rest)| match (n / STRETCH) % 2 {
@@ -94,9 +99,10 @@ fn corpus(samples: usize) {
                     })
                     .collect()
             });
+            (hits, given) = (hits + h, given + g);
         }
         eprintln!(
-            "{layout}: {} boards exact, {hits} memoized calls",
+            "{layout}: {} boards exact, {hits} memoized calls, {given} samples given by the rest replay",
             boards.len()
         );
         assert!(hits > 0, "{layout}: no call was memoized");
@@ -135,7 +141,7 @@ fn maestro(from_s: f64, seconds: f64) {
         let (boards, board) = firmware(layout, None, Load::Ram);
         let fs = board.sample_rate_hz;
         let samples = (seconds * fs) as usize;
-        let mut hits = 0;
+        let (mut hits, mut given) = (0, 0);
         for fw in &boards {
             let programs = fw.image.programs();
             let keys = fw.image.keys();
@@ -147,7 +153,7 @@ fn maestro(from_s: f64, seconds: f64) {
                 .iter()
                 .map(|&k| tracks.iter().find(|t| t.key == k))
                 .collect();
-            hits += compare(fw, samples, &|n| {
+            let (h, g) = compare(fw, samples, &|n| {
                 let t = from_s + n as f64 / fs;
                 key_progs
                     .iter()
@@ -158,9 +164,10 @@ fn maestro(from_s: f64, seconds: f64) {
                     })
                     .collect()
             });
+            (hits, given) = (hits + h, given + g);
         }
         eprintln!(
-            "{layout}: {} boards exact over Maestro_1, {hits} memoized calls",
+            "{layout}: {} boards exact over Maestro_1, {hits} memoized calls, {given} samples given by the rest replay",
             boards.len()
         );
         assert!(hits > 0, "{layout}: no call was memoized");
