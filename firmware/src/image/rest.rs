@@ -118,6 +118,17 @@ impl Rest {
         }
     }
 
+    /// Back to watching, as if no sample had been seen (the buffers kept).
+    pub fn forget(&mut self) {
+        if let Phase::Recording { outs, .. } | Phase::Replaying { outs, .. } =
+            std::mem::replace(&mut self.phase, Phase::Watching)
+        {
+            self.spare = outs;
+        }
+        self.last.clear();
+        self.same = 0;
+    }
+
     /// Counts a sample with `sensors`: true when they are the last sample's.
     pub fn note(&mut self, sensors: &[i32]) -> bool {
         if self.last == sensors {

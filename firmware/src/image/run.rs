@@ -209,30 +209,37 @@ fn word(sram: &[u8], o: usize) -> u32 {
         .map_or(0, u32::from_le_bytes)
 }
 
-/// `from` into `to`, reusing `to`'s buffers.
+/// `from` into `to`, reusing `to`'s buffers (every field named: a new one must be
+/// copied too).
 fn copy_sample(from: &SampleOut, to: &mut SampleOut) {
-    to.force.clone_from(&from.force);
-    to.current_ua.clone_from(&from.current_ua);
-    to.dac.clone_from(&from.dac);
-    to.drives.clone_from(&from.drives);
-    to.events.clone_from(&from.events);
-    to.core_cycles.clone_from(&from.core_cycles);
-    to.handler_runs.clone_from(&from.handler_runs);
-    to.misses.clone_from(&from.misses);
-    to.stalls.clone_from(&from.stalls);
+    let SampleOut {
+        force,
+        current_ua,
+        dac,
+        drives,
+        events,
+        core_cycles,
+        handler_runs,
+        misses,
+        stalls,
+    } = from;
+    to.force.clone_from(force);
+    to.current_ua.clone_from(current_ua);
+    to.dac.clone_from(dac);
+    to.drives.clone_from(drives);
+    to.events.clone_from(events);
+    to.core_cycles.clone_from(core_cycles);
+    to.handler_runs.clone_from(handler_runs);
+    to.misses.clone_from(misses);
+    to.stalls.clone_from(stalls);
 }
 
-/// Samples after which a board at rest repeats its state ([`super::rest`]): the tick
-/// schedule's remainder's period times the differentiator rings' length, their lcm.
+/// Samples after which a board at rest repeats its state ([`super::rest`]): the lcm of the
+/// tick schedule's remainder's period (its `den`: `rem/den` in lowest terms, 1 for whole
+/// cycles) and the differentiator rings' length.
 fn rest_period(image: &FirmwareImage) -> usize {
-    let tick = image.tick();
-    let ticks = if tick.rem == 0 {
-        1
-    } else {
-        u64::from(tick.den)
-    };
     let ring = 2 * tactus_runtime::differentiator::WINDOW as u64 + 1;
-    lcm(ticks, ring) as usize
+    lcm(u64::from(image.tick().den), ring) as usize
 }
 
 /// Host access failure as an image error.
@@ -528,10 +535,13 @@ impl ImageRun {
     }
 
     /// Turns the rest replay on or off (off by default; [`super::rest`]). Turning it off
-    /// first brings the board to the present (errors as [`ImageRun::settle`]).
+    /// first brings the board to the present (errors as [`ImageRun::settle`]) and forgets
+    /// the rest so far.
     pub fn set_rest_replay(&mut self, on: bool) -> Result<(), ImageError> {
         if !on {
             self.settle()?;
+            // A recording must not span samples run with the replay off.
+            self.rest.forget();
         }
         self.rest.on = on && self.image.io.is_none();
         Ok(())
@@ -568,7 +578,9 @@ impl ImageRun {
     /// Ends a replay: the board skips the whole periods given and runs the samples of the
     /// last one, each checked against its recording.
     fn leave_rest(&mut self) -> Result<(), ImageError> {
-        let phase = std::mem::replace(&mut self.rest.phase, Phase::Watching);
+        if !self.rest.replaying() {
+            return Ok(());
+        }
         let Phase::Replaying {
             period,
             outs,
@@ -576,7 +588,7 @@ impl ImageRun {
             parked_at,
             given,
             ..
-        } = phase
+        } = std::mem::replace(&mut self.rest.phase, Phase::Watching)
         else {
             return Ok(());
         };
