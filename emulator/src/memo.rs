@@ -888,12 +888,12 @@ impl Memos {
                 *c = now - e.cycle;
             }
         }
+        let live: [u32; 16] =
+            std::array::from_fn(|i| 0u32.wrapping_sub(u32::from(rec.live_regs >> i & 1)));
         let memo = Memo {
             epoch: e.epoch,
-            live: std::array::from_fn(|i| 0u32.wrapping_sub(u32::from(rec.live_regs >> i & 1))),
-            regs_in: std::array::from_fn(|i| {
-                e.r[i] & 0u32.wrapping_sub(u32::from(rec.live_regs >> i & 1))
-            }),
+            live,
+            regs_in: std::array::from_fn(|i| e.r[i] & live[i]),
             live_flags: rec.live_flags,
             flags_in: e.flags & rec.live_flags,
             end,

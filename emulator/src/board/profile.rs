@@ -153,11 +153,10 @@ impl Board {
         // profiled entry nor the return address of an innermost open call: no activation
         // can open or close (an open one closes when its exception's active bit clears or
         // at its return address; one opens at an entry), so the loop below would do
-        // nothing. (The filter's half of this test is `profile_step`'s.)
+        // nothing. (`profile_step` has returned already where the filter rules the PC out.)
         if self.profiled_active[k] == core.nvic.active
-            && (self.profile_filter[k][(pc as usize >> 7) & 63] >> ((pc >> 1) & 63) & 1 == 0
-                || (self.profile_entries.binary_search(&pc).is_err()
-                    && !self.profile_returns[k].contains(&pc)))
+            && self.profile_entries.binary_search(&pc).is_err()
+            && !self.profile_returns[k].contains(&pc)
         {
             return;
         }

@@ -53,7 +53,6 @@ pub struct RestPoint {
     parts: String,
     /// The earlier core's cycle.
     now: u64,
-    cycles: [u64; 2],
     instructions: [u64; 2],
     stalls: [u64; 2],
     /// Per profile, each core's entries.
@@ -74,11 +73,6 @@ impl RestPoint {
             && self.entries.len() == other.entries.len()
             && self.counters.len() == other.counters.len()
             && (self.counters.iter().zip(&other.counters)).all(|(a, b)| a.0 == b.0)
-    }
-
-    /// Core `k`'s cycle at the point.
-    pub fn cycle(&self, k: usize) -> u64 {
-        self.cycles[k & 1]
     }
 }
 
@@ -251,7 +245,6 @@ impl Board {
             sram,
             parts,
             now,
-            cycles: [self.cores[0].cycle, self.cores[1].cycle],
             instructions: [self.cores[0].instructions, self.cores[1].instructions],
             stalls: *contention_stalls,
             entries: self.profiles.iter().map(|p| p.entries()).collect(),
