@@ -289,12 +289,19 @@ pub(crate) struct PartRecords {
     dacs: Vec<(Vec<DacUpdate>, Vec<crate::converters::TimingViolation>)>,
 }
 
-/// The parts' records of a stretch (a period memo's, `board/io_window.rs`): per ADC its
-/// frames, per DAC its updates, in [`IoConfig`] order.
+/// The parts' records of a stretch (a period memo's, `board/io_window.rs`; a rest period's,
+/// `board/rest.rs`): per ADC its frames, per DAC its updates, in [`IoConfig`] order.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct IoRecords {
     adcs: Vec<Vec<AdcFrame>>,
     dacs: Vec<Vec<DacUpdate>>,
+}
+
+impl IoRecords {
+    /// Whether it holds no frame and no update.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.adcs.iter().all(Vec::is_empty) && self.dacs.iter().all(Vec::is_empty)
+    }
 }
 
 /// Writes `size` bytes of `value` at SRAM offset `off` for the DMA: journaled while a
@@ -653,6 +660,12 @@ impl Io {
         io.dacs = std::mem::take(&mut self.dacs);
         io.stepwise = self.stepwise;
         *self = io;
+        self.append_records(records, r);
+    }
+
+    /// Appends `records` (from [`Io::records_since`]) to its parts' records, their cycles
+    /// moved by `r`, as a run that recorded them would ([`crate::converters::MAX_KEPT`]).
+    pub(crate) fn append_records(&mut self, records: &IoRecords, r: Rebase) {
         for (a, frames) in self.adcs.iter_mut().zip(&records.adcs) {
             a.append_records(frames.iter().map(|f| AdcFrame {
                 cs_fall: r.at(f.cs_fall),
@@ -665,6 +678,13 @@ impl Io {
                 ..*u
             }));
         }
+    }
+
+    /// Whether every part keeps as many frames or updates as it can
+    /// ([`crate::converters::MAX_KEPT`]): appending more changes nothing.
+    pub(crate) fn records_full(&mut self) -> bool {
+        let max = crate::converters::MAX_KEPT;
+        self.record_counts().iter().all(|c| c[0] >= max)
     }
 
     /// The first cycle the machine has not run yet.

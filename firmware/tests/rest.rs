@@ -2,9 +2,10 @@
 //! whose keys rest, move and rest again, run with the replay on against the same board
 //! emulating every sample — every sample's outputs and out words equal, and after the run
 //! every SRAM byte and each core's cycle, instruction count, registers, flags and contention
-//! stalls; the replay must have given samples and skipped whole periods. Boards: grand88's
-//! first (the grand piano) at 133 MHz (a period of 1,071 samples) and at 200 MHz (7,497), the
-//! split layout's first (the harpsichord).
+//! stalls, and the converters' frames and state; the replay must have given samples and
+//! skipped whole periods. Boards: grand88's first (the grand piano) at 133 MHz (a period of
+//! 1,071 samples), at 200 MHz (7,497) and with converters at 133 MHz (2,142), the split
+//! layout's first (the harpsichord).
 
 use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_firmware::flash::Load;
@@ -17,6 +18,9 @@ use layouts::{corpus_words, firmware};
 /// The boards' rest period at 133 MHz (lcm(63, 17)) and at 200 MHz (lcm(441, 17)).
 const PERIOD_133: usize = 1_071;
 const PERIOD_200: usize = 7_497;
+/// With converters at 133 MHz: lcm(63, 17, 2), the results buffers' ping-pong (the PIO
+/// dividers, 2 and 1, divide its 6,460,000 cycles).
+const PERIOD_IO_133: usize = 2_142;
 
 #[test]
 fn a_resting_piano_board_replays_exactly() {
@@ -39,6 +43,16 @@ fn a_resting_piano_board_at_200_mhz_replays_exactly() {
         "instruments/layouts/grand88.toml",
         Some("rp2040_200mhz"),
         PERIOD_200,
+        3,
+    );
+}
+
+#[test]
+fn a_resting_piano_board_with_converters_replays_exactly() {
+    replays_exactly(
+        "instruments/layouts/grand88.toml",
+        Some("rp2040_io"),
+        PERIOD_IO_133,
         3,
     );
 }
@@ -79,6 +93,7 @@ fn replays_exactly(layout: &str, kind: Option<&str>, period: usize, periods: usi
     }
     stream.extend(std::iter::repeat_n(rest.clone(), periods * period + 10));
 
+    let mut frames = 0;
     let mut runs: [ImageRun; 2] = [fw.image.run().unwrap(), fw.image.run().unwrap()];
     runs[0].set_rest_replay(true).unwrap();
     // The replay turned off for a while in the last rest (and the board looked at): it
@@ -101,6 +116,20 @@ fn replays_exactly(layout: &str, kind: Option<&str>, period: usize, periods: usi
                 "sample {n} key {k}: out words"
             );
         }
+        // The converters' frames of each rest (those of the samples given, once the board
+        // is brought to the present) before the words change, and at the end.
+        if stream.get(n + 1) != Some(w) {
+            let (fa, fb) = (runs[0].take_io(), runs[1].take_io());
+            assert!(fa == fb, "sample {n}: the converters' frames differ");
+            frames += fa.0.len();
+        }
+    }
+    if fw.image.io().is_some() {
+        assert!(
+            frames > stream.len(),
+            "{frames} frames in {} samples",
+            stream.len()
+        );
     }
     let (given, skipped) = runs[0].rest_replayed();
     eprintln!(
@@ -126,6 +155,7 @@ fn replays_exactly(layout: &str, kind: Option<&str>, period: usize, periods: usi
         a.board().system.contention_stalls,
         b.board().system.contention_stalls
     );
+    assert!(a.board().io_mut() == b.board().io_mut(), "the I/O differs");
     for c in 0..2 {
         let (x, y) = (&a.board().cores[c], &b.board().cores[c]);
         assert_eq!(

@@ -35,12 +35,22 @@
 //! the emulator cannot see. What the board's memoized calls, compiled code and decode caches
 //! hold is not state: they give the same results whatever they hold.
 //!
-//! Refused (an error saying why): a board with converter I/O or a debugger attached, core 1's
-//! launch under way, a timer alarm armed, a profiled call open.
+//! **Converters.** A board with converter I/O ([`crate::io`]) adds the I/O machine to its
+//! state: the PIOs, the DMA and the converters at the pins, each cycle of theirs relative to
+//! the earlier core's cycle ([`crate::io::Io::rebased`]; the machine is settled to the
+//! board's cycle at the end of each run). The parts' records — the frames and updates seen
+//! at the pins, which only grow (to [`crate::converters::MAX_KEPT`]) — are not state: the
+//! period keeps those of its run, and a skip appends them for each period skipped, moved to
+//! its cycles, as running it would have recorded them. A period in which a converter's
+//! timing was breached is refused.
+//!
+//! Refused (an error saying why): a debugger attached, core 1's launch under way, a timer
+//! alarm armed, a profiled call open.
 //! Test: `firmware/tests/rest.rs` (a keyboard board replaying and skipping periods against the
 //! same board running every sample: every output, SRAM byte, cycle and register equal).
 
 use super::*;
+use crate::io::{Io, IoRecords, Rebase};
 
 /// The state of a board at an instant apart from time and counters (compared), with the
 /// board's clocks and counts then (not compared). Made by [`Board::rest_point`].
@@ -63,6 +73,9 @@ pub struct RestPoint {
     on_us_grid: bool,
     /// The counter words: SRAM offset and value.
     counters: Vec<(usize, u32)>,
+    /// The converter I/O, if any: its machine without records, its cycles moved to
+    /// [`Rebase::MEMO`] from `now` (compared), and its parts' record counts (not compared).
+    io: Option<(Box<Io>, Vec<[usize; 2]>)>,
 }
 
 impl RestPoint {
@@ -73,6 +86,11 @@ impl RestPoint {
             && self.entries.len() == other.entries.len()
             && self.counters.len() == other.counters.len()
             && (self.counters.iter().zip(&other.counters)).all(|(a, b)| a.0 == b.0)
+            && match (&self.io, &other.io) {
+                (Some(a), Some(b)) => a.0 == b.0,
+                (None, None) => true,
+                _ => false,
+            }
     }
 }
 
@@ -87,47 +105,12 @@ pub struct Period {
     entries: Vec<[u64; 2]>,
     /// Per counter word, its increase over the period (mod 2^32).
     counters: Vec<u32>,
+    /// The converters' records of the period, their cycles moved to [`Rebase::MEMO`] from
+    /// its start (none without converters).
+    io_records: Option<IoRecords>,
 }
 
 impl Period {
-    /// The period from `start` to `end`, two rest points of the same board, `end` later.
-    ///
-    /// Errors (as text): the states differ, no time passed, a core read the timer's count
-    /// between them, or a SysTick counts the 1 µs pulses and the period is not a whole
-    /// number of microseconds at `clock_hz`.
-    pub fn new(start: &RestPoint, end: &RestPoint, clock_hz: u64) -> Result<Period, String> {
-        if !start.same_state(end) {
-            return Err("the board's state at the two points differs".into());
-        }
-        let cycles = end.now.checked_sub(start.now).filter(|&c| c > 0);
-        let Some(cycles) = cycles else {
-            return Err("the second point is not later than the first".into());
-        };
-        if end.count_reads != start.count_reads {
-            return Err("a core read the timer's count during the period".into());
-        }
-        if start.on_us_grid
-            && (clock_hz == 0 || !(cycles as u128 * 1_000_000).is_multiple_of(clock_hz as u128))
-        {
-            return Err(format!(
-                "{cycles} cycles are not a whole number of microseconds at {clock_hz} Hz"
-            ));
-        }
-        let d2 = |a: [u64; 2], b: [u64; 2]| [b[0].wrapping_sub(a[0]), b[1].wrapping_sub(a[1])];
-        Ok(Period {
-            end: end.clone(),
-            cycles,
-            instructions: d2(start.instructions, end.instructions),
-            stalls: d2(start.stalls, end.stalls),
-            entries: (start.entries.iter().zip(&end.entries))
-                .map(|(&a, &b)| d2(a, b))
-                .collect(),
-            counters: (start.counters.iter().zip(&end.counters))
-                .map(|(a, b)| b.1.wrapping_sub(a.1))
-                .collect(),
-        })
-    }
-
     /// Cycles of one period.
     pub fn cycles(&self) -> u64 {
         self.cycles
@@ -147,17 +130,74 @@ fn relative(t: u64, now: u64) -> u64 {
 }
 
 impl Board {
+    /// The period from `start` to `end`, two rest points of this board, `end` its point
+    /// now ([`Board::rest_point`]): with converters, their records since `start` are the
+    /// period's.
+    ///
+    /// Errors (as text): the states differ, no time passed, a core read the timer's count
+    /// between them, a SysTick counts the 1 µs pulses and the period is not a whole
+    /// number of microseconds at the board's clock, a converter's timing was breached or
+    /// its records taken ([`crate::io::Io`]'s records drained) between them.
+    pub fn period(&mut self, start: &RestPoint, end: &RestPoint) -> Result<Period, String> {
+        let clock_hz = self.config.clock_hz;
+        if !start.same_state(end) {
+            return Err("the board's state at the two points differs".into());
+        }
+        let cycles = end.now.checked_sub(start.now).filter(|&c| c > 0);
+        let Some(cycles) = cycles else {
+            return Err("the second point is not later than the first".into());
+        };
+        if end.count_reads != start.count_reads {
+            return Err("a core read the timer's count during the period".into());
+        }
+        if start.on_us_grid
+            && (clock_hz == 0 || !(cycles as u128 * 1_000_000).is_multiple_of(clock_hz as u128))
+        {
+            return Err(format!(
+                "{cycles} cycles are not a whole number of microseconds at {clock_hz} Hz"
+            ));
+        }
+        let io_records = match (&start.io, self.system.io.as_mut()) {
+            (Some((_, counts)), Some(io)) => {
+                let now = io.record_counts();
+                if (now.iter().zip(counts)).any(|(n, c)| n[0] < c[0] || n[1] < c[1]) {
+                    return Err("the converters' records were taken during the period".into());
+                }
+                let r = Rebase {
+                    from: start.now,
+                    to: Rebase::MEMO,
+                };
+                let Some(records) = io.records_since(counts, r) else {
+                    return Err("a converter's timing was breached during the period".into());
+                };
+                Some(records)
+            }
+            (None, None) => None,
+            _ => return Err("the converter I/O was attached during the period".into()),
+        };
+        let d2 = |a: [u64; 2], b: [u64; 2]| [b[0].wrapping_sub(a[0]), b[1].wrapping_sub(a[1])];
+        Ok(Period {
+            end: end.clone(),
+            cycles,
+            instructions: d2(start.instructions, end.instructions),
+            stalls: d2(start.stalls, end.stalls),
+            entries: (start.entries.iter().zip(&end.entries))
+                .map(|(&a, &b)| d2(a, b))
+                .collect(),
+            counters: (start.counters.iter().zip(&end.counters))
+                .map(|(a, b)| b.1.wrapping_sub(a.1))
+                .collect(),
+            io_records,
+        })
+    }
+
     /// The board's state now as a [`RestPoint`], the SRAM words at `counters` (offsets of
     /// aligned words from [`crate::bus::SRAM_BASE`]) taken as counters (module
     /// documentation).
     ///
-    /// Errors (as text): converter I/O or a debugger attached, core 1's launch under way,
-    /// a timer alarm armed, a profiled call open, a counter offset outside SRAM or
-    /// unaligned.
-    pub fn rest_point(&self, counters: &[usize]) -> Result<RestPoint, String> {
-        if self.system.io.is_some() {
-            return Err("the board has converter I/O".into());
-        }
+    /// Errors (as text): a debugger attached, core 1's launch under way, a timer alarm
+    /// armed, a profiled call open, a counter offset outside SRAM or unaligned.
+    pub fn rest_point(&mut self, counters: &[usize]) -> Result<RestPoint, String> {
         if self.debug.hook.is_some() {
             return Err("a debugger is attached".into());
         }
@@ -180,6 +220,13 @@ impl Board {
             words.push((o, u32::from_le_bytes([w[0], w[1], w[2], w[3]])));
             w.fill(0);
         }
+        let io = self.system.io.as_mut().map(|io| {
+            let r = Rebase {
+                from: now,
+                to: Rebase::MEMO,
+            };
+            (io.rebased(r), io.record_counts())
+        });
         // Every field of the system, so that a new one needs a decision here.
         let System {
             rom: _,   // read-only to the cores
@@ -196,7 +243,7 @@ impl Board {
             code_pages: _, // the decode cache's pages
             code_epoch: _, // the decode cache's generation
             allowed_banks,
-            io: _, // refused above
+            io: _, // below
             io_banks,
             io_journal,
             io_trace,
@@ -242,6 +289,7 @@ impl Board {
              {allowed_banks} {io_banks} {io_journal:?} {io_trace:?}"
         );
         Ok(RestPoint {
+            io,
             sram,
             parts,
             now,
@@ -312,6 +360,25 @@ impl Board {
             let w = &mut sys.sram[o..o + 4];
             let v = u32::from_le_bytes([w[0], w[1], w[2], w[3]]);
             w.copy_from_slice(&v.wrapping_add(d.wrapping_mul(k as u32)).to_le_bytes());
+        }
+        if let Some(io) = sys.io.as_mut() {
+            io.rebase(Rebase {
+                from: now,
+                to: now + delta,
+            });
+            if let Some(records) = period.io_records.as_ref().filter(|r| !r.is_empty()) {
+                // Each skipped period's records at its cycles, until the parts keep no more.
+                for j in 0..k {
+                    if io.records_full() {
+                        break;
+                    }
+                    let r = Rebase {
+                        from: Rebase::MEMO,
+                        to: now + j * period.cycles,
+                    };
+                    io.append_records(records, r);
+                }
+            }
         }
         self.window_at = later(self.window_at);
         // The interrupt lines are recomputed at the next run (the timer and SIO are as

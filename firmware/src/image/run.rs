@@ -20,7 +20,7 @@ use super::rest::{lcm, Phase, Rest, SETTLE};
 use super::{FirmwareImage, ImageError, STACK_CANARY};
 use tactus_compiler::ir::{Axis, EventId};
 use tactus_emulator::bus::sram_location;
-use tactus_emulator::{Board, Config, Period, StopReason, DAC_BASE, SENSOR_BASE};
+use tactus_emulator::{Board, Config, StopReason, DAC_BASE, SENSOR_BASE};
 use tactus_isa::timing::EXCEPTION_ENTRY;
 use tactus_runtime::limiter::{Limiter, LimiterConstants};
 
@@ -236,10 +236,27 @@ fn copy_sample(from: &SampleOut, to: &mut SampleOut) {
 
 /// Samples after which a board at rest repeats its state ([`super::rest`]): the lcm of the
 /// tick schedule's remainder's period (its `den`: `rem/den` in lowest terms, 1 for whole
-/// cycles) and the differentiator rings' length.
+/// cycles) and the differentiator rings' length; with converters also of the results
+/// buffers' ping-pong (2 samples, `super::io`), and a whole number of each PIO clock
+/// divider's periods (a state machine's divider phase is state: 6,460,000 cycles, 2,142
+/// samples, at 133 MHz; 204,000,000 cycles, 44,982 samples, at 200 MHz, whose ADC divider
+/// is 3).
 fn rest_period(image: &FirmwareImage) -> usize {
     let ring = 2 * tactus_runtime::differentiator::WINDOW as u64 + 1;
-    lcm(u64::from(image.tick().den), ring) as usize
+    let samples = lcm(u64::from(image.tick().den), ring);
+    let Some(plan) = &image.io else {
+        return samples as usize;
+    };
+    let samples = lcm(samples, 2);
+    let cycles =
+        tactus_runtime::keyboard::tick_cycle(0, samples, image.clock_hz, image.sample_rate_hz);
+    let divs = lcm(
+        u64::from(plan.adc_div.max(1)),
+        u64::from(plan.dac_div.max(1)),
+    );
+    // The fewest periods whose cycles are a whole number of `divs`.
+    let times = divs / crate::board_file::gcd(cycles, divs).max(1);
+    (samples * times.max(1)) as usize
 }
 
 /// Host access failure as an image error.
@@ -543,7 +560,7 @@ impl ImageRun {
             // A recording must not span samples run with the replay off.
             self.rest.forget();
         }
-        self.rest.on = on && self.image.io.is_none();
+        self.rest.on = on;
         Ok(())
     }
 
@@ -668,7 +685,7 @@ impl ImageRun {
                     outs.truncate(filled);
                     match self.rest_point() {
                         Err(e) => Phase::Refused(e),
-                        Ok(end) => match Period::new(&start, &end, self.image.clock_hz) {
+                        Ok(end) => match self.board.period(&start, &end) {
                             Ok(period) => Phase::Replaying {
                                 period: Box::new(period),
                                 outs,
@@ -696,7 +713,7 @@ impl ImageRun {
     }
 
     /// The board's rest point now, the cores' sample counters as its counters.
-    fn rest_point(&self) -> Result<tactus_emulator::RestPoint, String> {
+    fn rest_point(&mut self) -> Result<tactus_emulator::RestPoint, String> {
         self.board.rest_point(&self.at.samples)
     }
 
@@ -833,6 +850,15 @@ impl ImageRun {
     /// updates, in cycle order per part), removed from the emulated parts; empty without
     /// converters. Also the parts' data-sheet breaches so far, as text.
     pub fn take_io(&mut self) -> (Vec<IoRecord>, Vec<String>) {
+        if self.image.io.is_none() {
+            return (Vec::new(), Vec::new());
+        }
+        // The frames of the samples the rest replay gave are the board's once it is brought
+        // to the present; a recording under way must not lose the frames taken here.
+        if let Err(e) = self.leave_rest() {
+            self.rest_error.get_or_insert(e);
+        }
+        self.rest.forget();
         let Some(io) = self.board.io_mut() else {
             return (Vec::new(), Vec::new());
         };

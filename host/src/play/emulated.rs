@@ -491,7 +491,8 @@ fn run_board(
         opts.engine,
         decimation,
     )?
-    .rest_replay(opts.rest_replay)?;
+    // A traced board writes each sample's frames as they come: it runs every sample.
+    .rest_replay(opts.rest_replay && opts.io_trace.is_none())?;
     if let (Some(dir), Some(_)) = (&opts.io_trace, &board.converters) {
         engine.trace_io(&dir.join(format!("board-{:02}.csv", index + 1)), index + 1)?;
     }
