@@ -57,6 +57,72 @@ fn a_resting_piano_board_with_converters_replays_exactly() {
     );
 }
 
+/// A key pressed to the keybed and held (its force above rated: the limiter spends its
+/// budget each sample, then, the budget spent, cycles through `recovery + 1` samples), then
+/// released (the budget earned back a unit a sample: 17,640 units full, 4 spent a sample), on grand88's first board: the replay
+/// must give samples while the budget drains, while it cycles (a period of 5 tries) and
+/// while it fills, each ending exactly where the budget's path would change.
+#[test]
+fn a_held_key_whose_limiter_works_replays_exactly() {
+    let (boards, _) = firmware("instruments/layouts/grand88.toml", None, Load::Ram);
+    let fw = &boards[0];
+    let programs = fw.image.programs();
+    let keys = fw.image.keys();
+    let word =
+        |k: usize, x: f64| FixedInstance::sensor_raw(&programs[keys[k].program].fixed, 0, Some(x));
+    let rest: Vec<i32> = (0..keys.len()).map(|k| word(k, 0.0)).collect();
+    let mut stream: Vec<Vec<i32>> = vec![rest.clone(); 200];
+    let ramp = 300;
+    let depth = HELD_DEPTH_M;
+    for n in 0..=ramp {
+        let mut w = rest.clone();
+        w[1] = word(1, depth * n as f64 / ramp as f64);
+        stream.push(w);
+    }
+    let mut held = rest.clone();
+    held[1] = word(1, depth);
+    stream.extend(std::iter::repeat_n(held, 45_000));
+    for n in (0..=ramp).rev() {
+        let mut w = rest.clone();
+        w[1] = word(1, depth * n as f64 / ramp as f64);
+        stream.push(w);
+    }
+    stream.extend(std::iter::repeat_n(rest.clone(), 30_000));
+    let mut runs: [ImageRun; 2] = [fw.image.run().unwrap(), fw.image.run().unwrap()];
+    runs[0].set_rest_replay(true).unwrap();
+    for (n, w) in stream.iter().enumerate() {
+        let a = runs[0].step(w).unwrap().clone();
+        assert_eq!(&a, runs[1].step(w).unwrap(), "sample {n}");
+    }
+    let (given, skipped) = runs[0].rest_replayed();
+    let (longest, room_ends) = runs[0].rest_periods();
+    eprintln!(
+        "{} samples: {given} given, {skipped} periods skipped, longest period {longest}, \
+         {room_ends} replays ended by a budget",
+        stream.len()
+    );
+    runs[0].settle().unwrap();
+    let [a, b] = &mut runs;
+    assert!(
+        a.board().system.sram == b.board().system.sram,
+        "SRAM differs"
+    );
+    for c in 0..2 {
+        let (x, y) = (&a.board().cores[c], &b.board().cores[c]);
+        assert_eq!(
+            (x.cycle, x.instructions, x.r),
+            (y.cycle, y.instructions, y.r),
+            "core {c}"
+        );
+    }
+    assert_eq!(longest, 5 * PERIOD_133, "the cycling budget's period");
+    assert!(room_ends >= 2, "{room_ends} replays ended by a budget");
+    assert!(given > 40_000, "given {given}");
+}
+
+/// A key's travel at the keybed and beyond (m): grand88's keys dip 10 mm.
+const HELD_DEPTH_M: f64 = 0.0105;
+
 /// The first board of `layout` on board kind `kind`, whose period at rest is `period`
 /// samples: rests of `periods` periods after each move.
 fn replays_exactly(layout: &str, kind: Option<&str>, period: usize, periods: usize) {

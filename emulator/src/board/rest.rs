@@ -115,6 +115,17 @@ impl Period {
     pub fn cycles(&self) -> u64 {
         self.cycles
     }
+
+    /// Per counter word (in [`Board::rest_point`]'s order), its increase over one period
+    /// (mod 2^32).
+    pub fn counter_increases(&self) -> &[u32] {
+        &self.counters
+    }
+
+    /// Per counter word, its value at the period's end.
+    pub fn counters_at_end(&self) -> impl Iterator<Item = u32> + '_ {
+        self.end.counters.iter().map(|c| c.1)
+    }
 }
 
 /// `t` relative to `now`, every cycle before `now` one value (a claim, a divider result or

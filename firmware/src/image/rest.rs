@@ -35,8 +35,11 @@ pub(super) enum Phase {
     /// A rest point taken after the sample that ended the wait (or the last try); the
     /// outputs of the samples since.
     Recording {
-        start: Box<RestPoint>,
-        /// The first `filled` are this try's (the rest kept from an earlier try, to reuse).
+        /// The rest points taken, each with the number of samples recorded before it (the
+        /// first 0): one a period.
+        starts: Vec<(Box<RestPoint>, usize)>,
+        /// The first `filled` are the samples since the first start (the rest kept from an
+        /// earlier try, to reuse).
         outs: Vec<SampleOut>,
         filled: usize,
         /// Every key's out words after each of those samples, flat.
@@ -51,6 +54,8 @@ pub(super) enum Phase {
         sensors: Vec<i32>,
         parked_at: u64,
         given: u64,
+        /// The most samples it may give (the budgets' room, `super::run`'s `replay_room`).
+        room: u64,
     },
     /// No rest points until the sensor words change (the board refused one: the error).
     Refused(String),
@@ -69,6 +74,9 @@ pub(super) struct Rest {
     /// Samples given from recordings and periods skipped so far (reports, tests).
     pub given: u64,
     pub skipped: u64,
+    /// The longest period replayed, samples, and the replays a budget's room ended.
+    pub longest: usize,
+    pub room_ends: u64,
     /// A recording's buffers kept for the next (their allocations reused).
     pub spare: Vec<SampleOut>,
 }
@@ -84,6 +92,8 @@ impl Rest {
             phase: Phase::Watching,
             given: 0,
             skipped: 0,
+            longest: 0,
+            room_ends: 0,
             spare: Vec::new(),
         }
     }
@@ -91,6 +101,11 @@ impl Rest {
     /// Whether samples are given from a recording now.
     pub fn replaying(&self) -> bool {
         matches!(self.phase, Phase::Replaying { .. })
+    }
+
+    /// Whether the next sample can be given from the recording being replayed.
+    pub fn can_give(&self) -> bool {
+        matches!(self.phase, Phase::Replaying { given, room, .. } if given < room)
     }
 
     /// The next sample of the recording being replayed (an empty one when none is:
@@ -141,6 +156,15 @@ impl Rest {
             false
         }
     }
+}
+
+/// The most periods a try compares its end with (the rest points kept): a key held
+/// above its rated current at rest makes its limiter's budget cycle through `recovery + 1`
+/// samples (`recovery` samples of the spent path earning one unit each, then one spending
+/// `recovery`: `tactus_runtime::limiter`), so a board whose period is not a multiple of
+/// that repeats only after `recovery + 1` periods (5 for the shipped limiter). At most 8.
+pub fn max_periods(limiter: &tactus_runtime::limiter::LimiterConstants) -> usize {
+    (limiter.recovery.clamp(0, 7) + 1) as usize
 }
 
 /// Least common multiple (0 when either is 0).

@@ -137,6 +137,11 @@ struct HostWords {
     all_outs: Vec<usize>,
     /// Per core: its sample counter, its miss counter, its stack canary.
     samples: Vec<usize>,
+    /// Per drive of each key (key index, drive index, SRAM offset): its limiter's budget
+    /// word.
+    budgets: Vec<(usize, usize, usize)>,
+    /// The rest replay's counter words: `samples`, then `budgets`' words.
+    counters: Vec<usize>,
     misses: Vec<usize>,
     canaries: Vec<usize>,
 }
@@ -157,7 +162,22 @@ impl HostWords {
                     .collect()
             })
             .collect::<Result<_, _>>()?;
+        let samples: Vec<usize> = (image.cores.iter())
+            .map(|c| off(c.ctrl + ctrl::SAMPLES as u32))
+            .collect::<Result<_, _>>()?;
+        let mut budgets = Vec::new();
+        for (i, k) in image.keys.iter().enumerate() {
+            for (j, &(_, b)) in k.drives.iter().enumerate() {
+                budgets.push((i, j, off(k.record + b)?));
+            }
+        }
+        let counters = (samples.iter().copied())
+            .chain(budgets.iter().map(|b| b.2))
+            .collect();
         Ok(HostWords {
+            samples,
+            budgets,
+            counters,
             sensors: image
                 .keys
                 .iter()
@@ -180,11 +200,6 @@ impl HostWords {
             },
             all_outs: outs.iter().flatten().copied().collect(),
             outs,
-            samples: image
-                .cores
-                .iter()
-                .map(|c| off(c.ctrl + ctrl::SAMPLES as u32))
-                .collect::<Result<_, _>>()?,
             misses: image
                 .cores
                 .iter()
@@ -539,13 +554,15 @@ impl ImageRun {
             return Ok(&self.sample);
         }
         let same = self.rest.note(sensors);
-        if same && self.rest.replaying() {
+        if same && self.rest.can_give() {
             self.samples += 1;
             return Ok(self.rest.give());
         }
-        if !same {
-            self.leave_rest()?;
+        // New words, or as many samples given as the budgets' room allows.
+        if same && self.rest.replaying() {
+            self.rest.room_ends += 1;
         }
+        self.leave_rest()?;
         self.run_sample(sensors)?;
         self.after_sample(same);
         Ok(&self.sample)
@@ -567,6 +584,13 @@ impl ImageRun {
     /// Samples given from recordings by the rest replay, and whole periods skipped.
     pub fn rest_replayed(&self) -> (u64, u64) {
         (self.rest.given, self.rest.skipped)
+    }
+
+    /// The longest period the rest replay has replayed (samples: a multiple of the tried
+    /// period, [`super::rest::max_periods`]), and how many replays ended because a
+    /// limiter's budget would have reached its full budget or run out (tests, reports).
+    pub fn rest_periods(&self) -> (usize, u64) {
+        (self.rest.longest, self.rest.room_ends)
     }
 
     /// Why the board refused the rest replay a rest point during the current rest
@@ -653,7 +677,7 @@ impl ImageRun {
         self.rest.phase = match phase {
             Phase::Watching if self.rest.same >= SETTLE => match self.rest_point() {
                 Ok(start) => Phase::Recording {
-                    start: Box::new(start),
+                    starts: vec![(Box::new(start), 0)],
                     outs: std::mem::take(&mut self.rest.spare),
                     filled: 0,
                     words: Vec::new(),
@@ -661,7 +685,7 @@ impl ImageRun {
                 Err(e) => Phase::Refused(e),
             },
             Phase::Recording {
-                start,
+                starts,
                 mut outs,
                 mut filled,
                 mut words,
@@ -674,37 +698,18 @@ impl ImageRun {
                 filled += 1;
                 let sram = &self.board.system.sram;
                 words.extend(self.at.all_outs.iter().map(|&o| word(sram, o)));
-                if filled < self.rest.period {
+                let last = starts.last().map_or(0, |s| s.1);
+                if filled - last < self.rest.period {
                     Phase::Recording {
-                        start,
+                        starts,
                         outs,
                         filled,
                         words,
                     }
                 } else {
-                    outs.truncate(filled);
                     match self.rest_point() {
                         Err(e) => Phase::Refused(e),
-                        Ok(end) => match self.board.period(&start, &end) {
-                            Ok(period) => Phase::Replaying {
-                                period: Box::new(period),
-                                outs,
-                                words,
-                                sensors: self.rest.last.clone(),
-                                parked_at: self.samples,
-                                given: 0,
-                            },
-                            // Not repeating yet: the next try from here.
-                            Err(_) => {
-                                words.clear();
-                                Phase::Recording {
-                                    start: Box::new(end),
-                                    outs,
-                                    filled: 0,
-                                    words,
-                                }
-                            }
-                        },
+                        Ok(end) => self.try_periods(end, starts, outs, filled, words),
                     }
                 }
             }
@@ -712,9 +717,106 @@ impl ImageRun {
         };
     }
 
-    /// The board's rest point now, the cores' sample counters as its counters.
+    /// A try's end (`end`, after `filled` samples of `outs` recorded since the first of
+    /// `starts`): the replay of the period from the latest start whose state `end` repeats
+    /// (the shortest), or the recording on with `end` as a start, the oldest dropped beyond
+    /// [`super::rest::max_periods`] periods.
+    fn try_periods(
+        &mut self,
+        end: tactus_emulator::RestPoint,
+        mut starts: Vec<(Box<tactus_emulator::RestPoint>, usize)>,
+        mut outs: Vec<SampleOut>,
+        mut filled: usize,
+        mut words: Vec<u32>,
+    ) -> Phase {
+        let per = self.at.all_outs.len();
+        for (start, at) in starts.iter().rev() {
+            let Ok(period) = self.board.period(start, &end) else {
+                continue;
+            };
+            let Some(room) = self.replay_room(&period, &outs[*at..filled]) else {
+                continue;
+            };
+            // The period's samples first; the buffers before them kept for the next.
+            outs[..filled].rotate_left(*at);
+            self.rest.spare = outs.split_off(filled - at);
+            self.rest.longest = self.rest.longest.max(outs.len());
+            words.drain(..at * per);
+            return Phase::Replaying {
+                period: Box::new(period),
+                outs,
+                words,
+                sensors: self.rest.last.clone(),
+                parked_at: self.samples,
+                given: 0,
+                room,
+            };
+        }
+        starts.push((Box::new(end), filled));
+        if starts.len() > super::rest::max_periods(&self.limiter) {
+            starts.remove(0);
+            let cut = starts[0].1;
+            outs[..filled].rotate_left(cut);
+            filled -= cut;
+            words.drain(..cut * per);
+            for s in &mut starts {
+                s.1 -= cut;
+            }
+        }
+        Phase::Recording {
+            starts,
+            outs,
+            filled,
+            words,
+        }
+    }
+
+    /// How many samples the replay of `period` (whose samples gave `outs`) may give:
+    /// while every limiter budget that grew over the period stays below its full budget
+    /// (`super::rest`, "Budgets"); `None` when a budget changed otherwise, or grew on a
+    /// path that can change with its value.
+    fn replay_room(&self, period: &tactus_emulator::Period, outs: &[SampleOut]) -> Option<u64> {
+        let cores = self.at.samples.len();
+        let increases = &period.counter_increases()[cores..];
+        let ends: Vec<u32> = period.counters_at_end().skip(cores).collect();
+        let c = &self.limiter;
+        let mut room = u64::MAX;
+        let samples = i64::try_from(outs.len()).ok()?;
+        for (((key, drive, _), &grew), &end) in self.at.budgets.iter().zip(increases).zip(&ends) {
+            let (grew, end) = (i64::from(grew as i32), i64::from(end as i32));
+            let room_here = if grew == 0 {
+                continue;
+            } else if grew == samples {
+                // One unit a sample: every sample earned one (+1 is the most a sample
+                // earns), at or below rated or on the spent path; the spent path gives the
+                // rated code and its test (`budget − recovery < 0`) depends on the value,
+                // so a period that gave that code is not replayed. (A drive a sample does
+                // not report counts as one that gave it.)
+                let rated = outs.iter().any(|o| {
+                    (o.drives.get(*key).and_then(|d| d.get(*drive)))
+                        .is_none_or(|d| i32::from(d.dac).abs() == c.rated_code)
+                });
+                if rated {
+                    return None;
+                }
+                // Earning while below the full budget: the samples that reach it.
+                i64::from(c.budget_max) - end
+            } else if grew == -samples * i64::from(c.recovery) {
+                // `recovery` spent a sample (the most a sample spends): above rated with
+                // budget, which holds while a sample starts with at least `recovery`.
+                end / i64::from(c.recovery.max(1))
+            } else {
+                return None;
+            };
+            room = room.min(u64::try_from(room_here).ok()?);
+        }
+        Some(room)
+    }
+
+    /// The board's rest point now, the cores' sample counters and the limiters' budgets as
+    /// its counters.
     fn rest_point(&mut self) -> Result<tactus_emulator::RestPoint, String> {
-        self.board.rest_point(&self.at.samples)
+        self.board.rest_point(&self.at.counters)
     }
 
     /// One sample on the board (`step` without the rest replay).
