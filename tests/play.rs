@@ -214,6 +214,48 @@ fn maestro_1_first_20_s_one_strike_per_note() {
     assert_eq!(back.notes.len(), rows.len());
 }
 
+/// The rest replay (resting boards' samples given from recordings, and held stretches
+/// given to the play loop whole) against emulating every sample: the demo's strikes, its
+/// cycle plot and every board's budget line identical, and most board-samples given.
+#[test]
+fn the_rest_replay_plays_the_demo_as_emulating_every_sample() {
+    let dir = temp_dir("play-rest-replay");
+    let run = |flag: Option<&str>, out: &str| {
+        let mut c = tactus();
+        c.args(["play", "--no-wav", "--out"]).arg(dir.join(out));
+        c.args(flag);
+        let o = c.output().unwrap();
+        assert_ok(&o);
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let (on, off) = (run(None, "on"), run(Some("--no-rest-replay"), "off"));
+    for file in ["demo-strikes.csv", "demo-cycles.svg"] {
+        let read = |d: &str| std::fs::read(dir.join(d).join(file)).unwrap();
+        assert!(read("on") == read("off"), "{file} differs");
+    }
+    let boards = |s: &str| -> Vec<String> {
+        (s.lines())
+            .filter(|l| l.trim_start().starts_with("board "))
+            .map(String::from)
+            .collect()
+    };
+    assert!(!boards(&on).is_empty(), "{on}");
+    assert_eq!(boards(&on), boards(&off));
+    let share = on
+        .lines()
+        .find_map(|l| {
+            l.split_once("board-samples (")?
+                .1
+                .split_once(" %")?
+                .0
+                .parse::<f64>()
+                .ok()
+        })
+        .unwrap_or_else(|| panic!("no rest replay line: {on}"));
+    assert!(share > 50.0, "{share} % given from recordings: {on}");
+    assert!(!off.contains("rest replay:"), "{off}");
+}
+
 #[test]
 fn engines_agree_and_the_default_runs_without_arguments() {
     let dir = temp_dir("play-demo");

@@ -495,6 +495,21 @@ impl KeyTrack {
         self.travel(i, t)
     }
 
+    /// Whether the key holds still at time `t` (m, as [`KeyTrack::position_from`], whose
+    /// `cursor` it moves the same way): `Some((travel, until))` when its travel is
+    /// `travel` at `t` and at every later time before `until` (s; infinite after the last
+    /// move): no move under way at `t`, the next starting at `until`. `None` while it
+    /// moves.
+    pub fn steady_from(&self, t: f64, cursor: &mut usize) -> Option<(f64, f64)> {
+        let x = self.position_from(t, cursor);
+        let i = *cursor;
+        if i > 0 && t < self.moves[i - 1].end_s {
+            return None;
+        }
+        let until = self.moves.get(i).map_or(f64::INFINITY, |m| m.start_s);
+        Some((x, until))
+    }
+
     /// Key travel at time `t` when `started` moves have started by then.
     fn travel(&self, started: usize, t: f64) -> f64 {
         match started {
@@ -812,5 +827,38 @@ mod tests {
             let b = t.position_from(time, &mut cursor);
             assert_eq!(a.to_bits(), b.to_bits(), "at {time} s");
         }
+    }
+
+    #[test]
+    fn a_steady_key_holds_its_travel_until_its_next_move() {
+        let notes = [(0.3, 0.4), (0.5, 0.52), (0.68, 1.0), (1.2, 1.3)];
+        let perf = one_key(40, &notes, 1.5);
+        let t = &key_tracks(&perf, 0.01)[0];
+        let (mut cursor, mut steady, mut moving) = (0, 0, 0);
+        for i in 0..16_000 {
+            let time = i as f64 * 1e-4;
+            match t.steady_from(time, &mut cursor) {
+                Some((x, until)) => {
+                    steady += 1;
+                    assert!(until > time, "at {time} s: until {until}");
+                    // The same travel, bit for bit, at every time before `until`.
+                    let last = if until.is_finite() { until } else { 2.0 };
+                    for u in [time, (time + last) / 2.0, last - 1e-9] {
+                        assert_eq!(t.position(u).to_bits(), x.to_bits(), "{time} s → {u} s");
+                    }
+                    assert_eq!(t.position_from(time, &mut cursor).to_bits(), x.to_bits());
+                }
+                None => {
+                    moving += 1;
+                    // Moving: a later time nearby has another travel.
+                    let (a, b) = (t.position(time), t.position(time + 1e-4));
+                    assert!(a != b, "at {time} s: {a} m both");
+                }
+            }
+        }
+        assert!(
+            steady > 1_000 && moving > 1_000,
+            "{steady} steady, {moving} moving"
+        );
     }
 }

@@ -9,18 +9,35 @@
 //! `tactus_runtime::differentiator`): every `lcm` of the two samples (1,071 at 133 MHz,
 //! 24 ms) the board's state repeats but for the cores' sample counters, which the handler
 //! only increments and the board never otherwise reads (`super::glue`, the handler's end):
-//! they are the rest points' counters. An image whose state repeats with another period
+//! they are the rest points' counters (with the budgets below). An image whose state repeats with another period
 //! (a program settling more slowly) simply does not repeat at this one: the check fails and
 //! the board is emulated.
 //!
+//! With converters the results buffers' ping-pong makes it even (2,142 samples at 133 MHz),
+//! times what makes its cycles whole PIO clock divider periods (`super::run`'s
+//! `rest_period`).
+//!
+//! **Budgets.** Each key's limiter keeps a time budget (`tactus_runtime::limiter`) that a
+//! key at rest still moves: after a loud note it earns one unit a sample back to the full
+//! budget (17,640 units, 0.4 s, for the shipped limiter); a key held at the keybed above its
+//! rated current spends `recovery` a sample until it is spent, then cycles through
+//! `recovery + 1` samples. So the budget words are counters of the rest points too, and a
+//! period over which one grew by one a sample (below the full budget: every sample took the
+//! same path) or fell by `recovery` a sample (above rated with budget) is replayed only for as
+//! many samples as keep it on that path (`super::run`'s `replay_room`); the replay then ends
+//! as if the words had changed, and the next try records the budget's new path. A try
+//! compares its end with up to [`max_periods`] earlier starts, so a cycling budget's board
+//! repeats after 5 periods (5,355 samples).
+//!
 //! **Flow.** After [`SETTLE`] samples with the same sensor words a rest point is taken, the
-//! samples' outputs recorded, and a period later a second point; equal states
-//! ([`tactus_emulator::Period::new`]) start the replay, else the second point starts the
-//! next try. While the words stay, each sample is the recorded one of its place in the
+//! samples' outputs recorded, and a point a period later; a state equal to one of the last
+//! points' ([`tactus_emulator::Board::period`]) starts the replay, else the recording goes
+//! on. While the words stay, each sample is the recorded one of its place in the
 //! period, the board parked at the period's end. When they change (or the board is asked
 //! for), `k` whole periods are skipped and the remaining `r` samples run on the board, each
 //! checked against its recording (a difference is an error, never a silent result).
-//! Test: `firmware/tests/rest.rs` (boards replaying against boards running every sample).
+//! Test: `firmware/tests/rest.rs` (boards replaying against boards running every sample,
+//! with converters, and with a key held at the keybed and released).
 
 use super::run::SampleOut;
 use tactus_emulator::{Period, RestPoint};
@@ -108,20 +125,19 @@ impl Rest {
         matches!(self.phase, Phase::Replaying { given, room, .. } if given < room)
     }
 
+    /// The sample [`Rest::give`] gives next, not given (an empty one when none is).
+    pub fn peek(&self) -> &SampleOut {
+        match &self.phase {
+            Phase::Replaying { outs, given, .. } if !outs.is_empty() => {
+                &outs[(*given % outs.len() as u64) as usize]
+            }
+            _ => &NONE,
+        }
+    }
+
     /// The next sample of the recording being replayed (an empty one when none is:
     /// call only when [`Rest::replaying`]).
     pub fn give(&mut self) -> &SampleOut {
-        static NONE: SampleOut = SampleOut {
-            force: Vec::new(),
-            current_ua: Vec::new(),
-            dac: Vec::new(),
-            drives: Vec::new(),
-            events: Vec::new(),
-            core_cycles: Vec::new(),
-            handler_runs: Vec::new(),
-            misses: Vec::new(),
-            stalls: Vec::new(),
-        };
         match &mut self.phase {
             Phase::Replaying { outs, given, .. } if !outs.is_empty() => {
                 let i = (*given % outs.len() as u64) as usize;
@@ -166,6 +182,19 @@ impl Rest {
 pub fn max_periods(limiter: &tactus_runtime::limiter::LimiterConstants) -> usize {
     (limiter.recovery.clamp(0, 7) + 1) as usize
 }
+
+/// What [`Rest::give`] gives when nothing is replayed.
+static NONE: SampleOut = SampleOut {
+    force: Vec::new(),
+    current_ua: Vec::new(),
+    dac: Vec::new(),
+    drives: Vec::new(),
+    events: Vec::new(),
+    core_cycles: Vec::new(),
+    handler_runs: Vec::new(),
+    misses: Vec::new(),
+    stalls: Vec::new(),
+};
 
 /// Least common multiple (0 when either is 0).
 pub fn lcm(a: u64, b: u64) -> u64 {

@@ -568,6 +568,33 @@ impl ImageRun {
         Ok(&self.sample)
     }
 
+    /// Gives up to `most` samples with the sensor words `sensors` from the rest replay's
+    /// recording, as as many [`ImageRun::step`]s would, while `take` accepts each (it sees
+    /// the sample before it is given; the first it refuses is not given); returns how many
+    /// it gave. None when the replay is not giving samples now, `sensors` are not the last
+    /// sample's words, or an error is waiting for the next step.
+    pub fn give_while(
+        &mut self,
+        sensors: &[i32],
+        most: u64,
+        mut take: impl FnMut(&SampleOut) -> bool,
+    ) -> u64 {
+        if !self.rest.on || self.rest_error.is_some() || self.rest.last != sensors {
+            return 0;
+        }
+        let mut given = 0;
+        while given < most && self.rest.can_give() {
+            if !take(self.rest.peek()) {
+                break;
+            }
+            self.rest.give();
+            given += 1;
+        }
+        self.rest.same += given;
+        self.samples += given;
+        given
+    }
+
     /// Turns the rest replay on or off (off by default; [`super::rest`]). Turning it off
     /// first brings the board to the present (errors as [`ImageRun::settle`]) and forgets
     /// the rest so far.

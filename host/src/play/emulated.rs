@@ -457,6 +457,43 @@ impl KeyEngine for BoardEngine<'_> {
         Ok(&self.samples)
     }
 
+    fn step_held(&mut self, travel_m: &[f64], most: usize) -> Result<usize, RunError> {
+        // The sensor words of the last step (the travels it converted), no trace to write.
+        let same = (self.last_travel.iter().enumerate())
+            .all(|(k, t)| *t == Some(travel_m.get(k).map(|x| x.to_bits())));
+        if !same || self.io_trace.is_some() {
+            return Ok(0);
+        }
+        let BoardEngine {
+            run,
+            sensors,
+            report: r,
+            block_max,
+            steps,
+            decimation,
+            ..
+        } = self;
+        // Each sample as `step` reports it; one with an event (a strike) is left to `step`.
+        let given = run.give_while(sensors, most as u64, |out| {
+            if !out.events.is_empty() {
+                return false;
+            }
+            for c in 0..r.max.len() {
+                r.max[c] = r.max[c].max(out.core_cycles[c]);
+                r.total[c] += out.core_cycles[c];
+                r.misses[c] = out.misses[c];
+                *block_max = (*block_max).max(out.core_cycles[c]);
+            }
+            *steps += 1;
+            if steps.is_multiple_of(*decimation) {
+                r.cycles.push(*block_max);
+                *block_max = 0;
+            }
+            true
+        });
+        Ok(given as usize)
+    }
+
     fn hammer_m(&self, k: usize) -> f64 {
         match self.hammer[k] {
             Some((w, frac)) => self

@@ -48,6 +48,17 @@ pub trait KeyEngine {
     /// Errors: a message when the engine cannot run the sample (an emulated board that
     /// faults).
     fn step(&mut self, travel_m: &[f64]) -> Result<&[KeySample], RunError>;
+    /// Runs up to `most` samples in which every key holds the travel `travel_m` of the
+    /// last [`KeyEngine::step`], when the engine can give them without running each (an
+    /// emulated board replaying a rest) and none of them strikes; returns how many it ran
+    /// (0: none, the caller steps them one at a time). What it runs is what as many steps
+    /// would have run. The default runs none.
+    ///
+    /// Errors: as [`KeyEngine::step`].
+    fn step_held(&mut self, travel_m: &[f64], most: usize) -> Result<usize, RunError> {
+        let _ = (travel_m, most);
+        Ok(0)
+    }
     /// Key `k`'s hammer-head travel from rest after the last step, m (`NaN` when its
     /// instrument has no `hammer_pos` output). Read only for traced keys.
     fn hammer_m(&self, k: usize) -> f64;

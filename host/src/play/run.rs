@@ -68,6 +68,10 @@ pub struct LoopConfig<'t> {
     pub stop_at_strike_after_s: Option<f64>,
 }
 
+/// Samples the play loop steps one at a time after an engine could not give a held
+/// stretch whole ([`KeyEngine::step_held`]) before it asks again.
+const HELD_RETRY: usize = 64;
+
 /// Key-samples between two calls of the progress callback.
 pub const PROGRESS_SAMPLES: usize = 4096;
 
@@ -101,8 +105,36 @@ pub fn run_keys(
     let mut pending = 0usize;
     // Per key, the moves of its track started so far (`KeyTrack::position_from`).
     let mut cursors = vec![0usize; n];
-    for i in samples {
+    // Stretches in which every key holds still may go to the engine whole
+    // ([`KeyEngine::step_held`]): not with a force player (its key moves with the force)
+    // or a traced key (a row a sample).
+    let held_ok = !any_traced && players.iter().all(Option::is_none);
+    // After an engine that could not give a held stretch, the next try a while later.
+    let mut next_try = samples.start + 1;
+    let mut i = samples.start;
+    while i < samples.end {
         let time = i as f64 / fs;
+        if held_ok && i >= next_try {
+            let held = held_samples(drives, &mut cursors, &mut xs, i, samples.end, fs);
+            let done = match held {
+                0 | 1 => 0,
+                m => engine.step_held(&xs, m)?,
+            };
+            if done == 0 {
+                next_try = i + HELD_RETRY;
+            } else {
+                i += done;
+                pending += done;
+                if pending >= PROGRESS_SAMPLES {
+                    progress((pending * n) as u64);
+                    pending = 0;
+                }
+                continue;
+            }
+        }
+        // This sample is `i`; the loop goes on from the next.
+        i += 1;
+        let i = i - 1;
         for (k, d) in drives.iter().enumerate() {
             xs[k] = match (d.motion, &players[k]) {
                 (Some(Motion::Track(t)), _) => t.position_from(time, &mut cursors[k]),
@@ -171,4 +203,47 @@ pub fn run_keys(
     }
     progress((pending * n) as u64);
     Ok(run)
+}
+
+/// The samples from `i` (before `end`) in which every key of `drives` holds the travel it
+/// has at sample `i` (a prescribed track that is not moving, or no motion), that travel
+/// written to `xs`; 0 when a key moves at `i` or is moved by a finger. The times are the
+/// play loop's (`j / fs`), so a key's travel at each of them is the one
+/// [`tactus_runtime::performance::KeyTrack::position_from`] gives.
+fn held_samples(
+    drives: &[Drive],
+    cursors: &mut [usize],
+    xs: &mut [f64],
+    i: usize,
+    end: usize,
+    fs: f64,
+) -> usize {
+    let time = i as f64 / fs;
+    let mut until = f64::INFINITY;
+    for (k, d) in drives.iter().enumerate() {
+        xs[k] = match d.motion {
+            Some(Motion::Track(t)) => match t.steady_from(time, &mut cursors[k]) {
+                Some((x, u)) => {
+                    until = until.min(u);
+                    x
+                }
+                None => return 0,
+            },
+            Some(Motion::Finger(_)) => return 0,
+            None => 0.0,
+        };
+    }
+    // The first sample at or after `until`, found from its estimate.
+    let mut j = if until.is_finite() {
+        ((until * fs).floor().max(0.0) as usize).clamp(i, end)
+    } else {
+        end
+    };
+    while j > i && ((j - 1) as f64 / fs) >= until {
+        j -= 1;
+    }
+    while j < end && (j as f64 / fs) < until {
+        j += 1;
+    }
+    j - i
 }
