@@ -174,14 +174,21 @@ impl Rest {
     }
 }
 
-/// The most periods a try compares its end with (the rest points kept): a key held
-/// above its rated current at rest makes its limiter's budget cycle through `recovery + 1`
-/// samples (`recovery` samples of the spent path earning one unit each, then one spending
-/// `recovery`: `tactus_runtime::limiter`), so a board whose period is not a multiple of
-/// that repeats only after `recovery + 1` periods (5 for the shipped limiter). At most 8.
-pub fn max_periods(limiter: &tactus_runtime::limiter::LimiterConstants) -> usize {
-    (limiter.recovery.clamp(0, 7) + 1) as usize
+/// The most periods of `period` samples a try compares its end with (the rest points
+/// kept): a key held above its rated current at rest makes its limiter's budget cycle
+/// through `recovery + 1` samples (`recovery` samples of the spent path earning one unit
+/// each, then one spending `recovery`: `tactus_runtime::limiter`), so a board whose period
+/// is not a multiple of that repeats only after `recovery + 1` periods (5 for the shipped
+/// limiter); but no more than [`MAX_RECORDED`] samples are kept (at least one period: a
+/// board at 200 MHz with converters, 44,982 samples a period, tries one period at a time).
+pub fn max_periods(limiter: &tactus_runtime::limiter::LimiterConstants, period: usize) -> usize {
+    let cycle = (limiter.recovery.clamp(0, 7) + 1) as usize;
+    cycle.min(MAX_RECORDED / period.max(1)).max(1)
 }
+
+/// The most samples a recording keeps across the periods it tries ([`max_periods`]):
+/// each a [`SampleOut`] of a few hundred bytes on an eight-key board.
+pub const MAX_RECORDED: usize = 16_384;
 
 /// What [`Rest::give`] gives when nothing is replayed.
 static NONE: SampleOut = SampleOut {

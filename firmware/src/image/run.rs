@@ -780,7 +780,7 @@ impl ImageRun {
             };
         }
         starts.push((Box::new(end), filled));
-        if starts.len() > super::rest::max_periods(&self.limiter) {
+        if starts.len() > super::rest::max_periods(&self.limiter, self.rest.period) {
             starts.remove(0);
             let cut = starts[0].1;
             outs[..filled].rotate_left(cut);
