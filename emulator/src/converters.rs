@@ -284,6 +284,11 @@ impl Ads8688 {
         }
     }
 
+    /// The codes its channels read (what [`Ads8688::set_code`] set).
+    pub(crate) fn codes(&self) -> &[u16; 8] {
+        &self.codes
+    }
+
     /// Sets the code `channel` (0–7; others are ignored) reads from now on.
     pub fn set_code(&mut self, channel: usize, code: u16) {
         if let Some(c) = self.codes.get_mut(channel) {
@@ -602,6 +607,11 @@ impl Dac8568 {
     /// The output codes of channels A–H.
     pub fn outputs(&self) -> [u16; 8] {
         self.output
+    }
+
+    /// The input registers of channels A–H (written, not yet updated to the outputs).
+    pub(crate) fn inputs(&self) -> &[u16; 8] {
+        &self.input
     }
 
     /// The output changes so far (at most [`MAX_KEPT`]).

@@ -574,6 +574,32 @@ impl Io {
         io
     }
 
+    /// A hash of its data: the ADCs' codes and the DACs' input and output registers
+    /// (FNV-1a). Equal machines have equal hashes: the period memo (`board/io_window.rs`)
+    /// tells with it, before comparing whole machines, the many recorded starts that differ
+    /// only in the codes a busy board's keys move.
+    pub(crate) fn data_hash(&self) -> u64 {
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        let mut mix = |c: &[u16; 8]| {
+            let mut w = [0u64; 2];
+            for (i, &v) in c.iter().enumerate() {
+                w[i / 4] |= u64::from(v) << (16 * (i % 4));
+            }
+            for v in w {
+                h = (h ^ v).wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        };
+        for a in &self.adcs {
+            mix(a.codes());
+        }
+        for d in &self.dacs {
+            mix(d.inputs());
+            let out = d.outputs();
+            mix(&out);
+        }
+        h
+    }
+
     /// Its cycles moved by `r`, its parts' records not (a period memo's key, end state, or
     /// the live machine compared with one: `board/io_window.rs`).
     pub(crate) fn rebase(&mut self, r: Rebase) {

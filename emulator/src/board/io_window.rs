@@ -179,6 +179,8 @@ struct MemoEntry {
     /// The cores' stores to a word the DMA read (core, index in its log, value).
     valued: Vec<(usize, u32, u32)>,
     xip: bool,
+    /// [`Io::data_hash`] of `start`.
+    data: u64,
     /// The I/O at the window's start and after the replay, at the memo's time base.
     start: Box<Io>,
     end: Box<Io>,
@@ -368,9 +370,11 @@ impl Board {
         let records = now.take_records();
         let sys = &self.system;
         let live = sys.io.as_deref();
+        let data = live.map_or(0, Io::data_hash);
         let hit = self.io_memo.entries.iter().position(|e| {
             e.hash == hash
                 && e.xip == xip
+                && e.data == data
                 && e.logs == key
                 && (e.valued.iter()).all(|&(k, i, v)| logs[k][i as usize].value == v)
                 && live.is_some_and(|l| *e.start == *l)
@@ -465,6 +469,7 @@ impl Board {
             logs: key,
             valued,
             xip,
+            data: start.io.data_hash(),
             start: start.io,
             end,
             pre,
