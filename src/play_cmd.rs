@@ -87,7 +87,7 @@ pub struct PlayArgs {
     pub no_wav: bool,
     /// With `--engine emu` on a board with converters (`--board rp2040_io`): write every
     /// board's frames at the pins (each ADC sample, each DAC update, with their cycles)
-    /// into DIR/board-NN.csv.
+    /// into DIR/board-NN.csv. A traced board emulates every sample (no rest replay).
     #[arg(long, value_name = "DIR")]
     pub io_trace: Option<PathBuf>,
     /// Output directory.

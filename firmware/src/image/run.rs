@@ -977,7 +977,10 @@ impl ImageRun {
 
     /// The converters' frames since the last call (every core's ADC frames, then its DAC
     /// updates, in cycle order per part), removed from the emulated parts; empty without
-    /// converters. Also the parts' data-sheet breaches so far, as text.
+    /// converters. Also the parts' data-sheet breaches so far, as text. A board the rest
+    /// replay has parked is brought to the present first (the frames of the samples it
+    /// gave, as [`ImageRun::settle`]; an error doing so is returned by the next
+    /// [`ImageRun::step`]), and the rest so far is forgotten.
     pub fn take_io(&mut self) -> (Vec<IoRecord>, Vec<String>) {
         if self.image.io.is_none() {
             return (Vec::new(), Vec::new());
