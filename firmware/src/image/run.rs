@@ -805,11 +805,11 @@ impl ImageRun {
     fn replay_room(&self, period: &tactus_emulator::Period, outs: &[SampleOut]) -> Option<u64> {
         let cores = self.at.samples.len();
         let increases = &period.counter_increases()[cores..];
-        let ends: Vec<u32> = period.counters_at_end().skip(cores).collect();
+        let ends = period.counters_at_end().skip(cores);
         let c = &self.limiter;
         let mut room = u64::MAX;
         let samples = i64::try_from(outs.len()).ok()?;
-        for (((key, drive, _), &grew), &end) in self.at.budgets.iter().zip(increases).zip(&ends) {
+        for (((key, drive, _), &grew), end) in self.at.budgets.iter().zip(increases).zip(ends) {
             let (grew, end) = (i64::from(grew as i32), i64::from(end as i32));
             let room_here = if grew == 0 {
                 continue;

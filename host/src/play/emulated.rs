@@ -435,18 +435,13 @@ impl KeyEngine for BoardEngine<'_> {
                     Some(to_f64(ev.args.first().copied().unwrap_or(0), frac));
             }
         }
-        let r = &mut self.report;
-        for c in 0..r.max.len() {
-            r.max[c] = r.max[c].max(out.core_cycles[c]);
-            r.total[c] += out.core_cycles[c];
-            r.misses[c] = out.misses[c];
-            self.block_max = self.block_max.max(out.core_cycles[c]);
-        }
-        self.steps += 1;
-        if self.steps.is_multiple_of(self.decimation) {
-            r.cycles.push(self.block_max);
-            self.block_max = 0;
-        }
+        count_sample(
+            &mut self.report,
+            &mut self.block_max,
+            &mut self.steps,
+            self.decimation,
+            out,
+        );
         if let Some(board) = self.io_trace.as_ref().map(|t| t.0) {
             self.write_io().map_err(|source| RunError::Board {
                 board,
@@ -478,17 +473,7 @@ impl KeyEngine for BoardEngine<'_> {
             if !out.events.is_empty() {
                 return false;
             }
-            for c in 0..r.max.len() {
-                r.max[c] = r.max[c].max(out.core_cycles[c]);
-                r.total[c] += out.core_cycles[c];
-                r.misses[c] = out.misses[c];
-                *block_max = (*block_max).max(out.core_cycles[c]);
-            }
-            *steps += 1;
-            if steps.is_multiple_of(*decimation) {
-                r.cycles.push(*block_max);
-                *block_max = 0;
-            }
+            count_sample(r, block_max, steps, *decimation, out);
             true
         });
         Ok(given as usize)
@@ -503,6 +488,29 @@ impl KeyEngine for BoardEngine<'_> {
                 .map_or(f64::NAN, |&x| to_f64(x, frac)),
             None => f64::NAN,
         }
+    }
+}
+
+/// Adds one sample's handler cycles and misses to `r`: per core the largest and the sum,
+/// the firmware's miss count, and every `decimation` samples (counted by `steps`) the
+/// busier core's largest of them (`block_max`) to the cycle series.
+fn count_sample(
+    r: &mut BoardRun,
+    block_max: &mut u64,
+    steps: &mut usize,
+    decimation: usize,
+    out: &tactus_firmware::image::SampleOut,
+) {
+    for c in 0..r.max.len() {
+        r.max[c] = r.max[c].max(out.core_cycles[c]);
+        r.total[c] += out.core_cycles[c];
+        r.misses[c] = out.misses[c];
+        *block_max = (*block_max).max(out.core_cycles[c]);
+    }
+    *steps += 1;
+    if steps.is_multiple_of(decimation) {
+        r.cycles.push(*block_max);
+        *block_max = 0;
     }
 }
 
