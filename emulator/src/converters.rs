@@ -752,6 +752,11 @@ impl Dac8568 {
         self.bits += 1;
         if self.bits == self.part.frame_bits {
             self.write(cycle, self.shift);
+            // The frame's bits are spent: nothing reads them again before the next SYNC
+            // fall clears them, so the part's state no longer carries the frame's data
+            // (two DACs that wrote different words are then equal, as a period memo's
+            // key or a rest point compares them).
+            self.shift = 0;
         }
     }
 

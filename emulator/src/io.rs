@@ -168,6 +168,30 @@ pub struct Io {
     /// Per PIO block and state machine held behind, the cycle its loop ends at: until an
     /// advance reaches it (or settles), it stays held without a look.
     held_until: [[u64; 4]; 2],
+    /// The cycle before which nothing runs, as the last advance found it (`Io::skip_idle`).
+    idle: Idle,
+}
+
+/// What an advance found of the next cycle anything can happen in (the DMA quiet, no state
+/// machine due before it, none held behind): until then an advance only moves the clocks
+/// ([`Io::skip_idle`]). 0 when unknown; moved with the machine's cycles ([`Io::rebase`]),
+/// kept by a clone and its rewind, forgotten by everything else that changes the machine (a
+/// register access, a reset, the host's access to the parts: [`crate::Board::io_mut`]). A
+/// note of the machine's to itself, not its state: machines that differ only in it are
+/// equal.
+#[derive(Clone, Copy, Default)]
+struct Idle(u64);
+
+impl PartialEq for Idle {
+    fn eq(&self, _: &Idle) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for Idle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Idle")
+    }
 }
 
 /// The machine at some moment, to go back to ([`Io::checkpoint`], [`Io::rewind`]).
@@ -528,6 +552,7 @@ impl Io {
             ahead: None,
             behind: 0,
             held_until: [[0; 4]; 2],
+            idle: Idle(0),
         }
     }
 
@@ -603,6 +628,7 @@ impl Io {
     /// Its cycles moved by `r`, its parts' records not (a period memo's key, end state, or
     /// the live machine compared with one: `board/io_window.rs`).
     pub(crate) fn rebase(&mut self, r: Rebase) {
+        self.idle = Idle(r.at(self.idle.0));
         self.cycle = r.at(self.cycle);
         for c in self.dma_claim.iter_mut().flatten() {
             *c = r.at(*c);
@@ -713,6 +739,12 @@ impl Io {
         self.record_counts().iter().all(|c| c[0] >= max)
     }
 
+    /// Forgets what the last advance found of the cycles ahead ([`Idle`]): a caller that
+    /// may change the machine through its public fields.
+    pub(crate) fn forget_idle(&mut self) {
+        self.idle = Idle(0);
+    }
+
     /// The first cycle the machine has not run yet.
     pub fn cycle(&self) -> u64 {
         self.cycle
@@ -804,6 +836,7 @@ impl Io {
     /// A core reads the register at `addr` (the machine run up to the access's cycle);
     /// `None` for a block held in reset (a bus fault).
     pub(crate) fn read(&mut self, addr: u32) -> Option<u32> {
+        self.idle = Idle(0);
         let base = addr & !0x3fff;
         if self.held & Self::reset_bit(base) != 0 {
             return None;
@@ -819,6 +852,7 @@ impl Io {
 
     /// A core writes the register at `addr` (any alias); false for a block held in reset.
     pub(crate) fn write(&mut self, addr: u32, value: u32) -> bool {
+        self.idle = Idle(0);
         let base = addr & !0x3fff;
         if self.held & Self::reset_bit(base) != 0 {
             return false;
@@ -873,6 +907,7 @@ impl Io {
     /// RESETS now holds `held` (its RESET register): a block newly put into reset returns
     /// to its reset state.
     pub(crate) fn set_resets(&mut self, held: u32) {
+        self.idle = Idle(0);
         let held = held & resets::ALL;
         let entering = held & !self.held;
         self.ahead = None;
@@ -1359,6 +1394,22 @@ impl Io {
     /// changed (its `observe` does nothing otherwise). A state machine that drives its
     /// converters alone runs ahead of the rest with them ([`Io::run_ahead`]).
     fn advance_by_events(&mut self, to: u64, mem: &mut Memory, settle: bool) {
+        if self.behind == 0 && to <= self.idle.0 && self.idle.0 != 0 {
+            #[cfg(debug_assertions)]
+            let slow = {
+                let mut io = Box::new(self.clone());
+                io.idle = Idle(0);
+                io.advance_by_events(to, mem, settle);
+                io
+            };
+            self.skip_idle(to);
+            #[cfg(debug_assertions)]
+            debug_assert!(
+                *self == *slow,
+                "an idle advance differs from the run it skips"
+            );
+            return;
+        }
         let wins = [[self.dma_wins(0), self.dma_wins(1)]; 2];
         let start = self.cycle;
         let mut flops = [self.pio[0].sync(), self.pio[1].sync()];
@@ -1449,6 +1500,8 @@ impl Io {
         };
         // The DMA's quietness and the FIFO levels it was found at.
         let mut dma_quiet: Option<([u32; 2], bool)> = None;
+        // The next cycle anything can happen in, when the run stops before it.
+        let mut idle = 0;
         while self.cycle < to {
             let c = self.cycle;
             let levels = [self.pio[0].levels(), self.pio[1].levels()];
@@ -1472,6 +1525,7 @@ impl Io {
                     .max(c),
             };
             if t >= to {
+                idle = t;
                 break;
             }
             if !quiet {
@@ -1560,6 +1614,32 @@ impl Io {
                 log.clear();
             }
         }
+        self.idle = Idle(if self.behind == 0 { idle } else { 0 });
+    }
+
+    /// [`Io::advance_by_events`] to `to` when nothing runs before it ([`Io::idle`], none
+    /// held behind): what its run without an event does — every state machine's clock to
+    /// `to`, the synchronisers' flops the inputs at `to − 1` and `to − 2` (those at the
+    /// start's `− 1` when `to` is the cycle after it), the ADCs' outputs unchanged.
+    fn skip_idle(&mut self, to: u64) {
+        let start = self.cycle;
+        if to <= start {
+            return;
+        }
+        let inputs = self.adcs.iter().fold(0, |m, a| m | a.gpio_in());
+        for b in 0..2 {
+            for n in 0..4 {
+                self.held_until[b][n] = 0;
+                let skipped = to.saturating_sub(self.sm_clock[b][n]);
+                self.pio[b].sm_skip(n, skipped);
+                self.sm_clock[b][n] = to;
+            }
+            let then = self.pio[b].sync();
+            let older = if to == start + 1 { then[0] } else { inputs };
+            self.pio[b].set_sync([inputs, older]);
+        }
+        self.gpio_in = inputs;
+        self.cycle = to;
     }
 
     /// [`Io::observe`] by events: only the converters one of whose pins changed see them;

@@ -270,7 +270,9 @@ impl Board {
 
     /// The attached I/O, to set what the ADCs read (`Ads8688::set_code`).
     pub fn io_mut(&mut self) -> Option<&mut crate::io::Io> {
-        self.system.io.as_deref_mut()
+        let io = self.system.io.as_deref_mut()?;
+        io.forget_idle();
+        Some(io)
     }
 
     /// Total cycles elapsed: the lower of the running cores' counters.
