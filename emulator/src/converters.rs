@@ -699,9 +699,19 @@ impl Dac8568 {
     pub fn clock_bits(&mut self, first: u64, period: u64, k: u32, sdi: u64) {
         debug_assert!(self.clocks_ok(period) && (1..=64).contains(&k));
         self.fall(first, sdi & 1 != 0);
-        for i in 1..k {
-            // `fall` without its checks (the rate known to be within the part's).
-            self.latch(first + u64::from(i) * period, sdi >> i & 1 != 0);
+        // The other k − 1 falls without their checks (the rate known to be within the
+        // part's): as `latch` one by one, the frame's bits that remain taken at once.
+        let n = (k - 1).min(self.part.frame_bits.saturating_sub(self.bits));
+        if n > 0 {
+            // Bits 1..=n of `sdi`, the first latched the most significant.
+            let taken = (sdi >> 1) & ((1u64 << n) - 1);
+            let msb_first = taken.reverse_bits() >> (64 - n);
+            self.shift = ((u64::from(self.shift) << n) | msb_first) as u32;
+            self.bits += n;
+            if self.bits == self.part.frame_bits {
+                self.write(first + u64::from(n) * period, self.shift);
+                self.shift = 0;
+            }
         }
         self.last_fall = Some(first + u64::from(k - 1) * period);
     }

@@ -261,3 +261,60 @@ fn dac_timing_is_checked_against_its_data_sheet() {
     // Divided by 2 with 6 cycles of CS high (90 ns): nothing.
     assert!(run(2, 5).is_empty());
 }
+
+/// A DAC clocked by SCLK edges one at a time (`observe`) and one clocked in bulk
+/// (`Dac8568::clock_bits`, the bit loops of `crate::io`) come out equal: registers, updates,
+/// violations and state, for frames cut into runs of every length, one running past the
+/// frame's 32nd bit (the bits after it are ignored).
+#[test]
+fn a_dac_clocked_in_bulk_equals_one_clocked_edge_by_edge() {
+    const PERIOD: u64 = 8;
+    let (cs, sclk, sdi) = (1 << PINS.cs, 1 << PINS.sclk, 1 << PINS.sdi);
+    let dirs = cs | sclk | sdi;
+    let mut edges = Dac8568::new(&DAC8568, PINS, CLOCK_HZ);
+    let mut bulk = Dac8568::new(&DAC8568, PINS, CLOCK_HZ);
+    let words = [
+        dac_word(3, 2, 0x1234),
+        dac_word(3, 5, 0xbeef),
+        dac_word(0, 7, 0x7777),
+        dac_word(1, 7, 0),
+        dac_word(3, 15, 0x0f0f),
+    ];
+    let cuts: [&[u32]; 5] = [&[32], &[1, 7, 13, 11], &[5, 27], &[31, 1], &[20, 20]];
+    let mut cycle = 100;
+    for (&w, runs) in words.iter().zip(cuts) {
+        for dac in [&mut edges, &mut bulk] {
+            dac.observe(cycle, 0, dirs);
+        }
+        cycle += 20;
+        let mut bit = 0u32;
+        for &k in runs {
+            let first = cycle + PERIOD;
+            // Bit i of the run: SDI and SCLK high half a period before its fall.
+            let mut sdi_bits = 0u64;
+            for i in 0..k {
+                let b = bit + i;
+                let level = if b < 32 { w >> (31 - b) & 1 } else { 0 };
+                sdi_bits |= u64::from(level) << i;
+                let fall = first + u64::from(i) * PERIOD;
+                let d = if level != 0 { sdi } else { 0 };
+                edges.observe(fall - PERIOD / 2, sclk | d, dirs);
+                edges.observe(fall, d, dirs);
+            }
+            assert!(bulk.clocks_ok(PERIOD));
+            bulk.clock_bits(first, PERIOD, k, sdi_bits);
+            bit += k;
+            cycle = first + u64::from(k - 1) * PERIOD;
+        }
+        cycle += 20;
+        for dac in [&mut edges, &mut bulk] {
+            dac.observe(cycle, cs, dirs);
+        }
+        cycle += 20;
+    }
+    assert!(edges.violations().is_empty(), "{:?}", edges.violations());
+    assert_eq!(edges.updates(), bulk.updates());
+    assert_eq!(edges.outputs(), bulk.outputs());
+    assert_eq!(edges.updates().len(), 2 + 1 + 8);
+    assert_eq!(format!("{edges:?}"), format!("{bulk:?}"));
+}

@@ -365,25 +365,34 @@ impl Board {
         let key = memo_logs(logs, to_memo);
         let hash = log_hash(&key);
         let xip = self.system.xip_answers;
-        // The I/O itself at the memo's time base while it is compared (its records aside).
-        now.rebase(to_memo);
-        let records = now.take_records();
-        let sys = &self.system;
-        let live = sys.io.as_deref();
-        let data = live.map_or(0, Io::data_hash);
-        let hit = self.io_memo.entries.iter().position(|e| {
+        let data = now.data_hash();
+        // The entries the key's parts that need no I/O at the memo's time base allow: a
+        // busy board's codes differ from every entry's (most misses end here).
+        let matches = |e: &MemoEntry| {
             e.hash == hash
                 && e.xip == xip
                 && e.data == data
                 && e.logs == key
                 && (e.valued.iter()).all(|&(k, i, v)| logs[k][i as usize].value == v)
-                && live.is_some_and(|l| *e.start == *l)
-                && (e.pre.iter()).all(|&(w, v)| load_le(&sys.sram, w as usize, 4) == v)
-        });
-        if let Some(now) = self.system.io.as_mut() {
-            now.put_records(records);
-            if hit.is_none() {
-                now.rebase(to_memo.back());
+        };
+        let mut hit = None;
+        if self.io_memo.entries.iter().any(matches) {
+            // The I/O itself at the memo's time base while it is compared (its records
+            // aside).
+            now.rebase(to_memo);
+            let records = now.take_records();
+            let sys = &self.system;
+            let live = sys.io.as_deref();
+            hit = self.io_memo.entries.iter().position(|e| {
+                matches(e)
+                    && live.is_some_and(|l| *e.start == *l)
+                    && (e.pre.iter()).all(|&(w, v)| load_le(&sys.sram, w as usize, 4) == v)
+            });
+            if let Some(now) = self.system.io.as_mut() {
+                now.put_records(records);
+                if hit.is_none() {
+                    now.rebase(to_memo.back());
+                }
             }
         }
         if let Some(i) = hit {
