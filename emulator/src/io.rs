@@ -38,8 +38,11 @@
 //! DMA's banks need only the DMA as of their cycle: there (`Io::advance` without
 //! `settle`) such a state machine at a loop's head that ends later stays behind, held at its
 //! clock, and runs the loop whole in a later advance (`Io::behind`); every other advance
-//! settles it first. A converter sees the pins when one of its own changed. The
-//! reference it is tested against ticks everything every cycle ([`Io::stepwise`]).
+//! settles it first. A converter sees the pins when one of its own changed. An advance
+//! that stops before anything happens notes the cycle of the next event; the advances
+//! that end before it (most of a window's replay: the cores' accesses come in clusters)
+//! only move the clocks (`Io::skip_idle`, checked against the full run in debug builds).
+//! The reference it is tested against ticks everything every cycle ([`Io::stepwise`]).
 //!
 //! **The DMA against the cores.** The DMA's two masters (read and write ports) arbitrate
 //! for SRAM banks with the cores (a bank serves one master a cycle). With DMA_R and DMA_W
