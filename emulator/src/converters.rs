@@ -378,6 +378,9 @@ impl Ads8688 {
     pub fn clock_bits(&mut self, first: u64, fall: u64, period: u64, k: u32, sdi: u64) -> u64 {
         debug_assert!(self.clocks_ok(period) && (1..=64).contains(&k) && fall < period);
         let (half, bits) = (self.part.frame_bits / 2, self.part.frame_bits);
+        // The rises, then the falls: a rise reads only the frame's count and code, which no
+        // fall writes, and a fall only the frame's channel, which no rise writes, so the
+        // two interleaved (as the edges come) and apart give the same.
         let mut sdo = 0u64;
         for i in 0..k {
             let cycle = first + u64::from(i) * period;
@@ -392,7 +395,19 @@ impl Ads8688 {
                 _ => self.rise(cycle, i == 0),
             }
             sdo |= u64::from(self.sdo) << i;
-            self.fall(sdi >> i & 1 != 0);
+        }
+        // The falls: the command's bits that remain taken at once (the first latched the
+        // most significant), as `fall` takes them one by one; the ones after it change
+        // nothing.
+        let n = k.min(half.saturating_sub(self.falling));
+        if n > 0 {
+            let taken = sdi & (u64::MAX >> (64 - n));
+            let msb_first = taken.reverse_bits() >> (64 - n);
+            self.shift_in = ((u64::from(self.shift_in) << n) | msb_first) as u32;
+            self.falling += n;
+            if self.falling == half {
+                self.command_latched();
+            }
         }
         self.last_rise = Some(first + u64::from(k - 1) * period);
         sdo
@@ -491,13 +506,19 @@ impl Ads8688 {
             self.shift_in = self.shift_in << 1 | u32::from(sdi);
             self.falling += 1;
             if self.falling == half {
-                let command = self.shift_in as u16;
-                if let Some(f) = self.frame.as_mut() {
-                    f.command = command;
-                }
-                self.command(command);
+                self.command_latched();
             }
         }
+    }
+
+    /// The frame's command is in (its `frame_bits / 2`-th fall): the frame keeps it and the
+    /// part obeys it.
+    fn command_latched(&mut self) {
+        let command = self.shift_in as u16;
+        if let Some(f) = self.frame.as_mut() {
+            f.command = command;
+        }
+        self.command(command);
     }
 
     /// The command register (SBAS582, "Command Register Description"): AUTO_RST 0xA000,
