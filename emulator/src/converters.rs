@@ -134,6 +134,13 @@ impl AdcFrame {
     }
 }
 
+/// The low `n` bits of `sdi` (1 ≤ n ≤ 64), bit 0 the first latched, as a shift register
+/// holds them after `n` shifts: bit 0 the most significant (the bulk clocking of
+/// [`Ads8688::clock_bits`] and [`Dac8568::clock_bits`]).
+fn msb_first(sdi: u64, n: u32) -> u64 {
+    (sdi & (u64::MAX >> (64 - n))).reverse_bits() >> (64 - n)
+}
+
 /// A breach of a converter's data-sheet timing.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TimingViolation {
@@ -401,9 +408,8 @@ impl Ads8688 {
         // nothing.
         let n = k.min(half.saturating_sub(self.falling));
         if n > 0 {
-            let taken = sdi & (u64::MAX >> (64 - n));
-            let msb_first = taken.reverse_bits() >> (64 - n);
-            self.shift_in = ((u64::from(self.shift_in) << n) | msb_first) as u32;
+            let bits = msb_first(sdi, n);
+            self.shift_in = ((u64::from(self.shift_in) << n) | bits) as u32;
             self.falling += n;
             if self.falling == half {
                 self.command_latched();
@@ -724,15 +730,7 @@ impl Dac8568 {
         // part's): as `latch` one by one, the frame's bits that remain taken at once.
         let n = (k - 1).min(self.part.frame_bits.saturating_sub(self.bits));
         if n > 0 {
-            // Bits 1..=n of `sdi`, the first latched the most significant.
-            let taken = (sdi >> 1) & ((1u64 << n) - 1);
-            let msb_first = taken.reverse_bits() >> (64 - n);
-            self.shift = ((u64::from(self.shift) << n) | msb_first) as u32;
-            self.bits += n;
-            if self.bits == self.part.frame_bits {
-                self.write(first + u64::from(n) * period, self.shift);
-                self.shift = 0;
-            }
+            self.take_bits(n, msb_first(sdi >> 1, n), first + u64::from(n) * period);
         }
         self.last_fall = Some(first + u64::from(k - 1) * period);
     }
@@ -779,8 +777,14 @@ impl Dac8568 {
         if self.bits >= self.part.frame_bits {
             return;
         }
-        self.shift = self.shift << 1 | u32::from(sdi);
-        self.bits += 1;
+        self.take_bits(1, u64::from(sdi), cycle);
+    }
+
+    /// `n` more bits of the frame (at most those it lacks), `bits`' low `n` with the first
+    /// latched the most significant, the last at `cycle`: the 32nd writes the frame.
+    fn take_bits(&mut self, n: u32, bits: u64, cycle: u64) {
+        self.shift = ((u64::from(self.shift) << n) | bits) as u32;
+        self.bits += n;
         if self.bits == self.part.frame_bits {
             self.write(cycle, self.shift);
             // The frame's bits are spent: nothing reads them again before the next SYNC

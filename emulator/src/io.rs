@@ -1628,7 +1628,7 @@ impl Io {
             ];
             self.pio[b].set_sync(flops);
         }
-        self.gpio_in = self.adcs.iter().fold(0, |m, a| m | a.gpio_in());
+        self.gpio_in = self.adc_levels();
         let held_adcs = (0..8)
             .filter(|&i| self.behind & (1 << i) != 0)
             .fold(0, |m, i| m | ahead[i / 4][i % 4].map_or(0, |(a, ..)| a));
@@ -1649,7 +1649,7 @@ impl Io {
         if to <= start {
             return;
         }
-        let inputs = self.adcs.iter().fold(0, |m, a| m | a.gpio_in());
+        let inputs = self.adc_levels();
         for b in 0..2 {
             for n in 0..4 {
                 self.held_until[b][n] = 0;
@@ -1663,6 +1663,11 @@ impl Io {
         }
         self.gpio_in = inputs;
         self.cycle = to;
+    }
+
+    /// The GPIO input levels the ADCs drive now (their SDO pins).
+    fn adc_levels(&self) -> u32 {
+        self.adcs.iter().fold(0, |m, a| m | a.gpio_in())
     }
 
     /// [`Io::observe`] by events: only the converters one of whose pins changed see them;
