@@ -510,24 +510,28 @@ fn fetch_allowed(sys: &System, pc: u32, size: u32) -> bool {
 /// (the run ends where a region does not fit or leaves, `Err(Leave::General)`), every
 /// store's old word is appended to `journal` (the run ends before a store that finds it
 /// full, its capacity) so that the caller can undo the run. With `io` (a window on a board
-/// with an I/O: its log and the DMA's banks, `board/io_window.rs`), memos that touch those
-/// banks apply too, logging their accesses there. `Ok` when the core reached `limit`.
+/// with an I/O: its log, the DMA's banks `L`, and those of `L` the core may access,
+/// `board/io_window.rs`), memos that touch `L` apply too, logging their accesses there,
+/// and native code does and logs its single loads and stores to the third mask's banks
+/// and its word stores to the I/O's registers ([`jit::Confine::io`]). `Ok` when the core
+/// reached `limit`.
 pub(crate) fn run_confined(
     core: &mut Core,
     sys: &mut System,
     blocks: &mut Blocks,
     limit: u64,
     mut journal: Option<&mut Vec<u64>>,
-    mut io: Option<(&mut Vec<crate::board::IoAccess>, u8)>,
+    mut io: Option<(&mut Vec<crate::board::IoAccess>, u8, u8)>,
 ) -> Result<(), Leave> {
     let allowed = sys.allowed_banks;
+    let io_own = io.as_ref().map_or(0, |&(_, _, own)| own & !allowed);
     let mut retired = 0u64;
     let mut native = true;
     // The other core does not touch the allowed banks while this one runs (see
     // [`crate::board`], "Running ahead"), so its claims of them stay as they are: once the
     // core's cycle reaches the last, no access can wait.
     let quiet_from = (0..crate::bus::BANKS)
-        .filter(|b| allowed >> b & 1 != 0)
+        .filter(|b| (allowed | io_own) >> b & 1 != 0)
         .map(|b| sys.bank_claim[b][(core.id ^ 1) & 1])
         .filter(|&c| c != u64::MAX)
         .max()
@@ -558,7 +562,7 @@ pub(crate) fn run_confined(
                 solo,
                 allowed,
                 journal.as_deref_mut(),
-                io.as_mut().map(|(log, l)| (&mut **log, *l)),
+                io.as_mut().map(|(log, l, _)| (&mut **log, *l)),
             ) {
                 Try::Applied => continue,
                 Try::Record => break Err(Leave::Record),
@@ -577,6 +581,10 @@ pub(crate) fn run_confined(
                     let mut confine = jit::Confine {
                         allowed,
                         journal: journal.as_deref_mut(),
+                        io: io
+                            .as_mut()
+                            .filter(|_| io_own != 0)
+                            .map(|(log, _, _)| (&mut **log, io_own)),
                     };
                     let (exit, n, _) = jit::call(region.f, core, sys, limit, Some(&mut confine));
                     retired += n;

@@ -345,3 +345,50 @@ fn the_period_memo_of_the_io_equals_the_lock_step() {
         assert!(io.memo_recorded > 10, "{period}: {io:?}");
     }
 }
+
+#[test]
+fn native_code_logs_the_dmas_banks_as_the_general_path_does() {
+    // In a window, a core's single loads and stores to the DMA's bank and its word stores
+    // to the DMA's registers are done and logged by native code (`jit::abi`'s `io_sram`,
+    // `io_reg`); the general path logs the same accesses through the window's bus. Both
+    // boards run the same slices; every window's logs, in order, must be the same.
+    let shapes = [
+        (false, false, 0, 300_000),
+        (true, false, 0, 200_000),
+        (false, true, 3001, 600_000),
+    ];
+    for (busy, periodic, period, cycles) in shapes {
+        let shape = Shape {
+            busy,
+            periodic,
+            period,
+        };
+        let [mut native, mut general] = [true, false].map(|on| {
+            let mut b = board(Engine::Block, shape);
+            b.check_io_logs(on);
+            b
+        });
+        let mut rng = Rng(0x4e_a71e + busy as u64 + 2 * periodic as u64);
+        while native.cycle() < cycles {
+            let limit = match periodic {
+                true => (native.cycle() / period + 1 + rng.below(3) as u64) * period + 900,
+                false => native.cycle() + 1 + rng.below(9000) as u64,
+            };
+            let set = rng.below(3);
+            for b in [&mut native, &mut general] {
+                let io = b.io_mut().expect("io");
+                for c in 0..8 {
+                    io.adcs[0].set_code(c, set.wrapping_mul(97) ^ (c as u16) << 12);
+                }
+            }
+            assert_eq!(native.run_until(limit), general.run_until(limit));
+            assert_eq!(state(&mut native), state(&mut general), "at {limit}");
+        }
+        let (n, g) = (native.io_log_digest(), general.io_log_digest());
+        assert_eq!(n, g, "busy {busy}, periodic {periodic}");
+        assert_ne!(n, Some(0));
+        assert_eq!(native.io_windows(), general.io_windows());
+        let w = native.io_windows();
+        assert!(w.kept + w.waited + w.stale > 20, "{w:?}");
+    }
+}

@@ -9,16 +9,21 @@
 //!
 //! **The cores' run.** At the window's start the I/O is run up to it (as a core's access
 //! there would); the cores' run leaves it there, and the replay checkpoints it
-//! ([`crate::io::Io::checkpoint`]) before it runs it. Each core then runs alone as in any window, its
-//! accesses to the banks the DMA may reach (`L`, [`crate::bus::System::io_banks`] at the
-//! start) taking the general path — not compiled code or fetches — served as if no DMA
-//! were there, and logged: the instruction's start cycle, the data phase, the SRAM offset,
-//! size, value and, for a store, the word it overwrote ([`IoAccess`]). A memoized call
-//! ([`crate::memo`]) recorded in such a window keeps its accesses to `L` (cycles from its
-//! entry); a hit under the same `L` logs them at the hit's cycles, each store with the word
-//! before the memo (the replay needs only the oldest version of a word). A store to
-//! the DMA's or the PIOs' registers is logged instead of done (a load of them stops the
-//! core, as any peripheral access).
+//! ([`crate::io::Io::checkpoint`]) before it runs it. Each core then runs alone as in any
+//! window, its accesses to the banks the DMA may reach (`L`, [`crate::bus::System::io_banks`]
+//! at the start; of them its own) served as if no DMA were there, and logged: the
+//! instruction's start cycle, the data phase, the SRAM offset, size, value and, for a
+//! store, the word it overwrote ([`IoAccess`]). Native code does and logs single loads and
+//! stores there (`jit::abi`'s `io_sram`, called before the access it then does as in any
+//! of the core's banks); multiple transfers and exception frames take the general path,
+//! whose bus (`board/window.rs`, `Confined`) logs the same, and no code is fetched from
+//! `L`. A memoized call ([`crate::memo`]) recorded in such a window keeps its accesses to
+//! `L` (cycles from its entry); a hit under the same `L` logs them at the hit's cycles,
+//! each store with the word before the memo (the replay needs only the oldest version of a
+//! word). A store to the DMA's or the PIOs' registers is logged instead of done (native
+//! code's word stores through `jit::abi`'s `io_reg`; a load of them stops the core, as any
+//! peripheral access). `tests/io_windows.rs` compares the logs of the two paths, window
+//! by window ([`Board::check_io_logs`]).
 //!
 //! **The replay.** The logged stores are taken back to the words as they were before the
 //! window; the two logs are merged in the lock-step order (the instruction that starts
@@ -91,6 +96,31 @@ pub(crate) struct IoAccess {
     pub(crate) kind: IoKind,
 }
 
+impl IoAccess {
+    /// The access of the instruction (or exception entry) that started at cycle `start`,
+    /// its data phase at `cycle`: `size` bytes (1, 2 or 4) at SRAM offset or register
+    /// address `addr`, `value` loaded or stored, `old` a store's word before it (else 0).
+    pub(crate) fn new(
+        start: u64,
+        cycle: u64,
+        kind: IoKind,
+        addr: u32,
+        size: u32,
+        value: u32,
+        old: u32,
+    ) -> IoAccess {
+        IoAccess {
+            start,
+            cycle,
+            addr,
+            value,
+            old,
+            size: size as u8,
+            kind,
+        }
+    }
+}
+
 /// The log a window's [`super::window`] bus writes for one core.
 pub(super) struct IoLog<'a> {
     /// The banks the DMA may reach, `L`.
@@ -111,15 +141,7 @@ impl IoLog<'_> {
         value: u32,
         old: u32,
     ) -> IoAccess {
-        let a = IoAccess {
-            start: self.start,
-            cycle,
-            addr,
-            value,
-            old,
-            size: size as u8,
-            kind,
-        };
+        let a = IoAccess::new(self.start, cycle, kind, addr, size, value, old);
         self.log.push(a);
         a
     }
@@ -263,6 +285,24 @@ impl Board {
         }
     }
 
+    /// For tests: keeps a digest of every window's logs ([`Board::io_log_digest`]), and
+    /// with `native` false has the cores' accesses to the DMA's banks and the I/O's
+    /// registers take the general path instead of native code (`jit::abi`'s `io_sram`,
+    /// `io_reg`), so that a test can compare the logs the two paths write. Results never
+    /// depend on it.
+    #[doc(hidden)]
+    pub fn check_io_logs(&mut self, native: bool) {
+        self.io_native = native;
+        self.io_digest = Some(0);
+    }
+
+    /// The digest [`Board::check_io_logs`] keeps: FNV-1a over every access logged in a
+    /// window, each window's logs in order; `None` unless asked for.
+    #[doc(hidden)]
+    pub fn io_log_digest(&self) -> Option<u64> {
+        self.io_digest
+    }
+
     /// At the start of a window from cycle `start`: on a board with an I/O, runs it up to
     /// `start`, keeps a clone and has the cores log their accesses to its DMA's banks;
     /// `None` without an I/O.
@@ -287,6 +327,9 @@ impl Board {
         self.io_window = None;
         self.system.io_banks = start.banks;
         self.system.allowed_banks = self.system.fast_banks();
+        if let Some(d) = self.io_digest.as_mut() {
+            *d = (*d ^ log_hash(&self.io_logs)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
         if !kept {
             return false;
         }

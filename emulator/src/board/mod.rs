@@ -33,8 +33,8 @@ mod run;
 mod window;
 
 pub use host::{CallError, CallResult, EmuError, CALL_STUB};
-pub(crate) use io_window::IoAccess;
 pub use io_window::IoWindows;
+pub(crate) use io_window::{IoAccess, IoKind};
 pub use profile::Call;
 pub use rest::{Period, RestPoint};
 
@@ -183,6 +183,11 @@ pub struct Board {
     io_windows: IoWindows,
     /// The period memo of the I/O's replays (`board/io_window.rs`).
     io_memo: io_window::IoMemo,
+    /// Whether native code does and logs a window's accesses to the DMA's banks and the
+    /// I/O's registers ([`Board::check_io_logs`]).
+    io_native: bool,
+    /// A digest of the windows' logs so far, when kept ([`Board::check_io_logs`]).
+    io_digest: Option<u64>,
     /// No window before either core reaches this cycle (after one that ran nothing).
     window_at: u64,
     /// Each core's active exceptions at its last [`Board::profile_step`] that ran its loop
@@ -242,6 +247,8 @@ impl Board {
             io_journal: Vec::new(),
             io_windows: IoWindows::default(),
             io_memo: Default::default(),
+            io_native: true,
+            io_digest: None,
             window_at: 0,
             debug: Default::default(),
             cache: run::empty_cache(),

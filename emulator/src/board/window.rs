@@ -493,7 +493,11 @@ impl Board {
                     let sys = &mut self.system;
                     // Not the DMA's banks: their accesses go through `Confined`, logged.
                     sys.allowed_banks = banks & !self.io_window.unwrap_or(0);
-                    let io = self.io_window.map(|l| (&mut self.io_logs[k], l));
+                    let native = match self.io_native {
+                        true => banks & self.io_window.unwrap_or(0),
+                        false => 0,
+                    };
+                    let io = self.io_window.map(|l| (&mut self.io_logs[k], l, native));
                     let r = block::run_confined(
                         core,
                         sys,

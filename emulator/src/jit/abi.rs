@@ -2,8 +2,10 @@
 //! native code reads its pointers from and writes its counts to, the exit reasons, and
 //! the call itself.
 
-use crate::bus::System;
+use crate::board::{IoAccess, IoKind};
+use crate::bus::{load_le, System};
 use crate::core::Core;
+use crate::io::Io;
 
 /// What the native code shares with the board for one call (`#[repr(C)]`: the generated
 /// code reads its fields at fixed offsets).
@@ -36,6 +38,15 @@ pub(crate) struct Ctx {
     /// Confined code only: entries available; a store that finds the journal full leaves
     /// before it ([`Exit::General`]).
     pub journal_cap: u64,
+    /// Confined code in a window on a board with converters only (`board/io_window.rs`):
+    /// bit *b* set when a single load or store to SRAM bank *b* (not in `allowed`: the
+    /// DMA's) is done inline and logged ([`io_sram`]); 0 elsewhere.
+    pub io_banks: u64,
+    /// The window's log of the core's accesses to the I/O ([`io_sram`], [`io_reg`]); null
+    /// when `io_banks` is 0.
+    pub io_log: *mut Vec<IoAccess>,
+    /// The board's I/O, as the window's start left it ([`io_reg`]); null when `io_log` is.
+    pub io: *const Io,
 }
 
 /// A confined run's bank mask and undo journal ([`call`]).
@@ -45,6 +56,10 @@ pub(crate) struct Confine<'a> {
     /// The undo journal: the native code appends to it, up to its capacity (`None`: the
     /// stores are not journaled).
     pub journal: Option<&'a mut Vec<u64>>,
+    /// In a window on a board with converters: the core's log of its accesses to the I/O
+    /// and the SRAM banks (the DMA's, the core's own) whose single loads and stores the
+    /// native code does and logs ([`Ctx::io_banks`]).
+    pub io: Option<(&'a mut Vec<IoAccess>, u8)>,
 }
 
 /// Why native code returned.
@@ -115,6 +130,68 @@ pub(crate) unsafe extern "C" fn ppb_store(core: *mut Core, at: u64, value: u32) 
     core.nvic.write(at, SYST_RVR, value) as u32
 }
 
+/// A single load or store by native code to SRAM offset `off` in one of [`Ctx::io_banks`]
+/// (a bank the DMA may reach, in a window: `board/io_window.rs`), called before the
+/// access, which the native code then does as in any allowed bank (arbitration, journal):
+/// logs it as the window's bus (`board/window.rs`, `Confined`) logs the general path's —
+/// the instruction's start cycle `start`, the data phase `start + 1` (a single LDR or
+/// STR's, DDI0484 3.3), the offset, the size, the value loaded (the bytes in SRAM now) or
+/// the register stored (`value`, whole, as the executor passes it), and a store's old
+/// word. `packed`: `off << 32 | store << 8 | size`.
+///
+/// # Safety
+/// `ctx` is the context of the running call, its `io_log` a live vector not otherwise
+/// borrowed during the call, its `sram` the SRAM's bytes with `off` plus the size inside.
+pub(crate) unsafe extern "C" fn io_sram(ctx: *mut Ctx, start: u64, packed: u64, value: u32) {
+    // SAFETY: the caller's.
+    let ctx = unsafe { &mut *ctx };
+    let off = (packed >> 32) as u32;
+    let size = packed as u32 & 0xff;
+    let store = packed >> 8 & 1 != 0;
+    // SAFETY: `off + size` and the word holding it are inside the SRAM (the caller's).
+    let at = |o: u32, n: u32| {
+        let bytes = unsafe { std::slice::from_raw_parts(ctx.sram.add(o as usize), n as usize) };
+        load_le(bytes, 0, n)
+    };
+    let a = match store {
+        true => IoAccess::new(
+            start,
+            start + 1,
+            IoKind::Store,
+            off,
+            size,
+            value,
+            at(off & !3, 4),
+        ),
+        false => IoAccess::new(start, start + 1, IoKind::Load, off, size, at(off, size), 0),
+    };
+    // SAFETY: the caller's.
+    unsafe { (*ctx.io_log).push(a) };
+}
+
+/// A word store of `value` to `addr` by native code in a window on a board with converters:
+/// when `addr` is a register of the I/O's DMA or PIOs that it accepts now ([`Io::accepts`],
+/// the I/O as the window's start left it), logs it for the replay with the instruction's
+/// start cycle `start` and its data phase `start + 1`, as the window's bus does instead of
+/// the store, and returns 1 (the store done: no wait state,
+/// [`crate::io::AHB_PERIPHERAL_WAIT`]); otherwise 0, nothing done (the general path).
+///
+/// # Safety
+/// As [`io_sram`]; `io` null or the board's I/O, not mutably borrowed during the call.
+pub(crate) unsafe extern "C" fn io_reg(ctx: *mut Ctx, start: u64, addr: u32, value: u32) -> u32 {
+    // SAFETY: the caller's.
+    let ctx = unsafe { &mut *ctx };
+    // SAFETY: the caller's.
+    let accepts = !ctx.io.is_null() && unsafe { &*ctx.io }.accepts(addr);
+    if !accepts || ctx.io_log.is_null() {
+        return 0;
+    }
+    let a = IoAccess::new(start, start + 1, IoKind::Reg, addr, 4, value, 0);
+    // SAFETY: the caller's.
+    unsafe { (*ctx.io_log).push(a) };
+    1
+}
+
 /// A compiled region: `fn(core, ctx, limit) -> Exit`.
 pub(crate) type NativeFn = unsafe extern "C" fn(*mut Core, *mut Ctx, u64) -> u32;
 
@@ -126,7 +203,7 @@ pub(crate) fn call(
     core: &mut Core,
     sys: &mut System,
     limit: u64,
-    confine: Option<&mut Confine>,
+    mut confine: Option<&mut Confine>,
 ) -> (Exit, u64, u64) {
     let id = core.id & 1;
     let claims = sys.bank_claim.as_mut_ptr() as *mut u64;
@@ -144,8 +221,11 @@ pub(crate) fn call(
         journal: std::ptr::null_mut(),
         journal_len: 0,
         journal_cap: 0,
+        io_banks: 0,
+        io_log: std::ptr::null_mut(),
+        io: std::ptr::null(),
     };
-    if let Some(c) = confine.as_deref() {
+    if let Some(c) = confine.as_deref_mut() {
         ctx.allowed = c.allowed as u64;
         ctx.journal_cap = u64::MAX;
         if let Some(j) = c.journal.as_deref() {
@@ -153,13 +233,20 @@ pub(crate) fn call(
             ctx.journal_len = j.len() as u64;
             ctx.journal_cap = j.capacity() as u64;
         }
+        if let (Some((log, banks)), Some(io)) = (c.io.as_mut(), sys.io.as_deref()) {
+            ctx.io_banks = u64::from(*banks & !c.allowed);
+            ctx.io_log = &mut **log;
+            ctx.io = io;
+        }
     }
     // SAFETY: `f` was compiled by `Jit::compile` for this layout of `Core` and `Ctx`; it
     // reads and writes only the core's registers, flags, cycle, PC, the SRAM and flash
     // bytes at offsets it has bounds-checked against `SRAM_SIZE` / `FLASH_SIZE`, the code
     // page flags of those offsets, the claim table's six banks and the stall counter;
     // confined code also writes journal entries below `journal_cap`, the vector's
-    // capacity, whose length is then set to the entries written (each initialised).
+    // capacity, whose length is then set to the entries written (each initialised), and
+    // calls `io_sram` and `io_reg` with the context (the I/O log's vector and the I/O
+    // borrowed here for the call, untouched by anything else meanwhile).
     let exit = unsafe { f(core, &mut ctx, limit) };
     if let Some(j) = confine.and_then(|c| c.journal.as_deref_mut()) {
         // SAFETY: the native code wrote entries `len..journal_len`, within the capacity.

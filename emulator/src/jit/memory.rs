@@ -11,7 +11,7 @@
 //! aligned one try SRAM4/5 and flash. Offsets and bank offsets are 64-bit from the view on,
 //! so the common path widens nothing twice.
 
-use super::abi::{ppb_load, ppb_store, Exit, SYST_RVR};
+use super::abi::{io_reg, io_sram, ppb_load, ppb_store, Ctx, Exit, SYST_RVR};
 use super::scan::RegionInstr;
 use super::translate::Translator;
 use crate::bus::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
@@ -20,6 +20,7 @@ use crate::nvic::PPB_BASE;
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, AbiParam, BlockArg, InstBuilder, Signature, Value};
 use cranelift_frontend::FunctionBuilder;
+use std::mem::offset_of;
 
 impl Translator<'_> {
     /// POP (`rn` 13) or LDM: the words, the base write-back (LDM: unless the base is
@@ -312,6 +313,9 @@ impl Translator<'_> {
         self.b.switch_to_block(elsewhere);
         if op.is_store() {
             if size == 4 {
+                if self.confined.is_some() {
+                    self.io_reg(rt, addr, join, solo, pc);
+                }
                 self.ppb_store(ins, rt, addr);
             }
             let p = self.c32(pc);
@@ -346,10 +350,24 @@ impl Translator<'_> {
         self.b.switch_to_block(in_sram);
         let off = self.b.block_params(in_sram)[0];
         let boff = self.b.block_params(in_sram)[1];
-        self.confine_banks(ins, &[boff]);
-        self.b
-            .ins()
-            .jump(in_sram_ok, &[BlockArg::Value(off), BlockArg::Value(boff)]);
+        let args = [BlockArg::Value(off), BlockArg::Value(boff)];
+        match self.confined {
+            Some(c) => {
+                // An allowed bank, or one of the I/O's whose accesses are logged.
+                let bank = self.b.ins().ushr_imm_u(boff, 4);
+                let bank = self.b.ins().ireduce(types::I32, bank);
+                let bit = self.b.ins().ushr(c.allowed, bank);
+                let ok = self.b.ins().band_imm_u(bit, 1);
+                let io = self.b.create_block();
+                self.b.ins().brif(ok, in_sram_ok, &args, io, &[]);
+                self.b.switch_to_block(io);
+                self.io_sram(op, rt, pc, off, bank);
+                self.b.ins().jump(in_sram_ok, &args);
+            }
+            None => {
+                self.b.ins().jump(in_sram_ok, &args);
+            }
+        }
         self.b.switch_to_block(in_sram_ok);
         let off = self.b.block_params(in_sram_ok)[0];
         let boff = self.b.block_params(in_sram_ok)[1];
@@ -386,6 +404,90 @@ impl Translator<'_> {
             self.invalidate_if(v, ins);
         }
         true
+    }
+
+    /// Confined code, an SRAM access `op` of `rt` by the instruction at `pc` at physical
+    /// offset `off` (i64) in bank `bank` (i32) that the bank mask does not allow: leaves
+    /// before the instruction unless the bank is one of the I/O's whose accesses native
+    /// code logs ([`Ctx::io_banks`]); then logs it ([`io_sram`]), and the caller does it
+    /// as in an allowed bank.
+    fn io_sram(&mut self, op: MemOp, rt: u8, pc: u32, off: Value, bank: Value) {
+        let at = offset_of!(Ctx, io_banks) as i32;
+        let banks = self.b.ins().load(types::I32, self.mf, self.ctx, at);
+        let bit = self.b.ins().ushr(banks, bank);
+        let logged = self.b.ins().band_imm_u(bit, 1);
+        self.general_unless(logged, pc);
+        let start = self.b.use_var(self.cyc);
+        let kind = op.size() as i64 | i64::from(op.is_store()) << 8;
+        let packed = self.b.ins().ishl_imm_u(off, 32);
+        let packed = self.b.ins().bor_imm_u(packed, kind);
+        let value = match op.is_store() {
+            true => self.reg(rt, pc),
+            false => self.c32(0),
+        };
+        let sig = self.b.import_signature({
+            let mut s = Signature::new(self.b.func.signature.call_conv);
+            s.params.push(AbiParam::new(types::I64));
+            s.params.push(AbiParam::new(types::I64));
+            s.params.push(AbiParam::new(types::I64));
+            s.params.push(AbiParam::new(types::I32));
+            s
+        });
+        let f = self
+            .b
+            .ins()
+            .iconst(types::I64, io_sram as *const () as usize as i64);
+        self.b
+            .ins()
+            .call_indirect(sig, f, &[self.ctx, start, packed, value]);
+    }
+
+    /// Confined code, a word store of `rt` to `addr` (not SRAM: the builder in the block
+    /// that found it so) by the instruction at `pc`: for an address in the APB/AHB
+    /// peripherals' range (0x5xxxxxxx), calls [`io_reg`], and when it logged the store for
+    /// the I/O's replay, goes on at `join` (no wait, no code page; `solo`: `join` takes no
+    /// wait); otherwise leaves the builder in a block that goes on as before.
+    fn io_reg(
+        &mut self,
+        rt: u8,
+        addr: Value,
+        join: cranelift_codegen::ir::Block,
+        solo: bool,
+        pc: u32,
+    ) {
+        let top = self.b.ins().ushr_imm_u(addr, 28);
+        let peripheral = self.b.ins().icmp_imm_u(IntCC::Equal, top, 5);
+        let call = self.b.create_block();
+        let next = self.b.create_block();
+        self.b.ins().brif(peripheral, call, &[], next, &[]);
+        self.b.switch_to_block(call);
+        let start = self.b.use_var(self.cyc);
+        let value = self.reg(rt, pc);
+        let sig = self.b.import_signature({
+            let mut s = Signature::new(self.b.func.signature.call_conv);
+            s.params.push(AbiParam::new(types::I64));
+            s.params.push(AbiParam::new(types::I64));
+            s.params.push(AbiParam::new(types::I32));
+            s.params.push(AbiParam::new(types::I32));
+            s.returns.push(AbiParam::new(types::I32));
+            s
+        });
+        let f = self
+            .b
+            .ins()
+            .iconst(types::I64, io_reg as *const () as usize as i64);
+        let r = self
+            .b
+            .ins()
+            .call_indirect(sig, f, &[self.ctx, start, addr, value]);
+        let done = self.b.inst_results(r)[0];
+        let mut args = vec![BlockArg::Value(self.c32(0))];
+        if !solo {
+            let zero = self.b.ins().iconst(types::I64, 0);
+            args.push(BlockArg::Value(zero));
+        }
+        self.b.ins().brif(done, join, &args, next, &[]);
+        self.b.switch_to_block(next);
     }
 
     /// The private peripheral bus for a word load at `addr` by `ins` into `rt` (not SRAM
