@@ -607,27 +607,35 @@ impl Dma {
     /// The channel the read port serves this cycle: every ready high-priority channel once
     /// a round, round-robin, then one ready low-priority channel, which ends the round.
     fn schedule(&mut self, port: &dyn DmaPort) -> Option<usize> {
-        let next_after = |last: usize, want: &dyn Fn(usize) -> bool| {
-            (1..=CHANNELS)
-                .map(|i| (last + i) % CHANNELS)
-                .find(|&n| want(n))
+        // The ready channels and the high-priority ones, a bit each (`ready` reads only).
+        let (mut ready, mut high) = (0u32, 0u32);
+        for n in 0..CHANNELS {
+            ready |= u32::from(self.ready(n, port)) << n;
+            high |= u32::from(self.ch[n].ctrl & ctrl::HIGH_PRIORITY != 0) << n;
+        }
+        // The first channel of `mask` after `last` in round-robin order (`last + 1` up,
+        // then from 0 to `last`).
+        let next_after = |last: usize, mask: u32| -> Option<usize> {
+            let after = mask & !((2u32 << last) - 1);
+            match (after, mask) {
+                (_, 0) => None,
+                (0, m) => Some(m.trailing_zeros() as usize),
+                (a, _) => Some(a.trailing_zeros() as usize),
+            }
         };
-        let high = |n: usize| self.ch[n].ctrl & ctrl::HIGH_PRIORITY != 0;
         let served = self.round_served;
-        if let Some(n) = next_after(self.last_high, &|n| {
-            high(n) && served & (1 << n) == 0 && self.ready(n, port)
-        }) {
+        if let Some(n) = next_after(self.last_high, ready & high & !served) {
             self.last_high = n;
             self.round_served |= 1 << n;
             return Some(n);
         }
         self.round_served = 0;
-        if let Some(n) = next_after(self.last_low, &|n| !high(n) && self.ready(n, port)) {
+        if let Some(n) = next_after(self.last_low, ready & !high) {
             self.last_low = n;
             return Some(n);
         }
         // No low-priority channel: a new round of the high-priority ones.
-        let n = next_after(self.last_high, &|n| high(n) && self.ready(n, port))?;
+        let n = next_after(self.last_high, ready & high)?;
         self.last_high = n;
         self.round_served = 1 << n;
         Some(n)
