@@ -389,19 +389,38 @@ impl Ads8688 {
         // fall writes, and a fall only the frame's channel, which no rise writes, so the
         // two interleaved (as the edges come) and apart give the same.
         let mut sdo = 0u64;
-        for i in 0..k {
-            let cycle = first + u64::from(i) * period;
-            match self.frame.as_mut() {
-                // A rise that checks nothing (not the first, whose rate is checked against
+        let mut i = 0;
+        while i < k {
+            let f = match self.frame.as_mut() {
+                // Rises that check nothing (not the first, whose rate is checked against
                 // the last rise before, nor the result's first, which checks the
-                // conversion): `rise`'s count and SDO.
-                Some(f) if i > 0 && f.sclks != half => {
-                    f.sclks += 1;
-                    self.sdo = f.sdo(bits);
+                // conversion), up to the next that does or the run's end, at once:
+                // `rise`'s count and SDO — low up to the frame's half, then the code's
+                // bits, most significant first, low past the frame's end.
+                Some(f) if i > 0 && f.sclks != half => f,
+                _ => {
+                    self.rise(first + u64::from(i) * period, i == 0);
+                    sdo |= u64::from(self.sdo) << i;
+                    i += 1;
+                    continue;
                 }
-                _ => self.rise(cycle, i == 0),
+            };
+            let s0 = f.sclks;
+            let m = match s0 < half {
+                true => (half - s0).min(k - i),
+                false => k - i,
+            };
+            // The code's bits the rises after the half launch: bit j of the stretch is
+            // the code's bit `bits − s0 − 1 − j` while that is one.
+            let left = bits.saturating_sub(s0).min(64);
+            let n = left.min(m);
+            if s0 > half && n > 0 {
+                let code = u64::from(f.code) & (u64::MAX >> (64 - left));
+                sdo |= (msb_first(code, left) & (u64::MAX >> (64 - n))) << i;
             }
-            sdo |= u64::from(self.sdo) << i;
+            f.sclks += m;
+            self.sdo = f.sdo(bits);
+            i += m;
         }
         // The falls: the command's bits that remain taken at once (the first latched the
         // most significant), as `fall` takes them one by one; the ones after it change

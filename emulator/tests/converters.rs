@@ -318,3 +318,85 @@ fn a_dac_clocked_in_bulk_equals_one_clocked_edge_by_edge() {
     assert_eq!(edges.updates().len(), 2 + 1 + 8);
     assert_eq!(format!("{edges:?}"), format!("{bulk:?}"));
 }
+
+/// An ADC clocked by SCLK edges one at a time (`observe`) and one clocked in bulk
+/// (`Ads8688::clock_bits`, the bit loops of `crate::io`) come out equal: the SDO level after
+/// every rise, the frames, violations and state, for frames cut into runs of every length
+/// — across the frame's half (the result's first rise checks the conversion) and past its
+/// 32nd rise (a frame too long, reported by both).
+#[test]
+fn an_adc_clocked_in_bulk_equals_one_clocked_edge_by_edge() {
+    const PERIOD: u64 = 8;
+    const FALL: u64 = 4;
+    let (cs, sclk, sdi) = (1 << PINS.cs, 1 << PINS.sclk, 1 << PINS.sdi);
+    let dirs = cs | sclk | sdi;
+    let mut edges = Ads8688::new(&ADS8688, PINS, CLOCK_HZ);
+    let mut bulk = Ads8688::new(&ADS8688, PINS, CLOCK_HZ);
+    for adc in [&mut edges, &mut bulk] {
+        for (ch, code) in [0xbeef, 0x0001, 0x8000, 0x7ffe, 0x5a5a, 0, 0xffff, 0x1234]
+            .into_iter()
+            .enumerate()
+        {
+            adc.set_code(ch, code);
+        }
+    }
+    // Each frame's SDI word: a MAN_Ch_n command for the next channel in its top half.
+    let cuts: [&[u32]; 8] = [
+        &[32],
+        &[1, 15, 16],
+        &[16, 1, 15],
+        &[17, 15],
+        &[5, 27],
+        &[31, 1],
+        &[20, 20],
+        &[1; 32],
+    ];
+    let mut cycle = 100;
+    for (f, runs) in cuts.into_iter().enumerate() {
+        let command = (0xc000u32 | ((f as u32 + 1) % 8) << 10) << 16;
+        for adc in [&mut edges, &mut bulk] {
+            adc.observe(cycle, cs, dirs);
+        }
+        cycle += 20;
+        for adc in [&mut edges, &mut bulk] {
+            adc.observe(cycle, 0, dirs);
+        }
+        cycle += 20;
+        let mut bit = 0u32;
+        for &k in runs {
+            let first = cycle + PERIOD;
+            let mut sdi_bits = 0u64;
+            let mut want = 0u64;
+            for i in 0..k {
+                let b = bit + i;
+                let level = if b < 32 { command >> (31 - b) & 1 } else { 0 };
+                sdi_bits |= u64::from(level) << i;
+                let rise = first + u64::from(i) * PERIOD;
+                let d = if level != 0 { sdi } else { 0 };
+                edges.observe(rise, sclk | d, dirs);
+                want |= u64::from(edges.gpio_in() >> PINS.sdo & 1) << i;
+                edges.observe(rise + FALL, d, dirs);
+            }
+            assert!(bulk.clocks_ok(PERIOD));
+            let got = bulk.clock_bits(first, FALL, PERIOD, k, sdi_bits);
+            assert_eq!(got, want, "frame {f}, bits {bit}..{}", bit + k);
+            assert_eq!(format!("{edges:?}"), format!("{bulk:?}"), "frame {f}");
+            bit += k;
+            cycle = first + u64::from(k - 1) * PERIOD + FALL;
+        }
+        cycle += 20;
+        for adc in [&mut edges, &mut bulk] {
+            adc.observe(cycle, cs, dirs);
+        }
+        cycle += 400;
+    }
+    assert_eq!(edges.frames(), bulk.frames());
+    assert_eq!(edges.frames().len(), cuts.len());
+    assert!(
+        edges.frames().iter().any(|f| f.code == 0xbeef),
+        "{:?}",
+        edges.frames()
+    );
+    assert_eq!(edges.violations().len(), 1, "{:?}", edges.violations());
+    assert_eq!(format!("{edges:?}"), format!("{bulk:?}"));
+}
