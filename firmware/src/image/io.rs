@@ -16,8 +16,8 @@
 //!
 //! **A sample.** At each tick the handler's first act starts three DMA sequences, each by
 //! one store of its address through a trigger alias (RP2040 datasheet 2.5.2.1): the ADC's
-//! results into the buffer the handler does not read this sample (ping-pong, [`RESULTS_A`],
-//! [`RESULTS_B`]), the ADC's commands into its state machine's TX FIFO (paced by its DREQ:
+//! results into the next buffer of a ring of three ([`RESULTS`]; not the one the handler
+//! reads this sample), the ADC's commands into its state machine's TX FIFO (paced by its DREQ:
 //! one frame per command), and the DAC frames the *previous* sample's handler wrote into
 //! the DAC state machine's TX FIFO (joined to 8 entries: all of them move at once, before
 //! this handler writes any). Then the keys read the results of the burst the previous
@@ -27,6 +27,24 @@
 //! frames and one of DAC frames each fit a sample period ([`IoPlan::new`]). The start
 //! handler starts the first ADC burst, so the first sample reads a fresh one. The DAC powers
 //! up at midscale (0 A), and the DAC buffer starts with midscale frames.
+//!
+//! **A resting board repeats as a plain one does.** A board whose keys rest comes back to
+//! the same state every 1,071 samples at 133 MHz (the tick schedule's 63 and the
+//! differentiators' 17; 7,497 at 200 MHz), which the main job's rest replay finds and skips
+//! (`tactus_emulator::board`'s rest points) — after emulating one whole period. Two things
+//! of the drivers' would double that period, each alternating every sample: two results
+//! buffers in turn, and the DMA's round-robin among the low-priority channels, since both
+//! cores' results channels, and both their commands channels, become ready in the same
+//! cycles. Hence a ring of three results buffers (3 divides 63 and 441), which costs no
+//! cycle: each buffer's [`RING_NEXT`] word names the next, and the handler steps the ring
+//! with one `LDR` where it flipped a bit with a `MOVS` and an `EORS` (that load may wait
+//! for the DMA as the handler's other accesses to the bank do: [`CoreIo::contention`]
+//! bounds the waits by the DMA's accesses, not the core's). And channel numbers in which
+//! each tie resolves as the last: core 0's results and commands channels 0 and 1, core 1's
+//! 4 and 3 ([`dma_channels`]). Served round-robin, a tie goes to the channel after the
+//! last served: with core 1's two in the same order as core 0's (3 and 4), every change
+//! from a results tie to a commands tie, or back, swapped which core went first, and the
+//! number of changes in a sample is odd; with them swapped, every tie goes core 1 first.
 //!
 //! **Frames** (SPI mode 1, MSB first, chip select high between frames): the ADS8688's are 32
 //! SCLKs, a 16-bit command in (`MAN_Ch_n`: frame *i* selects channel *i* + 1 for the next,
@@ -56,33 +74,60 @@ use tactus_emulator::converters::SpiPins;
 use tactus_emulator::dma::{ctrl as dctrl, reg as dreg, DMA_BASE};
 use tactus_emulator::io::{priority, BUSCTRL_BASE, FUNCSEL_PIO0, IO_BANK0_BASE};
 use tactus_emulator::pio::{reg as preg, PIO0_BASE, PIO1_BASE};
-use tactus_isa::decode::{AluOp, Instr, MemOp};
+use tactus_isa::decode::{Instr, MemOp};
 use tactus_runtime::converters::{AdcPart, AdcScale, Converters, DacPart};
 use tactus_runtime::keyboard::BoardSpec;
 
 /// Bank offset of each core's I/O block (in bank 2 + core, below the windows at 0xfc00).
 pub const IO_OFFSET: u32 = 0xf000;
-/// Byte offset in the I/O block of results buffer A (one word per ADC channel).
+/// Byte offset in the I/O block of results buffer A (one word per ADC channel), the first
+/// of the ring of three ([`RESULTS`]).
 pub const RESULTS_A: u32 = 0x00;
-/// Results buffer B: A's address with bit 5 flipped.
-pub const RESULTS_B: u32 = 0x20;
+/// The ring of results buffers, A, B, C (module documentation, "A sample"): each of
+/// [`MAX_CHANNELS`] words and its [`RING_NEXT`] word.
+pub const RESULTS: [u32; 3] = [RESULTS_A, 0x24, 0x48];
+/// Byte offset from a results buffer of the word holding the next buffer's address in the
+/// ring (A's is B's, B's C's, C's A's): past its channels' words.
+pub const RING_NEXT: u32 = 4 * MAX_CHANNELS;
 /// The ADC command words.
-pub const COMMANDS: u32 = 0x40;
+pub const COMMANDS: u32 = 0x6c;
 /// The DAC frames (one word per DAC channel): the handler's `r7`.
-pub const DAC_FRAMES: u32 = 0x60;
-/// The results buffer the next handler reads (A or B).
-pub const READ_NEXT: u32 = 0x80;
+pub const DAC_FRAMES: u32 = 0x8c;
+/// The results buffer the next handler reads (the current burst's).
+pub const READ_NEXT: u32 = 0xac;
 /// The results buffer this handler reads.
-pub const READ_NOW: u32 = 0x84;
+pub const READ_NOW: u32 = 0xb0;
 /// Bytes of the I/O block.
-pub const IO_BYTES: u32 = 0x88;
+pub const IO_BYTES: u32 = 0xb4;
 /// Most channels of a part the drivers use (the buffers' size).
 pub const MAX_CHANNELS: u32 = 8;
 
-/// DMA channels of core `core`: results, commands, DAC frames.
+/// DMA channels of core `core`: results, commands, DAC frames — core 1's results and
+/// commands channels in the other order than core 0's, so that the DMA's round-robin
+/// resolves the two cores' ties the same way every sample (module documentation, "A
+/// resting board repeats").
 pub fn dma_channels(core: usize) -> [u32; 3] {
     let c = 3 * core as u32;
-    [c, c + 1, c + 2]
+    match core {
+        0 => [c, c + 1, c + 2],
+        _ => [c + 1, c, c + 2],
+    }
+}
+
+/// The handler's DMA trigger stores of core `core` from one base register: the base
+/// channel's registers' address, the results channel's `AL2_WRITE_ADDR_TRIG` and the
+/// commands channel's `AL3_READ_ADDR_TRIG` offsets from it, and the DAC channel's
+/// registers' offset (added to the base before its `AL3_READ_ADDR_TRIG` store).
+fn trigger_offsets(core: usize) -> (u32, u16, u16, u8) {
+    let [res, cmd, dac] = dma_channels(core);
+    let base = res.min(cmd);
+    let at = |ch: u32, reg: u32| ((ch - base) * dreg::CH_STRIDE + reg) as u16;
+    (
+        DMA_BASE + base * dreg::CH_STRIDE,
+        at(res, dreg::AL2_WRITE_ADDR_TRIG),
+        at(cmd, dreg::AL3_READ_ADDR_TRIG),
+        ((dac - base) * dreg::CH_STRIDE) as u8,
+    )
 }
 
 /// The address of core `core`'s I/O block (bank 2 + core through the non-striped alias).
@@ -635,6 +680,9 @@ impl IoPlan {
             words[(DAC_FRAMES / 4 + ch) as usize] = dac_word(ch, 0);
         }
         let base = io_base(core);
+        for (i, &buf) in RESULTS.iter().enumerate() {
+            words[((buf + RING_NEXT) / 4) as usize] = base + RESULTS[(i + 1) % RESULTS.len()];
+        }
         words[(READ_NEXT / 4) as usize] = base + RESULTS_A;
         words[(READ_NOW / 4) as usize] = base + RESULTS_A;
         words.iter().flat_map(|w| w.to_le_bytes()).collect()
@@ -814,17 +862,13 @@ impl IoPlan {
     /// first ADC burst, into buffer A (which the first handler reads). Needs `r7`; clobbers
     /// r0, r1.
     pub fn start_burst(&self, a: &mut CodeBuffer, core: usize) {
-        let [res, ..] = dma_channels(core);
-        a.ldr_const(0, DMA_BASE + res * dreg::CH_STRIDE);
+        let (base, res, cmd, _) = trigger_offsets(core);
+        a.ldr_const(0, base);
         a.i(asm::mov(1, 7));
         a.i(asm::subs_imm(1, 1, (DAC_FRAMES - RESULTS_A) as u8));
-        a.i(asm::str(1, 0, dreg::AL2_WRITE_ADDR_TRIG as u16));
+        a.i(asm::str(1, 0, res));
         a.i(asm::adds_imm(1, 1, COMMANDS as u8));
-        a.i(asm::str(
-            1,
-            0,
-            (dreg::CH_STRIDE + dreg::AL3_READ_ADDR_TRIG) as u16,
-        ));
+        a.i(asm::str(1, 0, cmd));
     }
 
     /// The handler's first act (module documentation): `r6` = this sample's results (kept
@@ -832,26 +876,23 @@ impl IoPlan {
     /// commands, the last sample's DAC frames. Needs `r7`; clobbers r0, r1. At the time of writing 20 cycles (with the I/O bank's
     /// accesses through the bus: each may wait for the DMA, [`CoreIo::contention`]).
     pub fn handler_start(&self, a: &mut CodeBuffer, core: usize, keep_now: bool) {
-        let [res, ..] = dma_channels(core);
+        let (base, res, cmd, dac) = trigger_offsets(core);
         let from_r7 = |off: u32| (off - DAC_FRAMES) as u16;
-        a.ldr_const(0, DMA_BASE + res * dreg::CH_STRIDE);
+        a.ldr_const(0, base);
         a.i(asm::ldr(6, 7, from_r7(READ_NEXT)));
         if keep_now {
             // For `restore_r6`.
             a.i(asm::str(6, 7, from_r7(READ_NOW)));
         }
-        a.i(asm::movs(1, (RESULTS_A ^ RESULTS_B) as u8));
-        a.i(asm::alu(AluOp::Eor, 1, 6));
+        // The next buffer in the ring: one load, as many cycles as the `MOVS`, `EORS` that
+        // flipped between two buffers.
+        a.i(asm::ldr(1, 6, RING_NEXT as u16));
         a.i(asm::str(1, 7, from_r7(READ_NEXT)));
-        a.i(asm::str(1, 0, dreg::AL2_WRITE_ADDR_TRIG as u16));
+        a.i(asm::str(1, 0, res));
         a.i(asm::mov(1, 7));
         a.i(asm::subs_imm(1, 1, (DAC_FRAMES - COMMANDS) as u8));
-        a.i(asm::str(
-            1,
-            0,
-            (dreg::CH_STRIDE + dreg::AL3_READ_ADDR_TRIG) as u16,
-        ));
-        a.i(asm::adds_imm(0, 0, (2 * dreg::CH_STRIDE) as u8));
+        a.i(asm::str(1, 0, cmd));
+        a.i(asm::adds_imm(0, 0, dac));
         a.i(asm::str(7, 0, dreg::AL3_READ_ADDR_TRIG as u16));
     }
 }

@@ -13,9 +13,9 @@
 //! (a program settling more slowly) simply does not repeat at this one: the check fails and
 //! the board is emulated.
 //!
-//! With converters the results buffers' ping-pong makes it even (2,142 samples at 133 MHz),
-//! times what makes its cycles whole PIO clock divider periods (`super::run`'s
-//! `rest_period`).
+//! With converters, the lcm with the ring of three results buffers (the same 1,071 samples at
+//! 133 MHz: `super::io`, "A resting board repeats"), times what makes its cycles whole PIO
+//! clock divider periods (`super::run`'s `rest_period`).
 //!
 //! **Budgets.** Each key's limiter keeps a time budget (`tactus_runtime::limiter`) that a
 //! key at rest still moves: after a loud note it earns one unit a sample back to the full

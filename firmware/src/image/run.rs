@@ -251,18 +251,18 @@ fn copy_sample(from: &SampleOut, to: &mut SampleOut) {
 
 /// Samples after which a board at rest repeats its state ([`super::rest`]): the lcm of the
 /// tick schedule's remainder's period (its `den`: `rem/den` in lowest terms, 1 for whole
-/// cycles) and the differentiator rings' length; with converters also of the results
-/// buffers' ping-pong (2 samples, `super::io`), and a whole number of each PIO clock
-/// divider's periods (a state machine's divider phase is state: 6,460,000 cycles, 2,142
-/// samples, at 133 MHz; 204,000,000 cycles, 44,982 samples, at 200 MHz, whose ADC divider
-/// is 3).
+/// cycles) and the differentiator rings' length; with converters also of the ring of
+/// results buffers (3 samples, `super::io`, "A resting board repeats"), and a whole number
+/// of each PIO clock divider's periods (a state machine's divider phase is state:
+/// 3,230,000 cycles, 1,071 samples, at 133 MHz; 102,000,000 cycles, 22,491 samples, at
+/// 200 MHz, whose ADC divider is 3).
 fn rest_period(image: &FirmwareImage) -> usize {
     let ring = 2 * tactus_runtime::differentiator::WINDOW as u64 + 1;
     let samples = lcm(u64::from(image.tick().den), ring);
     let Some(plan) = &image.io else {
         return samples as usize;
     };
-    let samples = lcm(samples, 2);
+    let samples = lcm(samples, super::io::RESULTS.len() as u64);
     let cycles =
         tactus_runtime::keyboard::tick_cycle(0, samples, image.clock_hz, image.sample_rate_hz);
     let divs = lcm(
