@@ -4,7 +4,7 @@
 //! every SRAM byte and each core's cycle, instruction count, registers, flags and contention
 //! stalls, and the converters' frames and state; the replay must have given samples and
 //! skipped whole periods. Boards: grand88's first (the grand piano) at 133 MHz (a period of
-//! 1,071 samples), at 200 MHz (7,497) and with converters at 133 MHz (2,142), the split
+//! 1,071 samples), at 200 MHz (7,497) and with converters at 133 MHz (1,071), the split
 //! layout's first (the harpsichord).
 
 use tactus_compiler::fixed::interp::FixedInstance;

@@ -49,7 +49,7 @@
 //!
 //! **The period memo.** A firmware's windows are its sample periods (a window ends at the
 //! SysTick event), and once its keys rest the I/O does the same thing every period, in a
-//! handful of states (the ping-pong buffers, the PIO clock divider's phase at the tick, a
+//! handful of states (the ring of results buffers, the PIO clock divider's phase at the tick, a
 //! period of 3,015 or 3,016 cycles). So a kept replay is recorded, and a later one whose key
 //! equals it takes its effect instead of running the I/O. The key: the I/O at the window's
 //! start with its cycles moved to the memo's time base ([`Rebase`]; its parts' records left

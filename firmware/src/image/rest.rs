@@ -180,7 +180,7 @@ impl Rest {
 /// each, then one spending `recovery`: `tactus_runtime::limiter`), so a board whose period
 /// is not a multiple of that repeats only after `recovery + 1` periods (5 for the shipped
 /// limiter); but no more than [`MAX_RECORDED`] samples are kept (at least one period: a
-/// board at 200 MHz with converters, 44,982 samples a period, tries one period at a time).
+/// board at 200 MHz with converters, 22,491 samples a period, tries one period at a time).
 pub fn max_periods(limiter: &tactus_runtime::limiter::LimiterConstants, period: usize) -> usize {
     let cycle = (limiter.recovery.clamp(0, 7) + 1) as usize;
     cycle.min(MAX_RECORDED / period.max(1)).max(1)
