@@ -406,6 +406,19 @@ impl Translator<'_> {
         true
     }
 
+    /// The signature of a Rust helper the native code calls (`extern "C"`, the host's
+    /// calling convention): `params`, and `ret` when it returns a value.
+    fn helper_signature(
+        &mut self,
+        params: &[types::Type],
+        ret: Option<types::Type>,
+    ) -> cranelift_codegen::ir::SigRef {
+        let mut s = Signature::new(self.b.func.signature.call_conv);
+        s.params.extend(params.iter().map(|&t| AbiParam::new(t)));
+        s.returns.extend(ret.map(AbiParam::new));
+        self.b.import_signature(s)
+    }
+
     /// Confined code, an SRAM access `op` of `rt` by the instruction at `pc` at physical
     /// offset `off` (i64) in bank `bank` (i32) that the bank mask does not allow: leaves
     /// before the instruction unless the bank is one of the I/O's whose accesses native
@@ -425,14 +438,7 @@ impl Translator<'_> {
             true => self.reg(rt, pc),
             false => self.c32(0),
         };
-        let sig = self.b.import_signature({
-            let mut s = Signature::new(self.b.func.signature.call_conv);
-            s.params.push(AbiParam::new(types::I64));
-            s.params.push(AbiParam::new(types::I64));
-            s.params.push(AbiParam::new(types::I64));
-            s.params.push(AbiParam::new(types::I32));
-            s
-        });
+        let sig = self.helper_signature(&[types::I64, types::I64, types::I64, types::I32], None);
         let f = self
             .b
             .ins()
@@ -463,15 +469,10 @@ impl Translator<'_> {
         self.b.switch_to_block(call);
         let start = self.b.use_var(self.cyc);
         let value = self.reg(rt, pc);
-        let sig = self.b.import_signature({
-            let mut s = Signature::new(self.b.func.signature.call_conv);
-            s.params.push(AbiParam::new(types::I64));
-            s.params.push(AbiParam::new(types::I64));
-            s.params.push(AbiParam::new(types::I32));
-            s.params.push(AbiParam::new(types::I32));
-            s.returns.push(AbiParam::new(types::I32));
-            s
-        });
+        let sig = self.helper_signature(
+            &[types::I64, types::I64, types::I32, types::I32],
+            Some(types::I32),
+        );
         let f = self
             .b
             .ins()
@@ -543,14 +544,7 @@ impl Translator<'_> {
         self.b.switch_to_block(call);
         let c = self.b.use_var(self.cyc);
         let at = self.b.ins().iadd_imm_s(c, 1);
-        let sig = self.b.import_signature({
-            let mut s = Signature::new(self.b.func.signature.call_conv);
-            s.params.push(AbiParam::new(types::I64));
-            s.params.push(AbiParam::new(types::I64));
-            s.params.push(AbiParam::new(types::I32));
-            s.returns.push(AbiParam::new(ret));
-            s
-        });
+        let sig = self.helper_signature(&[types::I64, types::I64, types::I32], Some(ret));
         let f = self.b.ins().iconst(types::I64, f as usize as i64);
         let r = self.b.ins().call_indirect(sig, f, &[self.core, at, x]);
         (self.b.inst_results(r)[0], general)
