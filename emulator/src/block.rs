@@ -117,7 +117,7 @@ pub(crate) enum Leave {
 }
 
 /// A bank mask, whether journaled, and the indices of its confined caches (solo, shared).
-type ConfinedAt = (u8, bool, (usize, usize));
+type ConfinedAt = (u8, bool, bool, (usize, usize));
 
 /// Undo-journal entries the journal is made with (a window's stores beyond stop its core).
 const JOURNAL: usize = 1 << 16;
@@ -198,16 +198,20 @@ impl Blocks {
 
     /// The index of the confined cache (`solo`: without arbitration, in
     /// `confined_solo`; else in `confined`) for bank mask `mask`, with or without journal
-    /// code, made on first use with the board's compile threshold.
-    fn confined_index(&mut self, solo: bool, mask: u8, journaled: bool) -> usize {
+    /// code, with or without the code that logs the I/O's accesses (`io`), made on first use
+    /// with the board's compile threshold.
+    fn confined_index(&mut self, solo: bool, mask: u8, journaled: bool, io: bool) -> usize {
         let threshold = self.jit.threshold;
         let (list, flavour) = if solo {
             (
                 &mut self.confined_solo,
-                jit::Flavour::ConfinedSolo(mask, journaled),
+                jit::Flavour::ConfinedSolo(mask, journaled, io),
             )
         } else {
-            (&mut self.confined, jit::Flavour::Confined(mask, journaled))
+            (
+                &mut self.confined,
+                jit::Flavour::Confined(mask, journaled, io),
+            )
         };
         match list.iter().position(|j| j.flavour() == flavour) {
             Some(at) => at,
@@ -537,14 +541,17 @@ pub(crate) fn run_confined(
         .max()
         .unwrap_or(0);
     let journaled = journal.is_some();
+    // Code that logs the I/O's accesses only where there are some to log: it is larger,
+    // and compiling it cost the plain board's demo 3.7 % more instructions.
+    let io_code = io_own != 0;
     let (solo_at, shared_at) = match blocks.confined_last[core.id & 1] {
-        Some((mask, j, at)) if mask == allowed && j == journaled => at,
+        Some((mask, j, i, at)) if mask == allowed && j == journaled && i == io_code => at,
         _ => {
             let at = (
-                blocks.confined_index(true, allowed, journaled),
-                blocks.confined_index(false, allowed, journaled),
+                blocks.confined_index(true, allowed, journaled, io_code),
+                blocks.confined_index(false, allowed, journaled, io_code),
             );
-            blocks.confined_last[core.id & 1] = Some((allowed, journaled, at));
+            blocks.confined_last[core.id & 1] = Some((allowed, journaled, io_code, at));
             at
         }
     };

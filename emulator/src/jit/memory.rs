@@ -313,7 +313,7 @@ impl Translator<'_> {
         self.b.switch_to_block(elsewhere);
         if op.is_store() {
             if size == 4 {
-                if self.confined.is_some() {
+                if self.confined.is_some_and(|c| c.io) {
                     self.io_reg(rt, addr, join, solo, pc);
                 }
                 self.ppb_store(ins, rt, addr);
@@ -352,7 +352,7 @@ impl Translator<'_> {
         let boff = self.b.block_params(in_sram)[1];
         let args = [BlockArg::Value(off), BlockArg::Value(boff)];
         match self.confined {
-            Some(c) => {
+            Some(c) if c.io => {
                 // An allowed bank, or one of the I/O's whose accesses are logged.
                 let bank = self.b.ins().ushr_imm_u(boff, 4);
                 let bank = self.b.ins().ireduce(types::I32, bank);
@@ -362,6 +362,10 @@ impl Translator<'_> {
                 self.b.ins().brif(ok, in_sram_ok, &args, io, &[]);
                 self.b.switch_to_block(io);
                 self.io_sram(op, rt, pc, off, bank);
+                self.b.ins().jump(in_sram_ok, &args);
+            }
+            Some(_) => {
+                self.confine_banks(ins, &[boff]);
                 self.b.ins().jump(in_sram_ok, &args);
             }
             None => {

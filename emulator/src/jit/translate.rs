@@ -56,12 +56,19 @@ pub(crate) enum Flavour {
     /// called with a journal), every store journaled (see the parent module); when false
     /// (a core catching up, called without a journal), no journal code at all.
     ///
+    /// The third field: the code also does and logs a single access to a bank of the
+    /// I/O's that the mask does not allow, and logs a word store to its registers (a
+    /// window on a board with converters, `board/io_window.rs`: [`abi::io_sram`],
+    /// [`abi::io_reg`]); without it such an access leaves, as any other outside the mask.
+    ///
     /// [`abi::Ctx::allowed`]: super::abi::Ctx::allowed
-    Confined(u8, bool),
+    /// [`abi::io_sram`]: super::abi::io_sram
+    /// [`abi::io_reg`]: super::abi::io_reg
+    Confined(u8, bool, bool),
     /// [`Flavour::Confined`] for a core whose accesses all come after the other core's last
     /// claims (as [`Flavour::Solo`]): in a window the other core does not touch the banks
     /// this core may, so their claims stay as they were.
-    ConfinedSolo(u8, bool),
+    ConfinedSolo(u8, bool, bool),
 }
 
 pub(super) struct Translator<'a> {
@@ -121,6 +128,8 @@ pub(super) struct Confined {
     pub(super) mask: u8,
     /// The code is called with a journal (else without: no journal code).
     pub(super) journaled: bool,
+    /// The code does and logs the I/O's accesses ([`Flavour::Confined`]'s third field).
+    pub(super) io: bool,
 }
 
 impl<'a> Translator<'a> {
@@ -131,9 +140,9 @@ impl<'a> Translator<'a> {
         instrs: &[RegionInstr],
         flavour: Flavour,
     ) -> (FunctionBuilder<'a>, u64) {
-        let (mask, journaled) = match flavour {
-            Flavour::Confined(m, j) | Flavour::ConfinedSolo(m, j) => (Some(m), j),
-            _ => (None, false),
+        let (mask, journaled, io) = match flavour {
+            Flavour::Confined(m, j, io) | Flavour::ConfinedSolo(m, j, io) => (Some(m), j, io),
+            _ => (None, false, false),
         };
         let confined = mask.is_some();
         let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo(..));
@@ -247,6 +256,7 @@ impl<'a> Translator<'a> {
                 cap_room: None,
                 mask: mask.unwrap_or(0),
                 journaled,
+                io,
             }
         });
         let exit = b.create_block();
