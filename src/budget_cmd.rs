@@ -54,8 +54,9 @@ pub struct BudgetArgs {
     /// `split_harpsichord_piano`), or one instrument (file or built-in name, e.g.
     /// `grand_piano`) on `--keys` keys.
     pub input: String,
-    /// The board kind: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`) or a
-    /// board TOML file (name, clock_hz, cores, sample_rate_hz). Default: the layout's
+    /// The board kind: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`; with
+    /// converters `rp2040_io`, `rp2040_io_200mhz`) or a board TOML file (name, clock_hz,
+    /// cores, sample_rate_hz, an optional `[converters]`). Default: the layout's
     /// `board_kind`, else rp2040.
     #[arg(long, value_name = "NAME_OR_FILE")]
     pub board: Option<String>,

@@ -65,7 +65,8 @@ pub struct BuildArgs {
     /// file (rp2040 target).
     #[arg(long, value_name = "N")]
     pub keys: Option<u32>,
-    /// Board file or built-in board (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`) for
+    /// Board file or built-in board (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`; with
+    /// converters `rp2040_io`, `rp2040_io_200mhz`) for
     /// firmware; default: the layout's, else `rp2040`.
     #[arg(long, value_name = "NAME_OR_FILE")]
     pub board: Option<String>,

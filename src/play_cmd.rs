@@ -43,9 +43,12 @@ pub struct PlayArgs {
     /// simulate only the played keys and check no budget.
     #[arg(long, value_enum, default_value = "emu")]
     pub engine: values::PlayEngine,
-    /// Board: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`) or a board file;
-    /// every engine runs at its sample rate, `--engine emu` on its clock and cores
-    /// [default: the layout's `board_kind`, else rp2040].
+    /// Board: a built-in name (`rp2040`, `rp2040_200mhz`, `rp2040_20mhz`; with converters,
+    /// an ADC and a DAC per core driven over PIO with DMA, `rp2040_io`, `rp2040_io_200mhz`)
+    /// or a board file; every engine runs at its sample rate, `--engine emu` on its clock
+    /// and cores (and on a board with converters through them: the key positions into the
+    /// emulated ADCs, the motor commands from the emulated DACs) [default: the layout's
+    /// `board_kind`, else rp2040].
     #[arg(long, value_name = "NAME_OR_FILE")]
     pub board: Option<String>,
     /// The emulator's engine for `--engine emu`: `block` (code compiled to native code with

@@ -814,3 +814,21 @@ fn emu_run_exit_codes() {
     let (code, text) = emu_run("bx.elf", Some(&tiny_elf(&[0x4700])), &["--trace"]);
     assert_eq!(code, Some(2), "{text}");
 }
+
+/// The `--help` of every command that takes `--board` names every board the toolchain
+/// ships (`tactus_host::catalogue::BOARDS`), so a board added to the catalogue cannot be
+/// missing from what a user reads.
+#[test]
+fn every_board_option_names_every_shipped_board() {
+    for cmd in ["build", "budget", "play"] {
+        let out = tactus().args([cmd, "--help"]).output().unwrap();
+        assert_ok(&out);
+        let help = String::from_utf8_lossy(&out.stdout);
+        for (name, _) in tactus_host::catalogue::BOARDS {
+            assert!(
+                help.contains(&format!("`{name}`")),
+                "`tactus {cmd} --help` does not name the shipped board {name}:\n{help}"
+            );
+        }
+    }
+}

@@ -256,6 +256,50 @@ fn the_rest_replay_plays_the_demo_as_emulating_every_sample() {
     assert!(!off.contains("rest replay:"), "{off}");
 }
 
+/// On the board with converters (`--board rp2040_io`) the demo goes through the emulated
+/// ADCs and DACs: every board without a deadline miss, and a line counting the windows the
+/// I/O replayed against the cores' accesses, some given by its period memo; a plain board
+/// prints no such line.
+#[test]
+fn the_converter_board_plays_the_demo_through_its_i_o_and_counts_its_windows() {
+    let dir = temp_dir("play-converters");
+    let run = |board: &str| {
+        let mut c = tactus();
+        c.args([
+            "play",
+            "--no-wav",
+            "--seconds",
+            "0.4",
+            "--board",
+            board,
+            "--out",
+        ]);
+        let o = c.arg(dir.join(board)).output().unwrap();
+        assert_ok(&o);
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let (io, plain) = (run("rp2040_io"), run("rp2040"));
+    let boards: Vec<&str> = (io.lines())
+        .filter(|l| l.trim_start().starts_with("board "))
+        .collect();
+    assert!(!boards.is_empty(), "{io}");
+    for b in &boards {
+        assert_eq!(b.matches("deadline misses 0").count(), 2, "{b}");
+    }
+    let line = (io.lines())
+        .find(|l| l.contains("converters' I/O:"))
+        .unwrap_or_else(|| panic!("no I/O line: {io}"));
+    let count = |after: &str| -> u64 {
+        let rest = line.split_once(after).unwrap_or_else(|| panic!("{line}")).1;
+        let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
+        digits.parse().unwrap_or_else(|_| panic!("{line}"))
+    };
+    let (windows, hits) = (count("I/O: "), count("accesses ("));
+    assert!(windows > 1000, "{line}");
+    assert!(hits > 0 && hits < windows, "{line}");
+    assert!(!plain.contains("converters' I/O:"), "{plain}");
+}
+
 #[test]
 fn engines_agree_and_the_default_runs_without_arguments() {
     let dir = temp_dir("play-demo");

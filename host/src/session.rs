@@ -13,6 +13,7 @@ use crate::plot::{plot_cycle_series, plot_lines, Line, PlotError};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use tactus_emulator::IoWindows;
 use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::performance::{self, MidiError, Note, Performance};
@@ -536,6 +537,19 @@ pub fn budget_text(r: &BoardsReport) -> String {
         s.push_str(&format!(
             "  rest replay: {given} of {all} board-samples ({:.1} %) given from recordings of boards at rest, the same results exactly (`--no-rest-replay` emulates them)\n",
             100.0 * given as f64 / all.max(1) as f64
+        ));
+    }
+    let io = (r.boards.iter()).fold(IoWindows::default(), |a, b| a + b.io_windows);
+    let undone = io.waited + io.stale + io.reach;
+    if io.kept + undone > 0 {
+        s.push_str(&format!(
+            "  converters' I/O: {} windows replayed against the cores' accesses ({} given by the period memo, {} recorded into it), {undone} undone and run in lock-step ({} a core waited for the DMA, {} a load stale, {} a register store)\n",
+            io.kept + undone,
+            io.memo_hits,
+            io.memo_recorded,
+            io.waited,
+            io.stale,
+            io.reach
         ));
     }
     s

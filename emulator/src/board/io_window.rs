@@ -167,6 +167,22 @@ pub struct IoWindows {
     pub memo_recorded: u64,
 }
 
+impl std::ops::Add for IoWindows {
+    type Output = IoWindows;
+
+    /// Both counts together (a keyboard's boards summed).
+    fn add(self, o: IoWindows) -> IoWindows {
+        IoWindows {
+            kept: self.kept + o.kept,
+            waited: self.waited + o.waited,
+            stale: self.stale + o.stale,
+            reach: self.reach + o.reach,
+            memo_hits: self.memo_hits + o.memo_hits,
+            memo_recorded: self.memo_recorded + o.memo_recorded,
+        }
+    }
+}
+
 /// The period memo (module documentation): the replays recorded, newest last, at most
 /// [`MEMO_ENTRIES`].
 pub(crate) struct IoMemo {

@@ -93,6 +93,9 @@ pub struct BoardRun {
     /// Samples the rest replay gave from recordings of the board at rest, and the whole
     /// periods it skipped ([`BoardEngine::rest_replay`]).
     pub rest_replayed: (u64, u64),
+    /// On a board with converters, what its windows' I/O replays did
+    /// (`tactus_emulator::Board::io_windows`; all zero on a plain board).
+    pub io_windows: tactus_emulator::IoWindows,
 }
 
 /// The whole keyboard's run.
@@ -387,6 +390,7 @@ impl<'p> BoardEngine<'p> {
         self.run.settle()?;
         self.report.memo = self.run.board().memo_stats();
         self.report.rest_replayed = self.run.rest_replayed();
+        self.report.io_windows = self.run.board().io_windows();
         if !self.steps.is_multiple_of(self.decimation) {
             self.report.cycles.push(self.block_max);
         }
