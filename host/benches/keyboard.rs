@@ -19,8 +19,14 @@
 //! (`tactus_emulator`'s code store), so iterations after the first do not compile: the
 //! figure is the steady state of a long performance.
 //!
-//! With `KEYBOARD_BENCH_ONCE=block` (or `interp`) in the environment the bench instead runs
-//! that engine once and prints a summary that must not change between emulator versions
+//! `grand88_demo_Block_rp2040_io` runs the same music on the board with converters
+//! (`boards/rp2040_io.toml`, planned for it): every sample through the emulated ADCs,
+//! DACs, PIOs and DMA (`tactus_emulator::io`); its time per iteration over
+//! `grand88_demo_Block`'s is what the converter path costs (issue 40 asks the main job's
+//! real-time factor to drop by at most 10 %).
+//!
+//! With `KEYBOARD_BENCH_ONCE=block` (or `interp`, or `block_io` for the board with
+//! converters) in the environment the bench instead runs that engine once and prints a summary that must not change between emulator versions
 //! (per board the handler cycles of each core, the strikes), for `valgrind
 //! --tool=callgrind --collect-atstart=no --toggle-collect='*run_keys*'`, whose
 //! instruction counts do not depend on the machine's load.
@@ -60,7 +66,9 @@ struct Setup {
     end: usize,
 }
 
-fn setup() -> Setup {
+/// The run on the board kind `boards/{board}.toml` (`rp2040`, or `rp2040_io` for the
+/// board with converters, planned for it as `tactus budget --board rp2040_io` plans).
+fn setup(board: &str) -> Setup {
     let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
     let (_, keys) = read_layout(&root.join("instruments/layouts/grand88.toml")).unwrap();
     let source = |name: &str| {
@@ -68,7 +76,7 @@ fn setup() -> Setup {
             .map_err(|e| e.to_string())
     };
     let (programs, key_programs) = compile_layout(&keys, &source, FS).unwrap();
-    let board = read_board(&root.join("boards/rp2040.toml")).unwrap();
+    let board = read_board(&root.join(format!("boards/{board}.toml"))).unwrap();
     let mut perf = demo();
     perf.notes.retain(|n| n.on_s < SECONDS);
     let dip = programs[0].fixed.program.sensors[0].range.1;
@@ -153,9 +161,9 @@ fn handler_cycles(runs: &[(BoardRun, usize)]) -> u64 {
     runs.iter().map(|(r, _)| r.total.iter().sum::<u64>()).sum()
 }
 
-/// `KEYBOARD_BENCH_ONCE=engine`: one run, with a summary.
-fn once(engine: Engine) {
-    let s = setup();
+/// `KEYBOARD_BENCH_ONCE=engine`: one run on `board`, with a summary.
+fn once(engine: Engine, board: &str) {
+    let s = setup(board);
     let runs = play(&s, boot(&s, engine, true));
     let mut strikes = 0;
     for (i, (b, n)) in runs.iter().enumerate() {
@@ -175,8 +183,10 @@ fn once(engine: Engine) {
 }
 
 fn bench(c: &mut Criterion) {
-    let s = setup();
+    let s = setup("rp2040");
     let cycles = handler_cycles(&play(&s, boot(&s, Engine::Block, true)));
+    let io = setup("rp2040_io");
+    let io_cycles = handler_cycles(&play(&io, boot(&io, Engine::Block, true)));
     let mut group = c.benchmark_group("cycles_per_cpu_second");
     group.sample_size(10);
     group.warm_up_time(std::time::Duration::from_secs(1));
@@ -200,14 +210,28 @@ fn bench(c: &mut Criterion) {
             )
         });
     }
+    // The board with converters (issue 40): the same music through the emulated ADCs,
+    // DACs, PIOs and DMA; its time per iteration over `grand88_demo_Block`'s is what the
+    // converter path costs the emulator.
+    group.throughput(Throughput::Elements(io_cycles));
+    group.bench_function("grand88_demo_Block_rp2040_io", |bench| {
+        bench.iter_batched(
+            || boot(&io, Engine::Block, true),
+            |b| play(&io, b),
+            BatchSize::PerIteration,
+        )
+    });
     group.finish();
 }
 
 fn main_or_once(c: &mut Criterion) {
     match std::env::var("KEYBOARD_BENCH_ONCE").as_deref() {
-        Ok("block") => once(Engine::Block),
-        Ok("interp") => once(Engine::Interp),
-        Ok(other) => eprintln!("KEYBOARD_BENCH_ONCE={other}: expected `block` or `interp`"),
+        Ok("block") => once(Engine::Block, "rp2040"),
+        Ok("interp") => once(Engine::Interp, "rp2040"),
+        Ok("block_io") => once(Engine::Block, "rp2040_io"),
+        Ok(other) => {
+            eprintln!("KEYBOARD_BENCH_ONCE={other}: expected `block`, `interp` or `block_io`")
+        }
         Err(_) => bench(c),
     }
 }
