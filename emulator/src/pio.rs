@@ -1063,6 +1063,25 @@ impl Pio {
             return Some(all(st.set.1));
         }
         let right = s.out_right();
+        if lp.out_bits == 1 {
+            // One bit out a time round: time round i's level is the OSR's bit at `at ± i`
+            // (zeros once it is shifted past), so the k levels are a shifted (right) or
+            // bit-reversed (left) run of the OSR.
+            let d = pin.wrapping_sub(lp.out_map.0) & 31;
+            let osr = u64::from(s.osr);
+            let levels = match right {
+                // Past the OUT's bits: its pins beyond them get 0.
+                _ if d >= st.out => 0,
+                // Time round i takes bit d + out_at + i.
+                true => osr.checked_shr(d + st.out_at).unwrap_or(0),
+                // Time round i takes bit (32 − out + d − out_at) − i.
+                false => match (32 - st.out + d).checked_sub(st.out_at) {
+                    Some(top) if top < 32 => u64::from((s.osr << (31 - top)).reverse_bits()),
+                    _ => 0,
+                },
+            };
+            return Some(levels & (u64::MAX >> (64 - k)));
+        }
         Some((0..k).fold(0, |m, i| {
             let shifted = u64::from(st.out_at) + i * lp.out_bits;
             let osr = StateMachine::osr_after(s.osr, shifted, right);
@@ -1098,7 +1117,26 @@ impl Pio {
         let shifted = k * lp.out_bits;
         s.osr = StateMachine::osr_after(s.osr, shifted, right);
         s.osr_count = (u64::from(s.osr_count) + shifted).min(32) as u32;
-        if lp.in_bits > 0 {
+        if lp.in_bits == 1 {
+            // One bit in a time round: the k bits in one shift, the last 32 of them all the
+            // ISR holds once k reaches 32.
+            let j = lp.steps[..lp.len]
+                .iter()
+                .position(|st| st.inn > 0)
+                .unwrap_or(0);
+            let bits = match lp.steps[j].in_pins {
+                true => in_bits[j] & (u64::MAX >> (64 - k)),
+                false => 0,
+            };
+            let last = (bits >> k.saturating_sub(32)) as u32;
+            s.isr = match (s.in_right(), k) {
+                (true, 32..) => last,
+                (true, _) => (s.isr >> k) | (last << (32 - k)),
+                (false, 32..) => last.reverse_bits(),
+                (false, _) => (s.isr << k) | (last.reverse_bits() >> (32 - k)),
+            };
+            s.isr_count = (u64::from(s.isr_count) + k).min(32) as u32;
+        } else if lp.in_bits > 0 {
             for i in 0..k {
                 for (j, st) in lp.steps[..lp.len].iter().enumerate() {
                     if st.inn > 0 {

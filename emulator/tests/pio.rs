@@ -397,8 +397,10 @@ fn skipping_by_events_equals_ticking_every_cycle() {
 /// `tactus_emulator::io`) against its instructions ticked one cycle at a time, on loops of
 /// the converter drivers' kinds and odder ones (two-bit OUTs, `SET PINS`, `NOP`, `IN NULL`,
 /// `OUT NULL`, optional side-set, a one-instruction loop), both shift directions, dividers
-/// 1–3: for every number of times round the whole block's state is the same, and so are the
-/// pin levels `sm_loop_pin` gives at each step of each time round.
+/// 1–3, X set to 9 or taken from the OSR (`OUT X, 6`: 45 times round shifting left, 33
+/// right — past the 32 bits the OSR and ISR hold, and from an OSR already shifted): for
+/// every number of times round the whole block's state is the same, and so are the pin
+/// levels `sm_loop_pin` gives at each step of each time round.
 #[test]
 fn a_bit_loop_in_one_step_equals_its_instructions() {
     const IN_PIN: u32 = 4;
@@ -425,11 +427,15 @@ fn a_bit_loop_in_one_step_equals_its_instructions() {
         (&[0x0042 | 1 << 12 | 3 << 8], 1),
     ];
     let gpio = |c: u64| (((c * 0x9e37_79b9) >> 7) as u32 & 1) << IN_PIN;
-    for (body, side) in loops {
+    // set x, 9; out x, 6.
+    for (body, side, count) in loops
+        .iter()
+        .flat_map(|&(b, s)| [(b, s, 0xe029), (b, s, 0x6026)])
+    {
         for div in 1..=3u32 {
             for shift in [0u32, 3 << 18] {
                 let mut pio = Pio::new();
-                let mut program = vec![0x80a0, 0xe029];
+                let mut program = vec![0x80a0, count];
                 program.extend_from_slice(body);
                 load(&mut pio, &program);
                 pio.write(reg::INSTR_MEM0 + 4 * 31, 0x001f);
@@ -453,9 +459,16 @@ fn a_bit_loop_in_one_step_equals_its_instructions() {
                     assert!(t < 100);
                 }
                 let lp = pio.sm_loop(0, 2).expect("a bit loop");
-                assert_eq!(pio.sm_loop_left(0), 10);
-                for k in 1..=10u64 {
-                    let what = format!("loop {body:x?} div {div} shift {shift:#x} k {k}");
+                let left = match (count, shift) {
+                    (0xe029, _) => 10,
+                    // 0xb5c3_96e1's top six bits, or its low six.
+                    (_, 0) => 46,
+                    _ => 34,
+                };
+                assert_eq!(pio.sm_loop_left(0), left);
+                for k in 1..=left {
+                    let what =
+                        format!("loop {body:x?} x {count:#x} div {div} shift {shift:#x} k {k}");
                     let mut a = pio.clone();
                     let mut levels = vec![[0u32; 8]; k as usize];
                     for c in t..t + k * lp.period {
