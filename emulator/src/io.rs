@@ -1258,14 +1258,15 @@ impl Io {
             let sdi = sdi_bits(&self.pio[b], fall, p.sdi);
             let first = x + lp.at(rise);
             let a = &mut self.adcs[*i];
-            let mut was = a.gpio_in();
+            let was = u64::from(a.sdo_level());
             let sdo = a.clock_bits(first, lp.at(fall) - lp.at(rise), lp.period, k as u32, sdi);
-            for r in 0..k {
+            // The rises after which SDO differs from before them, in order.
+            let mut changes = (sdo ^ (sdo << 1 | was)) & (u64::MAX >> (64 - k));
+            while changes != 0 {
+                let r = u64::from(changes.trailing_zeros());
                 let level = ((sdo >> r) as u32 & 1) << p.sdo;
-                if level != was {
-                    log_change(&mut self.sdo_log[*i], first + r * lp.period + 1, level);
-                    was = level;
-                }
+                log_change(&mut self.sdo_log[*i], first + r * lp.period + 1, level);
+                changes &= changes - 1;
             }
             clocked = Some((p.sdo, first, sdo));
         }
@@ -1285,12 +1286,27 @@ impl Io {
         let one = clocked.filter(|&(p, ..)| p == pin && sdo_pins[pin as usize] == 1);
         let mut in_bits = [0u64; LOOP_MAX];
         for j in lp.reads() {
-            for i in 0..k {
+            // The times round from `from` on read after the one ADC's first rise: time
+            // round i reads the SDO of rise `(at − first − 1) / period`, which is i + ⌊d /
+            // period⌋ for d the first time round's `at − first − 1`: a shifted run of them.
+            let mut from = k;
+            if let Some((_, first, sdo)) = one {
+                let d = (x + lp.at(j)) as i64 - lag as i64 - first as i64 - 1;
+                let rise = d.div_euclid(lp.period as i64);
+                from = rise.unsigned_abs() * u64::from(rise < 0);
+                if from < k {
+                    let run = match rise >= 0 {
+                        true => sdo.checked_shr(rise as u32),
+                        false => sdo.checked_shl(rise.unsigned_abs() as u32),
+                    };
+                    let mask = (u64::MAX >> (64 - k)) & !((1u64 << from) - 1);
+                    in_bits[j] |= run.unwrap_or(0) & mask;
+                }
+            }
+            // The others from the logs.
+            for i in 0..from.min(k) {
                 let at = (x + i * lp.period + lp.at(j)).wrapping_sub(lag);
-                let level = match one {
-                    Some((_, first, sdo)) if at > first => sdo >> ((at - first - 1) / lp.period),
-                    _ => u64::from(self.own_in(adc_mask, b, at, run) >> pin),
-                };
+                let level = u64::from(self.own_in(adc_mask, b, at, run) >> pin);
                 in_bits[j] |= (level & 1) << i;
             }
         }
