@@ -191,6 +191,9 @@ pub(crate) struct IoMemo {
     entries: Vec<MemoEntry>,
     /// The entry the next recording replaces once the memo is full.
     next: usize,
+    /// The buffer a recorded replay's trace ([`System::io_trace`]) is written into, kept
+    /// with its capacity from one to the next.
+    trace: Vec<SramOp>,
 }
 
 impl Default for IoMemo {
@@ -199,6 +202,7 @@ impl Default for IoMemo {
             on: true,
             entries: Vec::new(),
             next: 0,
+            trace: Vec::new(),
         }
     }
 }
@@ -494,19 +498,27 @@ impl Board {
         *io = self.system.io.as_mut().map(|now| now.checkpoint());
         let restored = self.system.io_journal.as_ref().map_or(0, Vec::len);
         let counts = self.system.io.as_mut().map(|io| io.record_counts());
-        self.system.io_trace = Some(Vec::new());
+        let mut trace = std::mem::take(&mut self.io_memo.trace);
+        trace.clear();
+        self.system.io_trace = Some(trace);
         let r = self.io_merge(logs, banks, own);
         let trace = self.system.io_trace.take().unwrap_or_default();
-        let (Ok(()), Some(counts), Some(now)) = (&r, counts, self.system.io.as_mut()) else {
-            return r;
+        let records = match (&r, counts, self.system.io.as_mut()) {
+            (Ok(()), Some(counts), Some(now)) => now.records_since(&counts, to_memo),
+            _ => None,
         };
-        let Some(records) = now.records_since(&counts, to_memo) else {
+        let (Some(records), Some(now)) = (records, self.system.io.as_mut()) else {
+            self.io_memo.trace = trace;
             return r;
         };
         let end = now.rebased(to_memo);
         // Each word the DMA read, as it was before the replay's first write of it.
         let journal = self.system.io_journal.as_deref().unwrap_or_default();
-        let mut pre: Vec<(u32, u32)> = Vec::new();
+        let reads = trace
+            .iter()
+            .filter(|op| matches!(op, SramOp::Read { .. }))
+            .count();
+        let mut pre: Vec<(u32, u32)> = Vec::with_capacity(reads);
         for op in &trace {
             if let SramOp::Read { word } = *op {
                 if pre.iter().any(|&(w, _)| w == word) {
@@ -528,6 +540,11 @@ impl Board {
             })
             .map(|(k, i, a)| (k, i as u32, a.value))
             .collect();
+        let ops = (trace.iter())
+            .filter(|op| !matches!(op, SramOp::Read { .. }))
+            .copied()
+            .collect();
+        self.io_memo.trace = trace;
         let Some(mut start) = io.take() else {
             return r;
         };
@@ -541,10 +558,7 @@ impl Board {
             start: start.io,
             end,
             pre,
-            ops: trace
-                .into_iter()
-                .filter(|op| !matches!(op, SramOp::Read { .. }))
-                .collect(),
+            ops,
             records,
         };
         let m = &mut self.io_memo;
