@@ -93,6 +93,14 @@ impl Translator<'_> {
         self.journal(at, store, aligned);
     }
 
+    /// The bank (i32) of bank offset `boff` (`bank · 16`, i64: [`Translator::bank_offset`]),
+    /// and `mask` (i32, bit *b* for bank *b*) shifted right by it: bit 0 is the bank's.
+    fn bank_bit(&mut self, mask: Value, boff: Value) -> (Value, Value) {
+        let bank = self.b.ins().ushr_imm_u(boff, 4);
+        let bank = self.b.ins().ireduce(types::I32, bank);
+        (bank, self.b.ins().ushr(mask, bank))
+    }
+
     /// Confined code only: leaves before the instruction at `ins` unless every bank offset
     /// in `boffs` is of an allowed bank.
     fn confine_banks(&mut self, ins: &RegionInstr, boffs: &[Value]) {
@@ -101,9 +109,7 @@ impl Translator<'_> {
         };
         let mut allowed = None;
         for &boff in boffs {
-            let bank = self.b.ins().ushr_imm_u(boff, 4);
-            let bank = self.b.ins().ireduce(types::I32, bank);
-            let bit = self.b.ins().ushr(c.allowed, bank);
+            let (_, bit) = self.bank_bit(c.allowed, boff);
             allowed = Some(match allowed {
                 None => bit,
                 Some(a) => self.b.ins().band(a, bit),
@@ -354,9 +360,7 @@ impl Translator<'_> {
         match self.confined {
             Some(c) if c.io => {
                 // An allowed bank, or one of the I/O's whose accesses are logged.
-                let bank = self.b.ins().ushr_imm_u(boff, 4);
-                let bank = self.b.ins().ireduce(types::I32, bank);
-                let bit = self.b.ins().ushr(c.allowed, bank);
+                let (bank, bit) = self.bank_bit(c.allowed, boff);
                 let ok = self.b.ins().band_imm_u(bit, 1);
                 let io = self.b.create_block();
                 self.b.ins().brif(ok, in_sram_ok, &args, io, &[]);
