@@ -313,11 +313,6 @@ impl Ads8688 {
         u32::from(self.sdo) << self.pins.sdo
     }
 
-    /// The level it drives on SDO (0 or 1).
-    pub(crate) fn sdo_level(&self) -> u32 {
-        u32::from(self.sdo)
-    }
-
     /// The frames seen so far (at most [`MAX_KEPT`]).
     pub fn frames(&self) -> &[AdcFrame] {
         &self.frames

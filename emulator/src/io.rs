@@ -1258,7 +1258,7 @@ impl Io {
             let sdi = sdi_bits(&self.pio[b], fall, p.sdi);
             let first = x + lp.at(rise);
             let a = &mut self.adcs[*i];
-            let was = u64::from(a.sdo_level());
+            let was = u64::from(a.gpio_in() >> p.sdo);
             let sdo = a.clock_bits(first, lp.at(fall) - lp.at(rise), lp.period, k as u32, sdi);
             // The rises after which SDO differs from before them, in order.
             let mut changes = (sdo ^ (sdo << 1 | was)) & (u64::MAX >> (64 - k));
@@ -1293,7 +1293,7 @@ impl Io {
             if let Some((_, first, sdo)) = one {
                 let d = (x + lp.at(j)) as i64 - lag as i64 - first as i64 - 1;
                 let rise = d.div_euclid(lp.period as i64);
-                from = rise.unsigned_abs() * u64::from(rise < 0);
+                from = if rise < 0 { rise.unsigned_abs() } else { 0 };
                 if from < k {
                     let run = match rise >= 0 {
                         true => sdo.checked_shr(rise as u32),
