@@ -26,8 +26,9 @@
 //! real-time factor to drop by at most 10 %).
 //!
 //! With `KEYBOARD_BENCH_ONCE=block` (or `interp`, or `block_io` for the board with
-//! converters) in the environment the bench instead runs that engine once and prints a summary that must not change between emulator versions
-//! (per board the handler cycles of each core, the strikes), for `valgrind
+//! converters) in the environment the bench instead runs that engine once and prints a
+//! summary that must not change between emulator versions (per board the handler cycles of
+//! each core, the strikes), for `valgrind
 //! --tool=callgrind --collect-atstart=no --toggle-collect='*run_keys*'`, whose
 //! instruction counts do not depend on the machine's load.
 
