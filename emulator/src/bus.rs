@@ -208,9 +208,9 @@ pub struct System {
     /// writes, before it is written (`offset << 32 | old word`), so that the replay can be
     /// undone; `None` otherwise.
     pub(crate) io_journal: Option<Vec<u64>>,
-    /// While a window's replay is recorded for the period memo, the DMA's SRAM accesses and
-    /// the cores' logged stores in the replay's order (`board/io_window.rs`).
-    pub(crate) io_trace: Option<Vec<crate::io::SramOp>>,
+    /// While a window's replay is recorded for the period memo, what the DMA does to SRAM
+    /// and the banks, with lanes (`board/io_window.rs`, `crate::lanes`).
+    pub(crate) io_rec: Option<Box<crate::io::LaneRec>>,
 }
 
 /// Every SRAM bank ([`System::allowed_banks`]).
@@ -335,7 +335,7 @@ impl System {
             io: None,
             io_banks: 0,
             io_journal: None,
-            io_trace: None,
+            io_rec: None,
         }
     }
 
@@ -371,7 +371,7 @@ impl System {
             flash: &self.flash,
             xip_answers: self.xip_answers,
             journal: self.io_journal.as_mut(),
-            trace: self.io_trace.as_mut(),
+            rec: self.io_rec.as_deref_mut(),
         };
         (self.io.as_deref_mut(), mem)
     }

@@ -25,7 +25,63 @@
 //! no effect), SDO's launch delay (the level changes with the edge's cycle), the analogue
 //! front end (a channel's code is what [`Ads8688::set_code`] last gave).
 
+use crate::lanes::{self, Fixed, Lane, Word, CONST};
 use tactus_runtime::converters::AdcPart;
+
+/// A 16-bit code's lanes (`crate::lanes`), bit 0 first.
+pub(crate) type Lanes16 = [Lane; 16];
+
+/// A code of constants.
+const CONST16: Lanes16 = [Lane::CONST; 16];
+
+/// An ADC's lanes while a replay is recorded (`crate::lanes`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct AdcLanes {
+    codes: [Lanes16; 8],
+    /// The code of the frame under way.
+    frame_code: Lanes16,
+    shift_in: Word,
+    sdo: Lane,
+    /// The level on SDI at the pins, as [`Ads8688::observe_lanes`] was last given it.
+    sdi: Lane,
+    /// The codes of the frames recorded since the lanes were started, in order.
+    pub(crate) frames: Vec<Lanes16>,
+    /// The lanes data decided something with.
+    pub(crate) fixed: Vec<Fixed>,
+}
+
+impl AdcLanes {
+    /// The lane of the level it drives on SDO.
+    pub(crate) fn sdo_lane(&self) -> Lane {
+        self.sdo
+    }
+}
+
+/// A DAC's lanes while a replay is recorded (`crate::lanes`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct DacLanes {
+    input: [Lanes16; 8],
+    output: [Lanes16; 8],
+    shift: Word,
+    sdi: Lane,
+    /// The codes of the updates recorded since the lanes were started, in order.
+    pub(crate) updates: Vec<Lanes16>,
+    /// The lanes data decided something with.
+    pub(crate) fixed: Vec<Fixed>,
+}
+
+/// A part's SPI lines seen with their lanes `l` (levels of the pins driven `values` on
+/// `dirs`): CS and SCLK decide edges, so their lanes are fixed into `fixed`; returns SDI's
+/// lane (an undriven SDI reads low, a constant).
+fn spi_lanes(pins: &SpiPins, values: u32, dirs: u32, l: &Word, fixed: &mut Vec<Fixed>) -> Lane {
+    let mut w = *l;
+    let edges = (1 << pins.cs | 1 << pins.sclk) & dirs;
+    lanes::fix(&mut w, values, edges, fixed);
+    match dirs >> pins.sdi & 1 {
+        0 => Lane::CONST,
+        _ => w[pins.sdi as usize & 31],
+    }
+}
 
 /// The pins of an SPI converter (GPIO numbers, 0–29).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -173,6 +229,8 @@ pub struct Ads8688 {
     last_cs_fall: Option<u64>,
     frames: Vec<AdcFrame>,
     violations: Vec<TimingViolation>,
+    /// Its lanes while a replay is recorded (`crate::lanes`); `None` otherwise.
+    pub(crate) lanes: Option<Box<AdcLanes>>,
 }
 
 /// A part's records — frames or updates, and timing violations — which only grow until
@@ -288,12 +346,8 @@ impl Ads8688 {
             last_cs_fall: None,
             frames: Vec::new(),
             violations: Vec::new(),
+            lanes: None,
         }
-    }
-
-    /// The codes its channels read (what [`Ads8688::set_code`] set).
-    pub(crate) fn codes(&self) -> &[u16; 8] {
-        &self.codes
     }
 
     /// Sets the code `channel` (0–7; others are ignored) reads from now on.
@@ -335,6 +389,49 @@ impl Ads8688 {
 
     fn seconds(&self, cycles: u64) -> f64 {
         cycles as f64 / self.clock_hz
+    }
+
+    /// Starts keeping lanes (`crate::lanes`), all constants (`crate::io::Io` gives its
+    /// data words theirs through [`Ads8688::data_slots`]).
+    pub(crate) fn start_lanes(&mut self) {
+        self.lanes = Some(Box::new(AdcLanes {
+            codes: [CONST16; 8],
+            frame_code: CONST16,
+            shift_in: CONST,
+            sdo: Lane::CONST,
+            sdi: Lane::CONST,
+            frames: Vec::new(),
+            fixed: Vec::new(),
+        }));
+    }
+
+    /// Its data words in a fixed order, each with its lanes while they are kept: the eight
+    /// channels' codes, the code of the frame under way (0 without one), the command
+    /// shifting in, the SDO level.
+    pub(crate) fn data_slots(&mut self, f: &mut dyn FnMut(&mut u32, Option<&mut [Lane]>)) {
+        let mut l = self.lanes.as_deref_mut();
+        for c in 0..8 {
+            let mut v = u32::from(self.codes[c]);
+            f(&mut v, l.as_deref_mut().map(|l| &mut l.codes[c][..]));
+            self.codes[c] = v as u16;
+        }
+        let mut v = self.frame.as_ref().map_or(0, |f| u32::from(f.code));
+        f(&mut v, l.as_deref_mut().map(|l| &mut l.frame_code[..]));
+        if let Some(fr) = self.frame.as_mut() {
+            fr.code = v as u16;
+        }
+        f(&mut self.shift_in, l.as_deref_mut().map(|l| &mut l.shift_in[..]));
+        let mut v = u32::from(self.sdo);
+        f(&mut v, l.map(|l| std::slice::from_mut(&mut l.sdo)));
+        self.sdo = v & 1 != 0;
+    }
+
+    /// [`Ads8688::observe`] with the lanes of the pins' levels, `l`, while lanes are kept.
+    pub(crate) fn observe_lanes(&mut self, cycle: u64, values: u32, dirs: u32, l: &Word) {
+        if let Some(a) = self.lanes.as_deref_mut() {
+            a.sdi = spi_lanes(&self.pins, values, dirs, l, &mut a.fixed);
+        }
+        self.observe(cycle, values, dirs);
     }
 
     /// Sees the pins after system cycle `cycle`: `values` the levels the RP2040 drives and
@@ -384,6 +481,7 @@ impl Ads8688 {
     /// must hold); returns the level it drives on SDO after each rise (bit i: the i-th).
     pub fn clock_bits(&mut self, first: u64, fall: u64, period: u64, k: u32, sdi: u64) -> u64 {
         debug_assert!(self.clocks_ok(period) && (1..=64).contains(&k) && fall < period);
+        debug_assert!(self.lanes.is_none(), "lanes are kept edge by edge only");
         let (half, bits) = (self.part.frame_bits / 2, self.part.frame_bits);
         // The rises, then the falls: a rise reads only the frame's count and code, which no
         // fall writes, and a fall only the frame's channel, which no rise writes, so the
@@ -467,10 +565,21 @@ impl Ads8688 {
         self.shift_in = 0;
         self.last_rise = None;
         self.sdo = false;
+        if let Some(l) = self.lanes.as_deref_mut() {
+            l.frame_code = l.codes[channel as usize & 7];
+            l.shift_in = CONST;
+            l.sdo = Lane::CONST;
+        }
     }
 
     fn cs_rise(&mut self, cycle: u64) {
         self.sdo = false;
+        if let Some(l) = self.lanes.as_deref_mut() {
+            l.sdo = Lane::CONST;
+            if self.frame.is_some() && self.frames.len() < MAX_KEPT {
+                l.frames.push(l.frame_code);
+            }
+        }
         if let Some(f) = self.frame.take() {
             if f.sclks != self.part.frame_bits {
                 self.violate(
@@ -522,12 +631,25 @@ impl Ads8688 {
             }
         }
         self.sdo = f.sdo(self.part.frame_bits);
+        if let Some(l) = self.lanes.as_deref_mut() {
+            // The code's bit that `AdcFrame::sdo` shows, or a constant low.
+            let bits = self.part.frame_bits;
+            let half = bits / 2;
+            l.sdo = match f.sclks > half && f.sclks <= bits {
+                true => (l.frame_code.get((bits - f.sclks) as usize)).map_or(Lane::CONST, |x| *x),
+                false => Lane::CONST,
+            };
+        }
         self.frame = Some(f);
     }
 
     fn fall(&mut self, sdi: bool) {
         let half = self.part.frame_bits / 2;
         if self.falling < half {
+            if let Some(l) = self.lanes.as_deref_mut() {
+                l.shift_in = lanes::shl(&l.shift_in, 1);
+                l.shift_in[0] = l.sdi;
+            }
             self.shift_in = self.shift_in << 1 | u32::from(sdi);
             self.falling += 1;
             if self.falling == half {
@@ -540,6 +662,10 @@ impl Ads8688 {
     /// part obeys it.
     fn command_latched(&mut self) {
         let command = self.shift_in as u16;
+        if let Some(l) = self.lanes.as_deref_mut() {
+            // The part obeys it: what it selects depends on its bits.
+            lanes::fix(&mut l.shift_in, self.shift_in, 0xffff, &mut l.fixed);
+        }
         if let Some(f) = self.frame.as_mut() {
             f.command = command;
         }
@@ -603,6 +729,8 @@ pub struct Dac8568 {
     last_fall: Option<u64>,
     updates: Vec<DacUpdate>,
     violations: Vec<TimingViolation>,
+    /// Its lanes while a replay is recorded (`crate::lanes`); `None` otherwise.
+    pub(crate) lanes: Option<Box<DacLanes>>,
 }
 
 impl Recorded for Dac8568 {
@@ -642,6 +770,7 @@ impl Dac8568 {
             last_fall: None,
             updates: Vec::new(),
             violations: Vec::new(),
+            lanes: None,
         }
     }
 
@@ -653,11 +782,6 @@ impl Dac8568 {
     /// The output codes of channels A–H.
     pub fn outputs(&self) -> [u16; 8] {
         self.output
-    }
-
-    /// The input registers of channels A–H (written, not yet updated to the outputs).
-    pub(crate) fn inputs(&self) -> &[u16; 8] {
-        &self.input
     }
 
     /// The output changes so far (at most [`MAX_KEPT`]).
@@ -677,6 +801,44 @@ impl Dac8568 {
 
     fn violate(&mut self, cycle: u64, what: String) {
         keep(&mut self.violations, TimingViolation { cycle, what });
+    }
+
+    /// Starts keeping lanes (`crate::lanes`), all constants (`crate::io::Io` gives its
+    /// data words theirs through [`Dac8568::data_slots`]).
+    pub(crate) fn start_lanes(&mut self) {
+        self.lanes = Some(Box::new(DacLanes {
+            input: [CONST16; 8],
+            output: [CONST16; 8],
+            shift: CONST,
+            sdi: Lane::CONST,
+            updates: Vec::new(),
+            fixed: Vec::new(),
+        }));
+    }
+
+    /// Its data words in a fixed order, each with its lanes while they are kept: the eight
+    /// input registers, the eight output registers, the frame shifting in.
+    pub(crate) fn data_slots(&mut self, f: &mut dyn FnMut(&mut u32, Option<&mut [Lane]>)) {
+        let mut l = self.lanes.as_deref_mut();
+        for c in 0..8 {
+            let mut v = u32::from(self.input[c]);
+            f(&mut v, l.as_deref_mut().map(|l| &mut l.input[c][..]));
+            self.input[c] = v as u16;
+        }
+        for c in 0..8 {
+            let mut v = u32::from(self.output[c]);
+            f(&mut v, l.as_deref_mut().map(|l| &mut l.output[c][..]));
+            self.output[c] = v as u16;
+        }
+        f(&mut self.shift, l.map(|l| &mut l.shift[..]));
+    }
+
+    /// [`Dac8568::observe`] with the lanes of the pins' levels, `l`, while lanes are kept.
+    pub(crate) fn observe_lanes(&mut self, cycle: u64, values: u32, dirs: u32, l: &Word) {
+        if let Some(d) = self.lanes.as_deref_mut() {
+            d.sdi = spi_lanes(&self.pins, values, dirs, l, &mut d.fixed);
+        }
+        self.observe(cycle, values, dirs);
     }
 
     /// Sees the pins after system cycle `cycle` (as [`Ads8688::observe`]: an undriven SYNC
@@ -702,6 +864,9 @@ impl Dac8568 {
             self.bits = 0;
             self.shift = 0;
             self.last_fall = None;
+            if let Some(l) = self.lanes.as_deref_mut() {
+                l.shift = CONST;
+            }
         }
         if e.cs_rose {
             self.sync_rose = Some(cycle);
@@ -744,6 +909,7 @@ impl Dac8568 {
     /// equal periods: [`Dac8568::clocks_ok`], which must hold).
     pub fn clock_bits(&mut self, first: u64, period: u64, k: u32, sdi: u64) {
         debug_assert!(self.clocks_ok(period) && (1..=64).contains(&k));
+        debug_assert!(self.lanes.is_none(), "lanes are kept edge by edge only");
         self.fall(first, sdi & 1 != 0);
         // The other k − 1 falls without their checks (the rate known to be within the
         // part's): as `latch` one by one, the frame's bits that remain taken at once.
@@ -796,6 +962,10 @@ impl Dac8568 {
         if self.bits >= self.part.frame_bits {
             return;
         }
+        if let Some(l) = self.lanes.as_deref_mut() {
+            l.shift = lanes::shl(&l.shift, 1);
+            l.shift[0] = l.sdi;
+        }
         self.take_bits(1, u64::from(sdi), cycle);
     }
 
@@ -806,6 +976,9 @@ impl Dac8568 {
         self.bits += n;
         if self.bits == self.part.frame_bits {
             self.write(cycle, self.shift);
+            if let Some(l) = self.lanes.as_deref_mut() {
+                l.shift = CONST;
+            }
             // The frame's bits are spent: nothing reads them again before the next SYNC
             // fall clears them, so the part's state no longer carries the frame's data
             // (two DACs that wrote different words are then equal, as a period memo's
@@ -815,10 +988,13 @@ impl Dac8568 {
     }
 
     /// The input registers of `channels` (bit c: channel c) take `data`.
-    fn write_inputs(&mut self, channels: u8, data: u16) {
+    fn write_inputs(&mut self, channels: u8, data: u16, lanes: Option<Lanes16>) {
         for (c, input) in self.input.iter_mut().enumerate() {
             if channels & (1 << c) != 0 {
                 *input = data;
+                if let (Some(l), Some(d)) = (self.lanes.as_deref_mut(), lanes) {
+                    l.input[c] = d;
+                }
             }
         }
     }
@@ -828,6 +1004,13 @@ impl Dac8568 {
         let control = (word >> 24) & 0xf;
         let address = (word >> 20) & 0xf;
         let data = ((word >> 4) & 0xffff) as u16;
+        // The lanes of the data bits; the control and address bits decide what happens.
+        let data_lanes = self.lanes.as_deref_mut().map(|l| {
+            lanes::fix(&mut l.shift, word, 0x0ff0_0000, &mut l.fixed);
+            let mut d = CONST16;
+            d.copy_from_slice(&l.shift[4..20]);
+            d
+        });
         // Channels as bits (bit c: channel c).
         let channels: u8 = match address {
             0..=7 => 1 << address,
@@ -836,19 +1019,25 @@ impl Dac8568 {
         };
         let mut changed = 0u8;
         match control {
-            0 => self.write_inputs(channels, data),
+            0 => self.write_inputs(channels, data, data_lanes),
             1 => changed = channels,
             2 => {
-                self.write_inputs(channels, data);
+                self.write_inputs(channels, data, data_lanes);
                 changed = 0xff;
             }
             3 => {
-                self.write_inputs(channels, data);
+                self.write_inputs(channels, data, data_lanes);
                 changed = channels;
             }
             _ => {}
         }
         for c in (0..8).filter(|c| changed & (1 << c) != 0) {
+            if let Some(l) = self.lanes.as_deref_mut() {
+                l.output[c] = l.input[c];
+                if self.updates.len() < MAX_KEPT {
+                    l.updates.push(l.output[c]);
+                }
+            }
             self.output[c] = self.input[c];
             let code = self.output[c];
             keep(

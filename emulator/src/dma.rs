@@ -56,6 +56,8 @@
 //! `FIFO_LEVELS` and debug counters beyond `DBG_TCR`. On the bus (`crate::io`), a board
 //! with converters runs it against SRAM and the two PIO blocks.
 
+use crate::lanes::{Lane, Word, CONST};
+
 /// Base address of the DMA's registers (datasheet 2.2).
 pub const DMA_BASE: u32 = 0x5000_0000;
 
@@ -193,6 +195,16 @@ pub trait DmaPort {
     /// How many transfers DREQ `n` (0–0x3a) can take now: a TX FIFO's free entries, an RX
     /// FIFO's level; 0 for a DREQ nothing drives.
     fn dreq_room(&self, n: u32) -> u32;
+    /// While lanes are kept (a recorded replay, `crate::lanes`): the lanes of the value the
+    /// last [`DmaPort::read`] returned. Constants by default.
+    #[doc(hidden)]
+    fn read_lanes(&mut self) -> crate::lanes::Word {
+        crate::lanes::CONST
+    }
+    /// While lanes are kept: the lanes of the value the next [`DmaPort::write`] writes.
+    /// Ignored by default.
+    #[doc(hidden)]
+    fn write_lanes(&mut self, _lanes: &crate::lanes::Word) {}
 }
 
 /// One channel's registers and sequence state.
@@ -321,6 +333,9 @@ pub struct Dma {
     last_high: usize,
     last_low: usize,
     round_served: u32,
+    /// The lanes of the transfers' values while a replay is recorded (`crate::lanes`), in
+    /// the queue's order; `None` otherwise.
+    pub(crate) lanes: Option<Box<[Word; TRANSFER_FIFO_DEPTH]>>,
 }
 
 impl Default for Dma {
@@ -361,7 +376,39 @@ impl Dma {
             last_high: CHANNELS - 1,
             last_low: CHANNELS - 1,
             round_served: 0,
+            lanes: None,
         }
+    }
+
+    /// Starts keeping lanes (`crate::lanes`), all constants (`crate::io::Io` gives its data
+    /// words theirs through [`Dma::data_slots`]).
+    pub(crate) fn start_lanes(&mut self) {
+        self.lanes = Some(Box::new([CONST; TRANSFER_FIFO_DEPTH]));
+    }
+
+    /// Its data words in a fixed order, each with its lanes while they are kept: the values
+    /// of the transfer FIFO's entries.
+    pub(crate) fn data_slots(&mut self, f: &mut dyn FnMut(&mut u32, Option<&mut [Lane]>)) {
+        let mut l = self.lanes.as_deref_mut();
+        for (i, t) in self.queue.t.iter_mut().enumerate() {
+            f(&mut t.value, l.as_deref_mut().map(|l| &mut l[i][..]));
+        }
+    }
+
+    /// The queue without the transfers `drop` names, their lanes with them.
+    fn drop_transfers(&mut self, drop: impl Fn(&Transfer) -> bool) {
+        if let Some(l) = self.lanes.as_deref_mut() {
+            let mut kept = [CONST; TRANSFER_FIFO_DEPTH];
+            let mut k = 0;
+            for (i, t) in self.queue.t[..self.queue.len].iter().enumerate() {
+                if !drop(t) {
+                    kept[k] = l[i];
+                    k += 1;
+                }
+            }
+            *l = kept;
+        }
+        self.queue.retain(|t| !drop(t));
     }
 
     /// DMA_IRQ_0: a raw or forced flag of a channel enabled in INTE0.
@@ -546,7 +593,7 @@ impl Dma {
                         c.empty_start = false;
                     }
                 }
-                self.queue.retain(|t| value & (1 << t.channel) == 0);
+                self.drop_transfers(|t| value & (1 << t.channel) != 0);
             }
             _ => {}
         }
@@ -588,7 +635,7 @@ impl Dma {
         (c.busy, c.to_issue, c.in_flight) = (false, 0, 0);
         c.empty_start = false;
         self.intr |= 1 << n;
-        self.queue.retain(|t| t.channel != n);
+        self.drop_transfers(|t| t.channel == n);
     }
 
     /// Whether channel `n` may issue a transfer this cycle.
@@ -669,6 +716,12 @@ impl Dma {
         if cycle >= self.write_free {
             if let Some(t) = self.queue.front().copied().filter(|t| t.ready <= cycle) {
                 self.queue.pop_front();
+                if let Some(l) = self.lanes.as_deref_mut() {
+                    let w = l[0];
+                    l.copy_within(1.., 0);
+                    l[TRANSFER_FIFO_DEPTH - 1] = CONST;
+                    port.write_lanes(&w);
+                }
                 match port.write(cycle, t.addr, t.size, t.value) {
                     Ok(wait) => {
                         self.write_free = cycle + 1 + u64::from(wait);
@@ -704,6 +757,22 @@ impl Dma {
                 } else {
                     value
                 };
+                if let Some(l) = self.lanes.as_deref_mut() {
+                    let mut w = port.read_lanes();
+                    if self.ch[n].ctrl & ctrl::BSWAP != 0 {
+                        w = match size {
+                            2 => std::array::from_fn(|i| match i {
+                                0..=15 => w[i ^ 8],
+                                _ => Lane::CONST,
+                            }),
+                            4 => std::array::from_fn(|i| w[i ^ 24]),
+                            _ => w,
+                        };
+                    }
+                    if let Some(slot) = l.get_mut(self.queue.len()) {
+                        *slot = w;
+                    }
+                }
                 let c = &mut self.ch[n];
                 if c.ctrl & ctrl::INCR_READ != 0 {
                     c.read_addr = c.advance(from, !ring_write);

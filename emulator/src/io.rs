@@ -70,6 +70,7 @@
 use crate::bus::{load_le, sram_location, store_le, BusFault, BANKS};
 use crate::converters::{AdcFrame, Ads8688, Dac8568, DacUpdate, Recorded, SpiPins};
 use crate::dma::{Dma, DmaPort, DMA_BASE};
+use crate::lanes::{self, Fixed, Lane, Word, CONST};
 use crate::pio::{BitLoop, LoopClock, Pio, LOOP_MAX, PIO0_BASE, PIO1_BASE};
 use tactus_runtime::converters::{AdcPart, DacPart};
 
@@ -174,6 +175,87 @@ pub struct Io {
     held_until: [[u64; 4]; 2],
     /// The cycle before which nothing runs, as the last advance found it (`Io::skip_idle`).
     idle: Idle,
+    /// The lanes of the pins' levels and of the GPIO inputs while a replay is recorded
+    /// (`crate::lanes`); `None` otherwise.
+    lanes: Option<Box<IoLanes>>,
+}
+
+/// The machine's own lanes while a replay is recorded (`crate::lanes`), per GPIO.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct IoLanes {
+    /// The levels driven, as the converters saw them last ([`Io::pins`]).
+    pins: Word,
+    /// The levels the converters drive ([`Io::gpio_in`]).
+    gpio_in: Word,
+    /// Two parts drove data onto one pin: no lane says what it reads.
+    clash: bool,
+}
+
+/// What a recording's data words hold at its end ([`Io::stop_lanes`]): per data slot
+/// ([`Io::data_slots`]) its value and lanes; the lanes of the codes of the frames and
+/// updates the parts recorded, per part; and every lane fixed.
+pub(crate) struct LanesKept {
+    pub slots: Vec<(u32, Word)>,
+    pub frames: Vec<Vec<crate::converters::Lanes16>>,
+    pub updates: Vec<Vec<crate::converters::Lanes16>>,
+    pub fixed: Vec<Fixed>,
+}
+
+/// One SRAM access of the DMA in a recorded replay ([`LaneRec`]), at its tick (the cycle
+/// the DMA's port was asked in).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) enum LaneOp {
+    /// It read `size` bytes at SRAM offset `off`: input `input`.
+    Read {
+        tick: u64,
+        off: u32,
+        size: u8,
+        input: u32,
+    },
+    /// It wrote the low `size` bytes of `value`, whose lanes are `lanes`, at `off`.
+    Write {
+        tick: u64,
+        off: u32,
+        size: u8,
+        value: u32,
+        lanes: Box<Word>,
+    },
+}
+
+/// What the DMA does to SRAM and the banks while a replay is recorded with lanes
+/// (`crate::lanes`, the period memo of `board/io_window.rs`).
+#[derive(Clone, Default)]
+pub(crate) struct LaneRec {
+    /// The next input's number: the data slots' come first, then one per SRAM read.
+    pub next_input: u32,
+    pub ops: Vec<LaneOp>,
+    /// Each bank claimed by one of the DMA's masters: (cycle, bank).
+    pub claims: Vec<(u64, u8)>,
+    /// Lanes fixed at the bus (data written to a register other than a TX FIFO).
+    pub fixed: Vec<Fixed>,
+    /// The DMA read ROM or flash (which differ from board to board): no recording.
+    pub poisoned: bool,
+    read_lanes: Word,
+    write_lanes: Word,
+}
+
+impl LaneRec {
+    /// A recording whose data slots are the first `slots` inputs.
+    pub(crate) fn new(slots: u32) -> Self {
+        LaneRec {
+            next_input: slots,
+            ..LaneRec::default()
+        }
+    }
+}
+
+impl std::fmt::Debug for LaneRec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LaneRec")
+            .field("ops", &self.ops.len())
+            .field("claims", &self.claims.len())
+            .finish()
+    }
 }
 
 /// What an advance found of the next cycle anything can happen in (the DMA quiet, no state
@@ -279,21 +361,9 @@ pub(crate) struct Memory<'a> {
     /// Where the DMA's SRAM writes journal the word they overwrite (`offset << 32 | old`),
     /// while a window's I/O is replayed (`System::io_journal`).
     pub journal: Option<&'a mut Vec<u64>>,
-    /// Where the DMA's SRAM accesses are traced while a window's replay is recorded for
-    /// the period memo (`System::io_trace`, `board/io_window.rs`).
-    pub trace: Option<&'a mut Vec<SramOp>>,
-}
-
-/// An SRAM access of a replayed window, in the replay's order: what the period memo
-/// (`board/io_window.rs`) keeps of a window it records.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum SramOp {
-    /// The DMA read the word at this SRAM offset.
-    Read { word: u32 },
-    /// The DMA wrote `size` bytes of `value` at SRAM offset `off`.
-    Dma { off: u32, size: u8, value: u32 },
-    /// The next of the cores' logged accesses in the lock-step order.
-    Entry,
+    /// What the DMA does while a window's replay is recorded with lanes for the period
+    /// memo (`System::io_rec`, `board/io_window.rs`).
+    pub rec: Option<&'a mut LaneRec>,
 }
 
 /// Cycles moved from one time base to another (a window's start to a period memo's and
@@ -346,6 +416,56 @@ impl IoRecords {
     /// Whether it holds no frame and no update.
     pub(crate) fn is_empty(&self) -> bool {
         self.adcs.iter().all(Vec::is_empty) && self.dacs.iter().all(Vec::is_empty)
+    }
+
+    /// The routes of its codes (`crate::lanes::Route`) from their lanes (per ADC its
+    /// frames', per DAC its updates', in order: [`LanesKept`]): (frames', updates').
+    pub(crate) fn routes(
+        &self,
+        frames: &[Vec<crate::converters::Lanes16>],
+        updates: &[Vec<crate::converters::Lanes16>],
+    ) -> (Vec<Vec<lanes::Route>>, Vec<Vec<lanes::Route>>) {
+        let route = |l: Option<&crate::converters::Lanes16>, code: u16| {
+            let mut w = CONST;
+            if let Some(l) = l {
+                w[..16].copy_from_slice(l);
+            }
+            lanes::Route::of(&w, u32::from(code))
+        };
+        let f = (self.adcs.iter().enumerate())
+            .map(|(a, fs)| {
+                (fs.iter().enumerate())
+                    .map(|(i, x)| route(frames.get(a).and_then(|l| l.get(i)), x.code))
+                    .collect()
+            })
+            .collect();
+        let u = (self.dacs.iter().enumerate())
+            .map(|(d, us)| {
+                (us.iter().enumerate())
+                    .map(|(i, x)| route(updates.get(d).and_then(|l| l.get(i)), x.code))
+                    .collect()
+            })
+            .collect();
+        (f, u)
+    }
+
+    /// Its codes given by `routes` ([`IoRecords::routes`]) from `inputs`.
+    pub(crate) fn set_codes(
+        &mut self,
+        frames: &[Vec<lanes::Route>],
+        updates: &[Vec<lanes::Route>],
+        inputs: &[u32],
+    ) {
+        for (fs, rs) in self.adcs.iter_mut().zip(frames) {
+            for (f, r) in fs.iter_mut().zip(rs) {
+                f.code = r.eval(inputs) as u16;
+            }
+        }
+        for (us, rs) in self.dacs.iter_mut().zip(updates) {
+            for (u, r) in us.iter_mut().zip(rs) {
+                u.code = r.eval(inputs) as u16;
+            }
+        }
     }
 }
 
@@ -414,6 +534,9 @@ impl<'m, 'a> Port<'m, 'a> {
             wait += 1;
         }
         self.claim[m][bank] = cycle + u64::from(wait);
+        if let Some(rec) = self.mem.rec.as_deref_mut() {
+            rec.claims.push((cycle + u64::from(wait), bank as u8));
+        }
         wait
     }
 }
@@ -422,18 +545,34 @@ impl DmaPort for Port<'_, '_> {
     fn read(&mut self, cycle: u64, addr: u32, size: u32) -> Result<(u32, u32), BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.claim_bank(0, bank, cycle);
-            if let Some(t) = self.mem.trace.as_deref_mut() {
-                t.push(SramOp::Read {
-                    word: off as u32 & !3,
+            if let Some(rec) = self.mem.rec.as_deref_mut() {
+                // Each SRAM word it reads is an input of the recording.
+                let input = rec.next_input;
+                rec.next_input += 1;
+                rec.ops.push(LaneOp::Read {
+                    tick: cycle,
+                    off: off as u32,
+                    size: size as u8,
+                    input,
                 });
+                rec.read_lanes = lanes::input_word(input, 8 * size);
             }
             return Ok((load_le(self.mem.sram, off, size), wait));
         }
         if let Some((b, off)) = pio_of(addr) {
             self.touched |= 1 << b;
             let v = self.pio[b].read(off & !3);
-            let v = v >> (8 * (addr & 3)) & (u32::MAX >> (32 - 8 * size));
+            let mask = u32::MAX >> (32 - 8 * size);
+            if let Some(rec) = self.mem.rec.as_deref_mut() {
+                let l = self.pio[b].lanes.as_ref().map_or(CONST, |l| l.last_read);
+                rec.read_lanes = lanes::and(&lanes::shr(&l, 8 * (addr & 3)), mask);
+            }
+            let v = v >> (8 * (addr & 3)) & mask;
             return Ok((v, 0));
+        }
+        if let Some(rec) = self.mem.rec.as_deref_mut() {
+            rec.poisoned = true;
+            rec.read_lanes = CONST;
         }
         let flash = addr.wrapping_sub(crate::bus::FLASH_BASE);
         if addr < crate::bus::ROM_SIZE {
@@ -448,11 +587,14 @@ impl DmaPort for Port<'_, '_> {
     fn write(&mut self, cycle: u64, addr: u32, size: u32, value: u32) -> Result<u32, BusFault> {
         if let Some((off, bank)) = sram_location(addr) {
             let wait = self.claim_bank(1, bank, cycle);
-            if let Some(t) = self.mem.trace.as_deref_mut() {
-                t.push(SramOp::Dma {
+            if let Some(rec) = self.mem.rec.as_deref_mut() {
+                let mask = u32::MAX >> (32 - 8 * size);
+                rec.ops.push(LaneOp::Write {
+                    tick: cycle,
                     off: off as u32,
                     size: size as u8,
-                    value,
+                    value: value & mask,
+                    lanes: Box::new(lanes::and(&rec.write_lanes, mask)),
                 });
             }
             dma_sram_write(self.mem, off, size, value);
@@ -465,11 +607,36 @@ impl DmaPort for Port<'_, '_> {
                 2 => (value & 0xffff) * 0x0001_0001,
                 _ => value,
             };
+            if let Some(rec) = self.mem.rec.as_deref_mut() {
+                let l = rec.write_lanes;
+                let w: Word = std::array::from_fn(|i| match size {
+                    1 => l[i % 8],
+                    2 => l[i % 16],
+                    _ => l[i],
+                });
+                let fifo = (crate::pio::reg::TXF0..crate::pio::reg::TXF0 + 16)
+                    .contains(&(off & !3));
+                match self.pio[b].lanes.as_deref_mut() {
+                    Some(pl) if fifo => pl.next_write = w,
+                    // Data written to any other register decides what the block does.
+                    _ => lanes::fix(&mut w.clone(), v, u32::MAX, &mut rec.fixed),
+                }
+            }
             self.touched |= 1 << b;
             self.pio[b].write(off & !3, v);
             return Ok(0);
         }
         Err(BusFault { addr })
+    }
+
+    fn read_lanes(&mut self) -> Word {
+        self.mem.rec.as_deref().map_or(CONST, |r| r.read_lanes)
+    }
+
+    fn write_lanes(&mut self, lanes: &Word) {
+        if let Some(rec) = self.mem.rec.as_deref_mut() {
+            rec.write_lanes = *lanes;
+        }
     }
 
     fn dreq_room(&self, n: u32) -> u32 {
@@ -574,6 +741,101 @@ impl Io {
             behind: 0,
             held_until: [[0; 4]; 2],
             idle: Idle(0),
+            lanes: None,
+        }
+    }
+
+    /// Starts keeping lanes (`crate::lanes`) for a recorded replay: each data word's are
+    /// its own bits, its slot's number the input ([`Io::data_slots`]). Returns the number
+    /// of slots (the first input a DMA read takes).
+    pub(crate) fn start_lanes(&mut self) -> u32 {
+        self.lanes = Some(Box::new(IoLanes {
+            pins: CONST,
+            gpio_in: CONST,
+            clash: false,
+        }));
+        self.pio.iter_mut().for_each(Pio::start_lanes);
+        self.dma.start_lanes();
+        self.adcs.iter_mut().for_each(Ads8688::start_lanes);
+        self.dacs.iter_mut().for_each(Dac8568::start_lanes);
+        let mut slot = 0u32;
+        self.data_slots(&mut |_, l| {
+            if let Some(l) = l {
+                for (b, x) in l.iter_mut().enumerate() {
+                    *x = Lane::input(slot, b as u32);
+                }
+            }
+            slot += 1;
+        });
+        slot
+    }
+
+    /// Stops keeping lanes: what they held ([`LanesKept`]), or `None` when a part lost them
+    /// (reset meanwhile) or two parts drove one pin with data.
+    pub(crate) fn stop_lanes(&mut self) -> Option<LanesKept> {
+        let mut whole = self.lanes.as_ref().is_some_and(|l| !l.clash)
+            && self.pio.iter().all(|p| p.lanes.is_some())
+            && self.dma.lanes.is_some()
+            && self.adcs.iter().all(|a| a.lanes.is_some())
+            && self.dacs.iter().all(|d| d.lanes.is_some());
+        let mut slots = Vec::new();
+        self.data_slots(&mut |v, l| match l {
+            Some(l) => {
+                let mut w = CONST;
+                w[..l.len()].copy_from_slice(l);
+                slots.push((*v, w));
+            }
+            None => whole = false,
+        });
+        let mut fixed = Vec::new();
+        let mut frames = Vec::new();
+        let mut updates = Vec::new();
+        for p in &mut self.pio {
+            if let Some(l) = p.lanes.take() {
+                fixed.extend_from_slice(&l.fixed);
+            }
+        }
+        self.dma.lanes = None;
+        for a in &mut self.adcs {
+            if let Some(l) = a.lanes.take() {
+                fixed.extend_from_slice(&l.fixed);
+                frames.push(l.frames);
+            }
+        }
+        for d in &mut self.dacs {
+            if let Some(l) = d.lanes.take() {
+                fixed.extend_from_slice(&l.fixed);
+                updates.push(l.updates);
+            }
+        }
+        self.lanes = None;
+        whole.then_some(LanesKept {
+            slots,
+            frames,
+            updates,
+            fixed,
+        })
+    }
+
+    /// Its data words, each with its lanes while they are kept, in a fixed order that the
+    /// rest of the machine decides (the same for equal machines but for their data): the
+    /// pins' levels as the converters saw them, the levels the converters drive, then the
+    /// PIO blocks' ([`Pio::data_slots`]), the DMA's, the ADCs' and the DACs'. A period memo
+    /// (`board/io_window.rs`) compares machines without them, and gives a recorded
+    /// replay's by their routes.
+    pub(crate) fn data_slots(&mut self, f: &mut dyn FnMut(&mut u32, Option<&mut [Lane]>)) {
+        let mut l = self.lanes.as_deref_mut();
+        f(&mut self.pins.0, l.as_deref_mut().map(|l| &mut l.pins[..]));
+        f(&mut self.gpio_in, l.map(|l| &mut l.gpio_in[..]));
+        for p in &mut self.pio {
+            p.data_slots(f);
+        }
+        self.dma.data_slots(f);
+        for a in &mut self.adcs {
+            a.data_slots(f);
+        }
+        for d in &mut self.dacs {
+            d.data_slots(f);
         }
     }
 
@@ -618,32 +880,6 @@ impl Io {
         let mut io = self.checkpoint().io;
         io.rebase(r);
         io
-    }
-
-    /// A hash of its data: the ADCs' codes and the DACs' input and output registers
-    /// (FNV-1a). Equal machines have equal hashes: the period memo (`board/io_window.rs`)
-    /// tells with it, before comparing whole machines, the many recorded starts that differ
-    /// only in the codes a busy board's keys move.
-    pub(crate) fn data_hash(&self) -> u64 {
-        let mut h = 0xcbf2_9ce4_8422_2325u64;
-        let mut mix = |c: &[u16; 8]| {
-            let mut w = [0u64; 2];
-            for (i, &v) in c.iter().enumerate() {
-                w[i / 4] |= u64::from(v) << (16 * (i % 4));
-            }
-            for v in w {
-                h = (h ^ v).wrapping_mul(0x0000_0100_0000_01b3);
-            }
-        };
-        for a in &self.adcs {
-            mix(a.codes());
-        }
-        for d in &self.dacs {
-            mix(d.inputs());
-            let out = d.outputs();
-            mix(&out);
-        }
-        h
     }
 
     /// Its cycles moved by `r`, its parts' records not (a period memo's key, end state, or
@@ -965,6 +1201,9 @@ impl Io {
     /// Shows the converters the pins after `cycle` if they changed.
     fn observe(&mut self, cycle: u64) {
         let now = self.driven();
+        if self.lanes.is_some() {
+            return self.observe_lanes(cycle, now);
+        }
         if now == self.pins {
             return;
         }
@@ -978,6 +1217,41 @@ impl Io {
             d.observe(cycle, now.0, now.1);
         }
         self.gpio_in = gpio_in;
+    }
+
+    /// [`Io::observe`] while lanes are kept, the pins driven `now`: the levels' lanes are
+    /// the PIOs' on their pins (also when the levels are as before: the converters, shown
+    /// no change of CS or SCLK, do nothing either way), the inputs' the ADCs' SDO lanes.
+    fn observe_lanes(&mut self, cycle: u64, now: (u32, u32)) {
+        let [m0, m1] = self.pio_pins;
+        let out = |p: &Pio| p.lanes.as_ref().map_or(CONST, |l| l.out);
+        let pins = lanes::select(m0, &out(&self.pio[0]), &lanes::and(&out(&self.pio[1]), m1));
+        let Some(l) = self.lanes.as_deref_mut() else {
+            return;
+        };
+        l.pins = pins;
+        if now == self.pins {
+            return;
+        }
+        self.pins = now;
+        let mut gpio_in = 0;
+        let mut in_lanes = CONST;
+        for a in &mut self.adcs {
+            a.observe_lanes(cycle, now.0, now.1, &pins);
+            gpio_in |= a.gpio_in();
+            if let Some(al) = a.lanes.as_deref() {
+                let pin = a.pins().sdo as usize & 31;
+                if !al.sdo_lane().is_const() {
+                    l.clash |= !in_lanes[pin].is_const();
+                    in_lanes[pin] = al.sdo_lane();
+                }
+            }
+        }
+        for d in &mut self.dacs {
+            d.observe_lanes(cycle, now.0, now.1, &pins);
+        }
+        self.gpio_in = gpio_in;
+        l.gpio_in = in_lanes;
     }
 
     /// Runs the machine through cycle `to − 1` (nothing when it is there already). With
@@ -1006,6 +1280,9 @@ impl Io {
             }
             let gpio_in = self.gpio_in;
             for p in &mut self.pio {
+                if let (Some(io), Some(pl)) = (self.lanes.as_deref(), p.lanes.as_deref_mut()) {
+                    pl.gpio_in = io.gpio_in;
+                }
                 p.tick(gpio_in);
             }
             self.observe(c);

@@ -29,6 +29,8 @@ pub mod exec;
 mod fast;
 pub mod io;
 mod jit;
+#[doc(hidden)]
+pub mod lanes;
 mod memo;
 pub mod nvic;
 pub mod pio;

@@ -40,6 +40,8 @@
 //! both blocks, skipping stretches in which every enabled state machine stalls without
 //! effect ([`Pio::quiet`], [`Pio::skip`]).
 
+use crate::lanes::{self, Fixed, Lane, Word, CONST};
+
 /// Base address of PIO0 (datasheet 2.2).
 pub const PIO0_BASE: u32 = 0x5020_0000;
 /// Base address of PIO1.
@@ -152,6 +154,130 @@ impl Fifo {
     fn clear(&mut self) {
         *self = Fifo::default();
     }
+}
+
+/// The lanes of a [`Fifo`]'s words (`crate::lanes`), kept as its words are: pushed at the
+/// FIFO's length before the push, popped from the front.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct FifoLanes([Word; 8]);
+
+impl FifoLanes {
+    /// The lanes of the word pushed onto a FIFO of `len` words.
+    fn push(&mut self, len: usize, w: Word) {
+        if let Some(slot) = self.0.get_mut(len) {
+            *slot = w;
+        }
+    }
+    /// The lanes of the word popped from a FIFO that held one.
+    fn pop(&mut self) -> Word {
+        let w = self.0[0];
+        self.0.copy_within(1.., 0);
+        self.0[7] = CONST;
+        w
+    }
+}
+
+/// A state machine's lanes while a replay is recorded (`crate::lanes`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct SmLanes {
+    x: Word,
+    y: Word,
+    isr: Word,
+    osr: Word,
+    tx: FifoLanes,
+    rx: FifoLanes,
+}
+
+/// A block's lanes while a replay is recorded (`crate::lanes`): its state machines', and per
+/// GPIO (bit n: GPIO n) the pins' output levels, the input synchroniser's flops and what the
+/// state machines see in this cycle.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct PioLanes {
+    sm: [SmLanes; 4],
+    /// The state machines' output levels.
+    pub(crate) out: Word,
+    sync: [Word; 2],
+    seen: Word,
+    /// The GPIO inputs of the coming [`Pio::tick`] (what the converters drive).
+    pub(crate) gpio_in: Word,
+    /// Per state machine, the levels its instruction of this cycle writes to the pins
+    /// ([`Effects`]' `values`).
+    pend: [Word; 4],
+    /// The last word read from an RX FIFO through the bus ([`Pio::read`]), and the next one
+    /// written to a TX FIFO ([`Pio::write`]; constants unless a DMA write sets it).
+    pub(crate) last_read: Word,
+    pub(crate) next_write: Word,
+    /// The lanes data decided something with.
+    pub(crate) fixed: Vec<Fixed>,
+}
+
+impl PioLanes {
+    fn new() -> Self {
+        let sm = SmLanes {
+            x: CONST,
+            y: CONST,
+            isr: CONST,
+            osr: CONST,
+            tx: FifoLanes([CONST; 8]),
+            rx: FifoLanes([CONST; 8]),
+        };
+        PioLanes {
+            sm: std::array::from_fn(|_| sm.clone()),
+            out: CONST,
+            sync: [CONST; 2],
+            seen: CONST,
+            gpio_in: CONST,
+            pend: [CONST; 4],
+            last_read: CONST,
+            next_write: CONST,
+            fixed: Vec::new(),
+        }
+    }
+}
+
+/// The lanes of an `OUT`'s data ([`StateMachine::out_data`]).
+fn out_lanes(osr: &Word, count: u32, right: bool) -> Word {
+    match (right, count) {
+        (_, 32) => *osr,
+        (true, _) => lanes::and(osr, (1 << count) - 1),
+        (false, _) => lanes::shr(osr, 32 - count),
+    }
+}
+
+/// The lanes of the OSR after an `OUT` ([`StateMachine::osr_after`]).
+fn osr_after_lanes(osr: &Word, bits: u32, right: bool) -> Word {
+    match (right, bits) {
+        (_, 32..) => CONST,
+        (true, b) => lanes::shr(osr, b),
+        (false, b) => lanes::shl(osr, b),
+    }
+}
+
+/// The lanes of the ISR after an `IN` of `data`'s lanes ([`StateMachine::shift_in`]).
+fn shift_in_lanes(isr: &Word, count: u32, data: &Word, right: bool) -> Word {
+    let data = match count {
+        32 => *data,
+        _ => lanes::and(data, (1 << count) - 1),
+    };
+    match (right, count) {
+        (_, 32) => data,
+        (true, _) => lanes::select(
+            !0u32 << (32 - count),
+            &lanes::shl(&data, 32 - count),
+            &lanes::shr(isr, count),
+        ),
+        (false, _) => lanes::select((1 << count) - 1, &data, &lanes::shl(isr, count)),
+    }
+}
+
+/// The lanes of the pins [`StateMachine::map`] gives for a value with lanes `w`.
+fn map_lanes(base: u32, count: u32, w: &Word) -> Word {
+    let mask = if count >= 32 {
+        u32::MAX
+    } else {
+        (1u32 << count) - 1
+    };
+    lanes::rotl(&lanes::and(w, mask), base)
 }
 
 /// One state machine.
@@ -565,6 +691,8 @@ pub struct Pio {
     /// Register writes other than to a TX FIFO or the IRQ flags, counted: what
     /// [`Pio::sm_pins`] answers changes only with it.
     config_epoch: u64,
+    /// Its lanes while a replay is recorded (`crate::lanes`); `None` otherwise.
+    pub(crate) lanes: Option<Box<PioLanes>>,
 }
 
 impl Default for Pio {
@@ -587,6 +715,7 @@ impl Pio {
             out_values: 0,
             out_dirs: 0,
             config_epoch: 0,
+            lanes: None,
         }
     }
 
@@ -717,6 +846,7 @@ impl Pio {
     /// [`Pio::tick`]s would do (the clock dividers' accumulators, the pending delays, the
     /// synchroniser; the stalled instructions change nothing, the others do not run).
     pub fn skip(&mut self, cycles: u64, gpio_in: u32) {
+        debug_assert!(self.lanes.is_none(), "lanes are kept on the stepwise path only");
         match cycles {
             0 => return,
             1 => self.sync = [gpio_in, self.sync[0]],
@@ -826,14 +956,19 @@ impl Pio {
             // A machine stalled on a FIFO that has not changed stalls again without
             // effect ([`Pio::idle_cycles`]): its side-set, re-asserted, is already on the
             // pins, so it writes nothing this cycle either way.
+            if let (Some(l), Some(st)) = (self.lanes.as_deref_mut(), self.sm[n].stalled) {
+                // Whether it is already there depends on those pins' levels.
+                let pins = st.side_values.0;
+                lanes::fix(&mut l.out, self.out_values, pins, &mut l.fixed);
+            }
             if self.fifo_stall(n) {
                 continue;
             }
             *fx = self.execute(n, seen);
         }
         // In state machine order: the highest-numbered writes last and wins.
-        for fx in &all {
-            self.apply(fx);
+        for (n, fx) in all.iter().enumerate() {
+            self.apply(fx, n);
         }
     }
 
@@ -956,8 +1091,9 @@ impl Pio {
     /// else: the divider's accumulator comes back to where it was): what [`Pio::sm_tick`]
     /// and [`Pio::sm_skip`] do over those cycles.
     pub fn sm_exec(&mut self, n: usize, seen: u32) {
+        debug_assert!(self.lanes.is_none(), "lanes are kept on the stepwise path only");
         let fx = self.execute(n, seen);
-        self.apply(&fx);
+        self.apply(&fx, n);
         self.sm[n].delay = 0;
     }
 
@@ -1098,6 +1234,7 @@ impl Pio {
     /// the OSR and ISR shifted, the pins as the last time round leaves them, PC at the head
     /// again or past the `JMP` when X ran out, the divider's accumulator where it was.
     pub fn sm_loop_run(&mut self, n: usize, lp: &BitLoop, k: u64, in_bits: &[u64; LOOP_MAX]) {
+        debug_assert!(self.lanes.is_none(), "lanes are kept on the stepwise path only");
         debug_assert!((1..=64).contains(&k) && k <= self.sm_loop_left(n));
         let mut values = self.out_values;
         let s = &mut self.sm[n];
@@ -1199,6 +1336,16 @@ impl Pio {
     /// Reads register `offset` (datasheet 3.7; reading an RXF pops it, an empty one reads
     /// 0; write-only and unknown offsets read 0).
     pub fn read(&mut self, offset: u32) -> u32 {
+        if let Some(l) = self.lanes.as_deref_mut() {
+            // The lanes of what it reads: an RX FIFO's word, else constants.
+            l.last_read = CONST;
+            if (reg::RXF0..reg::RXF0 + 16).contains(&offset) {
+                let n = ((offset - reg::RXF0) / 4) as usize;
+                if !self.sm[n].rx.is_empty() {
+                    l.last_read = l.sm[n].rx.pop();
+                }
+            }
+        }
         match offset {
             reg::CTRL => self.enabled,
             reg::FSTAT => (0..4).fold(0, |acc, n| {
@@ -1237,6 +1384,36 @@ impl Pio {
     pub fn write(&mut self, offset: u32, value: u32) {
         if !(reg::TXF0..reg::TXF0 + 16).contains(&offset) && offset != reg::IRQ {
             self.config_epoch += 1;
+        }
+        if let Some(l) = self.lanes.as_deref_mut() {
+            // The lanes of a word into a TX FIFO (what its writer set; constants from a
+            // core); the words a restart or a change of FJOIN clears.
+            let w = std::mem::replace(&mut l.next_write, CONST);
+            match offset {
+                o if (reg::TXF0..reg::TXF0 + 16).contains(&o) => {
+                    let n = ((o - reg::TXF0) / 4) as usize;
+                    if !self.sm[n].tx_full() {
+                        l.sm[n].tx.push(self.sm[n].tx.len(), w);
+                    }
+                }
+                reg::CTRL => {
+                    for n in 0..4 {
+                        if value & (1 << (4 + n)) != 0 {
+                            l.sm[n].isr = CONST;
+                        }
+                    }
+                }
+                o if (reg::SM0_CLKDIV..reg::SM0_CLKDIV + 4 * reg::SM_STRIDE).contains(&o)
+                    && (o - reg::SM0_CLKDIV) % reg::SM_STRIDE == 0x08 =>
+                {
+                    let n = ((o - reg::SM0_CLKDIV) / reg::SM_STRIDE) as usize;
+                    if (self.sm[n].shiftctrl ^ value) >> 30 != 0 {
+                        l.sm[n].tx = FifoLanes([CONST; 8]);
+                        l.sm[n].rx = FifoLanes([CONST; 8]);
+                    }
+                }
+                _ => {}
+            }
         }
         match offset {
             reg::CTRL => {
@@ -1282,8 +1459,11 @@ impl Pio {
                         self.sm[n].exec = Some(value as u16);
                         if self.enabled & (1 << n) == 0 {
                             let gpio = self.sync[1];
+                            if let Some(l) = self.lanes.as_deref_mut() {
+                                l.seen = l.sync[1];
+                            }
                             let fx = self.execute(n, gpio);
-                            self.apply(&fx);
+                            self.apply(&fx, n);
                         }
                     }
                     _ => self.sm[n].pinctrl = value,
@@ -1298,25 +1478,84 @@ impl Pio {
     pub fn tick(&mut self, gpio_in: u32) {
         // What the state machines see this cycle: synchronised, or direct where bypassed.
         let seen = (self.sync[1] & !self.sync_bypass) | (gpio_in & self.sync_bypass);
+        if let Some(l) = self.lanes.as_deref_mut() {
+            l.seen = lanes::select(self.sync_bypass, &l.gpio_in, &l.sync[1]);
+            l.sync = [l.gpio_in, l.sync[0]];
+        }
         self.sync = [gpio_in, self.sync[0]];
         self.sm_tick(0xf, seen);
     }
 
-    fn apply(&mut self, fx: &Effects) {
+    /// Applies state machine `n`'s pin effects `fx`.
+    fn apply(&mut self, fx: &Effects, n: usize) {
         let set = |old: u32, (m, v): (u32, u32)| old & !m | v;
         self.out_values = set(set(self.out_values, fx.values), fx.side_values);
         self.out_dirs = set(set(self.out_dirs, fx.dirs), fx.side_dirs);
+        if let Some(l) = self.lanes.as_deref_mut() {
+            let out = lanes::select(fx.values.0, &l.pend[n], &l.out);
+            l.out = lanes::select(fx.side_values.0, &CONST, &out);
+        }
+    }
+
+    /// Starts keeping lanes (`crate::lanes`), each data word's from `slot`
+    /// ([`Pio::data_slots`]).
+    pub(crate) fn start_lanes(&mut self) {
+        self.lanes = Some(Box::new(PioLanes::new()));
+    }
+
+    /// Its data words in a fixed order, each with its lanes while they are kept (`crate::io::Io::data_slots`):
+    /// the pins' output levels, the synchroniser's two flops, then per state machine X, Y,
+    /// ISR, OSR and its TX and RX FIFOs' eight words each.
+    pub(crate) fn data_slots(&mut self, f: &mut dyn FnMut(&mut u32, Option<&mut [Lane]>)) {
+        let mut l = self.lanes.as_deref_mut();
+        f(&mut self.out_values, l.as_deref_mut().map(|l| &mut l.out[..]));
+        for k in 0..2 {
+            f(&mut self.sync[k], l.as_deref_mut().map(|l| &mut l.sync[k][..]));
+        }
+        for (n, s) in self.sm.iter_mut().enumerate() {
+            let mut sl = l.as_deref_mut().map(|l| &mut l.sm[n]);
+            f(&mut s.x, sl.as_deref_mut().map(|l| &mut l.x[..]));
+            f(&mut s.y, sl.as_deref_mut().map(|l| &mut l.y[..]));
+            f(&mut s.isr, sl.as_deref_mut().map(|l| &mut l.isr[..]));
+            f(&mut s.osr, sl.as_deref_mut().map(|l| &mut l.osr[..]));
+            for i in 0..8 {
+                f(&mut s.tx.words[i], sl.as_deref_mut().map(|l| &mut l.tx.0[i][..]));
+            }
+            for i in 0..8 {
+                f(&mut s.rx.words[i], sl.as_deref_mut().map(|l| &mut l.rx.0[i][..]));
+            }
+        }
     }
 
     /// Runs one enabled cycle of state machine `n`, the state machines seeing `gpio`.
     #[inline(always)]
     fn execute(&mut self, n: usize, gpio: u32) -> Effects {
+        if self.lanes.is_none() {
+            return self.execute_with(n, gpio, &mut None);
+        }
+        let mut lanes = self.lanes.take();
+        if let Some(l) = lanes.as_deref_mut() {
+            l.pend[n] = CONST;
+        }
+        let fx = self.execute_with(n, gpio, &mut lanes);
+        self.lanes = lanes;
+        fx
+    }
+
+    /// [`Pio::execute`] with the block's lanes taken out of it (`None` when not kept).
+    #[inline(always)]
+    fn execute_with(
+        &mut self,
+        n: usize,
+        gpio: u32,
+        lanes: &mut Option<Box<PioLanes>>,
+    ) -> Effects {
         let mut fx = Effects::default();
         let forced = self.sm[n].exec.is_some();
         if self.sm[n].delay > 0 && !forced {
             self.sm[n].stalled = None;
             self.sm[n].delay -= 1;
-            self.background_pull(n);
+            self.background_pull(n, lanes.as_deref_mut());
             return fx;
         }
         let ins = match self.sm[n].exec.take() {
@@ -1332,7 +1571,7 @@ impl Pio {
         } else {
             fx.side_values = side;
         }
-        let done = self.run(n, ins, gpio, &mut fx);
+        let done = self.run(n, ins, gpio, &mut fx, lanes);
         let s = &mut self.sm[n];
         s.stalled = matches!(done, Flow::Stall).then_some(fx);
         match done {
@@ -1358,21 +1597,32 @@ impl Pio {
     }
 
     /// Autopull on a cycle that is not an OUT's (datasheet 3.5.4.2).
-    fn background_pull(&mut self, n: usize) {
+    fn background_pull(&mut self, n: usize, lanes: Option<&mut PioLanes>) {
         let s = &mut self.sm[n];
         if !s.autopull() {
             return;
         }
         if s.osr_count >= s.pull_thresh() {
             if let Some(w) = s.tx.pop() {
+                if let Some(l) = lanes {
+                    l.sm[n].osr = l.sm[n].tx.pop();
+                }
                 s.osr = w;
                 s.osr_count = 0;
             }
         }
     }
 
-    /// Executes `ins` on state machine `n`; what happens to PC.
-    fn run(&mut self, n: usize, ins: u16, gpio: u32, fx: &mut Effects) -> Flow {
+    /// Executes `ins` on state machine `n`; what happens to PC. Its lanes (`lanes`, when
+    /// kept) follow each move of data, and data that decides something is fixed.
+    fn run(
+        &mut self,
+        n: usize,
+        ins: u16,
+        gpio: u32,
+        fx: &mut Effects,
+        lanes: &mut Option<Box<PioLanes>>,
+    ) -> Flow {
         let ins = u32::from(ins);
         let op = ins >> 13;
         let arg1 = bits(ins, 5, 3);
@@ -1388,10 +1638,29 @@ impl Pio {
         };
         let in_base = bits(self.sm[n].pinctrl, 15, 5);
         let pins_in = gpio.rotate_right(in_base);
+        // The lanes kept, with this state machine's and what the pins show it.
+        let mut lanes = lanes.as_deref_mut();
+        let pins_in_lanes = lanes.as_ref().map(|l| lanes::rotr(&l.seen, in_base));
         let flow = match op {
             // JMP
             0 => {
                 let s = &mut self.sm[n];
+                if let Some(l) = lanes.as_deref_mut() {
+                    let (sl, fixed) = (&mut l.sm[n], &mut l.fixed);
+                    match arg1 {
+                        1 | 2 => lanes::fix(&mut sl.x, s.x, u32::MAX, fixed),
+                        3 | 4 => lanes::fix(&mut sl.y, s.y, u32::MAX, fixed),
+                        5 => {
+                            lanes::fix(&mut sl.x, s.x, u32::MAX, fixed);
+                            lanes::fix(&mut sl.y, s.y, u32::MAX, fixed);
+                        }
+                        6 => {
+                            let pin = bits(s.execctrl, 24, 5);
+                            lanes::fix(&mut l.seen, gpio, 1 << pin, fixed);
+                        }
+                        _ => {}
+                    }
+                }
                 let take = match arg1 {
                     0 => true,
                     1 => s.x == 0,
@@ -1419,6 +1688,16 @@ impl Pio {
             1 => {
                 let pol = ins & 0x80 != 0;
                 let idx = arg2;
+                if let Some(l) = lanes.as_deref_mut() {
+                    match bits(ins, 5, 2) {
+                        0 => lanes::fix(&mut l.seen, gpio, 1 << idx, &mut l.fixed),
+                        1 => {
+                            let mut w = pins_in_lanes.unwrap_or(CONST);
+                            lanes::fix(&mut w, pins_in, 1 << idx, &mut l.fixed);
+                        }
+                        _ => {}
+                    }
+                }
                 let met = match bits(ins, 5, 2) {
                     0 => (gpio >> idx) & 1 == u32::from(pol),
                     1 => (pins_in >> idx) & 1 == u32::from(pol),
@@ -1455,13 +1734,29 @@ impl Pio {
                     Flow::Stall
                 } else {
                     let s = &mut self.sm[n];
+                    if let Some(l) = lanes.as_deref_mut() {
+                        let sl = &mut l.sm[n];
+                        let data = match arg1 {
+                            0 => pins_in_lanes.unwrap_or(CONST),
+                            1 => sl.x,
+                            2 => sl.y,
+                            6 => sl.isr,
+                            7 => sl.osr,
+                            _ => CONST,
+                        };
+                        sl.isr = shift_in_lanes(&sl.isr, c, &data, s.in_right());
+                        if s.autopush() && (s.isr_count + c).min(32) >= s.push_thresh() {
+                            sl.rx.push(s.rx.len(), sl.isr);
+                            sl.isr = CONST;
+                        }
+                    }
                     s.shift_in(c, data);
                     if s.autopush() && s.isr_count >= s.push_thresh() {
                         s.rx.push(s.isr);
                         s.isr = 0;
                         s.isr_count = 0;
                     }
-                    self.background_pull(n);
+                    self.background_pull(n, lanes.as_deref_mut());
                     Flow::Next
                 }
             }
@@ -1472,13 +1767,36 @@ impl Pio {
                 if s.autopull() && s.osr_count >= s.pull_thresh() {
                     // Refill (or wait for data), and stall this cycle either way.
                     if let Some(w) = s.tx.pop() {
+                        if let Some(l) = lanes.as_deref_mut() {
+                            l.sm[n].osr = l.sm[n].tx.pop();
+                        }
                         s.osr = w;
                         s.osr_count = 0;
                     }
                     return Flow::Stall;
                 }
+                let right = s.out_right();
+                let data_lanes = lanes.as_deref_mut().map(|l| {
+                    let sl = &mut l.sm[n];
+                    let d = out_lanes(&sl.osr, c, right);
+                    sl.osr = osr_after_lanes(&sl.osr, c, right);
+                    d
+                });
                 let data = s.shift_out(c);
                 let (out_base, out_count) = (bits(s.pinctrl, 0, 5), bits(s.pinctrl, 20, 6));
+                if let (Some(l), Some(mut d)) = (lanes.as_deref_mut(), data_lanes) {
+                    match arg1 {
+                        0 => l.pend[n] = map_lanes(out_base, out_count, &d),
+                        1 => l.sm[n].x = d,
+                        2 => l.sm[n].y = d,
+                        // PINDIRS: what the pins are; PC; EXEC: what runs.
+                        4 => lanes::fix(&mut d, data, u32::MAX, &mut l.fixed),
+                        5 => lanes::fix(&mut d, data, 31, &mut l.fixed),
+                        6 => l.sm[n].isr = d,
+                        7 => lanes::fix(&mut d, data, 0xffff, &mut l.fixed),
+                        _ => {}
+                    }
+                }
                 let flow = match arg1 {
                     0..=2 => s.write_pins_x_y(arg1, data, fx),
                     4 => {
@@ -1501,6 +1819,9 @@ impl Pio {
                 // After the shift, refill at once when data is there (3.5.4.2, lines 11–14).
                 if s.autopull() && s.osr_count >= s.pull_thresh() {
                     if let Some(w) = s.tx.pop() {
+                        if let Some(l) = lanes.as_deref_mut() {
+                            l.sm[n].osr = l.sm[n].tx.pop();
+                        }
                         s.osr = w;
                         s.osr_count = 0;
                     }
@@ -1512,6 +1833,7 @@ impl Pio {
                 let if_flag = ins & 0x40 != 0;
                 let block = ins & 0x20 != 0;
                 let s = &mut self.sm[n];
+                let mut sl = lanes.as_deref_mut().map(|l| &mut l.sm[n]);
                 if ins & 0x80 == 0 {
                     // PUSH
                     if if_flag && s.isr_count < s.push_thresh() {
@@ -1520,12 +1842,19 @@ impl Pio {
                         match block {
                             true => Flow::Stall,
                             false => {
+                                if let Some(sl) = sl {
+                                    sl.isr = CONST;
+                                }
                                 s.isr = 0;
                                 s.isr_count = 0;
                                 Flow::Next
                             }
                         }
                     } else {
+                        if let Some(sl) = sl {
+                            sl.rx.push(s.rx.len(), sl.isr);
+                            sl.isr = CONST;
+                        }
                         s.rx.push(s.isr);
                         s.isr = 0;
                         s.isr_count = 0;
@@ -1537,12 +1866,18 @@ impl Pio {
                     // PULL
                     match s.tx.pop() {
                         Some(w) => {
+                            if let Some(sl) = sl.as_deref_mut() {
+                                sl.osr = sl.tx.pop();
+                            }
                             s.osr = w;
                             s.osr_count = 0;
                             Flow::Next
                         }
                         None if block => Flow::Stall,
                         None => {
+                            if let Some(sl) = sl.as_deref_mut() {
+                                sl.osr = sl.x;
+                            }
                             s.osr = s.x;
                             s.osr_count = 0;
                             Flow::Next
@@ -1580,6 +1915,33 @@ impl Pio {
                     2 => src.reverse_bits(),
                     _ => src,
                 };
+                if let Some(l) = lanes.as_deref_mut() {
+                    let sl = &mut l.sm[n];
+                    let src = match arg2 & 7 {
+                        0 => pins_in_lanes.unwrap_or(CONST),
+                        1 => sl.x,
+                        2 => sl.y,
+                        6 => sl.isr,
+                        7 => sl.osr,
+                        _ => CONST,
+                    };
+                    let mut w = match bits(ins, 3, 2) {
+                        1 => lanes::not(&src),
+                        2 => lanes::reverse(&src),
+                        _ => src,
+                    };
+                    let p = s.pinctrl;
+                    match arg1 {
+                        0 => l.pend[n] = map_lanes(bits(p, 0, 5), bits(p, 20, 6), &w),
+                        1 => sl.x = w,
+                        2 => sl.y = w,
+                        4 => lanes::fix(&mut w, v, 0xffff, &mut l.fixed),
+                        5 => lanes::fix(&mut w, v, 31, &mut l.fixed),
+                        6 => sl.isr = w,
+                        7 => sl.osr = w,
+                        _ => {}
+                    }
+                }
                 let s = &mut self.sm[n];
                 match arg1 {
                     0..=2 => s.write_pins_x_y(arg1, v, fx),
@@ -1634,6 +1996,13 @@ impl Pio {
             // SET
             _ => {
                 let s = &mut self.sm[n];
+                if let Some(l) = lanes.as_deref_mut() {
+                    match arg1 {
+                        1 => l.sm[n].x = CONST,
+                        2 => l.sm[n].y = CONST,
+                        _ => {}
+                    }
+                }
                 let (set_base, set_count) = (bits(s.pinctrl, 5, 5), bits(s.pinctrl, 26, 3));
                 match arg1 {
                     0 => fx.values = StateMachine::map(set_base, set_count, arg2),
@@ -1648,7 +2017,7 @@ impl Pio {
         if op != 3 && op != 2 {
             // Every cycle but an OUT's may autopull (PULL and MOV OSR have just set the
             // output count to 0 themselves).
-            self.background_pull(n);
+            self.background_pull(n, lanes.as_deref_mut());
         }
         flow
     }

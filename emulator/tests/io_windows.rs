@@ -326,10 +326,11 @@ fn windows_whose_core_meets_the_dma_are_undone() {
 #[test]
 fn the_period_memo_of_the_io_equals_the_lock_step() {
     // Windows that are SysTick periods, the ADC's codes and the words core 1 leaves for
-    // its copy channel each one of a few: the I/O's replays repeat (the period memo hits)
-    // with other data now and then (its key differs: a miss, recorded). At 3000 cycles
-    // core 1's windows are kept and hit (the words its copy channel reads decide a hit);
-    // at 3001 core 0's handler starts at three different latencies (they do).
+    // its copy channel each one of a few: the I/O's replays repeat with other data, which
+    // the period memo gives by its routes (a recording stands for every replay from the
+    // same control state), so a handful of recordings serve every window kept. At 3000
+    // cycles core 1's windows are kept and hit; at 3001 core 0's handler starts at three
+    // different latencies (they do). Every slice ends compared with the lock-step run.
     for period in [3000, 3001] {
         let block = compare(
             Shape {
@@ -341,8 +342,8 @@ fn the_period_memo_of_the_io_equals_the_lock_step() {
         );
         let io = block.io_windows();
         eprintln!("{period}: {:?} {io:?}", block.run_ahead_windows());
-        assert!(io.memo_hits > 40, "{period}: {io:?}");
-        assert!(io.memo_recorded > 10, "{period}: {io:?}");
+        assert!(io.memo_hits > 120, "{period}: {io:?}");
+        assert!((1..20).contains(&io.memo_recorded), "{period}: {io:?}");
     }
 }
 

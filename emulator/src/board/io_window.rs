@@ -66,7 +66,8 @@
 use super::window::undo_stores;
 use super::*;
 use crate::bus::{load_le, sram_bank, store_le, ALL_BANKS};
-use crate::io::{Checkpoint, Io, IoRecords, Rebase, SramOp};
+use crate::io::{Checkpoint, Io, IoRecords, LaneOp, LaneRec, Rebase};
+use crate::lanes::{self, Route};
 
 /// What a window's core access to the I/O is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -183,17 +184,20 @@ impl std::ops::Add for IoWindows {
     }
 }
 
-/// The period memo (module documentation): the replays recorded, newest last, at most
-/// [`MEMO_ENTRIES`].
+/// The period memo (module documentation): the replays recorded, at most
+/// [`MEMO_ENTRIES`], the oldest replaced first once it is full.
 pub(crate) struct IoMemo {
     /// Whether replays are looked up and recorded.
     pub(crate) on: bool,
     entries: Vec<MemoEntry>,
     /// The entry the next recording replaces once the memo is full.
     next: usize,
-    /// The buffer a recorded replay's trace ([`System::io_trace`]) is written into, kept
-    /// with its capacity from one to the next.
-    trace: Vec<SramOp>,
+    /// The entry the last hit or recording ended in: the next window tries first the
+    /// entries that start where it ended.
+    last: Option<usize>,
+    /// The live machine's data words while it is compared with the entries', then a hit's
+    /// inputs (its data words, then the words the DMA reads).
+    inputs: Vec<u32>,
 }
 
 impl Default for IoMemo {
@@ -202,53 +206,85 @@ impl Default for IoMemo {
             on: true,
             entries: Vec::new(),
             next: 0,
-            trace: Vec::new(),
+            last: None,
+            inputs: Vec::new(),
         }
     }
 }
 
-/// The most replays the period memo keeps per board (a board at rest has a handful of
-/// keys; one whose keys move makes new ones, replacing the oldest).
+/// The most replays the period memo keeps per board (a board's I/O comes back to a
+/// handful of control states at its ticks, whatever its keys do; more entries cover the
+/// start-up and the rare constraint that data breaks).
 const MEMO_ENTRIES: usize = 64;
 
-/// One recorded replay: its key (the I/O at the window's start, the cores' logs, the
-/// words the DMA read as they were before the window) and what it did.
+/// One recorded replay (module documentation, "The period memo"): its key, and what it did
+/// as routes from its inputs. Cycles are counted from the I/O's cycle at the window's start.
 struct MemoEntry {
-    /// [`log_hash`] of `logs`.
-    hash: u64,
-    /// The logs as [`memo_logs`] keys them, the window's start at [`Rebase::MEMO`].
-    logs: [Vec<IoAccess>; 2],
-    /// The cores' stores to a word the DMA read (core, index in its log, value).
-    valued: Vec<(usize, u32, u32)>,
+    /// The window's end, and whether the DMA may read flash ([`System::xip_answers`]).
+    span: u64,
     xip: bool,
-    /// [`Io::data_hash`] of `start`.
-    data: u64,
-    /// The I/O at the window's start and after the replay, at the memo's time base.
+    /// The cores' register stores: their cycles from the start, addresses and values.
+    regs: Vec<IoAccess>,
+    /// The I/O at the window's start at [`Rebase::MEMO`], its records left out and its data
+    /// words ([`Io::data_slots`]) 0.
     start: Box<Io>,
+    /// What the data words at the start must hold: (slot, mask, bits).
+    start_fixed: Vec<(u32, u32, u32)>,
+    /// The DMA's SRAM accesses in their ticks' order.
+    ops: Vec<MemoOp>,
+    /// The DMA's bank claims: (cycle, bank), in order.
+    claims: Vec<(u64, u8)>,
+    /// The cycle the I/O was run to: a core's access at or after it is not replayed here.
+    ran_to: u64,
+    /// The I/O at the end at [`Rebase::MEMO`] without its records, and the routes of its
+    /// data words that are not constants: (slot, route), by slot.
     end: Box<Io>,
-    /// Each SRAM word the DMA read, with its value before the replay's first write.
-    pre: Vec<(u32, u32)>,
-    /// The replay's DMA writes and the logged accesses ([`SramOp::Entry`]) in order.
-    ops: Vec<SramOp>,
-    /// The parts' records of the replay.
+    patches: Vec<(u32, Route)>,
+    /// The parts' records, and the routes of their codes (per ADC its frames', per DAC its
+    /// updates').
     records: IoRecords,
+    frame_routes: Vec<Vec<Route>>,
+    update_routes: Vec<Vec<Route>>,
 }
 
-/// The logs of a window as a memo's key: their cycles moved by `r`, the values of loads
-/// and stores and the stores' old words left out (a replay checks the loads, does the
-/// stores, and its entry keys the stores whose words the DMA reads: [`MemoEntry::valued`]).
-fn memo_logs(logs: &[Vec<IoAccess>; 2], r: Rebase) -> [Vec<IoAccess>; 2] {
-    logs.clone().map(|mut l| {
-        for e in &mut l {
-            e.start = r.at(e.start);
-            e.cycle = r.at(e.cycle);
-            e.old = 0;
-            if e.kind != IoKind::Reg {
-                e.value = 0;
-            }
+/// One SRAM access of the DMA in a [`MemoEntry`], at its tick (from the start).
+enum MemoOp {
+    /// A read of `size` bytes at `off`: the next input, whose bits under `mask` must be
+    /// `value` (they decided something).
+    Read {
+        tick: u64,
+        off: u32,
+        size: u8,
+        mask: u32,
+        value: u32,
+    },
+    /// A write of `size` bytes at `off`, their value by `route`.
+    Write {
+        tick: u64,
+        off: u32,
+        size: u8,
+        route: Route,
+    },
+}
+
+impl MemoOp {
+    fn tick(&self) -> u64 {
+        match *self {
+            MemoOp::Read { tick, .. } | MemoOp::Write { tick, .. } => tick,
         }
-        l
-    })
+    }
+}
+
+/// The register stores of a window's logs, their cycles from `base`: a [`MemoEntry`]'s key.
+fn reg_stores(logs: &[Vec<IoAccess>; 2], base: u64) -> Vec<IoAccess> {
+    Merged::new(logs)
+        .filter(|a| a.kind == IoKind::Reg)
+        .map(|a| IoAccess {
+            start: a.start.wrapping_sub(base),
+            cycle: a.cycle.wrapping_sub(base),
+            ..*a
+        })
+        .collect()
 }
 
 /// A hash of logs (FNV-1a over their fields).
@@ -267,6 +303,14 @@ fn log_hash(logs: &[Vec<IoAccess>; 2]) -> u64 {
     h
 }
 
+/// How a try of the period memo ended.
+enum Tried {
+    /// No entry fits: the replay is run (and recorded).
+    Miss,
+    /// An entry gave the replay, or the window is undone for the reason given.
+    Done(Result<(), Violation>),
+}
+
 /// Why a replay failed (module documentation).
 enum Violation {
     Wait,
@@ -277,6 +321,8 @@ enum Violation {
 /// What [`Board::io_window_begin`] keeps for the end of the window.
 pub(super) struct IoStart {
     banks: u8,
+    /// The window's end (the cores run to it).
+    end: u64,
 }
 
 /// Stores the `size` low bytes of `value` at SRAM offset `off`, journaling the word into
@@ -326,7 +372,7 @@ impl Board {
     /// At the start of a window from cycle `start`: on a board with an I/O, runs it up to
     /// `start`, keeps a clone and has the cores log their accesses to its DMA's banks;
     /// `None` without an I/O.
-    pub(super) fn io_window_begin(&mut self, start: u64) -> Option<IoStart> {
+    pub(super) fn io_window_begin(&mut self, start: u64, end: u64) -> Option<IoStart> {
         self.system.io.as_ref()?;
         self.system.io_advance_to(start, false);
         let banks = self.system.io_banks;
@@ -337,7 +383,7 @@ impl Board {
         for l in &mut self.io_logs {
             l.clear();
         }
-        Some(IoStart { banks })
+        Some(IoStart { banks, end })
     }
 
     /// At the end of the cores' run of a window (`kept`: both reached its end): replays
@@ -354,7 +400,7 @@ impl Board {
             return false;
         }
         let mut io = None;
-        let r = self.io_replay(start.banks, &mut io);
+        let r = self.io_replay(start.banks, start.end, &mut io);
         let journal = self.system.io_journal.take().unwrap_or_default();
         let s = &mut self.io_windows;
         let ok = r.is_ok();
@@ -383,7 +429,12 @@ impl Board {
     /// when the I/O is run (not on a hit of the period memo, which changes the I/O only
     /// once it is kept; a recording takes it: the replay is then kept). The I/O is as the
     /// window's start left it: the cores' run does not touch it.
-    fn io_replay(&mut self, banks: u8, io: &mut Option<Checkpoint>) -> Result<(), Violation> {
+    fn io_replay(
+        &mut self,
+        banks: u8,
+        end: u64,
+        io: &mut Option<Checkpoint>,
+    ) -> Result<(), Violation> {
         let mut journal = std::mem::take(&mut self.io_journal);
         journal.clear();
         self.system.io_journal = Some(journal);
@@ -397,7 +448,7 @@ impl Board {
         let own = (self.config.own_banks[0] | self.config.own_banks[1]) & ALL_BANKS;
         let memo = self.io_memo.on && self.system.io.as_ref().is_some_and(|io| !io.stepwise);
         let r = match memo {
-            true => self.io_memo_replay(&logs, banks, own, io),
+            true => self.io_memo_replay(&logs, banks, own, end, io),
             false => {
                 *io = self.system.io.as_mut().map(|now| now.checkpoint());
                 self.io_merge(&logs, banks, own)
@@ -408,166 +459,278 @@ impl Board {
     }
 
     /// The replay through the period memo (module documentation): a hit does what the
-    /// recorded replay did; a miss checkpoints the I/O into `io`, replays and records
-    /// (when the replay is kept, taking the checkpoint).
+    /// recorded replay did with its own data; a miss checkpoints the I/O into `io`,
+    /// replays with lanes, runs the I/O to the window's `end` and records.
     fn io_memo_replay(
         &mut self,
         logs: &[Vec<IoAccess>; 2],
         banks: u8,
         own: u8,
+        end: u64,
         io: &mut Option<Checkpoint>,
     ) -> Result<(), Violation> {
-        let Some(now) = self.system.io.as_mut() else {
+        if self.system.io.is_none() {
             return self.io_merge(logs, banks, own);
+        }
+        // A machine held behind (an advance that did not settle) is settled first: the
+        // memo's states are settled ones.
+        let base = self.system.io.as_ref().map_or(0, |io| io.cycle());
+        self.system.io_advance_to(base, true);
+        let mark = self.system.io_journal.as_ref().map_or(0, Vec::len);
+        match self.io_memo_hit(logs, base, end) {
+            Tried::Done(r) => return r,
+            Tried::Miss => {
+                // Undo what a hit that failed part-way wrote (a read's constraint broken).
+                if let Some(j) = self.system.io_journal.as_mut() {
+                    let undo: Vec<u64> = j.drain(mark.min(j.len())..).collect();
+                    undo_stores(&mut self.system, &undo);
+                }
+            }
+        }
+        self.io_memo_record(logs, banks, own, base, end, io)
+    }
+
+    /// Looks the window up in the period memo, its I/O at `base` (settled) and its end at
+    /// `end`; a hit does the replay.
+    fn io_memo_hit(&mut self, logs: &[Vec<IoAccess>; 2], base: u64, end: u64) -> Tried {
+        let span = end.saturating_sub(base);
+        let xip = self.system.xip_answers;
+        let regs = reg_stores(logs, base);
+        let last = Merged::new(logs).map(|a| a.cycle).max().unwrap_or(base);
+        let fits = |e: &MemoEntry| {
+            e.span == span && e.xip == xip && e.regs == regs && last.wrapping_sub(base) < e.ran_to
         };
-        let base = now.cycle();
+        if !self.io_memo.entries.iter().any(fits) {
+            return Tried::Miss;
+        }
         let to_memo = Rebase {
             from: base,
             to: Rebase::MEMO,
         };
-        let key = memo_logs(logs, to_memo);
-        let hash = log_hash(&key);
-        let xip = self.system.xip_answers;
-        let data = now.data_hash();
-        // The entries the key's parts that need no I/O at the memo's time base allow: a
-        // busy board's codes differ from every entry's (most misses end here).
-        let matches = |e: &MemoEntry| {
-            e.hash == hash
-                && e.xip == xip
-                && e.data == data
-                && e.logs == key
-                && (e.valued.iter()).all(|&(k, i, v)| logs[k][i as usize].value == v)
+        // The live machine at the memo's time base, without its records and its data.
+        let Some(now) = self.system.io.as_mut() else {
+            return Tried::Miss;
         };
-        let mut hit = None;
-        if self.io_memo.entries.iter().any(matches) {
-            // The I/O itself at the memo's time base while it is compared (its records
-            // aside).
-            now.rebase(to_memo);
-            let records = now.take_records();
-            let sys = &self.system;
-            let live = sys.io.as_deref();
-            hit = self.io_memo.entries.iter().position(|e| {
-                matches(e)
-                    && live.is_some_and(|l| *e.start == *l)
-                    && (e.pre.iter()).all(|&(w, v)| load_le(&sys.sram, w as usize, 4) == v)
-            });
-            if let Some(now) = self.system.io.as_mut() {
-                now.put_records(records);
-                if hit.is_none() {
-                    now.rebase(to_memo.back());
-                }
-            }
-        }
-        if let Some(i) = hit {
+        now.rebase(to_memo);
+        let records = now.take_records();
+        let inputs = &mut self.io_memo.inputs;
+        inputs.clear();
+        now.data_slots(&mut |v, _| inputs.push(std::mem::take(v)));
+        let first = self.io_memo.last.map_or(0, |l| l + 1);
+        let n = self.io_memo.entries.len();
+        let hit = (0..n).map(|k| (first + k) % n.max(1)).find(|&i| {
             let e = &self.io_memo.entries[i];
-            let mut merged = Merged::new(logs);
-            for op in &e.ops {
+            fits(e)
+                && *e.start == **now
+                && (e.start_fixed.iter())
+                    .all(|&(slot, m, v)| inputs.get(slot as usize).is_some_and(|&x| x & m == v))
+        });
+        // The machine as it was (a hit then becomes the entry's end).
+        let mut k = 0;
+        now.data_slots(&mut |v, _| {
+            *v = inputs.get(k).copied().unwrap_or(0);
+            k += 1;
+        });
+        now.put_records(records);
+        now.rebase(to_memo.back());
+        let Some(i) = hit else {
+            return Tried::Miss;
+        };
+        let e = &self.io_memo.entries[i];
+        let inputs = &mut self.io_memo.inputs;
+        // The DMA's accesses in their ticks' order, each core access after those of its
+        // cycle and before the later ones (as the lock-step bus runs the I/O through an
+        // access's cycle first).
+        let mut ops = e.ops.iter().peekable();
+        let mut dma = |sys: &mut System, upto: u64, inputs: &mut Vec<u32>| -> bool {
+            while let Some(op) = ops.next_if(|op| op.tick() <= upto) {
                 match *op {
-                    SramOp::Dma { off, size, value } => {
-                        self.system.io_dma_write(off, u32::from(size), value)
-                    }
-                    SramOp::Entry => {
-                        let Some(a) = merged.next() else {
-                            continue;
-                        };
-                        match a.kind {
-                            IoKind::Store => sram_put(&mut self.system, a.addr, a.size, a.value),
-                            IoKind::Load => {
-                                let now =
-                                    load_le(&self.system.sram, a.addr as usize, a.size.into());
-                                if now != a.value {
-                                    if let Some(io) = self.system.io.as_mut() {
-                                        io.rebase(to_memo.back());
-                                    }
-                                    return Err(Violation::Stale);
-                                }
-                            }
-                            IoKind::Reg => {}
+                    MemoOp::Read {
+                        off,
+                        size,
+                        mask,
+                        value,
+                        ..
+                    } => {
+                        let v = load_le(&sys.sram, off as usize, u32::from(size));
+                        if v & mask != value {
+                            return false;
                         }
+                        inputs.push(v);
                     }
-                    SramOp::Read { .. } => {}
+                    MemoOp::Write {
+                        off,
+                        size,
+                        ref route,
+                        ..
+                    } => sys.io_dma_write(off, u32::from(size), route.eval(inputs)),
                 }
             }
-            if let Some(now) = self.system.io.as_mut() {
-                now.become_rebased(&e.end, to_memo.back(), &e.records);
+            true
+        };
+        for a in Merged::new(logs) {
+            if a.kind == IoKind::Reg {
+                continue;
             }
-            self.system.io_refresh();
-            self.io_windows.memo_hits += 1;
-            return Ok(());
+            let at = a.cycle.wrapping_sub(base);
+            if !dma(&mut self.system, at, inputs) {
+                return Tried::Miss;
+            }
+            let bank = sram_bank(a.addr) as u8;
+            if e.claims.binary_search(&(at, bank)).is_ok() {
+                return Tried::Done(Err(Violation::Wait));
+            }
+            if a.kind == IoKind::Store {
+                sram_put(&mut self.system, a.addr, a.size, a.value);
+            } else if load_le(&self.system.sram, a.addr as usize, a.size.into()) != a.value {
+                return Tried::Done(Err(Violation::Stale));
+            }
         }
-        *io = self.system.io.as_mut().map(|now| now.checkpoint());
-        let restored = self.system.io_journal.as_ref().map_or(0, Vec::len);
-        let counts = self.system.io.as_mut().map(|io| io.record_counts());
-        let mut trace = std::mem::take(&mut self.io_memo.trace);
-        trace.clear();
-        self.system.io_trace = Some(trace);
+        if !dma(&mut self.system, u64::MAX, inputs) {
+            return Tried::Miss;
+        }
+        // The end: the entry's, its data words and the parts' records by their routes.
+        let mut records = e.records.clone();
+        records.set_codes(&e.frame_routes, &e.update_routes, inputs);
+        let Some(now) = self.system.io.as_mut() else {
+            return Tried::Miss;
+        };
+        now.become_rebased(&e.end, to_memo.back(), &records);
+        let mut slot = 0u32;
+        let mut patches = e.patches.iter().peekable();
+        now.data_slots(&mut |v, _| {
+            if let Some((_, r)) = patches.next_if(|p| p.0 == slot) {
+                *v = r.eval(inputs);
+            }
+            slot += 1;
+        });
+        self.system.io_refresh();
+        self.io_memo.last = Some(i);
+        self.io_windows.memo_hits += 1;
+        Tried::Done(Ok(()))
+    }
+
+    /// A miss of the period memo: the replay run with lanes (the I/O stepwise, each data
+    /// word's lanes kept: `crate::lanes`) and the I/O run on to the window's `end`, then
+    /// recorded when it is kept and stands for others (no timing breach of a part, no read
+    /// of ROM or flash, no reset meanwhile). The I/O's checkpoint at `base` goes into `io`.
+    fn io_memo_record(
+        &mut self,
+        logs: &[Vec<IoAccess>; 2],
+        banks: u8,
+        own: u8,
+        base: u64,
+        end: u64,
+        io: &mut Option<Checkpoint>,
+    ) -> Result<(), Violation> {
+        let to_memo = Rebase {
+            from: base,
+            to: Rebase::MEMO,
+        };
+        let Some(now) = self.system.io.as_mut() else {
+            return self.io_merge(logs, banks, own);
+        };
+        let checkpoint = now.checkpoint();
+        let mut start = checkpoint.io.clone();
+        *io = Some(checkpoint);
+        start.rebase(to_memo);
+        start.data_slots(&mut |v, _| *v = 0);
+        let counts = now.record_counts();
+        let stepwise = std::mem::replace(&mut now.stepwise, true);
+        let slots = now.start_lanes();
+        self.system.io_rec = Some(Box::new(LaneRec::new(slots)));
         let r = self.io_merge(logs, banks, own);
-        let trace = self.system.io_trace.take().unwrap_or_default();
-        let records = match (&r, counts, self.system.io.as_mut()) {
-            (Ok(()), Some(counts), Some(now)) => now.records_since(&counts, to_memo),
-            _ => None,
-        };
-        let (Some(records), Some(now)) = (records, self.system.io.as_mut()) else {
-            self.io_memo.trace = trace;
-            return r;
-        };
-        let end = now.rebased(to_memo);
-        // Each word the DMA read, as it was before the replay's first write of it.
-        let journal = self.system.io_journal.as_deref().unwrap_or_default();
-        let reads = trace
-            .iter()
-            .filter(|op| matches!(op, SramOp::Read { .. }))
-            .count();
-        let mut pre: Vec<(u32, u32)> = Vec::with_capacity(reads);
-        for op in &trace {
-            if let SramOp::Read { word } = *op {
-                if pre.iter().any(|&(w, _)| w == word) {
-                    continue;
-                }
-                let first = journal[restored.min(journal.len())..]
-                    .iter()
-                    .find(|&&j| (j >> 32) as u32 == word)
-                    .map(|&j| j as u32);
-                let v = first.unwrap_or_else(|| load_le(&self.system.sram, word as usize, 4));
-                pre.push((word, v));
-            }
+        if r.is_ok() {
+            self.system.io_advance_to(end, true);
         }
-        // The cores' stores to a word the DMA read: their values are part of the key.
-        let valued = (0..2)
-            .flat_map(|k| logs[k].iter().enumerate().map(move |(i, a)| (k, i, a)))
-            .filter(|(_, _, a)| {
-                a.kind == IoKind::Store && pre.iter().any(|&(w, _)| w == a.addr & !3)
-            })
-            .map(|(k, i, a)| (k, i as u32, a.value))
-            .collect();
-        let ops = (trace.iter())
-            .filter(|op| !matches!(op, SramOp::Read { .. }))
-            .copied()
-            .collect();
-        self.io_memo.trace = trace;
-        let Some(mut start) = io.take() else {
+        let rec = self.system.io_rec.take();
+        let Some(now) = self.system.io.as_mut() else {
             return r;
         };
-        start.io.rebase(to_memo);
+        now.stepwise = stepwise;
+        now.forget_idle();
+        let kept = now.stop_lanes();
+        let (Ok(()), Some(kept), Some(rec)) = (&r, kept, rec) else {
+            return r;
+        };
+        let records = now.records_since(&counts, to_memo);
+        let mut fixed = kept.fixed;
+        fixed.extend_from_slice(&rec.fixed);
+        let (Some(records), false, false) = (records, rec.poisoned, lanes::contradictory(&fixed))
+        else {
+            return r;
+        };
+        let constraints = lanes::constraints(&fixed);
+        let fixed_of = |input: u32| {
+            constraints
+                .iter()
+                .find(|c| c.0 == input)
+                .map_or((0, 0), |c| (c.1, c.2))
+        };
+        let ops = (rec.ops.into_iter())
+            .map(|op| match op {
+                LaneOp::Read {
+                    tick,
+                    off,
+                    size,
+                    input,
+                } => {
+                    let (mask, value) = fixed_of(input);
+                    MemoOp::Read {
+                        tick: tick - base,
+                        off,
+                        size,
+                        mask,
+                        value,
+                    }
+                }
+                LaneOp::Write {
+                    tick,
+                    off,
+                    size,
+                    value,
+                    lanes,
+                } => MemoOp::Write {
+                    tick: tick - base,
+                    off,
+                    size,
+                    route: Route::of(&lanes, value),
+                },
+            })
+            .collect();
+        let patches = (kept.slots.iter().enumerate())
+            .filter(|(_, (_, w))| !lanes::is_const(w))
+            .map(|(i, (v, w))| (i as u32, Route::of(w, *v)))
+            .collect();
+        let (frame_routes, update_routes) = records.routes(&kept.frames, &kept.updates);
+        let mut end_io = now.rebased(to_memo);
+        end_io.forget_idle();
         let entry = MemoEntry {
-            hash,
-            logs: key,
-            valued,
-            xip,
-            data: start.io.data_hash(),
-            start: start.io,
-            end,
-            pre,
+            span: end.saturating_sub(base),
+            xip: self.system.xip_answers,
+            regs: reg_stores(logs, base),
+            start,
+            start_fixed: constraints.iter().copied().filter(|c| c.0 < slots).collect(),
             ops,
+            claims: rec.claims.iter().map(|&(c, b)| (c - base, b)).collect(),
+            ran_to: now.cycle() - base,
+            end: end_io,
+            patches,
             records,
+            frame_routes,
+            update_routes,
         };
         let m = &mut self.io_memo;
-        if m.entries.len() < MEMO_ENTRIES {
+        let at = if m.entries.len() < MEMO_ENTRIES {
             m.entries.push(entry);
+            m.entries.len() - 1
         } else {
-            m.entries[m.next] = entry;
+            let at = m.next;
+            m.entries[at] = entry;
             m.next = (m.next + 1) % MEMO_ENTRIES;
-        }
+            at
+        };
+        m.last = Some(at);
         self.io_windows.memo_recorded += 1;
         r
     }
@@ -582,9 +745,6 @@ impl Board {
                     if sys.io_banks >> b & 1 != 0 && sys.io_claims(b, e.cycle) {
                         return Err(Violation::Wait);
                     }
-                    if let Some(t) = sys.io_trace.as_mut() {
-                        t.push(SramOp::Entry);
-                    }
                     if e.kind == IoKind::Store {
                         sram_put(sys, e.addr, e.size, e.value);
                     } else if load_le(&sys.sram, e.addr as usize, u32::from(e.size)) != e.value {
@@ -598,9 +758,6 @@ impl Board {
                         || sys.io_banks & !banks & own != 0
                     {
                         return Err(Violation::Reach);
-                    }
-                    if let Some(t) = sys.io_trace.as_mut() {
-                        t.push(SramOp::Entry);
                     }
                 }
             }

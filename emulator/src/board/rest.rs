@@ -257,7 +257,7 @@ impl Board {
             io: _, // below
             io_banks,
             io_journal,
-            io_trace,
+            io_rec,
         } = &self.system;
         let mut sio = sio.clone();
         for d in &mut sio.divider {
@@ -297,7 +297,7 @@ impl Board {
         });
         let parts = format!(
             "{cores:?} {sio:?} {timer:?} {sysctl:?} {xip:?} {xip_answers} {claims:?} \
-             {allowed_banks} {io_banks} {io_journal:?} {io_trace:?}"
+             {allowed_banks} {io_banks} {io_journal:?} {io_rec:?}"
         );
         Ok(RestPoint {
             io,

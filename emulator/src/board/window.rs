@@ -404,7 +404,7 @@ impl Board {
             self.profile_mark(k, &mut mark);
             self.marks[k] = mark;
         }
-        let io = self.io_window_begin(start);
+        let io = self.io_window_begin(start, end);
         let mut kept = true;
         for (k, journal) in journals.iter_mut().enumerate() {
             let own = self.config.own_banks[k] & ALL_BANKS;
