@@ -408,7 +408,7 @@ impl Ads8688 {
     /// Its data words in a fixed order, each with its lanes while they are kept: the eight
     /// channels' codes, the code of the frame under way (0 without one), the command
     /// shifting in, the SDO level.
-    pub(crate) fn data_slots(&mut self, f: &mut dyn FnMut(&mut u32, Option<&mut [Lane]>)) {
+    pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
         let mut l = self.lanes.as_deref_mut();
         for c in 0..8 {
             let mut v = u32::from(self.codes[c]);
@@ -425,6 +425,78 @@ impl Ads8688 {
         f(&mut v, l.map(|l| std::slice::from_mut(&mut l.sdo)));
         self.sdo = v & 1 != 0;
     }
+
+    /// Whether it equals `other` but for its data words ([`Ads8688::data_slots`]) and its
+    /// records, its cycles moved by `r` first: every other field named.
+    pub(crate) fn eq_but_data(&self, other: &Ads8688, r: crate::io::Rebase) -> bool {
+        let Ads8688 {
+            part,
+            pins,
+            clock_hz,
+            codes: _,
+            next,
+            auto,
+            lines,
+            sdo: _,
+            frame,
+            falling,
+            shift_in: _,
+            last_rise,
+            last_cs_fall,
+            frames: _,
+            violations: _,
+            lanes: _,
+        } = self;
+        let frames = match (frame, &other.frame) {
+            (None, None) => true,
+            (Some(a), Some(b)) => {
+                r.at(a.cs_fall) == b.cs_fall
+                    && a.channel == b.channel
+                    && a.command == b.command
+                    && a.sclks == b.sclks
+            }
+            _ => false,
+        };
+        std::ptr::eq(*part, other.part)
+            && *pins == other.pins
+            && *clock_hz == other.clock_hz
+            && *next == other.next
+            && *auto == other.auto
+            && *lines == other.lines
+            && frames
+            && *falling == other.falling
+            && last_rise.map(|c| r.at(c)) == other.last_rise
+            && last_cs_fall.map(|c| r.at(c)) == other.last_cs_fall
+    }
+
+    /// Its `i`-th data word ([`Ads8688::data_slots`]' order; 0 past them).
+    pub(crate) fn slot(&self, i: usize) -> u32 {
+        match i {
+            0..=7 => u32::from(self.codes[i]),
+            8 => self.frame.as_ref().map_or(0, |f| u32::from(f.code)),
+            9 => self.shift_in,
+            10 => u32::from(self.sdo),
+            _ => 0,
+        }
+    }
+
+    /// Sets its `i`-th data word ([`Ads8688::data_slots`]' order) as that visit would.
+    pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
+        match i {
+            0..=7 => self.codes[i] = v as u16,
+            8 => {
+                if let Some(f) = self.frame.as_mut() {
+                    f.code = v as u16;
+                }
+            }
+            9 => self.shift_in = v,
+            10 => self.sdo = v & 1 != 0,
+            _ => {}
+        }
+    }
+
+    /// Its data words' number ([`Ads8688::data_slots`]).
+    pub(crate) const SLOTS: usize = 11;
 
     /// [`Ads8688::observe`] with the lanes of the pins' levels, `l`, while lanes are kept.
     pub(crate) fn observe_lanes(&mut self, cycle: u64, values: u32, dirs: u32, l: &Word) {
@@ -818,7 +890,7 @@ impl Dac8568 {
 
     /// Its data words in a fixed order, each with its lanes while they are kept: the eight
     /// input registers, the eight output registers, the frame shifting in.
-    pub(crate) fn data_slots(&mut self, f: &mut dyn FnMut(&mut u32, Option<&mut [Lane]>)) {
+    pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
         let mut l = self.lanes.as_deref_mut();
         for c in 0..8 {
             let mut v = u32::from(self.input[c]);
@@ -832,6 +904,58 @@ impl Dac8568 {
         }
         f(&mut self.shift, l.map(|l| &mut l.shift[..]));
     }
+
+    /// Whether it equals `other` but for its data words ([`Dac8568::data_slots`]) and its
+    /// records, its cycles moved by `r` first: every other field named.
+    pub(crate) fn eq_but_data(&self, other: &Dac8568, r: crate::io::Rebase) -> bool {
+        let Dac8568 {
+            part,
+            pins,
+            clock_hz,
+            input: _,
+            output: _,
+            lines,
+            bits,
+            shift: _,
+            sync_fell,
+            sync_rose,
+            last_fall,
+            updates: _,
+            violations: _,
+            lanes: _,
+        } = self;
+        std::ptr::eq(*part, other.part)
+            && *pins == other.pins
+            && *clock_hz == other.clock_hz
+            && *lines == other.lines
+            && *bits == other.bits
+            && sync_fell.map(|c| r.at(c)) == other.sync_fell
+            && sync_rose.map(|c| r.at(c)) == other.sync_rose
+            && last_fall.map(|c| r.at(c)) == other.last_fall
+    }
+
+    /// Its `i`-th data word ([`Dac8568::data_slots`]' order; 0 past them).
+    pub(crate) fn slot(&self, i: usize) -> u32 {
+        match i {
+            0..=7 => u32::from(self.input[i]),
+            8..=15 => u32::from(self.output[i - 8]),
+            16 => self.shift,
+            _ => 0,
+        }
+    }
+
+    /// Sets its `i`-th data word ([`Dac8568::data_slots`]' order) as that visit would.
+    pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
+        match i {
+            0..=7 => self.input[i] = v as u16,
+            8..=15 => self.output[i - 8] = v as u16,
+            16 => self.shift = v,
+            _ => {}
+        }
+    }
+
+    /// Its data words' number ([`Dac8568::data_slots`]).
+    pub(crate) const SLOTS: usize = 17;
 
     /// [`Dac8568::observe`] with the lanes of the pins' levels, `l`, while lanes are kept.
     pub(crate) fn observe_lanes(&mut self, cycle: u64, values: u32, dirs: u32, l: &Word) {

@@ -380,6 +380,69 @@ impl Dma {
         }
     }
 
+    /// Whether it equals `other` but for its data words ([`Dma::data_slots`]), its cycles
+    /// moved by `r` first: every other field named (a field added must be decided here).
+    pub(crate) fn eq_but_data(&self, other: &Dma, r: crate::io::Rebase) -> bool {
+        let Dma {
+            ch,
+            intr,
+            inte,
+            intf,
+            timer,
+            timer_acc,
+            timer_credit,
+            queue,
+            read_free,
+            write_free,
+            last_high,
+            last_low,
+            round_served,
+            lanes: _,
+        } = self;
+        let transfers = queue.t.iter().zip(&other.queue.t).enumerate().all(|(i, (a, b))| {
+            let ready = match i < queue.len {
+                true => r.at(a.ready),
+                false => a.ready,
+            };
+            a.channel == b.channel && a.addr == b.addr && a.size == b.size && ready == b.ready
+        });
+        *ch == other.ch
+            && *intr == other.intr
+            && *inte == other.inte
+            && *intf == other.intf
+            && *timer == other.timer
+            && *timer_acc == other.timer_acc
+            && *timer_credit == other.timer_credit
+            && queue.len == other.queue.len
+            && transfers
+            && r.at(*read_free) == other.read_free
+            && r.at(*write_free) == other.write_free
+            && *last_high == other.last_high
+            && *last_low == other.last_low
+            && *round_served == other.round_served
+    }
+
+    /// Its `i`-th data word ([`Dma::data_slots`]' order; 0 past them).
+    pub(crate) fn slot(&self, i: usize) -> u32 {
+        self.queue.t.get(i).map_or(0, |t| t.value)
+    }
+
+    /// Its `i`-th data word ([`Dma::data_slots`]' order), settable.
+    pub(crate) fn slot_mut(&mut self, i: usize) -> Option<&mut u32> {
+        self.queue.t.get_mut(i).map(|t| &mut t.value)
+    }
+
+    /// Mixes some of its control state (none of its data words) into `mix`: a cheap first
+    /// test of two controllers' equality but for data (`crate::io::Io::quick_key`).
+    pub(crate) fn quick_key(&self, r: crate::io::Rebase, mix: &mut impl FnMut(u64)) {
+        mix(r.at(self.read_free) ^ r.at(self.write_free).rotate_left(32));
+        mix(self.last_high as u64 | (self.last_low as u64) << 8 | (self.queue.len as u64) << 16);
+        for c in &self.ch {
+            mix(u64::from(c.read_addr) | u64::from(c.write_addr) << 32);
+            mix(u64::from(c.remaining) | u64::from(c.busy) << 32);
+        }
+    }
+
     /// Starts keeping lanes (`crate::lanes`), all constants (`crate::io::Io` gives its data
     /// words theirs through [`Dma::data_slots`]).
     pub(crate) fn start_lanes(&mut self) {
@@ -388,7 +451,7 @@ impl Dma {
 
     /// Its data words in a fixed order, each with its lanes while they are kept: the values
     /// of the transfer FIFO's entries.
-    pub(crate) fn data_slots(&mut self, f: &mut dyn FnMut(&mut u32, Option<&mut [Lane]>)) {
+    pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
         let mut l = self.lanes.as_deref_mut();
         for (i, t) in self.queue.t.iter_mut().enumerate() {
             f(&mut t.value, l.as_deref_mut().map(|l| &mut l[i][..]));

@@ -180,6 +180,16 @@ pub struct Io {
     lanes: Option<Box<IoLanes>>,
 }
 
+/// Where a data word of the machine lies ([`Io::locate`]): the machine's own (0 the pins'
+/// levels, 1 the inputs), or a part's and its index among the part's.
+enum Slot {
+    Io(usize),
+    Pio(usize, usize),
+    Dma(usize),
+    Adc(usize, usize),
+    Dac(usize, usize),
+}
+
 /// The machine's own lanes while a replay is recorded (`crate::lanes`), per GPIO.
 #[derive(Clone, Debug, PartialEq, Eq)]
 struct IoLanes {
@@ -276,7 +286,7 @@ const IDLE_CHECK_EVERY: u32 = 16;
 
 /// Whether this idle skip is one checked ([`IDLE_CHECK_EVERY`]).
 #[cfg(debug_assertions)]
-fn check_this_skip() -> bool {
+pub(crate) fn check_this_skip() -> bool {
     thread_local!(static SKIPS: std::cell::Cell<u32> = const { std::cell::Cell::new(0) });
     SKIPS.with(|s| {
         let n = s.get();
@@ -398,10 +408,13 @@ impl Rebase {
     }
 }
 
-/// The parts' whole records, taken out of them ([`Io::take_records`]).
-pub(crate) struct PartRecords {
-    adcs: Vec<(Vec<AdcFrame>, Vec<crate::converters::TimingViolation>)>,
-    dacs: Vec<(Vec<DacUpdate>, Vec<crate::converters::TimingViolation>)>,
+/// How a period memo's hit gives its records' codes (`board/io_window.rs`): per ADC its
+/// frames' routes, per DAC its updates', and the inputs they read.
+#[derive(Clone, Copy)]
+pub(crate) struct RecordCodes<'a> {
+    pub frames: &'a [Vec<lanes::Route>],
+    pub updates: &'a [Vec<lanes::Route>],
+    pub inputs: &'a [u32],
 }
 
 /// The parts' records of a stretch (a period memo's, `board/io_window.rs`; a rest period's,
@@ -449,24 +462,6 @@ impl IoRecords {
         (f, u)
     }
 
-    /// Its codes given by `routes` ([`IoRecords::routes`]) from `inputs`.
-    pub(crate) fn set_codes(
-        &mut self,
-        frames: &[Vec<lanes::Route>],
-        updates: &[Vec<lanes::Route>],
-        inputs: &[u32],
-    ) {
-        for (fs, rs) in self.adcs.iter_mut().zip(frames) {
-            for (f, r) in fs.iter_mut().zip(rs) {
-                f.code = r.eval(inputs) as u16;
-            }
-        }
-        for (us, rs) in self.dacs.iter_mut().zip(updates) {
-            for (u, r) in us.iter_mut().zip(rs) {
-                u.code = r.eval(inputs) as u16;
-            }
-        }
-    }
 }
 
 /// Writes `size` bytes of `value` at SRAM offset `off` for the DMA: journaled while a
@@ -770,6 +765,155 @@ impl Io {
         slot
     }
 
+    /// Whether it, its cycles moved by `r`, equals `other` but for its data words
+    /// ([`Io::data_slots`]) and its parts' records: what a period memo's entry is keyed by
+    /// (`board/io_window.rs`). Every field named, in each part too (a field added must be
+    /// decided here); the same as comparing the two with their data words zeroed.
+    pub(crate) fn eq_but_data(&self, other: &Io, r: Rebase) -> bool {
+        let Io {
+            pio,
+            dma,
+            adcs,
+            dacs,
+            cycle,
+            gpio_ctrl,
+            pio_pins,
+            bus_priority,
+            held,
+            pins,
+            gpio_in: _,
+            dma_claim,
+            reach_banks,
+            stepwise,
+            sm_clock,
+            sdo_log,
+            ahead,
+            behind,
+            held_until,
+            idle: _, // a note, not state
+            lanes: _,
+        } = self;
+        let at = |a: &[[u64; 4]; 2], b: &[[u64; 4]; 2]| {
+            a.iter().flatten().zip(b.iter().flatten()).all(|(&x, &y)| r.at(x) == y)
+        };
+        let logs = sdo_log.len() == other.sdo_log.len()
+            && sdo_log.iter().zip(&other.sdo_log).all(|(a, b)| {
+                a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (r.at(x.0), x.1) == *y)
+            });
+        r.at(*cycle) == other.cycle
+            && *gpio_ctrl == other.gpio_ctrl
+            && *pio_pins == other.pio_pins
+            && *bus_priority == other.bus_priority
+            && *held == other.held
+            && pins.1 == other.pins.1
+            && (dma_claim.iter().flatten())
+                .zip(other.dma_claim.iter().flatten())
+                .all(|(&x, &y)| r.at(x) == y)
+            && *reach_banks == other.reach_banks
+            && *stepwise == other.stepwise
+            && at(sm_clock, &other.sm_clock)
+            && logs
+            && *ahead == other.ahead
+            && *behind == other.behind
+            && at(held_until, &other.held_until)
+            && adcs.len() == other.adcs.len()
+            && dacs.len() == other.dacs.len()
+            && pio.iter().zip(&other.pio).all(|(a, b)| a.eq_but_data(b))
+            && dma.eq_but_data(&other.dma, r)
+            && adcs.iter().zip(&other.adcs).all(|(a, b)| a.eq_but_data(b, r))
+            && dacs.iter().zip(&other.dacs).all(|(a, b)| a.eq_but_data(b, r))
+    }
+
+    /// [`Io::eq_but_data`] the long way, for debug builds' checks of it: both machines
+    /// rebased to `r`'s base, their data words zeroed, their records left out, compared
+    /// whole; and every data word read by [`Io::slot`] as [`Io::data_slots`] visits it.
+    #[cfg(debug_assertions)]
+    pub(crate) fn check_eq_but_data(&self, other: &Io, r: Rebase) {
+        let mut a = self.clone();
+        let mut k = 0;
+        a.data_slots(&mut |v, _| {
+            assert_eq!(*v, self.slot(k), "data word {k}");
+            k += 1;
+        });
+        let zeroed = |io: &mut Io| {
+            io.data_slots(&mut |v, _| *v = 0);
+            for x in &mut io.adcs {
+                x.take_records();
+            }
+            for x in &mut io.dacs {
+                x.take_records();
+            }
+        };
+        a.rebase(r);
+        zeroed(&mut a);
+        let mut b = other.clone();
+        zeroed(&mut b);
+        assert_eq!(a == b, self.eq_but_data(other, r), "eq_but_data");
+    }
+
+    /// Its `i`-th data word ([`Io::data_slots`]' order; 0 past them).
+    pub(crate) fn slot(&self, i: usize) -> u32 {
+        match self.locate(i) {
+            Some(Slot::Io(0)) => self.pins.0,
+            Some(Slot::Io(_)) => self.gpio_in,
+            Some(Slot::Pio(b, j)) => self.pio[b].slot(j),
+            Some(Slot::Dma(j)) => self.dma.slot(j),
+            Some(Slot::Adc(k, j)) => self.adcs[k].slot(j),
+            Some(Slot::Dac(k, j)) => self.dacs[k].slot(j),
+            None => 0,
+        }
+    }
+
+    /// Sets its `i`-th data word ([`Io::data_slots`]' order) as that visit would.
+    pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
+        match self.locate(i) {
+            Some(Slot::Io(0)) => self.pins.0 = v,
+            Some(Slot::Io(_)) => self.gpio_in = v,
+            Some(Slot::Pio(b, j)) => self.pio[b].set_slot(j, v),
+            Some(Slot::Dma(j)) => {
+                if let Some(w) = self.dma.slot_mut(j) {
+                    *w = v;
+                }
+            }
+            Some(Slot::Adc(k, j)) => self.adcs[k].set_slot(j, v),
+            Some(Slot::Dac(k, j)) => self.dacs[k].set_slot(j, v),
+            None => {}
+        }
+    }
+
+    /// Where its `i`-th data word lies ([`Io::data_slots`]' order).
+    fn locate(&self, i: usize) -> Option<Slot> {
+        let pio = 2;
+        let dma = pio + 2 * Pio::SLOTS;
+        let adcs = dma + crate::dma::TRANSFER_FIFO_DEPTH;
+        let dacs = adcs + self.adcs.len() * Ads8688::SLOTS;
+        let end = dacs + self.dacs.len() * Dac8568::SLOTS;
+        Some(match i {
+            _ if i < pio => Slot::Io(i),
+            _ if i < dma => Slot::Pio((i - pio) / Pio::SLOTS, (i - pio) % Pio::SLOTS),
+            _ if i < adcs => Slot::Dma(i - dma),
+            _ if i < dacs => Slot::Adc((i - adcs) / Ads8688::SLOTS, (i - adcs) % Ads8688::SLOTS),
+            _ if i < end => Slot::Dac((i - dacs) / Dac8568::SLOTS, (i - dacs) % Dac8568::SLOTS),
+            _ => return None,
+        })
+    }
+
+    /// A hash of some of its control state (none of its data words: [`Io::data_slots`]):
+    /// machines equal but for data have equal keys (a period memo's first test).
+    /// Its cycles are moved by `r` first.
+    pub(crate) fn quick_key(&self, r: Rebase) -> u64 {
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        let mut mix = |v: u64| h = (h ^ v).wrapping_mul(0x0000_0100_0000_01b3);
+        mix(r.at(self.cycle));
+        mix(u64::from(self.pins.1));
+        for c in self.dma_claim.iter().flatten() {
+            mix(r.at(*c));
+        }
+        self.pio.iter().for_each(|p| p.quick_key(&mut mix));
+        self.dma.quick_key(r, &mut mix);
+        h
+    }
+
     /// Stops keeping lanes: what they held ([`LanesKept`]), or `None` when a part lost them
     /// (reset meanwhile) or two parts drove one pin with data.
     pub(crate) fn stop_lanes(&mut self) -> Option<LanesKept> {
@@ -823,7 +967,7 @@ impl Io {
     /// PIO blocks' ([`Pio::data_slots`]), the DMA's, the ADCs' and the DACs'. A period memo
     /// (`board/io_window.rs`) compares machines without them, and gives a recorded
     /// replay's by their routes.
-    pub(crate) fn data_slots(&mut self, f: &mut dyn FnMut(&mut u32, Option<&mut [Lane]>)) {
+    pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
         let mut l = self.lanes.as_deref_mut();
         f(&mut self.pins.0, l.as_deref_mut().map(|l| &mut l.pins[..]));
         f(&mut self.gpio_in, l.map(|l| &mut l.gpio_in[..]));
@@ -906,25 +1050,6 @@ impl Io {
         self.dacs.iter_mut().for_each(|d| d.rebase(r));
     }
 
-    /// Its parts' records, taken out (to compare the machine with one without records,
-    /// `board/io_window.rs`); [`Io::put_records`] puts them back.
-    pub(crate) fn take_records(&mut self) -> PartRecords {
-        PartRecords {
-            adcs: (self.adcs.iter_mut().map(|a| a.take_records())).collect(),
-            dacs: (self.dacs.iter_mut().map(|d| d.take_records())).collect(),
-        }
-    }
-
-    /// Puts back the records [`Io::take_records`] took.
-    pub(crate) fn put_records(&mut self, records: PartRecords) {
-        for (a, r) in self.adcs.iter_mut().zip(records.adcs) {
-            a.put_records(r);
-        }
-        for (d, r) in self.dacs.iter_mut().zip(records.dacs) {
-            d.put_records(r);
-        }
-    }
-
     /// Per ADC, then per DAC, its [`Recorded::record_counts`].
     pub(crate) fn record_counts(&mut self) -> Vec<[usize; 2]> {
         (self.adcs.iter_mut().map(Recorded::record_counts))
@@ -952,24 +1077,94 @@ impl Io {
         Some(rec)
     }
 
-    /// Becomes `end` (from [`Io::rebased`]) moved by `r`, its parts' records kept and
-    /// `records` (moved by `r`) appended: a period memo's hit (`board/io_window.rs`).
-    pub(crate) fn become_rebased(&mut self, end: &Io, r: Rebase, records: &IoRecords) {
-        let mut io = end.clone();
-        io.rebase(r);
-        for (now, mut then) in self.adcs.iter_mut().zip(std::mem::take(&mut io.adcs)) {
-            then.put_records(now.take_records());
-            *now = then;
+    /// Becomes `end` (from [`Io::rebased`]) moved by `r`, its parts' records kept, and
+    /// appends `records` (moved by `r`), their codes given by `codes` (routes and inputs:
+    /// [`IoRecords::routes`]) when some: a period memo's hit (`board/io_window.rs`).
+    pub(crate) fn become_rebased(
+        &mut self,
+        end: &Io,
+        r: Rebase,
+        records: &IoRecords,
+        codes: Option<RecordCodes>,
+    ) {
+        // Field by field, each of `end` named (a field added must be decided here), the
+        // allocations of `self` kept.
+        let Io {
+            pio,
+            dma,
+            adcs,
+            dacs,
+            cycle,
+            gpio_ctrl,
+            pio_pins,
+            bus_priority,
+            held,
+            pins,
+            gpio_in,
+            dma_claim,
+            reach_banks,
+            stepwise: _, // the live machine's
+            sm_clock,
+            sdo_log,
+            ahead,
+            behind,
+            held_until,
+            idle,
+            lanes: _, // none outside a recording
+        } = end;
+        self.pio.clone_from(pio);
+        self.dma.clone_from(dma);
+        for (now, then) in self.adcs.iter_mut().zip(adcs) {
+            let kept = now.take_records();
+            *now = then.clone();
+            now.put_records(kept);
         }
-        for (now, mut then) in self.dacs.iter_mut().zip(std::mem::take(&mut io.dacs)) {
-            then.put_records(now.take_records());
-            *now = then;
+        for (now, then) in self.dacs.iter_mut().zip(dacs) {
+            let kept = now.take_records();
+            *now = then.clone();
+            now.put_records(kept);
         }
-        io.adcs = std::mem::take(&mut self.adcs);
-        io.dacs = std::mem::take(&mut self.dacs);
-        io.stepwise = self.stepwise;
-        *self = io;
-        self.append_records(records, r);
+        self.cycle = *cycle;
+        self.gpio_ctrl = *gpio_ctrl;
+        self.pio_pins = *pio_pins;
+        self.bus_priority = *bus_priority;
+        self.held = *held;
+        self.pins = *pins;
+        self.gpio_in = *gpio_in;
+        self.dma_claim = *dma_claim;
+        self.reach_banks = *reach_banks;
+        self.sm_clock = *sm_clock;
+        self.sdo_log.clone_from(sdo_log);
+        self.ahead.clone_from(ahead);
+        self.behind = *behind;
+        self.held_until = *held_until;
+        self.idle = *idle;
+        self.lanes = None;
+        self.rebase(r);
+        for (k, (a, frames)) in self.adcs.iter_mut().zip(&records.adcs).enumerate() {
+            let routes = codes.map(|c| c.frames.get(k));
+            a.append_records(frames.iter().enumerate().map(|(i, f)| AdcFrame {
+                cs_fall: r.at(f.cs_fall),
+                code: match routes {
+                    Some(rs) => (rs.and_then(|rs| rs.get(i)))
+                        .map_or(f.code, |x| x.eval(codes.map_or(&[], |c| c.inputs)) as u16),
+                    None => f.code,
+                },
+                ..f.clone()
+            }));
+        }
+        for (k, (d, updates)) in self.dacs.iter_mut().zip(&records.dacs).enumerate() {
+            let routes = codes.map(|c| c.updates.get(k));
+            d.append_records(updates.iter().enumerate().map(|(i, u)| DacUpdate {
+                cycle: r.at(u.cycle),
+                code: match routes {
+                    Some(rs) => (rs.and_then(|rs| rs.get(i)))
+                        .map_or(u.code, |x| x.eval(codes.map_or(&[], |c| c.inputs)) as u16),
+                    None => u.code,
+                },
+                ..*u
+            }));
+        }
     }
 
     /// Appends `records` (from [`Io::records_since`]) to its parts' records, their cycles

@@ -115,18 +115,26 @@ pub(crate) fn not(w: &Word) -> Word {
 
 /// `w` with the bits outside `mask` constant, as `v & mask`.
 pub(crate) fn and(w: &Word, mask: u32) -> Word {
-    let mut r = *w;
-    for (b, l) in r.iter_mut().enumerate() {
-        if mask >> b & 1 == 0 {
-            *l = Lane::CONST;
-        }
-    }
-    r
+    select(mask, w, &CONST)
 }
 
 /// `a` where `mask` is set, `b` elsewhere: `v & mask | u & !mask`.
+#[inline]
 pub(crate) fn select(mask: u32, a: &Word, b: &Word) -> Word {
-    std::array::from_fn(|i| if mask >> i & 1 != 0 { a[i] } else { b[i] })
+    match mask {
+        0 => *b,
+        u32::MAX => *a,
+        _ => {
+            let mut r = *b;
+            let mut m = mask;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                r[i] = a[i];
+                m &= m - 1;
+            }
+            r
+        }
+    }
 }
 
 /// Whether every lane of `w` is a constant.
@@ -191,6 +199,11 @@ impl Route {
             }
         }
         r
+    }
+
+    /// The inputs it reads.
+    pub(crate) fn inputs(&self) -> impl Iterator<Item = u32> + '_ {
+        self.parts.iter().map(|p| p.input)
     }
 
     /// The word for inputs `inputs` (each a value by input number).

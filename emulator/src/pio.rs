@@ -312,6 +312,47 @@ struct StateMachine {
 }
 
 impl StateMachine {
+    /// Whether it equals `other` but for its data words (X, Y, ISR, OSR, the FIFOs'
+    /// words): every other field named.
+    fn eq_but_data(&self, other: &StateMachine) -> bool {
+        let StateMachine {
+            clkdiv,
+            execctrl,
+            shiftctrl,
+            pinctrl,
+            pc,
+            x: _,
+            y: _,
+            isr: _,
+            osr: _,
+            isr_count,
+            osr_count,
+            tx,
+            rx,
+            delay,
+            exec,
+            current,
+            acc,
+            irq_waiting,
+            stalled,
+        } = self;
+        *clkdiv == other.clkdiv
+            && *execctrl == other.execctrl
+            && *shiftctrl == other.shiftctrl
+            && *pinctrl == other.pinctrl
+            && *pc == other.pc
+            && *isr_count == other.isr_count
+            && *osr_count == other.osr_count
+            && tx.len == other.tx.len
+            && rx.len == other.rx.len
+            && *delay == other.delay
+            && *exec == other.exec
+            && *current == other.current
+            && *acc == other.acc
+            && *irq_waiting == other.irq_waiting
+            && *stalled == other.stalled
+    }
+
     fn new() -> Self {
         StateMachine {
             clkdiv: CLKDIV_RESET,
@@ -1492,13 +1533,101 @@ impl Pio {
         self.out_values = set(set(self.out_values, fx.values), fx.side_values);
         self.out_dirs = set(set(self.out_dirs, fx.dirs), fx.side_dirs);
         if let Some(l) = self.lanes.as_deref_mut() {
-            let out = lanes::select(fx.values.0, &l.pend[n], &l.out);
-            l.out = lanes::select(fx.side_values.0, &CONST, &out);
+            if fx.values.0 != 0 {
+                l.out = lanes::select(fx.values.0, &l.pend[n], &l.out);
+            }
+            if fx.side_values.0 != 0 {
+                l.out = lanes::select(fx.side_values.0, &CONST, &l.out);
+            }
         }
     }
 
-    /// Starts keeping lanes (`crate::lanes`), each data word's from `slot`
-    /// ([`Pio::data_slots`]).
+    /// Whether it equals `other` but for its data words ([`Pio::data_slots`]): every other
+    /// field named (a field added must be decided here).
+    pub(crate) fn eq_but_data(&self, other: &Pio) -> bool {
+        let Pio {
+            instr,
+            sm,
+            enabled,
+            irq,
+            sync_bypass,
+            sync: _,
+            out_values: _,
+            out_dirs,
+            config_epoch,
+            lanes: _,
+        } = self;
+        *instr == other.instr
+            && *enabled == other.enabled
+            && *irq == other.irq
+            && *sync_bypass == other.sync_bypass
+            && *out_dirs == other.out_dirs
+            && *config_epoch == other.config_epoch
+            && sm.iter().zip(&other.sm).all(|(a, b)| a.eq_but_data(b))
+    }
+
+    /// Sets its `i`-th data word ([`Pio::data_slots`]' order, `i` below [`Pio::SLOTS`]).
+    pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
+        if let Some(w) = self.slot_mut(i) {
+            *w = v;
+        }
+    }
+
+    /// Its `i`-th data word ([`Pio::data_slots`]' order; 0 past them).
+    pub(crate) fn slot(&self, i: usize) -> u32 {
+        match i {
+            0 => self.out_values,
+            1 | 2 => self.sync[i - 1],
+            _ => {
+                let Some(s) = self.sm.get((i - 3) / 20) else {
+                    return 0;
+                };
+                match (i - 3) % 20 {
+                    0 => s.x,
+                    1 => s.y,
+                    2 => s.isr,
+                    3 => s.osr,
+                    k @ 4..=11 => s.tx.words[k - 4],
+                    k => s.rx.words[k - 12],
+                }
+            }
+        }
+    }
+
+    fn slot_mut(&mut self, i: usize) -> Option<&mut u32> {
+        match i {
+            0 => Some(&mut self.out_values),
+            1 | 2 => Some(&mut self.sync[i - 1]),
+            _ => {
+                let s = self.sm.get_mut((i - 3) / 20)?;
+                Some(match (i - 3) % 20 {
+                    0 => &mut s.x,
+                    1 => &mut s.y,
+                    2 => &mut s.isr,
+                    3 => &mut s.osr,
+                    k @ 4..=11 => &mut s.tx.words[k - 4],
+                    k => &mut s.rx.words[k - 12],
+                })
+            }
+        }
+    }
+
+    /// Its data words' number ([`Pio::data_slots`]).
+    pub(crate) const SLOTS: usize = 3 + 4 * 20;
+
+    /// Mixes some of its control state (none of its data words) into `mix`: a cheap first
+    /// test of two blocks' equality but for data (`crate::io::Io::quick_key`).
+    pub(crate) fn quick_key(&self, mix: &mut impl FnMut(u64)) {
+        for s in &self.sm {
+            mix(u64::from(s.pc) | u64::from(s.acc) << 8 | u64::from(s.delay) << 40);
+            mix(u64::from(s.isr_count) | u64::from(s.osr_count) << 8 | u64::from(s.tx.len) << 16
+                | u64::from(s.rx.len) << 24);
+        }
+        mix(u64::from(self.out_dirs) | u64::from(self.enabled) << 32);
+    }
+
+    /// Starts keeping lanes (`crate::lanes`), all constants (`crate::io::Io` gives its data
+    /// words theirs through [`Pio::data_slots`]).
     pub(crate) fn start_lanes(&mut self) {
         self.lanes = Some(Box::new(PioLanes::new()));
     }
@@ -1506,7 +1635,7 @@ impl Pio {
     /// Its data words in a fixed order, each with its lanes while they are kept (`crate::io::Io::data_slots`):
     /// the pins' output levels, the synchroniser's two flops, then per state machine X, Y,
     /// ISR, OSR and its TX and RX FIFOs' eight words each.
-    pub(crate) fn data_slots(&mut self, f: &mut dyn FnMut(&mut u32, Option<&mut [Lane]>)) {
+    pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
         let mut l = self.lanes.as_deref_mut();
         f(&mut self.out_values, l.as_deref_mut().map(|l| &mut l.out[..]));
         for k in 0..2 {
@@ -1640,7 +1769,7 @@ impl Pio {
         let pins_in = gpio.rotate_right(in_base);
         // The lanes kept, with this state machine's and what the pins show it.
         let mut lanes = lanes.as_deref_mut();
-        let pins_in_lanes = lanes.as_ref().map(|l| lanes::rotr(&l.seen, in_base));
+        let pins_in_lanes = |l: &PioLanes| lanes::rotr(&l.seen, in_base);
         let flow = match op {
             // JMP
             0 => {
@@ -1692,7 +1821,7 @@ impl Pio {
                     match bits(ins, 5, 2) {
                         0 => lanes::fix(&mut l.seen, gpio, 1 << idx, &mut l.fixed),
                         1 => {
-                            let mut w = pins_in_lanes.unwrap_or(CONST);
+                            let mut w = pins_in_lanes(l);
                             lanes::fix(&mut w, pins_in, 1 << idx, &mut l.fixed);
                         }
                         _ => {}
@@ -1735,9 +1864,13 @@ impl Pio {
                 } else {
                     let s = &mut self.sm[n];
                     if let Some(l) = lanes.as_deref_mut() {
+                        let pins = match arg1 {
+                            0 => pins_in_lanes(l),
+                            _ => CONST,
+                        };
                         let sl = &mut l.sm[n];
                         let data = match arg1 {
-                            0 => pins_in_lanes.unwrap_or(CONST),
+                            0 => pins,
                             1 => sl.x,
                             2 => sl.y,
                             6 => sl.isr,
@@ -1916,9 +2049,10 @@ impl Pio {
                     _ => src,
                 };
                 if let Some(l) = lanes.as_deref_mut() {
+                    let pins = pins_in_lanes(l);
                     let sl = &mut l.sm[n];
                     let src = match arg2 & 7 {
-                        0 => pins_in_lanes.unwrap_or(CONST),
+                        0 => pins,
                         1 => sl.x,
                         2 => sl.y,
                         6 => sl.isr,

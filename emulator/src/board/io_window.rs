@@ -66,7 +66,7 @@
 use super::window::undo_stores;
 use super::*;
 use crate::bus::{load_le, sram_bank, store_le, ALL_BANKS};
-use crate::io::{Checkpoint, Io, IoRecords, LaneOp, LaneRec, Rebase};
+use crate::io::{Checkpoint, Io, IoRecords, LaneOp, LaneRec, Rebase, RecordCodes};
 use crate::lanes::{self, Route};
 
 /// What a window's core access to the I/O is.
@@ -226,10 +226,14 @@ struct MemoEntry {
     /// The cores' register stores: their cycles from the start, addresses and values.
     regs: Vec<IoAccess>,
     /// The I/O at the window's start at [`Rebase::MEMO`], its records left out and its data
-    /// words ([`Io::data_slots`]) 0.
+    /// words ([`Io::data_slots`]) 0; its [`Io::quick_key`].
     start: Box<Io>,
+    start_key: u64,
     /// What the data words at the start must hold: (slot, mask, bits).
     start_fixed: Vec<(u32, u32, u32)>,
+    /// The number of data words (the first read's input), and those the routes read.
+    slots: u32,
+    needs: Vec<u32>,
     /// The DMA's SRAM accesses in their ticks' order.
     ops: Vec<MemoOp>,
     /// The DMA's bank claims: (cycle, bank), in order.
@@ -507,37 +511,38 @@ impl Board {
             from: base,
             to: Rebase::MEMO,
         };
-        // The live machine at the memo's time base, without its records and its data.
-        let Some(now) = self.system.io.as_mut() else {
+        // The live machine against each entry's start at the memo's time base, but for its
+        // data words, which must meet the entry's constraints.
+        let Some(now) = self.system.io.as_deref() else {
             return Tried::Miss;
         };
-        now.rebase(to_memo);
-        let records = now.take_records();
-        let inputs = &mut self.io_memo.inputs;
-        inputs.clear();
-        now.data_slots(&mut |v, _| inputs.push(std::mem::take(v)));
+        let key = now.quick_key(to_memo);
+        #[cfg(debug_assertions)]
+        for e in &self.io_memo.entries {
+            if fits(e) && crate::io::check_this_skip() {
+                now.check_eq_but_data(&e.start, to_memo);
+            }
+        }
         let first = self.io_memo.last.map_or(0, |l| l + 1);
         let n = self.io_memo.entries.len();
         let hit = (0..n).map(|k| (first + k) % n.max(1)).find(|&i| {
             let e = &self.io_memo.entries[i];
             fits(e)
-                && *e.start == **now
-                && (e.start_fixed.iter())
-                    .all(|&(slot, m, v)| inputs.get(slot as usize).is_some_and(|&x| x & m == v))
+                && e.start_key == key
+                && now.eq_but_data(&e.start, to_memo)
+                && (e.start_fixed.iter()).all(|&(slot, m, v)| now.slot(slot as usize) & m == v)
         });
-        // The machine as it was (a hit then becomes the entry's end).
-        let mut k = 0;
-        now.data_slots(&mut |v, _| {
-            *v = inputs.get(k).copied().unwrap_or(0);
-            k += 1;
-        });
-        now.put_records(records);
-        now.rebase(to_memo.back());
         let Some(i) = hit else {
             return Tried::Miss;
         };
+        // The inputs: the data words the entry's routes read, then the DMA's reads.
         let e = &self.io_memo.entries[i];
         let inputs = &mut self.io_memo.inputs;
+        inputs.clear();
+        inputs.resize(e.slots as usize, 0);
+        for &s in &e.needs {
+            inputs[s as usize] = now.slot(s as usize);
+        }
         // The DMA's accesses in their ticks' order, each core access after those of its
         // cycle and before the later ones (as the lock-step bus runs the I/O through an
         // access's cycle first).
@@ -590,20 +595,18 @@ impl Board {
             return Tried::Miss;
         }
         // The end: the entry's, its data words and the parts' records by their routes.
-        let mut records = e.records.clone();
-        records.set_codes(&e.frame_routes, &e.update_routes, inputs);
         let Some(now) = self.system.io.as_mut() else {
             return Tried::Miss;
         };
-        now.become_rebased(&e.end, to_memo.back(), &records);
-        let mut slot = 0u32;
-        let mut patches = e.patches.iter().peekable();
-        now.data_slots(&mut |v, _| {
-            if let Some((_, r)) = patches.next_if(|p| p.0 == slot) {
-                *v = r.eval(inputs);
-            }
-            slot += 1;
-        });
+        let codes = RecordCodes {
+            frames: &e.frame_routes,
+            updates: &e.update_routes,
+            inputs,
+        };
+        now.become_rebased(&e.end, to_memo.back(), &e.records, Some(codes));
+        for (s, r) in &e.patches {
+            now.set_slot(*s as usize, r.eval(inputs));
+        }
         self.system.io_refresh();
         self.io_memo.last = Some(i);
         self.io_windows.memo_hits += 1;
@@ -667,7 +670,7 @@ impl Board {
                 .find(|c| c.0 == input)
                 .map_or((0, 0), |c| (c.1, c.2))
         };
-        let ops = (rec.ops.into_iter())
+        let ops: Vec<MemoOp> = (rec.ops.into_iter())
             .map(|op| match op {
                 LaneOp::Read {
                     tick,
@@ -698,19 +701,41 @@ impl Board {
                 },
             })
             .collect();
-        let patches = (kept.slots.iter().enumerate())
+        let patches: Vec<(u32, Route)> = (kept.slots.iter().enumerate())
             .filter(|(_, (_, w))| !lanes::is_const(w))
             .map(|(i, (v, w))| (i as u32, Route::of(w, *v)))
             .collect();
         let (frame_routes, update_routes) = records.routes(&kept.frames, &kept.updates);
+        let start_fixed: Vec<(u32, u32, u32)> =
+            constraints.iter().copied().filter(|c| c.0 < slots).collect();
+        // The data words at the start that the routes read.
+        let mut needs: Vec<u32> = (ops.iter())
+            .filter_map(|op| match op {
+                MemoOp::Write { route, .. } => Some(route),
+                MemoOp::Read { .. } => None,
+            })
+            .chain(patches.iter().map(|(_, r)| r))
+            .chain(frame_routes.iter().flatten())
+            .chain(update_routes.iter().flatten())
+            .flat_map(|r| r.inputs())
+            .filter(|&i| i < slots)
+            .collect();
+        needs.sort_unstable();
+        needs.dedup();
         let mut end_io = now.rebased(to_memo);
         end_io.forget_idle();
         let entry = MemoEntry {
+            start_key: start.quick_key(Rebase {
+                from: Rebase::MEMO,
+                to: Rebase::MEMO,
+            }),
             span: end.saturating_sub(base),
             xip: self.system.xip_answers,
             regs: reg_stores(logs, base),
             start,
-            start_fixed: constraints.iter().copied().filter(|c| c.0 < slots).collect(),
+            start_fixed,
+            slots,
+            needs,
             ops,
             claims: rec.claims.iter().map(|&(c, b)| (c - base, b)).collect(),
             ran_to: now.cycle() - base,
