@@ -469,6 +469,19 @@ impl Ads8688 {
             && last_cs_fall.map(|c| r.at(c)) == other.last_cs_fall
     }
 
+    /// Becomes `other` but for its data words ([`Ads8688::data_slots`]) and its records,
+    /// which stay.
+    pub(crate) fn assign_but_data(&mut self, other: &Ads8688) {
+        let data: [u32; Self::SLOTS] = std::array::from_fn(|i| self.slot(i));
+        let kept = self.take_records();
+        *self = other.clone();
+        self.put_records(kept);
+        // The code of a frame under way is the frame's: set it only where there is one.
+        for (i, v) in data.into_iter().enumerate() {
+            self.set_slot(i, v);
+        }
+    }
+
     /// Its `i`-th data word ([`Ads8688::data_slots`]' order; 0 past them).
     pub(crate) fn slot(&self, i: usize) -> u32 {
         match i {
@@ -932,6 +945,16 @@ impl Dac8568 {
             && sync_fell.map(|c| r.at(c)) == other.sync_fell
             && sync_rose.map(|c| r.at(c)) == other.sync_rose
             && last_fall.map(|c| r.at(c)) == other.last_fall
+    }
+
+    /// Becomes `other` but for its data words ([`Dac8568::data_slots`]) and its records,
+    /// which stay.
+    pub(crate) fn assign_but_data(&mut self, other: &Dac8568) {
+        let (input, output, shift) = (self.input, self.output, self.shift);
+        let kept = self.take_records();
+        *self = other.clone();
+        self.put_records(kept);
+        (self.input, self.output, self.shift) = (input, output, shift);
     }
 
     /// Its `i`-th data word ([`Dac8568::data_slots`]' order; 0 past them).

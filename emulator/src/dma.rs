@@ -422,6 +422,15 @@ impl Dma {
             && *round_served == other.round_served
     }
 
+    /// Becomes `other` but for its data words ([`Dma::data_slots`]), which stay.
+    pub(crate) fn assign_but_data(&mut self, other: &Dma) {
+        let values = self.queue.t.map(|t| t.value);
+        *self = other.clone();
+        for (t, v) in self.queue.t.iter_mut().zip(values) {
+            t.value = v;
+        }
+    }
+
     /// Its `i`-th data word ([`Dma::data_slots`]' order; 0 past them).
     pub(crate) fn slot(&self, i: usize) -> u32 {
         self.queue.t.get(i).map_or(0, |t| t.value)

@@ -205,7 +205,8 @@ struct IoLanes {
 /// ([`Io::data_slots`]) its value and lanes; the lanes of the codes of the frames and
 /// updates the parts recorded, per part; and every lane fixed.
 pub(crate) struct LanesKept {
-    pub slots: Vec<(u32, Word)>,
+    /// Per data slot: its value, lanes and width in bits.
+    pub slots: Vec<(u32, Word, u32)>,
     pub frames: Vec<Vec<crate::converters::Lanes16>>,
     pub updates: Vec<Vec<crate::converters::Lanes16>>,
     pub fixed: Vec<Fixed>,
@@ -927,7 +928,7 @@ impl Io {
             Some(l) => {
                 let mut w = CONST;
                 w[..l.len()].copy_from_slice(l);
-                slots.push((*v, w));
+                slots.push((*v, w, l.len() as u32));
             }
             None => whole = false,
         });
@@ -1077,18 +1078,18 @@ impl Io {
         Some(rec)
     }
 
-    /// Becomes `end` (from [`Io::rebased`]) moved by `r`, its parts' records kept, and
-    /// appends `records` (moved by `r`), their codes given by `codes` (routes and inputs:
-    /// [`IoRecords::routes`]) when some: a period memo's hit (`board/io_window.rs`).
-    pub(crate) fn become_rebased(
+    /// Becomes `end` (from [`Io::rebased`]) moved by `r` but for its data words
+    /// ([`Io::data_slots`]), which stay as they are, its parts' records kept, and appends
+    /// `records` moved by `r`, their codes given by `codes` (routes and inputs:
+    /// [`IoRecords::routes`]) when some: a period memo's hit, which then sets the data
+    /// words its routes give (`board/io_window.rs`).
+    pub(crate) fn become_but_data(
         &mut self,
         end: &Io,
         r: Rebase,
         records: &IoRecords,
         codes: Option<RecordCodes>,
     ) {
-        // Field by field, each of `end` named (a field added must be decided here), the
-        // allocations of `self` kept.
         let Io {
             pio,
             dma,
@@ -1100,7 +1101,7 @@ impl Io {
             bus_priority,
             held,
             pins,
-            gpio_in,
+            gpio_in: _,
             dma_claim,
             reach_banks,
             stepwise: _, // the live machine's
@@ -1112,25 +1113,22 @@ impl Io {
             idle,
             lanes: _, // none outside a recording
         } = end;
-        self.pio.clone_from(pio);
-        self.dma.clone_from(dma);
-        for (now, then) in self.adcs.iter_mut().zip(adcs) {
-            let kept = now.take_records();
-            *now = then.clone();
-            now.put_records(kept);
+        for (a, b) in self.pio.iter_mut().zip(pio) {
+            a.assign_but_data(b);
         }
-        for (now, then) in self.dacs.iter_mut().zip(dacs) {
-            let kept = now.take_records();
-            *now = then.clone();
-            now.put_records(kept);
+        self.dma.assign_but_data(dma);
+        for (a, b) in self.adcs.iter_mut().zip(adcs) {
+            a.assign_but_data(b);
+        }
+        for (a, b) in self.dacs.iter_mut().zip(dacs) {
+            a.assign_but_data(b);
         }
         self.cycle = *cycle;
         self.gpio_ctrl = *gpio_ctrl;
         self.pio_pins = *pio_pins;
         self.bus_priority = *bus_priority;
         self.held = *held;
-        self.pins = *pins;
-        self.gpio_in = *gpio_in;
+        self.pins.1 = pins.1;
         self.dma_claim = *dma_claim;
         self.reach_banks = *reach_banks;
         self.sm_clock = *sm_clock;
@@ -1141,6 +1139,12 @@ impl Io {
         self.idle = *idle;
         self.lanes = None;
         self.rebase(r);
+        self.append_records_coded(records, r, codes);
+    }
+
+    /// Appends `records` moved by `r`, their codes given by `codes` when some, as a run that
+    /// recorded them would.
+    fn append_records_coded(&mut self, records: &IoRecords, r: Rebase, codes: Option<RecordCodes>) {
         for (k, (a, frames)) in self.adcs.iter_mut().zip(&records.adcs).enumerate() {
             let routes = codes.map(|c| c.frames.get(k));
             a.append_records(frames.iter().enumerate().map(|(i, f)| AdcFrame {

@@ -1566,6 +1566,34 @@ impl Pio {
             && sm.iter().zip(&other.sm).all(|(a, b)| a.eq_but_data(b))
     }
 
+    /// Becomes `other` but for its data words ([`Pio::data_slots`]), which stay: every
+    /// other field named.
+    pub(crate) fn assign_but_data(&mut self, other: &Pio) {
+        let Pio {
+            instr,
+            sm,
+            enabled,
+            irq,
+            sync_bypass,
+            sync: _,
+            out_values: _,
+            out_dirs,
+            config_epoch,
+            lanes: _,
+        } = other;
+        self.instr = *instr;
+        self.enabled = *enabled;
+        self.irq = *irq;
+        self.sync_bypass = *sync_bypass;
+        self.out_dirs = *out_dirs;
+        self.config_epoch = *config_epoch;
+        for (a, b) in self.sm.iter_mut().zip(sm) {
+            let (x, y, isr, osr, tx, rx) = (a.x, a.y, a.isr, a.osr, a.tx.words, a.rx.words);
+            *a = b.clone();
+            (a.x, a.y, a.isr, a.osr, a.tx.words, a.rx.words) = (x, y, isr, osr, tx, rx);
+        }
+    }
+
     /// Sets its `i`-th data word ([`Pio::data_slots`]' order, `i` below [`Pio::SLOTS`]).
     pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
         if let Some(w) = self.slot_mut(i) {

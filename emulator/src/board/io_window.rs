@@ -67,7 +67,7 @@ use super::window::undo_stores;
 use super::*;
 use crate::bus::{load_le, sram_bank, store_le, ALL_BANKS};
 use crate::io::{Checkpoint, Io, IoRecords, LaneOp, LaneRec, Rebase, RecordCodes};
-use crate::lanes::{self, Route};
+use crate::lanes::{self, Lane, Route};
 
 /// What a window's core access to the I/O is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -241,7 +241,7 @@ struct MemoEntry {
     /// The cycle the I/O was run to: a core's access at or after it is not replayed here.
     ran_to: u64,
     /// The I/O at the end at [`Rebase::MEMO`] without its records, and the routes of its
-    /// data words that are not constants: (slot, route), by slot.
+    /// data words but those that end as they started (a hit keeps those): (slot, route).
     end: Box<Io>,
     patches: Vec<(u32, Route)>,
     /// The parts' records, and the routes of their codes (per ADC its frames', per DAC its
@@ -603,7 +603,7 @@ impl Board {
             updates: &e.update_routes,
             inputs,
         };
-        now.become_rebased(&e.end, to_memo.back(), &e.records, Some(codes));
+        now.become_but_data(&e.end, to_memo.back(), &e.records, Some(codes));
         for (s, r) in &e.patches {
             now.set_slot(*s as usize, r.eval(inputs));
         }
@@ -701,9 +701,12 @@ impl Board {
                 },
             })
             .collect();
+        // Every data word but those that end as they started (a hit keeps the live ones).
         let patches: Vec<(u32, Route)> = (kept.slots.iter().enumerate())
-            .filter(|(_, (_, w))| !lanes::is_const(w))
-            .map(|(i, (v, w))| (i as u32, Route::of(w, *v)))
+            .filter(|&(i, (_, w, bits))| {
+                !(0..*bits as usize).all(|b| w[b] == Lane::input(i as u32, b as u32))
+            })
+            .map(|(i, (v, w, _))| (i as u32, Route::of(w, *v)))
             .collect();
         let (frame_routes, update_routes) = records.routes(&kept.frames, &kept.updates);
         let start_fixed: Vec<(u32, u32, u32)> =
