@@ -763,6 +763,8 @@ impl Io {
             }
             slot += 1;
         });
+        // The FIFOs' words past their lengths are 0 (`crate::pio`'s invariant): constants.
+        self.pio.iter_mut().for_each(Pio::const_fifo_tails);
         slot
     }
 

@@ -137,6 +137,11 @@ pub(crate) fn select(mask: u32, a: &Word, b: &Word) -> Word {
     }
 }
 
+/// Whether every lane of `w` is a constant.
+pub(crate) fn is_const(w: &[Lane]) -> bool {
+    w.iter().all(|l| l.is_const())
+}
+
 /// A fixed bit: the input bit the lane names had the value its lane's bit had in the
 /// recorded run (the module documentation).
 pub(crate) type Fixed = (Lane, bool);

@@ -1660,6 +1660,20 @@ impl Pio {
         self.lanes = Some(Box::new(PioLanes::new()));
     }
 
+    /// While lanes are kept: the words of each FIFO past its length, 0 by the FIFOs'
+    /// invariant, get constant lanes.
+    pub(crate) fn const_fifo_tails(&mut self) {
+        let Some(l) = self.lanes.as_deref_mut() else {
+            return;
+        };
+        for (s, sl) in self.sm.iter().zip(&mut l.sm) {
+            debug_assert!(s.tx.words[s.tx.len()..].iter().all(|&w| w == 0));
+            debug_assert!(s.rx.words[s.rx.len()..].iter().all(|&w| w == 0));
+            sl.tx.0[s.tx.len()..].fill(CONST);
+            sl.rx.0[s.rx.len()..].fill(CONST);
+        }
+    }
+
     /// Its data words in a fixed order, each with its lanes while they are kept (`crate::io::Io::data_slots`):
     /// the pins' output levels, the synchroniser's two flops, then per state machine X, Y,
     /// ISR, OSR and its TX and RX FIFOs' eight words each.

@@ -200,6 +200,16 @@ pub(crate) struct IoMemo {
     inputs: Vec<u32>,
 }
 
+impl IoMemo {
+    /// Entry `i` gave (or recorded) the window after the last one's.
+    fn followed_by(&mut self, i: usize) {
+        if let Some(e) = self.last.and_then(|l| self.entries.get_mut(l)) {
+            e.follow = Some(i);
+        }
+        self.last = Some(i);
+    }
+}
+
 impl Default for IoMemo {
     fn default() -> Self {
         IoMemo {
@@ -247,6 +257,8 @@ struct MemoEntry {
     /// The parts' records, and the routes of their codes (per ADC its frames', per DAC its
     /// updates').
     records: IoRecords,
+    /// The entry the window after this one's took last (a hint: it is tried first).
+    follow: Option<usize>,
     frame_routes: Vec<Vec<Route>>,
     update_routes: Vec<Vec<Route>>,
 }
@@ -523,9 +535,9 @@ impl Board {
                 now.check_eq_but_data(&e.start, to_memo);
             }
         }
-        let first = self.io_memo.last.map_or(0, |l| l + 1);
-        let n = self.io_memo.entries.len();
-        let hit = (0..n).map(|k| (first + k) % n.max(1)).find(|&i| {
+        let entries = &self.io_memo.entries;
+        let first = self.io_memo.last.and_then(|l| entries.get(l)?.follow);
+        let hit = first.into_iter().chain(0..entries.len()).find(|&i| {
             let e = &self.io_memo.entries[i];
             fits(e)
                 && e.start_key == key
@@ -536,7 +548,7 @@ impl Board {
             return Tried::Miss;
         };
         // The inputs: the data words the entry's routes read, then the DMA's reads.
-        let e = &self.io_memo.entries[i];
+        let e = &entries[i];
         let inputs = &mut self.io_memo.inputs;
         inputs.clear();
         inputs.resize(e.slots as usize, 0);
@@ -608,7 +620,7 @@ impl Board {
             now.set_slot(*s as usize, r.eval(inputs));
         }
         self.system.io_refresh();
-        self.io_memo.last = Some(i);
+        self.io_memo.followed_by(i);
         self.io_windows.memo_hits += 1;
         Tried::Done(Ok(()))
     }
@@ -641,6 +653,12 @@ impl Board {
         let counts = now.record_counts();
         let stepwise = std::mem::replace(&mut now.stepwise, true);
         let slots = now.start_lanes();
+        // The data words whose lanes start as constants (known by the machine's invariants),
+        // with their values.
+        let mut start_const = Vec::with_capacity(slots as usize);
+        now.data_slots(&mut |v, l| {
+            start_const.push(l.is_some_and(|l| l.iter().all(|x| x.is_const())).then_some(*v))
+        });
         self.system.io_rec = Some(Box::new(LaneRec::new(slots)));
         let r = self.io_merge(logs, banks, own);
         if r.is_ok() {
@@ -701,10 +719,13 @@ impl Board {
                 },
             })
             .collect();
-        // Every data word but those that end as they started (a hit keeps the live ones).
+        // Every data word but those that end as they started (a hit keeps the live ones):
+        // its own input, or a constant it held at the start too.
         let patches: Vec<(u32, Route)> = (kept.slots.iter().enumerate())
-            .filter(|&(i, (_, w, bits))| {
-                !(0..*bits as usize).all(|b| w[b] == Lane::input(i as u32, b as u32))
+            .filter(|&(i, (v, w, bits))| {
+                let own = (0..*bits as usize).all(|b| w[b] == Lane::input(i as u32, b as u32));
+                let kept_const = start_const.get(i) == Some(&Some(*v)) && lanes::is_const(w);
+                !(own || kept_const)
             })
             .map(|(i, (v, w, _))| (i as u32, Route::of(w, *v)))
             .collect();
@@ -747,6 +768,7 @@ impl Board {
             records,
             frame_routes,
             update_routes,
+            follow: None,
         };
         let m = &mut self.io_memo;
         let at = if m.entries.len() < MEMO_ENTRIES {
@@ -758,7 +780,7 @@ impl Board {
             m.next = (m.next + 1) % MEMO_ENTRIES;
             at
         };
-        m.last = Some(at);
+        m.followed_by(at);
         self.io_windows.memo_recorded += 1;
         r
     }
