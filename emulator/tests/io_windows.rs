@@ -15,7 +15,7 @@
 
 use tactus_emulator::dma::{ctrl, reg as dreg, DMA_BASE, TREQ_PERMANENT, TREQ_TIMER0};
 use tactus_emulator::io::{priority, IoConfig};
-use tactus_emulator::{Board, Config, Engine, FIRMWARE_OWN_BANKS};
+use tactus_emulator::{Board, Config, Engine, IoWindows, FIRMWARE_OWN_BANKS};
 use tactus_runtime::converters::ADS8688;
 
 mod common;
@@ -343,7 +343,9 @@ fn the_period_memo_of_the_io_equals_the_lock_step() {
         let io = block.io_windows();
         eprintln!("{period}: {:?} {io:?}", block.run_ahead_windows());
         assert!(io.memo_hits > 120, "{period}: {io:?}");
-        assert!((1..20).contains(&io.memo_recorded), "{period}: {io:?}");
+        // Recorded here, or by another board (the process's store).
+        let taken = io.memo_recorded + io.memo_shared;
+        assert!((1..20).contains(&taken), "{period}: {io:?}");
     }
 }
 
@@ -388,7 +390,10 @@ fn native_code_logs_the_dmas_banks_as_the_general_path_does() {
         let (n, g) = (native.io_log_digest(), general.io_log_digest());
         assert_eq!(n, g, "busy {busy}, periodic {periodic}");
         assert_ne!(n, Some(0));
-        assert_eq!(native.io_windows(), general.io_windows());
+        // The same windows kept and undone (the period memo's counts aside: the two boards
+        // share the process's store, so one may take what the other recorded).
+        let undone = |w: IoWindows| (w.kept, w.waited, w.stale, w.reach);
+        assert_eq!(undone(native.io_windows()), undone(general.io_windows()));
         let w = native.io_windows();
         assert!(w.kept + w.waited + w.stale > 20, "{w:?}");
     }

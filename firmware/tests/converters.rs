@@ -368,10 +368,11 @@ fn windows_on_a_board_with_converters_equal_the_lock_step() {
 
 #[test]
 fn the_period_memo_of_the_io_equals_the_lock_step() {
-    // Keys held still for stretches, at levels that come back, so that the I/O's
-    // replays repeat (the period memo hits: `io_window.rs`) and then change (its key —
-    // the ADC codes, the DAC frames the DMA reads — differs: a miss): the windows with
-    // the memo against the lock-step run, sample for sample, as above.
+    // Keys held still for stretches, at levels that come back, and jumping between them:
+    // the I/O's replays repeat in what they do while their data — the ADC codes, the DAC
+    // frames the DMA reads — changes, which the period memo gives by its routes
+    // (`io_window.rs`): the windows with the memo against the lock-step run, sample for
+    // sample, as above.
     let p = instrument("harpsichord");
     let keys = keys();
     const N: usize = 360;
@@ -385,10 +386,10 @@ fn the_period_memo_of_the_io_equals_the_lock_step() {
         .map(|l| (0..N).map(|n| l[at[n / 40 % at.len()]]).collect())
         .collect();
     let io = windows_equal_the_lock_step(&p, &keys, &words, N);
-    // The memo is used: the DAC words settle within each stretch (151 of 359 hit at
-    // iomemo40), and misses record.
-    assert!(io.memo_hits >= N as u64 / 4, "{io:?}");
-    assert!(io.memo_recorded > 4, "{io:?}");
+    // The memo gives nearly every window, whatever its data; a few are recorded (here or
+    // by another board of the process).
+    assert!(io.memo_hits >= N as u64 * 3 / 4, "{io:?}");
+    assert!((1..N as u64 / 8).contains(&(io.memo_recorded + io.memo_shared)), "{io:?}");
 }
 
 /// Runs `p` on `keys` on rp2040_io through `words` (per key, per sample) for `n` samples

@@ -68,6 +68,7 @@ use super::*;
 use crate::bus::{load_le, sram_bank, store_le, ALL_BANKS};
 use crate::io::{Checkpoint, Io, IoRecords, LaneOp, LaneRec, Rebase, RecordCodes};
 use crate::lanes::{self, Lane, Route};
+use std::sync::{Arc, Mutex};
 
 /// What a window's core access to the I/O is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -166,6 +167,9 @@ pub struct IoWindows {
     pub memo_hits: u64,
     /// Replays recorded into the period memo.
     pub memo_recorded: u64,
+    /// Replays the period memo took from the process's store, recorded by another board
+    /// (module documentation).
+    pub memo_shared: u64,
 }
 
 impl std::ops::Add for IoWindows {
@@ -180,6 +184,7 @@ impl std::ops::Add for IoWindows {
             reach: self.reach + o.reach,
             memo_hits: self.memo_hits + o.memo_hits,
             memo_recorded: self.memo_recorded + o.memo_recorded,
+            memo_shared: self.memo_shared + o.memo_shared,
         }
     }
 }
@@ -189,24 +194,38 @@ impl std::ops::Add for IoWindows {
 pub(crate) struct IoMemo {
     /// Whether replays are looked up and recorded.
     pub(crate) on: bool,
-    entries: Vec<MemoEntry>,
-    /// The entry the next recording replaces once the memo is full.
+    entries: Vec<Arc<MemoEntry>>,
+    /// Per entry, the entry the window after its window took last (a hint: tried first).
+    follow: Vec<Option<usize>>,
+    /// The entry the next one replaces once the memo is full.
     next: usize,
-    /// The entry the last hit or recording ended in: the next window tries first the
-    /// entries that start where it ended.
+    /// The entry the last window's replay was.
     last: Option<usize>,
-    /// The live machine's data words while it is compared with the entries', then a hit's
-    /// inputs (its data words, then the words the DMA reads).
+    /// A hit's inputs: the data words its routes read, then the words the DMA reads.
     inputs: Vec<u32>,
 }
 
 impl IoMemo {
     /// Entry `i` gave (or recorded) the window after the last one's.
     fn followed_by(&mut self, i: usize) {
-        if let Some(e) = self.last.and_then(|l| self.entries.get_mut(l)) {
-            e.follow = Some(i);
+        if let Some(f) = self.last.and_then(|l| self.follow.get_mut(l)) {
+            *f = Some(i);
         }
         self.last = Some(i);
+    }
+
+    /// Keeps `e` (the oldest replaced once the memo is full); returns its index.
+    fn keep(&mut self, e: Arc<MemoEntry>) -> usize {
+        if self.entries.len() < MEMO_ENTRIES {
+            self.entries.push(e);
+            self.follow.push(None);
+            return self.entries.len() - 1;
+        }
+        let at = self.next;
+        self.entries[at] = e;
+        self.follow[at] = None;
+        self.next = (self.next + 1) % MEMO_ENTRIES;
+        at
     }
 }
 
@@ -215,6 +234,7 @@ impl Default for IoMemo {
         IoMemo {
             on: true,
             entries: Vec::new(),
+            follow: Vec::new(),
             next: 0,
             last: None,
             inputs: Vec::new(),
@@ -227,12 +247,23 @@ impl Default for IoMemo {
 /// start-up and the rare constraint that data breaks).
 const MEMO_ENTRIES: usize = 64;
 
+/// The process's store of recorded replays, shared by every board (module documentation):
+/// the boards of a keyboard run the same drivers, and an entry's key is the whole state it
+/// stands for, so a replay one board recorded serves the others. At most [`SHARED_ENTRIES`],
+/// the oldest replaced first.
+static SHARED: Mutex<Vec<Arc<MemoEntry>>> = Mutex::new(Vec::new());
+
+/// The most replays the process's store keeps.
+const SHARED_ENTRIES: usize = 512;
+
 /// One recorded replay (module documentation, "The period memo"): its key, and what it did
 /// as routes from its inputs. Cycles are counted from the I/O's cycle at the window's start.
 struct MemoEntry {
-    /// The window's end, and whether the DMA may read flash ([`System::xip_answers`]).
+    /// The window's end, whether the DMA may read flash ([`System::xip_answers`]), and the
+    /// board's own banks (`Config::own_banks`, which a replay's checks read).
     span: u64,
     xip: bool,
+    own: u8,
     /// The cores' register stores: their cycles from the start, addresses and values.
     regs: Vec<IoAccess>,
     /// The I/O at the window's start at [`Rebase::MEMO`], its records left out and its data
@@ -257,8 +288,6 @@ struct MemoEntry {
     /// The parts' records, and the routes of their codes (per ADC its frames', per DAC its
     /// updates').
     records: IoRecords,
-    /// The entry the window after this one's took last (a hint: it is tried first).
-    follow: Option<usize>,
     frame_routes: Vec<Vec<Route>>,
     update_routes: Vec<Vec<Route>>,
 }
@@ -361,10 +390,10 @@ impl Board {
     /// Turns the period memo of the I/O's replays (module documentation) on or off; on by
     /// default. Results never depend on it: what it gives is the replay's.
     pub fn set_io_memo(&mut self, on: bool) {
-        self.io_memo.on = on;
-        if !on {
-            self.io_memo.entries.clear();
-        }
+        self.io_memo = IoMemo {
+            on,
+            ..IoMemo::default()
+        };
     }
 
     /// For tests: keeps a digest of every window's logs ([`Board::io_log_digest`]), and
@@ -493,7 +522,7 @@ impl Board {
         let base = self.system.io.as_ref().map_or(0, |io| io.cycle());
         self.system.io_advance_to(base, true);
         let mark = self.system.io_journal.as_ref().map_or(0, Vec::len);
-        match self.io_memo_hit(logs, base, end) {
+        match self.io_memo_hit(logs, base, end, own) {
             Tried::Done(r) => return r,
             Tried::Miss => {
                 // Undo what a hit that failed part-way wrote (a read's constraint broken).
@@ -508,52 +537,66 @@ impl Board {
 
     /// Looks the window up in the period memo, its I/O at `base` (settled) and its end at
     /// `end`; a hit does the replay.
-    fn io_memo_hit(&mut self, logs: &[Vec<IoAccess>; 2], base: u64, end: u64) -> Tried {
+    fn io_memo_hit(
+        &mut self,
+        logs: &[Vec<IoAccess>; 2],
+        base: u64,
+        end: u64,
+        own: u8,
+    ) -> Tried {
         let span = end.saturating_sub(base);
         let xip = self.system.xip_answers;
         let regs = reg_stores(logs, base);
         let last = Merged::new(logs).map(|a| a.cycle).max().unwrap_or(base);
-        let fits = |e: &MemoEntry| {
-            e.span == span && e.xip == xip && e.regs == regs && last.wrapping_sub(base) < e.ran_to
-        };
-        if !self.io_memo.entries.iter().any(fits) {
-            return Tried::Miss;
-        }
         let to_memo = Rebase {
             from: base,
             to: Rebase::MEMO,
         };
-        // The live machine against each entry's start at the memo's time base, but for its
-        // data words, which must meet the entry's constraints.
         let Some(now) = self.system.io.as_deref() else {
             return Tried::Miss;
         };
         let key = now.quick_key(to_memo);
-        #[cfg(debug_assertions)]
-        for e in &self.io_memo.entries {
-            if fits(e) && crate::io::check_this_skip() {
-                now.check_eq_but_data(&e.start, to_memo);
-            }
-        }
-        let entries = &self.io_memo.entries;
-        let first = self.io_memo.last.and_then(|l| entries.get(l)?.follow);
-        let hit = first.into_iter().chain(0..entries.len()).find(|&i| {
-            let e = &self.io_memo.entries[i];
-            fits(e)
+        // The live machine against an entry's start at the memo's time base, but for its
+        // data words, which must meet the entry's constraints.
+        let matches = |e: &MemoEntry| {
+            e.span == span
+                && e.xip == xip
+                && e.own == own
+                && e.regs == regs
+                && last.wrapping_sub(base) < e.ran_to
                 && e.start_key == key
                 && now.eq_but_data(&e.start, to_memo)
                 && (e.start_fixed.iter()).all(|&(slot, m, v)| now.slot(slot as usize) & m == v)
-        });
-        let Some(i) = hit else {
-            return Tried::Miss;
+        };
+        #[cfg(debug_assertions)]
+        for e in &self.io_memo.entries {
+            if e.span == span && crate::io::check_this_skip() {
+                now.check_eq_but_data(&e.start, to_memo);
+            }
+        }
+        let memo = &self.io_memo;
+        let first = memo.last.and_then(|l| *memo.follow.get(l)?);
+        let local = (first.into_iter().chain(0..memo.entries.len()))
+            .find(|&i| memo.entries.get(i).is_some_and(|e| matches(e)));
+        let i = match local {
+            Some(i) => i,
+            None => {
+                // Another board's recording, from the process's store.
+                let shared = SHARED.lock().ok().and_then(|s| s.iter().find(|e| matches(e)).cloned());
+                let Some(e) = shared else {
+                    return Tried::Miss;
+                };
+                self.io_windows.memo_shared += 1;
+                self.io_memo.keep(e)
+            }
         };
         // The inputs: the data words the entry's routes read, then the DMA's reads.
-        let e = &entries[i];
+        let e = Arc::clone(&self.io_memo.entries[i]);
         let inputs = &mut self.io_memo.inputs;
         inputs.clear();
         inputs.resize(e.slots as usize, 0);
         for &s in &e.needs {
-            inputs[s as usize] = now.slot(s as usize);
+            inputs[s as usize] = self.system.io.as_deref().map_or(0, |io| io.slot(s as usize));
         }
         // The DMA's accesses in their ticks' order, each core access after those of its
         // cycle and before the later ones (as the lock-step bus runs the I/O through an
@@ -755,6 +798,7 @@ impl Board {
             }),
             span: end.saturating_sub(base),
             xip: self.system.xip_answers,
+            own,
             regs: reg_stores(logs, base),
             start,
             start_fixed,
@@ -768,19 +812,16 @@ impl Board {
             records,
             frame_routes,
             update_routes,
-            follow: None,
         };
-        let m = &mut self.io_memo;
-        let at = if m.entries.len() < MEMO_ENTRIES {
-            m.entries.push(entry);
-            m.entries.len() - 1
-        } else {
-            let at = m.next;
-            m.entries[at] = entry;
-            m.next = (m.next + 1) % MEMO_ENTRIES;
-            at
-        };
-        m.followed_by(at);
+        let entry = Arc::new(entry);
+        if let Ok(mut shared) = SHARED.lock() {
+            if shared.len() >= SHARED_ENTRIES {
+                shared.remove(0);
+            }
+            shared.push(Arc::clone(&entry));
+        }
+        let at = self.io_memo.keep(entry);
+        self.io_memo.followed_by(at);
         self.io_windows.memo_recorded += 1;
         r
     }
