@@ -272,12 +272,6 @@ pub(crate) trait Recorded: Clone {
         (std::mem::take(items), std::mem::take(violations))
     }
 
-    /// Puts back records [`Recorded::take_records`] took.
-    fn put_records(&mut self, (i, v): (Vec<Self::Item>, Vec<TimingViolation>)) {
-        let (items, violations) = self.records();
-        (*items, *violations) = (i, v);
-    }
-
     /// Appends `items` to its records as a run that recorded them would ([`MAX_KEPT`]).
     fn append_records(&mut self, items: impl IntoIterator<Item = Self::Item>) {
         let (list, _) = self.records();
@@ -472,14 +466,38 @@ impl Ads8688 {
     /// Becomes `other` but for its data words ([`Ads8688::data_slots`]) and its records,
     /// which stay.
     pub(crate) fn assign_but_data(&mut self, other: &Ads8688) {
-        let data: [u32; Self::SLOTS] = std::array::from_fn(|i| self.slot(i));
-        let kept = self.take_records();
-        *self = other.clone();
-        self.put_records(kept);
-        // The code of a frame under way is the frame's: set it only where there is one.
-        for (i, v) in data.into_iter().enumerate() {
-            self.set_slot(i, v);
-        }
+        let Ads8688 {
+            part,
+            pins,
+            clock_hz,
+            codes: _,
+            next,
+            auto,
+            lines,
+            sdo: _,
+            frame,
+            falling,
+            shift_in: _,
+            last_rise,
+            last_cs_fall,
+            frames: _,
+            violations: _,
+            lanes: _,
+        } = other;
+        self.part = *part;
+        self.pins = *pins;
+        self.clock_hz = *clock_hz;
+        self.next = *next;
+        self.auto = *auto;
+        self.lines = *lines;
+        // The code of a frame under way is a data word: the live one's stays (0 where
+        // there was none).
+        let code = self.frame.as_ref().map_or(0, |f| f.code);
+        self.frame = frame.clone().map(|f| AdcFrame { code, ..f });
+        self.falling = *falling;
+        self.last_rise = *last_rise;
+        self.last_cs_fall = *last_cs_fall;
+        self.lanes = None;
     }
 
     /// Its `i`-th data word ([`Ads8688::data_slots`]' order; 0 past them).
@@ -950,11 +968,31 @@ impl Dac8568 {
     /// Becomes `other` but for its data words ([`Dac8568::data_slots`]) and its records,
     /// which stay.
     pub(crate) fn assign_but_data(&mut self, other: &Dac8568) {
-        let (input, output, shift) = (self.input, self.output, self.shift);
-        let kept = self.take_records();
-        *self = other.clone();
-        self.put_records(kept);
-        (self.input, self.output, self.shift) = (input, output, shift);
+        let Dac8568 {
+            part,
+            pins,
+            clock_hz,
+            input: _,
+            output: _,
+            lines,
+            bits,
+            shift: _,
+            sync_fell,
+            sync_rose,
+            last_fall,
+            updates: _,
+            violations: _,
+            lanes: _,
+        } = other;
+        self.part = *part;
+        self.pins = *pins;
+        self.clock_hz = *clock_hz;
+        self.lines = *lines;
+        self.bits = *bits;
+        self.sync_fell = *sync_fell;
+        self.sync_rose = *sync_rose;
+        self.last_fall = *last_fall;
+        self.lanes = None;
     }
 
     /// Its `i`-th data word ([`Dac8568::data_slots`]' order; 0 past them).

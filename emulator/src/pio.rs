@@ -353,6 +353,46 @@ impl StateMachine {
             && *stalled == other.stalled
     }
 
+    /// Becomes `other` but for its data words, which stay: every other field named.
+    fn assign_but_data(&mut self, other: &StateMachine) {
+        let StateMachine {
+            clkdiv,
+            execctrl,
+            shiftctrl,
+            pinctrl,
+            pc,
+            x: _,
+            y: _,
+            isr: _,
+            osr: _,
+            isr_count,
+            osr_count,
+            tx,
+            rx,
+            delay,
+            exec,
+            current,
+            acc,
+            irq_waiting,
+            stalled,
+        } = other;
+        self.clkdiv = *clkdiv;
+        self.execctrl = *execctrl;
+        self.shiftctrl = *shiftctrl;
+        self.pinctrl = *pinctrl;
+        self.pc = *pc;
+        self.isr_count = *isr_count;
+        self.osr_count = *osr_count;
+        self.tx.len = tx.len;
+        self.rx.len = rx.len;
+        self.delay = *delay;
+        self.exec = *exec;
+        self.current = *current;
+        self.acc = *acc;
+        self.irq_waiting = *irq_waiting;
+        self.stalled = *stalled;
+    }
+
     fn new() -> Self {
         StateMachine {
             clkdiv: CLKDIV_RESET,
@@ -1588,9 +1628,7 @@ impl Pio {
         self.out_dirs = *out_dirs;
         self.config_epoch = *config_epoch;
         for (a, b) in self.sm.iter_mut().zip(sm) {
-            let (x, y, isr, osr, tx, rx) = (a.x, a.y, a.isr, a.osr, a.tx.words, a.rx.words);
-            *a = b.clone();
-            (a.x, a.y, a.isr, a.osr, a.tx.words, a.rx.words) = (x, y, isr, osr, tx, rx);
+            a.assign_but_data(b);
         }
     }
 

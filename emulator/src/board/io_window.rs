@@ -546,8 +546,20 @@ impl Board {
     ) -> Tried {
         let span = end.saturating_sub(base);
         let xip = self.system.xip_answers;
-        let regs = reg_stores(logs, base);
-        let last = Merged::new(logs).map(|a| a.cycle).max().unwrap_or(base);
+        let last = logs.iter().flatten().map(|a| a.cycle).max().unwrap_or(base);
+        // The register stores against an entry's, in the lock-step order.
+        let regs = |e: &MemoEntry| {
+            let mut mine = Merged::new(logs).filter(|a| a.kind == IoKind::Reg);
+            (e.regs.iter()).all(|r| {
+                mine.next().is_some_and(|a| {
+                    IoAccess {
+                        start: a.start.wrapping_sub(base),
+                        cycle: a.cycle.wrapping_sub(base),
+                        ..*a
+                    } == *r
+                })
+            }) && mine.next().is_none()
+        };
         let to_memo = Rebase {
             from: base,
             to: Rebase::MEMO,
@@ -562,9 +574,9 @@ impl Board {
             e.span == span
                 && e.xip == xip
                 && e.own == own
-                && e.regs == regs
                 && last.wrapping_sub(base) < e.ran_to
                 && e.start_key == key
+                && regs(e)
                 && now.eq_but_data(&e.start, to_memo)
                 && (e.start_fixed.iter()).all(|&(slot, m, v)| now.slot(slot as usize) & m == v)
         };
