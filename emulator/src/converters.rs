@@ -414,7 +414,10 @@ impl Ads8688 {
         if let Some(fr) = self.frame.as_mut() {
             fr.code = v as u16;
         }
-        f(&mut self.shift_in, l.as_deref_mut().map(|l| &mut l.shift_in[..]));
+        f(
+            &mut self.shift_in,
+            l.as_deref_mut().map(|l| &mut l.shift_in[..]),
+        );
         let mut v = u32::from(self.sdo);
         f(&mut v, l.map(|l| std::slice::from_mut(&mut l.sdo)));
         self.sdo = v & 1 != 0;

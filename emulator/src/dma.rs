@@ -399,13 +399,18 @@ impl Dma {
             round_served,
             lanes: _,
         } = self;
-        let transfers = queue.t.iter().zip(&other.queue.t).enumerate().all(|(i, (a, b))| {
-            let ready = match i < queue.len {
-                true => r.at(a.ready),
-                false => a.ready,
-            };
-            a.channel == b.channel && a.addr == b.addr && a.size == b.size && ready == b.ready
-        });
+        let transfers = queue
+            .t
+            .iter()
+            .zip(&other.queue.t)
+            .enumerate()
+            .all(|(i, (a, b))| {
+                let ready = match i < queue.len {
+                    true => r.at(a.ready),
+                    false => a.ready,
+                };
+                a.channel == b.channel && a.addr == b.addr && a.size == b.size && ready == b.ready
+            });
         *ch == other.ch
             && *intr == other.intr
             && *inte == other.inte

@@ -60,9 +60,13 @@
 //! machine where that one left it. Where the DMA wins against both cores, the cores run in
 //! windows ahead of the machine (`board/window.rs`), which then replays their accesses to
 //! its banks and their stores to its registers in that order, the window undone where the
-//! lock-step run would have differed (`board/io_window.rs`); a replay whose key repeats a
-//! recorded one takes its effect instead (the period memo there: `Io::rebased` and
-//! `Io::become_rebased` move the machine's cycles to the memo's time base and back).
+//! lock-step run would have differed (`board/io_window.rs`); a replay whose control
+//! repeats a recorded one's takes its effect instead, with its own data (the period memo
+//! there). For it the machine names its data words (`Io::data_slots`: the state
+//! machines' registers and FIFO words, the pins' levels, the DMA's transfers in flight, the
+//! parts' codes and registers), compares and takes states but for them
+//! (`Io::eq_but_data`, `Io::become_but_data`) and, while a replay is recorded, keeps each
+//! data bit's lane through the stepwise run (`crate::lanes`, `LaneRec`).
 //!
 //! Not modelled: the DMA reaching peripherals other than the PIO FIFOs (its own registers,
 //! APB), the DMA's and PIOs' interrupts, GPIO overrides, pads, and the SIO's GPIO outputs.
@@ -462,7 +466,6 @@ impl IoRecords {
             .collect();
         (f, u)
     }
-
 }
 
 /// Writes `size` bytes of `value` at SRAM offset `off` for the DMA: journaled while a
@@ -610,8 +613,8 @@ impl DmaPort for Port<'_, '_> {
                     2 => l[i % 16],
                     _ => l[i],
                 });
-                let fifo = (crate::pio::reg::TXF0..crate::pio::reg::TXF0 + 16)
-                    .contains(&(off & !3));
+                let fifo =
+                    (crate::pio::reg::TXF0..crate::pio::reg::TXF0 + 16).contains(&(off & !3));
                 match self.pio[b].lanes.as_deref_mut() {
                     Some(pl) if fifo => pl.next_write = w,
                     // Data written to any other register decides what the block does.
@@ -797,7 +800,10 @@ impl Io {
             lanes: _,
         } = self;
         let at = |a: &[[u64; 4]; 2], b: &[[u64; 4]; 2]| {
-            a.iter().flatten().zip(b.iter().flatten()).all(|(&x, &y)| r.at(x) == y)
+            a.iter()
+                .flatten()
+                .zip(b.iter().flatten())
+                .all(|(&x, &y)| r.at(x) == y)
         };
         let logs = sdo_log.len() == other.sdo_log.len()
             && sdo_log.iter().zip(&other.sdo_log).all(|(a, b)| {
@@ -823,8 +829,14 @@ impl Io {
             && dacs.len() == other.dacs.len()
             && pio.iter().zip(&other.pio).all(|(a, b)| a.eq_but_data(b))
             && dma.eq_but_data(&other.dma, r)
-            && adcs.iter().zip(&other.adcs).all(|(a, b)| a.eq_but_data(b, r))
-            && dacs.iter().zip(&other.dacs).all(|(a, b)| a.eq_but_data(b, r))
+            && adcs
+                .iter()
+                .zip(&other.adcs)
+                .all(|(a, b)| a.eq_but_data(b, r))
+            && dacs
+                .iter()
+                .zip(&other.dacs)
+                .all(|(a, b)| a.eq_but_data(b, r))
     }
 
     /// [`Io::eq_but_data`] the long way, for debug builds' checks of it: both machines
@@ -1149,26 +1161,30 @@ impl Io {
     fn append_records_coded(&mut self, records: &IoRecords, r: Rebase, codes: Option<RecordCodes>) {
         for (k, (a, frames)) in self.adcs.iter_mut().zip(&records.adcs).enumerate() {
             let routes = codes.map(|c| c.frames.get(k));
-            a.append_records(frames.iter().enumerate().map(|(i, f)| AdcFrame {
-                cs_fall: r.at(f.cs_fall),
-                code: match routes {
-                    Some(rs) => (rs.and_then(|rs| rs.get(i)))
-                        .map_or(f.code, |x| x.eval(codes.map_or(&[], |c| c.inputs)) as u16),
-                    None => f.code,
-                },
-                ..f.clone()
+            a.append_records(frames.iter().enumerate().map(|(i, f)| {
+                AdcFrame {
+                    cs_fall: r.at(f.cs_fall),
+                    code: match routes {
+                        Some(rs) => (rs.and_then(|rs| rs.get(i)))
+                            .map_or(f.code, |x| x.eval(codes.map_or(&[], |c| c.inputs)) as u16),
+                        None => f.code,
+                    },
+                    ..f.clone()
+                }
             }));
         }
         for (k, (d, updates)) in self.dacs.iter_mut().zip(&records.dacs).enumerate() {
             let routes = codes.map(|c| c.updates.get(k));
-            d.append_records(updates.iter().enumerate().map(|(i, u)| DacUpdate {
-                cycle: r.at(u.cycle),
-                code: match routes {
-                    Some(rs) => (rs.and_then(|rs| rs.get(i)))
-                        .map_or(u.code, |x| x.eval(codes.map_or(&[], |c| c.inputs)) as u16),
-                    None => u.code,
-                },
-                ..*u
+            d.append_records(updates.iter().enumerate().map(|(i, u)| {
+                DacUpdate {
+                    cycle: r.at(u.cycle),
+                    code: match routes {
+                        Some(rs) => (rs.and_then(|rs| rs.get(i)))
+                            .map_or(u.code, |x| x.eval(codes.map_or(&[], |c| c.inputs)) as u16),
+                        None => u.code,
+                    },
+                    ..*u
+                }
             }));
         }
     }
@@ -2187,5 +2203,88 @@ impl Io {
                 d.observe(cycle, now.0, now.1);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tactus_runtime::converters::{ADS8688, DAC8568};
+
+    fn io() -> Io {
+        let pins = |b: u32| SpiPins {
+            cs: b,
+            sclk: b + 1,
+            sdi: b + 2,
+            sdo: b + 3,
+        };
+        let config = IoConfig {
+            adcs: vec![(&ADS8688, pins(0)), (&ADS8688, pins(4))],
+            dacs: vec![(&DAC8568, pins(8))],
+        };
+        Io::new(&config, 133e6, 100)
+    }
+
+    #[test]
+    fn each_data_word_is_where_its_slot_says() {
+        let mut io = io();
+        let mut n = 0u32;
+        io.data_slots(&mut |v, _| {
+            n += 1;
+            *v = n;
+        });
+        // Every slot read back by number; the one-bit and 16-bit words keep their bits, and
+        // the code of a frame under way reads 0 without a frame.
+        let mask: Vec<u32> = (0..n as usize)
+            .map(|i| match io.locate(i) {
+                Some(Slot::Adc(_, 8)) => 0,
+                Some(Slot::Adc(_, 10)) => 1,
+                Some(Slot::Adc(_, 0..=7)) | Some(Slot::Dac(_, 0..=15)) => 0xffff,
+                _ => u32::MAX,
+            })
+            .collect();
+        for (i, m) in mask.iter().enumerate() {
+            assert_eq!(io.slot(i), (i as u32 + 1) & m, "slot {i}");
+        }
+        assert!(io.locate(n as usize).is_none());
+        // And set by number, as the visit sees them.
+        for i in 0..n as usize {
+            io.set_slot(i, 0xdead_0000 | i as u32);
+        }
+        let mut k = 0usize;
+        io.data_slots(&mut |v, _| {
+            assert_eq!(*v, (0xdead_0000 | k as u32) & mask[k], "slot {k}");
+            k += 1;
+        });
+        assert_eq!(k, n as usize);
+    }
+
+    #[test]
+    fn machines_equal_but_for_data_compare_equal() {
+        let (mut a, mut b) = (io(), io());
+        b.data_slots(&mut |v, _| *v = 0x5a5a_5a5a);
+        assert!(a.eq_but_data(&b, Rebase { from: 0, to: 0 }));
+        // Cycles compare as the rebase moves them.
+        b.rebase(Rebase {
+            from: 100,
+            to: 1000,
+        });
+        assert!(!a.eq_but_data(&b, Rebase { from: 0, to: 0 }));
+        assert!(a.eq_but_data(
+            &b,
+            Rebase {
+                from: 100,
+                to: 1000
+            }
+        ));
+        // A control field differs.
+        a.bus_priority = 1;
+        assert!(!a.eq_but_data(
+            &b,
+            Rebase {
+                from: 100,
+                to: 1000
+            }
+        ));
     }
 }

@@ -9,14 +9,14 @@
 //! synchronisers, the DMA's transfers in flight, the parts' codes, shift and DAC registers),
 //! a [`Word`] of lanes: per bit, either a constant (its value in the recorded run, whatever
 //! the inputs) or one bit of one *input*, maybe inverted. The inputs are the machine's data
-//! words at the window's start ([`crate::io::Io::data_slots`]) and each SRAM word the DMA
+//! words at the window's start (`crate::io::Io::data_slots`) and each SRAM word the DMA
 //! reads. Only moves keep a lane: a shift, an `IN`, an `OUT`, a FIFO, a pin, a DMA transfer,
 //! a part's shift register. Wherever data decides something — a `JMP` on X, a `WAIT` on a
 //! pin, a part decoding its command, a pin's level that may be a clock edge — the lanes it
 //! reads are *fixed*: each becomes a constraint (that input bit must have the value it had)
 //! and a constant from then on. So a recorded replay stands for every replay from the same
 //! control state whose inputs meet its constraints, and gives its data by its routes
-//! ([`Route`]): each output bit a constant or an input bit.
+//! (`Route`): each output bit a constant or an input bit.
 //!
 //! Nothing here runs outside a recording: the machine's lanes are `None` then.
 
@@ -186,7 +186,11 @@ impl Route {
                 continue;
             };
             let shift = j as i8 - bit as i8;
-            match r.parts.iter_mut().find(|p| p.input == input && p.shift == shift) {
+            match r
+                .parts
+                .iter_mut()
+                .find(|p| p.input == input && p.shift == shift)
+            {
                 Some(p) => p.mask |= 1 << j,
                 None => r.parts.push(Part {
                     input,

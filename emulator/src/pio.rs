@@ -927,7 +927,10 @@ impl Pio {
     /// [`Pio::tick`]s would do (the clock dividers' accumulators, the pending delays, the
     /// synchroniser; the stalled instructions change nothing, the others do not run).
     pub fn skip(&mut self, cycles: u64, gpio_in: u32) {
-        debug_assert!(self.lanes.is_none(), "lanes are kept on the stepwise path only");
+        debug_assert!(
+            self.lanes.is_none(),
+            "lanes are kept on the stepwise path only"
+        );
         match cycles {
             0 => return,
             1 => self.sync = [gpio_in, self.sync[0]],
@@ -1172,7 +1175,10 @@ impl Pio {
     /// else: the divider's accumulator comes back to where it was): what [`Pio::sm_tick`]
     /// and [`Pio::sm_skip`] do over those cycles.
     pub fn sm_exec(&mut self, n: usize, seen: u32) {
-        debug_assert!(self.lanes.is_none(), "lanes are kept on the stepwise path only");
+        debug_assert!(
+            self.lanes.is_none(),
+            "lanes are kept on the stepwise path only"
+        );
         let fx = self.execute(n, seen);
         self.apply(&fx, n);
         self.sm[n].delay = 0;
@@ -1315,7 +1321,10 @@ impl Pio {
     /// the OSR and ISR shifted, the pins as the last time round leaves them, PC at the head
     /// again or past the `JMP` when X ran out, the divider's accumulator where it was.
     pub fn sm_loop_run(&mut self, n: usize, lp: &BitLoop, k: u64, in_bits: &[u64; LOOP_MAX]) {
-        debug_assert!(self.lanes.is_none(), "lanes are kept on the stepwise path only");
+        debug_assert!(
+            self.lanes.is_none(),
+            "lanes are kept on the stepwise path only"
+        );
         debug_assert!((1..=64).contains(&k) && k <= self.sm_loop_left(n));
         let mut values = self.out_values;
         let s = &mut self.sm[n];
@@ -1686,7 +1695,9 @@ impl Pio {
     pub(crate) fn quick_key(&self, mix: &mut impl FnMut(u64)) {
         for s in &self.sm {
             mix(u64::from(s.pc) | u64::from(s.acc) << 8 | u64::from(s.delay) << 40);
-            mix(u64::from(s.isr_count) | u64::from(s.osr_count) << 8 | u64::from(s.tx.len) << 16
+            mix(u64::from(s.isr_count)
+                | u64::from(s.osr_count) << 8
+                | u64::from(s.tx.len) << 16
                 | u64::from(s.rx.len) << 24);
         }
         mix(u64::from(self.out_dirs) | u64::from(self.enabled) << 32);
@@ -1717,9 +1728,15 @@ impl Pio {
     /// ISR, OSR and its TX and RX FIFOs' eight words each.
     pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
         let mut l = self.lanes.as_deref_mut();
-        f(&mut self.out_values, l.as_deref_mut().map(|l| &mut l.out[..]));
+        f(
+            &mut self.out_values,
+            l.as_deref_mut().map(|l| &mut l.out[..]),
+        );
         for k in 0..2 {
-            f(&mut self.sync[k], l.as_deref_mut().map(|l| &mut l.sync[k][..]));
+            f(
+                &mut self.sync[k],
+                l.as_deref_mut().map(|l| &mut l.sync[k][..]),
+            );
         }
         for (n, s) in self.sm.iter_mut().enumerate() {
             let mut sl = l.as_deref_mut().map(|l| &mut l.sm[n]);
@@ -1728,10 +1745,16 @@ impl Pio {
             f(&mut s.isr, sl.as_deref_mut().map(|l| &mut l.isr[..]));
             f(&mut s.osr, sl.as_deref_mut().map(|l| &mut l.osr[..]));
             for i in 0..8 {
-                f(&mut s.tx.words[i], sl.as_deref_mut().map(|l| &mut l.tx.0[i][..]));
+                f(
+                    &mut s.tx.words[i],
+                    sl.as_deref_mut().map(|l| &mut l.tx.0[i][..]),
+                );
             }
             for i in 0..8 {
-                f(&mut s.rx.words[i], sl.as_deref_mut().map(|l| &mut l.rx.0[i][..]));
+                f(
+                    &mut s.rx.words[i],
+                    sl.as_deref_mut().map(|l| &mut l.rx.0[i][..]),
+                );
             }
         }
     }
@@ -1753,12 +1776,7 @@ impl Pio {
 
     /// [`Pio::execute`] with the block's lanes taken out of it (`None` when not kept).
     #[inline(always)]
-    fn execute_with(
-        &mut self,
-        n: usize,
-        gpio: u32,
-        lanes: &mut Option<Box<PioLanes>>,
-    ) -> Effects {
+    fn execute_with(&mut self, n: usize, gpio: u32, lanes: &mut Option<Box<PioLanes>>) -> Effects {
         let mut fx = Effects::default();
         let forced = self.sm[n].exec.is_some();
         if self.sm[n].delay > 0 && !forced {

@@ -389,7 +389,10 @@ fn the_period_memo_of_the_io_equals_the_lock_step() {
     // The memo gives nearly every window, whatever its data; a few are recorded (here or
     // by another board of the process).
     assert!(io.memo_hits >= N as u64 * 3 / 4, "{io:?}");
-    assert!((1..N as u64 / 8).contains(&(io.memo_recorded + io.memo_shared)), "{io:?}");
+    assert!(
+        (1..N as u64 / 8).contains(&(io.memo_recorded + io.memo_shared)),
+        "{io:?}"
+    );
 }
 
 /// Runs `p` on `keys` on rp2040_io through `words` (per key, per sample) for `n` samples

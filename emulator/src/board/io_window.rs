@@ -48,20 +48,40 @@
 //! lock-step. Counts: [`Board::io_windows`].
 //!
 //! **The period memo.** A firmware's windows are its sample periods (a window ends at the
-//! SysTick event), and once its keys rest the I/O does the same thing every period, in a
-//! handful of states (the ring of results buffers, the PIO clock divider's phase at the tick, a
-//! period of 3,015 or 3,016 cycles). So a kept replay is recorded, and a later one whose key
-//! equals it takes its effect instead of running the I/O. The key: the I/O at the window's
-//! start with its cycles moved to the memo's time base ([`Rebase`]; its parts' records left
-//! out), compared whole — with the ADC codes and the DAC registers, so data is part of it;
-//! the cores' logs with their cycles from the start, their register stores' values and, of
-//! their SRAM accesses, the values only of stores to words the DMA reads (the replay checks
-//! the loads and does the stores with the values of now); and each SRAM word the DMA read,
-//! as it was before the replay. The effect: the DMA's SRAM writes and the cores' stores in
-//! the recorded order, the loads checked there as the replay does (a stale one undoes the
-//! window), the I/O's end state moved back to the window, and the frames and updates its
-//! parts recorded. A replay that recorded a timing violation is not kept. Counts:
-//! [`IoWindows::memo_hits`]; [`Board::set_io_memo`] turns it off.
+//! SysTick event), and its I/O does the same thing every period but for its data (the ADC
+//! codes it samples, the DAC frames it moves, the results it writes): its *control* comes
+//! back to a handful of states at the tick (the ring of results buffers, the PIO clock
+//! divider's phase, a period of 3,015 or 3,016 cycles), busy keys or not. So a replay is
+//! recorded once per control state with *lanes* ([`crate::lanes`]: the I/O run stepwise,
+//! every bit of its data tagged with the input it comes from — a data word of the machine
+//! at the start, or an SRAM word the DMA read — through every move the PIOs, the DMA and
+//! the parts make), and a later window from the same control state takes the recorded
+//! effect with its own data, by the routes. The recording then runs the I/O on to the
+//! window's end (lazily run or not, the machine's state is the same).
+//!
+//! The key, none of it data: the I/O at the window's start, its cycles moved to the memo's
+//! time base ([`Rebase`]), compared but for its data words ([`Io::eq_but_data`]) and its
+//! parts' records; the window's end; the cores' register stores (cycles from the start,
+//! addresses, values); whether the DMA may read flash; the board's own banks; and the
+//! *constraints*: the bits of data that decided something in the recording (a `JMP` on
+//! X, a part decoding its command or a DAC frame's address) must be what they were — the
+//! data words at the start checked first, each SRAM word the DMA reads when it reads it.
+//! The cores' SRAM accesses are not in the key: the DMA wins every bank, so what it does
+//! does not depend on them. A hit does, in the lock-step order, the DMA's SRAM reads (the
+//! inputs) and writes (their values by their routes) and the cores' logged accesses, each
+//! access checked against the recorded bank claims (a core's access in a cycle the DMA
+//! claims its bank undoes the window: *wait*) and each load against what the lock-step run
+//! would load (*stale*); then the I/O becomes the recorded end but for its data words,
+//! which keep their values where they end as they started and take their routes'
+//! elsewhere, and the parts' records are appended, their codes by their routes. A
+//! recording that breached a part's timing, read ROM or flash, or whose constraints
+//! contradict each other is not kept.
+//!
+//! The recordings are shared by every board of the process (the boards of a keyboard run
+//! the same drivers: one board's recording serves all, since its key is the whole state it
+//! stands for), each board keeping the entries it uses. Counts:
+//! [`IoWindows::memo_hits`], [`IoWindows::memo_recorded`], [`IoWindows::memo_shared`];
+//! [`Board::set_io_memo`] turns it off.
 
 use super::window::undo_stores;
 use super::*;
@@ -199,7 +219,8 @@ pub(crate) struct IoMemo {
     follow: Vec<Option<usize>>,
     /// The entry the next one replaces once the memo is full.
     next: usize,
-    /// The entry the last window's replay was.
+    /// The entry the last window's replay was: the next window tries first the one that
+    /// followed it last time.
     last: Option<usize>,
     /// A hit's inputs: the data words its routes read, then the words the DMA reads.
     inputs: Vec<u32>,
@@ -537,13 +558,7 @@ impl Board {
 
     /// Looks the window up in the period memo, its I/O at `base` (settled) and its end at
     /// `end`; a hit does the replay.
-    fn io_memo_hit(
-        &mut self,
-        logs: &[Vec<IoAccess>; 2],
-        base: u64,
-        end: u64,
-        own: u8,
-    ) -> Tried {
+    fn io_memo_hit(&mut self, logs: &[Vec<IoAccess>; 2], base: u64, end: u64, own: u8) -> Tried {
         let span = end.saturating_sub(base);
         let xip = self.system.xip_answers;
         let last = logs.iter().flatten().map(|a| a.cycle).max().unwrap_or(base);
@@ -594,7 +609,10 @@ impl Board {
             Some(i) => i,
             None => {
                 // Another board's recording, from the process's store.
-                let shared = SHARED.lock().ok().and_then(|s| s.iter().find(|e| matches(e)).cloned());
+                let shared = SHARED
+                    .lock()
+                    .ok()
+                    .and_then(|s| s.iter().find(|e| matches(e)).cloned());
                 let Some(e) = shared else {
                     return Tried::Miss;
                 };
@@ -608,7 +626,11 @@ impl Board {
         inputs.clear();
         inputs.resize(e.slots as usize, 0);
         for &s in &e.needs {
-            inputs[s as usize] = self.system.io.as_deref().map_or(0, |io| io.slot(s as usize));
+            inputs[s as usize] = self
+                .system
+                .io
+                .as_deref()
+                .map_or(0, |io| io.slot(s as usize));
         }
         // The DMA's accesses in their ticks' order, each core access after those of its
         // cycle and before the later ones (as the lock-step bus runs the I/O through an
@@ -712,7 +734,10 @@ impl Board {
         // with their values.
         let mut start_const = Vec::with_capacity(slots as usize);
         now.data_slots(&mut |v, l| {
-            start_const.push(l.is_some_and(|l| l.iter().all(|x| x.is_const())).then_some(*v))
+            start_const.push(
+                l.is_some_and(|l| l.iter().all(|x| x.is_const()))
+                    .then_some(*v),
+            )
         });
         self.system.io_rec = Some(Box::new(LaneRec::new(slots)));
         let r = self.io_merge(logs, banks, own);
@@ -785,8 +810,11 @@ impl Board {
             .map(|(i, (v, w, _))| (i as u32, Route::of(w, *v)))
             .collect();
         let (frame_routes, update_routes) = records.routes(&kept.frames, &kept.updates);
-        let start_fixed: Vec<(u32, u32, u32)> =
-            constraints.iter().copied().filter(|c| c.0 < slots).collect();
+        let start_fixed: Vec<(u32, u32, u32)> = constraints
+            .iter()
+            .copied()
+            .filter(|c| c.0 < slots)
+            .collect();
         // The data words at the start that the routes read.
         let mut needs: Vec<u32> = (ops.iter())
             .filter_map(|op| match op {
