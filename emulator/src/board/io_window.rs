@@ -369,6 +369,52 @@ fn log_hash(logs: &[Vec<IoAccess>; 2]) -> u64 {
     h
 }
 
+/// What a window brings to the period memo's lookup: its end (from `base`, the I/O's
+/// cycle at its start), whether the DMA may read flash, the board's own banks, its last
+/// logged access's cycle, and the live machine's [`Io::quick_key`].
+struct Probe {
+    span: u64,
+    xip: bool,
+    own: u8,
+    base: u64,
+    last: u64,
+    key: u64,
+}
+
+impl Probe {
+    /// Whether entry `e` stands for the window whose logs are `logs`, its I/O `now`: the
+    /// key's parts equal, the machine equal to the entry's start at the memo's time base but
+    /// for its data words, which meet the entry's constraints (module documentation).
+    fn fits(&self, e: &MemoEntry, now: &Io, logs: &[Vec<IoAccess>; 2]) -> bool {
+        let base = self.base;
+        // The register stores against the entry's, in the lock-step order.
+        let regs = || {
+            let mut mine = Merged::new(logs).filter(|a| a.kind == IoKind::Reg);
+            (e.regs.iter()).all(|r| {
+                mine.next().is_some_and(|a| {
+                    IoAccess {
+                        start: a.start.wrapping_sub(base),
+                        cycle: a.cycle.wrapping_sub(base),
+                        ..*a
+                    } == *r
+                })
+            }) && mine.next().is_none()
+        };
+        let to_memo = Rebase {
+            from: base,
+            to: Rebase::MEMO,
+        };
+        e.span == self.span
+            && e.xip == self.xip
+            && e.own == self.own
+            && self.last.wrapping_sub(base) < e.ran_to
+            && e.start_key == self.key
+            && regs()
+            && now.eq_but_data(&e.start, to_memo)
+            && (e.start_fixed.iter()).all(|&(slot, m, v)| now.slot(slot as usize) & m == v)
+    }
+}
+
 /// How a try of the period memo ended.
 enum Tried {
     /// No entry fits: the replay is run (and recorded).
@@ -542,86 +588,106 @@ impl Board {
         // memo's states are settled ones.
         let base = self.system.io.as_ref().map_or(0, |io| io.cycle());
         self.system.io_advance_to(base, true);
-        let mark = self.system.io_journal.as_ref().map_or(0, Vec::len);
-        match self.io_memo_hit(logs, base, end, own) {
-            Tried::Done(r) => return r,
-            Tried::Miss => {
-                // Undo what a hit that failed part-way wrote (a read's constraint broken).
-                if let Some(j) = self.system.io_journal.as_mut() {
-                    let undo: Vec<u64> = j.drain(mark.min(j.len())..).collect();
-                    undo_stores(&mut self.system, &undo);
-                }
-            }
+        if let Tried::Done(r) = self.io_memo_hit(logs, base, end, own) {
+            return r;
         }
         self.io_memo_record(logs, banks, own, base, end, io)
     }
 
     /// Looks the window up in the period memo, its I/O at `base` (settled) and its end at
-    /// `end`; a hit does the replay.
+    /// `end`: the entries whose key the window's start meets, this board's first (the one
+    /// that followed the last first), then the process's store; each tried in turn until
+    /// one's replay goes through (a word the DMA reads may break its constraints part-way:
+    /// what that try wrote is undone).
     fn io_memo_hit(&mut self, logs: &[Vec<IoAccess>; 2], base: u64, end: u64, own: u8) -> Tried {
-        let span = end.saturating_sub(base);
-        let xip = self.system.xip_answers;
-        let last = logs.iter().flatten().map(|a| a.cycle).max().unwrap_or(base);
-        // The register stores against an entry's, in the lock-step order.
-        let regs = |e: &MemoEntry| {
-            let mut mine = Merged::new(logs).filter(|a| a.kind == IoKind::Reg);
-            (e.regs.iter()).all(|r| {
-                mine.next().is_some_and(|a| {
-                    IoAccess {
-                        start: a.start.wrapping_sub(base),
-                        cycle: a.cycle.wrapping_sub(base),
-                        ..*a
-                    } == *r
-                })
-            }) && mine.next().is_none()
-        };
-        let to_memo = Rebase {
-            from: base,
-            to: Rebase::MEMO,
-        };
         let Some(now) = self.system.io.as_deref() else {
             return Tried::Miss;
         };
-        let key = now.quick_key(to_memo);
-        // The live machine against an entry's start at the memo's time base, but for its
-        // data words, which must meet the entry's constraints.
-        let matches = |e: &MemoEntry| {
-            e.span == span
-                && e.xip == xip
-                && e.own == own
-                && last.wrapping_sub(base) < e.ran_to
-                && e.start_key == key
-                && regs(e)
-                && now.eq_but_data(&e.start, to_memo)
-                && (e.start_fixed.iter()).all(|&(slot, m, v)| now.slot(slot as usize) & m == v)
+        let probe = Probe {
+            span: end.saturating_sub(base),
+            xip: self.system.xip_answers,
+            own,
+            base,
+            last: logs.iter().flatten().map(|a| a.cycle).max().unwrap_or(base),
+            key: now.quick_key(Rebase {
+                from: base,
+                to: Rebase::MEMO,
+            }),
         };
         #[cfg(debug_assertions)]
         for e in &self.io_memo.entries {
-            if e.span == span && crate::io::check_this_skip() {
-                now.check_eq_but_data(&e.start, to_memo);
+            if e.span == probe.span && crate::io::check_this_skip() {
+                let r = Rebase {
+                    from: base,
+                    to: Rebase::MEMO,
+                };
+                now.check_eq_but_data(&e.start, r);
             }
         }
         let memo = &self.io_memo;
         let first = memo.last.and_then(|l| *memo.follow.get(l)?);
-        let local = (first.into_iter().chain(0..memo.entries.len()))
-            .find(|&i| memo.entries.get(i).is_some_and(|e| matches(e)));
-        let i = match local {
-            Some(i) => i,
-            None => {
-                // Another board's recording, from the process's store.
-                let shared = SHARED
-                    .lock()
-                    .ok()
-                    .and_then(|s| s.iter().find(|e| matches(e)).cloned());
-                let Some(e) = shared else {
-                    return Tried::Miss;
-                };
-                self.io_windows.memo_shared += 1;
-                self.io_memo.keep(e)
+        let mut local: Vec<usize> = (first.into_iter().chain(0..memo.entries.len()))
+            .filter(|&i| {
+                memo.entries
+                    .get(i)
+                    .is_some_and(|e| probe.fits(e, now, logs))
+            })
+            .collect();
+        local.dedup();
+        let mut shared = None;
+        let mark = self.system.io_journal.as_ref().map_or(0, Vec::len);
+        for i in local {
+            let e = Arc::clone(&self.io_memo.entries[i]);
+            match self.io_memo_apply(&e, logs, base) {
+                Tried::Miss => self.io_undo_since(mark),
+                done => {
+                    self.io_memo.followed_by(i);
+                    return done;
+                }
             }
+        }
+        // Another board's recordings, from the process's store.
+        if let Some(now) = self.system.io.as_deref() {
+            let mine = &self.io_memo.entries;
+            shared = SHARED.lock().ok().map(|s| {
+                (s.iter())
+                    .filter(|e| probe.fits(e, now, logs) && !mine.iter().any(|m| Arc::ptr_eq(m, e)))
+                    .cloned()
+                    .collect::<Vec<_>>()
+            });
+        }
+        for e in shared.into_iter().flatten() {
+            match self.io_memo_apply(&e, logs, base) {
+                Tried::Miss => self.io_undo_since(mark),
+                done => {
+                    self.io_windows.memo_shared += 1;
+                    let i = self.io_memo.keep(e);
+                    self.io_memo.followed_by(i);
+                    return done;
+                }
+            }
+        }
+        Tried::Miss
+    }
+
+    /// Undoes the SRAM writes journaled since `mark` (a try of the period memo that broke
+    /// off).
+    fn io_undo_since(&mut self, mark: usize) {
+        if let Some(j) = self.system.io_journal.as_mut() {
+            let undo: Vec<u64> = j.drain(mark.min(j.len())..).collect();
+            undo_stores(&mut self.system, &undo);
+        }
+    }
+
+    /// Does the replay entry `e` recorded, with the window's data (module documentation):
+    /// `Miss` when a word the DMA reads breaks its constraints (the caller undoes what it
+    /// wrote), else what became of the window.
+    fn io_memo_apply(&mut self, e: &MemoEntry, logs: &[Vec<IoAccess>; 2], base: u64) -> Tried {
+        let to_memo = Rebase {
+            from: base,
+            to: Rebase::MEMO,
         };
         // The inputs: the data words the entry's routes read, then the DMA's reads.
-        let e = Arc::clone(&self.io_memo.entries[i]);
         let inputs = &mut self.io_memo.inputs;
         inputs.clear();
         inputs.resize(e.slots as usize, 0);
@@ -697,7 +763,6 @@ impl Board {
             now.set_slot(*s as usize, r.eval(inputs));
         }
         self.system.io_refresh();
-        self.io_memo.followed_by(i);
         self.io_windows.memo_hits += 1;
         Tried::Done(Ok(()))
     }
