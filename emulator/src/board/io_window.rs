@@ -626,17 +626,20 @@ impl Board {
         }
         let memo = &self.io_memo;
         let first = memo.last.and_then(|l| *memo.follow.get(l)?);
-        let mut local: Vec<usize> = (first.into_iter().chain(0..memo.entries.len()))
-            .filter(|&i| {
-                memo.entries
-                    .get(i)
-                    .is_some_and(|e| probe.fits(e, now, logs))
-            })
-            .collect();
-        local.dedup();
+        let n = memo.entries.len();
         let mut shared = None;
         let mark = self.system.io_journal.as_ref().map_or(0, Vec::len);
-        for i in local {
+        for i in first
+            .into_iter()
+            .chain((0..n).filter(|&j| Some(j) != first))
+        {
+            let fits = match (self.system.io.as_deref(), self.io_memo.entries.get(i)) {
+                (Some(now), Some(e)) => probe.fits(e, now, logs),
+                _ => false,
+            };
+            if !fits {
+                continue;
+            }
             let e = Arc::clone(&self.io_memo.entries[i]);
             match self.io_memo_apply(&e, logs, base) {
                 Tried::Miss => self.io_undo_since(mark),
