@@ -182,6 +182,41 @@ pub struct Io {
     /// The lanes of the pins' levels and of the GPIO inputs while a replay is recorded
     /// (`crate::lanes`); `None` otherwise.
     lanes: Option<Box<IoLanes>>,
+    /// Which machine this is and how often it has been changed but for its data
+    /// ([`Io::touches`]).
+    touches: Touches,
+}
+
+/// A machine's identity (unique in the process) and a count of its changes but for its
+/// data: a period memo knows from it that the machine is still as its last replay left it
+/// (`board/io_window.rs`). A note, not state: machines that differ only in it are equal.
+#[derive(Clone, Copy)]
+struct Touches {
+    id: u64,
+    n: u64,
+}
+
+impl Touches {
+    /// A new machine's.
+    fn new() -> Touches {
+        static IDS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+        Touches {
+            id: IDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+            n: 0,
+        }
+    }
+}
+
+impl PartialEq for Touches {
+    fn eq(&self, _: &Touches) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for Touches {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Touches")
+    }
 }
 
 /// Where a data word of the machine lies ([`Io::locate`]): the machine's own (0 the pins'
@@ -741,13 +776,26 @@ impl Io {
             held_until: [[0; 4]; 2],
             idle: Idle(0),
             lanes: None,
+            touches: Touches::new(),
         }
+    }
+
+    /// Its identity and count of changes but for its data ([`Touches`]): equal between two
+    /// moments only if nothing but its data words changed in between.
+    pub(crate) fn touches(&self) -> (u64, u64) {
+        (self.touches.id, self.touches.n)
+    }
+
+    /// Counts a change but for its data.
+    fn touch(&mut self) {
+        self.touches.n += 1;
     }
 
     /// Starts keeping lanes (`crate::lanes`) for a recorded replay: each data word's are
     /// its own bits, its slot's number the input ([`Io::data_slots`]). Returns the number
     /// of slots (the first input a DMA read takes).
     pub(crate) fn start_lanes(&mut self) -> u32 {
+        self.touch();
         self.lanes = Some(Box::new(IoLanes {
             pins: CONST,
             gpio_in: CONST,
@@ -798,6 +846,7 @@ impl Io {
             held_until,
             idle: _, // a note, not state
             lanes: _,
+            touches: _, // a note, not state
         } = self;
         let at = |a: &[[u64; 4]; 2], b: &[[u64; 4]; 2]| {
             a.iter()
@@ -1031,6 +1080,8 @@ impl Io {
         io.adcs = std::mem::take(&mut self.adcs);
         io.dacs = std::mem::take(&mut self.dacs);
         *self = *io;
+        // Its count went back with it: another machine now, as far as counts tell.
+        self.touches = Touches::new();
     }
 
     /// A clone of the machine without its parts' records (as [`Io::checkpoint`]), its
@@ -1044,6 +1095,7 @@ impl Io {
     /// Its cycles moved by `r`, its parts' records not (a period memo's key, end state, or
     /// the live machine compared with one: `board/io_window.rs`).
     pub(crate) fn rebase(&mut self, r: Rebase) {
+        self.touch();
         self.idle = Idle(r.at(self.idle.0));
         self.cycle = r.at(self.cycle);
         for c in self.dma_claim.iter_mut().flatten() {
@@ -1125,7 +1177,8 @@ impl Io {
             behind,
             held_until,
             idle,
-            lanes: _, // none outside a recording
+            lanes: _,   // none outside a recording
+            touches: _, // the live machine's
         } = end;
         for (a, b) in self.pio.iter_mut().zip(pio) {
             a.assign_but_data(b);
@@ -1217,6 +1270,7 @@ impl Io {
     /// may change the machine through its public fields.
     pub(crate) fn forget_idle(&mut self) {
         self.idle = Idle(0);
+        self.touch();
     }
 
     /// The first cycle the machine has not run yet.
@@ -1311,6 +1365,7 @@ impl Io {
     /// `None` for a block held in reset (a bus fault).
     pub(crate) fn read(&mut self, addr: u32) -> Option<u32> {
         self.idle = Idle(0);
+        self.touch();
         let base = addr & !0x3fff;
         if self.held & Self::reset_bit(base) != 0 {
             return None;
@@ -1327,6 +1382,7 @@ impl Io {
     /// A core writes the register at `addr` (any alias); false for a block held in reset.
     pub(crate) fn write(&mut self, addr: u32, value: u32) -> bool {
         self.idle = Idle(0);
+        self.touch();
         let base = addr & !0x3fff;
         if self.held & Self::reset_bit(base) != 0 {
             return false;
@@ -1382,6 +1438,7 @@ impl Io {
     /// to its reset state.
     pub(crate) fn set_resets(&mut self, held: u32) {
         self.idle = Idle(0);
+        self.touch();
         let held = held & resets::ALL;
         let entering = held & !self.held;
         self.ahead = None;
@@ -1477,6 +1534,9 @@ impl Io {
     /// when it alone drives its converters and nothing else reads them: what the DMA and
     /// SRAM do is the same either way, and the next advance runs it on.
     pub(crate) fn advance(&mut self, to: u64, mem: &mut Memory, settle: bool) {
+        if to > self.cycle || (settle && self.behind != 0) {
+            self.touch();
+        }
         if self.stepwise {
             debug_assert_eq!(self.behind, 0);
             self.advance_stepwise(to, mem);

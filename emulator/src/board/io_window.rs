@@ -222,17 +222,24 @@ pub(crate) struct IoMemo {
     /// The entry the last window's replay was: the next window tries first the one that
     /// followed it last time.
     last: Option<usize>,
+    /// The I/O's [`Io::touches`] as that replay left it: while they are the same, the I/O is
+    /// that entry's end but for its data, so the entry that followed it (`follow`, set only
+    /// where the I/O was compared) starts where it is.
+    after: Option<(u64, u64)>,
     /// A hit's inputs: the data words its routes read, then the words the DMA reads.
     inputs: Vec<u32>,
 }
 
 impl IoMemo {
-    /// Entry `i` gave (or recorded) the window after the last one's.
-    fn followed_by(&mut self, i: usize) {
+    /// Entry `i` gave (or recorded) the window after the last one's, which left the I/O's
+    /// touches at `after`; `linked` when the window's start is known to have been the last
+    /// entry's end (compared, or not touched since).
+    fn followed_by(&mut self, i: usize, linked: bool, after: Option<(u64, u64)>) {
         if let Some(f) = self.last.and_then(|l| self.follow.get_mut(l)) {
-            *f = Some(i);
+            *f = if linked { Some(i) } else { None };
         }
         self.last = Some(i);
+        self.after = after;
     }
 
     /// Keeps `e` (the oldest replaced once the memo is full); returns its index.
@@ -244,7 +251,16 @@ impl IoMemo {
         }
         let at = self.next;
         self.entries[at] = e;
+        // No link leads to the entry replaced, nor from it.
+        for f in &mut self.follow {
+            if *f == Some(at) {
+                *f = None;
+            }
+        }
         self.follow[at] = None;
+        if self.last == Some(at) {
+            self.last = None;
+        }
         self.next = (self.next + 1) % MEMO_ENTRIES;
         at
     }
@@ -258,6 +274,7 @@ impl Default for IoMemo {
             follow: Vec::new(),
             next: 0,
             last: None,
+            after: None,
             inputs: Vec::new(),
         }
     }
@@ -298,8 +315,10 @@ struct MemoEntry {
     needs: Vec<u32>,
     /// The DMA's SRAM accesses in their ticks' order.
     ops: Vec<MemoOp>,
-    /// The DMA's bank claims: (cycle, bank), in order.
+    /// The DMA's bank claims: (cycle, bank), sorted; and per cycle a bit set when the DMA
+    /// claims some bank then (the common test: most cycles have none).
     claims: Vec<(u64, u8)>,
+    claimed: Vec<u64>,
     /// The cycle the I/O was run to: a core's access at or after it is not replayed here.
     ran_to: u64,
     /// The I/O at the end at [`Rebase::MEMO`] without its records, and the routes of its
@@ -385,7 +404,10 @@ impl Probe {
     /// Whether entry `e` stands for the window whose logs are `logs`, its I/O `now`: the
     /// key's parts equal, the machine equal to the entry's start at the memo's time base but
     /// for its data words, which meet the entry's constraints (module documentation).
-    fn fits(&self, e: &MemoEntry, now: &Io, logs: &[Vec<IoAccess>; 2]) -> bool {
+    ///
+    /// With `known`, the machine is known to be equal but for data (the entry that followed
+    /// the last one's, the machine untouched since): that comparison is left out.
+    fn fits(&self, e: &MemoEntry, now: &Io, logs: &[Vec<IoAccess>; 2], known: bool) -> bool {
         let base = self.base;
         // The register stores against the entry's, in the lock-step order.
         let regs = || {
@@ -410,7 +432,11 @@ impl Probe {
             && self.last.wrapping_sub(base) < e.ran_to
             && e.start_key == self.key
             && regs()
-            && now.eq_but_data(&e.start, to_memo)
+            && (known || now.eq_but_data(&e.start, to_memo))
+            && (!known || {
+                debug_assert!(now.eq_but_data(&e.start, to_memo), "an untouched I/O moved");
+                true
+            })
             && (e.start_fixed.iter()).all(|&(slot, m, v)| now.slot(slot as usize) & m == v)
     }
 }
@@ -626,6 +652,7 @@ impl Board {
         }
         let memo = &self.io_memo;
         let first = memo.last.and_then(|l| *memo.follow.get(l)?);
+        let untouched = memo.after.is_some() && memo.after == Some(now.touches());
         let n = memo.entries.len();
         let mut shared = None;
         let mark = self.system.io_journal.as_ref().map_or(0, Vec::len);
@@ -633,8 +660,9 @@ impl Board {
             .into_iter()
             .chain((0..n).filter(|&j| Some(j) != first))
         {
+            let known = untouched && Some(i) == first;
             let fits = match (self.system.io.as_deref(), self.io_memo.entries.get(i)) {
-                (Some(now), Some(e)) => probe.fits(e, now, logs),
+                (Some(now), Some(e)) => probe.fits(e, now, logs, known),
                 _ => false,
             };
             if !fits {
@@ -644,7 +672,8 @@ impl Board {
             match self.io_memo_apply(&e, logs, base) {
                 Tried::Miss => self.io_undo_since(mark),
                 done => {
-                    self.io_memo.followed_by(i);
+                    let after = self.system.io.as_deref().map(Io::touches);
+                    self.io_memo.followed_by(i, true, after);
                     return done;
                 }
             }
@@ -654,7 +683,9 @@ impl Board {
             let mine = &self.io_memo.entries;
             shared = SHARED.lock().ok().map(|s| {
                 (s.iter())
-                    .filter(|e| probe.fits(e, now, logs) && !mine.iter().any(|m| Arc::ptr_eq(m, e)))
+                    .filter(|e| {
+                        probe.fits(e, now, logs, false) && !mine.iter().any(|m| Arc::ptr_eq(m, e))
+                    })
                     .cloned()
                     .collect::<Vec<_>>()
             });
@@ -665,7 +696,8 @@ impl Board {
                 done => {
                     self.io_windows.memo_shared += 1;
                     let i = self.io_memo.keep(e);
-                    self.io_memo.followed_by(i);
+                    let after = self.system.io.as_deref().map(Io::touches);
+                    self.io_memo.followed_by(i, true, after);
                     return done;
                 }
             }
@@ -740,7 +772,8 @@ impl Board {
                 return Tried::Miss;
             }
             let bank = sram_bank(a.addr) as u8;
-            if e.claims.binary_search(&(at, bank)).is_ok() {
+            let some = (e.claimed.get((at / 64) as usize)).is_some_and(|w| w >> (at % 64) & 1 != 0);
+            if some && e.claims.binary_search(&(at, bank)).is_ok() {
                 return Tried::Done(Err(Violation::Wait));
             }
             if a.kind == IoKind::Store {
@@ -790,6 +823,9 @@ impl Board {
         let Some(now) = self.system.io.as_mut() else {
             return self.io_merge(logs, banks, own);
         };
+        // Whether the window starts at the last entry's end (untouched since): the entry
+        // recorded here then follows it.
+        let linked = self.io_memo.after.is_some() && self.io_memo.after == Some(now.touches());
         let checkpoint = now.checkpoint();
         let mut start = checkpoint.io.clone();
         *io = Some(checkpoint);
@@ -897,6 +933,13 @@ impl Board {
             .collect();
         needs.sort_unstable();
         needs.dedup();
+        let mut claims: Vec<(u64, u8)> = rec.claims.iter().map(|&(c, b)| (c - base, b)).collect();
+        claims.sort_unstable();
+        claims.dedup();
+        let mut claimed = vec![0u64; claims.last().map_or(0, |c| c.0 as usize / 64 + 1)];
+        for &(c, _) in &claims {
+            claimed[c as usize / 64] |= 1 << (c % 64);
+        }
         let mut end_io = now.rebased(to_memo);
         end_io.forget_idle();
         let entry = MemoEntry {
@@ -913,7 +956,8 @@ impl Board {
             slots,
             needs,
             ops,
-            claims: rec.claims.iter().map(|&(c, b)| (c - base, b)).collect(),
+            claims,
+            claimed,
             ran_to: now.cycle() - base,
             end: end_io,
             patches,
@@ -929,7 +973,8 @@ impl Board {
             shared.push(Arc::clone(&entry));
         }
         let at = self.io_memo.keep(entry);
-        self.io_memo.followed_by(at);
+        let after = self.system.io.as_deref().map(Io::touches);
+        self.io_memo.followed_by(at, linked, after);
         self.io_windows.memo_recorded += 1;
         r
     }

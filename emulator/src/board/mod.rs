@@ -275,6 +275,21 @@ impl Board {
         self.system.io.as_deref()
     }
 
+    /// Sets the code channel `channel` (0–7) of ADC `adc` reads from now on
+    /// ([`crate::converters::Ads8688::set_code`]); nothing without that ADC. Only data
+    /// changes: unlike a change through [`Board::io_mut`], the I/O's period memo still knows
+    /// where it is (`board/io_window.rs`).
+    pub fn set_adc_code(&mut self, adc: usize, channel: usize, code: u16) {
+        if let Some(a) = self
+            .system
+            .io
+            .as_deref_mut()
+            .and_then(|io| io.adcs.get_mut(adc))
+        {
+            a.set_code(channel, code);
+        }
+    }
+
     /// The attached I/O, to set what the ADCs read (`Ads8688::set_code`).
     pub fn io_mut(&mut self) -> Option<&mut crate::io::Io> {
         let io = self.system.io.as_deref_mut()?;

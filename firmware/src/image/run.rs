@@ -892,7 +892,7 @@ impl ImageRun {
     /// `super::io`: a position reaches the firmware one sample later than a host-written
     /// window word).
     fn set_codes(&mut self, sensors: &[i32]) {
-        let (Some(plan), Some(io)) = (&self.image.io, self.board.io_mut()) else {
+        let Some(plan) = &self.image.io else {
             return;
         };
         let mut flat = 0;
@@ -900,8 +900,9 @@ impl ImageRun {
             let core = k.spec.core;
             for &ch in &k.adc_channels {
                 let scale = &plan.cores[core].scales[ch as usize];
-                if let (Some(adc), Some(&w)) = (io.adcs.get_mut(core), sensors.get(flat)) {
-                    adc.set_code(ch as usize, scale.code(w) as u16);
+                if let Some(&w) = sensors.get(flat) {
+                    let code = scale.code(w) as u16;
+                    self.board.set_adc_code(core, ch as usize, code);
                 }
                 flat += 1;
             }
