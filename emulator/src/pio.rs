@@ -2106,7 +2106,7 @@ impl Pio {
                         }
                         None if block => Flow::Stall,
                         None => {
-                            if let Some(sl) = sl.as_deref_mut() {
+                            if let Some(sl) = sl {
                                 sl.osr = sl.x;
                             }
                             s.osr = s.x;
@@ -2249,7 +2249,7 @@ impl Pio {
         if op != 3 && op != 2 {
             // Every cycle but an OUT's may autopull (PULL and MOV OSR have just set the
             // output count to 0 themselves).
-            self.background_pull(n, lanes.as_deref_mut());
+            self.background_pull(n, lanes);
         }
         flow
     }
