@@ -221,7 +221,8 @@ impl std::fmt::Debug for Touches {
 
 /// Where a data word of the machine lies ([`Io::locate`]): the machine's own (0 the pins'
 /// levels, 1 the inputs), or a part's and its index among the part's.
-enum Slot {
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Slot {
     Io(usize),
     Pio(usize, usize),
     Dma(usize),
@@ -917,7 +918,12 @@ impl Io {
 
     /// Its `i`-th data word ([`Io::data_slots`]' order; 0 past them).
     pub(crate) fn slot(&self, i: usize) -> u32 {
-        match self.locate(i) {
+        self.slot_at(self.locate(i))
+    }
+
+    /// The data word at `at` ([`Io::locate`]; 0 for `None`).
+    pub(crate) fn slot_at(&self, at: Option<Slot>) -> u32 {
+        match at {
             Some(Slot::Io(0)) => self.pins.0,
             Some(Slot::Io(_)) => self.gpio_in,
             Some(Slot::Pio(b, j)) => self.pio[b].slot(j),
@@ -928,9 +934,16 @@ impl Io {
         }
     }
 
+    #[cfg(test)]
     /// Sets its `i`-th data word ([`Io::data_slots`]' order) as that visit would.
     pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
-        match self.locate(i) {
+        self.set_slot_at(self.locate(i), v)
+    }
+
+    /// Sets the data word at `at` ([`Io::locate`]; nothing for `None`) as
+    /// [`Io::data_slots`]' visit would.
+    pub(crate) fn set_slot_at(&mut self, at: Option<Slot>, v: u32) {
+        match at {
             Some(Slot::Io(0)) => self.pins.0 = v,
             Some(Slot::Io(_)) => self.gpio_in = v,
             Some(Slot::Pio(b, j)) => self.pio[b].set_slot(j, v),
@@ -946,7 +959,7 @@ impl Io {
     }
 
     /// Where its `i`-th data word lies ([`Io::data_slots`]' order).
-    fn locate(&self, i: usize) -> Option<Slot> {
+    pub(crate) fn locate(&self, i: usize) -> Option<Slot> {
         let pio = 2;
         let dma = pio + 2 * Pio::SLOTS;
         let adcs = dma + crate::dma::TRANSFER_FIFO_DEPTH;

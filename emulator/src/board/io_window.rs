@@ -86,7 +86,7 @@
 use super::window::undo_stores;
 use super::*;
 use crate::bus::{load_le, sram_bank, store_le, ALL_BANKS};
-use crate::io::{Checkpoint, Io, IoRecords, LaneOp, LaneRec, Rebase, RecordCodes};
+use crate::io::{Checkpoint, Io, IoRecords, LaneOp, LaneRec, Rebase, RecordCodes, Slot};
 use crate::lanes::{self, Lane, Route};
 use std::sync::{Arc, Mutex};
 
@@ -310,9 +310,10 @@ struct MemoEntry {
     start_key: u64,
     /// What the data words at the start must hold: (slot, mask, bits).
     start_fixed: Vec<(u32, u32, u32)>,
-    /// The number of data words (the first read's input), and those the routes read.
+    /// The number of data words (the first read's input), and those the routes read (with
+    /// where they lie: [`Io::locate`]).
     slots: u32,
-    needs: Vec<u32>,
+    needs: Vec<(u32, Option<Slot>)>,
     /// The DMA's SRAM accesses in their ticks' order.
     ops: Vec<MemoOp>,
     /// The DMA's bank claims: (cycle, bank), sorted; and per cycle a bit set when the DMA
@@ -324,7 +325,7 @@ struct MemoEntry {
     /// The I/O at the end at [`Rebase::MEMO`] without its records, and the routes of its
     /// data words but those that end as they started (a hit keeps those): (slot, route).
     end: Box<Io>,
-    patches: Vec<(u32, Route)>,
+    patches: Vec<(Option<Slot>, Route)>,
     /// The parts' records, and the routes of their codes (per ADC its frames', per DAC its
     /// updates').
     records: IoRecords,
@@ -390,14 +391,15 @@ fn log_hash(logs: &[Vec<IoAccess>; 2]) -> u64 {
 
 /// What a window brings to the period memo's lookup: its end (from `base`, the I/O's
 /// cycle at its start), whether the DMA may read flash, the board's own banks, its last
-/// logged access's cycle, and the live machine's [`Io::quick_key`].
+/// logged access's cycle, and the live machine's [`Io::quick_key`] once a comparison needs
+/// it.
 struct Probe {
     span: u64,
     xip: bool,
     own: u8,
     base: u64,
     last: u64,
-    key: u64,
+    key: std::cell::OnceCell<u64>,
 }
 
 impl Probe {
@@ -430,7 +432,7 @@ impl Probe {
             && e.xip == self.xip
             && e.own == self.own
             && self.last.wrapping_sub(base) < e.ran_to
-            && e.start_key == self.key
+            && (known || e.start_key == *self.key.get_or_init(|| now.quick_key(to_memo)))
             && regs()
             && (known || now.eq_but_data(&e.start, to_memo))
             && (!known || {
@@ -635,10 +637,7 @@ impl Board {
             own,
             base,
             last: logs.iter().flatten().map(|a| a.cycle).max().unwrap_or(base),
-            key: now.quick_key(Rebase {
-                from: base,
-                to: Rebase::MEMO,
-            }),
+            key: std::cell::OnceCell::new(),
         };
         #[cfg(debug_assertions)]
         for e in &self.io_memo.entries {
@@ -726,12 +725,10 @@ impl Board {
         let inputs = &mut self.io_memo.inputs;
         inputs.clear();
         inputs.resize(e.slots as usize, 0);
-        for &s in &e.needs {
-            inputs[s as usize] = self
-                .system
-                .io
-                .as_deref()
-                .map_or(0, |io| io.slot(s as usize));
+        if let Some(io) = self.system.io.as_deref() {
+            for &(s, at) in &e.needs {
+                inputs[s as usize] = io.slot_at(at);
+            }
         }
         // The DMA's accesses in their ticks' order, each core access after those of its
         // cycle and before the later ones (as the lock-step bus runs the I/O through an
@@ -795,8 +792,8 @@ impl Board {
             inputs,
         };
         now.become_but_data(&e.end, to_memo.back(), &e.records, Some(codes));
-        for (s, r) in &e.patches {
-            now.set_slot(*s as usize, r.eval(inputs));
+        for (at, r) in &e.patches {
+            now.set_slot_at(*at, r.eval(inputs));
         }
         self.system.io_refresh();
         self.io_windows.memo_hits += 1;
@@ -933,6 +930,12 @@ impl Board {
             .collect();
         needs.sort_unstable();
         needs.dedup();
+        let needs = (needs.into_iter())
+            .map(|i| (i, now.locate(i as usize)))
+            .collect();
+        let patches = (patches.into_iter())
+            .map(|(i, r)| (now.locate(i as usize), r))
+            .collect();
         let mut claims: Vec<(u64, u8)> = rec.claims.iter().map(|&(c, b)| (c - base, b)).collect();
         claims.sort_unstable();
         claims.dedup();
