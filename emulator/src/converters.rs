@@ -275,7 +275,8 @@ pub(crate) trait Recorded: Clone {
     /// Appends `items` to its records as a run that recorded them would ([`MAX_KEPT`]).
     fn append_records(&mut self, items: impl IntoIterator<Item = Self::Item>) {
         let (list, _) = self.records();
-        for i in items {
+        // Past MAX_KEPT nothing is kept: the items are not even made.
+        for i in items.into_iter().take(MAX_KEPT.saturating_sub(list.len())) {
             keep(list, i);
         }
     }
