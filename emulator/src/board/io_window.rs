@@ -309,7 +309,7 @@ struct MemoEntry {
     start: Box<Io>,
     start_key: u64,
     /// What the data words at the start must hold: (slot, mask, bits).
-    start_fixed: Vec<(u32, u32, u32)>,
+    start_fixed: Vec<(Option<Slot>, u32, u32)>,
     /// The number of data words (the first read's input), and those the routes read (with
     /// where they lie: [`Io::locate`]).
     slots: u32,
@@ -400,6 +400,8 @@ struct Probe {
     base: u64,
     last: u64,
     key: std::cell::OnceCell<u64>,
+    /// The window's register stores, their cycles from `base`.
+    regs: Vec<IoAccess>,
 }
 
 impl Probe {
@@ -409,21 +411,11 @@ impl Probe {
     ///
     /// With `known`, the machine is known to be equal but for data (the entry that followed
     /// the last one's, the machine untouched since): that comparison is left out.
-    fn fits(&self, e: &MemoEntry, now: &Io, logs: &[Vec<IoAccess>; 2], known: bool) -> bool {
+    fn fits(&self, e: &MemoEntry, now: &Io, known: bool) -> bool {
         let base = self.base;
-        // The register stores against the entry's, in the lock-step order.
-        let regs = || {
-            let mut mine = Merged::new(logs).filter(|a| a.kind == IoKind::Reg);
-            (e.regs.iter()).all(|r| {
-                mine.next().is_some_and(|a| {
-                    IoAccess {
-                        start: a.start.wrapping_sub(base),
-                        cycle: a.cycle.wrapping_sub(base),
-                        ..*a
-                    } == *r
-                })
-            }) && mine.next().is_none()
-        };
+        // The register stores against the entry's (both in the lock-step order, the
+        // window's from `base`).
+        let regs = || *e.regs == *self.regs;
         let to_memo = Rebase {
             from: base,
             to: Rebase::MEMO,
@@ -439,7 +431,7 @@ impl Probe {
                 debug_assert!(now.eq_but_data(&e.start, to_memo), "an untouched I/O moved");
                 true
             })
-            && (e.start_fixed.iter()).all(|&(slot, m, v)| now.slot(slot as usize) & m == v)
+            && (e.start_fixed.iter()).all(|&(at, m, v)| now.slot_at(at) & m == v)
     }
 }
 
@@ -638,6 +630,7 @@ impl Board {
             base,
             last: logs.iter().flatten().map(|a| a.cycle).max().unwrap_or(base),
             key: std::cell::OnceCell::new(),
+            regs: reg_stores(logs, base),
         };
         #[cfg(debug_assertions)]
         for e in &self.io_memo.entries {
@@ -661,7 +654,7 @@ impl Board {
         {
             let known = untouched && Some(i) == first;
             let fits = match (self.system.io.as_deref(), self.io_memo.entries.get(i)) {
-                (Some(now), Some(e)) => probe.fits(e, now, logs, known),
+                (Some(now), Some(e)) => probe.fits(e, now, known),
                 _ => false,
             };
             if !fits {
@@ -683,7 +676,7 @@ impl Board {
             shared = SHARED.lock().ok().map(|s| {
                 (s.iter())
                     .filter(|e| {
-                        probe.fits(e, now, logs, false) && !mine.iter().any(|m| Arc::ptr_eq(m, e))
+                        probe.fits(e, now, false) && !mine.iter().any(|m| Arc::ptr_eq(m, e))
                     })
                     .cloned()
                     .collect::<Vec<_>>()
@@ -911,10 +904,9 @@ impl Board {
             .map(|(i, (v, w, _))| (i as u32, Route::of(w, *v)))
             .collect();
         let (frame_routes, update_routes) = records.routes(&kept.frames, &kept.updates);
-        let start_fixed: Vec<(u32, u32, u32)> = constraints
-            .iter()
-            .copied()
+        let start_fixed: Vec<(Option<Slot>, u32, u32)> = (constraints.iter())
             .filter(|c| c.0 < slots)
+            .map(|&(i, m, v)| (now.locate(i as usize), m, v))
             .collect();
         // The data words at the start that the routes read.
         let mut needs: Vec<u32> = (ops.iter())
