@@ -400,8 +400,6 @@ struct Probe {
     base: u64,
     last: u64,
     key: std::cell::OnceCell<u64>,
-    /// The window's register stores, their cycles from `base`.
-    regs: Vec<IoAccess>,
 }
 
 impl Probe {
@@ -411,11 +409,21 @@ impl Probe {
     ///
     /// With `known`, the machine is known to be equal but for data (the entry that followed
     /// the last one's, the machine untouched since): that comparison is left out.
-    fn fits(&self, e: &MemoEntry, now: &Io, known: bool) -> bool {
+    fn fits(&self, e: &MemoEntry, now: &Io, logs: &[Vec<IoAccess>; 2], known: bool) -> bool {
         let base = self.base;
-        // The register stores against the entry's (both in the lock-step order, the
-        // window's from `base`).
-        let regs = || *e.regs == *self.regs;
+        // The register stores against the entry's, in the lock-step order.
+        let regs = || {
+            let mut mine = Merged::new(logs).filter(|a| a.kind == IoKind::Reg);
+            (e.regs.iter()).all(|r| {
+                mine.next().is_some_and(|a| {
+                    IoAccess {
+                        start: a.start.wrapping_sub(base),
+                        cycle: a.cycle.wrapping_sub(base),
+                        ..*a
+                    } == *r
+                })
+            }) && mine.next().is_none()
+        };
         let to_memo = Rebase {
             from: base,
             to: Rebase::MEMO,
@@ -630,7 +638,6 @@ impl Board {
             base,
             last: logs.iter().flatten().map(|a| a.cycle).max().unwrap_or(base),
             key: std::cell::OnceCell::new(),
-            regs: reg_stores(logs, base),
         };
         #[cfg(debug_assertions)]
         for e in &self.io_memo.entries {
@@ -654,7 +661,7 @@ impl Board {
         {
             let known = untouched && Some(i) == first;
             let fits = match (self.system.io.as_deref(), self.io_memo.entries.get(i)) {
-                (Some(now), Some(e)) => probe.fits(e, now, known),
+                (Some(now), Some(e)) => probe.fits(e, now, logs, known),
                 _ => false,
             };
             if !fits {
@@ -676,7 +683,7 @@ impl Board {
             shared = SHARED.lock().ok().map(|s| {
                 (s.iter())
                     .filter(|e| {
-                        probe.fits(e, now, false) && !mine.iter().any(|m| Arc::ptr_eq(m, e))
+                        probe.fits(e, now, logs, false) && !mine.iter().any(|m| Arc::ptr_eq(m, e))
                     })
                     .cloned()
                     .collect::<Vec<_>>()
