@@ -54,7 +54,7 @@
 //! keyboard comparisons (firmware images on the block engine, memoized, against the
 //! interpreter).
 
-use crate::board::IoAccess;
+use crate::board::{IoAccess, IoKind};
 use crate::bus::{sram_bank, sram_location, System, BANKS};
 use crate::core::{Core, RunState};
 use crate::decode::{self, AluOp, Instr};
@@ -81,6 +81,27 @@ const DECAY: u32 = 256;
 const SCAN_AFTER: u32 = 64;
 /// Most watched entries.
 pub const MAX_ENTRIES: usize = 64;
+/// Registers a call's loads may be based on ([`Based`]): the AAPCS argument registers
+/// r0-r3 (a key update's r1 is its sensor words' address).
+const BASES: u16 = 0xf;
+/// Registers a call may save and restore ([`Saved`]): the callee-saved low registers
+/// r4-r7 (AAPCS), which a key update pushes at its entry and pops at its return.
+const SAVES: std::ops::RangeInclusive<u8> = 4..=7;
+
+/// Where a callee-saved register stands in a recording ([`Recording::saves`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Save {
+    /// Not read yet: its entry value is in it.
+    Entry,
+    /// Pushed, before the call wrote it, to the SRAM word at this offset, which nothing
+    /// has loaded or stored since.
+    Pushed(u32),
+    /// Popped back from that word: it holds its entry value again, and nothing has read
+    /// or written it since.
+    Restored(u32),
+    /// Read or written otherwise: an input as any other register.
+    Lost,
+}
 
 /// Flag bits of [`Usage`]: N, Z, C, V.
 const N: u8 = 8;
@@ -228,6 +249,9 @@ pub(crate) struct Access {
     store: bool,
     code: bool,
     value: u32,
+    /// A load through a candidate base register ([`Recording::via`]): the register and
+    /// the load's address; `None` otherwise.
+    via: Option<(u8, u32)>,
 }
 
 /// Bytes of one SRAM word: its offset in [`System::sram`] (aligned), which bytes (a mask)
@@ -349,6 +373,19 @@ pub(crate) struct Recording {
     /// entry (`board/io_window.rs`).
     pub(crate) io_banks: u8,
     io: Vec<IoAccess>,
+    /// Registers that may be the call's base ([`BASES`] at the entry): read, before the
+    /// call writes them, only as the base of an immediate-offset load.
+    bases: u16,
+    /// The instruction being run loads through one of `bases`: that register and the
+    /// address.
+    via: Option<(u8, u32)>,
+    /// Of `io`, those loaded through a candidate base: index, register, address.
+    io_via: Vec<(u32, u8, u32)>,
+    /// r4-r7 ([`SAVES`]): each one's [`Save`].
+    saves: [Save; 4],
+    /// The registers of [`SAVES`] the instruction being run pushes or pops (its own
+    /// accesses to their words are not the others' that lose them).
+    saving: u16,
 }
 
 impl Recording {
@@ -372,6 +409,22 @@ impl Recording {
         {
             return false;
         }
+        // A candidate base read otherwise than as an immediate-offset load's base, before
+        // the call writes it, is no longer one; such a load through one is marked.
+        self.via = None;
+        let based = match *instr {
+            Instr::MemImm { op, rn, imm, .. } if !op.is_store() => {
+                let bit = 1u16 << (rn & 15);
+                (self.bases & bit & !self.def_regs != 0).then(|| {
+                    let addr = core.r[(rn & 15) as usize].wrapping_add(u32::from(imm));
+                    self.via = Some((rn & 15, addr));
+                    bit
+                })
+            }
+            _ => None,
+        };
+        self.bases &= !(u.reads & !self.def_regs & !based.unwrap_or(0));
+        self.track_saves(core, instr, &u);
         self.live_regs |= u.reads & !self.def_regs;
         self.def_regs |= u.writes;
         self.live_flags |= u.flag_reads & !self.def_flags;
@@ -384,6 +437,61 @@ impl Recording {
         true
     }
 
+    /// Before `core` runs `instr` (of usage `u`): the [`Save`] of r4-r7 (a `PUSH` of one
+    /// still at its entry value saves it; the `POP` of that word back into it restores
+    /// it; any other read or write of its entry value, or of it restored, loses it).
+    fn track_saves(&mut self, core: &Core, instr: &Instr, u: &Usage) {
+        self.saving = 0;
+        let slot = |list: u16, r: u8, first: u32| {
+            let k = (list & ((1u16 << r) - 1)).count_ones();
+            sram_location(first.wrapping_add(4 * k)).map(|(off, _)| off as u32)
+        };
+        for r in SAVES {
+            let bit = 1u16 << r;
+            let i = (r - 4) as usize;
+            let read = u.reads & bit != 0;
+            let written = u.writes & bit != 0;
+            self.saves[i] = match (self.saves[i], *instr) {
+                (Save::Entry, Instr::Push { list })
+                    if list & bit != 0 && self.def_regs & bit == 0 =>
+                {
+                    self.saving |= bit;
+                    let n = (list & 0x40ff).count_ones();
+                    let first = core.r[13].wrapping_sub(4 * n);
+                    slot(list, r, first).map_or(Save::Lost, Save::Pushed)
+                }
+                (Save::Entry, _) if read && self.def_regs & bit == 0 => Save::Lost,
+                (Save::Pushed(at), Instr::Pop { list }) if list & bit != 0 => {
+                    self.saving |= bit;
+                    if slot(list, r, core.r[13]) == Some(at) {
+                        Save::Restored(at)
+                    } else {
+                        Save::Lost
+                    }
+                }
+                // Pushed, it may be used as any register (its entry value is in the word)
+                // once written; read before, its entry value is an input.
+                (Save::Pushed(_), _) if read && self.def_regs & bit == 0 => Save::Lost,
+                (Save::Restored(_), _) if read || written => Save::Lost,
+                (s, _) => s,
+            };
+        }
+    }
+
+    /// A load or store of `size` bytes at SRAM offset `off` loses the saved registers
+    /// whose words it meets, unless the instruction is their own `PUSH` or `POP`.
+    fn meet_saves(&mut self, off: u32, size: u32) {
+        let (lo, hi) = (off & !3, (off + size.max(1) - 1) & !3);
+        for r in SAVES {
+            let i = (r - 4) as usize;
+            if let Save::Pushed(at) | Save::Restored(at) = self.saves[i] {
+                if (at == lo || at == hi) && self.saving & 1 << r == 0 {
+                    self.saves[i] = Save::Lost;
+                }
+            }
+        }
+    }
+
     /// After the instruction: false when it changed what a call may not.
     pub(crate) fn after(&self, core: &Core) -> bool {
         !self.spoiled && core.state == RunState::Running && special_of(core) == self.entry.special
@@ -393,24 +501,28 @@ impl Recording {
     /// decoded code.
     #[inline]
     pub(crate) fn load(&mut self, off: u32, size: u32, value: u32, code: bool) {
+        self.meet_saves(off, size);
         self.log.push(Access {
             off,
             size: size as u8,
             store: false,
             code,
             value,
+            via: self.via,
         });
     }
 
     /// A store of `size` bytes at SRAM offset `off`.
     #[inline]
     pub(crate) fn store(&mut self, off: u32, size: u32) {
+        self.meet_saves(off, size);
         self.log.push(Access {
             off,
             size: size as u8,
             store: true,
             code: false,
             value: 0,
+            via: None,
         });
     }
 
@@ -419,6 +531,9 @@ impl Recording {
     pub(crate) fn io_access(&mut self, mut a: IoAccess) {
         a.start -= self.entry.cycle;
         a.cycle -= self.entry.cycle;
+        if let (Some((r, addr)), IoKind::Load) = (self.via, a.kind) {
+            self.io_via.push((self.io.len() as u32, r, addr));
+        }
         self.io.push(a);
     }
 
@@ -426,6 +541,106 @@ impl Recording {
     #[inline]
     pub(crate) fn spoil(&mut self) {
         self.spoiled = true;
+    }
+}
+
+/// A word a based memo's call loaded through its base: its address at the recording
+/// (word-aligned), its bank, and the bytes loaded (mask, values).
+#[derive(Clone, Copy, Debug)]
+struct BasedWord {
+    addr: u32,
+    bank: u8,
+    mask: u32,
+    value: u32,
+}
+
+/// The base of `rec`'s memo, if it has one: the lowest register still among its
+/// candidates ([`Recording::bases`]) that the call read, when its loads through it were
+/// none from a page of code, and every word they read lies apart from the call's other
+/// accesses (so that, moved, none of them can meet a store of the call).
+fn based_of(rec: &Recording) -> Option<Based> {
+    let reg = (0..4u8).find(|&r| (rec.bases & rec.live_regs) >> r & 1 != 0)?;
+    let through = |a: &&Access| a.via.is_some_and(|v| v.0 == reg);
+    let mut words: Vec<BasedWord> = Vec::new();
+    for a in rec.log.iter().filter(through) {
+        let (_, addr) = a.via?;
+        if a.code || a.store {
+            return None;
+        }
+        let (word, shift) = (addr & !3, 8 * (addr & 3));
+        let mask = (u32::MAX >> (32 - 8 * u32::from(a.size))) << shift;
+        let value = (a.value << shift) & mask;
+        match words.iter_mut().find(|w| w.addr == word) {
+            Some(w) => {
+                w.mask |= mask;
+                w.value = w.value & !mask | value;
+            }
+            None => words.push(BasedWord {
+                addr: word,
+                bank: sram_bank(a.off & !3) as u8,
+                mask,
+                value,
+            }),
+        }
+    }
+    if words.is_empty() {
+        return None;
+    }
+    let mut touched: Vec<u32> = (rec.log.iter())
+        .filter(|a| !through(a))
+        .flat_map(|a| {
+            let last = a.off + u32::from(a.size.max(1)) - 1;
+            [a.off & !3, last & !3]
+        })
+        .collect();
+    touched.sort_unstable();
+    touched.dedup();
+    let apart =
+        (rec.log.iter().filter(through)).all(|a| touched.binary_search(&(a.off & !3)).is_err());
+    let io = (rec.io_via.iter())
+        .filter(|x| x.1 == reg)
+        .map(|&(i, _, addr)| (i, addr))
+        .collect();
+    apart.then_some(Based {
+        reg,
+        at: rec.entry.r[reg as usize],
+        words,
+        touched,
+        io,
+    })
+}
+
+/// A based memo's base (module documentation, "Based memos"): the register, its value at
+/// the recording, the words loaded through it, the SRAM words the call's other accesses
+/// touched (offsets, sorted: a moved word may be none of them), and of the memo's I/O
+/// accesses those loaded through it (index, address at the recording).
+#[derive(Clone, Debug)]
+struct Based {
+    reg: u8,
+    at: u32,
+    words: Vec<BasedWord>,
+    touched: Vec<u32>,
+    io: Vec<(u32, u32)>,
+}
+
+impl Based {
+    /// Whether the words loaded through the base, moved by `delta` bytes (the base's
+    /// value now less `at`), hold their bytes in `sram`, each in its bank and apart from
+    /// the call's other accesses.
+    fn matches(&self, delta: u32, sram: &[u8]) -> bool {
+        if delta & 3 != 0 {
+            return false;
+        }
+        self.words.iter().all(|w| {
+            let Some((off, bank)) = sram_location(w.addr.wrapping_add(delta)) else {
+                return false;
+            };
+            bank == w.bank as usize
+                && off + 4 <= sram.len()
+                && (delta == 0 || self.touched.binary_search(&(off as u32)).is_err())
+                // SAFETY: `off + 4 <= sram.len()`, checked above.
+                && unsafe { peek(sram, off as u32) } & w.mask == w.value
+        })
     }
 }
 
@@ -469,6 +684,13 @@ struct Memo {
     /// entry, stores' old words unset): a hit in a window on a board with an I/O logs them.
     io_banks: u8,
     io: Vec<IoAccess>,
+    /// Its base, when its loads through a register are compared where the register points
+    /// now (that register then not compared itself).
+    based: Option<Box<Based>>,
+    /// Callee-saved registers the call pushed and popped back ([`Save::Restored`]): the
+    /// SRAM word (offset) it pushed each to and the register. A hit stores each one's
+    /// value there (not compared: the call leaves it as it was).
+    saved: Vec<(u32, u8)>,
     /// [`Memos`]' clock at its last use.
     used: u64,
     /// Index in its site of the memo applied after it last (`usize::MAX`: none yet).
@@ -498,14 +720,31 @@ impl Memo {
             && rest
                 .iter()
                 .all(|w| unsafe { peek(sram, w.off) } & w.mask == w.value)
+            && self
+                .based
+                .as_deref()
+                .is_none_or(|b| b.matches(core.r[b.reg as usize].wrapping_sub(b.at), sram))
     }
 
     /// Before [`Memo::apply`] at `entry`: its accesses to the DMA's banks into a window's
     /// `log`, at the hit's cycles, each store with the word as it is before the memo (the
     /// replay takes the stored words back to the oldest of those, `board/io_window.rs`).
-    fn log_io(&self, entry: u64, sys: &System, log: &mut Vec<IoAccess>) {
-        for a in &self.io {
+    fn log_io(&self, entry: u64, core: &Core, sys: &System, log: &mut Vec<IoAccess>) {
+        let moved = self.based.as_deref().and_then(|b| {
+            let delta = core.r[b.reg as usize].wrapping_sub(b.at);
+            (delta != 0).then_some((b, delta))
+        });
+        for (i, a) in self.io.iter().enumerate() {
             let mut a = *a;
+            if let Some((b, delta)) = moved {
+                // A load through the base: where the base points now (its bank the
+                // same, `Based::matches`).
+                if let Some(&(_, addr)) = b.io.iter().find(|x| x.0 == i as u32) {
+                    if let Some((off, _)) = sram_location(addr.wrapping_add(delta)) {
+                        a.addr = off as u32;
+                    }
+                }
+            }
             a.start += entry;
             a.cycle += entry;
             a.old = sys.sram_peek(a.addr & !3);
@@ -542,6 +781,16 @@ impl Memo {
             }
         }
         rest.iter().for_each(|w| store(sram, w));
+        for &(off, r) in &self.saved {
+            store(
+                sram,
+                &Word {
+                    off,
+                    mask: u32::MAX,
+                    value: core.r[r as usize],
+                },
+            );
+        }
         for ((r, &keep), &v) in core.r.iter_mut().zip(&self.keep).zip(&self.regs_out) {
             *r = *r & keep | v;
         }
@@ -745,7 +994,7 @@ impl Memos {
             let m = &mut site.memos[i];
             let room = journal
                 .as_deref()
-                .is_none_or(|j| j.capacity() - j.len() >= m.writes.len());
+                .is_none_or(|j| j.capacity() - j.len() >= m.writes.len() + m.saved.len());
             // The DMA's banks (`L`) are not allowed in a window on a board with an I/O,
             // but a memo recorded with the same `L` holds its accesses to them for the
             // window's log.
@@ -760,7 +1009,7 @@ impl Memos {
                 return Try::Run;
             }
             if let Some((log, _)) = io {
-                m.log_io(core.cycle, sys, log);
+                m.log_io(core.cycle, core, sys, log);
             }
             m.apply(core, sys, journal);
             m.used = self.clock;
@@ -822,6 +1071,11 @@ impl Memos {
             spoiled: false,
             io_banks: 0,
             io: Vec::new(),
+            bases: BASES,
+            via: None,
+            io_via: Vec::new(),
+            saves: [Save::Entry; 4],
+            saving: 0,
         }
     }
 
@@ -848,8 +1102,13 @@ impl Memos {
         let mut stored: BTreeSet<u32> = BTreeSet::new();
         let mut inputs: BTreeMap<u32, u8> = BTreeMap::new();
         let mut banks = rec.fetch_banks;
+        let based = based_of(&rec);
+        let base_bit = based.as_ref().map_or(0, |b| 1u16 << b.reg);
         for a in &rec.log {
             banks |= 1 << sram_bank(a.off);
+            if based.is_some() && a.via.is_some_and(|v| 1u16 << v.0 == base_bit) {
+                continue;
+            }
             for i in 0..a.size as u32 {
                 let byte = a.off + i;
                 if a.store {
@@ -883,7 +1142,27 @@ impl Memos {
                 })
             })
             .collect();
-        let out_regs = rec.live_regs | rec.def_regs | 1 << 15;
+        // The saved registers the call left as they were, and the words it pushed them to.
+        let saved: Vec<(u32, u8)> = (SAVES)
+            .filter_map(|r| match rec.saves[(r - 4) as usize] {
+                Save::Restored(at)
+                    if rec.live_regs >> r & 1 != 0
+                        && core.r[r as usize] == e.r[r as usize]
+                        && sys.sram_peek(at) == e.r[r as usize] =>
+                {
+                    Some((at, r))
+                }
+                _ => None,
+            })
+            .collect();
+        let saved_bits = saved.iter().fold(0u16, |b, &(_, r)| b | 1 << r);
+        let writes: Vec<Word> = (writes.into_iter())
+            .filter(|w| saved.iter().all(|&(at, _)| at != w.off))
+            .collect();
+        // The base and the saved registers are no inputs, and the call leaves them as
+        // they were (the base unless it writes it).
+        let live_regs = rec.live_regs & !base_bit & !saved_bits;
+        let out_regs = (live_regs | rec.def_regs | 1 << 15) & !saved_bits;
         let out_flags = rec.live_flags | rec.def_flags;
         let mut claims = [u64::MAX; BANKS];
         for (b, c) in claims.iter_mut().enumerate() {
@@ -893,7 +1172,7 @@ impl Memos {
             }
         }
         let live: [u32; 16] =
-            std::array::from_fn(|i| 0u32.wrapping_sub(u32::from(rec.live_regs >> i & 1)));
+            std::array::from_fn(|i| 0u32.wrapping_sub(u32::from(live_regs >> i & 1)));
         let memo = Memo {
             epoch: e.epoch,
             live,
@@ -914,6 +1193,8 @@ impl Memos {
             banks,
             io_banks: rec.io_banks,
             io: rec.io,
+            based: based.map(Box::new),
+            saved,
             used: self.clock,
             next: usize::MAX,
         };
