@@ -42,6 +42,19 @@
 //! them for the I/O's replay, which checks them as the run's own. Loads from a page that held decoded code when they
 //! were recorded are not compared: until the epoch changes no store reaches that page.
 //!
+//! **Based memos.** Two inputs of a call would make a memo per place rather than per
+//! value. A register among r0-r3 that the call reads only as the base of immediate-offset
+//! loads (a key update's r1: its sensor words, in whichever of the converter drivers'
+//! ring of results buffers this sample's are) is not compared: the words loaded through it
+//! are, where it points now ([`Based`]), when each lies in the bank it lay in at the
+//! recording (so the cycles and claims are the same) and apart from every word the call's
+//! other accesses touched (so none can meet a store of the call). And a register among
+//! r4-r7 that the call pushes before reading it and pops back from the same word, touched
+//! by nothing else in between and read by nothing after ([`Save`]), is not compared
+//! either: a hit leaves it as it is and stores its value where the call pushed it. Tests:
+//! `tests/memo.rs::a_memo_moves_with_its_base_and_keeps_the_saved_registers`, and the
+//! random calls (loads through r0-r3, data repeating every 16 bytes, bases moved by 16).
+//!
 //! **When to record.** Recording runs the call on the interpreter, several times the
 //! native code's cost; a moving key's inputs differ every sample. So per call site (the
 //! function, the core and the return address) each recording doubles the misses to wait
@@ -61,11 +74,12 @@ use crate::decode::{self, AluOp, Instr};
 use crate::exec::literal_address;
 use std::collections::{BTreeMap, BTreeSet};
 
-/// Memos kept per call site (the least recently used goes first): a key at rest on a
-/// converter board calls its update in up to 51 states in turn (its differentiator ring's
-/// 17 positions times the ring of three results buffers its sensor words are read from,
-/// `tactus-firmware`'s `image/io.rs`); with 48 the converter demo took 80.54 G
-/// instructions, with 64 59.21 G (the plain demo 15.41 G either way).
+/// Memos kept per call site (the least recently used goes first): a key at rest calls
+/// its update in up to 17 states in turn (its differentiator ring's positions; on a
+/// converter board, three times as many places its sensor words are read from, the ring
+/// of results buffers of `tactus-firmware`'s `image/io.rs`, which based memos fold into
+/// one). With 48 the converter demo took 80.54 G instructions, with 64 59.21 G (before
+/// based memos; the plain demo 15.41 G either way).
 const PER_SITE: usize = 64;
 /// Most instructions a recorded call may run.
 const MAX_INSTRUCTIONS: u64 = 50_000;
