@@ -266,7 +266,8 @@ pub(crate) trait Recorded: Clone {
         (violations.len() == counts[1]).then(|| items[counts[0].min(items.len())..].to_vec())
     }
 
-    /// Its records, taken out.
+    /// Its records, taken out (for debug builds' `Io::check_eq_but_data`).
+    #[cfg(debug_assertions)]
     fn take_records(&mut self) -> (Vec<Self::Item>, Vec<TimingViolation>) {
         let (items, violations) = self.records();
         (std::mem::take(items), std::mem::take(violations))

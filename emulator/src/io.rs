@@ -916,7 +916,9 @@ impl Io {
         assert_eq!(a == b, self.eq_but_data(other, r), "eq_but_data");
     }
 
-    /// Its `i`-th data word ([`Io::data_slots`]' order; 0 past them).
+    /// Its `i`-th data word ([`Io::data_slots`]' order; 0 past them). For checks: tests and
+    /// debug builds' [`Io::check_eq_but_data`].
+    #[cfg(any(test, debug_assertions))]
     pub(crate) fn slot(&self, i: usize) -> u32 {
         self.slot_at(self.locate(i))
     }
