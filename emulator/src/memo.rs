@@ -456,6 +456,12 @@ impl Recording {
     /// it; any other read or write of its entry value, or of it restored, loses it).
     fn track_saves(&mut self, core: &Core, instr: &Instr, u: &Usage) {
         self.saving = 0;
+        const MASK: u16 = 0xf0;
+        if (u.reads | u.writes) & MASK == 0
+            && !matches!(instr, Instr::Push { .. } | Instr::Pop { .. })
+        {
+            return;
+        }
         let slot = |list: u16, r: u8, first: u32| {
             let k = (list & ((1u16 << r) - 1)).count_ones();
             sram_location(first.wrapping_add(4 * k)).map(|(off, _)| off as u32)
