@@ -456,19 +456,23 @@ impl Recording {
     /// it; any other read or write of its entry value, or of it restored, loses it).
     fn track_saves(&mut self, core: &Core, instr: &Instr, u: &Usage) {
         self.saving = 0;
-        const MASK: u16 = 0xf0;
-        if (u.reads | u.writes) & MASK == 0
-            && !matches!(instr, Instr::Push { .. } | Instr::Pop { .. })
-        {
-            return;
-        }
+        // Only r4-r7 that the instruction reads or writes, or all four at a PUSH or POP.
+        let mut regs = match instr {
+            Instr::Push { .. } | Instr::Pop { .. } => 0xf0,
+            _ => (u.reads | u.writes) & 0xf0,
+        };
         let slot = |list: u16, r: u8, first: u32| {
             let k = (list & ((1u16 << r) - 1)).count_ones();
             sram_location(first.wrapping_add(4 * k)).map(|(off, _)| off as u32)
         };
-        for r in SAVES {
+        while regs != 0 {
+            let r = regs.trailing_zeros() as u8;
+            regs &= regs - 1;
             let bit = 1u16 << r;
             let i = (r - 4) as usize;
+            if self.saves[i] == Save::Lost {
+                continue;
+            }
             let read = u.reads & bit != 0;
             let written = u.writes & bit != 0;
             self.saves[i] = match (self.saves[i], *instr) {
@@ -569,6 +573,8 @@ impl Recording {
 #[derive(Clone, Copy, Debug)]
 struct BasedWord {
     addr: u32,
+    /// Its SRAM offset at the recording.
+    off: u32,
     bank: u8,
     mask: u32,
     value: u32,
@@ -597,6 +603,7 @@ fn based_of(rec: &Recording) -> Option<Based> {
             }
             None => words.push(BasedWord {
                 addr: word,
+                off: a.off & !3,
                 bank: sram_bank(a.off & !3) as u8,
                 mask,
                 value,
@@ -652,8 +659,12 @@ impl Based {
             return false;
         }
         self.words.iter().all(|w| {
-            let Some((off, bank)) = sram_location(w.addr.wrapping_add(delta)) else {
-                return false;
+            let (off, bank) = match delta {
+                0 => (w.off as usize, w.bank as usize),
+                _ => match sram_location(w.addr.wrapping_add(delta)) {
+                    Some(x) => x,
+                    None => return false,
+                },
             };
             bank == w.bank as usize
                 && off + 4 <= sram.len()

@@ -302,8 +302,8 @@ struct MemoEntry {
     span: u64,
     xip: bool,
     own: u8,
-    /// The cores' register stores: their cycles from the start, addresses and values.
-    regs: Vec<IoAccess>,
+    /// Each core's register stores: their cycles from the start, addresses and values.
+    regs: [Vec<IoAccess>; 2],
     /// The I/O at the window's start at [`Rebase::MEMO`], its records left out and its data
     /// words ([`Io::data_slots`]) 0; its [`Io::quick_key`].
     start: Box<Io>,
@@ -361,16 +361,20 @@ impl MemoOp {
     }
 }
 
-/// The register stores of a window's logs, their cycles from `base`: a [`MemoEntry`]'s key.
-fn reg_stores(logs: &[Vec<IoAccess>; 2], base: u64) -> Vec<IoAccess> {
-    Merged::new(logs)
-        .filter(|a| a.kind == IoKind::Reg)
-        .map(|a| IoAccess {
-            start: a.start.wrapping_sub(base),
-            cycle: a.cycle.wrapping_sub(base),
-            ..*a
-        })
-        .collect()
+/// The register stores of each core's log of a window, their cycles from `base`: a
+/// [`MemoEntry`]'s key. (Per core, not in the lock-step order: with their cycles, the
+/// cores' sequences decide that order.)
+fn reg_stores(logs: &[Vec<IoAccess>; 2], base: u64) -> [Vec<IoAccess>; 2] {
+    logs.each_ref().map(|log| {
+        (log.iter())
+            .filter(|a| a.kind == IoKind::Reg)
+            .map(|a| IoAccess {
+                start: a.start.wrapping_sub(base),
+                cycle: a.cycle.wrapping_sub(base),
+                ..*a
+            })
+            .collect()
+    })
 }
 
 /// A hash of logs (FNV-1a over their fields).
@@ -411,18 +415,20 @@ impl Probe {
     /// the last one's, the machine untouched since): that comparison is left out.
     fn fits(&self, e: &MemoEntry, now: &Io, logs: &[Vec<IoAccess>; 2], known: bool) -> bool {
         let base = self.base;
-        // The register stores against the entry's, in the lock-step order.
+        // The register stores against the entry's, core by core.
         let regs = || {
-            let mut mine = Merged::new(logs).filter(|a| a.kind == IoKind::Reg);
-            (e.regs.iter()).all(|r| {
-                mine.next().is_some_and(|a| {
-                    IoAccess {
-                        start: a.start.wrapping_sub(base),
-                        cycle: a.cycle.wrapping_sub(base),
-                        ..*a
-                    } == *r
-                })
-            }) && mine.next().is_none()
+            logs.iter().zip(&e.regs).all(|(log, theirs)| {
+                let mut mine = log.iter().filter(|a| a.kind == IoKind::Reg);
+                (theirs.iter()).all(|r| {
+                    mine.next().is_some_and(|a| {
+                        IoAccess {
+                            start: a.start.wrapping_sub(base),
+                            cycle: a.cycle.wrapping_sub(base),
+                            ..*a
+                        } == *r
+                    })
+                }) && mine.next().is_none()
+            })
         };
         let to_memo = Rebase {
             from: base,
