@@ -482,6 +482,44 @@ fn sram_put(sys: &mut System, off: u32, size: u8, value: u32) {
     store_le(&mut sys.sram, off as usize, u32::from(size), value);
 }
 
+/// A period memo hit's DMA accesses from `ops[*next]` while their ticks are at most
+/// `upto` (`*next` moves past them): a read checks its constraint and becomes the next
+/// input, a write stores its route's value (journaled, as [`System::io_dma_write`]).
+/// False when a read breaks its constraint (the entry does not stand for the window).
+fn dma_ops(
+    sys: &mut System,
+    ops: &[MemoOp],
+    next: &mut usize,
+    upto: u64,
+    inputs: &mut Vec<u32>,
+) -> bool {
+    while let Some(op) = ops.get(*next).filter(|op| op.tick() <= upto) {
+        *next += 1;
+        match *op {
+            MemoOp::Read {
+                off,
+                size,
+                mask,
+                value,
+                ..
+            } => {
+                let v = load_le(&sys.sram, off as usize, u32::from(size));
+                if v & mask != value {
+                    return false;
+                }
+                inputs.push(v);
+            }
+            MemoOp::Write {
+                off,
+                size,
+                ref route,
+                ..
+            } => sys.io_dma_write(off, u32::from(size), route.eval(inputs)),
+        }
+    }
+    true
+}
+
 impl Board {
     /// The windows of a board with an I/O so far (module documentation).
     pub fn io_windows(&self) -> IoWindows {
@@ -739,40 +777,19 @@ impl Board {
         // The DMA's accesses in their ticks' order, each core access after those of its
         // cycle and before the later ones (as the lock-step bus runs the I/O through an
         // access's cycle first).
-        let mut ops = e.ops.iter().peekable();
-        let mut dma = |sys: &mut System, upto: u64, inputs: &mut Vec<u32>| -> bool {
-            while let Some(op) = ops.next_if(|op| op.tick() <= upto) {
-                match *op {
-                    MemoOp::Read {
-                        off,
-                        size,
-                        mask,
-                        value,
-                        ..
-                    } => {
-                        let v = load_le(&sys.sram, off as usize, u32::from(size));
-                        if v & mask != value {
-                            return false;
-                        }
-                        inputs.push(v);
-                    }
-                    MemoOp::Write {
-                        off,
-                        size,
-                        ref route,
-                        ..
-                    } => sys.io_dma_write(off, u32::from(size), route.eval(inputs)),
-                }
-            }
-            true
-        };
+        let ops = &e.ops[..];
+        let mut next = 0;
+        let mut due = ops.first().map_or(u64::MAX, MemoOp::tick);
         for a in Merged::new(logs) {
             if a.kind == IoKind::Reg {
                 continue;
             }
             let at = a.cycle.wrapping_sub(base);
-            if !dma(&mut self.system, at, inputs) {
-                return Tried::Miss;
+            if due <= at {
+                if !dma_ops(&mut self.system, ops, &mut next, at, inputs) {
+                    return Tried::Miss;
+                }
+                due = ops.get(next).map_or(u64::MAX, MemoOp::tick);
             }
             let bank = sram_bank(a.addr) as u8;
             let some = (e.claimed.get((at / 64) as usize)).is_some_and(|w| w >> (at % 64) & 1 != 0);
@@ -785,7 +802,7 @@ impl Board {
                 return Tried::Done(Err(Violation::Stale));
             }
         }
-        if !dma(&mut self.system, u64::MAX, inputs) {
+        if !dma_ops(&mut self.system, ops, &mut next, u64::MAX, inputs) {
             return Tried::Miss;
         }
         // The end: the entry's, its data words and the parts' records by their routes.
