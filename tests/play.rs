@@ -300,6 +300,51 @@ fn the_converter_board_plays_the_demo_through_its_i_o_and_counts_its_windows() {
     assert!(!plain.contains("converters' I/O:"), "{plain}");
 }
 
+/// `--io-trace` writes every board's frames at the pins: each core's ADC samples every one
+/// of its keys' channels every sample, and its DAC is updated every sample. (Without a
+/// trace the parts keep no frames at all: the flag has to turn them back on.)
+#[test]
+fn the_io_trace_holds_every_boards_frames() {
+    let dir = temp_dir("play-io-trace");
+    let trace = dir.join("trace");
+    let o = tactus()
+        .args([
+            "play",
+            "--no-wav",
+            "--seconds",
+            "0.3",
+            "--board",
+            "rp2040_io",
+            "--io-trace",
+        ])
+        .arg(&trace)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    assert_ok(&o);
+    let samples = (0.3 * 44_100.0) as usize;
+    let mut boards = 0;
+    for board in 1..=11 {
+        let path = trace.join(format!("board-{board:02}.csv"));
+        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path:?}: {e}"));
+        let rows: Vec<&str> = text.lines().skip(1).collect();
+        let adc = rows.iter().filter(|r| r.contains(",adc,")).count();
+        let dac = rows.iter().filter(|r| r.contains(",dac,")).count();
+        // grand88: 8 keys a board, 4 a core.
+        assert!(
+            adc >= 8 * (samples - 2),
+            "board {board}: {adc} ADC frames in {samples} samples"
+        );
+        assert!(
+            dac >= 2 * (samples - 2),
+            "board {board}: {dac} DAC updates in {samples} samples"
+        );
+        boards += 1;
+    }
+    assert_eq!(boards, 11);
+}
+
 #[test]
 fn engines_agree_and_the_default_runs_without_arguments() {
     let dir = temp_dir("play-demo");

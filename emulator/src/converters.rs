@@ -229,6 +229,8 @@ pub struct Ads8688 {
     last_cs_fall: Option<u64>,
     frames: Vec<AdcFrame>,
     violations: Vec<TimingViolation>,
+    /// The most frames it keeps ([`MAX_KEPT`], or 0: [`Recorded::set_kept`]).
+    kept: usize,
     /// Its lanes while a replay is recorded (`crate::lanes`); `None` otherwise.
     pub(crate) lanes: Option<Box<AdcLanes>>,
 }
@@ -242,6 +244,13 @@ pub(crate) trait Recorded: Clone {
 
     /// Its records.
     fn records(&mut self) -> (&mut Vec<Self::Item>, &mut Vec<TimingViolation>);
+
+    /// The most frames or updates it keeps.
+    fn kept(&self) -> usize;
+
+    /// Keeps at most `max` frames or updates from now on ([`MAX_KEPT`] at most; 0: none,
+    /// for a run that never reads them). Timing violations are kept as before.
+    fn set_kept(&mut self, max: usize);
 
     /// How many of each it has recorded.
     fn record_counts(&mut self) -> [usize; 2] {
@@ -275,10 +284,11 @@ pub(crate) trait Recorded: Clone {
 
     /// Appends `items` to its records as a run that recorded them would ([`MAX_KEPT`]).
     fn append_records(&mut self, items: impl IntoIterator<Item = Self::Item>) {
+        let max = self.kept();
         let (list, _) = self.records();
-        // Past MAX_KEPT nothing is kept: the items are not even made.
-        for i in items.into_iter().take(MAX_KEPT.saturating_sub(list.len())) {
-            keep(list, i);
+        // Past its most nothing is kept: the items are not even made.
+        for i in items.into_iter().take(max.saturating_sub(list.len())) {
+            list.push(i);
         }
     }
 
@@ -307,6 +317,12 @@ fn keep<T>(list: &mut Vec<T>, item: T) {
 
 impl Recorded for Ads8688 {
     type Item = AdcFrame;
+    fn kept(&self) -> usize {
+        self.kept
+    }
+    fn set_kept(&mut self, max: usize) {
+        self.kept = max.min(MAX_KEPT);
+    }
     fn records(&mut self) -> (&mut Vec<AdcFrame>, &mut Vec<TimingViolation>) {
         (&mut self.frames, &mut self.violations)
     }
@@ -342,6 +358,7 @@ impl Ads8688 {
             last_cs_fall: None,
             frames: Vec::new(),
             violations: Vec::new(),
+            kept: MAX_KEPT,
             lanes: None,
         }
     }
@@ -444,6 +461,7 @@ impl Ads8688 {
             last_cs_fall,
             frames: _,
             violations: _,
+            kept: _,
             lanes: _,
         } = self;
         let frames = match (frame, &other.frame) {
@@ -487,6 +505,7 @@ impl Ads8688 {
             last_cs_fall,
             frames: _,
             violations: _,
+            kept: _,
             lanes: _,
         } = other;
         self.part = *part;
@@ -684,7 +703,7 @@ impl Ads8688 {
         self.sdo = false;
         if let Some(l) = self.lanes.as_deref_mut() {
             l.sdo = Lane::CONST;
-            if self.frame.is_some() && self.frames.len() < MAX_KEPT {
+            if self.frame.is_some() && self.frames.len() < self.kept {
                 l.frames.push(l.frame_code);
             }
         }
@@ -698,7 +717,9 @@ impl Ads8688 {
                     ),
                 );
             }
-            keep(&mut self.frames, f);
+            if self.frames.len() < self.kept {
+                self.frames.push(f);
+            }
         }
     }
 
@@ -837,12 +858,20 @@ pub struct Dac8568 {
     last_fall: Option<u64>,
     updates: Vec<DacUpdate>,
     violations: Vec<TimingViolation>,
+    /// The most updates it keeps ([`MAX_KEPT`], or 0: [`Recorded::set_kept`]).
+    kept: usize,
     /// Its lanes while a replay is recorded (`crate::lanes`); `None` otherwise.
     pub(crate) lanes: Option<Box<DacLanes>>,
 }
 
 impl Recorded for Dac8568 {
     type Item = DacUpdate;
+    fn kept(&self) -> usize {
+        self.kept
+    }
+    fn set_kept(&mut self, max: usize) {
+        self.kept = max.min(MAX_KEPT);
+    }
     fn records(&mut self) -> (&mut Vec<DacUpdate>, &mut Vec<TimingViolation>) {
         (&mut self.updates, &mut self.violations)
     }
@@ -878,6 +907,7 @@ impl Dac8568 {
             last_fall: None,
             updates: Vec::new(),
             violations: Vec::new(),
+            kept: MAX_KEPT,
             lanes: None,
         }
     }
@@ -958,6 +988,7 @@ impl Dac8568 {
             last_fall,
             updates: _,
             violations: _,
+            kept: _,
             lanes: _,
         } = self;
         std::ptr::eq(*part, other.part)
@@ -987,6 +1018,7 @@ impl Dac8568 {
             last_fall,
             updates: _,
             violations: _,
+            kept: _,
             lanes: _,
         } = other;
         self.part = *part;
@@ -1224,20 +1256,19 @@ impl Dac8568 {
         for c in (0..8).filter(|c| changed & (1 << c) != 0) {
             if let Some(l) = self.lanes.as_deref_mut() {
                 l.output[c] = l.input[c];
-                if self.updates.len() < MAX_KEPT {
+                if self.updates.len() < self.kept {
                     l.updates.push(l.output[c]);
                 }
             }
             self.output[c] = self.input[c];
             let code = self.output[c];
-            keep(
-                &mut self.updates,
-                DacUpdate {
+            if self.updates.len() < self.kept {
+                self.updates.push(DacUpdate {
                     cycle,
                     channel: c as u8,
                     code,
-                },
-            );
+                });
+            }
         }
     }
 }

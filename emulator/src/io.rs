@@ -1228,6 +1228,9 @@ impl Io {
     /// recorded them would.
     fn append_records_coded(&mut self, records: &IoRecords, r: Rebase, codes: Option<RecordCodes>) {
         for (k, (a, frames)) in self.adcs.iter_mut().zip(&records.adcs).enumerate() {
+            if a.frames().len() >= a.kept() {
+                continue;
+            }
             let routes = codes.map(|c| c.frames.get(k));
             a.append_records(frames.iter().enumerate().map(|(i, f)| {
                 AdcFrame {
@@ -1242,6 +1245,9 @@ impl Io {
             }));
         }
         for (k, (d, updates)) in self.dacs.iter_mut().zip(&records.dacs).enumerate() {
+            if d.updates().len() >= d.kept() {
+                continue;
+            }
             let routes = codes.map(|c| c.updates.get(k));
             d.append_records(updates.iter().enumerate().map(|(i, u)| {
                 DacUpdate {
@@ -1275,10 +1281,20 @@ impl Io {
     }
 
     /// Whether every part keeps as many frames or updates as it can
-    /// ([`crate::converters::MAX_KEPT`]): appending more changes nothing.
+    /// ([`Recorded::kept`]): appending more changes nothing.
     pub(crate) fn records_full(&mut self) -> bool {
-        let max = crate::converters::MAX_KEPT;
-        self.record_counts().iter().all(|c| c[0] >= max)
+        self.adcs.iter().all(|a| a.frames().len() >= a.kept())
+            && self.dacs.iter().all(|d| d.updates().len() >= d.kept())
+    }
+
+    /// Whether its parts keep their frames and updates (at most
+    /// [`crate::converters::MAX_KEPT`] each, the default) or none (for a run that never
+    /// reads them: `tactus play` without an I/O trace). Results never depend on it; the
+    /// parts' timing violations are kept either way.
+    pub fn keep_records(&mut self, on: bool) {
+        let max = if on { crate::converters::MAX_KEPT } else { 0 };
+        self.adcs.iter_mut().for_each(|a| a.set_kept(max));
+        self.dacs.iter_mut().for_each(|d| d.set_kept(max));
     }
 
     /// Forgets what the last advance found of the cycles ahead ([`Idle`]): a caller that

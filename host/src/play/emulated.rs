@@ -264,6 +264,9 @@ impl<'p> BoardEngine<'p> {
         }
         let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(fail)?);
         writeln!(w, "{IO_TRACE_HEADER}").map_err(fail)?;
+        if let Some(io) = self.run.board().io_mut() {
+            io.keep_records(true);
+        }
         self.io_trace = Some((board, name.clone(), w));
         Ok(())
     }
@@ -316,6 +319,11 @@ impl<'p> BoardEngine<'p> {
         let image = image?;
         let mut run = image.run()?;
         run.board().config.engine = engine;
+        // Nothing reads the converters' frames but an I/O trace (`trace_io`), which keeps
+        // them again: without one the parts keep none.
+        if let Some(io) = run.board().io_mut() {
+            io.keep_records(false);
+        }
         let n_cores = image.cores();
         let key_programs: Vec<&Program> = bkeys.iter().map(|k| &programs[k.program]).collect();
         let report = BoardRun {
