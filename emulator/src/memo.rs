@@ -400,6 +400,14 @@ pub(crate) struct Recording {
     /// The registers of [`SAVES`] the instruction being run pushes or pops (its own
     /// accesses to their words are not the others' that lose them).
     saving: u16,
+    /// Of [`SAVES`], those at their entry value or pushed (`kept`), restored, and lost:
+    /// masks of `saves`, so that most instructions need not look at it.
+    kept: u16,
+    restored: u16,
+    lost: u16,
+    /// The lowest and highest SRAM word any of them was pushed to (a load or store
+    /// outside meets none).
+    slots: (u32, u32),
 }
 
 impl Recording {
@@ -426,7 +434,9 @@ impl Recording {
         // A candidate base read otherwise than as an immediate-offset load's base, before
         // the call writes it, is no longer one; such a load through one is marked.
         self.via = None;
+        let open = self.bases & !self.def_regs;
         let based = match *instr {
+            _ if open == 0 => None,
             Instr::MemImm { op, rn, imm, .. } if !op.is_store() => {
                 let bit = 1u16 << (rn & 15);
                 (self.bases & bit & !self.def_regs != 0).then(|| {
@@ -437,7 +447,7 @@ impl Recording {
             }
             _ => None,
         };
-        self.bases &= !(u.reads & !self.def_regs & !based.unwrap_or(0));
+        self.bases &= !(u.reads & open & !based.unwrap_or(0));
         self.track_saves(core, instr, &u);
         self.live_regs |= u.reads & !self.def_regs;
         self.def_regs |= u.writes;
@@ -456,11 +466,15 @@ impl Recording {
     /// it; any other read or write of its entry value, or of it restored, loses it).
     fn track_saves(&mut self, core: &Core, instr: &Instr, u: &Usage) {
         self.saving = 0;
-        // Only r4-r7 that the instruction reads or writes, or all four at a PUSH or POP.
+        // Only those a PUSH or POP may move, and those whose state a read or write may
+        // lose: at their entry value or pushed but not written since, or restored.
         let mut regs = match instr {
-            Instr::Push { .. } | Instr::Pop { .. } => 0xf0,
-            _ => (u.reads | u.writes) & 0xf0,
+            Instr::Push { .. } | Instr::Pop { .. } => !self.lost & 0xf0,
+            _ => (u.reads | u.writes) & ((self.kept & !self.def_regs) | self.restored),
         };
+        if regs == 0 {
+            return;
+        }
         let slot = |list: u16, r: u8, first: u32| {
             let k = (list & ((1u16 << r) - 1)).count_ones();
             sram_location(first.wrapping_add(4 * k)).map(|(off, _)| off as u32)
@@ -499,6 +513,21 @@ impl Recording {
                 (Save::Restored(_), _) if read || written => Save::Lost,
                 (s, _) => s,
             };
+            match self.saves[i] {
+                Save::Entry | Save::Pushed(_) => {}
+                Save::Restored(_) => {
+                    self.restored |= bit;
+                    self.kept &= !bit;
+                }
+                Save::Lost => {
+                    self.lost |= bit;
+                    self.kept &= !bit;
+                    self.restored &= !bit;
+                }
+            }
+            if let Save::Pushed(at) = self.saves[i] {
+                self.slots = (self.slots.0.min(at), self.slots.1.max(at));
+            }
         }
     }
 
@@ -506,11 +535,17 @@ impl Recording {
     /// whose words it meets, unless the instruction is their own `PUSH` or `POP`.
     fn meet_saves(&mut self, off: u32, size: u32) {
         let (lo, hi) = (off & !3, (off + size.max(1) - 1) & !3);
+        if hi < self.slots.0 || lo > self.slots.1 {
+            return;
+        }
         for r in SAVES {
             let i = (r - 4) as usize;
             if let Save::Pushed(at) | Save::Restored(at) = self.saves[i] {
                 if (at == lo || at == hi) && self.saving & 1 << r == 0 {
                     self.saves[i] = Save::Lost;
+                    self.lost |= 1 << r;
+                    self.kept &= !(1 << r);
+                    self.restored &= !(1 << r);
                 }
             }
         }
@@ -1107,6 +1142,10 @@ impl Memos {
             io_via: Vec::new(),
             saves: [Save::Entry; 4],
             saving: 0,
+            kept: 0xf0,
+            restored: 0,
+            lost: 0,
+            slots: (u32::MAX, 0),
         }
     }
 
