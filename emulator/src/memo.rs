@@ -51,7 +51,10 @@
 //! other accesses touched (so none can meet a store of the call). And a register among
 //! r4-r7 that the call pushes before reading it and pops back from the same word, touched
 //! by nothing else in between and read by nothing after ([`Save`]), is not compared
-//! either: a hit leaves it as it is and stores its value where the call pushed it. Tests:
+//! either: a hit leaves it as it is and stores its value where the call pushed it. A call
+//! site's recordings look for either only once a call came with another value in one of
+//! r0-r7 that its last recorded call read (where nothing moves, as on a board without
+//! converters, looking costs about 2 % of the demo's instructions and finds nothing). Tests:
 //! `tests/memo.rs::a_memo_moves_with_its_base_and_keeps_the_saved_registers`, and the
 //! random calls (loads through r0-r3, data repeating every 16 bytes, bases moved by 16).
 //!
@@ -263,9 +266,6 @@ pub(crate) struct Access {
     store: bool,
     code: bool,
     value: u32,
-    /// A load through a candidate base register ([`Recording::via`]): the register and
-    /// the load's address; `None` otherwise.
-    via: Option<(u8, u32)>,
 }
 
 /// Bytes of one SRAM word: its offset in [`System::sram`] (aligned), which bytes (a mask)
@@ -393,6 +393,8 @@ pub(crate) struct Recording {
     /// The instruction being run loads through one of `bases`: that register and the
     /// address.
     via: Option<(u8, u32)>,
+    /// Of `log`, the loads through a candidate base: index, register, address.
+    log_via: Vec<(u32, u8, u32)>,
     /// Of `io`, those loaded through a candidate base: index, register, address.
     io_via: Vec<(u32, u8, u32)>,
     /// r4-r7 ([`SAVES`]): each one's [`Save`].
@@ -561,13 +563,15 @@ impl Recording {
     #[inline]
     pub(crate) fn load(&mut self, off: u32, size: u32, value: u32, code: bool) {
         self.meet_saves(off, size);
+        if let Some((r, addr)) = self.via {
+            self.log_via.push((self.log.len() as u32, r, addr));
+        }
         self.log.push(Access {
             off,
             size: size as u8,
             store: false,
             code,
             value,
-            via: self.via,
         });
     }
 
@@ -581,7 +585,6 @@ impl Recording {
             store: true,
             code: false,
             value: 0,
-            via: None,
         });
     }
 
@@ -621,10 +624,14 @@ struct BasedWord {
 /// accesses (so that, moved, none of them can meet a store of the call).
 fn based_of(rec: &Recording) -> Option<Based> {
     let reg = (0..4u8).find(|&r| (rec.bases & rec.live_regs) >> r & 1 != 0)?;
-    let through = |a: &&Access| a.via.is_some_and(|v| v.0 == reg);
+    // The loads through it: their places in the log (ascending) and addresses.
+    let via: Vec<(usize, u32)> = (rec.log_via.iter())
+        .filter(|x| x.1 == reg)
+        .map(|&(i, _, addr)| (i as usize, addr))
+        .collect();
     let mut words: Vec<BasedWord> = Vec::new();
-    for a in rec.log.iter().filter(through) {
-        let (_, addr) = a.via?;
+    for &(i, addr) in &via {
+        let a = &rec.log[i];
         if a.code || a.store {
             return None;
         }
@@ -648,17 +655,17 @@ fn based_of(rec: &Recording) -> Option<Based> {
     if words.is_empty() {
         return None;
     }
-    let mut touched: Vec<u32> = (rec.log.iter())
-        .filter(|a| !through(a))
-        .flat_map(|a| {
+    let through = |i: usize| via.binary_search_by_key(&i, |x| x.0).is_ok();
+    let mut touched: Vec<u32> = (rec.log.iter().enumerate())
+        .filter(|&(i, _)| !through(i))
+        .flat_map(|(_, a)| {
             let last = a.off + u32::from(a.size.max(1)) - 1;
             [a.off & !3, last & !3]
         })
         .collect();
     touched.sort_unstable();
     touched.dedup();
-    let apart =
-        (rec.log.iter().filter(through)).all(|a| touched.binary_search(&(a.off & !3)).is_err());
+    let apart = (via.iter()).all(|&(i, _)| touched.binary_search(&(rec.log[i].off & !3)).is_err());
     let io = (rec.io_via.iter())
         .filter(|x| x.1 == reg)
         .map(|&(i, _, addr)| (i, addr))
@@ -901,6 +908,12 @@ struct Site {
     /// Calls since the last hit or recording (saturating): past [`SCAN_AFTER`] a miss
     /// tries the predicted memo only.
     quiet: u32,
+    /// Whether its calls' base and saved registers move ([`Based`], [`Save`]): set once a
+    /// recording starts with another value in one of r0-r7 that the last recorded call
+    /// read (`seen`: which, and their values); until then its recordings track neither
+    /// (where nothing moves, tracking costs and gains nothing).
+    moving: bool,
+    seen: Option<(u16, [u32; 8])>,
 }
 
 /// What [`Memos::call`] found at a watched entry.
@@ -1013,6 +1026,8 @@ impl Memos {
                     streak: 0,
                     epoch: u32::MAX,
                     quiet: 0,
+                    moving: false,
+                    seen: None,
                 });
                 self.sites.len() - 1
             }
@@ -1115,6 +1130,11 @@ impl Memos {
     pub(crate) fn begin(&mut self, core: &Core, sys: &System) -> Recording {
         let k = core.id & 1;
         let site = self.site(core);
+        let s = &mut self.sites[site];
+        if let Some((live, r)) = s.seen {
+            s.moving |= (0..8).any(|i| live >> i & 1 != 0 && core.r[i] != r[i]);
+        }
+        let moving = s.moving;
         Recording {
             site,
             end: self.sites[site].end,
@@ -1137,14 +1157,15 @@ impl Memos {
             spoiled: false,
             io_banks: 0,
             io: Vec::new(),
-            bases: BASES,
+            bases: if moving { BASES } else { 0 },
             via: None,
+            log_via: Vec::new(),
             io_via: Vec::new(),
-            saves: [Save::Entry; 4],
+            saves: [if moving { Save::Entry } else { Save::Lost }; 4],
             saving: 0,
-            kept: 0xf0,
+            kept: if moving { 0xf0 } else { 0 },
             restored: 0,
-            lost: 0,
+            lost: if moving { 0 } else { 0xf0 },
             slots: (u32::MAX, 0),
         }
     }
@@ -1174,9 +1195,15 @@ impl Memos {
         let mut banks = rec.fetch_banks;
         let based = based_of(&rec);
         let base_bit = based.as_ref().map_or(0, |b| 1u16 << b.reg);
-        for a in &rec.log {
+        // The loads through the base are its words, not inputs here (their places in the
+        // log, ascending).
+        let mut through = (rec.log_via.iter())
+            .filter(|x| based.is_some() && 1u16 << x.1 == base_bit)
+            .map(|x| x.0 as usize)
+            .peekable();
+        for (n, a) in rec.log.iter().enumerate() {
             banks |= 1 << sram_bank(a.off);
-            if based.is_some() && a.via.is_some_and(|v| 1u16 << v.0 == base_bit) {
+            if through.next_if_eq(&n).is_some() {
                 continue;
             }
             for i in 0..a.size as u32 {
@@ -1270,6 +1297,7 @@ impl Memos {
         };
         self.stats.recorded += 1;
         let site = &mut self.sites[rec.site];
+        site.seen = Some((rec.live_regs & 0xff, std::array::from_fn(|i| e.r[i])));
         // Memos of a past epoch never match again.
         let before = site.memos.len();
         site.memos.retain(|m| m.epoch == sys.code_epoch);
