@@ -393,6 +393,9 @@ pub(crate) struct Recording {
     /// The instruction being run loads through one of `bases`: that register and the
     /// address.
     via: Option<(u8, u32)>,
+    /// Whether its site's calls move ([`Site::moving`]): only then are candidate bases
+    /// and saved registers tracked.
+    moving: bool,
     /// Of `log`, the loads through a candidate base: index, register, address.
     log_via: Vec<(u32, u8, u32)>,
     /// Of `io`, those loaded through a candidate base: index, register, address.
@@ -433,6 +436,24 @@ impl Recording {
         {
             return false;
         }
+        if self.moving {
+            self.track_moving(core, instr, &u);
+        }
+        self.live_regs |= u.reads & !self.def_regs;
+        self.def_regs |= u.writes;
+        self.live_flags |= u.flag_reads & !self.def_flags;
+        self.def_flags |= u.flag_writes;
+        for a in [pc, pc.wrapping_add(size - 2)] {
+            if let Some((off, _)) = sram_location(a) {
+                self.fetch_banks |= 1 << sram_bank(off as u32);
+            }
+        }
+        true
+    }
+
+    /// Before `core` runs `instr` (of usage `u`) in a recording of a site whose calls move
+    /// (module documentation, "Based memos"): the candidate bases and the saved registers.
+    fn track_moving(&mut self, core: &Core, instr: &Instr, u: &Usage) {
         // A candidate base read otherwise than as an immediate-offset load's base, before
         // the call writes it, is no longer one; such a load through one is marked.
         self.via = None;
@@ -450,17 +471,7 @@ impl Recording {
             _ => None,
         };
         self.bases &= !(u.reads & open & !based.unwrap_or(0));
-        self.track_saves(core, instr, &u);
-        self.live_regs |= u.reads & !self.def_regs;
-        self.def_regs |= u.writes;
-        self.live_flags |= u.flag_reads & !self.def_flags;
-        self.def_flags |= u.flag_writes;
-        for a in [pc, pc.wrapping_add(size - 2)] {
-            if let Some((off, _)) = sram_location(a) {
-                self.fetch_banks |= 1 << sram_bank(off as u32);
-            }
-        }
-        true
+        self.track_saves(core, instr, u);
     }
 
     /// Before `core` runs `instr` (of usage `u`): the [`Save`] of r4-r7 (a `PUSH` of one
@@ -562,9 +573,11 @@ impl Recording {
     /// decoded code.
     #[inline]
     pub(crate) fn load(&mut self, off: u32, size: u32, value: u32, code: bool) {
-        self.meet_saves(off, size);
-        if let Some((r, addr)) = self.via {
-            self.log_via.push((self.log.len() as u32, r, addr));
+        if self.moving {
+            self.meet_saves(off, size);
+            if let Some((r, addr)) = self.via {
+                self.log_via.push((self.log.len() as u32, r, addr));
+            }
         }
         self.log.push(Access {
             off,
@@ -578,7 +591,9 @@ impl Recording {
     /// A store of `size` bytes at SRAM offset `off`.
     #[inline]
     pub(crate) fn store(&mut self, off: u32, size: u32) {
-        self.meet_saves(off, size);
+        if self.moving {
+            self.meet_saves(off, size);
+        }
         self.log.push(Access {
             off,
             size: size as u8,
@@ -1159,6 +1174,7 @@ impl Memos {
             io: Vec::new(),
             bases: if moving { BASES } else { 0 },
             via: None,
+            moving,
             log_via: Vec::new(),
             io_via: Vec::new(),
             saves: [if moving { Save::Entry } else { Save::Lost }; 4],
