@@ -961,8 +961,9 @@ pub(crate) struct Memos {
     /// Bit `(entry >> 1) % 64` of every entry: a clear bit rules a PC out at once.
     filter: u64,
     sites: Vec<Site>,
-    /// Per core and entry bit (as `filter`), the index in `sites` of the site found there
-    /// last: tried first by [`Memos::site`] (a hint, checked before use).
+    /// Per core and bits 1-6 of the entry XOR the return address, the index in `sites` of
+    /// the site found there last: tried first by [`Memos::site`] (a hint, checked before
+    /// use).
     hints: SiteHints,
     clock: u64,
     pub(crate) stats: MemoStats,
@@ -1000,7 +1001,9 @@ impl Memos {
     #[inline(always)]
     fn site(&mut self, core: &Core) -> usize {
         let (id, pc) = (core.id, core.r[15]);
-        let hint = &mut self.hints.0[id & 1][((pc >> 1) & 63) as usize];
+        // By entry and return address: the keys of an image share their program's update.
+        let slot = (((pc ^ core.r[14]) >> 1) & 63) as usize;
+        let hint = &mut self.hints.0[id & 1][slot];
         // The hinted site is this call's when it has the core, the entry and the end (a
         // span's end is its entry's, a function's the return address): sites are unique
         // by those three.
@@ -1010,7 +1013,7 @@ impl Memos {
             }
         }
         let i = self.find_site(core);
-        self.hints.0[id & 1][((pc >> 1) & 63) as usize] = i as u32;
+        self.hints.0[id & 1][slot] = i as u32;
         i
     }
 
