@@ -215,8 +215,11 @@ pub(crate) struct IoMemo {
     /// Whether replays are looked up and recorded.
     pub(crate) on: bool,
     entries: Vec<Arc<MemoEntry>>,
-    /// Per entry, the entry the window after its window took last (a hint: tried first).
-    follow: Vec<Option<usize>>,
+    /// Per entry, the entries a window after its window took, the last taken first (at
+    /// most [`FOLLOWERS`]; `usize::MAX` none): each starts where the entry ends but for
+    /// data (a link made only where the I/O was compared, or untouched since), so they
+    /// are tried first, without comparing the I/O while it is untouched.
+    follow: Vec<[usize; FOLLOWERS]>,
     /// The entry the next one replaces once the memo is full.
     next: usize,
     /// The entry the last window's replay was: the next window tries first the one that
@@ -235,8 +238,12 @@ impl IoMemo {
     /// touches at `after`; `linked` when the window's start is known to have been the last
     /// entry's end (compared, or not touched since).
     fn followed_by(&mut self, i: usize, linked: bool, after: Option<(u64, u64)>) {
-        if let Some(f) = self.last.and_then(|l| self.follow.get_mut(l)) {
-            *f = if linked { Some(i) } else { None };
+        // A link is the two entries' (the second starts where the first ends): a window
+        // not known to follow leaves the links there are.
+        if let (true, Some(f)) = (linked, self.last.and_then(|l| self.follow.get_mut(l))) {
+            let at = f.iter().position(|&x| x == i).unwrap_or(FOLLOWERS - 1);
+            f.copy_within(0..at, 1);
+            f[0] = i;
         }
         self.last = Some(i);
         self.after = after;
@@ -246,18 +253,18 @@ impl IoMemo {
     fn keep(&mut self, e: Arc<MemoEntry>) -> usize {
         if self.entries.len() < MEMO_ENTRIES {
             self.entries.push(e);
-            self.follow.push(None);
+            self.follow.push([usize::MAX; FOLLOWERS]);
             return self.entries.len() - 1;
         }
         let at = self.next;
         self.entries[at] = e;
         // No link leads to the entry replaced, nor from it.
-        for f in &mut self.follow {
-            if *f == Some(at) {
-                *f = None;
+        for f in self.follow.iter_mut().flatten() {
+            if *f == at {
+                *f = usize::MAX;
             }
         }
-        self.follow[at] = None;
+        self.follow[at] = [usize::MAX; FOLLOWERS];
         if self.last == Some(at) {
             self.last = None;
         }
@@ -284,6 +291,10 @@ impl Default for IoMemo {
 /// handful of control states at its ticks, whatever its keys do; more entries cover the
 /// start-up and the rare constraint that data breaks).
 const MEMO_ENTRIES: usize = 64;
+
+/// The most entries kept as following an entry ([`IoMemo::follow`]): a control state's
+/// next window can take one of a few (the data decides), each tried before the others.
+const FOLLOWERS: usize = 4;
 
 /// The process's store of recorded replays, shared by every board (module documentation):
 /// the boards of a keyboard run the same drivers, and an entry's key is the whole state it
@@ -694,16 +705,16 @@ impl Board {
             }
         }
         let memo = &self.io_memo;
-        let first = memo.last.and_then(|l| *memo.follow.get(l)?);
+        let first = (memo.last)
+            .and_then(|l| memo.follow.get(l).copied())
+            .unwrap_or([usize::MAX; FOLLOWERS]);
+        let followers = first.iter().copied().filter(|&f| f != usize::MAX);
         let untouched = memo.after.is_some() && memo.after == Some(now.touches());
         let n = memo.entries.len();
         let mut shared = None;
         let mark = self.system.io_journal.as_ref().map_or(0, Vec::len);
-        for i in first
-            .into_iter()
-            .chain((0..n).filter(|&j| Some(j) != first))
-        {
-            let known = untouched && Some(i) == first;
+        for i in followers.chain((0..n).filter(|j| !first.contains(j))) {
+            let known = untouched && first.contains(&i);
             let fits = match (self.system.io.as_deref(), self.io_memo.entries.get(i)) {
                 (Some(now), Some(e)) => probe.fits(e, now, logs, known),
                 _ => false,
