@@ -101,7 +101,7 @@ pub const MAX_ENTRIES: usize = 64;
 /// Registers a call's loads may be based on ([`Based`]): the AAPCS argument registers
 /// r0-r3 (a key update's r1 is its sensor words' address).
 const BASES: u16 = 0xf;
-/// Registers a call may save and restore ([`Saved`]): the callee-saved low registers
+/// Registers a call may save and restore ([`Save`]): the callee-saved low registers
 /// r4-r7 (AAPCS), which a key update pushes at its entry and pops at its return.
 const SAVES: std::ops::RangeInclusive<u8> = 4..=7;
 
