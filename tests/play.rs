@@ -298,6 +298,12 @@ fn the_converter_board_plays_the_demo_through_its_i_o_and_counts_its_windows() {
     assert!(windows > 1000, "{line}");
     assert!(hits > 0 && hits < windows, "{line}");
     assert!(!plain.contains("converters' I/O:"), "{plain}");
+    // The parts' timing, checked against their data sheets on every board.
+    assert!(
+        io.contains("converters' timing against their data sheets: no breach"),
+        "{io}"
+    );
+    assert!(!plain.contains("data sheets"), "{plain}");
 }
 
 /// `--io-trace` writes every board's frames at the pins: each core's ADC samples every one

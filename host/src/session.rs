@@ -552,6 +552,17 @@ pub fn budget_text(r: &BoardsReport) -> String {
             io.stale,
             io.reach
         ));
+        // The parts' timing against their data sheets (`tactus_emulator::converters`).
+        let breaches: Vec<(usize, &String)> = (r.boards.iter().enumerate())
+            .flat_map(|(b, run)| run.io_breaches.iter().map(move |w| (b + 1, w)))
+            .collect();
+        match breaches.first() {
+            None => s.push_str("  converters' timing against their data sheets: no breach\n"),
+            Some((b, w)) => s.push_str(&format!(
+                "  converters' timing against their data sheets: {} breaches (the first: board {b}, {w})\n",
+                breaches.len()
+            )),
+        }
     }
     s
 }
@@ -690,4 +701,46 @@ fn plot_play_traces(out: &Path, stem: &str, traces: &Traces) -> Result<Vec<PathB
         wrote.push(hammer);
     }
     Ok(wrote)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::play::emulated::BoardRun;
+
+    /// A converter board's run reports its parts' timing: no breach, or how many and the
+    /// first with its board.
+    #[test]
+    fn the_budget_text_reports_the_converters_breaches() {
+        let io = tactus_emulator::IoWindows {
+            kept: 10,
+            ..Default::default()
+        };
+        let board = |breaches: &[&str]| BoardRun {
+            io_windows: io,
+            io_breaches: breaches.iter().map(|b| b.to_string()).collect(),
+            ..BoardRun::default()
+        };
+        let report = |boards: Vec<BoardRun>| BoardsReport {
+            board: "rp2040_io".into(),
+            deadline: 3015,
+            boards,
+            decimation: 1,
+            samples: 10,
+        };
+        let clean = budget_text(&report(vec![board(&[]), board(&[])]));
+        assert!(
+            clean.contains("converters' timing against their data sheets: no breach"),
+            "{clean}"
+        );
+        let what = "core 1 DAC, cycle 99: SYNC high for 10 ns, under 15 ns";
+        let broken = budget_text(&report(vec![board(&[]), board(&[what, "another"])]));
+        assert!(
+            broken.contains(&format!("2 breaches (the first: board 2, {what})")),
+            "{broken}"
+        );
+        // A plain board says nothing of converters.
+        let plain = budget_text(&report(vec![BoardRun::default()]));
+        assert!(!plain.contains("converters"), "{plain}");
+    }
 }

@@ -96,6 +96,10 @@ pub struct BoardRun {
     /// On a board with converters, what its windows' I/O replays did
     /// (`tactus_emulator::Board::io_windows`; all zero on a plain board).
     pub io_windows: tactus_emulator::IoWindows,
+    /// On a board with converters, its parts' timing breaches of their data sheets
+    /// (`tactus_emulator::converters`: each part keeps its first 65,536), as "core *c*
+    /// ADC|DAC, cycle *n*: what"; empty on a plain board.
+    pub io_breaches: Vec<String>,
 }
 
 /// The whole keyboard's run.
@@ -399,6 +403,16 @@ impl<'p> BoardEngine<'p> {
         self.report.memo = self.run.board().memo_stats();
         self.report.rest_replayed = self.run.rest_replayed();
         self.report.io_windows = self.run.board().io_windows();
+        if let Some(io) = self.run.board().io() {
+            let adcs = (io.adcs.iter().enumerate()).map(|(k, a)| (k, "ADC", a.violations()));
+            let dacs = (io.dacs.iter().enumerate()).map(|(k, d)| (k, "DAC", d.violations()));
+            for (core, part, vs) in adcs.chain(dacs) {
+                self.report.io_breaches.extend(
+                    vs.iter()
+                        .map(|v| format!("core {core} {part}, cycle {}: {}", v.cycle, v.what)),
+                );
+            }
+        }
         if !self.steps.is_multiple_of(self.decimation) {
             self.report.cycles.push(self.block_max);
         }
