@@ -252,6 +252,12 @@ pub(crate) trait Recorded: Clone {
     /// for a run that never reads them). Timing violations are kept as before.
     fn set_kept(&mut self, max: usize);
 
+    /// Whether it keeps no more frames or updates ([`Recorded::kept`] of them already).
+    fn is_full(&mut self) -> bool {
+        let max = self.kept();
+        self.records().0.len() >= max
+    }
+
     /// How many of each it has recorded.
     fn record_counts(&mut self) -> [usize; 2] {
         let (items, violations) = self.records();
@@ -701,9 +707,11 @@ impl Ads8688 {
 
     fn cs_rise(&mut self, cycle: u64) {
         self.sdo = false;
+        // The frame is kept (and its code's lanes with it) while there is room.
+        let room = !self.is_full();
         if let Some(l) = self.lanes.as_deref_mut() {
             l.sdo = Lane::CONST;
-            if self.frame.is_some() && self.frames.len() < self.kept {
+            if self.frame.is_some() && room {
                 l.frames.push(l.frame_code);
             }
         }
@@ -717,7 +725,7 @@ impl Ads8688 {
                     ),
                 );
             }
-            if self.frames.len() < self.kept {
+            if room {
                 self.frames.push(f);
             }
         }
@@ -1254,15 +1262,17 @@ impl Dac8568 {
             _ => {}
         }
         for c in (0..8).filter(|c| changed & (1 << c) != 0) {
+            // The update is kept (and its code's lanes with it) while there is room.
+            let room = !self.is_full();
             if let Some(l) = self.lanes.as_deref_mut() {
                 l.output[c] = l.input[c];
-                if self.updates.len() < self.kept {
+                if room {
                     l.updates.push(l.output[c]);
                 }
             }
             self.output[c] = self.input[c];
             let code = self.output[c];
-            if self.updates.len() < self.kept {
+            if room {
                 self.updates.push(DacUpdate {
                     cycle,
                     channel: c as u8,

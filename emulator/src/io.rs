@@ -1228,7 +1228,7 @@ impl Io {
     /// recorded them would.
     fn append_records_coded(&mut self, records: &IoRecords, r: Rebase, codes: Option<RecordCodes>) {
         for (k, (a, frames)) in self.adcs.iter_mut().zip(&records.adcs).enumerate() {
-            if a.frames().len() >= a.kept() {
+            if a.is_full() {
                 continue;
             }
             let routes = codes.map(|c| c.frames.get(k));
@@ -1245,7 +1245,7 @@ impl Io {
             }));
         }
         for (k, (d, updates)) in self.dacs.iter_mut().zip(&records.dacs).enumerate() {
-            if d.updates().len() >= d.kept() {
+            if d.is_full() {
                 continue;
             }
             let routes = codes.map(|c| c.updates.get(k));
@@ -1283,8 +1283,7 @@ impl Io {
     /// Whether every part keeps as many frames or updates as it can
     /// ([`Recorded::kept`]): appending more changes nothing.
     pub(crate) fn records_full(&mut self) -> bool {
-        self.adcs.iter().all(|a| a.frames().len() >= a.kept())
-            && self.dacs.iter().all(|d| d.updates().len() >= d.kept())
+        self.adcs.iter_mut().all(|a| a.is_full()) && self.dacs.iter_mut().all(|d| d.is_full())
     }
 
     /// Whether its parts keep their frames and updates (at most
