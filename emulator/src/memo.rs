@@ -502,7 +502,7 @@ impl Recording {
             }
             let read = u.reads & bit != 0;
             let written = u.writes & bit != 0;
-            self.saves[i] = match (self.saves[i], *instr) {
+            let now = match (self.saves[i], *instr) {
                 (Save::Entry, Instr::Push { list })
                     if list & bit != 0 && self.def_regs & bit == 0 =>
                 {
@@ -526,20 +526,26 @@ impl Recording {
                 (Save::Restored(_), _) if read || written => Save::Lost,
                 (s, _) => s,
             };
-            match self.saves[i] {
-                Save::Entry | Save::Pushed(_) => {}
-                Save::Restored(_) => {
-                    self.restored |= bit;
-                    self.kept &= !bit;
-                }
-                Save::Lost => {
-                    self.lost |= bit;
-                    self.kept &= !bit;
-                    self.restored &= !bit;
-                }
+            self.set_save(r, now);
+        }
+    }
+
+    /// Register `r` (of [`SAVES`]) now stands as `s`: its [`Save`], the masks of them, and
+    /// the span of the words pushed to.
+    fn set_save(&mut self, r: u8, s: Save) {
+        let bit = 1u16 << r;
+        self.saves[(r - 4) as usize] = s;
+        match s {
+            Save::Entry => {}
+            Save::Pushed(at) => self.slots = (self.slots.0.min(at), self.slots.1.max(at)),
+            Save::Restored(_) => {
+                self.restored |= bit;
+                self.kept &= !bit;
             }
-            if let Save::Pushed(at) = self.saves[i] {
-                self.slots = (self.slots.0.min(at), self.slots.1.max(at));
+            Save::Lost => {
+                self.lost |= bit;
+                self.kept &= !bit;
+                self.restored &= !bit;
             }
         }
     }
@@ -552,13 +558,9 @@ impl Recording {
             return;
         }
         for r in SAVES {
-            let i = (r - 4) as usize;
-            if let Save::Pushed(at) | Save::Restored(at) = self.saves[i] {
+            if let Save::Pushed(at) | Save::Restored(at) = self.saves[(r - 4) as usize] {
                 if (at == lo || at == hi) && self.saving & 1 << r == 0 {
-                    self.saves[i] = Save::Lost;
-                    self.lost |= 1 << r;
-                    self.kept &= !(1 << r);
-                    self.restored &= !(1 << r);
+                    self.set_save(r, Save::Lost);
                 }
             }
         }
@@ -605,9 +607,8 @@ impl Recording {
 
     /// An access of the call to a bank the I/O's DMA may reach, as the window logs it
     /// (kept with the memo: a hit logs it again, at the hit's cycles).
-    pub(crate) fn io_access(&mut self, mut a: IoAccess) {
-        a.start -= self.entry.cycle;
-        a.cycle -= self.entry.cycle;
+    pub(crate) fn io_access(&mut self, a: IoAccess) {
+        let a = a.since(self.entry.cycle);
         if let (Some((r, addr)), IoKind::Load) = (self.via, a.kind) {
             self.io_via.push((self.io.len() as u32, r, addr));
         }

@@ -141,6 +141,15 @@ impl IoAccess {
             kind,
         }
     }
+
+    /// The access with its cycles counted from `base` (a memo's time base).
+    pub(crate) fn since(&self, base: u64) -> IoAccess {
+        IoAccess {
+            start: self.start.wrapping_sub(base),
+            cycle: self.cycle.wrapping_sub(base),
+            ..*self
+        }
+    }
 }
 
 /// The log a window's [`super::window`] bus writes for one core.
@@ -379,11 +388,7 @@ fn reg_stores(logs: &[Vec<IoAccess>; 2], base: u64) -> [Vec<IoAccess>; 2] {
     logs.each_ref().map(|log| {
         (log.iter())
             .filter(|a| a.kind == IoKind::Reg)
-            .map(|a| IoAccess {
-                start: a.start.wrapping_sub(base),
-                cycle: a.cycle.wrapping_sub(base),
-                ..*a
-            })
+            .map(|a| a.since(base))
             .collect()
     })
 }
@@ -430,15 +435,8 @@ impl Probe {
         let regs = || {
             logs.iter().zip(&e.regs).all(|(log, theirs)| {
                 let mut mine = log.iter().filter(|a| a.kind == IoKind::Reg);
-                (theirs.iter()).all(|r| {
-                    mine.next().is_some_and(|a| {
-                        IoAccess {
-                            start: a.start.wrapping_sub(base),
-                            cycle: a.cycle.wrapping_sub(base),
-                            ..*a
-                        } == *r
-                    })
-                }) && mine.next().is_none()
+                (theirs.iter()).all(|r| mine.next().is_some_and(|a| a.since(base) == *r))
+                    && mine.next().is_none()
             })
         };
         let to_memo = Rebase {
@@ -723,13 +721,9 @@ impl Board {
                 continue;
             }
             let e = Arc::clone(&self.io_memo.entries[i]);
-            match self.io_memo_apply(&e, logs, base) {
-                Tried::Miss => self.io_undo_since(mark),
-                done => {
-                    let after = self.system.io.as_deref().map(Io::touches);
-                    self.io_memo.followed_by(i, true, after);
-                    return done;
-                }
+            if let Some(r) = self.io_memo_try(&e, logs, base, mark) {
+                self.io_memo_followed_by(i, true);
+                return Tried::Done(r);
             }
         }
         // Another board's recordings, from the process's store.
@@ -745,27 +739,43 @@ impl Board {
             });
         }
         for e in shared.into_iter().flatten() {
-            match self.io_memo_apply(&e, logs, base) {
-                Tried::Miss => self.io_undo_since(mark),
-                done => {
-                    self.io_windows.memo_shared += 1;
-                    let i = self.io_memo.keep(e);
-                    let after = self.system.io.as_deref().map(Io::touches);
-                    self.io_memo.followed_by(i, true, after);
-                    return done;
-                }
+            if let Some(r) = self.io_memo_try(&e, logs, base, mark) {
+                self.io_windows.memo_shared += 1;
+                let i = self.io_memo.keep(e);
+                self.io_memo_followed_by(i, true);
+                return Tried::Done(r);
             }
         }
         Tried::Miss
     }
 
-    /// Undoes the SRAM writes journaled since `mark` (a try of the period memo that broke
-    /// off).
-    fn io_undo_since(&mut self, mark: usize) {
-        if let Some(j) = self.system.io_journal.as_mut() {
-            let undo: Vec<u64> = j.drain(mark.min(j.len())..).collect();
-            undo_stores(&mut self.system, &undo);
+    /// One try of entry `e` ([`Board::io_memo_apply`]): what became of the window, or
+    /// `None` when a word the DMA reads broke its constraints — then the SRAM writes
+    /// journaled since `mark` are undone.
+    fn io_memo_try(
+        &mut self,
+        e: &MemoEntry,
+        logs: &[Vec<IoAccess>; 2],
+        base: u64,
+        mark: usize,
+    ) -> Option<Result<(), Violation>> {
+        match self.io_memo_apply(e, logs, base) {
+            Tried::Done(r) => Some(r),
+            Tried::Miss => {
+                if let Some(j) = self.system.io_journal.as_mut() {
+                    let undo: Vec<u64> = j.drain(mark.min(j.len())..).collect();
+                    undo_stores(&mut self.system, &undo);
+                }
+                None
+            }
         }
+    }
+
+    /// Entry `i` gave (or recorded) this window ([`IoMemo::followed_by`]), the I/O's
+    /// touches now where it left them.
+    fn io_memo_followed_by(&mut self, i: usize, linked: bool) {
+        let after = self.system.io.as_deref().map(Io::touches);
+        self.io_memo.followed_by(i, linked, after);
     }
 
     /// Does the replay entry `e` recorded, with the window's data (module documentation):
@@ -1009,8 +1019,7 @@ impl Board {
             shared.push(Arc::clone(&entry));
         }
         let at = self.io_memo.keep(entry);
-        let after = self.system.io.as_deref().map(Io::touches);
-        self.io_memo.followed_by(at, linked, after);
+        self.io_memo_followed_by(at, linked);
         self.io_windows.memo_recorded += 1;
         r
     }
