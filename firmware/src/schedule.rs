@@ -109,36 +109,56 @@ pub fn partition_capped(
     if cells > 1 << 25 {
         return None;
     }
-    // reach[i][w][s]: some subset of the first i keys has width w and cost s (core 1's).
+    // reach[i][w] bit s: some subset of the first i keys has width w and cost s (core
+    // 1's), a bit set of `sn` bits per (i, w) in `words` words.
     let (wn, sn) = (w_all + 1, total as usize + 1);
-    let at = |i: usize, w: usize, s: usize| (i * wn + w) * sn + s;
-    let mut reach = vec![false; (n + 1) * wn * sn];
-    reach[at(0, 0, 0)] = true;
+    let words = sn.div_ceil(64);
+    let row = |i: usize, w: usize| (i * wn + w) * words;
+    let mut reach = vec![0u64; (n + 1) * wn * words];
+    reach[row(0, 0)] = 1;
     for i in 0..n {
         let (c, k) = (costs[i] as usize, widths[i] as usize);
+        let (before, after) = reach.split_at_mut(row(i + 1, 0));
+        let before = &before[row(i, 0)..];
         for w in 0..wn {
-            for s in 0..sn {
-                let take = w >= k && s >= c && reach[at(i, w - k, s - c)];
-                reach[at(i + 1, w, s)] = reach[at(i, w, s)] || take;
+            let to = &mut after[w * words..(w + 1) * words];
+            to.copy_from_slice(&before[w * words..(w + 1) * words]);
+            if w >= k {
+                or_shifted(to, &before[(w - k) * words..(w - k + 1) * words], c);
             }
         }
     }
+    let bit = |i: usize, w: usize, s: usize| reach[row(i, w) + s / 64] >> (s % 64) & 1 != 0;
     // Core 1's (width, cost) with both cores within the cap, the fullest core least.
     let (w1, s1) = (0..wn)
         .filter(|&w| w as u64 <= cap && width - w as u64 <= cap)
         .flat_map(|w| (0..sn).map(move |s| (w, s)))
-        .filter(|&(w, s)| reach[at(n, w, s)])
+        .filter(|&(w, s)| bit(n, w, s))
         .min_by_key(|&(_, s)| (s as u64).max(total - s as u64))?;
     let mut core = vec![0; n];
     let (mut w, mut s) = (w1, s1);
     for i in (0..n).rev() {
-        if !reach[at(i, w, s)] {
+        if !bit(i, w, s) {
             core[i] = 1;
             w -= widths[i] as usize;
             s -= costs[i] as usize;
         }
     }
     Some(core)
+}
+
+/// ORs `from` shifted up by `by` bits into `to` (bit sets of the same length, the bits
+/// shifted past the end dropped).
+fn or_shifted(to: &mut [u64], from: &[u64], by: usize) {
+    let (words, bits) = (by / 64, by % 64);
+    for j in (words..to.len()).rev() {
+        let lo = from[j - words] << bits;
+        let carry = match (bits, j.checked_sub(words + 1)) {
+            (1.., Some(src)) => from[src] >> (64 - bits),
+            _ => 0,
+        };
+        to[j] |= lo | carry;
+    }
 }
 
 #[cfg(test)]
