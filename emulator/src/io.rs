@@ -506,6 +506,7 @@ impl IoRecords {
 
 /// Writes `size` bytes of `value` at SRAM offset `off` for the DMA: journaled while a
 /// window is replayed, invalidating decoded code on the page.
+#[inline]
 pub(crate) fn dma_sram_write(mem: &mut Memory, off: usize, size: u32, value: u32) {
     if let Some(j) = mem.journal.as_deref_mut() {
         let word = off & !3;
@@ -1113,19 +1114,19 @@ impl Io {
         self.touch();
         self.idle = Idle(r.at(self.idle.0));
         self.cycle = r.at(self.cycle);
-        for c in self.dma_claim.iter_mut().flatten() {
+        for c in self.dma_claim.as_flattened_mut() {
             *c = r.at(*c);
         }
-        for c in self
-            .sm_clock
-            .iter_mut()
-            .chain(&mut self.held_until)
-            .flatten()
-        {
+        for c in self.sm_clock.as_flattened_mut() {
             *c = r.at(*c);
         }
-        for (c, _) in self.sdo_log.iter_mut().flatten() {
+        for c in self.held_until.as_flattened_mut() {
             *c = r.at(*c);
+        }
+        for log in &mut self.sdo_log {
+            for (c, _) in log {
+                *c = r.at(*c);
+            }
         }
         self.dma.rebase(r);
         self.adcs.iter_mut().for_each(|a| a.rebase(r));
@@ -1215,7 +1216,9 @@ impl Io {
         self.reach_banks = *reach_banks;
         self.sm_clock = *sm_clock;
         self.sdo_log.clone_from(sdo_log);
-        self.ahead.clone_from(ahead);
+        if !matches!((&self.ahead, ahead), (Some(a), Some(b)) if std::sync::Arc::ptr_eq(a, b)) {
+            self.ahead.clone_from(ahead);
+        }
         self.behind = *behind;
         self.held_until = *held_until;
         self.idle = *idle;
