@@ -531,6 +531,7 @@ impl Ads8688 {
     }
 
     /// Its `i`-th data word ([`Ads8688::data_slots`]' order; 0 past them).
+    #[inline]
     pub(crate) fn slot(&self, i: usize) -> u32 {
         match i {
             0..=7 => u32::from(self.codes[i]),
@@ -542,6 +543,7 @@ impl Ads8688 {
     }
 
     /// Sets its `i`-th data word ([`Ads8688::data_slots`]' order) as that visit would.
+    #[inline]
     pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
         match i {
             0..=7 => self.codes[i] = v as u16,
@@ -1041,6 +1043,7 @@ impl Dac8568 {
     }
 
     /// Its `i`-th data word ([`Dac8568::data_slots`]' order; 0 past them).
+    #[inline]
     pub(crate) fn slot(&self, i: usize) -> u32 {
         match i {
             0..=7 => u32::from(self.input[i]),
@@ -1051,6 +1054,7 @@ impl Dac8568 {
     }
 
     /// Sets its `i`-th data word ([`Dac8568::data_slots`]' order) as that visit would.
+    #[inline]
     pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
         match i {
             0..=7 => self.input[i] = v as u16,

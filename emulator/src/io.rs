@@ -925,6 +925,7 @@ impl Io {
     }
 
     /// The data word at `at` ([`Io::locate`]; 0 for `None`).
+    #[inline]
     pub(crate) fn slot_at(&self, at: Option<Slot>) -> u32 {
         match at {
             Some(Slot::Io(0)) => self.pins.0,
@@ -945,6 +946,7 @@ impl Io {
 
     /// Sets the data word at `at` ([`Io::locate`]; nothing for `None`) as
     /// [`Io::data_slots`]' visit would.
+    #[inline]
     pub(crate) fn set_slot_at(&mut self, at: Option<Slot>, v: u32) {
         match at {
             Some(Slot::Io(0)) => self.pins.0 = v,

@@ -1642,6 +1642,7 @@ impl Pio {
     }
 
     /// Sets its `i`-th data word ([`Pio::data_slots`]' order, `i` below [`Pio::SLOTS`]).
+    #[inline]
     pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
         if let Some(w) = self.slot_mut(i) {
             *w = v;
@@ -1649,6 +1650,7 @@ impl Pio {
     }
 
     /// Its `i`-th data word ([`Pio::data_slots`]' order; 0 past them).
+    #[inline]
     pub(crate) fn slot(&self, i: usize) -> u32 {
         match i {
             0 => self.out_values,
@@ -1669,6 +1671,7 @@ impl Pio {
         }
     }
 
+    #[inline]
     fn slot_mut(&mut self, i: usize) -> Option<&mut u32> {
         match i {
             0 => Some(&mut self.out_values),
