@@ -353,32 +353,22 @@ struct MemoEntry {
     update_routes: Vec<Vec<Route>>,
 }
 
-/// One SRAM access of the DMA in a [`MemoEntry`], at its tick (from the start).
-enum MemoOp {
-    /// A read of `size` bytes at `off`: the next input, whose bits under `mask` must be
-    /// `value` (they decided something).
-    Read {
-        tick: u64,
-        off: u32,
-        size: u8,
-        mask: u32,
-        value: u32,
-    },
-    /// A write of `size` bytes at `off`, their value by `route`.
-    Write {
-        tick: u64,
-        off: u32,
-        size: u8,
-        route: Route,
-    },
+/// One SRAM access of the DMA in a [`MemoEntry`]: at its tick (from the start), `size`
+/// bytes at SRAM offset `off`.
+struct MemoOp {
+    tick: u64,
+    off: u32,
+    size: u8,
+    kind: MemoOpKind,
 }
 
-impl MemoOp {
-    fn tick(&self) -> u64 {
-        match *self {
-            MemoOp::Read { tick, .. } | MemoOp::Write { tick, .. } => tick,
-        }
-    }
+/// A [`MemoOp`]'s direction.
+enum MemoOpKind {
+    /// A read: the next input, whose bits under `mask` must be `value` (they decided
+    /// something).
+    Read { mask: u32, value: u32 },
+    /// A write, its value by `route`.
+    Write { route: Route },
 }
 
 /// The register stores of each core's log of a window, their cycles from `base`: a
@@ -502,28 +492,18 @@ fn dma_ops(
     upto: u64,
     inputs: &mut Vec<u32>,
 ) -> bool {
-    while let Some(op) = ops.get(*next).filter(|op| op.tick() <= upto) {
+    while let Some(op) = ops.get(*next).filter(|op| op.tick <= upto) {
         *next += 1;
-        match *op {
-            MemoOp::Read {
-                off,
-                size,
-                mask,
-                value,
-                ..
-            } => {
-                let v = load_le(&sys.sram, off as usize, u32::from(size));
+        let size = u32::from(op.size);
+        match op.kind {
+            MemoOpKind::Read { mask, value } => {
+                let v = load_le(&sys.sram, op.off as usize, size);
                 if v & mask != value {
                     return false;
                 }
                 inputs.push(v);
             }
-            MemoOp::Write {
-                off,
-                size,
-                ref route,
-                ..
-            } => sys.io_dma_write(off, u32::from(size), route.eval(inputs)),
+            MemoOpKind::Write { ref route } => sys.io_dma_write(op.off, size, route.eval(inputs)),
         }
     }
     true
@@ -800,7 +780,7 @@ impl Board {
         // access's cycle first).
         let ops = &e.ops[..];
         let mut next = 0;
-        let mut due = ops.first().map_or(u64::MAX, MemoOp::tick);
+        let mut due = ops.first().map_or(u64::MAX, |op| op.tick);
         for a in Merged::new(logs) {
             if a.kind == IoKind::Reg {
                 continue;
@@ -810,7 +790,7 @@ impl Board {
                 if !dma_ops(&mut self.system, ops, &mut next, at, inputs) {
                     return Tried::Miss;
                 }
-                due = ops.get(next).map_or(u64::MAX, MemoOp::tick);
+                due = ops.get(next).map_or(u64::MAX, |op| op.tick);
             }
             let bank = sram_bank(a.addr) as u8;
             let some = (e.claimed.get((at / 64) as usize)).is_some_and(|w| w >> (at % 64) & 1 != 0);
@@ -922,12 +902,11 @@ impl Board {
                     input,
                 } => {
                     let (mask, value) = fixed_of(input);
-                    MemoOp::Read {
+                    MemoOp {
                         tick: tick - base,
                         off,
                         size,
-                        mask,
-                        value,
+                        kind: MemoOpKind::Read { mask, value },
                     }
                 }
                 LaneOp::Write {
@@ -936,11 +915,13 @@ impl Board {
                     size,
                     value,
                     lanes,
-                } => MemoOp::Write {
+                } => MemoOp {
                     tick: tick - base,
                     off,
                     size,
-                    route: Route::of(&lanes, value),
+                    kind: MemoOpKind::Write {
+                        route: Route::of(&lanes, value),
+                    },
                 },
             })
             .collect();
@@ -961,9 +942,9 @@ impl Board {
             .collect();
         // The data words at the start that the routes read.
         let mut needs: Vec<u32> = (ops.iter())
-            .filter_map(|op| match op {
-                MemoOp::Write { route, .. } => Some(route),
-                MemoOp::Read { .. } => None,
+            .filter_map(|op| match &op.kind {
+                MemoOpKind::Write { route } => Some(route),
+                MemoOpKind::Read { .. } => None,
             })
             .chain(patches.iter().map(|(_, r)| r))
             .chain(frame_routes.iter().flatten())
