@@ -378,9 +378,11 @@ impl System {
 
     /// The DMA's write of `size` bytes of `value` at SRAM offset `off`, as the I/O's run
     /// does it ([`crate::io::dma_sram_write`]): a period memo's hit (`board/io_window.rs`).
+    #[inline]
     pub(crate) fn io_dma_write(&mut self, off: u32, size: u32, value: u32) {
-        let (_, mut mem) = self.io_parts();
-        crate::io::dma_sram_write(&mut mem, off as usize, size, value);
+        let journal = self.io_journal.as_mut();
+        let (sram, pages, epoch) = (&mut self.sram, &mut self.code_pages, &mut self.code_epoch);
+        crate::io::dma_sram_store(sram, pages, epoch, journal, off as usize, size, value);
     }
 
     /// Core `core`'s access to SRAM bank `bank` (one the DMA may reach) in `cycle`: the I/O

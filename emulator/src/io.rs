@@ -508,14 +508,31 @@ impl IoRecords {
 /// window is replayed, invalidating decoded code on the page.
 #[inline]
 pub(crate) fn dma_sram_write(mem: &mut Memory, off: usize, size: u32, value: u32) {
-    if let Some(j) = mem.journal.as_deref_mut() {
+    let journal = mem.journal.as_deref_mut();
+    dma_sram_store(mem.sram, mem.code_pages, mem.code_epoch, journal, off, size, value);
+}
+
+/// [`dma_sram_write`] on the system's parts themselves (a period memo's hit,
+/// `crate::bus::System::io_dma_write`): the SRAM, its pages of decoded code and their
+/// epoch, and the journal.
+#[inline]
+pub(crate) fn dma_sram_store(
+    sram: &mut [u8],
+    code_pages: &mut [bool],
+    code_epoch: &mut u32,
+    journal: Option<&mut Vec<u64>>,
+    off: usize,
+    size: u32,
+    value: u32,
+) {
+    if let Some(j) = journal {
         let word = off & !3;
-        j.push((word as u64) << 32 | u64::from(load_le(mem.sram, word, 4)));
+        j.push((word as u64) << 32 | u64::from(load_le(sram, word, 4)));
     }
-    store_le(mem.sram, off, size, value);
-    if mem.code_pages[off >> 8] {
-        *mem.code_epoch = mem.code_epoch.wrapping_add(1);
-        mem.code_pages.fill(false);
+    store_le(sram, off, size, value);
+    if code_pages[off >> 8] {
+        *code_epoch = code_epoch.wrapping_add(1);
+        code_pages.fill(false);
     }
 }
 
