@@ -509,7 +509,15 @@ impl IoRecords {
 #[inline]
 pub(crate) fn dma_sram_write(mem: &mut Memory, off: usize, size: u32, value: u32) {
     let journal = mem.journal.as_deref_mut();
-    dma_sram_store(mem.sram, mem.code_pages, mem.code_epoch, journal, off, size, value);
+    dma_sram_store(
+        mem.sram,
+        mem.code_pages,
+        mem.code_epoch,
+        journal,
+        off,
+        size,
+        value,
+    );
 }
 
 /// [`dma_sram_write`] on the system's parts themselves (a period memo's hit,
