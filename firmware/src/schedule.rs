@@ -57,30 +57,73 @@ pub fn partition(costs: &[u64], cores: usize) -> Vec<usize> {
         }
         return core;
     }
-    // reach[i][s]: some subset of the first i keys sums to s (core 1's share).
+    // Core 1's share: some subset of the keys (all of width 0).
     let total = total as usize;
-    let mut reach = vec![vec![false; total + 1]; costs.len() + 1];
-    reach[0][0] = true;
-    for (i, &c) in costs.iter().enumerate() {
-        let c = c as usize;
-        for s in 0..=total {
-            reach[i + 1][s] = reach[i][s] || (s >= c && reach[i][s - c]);
-        }
-    }
+    let reach = SubsetSums::new(costs, &vec![0; costs.len()], 0);
     // The core-1 share closest to half from below (core 0 takes the larger share).
     let best = (0..=total / 2)
         .rev()
-        .find(|&s| reach[costs.len()][s])
+        .find(|&s| reach.has(costs.len(), 0, s))
         .unwrap_or(0);
     let mut core = vec![0; costs.len()];
     let mut s = best;
     for i in (0..costs.len()).rev() {
-        if !reach[i][s] {
+        if !reach.has(i, 0, s) {
             core[i] = 1;
             s -= costs[i] as usize;
         }
     }
     core
+}
+
+/// The subset-sum table of [`partition`] and [`partition_capped`]: for keys of `costs`
+/// (cycles) and `widths` (converter channels), whether some subset of the first `i` keys
+/// has width `w` and cost `s` — per (i, w) a bit set over the costs 0 to their total, each
+/// key's row the previous one ORed with itself shifted by the key's cost.
+struct SubsetSums {
+    /// Widths 0 to `width`, and 64-bit words per row.
+    wn: usize,
+    words: usize,
+    bits: Vec<u64>,
+}
+
+impl SubsetSums {
+    /// The table for widths up to `width` (the keys' total width) and costs up to their
+    /// total; the callers bound its size first.
+    fn new(costs: &[u64], widths: &[u32], width: usize) -> SubsetSums {
+        let n = costs.len();
+        let total: u64 = costs.iter().sum();
+        let (wn, words) = (width + 1, (total as usize + 1).div_ceil(64));
+        let mut t = SubsetSums {
+            wn,
+            words,
+            bits: vec![0u64; (n + 1) * wn * words],
+        };
+        t.bits[0] = 1;
+        for i in 0..n {
+            let (c, k) = (costs[i] as usize, widths[i] as usize);
+            let (this, next) = (t.row(i, 0), t.row(i + 1, 0));
+            let (before, after) = t.bits.split_at_mut(next);
+            let before = &before[this..];
+            for w in 0..wn {
+                let to = &mut after[w * words..(w + 1) * words];
+                to.copy_from_slice(&before[w * words..(w + 1) * words]);
+                if w >= k {
+                    or_shifted(to, &before[(w - k) * words..(w - k + 1) * words], c);
+                }
+            }
+        }
+        t
+    }
+
+    fn row(&self, i: usize, w: usize) -> usize {
+        (i * self.wn + w) * self.words
+    }
+
+    /// Whether some subset of the first `i` keys has width `w` and cost `s`.
+    fn has(&self, i: usize, w: usize, s: usize) -> bool {
+        self.bits[self.row(i, w) + s / 64] >> (s % 64) & 1 != 0
+    }
 }
 
 /// [`partition`] with every core holding keys of at most `cap` in all of `widths` (a key's
@@ -109,36 +152,18 @@ pub fn partition_capped(
     if cells > 1 << 25 {
         return None;
     }
-    // reach[i][w] bit s: some subset of the first i keys has width w and cost s (core
-    // 1's), a bit set of `sn` bits per (i, w) in `words` words.
     let (wn, sn) = (w_all + 1, total as usize + 1);
-    let words = sn.div_ceil(64);
-    let row = |i: usize, w: usize| (i * wn + w) * words;
-    let mut reach = vec![0u64; (n + 1) * wn * words];
-    reach[row(0, 0)] = 1;
-    for i in 0..n {
-        let (c, k) = (costs[i] as usize, widths[i] as usize);
-        let (before, after) = reach.split_at_mut(row(i + 1, 0));
-        let before = &before[row(i, 0)..];
-        for w in 0..wn {
-            let to = &mut after[w * words..(w + 1) * words];
-            to.copy_from_slice(&before[w * words..(w + 1) * words]);
-            if w >= k {
-                or_shifted(to, &before[(w - k) * words..(w - k + 1) * words], c);
-            }
-        }
-    }
-    let bit = |i: usize, w: usize, s: usize| reach[row(i, w) + s / 64] >> (s % 64) & 1 != 0;
+    let reach = SubsetSums::new(costs, widths, w_all);
     // Core 1's (width, cost) with both cores within the cap, the fullest core least.
     let (w1, s1) = (0..wn)
         .filter(|&w| w as u64 <= cap && width - w as u64 <= cap)
         .flat_map(|w| (0..sn).map(move |s| (w, s)))
-        .filter(|&(w, s)| bit(n, w, s))
+        .filter(|&(w, s)| reach.has(n, w, s))
         .min_by_key(|&(_, s)| (s as u64).max(total - s as u64))?;
     let mut core = vec![0; n];
     let (mut w, mut s) = (w1, s1);
     for i in (0..n).rev() {
-        if !bit(i, w, s) {
+        if !reach.has(i, w, s) {
             core[i] = 1;
             w -= widths[i] as usize;
             s -= costs[i] as usize;
