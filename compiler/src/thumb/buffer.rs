@@ -368,6 +368,21 @@ impl CodeBuffer {
     ///
     /// Errors: see [`BufferError`].
     pub fn finish(&self, base: u32) -> Result<Assembled, BufferError> {
+        self.assemble(base, true)
+    }
+
+    /// [`CodeBuffer::finish`] without the listing ([`Assembled::listing`] empty): the same
+    /// bytes, labels, symbols, data, notes and marks, for code nobody reads as text (a
+    /// firmware image's glue, assembled once per image the keyboard's plan tries; its
+    /// listing was a fifth of the plan's instructions).
+    ///
+    /// Errors: see [`BufferError`].
+    pub fn finish_code(&self, base: u32) -> Result<Assembled, BufferError> {
+        self.assemble(base, false)
+    }
+
+    /// [`CodeBuffer::finish`], with the listing or not.
+    fn assemble(&self, base: u32, listing: bool) -> Result<Assembled, BufferError> {
         if !base.is_multiple_of(2) {
             return Err(BufferError::OddBase(base));
         }
@@ -407,27 +422,37 @@ impl CodeBuffer {
                 break lay;
             }
         };
-        self.encode(base, &lay, &long)
+        self.encode(base, &lay, &long, listing)
     }
 
-    fn encode(&self, base: u32, lay: &Layout, long: &[bool]) -> Result<Assembled, BufferError> {
+    fn encode(
+        &self,
+        base: u32,
+        lay: &Layout,
+        long: &[bool],
+        listing: bool,
+    ) -> Result<Assembled, BufferError> {
         let mut out = Assembled {
             text: Vec::new(),
             labels: lay.labels.iter().map(|a| a.unwrap_or(u32::MAX)).collect(),
             symbols: Vec::new(),
             data: Vec::new(),
-            listing: String::from(
-                "    .syntax unified\n    .cpu cortex-m0plus\n    .thumb\n    .text\n    .p2align 2\n",
-            ),
+            listing: String::new(),
             notes: Vec::new(),
             marks: HashMap::new(),
         };
+        let mut text = Listing {
+            on: listing,
+            text: String::from(
+                "    .syntax unified\n    .cpu cortex-m0plus\n    .thumb\n    .text\n    .p2align 2\n",
+            ),
+        };
         let mut func: Option<(String, usize)> = None;
-        let text = |out: &Assembled| out.text.len();
+        let text_len = |out: &Assembled| out.text.len();
         for (k, it) in self.items.iter().enumerate() {
             let pc = base + out.text.len() as u32;
             debug_assert_eq!(pc, lay.at[k]);
-            let listing = &mut out.listing;
+            let listing = &mut text;
             match it {
                 Item::Instr(i) => {
                     out.text.extend(enc(i)?);
@@ -467,12 +492,15 @@ impl CodeBuffer {
                     }
                 }
                 Item::Call(c) => {
-                    let (dest, name) = match *c {
-                        Callee::Label(l) => (lay.label(l)?, format!(".L{}", l.0)),
-                        Callee::Addr(a) => (a & !1, format!("{:#x}", a & !1)),
+                    let dest = match *c {
+                        Callee::Label(l) => lay.label(l)?,
+                        Callee::Addr(a) => a & !1,
                     };
                     out.text.extend(call(pc, dest)?);
-                    let _ = writeln!(listing, "    bl {name}");
+                    let _ = match *c {
+                        Callee::Label(l) => writeln!(listing, "    bl .L{}", l.0),
+                        Callee::Addr(_) => writeln!(listing, "    bl {dest:#x}"),
+                    };
                 }
                 Item::Lit { rt, pool, index } => {
                     let literal = lay.pools[*pool] + 4 * *index as u32;
@@ -487,7 +515,7 @@ impl CodeBuffer {
                     })?);
                     let _ = writeln!(listing, "    ldr r{rt}, .Lpool{pool}_{index}");
                 }
-                Item::Align4 => pad(&mut out, base)?,
+                Item::Align4 => pad(&mut out, listing, base)?,
                 Item::Word(w) => {
                     out.text.extend(w.to_le_bytes());
                     let _ = writeln!(listing, "    .word {:#x}", w);
@@ -501,15 +529,15 @@ impl CodeBuffer {
                         })?);
                         let _ = writeln!(listing, "    b .Lisland{id}_end");
                     }
-                    pad(&mut out, base)?;
-                    debug_assert_eq!(base + text(&out) as u32, lay.pools[*id]);
-                    out.data.push((text(&out), 4 * words.len()));
+                    pad(&mut out, listing, base)?;
+                    debug_assert_eq!(base + text_len(&out) as u32, lay.pools[*id]);
+                    out.data.push((text_len(&out), 4 * words.len()));
                     for (n, w) in words.iter().enumerate() {
                         out.text.extend(w.to_le_bytes());
-                        let _ = writeln!(out.listing, ".Lpool{id}_{n}:\n    .word {}", *w as i32);
+                        let _ = writeln!(listing, ".Lpool{id}_{n}:\n    .word {}", *w as i32);
                     }
                     if *jump {
-                        let _ = writeln!(out.listing, ".Lisland{id}_end:");
+                        let _ = writeln!(listing, ".Lisland{id}_end:");
                     }
                 }
                 Item::Note(s) => {
@@ -531,11 +559,37 @@ impl CodeBuffer {
                         let _ = writeln!(listing, "    .size {name}, .-{name}");
                         out.symbols.push((name, start, out.text.len() - start));
                     }
-                    pad(&mut out, base)?;
+                    pad(&mut out, listing, base)?;
                 }
             }
         }
+        if text.on {
+            out.listing = text.text;
+        }
         Ok(out)
+    }
+}
+
+/// The listing [`CodeBuffer::encode`] writes, or nothing ([`CodeBuffer::finish_code`]): off,
+/// a write formats nothing.
+struct Listing {
+    on: bool,
+    text: String,
+}
+
+impl fmt::Write for Listing {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        if self.on {
+            self.text.push_str(s);
+        }
+        Ok(())
+    }
+
+    fn write_fmt(&mut self, args: fmt::Arguments<'_>) -> fmt::Result {
+        match self.on {
+            true => self.text.write_fmt(args),
+            false => Ok(()),
+        }
     }
 }
 
@@ -574,10 +628,10 @@ fn call(at: u32, target: u32) -> Result<Vec<u8>, BufferError> {
 }
 
 /// Pads `out` to a word boundary (absolute, from `base`).
-fn pad(out: &mut Assembled, base: u32) -> Result<(), BufferError> {
+fn pad(out: &mut Assembled, listing: &mut Listing, base: u32) -> Result<(), BufferError> {
     if !(base as usize + out.text.len()).is_multiple_of(4) {
         out.text.extend(enc(&PAD)?);
-        out.listing.push_str("    mov r8, r8\n");
+        let _ = listing.write_str("    mov r8, r8\n");
     }
     Ok(())
 }

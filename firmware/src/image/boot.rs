@@ -107,7 +107,7 @@ pub fn entry_stub(vectors: u32) -> Result<Vec<u8>, ImageError> {
     a.i(Instr::MovHi { rd: 13, rm: 1 });
     a.i(Instr::Bx { rm: 2 });
     a.pool();
-    let bytes = a.finish(ENTRY)?.text;
+    let bytes = a.finish_code(ENTRY)?.text;
     if bytes.len() as u32 > ENTRY_RESERVE / 4 {
         return Err(ImageError::Assemble(format!(
             "the entry stub takes {} bytes, more than the {} its banks reserve",

@@ -168,7 +168,7 @@ pub fn code() -> Result<Assembled, ImageError> {
     a.bc(cond::NE, top);
     a.i(asm::pop_pc(0b11));
     a.pool();
-    Ok(a.finish(BOOT2_LOAD)?)
+    Ok(a.finish_code(BOOT2_LOAD)?)
 }
 
 /// boot2 as it goes into flash: [`code`] padded with zeros to 252 bytes and followed by its

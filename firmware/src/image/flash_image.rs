@@ -115,7 +115,7 @@ impl FirmwareImage {
             a.bind(halt);
             a.b(halt);
             a.pool();
-            Ok((a.finish(code_at)?, halt))
+            Ok((a.finish_code(code_at)?, halt))
         };
         let (sized, _) = handler(0x1000_0000, 0x1000_0004)?;
         let table = (code_at + sized.text.len() as u32).next_multiple_of(4);

@@ -489,7 +489,7 @@ pub(super) fn place_code_blocks(
     let mut block_off = boot::ENTRY_RESERVE;
     for (core, c) in cc.iter_mut().enumerate() {
         let g = assemble_glue(l, core, BANK_LIMIT / 2, c, &provisional)?;
-        let bytes = g.asm.finish(c.start + c.glue)?.text;
+        let bytes = g.asm.finish_code(c.start + c.glue)?.text;
         c.start += block_off;
         block_off += (c.glue + bytes.len() as u32 + 64).next_multiple_of(256);
     }

@@ -639,7 +639,7 @@ pub fn limiter_routine(
     let mut a = CodeBuffer::new(LongBranch::Refuse);
     let entry = a.label();
     glue::limiter_function(&mut a, entry, &consts, &dac, scale)?;
-    let out = a.finish(base)?;
+    let out = a.finish_code(base)?;
     Ok((out.text, out.labels[entry.index()]))
 }
 
@@ -664,7 +664,7 @@ pub fn guard_record_routine(words: &[u32], base: u32) -> Result<(Vec<u8>, u32), 
     glue::guard_record(&mut a, &g, 0, None);
     a.i(tactus_compiler::thumb::ins::pop_pc(0xf0));
     a.pool();
-    let out = a.finish(base)?;
+    let out = a.finish_code(base)?;
     Ok((out.text, out.labels[entry.index()]))
 }
 
@@ -871,7 +871,7 @@ impl FirmwareImage {
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
             let g = layout::assemble_glue(&l, core, data_off, c, &boot)?;
-            let out = g.asm.finish(base + c.glue)?;
+            let out = g.asm.finish_code(base + c.glue)?;
             let (glue_bytes, addr) = (out.text, out.labels);
             if addr[g.labels.reset.index()] != base + c.glue {
                 return Err(ImageError::Assemble(format!(
