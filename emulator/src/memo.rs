@@ -70,7 +70,8 @@
 //! would not repeat this one) is not recorded, its backoff counted as if it were: on the
 //! demo that took the span recordings from 941 to 160 (plain board) and from 1,212 to
 //! 353 (converters), each an interpretation of every key of a core, for 15 % fewer span
-//! hits. Tests: `tests/memo.rs` (random calls
+//! hits (`tests/memo.rs::a_span_whose_call_missed_last_run_is_not_recorded`). Tests:
+//! `tests/memo.rs` (random calls
 //! against the interpreter, one input changed at a time), `firmware/tests/image.rs` and the
 //! keyboard comparisons (firmware images on the block engine, memoized, against the
 //! interpreter).

@@ -293,3 +293,68 @@ fn a_memo_moves_with_its_base_and_keeps_the_saved_registers() {
     assert_eq!(sums, [16, 16, 16, 16, 17, 14], "the sums");
     assert_eq!(hits, [0, 0, 1, 2, 2, 2], "hits after each call");
 }
+
+/// A span (a core's keys part) around a watched call: while the call's inputs change every
+/// run (a key moving), the span is not recorded — its last run had a call miss, so a
+/// recording would hold inputs the next run does not repeat — beyond its first run, before
+/// any call missed; once they stop changing, the span is recorded and replaces the whole
+/// run (its hits cover the `BL` too). Every run equals the interpreter's.
+#[test]
+fn a_span_whose_call_missed_last_run_is_not_recorded() {
+    let body: [u16; 4] = [
+        0x6838, // ldr r0, [r7, #0]
+        0x3001, // adds r0, #1
+        0x6078, // str r0, [r7, #4]
+        0x4770, // bx lr
+    ];
+    let bytes: Vec<u8> = body.iter().flat_map(|h| h.to_le_bytes()).collect();
+    // The span: the caller's `BL` (to the `B .` after it).
+    let span = (CALLER, CALLER + 4);
+    let mut boards = [
+        board(Engine::Block),
+        board(Engine::Block),
+        board(Engine::Interp),
+    ];
+    boards[0].memoize(&[FUNC | 1], &[span]);
+    for b in boards.iter_mut() {
+        b.write_bytes(FUNC, &bytes).unwrap();
+    }
+    let mut run = |boards: &mut [Board; 3], word: u32| {
+        let mut got = Vec::new();
+        for b in boards.iter_mut() {
+            b.write_data(DATA, &word.to_le_bytes()).unwrap();
+            b.start_core(0, CALLER | 1, SP, VTOR);
+            let now = b.cores[0].cycle.max(b.cores[1].cycle) + 5000;
+            b.cores[0].cycle = now;
+            b.cores[1].cycle = now;
+            b.cores[0].r[7] = DATA;
+            let stop = b.run_until(now + 600);
+            got.push((stop, state(b)));
+        }
+        assert_eq!(got[0], got[2], "the span's board against the interpreter");
+        assert_eq!(got[1], got[2], "the call's board against the interpreter");
+    };
+    // Moving: a new word every run.
+    for i in 0..64 {
+        run(&mut boards, 1000 + i);
+    }
+    let (span, call) = (boards[0].memo_stats(), boards[1].memo_stats());
+    assert!(
+        span.recorded <= call.recorded + 1,
+        "moving: the span recorded beyond its first run: {span:?} against {call:?}"
+    );
+    // At rest: the same word from now on.
+    for _ in 0..256 {
+        run(&mut boards, 7);
+    }
+    let (span2, call2) = (boards[0].memo_stats(), boards[1].memo_stats());
+    assert!(span2.recorded > span.recorded, "at rest: {span2:?}");
+    assert!(call2.hits > call.hits + 100, "at rest, the call: {call2:?}");
+    let per_hit = |a: tactus_emulator::MemoStats, b: tactus_emulator::MemoStats| {
+        (a.hit_cycles - b.hit_cycles) as f64 / (a.hits - b.hits).max(1) as f64
+    };
+    assert!(
+        per_hit(span2, span) > per_hit(call2, call),
+        "at rest the span's memo replaces the call and its BL: {span2:?} against {call2:?}"
+    );
+}
