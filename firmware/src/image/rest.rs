@@ -94,7 +94,10 @@ pub(super) struct Rest {
     /// The longest period replayed, samples, and the replays a budget's room ended.
     pub longest: usize,
     pub room_ends: u64,
-    /// A recording's buffers kept for the next (their allocations reused).
+    /// A recording's buffers kept for the next (their allocations reused): every buffer a
+    /// recording made stays here or in the phase ([`Rest::keep_spare`]), so that a board
+    /// clones a [`SampleOut`] (a dozen vectors) only for a recording longer than any
+    /// before.
     pub spare: Vec<SampleOut>,
 }
 
@@ -149,12 +152,18 @@ impl Rest {
         }
     }
 
+    /// Keeps `outs` (a recording's or a replay's buffers, done with) among the spare ones.
+    pub fn keep_spare(&mut self, mut outs: Vec<SampleOut>) {
+        outs.append(&mut self.spare);
+        self.spare = outs;
+    }
+
     /// Back to watching, as if no sample had been seen (the buffers kept).
     pub fn forget(&mut self) {
         if let Phase::Recording { outs, .. } | Phase::Replaying { outs, .. } =
             std::mem::replace(&mut self.phase, Phase::Watching)
         {
-            self.spare = outs;
+            self.keep_spare(outs);
         }
         self.last.clear();
         self.same = 0;

@@ -685,7 +685,7 @@ impl ImageRun {
                 self.samples
             )));
         }
-        self.rest.spare = outs;
+        self.rest.keep_spare(outs);
         Ok(())
     }
 
@@ -696,7 +696,7 @@ impl ImageRun {
             if let Phase::Recording { outs, .. } =
                 std::mem::replace(&mut self.rest.phase, Phase::Watching)
             {
-                self.rest.spare = outs;
+                self.rest.keep_spare(outs);
             }
             return;
         }
@@ -766,7 +766,8 @@ impl ImageRun {
             };
             // The period's samples first; the buffers before them kept for the next.
             outs[..filled].rotate_left(*at);
-            self.rest.spare = outs.split_off(filled - at);
+            let tail = outs.split_off(filled - at);
+            self.rest.keep_spare(tail);
             self.rest.longest = self.rest.longest.max(outs.len());
             words.drain(..at * per);
             return Phase::Replaying {
