@@ -99,6 +99,8 @@ pub(super) struct Rest {
     /// clones a [`SampleOut`] (a dozen vectors) only for a recording longer than any
     /// before.
     pub spare: Vec<SampleOut>,
+    /// The largest out-words buffer a recording used, kept for the next (empty).
+    pub spare_words: Vec<u32>,
 }
 
 impl Rest {
@@ -115,6 +117,7 @@ impl Rest {
             longest: 0,
             room_ends: 0,
             spare: Vec::new(),
+            spare_words: Vec::new(),
         }
     }
 
@@ -158,12 +161,22 @@ impl Rest {
         self.spare = outs;
     }
 
+    /// Keeps `words` (a recording's or a replay's out words, done with) as the spare
+    /// buffer when it is the largest yet.
+    pub fn keep_words(&mut self, mut words: Vec<u32>) {
+        if words.capacity() > self.spare_words.capacity() {
+            words.clear();
+            self.spare_words = words;
+        }
+    }
+
     /// Back to watching, as if no sample had been seen (the buffers kept).
     pub fn forget(&mut self) {
-        if let Phase::Recording { outs, .. } | Phase::Replaying { outs, .. } =
+        if let Phase::Recording { outs, words, .. } | Phase::Replaying { outs, words, .. } =
             std::mem::replace(&mut self.phase, Phase::Watching)
         {
             self.keep_spare(outs);
+            self.keep_words(words);
         }
         self.last.clear();
         self.same = 0;

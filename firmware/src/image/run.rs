@@ -652,6 +652,7 @@ impl ImageRun {
         let Phase::Replaying {
             period,
             outs,
+            words,
             sensors,
             parked_at,
             given,
@@ -686,6 +687,7 @@ impl ImageRun {
             )));
         }
         self.rest.keep_spare(outs);
+        self.rest.keep_words(words);
         Ok(())
     }
 
@@ -693,10 +695,11 @@ impl ImageRun {
     /// sample's sensor words).
     fn after_sample(&mut self, same: bool) {
         if !same {
-            if let Phase::Recording { outs, .. } =
+            if let Phase::Recording { outs, words, .. } =
                 std::mem::replace(&mut self.rest.phase, Phase::Watching)
             {
                 self.rest.keep_spare(outs);
+                self.rest.keep_words(words);
             }
             return;
         }
@@ -707,7 +710,7 @@ impl ImageRun {
                     starts: vec![(Box::new(start), 0)],
                     outs: std::mem::take(&mut self.rest.spare),
                     filled: 0,
-                    words: Vec::new(),
+                    words: std::mem::take(&mut self.rest.spare_words),
                 },
                 Err(e) => Phase::Refused(e),
             },
@@ -735,7 +738,11 @@ impl ImageRun {
                     }
                 } else {
                     match self.rest_point() {
-                        Err(e) => Phase::Refused(e),
+                        Err(e) => {
+                            self.rest.keep_spare(outs);
+                            self.rest.keep_words(words);
+                            Phase::Refused(e)
+                        }
                         Ok(end) => self.try_periods(end, starts, outs, filled, words),
                     }
                 }
