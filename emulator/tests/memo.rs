@@ -319,7 +319,7 @@ fn a_span_whose_call_missed_last_run_is_not_recorded() {
     for b in boards.iter_mut() {
         b.write_bytes(FUNC, &bytes).unwrap();
     }
-    let mut run = |boards: &mut [Board; 3], word: u32| {
+    let run = |boards: &mut [Board; 3], word: u32| {
         let mut got = Vec::new();
         for b in boards.iter_mut() {
             b.write_data(DATA, &word.to_le_bytes()).unwrap();
