@@ -443,10 +443,11 @@ impl CodeBuffer {
         };
         let mut text = Listing {
             on: listing,
-            text: String::from(
-                "    .syntax unified\n    .cpu cortex-m0plus\n    .thumb\n    .text\n    .p2align 2\n",
-            ),
+            text: String::new(),
         };
+        let _ = text.write_str(
+            "    .syntax unified\n    .cpu cortex-m0plus\n    .thumb\n    .text\n    .p2align 2\n",
+        );
         let mut func: Option<(String, usize)> = None;
         let text_len = |out: &Assembled| out.text.len();
         for (k, it) in self.items.iter().enumerate() {

@@ -161,9 +161,11 @@ impl Rest {
         self.spare = outs;
     }
 
-    /// Keeps `words` (a recording's or a replay's out words, done with) as the spare
-    /// buffer when it is the largest yet.
-    pub fn keep_words(&mut self, mut words: Vec<u32>) {
+    /// Keeps a recording's or a replay's buffers, done with: its samples among the spare
+    /// ones ([`Rest::keep_spare`]), its out words as the spare buffer when it is the
+    /// largest yet.
+    pub fn keep_buffers(&mut self, outs: Vec<SampleOut>, mut words: Vec<u32>) {
+        self.keep_spare(outs);
         if words.capacity() > self.spare_words.capacity() {
             words.clear();
             self.spare_words = words;
@@ -175,8 +177,7 @@ impl Rest {
         if let Phase::Recording { outs, words, .. } | Phase::Replaying { outs, words, .. } =
             std::mem::replace(&mut self.phase, Phase::Watching)
         {
-            self.keep_spare(outs);
-            self.keep_words(words);
+            self.keep_buffers(outs, words);
         }
         self.last.clear();
         self.same = 0;

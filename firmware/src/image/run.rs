@@ -686,8 +686,7 @@ impl ImageRun {
                 self.samples
             )));
         }
-        self.rest.keep_spare(outs);
-        self.rest.keep_words(words);
+        self.rest.keep_buffers(outs, words);
         Ok(())
     }
 
@@ -698,8 +697,7 @@ impl ImageRun {
             if let Phase::Recording { outs, words, .. } =
                 std::mem::replace(&mut self.rest.phase, Phase::Watching)
             {
-                self.rest.keep_spare(outs);
-                self.rest.keep_words(words);
+                self.rest.keep_buffers(outs, words);
             }
             return;
         }
@@ -739,8 +737,7 @@ impl ImageRun {
                 } else {
                     match self.rest_point() {
                         Err(e) => {
-                            self.rest.keep_spare(outs);
-                            self.rest.keep_words(words);
+                            self.rest.keep_buffers(outs, words);
                             Phase::Refused(e)
                         }
                         Ok(end) => self.try_periods(end, starts, outs, filled, words),
