@@ -211,6 +211,10 @@ pub struct System {
     /// While a window's replay is recorded for the period memo, what the DMA does to SRAM
     /// and the banks, with lanes (`board/io_window.rs`, `crate::lanes`).
     pub(crate) io_rec: Option<Box<crate::io::LaneRec>>,
+    /// The machine a period memo's hit left behind instead of making it (`io` is then stale:
+    /// `board/io_window.rs`, "The lazy end"); made `io` by [`System::io_unlazy`] before
+    /// anything but the period memo looks at it.
+    pub(crate) io_lazy: Option<Box<crate::io::LazyEnd>>,
 }
 
 /// Every SRAM bank ([`System::allowed_banks`]).
@@ -333,6 +337,7 @@ impl System {
             code_epoch: 0,
             allowed_banks: ALL_BANKS,
             io: None,
+            io_lazy: None,
             io_banks: 0,
             io_journal: None,
             io_rec: None,
@@ -355,8 +360,36 @@ impl System {
     /// [`System::io_advance`]; without `settle`, a state machine that alone drives its
     /// converters may stay behind at a bit loop's head (`crate::io::Io::advance`).
     pub(crate) fn io_advance_to(&mut self, to: u64, settle: bool) {
+        // A lazy end already there (settled, as every period memo's end is): nothing runs.
+        if let Some(l) = self.io_lazy.as_deref() {
+            if to <= l.cycle() && !l.end.io.is_behind() {
+                return;
+            }
+        }
+        self.io_unlazy();
         if let (Some(io), mut mem) = self.io_parts() {
             io.advance(to, &mut mem, settle);
+        }
+    }
+
+    /// Makes the machine a period memo's hit left behind the live one
+    /// ([`System::io_lazy`]; nothing when there is none).
+    pub(crate) fn io_unlazy(&mut self) {
+        if let Some(l) = self.io_lazy.take() {
+            if let Some(io) = self.io.as_deref_mut() {
+                io.become_lazy(&l);
+            }
+        }
+    }
+
+    /// The I/O's control state, for what does not depend on its cycles or data (which
+    /// registers it accepts, the DMA's bus priority and reach, whether it steps): the lazy
+    /// end's ([`System::io_lazy`]) while there is one.
+    #[inline]
+    pub(crate) fn io_control(&self) -> Option<&crate::io::Io> {
+        match self.io_lazy.as_deref() {
+            Some(l) => Some(&l.end.io),
+            None => self.io.as_deref(),
         }
     }
 
@@ -389,7 +422,7 @@ impl System {
     /// run up to it; where the DMA wins against the core, also through the cycles in which
     /// the DMA claims the bank, each a wait state. Returns the wait states.
     fn io_sram(&mut self, core: usize, cycle: u64, bank: usize) -> u32 {
-        let wins = self.io.as_ref().is_some_and(|io| io.dma_wins(core));
+        let wins = self.io_control().is_some_and(|io| io.dma_wins(core));
         if !wins {
             self.io_advance_to(cycle, false);
             return 0;
@@ -405,6 +438,7 @@ impl System {
     /// whether the DMA claims `bank` in `at` (the core's access then waits a cycle).
     pub(crate) fn io_claims(&mut self, bank: usize, at: u64) -> bool {
         self.io_advance_to(at + 1, false);
+        self.io_unlazy();
         self.io.as_ref().is_some_and(|io| io.dma_claims(bank, at))
     }
 
@@ -425,6 +459,7 @@ impl System {
             _ => value,
         };
         self.io_advance(cycle);
+        self.io_unlazy();
         let ok = self
             .io
             .as_mut()
@@ -440,7 +475,7 @@ impl System {
     /// After a write to the I/O's registers: the banks the DMA may reach now, and the fast
     /// path's banks with them.
     pub(crate) fn io_refresh(&mut self) {
-        self.io_banks = self.io.as_ref().map_or(0, |io| io.reach_banks());
+        self.io_banks = self.io_control().map_or(0, |io| io.reach_banks());
         self.allowed_banks = self.fast_banks();
     }
 
@@ -670,6 +705,7 @@ impl System {
         if crate::io::Io::owns(addr) && self.io.is_some() {
             // IO_BANK0, BUSCTRL: the I/O as of this cycle.
             self.io_advance(cycle);
+            self.io_unlazy();
             return self.io.as_mut()?.read(addr);
         }
         // RESETS, clocks, PLL, XOSC, VREG, watchdog: no interrupt lines.
@@ -715,6 +751,7 @@ impl System {
         }
         if crate::io::Io::owns(addr) && self.io.is_some() {
             self.io_advance(cycle);
+            self.io_unlazy();
             let ok = self.io.as_mut().is_some_and(|io| io.write(addr, value));
             self.io_refresh();
             return ok;
@@ -724,6 +761,7 @@ impl System {
         if self.io.is_some() && clocks::block_of(addr) == Some(clocks::RESETS_BASE) {
             // PIO0, PIO1, the DMA, IO_BANK0 and BUSCTRL follow RESETS.
             self.io_advance(cycle);
+            self.io_unlazy();
             let held = self.sysctl.read(clocks::RESETS_BASE).unwrap_or(0);
             if let Some(io) = self.io.as_mut() {
                 io.set_resets(held);
@@ -767,6 +805,7 @@ impl Bus for System {
             0x5 if self.io.is_some() && crate::io::Io::owns(addr) => {
                 // The DMA and the PIOs (AHB-Lite), as of this cycle.
                 self.io_advance(cycle);
+                self.io_unlazy();
                 let io = self.io.as_mut().ok_or(BusFault { addr })?;
                 match io.read(addr & !3) {
                     Some(v) => Ok((

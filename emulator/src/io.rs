@@ -458,6 +458,64 @@ pub(crate) struct RecordCodes<'a> {
     pub inputs: &'a [u32],
 }
 
+/// A period memo entry's end state (`board/io_window.rs`): the machine at [`Rebase::MEMO`]
+/// without its records, and its data slots ([`Io::data_slots`]' order) that have no place in
+/// it (a word written there is dropped, and reads 0: an ADC's frame code without a frame).
+#[derive(Debug)]
+pub(crate) struct EndState {
+    pub(crate) io: Io,
+    absent: Vec<u32>,
+}
+
+impl EndState {
+    /// The end state `io`.
+    pub(crate) fn new(io: Io) -> EndState {
+        let mut probe = io.clone();
+        let n = {
+            let mut n = 0;
+            probe.data_slots(&mut |_, _| n += 1);
+            n
+        };
+        let absent = (0..n)
+            .filter(|&i| {
+                let at = probe.locate(i);
+                probe.set_slot_at(at, 1);
+                probe.slot_at(at) != 1
+            })
+            .map(|i| i as u32)
+            .collect();
+        EndState { io, absent }
+    }
+}
+
+/// A machine left behind by a period memo's hit (`board/io_window.rs`, "The lazy end"): the
+/// machine is `end` moved by `back` but for its data words, which are `data`
+/// ([`Io::data_slots`]' order). Made the live machine by [`Io::become_lazy`] before anything
+/// but the period memo looks at it.
+#[derive(Clone, Debug)]
+pub(crate) struct LazyEnd {
+    pub(crate) end: std::sync::Arc<EndState>,
+    pub(crate) back: Rebase,
+    pub(crate) data: Vec<u32>,
+}
+
+impl LazyEnd {
+    /// The machine's cycle ([`Io::cycle`]).
+    pub(crate) fn cycle(&self) -> u64 {
+        self.back.at(self.end.io.cycle)
+    }
+
+    /// After a hit's data words were written: those with no place in the end state read 0,
+    /// as the live machine's would.
+    pub(crate) fn drop_absent(&mut self) {
+        for &i in &self.end.absent {
+            if let Some(v) = self.data.get_mut(i as usize) {
+                *v = 0;
+            }
+        }
+    }
+}
+
 /// The parts' records of a stretch (a period memo's, `board/io_window.rs`; a rest period's,
 /// `board/rest.rs`): per ADC its frames, per DAC its updates, in [`IoConfig`] order.
 #[derive(Clone, Debug, Default)]
@@ -1254,6 +1312,34 @@ impl Io {
         self.append_records_coded(records, r, codes);
     }
 
+    /// Its data words ([`Io::data_slots`]' order) into `into` (cleared first).
+    pub(crate) fn data_words(&mut self, into: &mut Vec<u32>) {
+        into.clear();
+        self.data_slots(&mut |v, _| into.push(*v));
+    }
+
+    /// Becomes what `lazy` stands for (`board/io_window.rs`, "The lazy end"): its end moved
+    /// back, with its data words.
+    pub(crate) fn become_lazy(&mut self, lazy: &LazyEnd) {
+        // Not a change of the machine, which was this since its hit: its count stays.
+        let touches = self.touches;
+        self.become_but_data(&lazy.end.io, lazy.back, &IoRecords::default(), None);
+        self.touches = touches;
+        let mut i = 0;
+        self.data_slots(&mut |v, _| {
+            if let Some(&w) = lazy.data.get(i) {
+                *v = w;
+            }
+            i += 1;
+        });
+    }
+
+    /// The data slot ([`Io::data_slots`]' order) of ADC `adc`'s code of channel `channel`
+    /// ([`Ads8688::set_code`]).
+    pub(crate) fn adc_code_slot(&self, adc: usize, channel: usize) -> usize {
+        2 + 2 * Pio::SLOTS + crate::dma::TRANSFER_FIFO_DEPTH + adc * Ads8688::SLOTS + channel
+    }
+
     /// Appends `records` moved by `r`, their codes given by `codes` when some, as a run that
     /// recorded them would.
     fn append_records_coded(&mut self, records: &IoRecords, r: Rebase, codes: Option<RecordCodes>) {
@@ -1333,9 +1419,22 @@ impl Io {
         self.touch();
     }
 
+    /// After the host changed its data words (an ADC's codes: [`crate::Board::set_adc_code`]):
+    /// what the last advance found of the cycles ahead no longer holds (an ADC's output
+    /// follows its codes), but its control state is as it was, so a period memo still
+    /// knows where it is (no touch, unlike [`Io::forget_idle`]).
+    pub(crate) fn data_changed(&mut self) {
+        self.idle = Idle(0);
+    }
+
     /// The first cycle the machine has not run yet.
     pub fn cycle(&self) -> u64 {
         self.cycle
+    }
+
+    /// Whether a state machine is held behind its cycle ([`Io::advance`] without settling).
+    pub(crate) fn is_behind(&self) -> bool {
+        self.behind != 0
     }
 
     /// SRAM banks an enabled DMA channel may reach before the next DMA register write.

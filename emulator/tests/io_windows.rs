@@ -368,6 +368,98 @@ fn the_period_memo_of_the_io_equals_the_lock_step() {
 }
 
 #[test]
+fn data_set_between_hits_is_the_lock_steps() {
+    // Periodic windows whose ADC codes change through `Board::set_adc_code` (data only: the
+    // period memo still knows where the I/O is) and stay for a few slices, against a board
+    // whose hits make every end and the lock-step run, compared every fourth slice:
+    // - period 3001, core 0 looping (its handler's entry moves by a cycle): a hit links
+    //   the entry to the last one only where the window is known to start at its end;
+    // - period 3000, both cores asleep between ticks and no records kept: each hit leaves
+    //   its end behind ("The lazy end"), and the codes set go among its data words.
+    for (period, asleep) in [(3001, false), (3000, true)] {
+        let shape = Shape {
+            busy: false,
+            periodic: true,
+            period,
+            commands: false,
+        };
+        let mut lazy = board(Engine::Block, shape);
+        let mut made = board(Engine::Block, shape);
+        made.set_io_lazy(false);
+        let mut interp = board(Engine::Interp, shape);
+        for b in [&mut lazy, &mut made, &mut interp] {
+            if asleep {
+                // wfi; b .-2 where core 0 looped.
+                b.write_bytes(bank(0) + 0x300, &[0x30, 0xbf, 0xfd, 0xe7])
+                    .unwrap();
+                b.io_mut().expect("io").keep_records(false);
+            }
+        }
+        let mut rng = Rng(0x1a2e + period);
+        let mut set = 0u16;
+        for slice in 0..120 {
+            let limit = (lazy.cycle() / period + 1 + rng.below(4) as u64) * period + 900;
+            if slice % 3 == 0 {
+                set = rng.below(3);
+            }
+            for b in [&mut lazy, &mut made, &mut interp] {
+                for c in 0..8 {
+                    b.set_adc_code(0, c, set.wrapping_mul(97) ^ (c as u16) << 12);
+                }
+            }
+            let r = lazy.run_until(limit);
+            assert_eq!(r, made.run_until(limit), "{period}");
+            assert_eq!(r, interp.run_until(limit), "{period}");
+            if slice % 4 == 3 {
+                let s = state(&mut lazy);
+                assert_eq!(s, state(&mut made), "{period}: at {limit}");
+                assert_eq!(s, state(&mut interp), "{period}: at {limit}");
+            }
+        }
+        let (l, m) = (lazy.io_windows(), made.io_windows());
+        eprintln!("{period}: {l:?} {m:?}");
+        assert!(l.memo_hits > 80, "{period}: {l:?}");
+        // The same windows kept, each given or recorded (the boards share recordings).
+        let given = |w: &IoWindows| w.memo_hits + w.memo_recorded;
+        assert_eq!((l.kept, l.stale, given(&l)), (m.kept, m.stale, given(&m)));
+    }
+}
+
+#[test]
+fn a_recording_without_records_gives_none_to_a_board_that_keeps_them() {
+    // The period memo's recordings are the process's: one made where the parts keep no
+    // frames (`tactus play` but the board of an I/O trace) has none to give. A board that
+    // keeps them after one that did not: its frames, with the rest, the lock-step run's.
+    let shape = Shape {
+        busy: false,
+        periodic: true,
+        period: 3000,
+        commands: false,
+    };
+    let mut none = board(Engine::Block, shape);
+    none.io_mut().expect("io").keep_records(false);
+    let mut keeps = board(Engine::Block, shape);
+    let mut interp = board(Engine::Interp, shape);
+    for limit in (1..60).map(|k| k * 3 * shape.period + 900) {
+        none.run_until(limit);
+    }
+    assert!(
+        none.io_windows().memo_recorded > 0,
+        "{:?}",
+        none.io_windows()
+    );
+    for limit in (1..60).map(|k| k * 3 * shape.period + 900) {
+        assert_eq!(keeps.run_until(limit), interp.run_until(limit));
+    }
+    assert_eq!(state(&mut keeps), state(&mut interp));
+    assert!(
+        keeps.io_windows().memo_hits > 20,
+        "{:?}",
+        keeps.io_windows()
+    );
+}
+
+#[test]
 fn the_period_memo_keys_the_data_that_decides() {
     // The ADC decodes the command words the DMA reads from SRAM (the channel of the next
     // frame): a recording keys their bits (its constraints), so a window with the other

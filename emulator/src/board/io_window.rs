@@ -82,11 +82,38 @@
 //! stands for), each board keeping the entries it uses. Counts:
 //! [`IoWindows::memo_hits`], [`IoWindows::memo_recorded`], [`IoWindows::memo_shared`];
 //! [`Board::set_io_memo`] turns it off.
+//!
+//! **Links.** Each entry keeps the entries that gave the window after one of its own, the
+//! last first: a window is tried against those first, and while the I/O is untouched since
+//! the entry's hit ([`Io::touches`]: a change but for data counts, the host's codes through
+//! [`Board::set_adc_code`] do not) it is known to start where the entry ends but for data,
+//! so their comparison with the machine is left out. A link is made only from a window
+//! known so (a window that merely matched an entry after the I/O was touched says nothing
+//! of where the last entry ended: linking it made a later untouched window take an entry
+//! whose start was not its own, `tests/io_windows.rs`,
+//! `data_set_between_hits_is_the_lock_steps`).
+//!
+//! **The lazy end.** Making the machine the entry's end (its control state moved to the
+//! window's cycles, its data words set by their routes) was half of a hit's cost, and until
+//! the next window nothing but the period memo looks at the machine. So where the parts
+//! keep no records (`tactus play` without an I/O trace), a hit leaves the end behind
+//! ([`System::io_lazy`]: the entry's end, the move back to the window's time base, and
+//! every data word in a flat list, those the routes give written, those with no place in
+//! the end 0) and the live machine stale. The next window's hit reads its data words from
+//! the list and leaves its own end; [`Board::set_adc_code`] writes the list. Anything else
+//! — an advance past the end, a register access, a rest point, a recording, the host's
+//! [`Board::io`] — first makes the live machine the end ([`System::io_unlazy`], which
+//! counts as no change: the machine was that since the hit), and what needs only its
+//! control state (the registers it accepts, the DMA's priority and reach) reads the end's
+//! ([`System::io_control`]). The demo on `rp2040_io`: 19.11 → 18.46 G host instructions;
+//! `tests/io_windows.rs` runs boards with and without it against the lock-step run.
 
 use super::window::undo_stores;
 use super::*;
 use crate::bus::{load_le, sram_bank, store_le, ALL_BANKS};
-use crate::io::{Checkpoint, Io, IoRecords, LaneOp, LaneRec, Rebase, RecordCodes, Slot};
+use crate::io::{
+    Checkpoint, EndState, Io, IoRecords, LaneOp, LaneRec, LazyEnd, Rebase, RecordCodes, Slot,
+};
 use crate::lanes::{self, Lane, Route};
 use std::sync::{Arc, Mutex};
 
@@ -240,6 +267,9 @@ pub(crate) struct IoMemo {
     after: Option<(u64, u64)>,
     /// A hit's inputs: the data words its routes read, then the words the DMA reads.
     inputs: Vec<u32>,
+    /// Whether a hit may leave its end behind instead of making it (module documentation,
+    /// "The lazy end"); on by default.
+    lazy: bool,
 }
 
 impl IoMemo {
@@ -292,6 +322,7 @@ impl Default for IoMemo {
             last: None,
             after: None,
             inputs: Vec::new(),
+            lazy: true,
         }
     }
 }
@@ -322,6 +353,9 @@ struct MemoEntry {
     span: u64,
     xip: bool,
     own: u8,
+    /// Whether the parts kept records while it was recorded (else `records` is empty, and
+    /// it gives no board that keeps them a window: [`Probe::keeps`]).
+    with_records: bool,
     /// Each core's register stores: their cycles from the start, addresses and values.
     regs: [Vec<IoAccess>; 2],
     /// The I/O at the window's start at [`Rebase::MEMO`], its records left out and its data
@@ -329,7 +363,7 @@ struct MemoEntry {
     start: Box<Io>,
     start_key: u64,
     /// What the data words at the start must hold: (slot, mask, bits).
-    start_fixed: Vec<(Option<Slot>, u32, u32)>,
+    start_fixed: Vec<(u32, Option<Slot>, u32, u32)>,
     /// The number of data words (the first read's input), and those the routes read (with
     /// where they lie: [`Io::locate`]).
     slots: u32,
@@ -343,9 +377,10 @@ struct MemoEntry {
     /// The cycle the I/O was run to: a core's access at or after it is not replayed here.
     ran_to: u64,
     /// The I/O at the end at [`Rebase::MEMO`] without its records, and the routes of its
-    /// data words but those that end as they started (a hit keeps those): (slot, route).
-    end: Box<Io>,
-    patches: Vec<(Option<Slot>, Route)>,
+    /// data words but those that end as they started (a hit keeps those): (data slot, where
+    /// it lies, route).
+    end: Arc<EndState>,
+    patches: Vec<(u32, Option<Slot>, Route)>,
     /// The parts' records, and the routes of their codes (per ADC its frames', per DAC its
     /// updates').
     records: IoRecords,
@@ -407,6 +442,9 @@ struct Probe {
     span: u64,
     xip: bool,
     own: u8,
+    /// Whether the machine's parts keep records (frames, updates): an entry recorded where
+    /// they kept none has none to give.
+    keeps: bool,
     base: u64,
     last: u64,
     key: std::cell::OnceCell<u64>,
@@ -419,7 +457,7 @@ impl Probe {
     ///
     /// With `known`, the machine is known to be equal but for data (the entry that followed
     /// the last one's, the machine untouched since): that comparison is left out.
-    fn fits(&self, e: &MemoEntry, now: &Io, logs: &[Vec<IoAccess>; 2], known: bool) -> bool {
+    fn fits(&self, e: &MemoEntry, now: View, logs: &[Vec<IoAccess>; 2], known: bool) -> bool {
         let base = self.base;
         // The register stores against the entry's, core by core.
         let regs = || {
@@ -436,15 +474,50 @@ impl Probe {
         e.span == self.span
             && e.xip == self.xip
             && e.own == self.own
+            && (e.with_records || !self.keeps)
             && self.last.wrapping_sub(base) < e.ran_to
-            && (known || e.start_key == *self.key.get_or_init(|| now.quick_key(to_memo)))
+            && (known || {
+                let View::Live(now) = now else {
+                    return false;
+                };
+                e.start_key == *self.key.get_or_init(|| now.quick_key(to_memo))
+            })
             && regs()
-            && (known || now.eq_but_data(&e.start, to_memo))
+            && (known || matches!(now, View::Live(now) if now.eq_but_data(&e.start, to_memo)))
             && (!known || {
-                debug_assert!(now.eq_but_data(&e.start, to_memo), "an untouched I/O moved");
+                if let View::Live(now) = now {
+                    debug_assert!(now.eq_but_data(&e.start, to_memo), "an untouched I/O moved");
+                }
                 true
             })
-            && (e.start_fixed.iter()).all(|&(at, m, v)| now.slot_at(at) & m == v)
+            && (e.start_fixed.iter()).all(|&(i, at, m, v)| now.slot(i, at) & m == v)
+    }
+}
+
+/// The I/O as the period memo sees it: the live machine, or the one a hit left behind
+/// (module documentation, "The lazy end"), whose data words it reads.
+#[derive(Clone, Copy)]
+enum View<'a> {
+    Live(&'a Io),
+    Lazy(&'a LazyEnd),
+}
+
+impl View<'_> {
+    /// The I/O of `sys` (`None` without one).
+    fn of(sys: &System) -> Option<View<'_>> {
+        match sys.io_lazy.as_deref() {
+            Some(l) => Some(View::Lazy(l)),
+            None => sys.io.as_deref().map(View::Live),
+        }
+    }
+
+    /// Data slot `i` ([`Io::data_slots`]' order), which lies at `at` ([`Io::locate`]).
+    #[inline]
+    fn slot(self, i: u32, at: Option<Slot>) -> u32 {
+        match self {
+            View::Live(io) => io.slot_at(at),
+            View::Lazy(l) => l.data.get(i as usize).copied().unwrap_or(0),
+        }
     }
 }
 
@@ -522,6 +595,15 @@ impl Board {
             on,
             ..IoMemo::default()
         };
+    }
+
+    /// For tests: whether a hit of the period memo may leave its end behind instead of
+    /// making it (module documentation, "The lazy end"); on by default. Results never
+    /// depend on it.
+    #[doc(hidden)]
+    pub fn set_io_lazy(&mut self, on: bool) {
+        self.system.io_unlazy();
+        self.io_memo.lazy = on;
     }
 
     /// For tests: keeps a digest of every window's logs ([`Board::io_log_digest`]), and
@@ -623,6 +705,7 @@ impl Board {
         let r = match memo {
             true => self.io_memo_replay(&logs, banks, own, end, io),
             false => {
+                self.system.io_unlazy();
                 *io = self.system.io.as_mut().map(|now| now.checkpoint());
                 self.io_merge(&logs, banks, own)
             }
@@ -647,7 +730,10 @@ impl Board {
         }
         // A machine held behind (an advance that did not settle) is settled first: the
         // memo's states are settled ones.
-        let base = self.system.io.as_ref().map_or(0, |io| io.cycle());
+        let base = match (self.system.io_lazy.as_deref(), self.system.io.as_deref()) {
+            (Some(l), _) => l.cycle(),
+            (None, io) => io.map_or(0, Io::cycle),
+        };
         self.system.io_advance_to(base, true);
         if let Tried::Done(r) = self.io_memo_hit(logs, base, end, own) {
             return r;
@@ -661,13 +747,17 @@ impl Board {
     /// one's replay goes through (a word the DMA reads may break its constraints part-way:
     /// what that try wrote is undone).
     fn io_memo_hit(&mut self, logs: &[Vec<IoAccess>; 2], base: u64, end: u64, own: u8) -> Tried {
+        let keeps = (self.system.io.as_deref_mut()).is_some_and(|io| !io.records_full());
         let Some(now) = self.system.io.as_deref() else {
             return Tried::Miss;
         };
+        // The live machine's count of changes: a lazy end leaves it as its hit found it.
+        let touches = now.touches();
         let probe = Probe {
             span: end.saturating_sub(base),
             xip: self.system.xip_answers,
             own,
+            keeps,
             base,
             last: logs.iter().flatten().map(|a| a.cycle).max().unwrap_or(base),
             key: std::cell::OnceCell::new(),
@@ -679,7 +769,11 @@ impl Board {
                     from: base,
                     to: Rebase::MEMO,
                 };
-                now.check_eq_but_data(&e.start, r);
+                let mut live = now.clone();
+                if let Some(l) = self.system.io_lazy.as_deref() {
+                    live.become_lazy(l);
+                }
+                live.check_eq_but_data(&e.start, r);
             }
         }
         let memo = &self.io_memo;
@@ -687,13 +781,17 @@ impl Board {
             .and_then(|l| memo.follow.get(l).copied())
             .unwrap_or([usize::MAX; FOLLOWERS]);
         let followers = first.iter().copied().filter(|&f| f != usize::MAX);
-        let untouched = memo.after.is_some() && memo.after == Some(now.touches());
+        let untouched = memo.after.is_some() && memo.after == Some(touches);
         let n = memo.entries.len();
         let mut shared = None;
         let mark = self.system.io_journal.as_ref().map_or(0, Vec::len);
         for i in followers.chain((0..n).filter(|j| !first.contains(j))) {
             let known = untouched && first.contains(&i);
-            let fits = match (self.system.io.as_deref(), self.io_memo.entries.get(i)) {
+            if !known {
+                // Compared with the entry's start: the live machine.
+                self.system.io_unlazy();
+            }
+            let fits = match (View::of(&self.system), self.io_memo.entries.get(i)) {
                 (Some(now), Some(e)) => probe.fits(e, now, logs, known),
                 _ => false,
             };
@@ -702,17 +800,19 @@ impl Board {
             }
             let e = Arc::clone(&self.io_memo.entries[i]);
             if let Some(r) = self.io_memo_try(&e, logs, base, mark) {
-                self.io_memo_followed_by(i, true);
+                self.io_memo_followed_by(i, untouched);
                 return Tried::Done(r);
             }
         }
         // Another board's recordings, from the process's store.
+        self.system.io_unlazy();
         if let Some(now) = self.system.io.as_deref() {
             let mine = &self.io_memo.entries;
             shared = SHARED.lock().ok().map(|s| {
                 (s.iter())
                     .filter(|e| {
-                        probe.fits(e, now, logs, false) && !mine.iter().any(|m| Arc::ptr_eq(m, e))
+                        probe.fits(e, View::Live(now), logs, false)
+                            && !mine.iter().any(|m| Arc::ptr_eq(m, e))
                     })
                     .cloned()
                     .collect::<Vec<_>>()
@@ -722,7 +822,7 @@ impl Board {
             if let Some(r) = self.io_memo_try(&e, logs, base, mark) {
                 self.io_windows.memo_shared += 1;
                 let i = self.io_memo.keep(e);
-                self.io_memo_followed_by(i, true);
+                self.io_memo_followed_by(i, untouched);
                 return Tried::Done(r);
             }
         }
@@ -770,9 +870,9 @@ impl Board {
         let inputs = &mut self.io_memo.inputs;
         inputs.clear();
         inputs.resize(e.slots as usize, 0);
-        if let Some(io) = self.system.io.as_deref() {
+        if let Some(io) = View::of(&self.system) {
             for &(s, at) in &e.needs {
-                inputs[s as usize] = io.slot_at(at);
+                inputs[s as usize] = io.slot(s, at);
             }
         }
         // The DMA's accesses in their ticks' order, each core access after those of its
@@ -806,18 +906,46 @@ impl Board {
         if !dma_ops(&mut self.system, ops, &mut next, u64::MAX, inputs) {
             return Tried::Miss;
         }
-        // The end: the entry's, its data words and the parts' records by their routes.
+        // The end: the entry's, its data words and the parts' records by their routes. Where
+        // the parts keep no records, left behind (module documentation, "The lazy end").
         let Some(now) = self.system.io.as_mut() else {
             return Tried::Miss;
         };
-        let codes = RecordCodes {
-            frames: &e.frame_routes,
-            updates: &e.update_routes,
-            inputs,
-        };
-        now.become_but_data(&e.end, to_memo.back(), &e.records, Some(codes));
-        for (at, r) in &e.patches {
-            now.set_slot_at(*at, r.eval(inputs));
+        if self.io_memo.lazy && now.records_full() {
+            let mut data = match self.system.io_lazy.take() {
+                Some(l) => l.data,
+                None => {
+                    let mut d = Vec::new();
+                    now.data_words(&mut d);
+                    d
+                }
+            };
+            for (i, _, r) in &e.patches {
+                if let Some(w) = data.get_mut(*i as usize) {
+                    *w = r.eval(inputs);
+                }
+            }
+            let mut l = LazyEnd {
+                end: Arc::clone(&e.end),
+                back: to_memo.back(),
+                data,
+            };
+            l.drop_absent();
+            self.system.io_lazy = Some(Box::new(l));
+        } else {
+            self.system.io_unlazy();
+            let Some(now) = self.system.io.as_mut() else {
+                return Tried::Miss;
+            };
+            let codes = RecordCodes {
+                frames: &e.frame_routes,
+                updates: &e.update_routes,
+                inputs,
+            };
+            now.become_but_data(&e.end.io, to_memo.back(), &e.records, Some(codes));
+            for (_, at, r) in &e.patches {
+                now.set_slot_at(*at, r.eval(inputs));
+            }
         }
         self.system.io_refresh();
         self.io_windows.memo_hits += 1;
@@ -841,12 +969,14 @@ impl Board {
             from: base,
             to: Rebase::MEMO,
         };
+        self.system.io_unlazy();
         let Some(now) = self.system.io.as_mut() else {
             return self.io_merge(logs, banks, own);
         };
         // Whether the window starts at the last entry's end (untouched since): the entry
         // recorded here then follows it.
         let linked = self.io_memo.after.is_some() && self.io_memo.after == Some(now.touches());
+        let with_records = !now.records_full();
         let checkpoint = now.checkpoint();
         let mut start = checkpoint.io.clone();
         *io = Some(checkpoint);
@@ -936,9 +1066,9 @@ impl Board {
             .map(|(i, (v, w, _))| (i as u32, Route::of(w, *v)))
             .collect();
         let (frame_routes, update_routes) = records.routes(&kept.frames, &kept.updates);
-        let start_fixed: Vec<(Option<Slot>, u32, u32)> = (constraints.iter())
+        let start_fixed: Vec<(u32, Option<Slot>, u32, u32)> = (constraints.iter())
             .filter(|c| c.0 < slots)
-            .map(|&(i, m, v)| (now.locate(i as usize), m, v))
+            .map(|&(i, m, v)| (i, now.locate(i as usize), m, v))
             .collect();
         // The data words at the start that the routes read.
         let mut needs: Vec<u32> = (ops.iter())
@@ -958,7 +1088,7 @@ impl Board {
             .map(|i| (i, now.locate(i as usize)))
             .collect();
         let patches = (patches.into_iter())
-            .map(|(i, r)| (now.locate(i as usize), r))
+            .map(|(i, r)| (i, now.locate(i as usize), r))
             .collect();
         let mut claims: Vec<(u64, u8)> = rec.claims.iter().map(|&(c, b)| (c - base, b)).collect();
         claims.sort_unstable();
@@ -977,6 +1107,7 @@ impl Board {
             span: end.saturating_sub(base),
             xip: self.system.xip_answers,
             own,
+            with_records,
             regs: reg_stores(logs, base),
             start,
             start_fixed,
@@ -986,7 +1117,7 @@ impl Board {
             claims,
             claimed,
             ran_to: now.cycle() - base,
-            end: end_io,
+            end: Arc::new(EndState::new(*end_io)),
             patches,
             records,
             frame_routes,

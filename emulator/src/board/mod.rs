@@ -266,32 +266,47 @@ impl Board {
     pub fn attach_io(&mut self, config: &crate::io::IoConfig) {
         let io = crate::io::Io::new(config, self.config.clock_hz as f64, self.cycle());
         self.system.io = Some(Box::new(io));
+        self.system.io_lazy = None;
         self.system.io_banks = 0;
         self.system.allowed_banks = self.system.fast_banks();
     }
 
     /// The attached I/O (`None` without [`Board::attach_io`]), run up to the board's cycle.
-    pub fn io(&self) -> Option<&crate::io::Io> {
+    pub fn io(&mut self) -> Option<&crate::io::Io> {
+        self.system.io_unlazy();
         self.system.io.as_deref()
     }
 
     /// Sets the code channel `channel` (0–7) of ADC `adc` reads from now on
     /// ([`crate::converters::Ads8688::set_code`]); nothing without that ADC. Only data
     /// changes: unlike a change through [`Board::io_mut`], the I/O's period memo still knows
-    /// where it is (`board/io_window.rs`).
+    /// where it is (`board/io_window.rs`), and a machine a hit left behind takes the code
+    /// among its data words ("The lazy end").
     pub fn set_adc_code(&mut self, adc: usize, channel: usize, code: u16) {
-        if let Some(a) = self
-            .system
-            .io
-            .as_deref_mut()
-            .and_then(|io| io.adcs.get_mut(adc))
-        {
-            a.set_code(channel, code);
+        // The machine a period memo's hit left behind keeps its data words apart.
+        if let (Some(l), Some(io)) = (
+            self.system.io_lazy.as_deref_mut(),
+            self.system.io.as_deref(),
+        ) {
+            if adc < io.adcs.len() && channel < 8 {
+                let at = io.adc_code_slot(adc, channel);
+                if let Some(w) = l.data.get_mut(at) {
+                    *w = u32::from(code);
+                }
+            }
+            return;
+        }
+        if let Some(io) = self.system.io.as_deref_mut() {
+            if let Some(a) = io.adcs.get_mut(adc) {
+                a.set_code(channel, code);
+                io.data_changed();
+            }
         }
     }
 
     /// The attached I/O, to set what the ADCs read (`Ads8688::set_code`).
     pub fn io_mut(&mut self) -> Option<&mut crate::io::Io> {
+        self.system.io_unlazy();
         let io = self.system.io.as_deref_mut()?;
         io.forget_idle();
         Some(io)

@@ -150,6 +150,7 @@ impl Board {
     /// number of microseconds at the board's clock, a converter's timing was breached or
     /// its records taken ([`crate::io::Io`]'s records drained) between them.
     pub fn period(&mut self, start: &RestPoint, end: &RestPoint) -> Result<Period, String> {
+        self.system.io_unlazy();
         let clock_hz = self.config.clock_hz;
         if !start.same_state(end) {
             return Err("the board's state at the two points differs".into());
@@ -209,6 +210,7 @@ impl Board {
     /// Errors (as text): a debugger attached, core 1's launch under way, a timer alarm
     /// armed, a profiled call open, a counter offset outside SRAM or unaligned.
     pub fn rest_point(&mut self, counters: &[usize]) -> Result<RestPoint, String> {
+        self.system.io_unlazy();
         if self.debug.hook.is_some() {
             return Err("a debugger is attached".into());
         }
@@ -254,7 +256,8 @@ impl Board {
             code_pages: _, // the decode cache's pages
             code_epoch: _, // the decode cache's generation
             allowed_banks,
-            io: _, // below
+            io: _,      // below
+            io_lazy: _, // none: made the live machine first (`System::io_unlazy`)
             io_banks,
             io_journal,
             io_rec,
@@ -322,6 +325,7 @@ impl Board {
     /// Errors (as text): the state differs (or [`Board::rest_point`]'s), or the cycles
     /// overflow. Nothing is changed on an error.
     pub fn skip_periods(&mut self, period: &Period, periods: u64) -> Result<(), String> {
+        self.system.io_unlazy();
         let counters: Vec<usize> = period.end.counters.iter().map(|c| c.0).collect();
         let here = self.rest_point(&counters)?;
         if !here.same_state(&period.end) {

@@ -218,7 +218,7 @@ impl Bus for Confined<'_> {
             }
             None if addr >> 28 == 0x5
                 && self.io.is_some()
-                && self.sys.io.as_ref().is_some_and(|io| io.accepts(addr)) =>
+                && self.sys.io_control().is_some_and(|io| io.accepts(addr)) =>
             {
                 // A store to the DMA's or the PIOs' registers: applied by the replay, at
                 // its place among the DMA's accesses (`System::io_store`).

@@ -233,7 +233,7 @@ pub(crate) fn call(
             ctx.journal_len = j.len() as u64;
             ctx.journal_cap = j.capacity() as u64;
         }
-        if let (Some((log, banks)), Some(io)) = (c.io.as_mut(), sys.io.as_deref()) {
+        if let (Some((log, banks)), Some(io)) = (c.io.as_mut(), sys.io_control()) {
             ctx.io_banks = u64::from(*banks & !c.allowed);
             ctx.io_log = &mut **log;
             ctx.io = io;
