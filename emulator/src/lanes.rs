@@ -205,6 +205,11 @@ impl Route {
         r
     }
 
+    /// Its word when it reads no input.
+    pub(crate) fn constant(&self) -> Option<u32> {
+        self.parts.is_empty().then_some(self.konst ^ self.invert)
+    }
+
     /// The inputs it reads.
     pub(crate) fn inputs(&self) -> impl Iterator<Item = u32> + '_ {
         self.parts.iter().map(|p| p.input)

@@ -381,6 +381,9 @@ struct MemoEntry {
     /// it lies, route).
     end: Arc<EndState>,
     patches: Vec<(u32, Option<Slot>, Route)>,
+    /// Of the data words a hit sets, those whose route is a constant: (data slot, where it
+    /// lies, value).
+    const_patches: Vec<(u32, Option<Slot>, u32)>,
     /// The parts' records, and the routes of their codes (per ADC its frames', per DAC its
     /// updates').
     records: IoRecords,
@@ -920,6 +923,11 @@ impl Board {
                     d
                 }
             };
+            for &(i, _, v) in &e.const_patches {
+                if let Some(w) = data.get_mut(i as usize) {
+                    *w = v;
+                }
+            }
             for (i, _, r) in &e.patches {
                 if let Some(w) = data.get_mut(*i as usize) {
                     *w = r.eval(inputs);
@@ -943,6 +951,9 @@ impl Board {
                 inputs,
             };
             now.become_but_data(&e.end.io, to_memo.back(), &e.records, Some(codes));
+            for &(_, at, v) in &e.const_patches {
+                now.set_slot_at(at, v);
+            }
             for (_, at, r) in &e.patches {
                 now.set_slot_at(*at, r.eval(inputs));
             }
@@ -1087,8 +1098,11 @@ impl Board {
         let needs = (needs.into_iter())
             .map(|i| (i, now.locate(i as usize)))
             .collect();
-        let patches = (patches.into_iter())
+        let (const_patches, patches): (Vec<_>, Vec<_>) = (patches.into_iter())
             .map(|(i, r)| (i, now.locate(i as usize), r))
+            .partition(|(_, _, r)| r.constant().is_some());
+        let const_patches = (const_patches.into_iter())
+            .map(|(i, at, r)| (i, at, r.constant().unwrap_or(0)))
             .collect();
         let mut claims: Vec<(u64, u8)> = rec.claims.iter().map(|&(c, b)| (c - base, b)).collect();
         claims.sort_unstable();
@@ -1119,6 +1133,7 @@ impl Board {
             ran_to: now.cycle() - base,
             end: Arc::new(EndState::new(*end_io)),
             patches,
+            const_patches,
             records,
             frame_routes,
             update_routes,
