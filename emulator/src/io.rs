@@ -2445,6 +2445,30 @@ mod tests {
     }
 
     #[test]
+    fn a_lazy_end_is_the_machine_with_its_data_words() {
+        // A hit's flat list of data words (`board/io_window.rs`, "The lazy end") holds what
+        // the machine made from it holds: every word 1 (each slot's width keeps it), but
+        // those with no place in the end (an ADC's frame code without a frame) 0.
+        let mut live = io();
+        let end = EndState::new(io());
+        assert_eq!(end.absent.len(), 2, "each ADC's frame code");
+        let mut data = Vec::new();
+        live.data_words(&mut data);
+        data.fill(1);
+        let mut lazy = LazyEnd {
+            end: std::sync::Arc::new(end),
+            back: Rebase { from: 0, to: 0 },
+            data,
+        };
+        lazy.drop_absent();
+        live.become_lazy(&lazy);
+        let mut made = Vec::new();
+        live.data_words(&mut made);
+        assert_eq!(made, lazy.data);
+        assert_eq!(live.cycle(), lazy.cycle());
+    }
+
+    #[test]
     fn each_data_word_is_where_its_slot_says() {
         let mut io = io();
         let mut n = 0u32;
