@@ -372,6 +372,13 @@ impl System {
         }
     }
 
+    /// Runs the I/O (if any) through cycle `to − 1`, settled, and makes it the live machine
+    /// ([`System::io_unlazy`]): what a register access or a reset reads and changes.
+    fn io_live_at(&mut self, to: u64) {
+        self.io_advance(to);
+        self.io_unlazy();
+    }
+
     /// Makes the machine a period memo's hit left behind the live one
     /// ([`System::io_lazy`]; nothing when there is none).
     pub(crate) fn io_unlazy(&mut self) {
@@ -458,8 +465,7 @@ impl System {
             2 => (value & 0xffff) * 0x0001_0001,
             _ => value,
         };
-        self.io_advance(cycle);
-        self.io_unlazy();
+        self.io_live_at(cycle);
         let ok = self
             .io
             .as_mut()
@@ -704,8 +710,7 @@ impl System {
         }
         if crate::io::Io::owns(addr) && self.io.is_some() {
             // IO_BANK0, BUSCTRL: the I/O as of this cycle.
-            self.io_advance(cycle);
-            self.io_unlazy();
+            self.io_live_at(cycle);
             return self.io.as_mut()?.read(addr);
         }
         // RESETS, clocks, PLL, XOSC, VREG, watchdog: no interrupt lines.
@@ -750,8 +755,7 @@ impl System {
             return self.timer.write(cycle, reg, value);
         }
         if crate::io::Io::owns(addr) && self.io.is_some() {
-            self.io_advance(cycle);
-            self.io_unlazy();
+            self.io_live_at(cycle);
             let ok = self.io.as_mut().is_some_and(|io| io.write(addr, value));
             self.io_refresh();
             return ok;
@@ -760,8 +764,7 @@ impl System {
         let ok = self.sysctl.write(addr, value);
         if self.io.is_some() && clocks::block_of(addr) == Some(clocks::RESETS_BASE) {
             // PIO0, PIO1, the DMA, IO_BANK0 and BUSCTRL follow RESETS.
-            self.io_advance(cycle);
-            self.io_unlazy();
+            self.io_live_at(cycle);
             let held = self.sysctl.read(clocks::RESETS_BASE).unwrap_or(0);
             if let Some(io) = self.io.as_mut() {
                 io.set_resets(held);
@@ -804,8 +807,7 @@ impl Bus for System {
         match addr >> 28 {
             0x5 if self.io.is_some() && crate::io::Io::owns(addr) => {
                 // The DMA and the PIOs (AHB-Lite), as of this cycle.
-                self.io_advance(cycle);
-                self.io_unlazy();
+                self.io_live_at(cycle);
                 let io = self.io.as_mut().ok_or(BusFault { addr })?;
                 match io.read(addr & !3) {
                     Some(v) => Ok((

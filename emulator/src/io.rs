@@ -1046,11 +1046,15 @@ impl Io {
         }
     }
 
+    /// The first ADC's first data slot ([`Io::data_slots`]' order): the machine's own two,
+    /// both PIO blocks', the DMA's.
+    const ADC_SLOTS: usize = 2 + 2 * Pio::SLOTS + crate::dma::TRANSFER_FIFO_DEPTH;
+
     /// Where its `i`-th data word lies ([`Io::data_slots`]' order).
     pub(crate) fn locate(&self, i: usize) -> Option<Slot> {
         let pio = 2;
         let dma = pio + 2 * Pio::SLOTS;
-        let adcs = dma + crate::dma::TRANSFER_FIFO_DEPTH;
+        let adcs = Self::ADC_SLOTS;
         let dacs = adcs + self.adcs.len() * Ads8688::SLOTS;
         let end = dacs + self.dacs.len() * Dac8568::SLOTS;
         Some(match i {
@@ -1335,9 +1339,10 @@ impl Io {
     }
 
     /// The data slot ([`Io::data_slots`]' order) of ADC `adc`'s code of channel `channel`
-    /// ([`Ads8688::set_code`]).
-    pub(crate) fn adc_code_slot(&self, adc: usize, channel: usize) -> usize {
-        2 + 2 * Pio::SLOTS + crate::dma::TRANSFER_FIFO_DEPTH + adc * Ads8688::SLOTS + channel
+    /// ([`Ads8688::set_code`]: its slots 0–7); `None` without that ADC or channel.
+    pub(crate) fn adc_code_slot(&self, adc: usize, channel: usize) -> Option<usize> {
+        (adc < self.adcs.len() && channel < 8)
+            .then(|| Self::ADC_SLOTS + adc * Ads8688::SLOTS + channel)
     }
 
     /// Appends `records` moved by `r`, their codes given by `codes` when some, as a run that
@@ -2490,6 +2495,17 @@ mod tests {
             assert_eq!(io.slot(i), (i as u32 + 1) & m, "slot {i}");
         }
         assert!(io.locate(n as usize).is_none());
+        // An ADC's codes where `Board::set_adc_code` writes a lazy end's list.
+        for adc in 0..2 {
+            for c in 0..8 {
+                let at = io.adc_code_slot(adc, c).map(|i| io.locate(i));
+                assert_eq!(at, Some(Some(Slot::Adc(adc, c))));
+            }
+        }
+        assert_eq!(
+            (io.adc_code_slot(2, 0), io.adc_code_slot(0, 8)),
+            (None, None)
+        );
         // And set by number, as the visit sees them.
         for i in 0..n as usize {
             io.set_slot(i, 0xdead_0000 | i as u32);

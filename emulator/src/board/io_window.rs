@@ -391,6 +391,20 @@ struct MemoEntry {
     update_routes: Vec<Vec<Route>>,
 }
 
+impl MemoEntry {
+    /// Gives `set` each data word a hit sets, with its value for `inputs` (the hit's data
+    /// words and DMA reads): (data slot, where it lies, value).
+    #[inline]
+    fn patch(&self, inputs: &[u32], mut set: impl FnMut(u32, Option<Slot>, u32)) {
+        for &(i, at, v) in &self.const_patches {
+            set(i, at, v);
+        }
+        for (i, at, r) in &self.patches {
+            set(*i, *at, r.eval(inputs));
+        }
+    }
+}
+
 /// One SRAM access of the DMA in a [`MemoEntry`]: at its tick (from the start), `size`
 /// bytes at SRAM offset `off`.
 struct MemoOp {
@@ -802,7 +816,7 @@ impl Board {
                 continue;
             }
             let e = Arc::clone(&self.io_memo.entries[i]);
-            if let Some(r) = self.io_memo_try(&e, logs, base, mark) {
+            if let Some(r) = self.io_memo_try(&e, logs, &probe, mark) {
                 self.io_memo_followed_by(i, untouched);
                 return Tried::Done(r);
             }
@@ -822,7 +836,7 @@ impl Board {
             });
         }
         for e in shared.into_iter().flatten() {
-            if let Some(r) = self.io_memo_try(&e, logs, base, mark) {
+            if let Some(r) = self.io_memo_try(&e, logs, &probe, mark) {
                 self.io_windows.memo_shared += 1;
                 let i = self.io_memo.keep(e);
                 self.io_memo_followed_by(i, untouched);
@@ -832,17 +846,17 @@ impl Board {
         Tried::Miss
     }
 
-    /// One try of entry `e` ([`Board::io_memo_apply`]): what became of the window, or
-    /// `None` when a word the DMA reads broke its constraints — then the SRAM writes
-    /// journaled since `mark` are undone.
+    /// One try of entry `e` for the window `probe` brings ([`Board::io_memo_apply`]): what
+    /// became of the window, or `None` when a word the DMA reads broke its constraints —
+    /// then the SRAM writes journaled since `mark` are undone.
     fn io_memo_try(
         &mut self,
         e: &MemoEntry,
         logs: &[Vec<IoAccess>; 2],
-        base: u64,
+        probe: &Probe,
         mark: usize,
     ) -> Option<Result<(), Violation>> {
-        match self.io_memo_apply(e, logs, base) {
+        match self.io_memo_apply(e, logs, probe) {
             Tried::Done(r) => Some(r),
             Tried::Miss => {
                 if let Some(j) = self.system.io_journal.as_mut() {
@@ -864,7 +878,8 @@ impl Board {
     /// Does the replay entry `e` recorded, with the window's data (module documentation):
     /// `Miss` when a word the DMA reads breaks its constraints (the caller undoes what it
     /// wrote), else what became of the window.
-    fn io_memo_apply(&mut self, e: &MemoEntry, logs: &[Vec<IoAccess>; 2], base: u64) -> Tried {
+    fn io_memo_apply(&mut self, e: &MemoEntry, logs: &[Vec<IoAccess>; 2], probe: &Probe) -> Tried {
+        let base = probe.base;
         let to_memo = Rebase {
             from: base,
             to: Rebase::MEMO,
@@ -914,7 +929,7 @@ impl Board {
         let Some(now) = self.system.io.as_mut() else {
             return Tried::Miss;
         };
-        if self.io_memo.lazy && now.records_full() {
+        if self.io_memo.lazy && !probe.keeps {
             let mut data = match self.system.io_lazy.take() {
                 Some(l) => l.data,
                 None => {
@@ -923,16 +938,11 @@ impl Board {
                     d
                 }
             };
-            for &(i, _, v) in &e.const_patches {
+            e.patch(inputs, |i, _, v| {
                 if let Some(w) = data.get_mut(i as usize) {
                     *w = v;
                 }
-            }
-            for (i, _, r) in &e.patches {
-                if let Some(w) = data.get_mut(*i as usize) {
-                    *w = r.eval(inputs);
-                }
-            }
+            });
             let mut l = LazyEnd {
                 end: Arc::clone(&e.end),
                 back: to_memo.back(),
@@ -951,12 +961,7 @@ impl Board {
                 inputs,
             };
             now.become_but_data(&e.end.io, to_memo.back(), &e.records, Some(codes));
-            for &(_, at, v) in &e.const_patches {
-                now.set_slot_at(at, v);
-            }
-            for (_, at, r) in &e.patches {
-                now.set_slot_at(*at, r.eval(inputs));
-            }
+            e.patch(inputs, |_, at, v| now.set_slot_at(at, v));
         }
         self.system.io_refresh();
         self.io_windows.memo_hits += 1;

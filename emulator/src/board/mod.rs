@@ -288,11 +288,11 @@ impl Board {
             self.system.io_lazy.as_deref_mut(),
             self.system.io.as_deref(),
         ) {
-            if adc < io.adcs.len() && channel < 8 {
-                let at = io.adc_code_slot(adc, channel);
-                if let Some(w) = l.data.get_mut(at) {
-                    *w = u32::from(code);
-                }
+            if let Some(w) = io
+                .adc_code_slot(adc, channel)
+                .and_then(|at| l.data.get_mut(at))
+            {
+                *w = u32::from(code);
             }
             return;
         }
