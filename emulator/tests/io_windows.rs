@@ -108,7 +108,7 @@ fn handler0(data: u32) -> Asm {
 /// Core 1's handler: sums last sample's copy (into bank 3, then its data), restarts the copy, waits
 /// ~80 cycles (the DMA has read the source by then), then writes new source words (in
 /// `few` values: bit 1 of their count, so that one sample's words do not tell the last's).
-fn handler1(data: u32, few: bool) -> Asm {
+fn handler1(data: u32, few: bool, chain: Option<u32>) -> Asm {
     let mut a = Asm::default();
     a.lit(0, DST)
         .op(&[0x6801, 0x69c2, 0x1889, 0x6401]) // ldr r1,[r0]; ldr r2,[r0,#28]; adds r1,r1,r2; str r1,[r0,#0x40]
@@ -116,8 +116,16 @@ fn handler1(data: u32, few: bool) -> Asm {
         .op(&[0x681a, 0x1852, 0x601a])
         .lit(0, ch(COPY, dreg::WRITE_ADDR))
         .lit(1, DST)
-        .op(&[0x6001])
-        .lit(0, ch(COPY, dreg::AL3_READ_ADDR_TRIG))
+        .op(&[0x6001]);
+    if let Some(to) = chain {
+        // The chained channel's addresses back to DST → `to`.
+        a.lit(0, ch(CHAINED, dreg::READ_ADDR))
+            .op(&[0x6001])
+            .lit(0, ch(CHAINED, dreg::WRITE_ADDR))
+            .lit(1, to)
+            .op(&[0x6001]);
+    }
+    a.lit(0, ch(COPY, dreg::AL3_READ_ADDR_TRIG))
         .lit(1, SRC)
         .op(&[0x6001])
         .op(&[0x2214, 0x3a01, 0xd1fd]) // movs r2,#20; subs r2,#1; bne .-2
@@ -143,7 +151,20 @@ struct Shape {
     /// The host rewrites the ADC's command words now and then (each slice one of two
     /// channel orders): data the ADC decodes, which the period memo must key.
     commands: bool,
+    /// Core 1's copy channel chains to a second ([`CHAINED`]) that copies the words the
+    /// first has just written to this address (DMA reads of the DMA's writes in one
+    /// window): past them, or back to the source (whose words core 1 stores later, after
+    /// the DMA wrote them).
+    chain: Option<u32>,
+    /// Core 0's main loop (periodic) loads its word of bank 2 every 64 cycles: now and
+    /// then in a cycle in which the DMA claims the bank (the window is undone). And the
+    /// parts keep no records (as in `tactus play` without an I/O trace: the period memo's
+    /// hits leave their ends behind, and its plans serve).
+    poll: bool,
 }
+
+/// The channel [`Shape::chain`] chains the copy to.
+const CHAINED: u32 = 4;
 
 /// A board on `engine` with the ADC, its DMA channels and the copy channel set up and
 /// the DMA winning the banks, both cores in their handlers' idle loops (core 0 in `busy`'s
@@ -154,6 +175,8 @@ fn board(
         busy,
         periodic,
         period,
+        chain,
+        poll,
         ..
     }: Shape,
 ) -> Board {
@@ -177,12 +200,15 @@ fn board(
         priority::DMA_R | priority::DMA_W,
         10,
     );
-    let copy = 2 << ctrl::DATA_SIZE_SHIFT
-        | ctrl::EN
-        | ctrl::INCR_READ
-        | ctrl::INCR_WRITE
-        | COPY << ctrl::CHAIN_TO_SHIFT
-        | TREQ_PERMANENT << ctrl::TREQ_SEL_SHIFT;
+    let copy_to = |to: u32| {
+        2 << ctrl::DATA_SIZE_SHIFT
+            | ctrl::EN
+            | ctrl::INCR_READ
+            | ctrl::INCR_WRITE
+            | to << ctrl::CHAIN_TO_SHIFT
+            | TREQ_PERMANENT << ctrl::TREQ_SEL_SHIFT
+    };
+    let copy = copy_to(if chain.is_some() { CHAINED } else { COPY });
     let mut cpu = io_setup::Cpu {
         sys: &mut b.system,
         t,
@@ -191,6 +217,12 @@ fn board(
     cpu.store(ch(COPY, dreg::WRITE_ADDR), DST);
     cpu.store(ch(COPY, dreg::TRANS_COUNT), 8);
     cpu.store(ch(COPY, dreg::AL1_CTRL), copy);
+    if let Some(to) = chain {
+        cpu.store(ch(CHAINED, dreg::READ_ADDR), DST);
+        cpu.store(ch(CHAINED, dreg::WRITE_ADDR), to);
+        cpu.store(ch(CHAINED, dreg::TRANS_COUNT), 8);
+        cpu.store(ch(CHAINED, dreg::AL1_CTRL), copy_to(CHAINED));
+    }
     // Channel 3 copies a word of bank 2 to the next one every 128 cycles (its pacing timer):
     // now and then in a cycle in which core 0 reads or writes the bank, memoized or not.
     let paced = 2 << ctrl::DATA_SIZE_SHIFT
@@ -213,11 +245,13 @@ fn board(
         let code = if core == 0 {
             handler0(data).bytes(handler)
         } else {
-            handler1(data, periodic).bytes(handler)
+            handler1(data, periodic, chain).bytes(handler)
         };
         b.write_bytes(handler, &code).unwrap();
         let idle: &[u16] = if busy && core == 0 {
             &[0x69f1, 0x6039, 0x3101, 0xe7fb] // ldr r1,[r6,#28]; str r1,[r7]; adds r1,#1; b .-6
+        } else if poll && core == 0 {
+            &[0x683a, 0x2314, 0x3b01, 0xd1fd, 0xe7fa] // ldr r2,[r7]; movs r3,#20; subs r3,#1; bne .-2; b .-8
         } else if periodic && core == 0 {
             &[0x3101, 0xe7fd] // adds r1,#1; b .-2
         } else {
@@ -259,10 +293,18 @@ fn state(b: &mut Board) -> String {
 
 /// Runs both engines in random slices for `cycles`; returns the block board. In the
 /// periodic shape the slices end at SysTick periods (the windows are periods) and the ADC
-/// reads one of three code sets each slice.
+/// reads one of three code sets each slice. A second block board whose period memo takes
+/// no plans (`io_window.rs`, "Plans") runs beside them: the same after every slice.
 fn compare(shape: Shape, cycles: u64) -> Board {
     let mut block = board(Engine::Block, shape);
+    let mut unplanned = board(Engine::Block, shape);
+    unplanned.set_io_plans(false);
     let mut interp = board(Engine::Interp, shape);
+    if shape.poll {
+        for b in [&mut block, &mut unplanned, &mut interp] {
+            b.io_mut().expect("io").keep_records(false);
+        }
+    }
     let mut rng = Rng(0x10_40d + shape.busy as u64 + 2 * shape.periodic as u64);
     let mut slice = 0u16;
     while block.cycle() < cycles {
@@ -281,7 +323,7 @@ fn compare(shape: Shape, cycles: u64) -> Board {
             true => rng.below(2) as u32,
             false => 0,
         };
-        for b in [&mut block, &mut interp] {
+        for b in [&mut block, &mut unplanned, &mut interp] {
             let io = b.io_mut().expect("io");
             for c in 0..8 {
                 io.adcs[0].set_code(c, set.wrapping_mul(97) ^ (c as u16) << 12);
@@ -294,9 +336,16 @@ fn compare(shape: Shape, cycles: u64) -> Board {
                 }
             }
         }
-        assert_eq!(block.run_until(limit), interp.run_until(limit));
-        assert_eq!(state(&mut block), state(&mut interp), "at {limit}");
+        let r = block.run_until(limit);
+        assert_eq!(r, interp.run_until(limit));
+        assert_eq!(r, unplanned.run_until(limit));
+        let s = state(&mut block);
+        assert_eq!(s, state(&mut interp), "at {limit}");
+        assert_eq!(s, state(&mut unplanned), "at {limit}");
     }
+    let (p, u) = (block.io_windows(), unplanned.io_windows());
+    assert_eq!(u.memo_planned, 0);
+    assert_eq!((p.kept, p.waited, p.stale), (u.kept, u.waited, u.stale));
     for core in 0..2 {
         let count = block.read_u32(bank(core) + 0x8004).unwrap();
         assert!(count > 50, "core {core}: {count} handler runs");
@@ -313,6 +362,8 @@ fn windows_with_the_dma_equal_the_lock_step() {
             periodic: false,
             period: 0,
             commands: false,
+            chain: None,
+            poll: false,
         },
         600_000,
     );
@@ -332,6 +383,8 @@ fn windows_whose_core_meets_the_dma_are_undone() {
             periodic: false,
             period: 0,
             commands: false,
+            chain: None,
+            poll: false,
         },
         300_000,
     );
@@ -355,16 +408,75 @@ fn the_period_memo_of_the_io_equals_the_lock_step() {
                 periodic: true,
                 period,
                 commands: false,
+                chain: None,
+                poll: false,
             },
             1_200_000,
         );
         let io = block.io_windows();
         eprintln!("{period}: {:?} {io:?}", block.run_ahead_windows());
         assert!(io.memo_hits > 120, "{period}: {io:?}");
+        // Some by a plan: core 1's handler stores the words its copy channel read at the
+        // tick (the DMA's reads take the words as they were before the stores).
+        assert!(io.memo_planned > 20, "{period}: {io:?}");
         // Recorded here, or by another board (the process's store).
         let taken = io.memo_recorded + io.memo_shared;
         assert!((1..20).contains(&taken), "{period}: {io:?}");
     }
+}
+
+#[test]
+fn planned_hits_equal_the_lock_step() {
+    // A hit of the period memo takes a plan where one serves (`io_window.rs`, "Plans"):
+    // the DMA's reads from the SRAM the cores' run left, from the words their stores
+    // overwrote, or from the DMA's own writes of the window; loads checked against those
+    // writes. Here core 1's copy chains to a second channel that copies the words the
+    // first has just written (DMA reads of the DMA's writes) past them, or back to the
+    // source, which the handler then stores in part (words both the DMA and a core write:
+    // no plan serves); against a board without plans and the lock-step run (`compare`).
+    for (period, to, planned) in [
+        (3000, DST + 0x20, true),
+        (3001, DST + 0x20, true),
+        (3000, SRC, false),
+    ] {
+        let block = compare(
+            Shape {
+                busy: false,
+                periodic: true,
+                period,
+                commands: false,
+                chain: Some(to),
+                poll: false,
+            },
+            1_200_000,
+        );
+        let io = block.io_windows();
+        eprintln!("{period} {to:x}: {io:?}");
+        assert!(io.memo_hits > 120, "{period}: {io:?}");
+        assert_eq!(io.memo_planned > 20, planned, "{period} {to:x}: {io:?}");
+    }
+}
+
+#[test]
+fn a_hit_meets_the_dmas_claims_with_or_without_a_plan() {
+    // Core 0's main loop loads a word of the DMA's bank every 64 cycles: a window in which
+    // one of those loads falls in a cycle the DMA claims the bank is undone (the core
+    // would have waited), whether the period memo gives it by a plan or not.
+    let block = compare(
+        Shape {
+            busy: false,
+            periodic: true,
+            period: 3000,
+            commands: false,
+            chain: None,
+            poll: true,
+        },
+        1_200_000,
+    );
+    let io = block.io_windows();
+    eprintln!("{io:?}");
+    assert!(io.waited > 10, "{io:?}");
+    assert!(io.memo_planned > 20, "{io:?}");
 }
 
 #[test]
@@ -382,6 +494,8 @@ fn data_set_between_hits_is_the_lock_steps() {
             periodic: true,
             period,
             commands: false,
+            chain: None,
+            poll: false,
         };
         let mut lazy = board(Engine::Block, shape);
         let mut made = board(Engine::Block, shape);
@@ -435,6 +549,8 @@ fn a_recording_without_records_gives_none_to_a_board_that_keeps_them() {
         periodic: true,
         period: 3000,
         commands: false,
+        chain: None,
+        poll: false,
     };
     let mut none = board(Engine::Block, shape);
     none.io_mut().expect("io").keep_records(false);
@@ -471,6 +587,8 @@ fn the_period_memo_keys_the_data_that_decides() {
             periodic: true,
             period: 3000,
             commands: true,
+            chain: None,
+            poll: false,
         },
         1_200_000,
     );
@@ -498,6 +616,8 @@ fn native_code_logs_the_dmas_banks_as_the_general_path_does() {
             periodic,
             period,
             commands: false,
+            chain: None,
+            poll: false,
         };
         let [mut native, mut general] = [true, false].map(|on| {
             let mut b = board(Engine::Block, shape);

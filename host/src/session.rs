@@ -543,11 +543,12 @@ pub fn budget_text(r: &BoardsReport) -> String {
     let undone = io.waited + io.stale + io.reach;
     if io.kept + undone > 0 {
         s.push_str(&format!(
-            "  converters' I/O: {} windows replayed against the cores' accesses ({} given by the period memo, which recorded {} and took {} from other boards' recordings), {undone} undone and run in lock-step ({} a core waited for the DMA, {} a load stale, {} a register store)\n",
+            "  converters' I/O: {} windows replayed against the cores' accesses ({} given by the period memo, which recorded {} and took {} from other boards' recordings; {} of its hits by a plan), {undone} undone and run in lock-step ({} a core waited for the DMA, {} a load stale, {} a register store)\n",
             io.kept + undone,
             io.memo_hits,
             io.memo_recorded,
             io.memo_shared,
+            io.memo_planned,
             io.waited,
             io.stale,
             io.reach

@@ -107,6 +107,30 @@
 //! control state (the registers it accepts, the DMA's priority and reach) reads the end's
 //! ([`System::io_control`]). The demo on `rp2040_io`: 19.11 → 18.46 G host instructions;
 //! `tests/io_windows.rs` runs boards with and without it against the lock-step run.
+//!
+//! **Plans.** A hit in the merged order took every logged store back, did the DMA's
+//! accesses and the cores' in turn, and did each store again: some 4,000 host instructions
+//! a window for what is, window after window, the same sequence. So a hit first works out,
+//! once per entry and *shape* of the window's logs — per core each access's address, size
+//! and kind and how many of the entry's DMA accesses come before it (those at or before
+//! its cycle, [`MemoEntry::at_cycle`]) — where each DMA read takes its word from: the SRAM
+//! as the cores' run left it (no core stores the word after the read), the word a core's
+//! logged store overwrote (the first store to it after the read: the DAC frames the
+//! firmware's DMA moves at the tick, before the handler writes the next ones), or an
+//! earlier DMA write of the window; and which core loads read a word a DMA write wrote
+//! before them (checked against it). A window of that shape then takes the plan: the DMA's
+//! reads and their constraints, the writes' values by their routes, the checks, then the
+//! writes in their order — the SRAM the merged replay leaves, since no word is both stored
+//! by a core and written by the DMA nor accessed by both cores (a plan is not made for
+//! such a shape), and a core access in a cycle the DMA claims its bank leaves the window to
+//! the merged replay. A read or check that fails changes nothing: the merged replay then
+//! finds what becomes of the window (a miss, stale, or kept). The stores are taken back
+//! only for the merged replay, and before the I/O's advance to the window's start when
+//! that runs anything (a machine held behind: plans are then left out). In the demo on
+//! `rp2040_io` 92 % of the hits take a plan, the window's plan the entry's last in all but
+//! 0.04 %, 108 plans made in all; 18.43 → 18.06 G. `tests/io_windows.rs`
+//! (`planned_hits_equal_the_lock_step`, `a_hit_meets_the_dmas_claims_with_or_without_a_plan`
+//! and every comparison) runs boards with and without plans against the lock-step run.
 
 use super::window::undo_stores;
 use super::*;
@@ -115,6 +139,7 @@ use crate::io::{
     Checkpoint, EndState, Io, IoRecords, LaneOp, LaneRec, LazyEnd, Rebase, RecordCodes, Slot,
 };
 use crate::lanes::{self, Lane, Route};
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 /// What a window's core access to the I/O is.
@@ -226,6 +251,8 @@ pub struct IoWindows {
     /// Replays the period memo took from the process's store, recorded by another board
     /// (module documentation).
     pub memo_shared: u64,
+    /// Of the memo's hits, those a plan gave (module documentation, "Plans").
+    pub memo_planned: u64,
 }
 
 impl std::ops::Add for IoWindows {
@@ -241,6 +268,7 @@ impl std::ops::Add for IoWindows {
             memo_hits: self.memo_hits + o.memo_hits,
             memo_recorded: self.memo_recorded + o.memo_recorded,
             memo_shared: self.memo_shared + o.memo_shared,
+            memo_planned: self.memo_planned + o.memo_planned,
         }
     }
 }
@@ -270,6 +298,13 @@ pub(crate) struct IoMemo {
     /// Whether a hit may leave its end behind instead of making it (module documentation,
     /// "The lazy end"); on by default.
     lazy: bool,
+    /// Per entry, its plans (module documentation, "Plans"), and whether hits may use them
+    /// (on by default).
+    plans: Vec<Plans>,
+    planned: bool,
+    /// A planned hit's values of the DMA's accesses, by op, and the window's shape.
+    values: Vec<u32>,
+    shape: Vec<u64>,
 }
 
 impl IoMemo {
@@ -293,10 +328,12 @@ impl IoMemo {
         if self.entries.len() < MEMO_ENTRIES {
             self.entries.push(e);
             self.follow.push([usize::MAX; FOLLOWERS]);
+            self.plans.push(Plans::default());
             return self.entries.len() - 1;
         }
         let at = self.next;
         self.entries[at] = e;
+        self.plans[at] = Plans::default();
         // No link leads to the entry replaced, nor from it.
         for f in self.follow.iter_mut().flatten() {
             if *f == at {
@@ -323,6 +360,10 @@ impl Default for IoMemo {
             after: None,
             inputs: Vec::new(),
             lazy: true,
+            plans: Vec::new(),
+            planned: true,
+            values: Vec::new(),
+            shape: Vec::new(),
         }
     }
 }
@@ -374,6 +415,11 @@ struct MemoEntry {
     /// claims some bank then (the common test: most cycles have none).
     claims: Vec<(u64, u8)>,
     claimed: Vec<u64>,
+    /// Per cycle from the start through the last claim or access of the DMA's: the number
+    /// of its accesses at or before it (low byte) and the banks it claims in it (high
+    /// byte), for a window's shape ([`shape_of`]; empty for an entry of more than 255
+    /// accesses, which no plan serves).
+    at_cycle: Vec<u16>,
     /// The cycle the I/O was run to: a core's access at or after it is not replayed here.
     ran_to: u64,
     /// The I/O at the end at [`Rebase::MEMO`] without its records, and the routes of its
@@ -421,6 +467,326 @@ enum MemoOpKind {
     Read { mask: u32, value: u32 },
     /// A write, its value by `route`.
     Write { route: Route },
+}
+
+/// The most plans kept per entry ([`Plans`]; all dropped when it is full): a control
+/// state's windows come in some tens of shapes (which of the DMA's accesses come before
+/// each of the cores' depends on the keys' paths through the handler).
+const PLANS: usize = 256;
+
+/// An entry's plans by their shapes' hashes (module documentation, "Plans"), and the
+/// one used last (the next window's is that one in all but a few in 10,000).
+#[derive(Default)]
+struct Plans {
+    map: HashMap<u64, Plan, std::hash::BuildHasherDefault<Prehashed>>,
+    last: Option<u64>,
+}
+
+impl Plans {
+    /// The plan of entry `e` for the window whose logs are `logs` (cycles from `base`),
+    /// made now if there is none yet (`shape`: a buffer); `None` when a core access falls
+    /// in a cycle in which the DMA claims its bank, or the entry has no
+    /// [`MemoEntry::at_cycle`].
+    fn find(
+        &mut self,
+        e: &MemoEntry,
+        logs: &[Vec<IoAccess>; 2],
+        base: u64,
+        shape: &mut Vec<u64>,
+    ) -> Option<&Plan> {
+        if e.at_cycle.is_empty() {
+            return None;
+        }
+        let last = self
+            .last
+            .filter(|h| self.map.get(h).is_some_and(|p| p.serves(e, logs, base)));
+        let h = match last {
+            Some(h) => h,
+            None => {
+                let h = shape_of(e, logs, base, shape)?;
+                if self.map.get(&h).is_none_or(|p| p.shape != *shape) {
+                    if self.map.len() >= PLANS {
+                        self.map.clear();
+                    }
+                    self.map.insert(h, Plan::new(e, logs, base, shape));
+                }
+                self.last = Some(h);
+                h
+            }
+        };
+        self.map.get(&h)
+    }
+}
+
+/// One access's word of a window's shape for entry `e` ([`shape_of`]): its address, size,
+/// kind and the number of the entry's DMA accesses at or before its cycle; `None` when it
+/// falls in a cycle in which the DMA claims its bank.
+#[inline]
+fn shape_word(e: &MemoEntry, a: &IoAccess, base: u64) -> Option<u64> {
+    let mut pos = 0;
+    if a.kind != IoKind::Reg {
+        let at = a.cycle.wrapping_sub(base);
+        pos = match e.at_cycle.get(at as usize) {
+            Some(&x) if (x >> 8) >> sram_bank(a.addr) & 1 != 0 => return None,
+            Some(&x) => u64::from(x & 0xff),
+            None => e.ops.len() as u64,
+        };
+    }
+    Some(u64::from(a.addr) << 32 | pos << 16 | u64::from(a.size) << 8 | a.kind as u64)
+}
+
+/// The shape of a window's logs for entry `e` into `shape` (module documentation,
+/// "Plans"): per core each access's [`shape_word`], the cores apart by a `u64::MAX`;
+/// returns its hash, or `None` where an access falls in a cycle in which the DMA claims
+/// its bank (the window is not the entry's: the general replay finds it so).
+fn shape_of(
+    e: &MemoEntry,
+    logs: &[Vec<IoAccess>; 2],
+    base: u64,
+    shape: &mut Vec<u64>,
+) -> Option<u64> {
+    shape.clear();
+    for log in logs {
+        for a in log {
+            shape.push(shape_word(e, a, base)?);
+        }
+        shape.push(u64::MAX);
+    }
+    Some((shape.iter()).fold(0xcbf2_9ce4_8422_2325u64, |h, &x| {
+        (h ^ x).wrapping_mul(0x0000_0100_0000_01b3)
+    }))
+}
+
+/// [`MemoEntry::at_cycle`] for the DMA's accesses `ops` (in their ticks' order) and
+/// claims `claims` (cycle, bank), both from the start.
+fn at_cycle(ops: &[MemoOp], claims: &[(u64, u8)]) -> Vec<u16> {
+    let last = (ops.iter().map(|op| op.tick))
+        .chain(claims.iter().map(|c| c.0))
+        .max()
+        .unwrap_or(0);
+    if ops.len() > 255 || last >= 1 << 20 {
+        return Vec::new();
+    }
+    let mut t = vec![0u16; last as usize + 1];
+    let mut pos = 0;
+    for (c, x) in t.iter_mut().enumerate() {
+        while ops.get(pos).is_some_and(|op| op.tick <= c as u64) {
+            pos += 1;
+        }
+        *x = pos as u16;
+    }
+    for &(c, b) in claims {
+        if let Some(x) = t.get_mut(c as usize) {
+            *x |= 1 << (8 + u32::from(b));
+        }
+    }
+    t
+}
+
+/// A hasher for keys that are hashes already ([`Plans`]).
+#[derive(Default)]
+struct Prehashed(u64);
+
+impl std::hash::Hasher for Prehashed {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = self.0.rotate_left(8) ^ u64::from(b);
+        }
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = x;
+    }
+}
+
+/// Where a planned hit takes the word a DMA read reads ([`Plan`]).
+#[derive(Clone, Copy)]
+enum Src {
+    /// The SRAM as the cores' run left it (no core stores the word after the read).
+    Sram,
+    /// The word a core's logged store overwrote (the first store to it after the read),
+    /// shifted right by `shift` bits.
+    Old { core: u8, at: u32, shift: u8 },
+    /// An earlier DMA write's value (op index; the same bytes).
+    Dma(u32),
+    /// Not a read.
+    Write,
+}
+
+/// A hit's replay worked out once for an entry and a shape of the window's logs (module
+/// documentation, "Plans").
+struct Plan {
+    /// The windows it serves ([`shape_of`]).
+    shape: Vec<u64>,
+    /// False for a shape no plan serves (the general replay does those windows).
+    ok: bool,
+    /// Per DMA op (the entry's order), where a read's word comes from.
+    srcs: Vec<Src>,
+    /// The core loads of words a DMA write wrote before them: (core, log index, op index,
+    /// shift of the load's bytes in the write's value).
+    checks: Vec<(u8, u32, u32, u8)>,
+}
+
+/// The mask of the low `size` bytes.
+fn size_mask(size: u8) -> u32 {
+    match size {
+        1 => 0xff,
+        2 => 0xffff,
+        _ => u32::MAX,
+    }
+}
+
+impl Plan {
+    /// Whether the window whose logs are `logs` (cycles from `base`) has the plan's shape
+    /// ([`shape_of`]) on entry `e`, no access of it in a cycle the DMA claims its bank.
+    #[inline]
+    fn serves(&self, e: &MemoEntry, logs: &[Vec<IoAccess>; 2], base: u64) -> bool {
+        let mut s = self.shape.iter();
+        for log in logs {
+            for a in log {
+                if shape_word(e, a, base).is_none_or(|x| s.next() != Some(&x)) {
+                    return false;
+                }
+            }
+            if s.next() != Some(&u64::MAX) {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// The plan of entry `e` for windows shaped as `logs` (cycles from `base`; their shape
+    /// `shape`): the general replay's order ([`Board::io_memo_apply`]) worked out once.
+    /// Not `ok` (the general replay serves such windows) where a word is accessed by both
+    /// cores or both written by the DMA and stored by a core, a DMA read reads a DMA
+    /// write's bytes other than exactly, or a read mixes bytes of the DMA's writes and
+    /// others.
+    fn new(e: &MemoEntry, logs: &[Vec<IoAccess>; 2], base: u64, shape: &[u64]) -> Plan {
+        let not = || Plan {
+            shape: shape.to_vec(),
+            ok: false,
+            srcs: Vec::new(),
+            checks: Vec::new(),
+        };
+        // The events in the general replay's order: (None, op) for the DMA's, (Some(core),
+        // log index) for the cores'.
+        let mut events: Vec<(Option<u8>, u32)> = Vec::new();
+        let mut next = 0;
+        let mut merged = Merged::new(logs);
+        while let Some((k, i)) = merged.next_index() {
+            let a = &logs[k][i];
+            if a.kind == IoKind::Reg {
+                continue;
+            }
+            let at = a.cycle.wrapping_sub(base);
+            while e.ops.get(next).is_some_and(|op| op.tick <= at) {
+                events.push((None, next as u32));
+                next += 1;
+            }
+            events.push((Some(k as u8), i as u32));
+        }
+        events.extend((next..e.ops.len()).map(|j| (None, j as u32)));
+        // Words by who touches them: bits 0 and 1 the cores, bit 2 a core's store, bit 3
+        // a DMA write.
+        let mut words: Vec<(u32, u8)> = Vec::new();
+        for &(who, i) in &events {
+            let (word, bits) = match who {
+                Some(c) => {
+                    let a = &logs[c as usize][i as usize];
+                    let store = if a.kind == IoKind::Store { 4 } else { 0 };
+                    (a.addr & !3, 1 << c | store)
+                }
+                None => match e.ops.get(i as usize) {
+                    Some(op) if matches!(op.kind, MemoOpKind::Write { .. }) => (op.off & !3, 8),
+                    _ => continue,
+                },
+            };
+            match words.iter_mut().find(|w| w.0 == word) {
+                Some(w) => w.1 |= bits,
+                None => words.push((word, bits)),
+            }
+        }
+        if words.iter().any(|&(_, w)| w & 3 == 3 || w & 12 == 12) {
+            return not();
+        }
+        // Each byte a DMA write wrote so far, with the write (op index).
+        let mut written: Vec<(u32, u32)> = Vec::new();
+        // The DMA write whose bytes `off..off + size` are, or `None` when no DMA write
+        // wrote any of them; `Err` when mixed.
+        let last_write = |written: &[(u32, u32)], off: u32, size: u8| {
+            let by = |b: u32| written.iter().find(|w| w.0 == b).map(|w| w.1);
+            let first = by(off);
+            match (off + 1..off + u32::from(size)).all(|b| by(b) == first) {
+                true => Ok(first),
+                false => Err(()),
+            }
+        };
+        let mut srcs = vec![Src::Write; e.ops.len()];
+        let mut checks = Vec::new();
+        for (n, &(who, i)) in events.iter().enumerate() {
+            match who {
+                Some(c) => {
+                    let a = &logs[c as usize][i as usize];
+                    if a.kind != IoKind::Load {
+                        continue;
+                    }
+                    match last_write(&written, a.addr, a.size) {
+                        Ok(None) => {}
+                        Ok(Some(j)) => {
+                            let Some(op) = e.ops.get(j as usize) else {
+                                return not();
+                            };
+                            checks.push((c, i, j, ((a.addr - op.off) * 8) as u8));
+                        }
+                        Err(()) => return not(),
+                    }
+                }
+                None => {
+                    let Some(op) = e.ops.get(i as usize) else {
+                        return not();
+                    };
+                    let bytes = op.off..op.off + u32::from(op.size);
+                    match op.kind {
+                        MemoOpKind::Write { .. } => {
+                            written.retain(|w| !bytes.contains(&w.0));
+                            written.extend(bytes.map(|b| (b, i)));
+                        }
+                        MemoOpKind::Read { .. } => {
+                            srcs[i as usize] = match last_write(&written, op.off, op.size) {
+                                Ok(Some(j)) => match e.ops.get(j as usize) {
+                                    Some(w) if w.off == op.off && w.size == op.size => Src::Dma(j),
+                                    _ => return not(),
+                                },
+                                Err(()) => return not(),
+                                // The word as a core's run left it at this point: before
+                                // the first store to it after the read, else the end's.
+                                Ok(None) => (events.get(n + 1..).into_iter().flatten())
+                                    .find_map(|&(who, k)| {
+                                        let c = who?;
+                                        let s = &logs[c as usize][k as usize];
+                                        (s.kind == IoKind::Store && s.addr & !3 == op.off & !3)
+                                            .then_some(Src::Old {
+                                                core: c,
+                                                at: k,
+                                                shift: ((op.off & 3) * 8) as u8,
+                                            })
+                                    })
+                                    .unwrap_or(Src::Sram),
+                            };
+                        }
+                    }
+                }
+            }
+        }
+        Plan {
+            shape: shape.to_vec(),
+            ok: true,
+            srcs,
+            checks,
+        }
+    }
 }
 
 /// The register stores of each core's log of a window, their cycles from `base`: a
@@ -571,6 +937,19 @@ fn sram_put(sys: &mut System, off: u32, size: u8, value: u32) {
     store_le(&mut sys.sram, off as usize, u32::from(size), value);
 }
 
+/// A hit's inputs for entry `e` into `inputs`: the data words its routes read (the others
+/// 0), up to the first DMA read's.
+#[inline]
+fn data_inputs(sys: &System, e: &MemoEntry, inputs: &mut Vec<u32>) {
+    inputs.clear();
+    inputs.resize(e.slots as usize, 0);
+    if let Some(io) = View::of(sys) {
+        for &(s, at) in &e.needs {
+            inputs[s as usize] = io.slot(s, at);
+        }
+    }
+}
+
 /// A period memo hit's DMA accesses from `ops[*next]` while their ticks are at most
 /// `upto` (`*next` moves past them): a read checks its constraint and becomes the next
 /// input, a write stores its route's value (journaled, as [`System::io_dma_write`]).
@@ -621,6 +1000,13 @@ impl Board {
     pub fn set_io_lazy(&mut self, on: bool) {
         self.system.io_unlazy();
         self.io_memo.lazy = on;
+    }
+
+    /// For tests: whether a hit of the period memo may take a plan (module documentation,
+    /// "Plans"); on by default. Results never depend on it.
+    #[doc(hidden)]
+    pub fn set_io_plans(&mut self, on: bool) {
+        self.io_memo.planned = on;
     }
 
     /// For tests: keeps a digest of every window's logs ([`Board::io_log_digest`]), and
@@ -711,17 +1097,12 @@ impl Board {
         journal.clear();
         self.system.io_journal = Some(journal);
         let logs = std::mem::take(&mut self.io_logs);
-        // The stored words as they were before the window, newest store first.
-        for log in &logs {
-            for e in log.iter().rev().filter(|e| e.kind == IoKind::Store) {
-                sram_put(&mut self.system, e.addr & !3, 4, e.old);
-            }
-        }
         let own = (self.config.own_banks[0] | self.config.own_banks[1]) & ALL_BANKS;
         let memo = self.io_memo.on && self.system.io.as_ref().is_some_and(|io| !io.stepwise);
         let r = match memo {
             true => self.io_memo_replay(&logs, banks, own, end, io),
             false => {
+                self.io_take_back(&logs);
                 self.system.io_unlazy();
                 *io = self.system.io.as_mut().map(|now| now.checkpoint());
                 self.io_merge(&logs, banks, own)
@@ -729,6 +1110,18 @@ impl Board {
         };
         self.io_logs = logs;
         r
+    }
+
+    /// The words the cores' logged stores overwrote put back, newest store first: the
+    /// SRAM as it was before the window (journaled), for the replay to do the stores in
+    /// their places among the DMA's accesses. (A planned hit does without: module
+    /// documentation, "Plans".)
+    fn io_take_back(&mut self, logs: &[Vec<IoAccess>; 2]) {
+        for log in logs {
+            for e in log.iter().rev().filter(|e| e.kind == IoKind::Store) {
+                sram_put(&mut self.system, e.addr & !3, 4, e.old);
+            }
+        }
     }
 
     /// The replay through the period memo (module documentation): a hit does what the
@@ -743,17 +1136,26 @@ impl Board {
         io: &mut Option<Checkpoint>,
     ) -> Result<(), Violation> {
         if self.system.io.is_none() {
+            self.io_take_back(logs);
             return self.io_merge(logs, banks, own);
         }
         // A machine held behind (an advance that did not settle) is settled first: the
-        // memo's states are settled ones.
-        let base = match (self.system.io_lazy.as_deref(), self.system.io.as_deref()) {
-            (Some(l), _) => l.cycle(),
-            (None, io) => io.map_or(0, Io::cycle),
+        // memo's states are settled ones. The stores are taken back before the advance
+        // unless it runs nothing (a machine not behind, advanced to its own cycle), and the
+        // hit's plans are then left out.
+        let (base, back) = match (self.system.io_lazy.as_deref(), self.system.io.as_deref()) {
+            (Some(l), _) => (l.cycle(), l.end.io.is_behind()),
+            (None, io) => (io.map_or(0, Io::cycle), io.is_none_or(Io::is_behind)),
         };
+        if back {
+            self.io_take_back(logs);
+        }
         self.system.io_advance_to(base, true);
-        if let Tried::Done(r) = self.io_memo_hit(logs, base, end, own) {
+        if let Tried::Done(r) = self.io_memo_hit(logs, base, end, own, back) {
             return r;
+        }
+        if !back {
+            self.io_take_back(logs);
         }
         self.io_memo_record(logs, banks, own, base, end, io)
     }
@@ -762,8 +1164,18 @@ impl Board {
     /// `end`: the entries whose key the window's start meets, this board's first (the one
     /// that followed the last first), then the process's store; each tried in turn until
     /// one's replay goes through (a word the DMA reads may break its constraints part-way:
-    /// what that try wrote is undone).
-    fn io_memo_hit(&mut self, logs: &[Vec<IoAccess>; 2], base: u64, end: u64, own: u8) -> Tried {
+    /// what that try wrote is undone). `back`: the stores are taken back already
+    /// ([`Board::io_take_back`]); else the SRAM is as the cores' run left it, which a plan
+    /// takes (module documentation, "Plans"), and the stores are taken back before a try
+    /// without one. A miss leaves the SRAM as it found it.
+    fn io_memo_hit(
+        &mut self,
+        logs: &[Vec<IoAccess>; 2],
+        base: u64,
+        end: u64,
+        own: u8,
+        back: bool,
+    ) -> Tried {
         let keeps = (self.system.io.as_deref_mut()).is_some_and(|io| !io.records_full());
         let Some(now) = self.system.io.as_deref() else {
             return Tried::Miss;
@@ -816,6 +1228,14 @@ impl Board {
                 continue;
             }
             let e = Arc::clone(&self.io_memo.entries[i]);
+            if !back && self.io_memo_planned(i, &e, logs, &probe) {
+                self.io_memo_followed_by(i, untouched);
+                return Tried::Done(Ok(()));
+            }
+            // A miss undoes the try's writes, the taking back among them.
+            if !back {
+                self.io_take_back(logs);
+            }
             if let Some(r) = self.io_memo_try(&e, logs, &probe, mark) {
                 self.io_memo_followed_by(i, untouched);
                 return Tried::Done(r);
@@ -836,6 +1256,9 @@ impl Board {
             });
         }
         for e in shared.into_iter().flatten() {
+            if !back {
+                self.io_take_back(logs);
+            }
             if let Some(r) = self.io_memo_try(&e, logs, &probe, mark) {
                 self.io_windows.memo_shared += 1;
                 let i = self.io_memo.keep(e);
@@ -875,24 +1298,103 @@ impl Board {
         self.io_memo.followed_by(i, linked, after);
     }
 
+    /// Entry `i` (`e`) for the window `probe` brings by a plan (module documentation,
+    /// "Plans"), the SRAM as the cores' run left it: true when done; false, nothing
+    /// changed, when there is no plan for the window's shape or a read or load breaks it
+    /// (the general replay then finds what becomes of the window).
+    fn io_memo_planned(
+        &mut self,
+        i: usize,
+        e: &MemoEntry,
+        logs: &[Vec<IoAccess>; 2],
+        probe: &Probe,
+    ) -> bool {
+        let IoMemo {
+            plans,
+            inputs,
+            values,
+            shape,
+            planned,
+            ..
+        } = &mut self.io_memo;
+        if !*planned {
+            return false;
+        }
+        let Some(plan) = plans
+            .get_mut(i)
+            .and_then(|p| p.find(e, logs, probe.base, shape))
+        else {
+            return false;
+        };
+        if !plan.ok {
+            return false;
+        }
+        let sys = &mut self.system;
+        if sys.io.is_none() {
+            return false;
+        }
+        data_inputs(sys, e, inputs);
+        values.clear();
+        values.resize(e.ops.len(), 0);
+        for (j, (op, &src)) in e.ops.iter().zip(&plan.srcs).enumerate() {
+            let v = match &op.kind {
+                MemoOpKind::Write { route } => route.eval(inputs),
+                &MemoOpKind::Read { mask, value } => {
+                    let v = match src {
+                        Src::Sram => load_le(&sys.sram, op.off as usize, op.size.into()),
+                        Src::Old { core, at, shift } => {
+                            match logs[core as usize & 1].get(at as usize) {
+                                Some(a) => (a.old >> shift) & size_mask(op.size),
+                                None => return false,
+                            }
+                        }
+                        Src::Dma(j) => match values.get(j as usize) {
+                            Some(&w) => w & size_mask(op.size),
+                            None => return false,
+                        },
+                        Src::Write => return false,
+                    };
+                    if v & mask != value {
+                        return false;
+                    }
+                    inputs.push(v);
+                    v
+                }
+            };
+            if let Some(x) = values.get_mut(j) {
+                *x = v;
+            }
+        }
+        for &(c, k, j, shift) in &plan.checks {
+            let (Some(a), Some(&w)) =
+                (logs[c as usize & 1].get(k as usize), values.get(j as usize))
+            else {
+                return false;
+            };
+            if (w >> shift) & size_mask(a.size) != a.value {
+                return false;
+            }
+        }
+        for (op, &v) in e.ops.iter().zip(values.iter()) {
+            if let MemoOpKind::Write { .. } = op.kind {
+                sys.io_dma_write(op.off, op.size.into(), v);
+            }
+        }
+        let inputs = std::mem::take(&mut self.io_memo.inputs);
+        let r = self.io_memo_end(e, &inputs, probe);
+        self.io_memo.inputs = inputs;
+        self.io_windows.memo_planned += 1;
+        matches!(r, Tried::Done(Ok(())))
+    }
+
     /// Does the replay entry `e` recorded, with the window's data (module documentation):
     /// `Miss` when a word the DMA reads breaks its constraints (the caller undoes what it
     /// wrote), else what became of the window.
     fn io_memo_apply(&mut self, e: &MemoEntry, logs: &[Vec<IoAccess>; 2], probe: &Probe) -> Tried {
         let base = probe.base;
-        let to_memo = Rebase {
-            from: base,
-            to: Rebase::MEMO,
-        };
         // The inputs: the data words the entry's routes read, then the DMA's reads.
         let inputs = &mut self.io_memo.inputs;
-        inputs.clear();
-        inputs.resize(e.slots as usize, 0);
-        if let Some(io) = View::of(&self.system) {
-            for &(s, at) in &e.needs {
-                inputs[s as usize] = io.slot(s, at);
-            }
-        }
+        data_inputs(&self.system, e, inputs);
         // The DMA's accesses in their ticks' order, each core access after those of its
         // cycle and before the later ones (as the lock-step bus runs the I/O through an
         // access's cycle first).
@@ -924,32 +1426,49 @@ impl Board {
         if !dma_ops(&mut self.system, ops, &mut next, u64::MAX, inputs) {
             return Tried::Miss;
         }
-        // The end: the entry's, its data words and the parts' records by their routes. Where
-        // the parts keep no records, left behind (module documentation, "The lazy end").
+        let inputs = std::mem::take(&mut self.io_memo.inputs);
+        let r = self.io_memo_end(e, &inputs, probe);
+        self.io_memo.inputs = inputs;
+        r
+    }
+
+    /// A hit's end, its SRAM accesses done with `inputs`: the entry's end, its data words
+    /// and the parts' records by their routes. Where the parts keep no records, left behind
+    /// (module documentation, "The lazy end").
+    fn io_memo_end(&mut self, e: &MemoEntry, inputs: &[u32], probe: &Probe) -> Tried {
+        let to_memo = Rebase {
+            from: probe.base,
+            to: Rebase::MEMO,
+        };
         let Some(now) = self.system.io.as_mut() else {
             return Tried::Miss;
         };
         if self.io_memo.lazy && !probe.keeps {
-            let mut data = match self.system.io_lazy.take() {
-                Some(l) => l.data,
+            // The last hit's end reused (its box and list), else one made from the machine.
+            let mut l = match self.system.io_lazy.take() {
+                Some(mut l) => {
+                    l.end = Arc::clone(&e.end);
+                    l.back = to_memo.back();
+                    l
+                }
                 None => {
-                    let mut d = Vec::new();
-                    now.data_words(&mut d);
-                    d
+                    let mut data = Vec::new();
+                    now.data_words(&mut data);
+                    Box::new(LazyEnd {
+                        end: Arc::clone(&e.end),
+                        back: to_memo.back(),
+                        data,
+                    })
                 }
             };
+            let data = &mut l.data;
             e.patch(inputs, |i, _, v| {
                 if let Some(w) = data.get_mut(i as usize) {
                     *w = v;
                 }
             });
-            let mut l = LazyEnd {
-                end: Arc::clone(&e.end),
-                back: to_memo.back(),
-                data,
-            };
             l.drop_absent();
-            self.system.io_lazy = Some(Box::new(l));
+            self.system.io_lazy = Some(l);
         } else {
             self.system.io_unlazy();
             let Some(now) = self.system.io.as_mut() else {
@@ -1116,6 +1635,7 @@ impl Board {
         for &(c, _) in &claims {
             claimed[c as usize / 64] |= 1 << (c % 64);
         }
+        let at_cycle = at_cycle(&ops, &claims);
         let mut end_io = now.rebased(to_memo);
         end_io.forget_idle();
         let entry = MemoEntry {
@@ -1135,6 +1655,7 @@ impl Board {
             ops,
             claims,
             claimed,
+            at_cycle,
             ran_to: now.cycle() - base,
             end: Arc::new(EndState::new(*end_io)),
             patches,
@@ -1198,11 +1719,10 @@ impl<'l> Merged<'l> {
     fn new(logs: &'l [Vec<IoAccess>; 2]) -> Self {
         Merged { logs, at: [0, 0] }
     }
-}
 
-impl<'l> Iterator for Merged<'l> {
-    type Item = &'l IoAccess;
-    fn next(&mut self) -> Option<&'l IoAccess> {
+    /// The next access's core and index in its log.
+    #[inline]
+    fn next_index(&mut self) -> Option<(usize, usize)> {
         let k = match (self.logs[0].get(self.at[0]), self.logs[1].get(self.at[1])) {
             (Some(a), Some(b)) if a.start <= b.start => 0,
             (_, Some(_)) => 1,
@@ -1210,6 +1730,14 @@ impl<'l> Iterator for Merged<'l> {
             (None, None) => return None,
         };
         self.at[k] += 1;
-        self.logs[k].get(self.at[k] - 1)
+        Some((k, self.at[k] - 1))
+    }
+}
+
+impl<'l> Iterator for Merged<'l> {
+    type Item = &'l IoAccess;
+    fn next(&mut self) -> Option<&'l IoAccess> {
+        let (k, i) = self.next_index()?;
+        self.logs[k].get(i)
     }
 }
