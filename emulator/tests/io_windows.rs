@@ -166,6 +166,20 @@ struct Shape {
 /// The channel [`Shape::chain`] chains the copy to.
 const CHAINED: u32 = 4;
 
+impl Shape {
+    /// The period memo's case at `period` cycles, nothing else.
+    fn periodic(period: u64) -> Shape {
+        Shape {
+            busy: false,
+            periodic: true,
+            period,
+            commands: false,
+            chain: None,
+            poll: false,
+        }
+    }
+}
+
 /// A board on `engine` with the ADC, its DMA channels and the copy channel set up and
 /// the DMA winning the banks, both cores in their handlers' idle loops (core 0 in `busy`'s
 /// bank-2 loop instead).
@@ -402,17 +416,7 @@ fn the_period_memo_of_the_io_equals_the_lock_step() {
     // cycles core 1's windows are kept and hit; at 3001 core 0's handler starts at three
     // different latencies (they do). Every slice ends compared with the lock-step run.
     for period in [3000, 3001] {
-        let block = compare(
-            Shape {
-                busy: false,
-                periodic: true,
-                period,
-                commands: false,
-                chain: None,
-                poll: false,
-            },
-            1_200_000,
-        );
+        let block = compare(Shape::periodic(period), 1_200_000);
         let io = block.io_windows();
         eprintln!("{period}: {:?} {io:?}", block.run_ahead_windows());
         assert!(io.memo_hits > 120, "{period}: {io:?}");
@@ -441,12 +445,8 @@ fn planned_hits_equal_the_lock_step() {
     ] {
         let block = compare(
             Shape {
-                busy: false,
-                periodic: true,
-                period,
-                commands: false,
                 chain: Some(to),
-                poll: false,
+                ..Shape::periodic(period)
             },
             1_200_000,
         );
@@ -464,12 +464,8 @@ fn a_hit_meets_the_dmas_claims_with_or_without_a_plan() {
     // would have waited), whether the period memo gives it by a plan or not.
     let block = compare(
         Shape {
-            busy: false,
-            periodic: true,
-            period: 3000,
-            commands: false,
-            chain: None,
             poll: true,
+            ..Shape::periodic(3000)
         },
         1_200_000,
     );
@@ -489,14 +485,7 @@ fn data_set_between_hits_is_the_lock_steps() {
     // - period 3000, both cores asleep between ticks and no records kept: each hit leaves
     //   its end behind ("The lazy end"), and the codes set go among its data words.
     for (period, asleep) in [(3001, false), (3000, true)] {
-        let shape = Shape {
-            busy: false,
-            periodic: true,
-            period,
-            commands: false,
-            chain: None,
-            poll: false,
-        };
+        let shape = Shape::periodic(period);
         let mut lazy = board(Engine::Block, shape);
         let mut made = board(Engine::Block, shape);
         made.set_io_lazy(false);
@@ -544,14 +533,7 @@ fn a_recording_without_records_gives_none_to_a_board_that_keeps_them() {
     // The period memo's recordings are the process's: one made where the parts keep no
     // frames (`tactus play` but the board of an I/O trace) has none to give. A board that
     // keeps them after one that did not: its frames, with the rest, the lock-step run's.
-    let shape = Shape {
-        busy: false,
-        periodic: true,
-        period: 3000,
-        commands: false,
-        chain: None,
-        poll: false,
-    };
+    let shape = Shape::periodic(3000);
     let mut none = board(Engine::Block, shape);
     none.io_mut().expect("io").keep_records(false);
     let mut keeps = board(Engine::Block, shape);
@@ -583,12 +565,8 @@ fn the_period_memo_keys_the_data_that_decides() {
     // slice ends as in the lock-step run.
     let block = compare(
         Shape {
-            busy: false,
-            periodic: true,
-            period: 3000,
             commands: true,
-            chain: None,
-            poll: false,
+            ..Shape::periodic(3000)
         },
         1_200_000,
     );
