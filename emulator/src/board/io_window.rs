@@ -672,35 +672,19 @@ impl Plan {
             srcs: Vec::new(),
             checks: Vec::new(),
         };
-        // The events in the general replay's order: (None, op) for the DMA's, (Some(core),
-        // log index) for the cores'.
-        let mut events: Vec<(Option<u8>, u32)> = Vec::new();
-        let mut next = 0;
-        let mut merged = Merged::new(logs);
-        while let Some((k, i)) = merged.next_index() {
-            let a = &logs[k][i];
-            if a.kind == IoKind::Reg {
-                continue;
-            }
-            let at = a.cycle.wrapping_sub(base);
-            while e.ops.get(next).is_some_and(|op| op.tick <= at) {
-                events.push((None, next as u32));
-                next += 1;
-            }
-            events.push((Some(k as u8), i as u32));
-        }
-        events.extend((next..e.ops.len()).map(|j| (None, j as u32)));
+        // The steps in the merged replay's order.
+        let steps: Vec<Step> = Order::new(&e.ops, logs, base).collect();
         // Words by who touches them: bits 0 and 1 the cores, bit 2 a core's store, bit 3
         // a DMA write.
         let mut words: Vec<(u32, u8)> = Vec::new();
-        for &(who, i) in &events {
-            let (word, bits) = match who {
-                Some(c) => {
-                    let a = &logs[c as usize][i as usize];
+        for &step in &steps {
+            let (word, bits) = match step {
+                Step::Core(k, i) => {
+                    let a = &logs[k][i];
                     let store = if a.kind == IoKind::Store { 4 } else { 0 };
-                    (a.addr & !3, 1 << c | store)
+                    (a.addr & !3, 1 << k | store)
                 }
-                None => match e.ops.get(i as usize) {
+                Step::Dma(j) => match e.ops.get(j) {
                     Some(op) if matches!(op.kind, MemoOpKind::Write { .. }) => (op.off & !3, 8),
                     _ => continue,
                 },
@@ -727,10 +711,10 @@ impl Plan {
         };
         let mut srcs = vec![Src::Write; e.ops.len()];
         let mut checks = Vec::new();
-        for (n, &(who, i)) in events.iter().enumerate() {
-            match who {
-                Some(c) => {
-                    let a = &logs[c as usize][i as usize];
+        for (n, &step) in steps.iter().enumerate() {
+            match step {
+                Step::Core(k, i) => {
+                    let a = &logs[k][i];
                     if a.kind != IoKind::Load {
                         continue;
                     }
@@ -740,23 +724,23 @@ impl Plan {
                             let Some(op) = e.ops.get(j as usize) else {
                                 return not();
                             };
-                            checks.push((c, i, j, ((a.addr - op.off) * 8) as u8));
+                            checks.push((k as u8, i as u32, j, ((a.addr - op.off) * 8) as u8));
                         }
                         Err(()) => return not(),
                     }
                 }
-                None => {
-                    let Some(op) = e.ops.get(i as usize) else {
+                Step::Dma(i) => {
+                    let Some(op) = e.ops.get(i) else {
                         return not();
                     };
                     let bytes = op.off..op.off + u32::from(op.size);
                     match op.kind {
                         MemoOpKind::Write { .. } => {
                             written.retain(|w| !bytes.contains(&w.0));
-                            written.extend(bytes.map(|b| (b, i)));
+                            written.extend(bytes.map(|b| (b, i as u32)));
                         }
                         MemoOpKind::Read { .. } => {
-                            srcs[i as usize] = match last_write(&written, op.off, op.size) {
+                            srcs[i] = match last_write(&written, op.off, op.size) {
                                 Ok(Some(j)) => match e.ops.get(j as usize) {
                                     Some(w) if w.off == op.off && w.size == op.size => Src::Dma(j),
                                     _ => return not(),
@@ -764,14 +748,16 @@ impl Plan {
                                 Err(()) => return not(),
                                 // The word as a core's run left it at this point: before
                                 // the first store to it after the read, else the end's.
-                                Ok(None) => (events.get(n + 1..).into_iter().flatten())
-                                    .find_map(|&(who, k)| {
-                                        let c = who?;
-                                        let s = &logs[c as usize][k as usize];
+                                Ok(None) => (steps.get(n + 1..).into_iter().flatten())
+                                    .find_map(|&step| {
+                                        let Step::Core(c, k) = step else {
+                                            return None;
+                                        };
+                                        let s = &logs[c][k];
                                         (s.kind == IoKind::Store && s.addr & !3 == op.off & !3)
                                             .then_some(Src::Old {
-                                                core: c,
-                                                at: k,
+                                                core: c as u8,
+                                                at: k as u32,
                                                 shift: ((op.off & 3) * 8) as u8,
                                             })
                                     })
@@ -952,30 +938,20 @@ fn data_inputs(sys: &System, e: &MemoEntry, inputs: &mut Vec<u32>) {
     }
 }
 
-/// A period memo hit's DMA accesses from `ops[*next]` while their ticks are at most
-/// `upto` (`*next` moves past them): a read checks its constraint and becomes the next
+/// A period memo hit's DMA access `op`: a read checks its constraint and becomes the next
 /// input, a write stores its route's value (journaled, as [`System::io_dma_write`]).
 /// False when a read breaks its constraint (the entry does not stand for the window).
-fn dma_ops(
-    sys: &mut System,
-    ops: &[MemoOp],
-    next: &mut usize,
-    upto: u64,
-    inputs: &mut Vec<u32>,
-) -> bool {
-    while let Some(op) = ops.get(*next).filter(|op| op.tick <= upto) {
-        *next += 1;
-        let size = u32::from(op.size);
-        match op.kind {
-            MemoOpKind::Read { mask, value } => {
-                let v = load_le(&sys.sram, op.off as usize, size);
-                if v & mask != value {
-                    return false;
-                }
-                inputs.push(v);
+fn dma_op(sys: &mut System, op: &MemoOp, inputs: &mut Vec<u32>) -> bool {
+    let size = u32::from(op.size);
+    match op.kind {
+        MemoOpKind::Read { mask, value } => {
+            let v = load_le(&sys.sram, op.off as usize, size);
+            if v & mask != value {
+                return false;
             }
-            MemoOpKind::Write { ref route } => sys.io_dma_write(op.off, size, route.eval(inputs)),
+            inputs.push(v);
         }
+        MemoOpKind::Write { ref route } => sys.io_dma_write(op.off, size, route.eval(inputs)),
     }
     true
 }
@@ -1382,9 +1358,7 @@ impl Board {
                 sys.io_dma_write(op.off, op.size.into(), v);
             }
         }
-        let inputs = std::mem::take(&mut self.io_memo.inputs);
-        let r = self.io_memo_end(e, &inputs, probe);
-        self.io_memo.inputs = inputs;
+        let r = self.io_memo_end(e, probe);
         self.io_windows.memo_planned += 1;
         matches!(r, Tried::Done(Ok(())))
     }
@@ -1397,23 +1371,16 @@ impl Board {
         // The inputs: the data words the entry's routes read, then the DMA's reads.
         let inputs = &mut self.io_memo.inputs;
         data_inputs(&self.system, e, inputs);
-        // The DMA's accesses in their ticks' order, each core access after those of its
-        // cycle and before the later ones (as the lock-step bus runs the I/O through an
-        // access's cycle first).
-        let ops = &e.ops[..];
-        let mut next = 0;
-        let mut due = ops.first().map_or(u64::MAX, |op| op.tick);
-        for a in Merged::new(logs) {
-            if a.kind == IoKind::Reg {
-                continue;
-            }
+        for step in Order::new(&e.ops, logs, base) {
+            let (k, i) = match step {
+                Step::Dma(j) => match e.ops.get(j) {
+                    Some(op) if dma_op(&mut self.system, op, inputs) => continue,
+                    _ => return Tried::Miss,
+                },
+                Step::Core(k, i) => (k, i),
+            };
+            let a = &logs[k][i];
             let at = a.cycle.wrapping_sub(base);
-            if due <= at {
-                if !dma_ops(&mut self.system, ops, &mut next, at, inputs) {
-                    return Tried::Miss;
-                }
-                due = ops.get(next).map_or(u64::MAX, |op| op.tick);
-            }
             let bank = sram_bank(a.addr) as u8;
             let some = (e.claimed.get((at / 64) as usize)).is_some_and(|w| w >> (at % 64) & 1 != 0);
             if some && e.claims.binary_search(&(at, bank)).is_ok() {
@@ -1425,19 +1392,21 @@ impl Board {
                 return Tried::Done(Err(Violation::Stale));
             }
         }
-        if !dma_ops(&mut self.system, ops, &mut next, u64::MAX, inputs) {
-            return Tried::Miss;
-        }
+        self.io_memo_end(e, probe)
+    }
+
+    /// A hit's end, its SRAM accesses done with [`IoMemo::inputs`]: the entry's end, its
+    /// data words and the parts' records by their routes. Where the parts keep no records,
+    /// left behind (module documentation, "The lazy end").
+    fn io_memo_end(&mut self, e: &MemoEntry, probe: &Probe) -> Tried {
         let inputs = std::mem::take(&mut self.io_memo.inputs);
-        let r = self.io_memo_end(e, &inputs, probe);
+        let r = self.io_memo_end_with(e, &inputs, probe);
         self.io_memo.inputs = inputs;
         r
     }
 
-    /// A hit's end, its SRAM accesses done with `inputs`: the entry's end, its data words
-    /// and the parts' records by their routes. Where the parts keep no records, left behind
-    /// (module documentation, "The lazy end").
-    fn io_memo_end(&mut self, e: &MemoEntry, inputs: &[u32], probe: &Probe) -> Tried {
+    /// [`Board::io_memo_end`] with the inputs taken out of the memo.
+    fn io_memo_end_with(&mut self, e: &MemoEntry, inputs: &[u32], probe: &Probe) -> Tried {
         let to_memo = Rebase {
             from: probe.base,
             to: Rebase::MEMO,
@@ -1741,5 +1710,61 @@ impl<'l> Iterator for Merged<'l> {
     fn next(&mut self) -> Option<&'l IoAccess> {
         let (k, i) = self.next_index()?;
         self.logs[k].get(i)
+    }
+}
+
+/// One step of a period memo hit ([`Order`]): the entry's DMA access (op index), or a
+/// core's logged SRAM access (core, index in its log).
+#[derive(Clone, Copy)]
+enum Step {
+    Dma(usize),
+    Core(usize, usize),
+}
+
+/// The steps of a hit of an entry whose DMA accesses are `ops` (in their ticks' order) for
+/// a window's `logs` (cycles from `base`), in the lock-step order: the cores' accesses
+/// merged ([`Merged`], their register stores left out), each after the DMA's accesses at
+/// or before its cycle and before the later ones (as the lock-step bus runs the I/O
+/// through an access's cycle first), the DMA's last ones after all. The merged replay
+/// ([`Board::io_memo_apply`]) does them; a [`Plan`] is worked out from them.
+struct Order<'l> {
+    ops: &'l [MemoOp],
+    logs: &'l [Vec<IoAccess>; 2],
+    base: u64,
+    merged: Merged<'l>,
+    /// The DMA's next access, and the cores' next one if it is known.
+    next: usize,
+    core: Option<(usize, usize)>,
+}
+
+impl<'l> Order<'l> {
+    fn new(ops: &'l [MemoOp], logs: &'l [Vec<IoAccess>; 2], base: u64) -> Self {
+        Order {
+            ops,
+            logs,
+            base,
+            merged: Merged::new(logs),
+            next: 0,
+            core: None,
+        }
+    }
+}
+
+impl Iterator for Order<'_> {
+    type Item = Step;
+    fn next(&mut self) -> Option<Step> {
+        if self.core.is_none() {
+            let logs = self.logs;
+            self.core = std::iter::from_fn(|| self.merged.next_index())
+                .find(|&(k, i)| logs[k].get(i).is_some_and(|a| a.kind != IoKind::Reg));
+        }
+        let due = (self.core)
+            .and_then(|(k, i)| self.logs[k].get(i))
+            .map_or(u64::MAX, |a| a.cycle.wrapping_sub(self.base));
+        if self.ops.get(self.next).is_some_and(|op| op.tick <= due) {
+            self.next += 1;
+            return Some(Step::Dma(self.next - 1));
+        }
+        self.core.take().map(|(k, i)| Step::Core(k, i))
     }
 }
