@@ -698,13 +698,15 @@ fn based_of(rec: &Recording) -> Option<Based> {
         words,
         touched,
         io,
+        moved: Vec::new(),
     })
 }
 
 /// A based memo's base (module documentation, "Based memos"): the register, its value at
 /// the recording, the words loaded through it, the SRAM words the call's other accesses
 /// touched (offsets, sorted: a moved word may be none of them), and of the memo's I/O
-/// accesses those loaded through it (index, address at the recording).
+/// accesses those loaded through it (index, address at the recording); and where those
+/// lie for the last few deltas the base moved by ([`Moved`]).
 #[derive(Clone, Debug)]
 struct Based {
     reg: u8,
@@ -712,30 +714,92 @@ struct Based {
     words: Vec<BasedWord>,
     touched: Vec<u32>,
     io: Vec<(u32, u32)>,
+    moved: Vec<Moved>,
+}
+
+/// The most deltas a [`Based`] keeps the places of: the converter drivers' ring of three
+/// results buffers gives a key's base two deltas besides 0.
+const MOVED: usize = 4;
+
+/// Where a based memo's words and I/O accesses lie with its base moved by `delta` bytes
+/// (none of it depends on the SRAM's contents: worked out once per delta, not per call).
+#[derive(Clone, Debug)]
+struct Moved {
+    delta: u32,
+    /// The words' SRAM offsets (in [`Based::words`]' order), each in its bank at the
+    /// recording and apart from the call's other accesses; `None` when one is not (or
+    /// the delta is not a whole number of words): the memo does not match.
+    offs: Option<Vec<u32>>,
+    /// One past the last byte of those words.
+    end: usize,
+    /// The I/O accesses loaded through the base: (index in [`Memo::io`], SRAM offset),
+    /// those whose moved address is in the SRAM.
+    io: Vec<(u32, u32)>,
 }
 
 impl Based {
+    /// Where the words and I/O accesses lie with the base moved by `delta` (`delta` not 0):
+    /// kept for the last [`MOVED`] deltas, the oldest replaced first. Returns its index
+    /// in [`Based::moved`].
+    fn moved(&mut self, delta: u32) -> usize {
+        if let Some(i) = self.moved.iter().position(|m| m.delta == delta) {
+            return i;
+        }
+        let offs = (self.words.iter())
+            .map(|w| {
+                let (off, bank) = sram_location(w.addr.wrapping_add(delta))?;
+                let apart = self.touched.binary_search(&(off as u32)).is_err();
+                (bank == w.bank as usize && apart).then_some(off as u32)
+            })
+            .collect::<Option<Vec<u32>>>()
+            .filter(|_| delta & 3 == 0);
+        let end = (offs.iter().flatten())
+            .map(|&o| o as usize + 4)
+            .max()
+            .unwrap_or(0);
+        let io = (self.io.iter())
+            .filter_map(|&(i, addr)| {
+                sram_location(addr.wrapping_add(delta)).map(|(off, _)| (i, off as u32))
+            })
+            .collect();
+        let m = Moved {
+            delta,
+            offs,
+            end,
+            io,
+        };
+        match self.moved.len() < MOVED {
+            true => {
+                self.moved.push(m);
+                self.moved.len() - 1
+            }
+            false => {
+                self.moved.rotate_left(1);
+                self.moved[MOVED - 1] = m;
+                MOVED - 1
+            }
+        }
+    }
+
     /// Whether the words loaded through the base, moved by `delta` bytes (the base's
     /// value now less `at`), hold their bytes in `sram`, each in its bank and apart from
     /// the call's other accesses.
-    fn matches(&self, delta: u32, sram: &[u8]) -> bool {
-        if delta & 3 != 0 {
-            return false;
+    fn matches(&mut self, delta: u32, sram: &[u8]) -> bool {
+        if delta == 0 {
+            return self.words.iter().all(|w| {
+                w.off as usize + 4 <= sram.len()
+                    // SAFETY: `off + 4 <= sram.len()`, checked above.
+                    && unsafe { peek(sram, w.off) } & w.mask == w.value
+            });
         }
-        self.words.iter().all(|w| {
-            let (off, bank) = match delta {
-                0 => (w.off as usize, w.bank as usize),
-                _ => match sram_location(w.addr.wrapping_add(delta)) {
-                    Some(x) => x,
-                    None => return false,
-                },
-            };
-            bank == w.bank as usize
-                && off + 4 <= sram.len()
-                && (delta == 0 || self.touched.binary_search(&(off as u32)).is_err())
-                // SAFETY: `off + 4 <= sram.len()`, checked above.
-                && unsafe { peek(sram, off as u32) } & w.mask == w.value
-        })
+        let i = self.moved(delta);
+        let (words, m) = (&self.words, &self.moved[i]);
+        m.end <= sram.len()
+            && m.offs.as_ref().is_some_and(|offs| {
+                (words.iter().zip(offs))
+                    // SAFETY: every offset + 4 is at most `m.end`, checked above.
+                    .all(|(w, &off)| unsafe { peek(sram, off) } & w.mask == w.value)
+            })
     }
 }
 
@@ -794,7 +858,7 @@ struct Memo {
 
 impl Memo {
     #[inline]
-    fn inputs_match(&self, core: &Core, sys: &System) -> bool {
+    fn inputs_match(&mut self, core: &Core, sys: &System) -> bool {
         if self.epoch != sys.code_epoch {
             return false;
         }
@@ -815,30 +879,30 @@ impl Memo {
             && rest
                 .iter()
                 .all(|w| unsafe { peek(sram, w.off) } & w.mask == w.value)
-            && self
-                .based
-                .as_deref()
+            && (self.based.as_deref_mut())
                 .is_none_or(|b| b.matches(core.r[b.reg as usize].wrapping_sub(b.at), sram))
     }
 
     /// Before [`Memo::apply`] at `entry`: its accesses to the DMA's banks into a window's
     /// `log`, at the hit's cycles, each store with the word as it is before the memo (the
     /// replay takes the stored words back to the oldest of those, `board/io_window.rs`).
-    fn log_io(&self, entry: u64, core: &Core, sys: &System, log: &mut Vec<IoAccess>) {
-        let moved = self.based.as_deref().and_then(|b| {
+    fn log_io(&mut self, entry: u64, core: &Core, sys: &System, log: &mut Vec<IoAccess>) {
+        if self.io.is_empty() {
+            return;
+        }
+        let moved = self.based.as_deref_mut().and_then(|b| {
             let delta = core.r[b.reg as usize].wrapping_sub(b.at);
-            (delta != 0).then_some((b, delta))
+            (delta != 0).then(|| {
+                let i = b.moved(delta);
+                &b.moved[i].io[..]
+            })
         });
         for (i, a) in self.io.iter().enumerate() {
             let mut a = *a;
-            if let Some((b, delta)) = moved {
-                // A load through the base: where the base points now (its bank the
-                // same, `Based::matches`).
-                if let Some(&(_, addr)) = b.io.iter().find(|x| x.0 == i as u32) {
-                    if let Some((off, _)) = sram_location(addr.wrapping_add(delta)) {
-                        a.addr = off as u32;
-                    }
-                }
+            // A load through the base: where the base points now (its bank the same,
+            // `Based::matches`).
+            if let Some(&(_, off)) = moved.and_then(|m| m.iter().find(|x| x.0 == i as u32)) {
+                a.addr = off;
             }
             a.start += entry;
             a.cycle += entry;
@@ -1092,15 +1156,16 @@ impl Memos {
             (site.epoch, site.fails, site.wait, site.streak) = (sys.code_epoch, 0, 0, 0);
         }
         let next = site.memos.get(site.last).map_or(usize::MAX, |m| m.next);
-        let found = match site.memos.get(next) {
-            Some(m) if m.inputs_match(core, sys) => Some(next),
-            _ if site.quiet < SCAN_AFTER => {
+        let predicted = (site.memos.get_mut(next)).is_some_and(|m| m.inputs_match(core, sys));
+        let found = match predicted {
+            true => Some(next),
+            false if site.quiet < SCAN_AFTER => {
                 let i = (0..site.memos.len())
                     .find(|&i| i != next && site.memos[i].inputs_match(core, sys));
                 self.stats.unpredicted += i.is_some() as u64;
                 i
             }
-            _ => None,
+            false => None,
         };
         site.quiet = site.quiet.saturating_add(1);
         if let Some(i) = found {
