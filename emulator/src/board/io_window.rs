@@ -501,7 +501,7 @@ impl Plans {
         }
         let last = self
             .last
-            .filter(|h| self.map.get(h).is_some_and(|p| p.serves(e, logs, base)));
+            .filter(|h| self.map.get(h).is_some_and(|p| p.serves(logs, base)));
         let h = match last {
             Some(h) => h,
             None => {
@@ -604,7 +604,7 @@ impl std::hash::Hasher for Prehashed {
 }
 
 /// Where a planned hit takes the word a DMA read reads ([`Plan`]).
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, PartialEq, Eq)]
 enum Src {
     /// The SRAM as the cores' run left it (no core stores the word after the read).
     Sram,
@@ -622,13 +622,90 @@ enum Src {
 struct Plan {
     /// The windows it serves ([`shape_of`]).
     shape: Vec<u64>,
+    /// Per core, what each logged access must be for the window to have that shape
+    /// ([`Plan::serves`]).
+    fits: [Vec<Fit>; 2],
     /// False for a shape no plan serves (the general replay does those windows).
     ok: bool,
-    /// Per DMA op (the entry's order), where a read's word comes from.
-    srcs: Vec<Src>,
+    /// The DMA's accesses in the entry's order, each with where a read's word comes from.
+    steps: Vec<PlanStep>,
     /// The core loads of words a DMA write wrote before them: (core, log index, op index,
     /// shift of the load's bytes in the write's value).
     checks: Vec<(u8, u32, u32, u8)>,
+}
+
+/// What a logged access must be for a window to have a plan's shape: its address, size
+/// and kind, and its data phase's cycle from the window's start in `lo..hi`, cycles in
+/// which as many of the entry's DMA accesses come at or before it and the DMA does not
+/// claim its bank (a stretch of the cycles that give its [`shape_word`]: a window whose
+/// access falls elsewhere in them finds the plan by its shape's hash).
+struct Fit {
+    addr: u32,
+    size: u8,
+    kind: IoKind,
+    lo: u64,
+    hi: u64,
+}
+
+impl Fit {
+    /// The fit of access `a` (cycles from `base`) for entry `e`: the stretch of cycles
+    /// around its own with its [`shape_word`] (every cycle for a register store).
+    fn of(e: &MemoEntry, a: &IoAccess, base: u64) -> Fit {
+        let (addr, size, kind) = (a.addr, a.size, a.kind);
+        if kind == IoKind::Reg {
+            let (lo, hi) = (0, u64::MAX);
+            return Fit { addr, size, kind, lo, hi };
+        }
+        let word = |c: u64| shape_word(e, &IoAccess { cycle: c, ..*a }, 0);
+        let at = a.cycle.wrapping_sub(base);
+        let mine = word(at);
+        if mine.is_none() {
+            // Not a shape's access (none is planned): fits no cycle.
+            return Fit { addr, size, kind, lo: 0, hi: 0 };
+        }
+        let len = e.at_cycle.len() as u64;
+        let mut lo = at.min(len);
+        while lo > 0 && word(lo - 1) == mine {
+            lo -= 1;
+        }
+        let mut hi = at.saturating_add(1);
+        while hi < len && word(hi) == mine {
+            hi += 1;
+        }
+        if hi >= len && word(len) == mine {
+            // Past the table every cycle has every DMA access before it and no claim.
+            hi = u64::MAX;
+        }
+        Fit { addr, size, kind, lo, hi }
+    }
+
+    /// Whether access `a` (cycles from `base`) fits.
+    #[inline]
+    fn fits(&self, a: &IoAccess, base: u64) -> bool {
+        let at = a.cycle.wrapping_sub(base);
+        a.addr == self.addr
+            && a.size == self.size
+            && a.kind == self.kind
+            && at.wrapping_sub(self.lo) < self.hi - self.lo
+    }
+}
+
+/// One DMA access of a [`Plan`]: a read of `size` bytes at SRAM offset `off` whose word
+/// comes from `src` and whose bits under `mask` must be `value`, or a write of its route's
+/// value (the route cloned from the entry's op).
+enum PlanStep {
+    Read {
+        off: u32,
+        size: u8,
+        src: Src,
+        mask: u32,
+        value: u32,
+    },
+    Write {
+        off: u32,
+        size: u8,
+        route: Route,
+    },
 }
 
 /// The mask of the low `size` bytes.
@@ -642,21 +719,14 @@ fn size_mask(size: u8) -> u32 {
 
 impl Plan {
     /// Whether the window whose logs are `logs` (cycles from `base`) has the plan's shape
-    /// ([`shape_of`]) on entry `e`, no access of it in a cycle the DMA claims its bank.
+    /// ([`shape_of`]), no access of it in a cycle the DMA claims its bank: each access
+    /// [`Fit::fits`] (an access elsewhere in the cycles of its shape word is not served
+    /// here but by the shape's hash).
     #[inline]
-    fn serves(&self, e: &MemoEntry, logs: &[Vec<IoAccess>; 2], base: u64) -> bool {
-        let mut s = self.shape.iter();
-        for log in logs {
-            for a in log {
-                if shape_word(e, a, base).is_none_or(|x| s.next() != Some(&x)) {
-                    return false;
-                }
-            }
-            if s.next() != Some(&u64::MAX) {
-                return false;
-            }
-        }
-        true
+    fn serves(&self, logs: &[Vec<IoAccess>; 2], base: u64) -> bool {
+        (logs.iter().zip(&self.fits)).all(|(log, fits)| {
+            log.len() == fits.len() && (log.iter().zip(fits)).all(|(a, f)| f.fits(a, base))
+        })
     }
 
     /// The plan of entry `e` for windows shaped as `logs` (cycles from `base`; their shape
@@ -666,10 +736,12 @@ impl Plan {
     /// write's bytes other than exactly, or a read mixes bytes of the DMA's writes and
     /// others.
     fn new(e: &MemoEntry, logs: &[Vec<IoAccess>; 2], base: u64, shape: &[u64]) -> Plan {
-        let not = || Plan {
+        let fits = logs.each_ref().map(|log| log.iter().map(|a| Fit::of(e, a, base)).collect());
+        let not = |fits| Plan {
             shape: shape.to_vec(),
+            fits,
             ok: false,
-            srcs: Vec::new(),
+            steps: Vec::new(),
             checks: Vec::new(),
         };
         // The steps in the merged replay's order.
@@ -695,7 +767,7 @@ impl Plan {
             }
         }
         if words.iter().any(|&(_, w)| w & 3 == 3 || w & 12 == 12) {
-            return not();
+            return not(fits);
         }
         // Each byte a DMA write wrote so far, with the write (op index).
         let mut written: Vec<(u32, u32)> = Vec::new();
@@ -722,16 +794,16 @@ impl Plan {
                         Ok(None) => {}
                         Ok(Some(j)) => {
                             let Some(op) = e.ops.get(j as usize) else {
-                                return not();
+                                return not(fits);
                             };
                             checks.push((k as u8, i as u32, j, ((a.addr - op.off) * 8) as u8));
                         }
-                        Err(()) => return not(),
+                        Err(()) => return not(fits),
                     }
                 }
                 Step::Dma(i) => {
                     let Some(op) = e.ops.get(i) else {
-                        return not();
+                        return not(fits);
                     };
                     let bytes = op.off..op.off + u32::from(op.size);
                     match op.kind {
@@ -743,9 +815,9 @@ impl Plan {
                             srcs[i] = match last_write(&written, op.off, op.size) {
                                 Ok(Some(j)) => match e.ops.get(j as usize) {
                                     Some(w) if w.off == op.off && w.size == op.size => Src::Dma(j),
-                                    _ => return not(),
+                                    _ => return not(fits),
                                 },
-                                Err(()) => return not(),
+                                Err(()) => return not(fits),
                                 // The word as a core's run left it at this point: before
                                 // the first store to it after the read, else the end's.
                                 Ok(None) => (steps.get(n + 1..).into_iter().flatten())
@@ -768,10 +840,27 @@ impl Plan {
                 }
             }
         }
+        let steps = (e.ops.iter().zip(srcs))
+            .map(|(op, src)| match &op.kind {
+                &MemoOpKind::Read { mask, value } => PlanStep::Read {
+                    off: op.off,
+                    size: op.size,
+                    src,
+                    mask,
+                    value,
+                },
+                MemoOpKind::Write { route } => PlanStep::Write {
+                    off: op.off,
+                    size: op.size,
+                    route: route.clone(),
+                },
+            })
+            .collect();
         Plan {
             shape: shape.to_vec(),
+            fits,
             ok: true,
-            srcs,
+            steps,
             checks,
         }
     }
@@ -1313,21 +1402,26 @@ impl Board {
         }
         data_inputs(sys, e, inputs);
         values.clear();
-        values.resize(e.ops.len(), 0);
-        for (j, (op, &src)) in e.ops.iter().zip(&plan.srcs).enumerate() {
-            let v = match &op.kind {
-                MemoOpKind::Write { route } => route.eval(inputs),
-                &MemoOpKind::Read { mask, value } => {
+        for step in &plan.steps {
+            let v = match *step {
+                PlanStep::Write { ref route, .. } => route.eval(inputs),
+                PlanStep::Read {
+                    off,
+                    size,
+                    src,
+                    mask,
+                    value,
+                } => {
                     let v = match src {
-                        Src::Sram => load_le(&sys.sram, op.off as usize, op.size.into()),
+                        Src::Sram => load_le(&sys.sram, off as usize, size.into()),
                         Src::Old { core, at, shift } => {
                             match logs[core as usize & 1].get(at as usize) {
-                                Some(a) => (a.old >> shift) & size_mask(op.size),
+                                Some(a) => (a.old >> shift) & size_mask(size),
                                 None => return false,
                             }
                         }
                         Src::Dma(j) => match values.get(j as usize) {
-                            Some(&w) => w & size_mask(op.size),
+                            Some(&w) => w & size_mask(size),
                             None => return false,
                         },
                         Src::Write => return false,
@@ -1339,9 +1433,7 @@ impl Board {
                     v
                 }
             };
-            if let Some(x) = values.get_mut(j) {
-                *x = v;
-            }
+            values.push(v);
         }
         for &(c, k, j, shift) in &plan.checks {
             let (Some(a), Some(&w)) =
@@ -1353,9 +1445,9 @@ impl Board {
                 return false;
             }
         }
-        for (op, &v) in e.ops.iter().zip(values.iter()) {
-            if let MemoOpKind::Write { .. } = op.kind {
-                sys.io_dma_write(op.off, op.size.into(), v);
+        for (step, &v) in plan.steps.iter().zip(values.iter()) {
+            if let PlanStep::Write { off, size, .. } = *step {
+                sys.io_dma_write(off, size.into(), v);
             }
         }
         let r = self.io_memo_end(e, probe);
