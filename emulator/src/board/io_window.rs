@@ -654,14 +654,26 @@ impl Fit {
         let (addr, size, kind) = (a.addr, a.size, a.kind);
         if kind == IoKind::Reg {
             let (lo, hi) = (0, u64::MAX);
-            return Fit { addr, size, kind, lo, hi };
+            return Fit {
+                addr,
+                size,
+                kind,
+                lo,
+                hi,
+            };
         }
         let word = |c: u64| shape_word(e, &IoAccess { cycle: c, ..*a }, 0);
         let at = a.cycle.wrapping_sub(base);
         let mine = word(at);
         if mine.is_none() {
             // Not a shape's access (none is planned): fits no cycle.
-            return Fit { addr, size, kind, lo: 0, hi: 0 };
+            return Fit {
+                addr,
+                size,
+                kind,
+                lo: 0,
+                hi: 0,
+            };
         }
         let len = e.at_cycle.len() as u64;
         let mut lo = at.min(len);
@@ -676,7 +688,13 @@ impl Fit {
             // Past the table every cycle has every DMA access before it and no claim.
             hi = u64::MAX;
         }
-        Fit { addr, size, kind, lo, hi }
+        Fit {
+            addr,
+            size,
+            kind,
+            lo,
+            hi,
+        }
     }
 
     /// Whether access `a` (cycles from `base`) fits.
@@ -736,7 +754,9 @@ impl Plan {
     /// write's bytes other than exactly, or a read mixes bytes of the DMA's writes and
     /// others.
     fn new(e: &MemoEntry, logs: &[Vec<IoAccess>; 2], base: u64, shape: &[u64]) -> Plan {
-        let fits = logs.each_ref().map(|log| log.iter().map(|a| Fit::of(e, a, base)).collect());
+        let fits = logs
+            .each_ref()
+            .map(|log| log.iter().map(|a| Fit::of(e, a, base)).collect());
         let not = |fits| Plan {
             shape: shape.to_vec(),
             fits,
