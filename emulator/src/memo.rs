@@ -51,7 +51,10 @@
 //! other accesses touched (so none can meet a store of the call). And a register among
 //! r4-r7 that the call pushes before reading it and pops back from the same word, touched
 //! by nothing else in between and read by nothing after ([`Save`]), is not compared
-//! either: a hit leaves it as it is and stores its value where the call pushed it. A call
+//! either: a hit leaves it as it is and stores its value where the call pushed it. Where
+//! a base's words and I/O accesses lie for a delta depends on nothing but the delta, so a
+//! based memo works it out once for each of the last [`MOVED`] deltas ([`Moved`]), not at
+//! every call (the converter demo: 18.05 → 18.02 G). A call
 //! site's recordings look for either only once a call came with another value in one of
 //! r0-r7 that its last recorded call read (where nothing moves, as on a board without
 //! converters, looking costs about 2 % of the demo's instructions and finds nothing). Tests:
