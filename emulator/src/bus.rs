@@ -418,9 +418,11 @@ impl System {
 
     /// The DMA's write of `size` bytes of `value` at SRAM offset `off`, as the I/O's run
     /// does it ([`crate::io::dma_sram_write`]): a period memo's hit (`board/io_window.rs`).
+    /// `journaled`: the word before it goes into [`System::io_journal`] (a hit that may
+    /// yet be undone).
     #[inline]
-    pub(crate) fn io_dma_write(&mut self, off: u32, size: u32, value: u32) {
-        let journal = self.io_journal.as_mut();
+    pub(crate) fn io_dma_write(&mut self, off: u32, size: u32, value: u32, journaled: bool) {
+        let journal = self.io_journal.as_mut().filter(|_| journaled);
         let (sram, pages, epoch) = (&mut self.sram, &mut self.code_pages, &mut self.code_epoch);
         crate::io::dma_sram_store(sram, pages, epoch, journal, off as usize, size, value);
     }

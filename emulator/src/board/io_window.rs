@@ -124,7 +124,9 @@
 //! by a core and written by the DMA nor accessed by both cores (a plan is not made for
 //! such a shape), and a core access in a cycle the DMA claims its bank leaves the window to
 //! the merged replay. A read or check that fails changes nothing: the merged replay then
-//! finds what becomes of the window (a miss, stale, or kept). The stores are taken back
+//! finds what becomes of the window (a miss, stale, or kept). Once the checks pass
+//! nothing fails, so the writes are not journaled (the one exception to the replay's
+//! journal, which only undoes). The stores are taken back
 //! only for the merged replay, and before the I/O's advance to the window's start when
 //! that runs anything (a machine held behind: plans are then left out). In the demo on
 //! `rp2040_io` 317,111 of the 317,301 hits take a plan, nearly always the one the entry's
@@ -1063,7 +1065,9 @@ fn dma_op(sys: &mut System, op: &MemoOp, inputs: &mut Vec<u32>) -> bool {
             }
             inputs.push(v);
         }
-        MemoOpKind::Write { ref route } => sys.io_dma_write(op.off, size, route.eval(inputs)),
+        MemoOpKind::Write { ref route } => {
+            sys.io_dma_write(op.off, size, route.eval(inputs), true);
+        }
     }
     true
 }
@@ -1425,8 +1429,9 @@ impl Board {
         }
         data_inputs(sys, e, inputs);
         values.clear();
-        for step in &plan.steps {
-            let v = match *step {
+        values.resize(plan.steps.len(), 0);
+        for j in 0..values.len() {
+            let v = match plan.steps[j] {
                 PlanStep::Write { ref route, .. } => route.eval(inputs),
                 PlanStep::Read {
                     off,
@@ -1443,7 +1448,8 @@ impl Board {
                                 None => return false,
                             }
                         }
-                        Src::Dma(j) => match values.get(j as usize) {
+                        // An earlier op's (`Plan::new`).
+                        Src::Dma(i) => match values[..j].get(i as usize) {
                             Some(&w) => w & size_mask(size),
                             None => return false,
                         },
@@ -1456,7 +1462,7 @@ impl Board {
                     v
                 }
             };
-            values.push(v);
+            values[j] = v;
         }
         for &(c, k, j, shift) in &plan.checks {
             let (Some(a), Some(&w)) =
@@ -1468,9 +1474,10 @@ impl Board {
                 return false;
             }
         }
+        // Not journaled: nothing after them fails (the end of a hit whose machine is there).
         for (step, &v) in plan.steps.iter().zip(values.iter()) {
             if let PlanStep::Write { off, size, .. } = *step {
-                sys.io_dma_write(off, size.into(), v);
+                sys.io_dma_write(off, size.into(), v, false);
             }
         }
         let r = self.io_memo_end(e, probe);
