@@ -974,8 +974,10 @@ impl Io {
     }
 
     /// [`Io::eq_but_data`] the long way, for debug builds' checks of it: both machines
-    /// rebased to `r`'s base, their data words zeroed, their records left out, compared
-    /// whole; and every data word read by [`Io::slot`] as [`Io::data_slots`] visits it.
+    /// rebased to `r`'s base, their data words zeroed, their records and how many the
+    /// parts keep left out (a board that keeps none meets entries recorded where they
+    /// were kept: `board/io_window.rs`, [`Io::keep_records`]), compared whole; and every
+    /// data word read by [`Io::slot`] as [`Io::data_slots`] visits it.
     #[cfg(debug_assertions)]
     pub(crate) fn check_eq_but_data(&self, other: &Io, r: Rebase) {
         let mut a = self.clone();
@@ -988,9 +990,11 @@ impl Io {
             io.data_slots(&mut |v, _| *v = 0);
             for x in &mut io.adcs {
                 x.take_records();
+                x.set_kept(0);
             }
             for x in &mut io.dacs {
                 x.take_records();
+                x.set_kept(0);
             }
         };
         a.rebase(r);
