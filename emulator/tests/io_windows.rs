@@ -463,8 +463,8 @@ fn a_hit_meets_the_dmas_claims_with_or_without_a_plan() {
     // one of those loads falls in a cycle the DMA claims the bank is undone (the core
     // would have waited), whether the period memo gives it by a plan or not. With a
     // period of 3,001 cycles the loads move by 7 cycles a window against the DMA's, and
-    // through every phase of 64 within 64 windows: a plan's stretch of cycles (`Fit`) one
-    // cycle too long at either end serves a load in a claimed cycle.
+    // through every phase of 64 within 64 windows (the windows' shapes then change, and
+    // plans with their stretches of cycles, `Fit`, are made and left more often).
     for period in [3000, 3001] {
         let block = compare(
             Shape {
