@@ -126,14 +126,14 @@
 //! the merged replay. A read or check that fails changes nothing: the merged replay then
 //! finds what becomes of the window (a miss, stale, or kept). Once the checks pass
 //! nothing fails, so the writes are not journaled (the one exception to the replay's
-//! journal, which only undoes). The stores are taken back
-//! only for the merged replay, and before the I/O's advance to the window's start when
-//! that runs anything (a machine held behind: plans are then left out). In the demo on
-//! `rp2040_io` 317,111 of the 317,301 hits take a plan, nearly always the one the entry's
-//! last window took (tried first); 18.43 → 18.05 G. That one is tried access by access
-//! against what its shape asks ([`Fit`]: the address, size and kind, and the cycle within
-//! the stretch around the recorded one that has the same shape word, worked out when the
-//! plan is made), with no lookup in the entry's per-cycle table: 18.02 → 17.94 G. `tests/io_windows.rs`
+//! journal, which only undoes). The stores are taken back only for the merged replay, and
+//! before the I/O's advance to the window's start when that runs anything (a machine held
+//! behind: plans are then left out). In the demo on `rp2040_io` 317,111 of the 317,301
+//! hits take a plan, nearly always the one the entry's last window took (tried first);
+//! 18.43 → 18.05 G. That one is tried access by access against what its shape asks
+//! ([`Fit`]: the address, size and kind, and the cycle within the stretch around the
+//! recorded one that has the same shape word, worked out when the plan is made), with no
+//! lookup in the entry's per-cycle table: 18.02 → 17.94 G. `tests/io_windows.rs`
 //! (`planned_hits_equal_the_lock_step`, `a_hit_meets_the_dmas_claims_with_or_without_a_plan`
 //! and every comparison) runs boards with and without plans against the lock-step run.
 
@@ -609,7 +609,7 @@ impl std::hash::Hasher for Prehashed {
 }
 
 /// Where a planned hit takes the word a DMA read reads ([`Plan`]).
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Clone, Copy)]
 enum Src {
     /// The SRAM as the cores' run left it (no core stores the word after the read).
     Sram,
@@ -618,8 +618,6 @@ enum Src {
     Old { core: u8, at: u32, shift: u8 },
     /// An earlier DMA write's value (op index; the same bytes).
     Dma(u32),
-    /// Not a read.
-    Write,
 }
 
 /// A hit's replay worked out once for an entry and a shape of the window's logs (module
@@ -656,29 +654,22 @@ impl Fit {
     /// The fit of access `a` (cycles from `base`) for entry `e`: the stretch of cycles
     /// around its own with its [`shape_word`] (every cycle for a register store).
     fn of(e: &MemoEntry, a: &IoAccess, base: u64) -> Fit {
-        let (addr, size, kind) = (a.addr, a.size, a.kind);
-        if kind == IoKind::Reg {
-            let (lo, hi) = (0, u64::MAX);
-            return Fit {
-                addr,
-                size,
-                kind,
-                lo,
-                hi,
-            };
+        let fit = |lo, hi| Fit {
+            addr: a.addr,
+            size: a.size,
+            kind: a.kind,
+            lo,
+            hi,
+        };
+        if a.kind == IoKind::Reg {
+            return fit(0, u64::MAX);
         }
         let word = |c: u64| shape_word(e, &IoAccess { cycle: c, ..*a }, 0);
         let at = a.cycle.wrapping_sub(base);
         let mine = word(at);
         if mine.is_none() {
             // Not a shape's access (none is planned): fits no cycle.
-            return Fit {
-                addr,
-                size,
-                kind,
-                lo: 0,
-                hi: 0,
-            };
+            return fit(0, 0);
         }
         let len = e.at_cycle.len() as u64;
         let mut lo = at.min(len);
@@ -693,13 +684,7 @@ impl Fit {
             // Past the table every cycle has every DMA access before it and no claim.
             hi = u64::MAX;
         }
-        Fit {
-            addr,
-            size,
-            kind,
-            lo,
-            hi,
-        }
+        fit(lo, hi)
     }
 
     /// Whether access `a` (cycles from `base`) fits.
@@ -806,7 +791,8 @@ impl Plan {
                 false => Err(()),
             }
         };
-        let mut srcs = vec![Src::Write; e.ops.len()];
+        // Per op, where a read's word comes from (`None` for a write).
+        let mut srcs: Vec<Option<Src>> = vec![None; e.ops.len()];
         let mut checks = Vec::new();
         for (n, &step) in steps.iter().enumerate() {
             match step {
@@ -837,7 +823,7 @@ impl Plan {
                             written.extend(bytes.map(|b| (b, i as u32)));
                         }
                         MemoOpKind::Read { .. } => {
-                            srcs[i] = match last_write(&written, op.off, op.size) {
+                            srcs[i] = Some(match last_write(&written, op.off, op.size) {
                                 Ok(Some(j)) => match e.ops.get(j as usize) {
                                     Some(w) if w.off == op.off && w.size == op.size => Src::Dma(j),
                                     _ => return not(fits),
@@ -859,28 +845,33 @@ impl Plan {
                                             })
                                     })
                                     .unwrap_or(Src::Sram),
-                            };
+                            });
                         }
                     }
                 }
             }
         }
         let steps = (e.ops.iter().zip(srcs))
-            .map(|(op, src)| match &op.kind {
-                &MemoOpKind::Read { mask, value } => PlanStep::Read {
+            .map(|(op, src)| match (&op.kind, src) {
+                (&MemoOpKind::Read { mask, value }, Some(src)) => Some(PlanStep::Read {
                     off: op.off,
                     size: op.size,
                     src,
                     mask,
                     value,
-                },
-                MemoOpKind::Write { route } => PlanStep::Write {
+                }),
+                (MemoOpKind::Write { route }, _) => Some(PlanStep::Write {
                     off: op.off,
                     size: op.size,
                     route: route.clone(),
-                },
+                }),
+                // A read the merged order never reached (none: every op is a step).
+                (MemoOpKind::Read { .. }, None) => None,
             })
-            .collect();
+            .collect::<Option<Vec<PlanStep>>>();
+        let Some(steps) = steps else {
+            return not(fits);
+        };
         Plan {
             shape: shape.to_vec(),
             fits,
@@ -1453,7 +1444,6 @@ impl Board {
                             Some(&w) => w & size_mask(size),
                             None => return false,
                         },
-                        Src::Write => return false,
                     };
                     if v & mask != value {
                         return false;
