@@ -143,7 +143,8 @@ fn handler1(data: u32, few: bool, chain: Option<u32>) -> Asm {
 /// paced channel, core 1's source words in a few values, core 0's main loop counting in
 /// a register (3 cycles a time round: with a period not a multiple of 3 the tick lands on
 /// each of its instructions in turn, so its handler's entry and accesses move by a cycle).
-#[derive(Clone, Copy)]
+/// The default: neither, nothing else.
+#[derive(Clone, Copy, Default)]
 struct Shape {
     busy: bool,
     periodic: bool,
@@ -170,12 +171,9 @@ impl Shape {
     /// The period memo's case at `period` cycles, nothing else.
     fn periodic(period: u64) -> Shape {
         Shape {
-            busy: false,
             periodic: true,
             period,
-            commands: false,
-            chain: None,
-            poll: false,
+            ..Shape::default()
         }
     }
 }
@@ -370,17 +368,7 @@ fn compare(shape: Shape, cycles: u64) -> Board {
 
 #[test]
 fn windows_with_the_dma_equal_the_lock_step() {
-    let block = compare(
-        Shape {
-            busy: false,
-            periodic: false,
-            period: 0,
-            commands: false,
-            chain: None,
-            poll: false,
-        },
-        600_000,
-    );
+    let block = compare(Shape::default(), 600_000);
     let io = block.io_windows();
     let memo = block.memo_stats();
     eprintln!("{:?} {io:?} {memo:?}", block.run_ahead_windows());
@@ -394,11 +382,7 @@ fn windows_whose_core_meets_the_dma_are_undone() {
     let block = compare(
         Shape {
             busy: true,
-            periodic: false,
-            period: 0,
-            commands: false,
-            chain: None,
-            poll: false,
+            ..Shape::default()
         },
         300_000,
     );
@@ -598,9 +582,7 @@ fn native_code_logs_the_dmas_banks_as_the_general_path_does() {
             busy,
             periodic,
             period,
-            commands: false,
-            chain: None,
-            poll: false,
+            ..Shape::default()
         };
         let [mut native, mut general] = [true, false].map(|on| {
             let mut b = board(Engine::Block, shape);
