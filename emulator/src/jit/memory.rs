@@ -305,6 +305,7 @@ impl Translator<'_> {
         }
         let scratch = self.b.create_block();
         let elsewhere = self.b.create_block();
+        self.b.set_cold_block(elsewhere);
         let ok = self
             .b
             .ins()
@@ -333,7 +334,9 @@ impl Translator<'_> {
                 .ins()
                 .icmp_imm_u(IntCC::UnsignedLessThan, f, FLASH_SIZE as i64);
             let in_flash = self.b.create_block();
+            self.b.set_cold_block(in_flash);
             let out = self.b.create_block();
+            self.b.set_cold_block(out);
             self.b.ins().brif(ok, in_flash, &[], out, &[]);
             self.b.switch_to_block(out);
             if size == 4 {
@@ -363,6 +366,7 @@ impl Translator<'_> {
                 let (bank, bit) = self.bank_bit(c.allowed, boff);
                 let ok = self.b.ins().band_imm_u(bit, 1);
                 let io = self.b.create_block();
+                self.b.set_cold_block(io);
                 self.b.ins().brif(ok, in_sram_ok, &args, io, &[]);
                 self.b.switch_to_block(io);
                 self.io_sram(op, rt, pc, off, bank);
@@ -472,7 +476,9 @@ impl Translator<'_> {
         let top = self.b.ins().ushr_imm_u(addr, 28);
         let peripheral = self.b.ins().icmp_imm_u(IntCC::Equal, top, 5);
         let call = self.b.create_block();
+        self.b.set_cold_block(call);
         let next = self.b.create_block();
+        self.b.set_cold_block(next);
         self.b.ins().brif(peripheral, call, &[], next, &[]);
         self.b.switch_to_block(call);
         let start = self.b.use_var(self.cyc);
@@ -547,7 +553,9 @@ impl Translator<'_> {
         ret: types::Type,
     ) -> (Value, cranelift_codegen::ir::Block) {
         let call = self.b.create_block();
+        self.b.set_cold_block(call);
         let general = self.b.create_block();
+        self.b.set_cold_block(general);
         self.b.ins().brif(take, call, &[], general, &[]);
         self.b.switch_to_block(call);
         let c = self.b.use_var(self.cyc);
@@ -569,6 +577,7 @@ impl Translator<'_> {
         load: Option<(u8, Value)>,
     ) {
         let complete = self.b.create_block();
+        self.b.set_cold_block(complete);
         self.b.ins().brif(done, complete, &[], general, &[]);
         self.b.switch_to_block(complete);
         if let Some((rt, v)) = load {
@@ -592,6 +601,7 @@ impl Translator<'_> {
     /// After a store: leaves with [`Exit::Invalidate`] when it hit a code page.
     pub(super) fn invalidate_if(&mut self, code: Value, ins: &RegionInstr) {
         let out = self.b.create_block();
+        self.b.set_cold_block(out);
         let on = self.b.create_block();
         self.flush();
         self.b.ins().brif(code, out, &[], on, &[]);

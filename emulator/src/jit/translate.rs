@@ -196,6 +196,7 @@ impl<'a> Translator<'a> {
             // nothing changed (the context's counts are zero on the call).
             let both = b.ins().band(n, z);
             let bail = b.create_block();
+            b.set_cold_block(bail);
             let go = b.create_block();
             b.ins().brif(both, bail, &[], go, &[]);
             b.switch_to_block(bail);
@@ -482,6 +483,7 @@ impl<'a> Translator<'a> {
     pub(super) fn general_unless(&mut self, cond: Value, pc: u32) {
         self.flush();
         let out = self.b.create_block();
+        self.b.set_cold_block(out);
         let on = self.b.create_block();
         self.b.ins().brif(cond, on, &[], out, &[]);
         self.b.switch_to_block(out);
@@ -494,6 +496,7 @@ impl<'a> Translator<'a> {
     pub(super) fn general_if(&mut self, cond: Value, pc: u32) {
         self.flush();
         let out = self.b.create_block();
+        self.b.set_cold_block(out);
         let on = self.b.create_block();
         self.b.ins().brif(cond, out, &[], on, &[]);
         self.b.switch_to_block(out);
@@ -545,6 +548,7 @@ impl<'a> Translator<'a> {
                         fits = self.b.ins().band(fits, room);
                     }
                     let stop = self.b.create_block();
+                    self.b.set_cold_block(stop);
                     self.b.ins().brif(fits, label, &[], stop, &[]);
                     self.b.switch_to_block(stop);
                     let p = self.c32(target);
