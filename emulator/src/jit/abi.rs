@@ -27,9 +27,6 @@ pub(crate) struct Ctx {
     pub q: u64,
     /// Out: instructions retired (zero on the call; the native code adds to it in place).
     pub retired: u64,
-    /// Confined code only ([`crate::jit`], "Confinement"): bit *b* set when the core may
-    /// access SRAM bank *b* (0-3 SRAM0-3, 4 SRAM4, 5 SRAM5).
-    pub allowed: u64,
     /// Confined code only: the undo journal, one entry per store, `(word offset << 32) |
     /// the word's old value`, in store order; null for none.
     pub journal: *mut u64,
@@ -39,8 +36,8 @@ pub(crate) struct Ctx {
     /// before it ([`Exit::General`]).
     pub journal_cap: u64,
     /// Confined code in a window on a board with converters only (`board/io_window.rs`):
-    /// bit *b* set when a single load or store to SRAM bank *b* (not in `allowed`: the
-    /// DMA's) is done inline and logged ([`io_sram`]); 0 elsewhere.
+    /// bit *b* set when a single load or store to SRAM bank *b* (not in [`Confine::allowed`]:
+    /// the DMA's) is done inline and logged ([`io_sram`]); 0 elsewhere.
     pub io_banks: u64,
     /// The window's log of the core's accesses to the I/O ([`io_sram`], [`io_reg`]); null
     /// when `io_banks` is 0.
@@ -51,7 +48,9 @@ pub(crate) struct Ctx {
 
 /// A confined run's bank mask and undo journal ([`call`]).
 pub(crate) struct Confine<'a> {
-    /// SRAM banks the core may access (bit per bank).
+    /// SRAM banks the core may access (bit per bank: 0-3 SRAM0-3, 4 SRAM4, 5 SRAM5); the
+    /// code called must have been compiled for this mask ([`super::Flavour::Confined`]'s first
+    /// field: the mask is a constant of the code).
     pub allowed: u8,
     /// The undo journal: the native code appends to it, up to its capacity (`None`: the
     /// stores are not journaled).
@@ -217,7 +216,6 @@ pub(crate) fn call(
         stalls: &mut sys.contention_stalls[id],
         q: 0,
         retired: 0,
-        allowed: 0,
         journal: std::ptr::null_mut(),
         journal_len: 0,
         journal_cap: 0,
@@ -226,7 +224,6 @@ pub(crate) fn call(
         io: std::ptr::null(),
     };
     if let Some(c) = confine.as_deref_mut() {
-        ctx.allowed = c.allowed as u64;
         ctx.journal_cap = u64::MAX;
         if let Some(j) = c.journal.as_deref() {
             ctx.journal = j.as_ptr() as *mut u64;

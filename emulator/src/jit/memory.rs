@@ -109,7 +109,8 @@ impl Translator<'_> {
         };
         let mut allowed = None;
         for &boff in boffs {
-            let (_, bit) = self.bank_bit(c.allowed, boff);
+            let mask = self.allowed(c);
+            let (_, bit) = self.bank_bit(mask, boff);
             allowed = Some(match allowed {
                 None => bit,
                 Some(a) => self.b.ins().band(a, bit),
@@ -134,7 +135,8 @@ impl Translator<'_> {
             self.b.switch_to_block(write);
             let len = self.b.use_var(c.len);
             let slot = self.b.ins().ishl_imm_u(len, 3);
-            let slot = self.b.ins().iadd(c.journal, slot);
+            let journal = self.ctx_ptr(offset_of!(Ctx, journal));
+            let slot = self.b.ins().iadd(journal, slot);
             for (k, &(off, _)) in at.iter().enumerate() {
                 let word = if aligned {
                     off
@@ -346,7 +348,8 @@ impl Translator<'_> {
             self.leave(p, Exit::General);
             self.b.switch_to_block(in_flash);
             let f64_ = self.b.ins().uextend(types::I64, f);
-            let at = self.b.ins().iadd(self.flash, f64_);
+            let flash = self.ctx_ptr(offset_of!(Ctx, flash));
+            let at = self.b.ins().iadd(flash, f64_);
             let v = self.load_sized(op, at);
             let mut args = vec![BlockArg::Value(v)];
             if !solo {
@@ -363,7 +366,8 @@ impl Translator<'_> {
         match self.confined {
             Some(c) if c.io => {
                 // An allowed bank, or one of the I/O's whose accesses are logged.
-                let (bank, bit) = self.bank_bit(c.allowed, boff);
+                let allowed = self.allowed(c);
+                let (bank, bit) = self.bank_bit(allowed, boff);
                 let ok = self.b.ins().band_imm_u(bit, 1);
                 let io = self.b.create_block();
                 self.b.set_cold_block(io);
@@ -397,7 +401,8 @@ impl Translator<'_> {
                 _ => self.b.ins().store(self.mf, v, p, 0),
             };
             let page = self.b.ins().ushr_imm_u(off64, 8);
-            let pp = self.b.ins().iadd(self.code_pages, page);
+            let code_pages = self.ctx_ptr(offset_of!(Ctx, code_pages));
+            let pp = self.b.ins().iadd(code_pages, page);
             self.b.ins().uload8(types::I32, self.mf, pp, 0)
         } else {
             self.load_sized(op, p)
@@ -695,7 +700,8 @@ impl Translator<'_> {
                         .store(self.mf, vs[k as usize], base_p, 4 * k as i32);
                     let o64 = self.b.ins().uextend(types::I64, o);
                     let page = self.b.ins().ushr_imm_u(o64, 8);
-                    let pp = self.b.ins().iadd(self.code_pages, page);
+                    let code_pages = self.ctx_ptr(offset_of!(Ctx, code_pages));
+                    let pp = self.b.ins().iadd(code_pages, page);
                     let hit = self.b.ins().uload8(types::I32, self.mf, pp, 0);
                     code = self.b.ins().bor(code, hit);
                 }

@@ -51,8 +51,8 @@ pub(crate) enum Flavour {
     /// only records its own claim (the other core reads it when it runs again).
     Solo,
     /// Running ahead ([`crate::board`], "Running ahead"): arbitrated, every access checked
-    /// against the allowed banks (the bank mask, bit per bank, as [`abi::Ctx::allowed`]
-    /// at every call of this code), and, when the second field is true (the code is only
+    /// against the allowed banks (the bank mask, bit per bank, as [`abi::Confine::allowed`]
+    /// at every call of this code: a constant of the code), and, when the second field is true (the code is only
     /// called with a journal), every store journaled (see the parent module); when false
     /// (a core catching up, called without a journal), no journal code at all.
     ///
@@ -61,7 +61,7 @@ pub(crate) enum Flavour {
     /// window on a board with converters, `board/io_window.rs`: [`abi::io_sram`],
     /// [`abi::io_reg`]); without it such an access leaves, as any other outside the mask.
     ///
-    /// [`abi::Ctx::allowed`]: super::abi::Ctx::allowed
+    /// [`abi::Confine::allowed`]: super::abi::Confine::allowed
     /// [`abi::io_sram`]: super::abi::io_sram
     /// [`abi::io_reg`]: super::abi::io_reg
     Confined(u8, bool, bool),
@@ -77,8 +77,6 @@ pub(super) struct Translator<'a> {
     pub(super) core: Value,
     pub(super) limit: Value,
     pub(super) sram: Value,
-    pub(super) flash: Value,
-    pub(super) code_pages: Value,
     pub(super) claims_self: Value,
     /// `None` in [`Flavour::Solo`] code: no access waits.
     pub(super) claims_other: Option<Value>,
@@ -106,25 +104,23 @@ pub(super) struct Translator<'a> {
     pub(super) alias_first: bool,
 }
 
-/// A confined function's bank mask and journal, loaded from [`Ctx`] at its entry.
+/// A confined function's bank mask and journal (the journal's pointer and capacity are
+/// loaded from [`Ctx`] where they are used, [`Translator::ctx_ptr`], rather than held in
+/// registers through the region).
 #[derive(Clone, Copy)]
 pub(super) struct Confined {
-    /// [`Ctx::allowed`] (i32).
-    pub(super) allowed: Value,
-    /// [`Ctx::journal`].
-    pub(super) journal: Value,
-    /// [`Ctx::journal_cap`].
-    pub(super) cap: Value,
     /// Entries used ([`Ctx::journal_len`], written back at the exit).
     pub(super) len: Variable,
     /// Journal entries the region's stores can write between two checks (at the entry and
     /// at each back edge): every store word of the region, as a forward path runs each
     /// instruction at most once.
     pub(super) room: u64,
-    /// `cap - room`, once the entry has checked that the journal has the room (so it does
-    /// not wrap): each back edge compares the length with it.
-    pub(super) cap_room: Option<Value>,
-    /// The bank mask the code is compiled for (the same as `allowed` at run time).
+    /// Whether the entry has checked that the journal has the room ([`Ctx::journal_cap`]
+    /// at least `room`, so that `cap - room` does not wrap): each back edge then compares
+    /// the length with `cap - room`.
+    pub(super) checked: bool,
+    /// The bank mask the code is compiled for: the allowed banks (bit per bank), a constant
+    /// of the code (`block.rs` keeps a cache per mask: [`Translator::allowed`]).
     pub(super) mask: u8,
     /// The code is called with a journal (else without: no journal code).
     pub(super) journaled: bool,
@@ -162,8 +158,6 @@ impl<'a> Translator<'a> {
         let ptr =
             |b: &mut FunctionBuilder, off: usize| b.ins().load(types::I64, mf, ctx, off as i32);
         let sram = ptr(&mut b, offset_of!(Ctx, sram));
-        let flash = ptr(&mut b, offset_of!(Ctx, flash));
-        let code_pages = ptr(&mut b, offset_of!(Ctx, code_pages));
         let claims_self = ptr(&mut b, offset_of!(Ctx, claims_self));
         let claims_other = (!solo).then(|| ptr(&mut b, offset_of!(Ctx, claims_other)));
         let stalls_ptr = ptr(&mut b, offset_of!(Ctx, stalls));
@@ -228,11 +222,6 @@ impl<'a> Translator<'a> {
         b.def_var(exit_pc, zero32);
         b.def_var(exit_why, zero32);
         let confined = confined.then(|| {
-            let allowed = b
-                .ins()
-                .load(types::I32, mf, ctx, offset_of!(Ctx, allowed) as i32);
-            let journal = ptr(&mut b, offset_of!(Ctx, journal));
-            let cap = ptr(&mut b, offset_of!(Ctx, journal_cap));
             let len = b.declare_var(types::I64);
             let v = ptr(&mut b, offset_of!(Ctx, journal_len));
             b.def_var(len, v);
@@ -249,12 +238,9 @@ impl<'a> Translator<'a> {
                 .map(|i| super::scan::data_words(&i.instr) as u64)
                 .sum();
             Confined {
-                allowed,
-                journal,
-                cap,
                 len,
                 room,
-                cap_room: None,
+                checked: false,
                 mask: mask.unwrap_or(0),
                 journaled,
                 io,
@@ -267,8 +253,6 @@ impl<'a> Translator<'a> {
             core,
             limit,
             sram,
-            flash,
-            code_pages,
             claims_self,
             claims_other,
             regs,
@@ -297,11 +281,7 @@ impl<'a> Translator<'a> {
         if let Some(c) = t.confined.filter(|c| c.journaled) {
             let room = t.journal_room();
             t.general_unless(room, instrs[0].pc);
-            let cap_room = t.b.ins().iadd_imm_s(c.cap, -(c.room as i64));
-            t.confined = Some(Confined {
-                cap_room: Some(cap_room),
-                ..c
-            });
+            t.confined = Some(Confined { checked: true, ..c });
         }
         let mut live = true;
         for (i, ins) in instrs.iter().enumerate() {
@@ -348,6 +328,7 @@ impl<'a> Translator<'a> {
         let v = t.b.use_var(cyc);
         t.b.ins().store(mf, v, core, offset_of!(Core, cycle) as i32);
         let v = t.b.use_var(stalls);
+        let stalls_ptr = t.ctx_ptr(offset_of!(Ctx, stalls));
         t.b.ins().store(mf, v, stalls_ptr, 0);
         let v = t.b.use_var(q);
         t.b.ins().store(mf, v, ctx, offset_of!(Ctx, q) as i32);
@@ -360,6 +341,18 @@ impl<'a> Translator<'a> {
         t.b.ins().return_(&[why]);
         t.b.seal_all_blocks();
         (t.b, bound[0])
+    }
+
+    /// A pointer field of the context (`off`: its offset in [`Ctx`]), loaded where it is
+    /// used rather than held in a register through the region.
+    pub(super) fn ctx_ptr(&mut self, off: usize) -> Value {
+        self.b.ins().load(types::I64, self.mf, self.ctx, off as i32)
+    }
+
+    /// Confined code: the allowed banks' mask (i32, bit per bank), a constant of the
+    /// compiled code rather than a register held through the region.
+    pub(super) fn allowed(&mut self, c: Confined) -> Value {
+        self.b.ins().iconst(types::I32, i64::from(c.mask))
     }
 
     pub(super) fn c32(&mut self, x: u32) -> Value {
@@ -467,16 +460,16 @@ impl<'a> Translator<'a> {
     pub(super) fn journal_room(&mut self) -> Value {
         let c = self.confined.expect("confined code");
         let len = self.b.use_var(c.len);
-        if let Some(cap_room) = c.cap_room {
+        let cap = self.ctx_ptr(offset_of!(Ctx, journal_cap));
+        if c.checked {
+            let cap_room = self.b.ins().iadd_imm_s(cap, -(c.room as i64));
             return self
                 .b
                 .ins()
                 .icmp(IntCC::UnsignedLessThanOrEqual, len, cap_room);
         }
         let need = self.b.ins().iadd_imm_s(len, c.room as i64);
-        self.b
-            .ins()
-            .icmp(IntCC::UnsignedLessThanOrEqual, need, c.cap)
+        self.b.ins().icmp(IntCC::UnsignedLessThanOrEqual, need, cap)
     }
 
     /// Leaves before the instruction at `pc` unless `cond` holds (nothing of it done).
