@@ -172,10 +172,24 @@ impl<'a> Translator<'a> {
         let q = b.declare_var(types::I64);
         let exit_pc = b.declare_var(types::I32);
         let exit_why = b.declare_var(types::I32);
+        // A register the region never writes is stored nowhere in it (the exit writes back
+        // only the written ones, and no helper the code calls touches the core's registers),
+        // so its load at the entry is pure: cranelift drops it where the region never reads
+        // the register and places it where first read. A written register's load stays
+        // where it is: placed at its first use, it could come after the exit's store of the
+        // register (a swap of two registers).
+        let written = instrs.iter().try_fold(0u16, |w, i| {
+            crate::memo::usage(&i.instr).map(|u| w | u.writes)
+        });
+        let pure = mf.with_readonly().with_can_move();
         for (i, &r) in regs.iter().enumerate() {
-            let v = b
-                .ins()
-                .load(types::I32, mf, core, (offset_of!(Core, r) + 4 * i) as i32);
+            let read_only = i < 15 && written.is_some_and(|w| w >> i & 1 == 0);
+            let v = b.ins().load(
+                types::I32,
+                if read_only { pure } else { mf },
+                core,
+                (offset_of!(Core, r) + 4 * i) as i32,
+            );
             b.def_var(r, v);
         }
         let flag_at = [
@@ -309,6 +323,8 @@ impl<'a> Translator<'a> {
             let pc = t.c32(end.pc.wrapping_add(end.size));
             t.leave(pc, Exit::Out);
         }
+        // The loads made pure above were of registers the translation never wrote.
+        debug_assert!(written.is_none_or(|w| t.written & !w & 0x7fff == 0));
         // The exit: write back and return.
         t.b.switch_to_block(exit);
         for i in 0..16 {
