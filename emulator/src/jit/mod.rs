@@ -63,11 +63,13 @@
 //! SRAM and the bank claims) is held from the entry, and the rest (flash, code pages, the
 //! journal and its capacity, the stall counter) is loaded where it is used, so that fewer
 //! values compete for the host's registers (x86-64 has 5 callee-saved ones to keep a value
-//! across a helper call in; the demo's regions spilled less: 13.75 → 13.65 G host
-//! instructions on the plain board, 17.85 → 17.74 G with converters, whose helper calls
-//! make the pressure worse). Exits, helper calls and the general path's blocks are marked
-//! cold, so cranelift lays them after the hot path (the demo's simulated I1 misses −8 %
-//! plain, −5 % with converters).
+//! across a helper call in, and the converter flavour's helper calls make the pressure
+//! worse). A register the region never writes ([`crate::memo`]'s `usage`) is loaded by a
+//! pure load, which cranelift drops where the region never reads it (a written one's load
+//! stays: placed at its first use it could follow the exit's store of it). The demo: 13.75
+//! → 13.59 G host instructions on the plain board, 17.85 → 17.66 G with converters. Exits,
+//! helper calls and the general path's blocks are marked cold, so cranelift lays them
+//! after the hot path (the demo's simulated I1 misses −8 % plain, −5 % with converters).
 //!
 //! **Confinement.** For two cores running ahead of each other ([`crate::board`], "Running
 //! ahead") each region is also compiled *confined*, for one bank mask (a cache per mask;
