@@ -107,9 +107,9 @@ impl Translator<'_> {
         let Some(c) = self.confined else {
             return;
         };
+        let mask = self.allowed(c);
         let mut allowed = None;
         for &boff in boffs {
-            let mask = self.allowed(c);
             let (_, bit) = self.bank_bit(mask, boff);
             allowed = Some(match allowed {
                 None => bit,
@@ -680,6 +680,10 @@ impl Translator<'_> {
         let mut total = None;
         let mut loaded = Vec::new();
         let mut code = self.b.ins().iconst(types::I32, 0);
+        // Loaded once for the transfer's stores (not held through the region).
+        let code_pages = values
+            .is_some()
+            .then(|| self.ctx_ptr(offset_of!(Ctx, code_pages)));
         for k in 0..count {
             let (o, boff) = words[k as usize];
             at = match self.arbitrate(boff, at) {
@@ -693,14 +697,13 @@ impl Translator<'_> {
                 }
                 None => self.b.ins().iadd_imm_s(at, 1),
             };
-            match values {
-                Some(vs) => {
+            match values.zip(code_pages) {
+                Some((vs, code_pages)) => {
                     self.b
                         .ins()
                         .store(self.mf, vs[k as usize], base_p, 4 * k as i32);
                     let o64 = self.b.ins().uextend(types::I64, o);
                     let page = self.b.ins().ushr_imm_u(o64, 8);
-                    let code_pages = self.ctx_ptr(offset_of!(Ctx, code_pages));
                     let pp = self.b.ins().iadd(code_pages, page);
                     let hit = self.b.ins().uload8(types::I32, self.mf, pp, 0);
                     code = self.b.ins().bor(code, hit);
