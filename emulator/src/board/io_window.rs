@@ -630,11 +630,73 @@ struct Plan {
     fits: [Vec<Fit>; 2],
     /// False for a shape no plan serves (the general replay does those windows).
     ok: bool,
-    /// The DMA's accesses in the entry's order, each with where a read's word comes from.
+    /// The DMA's accesses in the entry's order, each with where a read's word comes from
+    /// (empty when the plan splits: `split`).
     steps: Vec<PlanStep>,
     /// The core loads of words a DMA write wrote before them: (core, log index, op index,
     /// shift of the load's bytes in the write's value).
     checks: Vec<(u8, u32, u32, u8)>,
+    /// The same steps as reads then writes, where no read takes a DMA write's word
+    /// ([`Split`]); `None` otherwise.
+    split: Option<Split>,
+}
+
+/// A [`Plan`]'s steps apart: the DMA's reads in order, then its writes in order. The same
+/// hit as the steps in the entry's order when no read takes its word from a DMA write
+/// ([`Src::Dma`]): a write's route reads only inputs of reads before it, which the reads
+/// give the same numbers, and every write waits for the checks anyway (none is done
+/// before all reads and checks pass). The shipped drivers' windows all split (their DMA
+/// reads the DAC frames at the tick and writes the ADC results later), and the split hit
+/// runs no per-step match and keeps no value per read.
+struct Split {
+    /// (offset, size, where the word comes from, mask, value): as [`PlanStep::Read`].
+    reads: Vec<(u32, u8, Src, u32, u32)>,
+    /// (offset, size, route): as [`PlanStep::Write`].
+    writes: Vec<(u32, u8, Route)>,
+    /// [`Plan::checks`] with the write's index among `writes` for its op index.
+    checks: Vec<(u8, u32, u32, u8)>,
+}
+
+impl Split {
+    /// The split of `steps` and `checks` ([`Plan`]'s), or `None` where a read takes a DMA
+    /// write's word.
+    fn of(steps: &[PlanStep], checks: &[(u8, u32, u32, u8)]) -> Option<Split> {
+        let mut reads = Vec::new();
+        let mut writes = Vec::new();
+        // Per step, its index among the writes.
+        let mut write_at = vec![u32::MAX; steps.len()];
+        for (j, step) in steps.iter().enumerate() {
+            match *step {
+                PlanStep::Read { src: Src::Dma(_), .. } => return None,
+                PlanStep::Read {
+                    off,
+                    size,
+                    src,
+                    mask,
+                    value,
+                } => reads.push((off, size, src, mask, value)),
+                PlanStep::Write {
+                    off,
+                    size,
+                    ref route,
+                } => {
+                    write_at[j] = writes.len() as u32;
+                    writes.push((off, size, route.clone()));
+                }
+            }
+        }
+        let checks = (checks.iter())
+            .map(|&(c, k, j, shift)| {
+                let w = *write_at.get(j as usize)?;
+                (w != u32::MAX).then_some((c, k, w, shift))
+            })
+            .collect::<Option<Vec<_>>>()?;
+        Some(Split {
+            reads,
+            writes,
+            checks,
+        })
+    }
 }
 
 /// What a logged access must be for a window to have a plan's shape: its address, size
@@ -753,6 +815,7 @@ impl Plan {
             ok: false,
             steps: Vec::new(),
             checks: Vec::new(),
+            split: None,
         };
         // The steps in the merged replay's order.
         let steps: Vec<Step> = Order::new(&e.ops, logs, base).collect();
@@ -872,12 +935,16 @@ impl Plan {
         let Some(steps) = steps else {
             return not(fits);
         };
+        let split = Split::of(&steps, &checks);
+        // The steps in order serve only a plan that does not split.
+        let steps = if split.is_some() { Vec::new() } else { steps };
         Plan {
             shape: shape.to_vec(),
             fits,
             ok: true,
             steps,
             checks,
+            split,
         }
     }
 }
@@ -1041,6 +1108,49 @@ fn data_inputs(sys: &System, e: &MemoEntry, inputs: &mut Vec<u32>) {
             inputs[s as usize] = io.slot(s, at);
         }
     }
+}
+
+/// A planned hit by `split` ([`Split`]), the SRAM as the cores' run left it and `inputs`
+/// holding the entry's data inputs: the reads checked and taken as inputs, the writes'
+/// values into `values`, the core loads checked against them, and the writes done (not
+/// journaled: nothing after them fails). False, nothing written, when a read or a check
+/// fails.
+fn split_hit(
+    sys: &mut System,
+    split: &Split,
+    logs: &[Vec<IoAccess>; 2],
+    inputs: &mut Vec<u32>,
+    values: &mut Vec<u32>,
+) -> bool {
+    for &(off, size, src, mask, value) in &split.reads {
+        let v = match src {
+            Src::Sram => load_le(&sys.sram, off as usize, size.into()),
+            Src::Old { core, at, shift } => match logs[core as usize & 1].get(at as usize) {
+                Some(a) => (a.old >> shift) & size_mask(size),
+                None => return false,
+            },
+            Src::Dma(_) => return false,
+        };
+        if v & mask != value {
+            return false;
+        }
+        inputs.push(v);
+    }
+    values.clear();
+    values.extend(split.writes.iter().map(|(_, _, route)| route.eval(inputs)));
+    for &(c, k, j, shift) in &split.checks {
+        let (Some(a), Some(&w)) = (logs[c as usize & 1].get(k as usize), values.get(j as usize))
+        else {
+            return false;
+        };
+        if (w >> shift) & size_mask(a.size) != a.value {
+            return false;
+        }
+    }
+    for (&(off, size, _), &v) in split.writes.iter().zip(values.iter()) {
+        sys.io_dma_write(off, size.into(), v, false);
+    }
+    true
 }
 
 /// A period memo hit's DMA access `op`: a read checks its constraint and becomes the next
@@ -1419,6 +1529,14 @@ impl Board {
             return false;
         }
         data_inputs(sys, e, inputs);
+        if let Some(split) = &plan.split {
+            if !split_hit(sys, split, logs, inputs, values) {
+                return false;
+            }
+            let r = self.io_memo_end(e, probe);
+            self.io_windows.memo_planned += 1;
+            return matches!(r, Tried::Done(Ok(())));
+        }
         values.clear();
         values.resize(plan.steps.len(), 0);
         for j in 0..values.len() {
