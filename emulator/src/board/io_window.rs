@@ -654,8 +654,8 @@ struct Plan {
 /// reads the DAC frames at the tick and writes the ADC results later), and the split hit
 /// runs no per-step match and keeps no value per read.
 struct Split {
-    /// (offset, size, where the word comes from, mask, value): as [`PlanStep::Read`].
-    reads: Vec<(u32, u8, Src, u32, u32)>,
+    /// The reads, none from [`Src::Dma`].
+    reads: Vec<PlanRead>,
     /// (offset, size, route): as [`PlanStep::Write`].
     writes: Vec<(u32, u8, Route)>,
     /// [`Plan::checks`] with the write's index among `writes` for its op index.
@@ -672,16 +672,10 @@ impl Split {
         let mut write_at = vec![u32::MAX; steps.len()];
         for (j, step) in steps.iter().enumerate() {
             match *step {
-                PlanStep::Read {
+                PlanStep::Read(PlanRead {
                     src: Src::Dma(_), ..
-                } => return None,
-                PlanStep::Read {
-                    off,
-                    size,
-                    src,
-                    mask,
-                    value,
-                } => reads.push((off, size, src, mask, value)),
+                }) => return None,
+                PlanStep::Read(r) => reads.push(r),
                 PlanStep::Write {
                     off,
                     size,
@@ -767,22 +761,41 @@ impl Fit {
     }
 }
 
-/// One DMA access of a [`Plan`]: a read of `size` bytes at SRAM offset `off` whose word
-/// comes from `src` and whose bits under `mask` must be `value`, or a write of its route's
-/// value (the route cloned from the entry's op).
+/// One DMA access of a [`Plan`]: a read ([`PlanRead`]), or a write of its route's value
+/// (the route cloned from the entry's op).
 enum PlanStep {
-    Read {
-        off: u32,
-        size: u8,
-        src: Src,
-        mask: u32,
-        value: u32,
-    },
-    Write {
-        off: u32,
-        size: u8,
-        route: Route,
-    },
+    Read(PlanRead),
+    Write { off: u32, size: u8, route: Route },
+}
+
+/// A DMA read of a [`Plan`]: `size` bytes at SRAM offset `off`, whose word comes from
+/// `src` and whose bits under `mask` must be `value`.
+#[derive(Clone, Copy)]
+struct PlanRead {
+    off: u32,
+    size: u8,
+    src: Src,
+    mask: u32,
+    value: u32,
+}
+
+impl PlanRead {
+    /// Its word in a hit whose SRAM is `sram` (as the cores' run left it), logs `logs`
+    /// and DMA values so far `before` (by op index); `None` when the word is not there or
+    /// breaks the constraint (the plan does not serve the window).
+    #[inline]
+    fn word(&self, sram: &[u8], logs: &[Vec<IoAccess>; 2], before: &[u32]) -> Option<u32> {
+        let v = match self.src {
+            Src::Sram => load_le(sram, self.off as usize, self.size.into()),
+            Src::Old { core, at, shift } => {
+                let a = logs[core as usize & 1].get(at as usize)?;
+                (a.old >> shift) & size_mask(self.size)
+            }
+            // An earlier op's (`Plan::new`).
+            Src::Dma(i) => before.get(i as usize)? & size_mask(self.size),
+        };
+        (v & self.mask == self.value).then_some(v)
+    }
 }
 
 /// The mask of the low `size` bytes.
@@ -923,13 +936,13 @@ impl Plan {
         }
         let steps = (e.ops.iter().zip(srcs))
             .map(|(op, src)| match (&op.kind, src) {
-                (&MemoOpKind::Read { mask, value }, Some(src)) => Some(PlanStep::Read {
+                (&MemoOpKind::Read { mask, value }, Some(src)) => Some(PlanStep::Read(PlanRead {
                     off: op.off,
                     size: op.size,
                     src,
                     mask,
                     value,
-                }),
+                })),
                 (MemoOpKind::Write { route }, _) => Some(PlanStep::Write {
                     off: op.off,
                     size: op.size,
@@ -1129,18 +1142,11 @@ fn split_hit(
     inputs: &mut Vec<u32>,
     values: &mut Vec<u32>,
 ) -> bool {
-    for &(off, size, src, mask, value) in &split.reads {
-        let v = match src {
-            Src::Sram => load_le(&sys.sram, off as usize, size.into()),
-            Src::Old { core, at, shift } => match logs[core as usize & 1].get(at as usize) {
-                Some(a) => (a.old >> shift) & size_mask(size),
-                None => return false,
-            },
-            Src::Dma(_) => return false,
-        };
-        if v & mask != value {
+    for r in &split.reads {
+        // No read of a split plan takes a DMA write's word: none before it.
+        let Some(v) = r.word(&sys.sram, logs, &[]) else {
             return false;
-        }
+        };
         inputs.push(v);
     }
     values.clear();
@@ -1549,30 +1555,10 @@ impl Board {
         for j in 0..values.len() {
             let v = match plan.steps[j] {
                 PlanStep::Write { ref route, .. } => route.eval(inputs),
-                PlanStep::Read {
-                    off,
-                    size,
-                    src,
-                    mask,
-                    value,
-                } => {
-                    let v = match src {
-                        Src::Sram => load_le(&sys.sram, off as usize, size.into()),
-                        Src::Old { core, at, shift } => {
-                            match logs[core as usize & 1].get(at as usize) {
-                                Some(a) => (a.old >> shift) & size_mask(size),
-                                None => return false,
-                            }
-                        }
-                        // An earlier op's (`Plan::new`).
-                        Src::Dma(i) => match values[..j].get(i as usize) {
-                            Some(&w) => w & size_mask(size),
-                            None => return false,
-                        },
-                    };
-                    if v & mask != value {
+                PlanStep::Read(ref r) => {
+                    let Some(v) = r.word(&sys.sram, logs, &values[..j]) else {
                         return false;
-                    }
+                    };
                     inputs.push(v);
                     v
                 }
