@@ -136,7 +136,7 @@
 //! lookup in the entry's per-cycle table: 18.02 → 17.94 G. Where no DMA read takes an
 //! earlier DMA write's word (the shipped drivers: the DAC frames are read at the tick, the
 //! ADC results written later), a plan splits into its reads, then its writes ([`Split`]),
-//! done without a match per step or a value kept per read: 17.65 → 17.50 G.
+//! done without a match per step or a value kept per read: 17.65 → 17.49 G.
 //! `tests/io_windows.rs` (`planned_hits_equal_the_lock_step`,
 //! `a_hit_meets_the_dmas_claims_with_or_without_a_plan` and every comparison; their windows
 //! take both split and unsplit plans) runs boards with and without plans against the
