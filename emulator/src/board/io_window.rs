@@ -639,7 +639,7 @@ struct Plan {
     /// (empty when the plan splits: `split`).
     steps: Vec<PlanStep>,
     /// The core loads of words a DMA write wrote before them: (core, log index, op index,
-    /// shift of the load's bytes in the write's value).
+    /// shift of the load's bytes in the write's value); empty when the plan splits.
     checks: Vec<(u8, u32, u32, u8)>,
     /// The same steps as reads then writes, where no read takes a DMA write's word
     /// ([`Split`]); `None` otherwise.
@@ -956,8 +956,11 @@ impl Plan {
             return not(fits);
         };
         let split = Split::of(&steps, &checks);
-        // The steps in order serve only a plan that does not split.
-        let steps = if split.is_some() { Vec::new() } else { steps };
+        // The steps and checks in order serve only a plan that does not split.
+        let (steps, checks) = match split {
+            Some(_) => (Vec::new(), Vec::new()),
+            None => (steps, checks),
+        };
         Plan {
             shape: shape.to_vec(),
             fits,
@@ -1130,6 +1133,21 @@ fn data_inputs(sys: &System, e: &MemoEntry, inputs: &mut Vec<u32>) {
     }
 }
 
+/// Whether each core load that `checks` lists ([`Plan::checks`]: core, log index, index
+/// of the DMA write in `values`, shift) loaded what that write's value holds.
+fn loads_see_writes(
+    checks: &[(u8, u32, u32, u8)],
+    logs: &[Vec<IoAccess>; 2],
+    values: &[u32],
+) -> bool {
+    checks.iter().all(|&(c, k, j, shift)| {
+        match (logs[c as usize & 1].get(k as usize), values.get(j as usize)) {
+            (Some(a), Some(&w)) => (w >> shift) & size_mask(a.size) == a.value,
+            _ => false,
+        }
+    })
+}
+
 /// A planned hit by `split` ([`Split`]), the SRAM as the cores' run left it and `inputs`
 /// holding the entry's data inputs: the reads checked and taken as inputs, the writes'
 /// values into `values`, the core loads checked against them, and the writes done (not
@@ -1151,14 +1169,8 @@ fn split_hit(
     }
     values.clear();
     values.extend(split.writes.iter().map(|(_, _, route)| route.eval(inputs)));
-    for &(c, k, j, shift) in &split.checks {
-        let (Some(a), Some(&w)) = (logs[c as usize & 1].get(k as usize), values.get(j as usize))
-        else {
-            return false;
-        };
-        if (w >> shift) & size_mask(a.size) != a.value {
-            return false;
-        }
+    if !loads_see_writes(&split.checks, logs, values) {
+        return false;
     }
     for (&(off, size, _), &v) in split.writes.iter().zip(values.iter()) {
         sys.io_dma_write(off, size.into(), v, false);
@@ -1565,15 +1577,8 @@ impl Board {
             };
             values[j] = v;
         }
-        for &(c, k, j, shift) in &plan.checks {
-            let (Some(a), Some(&w)) =
-                (logs[c as usize & 1].get(k as usize), values.get(j as usize))
-            else {
-                return false;
-            };
-            if (w >> shift) & size_mask(a.size) != a.value {
-                return false;
-            }
+        if !loads_see_writes(&plan.checks, logs, values) {
+            return false;
         }
         // Not journaled: nothing after them fails (the end of a hit whose machine is there).
         for (step, &v) in plan.steps.iter().zip(values.iter()) {
