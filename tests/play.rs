@@ -4,7 +4,7 @@
 //! and the force-driven player in closed loop with the grand piano (and on the emulated board).
 
 mod common;
-use common::{assert_ok, tactus, temp_dir};
+use common::{assert_ok, tactus, temp_dir, write_midi};
 use std::path::{Path, PathBuf};
 use tactus_runtime::performance::read_midi;
 use tactus_runtime::player::{FingerConfig, ForcePlayer, ForceProfile, Stroke};
@@ -713,66 +713,6 @@ fn layouts_grade_keys_and_report_notes_outside() {
     );
 }
 
-/// Writes a format-0 MIDI file of `notes` (key, velocity, on s, off s) at 960 ticks per
-/// second, with sustain-pedal changes `pedal` (time s, down).
-fn write_midi(path: &Path, notes: &[(u8, u8, f64, f64)], pedal: &[(f64, bool)]) {
-    use midly::num::{u15, u28, u4, u7};
-    use midly::{Format, Header, MidiMessage, Smf, Timing, TrackEvent, TrackEventKind};
-    let tick = |t: f64| (t * 960.0).round() as u64;
-    let mut evs: Vec<(u64, MidiMessage)> = Vec::new();
-    for &(key, vel, on, off) in notes {
-        evs.push((
-            tick(on),
-            MidiMessage::NoteOn {
-                key: u7::new(key),
-                vel: u7::new(vel),
-            },
-        ));
-        evs.push((
-            tick(off),
-            MidiMessage::NoteOff {
-                key: u7::new(key),
-                vel: u7::new(0),
-            },
-        ));
-    }
-    for &(t, down) in pedal {
-        evs.push((
-            tick(t),
-            MidiMessage::Controller {
-                controller: u7::new(64),
-                value: u7::new(if down { 127 } else { 0 }),
-            },
-        ));
-    }
-    evs.sort_by_key(|e| e.0);
-    let mut last = 0;
-    let mut track: Vec<TrackEvent> = evs
-        .into_iter()
-        .map(|(t, message)| {
-            let delta = u28::new((t - last) as u32);
-            last = t;
-            TrackEvent {
-                delta,
-                kind: TrackEventKind::Midi {
-                    channel: u4::new(0),
-                    message,
-                },
-            }
-        })
-        .collect();
-    track.push(TrackEvent {
-        delta: u28::new(0),
-        kind: TrackEventKind::Meta(midly::MetaMessage::EndOfTrack),
-    });
-    Smf {
-        header: Header::new(Format::SingleTrack, Timing::Metrical(u15::new(480))),
-        tracks: vec![track],
-    }
-    .save(path)
-    .unwrap();
-}
-
 #[test]
 fn malformed_and_empty_midi_files_are_clear_errors_naming_the_file() {
     let dir = temp_dir("play-malformed");
@@ -1281,8 +1221,9 @@ fn the_grand_piano_strikes_once_per_note_of_maestro_1_first_20_s() {
 
 /// Issue 37, corpus mode: a list with a good performance and a file that is not MIDI plays
 /// the good one through every board of grand88, reports the bad one in its row and goes
-/// on; the summary is written as CSV and JSON with one row per piece, and the exit status
-/// says that a piece failed.
+/// on; the summary is written as CSV and JSON with one row per piece (and each row to
+/// `results.jsonl` as it is done), and the exit status says that a piece could not be
+/// played (2).
 #[test]
 fn corpus_mode_plays_each_piece_reports_a_bad_file_and_writes_one_summary() {
     let Some(midi) = performance("Maestro_3.mid") else {
@@ -1301,8 +1242,13 @@ fn corpus_mode_plays_each_piece_reports_a_bad_file_and_writes_one_summary() {
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stdout}\n{stderr}");
-    assert!(stderr.contains("1 of 2 performances failed"), "{stderr}");
+    // A piece that could not be played: the run could not be done (exit 2), though the
+    // firmware failed no validation.
+    assert_eq!(out.status.code(), Some(2), "{stdout}\n{stderr}");
+    assert!(
+        stderr.contains("1 of 2 performances could not be played"),
+        "{stderr}"
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("corpus.json")).unwrap()).unwrap();
     let rows = json.as_array().unwrap();
@@ -1325,4 +1271,10 @@ fn corpus_mode_plays_each_piece_reports_a_bad_file_and_writes_one_summary() {
     let csv = std::fs::read_to_string(dir.join("corpus.csv")).unwrap();
     assert_eq!(csv.lines().count(), 3, "{csv}");
     assert!(csv.lines().nth(2).unwrap().contains("bad.mid"), "{csv}");
+    let results = std::fs::read_to_string(dir.join("results.jsonl")).unwrap();
+    assert_eq!(
+        results.lines().count(),
+        3,
+        "a header and two items: {results}"
+    );
 }

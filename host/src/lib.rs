@@ -5,6 +5,10 @@
 //! * [`catalogue`]: the instruments, layouts and boards built into the toolchain (so that
 //!   `tactus play` and `tactus budget grand_piano` work on a fresh machine from any
 //!   directory), and loading a source by path or built-in name.
+//! * [`corpus_run`]: `tactus play`'s corpus mode: the items (performances × keyboards ×
+//!   boards), the shard a task plays, its results file written item by item, the tables.
+//! * [`corpus_merge`]: `tactus corpus merge`: shards' results gathered into the tables one
+//!   machine writes, refused when they are not one whole run.
 //! * [`emu`]: `tactus emu run`'s reading, tracing and text, and firmware from `tactus build`
 //!   driven by a stimulus through its key map.
 //! * [`keyboard`]: **the** resolution and compilation of a keyboard — a layout file, a
@@ -27,6 +31,8 @@
 
 pub mod build;
 pub mod catalogue;
+pub mod corpus_merge;
+pub mod corpus_run;
 pub mod emu;
 pub mod keyboard;
 pub mod play;

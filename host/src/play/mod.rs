@@ -24,7 +24,9 @@ pub mod engine;
 pub mod error;
 pub mod motion;
 pub mod output;
+pub mod results;
 pub mod run;
+pub mod shard;
 pub mod strike;
 
 pub use engine::{KeyEngine, KeySample};
