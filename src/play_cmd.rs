@@ -15,6 +15,7 @@ use tactus_host::keyboard::KeyboardSpec;
 use tactus_host::play::shard::Shard;
 use tactus_host::play::{corpus, PlayConfig, TraceWindow};
 use tactus_host::session::{self as host_play, PieceOptions, PlayError, Session};
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::player::FingerConfig;
 
 /// Arguments of `tactus play`.
@@ -101,6 +102,12 @@ pub struct PlayArgs {
     /// into DIR/board-NN.csv. A traced board emulates every sample (no rest replay).
     #[arg(long, value_name = "DIR")]
     pub io_trace: Option<PathBuf>,
+    /// With `--engine emu`: play the piece as consecutive spans of SECONDS (the boards
+    /// carry their whole state from one to the next: the same strikes and budget as one
+    /// run) and print the budget of each span after the whole run's — where in a long
+    /// recital the worst sample fell, and that its first span equals a run cut there.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_span)]
+    pub span: Option<f64>,
     /// Output directory.
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
@@ -124,6 +131,14 @@ pub struct PlayArgs {
     /// its manifest must match), playing only the items it does not hold.
     #[arg(long)]
     pub resume: bool,
+}
+
+/// `--span`'s parser: a positive number of seconds.
+fn parse_span(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("`{s}` is not a positive number of seconds")),
+    }
 }
 
 /// `--shard`'s parser: [`Shard::parse`], whose message clap prints (exit 2).
@@ -199,7 +214,10 @@ fn session(args: &PlayArgs, combo: &Combo) -> Result<Session, PlayError> {
         keys: None,
         params: &args.params,
     };
-    let config = |board| PlayConfig {
+    let config = |board: BoardSpec| PlayConfig {
+        span: args
+            .span
+            .map(|s| (s * board.sample_rate_hz).round().max(1.0) as usize),
         engine: args.engine.into(),
         player: args.player.into(),
         finger: FingerConfig::default(),

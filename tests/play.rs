@@ -1278,3 +1278,209 @@ fn corpus_mode_plays_each_piece_reports_a_bad_file_and_writes_one_summary() {
         "a header and two items: {results}"
     );
 }
+
+/// A session of `tactus play`'s defaults (`--engine emu`, the position player, no WAV) on
+/// the layout `layout`, cut at `seconds` when given, in spans of `span` samples when given,
+/// its files to `out`.
+fn emu_session(
+    layout: &str,
+    seconds: Option<f64>,
+    span: Option<usize>,
+    out: &Path,
+) -> tactus_host::session::Session {
+    use tactus_host::play::{PlayConfig, PlayEngine, Player, TraceWindow};
+    let spec = tactus_host::keyboard::KeyboardSpec {
+        input: layout,
+        as_layout: Some(true),
+        board: None,
+        keys: None,
+        params: &[],
+    };
+    let config = |board| PlayConfig {
+        engine: PlayEngine::Emu,
+        player: Player::Position,
+        finger: FingerConfig::default(),
+        trace: TraceWindow::default(),
+        board,
+        emulator: tactus_emulator::Engine::Block,
+        quiescent_guard: true,
+        rest_replay: true,
+        io_trace: None,
+        span,
+    };
+    let opts = tactus_host::session::PieceOptions {
+        seconds,
+        out: out.to_path_buf(),
+        wav: false,
+    };
+    tactus_host::session::Session::new(&spec, config, opts, &mut |_, _| {}).unwrap()
+}
+
+/// The strikes as (key, sample time bits, speed bits): compared exactly.
+fn strike_bits(p: &tactus_host::session::Piece) -> Vec<(u8, u64, u64)> {
+    (p.played.strikes.iter())
+        .map(|s| (s.key, s.time_s.to_bits(), s.speed_mps.to_bits()))
+        .collect()
+}
+
+/// Issue 73: a performance played as consecutive spans, the boards carrying their state
+/// across, is the performance played whole — the same strikes, cycles and misses — and its
+/// first span is a run cut where it ends: the same strikes and the same budget lines (the
+/// long check `a_40_minute_performance…` does this at 20 minutes of a 40-minute recital).
+#[test]
+fn a_performance_in_spans_is_the_performance_whole_and_its_first_span_a_cut_run() {
+    let dir = temp_dir("play-spans");
+    let layout = dir.join("small.toml");
+    std::fs::write(
+        &layout,
+        "name = \"small\"\n[[range]]\nkeys = [60, 67]\ninstrument = \"grand_piano\"\n",
+    )
+    .unwrap();
+    let layout = layout.to_str().unwrap();
+    // Two passages, 1.3 s of rest between them (past every key's tail).
+    let notes: Vec<(u8, u8, f64, f64)> = (0..16)
+        .map(|j| {
+            let t = if j < 8 { 0.3 } else { 3.0 } + 0.12 * (j % 8) as f64;
+            (60 + (j * 3 % 8) as u8, 30 + (j * 11 % 90) as u8, t, t + 0.1)
+        })
+        .collect();
+    let midi = dir.join("two.mid");
+    write_midi(&midi, &notes, &[]);
+    let play = |seconds, span| {
+        emu_session(layout, seconds, span, &dir)
+            .play(Some(&midi), &mut |_| {}, &())
+            .unwrap()
+    };
+    let budget = |p: &tactus_host::session::Piece| {
+        tactus_host::session::budget_text(p.played.boards.as_ref().unwrap())
+    };
+    let whole = play(None, None);
+    assert_eq!(whole.played.strikes.len(), 16);
+    // In spans of 0.4 s (11 of them, the last shorter).
+    let spanned = play(None, Some(17_640));
+    assert_eq!(strike_bits(&spanned), strike_bits(&whole));
+    let (w, s) = (
+        whole.played.boards.as_ref().unwrap(),
+        spanned.played.boards.as_ref().unwrap(),
+    );
+    assert_eq!(s.samples, w.samples);
+    for (a, b) in w.boards.iter().zip(&s.boards) {
+        assert_eq!((&a.max, &a.total, &a.misses), (&b.max, &b.total, &b.misses));
+        assert_eq!(a.cycles, b.cycles, "the cycle series");
+    }
+    let spans = &spanned.played.spans;
+    assert_eq!(spans.len(), (w.samples as usize).div_ceil(17_640));
+    assert_eq!(spans.iter().map(|(_, r)| r.samples).sum::<u64>(), w.samples);
+    for (c, m) in w.boards[0].max.iter().enumerate() {
+        let most = spans.iter().map(|(_, r)| r.boards[0].max[c]).max();
+        assert_eq!(
+            most,
+            Some(*m),
+            "the largest of the spans' largest is the run's"
+        );
+        let sum: u64 = spans.iter().map(|(_, r)| r.boards[0].total[c]).sum();
+        assert_eq!(sum, w.boards[0].total[c]);
+    }
+    // Cut at 2.5 s, in the rest: the run ends at the first passage's tail, E samples; the
+    // whole piece in spans of E samples gives the cut run's strikes and budget in its
+    // first span.
+    let cut = play(Some(2.5), None);
+    let e = cut.played.boards.as_ref().unwrap().samples;
+    assert!(e < 3 * 44_100 && cut.played.strikes.len() == 8, "{e}");
+    let first = play(None, Some(e as usize));
+    let before: Vec<_> = (strike_bits(&first).into_iter())
+        .filter(|s| f64::from_bits(s.1) < e as f64 / 44_100.0)
+        .collect();
+    assert_eq!(before, strike_bits(&cut));
+    let (from, span1) = &first.played.spans[0];
+    assert_eq!((*from, span1.samples), (0, e));
+    assert_eq!(tactus_host::session::budget_text(span1), budget(&cut));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Writes a recital of `minutes` minutes to `path`: the shipped Maestro pieces one after
+/// another (1 s apart, repeated, the last cut to fit), in two halves — the first ending by
+/// `half_s − 5` s, the second starting at `half_s + 2` s — so that nothing sounds or moves
+/// around `half_s`. Returns its notes. (Built from ../shared at run time, never copied
+/// into the repository.)
+fn recital(path: &Path, minutes: f64, half_s: f64) -> Option<Vec<(u8, u8, f64, f64)>> {
+    let pieces: Vec<tactus_runtime::performance::Performance> =
+        ["Maestro_1.mid", "Maestro_2.mid", "Maestro_3.mid"]
+            .iter()
+            .map(|n| performance(n).map(|p| read_midi(&p).unwrap()))
+            .collect::<Option<_>>()?;
+    let mut notes = Vec::new();
+    let mut next = 0;
+    for (from, to) in [(0.0, half_s - 5.0), (half_s + 2.0, minutes * 60.0)] {
+        let mut t = from;
+        while t < to - 1.0 {
+            let p = &pieces[next % pieces.len()];
+            next += 1;
+            let room = to - t;
+            for n in p.notes.iter().filter(|n| n.on_s < room) {
+                notes.push((n.key, n.velocity, t + n.on_s, t + n.off_s.min(room)));
+            }
+            t += p.duration_s.min(room) + 1.0;
+        }
+    }
+    write_midi(path, &notes, &[]);
+    Some(notes)
+}
+
+/// Issue 73: a 40-minute recital (past the 2²⁶ samples, 1,522 s, a run once could cover)
+/// plays whole through the firmware of every board of grand88 with no deadline missed, and
+/// its first 20 minutes — a span ending where a run of `--seconds 1200` ends — give that
+/// run's strikes and budget lines exactly; prints the strikes, silent notes, wall time,
+/// real-time factor and peak memory (`VmHWM`). About 15 minutes of an idle 2-core machine in
+/// release: `cargo test --release --test play a_40_minute -- --ignored --nocapture`.
+#[test]
+#[ignore = "an hour of music through every board of grand88 (≈ 15 min in release); run on request"]
+fn a_40_minute_recital_plays_whole_on_every_board_and_its_first_20_minutes_as_a_cut_run() {
+    let dir = temp_dir("play-recital");
+    let midi = dir.join("recital.mid");
+    let Some(notes) = recital(&midi, 40.0, 1200.0) else {
+        return;
+    };
+    let kb = tactus_host::catalogue::DEFAULT_LAYOUT;
+    let play = |seconds, span| {
+        let started = std::time::Instant::now();
+        let p = emu_session(kb, seconds, span, &dir)
+            .play(Some(&midi), &mut |_| {}, &())
+            .unwrap();
+        (p, started.elapsed().as_secs_f64())
+    };
+    let (cut, cut_wall) = play(Some(1200.0), None);
+    let peak_cut = tactus_host::session::peak_memory_kb();
+    let e = cut.played.boards.as_ref().unwrap().samples;
+    let (long, wall) = play(None, Some(e as usize));
+    let peak = tactus_host::session::peak_memory_kb();
+    let r = long.played.boards.as_ref().unwrap();
+    assert_eq!(r.boards.len(), 11);
+    assert!(!r.missed(), "{}", tactus_host::session::budget_text(r));
+    let music = long.perf.duration_s;
+    assert!(music > 2390.0, "{music} s");
+    assert!(r.samples as f64 >= music * 44_100.0 - 1.0);
+    let before: Vec<_> = (strike_bits(&long).into_iter())
+        .filter(|s| f64::from_bits(s.1) < e as f64 / 44_100.0)
+        .collect();
+    assert_eq!(before, strike_bits(&cut), "the first 20 minutes' strikes");
+    let (_, span1) = &long.played.spans[0];
+    let cut_budget = tactus_host::session::budget_text(cut.played.boards.as_ref().unwrap());
+    assert_eq!(tactus_host::session::budget_text(span1), cut_budget);
+    let kb_mb =
+        |k: Option<u64>| k.map_or("unknown".into(), |k| format!("{:.1} MB", k as f64 / 1024.0));
+    eprintln!(
+        "recital: {} notes, {music:.1} s; {} strikes, {} notes without a strike; 0 misses on {} boards\n  40 min: wall {wall:.1} s, RTF {:.2}; 20 min cut: wall {cut_wall:.1} s, RTF {:.2}, E = {e} samples\n  peak memory (VmHWM) after the cut run {}, after the 40-minute run {}\n{}{}",
+        notes.len(),
+        long.played.strikes.len(),
+        long.played.silent.len(),
+        r.boards.len(),
+        music / wall,
+        1200.0 / cut_wall,
+        kb_mb(peak_cut),
+        kb_mb(peak),
+        tactus_host::session::budget_text(r),
+        tactus_host::session::spans_text(&long.played.spans, 44_100.0),
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -110,6 +110,8 @@ pub struct Piece {
     pub answering: usize,
     /// Wall-clock seconds of the play loop.
     pub wall_s: f64,
+    /// The sample rate it was played at (the board's), Hz.
+    pub fs: f64,
     /// The files written: the strikes' CSV, MIDI and WAV, one CSV per traced key and the
     /// traces' plots, and with the emulated boards the plot of their cycles per sample.
     pub written: Vec<PathBuf>,
@@ -143,7 +145,7 @@ impl Piece {
                 None,
             ),
             Some(r) => (
-                budget_text(r),
+                budget_text(r) + &spans_text(&self.played.spans, self.fs),
                 r.missed().then(|| {
                     "the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string()
                 }),
@@ -568,6 +570,7 @@ impl Session {
             played,
             answering,
             wall_s,
+            fs: kb.board.sample_rate_hz,
             written,
         })
     }
@@ -638,6 +641,25 @@ pub fn budget_text(r: &BoardsReport) -> String {
                 breaches.len()
             )),
         }
+    }
+    s
+}
+
+/// The budget of each span of a run played in spans (`PlayConfig::span`): per span a line
+/// giving its first and last samples and times, then its [`budget_text`]; empty without
+/// spans. `fs` is the sample rate, Hz.
+pub fn spans_text(spans: &[(u64, BoardsReport)], fs: f64) -> String {
+    let mut s = String::new();
+    for (k, (from, r)) in spans.iter().enumerate() {
+        let to = from + r.samples;
+        s.push_str(&format!(
+            "  span {} of {}: samples {from}–{to} ({:.3}–{:.3} s)\n",
+            k + 1,
+            spans.len(),
+            *from as f64 / fs,
+            to as f64 / fs
+        ));
+        s.push_str(&budget_text(r));
     }
     s
 }
