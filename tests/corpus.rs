@@ -8,7 +8,7 @@
 //! engine; `tests/slurm.rs` runs the firmware on the emulated boards through a real Slurm).
 
 mod common;
-use common::{assert_ok, tactus, temp_dir, without_timings, write_midi};
+use common::{assert_ok, small_layout, tactus, temp_dir, without_timings, write_midi};
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
@@ -82,12 +82,7 @@ fn same_tables(a: &Path, b: &Path) {
 fn the_merge_of_n_shards_is_the_single_machine_run() {
     let dir = temp_dir("corpus-shards");
     let c = corpus(&dir, false);
-    let small = dir.join("small.toml");
-    std::fs::write(
-        &small,
-        "name = \"small\"\n[[range]]\nkeys = [40, 80]\ninstrument = \"grand_piano\"\n",
-    )
-    .unwrap();
+    let small = small_layout(&dir, 40, 80);
     let keyboards = ["--layout", "grand88", "--layout", small.to_str().unwrap()];
     let single = dir.join("single");
     let out = play(&c, &single, &keyboards);

@@ -10,7 +10,7 @@
 //! when `CI` is set (`.ci/run` installs them).
 
 mod common;
-use common::{assert_ok, tactus, temp_dir, without_timings, write_midi};
+use common::{assert_ok, small_layout, tactus, temp_dir, without_timings, write_midi};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -300,12 +300,7 @@ fn the_example_job_array_on_slurm_merges_into_the_single_machine_tables() {
     };
     let pids: Vec<u32> = cluster.daemons.iter().map(|(_, c)| c.id()).collect();
     let corpus = pieces(&dir);
-    let layout = dir.join("small.toml");
-    std::fs::write(
-        &layout,
-        "name = \"small\"\n[[range]]\nkeys = [60, 67]\ninstrument = \"grand_piano\"\n",
-    )
-    .unwrap();
+    let layout = small_layout(&dir, 60, 67);
     let out = dir.join("out");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/slurm/corpus.sbatch");
     let play_options = ["--layout", layout.to_str().unwrap(), "--seconds", "2.5"];

@@ -178,3 +178,17 @@ pub fn without_timings(path: &Path) -> String {
             .join("\n"),
     }
 }
+
+/// Writes `DIR/small.toml`: a layout of the grand piano on keys `first`–`last` (MIDI), one
+/// program and few boards, for tests that need the firmware without grand88's 88 keys.
+pub fn small_layout(dir: &Path, first: u8, last: u8) -> PathBuf {
+    let path = dir.join("small.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "name = \"small\"\n[[range]]\nkeys = [{first}, {last}]\ninstrument = \"grand_piano\"\n"
+        ),
+    )
+    .unwrap();
+    path
+}
