@@ -111,3 +111,42 @@ fn the_front_end_builds_without_cranelift() {
         "{deps}"
     );
 }
+
+/// Production code (`src/` of the crates listed by directory, `""` the root crate, outside
+/// comments and test modules): each file's path and its lines of code.
+fn production_lines(crates: &[&str]) -> Vec<(String, String)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut out = Vec::new();
+    for krate in crates {
+        let mut stack = vec![root.join(krate).join("src")];
+        while let Some(dir) = stack.pop() {
+            for entry in std::fs::read_dir(&dir).unwrap() {
+                let path = entry.unwrap().path();
+                if path.is_dir() {
+                    stack.push(path);
+                } else if path.extension().is_some_and(|e| e == "rs") {
+                    let text = std::fs::read_to_string(&path).unwrap();
+                    let code = text.split("#[cfg(test)]").next().unwrap_or("");
+                    let name = path.strip_prefix(root).unwrap().display().to_string();
+                    for line in code.lines().filter(|l| !l.trim_start().starts_with("//")) {
+                        out.push((name.clone(), line.to_string()));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A keyboard's boards are planned once (`host::keyboard::Keyboard::plan`) and read by
+/// `build`, `budget` and `play`.
+#[test]
+fn boards_are_planned_in_one_place() {
+    let plans: Vec<String> = production_lines(&["firmware", "host", ""])
+        .into_iter()
+        .filter(|(_, l)| l.contains("boards::plan("))
+        .map(|(f, l)| format!("{f}: {}", l.trim()))
+        .collect();
+    assert_eq!(plans.len(), 1, "{plans:#?}");
+    assert!(plans[0].starts_with("host/src/keyboard.rs"), "{plans:?}");
+}

@@ -1,5 +1,7 @@
 //! The host side of Tactus, between the command line and the libraries below it.
 //!
+//! * [`budget`]: `tactus budget`'s run: a compiled keyboard's plan, costs and verdict, and
+//!   the plan written as a layout file.
 //! * [`build`]: `tactus build`'s outputs: an instrument as C99 or a Thumb object, a
 //!   keyboard as flashable firmware per board.
 //! * [`catalogue`]: the instruments, layouts and boards built into the toolchain (so that
@@ -25,6 +27,7 @@
 //!
 //! This crate never prints: diagnostics go to a caller's reporter, errors are values.
 
+pub mod budget;
 pub mod build;
 pub mod catalogue;
 pub mod emu;

@@ -3,6 +3,7 @@
 #![allow(dead_code)] // each test binary uses a subset
 
 use std::path::Path;
+use tactus_firmware::boards::{self, BoardsError, PlanKey, ProgramCosts};
 use tactus_firmware::corpus::{self, Size};
 use tactus_firmware::flash::{self, BoardFirmware, KeyboardInput, Load};
 use tactus_firmware::image::{compile_layout, Program};
@@ -42,10 +43,10 @@ pub fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmw
     }
     let mut pairs: Vec<(u8, usize)> = keys.iter().map(|k| k.key).zip(index).collect();
     pairs.sort_unstable();
-    let boards = tactus_runtime::keyboard::board_keys(&l, layout, &keys).unwrap();
-    let limiter = LimiterConfig {
-        sample_rate_hz: board.sample_rate_hz,
-        ..LimiterConfig::default()
+    let limiter = LimiterConfig::for_board(&board);
+    let boards = match tactus_runtime::keyboard::board_keys(&l, layout, &keys).unwrap() {
+        Some(lists) => lists,
+        None => plan(&programs, &pairs, &board, &limiter).unwrap(),
     };
     let input = KeyboardInput {
         name: &l.name,
@@ -53,13 +54,29 @@ pub fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmw
         program_names: &names,
         keys: &pairs,
         board: &board,
-        boards: boards.as_deref(),
+        boards: &boards,
         limiter: &limiter,
         load,
         command: "test",
     };
     let fw = flash::keyboard_firmware(&input, &mut |_, _, _| {}).unwrap();
     (fw, board)
+}
+
+/// The boards [`boards::plan`] gives `keys` ((MIDI key, program), ascending), as
+/// `tactus_host::keyboard::Keyboard::plan` plans a keyboard whose layout lists none.
+pub fn plan(
+    programs: &[Program],
+    keys: &[(u8, usize)],
+    board: &BoardSpec,
+    limiter: &LimiterConfig,
+) -> Result<Vec<Vec<u8>>, BoardsError> {
+    let costs = ProgramCosts::new(programs, board, limiter)?;
+    let keys: Vec<PlanKey> = (keys.iter())
+        .map(|&(key, program)| PlanKey { key, program })
+        .collect();
+    let planned = boards::plan(programs, &costs, &keys, board, limiter, &mut |_, _| {})?;
+    Ok(planned.into_iter().map(|b| b.keys).collect())
 }
 
 /// The budget corpus (quick) for each key, its runs concatenated and repeated, each key
