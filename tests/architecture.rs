@@ -150,3 +150,45 @@ fn boards_are_planned_in_one_place() {
     assert_eq!(plans.len(), 1, "{plans:#?}");
     assert!(plans[0].starts_with("host/src/keyboard.rs"), "{plans:?}");
 }
+
+/// A board file has one reader (`firmware::boards::read_board`: the chip's rules and a
+/// converter board's drivers checked where the file is read), and a keyboard's limiter one
+/// configuration (`LimiterConfig::for_board`).
+#[test]
+fn one_board_reader_and_one_limiter_configuration() {
+    let all = [
+        "isa",
+        "runtime",
+        "compiler",
+        "compiler/jit",
+        "emulator",
+        "firmware",
+        "host",
+        "lsp",
+        "",
+    ];
+    let lines = production_lines(&all);
+    let readers: Vec<&str> = (lines.iter())
+        .filter(|(_, l)| l.contains("pub fn read_board"))
+        .map(|(f, _)| f.as_str())
+        .collect();
+    assert_eq!(readers, ["firmware/src/boards.rs"]);
+    // A limiter made from its fields: its definition, and the image's own copy at the
+    // board's whole-hertz rate.
+    let made: Vec<&str> = (lines.iter())
+        .filter(|(_, l)| {
+            l.contains("LimiterConfig {")
+                && !["struct ", "impl ", "fn "].iter().any(|w| l.contains(w))
+        })
+        .map(|(f, _)| f.as_str())
+        .collect();
+    assert_eq!(
+        made,
+        [
+            "runtime/src/limiter.rs",
+            "runtime/src/limiter.rs",
+            "firmware/src/image/mod.rs"
+        ],
+        "{made:?}"
+    );
+}

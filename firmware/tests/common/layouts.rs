@@ -7,7 +7,7 @@ use tactus_firmware::boards::{self, BoardsError, PlanKey, ProgramCosts};
 use tactus_firmware::corpus::{self, Size};
 use tactus_firmware::flash::{self, BoardFirmware, KeyboardInput, Load};
 use tactus_firmware::image::{compile_layout, Program};
-use tactus_runtime::keyboard::{read_board, read_layout, BoardSpec};
+use tactus_runtime::keyboard::{read_layout, BoardSpec};
 use tactus_runtime::limiter::LimiterConfig;
 
 /// The repository's root.
@@ -25,6 +25,14 @@ pub fn shipped(name: &str) -> Result<String, String> {
     std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))
 }
 
+/// The shipped board `boards/NAME.toml`, read and checked as `tactus` reads every board
+/// ([`boards::read_board`]).
+pub fn shipped_board(name: &str) -> BoardSpec {
+    let path = root().join(format!("boards/{name}.toml"));
+    let text = std::fs::read_to_string(&path).unwrap();
+    boards::read_board(&text, &path.display().to_string()).unwrap()
+}
+
 /// Every board of `layout` as `tactus build` makes it (boards planned when the layout lists
 /// none) on the board file `kind` (default: the layout's), with the board kind it uses.
 pub fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmware>, BoardSpec) {
@@ -34,8 +42,7 @@ pub fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmw
         .map(str::to_string)
         .or(l.board_kind.clone())
         .unwrap_or_else(|| "rp2040".into());
-    let board = read_board(&root().join(format!("boards/{}.toml", kind.trim_end_matches(".toml"))))
-        .unwrap();
+    let board = shipped_board(kind.trim_end_matches(".toml"));
     let (programs, index) = compile_layout(&keys, &shipped, board.sample_rate_hz).unwrap();
     let mut names = vec![(String::new(), Vec::new()); programs.len()];
     for (k, &p) in keys.iter().zip(&index) {
