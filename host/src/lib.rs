@@ -7,6 +7,7 @@
 //! * [`catalogue`]: the instruments, layouts and boards built into the toolchain (so that
 //!   `tactus play` and `tactus budget grand_piano` work on a fresh machine from any
 //!   directory), and loading a source by path or built-in name.
+//! * [`check`]: `tactus check`'s summary of an instrument and its precision report.
 //! * [`emu`]: `tactus emu run`'s reading, tracing and text, and firmware from `tactus build`
 //!   driven by a stimulus through its key map.
 //! * [`keyboard`]: **the** resolution and compilation of a keyboard — a layout file, a
@@ -30,6 +31,7 @@
 pub mod budget;
 pub mod build;
 pub mod catalogue;
+pub mod check;
 pub mod emu;
 pub mod keyboard;
 pub mod play;
