@@ -10,8 +10,25 @@
 
 use std::sync::OnceLock;
 
-/// The library's files: (file name as an import names it, text).
-pub const FILES: &[(&str, &str)] = &[];
+/// The library's files: (file name as an import names it, text), from `instruments/lib/`.
+pub const FILES: &[(&str, &str)] = &[
+    (
+        "action.tactus",
+        include_str!("../../instruments/lib/action.tactus"),
+    ),
+    (
+        "contact.tactus",
+        include_str!("../../instruments/lib/contact.tactus"),
+    ),
+    (
+        "friction.tactus",
+        include_str!("../../instruments/lib/friction.tactus"),
+    ),
+    (
+        "resonators.tactus",
+        include_str!("../../instruments/lib/resonators.tactus"),
+    ),
+];
 
 /// The text of library file `name` (`"friction.tactus"`), if there is one.
 pub fn file(name: &str) -> Option<&'static str> {
