@@ -27,8 +27,9 @@ pub struct ProgramInput {
     pub instrument: String,
     /// Its param overrides, `(name, value with unit)`.
     pub params: Vec<(String, String)>,
-    /// The instrument's source text (to render the worst path as source lines).
-    pub source: String,
+    /// The instrument's source files, its own and those it imports (to render the worst
+    /// path as source lines).
+    pub sources: tactus_compiler::sources::SourceMap,
     /// The compiled program.
     pub program: Program,
 }
@@ -792,7 +793,7 @@ pub fn keyboard_budget(
                 .static_cost
                 .events
                 .iter()
-                .filter_map(|(_, n)| describe_note(n, &pi.source))
+                .filter_map(|(_, n)| describe_note(n, &pi.sources))
                 .collect(),
             worst_path_calls: cost
                 .static_cost

@@ -142,12 +142,6 @@ pub struct Keyboard {
 /// warnings) when it does not. Called once per distinct set at most.
 pub type Reporter<'r> = dyn FnMut(&Source, &[Diagnostic]) + 'r;
 
-/// A parsed instrument, or the parser's diagnostic.
-type ParsedFile = Result<tactus_compiler::ast::File, Vec<Diagnostic>>;
-
-/// An instrument's source and its parse.
-type ReadFile = (Source, ParsedFile);
-
 /// Lowers `src` with `params` for a board sampling at `fs` Hz, handing its diagnostics to
 /// `report`; `None` when it does not compile.
 pub fn lower(
@@ -160,7 +154,7 @@ pub fn lower(
         overrides: params.to_vec(),
         sample_rate_hz: fs,
     };
-    match tactus_compiler::compile(&src.text, &config) {
+    match tactus_compiler::compile_linked(&src.linked, &config) {
         Ok(l) => {
             if !l.warnings.is_empty() {
                 report(src, &l.warnings);
@@ -317,21 +311,17 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
     }
     // Which keys share a program: the one rule, as the firmware's own tests group them.
     let (firsts, key_set) = layout_file::group_sets(&keys, Ok::<_, KeyboardError>)?;
-    // Each instrument read and parsed once (in the order of its first set), the sets
+    // Each instrument read, parsed and linked once (in the order of its first set), the sets
     // lowered in parallel, then taken in order: the diagnostics reported and the first
     // failure returned as lowering them one by one would (a graded layout is one
     // instrument and as many sets as keys).
-    let mut sources: Vec<(&str, Result<ReadFile, String>)> = Vec::new();
+    let mut sources: Vec<(&str, Result<Source, String>)> = Vec::new();
     for a in &firsts {
         let reused = first
             .as_ref()
             .is_some_and(|s| s.instrument == a.instrument && s.params == a.params);
         if !reused && !sources.iter().any(|(n, _)| *n == a.instrument) {
-            let read = catalogue::load(&a.instrument).map(|src| {
-                let file = tactus_compiler::parse::parse(&src.text).map_err(|d| vec![*d]);
-                (src, file)
-            });
-            sources.push((a.instrument.as_str(), read));
+            sources.push((a.instrument.as_str(), catalogue::load(&a.instrument)));
         }
     }
     let source_of = |a: &KeyAssignment| {
@@ -343,14 +333,13 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
     let lowered: Vec<Option<Result<tactus_compiler::lower::Lowered, Vec<Diagnostic>>>> = firsts
         .par_iter()
         .map(|a| match source_of(a)? {
-            Ok((_, Ok(file))) => Some(tactus_compiler::lower::lower(
-                file,
+            Ok(src) => Some(tactus_compiler::compile_linked(
+                &src.linked,
                 &tactus_compiler::lower::Config {
                     overrides: a.params.clone(),
                     sample_rate_hz: fs,
                 },
             )),
-            Ok((_, Err(d))) => Some(Err(d.clone())),
             Err(_) => None,
         })
         .collect();
@@ -361,7 +350,7 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
             continue;
         }
         let src = match source_of(a) {
-            Some(Ok((src, _))) => src,
+            Some(Ok(src)) => src,
             Some(Err(e)) => return Err(bad(format!("{}: key {}: {e}", spec.input, a.key))),
             None => return Err(bad(format!("{}: key {}: not read", spec.input, a.key))),
         };
@@ -535,7 +524,7 @@ impl Keyboard {
             .map(|(s, program)| ProgramInput {
                 instrument: s.instrument.clone(),
                 params: s.params.clone(),
-                source: s.source.text.clone(),
+                sources: s.source.linked.sources.clone(),
                 program: program.clone(),
             })
             .collect()
