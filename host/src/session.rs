@@ -7,6 +7,7 @@
 
 use crate::keyboard::{Keyboard, KeyboardError, KeyboardSpec, Reporter};
 use crate::play::output::{self, WriteError};
+use crate::play::results::{sha3_hex, KeyboardManifest, RunOptions, SourceHash};
 use crate::play::{self, corpus::PieceRow, strike, PlayConfig, PlayEngine, Played, Progress};
 use crate::play::{BoardsReport, RunError, Silence, Traces};
 use crate::plot::{plot_cycle_series, plot_lines, Line, PlotError};
@@ -110,6 +111,8 @@ pub struct Piece {
     pub answering: usize,
     /// Wall-clock seconds of the play loop.
     pub wall_s: f64,
+    /// The sample rate it was played at (the board's), Hz.
+    pub fs: f64,
     /// The files written: the strikes' CSV, MIDI and WAV, one CSV per traced key and the
     /// traces' plots, and with the emulated boards the plot of their cycles per sample.
     pub written: Vec<PathBuf>,
@@ -143,7 +146,7 @@ impl Piece {
                 None,
             ),
             Some(r) => (
-                budget_text(r),
+                budget_text(r) + &spans_text(&self.played.spans, self.fs),
                 r.missed().then(|| {
                     "the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string()
                 }),
@@ -371,6 +374,84 @@ impl Session {
         })
     }
 
+    /// The options of this session that change a corpus's results (the manifest's).
+    pub fn run_options(&self) -> RunOptions {
+        RunOptions {
+            engine: format!("{:?}", self.config.engine).to_lowercase(),
+            player: format!("{:?}", self.config.player).to_lowercase(),
+            seconds: self.opts.seconds,
+            params: self.kb.overrides.clone(),
+            quiescent_guard: self.config.quiescent_guard,
+        }
+    }
+
+    /// This keyboard's entry of a corpus run's manifest: the SHA3-256 of its layout, board
+    /// file and instrument sources and, when the engine runs them, of its firmware's
+    /// programs (each distinct program's Thumb code and param block, in the order of
+    /// [`Keyboard::sets`], with the program of every key) — compiled here if not yet.
+    /// `layout`, `instrument` and `board` are the command line's, recorded as given.
+    ///
+    /// Errors: the layout or board file cannot be read again.
+    pub fn manifest(
+        &self,
+        layout: Option<&str>,
+        instrument: Option<&str>,
+        board: Option<&str>,
+    ) -> Result<KeyboardManifest, PlayError> {
+        let kb = &self.kb;
+        let hash = |name: String, text: &str| SourceHash {
+            name,
+            sha3: sha3_hex(text.as_bytes()),
+        };
+        let unreadable = |e: String| PlayError::Keyboard(KeyboardError::Input(e));
+        let layout_sha3 = match &kb.layout {
+            None => None,
+            Some((_, path)) if path.as_os_str().is_empty() => crate::catalogue::layout(&kb.input)
+                .map(|t| hash(format!("builtin:{}", kb.input), t)),
+            Some((_, path)) => {
+                let text = tactus_runtime::keyboard::read_text(path).map_err(unreadable)?;
+                Some(hash(path.display().to_string(), &text))
+            }
+        };
+        let board_src = crate::catalogue::board_source(&kb.kind).map_err(unreadable)?;
+        let mut instruments: Vec<SourceHash> = Vec::new();
+        // Every file of each instrument's program (the instrument and what it imports, the
+        // built-in library included), once each: a change to an imported component changes
+        // the manifest as a change to the instrument does.
+        for set in &kb.sets {
+            for f in set.source.linked.sources.files() {
+                if !instruments.iter().any(|i| i.name == f.name) {
+                    instruments.push(hash(f.name.clone(), &f.text));
+                }
+            }
+        }
+        let firmware_sha3 = match self.firmware() {
+            Ok(None) => None,
+            Ok(Some(programs)) => {
+                let mut bytes = Vec::new();
+                for p in programs {
+                    bytes.extend((p.thumb.code.text.len() as u64).to_le_bytes());
+                    bytes.extend(&p.thumb.code.text);
+                    bytes.extend((p.params.len() as u64).to_le_bytes());
+                    bytes.extend(p.params.iter().flat_map(|w| w.to_le_bytes()));
+                }
+                bytes.extend(kb.key_set.iter().flat_map(|&i| (i as u64).to_le_bytes()));
+                Some(Ok(sha3_hex(&bytes)))
+            }
+            Err(e) => Some(Err(e.to_string())),
+        };
+        Ok(KeyboardManifest {
+            layout: layout.map(str::to_string),
+            instrument: instrument.map(str::to_string),
+            board: board.map(str::to_string),
+            name: kb.name.clone(),
+            layout_sha3,
+            board_sha3: hash(board_src.name, &board_src.text),
+            instruments,
+            firmware_sha3,
+        })
+    }
+
     /// The firmware's programs when the engine runs them ([`Keyboard::firmware`], compiled
     /// on the first call; its failure, too, is kept).
     fn firmware(&self) -> Result<Option<&[FirmwareProgram]>, PlayError> {
@@ -518,6 +599,7 @@ impl Session {
             played,
             answering,
             wall_s,
+            fs: kb.board.sample_rate_hz,
             written,
         })
     }
@@ -588,6 +670,25 @@ pub fn budget_text(r: &BoardsReport) -> String {
                 breaches.len()
             )),
         }
+    }
+    s
+}
+
+/// The budget of each span of a run played in spans (`PlayConfig::span`): per span a line
+/// giving its first and last samples and times, then its [`budget_text`]; empty without
+/// spans. `fs` is the sample rate, Hz.
+pub fn spans_text(spans: &[(u64, BoardsReport)], fs: f64) -> String {
+    let mut s = String::new();
+    for (k, (from, r)) in spans.iter().enumerate() {
+        let to = from + r.samples;
+        s.push_str(&format!(
+            "  span {} of {}: samples {from}–{to} ({:.3}–{:.3} s)\n",
+            k + 1,
+            spans.len(),
+            *from as f64 / fs,
+            to as f64 / fs
+        ));
+        s.push_str(&budget_text(r));
     }
     s
 }

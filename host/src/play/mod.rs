@@ -24,7 +24,9 @@ pub mod engine;
 pub mod error;
 pub mod motion;
 pub mod output;
+pub mod results;
 pub mod run;
+pub mod shard;
 pub mod strike;
 
 pub use engine::{KeyEngine, KeySample};
@@ -131,6 +133,11 @@ pub struct PlayConfig {
     /// With `--engine emu` on a board with converters: the directory of the boards' I/O
     /// traces (their frames at the pins, `emulated::IO_TRACE_HEADER`).
     pub io_trace: Option<std::path::PathBuf>,
+    /// With `--engine emu`: play the piece as consecutive spans of this many samples, the
+    /// boards carrying their whole state from one to the next, and report the budget of
+    /// each ([`Played::spans`]); the same strikes and whole-run budget as one span.
+    /// `None`: one span.
+    pub span: Option<usize>,
 }
 
 impl PlayConfig {
@@ -158,9 +165,13 @@ impl Progress for () {
     fn inc(&self, _: u64) {}
 }
 
-/// The most samples one `Emu` run may cover (2²⁶, 25 minutes at 44.1 kHz): a stray event
-/// hours into a MIDI file would otherwise start a run of hours.
-pub const MAX_EMU_SAMPLES: usize = 1 << 26;
+/// The most samples an `Emu` run may cover: 2³², 27 hours at 44.1 kHz, where the
+/// firmware's 32-bit sample counter would wrap (no run has been checked through a wrap); a
+/// stray event days into a MIDI file is refused, not played for days. Nothing of a run
+/// grows with its length but its strikes (one per note), the traces asked for and a
+/// board's cycle series (at most `emulated::MAX_POINTS` points): a 40-minute recital plays
+/// in the memory of a 4-minute piece.
+pub const MAX_EMU_SAMPLES: u64 = 1 << 32;
 
 /// What the emulated boards reported over a run.
 #[derive(Clone, Debug)]
@@ -228,6 +239,9 @@ pub struct Played {
     pub key_samples: u64,
     /// With `Emu`: the boards' budget over the run.
     pub boards: Option<BoardsReport>,
+    /// With `Emu` and [`PlayConfig::span`]: each span's first sample and the boards' budget
+    /// over it alone (its largest and mean cycles, its misses), in order.
+    pub spans: Vec<(u64, BoardsReport)>,
 }
 
 /// The slack of a calibrated range of hammer speeds, as a fraction of the speed: about half
@@ -414,14 +428,15 @@ pub fn play(
     let mut traces = Traces::new();
     let key_samples;
     let mut boards = None;
+    let mut spans = Vec::new();
     if config.engine == PlayEngine::Emu {
         let end = motions
             .values()
             .flat_map(|(_, busy)| busy.iter().map(|&b| stretch_samples(b, fs).end))
             .max()
             .unwrap_or(0);
-        // Bounded before anything runs or is allocated per sample.
-        if end > MAX_EMU_SAMPLES {
+        // Bounded before anything runs.
+        if end as u64 > MAX_EMU_SAMPLES {
             return Err(RunError::TooLong {
                 seconds: end as f64 / fs,
                 max_seconds: MAX_EMU_SAMPLES as f64 / fs,
@@ -446,6 +461,7 @@ pub fn play(
             quiescent_guard: config.quiescent_guard,
             rest_replay: config.rest_replay,
             io_trace: config.io_trace.clone(),
+            span: config.span,
         };
         let key_motions: BTreeMap<u8, &Motion> =
             motions.iter().map(|(&k, (m, _))| (k, m)).collect();
@@ -463,6 +479,24 @@ pub fn play(
             strikes.append(&mut b.strikes);
             traces.append(&mut b.traces);
             runs.push(b);
+        }
+        // Each span's budget, its boards' parts of it side by side.
+        let mut from = 0u64;
+        for (j, &len) in run.spans.iter().enumerate() {
+            let boards: Vec<BoardRun> = (runs.iter())
+                .map(|b| b.spans.get(j).cloned().unwrap_or_default())
+                .collect();
+            spans.push((
+                from,
+                BoardsReport {
+                    board: config.board.name.clone(),
+                    deadline: config.board.cycles_per_sample(),
+                    boards,
+                    decimation: 1,
+                    samples: len,
+                },
+            ));
+            from += len;
         }
         boards = Some(BoardsReport {
             board: config.board.name.clone(),
@@ -546,5 +580,6 @@ pub fn play(
         rushed,
         key_samples,
         boards,
+        spans,
     })
 }
