@@ -313,14 +313,15 @@ fn decl_symbols(decls: &[Decl], src: &str, out: &mut Vec<Symbol>) {
 pub fn symbols(file: &ast::File, src: &str) -> Vec<Symbol> {
     file.items
         .iter()
-        .map(|item| {
+        .filter_map(|item| {
             let (body, kind) = match item {
                 ast::TopItem::Instrument(b) => (b, SymbolKind::Instrument),
                 ast::TopItem::Component(b) => (b, SymbolKind::Component),
+                ast::TopItem::Import(_) => return None,
             };
             let mut s = sym(&body.name, kind, Some(&body.span), String::new());
             decl_symbols(&body.decls, src, &mut s.children);
-            s
+            Some(s)
         })
         .collect()
 }
@@ -711,22 +712,38 @@ pub struct Analysis {
 /// Parses and lowers `src` as [`crate::compile`] does, keeping the outline and the name
 /// index besides the diagnostics.
 pub fn analyse(src: &str, config: &crate::lower::Config) -> Analysis {
-    let file = match crate::parse::parse(src) {
-        Ok(f) => f,
-        Err(d) => {
-            return Analysis {
-                diagnostics: vec![*d],
-                lowered: None,
-                outline: Vec::new(),
-                names: NameIndex::default(),
-            }
-        }
+    let linked = crate::imports::link(
+        "source",
+        crate::sources::Origin::Text,
+        src,
+        &mut crate::imports::NoFiles,
+    );
+    analyse_linked(&linked, config)
+}
+
+/// [`analyse`] of a program [`crate::imports::link`] read: the outline is the main file's,
+/// the names and diagnostics the program's (a name may resolve into an imported file).
+pub fn analyse_linked(linked: &crate::imports::Linked, config: &crate::lower::Config) -> Analysis {
+    let main = linked.sources.main();
+    let outline = match linked.parsed.first() {
+        Some(Some(file)) => symbols(file, &main.text),
+        _ => Vec::new(),
     };
-    let outline = symbols(&file, src);
+    let Some(file) = &linked.file else {
+        return Analysis {
+            diagnostics: linked.diagnostics.clone(),
+            lowered: None,
+            outline,
+            names: NameIndex::default(),
+        };
+    };
     let mut refs = Vec::new();
-    let (diagnostics, lowered) = match crate::lower::lower_indexed(&file, config, Some(&mut refs)) {
-        Ok(l) => (l.warnings.clone(), Some(l)),
-        Err(d) => (d, None),
+    let (diagnostics, lowered) = match crate::lower::lower_indexed(file, config, Some(&mut refs)) {
+        Ok(mut l) => {
+            l.warnings = linked.sited(std::mem::take(&mut l.warnings));
+            (l.warnings.clone(), Some(l))
+        }
+        Err(d) => (linked.sited(d), None),
     };
     let mut names = NameIndex::default();
     names.add(refs);

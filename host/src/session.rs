@@ -9,13 +9,14 @@ use crate::keyboard::{Keyboard, KeyboardError, KeyboardSpec, Reporter};
 use crate::play::output::{self, WriteError};
 use crate::play::results::{sha3_hex, KeyboardManifest, RunOptions, SourceHash};
 use crate::play::shard::Setup;
-use crate::play::{self, corpus::PieceRow, strike, PlayConfig, Played, Progress};
+use crate::play::{self, corpus::PieceRow, strike, PlayConfig, PlayEngine, Played, Progress};
 use crate::play::{BoardsReport, RunError, Silence, Traces};
 use crate::plot::{plot_cycle_series, plot_lines, Line, PlotError};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tactus_emulator::IoWindows;
+use tactus_firmware::boards::KeyboardPlan;
 use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::performance::{self, MidiError, Note, Performance};
@@ -342,6 +343,9 @@ pub struct Session {
     /// Its firmware's programs or why they do not compile, once tried
     /// ([`PlayConfig::needs_firmware`]): a corpus tries once, not once per piece.
     firmware: std::cell::OnceCell<Result<Vec<FirmwareProgram>, String>>,
+    /// The keyboard's boards ([`Keyboard::plan`]) or why they cannot be planned, once tried
+    /// (on emulated boards only).
+    plan: std::cell::OnceCell<Result<KeyboardPlan, String>>,
     /// The run's configuration (its board is the keyboard's).
     pub config: PlayConfig,
     /// What to do with each piece besides playing it.
@@ -365,6 +369,7 @@ impl Session {
         Ok(Session {
             kb,
             firmware: std::cell::OnceCell::new(),
+            plan: std::cell::OnceCell::new(),
             config,
             opts,
         })
@@ -406,9 +411,14 @@ impl Session {
         };
         let board_src = crate::catalogue::board_source(&kb.kind).map_err(unreadable)?;
         let mut instruments: Vec<SourceHash> = Vec::new();
+        // Every file of each instrument's program (the instrument and what it imports, the
+        // built-in library included), once each: a change to an imported component changes
+        // the manifest as a change to the instrument does.
         for set in &kb.sets {
-            if !instruments.iter().any(|i| i.name == set.source.name) {
-                instruments.push(hash(set.source.name.clone(), &set.source.text));
+            for f in set.source.linked.sources.files() {
+                if !instruments.iter().any(|i| i.name == f.name) {
+                    instruments.push(hash(f.name.clone(), &f.text));
+                }
             }
         }
         let firmware_sha3 = match self.firmware() {
@@ -447,6 +457,25 @@ impl Session {
             .get_or_init(|| self.kb.firmware().map_err(|e| e.to_string()));
         match compiled {
             Ok(programs) => Ok(Some(programs)),
+            Err(e) => Err(PlayError::Firmware(e.clone())),
+        }
+    }
+
+    /// The keyboard's boards when the engine runs them on emulated boards ([`Keyboard::plan`]
+    /// over [`Session::firmware`]'s programs, planned on the first call; its failure, too, is
+    /// kept).
+    fn plan(&self) -> Result<Option<&KeyboardPlan>, PlayError> {
+        let Some(programs) = self
+            .firmware()?
+            .filter(|_| self.config.engine == PlayEngine::Emu)
+        else {
+            return Ok(None);
+        };
+        let planned = self
+            .plan
+            .get_or_init(|| (self.kb.plan(programs, &mut |_, _| {})).map_err(|e| e.to_string()));
+        match planned {
+            Ok(plan) => Ok(Some(plan)),
             Err(e) => Err(PlayError::Firmware(e.clone())),
         }
     }
@@ -516,7 +545,7 @@ impl Session {
                 "traced key {k} is never played: it stays at rest, no trace written"
             ));
         }
-        let keyboard = kb.played(&played_keys, self.firmware()?)?;
+        let keyboard = kb.played(&played_keys, self.firmware()?, self.plan()?)?;
         let started = Instant::now();
         let played = play::play(&perf, &keyboard, config, progress)?;
         let wall_s = started.elapsed().as_secs_f64();

@@ -41,9 +41,10 @@ pub struct PerformOptions {
     pub finger: FingerConfig,
     /// Which keys to trace, and when.
     pub trace: TraceWindow,
-    /// The layout's boards (MIDI keys per board), or `None` to plan them as `tactus
-    /// budget` does ([`boards::plan`]).
-    pub boards: Option<Vec<Vec<u8>>>,
+    /// The keyboard's boards (MIDI keys per board), as its plan gives them
+    /// (`crate::keyboard::Keyboard::plan`: the boards `tactus budget` reports and `tactus
+    /// build` builds).
+    pub boards: Vec<Vec<u8>>,
     /// The safety limiter.
     pub limiter: LimiterConfig,
     /// The emulator's engine (the same cycles either way).
@@ -131,7 +132,7 @@ pub struct KeyboardRun {
 }
 
 /// Plays `motions` on the keyboard whose keys (ascending MIDI numbers) run `programs`
-/// (`key_programs[i]` is key `keys[i]`'s program): plans or takes the boards, builds each
+/// (`key_programs[i]` is key `keys[i]`'s program) on the boards `opts.boards`: builds each
 /// board's image and runs it for `opts.end` samples, the boards in parallel (rayon). `progress` is called with key-samples done since its last call.
 ///
 /// Errors: a message naming the board when its image cannot be built or its run fails.
@@ -160,13 +161,7 @@ pub fn play_boards(
         .zip(key_programs)
         .map(|(&key, &program)| PlanKey { key, program })
         .collect();
-    let lists: Vec<Vec<u8>> = match &opts.boards {
-        Some(l) => l.clone(),
-        None => boards::plan(programs, &costs, &keys, board, lim, &mut |_, _| {})?
-            .into_iter()
-            .map(|b| b.keys)
-            .collect(),
-    };
+    let lists = &opts.boards;
     // A key that fits no board of this kind stops the run with the budget's reason (a
     // board over its deadline still runs: its misses are what the run shows).
     let unfit = boards::fits_no_board_each(programs, &costs, board, lim)?;

@@ -88,8 +88,9 @@ pub struct Keyboard<'a> {
     pub programs: Vec<HostProgram>,
     /// Played key (MIDI) → its index in `programs`; every note's key is here.
     pub key_program: BTreeMap<u8, usize>,
-    /// The layout's boards (MIDI keys per board), or `None` to plan them as `tactus budget`
-    /// does.
+    /// The keyboard's boards (MIDI keys per board) as its plan gives them
+    /// ([`crate::keyboard::Keyboard::plan`]: the boards `tactus budget` reports and `tactus
+    /// build` builds): what `Emu` runs; `None` for the host engines.
     pub boards: Option<Vec<Vec<u8>>>,
     /// The firmware's programs of the keys, when the engine runs them
     /// ([`PlayConfig::needs_firmware`]); `None` otherwise.
@@ -450,11 +451,12 @@ pub fn play(
             fs,
             finger,
             trace: config.trace.clone(),
-            boards: keyboard.boards.clone(),
-            limiter: tactus_runtime::limiter::LimiterConfig {
-                sample_rate_hz: config.board.sample_rate_hz,
-                ..Default::default()
-            },
+            boards: keyboard.boards.clone().ok_or_else(|| {
+                RunError::FirmwareMismatch(
+                    "the Emu engine runs the keyboard's boards; no plan was given".to_string(),
+                )
+            })?,
+            limiter: tactus_runtime::limiter::LimiterConfig::for_board(&config.board),
             engine: config.emulator,
             quiescent_guard: config.quiescent_guard,
             rest_replay: config.rest_replay,
