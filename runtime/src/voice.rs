@@ -81,16 +81,16 @@ pub fn damper_time(off_s: f64, sustain: &[(f64, bool)]) -> f64 {
         .map_or(f64::INFINITY, |(t, _)| *t)
 }
 
-/// The longest buffer [`render`] should be asked for, samples (2²⁷ f32, 512 MiB, 50 minutes
-/// at 44.1 kHz): callers check a length from input against it before rendering.
-pub const MAX_RENDER_SAMPLES: usize = 1 << 27;
-
-/// The most oscillator steps [`render`] should be asked for (a partial of a strike for one
-/// sample is one step; 2³³, tens of seconds): callers check [`render_work`] against it
-/// before rendering, so a run whose instrument strikes every sample (tens of thousands of
-/// strikes a second, each ringing for seconds) is refused rather than rendered for hours.
-/// A 10-minute recital of about 5,000 notes needs a few 10⁸.
-pub const MAX_RENDER_WORK: f64 = (1u64 << 33) as f64;
+/// The most oscillator steps a rendering of `samples` samples should be asked for (a
+/// partial of a strike for one sample is one step): 2³³ (tens of seconds), or 256 a sample
+/// on average for a longer piece, so that a recital's bound grows with it while a run whose
+/// instrument strikes every sample (tens of thousands of strikes a second, each ringing for
+/// seconds) is refused rather than rendered for hours. Callers check [`render_work`]
+/// against it before rendering. A 10-minute recital of about 5,000 notes needs a few 10⁸
+/// (about 10 a sample).
+pub fn max_render_work(samples: f64) -> f64 {
+    ((1u64 << 33) as f64).max(256.0 * samples)
+}
 
 /// The oscillator steps [`render`] takes for `strikes` over `seconds` at `sample_rate_hz`:
 /// per strike and partial, the samples until it falls below the silence threshold (or the
@@ -131,55 +131,157 @@ pub fn render_work(strikes: &[Strike], seconds: f64, sample_rate_hz: f64) -> f64
 }
 
 /// Renders strikes into a mono buffer of `seconds` at `sample_rate_hz` (unnormalised: a
-/// 1 m/s strike's fundamental starts at amplitude about 1). The buffer is allocated whole:
-/// check `seconds · sample_rate_hz` against [`MAX_RENDER_SAMPLES`] and [`render_work`]
-/// against [`MAX_RENDER_WORK`] first.
+/// 1 m/s strike's fundamental starts at amplitude about 1): [`Renderer`] in one block,
+/// allocated whole (4 bytes a sample: a long piece streams through [`Renderer`] instead).
+/// Check [`render_work`] against [`max_render_work`] first.
 pub fn render(strikes: &[Strike], seconds: f64, sample_rate_hz: f64) -> Vec<f32> {
-    let n = (seconds.max(0.0) * sample_rate_hz).ceil() as usize;
-    let mut buf = vec![0f32; n];
-    let dt = 1.0 / sample_rate_hz;
-    let ln1000 = 1000f64.ln();
-    let attack = (0.002 * sample_rate_hz).max(1.0);
-    for s in strikes {
-        let Some(i0) = first_sample(s.time_s, sample_rate_hz) else {
-            continue;
-        };
-        if i0 >= n || s.speed_mps.is_nan() || s.speed_mps <= 0.0 {
-            continue;
+    let mut r = Renderer::new(strikes, seconds, sample_rate_hz);
+    let mut buf = Vec::new();
+    r.next_block(r.samples(), &mut buf);
+    buf
+}
+
+/// One partial of one strike, sounding: a rotating phasor (cheap and exact in frequency)
+/// under its envelope.
+#[derive(Clone, Copy, Debug)]
+struct Partial {
+    /// Its strike's index in the renderer's list, and its number: the order in which the
+    /// partials add into a sample.
+    order: (usize, usize),
+    /// Its strike's first sample, and the next sample it renders.
+    i0: usize,
+    i: usize,
+    /// The sample the damper falls at (`usize::MAX`: never).
+    damp_i: usize,
+    amp: f64,
+    env: f64,
+    re: f64,
+    im: f64,
+    sin_w: f64,
+    cos_w: f64,
+    /// Per-sample decay factors before and after the damper.
+    free: f64,
+    damped: f64,
+}
+
+/// Renders strikes block by block (a streaming [`render`]): the same samples bit for bit —
+/// each sample the sum of the same partials in the same order (strike by strike as listed,
+/// partial by partial) — holding only the partials still sounding, so a recital of any
+/// length renders in the memory of a block. Blocks run from sample 0 to
+/// `seconds · sample_rate_hz`; the time it takes is [`render_work`]'s.
+#[derive(Clone, Debug)]
+pub struct Renderer<'s> {
+    strikes: &'s [Strike],
+    /// The strikes' indexes by first sample (strikes never sounding left out), and how many
+    /// of them have started.
+    starts: Vec<(usize, usize)>,
+    started: usize,
+    sounding: Vec<Partial>,
+    n: usize,
+    at: usize,
+    fs: f64,
+}
+
+impl<'s> Renderer<'s> {
+    /// A renderer of `strikes` over `seconds` at `sample_rate_hz`, before its first block.
+    pub fn new(strikes: &'s [Strike], seconds: f64, sample_rate_hz: f64) -> Self {
+        let n = (seconds.max(0.0) * sample_rate_hz).ceil() as usize;
+        let mut starts: Vec<(usize, usize)> = (strikes.iter().enumerate())
+            .filter(|(_, s)| !s.speed_mps.is_nan() && s.speed_mps > 0.0)
+            .filter_map(|(j, s)| first_sample(s.time_s, sample_rate_hz).map(|i0| (i0, j)))
+            .filter(|&(i0, _)| i0 < n)
+            .collect();
+        starts.sort_unstable();
+        Renderer {
+            strikes,
+            starts,
+            started: 0,
+            sounding: Vec::new(),
+            n,
+            at: 0,
+            fs: sample_rate_hz,
         }
+    }
+
+    /// Samples in all.
+    pub fn samples(&self) -> usize {
+        self.n
+    }
+
+    /// The partials of strike `j`, from its first sample `i0`.
+    fn partials(&self, j: usize, i0: usize) -> impl Iterator<Item = Partial> + '_ {
+        let s = &self.strikes[j];
+        let dt = 1.0 / self.fs;
+        let ln1000 = 1000f64.ln();
         let damp_i = if s.damp_s.is_finite() {
-            first_sample(s.damp_s, sample_rate_hz).unwrap_or(0).max(i0)
+            first_sample(s.damp_s, self.fs).unwrap_or(0).max(i0)
         } else {
             usize::MAX
         };
         let loud = (s.speed_mps / 6.0).clamp(0.0, 1.0);
         let p = 2.0 - loud;
-        for k in 1..=PARTIALS {
-            let f = partial_hz(s.key, k);
-            if f >= 0.45 * sample_rate_hz {
-                break;
-            }
-            let amp = s.speed_mps / (k as f64).powf(p);
-            // Per-sample decay factors before and after the damper.
-            let free = (-ln1000 * dt / t60_s(s.key, k)).exp();
-            let damped = (-ln1000 * dt / DAMPED_T60_S).exp();
-            // The oscillator as a rotating phasor: cheap and exact in frequency.
-            let (sin_w, cos_w) = (2.0 * std::f64::consts::PI * f * dt).sin_cos();
-            let (mut re, mut im) = (1.0f64, 0.0f64);
-            let mut env = amp;
-            let mut i = i0;
-            while i < n && env > SILENCE * amp {
-                let a = ((i - i0) as f64 + 1.0).min(attack) / attack;
-                buf[i] += (env * a * im) as f32;
-                let r = re * cos_w - im * sin_w;
-                im = re * sin_w + im * cos_w;
-                re = r;
-                env *= if i >= damp_i { damped } else { free };
+        (1..=PARTIALS)
+            .map(move |k| (k, partial_hz(s.key, k)))
+            .take_while(|&(_, f)| f < 0.45 * self.fs)
+            .map(move |(k, f)| {
+                let amp = s.speed_mps / (k as f64).powf(p);
+                let (sin_w, cos_w) = (2.0 * std::f64::consts::PI * f * dt).sin_cos();
+                Partial {
+                    order: (j, k),
+                    i0,
+                    i: i0,
+                    damp_i,
+                    amp,
+                    env: amp,
+                    re: 1.0,
+                    im: 0.0,
+                    sin_w,
+                    cos_w,
+                    free: (-ln1000 * dt / t60_s(s.key, k)).exp(),
+                    damped: (-ln1000 * dt / DAMPED_T60_S).exp(),
+                }
+            })
+    }
+
+    /// The next block of at most `most` samples into `out` (cleared first); false, `out`
+    /// empty, when every sample has been given.
+    pub fn next_block(&mut self, most: usize, out: &mut Vec<f32>) -> bool {
+        out.clear();
+        let end = self.at.saturating_add(most.max(1)).min(self.n);
+        if self.at >= end {
+            return false;
+        }
+        // The strikes starting in the block join the sounding, in their order.
+        let mut joined = false;
+        while let Some(&(i0, j)) = self.starts.get(self.started).filter(|s| s.0 < end) {
+            let new: Vec<Partial> = self.partials(j, i0).collect();
+            self.sounding.extend(new);
+            self.started += 1;
+            joined = true;
+        }
+        if joined {
+            self.sounding.sort_by_key(|p| p.order);
+        }
+        out.resize(end - self.at, 0.0);
+        let attack = (0.002 * self.fs).max(1.0);
+        let (at, n) = (self.at, self.n);
+        for p in &mut self.sounding {
+            let mut i = p.i.max(at);
+            while i < end && i < n && p.env > SILENCE * p.amp {
+                let a = ((i - p.i0) as f64 + 1.0).min(attack) / attack;
+                out[i - at] += (p.env * a * p.im) as f32;
+                let r = p.re * p.cos_w - p.im * p.sin_w;
+                p.im = p.re * p.sin_w + p.im * p.cos_w;
+                p.re = r;
+                p.env *= if i >= p.damp_i { p.damped } else { p.free };
                 i += 1;
             }
+            p.i = i;
         }
+        self.sounding.retain(|p| p.i < n && p.env > SILENCE * p.amp);
+        self.at = end;
+        true
     }
-    buf
 }
 
 fn first_sample(t: f64, fs: f64) -> Option<usize> {
@@ -189,7 +291,16 @@ fn first_sample(t: f64, fs: f64) -> Option<usize> {
 /// The factor that puts the peak of `samples` at `headroom` of 16-bit full scale (e.g. 0.9);
 /// 0 for silence.
 pub fn i16_scale(samples: &[f32], headroom: f64) -> f64 {
-    let peak = samples.iter().fold(0f32, |m, &x| m.max(x.abs()));
+    peak_scale(peak(samples, 0.0), headroom)
+}
+
+/// The largest magnitude of `samples` and `so_far`.
+pub fn peak(samples: &[f32], so_far: f32) -> f32 {
+    samples.iter().fold(so_far, |m, &x| m.max(x.abs()))
+}
+
+/// The factor that puts `peak` at `headroom` of 16-bit full scale; 0 for silence.
+pub fn peak_scale(peak: f32, headroom: f64) -> f64 {
     if peak > 0.0 {
         headroom.clamp(0.0, 1.0) * f64::from(i16::MAX) / f64::from(peak)
     } else {
@@ -263,6 +374,89 @@ mod tests {
             (crossings as f64 / 0.5 - 2.0 * f0).abs() < 0.25 * 2.0 * f0,
             "{crossings}"
         );
+    }
+
+    /// The whole-buffer rendering [`Renderer`] streams, written directly (strike by strike
+    /// as listed, each partial over its whole life): the specification the blocks must
+    /// match bit for bit.
+    fn direct(strikes: &[Strike], seconds: f64, fs: f64) -> Vec<f32> {
+        let n = (seconds * fs).ceil() as usize;
+        let mut buf = vec![0f32; n];
+        let (dt, ln1000, attack) = (1.0 / fs, 1000f64.ln(), (0.002 * fs).max(1.0));
+        for s in strikes {
+            let Some(i0) = first_sample(s.time_s, fs).filter(|&i| i < n) else {
+                continue;
+            };
+            if s.speed_mps.is_nan() || s.speed_mps <= 0.0 {
+                continue;
+            }
+            let damp_i = match s.damp_s.is_finite() {
+                true => first_sample(s.damp_s, fs).unwrap_or(0).max(i0),
+                false => usize::MAX,
+            };
+            let p = 2.0 - (s.speed_mps / 6.0).clamp(0.0, 1.0);
+            for k in (1..=PARTIALS).take_while(|&k| partial_hz(s.key, k) < 0.45 * fs) {
+                let amp = s.speed_mps / (k as f64).powf(p);
+                let free = (-ln1000 * dt / t60_s(s.key, k)).exp();
+                let damped = (-ln1000 * dt / DAMPED_T60_S).exp();
+                let (sin_w, cos_w) =
+                    (2.0 * std::f64::consts::PI * partial_hz(s.key, k) * dt).sin_cos();
+                let (mut re, mut im, mut env) = (1.0f64, 0.0f64, amp);
+                let mut i = i0;
+                while i < n && env > SILENCE * amp {
+                    let a = ((i - i0) as f64 + 1.0).min(attack) / attack;
+                    buf[i] += (env * a * im) as f32;
+                    (re, im) = (re * cos_w - im * sin_w, re * sin_w + im * cos_w);
+                    env *= if i >= damp_i { damped } else { free };
+                    i += 1;
+                }
+            }
+        }
+        buf
+    }
+
+    /// Blocks of any size give the whole rendering bit for bit, strikes listed out of time
+    /// order, overlapping, damped and not, one past the end and one never sounding included.
+    #[test]
+    fn blocks_render_the_whole_bit_for_bit() {
+        let strikes: Vec<Strike> = (0..40)
+            .map(|j| Strike {
+                key: 21 + (j * 37 % 88) as u8,
+                time_s: (j * 7919 % 173) as f64 / 100.0,
+                speed_mps: [0.2, 1.0, 4.0, 0.0][j % 4],
+                damp_s: if j % 3 == 0 {
+                    f64::INFINITY
+                } else {
+                    0.05 * j as f64
+                },
+            })
+            .chain([Strike {
+                key: 60,
+                time_s: 9.0,
+                speed_mps: 1.0,
+                damp_s: f64::INFINITY,
+            }])
+            .collect();
+        let whole = render(&strikes, 2.0, FS);
+        assert_eq!(whole.len(), 88_200);
+        // The first sample whose bits differ, if any.
+        let differ = |a: &[f32], b: &[f32]| {
+            (a.len() != b.len())
+                .then_some(a.len().min(b.len()))
+                .or_else(|| (a.iter().zip(b)).position(|(x, y)| x.to_bits() != y.to_bits()))
+        };
+        assert_eq!(differ(&whole, &direct(&strikes, 2.0, FS)), None);
+        assert!(whole.iter().filter(|x| **x != 0.0).count() > 80_000);
+        for block in [1, 441, 4096, 100_000] {
+            let mut r = Renderer::new(&strikes, 2.0, FS);
+            let (mut all, mut buf) = (Vec::new(), Vec::new());
+            while r.next_block(block, &mut buf) {
+                assert!(buf.len() <= block);
+                all.extend_from_slice(&buf);
+            }
+            assert_eq!(differ(&all, &whole), None, "blocks of {block}");
+            assert!(r.sounding.len() <= 8 * 40);
+        }
     }
 
     #[test]

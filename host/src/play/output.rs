@@ -44,17 +44,89 @@ impl WriteError {
     }
 }
 
+/// The longest WAV [`write_wav`] writes, samples: as many 16-bit samples as fit, with the
+/// 44-byte header, in the 4 GiB a RIFF file's 32-bit sizes can describe (13.5 hours at
+/// 44.1 kHz). The rendering itself is streamed (`voice::Renderer`), in the memory of
+/// [`WAV_BLOCK`] samples.
+pub const MAX_WAV_SAMPLES: u64 = (u32::MAX as u64 - 44) / 2;
+
+/// Samples rendered at a time.
+pub const WAV_BLOCK: usize = 1 << 16;
+
 /// Writes the strikes through the modal voice of `tactus_runtime::voice` as a 16-bit mono
 /// WAV at the sample rate `fs` (Hz), normalised to 90 % of full scale. A strike's damper
 /// falls at the note-off of the note it answers (300 ms after a strike that answers none),
-/// or later while the sustain pedal is down.
+/// or later while the sustain pedal is down. The rendering streams: once to find its peak,
+/// once to write it, a block at a time, so a recital of any length (up to
+/// [`MAX_WAV_SAMPLES`]) takes the memory of a block.
+///
+/// Errors: [`WriteError::Refused`] for a WAV longer than [`MAX_WAV_SAMPLES`] or costlier
+/// than `voice::max_render_work`, or a sample rate that is not a whole number of hertz;
+/// [`WriteError::Io`] when the file cannot be written.
 pub fn write_wav(
     path: &Path,
     strikes: &[Strike],
     perf: &Performance,
     fs: f64,
 ) -> Result<(), WriteError> {
-    let notes: Vec<voice::Strike> = strikes
+    let (notes, seconds) = voice_strikes(strikes, perf);
+    let wanted = seconds * fs;
+    if wanted.is_nan() || wanted > MAX_WAV_SAMPLES as f64 {
+        return Err(WriteError::Refused {
+            path: path.to_path_buf(),
+            reason: format!(
+                "the piece is {:.1} h long, more than the {:.1} h a WAV rendering may have (its 4 GiB); use --no-wav or --seconds",
+                (seconds - 2.0) / 3600.0,
+                (MAX_WAV_SAMPLES as f64 / fs - 2.0) / 3600.0
+            ),
+        });
+    }
+    let work = voice::render_work(&notes, seconds, fs);
+    let most_work = voice::max_render_work(wanted);
+    if work > most_work {
+        let most = (0..=127u8)
+            .map(|k| (strikes.iter().filter(|s| s.key == k).count(), k))
+            .max()
+            .unwrap_or_default();
+        return Err(WriteError::Refused {
+            path: path.to_path_buf(),
+            reason: format!(
+                "{} strikes ({} of them on key {}) ring for {work:.2e} oscillator steps, more than the {:.1e} a WAV rendering may take; use --no-wav",
+                strikes.len(),
+                most.0,
+                most.1,
+                most_work
+            ),
+        });
+    }
+    let mut block = Vec::with_capacity(WAV_BLOCK);
+    let mut peak = 0f32;
+    let mut r = voice::Renderer::new(&notes, seconds, fs);
+    while r.next_block(WAV_BLOCK, &mut block) {
+        peak = voice::peak(&block, peak);
+    }
+    let scale = voice::peak_scale(peak, 0.9);
+    let mut r = voice::Renderer::new(&notes, seconds, fs);
+    let mut at = 0;
+    let samples = std::iter::from_fn(move || {
+        if at == block.len() {
+            at = 0;
+            if !r.next_block(WAV_BLOCK, &mut block) {
+                return None;
+            }
+        }
+        at += 1;
+        Some(voice::to_i16(block[at - 1], scale))
+    });
+    write_pcm(path, fs, samples)
+}
+
+/// The strikes as the voice renders them, each damper placed (at the note-off of the note
+/// it answers, 300 ms after a strike that answers none, later while the sustain pedal is
+/// down), and the seconds to render: to the later of the last strike and the performance's
+/// end, and 2 s of ringing past it.
+fn voice_strikes(strikes: &[Strike], perf: &Performance) -> (Vec<voice::Strike>, f64) {
+    let notes = strikes
         .iter()
         .map(|s| voice::Strike {
             key: s.key,
@@ -70,44 +142,20 @@ pub fn write_wav(
         .iter()
         .map(|s| s.time_s)
         .fold(perf.duration_s, f64::max);
-    let wanted = (last + 2.0) * fs;
-    if wanted.is_nan() || wanted > voice::MAX_RENDER_SAMPLES as f64 {
-        return Err(WriteError::Refused {
-            path: path.to_path_buf(),
-            reason: format!(
-                "the piece is {last:.1} s long, more than the {:.0} s a WAV rendering may have; use --no-wav or --seconds",
-                voice::MAX_RENDER_SAMPLES as f64 / fs - 2.0
-            ),
-        });
-    }
-    let work = voice::render_work(&notes, last + 2.0, fs);
-    if work > voice::MAX_RENDER_WORK {
-        let most = (0..=127u8)
-            .map(|k| (strikes.iter().filter(|s| s.key == k).count(), k))
-            .max()
-            .unwrap_or_default();
-        return Err(WriteError::Refused {
-            path: path.to_path_buf(),
-            reason: format!(
-                "{} strikes ({} of them on key {}) ring for {work:.2e} oscillator steps, more than the {:.1e} a WAV rendering may take; use --no-wav",
-                strikes.len(),
-                most.0,
-                most.1,
-                voice::MAX_RENDER_WORK
-            ),
-        });
-    }
-    let samples = voice::render(&notes, last + 2.0, fs);
-    write_mono_wav(path, &samples, fs)
+    (notes, last + 2.0)
 }
 
-/// Writes `samples` (any unit) as a 16-bit mono WAV at `fs` Hz, scaled so that the peak is
-/// at 90 % of full scale (silence stays silence): the one WAV writer of `tactus play` and
-/// `tactus sim`.
+/// Writes `samples` as a 16-bit mono WAV at `fs` Hz on `path`, as they come (the memory of
+/// the writer's buffer). A file left half written by a failure (a full disk) is removed,
+/// if it is a regular file.
 ///
 /// Errors: `fs` not a whole number of hertz from 1 to `u32::MAX`, or the file cannot be
-/// written (naming it).
-pub fn write_mono_wav(path: &Path, samples: &[f32], fs: f64) -> Result<(), WriteError> {
+/// created or written (naming it, with the system's reason).
+fn write_pcm(
+    path: &Path,
+    fs: f64,
+    mut samples: impl Iterator<Item = i16>,
+) -> Result<(), WriteError> {
     let rate = fs.round();
     if !(1.0..=f64::from(u32::MAX)).contains(&rate) || (fs - rate).abs() > 1e-9 * fs {
         return Err(WriteError::Refused {
@@ -115,7 +163,6 @@ pub fn write_mono_wav(path: &Path, samples: &[f32], fs: f64) -> Result<(), Write
             reason: format!("the sample rate {fs} Hz is not a whole number of hertz"),
         });
     }
-    let scale = voice::i16_scale(samples, 0.9);
     let spec = hound::WavSpec {
         channels: 1,
         sample_rate: rate as u32,
@@ -124,10 +171,23 @@ pub fn write_mono_wav(path: &Path, samples: &[f32], fs: f64) -> Result<(), Write
     };
     let err = |e: hound::Error| WriteError::io(path, e);
     let mut w = hound::WavWriter::create(path, spec).map_err(err)?;
-    for &x in samples {
-        w.write_sample(voice::to_i16(x, scale)).map_err(err)?;
+    let written = samples
+        .try_for_each(|x| w.write_sample(x))
+        .and_then(|()| w.finalize());
+    if written.is_err() && std::fs::symlink_metadata(path).is_ok_and(|m| m.is_file()) {
+        let _ = std::fs::remove_file(path);
     }
-    w.finalize().map_err(err)
+    written.map_err(err)
+}
+
+/// Writes `samples` (any unit) as a 16-bit mono WAV at `fs` Hz, scaled so that the peak is
+/// at 90 % of full scale (silence stays silence): `tactus sim`'s WAV, as [`write_wav`]'s.
+///
+/// Errors: `fs` not a whole number of hertz from 1 to `u32::MAX`, or the file cannot be
+/// written (naming it).
+pub fn write_mono_wav(path: &Path, samples: &[f32], fs: f64) -> Result<(), WriteError> {
+    let scale = voice::i16_scale(samples, 0.9);
+    write_pcm(path, fs, samples.iter().map(|&x| voice::to_i16(x, scale)))
 }
 
 /// Writes one CSV per traced key, `OUT/STEM-key<K>.csv`: time_s, key_travel_m, force_n,
@@ -249,4 +309,109 @@ pub fn write_midi(path: &Path, strikes: &[Strike]) -> Result<(), WriteError> {
         tracks: vec![track],
     };
     smf.save(path).map_err(|e| WriteError::io(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tactus_runtime::performance::Note;
+
+    const FS: f64 = 44_100.0;
+
+    /// A short performance played: chords and runs over 4 s, the pedal down from 1 s to
+    /// 2.5 s, one strike answering no note.
+    fn played() -> (Vec<Strike>, Performance) {
+        let notes: Vec<Note> = (0..30)
+            .map(|j| {
+                let on_s = 0.13 * j as f64;
+                Note {
+                    key: 36 + (j * 17 % 60) as u8,
+                    velocity: 20 + (j * 29 % 100) as u8,
+                    on_s,
+                    off_s: on_s + 0.05 + 0.04 * (j % 7) as f64,
+                }
+            })
+            .collect();
+        let mut strikes: Vec<Strike> = (notes.iter())
+            .map(|n| Strike {
+                key: n.key,
+                time_s: n.on_s + 0.004,
+                speed_mps: 0.3 + f64::from(n.velocity) / 30.0,
+                answers: Some(*n),
+            })
+            .collect();
+        strikes.push(Strike {
+            key: 100,
+            time_s: 3.9,
+            speed_mps: 2.0,
+            answers: None,
+        });
+        let perf = Performance {
+            notes,
+            sustain: vec![(1.0, true), (2.5, false)],
+            duration_s: 4.0,
+        };
+        (strikes, perf)
+    }
+
+    /// A fresh folder for one test.
+    fn temp(test: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("tactus-{test}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    /// The WAV streamed in blocks (several of them here: 6 s, 4 blocks) is the file the
+    /// whole buffer gives, byte for byte.
+    #[test]
+    fn the_streamed_wav_is_the_whole_renderings_file() {
+        let (strikes, perf) = played();
+        let dir = temp("streamed-wav");
+        let (streamed, whole) = (dir.join("streamed.wav"), dir.join("whole.wav"));
+        write_wav(&streamed, &strikes, &perf, FS).unwrap();
+        let (notes, seconds) = voice_strikes(&strikes, &perf);
+        let samples = voice::render(&notes, seconds, FS);
+        assert_eq!(samples.len(), 264_600);
+        assert!(samples.len() > 3 * WAV_BLOCK);
+        write_mono_wav(&whole, &samples, FS).unwrap();
+        let (a, b) = (
+            std::fs::read(&streamed).unwrap(),
+            std::fs::read(&whole).unwrap(),
+        );
+        assert_eq!(a.len(), 44 + 2 * samples.len());
+        assert!(
+            a == b,
+            "the streamed WAV differs from the whole rendering's"
+        );
+        // Not silence: the loudest sample at 90 % of full scale.
+        let pcm = a[44..].chunks(2).map(|c| i16::from_le_bytes([c[0], c[1]]));
+        assert_eq!(pcm.map(|x| x.unsigned_abs()).max(), Some(29_490));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A full disk and a folder that does not exist are errors naming the file.
+    #[test]
+    fn a_wav_that_cannot_be_written_is_an_error_naming_it() {
+        let (strikes, perf) = played();
+        let full = Path::new("/dev/full");
+        if full.exists() {
+            let e = write_wav(full, &strikes, &perf, FS)
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with("/dev/full: cannot write: "), "{e}");
+            assert!(e.contains("No space left"), "{e}");
+            assert!(full.exists(), "a device is never removed");
+        }
+        let dir = temp("unwritable-wav");
+        let nowhere = dir.join("no such folder").join("piece.wav");
+        let e = write_wav(&nowhere, &strikes, &perf, FS)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(&format!("{}: cannot write: ", nowhere.display())),
+            "{e}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
