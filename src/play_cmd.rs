@@ -12,7 +12,7 @@ use std::process::ExitCode;
 use tactus_host::catalogue;
 use tactus_host::corpus_run::{Combo, Corpus, CorpusError, CorpusRun, CorpusSpec};
 use tactus_host::keyboard::KeyboardSpec;
-use tactus_host::play::shard::Shard;
+use tactus_host::play::shard::{Setup, Shard};
 use tactus_host::play::{corpus, PlayConfig, TraceWindow};
 use tactus_host::session::{self as host_play, PieceOptions, PlayError, Session};
 use tactus_runtime::keyboard::BoardSpec;
@@ -177,9 +177,11 @@ pub fn run(args: PlayArgs) -> ExitCode {
     }
     // One piece (or the demo) on one keyboard.
     let combo = Combo {
-        layout: spec.layouts.first().cloned(),
-        instrument: spec.instruments.first().cloned(),
-        board: spec.boards.first().cloned(),
+        on: Setup {
+            layout: spec.layouts.first().cloned(),
+            instrument: spec.instruments.first().cloned(),
+            board: spec.boards.first().cloned(),
+        },
         folder: None,
     };
     let result = session(&args, &combo)
@@ -204,13 +206,14 @@ pub fn run(args: PlayArgs) -> ExitCode {
 /// default layout, on its board), the run's configuration and options (its files in
 /// OUT/FOLDER when it has a folder).
 fn session(args: &PlayArgs, combo: &Combo) -> Result<Session, PlayError> {
-    let input = (combo.layout.clone())
-        .or_else(|| combo.instrument.clone())
+    let on = &combo.on;
+    let input = (on.layout.clone())
+        .or_else(|| on.instrument.clone())
         .unwrap_or_else(|| catalogue::DEFAULT_LAYOUT.to_string());
     let spec = KeyboardSpec {
         input: &input,
-        as_layout: Some(combo.instrument.is_none()),
-        board: combo.board.as_deref(),
+        as_layout: Some(on.instrument.is_none()),
+        board: on.board.as_deref(),
         keys: None,
         params: &args.params,
     };

@@ -8,7 +8,7 @@
 //! engine; `tests/slurm.rs` runs the firmware on the emulated boards through a real Slurm).
 
 mod common;
-use common::{assert_ok, tactus, temp_dir, write_midi};
+use common::{assert_ok, small_layout, tactus, temp_dir, without_timings, write_midi};
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
@@ -57,36 +57,6 @@ fn merge(inputs: &[&Path], out: &Path) -> Output {
         .unwrap()
 }
 
-/// A table's text with the timings (wall time and real-time factor) blanked: what must be
-/// byte-identical between runs.
-fn without_timings(path: &Path) -> String {
-    let text = std::fs::read_to_string(path).unwrap();
-    match path.extension().and_then(|e| e.to_str()) {
-        Some("csv") => text
-            .lines()
-            .map(|l| {
-                let mut f: Vec<&str> = l.split(',').collect();
-                // file,keyboard,board,music_s,…,wall_s,rtf,error: wall_s and rtf are the
-                // 13th and 14th fields (no field of these rows holds a comma).
-                if f.len() >= 15 && !l.starts_with("file,") {
-                    f[12] = "-";
-                    f[13] = "-";
-                }
-                f.join(",")
-            })
-            .collect::<Vec<_>>()
-            .join("\n"),
-        _ => text
-            .lines()
-            .map(|l| match l.trim_start() {
-                t if t.starts_with("\"wall_s\"") || t.starts_with("\"rtf\"") => "-",
-                _ => l,
-            })
-            .collect::<Vec<_>>()
-            .join("\n"),
-    }
-}
-
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -112,12 +82,7 @@ fn same_tables(a: &Path, b: &Path) {
 fn the_merge_of_n_shards_is_the_single_machine_run() {
     let dir = temp_dir("corpus-shards");
     let c = corpus(&dir, false);
-    let small = dir.join("small.toml");
-    std::fs::write(
-        &small,
-        "name = \"small\"\n[[range]]\nkeys = [40, 80]\ninstrument = \"grand_piano\"\n",
-    )
-    .unwrap();
+    let small = small_layout(&dir, 40, 80);
     let keyboards = ["--layout", "grand88", "--layout", small.to_str().unwrap()];
     let single = dir.join("single");
     let out = play(&c, &single, &keyboards);

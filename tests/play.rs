@@ -4,7 +4,7 @@
 //! and the force-driven player in closed loop with the grand piano (and on the emulated board).
 
 mod common;
-use common::{assert_ok, tactus, temp_dir, write_midi};
+use common::{assert_ok, small_layout, tactus, temp_dir, write_midi};
 use std::path::{Path, PathBuf};
 use tactus_runtime::performance::read_midi;
 use tactus_runtime::player::{FingerConfig, ForcePlayer, ForceProfile, Stroke};
@@ -1326,16 +1326,11 @@ fn strike_bits(p: &tactus_host::session::Piece) -> Vec<(u8, u64, u64)> {
 /// Issue 73: a performance played as consecutive spans, the boards carrying their state
 /// across, is the performance played whole — the same strikes, cycles and misses — and its
 /// first span is a run cut where it ends: the same strikes and the same budget lines (the
-/// long check `a_40_minute_performance…` does this at 20 minutes of a 40-minute recital).
+/// long check `a_40_minute_recital…` does this at 20 minutes of a 40-minute recital).
 #[test]
 fn a_performance_in_spans_is_the_performance_whole_and_its_first_span_a_cut_run() {
     let dir = temp_dir("play-spans");
-    let layout = dir.join("small.toml");
-    std::fs::write(
-        &layout,
-        "name = \"small\"\n[[range]]\nkeys = [60, 67]\ninstrument = \"grand_piano\"\n",
-    )
-    .unwrap();
+    let layout = small_layout(&dir, 60, 67);
     let layout = layout.to_str().unwrap();
     // Two passages, 1.3 s of rest between them (past every key's tail).
     let notes: Vec<(u8, u8, f64, f64)> = (0..16)

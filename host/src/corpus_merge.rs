@@ -84,21 +84,19 @@ pub enum MergeError {
 }
 
 fn show_shards(missing: &[u32], count: u32) -> String {
-    let mut s: Vec<String> = (missing.iter().take(NAMED))
-        .map(|k| format!("{k}/{count}"))
-        .collect();
-    if missing.len() > NAMED {
-        s.push(format!("… {} more", missing.len() - NAMED));
-    }
-    s.join(", ")
+    named(missing.iter().map(|k| format!("{k}/{count}")))
 }
 
 fn show_items(missing: &[(ItemKey, Shard)]) -> String {
-    let mut s: Vec<String> = (missing.iter().take(NAMED))
-        .map(|(k, sh)| format!("{k} (shard {sh})"))
-        .collect();
-    if missing.len() > NAMED {
-        s.push(format!("… {} more", missing.len() - NAMED));
+    named(missing.iter().map(|(k, sh)| format!("{k} (shard {sh})")))
+}
+
+/// The first [`NAMED`] of `all`, then how many more.
+fn named(all: impl ExactSizeIterator<Item = String>) -> String {
+    let n = all.len();
+    let mut s: Vec<String> = all.take(NAMED).collect();
+    if n > NAMED {
+        s.push(format!("… {} more", n - NAMED));
     }
     s.join(", ")
 }

@@ -14,7 +14,7 @@
 
 use crate::play::corpus::{self, PieceRow, Verdict};
 use crate::play::results::{Header, ItemLine, Manifest, ResultsError, ResultsFile};
-use crate::play::shard::{piece_name, ItemKey, Shard};
+use crate::play::shard::{piece_name, ItemKey, Setup, Shard};
 use crate::session::{PlayError, Session};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -32,15 +32,12 @@ pub struct CorpusSpec {
     pub boards: Vec<String>,
 }
 
-/// One keyboard on one board kind, as the command line names them.
+/// One keyboard on one board kind, as the command line names them, and where its items'
+/// files go.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Combo {
-    /// The layout, if the keyboard is one (neither: the default layout).
-    pub layout: Option<String>,
-    /// The instrument on every key, if the keyboard is that.
-    pub instrument: Option<String>,
-    /// The board kind, if given.
-    pub board: Option<String>,
+    /// The keyboard and the board.
+    pub on: Setup,
     /// The folder under `OUT` its items' files go to (`None`: `OUT` itself, with one
     /// combination).
     pub folder: Option<String>,
@@ -83,14 +80,18 @@ impl Corpus {
     /// items.
     pub fn new(spec: &CorpusSpec) -> Result<Corpus, String> {
         let files = corpus::expand(&spec.performances)?;
-        let keyboards: Vec<(Option<String>, Option<String>)> = spec
-            .layouts
-            .iter()
-            .map(|l| (Some(l.clone()), None))
-            .chain(spec.instruments.iter().map(|i| (None, Some(i.clone()))))
+        let keyboards: Vec<Setup> = (spec.layouts.iter())
+            .map(|l| Setup {
+                layout: Some(l.clone()),
+                ..Setup::default()
+            })
+            .chain(spec.instruments.iter().map(|i| Setup {
+                instrument: Some(i.clone()),
+                ..Setup::default()
+            }))
             .collect();
         let keyboards = match keyboards.is_empty() {
-            true => vec![(None, None)],
+            true => vec![Setup::default()],
             false => keyboards,
         };
         let boards: Vec<Option<String>> = match spec.boards.is_empty() {
@@ -99,33 +100,30 @@ impl Corpus {
         };
         let several = keyboards.len() * boards.len() > 1;
         let mut combos = Vec::new();
-        for (layout, instrument) in &keyboards {
+        for kb in &keyboards {
             for board in &boards {
+                let on = Setup {
+                    board: board.clone(),
+                    ..kb.clone()
+                };
                 let folder = several.then(|| {
-                    let kb = (layout.as_deref().or(instrument.as_deref()))
+                    let name = (on.layout.as_deref().or(on.instrument.as_deref()))
                         .map_or_else(|| crate::catalogue::DEFAULT_LAYOUT.to_string(), stem);
                     format!(
-                        "{kb}-{}",
+                        "{name}-{}",
                         board.as_deref().map_or_else(|| "default".to_string(), stem)
                     )
                 });
-                if let Some(same) = combos
-                    .iter()
-                    .find(|c: &&Combo| c.folder.is_some() && c.folder == folder)
+                if let Some(same) =
+                    (combos.iter()).find(|c: &&Combo| c.folder.is_some() && c.folder == folder)
                 {
                     return Err(format!(
-                        "two keyboard and board pairs would write to one folder `{}` ({} and {}): give files of other names",
+                        "two keyboard and board pairs would write to one folder `{}` ({} and {on}): give files of other names",
                         folder.unwrap_or_default(),
-                        show_combo(same),
-                        show_combo(&Combo { layout: layout.clone(), instrument: instrument.clone(), board: board.clone(), folder: None })
+                        same.on,
                     ));
                 }
-                combos.push(Combo {
-                    layout: layout.clone(),
-                    instrument: instrument.clone(),
-                    board: board.clone(),
-                    folder,
-                });
+                combos.push(Combo { on, folder });
             }
         }
         if files.len().saturating_mul(combos.len()) > corpus::MAX_PIECES {
@@ -142,9 +140,7 @@ impl Corpus {
             for f in &files {
                 let key = ItemKey {
                     piece: piece_name(f),
-                    layout: c.layout.clone(),
-                    instrument: c.instrument.clone(),
-                    board: c.board.clone(),
+                    on: c.on.clone(),
                 };
                 if let Some(first) = seen.insert(key.clone(), f) {
                     return Err(format!(
@@ -161,19 +157,6 @@ impl Corpus {
             }
         }
         Ok(Corpus { combos, items })
-    }
-}
-
-/// A combination as text: `layout grand88 on board rp2040`.
-fn show_combo(c: &Combo) -> String {
-    let kb = match (&c.layout, &c.instrument) {
-        (Some(l), _) => format!("layout {l}"),
-        (None, Some(i)) => format!("instrument {i}"),
-        (None, None) => "the default layout".to_string(),
-    };
-    match &c.board {
-        Some(b) => format!("{kb} on board {b}"),
-        None => kb,
     }
 }
 
@@ -220,13 +203,7 @@ impl CorpusRun {
         resume: bool,
     ) -> Result<CorpusRun, CorpusError> {
         let keyboards = (corpus.combos.iter().zip(&sessions))
-            .map(|(c, s)| {
-                s.manifest(
-                    c.layout.as_deref(),
-                    c.instrument.as_deref(),
-                    c.board.as_deref(),
-                )
-            })
+            .map(|(c, s)| s.manifest(&c.on))
             .collect::<Result<Vec<_>, _>>()?;
         let options = sessions
             .first()

@@ -8,6 +8,7 @@
 use crate::keyboard::{Keyboard, KeyboardError, KeyboardSpec, Reporter};
 use crate::play::output::{self, WriteError};
 use crate::play::results::{sha3_hex, KeyboardManifest, RunOptions, SourceHash};
+use crate::play::shard::Setup;
 use crate::play::{self, corpus::PieceRow, strike, PlayConfig, PlayEngine, Played, Progress};
 use crate::play::{BoardsReport, RunError, Silence, Traces};
 use crate::plot::{plot_cycle_series, plot_lines, Line, PlotError};
@@ -389,15 +390,10 @@ impl Session {
     /// file and instrument sources and, when the engine runs them, of its firmware's
     /// programs (each distinct program's Thumb code and param block, in the order of
     /// [`Keyboard::sets`], with the program of every key) — compiled here if not yet.
-    /// `layout`, `instrument` and `board` are the command line's, recorded as given.
+    /// `on` is the command line's naming of the keyboard and board, recorded as given.
     ///
     /// Errors: the layout or board file cannot be read again.
-    pub fn manifest(
-        &self,
-        layout: Option<&str>,
-        instrument: Option<&str>,
-        board: Option<&str>,
-    ) -> Result<KeyboardManifest, PlayError> {
+    pub fn manifest(&self, on: &Setup) -> Result<KeyboardManifest, PlayError> {
         let kb = &self.kb;
         let hash = |name: String, text: &str| SourceHash {
             name,
@@ -441,9 +437,7 @@ impl Session {
             Err(e) => Some(Err(e.to_string())),
         };
         Ok(KeyboardManifest {
-            layout: layout.map(str::to_string),
-            instrument: instrument.map(str::to_string),
-            board: board.map(str::to_string),
+            on: on.clone(),
             name: kb.name.clone(),
             layout_sha3,
             board_sha3: hash(board_src.name, &board_src.text),

@@ -14,7 +14,7 @@
 //! bytes per item done costs nothing beside it.
 
 use super::corpus::{write_atomic, PieceRow};
-use super::shard::{ItemKey, Shard};
+use super::shard::{ItemKey, Setup, Shard};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -51,16 +51,9 @@ pub struct SourceHash {
 /// One keyboard on one board kind of a run, as compiled.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct KeyboardManifest {
-    /// The layout as given (`--layout`), if the keyboard is one.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub layout: Option<String>,
-    /// The instrument as given (`--instrument`), if the keyboard is one instrument on
-    /// every key.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub instrument: Option<String>,
-    /// The board as given (`--board`), if given.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub board: Option<String>,
+    /// The keyboard and board as the command line names them.
+    #[serde(flatten)]
+    pub on: Setup,
     /// The keyboard's name (the layout's, or `INSTRUMENT × N`).
     pub name: String,
     /// The layout's text, hashed (none for one instrument).
@@ -357,9 +350,7 @@ mod tests {
                 items: (0..6)
                     .map(|i| ItemKey {
                         piece: format!("p{i}.mid"),
-                        layout: None,
-                        instrument: None,
-                        board: None,
+                        on: Setup::default(),
                     })
                     .collect(),
             },

@@ -205,23 +205,48 @@ impl Shard {
     }
 }
 
-/// What identifies an item of a corpus run: the performance, the keyboard and the board, as
-/// the command line names them (so every task of an array, given the same arguments, names
-/// an item alike).
+/// A keyboard on a board kind as the command line names them: a layout (`--layout`) or an
+/// instrument on every key (`--instrument`) — neither for the default layout — and the
+/// board kind (`--board`) if given, else the keyboard's own.
+#[derive(Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct Setup {
+    /// The layout (a file or a built-in name), if the keyboard is one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub layout: Option<String>,
+    /// The instrument on every key, if the keyboard is that.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub instrument: Option<String>,
+    /// The board kind, if given; else the layout's `board_kind` or the default decides, as
+    /// the manifest records.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub board: Option<String>,
+}
+
+impl fmt::Display for Setup {
+    /// `layout grand88 on board rp2040`, `instrument hammond`, `the default layout`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (&self.layout, &self.instrument) {
+            (Some(l), _) => write!(f, "layout {l}")?,
+            (None, Some(i)) => write!(f, "instrument {i}")?,
+            (None, None) => write!(f, "the default layout")?,
+        }
+        match &self.board {
+            Some(b) => write!(f, " on board {b}"),
+            None => Ok(()),
+        }
+    }
+}
+
+/// What identifies an item of a corpus run: the performance on a [`Setup`], as the command
+/// line names them (so every task of an array, given the same arguments, names an item
+/// alike). In JSON its fields are side by side: `{"piece": …, "layout": …, "board": …}`.
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub struct ItemKey {
     /// The MIDI file as listed, its path normalised ([`piece_name`]).
     pub piece: String,
-    /// The layout (`--layout`: a file or a built-in name), if the keyboard is one.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub layout: Option<String>,
-    /// The instrument on every key (`--instrument`), if the keyboard is that.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub instrument: Option<String>,
-    /// The board kind (`--board`), if given; else the layout's `board_kind` or the default
-    /// decides, as the manifest records.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub board: Option<String>,
+    /// The keyboard and board it is played on.
+    #[serde(flatten)]
+    pub on: Setup,
 }
 
 impl ItemKey {
@@ -229,12 +254,13 @@ impl ItemKey {
     /// field an empty line). Stable: changing it would move items between shards.
     pub fn canonical(&self) -> String {
         let o = |v: &Option<String>| v.clone().unwrap_or_default();
+        let on = &self.on;
         format!(
             "piece {}\nlayout {}\ninstrument {}\nboard {}\n",
             self.piece,
-            o(&self.layout),
-            o(&self.instrument),
-            o(&self.board)
+            o(&on.layout),
+            o(&on.instrument),
+            o(&on.board)
         )
     }
 
@@ -253,18 +279,12 @@ impl ItemKey {
 }
 
 impl fmt::Display for ItemKey {
+    /// The piece, and the setup when one is named: `a.mid on layout my.toml`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.piece)?;
-        if let Some(l) = &self.layout {
-            write!(f, " on layout {l}")?;
+        match self.on == Setup::default() {
+            true => write!(f, "{}", self.piece),
+            false => write!(f, "{} on {}", self.piece, self.on),
         }
-        if let Some(i) = &self.instrument {
-            write!(f, " on instrument {i}")?;
-        }
-        if let Some(b) = &self.board {
-            write!(f, " on board {b}")?;
-        }
-        Ok(())
     }
 }
 
@@ -320,9 +340,10 @@ mod tests {
     fn the_hash_is_stable_and_spreads_items() {
         let key = |p: &str| ItemKey {
             piece: p.to_string(),
-            layout: Some("grand88".into()),
-            instrument: None,
-            board: None,
+            on: Setup {
+                layout: Some("grand88".into()),
+                ..Setup::default()
+            },
         };
         assert_eq!(
             key("corpus/a.mid").canonical(),
