@@ -2,7 +2,8 @@
 //! defines components only; every component is documented (a comment block above it, a
 //! comment on each param, input and output: its unit, range or source); and every component,
 //! used alone by an instrument that connects each input to the key and reads each output,
-//! compiles without a warning, plans its fixed point and runs a key stroke to finite values.
+//! compiles without a warning, plans its fixed point and runs a key stroke to finite values
+//! (the FDTD string only compiles here: bowed_string plans and runs it in every suite).
 
 use tactus_compiler::ast::{Decl, TopItem, TypeAnn};
 use tactus_compiler::library;
@@ -185,17 +186,18 @@ fn every_component_compiles_plans_and_runs_alone() {
             b.name.node,
             l.warnings
         );
-        let fp = tactus_compiler::fixed::FixedProgram::new(&l.program);
-        // The FDTD string's accelerations have no interval bound (W0101: saturation at
-        // ±10⁶ m/s², far past what a bow reaches), in bowed_string as here.
-        if b.name.node != "string" {
-            assert!(
-                fp.warnings.is_empty(),
-                "{file}: `{}`: {:?}",
-                b.name.node,
-                fp.warnings
-            );
+        // The FDTD string (thousands of values) is planned and run in every engine's suite as
+        // bowed_string's; here it is only compiled alone.
+        if l.program.values.len() > 2_000 {
+            continue;
         }
+        let fp = tactus_compiler::fixed::FixedProgram::new(&l.program);
+        assert!(
+            fp.warnings.is_empty(),
+            "{file}: `{}`: {:?}",
+            b.name.node,
+            fp.warnings
+        );
         // A key stroke down to 10 mm and back, 0.2 s.
         let mut inst = tactus_compiler::interp::Instance::new(&l.program);
         for i in 0..8820 {
