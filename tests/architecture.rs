@@ -111,3 +111,84 @@ fn the_front_end_builds_without_cranelift() {
         "{deps}"
     );
 }
+
+/// Production code (`src/` of the crates listed by directory, `""` the root crate, outside
+/// comments and test modules): each file's path and its lines of code.
+fn production_lines(crates: &[&str]) -> Vec<(String, String)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut out = Vec::new();
+    for krate in crates {
+        let mut stack = vec![root.join(krate).join("src")];
+        while let Some(dir) = stack.pop() {
+            for entry in std::fs::read_dir(&dir).unwrap() {
+                let path = entry.unwrap().path();
+                if path.is_dir() {
+                    stack.push(path);
+                } else if path.extension().is_some_and(|e| e == "rs") {
+                    let text = std::fs::read_to_string(&path).unwrap();
+                    let code = text.split("#[cfg(test)]").next().unwrap_or("");
+                    let name = path.strip_prefix(root).unwrap().display().to_string();
+                    for line in code.lines().filter(|l| !l.trim_start().starts_with("//")) {
+                        out.push((name.clone(), line.to_string()));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A keyboard's boards are planned once (`host::keyboard::Keyboard::plan`) and read by
+/// `build`, `budget` and `play`.
+#[test]
+fn boards_are_planned_in_one_place() {
+    let plans: Vec<String> = production_lines(&["firmware", "host", ""])
+        .into_iter()
+        .filter(|(_, l)| l.contains("boards::plan("))
+        .map(|(f, l)| format!("{f}: {}", l.trim()))
+        .collect();
+    assert_eq!(plans.len(), 1, "{plans:#?}");
+    assert!(plans[0].starts_with("host/src/keyboard.rs"), "{plans:?}");
+}
+
+/// A board file has one reader (`firmware::boards::read_board`: the chip's rules and a
+/// converter board's drivers checked where the file is read), and a keyboard's limiter one
+/// configuration (`LimiterConfig::for_board`).
+#[test]
+fn one_board_reader_and_one_limiter_configuration() {
+    let all = [
+        "isa",
+        "runtime",
+        "compiler",
+        "compiler/jit",
+        "emulator",
+        "firmware",
+        "host",
+        "lsp",
+        "",
+    ];
+    let lines = production_lines(&all);
+    let readers: Vec<&str> = (lines.iter())
+        .filter(|(_, l)| l.contains("pub fn read_board"))
+        .map(|(f, _)| f.as_str())
+        .collect();
+    assert_eq!(readers, ["firmware/src/boards.rs"]);
+    // A limiter made from its fields: its definition, and the image's own copy at the
+    // board's whole-hertz rate.
+    let made: Vec<&str> = (lines.iter())
+        .filter(|(_, l)| {
+            l.contains("LimiterConfig {")
+                && !["struct ", "impl ", "fn "].iter().any(|w| l.contains(w))
+        })
+        .map(|(f, _)| f.as_str())
+        .collect();
+    assert_eq!(
+        made,
+        [
+            "runtime/src/limiter.rs",
+            "runtime/src/limiter.rs",
+            "firmware/src/image/mod.rs"
+        ],
+        "{made:?}"
+    );
+}

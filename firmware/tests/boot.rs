@@ -11,15 +11,18 @@ use tactus_emulator::xip::{self, BOOT2_LOAD, BOOT2_SIZE};
 use tactus_emulator::{Board, Config as BoardConfig, StopReason};
 use tactus_firmware::image::boot2::{self, FLASH_VECTORS};
 use tactus_firmware::image::{FirmwareImage, ImageRun, KeySpec, Program};
-use tactus_runtime::keyboard::{read_board, BoardSpec};
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
+
+#[path = "common/layouts.rs"]
+mod layouts;
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
 }
 
 fn board(name: &str) -> BoardSpec {
-    read_board(&root().join(format!("boards/{name}.toml"))).unwrap()
+    layouts::shipped_board(name)
 }
 
 /// Four hammond keys, two a core.
@@ -33,10 +36,7 @@ fn image(b: &BoardSpec) -> FirmwareImage {
             core: i % 2,
         })
         .collect();
-    let lim = LimiterConfig {
-        sample_rate_hz: b.sample_rate_hz,
-        ..LimiterConfig::default()
-    };
+    let lim = LimiterConfig::for_board(b);
     FirmwareImage::build(&[p], &keys, b, &lim).unwrap()
 }
 

@@ -201,13 +201,37 @@ pub fn layout(name: &str) -> Option<&'static str> {
 ///
 /// Errors name the file and the field, or list the built-ins.
 pub fn board(arg: &str) -> Result<BoardSpec, String> {
+    let src = board_source(arg)?;
+    tactus_firmware::boards::read_board(&src.text, &src.name)
+}
+
+/// A board file's text and the name its errors give it.
+#[derive(Clone, Debug)]
+pub struct BoardSource {
+    /// The path, or `builtin:NAME`.
+    pub name: String,
+    /// The TOML text.
+    pub text: String,
+}
+
+/// The text of board `arg` as [`board`] reads it (a board file, else a built-in board by
+/// name), named as its errors name it: the path, or `builtin:NAME`.
+///
+/// Errors: the file cannot be read, or no built-in board has that name.
+pub fn board_source(arg: &str) -> Result<BoardSource, String> {
     if Path::new(arg).exists() {
         let text = tactus_runtime::keyboard::read_text(Path::new(arg))?;
-        return tactus_firmware::boards::read_board(&text, arg);
+        return Ok(BoardSource {
+            name: arg.to_string(),
+            text,
+        });
     }
     let stem = arg.trim_end_matches(".toml").replace('-', "_");
     match BOARDS.iter().find(|(n, _)| *n == stem) {
-        Some((n, text)) => tactus_firmware::boards::read_board(text, &format!("builtin:{n}")),
+        Some((n, text)) => Ok(BoardSource {
+            name: format!("builtin:{n}"),
+            text: text.to_string(),
+        }),
         None => Err(format!(
             "no board file `{arg}`, and no built-in board of that name (built-ins: {})",
             names(BOARDS)

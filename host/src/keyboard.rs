@@ -19,9 +19,11 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use tactus_compiler::diagnostics::Diagnostic;
 use tactus_compiler::ir::Program;
+use tactus_firmware::boards::{self, KeyboardPlan};
 use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_firmware::verdict::{self, ProgramInput};
 use tactus_runtime::keyboard::{self as layout_file, BoardSpec, KeyAssignment, Layout};
+use tactus_runtime::limiter::LimiterConfig;
 
 /// A path as written into a plan: absolute when it names an existing file (relative to
 /// `dir` when given), else as it is (a built-in name).
@@ -404,6 +406,51 @@ impl Keyboard {
         })
     }
 
+    /// The safety limiter of every key ([`LimiterConfig::for_board`]: the one configuration
+    /// `build`, `budget` and `play` give the firmware).
+    pub fn limiter(&self) -> LimiterConfig {
+        LimiterConfig::for_board(&self.board)
+    }
+
+    /// The keyboard's boards, with their verdicts: the layout's own checked
+    /// ([`boards::check_boards`]), or when it lists none planned ([`boards::plan`]: the
+    /// fewest boards that fit, contiguous key ranges). `programs` are [`Keyboard::firmware`]'s.
+    /// Made once per command: `tactus budget` reports this plan, `tactus build` builds it,
+    /// `tactus play` runs it (and `tactus emu run` reads it back from what `build` wrote).
+    /// `progress(done, total)` counts keys placed (boards checked for a layout's own).
+    ///
+    /// Errors: [`KeyboardError::Firmware`] when a program cannot be costed or placed on a
+    /// board (its code cannot be analysed, its window words do not fit).
+    pub fn plan(
+        &self,
+        programs: &[FirmwareProgram],
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<KeyboardPlan, KeyboardError> {
+        let bad = |e: boards::BoardsError| KeyboardError::Firmware {
+            source_name: self.input.clone(),
+            message: e.to_string(),
+        };
+        let (board, limiter) = (&self.board, self.limiter());
+        let costs = boards::ProgramCosts::new(programs, board, &limiter).map_err(bad)?;
+        let keys: Vec<boards::PlanKey> = (self.key_programs().into_iter())
+            .map(|(key, program)| boards::PlanKey { key, program })
+            .collect();
+        Ok(match &self.boards {
+            None => KeyboardPlan {
+                boards: boards::plan(programs, &costs, &keys, board, &limiter, progress)
+                    .map_err(bad)?,
+                planned: true,
+            },
+            Some(lists) => KeyboardPlan {
+                boards: boards::check_boards(
+                    programs, &costs, &keys, lists, board, &limiter, progress,
+                )
+                .map_err(bad)?,
+                planned: false,
+            },
+        })
+    }
+
     /// The keyboard as a layout file with `report`'s boards: the layout (or one range for a
     /// single instrument) with `board_kind` and one `[[board]]` per board, the spec's
     /// overrides written into every range (replacing a grade of the same param), so that the
@@ -468,28 +515,26 @@ impl Keyboard {
             .collect()
     }
 
-    /// The sets as `tactus budget` and `tactus build` take them, with their firmware
-    /// programs ([`Keyboard::firmware`]).
-    ///
-    /// Errors: as [`Keyboard::firmware`].
-    pub fn program_inputs(&self) -> Result<Vec<ProgramInput>, KeyboardError> {
-        Ok(self
-            .sets
+    /// The sets as `tactus budget` takes them, with their firmware `programs`
+    /// ([`Keyboard::firmware`]'s, in the order of [`Keyboard::sets`]).
+    pub fn program_inputs(&self, programs: &[FirmwareProgram]) -> Vec<ProgramInput> {
+        self.sets
             .iter()
-            .zip(self.firmware()?)
+            .zip(programs)
             .map(|(s, program)| ProgramInput {
                 instrument: s.instrument.clone(),
                 params: s.params.clone(),
                 sources: s.source.linked.sources.clone(),
-                program,
+                program: program.clone(),
             })
-            .collect())
+            .collect()
     }
 
     /// The keyboard as `play` takes it for a performance on `played` keys (MIDI): every key
-    /// (the firmware runs them all), the distinct programs of the played keys, and the
+    /// (the firmware runs them all), the distinct programs of the played keys, the
     /// firmware's programs (`firmware`: [`Keyboard::firmware`]) when the engine runs them
-    /// ([`play::PlayConfig::needs_firmware`]).
+    /// ([`play::PlayConfig::needs_firmware`]), and the boards of the keyboard's `plan`
+    /// ([`Keyboard::plan`]) when it runs them on emulated boards.
     ///
     /// Errors: [`KeyboardError::NotPlayable`] naming the key when a played key's instrument
     /// reads other than one key sensor (a pen, several sensors) or emits no strike event
@@ -498,6 +543,7 @@ impl Keyboard {
         &'a self,
         played: &BTreeSet<u8>,
         firmware: Option<&'a [FirmwareProgram]>,
+        plan: Option<&KeyboardPlan>,
     ) -> Result<play::Keyboard<'a>, KeyboardError> {
         // Set index → index among the played programs.
         let mut host: BTreeMap<usize, usize> = BTreeMap::new();
@@ -547,7 +593,7 @@ impl Keyboard {
             keys: self.keys.clone(),
             programs,
             key_program,
-            boards: self.boards.clone(),
+            boards: plan.map(KeyboardPlan::key_lists),
             firmware: firmware.map(|programs| play::Firmware {
                 programs,
                 key_program: &self.key_set,

@@ -1,7 +1,7 @@
 //! Helpers shared by the integration tests (running the `tactus` binary, measuring signals).
 #![allow(dead_code)] // each test binary uses a subset
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 /// The `tactus` binary under test.
@@ -87,4 +87,64 @@ pub fn partial_hz(x: &[f64], f: f64, fs: f64) -> f64 {
 pub fn smooth_step(t: f64, t0: f64, t1: f64) -> f64 {
     let u = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
     0.5 - 0.5 * (std::f64::consts::PI * u).cos()
+}
+
+/// Writes a format-0 MIDI file of `notes` (key, velocity, on s, off s) at 960 ticks per
+/// second, with sustain-pedal changes `pedal` (time s, down).
+pub fn write_midi(path: &Path, notes: &[(u8, u8, f64, f64)], pedal: &[(f64, bool)]) {
+    use midly::num::{u15, u28, u4, u7};
+    use midly::{Format, Header, MidiMessage, Smf, Timing, TrackEvent, TrackEventKind};
+    let tick = |t: f64| (t * 960.0).round() as u64;
+    let mut evs: Vec<(u64, MidiMessage)> = Vec::new();
+    for &(key, vel, on, off) in notes {
+        evs.push((
+            tick(on),
+            MidiMessage::NoteOn {
+                key: u7::new(key),
+                vel: u7::new(vel),
+            },
+        ));
+        evs.push((
+            tick(off),
+            MidiMessage::NoteOff {
+                key: u7::new(key),
+                vel: u7::new(0),
+            },
+        ));
+    }
+    for &(t, down) in pedal {
+        evs.push((
+            tick(t),
+            MidiMessage::Controller {
+                controller: u7::new(64),
+                value: u7::new(if down { 127 } else { 0 }),
+            },
+        ));
+    }
+    evs.sort_by_key(|e| e.0);
+    let mut last = 0;
+    let mut track: Vec<TrackEvent> = evs
+        .into_iter()
+        .map(|(t, message)| {
+            let delta = u28::new((t - last) as u32);
+            last = t;
+            TrackEvent {
+                delta,
+                kind: TrackEventKind::Midi {
+                    channel: u4::new(0),
+                    message,
+                },
+            }
+        })
+        .collect();
+    track.push(TrackEvent {
+        delta: u28::new(0),
+        kind: TrackEventKind::Meta(midly::MetaMessage::EndOfTrack),
+    });
+    Smf {
+        header: Header::new(Format::SingleTrack, Timing::Metrical(u15::new(480))),
+        tracks: vec![track],
+    }
+    .save(path)
+    .unwrap();
 }
