@@ -11,9 +11,12 @@ use lsp_types::request::{self as req, Request as _};
 use serde_json::Value;
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use tactus_compiler::imports::Loader;
 use tactus_compiler::query::{self, Analysis};
+use tactus_compiler::sources::{Origin, SourceMap};
 
 /// How the server works.
 #[derive(Clone, Debug)]
@@ -24,6 +27,13 @@ pub struct Config {
     /// Whether profiles that compile get their format plan (default yes; off only in
     /// tests of the protocol, where thousands of variants would each plan).
     pub plans: bool,
+    /// The host's loader of imported files on disk (`tactus lsp` passes the command line's,
+    /// `tactus_host::catalogue::DiskLoader`); the open documents are read before it. `None`:
+    /// imports come from the open documents and Tactus's library only.
+    pub disk: Option<fn() -> Box<dyn Loader>>,
+    /// Where the library's files are written for the client to open ([`crate::files`]);
+    /// `None`: the cache directory.
+    pub library_dir: Option<PathBuf>,
 }
 
 impl Default for Config {
@@ -31,6 +41,8 @@ impl Default for Config {
         Config {
             hover_wait: Duration::from_secs(10),
             plans: true,
+            disk: None,
+            library_dir: None,
         }
     }
 }
@@ -68,6 +80,10 @@ pub enum PlanState {
 pub struct Doc {
     /// Its URI as the client wrote it.
     pub uri: lsp_types::Uri,
+    /// The file its URI names (a `file://` URI), where its imports are looked for.
+    pub path: Option<PathBuf>,
+    /// The version the client last gave.
+    pub version: i32,
     /// The text.
     pub text: String,
     /// Its lines.
@@ -89,6 +105,8 @@ pub(crate) struct Server<'l> {
     config: Config,
     initialized: bool,
     shutdown: bool,
+    /// The library's directory for the client ([`crate::files::library_dir`]), once asked.
+    library: Option<Option<PathBuf>>,
 }
 
 /// Serves one client: reads messages from `input`, writes answers to `output`, logs to
@@ -127,6 +145,7 @@ pub fn serve(
         config: config.clone(),
         initialized: false,
         shutdown: false,
+        library: None,
     };
     let done = server.planner.done.clone();
     loop {
@@ -313,9 +332,56 @@ impl Server<'_> {
         }
     }
 
-    /// Analyses a document's new text, publishes its diagnostics and asks for its plan.
+    /// The directory of the library's files for the client, written on first use.
+    pub(crate) fn library_dir(&mut self) -> Option<PathBuf> {
+        if self.library.is_none() {
+            let dir = crate::files::library_dir(self.config.library_dir.as_deref());
+            if dir.is_none() {
+                (self.log)("cannot write the library's files: definitions in it are not shown");
+            }
+            self.library = Some(dir);
+        }
+        self.library.clone().flatten()
+    }
+
+    /// [`Server::library_dir`] when `sources` hold a library file (none is written for a
+    /// program that imports nothing from it).
+    pub(crate) fn library_dir_for(&mut self, sources: &SourceMap) -> Option<PathBuf> {
+        let uses = sources
+            .files()
+            .iter()
+            .any(|f| matches!(f.origin, Origin::Library(_)));
+        uses.then(|| self.library_dir()).flatten()
+    }
+
+    /// Analyses a document's new text, publishes its diagnostics and asks for its plan; then
+    /// analyses again the open documents that import it.
     fn set_text(&mut self, uri: lsp_types::Uri, version: i32, text: String) {
         let key = uri.as_str().to_string();
+        self.analyse(uri, version, text);
+        let path = self.docs.get(&key).and_then(|d| d.path.clone());
+        let Some(path) = path.map(|p| std::fs::canonicalize(&p).unwrap_or(p)) else {
+            return;
+        };
+        let dependents: Vec<(lsp_types::Uri, i32, String)> = self
+            .docs
+            .iter()
+            .filter(|(k, d)| {
+                **k != key
+                    && d.analysis.sources.files()[1..]
+                        .iter()
+                        .any(|f| f.origin == Origin::File(path.clone()))
+            })
+            .map(|(_, d)| (d.uri.clone(), d.version, d.text.clone()))
+            .collect();
+        for (uri, version, text) in dependents {
+            self.analyse(uri, version, text);
+        }
+    }
+
+    fn analyse(&mut self, uri: lsp_types::Uri, version: i32, text: String) {
+        let key = uri.as_str().to_string();
+        let path = crate::files::uri_to_path(&key);
         let mut analysis = if text.len() > MAX_DOCUMENT_BYTES {
             Analysis {
                 diagnostics: vec![tactus_compiler::diagnostics::Diagnostic::error(
@@ -326,10 +392,39 @@ impl Server<'_> {
                 lowered: None,
                 outline: Vec::new(),
                 names: Default::default(),
+                imported: Vec::new(),
+                sources: SourceMap::new(key.clone(), Origin::Text, ""),
             }
         } else {
-            query::analyse(&text, &tactus_compiler::lower::Config::default())
+            let open: HashMap<PathBuf, &str> = self
+                .docs
+                .iter()
+                .filter(|(k, _)| **k != key)
+                .filter_map(|(_, d)| Some((d.path.clone()?, d.text.as_str())))
+                .collect();
+            let mut loader = crate::files::Overlay {
+                open: &open,
+                disk: self.config.disk.map(|f| f()),
+            };
+            let (name, origin) = match &path {
+                Some(p) => (
+                    p.display().to_string(),
+                    Origin::File(std::fs::canonicalize(p).unwrap_or_else(|_| p.clone())),
+                ),
+                None => (key.clone(), Origin::Text),
+            };
+            let linked = tactus_compiler::imports::link(&name, origin, &text, &mut loader);
+            query::analyse_linked(&linked, &tactus_compiler::lower::Config::default())
         };
+        // A file of components only is a library being edited: "no instrument" says nothing.
+        let library = !analysis.outline.is_empty()
+            && analysis
+                .outline
+                .iter()
+                .all(|s| s.kind == query::SymbolKind::Component);
+        if library {
+            analysis.diagnostics.retain(|d| d.code != "E0103");
+        }
         let last_outline = match (analysis.outline.is_empty(), self.docs.remove(&key)) {
             (true, Some(old)) => old.last_outline,
             _ => analysis.outline.clone(),
@@ -344,12 +439,20 @@ impl Server<'_> {
             _ => PlanState::None,
         };
         let lines = LineIndex::new(&text);
-        let diagnostics = crate::features::diagnostics(&uri, &text, &lines, &analysis.diagnostics);
+        let lib = self.library_dir_for(&analysis.sources);
+        let diagnostics = crate::features::diagnostics(
+            &uri,
+            &analysis.sources,
+            lib.as_deref(),
+            &analysis.diagnostics,
+        );
         self.publish(&uri, diagnostics, Some(version));
         self.docs.insert(
             key,
             Doc {
                 uri,
+                path,
+                version,
                 text,
                 lines,
                 analysis,
