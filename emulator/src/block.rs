@@ -16,7 +16,7 @@
 //! Measured: see docs/benchmarks-log.md, "the block compiler".
 //!
 //! **Cycles.** Each instruction's cost comes from the one timing table
-//! ([`crate::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block
+//! ([`tactus_isa::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block
 //! also records, for each of its instructions, an upper bound on the cycles from that
 //! instruction's start to the block's end: the timing table's larger cost of each following
 //! instruction plus one wait state per data word it moves (an SRAM access waits at most one
@@ -63,11 +63,11 @@
 
 use crate::bus::{sram_location, Bus, System};
 use crate::core::Core;
-use crate::decode::{decode, Instr};
 use crate::fast::Op;
 use crate::jit::{self, Jit};
 use crate::memo::{Memos, Try};
-use crate::timing::{self, Class};
+use tactus_isa::decode::{decode, Instr};
+use tactus_isa::timing::{self, Class};
 
 /// Most instructions in one block.
 pub const MAX_BLOCK: usize = 64;

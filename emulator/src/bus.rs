@@ -16,14 +16,14 @@
 //! priority, as the RP2040 crossbar gives with both cores at the same BUS_PRIORITY and
 //! deterministic by construction. Instruction fetches are assumed not to contend (the
 //! Cortex-M0+ timing table presumes zero-wait fetches); ROM, flash, APB and SIO do not
-//! contend either. APB accesses cost [`crate::timing::APB_LOAD_WAIT`] /
-//! [`crate::timing::APB_STORE_WAIT`] extra cycles.
+//! contend either. APB accesses cost [`tactus_isa::timing::APB_LOAD_WAIT`] /
+//! [`tactus_isa::timing::APB_STORE_WAIT`] extra cycles.
 
 use crate::clocks::{self, SysCtl};
 use crate::sio::{Sio, SIO_BASE};
 use crate::timer::{Timer, TIMER_BASE};
-use crate::timing::{APB_LOAD_WAIT, APB_STORE_WAIT};
 use crate::xip::{Xip, XIP_SSI_BASE, XIP_SSI_SIZE};
+use tactus_isa::timing::{APB_LOAD_WAIT, APB_STORE_WAIT};
 
 /// Boot ROM: 0x00000000, 16 KB.
 pub const ROM_BASE: u32 = 0x0000_0000;
@@ -120,7 +120,7 @@ pub trait Bus {
     #[inline]
     fn fetch_instr(&mut self, addr: u32) -> Result<(u16, u16, u32), BusFault> {
         let hw1 = self.fetch(addr)?;
-        if crate::decode::is_32bit(hw1) {
+        if tactus_isa::decode::is_32bit(hw1) {
             Ok((hw1, self.fetch(addr.wrapping_add(2))?, 4))
         } else {
             Ok((hw1, 0, 2))

@@ -2,8 +2,8 @@
 //!
 //! Each arm computes results and flags exactly as the ARMv6-M pseudocode (DDI0419 A6.7)
 //! does, touches memory only through the [`Bus`] (which reports wait states), and returns what
-//! the caller needs to price it with [`crate::timing::cycles`] — the one timing table — plus wait
-//! states, plus [`crate::timing::EXCEPTION_RETURN`] when it returns from an exception. A fault is
+//! the caller needs to price it with [`tactus_isa::timing::cycles`] — the one timing table — plus wait
+//! states, plus [`tactus_isa::timing::EXCEPTION_RETURN`] when it returns from an exception. A fault is
 //! returned as an error *before* any register is written, so the HardFault handler sees the
 //! state the faulting instruction started from (multi-word loads read everything first).
 //! The flag rules (AddWithCarry's C and V, the condition codes, the shifts' carry out) are
@@ -12,11 +12,11 @@
 
 use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
 use crate::core::{Core, Event, FaultKind, RunState};
-use crate::decode::{self, AluOp, Instr, MemOp};
 use crate::nvic::PPB_BASE;
 use crate::semantics::{self, Flagged, Host, Nzcv, ShiftImm, ShiftReg};
 use crate::sio::SIO_BASE;
-use crate::timing::EXCEPTION_RETURN;
+use tactus_isa::decode::{self, AluOp, Instr, MemOp};
+use tactus_isa::timing::EXCEPTION_RETURN;
 
 /// Target of a PC-relative branch (B, B<cond>, BL) at `pc`: PC reads as `pc + 4`.
 #[inline(always)]

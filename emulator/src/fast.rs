@@ -11,8 +11,8 @@
 
 use crate::bus::System;
 use crate::core::Core;
-use crate::decode::{AluOp, Hint, Instr, MemOp};
 use crate::exec::{branch_target, literal_address};
+use tactus_isa::decode::{AluOp, Hint, Instr, MemOp};
 
 /// A pre-decoded instruction (see the module documentation). Register fields are 0-15,
 /// `imm`s are in bytes, `target`s and `addr`/`value`s absolute.

@@ -1,7 +1,7 @@
 //! Cycle-accurate emulator of the dual-core RP2040 (two ARMv6-M Cortex-M0+ cores).
 //!
 //! The instruction set's facts come from `tactus_isa`, which needs no machine:
-//! [`decode::decode`] turns halfwords into an [`decode::Instr`] and [`timing::cycles`] prices
+//! [`tactus_isa::decode::decode`] turns halfwords into an [`tactus_isa::decode::Instr`] and [`tactus_isa::timing::cycles`] prices
 //! it from the one timing table. On them, [`core::Core`] executes instructions against the
 //! [`bus::Bus`] trait, [`bus::System`] is the RP2040's memory map (striped SRAM banks with
 //! contention, [`sio`], [`timer`], the start-up's registers in [`clocks`], the XIP path to
@@ -44,10 +44,3 @@ pub use board::{
     StopReason, CALL_STUB, DAC_BASE, FIRMWARE_OWN_BANKS, MAX_KEYS, SENSOR_BASE,
 };
 pub use memo::MemoStats;
-// TEMPORARY (issue 34, one landing only): the ISA modules under their old paths, so that
-// branches written against `tactus_emulator::{decode, encode, timing, wcet}` still build.
-// Import them from `tactus_isa`. (The emulator's own modules use `crate::decode`, `crate::timing`.)
-pub use tactus_isa::decode::{decode, Instr};
-pub use tactus_isa::timing::cycles;
-#[doc(hidden)]
-pub use tactus_isa::{decode, encode, timing, wcet};

@@ -82,9 +82,9 @@
 use crate::board::{IoAccess, IoKind};
 use crate::bus::{sram_bank, sram_location, System, BANKS};
 use crate::core::{Core, RunState};
-use crate::decode::{self, AluOp, Instr};
 use crate::exec::literal_address;
 use std::collections::{BTreeMap, BTreeSet};
+use tactus_isa::decode::{self, AluOp, Instr};
 
 /// Memos kept per call site (the least recently used goes first): a key at rest calls
 /// its update in up to 17 states in turn (its differentiator ring's positions; on a

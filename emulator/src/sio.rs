@@ -7,7 +7,7 @@
 //! cycle from which reads see it ([`Divider::ready_at`]); GPIO and the interpolators are not
 //! modelled (reads return 0, writes are ignored).
 
-use crate::timing::DIVIDER_LATENCY;
+use tactus_isa::timing::DIVIDER_LATENCY;
 
 /// Base address of SIO.
 pub const SIO_BASE: u32 = 0xd000_0000;

@@ -3,10 +3,10 @@
 
 use super::*;
 use crate::bus::SRAM_END;
-use crate::decode::Instr;
 use crate::elf::{self, ElfError};
-use crate::timing::cycles;
 use std::fmt;
+use tactus_isa::decode::Instr;
+use tactus_isa::timing::cycles;
 /// Where [`Board::call`] puts its return stub: the last word of SRAM (the stack given to a
 /// call must be below it).
 pub const CALL_STUB: u32 = SRAM_END - 4;

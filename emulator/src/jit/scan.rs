@@ -3,9 +3,9 @@
 //! (see the parent module's documentation).
 
 use crate::bus::{Bus, System};
-use crate::decode::{decode, Instr};
 use crate::exec::branch_target;
-use crate::timing;
+use tactus_isa::decode::{decode, Instr};
+use tactus_isa::timing;
 
 /// Most instructions in one region.
 pub(crate) const MAX_REGION: usize = 128;
@@ -32,7 +32,7 @@ pub(crate) fn translated(instr: &Instr) -> bool {
         Adr { .. } | AddSpImm { .. } | AddSp { .. } | SubSp { .. } => true,
         Push { list } | Pop { list } => list != 0,
         Stm { list, .. } | Ldm { list, .. } => list != 0,
-        Instr::Hint(crate::decode::Hint::Nop | crate::decode::Hint::Yield) => true,
+        Instr::Hint(tactus_isa::decode::Hint::Nop | tactus_isa::decode::Hint::Yield) => true,
         BCond { cond, .. } => cond < 14,
         B { .. } | Bl { .. } => true,
         _ => false,
