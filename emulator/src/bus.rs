@@ -5,7 +5,12 @@
 //! 3:2) is one contiguous slice, and the non-striped aliases at 0x21000000 are an address
 //! transformation onto it (datasheet 2.6.1). Everything a core reaches outside its own
 //! private peripheral bus goes through the [`Bus`] trait, which returns wait states so the
-//! executor can count cycles.
+//! executor can count cycles. The addresses are the `tactus_rp2040` crate's (`memory`,
+//! one module per block). The XIP flash window has no wait states (the XIP cache and the
+//! serial transfer are not timed) and reads only while the SSI and the flash chip are set
+//! up for XIP ([`crate::xip`]): a board from [`System::new`] finds them set up for 03h
+//! reads, a board booted through the boot ROM ([`crate::Board::boot_from_flash`]) as boot2
+//! leaves them.
 //!
 //! **Bank arbitration.** Each of the six SRAM banks (SRAM0-3 striped, SRAM4 and SRAM5 the 4 KB
 //! scratch banks at 0x20040000 and 0x20041000) serves one master per cycle. The emulator
@@ -20,36 +25,18 @@
 //! [`tactus_isa::timing::APB_STORE_WAIT`] extra cycles.
 
 use crate::clocks::{self, SysCtl};
-use crate::sio::{Sio, SIO_BASE};
-use crate::timer::{Timer, TIMER_BASE};
-use crate::xip::{Xip, XIP_SSI_BASE, XIP_SSI_SIZE};
+use crate::sio::Sio;
+use crate::timer::Timer;
+use crate::xip::Xip;
 use tactus_isa::timing::{APB_LOAD_WAIT, APB_STORE_WAIT};
-
-/// Boot ROM: 0x00000000, 16 KB.
-pub const ROM_BASE: u32 = 0x0000_0000;
-/// Boot ROM size in bytes.
-pub const ROM_SIZE: u32 = 16 * 1024;
-/// XIP flash: 0x10000000 (2 MB, zero-wait-state: the XIP cache and the serial transfer are
-/// not timed). It reads only while the SSI and the flash chip are set up for XIP
-/// ([`crate::xip`]): a board from [`System::new`] finds them set up for 03h reads, a board
-/// booted through the boot ROM ([`crate::Board::boot_from_flash`]) as boot2 leaves them.
-pub const FLASH_BASE: u32 = 0x1000_0000;
-/// Flash size in bytes.
-pub const FLASH_SIZE: u32 = 2 * 1024 * 1024;
-/// SRAM: 0x20000000 (striped SRAM0-3, then SRAM4 and SRAM5).
-pub const SRAM_BASE: u32 = 0x2000_0000;
-/// SRAM size in bytes: 4 x 64 KB + 2 x 4 KB.
-pub const SRAM_SIZE: u32 = 0x4_2000;
-/// SRAM4 (scratch X), 4 KB.
-pub const SRAM4_BASE: u32 = 0x2004_0000;
-/// SRAM5 (scratch Y), 4 KB.
-pub const SRAM5_BASE: u32 = 0x2004_1000;
-/// Non-striped alias of SRAM0-3: bank n at `SRAM_ALIAS_BASE + n * 0x10000`.
-pub const SRAM_ALIAS_BASE: u32 = 0x2100_0000;
-/// Top of SRAM, the default initial stack pointer.
-pub const SRAM_END: u32 = SRAM_BASE + SRAM_SIZE;
-/// Number of SRAM banks that arbitrate separately.
-pub const BANKS: usize = 6;
+use tactus_rp2040::irq::{SIO_IRQ_PROC0, SIO_IRQ_PROC1};
+use tactus_rp2040::memory::{
+    sram_location, BANKS, FLASH_BASE, FLASH_SIZE, ROM_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE,
+};
+use tactus_rp2040::resets;
+use tactus_rp2040::sio::SIO_BASE;
+use tactus_rp2040::ssi::{XIP_SSI_BASE, XIP_SSI_SIZE};
+use tactus_rp2040::timer::TIMER_BASE;
 
 /// An access to an address that nothing answers (or a fetch from a non-executable region).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -239,26 +226,6 @@ pub(crate) fn store_le(mem: &mut [u8], off: usize, size: u32, value: u32) {
         2 => mem[off..off + 2].copy_from_slice(&(value as u16).to_le_bytes()),
         _ => mem[off..off + 4].copy_from_slice(&value.to_le_bytes()),
     }
-}
-
-/// Maps an SRAM address (striped or aliased) to (offset into [`System::sram`], bank).
-#[inline]
-pub fn sram_location(addr: u32) -> Option<(usize, usize)> {
-    let off = addr.wrapping_sub(SRAM_BASE);
-    if off < 0x4_0000 {
-        return Some((off as usize, ((off >> 2) & 3) as usize));
-    }
-    if off < SRAM_SIZE {
-        return Some((off as usize, 4 + ((off - 0x4_0000) >> 12) as usize));
-    }
-    let alias = addr.wrapping_sub(SRAM_ALIAS_BASE);
-    if alias < 0x4_0000 {
-        let bank = alias >> 16;
-        let word = (alias & 0xffff) >> 2;
-        let phys = ((word * 4 + bank) << 2) | (alias & 3);
-        return Some((phys as usize, bank as usize));
-    }
-    None
 }
 
 /// The offset into [`System::sram`] of `len` bytes from `addr` when they are contiguous
@@ -688,10 +655,10 @@ impl System {
     pub(crate) fn current_irq_lines(&self) -> u32 {
         let mut lines = self.timer.irq_lines();
         if self.sio.irq(0) {
-            lines |= 1 << 15; // SIO_IRQ_PROC0
+            lines |= 1 << SIO_IRQ_PROC0;
         }
         if self.sio.irq(1) {
-            lines |= 1 << 16; // SIO_IRQ_PROC1
+            lines |= 1 << SIO_IRQ_PROC1;
         }
         lines
     }
@@ -762,12 +729,12 @@ impl System {
             self.io_refresh();
             return ok;
         }
-        let was_held = self.sysctl.held_in_reset(clocks::reg::RESET_TIMER);
+        let was_held = self.sysctl.held_in_reset(resets::TIMER);
         let ok = self.sysctl.write(addr, value);
-        if self.io.is_some() && clocks::block_of(addr) == Some(clocks::RESETS_BASE) {
+        if self.io.is_some() && clocks::block_of(addr) == Some(resets::RESETS_BASE) {
             // PIO0, PIO1, the DMA, IO_BANK0 and BUSCTRL follow RESETS.
             self.io_live_at(cycle);
-            let held = self.sysctl.read(clocks::RESETS_BASE).unwrap_or(0);
+            let held = self.sysctl.read(resets::RESETS_BASE).unwrap_or(0);
             if let Some(io) = self.io.as_mut() {
                 io.set_resets(held);
             }
@@ -775,10 +742,7 @@ impl System {
         }
         // The timer counts from its release from reset (datasheet 4.6: held in reset it
         // reads 0 and its alarms are disarmed).
-        match (
-            was_held,
-            self.sysctl.held_in_reset(clocks::reg::RESET_TIMER),
-        ) {
+        match (was_held, self.sysctl.held_in_reset(resets::TIMER)) {
             (false, true) => self.timer.hold(),
             (true, false) => self.timer.release(cycle),
             _ => {}

@@ -10,13 +10,14 @@
 //! not written here: they are [`crate::semantics`]' generic functions, run on plain values,
 //! and the block compiler runs the same functions to build its IR.
 
-use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
+use crate::bus::{Bus, System};
 use crate::core::{Core, Event, FaultKind, RunState};
 use crate::nvic::PPB_BASE;
 use crate::semantics::{self, Flagged, Host, Nzcv, ShiftImm, ShiftReg};
-use crate::sio::SIO_BASE;
 use tactus_isa::decode::{self, AluOp, Instr, MemOp};
 use tactus_isa::timing::EXCEPTION_RETURN;
+use tactus_rp2040::memory::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
+use tactus_rp2040::sio::SIO_BASE;
 
 /// Target of a PC-relative branch (B, B<cond>, BL) at `pc`: PC reads as `pc + 4`.
 #[inline(always)]
@@ -45,7 +46,7 @@ type Exec = Result<Outcome, FaultKind>;
 
 /// Offset of `addr` in [`System::sram`] when it is in the striped view, SRAM4/5 or the
 /// non-striped aliases of SRAM0-3 (a single access, at most a word and aligned, so it stays
-/// inside one word of one bank; [`crate::bus::sram_location`] gives the same offset, and
+/// inside one word of one bank; [`tactus_rp2040::memory::sram_location`] gives the same offset, and
 /// the offset's bits 3:2 are the bank for the arbiter).
 #[inline(always)]
 fn sram_offset(addr: u32) -> Option<u32> {

@@ -71,52 +71,26 @@
 //! Not modelled: the DMA reaching peripherals other than the PIO FIFOs (its own registers,
 //! APB), the DMA's and PIOs' interrupts, GPIO overrides, pads, and the SIO's GPIO outputs.
 
-use crate::bus::{load_le, sram_location, store_le, BusFault, BANKS};
+use crate::bus::{load_le, store_le, BusFault};
 use crate::converters::{AdcFrame, Ads8688, Dac8568, DacUpdate, Recorded, SpiPins};
-use crate::dma::{Dma, DmaPort, DMA_BASE};
+use crate::dma::{Dma, DmaPort};
 use crate::lanes::{self, Fixed, Lane, Word, CONST};
-use crate::pio::{BitLoop, LoopClock, Pio, LOOP_MAX, PIO0_BASE, PIO1_BASE};
+use crate::pio::{BitLoop, LoopClock, Pio, LOOP_MAX};
+use tactus_rp2040::busctrl::{priority, BUSCTRL_BASE};
+use tactus_rp2040::dma::DMA_BASE;
+use tactus_rp2040::io_bank0::{FUNCSEL_NULL, GPIOS, IO_BANK0_BASE};
+use tactus_rp2040::memory::{sram_location, BANKS};
+use tactus_rp2040::pio::{PIO0_BASE, PIO1_BASE};
+use tactus_rp2040::resets;
 use tactus_runtime::converters::{AdcPart, DacPart};
 
-/// IO_BANK0 (datasheet 2.19.6.1): GPIOn_STATUS at `8n`, GPIOn_CTRL at `8n + 4`.
-pub const IO_BANK0_BASE: u32 = 0x4001_4000;
-/// BUSCTRL (datasheet 2.1.5): BUS_PRIORITY at 0.
-pub const BUSCTRL_BASE: u32 = 0x4003_0000;
-/// GPIOn_CTRL's FUNCSEL giving the pad to PIO0 (PIO1 is 7; 31, the reset value, is none).
-pub const FUNCSEL_PIO0: u32 = 6;
-/// GPIOs of the RP2040.
-pub const GPIOS: usize = 30;
 /// Wait states of a core's access to a DMA or PIO register (AHB-Lite peripherals,
 /// datasheet 2.1: not behind the APB bridge).
 pub const AHB_PERIPHERAL_WAIT: u32 = 0;
 
-/// BUS_PRIORITY's fields (datasheet 2.1.5): 1 is high priority.
-pub mod priority {
-    /// Core 0.
-    pub const PROC0: u32 = 1 << 0;
-    /// Core 1.
-    pub const PROC1: u32 = 1 << 4;
-    /// The DMA's read master.
-    pub const DMA_R: u32 = 1 << 8;
-    /// The DMA's write master.
-    pub const DMA_W: u32 = 1 << 12;
-}
-
 /// RESETS bits of the blocks here (datasheet 2.14.3).
-pub mod resets {
-    /// BUSCTRL.
-    pub const BUSCTRL: u32 = 1 << 1;
-    /// The DMA.
-    pub const DMA: u32 = 1 << 2;
-    /// IO_BANK0.
-    pub const IO_BANK0: u32 = 1 << 5;
-    /// PIO0.
-    pub const PIO0: u32 = 1 << 10;
-    /// PIO1.
-    pub const PIO1: u32 = 1 << 11;
-    /// All of them.
-    pub const ALL: u32 = BUSCTRL | DMA | IO_BANK0 | PIO0 | PIO1;
-}
+const IO_RESETS: u32 =
+    resets::BUSCTRL | resets::DMA | resets::IO_BANK0 | resets::PIO0 | resets::PIO1;
 
 /// The converters a board carries, with their pins: what [`crate::Board::attach_io`] wires.
 #[derive(Clone, Debug, Default)]
@@ -693,11 +667,11 @@ impl DmaPort for Port<'_, '_> {
             rec.poisoned = true;
             rec.read_lanes = CONST;
         }
-        let flash = addr.wrapping_sub(crate::bus::FLASH_BASE);
-        if addr < crate::bus::ROM_SIZE {
+        let flash = addr.wrapping_sub(tactus_rp2040::memory::FLASH_BASE);
+        if addr < tactus_rp2040::memory::ROM_SIZE {
             return Ok((load_le(self.mem.rom, addr as usize, size), 0));
         }
-        if flash < crate::bus::FLASH_SIZE && self.mem.xip_answers {
+        if flash < tactus_rp2040::memory::FLASH_SIZE && self.mem.xip_answers {
             return Ok((load_le(self.mem.flash, flash as usize, size), 0));
         }
         Err(BusFault { addr })
@@ -733,8 +707,8 @@ impl DmaPort for Port<'_, '_> {
                     2 => l[i % 16],
                     _ => l[i],
                 });
-                let fifo =
-                    (crate::pio::reg::TXF0..crate::pio::reg::TXF0 + 16).contains(&(off & !3));
+                let fifo = (tactus_rp2040::pio::reg::TXF0..tactus_rp2040::pio::reg::TXF0 + 16)
+                    .contains(&(off & !3));
                 match self.pio[b].lanes.as_deref_mut() {
                     Some(pl) if fifo => pl.next_write = w,
                     // Data written to any other register decides what the block does.
@@ -845,7 +819,7 @@ impl Io {
                 .map(|&(part, pins)| Dac8568::new(part, pins, clock_hz))
                 .collect(),
             cycle,
-            gpio_ctrl: [31; GPIOS],
+            gpio_ctrl: [FUNCSEL_NULL; GPIOS],
             pio_pins: [0; 2],
             bus_priority: 0,
             held: 0,
@@ -1607,7 +1581,7 @@ impl Io {
     pub(crate) fn set_resets(&mut self, held: u32) {
         self.idle = Idle(0);
         self.touch();
-        let held = held & resets::ALL;
+        let held = held & IO_RESETS;
         let entering = held & !self.held;
         self.ahead = None;
         if entering & resets::PIO0 != 0 {
@@ -1621,7 +1595,7 @@ impl Io {
             self.reach_banks = 0;
         }
         if entering & resets::IO_BANK0 != 0 {
-            self.gpio_ctrl = [31; GPIOS];
+            self.gpio_ctrl = [FUNCSEL_NULL; GPIOS];
             self.refresh_funcsel();
         }
         if entering & resets::BUSCTRL != 0 {

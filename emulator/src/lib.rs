@@ -7,7 +7,7 @@
 //! contention, [`sio`], [`timer`], the start-up's registers in [`clocks`], the XIP path to
 //! the flash in [`xip`]), and [`board::Board`] runs two cores in lock-step and offers the
 //! host API: load an ELF ([`elf`]), power on from flash through the boot ROM's path, run N
-//! cycles, read and write memory, feed sensors, read the DAC, and count cycles per
+//! cycles, read and write memory, and count cycles per
 //! function. [`pio`] models a PIO block (state machines, FIFOs, side-set, the clock
 //! divider), [`dma`] the DMA controller (channels, triggers, chaining, DREQ pacing) and
 //! [`converters`] the SPI converters at the pins; [`io`] puts them on the bus of a board
@@ -41,6 +41,6 @@ pub mod xip;
 
 pub use board::{
     Board, Call, CallError, CallResult, Config, EmuError, Engine, IoWindows, Period, RestPoint,
-    StopReason, CALL_STUB, DAC_BASE, FIRMWARE_OWN_BANKS, MAX_KEYS, SENSOR_BASE,
+    StopReason, CALL_STUB,
 };
 pub use memo::MemoStats;

@@ -80,11 +80,12 @@
 //! interpreter).
 
 use crate::board::{IoAccess, IoKind};
-use crate::bus::{sram_bank, sram_location, System, BANKS};
+use crate::bus::{sram_bank, System};
 use crate::core::{Core, RunState};
 use crate::exec::literal_address;
 use std::collections::{BTreeMap, BTreeSet};
 use tactus_isa::decode::{self, AluOp, Instr};
+use tactus_rp2040::memory::{sram_location, BANKS};
 
 /// Memos kept per call site (the least recently used goes first): a key at rest calls
 /// its update in up to 17 states in turn (its differentiator ring's positions; on a

@@ -41,58 +41,7 @@
 //! effect ([`Pio::quiet`], [`Pio::skip`]).
 
 use crate::lanes::{self, Fixed, Lane, Word, CONST};
-
-/// Base address of PIO0 (datasheet 2.2).
-pub const PIO0_BASE: u32 = 0x5020_0000;
-/// Base address of PIO1.
-pub const PIO1_BASE: u32 = 0x5030_0000;
-
-/// Register offsets (datasheet 3.7).
-pub mod reg {
-    /// State machine enables, restarts and clock-divider restarts.
-    pub const CTRL: u32 = 0x000;
-    /// FIFO status: RXFULL 3:0, RXEMPTY 11:8, TXFULL 19:16, TXEMPTY 27:24.
-    pub const FSTAT: u32 = 0x004;
-    /// FIFO debug (stall and overflow flags; reads 0 here).
-    pub const FDEBUG: u32 = 0x008;
-    /// FIFO levels: TX n at bits 8n+3:8n, RX n at 8n+7:8n+4.
-    pub const FLEVEL: u32 = 0x00c;
-    /// TX FIFO of state machine 0 (TXFn at `TXF0 + 4n`); write only.
-    pub const TXF0: u32 = 0x010;
-    /// RX FIFO of state machine 0 (RXFn at `RXF0 + 4n`); read only.
-    pub const RXF0: u32 = 0x020;
-    /// The eight IRQ flags; write 1 to clear.
-    pub const IRQ: u32 = 0x030;
-    /// Write 1 to set IRQ flags.
-    pub const IRQ_FORCE: u32 = 0x034;
-    /// GPIOs whose input synchroniser is bypassed.
-    pub const INPUT_SYNC_BYPASS: u32 = 0x038;
-    /// First instruction word (INSTR_MEMn at `INSTR_MEM0 + 4n`, n < 32); write only.
-    pub const INSTR_MEM0: u32 = 0x048;
-    /// State machine 0's clock divider (state machine n's registers at `+ 0x18 n`).
-    pub const SM0_CLKDIV: u32 = 0x0c8;
-    /// State machine 0's execution settings.
-    pub const SM0_EXECCTRL: u32 = 0x0cc;
-    /// State machine 0's shift settings.
-    pub const SM0_SHIFTCTRL: u32 = 0x0d0;
-    /// State machine 0's program counter (read only).
-    pub const SM0_ADDR: u32 = 0x0d4;
-    /// State machine 0's current instruction; a write executes one immediately.
-    pub const SM0_INSTR: u32 = 0x0d8;
-    /// State machine 0's pin mapping.
-    pub const SM0_PINCTRL: u32 = 0x0dc;
-    /// Distance between two state machines' register groups.
-    pub const SM_STRIDE: u32 = 0x18;
-}
-
-/// Reset value of SMx_CLKDIV: INT = 1 (datasheet 3.7).
-const CLKDIV_RESET: u32 = 0x0001_0000;
-/// Reset value of SMx_EXECCTRL: WRAP_TOP = 31.
-const EXECCTRL_RESET: u32 = 0x0001_f000;
-/// Reset value of SMx_SHIFTCTRL: IN_SHIFTDIR and OUT_SHIFTDIR right.
-const SHIFTCTRL_RESET: u32 = 0x000c_0000;
-/// Reset value of SMx_PINCTRL: SET_COUNT = 5.
-const PINCTRL_RESET: u32 = 0x1400_0000;
+use tactus_rp2040::pio::{reg, CLKDIV_RESET, EXECCTRL_RESET, PINCTRL_RESET, SHIFTCTRL_RESET};
 
 /// Bits `lo..lo+n` of `v`.
 fn bits(v: u32, lo: u32, n: u32) -> u32 {

@@ -32,9 +32,9 @@
 //! more does not), so the sweep searches from the previous board's key count instead of
 //! growing each board from one key (`sweep`).
 
+use crate::image::MAX_KEYS;
 use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
 use serde::Serialize;
-use tactus_emulator::MAX_KEYS;
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
 

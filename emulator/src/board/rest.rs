@@ -204,7 +204,7 @@ impl Board {
     }
 
     /// The board's state now as a [`RestPoint`], the SRAM words at `counters` (offsets of
-    /// aligned words from [`crate::bus::SRAM_BASE`]) taken as counters (module
+    /// aligned words from [`tactus_rp2040::memory::SRAM_BASE`]) taken as counters (module
     /// documentation).
     ///
     /// Errors (as text): a debugger attached, core 1's launch under way, a timer alarm

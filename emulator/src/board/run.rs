@@ -37,12 +37,13 @@ use super::profile::{NO_WATCH, NO_WATCHES, WATCH_SLOTS};
 use super::window::{Window, RETRY};
 use super::*;
 use crate::block;
-use crate::bus::{sram_location, Bus};
+use crate::bus::Bus;
 use crate::core::Event;
 use crate::fast::Op;
 use crate::nvic::{IRQ0, SVCALL};
 use tactus_isa::decode::{decode, Instr};
 use tactus_isa::timing::cycles;
+use tactus_rp2040::memory::sram_location;
 /// Decode cache entry: the instruction, its pre-decoded fast-path form and its size,
 /// tagged by its address and the code epoch.
 #[derive(Clone, Copy)]

@@ -196,7 +196,7 @@ impl Jit {
         };
         for i in &instrs {
             for h in [i.pc, i.pc.wrapping_add(i.size - 2)] {
-                if let Some((_, bank)) = crate::bus::sram_location(h) {
+                if let Some((_, bank)) = tactus_rp2040::memory::sram_location(h) {
                     slot.banks |= 1 << bank;
                 }
             }

@@ -86,7 +86,7 @@ pub(crate) fn scan(sys: &mut System, entry: u32) -> (Vec<RegionInstr>, Vec<u16>)
             break;
         }
         for h in [a, a.wrapping_add(size - 2)] {
-            if let Some((off, _)) = crate::bus::sram_location(h) {
+            if let Some((off, _)) = tactus_rp2040::memory::sram_location(h) {
                 sys.code_pages[off >> 8] = true;
             }
         }

@@ -5,7 +5,6 @@
 
 use super::abi::{Ctx, Exit};
 use super::scan::{bounds, branch_of, RegionInstr};
-use crate::bus::SRAM_ALIAS_BASE;
 use crate::core::Core;
 use crate::exec::{branch_target, literal_address};
 use crate::semantics::ShiftImm;
@@ -15,6 +14,7 @@ use cranelift_frontend::{FunctionBuilder, Variable};
 use std::collections::HashMap;
 use std::mem::offset_of;
 use tactus_isa::decode::{Instr, MemOp};
+use tactus_rp2040::memory::SRAM_ALIAS_BASE;
 
 /// Flags, in `Core` field order (see [`Flags`] for how they are held).
 pub(super) const N: usize = 0;
