@@ -197,11 +197,11 @@ pub struct System {
     pub(crate) io_journal: Option<Vec<u64>>,
     /// While a window's replay is recorded for the period memo, what the DMA does to SRAM
     /// and the banks, with lanes (`board/io_window.rs`, `crate::lanes`).
-    pub(crate) io_rec: Option<Box<crate::io::LaneRec>>,
+    pub(crate) io_rec: Option<Box<crate::io::slots::LaneRec>>,
     /// The machine a period memo's hit left behind instead of making it (`io` is then stale:
     /// `board/io_window.rs`, "The lazy end"); made `io` by [`System::io_unlazy`] before
     /// anything but the period memo looks at it.
-    pub(crate) io_lazy: Option<Box<crate::io::LazyEnd>>,
+    pub(crate) io_lazy: Option<Box<crate::io::slots::LazyEnd>>,
 }
 
 /// Every SRAM bank ([`System::allowed_banks`]).
@@ -367,9 +367,9 @@ impl System {
         }
     }
 
-    /// The I/O, and what it reaches of the system ([`crate::io::Memory`]).
-    fn io_parts(&mut self) -> (Option<&mut crate::io::Io>, crate::io::Memory<'_>) {
-        let mem = crate::io::Memory {
+    /// The I/O, and what it reaches of the system ([`crate::io::port::Memory`]).
+    fn io_parts(&mut self) -> (Option<&mut crate::io::Io>, crate::io::port::Memory<'_>) {
+        let mem = crate::io::port::Memory {
             sram: &mut self.sram,
             code_pages: &mut self.code_pages,
             code_epoch: &mut self.code_epoch,
@@ -384,14 +384,14 @@ impl System {
     }
 
     /// The DMA's write of `size` bytes of `value` at SRAM offset `off`, as the I/O's run
-    /// does it ([`crate::io::dma_sram_write`]): a period memo's hit (`board/io_window.rs`).
+    /// does it ([`crate::io::port::dma_sram_write`]): a period memo's hit (`board/io_window.rs`).
     /// `journaled`: the word before it goes into [`System::io_journal`] (a hit that may
     /// yet be undone).
     #[inline]
     pub(crate) fn io_dma_write(&mut self, off: u32, size: u32, value: u32, journaled: bool) {
         let journal = self.io_journal.as_mut().filter(|_| journaled);
         let (sram, pages, epoch) = (&mut self.sram, &mut self.code_pages, &mut self.code_epoch);
-        crate::io::dma_sram_store(sram, pages, epoch, journal, off as usize, size, value);
+        crate::io::port::dma_sram_store(sram, pages, epoch, journal, off as usize, size, value);
     }
 
     /// Core `core`'s access to SRAM bank `bank` (one the DMA may reach) in `cycle`: the I/O

@@ -240,7 +240,7 @@ impl Default for Dma {
 impl Dma {
     /// Its cycles (the transfer FIFO's ready cycles, the ports' free cycles) moved by
     /// `r` (a period memo of the I/O, `crate::io::Io::rebased`).
-    pub(crate) fn rebase(&mut self, r: crate::io::Rebase) {
+    pub(crate) fn rebase(&mut self, r: crate::replay::Rebase) {
         for t in &mut self.queue.t[..self.queue.len] {
             t.ready = r.at(t.ready);
         }
@@ -275,7 +275,7 @@ impl Dma {
 
     /// Whether it equals `other` but for its data words ([`Dma::data_slots`]), its cycles
     /// moved by `r` first: every other field named (a field added must be decided here).
-    pub(crate) fn eq_but_data(&self, other: &Dma, r: crate::io::Rebase) -> bool {
+    pub(crate) fn eq_but_data(&self, other: &Dma, r: crate::replay::Rebase) -> bool {
         let Dma {
             ch,
             intr,
@@ -341,7 +341,7 @@ impl Dma {
 
     /// Mixes some of its control state (none of its data words) into `mix`: a cheap first
     /// test of two controllers' equality but for data (`crate::io::Io::quick_key`).
-    pub(crate) fn quick_key(&self, r: crate::io::Rebase, mix: &mut impl FnMut(u64)) {
+    pub(crate) fn quick_key(&self, r: crate::replay::Rebase, mix: &mut impl FnMut(u64)) {
         mix(r.at(self.read_free) ^ r.at(self.write_free).rotate_left(32));
         mix(self.last_high as u64 | (self.last_low as u64) << 8 | (self.queue.len as u64) << 16);
         for c in &self.ch {

@@ -34,6 +34,7 @@ pub mod lanes;
 mod memo;
 pub mod nvic;
 pub mod pio;
+mod replay;
 pub mod semantics;
 pub mod sio;
 pub mod timer;

@@ -32,8 +32,8 @@
 //! more does not), so the sweep searches from the previous board's key count instead of
 //! growing each board from one key (`sweep`).
 
-use crate::image::MAX_KEYS;
 use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
+use crate::windows::MAX_KEYS;
 use serde::Serialize;
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;

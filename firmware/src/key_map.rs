@@ -29,7 +29,7 @@
 
 use crate::board_file::{self, Chip};
 use crate::image::glue::ctrl;
-use crate::image::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
+use crate::windows::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use serde::{Deserialize, Serialize};
 use tactus_emulator::elf::Image;
 use tactus_runtime::keyboard::BoardSpec;

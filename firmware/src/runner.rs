@@ -15,8 +15,8 @@
 //! (Cortex-M0+ TRM 3.3). Code and data are in SRAM (no wait states) and core 1 stays parked,
 //! so there is no bus contention.
 
-use crate::image::SENSOR_BASE;
 use crate::layout::Interface;
+use crate::windows::SENSOR_BASE;
 use std::fmt;
 use tactus_emulator::board::StopReason;
 use tactus_emulator::{Board, CallError, CallResult, Config, EmuError, CALL_STUB};

@@ -943,7 +943,7 @@ fn a_pen_drives_one_dac_word_per_axis_each_the_limited_axis_total() {
         .map(|d| (d.slot, d.dac))
         .collect();
     for (slot, dac) in slots {
-        let word = tactus_firmware::image::DAC_BASE + 4 * slot as u32;
+        let word = tactus_firmware::windows::DAC_BASE + 4 * slot as u32;
         assert_eq!(run.board().read_u32(word).unwrap() as i32 as i16, dac);
     }
 }

@@ -16,7 +16,7 @@ use tactus_emulator::{Board, Config, Engine};
 /// The banks each core of a two-core firmware image owns (`tactus_firmware`'s
 /// `FirmwareImage::own_banks`: core 0 SRAM0, SRAM2 and SRAM4, core 1 SRAM1, SRAM3 and SRAM5).
 const OWN_BANKS: [u8; 2] = [0b01_0101, 0b10_1010];
-/// The firmware images' sensor and DAC windows (`tactus_firmware::image::{SENSOR_BASE, DAC_BASE}`).
+/// The firmware images' sensor and DAC windows (`tactus_firmware::windows::{SENSOR_BASE, DAC_BASE}`).
 const SENSOR_BASE: u32 = 0x2003_f000;
 const DAC_BASE: u32 = 0x2003_f400;
 

@@ -50,7 +50,9 @@
 //! same board running every sample: every output, SRAM byte, cycle and register equal).
 
 use super::*;
-use crate::io::{Io, IoRecords, Rebase};
+use crate::io::slots::IoRecords;
+use crate::io::Io;
+use crate::replay::Rebase;
 
 /// The state of a board at an instant apart from time and counters (compared), with the
 /// board's clocks and counts then (not compared). Made by [`Board::rest_point`].

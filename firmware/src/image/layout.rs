@@ -18,7 +18,7 @@ use super::{
     bank_base, window_alias, window_word, CorePlace, Drive, ImageError, IsrWcet, KeyPlace, KeySpec,
     Program, BANK_LIMIT, MAX_SENSORS, STACK_BYTES, STACK_CANARY, VECTORS,
 };
-use super::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
+use crate::windows::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use std::collections::BTreeMap;
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label, LongBranch};
 use tactus_isa::wcet::{self, Bounds};

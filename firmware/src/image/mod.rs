@@ -62,7 +62,7 @@
 //! tick: no jitter but the cycle of the alternating periods.
 //!
 //! **Split windows.** The sensor and DAC windows are the [`MAX_KEYS`] words each from
-//! [`SENSOR_BASE`] and [`DAC_BASE`], in the striped SRAM, so window word *w*
+//! [`SENSOR_BASE`] and [`crate::windows::DAC_BASE`], in the striped SRAM, so window word *w*
 //! lies in bank *w* mod 4. The image gives each core's keys the words of the core's own
 //! banks ([`window_word`]: on a two-core board core *c* takes banks *c* and *c* + 2, 32
 //! words each; a one-core board's core all four), in key order, and its handler reads and
@@ -113,6 +113,7 @@ mod run;
 pub use flash_image::{FlashImage, FlashPiece};
 pub use run::{run_to_first_tick, run_to_timer, DriveOut, ImageRun, IoRecord, KeyEvent, SampleOut};
 
+use crate::windows::{MAX_KEYS, SENSOR_BASE};
 use std::fmt;
 use std::sync::{Arc, OnceLock};
 use tactus_compiler::fixed::FixedProgram;
@@ -488,7 +489,7 @@ pub struct Drive {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct KeySpec {
     /// Its first slot in the sensor and DAC windows (word index from [`SENSOR_BASE`] /
-    /// [`DAC_BASE`]; e.g. the MIDI key number); its last word in either window must be
+    /// [`crate::windows::DAC_BASE`]; e.g. the MIDI key number); its last word in either window must be
     /// below [`MAX_KEYS`].
     pub slot: usize,
     /// Index of its program in the programs given to [`FirmwareImage::build`].
@@ -766,18 +767,6 @@ pub struct FirmwareImage {
     /// The converters' drivers, on a board that has them.
     pub(crate) io: Option<io::IoPlan>,
 }
-
-/// The sensor window: [`MAX_KEYS`] words from 0x2003f000 (the last 4 KB of the striped
-/// SRAM, RP2040 datasheet 2.6.2), window word *w* a sensor's latest ADC sample (the low 16
-/// bits) as the host or the converters' DMA leaves it ("Split windows" above).
-pub const SENSOR_BASE: u32 = 0x2003_f000;
-
-/// The DAC window: [`MAX_KEYS`] words from 0x2003f400, window word *w* the DAC code the
-/// firmware last wrote for a motor (the low 16 bits).
-pub const DAC_BASE: u32 = 0x2003_f400;
-
-/// Words of each window: the most keys (and pens' axes) a board's image addresses.
-pub const MAX_KEYS: usize = 128;
 
 /// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
 /// the striped addresses from [`SENSOR_BASE`], i.e. bank offsets from 0xfc00).

@@ -18,7 +18,7 @@ use super::glue::ctrl;
 use super::layout::START_CYCLES;
 use super::rest::{lcm, Phase, Rest, SETTLE};
 use super::{FirmwareImage, ImageError, STACK_CANARY};
-use super::{DAC_BASE, SENSOR_BASE};
+use crate::windows::{DAC_BASE, SENSOR_BASE};
 use tactus_compiler::ir::{Axis, EventId};
 use tactus_emulator::{Board, Config, StopReason};
 use tactus_isa::timing::EXCEPTION_ENTRY;
