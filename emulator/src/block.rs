@@ -61,11 +61,12 @@
 //! [`run_confined`] ([`Leave::Record`]) for the board's general path, which runs it one
 //! instruction at a time while recording it.
 
-use crate::bus::{Bus, System};
+use crate::bus::Bus;
 use crate::core::Core;
 use crate::fast::Op;
 use crate::jit::{self, Jit};
 use crate::memo::{Memos, Try};
+use crate::system::System;
 use tactus_isa::decode::{decode, Instr};
 use tactus_isa::timing::{self, Class};
 use tactus_rp2040::memory::sram_location;

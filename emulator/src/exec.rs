@@ -10,10 +10,11 @@
 //! not written here: they are [`crate::semantics`]' generic functions, run on plain values,
 //! and the block compiler runs the same functions to build its IR.
 
-use crate::bus::{Bus, System};
+use crate::bus::Bus;
 use crate::core::{Core, Event, FaultKind, RunState};
 use crate::nvic::PPB_BASE;
 use crate::semantics::{self, Flagged, Host, Nzcv, ShiftImm, ShiftReg};
+use crate::system::System;
 use tactus_isa::decode::{self, AluOp, Instr, MemOp};
 use tactus_isa::timing::EXCEPTION_RETURN;
 use tactus_rp2040::memory::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};

@@ -3,7 +3,7 @@
 //! The instruction set's facts come from `tactus_isa`, which needs no machine:
 //! [`tactus_isa::decode::decode`] turns halfwords into an [`tactus_isa::decode::Instr`] and [`tactus_isa::timing::cycles`] prices
 //! it from the one timing table. On them, [`core::Core`] executes instructions against the
-//! [`bus::Bus`] trait, [`bus::System`] is the RP2040's memory map (striped SRAM banks with
+//! [`bus::Bus`] trait, [`system::System`] is the RP2040's memory map (striped SRAM banks with
 //! contention, [`sio`], [`timer`], the start-up's registers in [`clocks`], the XIP path to
 //! the flash in [`xip`]), and [`board::Board`] runs two cores in lock-step and offers the
 //! host API: load an ELF ([`elf`]), power on from flash through the boot ROM's path, run N
@@ -37,6 +37,7 @@ pub mod pio;
 mod replay;
 pub mod semantics;
 pub mod sio;
+pub mod system;
 pub mod timer;
 pub mod xip;
 

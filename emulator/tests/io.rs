@@ -5,8 +5,9 @@
 //! ticking it every cycle. A core's access to a bank the DMA writes in the same cycle waits
 //! when the DMA has the higher bus priority, and wins otherwise.
 
-use tactus_emulator::bus::{Bus, System};
+use tactus_emulator::bus::Bus;
 use tactus_emulator::io::{Io, IoConfig};
+use tactus_emulator::system::System;
 use tactus_rp2040::busctrl::priority;
 use tactus_rp2040::dma::{reg as dreg, DMA_BASE};
 use tactus_rp2040::pio::{reg, PIO0_BASE};

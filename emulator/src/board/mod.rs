@@ -32,9 +32,9 @@ pub use profile::Call;
 pub use rest::{Period, RestPoint};
 
 use crate::block::Blocks;
-use crate::bus::System;
 use crate::core::{Core, Fault, RunState};
 use crate::elf::Image;
+use crate::system::System;
 use launch::Launch;
 use profile::{Profile, NO_WATCH, WATCH_SLOTS};
 use run::{Cached, CACHE_SLOTS};

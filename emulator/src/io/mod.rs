@@ -3,7 +3,7 @@
 //! BUS_PRIORITY, and the SPI converters at the pins ([`crate::converters`]), as one machine
 //! the cores reach through their registers and, by the DMA, through SRAM.
 //!
-//! A board without converters has no [`Io`] ([`crate::bus::System::io`] is `None`): none
+//! A board without converters has no [`Io`] ([`crate::system::System::io`] is `None`): none
 //! of this costs it anything but a test of that `None` on the general path.
 //!
 //! **Registers** (RP2040 datasheet 2.2): the DMA at 0x50000000, PIO0 at 0x50200000, PIO1
@@ -23,7 +23,7 @@
 //! A pin is driven by PIO *b* when its FUNCSEL is PIO *b*'s and the state machines set it
 //! as an output; an undriven CS reads high (the board's pull-up).
 //!
-//! **By events.** The machine runs lazily: [`crate::bus::System`] advances it to a cycle
+//! **By events.** The machine runs lazily: [`crate::system::System`] advances it to a cycle
 //! only when a core accesses one of its registers or an SRAM bank its DMA may touch, and
 //! the board at the end of each run. Inside a run it goes from event to event
 //! (`Io::advance_by_events`): while the DMA has nothing it could do ([`Dma::quiet`]), the
@@ -53,7 +53,7 @@
 //! not modelled: the core wins such ties). The DMA's read master wins over its write master
 //! in one cycle. To see the DMA's accesses in cycle order, every core access to a bank an
 //! enabled channel may reach ([`Dma::reach`], recomputed at each DMA register write) leaves
-//! the fast path ([`crate::bus::System::allowed_banks`]) and advances the machine first; the
+//! the fast path ([`crate::system::System::allowed_banks`]) and advances the machine first; the
 //! block engine's unconfined code, which does not check banks, does not run while an
 //! [`Io`] is attached. The cores' accesses are served in the lock-step's issue order: an
 //! access whose data phase is earlier than one of the other core's already served finds the

@@ -43,7 +43,7 @@ pub(crate) fn dma_sram_write(mem: &mut Memory, off: usize, size: u32, value: u32
 }
 
 /// [`dma_sram_write`] on the system's parts themselves (a period memo's hit,
-/// `crate::bus::System::io_dma_write`): the SRAM, its pages of decoded code and their
+/// `crate::system::System::io_dma_write`): the SRAM, its pages of decoded code and their
 /// epoch, and the journal.
 #[inline]
 pub(crate) fn dma_sram_store(

@@ -18,7 +18,7 @@
 use super::abi::NativeFn;
 use super::scan::{scan, RegionInstr};
 use super::translate::{Flavour, Translator};
-use crate::bus::System;
+use crate::system::System;
 use cranelift_codegen::ir::{types, AbiParam, Signature};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};

@@ -2,8 +2,9 @@
 //! starts and ends, and the cycle bound from each instruction to the region's next exit
 //! (see the parent module's documentation).
 
-use crate::bus::{Bus, System};
+use crate::bus::Bus;
 use crate::exec::branch_target;
+use crate::system::System;
 use tactus_isa::decode::{decode, Instr};
 use tactus_isa::timing;
 

@@ -80,9 +80,10 @@
 //! interpreter).
 
 use crate::board::{IoAccess, IoKind};
-use crate::bus::{sram_bank, System};
+use crate::bus::sram_bank;
 use crate::core::{Core, RunState};
 use crate::exec::literal_address;
+use crate::system::System;
 use std::collections::{BTreeMap, BTreeSet};
 use tactus_isa::decode::{self, AluOp, Instr};
 use tactus_rp2040::memory::{sram_location, BANKS};

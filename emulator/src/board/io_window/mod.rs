@@ -10,7 +10,7 @@
 //! **The cores' run.** At the window's start the I/O is run up to it (as a core's access
 //! there would); the cores' run leaves it there, and the replay checkpoints it
 //! ([`crate::io::Io::checkpoint`]) before it runs it. Each core then runs alone as in any
-//! window, its accesses to the banks the DMA may reach (`L`, [`crate::bus::System::io_banks`]
+//! window, its accesses to the banks the DMA may reach (`L`, [`crate::system::System::io_banks`]
 //! at the start; of them its own) served as if no DMA were there, and logged: the
 //! instruction's start cycle, the data phase, the SRAM offset, size, value and, for a
 //! store, the word it overwrote ([`IoAccess`]). Native code does and logs single loads and

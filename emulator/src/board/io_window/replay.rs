@@ -1,7 +1,7 @@
 //! **The replay.** The logged stores are taken back to the words as they were before the
 //! window; the two logs are merged in the lock-step order (the instruction that starts
 //! first, core 0 on ties: `board/run.rs`) and each entry done as the lock-step bus does it
-//! ([`crate::bus::System`]'s `io_sram`, `io_store`): for a bank the DMA may reach now, the
+//! ([`crate::system::System`]'s `io_sram`, `io_store`): for a bank the DMA may reach now, the
 //! I/O run through the access's cycle without settling; a store's bytes written at its
 //! place among the DMA's; a register store through the same code as the bus. The window is
 //! undone — the replay's SRAM writes (journaled, the DMA's too), the I/O's clone, then the
