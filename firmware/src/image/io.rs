@@ -71,10 +71,12 @@ use crate::board_file::BoardError;
 use tactus_compiler::thumb::buffer::CodeBuffer;
 use tactus_compiler::thumb::ins as asm;
 use tactus_emulator::converters::SpiPins;
-use tactus_emulator::dma::{ctrl as dctrl, reg as dreg, DMA_BASE};
-use tactus_emulator::io::{priority, BUSCTRL_BASE, FUNCSEL_PIO0, IO_BANK0_BASE};
-use tactus_emulator::pio::{reg as preg, PIO0_BASE, PIO1_BASE};
 use tactus_isa::decode::{Instr, MemOp};
+use tactus_rp2040::busctrl::{priority, BUSCTRL_BASE};
+use tactus_rp2040::dma::{ctrl as dctrl, reg as dreg, DMA_BASE};
+use tactus_rp2040::io_bank0::{FUNCSEL_PIO0, IO_BANK0_BASE};
+use tactus_rp2040::memory::SRAM_ALIAS_BASE;
+use tactus_rp2040::pio::{reg as preg, PIO0_BASE, PIO1_BASE};
 use tactus_runtime::converters::{AdcPart, AdcScale, Converters, DacPart};
 use tactus_runtime::keyboard::BoardSpec;
 
@@ -132,7 +134,7 @@ fn trigger_offsets(core: usize) -> (u32, u16, u16, u8) {
 
 /// The address of core `core`'s I/O block (bank 2 + core through the non-striped alias).
 pub fn io_base(core: usize) -> u32 {
-    tactus_emulator::bus::SRAM_ALIAS_BASE + 0x1_0000 * (2 + core as u32) + IO_OFFSET
+    SRAM_ALIAS_BASE + 0x1_0000 * (2 + core as u32) + IO_OFFSET
 }
 
 /// The PIO block of core `core`.
@@ -741,7 +743,7 @@ fn store(a: &mut CodeBuffer, addr: u32, value: u32) {
 /// blocks the drivers use pulsed through reset (as pico-sdk's drivers do), and the DMA's
 /// bus priority above both cores'. Clobbers r0-r2.
 pub fn boot(a: &mut CodeBuffer) {
-    use tactus_emulator::io::resets;
+    use tactus_rp2040::resets;
     super::boot::pulse_reset(
         a,
         resets::PIO0 | resets::PIO1 | resets::DMA | resets::IO_BANK0,

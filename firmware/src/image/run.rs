@@ -18,10 +18,11 @@ use super::glue::ctrl;
 use super::layout::START_CYCLES;
 use super::rest::{lcm, Phase, Rest, SETTLE};
 use super::{FirmwareImage, ImageError, STACK_CANARY};
+use crate::windows::{DAC_BASE, SENSOR_BASE};
 use tactus_compiler::ir::{Axis, EventId};
-use tactus_emulator::bus::sram_location;
-use tactus_emulator::{Board, Config, StopReason, DAC_BASE, SENSOR_BASE};
+use tactus_emulator::{Board, Config, StopReason};
 use tactus_isa::timing::EXCEPTION_ENTRY;
+use tactus_rp2040::memory::sram_location;
 use tactus_runtime::limiter::{Limiter, LimiterConstants};
 
 /// One event a key's update emitted this sample.
@@ -149,7 +150,7 @@ struct HostWords {
 impl HostWords {
     fn new(image: &FirmwareImage) -> Result<HostWords, ImageError> {
         let off = |addr: u32| match sram_location(addr) {
-            Some((o, _)) if o + 4 <= tactus_emulator::bus::SRAM_SIZE as usize => Ok(o),
+            Some((o, _)) if o + 4 <= tactus_rp2040::memory::SRAM_SIZE as usize => Ok(o),
             _ => Err(ImageError::Run(format!("{addr:#010x} is not an SRAM word"))),
         };
         let window = |base: u32, w: &usize| off(base + 4 * *w as u32);
@@ -414,7 +415,7 @@ impl ImageRun {
     pub fn from_flash(image: &FirmwareImage, flash: &[u8]) -> Result<ImageRun, ImageError> {
         let mut board = ImageRun::fresh_board(image, [0, 0]);
         board
-            .write_bytes(tactus_emulator::bus::FLASH_BASE, flash)
+            .write_bytes(tactus_rp2040::memory::FLASH_BASE, flash)
             .map_err(emu)?;
         board.boot_from_flash().map_err(emu)?;
         ImageRun::start(board, image)
