@@ -15,6 +15,7 @@
 //! units after a number or `:`, the built-in functions); document symbols (the outline).
 #![deny(missing_docs)]
 
+mod docs;
 mod features;
 mod plan;
 pub mod position;
