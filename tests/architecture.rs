@@ -382,3 +382,71 @@ fn rust_files(dir: &Path) -> Vec<std::path::PathBuf> {
     }
     out
 }
+
+/// Whether `text` names the crate `ident` as Rust code does: `ident::…`, `ident!`, or
+/// `use ident`.
+fn names_crate(text: &str, ident: &str) -> bool {
+    let is_ident = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    text.match_indices(ident).any(|(i, _)| {
+        let before = text[..i].chars().next_back();
+        let rest = &text[i + ident.len()..];
+        if before.is_some_and(|c| is_ident(c) || c == ':' || c == '$')
+            || rest.chars().next().is_some_and(is_ident)
+        {
+            return false;
+        }
+        let rest = rest.trim_start();
+        rest.starts_with("::") || rest.starts_with('!') || text[..i].trim_end().ends_with("use")
+    })
+}
+
+/// The dependencies a manifest's `[section]` declares.
+fn declared(manifest: &str, section: &str) -> Vec<String> {
+    let header = format!("[{section}]");
+    let Some(at) = manifest.find(&format!("\n{header}\n")) else {
+        return Vec::new();
+    };
+    manifest[at + header.len() + 2..]
+        .lines()
+        .take_while(|l| !l.starts_with('['))
+        .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+        .map(|l| l.split(['.', '=', ' ']).next().unwrap().trim().to_string())
+        .collect()
+}
+
+/// Every crate uses every dependency it declares: a `[dependencies]` entry in its `src/`,
+/// a `[dev-dependencies]` entry in its tests, benches, examples or `src/`, a
+/// `[build-dependencies]` entry in `build.rs` (`cargo machete`'s rule, by reading).
+#[test]
+fn no_crate_declares_a_dependency_it_does_not_use() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut unused = Vec::new();
+    for krate in CRATES.iter().map(|c| c.dir) {
+        let dir = root.join(krate);
+        let manifest = std::fs::read_to_string(dir.join("Cargo.toml")).unwrap();
+        for (section, places) in [
+            ("dependencies", &["src"][..]),
+            (
+                "dev-dependencies",
+                &["src", "tests", "benches", "examples"][..],
+            ),
+            ("build-dependencies", &["build.rs"][..]),
+        ] {
+            let texts: Vec<String> = (places.iter())
+                .flat_map(|p| rust_files(&dir.join(p)))
+                .map(|p| std::fs::read_to_string(p).unwrap())
+                .collect();
+            for dep in declared(&manifest, section) {
+                let ident = dep.replace('-', "_");
+                if !texts.iter().any(|t| names_crate(t, &ident)) {
+                    unused.push(format!("{}: [{section}] {dep}", dir.display()));
+                }
+            }
+        }
+    }
+    assert!(unused.is_empty(), "declared and not used: {unused:#?}");
+    // The check sees a use when there is one, and none in a comment's prose.
+    assert!(names_crate("use serde::Serialize;", "serde"));
+    assert!(names_crate("x = toml::from_str(t)", "toml"));
+    assert!(!names_crate("a .toml file, tactus_toml::x", "toml"));
+}
