@@ -58,10 +58,15 @@ fn run(input: &str, which: usize, stimulus: &str, seconds: f64) -> Result<bool, 
     })
     .map_err(|e| e.to_string())?;
     let programs = kb.firmware().map_err(|e| e.to_string())?;
-    let plan = kb.plan(&programs, &mut |_, _| {}).map_err(|e| e.to_string())?;
+    let plan = kb
+        .plan(&programs, &mut |_, _| {})
+        .map_err(|e| e.to_string())?;
     let lists = plan.key_lists();
     let Some(list) = which.checked_sub(1).and_then(|i| lists.get(i)) else {
-        return Err(format!("BOARD {which}: {input} has boards 1 to {}", lists.len()));
+        return Err(format!(
+            "BOARD {which}: {input} has boards 1 to {}",
+            lists.len()
+        ));
     };
     let names: Vec<(String, Vec<(String, String)>)> = (kb.sets.iter())
         .map(|s| (s.instrument.clone(), s.params.clone()))
@@ -97,8 +102,8 @@ fn run(input: &str, which: usize, stimulus: &str, seconds: f64) -> Result<bool, 
     for k in &keys {
         let fp = &image.programs()[k.program].fixed;
         let dip_m = fp.program.sensors.first().map_or(0.01, |s| s.range.1);
-        let stim = tactus_runtime::stimulus::builtin(stimulus, dip_m, fs)
-            .map_err(|e| e.to_string())?;
+        let stim =
+            tactus_runtime::stimulus::builtin(stimulus, dip_m, fs).map_err(|e| e.to_string())?;
         words.push(
             (0..samples)
                 .map(|n| FixedInstance::sensor_raw(fp, 0, stim.key.get(n).copied()))

@@ -34,9 +34,8 @@ fn main() -> ExitCode {
 
 fn run(instrument: &str, stimulus: &str) -> Result<(), String> {
     let src = tactus_host::catalogue::load(instrument)?;
-    let lowered = tactus_compiler::compile(&src.text, &Config::default()).map_err(|d| {
-        tactus_compiler::diagnostics::emit_to_string(&src.name, &src.text, &d)
-    })?;
+    let lowered = tactus_compiler::compile(&src.text, &Config::default())
+        .map_err(|d| tactus_compiler::diagnostics::emit_to_string(&src.name, &src.text, &d))?;
     let program = lowered.program;
     let [sensor] = program.sensors.as_slice() else {
         return Err(format!(

@@ -26,7 +26,9 @@ use tactus_runtime::performance::{key_tracks, read_midi};
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/performances");
-    let piece = args.first().map_or(shared.join("Maestro_1.mid"), PathBuf::from);
+    let piece = args
+        .first()
+        .map_or(shared.join("Maestro_1.mid"), PathBuf::from);
     let result = (|| {
         let seconds: f64 = (args.get(1).map_or("10", String::as_str))
             .parse()
@@ -71,12 +73,19 @@ fn run(piece: &Path, seconds: f64, which: Option<usize>) -> Result<bool, String>
     };
     let kb = keyboard::compile(&spec, &mut |_, _| {}).map_err(|e| e.to_string())?;
     let programs = kb.firmware().map_err(|e| e.to_string())?;
-    let plan = kb.plan(&programs, &mut |_, _| {}).map_err(|e| e.to_string())?;
+    let plan = kb
+        .plan(&programs, &mut |_, _| {})
+        .map_err(|e| e.to_string())?;
     let lists = plan.key_lists();
     let notes_on = |list: &Vec<u8>| perf.notes.iter().filter(|n| list.contains(&n.key)).count();
     let index = match which {
         Some(b) if (1..=lists.len()).contains(&b) => b - 1,
-        Some(b) => return Err(format!("BOARD {b}: grand88 has boards 1 to {}", lists.len())),
+        Some(b) => {
+            return Err(format!(
+                "BOARD {b}: grand88 has boards 1 to {}",
+                lists.len()
+            ))
+        }
         None => (0..lists.len())
             .max_by_key(|&i| (notes_on(&lists[i]), std::cmp::Reverse(i)))
             .unwrap_or(0),
@@ -104,8 +113,16 @@ fn run(piece: &Path, seconds: f64, which: Option<usize>) -> Result<bool, String>
         rest_replay: true,
         io_trace: None,
     };
-    let run = play_boards(&programs, &keys, &key_programs, &kb.board, &motions, &opts, &|_| {})
-        .map_err(|e| e.to_string())?;
+    let run = play_boards(
+        &programs,
+        &keys,
+        &key_programs,
+        &kb.board,
+        &motions,
+        &opts,
+        &|_| {},
+    )
+    .map_err(|e| e.to_string())?;
     let b = &run.boards[0];
     println!(
         "{}: {:.1} s, board {} of {} (keys {}): {} notes, {} strikes",
