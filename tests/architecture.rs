@@ -450,3 +450,30 @@ fn no_crate_declares_a_dependency_it_does_not_use() {
     assert!(names_crate("x = toml::from_str(t)", "toml"));
     assert!(!names_crate("a .toml file, tactus_toml::x", "toml"));
 }
+
+/// BENCHMARKS.md is a map: the current figure of each measure with its command, no line
+/// over 300 characters, no commit hashes (history is in git).
+#[test]
+fn benchmarks_is_a_map() {
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("BENCHMARKS.md"))
+        .unwrap();
+    for (n, line) in text.lines().enumerate() {
+        assert!(
+            line.chars().count() <= 300,
+            "BENCHMARKS.md:{}: {} characters",
+            n + 1,
+            line.chars().count()
+        );
+        let hashes: Vec<&str> = line
+            .split(|c: char| !c.is_ascii_alphanumeric())
+            .filter(|w| {
+                (7..=40).contains(&w.len())
+                    && w.chars()
+                        .all(|c| c.is_ascii_hexdigit() && !c.is_ascii_uppercase())
+                    && w.chars().any(|c| c.is_ascii_digit())
+                    && w.chars().any(|c| c.is_ascii_alphabetic())
+            })
+            .collect();
+        assert!(hashes.is_empty(), "BENCHMARKS.md:{}: {hashes:?}", n + 1);
+    }
+}
