@@ -2,10 +2,11 @@
 //! the outline, each a translation of a `tactus_compiler::query` answer into the
 //! protocol's types.
 
+use crate::docs::{Doc, Docs, PlanState};
 use crate::position::LineIndex;
-use crate::server::{Doc, PlanState, Server};
 use lsp_types::*;
 use std::collections::HashMap;
+use std::path::Path;
 use tactus_compiler::diagnostics::{Diagnostic as Diag, Severity};
 use tactus_compiler::query::{self, SymbolKind as K};
 use tactus_compiler::sources::{FileId, SourceMap};
@@ -145,22 +146,15 @@ pub fn diagnostics(
         .collect()
 }
 
-fn doc_at<'s>(s: &'s Server, p: &TextDocumentPositionParams) -> Option<(&'s Doc, usize)> {
-    let doc = s.docs.get(p.text_document.uri.as_str())?;
+fn doc_at<'s>(docs: &'s Docs, p: &TextDocumentPositionParams) -> Option<(&'s Doc, usize)> {
+    let doc = docs.get(p.text_document.uri.as_str())?;
     let offset = doc.lines.offset(&doc.text, p.position);
     Some((doc, offset))
 }
 
 /// Hover: the facts of the declaration a name denotes or of the term under the cursor.
-pub fn hover(s: &mut Server, p: HoverParams) -> Option<Hover> {
-    let key = p
-        .text_document_position_params
-        .text_document
-        .uri
-        .as_str()
-        .to_string();
-    s.wait_for_plan(&key);
-    let (doc, offset) = doc_at(s, &p.text_document_position_params)?;
+pub fn hover(docs: &Docs, p: HoverParams) -> Option<Hover> {
+    let (doc, offset) = doc_at(docs, &p.text_document_position_params)?;
     let a = &doc.analysis;
     let planned = match &doc.plan {
         PlanState::Ready(p) => Some(p.clone()),
@@ -201,35 +195,23 @@ fn flat(outline: &[query::Symbol]) -> Vec<query::Symbol> {
 }
 
 /// Go to definition: the declaration's name, in the document or in the file it imports it
-/// from.
-pub fn definition(s: &mut Server, p: GotoDefinitionParams) -> Option<GotoDefinitionResponse> {
-    let key = p
-        .text_document_position_params
-        .text_document
-        .uri
-        .as_str()
-        .to_string();
-    let sources = s.docs.get(&key)?.analysis.sources.clone();
-    let lib = s.library_dir_for(&sources);
-    let (doc, offset) = doc_at(s, &p.text_document_position_params)?;
+/// from (`lib`: where Tactus's library is written for the client to open).
+pub fn definition(
+    docs: &Docs,
+    lib: Option<&Path>,
+    p: GotoDefinitionParams,
+) -> Option<GotoDefinitionResponse> {
+    let (doc, offset) = doc_at(docs, &p.text_document_position_params)?;
     let a = &doc.analysis;
     let def = a.names.definition_at(offset, &flat(&a.outlines()))?;
-    let mut places = Places::new(&doc.uri, &a.sources, lib.as_deref());
+    let mut places = Places::new(&doc.uri, &a.sources, lib);
     places.location(&def).map(GotoDefinitionResponse::Scalar)
 }
 
 /// Find references: every place the resolver resolved to the same declaration, in the
-/// document and in the files it imports.
-pub fn references(s: &mut Server, p: ReferenceParams) -> Option<Vec<Location>> {
-    let key = p
-        .text_document_position
-        .text_document
-        .uri
-        .as_str()
-        .to_string();
-    let sources = s.docs.get(&key)?.analysis.sources.clone();
-    let lib = s.library_dir_for(&sources);
-    let (doc, offset) = doc_at(s, &p.text_document_position)?;
+/// document and in the files it imports (`lib` as for [`definition`]).
+pub fn references(docs: &Docs, lib: Option<&Path>, p: ReferenceParams) -> Option<Vec<Location>> {
+    let (doc, offset) = doc_at(docs, &p.text_document_position)?;
     let a = &doc.analysis;
     let def = a.names.definition_at(offset, &flat(&a.outlines()))?;
     let mut spans = Vec::new();
@@ -237,7 +219,7 @@ pub fn references(s: &mut Server, p: ReferenceParams) -> Option<Vec<Location>> {
         spans.push(def.clone());
     }
     spans.extend(a.names.references(&def));
-    let mut places = Places::new(&doc.uri, &a.sources, lib.as_deref());
+    let mut places = Places::new(&doc.uri, &a.sources, lib);
     Some(spans.iter().filter_map(|sp| places.location(sp)).collect())
 }
 
@@ -311,8 +293,8 @@ fn context(before: &str) -> Context<'_> {
 }
 
 /// Completion: names in scope, an instance's members, units, the built-in functions.
-pub fn completion(s: &mut Server, p: CompletionParams) -> Option<CompletionResponse> {
-    let (doc, offset) = doc_at(s, &p.text_document_position)?;
+pub fn completion(docs: &Docs, p: CompletionParams) -> Option<CompletionResponse> {
+    let (doc, offset) = doc_at(docs, &p.text_document_position)?;
     let before = doc.text.get(..offset).unwrap_or("");
     let outline = if doc.analysis.outline.is_empty() {
         &doc.last_outline
@@ -403,8 +385,8 @@ fn document_symbol(doc: &Doc, s: &query::Symbol) -> DocumentSymbol {
 }
 
 /// The outline: instruments and components with their declarations.
-pub fn document_symbols(s: &mut Server, p: DocumentSymbolParams) -> Option<DocumentSymbolResponse> {
-    let doc = s.docs.get(p.text_document.uri.as_str())?;
+pub fn document_symbols(docs: &Docs, p: DocumentSymbolParams) -> Option<DocumentSymbolResponse> {
+    let doc = docs.get(p.text_document.uri.as_str())?;
     Some(DocumentSymbolResponse::Nested(
         doc.analysis
             .outline

@@ -21,6 +21,7 @@
 //! brings it, and a document is analysed again when a file it imports changes.
 #![deny(missing_docs)]
 
+mod docs;
 mod features;
 pub mod files;
 mod plan;

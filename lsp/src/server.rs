@@ -1,7 +1,8 @@
 //! The main loop: the protocol's lifecycle (initialize, shutdown, exit), the open
 //! documents, and the dispatch of requests and notifications to [`crate::features`].
 
-use crate::plan::{Planned, Planner};
+use crate::docs::{Doc, Docs, PlanState};
+use crate::plan::Planner;
 use crate::position::LineIndex;
 use crate::transport::{self, Frame};
 use crossbeam_channel::select;
@@ -12,7 +13,6 @@ use serde_json::Value;
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tactus_compiler::imports::Loader;
 use tactus_compiler::query::{self, Analysis};
@@ -64,41 +64,9 @@ pub struct Outcome {
     pub messages: usize,
 }
 
-/// The plan of a document's current version.
-pub enum PlanState {
-    /// The version does not compile (or plans are off).
-    None,
-    /// Being computed, as this generation.
-    Pending(u64),
-    /// Done.
-    Ready(Arc<Planned>),
-    /// The planner failed.
-    Failed(String),
-}
-
-/// An open document.
-pub struct Doc {
-    /// Its URI as the client wrote it.
-    pub uri: lsp_types::Uri,
-    /// The file its URI names (a `file://` URI), where its imports are looked for.
-    pub path: Option<PathBuf>,
-    /// The version the client last gave.
-    pub version: i32,
-    /// The text.
-    pub text: String,
-    /// Its lines.
-    pub lines: LineIndex,
-    /// The compiler's answer for this text.
-    pub analysis: Analysis,
-    /// The outline of the last version that parsed (completion while the text does not).
-    pub last_outline: Vec<query::Symbol>,
-    /// The plan of this version.
-    pub plan: PlanState,
-}
-
 pub(crate) struct Server<'l> {
     out: Box<dyn Write + Send>,
-    pub docs: HashMap<String, Doc>,
+    pub docs: Docs,
     planner: Planner,
     generation: u64,
     log: &'l mut dyn FnMut(&str),
@@ -256,27 +224,35 @@ impl Server<'_> {
             );
         }
         let id = r.id.clone();
-        let result: Result<Value, (ErrorCode, String)> =
-            match r.method.as_str() {
-                req::Shutdown::METHOD => {
-                    self.shutdown = true;
-                    Ok(Value::Null)
-                }
-                req::HoverRequest::METHOD => params::<req::HoverRequest>(r)
-                    .map(|p| to_value(crate::features::hover(self, p))),
-                req::GotoDefinition::METHOD => params::<req::GotoDefinition>(r)
-                    .map(|p| to_value(crate::features::definition(self, p))),
-                req::References::METHOD => params::<req::References>(r)
-                    .map(|p| to_value(crate::features::references(self, p))),
-                req::Completion::METHOD => params::<req::Completion>(r)
-                    .map(|p| to_value(crate::features::completion(self, p))),
-                req::DocumentSymbolRequest::METHOD => params::<req::DocumentSymbolRequest>(r)
-                    .map(|p| to_value(crate::features::document_symbols(self, p))),
-                other => Err((
-                    ErrorCode::MethodNotFound,
-                    format!("`{other}` is not supported"),
-                )),
-            };
+        let result: Result<Value, (ErrorCode, String)> = match r.method.as_str() {
+            req::Shutdown::METHOD => {
+                self.shutdown = true;
+                Ok(Value::Null)
+            }
+            req::HoverRequest::METHOD => params::<req::HoverRequest>(r).map(|p| {
+                // A hover shows the plan of the version it describes, if it comes soon.
+                let uri = &p.text_document_position_params.text_document.uri;
+                self.wait_for_plan(uri.as_str());
+                to_value(crate::features::hover(&self.docs, p))
+            }),
+            req::GotoDefinition::METHOD => params::<req::GotoDefinition>(r).map(|p| {
+                let uri = p.text_document_position_params.text_document.uri.as_str();
+                let lib = self.library_dir_of(uri);
+                to_value(crate::features::definition(&self.docs, lib.as_deref(), p))
+            }),
+            req::References::METHOD => params::<req::References>(r).map(|p| {
+                let lib = self.library_dir_of(p.text_document_position.text_document.uri.as_str());
+                to_value(crate::features::references(&self.docs, lib.as_deref(), p))
+            }),
+            req::Completion::METHOD => params::<req::Completion>(r)
+                .map(|p| to_value(crate::features::completion(&self.docs, p))),
+            req::DocumentSymbolRequest::METHOD => params::<req::DocumentSymbolRequest>(r)
+                .map(|p| to_value(crate::features::document_symbols(&self.docs, p))),
+            other => Err((
+                ErrorCode::MethodNotFound,
+                format!("`{other}` is not supported"),
+            )),
+        };
         match result {
             Ok(v) => self.reply(id, v),
             Err((code, msg)) => {
@@ -346,6 +322,12 @@ impl Server<'_> {
 
     /// [`Server::library_dir`] when `sources` hold a library file (none is written for a
     /// program that imports nothing from it).
+    /// Where Tactus's library is written for the open document `uri`, if it imports from it.
+    fn library_dir_of(&mut self, uri: &str) -> Option<PathBuf> {
+        let sources = self.docs.get(uri)?.analysis.sources.clone();
+        self.library_dir_for(&sources)
+    }
+
     pub(crate) fn library_dir_for(&mut self, sources: &SourceMap) -> Option<PathBuf> {
         let uses = sources
             .files()
