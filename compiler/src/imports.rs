@@ -151,6 +151,40 @@ impl Linked {
         None
     }
 
+    /// The components the main file imports (all of a file's, or those listed), as written
+    /// in their files: what its names may resolve to besides its own.
+    pub fn imported_components(&self) -> Vec<&ast::Body> {
+        let Some(Some(main)) = self.parsed.first() else {
+            return Vec::new();
+        };
+        let mut out = Vec::new();
+        for item in &main.items {
+            let TopItem::Import(imp) = item else { continue };
+            let Some(e) = self
+                .edges
+                .iter()
+                .find(|e| e.from == FileId::MAIN && e.span == imp.span)
+            else {
+                continue;
+            };
+            let Some(Some(file)) = self.parsed.get(e.to.index()) else {
+                continue;
+            };
+            for it in &file.items {
+                if let TopItem::Component(b) = it {
+                    let listed = imp
+                        .names
+                        .as_ref()
+                        .is_none_or(|ns| ns.iter().any(|n| n.node == b.name.node));
+                    if listed && !out.iter().any(|o: &&ast::Body| o.name.node == b.name.node) {
+                        out.push(b);
+                    }
+                }
+            }
+        }
+        out
+    }
+
     /// Linking's diagnostics, then `ds` (a later pass's) each [`Linked::with_import_site`]:
     /// what a program's check reports.
     pub fn sited(&self, ds: Vec<Diagnostic>) -> Vec<Diagnostic> {

@@ -33,8 +33,8 @@
 //! growing each board from one key (`sweep`).
 
 use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
+use crate::windows::MAX_KEYS;
 use serde::Serialize;
-use tactus_emulator::MAX_KEYS;
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
 

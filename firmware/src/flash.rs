@@ -14,7 +14,7 @@
 
 use crate::boards::{self, PlanKey, ProgramCosts};
 use crate::image::{FirmwareImage, FlashImage, Program};
-use tactus_emulator::{DAC_BASE, SENSOR_BASE};
+use crate::windows::{DAC_BASE, SENSOR_BASE};
 use tactus_runtime::keyboard::{self, BoardSpec};
 use tactus_runtime::limiter::LimiterConfig;
 

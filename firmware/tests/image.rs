@@ -434,7 +434,7 @@ fn the_emulators_block_engine_runs_an_image_exactly_as_its_interpreter() {
     let sensors = stimuli(&programs[0], 0, 1000);
     let mut runs = [image.run().unwrap(), image.run().unwrap()];
     runs[1].board().config.engine = Engine::Block;
-    runs[1].board().config.own_banks = tactus_emulator::FIRMWARE_OWN_BANKS;
+    runs[1].board().config.own_banks = image.own_banks();
     runs[0].board().config.engine = Engine::Interp;
     for (n, w) in sensors.iter().enumerate() {
         let a = runs[0].step(&[*w; 4]).unwrap().clone();
@@ -946,7 +946,8 @@ fn a_pen_drives_one_dac_word_per_axis_each_the_limited_axis_total() {
         .map(|d| (d.slot, d.dac))
         .collect();
     for (slot, dac) in slots {
-        assert_eq!(run.board().dac(slot).unwrap() as i32 as i16, dac);
+        let word = tactus_firmware::windows::DAC_BASE + 4 * slot as u32;
+        assert_eq!(run.board().read_u32(word).unwrap() as i32 as i16, dac);
     }
 }
 

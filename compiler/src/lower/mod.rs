@@ -274,7 +274,7 @@ impl<'a> Lowerer<'a> {
             });
             self.err(
                 Diagnostic::error("E0103", "no instrument in this file", end)
-                    .hint("add `instrument NAME { … }` that uses the components defined here"),
+                    .hint("add `instrument NAME { … }` that uses the components defined here; a file of components only is a library: import it from an instrument's file (`import \"FILE\"`)"),
             );
             return;
         };

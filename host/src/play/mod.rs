@@ -18,6 +18,7 @@
 //! The host engines simulate a key only around its movements ([`motion::busy_stretches`]).
 //! [`output`] writes the strikes as CSV, MIDI and WAV and the traces as CSV.
 
+pub mod calibrate;
 pub mod corpus;
 pub mod emulated;
 pub mod engine;
@@ -35,9 +36,10 @@ pub use motion::Motion;
 pub use run::{TraceRows, TraceWindow, Traces};
 pub use strike::Strike;
 
+use calibrate::{calibrate, CALIBRATION_LEVELS_N};
 use emulated::{play_boards, BoardRun, PerformOptions};
 use engine::{FixedJitEngine, HostKey, JitEngine};
-use motion::{busy_stretches, calibrate, key_motion, stretch_samples, CALIBRATION_LEVELS_N};
+use motion::{busy_stretches, key_motion, stretch_samples};
 pub use motion::{FingerCalibration, Restrikes};
 use run::{run_keys, Drive};
 use std::collections::BTreeMap;
