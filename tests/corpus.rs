@@ -191,17 +191,25 @@ fn a_merge_names_what_is_missing_duplicated_or_different() {
         &[&s1, &other, &s3],
         "not shards of one run: manifest.options.seconds: null ≠ 1.0",
     );
-    // An item dropped from its shard's file (as a task killed before it would leave it).
-    let f = s3.join("results-3-of-3.jsonl");
-    let text = std::fs::read_to_string(&f).unwrap();
+    // An item dropped from its shard's file (as a task killed before it would leave it):
+    // the first shard that holds one (which do depends on the pieces' paths, hashed).
+    let (k, f, text) = [&s1, &s2, &s3]
+        .into_iter()
+        .zip(1..)
+        .map(|(s, k)| {
+            let f = s.join(format!("results-{k}-of-3.jsonl"));
+            let text = std::fs::read_to_string(&f).unwrap();
+            (k, f, text)
+        })
+        .find(|(_, _, text)| text.lines().count() >= 2)
+        .expect("6 items in 3 shards");
     let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
-    assert!(lines.len() >= 2, "shard 3/3 holds an item: {text}");
     let mut dropped: serde_json::Value = serde_json::from_str(&lines.remove(1)).unwrap();
     let piece = dropped["key"]["piece"].as_str().unwrap().to_string();
     std::fs::write(&f, lines.join("\n") + "\n").unwrap();
     refused(
         &[&s1, &s2, &s3],
-        &format!("1 of 6 items missing: {piece} (shard 3/3)"),
+        &format!("1 of 6 items missing: {piece} (shard {k}/3)"),
     );
     // Restored, but with a note left without a strike: validation failed, exit 1.
     dropped["row"]["silent"] = 1.into();
@@ -357,5 +365,84 @@ fn a_task_killed_mid_item_and_resumed_gives_the_same_tables() {
         "{}",
         stderr(&o)
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The `command:` lists of a Kubernetes job file, in order: a block list (`- item` lines
+/// under `command:`) or a flow list (`command: [a, b]`), quotes taken off; and its
+/// `completions:`. (A reader of the two forms the example uses, not of YAML.)
+fn job_commands(yaml: &str) -> (Vec<Vec<String>>, Vec<u32>) {
+    let unquote = |s: &str| s.trim().trim_matches('"').to_string();
+    let (mut commands, mut completions) = (Vec::new(), Vec::new());
+    let mut lines = yaml.lines().filter(|l| !l.trim_start().starts_with('#'));
+    while let Some(line) = lines.next() {
+        let t = line.trim();
+        if let Some(n) = t.strip_prefix("completions:") {
+            completions.push(n.trim().parse().unwrap());
+        }
+        let Some(rest) = t.strip_prefix("command:") else {
+            continue;
+        };
+        if let Some(flow) = rest.trim().strip_prefix('[') {
+            let flow = flow.trim_end_matches(']');
+            commands.push(flow.split(',').map(unquote).collect());
+            continue;
+        }
+        let indent = line.len() - line.trim_start().len();
+        let mut items = Vec::new();
+        for l in lines.by_ref() {
+            match l.trim().strip_prefix("- ") {
+                Some(item) if l.len() - l.trim_start().len() >= indent => items.push(unquote(item)),
+                _ => break,
+            }
+        }
+        commands.push(items);
+    }
+    (commands, completions)
+}
+
+/// The Kubernetes example as written: each pod's command (its `JOB_COMPLETION_INDEX` from 0
+/// to `completions` − 1, the volumes `/corpus` and `/results` as folders here, on the f64
+/// JIT) plays its shard, and the merge Job's command writes the single machine's tables;
+/// `completions` is the `--shard-count` the pods are given.
+#[test]
+fn the_kubernetes_job_files_commands_run_as_written() {
+    let yaml = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/k8s/corpus-indexed-job.yaml");
+    let (commands, completions) = job_commands(&std::fs::read_to_string(&yaml).unwrap());
+    assert_eq!(
+        commands.len(),
+        2,
+        "the shards' and the merge's: {commands:?}"
+    );
+    let (pod, merge_job) = (&commands[0], &commands[1]);
+    assert_eq!(&pod[..2], ["tactus", "play"]);
+    assert_eq!(&merge_job[..3], ["tactus", "corpus", "merge"]);
+    let count = pod[pod.iter().position(|a| a == "--shard-count").unwrap() + 1].clone();
+    assert_eq!(completions, [count.parse::<u32>().unwrap()]);
+    let dir = temp_dir("corpus-k8s");
+    let c = corpus(&dir, false);
+    let results = dir.join("results");
+    let volumes = |args: &[String]| -> Vec<String> {
+        (args.iter().skip(1))
+            .map(|a| match a.as_str() {
+                "/corpus" => c.display().to_string(),
+                "/results" => results.display().to_string(),
+                a => a.to_string(),
+            })
+            .collect()
+    };
+    for index in 0..completions[0] {
+        let o = tactus()
+            .args(volumes(pod))
+            .args(["--engine", "jit"])
+            .env("JOB_COMPLETION_INDEX", index.to_string())
+            .output()
+            .unwrap();
+        assert_ok(&o);
+    }
+    assert_ok(&tactus().args(volumes(merge_job)).output().unwrap());
+    let single = dir.join("single");
+    assert_ok(&play(&c, &single, &[]));
+    same_tables(&single, &results);
     let _ = std::fs::remove_dir_all(&dir);
 }
