@@ -390,7 +390,8 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 
-    /// A full disk and a folder that does not exist are errors naming the file.
+    /// A full disk and a folder that does not exist are errors naming the file; a WAV too
+    /// long for its format is refused.
     #[test]
     fn a_wav_that_cannot_be_written_is_an_error_naming_it() {
         let (strikes, perf) = played();
@@ -404,6 +405,20 @@ mod tests {
             assert!(full.exists(), "a device is never removed");
         }
         let dir = temp("unwritable-wav");
+        // Past the 4 GiB of a RIFF file: refused before anything is written.
+        let long = Performance {
+            duration_s: 13.6 * 3600.0,
+            ..perf.clone()
+        };
+        let wav = dir.join("long.wav");
+        let e = write_wav(&wav, &strikes, &long, FS)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("13.6 h long, more than the 13.5 h"), "{e}");
+        assert!(
+            e.ends_with("use --no-wav or --seconds") && !wav.exists(),
+            "{e}"
+        );
         let nowhere = dir.join("no such folder").join("piece.wav");
         let e = write_wav(&nowhere, &strikes, &perf, FS)
             .unwrap_err()
