@@ -88,7 +88,9 @@ fn main() {
         println!("{} profiled calls, {} cycles", calls.len(), total);
     }
     if mode == 5 || mode == 6 {
-        let dac: Vec<u32> = (0..4).map(|k| b.dac(k).unwrap()).collect();
+        let dac: Vec<u32> = (0..4)
+            .map(|k| b.read_u32(0x2003_f400 + 4 * k).unwrap())
+            .collect();
         println!("dac[0..4] = {dac:?}");
     }
     println!("{:.1} M cycles/s per core", cycles as f64 / secs / 1e6);

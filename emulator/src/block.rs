@@ -16,7 +16,7 @@
 //! Measured: see docs/benchmarks-log.md, "the block compiler".
 //!
 //! **Cycles.** Each instruction's cost comes from the one timing table
-//! ([`crate::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block
+//! ([`tactus_isa::timing::cycles`]) when the block is decoded, as `(not taken, taken)`; the block
 //! also records, for each of its instructions, an upper bound on the cycles from that
 //! instruction's start to the block's end: the timing table's larger cost of each following
 //! instruction plus one wait state per data word it moves (an SRAM access waits at most one
@@ -61,13 +61,15 @@
 //! [`run_confined`] ([`Leave::Record`]) for the board's general path, which runs it one
 //! instruction at a time while recording it.
 
-use crate::bus::{sram_location, Bus, System};
+use crate::bus::Bus;
 use crate::core::Core;
-use crate::decode::{decode, Instr};
 use crate::fast::Op;
 use crate::jit::{self, Jit};
 use crate::memo::{Memos, Try};
-use crate::timing::{self, Class};
+use crate::system::System;
+use tactus_isa::decode::{decode, Instr};
+use tactus_isa::timing::{self, Class};
+use tactus_rp2040::memory::sram_location;
 
 /// Most instructions in one block.
 pub const MAX_BLOCK: usize = 64;
@@ -534,7 +536,7 @@ pub(crate) fn run_confined(
     // The other core does not touch the allowed banks while this one runs (see
     // [`crate::board`], "Running ahead"), so its claims of them stay as they are: once the
     // core's cycle reaches the last, no access can wait.
-    let quiet_from = (0..crate::bus::BANKS)
+    let quiet_from = (0..tactus_rp2040::memory::BANKS)
         .filter(|b| (allowed | io_own) >> b & 1 != 0)
         .map(|b| sys.bank_claim[b][(core.id ^ 1) & 1])
         .filter(|&c| c != u64::MAX)

@@ -337,7 +337,7 @@ impl Recorded for Ads8688 {
 impl Ads8688 {
     /// Its cycles (the frame under way, the last edges) moved by `r`
     /// (`crate::io::Io::rebased`); its records are not.
-    pub(crate) fn rebase(&mut self, r: crate::io::Rebase) {
+    pub(crate) fn rebase(&mut self, r: crate::replay::Rebase) {
         if let Some(f) = self.frame.as_mut() {
             f.cs_fall = r.at(f.cs_fall);
         }
@@ -450,7 +450,7 @@ impl Ads8688 {
 
     /// Whether it equals `other` but for its data words ([`Ads8688::data_slots`]) and its
     /// records, its cycles moved by `r` first: every other field named.
-    pub(crate) fn eq_but_data(&self, other: &Ads8688, r: crate::io::Rebase) -> bool {
+    pub(crate) fn eq_but_data(&self, other: &Ads8688, r: crate::replay::Rebase) -> bool {
         let Ads8688 {
             part,
             pins,
@@ -890,7 +890,7 @@ impl Recorded for Dac8568 {
 impl Dac8568 {
     /// Its cycles (the last SYNC and SCLK edges) moved by `r` (`crate::io::Io::rebased`);
     /// its records are not.
-    pub(crate) fn rebase(&mut self, r: crate::io::Rebase) {
+    pub(crate) fn rebase(&mut self, r: crate::replay::Rebase) {
         self.sync_fell = self.sync_fell.map(|c| r.at(c));
         self.sync_rose = self.sync_rose.map(|c| r.at(c));
         self.last_fall = self.last_fall.map(|c| r.at(c));
@@ -983,7 +983,7 @@ impl Dac8568 {
 
     /// Whether it equals `other` but for its data words ([`Dac8568::data_slots`]) and its
     /// records, its cycles moved by `r` first: every other field named.
-    pub(crate) fn eq_but_data(&self, other: &Dac8568, r: crate::io::Rebase) -> bool {
+    pub(crate) fn eq_but_data(&self, other: &Dac8568, r: crate::replay::Rebase) -> bool {
         let Dac8568 {
             part,
             pins,

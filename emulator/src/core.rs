@@ -12,10 +12,10 @@
 //! the core up (DDI0419 B1.5.15).
 
 use crate::bus::{Bus, BusFault};
-use crate::decode::{decode, is_32bit, Instr};
 use crate::nvic::{Nvic, HARDFAULT, IRQ0, NMI, SVCALL};
-use crate::timing::{self, EXCEPTION_ENTRY};
 use std::fmt;
+use tactus_isa::decode::{decode, is_32bit, Instr};
+use tactus_isa::timing::{self, EXCEPTION_ENTRY};
 
 /// Why a core faulted (every one of these becomes a HardFault on the core).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

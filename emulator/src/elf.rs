@@ -12,13 +12,13 @@
 //! tail is allocated: a `p_memsz` of 0xFFFFFFFF is an [`ElfError::Unmapped`], not a 4 GB
 //! allocation.
 
-use crate::bus::{
-    FLASH_BASE, FLASH_SIZE, ROM_BASE, ROM_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE,
-};
 use object::elf;
 use object::read::elf::{FileHeader, ProgramHeader};
 use object::{Object, ObjectSection, ObjectSymbol, SymbolKind};
 use std::fmt;
+use tactus_rp2040::memory::{
+    FLASH_BASE, FLASH_SIZE, ROM_BASE, ROM_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE,
+};
 
 /// The emulated memories a segment may be loaded into: (base, size in bytes) of ROM,
 /// flash, SRAM and the non-striped alias of SRAM0–3 (`bus.rs` defines each).

@@ -2,21 +2,23 @@
 //!
 //! Each arm computes results and flags exactly as the ARMv6-M pseudocode (DDI0419 A6.7)
 //! does, touches memory only through the [`Bus`] (which reports wait states), and returns what
-//! the caller needs to price it with [`crate::timing::cycles`] — the one timing table — plus wait
-//! states, plus [`crate::timing::EXCEPTION_RETURN`] when it returns from an exception. A fault is
+//! the caller needs to price it with [`tactus_isa::timing::cycles`] — the one timing table — plus wait
+//! states, plus [`tactus_isa::timing::EXCEPTION_RETURN`] when it returns from an exception. A fault is
 //! returned as an error *before* any register is written, so the HardFault handler sees the
 //! state the faulting instruction started from (multi-word loads read everything first).
 //! The flag rules (AddWithCarry's C and V, the condition codes, the shifts' carry out) are
 //! not written here: they are [`crate::semantics`]' generic functions, run on plain values,
 //! and the block compiler runs the same functions to build its IR.
 
-use crate::bus::{Bus, System, FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
+use crate::bus::Bus;
 use crate::core::{Core, Event, FaultKind, RunState};
-use crate::decode::{self, AluOp, Instr, MemOp};
 use crate::nvic::PPB_BASE;
 use crate::semantics::{self, Flagged, Host, Nzcv, ShiftImm, ShiftReg};
-use crate::sio::SIO_BASE;
-use crate::timing::EXCEPTION_RETURN;
+use crate::system::System;
+use tactus_isa::decode::{self, AluOp, Instr, MemOp};
+use tactus_isa::timing::EXCEPTION_RETURN;
+use tactus_rp2040::memory::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
+use tactus_rp2040::sio::SIO_BASE;
 
 /// Target of a PC-relative branch (B, B<cond>, BL) at `pc`: PC reads as `pc + 4`.
 #[inline(always)]
@@ -45,7 +47,7 @@ type Exec = Result<Outcome, FaultKind>;
 
 /// Offset of `addr` in [`System::sram`] when it is in the striped view, SRAM4/5 or the
 /// non-striped aliases of SRAM0-3 (a single access, at most a word and aligned, so it stays
-/// inside one word of one bank; [`crate::bus::sram_location`] gives the same offset, and
+/// inside one word of one bank; [`tactus_rp2040::memory::sram_location`] gives the same offset, and
 /// the offset's bits 3:2 are the bank for the arbiter).
 #[inline(always)]
 fn sram_offset(addr: u32) -> Option<u32> {

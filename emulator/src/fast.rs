@@ -9,10 +9,10 @@
 //! contract as `execute_fast`: do the whole instruction exactly as [`Core::execute`] would
 //! and return true, or touch nothing and return false for the general path.
 
-use crate::bus::System;
 use crate::core::Core;
-use crate::decode::{AluOp, Hint, Instr, MemOp};
 use crate::exec::{branch_target, literal_address};
+use crate::system::System;
+use tactus_isa::decode::{AluOp, Hint, Instr, MemOp};
 
 /// A pre-decoded instruction (see the module documentation). Register fields are 0-15,
 /// `imm`s are in bytes, `target`s and `addr`/`value`s absolute.

@@ -1,13 +1,13 @@
 //! Cycle-accurate emulator of the dual-core RP2040 (two ARMv6-M Cortex-M0+ cores).
 //!
 //! The instruction set's facts come from `tactus_isa`, which needs no machine:
-//! [`decode::decode`] turns halfwords into an [`decode::Instr`] and [`timing::cycles`] prices
+//! [`tactus_isa::decode::decode`] turns halfwords into an [`tactus_isa::decode::Instr`] and [`tactus_isa::timing::cycles`] prices
 //! it from the one timing table. On them, [`core::Core`] executes instructions against the
-//! [`bus::Bus`] trait, [`bus::System`] is the RP2040's memory map (striped SRAM banks with
+//! [`bus::Bus`] trait, [`system::System`] is the RP2040's memory map (striped SRAM banks with
 //! contention, [`sio`], [`timer`], the start-up's registers in [`clocks`], the XIP path to
 //! the flash in [`xip`]), and [`board::Board`] runs two cores in lock-step and offers the
 //! host API: load an ELF ([`elf`]), power on from flash through the boot ROM's path, run N
-//! cycles, read and write memory, feed sensors, read the DAC, and count cycles per
+//! cycles, read and write memory, and count cycles per
 //! function. [`pio`] models a PIO block (state machines, FIFOs, side-set, the clock
 //! divider), [`dma`] the DMA controller (channels, triggers, chaining, DREQ pacing) and
 //! [`converters`] the SPI converters at the pins; [`io`] puts them on the bus of a board
@@ -34,20 +34,15 @@ pub mod lanes;
 mod memo;
 pub mod nvic;
 pub mod pio;
+mod replay;
 pub mod semantics;
 pub mod sio;
+pub mod system;
 pub mod timer;
 pub mod xip;
 
 pub use board::{
     Board, Call, CallError, CallResult, Config, EmuError, Engine, IoWindows, Period, RestPoint,
-    StopReason, CALL_STUB, DAC_BASE, FIRMWARE_OWN_BANKS, MAX_KEYS, SENSOR_BASE,
+    StopReason, CALL_STUB,
 };
 pub use memo::MemoStats;
-// TEMPORARY (issue 34, one landing only): the ISA modules under their old paths, so that
-// branches written against `tactus_emulator::{decode, encode, timing, wcet}` still build.
-// Import them from `tactus_isa`. (The emulator's own modules use `crate::decode`, `crate::timing`.)
-pub use tactus_isa::decode::{decode, Instr};
-pub use tactus_isa::timing::cycles;
-#[doc(hidden)]
-pub use tactus_isa::{decode, encode, timing, wcet};

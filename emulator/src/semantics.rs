@@ -107,8 +107,8 @@ pub enum ShiftReg {
 
 impl ShiftReg {
     /// The shift or rotate of an ALU-group operation, `None` for the others.
-    pub fn of(op: crate::decode::AluOp) -> Option<ShiftReg> {
-        use crate::decode::AluOp;
+    pub fn of(op: tactus_isa::decode::AluOp) -> Option<ShiftReg> {
+        use tactus_isa::decode::AluOp;
         match op {
             AluOp::Lsl => Some(ShiftReg::Lsl),
             AluOp::Lsr => Some(ShiftReg::Lsr),

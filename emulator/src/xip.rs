@@ -1,12 +1,12 @@
 //! The execute-in-place (XIP) path to the external QSPI flash: the SSI (a Synopsys
-//! DW_apb_ssi, RP2040 datasheet 4.10) at [`XIP_SSI_BASE`] and the flash chip behind it, as
+//! DW_apb_ssi, RP2040 datasheet 4.10) at `tactus_rp2040::ssi::XIP_SSI_BASE` and the flash chip behind it, as
 //! far as the boot ROM's flash path and a second-stage boot loader (boot2) use them —
 //! functionally, with the serial clock's timing where firmware can see it (the SSI's
 //! `SR.BUSY` while a transfer shifts).
 //!
 //! **Why a model at all.** A board boots from flash through three programs (datasheet 2.8.1):
 //! the boot ROM reads the first 256 bytes of flash over plain 03h serial reads into SRAM,
-//! checks their CRC-32 ([`boot2_crc32`]) and enters them; that boot2 sets the SSI and the
+//! checks their CRC-32 (`tactus_rp2040::bootrom::boot2_crc32`) and enters them; that boot2 sets the SSI and the
 //! flash chip up for XIP; then the core fetches code and data from the flash window at
 //! 0x10000000 through the XIP cache. Whether the third step works depends on what boot2
 //! left in the SSI's registers and the chip's state — a boot2 that forgets the chip's QE
@@ -55,118 +55,13 @@
 //! DMA requests, the chip's power-down, erase, program and security commands.
 
 use std::collections::VecDeque;
+use tactus_rp2040::bootrom::BOOT2_SIZE;
+use tactus_rp2040::flash::SR2_QE as QE;
+use tactus_rp2040::ssi::{reg, FIFO_DEPTH};
 
-/// The SSI's registers (datasheet 4.10.13: `XIP_SSI_BASE`).
-pub const XIP_SSI_BASE: u32 = 0x1800_0000;
-/// Bytes of the SSI's register block.
-pub const XIP_SSI_SIZE: u32 = 0x100;
-/// Where the boot ROM copies boot2 and enters it: the last 256 bytes of SRAM5 (pico-bootrom
-/// `bootrom/bootrom_main.c`, `BOOT2_BASE = SRAM_END - BOOT2_SIZE_BYTES`).
-pub const BOOT2_LOAD: u32 = crate::bus::SRAM_END - BOOT2_SIZE as u32;
-/// Bytes of boot2, its CRC-32 in the last four (little endian).
-pub const BOOT2_SIZE: usize = 256;
-/// The boot ROM's stack top while it runs, and the stack pointer boot2 starts with: it
-/// leaves the 256 bytes above it for boot2 (pico-bootrom `bootrom/bootrom.ld`, `_stacktop =
-/// ORIGIN(SRAM) + LENGTH(SRAM) - 256`; the ROM's own frames below it are not modelled).
-pub const BOOT_ROM_STACK_TOP: u32 = BOOT2_LOAD;
 /// The W25Q16JV's status-register write time tW, typical (datasheet rev. F, 9.6: 10 ms
 /// typical, 15 ms maximum), in nanoseconds.
 pub const STATUS_WRITE_NS: u64 = 10_000_000;
-
-/// SSI register offsets (datasheet 4.10.13).
-pub mod reg {
-    /// Control register 0: DFS_32 (20:16), SPI_FRF (22:21), TMOD (9:8), SCPOL, SCPH.
-    pub const CTRLR0: u32 = 0x00;
-    /// Control register 1: NDF (15:0), data frames of an EEPROM read minus one.
-    pub const CTRLR1: u32 = 0x04;
-    /// SSI enable.
-    pub const SSIENR: u32 = 0x08;
-    /// Slave enable (bit 0: the flash).
-    pub const SER: u32 = 0x10;
-    /// Baud rate: SCKDV (15:0), system clock cycles per serial clock (even).
-    pub const BAUDR: u32 = 0x14;
-    /// TX FIFO level.
-    pub const TXFLR: u32 = 0x20;
-    /// RX FIFO level.
-    pub const RXFLR: u32 = 0x24;
-    /// Status: BUSY 0, TFNF 1, TFE 2, RFNE 3, RFF 4.
-    pub const SR: u32 = 0x28;
-    /// Interrupt clear (read): clears the sticky errors.
-    pub const ICR: u32 = 0x48;
-    /// Identification code (reads 0x51535049).
-    pub const IDR: u32 = 0x58;
-    /// Component version (reads 0x3430312a).
-    pub const SSI_VERSION_ID: u32 = 0x5c;
-    /// Data register 0: write to push a TX frame, read to pop an RX frame.
-    pub const DR0: u32 = 0x60;
-    /// RX sample delay.
-    pub const RX_SAMPLE_DLY: u32 = 0xf0;
-    /// Enhanced SPI control: TRANS_TYPE (1:0), ADDR_L (5:2, in 4-bit units), INST_L (9:8:
-    /// 0, 4, 8, 16 bits), WAIT_CYCLES (15:11), XIP_CMD (31:24).
-    pub const SPI_CTRLR0: u32 = 0xf4;
-    /// TX drive edge.
-    pub const TXD_DRIVE_EDGE: u32 = 0xf8;
-    /// SR: a transfer is in progress.
-    pub const SR_BUSY: u32 = 1 << 0;
-    /// SR: the TX FIFO is not full.
-    pub const SR_TFNF: u32 = 1 << 1;
-    /// SR: the TX FIFO is empty.
-    pub const SR_TFE: u32 = 1 << 2;
-    /// SR: the RX FIFO is not empty.
-    pub const SR_RFNE: u32 = 1 << 3;
-    /// SR: the RX FIFO is full.
-    pub const SR_RFF: u32 = 1 << 4;
-    /// CTRLR0.TMOD: transmit and receive.
-    pub const TMOD_TX_AND_RX: u32 = 0;
-    /// CTRLR0.TMOD: EEPROM read (send instruction and address, receive data).
-    pub const TMOD_EEPROM_READ: u32 = 3;
-    /// CTRLR0.SPI_FRF: standard (one wire each way).
-    pub const FRF_STD: u32 = 0;
-    /// CTRLR0.SPI_FRF: quad.
-    pub const FRF_QUAD: u32 = 2;
-    /// SPI_CTRLR0.TRANS_TYPE: instruction and address on one wire.
-    pub const TT_1C1A: u32 = 0;
-    /// SPI_CTRLR0.TRANS_TYPE: instruction on one wire, address on SPI_FRF's wires.
-    pub const TT_1C2A: u32 = 1;
-    /// SPI_CTRLR0.TRANS_TYPE: instruction and address on SPI_FRF's wires.
-    pub const TT_2C2A: u32 = 2;
-}
-
-/// Depth of each SSI FIFO (datasheet 4.10.2: 16 entries).
-const FIFO_DEPTH: usize = 16;
-
-/// The CRC-32 the boot ROM checks over boot2's first 252 bytes: polynomial 0x04c11db7,
-/// most significant bit first (no reflection), initial value 0xffffffff, no final XOR
-/// (pico-bootrom `bootrom/bootrom_main.c`, `crc32_small(boot2_load, 252, 0xffffffff)`;
-/// pico-sdk's `boot_stage2/pad_checksum -s 0xffffffff`, as its CMakeLists.txt runs it,
-/// computes the same value with zlib's reflected CRC by reversing the bits of each byte and
-/// of the result; it is CRC-32/MPEG-2).
-pub fn boot2_crc32(bytes: &[u8]) -> u32 {
-    let mut crc = 0xffff_ffffu32;
-    for &b in bytes {
-        crc ^= (b as u32) << 24;
-        for _ in 0..8 {
-            crc = if crc & 0x8000_0000 != 0 {
-                (crc << 1) ^ 0x04c1_1db7
-            } else {
-                crc << 1
-            };
-        }
-    }
-    crc
-}
-
-/// What the boot ROM finds in the first 256 bytes of flash: `Ok` when their last word is
-/// the CRC-32 of the others ([`boot2_crc32`]), else `Err((computed, stored))`.
-pub fn check_boot2(boot2: &[u8; BOOT2_SIZE]) -> Result<(), (u32, u32)> {
-    let computed = boot2_crc32(&boot2[..BOOT2_SIZE - 4]);
-    let stored = u32::from_le_bytes([boot2[252], boot2[253], boot2[254], boot2[255]]);
-    if computed == stored {
-        Ok(())
-    } else {
-        Err((computed, stored))
-    }
-}
 
 /// The W25Q16JV behind the SSI (module documentation).
 #[derive(Clone, Debug)]
@@ -191,8 +86,6 @@ pub struct FlashChip {
 
 /// SR1's write-enable latch.
 const WEL: u8 = 1 << 1;
-/// SR2's quad-enable bit.
-pub const QE: u8 = 1 << 1;
 /// The W25Q16JV's JEDEC ID: manufacturer (Winbond), memory type, capacity (2^21 bytes).
 const JEDEC_ID: [u8; 3] = [0xef, 0x40, 0x15];
 
@@ -816,47 +709,5 @@ impl Xip {
             }
         }
         Ok(mode)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// pico-sdk's `pad_checksum -s 0xffffffff` formula, written out with zlib's reflected
-    /// CRC-32 (what `binascii.crc32` computes): reverse the bits of each byte, CRC from the
-    /// seed, undo zlib's final XOR, reverse the result's 32 bits.
-    fn pad_checksum(data: &[u8]) -> u32 {
-        // binascii.crc32(data, seed ^ 0xffffffff) starts zlib's register at the seed.
-        let mut crc = 0xffff_ffffu32;
-        for &b in data {
-            crc ^= b.reverse_bits() as u32;
-            for _ in 0..8 {
-                crc = if crc & 1 != 0 {
-                    (crc >> 1) ^ 0xedb8_8320
-                } else {
-                    crc >> 1
-                };
-            }
-        }
-        (crc ^ 0xffff_ffff ^ 0xffff_ffff).reverse_bits()
-    }
-
-    #[test]
-    fn the_boot_rom_crc_is_pad_checksums() {
-        let mut seed = 0x1234_5678u32;
-        for len in [0usize, 1, 3, 252] {
-            let data: Vec<u8> = (0..len)
-                .map(|_| {
-                    seed ^= seed << 13;
-                    seed ^= seed >> 17;
-                    seed ^= seed << 5;
-                    seed as u8
-                })
-                .collect();
-            assert_eq!(boot2_crc32(&data), pad_checksum(&data), "{len} bytes");
-        }
-        // CRC-32/MPEG-2 of "123456789" (the same parameters): 0x0376e6e7.
-        assert_eq!(boot2_crc32(b"123456789"), 0x0376_e6e7);
     }
 }

@@ -12,7 +12,13 @@
 //! The same comparison runs on the firmware-like key updates of the speed bench (SysTick
 //! interrupt, one or both cores, sleeping in WFI between samples).
 
-use tactus_emulator::{Board, Config, Engine, StopReason, DAC_BASE, FIRMWARE_OWN_BANKS};
+use tactus_emulator::{Board, Config, Engine, StopReason};
+
+/// The banks each core of a two-core firmware image owns (`tactus_firmware`'s
+/// `FirmwareImage::own_banks`: core 0 SRAM0, SRAM2 and SRAM4, core 1 SRAM1, SRAM3 and SRAM5).
+const OWN_BANKS: [u8; 2] = [0b01_0101, 0b10_1010];
+/// The firmware images' DAC window.
+const DAC_BASE: u32 = 0x2003_f400;
 
 #[path = "../benches/common/mod.rs"]
 mod workloads;
@@ -180,7 +186,7 @@ fn board(seed: u64, case: Case, engine: Engine) -> Board {
     // One of SRAM0-3 each (the confined code's one-comparison path), or in a third of the
     // programs the firmware images' banks, two of SRAM0-3 each (its general bank check).
     let own_banks = if seed.is_multiple_of(3) {
-        FIRMWARE_OWN_BANKS
+        OWN_BANKS
     } else {
         [0b01_0001, 0b10_0010]
     };
@@ -398,7 +404,7 @@ fn a_store_into_the_running_block_takes_effect_at_once() {
     for engine in [Engine::Block, Engine::Interp] {
         let mut b = Board::new(Config {
             engine,
-            own_banks: FIRMWARE_OWN_BANKS,
+            own_banks: OWN_BANKS,
             ..Config::default()
         });
         let code: [u16; 5] = [0x6001, 0xbf00, 0x2201, 0x2201, 0xe7fe];
@@ -481,7 +487,7 @@ fn running_ahead_rolls_back_self_modifying_code_exactly() {
     let setup = |engine| {
         let mut b = Board::new(Config {
             engine,
-            own_banks: FIRMWARE_OWN_BANKS,
+            own_banks: OWN_BANKS,
             ..Config::default()
         });
         // Core 0: ldr r1,[r0]; eors r1,r2; str r1,[r0]; nop;
@@ -536,7 +542,7 @@ fn private_peripheral_accesses_in_windows_match_the_interpreter() {
     let setup = |engine| {
         let mut b = Board::new(Config {
             engine,
-            own_banks: FIRMWARE_OWN_BANKS,
+            own_banks: OWN_BANKS,
             ..Config::default()
         });
         b.set_compile_threshold(0);

@@ -7,7 +7,8 @@
 //! least 2 and pad its frames to 2 µs, and the model says so when it does not.
 
 use tactus_emulator::converters::{Ads8688, Dac8568, SpiPins};
-use tactus_emulator::pio::{reg, Pio};
+use tactus_emulator::pio::Pio;
+use tactus_rp2040::pio::reg;
 use tactus_runtime::converters::{ADS8688, DAC8568};
 
 const PINS: SpiPins = SpiPins {

@@ -7,8 +7,10 @@
 
 use std::collections::BTreeMap;
 use tactus_emulator::bus::BusFault;
-use tactus_emulator::dma::{ctrl, reg, Dma, DmaPort, TREQ_PERMANENT, TREQ_TIMER0};
-use tactus_emulator::pio::{self, Pio};
+use tactus_emulator::dma::{Dma, DmaPort};
+use tactus_emulator::pio::Pio;
+use tactus_rp2040::dma::{ctrl, reg, TREQ_PERMANENT, TREQ_TIMER0};
+use tactus_rp2040::pio;
 
 const SRAM: u32 = 0x2000_0000;
 

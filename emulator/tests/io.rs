@@ -5,10 +5,12 @@
 //! ticking it every cycle. A core's access to a bank the DMA writes in the same cycle waits
 //! when the DMA has the higher bus priority, and wins otherwise.
 
-use tactus_emulator::bus::{Bus, System};
-use tactus_emulator::dma::{reg as dreg, DMA_BASE};
-use tactus_emulator::io::{priority, Io, IoConfig};
-use tactus_emulator::pio::{reg, PIO0_BASE};
+use tactus_emulator::bus::Bus;
+use tactus_emulator::io::{Io, IoConfig};
+use tactus_emulator::system::System;
+use tactus_rp2040::busctrl::priority;
+use tactus_rp2040::dma::{reg as dreg, DMA_BASE};
+use tactus_rp2040::pio::{reg, PIO0_BASE};
 use tactus_runtime::converters::ADS8688;
 
 mod io_setup;

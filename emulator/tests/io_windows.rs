@@ -13,9 +13,15 @@
 //! main loop reads and writes bank 2 while the DMA writes it: windows are undone. After
 //! every slice both boards agree on everything: cores, stalls, all of SRAM, the whole I/O.
 
-use tactus_emulator::dma::{ctrl, reg as dreg, DMA_BASE, TREQ_PERMANENT, TREQ_TIMER0};
-use tactus_emulator::io::{priority, IoConfig};
-use tactus_emulator::{Board, Config, Engine, IoWindows, FIRMWARE_OWN_BANKS};
+use tactus_emulator::io::IoConfig;
+use tactus_emulator::{Board, Config, Engine, IoWindows};
+use tactus_rp2040::busctrl::priority;
+use tactus_rp2040::dma::{ctrl, reg as dreg, DMA_BASE, TREQ_PERMANENT, TREQ_TIMER0};
+
+/// The banks each core of a two-core firmware image owns (`tactus_firmware`'s
+/// `FirmwareImage::own_banks`: core 0 SRAM0, SRAM2 and SRAM4, core 1 SRAM1, SRAM3 and SRAM5).
+const OWN_BANKS: [u8; 2] = [0b01_0101, 0b10_1010];
+
 use tactus_runtime::converters::ADS8688;
 
 mod common;
@@ -194,7 +200,7 @@ fn board(
 ) -> Board {
     let mut b = Board::new(Config {
         engine,
-        own_banks: FIRMWARE_OWN_BANKS,
+        own_banks: OWN_BANKS,
         ..Config::default()
     });
     b.set_compile_threshold(0);

@@ -5,7 +5,8 @@
 //! `jmp x--` loop's count and timing; autopush stalling on a full RX FIFO; non-blocking
 //! PULL; FIFO joining and levels; the input synchroniser's two cycles.
 
-use tactus_emulator::pio::{reg, Pio};
+use tactus_emulator::pio::Pio;
+use tactus_rp2040::pio::reg;
 
 /// pioasm's encodings (pico-examples `spi.pio`, `.side_set 1`):
 /// `out pins, 1 side 0 [1]` and `in pins, 1 side 1 [1]`.

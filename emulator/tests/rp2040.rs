@@ -80,7 +80,7 @@ fn divider_signed_and_by_zero() {
 #[test]
 fn divider_signed_negative_operands_via_host_sio() {
     let mut sio = tactus_emulator::sio::Sio::default();
-    use tactus_emulator::sio::reg;
+    use tactus_rp2040::sio::reg;
     sio.write(0, 100, reg::DIV_SDIVIDEND, (-7i32) as u32);
     sio.write(0, 100, reg::DIV_SDIVISOR, 2);
     assert_eq!(sio.read(0, 109, reg::DIV_QUOTIENT), Some((-3i32) as u32));
@@ -148,7 +148,8 @@ fn same_bank_same_cycle_stalls_one_core() {
 
 #[test]
 fn fifo_and_spinlocks() {
-    use tactus_emulator::sio::{reg, Sio, FIFO_DEPTH};
+    use tactus_emulator::sio::Sio;
+    use tactus_rp2040::sio::{reg, FIFO_DEPTH};
     let mut sio = Sio::default();
     // Empty: core 1 sees RDY but not VLD.
     assert_eq!(sio.read(1, 0, reg::FIFO_ST), Some(0b10));
@@ -262,30 +263,34 @@ fn core1_launch_protocol_echoes_and_starts() {
 
 #[test]
 fn pll_set_up_is_decoded_and_status_bits_read_done() {
-    use tactus_emulator::clocks::{self, reg, SysCtl};
+    use tactus_emulator::clocks::SysCtl;
+    use tactus_rp2040::{clocks, pll, resets};
     let mut s = SysCtl::default();
     assert_eq!(s.pll_sys_hz(), None, "powered down at reset");
-    assert_eq!(clocks::pll_sys_dividers(125_000_000), Some((125, 6, 2)));
-    assert_eq!(clocks::pll_sys_dividers(200_000_000), Some((100, 6, 1)));
-    assert_eq!(clocks::pll_sys_dividers(1_000_000), None);
-    let pll = clocks::PLL_SYS_BASE;
-    assert!(s.write(pll + reg::PLL_FBDIV_INT, 125));
-    assert!(s.write(pll + reg::PLL_PRIM, 6 << 16 | 2 << 12));
-    assert!(s.write(pll + 0x3000 + reg::PLL_PWR, 1 | 1 << 5 | 1 << 3)); // CLR alias
+    assert_eq!(pll::pll_sys_dividers(125_000_000), Some((125, 6, 2)));
+    assert_eq!(pll::pll_sys_dividers(200_000_000), Some((100, 6, 1)));
+    assert_eq!(pll::pll_sys_dividers(1_000_000), None);
+    let base = pll::PLL_SYS_BASE;
+    assert!(s.write(base + pll::reg::FBDIV_INT, 125));
+    assert!(s.write(base + pll::reg::PRIM, 6 << 16 | 2 << 12));
+    assert!(s.write(base + 0x3000 + pll::reg::PWR, 1 | 1 << 5 | 1 << 3)); // CLR alias
     assert_eq!(
-        s.read(pll + reg::PLL_CS).map(|v| v >> 31),
+        s.read(base + pll::reg::CS).map(|v| v >> 31),
         Some(1),
         "locked"
     );
     assert_eq!(s.pll_sys_hz(), Some(125_000_000));
     assert_eq!(s.clk_sys_hz(), None, "clk_sys still on clk_ref");
-    assert!(s.write(clocks::CLOCKS_BASE + reg::CLK_SYS_CTRL, 1));
-    assert_eq!(s.read(clocks::CLOCKS_BASE + reg::CLK_SYS_SELECTED), Some(2));
-    assert_eq!(s.clk_sys_hz(), Some(125_000_000));
-    assert!(s.write(clocks::RESETS_BASE + 0x2000, reg::RESET_TIMER)); // SET alias
+    assert!(s.write(clocks::CLOCKS_BASE + clocks::reg::CLK_SYS_CTRL, 1));
     assert_eq!(
-        s.read(clocks::RESETS_BASE + reg::RESET_DONE)
-            .map(|v| v & reg::RESET_TIMER),
+        s.read(clocks::CLOCKS_BASE + clocks::reg::CLK_SYS_SELECTED),
+        Some(2)
+    );
+    assert_eq!(s.clk_sys_hz(), Some(125_000_000));
+    assert!(s.write(resets::RESETS_BASE + 0x2000, resets::TIMER)); // SET alias
+    assert_eq!(
+        s.read(resets::RESETS_BASE + resets::reg::RESET_DONE)
+            .map(|v| v & resets::TIMER),
         Some(0)
     );
 }

@@ -3,9 +3,12 @@
 //! continuous-read mode, which XIP configurations read the flash, the boot ROM's CRC check
 //! and entry into boot2, and the timer's reset.
 
-use tactus_emulator::bus::{FLASH_BASE, SRAM_BASE};
-use tactus_emulator::xip::{self, reg, Xip, XipRead, BOOT2_LOAD, QE};
+use tactus_emulator::xip::{Xip, XipRead};
 use tactus_emulator::{Board, Config, EmuError};
+use tactus_rp2040::bootrom::{self, BOOT2_LOAD};
+use tactus_rp2040::flash::SR2_QE as QE;
+use tactus_rp2040::memory::{FLASH_BASE, SRAM_BASE};
+use tactus_rp2040::ssi::reg;
 
 /// A fresh chip behind the SSI at reset, with `array` as the flash.
 fn ssi() -> Xip {
@@ -153,7 +156,7 @@ fn xip_reads_the_flash_only_as_set_up() {
 fn the_boot_rom_enters_a_boot2_with_a_good_crc_and_refuses_a_bad_one() {
     let mut b2 = [0u8; 256];
     b2[..2].copy_from_slice(&[0xfe, 0xe7]); // B .
-    let crc = xip::boot2_crc32(&b2[..252]);
+    let crc = bootrom::boot2_crc32(&b2[..252]);
     b2[252..].copy_from_slice(&crc.to_le_bytes());
     let mut board = Board::new(Config::default());
     board.write_bytes(FLASH_BASE, &b2).unwrap();
@@ -192,7 +195,7 @@ fn a_fetch_from_an_unready_xip_window_faults_and_says_why() {
     let mut b2 = [0u8; 256];
     // LDR r0, [pc, #0]; BX r0; .word 0x10000101
     b2[..8].copy_from_slice(&[0x00, 0x48, 0x00, 0x47, 0x01, 0x01, 0x00, 0x10]);
-    let crc = xip::boot2_crc32(&b2[..252]);
+    let crc = bootrom::boot2_crc32(&b2[..252]);
     b2[252..].copy_from_slice(&crc.to_le_bytes());
     let mut board = Board::new(Config::default());
     board.write_bytes(FLASH_BASE, &b2).unwrap();
@@ -209,7 +212,7 @@ fn a_fetch_from_an_unready_xip_window_faults_and_says_why() {
 /// aliases).
 #[test]
 fn the_timer_restarts_when_released_from_reset() {
-    use tactus_emulator::timer::reg as treg;
+    use tactus_rp2040::timer::reg as treg;
     let mut board = Board::new(Config {
         clock_hz: 1_000_000,
         ..Config::default()

@@ -16,7 +16,7 @@
 //!   core's SysTick, a 24-bit counter). The emulator runs such an image at any of these
 //!   clocks (tests price boards at synthetic clocks);
 //! - [`check_board`]: that, and a clock PLL_SYS makes from the 12 MHz crystal
-//!   ([`tactus_emulator::clocks::pll_sys_dividers`]: REFDIV 1, FBDIV 16–320, VCO
+//!   ([`tactus_rp2040::pll::pll_sys_dividers`]: REFDIV 1, FBDIV 16–320, VCO
 //!   750–1600 MHz, post dividers 1–7; RP2040 datasheet 2.18), because the image's reset
 //!   handler sets the clock with exactly those dividers. This is the rule of
 //!   [`crate::image::FirmwareImage::flashable`], and so of `tactus build`.
@@ -157,7 +157,7 @@ pub fn tick_schedule(fs: u32, clock_hz: u64) -> Result<Tick, BoardError> {
 
 /// Why no PLL_SYS setting makes `clock_hz` from the 12 MHz crystal; `None` when one does.
 pub fn pll_error(clock_hz: u64) -> Option<String> {
-    match tactus_emulator::clocks::pll_sys_dividers(clock_hz) {
+    match tactus_rp2040::pll::pll_sys_dividers(clock_hz) {
         Some(_) => None,
         None => Some(format!(
             "{clock_hz} Hz: no PLL_SYS setting makes it from the 12 MHz crystal (REFDIV 1, \
@@ -183,7 +183,7 @@ pub fn check_clock(board: &BoardSpec) -> Result<Chip, BoardError> {
 
 /// Whether the firmware can be built and flashed for `board` (the module documentation's
 /// second level): [`check_clock`], and a core voltage (`core_voltage_v`, 1.10 V when
-/// absent) the RP2040 runs that clock at ([`tactus_emulator::clocks::min_core_mv`]:
+/// absent) the RP2040 runs that clock at ([`tactus_rp2040::vreg::min_core_mv`]:
 /// 1.10 V to 133 MHz, 1.15 V to 200 MHz, nothing above; pico-sdk 2.1.1) — the rule of
 /// [`crate::image::FirmwareImage::flashable`].
 ///
@@ -192,7 +192,7 @@ pub fn check_clock(board: &BoardSpec) -> Result<Chip, BoardError> {
 ///
 /// Errors: [`BoardError`] naming the field.
 pub fn check_board(board: &BoardSpec) -> Result<Chip, BoardError> {
-    use tactus_emulator::clocks::{min_core_mv, DEFAULT_CORE_MV};
+    use tactus_rp2040::vreg::{min_core_mv, DEFAULT_CORE_MV};
     if let Some(c) = &board.converters {
         // The parts the firmware drives and their wiring (`tactus_runtime::converters`);
         // what the keys need of them is checked where they are placed (`image::io`).

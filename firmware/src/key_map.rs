@@ -29,9 +29,9 @@
 
 use crate::board_file::{self, Chip};
 use crate::image::glue::ctrl;
+use crate::windows::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use serde::{Deserialize, Serialize};
 use tactus_emulator::elf::Image;
-use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use tactus_runtime::keyboard::BoardSpec;
 
 /// The key map of one board (`keys.json`): where each key's words live and what runs it.

@@ -41,6 +41,7 @@ pub mod schedule;
 pub mod flash;
 pub mod uf2;
 pub mod verdict;
+pub mod windows;
 
 pub use layout::{Interface, StateLayout};
 pub use runner::{RunError, Sample, UpdateRunner};

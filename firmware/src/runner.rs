@@ -16,12 +16,13 @@
 //! so there is no bus contention.
 
 use crate::layout::Interface;
+use crate::windows::SENSOR_BASE;
 use std::fmt;
 use tactus_emulator::board::StopReason;
-use tactus_emulator::bus::sram_location;
-use tactus_emulator::{Board, CallError, CallResult, Config, EmuError, CALL_STUB, SENSOR_BASE};
+use tactus_emulator::{Board, CallError, CallResult, Config, EmuError, CALL_STUB};
 use tactus_isa::decode::Instr;
 use tactus_isa::timing::cycles;
+use tactus_rp2040::memory::sram_location;
 
 /// The return stub [`Board::call`] writes at [`CALL_STUB`]: `SVC #0xCA; BKPT`.
 const STUB: [u8; 4] = [0xca, 0xdf, 0x00, 0xbe];

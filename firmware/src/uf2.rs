@@ -28,10 +28,10 @@
 //! The RP2040 stripes SRAM0–3 word by word (datasheet 2.6.1: striped word *w* is word
 //! *w* / 4 of bank *w* mod 4), so the same physical bytes are written through the striped
 //! alias: [`striped_image`] turns the image's segments into one contiguous striped range,
-//! with [`tactus_emulator::bus::sram_location`], the emulator's one definition of the
+//! with [`tactus_rp2040::memory::sram_location`], the one definition of the
 //! mapping.
 
-use tactus_emulator::bus::{sram_location, FLASH_BASE, SRAM_BASE, SRAM_END};
+use tactus_rp2040::memory::{sram_location, FLASH_BASE, SRAM_BASE, SRAM_END};
 
 /// First magic number (`"UF2\n"`).
 pub const MAGIC_START0: u32 = 0x0A32_4655;

@@ -7,19 +7,24 @@
 use std::path::Path;
 use std::process::Command;
 use tactus_compiler::lower::Config;
-use tactus_emulator::xip::{self, BOOT2_LOAD, BOOT2_SIZE};
+use tactus_emulator::xip;
 use tactus_emulator::{Board, Config as BoardConfig, StopReason};
 use tactus_firmware::image::boot2::{self, FLASH_VECTORS};
 use tactus_firmware::image::{FirmwareImage, ImageRun, KeySpec, Program};
-use tactus_runtime::keyboard::{read_board, BoardSpec};
+use tactus_rp2040::bootrom::{self, BOOT2_LOAD, BOOT2_SIZE};
+use tactus_rp2040::flash::SR2_QE;
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
+
+#[path = "common/layouts.rs"]
+mod layouts;
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
 }
 
 fn board(name: &str) -> BoardSpec {
-    read_board(&root().join(format!("boards/{name}.toml"))).unwrap()
+    layouts::shipped_board(name)
 }
 
 /// Four hammond keys, two a core.
@@ -33,10 +38,7 @@ fn image(b: &BoardSpec) -> FirmwareImage {
             core: i % 2,
         })
         .collect();
-    let lim = LimiterConfig {
-        sample_rate_hz: b.sample_rate_hz,
-        ..LimiterConfig::default()
-    };
+    let lim = LimiterConfig::for_board(b);
     FirmwareImage::build(&[p], &keys, b, &lim).unwrap()
 }
 
@@ -47,7 +49,7 @@ fn flash_board(flash: &[u8]) -> Board {
         ..BoardConfig::default()
     });
     board
-        .write_bytes(tactus_emulator::bus::FLASH_BASE, flash)
+        .write_bytes(tactus_rp2040::memory::FLASH_BASE, flash)
         .unwrap();
     board
 }
@@ -81,7 +83,7 @@ fn boot2_fits_and_carries_the_boot_roms_crc() {
     println!("boot2: {} bytes of code of 252", code.text.len());
     assert!(code.text.len() <= BOOT2_SIZE - 4);
     assert_eq!(&bytes[..code.text.len()], &code.text[..]);
-    assert!(xip::check_boot2(&bytes).is_ok());
+    assert!(bootrom::check_boot2(&bytes).is_ok());
     // pico-sdk's own formula (`boot_stage2/pad_checksum -s 0xffffffff`, via Python's zlib),
     // when Python is there (CI installs it).
     let script = "import binascii,sys\n\
@@ -129,7 +131,7 @@ fn a_flash_image_boots_through_boot2_and_runs_as_the_ram_image() {
         flash.pieces.iter().map(|p| p.len).sum::<u32>()
     );
     let chip = &board.system.xip.chip;
-    assert!(chip.sr2 & xip::QE != 0 && chip.continuous, "{chip:?}");
+    assert!(chip.sr2 & SR2_QE != 0 && chip.continuous, "{chip:?}");
     assert_eq!(
         board.system.xip.xip_read(None),
         Ok(xip::XipRead::QuadContinuous)
@@ -197,7 +199,7 @@ fn a_boot2_that_does_not_set_up_xip_stops_at_the_first_flash_fetch() {
     let mut b2 = [0u8; BOOT2_SIZE];
     b2[..4].copy_from_slice(&[0x00, 0x48, 0x00, 0x47]);
     b2[4..8].copy_from_slice(&reset.to_le_bytes());
-    let crc = xip::boot2_crc32(&b2[..252]);
+    let crc = bootrom::boot2_crc32(&b2[..252]);
     b2[252..].copy_from_slice(&crc.to_le_bytes());
     bytes[..BOOT2_SIZE].copy_from_slice(&b2);
     let e = ImageRun::from_flash(&img, &bytes)
@@ -218,7 +220,7 @@ fn boot2_sets_qe_once() {
     let img = image(&b);
     let flash = img.flash_image().unwrap();
     let mut board = flash_board(&flash.bytes);
-    assert_eq!(board.system.xip.chip.sr2 & xip::QE, 0);
+    assert_eq!(board.system.xip.chip.sr2 & SR2_QE, 0);
     let boot = |board: &mut Board| {
         board.boot_from_flash().unwrap();
         let start = board.cycle();
@@ -231,13 +233,13 @@ fn boot2_sets_qe_once() {
             if board.cores[0].r[15] == flash.reset && boot2.is_none() {
                 boot2 = Some(board.cycle() - start);
                 assert_eq!(board.cores[0].nvic.vtor, FLASH_VECTORS);
-                assert_eq!(board.cores[0].r[13], tactus_emulator::bus::SRAM_END);
+                assert_eq!(board.cores[0].r[13], tactus_rp2040::memory::SRAM_END);
             }
         }
         (boot2.unwrap(), board.cycle() - start)
     };
     let first = boot(&mut board);
-    assert_ne!(board.system.xip.chip.sr2 & xip::QE, 0);
+    assert_ne!(board.system.xip.chip.sr2 & SR2_QE, 0);
     let second = boot(&mut board);
     println!(
         "power-on to boot2's exit, to the copy's end (133 MHz): {first:?} cycles on a fresh \
@@ -294,25 +296,27 @@ fn a_200_mhz_image_raises_the_core_voltage_first_and_one_that_does_not_is_refuse
 /// The refusal itself, on the bare emulator: VREG raised after the switch is too late.
 #[test]
 fn the_emulator_refuses_clk_sys_above_133_mhz_at_1_10_v() {
-    use tactus_emulator::clocks::{reg, CLOCKS_BASE, PLL_SYS_BASE, VREG_AND_CHIP_RESET_BASE};
+    use tactus_rp2040::clocks::{self, CLOCKS_BASE};
+    use tactus_rp2040::pll::{self, PLL_SYS_BASE};
+    use tactus_rp2040::vreg::{self, VREG_AND_CHIP_RESET_BASE};
     let mut board = Board::new(BoardConfig {
         clock_hz: 200_000_000,
         ..BoardConfig::default()
     });
     let s = &mut board.system.sysctl;
     // PLL_SYS at 1200 MHz / 6 / 1, powered up, clk_sys still on clk_ref: fine.
-    assert!(s.write(PLL_SYS_BASE + reg::PLL_FBDIV_INT, 100));
-    assert!(s.write(PLL_SYS_BASE + reg::PLL_PRIM, 6 << 16 | 1 << 12));
-    assert!(s.write(PLL_SYS_BASE + reg::PLL_PWR, 0));
+    assert!(s.write(PLL_SYS_BASE + pll::reg::FBDIV_INT, 100));
+    assert!(s.write(PLL_SYS_BASE + pll::reg::PRIM, 6 << 16 | 1 << 12));
+    assert!(s.write(PLL_SYS_BASE + pll::reg::PWR, 0));
     // The switch at 1.10 V: refused.
-    assert!(!s.write(CLOCKS_BASE + reg::CLK_SYS_CTRL, 1));
+    assert!(!s.write(CLOCKS_BASE + clocks::reg::CLK_SYS_CTRL, 1));
     let why = s.take_refusal().unwrap();
     assert_eq!((why.clk_sys_hz, why.core_mv), (200_000_000, 1100));
     assert!(why.to_string().contains("1.15 V"), "{why}");
     // Raised first, then switched: accepted; lowered again under the fast clock: refused.
-    assert!(s.write(CLOCKS_BASE + reg::CLK_SYS_CTRL, 0));
-    assert!(s.write(VREG_AND_CHIP_RESET_BASE + reg::VREG, 0xc1));
-    assert!(s.write(CLOCKS_BASE + reg::CLK_SYS_CTRL, 1));
-    assert!(!s.write(VREG_AND_CHIP_RESET_BASE + reg::VREG, 0xb1));
+    assert!(s.write(CLOCKS_BASE + clocks::reg::CLK_SYS_CTRL, 0));
+    assert!(s.write(VREG_AND_CHIP_RESET_BASE + vreg::reg::VREG, 0xc1));
+    assert!(s.write(CLOCKS_BASE + clocks::reg::CLK_SYS_CTRL, 1));
+    assert!(!s.write(VREG_AND_CHIP_RESET_BASE + vreg::reg::VREG, 0xb1));
     let _ = StopReason::Idle;
 }

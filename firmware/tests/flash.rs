@@ -288,7 +288,7 @@ fn check_uf2(fw: &BoardFirmware) {
     assert_eq!(&flash[..image.bytes.len()], &image.bytes[..]);
     assert!(flash[image.bytes.len()..].iter().all(|&b| b == 0));
     let b2: [u8; 256] = flash[..256].try_into().unwrap();
-    assert!(tactus_emulator::xip::check_boot2(&b2).is_ok());
+    assert!(tactus_rp2040::bootrom::check_boot2(&b2).is_ok());
     let elf = elf_bytes(&fw.elf);
     for (i, &b) in flash.iter().enumerate() {
         let at = 0x1000_0000 + i as u32;

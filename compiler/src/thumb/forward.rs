@@ -19,7 +19,6 @@
 //! replaced.
 
 use super::mir::*;
-use super::select::ARG2;
 use std::collections::HashMap;
 use tactus_isa::decode::MemOp;
 

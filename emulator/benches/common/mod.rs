@@ -11,7 +11,14 @@
 //!   each core's own scratch bank (SRAM4 / SRAM5), sensors, DAC and state in striped SRAM.
 #![allow(dead_code)]
 
-use tactus_emulator::{Board, Config, Engine, DAC_BASE, FIRMWARE_OWN_BANKS, SENSOR_BASE};
+use tactus_emulator::{Board, Config, Engine};
+
+/// The banks each core of a two-core firmware image owns (`tactus_firmware`'s
+/// `FirmwareImage::own_banks`: core 0 SRAM0, SRAM2 and SRAM4, core 1 SRAM1, SRAM3 and SRAM5).
+const OWN_BANKS: [u8; 2] = [0b01_0101, 0b10_1010];
+/// The firmware images' sensor and DAC windows (`tactus_firmware::windows::{SENSOR_BASE, DAC_BASE}`).
+const SENSOR_BASE: u32 = 0x2003_f000;
+const DAC_BASE: u32 = 0x2003_f400;
 
 /// loop: ldr r1,[r0]; adds r1,r1,r2; str r1,[r0,#4]; muls r3,r1,r3; lsrs r4,r3,#3;
 ///       subs r5,#1; bne loop  — 10 cycles per iteration.
@@ -43,12 +50,12 @@ pub fn speed_loop(engine: Engine, cores: usize) -> Board {
 /// The speed loop on `cores` cores (1 or 2), each core's code and data in its own SRAM bank
 /// through the non-striped alias (core k: SRAM k at `0x21000000 + k·0x10000`) and its stack
 /// in its scratch bank, as the firmware images lay them out: what two cores running ahead
-/// of each other need (`Config::own_banks` set to `FIRMWARE_OWN_BANKS`). 10 cycles per
+/// of each other need (`Config::own_banks` set to `OWN_BANKS`). 10 cycles per
 /// iteration, as [`speed_loop`].
 pub fn speed_loop_own_banks(engine: Engine, cores: usize) -> Board {
     let mut b = Board::new(Config {
         engine,
-        own_banks: FIRMWARE_OWN_BANKS,
+        own_banks: OWN_BANKS,
         ..Config::default()
     });
     for core in 0..cores {

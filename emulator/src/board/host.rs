@@ -1,12 +1,12 @@
 //! The host's side of the board: loading an image, starting cores, reading and writing
-//! memory without cycles, the sensor and DAC words, and calling one function.
+//! memory without cycles, and calling one function.
 
 use super::*;
-use crate::bus::SRAM_END;
-use crate::decode::Instr;
 use crate::elf::{self, ElfError};
-use crate::timing::cycles;
 use std::fmt;
+use tactus_isa::decode::Instr;
+use tactus_isa::timing::cycles;
+use tactus_rp2040::memory::SRAM_END;
 /// Where [`Board::call`] puts its return stub: the last word of SRAM (the stack given to a
 /// call must be below it).
 pub const CALL_STUB: u32 = SRAM_END - 4;
@@ -61,7 +61,7 @@ pub enum EmuError {
     Unmapped(u32),
     /// No symbol of that name.
     NoSymbol(String),
-    /// The boot ROM's check of boot2 failed (`crate::xip::check_boot2`).
+    /// The boot ROM's check of boot2 failed (`tactus_rp2040::bootrom::check_boot2`).
     Boot2Checksum {
         /// CRC-32 of the first 252 bytes of flash.
         computed: u32,
@@ -120,8 +120,8 @@ impl Board {
     /// Powers the board on from flash, as the boot ROM's flash path does on core 0
     /// (pico-bootrom `bootrom/bootrom_main.c`, `_flash_boot`): the SSI set to plain serial
     /// reads, the flash chip out of continuous-read mode, its first 256 bytes read into the
-    /// top of SRAM5 ([`crate::xip::BOOT2_LOAD`]) and checked against their CRC-32
-    /// ([`crate::xip::check_boot2`]), and core 0 entered there in Thumb state with LR = 0
+    /// top of SRAM5 ([`tactus_rp2040::bootrom::BOOT2_LOAD`]) and checked against their CRC-32
+    /// ([`tactus_rp2040::bootrom::check_boot2`]), and core 0 entered there in Thumb state with LR = 0
     /// ("entered from the boot ROM": boot2 then enters the image through the vector table at
     /// 0x10000100) and SP at the ROM's stack top. Core 1 stays in the boot ROM's launch
     /// protocol. The flash holds what the host wrote (a UF2's blocks, an ELF's segments).
@@ -144,13 +144,16 @@ impl Board {
         self.system.invalidate_code();
         self.system.xip.power_on();
         let boot2 = self.system.xip.boot_rom_read_boot2(&self.system.flash);
-        self.write_bytes(crate::xip::BOOT2_LOAD, &boot2)?;
+        self.write_bytes(tactus_rp2040::bootrom::BOOT2_LOAD, &boot2)?;
         self.system.refresh_xip();
-        if let Err((computed, stored)) = crate::xip::check_boot2(&boot2) {
+        if let Err((computed, stored)) = tactus_rp2040::bootrom::check_boot2(&boot2) {
             return Err(EmuError::Boot2Checksum { computed, stored });
         }
         let core = &mut self.cores[0];
-        core.reset_to(crate::xip::BOOT2_LOAD | 1, crate::xip::BOOT_ROM_STACK_TOP);
+        core.reset_to(
+            tactus_rp2040::bootrom::BOOT2_LOAD | 1,
+            tactus_rp2040::bootrom::BOOT_ROM_STACK_TOP,
+        );
         core.r[14] = 0;
         core.nvic.vtor = 0;
         Ok(())
@@ -174,7 +177,8 @@ impl Board {
                 };
                 let mut s = format!("core {core} {what}: {fault}");
                 if let crate::core::FaultKind::Bus { addr } = fault.kind {
-                    let flash = addr.wrapping_sub(crate::bus::FLASH_BASE) < crate::bus::FLASH_SIZE;
+                    let flash = addr.wrapping_sub(tactus_rp2040::memory::FLASH_BASE)
+                        < tactus_rp2040::memory::FLASH_SIZE;
                     if let (true, Some(why)) = (flash, self.system.xip_error()) {
                         s.push_str(&format!(" (the XIP window does not read the flash: {why})"));
                         if let Some(p) = &self.system.xip.problem {
@@ -372,23 +376,6 @@ impl Board {
     /// Writes a little-endian word (host access).
     pub fn write_u32(&mut self, addr: u32, value: u32) -> Result<(), EmuError> {
         self.write_bytes(addr, &value.to_le_bytes())
-    }
-
-    /// Sets key `key`'s sensor word (what the sensor DMA would deliver). Panics-free: keys
-    /// beyond [`MAX_KEYS`] are an error.
-    pub fn set_sensor(&mut self, key: usize, value: u32) -> Result<(), EmuError> {
-        if key >= MAX_KEYS {
-            return Err(EmuError::Unmapped(SENSOR_BASE + 4 * key as u32));
-        }
-        self.write_u32(SENSOR_BASE + 4 * key as u32, value)
-    }
-
-    /// Key `key`'s DAC word (the force the firmware last wrote).
-    pub fn dac(&mut self, key: usize) -> Result<u32, EmuError> {
-        if key >= MAX_KEYS {
-            return Err(EmuError::Unmapped(DAC_BASE + 4 * key as u32));
-        }
-        self.read_u32(DAC_BASE + 4 * key as u32)
     }
 
     /// Calls the Thumb function at `addr` on `core` as AAPCS code would (arguments in r0–r3,

@@ -1,5 +1,5 @@
 //! The RP2040 board: two cores and the system, run in lock-step, plus the host API (load,
-//! run for N cycles, read/write memory, feed sensors, read forces, count cycles per function).
+//! run for N cycles, read/write memory, count cycles per function).
 //!
 //! **Lock-step.** Each core has its own cycle counter; the board always executes the next
 //! instruction of the core whose counter is lower (core 0 on a tie), so every shared-state
@@ -16,13 +16,6 @@
 //! undo journal; `launch`: core 1's boot ROM launch protocol; `profile`: cycles per
 //! function and per interrupt handler. The cores reach memory only through
 //! [`crate::bus::Bus`].
-//!
-//! **Sensors and DAC.** Firmware sees the key sensors and the motor drivers the way a DMA from
-//! SPI converters would leave them: word arrays in SRAM at [`SENSOR_BASE`] and [`DAC_BASE`],
-//! one 32-bit word per key (ADC sample, or DAC code, in the low 16 bits). The host writes
-//! sensors and reads forces with [`Board::set_sensor`] / [`Board::dac`], which cost the
-//! cores nothing; firmware loads and stores them as ordinary SRAM (2 cycles, bank 3:2
-//! striping and contention apply). Link firmware so nothing else lives there.
 
 mod host;
 mod io_window;
@@ -39,23 +32,12 @@ pub use profile::Call;
 pub use rest::{Period, RestPoint};
 
 use crate::block::Blocks;
-use crate::bus::System;
 use crate::core::{Core, Fault, RunState};
 use crate::elf::Image;
+use crate::system::System;
 use launch::Launch;
 use profile::{Profile, NO_WATCH, WATCH_SLOTS};
 use run::{Cached, CACHE_SLOTS};
-
-/// Sensor block: `MAX_KEYS` words from 0x2003f000 (last 4 KB of striped SRAM), word k = key
-/// k's latest ADC sample.
-pub const SENSOR_BASE: u32 = 0x2003_f000;
-
-/// DAC block: `MAX_KEYS` words from 0x2003f400, word k = the force (DAC code) for key k's
-/// motor.
-pub const DAC_BASE: u32 = 0x2003_f400;
-
-/// Keys the sensor and DAC blocks have room for.
-pub const MAX_KEYS: usize = 128;
 
 /// Board configuration.
 #[derive(Clone, Debug)]
@@ -78,15 +60,10 @@ pub struct Config {
     /// machines over whole windows of cycles, each confined to its own banks and private
     /// registers, undoing a window in which either touches anything else (`board/window.rs`;
     /// the firmware images lay each core out in its own banks,
-    /// [`FIRMWARE_OWN_BANKS`]). Default `[0, 0]`: the two cores in lock-step. Results never
+    /// `tactus_firmware::FirmwareImage::own_banks`). Default `[0, 0]`: the two cores in lock-step. Results never
     /// depend on it, only speed.
     pub own_banks: [u8; 2],
 }
-
-/// The banks each core of a two-core firmware image owns (`tactus-firmware`, `image/mod.rs`:
-/// core 0 SRAM0, SRAM2 and SRAM4, core 1 SRAM1, SRAM3 and SRAM5: code, data, stack and its
-/// share of the sensor and DAC windows), for [`Config::own_banks`].
-pub const FIRMWARE_OWN_BANKS: [u8; 2] = [0b01_0101, 0b10_1010];
 
 /// The engine behind [`Board::run_until`]'s fast path.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

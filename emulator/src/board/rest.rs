@@ -50,7 +50,9 @@
 //! same board running every sample: every output, SRAM byte, cycle and register equal).
 
 use super::*;
-use crate::io::{Io, IoRecords, Rebase};
+use crate::io::slots::IoRecords;
+use crate::io::Io;
+use crate::replay::Rebase;
 
 /// The state of a board at an instant apart from time and counters (compared), with the
 /// board's clocks and counts then (not compared). Made by [`Board::rest_point`].
@@ -204,7 +206,7 @@ impl Board {
     }
 
     /// The board's state now as a [`RestPoint`], the SRAM words at `counters` (offsets of
-    /// aligned words from [`crate::bus::SRAM_BASE`]) taken as counters (module
+    /// aligned words from [`tactus_rp2040::memory::SRAM_BASE`]) taken as counters (module
     /// documentation).
     ///
     /// Errors (as text): a debugger attached, core 1's launch under way, a timer alarm

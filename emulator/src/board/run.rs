@@ -37,12 +37,13 @@ use super::profile::{NO_WATCH, NO_WATCHES, WATCH_SLOTS};
 use super::window::{Window, RETRY};
 use super::*;
 use crate::block;
-use crate::bus::{sram_location, Bus};
+use crate::bus::Bus;
 use crate::core::Event;
-use crate::decode::{decode, Instr};
 use crate::fast::Op;
 use crate::nvic::{IRQ0, SVCALL};
-use crate::timing::cycles;
+use tactus_isa::decode::{decode, Instr};
+use tactus_isa::timing::cycles;
+use tactus_rp2040::memory::sram_location;
 /// Decode cache entry: the instruction, its pre-decoded fast-path form and its size,
 /// tagged by its address and the code epoch.
 #[derive(Clone, Copy)]
@@ -178,7 +179,7 @@ pub(super) fn general_load(
 ) -> Option<Event> {
     let pc = core.r[15];
     let slot = &cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
-    let load = crate::timing::class(&slot.instr) == crate::timing::Class::Load;
+    let load = tactus_isa::timing::class(&slot.instr) == tactus_isa::timing::Class::Load;
     let before = (
         sys.irq_epoch,
         sys.timer.next_event,

@@ -52,14 +52,13 @@ use super::io_window::{IoKind, IoLog};
 use super::run::cached;
 use super::*;
 use crate::block::{self, Leave};
-use crate::bus::{
-    plain_sram_span, span_banks, sram_location, Bus, BusFault, ALL_BANKS, BANKS, FLASH_BASE,
-    FLASH_SIZE, ROM_SIZE,
-};
+use crate::bus::{plain_sram_span, span_banks, Bus, BusFault, ALL_BANKS};
 use crate::core::Event;
 use crate::memo::Recording;
 use crate::nvic::IRQ0;
-use crate::sio::{reg, Divider, SIO_BASE};
+use crate::sio::Divider;
+use tactus_rp2040::memory::{sram_location, BANKS, FLASH_BASE, FLASH_SIZE, ROM_SIZE};
+use tactus_rp2040::sio::{reg, SIO_BASE};
 
 /// What a window ([`Board::window`]) did.
 pub(super) enum Window {

@@ -553,7 +553,7 @@ pub fn cycles_report(board: &Board) -> String {
             (Some(_), None) => s.push_str("; no sample interrupt completed yet\n"),
             (Some(_), Some(call)) => s.push_str(&format!(
                 "; last sample interrupt {} cycles (entered at cycle {})\n",
-                call.cycles + crate::timing::EXCEPTION_ENTRY as u64,
+                call.cycles + tactus_isa::timing::EXCEPTION_ENTRY as u64,
                 call.start
             )),
         }

@@ -25,7 +25,7 @@ pub mod gdb;
 
 use crate::board::{Board, StopReason};
 use crate::core::RunState;
-use crate::decode::Instr;
+use tactus_isa::decode::Instr;
 
 /// A debugger in charge of a board's runs ([`Board::attach_debugger`]).
 pub trait Debugger: Send {
@@ -247,7 +247,7 @@ impl Board {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::decode::MemOp;
+    use tactus_isa::decode::MemOp;
 
     #[test]
     fn data_accesses_of_the_load_store_forms() {

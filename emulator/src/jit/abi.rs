@@ -3,9 +3,10 @@
 //! the call itself.
 
 use crate::board::{IoAccess, IoKind};
-use crate::bus::{load_le, System};
+use crate::bus::load_le;
 use crate::core::Core;
 use crate::io::Io;
+use crate::system::System;
 
 /// What the native code shares with the board for one call (`#[repr(C)]`: the generated
 /// code reads its fields at fixed offsets).

@@ -5,10 +5,10 @@
 //! the same the interpreter runs on plain values.
 
 use super::translate::{Flags, Translator, C};
-use crate::decode::AluOp;
 use crate::semantics::{self, Domain, Flagged, HeldFlags, ShiftImm, ShiftReg};
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, InstBuilder, Value};
+use tactus_isa::decode::AluOp;
 
 impl Translator<'_> {
     /// N and Z from the result `r` (held as `r` itself, see [`super::translate::Flags`]).

@@ -18,7 +18,7 @@
 use super::abi::NativeFn;
 use super::scan::{scan, RegionInstr};
 use super::translate::{Flavour, Translator};
-use crate::bus::System;
+use crate::system::System;
 use cranelift_codegen::ir::{types, AbiParam, Signature};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
@@ -196,7 +196,7 @@ impl Jit {
         };
         for i in &instrs {
             for h in [i.pc, i.pc.wrapping_add(i.size - 2)] {
-                if let Some((_, bank)) = crate::bus::sram_location(h) {
+                if let Some((_, bank)) = tactus_rp2040::memory::sram_location(h) {
                     slot.banks |= 1 << bank;
                 }
             }

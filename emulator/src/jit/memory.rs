@@ -14,13 +14,13 @@
 use super::abi::{io_reg, io_sram, ppb_load, ppb_store, Ctx, Exit, SYST_RVR};
 use super::scan::RegionInstr;
 use super::translate::Translator;
-use crate::bus::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
-use crate::decode::MemOp;
 use crate::nvic::PPB_BASE;
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, AbiParam, BlockArg, InstBuilder, Signature, Value};
 use cranelift_frontend::FunctionBuilder;
 use std::mem::offset_of;
+use tactus_isa::decode::MemOp;
+use tactus_rp2040::memory::{FLASH_BASE, FLASH_SIZE, SRAM_ALIAS_BASE, SRAM_BASE, SRAM_SIZE};
 
 impl Translator<'_> {
     /// POP (`rn` 13) or LDM: the words, the base write-back (LDM: unless the base is

@@ -2,10 +2,11 @@
 //! starts and ends, and the cycle bound from each instruction to the region's next exit
 //! (see the parent module's documentation).
 
-use crate::bus::{Bus, System};
-use crate::decode::{decode, Instr};
+use crate::bus::Bus;
 use crate::exec::branch_target;
-use crate::timing;
+use crate::system::System;
+use tactus_isa::decode::{decode, Instr};
+use tactus_isa::timing;
 
 /// Most instructions in one region.
 pub(crate) const MAX_REGION: usize = 128;
@@ -32,7 +33,7 @@ pub(crate) fn translated(instr: &Instr) -> bool {
         Adr { .. } | AddSpImm { .. } | AddSp { .. } | SubSp { .. } => true,
         Push { list } | Pop { list } => list != 0,
         Stm { list, .. } | Ldm { list, .. } => list != 0,
-        Instr::Hint(crate::decode::Hint::Nop | crate::decode::Hint::Yield) => true,
+        Instr::Hint(tactus_isa::decode::Hint::Nop | tactus_isa::decode::Hint::Yield) => true,
         BCond { cond, .. } => cond < 14,
         B { .. } | Bl { .. } => true,
         _ => false,
@@ -86,7 +87,7 @@ pub(crate) fn scan(sys: &mut System, entry: u32) -> (Vec<RegionInstr>, Vec<u16>)
             break;
         }
         for h in [a, a.wrapping_add(size - 2)] {
-            if let Some((off, _)) = crate::bus::sram_location(h) {
+            if let Some((off, _)) = tactus_rp2040::memory::sram_location(h) {
                 sys.code_pages[off >> 8] = true;
             }
         }

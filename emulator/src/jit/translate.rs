@@ -5,9 +5,7 @@
 
 use super::abi::{Ctx, Exit};
 use super::scan::{bounds, branch_of, RegionInstr};
-use crate::bus::SRAM_ALIAS_BASE;
 use crate::core::Core;
-use crate::decode::{Instr, MemOp};
 use crate::exec::{branch_target, literal_address};
 use crate::semantics::ShiftImm;
 use cranelift_codegen::ir::condcodes::IntCC;
@@ -15,6 +13,8 @@ use cranelift_codegen::ir::{types, Block, InstBuilder, MemFlagsData, Value};
 use cranelift_frontend::{FunctionBuilder, Variable};
 use std::collections::HashMap;
 use std::mem::offset_of;
+use tactus_isa::decode::{Instr, MemOp};
+use tactus_rp2040::memory::SRAM_ALIAS_BASE;
 
 /// Flags, in `Core` field order (see [`Flags`] for how they are held).
 pub(super) const N: usize = 0;
@@ -243,10 +243,10 @@ impl<'a> Translator<'a> {
                 .iter()
                 .filter(|i| {
                     matches!(
-                        crate::timing::class(&i.instr),
-                        crate::timing::Class::Store
-                            | crate::timing::Class::StoreMultiple
-                            | crate::timing::Class::Push
+                        tactus_isa::timing::class(&i.instr),
+                        tactus_isa::timing::Class::Store
+                            | tactus_isa::timing::Class::StoreMultiple
+                            | tactus_isa::timing::Class::Push
                     )
                 })
                 .map(|i| super::scan::data_words(&i.instr) as u64)

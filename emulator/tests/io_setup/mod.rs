@@ -3,11 +3,13 @@
 //! two DMA channels (commands in, results out).
 #![allow(dead_code)]
 
-use tactus_emulator::bus::{Bus, System};
+use tactus_emulator::bus::Bus;
 use tactus_emulator::converters::SpiPins;
-use tactus_emulator::dma::{ctrl, reg as dreg, DMA_BASE};
-use tactus_emulator::io::{BUSCTRL_BASE, FUNCSEL_PIO0, IO_BANK0_BASE};
-use tactus_emulator::pio::{reg, PIO0_BASE};
+use tactus_emulator::system::System;
+use tactus_rp2040::busctrl::BUSCTRL_BASE;
+use tactus_rp2040::dma::{ctrl, reg as dreg, DMA_BASE};
+use tactus_rp2040::io_bank0::{FUNCSEL_PIO0, IO_BANK0_BASE};
+use tactus_rp2040::pio::{reg, PIO0_BASE};
 
 pub const PINS: SpiPins = SpiPins {
     cs: 11,

@@ -20,7 +20,7 @@
 //! cycles) waited for it to settle, as pico-sdk 2.1.1's `runtime_init_clocks` does before
 //! it switches clk_sys to a 200 MHz PLL (datasheet 2.10; the RP2040 needs 1.15 V above
 //! 133 MHz); PLL_SYS to the board's clock (2.18.2: REFDIV 1, FBDIV, POSTDIV1 × POSTDIV2,
-//! from [`tactus_emulator::clocks::pll_sys_dividers`]), clk_sys switched to it through the
+//! from [`tactus_rp2040::pll::pll_sys_dividers`]), clk_sys switched to it through the
 //! auxiliary mux (2.15.3.2), the watchdog tick at 12 reference cycles so the timer counts
 //! microseconds (4.7.2), and the timer pulsed through reset so it counts from 0 (its
 //! ticks are then times from its release that the image schedules). The emulator models
@@ -37,12 +37,15 @@
 use super::ImageError;
 use tactus_compiler::thumb::buffer::{CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ins::{self as asm, cond};
-use tactus_emulator::clocks::{
-    self, reg, CLOCKS_BASE, PLL_SYS_BASE, RESETS_BASE, VREG_AND_CHIP_RESET_BASE, WATCHDOG_BASE,
-    XOSC_BASE,
-};
-use tactus_emulator::sio::{reg as sio, SIO_BASE};
 use tactus_isa::decode::{Hint, Instr};
+use tactus_rp2040::clocks::{self, CLOCKS_BASE};
+use tactus_rp2040::pll::{self, PLL_SYS_BASE};
+use tactus_rp2040::resets::{self, RESETS_BASE};
+use tactus_rp2040::sio::{reg as sio, SIO_BASE};
+use tactus_rp2040::vreg::{self, VREG_AND_CHIP_RESET_BASE};
+use tactus_rp2040::watchdog::{self, WATCHDOG_BASE};
+use tactus_rp2040::xosc::{self, XOSC_BASE};
+use tactus_rp2040::{ATOMIC_CLR as CLR, ATOMIC_SET as SET};
 
 /// Where the boot ROM enters a RAM image: its lowest address (the entry stub's).
 pub const ENTRY: u32 = 0x2000_0000;
@@ -52,10 +55,6 @@ pub const ENTRY: u32 = 0x2000_0000;
 pub const ENTRY_RESERVE: u32 = 0x100;
 /// The M0+'s VTOR (ARMv6-M B3.2.5; RP2040 datasheet 2.4.8).
 const VTOR: u32 = 0xe000_ed08;
-
-/// Atomic register aliases (datasheet 2.1.2).
-const SET: u32 = 0x2000;
-const CLR: u32 = 0x3000;
 
 /// The settling time waited after raising VREG, in 12 MHz crystal cycles: pico-sdk 2.1.1's
 /// `SYS_CLK_VREG_VOLTAGE_AUTO_ADJUST_DELAY_US` (1000 µs) at `XOSC_HZ`.
@@ -85,8 +84,8 @@ impl Boot {
     /// board file's reader rejects those).
     pub fn new(clock_hz: u64, core_mv: Option<u32>, core1: Option<[u32; 3]>) -> Boot {
         Boot {
-            pll: clocks::pll_sys_dividers(clock_hz),
-            vsel: core_mv.and_then(clocks::vsel_of_mv),
+            pll: pll::pll_sys_dividers(clock_hz),
+            vsel: core_mv.and_then(vreg::vsel_of_mv),
             core1,
             io: false,
         }
@@ -143,19 +142,19 @@ fn wait(a: &mut CodeBuffer, addr: u32, mask: u32, want: u32) {
 }
 
 /// Pulses block `bit` of RESETS and waits until it is out of reset (clobbers r0-r2).
-pub(super) fn pulse_reset(a: &mut CodeBuffer, bit: u32) {
-    store(a, RESETS_BASE + SET + reg::RESET, bit);
-    store(a, RESETS_BASE + CLR + reg::RESET, bit);
-    wait(a, RESETS_BASE + reg::RESET_DONE, bit, bit);
+fn pulse_reset(a: &mut CodeBuffer, bit: u32) {
+    store(a, RESETS_BASE + SET + resets::reg::RESET, bit);
+    store(a, RESETS_BASE + CLR + resets::reg::RESET, bit);
+    wait(a, RESETS_BASE + resets::reg::RESET_DONE, bit, bit);
 }
 
 /// Sets VREG.VSEL to `vsel` (a read-modify-write, as pico-sdk's `vreg_set_voltage`) and
 /// waits [`VREG_SETTLE_XOSC_CYCLES`] cycles of clk_sys (3 per loop: `SUBS`, taken `BNE`).
 /// Clobbers r0-r2.
 fn set_core_voltage(a: &mut CodeBuffer, vsel: u32) {
-    a.ldr_const(0, VREG_AND_CHIP_RESET_BASE + reg::VREG);
+    a.ldr_const(0, VREG_AND_CHIP_RESET_BASE + vreg::reg::VREG);
     a.i(asm::ldr(1, 0, 0));
-    a.mov_const(2, reg::VREG_VSEL_BITS);
+    a.mov_const(2, vreg::VREG_VSEL_BITS);
     a.i(asm::alu(tactus_isa::decode::AluOp::Bic, 1, 2));
     a.mov_const(2, vsel << 4);
     a.i(asm::alu(tactus_isa::decode::AluOp::Orr, 1, 2));
@@ -172,37 +171,50 @@ fn set_core_voltage(a: &mut CodeBuffer, vsel: u32) {
 pub fn clock_set_up(a: &mut CodeBuffer, pll: Option<(u32, u32, u32)>, vsel: Option<u32>) {
     if let Some((fbdiv, pd1, pd2)) = pll {
         // XOSC: 1-15 MHz range, start-up delay 1 ms (12 MHz × 1 ms / 256), enable.
-        store(a, XOSC_BASE + reg::XOSC_CTRL, 0xaa0);
-        store(a, XOSC_BASE + reg::XOSC_STARTUP, 47);
-        store(a, XOSC_BASE + reg::XOSC_CTRL, reg::XOSC_ENABLE_1_15MHZ);
-        wait(a, XOSC_BASE + reg::XOSC_STATUS, 1 << 31, 1 << 31);
+        store(
+            a,
+            XOSC_BASE + xosc::reg::CTRL,
+            xosc::CTRL_FREQ_RANGE_1_15MHZ,
+        );
+        store(a, XOSC_BASE + xosc::reg::STARTUP, 47);
+        store(a, XOSC_BASE + xosc::reg::CTRL, xosc::CTRL_ENABLE_1_15MHZ);
+        wait(
+            a,
+            XOSC_BASE + xosc::reg::STATUS,
+            xosc::STATUS_STABLE,
+            xosc::STATUS_STABLE,
+        );
         // clk_sys off the auxiliary mux (to clk_ref), clk_ref to the crystal.
-        store(a, CLOCKS_BASE + CLR + reg::CLK_SYS_CTRL, 1);
-        wait(a, CLOCKS_BASE + reg::CLK_SYS_SELECTED, 1, 1);
-        store(a, CLOCKS_BASE + reg::CLK_REF_CTRL, 2);
-        wait(a, CLOCKS_BASE + reg::CLK_REF_SELECTED, 4, 4);
+        store(a, CLOCKS_BASE + CLR + clocks::reg::CLK_SYS_CTRL, 1);
+        wait(a, CLOCKS_BASE + clocks::reg::CLK_SYS_SELECTED, 1, 1);
+        store(a, CLOCKS_BASE + clocks::reg::CLK_REF_CTRL, 2);
+        wait(a, CLOCKS_BASE + clocks::reg::CLK_REF_SELECTED, 4, 4);
         // The core voltage the clock needs, settled while clk_sys runs from the crystal.
         if let Some(vsel) = vsel {
             set_core_voltage(a, vsel);
         }
         // PLL_SYS: reset, REFDIV 1, FBDIV, power up the PLL and its VCO, lock, post
         // dividers, power them up.
-        pulse_reset(a, reg::RESET_PLL_SYS);
-        store(a, PLL_SYS_BASE + reg::PLL_CS, 1);
-        store(a, PLL_SYS_BASE + reg::PLL_FBDIV_INT, fbdiv);
-        store(a, PLL_SYS_BASE + CLR + reg::PLL_PWR, 1 | 1 << 5);
-        wait(a, PLL_SYS_BASE + reg::PLL_CS, 1 << 31, 1 << 31);
-        store(a, PLL_SYS_BASE + reg::PLL_PRIM, pd1 << 16 | pd2 << 12);
-        store(a, PLL_SYS_BASE + CLR + reg::PLL_PWR, 1 << 3);
+        pulse_reset(a, resets::PLL_SYS);
+        store(a, PLL_SYS_BASE + pll::reg::CS, 1);
+        store(a, PLL_SYS_BASE + pll::reg::FBDIV_INT, fbdiv);
+        store(a, PLL_SYS_BASE + CLR + pll::reg::PWR, 1 | 1 << 5);
+        wait(a, PLL_SYS_BASE + pll::reg::CS, pll::CS_LOCK, pll::CS_LOCK);
+        store(a, PLL_SYS_BASE + pll::reg::PRIM, pd1 << 16 | pd2 << 12);
+        store(a, PLL_SYS_BASE + CLR + pll::reg::PWR, 1 << 3);
         // clk_sys = PLL_SYS / 1 through the auxiliary mux.
-        store(a, CLOCKS_BASE + reg::CLK_SYS_DIV, 1 << 8);
-        store(a, CLOCKS_BASE + reg::CLK_SYS_CTRL, 0);
-        store(a, CLOCKS_BASE + reg::CLK_SYS_CTRL, 1);
-        wait(a, CLOCKS_BASE + reg::CLK_SYS_SELECTED, 2, 2);
+        store(a, CLOCKS_BASE + clocks::reg::CLK_SYS_DIV, 1 << 8);
+        store(a, CLOCKS_BASE + clocks::reg::CLK_SYS_CTRL, 0);
+        store(a, CLOCKS_BASE + clocks::reg::CLK_SYS_CTRL, 1);
+        wait(a, CLOCKS_BASE + clocks::reg::CLK_SYS_SELECTED, 2, 2);
     }
     // The timer: 1 µs ticks from the 12 MHz reference, counting from its release.
-    store(a, WATCHDOG_BASE + reg::WATCHDOG_TICK, 1 << 9 | 12);
-    pulse_reset(a, reg::RESET_TIMER);
+    store(
+        a,
+        WATCHDOG_BASE + watchdog::reg::TICK,
+        watchdog::TICK_ENABLE | 12,
+    );
+    pulse_reset(a, resets::TIMER);
 }
 
 /// Launches core 1 at `entry` with `vectors` and `sp` (module documentation). Clobbers
@@ -259,6 +271,7 @@ pub fn core_start(a: &mut CodeBuffer, core: usize, boot: &Boot, stack_bottom: u3
     if core == 0 {
         clock_set_up(a, boot.pll, boot.vsel);
         if boot.io {
+            pulse_reset(a, super::io::RESETS);
             super::io::boot(a);
         }
         if let Some(words) = boot.core1 {

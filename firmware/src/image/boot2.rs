@@ -2,7 +2,7 @@
 //!
 //! At power-on the boot ROM reads them over slow serial 03h reads into the top of SRAM5
 //! ([`BOOT2_LOAD`]), checks that their last word is the CRC-32 of the other 252
-//! ([`tactus_emulator::xip::boot2_crc32`]) and enters them with LR = 0 (RP2040 datasheet
+//! ([`tactus_rp2040::bootrom::boot2_crc32`]) and enters them with LR = 0 (RP2040 datasheet
 //! 2.8.1; pico-bootrom `bootrom_main.c`, `_flash_boot`). Their job is to make the flash fast
 //! to read and to enter the image. This one does what pico-sdk's `boot2_w25q080.S` does for
 //! the W25Q-family flash of the Raspberry Pi Pico (written anew here with the project's
@@ -29,9 +29,11 @@
 use super::ImageError;
 use tactus_compiler::thumb::buffer::{Assembled, CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ins::{self as asm, cond};
-use tactus_emulator::bus::FLASH_BASE;
-use tactus_emulator::xip::{self, reg as ssi, BOOT2_LOAD, BOOT2_SIZE, XIP_SSI_BASE};
 use tactus_isa::decode::{AluOp, Instr, MemOp};
+use tactus_rp2040::bootrom::{self, BOOT2_LOAD, BOOT2_SIZE};
+use tactus_rp2040::flash::SR2_QE;
+use tactus_rp2040::memory::FLASH_BASE;
+use tactus_rp2040::ssi::{reg as ssi, XIP_SSI_BASE};
 
 /// Where boot2 vectors into the image: the vector table after it in flash.
 pub const FLASH_VECTORS: u32 = FLASH_BASE + BOOT2_SIZE as u32;
@@ -40,7 +42,7 @@ pub const FLASH_VECTORS: u32 = FLASH_BASE + BOOT2_SIZE as u32;
 /// clk_sys.
 pub const SCKDV: u32 = 4;
 /// SR2's quad-enable bit, the value written to SR2.
-const SR2_QE: u32 = xip::QE as u32;
+const QE: u32 = SR2_QE as u32;
 /// The mode bits that keep the flash in continuous-read mode (W25Q16JV: M5–4 = 10).
 const MODE_CONTINUOUS: u32 = 0xa0;
 /// The M0+'s VTOR.
@@ -87,7 +89,7 @@ pub fn code() -> Result<Assembled, ImageError> {
     // 2. QE, unless already set.
     a.i(asm::movs(0, 0x35));
     a.bl(read_sreg);
-    a.i(asm::movs(2, SR2_QE as u8));
+    a.i(asm::movs(2, QE as u8));
     a.i(asm::cmp(0, 2));
     a.bc(cond::EQ, skip);
     ssi_store(&mut a, ssi::DR0, 0x06);
@@ -95,7 +97,7 @@ pub fn code() -> Result<Assembled, ImageError> {
     a.i(asm::ldr(1, 3, ssi::DR0 as u16));
     ssi_store(&mut a, ssi::DR0, 0x01);
     ssi_store(&mut a, ssi::DR0, 0);
-    ssi_store(&mut a, ssi::DR0, SR2_QE);
+    ssi_store(&mut a, ssi::DR0, QE);
     a.bl(wait_ready);
     for _ in 0..3 {
         a.i(asm::ldr(1, 3, ssi::DR0 as u16));
@@ -186,7 +188,7 @@ pub fn bytes() -> Result<[u8; BOOT2_SIZE], ImageError> {
     }
     let mut out = [0u8; BOOT2_SIZE];
     out[..text.len()].copy_from_slice(&text);
-    let crc = xip::boot2_crc32(&out[..BOOT2_SIZE - 4]);
+    let crc = bootrom::boot2_crc32(&out[..BOOT2_SIZE - 4]);
     out[BOOT2_SIZE - 4..].copy_from_slice(&crc.to_le_bytes());
     Ok(out)
 }

@@ -26,7 +26,7 @@ use super::{boot, FirmwareImage, ImageError, VECTORS};
 use object::elf;
 use object::write::elf::{FileHeader, ProgramHeader, SectionHeader, Sym, Writer};
 use object::Endianness;
-use tactus_emulator::bus::FLASH_BASE;
+use tactus_rp2040::memory::FLASH_BASE;
 
 /// `EF_ARM_EABI_VER5` (IHI 0044 §5.2).
 const EF_ARM_EABI_VER5: u32 = 0x0500_0000;

@@ -31,8 +31,8 @@ use super::boot2::{self, FLASH_VECTORS};
 use super::{FirmwareImage, ImageError};
 use tactus_compiler::thumb::buffer::{CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ins::{self as asm, cond};
-use tactus_emulator::bus::{sram_location, FLASH_BASE, FLASH_SIZE, SRAM_END};
 use tactus_isa::decode::Instr;
+use tactus_rp2040::memory::{sram_location, FLASH_BASE, FLASH_SIZE, SRAM_END};
 
 /// One piece of the SRAM image in flash.
 #[derive(Clone, Debug, PartialEq, Eq)]

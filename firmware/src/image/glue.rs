@@ -22,8 +22,8 @@ use super::ImageError;
 pub use crate::board_file::Tick;
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label};
 use tactus_compiler::thumb::ins::{self as asm, cond};
-use tactus_emulator::timer::{reg, TIMER_BASE};
 use tactus_isa::decode::{AluOp, Hint, Instr};
+use tactus_rp2040::timer::{reg, TIMER_BASE};
 use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
 /// Byte offsets in a core's control block (words in the core's own SRAM bank).

@@ -71,10 +71,12 @@ use crate::board_file::BoardError;
 use tactus_compiler::thumb::buffer::CodeBuffer;
 use tactus_compiler::thumb::ins as asm;
 use tactus_emulator::converters::SpiPins;
-use tactus_emulator::dma::{ctrl as dctrl, reg as dreg, DMA_BASE};
-use tactus_emulator::io::{priority, BUSCTRL_BASE, FUNCSEL_PIO0, IO_BANK0_BASE};
-use tactus_emulator::pio::{reg as preg, PIO0_BASE, PIO1_BASE};
 use tactus_isa::decode::{Instr, MemOp};
+use tactus_rp2040::busctrl::{priority, BUSCTRL_BASE};
+use tactus_rp2040::dma::{ctrl as dctrl, reg as dreg, DMA_BASE};
+use tactus_rp2040::io_bank0::{FUNCSEL_PIO0, IO_BANK0_BASE};
+use tactus_rp2040::memory::SRAM_ALIAS_BASE;
+use tactus_rp2040::pio::{reg as preg, PIO0_BASE, PIO1_BASE};
 use tactus_runtime::converters::{AdcPart, AdcScale, Converters, DacPart};
 use tactus_runtime::keyboard::BoardSpec;
 
@@ -132,7 +134,7 @@ fn trigger_offsets(core: usize) -> (u32, u16, u16, u8) {
 
 /// The address of core `core`'s I/O block (bank 2 + core through the non-striped alias).
 pub fn io_base(core: usize) -> u32 {
-    tactus_emulator::bus::SRAM_ALIAS_BASE + 0x1_0000 * (2 + core as u32) + IO_OFFSET
+    SRAM_ALIAS_BASE + 0x1_0000 * (2 + core as u32) + IO_OFFSET
 }
 
 /// The PIO block of core `core`.
@@ -639,7 +641,7 @@ impl IoPlan {
         core: usize,
         adc_ch: u32,
         dac_ch: u32,
-        tick: &super::glue::Tick,
+        tick: &crate::board_file::Tick,
     ) -> u64 {
         let Some(c) = self.cores.get(core) else {
             return 0;
@@ -737,15 +739,16 @@ fn store(a: &mut CodeBuffer, addr: u32, value: u32) {
     a.i(asm::str(1, 0, 0));
 }
 
-/// What core 0's start-up does for the converters before it launches core 1: the
-/// blocks the drivers use pulsed through reset (as pico-sdk's drivers do), and the DMA's
-/// bus priority above both cores'. Clobbers r0-r2.
+/// The blocks the drivers use (RESETS bits), which core 0's start-up pulses through reset
+/// before it launches core 1, as pico-sdk's drivers do (`super::boot::core_start`).
+pub const RESETS: u32 = {
+    use tactus_rp2040::resets;
+    resets::PIO0 | resets::PIO1 | resets::DMA | resets::IO_BANK0
+};
+
+/// What core 0's start-up does for the converters once [`RESETS`] are out of reset, before
+/// it launches core 1: the DMA's bus priority above both cores'. Clobbers r0-r1.
 pub fn boot(a: &mut CodeBuffer) {
-    use tactus_emulator::io::resets;
-    super::boot::pulse_reset(
-        a,
-        resets::PIO0 | resets::PIO1 | resets::DMA | resets::IO_BANK0,
-    );
     store(a, BUSCTRL_BASE, priority::DMA_R | priority::DMA_W);
 }
 

@@ -18,11 +18,11 @@ use super::{
     bank_base, window_alias, window_word, CorePlace, Drive, ImageError, IsrWcet, KeyPlace, KeySpec,
     Program, BANK_LIMIT, MAX_SENSORS, STACK_BYTES, STACK_CANARY, VECTORS,
 };
+use crate::windows::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use std::collections::BTreeMap;
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label, LongBranch};
-use tactus_emulator::bus::{SRAM4_BASE, SRAM5_BASE};
-use tactus_emulator::{DAC_BASE, MAX_KEYS, SENSOR_BASE};
 use tactus_isa::wcet::{self, Bounds};
+use tactus_rp2040::memory::{SRAM4_BASE, SRAM5_BASE};
 use tactus_runtime::converters::AdcScale;
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::{DacScale, LimiterConstants};

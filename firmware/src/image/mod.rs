@@ -61,8 +61,8 @@
 //! 3,015 at 133 MHz and 44.1 kHz). The handler starts a fixed exception entry after each
 //! tick: no jitter but the cycle of the alternating periods.
 //!
-//! **Split windows.** The sensor and DAC windows are the 128 words each from
-//! `tactus_emulator::SENSOR_BASE` and `DAC_BASE`, in the striped SRAM, so window word *w*
+//! **Split windows.** The sensor and DAC windows are the [`MAX_KEYS`] words each from
+//! [`SENSOR_BASE`] and [`crate::windows::DAC_BASE`], in the striped SRAM, so window word *w*
 //! lies in bank *w* mod 4. The image gives each core's keys the words of the core's own
 //! banks ([`window_word`]: on a two-core board core *c* takes banks *c* and *c* + 2, 32
 //! words each; a one-core board's core all four), in key order, and its handler reads and
@@ -109,19 +109,20 @@ pub mod io;
 mod layout;
 mod rest;
 mod run;
+mod sample;
 
 pub use flash_image::{FlashImage, FlashPiece};
-pub use run::{run_to_first_tick, run_to_timer, DriveOut, ImageRun, IoRecord, KeyEvent, SampleOut};
+pub use run::{run_to_first_tick, run_to_timer, ImageRun, IoRecord};
+pub use sample::{DriveOut, KeyEvent, SampleOut};
 
+use crate::windows::{MAX_KEYS, SENSOR_BASE};
 use std::fmt;
 use std::sync::{Arc, OnceLock};
 use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::{Axis, AxisTotal};
 use tactus_compiler::thumb::buffer::{BufferError, CodeBuffer, LongBranch};
 use tactus_compiler::thumb::ThumbObject;
-use tactus_emulator::bus::SRAM_ALIAS_BASE;
-
-use tactus_emulator::{MAX_KEYS, SENSOR_BASE};
+use tactus_rp2040::memory::{SRAM_ALIAS_BASE, SRAM_BASE};
 use tactus_runtime::keyboard::{BoardSpec, KeyAssignment};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 
@@ -490,8 +491,8 @@ pub struct Drive {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct KeySpec {
     /// Its first slot in the sensor and DAC windows (word index from [`SENSOR_BASE`] /
-    /// [`tactus_emulator::DAC_BASE`]; e.g. the MIDI key number); its last word in either window must be
-    /// below [`tactus_emulator::MAX_KEYS`].
+    /// [`crate::windows::DAC_BASE`]; e.g. the MIDI key number); its last word in either window must be
+    /// below [`MAX_KEYS`].
     pub slot: usize,
     /// Index of its program in the programs given to [`FirmwareImage::build`].
     pub program: usize,
@@ -771,7 +772,7 @@ pub struct FirmwareImage {
 
 /// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
 /// the striped addresses from [`SENSOR_BASE`], i.e. bank offsets from 0xfc00).
-const BANK_LIMIT: u32 = (SENSOR_BASE - 0x2000_0000) / 4;
+const BANK_LIMIT: u32 = (SENSOR_BASE - SRAM_BASE) / 4;
 /// Size of the vector table (16 system exceptions + 32 interrupts), bytes.
 const VECTORS: u32 = 48 * 4;
 /// Stack bytes per core (the whole scratch bank).
@@ -807,7 +808,7 @@ pub fn window_word(cores: usize, core: usize, j: usize) -> Option<usize> {
 /// non-striped alias of its bank (RP2040 datasheet 2.6.1), where a bank's words are
 /// consecutive.
 fn window_alias(base: u32, w: usize) -> u32 {
-    let striped = base - 0x2000_0000 + 4 * w as u32;
+    let striped = base - SRAM_BASE + 4 * w as u32;
     let (bank, row) = ((striped >> 2) & 3, striped >> 4);
     SRAM_ALIAS_BASE + 0x1_0000 * bank + 4 * row
 }
@@ -818,7 +819,7 @@ impl FirmwareImage {
     /// is replaced by the board's).
     ///
     /// Errors: [`ImageError::BadKey`] naming the program (a key's sensor or DAC words beyond
-    /// the [`tactus_emulator::MAX_KEYS`] window words, a window word used by two keys, an unknown program, a
+    /// the [`MAX_KEYS`] window words, a window word used by two keys, an unknown program, a
     /// core beyond the board's, a program with more than 24 sensors),
     /// [`ImageError::Board`] (more than 2 cores, a sample rate that is not a whole number of
     /// Hz, a clock below 1 MHz), [`ImageError::Limiter`], [`ImageError::NoRoom`],
@@ -1018,7 +1019,7 @@ impl FirmwareImage {
     /// board's clock when no PLL_SYS setting makes it from the 12 MHz crystal (the reset
     /// handler then leaves the clocks alone; the emulator runs at the board's clock from
     /// power-on whatever the firmware sets), or when the board's core voltage is too low
-    /// for it ([`tactus_emulator::clocks::min_core_mv`]: the emulator refuses such an
+    /// for it ([`tactus_rp2040::vreg::min_core_mv`]: the emulator refuses such an
     /// image when it switches clk_sys).
     ///
     /// Errors: [`ImageError::Board`].
@@ -1027,10 +1028,10 @@ impl FirmwareImage {
             return Err(ImageError::Board(format!("clock {why}")));
         }
         let core_mv = self.boot.vsel.map_or(
-            tactus_emulator::clocks::DEFAULT_CORE_MV,
-            tactus_emulator::clocks::vsel_mv,
+            tactus_rp2040::vreg::DEFAULT_CORE_MV,
+            tactus_rp2040::vreg::vsel_mv,
         );
-        match tactus_emulator::clocks::min_core_mv(self.clock_hz) {
+        match tactus_rp2040::vreg::min_core_mv(self.clock_hz) {
             None => Err(ImageError::Board(format!(
                 "clock {} MHz: beyond the 200 MHz the RP2040 is specified for (at 1.15 V, \
                  pico-sdk 2.1.1)",
@@ -1078,8 +1079,8 @@ impl FirmwareImage {
     }
 
     /// Key `key`'s window words (in key-list order): its sensor words (indices from
-    /// `tactus_emulator::SENSOR_BASE`, in sensor order) and its DAC words (indices from
-    /// `tactus_emulator::DAC_BASE`, one per force word it drives); `None` for an unknown
+    /// [`SENSOR_BASE`], in sensor order) and its DAC words (indices from
+    /// [`DAC_BASE`], one per force word it drives); `None` for an unknown
     /// key. Each core's keys have the words of the core's own banks (module documentation,
     /// "Split windows").
     pub fn window_words(&self, key: usize) -> Option<(&[usize], &[usize])> {
