@@ -26,7 +26,9 @@
 
 use super::{Figure, Key, Measured};
 use tactus_compiler::sim::Engine;
-use tactus_runtime::player::{Fingertip, Touch, TouchKind, TouchPlay};
+use tactus_runtime::player::{
+    Dynamic, Fingertip, Touch, TouchKind, TouchPlay, PRESSED_PUSH_N, STRUCK_SPEED_MPS,
+};
 
 /// Pushes of the pressed touches of the sweep, N: 16 log-spaced from 0.4 N (below the
 /// softest level, `PRESSED_PUSH_N`'s 0.8 N *pp*) to 50 N (*fff*).
@@ -265,10 +267,13 @@ pub(super) fn figures(
         });
     }
     // The ratio over p–f: the touches of levels p to f (pressed 1.6–12.6 N, struck
-    // 0.18–0.96 m/s).
+    // 0.18–0.96 m/s: `PRESSED_PUSH_N`, `STRUCK_SPEED_MPS`).
+    let (p, f) = (Dynamic::P as usize, Dynamic::F as usize);
     let in_p_f = |r: &&TouchRun| match r.touch.kind {
-        TouchKind::Pressed => (1.6..=12.6).contains(&r.touch.push_n),
-        TouchKind::Struck => (0.18..=0.96).contains(&r.touch.contact_mps),
+        TouchKind::Pressed => (PRESSED_PUSH_N[p]..=PRESSED_PUSH_N[f]).contains(&r.touch.push_n),
+        TouchKind::Struck => {
+            (STRUCK_SPEED_MPS[p]..=STRUCK_SPEED_MPS[f]).contains(&r.touch.contact_mps)
+        }
     };
     let ratios: Vec<f64> = all
         .iter()

@@ -552,6 +552,13 @@ fn quasi_static<E: Engine + Clone>(rest: &Key<E>, dip: f64) -> Result<Dip<E>, St
 /// Where the let-off zone starts on the way down, m: the first bin beyond half the dip whose
 /// force exceeds the plateau (median over 10–50 % of the dip) by [`LETOFF_RISE_GF`].
 fn letoff_zone(lp: &ForceLoop) -> Option<f64> {
+    above_plateau(lp, LETOFF_RISE_GF)
+}
+
+/// The first bin beyond half the dip whose force going down exceeds the plateau (the median
+/// over 10–50 % of the dip) by more than `rise_gf`, as a travel, m; `None` when the plateau
+/// has no bin or no bin rises so far.
+fn above_plateau(lp: &ForceLoop, rise_gf: f64) -> Option<f64> {
     let n = lp.down_bins.len();
     let mut plateau: Vec<f64> = lp.down_bins[n / 10..n / 2]
         .iter()
@@ -562,8 +569,7 @@ fn letoff_zone(lp: &ForceLoop) -> Option<f64> {
         return None;
     }
     plateau.sort_by(f64::total_cmp);
-    let median = plateau[plateau.len() / 2];
-    let limit = median + gf_to_n(LETOFF_RISE_GF);
+    let limit = plateau[plateau.len() / 2] + gf_to_n(rise_gf);
     (n / 2..n)
         .find(|&i| lp.down_bins[i].is_some_and(|f| f > limit))
         .map(|i| i as f64 * lp.bin_m)
@@ -634,20 +640,7 @@ fn sprung(lp: &ForceLoop, from_m: f64, to_m: f64) -> Option<Sprung> {
 /// [`LETOFF_ONSET_GF`]. A down-weight takes the key to there, where the let-off's rising
 /// resistance stops it (the key comes to rest at the goal, [`Goal::DownTo`]).
 fn letoff_onset(lp: &ForceLoop) -> Option<f64> {
-    let n = lp.down_bins.len();
-    let mut plateau: Vec<f64> = lp.down_bins[n / 10..n / 2]
-        .iter()
-        .flatten()
-        .copied()
-        .collect();
-    if plateau.is_empty() {
-        return None;
-    }
-    plateau.sort_by(f64::total_cmp);
-    let limit = plateau[plateau.len() / 2] + gf_to_n(LETOFF_ONSET_GF);
-    (n / 2..n)
-        .find(|&i| lp.down_bins[i].is_some_and(|f| f > limit))
-        .map(|i| i as f64 * lp.bin_m)
+    above_plateau(lp, LETOFF_ONSET_GF)
 }
 
 /// The rise over the plateau that marks the onset of the let-off, gf (ten times the weights'
