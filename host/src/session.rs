@@ -249,6 +249,17 @@ impl Piece {
             skipped,
             plural(skipped),
         ));
+        let (once, more, most) = strike::per_note(&played.strikes);
+        lines.push(format!(
+            "  strikes per note: {once} note{} struck once, {more} struck more than once{}",
+            plural(once),
+            match more {
+                0 => String::new(),
+                _ => format!(
+                    " (at most {most} strikes; a key that re-struck its string under one note)"
+                ),
+            },
+        ));
         let (audio_s, wall) = (perf.duration_s, self.wall_s);
         lines.push(format!(
             "  {} key-samples in {wall:.2} s: real-time factor {:.2} ({audio_s:.2} s of music; above 1 is faster than real time); peak memory {}",

@@ -68,6 +68,20 @@ pub fn silent(notes: &[Note], strikes: &[Strike]) -> Vec<Note> {
         .collect()
 }
 
+/// Strikes per note: how many notes one strike answers, and how many two or more (a key
+/// that re-struck its string under one note: a bounce or a second blow) with the most
+/// strikes any note got, from what [`answer`] set. Notes no strike answers are
+/// [`silent`]'s.
+pub fn per_note(strikes: &[Strike]) -> (usize, usize, usize) {
+    let mut count: std::collections::HashMap<(u8, u64), usize> = Default::default();
+    for n in strikes.iter().filter_map(|s| s.answers) {
+        *count.entry((n.key, n.on_s.to_bits())).or_default() += 1;
+    }
+    let once = count.values().filter(|&&c| c == 1).count();
+    let most = count.values().copied().max().unwrap_or(0);
+    (once, count.len() - once, most)
+}
+
 /// MIDI velocity for a hammer-head speed at the strike (m/s): the Bösendorfer SE
 /// reproducing piano's convention, `v = 52 + 25 · log2(speed / 1 m/s)`, rounded and clamped
 /// to 1–127 (W. Goebl's doctoral thesis, 2003, and W. Goebl and R. Bresin, "Measurement and
@@ -96,6 +110,32 @@ pub fn speed_for_velocity(v: u8) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn per_note_counts_the_strikes_each_note_got() {
+        let note = |key, on_s| Note {
+            key,
+            velocity: 64,
+            on_s,
+            off_s: on_s + 0.5,
+        };
+        let strike = |key, time_s, answers| Strike {
+            key,
+            time_s,
+            speed_mps: 1.0,
+            answers,
+        };
+        let (a, b) = (note(60, 1.0), note(62, 1.0));
+        let strikes = [
+            strike(60, 1.0, Some(a)),
+            strike(60, 1.01, Some(a)),
+            strike(60, 1.02, Some(a)),
+            strike(62, 1.0, Some(b)),
+            strike(64, 3.0, None),
+        ];
+        assert_eq!(per_note(&strikes), (1, 1, 3));
+        assert_eq!(per_note(&[]), (0, 0, 0));
+    }
 
     #[test]
     fn velocity_and_speed_maps_are_inverse() {
