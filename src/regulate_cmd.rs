@@ -19,10 +19,14 @@ pub struct RegulateArgs {
     /// Override a param: `--param M_h=11 g` (repeatable), e.g. a key of a graded keyboard.
     #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
     pub params: Vec<(String, String)>,
-    /// A spec of ranges (TOML, e.g. instruments/specs/concert_grand.toml): a verdict per
-    /// figure, exit 1 when one is outside its range or not measured.
+    /// A spec of ranges (TOML, e.g. instruments/specs/concert_grand.toml, or the dynamic
+    /// one, concert_grand_dynamic.toml; repeatable): a verdict per figure, exit 1 when one is
+    /// outside its range or not measured.
     #[arg(long, value_name = "SPEC.toml")]
-    pub spec: Option<PathBuf>,
+    pub spec: Vec<PathBuf>,
+    /// Leave out the dynamic sheet (the sweep of pressed and struck touches).
+    #[arg(long)]
+    pub no_dynamic: bool,
     /// Arithmetic: `f64` (the reference semantics) or `fixed` (the firmware's fixed point,
     /// the fixed-point interpreter's bits).
     #[arg(long, value_enum, default_value = "f64")]
@@ -31,7 +35,8 @@ pub struct RegulateArgs {
     /// many times faster) or `interp` (the interpreters that define the semantics).
     #[arg(long, value_enum, default_value = "jit")]
     pub engine: crate::values::EngineKind,
-    /// Directory for the force–travel loop (`NAME-loop.svg`, `NAME-loop.csv`).
+    /// Directory for the force–travel loop (`NAME-loop.svg`, `NAME-loop.csv`) and the
+    /// dynamic sheet (`NAME-travel.svg`, `NAME-keybottom.svg`, `NAME-touches.csv`).
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
 }
@@ -39,11 +44,17 @@ pub struct RegulateArgs {
 fn figures_help() -> String {
     let mut s = String::from(
         "Measured as a piano technician measures an action, on the instrument's own semantics with\n\
-         the closed-loop key model (a 30 g key and finger at the key front, pushed by weights or\n\
-         a finger, the instrument's force pushing back, one sample of delay as on the board).\n\
-         The first sensor is the key travel (0 at rest, its upper bound the key bed); a hammer\n\
-         action publishes `hammer_pos` and emits `strike`. Figures that do not apply are left out\n\
-         with a note. Figures (name in a spec file, unit):\n",
+         the closed-loop key model (a 30 g key and finger at the key front, pushed by weights laid\n\
+         on gently or by a finger, the instrument's force pushing back, one sample of delay as on\n\
+         the board). The first sensor is the key travel (0 at rest, its upper bound the key bed);\n\
+         a hammer action publishes `hammer_pos` and emits `strike`. Figures that do not apply are\n\
+         left out with a note. A sprung key's friction and balance weight come from its\n\
+         quasi-static loop (its down- and up-weight are read at different travels).\n\
+         The dynamic sheet (after `repetition`): a sweep of pressed touches (a 20 g finger on a\n\
+         10 g key pushing 0.4–50 N) and struck ones (the finger hitting the key at 0.05–3 m/s,\n\
+         then pushing), each timed from the finger's contact (as `tactus sim --touch` plays\n\
+         them), read against the published measurements of grand actions (Goebl, Bresin and\n\
+         Galembo 2005; Askenfelt and Jansson 1990). Figures (name in a spec file, unit):\n",
     );
     for f in Figure::ALL {
         s.push_str(&format!(
@@ -57,6 +68,7 @@ fn figures_help() -> String {
         "\nExit status: 0, or 1 when a figure is outside the spec's range (or not measured);\n\
          2 on bad input.\n\n\
          Examples: tactus regulate grand_piano --spec instruments/specs/concert_grand.toml\n\
+         \x20         tactus regulate grand_piano --spec instruments/specs/concert_grand.toml --spec instruments/specs/concert_grand_dynamic.toml\n\
          \x20         tactus regulate grand_piano --param M_h=11 g     # grand88's bass hammer\n\
          \x20         tactus regulate harpsichord --numeric fixed",
     );
@@ -75,15 +87,22 @@ pub fn run(args: RegulateArgs) -> ExitCode {
 }
 
 fn run_inner(args: &RegulateArgs) -> Result<ExitCode, String> {
-    // The spec first: a mistake in it fails before the measuring.
-    let spec = args.spec.as_deref().map(spec::read).transpose()?;
+    // The specs first: a mistake in one fails before the measuring.
+    let specs = args
+        .spec
+        .iter()
+        .map(|p| spec::read(p))
+        .collect::<Result<Vec<_>, _>>()?;
     let src = source::load(&args.file)?;
     let Some(lowered) =
         compile_reporting(&src, &args.params, tactus_runtime::DEFAULT_SAMPLE_RATE_HZ)
     else {
         return Ok(ExitCode::from(2));
     };
-    let config = Config::default();
+    let config = Config {
+        dynamic: !args.no_dynamic,
+        ..Config::default()
+    };
     let (sheet, warnings) = host_regulate::measure(
         &lowered.program,
         args.numeric.into(),
@@ -100,16 +119,24 @@ fn run_inner(args: &RegulateArgs) -> Result<ExitCode, String> {
         sheet.instrument,
         config.finger.mass_kg * 1e3
     );
-    let verdicts = spec.as_ref().map(|s| spec::check(&sheet, s));
-    print!("{}", host_regulate::sheet_text(&sheet, verdicts.as_deref()));
+    let verdicts: Vec<Vec<spec::Verdict>> = specs.iter().map(|s| spec::check(&sheet, s)).collect();
+    let all: Vec<spec::Verdict> = verdicts.iter().flatten().cloned().collect();
+    print!(
+        "{}",
+        host_regulate::sheet_text(&sheet, (!specs.is_empty()).then_some(&all[..]))
+    );
     let (svg, csv) = host_regulate::write_loop(&sheet, &args.out)?;
     println!("  wrote {} (force–travel loop)", svg.display());
     println!("  wrote {}", csv.display());
-    let (Some(spec), Some(verdicts)) = (spec, verdicts) else {
-        return Ok(ExitCode::SUCCESS);
-    };
-    let (holds, line) = host_regulate::spec_line(&spec, &verdicts);
-    println!("{line}");
+    for path in host_regulate::write_dynamic(&sheet, &args.out)? {
+        println!("  wrote {}", path.display());
+    }
+    let mut holds = true;
+    for (spec, verdicts) in specs.iter().zip(&verdicts) {
+        let (ok, line) = host_regulate::spec_line(spec, verdicts);
+        println!("{line}");
+        holds &= ok;
+    }
     Ok(if holds {
         ExitCode::SUCCESS
     } else {

@@ -19,6 +19,12 @@ pub struct SimArgs {
     /// per sensor; see below).
     #[arg(long, short, default_value = "ff-dip")]
     pub stimulus: String,
+    /// A pianist's touch instead of a stimulus: the key moved by a finger against the
+    /// instrument's force (closed loop). `pressed:FORCE` (the finger on the key pushes, e.g.
+    /// `pressed:8N`), `struck:SPEED` (the finger hits the key at a speed, then pushes, e.g.
+    /// `struck:2.5m/s`), or a level: `pressed:pp` … `struck:fff`.
+    #[arg(long, value_name = "TOUCH", value_parser = tactus_runtime::player::Touch::parse, conflicts_with = "stimulus")]
+    pub touch: Option<tactus_runtime::player::Touch>,
     /// Full key dip of the built-in key stimuli, mm [default: the key sensor's upper bound].
     #[arg(long, value_name = "MM")]
     pub dip: Option<f64>,
@@ -105,6 +111,7 @@ fn run_inner(args: &SimArgs) -> Result<ExitCode, String> {
             engine: args.engine.into(),
             plots: &args.plots,
             wav: args.wav.as_ref().map(|_| args.wav_outputs.as_slice()),
+            touch: args.touch,
         },
     )?;
     for note in &run.notes {

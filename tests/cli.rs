@@ -594,6 +594,24 @@ fn regulate_prints_a_sheet_judges_it_against_a_spec_and_rejects_bad_input() {
             && stdout.contains("not measured"),
         "{stdout}"
     );
+    // Two specs (`--spec` repeats): a verdict line each, exit 1 when one fails.
+    let light = dir.join("light.toml");
+    std::fs::write(&light, "name = \"light\"\nkey_dip = { min = 6, max = 8 }\n").unwrap();
+    let out = tactus()
+        .args(["regulate", "harpsichord", "-o"])
+        .arg(&dir)
+        .arg("--spec")
+        .arg(&light)
+        .arg("--spec")
+        .arg(&spec)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("within spec `light`") && stdout.contains("OUTSIDE spec `grand`"),
+        "{stdout}"
+    );
     // Bad input: exit 2 with the file and the field named.
     std::fs::write(&spec, "name = \"x\"\ndownweight = { min = 1 }\n").unwrap();
     let out = tactus()
@@ -606,6 +624,49 @@ fn regulate_prints_a_sheet_judges_it_against_a_spec_and_rejects_bad_input() {
     let out = tactus().args(["regulate", "rubbed_bank"]).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("pen instrument"));
+}
+
+/// `sim --touch` plays a pianist's finger on the key (issue 70): a struck *fff* strikes the
+/// grand piano's string in f64 and in fixed point at the same sample, hammer speeds within the
+/// accuracy contract's 1 %, faster than a pressed *pp*; a touch that is no touch is refused
+/// with the forms it takes.
+#[test]
+fn sim_plays_a_touch_and_refuses_a_bad_one() {
+    let dir = temp_dir("cli-touch");
+    let strike = |args: &[&str]| -> (String, f64) {
+        let out = tactus()
+            .args(["sim", "grand_piano"])
+            .args(args)
+            .arg("--out")
+            .arg(&dir)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+        let line = stdout
+            .lines()
+            .find(|l| l.contains("event strike"))
+            .unwrap_or_else(|| panic!("{args:?}: {stdout}"));
+        let (at, v) = line.split_once(": velocity = ").unwrap();
+        (at.to_string(), v.trim_end_matches(" m/s").parse().unwrap())
+    };
+    let (t64, v64) = strike(&["--touch", "struck:fff"]);
+    let (tfx, vfx) = strike(&["--touch", "struck:fff", "--numeric", "fixed"]);
+    assert_eq!(t64, tfx);
+    assert!((vfx - v64).abs() <= 0.01 * v64, "{v64} {vfx}");
+    let (_, soft) = strike(&["--touch", "pressed:pp"]);
+    assert!(soft < 1.0 && v64 > 5.0, "pp {soft} m/s, fff {v64} m/s");
+    assert!(dir.join("grand_piano-struck-3mps.csv").exists());
+    let bad = tactus()
+        .args(["sim", "grand_piano", "--touch", "hit:2m/s"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("pressed or struck"),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
 }
 
 /// `build`, `budget` and `play` resolve and compile a keyboard in one place

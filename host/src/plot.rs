@@ -352,6 +352,149 @@ pub fn plot_lines(
     })
 }
 
+/// A series of [`plot_points`]: measured points as markers, or a line through them (a
+/// fit, a band's edge).
+#[derive(Clone, Debug)]
+pub struct Points {
+    /// The legend's label (empty: no legend entry).
+    pub label: String,
+    /// (x, y) in the axes' units; non-finite points, and on log axes non-positive ones,
+    /// are left out.
+    pub points: Vec<(f64, f64)>,
+    /// Markers (measured points) or a line (a fit).
+    pub line: bool,
+    /// Dashed grey (a band's edge) instead of the series' colour.
+    pub faint: bool,
+}
+
+/// Points and lines on one panel, linear or log–log axes (`log`), with a legend: a
+/// measured sweep against a published fit and its band.
+///
+/// # Errors
+///
+/// [`PlotError::EmptyTrace`] without a point to draw, [`PlotError::Draw`] when the file
+/// cannot be written.
+pub fn plot_points(
+    series: &[Points],
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    log: bool,
+    path: &Path,
+) -> Result<(), PlotError> {
+    let keep =
+        |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite() && (!log || (x > 0.0 && y > 0.0));
+    let kept: Vec<Vec<(f64, f64)>> = series
+        .iter()
+        .map(|s| s.points.iter().copied().filter(keep).collect())
+        .collect();
+    if kept.iter().all(Vec::is_empty) {
+        return Err(PlotError::EmptyTrace {
+            path: path.to_path_buf(),
+        });
+    }
+    let all = || kept.iter().flatten();
+    let range = |v: Vec<f64>| -> Range<f64> {
+        if log {
+            let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            (lo / 1.2)..(hi * 1.2).max(lo * 1.5)
+        } else {
+            padded_range(v.into_iter())
+        }
+    };
+    let (xr, yr) = (
+        range(all().map(|p| p.0).collect()),
+        range(all().map(|p| p.1).collect()),
+    );
+    let draw = |root: DrawingArea<SVGBackend, Shift>| -> Result<(), String> {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let root = root
+            .titled(title, ("sans-serif", 20))
+            .map_err(|e| e.to_string())?;
+        let mut builder = ChartBuilder::on(&root);
+        builder
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(70);
+        macro_rules! body {
+            ($chart:expr) => {{
+                let mut chart = $chart.map_err(|e| e.to_string())?;
+                chart
+                    .configure_mesh()
+                    .x_desc(x_desc)
+                    .y_desc(y_desc)
+                    .label_style(("sans-serif", 13))
+                    .axis_desc_style(("sans-serif", 15))
+                    .light_line_style(RGBColor(235, 235, 235))
+                    .draw()
+                    .map_err(|e| e.to_string())?;
+                for (i, (s, pts)) in series.iter().zip(&kept).enumerate() {
+                    let colour = if s.faint {
+                        RGBColor(150, 150, 150).to_rgba()
+                    } else {
+                        colour(i)
+                    };
+                    let drawn = if s.line {
+                        let style = ShapeStyle::from(colour).stroke_width(2);
+                        if s.faint {
+                            chart.draw_series(DashedLineSeries::new(
+                                pts.iter().copied(),
+                                6,
+                                4,
+                                style,
+                            ))
+                        } else {
+                            chart.draw_series(LineSeries::new(pts.iter().copied(), style))
+                        }
+                    } else {
+                        chart.draw_series(
+                            pts.iter()
+                                .map(|&p| Circle::new(p, 4, ShapeStyle::from(colour).filled())),
+                        )
+                    }
+                    .map_err(|e| e.to_string())?;
+                    if !s.label.is_empty() {
+                        let line = s.line;
+                        drawn.label(legend_label(&s.label)).legend(move |(x, y)| {
+                            if line {
+                                PathElement::new(
+                                    vec![(x, y), (x + 24, y)],
+                                    ShapeStyle::from(colour).stroke_width(2),
+                                )
+                                .into_dyn()
+                            } else {
+                                Circle::new((x + 12, y), 4, ShapeStyle::from(colour).filled())
+                                    .into_dyn()
+                            }
+                        });
+                    }
+                }
+                chart
+                    .configure_series_labels()
+                    .position(SeriesLabelPosition::UpperRight)
+                    .label_font(("sans-serif", 14))
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(BLACK)
+                    .draw()
+                    .map_err(|e| e.to_string())?;
+            }};
+        }
+        if log {
+            body!(builder.build_cartesian_2d(xr.clone().log_scale(), yr.clone().log_scale()));
+        } else {
+            body!(builder.build_cartesian_2d(xr.clone(), yr.clone()));
+        }
+        root.present().map_err(|e| e.to_string())
+    };
+    draw(SVGBackend::new(path, (WIDTH, 620)).into_drawing_area()).map_err(|message| {
+        PlotError::Draw {
+            path: path.to_path_buf(),
+            message,
+        }
+    })
+}
+
 /// Cycles per sample over time, one named line per series (`("board 3", cycles)`, e.g. a
 /// board's busier core), at `sample_rate_hz` points per second, against the per-sample
 /// deadline `deadline_cycles`.

@@ -69,7 +69,7 @@ pub enum PlayError {
 /// The files [`Session::play`] writes for a piece, as `tactus play --help` explains them.
 pub const FILES_HELP: &str = "Writes OUT/NAME-strikes.csv (one row per strike: key, time, hammer speed, MIDI velocity, \
 the input note it answers), OUT/NAME-strikes.mid (the strikes as MIDI with velocities from the simulated hammer \
-speed: 1 at 0.1 m/s to 127 at 6 m/s, logarithmic) and OUT/NAME.wav (the strikes through a synthesized modal \
+speed: 52 + 25·log2(speed in m/s), the Bösendorfer SE's convention, so 1 at 0.24 m/s, 52 at 1 m/s, 127 at 8 m/s) and OUT/NAME.wav (the strikes through a synthesized modal \
 piano voice, 44.1 kHz 16-bit mono, normalised). With --trace-keys: OUT/NAME-key<K>.csv per traced key (time, key \
 travel, instrument force, hammer position, finger force), OUT/NAME-force.svg, OUT/NAME-key.svg and OUT/NAME-hammer.svg; \
 with --engine emu the force is the firmware's force word (before the safety limiter), the hammer its hammer_pos \
@@ -248,6 +248,17 @@ impl Piece {
             },
             skipped,
             plural(skipped),
+        ));
+        let (once, more, most) = strike::per_note(&played.strikes);
+        lines.push(format!(
+            "  strikes per note: {once} note{} struck once, {more} struck more than once{}",
+            plural(once),
+            match more {
+                0 => String::new(),
+                _ => format!(
+                    " (at most {most} strikes; a key that re-struck its string under one note)"
+                ),
+            },
         ));
         let (audio_s, wall) = (perf.duration_s, self.wall_s);
         lines.push(format!(

@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use tactus_compiler::diagnostics::Diagnostic;
 use tactus_compiler::ir::{Program, Ty};
 use tactus_compiler::sim::{GestureConfig, SimSummary};
+use tactus_runtime::player::{Fingertip, Touch, TouchPlay};
 use tactus_runtime::trace::{ColumnKind, Trace};
 
 /// The arithmetic of a run.
@@ -47,7 +48,26 @@ pub struct SimRequest<'a> {
     pub plots: &'a [String],
     /// `Some` when a WAV is asked for: the outputs chosen (empty: every `audio*` output).
     pub wav: Option<&'a [String]>,
+    /// A pianist's touch instead of the stimulus: the key moved by a finger against the
+    /// instrument's force ([`TOUCH_LIFT_S`]; `tactus_runtime::player::TouchPlay`).
+    pub touch: Option<Touch>,
 }
+
+/// When the finger of `tactus sim --touch` meets the key, s (after 20 ms at rest, as the
+/// built-in stimuli start).
+pub const TOUCH_START_S: f64 = 0.020;
+
+/// When it lifts, s: after its push and 0.4 s of holding the key down with
+/// [`TOUCH_HOLD_N`].
+pub const TOUCH_LIFT_S: f64 = 0.6;
+
+/// The force that holds the key down after the push, N (the force player's hold:
+/// `tactus_runtime::player::FingerConfig::default`).
+pub const TOUCH_HOLD_N: f64 = 1.2;
+
+/// How long a touch run lasts, s: the lift and 0.4 s of the key rising and the action
+/// settling.
+pub const TOUCH_RUN_S: f64 = 1.0;
 
 /// A run: the trace and what happened in it.
 #[derive(Clone, Debug)]
@@ -79,7 +99,8 @@ pub struct SimRun {
 ///
 /// Errors, as messages: the program has no sensor; a pen gesture's option (`gesture`) with
 /// a stimulus that is not a pen gesture, or `dip_m` with one that is not a built-in key
-/// stimulus; a WAV output or plotted column that
+/// stimulus; a touch on a pen instrument or on one whose first sensor is not a key travel
+/// from 0; a WAV output or plotted column that
 /// does not exist (naming the ones that do); a stimulus that does not resolve; a trace
 /// longer than `tactus_compiler::sim::MAX_TRACE_VALUES`; a JIT that does not compile.
 pub fn simulate(program: &Program, req: &SimRequest) -> Result<SimRun, String> {
@@ -88,6 +109,9 @@ pub fn simulate(program: &Program, req: &SimRequest) -> Result<SimRun, String> {
             "instrument `{}` has no sensor to drive",
             program.name
         ));
+    }
+    if let Some(touch) = req.touch {
+        return simulate_touch(program, req, touch);
     }
     // Options that apply to one kind of stimulus only: an error, not a silent no-op.
     let word = req.stimulus;
@@ -118,12 +142,68 @@ pub fn simulate(program: &Program, req: &SimRequest) -> Result<SimRun, String> {
             if gesture { " (use --depth)" } else { "" }
         ));
     }
-    // Checked before the simulation, so that a misspelt output fails at once.
+    let (wav_outputs, columns) = check_outputs(program, req, &[])?;
+    let fs = program.sample_rate_hz;
+    let stim = tactus_compiler::sim::resolve(program, req.stimulus, req.dip_m, &req.gesture, fs)
+        .map_err(|e| e.to_string())?;
+    let values = tactus_compiler::sim::trace_values(program, stim.len());
+    if values > tactus_compiler::sim::MAX_TRACE_VALUES {
+        return Err(format!(
+            "{}: {} samples × {} trace columns is {values} values, more than the {} a trace may hold; shorten the stimulus",
+            stim.name,
+            stim.len(),
+            columns.columns.len(),
+            tactus_compiler::sim::MAX_TRACE_VALUES
+        ));
+    }
+    let ((trace, summary), fixed_warnings) =
+        with_engine(program, req.numeric, req.engine, &mut |engine| {
+            tactus_compiler::sim::simulate_sensors_with(program, engine, &stim)
+        })?;
+    Ok(SimRun {
+        title: format!("{} — {}", program.name, stim.name),
+        stem: format!(
+            "{}-{}{}",
+            program.name,
+            stim.name.trim_end_matches(".csv"),
+            suffix(req)
+        ),
+        stimulus: stim.name.clone(),
+        samples: stim.len(),
+        duration_s: stim.duration_s(),
+        notes: stim.notes.iter().map(|n| n.to_string()).collect(),
+        fixed_warnings,
+        trace,
+        summary,
+        wav_outputs,
+    })
+}
+
+/// The file stem's suffix for the arithmetic and engine of `req`.
+fn suffix(req: &SimRequest) -> &'static str {
+    match (req.numeric, req.engine) {
+        (Numeric::Fixed, Engine::Interp) => "-fixed",
+        (Numeric::Fixed, Engine::Jit) => "-fixed-jit",
+        (Numeric::F64, Engine::Jit) => "-jit",
+        (Numeric::F64, Engine::Interp) => "",
+    }
+}
+
+/// The WAV outputs and the trace's columns (with `extra` ones) of `req`, checked before the
+/// simulation, so that a misspelt output or plotted column fails at once.
+fn check_outputs(
+    program: &Program,
+    req: &SimRequest,
+    extra: &[(String, String)],
+) -> Result<(Option<Vec<String>>, Trace), String> {
     let wav_outputs = req
         .wav
         .map(|chosen| wav_outputs(program, chosen))
         .transpose()?;
-    let columns = tactus_compiler::sim::trace_columns(program);
+    let mut columns = tactus_compiler::sim::trace_columns(program);
+    for (name, unit) in extra {
+        columns.add_column(name.clone(), unit.clone(), ColumnKind::Output);
+    }
     for name in req.plots {
         if name == "time" || columns.column(name).is_none() {
             let available: Vec<&str> = columns
@@ -139,59 +219,147 @@ pub fn simulate(program: &Program, req: &SimRequest) -> Result<SimRun, String> {
             ));
         }
     }
-    let fs = program.sample_rate_hz;
-    let stim = tactus_compiler::sim::resolve(program, req.stimulus, req.dip_m, &req.gesture, fs)
-        .map_err(|e| e.to_string())?;
-    let values = tactus_compiler::sim::trace_values(program, stim.len());
-    if values > tactus_compiler::sim::MAX_TRACE_VALUES {
-        return Err(format!(
-            "{}: {} samples × {} trace columns is {values} values, more than the {} a trace may hold; shorten the stimulus",
-            stim.name,
-            stim.len(),
-            columns.columns.len(),
-            tactus_compiler::sim::MAX_TRACE_VALUES
-        ));
-    }
-    let mut fixed_warnings = Vec::new();
-    let (trace, summary) = match (req.numeric, req.engine) {
-        (Numeric::F64, Engine::Interp) => tactus_compiler::sim::simulate_sensors(program, &stim),
+    Ok((wav_outputs, columns))
+}
+
+/// Runs `run` on an engine of `program` for `numeric` and `engine`: the f64 or fixed-point
+/// interpreter, or its JIT (the same bits). Returns what `run` returns and, in fixed point,
+/// the plan's warnings.
+///
+/// Errors: a JIT that does not compile.
+pub fn with_engine<R>(
+    program: &Program,
+    numeric: Numeric,
+    engine: Engine,
+    run: &mut dyn FnMut(&mut dyn tactus_compiler::sim::Engine) -> R,
+) -> Result<(R, Vec<Diagnostic>), String> {
+    Ok(match (numeric, engine) {
+        (Numeric::F64, Engine::Interp) => (
+            run(&mut tactus_compiler::interp::Instance::new(program)),
+            Vec::new(),
+        ),
         (Numeric::F64, Engine::Jit) => {
             let jit = tactus_jit::JitProgram::compile(program).map_err(|e| format!("JIT: {e}"))?;
             let mut engine = JitEngine(tactus_jit::JitInstance::new(&jit));
-            tactus_compiler::sim::simulate_sensors_with(program, &mut engine, &stim)
+            (run(&mut engine), Vec::new())
         }
         (Numeric::Fixed, engine) => {
             let fp = tactus_compiler::fixed::FixedProgram::new(program);
-            fixed_warnings = fp.warnings.clone();
-            if engine == Engine::Jit {
+            let r = if engine == Engine::Jit {
                 let jit = tactus_jit::fixed::FixedJitProgram::compile(&fp)
                     .map_err(|e| format!("JIT: {e}"))?;
                 let mut engine =
                     FixedJitEngine(tactus_jit::fixed::FixedJitInstance::new(&jit), &fp);
-                tactus_compiler::sim::simulate_sensors_with(program, &mut engine, &stim)
+                run(&mut engine)
             } else {
-                let mut inst = tactus_compiler::fixed::interp::FixedInstance::new(&fp);
-                tactus_compiler::sim::simulate_sensors_with(program, &mut inst, &stim)
-            }
+                run(&mut tactus_compiler::fixed::interp::FixedInstance::new(&fp))
+            };
+            (r, fp.warnings.clone())
         }
+    })
+}
+
+/// The key travel a touch needs of `program`: its first sensor, from 0 at rest to the key
+/// bed (a length of at most 100 mm), on a keyboard instrument; the bed (its upper bound).
+///
+/// Errors: a pen instrument, or a first sensor that is not such a key.
+pub fn key_dip(program: &Program, what: &str) -> Result<f64, String> {
+    if program.is_pen() {
+        return Err(format!(
+            "instrument `{}` is a pen instrument (a vector force): {what} needs a key",
+            program.name
+        ));
+    }
+    let Some(sensor) = program.sensors.first() else {
+        return Err(format!(
+            "instrument `{}` has no sensor: {what} needs a key",
+            program.name
+        ));
     };
-    let suffix = match (req.numeric, req.engine) {
-        (Numeric::Fixed, Engine::Interp) => "-fixed",
-        (Numeric::Fixed, Engine::Jit) => "-fixed-jit",
-        (Numeric::F64, Engine::Jit) => "-jit",
-        (Numeric::F64, Engine::Interp) => "",
-    };
+    let (lo, dip) = sensor.range;
+    let length = sensor.dim == tactus_compiler::units::Dim::LENGTH;
+    if lo != 0.0 || !(dip > 0.0 && dip <= 0.1) || !length {
+        return Err(format!(
+            "instrument `{}`: {what} reads the first sensor `{}` as the key travel, a length from 0 at rest to the key bed (at most 100 mm); its range is [{lo}, {dip}] {}",
+            program.name, sensor.name, sensor.dim.unit_string()
+        ));
+    }
+    Ok(dip)
+}
+
+/// The finger's columns a touch run adds to the trace: the pulp's force on the key and the
+/// finger's speed.
+fn touch_columns() -> Vec<(String, String)> {
+    vec![
+        ("finger".to_string(), "N".to_string()),
+        ("finger.speed".to_string(), "m/s".to_string()),
+    ]
+}
+
+/// `req` with a touch: the key moved by a finger ([`TouchPlay`], [`Fingertip::default`])
+/// for [`TOUCH_RUN_S`], the finger meeting it at [`TOUCH_START_S`].
+fn simulate_touch(program: &Program, req: &SimRequest, touch: Touch) -> Result<SimRun, String> {
+    let g = &req.gesture;
+    if [g.depth_m, g.speed_m_per_s, g.stroke_m, g.across_m]
+        .iter()
+        .any(Option::is_some)
+    {
+        return Err(
+            "--depth, --speed, --stroke and --across apply to the pen gestures, not to a --touch"
+                .to_string(),
+        );
+    }
+    if req.dip_m.is_some() {
+        return Err(
+            "--dip applies to the built-in key stimuli; a --touch moves the key to its sensor's bed"
+                .to_string(),
+        );
+    }
+    let dip = key_dip(program, "a --touch")?;
+    let extra = touch_columns();
+    let (wav_outputs, _) = check_outputs(program, req, &extra)?;
+    let fs = program.sample_rate_hz;
+    let samples = (TOUCH_RUN_S * fs) as usize;
+    let ((trace, summary), fixed_warnings) =
+        with_engine(program, req.numeric, req.engine, &mut |engine| {
+            let mut play = TouchPlay::new(
+                touch,
+                dip,
+                Fingertip::default(),
+                fs,
+                TOUCH_START_S,
+                TOUCH_HOLD_N,
+                TOUCH_LIFT_S,
+            );
+            let (trace, summary, _) = tactus_compiler::sim::simulate_driven(
+                program,
+                engine,
+                samples,
+                &extra,
+                &mut |n, previous| {
+                    if n > 0 {
+                        play.step(previous.map_or(0.0, |o| o.total));
+                    }
+                    let p = play.player();
+                    (
+                        vec![play.key_m()],
+                        vec![
+                            p.contact_n().unwrap_or(0.0),
+                            p.finger_speed_mps().unwrap_or(0.0),
+                        ],
+                    )
+                },
+            );
+            (trace, summary)
+        })?;
+    let name = touch.label().replace(':', "-").replace("m/s", "mps");
     Ok(SimRun {
-        title: format!("{} — {}", program.name, stim.name),
-        stem: format!(
-            "{}-{}{suffix}",
-            program.name,
-            stim.name.trim_end_matches(".csv")
-        ),
-        stimulus: stim.name.clone(),
-        samples: stim.len(),
-        duration_s: stim.duration_s(),
-        notes: stim.notes.iter().map(|n| n.to_string()).collect(),
+        title: format!("{} — {} touch", program.name, touch.label()),
+        stem: format!("{}-{name}{}", program.name, suffix(req)),
+        stimulus: touch.label(),
+        samples,
+        duration_s: samples as f64 / fs,
+        notes: Vec::new(),
         fixed_warnings,
         trace,
         summary,
@@ -405,6 +573,37 @@ pub fn stimulus_help() -> String {
     for (n, d) in tactus_compiler::sim::gesture_names() {
         s.push_str(&format!("  {n:<10} {d}\n"));
     }
+    s.push_str(&format!(
+        "\nA pianist's touch (--touch, instead of --stimulus): a finger of {finger:.0} g on a key of\n\
+         {key:.0} g at the key front, joined by the fingertip's pulp, moves the key against the\n\
+         instrument's force (one sample of delay, as on the board). `pressed:FORCE` lays the\n\
+         finger on the key and pushes (e.g. pressed:8N); `struck:SPEED` hits the key at that\n\
+         speed, then pushes (e.g. struck:2.5m/s); a level (pressed:pp … struck:fff) takes its\n\
+         row below. The push rises over {rise:.0} ms and lasts until {after:.0} ms after the key\n\
+         reaches its bed; {hold} N then hold the key down until the finger lifts at {lift} s.\n\
+         The finger meets the key at {start:.0} ms. Extra trace columns: `finger` (the pulp's force\n\
+         on the key, N) and `finger.speed` (m/s).\n",
+        finger = Fingertip::default().finger_kg * 1e3,
+        key = Fingertip::default().key_kg * 1e3,
+        rise = tactus_runtime::player::PUSH_RISE_S * 1e3,
+        after = tactus_runtime::player::PUSH_AFTER_BOTTOM_S * 1e3,
+        hold = TOUCH_HOLD_N,
+        lift = TOUCH_LIFT_S,
+        start = TOUCH_START_S * 1e3,
+    ));
+    s.push_str("  level   pressed push   struck speed\n");
+    for level in tactus_runtime::player::Dynamic::ALL {
+        let (p, st) = (
+            Touch::at(tactus_runtime::player::TouchKind::Pressed, level),
+            Touch::at(tactus_runtime::player::TouchKind::Struck, level),
+        );
+        s.push_str(&format!(
+            "  {:<6} {:>8} N     {:>6} m/s\n",
+            level.name(),
+            p.push_n,
+            st.contact_mps
+        ));
+    }
     s.push_str(
         "\nA CSV stimulus has a header `key_mm` (one row per sample at 44.1 kHz) or\n\
          `time_s,key_mm` (any increasing times, linearly interpolated): key travel in mm,\n\
@@ -417,6 +616,7 @@ pub fn stimulus_help() -> String {
          the instrument has outputs OUT/NAME-STIMULUS-outputs.svg, and with --plot\n\
          OUT/NAME-STIMULUS-plot.svg.\n\n\
          Examples: tactus sim instruments/grand_piano.tactus --stimulus half-dip --param G=0.2 N\n\
+         \x20         tactus sim grand_piano --touch struck:2.5m/s --plot finger\n\
          \x20         tactus sim rubbed_bank --stimulus press-rub --depth 5 --speed 0.1 --plot force.x",
     );
     s

@@ -24,8 +24,10 @@
 //!   `T(v) = 160 ms · (25/160)^((v − 30)/70)`, clamped to [20 ms, 200 ms] (a recorded
 //!   note-on means the hammer did reach the string, and the shipped piano's hammer no longer
 //!   does at a 250 ms descent). MIDI velocity
-//!   is close to logarithmic in hammer speed on reproducing pianos, so a log-linear map of
-//!   travel time keeps the order of velocities (the property the tests rely on);
+//!   is close to logarithmic in hammer speed on reproducing pianos (the map the strike
+//!   outputs use, `tactus_host::play::strike::midi_velocity`, is the Bösendorfer SE's,
+//!   `52 + 25·log2(v)`), so a log-linear map of travel time keeps the order of velocities
+//!   (the property the tests rely on); this player does not aim at a hammer speed;
 //! * the press follows the cycloidal law of [`crate::stimulus`] (smooth to the second
 //!   derivative) from wherever the key is, so a repeated note that comes before the key is
 //!   back up re-strikes from a half-released key; such a press covers the remaining travel

@@ -262,6 +262,31 @@ pub fn simulate_sensors_with(
     engine: &mut dyn Engine,
     stimulus: &SensorStimulus,
 ) -> (Trace, SimSummary) {
+    let (trace, summary, _) = simulate_driven(program, engine, stimulus.len(), &[], &mut |n, _| {
+        (stimulus.row(n).to_vec(), Vec::new())
+    });
+    (trace, summary)
+}
+
+/// A closed loop's drive of [`simulate_driven`]: `(sample index, the previous sample's
+/// output)` → (sensor readings, extra column values).
+pub type Drive<'a> = dyn FnMut(usize, Option<&SampleOut>) -> (Vec<f64>, Vec<f64>) + 'a;
+
+/// Runs `program` for `samples` samples on `engine` with the sensor readings of each sample
+/// chosen by `drive` from what the engine answered the sample before: `drive(n, previous)`
+/// gets the sample's index and the previous sample's output (`None` at sample 0) and
+/// returns the readings (as [`simulate_sensors_with`] takes them) and one value for each
+/// of the `extra` columns (name, unit), which the trace records after the event columns.
+/// A closed loop (a finger pushing a key against the instrument's force, with the board's
+/// one sample of delay) is such a drive. Returns the trace, the summary and the last
+/// sample's output.
+pub fn simulate_driven(
+    program: &Program,
+    engine: &mut dyn Engine,
+    samples: usize,
+    extra: &[(String, String)],
+    drive: &mut Drive,
+) -> (Trace, SimSummary, Option<SampleOut>) {
     let mut trace = trace_columns(program);
     let mut event_col = Vec::new();
     let mut first =
@@ -270,12 +295,17 @@ pub fn simulate_sensors_with(
         event_col.push(first);
         first += e.args.len();
     }
+    let extra_at = trace.columns.len();
+    for (name, unit) in extra {
+        trace.add_column(name.clone(), unit.clone(), ColumnKind::Output);
+    }
     let mut row = vec![0.0; trace.columns.len()];
     let hidden = axis_outputs(program);
     let mut events = Vec::new();
-    for n in 0..stimulus.len() {
-        let sensors = stimulus.row(n);
-        let out = engine.step_si(sensors);
+    let mut last: Option<SampleOut> = None;
+    for n in 0..samples {
+        let (sensors, extras) = drive(n, last.as_ref());
+        let out = engine.step_si(&sensors);
         let mut c = 0;
         row[c] = n as f64 / program.sample_rate_hz;
         c += 1;
@@ -316,7 +346,7 @@ pub fn simulate_sensors_with(
             row[c] = *o;
             c += 1;
         }
-        for x in &mut row[c..] {
+        for x in &mut row[c..extra_at] {
             *x = f64::NAN;
         }
         for (e, args) in &out.events {
@@ -324,8 +354,12 @@ pub fn simulate_sensors_with(
             row[start..start + args.len()].copy_from_slice(args);
             events.push((n, program.events[e.index()].name.clone(), args.clone()));
         }
+        for (i, x) in row[extra_at..].iter_mut().enumerate() {
+            *x = extras.get(i).copied().unwrap_or(f64::NAN);
+        }
         // Rows always match the column count built above.
         let _ = trace.push_row(&row);
+        last = Some(out);
     }
     (
         trace,
@@ -333,5 +367,6 @@ pub fn simulate_sensors_with(
             saturations: engine.state_saturations(),
             events,
         },
+        last,
     )
 }

@@ -13,9 +13,12 @@ use super::strike::speed_for_velocity;
 use tactus_runtime::player::{Calibration, FingerConfig, ForceProfile, Stroke};
 
 /// Peak finger forces of the calibration strokes, N (log-spaced from a push barely above a
-/// piano key's down-weight to a hard *fff* blow).
-pub const CALIBRATION_LEVELS_N: [f64; 14] = [
-    0.6, 0.75, 0.9, 1.1, 1.4, 1.8, 2.3, 3.0, 4.0, 5.5, 7.5, 10.0, 14.0, 20.0,
+/// piano key's down-weight to the hardest *fff* blow, the 50 N peak key force a haptic
+/// grand key was sized for: Timmermans et al. 2020, Tactus DESIGN.md), so that the strikes
+/// span the hammer speeds of MIDI 1–127 ([`speed_for_velocity`]: 0.24–8 m/s) as far as the
+/// action gives them.
+pub const CALIBRATION_LEVELS_N: [f64; 17] = [
+    0.6, 0.75, 0.9, 1.1, 1.4, 1.8, 2.3, 3.0, 4.0, 5.5, 7.5, 10.0, 14.0, 20.0, 28.0, 38.0, 50.0,
 ];
 
 /// How long a calibration stroke is simulated, s.

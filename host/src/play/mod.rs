@@ -247,8 +247,9 @@ pub struct Played {
 }
 
 /// The slack of a calibrated range of hammer speeds, as a fraction of the speed: about half
-/// a MIDI velocity step (the velocity map is logarithmic, 127 steps over a factor of 60 in
-/// speed: [`strike::speed_for_velocity`]), since the range's ends are measured, not exact.
+/// a MIDI velocity step (the velocity map is logarithmic, 25 steps for each doubling of the
+/// speed, a step 2.8 %: [`strike::speed_for_velocity`]), since the range's ends are
+/// measured, not exact.
 pub const CALIBRATION_SLACK: f64 = 0.015;
 
 /// Whether hammer speed `v` (m/s) lies outside the force player's calibrated range

@@ -29,6 +29,7 @@
 //! lifts back to rest; friction `(down − up)/2`; balance weight `(down + up)/2` (D. Stanwood,
 //! "The New Touchweight Metrology", PTG Journal, June 1996 and February 2000).
 
+pub mod dynamic;
 pub mod sheet;
 pub mod spec;
 
@@ -58,6 +59,13 @@ pub const LETOFF_RISE_GF: f64 = 10.0;
 /// The longest a weight is given to move the key, s: a technician's patience. A key that
 /// has not reached its goal by then (or stands still for [`STALL_S`]) did not go.
 pub const WEIGHT_TIMEOUT_S: f64 = 4.0;
+
+/// How gently a down-weight is laid on the key, s: its force rises as a raised cosine over
+/// this long, longer than the swing of a key on a soft spring (a 30 g key on 20 N/m swings
+/// in 0.24 s), so that the key follows the weight instead of swinging past where the weight
+/// holds it (Tactus issue 70: a frictionless key on a 100 N/m spring, the weight laid on in
+/// 5 ms, swung into its bed under 158 gf where 897 gf hold it there).
+pub const WEIGHT_RISE_S: f64 = 0.3;
 
 /// A key whose travel changes by less than [`STALL_M`] over this long has stopped, s.
 pub const STALL_S: f64 = 0.15;
@@ -91,6 +99,9 @@ pub struct Config {
     pub ff_n: f64,
     /// The repetition finger's push, N (default 3 N, the force player's re-strike stroke).
     pub repetition_n: f64,
+    /// Whether to measure the dynamic sheet too (the touch sweep of [`dynamic`]; default
+    /// true).
+    pub dynamic: bool,
 }
 
 impl Default for Config {
@@ -100,6 +111,7 @@ impl Default for Config {
             pp_n: 0.8,
             ff_n: 10.0,
             repetition_n: 3.0,
+            dynamic: true,
         }
     }
 }
@@ -151,11 +163,31 @@ pub enum Figure {
     StrikeSpeedFf,
     /// Fastest repetition that strikes every note, notes per second.
     Repetition,
+    /// Least hammer (or plectrum) speed at the string over the dynamic sweep: the softest
+    /// touch that strikes, m/s ([`dynamic`]).
+    HammerSpeedMin,
+    /// Greatest hammer speed over the dynamic sweep: the loudest, m/s.
+    HammerSpeedMax,
+    /// Least hammer speed / the key's peak speed over the touches of levels *p* to *f*.
+    SpeedRatioMin,
+    /// Greatest hammer speed / the key's peak speed over *p* to *f*.
+    SpeedRatioMax,
+    /// Median travel time (finger contact to string contact) of the pressed touches over
+    /// the published fit's at the same hammer speed.
+    TravelTimeToFit,
+    /// Pressed minus struck travel time at equal hammer speed, ms (median).
+    StruckSooner,
+    /// Key bottom minus string contact at the softest touch that strikes, ms.
+    KeyBottomSoft,
+    /// Key bottom minus string contact at the loudest touch, ms.
+    KeyBottomLoud,
+    /// Hammer speed where key bottom minus string contact changes sign, m/s.
+    KeyBottomCrossing,
 }
 
 impl Figure {
     /// Every figure, in the sheet's order.
-    pub const ALL: [Figure; 19] = [
+    pub const ALL: [Figure; 28] = [
         Figure::DownWeight,
         Figure::UpWeight,
         Figure::Friction,
@@ -175,7 +207,21 @@ impl Figure {
         Figure::StrikeSpeedPp,
         Figure::StrikeSpeedFf,
         Figure::Repetition,
+        Figure::HammerSpeedMin,
+        Figure::HammerSpeedMax,
+        Figure::SpeedRatioMin,
+        Figure::SpeedRatioMax,
+        Figure::TravelTimeToFit,
+        Figure::StruckSooner,
+        Figure::KeyBottomSoft,
+        Figure::KeyBottomLoud,
+        Figure::KeyBottomCrossing,
     ];
+
+    /// Whether the figure belongs to the dynamic sheet (the touch sweep of [`dynamic`]).
+    pub fn is_dynamic(self) -> bool {
+        self >= Figure::HammerSpeedMin
+    }
 
     /// The figure's name in a spec file and in JSON (`down_weight`).
     pub fn key(self) -> &'static str {
@@ -199,6 +245,15 @@ impl Figure {
             Figure::StrikeSpeedPp => "strike_speed_pp",
             Figure::StrikeSpeedFf => "strike_speed_ff",
             Figure::Repetition => "repetition",
+            Figure::HammerSpeedMin => "hammer_speed_min",
+            Figure::HammerSpeedMax => "hammer_speed_max",
+            Figure::SpeedRatioMin => "speed_ratio_min",
+            Figure::SpeedRatioMax => "speed_ratio_max",
+            Figure::TravelTimeToFit => "travel_time_to_fit",
+            Figure::StruckSooner => "struck_sooner",
+            Figure::KeyBottomSoft => "key_bottom_soft",
+            Figure::KeyBottomLoud => "key_bottom_loud",
+            Figure::KeyBottomCrossing => "key_bottom_crossing",
         }
     }
 
@@ -207,7 +262,7 @@ impl Figure {
         Figure::ALL.into_iter().find(|f| f.key() == key)
     }
 
-    /// The figure's unit as printed (`gf`, `mm`, `ms`, `m/s`, `notes/s`).
+    /// The figure's unit as printed (`gf`, `mm`, `ms`, `m/s`, `notes/s`, `×` for a ratio).
     pub fn unit(self) -> &'static str {
         match self {
             Figure::DownWeight
@@ -224,9 +279,18 @@ impl Figure {
             | Figure::Aftertouch
             | Figure::BlowDistance
             | Figure::BackCheck => "mm",
-            Figure::KeyBottomPp | Figure::KeyBottomFf => "ms",
-            Figure::StrikeSpeedPp | Figure::StrikeSpeedFf => "m/s",
+            Figure::KeyBottomPp
+            | Figure::KeyBottomFf
+            | Figure::StruckSooner
+            | Figure::KeyBottomSoft
+            | Figure::KeyBottomLoud => "ms",
+            Figure::StrikeSpeedPp
+            | Figure::StrikeSpeedFf
+            | Figure::HammerSpeedMin
+            | Figure::HammerSpeedMax
+            | Figure::KeyBottomCrossing => "m/s",
             Figure::Repetition => "notes/s",
+            Figure::SpeedRatioMin | Figure::SpeedRatioMax | Figure::TravelTimeToFit => "×",
         }
     }
 
@@ -252,6 +316,15 @@ impl Figure {
             Figure::StrikeSpeedPp => "strike speed, pp",
             Figure::StrikeSpeedFf => "strike speed, ff",
             Figure::Repetition => "fastest repetition",
+            Figure::HammerSpeedMin => "softest strike",
+            Figure::HammerSpeedMax => "loudest strike",
+            Figure::SpeedRatioMin => "hammer/key speed, p–f, min",
+            Figure::SpeedRatioMax => "hammer/key speed, p–f, max",
+            Figure::TravelTimeToFit => "travel time / Goebl fit",
+            Figure::StruckSooner => "struck sooner than pressed",
+            Figure::KeyBottomSoft => "key bottom − strike, soft",
+            Figure::KeyBottomLoud => "key bottom − strike, loud",
+            Figure::KeyBottomCrossing => "key bottom = strike at",
         }
     }
 }
@@ -316,6 +389,9 @@ pub struct Sheet {
     pub notes: Vec<String>,
     /// The quasi-static force–travel loop.
     pub force_loop: ForceLoop,
+    /// The dynamic sweep's touches ([`dynamic::sweep`]), empty when the sheet was measured
+    /// without it ([`Config::dynamic`]).
+    pub touches: Vec<dynamic::TouchRun>,
 }
 
 impl Sheet {
@@ -476,6 +552,13 @@ fn quasi_static<E: Engine + Clone>(rest: &Key<E>, dip: f64) -> Result<Dip<E>, St
 /// Where the let-off zone starts on the way down, m: the first bin beyond half the dip whose
 /// force exceeds the plateau (median over 10–50 % of the dip) by [`LETOFF_RISE_GF`].
 fn letoff_zone(lp: &ForceLoop) -> Option<f64> {
+    above_plateau(lp, LETOFF_RISE_GF)
+}
+
+/// The first bin beyond half the dip whose force going down exceeds the plateau (the median
+/// over 10–50 % of the dip) by more than `rise_gf`, as a travel, m; `None` when the plateau
+/// has no bin or no bin rises so far.
+fn above_plateau(lp: &ForceLoop, rise_gf: f64) -> Option<f64> {
     let n = lp.down_bins.len();
     let mut plateau: Vec<f64> = lp.down_bins[n / 10..n / 2]
         .iter()
@@ -486,12 +569,83 @@ fn letoff_zone(lp: &ForceLoop) -> Option<f64> {
         return None;
     }
     plateau.sort_by(f64::total_cmp);
-    let median = plateau[plateau.len() / 2];
-    let limit = median + gf_to_n(LETOFF_RISE_GF);
+    let limit = plateau[plateau.len() / 2] + gf_to_n(rise_gf);
     (n / 2..n)
         .find(|&i| lp.down_bins[i].is_some_and(|f| f > limit))
         .map(|i| i as f64 * lp.bin_m)
 }
+
+/// What the quasi-static loop says of a key whose force rises along its stroke.
+struct Sprung {
+    /// Change of the mean of the down and up forces between the ends of the range, gf.
+    rise_gf: f64,
+    /// The median gap (down − up) over the bins, gf.
+    gap_gf: f64,
+    /// The median gap over 40–60 % of the dip, gf.
+    mid_gap_gf: f64,
+    /// The median of the mean of down and up over 40–60 % of the dip, gf.
+    mid_mean_gf: f64,
+}
+
+/// Whether the key is sprung: the mean of its quasi-static forces going down and up differs
+/// between the ends of `[from_m, to_m]` (a few bins each) by more than twice the weights'
+/// resolution, [`WEIGHT_RESOLUTION_GF`]: then `(down − up)/2` would count half that change
+/// as friction, beyond what the weights resolve (a balanced lever's force is flat: the
+/// piano's changes by 0.00 gf). `None` for a balanced key or a loop with too few bins to say.
+fn sprung(lp: &ForceLoop, from_m: f64, to_m: f64) -> Option<Sprung> {
+    let dip = lp.bin_m * LOOP_BINS as f64;
+    let pairs = |lo: f64, hi: f64| -> Vec<(f64, f64)> {
+        (0..LOOP_BINS)
+            .filter(|&i| {
+                let x = (i as f64 + 0.5) * lp.bin_m;
+                x >= lo && x <= hi
+            })
+            .filter_map(|i| Some((lp.down_bins[i]?, lp.up_bins[i]?)))
+            .map(|(d, u)| (n_to_gf(0.5 * (d + u)), n_to_gf(d - u)))
+            .collect()
+    };
+    // The median, the two middle values' mean for an even count (the middle of the dip
+    // falls between two bins).
+    let med = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n.is_multiple_of(2) {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        } else {
+            v[n / 2]
+        }
+    };
+    let all = pairs(from_m, to_m);
+    let mid = pairs(0.4 * dip, 0.6 * dip);
+    if all.len() < 2 || mid.is_empty() {
+        return None;
+    }
+    // The ends of the range, a few bins each: a bump between them (a plectrum, a let-off)
+    // is no spring.
+    let ends = (all.len() / 4).clamp(1, 5);
+    let head: Vec<f64> = all[..ends].iter().map(|p| p.0).collect();
+    let tail: Vec<f64> = all[all.len() - ends..].iter().map(|p| p.0).collect();
+    let rise = (med(tail) - med(head)).abs();
+    let gap = med(all.iter().map(|p| p.1).collect());
+    (rise > 2.0 * WEIGHT_RESOLUTION_GF).then(|| Sprung {
+        rise_gf: rise,
+        gap_gf: gap,
+        mid_gap_gf: med(mid.iter().map(|p| p.1).collect()),
+        mid_mean_gf: med(mid.iter().map(|p| p.0).collect()),
+    })
+}
+
+/// Where the force going down starts to rise into the let-off zone, m: the first bin beyond
+/// half the dip whose force exceeds the plateau (as [`letoff_zone`] reads it) by more than
+/// [`LETOFF_ONSET_GF`]. A down-weight takes the key to there, where the let-off's rising
+/// resistance stops it (the key comes to rest at the goal, [`Goal::DownTo`]).
+fn letoff_onset(lp: &ForceLoop) -> Option<f64> {
+    above_plateau(lp, LETOFF_ONSET_GF)
+}
+
+/// The rise over the plateau that marks the onset of the let-off, gf (ten times the weights'
+/// resolution).
+pub const LETOFF_ONSET_GF: f64 = 1.0;
 
 /// Outcome of a weight on a key.
 enum Went {
@@ -504,7 +658,9 @@ enum Went {
 /// Where a weight must take a key.
 #[derive(Clone, Copy)]
 enum Goal {
-    /// Down to at least this travel, m (reaching it once is enough).
+    /// Down to at least this travel, m, and stay there: a key that swings past the goal and
+    /// back under the weight has not gone (the weight does not hold it there), one that
+    /// comes to rest at the goal or beyond has.
     DownTo(f64),
     /// Back to this travel or above, m, and stay there: the key must come to rest there (a
     /// key that bounces off its rest stop and sinks again has not returned).
@@ -533,12 +689,8 @@ fn under_weight<E: Engine + Clone>(
         };
         key.finger(&mut p, push_n * ramp)?;
         let x = p.x_m;
-        if let Goal::DownTo(g) = goal {
-            if x >= g {
-                return Ok(Went::There);
-            }
-        }
-        if (x - anchor).abs() > STALL_M {
+        // Still while the weight is still being laid on is no stop.
+        if (x - anchor).abs() > STALL_M || t < rise_s {
             (anchor, since) = (x, 0);
         } else {
             since += 1;
@@ -549,6 +701,7 @@ fn under_weight<E: Engine + Clone>(
     }
     Ok(match goal {
         Goal::BackTo(g) if p.x_m <= g => Went::There,
+        Goal::DownTo(g) if p.x_m >= g => Went::There,
         _ => Went::Stuck,
     })
 }
@@ -781,27 +934,59 @@ pub fn measure<E: Engine + Clone>(
         move |w: f64| -> Result<bool, String> {
             let p = ForcePlayer::new(dip, m, fs);
             Ok(matches!(
-                under_weight(rest.clone(), p, gf_to_n(w), rise, Goal::DownTo(goal))?,
+                under_weight(
+                    rest.clone(),
+                    p,
+                    gf_to_n(w),
+                    WEIGHT_RISE_S,
+                    Goal::DownTo(goal)
+                )?,
                 Went::There
             ))
         }
     };
-    let down = threshold(
-        loop_force(lp, &lp.down_bins, 0.0, goal, true),
-        &mut down_to(goal),
-    )?;
+    // The key must come to rest there: at the let-off's onset (the zone's rising force
+    // stops it), or at the bed.
+    let rest_at = letoff_zone.and_then(|_| letoff_onset(lp)).unwrap_or(goal);
+    // A sprung key's weights come from the quasi-static loop: a weight laid on swings it
+    // past where the weight holds it (and friction holds it there, at the bed); the loop
+    // reads the force that holds it at each travel.
+    let spring = sprung(lp, 0.1 * dip, 0.9 * goal);
+    let down = match &spring {
+        Some(_) => lp
+            .down
+            .iter()
+            .filter(|(x, _)| *x <= rest_at)
+            .map(|&(_, f)| n_to_gf(f))
+            .fold(None, |m: Option<f64>, f| Some(m.map_or(f, |m| m.max(f))))
+            .filter(|&f| f > 0.0),
+        None => threshold(
+            loop_force(lp, &lp.down_bins, 0.0, goal, true),
+            &mut down_to(rest_at),
+        )?,
+    };
     let goal_text = match letoff_zone {
-        Some(z) => format!("to the let-off zone ({:.2} mm)", mm(z)),
+        Some(z) => format!(
+            "to the let-off zone ({:.2} mm; it comes to rest where the let-off's force begins to rise, {:.2} mm)",
+            mm(z),
+            mm(rest_at)
+        ),
         None => format!("to the key bed ({:.2} mm)", mm(dip)),
     };
     match down {
         Some(w) => figures.push(Measured {
             figure: Figure::DownWeight,
             value: w,
-            how: format!(
-                "least constant weight that moves the key from rest {goal_text} within {WEIGHT_TIMEOUT_S} s (closed loop, {:.0} g key and finger; bisection to {WEIGHT_RESOLUTION_GF} gf)",
-                m * 1e3
-            ),
+            how: match &spring {
+                Some(_) => format!(
+                    "the largest force of the quasi-static dip ({speed_mm_s} mm/s, position-driven) going down from rest {goal_text}: a sprung key (see friction), which a weight laid on swings past where the weight holds it"
+                ),
+                None => format!(
+                    "least constant weight, laid on over {:.0} ms, that moves the key from rest {goal_text} and holds it there within {WEIGHT_TIMEOUT_S} s (closed loop, {:.0} g key and finger; bisection to {WEIGHT_RESOLUTION_GF} gf)",
+                    WEIGHT_RISE_S * 1e3,
+                    m * 1e3
+                ),
+            },
         }),
         None => notes.push(format!(
             "down-weight: the key does not go {goal_text} under {MAX_WEIGHT_GF} gf, or sinks unloaded"
@@ -841,35 +1026,80 @@ pub fn measure<E: Engine + Clone>(
             Went::There
         ))
     };
-    let up = match down {
-        Some(_) => threshold(loop_force(lp, &lp.up_bins, home, dip, false), &mut returns)?,
-        None => None,
+    let up = match (down, &spring) {
+        (None, _) => None,
+        (Some(_), Some(_)) => lp
+            .up
+            .iter()
+            .filter(|(x, _)| *x >= home)
+            .map(|&(_, f)| n_to_gf(f))
+            .fold(None, |m: Option<f64>, f| Some(m.map_or(f, |m| m.min(f))))
+            .filter(|&f| f > 0.0),
+        (Some(_), None) => threshold(loop_force(lp, &lp.up_bins, home, dip, false), &mut returns)?,
     };
     match up {
         Some(w) => figures.push(Measured {
             figure: Figure::UpWeight,
             value: w,
-            how: format!(
-                "most constant weight under which the key, held at the bottom after a quasi-static dip ({speed_mm_s} mm/s, {BOTTOM_HOLD_S} s at the bottom), comes back to rest (≤ {:.2} mm) and stays there (within {WEIGHT_TIMEOUT_S} s)",
-                mm(home)
-            ),
+            how: match &spring {
+                Some(_) => format!(
+                    "the least force of the quasi-static dip ({speed_mm_s} mm/s) going up, from the bed to rest (≤ {:.2} mm): a sprung key (see friction)",
+                    mm(home)
+                ),
+                None => format!(
+                    "most constant weight under which the key, held at the bottom after a quasi-static dip ({speed_mm_s} mm/s, {BOTTOM_HOLD_S} s at the bottom), comes back to rest (≤ {:.2} mm) and stays there (within {WEIGHT_TIMEOUT_S} s)",
+                    mm(home)
+                ),
+            },
         }),
         None => notes.push(
             "up-weight: the key held at the bottom does not return to rest even unloaded (or has no down-weight)"
                 .to_string(),
         ),
     }
-    if let (Some(d), Some(u)) = (down, up) {
-        figures.push(Measured {
-            figure: Figure::Friction,
-            value: 0.5 * (d - u),
-            how: "(down-weight − up-weight) / 2".to_string(),
-        });
-        figures.push(Measured {
-            figure: Figure::BalanceWeight,
-            value: 0.5 * (d + u),
-            how: "(down-weight + up-weight) / 2".to_string(),
-        });
+    match (down, up, spring) {
+        (_, _, Some(spring)) => {
+            // A sprung key: its weights are read at different travels, so their difference
+            // is mostly the spring's; the loop reads both directions at the same travel.
+            let why = format!(
+                "the key's quasi-static force (the mean of down and up) changes by {:.1} gf from {:.2} to {:.2} mm (hysteresis {:.1} gf): a sprung key, whose down- and up-weight are read at different travels",
+                spring.rise_gf,
+                mm(0.1 * dip),
+                mm(0.9 * goal),
+                spring.gap_gf
+            );
+            figures.push(Measured {
+                figure: Figure::Friction,
+                value: 0.5 * spring.mid_gap_gf,
+                how: format!(
+                    "half the gap between the quasi-static force going down and going up ({speed_mm_s} mm/s) over {:.2}–{:.2} mm, the middle of the dip; {why}, so (down-weight − up-weight)/2 would read the spring",
+                    mm(0.4 * dip),
+                    mm(0.6 * dip)
+                ),
+            });
+            figures.push(Measured {
+                figure: Figure::BalanceWeight,
+                value: spring.mid_mean_gf,
+                how: format!(
+                    "the mean of the quasi-static forces going down and up over {:.2}–{:.2} mm, the middle of the dip ({why})",
+                    mm(0.4 * dip),
+                    mm(0.6 * dip)
+                ),
+            });
+        }
+        (Some(d), Some(u), None) => {
+            figures.push(Measured {
+                figure: Figure::Friction,
+                value: 0.5 * (d - u),
+                how: "(down-weight − up-weight) / 2".to_string(),
+            });
+            figures.push(Measured {
+                figure: Figure::BalanceWeight,
+                value: 0.5 * (d + u),
+                how: "(down-weight + up-weight) / 2".to_string(),
+            });
+        }
+        _ => {}
     }
     figures.sort_by_key(|f| f.figure);
 
@@ -908,9 +1138,12 @@ pub fn measure<E: Engine + Clone>(
     }
 
     // Creep: the key brought to half its dip at the quasi-static speed, then held by the
-    // balance weight alone.
-    if let (Some(d), Some(u)) = (down, up) {
-        let w = 0.5 * (d + u);
+    // balance weight alone (a sprung key's is the loop's force at mid-dip, see above).
+    let balance = figures
+        .iter()
+        .find(|f| f.figure == Figure::BalanceWeight)
+        .map(|f| f.value);
+    if let Some(w) = balance {
         let mut key = rest.clone();
         let half = 0.5 * dip;
         let step = QUASI_STATIC_SPEED / fs;
@@ -1102,11 +1335,34 @@ pub fn measure<E: Engine + Clone>(
         }
     }
 
+    // The dynamic sheet.
+    let touches = if config.dynamic && rest.strike.is_some() {
+        let letoff = if hammer_action {
+            dipped.hammer_peak.map(|(_, x)| x)
+        } else {
+            None
+        };
+        let runs = dynamic::sweep(&rest, dip, letoff)?;
+        let (f, n) = dynamic::figures(&runs, dip, hammer_action);
+        figures.extend(f);
+        notes.extend(n);
+        runs
+    } else {
+        if config.dynamic {
+            notes.push(
+                "dynamic sheet: no strike (a `strike` or `pluck` event) to time a touch by"
+                    .to_string(),
+            );
+        }
+        Vec::new()
+    };
+
     figures.sort_by_key(|f| f.figure);
     Ok(Sheet {
         instrument: program.name.clone(),
         figures,
         notes,
         force_loop: dipped.force_loop,
+        touches,
     })
 }

@@ -1,8 +1,9 @@
 //! The regulation sheet of a key instrument as `tactus regulate` measures it: the sheet on
 //! the chosen arithmetic and engine ([`measure`], over
 //! [`crate::regulate::measure`]), its text with a spec's verdicts
-//! ([`sheet_text`], [`spec_line`]) and the force–travel loop's table and plot ([`loop_csv`],
-//! [`write_loop`]). The caller prints.
+//! ([`sheet_text`], [`spec_line`]), the force–travel loop's table and plot ([`loop_csv`],
+//! [`write_loop`]) and the dynamic sheet's plots and table ([`write_dynamic`]). The caller
+//! prints.
 
 use crate::play::engine::{FixedJitEngine, JitEngine};
 use crate::plot;
@@ -69,7 +70,15 @@ pub fn sheet_text(sheet: &Sheet, verdicts: Option<&[spec::Verdict]>) -> String {
         "unit",
         if verdicts.is_some() { "spec" } else { "" }
     );
+    let mut dynamic_head = false;
     for m in &sheet.figures {
+        if m.figure.is_dynamic() && !dynamic_head {
+            dynamic_head = true;
+            s.push_str(&format!(
+                "  dynamic: {} touches, pressed and struck, each timed from the finger's contact with the key\n",
+                sheet.touches.len()
+            ));
+        }
         let (range, verdict) = match range_of(m.figure) {
             Some(v) => (v.range.text(), if v.holds() { "ok  " } else { "OUT " }),
             None => (String::new(), "    "),
@@ -180,4 +189,121 @@ pub fn write_loop(sheet: &Sheet, out: &Path) -> Result<(PathBuf, PathBuf), Strin
     std::fs::write(&csv, loop_csv(sheet))
         .map_err(|e| format!("{}: cannot write: {e}", csv.display()))?;
     Ok((svg, csv))
+}
+
+/// Writes the dynamic sheet's files into `out` (created if missing): `NAME-travel.svg`
+/// (travel time from the finger's contact to the strike against the hammer speed, log–log,
+/// pressed and struck touches, with Goebl's fit and its ± 20 ms band),
+/// `NAME-keybottom.svg` (key bottom minus string contact against the hammer speed) and
+/// `NAME-touches.csv` ([`crate::regulate::dynamic::runs_csv`]). Returns the paths written;
+/// none without a touch that struck.
+///
+/// Errors: a file that cannot be written (naming it).
+pub fn write_dynamic(sheet: &Sheet, out: &Path) -> Result<Vec<PathBuf>, String> {
+    use crate::plot::{plot_points, Points};
+    use crate::regulate::dynamic::{runs_csv, travel_time_fit_s, FIT_BAND_S};
+    use tactus_runtime::player::TouchKind;
+    let runs = &sheet.touches;
+    if !runs.iter().any(|r| r.strike.is_some()) {
+        return Ok(Vec::new());
+    }
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create `{}`: {e}", out.display()))?;
+    let of_kind =
+        |kind: TouchKind, y: &dyn Fn(&crate::regulate::dynamic::TouchRun) -> Option<f64>| {
+            runs.iter()
+                .filter(|r| r.touch.kind == kind)
+                .filter_map(|r| Some((r.strike?.1, y(r)?)))
+                .collect::<Vec<_>>()
+        };
+    let travel = |r: &crate::regulate::dynamic::TouchRun| r.strike.map(|s| s.0 * 1e3);
+    let speeds: Vec<f64> = runs.iter().filter_map(|r| r.strike.map(|s| s.1)).collect();
+    let (lo, hi) = speeds
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let grid: Vec<f64> = (0..=40)
+        .map(|i| (lo.ln() + (hi.ln() - lo.ln()) * i as f64 / 40.0).exp())
+        .collect();
+    let fit = |off: f64| -> Vec<(f64, f64)> {
+        grid.iter()
+            .map(|&v| (v, (travel_time_fit_s(v) + off) * 1e3))
+            .collect()
+    };
+    let name = &sheet.instrument;
+    let travel_svg = out.join(format!("{name}-travel.svg"));
+    plot_points(
+        &[
+            Points {
+                label: "pressed touch".into(),
+                points: of_kind(TouchKind::Pressed, &travel),
+                line: false,
+                faint: false,
+            },
+            Points {
+                label: "struck touch".into(),
+                points: of_kind(TouchKind::Struck, &travel),
+                line: false,
+                faint: false,
+            },
+            Points {
+                label: "Goebl 2001: 89.16 ms·v^−0.570".into(),
+                points: fit(0.0),
+                line: true,
+                faint: false,
+            },
+            Points {
+                label: "± 20 ms (struck vs pressed, Goebl et al. 2005)".into(),
+                points: fit(FIT_BAND_S),
+                line: true,
+                faint: true,
+            },
+            Points {
+                label: String::new(),
+                points: fit(-FIT_BAND_S),
+                line: true,
+                faint: true,
+            },
+        ],
+        &format!("{name}: travel time (finger contact → string) against hammer speed"),
+        "hammer speed at the string [m/s]",
+        "travel time [ms]",
+        true,
+        &travel_svg,
+    )
+    .map_err(|e| e.to_string())?;
+    let offset = |r: &crate::regulate::dynamic::TouchRun| r.bottom_offset_s().map(|o| o * 1e3);
+    let bottom_svg = out.join(format!("{name}-keybottom.svg"));
+    plot_points(
+        &[
+            Points {
+                label: "pressed touch".into(),
+                points: of_kind(TouchKind::Pressed, &offset),
+                line: false,
+                faint: false,
+            },
+            Points {
+                label: "struck touch".into(),
+                points: of_kind(TouchKind::Struck, &offset),
+                line: false,
+                faint: false,
+            },
+            Points {
+                label: "key bottom = string contact".into(),
+                points: vec![(lo, 0.0), (hi, 0.0)],
+                line: true,
+                faint: true,
+            },
+        ],
+        &format!("{name}: key bottom minus string contact (> 0: the key bottoms after the strike)"),
+        "hammer speed at the string [m/s]",
+        "key bottom − string contact [ms]",
+        false,
+        &bottom_svg,
+    )
+    .map_err(|e| e.to_string())?;
+    let csv = out.join(format!("{name}-touches.csv"));
+    std::fs::write(&csv, runs_csv(runs))
+        .map_err(|e| format!("{}: cannot write: {e}", csv.display()))?;
+    Ok(vec![travel_svg, bottom_svg, csv])
 }

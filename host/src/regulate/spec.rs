@@ -206,6 +206,7 @@ mod tests {
             ],
             notes: vec![],
             force_loop: ForceLoop::default(),
+            touches: vec![],
         };
         let v = check(&sheet, &spec);
         assert_eq!(
