@@ -54,7 +54,7 @@ pub enum EmuCommand {
 }
 
 /// Listens on 127.0.0.1:`port` and waits for one GDB client.
-fn wait_for_gdb(port: u16) -> Result<Box<dyn tactus_emulator::debug::Debugger>, String> {
+fn wait_for_gdb(port: u16) -> Result<Box<dyn tactus_emulator::Debugger>, String> {
     use tactus_emulator::debug::gdb;
     let listener = gdb::listen(port).map_err(|e| format!("--gdb {port}: cannot listen: {e}"))?;
     let addr = listener

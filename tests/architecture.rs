@@ -1,6 +1,7 @@
 //! The map in ARCHITECTURE.md, checked: no dependency cycle between the top-level modules
-//! of the compiler, firmware and host crates (a module names another by `crate::NAME`,
-//! outside comments and test modules), and the front end without cranelift.
+//! of the compiler, emulator, firmware and host crates (a module names another by
+//! `crate::NAME`, outside comments and test modules), no source file under a crate's `src/`
+//! over 1,300 lines, and the front end without cranelift.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -85,7 +86,7 @@ fn cycle(g: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
 #[test]
 fn no_cycle_between_the_modules_of_the_compiler_firmware_and_host() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    for krate in ["compiler", "firmware", "host"] {
+    for krate in ["compiler", "emulator", "firmware", "host"] {
         let g = edges(&root.join(krate).join("src"));
         assert!(g.len() > 1 || krate == "host", "{krate}: {g:?}");
         if let Some(c) = cycle(&g) {
@@ -110,4 +111,42 @@ fn the_front_end_builds_without_cranelift() {
         !deps.contains("tactus-jit") && !deps.contains("tactus-emulator"),
         "{deps}"
     );
+}
+
+/// The most lines a source file under a crate's `src/` may have: a file longer than this
+/// holds more than one job (split it by job, as `emulator/src/io/` is).
+const MAX_LINES: usize = 1300;
+
+#[test]
+fn no_source_file_is_over_1300_lines() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut stack = vec![root.to_path_buf()];
+    let (mut seen, mut long) = (0, Vec::new());
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap_or_default().to_string_lossy();
+            if path.is_dir() {
+                if name != "target" && !name.starts_with('.') {
+                    stack.push(path);
+                }
+                continue;
+            }
+            let in_src = path
+                .strip_prefix(root)
+                .unwrap()
+                .components()
+                .any(|c| c.as_os_str() == "src");
+            if !in_src || path.extension().is_none_or(|e| e != "rs") {
+                continue;
+            }
+            seen += 1;
+            let lines = std::fs::read_to_string(&path).unwrap().lines().count();
+            if lines > MAX_LINES {
+                long.push(format!("{} ({lines} lines)", path.display()));
+            }
+        }
+    }
+    assert!(seen > 100, "only {seen} source files found under {}", root.display());
+    assert!(long.is_empty(), "over {MAX_LINES} lines: {}", long.join(", "));
 }
