@@ -1,22 +1,21 @@
 //! `tactus budget`: does a keyboard fit its boards, and how few boards does it need?
 //!
-//! The command resolves the input (a layout, or one instrument on `--keys` keys), compiles
-//! every distinct program (an instrument with one set of params) printing its diagnostics,
-//! and hands them to `tactus_firmware::verdict::keyboard_budget`, which plans the boards
-//! (or checks the layout's own) by the static analysis of each board's sample interrupt and
-//! returns the report; this module only prints it (text or `--json`) and writes
-//! `--write-plan`.
+//! The command resolves the input (a layout, or one instrument on `--keys` keys) with
+//! `tactus_host::keyboard::compile`, printing each program's diagnostics, and hands the
+//! keyboard to `tactus_host::budget::budget` (its boards planned once, or the layout's own
+//! checked, by the static analysis of each board's sample interrupt; its programs measured),
+//! which returns the report; this module prints it (text or `--json`) and has
+//! `--write-plan` written (`tactus_host::budget::write_plan`).
 //!
 //! Exit codes: 0 fits; 1 does not fit (or measured > static, an analysis bug); 2 bad input.
 
 use crate::check_cmd::parse_override;
 use crate::progress::StageBar;
 use crate::source;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
-use tactus_firmware::verdict::{self, BudgetInput};
-use tactus_host::keyboard::{self, Keyboard, KeyboardSpec};
-use tactus_runtime::limiter::LimiterConfig;
+use tactus_host::budget;
+use tactus_host::keyboard::{self, KeyboardSpec};
 
 /// Arguments of `tactus budget`.
 #[derive(Debug, clap::Args)]
@@ -89,7 +88,7 @@ struct Bad(String);
 
 /// Runs `tactus budget`.
 pub fn run(args: BudgetArgs) -> ExitCode {
-    match budget(&args) {
+    match run_budget(&args) {
         Ok(code) => code,
         Err(Bad(e)) => {
             eprintln!("error: {e}");
@@ -98,7 +97,7 @@ pub fn run(args: BudgetArgs) -> ExitCode {
     }
 }
 
-fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
+fn run_budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
     let kb = keyboard::compile(
         &KeyboardSpec {
             input: &args.input,
@@ -110,25 +109,14 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
         &mut source::report_compile,
     )
     .map_err(|e| Bad(e.to_string()))?;
-    let input = BudgetInput {
-        name: kb.name.clone(),
-        input: args.input.clone(),
-        board: kb.board.clone(),
-        programs: kb.program_inputs().map_err(|e| Bad(e.to_string()))?,
-        keys: kb.key_programs(),
-        boards: kb.boards.clone(),
-        quick: args.quick,
-        engine: args.emu.into(),
-        limiter: LimiterConfig {
-            sample_rate_hz: kb.board.sample_rate_hz,
-            ..LimiterConfig::default()
-        },
-    };
     let bar = StageBar::new();
-    let report = verdict::keyboard_budget(&input, &mut |stage, done, total| {
-        bar.update(stage, done, total)
-    })
-    .map_err(|e| Bad(e.0))?;
+    let report = budget::budget(
+        &kb,
+        args.quick,
+        args.emu.into(),
+        &mut |stage, done, total| bar.update(stage, done, total),
+    )
+    .map_err(Bad)?;
     bar.finish();
 
     if args.json {
@@ -142,7 +130,7 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
         eprintln!("{line}");
     }
     if let Some(out) = &args.write_plan {
-        write_plan(&report, &kb, out)?;
+        budget::write_plan(&kb, &report, out).map_err(Bad)?;
         if !args.json {
             println!(
                 "plan: {} boards written to {}",
@@ -152,16 +140,4 @@ fn budget(args: &BudgetArgs) -> Result<ExitCode, Bad> {
         }
     }
     Ok(ExitCode::from(report.exit_code()))
-}
-
-/// Writes the planned layout (`Keyboard::plan_text`) to `out`, creating its directory.
-fn write_plan(report: &verdict::BudgetReport, kb: &Keyboard, out: &Path) -> Result<(), Bad> {
-    let text = kb
-        .plan_text(report)
-        .map_err(|e| Bad(format!("{}: {e}; nothing written", out.display())))?;
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| Bad(format!("{}: cannot create: {e}", dir.display())))?;
-    }
-    std::fs::write(out, text).map_err(|e| Bad(format!("{}: cannot write: {e}", out.display())))
 }

@@ -2,6 +2,7 @@
 
 use crate::source;
 use std::process::ExitCode;
+use tactus_host::check;
 use tactus_runtime::DEFAULT_SAMPLE_RATE_HZ;
 
 /// Arguments of `tactus check`.
@@ -71,36 +72,16 @@ pub fn run(args: CheckArgs) -> ExitCode {
         return ExitCode::FAILURE;
     };
     let p = &l.program;
-    println!(
-        "{}: instrument `{}` is well-formed: {} sensor(s), {} params, {} states, {} modes, {} force terms, {} outputs, {} event kinds, {} IR values",
-        src.name,
-        p.name,
-        p.sensors.len(),
-        p.params.len(),
-        p.states.len(),
-        p.modes.len(),
-        p.forces.len(),
-        p.outputs.len(),
-        p.events.len(),
-        p.values.len()
-    );
+    println!("{}", check::summary(&src, p));
     if matches!(args.emit, Some(Emit::Ir)) {
         print!("{p}");
     }
     if matches!(args.report, Some(Report::Precision)) {
-        let fp = tactus_compiler::fixed::FixedProgram::new(p);
-        crate::source::report(&src, &fp.warnings);
-        let pr = tactus_compiler::fixed::report::analyse(&fp);
-        print!("{}", tactus_compiler::fixed::render::render(&fp, &pr));
-        let runs = tactus_compiler::fixed::contract::check_builtin(p, &fp);
-        if !runs.is_empty() {
-            print!(
-                "{}",
-                tactus_compiler::fixed::render::render_margins(p, &runs)
-            );
-        }
+        let precision = check::precision(p);
+        source::report(&src, &precision.warnings);
+        print!("{}", precision.text);
         // A broken contract is a failure, as `build` refuses the instrument.
-        if let Err(b) = tactus_compiler::fixed::contract::holds_on(p, &runs) {
+        if let Some(b) = precision.broken {
             eprintln!("error: {}: {b}", src.name);
             return ExitCode::FAILURE;
         }

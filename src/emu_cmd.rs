@@ -11,7 +11,6 @@
 
 use std::path::Path;
 use std::process::ExitCode;
-use tactus_emulator::{Board, Config};
 use tactus_host::emu;
 
 /// Subcommands of `tactus emu`.
@@ -53,22 +52,14 @@ pub enum EmuCommand {
     },
 }
 
-/// Listens on 127.0.0.1:`port` and waits for one GDB client.
+/// Waits on 127.0.0.1:`port` for one GDB client ([`emu::wait_for_gdb`]), saying where on
+/// stderr.
 fn wait_for_gdb(port: u16) -> Result<Box<dyn tactus_emulator::Debugger>, String> {
-    use tactus_emulator::debug::gdb;
-    let listener = gdb::listen(port).map_err(|e| format!("--gdb {port}: cannot listen: {e}"))?;
-    let addr = listener
-        .local_addr()
-        .map_err(|e| format!("--gdb {port}: {e}"))?;
-    eprintln!("tactus emu: waiting for gdb on {addr} (in gdb: target remote {addr})");
-    let (conn, peer) = listener
-        .accept()
-        .map_err(|e| format!("--gdb {port}: {e}"))?;
-    eprintln!("tactus emu: gdb connected from {peer}");
-    Ok(Box::new(gdb::GdbSession::new(
-        conn,
+    emu::wait_for_gdb(
+        port,
+        &mut |line| eprintln!("tactus emu: {line}"),
         Box::new(|line| eprintln!("tactus emu: {line}")),
-    )))
+    )
 }
 
 /// Runs an `emu` subcommand; returns the process exit code (1 for an unloadable file, 2
@@ -94,8 +85,8 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
     })
 }
 
-/// `tactus emu run FILE`: the ELF on a board for `cycles` cycles, then every core, every
-/// profiled function and why it stopped.
+/// `tactus emu run FILE`: the ELF on a board for `cycles` cycles ([`emu::ElfJob`]), then
+/// every core, every profiled function and why it stopped.
 fn run_elf(
     file: &Path,
     cycles: u64,
@@ -103,39 +94,20 @@ fn run_elf(
     profile: &[String],
     gdb: Option<u16>,
 ) -> Result<ExitCode, String> {
-    let bytes = emu::read_elf(file)?;
-    let mut board = Board::new(Config::default());
-    board
-        .load_elf(&bytes)
-        .map_err(|e| format!("cannot load {}: {e}", file.display()))?;
-    let mut profiles = Vec::new();
-    for name in profile {
-        let handle = board
-            .profile(name)
-            .map_err(|e| format!("{}: {e}", file.display()))?;
-        profiles.push((name, handle));
+    let job = emu::ElfJob::new(file, profile)?;
+    let debugger = gdb.map(wait_for_gdb).transpose()?;
+    let mut print = |l: String| println!("{l}");
+    let run = job.run(cycles, debugger, trace.then_some(&mut print as _));
+    for line in &run.lines {
+        println!("{line}");
     }
-    if let Some(port) = gdb {
-        board.attach_debugger(wait_for_gdb(port)?);
-    }
-    let stop = match trace {
-        true => emu::run_traced(&mut board, cycles, &mut |l| println!("{l}")),
-        false => board.run_for(cycles),
-    };
-    board.finish_debugging();
-    for core in &board.cores {
-        print!("{}", emu::core_text(core));
-    }
-    for (name, handle) in profiles {
-        println!("{}", emu::profile_line(name, board.calls(handle)));
-    }
-    match emu::stop_line(&board, &stop, cycles) {
-        (true, line) => {
-            println!("{line}");
+    match run.ok {
+        true => {
+            println!("{}", run.stop);
             Ok(ExitCode::SUCCESS)
         }
-        (false, line) => {
-            eprintln!("error: {}: {line}", file.display());
+        false => {
+            eprintln!("error: {}", run.stop);
             Ok(ExitCode::from(2))
         }
     }

@@ -15,7 +15,11 @@ pub struct LspArgs {
 /// `shutdown` then `exit`, 1 otherwise (the protocol's rule); the log goes to stderr.
 pub fn run(_args: LspArgs) -> ExitCode {
     let stdin = std::io::BufReader::new(std::io::stdin());
-    let config = tactus_lsp::Config::default();
+    // Imports are read from disk as `tactus check` reads them.
+    let config = tactus_lsp::Config {
+        disk: Some(|| Box::new(tactus_host::catalogue::DiskLoader)),
+        ..tactus_lsp::Config::default()
+    };
     let outcome = tactus_lsp::serve(stdin, std::io::stdout(), &config, &mut |line| {
         eprintln!("tactus lsp: {line}")
     });

@@ -4,6 +4,7 @@
 mod budget_cmd;
 mod build_cmd;
 mod check_cmd;
+mod corpus_cmd;
 mod emu_cmd;
 mod lsp_cmd;
 mod play_cmd;
@@ -45,6 +46,10 @@ enum Command {
     /// down- and up-weight, friction, let-off, drop, blow, back-check, key-bottom times,
     /// repetition; with `--spec`, a verdict per figure (exit 1 when one is out of range).
     Regulate(regulate_cmd::RegulateArgs),
+    /// Work on the results of corpus runs: `tactus corpus merge` gathers a sharded run's
+    /// shards (a Slurm job array's tasks, a Kubernetes Indexed Job's pods) into its tables.
+    #[command(subcommand)]
+    Corpus(corpus_cmd::CorpusCommand),
     /// Plot the models behind the instruments (e.g. `tactus plot friction`: Bilbao's
     /// friction characteristic, Onofrei et al. 2023 Fig. 9).
     #[command(subcommand)]
@@ -68,6 +73,7 @@ fn main() -> ExitCode {
         Command::Play(args) => play_cmd::run(args),
         Command::Emu(cmd) => emu_cmd::run(cmd),
         Command::Plot(cmd) => plot_cmd::run(cmd),
+        Command::Corpus(cmd) => corpus_cmd::run(cmd),
         Command::Lsp(args) => lsp_cmd::run(args),
         Command::Regulate(args) => regulate_cmd::run(args),
     }

@@ -10,9 +10,12 @@ use indicatif::MultiProgress;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tactus_host::catalogue;
+use tactus_host::corpus_run::{Combo, Corpus, CorpusError, CorpusRun, CorpusSpec};
 use tactus_host::keyboard::KeyboardSpec;
+use tactus_host::play::shard::{Setup, Shard};
 use tactus_host::play::{corpus, PlayConfig, TraceWindow};
 use tactus_host::session::{self as host_play, PieceOptions, PlayError, Session};
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::player::FingerConfig;
 
 /// Arguments of `tactus play`.
@@ -21,18 +24,23 @@ use tactus_runtime::player::FingerConfig;
 pub struct PlayArgs {
     /// MIDI performance to play [default: a built-in 4.5 s demo]. Several files, or a
     /// directory of them (its *.mid, sorted): corpus mode — each played in turn with the
-    /// same options, one progress bar over the corpus, and a summary of every piece in
-    /// OUT/corpus.csv and OUT/corpus.json (a file that cannot be played is a row with its
-    /// error; the run goes on).
+    /// same options, one progress bar over the corpus, each piece's row written to
+    /// OUT/results.jsonl as it is done, and a summary of every piece in OUT/corpus.csv and
+    /// OUT/corpus.json (a file that cannot be played is a row with its error; the run goes
+    /// on). Exit status: 1 when the firmware failed validation (a deadline missed, a note
+    /// without a strike), else 2 when a piece could not be played.
     pub performances: Vec<PathBuf>,
-    /// Instrument on every key A0…C8 (file or built-in name), instead of the layout.
-    #[arg(long, conflicts_with = "layout")]
-    pub instrument: Option<String>,
+    /// Instrument on every key A0…C8 (file or built-in name), instead of the layout. Given
+    /// more than once (or with --layout), each is one keyboard of a corpus run.
+    #[arg(long)]
+    pub instrument: Vec<String>,
     /// Keyboard layout (TOML): instruments and param grading per key range [default: the
     /// built-in grand88, instruments/layouts/grand88.toml: the grand piano on A0…C8 with
-    /// the hammer mass graded from 11 g to 3.5 g].
+    /// the hammer mass graded from 11 g to 3.5 g]. Given more than once, each is one
+    /// keyboard of a corpus run (every piece on every keyboard and board; each pair's files
+    /// in OUT/LAYOUT-BOARD/).
     #[arg(long)]
-    pub layout: Option<PathBuf>,
+    pub layout: Vec<PathBuf>,
     /// Play only the first SECONDS of the performance.
     #[arg(long)]
     pub seconds: Option<f64>,
@@ -48,9 +56,10 @@ pub struct PlayArgs {
     /// or a board file; every engine runs at its sample rate, `--engine emu` on its clock
     /// and cores (and on a board with converters through them: the key positions into the
     /// emulated ADCs, the motor commands from the emulated DACs) [default: the layout's
-    /// `board_kind`, else rp2040].
+    /// `board_kind`, else rp2040]. Given more than once, each is one board kind of a corpus
+    /// run.
     #[arg(long, value_name = "NAME_OR_FILE")]
-    pub board: Option<String>,
+    pub board: Vec<String>,
     /// The emulator's engine for `--engine emu`: `block` (code compiled to native code with
     /// cranelift) or `interp` (the interpreter): the same cycles and strikes; compare their
     /// speed.
@@ -93,43 +102,125 @@ pub struct PlayArgs {
     /// into DIR/board-NN.csv. A traced board emulates every sample (no rest replay).
     #[arg(long, value_name = "DIR")]
     pub io_trace: Option<PathBuf>,
+    /// With `--engine emu`: play the piece as consecutive spans of SECONDS (the boards
+    /// carry their whole state from one to the next: the same strikes and budget as one
+    /// run) and print the budget of each span after the whole run's — where in a long
+    /// recital the worst sample fell, and that its first span equals a run cut there.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_span)]
+    pub span: Option<f64>,
     /// Output directory.
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
+    /// Corpus mode on a cluster: play only shard K of N (K from 1: 1/2 and 2/2 are the two
+    /// halves). Each item — a piece on a keyboard on a board — belongs to one shard by a
+    /// hash of its name (the file as listed, the layout or instrument, the board), whatever
+    /// the order or number of files listed, so every task of a job array, given the same
+    /// arguments, plays its own items. Its rows go to OUT/results-K-of-N.jsonl (the tasks
+    /// may share OUT); `tactus corpus merge` makes the tables. Without it, a Slurm array
+    /// task takes its shard from SLURM_ARRAY_TASK_ID (from SLURM_ARRAY_TASK_MIN, of
+    /// SLURM_ARRAY_TASK_COUNT), a Kubernetes Indexed Job's pod from JOB_COMPLETION_INDEX
+    /// (from 0) with --shard-count. Examples: examples/slurm/corpus.sbatch,
+    /// examples/k8s/corpus-indexed-job.yaml.
+    #[arg(long, value_name = "K/N", value_parser = parse_shard)]
+    pub shard: Option<Shard>,
+    /// The number of shards, for a scheduler's index (JOB_COMPLETION_INDEX: the Job's
+    /// completions; with Slurm, instead of SLURM_ARRAY_TASK_COUNT).
+    #[arg(long, value_name = "N", conflicts_with = "shard")]
+    pub shard_count: Option<u32>,
+    /// Corpus mode: go on with the results file a killed task left in OUT (the same run:
+    /// its manifest must match), playing only the items it does not hold.
+    #[arg(long)]
+    pub resume: bool,
+}
+
+/// `--span`'s parser: a positive number of seconds.
+fn parse_span(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("`{s}` is not a positive number of seconds")),
+    }
+}
+
+/// `--shard`'s parser: [`Shard::parse`], whose message clap prints (exit 2).
+fn parse_shard(s: &str) -> Result<Shard, String> {
+    Shard::parse(s).map_err(|e| e.to_string())
 }
 
 /// Runs `tactus play`.
 pub fn run(args: PlayArgs) -> ExitCode {
-    // The pieces, and the keyboard with its firmware, compiled once for every piece.
-    let result = corpus::expand(&args.performances).and_then(|files| {
-        let session = session(&args).map_err(|e| e.to_string())?;
-        match files.len() > 1 || args.performances.iter().any(|p| p.is_dir()) {
-            true => Ok(run_corpus(&args, &session, &files)),
-            false => run_piece(&args, &session, files.first().map(PathBuf::as_path), None)
-                .map(|(code, _)| code)
-                .map_err(|e| e.to_string()),
-        }
-    });
+    let spec = CorpusSpec {
+        performances: args.performances.clone(),
+        layouts: args
+            .layout
+            .iter()
+            .map(|l| l.display().to_string())
+            .collect(),
+        instruments: args.instrument.clone(),
+        boards: args.board.clone(),
+    };
+    // Corpus mode: more than one item, a directory, or a corpus option.
+    let corpus = args.performances.len() > 1
+        || args.performances.iter().any(|p| p.is_dir())
+        || args.layout.len() + args.instrument.len() > 1
+        || args.board.len() > 1
+        || args.shard.is_some()
+        || args.shard_count.is_some()
+        || args.resume;
+    if corpus {
+        return match Corpus::new(&spec) {
+            Ok(c) => run_corpus(&args, c),
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+        };
+    }
+    // One piece (or the demo) on one keyboard.
+    let combo = Combo {
+        on: Setup {
+            layout: spec.layouts.first().cloned(),
+            instrument: spec.instruments.first().cloned(),
+            board: spec.boards.first().cloned(),
+        },
+        folder: None,
+    };
+    let result = session(&args, &combo)
+        .map_err(|e| e.to_string())
+        .and_then(|session| {
+            run_piece(
+                &args,
+                &session,
+                args.performances.first().map(PathBuf::as_path),
+                None,
+            )
+            .map(|(code, _)| code)
+            .map_err(|e| e.to_string())
+        });
     result.unwrap_or_else(|e| {
         eprintln!("error: {e}");
         ExitCode::FAILURE
     })
 }
 
-/// The keyboard of the arguments (the layout, the instrument on every key, or the built-in
-/// default layout), the run's configuration and options.
-fn session(args: &PlayArgs) -> Result<Session, PlayError> {
-    let input = (args.layout.as_ref().map(|l| l.display().to_string()))
-        .or_else(|| args.instrument.clone())
+/// The keyboard of `combo` (its layout, its instrument on every key, or the built-in
+/// default layout, on its board), the run's configuration and options (its files in
+/// OUT/FOLDER when it has a folder).
+fn session(args: &PlayArgs, combo: &Combo) -> Result<Session, PlayError> {
+    let on = &combo.on;
+    let input = (on.layout.clone())
+        .or_else(|| on.instrument.clone())
         .unwrap_or_else(|| catalogue::DEFAULT_LAYOUT.to_string());
     let spec = KeyboardSpec {
         input: &input,
-        as_layout: Some(args.instrument.is_none()),
-        board: args.board.as_deref(),
+        as_layout: Some(on.instrument.is_none()),
+        board: on.board.as_deref(),
         keys: None,
         params: &args.params,
     };
-    let config = |board| PlayConfig {
+    let config = |board: BoardSpec| PlayConfig {
+        span: args
+            .span
+            .map(|s| (s * board.sample_rate_hz).round().max(1.0) as usize),
         engine: args.engine.into(),
         player: args.player.into(),
         finger: FingerConfig::default(),
@@ -146,41 +237,104 @@ fn session(args: &PlayArgs) -> Result<Session, PlayError> {
     };
     let opts = PieceOptions {
         seconds: args.seconds,
-        out: args.out.clone(),
+        out: match &combo.folder {
+            Some(f) => args.out.join(f),
+            None => args.out.clone(),
+        },
         wav: !args.no_wav,
     };
     Session::new(&spec, config, opts, &mut source::report_compile)
 }
 
-/// Corpus mode: every file in turn, one row each, the table printed and written.
-fn run_corpus(args: &PlayArgs, session: &Session, files: &[PathBuf]) -> ExitCode {
-    let bar = CorpusBar::new(files.len());
-    let mut rows = Vec::with_capacity(files.len());
-    for f in files {
-        bar.piece(f);
-        rows.push(match run_piece(args, session, Some(f), Some(&bar.multi)) {
-            Ok((_, row)) => row,
-            Err(e) => {
-                bar.multi
-                    .suspend(|| eprintln!("error: {}: {e}", f.display()));
-                corpus::PieceRow::failed(f, e.to_string())
+/// The shard this task plays: `--shard`, else a scheduler's index, else the whole corpus;
+/// and where it came from, to print.
+fn shard(args: &PlayArgs) -> Result<(Shard, Option<String>), String> {
+    if let Some(s) = args.shard {
+        return Ok((s, None));
+    }
+    match Shard::from_env(&|v| std::env::var(v).ok(), args.shard_count) {
+        Ok(Some((s, origin))) => Ok((s, Some(origin))),
+        Ok(None) if args.shard_count.is_some() => Err(
+            "--shard-count is for a scheduler's index, and neither SLURM_ARRAY_TASK_ID nor JOB_COMPLETION_INDEX is set: give --shard K/N".into(),
+        ),
+        Ok(None) => Ok((Shard::WHOLE, None)),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// Corpus mode: this task's items in turn, each row written to the shard's results file as
+/// it is done; the table printed (and with the whole corpus written). Exit 2 when the run
+/// cannot be done, else the rows' verdict.
+fn run_corpus(args: &PlayArgs, corpus: Corpus) -> ExitCode {
+    let fail = |e: String| {
+        eprintln!("error: {e}");
+        ExitCode::from(2)
+    };
+    let (shard, origin) = match shard(args) {
+        Ok(s) => s,
+        Err(e) => return fail(e),
+    };
+    let sessions: Result<Vec<Session>, PlayError> =
+        corpus.combos.iter().map(|c| session(args, c)).collect();
+    let mut run = match sessions
+        .map_err(CorpusError::from)
+        .and_then(|s| CorpusRun::start(corpus, s, shard, &args.out, args.resume))
+    {
+        Ok(r) => r,
+        Err(e) => return fail(e.to_string()),
+    };
+    let (mine, todo) = (run.mine().len(), run.todo());
+    if shard != Shard::WHOLE || mine != todo.len() {
+        println!(
+            "shard {shard}{}: {mine} of the corpus's {} items{}",
+            origin.map_or(String::new(), |o| format!(" ({o})")),
+            run.corpus.items.len(),
+            match mine - todo.len() {
+                0 => String::new(),
+                done => format!(", {done} done before (--resume), {} to play", todo.len()),
             }
-        });
+        );
+    }
+    let bar = CorpusBar::new(todo.len());
+    for i in todo {
+        let file = run.corpus.items[i].file.clone();
+        bar.piece(&file);
+        let played = run_piece(args, run.session(i), Some(&file), Some(&bar.multi))
+            .map(|(_, row)| row)
+            .map_err(|e| {
+                bar.multi
+                    .suspend(|| eprintln!("error: {}: {e}", file.display()));
+                e.to_string()
+            });
+        if let Err(e) = run.record(i, played) {
+            bar.finish();
+            return fail(e.to_string());
+        }
         bar.inc();
     }
     bar.finish();
+    let (rows, written, verdict) = match run.finish(&args.out) {
+        Ok(r) => r,
+        Err(e) => return fail(e.to_string()),
+    };
     let emulated = matches!(args.engine, values::PlayEngine::Emu);
-    let peak_kb = host_play::peak_memory_kb();
-    print!("{}", corpus::summary_text(&rows, emulated, peak_kb));
-    let written = corpus::write_tables(&args.out, &rows);
-    (written.iter().flatten()).for_each(|p| println!("  wrote {}", p.display()));
-    match written.err().or_else(|| corpus::failures_text(&rows)) {
-        None => ExitCode::SUCCESS,
-        Some(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
-        }
+    print!(
+        "{}",
+        corpus::summary_text(&rows, emulated, host_play::peak_memory_kb())
+    );
+    written
+        .iter()
+        .for_each(|p| println!("  wrote {}", p.display()));
+    if shard.count > 1 {
+        println!(
+            "  the tables: tactus corpus merge {} -o OUT, once every shard is done",
+            args.out.display()
+        );
     }
+    if let Some(m) = verdict.message() {
+        eprintln!("error: {m}");
+    }
+    ExitCode::from(verdict.exit_code())
 }
 
 /// Plays one performance (`None`: the demo) and prints what it returns; the row is the

@@ -6,9 +6,8 @@ use crate::check_cmd::{compile_reporting, parse_override};
 use crate::source;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use tactus_host::plot;
 use tactus_host::regulate::sheet as host_regulate;
-use tactus_host::regulate::{self, spec, Config, Figure, Sheet};
+use tactus_host::regulate::{spec, Config, Figure};
 
 /// Arguments of `tactus regulate`.
 #[derive(Debug, clap::Args)]
@@ -103,7 +102,7 @@ fn run_inner(args: &RegulateArgs) -> Result<ExitCode, String> {
     );
     let verdicts = spec.as_ref().map(|s| spec::check(&sheet, s));
     print!("{}", host_regulate::sheet_text(&sheet, verdicts.as_deref()));
-    let (svg, csv) = write_loop(&sheet, &args.out)?;
+    let (svg, csv) = host_regulate::write_loop(&sheet, &args.out)?;
     println!("  wrote {} (force–travel loop)", svg.display());
     println!("  wrote {}", csv.display());
     let (Some(spec), Some(verdicts)) = (spec, verdicts) else {
@@ -116,33 +115,4 @@ fn run_inner(args: &RegulateArgs) -> Result<ExitCode, String> {
     } else {
         ExitCode::FAILURE
     })
-}
-
-/// Writes the loop as `OUT/NAME-loop.svg` (force in gf against travel in mm, down and up
-/// in two colours) and `OUT/NAME-loop.csv` (`host_regulate::loop_csv`).
-fn write_loop(sheet: &Sheet, out: &std::path::Path) -> Result<(PathBuf, PathBuf), String> {
-    std::fs::create_dir_all(out).map_err(|e| format!("cannot create `{}`: {e}", out.display()))?;
-    let lp = &sheet.force_loop;
-    let line = |label: &str, pts: &[(f64, f64)]| plot::Line {
-        label: label.to_string(),
-        x: pts.iter().map(|p| p.0 * 1e3).collect(),
-        y: pts.iter().map(|p| regulate::n_to_gf(p.1)).collect(),
-    };
-    let svg = out.join(format!("{}-loop.svg", sheet.instrument));
-    plot::plot_lines(
-        &[line("going down", &lp.down), line("going up", &lp.up)],
-        &format!(
-            "{}: force at the key on a quasi-static dip ({} mm/s)",
-            sheet.instrument,
-            regulate::QUASI_STATIC_SPEED * 1e3
-        ),
-        "key travel [mm]",
-        "force at the key [gf]",
-        &svg,
-    )
-    .map_err(|e| e.to_string())?;
-    let csv = out.join(format!("{}-loop.csv", sheet.instrument));
-    std::fs::write(&csv, host_regulate::loop_csv(sheet))
-        .map_err(|e| format!("{}: cannot write: {e}", csv.display()))?;
-    Ok((svg, csv))
 }

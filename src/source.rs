@@ -1,5 +1,5 @@
 //! Loading instrument sources (files on disk, or the instruments built into the toolchain:
-//! `tactus_host::catalogue`) and printing their diagnostics.
+//! `tactus_host::catalogue`, with the files they import) and printing their diagnostics.
 
 pub use tactus_host::catalogue::{load, Source};
 
@@ -17,7 +17,7 @@ pub fn report(src: &Source, diagnostics: &[tactus_compiler::diagnostics::Diagnos
     };
     let mut err = StandardStream::stderr(choice);
     // A failed write to stderr leaves nothing better to report it to.
-    let _ = tactus_compiler::diagnostics::emit(&mut err, &src.name, &src.text, diagnostics);
+    let _ = tactus_compiler::diagnostics::emit_files(&mut err, &src.linked.sources, diagnostics);
 }
 
 /// Prints a source's diagnostics ([`report`]) and, when any is an error, one line counting

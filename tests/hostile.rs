@@ -859,3 +859,79 @@ fn class_14_play_ends_and_says_what_it_could_not_do() {
         "could not be placed as recorded",
     );
 }
+
+#[test]
+fn class_15_hostile_imports_are_diagnostics_at_the_import() {
+    let dir = temp_dir("hostile-15");
+    let main = |import: &str| {
+        format!("{import}\n{KEY}    use s = spring(x = key)\n    force f = s.f\n}}\n")
+    };
+    let spring = "component spring {\n    input x: m\n    output f = 100 N/m * x\n}\n";
+    // A missing file: where it was looked for.
+    let f = write(&dir, "missing.tactus", main("import \"nosuch.tactus\""));
+    let e = expect(
+        &["check", &f],
+        1,
+        "error[E0140]: no file `nosuch.tactus` to import",
+    );
+    assert!(e.contains("and in Tactus's library"), "{e}");
+    // A directory.
+    std::fs::create_dir_all(dir.join("lib.tactus")).unwrap();
+    let f = write(&dir, "directory.tactus", main("import \"lib.tactus\""));
+    expect(&["check", &f], 1, "a directory, not a file");
+    // A file of 100 MB (sparse: its size is refused before a byte is read).
+    let big = std::fs::File::create(dir.join("big.tactus")).unwrap();
+    big.set_len(100 << 20).unwrap();
+    let f = write(&dir, "big_import.tactus", main("import \"big.tactus\""));
+    expect(&["check", &f], 1, "longer than the 16777216 bytes");
+    // A cycle, through a second file.
+    write(&dir, "a.tactus", format!("import \"b.tactus\"\n{spring}"));
+    write(&dir, "b.tactus", "import \"a.tactus\"\n");
+    let f = write(&dir, "cycle.tactus", main("import \"a.tactus\""));
+    let e = expect(&["check", &f], 1, "error[E0142]: an import cycle");
+    assert!(e.contains("a.tactus → ") && e.contains("b.tactus"), "{e}");
+    // A name imported twice, from two files: both definitions shown.
+    write(&dir, "spring1.tactus", spring);
+    write(&dir, "spring2.tactus", spring);
+    let f = write(
+        &dir,
+        "twice.tactus",
+        main("import \"spring1.tactus\"\nimport \"spring2.tactus\""),
+    );
+    let e = expect(
+        &["check", &f],
+        1,
+        "error[E0143]: two components named `spring`",
+    );
+    assert!(
+        e.contains("spring1.tactus:1:11") && e.contains("spring2.tactus:1:11"),
+        "{e}"
+    );
+    // A chain of 1,000 files, each importing the next: it links.
+    let chain = dir.join("chain");
+    std::fs::create_dir_all(&chain).unwrap();
+    for i in 0..1000 {
+        write(
+            &chain,
+            &format!("f{i}.tactus"),
+            format!("import \"f{}.tactus\"\n", i + 1),
+        );
+    }
+    write(&chain, "f1000.tactus", spring);
+    let f = write(&chain, "main.tactus", main("import \"f0.tactus\""));
+    let e = expect(
+        &["check", &f],
+        1,
+        "error[E0115]: no component named `spring`",
+    );
+    assert!(
+        e.contains("defined in") && e.contains("f1000.tactus"),
+        "{e}"
+    );
+    let f = write(
+        &chain,
+        "main2.tactus",
+        main("import \"f0.tactus\"\nimport \"f1000.tactus\""),
+    );
+    expect(&["check", &f], 0, "is well-formed");
+}

@@ -2,11 +2,14 @@
 //!
 //! The AST keeps source order and spelling and resolves nothing: names are strings and
 //! units are already folded into literals by the lexer. [`crate::lower`] turns it into the
-//! IR, checking names and dimensions on the way. Spans are byte ranges into the source file.
+//! IR, checking names and dimensions on the way. Spans are byte ranges into the source file,
+//! offset by the file's base in a [`crate::sources::SourceMap`] when it was imported (the
+//! main file's base is 0, so its spans are its own byte offsets).
 
 use crate::lexer::Literal;
 
-/// A byte range in the source file.
+/// A byte range in the source file (offset by its file's base in a
+/// [`crate::sources::SourceMap`]: 0 for the main file).
 pub type Span = std::ops::Range<usize>;
 
 /// A value with the span it came from.
@@ -21,7 +24,7 @@ pub struct Spanned<T> {
 /// A name as written.
 pub type Name = Spanned<String>;
 
-/// A whole `.tactus` file: components and instruments in source order.
+/// A whole `.tactus` file: imports, components and instruments in source order.
 #[derive(Clone, Debug, PartialEq)]
 pub struct File {
     /// Top-level definitions.
@@ -35,6 +38,22 @@ pub enum TopItem {
     Instrument(Body),
     /// `component NAME { … }`
     Component(Body),
+    /// `import "FILE"` or `import "FILE" { NAME, … }`: resolved and removed by
+    /// [`crate::imports::link`], so expansion and lowering never see one.
+    Import(Import),
+}
+
+/// `import "FILE"` (every component `FILE` defines) or `import "FILE" { NAME, … }` (only
+/// those): components from another file, found next to the importing file, then in
+/// Tactus's library ([`crate::library`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Import {
+    /// The file name as written, without the quotes; its span includes them.
+    pub path: Spanned<String>,
+    /// The components listed in braces, or `None` for all of them.
+    pub names: Option<Vec<Name>>,
+    /// The whole import.
+    pub span: Span,
 }
 
 /// The body shared by instruments and components.

@@ -2,11 +2,14 @@
 //! that renders them (codespan-reporting).
 //!
 //! Passes return `Vec<Diagnostic>`; nothing in the compiler prints. The CLI renders to the
-//! terminal with colours, tests use [`emit_to_string`] for snapshots.
+//! terminal with colours, tests use [`emit_to_string`] for snapshots. A span may lie in any
+//! file of a program (an instrument and the files it imports: [`crate::sources`]);
+//! [`emit_files`] shows each label under its own file.
 
 use crate::ast::Span;
+use crate::sources::{Origin, SourceMap};
 use codespan_reporting::diagnostic::{Diagnostic as CsDiagnostic, Label};
-use codespan_reporting::files::SimpleFile;
+use codespan_reporting::files::SimpleFiles;
 use codespan_reporting::term::{self, termcolor};
 
 /// Whether a diagnostic stops compilation.
@@ -74,17 +77,20 @@ impl Diagnostic {
         self.severity == Severity::Error
     }
 
-    fn to_codespan(&self) -> CsDiagnostic<()> {
+    fn to_codespan(&self, files: &SourceMap) -> CsDiagnostic<usize> {
         let d = match self.severity {
             Severity::Error => CsDiagnostic::error(),
             Severity::Warning => CsDiagnostic::warning(),
         };
-        let mut labels =
-            vec![Label::primary((), self.primary.0.clone()).with_message(&self.primary.1)];
+        let label = |style: fn(usize, Span) -> Label<usize>, span: &Span, text: &str| {
+            let (id, local) = files.locate(span);
+            style(id.index(), local).with_message(text)
+        };
+        let mut labels = vec![label(Label::primary, &self.primary.0, &self.primary.1)];
         labels.extend(
             self.secondary
                 .iter()
-                .map(|(s, m)| Label::secondary((), s.clone()).with_message(m)),
+                .map(|(s, m)| label(Label::secondary, s, m)),
         );
         d.with_code(self.code)
             .with_message(&self.message)
@@ -93,20 +99,39 @@ impl Diagnostic {
     }
 }
 
-/// Renders diagnostics for `file_name`/`source` to a writer (colours as the writer allows).
+/// Renders diagnostics for `file_name`/`source` to a writer (colours as the writer allows):
+/// [`emit_files`] of a program of one file.
 pub fn emit(
     out: &mut dyn termcolor::WriteColor,
     file_name: &str,
     source: &str,
     diagnostics: &[Diagnostic],
 ) -> std::io::Result<()> {
-    let file = SimpleFile::new(file_name, source);
+    emit_files(
+        out,
+        &SourceMap::new(file_name, Origin::Text, source),
+        diagnostics,
+    )
+}
+
+/// Renders diagnostics whose spans lie in the files of `files` (an instrument and the files
+/// it imports) to a writer: each label under the line of its own file, named as
+/// [`crate::sources::SourceFile::name`] says.
+pub fn emit_files(
+    out: &mut dyn termcolor::WriteColor,
+    files: &SourceMap,
+    diagnostics: &[Diagnostic],
+) -> std::io::Result<()> {
+    let mut db = SimpleFiles::new();
+    for f in files.files() {
+        db.add(f.name.as_str(), f.text.as_str());
+    }
     let config = term::Config::default();
     for d in diagnostics {
-        let cs = match long_line(source, d) {
+        let cs = match long_line(files, d) {
             // Rendering a megabyte-long line (and a caret line as long) takes minutes and
             // shows nothing readable: name the place instead.
-            Some((line, column, len)) => {
+            Some((file_name, line, column, len)) => {
                 let mut notes = vec![format!(
                     "at {file_name}:{line}:{column} (a line of {len} bytes, not shown){}",
                     if d.primary.1.is_empty() {
@@ -124,23 +149,26 @@ pub fn emit(
                     .with_message(&d.message)
                     .with_notes(notes)
             }
-            None => d.to_codespan(),
+            None => d.to_codespan(files),
         };
-        term::emit_to_write_style(out, &config, &file, &cs).map_err(std::io::Error::other)?;
+        term::emit_to_write_style(out, &config, &db, &cs).map_err(std::io::Error::other)?;
     }
     Ok(())
 }
 
-/// The longest source line [`emit`] shows under a diagnostic, bytes.
+/// The longest source line [`emit_files`] shows under a diagnostic, bytes.
 const MAX_SHOWN_LINE: usize = 4096;
 
-/// (line, column, line length), 1-based, of the first span of `d` whose line is longer than
-/// [`MAX_SHOWN_LINE`].
-fn long_line(source: &str, d: &Diagnostic) -> Option<(usize, usize, usize)> {
+/// (file name, line, column, line length), 1-based, of the first span of `d` whose line is
+/// longer than [`MAX_SHOWN_LINE`].
+fn long_line<'f>(files: &'f SourceMap, d: &Diagnostic) -> Option<(&'f str, usize, usize, usize)> {
     std::iter::once(&d.primary.0)
         .chain(d.secondary.iter().map(|(s, _)| s))
         .find_map(|span| {
-            let mut at = span.start.min(source.len());
+            let (id, local) = files.locate(span);
+            let file = files.get(id);
+            let source = file.text.as_str();
+            let mut at = local.start;
             while !source.is_char_boundary(at) {
                 at -= 1;
             }
@@ -148,16 +176,25 @@ fn long_line(source: &str, d: &Diagnostic) -> Option<(usize, usize, usize)> {
             let end = source[at..].find('\n').map_or(source.len(), |i| at + i);
             (end - start > MAX_SHOWN_LINE).then(|| {
                 let line = source[..start].matches('\n').count() + 1;
-                (line, source[start..at].chars().count() + 1, end - start)
+                let column = source[start..at].chars().count() + 1;
+                (file.name.as_str(), line, column, end - start)
             })
         })
 }
 
 /// Renders diagnostics to a plain string (no colours), for tests and snapshots.
 pub fn emit_to_string(file_name: &str, source: &str, diagnostics: &[Diagnostic]) -> String {
+    emit_files_to_string(
+        &SourceMap::new(file_name, Origin::Text, source),
+        diagnostics,
+    )
+}
+
+/// [`emit_files`] to a plain string (no colours), for tests and snapshots.
+pub fn emit_files_to_string(files: &SourceMap, diagnostics: &[Diagnostic]) -> String {
     let mut buf = termcolor::NoColor::new(Vec::new());
     // Writing into a Vec cannot fail.
-    let _ = emit(&mut buf, file_name, source, diagnostics);
+    let _ = emit_files(&mut buf, files, diagnostics);
     String::from_utf8_lossy(&buf.into_inner()).into_owned()
 }
 

@@ -39,6 +39,8 @@ pub enum LexError {
     BadExponent(String),
     /// A number whose value in SI units is not a finite f64 (`1e309`, `1e308 km`).
     OutOfRange(String),
+    /// A string (an import's file name) without its closing `"` on the same line.
+    UnterminatedString,
 }
 
 impl fmt::Display for LexError {
@@ -54,6 +56,7 @@ impl fmt::Display for LexError {
                     "`{n}` is too large: in SI units it is beyond the range of f64"
                 )
             }
+            LexError::UnterminatedString => write!(f, "a string without its closing `\"`"),
         }
     }
 }
@@ -123,12 +126,19 @@ pub enum Token {
     Require,
     #[token("tolerance")]
     Tolerance,
+    #[token("import")]
+    Import,
 
     #[regex(r"[A-Za-z_][A-Za-z0-9_]*", |lex| lex.slice().to_string())]
     Ident(String),
     #[regex(r"[0-9]+(\.[0-9]+)?([eE][+-]?[0-9]+)?", number)]
     #[regex(r"[0-9]+(\.[0-9]+)?[eE][+-]?", bad_number)]
     Number(Literal),
+    /// A string: an import's file name, `"friction.tactus"`, without its quotes. It has no
+    /// escapes and ends on its line.
+    #[regex(r#""[^"\n]*""#, string)]
+    #[regex(r#""[^"\n]*"#, unterminated)]
+    Str(String),
 
     #[token("{")]
     LBrace,
@@ -213,6 +223,7 @@ impl Token {
                 | Solve
                 | Require
                 | Tolerance
+                | Import
         )
     }
 }
@@ -222,6 +233,7 @@ impl fmt::Display for Token {
         match self {
             Token::Ident(s) => write!(f, "`{s}`"),
             Token::Number(_) => write!(f, "number"),
+            Token::Str(s) => write!(f, "string \"{s}\""),
             other => {
                 let text = match other {
                     Token::LBrace => "{",
@@ -257,6 +269,15 @@ impl fmt::Display for Token {
             }
         }
     }
+}
+
+fn string(lex: &mut logos::Lexer<Token>) -> String {
+    let s = lex.slice();
+    s[1..s.len() - 1].to_string()
+}
+
+fn unterminated(_: &mut logos::Lexer<Token>) -> Result<String, LexError> {
+    Err(LexError::UnterminatedString)
 }
 
 fn bad_number(lex: &mut logos::Lexer<Token>) -> Result<Literal, LexError> {

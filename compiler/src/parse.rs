@@ -137,7 +137,16 @@ pub fn int_literal(
 
 /// Parses a `.tactus` source into its AST, or the first syntax error as a diagnostic.
 pub fn parse(src: &str) -> Result<File, Box<Diagnostic>> {
-    let tokens = lexer::lex(src).map(|r| r.map_err(|(e, span)| SyntaxError::Lex(e, span)));
+    parse_at(src, 0)
+}
+
+/// [`parse`] of a file whose bytes start at `base` in a [`crate::sources::SourceMap`]:
+/// every span of the tree and of the diagnostic is offset by `base`.
+pub fn parse_at(src: &str, base: usize) -> Result<File, Box<Diagnostic>> {
+    let tokens = lexer::lex(src).map(|r| match r {
+        Ok((l, t, r)) => Ok((l + base, t, r + base)),
+        Err((e, span)) => Err(SyntaxError::Lex(e, span.start + base..span.end + base)),
+    });
     grammar::FileParser::new()
         .parse(&Nesting::default(), tokens)
         .map_err(|e| Box::new(to_diagnostic(e, src)))
@@ -196,6 +205,11 @@ fn to_diagnostic(e: ParseError<usize, Token, SyntaxError>, src: &str) -> Diagnos
                 Diagnostic::error("E0006", e.to_string(), span)
                     .hint("numbers look like `12`, `0.4` or `1.5e-3`, unit exponents like `m/s^2`")
             }
+            SyntaxError::Lex(LexError::UnterminatedString, span) => {
+                Diagnostic::error("E0009", "a string without its closing `\"`", span)
+                    .label("the line ends inside this string")
+                    .hint("an import names its file in double quotes on one line: `import \"friction.tactus\"`")
+            }
             SyntaxError::Lex(LexError::UnexpectedChar, span) => {
                 Diagnostic::error("E0001", "unexpected character", span)
                     .hint("comments start with `//`")
@@ -225,6 +239,7 @@ fn expected_list(expected: &[String]) -> String {
         .map(|e| match e.as_str() {
             "\"ident\"" => "a name".to_string(),
             "\"num\"" => "a number".to_string(),
+            "\"str\"" => "a file name in quotes".to_string(),
             other => format!("`{}`", other.trim_matches('"')),
         })
         .collect();

@@ -14,6 +14,7 @@ use crate::fixed::q_name;
 use crate::fixed::report::Precision;
 use crate::fixed::FixedProgram;
 use crate::ir::{self, Program, Ty};
+use crate::sources::{FileId, SourceMap};
 
 /// The names the resolver resolved: each place a name is written, and the span of the name
 /// of the declaration it denotes. Sorted and without duplicates (a component instanced
@@ -188,8 +189,8 @@ fn sym(name: &ast::Name, kind: SymbolKind, end: Option<&Span>, detail: String) -
     }
 }
 
-fn decl_symbols(decls: &[Decl], src: &str, out: &mut Vec<Symbol>) {
-    let text = |s: &Span| src.get(s.clone()).unwrap_or("").trim().to_string();
+fn decl_symbols(decls: &[Decl], src: &Source, out: &mut Vec<Symbol>) {
+    let text = |s: &Span| src.get(s).unwrap_or("").trim().to_string();
     for d in decls {
         match d {
             Decl::Sensor { name, range, .. } => {
@@ -307,20 +308,41 @@ fn decl_symbols(decls: &[Decl], src: &str, out: &mut Vec<Symbol>) {
     }
 }
 
+/// Where [`symbols`] reads the text of a span: one file's text, or every file of a
+/// program (an imported file's spans are offset by its base).
+enum Source<'s> {
+    Text(&'s str),
+    Files(&'s SourceMap),
+}
+
+impl Source<'_> {
+    fn get(&self, span: &Span) -> Option<&str> {
+        match self {
+            Source::Text(t) => t.get(span.clone()),
+            Source::Files(m) => m.text(span),
+        }
+    }
+}
+
 /// The declarations of a parsed file as an outline: per instrument and component, its
 /// sensors, params, states, modes (with their variants), lets, forces, outputs and
 /// instances, in source order.
 pub fn symbols(file: &ast::File, src: &str) -> Vec<Symbol> {
+    symbols_from(file, &Source::Text(src))
+}
+
+fn symbols_from(file: &ast::File, src: &Source) -> Vec<Symbol> {
     file.items
         .iter()
-        .map(|item| {
+        .filter_map(|item| {
             let (body, kind) = match item {
                 ast::TopItem::Instrument(b) => (b, SymbolKind::Instrument),
                 ast::TopItem::Component(b) => (b, SymbolKind::Component),
+                ast::TopItem::Import(_) => return None,
             };
             let mut s = sym(&body.name, kind, Some(&body.span), String::new());
             decl_symbols(&body.decls, src, &mut s.children);
-            s
+            Some(s)
         })
         .collect()
 }
@@ -376,6 +398,9 @@ pub struct Facts {
     pub heading: String,
     /// (what, value) rows: `unit`, `declared range`, `range`, `format`, `error bound`, ….
     pub rows: Vec<(String, String)>,
+    /// The comment block above the declaration, without its `//` (a component's
+    /// documentation: its physics, units, sources), or empty.
+    pub doc: String,
 }
 
 /// The format plan and its precision report, when the profile compiles.
@@ -462,18 +487,21 @@ fn error_text(e: f64, ty: Ty, pr: &Precision) -> String {
     }
 }
 
-/// The facts of the place at byte `offset`: of the declaration a name there denotes (found
-/// through `index` and `outline`), else of the smallest term of the lowered `program`
-/// around it. `plan` adds inferred ranges, Q-formats and error bounds. `None` where nothing
-/// is known (white space, a keyword, a file that did not lower).
+/// The facts of the place at byte `offset` of the main file of `sources`: of the
+/// declaration a name there denotes (found through `index` and `outline`, which holds the
+/// declarations of every file a name may resolve into: [`Analysis::outlines`]), else of
+/// the smallest term of the lowered `program` around it. `plan` adds inferred ranges,
+/// Q-formats and error bounds. `None` where nothing is known (white space, a keyword, a
+/// file that did not lower).
 pub fn facts_at(
-    src: &str,
+    sources: &SourceMap,
     outline: &[Symbol],
     index: &NameIndex,
     program: Option<&Program>,
     plan: Option<Plan>,
     offset: usize,
 ) -> Option<Facts> {
+    let src = sources;
     let decls: Vec<&Symbol> = outline.iter().flat_map(|s| s.flatten()).collect();
     let flat: Vec<Symbol> = decls.iter().map(|s| (*s).clone()).collect();
     let def = index.definition_at(offset, &flat);
@@ -500,13 +528,36 @@ pub fn facts_at(
     value_rows(p, ir::Value(v as u32), plan, &mut rows);
     Some(Facts {
         span: data.span.clone(),
-        heading: format!("term `{}`", src.get(data.span.clone()).unwrap_or("").trim()),
+        heading: format!("term `{}`", src.text(&data.span).unwrap_or("").trim()),
         rows,
+        doc: String::new(),
     })
 }
 
+/// The comment block right above the declaration at `span` (each line's `//` and one space
+/// taken off), joined into lines.
+fn doc_above(src: &SourceMap, span: &Span) -> String {
+    let (id, local) = src.locate(span);
+    let text = &src.get(id).text;
+    let mut lines: Vec<&str> = text[..local.start.min(text.len())]
+        .lines()
+        .rev()
+        .skip(1) // the declaration's own line, up to its start
+        .take_while(|l| l.trim_start().starts_with("//"))
+        .collect();
+    lines.reverse();
+    lines
+        .iter()
+        .map(|l| {
+            let t = l.trim_start().trim_start_matches("//");
+            t.strip_prefix(' ').unwrap_or(t)
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
 fn decl_facts(
-    src: &str,
+    src: &SourceMap,
     d: &Symbol,
     program: Option<&Program>,
     plan: Option<Plan>,
@@ -656,20 +707,52 @@ fn decl_facts(
             _ => {}
         }
     }
+    let mut doc = String::new();
+    if d.kind == SymbolKind::Component {
+        let (file, _) = src.locate(def);
+        if file != FileId::MAIN {
+            rows.push(("from".into(), src.get(file).name.clone()));
+        }
+        let list = |kind: SymbolKind| {
+            d.children
+                .iter()
+                .filter(|c| c.kind == kind)
+                .map(|c| match kind {
+                    SymbolKind::Param => format!("`{}` {}", c.name, c.detail),
+                    SymbolKind::Input => format!("`{}`{}", c.name, c.detail),
+                    _ => format!("`{}`", c.name),
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        for (what, kind) in [
+            ("inputs", SymbolKind::Input),
+            ("outputs", SymbolKind::Output),
+            ("params", SymbolKind::Param),
+        ] {
+            let l = list(kind);
+            if !l.is_empty() {
+                rows.push((what.into(), l));
+            }
+        }
+        doc = doc_above(src, &d.span);
+    }
     Facts {
         span: at,
         heading,
         rows,
+        doc,
     }
 }
 
 /// The span of the expression after `=` in a declaration's text.
-fn value_span(src: &str, d: &Symbol) -> Span {
-    let text = src.get(d.name_span.end..d.span.end).unwrap_or("");
+fn value_span(src: &SourceMap, d: &Symbol) -> Span {
+    let text = src.text(&(d.name_span.end..d.span.end)).unwrap_or("");
     match text.find('=') {
         Some(i) => {
             let start = d.name_span.end + i + 1;
-            let skip = src[start..d.span.end].len() - src[start..d.span.end].trim_start().len();
+            let rest = src.text(&(start..d.span.end)).unwrap_or("");
+            let skip = rest.len() - rest.trim_start().len();
             start + skip..d.span.end
         }
         None => d.span.clone(),
@@ -706,27 +789,70 @@ pub struct Analysis {
     pub outline: Vec<Symbol>,
     /// The names resolved ([`NameIndex`]); empty when the file does not parse or expand.
     pub names: NameIndex,
+    /// The components the file imports, as outlines whose spans lie in their own files (a
+    /// name of the file may resolve into one: hover, definition, an instance's members).
+    pub imported: Vec<Symbol>,
+    /// The program's files: the file analysed first, then those it imports (to turn a span
+    /// into a file and a place in it).
+    pub sources: SourceMap,
+}
+
+impl Analysis {
+    /// Every declaration a name of the file may denote: its outline, then the imported
+    /// components'.
+    pub fn outlines(&self) -> Vec<Symbol> {
+        self.outline.iter().chain(&self.imported).cloned().collect()
+    }
 }
 
 /// Parses and lowers `src` as [`crate::compile`] does, keeping the outline and the name
 /// index besides the diagnostics.
 pub fn analyse(src: &str, config: &crate::lower::Config) -> Analysis {
-    let file = match crate::parse::parse(src) {
-        Ok(f) => f,
-        Err(d) => {
-            return Analysis {
-                diagnostics: vec![*d],
-                lowered: None,
-                outline: Vec::new(),
-                names: NameIndex::default(),
-            }
-        }
+    let linked = crate::imports::link(
+        "source",
+        crate::sources::Origin::Text,
+        src,
+        &mut crate::imports::NoFiles,
+    );
+    analyse_linked(&linked, config)
+}
+
+/// [`analyse`] of a program [`crate::imports::link`] read: the outline is the main file's,
+/// the names and diagnostics the program's (a name may resolve into an imported file).
+pub fn analyse_linked(linked: &crate::imports::Linked, config: &crate::lower::Config) -> Analysis {
+    let main = linked.sources.main();
+    let outline = match linked.parsed.first() {
+        Some(Some(file)) => symbols(file, &main.text),
+        _ => Vec::new(),
     };
-    let outline = symbols(&file, src);
+    let imported = symbols_from(
+        &ast::File {
+            items: linked
+                .imported_components()
+                .into_iter()
+                .map(|b| ast::TopItem::Component(b.clone()))
+                .collect(),
+        },
+        &Source::Files(&linked.sources),
+    );
+    let sources = linked.sources.clone();
+    let Some(file) = &linked.file else {
+        return Analysis {
+            diagnostics: linked.diagnostics.clone(),
+            lowered: None,
+            outline,
+            names: NameIndex::default(),
+            imported,
+            sources,
+        };
+    };
     let mut refs = Vec::new();
-    let (diagnostics, lowered) = match crate::lower::lower_indexed(&file, config, Some(&mut refs)) {
-        Ok(l) => (l.warnings.clone(), Some(l)),
-        Err(d) => (d, None),
+    let (diagnostics, lowered) = match crate::lower::lower_indexed(file, config, Some(&mut refs)) {
+        Ok(mut l) => {
+            l.warnings = linked.sited(std::mem::take(&mut l.warnings));
+            (l.warnings.clone(), Some(l))
+        }
+        Err(d) => (linked.sited(d), None),
     };
     let mut names = NameIndex::default();
     names.add(refs);
@@ -735,5 +861,7 @@ pub fn analyse(src: &str, config: &crate::lower::Config) -> Analysis {
         lowered,
         outline,
         names,
+        imported,
+        sources,
     }
 }

@@ -153,18 +153,28 @@ fn mutated_instruments_never_panic() {
             continue;
         }
         let m = mutate(&sources[k], &mut rng);
-        match tactus_compiler::compile(&m, &Config::default()) {
+        let linked = tactus_compiler::imports::link(
+            "m.tactus",
+            tactus_compiler::sources::Origin::Text,
+            &m,
+            &mut tactus_compiler::imports::NoFiles,
+        );
+        match tactus_compiler::compile_linked(&linked, &Config::default()) {
             Ok(_) => ok += 1,
             Err(diags) => {
                 assert!(diags.iter().any(|d| d.is_error()));
+                // Every span lies in one file of the program (the mutant, or a library file
+                // an argument of the wrong unit reaches).
                 for d in &diags {
+                    let span = &d.primary.0;
+                    let file = linked.sources.get(linked.sources.file_at(span.start));
                     assert!(
-                        d.primary.0.start <= d.primary.0.end && d.primary.0.end <= m.len(),
+                        span.start <= span.end && span.end <= file.base + file.text.len(),
                         "span out of file: {d:?}"
                     );
                 }
                 // Rendering must not panic either.
-                let _ = tactus_compiler::diagnostics::emit_to_string("m.tactus", &m, &diags);
+                let _ = tactus_compiler::diagnostics::emit_files_to_string(&linked.sources, &diags);
                 failed += 1;
             }
         }

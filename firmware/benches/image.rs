@@ -13,7 +13,7 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::path::Path;
 use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_firmware::image::{assign_cores, compile_layout, key_specs, FirmwareImage};
-use tactus_runtime::keyboard::{read_board, KeyAssignment};
+use tactus_runtime::keyboard::KeyAssignment;
 use tactus_runtime::limiter::LimiterConfig;
 use tactus_runtime::stimulus;
 
@@ -35,7 +35,8 @@ fn image(len: usize) -> (FirmwareImage, Vec<Vec<i32>>) {
             .map_err(|e| e.to_string())
     };
     let (programs, key_programs) = compile_layout(&keys, &source, 44_100.0).unwrap();
-    let board = read_board(&root.join("boards/rp2040_200mhz.toml")).unwrap();
+    let text = std::fs::read_to_string(root.join("boards/rp2040_200mhz.toml")).unwrap();
+    let board = tactus_firmware::boards::read_board(&text, "rp2040_200mhz").unwrap();
     let cores = assign_cores(&programs, &key_programs, board.cores as usize).unwrap();
     let specs = key_specs(&keys, &key_programs, &cores);
     let image = FirmwareImage::build(&programs, &specs, &board, &LimiterConfig::default()).unwrap();

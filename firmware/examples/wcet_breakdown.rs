@@ -160,7 +160,8 @@ fn analyse_layout(path: &Path, list: bool, asm: bool) {
         }
         breakdown(&shown, &p.fixed, &p.thumb, list, asm);
         // The glue a key of it costs beside its update, on the built-in 133 MHz board.
-        if let Ok(board) = tactus_runtime::keyboard::read_board(Path::new("boards/rp2040.toml")) {
+        let text = std::fs::read_to_string("boards/rp2040.toml").unwrap_or_default();
+        if let Ok(board) = tactus_firmware::boards::read_board(&text, "boards/rp2040.toml") {
             let lim = tactus_runtime::limiter::LimiterConfig::default();
             let mut plain = p.clone();
             plain.quiescent_guard = false;

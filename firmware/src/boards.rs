@@ -385,6 +385,50 @@ pub fn check_board(
     verdict_of(programs, costs, keys, board, limiter, true)
 }
 
+/// The verdict of each board of a layout that lists its own (`lists`: the MIDI keys of
+/// each board), as [`check_board`] gives it; `progress(boards done, boards in all)`.
+///
+/// Errors: as [`board_image`].
+pub fn check_boards(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    keys: &[PlanKey],
+    lists: &[Vec<u8>],
+    board: &BoardSpec,
+    limiter: &LimiterConfig,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<BoardVerdict>, BoardsError> {
+    let mut out = Vec::with_capacity(lists.len());
+    for (i, list) in lists.iter().enumerate() {
+        progress(i, lists.len());
+        let ks: Vec<PlanKey> = keys
+            .iter()
+            .filter(|k| list.contains(&k.key))
+            .copied()
+            .collect();
+        out.push(check_board(programs, costs, &ks, board, limiter)?);
+    }
+    Ok(out)
+}
+
+/// A keyboard's boards with their verdicts: planned by [`plan`] when its layout lists none,
+/// else the layout's own checked ([`check_boards`]). Made once per keyboard
+/// (`tactus_host::keyboard::Keyboard::plan`); `tactus build`, `budget` and `play` read it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KeyboardPlan {
+    /// Per board, in key order: its keys (ascending MIDI numbers), cores and verdict.
+    pub boards: Vec<BoardVerdict>,
+    /// Whether the boards were planned (`false`: the layout's own).
+    pub planned: bool,
+}
+
+impl KeyboardPlan {
+    /// The MIDI keys of each board, in board order.
+    pub fn key_lists(&self) -> Vec<Vec<u8>> {
+        self.boards.iter().map(|b| b.keys.clone()).collect()
+    }
+}
+
 /// [`check_board`], the guard dropped only when `may_drop_guard` ([`image_of`]).
 fn verdict_of(
     programs: &[Program],

@@ -25,6 +25,7 @@ use crate::runner::{RunError, UpdateRunner, BL_CYCLES};
 use crate::Interface;
 use std::fmt;
 use tactus_compiler::fixed::FixedProgram;
+use tactus_compiler::sources::SourceMap;
 use tactus_compiler::thumb::{ThumbError, ThumbObject};
 use tactus_isa::wcet::{self, Bounds, Image, WcetError};
 
@@ -355,14 +356,15 @@ pub fn note_name(key: u8) -> String {
     format!("{}{}", NAMES[key as usize % 12], key as i32 / 12 - 1)
 }
 
-/// A backend note rendered for people, given the instrument's source text: an
-/// `if condition vN @start..end` becomes the source line of the condition, prefixed by the
-/// enclosing `component`/`instrument` and followed by the head of the comment just above
-/// the statement, if any (`grand_piano line 151: on s >= s_string — Hammer–string
-/// impact`). Notes without a span (`emit strike`), or whose span is not in `source`, are
-/// returned as they are; `None` for an empty span (`@0..0`: a condition the compiler
-/// generated, with no source text of its own).
-pub fn describe_note(note: &str, source: &str) -> Option<String> {
+/// A backend note rendered for people, given the instrument's source files (the program's
+/// [`SourceMap`]: its file and those it imports): an `if condition vN @start..end` becomes
+/// the source line of the condition in its own file, prefixed by the enclosing
+/// `component`/`instrument` and followed by the head of the comment just above the
+/// statement, if any (`grand_piano line 151: on s >= s_string — Hammer–string impact`).
+/// Notes without a span (`emit strike`), or whose span is in no file, are returned as they
+/// are; `None` for an empty span (`@0..0`: a condition the compiler generated, with no
+/// source text of its own).
+pub fn describe_note(note: &str, sources: &SourceMap) -> Option<String> {
     let Some((a, b)) = note.rsplit_once('@').and_then(|(_, s)| {
         let (a, b) = s.trim().split_once("..")?;
         Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?))
@@ -372,7 +374,10 @@ pub fn describe_note(note: &str, source: &str) -> Option<String> {
     if b <= a {
         return None;
     }
-    if a > source.len() || !source.is_char_boundary(a) {
+    let (file, local) = sources.locate(&(a..b));
+    let source = sources.get(file).text.as_str();
+    let a = a - sources.get(file).base;
+    if a > source.len() || local.start != a || !source.is_char_boundary(a) {
         return Some(note.to_string());
     }
     let lines: Vec<&str> = source.lines().collect();
@@ -424,6 +429,7 @@ mod tests {
     use super::*;
     use crate::corpus::{self, Size};
     use tactus_compiler::lower::Config;
+    use tactus_compiler::sources::Origin;
 
     fn compile(src: &str) -> (FixedProgram, ThumbObject) {
         let l = tactus_compiler::compile(src, &Config::default()).unwrap();
@@ -563,11 +569,18 @@ mod tests {
     #[test]
     fn piano_worst_path_names_source_events() {
         let (_, obj) = compile(INSTRUMENTS[0].1);
+        let sources = tactus_compiler::imports::link(
+            "grand_piano",
+            Origin::Text,
+            INSTRUMENTS[0].1,
+            &mut tactus_compiler::imports::NoFiles,
+        )
+        .sources;
         let s = static_update(&obj).unwrap();
         let described: Vec<String> = s
             .events
             .iter()
-            .filter_map(|(_, n)| describe_note(n, INSTRUMENTS[0].1))
+            .filter_map(|(_, n)| describe_note(n, &sources))
             .collect();
         println!("{described:#?}");
         assert!(!described.is_empty());
@@ -588,8 +601,9 @@ mod tests {
 
     #[test]
     fn notes_render_as_source_lines() {
-        let src = "instrument a {\n  // Impact: a comment\n  on x >= y {\n  }\n}\n";
-        let at = src.find("x >= y").unwrap();
+        let text = "instrument a {\n  // Impact: a comment\n  on x >= y {\n  }\n}\n";
+        let src = &SourceMap::new("a.tactus", Origin::Text, text);
+        let at = text.find("x >= y").unwrap();
         let d = describe_note(&format!("if condition v3 @{at}..{}", at + 6), src);
         assert_eq!(d.as_deref(), Some("a line 3: on x >= y { — Impact"));
         assert_eq!(describe_note("emit strike", src).unwrap(), "emit strike");

@@ -1,8 +1,9 @@
 //! Firmware a user can flash: per board of a keyboard, the linked ELF, its UF2, a key map
 //! and a README (what `tactus build LAYOUT --target rp2040 -o DIR` writes).
 //!
-//! The boards are the layout's own (`[[board]]`) or planned as `tactus budget` plans them
-//! ([`crate::boards::plan`]); each board's image is [`crate::boards::board_image`], the
+//! The boards are the keyboard's plan (the layout's own `[[board]]`s or planned by
+//! [`crate::boards::plan`], once per keyboard: [`crate::boards::KeyboardPlan`], the plan
+//! `tactus budget` reports); each board's image is [`crate::boards::board_image`], the
 //! very image whose sample interrupt the budget proved, so a board that does not fit is an
 //! error here rather than firmware that misses its deadline. By default the firmware lives
 //! in flash and boots at power-on through its second-stage boot loader, copying itself to
@@ -79,8 +80,10 @@ pub struct KeyboardInput<'a> {
     pub keys: &'a [(u8, usize)],
     /// The board kind.
     pub board: &'a BoardSpec,
-    /// The layout's boards (MIDI keys each), or `None` to plan them.
-    pub boards: Option<&'a [Vec<u8>]>,
+    /// The keyboard's boards (MIDI keys each), as its plan gives them
+    /// ([`crate::boards::KeyboardPlan::key_lists`]); each is checked again here, and one
+    /// that does not fit is an error.
+    pub boards: &'a [Vec<u8>],
     /// The safety limiter.
     pub limiter: &'a LimiterConfig,
     /// Flash (the default) or RAM-only firmware.
@@ -93,8 +96,8 @@ fn hex(a: u32) -> String {
     format!("{a:#010x}")
 }
 
-/// The firmware of every board of a keyboard. `progress(stage, done, total)` reports
-/// planning and building.
+/// The firmware of every board of a keyboard (`input.boards`, as its plan gives them).
+/// `progress(stage, done, total)` reports the building.
 ///
 /// Errors (a message naming the board and its keys): a board that does not fit its
 /// deadline or memory, a clock no PLL setting makes, an image or ELF that cannot be
@@ -113,16 +116,7 @@ pub fn keyboard_firmware(
         .iter()
         .map(|&(key, program)| PlanKey { key, program })
         .collect();
-    let lists: Vec<Vec<u8>> = match input.boards {
-        Some(l) => l.to_vec(),
-        None => boards::plan(programs, &costs, &keys, board, lim, &mut |d, n| {
-            progress("planning boards", d, n)
-        })
-        .map_err(|e| e.to_string())?
-        .into_iter()
-        .map(|b| b.keys)
-        .collect(),
-    };
+    let lists = input.boards;
     let mut out = Vec::with_capacity(lists.len());
     for (i, list) in lists.iter().enumerate() {
         progress("building boards", i, lists.len());

@@ -27,8 +27,9 @@ pub struct ProgramInput {
     pub instrument: String,
     /// Its param overrides, `(name, value with unit)`.
     pub params: Vec<(String, String)>,
-    /// The instrument's source text (to render the worst path as source lines).
-    pub source: String,
+    /// The instrument's source files, its own and those it imports (to render the worst
+    /// path as source lines).
+    pub sources: tactus_compiler::sources::SourceMap,
     /// The compiled program.
     pub program: Program,
 }
@@ -46,8 +47,9 @@ pub struct BudgetInput {
     pub programs: Vec<ProgramInput>,
     /// The keys, ascending: (MIDI key, index into `programs`).
     pub keys: Vec<(u8, usize)>,
-    /// The layout's explicit boards (MIDI keys per board), or `None` to plan them.
-    pub boards: Option<Vec<Vec<u8>>>,
+    /// The keyboard's boards, planned or the layout's own, with their verdicts (made once
+    /// for the keyboard: `tactus_host::keyboard::Keyboard::plan`).
+    pub plan: boards::KeyboardPlan,
     /// Measure over the quick corpus instead of the full one.
     pub quick: bool,
     /// The emulator's engine for the measurements (the same cycles either way).
@@ -791,7 +793,7 @@ pub fn keyboard_budget(
                 .static_cost
                 .events
                 .iter()
-                .filter_map(|(_, n)| describe_note(n, &pi.source))
+                .filter_map(|(_, n)| describe_note(n, &pi.sources))
                 .collect(),
             worst_path_calls: cost
                 .static_cost
@@ -811,34 +813,7 @@ pub fn keyboard_budget(
         .iter()
         .map(|&(key, program)| PlanKey { key, program })
         .collect();
-    let planned = input.boards.is_none();
-    let boards = match &input.boards {
-        None => boards::plan(
-            &programs,
-            &costs,
-            &keys,
-            board,
-            &input.limiter,
-            &mut |d, n| progress("planning boards", d, n),
-        )
-        .map_err(|e| bad(&input.input, &e))?,
-        Some(lists) => {
-            let mut out = Vec::with_capacity(lists.len());
-            for (i, list) in lists.iter().enumerate() {
-                progress("checking boards", i, lists.len());
-                let ks: Vec<PlanKey> = keys
-                    .iter()
-                    .filter(|k| list.contains(&k.key))
-                    .copied()
-                    .collect();
-                out.push(
-                    boards::check_board(&programs, &costs, &ks, board, &input.limiter)
-                        .map_err(|e| bad(&input.input, &e))?,
-                );
-            }
-            out
-        }
-    };
+    let (boards, planned) = (&input.plan.boards, input.plan.planned);
     let worst_board = (0..boards.len())
         .min_by_key(|&i| (boards[i].min_headroom(), i))
         .unwrap_or(0);
@@ -918,7 +893,7 @@ pub fn keyboard_budget(
             cycles: costs.key_cycles[wk.program],
         },
         what_fits,
-        boards,
+        boards: boards.clone(),
     })
 }
 

@@ -14,9 +14,12 @@ use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_firmware::boards::{self, board_image, check_board, PlanKey, ProgramCosts};
 use tactus_firmware::corpus::{self, Size};
 use tactus_firmware::image::{compile_layout, Program};
-use tactus_runtime::keyboard::{read_board, read_layout, BoardSpec};
+use tactus_runtime::keyboard::{read_layout, BoardSpec};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 use tactus_runtime::rng::XorShift64;
+
+#[path = "common/layouts.rs"]
+mod layouts;
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
@@ -28,14 +31,11 @@ fn shipped(name: &str) -> Result<String, String> {
 }
 
 fn board(name: &str) -> BoardSpec {
-    read_board(&root().join(format!("boards/{name}.toml"))).unwrap()
+    layouts::shipped_board(name)
 }
 
 fn limiter(b: &BoardSpec) -> LimiterConfig {
-    LimiterConfig {
-        sample_rate_hz: b.sample_rate_hz,
-        ..LimiterConfig::default()
-    }
+    LimiterConfig::for_board(b)
 }
 
 /// The fewest boards of any contiguous split of `keys` whose every board fits, by brute

@@ -13,15 +13,18 @@ use tactus_firmware::image::boot2::{self, FLASH_VECTORS};
 use tactus_firmware::image::{FirmwareImage, ImageRun, KeySpec, Program};
 use tactus_rp2040::bootrom::{self, BOOT2_LOAD, BOOT2_SIZE};
 use tactus_rp2040::flash::SR2_QE;
-use tactus_runtime::keyboard::{read_board, BoardSpec};
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
+
+#[path = "common/layouts.rs"]
+mod layouts;
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
 }
 
 fn board(name: &str) -> BoardSpec {
-    read_board(&root().join(format!("boards/{name}.toml"))).unwrap()
+    layouts::shipped_board(name)
 }
 
 /// Four hammond keys, two a core.
@@ -35,10 +38,7 @@ fn image(b: &BoardSpec) -> FirmwareImage {
             core: i % 2,
         })
         .collect();
-    let lim = LimiterConfig {
-        sample_rate_hz: b.sample_rate_hz,
-        ..LimiterConfig::default()
-    };
+    let lim = LimiterConfig::for_board(b);
     FirmwareImage::build(&[p], &keys, b, &lim).unwrap()
 }
 

@@ -17,16 +17,19 @@ use tactus_compiler::lower::Config;
 use tactus_emulator::Engine;
 use tactus_firmware::image::{io, FirmwareImage, ImageError, KeySpec, Program};
 use tactus_runtime::converters::AdcScale;
-use tactus_runtime::keyboard::{read_board, BoardSpec};
+use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
 use tactus_runtime::stimulus;
+
+#[path = "common/layouts.rs"]
+mod layouts;
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
 }
 
 fn board(name: &str) -> BoardSpec {
-    read_board(&root().join(format!("boards/{name}.toml"))).unwrap()
+    layouts::shipped_board(name)
 }
 
 fn instrument(name: &str) -> Program {

@@ -20,12 +20,11 @@ use tactus_emulator::{Engine, IoWindows};
 use tactus_firmware::flash::{BoardFirmware, Load};
 use tactus_firmware::image::FirmwareImage;
 use tactus_runtime::converters::AdcScale;
-use tactus_runtime::keyboard::read_board;
 use tactus_runtime::limiter::LimiterConfig;
 
 #[path = "common/layouts.rs"]
 mod layouts;
-use layouts::{corpus_words, firmware, on_host_threads, root};
+use layouts::{corpus_words, firmware, on_host_threads};
 
 /// Samples per board in CI.
 const SHORT: usize = 150;
@@ -76,11 +75,8 @@ fn streams(fw: &BoardFirmware, samples: usize) -> Vec<(Vec<i32>, AdcScale)> {
 /// samples of the budget corpus.
 fn play(fw: &BoardFirmware, samples: usize) -> Played {
     let with = &fw.image;
-    let plain = read_board(&root().join("boards/rp2040.toml")).unwrap();
-    let limiter = LimiterConfig {
-        sample_rate_hz: plain.sample_rate_hz,
-        ..LimiterConfig::default()
-    };
+    let plain = layouts::shipped_board("rp2040");
+    let limiter = LimiterConfig::for_board(&plain);
     let keys = with.keys();
     let without = FirmwareImage::build(with.programs(), &keys, &plain, &limiter)
         .unwrap_or_else(|e| panic!("board {}: the keys without converters: {e}", fw.index));

@@ -80,10 +80,7 @@ fn mutated_board_files_are_boards_the_firmware_runs_on_or_errors() {
                 };
                 // What budget, build and play do with it: price a key, check a board of one
                 // key; its image is flashable firmware.
-                let lim = LimiterConfig {
-                    sample_rate_hz: board.sample_rate_hz,
-                    ..LimiterConfig::default()
-                };
+                let lim = LimiterConfig::for_board(&board);
                 let programs = std::slice::from_ref(&program);
                 let costs = ProgramCosts::new(programs, &board, &lim).unwrap();
                 let one = [PlanKey {

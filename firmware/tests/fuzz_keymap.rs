@@ -8,6 +8,8 @@
 
 #[path = "../../tests/common/fuzz.rs"]
 mod fuzz;
+#[path = "common/layouts.rs"]
+mod layouts;
 
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
@@ -48,10 +50,8 @@ fn firmware() -> (Vec<u8>, String) {
     let (programs, index) = compile_layout(&keys, &shipped, board.sample_rate_hz).unwrap();
     let names = vec![("hammond".to_string(), vec![]); programs.len()];
     let pairs: Vec<(u8, usize)> = keys.iter().map(|k| k.key).zip(index).collect();
-    let limiter = LimiterConfig {
-        sample_rate_hz: board.sample_rate_hz,
-        ..LimiterConfig::default()
-    };
+    let limiter = LimiterConfig::for_board(&board);
+    let lists = layouts::plan(&programs, &pairs, &board, &limiter).unwrap();
     let fw = flash::keyboard_firmware(
         &KeyboardInput {
             name: "fuzz",
@@ -59,7 +59,7 @@ fn firmware() -> (Vec<u8>, String) {
             program_names: &names,
             keys: &pairs,
             board: &board,
-            boards: None,
+            boards: &lists,
             limiter: &limiter,
             command: "fuzz",
             load: flash::Load::Ram,

@@ -8,6 +8,8 @@
 
 #[path = "../../tests/common/fuzz.rs"]
 mod fuzz;
+#[path = "common/layouts.rs"]
+mod layouts;
 
 use proptest::prop_assert;
 use proptest::test_runner::TestCaseError;
@@ -151,9 +153,17 @@ fn one_case(
         names[p] = (k.instrument.clone(), k.params.clone());
     }
     let pairs: Vec<(u8, usize)> = keys.iter().map(|k| k.key).zip(index).collect();
-    let limiter = LimiterConfig {
-        sample_rate_hz: board.sample_rate_hz,
-        ..LimiterConfig::default()
+    let limiter = LimiterConfig::for_board(&board);
+    // The layout's boards, or planned (as `tactus build` plans them).
+    let lists = match lists.map_or_else(
+        || layouts::plan(&programs, &pairs, &board, &limiter).map_err(|e| e.to_string()),
+        Ok,
+    ) {
+        Ok(l) => l,
+        Err(e) => {
+            assert!(!e.is_empty());
+            return 1;
+        }
     };
     let input = KeyboardInput {
         name: &l.name,
@@ -161,7 +171,7 @@ fn one_case(
         program_names: &names,
         keys: &pairs,
         board: &board,
-        boards: lists.as_deref(),
+        boards: &lists,
         limiter: &limiter,
         command: "fuzz",
         load: flash::Load::Ram,

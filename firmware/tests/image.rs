@@ -23,10 +23,13 @@ use tactus_firmware::image::{
     assign_cores, compile_layout, guard_record_routine, key_specs, limiter_routine, FirmwareImage,
     ImageRun, KeySpec, Program,
 };
-use tactus_runtime::keyboard::{assign, parse_layout, read_board, BoardSpec};
+use tactus_runtime::keyboard::{assign, parse_layout, BoardSpec};
 use tactus_runtime::limiter::{Limiter, LimiterConfig};
 use tactus_runtime::rng::XorShift64;
 use tactus_runtime::stimulus;
+
+#[path = "common/layouts.rs"]
+mod layouts;
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
@@ -45,7 +48,7 @@ fn instrument(name: &str, overrides: &[(&str, &str)]) -> Program {
 }
 
 fn rp2040() -> BoardSpec {
-    read_board(&root().join("boards/rp2040.toml")).unwrap()
+    layouts::shipped_board("rp2040")
 }
 
 /// Key `i`'s stimulus: the built-ins in turn, each repeated to `len` samples.
@@ -329,7 +332,7 @@ fn the_sample_tick_is_cycle_exact_and_the_same_on_both_cores() {
         ("rp2040", 3015u64, 55u64, 63u64),
         ("rp2040_200mhz", 4535, 65, 441),
     ] {
-        let board = read_board(&root().join(format!("boards/{file}.toml"))).unwrap();
+        let board = layouts::shipped_board(file);
         let image =
             FirmwareImage::build(&programs, &keys, &board, &LimiterConfig::default()).unwrap();
         assert_eq!(image.cycles_per_sample(), q);
@@ -746,7 +749,7 @@ fn grand_piano_keys_from_a_layout_run_one_per_core_at_200_mhz_without_misses() {
     }
     let cores = assign_cores(&programs, &index, 2).unwrap();
     let keys = key_specs(&assigned, &index, &cores);
-    let board = read_board(&root().join("boards/rp2040_200mhz.toml")).unwrap();
+    let board = layouts::shipped_board("rp2040_200mhz");
     let image = FirmwareImage::build(&programs, &keys, &board, &LimiterConfig::default()).unwrap();
     let samples = 11_025; // 0.25 s
     let sensors: Vec<Vec<i32>> = keys

@@ -12,7 +12,10 @@
 //! In CI: [`SHORT`] samples of the corpus and [`MAESTRO_SHORT_S`] s of Maestro_1 from its
 //! second [`MAESTRO_FROM_S`]; `cargo test --release -p tactus-firmware --test
 //! keyboard_exact -- --ignored` runs a whole emulated second of the corpus and the first
-//! 20 s of Maestro_1 on every board.
+//! 20 s of Maestro_1 on every board. Their rests ([`STRETCH`] samples) are shorter than the
+//! rest replay needs to give samples (64 + a period of 1,071): `rest.rs` compares boards
+//! that rest long enough, the replay giving samples and skipping periods, with and without
+//! converters, against the lock-step interpreter in CI.
 
 use std::path::PathBuf;
 use tactus_compiler::fixed::interp::FixedInstance;

@@ -15,8 +15,11 @@ use tactus_firmware::corpus::{self, Size};
 use tactus_firmware::image::{compile_layout, FirmwareImage, KeySpec, Program};
 use tactus_firmware::measure::{builtin_runs, compare};
 use tactus_firmware::{Interface, UpdateRunner};
-use tactus_runtime::keyboard::{read_board, read_layout, KeyAssignment};
+use tactus_runtime::keyboard::{read_layout, KeyAssignment};
 use tactus_runtime::limiter::LimiterConfig;
+
+#[path = "common/layouts.rs"]
+mod layouts;
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
@@ -272,7 +275,7 @@ fn the_cost_of_run_time_params_against_constant_params() {
 #[test]
 fn twenty_graded_piano_keys_fit_a_board_with_one_code_copy_per_core() {
     let (_, programs, index) = grand88();
-    let b = read_board(&root().join("boards/rp2040_200mhz.toml")).unwrap();
+    let b = layouts::shipped_board("rp2040_200mhz");
     let keys: Vec<KeySpec> = (0..20)
         .map(|i| KeySpec {
             slot: 21 + i,
@@ -280,10 +283,7 @@ fn twenty_graded_piano_keys_fit_a_board_with_one_code_copy_per_core() {
             core: i % 2,
         })
         .collect();
-    let lim = LimiterConfig {
-        sample_rate_hz: b.sample_rate_hz,
-        ..LimiterConfig::default()
-    };
+    let lim = LimiterConfig::for_board(&b);
     let image = FirmwareImage::build(&programs, &keys, &b, &lim).unwrap();
     for core in 0..2 {
         assert_eq!(image.code_copies(core), 1, "core {core}");

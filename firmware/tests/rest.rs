@@ -1,13 +1,16 @@
 //! The rest replay (`firmware/src/image/rest.rs`, `emulator/src/board/rest.rs`): a board
-//! whose keys rest, move and rest again, run with the replay on against the same board
-//! emulating every sample — every sample's outputs and out words equal, and after the run
-//! every SRAM byte and each core's cycle, instruction count, registers, flags and contention
-//! stalls, and the converters' frames and state; the replay must have given samples and
-//! skipped whole periods. Boards: grand88's first (the grand piano) at 133 MHz (a period of
-//! 1,071 samples), at 200 MHz (7,497) and with converters at 133 MHz (1,071), the split
-//! layout's first (the harpsichord).
+//! whose keys rest, move and rest again, run as `tactus play` runs it (the block engine,
+//! memoized, the cores in windows, the replay on) against the same board on the lock-step
+//! interpreter emulating every sample (the emulator's definition of the RP2040, what
+//! `--no-rest-replay --emu interp` runs) — every sample's outputs and out words equal, and
+//! after the run every SRAM byte and each core's cycle, instruction count, registers, flags
+//! and contention stalls, and the converters' frames and state; the replay must have given
+//! samples and skipped whole periods. Boards: grand88's first (the grand piano) at 133 MHz
+//! (a period of 1,071 samples), at 200 MHz (7,497) and with converters (`rp2040_io`) at 133
+//! MHz (1,071), the split layout's first (the harpsichord).
 
 use tactus_compiler::fixed::interp::FixedInstance;
+use tactus_emulator::Engine;
 use tactus_firmware::flash::Load;
 use tactus_firmware::image::ImageRun;
 
@@ -94,8 +97,7 @@ fn a_held_key_whose_limiter_works_replays_exactly() {
         stream.push(w);
     }
     stream.extend(std::iter::repeat_n(rest.clone(), 30_000));
-    let mut runs: [ImageRun; 2] = [fw.image.run().unwrap(), fw.image.run().unwrap()];
-    runs[0].set_rest_replay(true).unwrap();
+    let mut runs = replay_and_lock_step(&fw.image);
     for (n, w) in stream.iter().enumerate() {
         let a = runs[0].step(w).unwrap().clone();
         assert_eq!(&a, runs[1].step(w).unwrap(), "sample {n}");
@@ -124,6 +126,16 @@ fn a_held_key_whose_limiter_works_replays_exactly() {
     assert_eq!(longest, 5 * PERIOD_133, "the cycling budget's period");
     assert!(room_ends >= 2, "{room_ends} replays ended by a budget");
     assert!(given > 40_000, "given {given}");
+}
+
+/// Two runs of `image`: `tactus play`'s (the block engine, memoized, the rest replay on) and
+/// the lock-step interpreter's, every sample emulated.
+fn replay_and_lock_step(image: &tactus_firmware::image::FirmwareImage) -> [ImageRun; 2] {
+    let mut runs: [ImageRun; 2] = [image.run().unwrap(), image.run().unwrap()];
+    assert_eq!(runs[0].board().config.engine, Engine::Block);
+    runs[0].set_rest_replay(true).unwrap();
+    runs[1].board().config.engine = Engine::Interp;
+    runs
 }
 
 /// A key's travel at the keybed and beyond (m): grand88's keys dip 10 mm.
@@ -167,8 +179,7 @@ fn replays_exactly(layout: &str, kind: Option<&str>, period: usize, first: usize
     stream.extend(std::iter::repeat_n(rest.clone(), periods * period + 10));
 
     let mut frames = 0;
-    let mut runs: [ImageRun; 2] = [fw.image.run().unwrap(), fw.image.run().unwrap()];
-    runs[0].set_rest_replay(true).unwrap();
+    let mut runs = replay_and_lock_step(&fw.image);
     // The replay turned off for a while in the last rest (and the board looked at): it
     // must pick up again, exactly.
     let off = stream.len() - 2 * period..stream.len() - 2 * period + 37;

@@ -41,7 +41,7 @@ use tactus_firmware::image::{compile_layout, Program};
 use tactus_host::play::emulated::{BoardEngine, BoardRun, Motion};
 use tactus_host::play::run::{run_keys, Drive, LoopConfig};
 use tactus_host::play::TraceWindow;
-use tactus_runtime::keyboard::{read_board, read_layout, BoardSpec};
+use tactus_runtime::keyboard::{read_layout, BoardSpec};
 use tactus_runtime::limiter::LimiterConfig;
 use tactus_runtime::performance::{demo, key_tracks};
 use tactus_runtime::player::FingerConfig;
@@ -77,7 +77,8 @@ fn setup(board: &str) -> Setup {
             .map_err(|e| e.to_string())
     };
     let (programs, key_programs) = compile_layout(&keys, &source, FS).unwrap();
-    let board = read_board(&root.join(format!("boards/{board}.toml"))).unwrap();
+    let text = std::fs::read_to_string(root.join(format!("boards/{board}.toml"))).unwrap();
+    let board = tactus_firmware::boards::read_board(&text, board).unwrap();
     let mut perf = demo();
     perf.notes.retain(|n| n.on_s < SECONDS);
     let dip = programs[0].fixed.program.sensors[0].range.1;
@@ -85,7 +86,7 @@ fn setup(board: &str) -> Setup {
         .into_iter()
         .map(|t| (t.key, Motion::Track(t)))
         .collect();
-    let lim = LimiterConfig::default();
+    let lim = LimiterConfig::for_board(&board);
     let costs = ProgramCosts::new(&programs, &board, &lim).unwrap();
     let keys: Vec<PlanKey> = keys
         .iter()
@@ -118,7 +119,7 @@ fn setup(board: &str) -> Setup {
 /// Every board built and booted on `engine` (`memos`: with the emulator's memoized calls,
 /// as `tactus play` runs), with the drives of its keys.
 fn boot<'s>(s: &'s Setup, engine: Engine, memos: bool) -> Vec<(BoardEngine<'s>, Vec<Drive<'s>>)> {
-    let lim = LimiterConfig::default();
+    let lim = LimiterConfig::for_board(&s.board);
     s.boards
         .iter()
         .map(|keys| {

@@ -10,7 +10,6 @@ use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::Program;
 use tactus_compiler::{cgen, thumb};
 use tactus_firmware::flash::{self, KeyboardInput, Load};
-use tactus_runtime::limiter::LimiterConfig;
 
 /// What `tactus build` generates for one instrument.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -93,7 +92,8 @@ pub fn build_instrument(
     ))
 }
 
-/// Builds the firmware of every board of `kb` ([`flash::keyboard_firmware`]: a flash image,
+/// Builds the firmware of every board of `kb`'s plan ([`Keyboard::plan`],
+/// [`flash::keyboard_firmware`]: a flash image,
 /// or with `ram` a RAM-only one) and writes `dir/board-NN/` with `firmware.elf`,
 /// `firmware.uf2`, `keys.json` and `README.md` (which quotes `command`). `input` is the
 /// keyboard as the user named it, for the messages.
@@ -118,17 +118,17 @@ pub fn build_firmware(
         .map(|s| (s.instrument.clone(), s.params.clone()))
         .collect();
     let key_programs = kb.key_programs();
-    let limiter = LimiterConfig {
-        sample_rate_hz: kb.board.sample_rate_hz,
-        ..LimiterConfig::default()
-    };
+    let limiter = kb.limiter();
+    let plan = kb
+        .plan(&programs, &mut |d, n| progress("planning boards", d, n))
+        .map_err(|e| e.to_string())?;
     let firmware_input = KeyboardInput {
         name: &kb.name,
         programs: &programs,
         program_names: &names,
         keys: &key_programs,
         board: &kb.board,
-        boards: kb.boards.as_deref(),
+        boards: &plan.key_lists(),
         limiter: &limiter,
         load: if ram { Load::Ram } else { Load::Flash },
         command,

@@ -5,8 +5,17 @@
 //! directory, no extension). A path that does not exist is an error naming it, never a
 //! silent substitution of the built-in with the same file stem. A file is read only when it
 //! is at most [`MAX_SOURCE_BYTES`] long.
+//!
+//! Loading a source reads the files it imports too ([`DiskLoader`], through
+//! `tactus_compiler::imports::link`: next to the file, then Tactus's library, which is
+//! built into the compiler): a [`Source`] is the whole program, its diagnostics rendered
+//! over every file.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use tactus_compiler::imports::{self, Linked, LoadError, Loaded, Loader};
+use tactus_compiler::sources::Origin;
+use tactus_runtime::files::ReadErrorKind;
 use tactus_runtime::keyboard::BoardSpec;
 
 /// Instruments shipped in the toolchain, by name (the file stem in `instruments/`).
@@ -76,13 +85,54 @@ pub const BOARDS: &[(&str, &str)] = &[
 /// The default board kind: [`BOARDS`]' `rp2040` (133 MHz, two cores, 44.1 kHz).
 pub const DEFAULT_BOARD: &str = "rp2040";
 
-/// A source text and the name to show in diagnostics.
+/// An instrument's source: its file and the files it imports, read and linked.
 #[derive(Clone, Debug)]
 pub struct Source {
     /// File name or `builtin:NAME`.
     pub name: String,
     /// The text.
     pub text: String,
+    /// The program: every file (its diagnostics render over `linked.sources`), parsed and
+    /// linked, or the diagnostics of linking. Shared by every set of a keyboard.
+    pub linked: Arc<Linked>,
+}
+
+impl Source {
+    /// The source `text` named `name`, from `origin`, its imports read through `loader`.
+    pub fn new(name: String, origin: Origin, text: String, loader: &mut dyn Loader) -> Self {
+        let linked = Arc::new(imports::link(&name, origin, &text, loader));
+        Source { name, text, linked }
+    }
+}
+
+/// The files an instrument imports, read from disk: each at most [`MAX_SOURCE_BYTES`] (and
+/// the budget [`imports::link`] gives), its size checked before it is read and the read
+/// bounded ([`tactus_runtime::files`]); known by its canonical path.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct DiskLoader;
+
+impl Loader for DiskLoader {
+    fn read(&mut self, path: &Path, max_bytes: u64) -> Result<Loaded, LoadError> {
+        let max_bytes = max_bytes.min(MAX_SOURCE_BYTES);
+        match std::fs::metadata(path) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Err(LoadError::NotFound),
+            Err(e) => return Err(LoadError::Other(e.to_string())),
+            Ok(m) if m.is_dir() => return Err(LoadError::Directory),
+            Ok(m) if m.len() > max_bytes => return Err(LoadError::TooLong { max_bytes }),
+            Ok(_) => {}
+        }
+        let text = tactus_runtime::files::read_text_bounded(path, max_bytes, "an imported file")
+            .map_err(|e| match e.kind {
+                ReadErrorKind::TooLong { max_bytes, .. } => LoadError::TooLong { max_bytes },
+                ReadErrorKind::NotUtf8(_) => LoadError::NotUtf8,
+                ReadErrorKind::Io(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                    LoadError::NotFound
+                }
+                ReadErrorKind::Io(e) => LoadError::Other(e.to_string()),
+            })?;
+        let key = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+        Ok(Loaded { key, text })
+    }
 }
 
 /// The largest instrument source read, in bytes: far beyond any hand-written profile (the
@@ -106,16 +156,19 @@ fn names(list: &[(&str, &str)]) -> String {
 pub fn load(arg: &str) -> Result<Source, String> {
     let path = Path::new(arg);
     if path.exists() {
-        return tactus_runtime::files::read_text_bounded(
+        let text = tactus_runtime::files::read_text_bounded(
             path,
             MAX_SOURCE_BYTES,
             "an instrument source",
         )
-        .map(|text| Source {
-            name: arg.to_string(),
+        .map_err(|e| e.to_string())?;
+        let key = std::fs::canonicalize(path).unwrap_or_else(|_| PathBuf::from(arg));
+        return Ok(Source::new(
+            arg.to_string(),
+            Origin::File(key),
             text,
-        })
-        .map_err(|e| e.to_string());
+            &mut DiskLoader,
+        ));
     }
     if !is_bare_name(arg) {
         return Err(format!(
@@ -124,10 +177,12 @@ pub fn load(arg: &str) -> Result<Source, String> {
         ));
     }
     match INSTRUMENTS.iter().find(|(n, _)| *n == arg) {
-        Some((n, text)) => Ok(Source {
-            name: format!("builtin:{n}"),
-            text: text.to_string(),
-        }),
+        Some((n, text)) => Ok(Source::new(
+            format!("builtin:{n}"),
+            Origin::Text,
+            text.to_string(),
+            &mut imports::NoFiles,
+        )),
         None => Err(format!(
             "no file `{arg}`, and no built-in instrument of that name (built-ins: {})",
             names(INSTRUMENTS)
@@ -146,13 +201,37 @@ pub fn layout(name: &str) -> Option<&'static str> {
 ///
 /// Errors name the file and the field, or list the built-ins.
 pub fn board(arg: &str) -> Result<BoardSpec, String> {
+    let src = board_source(arg)?;
+    tactus_firmware::boards::read_board(&src.text, &src.name)
+}
+
+/// A board file's text and the name its errors give it.
+#[derive(Clone, Debug)]
+pub struct BoardSource {
+    /// The path, or `builtin:NAME`.
+    pub name: String,
+    /// The TOML text.
+    pub text: String,
+}
+
+/// The text of board `arg` as [`board`] reads it (a board file, else a built-in board by
+/// name), named as its errors name it: the path, or `builtin:NAME`.
+///
+/// Errors: the file cannot be read, or no built-in board has that name.
+pub fn board_source(arg: &str) -> Result<BoardSource, String> {
     if Path::new(arg).exists() {
         let text = tactus_runtime::keyboard::read_text(Path::new(arg))?;
-        return tactus_firmware::boards::read_board(&text, arg);
+        return Ok(BoardSource {
+            name: arg.to_string(),
+            text,
+        });
     }
     let stem = arg.trim_end_matches(".toml").replace('-', "_");
     match BOARDS.iter().find(|(n, _)| *n == stem) {
-        Some((n, text)) => tactus_firmware::boards::read_board(text, &format!("builtin:{n}")),
+        Some((n, text)) => Ok(BoardSource {
+            name: format!("builtin:{n}"),
+            text: text.to_string(),
+        }),
         None => Err(format!(
             "no board file `{arg}`, and no built-in board of that name (built-ins: {})",
             names(BOARDS)

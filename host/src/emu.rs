@@ -1,13 +1,15 @@
-//! `tactus emu run` on the host side: an ELF read with a bound ([`read_elf`]), a board run
-//! with an instruction trace ([`run_traced`]), its cores, profiles and stop as text
-//! ([`core_text`], [`profile_line`], [`stop_line`]), and firmware from `tactus build`
-//! driven by a stimulus through its key map ([`FirmwareJob`]). The caller attaches a
-//! debugger, shows progress, and prints.
+//! `tactus emu run` on the host side: an ELF read with a bound ([`read_elf`]) and run on a
+//! board ([`ElfJob`], with an instruction trace: [`run_traced`]), its cores, profiles and
+//! stop as text ([`core_text`], [`profile_line`], [`stop_line`]), firmware from `tactus
+//! build` driven by a stimulus through its key map ([`FirmwareJob`]), and a GDB client
+//! waited for ([`wait_for_gdb`]). The caller shows progress and prints.
 
 use crate::keyboard::{key_map_sensor_words, Reporter};
 use std::path::{Path, PathBuf};
 use tactus_emulator::core::{Core, RunState};
-use tactus_emulator::{Board, StopReason};
+use tactus_emulator::debug::gdb;
+use tactus_emulator::Debugger;
+use tactus_emulator::{Board, Config, StopReason};
 use tactus_firmware::flash::{self, ElfRun, KeyMap};
 
 /// The largest ELF file read, bytes: every memory an ELF may load into (ROM, 2 MB of
@@ -146,6 +148,115 @@ pub fn stop_line(board: &Board, stop: &StopReason, cycles: u64) -> (bool, String
         }
         StopReason::Fault { .. } | StopReason::Lockup { .. } | StopReason::Refused { .. } => {
             (false, board.describe_stop(stop))
+        }
+    }
+}
+
+/// Listens on 127.0.0.1:`port` (0: any free port) and waits for one GDB client, handing
+/// `say` the address to give GDB and then the client's; the session's log lines go to
+/// `log`.
+///
+/// Errors, as messages naming `--gdb PORT`: the port cannot be listened on, or no client
+/// could be accepted.
+pub fn wait_for_gdb(
+    port: u16,
+    say: &mut dyn FnMut(String),
+    log: Box<dyn FnMut(&str) + Send>,
+) -> Result<Box<dyn Debugger>, String> {
+    let listener = gdb::listen(port).map_err(|e| format!("--gdb {port}: cannot listen: {e}"))?;
+    let addr = listener
+        .local_addr()
+        .map_err(|e| format!("--gdb {port}: {e}"))?;
+    say(format!(
+        "waiting for gdb on {addr} (in gdb: target remote {addr})"
+    ));
+    let (conn, peer) = listener
+        .accept()
+        .map_err(|e| format!("--gdb {port}: {e}"))?;
+    say(format!("gdb connected from {peer}"));
+    Ok(Box::new(gdb::GdbSession::new(conn, log)))
+}
+
+/// An ELF on an emulated board, loaded and its profiled functions found, ready to run
+/// ([`ElfJob::new`], then [`ElfJob::run`]): `tactus emu run FILE` without a stimulus.
+pub struct ElfJob {
+    file: PathBuf,
+    board: Board,
+    profiles: Vec<(String, usize)>,
+}
+
+/// An ELF's run as text ([`ElfJob::run`]).
+#[derive(Clone, Debug)]
+pub struct ElfText {
+    /// The lines to print: every core ([`core_text`]), then every profiled function
+    /// ([`profile_line`]).
+    pub lines: Vec<String>,
+    /// Why the run stopped ([`stop_line`]).
+    pub stop: String,
+    /// Whether that is a success (the cycle limit, no core running, an `svc`) rather than a
+    /// fault, a lockup or a refused access.
+    pub ok: bool,
+}
+
+impl ElfJob {
+    /// Reads the ELF `file` ([`read_elf`]), loads it on a board with the default
+    /// configuration (an image with a `.boot2` section boots from flash through the boot
+    /// ROM) and finds each function of `profile` to count its calls.
+    ///
+    /// Errors, as messages naming the file: unreadable, not loadable, a profiled symbol
+    /// that is not a function of it.
+    pub fn new(file: &Path, profile: &[String]) -> Result<ElfJob, String> {
+        let bytes = read_elf(file)?;
+        let mut board = Board::new(Config::default());
+        board
+            .load_elf(&bytes)
+            .map_err(|e| format!("cannot load {}: {e}", file.display()))?;
+        let mut profiles = Vec::new();
+        for name in profile {
+            let handle = board
+                .profile(name)
+                .map_err(|e| format!("{}: {e}", file.display()))?;
+            profiles.push((name.clone(), handle));
+        }
+        Ok(ElfJob {
+            file: file.to_path_buf(),
+            board,
+            profiles,
+        })
+    }
+
+    /// Runs the board for `cycles` cycles under `debugger` if one is given, handing `trace`
+    /// one line per instruction when it is given ([`run_traced`]); returns every core, every
+    /// profiled function and why it stopped, as text.
+    pub fn run(
+        mut self,
+        cycles: u64,
+        debugger: Option<Box<dyn Debugger>>,
+        trace: Option<&mut dyn FnMut(String)>,
+    ) -> ElfText {
+        let board = &mut self.board;
+        if let Some(d) = debugger {
+            board.attach_debugger(d);
+        }
+        let stop = match trace {
+            Some(line) => run_traced(board, cycles, line),
+            None => board.run_for(cycles),
+        };
+        board.finish_debugging();
+        let mut lines: Vec<String> = (board.cores.iter())
+            .flat_map(|c| core_text(c).lines().map(str::to_string).collect::<Vec<_>>())
+            .collect();
+        for (name, handle) in &self.profiles {
+            lines.push(profile_line(name, board.calls(*handle)));
+        }
+        let (ok, line) = stop_line(board, &stop, cycles);
+        ElfText {
+            lines,
+            stop: match ok {
+                true => line,
+                false => format!("{}: {line}", self.file.display()),
+            },
+            ok,
         }
     }
 }

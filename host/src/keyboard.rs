@@ -19,9 +19,11 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use tactus_compiler::diagnostics::Diagnostic;
 use tactus_compiler::ir::Program;
+use tactus_firmware::boards::{self, KeyboardPlan};
 use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_firmware::verdict::{self, ProgramInput};
 use tactus_runtime::keyboard::{self as layout_file, BoardSpec, KeyAssignment, Layout};
+use tactus_runtime::limiter::LimiterConfig;
 
 /// A path as written into a plan: absolute when it names an existing file (relative to
 /// `dir` when given), else as it is (a built-in name).
@@ -140,12 +142,6 @@ pub struct Keyboard {
 /// warnings) when it does not. Called once per distinct set at most.
 pub type Reporter<'r> = dyn FnMut(&Source, &[Diagnostic]) + 'r;
 
-/// A parsed instrument, or the parser's diagnostic.
-type ParsedFile = Result<tactus_compiler::ast::File, Vec<Diagnostic>>;
-
-/// An instrument's source and its parse.
-type ReadFile = (Source, ParsedFile);
-
 /// Lowers `src` with `params` for a board sampling at `fs` Hz, handing its diagnostics to
 /// `report`; `None` when it does not compile.
 pub fn lower(
@@ -158,7 +154,7 @@ pub fn lower(
         overrides: params.to_vec(),
         sample_rate_hz: fs,
     };
-    match tactus_compiler::compile(&src.text, &config) {
+    match tactus_compiler::compile_linked(&src.linked, &config) {
         Ok(l) => {
             if !l.warnings.is_empty() {
                 report(src, &l.warnings);
@@ -315,21 +311,17 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
     }
     // Which keys share a program: the one rule, as the firmware's own tests group them.
     let (firsts, key_set) = layout_file::group_sets(&keys, Ok::<_, KeyboardError>)?;
-    // Each instrument read and parsed once (in the order of its first set), the sets
+    // Each instrument read, parsed and linked once (in the order of its first set), the sets
     // lowered in parallel, then taken in order: the diagnostics reported and the first
     // failure returned as lowering them one by one would (a graded layout is one
     // instrument and as many sets as keys).
-    let mut sources: Vec<(&str, Result<ReadFile, String>)> = Vec::new();
+    let mut sources: Vec<(&str, Result<Source, String>)> = Vec::new();
     for a in &firsts {
         let reused = first
             .as_ref()
             .is_some_and(|s| s.instrument == a.instrument && s.params == a.params);
         if !reused && !sources.iter().any(|(n, _)| *n == a.instrument) {
-            let read = catalogue::load(&a.instrument).map(|src| {
-                let file = tactus_compiler::parse::parse(&src.text).map_err(|d| vec![*d]);
-                (src, file)
-            });
-            sources.push((a.instrument.as_str(), read));
+            sources.push((a.instrument.as_str(), catalogue::load(&a.instrument)));
         }
     }
     let source_of = |a: &KeyAssignment| {
@@ -341,14 +333,13 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
     let lowered: Vec<Option<Result<tactus_compiler::lower::Lowered, Vec<Diagnostic>>>> = firsts
         .par_iter()
         .map(|a| match source_of(a)? {
-            Ok((_, Ok(file))) => Some(tactus_compiler::lower::lower(
-                file,
+            Ok(src) => Some(tactus_compiler::compile_linked(
+                &src.linked,
                 &tactus_compiler::lower::Config {
                     overrides: a.params.clone(),
                     sample_rate_hz: fs,
                 },
             )),
-            Ok((_, Err(d))) => Some(Err(d.clone())),
             Err(_) => None,
         })
         .collect();
@@ -359,7 +350,7 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
             continue;
         }
         let src = match source_of(a) {
-            Some(Ok((src, _))) => src,
+            Some(Ok(src)) => src,
             Some(Err(e)) => return Err(bad(format!("{}: key {}: {e}", spec.input, a.key))),
             None => return Err(bad(format!("{}: key {}: not read", spec.input, a.key))),
         };
@@ -412,6 +403,51 @@ impl Keyboard {
         tactus_firmware::image::compile_shared(&lowered).map_err(|(i, e)| KeyboardError::Firmware {
             source_name: self.sets[i].source.name.clone(),
             message: e.to_string(),
+        })
+    }
+
+    /// The safety limiter of every key ([`LimiterConfig::for_board`]: the one configuration
+    /// `build`, `budget` and `play` give the firmware).
+    pub fn limiter(&self) -> LimiterConfig {
+        LimiterConfig::for_board(&self.board)
+    }
+
+    /// The keyboard's boards, with their verdicts: the layout's own checked
+    /// ([`boards::check_boards`]), or when it lists none planned ([`boards::plan`]: the
+    /// fewest boards that fit, contiguous key ranges). `programs` are [`Keyboard::firmware`]'s.
+    /// Made once per command: `tactus budget` reports this plan, `tactus build` builds it,
+    /// `tactus play` runs it (and `tactus emu run` reads it back from what `build` wrote).
+    /// `progress(done, total)` counts keys placed (boards checked for a layout's own).
+    ///
+    /// Errors: [`KeyboardError::Firmware`] when a program cannot be costed or placed on a
+    /// board (its code cannot be analysed, its window words do not fit).
+    pub fn plan(
+        &self,
+        programs: &[FirmwareProgram],
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<KeyboardPlan, KeyboardError> {
+        let bad = |e: boards::BoardsError| KeyboardError::Firmware {
+            source_name: self.input.clone(),
+            message: e.to_string(),
+        };
+        let (board, limiter) = (&self.board, self.limiter());
+        let costs = boards::ProgramCosts::new(programs, board, &limiter).map_err(bad)?;
+        let keys: Vec<boards::PlanKey> = (self.key_programs().into_iter())
+            .map(|(key, program)| boards::PlanKey { key, program })
+            .collect();
+        Ok(match &self.boards {
+            None => KeyboardPlan {
+                boards: boards::plan(programs, &costs, &keys, board, &limiter, progress)
+                    .map_err(bad)?,
+                planned: true,
+            },
+            Some(lists) => KeyboardPlan {
+                boards: boards::check_boards(
+                    programs, &costs, &keys, lists, board, &limiter, progress,
+                )
+                .map_err(bad)?,
+                planned: false,
+            },
         })
     }
 
@@ -479,28 +515,26 @@ impl Keyboard {
             .collect()
     }
 
-    /// The sets as `tactus budget` and `tactus build` take them, with their firmware
-    /// programs ([`Keyboard::firmware`]).
-    ///
-    /// Errors: as [`Keyboard::firmware`].
-    pub fn program_inputs(&self) -> Result<Vec<ProgramInput>, KeyboardError> {
-        Ok(self
-            .sets
+    /// The sets as `tactus budget` takes them, with their firmware `programs`
+    /// ([`Keyboard::firmware`]'s, in the order of [`Keyboard::sets`]).
+    pub fn program_inputs(&self, programs: &[FirmwareProgram]) -> Vec<ProgramInput> {
+        self.sets
             .iter()
-            .zip(self.firmware()?)
+            .zip(programs)
             .map(|(s, program)| ProgramInput {
                 instrument: s.instrument.clone(),
                 params: s.params.clone(),
-                source: s.source.text.clone(),
-                program,
+                sources: s.source.linked.sources.clone(),
+                program: program.clone(),
             })
-            .collect())
+            .collect()
     }
 
     /// The keyboard as `play` takes it for a performance on `played` keys (MIDI): every key
-    /// (the firmware runs them all), the distinct programs of the played keys, and the
+    /// (the firmware runs them all), the distinct programs of the played keys, the
     /// firmware's programs (`firmware`: [`Keyboard::firmware`]) when the engine runs them
-    /// ([`play::PlayConfig::needs_firmware`]).
+    /// ([`play::PlayConfig::needs_firmware`]), and the boards of the keyboard's `plan`
+    /// ([`Keyboard::plan`]) when it runs them on emulated boards.
     ///
     /// Errors: [`KeyboardError::NotPlayable`] naming the key when a played key's instrument
     /// reads other than one key sensor (a pen, several sensors) or emits no strike event
@@ -509,6 +543,7 @@ impl Keyboard {
         &'a self,
         played: &BTreeSet<u8>,
         firmware: Option<&'a [FirmwareProgram]>,
+        plan: Option<&KeyboardPlan>,
     ) -> Result<play::Keyboard<'a>, KeyboardError> {
         // Set index → index among the played programs.
         let mut host: BTreeMap<usize, usize> = BTreeMap::new();
@@ -558,7 +593,7 @@ impl Keyboard {
             keys: self.keys.clone(),
             programs,
             key_program,
-            boards: self.boards.clone(),
+            boards: plan.map(KeyboardPlan::key_lists),
             firmware: firmware.map(|programs| play::Firmware {
                 programs,
                 key_program: &self.key_set,

@@ -1,10 +1,17 @@
 //! The host side of Tactus, between the command line and the libraries below it.
 //!
+//! * [`budget`]: `tactus budget`'s run: a compiled keyboard's plan, costs and verdict, and
+//!   the plan written as a layout file.
 //! * [`build`]: `tactus build`'s outputs: an instrument as C99 or a Thumb object, a
 //!   keyboard as flashable firmware per board.
 //! * [`catalogue`]: the instruments, layouts and boards built into the toolchain (so that
 //!   `tactus play` and `tactus budget grand_piano` work on a fresh machine from any
 //!   directory), and loading a source by path or built-in name.
+//! * [`check`]: `tactus check`'s summary of an instrument and its precision report.
+//! * [`corpus_run`]: `tactus play`'s corpus mode: the items (performances × keyboards ×
+//!   boards), the shard a task plays, its results file written item by item, the tables.
+//! * [`corpus_merge`]: `tactus corpus merge`: shards' results gathered into the tables one
+//!   machine writes, refused when they are not one whole run.
 //! * [`emu`]: `tactus emu run`'s reading, tracing and text, and firmware from `tactus build`
 //!   driven by a stimulus through its key map.
 //! * [`keyboard`]: **the** resolution and compilation of a keyboard — a layout file, a
@@ -25,8 +32,12 @@
 //!
 //! This crate never prints: diagnostics go to a caller's reporter, errors are values.
 
+pub mod budget;
 pub mod build;
 pub mod catalogue;
+pub mod check;
+pub mod corpus_merge;
+pub mod corpus_run;
 pub mod emu;
 pub mod keyboard;
 pub mod play;

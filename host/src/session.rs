@@ -7,13 +7,16 @@
 
 use crate::keyboard::{Keyboard, KeyboardError, KeyboardSpec, Reporter};
 use crate::play::output::{self, WriteError};
-use crate::play::{self, corpus::PieceRow, strike, PlayConfig, Played, Progress};
+use crate::play::results::{sha3_hex, KeyboardManifest, RunOptions, SourceHash};
+use crate::play::shard::Setup;
+use crate::play::{self, corpus::PieceRow, strike, PlayConfig, PlayEngine, Played, Progress};
 use crate::play::{BoardsReport, RunError, Silence, Traces};
 use crate::plot::{plot_cycle_series, plot_lines, Line, PlotError};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tactus_emulator::IoWindows;
+use tactus_firmware::boards::KeyboardPlan;
 use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::performance::{self, MidiError, Note, Performance};
@@ -109,6 +112,8 @@ pub struct Piece {
     pub answering: usize,
     /// Wall-clock seconds of the play loop.
     pub wall_s: f64,
+    /// The sample rate it was played at (the board's), Hz.
+    pub fs: f64,
     /// The files written: the strikes' CSV, MIDI and WAV, one CSV per traced key and the
     /// traces' plots, and with the emulated boards the plot of their cycles per sample.
     pub written: Vec<PathBuf>,
@@ -142,7 +147,7 @@ impl Piece {
                 None,
             ),
             Some(r) => (
-                budget_text(r),
+                budget_text(r) + &spans_text(&self.played.spans, self.fs),
                 r.missed().then(|| {
                     "the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string()
                 }),
@@ -338,6 +343,9 @@ pub struct Session {
     /// Its firmware's programs or why they do not compile, once tried
     /// ([`PlayConfig::needs_firmware`]): a corpus tries once, not once per piece.
     firmware: std::cell::OnceCell<Result<Vec<FirmwareProgram>, String>>,
+    /// The keyboard's boards ([`Keyboard::plan`]) or why they cannot be planned, once tried
+    /// (on emulated boards only).
+    plan: std::cell::OnceCell<Result<KeyboardPlan, String>>,
     /// The run's configuration (its board is the keyboard's).
     pub config: PlayConfig,
     /// What to do with each piece besides playing it.
@@ -361,8 +369,80 @@ impl Session {
         Ok(Session {
             kb,
             firmware: std::cell::OnceCell::new(),
+            plan: std::cell::OnceCell::new(),
             config,
             opts,
+        })
+    }
+
+    /// The options of this session that change a corpus's results (the manifest's).
+    pub fn run_options(&self) -> RunOptions {
+        RunOptions {
+            engine: format!("{:?}", self.config.engine).to_lowercase(),
+            player: format!("{:?}", self.config.player).to_lowercase(),
+            seconds: self.opts.seconds,
+            params: self.kb.overrides.clone(),
+            quiescent_guard: self.config.quiescent_guard,
+        }
+    }
+
+    /// This keyboard's entry of a corpus run's manifest: the SHA3-256 of its layout, board
+    /// file and instrument sources and, when the engine runs them, of its firmware's
+    /// programs (each distinct program's Thumb code and param block, in the order of
+    /// [`Keyboard::sets`], with the program of every key) — compiled here if not yet.
+    /// `on` is the command line's naming of the keyboard and board, recorded as given.
+    ///
+    /// Errors: the layout or board file cannot be read again.
+    pub fn manifest(&self, on: &Setup) -> Result<KeyboardManifest, PlayError> {
+        let kb = &self.kb;
+        let hash = |name: String, text: &str| SourceHash {
+            name,
+            sha3: sha3_hex(text.as_bytes()),
+        };
+        let unreadable = |e: String| PlayError::Keyboard(KeyboardError::Input(e));
+        let layout_sha3 = match &kb.layout {
+            None => None,
+            Some((_, path)) if path.as_os_str().is_empty() => crate::catalogue::layout(&kb.input)
+                .map(|t| hash(format!("builtin:{}", kb.input), t)),
+            Some((_, path)) => {
+                let text = tactus_runtime::keyboard::read_text(path).map_err(unreadable)?;
+                Some(hash(path.display().to_string(), &text))
+            }
+        };
+        let board_src = crate::catalogue::board_source(&kb.kind).map_err(unreadable)?;
+        let mut instruments: Vec<SourceHash> = Vec::new();
+        // Every file of each instrument's program (the instrument and what it imports, the
+        // built-in library included), once each: a change to an imported component changes
+        // the manifest as a change to the instrument does.
+        for set in &kb.sets {
+            for f in set.source.linked.sources.files() {
+                if !instruments.iter().any(|i| i.name == f.name) {
+                    instruments.push(hash(f.name.clone(), &f.text));
+                }
+            }
+        }
+        let firmware_sha3 = match self.firmware() {
+            Ok(None) => None,
+            Ok(Some(programs)) => {
+                let mut bytes = Vec::new();
+                for p in programs {
+                    bytes.extend((p.thumb.code.text.len() as u64).to_le_bytes());
+                    bytes.extend(&p.thumb.code.text);
+                    bytes.extend((p.params.len() as u64).to_le_bytes());
+                    bytes.extend(p.params.iter().flat_map(|w| w.to_le_bytes()));
+                }
+                bytes.extend(kb.key_set.iter().flat_map(|&i| (i as u64).to_le_bytes()));
+                Some(Ok(sha3_hex(&bytes)))
+            }
+            Err(e) => Some(Err(e.to_string())),
+        };
+        Ok(KeyboardManifest {
+            on: on.clone(),
+            name: kb.name.clone(),
+            layout_sha3,
+            board_sha3: hash(board_src.name, &board_src.text),
+            instruments,
+            firmware_sha3,
         })
     }
 
@@ -377,6 +457,25 @@ impl Session {
             .get_or_init(|| self.kb.firmware().map_err(|e| e.to_string()));
         match compiled {
             Ok(programs) => Ok(Some(programs)),
+            Err(e) => Err(PlayError::Firmware(e.clone())),
+        }
+    }
+
+    /// The keyboard's boards when the engine runs them on emulated boards ([`Keyboard::plan`]
+    /// over [`Session::firmware`]'s programs, planned on the first call; its failure, too, is
+    /// kept).
+    fn plan(&self) -> Result<Option<&KeyboardPlan>, PlayError> {
+        let Some(programs) = self
+            .firmware()?
+            .filter(|_| self.config.engine == PlayEngine::Emu)
+        else {
+            return Ok(None);
+        };
+        let planned = self
+            .plan
+            .get_or_init(|| (self.kb.plan(programs, &mut |_, _| {})).map_err(|e| e.to_string()));
+        match planned {
+            Ok(plan) => Ok(Some(plan)),
             Err(e) => Err(PlayError::Firmware(e.clone())),
         }
     }
@@ -446,7 +545,7 @@ impl Session {
                 "traced key {k} is never played: it stays at rest, no trace written"
             ));
         }
-        let keyboard = kb.played(&played_keys, self.firmware()?)?;
+        let keyboard = kb.played(&played_keys, self.firmware()?, self.plan()?)?;
         let started = Instant::now();
         let played = play::play(&perf, &keyboard, config, progress)?;
         let wall_s = started.elapsed().as_secs_f64();
@@ -494,6 +593,7 @@ impl Session {
             played,
             answering,
             wall_s,
+            fs: kb.board.sample_rate_hz,
             written,
         })
     }
@@ -564,6 +664,25 @@ pub fn budget_text(r: &BoardsReport) -> String {
                 breaches.len()
             )),
         }
+    }
+    s
+}
+
+/// The budget of each span of a run played in spans (`PlayConfig::span`): per span a line
+/// giving its first and last samples and times, then its [`budget_text`]; empty without
+/// spans. `fs` is the sample rate, Hz.
+pub fn spans_text(spans: &[(u64, BoardsReport)], fs: f64) -> String {
+    let mut s = String::new();
+    for (k, (from, r)) in spans.iter().enumerate() {
+        let to = from + r.samples;
+        s.push_str(&format!(
+            "  span {} of {}: samples {from}–{to} ({:.3}–{:.3} s)\n",
+            k + 1,
+            spans.len(),
+            *from as f64 / fs,
+            to as f64 / fs
+        ));
+        s.push_str(&budget_text(r));
     }
     s
 }

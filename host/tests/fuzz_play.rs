@@ -159,6 +159,7 @@ fn mutated_performances_play_and_render_or_say_why_not() {
                         quiescent_guard: true,
                         rest_replay: true,
                         io_trace: None,
+                        span: None,
                     };
                     let played = match play::play(&perf, &keyboard, &config, &Quiet) {
                         Ok(p) => p,

@@ -198,7 +198,7 @@ fn bad_input_names_the_field() {
 fn play_gets_the_played_keys_and_refuses_a_pen() {
     let kb = keyboard::compile(&spec("split_harpsichord_piano"), &mut quiet()).unwrap();
     let played = [30u8, 31, 70].into_iter().collect();
-    let p = kb.played(&played, None).unwrap();
+    let p = kb.played(&played, None, None).unwrap();
     assert_eq!(p.keys.len(), 88, "the firmware runs every key");
     assert_eq!(p.key_program.len(), 3);
     // Keys 30 and 31 share the harpsichord; 70 is a graded piano key.
@@ -210,9 +210,54 @@ fn play_gets_the_played_keys_and_refuses_a_pen() {
     assert!(pen.sets[0].ir.is_pen());
     assert_eq!(pen.keys.len(), 1, "a pen is one pen");
     let one = pen.keys.iter().map(|a| a.key).collect();
-    let Err(e) = pen.played(&one, None) else {
+    let Err(e) = pen.played(&one, None, None) else {
         panic!("play took a pen");
     };
     let e = e.to_string();
     assert!(e.contains("a pen"), "{e}");
+}
+
+/// The keyboard's one plan: planned when the layout lists no boards (the fewest that fit,
+/// every key once, in order), the layout's own checked when it does.
+#[test]
+fn the_plan_is_the_layouts_boards_or_planned() {
+    let kb = keyboard::compile(
+        &KeyboardSpec {
+            keys: Some(40),
+            ..spec("hammond")
+        },
+        &mut quiet(),
+    )
+    .unwrap();
+    let programs = kb.firmware().unwrap();
+    let plan = kb.plan(&programs, &mut |_, _| {}).unwrap();
+    assert!(plan.planned);
+    assert_eq!(
+        plan.key_lists().concat(),
+        (21..61).collect::<Vec<u8>>(),
+        "every key once, in order"
+    );
+    assert!(plan.boards.iter().all(|b| b.fits()));
+    // 28 hammond keys fit a board (BENCHMARKS.md): 40 keys take two.
+    assert_eq!(plan.boards.len(), 2);
+
+    let dir = std::env::temp_dir().join(format!("tactus-plan-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let layout = dir.join("two.toml");
+    std::fs::write(
+        &layout,
+        "name = \"two\"\n[[range]]\nkeys = [21, 40]\ninstrument = \"hammond\"\n\
+         [[board]]\nkeys = [21, 30]\n[[board]]\nkeys = [31, 40]\n",
+    )
+    .unwrap();
+    let kb = keyboard::compile(&spec(&layout.display().to_string()), &mut quiet()).unwrap();
+    let programs = kb.firmware().unwrap();
+    let plan = kb.plan(&programs, &mut |_, _| {}).unwrap();
+    assert!(!plan.planned);
+    assert_eq!(
+        plan.key_lists(),
+        [(21..=30).collect::<Vec<u8>>(), (31..=40).collect()]
+    );
+    assert!(plan.boards.iter().all(|b| b.fits()));
+    std::fs::remove_dir_all(&dir).unwrap();
 }

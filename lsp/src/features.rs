@@ -2,11 +2,14 @@
 //! the outline, each a translation of a `tactus_compiler::query` answer into the
 //! protocol's types.
 
+use crate::docs::{Doc, Docs, PlanState};
 use crate::position::LineIndex;
-use crate::server::{Doc, PlanState, Server};
 use lsp_types::*;
+use std::collections::HashMap;
+use std::path::Path;
 use tactus_compiler::diagnostics::{Diagnostic as Diag, Severity};
 use tactus_compiler::query::{self, SymbolKind as K};
+use tactus_compiler::sources::{FileId, SourceMap};
 
 /// What the server can do.
 pub fn initialize_result() -> InitializeResult {
@@ -30,32 +33,105 @@ pub fn initialize_result() -> InitializeResult {
     }
 }
 
+/// Where spans of a program's files are, for the client: each file's URI (the document's
+/// own for the main file, [`crate::files::uri_of`] for the others) and its lines.
+pub struct Places<'a> {
+    doc_uri: &'a Uri,
+    sources: &'a SourceMap,
+    lib: Option<&'a std::path::Path>,
+    lines: HashMap<FileId, LineIndex>,
+}
+
+impl<'a> Places<'a> {
+    /// The places of `sources`, whose main file is the document at `doc_uri`; `lib` the
+    /// directory of the library's files.
+    pub fn new(doc_uri: &'a Uri, sources: &'a SourceMap, lib: Option<&'a std::path::Path>) -> Self {
+        Places {
+            doc_uri,
+            sources,
+            lib,
+            lines: HashMap::new(),
+        }
+    }
+
+    /// The file of `span` (in the program's address space) and its range there.
+    fn range(&mut self, span: &std::ops::Range<usize>) -> (FileId, Range) {
+        let (id, local) = self.sources.locate(span);
+        let text = &self.sources.get(id).text;
+        let li = self.lines.entry(id).or_insert_with(|| LineIndex::new(text));
+        (id, li.range(text, &local))
+    }
+
+    /// The location of `span`, or `None` in a file the client cannot open.
+    pub fn location(&mut self, span: &std::ops::Range<usize>) -> Option<Location> {
+        let (id, range) = self.range(span);
+        let uri = if id == FileId::MAIN {
+            self.doc_uri.clone()
+        } else {
+            crate::files::uri_of(&self.sources.get(id).origin, self.lib)?
+        };
+        Some(Location { uri, range })
+    }
+}
+
 /// The compiler's diagnostics in the protocol's form: the primary span is the range, the
 /// message is `tactus check`'s headline, then the primary label and the hint on lines of
-/// their own; secondary spans are related information.
-pub fn diagnostics(uri: &Uri, text: &str, lines: &LineIndex, ds: &[Diag]) -> Vec<Diagnostic> {
+/// their own; secondary spans are related information, in whichever file they lie. A
+/// diagnostic whose primary span lies in an imported file is shown at the import that
+/// brings that file (its secondary span in the document), its message naming the place,
+/// and its place in the imported file is related information.
+pub fn diagnostics(
+    uri: &Uri,
+    sources: &SourceMap,
+    lib: Option<&std::path::Path>,
+    ds: &[Diag],
+) -> Vec<Diagnostic> {
+    let mut places = Places::new(uri, sources, lib);
     ds.iter()
         .map(|d| {
+            let (file, primary) = places.range(&d.primary.0);
             let mut message = d.message.clone();
+            let mut related: Vec<DiagnosticRelatedInformation> = Vec::new();
+            let range = if file == FileId::MAIN {
+                primary
+            } else {
+                let f = sources.get(file);
+                message = format!(
+                    "{}:{}:{}: {message}",
+                    f.name,
+                    primary.start.line + 1,
+                    primary.start.character + 1
+                );
+                if let Some(location) = places.location(&d.primary.0) {
+                    related.push(DiagnosticRelatedInformation {
+                        location,
+                        message: if d.primary.1.is_empty() {
+                            d.message.clone()
+                        } else {
+                            d.primary.1.clone()
+                        },
+                    });
+                }
+                // The import in the document that brings the file.
+                d.secondary
+                    .iter()
+                    .find(|(s, _)| sources.file_at(s.start) == FileId::MAIN)
+                    .map_or(Range::default(), |(s, _)| places.range(s).1)
+            };
             if !d.primary.1.is_empty() {
                 message.push_str(&format!("\n{}", d.primary.1));
             }
             if let Some(h) = &d.hint {
                 message.push_str(&format!("\nhint: {h}"));
             }
-            let related: Vec<DiagnosticRelatedInformation> = d
-                .secondary
-                .iter()
-                .map(|(s, m)| DiagnosticRelatedInformation {
-                    location: Location {
-                        uri: uri.clone(),
-                        range: lines.range(text, s),
-                    },
+            related.extend(d.secondary.iter().filter_map(|(s, m)| {
+                Some(DiagnosticRelatedInformation {
+                    location: places.location(s)?,
                     message: m.clone(),
                 })
-                .collect();
+            }));
             Diagnostic {
-                range: lines.range(text, &d.primary.0),
+                range,
                 severity: Some(match d.severity {
                     Severity::Error => DiagnosticSeverity::ERROR,
                     Severity::Warning => DiagnosticSeverity::WARNING,
@@ -70,22 +146,15 @@ pub fn diagnostics(uri: &Uri, text: &str, lines: &LineIndex, ds: &[Diag]) -> Vec
         .collect()
 }
 
-fn doc_at<'s>(s: &'s Server, p: &TextDocumentPositionParams) -> Option<(&'s Doc, usize)> {
-    let doc = s.docs.get(p.text_document.uri.as_str())?;
+fn doc_at<'s>(docs: &'s Docs, p: &TextDocumentPositionParams) -> Option<(&'s Doc, usize)> {
+    let doc = docs.get(p.text_document.uri.as_str())?;
     let offset = doc.lines.offset(&doc.text, p.position);
     Some((doc, offset))
 }
 
 /// Hover: the facts of the declaration a name denotes or of the term under the cursor.
-pub fn hover(s: &mut Server, p: HoverParams) -> Option<Hover> {
-    let key = p
-        .text_document_position_params
-        .text_document
-        .uri
-        .as_str()
-        .to_string();
-    s.wait_for_plan(&key);
-    let (doc, offset) = doc_at(s, &p.text_document_position_params)?;
+pub fn hover(docs: &Docs, p: HoverParams) -> Option<Hover> {
+    let (doc, offset) = doc_at(docs, &p.text_document_position_params)?;
     let a = &doc.analysis;
     let planned = match &doc.plan {
         PlanState::Ready(p) => Some(p.clone()),
@@ -96,8 +165,11 @@ pub fn hover(s: &mut Server, p: HoverParams) -> Option<Hover> {
         precision: &p.precision,
     });
     let program = a.lowered.as_ref().map(|l| &l.program);
-    let facts = query::facts_at(&doc.text, &a.outline, &a.names, program, plan, offset)?;
+    let facts = query::facts_at(&a.sources, &a.outlines(), &a.names, program, plan, offset)?;
     let mut md = format!("**{}**\n\n", facts.heading);
+    if !facts.doc.is_empty() {
+        md.push_str(&format!("{}\n\n", facts.doc));
+    }
     for (k, v) in &facts.rows {
         md.push_str(&format!("- {k}: {v}\n"));
     }
@@ -122,36 +194,33 @@ fn flat(outline: &[query::Symbol]) -> Vec<query::Symbol> {
     outline.iter().flat_map(|s| s.flatten()).cloned().collect()
 }
 
-/// Go to definition: the declaration's name.
-pub fn definition(s: &mut Server, p: GotoDefinitionParams) -> Option<GotoDefinitionResponse> {
-    let (doc, offset) = doc_at(s, &p.text_document_position_params)?;
+/// Go to definition: the declaration's name, in the document or in the file it imports it
+/// from (`lib`: where Tactus's library is written for the client to open).
+pub fn definition(
+    docs: &Docs,
+    lib: Option<&Path>,
+    p: GotoDefinitionParams,
+) -> Option<GotoDefinitionResponse> {
+    let (doc, offset) = doc_at(docs, &p.text_document_position_params)?;
     let a = &doc.analysis;
-    let def = a.names.definition_at(offset, &flat(&a.outline))?;
-    Some(GotoDefinitionResponse::Scalar(Location {
-        uri: doc.uri.clone(),
-        range: doc.lines.range(&doc.text, &def),
-    }))
+    let def = a.names.definition_at(offset, &flat(&a.outlines()))?;
+    let mut places = Places::new(&doc.uri, &a.sources, lib);
+    places.location(&def).map(GotoDefinitionResponse::Scalar)
 }
 
-/// Find references: every place the resolver resolved to the same declaration.
-pub fn references(s: &mut Server, p: ReferenceParams) -> Option<Vec<Location>> {
-    let (doc, offset) = doc_at(s, &p.text_document_position)?;
+/// Find references: every place the resolver resolved to the same declaration, in the
+/// document and in the files it imports (`lib` as for [`definition`]).
+pub fn references(docs: &Docs, lib: Option<&Path>, p: ReferenceParams) -> Option<Vec<Location>> {
+    let (doc, offset) = doc_at(docs, &p.text_document_position)?;
     let a = &doc.analysis;
-    let def = a.names.definition_at(offset, &flat(&a.outline))?;
+    let def = a.names.definition_at(offset, &flat(&a.outlines()))?;
     let mut spans = Vec::new();
     if p.context.include_declaration {
         spans.push(def.clone());
     }
     spans.extend(a.names.references(&def));
-    Some(
-        spans
-            .iter()
-            .map(|sp| Location {
-                uri: doc.uri.clone(),
-                range: doc.lines.range(&doc.text, sp),
-            })
-            .collect(),
-    )
+    let mut places = Places::new(&doc.uri, &a.sources, lib);
+    Some(spans.iter().filter_map(|sp| places.location(sp)).collect())
 }
 
 fn completion_kind(k: K) -> CompletionItemKind {
@@ -224,8 +293,8 @@ fn context(before: &str) -> Context<'_> {
 }
 
 /// Completion: names in scope, an instance's members, units, the built-in functions.
-pub fn completion(s: &mut Server, p: CompletionParams) -> Option<CompletionResponse> {
-    let (doc, offset) = doc_at(s, &p.text_document_position)?;
+pub fn completion(docs: &Docs, p: CompletionParams) -> Option<CompletionResponse> {
+    let (doc, offset) = doc_at(docs, &p.text_document_position)?;
     let before = doc.text.get(..offset).unwrap_or("");
     let outline = if doc.analysis.outline.is_empty() {
         &doc.last_outline
@@ -241,7 +310,10 @@ pub fn completion(s: &mut Server, p: CompletionParams) -> Option<CompletionRespo
     let mut items: Vec<CompletionItem> = Vec::new();
     match context(before) {
         Context::Member(inst) => {
-            items.extend(query::members(outline, offset, inst).into_iter().map(item));
+            // The instance's component may be an imported one.
+            let mut all = outline.clone();
+            all.extend(doc.analysis.imported.iter().cloned());
+            items.extend(query::members(&all, offset, inst).into_iter().map(item));
         }
         Context::Unit => {
             items.extend(
@@ -313,8 +385,8 @@ fn document_symbol(doc: &Doc, s: &query::Symbol) -> DocumentSymbol {
 }
 
 /// The outline: instruments and components with their declarations.
-pub fn document_symbols(s: &mut Server, p: DocumentSymbolParams) -> Option<DocumentSymbolResponse> {
-    let doc = s.docs.get(p.text_document.uri.as_str())?;
+pub fn document_symbols(docs: &Docs, p: DocumentSymbolParams) -> Option<DocumentSymbolResponse> {
+    let doc = docs.get(p.text_document.uri.as_str())?;
     Some(DocumentSymbolResponse::Nested(
         doc.analysis
             .outline

@@ -13,9 +13,17 @@
 //! references (sensors, params, states, modes, components and their instances, lets,
 //! forces, outputs, inputs); completion (names in scope, an instance's members after `.`,
 //! units after a number or `:`, the built-in functions); document symbols (the outline).
+//!
+//! Imports are followed ([`files`]): an imported file is read from the open documents, then
+//! through the host's loader; a definition or reference in an imported file, and a
+//! diagnostic's place there, are given at that file's URI (a library file's copy in the
+//! cache directory); a diagnostic inside an imported file is also shown at the import that
+//! brings it, and a document is analysed again when a file it imports changes.
 #![deny(missing_docs)]
 
+mod docs;
 mod features;
+pub mod files;
 mod plan;
 pub mod position;
 mod server;

@@ -1,7 +1,8 @@
 //! The main loop: the protocol's lifecycle (initialize, shutdown, exit), the open
 //! documents, and the dispatch of requests and notifications to [`crate::features`].
 
-use crate::plan::{Planned, Planner};
+use crate::docs::{Doc, Docs, PlanState};
+use crate::plan::Planner;
 use crate::position::LineIndex;
 use crate::transport::{self, Frame};
 use crossbeam_channel::select;
@@ -11,9 +12,11 @@ use lsp_types::request::{self as req, Request as _};
 use serde_json::Value;
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
-use std::sync::Arc;
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
+use tactus_compiler::imports::Loader;
 use tactus_compiler::query::{self, Analysis};
+use tactus_compiler::sources::{Origin, SourceMap};
 
 /// How the server works.
 #[derive(Clone, Debug)]
@@ -24,6 +27,13 @@ pub struct Config {
     /// Whether profiles that compile get their format plan (default yes; off only in
     /// tests of the protocol, where thousands of variants would each plan).
     pub plans: bool,
+    /// The host's loader of imported files on disk (`tactus lsp` passes the command line's,
+    /// `tactus_host::catalogue::DiskLoader`); the open documents are read before it. `None`:
+    /// imports come from the open documents and Tactus's library only.
+    pub disk: Option<fn() -> Box<dyn Loader>>,
+    /// Where the library's files are written for the client to open ([`crate::files`]);
+    /// `None`: the cache directory.
+    pub library_dir: Option<PathBuf>,
 }
 
 impl Default for Config {
@@ -31,6 +41,8 @@ impl Default for Config {
         Config {
             hover_wait: Duration::from_secs(10),
             plans: true,
+            disk: None,
+            library_dir: None,
         }
     }
 }
@@ -52,43 +64,17 @@ pub struct Outcome {
     pub messages: usize,
 }
 
-/// The plan of a document's current version.
-pub enum PlanState {
-    /// The version does not compile (or plans are off).
-    None,
-    /// Being computed, as this generation.
-    Pending(u64),
-    /// Done.
-    Ready(Arc<Planned>),
-    /// The planner failed.
-    Failed(String),
-}
-
-/// An open document.
-pub struct Doc {
-    /// Its URI as the client wrote it.
-    pub uri: lsp_types::Uri,
-    /// The text.
-    pub text: String,
-    /// Its lines.
-    pub lines: LineIndex,
-    /// The compiler's answer for this text.
-    pub analysis: Analysis,
-    /// The outline of the last version that parsed (completion while the text does not).
-    pub last_outline: Vec<query::Symbol>,
-    /// The plan of this version.
-    pub plan: PlanState,
-}
-
 pub(crate) struct Server<'l> {
     out: Box<dyn Write + Send>,
-    pub docs: HashMap<String, Doc>,
+    pub docs: Docs,
     planner: Planner,
     generation: u64,
     log: &'l mut dyn FnMut(&str),
     config: Config,
     initialized: bool,
     shutdown: bool,
+    /// The library's directory for the client ([`crate::files::library_dir`]), once asked.
+    library: Option<Option<PathBuf>>,
 }
 
 /// Serves one client: reads messages from `input`, writes answers to `output`, logs to
@@ -127,6 +113,7 @@ pub fn serve(
         config: config.clone(),
         initialized: false,
         shutdown: false,
+        library: None,
     };
     let done = server.planner.done.clone();
     loop {
@@ -237,27 +224,35 @@ impl Server<'_> {
             );
         }
         let id = r.id.clone();
-        let result: Result<Value, (ErrorCode, String)> =
-            match r.method.as_str() {
-                req::Shutdown::METHOD => {
-                    self.shutdown = true;
-                    Ok(Value::Null)
-                }
-                req::HoverRequest::METHOD => params::<req::HoverRequest>(r)
-                    .map(|p| to_value(crate::features::hover(self, p))),
-                req::GotoDefinition::METHOD => params::<req::GotoDefinition>(r)
-                    .map(|p| to_value(crate::features::definition(self, p))),
-                req::References::METHOD => params::<req::References>(r)
-                    .map(|p| to_value(crate::features::references(self, p))),
-                req::Completion::METHOD => params::<req::Completion>(r)
-                    .map(|p| to_value(crate::features::completion(self, p))),
-                req::DocumentSymbolRequest::METHOD => params::<req::DocumentSymbolRequest>(r)
-                    .map(|p| to_value(crate::features::document_symbols(self, p))),
-                other => Err((
-                    ErrorCode::MethodNotFound,
-                    format!("`{other}` is not supported"),
-                )),
-            };
+        let result: Result<Value, (ErrorCode, String)> = match r.method.as_str() {
+            req::Shutdown::METHOD => {
+                self.shutdown = true;
+                Ok(Value::Null)
+            }
+            req::HoverRequest::METHOD => params::<req::HoverRequest>(r).map(|p| {
+                // A hover shows the plan of the version it describes, if it comes soon.
+                let uri = &p.text_document_position_params.text_document.uri;
+                self.wait_for_plan(uri.as_str());
+                to_value(crate::features::hover(&self.docs, p))
+            }),
+            req::GotoDefinition::METHOD => params::<req::GotoDefinition>(r).map(|p| {
+                let uri = p.text_document_position_params.text_document.uri.as_str();
+                let lib = self.library_dir_of(uri);
+                to_value(crate::features::definition(&self.docs, lib.as_deref(), p))
+            }),
+            req::References::METHOD => params::<req::References>(r).map(|p| {
+                let lib = self.library_dir_of(p.text_document_position.text_document.uri.as_str());
+                to_value(crate::features::references(&self.docs, lib.as_deref(), p))
+            }),
+            req::Completion::METHOD => params::<req::Completion>(r)
+                .map(|p| to_value(crate::features::completion(&self.docs, p))),
+            req::DocumentSymbolRequest::METHOD => params::<req::DocumentSymbolRequest>(r)
+                .map(|p| to_value(crate::features::document_symbols(&self.docs, p))),
+            other => Err((
+                ErrorCode::MethodNotFound,
+                format!("`{other}` is not supported"),
+            )),
+        };
         match result {
             Ok(v) => self.reply(id, v),
             Err((code, msg)) => {
@@ -313,9 +308,62 @@ impl Server<'_> {
         }
     }
 
-    /// Analyses a document's new text, publishes its diagnostics and asks for its plan.
+    /// The directory of the library's files for the client, written on first use.
+    pub(crate) fn library_dir(&mut self) -> Option<PathBuf> {
+        if self.library.is_none() {
+            let dir = crate::files::library_dir(self.config.library_dir.as_deref());
+            if dir.is_none() {
+                (self.log)("cannot write the library's files: definitions in it are not shown");
+            }
+            self.library = Some(dir);
+        }
+        self.library.clone().flatten()
+    }
+
+    /// [`Server::library_dir`] when `sources` hold a library file (none is written for a
+    /// program that imports nothing from it).
+    /// Where Tactus's library is written for the open document `uri`, if it imports from it.
+    fn library_dir_of(&mut self, uri: &str) -> Option<PathBuf> {
+        let sources = self.docs.get(uri)?.analysis.sources.clone();
+        self.library_dir_for(&sources)
+    }
+
+    pub(crate) fn library_dir_for(&mut self, sources: &SourceMap) -> Option<PathBuf> {
+        let uses = sources
+            .files()
+            .iter()
+            .any(|f| matches!(f.origin, Origin::Library(_)));
+        uses.then(|| self.library_dir()).flatten()
+    }
+
+    /// Analyses a document's new text, publishes its diagnostics and asks for its plan; then
+    /// analyses again the open documents that import it.
     fn set_text(&mut self, uri: lsp_types::Uri, version: i32, text: String) {
         let key = uri.as_str().to_string();
+        self.analyse(uri, version, text);
+        let path = self.docs.get(&key).and_then(|d| d.path.clone());
+        let Some(path) = path.map(|p| std::fs::canonicalize(&p).unwrap_or(p)) else {
+            return;
+        };
+        let dependents: Vec<(lsp_types::Uri, i32, String)> = self
+            .docs
+            .iter()
+            .filter(|(k, d)| {
+                **k != key
+                    && d.analysis.sources.files()[1..]
+                        .iter()
+                        .any(|f| f.origin == Origin::File(path.clone()))
+            })
+            .map(|(_, d)| (d.uri.clone(), d.version, d.text.clone()))
+            .collect();
+        for (uri, version, text) in dependents {
+            self.analyse(uri, version, text);
+        }
+    }
+
+    fn analyse(&mut self, uri: lsp_types::Uri, version: i32, text: String) {
+        let key = uri.as_str().to_string();
+        let path = crate::files::uri_to_path(&key);
         let mut analysis = if text.len() > MAX_DOCUMENT_BYTES {
             Analysis {
                 diagnostics: vec![tactus_compiler::diagnostics::Diagnostic::error(
@@ -326,10 +374,39 @@ impl Server<'_> {
                 lowered: None,
                 outline: Vec::new(),
                 names: Default::default(),
+                imported: Vec::new(),
+                sources: SourceMap::new(key.clone(), Origin::Text, ""),
             }
         } else {
-            query::analyse(&text, &tactus_compiler::lower::Config::default())
+            let open: HashMap<PathBuf, &str> = self
+                .docs
+                .iter()
+                .filter(|(k, _)| **k != key)
+                .filter_map(|(_, d)| Some((d.path.clone()?, d.text.as_str())))
+                .collect();
+            let mut loader = crate::files::Overlay {
+                open: &open,
+                disk: self.config.disk.map(|f| f()),
+            };
+            let (name, origin) = match &path {
+                Some(p) => (
+                    p.display().to_string(),
+                    Origin::File(std::fs::canonicalize(p).unwrap_or_else(|_| p.clone())),
+                ),
+                None => (key.clone(), Origin::Text),
+            };
+            let linked = tactus_compiler::imports::link(&name, origin, &text, &mut loader);
+            query::analyse_linked(&linked, &tactus_compiler::lower::Config::default())
         };
+        // A file of components only is a library being edited: "no instrument" says nothing.
+        let library = !analysis.outline.is_empty()
+            && analysis
+                .outline
+                .iter()
+                .all(|s| s.kind == query::SymbolKind::Component);
+        if library {
+            analysis.diagnostics.retain(|d| d.code != "E0103");
+        }
         let last_outline = match (analysis.outline.is_empty(), self.docs.remove(&key)) {
             (true, Some(old)) => old.last_outline,
             _ => analysis.outline.clone(),
@@ -344,12 +421,20 @@ impl Server<'_> {
             _ => PlanState::None,
         };
         let lines = LineIndex::new(&text);
-        let diagnostics = crate::features::diagnostics(&uri, &text, &lines, &analysis.diagnostics);
+        let lib = self.library_dir_for(&analysis.sources);
+        let diagnostics = crate::features::diagnostics(
+            &uri,
+            &analysis.sources,
+            lib.as_deref(),
+            &analysis.diagnostics,
+        );
         self.publish(&uri, diagnostics, Some(version));
         self.docs.insert(
             key,
             Doc {
                 uri,
+                path,
+                version,
                 text,
                 lines,
                 analysis,

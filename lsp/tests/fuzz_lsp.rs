@@ -139,6 +139,7 @@ fn random_and_truncated_lsp_traffic_never_panics_or_hangs() {
                     // Plans run (in the background) in one case of eight: every variant that
                     // compiles would otherwise start a plan search of its own.
                     plans: plan_roll == 0,
+                    ..tactus_lsp::Config::default()
                 };
                 let (tx, rx) = std::sync::mpsc::channel();
                 std::thread::spawn(move || {

@@ -214,12 +214,9 @@ fn read(path: &Path) -> Result<String, String> {
     read_text(path)
 }
 
-/// Reads a board file. Errors name the file and, for bad values, the field.
-pub fn read_board(path: &Path) -> Result<BoardSpec, String> {
-    parse_board(&read(path)?, &path.display().to_string())
-}
-
-/// Parses a board from TOML text; `name` is used in errors.
+/// Parses a board from TOML text; `name` is used in errors. The fields only: a board the
+/// firmware can be built for is checked by `tactus_firmware::boards::read_board`, the one
+/// reader of a board file, which starts here.
 pub fn parse_board(text: &str, name: &str) -> Result<BoardSpec, String> {
     let b: BoardSpec = toml::from_str(text).map_err(|e| {
         let e = e.to_string();
@@ -642,19 +639,13 @@ grade = [ { param = "M_h", from = "11 g", to = "3.5 g" } ]
                 .count(),
             44
         );
-        assert_eq!(
-            read_board(&root.join("boards/rp2040.toml"))
-                .unwrap()
-                .cycles_per_sample(),
-            3015
-        );
-        assert_eq!(
-            read_board(&root.join("boards/rp2040_200mhz.toml"))
-                .unwrap()
-                .cycles_per_sample(),
-            4535
-        );
-        let e = read_board(&root.join("boards/none.toml")).unwrap_err();
+        let board = |name: &str| {
+            let text = read_text(&root.join(format!("boards/{name}.toml"))).unwrap();
+            parse_board(&text, name).unwrap().cycles_per_sample()
+        };
+        assert_eq!(board("rp2040"), 3015);
+        assert_eq!(board("rp2040_200mhz"), 4535);
+        let e = read_text(&root.join("boards/none.toml")).unwrap_err();
         assert!(e.contains("none.toml") && e.contains("cannot read"), "{e}");
     }
 

@@ -78,6 +78,19 @@ impl Default for LimiterConfig {
     }
 }
 
+impl LimiterConfig {
+    /// The limiter of every key of a keyboard on `board`: MIKEY's motor ([`Default`]) at the
+    /// board's sample rate. The one configuration `tactus build`, `budget` and `play` give
+    /// the firmware (its budget of samples above rated, `⌊t_over · fs⌋ · recovery`, counts
+    /// the board's samples).
+    pub fn for_board(board: &crate::keyboard::BoardSpec) -> LimiterConfig {
+        LimiterConfig {
+            sample_rate_hz: board.sample_rate_hz,
+            ..LimiterConfig::default()
+        }
+    }
+}
+
 /// The force → DAC code scale for force words with a given number of fraction bits
 /// ([`LimiterConstants::dac_scale`]): `c = (sat16(force >> pre_shift) · gain) >> post_shift`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

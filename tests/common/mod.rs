@@ -1,7 +1,7 @@
 //! Helpers shared by the integration tests (running the `tactus` binary, measuring signals).
 #![allow(dead_code)] // each test binary uses a subset
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 /// The `tactus` binary under test.
@@ -87,4 +87,108 @@ pub fn partial_hz(x: &[f64], f: f64, fs: f64) -> f64 {
 pub fn smooth_step(t: f64, t0: f64, t1: f64) -> f64 {
     let u = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
     0.5 - 0.5 * (std::f64::consts::PI * u).cos()
+}
+
+/// Writes a format-0 MIDI file of `notes` (key, velocity, on s, off s) at 960 ticks per
+/// second, with sustain-pedal changes `pedal` (time s, down).
+pub fn write_midi(path: &Path, notes: &[(u8, u8, f64, f64)], pedal: &[(f64, bool)]) {
+    use midly::num::{u15, u28, u4, u7};
+    use midly::{Format, Header, MidiMessage, Smf, Timing, TrackEvent, TrackEventKind};
+    let tick = |t: f64| (t * 960.0).round() as u64;
+    let mut evs: Vec<(u64, MidiMessage)> = Vec::new();
+    for &(key, vel, on, off) in notes {
+        evs.push((
+            tick(on),
+            MidiMessage::NoteOn {
+                key: u7::new(key),
+                vel: u7::new(vel),
+            },
+        ));
+        evs.push((
+            tick(off),
+            MidiMessage::NoteOff {
+                key: u7::new(key),
+                vel: u7::new(0),
+            },
+        ));
+    }
+    for &(t, down) in pedal {
+        evs.push((
+            tick(t),
+            MidiMessage::Controller {
+                controller: u7::new(64),
+                value: u7::new(if down { 127 } else { 0 }),
+            },
+        ));
+    }
+    evs.sort_by_key(|e| e.0);
+    let mut last = 0;
+    let mut track: Vec<TrackEvent> = evs
+        .into_iter()
+        .map(|(t, message)| {
+            let delta = u28::new((t - last) as u32);
+            last = t;
+            TrackEvent {
+                delta,
+                kind: TrackEventKind::Midi {
+                    channel: u4::new(0),
+                    message,
+                },
+            }
+        })
+        .collect();
+    track.push(TrackEvent {
+        delta: u28::new(0),
+        kind: TrackEventKind::Meta(midly::MetaMessage::EndOfTrack),
+    });
+    Smf {
+        header: Header::new(Format::SingleTrack, Timing::Metrical(u15::new(480))),
+        tracks: vec![track],
+    }
+    .save(path)
+    .unwrap();
+}
+
+/// A table's text with the timings (wall time and real-time factor) blanked: what must be
+/// byte-identical between runs.
+pub fn without_timings(path: &Path) -> String {
+    let text = std::fs::read_to_string(path).unwrap();
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("csv") => text
+            .lines()
+            .map(|l| {
+                let mut f: Vec<&str> = l.split(',').collect();
+                // file,keyboard,board,music_s,…,wall_s,rtf,error: wall_s and rtf are the
+                // 13th and 14th fields (no field of these rows holds a comma).
+                if f.len() >= 15 && !l.starts_with("file,") {
+                    f[12] = "-";
+                    f[13] = "-";
+                }
+                f.join(",")
+            })
+            .collect::<Vec<_>>()
+            .join("\n"),
+        _ => text
+            .lines()
+            .map(|l| match l.trim_start() {
+                t if t.starts_with("\"wall_s\"") || t.starts_with("\"rtf\"") => "-",
+                _ => l,
+            })
+            .collect::<Vec<_>>()
+            .join("\n"),
+    }
+}
+
+/// Writes `DIR/small.toml`: a layout of the grand piano on keys `first`–`last` (MIDI), one
+/// program and few boards, for tests that need the firmware without grand88's 88 keys.
+pub fn small_layout(dir: &Path, first: u8, last: u8) -> PathBuf {
+    let path = dir.join("small.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "name = \"small\"\n[[range]]\nkeys = [{first}, {last}]\ninstrument = \"grand_piano\"\n"
+        ),
+    )
+    .unwrap();
+    path
 }

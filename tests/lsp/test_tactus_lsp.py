@@ -7,6 +7,7 @@ TACTUS_BIN; by hand: `TACTUS_BIN=target/debug/tactus python3 -m pytest tests/lsp
 import os
 import pathlib
 import sys
+import urllib.parse
 
 import pytest
 import pytest_lsp
@@ -17,9 +18,16 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 TACTUS = os.environ.get("TACTUS_BIN", str(ROOT / "target" / "debug" / "tactus"))
 HARPSICHORD = (ROOT / "instruments" / "harpsichord.tactus").read_text()
 URI = (ROOT / "target" / "lsp-e2e" / "harpsichord.tactus").as_uri()
+# Where the server writes the library's files for go-to-definition (its cache directory).
+CACHE = ROOT / "target" / "lsp-e2e" / "cache"
 
 
-@pytest_lsp.fixture(config=ClientServerConfig(server_command=[TACTUS, "lsp", "--stdio"]))
+@pytest_lsp.fixture(
+    config=ClientServerConfig(
+        server_command=[TACTUS, "lsp", "--stdio"],
+        server_env={**os.environ, "TACTUS_CACHE_DIR": str(CACHE)},
+    )
+)
 async def client(lsp_client: LanguageClient):
     await lsp_client.initialize_session(
         types.InitializeParams(capabilities=types.ClientCapabilities())
@@ -79,15 +87,29 @@ async def test_hover_definition_completion(client: LanguageClient):
     assert "format: Q" in text, text
     assert "error bound" in text and "DAC LSB" in text, text
 
-    # Go to a component's definition from its `use`.
+    # Go to a component's definition from its `use`: the harpsichord imports it from Tactus's
+    # library, whose file the server has written into its cache directory for the client.
     found = await client.text_document_definition_async(
         types.DefinitionParams(
             text_document=doc, position=position(HARPSICHORD, "plectrum(x = key", 3)
         )
     )
     loc = found[0] if isinstance(found, list) else found
-    assert loc.uri == URI
-    assert loc.range.start == position(HARPSICHORD, "plectrum {")
+    assert loc.uri.endswith("/action.tactus"), loc.uri
+    lib_path = pathlib.Path(urllib.parse.unquote(urllib.parse.urlparse(loc.uri).path))
+    assert lib_path.is_relative_to(CACHE.resolve()) or lib_path.is_relative_to(CACHE), lib_path
+    lib_text = lib_path.read_text()
+    assert "component plectrum {" in lib_text
+    assert loc.range.start == position(lib_text, "plectrum {")
+
+    # Hover the imported component: its file, its interface, its documentation.
+    hover = await client.text_document_hover_async(
+        types.HoverParams(text_document=doc, position=position(HARPSICHORD, "plectrum(x = key", 3))
+    )
+    text = hover.contents.value
+    assert "component `plectrum`" in text, text
+    assert "from: builtin:lib/action.tactus" in text, text
+    assert "the quill bends against the string" in text, text
 
     # Complete a param: `force weight = |G` offers the instrument's params.
     items = await client.text_document_completion_async(

@@ -39,75 +39,15 @@
 //! guarantee every access is in bounds) and calls only the host functions behind `/` by a
 //! non-constant, `sqrt` and `exp`, which are `tactus_runtime::fixed::{div, sqrt, exp}`.
 
-use crate::layout::Layout;
+use crate::layout::FixedLayout;
+#[cfg(doc)]
+use crate::layout::{Layout, HISTORY_WORDS};
 use crate::{finish_module, new_module, Code, JitError};
 use cranelift_frontend::FunctionBuilderContext;
 use cranelift_jit::JITModule;
 use cranelift_module::{Linkage, Module};
 use tactus_compiler::fixed::interp::{FixedInstance, RawOut};
 use tactus_compiler::fixed::{FixedProgram, FRAC_RANGE};
-use tactus_runtime::differentiator::WINDOW;
-
-/// Readings a differentiator history holds (`2N + 1`).
-pub const HISTORY_LEN: usize = 2 * WINDOW + 1;
-/// Words of one sensor's history block in ctx: position, primed flag, the ring twice.
-pub const HISTORY_WORDS: usize = 2 + 2 * HISTORY_LEN;
-
-/// Where each word lives in the buffers of the fixed-point native code (see the module
-/// documentation). The slot numbering of states, modes, edges and of `out` is the f64
-/// JIT's [`Layout`]; its `inputs` part is unused (the native code reads raw sensor rows and
-/// computes the derivatives itself).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct FixedLayout {
-    /// States, modes, edges and `out` slots, as in the f64 JIT.
-    pub slots: Layout,
-    /// Word offset in ctx of each sensor's history block (`None`: not differentiated).
-    pub history: Vec<Option<usize>>,
-    /// Number of arguments each event slot (in [`Layout::events`] order) receives: the
-    /// emitted arguments that have a format in [`FixedProgram::event_frac`].
-    pub event_args: Vec<usize>,
-    /// Word offset in ctx of the key's param block (one word per run-time param,
-    /// `FixedProgram::param_words`; written by the harness, read by the native code).
-    pub params: usize,
-    /// Length of ctx in words.
-    pub ctx_len: usize,
-}
-
-impl FixedLayout {
-    /// The layout of `fp`.
-    pub fn of(fp: &FixedProgram) -> FixedLayout {
-        let p = &fp.program;
-        let slots = Layout::of(p);
-        let mut next = slots.ctx_len();
-        let history = p
-            .sensors
-            .iter()
-            .map(|s| {
-                s.differentiated.then(|| {
-                    next += HISTORY_WORDS;
-                    next - HISTORY_WORDS
-                })
-            })
-            .collect();
-        let event_args = slots
-            .events
-            .iter()
-            .map(|e| {
-                let formats = fp.event_frac.get(e.event.index()).map_or(0, Vec::len);
-                e.n_args.min(formats)
-            })
-            .collect();
-        let params = next;
-        next += fp.param_words.len();
-        FixedLayout {
-            slots,
-            history,
-            event_args,
-            params,
-            ctx_len: next,
-        }
-    }
-}
 
 /// The native function of a compiled fixed-point program (see the module documentation).
 pub type BlockFn = unsafe extern "C" fn(

@@ -27,7 +27,7 @@
 //! The sample loop keeps states, modes, edges, saturation counters and history positions
 //! in Cranelift variables, so across the samples of a block they live in registers.
 
-use crate::fixed::{FixedLayout, HISTORY_LEN};
+use crate::layout::{FixedLayout, HISTORY_LEN};
 use crate::JitError;
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{types, AbiParam, FuncRef, InstBuilder, MemFlagsData, Signature, Type};

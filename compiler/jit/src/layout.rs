@@ -1,4 +1,5 @@
-//! Where each quantity lives in the three `f64` buffers the native code works on.
+//! Where each quantity lives in the three `f64` buffers the native code works on, and (at
+//! the end, [`FixedLayout`]) in the word buffers of the fixed-point native code.
 //!
 //! The layout is computed once from a [`Program`] and shared by the code generator (which
 //! bakes the offsets into loads and stores) and the Rust harness (which fills the inputs and
@@ -20,7 +21,9 @@
 //!   fired slots read in slot order are the events in emission order.
 //! * **sat** (`u64`, persists): one saturation counter per state.
 
+use tactus_compiler::fixed::FixedProgram;
 use tactus_compiler::ir::{EventId, Op, Program, SensorId, Stmt};
+use tactus_runtime::differentiator::WINDOW;
 
 /// One `emit` statement's place in the `out` buffer.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -148,5 +151,66 @@ impl Layout {
     /// Slot of output `i` in out.
     pub fn output(&self, i: usize) -> usize {
         self.n_forces + 1 + i
+    }
+}
+
+/// Readings a differentiator history holds (`2N + 1`).
+pub const HISTORY_LEN: usize = 2 * WINDOW + 1;
+/// Words of one sensor's history block in ctx: position, primed flag, the ring twice.
+pub const HISTORY_WORDS: usize = 2 + 2 * HISTORY_LEN;
+
+/// Where each word lives in the buffers of the fixed-point native code ([`crate::fixed`]'s
+/// module documentation). The slot numbering of states, modes, edges and of `out` is the f64
+/// JIT's [`Layout`]; its `inputs` part is unused (the native code reads raw sensor rows and
+/// computes the derivatives itself).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FixedLayout {
+    /// States, modes, edges and `out` slots, as in the f64 JIT.
+    pub slots: Layout,
+    /// Word offset in ctx of each sensor's history block (`None`: not differentiated).
+    pub history: Vec<Option<usize>>,
+    /// Number of arguments each event slot (in [`Layout::events`] order) receives: the
+    /// emitted arguments that have a format in [`FixedProgram::event_frac`].
+    pub event_args: Vec<usize>,
+    /// Word offset in ctx of the key's param block (one word per run-time param,
+    /// `FixedProgram::param_words`; written by the harness, read by the native code).
+    pub params: usize,
+    /// Length of ctx in words.
+    pub ctx_len: usize,
+}
+
+impl FixedLayout {
+    /// The layout of `fp`.
+    pub fn of(fp: &FixedProgram) -> FixedLayout {
+        let p = &fp.program;
+        let slots = Layout::of(p);
+        let mut next = slots.ctx_len();
+        let history = p
+            .sensors
+            .iter()
+            .map(|s| {
+                s.differentiated.then(|| {
+                    next += HISTORY_WORDS;
+                    next - HISTORY_WORDS
+                })
+            })
+            .collect();
+        let event_args = slots
+            .events
+            .iter()
+            .map(|e| {
+                let formats = fp.event_frac.get(e.event.index()).map_or(0, Vec::len);
+                e.n_args.min(formats)
+            })
+            .collect();
+        let params = next;
+        next += fp.param_words.len();
+        FixedLayout {
+            slots,
+            history,
+            event_args,
+            params,
+            ctx_len: next,
+        }
     }
 }

@@ -94,6 +94,7 @@ pub fn expand(file: &File, overrides: &[(String, String)]) -> Result<File, Vec<D
         .map(|item| match item {
             TopItem::Instrument(b) => TopItem::Instrument(cx.body(b, None, overrides)),
             TopItem::Component(b) => TopItem::Component(cx.body(b, None, &[])),
+            TopItem::Import(i) => TopItem::Import(i.clone()),
         })
         .collect();
     // Specialisations requested by `use`s (and by the specialisations' own `use`s).

@@ -251,6 +251,8 @@ impl<'a> Lowerer<'a> {
                         );
                     }
                 }
+                // Resolved by `crate::imports::link`.
+                ast::TopItem::Import(_) => {}
                 ast::TopItem::Instrument(b) => match instrument {
                     Some(first) => self.err(
                         Diagnostic::error(
@@ -268,10 +270,11 @@ impl<'a> Lowerer<'a> {
         let Some(inst) = instrument else {
             let end = file.items.last().map_or(0..0, |i| match i {
                 ast::TopItem::Component(b) | ast::TopItem::Instrument(b) => b.span.clone(),
+                ast::TopItem::Import(i) => i.span.clone(),
             });
             self.err(
                 Diagnostic::error("E0103", "no instrument in this file", end)
-                    .hint("add `instrument NAME { … }` that uses the components defined here"),
+                    .hint("add `instrument NAME { … }` that uses the components defined here; a file of components only is a library: import it from an instrument's file (`import \"FILE\"`)"),
             );
             return;
         };

@@ -358,6 +358,11 @@ impl<'a> Lowerer<'a> {
                         self.record_ref(&component.span, &def);
                     }
                     let Some(&comp) = self.components.get(component.node.as_str()) else {
+                        // `crate::imports::link` clears a name its file does not see, and
+                        // reports it (E0115, with the import that would bring it).
+                        if component.node.is_empty() {
+                            continue;
+                        }
                         let known: Vec<&str> = self.components.keys().copied().collect();
                         let hint = match crate::diagnostics::closest(
                             &component.node,

@@ -5,25 +5,9 @@
 //! (plucking, bowing and rubbing physically-based resonators).
 
 use super::sensor_stimulus::{positive, SensorStimulus, SensorStimulusError};
+use super::GESTURES;
 use crate::ir::Program;
 use tactus_runtime::stimulus::MAX_SAMPLES;
-
-/// The pen gestures as (name, one-line description), for `--help`. Keep in step with
-/// [`gesture`].
-pub(super) const GESTURES: &[(&str, &str)] = &[
-    (
-        "press-rub",
-        "press to DEPTH, rub 2 cycles back and forth over STROKE (20 mm) around the middle of the stroke axis (x) at SPEED (0.1 m/s), release",
-    ),
-    (
-        "bow-stroke",
-        "press to DEPTH, one stroke over STROKE (60 % of the stroke axis' range, centred) at SPEED (0.1 m/s), release",
-    ),
-    (
-        "pluck",
-        "press to DEPTH, cross the middle of the stroke axis (x, the plucking point) over STROKE (20 mm) at SPEED (0.2 m/s), release",
-    ),
-];
 
 /// The built-in pen gestures as (name, one-line description), in a stable order.
 pub fn gesture_names() -> &'static [(&'static str, &'static str)] {

@@ -28,6 +28,23 @@ use std::path::Path;
 use tactus_runtime::stimulus::{self, Stimulus};
 use tactus_runtime::trace::{ColumnKind, Trace};
 
+/// The pen gestures as (name, one-line description), for `--help` and for the error that
+/// lists every stimulus ([`SensorStimulusError::Unknown`]). Keep in step with [`gesture`].
+const GESTURES: &[(&str, &str)] = &[
+    (
+        "press-rub",
+        "press to DEPTH, rub 2 cycles back and forth over STROKE (20 mm) around the middle of the stroke axis (x) at SPEED (0.1 m/s), release",
+    ),
+    (
+        "bow-stroke",
+        "press to DEPTH, one stroke over STROKE (60 % of the stroke axis' range, centred) at SPEED (0.1 m/s), release",
+    ),
+    (
+        "pluck",
+        "press to DEPTH, cross the middle of the stroke axis (x, the plucking point) over STROKE (20 mm) at SPEED (0.2 m/s), release",
+    ),
+];
+
 /// What a simulation produced besides the trace.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SimSummary {

@@ -46,7 +46,7 @@
 //! ```
 //!
 
-use super::gesture::GESTURES;
+use super::GESTURES;
 use super::MAX_TRACE_VALUES;
 use crate::ir::Program;
 use std::fmt;

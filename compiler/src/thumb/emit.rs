@@ -4,9 +4,8 @@
 //! listing are the buffer's).
 
 use super::buffer::{self, CodeBuffer};
-use super::mir::{Base, Label, Shift, M, V};
+use super::mir::{Base, Label, Shift, ARG2, M, STATE_V, V};
 use super::regalloc::{Allocation, Loc, Remat};
-use super::select::{ARG2, STATE_V};
 use super::ThumbError;
 use std::collections::HashMap;
 use tactus_isa::decode::{AluOp, Instr, MemOp};
@@ -839,7 +838,7 @@ pub(crate) fn lower(
             l.i(Instr::SubSp { imm: chunk });
         }
     }
-    for (arg, r) in [(super::select::ARG1, 1u8), (super::select::ARG2, 2u8)] {
+    for (arg, r) in [(super::mir::ARG1, 1u8), (ARG2, 2u8)] {
         match alloc.loc.get(arg.0 as usize).copied().flatten() {
             Some(Loc::Slot(s)) => l.store_home(r, s),
             Some(Loc::Reg(x)) if x != r => unreachable!("arguments are pre-coloured"),

@@ -19,7 +19,6 @@
 //! replaced.
 
 use super::mir::*;
-use super::select::ARG2;
 use std::collections::HashMap;
 use tactus_isa::decode::MemOp;
 
@@ -116,10 +115,40 @@ pub(crate) fn forward(code: &mut Vec<M>, nregs: u32) {
                 off,
             } => {
                 let before = avail.get(&(MemOp::Ldrb, off)).copied();
+                let before_word = avail.get(&(MemOp::Ldr, off)).copied();
                 avail.retain(|&k, _| !accesses_overlap(k, (op, off)));
                 match op {
                     MemOp::Str => {
-                        avail.insert((MemOp::Ldr, off), t);
+                        // A constant word set in a handler's arm, as a mode byte below.
+                        let phi = word_constant(code, &def_at, t, once(t))
+                            .and(before_word)
+                            .filter(|&v| v != t && once(v))
+                            .filter(|_| {
+                                code[j + 1..]
+                                    .iter()
+                                    .filter(|m| loads(m, (MemOp::Ldr, off)))
+                                    .count()
+                                    >= PHI_MIN_LOADS
+                            })
+                            .and_then(|v| Some((v, phi_at(code, &def_at, &last_use, v, t, j)?)));
+                        match phi {
+                            Some((v, q)) => {
+                                if let M::Movi { d, .. } = &mut code[q] {
+                                    *d = v;
+                                }
+                                if let M::Store { t: st, .. } = &mut code[j] {
+                                    *st = v;
+                                }
+                                rename.insert(t, v);
+                                let k = v.0 as usize;
+                                last_use[k] = last_use[k].max(last_use[t.0 as usize]);
+                                avail.retain(|_, &mut w| w != v);
+                                avail.insert((MemOp::Ldr, off), v);
+                            }
+                            None => {
+                                avail.insert((MemOp::Ldr, off), t);
+                            }
+                        }
                     }
                     MemOp::Strb => {
                         if let Some(byte) = byte_constant(code, &def_at, t, once(t)) {
@@ -192,6 +221,17 @@ fn byte_constant(code: &[M], def_at: &[usize], t: V, once: bool) -> Option<i32> 
     let at = *def_at.get(t.0 as usize)?;
     match code.get(at) {
         Some(&M::Movi { imm, .. }) if once && (0..=255).contains(&imm) => Some(imm),
+        _ => None,
+    }
+}
+
+/// The constant word a register stored with `STR` holds: a `Movi` (any 32-bit constant,
+/// which the emitter materialises as `MOVS`, `MOVS`+`LSLS`, `MVNS` or a literal) defining it
+/// once.
+fn word_constant(code: &[M], def_at: &[usize], t: V, once: bool) -> Option<i32> {
+    let at = *def_at.get(t.0 as usize)?;
+    match code.get(at) {
+        Some(&M::Movi { imm, .. }) if once => Some(imm),
         _ => None,
     }
 }
@@ -401,6 +441,61 @@ mod tests {
             assert_eq!(code[3], M::Movi { d: V(4), imm: 2 }, "{between:?}");
             assert!(code.contains(&ldrb(5, 0)), "{between:?}");
         }
+    }
+
+    /// A state word set to a constant in a handler's arm (the piano's back-check holding
+    /// the hammer: `s = s_check; w = 0`): the register of the word's load before the arm
+    /// takes the constant in the arm, so the loads after the join go; not when the stored
+    /// register is computed (not one constant), nor when the word is read fewer than
+    /// `PHI_MIN_LOADS` times after.
+    #[test]
+    fn a_word_set_in_an_arm_stays_in_its_register() {
+        let l = Label(0);
+        let arm = |value: M, reads: u32| {
+            let mut c = vec![load(3, 16), cmp(3), M::Bc(Cond::Eq, l), value];
+            c.extend([store(4, 16), M::Label(l)]);
+            for r in 0..reads {
+                c.extend([load(5 + r, 16), cmp(5 + r)]);
+            }
+            c
+        };
+        let word = M::Movi {
+            d: V(4),
+            imm: 1_040_703_614,
+        };
+        let mut code = arm(word.clone(), 3);
+        forward(&mut code, 12);
+        assert_eq!(
+            code,
+            vec![
+                load(3, 16),
+                cmp(3),
+                M::Bc(Cond::Eq, l),
+                M::Movi {
+                    d: V(3),
+                    imm: 1_040_703_614
+                },
+                store(3, 16),
+                M::Label(l),
+                cmp(3),
+                cmp(3),
+                cmp(3),
+            ]
+        );
+        // Read twice after: the first read after the join stays a load.
+        let mut code = arm(word.clone(), 2);
+        forward(&mut code, 12);
+        assert_eq!(code[..7], arm(word, 2)[..7]);
+        let computed = M::Sh {
+            op: Shift::Asr,
+            d: V(4),
+            m: V(3),
+            imm: 1,
+        };
+        let mut code = arm(computed.clone(), 3);
+        forward(&mut code, 12);
+        assert_eq!(code[..5], arm(computed, 3)[..5]);
+        assert!(code.contains(&load(5, 16)), "{code:?}");
     }
 
     /// Only a dominating load or store is reused: a label that a branch from before it

@@ -15,6 +15,16 @@ use tactus_isa::decode::{AluOp, MemOp};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct V(pub u32);
 
+/// `r1` and `r2` on entry: the sensors and out pointers (virtual registers pre-coloured
+/// by the allocator).
+pub(crate) const ARG1: V = V(0);
+pub(crate) const ARG2: V = V(1);
+/// The first virtual register instruction selection allocates.
+pub(crate) const FIRST_FREE: u32 = 2;
+
+/// The pinned state pointer as a virtual register for address arithmetic (allocated to r7).
+pub(crate) const STATE_V: V = V(u32::MAX);
+
 /// A branch target.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Label(pub u32);

@@ -15,7 +15,6 @@
 //! spilled interval, as before.
 
 use super::mir::*;
-use super::select::{ARG1, ARG2, STATE_V};
 use tactus_isa::decode::MemOp;
 
 /// Where a virtual register lives.

@@ -25,12 +25,26 @@ pub fn instruments_dir() -> PathBuf {
 /// The shipped instruments' files, `(name, path)`, sorted by name: every
 /// `instruments/*.tactus` (named by its stem) and, with `experimental`, every
 /// `instruments/experimental/*.tactus` (named `experimental/STEM`; none while that directory
-/// does not exist, as when the last experimental instrument shipped).
+/// does not exist, as when the last experimental instrument shipped) and every user
+/// instrument of `instruments/examples/` (named `examples/STEM`: the tutorial's clavichord,
+/// the tour of the library; they import from Tactus's library only, so
+/// `tactus_compiler::compile` of their text compiles them).
 pub fn instrument_files(experimental: bool) -> Vec<(String, PathBuf)> {
     let root = instruments_dir();
     let mut dirs = vec![(root.clone(), "")];
-    if experimental && root.join("experimental").is_dir() {
-        dirs.push((root.join("experimental"), "experimental/"));
+    if experimental {
+        for sub in ["experimental", "examples"] {
+            if root.join(sub).is_dir() {
+                dirs.push((
+                    root.join(sub),
+                    if sub == "examples" {
+                        "examples/"
+                    } else {
+                        "experimental/"
+                    },
+                ));
+            }
+        }
     }
     let mut v = Vec::new();
     for (dir, prefix) in dirs {

@@ -5,13 +5,19 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// True when `tool` can be run; otherwise prints a SKIPPED line naming it.
+/// True when `tool` can be run; otherwise prints a SKIPPED line naming it, and fails when
+/// `CI` is set (`.ci/run` installs binutils-arm-none-eabi and qemu-user: there a missing
+/// tool is a broken set-up, not a reason to pass).
 pub fn have_tool(tool: &str, test: &str) -> bool {
     let ok = Command::new(tool)
         .arg("--version")
         .output()
         .is_ok_and(|o| o.status.success());
     if !ok {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "{tool} is not installed and CI is set ({test}): .ci/run installs it"
+        );
         eprintln!("SKIPPED: {tool} not installed ({test})");
     }
     ok

@@ -142,7 +142,7 @@ fn wait(a: &mut CodeBuffer, addr: u32, mask: u32, want: u32) {
 }
 
 /// Pulses block `bit` of RESETS and waits until it is out of reset (clobbers r0-r2).
-pub(super) fn pulse_reset(a: &mut CodeBuffer, bit: u32) {
+fn pulse_reset(a: &mut CodeBuffer, bit: u32) {
     store(a, RESETS_BASE + SET + resets::reg::RESET, bit);
     store(a, RESETS_BASE + CLR + resets::reg::RESET, bit);
     wait(a, RESETS_BASE + resets::reg::RESET_DONE, bit, bit);
@@ -271,6 +271,7 @@ pub fn core_start(a: &mut CodeBuffer, core: usize, boot: &Boot, stack_bottom: u3
     if core == 0 {
         clock_set_up(a, boot.pll, boot.vsel);
         if boot.io {
+            pulse_reset(a, super::io::RESETS);
             super::io::boot(a);
         }
         if let Some(words) = boot.core1 {

@@ -641,7 +641,7 @@ impl IoPlan {
         core: usize,
         adc_ch: u32,
         dac_ch: u32,
-        tick: &super::glue::Tick,
+        tick: &crate::board_file::Tick,
     ) -> u64 {
         let Some(c) = self.cores.get(core) else {
             return 0;
@@ -739,15 +739,16 @@ fn store(a: &mut CodeBuffer, addr: u32, value: u32) {
     a.i(asm::str(1, 0, 0));
 }
 
-/// What core 0's start-up does for the converters before it launches core 1: the
-/// blocks the drivers use pulsed through reset (as pico-sdk's drivers do), and the DMA's
-/// bus priority above both cores'. Clobbers r0-r2.
-pub fn boot(a: &mut CodeBuffer) {
+/// The blocks the drivers use (RESETS bits), which core 0's start-up pulses through reset
+/// before it launches core 1, as pico-sdk's drivers do (`super::boot::core_start`).
+pub const RESETS: u32 = {
     use tactus_rp2040::resets;
-    super::boot::pulse_reset(
-        a,
-        resets::PIO0 | resets::PIO1 | resets::DMA | resets::IO_BANK0,
-    );
+    resets::PIO0 | resets::PIO1 | resets::DMA | resets::IO_BANK0
+};
+
+/// What core 0's start-up does for the converters once [`RESETS`] are out of reset, before
+/// it launches core 1: the DMA's bus priority above both cores'. Clobbers r0-r1.
+pub fn boot(a: &mut CodeBuffer) {
     store(a, BUSCTRL_BASE, priority::DMA_R | priority::DMA_W);
 }
 

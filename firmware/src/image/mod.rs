@@ -109,9 +109,11 @@ pub mod io;
 mod layout;
 mod rest;
 mod run;
+mod sample;
 
 pub use flash_image::{FlashImage, FlashPiece};
-pub use run::{run_to_first_tick, run_to_timer, DriveOut, ImageRun, IoRecord, KeyEvent, SampleOut};
+pub use run::{run_to_first_tick, run_to_timer, ImageRun, IoRecord};
+pub use sample::{DriveOut, KeyEvent, SampleOut};
 
 use crate::windows::{MAX_KEYS, SENSOR_BASE};
 use std::fmt;

@@ -39,7 +39,7 @@
 //! Test: `firmware/tests/rest.rs` (boards replaying against boards running every sample,
 //! with converters, and with a key held at the keybed and released).
 
-use super::run::SampleOut;
+use super::sample::SampleOut;
 use tactus_emulator::{Period, RestPoint};
 
 /// Samples with the same sensor words before the first rest point (the rings fill in 17).

@@ -3,10 +3,11 @@
 #![allow(dead_code)] // each test binary uses a subset
 
 use std::path::Path;
+use tactus_firmware::boards::{self, BoardsError, PlanKey, ProgramCosts};
 use tactus_firmware::corpus::{self, Size};
 use tactus_firmware::flash::{self, BoardFirmware, KeyboardInput, Load};
 use tactus_firmware::image::{compile_layout, Program};
-use tactus_runtime::keyboard::{read_board, read_layout, BoardSpec};
+use tactus_runtime::keyboard::{read_layout, BoardSpec};
 use tactus_runtime::limiter::LimiterConfig;
 
 /// The repository's root.
@@ -24,6 +25,14 @@ pub fn shipped(name: &str) -> Result<String, String> {
     std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))
 }
 
+/// The shipped board `boards/NAME.toml`, read and checked as `tactus` reads every board
+/// ([`boards::read_board`]).
+pub fn shipped_board(name: &str) -> BoardSpec {
+    let path = root().join(format!("boards/{name}.toml"));
+    let text = std::fs::read_to_string(&path).unwrap();
+    boards::read_board(&text, &path.display().to_string()).unwrap()
+}
+
 /// Every board of `layout` as `tactus build` makes it (boards planned when the layout lists
 /// none) on the board file `kind` (default: the layout's), with the board kind it uses.
 pub fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmware>, BoardSpec) {
@@ -33,8 +42,7 @@ pub fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmw
         .map(str::to_string)
         .or(l.board_kind.clone())
         .unwrap_or_else(|| "rp2040".into());
-    let board = read_board(&root().join(format!("boards/{}.toml", kind.trim_end_matches(".toml"))))
-        .unwrap();
+    let board = shipped_board(kind.trim_end_matches(".toml"));
     let (programs, index) = compile_layout(&keys, &shipped, board.sample_rate_hz).unwrap();
     let mut names = vec![(String::new(), Vec::new()); programs.len()];
     for (k, &p) in keys.iter().zip(&index) {
@@ -42,10 +50,10 @@ pub fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmw
     }
     let mut pairs: Vec<(u8, usize)> = keys.iter().map(|k| k.key).zip(index).collect();
     pairs.sort_unstable();
-    let boards = tactus_runtime::keyboard::board_keys(&l, layout, &keys).unwrap();
-    let limiter = LimiterConfig {
-        sample_rate_hz: board.sample_rate_hz,
-        ..LimiterConfig::default()
+    let limiter = LimiterConfig::for_board(&board);
+    let boards = match tactus_runtime::keyboard::board_keys(&l, layout, &keys).unwrap() {
+        Some(lists) => lists,
+        None => plan(&programs, &pairs, &board, &limiter).unwrap(),
     };
     let input = KeyboardInput {
         name: &l.name,
@@ -53,13 +61,29 @@ pub fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmw
         program_names: &names,
         keys: &pairs,
         board: &board,
-        boards: boards.as_deref(),
+        boards: &boards,
         limiter: &limiter,
         load,
         command: "test",
     };
     let fw = flash::keyboard_firmware(&input, &mut |_, _, _| {}).unwrap();
     (fw, board)
+}
+
+/// The boards [`boards::plan`] gives `keys` ((MIDI key, program), ascending), as
+/// `tactus_host::keyboard::Keyboard::plan` plans a keyboard whose layout lists none.
+pub fn plan(
+    programs: &[Program],
+    keys: &[(u8, usize)],
+    board: &BoardSpec,
+    limiter: &LimiterConfig,
+) -> Result<Vec<Vec<u8>>, BoardsError> {
+    let costs = ProgramCosts::new(programs, board, limiter)?;
+    let keys: Vec<PlanKey> = (keys.iter())
+        .map(|&(key, program)| PlanKey { key, program })
+        .collect();
+    let planned = boards::plan(programs, &costs, &keys, board, limiter, &mut |_, _| {})?;
+    Ok(planned.into_iter().map(|b| b.keys).collect())
 }
 
 /// The budget corpus (quick) for each key, its runs concatenated and repeated, each key

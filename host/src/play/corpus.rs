@@ -4,8 +4,12 @@
 //!
 //! A piece that cannot be played (an unreadable or malformed MIDI file, no note on the
 //! layout, …) is a row with its error, not the end of the run.
+//!
+//! The same rows come back from a cluster's shards (`crate::play::results`, one JSON line
+//! each) and are merged into these same tables (`crate::corpus_merge`): the tables are
+//! written by one function ([`write_tables`]) and judged by one ([`verdict`]) either way.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -14,10 +18,14 @@ use std::path::{Path, PathBuf};
 pub const MAX_PIECES: usize = 10_000;
 
 /// One piece of a corpus run: what was played and how.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PieceRow {
     /// The MIDI file.
     pub file: PathBuf,
+    /// The keyboard it was played on: the layout's name, or `INSTRUMENT × N`.
+    pub keyboard: String,
+    /// The board kind's name.
+    pub board: String,
     /// Music played, seconds (after `--seconds`).
     pub music_s: f64,
     /// Notes on the layout's keys.
@@ -44,6 +52,67 @@ pub struct PieceRow {
     pub error: Option<String>,
 }
 
+/// What a corpus's rows say of the firmware, and the exit status that tells it
+/// ([`Verdict::exit_code`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// Every piece played without a deadline miss, every note struck: exit 0.
+    Passed,
+    /// The firmware failed validation: some piece missed a deadline or left a note without
+    /// a strike (whatever else happened): exit 1. The message counts them.
+    Failed(String),
+    /// No piece failed, but some could not be played (an unreadable file, no note on the
+    /// keyboard, …), or some expected item has no row: the run could not be done; exit 2.
+    Incomplete(String),
+}
+
+impl Verdict {
+    /// 0, 1 or 2, as the variants say.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            Verdict::Passed => 0,
+            Verdict::Failed(_) => 1,
+            Verdict::Incomplete(_) => 2,
+        }
+    }
+
+    /// The message, if the verdict is not a pass.
+    pub fn message(&self) -> Option<&str> {
+        match self {
+            Verdict::Passed => None,
+            Verdict::Failed(m) | Verdict::Incomplete(m) => Some(m),
+        }
+    }
+}
+
+/// The verdict on `rows`: [`Verdict::Failed`] when a row missed a deadline or left notes
+/// without a strike, else [`Verdict::Incomplete`] when a row has an error, else
+/// [`Verdict::Passed`].
+pub fn verdict(rows: &[PieceRow]) -> Verdict {
+    let missed = rows
+        .iter()
+        .filter(|r| r.misses_per_board.iter().any(|&m| m > 0))
+        .count();
+    let silent = rows.iter().filter(|r| r.silent > 0).count();
+    let errors = rows.iter().filter(|r| r.error.is_some()).count();
+    let n = rows.len();
+    let also = match errors {
+        0 => String::new(),
+        e => format!("; {e} could not be played"),
+    };
+    if missed + silent > 0 {
+        return Verdict::Failed(format!(
+            "the firmware failed validation: {missed} of {n} performances missed deadlines, {silent} left notes without a strike{also} (see the table)"
+        ));
+    }
+    match errors {
+        0 => Verdict::Passed,
+        e => Verdict::Incomplete(format!(
+            "{e} of {n} performances could not be played (see the table's errors)"
+        )),
+    }
+}
+
 impl PieceRow {
     /// A row for a piece that could not be played.
     pub fn failed(file: &Path, error: String) -> PieceRow {
@@ -52,11 +121,6 @@ impl PieceRow {
             error: Some(error),
             ..PieceRow::default()
         }
-    }
-
-    /// Whether the piece played without an error and without a deadline miss.
-    pub fn ok(&self) -> bool {
-        self.error.is_none() && self.misses_per_board.iter().all(|&m| m == 0)
     }
 }
 
@@ -124,31 +188,28 @@ pub fn summary_text(rows: &[PieceRow], emulated: bool, peak_kb: Option<u64>) -> 
     t
 }
 
-/// The corpus run's error, if any piece failed or missed a deadline: how many of how many.
-pub fn failures_text(rows: &[PieceRow]) -> Option<String> {
-    match rows.iter().filter(|r| !r.ok()).count() {
-        0 => None,
-        failed => Some(format!(
-            "{failed} of {} performances failed or missed deadlines (see the table)",
-            rows.len()
-        )),
-    }
-}
-
 /// The summary table as text, one line per piece after a header line, each indented two
 /// spaces: piece (file name), music s, notes, strikes, silent notes, misses (all boards),
 /// worst core cycles / deadline (`—` on a host engine), RTF, error.
 pub fn table_text(rows: &[PieceRow]) -> String {
     use std::fmt::Write;
+    // Several keyboards or boards: each piece named with the one it was played on.
+    let on = |r: &PieceRow| format!("{} on {}", r.keyboard, r.board);
+    let several = rows
+        .iter()
+        .any(|r| on(r) != rows.first().map(on).unwrap_or_default());
     let mut t = format!(
         "  {:<32} {:>8} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6}  error\n",
         "piece", "music s", "notes", "strikes", "silent", "misses", "worst cycles", "RTF"
     );
     for r in rows {
-        let name = r.file.file_name().map_or_else(
+        let mut name = r.file.file_name().map_or_else(
             || r.file.display().to_string(),
             |n| n.to_string_lossy().into_owned(),
         );
+        if several {
+            name = format!("{name} ({})", on(r));
+        }
         // Writing to a String cannot fail.
         let _ = writeln!(
             t,
@@ -175,14 +236,16 @@ pub fn table_text(rows: &[PieceRow]) -> String {
 /// Errors: the file cannot be written (naming it).
 pub fn write_csv(path: &Path, rows: &[PieceRow]) -> Result<(), String> {
     let mut s = String::from(
-        "file,music_s,notes,strikes,answering,silent,misses_per_board,misses,worst_core_cycles,deadline_cycles,wall_s,rtf,error\n",
+        "file,keyboard,board,music_s,notes,strikes,answering,silent,misses_per_board,misses,worst_core_cycles,deadline_cycles,wall_s,rtf,error\n",
     );
     for r in rows {
         let misses: Vec<String> = r.misses_per_board.iter().map(u64::to_string).collect();
         let opt = |v: Option<u64>| v.map_or(String::new(), |v| v.to_string());
         s.push_str(&format!(
-            "{},{:.3},{},{},{},{},{},{},{},{},{:.3},{:.3},{}\n",
+            "{},{},{},{:.3},{},{},{},{},{},{},{},{},{:.3},{:.3},{}\n",
             csv_field(&r.file.display().to_string()),
+            csv_field(&r.keyboard),
+            csv_field(&r.board),
             r.music_s,
             r.notes,
             r.strikes,
@@ -209,9 +272,30 @@ pub fn write_json(path: &Path, rows: &[PieceRow]) -> Result<(), String> {
 }
 
 fn write(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    std::fs::File::create(path)
-        .and_then(|mut f| f.write_all(bytes))
-        .map_err(|e| format!("cannot write `{}`: {e}", path.display()))
+    write_atomic(path, bytes).map_err(|e| format!("cannot write `{}`: {e}", path.display()))
+}
+
+/// Writes `bytes` to `path` atomically: into a temporary file beside it (`.NAME.tmp-PID`),
+/// flushed to the disk, then renamed over `path` — a process killed at any moment leaves
+/// the old file or the new one whole, never a part.
+///
+/// Errors: the temporary file cannot be written or renamed (it is removed).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let name = path
+        .file_name()
+        .map_or_else(|| "out".to_string(), |n| n.to_string_lossy().into_owned());
+    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let written = std::fs::File::create(&tmp).and_then(|mut f| {
+        f.write_all(bytes)?;
+        f.sync_all()
+    });
+    match written.and_then(|()| std::fs::rename(&tmp, path)) {
+        Ok(()) => Ok(()),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(e)
+        }
+    }
 }
 
 /// A CSV field, quoted when it holds a comma, a quote or a line break (RFC 4180).

@@ -13,7 +13,7 @@
 
 use crate::play::engine::{KeyEngine, KeySample};
 use crate::play::error::{BoardError, RunError};
-use crate::play::run::{run_keys, Drive, LoopConfig, TraceWindow};
+use crate::play::run::{Drive, KeysLoop, LoopConfig, TraceWindow};
 use crate::play::strike::{strike_event, Strike};
 use std::collections::BTreeMap;
 use tactus_compiler::fixed::interp::FixedInstance;
@@ -41,9 +41,10 @@ pub struct PerformOptions {
     pub finger: FingerConfig,
     /// Which keys to trace, and when.
     pub trace: TraceWindow,
-    /// The layout's boards (MIDI keys per board), or `None` to plan them as `tactus
-    /// budget` does ([`boards::plan`]).
-    pub boards: Option<Vec<Vec<u8>>>,
+    /// The keyboard's boards (MIDI keys per board), as its plan gives them
+    /// (`crate::keyboard::Keyboard::plan`: the boards `tactus budget` reports and `tactus
+    /// build` builds).
+    pub boards: Vec<Vec<u8>>,
     /// The safety limiter.
     pub limiter: LimiterConfig,
     /// The emulator's engine (the same cycles either way).
@@ -57,6 +58,18 @@ pub struct PerformOptions {
     /// On boards with converters: a directory to write each board's frames at the pins
     /// into (`board-NN.csv`, [`IO_TRACE_HEADER`]); `None` writes none.
     pub io_trace: Option<std::path::PathBuf>,
+    /// Run in consecutive spans of this many samples, each board's budget reported per span
+    /// ([`BoardRun::spans`]); `None`: one span, none reported.
+    pub span: Option<usize>,
+}
+
+/// The spans of a run of `end` samples cut every `span` samples (`None` or 0: one span):
+/// their ends, in order.
+pub fn span_ends(end: usize, span: Option<usize>) -> Vec<usize> {
+    match span.filter(|&s| s > 0 && s < end) {
+        None => vec![end],
+        Some(s) => (1..=end.div_ceil(s)).map(|k| (k * s).min(end)).collect(),
+    }
 }
 
 /// The columns of an I/O trace file (`--io-trace`): one row per ADC frame (its chip
@@ -100,6 +113,10 @@ pub struct BoardRun {
     /// (`tactus_emulator::converters`: each part keeps its first 65,536), as "core *c*
     /// ADC|DAC, cycle *n*: what"; empty on a plain board.
     pub io_breaches: Vec<String>,
+    /// With [`PerformOptions::span`]: the board's budget over each span alone (its largest
+    /// and summed handler cycles, misses, rest replay and I/O over the span; no cycle
+    /// series, strikes or traces), in order.
+    pub spans: Vec<BoardRun>,
 }
 
 /// The whole keyboard's run.
@@ -109,10 +126,13 @@ pub struct KeyboardRun {
     pub boards: Vec<BoardRun>,
     /// Samples per point of [`BoardRun::cycles`].
     pub decimation: usize,
+    /// With [`PerformOptions::span`]: each span's samples, in order (each board's
+    /// [`BoardRun::spans`] follow them).
+    pub spans: Vec<u64>,
 }
 
 /// Plays `motions` on the keyboard whose keys (ascending MIDI numbers) run `programs`
-/// (`key_programs[i]` is key `keys[i]`'s program): plans or takes the boards, builds each
+/// (`key_programs[i]` is key `keys[i]`'s program) on the boards `opts.boards`: builds each
 /// board's image and runs it for `opts.end` samples, the boards in parallel (rayon). `progress` is called with key-samples done since its last call.
 ///
 /// Errors: a message naming the board when its image cannot be built or its run fails.
@@ -141,13 +161,7 @@ pub fn play_boards(
         .zip(key_programs)
         .map(|(&key, &program)| PlanKey { key, program })
         .collect();
-    let lists: Vec<Vec<u8>> = match &opts.boards {
-        Some(l) => l.clone(),
-        None => boards::plan(programs, &costs, &keys, board, lim, &mut |_, _| {})?
-            .into_iter()
-            .map(|b| b.keys)
-            .collect(),
-    };
+    let lists = &opts.boards;
     // A key that fits no board of this kind stops the run with the budget's reason (a
     // board over its deadline still runs: its misses are what the run shows).
     let unfit = boards::fits_no_board_each(programs, &costs, board, lim)?;
@@ -217,9 +231,20 @@ pub fn play_boards(
     });
     let mut runs: Vec<(usize, BoardRun)> = results.into_iter().collect::<Result<_, _>>()?;
     runs.sort_by_key(|r| r.0);
+    let ends = span_ends(opts.end, opts.span);
+    let spans = match opts.span.is_some() {
+        true => (ends.iter().scan(0, |from, &to| {
+            let len = (to - *from) as u64;
+            *from = to;
+            Some(len)
+        }))
+        .collect(),
+        false => Vec::new(),
+    };
     Ok(KeyboardRun {
         boards: runs.into_iter().map(|r| r.1).collect(),
         decimation,
+        spans,
     })
 }
 
@@ -249,6 +274,10 @@ pub struct BoardEngine<'p> {
     /// name and its writer.
     io_trace: Option<(usize, String, std::io::BufWriter<std::fs::File>)>,
     clock_hz: f64,
+    /// The largest handler per core since the span began ([`BoardEngine::end_span`]).
+    span_max: Vec<u64>,
+    /// The board's report when the span began.
+    span_start: BoardRun,
 }
 
 impl<'p> BoardEngine<'p> {
@@ -374,6 +403,8 @@ impl<'p> BoardEngine<'p> {
             block_max: 0,
             io_trace: None,
             clock_hz: board.clock_hz,
+            span_max: vec![0; n_cores],
+            span_start: BoardRun::default(),
         })
     }
 
@@ -399,20 +430,7 @@ impl<'p> BoardEngine<'p> {
     ///
     /// Errors: [`BoardError::Trace`] when the I/O trace's last rows cannot be written.
     pub fn finish(mut self) -> Result<BoardRun, BoardError> {
-        self.run.settle()?;
-        self.report.memo = self.run.board().memo_stats();
-        self.report.rest_replayed = self.run.rest_replayed();
-        self.report.io_windows = self.run.board().io_windows();
-        if let Some(io) = self.run.board().io() {
-            let adcs = (io.adcs.iter().enumerate()).map(|(k, a)| (k, "ADC", a.violations()));
-            let dacs = (io.dacs.iter().enumerate()).map(|(k, d)| (k, "DAC", d.violations()));
-            for (core, part, vs) in adcs.chain(dacs) {
-                self.report.io_breaches.extend(
-                    vs.iter()
-                        .map(|v| format!("core {core} {part}, cycle {}: {}", v.cycle, v.what)),
-                );
-            }
-        }
+        self.settle_report()?;
         if !self.steps.is_multiple_of(self.decimation) {
             self.report.cycles.push(self.block_max);
         }
@@ -424,6 +442,83 @@ impl<'p> BoardEngine<'p> {
             })?;
         }
         Ok(self.report)
+    }
+}
+
+impl BoardEngine<'_> {
+    /// Brings the board to the present ([`tactus_firmware::image::ImageRun::settle`]) and
+    /// its report's counts up to date: the memos', the rest replay's, the I/O's windows and
+    /// its parts' breaches so far.
+    fn settle_report(&mut self) -> Result<(), BoardError> {
+        self.run.settle()?;
+        self.report.memo = self.run.board().memo_stats();
+        self.report.rest_replayed = self.run.rest_replayed();
+        self.report.io_windows = self.run.board().io_windows();
+        self.report.io_breaches.clear();
+        if let Some(io) = self.run.board().io() {
+            let adcs = (io.adcs.iter().enumerate()).map(|(k, a)| (k, "ADC", a.violations()));
+            let dacs = (io.dacs.iter().enumerate()).map(|(k, d)| (k, "DAC", d.violations()));
+            for (core, part, vs) in adcs.chain(dacs) {
+                self.report.io_breaches.extend(
+                    vs.iter()
+                        .map(|v| format!("core {core} {part}, cycle {}: {}", v.cycle, v.what)),
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// Ends a span: the board's budget over the samples since the last span ended (or the
+    /// run began) — its largest handler per core, the sum of its handlers, its misses, the
+    /// rest replay's samples and periods, the I/O's windows and breaches over the span —
+    /// and a new span begun.
+    ///
+    /// Errors: what [`tactus_firmware::image::ImageRun::settle`] returns.
+    pub fn end_span(&mut self) -> Result<BoardRun, BoardError> {
+        self.settle_report()?;
+        let (now, then) = (&self.report, &self.span_start);
+        let minus = |a: &[u64], b: &[u64]| -> Vec<u64> {
+            (a.iter().enumerate())
+                .map(|(c, &x)| x.saturating_sub(b.get(c).copied().unwrap_or(0)))
+                .collect()
+        };
+        let (io, io0) = (now.io_windows, then.io_windows);
+        let span = BoardRun {
+            keys: now.keys.clone(),
+            core_keys: now.core_keys.clone(),
+            max: std::mem::replace(&mut self.span_max, vec![0; now.max.len()]),
+            total: minus(&now.total, &then.total),
+            misses: (now.misses.iter().enumerate())
+                .map(|(c, &m)| m.saturating_sub(then.misses.get(c).copied().unwrap_or(0)))
+                .collect(),
+            bound: now.bound.clone(),
+            rest_replayed: (
+                now.rest_replayed.0.saturating_sub(then.rest_replayed.0),
+                now.rest_replayed.1.saturating_sub(then.rest_replayed.1),
+            ),
+            io_windows: tactus_emulator::IoWindows {
+                kept: io.kept.saturating_sub(io0.kept),
+                waited: io.waited.saturating_sub(io0.waited),
+                stale: io.stale.saturating_sub(io0.stale),
+                reach: io.reach.saturating_sub(io0.reach),
+                memo_hits: io.memo_hits.saturating_sub(io0.memo_hits),
+                memo_recorded: io.memo_recorded.saturating_sub(io0.memo_recorded),
+                memo_shared: io.memo_shared.saturating_sub(io0.memo_shared),
+                memo_planned: io.memo_planned.saturating_sub(io0.memo_planned),
+            },
+            io_breaches: now.io_breaches[then.io_breaches.len().min(now.io_breaches.len())..]
+                .to_vec(),
+            ..BoardRun::default()
+        };
+        self.span_start = BoardRun {
+            total: now.total.clone(),
+            misses: now.misses.clone(),
+            rest_replayed: now.rest_replayed,
+            io_windows: now.io_windows,
+            io_breaches: now.io_breaches.clone(),
+            ..BoardRun::default()
+        };
+        Ok(span)
     }
 }
 
@@ -463,6 +558,7 @@ impl KeyEngine for BoardEngine<'_> {
         }
         count_sample(
             &mut self.report,
+            &mut self.span_max,
             &mut self.block_max,
             &mut self.steps,
             self.decimation,
@@ -489,6 +585,7 @@ impl KeyEngine for BoardEngine<'_> {
             run,
             sensors,
             report: r,
+            span_max,
             block_max,
             steps,
             decimation,
@@ -499,7 +596,7 @@ impl KeyEngine for BoardEngine<'_> {
             if !out.events.is_empty() {
                 return false;
             }
-            count_sample(r, block_max, steps, *decimation, out);
+            count_sample(r, span_max, block_max, steps, *decimation, out);
             true
         });
         Ok(given as usize)
@@ -517,21 +614,26 @@ impl KeyEngine for BoardEngine<'_> {
     }
 }
 
-/// Adds one sample's handler cycles and misses to `r`: per core the largest and the sum,
-/// the firmware's miss count, and every `decimation` samples (counted by `steps`) the
-/// busier core's largest of them (`block_max`) to the cycle series.
+/// Adds one sample's handler cycles and misses to `r`: per core the largest (of the run
+/// and of the span, `span_max`) and the sum, the firmware's miss count, and every
+/// `decimation` samples (counted by `steps`) the busier core's largest of them
+/// (`block_max`) to the cycle series.
 fn count_sample(
     r: &mut BoardRun,
+    span_max: &mut [u64],
     block_max: &mut u64,
     steps: &mut usize,
     decimation: usize,
     out: &tactus_firmware::image::SampleOut,
 ) {
-    for c in 0..r.max.len() {
-        r.max[c] = r.max[c].max(out.core_cycles[c]);
-        r.total[c] += out.core_cycles[c];
+    // `span_max` has a word per core, as `r.max`.
+    for (c, span) in span_max.iter_mut().enumerate() {
+        let cycles = out.core_cycles[c];
+        r.max[c] = r.max[c].max(cycles);
+        *span = (*span).max(cycles);
+        r.total[c] += cycles;
         r.misses[c] = out.misses[c];
-        *block_max = (*block_max).max(out.core_cycles[c]);
+        *block_max = (*block_max).max(cycles);
     }
     *steps += 1;
     if steps.is_multiple_of(decimation) {
@@ -575,20 +677,27 @@ fn run_board(
             dip_m: programs[k.program].fixed.program.sensors[0].range.1,
         })
         .collect();
-    let run = run_keys(
-        &mut engine,
-        &drives,
-        0..opts.end,
-        &LoopConfig {
-            fs: opts.fs,
-            finger: opts.finger,
-            trace: &opts.trace,
-            stop_at_strike_after_s: None,
-        },
-        &|n| progress(n),
-    )?;
+    let config = LoopConfig {
+        fs: opts.fs,
+        finger: opts.finger,
+        trace: &opts.trace,
+        stop_at_strike_after_s: None,
+    };
+    // Span by span, the board and the loop carrying on from where the last span ended.
+    let mut keys = KeysLoop::new(&drives, &config);
+    let mut spans = Vec::new();
+    let mut from = 0;
+    for to in span_ends(opts.end, opts.span) {
+        keys.run(&mut engine, from..to, &|n| progress(n))?;
+        if opts.span.is_some() {
+            spans.push(engine.end_span()?);
+        }
+        from = to;
+    }
+    let run = keys.finish();
     let mut report = engine.finish()?;
     report.strikes = run.strikes;
     report.traces = run.traces;
+    report.spans = spans;
     Ok(report)
 }

@@ -44,15 +44,15 @@ pub enum RunError {
         /// The finger forces tried, N.
         levels: Vec<f64>,
     },
-    /// The piece is longer than one emulated run may cover.
-    #[error("--engine emu: the piece is {seconds:.1} s long, more than the {max_seconds:.0} s ({max_samples} samples) one emulated run may cover; play a part of it with --seconds")]
+    /// The piece is longer than an emulated run may cover (`super::MAX_EMU_SAMPLES`).
+    #[error("--engine emu: the piece is {:.1} h long, more than the {:.1} h ({max_samples} samples, the range of the firmware's 32-bit sample counter) an emulated run may cover; play a part of it with --seconds", seconds / 3600.0, max_seconds / 3600.0)]
     TooLong {
         /// The piece's length, s.
         seconds: f64,
         /// The longest run, s.
         max_seconds: f64,
         /// The longest run, samples.
-        max_samples: usize,
+        max_samples: u64,
     },
     /// `--io-trace` on a board without converters: there are no frames to write.
     #[error("--io-trace: the board `{board}` has no converters (its file names no `[converters]`; the reference board with them is `rp2040_io`)")]
@@ -96,6 +96,17 @@ pub enum RunError {
         force_n: f64,
         /// The strike speed, m/s, if the sample struck.
         strike_mps: Option<f64>,
+    },
+    /// A span of the play loop that does not start where the last one ended
+    /// (`run::KeysLoop::run`: a caller's bug).
+    #[error(
+        "a span of the play loop starts at sample {start}, not where the last ended ({expected})"
+    )]
+    Span {
+        /// Where it starts.
+        start: usize,
+        /// Where the last ended.
+        expected: usize,
     },
     /// An emulated board stopped at a sample (a fault, or the image's own check).
     #[error("sample {sample}: {source}")]

@@ -18,13 +18,16 @@
 //! The host engines simulate a key only around its movements ([`motion::busy_stretches`]).
 //! [`output`] writes the strikes as CSV, MIDI and WAV and the traces as CSV.
 
+pub mod calibrate;
 pub mod corpus;
 pub mod emulated;
 pub mod engine;
 pub mod error;
 pub mod motion;
 pub mod output;
+pub mod results;
 pub mod run;
+pub mod shard;
 pub mod strike;
 
 pub use engine::{KeyEngine, KeySample};
@@ -33,9 +36,10 @@ pub use motion::Motion;
 pub use run::{TraceRows, TraceWindow, Traces};
 pub use strike::Strike;
 
+use calibrate::{calibrate, CALIBRATION_LEVELS_N};
 use emulated::{play_boards, BoardRun, PerformOptions};
 use engine::{FixedJitEngine, HostKey, JitEngine};
-use motion::{busy_stretches, calibrate, key_motion, stretch_samples, CALIBRATION_LEVELS_N};
+use motion::{busy_stretches, key_motion, stretch_samples};
 pub use motion::{FingerCalibration, Restrikes};
 use run::{run_keys, Drive};
 use std::collections::BTreeMap;
@@ -86,8 +90,9 @@ pub struct Keyboard<'a> {
     pub programs: Vec<HostProgram>,
     /// Played key (MIDI) → its index in `programs`; every note's key is here.
     pub key_program: BTreeMap<u8, usize>,
-    /// The layout's boards (MIDI keys per board), or `None` to plan them as `tactus budget`
-    /// does.
+    /// The keyboard's boards (MIDI keys per board) as its plan gives them
+    /// ([`crate::keyboard::Keyboard::plan`]: the boards `tactus budget` reports and `tactus
+    /// build` builds): what `Emu` runs; `None` for the host engines.
     pub boards: Option<Vec<Vec<u8>>>,
     /// The firmware's programs of the keys, when the engine runs them
     /// ([`PlayConfig::needs_firmware`]); `None` otherwise.
@@ -130,6 +135,11 @@ pub struct PlayConfig {
     /// With `--engine emu` on a board with converters: the directory of the boards' I/O
     /// traces (their frames at the pins, `emulated::IO_TRACE_HEADER`).
     pub io_trace: Option<std::path::PathBuf>,
+    /// With `--engine emu`: play the piece as consecutive spans of this many samples, the
+    /// boards carrying their whole state from one to the next, and report the budget of
+    /// each ([`Played::spans`]); the same strikes and whole-run budget as one span.
+    /// `None`: one span.
+    pub span: Option<usize>,
 }
 
 impl PlayConfig {
@@ -157,9 +167,13 @@ impl Progress for () {
     fn inc(&self, _: u64) {}
 }
 
-/// The most samples one `Emu` run may cover (2²⁶, 25 minutes at 44.1 kHz): a stray event
-/// hours into a MIDI file would otherwise start a run of hours.
-pub const MAX_EMU_SAMPLES: usize = 1 << 26;
+/// The most samples an `Emu` run may cover: 2³², 27 hours at 44.1 kHz, where the
+/// firmware's 32-bit sample counter would wrap (no run has been checked through a wrap); a
+/// stray event days into a MIDI file is refused, not played for days. Nothing of a run
+/// grows with its length but its strikes (one per note), the traces asked for and a
+/// board's cycle series (at most `emulated::MAX_POINTS` points): a 40-minute recital plays
+/// in the memory of a 4-minute piece.
+pub const MAX_EMU_SAMPLES: u64 = 1 << 32;
 
 /// What the emulated boards reported over a run.
 #[derive(Clone, Debug)]
@@ -227,6 +241,9 @@ pub struct Played {
     pub key_samples: u64,
     /// With `Emu`: the boards' budget over the run.
     pub boards: Option<BoardsReport>,
+    /// With `Emu` and [`PlayConfig::span`]: each span's first sample and the boards' budget
+    /// over it alone (its largest and mean cycles, its misses), in order.
+    pub spans: Vec<(u64, BoardsReport)>,
 }
 
 /// The slack of a calibrated range of hammer speeds, as a fraction of the speed: about half
@@ -413,14 +430,15 @@ pub fn play(
     let mut traces = Traces::new();
     let key_samples;
     let mut boards = None;
+    let mut spans = Vec::new();
     if config.engine == PlayEngine::Emu {
         let end = motions
             .values()
             .flat_map(|(_, busy)| busy.iter().map(|&b| stretch_samples(b, fs).end))
             .max()
             .unwrap_or(0);
-        // Bounded before anything runs or is allocated per sample.
-        if end > MAX_EMU_SAMPLES {
+        // Bounded before anything runs.
+        if end as u64 > MAX_EMU_SAMPLES {
             return Err(RunError::TooLong {
                 seconds: end as f64 / fs,
                 max_seconds: MAX_EMU_SAMPLES as f64 / fs,
@@ -435,15 +453,17 @@ pub fn play(
             fs,
             finger,
             trace: config.trace.clone(),
-            boards: keyboard.boards.clone(),
-            limiter: tactus_runtime::limiter::LimiterConfig {
-                sample_rate_hz: config.board.sample_rate_hz,
-                ..Default::default()
-            },
+            boards: keyboard.boards.clone().ok_or_else(|| {
+                RunError::FirmwareMismatch(
+                    "the Emu engine runs the keyboard's boards; no plan was given".to_string(),
+                )
+            })?,
+            limiter: tactus_runtime::limiter::LimiterConfig::for_board(&config.board),
             engine: config.emulator,
             quiescent_guard: config.quiescent_guard,
             rest_replay: config.rest_replay,
             io_trace: config.io_trace.clone(),
+            span: config.span,
         };
         let key_motions: BTreeMap<u8, &Motion> =
             motions.iter().map(|(&k, (m, _))| (k, m)).collect();
@@ -461,6 +481,24 @@ pub fn play(
             strikes.append(&mut b.strikes);
             traces.append(&mut b.traces);
             runs.push(b);
+        }
+        // Each span's budget, its boards' parts of it side by side.
+        let mut from = 0u64;
+        for (j, &len) in run.spans.iter().enumerate() {
+            let boards: Vec<BoardRun> = (runs.iter())
+                .map(|b| b.spans.get(j).cloned().unwrap_or_default())
+                .collect();
+            spans.push((
+                from,
+                BoardsReport {
+                    board: config.board.name.clone(),
+                    deadline: config.board.cycles_per_sample(),
+                    boards,
+                    decimation: 1,
+                    samples: len,
+                },
+            ));
+            from += len;
         }
         boards = Some(BoardsReport {
             board: config.board.name.clone(),
@@ -544,5 +582,6 @@ pub fn play(
         rushed,
         key_samples,
         boards,
+        spans,
     })
 }

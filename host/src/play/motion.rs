@@ -6,7 +6,7 @@
 //! * the force player ([`Motion::Finger`]): a finger pushes with a force profile and the key
 //!   moves under the finger's and the instrument's forces (`tactus_runtime::player`): the
 //!   closed loop. Each instrument is first calibrated with single strokes at
-//!   [`CALIBRATION_LEVELS_N`] ([`calibrate`]), so a note of MIDI velocity `v` is played with
+//!   `CALIBRATION_LEVELS_N` ([`super::calibrate`]), so a note of MIDI velocity `v` is played with
 //!   the finger force that gives the hammer speed [`speed_for_velocity`]`(v)`, started that
 //!   stroke's lead time before the note-on ([`finger_profile`]).
 //!
@@ -18,9 +18,6 @@
 //! the time its keys move, not its length times its keys). The firmware runs every key
 //! every sample, as the hardware does.
 
-use super::engine::KeyEngine;
-use super::error::RunError;
-use super::run::{run_keys, Drive, LoopConfig, TraceWindow};
 use super::strike::speed_for_velocity;
 use tactus_runtime::performance::{self, KeyTrack, Note, Performance};
 use tactus_runtime::player::{Calibration, FingerConfig, ForceProfile, Stroke};
@@ -45,12 +42,6 @@ impl Motion {
     }
 }
 
-/// Peak finger forces of the calibration strokes, N (log-spaced from a push barely above a
-/// piano key's down-weight to a hard *fff* blow).
-pub const CALIBRATION_LEVELS_N: [f64; 14] = [
-    0.6, 0.75, 0.9, 1.1, 1.4, 1.8, 2.3, 3.0, 4.0, 5.5, 7.5, 10.0, 14.0, 20.0,
-];
-
 /// Time a stroke waits for the key to rise after the previous note's finger lifted, s: a
 /// note that follows sooner lifts the previous finger earlier.
 pub const RISE_GAP_S: f64 = 0.030;
@@ -63,40 +54,11 @@ pub const TAIL_S: f64 = 0.5;
 /// stretches, each from a fresh instance.
 pub const IDLE_GAP_S: f64 = 1.0;
 
-/// How long a calibration stroke is simulated, s.
-const CALIBRATION_S: f64 = 0.6;
-
-/// How long the finger lets the key rise before a re-strike, s, the shortest first: the
-/// finger lifts this long before the re-striking push starts. The calibration keeps the
-/// shortest that re-strikes at as many levels as the longer ones ([`FingerCalibration::rise_s`]).
-/// A grand-piano key released at the bottom rises through the let-off zone, above the point
-/// where the jack re-arms under the knuckle of the hammer the repetition lever holds up (the
-/// escapement's `theta1`, ≈ 7.7 mm): the double escapement's purpose. How fast depends on
-/// the hammer: the key rises no faster than the hammer on the lever falls back with it (the
-/// key and wippen alone are nearly balanced by the leads, and friction holds them), so
-/// 40 ms suffice for some keys and states, not all.
-pub const RESTRIKE_RISES_S: [f64; 3] = [0.040, 0.055, 0.070];
-
 /// A stroke is played from rest only when its push starts at least this long after the
 /// previous stroke's finger lifted, s: the key is back up and the hammer back on its rest
 /// felt (a released grand-piano key rises in ≈ 60 ms, its hammer lands ≈ 100 ms after the
 /// lift). A sooner stroke is a re-strike ([`FingerCalibration::restrike`]).
 pub const SETTLE_S: f64 = 0.100;
-
-/// The first stroke of a re-strike calibration is a *mezzo-forte* note (MIDI velocity
-/// [`RESTRIKE_FIRST_VELOCITY`]) played from rest, lifted this long after its strike, s: the
-/// state a performance's repeated note leaves. Repetitions 170–250 ms apart (the force
-/// player's tests) lift the previous finger [`FingerCalibration::rise_s`] before a push
-/// that starts a re-strike's lead (≈ 40–60 ms) before the note-on: 70–150 ms after the
-/// previous strike.
-/// Then a *mf* hammer has fallen back onto the repetition lever or the back-check, not
-/// always checked; a stroke held much longer (the calibration's first stroke was held 0.25 s
-/// at 3 N) leaves it checked, the lever's spring compressed, and the key rises faster from
-/// there than in the performance.
-const RESTRIKE_FIRST_HOLD_S: f64 = 0.100;
-
-/// MIDI velocity of the re-strike calibration's first stroke (*mezzo-forte*).
-const RESTRIKE_FIRST_VELOCITY: u8 = 64;
 
 /// The force player's calibration of one instrument: strokes from rest and re-strikes.
 #[derive(Clone, Debug, PartialEq)]
@@ -109,90 +71,8 @@ pub struct FingerCalibration {
     /// when fewer than two levels re-strike.
     pub restrike: Option<Calibration>,
     /// How long the finger lifts before a re-strike's push, s: the shortest of
-    /// [`RESTRIKE_RISES_S`] after which as many levels re-strike as after the longer ones.
+    /// [`super::calibrate::RESTRIKE_RISES_S`] after which as many levels re-strike as after the longer ones.
     pub rise_s: f64,
-}
-
-/// Measures strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
-/// (`fresh()`: one key at rest; its dip `dip_m`): from rest (the push held until the strike
-/// or 0.6 s), and re-strikes (a *mf* stroke from rest lifted [`RESTRIKE_FIRST_HOLD_S`]
-/// after its strike, the finger lifted for each of [`RESTRIKE_RISES_S`], then the measured
-/// push; the shortest rise that re-strikes as many levels as the longest is kept). Each
-/// gives the lead from the start of the push to the strike and the strike's hammer speed.
-/// `None` when fewer than two levels strike from rest.
-///
-/// Errors: the engine's (see [`run_keys`]).
-pub fn calibrate<'e>(
-    fresh: &dyn Fn() -> Box<dyn KeyEngine + 'e>,
-    dip_m: f64,
-    finger: FingerConfig,
-    fs: f64,
-) -> Result<Option<FingerCalibration>, RunError> {
-    let measure = |first: Option<Stroke>, start: f64| -> Result<Vec<(f64, f64, f64)>, RunError> {
-        let mut levels = Vec::new();
-        for &peak in &CALIBRATION_LEVELS_N {
-            let push = Stroke {
-                start_s: start,
-                peak_n: peak,
-                push_end_s: 10.0,
-                lift_s: 10.0,
-            };
-            let motion = Motion::Finger(ForceProfile::new(
-                finger,
-                first.into_iter().chain([push]).collect(),
-            ));
-            let drive = Drive {
-                key: 0,
-                motion: Some(&motion),
-                dip_m,
-            };
-            let run = run_keys(
-                &mut *fresh(),
-                &[drive],
-                0..((start + CALIBRATION_S) * fs) as usize,
-                &LoopConfig {
-                    fs,
-                    finger,
-                    trace: &TraceWindow::default(),
-                    stop_at_strike_after_s: Some(start),
-                },
-                &|_| {},
-            )?;
-            if let Some(s) = run.strikes.iter().find(|s| s.time_s >= start) {
-                levels.push((peak, s.time_s - start, s.speed_mps));
-            }
-        }
-        Ok(levels)
-    };
-    let Some(from_rest) = Calibration::new(measure(None, 0.01)?) else {
-        return Ok(None);
-    };
-    // The first stroke as the force player plays a note: its push until 10 ms after the
-    // strike, held, lifted RESTRIKE_FIRST_HOLD_S after the strike.
-    let (peak, lead) = from_rest.for_speed(speed_for_velocity(RESTRIKE_FIRST_VELOCITY));
-    let strike = 0.01 + lead;
-    let first = Stroke {
-        start_s: 0.01,
-        peak_n: peak,
-        push_end_s: strike + 0.010,
-        lift_s: strike + RESTRIKE_FIRST_HOLD_S,
-    };
-    // The shortest rise after which as many levels re-strike as after the longer ones kept.
-    let [shortest @ .., longest] = RESTRIKE_RISES_S;
-    let mut levels = measure(Some(first), first.lift_s + longest)?;
-    let mut rise_s = longest;
-    for &rise in shortest.iter().rev() {
-        let sooner = measure(Some(first), first.lift_s + rise)?;
-        if sooner.len() < levels.len() {
-            break;
-        }
-        (rise_s, levels) = (rise, sooner);
-    }
-    Ok(Some(FingerCalibration {
-        from_rest,
-        restrike: Calibration::new(levels),
-        rise_s,
-    }))
 }
 
 /// The finger's strokes for one key's notes: each aims at the hammer speed of its MIDI

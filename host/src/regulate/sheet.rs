@@ -1,12 +1,14 @@
 //! The regulation sheet of a key instrument as `tactus regulate` measures it: the sheet on
 //! the chosen arithmetic and engine ([`measure`], over
 //! [`crate::regulate::measure`]), its text with a spec's verdicts
-//! ([`sheet_text`], [`spec_line`]) and the force–travel loop's table ([`loop_csv`]). The
-//! caller plots the loop and prints.
+//! ([`sheet_text`], [`spec_line`]) and the force–travel loop's table and plot ([`loop_csv`],
+//! [`write_loop`]). The caller prints.
 
 use crate::play::engine::{FixedJitEngine, JitEngine};
+use crate::plot;
 use crate::regulate::{self, spec, Config, Figure, Sheet};
 use crate::sim::{Engine, Numeric};
+use std::path::{Path, PathBuf};
 use tactus_compiler::diagnostics::Diagnostic;
 use tactus_compiler::ir::Program;
 
@@ -146,4 +148,36 @@ pub fn loop_csv(sheet: &Sheet) -> String {
         ));
     }
     text
+}
+
+/// Writes the loop as `OUT/NAME-loop.svg` (force in gf against travel in mm, down and up
+/// in two colours) and `OUT/NAME-loop.csv` ([`loop_csv`]), creating `out`; returns their
+/// paths.
+///
+/// Errors, as messages naming the path: a directory or file that cannot be written.
+pub fn write_loop(sheet: &Sheet, out: &Path) -> Result<(PathBuf, PathBuf), String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create `{}`: {e}", out.display()))?;
+    let lp = &sheet.force_loop;
+    let line = |label: &str, pts: &[(f64, f64)]| plot::Line {
+        label: label.to_string(),
+        x: pts.iter().map(|p| p.0 * 1e3).collect(),
+        y: pts.iter().map(|p| regulate::n_to_gf(p.1)).collect(),
+    };
+    let svg = out.join(format!("{}-loop.svg", sheet.instrument));
+    plot::plot_lines(
+        &[line("going down", &lp.down), line("going up", &lp.up)],
+        &format!(
+            "{}: force at the key on a quasi-static dip ({} mm/s)",
+            sheet.instrument,
+            regulate::QUASI_STATIC_SPEED * 1e3
+        ),
+        "key travel [mm]",
+        "force at the key [gf]",
+        &svg,
+    )
+    .map_err(|e| e.to_string())?;
+    let csv = out.join(format!("{}-loop.csv", sheet.instrument));
+    std::fs::write(&csv, loop_csv(sheet))
+        .map_err(|e| format!("{}: cannot write: {e}", csv.display()))?;
+    Ok((svg, csv))
 }

@@ -436,9 +436,6 @@ impl<'a> Sel<'a> {
     }
 }
 
-/// The pinned state pointer as a virtual register for address arithmetic (allocated to r7).
-pub(crate) const STATE_V: V = V(u32::MAX);
-
 impl<'a> Sel<'a> {
     /// Leaves the force terms' words of `out[]` unwritten (or not): [`super::Convention::skip_terms`].
     pub(crate) fn skip_terms(mut self, skip: bool) -> Self {
@@ -840,12 +837,6 @@ fn describe(p: &Program, v: Value) -> String {
     let span = &p.values[v.index()].span;
     format!("condition v{} @{}..{}", v.0, span.start, span.end)
 }
-
-/// `r1` and `r2` on entry: the sensors and out pointers (virtual registers pre-coloured
-/// by the allocator).
-pub(crate) const ARG1: V = V(0);
-pub(crate) const ARG2: V = V(1);
-pub(crate) const FIRST_FREE: u32 = 2;
 
 impl<'a> Sel<'a> {
     /// The body of `init`: zero the struct, then the initial states and modes.
