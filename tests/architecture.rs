@@ -512,6 +512,14 @@ fn no_source_file_is_over_1300_lines() {
             }
         }
     }
-    assert!(seen > 100, "only {seen} source files found under {}", root.display());
-    assert!(long.is_empty(), "over {MAX_LINES} lines: {}", long.join(", "));
+    assert!(
+        seen > 100,
+        "only {seen} source files found under {}",
+        root.display()
+    );
+    assert!(
+        long.is_empty(),
+        "over {MAX_LINES} lines: {}",
+        long.join(", ")
+    );
 }

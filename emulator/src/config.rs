@@ -30,9 +30,15 @@ pub struct Config {
     pub own_banks: [u8; 2],
 }
 
-/// The engine behind [`crate::Board::run_until`]'s fast path.
+/// The engine behind [`crate::Board::run_until`] and [`crate::Board::step`]: every one gives
+/// the same cycles, registers, memory and I/O; they differ only in speed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
+    /// No accelerator: the lock-step machine alone ([`crate::machine::Machine::run_lock_step`]),
+    /// one instruction at a time, each decoded from memory as it runs
+    /// ([`crate::machine::Fetch`]). The definition the other engines are checked against
+    /// (`firmware/tests/keyboard_exact.rs`); the slowest.
+    LockStep,
     /// The interpreter: one instruction at a time from the decode cache (module `fast`).
     Interp,
     /// The block engine (module [`crate::accel::block`]): code regions compiled to native code

@@ -38,12 +38,12 @@ pub use rest::{Period, RestPoint};
 
 use crate::config::{Config, Engine};
 use crate::core::{Core, RunState};
-use crate::machine::{active, Decoder, Machine, Step, StopReason};
+use crate::machine::{active, Decoder, Fetch, Machine, Step, StopReason};
 use crate::profile::Profiler;
 use crate::system::System;
 use block::Blocks;
-use io_window::{IoAccess, IoMemo};
 use decode::{Cached, CACHE_SLOTS};
+use io_window::{IoAccess, IoMemo};
 
 /// The accelerator's state (module documentation): caches, engines, memos and counts.
 pub(crate) struct Accel {

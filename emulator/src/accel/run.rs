@@ -289,6 +289,18 @@ impl Drive<'_> {
     /// ([`crate::Board::run_until`]), on the fast paths and engines (module documentation),
     /// with every result of the lock-step machine's [`Machine::step_core`].
     pub(crate) fn run_until(&mut self, limit: u64) -> StopReason {
+        if self.cfg.engine == Engine::LockStep {
+            if self.prof.is_empty() {
+                return self.m.run_lock_step(limit, self.cfg);
+            }
+            return loop {
+                match self.step(limit) {
+                    Some(Ok(_)) => {}
+                    Some(Err(stop)) => break stop,
+                    None => break StopReason::CycleLimit,
+                }
+            };
+        }
         self.a.lines_epoch = u64::MAX; // the host may have touched SIO or the timer
         loop {
             let Some(k) = self.m.next_core() else {
@@ -552,11 +564,16 @@ impl Drive<'_> {
     }
 
     /// One step of the lock-step machine ([`Machine::step_core`]) with the instruction from
-    /// the decode cache, the profiles told of it and its event applied: `None` when both
-    /// running cores are at `limit`; `Some(Ok(core))` names the core that acted (its
-    /// [`Core::last`] is the instruction).
+    /// the decode cache (decoded from memory on [`Engine::LockStep`]), the profiles told of
+    /// it and its event applied: `None` when both running cores are at `limit`;
+    /// `Some(Ok(core))` names the core that acted (its [`Core::last`] is the instruction).
     pub(crate) fn step(&mut self, limit: u64) -> Option<Result<usize, StopReason>> {
-        let (k, event) = match self.m.step_core(limit, &mut self.a.cache)? {
+        let stepped = if self.cfg.engine == Engine::LockStep {
+            self.m.step_core(limit, &mut Fetch)
+        } else {
+            self.m.step_core(limit, &mut self.a.cache)
+        };
+        let (k, event) = match stepped? {
             Ok(Step::Slept(k)) => return Some(Ok(k)),
             Ok(Step::Ran(k, event)) => (k, event),
             Err(stop) => return Some(Err(stop)),
@@ -570,4 +587,3 @@ impl Drive<'_> {
         }
     }
 }
-

@@ -48,8 +48,8 @@
 //! (an image of every shipped instrument, both cores) and `firmware/tests/keyboard_exact.rs`
 //! (every board of grand88 and the split layout against the lock-step interpreter).
 
-use super::io_window::{IoKind, IoLog};
 use super::decode::cached;
+use super::io_window::{IoKind, IoLog};
 use super::*;
 use crate::accel::block::{self, Leave};
 use crate::accel::memo::Recording;

@@ -278,6 +278,31 @@ impl Machine {
         Some(Ok(Step::Ran(k, event)))
     }
 
+    /// Runs the lock-step machine until both running cores reach cycle `limit`, or a stop:
+    /// [`Machine::step_core`] with every instruction decoded from memory ([`Fetch`]), each
+    /// event applied as `config` says ([`Machine::handle_event`]), then the I/O, if any,
+    /// brought up to the machine's cycle. The definition of a run, with no accelerator
+    /// ([`crate::config::Engine::LockStep`]).
+    pub fn run_lock_step(&mut self, limit: u64, config: &Config) -> StopReason {
+        let stop = loop {
+            match self.step_core(limit, &mut Fetch) {
+                None => break StopReason::CycleLimit,
+                Some(Err(stop)) => break stop,
+                Some(Ok(Step::Slept(_))) => {}
+                Some(Ok(Step::Ran(k, event))) => {
+                    if let Some(stop) = self.handle_event(k, event, config) {
+                        break stop;
+                    }
+                }
+            }
+        };
+        if self.system.io.is_some() {
+            let now = self.cycle();
+            self.system.io_advance(now);
+        }
+        stop
+    }
+
     /// Core `k` executes its next instruction with the interrupt lines `lines` (exception
     /// entry first when one is takeable), the instruction from `dec`; with `TRACE`, it is
     /// recorded in [`Core::last`]. Returns its event.
