@@ -78,7 +78,8 @@ pub struct BudgetArgs {
     #[arg(long, value_name = "FILE")]
     pub write_plan: Option<PathBuf>,
     /// The emulator's engine for the measurements: `block` (code compiled to native code
-    /// with cranelift) or `interp` (the interpreter): the same cycles; compare their speed.
+    /// with cranelift), `interp` (the interpreter) or `lock-step` (the machine with no
+    /// accelerator, the reference): the same cycles; compare their speed.
     #[arg(long, value_enum, default_value = "block")]
     pub emu: crate::values::EmuEngine,
 }

@@ -54,7 +54,7 @@ pub enum EmuCommand {
 
 /// Waits on 127.0.0.1:`port` for one GDB client ([`emu::wait_for_gdb`]), saying where on
 /// stderr.
-fn wait_for_gdb(port: u16) -> Result<Box<dyn tactus_emulator::debug::Debugger>, String> {
+fn wait_for_gdb(port: u16) -> Result<Box<dyn tactus_emulator::Debugger>, String> {
     emu::wait_for_gdb(
         port,
         &mut |line| eprintln!("tactus emu: {line}"),

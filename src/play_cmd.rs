@@ -61,8 +61,8 @@ pub struct PlayArgs {
     #[arg(long, value_name = "NAME_OR_FILE")]
     pub board: Vec<String>,
     /// The emulator's engine for `--engine emu`: `block` (code compiled to native code with
-    /// cranelift) or `interp` (the interpreter): the same cycles and strikes; compare their
-    /// speed.
+    /// cranelift), `interp` (the interpreter) or `lock-step` (the machine with no accelerator, the
+    /// reference; tens of times slower): the same cycles and strikes; compare their speed.
     #[arg(long, value_enum, default_value = "block")]
     pub emu: values::EmuEngine,
     /// Player: `position` (prescribed key trajectories) or `force` (a finger force profile

@@ -48,9 +48,12 @@ impl From<Player> for play::Player {
     }
 }
 
-/// The emulator's engine (`--emu`): both are exact; the block engine is the faster.
+/// The emulator's engine (`--emu`): all are exact; the block engine is the fastest, the
+/// lock-step machine the reference the others are checked against.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum EmuEngine {
+    /// The lock-step machine alone: every instruction decoded from memory as it runs.
+    LockStep,
     /// One pre-decoded instruction at a time.
     Interp,
     /// Code regions compiled to native code (the default).
@@ -61,6 +64,7 @@ pub enum EmuEngine {
 impl From<EmuEngine> for tactus_emulator::Engine {
     fn from(e: EmuEngine) -> Self {
         match e {
+            EmuEngine::LockStep => tactus_emulator::Engine::LockStep,
             EmuEngine::Interp => tactus_emulator::Engine::Interp,
             EmuEngine::Block => tactus_emulator::Engine::Block,
         }

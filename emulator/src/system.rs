@@ -315,6 +315,16 @@ impl System {
         self.xip_answers = answers;
     }
 
+    /// Puts back the SRAM words of an undo journal (`offset << 32 | old word` per store,
+    /// oldest first), newest first: what a window's or a replay's stores did, undone
+    /// (`crate::accel`). The caller drops decoded code if the stores may have changed it.
+    pub fn undo_stores(&mut self, journal: &[u64]) {
+        for &e in journal.iter().rev() {
+            let off = (e >> 32) as usize;
+            self.sram[off..off + 4].copy_from_slice(&(e as u32).to_le_bytes());
+        }
+    }
+
     /// Marks every cached instruction stale (self-modifying code, host writes).
     pub fn invalidate_code(&mut self) {
         self.code_epoch = self.code_epoch.wrapping_add(1);

@@ -452,7 +452,7 @@ pub fn run_elf(
     sensors: &[&[i32]],
     samples: usize,
     progress: &mut dyn FnMut(usize, usize),
-    debugger: Option<Box<dyn tactus_emulator::debug::Debugger>>,
+    debugger: Option<Box<dyn tactus_emulator::Debugger>>,
 ) -> Result<ElfRun, String> {
     use crate::image::glue::ctrl;
     use tactus_emulator::{Config, StopReason};

@@ -27,7 +27,7 @@ pub struct Row {
 /// bytes (update / with helpers), samples compared and mismatches.
 pub fn table(rows: &[Row]) -> String {
     let deadline = tactus_runtime::keyboard::deadline_cycles(
-        tactus_emulator::board::Config::default().clock_hz as f64,
+        tactus_emulator::Config::default().clock_hz as f64,
         44_100.0,
     );
     let mut s = String::new();

@@ -18,7 +18,7 @@
 use crate::layout::Interface;
 use crate::windows::SENSOR_BASE;
 use std::fmt;
-use tactus_emulator::board::StopReason;
+use tactus_emulator::StopReason;
 use tactus_emulator::{Board, CallError, CallResult, Config, EmuError, CALL_STUB};
 use tactus_isa::decode::Instr;
 use tactus_isa::timing::cycles;

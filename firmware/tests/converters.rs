@@ -399,7 +399,8 @@ fn the_period_memo_of_the_io_equals_the_lock_step() {
 }
 
 /// Runs `p` on `keys` on rp2040_io through `words` (per key, per sample) for `n` samples
-/// in windows (the block engine) and in lock-step (the interpreter), asserting each
+/// in windows (the block engine) and on the lock-step machine with no accelerator
+/// ([`Engine::LockStep`]: every instruction decoded from memory as it runs), asserting each
 /// sample the same outputs, cores, stalls, SRAM, I/O state and frames; returns the
 /// windowed run's [`IoWindows`].
 fn windows_equal_the_lock_step(
@@ -411,7 +412,7 @@ fn windows_equal_the_lock_step(
     let image = image(p, keys, "rp2040_io");
     let mut win = image.run().unwrap();
     let mut lock = image.run().unwrap();
-    lock.board().config.engine = Engine::Interp;
+    lock.board().config.engine = Engine::LockStep;
     for n in 0..n {
         let now: Vec<i32> = words.iter().map(|w| w[n]).collect();
         let a = win.step(&now).unwrap().clone();

@@ -9,6 +9,10 @@
 //! travel of a recorded performance (`Maestro_1.mid` of the shared data folder beside the
 //! repository, or `TACTUS_PERFORMANCES`; the position player's tracks).
 //!
+//! The interpreter ([`Engine::Interp`]) shares the accelerator's decode cache; on grand88
+//! the block engine is also held to the machine with no accelerator at all
+//! ([`Engine::LockStep`], [`LOCK_STEP`] samples of the corpus).
+//!
 //! In CI: [`SHORT`] samples of the corpus and [`MAESTRO_SHORT_S`] s of Maestro_1 from its
 //! second [`MAESTRO_FROM_S`]; `cargo test --release -p tactus-firmware --test
 //! keyboard_exact -- --ignored` runs a whole emulated second of the corpus and the first
@@ -30,6 +34,9 @@ use layouts::{corpus_words, firmware, root};
 
 /// Corpus samples per board in CI.
 const SHORT: usize = 1_200;
+/// Corpus samples per board of grand88 against the lock-step machine in CI: a stretch of
+/// key runs and one at rest.
+const LOCK_STEP: usize = 600;
 /// Samples of a corpus stretch, and of the rest after it.
 const STRETCH: usize = 300;
 /// Seconds of Maestro_1 in CI, and from where.
@@ -41,14 +48,19 @@ const LAYOUTS: [&str; 2] = [
     "instruments/layouts/split_harpsichord_piano.toml",
 ];
 
-/// One board on both engines: every sample's outputs, then memory and cores, equal.
-/// `words(n)` gives the sensor words of sample `n`. Returns the memo hits of the block
-/// engine's run (the rest replay on, as in `tactus play`), and the samples the rest
-/// replay gave.
-fn compare(fw: &BoardFirmware, samples: usize, words: &dyn Fn(usize) -> Vec<i32>) -> (u64, u64) {
+/// One board on the block engine and on `reference`: every sample's outputs, then memory
+/// and cores, equal. `words(n)` gives the sensor words of sample `n`. Returns the memo hits
+/// of the block engine's run (the rest replay on, as in `tactus play`), and the samples
+/// the rest replay gave.
+fn compare(
+    fw: &BoardFirmware,
+    samples: usize,
+    words: &dyn Fn(usize) -> Vec<i32>,
+    reference: Engine,
+) -> (u64, u64) {
     let mut runs: [ImageRun; 2] = [fw.image.run().unwrap(), fw.image.run().unwrap()];
     assert_eq!(runs[0].board().config.engine, Engine::Block);
-    runs[1].board().config.engine = Engine::Interp;
+    runs[1].board().config.engine = reference;
     // What `tactus play` runs: the rest replay on (a board at rest gives its samples from a
     // recorded period and skips whole ones: `firmware/src/image/rest.rs`).
     runs[0].set_rest_replay(true).unwrap();
@@ -76,9 +88,10 @@ fn compare(fw: &BoardFirmware, samples: usize, words: &dyn Fn(usize) -> Vec<i32>
     (a.board().memo_stats().hits, a.rest_replayed().0)
 }
 
-/// The budget corpus on every board of every layout, `samples` samples each.
-fn corpus(samples: usize) {
-    for layout in LAYOUTS {
+/// The budget corpus on every board of `layouts`, `samples` samples each, the block engine
+/// against `reference`.
+fn corpus(layouts: &[&str], samples: usize, reference: Engine) {
+    for &layout in layouts {
         let (boards, _) = firmware(layout, None, Load::Ram);
         let (mut hits, mut given) = (0, 0);
         for fw in &boards {
@@ -93,7 +106,7 @@ fn corpus(samples: usize) {
                     (corpus_words(p, fw.keys[0] as usize + i, samples), rest)
                 })
                 .collect();
-            let (h, g) = compare(fw, samples, &|n| {
+            let words = |n: usize| {
                 stream
                     .iter()
                     .map(|(w, rest)| match (n / STRETCH) % 2 {
@@ -101,11 +114,12 @@ fn corpus(samples: usize) {
                         _ => *rest,
                     })
                     .collect()
-            });
+            };
+            let (h, g) = compare(fw, samples, &words, reference);
             (hits, given) = (hits + h, given + g);
         }
         eprintln!(
-            "{layout}: {} boards exact, {hits} memoized calls, {given} samples given by the rest replay",
+            "{layout}: {} boards exact against {reference:?}, {hits} memoized calls, {given} samples given by the rest replay",
             boards.len()
         );
         assert!(hits > 0, "{layout}: no call was memoized");
@@ -156,7 +170,7 @@ fn maestro(from_s: f64, seconds: f64) {
                 .iter()
                 .map(|&k| tracks.iter().find(|t| t.key == k))
                 .collect();
-            let (h, g) = compare(fw, samples, &|n| {
+            let words = |n: usize| {
                 let t = from_s + n as f64 / fs;
                 key_progs
                     .iter()
@@ -166,7 +180,8 @@ fn maestro(from_s: f64, seconds: f64) {
                         FixedInstance::sensor_raw(&p.fixed, 0, Some(x))
                     })
                     .collect()
-            });
+            };
+            let (h, g) = compare(fw, samples, &words, Engine::Interp);
             (hits, given) = (hits + h, given + g);
         }
         eprintln!(
@@ -179,7 +194,15 @@ fn maestro(from_s: f64, seconds: f64) {
 
 #[test]
 fn every_board_runs_the_corpus_exactly_as_the_interpreter() {
-    corpus(SHORT);
+    corpus(&LAYOUTS, SHORT, Engine::Interp);
+}
+
+/// The accelerator (block engine, windows, memos, rest replay) against the machine that
+/// defines the RP2040 with no accelerator at all ([`Engine::LockStep`]: every instruction
+/// decoded from memory as it runs), on every board of grand88.
+#[test]
+fn every_grand88_board_runs_the_corpus_exactly_as_the_lock_step_machine() {
+    corpus(&LAYOUTS[..1], LOCK_STEP, Engine::LockStep);
 }
 
 #[test]
@@ -190,7 +213,7 @@ fn every_board_plays_maestro_1_exactly_as_the_interpreter() {
 #[test]
 #[ignore = "a second of the corpus on every board, both engines (minutes)"]
 fn every_board_runs_a_second_of_the_corpus_exactly_as_the_interpreter() {
-    corpus(44_100);
+    corpus(&LAYOUTS, 44_100, Engine::Interp);
 }
 
 #[test]

@@ -7,7 +7,8 @@
 use crate::keyboard::{key_map_sensor_words, Reporter};
 use std::path::{Path, PathBuf};
 use tactus_emulator::core::{Core, RunState};
-use tactus_emulator::debug::{gdb, Debugger};
+use tactus_emulator::debug::gdb;
+use tactus_emulator::Debugger;
 use tactus_emulator::{Board, Config, StopReason};
 use tactus_firmware::flash::{self, ElfRun, KeyMap};
 
@@ -121,7 +122,7 @@ pub fn core_text(core: &Core) -> String {
 }
 
 /// One profiled function's calls in a line: count, and min, mean and max cycles per call.
-pub fn profile_line(name: &str, calls: &[tactus_emulator::board::Call]) -> String {
+pub fn profile_line(name: &str, calls: &[tactus_emulator::Call]) -> String {
     let cycles: Vec<u64> = calls.iter().map(|c| c.cycles).collect();
     match (cycles.iter().min(), cycles.iter().max()) {
         (Some(min), Some(max)) => {
@@ -362,7 +363,7 @@ impl FirmwareJob {
     /// Errors: what [`flash::run_elf`] reports, naming the file.
     pub fn run(
         &self,
-        debugger: Option<Box<dyn tactus_emulator::debug::Debugger>>,
+        debugger: Option<Box<dyn tactus_emulator::Debugger>>,
         progress: &mut dyn FnMut(usize, usize),
     ) -> Result<FirmwareText, String> {
         let (map, file) = (&self.map, self.file.display());

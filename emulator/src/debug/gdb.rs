@@ -20,9 +20,11 @@
 //! stub listens on 127.0.0.1 only ([`listen`]).
 
 use super::arch::{ArmV6m, V6mRegs};
-use super::{Access, Debugger, WatchStop, Watches, Watchpoint};
-use crate::board::{Board, Call, StopReason};
+use super::WatchStop;
+use crate::board::{Board, Debugger};
 use crate::core::RunState;
+use crate::machine::StopReason;
+use crate::watch::{Access, Watches, Watchpoint};
 use gdbstub::common::{Signal, Tid};
 use gdbstub::conn::ConnectionExt;
 use gdbstub::stub::state_machine::GdbStubStateMachine;
@@ -48,20 +50,6 @@ pub const MAX_WATCHES: usize = 256;
 /// Cycles the board runs between two looks at the connection when nothing is watched
 /// (about 1 ms of emulated time at 133 MHz).
 pub const CHUNK_CYCLES: u64 = 1 << 17;
-
-/// What the debugger keeps on the board between packets: what it watches, what the client
-/// asked the next resume to do, and what `monitor cycles` reports.
-#[derive(Debug, Default)]
-pub struct TargetState {
-    /// Breakpoints and watchpoints.
-    pub watches: Watches,
-    /// The core the next resume single-steps, if any.
-    pub step: Option<usize>,
-    /// Per core: the profile handle of its sample interrupt, if the image names one.
-    pub isr: [Option<usize>; 2],
-    /// Per core: the last completed sample interrupt.
-    pub last_isr: [Option<Call>; 2],
-}
 
 /// Thread id of core `k` (GDB's threads count from 1).
 pub fn tid(core: usize) -> Tid {
@@ -109,8 +97,8 @@ impl GdbSession {
 
     fn detach(&mut self, board: &mut Board, why: &str) {
         (self.log)(why);
-        board.debug.target.watches = Watches::default();
-        board.debug.target.step = None;
+        board.debug_state.watches = Watches::default();
+        board.debug_state.step = None;
         self.sm = None;
         self.detached = true;
     }
@@ -118,7 +106,7 @@ impl GdbSession {
     /// Runs until a stop the client must hear of, the limit, or incoming data.
     fn run_board(board: &mut Board, limit: u64, conn: &mut TcpStream) -> WatchStop {
         let mut poll = || conn.peek().map(|b| b.is_some()).unwrap_or(true);
-        let t = &board.debug.target;
+        let t = &board.debug_state;
         let watching = !t.watches.breakpoints.is_empty()
             || !t.watches.watchpoints.is_empty()
             || t.step.is_some();
@@ -147,12 +135,12 @@ impl GdbSession {
 }
 
 /// Moves the completed sample interrupts of the debugger's own profiles into
-/// [`TargetState::last_isr`] (and clears them, so they never pile up).
+/// [`crate::watch::DebugState::last_isr`] (and clears them, so they never pile up).
 fn note_isr_calls(board: &mut Board) {
     for c in 0..2 {
-        if let Some(h) = board.debug.target.isr[c] {
+        if let Some(h) = board.debug_state.isr[c] {
             if let Some(&last) = board.calls(h).last() {
-                board.debug.target.last_isr[c] = Some(last);
+                board.debug_state.last_isr[c] = Some(last);
             }
             board.clear_calls(h);
         }
@@ -195,10 +183,10 @@ fn stop_reason(stop: WatchStop) -> MultiThreadStopReason<u32> {
 impl Debugger for GdbSession {
     fn run_until(&mut self, board: &mut Board, limit: u64) -> StopReason {
         if self.sm.is_none() && !self.detached {
-            if board.debug.target.isr == [None, None] {
+            if board.debug_state.isr == [None, None] {
                 for c in 0..2 {
                     if let Ok(a) = board.symbol(&format!("core{c}_sample_isr")) {
-                        board.debug.target.isr[c] = Some(board.profile_handler(a & !1));
+                        board.debug_state.isr[c] = Some(board.profile_handler(a & !1));
                     }
                 }
             }
@@ -251,13 +239,13 @@ impl Debugger for GdbSession {
                             if let WatchStop::Board(b) = other {
                                 self.pending = Some(b);
                             }
-                            board.debug.target.step = None;
+                            board.debug_state.step = None;
                             s.report_stop(board, stop_reason(other))
                         }
                     }
                 }
                 GdbStubStateMachine::CtrlCInterrupt(s) => {
-                    board.debug.target.step = None;
+                    board.debug_state.step = None;
                     s.interrupt_handled(
                         board,
                         Some(MultiThreadStopReason::SignalWithThread {
@@ -373,7 +361,7 @@ impl MultiThreadResume for Board {
     }
 
     fn clear_resume_actions(&mut self) -> Result<(), Self::Error> {
-        self.debug.target.step = None;
+        self.debug_state.step = None;
         Ok(())
     }
 
@@ -411,14 +399,14 @@ impl MultiThreadSingleStep for Board {
         tid: Tid,
         _signal: Option<Signal>,
     ) -> Result<(), Self::Error> {
-        self.debug.target.step = Some(core_of(tid)?);
+        self.debug_state.step = Some(core_of(tid)?);
         Ok(())
     }
 }
 
 impl Board {
     fn add_breakpoint(&mut self, addr: u32) -> bool {
-        let w = &mut self.debug.target.watches;
+        let w = &mut self.debug_state.watches;
         let a = addr & !1;
         if !w.breakpoints.contains(&a) {
             if w.breakpoints.len() + w.watchpoints.len() >= MAX_WATCHES {
@@ -430,7 +418,7 @@ impl Board {
     }
 
     fn remove_breakpoint(&mut self, addr: u32) -> bool {
-        let w = &mut self.debug.target.watches;
+        let w = &mut self.debug_state.watches;
         let n = w.breakpoints.len();
         w.breakpoints.retain(|&b| b != addr & !1);
         w.breakpoints.len() != n
@@ -486,7 +474,7 @@ impl HwWatchpoint for Board {
         len: u32,
         kind: WatchKind,
     ) -> TargetResult<bool, Self> {
-        let w = &mut self.debug.target.watches;
+        let w = &mut self.debug_state.watches;
         if w.breakpoints.len() + w.watchpoints.len() >= MAX_WATCHES {
             return Ok(false);
         }
@@ -504,7 +492,7 @@ impl HwWatchpoint for Board {
         len: u32,
         kind: WatchKind,
     ) -> TargetResult<bool, Self> {
-        let w = &mut self.debug.target.watches;
+        let w = &mut self.debug_state.watches;
         let want = Watchpoint {
             addr,
             len: len.max(1),
@@ -547,7 +535,7 @@ pub fn cycles_report(board: &Board) -> String {
             "core {k}: cycle {}, {} instructions",
             c.cycle, c.instructions
         ));
-        let t = &board.debug.target;
+        let t = &board.debug_state;
         match (t.isr[k], t.last_isr[k]) {
             (None, _) => s.push_str("; no sample interrupt in the image's symbols\n"),
             (Some(_), None) => s.push_str("; no sample interrupt completed yet\n"),

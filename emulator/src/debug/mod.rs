@@ -13,7 +13,7 @@
 //! run without it (`tests/gdb_client.rs` at the root checks this with a real gdb).
 //!
 //! **The hook.** A host loop (the firmware runner's sample loop, `tactus emu run`) calls
-//! [`Board::run_until`] as usual. With a [`Debugger`] attached ([`Board::attach_debugger`]),
+//! [`Board::run_until`] as usual. With a [`crate::board::Debugger`] attached ([`Board::attach_debugger`]),
 //! that call goes to the debugger, which runs the board (with [`Board::run_watched`], or
 //! plainly when nothing is watched) and may stop it in the middle — at a breakpoint, after
 //! a step, on a watched access — and serve its client until told to go on. The host loop
@@ -23,56 +23,11 @@
 pub mod arch;
 pub mod gdb;
 
-use crate::board::{Board, StopReason};
+use crate::board::Board;
 use crate::core::RunState;
+use crate::machine::StopReason;
+use crate::watch::{Access, Watches};
 use tactus_isa::decode::Instr;
-
-/// A debugger in charge of a board's runs ([`Board::attach_debugger`]).
-pub trait Debugger: Send {
-    /// Runs `board` to cycle `limit` as [`Board::run_until`] would, stopping and serving
-    /// the debugger's client as it wants on the way. The board's own `run_until` inside
-    /// this call runs plainly (the hook is detached meanwhile).
-    fn run_until(&mut self, board: &mut Board, limit: u64) -> StopReason;
-
-    /// Whether the debugger has left (its client detached): the board then drops it.
-    fn detached(&self) -> bool;
-
-    /// The host's run is over (the program "exits"): tell the client, and end.
-    fn finish(&mut self, board: &mut Board);
-}
-
-/// What a debugger watches: breakpoints (on instruction addresses; any core) and
-/// watchpoints (on data addresses). Hardware and software breakpoints are the same thing
-/// here: nothing is written into the program.
-#[derive(Clone, Debug, Default)]
-pub struct Watches {
-    /// Instruction addresses (Thumb bit clear).
-    pub breakpoints: Vec<u32>,
-    /// Data watchpoints.
-    pub watchpoints: Vec<Watchpoint>,
-}
-
-/// Which accesses a watchpoint reports.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Access {
-    /// Loads.
-    Read,
-    /// Stores.
-    Write,
-    /// Both.
-    Any,
-}
-
-/// A data watchpoint: `len` bytes from `addr`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Watchpoint {
-    /// First byte.
-    pub addr: u32,
-    /// Bytes (at least 1).
-    pub len: u32,
-    /// Which accesses.
-    pub access: Access,
-}
 
 /// Why [`Board::run_watched`] returned.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -139,50 +94,7 @@ pub fn data_access(instr: &Instr, pc: u32, r: &[u32; 16]) -> Option<(u32, u32, A
     }
 }
 
-impl Watches {
-    /// The watchpoint an access of `len` bytes at `addr` hits, if any.
-    pub fn hit(&self, addr: u32, len: u32, access: Access) -> Option<&Watchpoint> {
-        let end = addr as u64 + len as u64;
-        self.watchpoints.iter().find(|w| {
-            let w_end = w.addr as u64 + w.len.max(1) as u64;
-            (addr as u64) < w_end
-                && (w.addr as u64) < end
-                && (w.access == Access::Any || w.access == access)
-        })
-    }
-}
-
-/// What a board keeps for debugging: the debugger in charge of its runs, and what the
-/// debugger's client asked for (kept on the board because `gdbstub` calls the board itself
-/// for registers, memory and breakpoints).
-#[derive(Default)]
-pub(crate) struct Attachment {
-    /// The debugger, while attached (taken out while it runs the board).
-    pub hook: Option<Box<dyn Debugger>>,
-    /// Breakpoints, watchpoints, the pending step, the sample interrupts' cycles.
-    pub target: gdb::TargetState,
-}
-
 impl Board {
-    /// Attaches a debugger: from now on [`Board::run_until`] (and so every host loop built
-    /// on it) runs under it, until it detaches.
-    pub fn attach_debugger(&mut self, debugger: Box<dyn Debugger>) {
-        self.debug.hook = Some(debugger);
-    }
-
-    /// Removes the debugger, if any, and returns it.
-    pub fn detach_debugger(&mut self) -> Option<Box<dyn Debugger>> {
-        self.debug.hook.take()
-    }
-
-    /// Tells an attached debugger that the host's run is over ([`Debugger::finish`]) and
-    /// removes it.
-    pub fn finish_debugging(&mut self) {
-        if let Some(mut d) = self.debug.hook.take() {
-            d.finish(self);
-        }
-    }
-
     /// Runs to cycle `limit` one instruction at a time ([`Board::step`], so with the same
     /// results as [`Board::run_until`]), stopping before an instruction at a breakpoint of
     /// `watches` (one the core arrived at since the call began, so a resumed core first
@@ -247,6 +159,7 @@ impl Board {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::watch::Watchpoint;
     use tactus_isa::decode::MemOp;
 
     #[test]

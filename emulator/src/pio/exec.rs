@@ -137,12 +137,12 @@ impl Pio {
 
     /// JMP (datasheet 3.4.2): jump on a condition of X, Y, a pin or the OSR.
     #[inline(always)]
-    fn jmp(&mut self, n: usize, d: &Decoded, mut lanes: Option<&mut PioLanes>) -> Flow {
+    fn jmp(&mut self, n: usize, d: &Decoded, lanes: Option<&mut PioLanes>) -> Flow {
         let Decoded {
             arg1, arg2, gpio, ..
         } = *d;
         let s = &mut self.sm[n];
-        if let Some(l) = lanes.as_deref_mut() {
+        if let Some(l) = lanes {
             let (sl, fixed) = (&mut l.sm[n], &mut l.fixed);
             match arg1 {
                 1 | 2 => lanes::fix(&mut sl.x, s.x, u32::MAX, fixed),
@@ -184,7 +184,7 @@ impl Pio {
 
     /// WAIT (3.4.3): stall until a GPIO, an input pin or an IRQ flag has the polarity asked.
     #[inline(always)]
-    fn wait(&mut self, _n: usize, d: &Decoded, mut lanes: Option<&mut PioLanes>) -> Flow {
+    fn wait(&mut self, _n: usize, d: &Decoded, lanes: Option<&mut PioLanes>) -> Flow {
         let Decoded {
             ins,
             arg2,
@@ -197,7 +197,7 @@ impl Pio {
         let pins_in_lanes = |l: &PioLanes| lanes::rotr(&l.seen, in_base);
         let pol = ins & 0x80 != 0;
         let idx = arg2;
-        if let Some(l) = lanes.as_deref_mut() {
+        if let Some(l) = lanes {
             match bits(ins, 5, 2) {
                 0 => lanes::fix(&mut l.seen, gpio, 1 << idx, &mut l.fixed),
                 1 => {
@@ -279,7 +279,7 @@ impl Pio {
                 s.isr = 0;
                 s.isr_count = 0;
             }
-            self.background_pull(n, lanes.as_deref_mut());
+            self.background_pull(n, lanes);
             Flow::Next
         }
     }
@@ -351,7 +351,7 @@ impl Pio {
         // After the shift, refill at once when data is there (3.5.4.2, lines 11–14).
         if s.autopull() && s.osr_count >= s.pull_thresh() {
             if let Some(w) = s.tx.pop() {
-                if let Some(l) = lanes.as_deref_mut() {
+                if let Some(l) = lanes {
                     l.sm[n].osr = l.sm[n].tx.pop();
                 }
                 s.osr = w;
@@ -363,12 +363,12 @@ impl Pio {
 
     /// PUSH and PULL (3.4.6, 3.4.7): the ISR into the RX FIFO, the TX FIFO into the OSR.
     #[inline(always)]
-    fn push_pull(&mut self, n: usize, d: &Decoded, mut lanes: Option<&mut PioLanes>) -> Flow {
+    fn push_pull(&mut self, n: usize, d: &Decoded, lanes: Option<&mut PioLanes>) -> Flow {
         let Decoded { ins, .. } = *d;
         let if_flag = ins & 0x40 != 0;
         let block = ins & 0x20 != 0;
         let s = &mut self.sm[n];
-        let mut sl = lanes.as_deref_mut().map(|l| &mut l.sm[n]);
+        let mut sl = lanes.map(|l| &mut l.sm[n]);
         if ins & 0x80 == 0 {
             // PUSH
             if if_flag && s.isr_count < s.push_thresh() {
@@ -428,7 +428,7 @@ impl Pio {
         n: usize,
         d: &Decoded,
         fx: &mut Effects,
-        mut lanes: Option<&mut PioLanes>,
+        lanes: Option<&mut PioLanes>,
     ) -> Flow {
         let Decoded {
             ins,
@@ -467,7 +467,7 @@ impl Pio {
             2 => src.reverse_bits(),
             _ => src,
         };
-        if let Some(l) = lanes.as_deref_mut() {
+        if let Some(l) = lanes {
             let pins = pins_in_lanes(l);
             let sl = &mut l.sm[n];
             let src = match arg2 & 7 {
@@ -558,11 +558,11 @@ impl Pio {
         n: usize,
         d: &Decoded,
         fx: &mut Effects,
-        mut lanes: Option<&mut PioLanes>,
+        lanes: Option<&mut PioLanes>,
     ) -> Flow {
         let Decoded { arg1, arg2, .. } = *d;
         let s = &mut self.sm[n];
-        if let Some(l) = lanes.as_deref_mut() {
+        if let Some(l) = lanes {
             match arg1 {
                 1 => l.sm[n].x = CONST,
                 2 => l.sm[n].y = CONST,

@@ -32,7 +32,7 @@
 //!   the recording ends at the deadline.
 //!
 //! A memo is applied only under the same conditions: no access can wait (the core's cycle
-//! at or past the other core's last claim of its banks, [`crate::block`]'s solo
+//! at or past the other core's last claim of its banks, [`crate::accel::block`]'s solo
 //! condition), every instruction starts before the run's limit (entry cycle + the call's
 //! cycles at most the limit), its banks allowed, its stores journaled like native code's
 //! (room for every word), and no page it stores to holding decoded code (else the store
@@ -79,7 +79,7 @@
 //! keyboard comparisons (firmware images on the block engine, memoized, against the
 //! interpreter).
 
-use crate::board::{IoAccess, IoKind};
+use crate::accel::io_window::{IoAccess, IoKind};
 use crate::bus::sram_bank;
 use crate::core::{Core, RunState};
 use crate::exec::literal_address;

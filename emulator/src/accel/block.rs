@@ -1,7 +1,7 @@
-//! The block engine: Thumb code compiled to native code by region ([`crate::jit`]), with
+//! The block engine: Thumb code compiled to native code by region ([`crate::accel::jit`]), with
 //! pre-decoded basic blocks for what is cold or does not fit before a deadline.
 //!
-//! **Two layers.** A *region* ([`crate::jit`]) is the code from an address on, compiled
+//! **Two layers.** A *region* ([`crate::accel::jit`]) is the code from an address on, compiled
 //! with cranelift once its entry has been reached [`Jit::threshold`] times: straight-line
 //! code, forward branches and loops inside it are native, with the guest registers in host
 //! registers; it runs whenever the core's cycle plus the region's static bound fits before
@@ -57,15 +57,15 @@
 //!
 //! **Memoized calls.** In a window, a core at the entry of a watched function
 //! ([`crate::Board::memoize`]) whose inputs are those of a recorded call takes that
-//! call's effect instead of running it ([`crate::memo`]); a call to record leaves
+//! call's effect instead of running it ([`crate::accel::memo`]); a call to record leaves
 //! [`run_confined`] ([`Leave::Record`]) for the board's general path, which runs it one
 //! instruction at a time while recording it.
 
+use crate::accel::fast::Op;
+use crate::accel::jit::{self, Jit};
+use crate::accel::memo::{Memos, Try};
 use crate::bus::Bus;
 use crate::core::Core;
-use crate::fast::Op;
-use crate::jit::{self, Jit};
-use crate::memo::{Memos, Try};
 use crate::system::System;
 use tactus_isa::decode::{decode, Instr};
 use tactus_isa::timing::{self, Class};
@@ -113,7 +113,7 @@ pub(crate) enum Leave {
     General,
     /// No block can be decoded at the core's PC (a fetch would fault).
     Miss,
-    /// The core is at a watched entry ([`crate::memo`]) whose call is to be recorded
+    /// The core is at a watched entry ([`crate::accel::memo`]) whose call is to be recorded
     /// (nothing of it was done).
     Record,
 }
@@ -137,7 +137,7 @@ pub(crate) struct Blocks {
     cursor: [Cursor; 2],
     /// Blocks decoded so far (for tests and reports).
     pub(crate) decoded: u64,
-    /// The compiled regions ([`crate::jit`]) that arbitrate against the other core.
+    /// The compiled regions ([`crate::accel::jit`]) that arbitrate against the other core.
     pub(crate) jit: Jit,
     /// The same regions compiled for a core whose every access is later than the other
     /// core's last bank claim ([`jit::Flavour::Solo`]).
@@ -151,12 +151,12 @@ pub(crate) struct Blocks {
     /// Per core, the last bank mask and journaling [`run_confined`] ran it with, and their
     /// caches' indices in `confined_solo` and `confined` (the lists only grow).
     confined_last: [Option<ConfinedAt>; 2],
-    /// The undo journals of the two cores in a window (entries as [`crate::jit`] writes
+    /// The undo journals of the two cores in a window (entries as [`crate::accel::jit`] writes
     /// them; [`crate::board`]'s `window.rs`).
     pub(crate) journal: Vec<u64>,
     /// The other core's.
     pub(crate) journal_other: Vec<u64>,
-    /// The memoized calls ([`crate::memo`]).
+    /// The memoized calls ([`crate::accel::memo`]).
     pub(crate) memo: Memos,
 }
 
@@ -391,7 +391,7 @@ impl Turns for Sleeper<'_> {
 
 /// Runs `core` on blocks while its cycle is below `limit` (the caller has checked that
 /// the core may take the fast path: [`crate::board`]'s `fast_ready`), with `turns` told of
-/// the instructions' end cycles. A region compiled to native code ([`crate::jit`]) runs
+/// the instructions' end cycles. A region compiled to native code ([`crate::accel::jit`]) runs
 /// whenever its bound fits before `limit`; otherwise the block's pre-decoded instructions
 /// run, with one deadline check per block when its bound fits and `turns` need not see
 /// every instruction. `Ok` when the core reached `limit` (at its first
@@ -527,7 +527,7 @@ pub(crate) fn run_confined(
     blocks: &mut Blocks,
     limit: u64,
     mut journal: Option<&mut Vec<u64>>,
-    mut io: Option<(&mut Vec<crate::board::IoAccess>, u8, u8)>,
+    mut io: Option<(&mut Vec<crate::accel::io_window::IoAccess>, u8, u8)>,
 ) -> Result<(), Leave> {
     let allowed = sys.allowed_banks;
     let io_own = io.as_ref().map_or(0, |&(_, _, own)| own & !allowed);

@@ -6,7 +6,7 @@ use super::*;
 /// stack pointer received so far, and a word it could not yet send because core 0's RX
 /// FIFO was full (the ROM waits in `WFE` for room, `send_and_then_again`).
 #[derive(Clone, Copy, Debug, Default)]
-pub(super) struct Launch {
+pub(crate) struct Launch {
     /// 0: the command 1; 1: the vector table; 2: the stack pointer; 3: the entry point;
     /// 4: launching once the entry point's echo is sent.
     step: usize,
@@ -16,10 +16,10 @@ pub(super) struct Launch {
     unsent: Option<u32>,
 }
 
-impl Board {
+impl Machine {
     /// Core 1's boot ROM at `core_0_handshake_loop`: drain its RX FIFO, send 0 to core 0
     /// and wait for the command 1.
-    pub(super) fn launch_handshake(&mut self) {
+    pub(crate) fn launch_handshake(&mut self) {
         // The drain reads while VLD is set: it never underflows.
         while self.system.sio.fifo_status(1) & 1 != 0 {
             self.system.sio.fifo_pop(1);
@@ -35,7 +35,7 @@ impl Board {
 
     /// Sends core 1's pending word to core 0 if its RX FIFO has room, then `SEV` (as the
     /// ROM's `send_and_then` does). False while the word waits for room.
-    pub(super) fn launch_send(&mut self) -> bool {
+    pub(crate) fn launch_send(&mut self) -> bool {
         let Some(l) = &mut self.launch else {
             return true;
         };
@@ -58,7 +58,7 @@ impl Board {
     /// entry point), echoes it, and after echoing the entry point starts core 1 there
     /// with that VTOR and SP. The ROM's own instructions are not timed: each reaction
     /// happens when core 0 next runs (about a dozen cycles per word on the chip).
-    pub(super) fn poll_launch(&mut self) {
+    pub(crate) fn poll_launch(&mut self) {
         loop {
             if !self.launch_send() {
                 return;

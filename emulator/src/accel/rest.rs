@@ -142,7 +142,7 @@ fn relative(t: u64, now: u64) -> u64 {
     }
 }
 
-impl Board {
+impl Drive<'_> {
     /// The period from `start` to `end`, two rest points of this board, `end` its point
     /// now ([`Board::rest_point`]): with converters, their records since `start` are the
     /// period's.
@@ -151,9 +151,9 @@ impl Board {
     /// between them, a SysTick counts the 1 µs pulses and the period is not a whole
     /// number of microseconds at the board's clock, a converter's timing was breached or
     /// its records taken ([`crate::io::Io`]'s records drained) between them.
-    pub fn period(&mut self, start: &RestPoint, end: &RestPoint) -> Result<Period, String> {
-        self.system.io_unlazy();
-        let clock_hz = self.config.clock_hz;
+    pub(crate) fn period(&mut self, start: &RestPoint, end: &RestPoint) -> Result<Period, String> {
+        self.m.system.io_unlazy();
+        let clock_hz = self.cfg.clock_hz;
         if !start.same_state(end) {
             return Err("the board's state at the two points differs".into());
         }
@@ -171,7 +171,7 @@ impl Board {
                 "{cycles} cycles are not a whole number of microseconds at {clock_hz} Hz"
             ));
         }
-        let io_records = match (&start.io, self.system.io.as_mut()) {
+        let io_records = match (&start.io, self.m.system.io.as_mut()) {
             (Some((_, counts)), Some(io)) => {
                 let now = io.record_counts();
                 if (now.iter().zip(counts)).any(|(n, c)| n[0] < c[0] || n[1] < c[1]) {
@@ -211,22 +211,19 @@ impl Board {
     ///
     /// Errors (as text): a debugger attached, core 1's launch under way, a timer alarm
     /// armed, a profiled call open, a counter offset outside SRAM or unaligned.
-    pub fn rest_point(&mut self, counters: &[usize]) -> Result<RestPoint, String> {
-        self.system.io_unlazy();
-        if self.debug.hook.is_some() {
-            return Err("a debugger is attached".into());
-        }
-        if self.launch.is_some() {
+    pub(crate) fn rest_point(&mut self, counters: &[usize]) -> Result<RestPoint, String> {
+        self.m.system.io_unlazy();
+        if self.m.launch.is_some() {
             return Err("core 1's launch is under way".into());
         }
-        if self.system.timer.next_event != u64::MAX {
+        if self.m.system.timer.next_event != u64::MAX {
             return Err("a timer alarm is armed".into());
         }
-        if self.profiles.iter().any(|p| p.is_open()) {
+        if self.prof.profiles_mut().iter().any(|p| p.is_open()) {
             return Err("a profiled call is open".into());
         }
-        let now = self.cores[0].cycle.min(self.cores[1].cycle);
-        let mut sram = self.system.sram.clone();
+        let now = self.m.cores[0].cycle.min(self.m.cores[1].cycle);
+        let mut sram = self.m.system.sram.clone();
         let mut words = Vec::with_capacity(counters.len());
         for &o in counters {
             let Some(w) = sram.get_mut(o..o.wrapping_add(4)).filter(|_| o % 4 == 0) else {
@@ -235,7 +232,7 @@ impl Board {
             words.push((o, u32::from_le_bytes([w[0], w[1], w[2], w[3]])));
             w.fill(0);
         }
-        let io = self.system.io.as_mut().map(|io| {
+        let io = self.m.system.io.as_mut().map(|io| {
             let r = Rebase {
                 from: now,
                 to: Rebase::MEMO,
@@ -263,7 +260,7 @@ impl Board {
             io_banks,
             io_journal,
             io_rec,
-        } = &self.system;
+        } = &self.m.system;
         let mut sio = sio.clone();
         for d in &mut sio.divider {
             d.ready_at = relative(d.ready_at, now);
@@ -271,7 +268,7 @@ impl Board {
         let mut xip = xip.clone();
         xip.move_time(&mut |t| relative(t, now));
         let claims = bank_claim.map(|c| c.map(|t| relative(t, now)));
-        let cores = self.cores.each_ref().map(|c| {
+        let cores = self.m.cores.each_ref().map(|c| {
             let Core {
                 id,
                 r,
@@ -309,11 +306,20 @@ impl Board {
             sram,
             parts,
             now,
-            instructions: [self.cores[0].instructions, self.cores[1].instructions],
+            instructions: [self.m.cores[0].instructions, self.m.cores[1].instructions],
             stalls: *contention_stalls,
-            entries: self.profiles.iter().map(|p| p.entries()).collect(),
+            entries: self
+                .prof
+                .profiles_mut()
+                .iter()
+                .map(|p| p.entries())
+                .collect(),
             count_reads: timer.count_reads,
-            on_us_grid: self.cores.iter().any(|c| c.nvic.syst_csr & 0b101 == 0b001),
+            on_us_grid: self
+                .m
+                .cores
+                .iter()
+                .any(|c| c.nvic.syst_csr & 0b101 == 0b001),
             counters: words,
         })
     }
@@ -326,19 +332,20 @@ impl Board {
     ///
     /// Errors (as text): the state differs (or [`Board::rest_point`]'s), or the cycles
     /// overflow. Nothing is changed on an error.
-    pub fn skip_periods(&mut self, period: &Period, periods: u64) -> Result<(), String> {
-        self.system.io_unlazy();
+    pub(crate) fn skip_periods(&mut self, period: &Period, periods: u64) -> Result<(), String> {
+        self.m.system.io_unlazy();
         let counters: Vec<usize> = period.end.counters.iter().map(|c| c.0).collect();
         let here = self.rest_point(&counters)?;
         if !here.same_state(&period.end) {
             return Err("the board is not at the period's state".into());
         }
         let k = periods;
-        let Some(delta) = period
-            .cycles
-            .checked_mul(k)
-            .filter(|d| self.cores.iter().all(|c| c.cycle.checked_add(*d).is_some()))
-        else {
+        let Some(delta) = period.cycles.checked_mul(k).filter(|d| {
+            self.m
+                .cores
+                .iter()
+                .all(|c| c.cycle.checked_add(*d).is_some())
+        }) else {
             return Err("the skipped cycles overflow".into());
         };
         let now = here.now;
@@ -349,14 +356,14 @@ impl Board {
                 t + delta
             }
         };
-        for (i, c) in self.cores.iter_mut().enumerate() {
+        for (i, c) in self.m.cores.iter_mut().enumerate() {
             c.cycle += delta;
             c.instructions = c
                 .instructions
                 .wrapping_add(period.instructions[i].wrapping_mul(k));
             c.nvic.syst_next = later(c.nvic.syst_next);
         }
-        let sys = &mut self.system;
+        let sys = &mut self.m.system;
         for claims in &mut sys.bank_claim {
             for t in claims.iter_mut() {
                 *t = later(*t);
@@ -370,7 +377,7 @@ impl Board {
             sys.contention_stalls[i] =
                 (sys.contention_stalls[i]).wrapping_add(period.stalls[i].wrapping_mul(k));
         }
-        for (p, d) in self.profiles.iter_mut().zip(&period.entries) {
+        for (p, d) in self.prof.profiles_mut().iter_mut().zip(&period.entries) {
             p.add_entries([d[0].wrapping_mul(k), d[1].wrapping_mul(k)]);
         }
         for (&(o, _), &d) in period.end.counters.iter().zip(&period.counters) {
@@ -397,10 +404,10 @@ impl Board {
                 }
             }
         }
-        self.window_at = later(self.window_at);
+        self.a.window_at = later(self.a.window_at);
         // The interrupt lines are recomputed at the next run (the timer and SIO are as
         // they were).
-        self.lines_epoch = u64::MAX;
+        self.a.lines_epoch = u64::MAX;
         Ok(())
     }
 }

@@ -2,7 +2,7 @@
 //! native code reads its pointers from and writes its counts to, the exit reasons, and
 //! the call itself.
 
-use crate::board::{IoAccess, IoKind};
+use crate::accel::io_window::{IoAccess, IoKind};
 use crate::bus::load_le;
 use crate::core::Core;
 use crate::io::Io;

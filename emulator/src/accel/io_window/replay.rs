@@ -23,7 +23,7 @@
 
 use super::*;
 
-impl Board {
+impl Drive<'_> {
     /// The replay (module documentation), its SRAM writes journaled in
     /// [`System::io_journal`]; `io` becomes the I/O's checkpoint at the window's start
     /// when the I/O is run (not on a hit of the period memo, which changes the I/O only
@@ -35,22 +35,22 @@ impl Board {
         end: u64,
         io: &mut Option<Checkpoint>,
     ) -> Result<(), Violation> {
-        let mut journal = std::mem::take(&mut self.io_journal);
+        let mut journal = std::mem::take(&mut self.a.io_journal);
         journal.clear();
-        self.system.io_journal = Some(journal);
-        let logs = std::mem::take(&mut self.io_logs);
-        let own = (self.config.own_banks[0] | self.config.own_banks[1]) & ALL_BANKS;
-        let memo = self.io_memo.on && self.system.io.as_ref().is_some_and(|io| !io.stepwise);
+        self.m.system.io_journal = Some(journal);
+        let logs = std::mem::take(&mut self.a.io_logs);
+        let own = (self.cfg.own_banks[0] | self.cfg.own_banks[1]) & ALL_BANKS;
+        let memo = self.a.io_memo.on && self.m.system.io.as_ref().is_some_and(|io| !io.stepwise);
         let r = match memo {
             true => self.io_memo_replay(&logs, banks, own, end, io),
             false => {
                 self.io_take_back(&logs);
-                self.system.io_unlazy();
-                *io = self.system.io.as_mut().map(|now| now.checkpoint());
+                self.m.system.io_unlazy();
+                *io = self.m.system.io.as_mut().map(|now| now.checkpoint());
                 self.io_merge(&logs, banks, own)
             }
         };
-        self.io_logs = logs;
+        self.a.io_logs = logs;
         r
     }
 
@@ -61,7 +61,7 @@ impl Board {
     pub(super) fn io_take_back(&mut self, logs: &[Vec<IoAccess>; 2]) {
         for log in logs {
             for e in log.iter().rev().filter(|e| e.kind == IoKind::Store) {
-                sram_put(&mut self.system, e.addr & !3, 4, e.old);
+                sram_put(&mut self.m.system, e.addr & !3, 4, e.old);
             }
         }
     }
@@ -74,7 +74,7 @@ impl Board {
         own: u8,
     ) -> Result<(), Violation> {
         for e in Merged::new(logs) {
-            let sys = &mut self.system;
+            let sys = &mut self.m.system;
             match e.kind {
                 IoKind::Load | IoKind::Store => {
                     let b = sram_bank(e.addr);

@@ -398,7 +398,7 @@ pub(super) fn split_hit(
     true
 }
 
-impl Board {
+impl Drive<'_> {
     /// Entry `i` (`e`) for the window `probe` brings by a plan (module documentation,
     /// "Plans"), the SRAM as the cores' run left it: true when done; false, nothing
     /// changed, when there is no plan for the window's shape or a read or load breaks it
@@ -417,7 +417,7 @@ impl Board {
             shape,
             planned,
             ..
-        } = &mut self.io_memo;
+        } = &mut self.a.io_memo;
         if !*planned {
             return false;
         }
@@ -430,7 +430,7 @@ impl Board {
         if !plan.ok {
             return false;
         }
-        let sys = &mut self.system;
+        let sys = &mut self.m.system;
         if sys.io.is_none() {
             return false;
         }
@@ -440,7 +440,7 @@ impl Board {
                 return false;
             }
             let r = self.io_memo_end(e, probe);
-            self.io_windows.memo_planned += 1;
+            self.a.io_windows.memo_planned += 1;
             return matches!(r, Tried::Done(Ok(())));
         }
         values.clear();
@@ -468,7 +468,7 @@ impl Board {
             }
         }
         let r = self.io_memo_end(e, probe);
-        self.io_windows.memo_planned += 1;
+        self.a.io_windows.memo_planned += 1;
         matches!(r, Tried::Done(Ok(())))
     }
 }

@@ -17,7 +17,7 @@
 //! stores there (`jit::abi`'s `io_sram`, called before the access it then does as in any
 //! of the core's banks); multiple transfers and exception frames take the general path,
 //! whose bus (`board/window.rs`, `Confined`) logs the same, and no code is fetched from
-//! `L`. A memoized call ([`crate::memo`]) recorded in such a window keeps its accesses to
+//! `L`. A memoized call ([`crate::accel::memo`]) recorded in such a window keeps its accesses to
 //! `L` (cycles from its entry); a hit under the same `L` logs them at the hit's cycles,
 //! each store with the word before the memo (the replay needs only the oldest version of a
 //! word). A store to the DMA's or the PIOs' registers is logged instead of done (native
@@ -31,7 +31,6 @@
 //! `memo.rs`: the period memo, its entries and hits; `record.rs`: a replay recorded with
 //! lanes for it; `plan.rs`: the plans a hit takes instead of the merged order.
 
-use super::window::undo_stores;
 use super::*;
 use crate::bus::{load_le, sram_bank, store_le, ALL_BANKS};
 use crate::io::slots::{
@@ -210,67 +209,19 @@ fn log_hash(logs: &[Vec<IoAccess>; 2]) -> u64 {
     h
 }
 
-impl Board {
-    /// The windows of a board with an I/O so far (module documentation).
-    pub fn io_windows(&self) -> IoWindows {
-        self.io_windows
-    }
-
-    /// Turns the period memo of the I/O's replays (module documentation) on or off; on by
-    /// default. Results never depend on it: what it gives is the replay's.
-    pub fn set_io_memo(&mut self, on: bool) {
-        self.io_memo = IoMemo {
-            on,
-            ..IoMemo::default()
-        };
-    }
-
-    /// For tests: whether a hit of the period memo may leave its end behind instead of
-    /// making it (module documentation, "The lazy end"); on by default. Results never
-    /// depend on it.
-    #[doc(hidden)]
-    pub fn set_io_lazy(&mut self, on: bool) {
-        self.system.io_unlazy();
-        self.io_memo.lazy = on;
-    }
-
-    /// For tests: whether a hit of the period memo may take a plan (module documentation,
-    /// "Plans"); on by default. Results never depend on it.
-    #[doc(hidden)]
-    pub fn set_io_plans(&mut self, on: bool) {
-        self.io_memo.planned = on;
-    }
-
-    /// For tests: keeps a digest of every window's logs ([`Board::io_log_digest`]), and
-    /// with `native` false has the cores' accesses to the DMA's banks and the I/O's
-    /// registers take the general path instead of native code (`jit::abi`'s `io_sram`,
-    /// `io_reg`), so that a test can compare the logs the two paths write. Results never
-    /// depend on it.
-    #[doc(hidden)]
-    pub fn check_io_logs(&mut self, native: bool) {
-        self.io_native = native;
-        self.io_digest = Some(0);
-    }
-
-    /// The digest [`Board::check_io_logs`] keeps: FNV-1a over every access logged in a
-    /// window, each window's logs in order; `None` unless asked for.
-    #[doc(hidden)]
-    pub fn io_log_digest(&self) -> Option<u64> {
-        self.io_digest
-    }
-
+impl Drive<'_> {
     /// At the start of a window from cycle `start`: on a board with an I/O, runs it up to
     /// `start`, keeps a clone and has the cores log their accesses to its DMA's banks;
     /// `None` without an I/O.
     pub(super) fn io_window_begin(&mut self, start: u64, end: u64) -> Option<IoStart> {
-        self.system.io.as_ref()?;
-        self.system.io_advance_to(start, false);
-        let banks = self.system.io_banks;
+        self.m.system.io.as_ref()?;
+        self.m.system.io_advance_to(start, false);
+        let banks = self.m.system.io_banks;
         // The cores' run does not touch the I/O: their accesses are logged instead.
-        self.system.io_banks = 0;
-        self.system.allowed_banks = self.system.fast_banks();
-        self.io_window = Some(banks);
-        for l in &mut self.io_logs {
+        self.m.system.io_banks = 0;
+        self.m.system.allowed_banks = self.m.system.fast_banks();
+        self.a.io_window = Some(banks);
+        for l in &mut self.a.io_logs {
             l.clear();
         }
         Some(IoStart { banks, end })
@@ -280,19 +231,19 @@ impl Board {
     /// the I/O; true when the window is kept. When not, the I/O and the replay's SRAM
     /// writes are undone (the caller undoes the cores).
     pub(super) fn io_window_end(&mut self, start: IoStart, kept: bool) -> bool {
-        self.io_window = None;
-        self.system.io_banks = start.banks;
-        self.system.allowed_banks = self.system.fast_banks();
-        if let Some(d) = self.io_digest.as_mut() {
-            *d = (*d ^ log_hash(&self.io_logs)).wrapping_mul(0x0000_0100_0000_01b3);
+        self.a.io_window = None;
+        self.m.system.io_banks = start.banks;
+        self.m.system.allowed_banks = self.m.system.fast_banks();
+        if let Some(d) = self.a.io_digest.as_mut() {
+            *d = (*d ^ log_hash(&self.a.io_logs)).wrapping_mul(0x0000_0100_0000_01b3);
         }
         if !kept {
             return false;
         }
         let mut io = None;
         let r = self.io_replay(start.banks, start.end, &mut io);
-        let journal = self.system.io_journal.take().unwrap_or_default();
-        let s = &mut self.io_windows;
+        let journal = self.m.system.io_journal.take().unwrap_or_default();
+        let s = &mut self.a.io_windows;
         let ok = r.is_ok();
         match r {
             Ok(()) => s.kept += 1,
@@ -302,15 +253,51 @@ impl Board {
                     Violation::Stale => s.stale += 1,
                     Violation::Reach => s.reach += 1,
                 }
-                undo_stores(&mut self.system, &journal);
-                if let (Some(now), Some(then)) = (self.system.io.as_mut(), io) {
+                self.m.system.undo_stores(&journal);
+                if let (Some(now), Some(then)) = (self.m.system.io.as_mut(), io) {
                     now.rewind(then);
                 }
-                self.system.io_banks = start.banks;
-                self.system.allowed_banks = self.system.fast_banks();
+                self.m.system.io_banks = start.banks;
+                self.m.system.allowed_banks = self.m.system.fast_banks();
             }
         }
-        self.io_journal = journal;
+        self.a.io_journal = journal;
         ok
+    }
+}
+
+impl Accel {
+    /// [`crate::Board::io_windows`].
+    pub(crate) fn io_windows(&self) -> IoWindows {
+        self.io_windows
+    }
+
+    /// [`crate::Board::set_io_memo`].
+    pub(crate) fn set_io_memo(&mut self, on: bool) {
+        self.io_memo = IoMemo {
+            on,
+            ..IoMemo::default()
+        };
+    }
+
+    /// [`crate::Board::set_io_lazy`].
+    pub(crate) fn set_io_lazy(&mut self, on: bool) {
+        self.io_memo.lazy = on;
+    }
+
+    /// [`crate::Board::set_io_plans`].
+    pub(crate) fn set_io_plans(&mut self, on: bool) {
+        self.io_memo.planned = on;
+    }
+
+    /// [`crate::Board::check_io_logs`].
+    pub(crate) fn check_io_logs(&mut self, native: bool) {
+        self.io_native = native;
+        self.io_digest = Some(0);
+    }
+
+    /// [`crate::Board::io_log_digest`].
+    pub(crate) fn io_log_digest(&self) -> Option<u64> {
+        self.io_digest
     }
 }

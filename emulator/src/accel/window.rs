@@ -48,16 +48,15 @@
 //! (an image of every shipped instrument, both cores) and `firmware/tests/keyboard_exact.rs`
 //! (every board of grand88 and the split layout against the lock-step interpreter).
 
+use super::decode::cached;
 use super::io_window::{IoKind, IoLog};
-use super::run::cached;
 use super::*;
-use crate::block::{self, Leave};
+use crate::accel::block::{self, Leave};
+use crate::accel::memo::Recording;
 use crate::bus::{plain_sram_span, span_banks, Bus, BusFault, ALL_BANKS};
 use crate::core::Event;
-use crate::memo::Recording;
 use crate::nvic::IRQ0;
-use crate::sio::Divider;
-use tactus_rp2040::memory::{sram_location, BANKS, FLASH_BASE, FLASH_SIZE, ROM_SIZE};
+use tactus_rp2040::memory::{sram_location, FLASH_BASE, FLASH_SIZE, ROM_SIZE};
 use tactus_rp2040::sio::{reg, SIO_BASE};
 
 /// What a window ([`Board::window`]) did.
@@ -77,15 +76,11 @@ pub(super) const RETRY: u64 = 4096;
 /// Most undo-journal entries of one window: a store that finds it full stops the core.
 const JOURNAL: usize = 1 << 16;
 
-/// A core's state at some moment of a window, for undoing what it did since.
+/// A core's state at some moment of a window, for undoing what it did since: the machine's
+/// snapshot of it ([`crate::machine::CoreSnapshot`]) and where its undo journal was.
 struct Saved {
-    core: Core,
-    claims: [u64; BANKS],
-    stalls: u64,
-    divider: Divider,
+    snap: crate::machine::CoreSnapshot,
     journal: usize,
-    /// The code epoch ([`System::code_epoch`]): undone stores may change code back.
-    epoch: u32,
 }
 
 /// The bus as a core in a window sees it ([`Board::window`]): its allowed SRAM banks, ROM
@@ -97,7 +92,7 @@ struct Confined<'a> {
     banks: u8,
     journal: &'a mut Vec<u64>,
     foreign: bool,
-    /// A call being recorded ([`crate::memo`]): its SRAM accesses are logged, any other
+    /// A call being recorded ([`crate::accel::memo`]): its SRAM accesses are logged, any other
     /// access spoils it.
     log: Option<&'a mut Recording>,
     /// On a board with an I/O (`board/io_window.rs`): the accesses the I/O's replay needs.
@@ -314,39 +309,27 @@ impl Bus for Confined<'_> {
     }
 }
 
-/// Undoes journal entries, newest first.
-pub(super) fn undo_stores(sys: &mut System, journal: &[u64]) {
-    for &e in journal.iter().rev() {
-        let off = (e >> 32) as usize;
-        sys.sram[off..off + 4].copy_from_slice(&(e as u32).to_le_bytes());
-    }
-}
-
-impl Board {
-    /// Windows so far (module documentation): (kept, undone because a core could not
-    /// reach the window's end confined).
-    pub fn run_ahead_windows(&self) -> (u64, u64) {
-        (self.windows[0], self.windows[1])
-    }
-
+impl Drive<'_> {
     /// Whether the cores may run in windows now: the block engine, disjoint own banks,
     /// core 1 launched, no address watched for profiling, no I/O attached or one whose DMA
     /// wins the banks against both cores (`board/io_window.rs`: its accesses then do not
     /// depend on the cores'), both cores running or asleep.
     pub(super) fn windows_allowed(&self) -> bool {
-        let [a, b] = self.config.own_banks;
-        self.config.engine == Engine::Block
+        let [a, b] = self.cfg.own_banks;
+        self.cfg.engine == Engine::Block
             && a & ALL_BANKS != 0
             && b & ALL_BANKS != 0
             && a & b == 0
-            && self.launch.is_none()
-            && self.watch_free
+            && self.m.launch.is_none()
+            && self.prof.watch_free
             && self
+                .m
                 .system
                 .io
                 .as_ref()
                 .is_none_or(|io| io.dma_wins(0) && io.dma_wins(1))
             && self
+                .m
                 .cores
                 .iter()
                 .all(|c| matches!(c.state, RunState::Running | RunState::Sleeping { .. }))
@@ -354,59 +337,47 @@ impl Board {
 
     fn save(&self, k: usize, journal: usize) -> Saved {
         Saved {
-            core: self.cores[k].clone(),
-            claims: self.system.bank_claim.map(|c| c[k]),
-            stalls: self.system.contention_stalls[k],
-            divider: self.system.sio.divider[k].clone(),
+            snap: self.m.snapshot_core(k),
             journal,
-            epoch: self.system.code_epoch,
         }
     }
 
-    /// Puts core `k` back as `saved`, undoing the stores journaled since.
+    /// Puts core `k` back as `saved`, undoing the stores journaled since, and its
+    /// profiling with it.
     fn restore(&mut self, k: usize, saved: Saved, journal: &mut Vec<u64>) {
         let from = saved.journal.min(journal.len());
-        undo_stores(&mut self.system, &journal[from..]);
+        self.m.restore_core(k, saved.snap, &journal[from..]);
         journal.truncate(from);
-        self.cores[k] = saved.core;
-        for (bank, c) in saved.claims.iter().enumerate() {
-            self.system.bank_claim[bank][k] = *c;
-        }
-        self.system.contention_stalls[k] = saved.stalls;
-        self.system.sio.divider[k] = saved.divider;
-        let mark = std::mem::take(&mut self.marks[k]);
-        self.profile_restore(k, &mark);
-        self.marks[k] = mark;
-        if self.system.code_epoch != saved.epoch {
-            self.system.invalidate_code();
-        }
+        let mark = std::mem::take(&mut self.prof.marks[k]);
+        self.prof.restore(k, &mark);
+        self.prof.marks[k] = mark;
     }
 
     /// One window (module documentation), the run's `limit` bounding it.
     pub(super) fn window(&mut self, limit: u64) -> Window {
-        let start = self.cores[0].cycle.min(self.cores[1].cycle);
-        let end = limit.min(self.system.timer.next_event);
+        let start = self.m.cores[0].cycle.min(self.m.cores[1].cycle);
+        let end = limit.min(self.m.system.timer.next_event);
         if start.saturating_add(MIN_WINDOW) > end {
             return Window::Idle;
         }
-        let lines = self.system.current_irq_lines();
+        let lines = self.m.system.current_irq_lines();
         let mut journals = [
-            std::mem::take(&mut self.blocks.journal),
-            std::mem::take(&mut self.blocks.journal_other),
+            std::mem::take(&mut self.a.blocks.journal),
+            std::mem::take(&mut self.a.blocks.journal_other),
         ];
         for j in &mut journals {
             j.clear();
         }
         let saved = [self.save(0, 0), self.save(1, 0)];
         for k in 0..2 {
-            let mut mark = std::mem::take(&mut self.marks[k]);
-            self.profile_mark(k, &mut mark);
-            self.marks[k] = mark;
+            let mut mark = std::mem::take(&mut self.prof.marks[k]);
+            self.prof.mark(k, &mut mark);
+            self.prof.marks[k] = mark;
         }
         let io = self.io_window_begin(start, end);
         let mut kept = true;
         for (k, journal) in journals.iter_mut().enumerate() {
-            let own = self.config.own_banks[k] & ALL_BANKS;
+            let own = self.cfg.own_banks[k] & ALL_BANKS;
             if !self.run_alone(k, end, lines, own, journal) {
                 kept = false;
                 break;
@@ -421,10 +392,10 @@ impl Board {
                 self.restore(k, s, &mut journals[k]);
             }
         }
-        self.windows[if kept { 0 } else { 1 }] += 1;
+        self.a.windows[if kept { 0 } else { 1 }] += 1;
         let [j0, j1] = journals;
-        self.blocks.journal = j0;
-        self.blocks.journal_other = j1;
+        self.a.blocks.journal = j0;
+        self.a.blocks.journal_other = j1;
         if kept {
             Window::Kept
         } else {
@@ -447,7 +418,7 @@ impl Board {
     ) -> bool {
         let pending_lines = (lines as u64) << IRQ0;
         loop {
-            let core = &mut self.cores[k];
+            let core = &mut self.m.cores[k];
             let now = core.cycle;
             if now >= until {
                 return true;
@@ -464,6 +435,7 @@ impl Board {
                         core.state = RunState::Running;
                     } else {
                         let next = self
+                            .m
                             .system
                             .timer
                             .next_event
@@ -489,18 +461,21 @@ impl Board {
             {
                 let deadline = until.min(core.nvic.syst_next);
                 if now < deadline {
-                    let sys = &mut self.system;
+                    let sys = &mut self.m.system;
                     // Not the DMA's banks: their accesses go through `Confined`, logged.
-                    sys.allowed_banks = banks & !self.io_window.unwrap_or(0);
-                    let native = match self.io_native {
-                        true => banks & self.io_window.unwrap_or(0),
+                    sys.allowed_banks = banks & !self.a.io_window.unwrap_or(0);
+                    let native = match self.a.io_native {
+                        true => banks & self.a.io_window.unwrap_or(0),
                         false => 0,
                     };
-                    let io = self.io_window.map(|l| (&mut self.io_logs[k], l, native));
+                    let io = self
+                        .a
+                        .io_window
+                        .map(|l| (&mut self.a.io_logs[k], l, native));
                     let r = block::run_confined(
                         core,
                         sys,
-                        &mut self.blocks,
+                        &mut self.a.blocks,
                         deadline,
                         Some(&mut *journal),
                         io,
@@ -516,7 +491,7 @@ impl Board {
                         }
                         Err(Leave::General | Leave::Miss) => {}
                     }
-                    if self.cores[k].cycle >= until {
+                    if self.m.cores[k].cycle >= until {
                         return true;
                     }
                 }
@@ -524,13 +499,13 @@ impl Board {
             if !self.step_confined(k, lines, banks, journal, None) {
                 return false;
             }
-            if !self.profiles.is_empty() {
-                self.profile_step(k);
+            if !self.prof.is_empty() {
+                self.prof.step(k, &self.m.cores[k]);
             }
         }
     }
 
-    /// Runs the call core `k` is about to make (its PC at a watched entry, [`crate::memo`])
+    /// Runs the call core `k` is about to make (its PC at a watched entry, [`crate::accel::memo`])
     /// one general step at a time as [`Board::run_alone`] would, recording it, until it
     /// returns (the memo is kept), something a memo cannot hold happens or the core reaches
     /// `deadline` (the recording is given up; the core has run exactly as without it).
@@ -543,38 +518,38 @@ impl Board {
         banks: u8,
         journal: &mut Vec<u64>,
     ) -> bool {
-        let mut rec = self.blocks.memo.begin(&self.cores[k], &self.system);
-        rec.io_banks = self.io_window.unwrap_or(0);
+        let mut rec = self.a.blocks.memo.begin(&self.m.cores[k], &self.m.system);
+        rec.io_banks = self.a.io_window.unwrap_or(0);
         loop {
-            let core = &self.cores[k];
+            let core = &self.m.cores[k];
             if rec.returned(core) {
-                self.blocks.memo.finish(rec, core, &self.system);
+                self.a.blocks.memo.finish(rec, core, &self.m.system);
                 return true;
             }
             let general =
                 core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb;
             if core.cycle >= deadline || general {
-                self.blocks.memo.abandon(rec);
+                self.a.blocks.memo.abandon(rec);
                 return true;
             }
             let pc = core.r[15];
-            let admitted = match cached(&mut self.cache, &mut self.system, pc) {
-                Some((instr, size, _)) => rec.admit(&self.cores[k], &instr, size),
+            let admitted = match cached(&mut self.a.cache, &mut self.m.system, pc) {
+                Some((instr, size, _)) => rec.admit(&self.m.cores[k], &instr, size),
                 None => false,
             };
             if !admitted {
-                self.blocks.memo.abandon(rec);
+                self.a.blocks.memo.abandon(rec);
                 return true;
             }
             if !self.step_confined(k, lines, banks, journal, Some(&mut rec)) {
-                self.blocks.memo.abandon(rec);
+                self.a.blocks.memo.abandon(rec);
                 return false;
             }
-            if !self.profiles.is_empty() {
-                self.profile_step(k);
+            if !self.prof.is_empty() {
+                self.prof.step(k, &self.m.cores[k]);
             }
-            if !rec.after(&self.cores[k]) {
-                self.blocks.memo.abandon(rec);
+            if !rec.after(&self.m.cores[k]) {
+                self.a.blocks.memo.abandon(rec);
                 return true;
             }
         }
@@ -590,21 +565,21 @@ impl Board {
         journal: &mut Vec<u64>,
         log: Option<&mut Recording>,
     ) -> bool {
-        let pc = self.cores[k].r[15];
-        let core = &mut self.cores[k];
+        let pc = self.m.cores[k].r[15];
+        let core = &mut self.m.cores[k];
         if lines != 0 {
             core.nvic.pending |= ((lines as u64) << IRQ0) & !core.nvic.active;
         }
         let general = core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb;
         // The instruction's fetch is confined too (and not from the DMA's banks).
-        let io_banks = self.io_window.unwrap_or(0);
+        let io_banks = self.a.io_window.unwrap_or(0);
         let fetched = if general {
             None
         } else {
             let in_banks = |a: u32| {
                 sram_location(a).is_none_or(|(_, bank)| (banks & !io_banks) >> bank & 1 != 0)
             };
-            match cached(&mut self.cache, &mut self.system, pc) {
+            match cached(&mut self.a.cache, &mut self.m.system, pc) {
                 Some(d) if in_banks(pc) && in_banks(pc.wrapping_add(d.1 - 2)) => Some(d),
                 Some(_) => return false,
                 None => None,
@@ -612,15 +587,15 @@ impl Board {
         };
         let start = core.cycle;
         let mut bus = Confined {
-            sys: &mut self.system,
+            sys: &mut self.m.system,
             banks,
             journal,
             foreign: false,
             log,
-            io: self.io_window.map(|banks| IoLog {
+            io: self.a.io_window.map(|banks| IoLog {
                 banks,
                 start,
-                log: &mut self.io_logs[k],
+                log: &mut self.a.io_logs[k],
             }),
         };
         let event = match fetched {
@@ -630,5 +605,12 @@ impl Board {
             None => core.step(&mut bus, lines),
         };
         !bus.foreign && event == Event::None
+    }
+}
+
+impl Accel {
+    /// [`crate::Board::run_ahead_windows`].
+    pub(crate) fn run_ahead_windows(&self) -> (u64, u64) {
+        (self.windows[0], self.windows[1])
     }
 }

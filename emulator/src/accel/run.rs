@@ -28,60 +28,18 @@
 //!
 //! [`Config::engine`] selects what runs that fast path for one
 //! core: the interpreter above ([`Engine::Interp`]) or the block engine ([`Engine::Block`],
-//! the default; module [`crate::block`]: code regions compiled to native code with
+//! the default; module [`crate::accel::block`]: code regions compiled to native code with
 //! cranelift, pre-decoded basic blocks where they do not fit; the same results).
 //! [`Board::step`] is the same machine one instruction at a time, recording
 //! [`Core::last`] for traces.
 
-use super::profile::{NO_WATCH, NO_WATCHES, WATCH_SLOTS};
+use super::decode::{cache_key, CACHE_SLOTS};
 use super::window::{Window, RETRY};
 use super::*;
-use crate::block;
-use crate::bus::Bus;
+use crate::accel::block;
 use crate::core::Event;
-use crate::fast::Op;
-use crate::nvic::{IRQ0, SVCALL};
-use tactus_isa::decode::{decode, Instr};
-use tactus_isa::timing::cycles;
-use tactus_rp2040::memory::sram_location;
-/// Decode cache entry: the instruction, its pre-decoded fast-path form and its size,
-/// tagged by its address and the code epoch.
-#[derive(Clone, Copy)]
-pub(super) struct Cached {
-    /// [`cache_key`] of the address and the [`System::code_epoch`] when decoded.
-    key: u64,
-    op: Op,
-    instr: Instr,
-    size: u32,
-    /// Cycles from the timing table: (not taken, taken).
-    cost: (u8, u8),
-}
-
-/// Decode cache tag: the instruction's address and the code epoch in one word (addresses
-/// are even, so the empty tag `u64::MAX` never matches).
-#[inline(always)]
-pub(super) fn cache_key(pc: u32, epoch: u32) -> u64 {
-    (epoch as u64) << 32 | pc as u64
-}
-
-pub(super) const CACHE_SLOTS: usize = 1 << 14;
-
-/// A decode cache with every slot empty.
-pub(super) fn empty_cache() -> Box<[Cached; CACHE_SLOTS]> {
-    vec![
-        Cached {
-            key: u64::MAX,
-            op: Op::Other,
-            instr: Instr::Undefined { hw1: 0, hw2: 0 },
-            size: 2,
-            cost: (0, 0)
-        };
-        CACHE_SLOTS
-    ]
-    .into_boxed_slice()
-    .try_into()
-    .unwrap_or_else(|_| unreachable!())
-}
+use crate::nvic::IRQ0;
+use crate::profile::{NO_WATCH, NO_WATCHES, WATCH_SLOTS};
 
 /// Why a fast-path run ([`run_one`], [`run_both`]) returned.
 pub(super) enum Exit {
@@ -318,113 +276,49 @@ pub(super) fn blocks_beside_sleeper<const SLEEPER_IS_0: bool>(
     }
 }
 
-impl Board {
-    /// Basic blocks the block engine ([`Engine::Block`]) has decoded so far (0 with
-    /// [`Engine::Interp`]): a block is decoded again after a store into a page holding
-    /// decoded code or a host write drops them all.
-    pub fn blocks_decoded(&self) -> u64 {
-        self.blocks.decoded
-    }
-
-    /// Memoizes calls to the functions at `calls` and runs of the spans `spans` (from each
-    /// `start` to its `end`; addresses, the Thumb bit ignored; at most 64 in all) on the
-    /// block engine while the cores run in windows ([`Config::own_banks`]): a call (from
-    /// the entry to the return address LR held there, SP back as it was) or a span run
-    /// (from its start to its end, SP back as it was) whose inputs — the registers and
-    /// flags it reads, the SRAM bytes it loads, the code — are those of one recorded before
-    /// is replaced by that one's effect (registers, flags, stores, cycles, instructions,
-    /// bank claims; module `memo`). Results never depend on it, only speed: a call that
-    /// touches anything but registers and SRAM, or whose inputs differ, runs as before.
-    /// Empty lists stop it. Forgets every memo.
-    pub fn memoize(&mut self, calls: &[u32], spans: &[(u32, u32)]) {
-        self.blocks.memo.watch(calls, spans);
-    }
-
-    /// What the memoized calls did so far ([`Board::memoize`]).
-    pub fn memo_stats(&self) -> crate::MemoStats {
-        self.blocks.memo.stats
-    }
-
-    /// Code regions the block engine has compiled to native code so far ([`crate::jit`]).
-    pub fn regions_compiled(&self) -> u64 {
-        let b = &self.blocks;
-        let confined: u64 = b
-            .confined
-            .iter()
-            .chain(&b.confined_solo)
-            .map(|j| j.count)
-            .sum();
-        b.jit.count + b.solo.count + confined
-    }
-
-    /// The block engine compiles a code region to native code once its entry has been
-    /// reached `times` times (default 16; 0 compiles every region at once — the tests use
-    /// it to run everything natively). Results never depend on it, only speed.
-    pub fn set_compile_threshold(&mut self, times: u32) {
-        self.blocks.jit.threshold = times;
-        self.blocks.solo.threshold = times;
-        let b = &mut self.blocks;
-        for j in b.confined.iter_mut().chain(b.confined_solo.iter_mut()) {
-            j.threshold = times;
-        }
-    }
-
-    /// Runs for `cycles` more cycles (from [`Board::cycle`]) or until a stop.
-    pub fn run_for(&mut self, cycles: u64) -> StopReason {
-        let limit = self.cycle().saturating_add(cycles);
-        self.run_until(limit)
-    }
-
+impl Drive<'_> {
     /// Whether the fast path may run the block engine's unconfined code: [`Engine::Block`]
     /// and no I/O attached (that code does not leave the banks the I/O's DMA may reach,
     /// `crate::io`; the interpreter's fast path does).
     #[inline]
     fn blocks_run(&self) -> bool {
-        self.config.engine == Engine::Block && self.system.io.is_none()
+        self.cfg.engine == Engine::Block && self.m.system.io.is_none()
     }
 
-    /// Runs until both running cores reach cycle `limit`, or a stop. Instructions are not
-    /// split: each core stops at its first instruction boundary at or after `limit` (a
-    /// multi-cycle instruction that starts before the limit completes). The I/O, if any
-    /// ([`Board::attach_io`]), has run up to the board's cycle when it returns.
-    ///
-    /// With a debugger attached ([`Board::attach_debugger`]) the debugger runs the board
-    /// there instead, stopping on the way as its client asks, with the same results.
-    pub fn run_until(&mut self, limit: u64) -> StopReason {
-        let stop = self.run_until_inner(limit);
-        if self.system.io.is_some() {
-            let now = self.cycle();
-            self.system.io_advance(now);
-        }
-        stop
-    }
-
-    fn run_until_inner(&mut self, limit: u64) -> StopReason {
-        if let Some(mut d) = self.debug.hook.take() {
-            let stop = d.run_until(self, limit);
-            if !d.detached() {
-                self.debug.hook = Some(d);
+    /// Runs until both running cores reach cycle `limit`, or a stop
+    /// ([`crate::Board::run_until`]), on the fast paths and engines (module documentation),
+    /// with every result of the lock-step machine's [`Machine::step_core`].
+    pub(crate) fn run_until(&mut self, limit: u64) -> StopReason {
+        if self.cfg.engine == Engine::LockStep {
+            if self.prof.is_empty() {
+                return self.m.run_lock_step(limit, self.cfg);
             }
-            return stop;
+            return loop {
+                match self.step(limit) {
+                    Some(Ok(_)) => {}
+                    Some(Err(stop)) => break stop,
+                    None => break StopReason::CycleLimit,
+                }
+            };
         }
-        self.lines_epoch = u64::MAX; // the host may have touched SIO or the timer
+        self.a.lines_epoch = u64::MAX; // the host may have touched SIO or the timer
         loop {
-            let Some(k) = self.next_core() else {
+            let Some(k) = self.m.next_core() else {
                 return StopReason::Idle;
             };
-            let now = self.cores[k].cycle;
+            let now = self.m.cores[k].cycle;
             if now >= limit {
                 return StopReason::CycleLimit;
             }
             // Both cores as independent machines, where their banks allow
             // (`board/window.rs`); the lock-step loop below otherwise.
-            if now >= self.window_at && self.windows_allowed() {
+            if now >= self.a.window_at && self.windows_allowed() {
                 match self.window(limit) {
                     Window::Kept => continue,
-                    Window::Idle => self.window_at = now.saturating_add(RETRY),
+                    Window::Idle => self.a.window_at = now.saturating_add(RETRY),
                 }
             }
-            if self.cores[k].state != RunState::Running {
+            if self.m.cores[k].state != RunState::Running {
                 match self.step(limit) {
                     Some(Ok(_)) => continue,
                     Some(Err(stop)) => return stop,
@@ -435,18 +329,18 @@ impl Board {
             if self.fast_ready(0) && self.fast_ready(1) {
                 let deadline = |c: &Core| {
                     limit
-                        .min(self.system.timer.next_event)
+                        .min(self.m.system.timer.next_event)
                         .min(c.nvic.syst_next)
                 };
-                let deadline = [deadline(&self.cores[0]), deadline(&self.cores[1])];
+                let deadline = [deadline(&self.m.cores[0]), deadline(&self.m.cores[1])];
                 let mut slots = NO_WATCHES;
-                if let (true, Some(watch)) = (now < deadline[k], self.watch_sets(&mut slots)) {
+                if let (true, Some(watch)) = (now < deadline[k], self.prof.watch_sets(&mut slots)) {
                     let (k, ran) = self.fast_run::<true>(k, deadline, watch);
                     if let Some(event) = ran {
-                        if !self.profiles.is_empty() {
-                            self.profile_step(k);
+                        if !self.prof.is_empty() {
+                            self.prof.step(k, &self.m.cores[k]);
                         }
-                        if let Some(stop) = self.handle_event(k, event) {
+                        if let Some(stop) = self.m.handle_event(k, event, self.cfg) {
                             return stop;
                         }
                     }
@@ -455,19 +349,19 @@ impl Board {
             }
             // Core k running the fast path while the other core sleeps and nothing can
             // wake it: the sleeper's steps only move its cycle counter, done in the loop.
-            if self.fast_ready(k) && self.launch.is_none() && self.sleeps_soundly(1 - k) {
-                let s = &self.cores[1 - k];
+            if self.fast_ready(k) && self.m.launch.is_none() && self.m.sleeps_soundly(1 - k) {
+                let s = &self.m.cores[1 - k];
                 let deadline = limit
-                    .min(self.system.timer.next_event)
-                    .min(self.cores[k].nvic.syst_next);
+                    .min(self.m.system.timer.next_event)
+                    .min(self.m.cores[k].nvic.syst_next);
                 let wake_check = limit
-                    .min(self.system.timer.next_event)
+                    .min(self.m.system.timer.next_event)
                     .min(s.nvic.syst_next);
-                if let (true, Some(watch)) = (now < deadline, self.watch_set(k)) {
+                if let (true, Some(watch)) = (now < deadline, self.prof.watch_set(k)) {
                     let on_blocks = self.blocks_run();
-                    let [c0, c1] = &mut self.cores;
-                    let (sys, cache) = (&mut self.system, &self.cache);
-                    let blocks = &mut self.blocks;
+                    let [c0, c1] = &mut self.m.cores;
+                    let (sys, cache) = (&mut self.m.system, &self.a.cache);
+                    let blocks = &mut self.a.blocks;
                     let run = match (k == 0, watch[0] == NO_WATCH) {
                         (true, true) if on_blocks => blocks_beside_sleeper::<false>(
                             c0, c1, sys, blocks, deadline, wake_check,
@@ -491,10 +385,10 @@ impl Board {
                     // Ok: the sleeper reached its wake check; Err: core k must leave.
                     if let Err(exit) = run {
                         if let Some(event) = self.finish_fast(k, exit) {
-                            if !self.profiles.is_empty() {
-                                self.profile_step(k);
+                            if !self.prof.is_empty() {
+                                self.prof.step(k, &self.m.cores[k]);
                             }
-                            if let Some(stop) = self.handle_event(k, event) {
+                            if let Some(stop) = self.m.handle_event(k, event, self.cfg) {
                                 return stop;
                             }
                         }
@@ -503,14 +397,14 @@ impl Board {
                 }
             }
             // Core k keeps the turn while it stays behind the other core (core 0 on ties).
-            let other = &self.cores[1 - k];
+            let other = &self.m.cores[1 - k];
             let horizon = if active(other) {
                 other.cycle + (k == 0) as u64
             } else {
                 u64::MAX
             };
             let event = self.burst(k, horizon.min(limit));
-            if let Some(stop) = self.handle_event(k, event) {
+            if let Some(stop) = self.m.handle_event(k, event, self.cfg) {
                 return stop;
             }
         }
@@ -522,27 +416,27 @@ impl Board {
     /// decode cache with their cycle costs.
     pub(super) fn burst(&mut self, k: usize, horizon: u64) -> Event {
         loop {
-            let core = &mut self.cores[k];
+            let core = &mut self.m.cores[k];
             if core.cycle >= horizon || core.state != RunState::Running {
                 return Event::None;
             }
-            if self.system.irq_epoch != self.lines_epoch
-                || core.cycle >= self.system.timer.next_event
+            if self.m.system.irq_epoch != self.a.lines_epoch
+                || core.cycle >= self.m.system.timer.next_event
             {
                 let now = core.cycle;
-                if self.launch.is_some() {
-                    self.poll_launch();
-                    if self.launch.is_none() {
+                if self.m.launch.is_some() {
+                    self.m.poll_launch();
+                    if self.m.launch.is_none() {
                         return Event::None; // core 1 started: re-pick whose turn it is
                     }
                 }
-                self.lines = self.system.irq_lines(k, now);
-                self.lines_epoch = self.system.irq_epoch;
+                self.a.lines = self.m.system.irq_lines(k, now);
+                self.a.lines_epoch = self.m.system.irq_epoch;
             }
             // The fast path when it can run; a single general step otherwise.
             let slots;
-            let watch = match self.watch_set(k) {
-                _ if self.watch_free => Some(&NO_WATCHES),
+            let watch = match self.prof.watch_set(k) {
+                _ if self.prof.watch_free => Some(&NO_WATCHES),
                 Some(w) => {
                     slots = [w; 2];
                     Some(&slots)
@@ -551,13 +445,13 @@ impl Board {
             };
             if let (true, Some(watch)) = (self.fast_ready(k), watch) {
                 let deadline = horizon
-                    .min(self.system.timer.next_event)
-                    .min(self.cores[k].nvic.syst_next);
-                if self.cores[k].cycle < deadline {
+                    .min(self.m.system.timer.next_event)
+                    .min(self.m.cores[k].nvic.syst_next);
+                if self.m.cores[k].cycle < deadline {
                     let (_, ran) = self.fast_run::<false>(k, [deadline; 2], watch);
                     if let Some(event) = ran {
-                        if !self.profiles.is_empty() {
-                            self.profile_step(k);
+                        if !self.prof.is_empty() {
+                            self.prof.step(k, &self.m.cores[k]);
                         }
                         if event != Event::None {
                             return event;
@@ -566,9 +460,9 @@ impl Board {
                     continue;
                 }
             }
-            let event = self.step_cached::<false>(k, self.lines);
-            if !self.profiles.is_empty() {
-                self.profile_step(k);
+            let event = self.m.execute::<false>(k, self.a.lines, &mut self.a.cache);
+            if !self.prof.is_empty() {
+                self.prof.step(k, &self.m.cores[k]);
             }
             if event != Event::None {
                 return event;
@@ -586,13 +480,13 @@ impl Board {
     /// could change them leaves the fast path.
     #[inline]
     pub(super) fn fast_ready(&self, k: usize) -> bool {
-        let c = &self.cores[k];
+        let c = &self.m.cores[k];
         c.state == RunState::Running
             && c.thumb
             && c.nvic.takeable() == 0
-            && ((self.lines as u64) << IRQ0) & !c.nvic.active & !c.nvic.pending == 0
-            && self.lines_epoch == self.system.irq_epoch
-            && self.system.xip_answers
+            && ((self.a.lines as u64) << IRQ0) & !c.nvic.active & !c.nvic.pending == 0
+            && self.a.lines_epoch == self.m.system.irq_epoch
+            && self.m.system.xip_answers
     }
 
     /// The fast path: runs core `k` (or, with `BOTH`, whichever core is behind, core 0 on
@@ -624,17 +518,17 @@ impl Board {
         if unwatched
             && !BOTH
             && self.blocks_run()
-            && deadline[k] >= self.cores[k].cycle.saturating_add(SHORT_TURN)
+            && deadline[k] >= self.m.cores[k].cycle.saturating_add(SHORT_TURN)
         {
-            let (sys, blocks) = (&mut self.system, &mut self.blocks);
-            let core = &mut self.cores[k];
+            let (sys, blocks) = (&mut self.m.system, &mut self.a.blocks);
+            let core = &mut self.m.cores[k];
             let exit = match block::run(core, sys, blocks, deadline[k], &mut block::Alone) {
                 Ok(()) => Exit::Deadline,
                 Err(_) => Exit::Miss,
             };
             return (k, self.finish_fast(k, exit));
         }
-        let (cores, sys, cache) = (&mut self.cores, &mut self.system, &self.cache);
+        let (cores, sys, cache) = (&mut self.m.cores, &mut self.m.system, &self.a.cache);
         let (k, exit) = match (BOTH, unwatched) {
             (true, true) => run_both::<false>(cores, sys, cache, deadline, watch),
             (true, false) => run_both::<true>(cores, sys, cache, deadline, watch),
@@ -658,174 +552,38 @@ impl Board {
             Exit::Deadline => return None,
             Exit::Watch => Event::None,
             Exit::Ran(event) => event,
-            Exit::Miss => self.step_cached::<false>(k, self.lines),
+            Exit::Miss => self.m.execute::<false>(k, self.a.lines, &mut self.a.cache),
             Exit::General => {
-                let core = &mut self.cores[k];
+                let core = &mut self.m.cores[k];
                 let pc = core.r[15];
-                let slot = &self.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
+                let slot = &self.a.cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
                 let (instr, size, cost) = (slot.instr, slot.size, slot.cost);
-                core.run_priced::<_, false>(&mut self.system, pc, instr, size, Some(cost))
+                core.run_priced::<_, false>(&mut self.m.system, pc, instr, size, Some(cost))
             }
         })
     }
 
-    /// True when core `s` is asleep and its sleep steps ([`Board::step`]) would only move
-    /// its cycle counter as long as nothing changes the interrupt lines, its NVIC or its
-    /// event register and no timer event or SysTick wrap is due: no wake-up event, the
-    /// current lines already pending on it, and no pending exception that would wake it.
-    pub(super) fn sleeps_soundly(&self, s: usize) -> bool {
-        let c = &self.cores[s];
-        let RunState::Sleeping { wfe } = c.state else {
-            return false;
-        };
-        let lines = self.system.current_irq_lines();
-        !(wfe && c.event)
-            && ((lines as u64) << IRQ0) & !c.nvic.active & !c.nvic.pending == 0
-            && c.nvic
-                .highest_pending()
-                .is_none_or(|(_, p)| p >= c.nvic.active_priority())
-    }
-
-    /// Applies a step's event; `Some` when the run must stop.
-    pub(super) fn handle_event(&mut self, k: usize, event: Event) -> Option<StopReason> {
-        match event {
-            Event::None => None,
-            Event::Sev => {
-                // The event reaches the other core at the end of the SEV's cycle: a core
-                // sleeping in WFE resumes no earlier than the next cycle.
-                let after = self.cores[k].cycle;
-                let other = &mut self.cores[1 - k];
-                other.event = true;
-                if matches!(other.state, RunState::Sleeping { .. }) {
-                    other.cycle = other.cycle.max(after);
-                }
-                None
-            }
-            Event::Svc(imm) => {
-                if self.config.svc_halts {
-                    Some(StopReason::Svc { core: k, imm })
-                } else {
-                    self.cores[k].nvic.pending |= 1 << SVCALL;
-                    None
-                }
-            }
-            Event::Fault | Event::Lockup if self.system.sysctl.refusal.is_some() => self
-                .system
-                .sysctl
-                .take_refusal()
-                .map(|why| StopReason::Refused { core: k, why }),
-            Event::Fault => {
-                let fault = self.cores[k].fault?;
-                self.config
-                    .stop_on_fault
-                    .then_some(StopReason::Fault { core: k, fault })
-            }
-            Event::Lockup => self.cores[k]
-                .fault
-                .map(|fault| StopReason::Lockup { core: k, fault }),
-        }
-    }
-
-    /// Executes one instruction (or exception entry, or a sleep interval) on the core that
-    /// is behind, if it is before `limit`. `None` when both running cores are at `limit`;
+    /// One step of the lock-step machine ([`Machine::step_core`]) with the instruction from
+    /// the decode cache (decoded from memory on [`Engine::LockStep`]), the profiles told of
+    /// it and its event applied: `None` when both running cores are at `limit`;
     /// `Some(Ok(core))` names the core that acted (its [`Core::last`] is the instruction).
-    pub fn step(&mut self, limit: u64) -> Option<Result<usize, StopReason>> {
-        let Some(k) = self.next_core() else {
-            return Some(Err(StopReason::Idle));
+    pub(crate) fn step(&mut self, limit: u64) -> Option<Result<usize, StopReason>> {
+        let stepped = if self.cfg.engine == Engine::LockStep {
+            self.m.step_core(limit, &mut Fetch)
+        } else {
+            self.m.step_core(limit, &mut self.a.cache)
         };
-        let now = self.cores[k].cycle;
-        if now >= limit {
-            return None;
+        let (k, event) = match stepped? {
+            Ok(Step::Slept(k)) => return Some(Ok(k)),
+            Ok(Step::Ran(k, event)) => (k, event),
+            Err(stop) => return Some(Err(stop)),
+        };
+        if !self.prof.is_empty() {
+            self.prof.step(k, &self.m.cores[k]);
         }
-        if self.launch.is_some() && k == 0 {
-            self.poll_launch();
-        }
-        let lines = self.system.irq_lines(k, now);
-        if let RunState::Sleeping { wfe } = self.cores[k].state {
-            let (other_running, other_cycle) = (
-                self.cores[1 - k].state == RunState::Running,
-                self.cores[1 - k].cycle,
-            );
-            let core = &mut self.cores[k];
-            if (wfe && core.event) || core.wakes_from_sleep(lines) {
-                if wfe {
-                    core.event = false;
-                }
-                core.state = RunState::Running;
-            } else {
-                // Skip to the next cycle at which something could wake this core.
-                let mut next = self
-                    .system
-                    .timer
-                    .next_event
-                    .min(core.nvic.syst_next)
-                    .min(limit);
-                if other_running {
-                    next = next.min(other_cycle + 1);
-                }
-                core.cycle = next.max(now + 1);
-            }
-            return Some(Ok(k));
-        }
-        let event = self.step_cached::<true>(k, lines);
-        if !self.profiles.is_empty() {
-            self.profile_step(k);
-        }
-        match self.handle_event(k, event) {
+        match self.m.handle_event(k, event, self.cfg) {
             None => Some(Ok(k)),
             Some(stop) => Some(Err(stop)),
         }
     }
-
-    /// Steps core `k` through the decode cache: an instruction is decoded once per address
-    /// and reused until a store hits an SRAM page holding cached code or the host writes
-    /// memory (both bump [`System::code_epoch`]), so self-modifying code stays correct.
-    #[inline(always)]
-    pub(super) fn step_cached<const TRACE: bool>(&mut self, k: usize, lines: u32) -> Event {
-        let core = &mut self.cores[k];
-        let pc = core.r[15];
-        if lines != 0 {
-            core.nvic.pending |= ((lines as u64) << IRQ0) & !core.nvic.active;
-        }
-        if core.nvic.takeable() != 0 || core.nvic.syst_next <= core.cycle || !core.thumb {
-            return core.step(&mut self.system, lines);
-        }
-        let Some((instr, size, cost)) = cached(&mut self.cache, &mut self.system, pc) else {
-            return core.step(&mut self.system, lines);
-        };
-        core.run_priced::<_, TRACE>(&mut self.system, pc, instr, size, Some(cost))
-    }
-}
-
-/// The decode cache's entry for the instruction at `pc` (decoded now if need be, its SRAM
-/// pages marked as code pages): the instruction, its size and its `(not taken, taken)`
-/// cycles; `None` when it cannot be fetched.
-#[inline(always)]
-pub(super) fn cached(
-    cache: &mut [Cached; CACHE_SLOTS],
-    sys: &mut System,
-    pc: u32,
-) -> Option<(Instr, u32, (u8, u8))> {
-    let slot = &mut cache[((pc >> 1) as usize) & (CACHE_SLOTS - 1)];
-    if slot.key != cache_key(pc, sys.code_epoch) {
-        let (hw1, hw2, size) = sys.fetch_instr(pc).ok()?;
-        for a in [pc, pc.wrapping_add(size - 2)] {
-            if let Some((off, _)) = sram_location(a) {
-                sys.code_pages[off >> 8] = true;
-            }
-        }
-        let instr = decode(hw1, hw2);
-        let cost = (
-            cycles(&instr, false, false) as u8,
-            cycles(&instr, true, false) as u8,
-        );
-        *slot = Cached {
-            key: cache_key(pc, sys.code_epoch),
-            op: Op::new(&instr, pc),
-            instr,
-            size,
-            cost,
-        };
-    }
-    Some((slot.instr, slot.size, slot.cost))
 }

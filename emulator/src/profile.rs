@@ -1,7 +1,14 @@
 //! Profiling: every call of a function, or every activation of an exception handler, with
-//! its cycles, on both cores.
+//! its cycles, on both cores ([`Profiler`]).
+//!
+//! The profiler watches the machine after each instruction ([`Profiler::step`]), whoever
+//! runs it: the lock-step machine's steps and the accelerator's runs alike. So that those
+//! runs need not stop after every instruction, it says where it could do anything: the
+//! addresses at which a call can open or close ([`Profiler::watch_set`]); a run stops
+//! there. Undoing a core's steps (a window put back, `crate::accel::window`) undoes its
+//! profiling too ([`Profiler::mark`], [`Profiler::restore`]).
 
-use super::*;
+use crate::core::Core;
 /// One measured call of a profiled function.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Call {
@@ -16,7 +23,7 @@ pub struct Call {
 }
 
 #[derive(Clone, Debug)]
-pub(super) struct Profile {
+pub(crate) struct Profile {
     entry: u32,
     /// Measures only activations entered by exception entry ([`Board::profile_handler`]):
     /// the fast path need not watch the entry, which only the general path reaches then.
@@ -30,17 +37,17 @@ pub(super) struct Profile {
 
 impl Profile {
     /// Whether a call is open on either core.
-    pub(super) fn is_open(&self) -> bool {
+    pub(crate) fn is_open(&self) -> bool {
         self.open.iter().any(|o| !o.is_empty())
     }
 
     /// Times each core reached the entry.
-    pub(super) fn entries(&self) -> [u64; 2] {
+    pub(crate) fn entries(&self) -> [u64; 2] {
         self.entries
     }
 
     /// Counts `more` entries on each core (`rest.rs`: periods skipped).
-    pub(super) fn add_entries(&mut self, more: [u64; 2]) {
+    pub(crate) fn add_entries(&mut self, more: [u64; 2]) {
         for (e, m) in self.entries.iter_mut().zip(more) {
             *e = e.wrapping_add(m);
         }
@@ -51,24 +58,65 @@ impl Profile {
 type Open = (Return, u32, u64);
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Return {
+pub(crate) enum Return {
     To(u32),
     FromException(u32),
 }
 
 /// An unused slot of a watch set ([`Board::watch_set`]): odd, so no PC equals it.
-pub(super) const NO_WATCH: u32 = 1;
+pub(crate) const NO_WATCH: u32 = 1;
 
 /// Most addresses the fast path watches for profiling ([`Board::watch_set`]).
-pub(super) const WATCH_SLOTS: usize = 8;
+pub(crate) const WATCH_SLOTS: usize = 8;
 
 /// Both cores' watch sets when nothing is watched.
-pub(super) static NO_WATCHES: [[u32; WATCH_SLOTS]; 2] = [[NO_WATCH; WATCH_SLOTS]; 2];
+pub(crate) static NO_WATCHES: [[u32; WATCH_SLOTS]; 2] = [[NO_WATCH; WATCH_SLOTS]; 2];
 
-impl Board {
+/// Every profile of a board and what tells a run where to stop for them (module
+/// documentation).
+pub(crate) struct Profiler {
+    profiles: Vec<Profile>,
+    /// Each core's profiling at the start of the current window (`accel/window.rs`),
+    /// kept to reuse its vectors.
+    pub(crate) marks: [ProfileMark; 2],
+    /// Each core's active exceptions at its last [`Profiler::step`] that ran its loop
+    /// (`u64::MAX`, which no core has, before any).
+    active: [u64; 2],
+    /// No profile watches an address (none, or handler profiles only): the fast path's
+    /// watch sets are empty ([`Profiler::watch_set`]).
+    pub(crate) watch_free: bool,
+    /// Every profiled entry, sorted, and per core the distinct return addresses of each
+    /// profile's innermost open call: the only PCs at which [`Profiler::step`] can open
+    /// or close a call (besides a change of active exceptions). With them, per core, the
+    /// fast path's watch set ([`Profiler::watch_set`]), `None` when it has too many. Rebuilt
+    /// when a profile is added or an open call changes.
+    entries: Vec<u32>,
+    returns: [Vec<u32>; 2],
+    /// Per core, a 4096-bit filter of those PCs (bit `(pc >> 1) mod 4096`): a clear bit
+    /// rules a PC out in one load.
+    filter: [[u64; 64]; 2],
+    watch: [Option<[u32; WATCH_SLOTS]>; 2],
+}
+
+impl Default for Profiler {
+    fn default() -> Self {
+        Profiler {
+            profiles: Vec::new(),
+            marks: Default::default(),
+            active: [u64::MAX; 2],
+            watch_free: true,
+            entries: Vec::new(),
+            returns: [Vec::new(), Vec::new()],
+            filter: [[0; 64]; 2],
+            watch: [Some([NO_WATCH; WATCH_SLOTS]); 2],
+        }
+    }
+}
+
+impl Profiler {
     /// A new profile of the code at `addr` (Thumb bit ignored); its handle.
-    pub(super) fn add_profile(&mut self, addr: u32, handler_only: bool) -> usize {
-        self.profiled_active = [u64::MAX; 2];
+    pub(crate) fn add(&mut self, addr: u32, handler_only: bool) -> usize {
+        self.active = [u64::MAX; 2];
         self.watch_free &= handler_only;
         self.profiles.push(Profile {
             entry: addr & !1,
@@ -77,56 +125,39 @@ impl Board {
             calls: Vec::new(),
             entries: [0; 2],
         });
-        self.profile_index();
+        self.index();
         self.profiles.len() - 1
     }
 
-    /// Starts measuring every call of the function at `addr` (Thumb bit ignored) on both
-    /// cores; see [`Board::calls`]. Returns a handle.
-    pub fn profile_addr(&mut self, addr: u32) -> usize {
-        self.add_profile(addr, false)
-    }
-
-    /// Starts measuring the exception handler at `addr` (Thumb bit ignored) on both cores:
-    /// like [`Board::profile_addr`], but only activations entered by exception entry are
-    /// measured (from the handler's first instruction to the first instruction after the
-    /// exception return that deactivates it, as `profile_addr` measures them); a branch or
-    /// call to `addr` is not. Both ends of such an activation are exception entry and
-    /// return, which the general path executes, so unlike `profile_addr` this costs the
-    /// fast path nothing: use it for interrupt handlers. Returns a handle for
-    /// [`Board::calls`].
-    pub fn profile_handler(&mut self, addr: u32) -> usize {
-        self.add_profile(addr, true)
-    }
-
-    /// Starts measuring the function named `name`.
-    pub fn profile(&mut self, name: &str) -> Result<usize, EmuError> {
-        let addr = self.symbol(name)?;
-        Ok(self.profile_addr(addr))
-    }
-
-    /// The completed calls of profiled function `handle`.
-    pub fn calls(&self, handle: usize) -> &[Call] {
+    /// The completed calls of profile `handle` (none for an unknown handle).
+    pub(crate) fn calls(&self, handle: usize) -> &[Call] {
         self.profiles.get(handle).map_or(&[], |p| &p.calls)
     }
 
-    /// How many times the entry of profiled address `handle` has been reached (0 for an
-    /// unknown handle). Unlike [`Board::calls`], which completes a call when control returns
-    /// to the link register it was entered with, this counts a block that is not a function
-    /// (a code generator's `BL` long branches change LR inside one) at the moment it runs.
-    pub fn entries(&self, handle: usize) -> u64 {
+    /// How many times the entry of profile `handle` has been reached (0 for an unknown
+    /// handle).
+    pub(crate) fn entry_count(&self, handle: usize) -> u64 {
         self.profiles
             .get(handle)
             .map_or(0, |p| p.entries[0] + p.entries[1])
     }
 
-    /// Forgets the completed calls of profiled function `handle` (read them with
-    /// [`Board::calls`] first); measuring continues. Long runs call this now and then so the
-    /// record does not grow without bound. An unknown handle is ignored.
-    pub fn clear_calls(&mut self, handle: usize) {
+    /// Forgets the completed calls of profile `handle` (an unknown handle is ignored).
+    pub(crate) fn clear_calls(&mut self, handle: usize) {
         if let Some(p) = self.profiles.get_mut(handle) {
             p.calls.clear();
         }
+    }
+
+    /// Whether there is no profile: nothing to do after a step.
+    #[inline(always)]
+    pub(crate) fn is_empty(&self) -> bool {
+        self.profiles.is_empty()
+    }
+
+    /// The profiles, for `accel/rest.rs` (a rest period's entries counted).
+    pub(crate) fn profiles_mut(&mut self) -> &mut [Profile] {
+        &mut self.profiles
     }
 
     /// After an instruction (or exception entry or return) of core `k`: opens and closes
@@ -134,33 +165,31 @@ impl Board {
     /// with the core's active exceptions unchanged, costs its caller a few instructions;
     /// the rest is [`Board::profile_step_slow`].
     #[inline(always)]
-    pub(super) fn profile_step(&mut self, k: usize) {
-        let core = &self.cores[k];
+    pub(crate) fn step(&mut self, k: usize, core: &Core) {
         let pc = core.r[15];
-        if self.profiled_active[k] == core.nvic.active
-            && self.profile_filter[k][(pc as usize >> 7) & 63] >> ((pc >> 1) & 63) & 1 == 0
+        if self.active[k] == core.nvic.active
+            && self.filter[k][(pc as usize >> 7) & 63] >> ((pc >> 1) & 63) & 1 == 0
         {
             return;
         }
-        self.profile_step_slow(k);
+        self.step_slow(k, core);
     }
 
     #[inline(never)]
-    fn profile_step_slow(&mut self, k: usize) {
-        let core = &self.cores[k];
+    fn step_slow(&mut self, k: usize, core: &Core) {
         let (pc, sp, now) = (core.r[15], core.r[13], core.cycle);
         // The core's active exceptions as at this core's last call, and the PC neither a
         // profiled entry nor the return address of an innermost open call: no activation
         // can open or close (an open one closes when its exception's active bit clears or
         // at its return address; one opens at an entry), so the loop below would do
         // nothing. (`profile_step` has returned already where the filter rules the PC out.)
-        if self.profiled_active[k] == core.nvic.active
-            && self.profile_entries.binary_search(&pc).is_err()
-            && !self.profile_returns[k].contains(&pc)
+        if self.active[k] == core.nvic.active
+            && self.entries.binary_search(&pc).is_err()
+            && !self.returns[k].contains(&pc)
         {
             return;
         }
-        self.profiled_active[k] = core.nvic.active;
+        self.active[k] = core.nvic.active;
         // Whether an innermost open call changed where it returns to (a handler's return
         // is no address: opening or closing one over another handler changes nothing the
         // index holds).
@@ -199,27 +228,27 @@ impl Board {
             }
         }
         if changed {
-            self.profile_returns_index(k);
+            self.returns_index(k);
         }
     }
 
     /// Rebuilds the sorted profiled entries and both cores' return addresses, filters and
     /// watch sets ([`Board::profile_returns_index`]) from the profiles and their open calls.
-    fn profile_index(&mut self) {
-        let mut entries = std::mem::take(&mut self.profile_entries);
+    fn index(&mut self) {
+        let mut entries = std::mem::take(&mut self.entries);
         entries.clear();
         entries.extend(self.profiles.iter().map(|p| p.entry));
         entries.sort_unstable();
         entries.dedup();
-        self.profile_entries = entries;
-        self.profile_returns_index(0);
-        self.profile_returns_index(1);
+        self.entries = entries;
+        self.returns_index(0);
+        self.returns_index(1);
     }
 
     /// Rebuilds core `k`'s `profile_returns`, `profile_filter` and `profile_watch` (the
     /// profiled entries are as they were).
-    fn profile_returns_index(&mut self, k: usize) {
-        let mut returns = std::mem::take(&mut self.profile_returns[k]);
+    fn returns_index(&mut self, k: usize) {
+        let mut returns = std::mem::take(&mut self.returns[k]);
         returns.clear();
         let mut watch = Some([NO_WATCH; WATCH_SLOTS]);
         let mut n = 0;
@@ -250,12 +279,12 @@ impl Board {
             }
         }
         let mut filter = [0u64; 64];
-        for &a in self.profile_entries.iter().chain(&returns) {
+        for &a in self.entries.iter().chain(&returns) {
             filter[(a as usize >> 7) & 63] |= 1 << ((a >> 1) & 63);
         }
-        self.profile_filter[k] = filter;
-        self.profile_returns[k] = returns;
-        self.profile_watch[k] = watch;
+        self.filter[k] = filter;
+        self.returns[k] = returns;
+        self.watch[k] = watch;
     }
 
     /// The addresses at which core `k`'s fast path must stop for [`Board::profile_step`]
@@ -265,7 +294,7 @@ impl Board {
     /// address of the innermost open call, and a call ending with an exception return
     /// leaves the fast path anyway).
     #[inline(always)]
-    pub(super) fn watch_set(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
+    pub(crate) fn watch_set(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
         // Handler profiles ([`Board::profile_handler`]) watch nothing: they open and close
         // at exception entry and return, on the general path.
         if self.watch_free {
@@ -278,7 +307,7 @@ impl Board {
     /// is watched (no copy: the hot loop of [`Board::run_until`] passes them on by
     /// reference), else built in `slots`; `None` when there are too many.
     #[inline(always)]
-    pub(super) fn watch_sets<'a>(
+    pub(crate) fn watch_sets<'a>(
         &self,
         slots: &'a mut [[u32; WATCH_SLOTS]; 2],
     ) -> Option<&'a [[u32; WATCH_SLOTS]; 2]> {
@@ -291,24 +320,24 @@ impl Board {
 
     /// [`Board::watch_set`] when some profile watches an address.
     #[inline(always)]
-    pub(super) fn watched(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
-        self.profile_watch[k]
+    pub(crate) fn watched(&self, k: usize) -> Option<[u32; WATCH_SLOTS]> {
+        self.watch[k]
     }
 }
 
 /// Core `k`'s part of every profile at some moment ([`Board::profile_mark`]): what undoing
 /// its steps since then restores.
 #[derive(Default)]
-pub(super) struct ProfileMark {
+pub(crate) struct ProfileMark {
     /// Per profile: completed calls then, core `k`'s open calls, core `k`'s entries.
     each: Vec<(usize, Vec<Open>, u64)>,
     active: u64,
 }
 
-impl Board {
+impl Profiler {
     /// Core `k`'s part of every profile now, into `mark` (its vectors reused: a window
     /// marks both cores every time).
-    pub(super) fn profile_mark(&self, k: usize, mark: &mut ProfileMark) {
+    pub(crate) fn mark(&self, k: usize, mark: &mut ProfileMark) {
         mark.each.truncate(self.profiles.len());
         while mark.each.len() < self.profiles.len() {
             mark.each.push((0, Vec::new(), 0));
@@ -319,20 +348,20 @@ impl Board {
             m.1.extend_from_slice(&p.open[k]);
             m.2 = p.entries[k];
         }
-        mark.active = self.profiled_active[k];
+        mark.active = self.active[k];
     }
 
     /// Undoes core `k`'s profiling since `mark`: its calls completed since then are
     /// forgotten (the other core's stay, in their order), its open calls, entries and
     /// active exceptions are as they were.
-    pub(super) fn profile_restore(&mut self, k: usize, mark: &ProfileMark) {
+    pub(crate) fn restore(&mut self, k: usize, mark: &ProfileMark) {
         for (p, (calls, open, entries)) in self.profiles.iter_mut().zip(&mark.each) {
             let later: Vec<Call> = p.calls.drain((*calls).min(p.calls.len())..).collect();
             p.calls.extend(later.into_iter().filter(|c| c.core != k));
             p.open[k].clone_from(open);
             p.entries[k] = *entries;
         }
-        self.profiled_active[k] = mark.active;
-        self.profile_returns_index(k);
+        self.active[k] = mark.active;
+        self.returns_index(k);
     }
 }

@@ -14,7 +14,7 @@ pub(super) enum Violation {
     Reach,
 }
 
-impl Board {
+impl Drive<'_> {
     /// A miss of the period memo: the replay run with lanes (the I/O stepwise, each data
     /// word's lanes kept: `crate::lanes`) and the I/O run on to the window's `end`, then
     /// recorded when it is kept and stands for others (no timing breach of a part, no read
@@ -32,13 +32,13 @@ impl Board {
             from: base,
             to: Rebase::MEMO,
         };
-        self.system.io_unlazy();
-        let Some(now) = self.system.io.as_mut() else {
+        self.m.system.io_unlazy();
+        let Some(now) = self.m.system.io.as_mut() else {
             return self.io_merge(logs, banks, own);
         };
         // Whether the window starts at the last entry's end (untouched since): the entry
         // recorded here then follows it.
-        let linked = self.io_memo.after.is_some() && self.io_memo.after == Some(now.touches());
+        let linked = self.a.io_memo.after.is_some() && self.a.io_memo.after == Some(now.touches());
         let with_records = !now.records_full();
         let checkpoint = now.checkpoint();
         let mut start = checkpoint.io.clone();
@@ -57,13 +57,13 @@ impl Board {
                     .then_some(*v),
             )
         });
-        self.system.io_rec = Some(Box::new(LaneRec::new(slots)));
+        self.m.system.io_rec = Some(Box::new(LaneRec::new(slots)));
         let r = self.io_merge(logs, banks, own);
         if r.is_ok() {
-            self.system.io_advance_to(end, true);
+            self.m.system.io_advance_to(end, true);
         }
-        let rec = self.system.io_rec.take();
-        let Some(now) = self.system.io.as_mut() else {
+        let rec = self.m.system.io_rec.take();
+        let Some(now) = self.m.system.io.as_mut() else {
             return r;
         };
         now.stepwise = stepwise;
@@ -172,7 +172,7 @@ impl Board {
                 to: Rebase::MEMO,
             }),
             span: end.saturating_sub(base),
-            xip: self.system.xip_answers,
+            xip: self.m.system.xip_answers,
             own,
             with_records,
             regs: reg_stores(logs, base),
@@ -199,9 +199,9 @@ impl Board {
             }
             shared.push(Arc::clone(&entry));
         }
-        let at = self.io_memo.keep(entry);
+        let at = self.a.io_memo.keep(entry);
         self.io_memo_followed_by(at, linked);
-        self.io_windows.memo_recorded += 1;
+        self.a.io_windows.memo_recorded += 1;
         r
     }
 }

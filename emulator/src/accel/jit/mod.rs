@@ -53,7 +53,7 @@
 //! **Exits.** The function returns why it stopped ([`Exit`]) and writes back the guest
 //! registers and flags it changed, the cycle counter, the contention stalls, the number of
 //! instructions retired and the end cycle of its last instruction that took two cycles or
-//! more (what the board needs to replay a sleeping core's turns, [`crate::block`]). The
+//! more (what the board needs to replay a sleeping core's turns, [`crate::accel::block`]). The
 //! instructions are counted in the context itself ([`abi::Ctx`]'s `retired`), added where
 //! control flow leaves the code or joins a label, so no host register carries the count
 //! around a loop.
@@ -64,7 +64,7 @@
 //! journal and its capacity, the stall counter) is loaded where it is used, so that fewer
 //! values compete for the host's registers (x86-64 has 5 callee-saved ones to keep a value
 //! across a helper call in, and the converter flavour's helper calls make the pressure
-//! worse). A register the region never writes ([`crate::memo`]'s `usage`) is loaded by a
+//! worse). A register the region never writes ([`crate::accel::memo`]'s `usage`) is loaded by a
 //! pure load, which cranelift drops where the region never reads it (a written one's load
 //! stays: placed at its first use it could follow the exit's store of it). The demo: 13.75
 //! → 13.59 G host instructions on the plain board, 17.85 → 17.66 G with converters. Exits,

@@ -418,7 +418,7 @@ pub(super) fn dma_op(sys: &mut System, op: &MemoOp, inputs: &mut Vec<u32>) -> bo
     true
 }
 
-impl Board {
+impl Drive<'_> {
     /// The replay through the period memo (module documentation): a hit does what the
     /// recorded replay did with its own data; a miss checkpoints the I/O into `io`,
     /// replays with lanes, runs the I/O to the window's `end` and records.
@@ -430,7 +430,7 @@ impl Board {
         end: u64,
         io: &mut Option<Checkpoint>,
     ) -> Result<(), Violation> {
-        if self.system.io.is_none() {
+        if self.m.system.io.is_none() {
             self.io_take_back(logs);
             return self.io_merge(logs, banks, own);
         }
@@ -438,14 +438,17 @@ impl Board {
         // memo's states are settled ones. The stores are taken back before the advance
         // unless it runs nothing (a machine not behind, advanced to its own cycle), and the
         // hit's plans are then left out.
-        let (base, back) = match (self.system.io_lazy.as_deref(), self.system.io.as_deref()) {
+        let (base, back) = match (
+            self.m.system.io_lazy.as_deref(),
+            self.m.system.io.as_deref(),
+        ) {
             (Some(l), _) => (l.cycle(), l.end.io.is_behind()),
             (None, io) => (io.map_or(0, Io::cycle), io.is_none_or(Io::is_behind)),
         };
         if back {
             self.io_take_back(logs);
         }
-        self.system.io_advance_to(base, true);
+        self.m.system.io_advance_to(base, true);
         if let Tried::Done(r) = self.io_memo_hit(logs, base, end, own, back) {
             return r;
         }
@@ -471,15 +474,15 @@ impl Board {
         own: u8,
         back: bool,
     ) -> Tried {
-        let keeps = (self.system.io.as_deref_mut()).is_some_and(|io| !io.records_full());
-        let Some(now) = self.system.io.as_deref() else {
+        let keeps = (self.m.system.io.as_deref_mut()).is_some_and(|io| !io.records_full());
+        let Some(now) = self.m.system.io.as_deref() else {
             return Tried::Miss;
         };
         // The live machine's count of changes: a lazy end leaves it as its hit found it.
         let touches = now.touches();
         let probe = Probe {
             span: end.saturating_sub(base),
-            xip: self.system.xip_answers,
+            xip: self.m.system.xip_answers,
             own,
             keeps,
             base,
@@ -487,20 +490,20 @@ impl Board {
             key: std::cell::OnceCell::new(),
         };
         #[cfg(debug_assertions)]
-        for e in &self.io_memo.entries {
+        for e in &self.a.io_memo.entries {
             if e.span == probe.span && crate::io::events::check_this_skip() {
                 let r = Rebase {
                     from: base,
                     to: Rebase::MEMO,
                 };
                 let mut live = now.clone();
-                if let Some(l) = self.system.io_lazy.as_deref() {
+                if let Some(l) = self.m.system.io_lazy.as_deref() {
                     live.become_lazy(l);
                 }
                 live.check_eq_but_data(&e.start, r);
             }
         }
-        let memo = &self.io_memo;
+        let memo = &self.a.io_memo;
         let first = (memo.last)
             .and_then(|l| memo.follow.get(l).copied())
             .unwrap_or([usize::MAX; FOLLOWERS]);
@@ -508,21 +511,21 @@ impl Board {
         let untouched = memo.after.is_some() && memo.after == Some(touches);
         let n = memo.entries.len();
         let mut shared = None;
-        let mark = self.system.io_journal.as_ref().map_or(0, Vec::len);
+        let mark = self.m.system.io_journal.as_ref().map_or(0, Vec::len);
         for i in followers.chain((0..n).filter(|j| !first.contains(j))) {
             let known = untouched && first.contains(&i);
             if !known {
                 // Compared with the entry's start: the live machine.
-                self.system.io_unlazy();
+                self.m.system.io_unlazy();
             }
-            let fits = match (View::of(&self.system), self.io_memo.entries.get(i)) {
+            let fits = match (View::of(&self.m.system), self.a.io_memo.entries.get(i)) {
                 (Some(now), Some(e)) => probe.fits(e, now, logs, known),
                 _ => false,
             };
             if !fits {
                 continue;
             }
-            let e = Arc::clone(&self.io_memo.entries[i]);
+            let e = Arc::clone(&self.a.io_memo.entries[i]);
             if !back && self.io_memo_planned(i, &e, logs, &probe) {
                 self.io_memo_followed_by(i, untouched);
                 return Tried::Done(Ok(()));
@@ -537,9 +540,9 @@ impl Board {
             }
         }
         // Another board's recordings, from the process's store.
-        self.system.io_unlazy();
-        if let Some(now) = self.system.io.as_deref() {
-            let mine = &self.io_memo.entries;
+        self.m.system.io_unlazy();
+        if let Some(now) = self.m.system.io.as_deref() {
+            let mine = &self.a.io_memo.entries;
             shared = SHARED.lock().ok().map(|s| {
                 (s.iter())
                     .filter(|e| {
@@ -555,8 +558,8 @@ impl Board {
                 self.io_take_back(logs);
             }
             if let Some(r) = self.io_memo_try(&e, logs, &probe, mark) {
-                self.io_windows.memo_shared += 1;
-                let i = self.io_memo.keep(e);
+                self.a.io_windows.memo_shared += 1;
+                let i = self.a.io_memo.keep(e);
                 self.io_memo_followed_by(i, untouched);
                 return Tried::Done(r);
             }
@@ -577,9 +580,9 @@ impl Board {
         match self.io_memo_apply(e, logs, probe) {
             Tried::Done(r) => Some(r),
             Tried::Miss => {
-                if let Some(j) = self.system.io_journal.as_mut() {
+                if let Some(j) = self.m.system.io_journal.as_mut() {
                     let undo: Vec<u64> = j.drain(mark.min(j.len())..).collect();
-                    undo_stores(&mut self.system, &undo);
+                    self.m.system.undo_stores(&undo);
                 }
                 None
             }
@@ -589,8 +592,8 @@ impl Board {
     /// Entry `i` gave (or recorded) this window ([`IoMemo::followed_by`]), the I/O's
     /// touches now where it left them.
     pub(super) fn io_memo_followed_by(&mut self, i: usize, linked: bool) {
-        let after = self.system.io.as_deref().map(Io::touches);
-        self.io_memo.followed_by(i, linked, after);
+        let after = self.m.system.io.as_deref().map(Io::touches);
+        self.a.io_memo.followed_by(i, linked, after);
     }
 
     /// Does the replay entry `e` recorded, with the window's data (module documentation):
@@ -604,12 +607,12 @@ impl Board {
     ) -> Tried {
         let base = probe.base;
         // The inputs: the data words the entry's routes read, then the DMA's reads.
-        let inputs = &mut self.io_memo.inputs;
-        data_inputs(&self.system, e, inputs);
+        let inputs = &mut self.a.io_memo.inputs;
+        data_inputs(&self.m.system, e, inputs);
         for step in Order::new(&e.ops, logs, base) {
             let (k, i) = match step {
                 Step::Dma(j) => match e.ops.get(j) {
-                    Some(op) if dma_op(&mut self.system, op, inputs) => continue,
+                    Some(op) if dma_op(&mut self.m.system, op, inputs) => continue,
                     _ => return Tried::Miss,
                 },
                 Step::Core(k, i) => (k, i),
@@ -622,8 +625,8 @@ impl Board {
                 return Tried::Done(Err(Violation::Wait));
             }
             if a.kind == IoKind::Store {
-                sram_put(&mut self.system, a.addr, a.size, a.value);
-            } else if load_le(&self.system.sram, a.addr as usize, a.size.into()) != a.value {
+                sram_put(&mut self.m.system, a.addr, a.size, a.value);
+            } else if load_le(&self.m.system.sram, a.addr as usize, a.size.into()) != a.value {
                 return Tried::Done(Err(Violation::Stale));
             }
         }
@@ -634,9 +637,9 @@ impl Board {
     /// data words and the parts' records by their routes. Where the parts keep no records,
     /// left behind (module documentation, "The lazy end").
     pub(super) fn io_memo_end(&mut self, e: &MemoEntry, probe: &Probe) -> Tried {
-        let inputs = std::mem::take(&mut self.io_memo.inputs);
+        let inputs = std::mem::take(&mut self.a.io_memo.inputs);
         let r = self.io_memo_end_with(e, &inputs, probe);
-        self.io_memo.inputs = inputs;
+        self.a.io_memo.inputs = inputs;
         r
     }
 
@@ -651,12 +654,12 @@ impl Board {
             from: probe.base,
             to: Rebase::MEMO,
         };
-        let Some(now) = self.system.io.as_mut() else {
+        let Some(now) = self.m.system.io.as_mut() else {
             return Tried::Miss;
         };
-        if self.io_memo.lazy && !probe.keeps {
+        if self.a.io_memo.lazy && !probe.keeps {
             // The last hit's end reused (its box and list), else one made from the machine.
-            let mut l = match self.system.io_lazy.take() {
+            let mut l = match self.m.system.io_lazy.take() {
                 Some(mut l) => {
                     l.end = Arc::clone(&e.end);
                     l.back = to_memo.back();
@@ -679,10 +682,10 @@ impl Board {
                 }
             });
             l.drop_absent();
-            self.system.io_lazy = Some(l);
+            self.m.system.io_lazy = Some(l);
         } else {
-            self.system.io_unlazy();
-            let Some(now) = self.system.io.as_mut() else {
+            self.m.system.io_unlazy();
+            let Some(now) = self.m.system.io.as_mut() else {
                 return Tried::Miss;
             };
             let codes = RecordCodes {
@@ -693,8 +696,8 @@ impl Board {
             now.become_but_data(&e.end.io, to_memo.back(), &e.records, Some(codes));
             e.patch(inputs, |_, at, v| now.set_slot_at(at, v));
         }
-        self.system.io_refresh();
-        self.io_windows.memo_hits += 1;
+        self.m.system.io_refresh();
+        self.a.io_windows.memo_hits += 1;
         Tried::Done(Ok(()))
     }
 }

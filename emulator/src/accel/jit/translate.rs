@@ -179,7 +179,7 @@ impl<'a> Translator<'a> {
         // where it is: placed at its first use, it could come after the exit's store of the
         // register (a swap of two registers).
         let written = instrs.iter().try_fold(0u16, |w, i| {
-            crate::memo::usage(&i.instr).map(|u| w | u.writes)
+            crate::accel::memo::usage(&i.instr).map(|u| w | u.writes)
         });
         let pure = mf.with_readonly().with_can_move();
         for (i, &r) in regs.iter().enumerate() {
