@@ -321,6 +321,51 @@ fn keep<T>(list: &mut Vec<T>, item: T) {
     }
 }
 
+// The replay's view of the parts ([`crate::replay::ReplayState`]): every field given its
+// role once. Their records (frames, updates, breaches), which only grow, are not state.
+crate::replay::replay_state! { Ads8688 {
+    same: part, pins, clock_hz, next, auto, lines, falling;
+    cycles: last_rise, last_cs_fall;
+    part: frame;
+    data: codes, shift_in, sdo;
+    lanes: lanes;
+    skip: frames, violations, kept;
+} }
+
+crate::replay::replay_state! { Dac8568 {
+    same: part, pins, clock_hz, lines, bits;
+    cycles: sync_fell, sync_rose, last_fall;
+    data: input, output, shift;
+    lanes: lanes;
+    skip: updates, violations, kept;
+} }
+
+/// The frame under way: its code a data word (a live frame's stays on assignment, 0 where
+/// there was none), its CS fall a cycle.
+impl crate::replay::ReplayState for Option<AdcFrame> {
+    fn eq_but_data(&self, other: &Self, r: crate::replay::Rebase) -> bool {
+        match (self, other) {
+            (None, None) => true,
+            (Some(a), Some(b)) => {
+                r.at(a.cs_fall) == b.cs_fall
+                    && a.channel == b.channel
+                    && a.command == b.command
+                    && a.sclks == b.sclks
+            }
+            _ => false,
+        }
+    }
+    fn assign_but_data(&mut self, other: &Self) {
+        let code = self.as_ref().map_or(0, |f| f.code);
+        *self = other.clone().map(|f| AdcFrame { code, ..f });
+    }
+    fn rebase_cycles(&mut self, r: crate::replay::Rebase) {
+        if let Some(f) = self {
+            f.cs_fall = r.at(f.cs_fall);
+        }
+    }
+}
+
 impl Recorded for Ads8688 {
     type Item = AdcFrame;
     fn kept(&self) -> usize {
@@ -335,16 +380,6 @@ impl Recorded for Ads8688 {
 }
 
 impl Ads8688 {
-    /// Its cycles (the frame under way, the last edges) moved by `r`
-    /// (`crate::io::Io::rebased`); its records are not.
-    pub(crate) fn rebase(&mut self, r: crate::replay::Rebase) {
-        if let Some(f) = self.frame.as_mut() {
-            f.cs_fall = r.at(f.cs_fall);
-        }
-        self.last_rise = self.last_rise.map(|c| r.at(c));
-        self.last_cs_fall = self.last_cs_fall.map(|c| r.at(c));
-    }
-
     /// An ADC of `part` (its timing limits) on `pins`, on a system clocked at `clock_hz`,
     /// every channel reading code 0.
     pub fn new(part: &'static AdcPart, pins: SpiPins, clock_hz: f64) -> Self {
@@ -446,88 +481,6 @@ impl Ads8688 {
         let mut v = u32::from(self.sdo);
         f(&mut v, l.map(|l| std::slice::from_mut(&mut l.sdo)));
         self.sdo = v & 1 != 0;
-    }
-
-    /// Whether it equals `other` but for its data words ([`Ads8688::data_slots`]) and its
-    /// records, its cycles moved by `r` first: every other field named.
-    pub(crate) fn eq_but_data(&self, other: &Ads8688, r: crate::replay::Rebase) -> bool {
-        let Ads8688 {
-            part,
-            pins,
-            clock_hz,
-            codes: _,
-            next,
-            auto,
-            lines,
-            sdo: _,
-            frame,
-            falling,
-            shift_in: _,
-            last_rise,
-            last_cs_fall,
-            frames: _,
-            violations: _,
-            kept: _,
-            lanes: _,
-        } = self;
-        let frames = match (frame, &other.frame) {
-            (None, None) => true,
-            (Some(a), Some(b)) => {
-                r.at(a.cs_fall) == b.cs_fall
-                    && a.channel == b.channel
-                    && a.command == b.command
-                    && a.sclks == b.sclks
-            }
-            _ => false,
-        };
-        std::ptr::eq(*part, other.part)
-            && *pins == other.pins
-            && *clock_hz == other.clock_hz
-            && *next == other.next
-            && *auto == other.auto
-            && *lines == other.lines
-            && frames
-            && *falling == other.falling
-            && last_rise.map(|c| r.at(c)) == other.last_rise
-            && last_cs_fall.map(|c| r.at(c)) == other.last_cs_fall
-    }
-
-    /// Becomes `other` but for its data words ([`Ads8688::data_slots`]) and its records,
-    /// which stay.
-    pub(crate) fn assign_but_data(&mut self, other: &Ads8688) {
-        let Ads8688 {
-            part,
-            pins,
-            clock_hz,
-            codes: _,
-            next,
-            auto,
-            lines,
-            sdo: _,
-            frame,
-            falling,
-            shift_in: _,
-            last_rise,
-            last_cs_fall,
-            frames: _,
-            violations: _,
-            kept: _,
-            lanes: _,
-        } = other;
-        self.part = *part;
-        self.pins = *pins;
-        self.clock_hz = *clock_hz;
-        self.next = *next;
-        self.auto = *auto;
-        self.lines = *lines;
-        // The code of a frame under way is a data word: the live one's stays (0 where
-        // there was none).
-        let code = self.frame.as_ref().map_or(0, |f| f.code);
-        self.frame = frame.clone().map(|f| AdcFrame { code, ..f });
-        self.falling = *falling;
-        self.last_rise = *last_rise;
-        self.last_cs_fall = *last_cs_fall;
-        self.lanes = None;
     }
 
     /// Its `i`-th data word ([`Ads8688::data_slots`]' order; 0 past them).
@@ -888,14 +841,6 @@ impl Recorded for Dac8568 {
 }
 
 impl Dac8568 {
-    /// Its cycles (the last SYNC and SCLK edges) moved by `r` (`crate::io::Io::rebased`);
-    /// its records are not.
-    pub(crate) fn rebase(&mut self, r: crate::replay::Rebase) {
-        self.sync_fell = self.sync_fell.map(|c| r.at(c));
-        self.sync_rose = self.sync_rose.map(|c| r.at(c));
-        self.last_fall = self.last_fall.map(|c| r.at(c));
-    }
-
     /// A DAC of `part` on `pins` (its `sdo` unused), on a system clocked at `clock_hz`,
     /// every output at midscale.
     pub fn new(
@@ -979,67 +924,6 @@ impl Dac8568 {
             self.output[c] = v as u16;
         }
         f(&mut self.shift, l.map(|l| &mut l.shift[..]));
-    }
-
-    /// Whether it equals `other` but for its data words ([`Dac8568::data_slots`]) and its
-    /// records, its cycles moved by `r` first: every other field named.
-    pub(crate) fn eq_but_data(&self, other: &Dac8568, r: crate::replay::Rebase) -> bool {
-        let Dac8568 {
-            part,
-            pins,
-            clock_hz,
-            input: _,
-            output: _,
-            lines,
-            bits,
-            shift: _,
-            sync_fell,
-            sync_rose,
-            last_fall,
-            updates: _,
-            violations: _,
-            kept: _,
-            lanes: _,
-        } = self;
-        std::ptr::eq(*part, other.part)
-            && *pins == other.pins
-            && *clock_hz == other.clock_hz
-            && *lines == other.lines
-            && *bits == other.bits
-            && sync_fell.map(|c| r.at(c)) == other.sync_fell
-            && sync_rose.map(|c| r.at(c)) == other.sync_rose
-            && last_fall.map(|c| r.at(c)) == other.last_fall
-    }
-
-    /// Becomes `other` but for its data words ([`Dac8568::data_slots`]) and its records,
-    /// which stay.
-    pub(crate) fn assign_but_data(&mut self, other: &Dac8568) {
-        let Dac8568 {
-            part,
-            pins,
-            clock_hz,
-            input: _,
-            output: _,
-            lines,
-            bits,
-            shift: _,
-            sync_fell,
-            sync_rose,
-            last_fall,
-            updates: _,
-            violations: _,
-            kept: _,
-            lanes: _,
-        } = other;
-        self.part = *part;
-        self.pins = *pins;
-        self.clock_hz = *clock_hz;
-        self.lines = *lines;
-        self.bits = *bits;
-        self.sync_fell = *sync_fell;
-        self.sync_rose = *sync_rose;
-        self.last_fall = *last_fall;
-        self.lanes = None;
     }
 
     /// Its `i`-th data word ([`Dac8568::data_slots`]' order; 0 past them).

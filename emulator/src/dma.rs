@@ -231,6 +231,42 @@ pub struct Dma {
     pub(crate) lanes: Option<Box<[Word; TRANSFER_FIFO_DEPTH]>>,
 }
 
+// The replay's view of the controller ([`ReplayState`]): every field given its role once.
+crate::replay::replay_state! { Dma {
+    same: ch, intr, inte, intf, timer, timer_acc, timer_credit, last_high, last_low,
+        round_served;
+    cycles: read_free, write_free;
+    part: queue;
+    lanes: lanes;
+} }
+
+/// The transfer FIFO: each transfer's value a data word, its ready cycle a cycle while it
+/// is queued (the entries past the queue's length are compared as they are).
+impl crate::replay::ReplayState for Queue {
+    fn eq_but_data(&self, other: &Queue, r: crate::replay::Rebase) -> bool {
+        self.len == other.len
+            && (self.t.iter().zip(&other.t).enumerate()).all(|(i, (a, b))| {
+                let ready = match i < self.len {
+                    true => r.at(a.ready),
+                    false => a.ready,
+                };
+                a.channel == b.channel && a.addr == b.addr && a.size == b.size && ready == b.ready
+            })
+    }
+    fn assign_but_data(&mut self, other: &Queue) {
+        let values = self.t.map(|t| t.value);
+        *self = *other;
+        for (t, v) in self.t.iter_mut().zip(values) {
+            t.value = v;
+        }
+    }
+    fn rebase_cycles(&mut self, r: crate::replay::Rebase) {
+        for t in &mut self.t[..self.len] {
+            t.ready = r.at(t.ready);
+        }
+    }
+}
+
 impl Default for Dma {
     fn default() -> Self {
         Self::new()
@@ -238,16 +274,6 @@ impl Default for Dma {
 }
 
 impl Dma {
-    /// Its cycles (the transfer FIFO's ready cycles, the ports' free cycles) moved by
-    /// `r` (a period memo of the I/O, `crate::io::Io::rebased`).
-    pub(crate) fn rebase(&mut self, r: crate::replay::Rebase) {
-        for t in &mut self.queue.t[..self.queue.len] {
-            t.ready = r.at(t.ready);
-        }
-        self.read_free = r.at(self.read_free);
-        self.write_free = r.at(self.write_free);
-    }
-
     /// The DMA out of reset: every channel idle with CTRL 0 but `CHAIN_TO` naming itself
     /// (datasheet reset values), no interrupt flags.
     pub fn new() -> Self {
@@ -270,62 +296,6 @@ impl Dma {
             last_low: CHANNELS - 1,
             round_served: 0,
             lanes: None,
-        }
-    }
-
-    /// Whether it equals `other` but for its data words ([`Dma::data_slots`]), its cycles
-    /// moved by `r` first: every other field named (a field added must be decided here).
-    pub(crate) fn eq_but_data(&self, other: &Dma, r: crate::replay::Rebase) -> bool {
-        let Dma {
-            ch,
-            intr,
-            inte,
-            intf,
-            timer,
-            timer_acc,
-            timer_credit,
-            queue,
-            read_free,
-            write_free,
-            last_high,
-            last_low,
-            round_served,
-            lanes: _,
-        } = self;
-        let transfers = queue
-            .t
-            .iter()
-            .zip(&other.queue.t)
-            .enumerate()
-            .all(|(i, (a, b))| {
-                let ready = match i < queue.len {
-                    true => r.at(a.ready),
-                    false => a.ready,
-                };
-                a.channel == b.channel && a.addr == b.addr && a.size == b.size && ready == b.ready
-            });
-        *ch == other.ch
-            && *intr == other.intr
-            && *inte == other.inte
-            && *intf == other.intf
-            && *timer == other.timer
-            && *timer_acc == other.timer_acc
-            && *timer_credit == other.timer_credit
-            && queue.len == other.queue.len
-            && transfers
-            && r.at(*read_free) == other.read_free
-            && r.at(*write_free) == other.write_free
-            && *last_high == other.last_high
-            && *last_low == other.last_low
-            && *round_served == other.round_served
-    }
-
-    /// Becomes `other` but for its data words ([`Dma::data_slots`]), which stay.
-    pub(crate) fn assign_but_data(&mut self, other: &Dma) {
-        let values = self.queue.t.map(|t| t.value);
-        *self = other.clone();
-        for (t, v) in self.queue.t.iter_mut().zip(values) {
-            t.value = v;
         }
     }
 

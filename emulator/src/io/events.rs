@@ -18,6 +18,15 @@ use super::*;
 #[derive(Clone, Copy, Default)]
 pub(super) struct Idle(pub(super) u64);
 
+impl crate::replay::Cycles for Idle {
+    fn eq_at(&self, other: &Self, r: crate::replay::Rebase) -> bool {
+        r.at(self.0) == other.0
+    }
+    fn move_by(&mut self, r: crate::replay::Rebase) {
+        self.0 = r.at(self.0);
+    }
+}
+
 /// In debug builds one idle skip in this many (per thread) is checked against the full run
 /// it skips (`Io::advance_by_events`): checking every one made the tests that run converter
 /// boards ten times slower.
@@ -132,10 +141,10 @@ impl Io {
         if self.lanes.is_some() {
             return self.observe_lanes(cycle, now);
         }
-        if now == self.pins {
+        if now == self.pins() {
             return;
         }
-        self.pins = now;
+        self.set_pins(now);
         let mut gpio_in = 0;
         for a in &mut self.adcs {
             a.observe(cycle, now.0, now.1);
@@ -158,10 +167,10 @@ impl Io {
             return;
         };
         l.pins = pins;
-        if now == self.pins {
+        if now == (self.pin_levels, self.pin_dirs) {
             return;
         }
-        self.pins = now;
+        (self.pin_levels, self.pin_dirs) = now;
         let mut gpio_in = 0;
         let mut in_lanes = CONST;
         for a in &mut self.adcs {
@@ -403,8 +412,8 @@ impl Io {
         let pio = &self.pio[b];
         let (values, dirs) = (pio.pin_values(), pio.pin_dirs());
         let view = (
-            self.pins.0 & !own | values & own,
-            self.pins.1 & !own | dirs & own,
+            self.pin_levels & !own | values & own,
+            self.pin_dirs & !own | dirs & own,
         );
         // Each part: its loop clock, pins, whether it has seen the pins as they are, and
         // whether it may be clocked at the loop's period.
@@ -527,7 +536,7 @@ impl Io {
         self.pio[b].sm_loop_run(n, lp, k, &in_bits);
         let pio = &self.pio[b];
         let (v, d) = (pio.pin_values() & own, pio.pin_dirs() & own);
-        self.pins = (self.pins.0 & !own | v, self.pins.1 & !own | d);
+        self.set_pins((self.pin_levels & !own | v, self.pin_dirs & !own | d));
         let next = x + k * lp.period;
         self.sm_clock[b][n] = next;
         Some(next)
@@ -599,8 +608,8 @@ impl Io {
             let after = (self.pio[b].pin_values(), self.pio[b].pin_dirs());
             if after != before {
                 let (v, d) = (after.0 & own, after.1 & own);
-                self.pins = (self.pins.0 & !own | v, self.pins.1 & !own | d);
-                let now = self.pins;
+                self.set_pins((self.pin_levels & !own | v, self.pin_dirs & !own | d));
+                let now = self.pins();
                 for (k, a) in self.adcs.iter_mut().enumerate() {
                     if adcs & (1 << k) != 0 {
                         let was = a.gpio_in();
@@ -904,11 +913,11 @@ impl Io {
     /// a change of an ADC's output is logged ([`Io::sdo_log`]).
     pub(super) fn observe_changed(&mut self, cycle: u64) {
         let now = self.driven();
-        if now == self.pins {
+        if now == self.pins() {
             return;
         }
-        let changed = (now.0 ^ self.pins.0) | (now.1 ^ self.pins.1);
-        self.pins = now;
+        let changed = (now.0 ^ self.pin_levels) | (now.1 ^ self.pin_dirs);
+        self.set_pins(now);
         for (k, a) in self.adcs.iter_mut().enumerate() {
             if a.pins().observed() & changed != 0 {
                 let was = a.gpio_in();

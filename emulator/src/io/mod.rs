@@ -129,8 +129,10 @@ pub struct Io {
     bus_priority: u32,
     /// The blocks held in reset (RESETS bits of [`resets::ALL`]).
     held: u32,
-    /// Driven levels and directions as the converters saw them last.
-    pins: (u32, u32),
+    /// Driven levels as the converters saw them last (a data word).
+    pin_levels: u32,
+    /// Driven directions as the converters saw them last.
+    pin_dirs: u32,
     /// The levels the converters drive (their SDO pins).
     gpio_in: u32,
     /// Per DMA master (read, write), the last cycle it claimed each SRAM bank.
@@ -203,6 +205,17 @@ impl std::fmt::Debug for Touches {
 }
 
 impl Io {
+    /// The driven levels and directions as the converters saw them last.
+    #[inline]
+    fn pins(&self) -> (u32, u32) {
+        (self.pin_levels, self.pin_dirs)
+    }
+
+    #[inline]
+    fn set_pins(&mut self, (levels, dirs): (u32, u32)) {
+        (self.pin_levels, self.pin_dirs) = (levels, dirs);
+    }
+
     /// The machine out of reset, on a system clocked at `clock_hz`, with `config`'s
     /// converters at their pins; its clock at `cycle`.
     pub fn new(config: &IoConfig, clock_hz: f64, cycle: u64) -> Io {
@@ -224,7 +237,8 @@ impl Io {
             pio_pins: [0; 2],
             bus_priority: 0,
             held: 0,
-            pins: (0, 0),
+            pin_levels: 0,
+            pin_dirs: 0,
             gpio_in: 0,
             dma_claim: [[u64::MAX; BANKS]; 2],
             reach_banks: 0,
@@ -343,7 +357,7 @@ impl Io {
             // GPIOn_STATUS: OUTTOPAD (bit 9), OETOPAD (13), INFROMPAD (17).
             (true, 0) => {
                 let bit = |m: u32| (m >> n) & 1;
-                bit(self.pins.0) << 9 | bit(self.pins.1) << 13 | bit(self.gpio_in) << 17
+                bit(self.pin_levels) << 9 | bit(self.pin_dirs) << 13 | bit(self.gpio_in) << 17
             }
             _ => 0,
         }

@@ -1,6 +1,7 @@
 //! What the window replays and the period memo (`board/io_window.rs`) need of the I/O
 //! machine: its data words named in a fixed order ([`Io::data_slots`]) and located
-//! ([`Io::locate`]), the machine compared and taken but for them ([`Io::eq_but_data`],
+//! ([`Io::locate`]), the machine compared and taken but for them (its [`ReplayState`]:
+//! every field of it and of its parts given its role once, [`replay_state!`];
 //! [`Io::become_but_data`]) with its cycles moved to another time base ([`Io::rebase`]),
 //! the lanes of its data bits while a replay is recorded ([`Io::start_lanes`],
 //! [`Io::stop_lanes`], [`LaneRec`]), checkpoints to undo a window ([`Io::checkpoint`],
@@ -8,6 +9,7 @@
 //! ([`EndState`], [`LazyEnd`]), and the parts' records of a stretch ([`IoRecords`]).
 
 use super::*;
+use crate::replay::{replay_state, ReplayState};
 
 /// Where a data word of the machine lies ([`Io::locate`]): the machine's own (0 the pins'
 /// levels, 1 the inputs), or a part's and its index among the part's.
@@ -220,6 +222,21 @@ impl IoRecords {
     }
 }
 
+// The replay's view of the machine ([`ReplayState`]): every field given its role once, the
+// parts' in their own declarations (`crate::pio::slots`, `crate::dma`, `crate::converters`).
+// `stepwise` is how the live machine runs, `idle` a note to itself, `touches` its count of
+// changes.
+replay_state! { Io {
+    part: pio, dma, adcs, dacs;
+    cycles: cycle, dma_claim, sm_clock, sdo_log, held_until;
+    same: gpio_ctrl, pio_pins, bus_priority, held, pin_dirs, reach_banks, ahead, behind;
+    live: stepwise;
+    data: pin_levels, gpio_in;
+    hint: idle;
+    lanes: lanes;
+    skip: touches;
+} }
+
 impl Io {
     /// Its identity and count of changes but for its data ([`Touches`]): equal between two
     /// moments only if nothing but its data words changed in between.
@@ -260,76 +277,7 @@ impl Io {
         slot
     }
 
-    /// Whether it, its cycles moved by `r`, equals `other` but for its data words
-    /// ([`Io::data_slots`]) and its parts' records: what a period memo's entry is keyed by
-    /// (`board/io_window.rs`). Every field named, in each part too (a field added must be
-    /// decided here); the same as comparing the two with their data words zeroed.
-    pub(crate) fn eq_but_data(&self, other: &Io, r: Rebase) -> bool {
-        let Io {
-            pio,
-            dma,
-            adcs,
-            dacs,
-            cycle,
-            gpio_ctrl,
-            pio_pins,
-            bus_priority,
-            held,
-            pins,
-            gpio_in: _,
-            dma_claim,
-            reach_banks,
-            stepwise,
-            sm_clock,
-            sdo_log,
-            ahead,
-            behind,
-            held_until,
-            idle: _, // a note, not state
-            lanes: _,
-            touches: _, // a note, not state
-        } = self;
-        let at = |a: &[[u64; 4]; 2], b: &[[u64; 4]; 2]| {
-            a.iter()
-                .flatten()
-                .zip(b.iter().flatten())
-                .all(|(&x, &y)| r.at(x) == y)
-        };
-        let logs = sdo_log.len() == other.sdo_log.len()
-            && sdo_log.iter().zip(&other.sdo_log).all(|(a, b)| {
-                a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (r.at(x.0), x.1) == *y)
-            });
-        r.at(*cycle) == other.cycle
-            && *gpio_ctrl == other.gpio_ctrl
-            && *pio_pins == other.pio_pins
-            && *bus_priority == other.bus_priority
-            && *held == other.held
-            && pins.1 == other.pins.1
-            && (dma_claim.iter().flatten())
-                .zip(other.dma_claim.iter().flatten())
-                .all(|(&x, &y)| r.at(x) == y)
-            && *reach_banks == other.reach_banks
-            && *stepwise == other.stepwise
-            && at(sm_clock, &other.sm_clock)
-            && logs
-            && *ahead == other.ahead
-            && *behind == other.behind
-            && at(held_until, &other.held_until)
-            && adcs.len() == other.adcs.len()
-            && dacs.len() == other.dacs.len()
-            && pio.iter().zip(&other.pio).all(|(a, b)| a.eq_but_data(b))
-            && dma.eq_but_data(&other.dma, r)
-            && adcs
-                .iter()
-                .zip(&other.adcs)
-                .all(|(a, b)| a.eq_but_data(b, r))
-            && dacs
-                .iter()
-                .zip(&other.dacs)
-                .all(|(a, b)| a.eq_but_data(b, r))
-    }
-
-    /// [`Io::eq_but_data`] the long way, for debug builds' checks of it: both machines
+    /// [`ReplayState::eq_but_data`] the long way, for debug builds' checks of it: both machines
     /// rebased to `r`'s base, their data words zeroed, their records and how many the
     /// parts keep left out (a board that keeps none meets entries recorded where they
     /// were kept: `board/io_window.rs`, [`Io::keep_records`]), compared whole; and every
@@ -371,7 +319,7 @@ impl Io {
     #[inline]
     pub(crate) fn slot_at(&self, at: Option<Slot>) -> u32 {
         match at {
-            Some(Slot::Io(0)) => self.pins.0,
+            Some(Slot::Io(0)) => self.pin_levels,
             Some(Slot::Io(_)) => self.gpio_in,
             Some(Slot::Pio(b, j)) => self.pio[b].slot(j),
             Some(Slot::Dma(j)) => self.dma.slot(j),
@@ -392,7 +340,7 @@ impl Io {
     #[inline]
     pub(crate) fn set_slot_at(&mut self, at: Option<Slot>, v: u32) {
         match at {
-            Some(Slot::Io(0)) => self.pins.0 = v,
+            Some(Slot::Io(0)) => self.pin_levels = v,
             Some(Slot::Io(_)) => self.gpio_in = v,
             Some(Slot::Pio(b, j)) => self.pio[b].set_slot(j, v),
             Some(Slot::Dma(j)) => {
@@ -434,7 +382,7 @@ impl Io {
         let mut h = 0xcbf2_9ce4_8422_2325u64;
         let mut mix = |v: u64| h = (h ^ v).wrapping_mul(0x0000_0100_0000_01b3);
         mix(r.at(self.cycle));
-        mix(u64::from(self.pins.1));
+        mix(u64::from(self.pin_dirs));
         for c in self.dma_claim.iter().flatten() {
             mix(r.at(*c));
         }
@@ -498,7 +446,10 @@ impl Io {
     /// replay's by their routes.
     pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
         let mut l = self.lanes.as_deref_mut();
-        f(&mut self.pins.0, l.as_deref_mut().map(|l| &mut l.pins[..]));
+        f(
+            &mut self.pin_levels,
+            l.as_deref_mut().map(|l| &mut l.pins[..]),
+        );
         f(&mut self.gpio_in, l.map(|l| &mut l.gpio_in[..]));
         for p in &mut self.pio {
             p.data_slots(f);
@@ -561,25 +512,7 @@ impl Io {
     /// the live machine compared with one: `board/io_window.rs`).
     pub(crate) fn rebase(&mut self, r: Rebase) {
         self.touch();
-        self.idle = Idle(r.at(self.idle.0));
-        self.cycle = r.at(self.cycle);
-        for c in self.dma_claim.as_flattened_mut() {
-            *c = r.at(*c);
-        }
-        for c in self.sm_clock.as_flattened_mut() {
-            *c = r.at(*c);
-        }
-        for c in self.held_until.as_flattened_mut() {
-            *c = r.at(*c);
-        }
-        for log in &mut self.sdo_log {
-            for (c, _) in log {
-                *c = r.at(*c);
-            }
-        }
-        self.dma.rebase(r);
-        self.adcs.iter_mut().for_each(|a| a.rebase(r));
-        self.dacs.iter_mut().for_each(|d| d.rebase(r));
+        self.rebase_cycles(r);
     }
 
     /// Per ADC, then per DAC, its [`Recorded::record_counts`].
@@ -621,57 +554,7 @@ impl Io {
         records: &IoRecords,
         codes: Option<RecordCodes>,
     ) {
-        let Io {
-            pio,
-            dma,
-            adcs,
-            dacs,
-            cycle,
-            gpio_ctrl,
-            pio_pins,
-            bus_priority,
-            held,
-            pins,
-            gpio_in: _,
-            dma_claim,
-            reach_banks,
-            stepwise: _, // the live machine's
-            sm_clock,
-            sdo_log,
-            ahead,
-            behind,
-            held_until,
-            idle,
-            lanes: _,   // none outside a recording
-            touches: _, // the live machine's
-        } = end;
-        for (a, b) in self.pio.iter_mut().zip(pio) {
-            a.assign_but_data(b);
-        }
-        self.dma.assign_but_data(dma);
-        for (a, b) in self.adcs.iter_mut().zip(adcs) {
-            a.assign_but_data(b);
-        }
-        for (a, b) in self.dacs.iter_mut().zip(dacs) {
-            a.assign_but_data(b);
-        }
-        self.cycle = *cycle;
-        self.gpio_ctrl = *gpio_ctrl;
-        self.pio_pins = *pio_pins;
-        self.bus_priority = *bus_priority;
-        self.held = *held;
-        self.pins.1 = pins.1;
-        self.dma_claim = *dma_claim;
-        self.reach_banks = *reach_banks;
-        self.sm_clock = *sm_clock;
-        self.sdo_log.clone_from(sdo_log);
-        if !matches!((&self.ahead, ahead), (Some(a), Some(b)) if std::sync::Arc::ptr_eq(a, b)) {
-            self.ahead.clone_from(ahead);
-        }
-        self.behind = *behind;
-        self.held_until = *held_until;
-        self.idle = *idle;
-        self.lanes = None;
+        self.assign_but_data(end);
         self.rebase(r);
         self.append_records_coded(records, r, codes);
     }

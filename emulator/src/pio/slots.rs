@@ -1,11 +1,12 @@
 //! What a window's replay and the period memo need of a PIO block (`crate::io::slots`): its
 //! data words (the pins' levels, the input synchroniser, each state machine's X, Y, ISR, OSR
 //! and FIFO words) named in a fixed order ([`Pio::data_slots`]), the block compared and taken
-//! but for them ([`Pio::eq_but_data`], [`Pio::assign_but_data`]), and, while a replay is
+//! but for them (its `crate::replay::ReplayState`, each field's role declared once), and, while a replay is
 //! recorded, the lanes of each data bit (`crate::lanes`: [`PioLanes`]) that the execution
 //! (`exec.rs`) moves with the data and fixes where data decides something.
 
 use super::*;
+use crate::replay::replay_state;
 
 /// The lanes of a [`Fifo`]'s words (`crate::lanes`), kept as its words are: pushed at the
 /// FIFO's length before the push, popped from the front.
@@ -131,140 +132,28 @@ pub(super) fn map_lanes(base: u32, count: u32, w: &Word) -> Word {
     lanes::rotl(&lanes::and(w, mask), base)
 }
 
-impl StateMachine {
-    /// Whether it equals `other` but for its data words (X, Y, ISR, OSR, the FIFOs'
-    /// words): every other field named.
-    pub(super) fn eq_but_data(&self, other: &StateMachine) -> bool {
-        let StateMachine {
-            clkdiv,
-            execctrl,
-            shiftctrl,
-            pinctrl,
-            pc,
-            x: _,
-            y: _,
-            isr: _,
-            osr: _,
-            isr_count,
-            osr_count,
-            tx,
-            rx,
-            delay,
-            exec,
-            current,
-            acc,
-            irq_waiting,
-            stalled,
-        } = self;
-        *clkdiv == other.clkdiv
-            && *execctrl == other.execctrl
-            && *shiftctrl == other.shiftctrl
-            && *pinctrl == other.pinctrl
-            && *pc == other.pc
-            && *isr_count == other.isr_count
-            && *osr_count == other.osr_count
-            && tx.len == other.tx.len
-            && rx.len == other.rx.len
-            && *delay == other.delay
-            && *exec == other.exec
-            && *current == other.current
-            && *acc == other.acc
-            && *irq_waiting == other.irq_waiting
-            && *stalled == other.stalled
-    }
+// The replay's view of a block (`crate::replay::ReplayState`): every field given its role once.
+replay_state! { Fifo {
+    same: len;
+    data: words;
+} }
 
-    /// Becomes `other` but for its data words, which stay: every other field named.
-    pub(super) fn assign_but_data(&mut self, other: &StateMachine) {
-        let StateMachine {
-            clkdiv,
-            execctrl,
-            shiftctrl,
-            pinctrl,
-            pc,
-            x: _,
-            y: _,
-            isr: _,
-            osr: _,
-            isr_count,
-            osr_count,
-            tx,
-            rx,
-            delay,
-            exec,
-            current,
-            acc,
-            irq_waiting,
-            stalled,
-        } = other;
-        self.clkdiv = *clkdiv;
-        self.execctrl = *execctrl;
-        self.shiftctrl = *shiftctrl;
-        self.pinctrl = *pinctrl;
-        self.pc = *pc;
-        self.isr_count = *isr_count;
-        self.osr_count = *osr_count;
-        self.tx.len = tx.len;
-        self.rx.len = rx.len;
-        self.delay = *delay;
-        self.exec = *exec;
-        self.current = *current;
-        self.acc = *acc;
-        self.irq_waiting = *irq_waiting;
-        self.stalled = *stalled;
-    }
-}
+replay_state! { StateMachine {
+    same: clkdiv, execctrl, shiftctrl, pinctrl, pc, isr_count, osr_count, delay, exec,
+        current, acc, irq_waiting, stalled;
+    part: tx, rx;
+    data: x, y, isr, osr;
+} }
+
+// The lanes are left as they are (none outside a recording).
+replay_state! { Pio {
+    same: instr, enabled, irq, sync_bypass, out_dirs, config_epoch;
+    part: sm;
+    data: sync, out_values;
+    skip: lanes;
+} }
 
 impl Pio {
-    /// Whether it equals `other` but for its data words ([`Pio::data_slots`]): every other
-    /// field named (a field added must be decided here).
-    pub(crate) fn eq_but_data(&self, other: &Pio) -> bool {
-        let Pio {
-            instr,
-            sm,
-            enabled,
-            irq,
-            sync_bypass,
-            sync: _,
-            out_values: _,
-            out_dirs,
-            config_epoch,
-            lanes: _,
-        } = self;
-        *instr == other.instr
-            && *enabled == other.enabled
-            && *irq == other.irq
-            && *sync_bypass == other.sync_bypass
-            && *out_dirs == other.out_dirs
-            && *config_epoch == other.config_epoch
-            && sm.iter().zip(&other.sm).all(|(a, b)| a.eq_but_data(b))
-    }
-
-    /// Becomes `other` but for its data words ([`Pio::data_slots`]), which stay: every
-    /// other field named.
-    pub(crate) fn assign_but_data(&mut self, other: &Pio) {
-        let Pio {
-            instr,
-            sm,
-            enabled,
-            irq,
-            sync_bypass,
-            sync: _,
-            out_values: _,
-            out_dirs,
-            config_epoch,
-            lanes: _,
-        } = other;
-        self.instr = *instr;
-        self.enabled = *enabled;
-        self.irq = *irq;
-        self.sync_bypass = *sync_bypass;
-        self.out_dirs = *out_dirs;
-        self.config_epoch = *config_epoch;
-        for (a, b) in self.sm.iter_mut().zip(sm) {
-            a.assign_but_data(b);
-        }
-    }
-
     /// Sets its `i`-th data word ([`Pio::data_slots`]' order, `i` below [`Pio::SLOTS`]).
     #[inline]
     pub(crate) fn set_slot(&mut self, i: usize, v: u32) {

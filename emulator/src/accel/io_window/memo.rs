@@ -11,7 +11,7 @@
 //! window's end (lazily run or not, the machine's state is the same).
 //!
 //! The key, none of it data: the I/O at the window's start, its cycles moved to the memo's
-//! time base ([`Rebase`]), compared but for its data words ([`Io::eq_but_data`]) and its
+//! time base ([`Rebase`]), compared but for its data words ([`ReplayState::eq_but_data`]) and its
 //! parts' records; the window's end; the cores' register stores (cycles from the start,
 //! addresses, values); whether the DMA may read flash; the board's own banks; and the
 //! *constraints*: the bits of data that decided something in the recording (a `JMP` on
@@ -61,6 +61,7 @@
 //!
 
 use super::*;
+use crate::replay::ReplayState;
 
 /// The period memo (module documentation): the replays recorded, at most
 /// [`MEMO_ENTRIES`], the oldest replaced first once it is full.
