@@ -94,62 +94,40 @@ impl<T: PartialEq> Cycles for (u64, T) {
     }
 }
 
-impl<T: Cycles, const N: usize> Cycles for [T; N] {
-    #[inline]
-    fn eq_at(&self, other: &Self, r: Rebase) -> bool {
-        self.iter().zip(other).all(|(a, b)| a.eq_at(b, r))
-    }
-    #[inline]
-    fn move_by(&mut self, r: Rebase) {
-        self.iter_mut().for_each(|c| c.move_by(r));
-    }
-}
+/// Arrays and `Vec`s of cycles and of parts, item by item (a `Vec`'s lengths compared too:
+/// parts of one kind, as many on both sides, are assigned pairwise).
+macro_rules! items {
+    ($ty:ty $(, const $n:ident: usize)?) => {
+        impl<T: Cycles $(, const $n: usize)?> Cycles for $ty {
+            #[inline]
+            fn eq_at(&self, other: &Self, r: Rebase) -> bool {
+                self.len() == other.len() && self.iter().zip(other).all(|(a, b)| a.eq_at(b, r))
+            }
+            #[inline]
+            fn move_by(&mut self, r: Rebase) {
+                self.iter_mut().for_each(|c| c.move_by(r));
+            }
+        }
 
-impl<T: Cycles> Cycles for Vec<T> {
-    #[inline]
-    fn eq_at(&self, other: &Self, r: Rebase) -> bool {
-        self.len() == other.len() && self.iter().zip(other).all(|(a, b)| a.eq_at(b, r))
-    }
-    #[inline]
-    fn move_by(&mut self, r: Rebase) {
-        self.iter_mut().for_each(|c| c.move_by(r));
-    }
+        impl<T: ReplayState $(, const $n: usize)?> ReplayState for $ty {
+            #[inline]
+            fn eq_but_data(&self, other: &Self, r: Rebase) -> bool {
+                self.len() == other.len()
+                    && self.iter().zip(other).all(|(a, b)| a.eq_but_data(b, r))
+            }
+            #[inline]
+            fn assign_but_data(&mut self, other: &Self) {
+                (self.iter_mut().zip(other)).for_each(|(a, b)| a.assign_but_data(b));
+            }
+            #[inline]
+            fn rebase_cycles(&mut self, r: Rebase) {
+                self.iter_mut().for_each(|x| x.rebase_cycles(r));
+            }
+        }
+    };
 }
-
-impl<T: ReplayState, const N: usize> ReplayState for [T; N] {
-    #[inline]
-    fn eq_but_data(&self, other: &Self, r: Rebase) -> bool {
-        self.iter().zip(other).all(|(a, b)| a.eq_but_data(b, r))
-    }
-    #[inline]
-    fn assign_but_data(&mut self, other: &Self) {
-        self.iter_mut()
-            .zip(other)
-            .for_each(|(a, b)| a.assign_but_data(b));
-    }
-    #[inline]
-    fn rebase_cycles(&mut self, r: Rebase) {
-        self.iter_mut().for_each(|x| x.rebase_cycles(r));
-    }
-}
-
-/// Parts of one kind, as many on both sides (a board's converters): assigned pairwise.
-impl<T: ReplayState> ReplayState for Vec<T> {
-    #[inline]
-    fn eq_but_data(&self, other: &Self, r: Rebase) -> bool {
-        self.len() == other.len() && self.iter().zip(other).all(|(a, b)| a.eq_but_data(b, r))
-    }
-    #[inline]
-    fn assign_but_data(&mut self, other: &Self) {
-        self.iter_mut()
-            .zip(other)
-            .for_each(|(a, b)| a.assign_but_data(b));
-    }
-    #[inline]
-    fn rebase_cycles(&mut self, r: Rebase) {
-        self.iter_mut().for_each(|x| x.rebase_cycles(r));
-    }
-}
+items!([T; N], const N: usize);
+items!(Vec<T>);
 
 /// [`ReplayState`] for a device from one list naming each of its fields once with its role
 /// (a field left out, or named twice, does not compile):
