@@ -1,5 +1,5 @@
 //! The replay's vocabulary, shared by every device that a window's replay or a period memo
-//! (`board/io_window.rs`) takes apart: time bases ([`Rebase`]: a recorded state's cycles
+//! (`accel/io_window/`) takes apart: time bases ([`Rebase`]: a recorded state's cycles
 //! moved to where it is given again).
 
 /// Cycles moved from one time base to another (a window's start to a period memo's and

@@ -517,7 +517,7 @@ fn fetch_allowed(sys: &System, pc: u32, size: u32) -> bool {
 /// store's old word is appended to `journal` (the run ends before a store that finds it
 /// full, its capacity) so that the caller can undo the run. With `io` (a window on a board
 /// with an I/O: its log, the DMA's banks `L`, and those of `L` the core may access,
-/// `board/io_window.rs`), memos that touch `L` apply too, logging their accesses there,
+/// `accel/io_window/`), memos that touch `L` apply too, logging their accesses there,
 /// and native code does and logs its single loads and stores to the third mask's banks
 /// and its word stores to the I/O's registers ([`jit::Confine::io`]). `Ok` when the core
 /// reached `limit`.

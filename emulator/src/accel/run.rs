@@ -311,7 +311,7 @@ impl Drive<'_> {
                 return StopReason::CycleLimit;
             }
             // Both cores as independent machines, where their banks allow
-            // (`board/window.rs`); the lock-step loop below otherwise.
+            // (`accel/window.rs`); the lock-step loop below otherwise.
             if now >= self.a.window_at && self.windows_allowed() {
                 match self.window(limit) {
                     Window::Kept => continue,

@@ -38,7 +38,7 @@
 //!
 //! On a board with converters (`crate::io`) the banks its DMA may reach are the cores' own
 //! too: there their accesses are logged and the I/O replays them after the cores' run, the
-//! window undone where the lock-step run would have differed (`board/io_window.rs`).
+//! window undone where the lock-step run would have differed (`accel/io_window/`).
 //!
 //! On the firmware images each core's code, data, stack and sensor and DAC window words
 //! lie in its own banks, so a window spans a whole sample period of both cores' sample
@@ -95,7 +95,7 @@ struct Confined<'a> {
     /// A call being recorded ([`crate::accel::memo`]): its SRAM accesses are logged, any other
     /// access spoils it.
     log: Option<&'a mut Recording>,
-    /// On a board with an I/O (`board/io_window.rs`): the accesses the I/O's replay needs.
+    /// On a board with an I/O (`accel/io_window/`): the accesses the I/O's replay needs.
     io: Option<IoLog<'a>>,
 }
 
@@ -312,7 +312,7 @@ impl Bus for Confined<'_> {
 impl Drive<'_> {
     /// Whether the cores may run in windows now: the block engine, disjoint own banks,
     /// core 1 launched, no address watched for profiling, no I/O attached or one whose DMA
-    /// wins the banks against both cores (`board/io_window.rs`: its accesses then do not
+    /// wins the banks against both cores (`accel/io_window/`: its accesses then do not
     /// depend on the cores'), both cores running or asleep.
     pub(super) fn windows_allowed(&self) -> bool {
         let [a, b] = self.cfg.own_banks;

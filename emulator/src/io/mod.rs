@@ -58,9 +58,9 @@
 //! [`Io`] is attached. The cores' accesses are served in the lock-step's issue order: an
 //! access whose data phase is earlier than one of the other core's already served finds the
 //! machine where that one left it. Where the DMA wins against both cores, the cores run in
-//! windows ahead of the machine (`board/window.rs`), which then replays their accesses to
+//! windows ahead of the machine (`accel/window.rs`), which then replays their accesses to
 //! its banks and their stores to its registers in that order, the window undone where the
-//! lock-step run would have differed (`board/io_window.rs`); a replay whose control
+//! lock-step run would have differed (`accel/io_window/`); a replay whose control
 //! repeats a recorded one's takes its effect instead, with its own data (the period memo
 //! there). For it the machine names its data words (`Io::data_slots`: the state
 //! machines' registers and FIFO words, the pins' levels, the DMA's transfers in flight, the
@@ -174,7 +174,7 @@ pub struct Io {
 
 /// A machine's identity (unique in the process) and a count of its changes but for its
 /// data: a period memo knows from it that the machine is still as its last replay left it
-/// (`board/io_window.rs`). A note, not state: machines that differ only in it are equal.
+/// (`accel/io_window/`). A note, not state: machines that differ only in it are equal.
 #[derive(Clone, Copy)]
 struct Touches {
     id: u64,

@@ -22,7 +22,7 @@ pub(crate) struct Memory<'a> {
     /// while a window's I/O is replayed (`System::io_journal`).
     pub journal: Option<&'a mut Vec<u64>>,
     /// What the DMA does while a window's replay is recorded with lanes for the period
-    /// memo (`System::io_rec`, `board/io_window.rs`).
+    /// memo (`System::io_rec`, `accel/io_window/`).
     pub rec: Option<&'a mut LaneRec>,
 }
 

@@ -1,4 +1,4 @@
-//! What the window replays and the period memo (`board/io_window.rs`) need of the I/O
+//! What the window replays and the period memo (`accel/io_window/`) need of the I/O
 //! machine: its data words named in a fixed order ([`Io::data_slots`]) and located
 //! ([`Io::locate`]), the machine compared and taken but for them (its [`ReplayState`]:
 //! every field of it and of its parts given its role once, [`replay_state!`];
@@ -66,7 +66,7 @@ pub(crate) enum LaneOp {
 }
 
 /// What the DMA does to SRAM and the banks while a replay is recorded with lanes
-/// (`crate::lanes`, the period memo of `board/io_window.rs`).
+/// (`crate::lanes`, the period memo of `accel/io_window/`).
 #[derive(Clone, Default)]
 pub(crate) struct LaneRec {
     /// The next input's number: the data slots' come first, then one per SRAM read.
@@ -109,7 +109,7 @@ pub(crate) struct Checkpoint {
     pub(super) counts: Vec<[usize; 2]>,
 }
 
-/// How a period memo's hit gives its records' codes (`board/io_window.rs`): per ADC its
+/// How a period memo's hit gives its records' codes (`accel/io_window/`): per ADC its
 /// frames' routes, per DAC its updates', and the inputs they read.
 #[derive(Clone, Copy)]
 pub(crate) struct RecordCodes<'a> {
@@ -118,7 +118,7 @@ pub(crate) struct RecordCodes<'a> {
     pub inputs: &'a [u32],
 }
 
-/// A period memo entry's end state (`board/io_window.rs`): the machine at [`Rebase::MEMO`]
+/// A period memo entry's end state (`accel/io_window/`): the machine at [`Rebase::MEMO`]
 /// without its records, and its data slots ([`Io::data_slots`]' order) that have no place in
 /// it (a word written there is dropped, and reads 0: an ADC's frame code without a frame).
 #[derive(Debug)]
@@ -148,7 +148,7 @@ impl EndState {
     }
 }
 
-/// A machine left behind by a period memo's hit (`board/io_window.rs`, "The lazy end"): the
+/// A machine left behind by a period memo's hit (`accel/io_window/`, "The lazy end"): the
 /// machine is `end` moved by `back` but for its data words, which are `data`
 /// ([`Io::data_slots`]' order). Made the live machine by [`Io::become_lazy`] before anything
 /// but the period memo looks at it.
@@ -176,8 +176,8 @@ impl LazyEnd {
     }
 }
 
-/// The parts' records of a stretch (a period memo's, `board/io_window.rs`; a rest period's,
-/// `board/rest.rs`): per ADC its frames, per DAC its updates, in [`IoConfig`] order.
+/// The parts' records of a stretch (a period memo's, `accel/io_window/`; a rest period's,
+/// `accel/rest.rs`): per ADC its frames, per DAC its updates, in [`IoConfig`] order.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct IoRecords {
     pub(super) adcs: Vec<Vec<AdcFrame>>,
@@ -280,7 +280,7 @@ impl Io {
     /// [`ReplayState::eq_but_data`] the long way, for debug builds' checks of it: both machines
     /// rebased to `r`'s base, their data words zeroed, their records and how many the
     /// parts keep left out (a board that keeps none meets entries recorded where they
-    /// were kept: `board/io_window.rs`, [`Io::keep_records`]), compared whole; and every
+    /// were kept: `accel/io_window/`, [`Io::keep_records`]), compared whole; and every
     /// data word read by [`Io::slot`] as [`Io::data_slots`] visits it.
     #[cfg(debug_assertions)]
     pub(crate) fn check_eq_but_data(&self, other: &Io, r: Rebase) {
@@ -442,7 +442,7 @@ impl Io {
     /// rest of the machine decides (the same for equal machines but for their data): the
     /// pins' levels as the converters saw them, the levels the converters drive, then the
     /// PIO blocks' ([`Pio::data_slots`]), the DMA's, the ADCs' and the DACs'. A period memo
-    /// (`board/io_window.rs`) compares machines without them, and gives a recorded
+    /// (`accel/io_window/`) compares machines without them, and gives a recorded
     /// replay's by their routes.
     pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
         let mut l = self.lanes.as_deref_mut();
@@ -464,7 +464,7 @@ impl Io {
     }
 
     /// The machine as it is now, to go back to with [`Io::rewind`] (a window's undo,
-    /// `board/io_window.rs`): a clone but for the parts' records (frames, updates,
+    /// `accel/io_window/`): a clone but for the parts' records (frames, updates,
     /// violations), which only grow meanwhile, of which it keeps the counts.
     pub(crate) fn checkpoint(&mut self) -> Checkpoint {
         let adcs: Vec<Ads8688> = self.adcs.iter_mut().map(|a| a.without_records()).collect();
@@ -501,7 +501,7 @@ impl Io {
     }
 
     /// A clone of the machine without its parts' records (as [`Io::checkpoint`]), its
-    /// cycles moved by `r`: a period memo's key or end state (`board/io_window.rs`).
+    /// cycles moved by `r`: a period memo's key or end state (`accel/io_window/`).
     pub(crate) fn rebased(&mut self, r: Rebase) -> Box<Io> {
         let mut io = self.checkpoint().io;
         io.rebase(r);
@@ -509,7 +509,7 @@ impl Io {
     }
 
     /// Its cycles moved by `r`, its parts' records not (a period memo's key, end state, or
-    /// the live machine compared with one: `board/io_window.rs`).
+    /// the live machine compared with one: `accel/io_window/`).
     pub(crate) fn rebase(&mut self, r: Rebase) {
         self.touch();
         self.rebase_cycles(r);
@@ -546,7 +546,7 @@ impl Io {
     /// ([`Io::data_slots`]), which stay as they are, its parts' records kept, and appends
     /// `records` moved by `r`, their codes given by `codes` (routes and inputs:
     /// [`IoRecords::routes`]) when some: a period memo's hit, which then sets the data
-    /// words its routes give (`board/io_window.rs`).
+    /// words its routes give (`accel/io_window/`).
     pub(crate) fn become_but_data(
         &mut self,
         end: &Io,
@@ -565,7 +565,7 @@ impl Io {
         self.data_slots(&mut |v, _| into.push(*v));
     }
 
-    /// Becomes what `lazy` stands for (`board/io_window.rs`, "The lazy end"): its end moved
+    /// Becomes what `lazy` stands for (`accel/io_window/`, "The lazy end"): its end moved
     /// back, with its data words.
     pub(crate) fn become_lazy(&mut self, lazy: &LazyEnd) {
         // Not a change of the machine, which was this since its hit: its count stays.
@@ -677,7 +677,7 @@ mod tests {
 
     #[test]
     fn a_lazy_end_is_the_machine_with_its_data_words() {
-        // A hit's flat list of data words (`board/io_window.rs`, "The lazy end") holds what
+        // A hit's flat list of data words (`accel/io_window/`, "The lazy end") holds what
         // the machine made from it holds: every word 1 (each slot's width keeps it), but
         // those with no place in the end (an ADC's frame code without a frame) 0.
         let mut live = io();

@@ -16,7 +16,7 @@
 //! store, the word it overwrote ([`IoAccess`]). Native code does and logs single loads and
 //! stores there (`jit::abi`'s `io_sram`, called before the access it then does as in any
 //! of the core's banks); multiple transfers and exception frames take the general path,
-//! whose bus (`board/window.rs`, `Confined`) logs the same, and no code is fetched from
+//! whose bus (`accel/window.rs`, `Confined`) logs the same, and no code is fetched from
 //! `L`. A memoized call ([`crate::accel::memo`]) recorded in such a window keeps its accesses to
 //! `L` (cycles from its entry); a hit under the same `L` logs them at the hit's cycles,
 //! each store with the word before the memo (the replay needs only the oldest version of a

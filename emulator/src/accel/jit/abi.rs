@@ -36,7 +36,7 @@ pub(crate) struct Ctx {
     /// Confined code only: entries available; a store that finds the journal full leaves
     /// before it ([`Exit::General`]).
     pub journal_cap: u64,
-    /// Confined code in a window on a board with converters only (`board/io_window.rs`):
+    /// Confined code in a window on a board with converters only (`accel/io_window/`):
     /// bit *b* set when a single load or store to SRAM bank *b* (not in [`Confine::allowed`]:
     /// the DMA's) is done inline and logged ([`io_sram`]); 0 elsewhere.
     pub io_banks: u64,
@@ -131,9 +131,9 @@ pub(crate) unsafe extern "C" fn ppb_store(core: *mut Core, at: u64, value: u32) 
 }
 
 /// A single load or store by native code to SRAM offset `off` in one of [`Ctx::io_banks`]
-/// (a bank the DMA may reach, in a window: `board/io_window.rs`), called before the
+/// (a bank the DMA may reach, in a window: `accel/io_window/`), called before the
 /// access, which the native code then does as in any allowed bank (arbitration, journal):
-/// logs it as the window's bus (`board/window.rs`, `Confined`) logs the general path's —
+/// logs it as the window's bus (`accel/window.rs`, `Confined`) logs the general path's —
 /// the instruction's start cycle `start`, the data phase `start + 1` (a single LDR or
 /// STR's, DDI0484 3.3), the offset, the size, the value loaded (the bytes in SRAM now) or
 /// the register stored (`value`, whole, as the executor passes it), and a store's old

@@ -31,7 +31,7 @@
 //! store, since those can pend, enable or restart something); in a window on a board with
 //! converters, a single access to the core's bank the DMA reaches and a word store to the
 //! DMA's or PIOs' registers are logged for the I/O's replay ([`abi::io_sram`],
-//! [`abi::io_reg`]; `board/io_window.rs`), as the window's bus logs them. Any other address
+//! [`abi::io_reg`]; `accel/io_window/`), as the window's bus logs them. Any other address
 //! (peripherals, SIO, other PPB stores, the boot ROM, an unaligned or unmapped access)
 //! leaves the native code *before* the instruction, with every register, flag and counter
 //! as at its start, and the board's general path executes it. The caller runs a region

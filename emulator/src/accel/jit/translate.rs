@@ -58,7 +58,7 @@ pub(crate) enum Flavour {
     ///
     /// The third field: the code also does and logs a single access to a bank of the
     /// I/O's that the mask does not allow, and logs a word store to its registers (a
-    /// window on a board with converters, `board/io_window.rs`: [`abi::io_sram`],
+    /// window on a board with converters, `accel/io_window/`: [`abi::io_sram`],
     /// [`abi::io_reg`]); without it such an access leaves, as any other outside the mask.
     ///
     /// [`abi::Confine::allowed`]: super::abi::Confine::allowed

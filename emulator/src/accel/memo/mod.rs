@@ -36,7 +36,7 @@
 //! condition), every instruction starts before the run's limit (entry cycle + the call's
 //! cycles at most the limit), its banks allowed, its stores journaled like native code's
 //! (room for every word), and no page it stores to holding decoded code (else the store
-//! would have started a new epoch). In a window on a board with an I/O (`board/io_window.rs`)
+//! would have started a new epoch). In a window on a board with an I/O (`accel/io_window/`)
 //! the banks its DMA may reach are not allowed, but a memo recorded there under the same
 //! banks holds its accesses to them (their cycles from the entry, values) and a hit logs
 //! them for the I/O's replay, which checks them as the run's own. Loads from a page that held decoded code when they
@@ -245,7 +245,7 @@ impl Memo {
 
     /// Before [`Memo::apply`] at `entry`: its accesses to the DMA's banks into a window's
     /// `log`, at the hit's cycles, each store with the word as it is before the memo (the
-    /// replay takes the stored words back to the oldest of those, `board/io_window.rs`).
+    /// replay takes the stored words back to the oldest of those, `accel/io_window/`).
     fn log_io(&mut self, entry: u64, core: &Core, sys: &System, log: &mut Vec<IoAccess>) {
         if self.io.is_empty() {
             return;

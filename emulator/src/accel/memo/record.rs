@@ -246,7 +246,7 @@ pub(crate) struct Recording {
     pub(super) spoiled: bool,
     /// In a window on a board with an I/O: the banks its DMA may reach (`L`), and the
     /// call's accesses to them, as the window's log holds them but for cycles from the
-    /// entry (`board/io_window.rs`).
+    /// entry (`accel/io_window/`).
     pub(crate) io_banks: u8,
     pub(super) io: Vec<IoAccess>,
     /// Registers that may be the call's base ([`BASES`] at the entry): read, before the
