@@ -442,6 +442,27 @@ fn a_toy_key_of_known_weight_spring_and_friction_regulates_to_them() {
     assert!(s.touches.iter().filter(|r| r.strike.is_some()).count() >= 20);
 }
 
+/// Every figure of `sheet` is inside `dynamic`, but for the 3.5 g treble hammer's travel
+/// time against Goebl's fit (see below); what is outside is printed.
+fn inside_but_the_treble_travel_time(
+    sheet: &Sheet,
+    dynamic: &regulate::spec::Spec,
+    m_h: &str,
+    numeric: &str,
+) {
+    let out = outside_of(sheet, dynamic);
+    println!("M_h = {m_h}, {numeric}: outside the dynamic spec: {out:?}");
+    let allowed = if m_h == "3.5 g" {
+        "TravelTimeToFit"
+    } else {
+        "-"
+    };
+    assert!(
+        out.iter().all(|o| o.starts_with(allowed)),
+        "M_h = {m_h}, {numeric}: {out:?}"
+    );
+}
+
 /// Issue 70: the grand piano's dynamic sheet. At the middle hammer (8 g) every figure lies
 /// inside the dynamic spec, in f64 and in the firmware's fixed point: the softest strike and
 /// the loudest, the hammer/key speed ratio over p–f, travel times against Goebl's fit, struck
@@ -465,17 +486,7 @@ fn the_grand_piano_moves_as_measured_grand_actions_move() {
                 m.figure.unit()
             );
         }
-        let out = outside_of(&s, &dynamic);
-        println!("M_h = {m_h}: outside the dynamic spec: {out:?}");
-        let allowed: &[&str] = if m_h == "3.5 g" {
-            &["TravelTimeToFit"]
-        } else {
-            &[]
-        };
-        assert!(
-            out.iter().all(|o| allowed.iter().any(|a| o.contains(a))),
-            "M_h = {m_h}: {out:?}"
-        );
+        inside_but_the_treble_travel_time(&s, &dynamic, m_h, "f64");
         for f in [Figure::SpeedRatioMin, Figure::SpeedRatioMax] {
             let r = figure(&s, f);
             assert!((3.5..=6.5).contains(&r), "M_h = {m_h}: {f:?} {r}");
@@ -488,16 +499,6 @@ fn the_grand_piano_moves_as_measured_grand_actions_move() {
         let p = shipped("grand_piano", &[("M_h", m_h)]);
         let fp = tactus_compiler::fixed::FixedProgram::new(&p);
         let s = fixed_jit_sheet_with(&p, &fp, &Config::default());
-        let out = outside_of(&s, &dynamic);
-        println!("M_h = {m_h}, fixed point: outside the dynamic spec: {out:?}");
-        let allowed: &[&str] = if m_h == "3.5 g" {
-            &["TravelTimeToFit"]
-        } else {
-            &[]
-        };
-        assert!(
-            out.iter().all(|o| allowed.iter().any(|a| o.contains(a))),
-            "M_h = {m_h}, fixed point: {out:?}"
-        );
+        inside_but_the_treble_travel_time(&s, &dynamic, m_h, "fixed point");
     }
 }
