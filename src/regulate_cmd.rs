@@ -13,12 +13,20 @@ use tactus_host::regulate::{spec, Config, Figure};
 #[derive(Debug, clap::Args)]
 #[command(after_long_help = figures_help())]
 pub struct RegulateArgs {
-    /// Instrument file or built-in name (grand_piano, harpsichord, harpsichord_2x8, hammond).
-    #[arg(default_value = "grand_piano")]
-    pub file: String,
-    /// Override a param: `--param M_h=11 g` (repeatable), e.g. a key of a graded keyboard.
+    /// Instrument file or built-in name (grand_piano, harpsichord, harpsichord_2x8, hammond)
+    /// [default: grand_piano, or with `--layout` the key's instrument].
+    pub file: Option<String>,
+    /// Override a param: `--param M_h=11 g` (repeatable); with `--layout`, on top of the key's
+    /// graded params.
     #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_override)]
     pub params: Vec<(String, String)>,
+    /// Regulate one key of a keyboard layout (a `.toml` file or a built-in name, `grand88`):
+    /// its instrument with its graded params, as the keyboard compiles it. Needs `--key`.
+    #[arg(long, value_name = "LAYOUT", requires = "key", conflicts_with = "file")]
+    pub layout: Option<String>,
+    /// The key of `--layout` to regulate, a MIDI number (grand88: 21 = A0 … 108 = C8).
+    #[arg(long, value_name = "MIDI", requires = "layout")]
+    pub key: Option<u8>,
     /// A spec of ranges (TOML, e.g. instruments/specs/concert_grand.toml, or the dynamic
     /// one, concert_grand_dynamic.toml; repeatable): a verdict per figure, exit 1 when one is
     /// outside its range or not measured.
@@ -70,6 +78,7 @@ fn figures_help() -> String {
          Examples: tactus regulate grand_piano --spec instruments/specs/concert_grand.toml\n\
          \x20         tactus regulate grand_piano --spec instruments/specs/concert_grand.toml --spec instruments/specs/concert_grand_dynamic.toml\n\
          \x20         tactus regulate grand_piano --param M_h=11 g     # grand88's bass hammer\n\
+         \x20         tactus regulate --layout grand88 --key 108       # C8 of grand88, as the keyboard compiles it\n\
          \x20         tactus regulate harpsichord --numeric fixed",
     );
     s
@@ -93,9 +102,31 @@ fn run_inner(args: &RegulateArgs) -> Result<ExitCode, String> {
         .iter()
         .map(|p| spec::read(p))
         .collect::<Result<Vec<_>, _>>()?;
-    let src = source::load(&args.file)?;
-    let Some(lowered) =
-        compile_reporting(&src, &args.params, tactus_runtime::DEFAULT_SAMPLE_RATE_HZ)
+    let (file, params) = match (&args.layout, args.key) {
+        (Some(layout), Some(key)) => {
+            let k = tactus_host::keyboard::layout_key(layout, key)?;
+            let params = tactus_host::keyboard::with_overrides(&k.params, &args.params);
+            let shown: Vec<String> = params.iter().map(|(n, v)| format!("{n}={v}")).collect();
+            println!(
+                "key {key} of {layout}: {} ({})",
+                k.instrument,
+                if shown.is_empty() {
+                    "its own params".to_string()
+                } else {
+                    shown.join(", ")
+                }
+            );
+            (k.instrument, params)
+        }
+        _ => (
+            args.file
+                .clone()
+                .unwrap_or_else(|| "grand_piano".to_string()),
+            args.params.clone(),
+        ),
+    };
+    let src = source::load(&file)?;
+    let Some(lowered) = compile_reporting(&src, &params, tactus_runtime::DEFAULT_SAMPLE_RATE_HZ)
     else {
         return Ok(ExitCode::from(2));
     };

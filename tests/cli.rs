@@ -626,6 +626,55 @@ fn regulate_prints_a_sheet_judges_it_against_a_spec_and_rejects_bad_input() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("pen instrument"));
 }
 
+/// `regulate --layout L --key N` regulates a key of a graded keyboard as the keyboard
+/// compiles it (issue 70): grand88's A0 has the 11 g hammer and its sheet is inside both
+/// specs; `--param` goes on top; a key the layout lacks is refused with its keys.
+#[test]
+fn regulate_takes_a_key_of_a_layout() {
+    let dir = temp_dir("cli-regulate-key");
+    let out = tactus()
+        .args(["regulate", "--layout", "grand88", "--key", "21", "-o"])
+        .arg(&dir)
+        .args([
+            "--spec",
+            "instruments/specs/concert_grand.toml",
+            "--spec",
+            "instruments/specs/concert_grand_dynamic.toml",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("key 21 of grand88: grand_piano (M_h=11 g)")
+            && stdout.contains("within spec `grand action at speed`"),
+        "{stdout}"
+    );
+    let out = tactus()
+        .args([
+            "regulate",
+            "--layout",
+            "grand88",
+            "--key",
+            "108",
+            "--no-dynamic",
+        ])
+        .args(["--param", "M_h=4 g", "-o"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("grand_piano (M_h=4 g)"));
+    let out = tactus()
+        .args(["regulate", "--layout", "grand88", "--key", "5"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr)
+        .contains("no instrument to key 5 (it has keys 21–108)"));
+}
+
 /// `sim --touch` plays a pianist's finger on the key (issue 70): a struck *fff* strikes the
 /// grand piano's string in f64 and in fixed point at the same sample, hammer speeds within the
 /// accuracy contract's 1 %, faster than a pressed *pp*; a touch that is no touch is refused

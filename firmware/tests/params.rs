@@ -52,15 +52,13 @@ fn graded_grand88_is_one_program_with_a_param_block_per_key() {
         .map(|p| fp.program.params[p.index()].name.as_str())
         .collect();
     println!("run-time params of the graded piano: {names:?}");
-    // The repetition spring's preload and damping (`rep_pre`, `b_rep`, ∝ M_h), the key leads
-    // (`G = balance − M_h·grav·ratio`: the key weighed off at every hammer mass), the rest
-    // felt's height below the jack (∝ M_h: the jack's compression under its share of the
-    // hammer's weight), as the landing's threshold and as the angle it sets, and the hammer's
-    // `(l3·f − B_h·w − M_h·grav·l4) / I_h · h` (I_h = M_h·l4²) with its constant factor h/I_h
-    // distributed into the terms (`fixed::distribute`): `B_h·h/I_h` and `l3·h/I_h` (the
-    // weight torque's `M_h·grav·l4·h/I_h` is `grav·h/l4` for every hammer: a constant).
-    // Nothing else depends on the hammer mass, and nothing divides by it at run time.
-    assert_eq!(names.len(), 7, "{names:?}");
+    // The knuckle's load (`load = M_h / m_ref`: the jack's and lever's felt and the repetition
+    // spring scale with the hammer they carry), the key leads (`G = balance − M_h·grav·ratio`:
+    // the key weighed off at every hammer mass), and one product of M_h, I_h, load and G that
+    // the key's force needs. The hammer's equation is divided through by M_h, so its terms are
+    // the same constants at every hammer mass. Nothing else depends on the hammer mass, and
+    // nothing divides by it at run time.
+    assert_eq!(names.len(), 3, "{names:?}");
     let p = &fp.program;
     assert!(
         !p.values.iter().any(|vd| matches!(vd.op,
@@ -137,7 +135,7 @@ fn c_code_with_param_blocks_is_bit_exact_with_the_fixed_interpreter() {
     let (ir, values) = shared_piano();
     let fp = tactus_compiler::fixed::FixedProgram::new(&ir);
     let c = cgen::emit_c(&fp).unwrap();
-    assert!(c.header.contains("int32_t params[7];"), "{}", c.header);
+    assert!(c.header.contains("int32_t params[3];"), "{}", c.header);
     let b = cc::build(&c, Compiler::Clang, &Options::default()).unwrap();
     let runs = builtin_runs(&fp);
     for v in &values {

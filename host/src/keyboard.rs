@@ -198,6 +198,22 @@ fn read_layout(input: &str) -> Result<LayoutKeys, String> {
     Ok((layout, path, keys, boards))
 }
 
+/// Key `key` (a MIDI number) of the layout `input` (a `.toml` path or a built-in layout's
+/// name, as [`is_layout`] reads it): its instrument and its params, grades resolved, as a
+/// keyboard compiles that key (`tactus regulate --layout grand88 --key 21`).
+///
+/// Errors, as messages: a bad layout (its file and field), or a key it does not assign.
+pub fn layout_key(input: &str, key: u8) -> Result<KeyAssignment, String> {
+    let (_, _, keys, _) = read_layout(input)?;
+    let span = match (keys.first(), keys.last()) {
+        (Some(a), Some(b)) => format!("keys {}–{}", a.key, b.key),
+        _ => "no keys".to_string(),
+    };
+    keys.into_iter().find(|k| k.key == key).ok_or_else(|| {
+        format!("layout `{input}` assigns no instrument to key {key} (it has {span})")
+    })
+}
+
 /// `params` with `overrides` applied in turn: each replaces every earlier value of its
 /// param (the compiler's rule, the last value wins), so that keys whose params differ only
 /// in values an override replaces have equal lists and share one program (`--param M_h=9 g`

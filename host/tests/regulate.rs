@@ -292,6 +292,86 @@ fn a_frictionless_sprung_key_regulates_to_its_spring() {
     assert!(how.contains("sprung"), "{how}");
 }
 
+/// The toy key of the known-value tests: a 0.5 N weight, a 20 N/m spring, a 0.1 N
+/// Hayward–Armstrong stick point (0.02 mm of presliding), a strike at 8 mm of five times the
+/// key's speed, a 10 mm dip.
+const TOY: &str = "component stick_friction {\n  param f_c = 0.1 N\n  param z_max = 0.02 mm\n  input x: m\n  state w = 0 mm in [-1 mm, 11 mm]\n  while true { w = clamp(w, x - z_max, x + z_max) }\n  output f = f_c / z_max * (x - w)\n}\ninstrument toy {\n  sensor key: m in [0 mm, 10 mm]\n  use fr = stick_friction(x = key)\n  force weight = 0.5 N\n  force spring = 20 N/m * key\n  force friction = fr.f\n  on key >= 8 mm { emit strike(velocity = 5 * d(key)) }\n}\n";
+
+/// The toy key's dynamic sheet against an independent integration of its pressed touches:
+/// finger and key as one rigid body of m = 20 g + 10 g (`PRESSED_FINGER_KG`, the fingertip's
+/// key) under the finger's push P(t) = P·(1 − cos(π·t / 20 ms))/2 (then P), against the
+/// weight, the friction going down and the spring: m·x'' = P(t) − 0.5 N − 0.1 N − 20 N/m·x,
+/// the key held at rest until P(t) passes 0.6 N. Integrated here in 1 µs steps (no player,
+/// no instrument program, no pulp: the fingertip's 20 kN/m pulp under a 20 ms rise moves the
+/// answer by well under 1 %). Travel time = when x reaches 8 mm, hammer speed = 5·x' there,
+/// key bottom = when x reaches 10 mm; each measured figure within 4 % of it (a measurement
+/// 20 % off fails), over every pressed push of the sweep (those too weak to reach 8 mm by
+/// hand must not strike in the sheet either).
+#[test]
+fn the_toy_keys_pressed_touches_match_an_independent_integration() {
+    let p = compile(TOY, &[]);
+    let s = sheet_with(&p, &Config::default());
+    let m = tactus_runtime::player::PRESSED_FINGER_KG
+        + tactus_runtime::player::Fingertip::default().key_kg;
+    let rise = tactus_runtime::player::PUSH_RISE_S;
+    // ((time at 8 mm s, hammer speed there m/s), time at 10 mm s)
+    let by_hand = |push: f64| -> (Option<(f64, f64)>, Option<f64>) {
+        let dt = 1e-6;
+        let (mut x, mut v, mut t) = (0.0f64, 0.0f64, 0.0f64);
+        let mut at8 = None;
+        while t < regulate::dynamic::RUN_S {
+            let p_t = if t < rise {
+                push * 0.5 * (1.0 - (std::f64::consts::PI * t / rise).cos())
+            } else {
+                push
+            };
+            let net = p_t - 0.5 - 0.1 - 20.0 * x;
+            if x > 0.0 || v > 0.0 || net > 0.0 {
+                v += dt * net / m;
+                x += dt * v;
+            }
+            t += dt;
+            if at8.is_none() && x >= 0.008 {
+                at8 = Some((t, 5.0 * v));
+            }
+            if x >= 0.010 {
+                return (at8, Some(t));
+            }
+        }
+        (at8, None)
+    };
+    let mut checked = 0;
+    for run in s
+        .touches
+        .iter()
+        .filter(|r| r.touch.kind == tactus_runtime::player::TouchKind::Pressed)
+    {
+        let label = run.touch.label();
+        let (strike, bottom) = by_hand(run.touch.push_n);
+        let near = |what: &str, got: f64, want: f64| {
+            assert!(
+                (got - want).abs() <= 0.04 * want,
+                "{label}: {what} {got}, by hand {want}"
+            );
+        };
+        match (run.strike, strike) {
+            (Some((travel, speed)), Some((t8, v8))) => {
+                near("travel time s", travel, t8);
+                near("hammer speed m/s", speed, v8);
+                checked += 1;
+            }
+            (None, None) => {}
+            (got, want) => panic!("{label}: strike {got:?}, by hand {want:?}"),
+        }
+        match (run.bottom_s, bottom) {
+            (Some(got), Some(want)) => near("key bottom s", got, want),
+            (None, None) => {}
+            (got, want) => panic!("{label}: key bottom {got:?}, by hand {want:?}"),
+        }
+    }
+    assert!(checked >= 10, "{checked} pressed touches compared");
+}
+
 /// A toy key with a known weight, spring and friction (0.5 N, 20 N/m, a 0.1 N
 /// Hayward–Armstrong stick point) and a strike at 8 mm of five times the key's speed. By
 /// hand: down-weight to the bed G + f_c + k·10 mm = 0.8 N (81.6 gf); up-weight, back to rest
@@ -303,8 +383,7 @@ fn a_frictionless_sprung_key_regulates_to_its_spring() {
 /// program between).
 #[test]
 fn a_toy_key_of_known_weight_spring_and_friction_regulates_to_them() {
-    let src = "component stick_friction {\n  param f_c = 0.1 N\n  param z_max = 0.02 mm\n  input x: m\n  state w = 0 mm in [-1 mm, 11 mm]\n  while true { w = clamp(w, x - z_max, x + z_max) }\n  output f = f_c / z_max * (x - w)\n}\ninstrument toy {\n  sensor key: m in [0 mm, 10 mm]\n  use fr = stick_friction(x = key)\n  force weight = 0.5 N\n  force spring = 20 N/m * key\n  force friction = fr.f\n  on key >= 8 mm { emit strike(velocity = 5 * d(key)) }\n}\n";
-    let p = compile(src, &[]);
+    let p = compile(TOY, &[]);
     let s = sheet_with(&p, &Config::default());
     let near = |f: Figure, want: f64, tol: f64| {
         let v = figure(&s, f);
@@ -363,14 +442,36 @@ fn a_toy_key_of_known_weight_spring_and_friction_regulates_to_them() {
     assert!(s.touches.iter().filter(|r| r.strike.is_some()).count() >= 20);
 }
 
+/// Every figure of `sheet` is inside `dynamic`, but for the 3.5 g treble hammer's travel
+/// time against Goebl's fit (see below); what is outside is printed.
+fn inside_but_the_treble_travel_time(
+    sheet: &Sheet,
+    dynamic: &regulate::spec::Spec,
+    m_h: &str,
+    numeric: &str,
+) {
+    let out = outside_of(sheet, dynamic);
+    println!("M_h = {m_h}, {numeric}: outside the dynamic spec: {out:?}");
+    let allowed = if m_h == "3.5 g" {
+        "TravelTimeToFit"
+    } else {
+        "-"
+    };
+    assert!(
+        out.iter().all(|o| o.starts_with(allowed)),
+        "M_h = {m_h}, {numeric}: {out:?}"
+    );
+}
+
 /// Issue 70: the grand piano's dynamic sheet. At the middle hammer (8 g) every figure lies
 /// inside the dynamic spec, in f64 and in the firmware's fixed point: the softest strike and
 /// the loudest, the hammer/key speed ratio over p–f, travel times against Goebl's fit, struck
 /// sooner than pressed, the key bottoming after the string contact at the softest touch and
-/// before it at the loudest, and where the two cross. At grand88's bass and treble hammers
-/// the ratio and the key bottom's sides hold too; the figures that do not are printed (the
-/// 11 g hammer's loudest strike, the 3.5 g hammer's travel times and crossing: issue 70's
-/// note, docs/regulating.md).
+/// before it at the loudest, and where the two cross. At grand88's bass hammer (11 g) every
+/// figure holds too; at its treble hammer (3.5 g) every one but the travel time against
+/// Goebl's fit (0.77 against 0.8: the light hammer's pressed touches reach 0.5–8.7 m/s where
+/// the model's travel times fall off faster than the fit's v^−0.57, whatever the action's
+/// regulation; issue 70's note, docs/regulating.md). Each figure outside is printed.
 #[test]
 fn the_grand_piano_moves_as_measured_grand_actions_move() {
     let dynamic = concert_grand_dynamic();
@@ -385,11 +486,7 @@ fn the_grand_piano_moves_as_measured_grand_actions_move() {
                 m.figure.unit()
             );
         }
-        let out = outside_of(&s, &dynamic);
-        println!("M_h = {m_h}: outside the dynamic spec: {out:?}");
-        if m_h == "8 g" {
-            assert_eq!(out, Vec::<String>::new(), "M_h = {m_h}");
-        }
+        inside_but_the_treble_travel_time(&s, &dynamic, m_h, "f64");
         for f in [Figure::SpeedRatioMin, Figure::SpeedRatioMax] {
             let r = figure(&s, f);
             assert!((3.5..=6.5).contains(&r), "M_h = {m_h}: {f:?} {r}");
@@ -397,12 +494,11 @@ fn the_grand_piano_moves_as_measured_grand_actions_move() {
         assert!(figure(&s, Figure::KeyBottomSoft) > 0.0, "M_h = {m_h}");
         assert!(figure(&s, Figure::KeyBottomLoud) < 0.0, "M_h = {m_h}");
     }
-    let p = shipped("grand_piano", &[]);
-    let fp = tactus_compiler::fixed::FixedProgram::new(&p);
-    let s = fixed_jit_sheet_with(&p, &fp, &Config::default());
-    assert_eq!(
-        outside_of(&s, &dynamic),
-        Vec::<String>::new(),
-        "fixed point"
-    );
+    // The firmware's fixed point: the same at the three hammers.
+    for m_h in ["11 g", "8 g", "3.5 g"] {
+        let p = shipped("grand_piano", &[("M_h", m_h)]);
+        let fp = tactus_compiler::fixed::FixedProgram::new(&p);
+        let s = fixed_jit_sheet_with(&p, &fp, &Config::default());
+        inside_but_the_treble_travel_time(&s, &dynamic, m_h, "fixed point");
+    }
 }

@@ -368,7 +368,7 @@ fn shared_program_with_each_keys_param_block_bit_for_bit() {
         .collect();
     let shared = tactus_compiler::share::share(&irs).unwrap();
     let fp = FixedProgram::new(&shared.program);
-    assert_eq!(fp.param_words.len(), 7);
+    assert_eq!(fp.param_words.len(), 3);
     let jit = FixedJitProgram::compile(&fp).unwrap();
     let dip = fp.program.sensors[0].range.1;
     let mut total = Stats::default();

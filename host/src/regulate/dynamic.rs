@@ -18,9 +18,13 @@
 //! The published fit beside the travel times is W. Goebl's ("Melody lead in piano
 //! performance: expressive device or artifact?", JASA 110(1), 2001), from a Bösendorfer
 //! SE290's records, which the 2005 study replicated: `t = 89.16 ms · (v / 1 m/s)^−0.570`
-//! ([`travel_time_fit_s`]). Its constants are quoted from memory of the paper: the search
-//! tools available when this was written returned only the papers' first pages, not their
-//! fitted constants or tables. The band drawn around it is the fit ± 20 ms, the difference
+//! ([`travel_time_fit_s`]). Its constants are quoted from memory of the paper and remain
+//! unconfirmed: searched for twice (issue 70), the stored texts give only the papers'
+//! abstracts and first pages. What they do confirm: the 2005 study's abstract (OFAI
+//! TR-2005-01) says the 2001 function, "derived from a computer-controlled piano", "was
+//! replicated", and the first page of Goebl, Bresin and Galembo's SMAC 2003 paper that it
+//! was "approximated from data of an internal chip of a Bösendorfer SE290 reproducing
+//! system"; neither gives the constants. The band drawn around it is the fit ± 20 ms, the difference
 //! the 2005 study reports between pressed and struck touch at equal hammer speed ("the whole
 //! striking procedure needs roughly 20 ms less time with a struck touch").
 
