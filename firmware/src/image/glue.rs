@@ -39,8 +39,12 @@ pub mod ctrl {
     pub const MISSES: u16 = 12;
     /// 1 once the reset handler has initialised every key and prepared the tick.
     pub const READY: u16 = 16;
+    /// The core's fault word: kind, key, trips (`super::super::fault`, "The fault word").
+    pub const FAULT: u16 = 20;
+    /// The core's sample count at its last trip (`super::super::fault`).
+    pub const FAULT_AT: u16 = 24;
     /// Size of the block; the key records follow it.
-    pub const SIZE: u32 = 20;
+    pub const SIZE: u32 = 28;
 }
 
 /// SysTick's registers (DDI0419 B3.3.2) and the ICSR (B3.2.4), each core's own.

@@ -520,6 +520,8 @@ pub(super) fn data_block(
     data.extend(word(0)); // SAMPLES
     data.extend(word(0)); // MISSES
     data.extend(word(0)); // READY
+    data.extend(word(0)); // FAULT (the reset handler copies it from the watchdog's scratch)
+    data.extend(word(0)); // FAULT_AT
     let mut states = Vec::new();
     for k in kp {
         let p = &l.programs[k.spec.program];

@@ -103,6 +103,7 @@
 pub mod boot;
 pub mod boot2;
 mod elf;
+pub mod fault;
 mod flash_image;
 pub mod glue;
 pub mod io;
