@@ -24,16 +24,15 @@
 //! core's pair to the watchdog's scratch registers (datasheet 4.7: SCRATCH0–7 keep their
 //! values through a watchdog reset, a power-on or brown-out reset clears them): core *c*'s
 //! fault word to SCRATCH(2*c*), its time to SCRATCH(2*c* + 1) ([`scratch`]; SCRATCH4–7 are
-//! the boot ROM's). Each core's reset handler copies its pair back into its control block
-//! before the sample loop, and core 0's, when REASON says the last reset was the
-//! watchdog's, records one more trip of kind [`FaultKind::Watchdog`] (key [`NO_KEY`], time
-//! 0) over its own pair — so core 0's earlier kind gives way to the reset, its trip count
-//! goes on, and core 1's last trip stays as it was.
+//! the boot ROM's).
 //!
-//! **The watchdog** ([`WATCHDOG_PERIOD_US`]) is fed only when both cores have finished a
-//! sample since the last feed, so a core that hangs stops the feeding and the watchdog
-//! resets the board; the DACs are written to zero force by the reset handlers before the
-//! sample loop runs again.
+//! **The watchdog (planned, not yet in the image).** Each core's reset handler is to copy
+//! its pair back into its control block before the sample loop, and core 0's, when REASON
+//! says the last reset was the watchdog's, to record one more trip of kind
+//! [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over its own pair. The watchdog
+//! ([`WATCHDOG_PERIOD_US`]) is to be fed only when both cores have finished a sample since
+//! the last feed. Not yet written because a feed every sample touches a peripheral, which
+//! stops the emulator's window engine every sample (docs/firmware.md, "Faults").
 
 /// Kinds of fault, the low byte of the fault word. The codes are stable (the host and the
 /// emulator's fault report decode them): new kinds take new codes.

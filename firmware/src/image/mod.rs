@@ -851,6 +851,7 @@ impl FirmwareImage {
             tick: chip.tick,
             cores,
             io,
+            fs: fs as f64,
         };
         let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
 
