@@ -330,28 +330,25 @@ fn the_io_trace_holds_every_boards_frames() {
         .unwrap();
     assert_ok(&o);
     let samples = (0.3 * 44_100.0) as usize;
-    // Every board's trace; their ADC frames cover grand88's 88 keys every sample.
-    let (mut boards, mut adc_all) = (0, 0);
-    while let Ok(text) = std::fs::read_to_string(trace.join(format!("board-{:02}.csv", boards + 1)))
-    {
-        let board = boards + 1;
+    let mut boards = 0;
+    for board in 1..=11 {
+        let path = trace.join(format!("board-{board:02}.csv"));
+        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path:?}: {e}"));
         let rows: Vec<&str> = text.lines().skip(1).collect();
         let adc = rows.iter().filter(|r| r.contains(",adc,")).count();
         let dac = rows.iter().filter(|r| r.contains(",dac,")).count();
-        // At least one key a core.
+        // grand88: 8 keys a board, 4 a core.
         assert!(
-            adc >= 2 * (samples - 2),
+            adc >= 8 * (samples - 2),
             "board {board}: {adc} ADC frames in {samples} samples"
         );
         assert!(
             dac >= 2 * (samples - 2),
             "board {board}: {dac} DAC updates in {samples} samples"
         );
-        adc_all += adc;
         boards += 1;
     }
-    assert!(boards >= 11, "{boards} boards traced");
-    assert!(adc_all >= 88 * (samples - 2), "{adc_all} ADC frames");
+    assert_eq!(boards, 11);
 }
 
 #[test]

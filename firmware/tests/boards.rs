@@ -258,7 +258,7 @@ fn every_planned_board_of_the_split_layout_runs_a_second_bit_exact_without_misse
 
 /// The quiescent-key guard never costs a board: where a board's guarded image misses the
 /// deadline, [`board_image`] builds it without the guard. A 133 MHz board holds as many
-/// grand piano keys with the guard on by default as without it, although with the guard
+/// harpsichord keys with the guard on by default as without it, although with the guard
 /// forced on every key (its shadow compare in every key's worst case) that board would not
 /// fit.
 #[test]
@@ -266,7 +266,7 @@ fn the_quiescent_guard_never_costs_a_board() {
     let b = board("rp2040");
     let lim = limiter(&b);
     let guarded =
-        vec![Program::compile(&shipped("grand_piano").unwrap(), &Default::default()).unwrap()];
+        vec![Program::compile(&shipped("harpsichord").unwrap(), &Default::default()).unwrap()];
     assert!(guarded[0].quiescent_guard, "the guard is on by default");
     let costs = ProgramCosts::new(&guarded, &b, &lim).unwrap();
     assert!(costs.key_cycles[0] > costs.plain_key_cycles[0]);
@@ -316,7 +316,7 @@ fn the_quiescent_guard_never_costs_a_board() {
         "the fallback is not exercised: {guard_only} <= {cps}"
     );
     println!(
-        "{most} grand piano keys: {worst} cycles per core as built, about {guard_only} with the guard on every key (deadline {cps})"
+        "{most} harpsichord keys: {worst} cycles per core as built, about {guard_only} with the guard on every key (deadline {cps})"
     );
     let plain = vec![{
         let mut p = guarded[0].clone();

@@ -20,7 +20,8 @@ const SPRING: &str =
     "instrument spring {\n sensor key: m in [0 mm, 10 mm]\n force out = 300 N/m * key + 0.2 N\n}\n";
 
 fn image(board: &str) -> (Program, FirmwareImage) {
-    let p = Program::compile(SPRING, &Config::default()).unwrap();
+    let mut p = Program::compile(SPRING, &Config::default()).unwrap();
+    p.sensor_check = true;
     // Keys 0 and 1 on core 0, key 2 on core 1.
     let keys: Vec<KeySpec> = [(60, 0), (61, 0), (62, 1)]
         .iter()

@@ -202,14 +202,16 @@ const FAULT_WORDS: u32 = 2;
 /// Words of a key record with `ns` sensor words, `out_len` out words and `nd` drives:
 /// the sensor copies, the out words, the budgets, the state address, the guard's counter
 /// and the check's words.
-fn record_words(ns: u32, out_len: u32, nd: u32) -> u32 {
-    ns + out_len + nd + 2 + FAULT_WORDS
+fn record_words(ns: u32, out_len: u32, nd: u32, checked: bool) -> u32 {
+    ns + out_len + nd + 2 + if checked { FAULT_WORDS } else { 0 }
 }
 
 /// Whether a key of program `p` has a rest image in its core's data: its first sensor is
 /// a position (the one the sensor check can judge, [`sensor_check`]).
 fn has_rest_image(p: &Program) -> bool {
-    p.fixed.program.sensors.first().map(|s| s.dim) == Some(tactus_compiler::units::Dim::LENGTH)
+    p.sensor_check
+        && p.fixed.program.sensors.first().map(|s| s.dim)
+            == Some(tactus_compiler::units::Dim::LENGTH)
 }
 
 /// The sensor check of a key of program `p` at `fs` Hz ([`glue::SensorCheck`]): on its
@@ -265,7 +267,14 @@ pub(super) fn start_alarm_us(programs: &[Program], keys: &[KeySpec], clock_hz: u
         + keys
             .iter()
             .map(|k| {
-                50 + init_cycles[k.program] + 8 * programs[k.program].thumb.state.size as u64 / 4
+                let p = &programs[k.program];
+                // The rest image's copy ([`glue::SensorCheck`]), 8 cycles a word at most.
+                let rest = if has_rest_image(p) {
+                    2 * p.thumb.state.size as u64
+                } else {
+                    0
+                };
+                50 + init_cycles[k.program] + rest
             })
             .sum::<u64>();
     (20 + (startup * 1_000_000).div_ceil(clock_hz)) as u32
@@ -371,7 +380,7 @@ pub(super) fn key_records(
         let fs = 4 * (ns + out_len + nd + 2);
         let state_offset = budgets_offset + 4 * nd;
         let calm_offset = state_offset + 4;
-        let size = 4 * record_words(ns, out_len, nd);
+        let size = 4 * record_words(ns, out_len, nd, has_rest_image(p));
         let budgets: Vec<u32> = (0..nd).map(|j| budgets_offset + 4 * j).collect();
         let update = sym(p.thumb.update_name())?;
         let width = ns.max(nd) as usize;
@@ -608,7 +617,12 @@ pub(super) fn data_block(
             p.thumb.state.params,
             &p.params,
         ));
-        let words = record_words(k.sensors as u32, k.out_len as u32, k.drives.len() as u32);
+        let words = record_words(
+            k.sensors as u32,
+            k.out_len as u32,
+            k.drives.len() as u32,
+            has_rest_image(p),
+        );
         let mut r = vec![0u8; 4 * words as usize];
         let put = |r: &mut Vec<u8>, off: u32, v: u32| {
             r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
