@@ -255,6 +255,7 @@ fn key_map(
                 reset: hex(reset | 1),
                 sample_isr: hex(isr | 1),
                 control: hex(ctrl),
+                fault: hex(ctrl + u32::from(crate::image::glue::ctrl::FAULT)),
                 stack_top: hex(sp),
                 keys: image
                     .core_keys(c)

@@ -91,9 +91,12 @@ pub struct CoreMap {
     pub reset: String,
     /// Its sample interrupt (its SysTick's exception).
     pub sample_isr: String,
-    /// Its control block: start alarm (µs), tick accumulator, samples, misses, ready
-    /// (words).
+    /// Its control block: start alarm (µs), tick accumulator, samples, misses, ready,
+    /// fault word, fault time (words).
     pub control: String,
+    /// Its fault record: the fault word (kind, key, trips) and, in the next word, the
+    /// sample count at the last trip (`crate::image::fault`); in its control block.
+    pub fault: String,
     /// Its initial stack pointer.
     pub stack_top: String,
     /// The MIDI keys it runs.
@@ -261,6 +264,16 @@ pub fn check(map: &KeyMap, image: &Image) -> Result<CheckedMap, String> {
                     w.unwrap_or(0)
                 ))
             }
+        }
+        let fault = addr(&c.fault, &f("fault"))?;
+        if fault != control.wrapping_add(u32::from(ctrl::FAULT)) {
+            return Err(format!(
+                "`{}` = {}: core {i}'s fault record is word {} of its control block, {:#010x}",
+                f("fault"),
+                c.fault,
+                ctrl::FAULT / 4,
+                control.wrapping_add(u32::from(ctrl::FAULT))
+            ));
         }
         cores.push((isr & !1, control));
     }

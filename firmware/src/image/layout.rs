@@ -40,6 +40,8 @@ pub(super) struct Layout<'a> {
     pub cores: usize,
     /// The converters' drivers, on a board that has them.
     pub io: Option<super::io::IoPlan>,
+    /// The sample rate, Hz.
+    pub fs: f64,
 }
 
 /// The converters' drivers of `board` ([`super::io::IoPlan::new`]) for `keys` on `cores`
@@ -193,6 +195,56 @@ pub(super) fn check_code_fits(
     Ok(())
 }
 
+/// Words of a key record after its sensor copies for the sensor check
+/// ([`glue::SensorCheck`]).
+const FAULT_WORDS: u32 = 2;
+
+/// Words of a key record with `ns` sensor words, `out_len` out words and `nd` drives:
+/// the sensor copies, the out words, the budgets, the state address, the guard's counter
+/// and the check's words.
+fn record_words(ns: u32, out_len: u32, nd: u32, checked: bool) -> u32 {
+    ns + out_len + nd + 2 + if checked { FAULT_WORDS } else { 0 }
+}
+
+/// Whether a key of program `p` has a rest image in its core's data: its first sensor is
+/// a position (the one the sensor check can judge, [`sensor_check`]).
+fn has_rest_image(p: &Program) -> bool {
+    p.sensor_check
+        && p.fixed.program.sensors.first().map(|s| s.dim)
+            == Some(tactus_compiler::units::Dim::LENGTH)
+}
+
+/// The sensor check of a key of program `p` at `fs` Hz ([`glue::SensorCheck`]): on its
+/// first sensor word (a key's position, a pen's depth), the check words at record offset
+/// `words_at`, its fault word naming window slot `slot`. `None` for a program without
+/// sensors.
+fn sensor_check(p: &Program, fs: f64, words_at: u32, slot: usize) -> Option<glue::SensorCheck> {
+    if words_at + 4 > 124 {
+        // Beyond an `LDR` immediate (a record of many out words): unchecked.
+        return None;
+    }
+    let sensor = p.fixed.program.sensors.first()?;
+    if !has_rest_image(p) {
+        // Only a position has a largest speed (a force sensor's word may jump).
+        return None;
+    }
+    let &(lo, hi) = p.fixed.sensor_raw_range.first()?;
+    let step = super::fault::max_step_raw(lo, hi, sensor.range.1 - sensor.range.0, fs);
+    // The accepted change is [-2^k, 2^k) with 2^k the power of two at or above the bound.
+    let k = (32 - (step.max(2) - 1).leading_zeros()).clamp(1, 30) as u8;
+    Some(glue::SensorCheck {
+        lo,
+        hi,
+        shift: k,
+        left_offset: words_at,
+        last_offset: words_at + 4,
+        slot: slot.min(0xfe) as u8,
+        recovery: super::fault::recovery_samples(fs),
+        rest: 0,
+        state_words: (p.thumb.state.size as u32).div_ceil(4),
+    })
+}
+
 /// Cycles after the start alarm by which both cores have enabled their SysTick (the
 /// exception entry and the start handler's first three instructions take about 20); the
 /// run reads each core's first tick then, before it falls due.
@@ -214,7 +266,16 @@ pub(super) fn start_alarm_us(programs: &[Program], keys: &[KeySpec], clock_hz: u
         + 1000
         + keys
             .iter()
-            .map(|k| 50 + init_cycles[k.program])
+            .map(|k| {
+                let p = &programs[k.program];
+                // The rest image's copy ([`glue::SensorCheck`]), 8 cycles a word at most.
+                let rest = if has_rest_image(p) {
+                    2 * p.thumb.state.size as u64
+                } else {
+                    0
+                };
+                50 + init_cycles[k.program] + rest
+            })
             .sum::<u64>();
     (20 + (startup * 1_000_000).div_ceil(clock_hz)) as u32
 }
@@ -314,9 +375,12 @@ pub(super) fn key_records(
         } else {
             (4 * (ns + nd + 2), 4 * ns)
         };
+        // The sensor check's two words end the record ([`glue::SensorCheck`]: the recovery
+        // count and the last reading while tripped), where an `LDR` reaches them.
+        let fs = 4 * (ns + out_len + nd + 2);
         let state_offset = budgets_offset + 4 * nd;
         let calm_offset = state_offset + 4;
-        let size = 4 * (ns + out_len + nd + 2);
+        let size = 4 * record_words(ns, out_len, nd, has_rest_image(p));
         let budgets: Vec<u32> = (0..nd).map(|j| budgets_offset + 4 * j).collect();
         let update = sym(p.thumb.update_name())?;
         let width = ns.max(nd) as usize;
@@ -397,6 +461,7 @@ pub(super) fn key_records(
             init: sym(p.thumb.init_name())?,
             guard: p.guard(calm_offset),
             clobbers: p.thumb.clobbers,
+            check: sensor_check(p, l.fs, fs, keys[i].slot),
         });
         kp.push(KeyPlace {
             index: i,
@@ -414,6 +479,22 @@ pub(super) fn key_records(
             drives: drives.iter().copied().zip(budgets).collect(),
         });
         at += size;
+    }
+    // The rest images of the checked keys, after every state ([`data_block`]'s order).
+    let mut end = at.next_multiple_of(4);
+    for k in &kp {
+        let p = &programs[k.spec.program];
+        let shadow = p.guard(0).map_or(0, |g| g.shadow_bytes());
+        end = (end + shadow + p.thumb.state.size as u32).next_multiple_of(4);
+    }
+    for (k, code) in kp.iter().zip(kc.iter_mut()) {
+        let p = &programs[k.spec.program];
+        if has_rest_image(p) {
+            if let Some(c) = code.check.as_mut() {
+                c.rest = end;
+            }
+            end += 4 * (p.thumb.state.size as u32).div_ceil(4);
+        }
     }
     Ok((kc, kp, at))
 }
@@ -520,6 +601,8 @@ pub(super) fn data_block(
     data.extend(word(0)); // SAMPLES
     data.extend(word(0)); // MISSES
     data.extend(word(0)); // READY
+    data.extend(word(0)); // FAULT (the reset handler copies it from the watchdog's scratch)
+    data.extend(word(0)); // FAULT_AT
     let mut states = Vec::new();
     for k in kp {
         let p = &l.programs[k.spec.program];
@@ -534,7 +617,13 @@ pub(super) fn data_block(
             p.thumb.state.params,
             &p.params,
         ));
-        let mut r = vec![0u8; 4 * (k.sensors + k.out_len + k.drives.len() + 2)];
+        let words = record_words(
+            k.sensors as u32,
+            k.out_len as u32,
+            k.drives.len() as u32,
+            has_rest_image(p),
+        );
+        let mut r = vec![0u8; 4 * words as usize];
         let put = |r: &mut Vec<u8>, off: u32, v: u32| {
             r[off as usize..off as usize + 4].copy_from_slice(&v.to_le_bytes())
         };
@@ -555,6 +644,15 @@ pub(super) fn data_block(
             }
         }
         data.extend(st);
+    }
+    // The rest images ([`key_records`]): zeros, which the reset handler overwrites.
+    for k in kp {
+        let p = &l.programs[k.spec.program];
+        if has_rest_image(p) {
+            let words = (p.thumb.state.size as u32).div_ceil(4);
+            data.extend(vec![0u8; 4 * words as usize]);
+            at += 4 * words;
+        }
     }
     let need = at - bank;
     if need > BANK_LIMIT {

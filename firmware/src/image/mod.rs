@@ -103,6 +103,7 @@
 pub mod boot;
 pub mod boot2;
 mod elf;
+pub mod fault;
 mod flash_image;
 pub mod glue;
 pub mod io;
@@ -156,6 +157,12 @@ pub struct Program {
     /// ([`glue::GuardCode`]: a key whose sensors and state stand still skips its update and
     /// keeps its outputs). On by default; its cost is in every static bound of the image.
     pub quiescent_guard: bool,
+    /// Whether the image checks its keys' first sensor word every sample
+    /// ([`glue::SensorCheck`], docs/firmware.md, "Faults"). Off by default until a key held
+    /// away from rest at the first sample no longer trips (its copy starts at 0) and the
+    /// converter board's budget holds it (11 cycles a key: grand88 on `rp2040_io` would
+    /// need 15 boards).
+    pub sensor_check: bool,
 }
 
 impl Program {
@@ -169,6 +176,7 @@ impl Program {
             update_cost: Arc::default(),
             init_cycles: Arc::default(),
             quiescent_guard: true,
+            sensor_check: false,
         }
     }
 
@@ -850,6 +858,7 @@ impl FirmwareImage {
             tick: chip.tick,
             cores,
             io,
+            fs: fs as f64,
         };
         let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
 

@@ -1,0 +1,205 @@
+//! The board's fault record: what the firmware writes when a check trips, where the host
+//! reads it, and how it outlives a watchdog reset (docs/firmware.md, "Faults").
+//!
+//! **Why two words per core.** Each core checks its own keys, in its own SRAM bank (the
+//! cores share no bank after the boot, `super`'s "Memory"), so each core keeps its own
+//! record in its control block: the *fault word* at [`super::glue::ctrl::FAULT`] and the
+//! *fault time* at [`super::glue::ctrl::FAULT_AT`], the next word. A core writes them only
+//! on the path of a trip, which skips the key's model, so they cost the proven budget
+//! nothing. The board's record is both cores' pairs; `keys.json` names each core's pair
+//! (`cores[c].fault`).
+//!
+//! **The fault word** (32 bits, [`FaultWord`]):
+//!
+//! | bits  | field | meaning |
+//! |-------|-------|---------|
+//! | 0–7   | kind  | the last trip's [`FaultKind`] code (0: no trip since power-on) |
+//! | 8–15  | key   | the tripped key's window slot (its MIDI number on a keyboard, `keys.json`'s `midi`); [`NO_KEY`] for a fault of the whole board |
+//! | 16–31 | trips | trips on this core since power-on, modulo 65,536 |
+//!
+//! **The fault time** is the core's sample count ([`super::glue::ctrl::SAMPLES`]) at the
+//! last trip: samples since the sample loop started, after the last reset.
+//!
+//! **Across a watchdog reset.** SRAM is reloaded at boot, so every trip also writes the
+//! core's pair to the watchdog's scratch registers (datasheet 4.7: SCRATCH0–7 keep their
+//! values through a watchdog reset, a power-on or brown-out reset clears them): core *c*'s
+//! fault word to SCRATCH(2*c*), its time to SCRATCH(2*c* + 1) ([`scratch`]; SCRATCH4–7 are
+//! the boot ROM's).
+//!
+//! **The watchdog (planned, not yet in the image).** Each core's reset handler is to copy
+//! its pair back into its control block before the sample loop, and core 0's, when REASON
+//! says the last reset was the watchdog's, to record one more trip of kind
+//! [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over its own pair. The watchdog
+//! ([`WATCHDOG_PERIOD_US`]) is to be fed only when both cores have finished a sample since
+//! the last feed. Not yet written because a feed every sample touches a peripheral, which
+//! stops the emulator's window engine every sample (docs/firmware.md, "Faults").
+
+/// Kinds of fault, the low byte of the fault word. The codes are stable (the host and the
+/// emulator's fault report decode them): new kinds take new codes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum FaultKind {
+    /// No trip since power-on (the word is 0).
+    None = 0,
+    /// A sensor word outside its declared range (`sensor key: m in [lo, hi]`, the raw
+    /// words of the sensor's fixed-point format): an open or shorted sensor wire reads the
+    /// ADC's code 0 or full scale, a converter that stops answering reads all ones. On a
+    /// board without converters the checked word is the sensor window's; on a converter
+    /// board (`rp2040_io`) it is the word made of the ADC code (`lo + code << shift`).
+    SensorRange = 1,
+    /// A sensor word that moved further in one sample than the key's physics allows
+    /// ([`max_step_raw`]): a jump, a noise burst, an open or short that strikes mid-travel.
+    SensorRate = 2,
+    /// A key's state word outside the range the compiler's fixed-point analysis proved for
+    /// it: a flipped bit in SRAM.
+    StateRange = 3,
+    /// The board came back from a watchdog reset (REASON.TIMER or REASON.FORCE set at
+    /// boot): a core hung, or stopped finishing its samples, for [`WATCHDOG_PERIOD_US`].
+    Watchdog = 4,
+}
+
+impl FaultKind {
+    /// Every kind, by code.
+    pub const ALL: [FaultKind; 5] = [
+        FaultKind::None,
+        FaultKind::SensorRange,
+        FaultKind::SensorRate,
+        FaultKind::StateRange,
+        FaultKind::Watchdog,
+    ];
+
+    /// The kind of code `code`, if it is one.
+    pub fn from_code(code: u8) -> Option<FaultKind> {
+        FaultKind::ALL.get(usize::from(code)).copied()
+    }
+
+    /// Its code, the fault word's low byte.
+    pub fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// Its name in reports (`sensor-range`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            FaultKind::None => "none",
+            FaultKind::SensorRange => "sensor-range",
+            FaultKind::SensorRate => "sensor-rate",
+            FaultKind::StateRange => "state-range",
+            FaultKind::Watchdog => "watchdog",
+        }
+    }
+}
+
+/// The key field of a fault that is no key's (a watchdog reset).
+pub const NO_KEY: u8 = 0xff;
+
+/// One core's fault record as the host reads it: the fault word and the fault time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FaultWord {
+    /// The last trip's kind (`None` when the code is not a kind's: then `code` says it).
+    pub kind: Option<FaultKind>,
+    /// The fault word's low byte as read.
+    pub code: u8,
+    /// The tripped key's window slot (MIDI number), [`NO_KEY`] for none.
+    pub key: u8,
+    /// Trips since power-on, modulo 65,536.
+    pub trips: u16,
+    /// The core's sample count at the last trip.
+    pub at_sample: u32,
+}
+
+impl FaultWord {
+    /// Decodes a fault word and its time word.
+    pub fn decode(word: u32, at_sample: u32) -> FaultWord {
+        let code = word as u8;
+        FaultWord {
+            kind: FaultKind::from_code(code),
+            code,
+            key: (word >> 8) as u8,
+            trips: (word >> 16) as u16,
+            at_sample,
+        }
+    }
+
+    /// The fault word of a record (the inverse of [`FaultWord::decode`] for its first word).
+    pub fn encode(kind: FaultKind, key: u8, trips: u16) -> u32 {
+        u32::from(kind.code()) | u32::from(key) << 8 | u32::from(trips) << 16
+    }
+
+    /// Whether any check ever tripped (the trip count, or a kind, is not 0).
+    pub fn tripped(&self) -> bool {
+        self.trips != 0 || self.code != 0
+    }
+}
+
+/// The watchdog's period, µs: 1 ms, 44 samples at 44.1 kHz. A healthy board feeds it every
+/// sample, so the period has a 44-fold margin over a late feed and over the start-up
+/// between the enabling store and the first sample (tens of µs, `start_alarm_us`); a hung
+/// core holds its motor's last DAC code (at most the limiter's peak) for at most this long
+/// before the reset sets it to zero.
+pub const WATCHDOG_PERIOD_US: u32 = 1000;
+
+/// The value written to the watchdog's LOAD for [`WATCHDOG_PERIOD_US`]: twice the period,
+/// since the RP2040's watchdog counts down twice per 1 µs tick (erratum RP2040-E1; the
+/// pico-sdk's `watchdog_enable` doubles its value the same way).
+pub const WATCHDOG_LOAD: u32 = 2 * WATCHDOG_PERIOD_US;
+
+/// The scratch registers that keep core `core`'s pair across a watchdog reset: (fault
+/// word's, fault time's) index n of SCRATCHn.
+pub fn scratch(core: usize) -> (u32, u32) {
+    let c = 2 * core as u32;
+    (c, c + 1)
+}
+
+/// The largest speed of a key's (or a pen's) sensed point the checks allow, m/s. A struck
+/// *fff* key is met by the finger at up to 3 m/s (`tactus_runtime::player`'s fastest
+/// struck level; Askenfelt & Jansson, JASA 88(1), 1990, measured 0.3–0.5 m/s at *mf*,
+/// seldom above 1 m/s at *f*), and a thrown key runs ahead of the finger; twice the
+/// fastest finger leaves that margin. At 44.1 kHz it is 136 µm per sample, 1.4 % of a
+/// 10 mm key's travel.
+pub const MAX_SPEED_MPS: f64 = 6.0;
+
+/// The time a tripped key's sensor must read plausibly before the key plays again, in
+/// samples at `fs` Hz: 100 ms (4,410 at 44.1 kHz), longer than a wire's contact bounce or
+/// a noise burst, short enough to give a key back before the next phrase.
+pub fn recovery_samples(fs: f64) -> u32 {
+    (fs * 0.1).round().clamp(1.0, f64::from(u16::MAX)) as u32
+}
+
+/// The largest change of a sensor word in one sample at `fs` Hz that [`MAX_SPEED_MPS`]
+/// allows: a sensor whose raw words span `[lo, hi]` for `span_m` metres (its declared
+/// range) moves `(hi − lo) / span_m` raw units per metre. At least 1.
+pub fn max_step_raw(lo: i32, hi: i32, span_m: f64, fs: f64) -> u32 {
+    let per_m = (f64::from(hi) - f64::from(lo)) / span_m.max(1e-9);
+    (per_m * MAX_SPEED_MPS / fs)
+        .ceil()
+        .clamp(1.0, f64::from(u32::MAX >> 2)) as u32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fault_words_round_trip() {
+        for kind in FaultKind::ALL {
+            let w = FaultWord::encode(kind, 60, 65535);
+            let d = FaultWord::decode(w, 12345);
+            assert_eq!(d.kind, Some(kind));
+            assert_eq!((d.key, d.trips, d.at_sample), (60, 65535, 12345));
+        }
+        assert_eq!(FaultWord::decode(0x2a, 0).kind, None);
+        assert!(!FaultWord::decode(0, 0).tripped());
+    }
+
+    #[test]
+    fn a_piano_key_moves_136_um_per_sample_at_most() {
+        // 10 mm in Q37 (raw words per metre 2^37).
+        let hi = (0.01f64 * 2f64.powi(37)) as i32;
+        let l = max_step_raw(0, hi, 0.01, 44100.0);
+        let um = f64::from(l) / 2f64.powi(37) * 1e6;
+        assert!((um - 136.05).abs() < 0.01, "{um} µm");
+        assert_eq!(recovery_samples(44100.0), 4410);
+        assert_eq!(WATCHDOG_LOAD, 2000);
+    }
+}

@@ -1,0 +1,157 @@
+//! The sensor check of the firmware (docs/firmware.md, "Faults"), driven in the emulator
+//! with implausible sensor words: a short (full scale) or an open (0) that jumps mid-travel
+//! sets the key's DAC word to zero in the sample it arrives, the core's fault word names the
+//! key and the kind, the other keys play on bit for bit, and the key plays again after
+//! the stated time of plausible readings — on a board without converters and on one with
+//! them (`rp2040_io`, where the word is made of the ADC code).
+
+#[path = "common/layouts.rs"]
+mod layouts;
+
+use tactus_compiler::lower::Config;
+use tactus_firmware::image::fault::{recovery_samples, FaultKind, FaultWord};
+use tactus_firmware::image::glue::ctrl;
+use tactus_firmware::image::{FirmwareImage, KeySpec, Program};
+use tactus_runtime::limiter::LimiterConfig;
+
+/// A position-sensed key whose force is its spring: the force follows the position every
+/// sample, so a DAC word of 0 is the check's doing.
+const SPRING: &str =
+    "instrument spring {\n sensor key: m in [0 mm, 10 mm]\n force out = 300 N/m * key + 0.2 N\n}\n";
+
+fn image(board: &str) -> (Program, FirmwareImage) {
+    let mut p = Program::compile(SPRING, &Config::default()).unwrap();
+    p.sensor_check = true;
+    // Keys 0 and 1 on core 0, key 2 on core 1.
+    let keys: Vec<KeySpec> = [(60, 0), (61, 0), (62, 1)]
+        .iter()
+        .map(|&(slot, core)| KeySpec {
+            slot,
+            program: 0,
+            core,
+        })
+        .collect();
+    let board = layouts::shipped_board(board);
+    let image = FirmwareImage::build(
+        std::slice::from_ref(&p),
+        &keys,
+        &board,
+        &LimiterConfig::default(),
+    )
+    .unwrap();
+    (p, image)
+}
+
+/// The fault record of core `core`.
+fn fault(
+    run: &mut tactus_firmware::image::ImageRun,
+    image: &FirmwareImage,
+    core: usize,
+) -> FaultWord {
+    let ctrl_addr = image.core_addresses(core).unwrap()[3];
+    let b = run.board();
+    let w = b.read_u32(ctrl_addr + u32::from(ctrl::FAULT)).unwrap();
+    let at = b.read_u32(ctrl_addr + u32::from(ctrl::FAULT_AT)).unwrap();
+    FaultWord::decode(w, at)
+}
+
+/// Runs a fault of key 0 (word `bad` from sample `from` for `len` samples) against the same
+/// run without it; checks the bound, the fault word, the other keys and the recovery.
+fn trip_and_recover(board: &str, bad: i32, kind: FaultKind) {
+    let (p, image) = image(board);
+    let (lo, hi) = p.fixed.sensor_raw_range[0];
+    let mid = lo + (hi - lo) / 2;
+    let quarter = lo + (hi - lo) / 4;
+    let rec = recovery_samples(44_100.0) as usize;
+    let (from, len) = (200usize, 100usize);
+    let total = from + len + rec + 300;
+    // Every key starts at rest (a key away from rest at the first sample trips: its copy
+    // starts at 0). Key 0 goes down to mid-travel and stays; keys 1 and 2 go down and up
+    // slowly (12.5 µm a sample, below the bound).
+    let _ = quarter;
+    let slow = |n: usize| {
+        let t = (n % 800) as i64;
+        let tri = if t < 400 { t } else { 800 - t };
+        lo + ((mid - lo) as i64 * tri / 400) as i32
+    };
+    let words = |n: usize, faulty: bool| {
+        let k0 = if faulty && (from..from + len).contains(&n) {
+            bad
+        } else if n < from {
+            lo + ((mid - lo) as i64 * n as i64 / from as i64) as i32
+        } else {
+            mid
+        };
+        vec![k0, slow(n), slow(n)]
+    };
+    let mut clean = image.run().unwrap();
+    let mut run = image.run().unwrap();
+    // The converters' pipeline: a word the ADC samples in period n reaches the handler of
+    // tick n + 1 (`d` = 1); without converters the handler of tick n reads it (`d` = 0).
+    let mut d = None;
+    for n in 0..total {
+        let w = clean.step(&words(n, false)).unwrap();
+        let (want, want_force) = (w.dac.clone(), w.force[0]);
+        let g = run.step(&words(n, true)).unwrap();
+        let (got, got_force) = (g.dac.clone(), g.force[0]);
+        if n >= from {
+            assert_ne!(want[0], 0, "the spring's force is not 0 at mid-travel");
+        }
+        assert_eq!(
+            got[1..],
+            want[1..],
+            "{board} sample {n}: the other keys play on"
+        );
+        if d.is_none() && got[0] != want[0] {
+            assert!(n == from || n == from + 1, "{board}: first trip at {n}");
+            d = Some(n - from);
+        }
+        let shift = d.unwrap_or(0);
+        let tripped = d.is_some() && (from + shift..from + shift + len + 1 + rec).contains(&n);
+        if tripped {
+            assert_eq!(
+                got[0], 0,
+                "{board} sample {n}: key 0 tripped, its DAC word 0"
+            );
+        } else if d.is_none() {
+            assert_eq!(got[0], want[0], "{board} sample {n}: key 0 plays");
+        } else {
+            // Back in the model: its force as the clean run's; its DAC code may be above
+            // the clean run's, the limiter's time budget having recovered meanwhile.
+            assert_eq!(
+                got_force, want_force,
+                "{board} sample {n}: key 0 plays again"
+            );
+            assert!(got[0] >= want[0] && want[0] > 0, "{board} sample {n}");
+        }
+    }
+    let d = d.expect("the fault tripped") as u32;
+    let f = fault(&mut run, &image, 0);
+    assert_eq!(f.kind, Some(kind), "{board}: {f:?}");
+    // One trip for the whole fault, however long; the sample it came in.
+    assert_eq!(
+        (f.key, f.trips, f.at_sample),
+        (60, 1, from as u32 + d),
+        "{f:?}"
+    );
+    assert!(!fault(&mut run, &image, 1).tripped());
+    assert!(!fault(&mut clean, &image, 0).tripped());
+}
+
+#[test]
+fn a_short_mid_travel_trips_within_the_sample_and_recovers() {
+    // The window word at full scale: out of the sensor's range.
+    trip_and_recover("rp2040", i32::MAX, FaultKind::SensorRange);
+}
+
+#[test]
+fn an_open_wire_mid_travel_trips_as_a_jump() {
+    // Code 0 is the key at rest: in range, but 5 mm away in one sample.
+    trip_and_recover("rp2040", 0, FaultKind::SensorRate);
+}
+
+#[test]
+fn a_converter_board_trips_on_its_adc_codes() {
+    // Full scale and 0 reach the firmware as ADC codes made words; 0 is a jump again.
+    trip_and_recover("rp2040_io", 0, FaultKind::SensorRate);
+}
