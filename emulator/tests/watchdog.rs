@@ -45,7 +45,7 @@ fn program(load: u16, feeds: u16, trigger: bool) -> Vec<u16> {
         c.push(str(1, 0, 0x1c + 4 * i)); // SCRATCH4..7
     }
     c.extend([
-        movs(1, load as u16 & 0xff),
+        movs(1, load & 0xff),
         lsls(1, 1, 2), // LOAD = 4 × load
         str(1, 0, 4),
         movs(2, 0x40),
