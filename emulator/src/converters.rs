@@ -28,6 +28,8 @@
 use crate::lanes::{self, Fixed, Lane, Word, CONST};
 use tactus_runtime::converters::AdcPart;
 
+mod clear;
+
 /// A 16-bit code's lanes (`crate::lanes`), bit 0 first.
 pub(crate) type Lanes16 = [Lane; 16];
 
@@ -1066,32 +1068,6 @@ impl Dac8568 {
 
     /// Its data words' number ([`Dac8568::data_slots`]).
     pub(crate) const SLOTS: usize = 17;
-
-    /// The CLR pin's falling edge at `cycle` (SBAS430F, "Clear Code Register and Clear
-    /// Pin"): every input and output register to the clear code and any frame under way
-    /// abandoned; each output that changes is an update at `cycle`. Our board's design
-    /// (docs/firmware.md, the fault table): CLR on a GPIO that a watchdog reset releases to
-    /// its pad's pull-down (RP2040 datasheet 2.19.6.3: pads reset with the pull-down on), the
-    /// clear code midscale, the board's 0 A ([`crate::machine::Machine`]'s reset).
-    pub(crate) fn clear(&mut self, cycle: u64) {
-        const MIDSCALE: u16 = 0x8000;
-        self.input = [MIDSCALE; 8];
-        self.bits = 0;
-        self.shift = 0;
-        for c in 0..8 {
-            if self.output[c] != MIDSCALE {
-                self.output[c] = MIDSCALE;
-                if !self.is_full() {
-                    self.updates.push(DacUpdate {
-                        cycle,
-                        channel: c as u8,
-                        code: MIDSCALE,
-                    });
-                }
-            }
-        }
-    }
-
     /// [`Dac8568::observe`] with the lanes of the pins' levels, `l`, while lanes are kept.
     pub(crate) fn observe_lanes(&mut self, cycle: u64, values: u32, dirs: u32, l: &Word) {
         if let Some(d) = self.lanes.as_deref_mut() {
