@@ -113,6 +113,7 @@ fn run(piece: &Path, seconds: f64, which: Option<usize>) -> Result<bool, String>
         rest_replay: true,
         io_trace: None,
         span: None,
+        faults: Vec::new(),
     };
     let run = play_boards(
         &programs,

@@ -108,6 +108,15 @@ pub struct PlayArgs {
     /// recital the worst sample fell, and that its first span equals a run cut there.
     #[arg(long, value_name = "SECONDS", value_parser = parse_span)]
     pub span: Option<f64>,
+    /// With `--engine emu`: inject a fault (repeatable), as comma-separated fields:
+    /// `kind=open|short|stuck|jump|noise|adc-silent|dac-stall|hang|flip|brownout`, the
+    /// target `note=MIDI` or `board=N,key=K` (`board=N,core=C` for the converters,
+    /// `board=N` for a brown-out), `at=TIME` and optionally `until=TIME` (`1.5s`,
+    /// `200ms`), and the kind's value (`code=`, `delta=`, `amplitude=`, `word=` and
+    /// `bit=`). E.g. `--fault kind=open,note=60,at=1s,until=1.2s`. Each board's resets
+    /// are printed after the run.
+    #[arg(long = "fault", value_name = "FAULT", value_parser = parse_fault)]
+    pub fault: Vec<tactus_host::fault::FaultSpec>,
     /// Output directory.
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
@@ -134,6 +143,12 @@ pub struct PlayArgs {
 }
 
 /// `--span`'s parser: a positive number of seconds.
+/// A `--fault` (`tactus_host::fault`): its error names the field.
+fn parse_fault(s: &str) -> Result<tactus_host::fault::FaultSpec, String> {
+    s.parse()
+        .map_err(|e: tactus_host::fault::FaultError| e.to_string())
+}
+
 fn parse_span(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
@@ -234,6 +249,7 @@ fn session(args: &PlayArgs, combo: &Combo) -> Result<Session, PlayError> {
         quiescent_guard: !args.no_quiescent_guard,
         rest_replay: !args.no_rest_replay,
         io_trace: args.io_trace.clone(),
+        faults: args.fault.clone(),
     };
     let opts = PieceOptions {
         seconds: args.seconds,

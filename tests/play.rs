@@ -1307,6 +1307,7 @@ fn emu_session(
         rest_replay: true,
         io_trace: None,
         span,
+        faults: Vec::new(),
     };
     let opts = tactus_host::session::PieceOptions {
         seconds,

@@ -21,3 +21,33 @@ pub mod reg {
 
 /// TICK: the tick generator is enabled.
 pub const TICK_ENABLE: u32 = 1 << 9;
+
+/// CTRL: the count down runs (datasheet 4.7.6; cleared, it is paused).
+pub const CTRL_ENABLE: u32 = 1 << 30;
+/// CTRL: writing 1 resets the chip at once (REASON FORCE); reads 0.
+pub const CTRL_TRIGGER: u32 = 1 << 31;
+/// CTRL: TIME, the count down (bits 23:0, read only).
+pub const CTRL_TIME: u32 = 0x00ff_ffff;
+/// CTRL: PAUSE_JTAG, PAUSE_DBG0, PAUSE_DBG1 (bits 26:24; reset value all set).
+pub const CTRL_PAUSE: u32 = 0x0700_0000;
+/// LOAD's width: the count down is 24 bits (datasheet 4.7.6).
+pub const LOAD_MAX: u32 = 0x00ff_ffff;
+/// REASON: the last reset was the count reaching 0.
+pub const REASON_TIMER: u32 = 1 << 0;
+/// REASON: the last reset was CTRL.TRIGGER.
+pub const REASON_FORCE: u32 = 1 << 1;
+/// Decrements of the count per tick: 2, not 1 (erratum RP2040-E1, "the watchdog counts
+/// down twice as fast as it should": LOAD must be twice the microseconds wanted).
+pub const DECREMENTS_PER_TICK: u32 = 2;
+/// The boot ROM's watchdog entry: after a reset with `SCRATCH4` = this, `SCRATCH5` =
+/// `SCRATCH7 ^ -SCRATCH4`, it clears `SCRATCH4` and enters `SCRATCH7` (Thumb bit set) with
+/// SP = `SCRATCH6` instead of booting from flash (pico-bootrom `bootrom/bootrom_rt0.S`,
+/// `check_wdog`; pico-sdk `watchdog_reboot` writes them so).
+pub const BOOT_MAGIC: u32 = 0xb007_c0d3;
+
+/// Whether the scratch registers hold a boot ROM watchdog entry ([`BOOT_MAGIC`]): the
+/// entry `(pc, sp)` it takes.
+pub fn boot_entry(scratch: &[u32; 8]) -> Option<(u32, u32)> {
+    (scratch[4] == BOOT_MAGIC && scratch[5] == scratch[7] ^ BOOT_MAGIC.wrapping_neg())
+        .then_some((scratch[7], scratch[6]))
+}

@@ -1,8 +1,8 @@
 //! The blocks a firmware's start-up programs before anything runs at speed: RESETS, the
 //! crystal oscillator (XOSC), the system PLL (PLL_SYS), the clock generators (CLOCKS), the
-//! core voltage regulator (VREG_AND_CHIP_RESET) and the watchdog's tick generator (RP2040
-//! datasheet 2.14 Subsystem resets, 2.15 Clocks, 2.16 XOSC, 2.18 PLL, 2.10 Core supply
-//! regulator, 4.7 Watchdog).
+//! core voltage regulator (VREG_AND_CHIP_RESET) (RP2040 datasheet 2.14 Subsystem resets,
+//! 2.15 Clocks, 2.16 XOSC, 2.18 PLL, 2.10 Core supply regulator; the watchdog and its
+//! tick generator are [`crate::watchdog`]).
 //!
 //! **A minimal model.** Each register is plain memory (with the datasheet's atomic SET,
 //! CLR and XOR aliases, 2.1.2), except for the status bits a start-up polls, which read as
@@ -29,7 +29,6 @@ use tactus_rp2040::clocks::{self, CLOCKS_BASE};
 use tactus_rp2040::pll::{self, PLL_SYS_BASE};
 use tactus_rp2040::resets::{self, RESETS_BASE};
 use tactus_rp2040::vreg::{self, min_core_mv, vsel_mv, VREG_AND_CHIP_RESET_BASE};
-use tactus_rp2040::watchdog::{self, WATCHDOG_BASE};
 use tactus_rp2040::xosc::{self, XOSC_BASE, XOSC_HZ};
 
 /// Why the emulator refused a clock or voltage write (module documentation).
@@ -101,7 +100,6 @@ pub fn block_of(addr: u32) -> Option<u32> {
         CLOCKS_BASE,
         XOSC_BASE,
         PLL_SYS_BASE,
-        WATCHDOG_BASE,
         VREG_AND_CHIP_RESET_BASE,
     ]
     .contains(&base)
@@ -218,12 +216,5 @@ impl SysCtl {
             return None;
         }
         self.pll_sys_hz().map(|f| f / div)
-    }
-
-    /// The watchdog tick's divider when enabled: the reference clock cycles per
-    /// microsecond tick the timer counts (12 for a 12 MHz crystal).
-    pub fn tick_cycles(&self) -> Option<u32> {
-        let t = self.get(WATCHDOG_BASE, watchdog::reg::TICK);
-        (t & 1 << 9 != 0).then_some(t & 0x1ff)
     }
 }

@@ -28,6 +28,8 @@
 use crate::lanes::{self, Fixed, Lane, Word, CONST};
 use tactus_runtime::converters::AdcPart;
 
+mod clear;
+
 /// A 16-bit code's lanes (`crate::lanes`), bit 0 first.
 pub(crate) type Lanes16 = [Lane; 16];
 
@@ -950,7 +952,6 @@ impl Dac8568 {
 
     /// Its data words' number ([`Dac8568::data_slots`]).
     pub(crate) const SLOTS: usize = 17;
-
     /// [`Dac8568::observe`] with the lanes of the pins' levels, `l`, while lanes are kept.
     pub(crate) fn observe_lanes(&mut self, cycle: u64, values: u32, dirs: u32, l: &Word) {
         if let Some(d) = self.lanes.as_deref_mut() {

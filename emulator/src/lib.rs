@@ -48,6 +48,7 @@ pub mod sio;
 pub mod system;
 pub mod timer;
 pub mod watch;
+pub mod watchdog;
 pub mod xip;
 
 pub use accel::{IoWindows, MemoStats, Period, RestPoint};

@@ -364,4 +364,15 @@ impl Profiler {
         self.active[k] = mark.active;
         self.returns_index(k);
     }
+
+    /// Both cores were reset (`machine/reset.rs`): their open calls never return and are
+    /// dropped; completed calls and entries stay.
+    pub(crate) fn cores_reset(&mut self) {
+        for p in &mut self.profiles {
+            p.open = Default::default();
+        }
+        self.active = [u64::MAX; 2];
+        self.returns_index(0);
+        self.returns_index(1);
+    }
 }

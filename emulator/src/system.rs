@@ -33,6 +33,7 @@ use crate::bus::{
 use crate::clocks::{self, SysCtl};
 use crate::sio::Sio;
 use crate::timer::Timer;
+use crate::watchdog::Watchdog;
 use crate::xip::Xip;
 use tactus_isa::timing::{APB_LOAD_WAIT, APB_STORE_WAIT};
 use tactus_rp2040::irq::{SIO_IRQ_PROC0, SIO_IRQ_PROC1};
@@ -41,6 +42,7 @@ use tactus_rp2040::resets;
 use tactus_rp2040::sio::SIO_BASE;
 use tactus_rp2040::ssi::{XIP_SSI_BASE, XIP_SSI_SIZE};
 use tactus_rp2040::timer::TIMER_BASE;
+use tactus_rp2040::watchdog::WATCHDOG_BASE;
 
 /// The RP2040 outside the cores: memories, SIO, timer, and the bank arbiter.
 #[derive(Clone, Debug)]
@@ -55,9 +57,11 @@ pub struct System {
     pub sio: Sio,
     /// System timer.
     pub timer: Timer,
-    /// RESETS, XOSC, PLL_SYS, CLOCKS, VREG and the watchdog tick: the start-up's registers
+    /// RESETS, XOSC, PLL_SYS, CLOCKS and VREG: the start-up's registers
     /// (`clocks.rs`, a minimal model).
     pub sysctl: SysCtl,
+    /// The watchdog ([`crate::watchdog`]): its count, REASON, scratch and TICK.
+    pub watchdog: Watchdog,
     /// The SSI and the flash chip behind the XIP window ([`crate::xip`]).
     pub xip: Xip,
     /// Whether an XIP access reads the flash now ([`Xip::xip_read`] with the programmed
@@ -111,6 +115,7 @@ impl System {
             sio: Sio::default(),
             timer: Timer::new(clock_hz),
             sysctl: SysCtl::default(),
+            watchdog: Watchdog::new(clock_hz),
             xip: Xip::configured_03h(clock_hz),
             xip_answers: true,
             bank_claim: [[u64::MAX; 2]; BANKS],
@@ -508,7 +513,10 @@ impl System {
             self.io_live_at(cycle);
             return self.io.as_mut()?.read(addr);
         }
-        // RESETS, clocks, PLL, XOSC, VREG, watchdog: no interrupt lines.
+        if addr & !0x3fff == WATCHDOG_BASE {
+            return self.watchdog.read(cycle, addr & 0xffc);
+        }
+        // RESETS, clocks, PLL, XOSC, VREG: no interrupt lines.
         self.sysctl.read(addr)
     }
 
@@ -554,6 +562,9 @@ impl System {
             let ok = self.io.as_mut().is_some_and(|io| io.write(addr, value));
             self.io_refresh();
             return ok;
+        }
+        if addr & !0x3fff == WATCHDOG_BASE {
+            return self.watchdog.write(cycle, addr, value);
         }
         let was_held = self.sysctl.held_in_reset(resets::TIMER);
         let ok = self.sysctl.write(addr, value);

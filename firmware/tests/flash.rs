@@ -174,7 +174,7 @@ fn boot_and_run(fw: &BoardFirmware, board: &BoardSpec, samples: usize, trace: bo
         "board {}: the core voltage",
         fw.index
     );
-    assert_eq!(b.system.sysctl.tick_cycles(), Some(12), "1 µs timer tick");
+    assert_eq!(b.system.watchdog.tick_cycles(), Some(12), "1 µs timer tick");
     if image.cores() == 2 {
         let vt = &fw.key_map.cores[1].vector_table;
         assert_eq!(format!("{:#010x}", b.cores[1].nvic.vtor), *vt);

@@ -642,6 +642,26 @@ pub fn budget_text(r: &BoardsReport) -> String {
             cores.join("; ")
         ));
     }
+    // Resets met with injected faults (`--fault`): the watchdog's, a brown-out's.
+    for (i, b) in r.boards.iter().enumerate() {
+        for reset in &b.resets {
+            let after = match &reset.reboot {
+                Ok(n) => format!("booted again, {n} samples at zero force"),
+                Err(e) => format!("did not boot again (zero force from then on): {e}"),
+            };
+            s.push_str(&format!(
+                "    board {}: {} reset at sample {} (cycle {}): {after}\n",
+                i + 1,
+                reset.why,
+                reset.sample,
+                reset.cycle
+            ));
+        }
+    }
+    let resets: usize = r.boards.iter().map(|b| b.resets.len()).sum();
+    if resets > 0 {
+        s.push_str(&format!("  resets: {resets} (watchdog and brown-out)\n"));
+    }
     let given: u64 = r.boards.iter().map(|b| b.rest_replayed.0).sum();
     if given > 0 {
         let all = r.samples * r.boards.len() as u64;

@@ -160,6 +160,7 @@ fn mutated_performances_play_and_render_or_say_why_not() {
                         rest_replay: true,
                         io_trace: None,
                         span: None,
+                        faults: Vec::new(),
                     };
                     let played = match play::play(&perf, &keyboard, &config, &Quiet) {
                         Ok(p) => p,

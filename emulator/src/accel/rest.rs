@@ -11,7 +11,8 @@
 //!
 //! **What.** [`Board::rest_point`] takes everything that decides what the board does next —
 //! SRAM, both cores' registers, flags, modes, run states and NVIC/SysTick, SIO, the timer,
-//! the clocks' registers, the XIP block — with every cycle-valued field taken relative to
+//! the clocks' registers, the watchdog (its count and the cycles since it was loaded), the
+//! XIP block — with every cycle-valued field taken relative to
 //! the earlier core's cycle (a cycle before it, which nothing can tell from another, as
 //! "past"), and apart from words the caller names as counters. Two rest points with equal
 //! states make a [`Period`]; [`Board::skip_periods`] then moves a board whose state equals
@@ -70,6 +71,9 @@ pub struct RestPoint {
     /// Per profile, each core's entries.
     entries: Vec<[u64; 2]>,
     count_reads: u64,
+    /// The watchdog's reads of its count and feeds near its firing (not state: a period
+    /// with either is refused, `crate::watchdog`, "Exactness").
+    watchdog_reads: (u64, u64),
     /// Whether a core's SysTick counts the timer's 1 µs pulses (CLKSOURCE = 0): the
     /// pulses' phase is then state.
     on_us_grid: bool,
@@ -164,6 +168,13 @@ impl Drive<'_> {
         if end.count_reads != start.count_reads {
             return Err("a core read the timer's count during the period".into());
         }
+        if end.watchdog_reads != start.watchdog_reads {
+            return Err(
+                "a core read the watchdog's count, or fed it within two ticks of its firing, \
+                 during the period"
+                    .into(),
+            );
+        }
         if start.on_us_grid
             && (clock_hz == 0 || !(cycles as u128 * 1_000_000).is_multiple_of(clock_hz as u128))
         {
@@ -247,6 +258,7 @@ impl Drive<'_> {
             sio,
             timer,
             sysctl,
+            watchdog,
             xip,
             xip_answers,
             bank_claim,
@@ -297,9 +309,10 @@ impl Drive<'_> {
                 cycle - now
             )
         });
+        let watchdog_state = watchdog.rest_state(now);
         let parts = format!(
-            "{cores:?} {sio:?} {timer:?} {sysctl:?} {xip:?} {xip_answers} {claims:?} \
-             {allowed_banks} {io_banks} {io_journal:?} {io_rec:?}"
+            "{cores:?} {sio:?} {timer:?} {sysctl:?} {watchdog_state} {xip:?} {xip_answers} \
+             {claims:?} {allowed_banks} {io_banks} {io_journal:?} {io_rec:?}"
         );
         Ok(RestPoint {
             io,
@@ -315,6 +328,7 @@ impl Drive<'_> {
                 .map(|p| p.entries())
                 .collect(),
             count_reads: timer.count_reads,
+            watchdog_reads: (watchdog.time_reads, watchdog.close_calls),
             on_us_grid: self
                 .m
                 .cores
@@ -373,6 +387,7 @@ impl Drive<'_> {
             d.ready_at = later(d.ready_at);
         }
         sys.xip.move_time(&mut |t| later(t));
+        sys.watchdog.move_later(delta);
         for i in 0..2 {
             sys.contention_stalls[i] =
                 (sys.contention_stalls[i]).wrapping_add(period.stalls[i].wrapping_mul(k));

@@ -302,14 +302,24 @@ impl Drive<'_> {
             };
         }
         self.a.lines_epoch = u64::MAX; // the host may have touched SIO or the timer
+        let run_limit = limit;
         loop {
             let Some(k) = self.m.next_core() else {
                 return StopReason::Idle;
             };
             let now = self.m.cores[k].cycle;
-            if now >= limit {
+            if now >= run_limit {
                 return StopReason::CycleLimit;
             }
+            // Every engine stops where the watchdog fires (`machine/reset.rs`); a core's
+            // write to it ends any fast run (a peripheral access), so this bound is current.
+            let fire_at = self.m.system.watchdog.fire_at;
+            if now >= fire_at {
+                self.m.watchdog_reset();
+                self.prof.cores_reset();
+                continue;
+            }
+            let limit = run_limit.min(fire_at);
             // Both cores as independent machines, where their banks allow
             // (`accel/window.rs`); the lock-step loop below otherwise.
             if now >= self.a.window_at && self.windows_allowed() {
@@ -417,7 +427,10 @@ impl Drive<'_> {
     pub(super) fn burst(&mut self, k: usize, horizon: u64) -> Event {
         loop {
             let core = &mut self.m.cores[k];
-            if core.cycle >= horizon || core.state != RunState::Running {
+            if core.cycle >= horizon
+                || core.state != RunState::Running
+                || core.cycle >= self.m.system.watchdog.fire_at
+            {
                 return Event::None;
             }
             if self.m.system.irq_epoch != self.a.lines_epoch
@@ -446,6 +459,7 @@ impl Drive<'_> {
             if let (true, Some(watch)) = (self.fast_ready(k), watch) {
                 let deadline = horizon
                     .min(self.m.system.timer.next_event)
+                    .min(self.m.system.watchdog.fire_at)
                     .min(self.m.cores[k].nvic.syst_next);
                 if self.m.cores[k].cycle < deadline {
                     let (_, ran) = self.fast_run::<false>(k, [deadline; 2], watch);
@@ -575,6 +589,10 @@ impl Drive<'_> {
         };
         let (k, event) = match stepped? {
             Ok(Step::Slept(k)) => return Some(Ok(k)),
+            Ok(Step::Reset) => {
+                self.prof.cores_reset();
+                return Some(Ok(0));
+            }
             Ok(Step::Ran(k, event)) => (k, event),
             Err(stop) => return Some(Err(stop)),
         };

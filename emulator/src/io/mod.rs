@@ -264,6 +264,23 @@ impl Io {
         self.dacs.iter_mut().for_each(|d| d.set_kept(max));
     }
 
+    /// The RP2040's side reset at `cycle` by a watchdog reset (PSM.WDSEL, `crate::watchdog`):
+    /// the PIOs, the DMA, IO_BANK0 and BUSCTRL at their power-on values, the pins undriven;
+    /// the converters at the pins keep their state, but the DACs are cleared
+    /// ([`Dac8568::clear`], the board's CLR wiring). The machine must have run to `cycle`.
+    pub(crate) fn chip_reset(&mut self, cycle: u64) {
+        let fresh = Io::new(&IoConfig::default(), 0.0, cycle);
+        let old = std::mem::replace(self, fresh);
+        self.adcs = old.adcs;
+        self.dacs = old.dacs;
+        self.stepwise = old.stepwise;
+        self.touches = old.touches;
+        for d in &mut self.dacs {
+            d.clear(cycle);
+        }
+        self.forget_idle();
+    }
+
     /// Forgets what the last advance found of the cycles ahead ([`Idle`]): a caller that
     /// may change the machine through its public fields.
     pub(crate) fn forget_idle(&mut self) {

@@ -65,6 +65,13 @@ impl Machine {
     ///
     /// Errors: [`EmuError::Boot2Checksum`] (the chip's ROM would retry and start USB boot).
     pub fn boot_from_flash(&mut self) -> Result<(), EmuError> {
+        self.fill_power_on_pattern();
+        self.system.invalidate_code();
+        self.flash_boot()
+    }
+
+    /// SRAM as it powers up: a fixed pseudo-random pattern ([`Machine::boot_from_flash`]).
+    pub(super) fn fill_power_on_pattern(&mut self) {
         let mut x = 0x2545_f491u32;
         for w in self.system.sram.chunks_mut(4) {
             x ^= x << 13;
@@ -74,7 +81,10 @@ impl Machine {
                 *b = v;
             }
         }
-        self.system.invalidate_code();
+    }
+
+    /// The boot ROM's flash path ([`Machine::boot_from_flash`]) on SRAM as it is.
+    pub(super) fn flash_boot(&mut self) -> Result<(), EmuError> {
         self.system.xip.power_on();
         let boot2 = self.system.xip.boot_rom_read_boot2(&self.system.flash);
         self.write_bytes(tactus_rp2040::bootrom::BOOT2_LOAD, &boot2)?;

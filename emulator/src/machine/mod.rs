@@ -26,6 +26,7 @@
 
 mod host;
 mod launch;
+mod reset;
 
 pub use host::EmuError;
 
@@ -110,6 +111,8 @@ pub enum Step {
     /// Core `k` executed an instruction (or took an exception) with this event, not yet
     /// applied ([`Machine::handle_event`]).
     Ran(usize, Event),
+    /// The watchdog reset the chip (`reset.rs`): both cores restarted.
+    Reset,
 }
 
 /// A core's part of the machine at some moment ([`Machine::snapshot_core`]): what undoing
@@ -244,6 +247,10 @@ impl Machine {
         if now >= limit {
             return None;
         }
+        if now >= self.system.watchdog.fire_at {
+            self.watchdog_reset();
+            return Some(Ok(Step::Reset));
+        }
         if self.launch.is_some() && k == 0 {
             self.poll_launch();
         }
@@ -265,6 +272,7 @@ impl Machine {
                     .system
                     .timer
                     .next_event
+                    .min(self.system.watchdog.fire_at)
                     .min(core.nvic.syst_next)
                     .min(limit);
                 if other_running {
@@ -288,7 +296,7 @@ impl Machine {
             match self.step_core(limit, &mut Fetch) {
                 None => break StopReason::CycleLimit,
                 Some(Err(stop)) => break stop,
-                Some(Ok(Step::Slept(_))) => {}
+                Some(Ok(Step::Slept(_) | Step::Reset)) => {}
                 Some(Ok(Step::Ran(k, event))) => {
                     if let Some(stop) = self.handle_event(k, event, config) {
                         break stop;

@@ -113,7 +113,9 @@ mod run;
 mod sample;
 
 pub use flash_image::{FlashImage, FlashPiece};
-pub use run::{run_to_first_tick, run_to_timer, ImageRun, IoRecord};
+pub use run::{
+    run_to_first_tick, run_to_timer, FaultKind, ImageRun, Injection, IoRecord, ResetRecord,
+};
 pub use sample::{DriveOut, KeyEvent, SampleOut};
 
 use crate::windows::{MAX_KEYS, SENSOR_BASE};

@@ -25,6 +25,9 @@ use tactus_isa::timing::EXCEPTION_ENTRY;
 use tactus_rp2040::memory::sram_location;
 use tactus_runtime::limiter::{Limiter, LimiterConstants};
 
+mod inject;
+pub use inject::{FaultKind, Injection, ResetRecord};
+
 /// One frame at a converter's pins ([`ImageRun::take_io`]): an ADC frame (the channel it
 /// sampled at its chip select's fall, the code, the command it carried) or a DAC output
 /// change (at the frame's 32nd SCLK falling edge, the channel's new code).
@@ -68,6 +71,8 @@ pub struct ImageRun {
     /// An error of the rest replay met where none could be returned ([`ImageRun::board`]),
     /// returned by the next [`ImageRun::step`] or [`ImageRun::settle`].
     rest_error: Option<ImageError>,
+    /// Injected faults and the resets met (`inject.rs`).
+    faults: inject::Faults,
 }
 
 /// SRAM byte offsets of the words [`ImageRun::step`] reads and writes (see
@@ -433,6 +438,7 @@ impl ImageRun {
                 .constants(),
             rest: Rest::new(rest_period(image)),
             rest_error: None,
+            faults: Default::default(),
         };
         let alarm = run.image.start_alarm_us as u64;
         run_to_timer(&mut run.board, alarm).map_err(ImageError::Run)?;
@@ -457,9 +463,11 @@ impl ImageRun {
     /// Cycle of sample tick `n` (sample `n`'s interrupt, from 0), as the cores' SysTicks
     /// tick: `first + ⌊n·clock/fs⌋` (`tactus_runtime::keyboard::tick_cycle`).
     pub fn tick_cycle(&self, n: u64) -> u64 {
+        // After a reset, `first_tick` is the firmware's new tick 0, at sample `tick_base`
+        // (`inject.rs`).
         tactus_runtime::keyboard::tick_cycle(
             self.first_tick,
-            n,
+            n.saturating_sub(self.faults.tick_base),
             self.image.clock_hz,
             self.image.sample_rate_hz,
         )
@@ -496,6 +504,36 @@ impl ImageRun {
         if let Some(e) = self.rest_error.take() {
             return Err(e);
         }
+        if self.has_faults() {
+            return self.step_faulted(sensors);
+        }
+        self.step_words(sensors)
+    }
+
+    /// [`ImageRun::step`] with injected faults (`inject.rs`): the faults applied to the
+    /// words and the board, a board rebooting or dead giving zero-force samples.
+    fn step_faulted(&mut self, sensors: &[i32]) -> Result<&SampleOut, ImageError> {
+        if self.faults.dead.is_some() || self.faults.zero_left > 0 {
+            self.faults.zero_left = self.faults.zero_left.saturating_sub(1);
+            self.samples += 1;
+            self.zero_sample();
+            return Ok(&self.sample);
+        }
+        // A replay's samples are run again with the codes they had: end it before the
+        // faults change anything.
+        self.leave_rest()?;
+        if self.apply_faults(sensors)? {
+            self.rest.forget();
+        }
+        let words = std::mem::take(&mut self.faults.buf);
+        let out = self.step_words(&words).map(|_| ());
+        self.faults.buf = words;
+        out?;
+        Ok(&self.sample)
+    }
+
+    /// [`ImageRun::step`] of checked words.
+    fn step_words(&mut self, sensors: &[i32]) -> Result<&SampleOut, ImageError> {
         if !self.rest.on {
             self.run_sample(sensors)?;
             return Ok(&self.sample);
@@ -529,6 +567,11 @@ impl ImageRun {
         if !self.rest.on || self.rest_error.is_some() || self.rest.last != sensors {
             return 0;
         }
+        let most = if self.has_faults() {
+            most.min(self.faults_quiet(self.samples))
+        } else {
+            most
+        };
         let mut given = 0;
         while given < most && self.rest.can_give() {
             if !take(self.rest.peek()) {
@@ -811,16 +854,24 @@ impl ImageRun {
         let want = self.samples + 1;
         let limit = self.tick_cycle(want);
         let stop = self.board.run_until(limit);
+        if self.has_faults() && self.after_reset(stop)? {
+            self.rest.forget();
+            self.samples = want;
+            self.zero_sample();
+            return Ok(());
+        }
         self.check_stop(stop)?;
         let eighth = (self.image.cycles_per_sample() / 8).max(1);
         let mut extra = 0;
+        // The firmware's sample count since its last boot (`inject.rs`).
+        let (base, count_base) = (self.faults.tick_base, self.faults.count_base);
         loop {
             let sram = &self.board.system.sram;
             let done = self
                 .at
                 .samples
                 .iter()
-                .all(|&o| word(sram, o) as u64 >= want);
+                .all(|&o| word(sram, o).wrapping_sub(count_base) as u64 >= want - base);
             if done {
                 break;
             }
@@ -832,6 +883,12 @@ impl ImageRun {
                 )));
             }
             let stop = self.board.run_for(eighth);
+            if self.has_faults() && self.after_reset(stop)? {
+                self.rest.forget();
+                self.samples = want;
+                self.zero_sample();
+                return Ok(());
+            }
             self.check_stop(stop)?;
         }
         self.samples = want;
@@ -853,7 +910,9 @@ impl ImageRun {
             for &ch in &k.adc_channels {
                 let scale = &plan.cores[core].scales[ch as usize];
                 if let Some(&w) = sensors.get(flat) {
-                    let code = scale.code(w) as u16;
+                    // A sensor fault's code (`inject.rs`) in place of the word's.
+                    let forced = self.faults.codes.get(flat).copied().flatten();
+                    let code = forced.unwrap_or(scale.code(w) as u16);
                     self.board.set_adc_code(core, ch as usize, code);
                 }
                 flat += 1;
@@ -902,7 +961,9 @@ impl ImageRun {
             for (j, (d, _)) in k.drives.iter().enumerate() {
                 let o = &mut s.drives[i][j];
                 o.force = out(d.out_index);
-                o.dac = dac[at + j] as i32 as i16;
+                // A stalled DAC holds its code (`inject.rs`).
+                let held = self.faults.frozen.get(at + j).copied().flatten();
+                o.dac = held.unwrap_or(dac[at + j] as i32) as i16;
                 o.current_ua = self.limiter.current_ua(i32::from(o.dac));
             }
             at += k.drives.len();

@@ -61,6 +61,8 @@ pub struct PerformOptions {
     /// Run in consecutive spans of this many samples, each board's budget reported per span
     /// ([`BoardRun::spans`]); `None`: one span, none reported.
     pub span: Option<usize>,
+    /// Faults injected (`crate::fault`): the board (from 0) and the fault.
+    pub faults: Vec<(usize, tactus_firmware::image::Injection)>,
 }
 
 /// The spans of a run of `end` samples cut every `span` samples (`None` or 0: one span):
@@ -117,6 +119,9 @@ pub struct BoardRun {
     /// and summed handler cycles, misses, rest replay and I/O over the span; no cycle
     /// series, strikes or traces), in order.
     pub spans: Vec<BoardRun>,
+    /// The resets the board met (the watchdog's, a brown-out), with injected faults
+    /// ([`PerformOptions::faults`]); empty otherwise.
+    pub resets: Vec<tactus_firmware::image::ResetRecord>,
 }
 
 /// The whole keyboard's run.
@@ -453,6 +458,7 @@ impl BoardEngine<'_> {
         self.run.settle()?;
         self.report.memo = self.run.board().memo_stats();
         self.report.rest_replayed = self.run.rest_replayed();
+        self.report.resets = self.run.resets().to_vec();
         self.report.io_windows = self.run.board().io_windows();
         self.report.io_breaches.clear();
         if let Some(io) = self.run.board().io() {
@@ -666,6 +672,11 @@ fn run_board(
     )?
     // A traced board writes each sample's frames as they come: it runs every sample.
     .rest_replay(opts.rest_replay && opts.io_trace.is_none())?;
+    for (_, f) in opts.faults.iter().filter(|f| f.0 == index) {
+        engine.run.inject(*f).map_err(|e| {
+            tactus_firmware::image::ImageError::Run(format!("board {}: --fault: {e}", index + 1))
+        })?;
+    }
     if let (Some(dir), Some(_)) = (&opts.io_trace, &board.converters) {
         engine.trace_io(&dir.join(format!("board-{:02}.csv", index + 1)), index + 1)?;
     }

@@ -9,6 +9,9 @@ use tactus_firmware::image::ImageError;
 /// names the program, key, board or sample it is about.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
+    /// A `--fault` names what the keyboard does not have (`crate::fault`).
+    #[error("{0}")]
+    Fault(#[from] crate::fault::FaultError),
     /// A program is compiled for another sample rate than the board's.
     #[error(
         "`{program}` is compiled for {program_hz} Hz, the board `{board}` samples at {board_hz} Hz"

@@ -140,6 +140,8 @@ pub struct PlayConfig {
     /// each ([`Played::spans`]); the same strikes and whole-run budget as one span.
     /// `None`: one span.
     pub span: Option<usize>,
+    /// With `--engine emu`: faults injected into the boards (`--fault`, `crate::fault`).
+    pub faults: Vec<crate::fault::FaultSpec>,
 }
 
 impl PlayConfig {
@@ -449,22 +451,27 @@ pub fn play(
         let keys: Vec<u8> = keyboard.keys.iter().map(|a| a.key).collect();
         key_samples = end as u64 * keys.len() as u64;
         progress.start(key_samples, Some(keys.len() as f64 * fs));
+        let plan_boards = keyboard.boards.clone().ok_or_else(|| {
+            RunError::FirmwareMismatch(
+                "the Emu engine runs the keyboard's boards; no plan was given".to_string(),
+            )
+        })?;
+        let faults = (config.faults.iter())
+            .map(|f| f.resolve(&plan_boards, fs))
+            .collect::<Result<Vec<_>, _>>()?;
         let opts = PerformOptions {
             end,
             fs,
             finger,
             trace: config.trace.clone(),
-            boards: keyboard.boards.clone().ok_or_else(|| {
-                RunError::FirmwareMismatch(
-                    "the Emu engine runs the keyboard's boards; no plan was given".to_string(),
-                )
-            })?,
+            boards: plan_boards,
             limiter: tactus_runtime::limiter::LimiterConfig::for_board(&config.board),
             engine: config.emulator,
             quiescent_guard: config.quiescent_guard,
             rest_replay: config.rest_replay,
             io_trace: config.io_trace.clone(),
             span: config.span,
+            faults,
         };
         let key_motions: BTreeMap<u8, &Motion> =
             motions.iter().map(|(&k, (m, _))| (k, m)).collect();

@@ -1,0 +1,441 @@
+//! Faults injected into a running board ([`ImageRun::inject`]), and the board's resets.
+//!
+//! **Through the inputs the emulator keys on.** Every fault enters the board the way its
+//! inputs already do, so that the block engine's memos, the I/O's period memo and the rest
+//! replay stay exact: a sensor fault changes the key's sensor word (a board without
+//! converters) or the code its ADC channel reads (`Board::set_adc_code`, with them); a
+//! flipped bit and a hung update are host writes to SRAM between samples (`write_data`,
+//! `write_bytes`, which drops decoded code); the ADC's silence, the DAC's stall and a
+//! brown-out change the emulated parts or chip between samples. A recording of the rest
+//! replay never spans a change: the replay is left and forgotten at each.
+//!
+//! **Sensor faults** are defined on the key's ADC code, the 16-bit code of its sensor's
+//! declared range ([`AdcScale::new`] over `sensor_raw_range`, the scale a converter board
+//! reads it with): open reads code 0, short full scale (65,535), stuck a code, a jump the
+//! code plus a step, noise the code plus a pseudo-random value in ±amplitude each sample.
+//! Without converters the key's sensor word is the word of that code, `lo + code << shift`
+//! (not clamped to the range: a short reads beyond it, as the ADC's full scale lies beyond
+//! the key's travel).
+//!
+//! **Resets.** When the watchdog resets the board (`tactus_emulator::watchdog`) the run
+//! follows the firmware's boot to its first sample tick ([`super::run_to_first_tick`]) and
+//! gives zero-force samples for the samples that took (the DACs are cleared at the reset,
+//! `tactus_emulator::converters::Dac8568`'s CLR; without converters the host reads zero
+//! from the reset until the firmware's handler runs again); the board's clock then runs
+//! behind the host's by less than a sample. A board that cannot boot again (no watchdog
+//! entry for a RAM image, a brown-out of a RAM image: USB boot) gives zero forces from
+//! then on and says why ([`ImageRun::resets`]).
+
+use super::*;
+use tactus_runtime::converters::AdcScale;
+
+/// What a fault does ([`Injection`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FaultKind {
+    /// The key's sensor reads code 0 (a broken wire).
+    Open,
+    /// The key's sensor reads full scale, 65,535 (a short to the reference).
+    Short,
+    /// The key's sensor reads this code.
+    Stuck(u16),
+    /// The key's sensor reads its code plus this step (saturated to 0–65,535).
+    Jump(i32),
+    /// The key's sensor reads its code plus a pseudo-random value in ±this, each sample.
+    Noise(u16),
+    /// The ADC of this core answers all ones on every channel (its SDO stuck high); without
+    /// converters every sensor word of the core's keys reads full scale.
+    AdcSilent,
+    /// The DAC of this core takes no more frames (its SPI link broken): its outputs hold
+    /// their codes, so the codes the host reads for the core's drives hold those of the
+    /// sample before (with or without converters). Nothing on the RP2040 sees it: the
+    /// DAC8568 has no read-back.
+    DacStall,
+    /// The key's update never returns: its first instruction becomes `b .`.
+    Hang,
+    /// Bit `bit` (0–31) of word `word` of the key's state struct flips once.
+    Flip {
+        /// The state word (0-based).
+        word: u32,
+        /// The bit.
+        bit: u8,
+    },
+    /// The supply dips: a power-on reset (SRAM lost; `Board::brown_out`).
+    BrownOut,
+}
+
+impl FaultKind {
+    /// Whether the fault is on a key's sensor.
+    pub fn is_sensor(&self) -> bool {
+        matches!(
+            self,
+            FaultKind::Open
+                | FaultKind::Short
+                | FaultKind::Stuck(_)
+                | FaultKind::Jump(_)
+                | FaultKind::Noise(_)
+        )
+    }
+}
+
+/// One fault on a board: what, where (a key of the board, index in its key list, or a
+/// core), and the samples it lasts: from sample `from` (counted from the run's first) to
+/// before `until` (`None`: to the end; a flip and a brown-out happen once, at `from`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Injection {
+    /// The fault.
+    pub kind: FaultKind,
+    /// The key (sensor faults, hang, flip).
+    pub key: Option<usize>,
+    /// The core (the ADC's and the DAC's faults).
+    pub core: Option<usize>,
+    /// The first sample it is in.
+    pub from: u64,
+    /// The first sample it is over, if it clears.
+    pub until: Option<u64>,
+}
+
+impl Injection {
+    fn active(&self, n: u64) -> bool {
+        n >= self.from && self.until.is_none_or(|u| n < u)
+    }
+
+    fn one_shot(&self) -> bool {
+        matches!(self.kind, FaultKind::Flip { .. } | FaultKind::BrownOut)
+    }
+}
+
+/// A reset the run met: the sample, the board's cycle, why, and whether the firmware ran
+/// again (or why not).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ResetRecord {
+    /// The sample during which the board reset.
+    pub sample: u64,
+    /// The board's cycle of the reset.
+    pub cycle: u64,
+    /// `watchdog timer`, `watchdog trigger` or `brown-out`.
+    pub why: &'static str,
+    /// Samples of zero force while the firmware booted; `Err` when it did not boot again.
+    pub reboot: Result<u64, String>,
+}
+
+/// The faults of a run and what they left (module documentation).
+#[derive(Debug, Default)]
+pub(super) struct Faults {
+    list: Vec<Injection>,
+    /// Per flat sensor word, its scale (made when the first sensor fault is injected).
+    scales: Vec<AdcScale>,
+    /// The effective sensor words of the sample under way.
+    pub(super) buf: Vec<i32>,
+    /// Per flat sensor word, the ADC code forced this sample (converter boards).
+    pub(super) codes: Vec<Option<u16>>,
+    /// The codes forced last sample: a change leaves the rest replay.
+    last_codes: Vec<Option<u16>>,
+    /// A hung update's address and the halfword it replaced.
+    hung: Vec<(u32, [u8; 2])>,
+    /// Per drive of every key (flat, key order): the DAC code it holds while its core's
+    /// DAC is stalled.
+    pub(super) frozen: Vec<Option<i32>>,
+    /// A brown-out was injected this sample.
+    browned: bool,
+    /// The watchdog resets seen.
+    resets_seen: u64,
+    /// Resets and brown-outs met.
+    pub(super) resets: Vec<ResetRecord>,
+    /// Zero-force samples left while the firmware boots again.
+    pub(super) zero_left: u64,
+    /// The board cannot run again (why).
+    pub(super) dead: Option<String>,
+    /// The sample tick `first_tick` is tick 0 of, and the firmware's sample count then.
+    pub(super) tick_base: u64,
+    pub(super) count_base: u32,
+    /// xorshift32 state of the noise.
+    seed: u32,
+}
+
+fn noise(seed: &mut u32, amplitude: u16) -> i32 {
+    let mut x = *seed;
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    *seed = x;
+    let span = 2 * u32::from(amplitude) + 1;
+    (x % span) as i32 - i32::from(amplitude)
+}
+
+impl ImageRun {
+    /// Adds a fault (module documentation).
+    ///
+    /// Errors, as text naming the field: a key or core the board does not have, a fault
+    /// that needs a key or a core without one, a flip outside the key's state struct or
+    /// beyond bit 31, an end not after the start.
+    pub fn inject(&mut self, f: Injection) -> Result<(), String> {
+        let keys = self.image.keys.len();
+        let needs_key =
+            f.kind.is_sensor() || matches!(f.kind, FaultKind::Hang | FaultKind::Flip { .. });
+        match (needs_key, f.key) {
+            (true, None) => return Err("`key`: this fault needs a key".into()),
+            (_, Some(k)) if k >= keys => {
+                return Err(format!("`key`: key {k} on a board of {keys} keys"))
+            }
+            _ => {}
+        }
+        if matches!(f.kind, FaultKind::AdcSilent | FaultKind::DacStall) {
+            match f.core {
+                None => return Err("`core`: this fault needs a core".into()),
+                Some(c) if c >= self.image.cores.len() => {
+                    return Err(format!(
+                        "`core`: core {c} on a board of {} cores",
+                        self.image.cores.len()
+                    ))
+                }
+                _ => {}
+            }
+        }
+        if let (FaultKind::Flip { word, bit }, Some(k)) = (f.kind, f.key) {
+            let p = &self.image.programs[self.image.keys[k].spec.program];
+            let words = p.thumb.state.size / 4;
+            if word as usize >= words {
+                return Err(format!(
+                    "`word`: word {word} of a state struct of {words} words"
+                ));
+            }
+            if bit > 31 {
+                return Err(format!("`bit`: bit {bit} of a 32-bit word"));
+            }
+        }
+        if f.until.is_some_and(|u| u <= f.from) {
+            return Err("`until`: the fault must end after it starts".into());
+        }
+        if self.faults.scales.is_empty() {
+            for k in &self.image.keys {
+                let p = &self.image.programs[k.spec.program];
+                for i in 0..p.sensor_words() {
+                    let (lo, hi) = p.fixed.sensor_raw_range.get(i).copied().unwrap_or((0, 0));
+                    self.faults.scales.push(AdcScale::new(lo, hi, 16));
+                }
+            }
+            let drives = self.image.keys.iter().map(|k| k.drives.len()).sum();
+            self.faults.frozen = vec![None; drives];
+            self.faults.seed = 0x2545_f491;
+        }
+        self.faults.list.push(f);
+        Ok(())
+    }
+
+    /// Whether any fault was injected.
+    pub(super) fn has_faults(&self) -> bool {
+        !self.faults.list.is_empty()
+    }
+
+    /// The resets met so far (module documentation).
+    pub fn resets(&self) -> &[ResetRecord] {
+        &self.faults.resets
+    }
+
+    /// The samples from `n` on in which nothing injected changes (`give_while`'s bound):
+    /// 0 while a fault that varies each sample is active.
+    pub(super) fn faults_quiet(&self, n: u64) -> u64 {
+        if self.faults.zero_left > 0 || self.faults.dead.is_some() {
+            return 0;
+        }
+        let mut quiet = u64::MAX;
+        for f in &self.faults.list {
+            if f.active(n) && matches!(f.kind, FaultKind::Noise(_)) {
+                return 0;
+            }
+            for at in [Some(f.from), f.until].into_iter().flatten() {
+                if at >= n {
+                    quiet = quiet.min(at - n);
+                }
+            }
+        }
+        quiet
+    }
+
+    /// The sensor words of sample `self.samples` with the sensor faults applied, into
+    /// `faults.buf` and `faults.codes`; the faults that start or end at this sample done to
+    /// the board. Returns whether the rest replay must be left (an input changed otherwise
+    /// than through the words).
+    pub(super) fn apply_faults(&mut self, sensors: &[i32]) -> Result<bool, ImageError> {
+        let n = self.samples;
+        let io = self.image.io.is_some();
+        let mut buf = std::mem::take(&mut self.faults.buf);
+        buf.clear();
+        buf.extend_from_slice(sensors);
+        let words = buf.len();
+        let mut codes = std::mem::take(&mut self.faults.codes);
+        codes.clear();
+        codes.resize(words, None);
+        let mut changed = false;
+        // Flat sensor word ranges per key and per core.
+        let mut first = Vec::with_capacity(self.image.keys.len());
+        let mut at = 0;
+        for k in &self.image.keys {
+            first.push(at);
+            at += self.image.programs[k.spec.program].sensor_words();
+        }
+        let list = self.faults.list.clone();
+        for f in &list {
+            if f.from == n || f.until == Some(n) {
+                changed = true;
+            }
+            let starts = f.from == n;
+            let ends = f.until == Some(n);
+            match f.kind {
+                FaultKind::Flip { word, bit } if starts => {
+                    let k = &self.image.keys[f.key.unwrap_or(0)];
+                    let board = &mut self.board;
+                    let state = board.read_u32(k.record + k.state_offset).map_err(emu)?;
+                    let a = state.wrapping_add(4 * word);
+                    let v = board.read_u32(a).map_err(emu)? ^ (1 << bit);
+                    board.write_data(a, &v.to_le_bytes()).map_err(emu)?;
+                }
+                FaultKind::BrownOut if starts => {
+                    self.board.brown_out();
+                    self.faults.browned = true;
+                }
+                FaultKind::Hang if starts => {
+                    let a = self.image.keys[f.key.unwrap_or(0)].update & !1;
+                    let mut old = [0u8; 2];
+                    self.board.read_bytes(a, &mut old).map_err(emu)?;
+                    // `b .`: 0xe7fe.
+                    self.board.write_bytes(a, &[0xfe, 0xe7]).map_err(emu)?;
+                    self.faults.hung.push((a, old));
+                }
+                FaultKind::Hang if ends => {
+                    let a = self.image.keys[f.key.unwrap_or(0)].update & !1;
+                    if let Some(i) = self.faults.hung.iter().position(|h| h.0 == a) {
+                        let (a, old) = self.faults.hung.remove(i);
+                        self.board.write_bytes(a, &old).map_err(emu)?;
+                    }
+                }
+                FaultKind::DacStall if starts || ends => {
+                    // The DAC holds its outputs: the host reads the codes of the sample
+                    // before the stall for the core's drives until it ends.
+                    let c = f.core.unwrap_or(0);
+                    let mut flat = 0;
+                    for (i, k) in self.image.keys.iter().enumerate() {
+                        for j in 0..k.drives.len() {
+                            if k.spec.core == c {
+                                let held = i32::from(self.sample.drives[i][j].dac);
+                                if let Some(fz) = self.faults.frozen.get_mut(flat) {
+                                    *fz = starts.then_some(held);
+                                }
+                            }
+                            flat += 1;
+                        }
+                    }
+                }
+                _ => {}
+            }
+            if !f.active(n) || f.one_shot() {
+                continue;
+            }
+            let targets: Vec<usize> = match (f.kind, f.key, f.core) {
+                (FaultKind::AdcSilent, _, Some(c)) => (self.image.keys.iter().enumerate())
+                    .filter(|(_, k)| k.spec.core == c)
+                    .flat_map(|(i, k)| {
+                        first[i]..first[i] + self.image.programs[k.spec.program].sensor_words()
+                    })
+                    .collect(),
+                (kind, Some(k), _) if kind.is_sensor() => {
+                    let p = &self.image.programs[self.image.keys[k].spec.program];
+                    (first[k]..first[k] + p.sensor_words()).collect()
+                }
+                _ => Vec::new(),
+            };
+            for w in targets {
+                let Some(scale) = self.faults.scales.get(w).copied() else {
+                    continue;
+                };
+                let code = i64::from(scale.code(buf[w]));
+                let faulted = match f.kind {
+                    FaultKind::Open => 0,
+                    FaultKind::Short | FaultKind::AdcSilent => 0xffff,
+                    FaultKind::Stuck(c) => i64::from(c),
+                    FaultKind::Jump(d) => code + i64::from(d),
+                    FaultKind::Noise(a) => code + i64::from(noise(&mut self.faults.seed, a)),
+                    _ => code,
+                }
+                .clamp(0, 0xffff) as u16;
+                if io {
+                    codes[w] = Some(faulted);
+                } else {
+                    let word = i64::from(scale.lo) + (i64::from(faulted) << scale.shift);
+                    buf[w] = word.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+                }
+            }
+        }
+        if codes != self.faults.last_codes {
+            changed = true;
+            self.faults.last_codes.clone_from(&codes);
+        }
+        self.faults.codes = codes;
+        self.faults.buf = buf;
+        Ok(changed)
+    }
+
+    /// After the board's run of a sample: whether it reset (the watchdog, or a brown-out
+    /// injected this sample); if so, follows its boot (module documentation) and returns
+    /// true: the sample is one of zero force.
+    pub(super) fn after_reset(&mut self, stop: StopReason) -> Result<bool, ImageError> {
+        let brown = std::mem::take(&mut self.faults.browned);
+        let (resets, last) = self.board.system.watchdog.resets();
+        let by_watchdog = resets != self.faults.resets_seen;
+        if !by_watchdog && !brown {
+            // No reset (a stop otherwise is the caller's to report).
+            let _ = stop;
+            return Ok(false);
+        }
+        self.faults.resets_seen = resets;
+        let why = match (brown, last.map(|r| r.reason)) {
+            (true, _) => "brown-out",
+            (_, Some(tactus_emulator::watchdog::Reason::Force)) => "watchdog trigger",
+            _ => "watchdog timer",
+        };
+        let cycle = last.map_or(self.board.cycle(), |r| r.cycle);
+        let sample = self.samples;
+        let start = self.board.cycle();
+        let alarm = self.image.start_alarm_us as u64;
+        let cores = self.image.cores.len();
+        let reboot = run_to_first_tick(&mut self.board, alarm, cores).map(|first| {
+            let period = self.image.cycles_per_sample().max(1);
+            let zero = (first.saturating_sub(start)).div_ceil(period).max(1);
+            self.first_tick = first;
+            self.faults.tick_base = sample + zero;
+            let sram = &self.board.system.sram;
+            self.faults.count_base = word(sram, self.at.samples[0]);
+            zero
+        });
+        match &reboot {
+            Ok(zero) => self.faults.zero_left = *zero,
+            Err(e) => self.faults.dead = Some(e.clone()),
+        }
+        self.stalls = self.board.system.contention_stalls;
+        self.faults.resets.push(ResetRecord {
+            sample,
+            cycle,
+            why,
+            reboot,
+        });
+        Ok(true)
+    }
+
+    /// A sample of zero force (a board rebooting or dead): every drive's force, current and
+    /// DAC code 0, no events, no handler.
+    pub(super) fn zero_sample(&mut self) {
+        let s = &mut self.sample;
+        s.events.clear();
+        for d in s.drives.iter_mut().flatten() {
+            d.force = 0;
+            d.dac = 0;
+            d.current_ua = self.limiter.current_ua(0);
+        }
+        s.force.fill(0);
+        s.dac.fill(0);
+        let zero = self.limiter.current_ua(0);
+        s.current_ua.fill(zero);
+        s.core_cycles.fill(0);
+        s.handler_runs.fill(0);
+    }
+}
