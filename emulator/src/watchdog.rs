@@ -288,11 +288,17 @@ impl Watchdog {
     /// Its state with cycles relative to `now` (`accel/rest.rs`): everything but
     /// `fire_at` (which follows) and the counts that are not state.
     pub(crate) fn rest_state(&self, now: u64) -> String {
+        // Disabled, the count does not move: when it was loaded decides nothing.
+        let since = if self.enabled() || self.forced {
+            now as i128 - self.since as i128
+        } else {
+            0
+        };
         format!(
             "{:#x} {} {} {} {:?} {:#x} {} {}",
             self.ctrl,
             self.count,
-            now as i128 - self.since as i128,
+            since,
             self.reason,
             self.scratch,
             self.tick,
