@@ -19,6 +19,7 @@ use std::fmt;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
+use plotters::coord::ranged1d::ValueFormatter;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use tactus_runtime::trace::{Column, ColumnKind, Trace};
@@ -420,15 +421,7 @@ pub fn plot_points(
         macro_rules! body {
             ($chart:expr) => {{
                 let mut chart = $chart.map_err(|e| e.to_string())?;
-                chart
-                    .configure_mesh()
-                    .x_desc(x_desc)
-                    .y_desc(y_desc)
-                    .label_style(("sans-serif", 13))
-                    .axis_desc_style(("sans-serif", 15))
-                    .light_line_style(RGBColor(235, 235, 235))
-                    .draw()
-                    .map_err(|e| e.to_string())?;
+                draw_mesh(&mut chart, x_desc, y_desc)?;
                 for (i, (s, pts)) in series.iter().zip(&kept).enumerate() {
                     let colour = if s.faint {
                         RGBColor(150, 150, 150).to_rgba()
@@ -664,6 +657,28 @@ fn padded_range(values: impl Iterator<Item = f64>) -> Range<f64> {
     (lo - pad)..(hi + pad)
 }
 
+/// Draws the mesh of every plot here: light grid lines, the axes' labels and their
+/// descriptions `x_desc` and `y_desc`, in one style.
+fn draw_mesh<X, Y, XT, YT>(
+    chart: &mut ChartContext<'_, SVGBackend<'_>, Cartesian2d<X, Y>>,
+    x_desc: &str,
+    y_desc: &str,
+) -> Result<(), String>
+where
+    X: Ranged<ValueType = XT> + ValueFormatter<XT>,
+    Y: Ranged<ValueType = YT> + ValueFormatter<YT>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style(("sans-serif", 13))
+        .axis_desc_style(("sans-serif", 15))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|e| e.to_string())
+}
+
 /// Draws one panel of line series with a mesh, axis descriptions and a legend.
 fn panel(
     area: &DrawingArea<SVGBackend, Shift>,
@@ -683,15 +698,7 @@ fn panel(
         .y_label_area_size(70)
         .build_cartesian_2d(x_range, y_range)
         .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(y_desc)
-        .label_style(("sans-serif", 13))
-        .axis_desc_style(("sans-serif", 15))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()
-        .map_err(|e| e.to_string())?;
+    draw_mesh(&mut chart, x_desc, y_desc)?;
     for (s, runs) in series.iter().zip(&runs) {
         let style = ShapeStyle::from(s.colour).stroke_width(s.width);
         for (k, run) in runs.iter().enumerate() {
@@ -743,15 +750,7 @@ fn events_panel(
         .y_label_area_size(70)
         .build_cartesian_2d(x_range, y_range)
         .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .x_desc("time [ms]")
-        .y_desc(y_desc)
-        .label_style(("sans-serif", 13))
-        .axis_desc_style(("sans-serif", 15))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()
-        .map_err(|e| e.to_string())?;
+    draw_mesh(&mut chart, "time [ms]", y_desc)?;
     let colour = series.colour;
     chart
         .draw_series(

@@ -7,7 +7,7 @@
 
 use super::engine::KeyEngine;
 use super::error::RunError;
-use super::motion::{FingerCalibration, Motion};
+use super::motion::{FingerCalibration, Motion, Restrike};
 use super::run::{run_keys, Drive, LoopConfig, TraceWindow};
 use super::strike::speed_for_velocity;
 use tactus_runtime::player::{Calibration, FingerConfig, ForceProfile, Stroke};
@@ -25,8 +25,9 @@ pub const CALIBRATION_LEVELS_N: [f64; 17] = [
 const CALIBRATION_S: f64 = 0.6;
 
 /// How long the finger lets the key rise before a re-strike, s, the shortest first: the
-/// finger lifts this long before the re-striking push starts. The calibration keeps the
-/// shortest that re-strikes at as many levels as the longer ones ([`FingerCalibration::rise_s`]).
+/// finger lifts this long before the re-striking push starts. The calibration keeps each
+/// rise down to the shortest that re-strikes at as many levels as the longest
+/// ([`FingerCalibration::restrikes`]); a note takes the longest that fits before it.
 /// A grand-piano key released at the bottom rises through the let-off zone, above the point
 /// where the jack re-arms under the knuckle of the hammer the repetition lever holds up (the
 /// escapement's `theta1`, ≈ 7.7 mm): the double escapement's purpose. How fast depends on
@@ -38,7 +39,7 @@ pub const RESTRIKE_RISES_S: [f64; 3] = [0.040, 0.055, 0.070];
 /// The first stroke of a re-strike calibration is a *mezzo-forte* note (MIDI velocity
 /// [`RESTRIKE_FIRST_VELOCITY`]) played from rest, lifted this long after its strike, s: the
 /// state a performance's repeated note leaves. Repetitions 170–250 ms apart (the force
-/// player's tests) lift the previous finger [`FingerCalibration::rise_s`] before a push
+/// player's tests) lift the previous finger a calibrated rise ([`FingerCalibration::restrikes`]) before a push
 /// that starts a re-strike's lead (≈ 40–60 ms) before the note-on: 70–150 ms after the
 /// previous strike.
 /// Then a *mf* hammer has fallen back onto the repetition lever or the back-check, not
@@ -47,14 +48,21 @@ pub const RESTRIKE_RISES_S: [f64; 3] = [0.040, 0.055, 0.070];
 /// there than in the performance.
 const RESTRIKE_FIRST_HOLD_S: f64 = 0.100;
 
+/// How long the first stroke of a re-strike calibration is held after its strike, s: the
+/// short hold of fast repetitions ([`RESTRIKE_FIRST_HOLD_S`]) and a long one, by which a
+/// hammer has settled on its repetition lever (a note held 0.4 s, then repeated 0.2 s
+/// after its note-off: Maestro_2's soft repeated A2), each a calibration of its own.
+pub const RESTRIKE_HOLDS_S: [f64; 2] = [RESTRIKE_FIRST_HOLD_S, 0.400];
+
 /// MIDI velocity of the re-strike calibration's first stroke (*mezzo-forte*).
 const RESTRIKE_FIRST_VELOCITY: u8 = 64;
 
 /// Measures strokes at [`CALIBRATION_LEVELS_N`] on fresh instances of one instrument
 /// (`fresh()`: one key at rest; its dip `dip_m`): from rest (the push held until the strike
-/// or 0.6 s), and re-strikes (a *mf* stroke from rest lifted [`RESTRIKE_FIRST_HOLD_S`]
+/// or 0.6 s), and re-strikes (a *mf* stroke from rest lifted each of [`RESTRIKE_HOLDS_S`]
 /// after its strike, the finger lifted for each of [`RESTRIKE_RISES_S`], then the measured
-/// push; the shortest rise that re-strikes as many levels as the longest is kept). Each
+/// push; every rise down to the shortest that re-strikes as many levels as the longest is
+/// kept). Each
 /// gives the lead from the start of the push to the strike and the strike's hammer speed.
 /// `None` when fewer than two levels strike from rest.
 ///
@@ -108,26 +116,43 @@ pub fn calibrate<'e>(
     // strike, held, lifted RESTRIKE_FIRST_HOLD_S after the strike.
     let (peak, lead) = from_rest.for_speed(speed_for_velocity(RESTRIKE_FIRST_VELOCITY));
     let strike = 0.01 + lead;
-    let first = Stroke {
-        start_s: 0.01,
-        peak_n: peak,
-        push_end_s: strike + 0.010,
-        lift_s: strike + RESTRIKE_FIRST_HOLD_S,
-    };
-    // The shortest rise after which as many levels re-strike as after the longer ones kept.
-    let [shortest @ .., longest] = RESTRIKE_RISES_S;
-    let mut levels = measure(Some(first), first.lift_s + longest)?;
-    let mut rise_s = longest;
-    for &rise in shortest.iter().rev() {
-        let sooner = measure(Some(first), first.lift_s + rise)?;
-        if sooner.len() < levels.len() {
-            break;
+    let mut restrikes = Vec::new();
+    for hold_s in RESTRIKE_HOLDS_S {
+        let first = Stroke {
+            start_s: 0.01,
+            peak_n: peak,
+            push_end_s: strike + 0.010,
+            lift_s: strike + hold_s,
+        };
+        // Every rise down to the shortest after which as many levels re-strike as after
+        // the longest.
+        let [shortest @ .., longest] = RESTRIKE_RISES_S;
+        let levels = measure(Some(first), first.lift_s + longest)?;
+        let most = levels.len();
+        let mut family: Vec<Restrike> = Calibration::new(levels)
+            .map(|cal| Restrike {
+                hold_s,
+                rise_s: longest,
+                cal,
+            })
+            .into_iter()
+            .collect();
+        for &rise_s in shortest.iter().rev() {
+            let sooner = measure(Some(first), first.lift_s + rise_s)?;
+            if sooner.len() < most {
+                break;
+            }
+            family.extend(Calibration::new(sooner).map(|cal| Restrike {
+                hold_s,
+                rise_s,
+                cal,
+            }));
         }
-        (rise_s, levels) = (rise, sooner);
+        family.reverse();
+        restrikes.extend(family);
     }
     Ok(Some(FingerCalibration {
         from_rest,
-        restrike: Calibration::new(levels),
-        rise_s,
+        restrikes,
     }))
 }

@@ -57,7 +57,7 @@ pub const IDLE_GAP_S: f64 = 1.0;
 /// A stroke is played from rest only when its push starts at least this long after the
 /// previous stroke's finger lifted, s: the key is back up and the hammer back on its rest
 /// felt (a released grand-piano key rises in ≈ 60 ms, its hammer lands ≈ 100 ms after the
-/// lift). A sooner stroke is a re-strike ([`FingerCalibration::restrike`]).
+/// lift). A sooner stroke is a re-strike ([`FingerCalibration::restrikes`]).
 pub const SETTLE_S: f64 = 0.100;
 
 /// The force player's calibration of one instrument: strokes from rest and re-strikes.
@@ -66,13 +66,50 @@ pub struct FingerCalibration {
     /// Strokes from rest: (peak N, lead s, hammer speed m/s); the lead from the start of
     /// the push to the strike.
     pub from_rest: Calibration,
-    /// Re-strikes: the key held down after a strike, released for [`Self::rise_s`] and
-    /// pushed again from where it rose to, the hammer still on the repetition lever. `None`
-    /// when fewer than two levels re-strike.
-    pub restrike: Option<Calibration>,
-    /// How long the finger lifts before a re-strike's push, s: the shortest of
-    /// [`super::calibrate::RESTRIKE_RISES_S`] after which as many levels re-strike as after the longer ones.
+    /// Re-strikes, one calibration per hold and rise, by increasing hold, then rise. Each
+    /// is the key held down for the hold after a strike, released for the rise and pushed
+    /// again from where it rose to, the hammer still on the repetition lever; the holds are
+    /// [`super::calibrate::RESTRIKE_HOLDS_S`], the rises
+    /// [`super::calibrate::RESTRIKE_RISES_S`] at which at least two levels re-strike, down
+    /// to the shortest after which as many levels re-strike as after the longest. Empty when
+    /// none re-strikes two levels.
+    pub restrikes: Vec<Restrike>,
+}
+
+/// One re-strike calibration ([`FingerCalibration::restrikes`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Restrike {
+    /// How long the previous note was held after its strike, s.
+    pub hold_s: f64,
+    /// How long the finger let the key rise before the push, s.
     pub rise_s: f64,
+    /// The pushes: (peak N, lead s, hammer speed m/s).
+    pub cal: Calibration,
+}
+
+impl FingerCalibration {
+    /// The shortest calibrated rise, s.
+    pub fn shortest_rise_s(&self) -> Option<f64> {
+        self.restrikes.iter().map(|r| r.rise_s).min_by(f64::total_cmp)
+    }
+
+    /// The re-strikes after a previous note held `hold_s` after its strike: those of the
+    /// calibrated hold nearest to it (on a log scale: the state of the hammer on its lever
+    /// changes with the hold's ratio, not its difference), by increasing rise.
+    pub fn restrikes_after(&self, hold_s: f64) -> Vec<&Restrike> {
+        let distance = |r: &Restrike| (r.hold_s.ln() - hold_s.max(1e-3).ln()).abs();
+        let Some(nearest) = self
+            .restrikes
+            .iter()
+            .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+        else {
+            return Vec::new();
+        };
+        self.restrikes
+            .iter()
+            .filter(|r| r.hold_s == nearest.hold_s)
+            .collect()
+    }
 }
 
 /// The finger's strokes for one key's notes: each aims at the hammer speed of its MIDI
@@ -81,14 +118,23 @@ pub struct FingerCalibration {
 /// lifts then.
 ///
 /// A stroke whose push would start less than [`SETTLE_S`] after the previous finger lifted
-/// finds the key not yet back at rest: it is a **re-strike**, played as the re-strike
-/// calibration measured it — with its force and lead, the previous finger lifted
-/// [`FingerCalibration::rise_s`] before the push (holding the previous note that much longer, or
-/// releasing it sooner), and never before the previous push has ended. A re-strike whose
-/// calibrated lead does not fit in the time left takes the weakest calibrated re-strike
-/// whose lead does (louder than asked, on time); when none does, it starts late. Without a re-strike calibration (or for the first
-/// note) the stroke keeps the from-rest force and lead, and the previous finger lifts
-/// [`RISE_GAP_S`] before it.
+/// finds the key not yet back at rest: it is a **re-strike**, played as a re-strike
+/// calibration measured it — with its force and lead, the previous finger lifted that
+/// calibration's rise before the push (holding the previous note that much longer, or
+/// releasing it sooner), and never before the previous push has ended. Of the calibrations
+/// ([`FingerCalibration::restrikes`]) it takes those of the hold nearest to the previous
+/// note's (a hammer held long has settled on its lever, and a push from there strikes
+/// sooner and softer than after a short hold: Maestro_2's soft A2 after notes held 0.4 s
+/// struck 60 ms early at 0.2 m/s, played with the short hold's calibration), and of their
+/// rises the longest whose push fits before the note-on: a key let rise longer is higher
+/// when the push comes, the jack surely re-armed
+/// under the knuckle (a bass key released from its bed rises no faster than its hammer
+/// falls back onto the repetition lever, and 40 ms left it where the jack re-arms, or just
+/// short of it: Maestro_2's repeated A1, 5.5 notes a second, lost 37 of 55 notes). A
+/// re-strike whose lead fits at no rise takes the shortest rise and the weakest re-strike
+/// whose lead does (louder than asked, on time); when none does, it starts late. Without a
+/// re-strike calibration (or for the first note) the stroke keeps the from-rest force and
+/// lead, and the previous finger lifts [`RISE_GAP_S`] before it.
 pub fn finger_profile(
     notes: &[Note],
     cal: &FingerCalibration,
@@ -103,9 +149,10 @@ pub fn finger_profile(
         let mut start = (n.on_s - lead).max(0.0);
         // The key still busy with earlier strokes beyond this note-on and the piece's end
         // (a dense repetition, each re-strike waiting for the last): the note is left out.
+        let shortest_rise = cal.shortest_rise_s().unwrap_or(0.0);
         if strokes
             .last()
-            .is_some_and(|p| p.push_end_s + cal.rise_s >= end_s.max(n.on_s))
+            .is_some_and(|p| p.push_end_s + shortest_rise >= end_s.max(n.on_s))
         {
             counts.dropped += 1;
             continue;
@@ -115,9 +162,18 @@ pub fn finger_profile(
             counts.late += 1;
         }
         if let Some(prev) = strokes.last_mut() {
-            match &cal.restrike {
-                Some(re) if start < prev.lift_s + SETTLE_S => {
-                    let earliest = prev.push_end_s + cal.rise_s;
+            // The previous note's hold after its strike (its push ends 10 ms after it).
+            let family = cal.restrikes_after(prev.lift_s - prev.push_end_s + 0.010);
+            match family.first() {
+                Some(shortest) if start < prev.lift_s + SETTLE_S => {
+                    // The longest rise whose push for this speed fits before the note-on.
+                    let r = family
+                        .iter()
+                        .rev()
+                        .find(|r| n.on_s - r.cal.for_speed(speed).1 >= prev.push_end_s + r.rise_s)
+                        .unwrap_or(shortest);
+                    let (rise, re) = (r.rise_s, &r.cal);
+                    let earliest = prev.push_end_s + rise;
                     let (mut p, mut lead) = re.for_speed(speed);
                     counts.restrikes += 1;
                     if n.on_s - lead < earliest {
@@ -134,7 +190,7 @@ pub fn finger_profile(
                         counts.late += 1;
                     }
                     start = (n.on_s - lead).max(earliest);
-                    prev.lift_s = start - cal.rise_s;
+                    prev.lift_s = start - rise;
                 }
                 _ => {
                     prev.lift_s = prev.lift_s.min(start - RISE_GAP_S).max(prev.start_s);

@@ -606,9 +606,14 @@ fn stroke<E: Engine + Clone>(
     Ok(out)
 }
 
-/// Repeated strokes of `push_n` with period `period_s` (push for half, lift for half), five
-/// notes: whether each strikes (and none more often than the first), and the lowest travel between the first
-/// strike and the last push (m).
+/// Repeated strokes of `push_n` with period `period_s`, five notes: each note's finger
+/// pushes from the start of its period until its hammer strikes, then lifts until the next
+/// note (the force player's stroke: the push lasts until the strike; a finger lifted at a
+/// fixed half period left a heavy bass key short of let-off, coasting, and the hammer's
+/// return from the string threw key and hammer back up into the next push: at 9–11 g the
+/// notes of a 3 N push failed and struck in alternate bands of periods from 68 to 84 ms).
+/// Whether each note strikes (and none more often than the first), and the lowest travel
+/// between the first strike and the last push (m).
 fn repeats<E: Engine + Clone>(
     rest: &Key<E>,
     config: &Config,
@@ -625,11 +630,13 @@ fn repeats<E: Engine + Clone>(
     let mut lowest = f64::INFINITY;
     let mut first_strike = false;
     let total = ((NOTES as f64 + 0.5) * period_s * fs) as usize;
+    // The note whose push has ended with its strike.
+    let mut done = None;
     for n in 0..total {
         let t = n as f64 / fs;
         let note = ((t / period_s) as usize).min(NOTES);
         let since = t - note as f64 * period_s;
-        let push = if note < NOTES && since < 0.5 * period_s {
+        let push = if note < NOTES && done != Some(note) {
             let ramp = if since < rise {
                 0.5 * (1.0 - (std::f64::consts::PI * since / rise).cos())
             } else {
@@ -644,6 +651,7 @@ fn repeats<E: Engine + Clone>(
             first_strike = true;
             if note < NOTES {
                 strikes[note] += 1;
+                done = Some(note);
             } else {
                 strikes[NOTES - 1] += 1;
             }
@@ -1113,7 +1121,7 @@ pub fn measure<E: Engine + Clone>(
                 figure: Figure::Repetition,
                 value: 1.0 / slow,
                 how: format!(
-                    "shortest period ({:.1} ms) at which 5 notes of a {push} N push (pushed for half the period, released for half) all strike; the key {released}",
+                    "shortest period ({:.1} ms) at which 5 notes of a {push} N push (each pushed from the start of its period until its strike, then released) all strike; the key {released}",
                     slow * 1e3
                 ),
             });
