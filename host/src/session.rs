@@ -250,14 +250,21 @@ impl Piece {
             plural(skipped),
         ));
         let (once, more, most) = strike::per_note(&played.strikes);
+        let stray = played.strikes.len().saturating_sub(self.answering);
         lines.push(format!(
-            "  strikes per note: {once} note{} struck once, {more} struck more than once{}",
+            "  strikes per note: {once} note{} struck once, {more} struck more than once{}; {stray} strike{} answer{} no note{}",
             plural(once),
             match more {
                 0 => String::new(),
                 _ => format!(
                     " (at most {most} strikes; a key that re-struck its string under one note)"
                 ),
+            },
+            plural(stray),
+            if stray == 1 { "s" } else { "" },
+            match stray {
+                0 => String::new(),
+                _ => " (more than 50 ms from every note-on of its key: a second blow under a held note, or a note struck early or late)".to_string(),
             },
         ));
         let (audio_s, wall) = (perf.duration_s, self.wall_s);

@@ -33,8 +33,11 @@ const CALIBRATION_S: f64 = 0.6;
 /// escapement's `theta1`, ≈ 7.7 mm): the double escapement's purpose. How fast depends on
 /// the hammer: the key rises no faster than the hammer on the lever falls back with it (the
 /// key and wippen alone are nearly balanced by the leads, and friction holds them), so
-/// 40 ms suffice for some keys and states, not all.
-pub const RESTRIKE_RISES_S: [f64; 3] = [0.040, 0.055, 0.070];
+/// 40 ms suffice for some keys and states, not all. The longer rises (100 and 140 ms) serve
+/// soft repeated bass notes 0.15–0.3 s apart: after 70 ms their hammer was still high, and
+/// a soft push threw it at the string 50–60 ms before its note-on at 0.1–0.4 m/s
+/// (Maestro_2's A2 and F2 at 92–102 s: 18 of 44 notes; with them, none).
+pub const RESTRIKE_RISES_S: [f64; 5] = [0.040, 0.055, 0.070, 0.100, 0.140];
 
 /// The first stroke of a re-strike calibration is a *mezzo-forte* note (MIDI velocity
 /// [`RESTRIKE_FIRST_VELOCITY`]) played from rest, lifted this long after its strike, s: the

@@ -90,7 +90,10 @@ pub struct Restrike {
 impl FingerCalibration {
     /// The shortest calibrated rise, s.
     pub fn shortest_rise_s(&self) -> Option<f64> {
-        self.restrikes.iter().map(|r| r.rise_s).min_by(f64::total_cmp)
+        self.restrikes
+            .iter()
+            .map(|r| r.rise_s)
+            .min_by(f64::total_cmp)
     }
 
     /// The re-strikes after a previous note held `hold_s` after its strike: those of the
