@@ -445,6 +445,18 @@ impl SensorCheck {
         (mid as u32).wrapping_add(1 << 31)
     }
 
+    /// The record's words of the check at power-on (byte offset in the record, value): the
+    /// copy and the last reading the poison word, the recovery count 1. So the first
+    /// sample takes the trip path, which judges the first reading by its range alone
+    /// (there is no change yet to judge) and, when it is in range, recovers the key at
+    /// once: the copy is the first reading, whatever the key's position at the start (a
+    /// key held down at power-on does not trip); the key's force words are 0 for that
+    /// sample. A reading out of range trips as any later one would.
+    pub fn seed(&self) -> [(u32, u32); 3] {
+        let p = self.poison();
+        [(0, p), (self.left_offset, 1), (self.last_offset, p)]
+    }
+
     /// Whether `word` is plausible after `prev` by the every-sample test.
     pub fn step_ok(&self, prev: i32, word: i32) -> bool {
         let d = word.wrapping_sub(prev) >> self.shift;
@@ -478,7 +490,7 @@ fn trip_path(
     use super::fault::{self, FaultKind};
     use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
     let (check, bad, zero) = (a.label(), a.label(), a.label());
-    let bad_range = a.label();
+    let (bad_range, plausible) = (a.label(), a.label());
     let (left, last) = (c.left_offset as u16, c.last_offset as u16);
     // First trip of a fault: the last reading is the copy (the one before this word).
     a.i(asm::ldr(1, 4, left));
@@ -495,6 +507,11 @@ fn trip_path(
     a.ldr_const(3, c.hi.wrapping_sub(c.lo) as u32);
     a.i(asm::cmp(1, 3));
     a.bc(cond::HI, bad_range);
+    // The first reading since the start (the last reading the poison word the record
+    // starts with, [`SensorCheck::seed`]) has no change to judge.
+    a.ldr_const(3, c.poison());
+    a.i(asm::cmp(2, 3));
+    a.bc(cond::EQ, plausible);
     // The change since the last reading (kind: rate).
     a.i(asm::movs(3, FaultKind::SensorRate.code()));
     a.i(asm::subs(2, 0, 2));
@@ -503,6 +520,7 @@ fn trip_path(
     a.i(asm::lsrs(2, 2, 1));
     a.bc(cond::NE, bad);
     // Plausible: one less to count; at 0 the key recovers.
+    a.bind(plausible);
     a.i(asm::ldr(1, 4, left));
     a.i(asm::subs_imm(1, 1, 1));
     a.i(asm::str(1, 4, left));
@@ -512,23 +530,10 @@ fn trip_path(
         a.i(asm::movs(1, 0));
         a.i(asm::str(1, 4, g.calm_offset as u16));
     }
-    // The state back to rest: the rest image copied over it, two words at a time.
+    // The state back to rest: the rest image copied over it.
     ldr_rec(a, 0, k.state_offset);
     a.ldr_const(1, c.rest);
-    for _ in 0..c.state_words / 2 {
-        a.i(Instr::Ldm {
-            rn: 1,
-            list: 0b1100,
-        });
-        a.i(Instr::Stm {
-            rn: 0,
-            list: 0b1100,
-        });
-    }
-    if c.state_words % 2 == 1 {
-        a.i(Instr::Ldm { rn: 1, list: 0b100 });
-        a.i(Instr::Stm { rn: 0, list: 0b100 });
-    }
+    copy_words(a, 1, 0, c.state_words, CopyMode::Unrolled);
     a.b(zero);
     // Implausible: poison the copy, count the recovery again; a new fault is a trip.
     a.bind(bad_range);
@@ -574,6 +579,62 @@ fn trip_path(
         }
     }
     a.b(join);
+}
+
+/// How [`copy_words`] copies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum CopyMode {
+    /// Two words at a time, unrolled: 3 cycles a word (`LDM`/`STM` of r2-r3), code
+    /// growing with the words (the trip path's recovery, where cycles count).
+    Unrolled,
+    /// A word at a time in a loop counting down in r2: 7 cycles a word, fixed code (the
+    /// reset handler's).
+    Looped,
+}
+
+/// Copies `words` (≥ 1) words from the address in r`from` to that in r`to`, both advanced
+/// past them: the image's one copy of a key's state words (the rest image made at reset,
+/// put back at a recovery). Clobbers r2, r3.
+fn copy_words(a: &mut CodeBuffer, from: u8, to: u8, words: u32, how: CopyMode) {
+    match how {
+        CopyMode::Unrolled => {
+            for _ in 0..words / 2 {
+                a.i(Instr::Ldm {
+                    rn: from,
+                    list: 0b1100,
+                });
+                a.i(Instr::Stm {
+                    rn: to,
+                    list: 0b1100,
+                });
+            }
+            if words % 2 == 1 {
+                a.i(Instr::Ldm {
+                    rn: from,
+                    list: 0b100,
+                });
+                a.i(Instr::Stm {
+                    rn: to,
+                    list: 0b100,
+                });
+            }
+        }
+        CopyMode::Looped => {
+            let top = a.label();
+            a.mov_const(2, words);
+            a.bind(top);
+            a.i(Instr::Ldm {
+                rn: from,
+                list: 0b1000,
+            });
+            a.i(Instr::Stm {
+                rn: to,
+                list: 0b1000,
+            });
+            a.i(asm::subs_imm(2, 2, 1));
+            a.bc(cond::NE, top);
+        }
+    }
 }
 
 /// Registers an update may clobber in the image: r5 and [`hi`]'s (r4, r6, r7 the handler
@@ -926,21 +987,9 @@ pub fn core_code(
         a.bl_addr(k.init);
         if let Some(c) = k.check.filter(|c| c.state_words > 0) {
             // The rest image of the sensor check's recovery ([`SensorCheck::rest`]).
-            let copy = a.label();
             ldr_rec(a, 0, k.state_offset);
             a.ldr_const(1, c.rest);
-            a.mov_const(2, c.state_words);
-            a.bind(copy);
-            a.i(Instr::Ldm {
-                rn: 0,
-                list: 0b1000,
-            });
-            a.i(Instr::Stm {
-                rn: 1,
-                list: 0b1000,
-            });
-            a.i(asm::subs_imm(2, 2, 1));
-            a.bc(cond::NE, copy);
+            copy_words(a, 0, 1, c.state_words, CopyMode::Looped);
         }
         Ok(())
     })?;

@@ -644,6 +644,15 @@ pub(super) fn data_block(
         for &(_, budget) in &k.drives {
             put(&mut r, budget, l.consts.budget_max as u32);
         }
+        // The sensor check's words at power-on ([`glue::SensorCheck::seed`]), at the
+        // offsets `key_records` gives them.
+        let check_at = 4 * (k.sensors + k.out_len + k.drives.len() + 2) as u32;
+        let checked = sensor_check(p, l.fs, check_at, k.spec.slot).filter(|_| !k.drives.is_empty());
+        if let Some(c) = checked {
+            for (off, v) in c.seed() {
+                put(&mut r, off, v);
+            }
+        }
         put(&mut r, k.state_offset, state);
         data.extend(r);
     }

@@ -167,8 +167,12 @@ pub struct Program {
     pub sensor_check: bool,
     /// Whether an image holding this program runs the RP2040's watchdog, fed by core 0
     /// when both cores finished their sample ([`fault`], "The watchdog": a core that stops
-    /// finishing samples resets the board within [`fault::WATCHDOG_PERIOD_US`]). Off by
-    /// default while its cost is measured against grand88's budget.
+    /// finishing samples resets the board within [`fault::WATCHDOG_PERIOD_US`] and a
+    /// sample). Off by default: its 18 cycles of core 0's handler fit grand88 (fullest core
+    /// 2,967 of 3,015 cycles on `rp2040`, 2,996 on `rp2040_io`), but the feed's peripheral
+    /// store and its load from core 1's bank end the emulator's windows every sample (the
+    /// emulator's side is issue-71-emu's), and an overloaded image (a core a sample behind
+    /// the other) would reset.
     pub watchdog: bool,
 }
 
@@ -694,7 +698,9 @@ pub struct IsrWcet {
     pub analysed: u64,
     /// Bank-contention allowance: one wait cycle per access of this core's handler, and of
     /// the other core's handler in the same sample, to a window word in a bank both cores'
-    /// keys use (none with the split windows of the module documentation: 0).
+    /// keys use (none with the split windows of the module documentation: 0); on core 0 of
+    /// an image with the watchdog, the feed's cycles the analysis does not price
+    /// ([`glue::Feed::unpriced_cycles`]).
     pub contention: u64,
     /// Of `analysed`: the keys' update calls (each `BL` and the update's WCET). The rest,
     /// `analysed - updates`, is the handler's own cost: exception entry and return, the
