@@ -11,7 +11,9 @@ mod layouts;
 use tactus_compiler::lower::Config;
 use tactus_firmware::image::fault::{recovery_samples, FaultKind, FaultWord};
 use tactus_firmware::image::glue::ctrl;
-use tactus_firmware::image::{FirmwareImage, KeySpec, Program};
+use tactus_firmware::image::{
+    FaultKind as InjKind, FirmwareImage, ImageRun, Injection, KeySpec, Program,
+};
 use tactus_runtime::limiter::LimiterConfig;
 
 /// A position-sensed key whose force is its spring: the force follows the position every
@@ -192,5 +194,108 @@ fn a_key_held_down_at_power_on_plays_from_the_second_sample() {
             let f = fault(&mut run, &image, core);
             assert!(!f.tripped(), "{board} core {core}: {f:?}");
         }
+    }
+}
+
+/// One injected fault (`ImageRun::inject`) on key 0 (or core 0) of the spring image with
+/// the check, from flash, against the clean run; `want` the kind the fault word must show
+/// (`None`: a fault no check sees). Checks the bound (the affected drives at DAC code 0
+/// within 1 ms of the fault's start, while it lasts), never a code above the limiter's
+/// peak, the keys the fault does not reach unchanged, the fault word, and the recovery
+/// (the forces the clean run's again once the fault has cleared and 100 ms passed).
+fn injected(board: &str, kind: InjKind, want: Option<FaultKind>) {
+    let (p, image) = image(board);
+    let peak = tactus_runtime::limiter::Limiter::new(image.limiter_config())
+        .unwrap()
+        .constants()
+        .peak_code;
+    let (lo, hi) = p.fixed.sensor_raw_range[0];
+    let mid = lo + (hi - lo) / 2;
+    let rec = recovery_samples(44_100.0) as u64;
+    let (from, until) = (200u64, 300u64);
+    let total = until + rec + 100;
+    // Keys at rest, down to mid-travel slowly (below the bound) by sample 100, held.
+    let words = |n: u64| {
+        let w = lo + ((mid - lo) as i64 * n.min(100) as i64 / 100) as i32;
+        vec![w; 3]
+    };
+    let core_wide = matches!(kind, InjKind::AdcSilent);
+    let flash = image.flash_image().unwrap().bytes;
+    let mut clean = ImageRun::from_flash(&image, &flash).unwrap();
+    let mut run = ImageRun::from_flash(&image, &flash).unwrap();
+    run.inject(Injection {
+        kind,
+        key: (!core_wide).then_some(0),
+        core: core_wide.then_some(0),
+        from,
+        until: Some(until),
+    })
+    .unwrap();
+    // The keys the fault reaches: key 0, and with the core's ADC key 1 too.
+    let reached = |k: usize| k == 0 || (core_wide && image.keys()[k].core == 0);
+    let mut zero_by = None;
+    for n in 0..total {
+        let want_s = clean.step(&words(n)).unwrap().clone();
+        let got = run.step(&words(n)).unwrap().clone();
+        for (k, d) in got.drives.iter().enumerate() {
+            let code = i32::from(d[0].dac).abs();
+            assert!(
+                code <= peak,
+                "{board} {kind:?} sample {n} key {k}: {code} > {peak}"
+            );
+            if !reached(k) {
+                assert_eq!(d, &want_s.drives[k], "{board} {kind:?} sample {n} key {k}");
+            }
+        }
+        if want.is_some() && (from..until).contains(&n) {
+            let zero = (0..3).filter(|&k| reached(k)).all(|k| got.dac[k] == 0);
+            match (zero_by, zero) {
+                (None, true) => zero_by = Some(n),
+                (Some(_), false) => {
+                    panic!("{board} {kind:?} sample {n}: a tripped key's DAC moved")
+                }
+                _ => {}
+            }
+        }
+        if n >= until + rec + 50 || n < from {
+            assert_eq!(
+                got.force, want_s.force,
+                "{board} {kind:?} sample {n}: plays"
+            );
+        }
+    }
+    let f = fault(&mut run, &image, 0);
+    match want {
+        Some(kind_want) => {
+            let by = zero_by.expect("the fault set the motors to zero") - from;
+            // 1 ms at 44.1 kHz.
+            assert!(by <= 44, "{board} {kind:?}: zero after {by} samples");
+            assert_eq!(f.kind, Some(kind_want), "{board} {kind:?}: {f:?}");
+            // A trip per key reached, the word naming the last (key 1, slot 61, when the
+            // core's ADC went silent).
+            let (key, trips) = if core_wide { (61, 2) } else { (60, 1) };
+            assert_eq!((f.key, f.trips), (key, trips), "{board} {kind:?}: {f:?}");
+        }
+        None => assert!(!f.tripped(), "{board} {kind:?}: {f:?}"),
+    }
+}
+
+#[test]
+fn every_sensor_fault_kind_trips_bounded_and_recovers_on_both_boards() {
+    for board in ["rp2040", "rp2040_io"] {
+        injected(board, InjKind::Short, Some(FaultKind::SensorRange));
+        injected(board, InjKind::Open, Some(FaultKind::SensorRate));
+        injected(board, InjKind::Jump(20_000), Some(FaultKind::SensorRate));
+        injected(board, InjKind::Noise(30_000), Some(FaultKind::SensorRate));
+        injected(board, InjKind::Stuck(5_000), Some(FaultKind::SensorRate));
+        injected(board, InjKind::AdcSilent, Some(FaultKind::SensorRange));
+        // Stuck where the key is (mid-travel): a key held still, no fault.
+        let (p, _) = image(board);
+        let (lo, hi) = p.fixed.sensor_raw_range[0];
+        let scale = tactus_runtime::converters::AdcScale::new(lo, hi, 16);
+        let held = scale.code(lo + (hi - lo) / 2) as u16;
+        injected(board, InjKind::Stuck(held), None);
+        // A small jump within the bound: a key moving, no fault, never above the peak.
+        injected(board, InjKind::Jump(100), None);
     }
 }

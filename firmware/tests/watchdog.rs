@@ -174,3 +174,43 @@ fn the_watchdog_costs_core_0_its_feed_and_nothing_on_core_1() {
         );
     }
 }
+
+#[test]
+fn a_brown_out_zeroes_the_motors_and_the_board_plays_again() {
+    for board in ["rp2040", "rp2040_io"] {
+        let image = image(board, true);
+        let flash = image.flash_image().unwrap().bytes;
+        let mut r = ImageRun::from_flash(&image, &flash).unwrap();
+        let mut clean = ImageRun::from_flash(&image, &flash).unwrap();
+        r.inject(Injection {
+            kind: image::FaultKind::BrownOut,
+            key: None,
+            core: None,
+            from: 50,
+            until: None,
+        })
+        .unwrap();
+        let p = &image.programs()[0];
+        let (lo, hi) = p.fixed.sensor_raw_range[0];
+        let words = vec![lo + (hi - lo) / 2; 3];
+        let out: Vec<SampleOut> = (0..150).map(|_| r.step(&words).unwrap().clone()).collect();
+        let want: Vec<SampleOut> = (0..150)
+            .map(|_| clean.step(&words).unwrap().clone())
+            .collect();
+        let resets = r.resets().to_vec();
+        assert_eq!(resets.len(), 1, "{board}: {resets:?}");
+        assert_eq!(resets[0].why, "brown-out");
+        let zero = *resets[0].reboot.as_ref().unwrap() as usize;
+        for i in 50..50 + zero {
+            assert!(out[i].dac.iter().all(|&d| d == 0), "{board} sample {i}");
+        }
+        for i in 50 + zero + 2..150 {
+            assert_eq!(
+                out[i].force, want[i].force,
+                "{board} sample {i}: plays again"
+            );
+        }
+        // A power-on: the scratch registers lost, no trip recorded.
+        assert!(!fault(&mut r, &image, 0).tripped(), "{board}");
+    }
+}

@@ -14,7 +14,7 @@
 //! | bits  | field | meaning |
 //! |-------|-------|---------|
 //! | 0–7   | kind  | the last trip's [`FaultKind`] code (0: no trip since power-on) |
-//! | 8–15  | key   | the tripped key's window slot (its MIDI number on a keyboard, `keys.json`'s `midi`); [`NO_KEY`] for a fault of the whole board |
+//! | 8–15  | key   | the tripped key's window slot (`KeySpec::slot`: on a keyboard's board the key's index in the board's key order, `keys.json`'s order; the host maps it to the MIDI number); [`NO_KEY`] for a fault of the whole board |
 //! | 16–31 | trips | trips on this core since power-on, modulo 65,536 |
 //!
 //! **The fault time** is the core's sample count ([`super::glue::ctrl::SAMPLES`]) at the
@@ -110,7 +110,8 @@ pub struct FaultWord {
     pub kind: Option<FaultKind>,
     /// The fault word's low byte as read.
     pub code: u8,
-    /// The tripped key's window slot (MIDI number), [`NO_KEY`] for none.
+    /// The tripped key's window slot (on a keyboard's board its index in the board's key
+    /// order), [`NO_KEY`] for none.
     pub key: u8,
     /// Trips since power-on, modulo 65,536.
     pub trips: u16,
