@@ -201,8 +201,8 @@ fn a_brown_out_zeroes_the_motors_and_the_board_plays_again() {
         assert_eq!(resets.len(), 1, "{board}: {resets:?}");
         assert_eq!(resets[0].why, "brown-out");
         let zero = *resets[0].reboot.as_ref().unwrap() as usize;
-        for i in 50..50 + zero {
-            assert!(out[i].dac.iter().all(|&d| d == 0), "{board} sample {i}");
+        for (i, s) in out.iter().enumerate().skip(50).take(zero) {
+            assert!(s.dac.iter().all(|&d| d == 0), "{board} sample {i}");
         }
         for i in 50 + zero + 2..150 {
             assert_eq!(
