@@ -7,54 +7,19 @@
 
 #[path = "common/layouts.rs"]
 mod layouts;
+#[path = "common/spring.rs"]
+mod spring;
+use spring::fault;
 
-use tactus_compiler::lower::Config;
-use tactus_firmware::image::fault::{recovery_samples, FaultKind, FaultWord};
-use tactus_firmware::image::glue::ctrl;
-use tactus_firmware::image::{
-    FaultKind as InjKind, FirmwareImage, ImageRun, Injection, KeySpec, Program,
-};
+use tactus_firmware::image::fault::{recovery_samples, FaultKind};
+use tactus_firmware::image::{FaultKind as InjKind, FirmwareImage, ImageRun, Injection, Program};
 use tactus_runtime::limiter::LimiterConfig;
 
-/// A position-sensed key whose force is its spring: the force follows the position every
-/// sample, so a DAC word of 0 is the check's doing.
-const SPRING: &str =
-    "instrument spring {\n sensor key: m in [0 mm, 10 mm]\n force out = 300 N/m * key + 0.2 N\n}\n";
-
 fn image(board: &str) -> (Program, FirmwareImage) {
-    let mut p = Program::compile(SPRING, &Config::default()).unwrap();
+    let mut p = spring::spring();
     p.sensor_check = true;
-    // Keys 0 and 1 on core 0, key 2 on core 1.
-    let keys: Vec<KeySpec> = [(60, 0), (61, 0), (62, 1)]
-        .iter()
-        .map(|&(slot, core)| KeySpec {
-            slot,
-            program: 0,
-            core,
-        })
-        .collect();
-    let board = layouts::shipped_board(board);
-    let image = FirmwareImage::build(
-        std::slice::from_ref(&p),
-        &keys,
-        &board,
-        &LimiterConfig::default(),
-    )
-    .unwrap();
+    let image = spring::three_keys(&p, board);
     (p, image)
-}
-
-/// The fault record of core `core`.
-fn fault(
-    run: &mut tactus_firmware::image::ImageRun,
-    image: &FirmwareImage,
-    core: usize,
-) -> FaultWord {
-    let ctrl_addr = image.core_addresses(core).unwrap()[3];
-    let b = run.board();
-    let w = b.read_u32(ctrl_addr + u32::from(ctrl::FAULT)).unwrap();
-    let at = b.read_u32(ctrl_addr + u32::from(ctrl::FAULT_AT)).unwrap();
-    FaultWord::decode(w, at)
 }
 
 /// Runs a fault of key 0 (word `bad` from sample `from` for `len` samples) against the same

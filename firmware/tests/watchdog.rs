@@ -6,51 +6,21 @@
 
 #[path = "common/layouts.rs"]
 mod layouts;
+#[path = "common/spring.rs"]
+mod spring;
+use spring::fault;
 
-use tactus_compiler::lower::Config;
 use tactus_emulator::Engine;
-use tactus_firmware::image::fault::{FaultKind, FaultWord, NO_KEY, WATCHDOG_PERIOD_US};
-use tactus_firmware::image::glue::ctrl;
-use tactus_firmware::image::{
-    self, FirmwareImage, ImageRun, Injection, KeySpec, Program, SampleOut,
-};
-use tactus_runtime::limiter::LimiterConfig;
+use tactus_firmware::image::fault::{FaultKind, NO_KEY, WATCHDOG_PERIOD_US};
+use tactus_firmware::image::{self, FirmwareImage, ImageRun, Injection, SampleOut};
 
-/// A position-sensed key whose force is its spring: a DAC code that is not 0 at mid-travel.
-const SPRING: &str =
-    "instrument spring {\n sensor key: m in [0 mm, 10 mm]\n force out = 300 N/m * key + 0.2 N\n}\n";
-
-/// Keys 0 and 1 on core 0, key 2 on core 1, the watchdog on.
+/// The spring's three keys, the watchdog on or off.
 fn image(board: &str, watchdog: bool) -> FirmwareImage {
-    let mut p = Program::compile(SPRING, &Config::default()).unwrap();
+    let mut p = spring::spring();
     p.watchdog = watchdog;
     // Every update runs (the quiescent-key guard would skip a held key's, hung or not).
     p.quiescent_guard = false;
-    let keys: Vec<KeySpec> = [(60, 0), (61, 0), (62, 1)]
-        .iter()
-        .map(|&(slot, core)| KeySpec {
-            slot,
-            program: 0,
-            core,
-        })
-        .collect();
-    let board = layouts::shipped_board(board);
-    FirmwareImage::build(
-        std::slice::from_ref(&p),
-        &keys,
-        &board,
-        &LimiterConfig::default(),
-    )
-    .unwrap()
-}
-
-/// Core `core`'s fault record.
-fn fault(run: &mut ImageRun, image: &FirmwareImage, core: usize) -> FaultWord {
-    let ctrl_addr = image.core_addresses(core).unwrap()[3];
-    let b = run.board();
-    let w = b.read_u32(ctrl_addr + u32::from(ctrl::FAULT)).unwrap();
-    let at = b.read_u32(ctrl_addr + u32::from(ctrl::FAULT_AT)).unwrap();
-    FaultWord::decode(w, at)
+    spring::three_keys(&p, board)
 }
 
 /// `samples` samples of the keys held at mid-travel from flash, key `hung`'s update hung
