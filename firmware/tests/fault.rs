@@ -7,52 +7,19 @@
 
 #[path = "common/layouts.rs"]
 mod layouts;
+#[path = "common/spring.rs"]
+mod spring;
+use spring::fault;
 
-use tactus_compiler::lower::Config;
-use tactus_firmware::image::fault::{recovery_samples, FaultKind, FaultWord};
-use tactus_firmware::image::glue::ctrl;
-use tactus_firmware::image::{FirmwareImage, KeySpec, Program};
+use tactus_firmware::image::fault::{recovery_samples, FaultKind};
+use tactus_firmware::image::{FaultKind as InjKind, FirmwareImage, ImageRun, Injection, Program};
 use tactus_runtime::limiter::LimiterConfig;
 
-/// A position-sensed key whose force is its spring: the force follows the position every
-/// sample, so a DAC word of 0 is the check's doing.
-const SPRING: &str =
-    "instrument spring {\n sensor key: m in [0 mm, 10 mm]\n force out = 300 N/m * key + 0.2 N\n}\n";
-
 fn image(board: &str) -> (Program, FirmwareImage) {
-    let mut p = Program::compile(SPRING, &Config::default()).unwrap();
+    let mut p = spring::spring();
     p.sensor_check = true;
-    // Keys 0 and 1 on core 0, key 2 on core 1.
-    let keys: Vec<KeySpec> = [(60, 0), (61, 0), (62, 1)]
-        .iter()
-        .map(|&(slot, core)| KeySpec {
-            slot,
-            program: 0,
-            core,
-        })
-        .collect();
-    let board = layouts::shipped_board(board);
-    let image = FirmwareImage::build(
-        std::slice::from_ref(&p),
-        &keys,
-        &board,
-        &LimiterConfig::default(),
-    )
-    .unwrap();
+    let image = spring::three_keys(&p, board);
     (p, image)
-}
-
-/// The fault record of core `core`.
-fn fault(
-    run: &mut tactus_firmware::image::ImageRun,
-    image: &FirmwareImage,
-    core: usize,
-) -> FaultWord {
-    let ctrl_addr = image.core_addresses(core).unwrap()[3];
-    let b = run.board();
-    let w = b.read_u32(ctrl_addr + u32::from(ctrl::FAULT)).unwrap();
-    let at = b.read_u32(ctrl_addr + u32::from(ctrl::FAULT_AT)).unwrap();
-    FaultWord::decode(w, at)
 }
 
 /// Runs a fault of key 0 (word `bad` from sample `from` for `len` samples) against the same
@@ -65,9 +32,8 @@ fn trip_and_recover(board: &str, bad: i32, kind: FaultKind) {
     let rec = recovery_samples(44_100.0) as usize;
     let (from, len) = (200usize, 100usize);
     let total = from + len + rec + 300;
-    // Every key starts at rest (a key away from rest at the first sample trips: its copy
-    // starts at 0). Key 0 goes down to mid-travel and stays; keys 1 and 2 go down and up
-    // slowly (12.5 µm a sample, below the bound).
+    // Key 0 goes down to mid-travel and stays; keys 1 and 2 go down and up slowly
+    // (12.5 µm a sample, below the bound).
     let _ = quarter;
     let slow = |n: usize| {
         let t = (n % 800) as i64;
@@ -154,4 +120,147 @@ fn an_open_wire_mid_travel_trips_as_a_jump() {
 fn a_converter_board_trips_on_its_adc_codes() {
     // Full scale and 0 reach the firmware as ADC codes made words; 0 is a jump again.
     trip_and_recover("rp2040_io", 0, FaultKind::SensorRate);
+}
+
+#[test]
+fn a_key_held_down_at_power_on_plays_from_the_second_sample() {
+    // The check's copy is seeded by the first reading (`SensorCheck::seed`): a key away
+    // from rest at the start is no fault. On a board without converters: with them the
+    // first reading is the start handler's ADC burst, which `FirmwareImage::run` makes
+    // before the host can set the ADC's codes (they read 0, the key at rest), so there
+    // the emulated key is at rest at power-on and jumps at the first step.
+    for board in ["rp2040"] {
+        let (p, image) = image(board);
+        let mut plain = p.clone();
+        plain.sensor_check = false;
+        let unchecked = FirmwareImage::build(
+            std::slice::from_ref(&plain),
+            &image.keys(),
+            &layouts::shipped_board(board),
+            &LimiterConfig::default(),
+        )
+        .unwrap();
+        let (lo, hi) = p.fixed.sensor_raw_range[0];
+        // Key 0 held at 3/4 of its travel, key 1 at the bottom, key 2 at rest.
+        let words = [lo + (hi - lo) / 4 * 3, hi, lo];
+        let mut run = image.run().unwrap();
+        let mut reference = unchecked.run().unwrap();
+        for n in 0..50 {
+            let got = run.step(&words).unwrap().clone();
+            let want = reference.step(&words).unwrap().clone();
+            if n == 0 {
+                // The first sample judges the readings' range only, the keys' forces 0.
+                assert!(got.force.iter().all(|&f| f == 0), "{board}: {got:?}");
+            } else {
+                assert_eq!(got.force, want.force, "{board} sample {n}");
+            }
+        }
+        for core in 0..2 {
+            let f = fault(&mut run, &image, core);
+            assert!(!f.tripped(), "{board} core {core}: {f:?}");
+        }
+    }
+}
+
+/// One injected fault (`ImageRun::inject`) on key 0 (or core 0) of the spring image with
+/// the check, from flash, against the clean run; `want` the kind the fault word must show
+/// (`None`: a fault no check sees). Checks the bound (the affected drives at DAC code 0
+/// within 1 ms of the fault's start, while it lasts), never a code above the limiter's
+/// peak, the keys the fault does not reach unchanged, the fault word, and the recovery
+/// (the forces the clean run's again once the fault has cleared and 100 ms passed).
+fn injected(board: &str, kind: InjKind, want: Option<FaultKind>) {
+    let (p, image) = image(board);
+    let peak = tactus_runtime::limiter::Limiter::new(image.limiter_config())
+        .unwrap()
+        .constants()
+        .peak_code;
+    let (lo, hi) = p.fixed.sensor_raw_range[0];
+    let mid = lo + (hi - lo) / 2;
+    let rec = recovery_samples(44_100.0) as u64;
+    let (from, until) = (200u64, 300u64);
+    let total = until + rec + 100;
+    // Keys at rest, down to mid-travel slowly (below the bound) by sample 100, held.
+    let words = |n: u64| {
+        let w = lo + ((mid - lo) as i64 * n.min(100) as i64 / 100) as i32;
+        vec![w; 3]
+    };
+    let core_wide = matches!(kind, InjKind::AdcSilent);
+    let flash = image.flash_image().unwrap().bytes;
+    let mut clean = ImageRun::from_flash(&image, &flash).unwrap();
+    let mut run = ImageRun::from_flash(&image, &flash).unwrap();
+    run.inject(Injection {
+        kind,
+        key: (!core_wide).then_some(0),
+        core: core_wide.then_some(0),
+        from,
+        until: Some(until),
+    })
+    .unwrap();
+    // The keys the fault reaches: key 0, and with the core's ADC key 1 too.
+    let reached = |k: usize| k == 0 || (core_wide && image.keys()[k].core == 0);
+    let mut zero_by = None;
+    for n in 0..total {
+        let want_s = clean.step(&words(n)).unwrap().clone();
+        let got = run.step(&words(n)).unwrap().clone();
+        for (k, d) in got.drives.iter().enumerate() {
+            let code = i32::from(d[0].dac).abs();
+            assert!(
+                code <= peak,
+                "{board} {kind:?} sample {n} key {k}: {code} > {peak}"
+            );
+            if !reached(k) {
+                assert_eq!(d, &want_s.drives[k], "{board} {kind:?} sample {n} key {k}");
+            }
+        }
+        if want.is_some() && (from..until).contains(&n) {
+            let zero = (0..3).filter(|&k| reached(k)).all(|k| got.dac[k] == 0);
+            match (zero_by, zero) {
+                (None, true) => zero_by = Some(n),
+                (Some(_), false) => {
+                    panic!("{board} {kind:?} sample {n}: a tripped key's DAC moved")
+                }
+                _ => {}
+            }
+        }
+        if n >= until + rec + 50 || n < from {
+            assert_eq!(
+                got.force, want_s.force,
+                "{board} {kind:?} sample {n}: plays"
+            );
+        }
+    }
+    let f = fault(&mut run, &image, 0);
+    match want {
+        Some(kind_want) => {
+            let by = zero_by.expect("the fault set the motors to zero") - from;
+            // 1 ms at 44.1 kHz.
+            assert!(by <= 44, "{board} {kind:?}: zero after {by} samples");
+            assert_eq!(f.kind, Some(kind_want), "{board} {kind:?}: {f:?}");
+            // A trip per key reached, the word naming the last (key 1, slot 61, when the
+            // core's ADC went silent).
+            let (key, trips) = if core_wide { (61, 2) } else { (60, 1) };
+            assert_eq!((f.key, f.trips), (key, trips), "{board} {kind:?}: {f:?}");
+        }
+        None => assert!(!f.tripped(), "{board} {kind:?}: {f:?}"),
+    }
+}
+
+#[test]
+fn every_sensor_fault_kind_trips_bounded_and_recovers_on_both_boards() {
+    for board in ["rp2040", "rp2040_io"] {
+        injected(board, InjKind::Short, Some(FaultKind::SensorRange));
+        injected(board, InjKind::Open, Some(FaultKind::SensorRate));
+        injected(board, InjKind::Jump(20_000), Some(FaultKind::SensorRate));
+        injected(board, InjKind::Noise(30_000), Some(FaultKind::SensorRate));
+        injected(board, InjKind::Stuck(5_000), Some(FaultKind::SensorRate));
+        injected(board, InjKind::AdcSilent, Some(FaultKind::SensorRange));
+        // Stuck where the key is (mid-travel): a key held still, no fault.
+        let (p, _) = image(board);
+        let (lo, hi) = p.fixed.sensor_raw_range[0];
+        let scale = tactus_runtime::converters::AdcScale::new(lo, hi, 16);
+        let held = scale.code(lo + (hi - lo) / 2) as u16;
+        injected(board, InjKind::Stuck(held), None);
+        // A small jump within the bound: a key moving, no fault, never above the peak.
+        injected(board, InjKind::Jump(100), None);
+    }
 }

@@ -140,3 +140,79 @@ fn a_fault_outside_the_board_is_refused_with_its_field() {
         .unwrap_err();
     assert!(e.contains("`word`"), "{e}");
 }
+
+/// A flipped bit in a key's state words (`FaultKind::Flip`) is not detected (no state-range
+/// check: docs/firmware.md, "Faults"); what holds instead: every DAC code of every sample
+/// stays within the limiter's peak, and the keys whose state was not hit play exactly as
+/// without the flips.
+fn flips_stay_under_the_peak(kind: Option<&str>) {
+    let (boards, _) = firmware("instruments/layouts/grand88.toml", kind, Load::Ram);
+    let image = &boards[0].image;
+    let peak = tactus_runtime::limiter::Limiter::new(image.limiter_config())
+        .unwrap()
+        .constants()
+        .peak_code;
+    let programs = image.programs();
+    let n = 600;
+    // Keys 0 and 4 (one per core) take flips in low, middle and sign bits of their first
+    // words while at rest, then pressed half-way (the limiter at work either way).
+    let flips: Vec<Injection> = [
+        (0, 0, 31, 50),
+        (0, 1, 20, 120),
+        (0, 2, 5, 200),
+        (4, 0, 30, 60),
+    ]
+    .iter()
+    .chain(&[(4, 3, 31, 250), (4, 1, 12, 400)])
+    .map(|&(key, word, bit, from)| Injection {
+        kind: FaultKind::Flip { word, bit },
+        key: Some(key),
+        core: None,
+        from,
+        until: None,
+    })
+    .collect();
+    let words = |i: usize| -> Vec<i32> {
+        (image.keys().iter())
+            .map(|k| {
+                let f = &programs[k.program].fixed;
+                let (lo, hi) = f.sensor_raw_range[0];
+                if i < 300 {
+                    lo
+                } else {
+                    lo + (hi - lo) / 2
+                }
+            })
+            .collect()
+    };
+    let mut clean = image.run().unwrap();
+    let mut hit = image.run().unwrap();
+    for f in &flips {
+        hit.inject(*f).unwrap();
+    }
+    let mut changed = 0;
+    for i in 0..n {
+        let want = clean.step(&words(i)).unwrap().clone();
+        let got = hit.step(&words(i)).unwrap().clone();
+        changed += usize::from(got.drives != want.drives);
+        for (k, d) in got.drives.iter().enumerate() {
+            let code = i32::from(d[0].dac).abs();
+            assert!(
+                code <= peak,
+                "{kind:?} sample {i} key {k}: DAC {code} > peak {peak}"
+            );
+            if k != 0 && k != 4 {
+                assert_eq!(d, &want.drives[k], "{kind:?} sample {i} key {k}");
+            }
+        }
+    }
+    // The flips reached the hit keys' outputs (else this shows nothing).
+    assert!(changed > 0, "{kind:?}: no flip changed an output");
+    eprintln!("{kind:?}: {changed} of {n} samples differ from the clean run");
+}
+
+#[test]
+fn flipped_state_bits_stay_under_the_limiters_peak() {
+    flips_stay_under_the_peak(None);
+    flips_stay_under_the_peak(Some("rp2040_io"));
+}

@@ -26,6 +26,13 @@ use tactus_isa::decode::{AluOp, Hint, Instr};
 use tactus_rp2040::timer::{reg, TIMER_BASE};
 use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
+mod checks;
+use checks::{
+    check_step, copy_words, enable_watchdog, feed_watchdog, restore_fault_record, trip_path,
+    CopyMode,
+};
+pub use checks::{Feed, SensorCheck};
+
 /// Byte offsets in a core's control block (words in the core's own SRAM bank).
 pub mod ctrl {
     /// Timer time (µs) of the start alarm, at which both cores start their SysTick.
@@ -387,195 +394,6 @@ pub struct KeyCode {
     pub check: Option<SensorCheck>,
 }
 
-/// The plausibility check of a key's first sensor word (a key's position, a pen's depth;
-/// docs/firmware.md, "Faults"), and the key's trip path.
-///
-/// **Every sample** the handler copies the word to the record (the update reads the copy)
-/// and checks its change since the copy it replaces: `d = new − copy` must lie in
-/// `[−2^shift, 2^shift)` (`SUBS`, `ASRS`, `ADDS #1`, `LSRS #1`, `BNE`: `(d >> shift) + 1`
-/// is 0 or 1 exactly then), 2^shift being the power of two at or above the largest change
-/// the key's physics allows ([`super::fault::max_step_raw`]). Its static cost on the path
-/// that runs the update: 11 cycles (the load of the word, the copy's load and store, the
-/// five instructions) less the sensor pointer's set-up the update no longer needs from the
-/// window.
-///
-/// **A trip** (the branch taken) runs the key's trip path instead of its update: it checks
-/// the word's range (`[lo, hi]`, the sensor's declared range) and its change since the
-/// last reading ([`SensorCheck::last_offset`]), and
-/// - when either fails: the copy set to a *poison* word (half the word space away from the
-///   range, so that every later reading fails the every-sample check and comes here), the
-///   recovery count to [`SensorCheck::recovery`]; on the first trip of a fault (the count
-///   was 0) the core's fault record gets the trip (kind, slot, trips + 1; the sample) and
-///   so do the watchdog's scratch registers;
-/// - when both hold: one less to count; at 0 the key recovers: the copy is the reading, its
-///   state is put back to rest — the rest image its `init` left at boot, copied back
-///   (`LDM`/`STM`, 3 cycles a word: cheaper than the update, whose place it takes; the
-///   update's differentiators then start again from the reading) — the guard's counter 0;
-/// - always: the key's force words are 0, and the handler joins the key's limiters (so its
-///   DAC words are 0 from this sample on while tripped, [`super::fault`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct SensorCheck {
-    /// The sensor word's declared range, raw.
-    pub lo: i32,
-    /// See [`SensorCheck::lo`].
-    pub hi: i32,
-    /// The accepted change per sample is `[−2^shift, 2^shift)` raw (1 to 30).
-    pub shift: u8,
-    /// Byte offset in the record of the recovery count (0: the key plays; ≤ 124).
-    pub left_offset: u32,
-    /// Byte offset in the record of the last reading while tripped (≤ 124).
-    pub last_offset: u32,
-    /// The key's window slot, for the fault word.
-    pub slot: u8,
-    /// Plausible samples before a tripped key plays again.
-    pub recovery: u32,
-    /// Address of the key's rest image: its state as its `init` left it at boot (the reset
-    /// handler copies it there), which the recovery copies back.
-    pub rest: u32,
-    /// Words of the state struct.
-    pub state_words: u32,
-}
-
-impl SensorCheck {
-    /// The poison word of the copy while the key is tripped: half the word space from the
-    /// middle of the range, so `word − poison` is beyond `2^shift` for every word within
-    /// `2^31 − 2^shift − (hi − lo)/2` of the range.
-    pub fn poison(&self) -> u32 {
-        let mid = (i64::from(self.lo) + i64::from(self.hi)) / 2;
-        (mid as u32).wrapping_add(1 << 31)
-    }
-
-    /// Whether `word` is plausible after `prev` by the every-sample test.
-    pub fn step_ok(&self, prev: i32, word: i32) -> bool {
-        let d = word.wrapping_sub(prev) >> self.shift;
-        d == 0 || d == -1
-    }
-}
-
-/// The every-sample part of [`SensorCheck`]: `r0` = the new word; branches to `trip` when
-/// its change from the record's copy at `copy_off` is beyond the bound. Clobbers r1.
-fn check_step(a: &mut CodeBuffer, c: &SensorCheck, copy_off: u16, trip: Label) {
-    a.i(asm::ldr(1, 4, copy_off));
-    a.i(asm::subs(1, 0, 1));
-    a.i(asm::asrs(1, 1, c.shift));
-    a.i(asm::adds_imm(1, 1, 1));
-    a.i(asm::lsrs(1, 1, 1));
-    a.bc(cond::NE, trip);
-}
-
-/// The trip path of [`SensorCheck`] for key `k` (its record at r4): entered with r0 = the
-/// word that tripped; ends with a branch to `join` (the key's limiters) with its force
-/// words 0. Uses the control block's address `ctrl_addr` (r5 may be an update's), the
-/// watchdog's scratch pair of core `core`.
-fn trip_path(
-    a: &mut CodeBuffer,
-    k: &KeyCode,
-    c: &SensorCheck,
-    ctrl_addr: u32,
-    core: usize,
-    join: Label,
-) {
-    use super::fault::{self, FaultKind};
-    use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
-    let (check, bad, zero) = (a.label(), a.label(), a.label());
-    let bad_range = a.label();
-    let (left, last) = (c.left_offset as u16, c.last_offset as u16);
-    // First trip of a fault: the last reading is the copy (the one before this word).
-    a.i(asm::ldr(1, 4, left));
-    a.i(asm::cmp_imm(1, 0));
-    a.bc(cond::NE, check);
-    a.i(asm::ldr(1, 4, 0));
-    a.i(asm::str(1, 4, last));
-    a.bind(check);
-    // The range (kind: range), unsigned: word − lo ≤ hi − lo.
-    a.i(asm::ldr(2, 4, last));
-    a.i(asm::str(0, 4, last));
-    a.ldr_const(1, c.lo as u32);
-    a.i(asm::subs(1, 0, 1));
-    a.ldr_const(3, c.hi.wrapping_sub(c.lo) as u32);
-    a.i(asm::cmp(1, 3));
-    a.bc(cond::HI, bad_range);
-    // The change since the last reading (kind: rate).
-    a.i(asm::movs(3, FaultKind::SensorRate.code()));
-    a.i(asm::subs(2, 0, 2));
-    a.i(asm::asrs(2, 2, c.shift));
-    a.i(asm::adds_imm(2, 2, 1));
-    a.i(asm::lsrs(2, 2, 1));
-    a.bc(cond::NE, bad);
-    // Plausible: one less to count; at 0 the key recovers.
-    a.i(asm::ldr(1, 4, left));
-    a.i(asm::subs_imm(1, 1, 1));
-    a.i(asm::str(1, 4, left));
-    a.bc(cond::NE, zero);
-    a.i(asm::str(0, 4, 0));
-    if let Some(g) = &k.guard {
-        a.i(asm::movs(1, 0));
-        a.i(asm::str(1, 4, g.calm_offset as u16));
-    }
-    // The state back to rest: the rest image copied over it, two words at a time.
-    ldr_rec(a, 0, k.state_offset);
-    a.ldr_const(1, c.rest);
-    for _ in 0..c.state_words / 2 {
-        a.i(Instr::Ldm {
-            rn: 1,
-            list: 0b1100,
-        });
-        a.i(Instr::Stm {
-            rn: 0,
-            list: 0b1100,
-        });
-    }
-    if c.state_words % 2 == 1 {
-        a.i(Instr::Ldm { rn: 1, list: 0b100 });
-        a.i(Instr::Stm { rn: 0, list: 0b100 });
-    }
-    a.b(zero);
-    // Implausible: poison the copy, count the recovery again; a new fault is a trip.
-    a.bind(bad_range);
-    a.i(asm::movs(3, FaultKind::SensorRange.code()));
-    a.bind(bad);
-    a.ldr_const(1, c.poison());
-    a.i(asm::str(1, 4, 0));
-    a.i(asm::ldr(1, 4, left));
-    a.ldr_const(2, c.recovery);
-    a.i(asm::str(2, 4, left));
-    a.i(asm::cmp_imm(1, 0));
-    a.bc(cond::NE, zero);
-    a.ldr_const(2, ctrl_addr);
-    a.i(asm::ldr(1, 2, ctrl::FAULT));
-    a.i(asm::lsrs(1, 1, 16));
-    a.i(asm::adds_imm(1, 1, 1));
-    a.i(asm::lsls(1, 1, 16));
-    a.i(asm::alu(AluOp::Orr, 1, 3));
-    a.mov_const(3, u32::from(c.slot) << 8);
-    a.i(asm::alu(AluOp::Orr, 1, 3));
-    a.i(asm::str(1, 2, ctrl::FAULT));
-    a.i(asm::ldr(3, 2, ctrl::SAMPLES));
-    a.i(asm::str(3, 2, ctrl::FAULT_AT));
-    let (w, _) = fault::scratch(core);
-    a.ldr_const(2, WATCHDOG_BASE + wreg::SCRATCH0 + 4 * w);
-    a.i(asm::str(1, 2, 0));
-    a.i(asm::str(3, 2, 4));
-    // The key's force words 0: its limiters make DAC code 0 of them.
-    a.bind(zero);
-    a.i(asm::movs(0, 0));
-    for d in &k.drives {
-        if d.force_offset <= 124 {
-            a.i(asm::str(0, 4, d.force_offset as u16));
-        } else {
-            a.mov_const(1, d.force_offset);
-            a.i(Instr::MemReg {
-                op: tactus_isa::decode::MemOp::Str,
-                rt: 0,
-                rn: 4,
-                rm: 1,
-            });
-            a.i(asm::movs(0, 0));
-        }
-    }
-    a.b(join);
-}
-
 /// Registers an update may clobber in the image: r5 and [`hi`]'s (r4, r6, r7 the handler
 /// keeps across the calls).
 pub const CLOBBERABLE: u16 = 1 << 5 | HI_REGISTERS;
@@ -845,6 +663,7 @@ pub fn core_code(
     limiter: &LimiterConstants,
     start: &dyn Fn(&mut CodeBuffer),
     io: Option<&super::io::IoPlan>,
+    feed: Option<Feed>,
 ) -> Result<CoreLabels, ImageError> {
     let labels = CoreLabels {
         reset: a.label(),
@@ -917,26 +736,17 @@ pub fn core_code(
     a.bind(labels.reset);
     start(a);
     a.ldr_const(5, ctrl_addr);
+    if feed.is_some() {
+        restore_fault_record(a, core);
+    }
     walk(a, keys, &mut |a, k| {
         ldr_rec(a, 0, k.state_offset);
         a.bl_addr(k.init);
         if let Some(c) = k.check.filter(|c| c.state_words > 0) {
             // The rest image of the sensor check's recovery ([`SensorCheck::rest`]).
-            let copy = a.label();
             ldr_rec(a, 0, k.state_offset);
             a.ldr_const(1, c.rest);
-            a.mov_const(2, c.state_words);
-            a.bind(copy);
-            a.i(Instr::Ldm {
-                rn: 0,
-                list: 0b1000,
-            });
-            a.i(Instr::Stm {
-                rn: 1,
-                list: 0b1000,
-            });
-            a.i(asm::subs_imm(2, 2, 1));
-            a.bc(cond::NE, copy);
+            copy_words(a, 0, 1, c.state_words, CopyMode::Looped);
         }
         Ok(())
     })?;
@@ -998,6 +808,9 @@ pub fn core_code(
     if let Some(p) = io {
         // The first ADC burst, for the first sample.
         p.start_burst(a, core);
+    }
+    if let (0, Some(_)) = (core, feed) {
+        enable_watchdog(a);
     }
     a.i(Instr::Bx { rm: 14 });
     a.pool();
@@ -1168,6 +981,9 @@ pub fn core_code(
     a.i(asm::ldr(1, 5, ctrl::SAMPLES));
     a.i(asm::adds_imm(1, 1, 1));
     a.i(asm::str(1, 5, ctrl::SAMPLES));
+    if let Some(f) = feed.filter(|_| core == 0) {
+        feed_watchdog(a, &f);
+    }
     a.i(asm::movs(0, EXC_RETURN_NOT));
     a.i(asm::alu(AluOp::Mvn, 0, 0));
     a.i(mov_hi(14, 0));

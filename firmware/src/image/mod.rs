@@ -165,6 +165,15 @@ pub struct Program {
     /// converter board's budget holds it (11 cycles a key: grand88 on `rp2040_io` would
     /// need 15 boards).
     pub sensor_check: bool,
+    /// Whether an image holding this program runs the RP2040's watchdog, fed by core 0
+    /// when both cores finished their sample ([`fault`], "The watchdog": a core that stops
+    /// finishing samples resets the board within [`fault::WATCHDOG_PERIOD_US`] and a
+    /// sample). Off by default: its 18 cycles of core 0's handler fit grand88 (fullest core
+    /// 2,967 of 3,015 cycles on `rp2040`, 2,996 on `rp2040_io`), but the feed's peripheral
+    /// store and its load from core 1's bank end the emulator's windows every sample (the
+    /// emulator's side is issue-71-emu's), and an overloaded image (a core a sample behind
+    /// the other) would reset.
+    pub watchdog: bool,
 }
 
 impl Program {
@@ -179,6 +188,7 @@ impl Program {
             init_cycles: Arc::default(),
             quiescent_guard: true,
             sensor_check: false,
+            watchdog: false,
         }
     }
 
@@ -688,7 +698,9 @@ pub struct IsrWcet {
     pub analysed: u64,
     /// Bank-contention allowance: one wait cycle per access of this core's handler, and of
     /// the other core's handler in the same sample, to a window word in a bank both cores'
-    /// keys use (none with the split windows of the module documentation: 0).
+    /// keys use (none with the split windows of the module documentation: 0); on core 0 of
+    /// an image with the watchdog, the feed's cycles the analysis does not price
+    /// ([`glue::Feed::unpriced_cycles`]).
     pub contention: u64,
     /// Of `analysed`: the keys' update calls (each `BL` and the update's WCET). The rest,
     /// `analysed - updates`, is the handler's own cost: exception entry and return, the
@@ -861,6 +873,7 @@ impl FirmwareImage {
             cores,
             io,
             fs: fs as f64,
+            watchdog: programs.iter().any(|p| p.watchdog),
         };
         let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
 
@@ -945,6 +958,10 @@ impl FirmwareImage {
             .sum();
         for (c, (w, p)) in wcet.iter_mut().zip(&places).enumerate() {
             w.contention = if p.keys.is_empty() { 0 } else { total };
+            // The watchdog's feed on core 0: its APB store and its load from core 1's bank.
+            if let Some(f) = l.feed(data_off).filter(|_| c == 0) {
+                w.contention += f.unpriced_cycles();
+            }
             // With converters, the DMA's accesses to the core's I/O bank (`io.rs`).
             if let Some(cio) = l.io.as_ref().and_then(|io| io.cores.get(c)) {
                 w.contention += cio.contention();

@@ -1,0 +1,338 @@
+//! The fault checks' code in the image (docs/firmware.md, "Faults"; `super::super::fault`):
+//! a key's sensor check and its trip path, the copy of a key's state words its recovery
+//! makes, and the watchdog's enabling, feed and fault-record restore. Kept beside the
+//! handler's glue, whose registers and record layout they share (`super`'s module
+//! documentation).
+
+use super::{ctrl, ldr_rec, KeyCode};
+use tactus_compiler::thumb::buffer::{CodeBuffer, Label};
+use tactus_compiler::thumb::ins::{self as asm, cond};
+use tactus_isa::decode::{AluOp, Instr};
+
+/// The plausibility check of a key's first sensor word (a key's position, a pen's depth;
+/// docs/firmware.md, "Faults"), and the key's trip path.
+///
+/// **Every sample** the handler copies the word to the record (the update reads the copy)
+/// and checks its change since the copy it replaces: `d = new − copy` must lie in
+/// `[−2^shift, 2^shift)` (`SUBS`, `ASRS`, `ADDS #1`, `LSRS #1`, `BNE`: `(d >> shift) + 1`
+/// is 0 or 1 exactly then), 2^shift being the power of two at or above the largest change
+/// the key's physics allows ([`super::super::fault::max_step_raw`]). Its static cost on the path
+/// that runs the update: 11 cycles (the load of the word, the copy's load and store, the
+/// five instructions) less the sensor pointer's set-up the update no longer needs from the
+/// window.
+///
+/// **A trip** (the branch taken) runs the key's trip path instead of its update: it checks
+/// the word's range (`[lo, hi]`, the sensor's declared range) and its change since the
+/// last reading ([`SensorCheck::last_offset`]), and
+/// - when either fails: the copy set to a *poison* word (half the word space away from the
+///   range, so that every later reading fails the every-sample check and comes here), the
+///   recovery count to [`SensorCheck::recovery`]; on the first trip of a fault (the count
+///   was 0) the core's fault record gets the trip (kind, slot, trips + 1; the sample) and
+///   so do the watchdog's scratch registers;
+/// - when both hold: one less to count; at 0 the key recovers: the copy is the reading, its
+///   state is put back to rest — the rest image its `init` left at boot, copied back
+///   (`LDM`/`STM`, 3 cycles a word: cheaper than the update, whose place it takes; the
+///   update's differentiators then start again from the reading) — the guard's counter 0;
+/// - always: the key's force words are 0, and the handler joins the key's limiters (so its
+///   DAC words are 0 from this sample on while tripped, [`super::super::fault`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SensorCheck {
+    /// The sensor word's declared range, raw.
+    pub lo: i32,
+    /// See [`SensorCheck::lo`].
+    pub hi: i32,
+    /// The accepted change per sample is `[−2^shift, 2^shift)` raw (1 to 30).
+    pub shift: u8,
+    /// Byte offset in the record of the recovery count (0: the key plays; ≤ 124).
+    pub left_offset: u32,
+    /// Byte offset in the record of the last reading while tripped (≤ 124).
+    pub last_offset: u32,
+    /// The key's window slot, for the fault word.
+    pub slot: u8,
+    /// Plausible samples before a tripped key plays again.
+    pub recovery: u32,
+    /// Address of the key's rest image: its state as its `init` left it at boot (the reset
+    /// handler copies it there), which the recovery copies back.
+    pub rest: u32,
+    /// Words of the state struct.
+    pub state_words: u32,
+}
+
+impl SensorCheck {
+    /// The poison word of the copy while the key is tripped: half the word space from the
+    /// middle of the range, so `word − poison` is beyond `2^shift` for every word within
+    /// `2^31 − 2^shift − (hi − lo)/2` of the range.
+    pub fn poison(&self) -> u32 {
+        let mid = (i64::from(self.lo) + i64::from(self.hi)) / 2;
+        (mid as u32).wrapping_add(1 << 31)
+    }
+
+    /// The record's words of the check at power-on (byte offset in the record, value): the
+    /// copy and the last reading the poison word, the recovery count 1. So the first
+    /// sample takes the trip path, which judges the first reading by its range alone
+    /// (there is no change yet to judge) and, when it is in range, recovers the key at
+    /// once: the copy is the first reading, whatever the key's position at the start (a
+    /// key held down at power-on does not trip); the key's force words are 0 for that
+    /// sample. A reading out of range trips as any later one would.
+    pub fn seed(&self) -> [(u32, u32); 3] {
+        let p = self.poison();
+        [(0, p), (self.left_offset, 1), (self.last_offset, p)]
+    }
+
+    /// Whether `word` is plausible after `prev` by the every-sample test.
+    pub fn step_ok(&self, prev: i32, word: i32) -> bool {
+        let d = word.wrapping_sub(prev) >> self.shift;
+        d == 0 || d == -1
+    }
+}
+
+/// The every-sample part of [`SensorCheck`]: `r0` = the new word; branches to `trip` when
+/// its change from the record's copy at `copy_off` is beyond the bound. Clobbers r1.
+pub(super) fn check_step(a: &mut CodeBuffer, c: &SensorCheck, copy_off: u16, trip: Label) {
+    a.i(asm::ldr(1, 4, copy_off));
+    a.i(asm::subs(1, 0, 1));
+    a.i(asm::asrs(1, 1, c.shift));
+    a.i(asm::adds_imm(1, 1, 1));
+    a.i(asm::lsrs(1, 1, 1));
+    a.bc(cond::NE, trip);
+}
+
+/// The trip path of [`SensorCheck`] for key `k` (its record at r4): entered with r0 = the
+/// word that tripped; ends with a branch to `join` (the key's limiters) with its force
+/// words 0. Uses the control block's address `ctrl_addr` (r5 may be an update's), the
+/// watchdog's scratch pair of core `core`.
+pub(super) fn trip_path(
+    a: &mut CodeBuffer,
+    k: &KeyCode,
+    c: &SensorCheck,
+    ctrl_addr: u32,
+    core: usize,
+    join: Label,
+) {
+    use super::super::fault::{self, FaultKind};
+    use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
+    let (check, bad, zero) = (a.label(), a.label(), a.label());
+    let (bad_range, plausible) = (a.label(), a.label());
+    let (left, last) = (c.left_offset as u16, c.last_offset as u16);
+    // First trip of a fault: the last reading is the copy (the one before this word).
+    a.i(asm::ldr(1, 4, left));
+    a.i(asm::cmp_imm(1, 0));
+    a.bc(cond::NE, check);
+    a.i(asm::ldr(1, 4, 0));
+    a.i(asm::str(1, 4, last));
+    a.bind(check);
+    // The range (kind: range), unsigned: word − lo ≤ hi − lo.
+    a.i(asm::ldr(2, 4, last));
+    a.i(asm::str(0, 4, last));
+    a.ldr_const(1, c.lo as u32);
+    a.i(asm::subs(1, 0, 1));
+    a.ldr_const(3, c.hi.wrapping_sub(c.lo) as u32);
+    a.i(asm::cmp(1, 3));
+    a.bc(cond::HI, bad_range);
+    // The first reading since the start (the last reading the poison word the record
+    // starts with, [`SensorCheck::seed`]) has no change to judge.
+    a.ldr_const(3, c.poison());
+    a.i(asm::cmp(2, 3));
+    a.bc(cond::EQ, plausible);
+    // The change since the last reading (kind: rate).
+    a.i(asm::movs(3, FaultKind::SensorRate.code()));
+    a.i(asm::subs(2, 0, 2));
+    a.i(asm::asrs(2, 2, c.shift));
+    a.i(asm::adds_imm(2, 2, 1));
+    a.i(asm::lsrs(2, 2, 1));
+    a.bc(cond::NE, bad);
+    // Plausible: one less to count; at 0 the key recovers.
+    a.bind(plausible);
+    a.i(asm::ldr(1, 4, left));
+    a.i(asm::subs_imm(1, 1, 1));
+    a.i(asm::str(1, 4, left));
+    a.bc(cond::NE, zero);
+    a.i(asm::str(0, 4, 0));
+    if let Some(g) = &k.guard {
+        a.i(asm::movs(1, 0));
+        a.i(asm::str(1, 4, g.calm_offset as u16));
+    }
+    // The state back to rest: the rest image copied over it.
+    ldr_rec(a, 0, k.state_offset);
+    a.ldr_const(1, c.rest);
+    copy_words(a, 1, 0, c.state_words, CopyMode::Unrolled);
+    a.b(zero);
+    // Implausible: poison the copy, count the recovery again; a new fault is a trip.
+    a.bind(bad_range);
+    a.i(asm::movs(3, FaultKind::SensorRange.code()));
+    a.bind(bad);
+    a.ldr_const(1, c.poison());
+    a.i(asm::str(1, 4, 0));
+    a.i(asm::ldr(1, 4, left));
+    a.ldr_const(2, c.recovery);
+    a.i(asm::str(2, 4, left));
+    a.i(asm::cmp_imm(1, 0));
+    a.bc(cond::NE, zero);
+    a.ldr_const(2, ctrl_addr);
+    a.i(asm::ldr(1, 2, ctrl::FAULT));
+    a.i(asm::lsrs(1, 1, 16));
+    a.i(asm::adds_imm(1, 1, 1));
+    a.i(asm::lsls(1, 1, 16));
+    a.i(asm::alu(AluOp::Orr, 1, 3));
+    a.mov_const(3, u32::from(c.slot) << 8);
+    a.i(asm::alu(AluOp::Orr, 1, 3));
+    a.i(asm::str(1, 2, ctrl::FAULT));
+    a.i(asm::ldr(3, 2, ctrl::SAMPLES));
+    a.i(asm::str(3, 2, ctrl::FAULT_AT));
+    let (w, _) = fault::scratch(core);
+    a.ldr_const(2, WATCHDOG_BASE + wreg::SCRATCH0 + 4 * w);
+    a.i(asm::str(1, 2, 0));
+    a.i(asm::str(3, 2, 4));
+    // The key's force words 0: its limiters make DAC code 0 of them.
+    a.bind(zero);
+    a.i(asm::movs(0, 0));
+    for d in &k.drives {
+        if d.force_offset <= 124 {
+            a.i(asm::str(0, 4, d.force_offset as u16));
+        } else {
+            a.mov_const(1, d.force_offset);
+            a.i(Instr::MemReg {
+                op: tactus_isa::decode::MemOp::Str,
+                rt: 0,
+                rn: 4,
+                rm: 1,
+            });
+            a.i(asm::movs(0, 0));
+        }
+    }
+    a.b(join);
+}
+
+/// How [`copy_words`] copies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum CopyMode {
+    /// Two words at a time, unrolled: 3 cycles a word (`LDM`/`STM` of r2-r3), code
+    /// growing with the words (the trip path's recovery, where cycles count).
+    Unrolled,
+    /// A word at a time in a loop counting down in r2: 7 cycles a word, fixed code (the
+    /// reset handler's).
+    Looped,
+}
+
+/// Copies `words` (≥ 1) words from the address in r`from` to that in r`to`, both advanced
+/// past them: the image's one copy of a key's state words (the rest image made at reset,
+/// put back at a recovery). Clobbers r2, r3.
+pub(super) fn copy_words(a: &mut CodeBuffer, from: u8, to: u8, words: u32, how: CopyMode) {
+    match how {
+        CopyMode::Unrolled => {
+            // r2-r3 per pair, r2 for an odd last word.
+            let pairs = std::iter::repeat_n(0b1100, (words / 2) as usize);
+            for list in pairs.chain((words % 2 == 1).then_some(0b100)) {
+                a.i(Instr::Ldm { rn: from, list });
+                a.i(Instr::Stm { rn: to, list });
+            }
+        }
+        CopyMode::Looped => {
+            let top = a.label();
+            a.mov_const(2, words);
+            a.bind(top);
+            a.i(Instr::Ldm {
+                rn: from,
+                list: 0b1000,
+            });
+            a.i(Instr::Stm {
+                rn: to,
+                list: 0b1000,
+            });
+            a.i(asm::subs_imm(2, 2, 1));
+            a.bc(cond::NE, top);
+        }
+    }
+}
+
+/// The watchdog's feed of an image ([`super::super::fault`], "The watchdog"): core 0's handler
+/// loads the watchdog at the end of each sample in which the other core kept up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Feed {
+    /// The address of core 1's sample count ([`ctrl::SAMPLES`] in its control block); `None`
+    /// on a one-core image (then every sample feeds).
+    pub other_samples: Option<u32>,
+}
+
+impl Feed {
+    /// Cycles the feed adds to core 0's handler beyond what the static analysis prices
+    /// (it prices every access as SRAM's): the LOAD store's APB wait states, and one
+    /// arbitration wait for the load of core 1's count from core 1's bank (core 1's
+    /// handler may access that bank in the same cycle).
+    pub fn unpriced_cycles(&self) -> u64 {
+        u64::from(tactus_isa::timing::APB_STORE_WAIT) + u64::from(self.other_samples.is_some())
+    }
+}
+
+/// The feed at the end of core 0's handler, r1 = core 0's sample count just stored: LOAD =
+/// [`super::super::fault::WATCHDOG_LOAD`] when core 1's count is core 0's or one less (core 1
+/// finished this sample, or the one before and is finishing this one now). Clobbers
+/// r0-r2. 13 cycles on the feeding path with two cores (plus [`Feed::unpriced_cycles`]).
+pub(super) fn feed_watchdog(a: &mut CodeBuffer, f: &Feed) {
+    use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
+    let skip = a.label();
+    if let Some(other) = f.other_samples {
+        a.ldr_const(2, other);
+        a.i(asm::ldr(2, 2, 0));
+        a.i(asm::subs(2, 1, 2));
+        a.i(asm::cmp_imm(2, 1));
+        a.bc(cond::HI, skip);
+    }
+    a.ldr_const(0, WATCHDOG_BASE + wreg::LOAD);
+    a.ldr_const(1, super::super::fault::WATCHDOG_LOAD);
+    a.i(asm::str(1, 0, 0));
+    a.bind(skip);
+}
+
+/// Core 0's start handler enables the watchdog ([`super::super::fault`], "The watchdog"):
+/// SCRATCH4 = [`super::super::fault::NON_REBOOT_MAGIC`], LOAD, CTRL.ENABLE (through the SET
+/// alias: the PAUSE bits kept). Clobbers r0-r2.
+pub(super) fn enable_watchdog(a: &mut CodeBuffer) {
+    use tactus_rp2040::watchdog::{reg as wreg, CTRL_ENABLE, WATCHDOG_BASE};
+    a.ldr_const(0, WATCHDOG_BASE);
+    a.ldr_const(1, super::super::fault::NON_REBOOT_MAGIC);
+    a.i(asm::str(1, 0, (wreg::SCRATCH0 + 16) as u16));
+    a.ldr_const(1, super::super::fault::WATCHDOG_LOAD);
+    a.i(asm::str(1, 0, wreg::LOAD as u16));
+    a.ldr_const(2, WATCHDOG_BASE + tactus_rp2040::ATOMIC_SET + wreg::CTRL);
+    a.ldr_const(1, CTRL_ENABLE);
+    a.i(asm::str(1, 2, 0));
+}
+
+/// The reset handler's copy of core `core`'s fault record from the watchdog's scratch
+/// pair into its control block (r5); on core 0, after a reset by its own watchdog
+/// (REASON set, SCRATCH4 = [`super::super::fault::NON_REBOOT_MAGIC`]), one more trip of kind
+/// [`super::super::fault::FaultKind::Watchdog`] first, in both places. Clobbers r0-r4.
+pub(super) fn restore_fault_record(a: &mut CodeBuffer, core: usize) {
+    use super::super::fault::{self, FaultKind, NON_REBOOT_MAGIC, NO_KEY};
+    use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
+    let (w, _) = fault::scratch(core);
+    let at = (wreg::SCRATCH0 + 4 * w) as u16;
+    let done = a.label();
+    a.ldr_const(2, WATCHDOG_BASE);
+    a.i(asm::ldr(0, 2, at));
+    a.i(asm::ldr(1, 2, at + 4));
+    if core == 0 {
+        a.i(asm::ldr(3, 2, wreg::REASON as u16));
+        a.i(asm::cmp_imm(3, 0));
+        a.bc(cond::EQ, done);
+        a.i(asm::ldr(3, 2, (wreg::SCRATCH0 + 16) as u16));
+        a.ldr_const(4, NON_REBOOT_MAGIC);
+        a.i(asm::cmp(3, 4));
+        a.bc(cond::NE, done);
+        a.i(asm::lsrs(0, 0, 16));
+        a.i(asm::adds_imm(0, 0, 1));
+        a.i(asm::lsls(0, 0, 16));
+        a.ldr_const(
+            3,
+            u32::from(NO_KEY) << 8 | u32::from(FaultKind::Watchdog.code()),
+        );
+        a.i(asm::alu(AluOp::Orr, 0, 3));
+        a.i(asm::movs(1, 0));
+        a.i(asm::str(0, 2, at));
+        a.i(asm::str(1, 2, at + 4));
+    }
+    a.bind(done);
+    a.i(asm::str(0, 5, ctrl::FAULT));
+    a.i(asm::str(1, 5, ctrl::FAULT_AT));
+}
