@@ -40,6 +40,25 @@
 //! too: there their accesses are logged and the I/O replays them after the cores' run, the
 //! window undone where the lock-step run would have differed (`accel/io_window/`).
 //!
+//! *Cuts.* Core 0 runs first. When it stops at a single load it cannot make confined
+//! (a word of core 1's banks, a peripheral: the firmware's watchdog feed reads core 1's
+//! sample count) after at least [`MIN_WINDOW`] cycles, that instruction is put back as it
+//! was before it (its exception entry and stores undone) and the window ends there
+//! instead: core 1 runs to that cycle C and the window is kept. Both cores then stand at
+//! their first instruction boundary at or after C, as a lock-step run to C leaves them
+//! (core 0 at C, before its load); the lock-step loop runs the load in lock-step order
+//! (whatever core 1 stored before it), and windows go on from the cycle after.
+//!
+//! *The watchdog.* A firmware feeds the watchdog once a sample (a store to its LOAD or
+//! CTRL), so a store to the watchdog's registers does not end a window: it is applied at
+//! once, at its cycle, as the lock-step machine would, when one core alone writes the
+//! watchdog in the window (two cores' writes would land in the order the cores ran, not
+//! the lock-step order: the second core's first write undoes the window) and the firing
+//! stays at or after E (else the lock-step run would have reset the chip inside the
+//! window: undone). The watchdog as it was before the window's first write is kept
+//! ([`Feeds`]) and put back with an undone window. Reads of the watchdog's count still
+//! end a window (the other core may have run past the write).
+//!
 //! On the firmware images each core's code, data, stack and sensor and DAC window words
 //! lie in its own banks, so a window spans a whole sample period of both cores' sample
 //! interrupts (`tactus-firmware`, `image/mod.rs`). Tests: `tests/block_engine.rs` (random
@@ -56,8 +75,10 @@ use crate::accel::memo::Recording;
 use crate::bus::{plain_sram_span, span_banks, Bus, BusFault, ALL_BANKS};
 use crate::core::Event;
 use crate::nvic::IRQ0;
+use crate::watchdog::Watchdog;
 use tactus_rp2040::memory::{sram_location, FLASH_BASE, FLASH_SIZE, ROM_SIZE};
 use tactus_rp2040::sio::{reg, SIO_BASE};
+use tactus_rp2040::watchdog::WATCHDOG_BASE;
 
 /// What a window ([`Board::window`]) did.
 pub(super) enum Window {
@@ -75,6 +96,32 @@ pub(super) const RETRY: u64 = 4096;
 
 /// Most undo-journal entries of one window: a store that finds it full stops the core.
 const JOURNAL: usize = 1 << 16;
+
+/// A window's writes to the watchdog (module documentation, "The watchdog").
+#[derive(Default)]
+pub(super) struct Feeds {
+    /// The window's end E: a write that brings the firing before it undoes the window.
+    end: u64,
+    /// The core that wrote the watchdog in this window, if any.
+    writer: Option<usize>,
+    /// The watchdog before the window's first write, put back when it is undone.
+    saved: Option<Watchdog>,
+}
+
+impl Feeds {
+    /// Whether core `core` may write the watchdog `wd` now: the first writer of the
+    /// window (the watchdog kept as it was, to undo), or the same core again.
+    fn admit(&mut self, core: usize, wd: &Watchdog) -> bool {
+        match self.writer {
+            None => {
+                self.writer = Some(core);
+                self.saved = Some(wd.clone());
+                true
+            }
+            Some(w) => w == core,
+        }
+    }
+}
 
 /// A core's state at some moment of a window, for undoing what it did since: the machine's
 /// snapshot of it ([`crate::machine::CoreSnapshot`]) and where its undo journal was.
@@ -97,6 +144,8 @@ struct Confined<'a> {
     log: Option<&'a mut Recording>,
     /// On a board with an I/O (`accel/io_window/`): the accesses the I/O's replay needs.
     io: Option<IoLog<'a>>,
+    /// The window's writes to the watchdog.
+    feeds: &'a mut Feeds,
 }
 
 impl Confined<'_> {
@@ -223,6 +272,20 @@ impl Bus for Confined<'_> {
                     rec.spoil();
                 }
                 return Ok(crate::io::AHB_PERIPHERAL_WAIT);
+            }
+            None if addr & !0x3fff == WATCHDOG_BASE => {
+                // A feed (module documentation, "The watchdog"): one core's, at its cycle.
+                if !self.feeds.admit(core, &self.sys.watchdog) {
+                    return Err(self.refuse(addr));
+                }
+                if let Some(rec) = self.log.as_deref_mut() {
+                    rec.spoil();
+                }
+                let r = self.sys.write(core, cycle, addr, size, value);
+                if self.sys.watchdog.fire_at < self.feeds.end {
+                    self.foreign = true; // it fires inside the window: undone
+                }
+                return r;
             }
             None if !Self::private(addr) => return Err(self.refuse(addr)),
             None => {}
@@ -375,21 +438,43 @@ impl Drive<'_> {
             self.prof.marks[k] = mark;
         }
         let io = self.io_window_begin(start, end);
+        self.a.feeds = Feeds {
+            end,
+            writer: None,
+            saved: None,
+        };
         let mut kept = true;
+        let (mut end_at, from) = (end, self.m.cores[0].cycle);
+        self.a.cut = None;
         for (k, journal) in journals.iter_mut().enumerate() {
             let own = self.cfg.own_banks[k] & ALL_BANKS;
-            if !self.run_alone(k, end, lines, own, journal) {
-                kept = false;
-                break;
+            if self.run_alone(k, end_at, lines, own, journal) {
+                continue;
+            }
+            match self.a.cut.take() {
+                // Core 1 runs to where core 0 stopped (module documentation, "Cuts").
+                Some(c) if k == 0 && c >= from.saturating_add(MIN_WINDOW) => end_at = c,
+                _ => {
+                    kept = false;
+                    break;
+                }
             }
         }
-        if let Some(io) = io {
+        if let Some(mut io) = io {
+            io.end = end_at;
             kept = self.io_window_end(io, kept);
+        }
+        if kept && end_at < end {
+            // The lock-step loop runs core 0's load; windows go on after it.
+            self.a.window_at = end_at + 1;
         }
         if !kept {
             // Newest first: core 1's stores, then core 0's.
             for (k, s) in saved.into_iter().enumerate().rev() {
                 self.restore(k, s, &mut journals[k]);
+            }
+            if let Some(wd) = self.a.feeds.saved.take() {
+                self.m.system.watchdog = wd;
             }
         }
         self.a.windows[if kept { 0 } else { 1 }] += 1;
@@ -586,6 +671,17 @@ impl Drive<'_> {
             }
         };
         let start = core.cycle;
+        // Core 0 runs first: a single load it may not make confined can end the window
+        // where it stands (module documentation, "Cuts"): kept to put it back.
+        let cut = k == 0
+            && fetched.is_some_and(|(instr, ..)| {
+                tactus_isa::timing::class(&instr) == tactus_isa::timing::Class::Load
+            });
+        let before = cut.then(|| {
+            let logged = self.a.io_logs[0].len();
+            (self.m.snapshot_core(0), journal.len(), logged)
+        });
+        let core = &mut self.m.cores[k];
         let mut bus = Confined {
             sys: &mut self.m.system,
             banks,
@@ -597,6 +693,7 @@ impl Drive<'_> {
                 start,
                 log: &mut self.a.io_logs[k],
             }),
+            feeds: &mut self.a.feeds,
         };
         let event = match fetched {
             Some((instr, size, cost)) => {
@@ -604,7 +701,14 @@ impl Drive<'_> {
             }
             None => core.step(&mut bus, lines),
         };
-        !bus.foreign && event == Event::None
+        let foreign = bus.foreign;
+        if let (true, Some((snap, from, logged))) = (foreign, before) {
+            self.m.restore_core(0, snap, &journal[from..]);
+            journal.truncate(from);
+            self.a.io_logs[0].truncate(logged);
+            self.a.cut = Some(start);
+        }
+        !foreign && event == Event::None
     }
 }
 
