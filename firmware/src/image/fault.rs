@@ -26,13 +26,23 @@
 //! fault word to SCRATCH(2*c*), its time to SCRATCH(2*c* + 1) ([`scratch`]; SCRATCH4–7 are
 //! the boot ROM's).
 //!
-//! **The watchdog (planned, not yet in the image).** Each core's reset handler is to copy
-//! its pair back into its control block before the sample loop, and core 0's, when REASON
-//! says the last reset was the watchdog's, to record one more trip of kind
-//! [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over its own pair. The watchdog
-//! ([`WATCHDOG_PERIOD_US`]) is to be fed only when both cores have finished a sample since
-//! the last feed. Not yet written because a feed every sample touches a peripheral, which
-//! stops the emulator's window engine every sample (docs/firmware.md, "Faults").
+//! **The watchdog** ([`super::Program::watchdog`]; docs/firmware.md, "Faults"). Core 0's
+//! start handler enables it, at the start alarm (so a long start-up of many keys' `init`s
+//! cannot outlast it): SCRATCH4 = [`NON_REBOOT_MAGIC`] (not the boot ROM's entry magic,
+//! so a watchdog reset boots from flash again, boot2 copying a clean image into SRAM; the
+//! magic tells the next start-up that the watchdog, not the boot ROM, reset the board, as
+//! pico-sdk's `watchdog_enable_caused_reboot` tells it), LOAD = [`WATCHDOG_LOAD`], CTRL's
+//! ENABLE set. Core 0's handler feeds it (LOAD again) at the end of each sample in which
+//! core 1's sample count is its own or one less (core 1 finished the sample before or
+//! finishes it now); on a one-core image every sample. So a core that stops finishing its
+//! samples (a hung update, an interrupt that never returns) stops the feeds, and the
+//! watchdog resets the board [`WATCHDOG_PERIOD_US`] after the last feed: at most 1 ms and
+//! one sample after the hang began. Each core's reset handler copies its scratch pair
+//! back into its control block before the sample loop; core 0's, when REASON is set and
+//! SCRATCH4 holds [`NON_REBOOT_MAGIC`], first records one more trip of kind
+//! [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over its own pair. A RAM image (a
+//! development load without flash) cannot boot again: the boot ROM then waits in USB boot,
+//! the DACs at zero.
 
 /// Kinds of fault, the low byte of the fault word. The codes are stable (the host and the
 /// emulator's fault report decode them): new kinds take new codes.
@@ -143,6 +153,12 @@ pub const WATCHDOG_PERIOD_US: u32 = 1000;
 /// since the RP2040's watchdog counts down twice per 1 µs tick (erratum RP2040-E1; the
 /// pico-sdk's `watchdog_enable` doubles its value the same way).
 pub const WATCHDOG_LOAD: u32 = 2 * WATCHDOG_PERIOD_US;
+
+/// SCRATCH4's value while the image's watchdog runs: pico-sdk's
+/// `WATCHDOG_NON_REBOOT_MAGIC` (`hardware_watchdog/watchdog.c`), which is not the boot
+/// ROM's entry magic ([`tactus_rp2040::watchdog::BOOT_MAGIC`]): after a reset the boot ROM
+/// boots from flash, and the firmware knows its own watchdog fired.
+pub const NON_REBOOT_MAGIC: u32 = 0x6ab7_3121;
 
 /// The scratch registers that keep core `core`'s pair across a watchdog reset: (fault
 /// word's, fault time's) index n of SCRATCHn.

@@ -845,6 +845,7 @@ pub fn core_code(
     limiter: &LimiterConstants,
     start: &dyn Fn(&mut CodeBuffer),
     io: Option<&super::io::IoPlan>,
+    feed: Option<Feed>,
 ) -> Result<CoreLabels, ImageError> {
     let labels = CoreLabels {
         reset: a.label(),
@@ -917,6 +918,9 @@ pub fn core_code(
     a.bind(labels.reset);
     start(a);
     a.ldr_const(5, ctrl_addr);
+    if feed.is_some() {
+        restore_fault_record(a, core);
+    }
     walk(a, keys, &mut |a, k| {
         ldr_rec(a, 0, k.state_offset);
         a.bl_addr(k.init);
@@ -998,6 +1002,9 @@ pub fn core_code(
     if let Some(p) = io {
         // The first ADC burst, for the first sample.
         p.start_burst(a, core);
+    }
+    if let (0, Some(_)) = (core, feed) {
+        enable_watchdog(a);
     }
     a.i(Instr::Bx { rm: 14 });
     a.pool();
@@ -1168,6 +1175,9 @@ pub fn core_code(
     a.i(asm::ldr(1, 5, ctrl::SAMPLES));
     a.i(asm::adds_imm(1, 1, 1));
     a.i(asm::str(1, 5, ctrl::SAMPLES));
+    if let Some(f) = feed.filter(|_| core == 0) {
+        feed_watchdog(a, &f);
+    }
     a.i(asm::movs(0, EXC_RETURN_NOT));
     a.i(asm::alu(AluOp::Mvn, 0, 0));
     a.i(mov_hi(14, 0));
@@ -1179,6 +1189,98 @@ pub fn core_code(
         a.pool();
     }
     Ok(labels)
+}
+
+/// The watchdog's feed of an image ([`super::fault`], "The watchdog"): core 0's handler
+/// loads the watchdog at the end of each sample in which the other core kept up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Feed {
+    /// The address of core 1's sample count ([`ctrl::SAMPLES`] in its control block); `None`
+    /// on a one-core image (then every sample feeds).
+    pub other_samples: Option<u32>,
+}
+
+impl Feed {
+    /// Cycles the feed adds to core 0's handler beyond what the static analysis prices
+    /// (it prices every access as SRAM's): the LOAD store's APB wait states, and one
+    /// arbitration wait for the load of core 1's count from core 1's bank (core 1's
+    /// handler may access that bank in the same cycle).
+    pub fn unpriced_cycles(&self) -> u64 {
+        u64::from(tactus_isa::timing::APB_STORE_WAIT) + u64::from(self.other_samples.is_some())
+    }
+}
+
+/// The feed at the end of core 0's handler, r1 = core 0's sample count just stored: LOAD =
+/// [`super::fault::WATCHDOG_LOAD`] when core 1's count is core 0's or one less (core 1
+/// finished this sample, or the one before and is finishing this one now). Clobbers
+/// r0-r2. 13 cycles on the feeding path with two cores (plus [`Feed::unpriced_cycles`]).
+fn feed_watchdog(a: &mut CodeBuffer, f: &Feed) {
+    use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
+    let skip = a.label();
+    if let Some(other) = f.other_samples {
+        a.ldr_const(2, other);
+        a.i(asm::ldr(2, 2, 0));
+        a.i(asm::subs(2, 1, 2));
+        a.i(asm::cmp_imm(2, 1));
+        a.bc(cond::HI, skip);
+    }
+    a.ldr_const(0, WATCHDOG_BASE + wreg::LOAD);
+    a.ldr_const(1, super::fault::WATCHDOG_LOAD);
+    a.i(asm::str(1, 0, 0));
+    a.bind(skip);
+}
+
+/// Core 0's start handler enables the watchdog ([`super::fault`], "The watchdog"):
+/// SCRATCH4 = [`super::fault::NON_REBOOT_MAGIC`], LOAD, CTRL.ENABLE (through the SET
+/// alias: the PAUSE bits kept). Clobbers r0-r2.
+fn enable_watchdog(a: &mut CodeBuffer) {
+    use tactus_rp2040::watchdog::{reg as wreg, CTRL_ENABLE, WATCHDOG_BASE};
+    a.ldr_const(0, WATCHDOG_BASE);
+    a.ldr_const(1, super::fault::NON_REBOOT_MAGIC);
+    a.i(asm::str(1, 0, (wreg::SCRATCH0 + 16) as u16));
+    a.ldr_const(1, super::fault::WATCHDOG_LOAD);
+    a.i(asm::str(1, 0, wreg::LOAD as u16));
+    a.ldr_const(2, WATCHDOG_BASE + tactus_rp2040::ATOMIC_SET + wreg::CTRL);
+    a.ldr_const(1, CTRL_ENABLE);
+    a.i(asm::str(1, 2, 0));
+}
+
+/// The reset handler's copy of core `core`'s fault record from the watchdog's scratch
+/// pair into its control block (r5); on core 0, after a reset by its own watchdog
+/// (REASON set, SCRATCH4 = [`super::fault::NON_REBOOT_MAGIC`]), one more trip of kind
+/// [`super::fault::FaultKind::Watchdog`] first, in both places. Clobbers r0-r4.
+fn restore_fault_record(a: &mut CodeBuffer, core: usize) {
+    use super::fault::{self, FaultKind, NON_REBOOT_MAGIC, NO_KEY};
+    use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
+    let (w, _) = fault::scratch(core);
+    let at = (wreg::SCRATCH0 + 4 * w) as u16;
+    let done = a.label();
+    a.ldr_const(2, WATCHDOG_BASE);
+    a.i(asm::ldr(0, 2, at));
+    a.i(asm::ldr(1, 2, at + 4));
+    if core == 0 {
+        a.i(asm::ldr(3, 2, wreg::REASON as u16));
+        a.i(asm::cmp_imm(3, 0));
+        a.bc(cond::EQ, done);
+        a.i(asm::ldr(3, 2, (wreg::SCRATCH0 + 16) as u16));
+        a.ldr_const(4, NON_REBOOT_MAGIC);
+        a.i(asm::cmp(3, 4));
+        a.bc(cond::NE, done);
+        a.i(asm::lsrs(0, 0, 16));
+        a.i(asm::adds_imm(0, 0, 1));
+        a.i(asm::lsls(0, 0, 16));
+        a.ldr_const(
+            3,
+            u32::from(NO_KEY) << 8 | u32::from(FaultKind::Watchdog.code()),
+        );
+        a.i(asm::alu(AluOp::Orr, 0, 3));
+        a.i(asm::movs(1, 0));
+        a.i(asm::str(0, 2, at));
+        a.i(asm::str(1, 2, at + 4));
+    }
+    a.bind(done);
+    a.i(asm::str(0, 5, ctrl::FAULT));
+    a.i(asm::str(1, 5, ctrl::FAULT_AT));
 }
 
 /// `rd += n` through r3 when `n` is beyond two `ADDS #imm8`.

@@ -42,6 +42,19 @@ pub(super) struct Layout<'a> {
     pub io: Option<super::io::IoPlan>,
     /// The sample rate, Hz.
     pub fs: f64,
+    /// Whether the image runs the watchdog ([`Program::watchdog`] of any of its programs).
+    pub watchdog: bool,
+}
+
+impl Layout<'_> {
+    /// Core `core`'s part of the watchdog's feed ([`glue::Feed`]), with the control blocks
+    /// at bank offset `data_off`: core 0 feeds, watching core 1's sample count.
+    pub fn feed(&self, data_off: u32) -> Option<glue::Feed> {
+        self.watchdog.then(|| glue::Feed {
+            other_samples: (self.cores > 1)
+                .then(|| bank_base(1) + data_off + u32::from(glue::ctrl::SAMPLES)),
+        })
+    }
 }
 
 /// The converters' drivers of `board` ([`super::io::IoPlan::new`]) for `keys` on `cores`
@@ -533,6 +546,7 @@ pub(super) fn assemble_glue(
         &l.consts,
         &start,
         l.io.as_ref(),
+        l.feed(data_off),
     )?;
     Ok(Glue {
         asm: a,

@@ -165,6 +165,11 @@ pub struct Program {
     /// converter board's budget holds it (11 cycles a key: grand88 on `rp2040_io` would
     /// need 15 boards).
     pub sensor_check: bool,
+    /// Whether an image holding this program runs the RP2040's watchdog, fed by core 0
+    /// when both cores finished their sample ([`fault`], "The watchdog": a core that stops
+    /// finishing samples resets the board within [`fault::WATCHDOG_PERIOD_US`]). Off by
+    /// default while its cost is measured against grand88's budget.
+    pub watchdog: bool,
 }
 
 impl Program {
@@ -179,6 +184,7 @@ impl Program {
             init_cycles: Arc::default(),
             quiescent_guard: true,
             sensor_check: false,
+            watchdog: false,
         }
     }
 
@@ -861,6 +867,7 @@ impl FirmwareImage {
             cores,
             io,
             fs: fs as f64,
+            watchdog: programs.iter().any(|p| p.watchdog),
         };
         let start_alarm_us = layout::start_alarm_us(programs, keys, clock_hz);
 
@@ -945,6 +952,10 @@ impl FirmwareImage {
             .sum();
         for (c, (w, p)) in wcet.iter_mut().zip(&places).enumerate() {
             w.contention = if p.keys.is_empty() { 0 } else { total };
+            // The watchdog's feed on core 0: its APB store and its load from core 1's bank.
+            if let Some(f) = l.feed(data_off).filter(|_| c == 0) {
+                w.contention += f.unpriced_cycles();
+            }
             // With converters, the DMA's accesses to the core's I/O bank (`io.rs`).
             if let Some(cio) = l.io.as_ref().and_then(|io| io.cores.get(c)) {
                 w.contention += cio.contention();

@@ -137,6 +137,8 @@ pub(super) struct Faults {
     pub(super) frozen: Vec<Option<i32>>,
     /// A brown-out was injected this sample.
     browned: bool,
+    /// The board's cycle at the last brown-out.
+    brown_at: u64,
     /// The watchdog resets seen.
     resets_seen: u64,
     /// Resets and brown-outs met.
@@ -293,6 +295,7 @@ impl ImageRun {
                 FaultKind::BrownOut if starts => {
                     self.board.brown_out();
                     self.faults.browned = true;
+                    self.faults.brown_at = self.board.cycle();
                 }
                 FaultKind::Hang if starts => {
                     let a = self.image.keys[f.key.unwrap_or(0)].update & !1;
@@ -393,12 +396,15 @@ impl ImageRun {
             (_, Some(tactus_emulator::watchdog::Reason::Force)) => "watchdog trigger",
             _ => "watchdog timer",
         };
-        let cycle = last.map_or(self.board.cycle(), |r| r.cycle);
+        let cycle = match brown {
+            true => self.faults.brown_at,
+            false => last.map_or(self.board.cycle(), |r| r.cycle),
+        };
         let sample = self.samples;
         let start = self.board.cycle();
         let alarm = self.image.start_alarm_us as u64;
         let cores = self.image.cores.len();
-        let reboot = run_to_first_tick(&mut self.board, alarm, cores).map(|first| {
+        let reboot = run_to_first_tick_after(&mut self.board, alarm, cores, cycle).map(|first| {
             let period = self.image.cycles_per_sample().max(1);
             let zero = (first.saturating_sub(start)).div_ceil(period).max(1);
             self.first_tick = first;
