@@ -201,7 +201,7 @@ enum Feeding {
     /// Core 0 at the end of each sample.
     Core0,
     /// Core 0 at the end of each sample, after reading core 1's sample count from core 1's
-    /// bank: the firmware's way (a load from the other core's bank ends the window there).
+    /// bank: the firmware's way (at that load the window meets core 1).
     Checked,
     /// Both cores each sample (their writes in one window: the window is undone).
     Both,
@@ -345,11 +345,10 @@ fn feeds_inside_windows_give_the_lock_step_run() {
                 );
             }
             Feeding::Checked => {
-                // Two windows a sample, cut at the load; a window the host's limit starts
-                // within 64 cycles of the load is undone (8 of the 60 samples here).
+                // One window a sample, core 1 met at the load (before: 9 kept, 30 undone).
                 assert_eq!(resets, 0);
                 assert!(
-                    kept >= 80 && undone <= 12,
+                    kept >= 50 && undone <= 1,
                     "windows kept {kept}, undone {undone}"
                 );
             }

@@ -77,7 +77,7 @@ pub(crate) struct Accel {
     io_digest: Option<u64>,
     /// The current window's writes to the watchdog (`window`).
     feeds: window::Feeds,
-    /// Where core 0 stopped at a load that ends the current window (`window`, "Cuts").
+    /// Where core 0 stopped at a load it could not make confined (`window`, "Meetings").
     cut: Option<u64>,
 }
 

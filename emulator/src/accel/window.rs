@@ -40,14 +40,16 @@
 //! too: there their accesses are logged and the I/O replays them after the cores' run, the
 //! window undone where the lock-step run would have differed (`accel/io_window/`).
 //!
-//! *Cuts.* Core 0 runs first. When it stops at a single load it cannot make confined
-//! (a word of core 1's banks, a peripheral: the firmware's watchdog feed reads core 1's
-//! sample count) after at least [`MIN_WINDOW`] cycles, that instruction is put back as it
-//! was before it (its exception entry and stores undone) and the window ends there
-//! instead: core 1 runs to that cycle C and the window is kept. Both cores then stand at
-//! their first instruction boundary at or after C, as a lock-step run to C leaves them
-//! (core 0 at C, before its load); the lock-step loop runs the load in lock-step order
-//! (whatever core 1 stored before it), and windows go on from the cycle after.
+//! *Meetings.* Core 0 runs first. When it stops at a single load it cannot make confined
+//! at cycle C (a word of core 1's banks: the firmware's watchdog feed reads core 1's
+//! sample count), that instruction is put back as it was before it (its exception entry
+//! and stores undone) and core 1 runs to C: both then stand at their first instruction
+//! boundary at or after C, as a lock-step run to C leaves them, so the load, which goes
+//! first in lock-step order (core 0 at C, core 1 at or after it), runs there with core 1's
+//! banks readable and reads what the lock-step run would (core 1's stores before C, its
+//! bank claims); core 0 then goes on alone to E and core 1 from C to E. Only loads of
+//! SRAM: a store into the other core's banks would interleave the two undo journals, and
+//! a peripheral's load (its state may depend on more than time) undoes the window.
 //!
 //! *The watchdog.* A firmware feeds the watchdog once a sample (a store to its LOAD or
 //! CTRL), so a store to the watchdog's registers does not end a window: it is applied at
@@ -137,8 +139,13 @@ struct Saved {
 struct Confined<'a> {
     sys: &'a mut System,
     banks: u8,
+    /// The SRAM banks it may load from: `banks`, or at a meeting also the other core's
+    /// (module documentation, "Meetings").
+    readable: u8,
     journal: &'a mut Vec<u64>,
     foreign: bool,
+    /// The access refused was a load of SRAM: core 0 may meet core 1 there.
+    meet: bool,
     /// A call being recorded ([`crate::accel::memo`]): its SRAM accesses are logged, any other
     /// access spoils it.
     log: Option<&'a mut Recording>,
@@ -202,10 +209,11 @@ impl Bus for Confined<'_> {
         size: u32,
     ) -> Result<(u32, u32), BusFault> {
         let ok = match sram_location(addr) {
-            Some((_, bank)) => self.bank_ok(bank),
+            Some((_, bank)) => self.readable >> bank & 1 != 0,
             None => Self::private(addr),
         };
         if !ok {
+            self.meet = sram_location(addr).is_some();
             return Err(self.refuse(addr));
         }
         let r = self.sys.read(core, cycle, addr, size);
@@ -444,29 +452,37 @@ impl Drive<'_> {
             saved: None,
         };
         let mut kept = true;
-        let (mut end_at, from) = (end, self.m.cores[0].cycle);
         self.a.cut = None;
-        for (k, journal) in journals.iter_mut().enumerate() {
-            let own = self.cfg.own_banks[k] & ALL_BANKS;
-            if self.run_alone(k, end_at, lines, own, journal) {
+        let own = self.cfg.own_banks.map(|b| b & ALL_BANKS);
+        let [j0, j1] = &mut journals;
+        // Core 0 to the window's end, meeting core 1 at each load it cannot make confined
+        // (module documentation, "Meetings").
+        while !self.run_alone(0, end, lines, own[0], own[0], j0) {
+            let Some(c) = self.a.cut.take() else {
+                kept = false;
+                break;
+            };
+            if !self.run_alone(1, c, lines, own[1], own[1], j1) {
+                kept = false;
+                break;
+            }
+            // Both stand as a lock-step run to C leaves them: core 0's load goes first,
+            // core 1's banks readable.
+            if self.step_confined(0, lines, own[0], own[0] | own[1], j0, None) {
+                if !self.prof.is_empty() {
+                    self.prof.step(0, &self.m.cores[0]);
+                }
                 continue;
             }
-            match self.a.cut.take() {
-                // Core 1 runs to where core 0 stopped (module documentation, "Cuts").
-                Some(c) if k == 0 && c >= from.saturating_add(MIN_WINDOW) => end_at = c,
-                _ => {
-                    kept = false;
-                    break;
-                }
-            }
+            // Not a load of SRAM (a peripheral's): undone.
+            kept = false;
+            break;
         }
-        if let Some(mut io) = io {
-            io.end = end_at;
+        if kept && !self.run_alone(1, end, lines, own[1], own[1], j1) {
+            kept = false;
+        }
+        if let Some(io) = io {
             kept = self.io_window_end(io, kept);
-        }
-        if kept && end_at < end {
-            // The lock-step loop runs core 0's load; windows go on after it.
-            self.a.window_at = end_at + 1;
         }
         if !kept {
             // Newest first: core 1's stores, then core 0's.
@@ -499,6 +515,7 @@ impl Drive<'_> {
         until: u64,
         lines: u32,
         banks: u8,
+        readable: u8,
         journal: &mut Vec<u64>,
     ) -> bool {
         let pending_lines = (lines as u64) << IRQ0;
@@ -569,7 +586,7 @@ impl Drive<'_> {
                     match r {
                         Ok(()) => continue,
                         Err(Leave::Record) => {
-                            if !self.record_call(k, deadline, lines, banks, journal) {
+                            if !self.record_call(k, deadline, lines, banks, readable, journal) {
                                 return false;
                             }
                             continue;
@@ -581,7 +598,7 @@ impl Drive<'_> {
                     }
                 }
             }
-            if !self.step_confined(k, lines, banks, journal, None) {
+            if !self.step_confined(k, lines, banks, readable, journal, None) {
                 return false;
             }
             if !self.prof.is_empty() {
@@ -601,6 +618,7 @@ impl Drive<'_> {
         deadline: u64,
         lines: u32,
         banks: u8,
+        readable: u8,
         journal: &mut Vec<u64>,
     ) -> bool {
         let mut rec = self.a.blocks.memo.begin(&self.m.cores[k], &self.m.system);
@@ -626,7 +644,7 @@ impl Drive<'_> {
                 self.a.blocks.memo.abandon(rec);
                 return true;
             }
-            if !self.step_confined(k, lines, banks, journal, Some(&mut rec)) {
+            if !self.step_confined(k, lines, banks, readable, journal, Some(&mut rec)) {
                 self.a.blocks.memo.abandon(rec);
                 return false;
             }
@@ -647,6 +665,7 @@ impl Drive<'_> {
         k: usize,
         lines: u32,
         banks: u8,
+        readable: u8,
         journal: &mut Vec<u64>,
         log: Option<&mut Recording>,
     ) -> bool {
@@ -671,8 +690,8 @@ impl Drive<'_> {
             }
         };
         let start = core.cycle;
-        // Core 0 runs first: a single load it may not make confined can end the window
-        // where it stands (module documentation, "Cuts"): kept to put it back.
+        // Core 0 runs first: at a single load it may not make confined it meets core 1
+        // (module documentation, "Meetings"): kept to put it back.
         let cut = k == 0
             && fetched.is_some_and(|(instr, ..)| {
                 tactus_isa::timing::class(&instr) == tactus_isa::timing::Class::Load
@@ -685,8 +704,10 @@ impl Drive<'_> {
         let mut bus = Confined {
             sys: &mut self.m.system,
             banks,
+            readable,
             journal,
             foreign: false,
+            meet: false,
             log,
             io: self.a.io_window.map(|banks| IoLog {
                 banks,
@@ -701,8 +722,8 @@ impl Drive<'_> {
             }
             None => core.step(&mut bus, lines),
         };
-        let foreign = bus.foreign;
-        if let (true, Some((snap, from, logged))) = (foreign, before) {
+        let (foreign, meet) = (bus.foreign, bus.meet);
+        if let (true, Some((snap, from, logged))) = (foreign && meet, before) {
             self.m.restore_core(0, snap, &journal[from..]);
             journal.truncate(from);
             self.a.io_logs[0].truncate(logged);
