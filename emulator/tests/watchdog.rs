@@ -304,6 +304,18 @@ fn fed_state(b: &Board) -> (String, Vec<u8>, tactus_emulator::watchdog::Watchdog
     )
 }
 
+/// Asserts that `b` and the lock-step `reference` agree ([`fed_state`]).
+fn assert_same(b: &Board, reference: &Board, at: &str) {
+    assert!(
+        fed_state(b) == fed_state(reference),
+        "{at}: {}\nwant {}\nwatchdog {:?}\nwant {:?}",
+        cores_state(b),
+        cores_state(reference),
+        b.system.watchdog,
+        reference.system.watchdog
+    );
+}
+
 /// A watchdog fed once a sample does not end the block engine's windows (core 0's feeds are
 /// applied at their cycles inside them) and gives the lock-step machine's run; both cores'
 /// feeds, or a feed that brings the firing inside a window, undo the window and still give
@@ -324,14 +336,7 @@ fn feeds_inside_windows_give_the_lock_step_run() {
             let want = reference.run_until(t);
             stops.push(want);
             assert_eq!(block.run_until(t), want, "{feeding:?} at {t}");
-            assert!(
-                fed_state(&block) == fed_state(&reference),
-                "{feeding:?} at cycle {t}: {}\nwant {}\nwatchdog {:?}\nwant {:?}",
-                cores_state(&block),
-                cores_state(&reference),
-                block.system.watchdog,
-                reference.system.watchdog
-            );
+            assert_same(&block, &reference, &format!("{feeding:?} at cycle {t}"));
         }
         let (kept, undone) = block.run_ahead_windows();
         let resets = reference.system.watchdog.resets().0;
@@ -390,14 +395,7 @@ fn a_fed_watchdog_repeats_and_the_rest_replay_skips_it_exactly() {
     ] {
         assert_eq!(b.run_until(t), StopReason::CycleLimit);
         assert_eq!(reference.run_until(t), StopReason::CycleLimit);
-        assert!(
-            fed_state(&b) == fed_state(&reference),
-            "at cycle {t}: {}\nwant {}\nwatchdog {:?}\nwant {:?}",
-            cores_state(&b),
-            cores_state(&reference),
-            b.system.watchdog,
-            reference.system.watchdog
-        );
+        assert_same(&b, &reference, &format!("at cycle {t}"));
     }
     assert!(reference.system.watchdog.is_enabled());
     assert_eq!(reference.system.watchdog.resets().0, 0);

@@ -690,11 +690,21 @@ impl Drive<'_> {
             }
         };
         let start = core.cycle;
-        // Core 0 runs first: at a single load it may not make confined it meets core 1
+        // Core 0 runs first: at a single load of SRAM it may not read it meets core 1
         // (module documentation, "Meetings"): kept to put it back.
         let cut = k == 0
             && fetched.is_some_and(|(instr, ..)| {
-                tactus_isa::timing::class(&instr) == tactus_isa::timing::Class::Load
+                let r = &self.m.cores[0].r;
+                let addr = match instr {
+                    tactus_isa::decode::Instr::MemImm { op, rn, imm, .. } if !op.is_store() => {
+                        r[rn as usize].wrapping_add(u32::from(imm))
+                    }
+                    tactus_isa::decode::Instr::MemReg { op, rn, rm, .. } if !op.is_store() => {
+                        r[rn as usize].wrapping_add(r[rm as usize])
+                    }
+                    _ => return false,
+                };
+                sram_location(addr).is_some_and(|(_, bank)| readable >> bank & 1 == 0)
             });
         let before = cut.then(|| {
             let logged = self.a.io_logs[0].len();
