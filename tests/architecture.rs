@@ -25,6 +25,10 @@ const CRATES: &[Crate] = &[
         known_circles: false,
     },
     Crate {
+        dir: "chip",
+        known_circles: false,
+    },
+    Crate {
         dir: "runtime",
         known_circles: false,
     },
@@ -57,6 +61,30 @@ const CRATES: &[Crate] = &[
         known_circles: false,
     },
 ];
+
+/// [`CRATES`] is every crate of the workspace: the root package and each of the root
+/// manifest's `members`.
+#[test]
+fn the_checks_cover_every_crate_of_the_workspace() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let manifest = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
+    let members = manifest
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("members = ["))
+        .expect("the root manifest lists its members on one line");
+    let mut want: BTreeSet<&str> = members
+        .trim_end_matches(']')
+        .split(',')
+        .map(|m| m.trim().trim_matches('"'))
+        .filter(|m| !m.is_empty())
+        .collect();
+    want.insert("");
+    let have: BTreeSet<&str> = CRATES.iter().map(|c| c.dir).collect();
+    assert_eq!(
+        have, want,
+        "tests/architecture.rs's CRATES against the workspace"
+    );
+}
 
 /// A module's path from its file's path under `src/` (`a/b.rs` and `a/b/mod.rs`: `a::b`;
 /// `lib.rs`, `main.rs`: the crate root, empty).

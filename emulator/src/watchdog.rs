@@ -25,7 +25,10 @@
 //! cycles since `since`, not `fire_at`, whose distance also depends on the phase of the
 //! 1 µs ticks; so it refuses a period in which a core read the count (CTRL.TIME) or fed
 //! the watchdog within two ticks of its firing ([`Watchdog::close_calls`]): a period
-//! shifted by a fraction of a tick then fires where the recorded one fed.
+//! shifted by a fraction of a tick then fires where the recorded one fed. A fed watchdog
+//! is state relative to its last feed (the count loaded, the cycles since): a firmware
+//! that feeds it at the same point of every sample repeats. The block engine's windows
+//! apply one core's feeds at their cycles (`accel/window.rs`, "The watchdog").
 
 use tactus_rp2040::watchdog::{self as wd, reg};
 

@@ -194,3 +194,209 @@ fn every_engine_resets_where_the_lock_step_machine_does() {
         assert_eq!(b.system.sram, reference.system.sram);
     }
 }
+
+/// Who feeds the watchdog in [`fed_board`]'s program.
+#[derive(Clone, Copy, Debug)]
+enum Feeding {
+    /// Core 0 at the end of each sample.
+    Core0,
+    /// Core 0 at the end of each sample, after reading core 1's sample count from core 1's
+    /// bank: the firmware's way (at that load the window meets core 1).
+    Checked,
+    /// Both cores each sample (their writes in one window: the window is undone).
+    Both,
+    /// Core 0, with a LOAD shorter than a sample from the 10th sample on: the watchdog
+    /// fires inside what would be a window.
+    Starved,
+}
+
+/// Cycles of a sample: SysTick on the processor clock, reload `SAMPLE - 1`.
+const SAMPLE: u64 = 2_834;
+/// Each core's bank through the non-striped alias: its vector table at +0, SysTick
+/// handler at +0x100, main at +0x200, sample count at +0x800.
+fn own_bank(core: usize) -> u32 {
+    0x2100_0000 + 0x1_0000 * core as u32
+}
+
+/// A two-core "firmware" on the images' bank layout (core 0 SRAM0, 2, 4; core 1 SRAM1, 3,
+/// 5): each core's SysTick fires every [`SAMPLE`] cycles, its handler counts the sample,
+/// does some work and (as `feeding` says) stores to the watchdog's LOAD; core 0's main
+/// loads the watchdog and enables it first; both sleep in WFI between samples.
+fn fed_board(engine: Engine, feeding: Feeding) -> Board {
+    let mut board = Board::new(Config {
+        clock_hz: CLOCK_HZ,
+        engine,
+        own_banks: [0b01_0101, 0b10_1010],
+        ..Config::default()
+    });
+    board.set_compile_threshold(0);
+    for core in 0..2 {
+        let base = own_bank(core);
+        let feeds = match feeding {
+            Feeding::Core0 | Feeding::Checked | Feeding::Starved => core == 0,
+            Feeding::Both => true,
+        };
+        let mut handler = vec![
+            ldr(0, 4, 0),
+            adds_imm8(0, 1),
+            str(0, 4, 0), // the sample count + 1
+            movs(1, 30),
+            subs_imm8(1, 1),
+            bcond(1, -2), // some work
+        ];
+        if matches!(feeding, Feeding::Starved) && core == 0 {
+            handler.extend([cmp_imm(0, 10), bcond(1, 4), movs(6, 20)]); // LOAD 20: 10 µs
+        }
+        if matches!(feeding, Feeding::Checked) && core == 0 {
+            handler.push(ldr(2, 3, 0)); // core 1's sample count
+        }
+        if feeds {
+            handler.push(str(6, 5, 4)); // WATCHDOG LOAD
+        }
+        handler.push(0x4770); // bx lr
+        let mut main = Vec::new();
+        if core == 0 {
+            main.extend([str(6, 5, 4), str(7, 5, 0)]); // LOAD, CTRL.ENABLE
+        }
+        main.extend([0xbf30, b(-2)]); // wfi; b .-2
+        let bytes =
+            |code: &[u16]| -> Vec<u8> { code.iter().flat_map(|h| h.to_le_bytes()).collect() };
+        board.write_u32(base + 4 * 15, base + 0x101).unwrap();
+        board.write_bytes(base + 0x100, &bytes(&handler)).unwrap();
+        board.write_bytes(base + 0x200, &bytes(&main)).unwrap();
+        board.start_core(
+            core,
+            (base + 0x200) | 1,
+            0x2004_1000 + 0x1000 * core as u32,
+            base,
+        );
+        let c = &mut board.cores[core];
+        c.r[3] = own_bank(1) + 0x800;
+        c.r[4] = base + 0x800;
+        c.r[5] = tactus_rp2040::watchdog::WATCHDOG_BASE;
+        c.r[6] = 0x1_0000; // 32.8 ms (two counts a tick)
+        c.r[7] = tactus_rp2040::watchdog::CTRL_ENABLE;
+        c.nvic.syst_rvr = (SAMPLE - 1) as u32;
+        c.nvic.syst_csr = 7; // enabled, interrupting, on the processor clock
+        c.nvic.syst_next = 500 + 700 * core as u64;
+    }
+    board
+}
+
+/// The SRAM offsets of the two sample counts (counters for the rest replay).
+fn sample_counts() -> Vec<usize> {
+    (0..2)
+        .map(|k| {
+            tactus_rp2040::memory::sram_location(own_bank(k) + 0x800)
+                .unwrap()
+                .0
+        })
+        .collect()
+}
+
+/// What two runs of [`fed_board`] must agree on: the cores, SRAM and the watchdog (its
+/// count, when it was loaded, when it fires, its resets).
+fn fed_state(b: &Board) -> (String, Vec<u8>, tactus_emulator::watchdog::Watchdog) {
+    (
+        cores_state(b),
+        b.system.sram.clone(),
+        b.system.watchdog.clone(),
+    )
+}
+
+/// Asserts that `b` and the lock-step `reference` agree ([`fed_state`]).
+fn assert_same(b: &Board, reference: &Board, at: &str) {
+    assert!(
+        fed_state(b) == fed_state(reference),
+        "{at}: {}\nwant {}\nwatchdog {:?}\nwant {:?}",
+        cores_state(b),
+        cores_state(reference),
+        b.system.watchdog,
+        reference.system.watchdog
+    );
+}
+
+/// A watchdog fed once a sample does not end the block engine's windows (core 0's feeds are
+/// applied at their cycles inside them) and gives the lock-step machine's run; both cores'
+/// feeds, or a feed that brings the firing inside a window, undo the window and still give
+/// the lock-step run (the firing at the same cycle).
+#[test]
+fn feeds_inside_windows_give_the_lock_step_run() {
+    for feeding in [
+        Feeding::Core0,
+        Feeding::Checked,
+        Feeding::Both,
+        Feeding::Starved,
+    ] {
+        let mut reference = fed_board(Engine::LockStep, feeding);
+        let mut block = fed_board(Engine::Block, feeding);
+        let mut stops = Vec::new();
+        for i in 1..=60u64 {
+            let t = i * SAMPLE + 97 * (i % 7);
+            let want = reference.run_until(t);
+            stops.push(want);
+            assert_eq!(block.run_until(t), want, "{feeding:?} at {t}");
+            assert_same(&block, &reference, &format!("{feeding:?} at cycle {t}"));
+        }
+        let (kept, undone) = block.run_ahead_windows();
+        let resets = reference.system.watchdog.resets().0;
+        match feeding {
+            Feeding::Core0 => {
+                assert_eq!(resets, 0);
+                assert!(reference.system.watchdog.is_enabled());
+                assert!(
+                    kept >= 50 && undone <= 1,
+                    "windows kept {kept}, undone {undone}"
+                );
+            }
+            Feeding::Checked => {
+                // One window a sample, core 1 met at the load (before: 9 kept, 30 undone).
+                assert_eq!(resets, 0);
+                assert!(
+                    kept >= 50 && undone <= 1,
+                    "windows kept {kept}, undone {undone}"
+                );
+            }
+            // After an undone window the lock-step loop runs 4,096 cycles before the next.
+            Feeding::Both => assert!(undone >= 20, "windows kept {kept}, undone {undone}"),
+            Feeding::Starved => {
+                assert_eq!(resets, 1, "fired once (then no flash to boot)");
+                assert!(stops.contains(&StopReason::Idle));
+                assert!(
+                    kept >= 5 && undone >= 1,
+                    "windows kept {kept}, undone {undone}"
+                );
+            }
+        }
+    }
+}
+
+/// An enabled, fed watchdog is rest state relative to its last feed: a board that feeds it
+/// at the same point of every sample repeats, the rest replay skips periods of it, and the
+/// run after the skip equals the lock-step machine's run of every sample.
+#[test]
+fn a_fed_watchdog_repeats_and_the_rest_replay_skips_it_exactly() {
+    let counters = sample_counts();
+    let mut reference = fed_board(Engine::LockStep, Feeding::Core0);
+    let mut b = fed_board(Engine::Block, Feeding::Core0);
+    let t0 = 20 * SAMPLE + 300;
+    assert_eq!(b.run_until(t0), StopReason::CycleLimit);
+    let start = b.rest_point(&counters).unwrap();
+    assert_eq!(b.run_until(t0 + SAMPLE), StopReason::CycleLimit);
+    let end = b.rest_point(&counters).unwrap();
+    let period = b.period(&start, &end).expect("a fed watchdog repeats");
+    assert_eq!(period.cycles(), SAMPLE);
+    assert_eq!(period.counter_increases(), &[1, 1]);
+    let skipped = 500;
+    b.skip_periods(&period, skipped).unwrap();
+    for t in [
+        t0 + (skipped + 1) * SAMPLE,
+        t0 + (skipped + 3) * SAMPLE + 1_234,
+    ] {
+        assert_eq!(b.run_until(t), StopReason::CycleLimit);
+        assert_eq!(reference.run_until(t), StopReason::CycleLimit);
+        assert_same(&b, &reference, &format!("at cycle {t}"));
+    }
+    assert!(reference.system.watchdog.is_enabled());
+    assert_eq!(reference.system.watchdog.resets().0, 0);
+}

@@ -75,6 +75,10 @@ pub(crate) struct Accel {
     io_native: bool,
     /// A digest of the windows' logs so far, when kept ([`Drive::check_io_logs`]).
     io_digest: Option<u64>,
+    /// The current window's writes to the watchdog (`window`).
+    feeds: window::Feeds,
+    /// Where core 0 stopped at a load it could not make confined (`window`, "Meetings").
+    cut: Option<u64>,
 }
 
 impl Default for Accel {
@@ -93,6 +97,8 @@ impl Default for Accel {
             io_memo: Default::default(),
             io_native: true,
             io_digest: None,
+            feeds: window::Feeds::default(),
+            cut: None,
         }
     }
 }

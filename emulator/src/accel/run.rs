@@ -424,19 +424,26 @@ impl Drive<'_> {
     /// any event other than `None`. The fast path: interrupt lines are recomputed only when a
     /// peripheral was touched or a timer event is due, and instructions come from the
     /// decode cache with their cycle costs.
+    ///
+    /// The run also ends where the watchdog fires (`machine/reset.rs`): its cycle is part of
+    /// the burst's end, taken again whenever a peripheral was written (every write to the
+    /// watchdog, the only thing in a burst that moves it, bumps [`System::irq_epoch`]), so
+    /// the loop checks one bound per turn.
     pub(super) fn burst(&mut self, k: usize, horizon: u64) -> Event {
+        let mut end = horizon.min(self.m.system.watchdog.fire_at);
         loop {
             let core = &mut self.m.cores[k];
-            if core.cycle >= horizon
-                || core.state != RunState::Running
-                || core.cycle >= self.m.system.watchdog.fire_at
-            {
+            if core.cycle >= end || core.state != RunState::Running {
                 return Event::None;
             }
             if self.m.system.irq_epoch != self.a.lines_epoch
                 || core.cycle >= self.m.system.timer.next_event
             {
                 let now = core.cycle;
+                end = horizon.min(self.m.system.watchdog.fire_at);
+                if now >= end {
+                    return Event::None;
+                }
                 if self.m.launch.is_some() {
                     self.m.poll_launch();
                     if self.m.launch.is_none() {
@@ -457,9 +464,8 @@ impl Drive<'_> {
                 None => None,
             };
             if let (true, Some(watch)) = (self.fast_ready(k), watch) {
-                let deadline = horizon
+                let deadline = end
                     .min(self.m.system.timer.next_event)
-                    .min(self.m.system.watchdog.fire_at)
                     .min(self.m.cores[k].nvic.syst_next);
                 if self.m.cores[k].cycle < deadline {
                     let (_, ran) = self.fast_run::<false>(k, [deadline; 2], watch);

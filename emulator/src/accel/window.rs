@@ -40,6 +40,27 @@
 //! too: there their accesses are logged and the I/O replays them after the cores' run, the
 //! window undone where the lock-step run would have differed (`accel/io_window/`).
 //!
+//! *Meetings.* Core 0 runs first. When it stops at a single load it cannot make confined
+//! at cycle C (a word of core 1's banks: the firmware's watchdog feed reads core 1's
+//! sample count), that instruction is put back as it was before it (its exception entry
+//! and stores undone) and core 1 runs to C: both then stand at their first instruction
+//! boundary at or after C, as a lock-step run to C leaves them, so the load, which goes
+//! first in lock-step order (core 0 at C, core 1 at or after it), runs there with core 1's
+//! banks readable and reads what the lock-step run would (core 1's stores before C, its
+//! bank claims); core 0 then goes on alone to E and core 1 from C to E. Only loads of
+//! SRAM: a store into the other core's banks would interleave the two undo journals, and
+//! a peripheral's load (its state may depend on more than time) undoes the window.
+//!
+//! *The watchdog.* A firmware feeds the watchdog once a sample (a store to its LOAD or
+//! CTRL), so a store to the watchdog's registers does not end a window: it is applied at
+//! once, at its cycle, as the lock-step machine would, when one core alone writes the
+//! watchdog in the window (two cores' writes would land in the order the cores ran, not
+//! the lock-step order: the second core's first write undoes the window) and the firing
+//! stays at or after E (else the lock-step run would have reset the chip inside the
+//! window: undone). The watchdog as it was before the window's first write is kept
+//! ([`Feeds`]) and put back with an undone window. Reads of the watchdog's count still
+//! end a window (the other core may have run past the write).
+//!
 //! On the firmware images each core's code, data, stack and sensor and DAC window words
 //! lie in its own banks, so a window spans a whole sample period of both cores' sample
 //! interrupts (`tactus-firmware`, `image/mod.rs`). Tests: `tests/block_engine.rs` (random
@@ -56,8 +77,10 @@ use crate::accel::memo::Recording;
 use crate::bus::{plain_sram_span, span_banks, Bus, BusFault, ALL_BANKS};
 use crate::core::Event;
 use crate::nvic::IRQ0;
+use crate::watchdog::Watchdog;
 use tactus_rp2040::memory::{sram_location, FLASH_BASE, FLASH_SIZE, ROM_SIZE};
 use tactus_rp2040::sio::{reg, SIO_BASE};
+use tactus_rp2040::watchdog::WATCHDOG_BASE;
 
 /// What a window ([`Board::window`]) did.
 pub(super) enum Window {
@@ -76,6 +99,32 @@ pub(super) const RETRY: u64 = 4096;
 /// Most undo-journal entries of one window: a store that finds it full stops the core.
 const JOURNAL: usize = 1 << 16;
 
+/// A window's writes to the watchdog (module documentation, "The watchdog").
+#[derive(Default)]
+pub(super) struct Feeds {
+    /// The window's end E: a write that brings the firing before it undoes the window.
+    end: u64,
+    /// The core that wrote the watchdog in this window, if any.
+    writer: Option<usize>,
+    /// The watchdog before the window's first write, put back when it is undone.
+    saved: Option<Watchdog>,
+}
+
+impl Feeds {
+    /// Whether core `core` may write the watchdog `wd` now: the first writer of the
+    /// window (the watchdog kept as it was, to undo), or the same core again.
+    fn admit(&mut self, core: usize, wd: &Watchdog) -> bool {
+        match self.writer {
+            None => {
+                self.writer = Some(core);
+                self.saved = Some(wd.clone());
+                true
+            }
+            Some(w) => w == core,
+        }
+    }
+}
+
 /// A core's state at some moment of a window, for undoing what it did since: the machine's
 /// snapshot of it ([`crate::machine::CoreSnapshot`]) and where its undo journal was.
 struct Saved {
@@ -90,13 +139,20 @@ struct Saved {
 struct Confined<'a> {
     sys: &'a mut System,
     banks: u8,
+    /// The SRAM banks it may load from: `banks`, or at a meeting also the other core's
+    /// (module documentation, "Meetings").
+    readable: u8,
     journal: &'a mut Vec<u64>,
     foreign: bool,
+    /// The access refused was a load of SRAM: core 0 may meet core 1 there.
+    meet: bool,
     /// A call being recorded ([`crate::accel::memo`]): its SRAM accesses are logged, any other
     /// access spoils it.
     log: Option<&'a mut Recording>,
     /// On a board with an I/O (`accel/io_window/`): the accesses the I/O's replay needs.
     io: Option<IoLog<'a>>,
+    /// The window's writes to the watchdog.
+    feeds: &'a mut Feeds,
 }
 
 impl Confined<'_> {
@@ -153,10 +209,11 @@ impl Bus for Confined<'_> {
         size: u32,
     ) -> Result<(u32, u32), BusFault> {
         let ok = match sram_location(addr) {
-            Some((_, bank)) => self.bank_ok(bank),
+            Some((_, bank)) => self.readable >> bank & 1 != 0,
             None => Self::private(addr),
         };
         if !ok {
+            self.meet = sram_location(addr).is_some();
             return Err(self.refuse(addr));
         }
         let r = self.sys.read(core, cycle, addr, size);
@@ -223,6 +280,20 @@ impl Bus for Confined<'_> {
                     rec.spoil();
                 }
                 return Ok(crate::io::AHB_PERIPHERAL_WAIT);
+            }
+            None if addr & !0x3fff == WATCHDOG_BASE => {
+                // A feed (module documentation, "The watchdog"): one core's, at its cycle.
+                if !self.feeds.admit(core, &self.sys.watchdog) {
+                    return Err(self.refuse(addr));
+                }
+                if let Some(rec) = self.log.as_deref_mut() {
+                    rec.spoil();
+                }
+                let r = self.sys.write(core, cycle, addr, size, value);
+                if self.sys.watchdog.fire_at < self.feeds.end {
+                    self.foreign = true; // it fires inside the window: undone
+                }
+                return r;
             }
             None if !Self::private(addr) => return Err(self.refuse(addr)),
             None => {}
@@ -375,13 +446,40 @@ impl Drive<'_> {
             self.prof.marks[k] = mark;
         }
         let io = self.io_window_begin(start, end);
+        self.a.feeds = Feeds {
+            end,
+            writer: None,
+            saved: None,
+        };
         let mut kept = true;
-        for (k, journal) in journals.iter_mut().enumerate() {
-            let own = self.cfg.own_banks[k] & ALL_BANKS;
-            if !self.run_alone(k, end, lines, own, journal) {
+        self.a.cut = None;
+        let own = self.cfg.own_banks.map(|b| b & ALL_BANKS);
+        let [j0, j1] = &mut journals;
+        // Core 0 to the window's end, meeting core 1 at each load it cannot make confined
+        // (module documentation, "Meetings").
+        while !self.run_alone(0, end, lines, own[0], own[0], j0) {
+            let Some(c) = self.a.cut.take() else {
+                kept = false;
+                break;
+            };
+            if !self.run_alone(1, c, lines, own[1], own[1], j1) {
                 kept = false;
                 break;
             }
+            // Both stand as a lock-step run to C leaves them: core 0's load goes first,
+            // core 1's banks readable.
+            if self.step_confined(0, lines, own[0], own[0] | own[1], j0, None) {
+                if !self.prof.is_empty() {
+                    self.prof.step(0, &self.m.cores[0]);
+                }
+                continue;
+            }
+            // Not a load of SRAM (a peripheral's): undone.
+            kept = false;
+            break;
+        }
+        if kept && !self.run_alone(1, end, lines, own[1], own[1], j1) {
+            kept = false;
         }
         if let Some(io) = io {
             kept = self.io_window_end(io, kept);
@@ -390,6 +488,9 @@ impl Drive<'_> {
             // Newest first: core 1's stores, then core 0's.
             for (k, s) in saved.into_iter().enumerate().rev() {
                 self.restore(k, s, &mut journals[k]);
+            }
+            if let Some(wd) = self.a.feeds.saved.take() {
+                self.m.system.watchdog = wd;
             }
         }
         self.a.windows[if kept { 0 } else { 1 }] += 1;
@@ -414,6 +515,7 @@ impl Drive<'_> {
         until: u64,
         lines: u32,
         banks: u8,
+        readable: u8,
         journal: &mut Vec<u64>,
     ) -> bool {
         let pending_lines = (lines as u64) << IRQ0;
@@ -484,7 +586,7 @@ impl Drive<'_> {
                     match r {
                         Ok(()) => continue,
                         Err(Leave::Record) => {
-                            if !self.record_call(k, deadline, lines, banks, journal) {
+                            if !self.record_call(k, deadline, lines, banks, readable, journal) {
                                 return false;
                             }
                             continue;
@@ -496,7 +598,7 @@ impl Drive<'_> {
                     }
                 }
             }
-            if !self.step_confined(k, lines, banks, journal, None) {
+            if !self.step_confined(k, lines, banks, readable, journal, None) {
                 return false;
             }
             if !self.prof.is_empty() {
@@ -516,6 +618,7 @@ impl Drive<'_> {
         deadline: u64,
         lines: u32,
         banks: u8,
+        readable: u8,
         journal: &mut Vec<u64>,
     ) -> bool {
         let mut rec = self.a.blocks.memo.begin(&self.m.cores[k], &self.m.system);
@@ -541,7 +644,7 @@ impl Drive<'_> {
                 self.a.blocks.memo.abandon(rec);
                 return true;
             }
-            if !self.step_confined(k, lines, banks, journal, Some(&mut rec)) {
+            if !self.step_confined(k, lines, banks, readable, journal, Some(&mut rec)) {
                 self.a.blocks.memo.abandon(rec);
                 return false;
             }
@@ -562,6 +665,7 @@ impl Drive<'_> {
         k: usize,
         lines: u32,
         banks: u8,
+        readable: u8,
         journal: &mut Vec<u64>,
         log: Option<&mut Recording>,
     ) -> bool {
@@ -586,17 +690,41 @@ impl Drive<'_> {
             }
         };
         let start = core.cycle;
+        // Core 0 runs first: at a single load of SRAM it may not read it meets core 1
+        // (module documentation, "Meetings"): kept to put it back.
+        let cut = k == 0
+            && fetched.is_some_and(|(instr, ..)| {
+                let r = &self.m.cores[0].r;
+                let addr = match instr {
+                    tactus_isa::decode::Instr::MemImm { op, rn, imm, .. } if !op.is_store() => {
+                        r[rn as usize].wrapping_add(u32::from(imm))
+                    }
+                    tactus_isa::decode::Instr::MemReg { op, rn, rm, .. } if !op.is_store() => {
+                        r[rn as usize].wrapping_add(r[rm as usize])
+                    }
+                    _ => return false,
+                };
+                sram_location(addr).is_some_and(|(_, bank)| readable >> bank & 1 == 0)
+            });
+        let before = cut.then(|| {
+            let logged = self.a.io_logs[0].len();
+            (self.m.snapshot_core(0), journal.len(), logged)
+        });
+        let core = &mut self.m.cores[k];
         let mut bus = Confined {
             sys: &mut self.m.system,
             banks,
+            readable,
             journal,
             foreign: false,
+            meet: false,
             log,
             io: self.a.io_window.map(|banks| IoLog {
                 banks,
                 start,
                 log: &mut self.a.io_logs[k],
             }),
+            feeds: &mut self.a.feeds,
         };
         let event = match fetched {
             Some((instr, size, cost)) => {
@@ -604,7 +732,14 @@ impl Drive<'_> {
             }
             None => core.step(&mut bus, lines),
         };
-        !bus.foreign && event == Event::None
+        let (foreign, meet) = (bus.foreign, bus.meet);
+        if let (true, Some((snap, from, logged))) = (foreign && meet, before) {
+            self.m.restore_core(0, snap, &journal[from..]);
+            journal.truncate(from);
+            self.a.io_logs[0].truncate(logged);
+            self.a.cut = Some(start);
+        }
+        !foreign && event == Event::None
     }
 }
 
