@@ -115,8 +115,12 @@ pub struct Piece {
     /// The sample rate it was played at (the board's), Hz.
     pub fs: f64,
     /// The files written: the strikes' CSV, MIDI and WAV, one CSV per traced key and the
-    /// traces' plots, and with the emulated boards the plot of their cycles per sample.
+    /// traces' plots, and with the emulated boards the plot of their cycles per sample and
+    /// their fault records (`NAME-faults.csv`, `crate::fault::csv_text`).
     pub written: Vec<PathBuf>,
+    /// Faults injected (`--fault`): with none, a trip of the firmware's checks is a false
+    /// alarm ([`Piece::budget_report`]'s error).
+    pub faults_injected: usize,
 }
 
 /// What the force player's finger can do on one instrument: the range of hammer speeds
@@ -139,19 +143,32 @@ pub struct FingerRange {
 
 impl Piece {
     /// What to print of the boards' budget over the run ([`budget_text`], or a line saying
-    /// a host engine checks none), and the error when a core missed a deadline.
+    /// a host engine checks none) and of their fault records ([`crate::fault::report_lines`]),
+    /// and the error when a core missed a deadline or, with no fault injected, a fault check
+    /// tripped (a false alarm).
     pub fn budget_report(&self) -> (String, Option<String>) {
         match &self.played.boards {
             None => (
                 "  budget: not checked (host engine; `--engine emu` runs the firmware on the emulated board)\n".to_string(),
                 None,
             ),
-            Some(r) => (
-                budget_text(r) + &spans_text(&self.played.spans, self.fs),
-                r.missed().then(|| {
-                    "the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string()
-                }),
-            ),
+            Some(r) => {
+                let mut text = budget_text(r) + &spans_text(&self.played.spans, self.fs);
+                for line in crate::fault::report_lines(&r.faults(), self.fs) {
+                    text.push_str(&format!("  {line}\n"));
+                }
+                let trips = r.fault_trips();
+                let error = if r.missed() {
+                    Some("the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string())
+                } else if trips > 0 && self.faults_injected == 0 {
+                    Some(format!(
+                        "the firmware's fault checks tripped {trips} times with no fault injected: a false alarm (see the faults above)"
+                    ))
+                } else {
+                    None
+                };
+                (text, error)
+            }
         }
     }
 
@@ -339,6 +356,8 @@ impl Piece {
                 .collect();
             row.worst_core_cycles = r.boards.iter().flat_map(|b| b.max.iter().copied()).max();
             row.deadline_cycles = Some(r.deadline);
+            row.fault_trips = Some(r.fault_trips());
+            row.faults_injected = self.faults_injected;
         }
         row
     }
@@ -394,6 +413,7 @@ impl Session {
             seconds: self.opts.seconds,
             params: self.kb.overrides.clone(),
             quiescent_guard: self.config.quiescent_guard,
+            sensor_check: self.config.sensor_check,
         }
     }
 
@@ -463,9 +483,14 @@ impl Session {
         if !self.config.needs_firmware() {
             return Ok(None);
         }
-        let compiled = self
-            .firmware
-            .get_or_init(|| self.kb.firmware().map_err(|e| e.to_string()));
+        let compiled = self.firmware.get_or_init(|| {
+            let mut programs = self.kb.firmware().map_err(|e| e.to_string())?;
+            // `--sensor-check`: every key's, before the plan prices it.
+            if let Some(on) = self.config.sensor_check {
+                programs.iter_mut().for_each(|p| p.sensor_check = on);
+            }
+            Ok(programs)
+        });
         match compiled {
             Ok(programs) => Ok(Some(programs)),
             Err(e) => Err(PlayError::Firmware(e.clone())),
@@ -592,6 +617,10 @@ impl Session {
             let svg = out.join(format!("{stem}-cycles.svg"));
             plot_play_cycles(r, kb.board.sample_rate_hz, &stem, &svg)?;
             written.push(svg);
+            let csv = out.join(format!("{stem}-faults.csv"));
+            let text = crate::fault::csv_text(&r.faults(), kb.board.sample_rate_hz);
+            std::fs::write(&csv, text).map_err(|e| WriteError::io(&csv, e))?;
+            written.push(csv);
         }
         Ok(Piece {
             player: config.player,
@@ -606,6 +635,7 @@ impl Session {
             wall_s,
             fs: kb.board.sample_rate_hz,
             written,
+            faults_injected: config.faults.len(),
         })
     }
 }
