@@ -151,7 +151,7 @@ pub struct PlayArgs {
 }
 
 /// A `--fault` (`tactus_host::fault`): its error names the field.
-fn parse_fault(s: &str) -> Result<tactus_host::fault::FaultSpec, String> {
+pub fn parse_fault(s: &str) -> Result<tactus_host::fault::FaultSpec, String> {
     s.parse()
         .map_err(|e: tactus_host::fault::FaultError| e.to_string())
 }

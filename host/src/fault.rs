@@ -299,6 +299,9 @@ impl FaultSpec {
     /// second.
     ///
     /// Errors: a note no board plays, a board or key the keyboard does not have.
+    ///
+    /// The same on the one board `board` (from 1, as its `keys.json` numbers it) that plays
+    /// `keys` (in its key order): [`FaultSpec::resolve_on_board`].
     pub fn resolve(&self, boards: &[Vec<u8>], fs: f64) -> Result<(usize, Injection), FaultError> {
         let err = |field: &str, message: String| FaultError {
             text: self.text.clone(),
@@ -362,8 +365,8 @@ pub struct BoardFaults {
     /// Per core, in core order.
     pub cores: Vec<FaultWord>,
     /// The board's keys by window slot (slot, MIDI key): the fault word names the tripped
-    /// key by its slot (`tactus_firmware::image::KeySpec::slot`: on a keyboard's board its
-    /// index in the board's key order, which is `keys.json`'s order).
+    /// key by its slot (`tactus_firmware::image::KeySpec::slot`: on a keyboard's board the
+    /// keys take slots from 0 in key order, `keys.json`'s order, a pen one per word).
     pub slots: Vec<(usize, u8)>,
 }
 
@@ -400,24 +403,6 @@ pub fn record_address(control: u32) -> u32 {
     control.wrapping_add(u32::from(ctrl::FAULT))
 }
 
-/// The fault records' addresses a key map names (`cores[c].fault`, hexadecimal), in core
-/// order.
-///
-/// Errors: a field that is not a hexadecimal address, naming it.
-pub fn key_map_addresses(map: &tactus_firmware::flash::KeyMap) -> Result<Vec<u32>, String> {
-    (map.cores.iter().enumerate())
-        .map(|(c, m)| {
-            let t = m.fault.trim();
-            let digits = t.strip_prefix("0x").or_else(|| t.strip_prefix("0X"));
-            digits
-                .and_then(|d| u32::from_str_radix(d, 16).ok())
-                .ok_or_else(|| {
-                    format!("`cores[{c}].fault` = `{t}` is not an address (`0x2003f014`)")
-                })
-        })
-        .collect()
-}
-
 /// Reads the fault record at each of `addrs` (one per core: the fault word, then the
 /// fault time) through `read` (a word of the emulated board's memory), decoded.
 ///
@@ -426,13 +411,14 @@ pub fn read_records(
     read: &mut dyn FnMut(u32) -> Result<u32, String>,
     addrs: &[u32],
 ) -> Result<Vec<FaultWord>, String> {
-    (addrs.iter().enumerate())
+    let records = (addrs.iter().enumerate())
         .map(|(c, &a)| {
             let word = read(a).map_err(|e| format!("core {c}'s fault word: {e}"))?;
             let at = read(a.wrapping_add(4)).map_err(|e| format!("core {c}'s fault time: {e}"))?;
-            Ok(FaultWord::decode(word, at))
+            Ok([word, at])
         })
-        .collect()
+        .collect::<Result<Vec<_>, String>>()?;
+    Ok(decode(&records))
 }
 
 /// A fault word's kind as the report names it: the kind's name, or the code when it is
@@ -509,6 +495,149 @@ pub fn trip_kinds() -> String {
         .map(|k| k.name())
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+impl FaultSpec {
+    /// The injection of this fault on the one board numbered `board` (from 1 along its
+    /// keyboard, `keys.json`'s `board`) whose keys are `keys` (MIDI, in its key order), at
+    /// `fs` samples a second: what `tactus emu run --fault` runs on one board's firmware.
+    ///
+    /// Errors: a `board=` that is not this board, a note it does not play, a key it does
+    /// not have.
+    pub fn resolve_on_board(
+        &self,
+        board: usize,
+        keys: &[u8],
+        fs: f64,
+    ) -> Result<Injection, FaultError> {
+        let err = |field: &str, message: String| FaultError {
+            text: self.text.clone(),
+            field: field.to_string(),
+            message,
+        };
+        let named = match self.target {
+            Target::Note(n) if !keys.contains(&n) => {
+                return Err(err(
+                    "note",
+                    format!(
+                        "board {board} does not play MIDI key {n} (its keys: {})",
+                        tactus_firmware::verdict::key_ranges(keys)
+                    ),
+                ))
+            }
+            Target::Note(_) => None,
+            Target::Key { board: b, .. } | Target::Core { board: b, .. } | Target::Board(b) => {
+                Some(b)
+            }
+        };
+        if let Some(b) = named.filter(|&b| b != board) {
+            return Err(err(
+                "board",
+                format!("board {b}: this firmware is board {board} (its keys.json)"),
+            ));
+        }
+        let one = |b: usize| if named.is_some() { 1 } else { b };
+        let spec = FaultSpec {
+            target: match self.target {
+                Target::Key { board: b, key } => Target::Key { board: one(b), key },
+                Target::Core { board: b, core } => Target::Core {
+                    board: one(b),
+                    core,
+                },
+                Target::Board(b) => Target::Board(one(b)),
+                t => t,
+            },
+            ..self.clone()
+        };
+        spec.resolve(&[keys.to_vec()], fs).map(|(_, i)| i)
+    }
+}
+
+/// The sensor words a run of firmware reads with sensor faults injected, for `tactus emu
+/// run`: per key (in its key map's order) its words `words[k]` (repeated to `samples`; an
+/// empty list reads 0) and its first sensor's raw range `ranges[k]` (the range its ADC
+/// code spans), with each of `faults` that reaches the key applied to its first sensor
+/// word, sample by sample, as `tactus_firmware::image::ImageRun::inject` applies it on a
+/// board without converters (`FaultKind::sensor_code` on the code, `code_word` back).
+/// `core_of[k]` is key k's core (for `adc-silent`). Returns, per key, `None` when no fault
+/// reaches it, else its `samples` words.
+///
+/// Errors: a fault this run cannot inject (a hang, a flip, a DAC stall or a brown-out:
+/// `tactus play --fault` runs them), a fault on a key without a sensor.
+pub fn faulted_sensor_words(
+    words: &[&[i32]],
+    ranges: &[Option<(i32, i32)>],
+    core_of: &[usize],
+    faults: &[(FaultSpec, Injection)],
+    samples: usize,
+) -> Result<Vec<Option<Vec<i32>>>, FaultError> {
+    use tactus_firmware::image::{code_word, NOISE_SEED};
+    use tactus_runtime::converters::AdcScale;
+    let mut out: Vec<Option<Vec<i32>>> = vec![None; words.len()];
+    for (spec, f) in faults {
+        let err = |field: &str, message: String| FaultError {
+            text: spec.text.clone(),
+            field: field.to_string(),
+            message,
+        };
+        let keys: Vec<usize> = match (f.kind, f.key, f.core) {
+            (FaultKind::AdcSilent, _, Some(c)) => (0..words.len())
+                .filter(|&k| {
+                    core_of.get(k) == Some(&c) && ranges.get(k).is_some_and(Option::is_some)
+                })
+                .collect(),
+            (kind, Some(k), _) if kind.is_sensor() => {
+                if ranges.get(k).is_none_or(Option::is_none) {
+                    return Err(err("key", format!("key {k} has no sensor")));
+                }
+                vec![k]
+            }
+            _ => {
+                return Err(err(
+                    "kind",
+                    "`tactus emu run` injects the sensor faults (open, short, stuck, jump, \
+                     noise) and adc-silent; `tactus play --fault` runs every kind"
+                        .into(),
+                ))
+            }
+        };
+        let (from, until) = (f.from, f.until.unwrap_or(u64::MAX));
+        let mut seed = NOISE_SEED;
+        for k in keys {
+            let Some((lo, hi)) = ranges[k] else { continue };
+            let scale = AdcScale::new(lo, hi, 16);
+            let base = words[k];
+            let list = out[k].get_or_insert_with(|| {
+                (0..samples)
+                    .map(|n| {
+                        if base.is_empty() {
+                            0
+                        } else {
+                            base[n % base.len()]
+                        }
+                    })
+                    .collect()
+            });
+            let end = until.min(samples as u64) as usize;
+            for w in list
+                .iter_mut()
+                .take(end)
+                .skip(from.min(samples as u64) as usize)
+            {
+                let code = scale.code(*w).min(0xffff) as u16;
+                *w = code_word(&scale, f.kind.sensor_code(code, &mut seed));
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Decodes each core's raw fault record (the fault word, the fault time).
+pub fn decode(records: &[[u32; 2]]) -> Vec<FaultWord> {
+    records
+        .iter()
+        .map(|r| FaultWord::decode(r[0], r[1]))
+        .collect()
 }
 
 #[cfg(test)]

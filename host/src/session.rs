@@ -394,8 +394,9 @@ impl Session {
         opts: PieceOptions,
         report: &mut Reporter,
     ) -> Result<Session, PlayError> {
-        let kb = crate::keyboard::compile(spec, report)?;
+        let mut kb = crate::keyboard::compile(spec, report)?;
         let config = config(kb.board.clone());
+        kb.sensor_check = config.sensor_check;
         Ok(Session {
             kb,
             firmware: std::cell::OnceCell::new(),
@@ -483,14 +484,9 @@ impl Session {
         if !self.config.needs_firmware() {
             return Ok(None);
         }
-        let compiled = self.firmware.get_or_init(|| {
-            let mut programs = self.kb.firmware().map_err(|e| e.to_string())?;
-            // `--sensor-check`: every key's, before the plan prices it.
-            if let Some(on) = self.config.sensor_check {
-                programs.iter_mut().for_each(|p| p.sensor_check = on);
-            }
-            Ok(programs)
-        });
+        let compiled = self
+            .firmware
+            .get_or_init(|| self.kb.firmware().map_err(|e| e.to_string()));
         match compiled {
             Ok(programs) => Ok(Some(programs)),
             Err(e) => Err(PlayError::Firmware(e.clone())),

@@ -144,8 +144,9 @@ pub struct PlayConfig {
     pub faults: Vec<crate::fault::FaultSpec>,
     /// The firmware's sensor check (`tactus_firmware::image::Program::sensor_check`) on
     /// or off on every key, planned and priced with it; `None`: the programs' default. A
-    /// [`crate::session::Session`] sets it on its programs before it plans the boards; a
-    /// caller of [`play`] sets it on the programs it passes.
+    /// [`crate::session::Session`] gives it to its keyboard
+    /// ([`crate::keyboard::Keyboard::sensor_check`]) before it compiles and plans; a caller
+    /// of [`play`] sets it on the programs it passes.
     pub sensor_check: Option<bool>,
 }
 
