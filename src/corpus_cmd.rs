@@ -1,7 +1,7 @@
 //! `tactus corpus merge`: parses the arguments, merges the shards' results
 //! (`tactus_host::corpus_merge`) and prints the table, the files written and the verdict.
 //! `tactus corpus trips`: the budget corpus through every board of a keyboard, the fault
-//! checks' trips per run (`tactus_host::fault::budget_corpus_trips`).
+//! checks' trips per run (`tactus_host::fault_corpus::budget_corpus_trips`).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -89,7 +89,7 @@ fn trips(args: &TripsArgs) -> ExitCode {
     };
     kb.sensor_check = Some(args.sensor_check);
     let bar = indicatif::ProgressBar::new(1);
-    let runs = tactus_host::fault::budget_corpus_trips(&kb, args.quick, &mut |d, n| {
+    let runs = tactus_host::fault_corpus::budget_corpus_trips(&kb, args.quick, &mut |d, n| {
         bar.set_length(n as u64);
         bar.set_position(d as u64);
     });
@@ -108,7 +108,8 @@ fn trips(args: &TripsArgs) -> ExitCode {
         if args.sensor_check { "on" } else { "off" },
         if args.quick { "quick" } else { "full" }
     );
-    let (lines, physical) = tactus_host::fault::corpus_trips_text(&runs, kb.board.sample_rate_hz);
+    let (lines, physical) =
+        tactus_host::fault_corpus::corpus_trips_text(&runs, kb.board.sample_rate_hz);
     lines.iter().for_each(|l| println!("{l}"));
     if physical > 0 {
         eprintln!("error: {physical} trips in physical runs: false alarms");
