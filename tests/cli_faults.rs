@@ -33,24 +33,18 @@ fn a_shorted_sensor_under_play_trips_its_check_and_its_motor_is_at_zero_within_1
     let layout = small_layout(&dir, 60, 63);
     let midi = dir.join("held.mid");
     write_midi(&midi, &[(60, 90, 0.05, 0.35), (62, 60, 0.1, 0.3)], &[]);
+    // Held key 60 on the layout, 0.3 s, the sensor check on.
+    let play = || {
+        let mut c = tactus();
+        c.args(["play", midi.to_str().unwrap(), "--layout"])
+            .arg(&layout)
+            .args(["--seconds", "0.3", "--no-wav", "--sensor-check", "on"]);
+        c
+    };
     for board in ["rp2040", "rp2040_io"] {
         let out_dir = dir.join(board);
-        let out = tactus()
-            .args([
-                "play",
-                midi.to_str().unwrap(),
-                "--layout",
-                layout.to_str().unwrap(),
-            ])
-            .args([
-                "--board",
-                board,
-                "--seconds",
-                "0.3",
-                "--no-wav",
-                "--sensor-check",
-                "on",
-            ])
+        let out = play()
+            .args(["--board", board])
             .args(["--fault", "kind=short,note=60,at=0.2s"])
             .args([
                 "--trace-keys",
@@ -101,18 +95,7 @@ fn a_shorted_sensor_under_play_trips_its_check_and_its_motor_is_at_zero_within_1
         }
     }
     // The same run without the fault: no trip, said.
-    let out = tactus()
-        .args([
-            "play",
-            midi.to_str().unwrap(),
-            "--layout",
-            layout.to_str().unwrap(),
-        ])
-        .args(["--seconds", "0.3", "--no-wav", "--sensor-check", "on"])
-        .arg("-o")
-        .arg(dir.join("clean"))
-        .output()
-        .unwrap();
+    let out = play().arg("-o").arg(dir.join("clean")).output().unwrap();
     assert_ok(&out);
     assert!(String::from_utf8_lossy(&out.stdout).contains("faults: 0 trips on 1 board\n"));
     let _ = std::fs::remove_dir_all(&dir);
