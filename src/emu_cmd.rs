@@ -65,7 +65,7 @@ pub enum EmuCommand {
 
 /// `tactus emu run --help`'s examples.
 const RUN_EXAMPLES: &str = "Examples:
-  tactus build grand88 --target rp2040 -o fw
+  tactus build grand88 --target rp2040 --sensor-check on -o fw
   tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --seconds 0.5
       every key of board 5 dipping mezzoforte: each core's cycles and misses, the fault words
   tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --seconds 0.5 \\
@@ -76,8 +76,9 @@ const RUN_EXAMPLES: &str = "Examples:
   tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --fault kind=adc-silent,board=5,core=1,at=0.1s
 
 A bad --fault names its field: `--fault kind=open,note=200,at=1s` → field `note`: 200 is
-outside 0–127. Exit status: 0; 1 for a file or argument that cannot be used; 2 when the
-firmware faults, misses a deadline, or its checks trip with no --fault (a false alarm).";
+outside 0–127 (exit 2, nothing run). Exit status: 0; 1 for a file, key map or fault the
+firmware cannot take; 2 for a bad argument, or when the firmware faults, misses a
+deadline, or its checks trip with no --fault (a false alarm).";
 
 /// Waits on 127.0.0.1:`port` for one GDB client ([`emu::wait_for_gdb`]), saying where on
 /// stderr.
