@@ -205,3 +205,35 @@ fn a_bad_fault_for_play_names_its_field_before_anything_runs() {
         assert!(stderr.contains(field), "{fault}: {stderr}");
     }
 }
+
+#[test]
+fn the_budget_corpus_trips_no_check_but_its_glitches_and_random_words_do() {
+    let dir = temp_dir("cli-faults-corpus");
+    let layout = small_layout(&dir, 60, 61);
+    let out = tactus()
+        .args(["corpus", "trips", layout.to_str().unwrap(), "--quick"])
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("sensor check on"), "{stdout}");
+    for physical in ["ff-dip", "press-12ms", "trill-16Hz-80%", "noisy-press-0.5%"] {
+        let line = (stdout.lines())
+            .find(|l| l.trim_start().starts_with(physical))
+            .unwrap_or_else(|| panic!("{physical}: {stdout}"));
+        assert!(line.ends_with(" 0 trips"), "{line}");
+    }
+    let glitch = (stdout.lines())
+        .find(|l| l.trim_start().starts_with("glitch-every-50"))
+        .unwrap();
+    assert!(
+        glitch.contains("(a fault by design) (first: board 1 core "),
+        "{glitch}"
+    );
+    assert!(!glitch.contains(" 0 trips"), "{glitch}");
+    assert!(
+        stdout.contains("budget corpus through 1 board: 0 trips in the physical runs"),
+        "{stdout}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

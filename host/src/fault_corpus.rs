@@ -172,7 +172,8 @@ pub fn corpus_trips_text(runs: &[CorpusTrips], fs: f64) -> (Vec<String>, u64) {
         ));
     }
     lines.push(format!(
-        "budget corpus through {boards} boards: {physical} trips in the physical runs (0 expected), {designed} in the runs faulty by design (glitches, random words)"
+        "budget corpus through {boards} board{}: {physical} trips in the physical runs (0 expected), {designed} in the runs faulty by design (glitches, random words)",
+        if boards == 1 { "" } else { "s" }
     ));
     (lines, physical)
 }
