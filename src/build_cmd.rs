@@ -74,6 +74,12 @@ pub struct BuildArgs {
     /// power-off) instead of a flash image that boots at power-on.
     #[arg(long)]
     pub ram: bool,
+    /// Firmware: the per-key sensor check (range and largest step per sample, a trip
+    /// setting the key's motor to zero force and the core's fault word: docs/faults.md)
+    /// `on` or `off` on every key, the boards planned and priced with it [default: the
+    /// firmware's own].
+    #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off)]
+    pub sensor_check: Option<bool>,
 }
 
 /// Code generation targets.
@@ -115,9 +121,9 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
         }
         return build_firmware(args, dir);
     }
-    if args.board.is_some() || args.ram {
+    if args.board.is_some() || args.ram || args.sensor_check.is_some() {
         return Err(Some(format!(
-            "{}: --board and --ram are for firmware (a layout, or an instrument with --keys N)",
+            "{}: --board, --ram and --sensor-check are for firmware (a layout, or an instrument with --keys N)",
             args.file
         )));
     }
@@ -142,7 +148,7 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
 
 /// Firmware per board of a keyboard (see the module documentation).
 fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<String>> {
-    let kb = keyboard::compile(
+    let mut kb = keyboard::compile(
         &KeyboardSpec {
             input: &args.file,
             as_layout: None,
@@ -153,6 +159,7 @@ fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<
         &mut source::report_compile,
     )
     .map_err(|e| Some(e.to_string()))?;
+    kb.sensor_check = args.sensor_check;
     let command: Vec<String> = std::env::args().skip(1).collect();
     let command = format!("tactus {}", command.join(" "));
     let bar = StageBar::new();

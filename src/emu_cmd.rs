@@ -18,6 +18,7 @@ use tactus_host::emu;
 pub enum EmuCommand {
     /// Run an ELF file on the emulated dual-core RP2040 and print each core's registers
     /// and cycle count.
+    #[command(after_long_help = RUN_EXAMPLES)]
     Run {
         /// ELF executable (ARM, Thumb) to load. An image with a `.boot2` section (flash
         /// firmware from `tactus build`, pico-sdk binaries) boots from flash through the
@@ -44,6 +45,16 @@ pub enum EmuCommand {
         /// Emulated seconds to run with `--stimulus` (at most 60).
         #[arg(long, default_value_t = 1.0)]
         seconds: f64,
+        /// With `--stimulus`: inject a fault into a key's sensor (repeatable), in `tactus
+        /// play --fault`'s syntax: `kind=open|short|stuck|jump|noise|adc-silent`, the key
+        /// `note=MIDI` or `board=N,key=K` (N: this firmware's board, its keys.json's
+        /// `board`; K from 0 in its key order; `board=N,core=C` for adc-silent), `at=TIME`
+        /// and optionally `until=TIME` (`1.5s`, `200ms`), and the kind's value (`code=`,
+        /// `delta=`, `amplitude=`). The hang, flip, dac-stall and brownout kinds run in
+        /// `tactus play --fault`. After the run the board's fault words are printed (kind,
+        /// key, time, trips): docs/faults.md.
+        #[arg(long = "fault", value_name = "FAULT", value_parser = crate::play_cmd::parse_fault, requires = "stimulus")]
+        fault: Vec<tactus_host::fault::FaultSpec>,
         /// Serve GDB on 127.0.0.1:PORT and wait for it before running (0: any free port,
         /// printed). Both cores are threads; breakpoints, watchpoints, stepping and
         /// `monitor cycles` leave every cycle count as it is (docs/firmware.md).
@@ -51,6 +62,23 @@ pub enum EmuCommand {
         gdb: Option<u16>,
     },
 }
+
+/// `tactus emu run --help`'s examples.
+const RUN_EXAMPLES: &str = "Examples:
+  tactus build grand88 --target rp2040 --sensor-check on -o fw
+  tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --seconds 0.5
+      every key of board 5 dipping mezzoforte: each core's cycles and misses, the fault words
+  tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --seconds 0.5 \\
+      --fault kind=short,note=60,at=0.2s,until=0.3s
+      key 60's sensor wire shorted (the ADC's full scale) from 0.2 s to 0.3 s: the report names
+      the check that tripped (sensor-range), the key, the sample and the trips
+  tactus emu run fw/board-05/firmware.elf --stimulus pp-dip --fault kind=noise,amplitude=2000,board=5,key=3,at=0.1s
+  tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --fault kind=adc-silent,board=5,core=1,at=0.1s
+
+A bad --fault names its field: `--fault kind=open,note=200,at=1s` → field `note`: 200 is
+outside 0–127 (exit 2, nothing run). Exit status: 0; 1 for a file, key map or fault the
+firmware cannot take; 2 for a bad argument, or when the firmware faults, misses a
+deadline, or its checks trip with no --fault (a false alarm).";
 
 /// Waits on 127.0.0.1:`port` for one GDB client ([`emu::wait_for_gdb`]), saying where on
 /// stderr.
@@ -63,7 +91,8 @@ fn wait_for_gdb(port: u16) -> Result<Box<dyn tactus_emulator::Debugger>, String>
 }
 
 /// Runs an `emu` subcommand; returns the process exit code (1 for an unloadable file, 2
-/// when the firmware faults or locks up, or misses a deadline with `--stimulus`).
+/// when the firmware faults or locks up, or misses a deadline or trips a fault check with
+/// no `--fault` with `--stimulus`).
 pub fn run(cmd: EmuCommand) -> ExitCode {
     let EmuCommand::Run {
         file,
@@ -73,10 +102,11 @@ pub fn run(cmd: EmuCommand) -> ExitCode {
         stimulus,
         keys,
         seconds,
+        fault,
         gdb,
     } = cmd;
     let result = match stimulus {
-        Some(stimulus) => run_firmware(&file, &stimulus, keys.as_deref(), seconds, gdb),
+        Some(stimulus) => run_firmware(&file, &stimulus, keys.as_deref(), seconds, &fault, gdb),
         None => run_elf(&file, cycles, trace, &profile, gdb),
     };
     result.unwrap_or_else(|e| {
@@ -113,13 +143,14 @@ fn run_elf(
     }
 }
 
-/// `tactus emu run FIRMWARE.elf --stimulus S`: see the module documentation. Exit code 0
-/// without misses, 2 with.
+/// `tactus emu run FIRMWARE.elf --stimulus S [--fault F]`: see the module documentation.
+/// Exit code 0 without misses, 2 with, or with trips and no fault injected.
 fn run_firmware(
     file: &Path,
     stimulus: &str,
     keys: Option<&Path>,
     seconds: f64,
+    faults: &[tactus_host::fault::FaultSpec],
     gdb: Option<u16>,
 ) -> Result<ExitCode, String> {
     let job = emu::FirmwareJob::new(
@@ -127,6 +158,7 @@ fn run_firmware(
         stimulus,
         keys,
         seconds,
+        faults,
         &mut crate::source::report_compile,
     )?;
     let debugger = gdb.map(wait_for_gdb).transpose()?;
@@ -139,7 +171,10 @@ fn run_firmware(
     for line in &run.lines {
         println!("{line}");
     }
-    Ok(match run.missed {
+    if let Some(e) = &run.false_alarm {
+        eprintln!("error: {e}");
+    }
+    Ok(match run.missed || run.false_alarm.is_some() {
         true => ExitCode::from(2),
         false => ExitCode::SUCCESS,
     })

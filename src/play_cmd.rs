@@ -113,10 +113,18 @@ pub struct PlayArgs {
     /// target `note=MIDI` or `board=N,key=K` (`board=N,core=C` for the converters,
     /// `board=N` for a brown-out), `at=TIME` and optionally `until=TIME` (`1.5s`,
     /// `200ms`), and the kind's value (`code=`, `delta=`, `amplitude=`, `word=` and
-    /// `bit=`). E.g. `--fault kind=open,note=60,at=1s,until=1.2s`. Each board's resets
-    /// are printed after the run.
+    /// `bit=`). E.g. `--fault kind=open,note=60,at=1s,until=1.2s`. After the run each
+    /// board's resets and fault words are printed (the kind the firmware's check named, the
+    /// key, the time, the trips) and written to OUT/NAME-faults.csv; the syntax, the kinds
+    /// and the report: docs/faults.md.
     #[arg(long = "fault", value_name = "FAULT", value_parser = parse_fault)]
     pub fault: Vec<tactus_host::fault::FaultSpec>,
+    /// With `--engine emu`: the firmware's per-key sensor check (range and largest step
+    /// per sample; a trip sets the key's motor to zero force and its fault word) `on` or
+    /// `off` on every key, the boards planned and priced with it [default: the firmware's
+    /// own]. With it on and no `--fault`, a trip is a false alarm: exit 1.
+    #[arg(long, value_name = "on|off", value_parser = parse_on_off)]
+    pub sensor_check: Option<bool>,
     /// Output directory.
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
@@ -142,13 +150,22 @@ pub struct PlayArgs {
     pub resume: bool,
 }
 
-/// `--span`'s parser: a positive number of seconds.
 /// A `--fault` (`tactus_host::fault`): its error names the field.
-fn parse_fault(s: &str) -> Result<tactus_host::fault::FaultSpec, String> {
+pub fn parse_fault(s: &str) -> Result<tactus_host::fault::FaultSpec, String> {
     s.parse()
         .map_err(|e: tactus_host::fault::FaultError| e.to_string())
 }
 
+/// `on` or `off`.
+pub fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("`{s}`: `on` or `off`")),
+    }
+}
+
+/// `--span`'s parser: a positive number of seconds.
 fn parse_span(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
@@ -250,6 +267,7 @@ fn session(args: &PlayArgs, combo: &Combo) -> Result<Session, PlayError> {
         rest_replay: !args.no_rest_replay,
         io_trace: args.io_trace.clone(),
         faults: args.fault.clone(),
+        sensor_check: args.sensor_check,
     };
     let opts = PieceOptions {
         seconds: args.seconds,

@@ -1308,6 +1308,7 @@ fn emu_session(
         io_trace: None,
         span,
         faults: Vec::new(),
+        sensor_check: None,
     };
     let opts = tactus_host::session::PieceOptions {
         seconds,

@@ -431,6 +431,9 @@ pub struct ElfRun {
     /// FNV-1a (64-bit) over every key's DAC words after every sample: one number that
     /// changes when any word of the run does.
     pub dac_digest: u64,
+    /// Per core, its fault record at the end (the key map's `cores[c].fault`: the fault
+    /// word and the fault time, raw; `crate::image::fault::FaultWord::decode`).
+    pub fault_records: Vec<[u32; 2]>,
 }
 
 /// Most samples [`run_elf`] runs (one emulated minute at 44.1 kHz).
@@ -569,7 +572,13 @@ pub fn run_elf(
     progress(samples, samples);
     board.finish_debugging();
     let mut out = Vec::new();
+    let mut fault_records = Vec::with_capacity(cores.len());
     for (c, (_, ctrl)) in cores.iter().enumerate() {
+        let mut record = [0u32; 2];
+        board
+            .read_words(ctrl + u32::from(ctrl::FAULT), &mut record)
+            .map_err(|e| e.to_string())?;
+        fault_records.push(record);
         let done = board
             .read_u32(ctrl + u32::from(ctrl::SAMPLES))
             .map_err(|e| e.to_string())?;
@@ -600,5 +609,6 @@ pub fn run_elf(
         final_cycles: [board.cores[0].cycle, board.cores[1].cycle],
         dac_final: dac,
         dac_digest: digest,
+        fault_records,
     })
 }

@@ -4,6 +4,7 @@
 //! build` driven by a stimulus through its key map ([`FirmwareJob`]), and a GDB client
 //! waited for ([`wait_for_gdb`]). The caller shows progress and prints.
 
+use crate::fault::{BoardFaults, FaultError, FaultSpec};
 use crate::keyboard::{key_map_sensor_words, Reporter};
 use std::path::{Path, PathBuf};
 use tactus_emulator::core::{Core, RunState};
@@ -271,6 +272,10 @@ pub struct FirmwareJob {
     map: KeyMap,
     words: Vec<Vec<i32>>,
     which: Vec<usize>,
+    /// Per distinct words, its first sensor's raw range.
+    ranges: Vec<Option<(i32, i32)>>,
+    /// The faults to inject, resolved on this board.
+    faults: Vec<(FaultSpec, tactus_firmware::image::Injection)>,
     /// Samples to run.
     pub samples: usize,
 }
@@ -283,6 +288,11 @@ pub struct FirmwareText {
     pub lines: Vec<String>,
     /// Whether some core missed a deadline.
     pub missed: bool,
+    /// The board's fault records at the end ([`crate::fault::report_lines`] are among
+    /// `lines`).
+    pub faults: BoardFaults,
+    /// With no fault injected, a trip of the firmware's checks: a false alarm, said.
+    pub false_alarm: Option<String>,
     /// The run itself.
     pub run: ElfRun,
 }
@@ -292,16 +302,19 @@ impl FirmwareJob {
     /// the map against the firmware ([`tactus_firmware::key_map::check`]) and makes every
     /// key's sensor words of `stimulus` (a built-in key stimulus or a CSV file) for
     /// `seconds` emulated seconds, compiling each instrument of the map once (its
-    /// diagnostics to `report`).
+    /// diagnostics to `report`), with `faults` injected into its sensors
+    /// ([`crate::fault::faulted_sensor_words`]).
     ///
     /// Errors, as messages naming the file: an unreadable ELF or key map, a map that is not
     /// a key map or does not describe the firmware, `seconds` outside (0,
-    /// [`MAX_FIRMWARE_SECONDS`]], a stimulus or instrument that cannot be made.
+    /// [`MAX_FIRMWARE_SECONDS`]], a stimulus or instrument that cannot be made, a fault
+    /// that names what the board does not have ([`FaultSpec::resolve_on_board`]).
     pub fn new(
         file: &Path,
         stimulus: &str,
         keys: Option<&Path>,
         seconds: f64,
+        faults: &[FaultSpec],
         report: &mut Reporter,
     ) -> Result<FirmwareJob, String> {
         let elf = read_elf(file)?;
@@ -345,7 +358,13 @@ impl FirmwareJob {
         let fs = f64::from(map.sample_rate_hz);
         let samples = (seconds * fs).round().max(1.0) as usize;
         let map_name = map_path.display().to_string();
-        let (words, which) = key_map_sensor_words(&map, &map_name, stimulus, samples, report)?;
+        let midi: Vec<u8> = map.keys.iter().map(|k| k.midi).collect();
+        let faults = (faults.iter())
+            .map(|f| Ok((f.clone(), f.resolve_on_board(map.board, &midi, fs)?)))
+            .collect::<Result<Vec<_>, FaultError>>()
+            .map_err(|e| e.to_string())?;
+        let (words, which, ranges) =
+            key_map_sensor_words(&map, &map_name, stimulus, samples, report)?;
         Ok(FirmwareJob {
             file: file.to_path_buf(),
             stimulus: stimulus.to_string(),
@@ -353,6 +372,8 @@ impl FirmwareJob {
             map,
             words,
             which,
+            ranges,
+            faults,
             samples,
         })
     }
@@ -367,7 +388,22 @@ impl FirmwareJob {
         progress: &mut dyn FnMut(usize, usize),
     ) -> Result<FirmwareText, String> {
         let (map, file) = (&self.map, self.file.display());
-        let sensors: Vec<&[i32]> = self.which.iter().map(|&i| &self.words[i][..]).collect();
+        let mut sensors: Vec<&[i32]> = self.which.iter().map(|&i| &self.words[i][..]).collect();
+        let ranges: Vec<Option<(i32, i32)>> = self.which.iter().map(|&i| self.ranges[i]).collect();
+        let core_of: Vec<usize> = map.keys.iter().map(|k| k.core).collect();
+        let faulted = crate::fault::faulted_sensor_words(
+            &sensors,
+            &ranges,
+            &core_of,
+            &self.faults,
+            self.samples,
+        )
+        .map_err(|e| e.to_string())?;
+        for (s, f) in sensors.iter_mut().zip(&faulted) {
+            if let Some(f) = f {
+                *s = f;
+            }
+        }
         let run = flash::run_elf(&self.elf, map, &sensors, self.samples, progress, debugger)
             .map_err(|e| format!("{file}: {e}"))?;
         let mut lines = vec![format!(
@@ -398,7 +434,44 @@ impl FirmwareJob {
             "DAC words at the end: {:08x?}; digest of every sample's words {:016x}",
             run.dac_final, run.dac_digest
         ));
+        for f in &self.faults {
+            lines.push(format!(
+                "injected: {} ({})",
+                f.0.text,
+                match f.1.until {
+                    Some(u) => format!("samples {} to {}", f.1.from, u),
+                    None => format!("from sample {} on", f.1.from),
+                }
+            ));
+        }
+        let faults = BoardFaults {
+            board: map.board,
+            cores: crate::fault::decode(&run.fault_records),
+            // A board's keys take window slots from 0 in key order, each as many as the
+            // larger of its sensor and DAC words (`tactus_firmware::boards`).
+            slots: (map.keys.iter())
+                .scan(0, |slot, k| {
+                    let at = *slot;
+                    *slot += k.sensor_words.len().max(k.dac_words.len()).max(1);
+                    Some((at, k.midi))
+                })
+                .collect(),
+        };
+        lines.extend(crate::fault::report_lines(
+            std::slice::from_ref(&faults),
+            f64::from(map.sample_rate_hz),
+        ));
+        let trips = faults.trips();
+        let false_alarm = (trips > 0 && self.faults.is_empty()).then(|| {
+            format!("the firmware's fault checks tripped {trips} times with no fault injected: a false alarm")
+        });
         let missed = run.cores.iter().any(|c| c.misses > 0);
-        Ok(FirmwareText { lines, missed, run })
+        Ok(FirmwareText {
+            lines,
+            missed,
+            faults,
+            false_alarm,
+            run,
+        })
     }
 }

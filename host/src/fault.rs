@@ -25,8 +25,17 @@
 //! faults are defined on the key's 16-bit ADC code (`tactus_firmware::image::FaultKind`).
 //!
 //! Every error names the field, and no number is taken unchecked.
+//!
+//! **The fault report.** After a run, each board's fault records — per core the fault word
+//! and the fault time (`tactus_firmware::image::fault`), at the address `keys.json` names
+//! `cores[c].fault` — are read from the emulated SRAM ([`read_records`]) and told in lines
+//! ([`report_lines`]): one per core that tripped (the kind by name, the key, the time, the
+//! trips), and a summary line that is there when nothing tripped too (`faults: 0 trips on
+//! 11 boards`).
 
 use std::fmt;
+use tactus_firmware::image::fault::{FaultKind as TripKind, FaultWord, NO_KEY};
+use tactus_firmware::image::glue::ctrl;
 use tactus_firmware::image::{FaultKind, Injection};
 
 /// Where a fault is.
@@ -290,6 +299,9 @@ impl FaultSpec {
     /// second.
     ///
     /// Errors: a note no board plays, a board or key the keyboard does not have.
+    ///
+    /// The same on the one board `board` (from 1, as its `keys.json` numbers it) that plays
+    /// `keys` (in its key order): [`FaultSpec::resolve_on_board`].
     pub fn resolve(&self, boards: &[Vec<u8>], fs: f64) -> Result<(usize, Injection), FaultError> {
         let err = |field: &str, message: String| FaultError {
             text: self.text.clone(),
@@ -342,6 +354,290 @@ impl FaultSpec {
             },
         ))
     }
+}
+
+/// One board's fault records after a run: per core, its fault word and fault time decoded
+/// (`tactus_firmware::image::fault::FaultWord`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BoardFaults {
+    /// The board, from 1 along the keyboard.
+    pub board: usize,
+    /// Per core, in core order.
+    pub cores: Vec<FaultWord>,
+    /// The board's keys by window slot (slot, MIDI key): the fault word names the tripped
+    /// key by its slot (`tactus_firmware::image::KeySpec::slot`: on a keyboard's board the
+    /// keys take slots from 0 in key order, `keys.json`'s order, a pen one per word).
+    pub slots: Vec<(usize, u8)>,
+}
+
+impl BoardFaults {
+    /// Trips on the board since power-on (its cores' counts summed).
+    pub fn trips(&self) -> u64 {
+        self.cores.iter().map(|c| u64::from(c.trips)).sum()
+    }
+
+    /// The MIDI key of a tripped fault word's key field, if it names a key of the board.
+    pub fn midi(&self, w: &FaultWord) -> Option<u8> {
+        (w.tripped() && w.key != NO_KEY)
+            .then(|| self.slots.iter().find(|s| s.0 == usize::from(w.key)))
+            .flatten()
+            .map(|s| s.1)
+    }
+
+    /// The key a fault word names, in words: `key 64 (E4)`, `the whole board`, or the slot
+    /// when the board has no key there.
+    fn key_text(&self, w: &FaultWord) -> String {
+        match (w.key, self.midi(w)) {
+            (NO_KEY, _) => "the whole board".to_string(),
+            (_, Some(k)) => format!("key {k} ({})", tactus_firmware::budget::note_name(k)),
+            (s, None) => format!("window slot {s} (no key of the board)"),
+        }
+    }
+}
+
+/// The address of core `core`'s fault record in an image whose control block is at
+/// `control`: the rule `keys.json`'s `cores[c].fault` is written by
+/// (`tactus_firmware::flash`), the fault word at [`ctrl::FAULT`] and its time in the next
+/// word.
+pub fn record_address(control: u32) -> u32 {
+    control.wrapping_add(u32::from(ctrl::FAULT))
+}
+
+/// Reads the fault record at each of `addrs` (one per core: the fault word, then the
+/// fault time) through `read` (a word of the emulated board's memory), decoded.
+///
+/// Errors: what `read` returns, naming the core.
+pub fn read_records(
+    read: &mut dyn FnMut(u32) -> Result<u32, String>,
+    addrs: &[u32],
+) -> Result<Vec<FaultWord>, String> {
+    let records = (addrs.iter().enumerate())
+        .map(|(c, &a)| {
+            let word = read(a).map_err(|e| format!("core {c}'s fault word: {e}"))?;
+            let at = read(a.wrapping_add(4)).map_err(|e| format!("core {c}'s fault time: {e}"))?;
+            Ok([word, at])
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    Ok(decode(&records))
+}
+
+/// A fault word's kind as the report names it: the kind's name, or the code when it is
+/// none of the known kinds.
+pub fn kind_name(w: &FaultWord) -> String {
+    match w.kind {
+        Some(k) => k.name().to_string(),
+        None => format!("unknown kind {}", w.code),
+    }
+}
+
+/// The fault report of a run on `boards`, at `fs` samples a second: a line per core that
+/// tripped (`board 4 core 1: sensor-range on key 60 (C4) at sample 44100 (1.000 s), 1
+/// trip`), then the summary line (`faults: 0 trips on 11 boards`, or the trips and on how
+/// many boards). Lines are not indented.
+pub fn report_lines(boards: &[BoardFaults], fs: f64) -> Vec<String> {
+    let mut lines = Vec::new();
+    for b in boards {
+        for (c, w) in b.cores.iter().enumerate().filter(|(_, w)| w.tripped()) {
+            let key = b.key_text(w);
+            lines.push(format!(
+                "board {} core {c}: {} on {key} at sample {} ({:.4} s), {} trip{}",
+                b.board,
+                kind_name(w),
+                w.at_sample,
+                f64::from(w.at_sample) / fs.max(1.0),
+                w.trips,
+                if w.trips == 1 { "" } else { "s" }
+            ));
+        }
+    }
+    let trips: u64 = boards.iter().map(BoardFaults::trips).sum();
+    let tripped = boards.iter().filter(|b| b.trips() > 0).count();
+    let n = boards.len();
+    lines.push(match trips {
+        0 => format!("faults: 0 trips on {n} board{}", if n == 1 { "" } else { "s" }),
+        t => format!(
+            "faults: {t} TRIP{} on {tripped} of {n} boards (the firmware's checks set these motors to zero force)",
+            if t == 1 { "" } else { "S" }
+        ),
+    });
+    lines
+}
+
+/// The columns of a run's fault file (`OUT/NAME-faults.csv`, [`csv_text`]).
+pub const CSV_HEADER: &str = "board,core,kind,code,slot,key,trips,at_sample,at_s";
+
+/// The fault records as CSV ([`CSV_HEADER`]): one row per core of every board, tripped or
+/// not (kind `none`, trips 0): the fault word's key field (`slot`) and its MIDI key (empty
+/// when it names none); `at_s` at `fs` Hz.
+pub fn csv_text(boards: &[BoardFaults], fs: f64) -> String {
+    let mut s = format!("{CSV_HEADER}\n");
+    for b in boards {
+        for (c, w) in b.cores.iter().enumerate() {
+            let key = b.midi(w).map_or(String::new(), |k| k.to_string());
+            s.push_str(&format!(
+                "{},{c},{},{},{},{key},{},{},{:.6}\n",
+                b.board,
+                kind_name(w),
+                w.code,
+                w.key,
+                w.trips,
+                w.at_sample,
+                f64::from(w.at_sample) / fs.max(1.0)
+            ));
+        }
+    }
+    s
+}
+
+/// The names of the trip kinds, for help texts: every [`TripKind`] but `none`.
+pub fn trip_kinds() -> String {
+    (TripKind::ALL.iter().filter(|k| **k != TripKind::None))
+        .map(|k| k.name())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+impl FaultSpec {
+    /// The injection of this fault on the one board numbered `board` (from 1 along its
+    /// keyboard, `keys.json`'s `board`) whose keys are `keys` (MIDI, in its key order), at
+    /// `fs` samples a second: what `tactus emu run --fault` runs on one board's firmware.
+    ///
+    /// Errors: a `board=` that is not this board, a note it does not play, a key it does
+    /// not have.
+    pub fn resolve_on_board(
+        &self,
+        board: usize,
+        keys: &[u8],
+        fs: f64,
+    ) -> Result<Injection, FaultError> {
+        let err = |field: &str, message: String| FaultError {
+            text: self.text.clone(),
+            field: field.to_string(),
+            message,
+        };
+        let named = match self.target {
+            Target::Note(n) if !keys.contains(&n) => {
+                return Err(err(
+                    "note",
+                    format!(
+                        "board {board} does not play MIDI key {n} (its keys: {})",
+                        tactus_firmware::verdict::key_ranges(keys)
+                    ),
+                ))
+            }
+            Target::Note(_) => None,
+            Target::Key { board: b, .. } | Target::Core { board: b, .. } | Target::Board(b) => {
+                Some(b)
+            }
+        };
+        if let Some(b) = named.filter(|&b| b != board) {
+            return Err(err(
+                "board",
+                format!("board {b}: this firmware is board {board} (its keys.json)"),
+            ));
+        }
+        let one = |b: usize| if named.is_some() { 1 } else { b };
+        let spec = FaultSpec {
+            target: match self.target {
+                Target::Key { board: b, key } => Target::Key { board: one(b), key },
+                Target::Core { board: b, core } => Target::Core {
+                    board: one(b),
+                    core,
+                },
+                Target::Board(b) => Target::Board(one(b)),
+                t => t,
+            },
+            ..self.clone()
+        };
+        spec.resolve(&[keys.to_vec()], fs).map(|(_, i)| i)
+    }
+}
+
+/// The sensor words a run of firmware reads with sensor faults injected, for `tactus emu
+/// run`: per key (in its key map's order) its words `words[k]` (repeated to `samples`; an
+/// empty list reads 0) and its first sensor's raw range `ranges[k]` (the range its ADC
+/// code spans), with each of `faults` that reaches the key applied to its first sensor
+/// word, sample by sample, as `tactus_firmware::image::ImageRun::inject` applies it on a
+/// board without converters (`FaultKind::sensor_code` on the code, `code_word` back).
+/// `core_of[k]` is key k's core (for `adc-silent`). Returns, per key, `None` when no fault
+/// reaches it, else its `samples` words.
+///
+/// Errors: a fault this run cannot inject (a hang, a flip, a DAC stall or a brown-out:
+/// `tactus play --fault` runs them), a fault on a key without a sensor.
+pub fn faulted_sensor_words(
+    words: &[&[i32]],
+    ranges: &[Option<(i32, i32)>],
+    core_of: &[usize],
+    faults: &[(FaultSpec, Injection)],
+    samples: usize,
+) -> Result<Vec<Option<Vec<i32>>>, FaultError> {
+    use tactus_firmware::image::{code_word, NOISE_SEED};
+    use tactus_runtime::converters::AdcScale;
+    let mut out: Vec<Option<Vec<i32>>> = vec![None; words.len()];
+    for (spec, f) in faults {
+        let err = |field: &str, message: String| FaultError {
+            text: spec.text.clone(),
+            field: field.to_string(),
+            message,
+        };
+        let keys: Vec<usize> = match (f.kind, f.key, f.core) {
+            (FaultKind::AdcSilent, _, Some(c)) => (0..words.len())
+                .filter(|&k| {
+                    core_of.get(k) == Some(&c) && ranges.get(k).is_some_and(Option::is_some)
+                })
+                .collect(),
+            (kind, Some(k), _) if kind.is_sensor() => {
+                if ranges.get(k).is_none_or(Option::is_none) {
+                    return Err(err("key", format!("key {k} has no sensor")));
+                }
+                vec![k]
+            }
+            _ => {
+                return Err(err(
+                    "kind",
+                    "`tactus emu run` injects the sensor faults (open, short, stuck, jump, \
+                     noise) and adc-silent; `tactus play --fault` runs every kind"
+                        .into(),
+                ))
+            }
+        };
+        let (from, until) = (f.from, f.until.unwrap_or(u64::MAX));
+        let mut seed = NOISE_SEED;
+        for k in keys {
+            let Some((lo, hi)) = ranges[k] else { continue };
+            let scale = AdcScale::new(lo, hi, 16);
+            let base = words[k];
+            let list = out[k].get_or_insert_with(|| {
+                (0..samples)
+                    .map(|n| {
+                        if base.is_empty() {
+                            0
+                        } else {
+                            base[n % base.len()]
+                        }
+                    })
+                    .collect()
+            });
+            let end = until.min(samples as u64) as usize;
+            for w in list
+                .iter_mut()
+                .take(end)
+                .skip(from.min(samples as u64) as usize)
+            {
+                let code = scale.code(*w).min(0xffff) as u16;
+                *w = code_word(&scale, f.kind.sensor_code(code, &mut seed));
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Decodes each core's raw fault record (the fault word, the fault time).
+pub fn decode(records: &[[u32; 2]]) -> Vec<FaultWord> {
+    records
+        .iter()
+        .map(|r| FaultWord::decode(r[0], r[1]))
+        .collect()
 }
 
 #[cfg(test)]
@@ -400,6 +696,65 @@ mod tests {
             assert!(e.to_string().contains(text), "{e}");
         }
         assert_eq!(err("open").field, "", "not field=value");
+    }
+
+    #[test]
+    fn fault_records_are_read_and_reported() {
+        let mem = [
+            (
+                0x2000_0014u32,
+                FaultWord::encode(TripKind::SensorRange, 3, 2),
+            ),
+            (0x2000_0018, 44_100),
+            (0x2000_0114, 0),
+            (0x2000_0118, 0),
+        ];
+        let mut read =
+            |a: u32| (mem.iter().find(|m| m.0 == a).map(|m| m.1)).ok_or_else(|| format!("{a:#x}"));
+        let cores = read_records(&mut read, &[0x2000_0014, 0x2000_0114]).unwrap();
+        assert_eq!(cores[0].kind, Some(TripKind::SensorRange));
+        assert_eq!(
+            (cores[0].key, cores[0].trips, cores[0].at_sample),
+            (3, 2, 44_100)
+        );
+        assert!(!cores[1].tripped());
+        assert!(read_records(&mut read, &[0x2000_0200])
+            .unwrap_err()
+            .contains("core 0"));
+        let slots: Vec<(usize, u8)> = (0..8).map(|s| (s, 57 + s as u8)).collect();
+        let boards = [
+            BoardFaults {
+                board: 1,
+                cores: vec![cores[1]; 2],
+                slots: slots.clone(),
+            },
+            BoardFaults {
+                board: 2,
+                cores,
+                slots,
+            },
+        ];
+        let lines = report_lines(&boards, 44_100.0);
+        assert_eq!(
+            lines[0],
+            "board 2 core 0: sensor-range on key 60 (C4) at sample 44100 (1.0000 s), 2 trips"
+        );
+        assert!(
+            lines[1].starts_with("faults: 2 TRIPS on 1 of 2 boards"),
+            "{}",
+            lines[1]
+        );
+        let csv = csv_text(&boards, 44_100.0);
+        assert!(
+            csv.contains("\n2,0,sensor-range,1,3,60,2,44100,1.000000\n"),
+            "{csv}"
+        );
+        assert!(csv.contains("\n1,1,none,0,0,,0,0,0.000000\n"), "{csv}");
+        assert_eq!(
+            report_lines(&boards[..1], 44_100.0),
+            ["faults: 0 trips on 1 board"]
+        );
+        assert_eq!(record_address(0x2003_f000), 0x2003_f014);
     }
 
     #[test]

@@ -136,6 +136,10 @@ pub struct Keyboard {
     pub boards: Option<Vec<Vec<u8>>>,
     /// The spec's overrides of every key's params (already in [`Keyboard::keys`]).
     pub overrides: Vec<(String, String)>,
+    /// The firmware's sensor check on or off on every key
+    /// (`tactus_firmware::image::Program::sensor_check`, set by [`Keyboard::firmware`] and
+    /// so planned and priced with it: `--sensor-check`); `None`: the programs' default.
+    pub sensor_check: Option<bool>,
 }
 
 /// Receives a source's diagnostics: its warnings when it compiles, its errors (and
@@ -400,6 +404,7 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
         sets,
         boards,
         overrides: spec.params.to_vec(),
+        sensor_check: None,
     })
 }
 
@@ -416,10 +421,16 @@ impl Keyboard {
             .iter()
             .map(|s| (s.instrument.as_str(), &s.ir))
             .collect();
-        tactus_firmware::image::compile_shared(&lowered).map_err(|(i, e)| KeyboardError::Firmware {
-            source_name: self.sets[i].source.name.clone(),
-            message: e.to_string(),
-        })
+        let mut programs = tactus_firmware::image::compile_shared(&lowered).map_err(|(i, e)| {
+            KeyboardError::Firmware {
+                source_name: self.sets[i].source.name.clone(),
+                message: e.to_string(),
+            }
+        })?;
+        if let Some(on) = self.sensor_check {
+            programs.iter_mut().for_each(|p| p.sensor_check = on);
+        }
+        Ok(programs)
     }
 
     /// The safety limiter of every key ([`LimiterConfig::for_board`]: the one configuration
@@ -625,7 +636,9 @@ impl Keyboard {
 /// the map's sample rate (its diagnostics to `report`) and converted by the fixed-point
 /// program's sensor format; a key without a sensor gets no words. Returns the words of each
 /// distinct (instrument, params) and, per key of the map, the index of its words (so a
-/// 60 s stimulus is held once per instrument, not once per key).
+/// 60 s stimulus is held once per instrument, not once per key), and per distinct
+/// (instrument, params) its first sensor's raw word range (`FixedProgram::sensor_raw_range`,
+/// the range its ADC code spans: `None` without a sensor).
 ///
 /// Errors, as messages: an instrument that cannot be loaded or does not compile (naming
 /// the map and the key), a stimulus that cannot be read or has no samples.
@@ -635,7 +648,7 @@ pub fn key_map_sensor_words(
     stimulus: &str,
     samples: usize,
     report: &mut Reporter,
-) -> Result<(Vec<Vec<i32>>, Vec<usize>), String> {
+) -> Result<SensorWords, String> {
     let fs = f64::from(map.sample_rate_hz);
     let csv = match Path::new(stimulus).exists() {
         true => Some(
@@ -645,7 +658,7 @@ pub fn key_map_sensor_words(
         false => None,
     };
     // ((instrument, params), the stimulus in its sensor words)
-    type Words<'m> = ((&'m str, &'m [String]), Vec<i32>);
+    type Words<'m> = ((&'m str, &'m [String]), Vec<i32>, Option<(i32, i32)>);
     let mut distinct: Vec<Words> = Vec::new();
     let mut which = Vec::with_capacity(map.keys.len());
     for k in &map.keys {
@@ -671,6 +684,7 @@ pub fn key_map_sensor_words(
             )
         })?;
         let fp = tactus_compiler::fixed::FixedProgram::new(&lowered.program);
+        let range = fp.sensor_raw_range.first().copied();
         let words = match fp.program.sensors.first() {
             None => Vec::new(),
             Some(s0) => {
@@ -697,7 +711,12 @@ pub fn key_map_sensor_words(
             }
         };
         which.push(distinct.len());
-        distinct.push((id, words));
+        distinct.push((id, words, range));
     }
-    Ok((distinct.into_iter().map(|d| d.1).collect(), which))
+    let ranges = distinct.iter().map(|d| d.2).collect();
+    Ok((distinct.into_iter().map(|d| d.1).collect(), which, ranges))
 }
+
+/// What [`key_map_sensor_words`] returns: the words of each distinct (instrument, params),
+/// per key the index of its words, per distinct its first sensor's raw range.
+pub type SensorWords = (Vec<Vec<i32>>, Vec<usize>, Vec<Option<(i32, i32)>>);

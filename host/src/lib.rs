@@ -14,7 +14,9 @@
 //!   machine writes, refused when they are not one whole run.
 //! * [`emu`]: `tactus emu run`'s reading, tracing and text, and firmware from `tactus build`
 //!   driven by a stimulus through its key map.
-//! * [`fault`]: the `--fault` syntax of `play` and `emu run`, resolved to a board's injection.
+//! * [`fault`]: the `--fault` syntax of `play` and `emu run`, resolved to a board's injection;
+//!   the boards' fault records read and reported after a run.
+//! * [`fault_corpus`]: the budget corpus through every board of a keyboard, its trips.
 //! * [`keyboard`]: **the** resolution and compilation of a keyboard — a layout file, a
 //!   built-in layout, or one instrument on N keys, on a board kind — used by `tactus build`,
 //!   `tactus budget` and `tactus play`, so that they see the same keys, the same programs
@@ -41,6 +43,7 @@ pub mod corpus_merge;
 pub mod corpus_run;
 pub mod emu;
 pub mod fault;
+pub mod fault_corpus;
 pub mod keyboard;
 pub mod play;
 pub mod plot;

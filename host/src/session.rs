@@ -115,8 +115,12 @@ pub struct Piece {
     /// The sample rate it was played at (the board's), Hz.
     pub fs: f64,
     /// The files written: the strikes' CSV, MIDI and WAV, one CSV per traced key and the
-    /// traces' plots, and with the emulated boards the plot of their cycles per sample.
+    /// traces' plots, and with the emulated boards the plot of their cycles per sample and
+    /// their fault records (`NAME-faults.csv`, `crate::fault::csv_text`).
     pub written: Vec<PathBuf>,
+    /// Faults injected (`--fault`): with none, a trip of the firmware's checks is a false
+    /// alarm ([`Piece::budget_report`]'s error).
+    pub faults_injected: usize,
 }
 
 /// What the force player's finger can do on one instrument: the range of hammer speeds
@@ -139,19 +143,32 @@ pub struct FingerRange {
 
 impl Piece {
     /// What to print of the boards' budget over the run ([`budget_text`], or a line saying
-    /// a host engine checks none), and the error when a core missed a deadline.
+    /// a host engine checks none) and of their fault records ([`crate::fault::report_lines`]),
+    /// and the error when a core missed a deadline or, with no fault injected, a fault check
+    /// tripped (a false alarm).
     pub fn budget_report(&self) -> (String, Option<String>) {
         match &self.played.boards {
             None => (
                 "  budget: not checked (host engine; `--engine emu` runs the firmware on the emulated board)\n".to_string(),
                 None,
             ),
-            Some(r) => (
-                budget_text(r) + &spans_text(&self.played.spans, self.fs),
-                r.missed().then(|| {
-                    "the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string()
-                }),
-            ),
+            Some(r) => {
+                let mut text = budget_text(r) + &spans_text(&self.played.spans, self.fs);
+                for line in crate::fault::report_lines(&r.faults(), self.fs) {
+                    text.push_str(&format!("  {line}\n"));
+                }
+                let trips = r.fault_trips();
+                let error = if r.missed() {
+                    Some("the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string())
+                } else if trips > 0 && self.faults_injected == 0 {
+                    Some(format!(
+                        "the firmware's fault checks tripped {trips} times with no fault injected: a false alarm (see the faults above)"
+                    ))
+                } else {
+                    None
+                };
+                (text, error)
+            }
         }
     }
 
@@ -346,6 +363,8 @@ impl Piece {
                 .collect();
             row.worst_core_cycles = r.boards.iter().flat_map(|b| b.max.iter().copied()).max();
             row.deadline_cycles = Some(r.deadline);
+            row.fault_trips = Some(r.fault_trips());
+            row.faults_injected = self.faults_injected;
         }
         row
     }
@@ -382,8 +401,9 @@ impl Session {
         opts: PieceOptions,
         report: &mut Reporter,
     ) -> Result<Session, PlayError> {
-        let kb = crate::keyboard::compile(spec, report)?;
+        let mut kb = crate::keyboard::compile(spec, report)?;
         let config = config(kb.board.clone());
+        kb.sensor_check = config.sensor_check;
         Ok(Session {
             kb,
             firmware: std::cell::OnceCell::new(),
@@ -401,6 +421,7 @@ impl Session {
             seconds: self.opts.seconds,
             params: self.kb.overrides.clone(),
             quiescent_guard: self.config.quiescent_guard,
+            sensor_check: self.config.sensor_check,
         }
     }
 
@@ -599,6 +620,10 @@ impl Session {
             let svg = out.join(format!("{stem}-cycles.svg"));
             plot_play_cycles(r, kb.board.sample_rate_hz, &stem, &svg)?;
             written.push(svg);
+            let csv = out.join(format!("{stem}-faults.csv"));
+            let text = crate::fault::csv_text(&r.faults(), kb.board.sample_rate_hz);
+            std::fs::write(&csv, text).map_err(|e| WriteError::io(&csv, e))?;
+            written.push(csv);
         }
         Ok(Piece {
             player: config.player,
@@ -613,6 +638,7 @@ impl Session {
             wall_s,
             fs: kb.board.sample_rate_hz,
             written,
+            faults_injected: config.faults.len(),
         })
     }
 }

@@ -154,20 +154,25 @@ pub fn write_midi(path: &Path, notes: &[(u8, u8, f64, f64)], pedal: &[(f64, bool
 pub fn without_timings(path: &Path) -> String {
     let text = std::fs::read_to_string(path).unwrap();
     match path.extension().and_then(|e| e.to_str()) {
-        Some("csv") => text
-            .lines()
-            .map(|l| {
-                let mut f: Vec<&str> = l.split(',').collect();
-                // file,keyboard,board,music_s,…,wall_s,rtf,error: wall_s and rtf are the
-                // 13th and 14th fields (no field of these rows holds a comma).
-                if f.len() >= 15 && !l.starts_with("file,") {
-                    f[12] = "-";
-                    f[13] = "-";
-                }
-                f.join(",")
-            })
-            .collect::<Vec<_>>()
-            .join("\n"),
+        Some("csv") => {
+            // The columns named `wall_s` and `rtf` in the header (no field of these rows
+            // holds a comma).
+            let head: Vec<&str> = text.lines().next().unwrap_or("").split(',').collect();
+            let timed: Vec<usize> = (head.iter().enumerate())
+                .filter(|(_, h)| ["wall_s", "rtf"].contains(h))
+                .map(|(i, _)| i)
+                .collect();
+            text.lines()
+                .map(|l| {
+                    let mut f: Vec<&str> = l.split(',').collect();
+                    if f.len() == head.len() && !l.starts_with("file,") {
+                        timed.iter().for_each(|&i| f[i] = "-");
+                    }
+                    f.join(",")
+                })
+                .collect::<Vec<_>>()
+                .join("\n")
+        }
         _ => text
             .lines()
             .map(|l| match l.trim_start() {

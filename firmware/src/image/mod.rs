@@ -114,7 +114,8 @@ mod sample;
 
 pub use flash_image::{FlashImage, FlashPiece};
 pub use run::{
-    run_to_first_tick, run_to_timer, FaultKind, ImageRun, Injection, IoRecord, ResetRecord,
+    code_word, run_to_first_tick, run_to_timer, FaultKind, ImageRun, Injection, IoRecord,
+    ResetRecord, NOISE_SEED,
 };
 pub use sample::{DriveOut, KeyEvent, SampleOut};
 

@@ -44,12 +44,24 @@ pub struct PieceRow {
     pub worst_core_cycles: Option<u64>,
     /// Cycles per sample per core available (`--engine emu`).
     pub deadline_cycles: Option<u64>,
+    /// Trips of the firmware's fault checks over every core of every board
+    /// (`--engine emu`: the fault words' counts, `crate::fault`); `None` on a host engine
+    /// or in rows written before the count was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fault_trips: Option<u64>,
+    /// Faults injected (`--fault`): with none, a trip is a false alarm.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub faults_injected: usize,
     /// Wall-clock seconds of the run.
     pub wall_s: f64,
     /// Real-time factor: music seconds per wall second.
     pub rtf: f64,
     /// Why the piece was not played (then the figures above are zero).
     pub error: Option<String>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// What a corpus's rows say of the firmware, and the exit status that tells it
@@ -85,8 +97,8 @@ impl Verdict {
     }
 }
 
-/// The verdict on `rows`: [`Verdict::Failed`] when a row missed a deadline or left notes
-/// without a strike, else [`Verdict::Incomplete`] when a row has an error, else
+/// The verdict on `rows`: [`Verdict::Failed`] when a row missed a deadline, left notes
+/// without a strike or tripped a fault check with no fault injected (a false alarm), else [`Verdict::Incomplete`] when a row has an error, else
 /// [`Verdict::Passed`].
 pub fn verdict(rows: &[PieceRow]) -> Verdict {
     let missed = rows
@@ -94,15 +106,22 @@ pub fn verdict(rows: &[PieceRow]) -> Verdict {
         .filter(|r| r.misses_per_board.iter().any(|&m| m > 0))
         .count();
     let silent = rows.iter().filter(|r| r.silent > 0).count();
+    let alarms = (rows.iter())
+        .filter(|r| r.faults_injected == 0 && r.fault_trips.is_some_and(|t| t > 0))
+        .count();
     let errors = rows.iter().filter(|r| r.error.is_some()).count();
     let n = rows.len();
     let also = match errors {
         0 => String::new(),
         e => format!("; {e} could not be played"),
     };
-    if missed + silent > 0 {
+    if missed + silent + alarms > 0 {
+        let alarms = match alarms {
+            0 => String::new(),
+            a => format!(", {a} tripped fault checks with no fault injected"),
+        };
         return Verdict::Failed(format!(
-            "the firmware failed validation: {missed} of {n} performances missed deadlines, {silent} left notes without a strike{also} (see the table)"
+            "the firmware failed validation: {missed} of {n} performances missed deadlines, {silent} left notes without a strike{alarms}{also} (see the table)"
         ));
     }
     match errors {
@@ -190,7 +209,8 @@ pub fn summary_text(rows: &[PieceRow], emulated: bool, peak_kb: Option<u64>) -> 
 
 /// The summary table as text, one line per piece after a header line, each indented two
 /// spaces: piece (file name), music s, notes, strikes, silent notes, misses (all boards),
-/// worst core cycles / deadline (`—` on a host engine), RTF, error.
+/// worst core cycles / deadline (`—` on a host engine), fault trips (all boards; `—` on a
+/// host engine), RTF, error.
 pub fn table_text(rows: &[PieceRow]) -> String {
     use std::fmt::Write;
     // Several keyboards or boards: each piece named with the one it was played on.
@@ -199,8 +219,8 @@ pub fn table_text(rows: &[PieceRow]) -> String {
         .iter()
         .any(|r| on(r) != rows.first().map(on).unwrap_or_default());
     let mut t = format!(
-        "  {:<32} {:>8} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6}  error\n",
-        "piece", "music s", "notes", "strikes", "silent", "misses", "worst cycles", "RTF"
+        "  {:<32} {:>8} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6} {:>6}  error\n",
+        "piece", "music s", "notes", "strikes", "silent", "misses", "worst cycles", "trips", "RTF"
     );
     for r in rows {
         let mut name = r.file.file_name().map_or_else(
@@ -213,7 +233,7 @@ pub fn table_text(rows: &[PieceRow]) -> String {
         // Writing to a String cannot fail.
         let _ = writeln!(
             t,
-            "  {:<32} {:>8.1} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6.2}  {}",
+            "  {:<32} {:>8.1} {:>6} {:>7} {:>7} {:>7} {:>12} {:>6} {:>6.2}  {}",
             name,
             r.music_s,
             r.notes,
@@ -224,6 +244,7 @@ pub fn table_text(rows: &[PieceRow]) -> String {
                 "{c}/{}",
                 r.deadline_cycles.unwrap_or(0)
             )),
+            r.fault_trips.map_or("—".to_string(), |t| t.to_string()),
             r.rtf,
             r.error.as_deref().unwrap_or("")
         );
@@ -236,13 +257,13 @@ pub fn table_text(rows: &[PieceRow]) -> String {
 /// Errors: the file cannot be written (naming it).
 pub fn write_csv(path: &Path, rows: &[PieceRow]) -> Result<(), String> {
     let mut s = String::from(
-        "file,keyboard,board,music_s,notes,strikes,answering,silent,misses_per_board,misses,worst_core_cycles,deadline_cycles,wall_s,rtf,error\n",
+        "file,keyboard,board,music_s,notes,strikes,answering,silent,misses_per_board,misses,worst_core_cycles,deadline_cycles,fault_trips,wall_s,rtf,error\n",
     );
     for r in rows {
         let misses: Vec<String> = r.misses_per_board.iter().map(u64::to_string).collect();
         let opt = |v: Option<u64>| v.map_or(String::new(), |v| v.to_string());
         s.push_str(&format!(
-            "{},{},{},{:.3},{},{},{},{},{},{},{},{},{:.3},{:.3},{}\n",
+            "{},{},{},{:.3},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{}\n",
             csv_field(&r.file.display().to_string()),
             csv_field(&r.keyboard),
             csv_field(&r.board),
@@ -255,6 +276,7 @@ pub fn write_csv(path: &Path, rows: &[PieceRow]) -> Result<(), String> {
             r.misses_per_board.iter().sum::<u64>(),
             opt(r.worst_core_cycles),
             opt(r.deadline_cycles),
+            opt(r.fault_trips),
             r.wall_s,
             r.rtf,
             csv_field(r.error.as_deref().unwrap_or("")),

@@ -122,6 +122,12 @@ pub struct BoardRun {
     /// The resets the board met (the watchdog's, a brown-out), with injected faults
     /// ([`PerformOptions::faults`]); empty otherwise.
     pub resets: Vec<tactus_firmware::image::ResetRecord>,
+    /// Per core, its fault record at the end of the run (the firmware's checks:
+    /// `crate::fault::read_records`).
+    pub faults: Vec<tactus_firmware::image::fault::FaultWord>,
+    /// Per key (as [`BoardRun::keys`]), its window slot in the image (what a fault word
+    /// names it by, `tactus_firmware::image::KeySpec::slot`).
+    pub slots: Vec<usize>,
 }
 
 /// The whole keyboard's run.
@@ -366,6 +372,7 @@ impl<'p> BoardEngine<'p> {
         let key_programs: Vec<&Program> = bkeys.iter().map(|k| &programs[k.program]).collect();
         let report = BoardRun {
             keys: bkeys.iter().map(|k| k.key).collect(),
+            slots: image.keys().iter().map(|k| k.slot).collect(),
             core_keys: (0..n_cores)
                 .map(|c| core_of.iter().filter(|&&k| k == c).count())
                 .collect(),
@@ -459,6 +466,20 @@ impl BoardEngine<'_> {
         self.report.memo = self.run.board().memo_stats();
         self.report.rest_replayed = self.run.rest_replayed();
         self.report.resets = self.run.resets().to_vec();
+        let image = self.run.image();
+        let addrs: Vec<u32> = (0..image.cores())
+            .filter_map(|c| {
+                image
+                    .core_addresses(c)
+                    .map(|a| crate::fault::record_address(a[3]))
+            })
+            .collect();
+        let board = self.run.board();
+        self.report.faults = crate::fault::read_records(
+            &mut |a| board.read_u32(a).map_err(|e| e.to_string()),
+            &addrs,
+        )
+        .map_err(tactus_firmware::image::ImageError::Run)?;
         self.report.io_windows = self.run.board().io_windows();
         self.report.io_breaches.clear();
         if let Some(io) = self.run.board().io() {

@@ -142,6 +142,12 @@ pub struct PlayConfig {
     pub span: Option<usize>,
     /// With `--engine emu`: faults injected into the boards (`--fault`, `crate::fault`).
     pub faults: Vec<crate::fault::FaultSpec>,
+    /// The firmware's sensor check (`tactus_firmware::image::Program::sensor_check`) on
+    /// or off on every key, planned and priced with it; `None`: the programs' default. A
+    /// [`crate::session::Session`] gives it to its keyboard
+    /// ([`crate::keyboard::Keyboard::sensor_check`]) before it compiles and plans; a caller
+    /// of [`play`] sets it on the programs it passes.
+    pub sensor_check: Option<bool>,
 }
 
 impl PlayConfig {
@@ -196,6 +202,30 @@ impl BoardsReport {
     /// Whether any core of any board missed a deadline.
     pub fn missed(&self) -> bool {
         self.boards.iter().any(|b| b.misses.iter().any(|&m| m > 0))
+    }
+
+    /// Every board's fault records at the end of the run (boards from 1).
+    pub fn faults(&self) -> Vec<crate::fault::BoardFaults> {
+        (self.boards.iter().enumerate())
+            .map(|(i, b)| crate::fault::BoardFaults {
+                board: i + 1,
+                cores: b.faults.clone(),
+                slots: b
+                    .slots
+                    .iter()
+                    .copied()
+                    .zip(b.keys.iter().copied())
+                    .collect(),
+            })
+            .collect()
+    }
+
+    /// Trips of the firmware's fault checks over every core of every board.
+    pub fn fault_trips(&self) -> u64 {
+        self.faults()
+            .iter()
+            .map(crate::fault::BoardFaults::trips)
+            .sum()
     }
 }
 

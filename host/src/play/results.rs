@@ -37,6 +37,10 @@ pub struct RunOptions {
     pub params: Vec<(String, String)>,
     /// Whether the firmware guards quiescent keys (the same strikes, other cycles).
     pub quiescent_guard: bool,
+    /// `--sensor-check`: the firmware's sensor check forced on or off (other cycles and
+    /// boards, the fault words); `None`: the programs' default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor_check: Option<bool>,
 }
 
 /// A source's name and the SHA3-256 of its text, hex.
@@ -345,6 +349,7 @@ mod tests {
                     seconds,
                     params: vec![],
                     quiescent_guard: true,
+                    sensor_check: None,
                 },
                 keyboards: vec![],
                 items: (0..6)

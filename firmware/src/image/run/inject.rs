@@ -164,6 +164,35 @@ fn noise(seed: &mut u32, amplitude: u16) -> i32 {
     (x % span) as i32 - i32::from(amplitude)
 }
 
+/// The noise's first xorshift32 state ([`FaultKind::sensor_code`]).
+pub const NOISE_SEED: u32 = 0x2545_f491;
+
+impl FaultKind {
+    /// The ADC code a key's sensor reads under this fault when it would read `code`
+    /// (module documentation): 0 open, 65,535 short or a silent ADC, the stuck code, the
+    /// code plus the jump, or plus a noise value drawn from `seed` (xorshift32, from
+    /// [`NOISE_SEED`]), saturated to 0–65,535; `code` itself for a fault not on a sensor.
+    pub fn sensor_code(self, code: u16, seed: &mut u32) -> u16 {
+        let code = i64::from(code);
+        match self {
+            FaultKind::Open => 0,
+            FaultKind::Short | FaultKind::AdcSilent => 0xffff,
+            FaultKind::Stuck(c) => i64::from(c),
+            FaultKind::Jump(d) => code + i64::from(d),
+            FaultKind::Noise(a) => code + i64::from(noise(seed, a)),
+            _ => code,
+        }
+        .clamp(0, 0xffff) as u16
+    }
+}
+
+/// The sensor word of ADC code `code` on a board without converters: `lo + code <<
+/// shift`, not clamped to the range (a short reads beyond it), saturated to an `i32`.
+pub fn code_word(scale: &AdcScale, code: u16) -> i32 {
+    let word = i64::from(scale.lo) + (i64::from(code) << scale.shift);
+    word.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+}
+
 impl ImageRun {
     /// Adds a fault (module documentation).
     ///
@@ -218,7 +247,7 @@ impl ImageRun {
             }
             let drives = self.image.keys.iter().map(|k| k.drives.len()).sum();
             self.faults.frozen = vec![None; drives];
-            self.faults.seed = 0x2545_f491;
+            self.faults.seed = NOISE_SEED;
         }
         self.faults.list.push(f);
         Ok(())
@@ -351,21 +380,12 @@ impl ImageRun {
                 let Some(scale) = self.faults.scales.get(w).copied() else {
                     continue;
                 };
-                let code = i64::from(scale.code(buf[w]));
-                let faulted = match f.kind {
-                    FaultKind::Open => 0,
-                    FaultKind::Short | FaultKind::AdcSilent => 0xffff,
-                    FaultKind::Stuck(c) => i64::from(c),
-                    FaultKind::Jump(d) => code + i64::from(d),
-                    FaultKind::Noise(a) => code + i64::from(noise(&mut self.faults.seed, a)),
-                    _ => code,
-                }
-                .clamp(0, 0xffff) as u16;
+                let code = scale.code(buf[w]).min(0xffff) as u16;
+                let faulted = f.kind.sensor_code(code, &mut self.faults.seed);
                 if io {
                     codes[w] = Some(faulted);
                 } else {
-                    let word = i64::from(scale.lo) + (i64::from(faulted) << scale.shift);
-                    buf[w] = word.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+                    buf[w] = code_word(&scale, faulted);
                 }
             }
         }

@@ -1,0 +1,179 @@
+//! `tactus corpus trips`: the budget corpus (`tactus_firmware::corpus`, the key motions
+//! `tactus budget` measures) through the firmware of every board of a keyboard, and the
+//! trips of its fault checks per run ([`budget_corpus_trips`], [`corpus_trips_text`]).
+//!
+//! **Why runs from a fresh boot, every key at once.** The budget measures one key's update
+//! over each run from the initial state; here the whole board runs it (every key of the
+//! board its own program's run of the label), so the check sees what the hardware would:
+//! the glue, both cores, the words the handler copies. A fresh boot per run keeps each run
+//! from its initial state, as the budget's are, and keeps a run ending mid-travel from
+//! looking like a jump to the next. The runs split in two: the physical ones (key motions,
+//! sensor noise) must trip nothing, a trip being a false alarm; the ones faulty by design
+//! (glitches to corner words, adversarial random words: [`by_design`]) show the checks at
+//! work.
+
+use crate::fault::{read_records, record_address, report_lines, BoardFaults};
+
+/// One run of the budget corpus (`tactus_firmware::corpus`) through one board of a
+/// keyboard: every key of the board following the run (each key its own program's run of
+/// that label), from a fresh boot; the board's fault records after it.
+#[derive(Clone, Debug)]
+pub struct CorpusTrips {
+    /// The run's label (`press-40ms`, `glitch-every-50`, `random0`, …).
+    pub label: String,
+    /// Whether the run is a fault by design (glitches to corner words, adversarial random
+    /// words: [`by_design`]), whose trips are the checks doing their work, not false
+    /// alarms.
+    pub by_design: bool,
+    /// Samples run.
+    pub samples: usize,
+    /// The board's fault records after the run.
+    pub faults: BoardFaults,
+}
+
+/// Whether a budget corpus run of this label feeds the sensor implausible words by design:
+/// `glitch-…` (corner words, dropouts, spikes) and `random…` (adversarial words).
+pub fn by_design(label: &str) -> bool {
+    label.starts_with("glitch") || label.starts_with("random")
+}
+
+/// The budget corpus (`tactus_firmware::corpus::Size::Quick` when `quick`, else `Full`)
+/// through every board of `kb`'s plan (the firmware of
+/// [`crate::keyboard::Keyboard::firmware`], with its `sensor_check`): per board and per
+/// run, the fault records after the run ([`CorpusTrips`]); `progress(done, total)` in
+/// board-runs. A keyboard whose keys' programs give runs of different labels runs the
+/// labels of its first key's program (each key its own run of the label, or rest).
+///
+/// Errors, as messages: the firmware does not compile, the plan or a board's image cannot
+/// be made, a board's run stops.
+pub fn budget_corpus_trips(
+    kb: &crate::keyboard::Keyboard,
+    quick: bool,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<CorpusTrips>, String> {
+    let size = match quick {
+        true => tactus_firmware::corpus::Size::Quick,
+        false => tactus_firmware::corpus::Size::Full,
+    };
+    use tactus_firmware::boards::{self, PlanKey, ProgramCosts};
+    let programs = kb.firmware().map_err(|e| e.to_string())?;
+    let plan = kb
+        .plan(&programs, &mut |_, _| {})
+        .map_err(|e| e.to_string())?;
+    let lim = kb.limiter();
+    let costs = ProgramCosts::new(&programs, &kb.board, &lim).map_err(|e| e.to_string())?;
+    let key_programs = kb.key_programs();
+    // Each program's runs, once.
+    let runs: Vec<Vec<tactus_firmware::measure::Run>> = (programs.iter())
+        .map(|p| tactus_firmware::corpus::corpus(&p.fixed, size))
+        .collect();
+    let lists = plan.key_lists();
+    let labels: Vec<String> = (key_programs.first())
+        .and_then(|k| runs.get(k.1))
+        .map(|r| r.iter().map(|r| r.label.clone()).collect())
+        .unwrap_or_default();
+    let total = lists.len() * labels.len();
+    let mut out = Vec::with_capacity(total);
+    for (b, list) in lists.iter().enumerate() {
+        let bkeys: Vec<PlanKey> = (key_programs.iter())
+            .filter(|k| list.contains(&k.0))
+            .map(|&(key, program)| PlanKey { key, program })
+            .collect();
+        let (_, image) = boards::board_image(&programs, &costs, &bkeys, &kb.board, &lim)
+            .map_err(|e| format!("board {}: {e}", b + 1))?;
+        let image = image.map_err(|e| format!("board {}: {e}", b + 1))?;
+        let addrs: Vec<u32> = (0..image.cores())
+            .filter_map(|c| image.core_addresses(c).map(|a| record_address(a[3])))
+            .collect();
+        let slots: Vec<(usize, u8)> = (image.keys().iter().zip(&bkeys))
+            .map(|(s, k)| (s.slot, k.key))
+            .collect();
+        let rest: Vec<Vec<i32>> = (bkeys.iter())
+            .map(|k| {
+                let p = &programs[k.program];
+                let lo = |i: usize| p.fixed.sensor_raw_range.get(i).map_or(0, |r| r.0);
+                (0..p.sensor_words()).map(lo).collect()
+            })
+            .collect();
+        for label in &labels {
+            progress(out.len(), total);
+            // Each key's run of this label (a key whose program has none stays at rest).
+            let key_runs: Vec<Option<&tactus_firmware::measure::Run>> = (bkeys.iter())
+                .map(|k| runs[k.program].iter().find(|r| &r.label == label))
+                .collect();
+            let samples = key_runs.iter().flatten().map(|r| r.records.len()).max();
+            let mut run = image.run().map_err(|e| format!("board {}: {e}", b + 1))?;
+            let mut words = Vec::new();
+            for n in 0..samples.unwrap_or(0) {
+                words.clear();
+                for (r, rest) in key_runs.iter().zip(&rest) {
+                    let rec = r.and_then(|r| r.records.get(n)).unwrap_or(rest);
+                    words.extend((0..rest.len()).map(|i| rec.get(i).copied().unwrap_or(rest[i])));
+                }
+                run.step(&words)
+                    .map_err(|e| format!("board {}, run {label}, sample {n}: {e}", b + 1))?;
+            }
+            run.settle().map_err(|e| format!("board {}: {e}", b + 1))?;
+            let board = run.board();
+            let cores = read_records(
+                &mut |a| board.read_u32(a).map_err(|e| e.to_string()),
+                &addrs,
+            )?;
+            out.push(CorpusTrips {
+                label: label.clone(),
+                by_design: by_design(label),
+                samples: samples.unwrap_or(0),
+                faults: BoardFaults {
+                    board: b + 1,
+                    cores,
+                    slots: slots.clone(),
+                },
+            });
+        }
+    }
+    progress(total, total);
+    Ok(out)
+}
+
+/// The budget corpus's trips as text: a line per run label (its trips over every board,
+/// and the first trip's board, core, kind and key), then the totals of the physical runs
+/// (0 expected: a trip is a false alarm) and of the runs faulty by design. Returns the
+/// lines and the physical runs' trips.
+pub fn corpus_trips_text(runs: &[CorpusTrips], fs: f64) -> (Vec<String>, u64) {
+    let mut labels: Vec<&str> = Vec::new();
+    for r in runs {
+        if !labels.contains(&r.label.as_str()) {
+            labels.push(&r.label);
+        }
+    }
+    let boards = runs.iter().map(|r| r.faults.board).max().unwrap_or(0);
+    let mut lines = Vec::new();
+    let (mut physical, mut designed) = (0u64, 0u64);
+    for label in labels {
+        let of: Vec<&CorpusTrips> = runs.iter().filter(|r| r.label == label).collect();
+        let trips: u64 = of.iter().map(|r| r.faults.trips()).sum();
+        let design = of.first().is_some_and(|r| r.by_design);
+        match design {
+            true => designed += trips,
+            false => physical += trips,
+        }
+        let first = (of.iter())
+            .find(|r| r.faults.trips() > 0)
+            .and_then(|r| {
+                report_lines(std::slice::from_ref(&r.faults), fs)
+                    .into_iter()
+                    .next()
+            })
+            .map_or(String::new(), |l| format!(" (first: {l})"));
+        lines.push(format!(
+            "  {label:<24} {:>7} samples  {trips:>6} trips{}{first}",
+            of.first().map_or(0, |r| r.samples),
+            if design { " (a fault by design)" } else { "" },
+        ));
+    }
+    lines.push(format!(
+        "budget corpus through {boards} board{}: {physical} trips in the physical runs (0 expected), {designed} in the runs faulty by design (glitches, random words)",
+        if boards == 1 { "" } else { "s" }
+    ));
+    (lines, physical)
+}

@@ -1,0 +1,239 @@
+//! `--fault` end to end through the CLI (issue 72): a sensor fault injected by `tactus play`
+//! on a plain board and on a converter board, and by `tactus emu run` on one board's
+//! firmware from `tactus build`, with the firmware's sensor check on: the fault report
+//! names the check, the key and the sample, and the key's motor is at zero force within
+//! 1 ms; a `--fault` that cannot be run names its field.
+
+mod common;
+
+use common::{assert_ok, small_layout, tactus, temp_dir, write_midi};
+use std::path::Path;
+
+/// The fault's onset, s: key 60 is held at the bottom of its travel then.
+const AT_S: f64 = 0.2;
+
+/// Rows (time, force word N, motor current A) of a play trace CSV (`--trace-keys`).
+fn trace(path: &Path) -> Vec<(f64, f64, f64)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+    let (t, f, i) = (col("time_s"), col("force_n"), col("motor_current_a"));
+    lines
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            (v[t], v[f], v[i])
+        })
+        .collect()
+}
+
+#[test]
+fn a_shorted_sensor_under_play_trips_its_check_and_its_motor_is_at_zero_within_1_ms() {
+    let dir = temp_dir("cli-faults-play");
+    let layout = small_layout(&dir, 60, 63);
+    let midi = dir.join("held.mid");
+    write_midi(&midi, &[(60, 90, 0.05, 0.35), (62, 60, 0.1, 0.3)], &[]);
+    // Held key 60 on the layout, 0.3 s, the sensor check on.
+    let play = || {
+        let mut c = tactus();
+        c.args(["play", midi.to_str().unwrap(), "--layout"])
+            .arg(&layout)
+            .args(["--seconds", "0.3", "--no-wav", "--sensor-check", "on"]);
+        c
+    };
+    for board in ["rp2040", "rp2040_io"] {
+        let out_dir = dir.join(board);
+        let out = play()
+            .args(["--board", board])
+            .args(["--fault", "kind=short,note=60,at=0.2s"])
+            .args([
+                "--trace-keys",
+                "60",
+                "--trace-from",
+                "0.19",
+                "--trace-to",
+                "0.21",
+            ])
+            .arg("-o")
+            .arg(&out_dir)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        // Tripped within 1 ms (44 samples) of the onset: on the converter board the ADC's
+        // frame of a sample is read in the sample before.
+        let sample: u64 = stdout
+            .lines()
+            .find_map(|l| l.split_once(": sensor-range on key 60 (C4) at sample "))
+            .and_then(|(_, rest)| rest.split(' ').next()?.parse().ok())
+            .unwrap_or_else(|| panic!("{board}: {stdout}"));
+        assert!((8820..=8820 + 44).contains(&sample), "{board}: {stdout}");
+        assert!(
+            stdout.contains("faults: 1 TRIP on 1 of 1 boards"),
+            "{board}: {stdout}"
+        );
+        let csv = std::fs::read_to_string(out_dir.join("held-faults.csv")).unwrap();
+        assert!(
+            csv.contains(&format!(",sensor-range,1,0,60,1,{sample},")),
+            "{board}: {csv}"
+        );
+        let rows = trace(&out_dir.join("held-key60.csv"));
+        // Held down before the fault: its force is not 0 (the check has something to stop).
+        let before: Vec<_> = rows.iter().filter(|r| r.0 < AT_S - 1e-9).collect();
+        assert!(
+            before.iter().all(|r| r.1.abs() > 0.05),
+            "{board}: {before:?}"
+        );
+        let after: Vec<_> = rows.iter().filter(|r| r.0 >= AT_S + 1e-3).collect();
+        assert!(after.len() > 300, "{board}: {} rows", after.len());
+        for r in after {
+            assert!(
+                r.1 == 0.0 && r.2.abs() < 1e-4,
+                "{board}: at {} s: {r:?}",
+                r.0
+            );
+        }
+    }
+    // The same run without the fault: no trip, said.
+    let out = play().arg("-o").arg(dir.join("clean")).output().unwrap();
+    assert_ok(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("faults: 0 trips on 1 board\n"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn emu_run_injects_a_sensor_fault_into_built_firmware_and_reports_its_fault_word() {
+    let dir = temp_dir("cli-faults-emu");
+    let layout = small_layout(&dir, 60, 63);
+    let fw = dir.join("fw");
+    let out = tactus()
+        .args([
+            "build",
+            layout.to_str().unwrap(),
+            "--target",
+            "rp2040",
+            "--sensor-check",
+            "on",
+        ])
+        .arg("-o")
+        .arg(&fw)
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let elf = fw.join("board-01/firmware.elf");
+    let run = |fault: &[&str]| {
+        tactus()
+            .args(["emu", "run", elf.to_str().unwrap(), "--stimulus", "mf-dip"])
+            .args(["--seconds", "0.101"])
+            .args(fault)
+            .output()
+            .unwrap()
+    };
+    // A shorted wire on key 61 from 0.1 s: the run ends 1 ms after it.
+    let out = run(&["--fault", "kind=short,note=61,at=0.1s"]);
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains(": sensor-range on key 61 (C#4) at sample 4410 (0.1000 s), 1 trip"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("faults: 1 TRIP on 1 of 1 boards"),
+        "{stdout}"
+    );
+    // The DAC words at the end, in keys.json's order (60, 61, 62, 63): key 61's is 0, the
+    // others' are not (the mf dip holds them down).
+    let dac = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("DAC words at the end: ["))
+        .and_then(|l| l.split(']').next())
+        .unwrap();
+    let words: Vec<u32> = dac
+        .split(", ")
+        .map(|w| u32::from_str_radix(w, 16).unwrap())
+        .collect();
+    assert_eq!(words.len(), 4, "{dac}");
+    assert_eq!(words[1], 0, "{dac}");
+    assert!(
+        words.iter().enumerate().all(|(k, &w)| k == 1 || w != 0),
+        "{dac}"
+    );
+    // Without a fault: no trip, said.
+    let out = run(&[]);
+    assert_ok(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("faults: 0 trips on 1 board\n"));
+    // What cannot be run names its field.
+    for (fault, field) in [
+        (
+            "kind=short,note=70,at=0.05s",
+            "field `note`: board 1 does not play MIDI key 70",
+        ),
+        ("kind=stuck,note=61,at=0.05s", "field `code`"),
+        (
+            "kind=short,board=2,key=0,at=0.05s",
+            "field `board`: board 2: this firmware is board 1",
+        ),
+        ("kind=hang,note=61,at=0.05s", "field `kind`"),
+    ] {
+        let out = run(&["--fault", fault]);
+        assert!(!out.status.success(), "{fault}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(field), "{fault}: {stderr}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_bad_fault_for_play_names_its_field_before_anything_runs() {
+    for (fault, field) in [
+        ("kind=open,note=60", "field `at`: missing"),
+        (
+            "kind=opne,note=60,at=1s",
+            "field `kind`: `opne` is not a fault",
+        ),
+        (
+            "kind=open,note=128,at=1s",
+            "field `note`: 128 is outside 0–127",
+        ),
+    ] {
+        let out = tactus()
+            .args(["play", "--no-wav", "--fault", fault])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{fault}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(field), "{fault}: {stderr}");
+    }
+}
+
+#[test]
+fn the_budget_corpus_trips_no_check_but_its_glitches_and_random_words_do() {
+    let dir = temp_dir("cli-faults-corpus");
+    let layout = small_layout(&dir, 60, 61);
+    let out = tactus()
+        .args(["corpus", "trips", layout.to_str().unwrap(), "--quick"])
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("sensor check on"), "{stdout}");
+    for physical in ["ff-dip", "press-12ms", "trill-16Hz-80%", "noisy-press-0.5%"] {
+        let line = (stdout.lines())
+            .find(|l| l.trim_start().starts_with(physical))
+            .unwrap_or_else(|| panic!("{physical}: {stdout}"));
+        assert!(line.ends_with(" 0 trips"), "{line}");
+    }
+    let glitch = (stdout.lines())
+        .find(|l| l.trim_start().starts_with("glitch-every-50"))
+        .unwrap();
+    assert!(
+        glitch.contains("(a fault by design) (first: board 1 core "),
+        "{glitch}"
+    );
+    assert!(!glitch.contains(" 0 trips"), "{glitch}");
+    assert!(
+        stdout.contains("budget corpus through 1 board: 0 trips in the physical runs"),
+        "{stdout}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
