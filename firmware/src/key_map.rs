@@ -266,13 +266,13 @@ pub fn check(map: &KeyMap, image: &Image) -> Result<CheckedMap, String> {
             }
         }
         let fault = addr(&c.fault, &f("fault"))?;
-        if fault != control.wrapping_add(u32::from(ctrl::FAULT)) {
+        if fault != crate::image::fault::record_address(control) {
             return Err(format!(
                 "`{}` = {}: core {i}'s fault record is word {} of its control block, {:#010x}",
                 f("fault"),
                 c.fault,
                 ctrl::FAULT / 4,
-                control.wrapping_add(u32::from(ctrl::FAULT))
+                crate::image::fault::record_address(control)
             ));
         }
         cores.push((isr & !1, control));

@@ -35,7 +35,6 @@
 
 use std::fmt;
 use tactus_firmware::image::fault::{FaultKind as TripKind, FaultWord, NO_KEY};
-use tactus_firmware::image::glue::ctrl;
 use tactus_firmware::image::{FaultKind, Injection};
 
 /// Where a fault is.
@@ -395,14 +394,6 @@ impl BoardFaults {
     }
 }
 
-/// The address of core `core`'s fault record in an image whose control block is at
-/// `control`: the rule `keys.json`'s `cores[c].fault` is written by
-/// (`tactus_firmware::flash`), the fault word at [`ctrl::FAULT`] and its time in the next
-/// word.
-pub fn record_address(control: u32) -> u32 {
-    control.wrapping_add(u32::from(ctrl::FAULT))
-}
-
 /// Reads the fault record at each of `addrs` (one per core: the fault word, then the
 /// fault time) through `read` (a word of the emulated board's memory), decoded.
 ///
@@ -754,7 +745,10 @@ mod tests {
             report_lines(&boards[..1], 44_100.0),
             ["faults: 0 trips on 1 board"]
         );
-        assert_eq!(record_address(0x2003_f000), 0x2003_f014);
+        assert_eq!(
+            tactus_firmware::image::fault::record_address(0x2003_f000),
+            0x2003_f014
+        );
     }
 
     #[test]

@@ -12,7 +12,8 @@
 //! (glitches to corner words, adversarial random words: [`by_design`]) show the checks at
 //! work.
 
-use crate::fault::{read_records, record_address, report_lines, BoardFaults};
+use crate::fault::{read_records, report_lines, BoardFaults};
+use tactus_firmware::image::fault::record_address;
 
 /// One run of the budget corpus (`tactus_firmware::corpus`) through one board of a
 /// keyboard: every key of the board following the run (each key its own program's run of
