@@ -255,7 +255,7 @@ fn key_map(
                 reset: hex(reset | 1),
                 sample_isr: hex(isr | 1),
                 control: hex(ctrl),
-                fault: hex(crate::image::fault::record_address(ctrl)),
+                fault: hex(crate::image::glue::ctrl::fault_record(ctrl)),
                 stack_top: hex(sp),
                 keys: image
                     .core_keys(c)
@@ -576,7 +576,7 @@ pub fn run_elf(
     for (c, (_, ctrl)) in cores.iter().enumerate() {
         let mut record = [0u32; 2];
         board
-            .read_words(crate::image::fault::record_address(*ctrl), &mut record)
+            .read_words(crate::image::glue::ctrl::fault_record(*ctrl), &mut record)
             .map_err(|e| e.to_string())?;
         fault_records.push(record);
         let done = board

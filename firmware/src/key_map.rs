@@ -266,13 +266,13 @@ pub fn check(map: &KeyMap, image: &Image) -> Result<CheckedMap, String> {
             }
         }
         let fault = addr(&c.fault, &f("fault"))?;
-        if fault != crate::image::fault::record_address(control) {
+        if fault != ctrl::fault_record(control) {
             return Err(format!(
                 "`{}` = {}: core {i}'s fault record is word {} of its control block, {:#010x}",
                 f("fault"),
                 c.fault,
                 ctrl::FAULT / 4,
-                crate::image::fault::record_address(control)
+                ctrl::fault_record(control)
             ));
         }
         cores.push((isr & !1, control));

@@ -746,7 +746,7 @@ mod tests {
             ["faults: 0 trips on 1 board"]
         );
         assert_eq!(
-            tactus_firmware::image::fault::record_address(0x2003_f000),
+            tactus_firmware::image::glue::ctrl::fault_record(0x2003_f000),
             0x2003_f014
         );
     }

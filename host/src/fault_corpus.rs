@@ -13,7 +13,7 @@
 //! work.
 
 use crate::fault::{read_records, report_lines, BoardFaults};
-use tactus_firmware::image::fault::record_address;
+use tactus_firmware::image::glue::ctrl::fault_record;
 
 /// One run of the budget corpus (`tactus_firmware::corpus`) through one board of a
 /// keyboard: every key of the board following the run (each key its own program's run of
@@ -84,7 +84,7 @@ pub fn budget_corpus_trips(
             .map_err(|e| format!("board {}: {e}", b + 1))?;
         let image = image.map_err(|e| format!("board {}: {e}", b + 1))?;
         let addrs: Vec<u32> = (0..image.cores())
-            .filter_map(|c| image.core_addresses(c).map(|a| record_address(a[3])))
+            .filter_map(|c| image.core_addresses(c).map(|a| fault_record(a[3])))
             .collect();
         let slots: Vec<(usize, u8)> = (image.keys().iter().zip(&bkeys))
             .map(|(s, k)| (s.slot, k.key))

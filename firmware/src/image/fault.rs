@@ -168,13 +168,6 @@ pub fn scratch(core: usize) -> (u32, u32) {
     (c, c + 1)
 }
 
-/// The address of a core's fault record (the fault word, then the fault time) in an image
-/// whose control block is at `control`: word [`super::glue::ctrl::FAULT`] / 4 of it. The
-/// rule `keys.json`'s `cores[c].fault` is written and checked by, and the host reads by.
-pub fn record_address(control: u32) -> u32 {
-    control.wrapping_add(u32::from(super::glue::ctrl::FAULT))
-}
-
 /// The largest speed of a key's (or a pen's) sensed point the checks allow, m/s. A struck
 /// *fff* key is met by the finger at up to 3 m/s (`tactus_runtime::player`'s fastest
 /// struck level; Askenfelt & Jansson, JASA 88(1), 1990, measured 0.3–0.5 m/s at *mf*,

@@ -52,6 +52,13 @@ pub mod ctrl {
     pub const FAULT_AT: u16 = 24;
     /// Size of the block; the key records follow it.
     pub const SIZE: u32 = 28;
+
+    /// The address of a core's fault record (the fault word at [`FAULT`], then the fault
+    /// time) in an image whose control block is at `control`: the rule `keys.json`'s
+    /// `cores[c].fault` is written and checked by, and the host reads by.
+    pub fn fault_record(control: u32) -> u32 {
+        control.wrapping_add(u32::from(FAULT))
+    }
 }
 
 /// SysTick's registers (DDI0419 B3.3.2) and the ICSR (B3.2.4), each core's own.

@@ -471,7 +471,7 @@ impl BoardEngine<'_> {
             .filter_map(|c| {
                 image
                     .core_addresses(c)
-                    .map(|a| tactus_firmware::image::fault::record_address(a[3]))
+                    .map(|a| tactus_firmware::image::glue::ctrl::fault_record(a[3]))
             })
             .collect();
         let board = self.run.board();
