@@ -19,7 +19,7 @@
 //! performance: expressive device or artifact?", JASA 110(1), 2001), from a Bösendorfer
 //! SE290's records, which the 2005 study replicated: `t = 89.16 ms · (v / 1 m/s)^−0.570`
 //! ([`travel_time_fit_s`]). Its constants are quoted from memory of the paper and remain
-//! unconfirmed: searched for twice (issue 70), the stored texts give only the papers'
+//! unconfirmed: searched for four times (issue 70), the stored texts give only the papers'
 //! abstracts and first pages. What they do confirm: the 2005 study's abstract (OFAI
 //! TR-2005-01) says the 2001 function, "derived from a computer-controlled piano", "was
 //! replicated", and the first page of Goebl, Bresin and Galembo's SMAC 2003 paper that it
