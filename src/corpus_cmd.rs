@@ -46,6 +46,10 @@ pub struct TripsArgs {
     /// checks) or `off`.
     #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off, default_value = "on")]
     pub sensor_check: bool,
+    /// The firmware's watchdog on every board, `on` or `off` [default: the firmware's
+    /// own]: the physical runs must not reset a board either.
+    #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off)]
+    pub watchdog: Option<bool>,
 }
 
 /// Arguments of `tactus corpus merge`.
@@ -88,6 +92,7 @@ fn trips(args: &TripsArgs) -> ExitCode {
         }
     };
     kb.sensor_check = Some(args.sensor_check);
+    kb.watchdog = args.watchdog;
     let bar = indicatif::ProgressBar::new(1);
     let runs = tactus_host::fault_corpus::budget_corpus_trips(&kb, args.quick, &mut |d, n| {
         bar.set_length(n as u64);

@@ -1309,6 +1309,7 @@ fn emu_session(
         span,
         faults: Vec::new(),
         sensor_check: None,
+        watchdog: None,
     };
     let opts = tactus_host::session::PieceOptions {
         seconds,

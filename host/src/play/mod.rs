@@ -148,6 +148,10 @@ pub struct PlayConfig {
     /// ([`crate::keyboard::Keyboard::sensor_check`]) before it compiles and plans; a caller
     /// of [`play`] sets it on the programs it passes.
     pub sensor_check: Option<bool>,
+    /// The firmware's watchdog (`tactus_firmware::image::Program::watchdog`) on or off on
+    /// every board, as [`PlayConfig::sensor_check`] ([`crate::keyboard::Keyboard::watchdog`]);
+    /// `None`: the programs' default.
+    pub watchdog: Option<bool>,
 }
 
 impl PlayConfig {
