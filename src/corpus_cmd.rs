@@ -107,10 +107,15 @@ fn trips(args: &TripsArgs) -> ExitCode {
         }
     };
     println!(
-        "{} on {}, sensor check {}: the budget corpus ({}) through every board",
+        "{} on {}, sensor check {}, watchdog {}: the budget corpus ({}) through every board",
         kb.name,
         kb.board.name,
         if args.sensor_check { "on" } else { "off" },
+        match args.watchdog {
+            Some(true) => "on",
+            Some(false) => "off",
+            None => "as the firmware's default",
+        },
         if args.quick { "quick" } else { "full" }
     );
     let (lines, physical) =
