@@ -309,6 +309,57 @@ fn a_hung_update_with_the_watchdog_on_resets_the_board_under_emu_run() {
 }
 
 #[test]
+fn a_note_at_0_s_is_struck_on_every_engine_and_trips_no_check() {
+    // Its stroke needs longer than the piece gives it before 0 s: the run starts that much
+    // earlier (a lead-in), the times reported stay the performance's. Before, the position
+    // player pressed the key in 1 ms (10 mm: the sensor check's sensor-rate tripped, no
+    // strike under the firmware).
+    let dir = temp_dir("cli-faults-lead");
+    let layout = small_layout(&dir, 60, 63);
+    let midi = dir.join("zero.mid");
+    write_midi(&midi, &[(63, 80, 0.0, 0.05)], &[]);
+    for (engine, player) in [
+        ("emu", "position"),
+        ("emu", "force"),
+        ("fixed", "position"),
+        ("jit", "position"),
+        ("interp", "position"),
+    ] {
+        let out_dir = dir.join(format!("{engine}-{player}"));
+        let out = tactus()
+            .args(["play", midi.to_str().unwrap(), "--layout"])
+            .arg(&layout)
+            .args(["--engine", engine, "--player", player])
+            .args(["--seconds", "0.3", "--no-wav", "--sensor-check", "on", "-o"])
+            .arg(&out_dir)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stdout.contains("→ 1 strikes (1 answer a note within 50 ms; 0 notes without a strike)"),
+            "{engine} {player}: {stdout}"
+        );
+        assert!(
+            !stderr.contains("could not be placed"),
+            "{engine} {player}: {stderr}"
+        );
+        if engine == "emu" {
+            assert!(
+                stdout.contains("faults: 0 trips on 1 board\n"),
+                "{engine} {player}: {stdout}"
+            );
+        }
+        let csv = std::fs::read_to_string(out_dir.join("zero-strikes.csv")).unwrap();
+        let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+        let t: f64 = row[1].parse().unwrap();
+        assert!(row[0] == "63" && t.abs() < 0.05, "{engine} {player}: {csv}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn a_bad_fault_for_play_names_its_field_before_anything_runs() {
     for (fault, field) in [
         ("kind=open,note=60", "field `at`: missing"),
