@@ -44,7 +44,7 @@ pub struct TripsArgs {
     pub quick: bool,
     /// The firmware's sensor check on every key (`on`, the default here: what the run
     /// checks) or `off`.
-    #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off, default_value = "on")]
+    #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off, default_value = "on", action = clap::ArgAction::Set)]
     pub sensor_check: bool,
     /// The firmware's watchdog on every board, `on` or `off` [default: the firmware's
     /// own]: the physical runs must not reset a board either.

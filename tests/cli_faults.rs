@@ -388,11 +388,12 @@ fn the_budget_corpus_trips_no_check_but_its_glitches_and_random_words_do() {
     let layout = small_layout(&dir, 60, 61);
     let out = tactus()
         .args(["corpus", "trips", layout.to_str().unwrap(), "--quick"])
+        .args(["--sensor-check", "on", "--watchdog", "on"])
         .output()
         .unwrap();
     assert_ok(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("sensor check on"), "{stdout}");
+    assert!(stdout.contains("sensor check on, watchdog on"), "{stdout}");
     for physical in ["ff-dip", "press-12ms", "trill-16Hz-80%", "noisy-press-0.5%"] {
         let line = (stdout.lines())
             .find(|l| l.trim_start().starts_with(physical))
