@@ -493,12 +493,17 @@ fn rebuild(
         kb.watchdog = Some(watchdog);
         return Ok((fw.image, (sensor_check, watchdog)));
     }
+    let maps = kb.boards.as_ref().map_or(1, Vec::len);
     Err(format!(
-        "{}: not the firmware its key maps build (board {} of {} keys, the sensor check and \
-         the watchdog each on and off): built by another version of tactus, or from other \
-         key maps; build it again with `tactus build … --target rp2040`",
+        "{}: not the firmware its key maps build (board {}, rebuilt from {maps} key map{} of \
+         {} keys, the sensor check and the watchdog each on and off): built by another \
+         version of tactus, from other key maps, or a board taken out of its build (an \
+         instrument graded over the keyboard shares one code planned over every board's \
+         keys: keep the build's board-NN directories together); build it again with \
+         `tactus build … --target rp2040`",
         file.display(),
         map.board,
+        if maps == 1 { "" } else { "s" },
         kb.keys.len()
     ))
 }
