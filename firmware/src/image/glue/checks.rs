@@ -263,6 +263,15 @@ impl Feed {
     pub fn unpriced_cycles(&self) -> u64 {
         u64::from(tactus_isa::timing::APB_STORE_WAIT) + u64::from(self.other_samples.is_some())
     }
+
+    /// Cycles the feed adds to core 1's handler beyond its static analysis: core 0's load
+    /// of core 1's count contends for core 1's bank once a sample, and the bank's
+    /// arbitration may make core 1 the one that waits (which core waits depends on the
+    /// arbiter's state, so a boot from flash and one from RAM may split the cycle
+    /// differently). 0 on a one-core image.
+    pub fn other_core_cycles(&self) -> u64 {
+        u64::from(self.other_samples.is_some())
+    }
 }
 
 /// The feed at the end of core 0's handler, r1 = core 0's sample count just stored: LOAD =
