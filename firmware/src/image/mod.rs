@@ -959,9 +959,13 @@ impl FirmwareImage {
             .sum();
         for (c, (w, p)) in wcet.iter_mut().zip(&places).enumerate() {
             w.contention = if p.keys.is_empty() { 0 } else { total };
-            // The watchdog's feed on core 0: its APB store and its load from core 1's bank.
-            if let Some(f) = l.feed(data_off).filter(|_| c == 0) {
-                w.contention += f.unpriced_cycles();
+            // The watchdog's feed on core 0: its APB store and its load from core 1's bank,
+            // which core 1 may be the one to wait for.
+            if let Some(f) = l.feed(data_off) {
+                w.contention += match c {
+                    0 => f.unpriced_cycles(),
+                    _ => f.other_core_cycles(),
+                };
             }
             // With converters, the DMA's accesses to the core's I/O bank (`io.rs`).
             if let Some(cio) = l.io.as_ref().and_then(|io| io.cores.get(c)) {
