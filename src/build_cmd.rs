@@ -80,6 +80,12 @@ pub struct BuildArgs {
     /// firmware's own].
     #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off)]
     pub sensor_check: Option<bool>,
+    /// Firmware: the RP2040's watchdog (datasheet 4.7) `on` or `off` on every board, fed
+    /// by core 0 only when both cores finished their sample, so that a hung core resets the
+    /// board with its motors at zero force (docs/faults.md); the boards planned and priced
+    /// with its feed [default: the firmware's own].
+    #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off)]
+    pub watchdog: Option<bool>,
 }
 
 /// Code generation targets.
@@ -121,9 +127,9 @@ fn build(args: &BuildArgs) -> Result<(), Option<String>> {
         }
         return build_firmware(args, dir);
     }
-    if args.board.is_some() || args.ram || args.sensor_check.is_some() {
+    if args.board.is_some() || args.ram || args.sensor_check.is_some() || args.watchdog.is_some() {
         return Err(Some(format!(
-            "{}: --board, --ram and --sensor-check are for firmware (a layout, or an instrument with --keys N)",
+            "{}: --board, --ram, --sensor-check and --watchdog are for firmware (a layout, or an instrument with --keys N)",
             args.file
         )));
     }
@@ -160,6 +166,7 @@ fn build_firmware(args: &BuildArgs, dir: &std::path::Path) -> Result<(), Option<
     )
     .map_err(|e| Some(e.to_string()))?;
     kb.sensor_check = args.sensor_check;
+    kb.watchdog = args.watchdog;
     let command: Vec<String> = std::env::args().skip(1).collect();
     let command = format!("tactus {}", command.join(" "));
     let bar = StageBar::new();

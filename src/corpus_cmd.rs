@@ -44,8 +44,12 @@ pub struct TripsArgs {
     pub quick: bool,
     /// The firmware's sensor check on every key (`on`, the default here: what the run
     /// checks) or `off`.
-    #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off, default_value = "on")]
+    #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off, default_value = "on", action = clap::ArgAction::Set)]
     pub sensor_check: bool,
+    /// The firmware's watchdog on every board, `on` or `off` [default: the firmware's
+    /// own]: the physical runs must not reset a board either.
+    #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off)]
+    pub watchdog: Option<bool>,
 }
 
 /// Arguments of `tactus corpus merge`.
@@ -88,6 +92,7 @@ fn trips(args: &TripsArgs) -> ExitCode {
         }
     };
     kb.sensor_check = Some(args.sensor_check);
+    kb.watchdog = args.watchdog;
     let bar = indicatif::ProgressBar::new(1);
     let runs = tactus_host::fault_corpus::budget_corpus_trips(&kb, args.quick, &mut |d, n| {
         bar.set_length(n as u64);
@@ -102,10 +107,15 @@ fn trips(args: &TripsArgs) -> ExitCode {
         }
     };
     println!(
-        "{} on {}, sensor check {}: the budget corpus ({}) through every board",
+        "{} on {}, sensor check {}, watchdog {}: the budget corpus ({}) through every board",
         kb.name,
         kb.board.name,
         if args.sensor_check { "on" } else { "off" },
+        match args.watchdog {
+            Some(true) => "on",
+            Some(false) => "off",
+            None => "as the firmware's default",
+        },
         if args.quick { "quick" } else { "full" }
     );
     let (lines, physical) =

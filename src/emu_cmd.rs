@@ -1,10 +1,12 @@
 //! `tactus emu …`: run ELF files on the emulated RP2040 (owned by the emulator work, issue 4).
 //!
 //! With `--stimulus`, the ELF is firmware from `tactus build … --target rp2040` and its key
-//! map (`keys.json` beside it) says where each key's sensor word is: the firmware boots
-//! from reset (core 0 launches core 1 over the FIFOs), every key follows the stimulus, and
-//! the command prints per core the handler's worst and mean cycles and the misses
-//! (`tactus_firmware::flash::run_elf`).
+//! map (`keys.json` beside it) says which keys it runs: the board's image is rebuilt from
+//! the key maps of its keyboard and checked to be the ELF byte for byte, then the ELF boots
+//! from reset and runs sample by sample as `tactus play` runs every board (converters
+//! included), every key following the stimulus, with `--fault`s injected; the command
+//! prints per core the handler's worst and mean cycles and the misses, the resets and the
+//! fault words (`tactus_host::emu::FirmwareJob`).
 //!
 //! The only place the emulator's results are printed: the library returns values, this
 //! module formats them.
@@ -45,19 +47,21 @@ pub enum EmuCommand {
         /// Emulated seconds to run with `--stimulus` (at most 60).
         #[arg(long, default_value_t = 1.0)]
         seconds: f64,
-        /// With `--stimulus`: inject a fault into a key's sensor (repeatable), in `tactus
-        /// play --fault`'s syntax: `kind=open|short|stuck|jump|noise|adc-silent`, the key
-        /// `note=MIDI` or `board=N,key=K` (N: this firmware's board, its keys.json's
-        /// `board`; K from 0 in its key order; `board=N,core=C` for adc-silent), `at=TIME`
-        /// and optionally `until=TIME` (`1.5s`, `200ms`), and the kind's value (`code=`,
-        /// `delta=`, `amplitude=`). The hang, flip, dac-stall and brownout kinds run in
-        /// `tactus play --fault`. After the run the board's fault words are printed (kind,
-        /// key, time, trips): docs/faults.md.
+        /// With `--stimulus`: inject a fault (repeatable), in `tactus play --fault`'s syntax:
+        /// `kind=open|short|stuck|jump|noise` on a key (`note=MIDI`, or `board=N,key=K`: N
+        /// this firmware's board, its keys.json's `board`; K from 0 in its key order),
+        /// `kind=hang` (its update never returns) or `kind=flip` (`word=`, `bit=`) on a key,
+        /// `kind=adc-silent|dac-stall` on `board=N,core=C`, `kind=brownout` on `board=N`;
+        /// `at=TIME` and optionally `until=TIME` (`1.5s`, `200ms`), and the kind's value
+        /// (`code=`, `delta=`, `amplitude=`). On plain and converter boards alike. After the
+        /// run the board's resets and fault words are printed (kind, key, time, trips):
+        /// docs/faults.md.
         #[arg(long = "fault", value_name = "FAULT", value_parser = crate::play_cmd::parse_fault, requires = "stimulus")]
         fault: Vec<tactus_host::fault::FaultSpec>,
         /// Serve GDB on 127.0.0.1:PORT and wait for it before running (0: any free port,
-        /// printed). Both cores are threads; breakpoints, watchpoints, stepping and
-        /// `monitor cycles` leave every cycle count as it is (docs/firmware.md).
+        /// printed; with `--stimulus` the firmware is attached at its first sample tick).
+        /// Both cores are threads; breakpoints, watchpoints, stepping and `monitor cycles`
+        /// leave every cycle count as it is (docs/firmware.md).
         #[arg(long, value_name = "PORT")]
         gdb: Option<u16>,
     },
@@ -65,7 +69,7 @@ pub enum EmuCommand {
 
 /// `tactus emu run --help`'s examples.
 const RUN_EXAMPLES: &str = "Examples:
-  tactus build grand88 --target rp2040 --sensor-check on -o fw
+  tactus build grand88 --target rp2040 --sensor-check on --watchdog on -o fw
   tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --seconds 0.5
       every key of board 5 dipping mezzoforte: each core's cycles and misses, the fault words
   tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --seconds 0.5 \\
@@ -73,12 +77,20 @@ const RUN_EXAMPLES: &str = "Examples:
       key 60's sensor wire shorted (the ADC's full scale) from 0.2 s to 0.3 s: the report names
       the check that tripped (sensor-range), the key, the sample and the trips
   tactus emu run fw/board-05/firmware.elf --stimulus pp-dip --fault kind=noise,amplitude=2000,board=5,key=3,at=0.1s
-  tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --fault kind=adc-silent,board=5,core=1,at=0.1s
+  tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --fault kind=hang,note=60,at=0.1s
+      key 60's update never returns: with the watchdog on, the board resets (printed, with the
+      samples at zero force until it runs again) and its fault word says `watchdog`
+  tactus build grand88 --target rp2040 --board rp2040_io --sensor-check on -o fw-io
+  tactus emu run fw-io/board-05/firmware.elf --stimulus mf-dip --fault kind=adc-silent,board=5,core=1,at=0.1s
+
+The firmware is rebuilt from the key maps of its keyboard (its keys.json and those of the
+board-NN directories beside it) and must be that build byte for byte: firmware from another
+version of tactus is refused (build it again).
 
 A bad --fault names its field: `--fault kind=open,note=200,at=1s` → field `note`: 200 is
 outside 0–127 (exit 2, nothing run). Exit status: 0; 1 for a file, key map or fault the
-firmware cannot take; 2 for a bad argument, or when the firmware faults, misses a
-deadline, or its checks trip with no --fault (a false alarm).";
+firmware cannot take; 2 for a bad argument, or when the firmware faults, or with no
+--fault misses a deadline, trips its checks or resets (a false alarm).";
 
 /// Waits on 127.0.0.1:`port` for one GDB client ([`emu::wait_for_gdb`]), saying where on
 /// stderr.
@@ -91,8 +103,8 @@ fn wait_for_gdb(port: u16) -> Result<Box<dyn tactus_emulator::Debugger>, String>
 }
 
 /// Runs an `emu` subcommand; returns the process exit code (1 for an unloadable file, 2
-/// when the firmware faults or locks up, or misses a deadline or trips a fault check with
-/// no `--fault` with `--stimulus`).
+/// when the firmware faults or locks up, or with `--stimulus` and no `--fault` misses a
+/// deadline, trips a fault check or resets).
 pub fn run(cmd: EmuCommand) -> ExitCode {
     let EmuCommand::Run {
         file,
@@ -144,7 +156,7 @@ fn run_elf(
 }
 
 /// `tactus emu run FIRMWARE.elf --stimulus S [--fault F]`: see the module documentation.
-/// Exit code 0 without misses, 2 with, or with trips and no fault injected.
+/// Exit code 0; 2 with no fault injected and misses, trips or resets.
 fn run_firmware(
     file: &Path,
     stimulus: &str,

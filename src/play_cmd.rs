@@ -125,6 +125,14 @@ pub struct PlayArgs {
     /// own]. With it on and no `--fault`, a trip is a false alarm: exit 1.
     #[arg(long, value_name = "on|off", value_parser = parse_on_off)]
     pub sensor_check: Option<bool>,
+    /// With `--engine emu`: the RP2040's watchdog (datasheet 4.7) `on` or `off` on every
+    /// board: fed by core 0 only when both cores finished their sample, so a core caught
+    /// in a loop resets the board (its motors at zero force from the reset until the
+    /// sample loop runs again, a `watchdog` fault word left); the boards planned and
+    /// priced with its feed [default: the firmware's own]. Each reset is printed after the
+    /// budget: docs/faults.md.
+    #[arg(long, value_name = "on|off", value_parser = parse_on_off)]
+    pub watchdog: Option<bool>,
     /// Output directory.
     #[arg(long, short, default_value = "out")]
     pub out: PathBuf,
@@ -268,6 +276,7 @@ fn session(args: &PlayArgs, combo: &Combo) -> Result<Session, PlayError> {
         io_trace: args.io_trace.clone(),
         faults: args.fault.clone(),
         sensor_check: args.sensor_check,
+        watchdog: args.watchdog,
     };
     let opts = PieceOptions {
         seconds: args.seconds,

@@ -2,7 +2,10 @@
 //! on a plain board and on a converter board, and by `tactus emu run` on one board's
 //! firmware from `tactus build`, with the firmware's sensor check on: the fault report
 //! names the check, the key and the sample, and the key's motor is at zero force within
-//! 1 ms; a `--fault` that cannot be run names its field.
+//! 1 ms; `emu run` and `play` run a fault through the one path (`ImageRun::inject`) and
+//! report the same trips on both boards; a hung update with `--watchdog on` resets the
+//! board, and `emu run` says so with the fault word it leaves; a `--fault` that cannot be
+//! run names its field.
 
 mod common;
 
@@ -141,21 +144,18 @@ fn emu_run_injects_a_sensor_fault_into_built_firmware_and_reports_its_fault_word
         stdout.contains("faults: 1 TRIP on 1 of 1 boards"),
         "{stdout}"
     );
-    // The DAC words at the end, in keys.json's order (60, 61, 62, 63): key 61's is 0, the
+    // The DAC codes at the end, in keys.json's order (60, 61, 62, 63): key 61's is 0, the
     // others' are not (the mf dip holds them down).
     let dac = stdout
         .lines()
-        .find_map(|l| l.strip_prefix("DAC words at the end: ["))
+        .find_map(|l| l.strip_prefix("DAC codes at the end: ["))
         .and_then(|l| l.split(']').next())
         .unwrap();
-    let words: Vec<u32> = dac
-        .split(", ")
-        .map(|w| u32::from_str_radix(w, 16).unwrap())
-        .collect();
-    assert_eq!(words.len(), 4, "{dac}");
-    assert_eq!(words[1], 0, "{dac}");
+    let codes: Vec<i16> = dac.split(", ").map(|w| w.parse().unwrap()).collect();
+    assert_eq!(codes.len(), 4, "{dac}");
+    assert_eq!(codes[1], 0, "{dac}");
     assert!(
-        words.iter().enumerate().all(|(k, &w)| k == 1 || w != 0),
+        codes.iter().enumerate().all(|(k, &w)| k == 1 || w != 0),
         "{dac}"
     );
     // Without a fault: no trip, said.
@@ -173,12 +173,188 @@ fn emu_run_injects_a_sensor_fault_into_built_firmware_and_reports_its_fault_word
             "kind=short,board=2,key=0,at=0.05s",
             "field `board`: board 2: this firmware is board 1",
         ),
-        ("kind=hang,note=61,at=0.05s", "field `kind`"),
+        (
+            "kind=flip,word=100000,bit=3,note=61,at=0.05s",
+            "`word`: word 100000 of a state struct of",
+        ),
     ] {
         let out = run(&["--fault", fault]);
         assert!(!out.status.success(), "{fault}");
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(stderr.contains(field), "{fault}: {stderr}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The lines of a fault report that name a trip (`board 1 core 0: sensor-rate on key 62 …`),
+/// unindented.
+fn trip_lines(stdout: &str) -> Vec<String> {
+    (stdout.lines())
+        .map(str::trim)
+        .filter(|l| l.starts_with("board ") && l.contains(" core ") && l.contains(" trip"))
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn emu_run_and_play_report_the_same_trips_for_the_same_faults_on_both_boards() {
+    let dir = temp_dir("cli-faults-same");
+    let layout = small_layout(&dir, 60, 63);
+    // Keys 61 and 62 at rest in both runs: a CSV stimulus of the key at the top, and a
+    // performance that plays key 63 only, after the faults began.
+    let rest = dir.join("rest.csv");
+    std::fs::write(&rest, "key_mm\n0\n").unwrap();
+    let midi = dir.join("late.mid");
+    write_midi(&midi, &[(63, 80, 0.1, 0.15)], &[]);
+    let faults = [
+        "--fault",
+        "kind=noise,amplitude=5000,note=62,at=0.05s",
+        "--fault",
+        "kind=adc-silent,board=1,core=1,at=0.1s",
+    ];
+    for board in ["rp2040", "rp2040_io"] {
+        let fw = dir.join(format!("fw-{board}"));
+        let out = tactus()
+            .args(["build", layout.to_str().unwrap(), "--target", "rp2040"])
+            .args(["--board", board, "--sensor-check", "on", "-o"])
+            .arg(&fw)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let out = tactus()
+            .args(["emu", "run"])
+            .arg(fw.join("board-01/firmware.elf"))
+            .args(["--stimulus", rest.to_str().unwrap(), "--seconds", "0.12"])
+            .args(faults)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let emu = trip_lines(&String::from_utf8_lossy(&out.stdout));
+        let out = tactus()
+            .args(["play", midi.to_str().unwrap(), "--layout"])
+            .arg(&layout)
+            .args(["--board", board, "--seconds", "0.12", "--no-wav"])
+            .args(["--sensor-check", "on"])
+            .args(faults)
+            .arg("-o")
+            .arg(dir.join(board))
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let play = trip_lines(&String::from_utf8_lossy(&out.stdout));
+        // The noise's codes are drawn once per run in both (the same codes, the same
+        // sample); the silent ADC reads full scale on both keys of core 1.
+        assert_eq!(emu.len(), 2, "{board}: {emu:?}");
+        assert!(
+            emu[0].starts_with("board 1 core 0: sensor-rate on key 62 (D4) at sample ")
+                && emu[1].starts_with("board 1 core 1: sensor-range on key 61 (C#4) at sample "),
+            "{board}: {emu:?}"
+        );
+        assert_eq!(emu, play, "{board}: emu run against play");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_hung_update_with_the_watchdog_on_resets_the_board_under_emu_run() {
+    let dir = temp_dir("cli-faults-watchdog");
+    let layout = small_layout(&dir, 60, 61);
+    let fw = dir.join("fw");
+    let build = |watchdog: &str| {
+        tactus()
+            .args(["build", layout.to_str().unwrap(), "--target", "rp2040"])
+            .args(["--watchdog", watchdog, "-o"])
+            .arg(&fw)
+            .output()
+            .unwrap()
+    };
+    let run = || {
+        tactus()
+            .args(["emu", "run"])
+            .arg(fw.join("board-01/firmware.elf"))
+            .args(["--stimulus", "mf-dip", "--seconds", "0.06"])
+            .args(["--fault", "kind=hang,note=61,at=0.05s,until=0.055s"])
+            .output()
+            .unwrap()
+    };
+    assert_ok(&build("on"));
+    let out = run();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains(", watchdog on"), "{stdout}");
+    // Fed only when both cores finished their sample: the hung core stops the feed, the
+    // watchdog resets the board within its period, and the firmware boots again from flash
+    // with its fault record kept.
+    let reset = (stdout.lines())
+        .find_map(|l| l.strip_prefix("reset: watchdog timer reset at sample "))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    let sample: u64 = reset.split(' ').next().unwrap().parse().unwrap();
+    assert!((2205..2205 + 441).contains(&sample), "{stdout}");
+    assert!(reset.contains("booted again"), "{stdout}");
+    assert!(
+        stdout.contains("board 1 core 0: watchdog on the whole board"),
+        "{stdout}"
+    );
+    // Without the watchdog nothing resets the board: the hung core never completes its
+    // sample, an error of the run.
+    assert_ok(&build("off"));
+    let out = run();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("sample 2206 not completed"), "{stderr}");
+    // --watchdog takes on or off.
+    let out = build("maybe");
+    assert_eq!(out.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_note_at_0_s_is_struck_on_every_engine_and_trips_no_check() {
+    // Its stroke needs longer than the piece gives it before 0 s: the run starts that much
+    // earlier (a lead-in), the times reported stay the performance's. Before, the position
+    // player pressed the key in 1 ms (10 mm: the sensor check's sensor-rate tripped, no
+    // strike under the firmware).
+    let dir = temp_dir("cli-faults-lead");
+    let layout = small_layout(&dir, 60, 63);
+    let midi = dir.join("zero.mid");
+    write_midi(&midi, &[(63, 80, 0.0, 0.05)], &[]);
+    for (engine, player) in [
+        ("emu", "position"),
+        ("emu", "force"),
+        ("fixed", "position"),
+        ("jit", "position"),
+        ("interp", "position"),
+    ] {
+        let out_dir = dir.join(format!("{engine}-{player}"));
+        let out = tactus()
+            .args(["play", midi.to_str().unwrap(), "--layout"])
+            .arg(&layout)
+            .args(["--engine", engine, "--player", player])
+            .args(["--seconds", "0.3", "--no-wav", "--sensor-check", "on", "-o"])
+            .arg(&out_dir)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stdout.contains("→ 1 strikes (1 answer a note within 50 ms; 0 notes without a strike)"),
+            "{engine} {player}: {stdout}"
+        );
+        assert!(
+            !stderr.contains("could not be placed"),
+            "{engine} {player}: {stderr}"
+        );
+        if engine == "emu" {
+            assert!(
+                stdout.contains("faults: 0 trips on 1 board\n"),
+                "{engine} {player}: {stdout}"
+            );
+        }
+        let csv = std::fs::read_to_string(out_dir.join("zero-strikes.csv")).unwrap();
+        let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+        let t: f64 = row[1].parse().unwrap();
+        assert!(row[0] == "63" && t.abs() < 0.05, "{engine} {player}: {csv}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -212,11 +388,12 @@ fn the_budget_corpus_trips_no_check_but_its_glitches_and_random_words_do() {
     let layout = small_layout(&dir, 60, 61);
     let out = tactus()
         .args(["corpus", "trips", layout.to_str().unwrap(), "--quick"])
+        .args(["--sensor-check", "on", "--watchdog", "on"])
         .output()
         .unwrap();
     assert_ok(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("sensor check on"), "{stdout}");
+    assert!(stdout.contains("sensor check on, watchdog on"), "{stdout}");
     for physical in ["ff-dip", "press-12ms", "trill-16Hz-80%", "noisy-press-0.5%"] {
         let line = (stdout.lines())
             .find(|l| l.trim_start().starts_with(physical))

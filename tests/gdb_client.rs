@@ -35,7 +35,7 @@ fn tactus(args: &[&str]) -> String {
 fn outcome(text: &str) -> Vec<String> {
     let lines: Vec<String> = text
         .lines()
-        .filter(|l| l.starts_with("final cycles") || l.starts_with("DAC words at the end"))
+        .filter(|l| l.starts_with("final cycles") || l.starts_with("DAC codes at the end"))
         .map(str::to_string)
         .collect();
     assert_eq!(lines.len(), 2, "no final cycles or DAC lines in:\n{text}");

@@ -837,13 +837,15 @@ fn class_14_play_ends_and_says_what_it_could_not_do() {
             "19999 notes left out",
         );
     }
-    // A note at 0 s cannot start its descent before the piece: said, not silent.
+    // A note at 0 s was struck at 0.5 s and not at 0 s, without a word; then struck late,
+    // with a warning. The run now starts early enough (a lead-in): struck within 50 ms of
+    // it, with nothing to say.
     let first = write(
         &dir,
         "first.mid",
         midi(0, 1, 480, &[(0, &[0x90, 60, 100]), (192, &[0x80, 60, 0])]),
     );
-    expect(
+    let said = expect(
         &[
             "play",
             &first,
@@ -856,7 +858,21 @@ fn class_14_play_ends_and_says_what_it_could_not_do() {
             "--no-wav",
         ],
         0,
-        "could not be placed as recorded",
+        "1 strikes (1 answer a note within 50 ms; 0 notes without a strike)",
+    );
+    assert!(!said.contains("could not be placed"), "{said}");
+    // One strike (`key,time_s,…,note_on_s,…`), of key 60, within 50 ms of the note at 0 s.
+    let csv = std::fs::read_to_string(dir.join("first-strikes.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 1, "{csv}");
+    let t: f64 = rows[0][1].parse().unwrap();
+    assert!(
+        rows[0][0] == "60" && rows[0][4] == "0" && t.abs() < 0.05,
+        "{csv}"
     );
 }
 

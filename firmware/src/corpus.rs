@@ -180,10 +180,12 @@ pub fn half_dips(dip_m: f64, size: Size) -> Vec<(String, Vec<f64>)> {
 }
 
 /// Sensor noise: a medium press with uniform noise of ±`amp` of the dip added to every
-/// sample (clamped to the sensor range by the conversion), and noise on a key at rest.
+/// sample (clamped to the sensor range by the conversion), and noise on a key at rest. The
+/// full corpus's top level is the noise the sensor check allows
+/// ([`crate::image::fault::SENSOR_NOISE_FRACTION`]): it must trip no key.
 pub fn noisy(dip_m: f64, size: Size, seed: u64) -> Vec<(String, Vec<f64>)> {
     let amps: &[f64] = match size {
-        Size::Full => &[0.001, 0.005, 0.02],
+        Size::Full => &[0.001, 0.005, crate::image::fault::SENSOR_NOISE_FRACTION],
         Size::Quick | Size::Brief => &[0.005],
     };
     let mut rng = XorShift64::new(seed);

@@ -84,7 +84,8 @@ pub struct BoardKind {
     /// Cycles per sample per core: the deadline (`BoardSpec::cycles_per_sample`, the shortest tick interval).
     pub cycles_per_sample: u64,
     /// Static cycles of a core's sample interrupt with no key (entry, tick, miss check,
-    /// return).
+    /// return): core 0's, with the watchdog's feed when the programs run it
+    /// ([`crate::image::Program::watchdog`]), the most any core's costs.
     pub isr_cycles: u64,
 }
 
@@ -822,7 +823,8 @@ pub fn keyboard_budget(
         .max_by_key(|&i| (costs.key_cycles[keys[i].program], std::cmp::Reverse(i)))
         .unwrap_or(0);
     let wk = keys[worst];
-    let isr_cycles = FirmwareImage::build(&[], &[], board, &input.limiter)
+    // Core 0's: with the watchdog's feed when the programs run it.
+    let isr_cycles = FirmwareImage::build(&programs, &[], board, &input.limiter)
         .ok()
         .and_then(|i| i.wcet(0))
         .map_or(0, |w| w.bound());

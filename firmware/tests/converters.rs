@@ -159,10 +159,19 @@ fn converters_carry_the_same_positions_in_and_codes_out() {
             .all(|(i, f)| usize::from(f.channel) == i % n && f.sclks == 32));
         assert_eq!(io.dacs[c].updates().len(), N * n, "core {c}");
     }
-    // The static bound counts the DMA's accesses to each core's I/O bank.
+    // The static bound counts the DMA's accesses to each core's I/O bank, and the watchdog
+    // feed's cycles its analysis does not price (`glue::Feed`: core 0's APB store, its load
+    // of core 1's count from core 1's bank, which either core may wait for).
+    let feed = tactus_firmware::image::glue::Feed {
+        other_samples: Some(0),
+    };
     for (c, n) in [(0u64, 3u64), (1, 2)] {
         let w = with.wcet(c as usize).unwrap();
-        assert_eq!(w.contention, 3 * n, "core {c}");
+        let fed = match c {
+            0 => feed.unpriced_cycles(),
+            _ => feed.other_core_cycles(),
+        };
+        assert_eq!(w.contention, 3 * n + fed, "core {c}");
         let wo = without.wcet(c as usize).unwrap();
         assert!(w.analysed > wo.analysed);
         println!(
@@ -276,10 +285,19 @@ fn a_board_with_converters_boots_from_flash_as_from_ram() {
         let now: Vec<i32> = words.iter().map(|w| w[n]).collect();
         let a = ram.step(&now).unwrap().clone();
         let b = rom.step(&now).unwrap().clone();
+        assert_eq!((&a.force, &a.dac), (&b.force, &b.dac));
+        // The cycles too, but for the one a sample the watchdog's feed makes the cores
+        // contend for core 1's bank (`glue::Feed::other_core_cycles`): which core waits
+        // depends on the arbiter's history, which the boots leave differently.
+        let (sa, sb): (u64, u64) = (a.core_cycles.iter().sum(), b.core_cycles.iter().sum());
         assert_eq!(
-            (a.force, a.dac, a.core_cycles),
-            (b.force, b.dac, b.core_cycles)
+            sa, sb,
+            "sample {n}: {:?} {:?}",
+            a.core_cycles, b.core_cycles
         );
+        for (x, y) in a.core_cycles.iter().zip(&b.core_cycles) {
+            assert!(x.abs_diff(*y) <= 1, "sample {n}: {x} {y}");
+        }
     }
     let (ra, _) = ram.take_io();
     let (rb, breaches) = rom.take_io();

@@ -387,8 +387,12 @@ fn the_sample_tick_is_cycle_exact_and_the_same_on_both_cores() {
 #[test]
 fn an_overloaded_image_counts_deadline_misses() {
     // Two grand piano keys per core at 48 MHz: 1088 cycles per sample, a piano key's update
-    // alone costs more.
-    let programs = vec![instrument("grand_piano", &[])];
+    // alone costs more. Without the watchdog: it would reset the overloaded board (a core a
+    // sample behind stops the feeds; `tests/watchdog.rs` shows that), and this counts the
+    // misses of a board left running.
+    let mut piano = instrument("grand_piano", &[]);
+    piano.watchdog = false;
+    let programs = vec![piano];
     let keys: Vec<KeySpec> = (0..4)
         .map(|i| KeySpec {
             slot: 40 + i,
@@ -987,7 +991,11 @@ fn the_rubbed_bank_runs_as_a_pen_at_8_khz_bit_exact_without_misses() {
     // The plane (z) and the friction (x) move; nothing pushes along y.
     assert_z_and_x_move_y_still(&st, "rubbed_bank");
     // Its glue (2 sensor copies, 3 limiter calls and DAC stores), as `FirmwareImage::key_glue`
-    // prices it: the handler of core 0 less the update and less core 1's bare handler.
+    // prices it: the handler of core 0 less the update and less core 1's bare handler, in
+    // the image without the watchdog (whose feed is core 0's alone, `glue::Feed`).
+    let mut quiet = programs.clone();
+    quiet[0].watchdog = false;
+    let image = FirmwareImage::build(&quiet, &keys, &board, &LimiterConfig::default()).unwrap();
     let (w0, w1) = (image.wcet(0).unwrap(), image.wcet(1).unwrap());
     let g = FirmwareImage::key_glue(&programs[0], &board, &LimiterConfig::default()).unwrap();
     println!(
@@ -1002,7 +1010,10 @@ fn the_rubbed_bank_runs_as_a_pen_at_8_khz_bit_exact_without_misses() {
 fn pen_glue_per_key_measured_and_static() {
     // One tiny pen on core 0, nothing on core 1 (its handler is the bare per-core cost): the
     // pen's glue is its three sensor copies, three limiter calls and three DAC stores.
-    let pen = Program::compile(TINY_PEN, &Config::default()).unwrap();
+    // Without the watchdog, whose feed is core 0's alone (`glue::Feed`): the difference of
+    // the cores is then the key's glue.
+    let mut pen = Program::compile(TINY_PEN, &Config::default()).unwrap();
+    pen.watchdog = false;
     let programs = vec![pen];
     let keys = [KeySpec {
         slot: 5,
@@ -1031,7 +1042,8 @@ fn pen_glue_per_key_measured_and_static() {
     let (w0, w1) = (image.wcet(0).unwrap(), image.wcet(1).unwrap());
     let static_glue = w0.analysed - w0.updates - w1.analysed;
     // The keyboard key's glue, the same way.
-    let hammond = vec![instrument("hammond", &[])];
+    let mut hammond = vec![instrument("hammond", &[])];
+    hammond[0].watchdog = false;
     let kb = FirmwareImage::build(&hammond, &keys, &rp2040(), &LimiterConfig::default()).unwrap();
     let (k0, k1) = (kb.wcet(0).unwrap(), kb.wcet(1).unwrap());
     let key_glue = k0.analysed - k0.updates - k1.analysed;

@@ -132,11 +132,15 @@ fn a_hung_core_resets_a_converter_board_within_the_period() {
 }
 
 #[test]
-fn the_watchdog_costs_core_0_its_feed_and_nothing_on_core_1() {
+fn the_watchdog_costs_core_0_its_feed_and_core_1_a_wait_for_its_bank() {
     for board in ["rp2040", "rp2040_io"] {
         let (off, on) = (image(board, false), image(board, true));
         let (w0, w1) = (on.wcet(0).unwrap(), on.wcet(1).unwrap());
-        assert_eq!(w1.bound(), off.wcet(1).unwrap().bound(), "{board}");
+        // Core 1 runs no feed code; core 0's load of its count may make it wait a cycle
+        // for its bank (`glue::Feed::other_core_cycles`).
+        let w1_off = off.wcet(1).unwrap();
+        assert_eq!(w1.analysed, w1_off.analysed, "{board}");
+        assert_eq!(w1.bound(), w1_off.bound() + 1, "{board}");
         let extra = w0.bound() - off.wcet(0).unwrap().bound();
         assert!(
             extra > 0 && extra <= 18,

@@ -5,13 +5,14 @@
 //! waited for ([`wait_for_gdb`]). The caller shows progress and prints.
 
 use crate::fault::{BoardFaults, FaultError, FaultSpec};
-use crate::keyboard::{key_map_sensor_words, Reporter};
+use crate::keyboard::Reporter;
 use std::path::{Path, PathBuf};
 use tactus_emulator::core::{Core, RunState};
 use tactus_emulator::debug::gdb;
 use tactus_emulator::Debugger;
 use tactus_emulator::{Board, Config, StopReason};
-use tactus_firmware::flash::{self, ElfRun, KeyMap};
+use tactus_firmware::flash::{self, KeyMap};
+use tactus_firmware::image::{FirmwareImage, ImageRun, Injection, ResetRecord};
 
 /// The largest ELF file read, bytes: every memory an ELF may load into (ROM, 2 MB of
 /// flash, SRAM) is far smaller; a bound on what a mistaken path (`/dev/zero`) can make the
@@ -262,20 +263,25 @@ impl ElfJob {
     }
 }
 
-/// Firmware from `tactus build LAYOUT --target rp2040` with its key map and every key's
-/// sensor words, checked and ready to run ([`FirmwareJob::new`], then
-/// [`FirmwareJob::run`]).
+/// Firmware from `tactus build LAYOUT --target rp2040` with its key map, rebuilt from the
+/// key maps of its keyboard and checked to be that build's byte for byte
+/// ([`FirmwareJob::new`]), and every key's sensor words of a stimulus, ready to run through
+/// [`ImageRun`] — the run `tactus play` gives every board, on a plain board or one with
+/// converters, with any fault injected ([`FirmwareJob::run`]).
 pub struct FirmwareJob {
     file: PathBuf,
     stimulus: String,
     elf: Vec<u8>,
     map: KeyMap,
+    /// The image the ELF is, as its build made it (its keys, cores and addresses).
+    image: FirmwareImage,
+    /// Per program of the image, its first sensor's words over the stimulus (one run of
+    /// it, at most the samples to run; empty without a sensor).
     words: Vec<Vec<i32>>,
-    which: Vec<usize>,
-    /// Per distinct words, its first sensor's raw range.
-    ranges: Vec<Option<(i32, i32)>>,
+    /// Whether the firmware runs the sensor check and the watchdog (found by the rebuild).
+    checks: (bool, bool),
     /// The faults to inject, resolved on this board.
-    faults: Vec<(FaultSpec, tactus_firmware::image::Injection)>,
+    faults: Vec<(FaultSpec, Injection)>,
     /// Samples to run.
     pub samples: usize,
 }
@@ -284,31 +290,286 @@ pub struct FirmwareJob {
 #[derive(Clone, Debug)]
 pub struct FirmwareText {
     /// The lines to print: the board, per core the handler's cycles and misses, the final
-    /// cycles, the DAC words and their digest.
+    /// cycles, the DAC codes and their digest, the faults injected, the resets, the fault
+    /// report.
     pub lines: Vec<String>,
-    /// Whether some core missed a deadline.
+    /// Whether some core missed a deadline with no fault injected (with one, a hung core's
+    /// misses are the fault's).
     pub missed: bool,
     /// The board's fault records at the end ([`crate::fault::report_lines`] are among
     /// `lines`).
     pub faults: BoardFaults,
-    /// With no fault injected, a trip of the firmware's checks: a false alarm, said.
+    /// The resets the board met (the watchdog's, a brown-out).
+    pub resets: Vec<ResetRecord>,
+    /// With no fault injected, a trip of the firmware's checks or a reset: a false alarm,
+    /// said.
     pub false_alarm: Option<String>,
-    /// The run itself.
-    pub run: ElfRun,
+}
+
+/// The most key maps of one keyboard read beside a board's (`board-NN` directories).
+const MAX_BOARDS: usize = 128;
+
+/// The key maps of the keyboard whose board's key map is `map`, read from `map_path`:
+/// `map` and, when its directory is a `board-NN` of a build's output, the `keys.json` of
+/// every other `board-NN` beside it (at most [`MAX_BOARDS`]), of the same board kind.
+///
+/// Errors, as messages naming the file: a sibling key map that cannot be read or parsed.
+pub fn keyboard_maps(map: &KeyMap, map_path: &Path) -> Result<Vec<KeyMap>, String> {
+    let mut maps = vec![map.clone()];
+    let dir = map_path.parent().filter(|d| !d.as_os_str().is_empty());
+    let is_board = |name: &str| {
+        name.strip_prefix("board-")
+            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+    };
+    let Some(dir) = dir.filter(|d| {
+        d.file_name()
+            .is_some_and(|n| is_board(&n.to_string_lossy()))
+    }) else {
+        return Ok(maps);
+    };
+    let Some(Ok(entries)) = dir.parent().map(std::fs::read_dir) else {
+        return Ok(maps);
+    };
+    let mut others: Vec<PathBuf> = entries
+        .filter_map(Result::ok)
+        .filter(|e| is_board(&e.file_name().to_string_lossy()))
+        .map(|e| e.path())
+        .filter(|p| p.file_name() != dir.file_name())
+        .take(MAX_BOARDS)
+        .map(|p| p.join("keys.json"))
+        .filter(|p| p.exists())
+        .collect();
+    others.sort();
+    for path in others {
+        let text = tactus_runtime::keyboard::read_text(&path)?;
+        let other: KeyMap = serde_json::from_str(&text).map_err(|e| {
+            format!(
+                "{}: not a Tactus key map: {e} (a key map beside {}: every board of the \
+                 keyboard is rebuilt to find the firmware's shared code)",
+                path.display(),
+                map_path.display()
+            )
+        })?;
+        if other.board != map.board && other.board_kind == map.board_kind {
+            maps.push(other);
+        }
+    }
+    Ok(maps)
+}
+
+/// The paths (`clock_hz`, `cores[0].keys`, `keys[3].sensor_words`, …) where two key maps
+/// as JSON differ, in order, at most `most` of them.
+fn map_differences(a: &serde_json::Value, b: &serde_json::Value, most: usize) -> Vec<String> {
+    fn walk(
+        a: &serde_json::Value,
+        b: &serde_json::Value,
+        at: &str,
+        out: &mut Vec<String>,
+        most: usize,
+    ) {
+        use serde_json::Value;
+        if out.len() >= most {
+            return;
+        }
+        match (a, b) {
+            (Value::Object(x), Value::Object(y)) => {
+                let mut keys: Vec<&String> = x.keys().chain(y.keys()).collect();
+                keys.dedup();
+                let mut seen = Vec::new();
+                for k in keys {
+                    if seen.contains(&k) {
+                        continue;
+                    }
+                    seen.push(k);
+                    let path = if at.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{at}.{k}")
+                    };
+                    match (x.get(k), y.get(k)) {
+                        (Some(u), Some(v)) => walk(u, v, &path, out, most),
+                        _ => out.push(path),
+                    }
+                }
+            }
+            (Value::Array(x), Value::Array(y)) if x.len() == y.len() => {
+                for (i, (u, v)) in x.iter().zip(y).enumerate() {
+                    walk(u, v, &format!("{at}[{i}]"), out, most);
+                }
+            }
+            _ if a == b => {}
+            _ => out.push(at.to_string()),
+        }
+    }
+    let mut out = Vec::new();
+    walk(a, b, "", &mut out, most);
+    out
+}
+
+/// The image of board `map.board` of the keyboard `kb` (rebuilt from its key maps:
+/// [`crate::keyboard::from_key_maps`]) as `tactus build` builds it, with the sensor check
+/// and the watchdog on or off as the firmware `elf` was built (tried in turn, the
+/// programs' defaults first), checked to be `elf` byte for byte and to write `map`.
+/// Returns the image and whether the check and the watchdog are on.
+///
+/// Errors, as messages naming `file` and `map_name`: no build of the key maps gives `elf`
+/// (another keyboard's or version's firmware), or one does but its key map differs from
+/// `map` (the fields named).
+fn rebuild(
+    kb: &mut crate::keyboard::Keyboard,
+    map: &KeyMap,
+    elf: &[u8],
+    file: &Path,
+    map_name: &str,
+) -> Result<(FirmwareImage, (bool, bool)), String> {
+    let defaults = kb.firmware().map_err(|e| format!("{map_name}: {e}"))?;
+    let first = defaults
+        .first()
+        .map_or((false, false), |p| (p.sensor_check, p.watchdog));
+    let mut tries = vec![first];
+    for c in [(false, false), (true, false), (false, true), (true, true)] {
+        if !tries.contains(&c) {
+            tries.push(c);
+        }
+    }
+    let names: Vec<(String, Vec<(String, String)>)> = (kb.sets.iter())
+        .map(|s| (s.instrument.clone(), s.params.clone()))
+        .collect();
+    let keys = kb.key_programs();
+    let list: Vec<u8> = map.keys.iter().map(|k| k.midi).collect();
+    let load = match map.entry.trim_start_matches("0x") {
+        e if u32::from_str_radix(e, 16).ok() == Some(tactus_firmware::image::boot::ENTRY | 1) => {
+            flash::Load::Ram
+        }
+        _ => flash::Load::Flash,
+    };
+    let limiter = kb.limiter();
+    let wanted = serde_json::to_value(map).map_err(|e| format!("{map_name}: {e}"))?;
+    for (sensor_check, watchdog) in tries {
+        let programs: Vec<_> = (defaults.iter())
+            .map(|p| {
+                let mut p = p.clone();
+                p.sensor_check = sensor_check;
+                p.watchdog = watchdog;
+                p
+            })
+            .collect();
+        let input = flash::KeyboardInput {
+            name: &kb.name,
+            programs: &programs,
+            program_names: &names,
+            keys: &keys,
+            board: &kb.board,
+            boards: std::slice::from_ref(&list),
+            limiter: &limiter,
+            load,
+            command: "",
+        };
+        // A build that fails with these checks (the board no longer fits) is not the one.
+        let Ok(mut built) = flash::keyboard_firmware(&input, &mut |_, _, _| {}) else {
+            continue;
+        };
+        let Some(mut fw) = built.pop() else { continue };
+        if fw.elf != elf {
+            continue;
+        }
+        fw.key_map.board = map.board;
+        let ours = serde_json::to_value(&fw.key_map).map_err(|e| format!("{map_name}: {e}"))?;
+        let differ = map_differences(&wanted, &ours, 6);
+        if !differ.is_empty() {
+            return Err(format!(
+                "{map_name}: {} {} not what the build of {} writes: the key map does not \
+                 describe its firmware",
+                differ
+                    .iter()
+                    .map(|d| format!("`{d}`"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                if differ.len() == 1 { "is" } else { "are" },
+                file.display()
+            ));
+        }
+        kb.sensor_check = Some(sensor_check);
+        kb.watchdog = Some(watchdog);
+        return Ok((fw.image, (sensor_check, watchdog)));
+    }
+    let maps = kb.boards.as_ref().map_or(1, Vec::len);
+    Err(format!(
+        "{}: not the firmware its key maps build (board {}, rebuilt from {maps} key map{} of \
+         {} keys, the sensor check and the watchdog each on and off): built by another \
+         version of tactus, from other key maps, or a board taken out of its build (an \
+         instrument graded over the keyboard shares one code planned over every board's \
+         keys: keep the build's board-NN directories together); build it again with \
+         `tactus build … --target rp2040`",
+        file.display(),
+        map.board,
+        if maps == 1 { "" } else { "s" },
+        kb.keys.len()
+    ))
+}
+
+/// Per program of `image`, its first sensor's raw words over `stimulus` (a built-in key
+/// stimulus in the sensor's own range, or a CSV file of key positions, read once) at `fs`
+/// Hz, at most `samples` of them (one run of the stimulus; the run repeats it); empty for
+/// a program without a sensor. The words are the program's own sensor format (the code the
+/// firmware was compiled with, shared code included).
+///
+/// Errors, as messages: a stimulus that cannot be read or has no samples.
+pub fn stimulus_words(
+    image: &FirmwareImage,
+    stimulus: &str,
+    fs: f64,
+    samples: usize,
+) -> Result<Vec<Vec<i32>>, String> {
+    use tactus_compiler::fixed::interp::FixedInstance;
+    let csv = match Path::new(stimulus).exists() {
+        true => Some(
+            tactus_runtime::stimulus::from_csv(Path::new(stimulus), fs)
+                .map_err(|e| format!("--stimulus {stimulus}: {e}"))?,
+        ),
+        false => None,
+    };
+    (image.programs().iter())
+        .map(|p| {
+            let fp = &p.fixed;
+            let Some(s0) = fp.program.sensors.first() else {
+                return Ok(Vec::new());
+            };
+            let builtin;
+            let st = match &csv {
+                Some(st) => st,
+                None => {
+                    builtin = tactus_runtime::stimulus::builtin(stimulus, s0.range.1, fs)
+                        .map_err(|e| format!("--stimulus {stimulus}: {e}"))?;
+                    &builtin
+                }
+            };
+            if st.key.is_empty() {
+                return Err(format!("--stimulus {stimulus}: no samples"));
+            }
+            Ok((st.key.iter().take(samples))
+                .map(|&x| FixedInstance::sensor_raw(fp, 0, Some(x)))
+                .collect())
+        })
+        .collect()
 }
 
 impl FirmwareJob {
     /// Reads the ELF `file` and its key map (`keys`, default `keys.json` beside it), checks
-    /// the map against the firmware ([`tactus_firmware::key_map::check`]) and makes every
-    /// key's sensor words of `stimulus` (a built-in key stimulus or a CSV file) for
-    /// `seconds` emulated seconds, compiling each instrument of the map once (its
-    /// diagnostics to `report`), with `faults` injected into its sensors
-    /// ([`crate::fault::faulted_sensor_words`]).
+    /// the map against the ELF ([`tactus_firmware::key_map::check`]), rebuilds the
+    /// keyboard it belongs to from its key maps (the board's, and those of the `board-NN`
+    /// directories beside it: [`keyboard_maps`], [`crate::keyboard::from_key_maps`]; the
+    /// diagnostics to `report`) and the board's image as `tactus build` builds it, checked
+    /// to be the ELF byte for byte and to write the key map (the sensor check and the
+    /// watchdog found as built), makes every key's sensor words of `stimulus` (a built-in
+    /// key stimulus or a CSV file) for `seconds` emulated seconds, and resolves `faults`
+    /// on the board ([`FaultSpec::resolve_on_board`]).
     ///
     /// Errors, as messages naming the file: an unreadable ELF or key map, a map that is not
     /// a key map or does not describe the firmware, `seconds` outside (0,
-    /// [`MAX_FIRMWARE_SECONDS`]], a stimulus or instrument that cannot be made, a fault
-    /// that names what the board does not have ([`FaultSpec::resolve_on_board`]).
+    /// [`MAX_FIRMWARE_SECONDS`]], a keyboard that cannot be rebuilt or whose build is not
+    /// the ELF, a stimulus that cannot be made, a fault that names what the board does not
+    /// have.
     pub fn new(
         file: &Path,
         stimulus: &str,
@@ -327,28 +588,15 @@ impl FirmwareJob {
         })?;
         let map: KeyMap = serde_json::from_str(&text)
             .map_err(|e| format!("{}: not a Tactus key map: {e}", map_path.display()))?;
-        if let Some(c) = &map.converters {
-            return Err(format!(
-                "{}: board {} drives converters ({} and {}, `converters` in {}): `tactus emu \
-                 run` feeds the sensor window and does not wire the emulated parts yet; \
-                 `tactus play --board {}` plays such boards through them",
-                file.display(),
-                map.board,
-                c.adc,
-                c.dac,
-                map_path.display(),
-                map.board_kind
-            ));
-        }
         if !(seconds > 0.0 && seconds <= MAX_FIRMWARE_SECONDS) {
             return Err(format!(
                 "--seconds {seconds}: from just above 0 to {MAX_FIRMWARE_SECONDS}"
             ));
         }
         // The map against the firmware it describes, before anything is made for its keys.
-        let image = tactus_emulator::elf::parse(&elf)
+        let parsed = tactus_emulator::elf::parse(&elf)
             .map_err(|e| format!("{}: cannot load: {e}", file.display()))?;
-        tactus_firmware::key_map::check(&map, &image).map_err(|e| {
+        tactus_firmware::key_map::check(&map, &parsed).map_err(|e| {
             format!(
                 "{}: {e} (the key map of {})",
                 map_path.display(),
@@ -363,76 +611,134 @@ impl FirmwareJob {
             .map(|f| Ok((f.clone(), f.resolve_on_board(map.board, &midi, fs)?)))
             .collect::<Result<Vec<_>, FaultError>>()
             .map_err(|e| e.to_string())?;
-        let (words, which, ranges) =
-            key_map_sensor_words(&map, &map_name, stimulus, samples, report)?;
+        let maps = keyboard_maps(&map, &map_path)?;
+        let mut kb =
+            crate::keyboard::from_key_maps(&maps, &map_name, report).map_err(|e| e.to_string())?;
+        let (image, checks) = rebuild(&mut kb, &map, &elf, file, &map_name)?;
+        let words = stimulus_words(&image, stimulus, fs, samples)?;
         Ok(FirmwareJob {
             file: file.to_path_buf(),
             stimulus: stimulus.to_string(),
             elf,
             map,
+            image,
             words,
-            which,
-            ranges,
+            checks,
             faults,
             samples,
         })
     }
 
-    /// Boots the firmware and runs it ([`flash::run_elf`]), `progress(done, total)` in
-    /// samples, under `debugger` if one is given; returns the run as text.
+    /// Boots the firmware from its ELF and runs it sample by sample through
+    /// [`ImageRun`] (the board's converters at their pins when it has them; the rest
+    /// replay on unless a debugger is attached), with the faults injected
+    /// ([`ImageRun::inject`]), `progress(done, total)` in samples, under `debugger` if one
+    /// is given (attached at the first sample tick); returns the run as text.
     ///
-    /// Errors: what [`flash::run_elf`] reports, naming the file.
+    /// Errors: what the run reports (the board stops, a core never completes a sample),
+    /// naming the file.
     pub fn run(
         &self,
         debugger: Option<Box<dyn tactus_emulator::Debugger>>,
         progress: &mut dyn FnMut(usize, usize),
     ) -> Result<FirmwareText, String> {
-        let (map, file) = (&self.map, self.file.display());
-        let mut sensors: Vec<&[i32]> = self.which.iter().map(|&i| &self.words[i][..]).collect();
-        let ranges: Vec<Option<(i32, i32)>> = self.which.iter().map(|&i| self.ranges[i]).collect();
-        let core_of: Vec<usize> = map.keys.iter().map(|k| k.core).collect();
-        let faulted = crate::fault::faulted_sensor_words(
-            &sensors,
-            &ranges,
-            &core_of,
-            &self.faults,
-            self.samples,
-        )
-        .map_err(|e| e.to_string())?;
-        for (s, f) in sensors.iter_mut().zip(&faulted) {
-            if let Some(f) = f {
-                *s = f;
+        let (map, image, file) = (&self.map, &self.image, self.file.display());
+        let fail = |e: tactus_firmware::image::ImageError| format!("{file}: {e}");
+        let mut run = ImageRun::from_elf(image, &self.elf).map_err(fail)?;
+        run.set_rest_replay(debugger.is_none()).map_err(fail)?;
+        if let Some(d) = debugger {
+            run.board().attach_debugger(d);
+        }
+        for (spec, f) in &self.faults {
+            run.inject(*f).map_err(|e| format!("{}: {e}", spec.text))?;
+        }
+        // Each key's words: its first sensor following the stimulus (repeated), the others
+        // at the bottom of their range.
+        let specs = image.keys();
+        let programs = image.programs();
+        let rest: Vec<Vec<i32>> = (specs.iter())
+            .map(|k| {
+                let p = &programs[k.program];
+                (0..p.sensor_words())
+                    .map(|i| {
+                        tactus_compiler::fixed::interp::FixedInstance::sensor_raw(&p.fixed, i, None)
+                    })
+                    .collect()
+            })
+            .collect();
+        let cores = image.cores();
+        let (mut worst, mut total, mut runs) =
+            (vec![0u64; cores], vec![0u64; cores], vec![0u64; cores]);
+        let mut misses = vec![0u32; cores];
+        let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut flat = Vec::with_capacity(image.sensor_words());
+        let mut dac: Vec<i16> = Vec::new();
+        for n in 0..self.samples {
+            flat.clear();
+            for (k, r) in specs.iter().zip(&rest) {
+                let w = &self.words[k.program];
+                flat.extend_from_slice(r);
+                if let (Some(first), false) = (
+                    flat.len().checked_sub(r.len()),
+                    w.is_empty() || r.is_empty(),
+                ) {
+                    flat[first] = w[n % w.len()];
+                }
+            }
+            let out = run
+                .step(&flat)
+                .map_err(|e| format!("{file}: sample {n}: {e}"))?;
+            for c in 0..cores {
+                worst[c] = worst[c].max(out.core_cycles[c]);
+                total[c] += out.core_cycles[c];
+                runs[c] += u64::from(out.handler_runs[c]);
+                misses[c] = out.misses[c];
+            }
+            dac.clear();
+            dac.extend(out.drives.iter().flatten().map(|d| d.dac));
+            for b in dac.iter().flat_map(|d| d.to_le_bytes()) {
+                digest = (digest ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+            }
+            if n % 4410 == 0 {
+                progress(n, self.samples);
             }
         }
-        let run = flash::run_elf(&self.elf, map, &sensors, self.samples, progress, debugger)
-            .map_err(|e| format!("{file}: {e}"))?;
+        progress(self.samples, self.samples);
+        run.settle().map_err(fail)?;
+        run.board().finish_debugging();
+        let records = crate::fault::run_records(&mut run)?;
+        let resets = run.resets().to_vec();
+        let on = |b: bool| if b { "on" } else { "off" };
         let mut lines = vec![format!(
-            "{file}: board {} ({} keys), {} samples of `{}` at {} Hz, {} cycles per sample",
+            "{file}: board {} ({} keys, {}), {} samples of `{}` at {} Hz, {} cycles per sample, sensor check {}, watchdog {}",
             map.board,
             map.keys.len(),
-            run.samples,
+            map.board_kind,
+            self.samples,
             self.stimulus,
             map.sample_rate_hz,
-            run.cycles_per_sample
+            image.cycles_per_sample(),
+            on(self.checks.0),
+            on(self.checks.1),
         )];
-        for (c, core) in run.cores.iter().enumerate() {
+        for c in 0..cores {
             lines.push(format!(
                 "core {c}: keys {:?}, {} samples, handler cycles mean {:.1} worst {} ({:.1} % of the period), misses {}",
                 map.cores.get(c).map(|m| m.keys.clone()).unwrap_or_default(),
-                core.samples,
-                core.mean_cycles,
-                core.worst_cycles,
-                100.0 * core.worst_cycles as f64 / run.cycles_per_sample.max(1) as f64,
-                core.misses
+                runs[c],
+                total[c] as f64 / runs[c].max(1) as f64,
+                worst[c],
+                100.0 * worst[c] as f64 / image.cycles_per_sample().max(1) as f64,
+                misses[c]
             ));
         }
+        let board = run.board();
         lines.push(format!(
             "final cycles: core 0 {}, core 1 {}",
-            run.final_cycles[0], run.final_cycles[1]
+            board.cores[0].cycle, board.cores[1].cycle
         ));
         lines.push(format!(
-            "DAC words at the end: {:08x?}; digest of every sample's words {:016x}",
-            run.dac_final, run.dac_digest
+            "DAC codes at the end: {dac:?}; digest of every sample's codes {digest:016x}"
         ));
         for f in &self.faults {
             lines.push(format!(
@@ -444,34 +750,33 @@ impl FirmwareJob {
                 }
             ));
         }
+        lines.extend((resets.iter()).map(|r| format!("reset: {}", crate::fault::reset_text(r))));
         let faults = BoardFaults {
             board: map.board,
-            cores: crate::fault::decode(&run.fault_records),
-            // A board's keys take window slots from 0 in key order, each as many as the
-            // larger of its sensor and DAC words (`tactus_firmware::boards`).
-            slots: (map.keys.iter())
-                .scan(0, |slot, k| {
-                    let at = *slot;
-                    *slot += k.sensor_words.len().max(k.dac_words.len()).max(1);
-                    Some((at, k.midi))
-                })
-                .collect(),
+            cores: records,
+            slots: crate::fault::image_slots(
+                image,
+                &map.keys.iter().map(|k| k.midi).collect::<Vec<_>>(),
+            ),
         };
         lines.extend(crate::fault::report_lines(
             std::slice::from_ref(&faults),
             f64::from(map.sample_rate_hz),
         ));
         let trips = faults.trips();
-        let false_alarm = (trips > 0 && self.faults.is_empty()).then(|| {
-            format!("the firmware's fault checks tripped {trips} times with no fault injected: a false alarm")
+        let false_alarm = (self.faults.is_empty() && (trips > 0 || !resets.is_empty())).then(|| {
+            format!(
+                "with no fault injected the firmware's checks tripped {trips} times and the board reset {} times: a false alarm",
+                resets.len()
+            )
         });
-        let missed = run.cores.iter().any(|c| c.misses > 0);
+        let missed = self.faults.is_empty() && misses.iter().any(|&m| m > 0);
         Ok(FirmwareText {
             lines,
             missed,
             faults,
+            resets,
             false_alarm,
-            run,
         })
     }
 }

@@ -544,83 +544,48 @@ impl FaultSpec {
     }
 }
 
-/// The sensor words a run of firmware reads with sensor faults injected, for `tactus emu
-/// run`: per key (in its key map's order) its words `words[k]` (repeated to `samples`; an
-/// empty list reads 0) and its first sensor's raw range `ranges[k]` (the range its ADC
-/// code spans), with each of `faults` that reaches the key applied to its first sensor
-/// word, sample by sample, as `tactus_firmware::image::ImageRun::inject` applies it on a
-/// board without converters (`FaultKind::sensor_code` on the code, `code_word` back).
-/// `core_of[k]` is key k's core (for `adc-silent`). Returns, per key, `None` when no fault
-/// reaches it, else its `samples` words.
+/// The fault records of a board's run now: per core of its image, the fault word and time
+/// at its control block's record (`tactus_firmware::image::glue::ctrl::fault_record`),
+/// read from the emulated SRAM ([`read_records`]). What `play`, `emu run` and `corpus
+/// trips` report.
 ///
-/// Errors: a fault this run cannot inject (a hang, a flip, a DAC stall or a brown-out:
-/// `tactus play --fault` runs them), a fault on a key without a sensor.
-pub fn faulted_sensor_words(
-    words: &[&[i32]],
-    ranges: &[Option<(i32, i32)>],
-    core_of: &[usize],
-    faults: &[(FaultSpec, Injection)],
-    samples: usize,
-) -> Result<Vec<Option<Vec<i32>>>, FaultError> {
-    use tactus_firmware::image::{code_word, NOISE_SEED};
-    use tactus_runtime::converters::AdcScale;
-    let mut out: Vec<Option<Vec<i32>>> = vec![None; words.len()];
-    for (spec, f) in faults {
-        let err = |field: &str, message: String| FaultError {
-            text: spec.text.clone(),
-            field: field.to_string(),
-            message,
-        };
-        let keys: Vec<usize> = match (f.kind, f.key, f.core) {
-            (FaultKind::AdcSilent, _, Some(c)) => (0..words.len())
-                .filter(|&k| {
-                    core_of.get(k) == Some(&c) && ranges.get(k).is_some_and(Option::is_some)
-                })
-                .collect(),
-            (kind, Some(k), _) if kind.is_sensor() => {
-                if ranges.get(k).is_none_or(Option::is_none) {
-                    return Err(err("key", format!("key {k} has no sensor")));
-                }
-                vec![k]
-            }
-            _ => {
-                return Err(err(
-                    "kind",
-                    "`tactus emu run` injects the sensor faults (open, short, stuck, jump, \
-                     noise) and adc-silent; `tactus play --fault` runs every kind"
-                        .into(),
-                ))
-            }
-        };
-        let (from, until) = (f.from, f.until.unwrap_or(u64::MAX));
-        let mut seed = NOISE_SEED;
-        for k in keys {
-            let Some((lo, hi)) = ranges[k] else { continue };
-            let scale = AdcScale::new(lo, hi, 16);
-            let base = words[k];
-            let list = out[k].get_or_insert_with(|| {
-                (0..samples)
-                    .map(|n| {
-                        if base.is_empty() {
-                            0
-                        } else {
-                            base[n % base.len()]
-                        }
-                    })
-                    .collect()
-            });
-            let end = until.min(samples as u64) as usize;
-            for w in list
-                .iter_mut()
-                .take(end)
-                .skip(from.min(samples as u64) as usize)
-            {
-                let code = scale.code(*w).min(0xffff) as u16;
-                *w = code_word(&scale, f.kind.sensor_code(code, &mut seed));
-            }
-        }
-    }
-    Ok(out)
+/// Errors: a record the board cannot read, naming the core.
+pub fn run_records(
+    run: &mut tactus_firmware::image::ImageRun,
+) -> Result<Vec<tactus_firmware::image::fault::FaultWord>, String> {
+    let image = run.image();
+    let addrs: Vec<u32> = (0..image.cores())
+        .filter_map(|c| {
+            (image.core_addresses(c))
+                .map(|a| tactus_firmware::image::glue::ctrl::fault_record(a[3]))
+        })
+        .collect();
+    let board = run.board();
+    read_records(
+        &mut |a| board.read_u32(a).map_err(|e| e.to_string()),
+        &addrs,
+    )
+}
+
+/// A board's keys by window slot ([`BoardFaults::slots`]): the slot of each key of `image`
+/// with its MIDI key (`midi`, in the image's key order).
+pub fn image_slots(image: &tactus_firmware::image::FirmwareImage, midi: &[u8]) -> Vec<(usize, u8)> {
+    (image.keys().iter().zip(midi))
+        .map(|(s, &k)| (s.slot, k))
+        .collect()
+}
+
+/// A reset a board met, in words: `watchdog timer reset at sample 44100 (cycle …): booted
+/// again, 12 samples at zero force`, or that it did not boot again and why.
+pub fn reset_text(reset: &tactus_firmware::image::ResetRecord) -> String {
+    let after = match &reset.reboot {
+        Ok(n) => format!("booted again, {n} samples at zero force"),
+        Err(e) => format!("did not boot again (zero force from then on): {e}"),
+    };
+    format!(
+        "{} reset at sample {} (cycle {}): {after}",
+        reset.why, reset.sample, reset.cycle
+    )
 }
 
 /// Decodes each core's raw fault record (the fault word, the fault time).

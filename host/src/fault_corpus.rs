@@ -12,8 +12,7 @@
 //! (glitches to corner words, adversarial random words: [`by_design`]) show the checks at
 //! work.
 
-use crate::fault::{read_records, report_lines, BoardFaults};
-use tactus_firmware::image::glue::ctrl::fault_record;
+use crate::fault::{report_lines, run_records, BoardFaults};
 
 /// One run of the budget corpus (`tactus_firmware::corpus`) through one board of a
 /// keyboard: every key of the board following the run (each key its own program's run of
@@ -83,12 +82,8 @@ pub fn budget_corpus_trips(
         let (_, image) = boards::board_image(&programs, &costs, &bkeys, &kb.board, &lim)
             .map_err(|e| format!("board {}: {e}", b + 1))?;
         let image = image.map_err(|e| format!("board {}: {e}", b + 1))?;
-        let addrs: Vec<u32> = (0..image.cores())
-            .filter_map(|c| image.core_addresses(c).map(|a| fault_record(a[3])))
-            .collect();
-        let slots: Vec<(usize, u8)> = (image.keys().iter().zip(&bkeys))
-            .map(|(s, k)| (s.slot, k.key))
-            .collect();
+        let midi: Vec<u8> = bkeys.iter().map(|k| k.key).collect();
+        let slots = crate::fault::image_slots(&image, &midi);
         let rest: Vec<Vec<i32>> = (bkeys.iter())
             .map(|k| {
                 let p = &programs[k.program];
@@ -115,11 +110,7 @@ pub fn budget_corpus_trips(
                     .map_err(|e| format!("board {}, run {label}, sample {n}: {e}", b + 1))?;
             }
             run.settle().map_err(|e| format!("board {}: {e}", b + 1))?;
-            let board = run.board();
-            let cores = read_records(
-                &mut |a| board.read_u32(a).map_err(|e| e.to_string()),
-                &addrs,
-            )?;
+            let cores = run_records(&mut run)?;
             out.push(CorpusTrips {
                 label: label.clone(),
                 by_design: by_design(label),

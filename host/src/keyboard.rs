@@ -140,6 +140,11 @@ pub struct Keyboard {
     /// (`tactus_firmware::image::Program::sensor_check`, set by [`Keyboard::firmware`] and
     /// so planned and priced with it: `--sensor-check`); `None`: the programs' default.
     pub sensor_check: Option<bool>,
+    /// The firmware's watchdog on or off on every board
+    /// (`tactus_firmware::image::Program::watchdog`: fed by core 0 when both cores finished
+    /// their sample, so a hung core resets the board), set by [`Keyboard::firmware`] and so
+    /// planned and priced with it (`--watchdog`); `None`: the programs' default.
+    pub watchdog: Option<bool>,
 }
 
 /// Receives a source's diagnostics: its warnings when it compiles, its errors (and
@@ -329,8 +334,49 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
     for a in &mut keys {
         a.params = with_overrides(&a.params, spec.params);
     }
+    let (sets, key_set) = lower_sets(&keys, first, spec.input, &kind, fs, report)?;
+    Ok(Keyboard {
+        name,
+        input: spec.input.to_string(),
+        layout,
+        kind,
+        board,
+        keys,
+        key_set,
+        sets,
+        boards,
+        overrides: spec.params.to_vec(),
+        sensor_check: None,
+        watchdog: None,
+    })
+}
+
+/// The distinct (instrument, params) of `keys` (ascending), each lowered once for `fs` Hz,
+/// in order of first key, and per key the index of its set: the one rule of which keys
+/// share a program (`group_sets`). `first`, when given, is a set already lowered (a single
+/// instrument's). `input` and `kind` name the keyboard and board in errors.
+///
+/// Errors: [`KeyboardError::Input`] for an instrument that cannot be read,
+/// [`KeyboardError::Compile`] for one that does not compile (its diagnostics to `report`).
+fn lower_sets(
+    keys: &[KeyAssignment],
+    mut first: Option<ProgramSet>,
+    input: &str,
+    kind: &str,
+    fs: f64,
+    report: &mut Reporter,
+) -> Result<(Vec<ProgramSet>, Vec<usize>), KeyboardError> {
+    let bad = KeyboardError::Input;
+    let failed = |key: u8, instrument: &str, params: &[(String, String)]| KeyboardError::Compile {
+        input: input.to_string(),
+        key,
+        instrument: instrument.to_string(),
+        params: verdict::show_params(params.iter().map(|(n, v)| (n, v))),
+        fs,
+        kind: kind.to_string(),
+    };
     // Which keys share a program: the one rule, as the firmware's own tests group them.
-    let (firsts, key_set) = layout_file::group_sets(&keys, Ok::<_, KeyboardError>)?;
+    let (firsts, key_set) = layout_file::group_sets(keys, Ok::<_, KeyboardError>)?;
     // Each instrument read, parsed and linked once (in the order of its first set), the sets
     // lowered in parallel, then taken in order: the diagnostics reported and the first
     // failure returned as lowering them one by one would (a graded layout is one
@@ -371,8 +417,8 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
         }
         let src = match source_of(a) {
             Some(Ok(src)) => src,
-            Some(Err(e)) => return Err(bad(format!("{}: key {}: {e}", spec.input, a.key))),
-            None => return Err(bad(format!("{}: key {}: not read", spec.input, a.key))),
+            Some(Err(e)) => return Err(bad(format!("{}: key {}: {e}", input, a.key))),
+            None => return Err(bad(format!("{}: key {}: not read", input, a.key))),
         };
         match lowered {
             Some(Ok(l)) => {
@@ -393,18 +439,94 @@ pub fn compile(spec: &KeyboardSpec, report: &mut Reporter) -> Result<Keyboard, K
             None => return Err(failed(a.key, &a.instrument, &a.params)),
         }
     }
+    Ok((sets, key_set))
+}
+
+/// The keyboard a built board's firmware belongs to, from the key maps (`keys.json`) of its
+/// boards as `tactus build` wrote them (`maps`, each naming its board, kind, keys, their
+/// instruments and params): every key with its instrument and params, the boards' key
+/// lists as the maps give them (by board number), and every distinct (instrument, params)
+/// lowered as [`compile`] lowers them, so that [`Keyboard::firmware`] gives the programs
+/// the build compiled (an instrument's sets sharing one code over every board's values).
+/// `name` names the keyboard in errors. The sensor check and the watchdog are left to the
+/// programs' default (the maps do not say: set [`Keyboard::sensor_check`] and
+/// [`Keyboard::watchdog`]).
+///
+/// Errors: [`KeyboardError::Input`] for no maps, maps of different board kinds or sample
+/// rates, a key on two boards, a board kind that is not built in, an instrument that
+/// cannot be read; [`KeyboardError::Compile`] for one that does not compile.
+pub fn from_key_maps(
+    maps: &[tactus_firmware::flash::KeyMap],
+    name: &str,
+    report: &mut Reporter,
+) -> Result<Keyboard, KeyboardError> {
+    let bad = KeyboardError::Input;
+    let Some(first) = maps.first() else {
+        return Err(bad(format!("{name}: no key maps")));
+    };
+    if let Some(m) = (maps.iter())
+        .find(|m| m.board_kind != first.board_kind || m.sample_rate_hz != first.sample_rate_hz)
+    {
+        return Err(bad(format!(
+            "{name}: board {} is a `{}` at {} Hz, board {} a `{}` at {} Hz: not one keyboard",
+            first.board,
+            first.board_kind,
+            first.sample_rate_hz,
+            m.board,
+            m.board_kind,
+            m.sample_rate_hz
+        )));
+    }
+    let board = catalogue::board(&first.board_kind).map_err(|e| {
+        bad(format!(
+            "{name}: `board_kind` = {:?}: {e} (a key map names its board by name: only a \
+             built-in board can be rebuilt from it)",
+            first.board_kind
+        ))
+    })?;
+    let mut ordered: Vec<&tactus_firmware::flash::KeyMap> = maps.iter().collect();
+    ordered.sort_by_key(|m| m.board);
+    let mut keys: Vec<KeyAssignment> = Vec::new();
+    for m in &ordered {
+        for k in &m.keys {
+            if keys.iter().any(|a| a.key == k.midi) {
+                return Err(bad(format!(
+                    "{name}: key {} is on two boards (board {} and another)",
+                    k.midi, m.board
+                )));
+            }
+            keys.push(KeyAssignment {
+                key: k.midi,
+                instrument: k.instrument.clone(),
+                params: (k.params.iter())
+                    .map(|p| match p.split_once('=') {
+                        Some((a, b)) => (a.to_string(), b.to_string()),
+                        None => (p.clone(), String::new()),
+                    })
+                    .collect(),
+            });
+        }
+    }
+    keys.sort_by_key(|a| a.key);
+    let fs = board.sample_rate_hz;
+    let (sets, key_set) = lower_sets(&keys, None, name, &first.board_kind, fs, report)?;
     Ok(Keyboard {
-        name,
-        input: spec.input.to_string(),
-        layout,
-        kind,
+        name: name.to_string(),
+        input: name.to_string(),
+        layout: None,
+        kind: first.board_kind.clone(),
         board,
         keys,
         key_set,
         sets,
-        boards,
-        overrides: spec.params.to_vec(),
+        boards: Some(
+            (ordered.iter())
+                .map(|m| m.keys.iter().map(|k| k.midi).collect())
+                .collect(),
+        ),
+        overrides: Vec::new(),
         sensor_check: None,
+        watchdog: None,
     })
 }
 
@@ -429,6 +551,9 @@ impl Keyboard {
         })?;
         if let Some(on) = self.sensor_check {
             programs.iter_mut().for_each(|p| p.sensor_check = on);
+        }
+        if let Some(on) = self.watchdog {
+            programs.iter_mut().for_each(|p| p.watchdog = on);
         }
         Ok(programs)
     }
@@ -628,95 +753,3 @@ impl Keyboard {
         })
     }
 }
-
-/// The sensor words of every key of a built board's key map (`keys.json`, named `map_name`
-/// in errors) over `stimulus` (a built-in key stimulus, in each key's own sensor range, or a
-/// CSV file of key positions, read once), at most `samples` of them: what `tactus emu run`
-/// feeds the firmware. Each distinct (instrument, params) of the map is lowered once for
-/// the map's sample rate (its diagnostics to `report`) and converted by the fixed-point
-/// program's sensor format; a key without a sensor gets no words. Returns the words of each
-/// distinct (instrument, params) and, per key of the map, the index of its words (so a
-/// 60 s stimulus is held once per instrument, not once per key), and per distinct
-/// (instrument, params) its first sensor's raw word range (`FixedProgram::sensor_raw_range`,
-/// the range its ADC code spans: `None` without a sensor).
-///
-/// Errors, as messages: an instrument that cannot be loaded or does not compile (naming
-/// the map and the key), a stimulus that cannot be read or has no samples.
-pub fn key_map_sensor_words(
-    map: &tactus_firmware::flash::KeyMap,
-    map_name: &str,
-    stimulus: &str,
-    samples: usize,
-    report: &mut Reporter,
-) -> Result<SensorWords, String> {
-    let fs = f64::from(map.sample_rate_hz);
-    let csv = match Path::new(stimulus).exists() {
-        true => Some(
-            tactus_runtime::stimulus::from_csv(Path::new(stimulus), fs)
-                .map_err(|e| format!("--stimulus {stimulus}: {e}"))?,
-        ),
-        false => None,
-    };
-    // ((instrument, params), the stimulus in its sensor words)
-    type Words<'m> = ((&'m str, &'m [String]), Vec<i32>, Option<(i32, i32)>);
-    let mut distinct: Vec<Words> = Vec::new();
-    let mut which = Vec::with_capacity(map.keys.len());
-    for k in &map.keys {
-        let id = (k.instrument.as_str(), k.params.as_slice());
-        if let Some(i) = distinct.iter().position(|d| d.0 == id) {
-            which.push(i);
-            continue;
-        }
-        let src = catalogue::load(&k.instrument)
-            .map_err(|e| format!("{map_name}: key {}: {e}", k.midi))?;
-        let params: Vec<(String, String)> = k
-            .params
-            .iter()
-            .filter_map(|p| {
-                p.split_once('=')
-                    .map(|(a, b)| (a.to_string(), b.to_string()))
-            })
-            .collect();
-        let lowered = lower(&src, &params, fs, report).ok_or_else(|| {
-            format!(
-                "{map_name}: key {}: `{}` does not compile",
-                k.midi, k.instrument
-            )
-        })?;
-        let fp = tactus_compiler::fixed::FixedProgram::new(&lowered.program);
-        let range = fp.sensor_raw_range.first().copied();
-        let words = match fp.program.sensors.first() {
-            None => Vec::new(),
-            Some(s0) => {
-                let builtin;
-                let st = match &csv {
-                    Some(st) => st,
-                    None => {
-                        builtin = tactus_runtime::stimulus::builtin(stimulus, s0.range.1, fs)
-                            .map_err(|e| format!("--stimulus {stimulus}: {e}"))?;
-                        &builtin
-                    }
-                };
-                if st.key.is_empty() {
-                    return Err(format!("--stimulus {stimulus}: no samples"));
-                }
-                // One run of the stimulus, at most the samples to run.
-                st.key
-                    .iter()
-                    .take(samples)
-                    .map(|&x| {
-                        tactus_compiler::fixed::interp::FixedInstance::sensor_raw(&fp, 0, Some(x))
-                    })
-                    .collect()
-            }
-        };
-        which.push(distinct.len());
-        distinct.push((id, words, range));
-    }
-    let ranges = distinct.iter().map(|d| d.2).collect();
-    Ok((distinct.into_iter().map(|d| d.1).collect(), which, ranges))
-}
-
-/// What [`key_map_sensor_words`] returns: the words of each distinct (instrument, params),
-/// per key the index of its words, per distinct its first sensor's raw range.
-pub type SensorWords = (Vec<Vec<i32>>, Vec<usize>, Vec<Option<(i32, i32)>>);

@@ -404,6 +404,7 @@ impl Session {
         let mut kb = crate::keyboard::compile(spec, report)?;
         let config = config(kb.board.clone());
         kb.sensor_check = config.sensor_check;
+        kb.watchdog = config.watchdog;
         Ok(Session {
             kb,
             firmware: std::cell::OnceCell::new(),
@@ -422,6 +423,7 @@ impl Session {
             params: self.kb.overrides.clone(),
             quiescent_guard: self.config.quiescent_guard,
             sensor_check: self.config.sensor_check,
+            watchdog: self.config.watchdog,
         }
     }
 
@@ -678,16 +680,10 @@ pub fn budget_text(r: &BoardsReport) -> String {
     // Resets met with injected faults (`--fault`): the watchdog's, a brown-out's.
     for (i, b) in r.boards.iter().enumerate() {
         for reset in &b.resets {
-            let after = match &reset.reboot {
-                Ok(n) => format!("booted again, {n} samples at zero force"),
-                Err(e) => format!("did not boot again (zero force from then on): {e}"),
-            };
             s.push_str(&format!(
-                "    board {}: {} reset at sample {} (cycle {}): {after}\n",
+                "    board {}: {}\n",
                 i + 1,
-                reset.why,
-                reset.sample,
-                reset.cycle
+                crate::fault::reset_text(reset)
             ));
         }
     }

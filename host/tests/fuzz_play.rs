@@ -162,6 +162,7 @@ fn mutated_performances_play_and_render_or_say_why_not() {
                         span: None,
                         faults: Vec::new(),
                         sensor_check: None,
+                        watchdog: None,
                     };
                     let played = match play::play(&perf, &keyboard, &config, &Quiet) {
                         Ok(p) => p,

@@ -169,11 +169,12 @@ pub struct Program {
     /// Whether an image holding this program runs the RP2040's watchdog, fed by core 0
     /// when both cores finished their sample ([`fault`], "The watchdog": a core that stops
     /// finishing samples resets the board within [`fault::WATCHDOG_PERIOD_US`] and a
-    /// sample). Off by default: its 18 cycles of core 0's handler fit grand88 (fullest core
-    /// 2,967 of 3,015 cycles on `rp2040`, 2,996 on `rp2040_io`), but the feed's peripheral
-    /// store and its load from core 1's bank end the emulator's windows every sample (the
-    /// emulator's side is issue-71-emu's), and an overloaded image (a core a sample behind
-    /// the other) would reset.
+    /// sample). **On by default**: its 18 cycles of core 0's handler (and a possible wait
+    /// of core 1's for its bank, `glue::Feed::other_core_cycles`) fit grand88 on every
+    /// board kind (`tactus budget grand88 --quick [--board …]`; BENCHMARKS.md). Off only
+    /// for an image meant to run overloaded (a core a sample behind the other, which the
+    /// budget never builds, would be reset) or to measure a key's glue alone;
+    /// `tactus play --watchdog off`.
     pub watchdog: bool,
 }
 
@@ -189,7 +190,7 @@ impl Program {
             init_cycles: Arc::default(),
             quiescent_guard: true,
             sensor_check: false,
-            watchdog: false,
+            watchdog: true,
         }
     }
 
@@ -701,7 +702,8 @@ pub struct IsrWcet {
     /// the other core's handler in the same sample, to a window word in a bank both cores'
     /// keys use (none with the split windows of the module documentation: 0); on core 0 of
     /// an image with the watchdog, the feed's cycles the analysis does not price
-    /// ([`glue::Feed::unpriced_cycles`]).
+    /// ([`glue::Feed::unpriced_cycles`]), on core 1 the wait it may cause there
+    /// ([`glue::Feed::other_core_cycles`]).
     pub contention: u64,
     /// Of `analysed`: the keys' update calls (each `BL` and the update's WCET). The rest,
     /// `analysed - updates`, is the handler's own cost: exception entry and return, the
@@ -959,9 +961,13 @@ impl FirmwareImage {
             .sum();
         for (c, (w, p)) in wcet.iter_mut().zip(&places).enumerate() {
             w.contention = if p.keys.is_empty() { 0 } else { total };
-            // The watchdog's feed on core 0: its APB store and its load from core 1's bank.
-            if let Some(f) = l.feed(data_off).filter(|_| c == 0) {
-                w.contention += f.unpriced_cycles();
+            // The watchdog's feed on core 0: its APB store and its load from core 1's bank,
+            // which core 1 may be the one to wait for.
+            if let Some(f) = l.feed(data_off) {
+                w.contention += match c {
+                    0 => f.unpriced_cycles(),
+                    _ => f.other_core_cycles(),
+                };
             }
             // With converters, the DMA's accesses to the core's I/O bank (`io.rs`).
             if let Some(cio) = l.io.as_ref().and_then(|io| io.cores.get(c)) {

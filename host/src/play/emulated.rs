@@ -466,20 +466,8 @@ impl BoardEngine<'_> {
         self.report.memo = self.run.board().memo_stats();
         self.report.rest_replayed = self.run.rest_replayed();
         self.report.resets = self.run.resets().to_vec();
-        let image = self.run.image();
-        let addrs: Vec<u32> = (0..image.cores())
-            .filter_map(|c| {
-                image
-                    .core_addresses(c)
-                    .map(|a| tactus_firmware::image::glue::ctrl::fault_record(a[3]))
-            })
-            .collect();
-        let board = self.run.board();
-        self.report.faults = crate::fault::read_records(
-            &mut |a| board.read_u32(a).map_err(|e| e.to_string()),
-            &addrs,
-        )
-        .map_err(tactus_firmware::image::ImageError::Run)?;
+        self.report.faults = crate::fault::run_records(&mut self.run)
+            .map_err(tactus_firmware::image::ImageError::Run)?;
         self.report.io_windows = self.run.board().io_windows();
         self.report.io_breaches.clear();
         if let Some(io) = self.run.board().io() {

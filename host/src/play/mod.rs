@@ -148,6 +148,10 @@ pub struct PlayConfig {
     /// ([`crate::keyboard::Keyboard::sensor_check`]) before it compiles and plans; a caller
     /// of [`play`] sets it on the programs it passes.
     pub sensor_check: Option<bool>,
+    /// The firmware's watchdog (`tactus_firmware::image::Program::watchdog`) on or off on
+    /// every board, as [`PlayConfig::sensor_check`] ([`crate::keyboard::Keyboard::watchdog`]);
+    /// `None`: the programs' default.
+    pub watchdog: Option<bool>,
 }
 
 impl PlayConfig {
@@ -440,22 +444,40 @@ pub fn play(
             })
             .collect::<Result<_, RunError>>()?,
     };
+    // The lead-in: a piece whose first notes start sooner than their strokes need runs
+    // from `lead` before it (whole samples), so that every stroke is placed as recorded;
+    // what the run reports is moved back to the performance's time.
+    let lead_n = lead_in_samples(perf, keyboard, &calibrations, fs);
+    let lead_s = lead_n as f64 / fs;
+    let shifted;
+    let run_perf = match lead_n {
+        0 => perf,
+        _ => {
+            shifted = shifted_performance(perf, lead_s);
+            &shifted
+        }
+    };
+    let mut trace = config.trace.clone();
+    trace.from_s += lead_s;
+    trace.to_s += lead_s;
     // Each played key's motion and the stretches it moves.
     let mut motions: BTreeMap<u8, (Motion, Vec<(f64, f64)>)> = BTreeMap::new();
     let mut restrikes = Restrikes::default();
     let mut rushed = Vec::new();
     for (&key, &pi) in &keyboard.key_program {
-        let notes: Vec<Note> = perf
-            .notes
-            .iter()
+        let notes: Vec<Note> = (run_perf.notes.iter())
             .filter(|n| n.key == key)
             .copied()
             .collect();
         let force = calibrations[pi].as_ref().map(|c| (c, finger));
-        let (motion, busy, counts) = key_motion(&notes, dip_of(pi), perf.duration_s, force);
+        let (motion, busy, counts) = key_motion(&notes, dip_of(pi), run_perf.duration_s, force);
         restrikes += counts;
         if let Motion::Track(t) = &motion {
-            rushed.extend(t.rushed.iter().map(|r| (key, *r)));
+            rushed.extend(t.rushed.iter().map(|r| {
+                let mut r = *r;
+                r.on_s -= lead_s;
+                (key, r)
+            }));
         }
         motions.insert(key, (motion, busy_stretches(busy)));
     }
@@ -486,14 +508,21 @@ pub fn play(
                 "the Emu engine runs the keyboard's boards; no plan was given".to_string(),
             )
         })?;
+        // A fault's times are the performance's: its samples follow the lead-in.
         let faults = (config.faults.iter())
-            .map(|f| f.resolve(&plan_boards, fs))
+            .map(|f| {
+                f.resolve(&plan_boards, fs).map(|(b, mut i)| {
+                    i.from += lead_n;
+                    i.until = i.until.map(|u| u + lead_n);
+                    (b, i)
+                })
+            })
             .collect::<Result<Vec<_>, _>>()?;
         let opts = PerformOptions {
             end,
             fs,
             finger,
-            trace: config.trace.clone(),
+            trace: trace.clone(),
             boards: plan_boards,
             limiter: tactus_runtime::limiter::LimiterConfig::for_board(&config.board),
             engine: config.emulator,
@@ -516,6 +545,14 @@ pub fn play(
         )?;
         let mut runs = Vec::with_capacity(run.boards.len());
         for mut b in run.boards {
+            // The fault words and resets in the performance's samples (a trip in the
+            // lead-in at 0).
+            for w in &mut b.faults {
+                w.at_sample = w.at_sample.saturating_sub(lead_n as u32);
+            }
+            for r in &mut b.resets {
+                r.sample = r.sample.saturating_sub(lead_n);
+            }
             strikes.append(&mut b.strikes);
             traces.append(&mut b.traces);
             runs.push(b);
@@ -567,7 +604,7 @@ pub fn play(
                 &run::LoopConfig {
                     fs,
                     finger,
-                    trace: &config.trace,
+                    trace: &trace,
                     stop_at_strike_after_s: None,
                 },
                 &|n| progress.inc(n),
@@ -577,6 +614,10 @@ pub fn play(
                 traces.entry(k).or_default().append(&mut rows);
             }
         }
+    }
+    if lead_n > 0 {
+        strikes.iter_mut().for_each(|s| s.time_s -= lead_s);
+        (traces.values_mut().flatten()).for_each(|row| row[0] -= lead_s);
     }
     strike::answer(&mut strikes, &perf.notes);
     let silent = strike::silent(&perf.notes, &strikes)
@@ -622,4 +663,59 @@ pub fn play(
         boards,
         spans,
     })
+}
+
+/// The samples to run before a performance's time 0 so that every key's first stroke is
+/// placed as recorded (0 for a piece whose first notes leave their strokes the time): the
+/// position player's key descent for the note's velocity
+/// (`tactus_runtime::performance::descent_time_s`), the force player's calibrated lead for
+/// its hammer speed, less the note-on, the largest over the played keys' first notes, at
+/// `fs` Hz, rounded up to a whole sample.
+fn lead_in_samples(
+    perf: &Performance,
+    keyboard: &Keyboard,
+    calibrations: &[Option<FingerCalibration>],
+    fs: f64,
+) -> u64 {
+    let mut lead: f64 = 0.0;
+    for (&key, &pi) in &keyboard.key_program {
+        let Some(first) = (perf.notes.iter())
+            .filter(|n| n.key == key)
+            .min_by(|a, b| a.on_s.total_cmp(&b.on_s))
+        else {
+            continue;
+        };
+        let needs = match calibrations.get(pi).and_then(Option::as_ref) {
+            Some(c) => {
+                c.from_rest
+                    .for_speed(strike::speed_for_velocity(first.velocity))
+                    .1
+            }
+            None => tactus_runtime::performance::descent_time_s(first.velocity),
+        };
+        lead = lead.max(needs - first.on_s);
+    }
+    match lead.is_finite() && lead > 0.0 {
+        true => (lead * fs).ceil() as u64,
+        false => 0,
+    }
+}
+
+/// `perf` `lead_s` later: every note-on and note-off, pedal change and the end.
+fn shifted_performance(perf: &Performance, lead_s: f64) -> Performance {
+    Performance {
+        notes: (perf.notes.iter())
+            .map(|n| Note {
+                on_s: n.on_s + lead_s,
+                off_s: n.off_s + lead_s,
+                ..*n
+            })
+            .collect(),
+        sustain: perf
+            .sustain
+            .iter()
+            .map(|&(t, on)| (t + lead_s, on))
+            .collect(),
+        duration_s: perf.duration_s + lead_s,
+    }
 }

@@ -41,6 +41,10 @@ pub struct RunOptions {
     /// boards, the fault words); `None`: the programs' default.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor_check: Option<bool>,
+    /// `--watchdog`: the firmware's watchdog forced on or off (other cycles and boards, the
+    /// resets of a hung core); `None`: the programs' default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub watchdog: Option<bool>,
 }
 
 /// A source's name and the SHA3-256 of its text, hex.
@@ -350,6 +354,7 @@ mod tests {
                     params: vec![],
                     quiescent_guard: true,
                     sensor_check: None,
+                    watchdog: None,
                 },
                 keyboards: vec![],
                 items: (0..6)

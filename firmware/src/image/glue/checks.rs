@@ -16,7 +16,8 @@ use tactus_isa::decode::{AluOp, Instr};
 /// and checks its change since the copy it replaces: `d = new − copy` must lie in
 /// `[−2^shift, 2^shift)` (`SUBS`, `ASRS`, `ADDS #1`, `LSRS #1`, `BNE`: `(d >> shift) + 1`
 /// is 0 or 1 exactly then), 2^shift being the power of two at or above the largest change
-/// the key's physics allows ([`super::super::fault::max_step_raw`]). Its static cost on the path
+/// a plausible reading makes: the key's physics plus the declared sensor noise on both
+/// readings ([`super::super::fault::max_step_raw`]). Its static cost on the path
 /// that runs the update: 11 cycles (the load of the word, the copy's load and store, the
 /// five instructions) less the sensor pointer's set-up the update no longer needs from the
 /// window.
@@ -261,6 +262,15 @@ impl Feed {
     /// handler may access that bank in the same cycle).
     pub fn unpriced_cycles(&self) -> u64 {
         u64::from(tactus_isa::timing::APB_STORE_WAIT) + u64::from(self.other_samples.is_some())
+    }
+
+    /// Cycles the feed adds to core 1's handler beyond its static analysis: core 0's load
+    /// of core 1's count contends for core 1's bank once a sample, and the bank's
+    /// arbitration may make core 1 the one that waits (which core waits depends on the
+    /// arbiter's state, so a boot from flash and one from RAM may split the cycle
+    /// differently). 0 on a one-core image.
+    pub fn other_core_cycles(&self) -> u64 {
+        u64::from(self.other_samples.is_some())
     }
 }
 
