@@ -508,19 +508,56 @@ fn fetch_allowed(sys: &System, pc: u32, size: u32) -> bool {
         .all(|a| sram_location(a).is_none_or(|(off, _)| sys.allows(off as u32)))
 }
 
+/// Appends to `journal` the old value of each SRAM word the store `instr` (a
+/// [`BlockOp::store`]) writes when it runs with `core`'s registers now, as the confined
+/// native code journals its stores ([`crate::accel::jit`]): entries `offset << 32 | old
+/// word`, the offset word-aligned. False, with nothing appended, when the journal has no
+/// room for them ([`JOURNAL`]) or `instr` is a store form the fast path does not run. A
+/// store the executor then does not complete leaves entries for words it did not write,
+/// which undo to the values they hold: harmless, but the caller takes them back.
+fn journal_store(core: &Core, sys: &System, instr: &Instr, journal: &mut Vec<u64>) -> bool {
+    let r = &core.r;
+    let (addr, words) = match *instr {
+        Instr::MemImm { op, rn, imm, .. } if op.is_store() => {
+            (r[rn as usize & 15].wrapping_add(u32::from(imm)), 1)
+        }
+        Instr::MemReg { op, rn, rm, .. } if op.is_store() => {
+            (r[rn as usize & 15].wrapping_add(r[rm as usize & 15]), 1)
+        }
+        Instr::Stm { rn, list } => (r[rn as usize & 15], list.count_ones()),
+        Instr::Push { list } => {
+            let n = list.count_ones();
+            (r[13].wrapping_sub(4 * n), n)
+        }
+        _ => return false,
+    };
+    if journal.len() + words as usize > JOURNAL {
+        return false;
+    }
+    for k in 0..words {
+        if let Some((off, _)) = sram_location(addr.wrapping_add(4 * k)) {
+            let word = off as u32 & !3;
+            journal.push(u64::from(word) << 32 | u64::from(sys.sram_peek(word)));
+        }
+    }
+    true
+}
+
 /// [`run`] confined to the SRAM banks in [`System::allowed_banks`] (set by the caller), for
 /// a window ([`crate::board`]'s `window.rs`): compiled regions come from the
 /// confined cache, whose loads and stores leave before an access to another bank, and
 /// pre-decoded instructions run through the executor, whose fast path does the same; an
-/// instruction fetched from another bank leaves too. With `journal`, only native code runs
-/// (the run ends where a region does not fit or leaves, `Err(Leave::General)`), every
-/// store's old word is appended to `journal` (the run ends before a store that finds it
-/// full, its capacity) so that the caller can undo the run. With `io` (a window on a board
-/// with an I/O: its log, the DMA's banks `L`, and those of `L` the core may access,
-/// `accel/io_window/`), memos that touch `L` apply too, logging their accesses there,
-/// and native code does and logs its single loads and stores to the third mask's banks
-/// and its word stores to the I/O's registers ([`jit::Confine::io`]). `Ok` when the core
-/// reached `limit`.
+/// instruction fetched from another bank leaves too. With `journal`, every store's old word
+/// is appended to `journal` — by the native code, and by [`journal_store`] before a
+/// pre-decoded store — (the run ends before a store that finds it full) so that the
+/// caller can undo the run; pre-decoded blocks run where a region does not fit before
+/// `limit` (a meeting's run of core 1 to core 0's cycle, `window.rs`), and elsewhere an
+/// instruction native code does not run ends the run (`Err(Leave::General)`). With `io`
+/// (a window on a board with an I/O: its log, the DMA's banks `L`, and those of `L` the
+/// core may access, `accel/io_window/`), memos that touch `L` apply too, logging their
+/// accesses there, and native code does and logs its single loads and stores to the third
+/// mask's banks and its word stores to the I/O's registers ([`jit::Confine::io`]). `Ok`
+/// when the core reached `limit`.
 pub(crate) fn run_confined(
     core: &mut Core,
     sys: &mut System,
@@ -562,6 +599,8 @@ pub(crate) fn run_confined(
             break Ok(());
         }
         let pc = core.r[15];
+        // A region at `pc` that does not fit before `limit`.
+        let mut unfit = false;
         if blocks.memo.watches(pc) {
             let solo = core.cycle >= quiet_from;
             match blocks.memo.call(
@@ -604,9 +643,14 @@ pub(crate) fn run_confined(
                     }
                     continue;
                 }
+                unfit = true;
             }
         }
-        if journal.is_some() {
+        // With a journal, blocks run only where a region does not fit before `limit`; an
+        // instruction native code left to the general path, or code not compiled, goes
+        // there (the executor's fast path would mostly refuse it too: trying it first cost
+        // the demo 0.26 G more with the watchdog off).
+        if !unfit && journal.is_some() {
             break Err(Leave::General);
         }
         native = true;
@@ -622,9 +666,18 @@ pub(crate) fn run_confined(
         let mut leave = None;
         while i < end && core.cycle < limit {
             let o = &ops[i];
+            // A store journals the words it will overwrite first (taken back if it leaves).
+            let mark = journal.as_ref().map_or(0, |j| j.len());
             if !fetch_allowed(sys, o.pc, o.size as u32)
+                || (o.store
+                    && journal
+                        .as_deref_mut()
+                        .is_some_and(|j| !journal_store(core, sys, &o.instr, j)))
                 || !core.execute_op(sys, &o.op, &o.instr, o.pc, o.size as u32, o.cost)
             {
+                if let Some(j) = journal.as_deref_mut() {
+                    j.truncate(mark);
+                }
                 leave = Some(Leave::General);
                 break;
             }
