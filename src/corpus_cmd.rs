@@ -110,12 +110,9 @@ fn trips(args: &TripsArgs) -> ExitCode {
         "{} on {}, sensor check {}, watchdog {}: the budget corpus ({}) through every board",
         kb.name,
         kb.board.name,
-        if args.sensor_check { "on" } else { "off" },
-        match args.watchdog {
-            Some(true) => "on",
-            Some(false) => "off",
-            None => "as the firmware's default",
-        },
+        tactus_host::keyboard::on_off(args.sensor_check),
+        args.watchdog
+            .map_or("as the firmware's default", tactus_host::keyboard::on_off),
         if args.quick { "quick" } else { "full" }
     );
     let (lines, physical) =

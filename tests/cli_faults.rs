@@ -302,6 +302,48 @@ fn a_hung_update_with_the_watchdog_on_resets_the_board_under_emu_run() {
     assert_eq!(out.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("sample 2206 not completed"), "{stderr}");
+    // keys.json records the options it was built with; the rebuild reads them and builds
+    // once, so a key map that says otherwise is not its firmware's.
+    let keys = fw.join("board-01/keys.json");
+    let json = std::fs::read_to_string(&keys).unwrap();
+    let map: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(map["watchdog"], serde_json::Value::Bool(false), "{json}");
+    assert_eq!(
+        map["sensor_check"],
+        serde_json::Value::Bool(false),
+        "{json}"
+    );
+    let edit = |f: &dyn Fn(&mut serde_json::Map<String, serde_json::Value>)| {
+        let mut m = map.clone();
+        f(m.as_object_mut().unwrap());
+        std::fs::write(&keys, serde_json::to_string_pretty(&m).unwrap()).unwrap();
+        run()
+    };
+    let out = edit(&|m| {
+        m.insert("watchdog".into(), true.into());
+    });
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("not the firmware its key maps build")
+            && stderr.contains("the sensor check off and the watchdog on as ")
+            && stderr.contains("the ELFs differ"),
+        "{stderr}"
+    );
+    // A key map from before the options were recorded: the file, the field, what to do.
+    for field in ["sensor_check", "watchdog"] {
+        let out = edit(&|m| {
+            m.remove(field);
+        });
+        assert_eq!(out.status.code(), Some(1), "{field}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains(&format!(
+                "board-01/keys.json: no `{field}` field: written by an older tactus"
+            )) && stderr.contains("build the firmware again with `tactus build"),
+            "{field}: {stderr}"
+        );
+    }
     // --watchdog takes on or off.
     let out = build("maybe");
     assert_eq!(out.status.code(), Some(2));

@@ -271,6 +271,8 @@ fn key_map(
         clock_hz: input.board.clock_hz as u64,
         sample_rate_hz: input.board.sample_rate_hz as u32,
         core_voltage_v: input.board.core_voltage_v,
+        sensor_check: input.programs.iter().any(|p| p.sensor_check),
+        watchdog: input.programs.iter().any(|p| p.watchdog),
         entry: hex(entry | 1),
         start_alarm_us: image.start_alarm_us(),
         period_cycles: image.tick().q,
@@ -359,7 +361,7 @@ Built by `{cmd}`.\n\
 \n\
 {files}\
 - `keys.json`: each key's MIDI number, instrument, core, sensor and DAC words, record and\n  \
-state addresses.\n\
+state addresses; whether the firmware checks its sensors and runs the watchdog.\n\
 \n\
 ## Flashing\n\
 \n\

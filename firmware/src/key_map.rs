@@ -22,6 +22,10 @@
 //!   larger of its sensor and DAC word counts), its record and
 //!   state inside the image.
 //!
+//! - `sensor_check` and `watchdog`, the options the firmware was built with, are not in the
+//!   image's layout rules: `tactus emu run` rebuilds the firmware with them and compares
+//!   the build with the ELF byte for byte. [`parse`] refuses a key map without them.
+//!
 //! What only running shows — that the firmware set PLL_SYS to `clock_hz` and each core's
 //! SysTick to `period_cycles` — [`crate::flash::run_elf`] checks after the boot (bounded by
 //! the checked start alarm) and before the first sample; and after the run, that each core
@@ -49,6 +53,14 @@ pub struct KeyMap {
     /// The core voltage the image sets before its PLL, V (`None`: the regulator's 1.10 V).
     #[serde(default)]
     pub core_voltage_v: Option<f64>,
+    /// Whether the firmware checks its keys' first sensor word every sample
+    /// ([`crate::image::Program::sensor_check`], `tactus build --sensor-check`). Recorded
+    /// so that `tactus emu run` rebuilds the firmware with its options in one build; a key
+    /// map without it was written by an older tactus ([`parse`] says so).
+    pub sensor_check: bool,
+    /// Whether the firmware runs the RP2040's watchdog ([`crate::image::Program::watchdog`],
+    /// `tactus build --watchdog`); recorded as `sensor_check` is.
+    pub watchdog: bool,
     /// Where the image starts (Thumb bit set): the flash reset handler that boot2 enters
     /// (a flash image), or the entry stub at 0x20000000 that the boot ROM enters (a RAM
     /// image).
@@ -78,6 +90,38 @@ pub struct KeyMap {
     /// channels (each key's `adc_channels`, `dac_channels`), not the windows.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub converters: Option<tactus_runtime::converters::Converters>,
+}
+
+/// The fields a key map has recorded since a later version of tactus than its first: an
+/// older `keys.json` lacks them ([`parse`]).
+pub const RECORDED_SINCE_OPTIONS: [&str; 2] = ["sensor_check", "watchdog"];
+
+/// The key map in `text` (a `keys.json`).
+///
+/// Errors, as a message the caller prefixes with the file: not JSON, or not a key map's
+/// fields (serde's message, with its line and column); a key map written by an older tactus
+/// that did not record the firmware's options ([`RECORDED_SINCE_OPTIONS`]), naming the
+/// missing field and telling the user to build the firmware again. No default is assumed
+/// for a missing option: a guess that is wrong would rebuild other firmware than the ELF,
+/// and the byte-for-byte check would then reject the board with a less helpful message.
+pub fn parse(text: &str) -> Result<KeyMap, String> {
+    let value: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| format!("not a Tactus key map: {e}"))?;
+    if let Some(fields) = value.as_object() {
+        if fields.contains_key("board") && fields.contains_key("keys") {
+            if let Some(missing) = RECORDED_SINCE_OPTIONS
+                .iter()
+                .find(|f| !fields.contains_key(**f))
+            {
+                return Err(format!(
+                    "no `{missing}` field: written by an older tactus, which did not record \
+                     the firmware's options (`sensor_check`, `watchdog`); build the firmware \
+                     again with `tactus build LAYOUT --target rp2040`"
+                ));
+            }
+        }
+    }
+    serde_json::from_value(value).map_err(|e| format!("not a Tactus key map: {e}"))
 }
 
 /// One core in a [`KeyMap`].

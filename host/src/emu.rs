@@ -5,7 +5,7 @@
 //! waited for ([`wait_for_gdb`]). The caller shows progress and prints.
 
 use crate::fault::{BoardFaults, FaultError, FaultSpec};
-use crate::keyboard::Reporter;
+use crate::keyboard::{on_off, Reporter};
 use std::path::{Path, PathBuf};
 use tactus_emulator::core::{Core, RunState};
 use tactus_emulator::debug::gdb;
@@ -342,10 +342,10 @@ pub fn keyboard_maps(map: &KeyMap, map_path: &Path) -> Result<Vec<KeyMap>, Strin
     others.sort();
     for path in others {
         let text = tactus_runtime::keyboard::read_text(&path)?;
-        let other: KeyMap = serde_json::from_str(&text).map_err(|e| {
+        let other = tactus_firmware::key_map::parse(&text).map_err(|e| {
             format!(
-                "{}: not a Tactus key map: {e} (a key map beside {}: every board of the \
-                 keyboard is rebuilt to find the firmware's shared code)",
+                "{}: {e} (a key map beside {}: every board of the keyboard is rebuilt to \
+                 find the firmware's shared code)",
                 path.display(),
                 map_path.display()
             )
@@ -408,13 +408,13 @@ fn map_differences(a: &serde_json::Value, b: &serde_json::Value, most: usize) ->
 
 /// The image of board `map.board` of the keyboard `kb` (rebuilt from its key maps:
 /// [`crate::keyboard::from_key_maps`]) as `tactus build` builds it, with the sensor check
-/// and the watchdog on or off as the firmware `elf` was built (tried in turn, the
-/// programs' defaults first), checked to be `elf` byte for byte and to write `map`.
-/// Returns the image and whether the check and the watchdog are on.
+/// and the watchdog as the key map records them (`KeyMap::sensor_check`, `watchdog`),
+/// checked to be `elf` byte for byte and to write `map`. Returns the image and whether the
+/// check and the watchdog are on.
 ///
-/// Errors, as messages naming `file` and `map_name`: no build of the key maps gives `elf`
-/// (another keyboard's or version's firmware), or one does but its key map differs from
-/// `map` (the fields named).
+/// Errors, as messages naming `file` and `map_name`: the build of the key maps is not `elf`
+/// (another keyboard's or version's firmware, or a key map edited by hand), or it is but
+/// its key map differs from `map` (the fields named).
 fn rebuild(
     kb: &mut crate::keyboard::Keyboard,
     map: &KeyMap,
@@ -423,15 +423,7 @@ fn rebuild(
     map_name: &str,
 ) -> Result<(FirmwareImage, (bool, bool)), String> {
     let defaults = kb.firmware().map_err(|e| format!("{map_name}: {e}"))?;
-    let first = defaults
-        .first()
-        .map_or((false, false), |p| (p.sensor_check, p.watchdog));
-    let mut tries = vec![first];
-    for c in [(false, false), (true, false), (false, true), (true, true)] {
-        if !tries.contains(&c) {
-            tries.push(c);
-        }
-    }
+    let (sensor_check, watchdog) = (map.sensor_check, map.watchdog);
     let names: Vec<(String, Vec<(String, String)>)> = (kb.sets.iter())
         .map(|s| (s.instrument.clone(), s.params.clone()))
         .collect();
@@ -445,67 +437,69 @@ fn rebuild(
     };
     let limiter = kb.limiter();
     let wanted = serde_json::to_value(map).map_err(|e| format!("{map_name}: {e}"))?;
-    for (sensor_check, watchdog) in tries {
-        let programs: Vec<_> = (defaults.iter())
-            .map(|p| {
-                let mut p = p.clone();
-                p.sensor_check = sensor_check;
-                p.watchdog = watchdog;
-                p
-            })
-            .collect();
-        let input = flash::KeyboardInput {
-            name: &kb.name,
-            programs: &programs,
-            program_names: &names,
-            keys: &keys,
-            board: &kb.board,
-            boards: std::slice::from_ref(&list),
-            limiter: &limiter,
-            load,
-            command: "",
-        };
-        // A build that fails with these checks (the board no longer fits) is not the one.
-        let Ok(mut built) = flash::keyboard_firmware(&input, &mut |_, _, _| {}) else {
-            continue;
-        };
-        let Some(mut fw) = built.pop() else { continue };
-        if fw.elf != elf {
-            continue;
-        }
-        fw.key_map.board = map.board;
-        let ours = serde_json::to_value(&fw.key_map).map_err(|e| format!("{map_name}: {e}"))?;
-        let differ = map_differences(&wanted, &ours, 6);
-        if !differ.is_empty() {
-            return Err(format!(
-                "{map_name}: {} {} not what the build of {} writes: the key map does not \
-                 describe its firmware",
-                differ
-                    .iter()
-                    .map(|d| format!("`{d}`"))
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                if differ.len() == 1 { "is" } else { "are" },
-                file.display()
-            ));
-        }
-        kb.sensor_check = Some(sensor_check);
-        kb.watchdog = Some(watchdog);
-        return Ok((fw.image, (sensor_check, watchdog)));
-    }
+    let programs: Vec<_> = (defaults.iter())
+        .map(|p| {
+            let mut p = p.clone();
+            p.sensor_check = sensor_check;
+            p.watchdog = watchdog;
+            p
+        })
+        .collect();
+    let input = flash::KeyboardInput {
+        name: &kb.name,
+        programs: &programs,
+        program_names: &names,
+        keys: &keys,
+        board: &kb.board,
+        boards: std::slice::from_ref(&list),
+        limiter: &limiter,
+        load,
+        command: "",
+    };
     let maps = kb.boards.as_ref().map_or(1, Vec::len);
-    Err(format!(
-        "{}: not the firmware its key maps build (board {}, rebuilt from {maps} key map{} of \
-         {} keys, the sensor check and the watchdog each on and off): built by another \
-         version of tactus, from other key maps, or a board taken out of its build (an \
-         instrument graded over the keyboard shares one code planned over every board's \
-         keys: keep the build's board-NN directories together); build it again with \
-         `tactus build … --target rp2040`",
-        file.display(),
-        map.board,
-        if maps == 1 { "" } else { "s" },
-        kb.keys.len()
-    ))
+    let not_it = |why: &str| {
+        format!(
+            "{}: not the firmware its key maps build (board {}, rebuilt from {maps} key map{} \
+             of {} keys, the sensor check {} and the watchdog {} as {map_name} records them: \
+             {why}): built by another version of tactus, from other key maps, with a key map \
+             edited since, or a board taken out of its build (an instrument graded over the \
+             keyboard shares one code planned over every board's keys: keep the build's \
+             board-NN directories together); build it again with `tactus build … --target \
+             rp2040`",
+            file.display(),
+            map.board,
+            if maps == 1 { "" } else { "s" },
+            kb.keys.len(),
+            on_off(sensor_check),
+            on_off(watchdog),
+        )
+    };
+    let mut built = flash::keyboard_firmware(&input, &mut |_, _, _| {}).map_err(|e| not_it(&e))?;
+    let Some(mut fw) = built.pop() else {
+        return Err(not_it("no board built"));
+    };
+    if fw.elf != elf {
+        return Err(not_it("the ELFs differ"));
+    }
+    fw.key_map.board = map.board;
+    let ours = serde_json::to_value(&fw.key_map).map_err(|e| format!("{map_name}: {e}"))?;
+    let differ = map_differences(&wanted, &ours, 6);
+    if !differ.is_empty() {
+        return Err(format!(
+            "{map_name}: {} {} not what the build of {} writes: the key map does not \
+             describe its firmware",
+            differ
+                .iter()
+                .map(|d| format!("`{d}`"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            if differ.len() == 1 { "is" } else { "are" },
+            file.display()
+        ));
+    }
+    kb.sensor_check = Some(sensor_check);
+    kb.watchdog = Some(watchdog);
+    Ok((fw.image, (sensor_check, watchdog)))
 }
 
 /// Per program of `image`, its first sensor's raw words over `stimulus` (a built-in key
@@ -586,8 +580,8 @@ impl FirmwareJob {
                 file.display()
             )
         })?;
-        let map: KeyMap = serde_json::from_str(&text)
-            .map_err(|e| format!("{}: not a Tactus key map: {e}", map_path.display()))?;
+        let map = tactus_firmware::key_map::parse(&text)
+            .map_err(|e| format!("{}: {e}", map_path.display()))?;
         if !(seconds > 0.0 && seconds <= MAX_FIRMWARE_SECONDS) {
             return Err(format!(
                 "--seconds {seconds}: from just above 0 to {MAX_FIRMWARE_SECONDS}"
@@ -708,7 +702,6 @@ impl FirmwareJob {
         run.board().finish_debugging();
         let records = crate::fault::run_records(&mut run)?;
         let resets = run.resets().to_vec();
-        let on = |b: bool| if b { "on" } else { "off" };
         let mut lines = vec![format!(
             "{file}: board {} ({} keys, {}), {} samples of `{}` at {} Hz, {} cycles per sample, sensor check {}, watchdog {}",
             map.board,
@@ -718,8 +711,8 @@ impl FirmwareJob {
             self.stimulus,
             map.sample_rate_hz,
             image.cycles_per_sample(),
-            on(self.checks.0),
-            on(self.checks.1),
+            on_off(self.checks.0),
+            on_off(self.checks.1),
         )];
         for c in 0..cores {
             lines.push(format!(

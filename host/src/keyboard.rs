@@ -147,6 +147,17 @@ pub struct Keyboard {
     pub watchdog: Option<bool>,
 }
 
+/// The one spelling of a firmware option's state ([`Keyboard::sensor_check`],
+/// [`Keyboard::watchdog`]) in what `tactus` prints: `on` or `off`, the words
+/// `--sensor-check` and `--watchdog` take.
+pub fn on_off(on: bool) -> &'static str {
+    if on {
+        "on"
+    } else {
+        "off"
+    }
+}
+
 /// Receives a source's diagnostics: its warnings when it compiles, its errors (and
 /// warnings) when it does not. Called once per distinct set at most.
 pub type Reporter<'r> = dyn FnMut(&Source, &[Diagnostic]) + 'r;
