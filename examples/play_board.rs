@@ -103,7 +103,7 @@ fn run(piece: &Path, seconds: f64, which: Option<usize>) -> Result<bool, String>
     let fs = kb.board.sample_rate_hz;
     let opts = PerformOptions {
         end: (perf.duration_s * fs) as usize,
-        fs,
+        clock: tactus_host::play::Timeline::at_zero(fs),
         finger: Default::default(),
         trace: Default::default(),
         boards: vec![list.clone()],

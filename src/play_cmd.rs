@@ -78,7 +78,8 @@ pub struct PlayArgs {
     /// the DAC code).
     #[arg(long, value_delimiter = ',', value_name = "KEYS")]
     pub trace_keys: Vec<u8>,
-    /// Trace from this time on, s.
+    /// Trace from this time on, s (the performance's time; negative to see the lead-in a
+    /// piece whose first notes start at once is run from, e.g. `--trace-from=-0.1`).
     #[arg(long, default_value_t = 0.0)]
     pub trace_from: f64,
     /// Trace until this time, s [default: the end].

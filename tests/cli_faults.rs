@@ -368,14 +368,20 @@ fn a_note_at_0_s_is_struck_on_every_engine_and_trips_no_check() {
         ("interp", "position"),
     ] {
         let out_dir = dir.join(format!("{engine}-{player}"));
-        let out = tactus()
-            .args(["play", midi.to_str().unwrap(), "--layout"])
+        let mut play = tactus();
+        play.args(["play", midi.to_str().unwrap(), "--layout"])
             .arg(&layout)
             .args(["--engine", engine, "--player", player])
-            .args(["--seconds", "0.3", "--no-wav", "--sensor-check", "on", "-o"])
-            .arg(&out_dir)
-            .output()
-            .unwrap();
+            .args(["--seconds", "0.3", "--no-wav", "--sensor-check", "on"])
+            .args(["--trace-keys", "63", "--trace-from=-1", "-o"])
+            .arg(&out_dir);
+        // On the firmware, a fault at 0.1 s of the performance on a resting key: its trip
+        // is reported at the performance's sample 4410 (+ at most 1 ms), not the run's.
+        let faulted = (engine, player) == ("emu", "position");
+        if faulted {
+            play.args(["--fault", "kind=short,note=60,at=0.1s"]);
+        }
+        let out = play.output().unwrap();
         assert_ok(&out);
         let stdout = String::from_utf8_lossy(&out.stdout);
         let stderr = String::from_utf8_lossy(&out.stderr);
@@ -387,16 +393,52 @@ fn a_note_at_0_s_is_struck_on_every_engine_and_trips_no_check() {
             !stderr.contains("could not be placed"),
             "{engine} {player}: {stderr}"
         );
-        if engine == "emu" {
+        if engine == "emu" && !faulted {
             assert!(
                 stdout.contains("faults: 0 trips on 1 board\n"),
                 "{engine} {player}: {stdout}"
             );
         }
+        if faulted {
+            let csv = std::fs::read_to_string(out_dir.join("zero-faults.csv")).unwrap();
+            let row = (csv.lines())
+                .find(|l| l.contains(",sensor-range,"))
+                .unwrap_or_else(|| panic!("{csv}"));
+            let cols: Vec<&str> = row.split(',').collect();
+            let (sample, at): (u64, f64) = (cols[7].parse().unwrap(), cols[8].parse().unwrap());
+            assert!(
+                cols[5] == "60" && (4410..=4410 + 44).contains(&sample),
+                "{csv}"
+            );
+            assert!((at - sample as f64 / 44_100.0).abs() < 1e-6, "{csv}");
+        }
         let csv = std::fs::read_to_string(out_dir.join("zero-strikes.csv")).unwrap();
         let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
         let t: f64 = row[1].parse().unwrap();
         assert!(row[0] == "63" && t.abs() < 0.05, "{engine} {player}: {csv}");
+        // The trace from the run's first sample: the lead-in before 0 s, then a row at the
+        // performance's 0 s itself (the lead-in is whole samples), one a sample.
+        let text = std::fs::read_to_string(out_dir.join("zero-key63.csv")).unwrap();
+        assert!(text.starts_with("time_s,"), "{text}");
+        let rows: Vec<(f64,)> = (text.lines().skip(1))
+            .map(|l| (l.split(',').next().unwrap().parse().unwrap(),))
+            .collect();
+        let first = rows[0].0;
+        assert!(
+            (-0.1..-1e-3).contains(&first),
+            "{engine} {player}: the trace starts at {first} s"
+        );
+        let zero = rows.iter().position(|r| r.0.abs() < 1e-9);
+        let zero = zero.unwrap_or_else(|| panic!("{engine} {player}: no row at 0 s"));
+        assert!(
+            (zero as f64 / 44_100.0 + first).abs() < 1e-9,
+            "{engine} {player}: row {zero} at 0 s, the first at {first} s"
+        );
+        // The strike's row: the hammer meets the string within the trace, at the strike.
+        assert!(
+            rows.iter().any(|r| (r.0 - t).abs() < 1e-9),
+            "{engine} {player}: no trace row at the strike's {t} s"
+        );
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1484,7 +1484,7 @@ fn a_40_minute_recital_plays_whole_on_every_board_and_its_first_20_minutes_as_a_
         kb_mb(peak_cut),
         kb_mb(peak),
         tactus_host::session::budget_text(r),
-        tactus_host::session::spans_text(&long.played.spans, 44_100.0),
+        tactus_host::session::spans_text(&long.played.spans),
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -144,7 +144,7 @@ fn boot<'s>(s: &'s Setup, engine: Engine, memos: bool) -> Vec<(BoardEngine<'s>, 
 fn play(s: &Setup, boards: Vec<(BoardEngine, Vec<Drive>)>) -> Vec<(BoardRun, usize)> {
     let trace = TraceWindow::default();
     let config = LoopConfig {
-        fs: FS,
+        clock: tactus_host::play::Timeline::at_zero(FS),
         finger: FingerConfig::default(),
         trace: &trace,
         stop_at_strike_after_s: None,

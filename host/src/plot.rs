@@ -488,9 +488,40 @@ pub fn plot_points(
     })
 }
 
+/// The lines of [`plot_cycle_series`]: one per series, its point `i` at `from_s + i /
+/// sample_rate_hz` s, and the deadline across them; `None` without points or with a rate
+/// that is not positive.
+pub fn cycle_lines(
+    cycles: &[(String, &[u64])],
+    sample_rate_hz: f64,
+    from_s: f64,
+    deadline_cycles: u64,
+) -> Option<Vec<Line>> {
+    let samples = cycles.iter().map(|c| c.1.len()).max().unwrap_or(0);
+    if samples == 0 || sample_rate_hz.is_nan() || sample_rate_hz <= 0.0 || !from_s.is_finite() {
+        return None;
+    }
+    let at = |i: usize| from_s + i as f64 / sample_rate_hz;
+    let mut lines: Vec<Line> = cycles
+        .iter()
+        .map(|(label, v)| Line {
+            label: label.clone(),
+            x: (0..v.len()).map(at).collect(),
+            y: v.iter().map(|&n| n as f64).collect(),
+        })
+        .collect();
+    lines.push(Line {
+        label: format!("deadline ({deadline_cycles} cycles)"),
+        x: vec![at(0), at(samples - 1)],
+        y: vec![deadline_cycles as f64; 2],
+    });
+    Some(lines)
+}
+
 /// Cycles per sample over time, one named line per series (`("board 3", cycles)`, e.g. a
-/// board's busier core), at `sample_rate_hz` points per second, against the per-sample
-/// deadline `deadline_cycles`.
+/// board's busier core), at `sample_rate_hz` points per second from `from_s` s (the time
+/// of the first point: a play run's lead-in starts before the performance's 0 s), against
+/// the per-sample deadline `deadline_cycles` ([`cycle_lines`]).
 ///
 /// # Errors
 ///
@@ -499,30 +530,16 @@ pub fn plot_points(
 pub fn plot_cycle_series(
     cycles: &[(String, &[u64])],
     sample_rate_hz: f64,
+    from_s: f64,
     deadline_cycles: u64,
     title: &str,
     path: &Path,
 ) -> Result<(), PlotError> {
-    let samples = cycles.iter().map(|c| c.1.len()).max().unwrap_or(0);
-    if samples == 0 || sample_rate_hz.is_nan() || sample_rate_hz <= 0.0 {
-        return Err(PlotError::EmptyTrace {
+    let lines = cycle_lines(cycles, sample_rate_hz, from_s, deadline_cycles).ok_or_else(|| {
+        PlotError::EmptyTrace {
             path: path.to_path_buf(),
-        });
-    }
-    let mut lines: Vec<Line> = cycles
-        .iter()
-        .map(|(label, v)| Line {
-            label: label.clone(),
-            x: (0..v.len()).map(|i| i as f64 / sample_rate_hz).collect(),
-            y: v.iter().map(|&n| n as f64).collect(),
-        })
-        .collect();
-    let end = (samples - 1) as f64 / sample_rate_hz;
-    lines.push(Line {
-        label: format!("deadline ({deadline_cycles} cycles)"),
-        x: vec![0.0, end],
-        y: vec![deadline_cycles as f64; 2],
-    });
+        }
+    })?;
     let path_buf = path.to_path_buf();
     let series: Vec<Series> = lines
         .iter()
@@ -1094,7 +1111,7 @@ mod tests {
             ("board 1".to_string(), core0.as_slice()),
             ("board 2".to_string(), core1.as_slice()),
         ];
-        plot_cycle_series(&named, fs, 2834, "budget", &cpath).unwrap();
+        plot_cycle_series(&named, fs, 0.0, 2834, "budget", &cpath).unwrap();
         let svg = std::fs::read_to_string(&cpath).unwrap();
         std::fs::remove_file(&cpath).unwrap();
         std::fs::remove_file(&path).unwrap();
@@ -1109,7 +1126,12 @@ mod tests {
         }
         // One polyline per series and one for the deadline.
         assert!(svg.matches("<polyline").count() >= 3, "too few lines");
-        let e = plot_cycle_series(&[], fs, 100, "x", &cpath).unwrap_err();
+        let e = plot_cycle_series(&[], fs, 0.0, 100, "x", &cpath).unwrap_err();
         assert!(matches!(e, PlotError::EmptyTrace { .. }), "{e}");
+        // From a lead-in of 441 samples: the first point at -10 ms, sample 441 at 0 s.
+        let lines = cycle_lines(&named, fs, -0.01, 2834).unwrap();
+        assert_eq!(lines[0].x[0], -0.01);
+        assert!(lines[0].x[441].abs() < 1e-12, "{}", lines[0].x[441]);
+        assert_eq!(lines[2].x, vec![-0.01, -0.01 + 9_999.0 / fs]);
     }
 }

@@ -153,7 +153,7 @@ impl Piece {
                 None,
             ),
             Some(r) => {
-                let mut text = budget_text(r) + &spans_text(&self.played.spans, self.fs);
+                let mut text = budget_text(r) + &spans_text(&self.played.spans);
                 for line in crate::fault::report_lines(&r.faults(), self.fs) {
                     text.push_str(&format!("  {line}\n"));
                 }
@@ -620,7 +620,7 @@ impl Session {
         }
         if let Some(r) = &played.boards {
             let svg = out.join(format!("{stem}-cycles.svg"));
-            plot_play_cycles(r, kb.board.sample_rate_hz, &stem, &svg)?;
+            plot_play_cycles(r, &stem, &svg)?;
             written.push(svg);
             let csv = out.join(format!("{stem}-faults.csv"));
             let text = crate::fault::csv_text(&r.faults(), kb.board.sample_rate_hz);
@@ -730,8 +730,8 @@ pub fn budget_text(r: &BoardsReport) -> String {
 
 /// The budget of each span of a run played in spans (`PlayConfig::span`): per span a line
 /// giving its first and last samples and times, then its [`budget_text`]; empty without
-/// spans. `fs` is the sample rate, Hz.
-pub fn spans_text(spans: &[(u64, BoardsReport)], fs: f64) -> String {
+/// spans. The times are the performance's (each report's [`BoardsReport::timeline`]).
+pub fn spans_text(spans: &[(u64, BoardsReport)]) -> String {
     let mut s = String::new();
     for (k, (from, r)) in spans.iter().enumerate() {
         let to = from + r.samples;
@@ -739,8 +739,8 @@ pub fn spans_text(spans: &[(u64, BoardsReport)], fs: f64) -> String {
             "  span {} of {}: samples {from}–{to} ({:.3}–{:.3} s)\n",
             k + 1,
             spans.len(),
-            *from as f64 / fs,
-            to as f64 / fs
+            r.timeline.sample_to_performance_s(*from),
+            r.timeline.sample_to_performance_s(to)
         ));
         s.push_str(&budget_text(r));
     }
@@ -756,8 +756,9 @@ pub fn peak_memory_kb() -> Option<u64> {
 }
 
 /// Plots the cycles per sample of the busier core of each board (beyond eight boards, the
-/// busiest and the mean of all) against the deadline.
-fn plot_play_cycles(r: &BoardsReport, fs: f64, stem: &str, path: &Path) -> Result<(), PlotError> {
+/// busiest and the mean of all) against the deadline, in the performance's time (from
+/// before its 0 s with a lead-in: [`BoardsReport::timeline`]).
+fn plot_play_cycles(r: &BoardsReport, stem: &str, path: &Path) -> Result<(), PlotError> {
     let named: Vec<(String, Vec<u64>)> = if r.boards.len() <= 8 {
         r.boards
             .iter()
@@ -799,7 +800,8 @@ fn plot_play_cycles(r: &BoardsReport, fs: f64, stem: &str, path: &Path) -> Resul
         .collect();
     plot_cycle_series(
         &series,
-        fs / r.decimation as f64,
+        r.timeline.fs / r.decimation as f64,
+        r.timeline.sample_to_performance_s(0),
         r.deadline,
         &format!(
             "{stem}: cycles per sample, busier core of each board (max per {} samples)",
@@ -907,6 +909,7 @@ mod tests {
             boards,
             decimation: 1,
             samples: 10,
+            timeline: crate::play::Timeline::at_zero(44_100.0),
         };
         let clean = budget_text(&report(vec![board(&[]), board(&[])]));
         assert!(

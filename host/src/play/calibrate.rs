@@ -99,7 +99,7 @@ pub fn calibrate<'e>(
                 &[drive],
                 0..((start + CALIBRATION_S) * fs) as usize,
                 &LoopConfig {
-                    fs,
+                    clock: super::timeline::Timeline::at_zero(fs),
                     finger,
                     trace: &TraceWindow::default(),
                     stop_at_strike_after_s: Some(start),

@@ -15,6 +15,7 @@ use crate::play::engine::{KeyEngine, KeySample};
 use crate::play::error::{BoardError, RunError};
 use crate::play::run::{Drive, KeysLoop, LoopConfig, TraceWindow};
 use crate::play::strike::{strike_event, Strike};
+use crate::play::timeline::Timeline;
 use std::collections::BTreeMap;
 use tactus_compiler::fixed::interp::FixedInstance;
 use tactus_firmware::boards::{self, PlanKey, ProgramCosts};
@@ -33,10 +34,10 @@ pub const MAX_POINTS: usize = 4000;
 /// How [`play_boards`] runs.
 #[derive(Clone, Debug)]
 pub struct PerformOptions {
-    /// Samples to run, from sample 0.
+    /// Samples to run, from sample 0 (the run's: a lead-in's first).
     pub end: usize,
-    /// Sample rate, Hz.
-    pub fs: f64,
+    /// The run's clock: its sample rate and lead-in ([`Timeline`]).
+    pub clock: Timeline,
     /// The finger of the force player.
     pub finger: FingerConfig,
     /// Which keys to trace, and when.
@@ -698,7 +699,7 @@ fn run_board(
         })
         .collect();
     let config = LoopConfig {
-        fs: opts.fs,
+        clock: opts.clock,
         finger: opts.finger,
         trace: &opts.trace,
         stop_at_strike_after_s: None,

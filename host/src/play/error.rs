@@ -91,9 +91,9 @@ pub enum RunError {
     NonFinite {
         /// The key (MIDI number).
         key: u8,
-        /// The sample index.
+        /// The run's sample index (from the start of a lead-in).
         sample: usize,
-        /// Its time, s.
+        /// Its time in the performance's time, s.
         time_s: f64,
         /// The force, N.
         force_n: f64,

@@ -29,12 +29,14 @@ pub mod results;
 pub mod run;
 pub mod shard;
 pub mod strike;
+pub mod timeline;
 
 pub use engine::{KeyEngine, KeySample};
 pub use error::{BoardError, RunError};
 pub use motion::Motion;
 pub use run::{TraceRows, TraceWindow, Traces};
 pub use strike::Strike;
+pub use timeline::Timeline;
 
 use calibrate::{calibrate, CALIBRATION_LEVELS_N};
 use emulated::{play_boards, BoardRun, PerformOptions};
@@ -200,6 +202,9 @@ pub struct BoardsReport {
     pub decimation: usize,
     /// Samples run.
     pub samples: u64,
+    /// The run's clock: its first sample is `timeline.lead_in` samples before the
+    /// performance's 0 s ([`Timeline`]; the cycles and the spans are the run's samples).
+    pub timeline: Timeline,
 }
 
 impl BoardsReport {
@@ -277,9 +282,12 @@ pub struct Played {
     pub key_samples: u64,
     /// With `Emu`: the boards' budget over the run.
     pub boards: Option<BoardsReport>,
-    /// With `Emu` and [`PlayConfig::span`]: each span's first sample and the boards' budget
-    /// over it alone (its largest and mean cycles, its misses), in order.
+    /// With `Emu` and [`PlayConfig::span`]: each span's first sample (the run's) and the
+    /// boards' budget over it alone (its largest and mean cycles, its misses), in order.
     pub spans: Vec<(u64, BoardsReport)>,
+    /// The run's clock: the lead-in it ran before the performance's 0 s. Every time above
+    /// is the performance's; the samples of `boards` and `spans` are the run's.
+    pub timeline: Timeline,
 }
 
 /// The slack of a calibrated range of hammer speeds, as a fraction of the speed: about half
@@ -445,21 +453,19 @@ pub fn play(
             .collect::<Result<_, RunError>>()?,
     };
     // The lead-in: a piece whose first notes start sooner than their strokes need runs
-    // from `lead` before it (whole samples), so that every stroke is placed as recorded;
-    // what the run reports is moved back to the performance's time.
-    let lead_n = lead_in_samples(perf, keyboard, &calibrations, fs);
-    let lead_s = lead_n as f64 / fs;
+    // from a lead-in before it (whole samples), so that every stroke is placed as
+    // recorded. The players plan in the run's time; everything reported reads the
+    // performance's through the one clock.
+    let timeline = Timeline::new(fs, lead_in_samples(perf, keyboard, &calibrations, fs));
     let shifted;
-    let run_perf = match lead_n {
+    let run_perf = match timeline.lead_in {
         0 => perf,
         _ => {
-            shifted = shifted_performance(perf, lead_s);
+            shifted = shifted_performance(perf, &timeline);
             &shifted
         }
     };
-    let mut trace = config.trace.clone();
-    trace.from_s += lead_s;
-    trace.to_s += lead_s;
+    let trace = &config.trace;
     // Each played key's motion and the stretches it moves.
     let mut motions: BTreeMap<u8, (Motion, Vec<(f64, f64)>)> = BTreeMap::new();
     let mut restrikes = Restrikes::default();
@@ -475,7 +481,7 @@ pub fn play(
         if let Motion::Track(t) = &motion {
             rushed.extend(t.rushed.iter().map(|r| {
                 let mut r = *r;
-                r.on_s -= lead_s;
+                r.on_s = timeline.run_to_performance_s(r.on_s);
                 (key, r)
             }));
         }
@@ -512,15 +518,15 @@ pub fn play(
         let faults = (config.faults.iter())
             .map(|f| {
                 f.resolve(&plan_boards, fs).map(|(b, mut i)| {
-                    i.from += lead_n;
-                    i.until = i.until.map(|u| u + lead_n);
+                    i.from = timeline.performance_sample_to_run(i.from);
+                    i.until = i.until.map(|u| timeline.performance_sample_to_run(u));
                     (b, i)
                 })
             })
             .collect::<Result<Vec<_>, _>>()?;
         let opts = PerformOptions {
             end,
-            fs,
+            clock: timeline,
             finger,
             trace: trace.clone(),
             boards: plan_boards,
@@ -548,10 +554,10 @@ pub fn play(
             // The fault words and resets in the performance's samples (a trip in the
             // lead-in at 0).
             for w in &mut b.faults {
-                w.at_sample = w.at_sample.saturating_sub(lead_n as u32);
+                w.at_sample = timeline.run_sample_to_performance(u64::from(w.at_sample)) as u32;
             }
             for r in &mut b.resets {
-                r.sample = r.sample.saturating_sub(lead_n);
+                r.sample = timeline.run_sample_to_performance(r.sample);
             }
             strikes.append(&mut b.strikes);
             traces.append(&mut b.traces);
@@ -571,6 +577,7 @@ pub fn play(
                     boards,
                     decimation: 1,
                     samples: len,
+                    timeline,
                 },
             ));
             from += len;
@@ -581,6 +588,7 @@ pub fn play(
             boards: runs,
             decimation: run.decimation,
             samples: end as u64,
+            timeline,
         });
     } else {
         // One fresh instance per busy stretch of each played key.
@@ -602,9 +610,9 @@ pub fn play(
                 &[drive],
                 samples,
                 &run::LoopConfig {
-                    fs,
+                    clock: timeline,
                     finger,
-                    trace: &trace,
+                    trace,
                     stop_at_strike_after_s: None,
                 },
                 &|n| progress.inc(n),
@@ -614,10 +622,6 @@ pub fn play(
                 traces.entry(k).or_default().append(&mut rows);
             }
         }
-    }
-    if lead_n > 0 {
-        strikes.iter_mut().for_each(|s| s.time_s -= lead_s);
-        (traces.values_mut().flatten()).for_each(|row| row[0] -= lead_s);
     }
     strike::answer(&mut strikes, &perf.notes);
     let silent = strike::silent(&perf.notes, &strikes)
@@ -662,6 +666,7 @@ pub fn play(
         key_samples,
         boards,
         spans,
+        timeline,
     })
 }
 
@@ -701,21 +706,19 @@ fn lead_in_samples(
     }
 }
 
-/// `perf` `lead_s` later: every note-on and note-off, pedal change and the end.
-fn shifted_performance(perf: &Performance, lead_s: f64) -> Performance {
+/// `perf` in the run's time of `timeline` (its lead-in later): every note-on and
+/// note-off, pedal change and the end.
+fn shifted_performance(perf: &Performance, timeline: &Timeline) -> Performance {
+    let at = |t: f64| timeline.performance_to_run_s(t);
     Performance {
         notes: (perf.notes.iter())
             .map(|n| Note {
-                on_s: n.on_s + lead_s,
-                off_s: n.off_s + lead_s,
+                on_s: at(n.on_s),
+                off_s: at(n.off_s),
                 ..*n
             })
             .collect(),
-        sustain: perf
-            .sustain
-            .iter()
-            .map(|&(t, on)| (t + lead_s, on))
-            .collect(),
-        duration_s: perf.duration_s + lead_s,
+        sustain: perf.sustain.iter().map(|&(t, on)| (at(t), on)).collect(),
+        duration_s: at(perf.duration_s),
     }
 }

@@ -13,6 +13,7 @@ use super::engine::KeyEngine;
 use super::error::RunError;
 use super::motion::Motion;
 use super::strike::Strike;
+use super::timeline::Timeline;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
 use tactus_runtime::player::{FingerConfig, ForcePlayer};
@@ -58,14 +59,16 @@ pub struct KeysRun {
 /// How [`run_keys`] runs.
 #[derive(Clone, Debug)]
 pub struct LoopConfig<'t> {
-    /// Sample rate, Hz.
-    pub fs: f64,
+    /// The run's clock: its sample rate, and its lead-in before the performance's 0 s
+    /// (the players' motions are in the run's time, from its first sample; the strikes,
+    /// the trace rows and the trace window in the performance's).
+    pub clock: Timeline,
     /// The finger of a force player's key.
     pub finger: FingerConfig,
     /// What to trace.
     pub trace: &'t TraceWindow,
-    /// Stop after the sample of the first strike at or after this time, s (a calibration
-    /// stroke needs no more).
+    /// Stop after the sample of the first strike at or after this time (the performance's),
+    /// s (a calibration stroke needs no more).
     pub stop_at_strike_after_s: Option<f64>,
 }
 
@@ -122,7 +125,7 @@ impl<'d, 'c> KeysLoop<'d, 'c> {
     /// The loop for the keys `drives` (in the engine's key order) as `config` says, before
     /// its first sample.
     pub fn new(drives: &'d [Drive<'d>], config: &'c LoopConfig<'c>) -> Self {
-        let (fs, finger, trace) = (config.fs, &config.finger, config.trace);
+        let (fs, finger, trace) = (config.clock.fs, &config.finger, config.trace);
         let players: Vec<Option<ForcePlayer>> = drives
             .iter()
             .map(|d| {
@@ -174,7 +177,8 @@ impl<'d, 'c> KeysLoop<'d, 'c> {
             return Ok(());
         }
         let config = self.config;
-        let (fs, trace) = (config.fs, config.trace);
+        let (clock, trace) = (config.clock, config.trace);
+        let fs = clock.fs;
         let drives = self.drives;
         let n = drives.len();
         let (players, cursors, xs, run) = (
@@ -188,7 +192,9 @@ impl<'d, 'c> KeysLoop<'d, 'c> {
         let next_try = self.next_try.get_or_insert(samples.start + 1);
         let mut i = samples.start;
         while i < samples.end {
+            // The run's time (the motions'), and the performance's (what is reported).
             let time = i as f64 / fs;
+            let at = clock.sample_to_performance_s(i as u64);
             if self.held_ok && i >= *next_try {
                 let held = held_samples(drives, cursors, xs, i, samples.end, fs);
                 let done = match held {
@@ -224,7 +230,7 @@ impl<'d, 'c> KeysLoop<'d, 'c> {
                     return Err(RunError::NonFinite {
                         key: d.key,
                         sample: i,
-                        time_s: time,
+                        time_s: at,
                         force_n: s.force_n,
                         strike_mps: s.strike_mps,
                     });
@@ -232,7 +238,7 @@ impl<'d, 'c> KeysLoop<'d, 'c> {
                 if let Some(speed) = s.strike_mps {
                     run.strikes.push(Strike {
                         key: d.key,
-                        time_s: time,
+                        time_s: at,
                         speed_mps: speed,
                         answers: None,
                     });
@@ -244,9 +250,9 @@ impl<'d, 'c> KeysLoop<'d, 'c> {
                 if let Some(p) = &mut players[k] {
                     p.step(push, s.force_n);
                 }
-                if traced[k] && time >= trace.from_s && time <= trace.to_s {
+                if traced[k] && at >= trace.from_s && at <= trace.to_s {
                     run.traces.entry(d.key).or_default().push([
-                        time,
+                        at,
                         xs[k],
                         s.force_n,
                         f64::NAN,
@@ -259,7 +265,7 @@ impl<'d, 'c> KeysLoop<'d, 'c> {
             // The hammer once the samples are done with (an emulated board reads it from the
             // key's out words).
             for (k, d) in drives.iter().enumerate().filter(|_| any_traced) {
-                if traced[k] && time >= trace.from_s && time <= trace.to_s {
+                if traced[k] && at >= trace.from_s && at <= trace.to_s {
                     if let Some(row) = run.traces.get_mut(&d.key).and_then(|r| r.last_mut()) {
                         row[3] = engine.hammer_m(k);
                     }
