@@ -128,10 +128,12 @@ pub struct PlayArgs {
     pub sensor_check: Option<bool>,
     /// With `--engine emu`: the RP2040's watchdog (datasheet 4.7) `on` or `off` on every
     /// board: fed by core 0 only when both cores finished their sample, so a core caught
-    /// in a loop resets the board (its motors at zero force from the reset until the
-    /// sample loop runs again, a `watchdog` fault word left); the boards planned and
-    /// priced with its feed [default: the firmware's own]. Each reset is printed after the
-    /// budget: docs/faults.md.
+    /// in a loop resets the board (its motors at zero force from the reset on: play runs
+    /// RAM images, which do not boot again; a board's flash image boots again and leaves a
+    /// `watchdog` fault word, `tactus emu run`); the boards planned and priced with its feed
+    /// [default: the firmware's own]. Each reset is printed with the fault report (the
+    /// kind, the time, the board); with no `--fault`, a reset is a false alarm: exit 1.
+    /// docs/faults.md.
     #[arg(long, value_name = "on|off", value_parser = parse_on_off)]
     pub watchdog: Option<bool>,
     /// Output directory.

@@ -286,9 +286,9 @@ fn a_hung_update_with_the_watchdog_on_resets_the_board_under_emu_run() {
     // watchdog resets the board within its period, and the firmware boots again from flash
     // with its fault record kept.
     let reset = (stdout.lines())
-        .find_map(|l| l.strip_prefix("reset: watchdog timer reset at sample "))
+        .find_map(|l| l.strip_prefix("reset: watchdog timer reset at t = "))
         .unwrap_or_else(|| panic!("{stdout}"));
-    let sample: u64 = reset.split(' ').next().unwrap().parse().unwrap();
+    let sample = reset_sample(reset);
     assert!((2205..2205 + 441).contains(&sample), "{stdout}");
     assert!(reset.contains("booted again"), "{stdout}");
     assert!(
@@ -496,5 +496,116 @@ fn the_budget_corpus_trips_no_check_but_its_glitches_and_random_words_do() {
         stdout.contains("budget corpus through 1 board: 0 trips in the physical runs"),
         "{stdout}"
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The sample of a reset line (`… reset at t = 0.0500 s (sample 2205, cycle …): …`).
+fn reset_sample(line: &str) -> u64 {
+    let after = line
+        .split_once("(sample ")
+        .unwrap_or_else(|| panic!("{line}"))
+        .1;
+    after.split(',').next().unwrap().parse().unwrap()
+}
+
+/// Every row of a play trace CSV (`--trace-keys`) as numbers, by column name.
+fn trace_rows(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let head = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    (head, rows)
+}
+
+#[test]
+fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() {
+    // Key 61 (core 1) and key 63 (core 0) pressed from about 10 ms, held to 0.3 s.
+    let dir = temp_dir("cli-faults-play-reset");
+    let layout = small_layout(&dir, 60, 63);
+    let midi = dir.join("two.mid");
+    write_midi(&midi, &[(61, 80, 0.05, 0.3), (63, 80, 0.05, 0.3)], &[]);
+    let fs = 44_100.0;
+    let play = |board: &str, name: &str, fault: Option<&str>| {
+        let out_dir = dir.join(format!("{board}-{name}"));
+        let mut c = tactus();
+        c.args(["play", midi.to_str().unwrap(), "--layout"])
+            .arg(&layout)
+            .args(["--board", board, "--seconds", "0.3", "--no-wav"])
+            .args(["--trace-keys", "61,63", "-o"])
+            .arg(&out_dir);
+        if let Some(f) = fault {
+            c.args(["--fault", f]);
+        }
+        let out = c.output().unwrap();
+        assert_ok(&out);
+        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+        let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
+        (stdout, key(61), key(63))
+    };
+    for board in ["rp2040", "rp2040_io"] {
+        let (_, clean61, clean63) = play(board, "clean", None);
+        let col = |head: &[String], name: &str| head.iter().position(|h| h == name).unwrap();
+        let (force, current) = (
+            col(&clean61.0, "force_n"),
+            col(&clean61.0, "motor_current_a"),
+        );
+
+        // A flipped sign bit in key 61's state (its fourth word) before its press: not
+        // detected, its outputs change, never above the limiter's peak (2 A), and key 63 on
+        // the other core plays exactly as without it.
+        let (stdout, flip61, flip63) = play(
+            board,
+            "flip",
+            Some("kind=flip,word=3,bit=31,note=61,at=0.001s"),
+        );
+        assert!(
+            stdout.contains("faults: 0 trips on 1 board\n"),
+            "{board}: {stdout}"
+        );
+        let changed = (flip61.1.iter().zip(&clean61.1))
+            .filter(|(a, b)| a[force] != b[force])
+            .count();
+        assert!(changed > 100, "{board}: the flip changed {changed} samples");
+        for r in &flip61.1 {
+            assert!(r[current].abs() <= 2.0 + 1e-9, "{board}: {r:?}");
+        }
+        assert_eq!(flip63.1, clean63.1, "{board}: key 63 changed");
+
+        // A hang of key 61's update while it moves (its descent): the watchdog resets the
+        // board within 1 ms and a sample; the RAM image play runs does not boot again, and
+        // play says so, with both keys at zero force from the reset to the end.
+        let (stdout, hang61, hang63) = play(board, "hang", Some("kind=hang,note=61,at=0.03s"));
+        let line = (stdout.lines())
+            .find_map(|l| {
+                l.trim()
+                    .strip_prefix("board 1: watchdog timer reset at t = ")
+            })
+            .unwrap_or_else(|| panic!("{board}: {stdout}"));
+        let sample = reset_sample(line);
+        assert!((1323..=1323 + 45).contains(&sample), "{board}: {line}");
+        assert!(
+            line.contains("the board held at zero force from then (it did not boot again"),
+            "{board}: {line}"
+        );
+        assert!(
+            stdout.contains("faults: 0 trips, 1 RESET on 1 of 1 boards"),
+            "{board}: {stdout}"
+        );
+        let after = (sample + 1) as f64 / fs;
+        for rows in [&hang61.1, &hang63.1] {
+            let held: Vec<_> = rows.iter().filter(|r| r[0] >= after).collect();
+            assert!(held.len() > 10_000, "{board}: {} rows", held.len());
+            for r in held {
+                assert!(r[force] == 0.0 && r[current] == 0.0, "{board}: {r:?}");
+            }
+        }
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

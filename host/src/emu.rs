@@ -743,7 +743,9 @@ impl FirmwareJob {
                 }
             ));
         }
-        lines.extend((resets.iter()).map(|r| format!("reset: {}", crate::fault::reset_text(r))));
+        let fs = f64::from(map.sample_rate_hz);
+        lines
+            .extend((resets.iter()).map(|r| format!("reset: {}", crate::fault::reset_text(r, fs))));
         let faults = BoardFaults {
             board: map.board,
             cores: records,
@@ -751,6 +753,7 @@ impl FirmwareJob {
                 image,
                 &map.keys.iter().map(|k| k.midi).collect::<Vec<_>>(),
             ),
+            resets: resets.clone(),
         };
         lines.extend(crate::fault::report_lines(
             std::slice::from_ref(&faults),

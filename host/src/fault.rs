@@ -367,6 +367,10 @@ pub struct BoardFaults {
     /// key by its slot (`tactus_firmware::image::KeySpec::slot`: on a keyboard's board the
     /// keys take slots from 0 in key order, `keys.json`'s order, a pen one per word).
     pub slots: Vec<(usize, u8)>,
+    /// The resets the board met (the watchdog's, a brown-out), each at its sample: a reset
+    /// board's motors are at zero force from the reset until its firmware runs again, or
+    /// from then on when it does not boot again (a RAM image, which `play` runs).
+    pub resets: Vec<tactus_firmware::image::ResetRecord>,
 }
 
 impl BoardFaults {
@@ -442,13 +446,23 @@ pub fn report_lines(boards: &[BoardFaults], fs: f64) -> Vec<String> {
         }
     }
     let trips: u64 = boards.iter().map(BoardFaults::trips).sum();
-    let tripped = boards.iter().filter(|b| b.trips() > 0).count();
+    let resets: usize = boards.iter().map(|b| b.resets.len()).sum();
+    let hit = (boards.iter())
+        .filter(|b| b.trips() > 0 || !b.resets.is_empty())
+        .count();
     let n = boards.len();
-    lines.push(match trips {
-        0 => format!("faults: 0 trips on {n} board{}", if n == 1 { "" } else { "s" }),
-        t => format!(
-            "faults: {t} TRIP{} on {tripped} of {n} boards (the firmware's checks set these motors to zero force)",
-            if t == 1 { "" } else { "S" }
+    let plural = |k: u64| if k == 1 { "" } else { "S" };
+    lines.push(match (trips, resets) {
+        (0, 0) => format!("faults: 0 trips on {n} board{}", if n == 1 { "" } else { "s" }),
+        (t, 0) => format!(
+            "faults: {t} TRIP{} on {hit} of {n} boards (the firmware's checks set these motors to zero force)",
+            plural(t)
+        ),
+        (t, r) => format!(
+            "faults: {t} {}, {r} RESET{} on {hit} of {n} boards (a reset board's motors at zero force{})",
+            if t == 0 { "trips".to_string() } else { format!("TRIP{}", plural(t)) },
+            plural(r as u64),
+            if t == 0 { "" } else { "; the firmware's checks set the tripped keys' motors to zero force" }
         ),
     });
     lines
@@ -575,16 +589,20 @@ pub fn image_slots(image: &tactus_firmware::image::FirmwareImage, midi: &[u8]) -
         .collect()
 }
 
-/// A reset a board met, in words: `watchdog timer reset at sample 44100 (cycle …): booted
-/// again, 12 samples at zero force`, or that it did not boot again and why.
-pub fn reset_text(reset: &tactus_firmware::image::ResetRecord) -> String {
+/// A reset a board met, in words, at `fs` samples a second: `watchdog timer reset at t =
+/// 1.0000 s (sample 44100, cycle …): booted again, 12 samples at zero force`, or that the
+/// board held at zero force from then on, since it did not boot again, and why.
+pub fn reset_text(reset: &tactus_firmware::image::ResetRecord, fs: f64) -> String {
     let after = match &reset.reboot {
         Ok(n) => format!("booted again, {n} samples at zero force"),
-        Err(e) => format!("did not boot again (zero force from then on): {e}"),
+        Err(e) => format!("the board held at zero force from then (it did not boot again: {e})"),
     };
     format!(
-        "{} reset at sample {} (cycle {}): {after}",
-        reset.why, reset.sample, reset.cycle
+        "{} reset at t = {:.4} s (sample {}, cycle {}): {after}",
+        reset.why,
+        reset.sample as f64 / fs.max(1.0),
+        reset.sample,
+        reset.cycle
     )
 }
 
@@ -683,11 +701,13 @@ mod tests {
                 board: 1,
                 cores: vec![cores[1]; 2],
                 slots: slots.clone(),
+                resets: Vec::new(),
             },
             BoardFaults {
                 board: 2,
                 cores,
                 slots,
+                resets: Vec::new(),
             },
         ];
         let lines = report_lines(&boards, 44_100.0);
@@ -709,6 +729,32 @@ mod tests {
         assert_eq!(
             report_lines(&boards[..1], 44_100.0),
             ["faults: 0 trips on 1 board"]
+        );
+        // A board reset by its watchdog, its RAM image not booting again: counted, and said
+        // in words with its time.
+        let reset = tactus_firmware::image::ResetRecord {
+            sample: 13_230,
+            cycle: 40_044_705,
+            why: "watchdog timer",
+            reboot: Err("the board stopped: Idle".into()),
+        };
+        let mut reset_board = boards[0].clone();
+        reset_board.resets.push(reset.clone());
+        assert_eq!(
+            report_lines(&[reset_board.clone()], 44_100.0),
+            ["faults: 0 trips, 1 RESET on 1 of 1 boards (a reset board's motors at zero force)"]
+        );
+        assert_eq!(
+            reset_text(&reset, 44_100.0),
+            "watchdog timer reset at t = 0.3000 s (sample 13230, cycle 40044705): the board \
+             held at zero force from then (it did not boot again: the board stopped: Idle)"
+        );
+        let both = [boards[1].clone(), reset_board];
+        assert!(
+            report_lines(&both, 44_100.0)[1]
+                .starts_with("faults: 2 TRIPS, 1 RESET on 2 of 2 boards"),
+            "{:?}",
+            report_lines(&both, 44_100.0)
         );
         assert_eq!(
             tactus_firmware::image::glue::ctrl::fault_record(0x2003_f000),

@@ -119,6 +119,7 @@ pub fn budget_corpus_trips(
                     board: b + 1,
                     cores,
                     slots: slots.clone(),
+                    resets: run.resets().to_vec(),
                 },
             });
         }

@@ -141,6 +141,11 @@ pub struct FingerRange {
     pub outside: usize,
 }
 
+/// What `play` says after a board that did not boot again after a reset.
+const RAM_RESET: &str = "(play runs each board's RAM image, which the boot ROM does not start \
+     again after a reset: the board stays at zero force to the end of the run; the flash \
+     image `tactus build` writes boots again: `tactus emu run`)";
+
 impl Piece {
     /// What to print of the boards' budget over the run ([`budget_text`], or a line saying
     /// a host engine checks none) and of their fault records ([`crate::fault::report_lines`]),
@@ -154,15 +159,33 @@ impl Piece {
             ),
             Some(r) => {
                 let mut text = budget_text(r) + &spans_text(&self.played.spans);
-                for line in crate::fault::report_lines(&r.faults(), self.fs) {
+                let faults = r.faults();
+                let mut lines = crate::fault::report_lines(&faults, self.fs);
+                let summary = lines.pop().unwrap_or_default();
+                // The resets (the watchdog's, a brown-out's) with the fault words: when, and
+                // what the board did after.
+                let mut dead = false;
+                for b in &faults {
+                    for reset in &b.resets {
+                        dead |= reset.reboot.is_err();
+                        let text = crate::fault::reset_text(reset, self.fs);
+                        lines.push(format!("board {}: {text}", b.board));
+                    }
+                }
+                if dead {
+                    lines.push(RAM_RESET.to_string());
+                }
+                lines.push(summary);
+                for line in lines {
                     text.push_str(&format!("  {line}\n"));
                 }
                 let trips = r.fault_trips();
+                let resets: usize = faults.iter().map(|b| b.resets.len()).sum();
                 let error = if r.missed() {
                     Some("the firmware missed sample deadlines: some board's keys do not fit it (see `tactus budget`)".to_string())
-                } else if trips > 0 && self.faults_injected == 0 {
+                } else if (trips > 0 || resets > 0) && self.faults_injected == 0 {
                     Some(format!(
-                        "the firmware's fault checks tripped {trips} times with no fault injected: a false alarm (see the faults above)"
+                        "with no fault injected the firmware's fault checks tripped {trips} times and {resets} boards reset: a false alarm (see the faults above)"
                     ))
                 } else {
                     None
@@ -676,20 +699,6 @@ pub fn budget_text(r: &BoardsReport) -> String {
             tactus_firmware::verdict::key_ranges(&b.keys),
             cores.join("; ")
         ));
-    }
-    // Resets met with injected faults (`--fault`): the watchdog's, a brown-out's.
-    for (i, b) in r.boards.iter().enumerate() {
-        for reset in &b.resets {
-            s.push_str(&format!(
-                "    board {}: {}\n",
-                i + 1,
-                crate::fault::reset_text(reset)
-            ));
-        }
-    }
-    let resets: usize = r.boards.iter().map(|b| b.resets.len()).sum();
-    if resets > 0 {
-        s.push_str(&format!("  resets: {resets} (watchdog and brown-out)\n"));
     }
     let given: u64 = r.boards.iter().map(|b| b.rest_replayed.0).sum();
     if given > 0 {

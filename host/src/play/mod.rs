@@ -225,6 +225,7 @@ impl BoardsReport {
                     .copied()
                     .zip(b.keys.iter().copied())
                     .collect(),
+                resets: b.resets.clone(),
             })
             .collect()
     }
