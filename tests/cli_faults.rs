@@ -609,3 +609,101 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The DAC codes at the end of an `emu run` (keys.json's order) and its whole output.
+fn emu_codes(out: &std::process::Output) -> (Vec<i32>, String) {
+    assert_ok(out);
+    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+    let codes = (stdout.lines())
+        .find_map(|l| l.strip_prefix("DAC codes at the end: ["))
+        .and_then(|l| l.split(']').next())
+        .unwrap_or_else(|| panic!("{stdout}"))
+        .split(", ")
+        .map(|w| w.parse().unwrap())
+        .collect();
+    (codes, stdout)
+}
+
+#[test]
+fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
+    let dir = temp_dir("cli-faults-kinds");
+    let layout = small_layout(&dir, 60, 63);
+    for board in ["rp2040", "rp2040_io"] {
+        let fw = dir.join(board);
+        let out = tactus()
+            .args(["build", layout.to_str().unwrap(), "--target", "rp2040"])
+            .args(["--board", board, "-o"])
+            .arg(&fw)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let run = |fault: &[&str]| {
+            let out = tactus()
+                .args(["emu", "run"])
+                .arg(fw.join("board-01/firmware.elf"))
+                .args(["--stimulus", "mf-dip", "--seconds", "0.07"])
+                .args(fault)
+                .output()
+                .unwrap();
+            emu_codes(&out)
+        };
+        let (clean, stdout) = run(&[]);
+        // Keys 60, 61 on core 1, 62, 63 on core 0.
+        assert!(
+            stdout.contains("core 1: keys [60, 61]"),
+            "{board}: {stdout}"
+        );
+        assert_eq!(clean.len(), 4, "{board}: {stdout}");
+
+        // Core 1's DAC takes no frame from 0.05 s: its keys hold the codes they had then
+        // (not the clean run's at the end: the dip moved on), core 0's keys are untouched.
+        // Nothing detects it (docs/firmware.md, "Faults"): 0 trips.
+        let (stalled, stdout) = run(&["--fault", "kind=dac-stall,board=1,core=1,at=0.05s"]);
+        assert_eq!(stalled[2..], clean[2..], "{board}: {stdout}");
+        assert!(
+            stalled[0] != clean[0] && stalled[1] != clean[1],
+            "{board}: {stalled:?} vs {clean:?}"
+        );
+        assert!(
+            stdout.contains("faults: 0 trips on 1 board\n"),
+            "{board}: {stdout}"
+        );
+
+        // A brown-out at 0.05 s: a power-on reset in that sample, the flash image boots
+        // again within a few samples of zero force, the fault record starts again at 0.
+        let (_, stdout) = run(&["--fault", "kind=brownout,board=1,at=0.05s"]);
+        let line = (stdout.lines())
+            .find_map(|l| l.strip_prefix("reset: brown-out reset at t = 0.0500 s "))
+            .unwrap_or_else(|| panic!("{board}: {stdout}"));
+        assert_eq!(reset_sample(line), 2205, "{board}: {line}");
+        let zero: u64 = (line.split_once("booted again, ").unwrap().1)
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!((1..=20).contains(&zero), "{board}: {line}");
+        assert!(
+            stdout.contains("faults: 0 trips, 1 RESET on 1 of 1 boards"),
+            "{board}: {stdout}"
+        );
+
+        // A hung update (the plain board's is in
+        // a_hung_update_with_the_watchdog_on_resets_the_board_under_emu_run): the watchdog
+        // resets the converter board within 1 ms and a sample, and its fault word says so.
+        if board == "rp2040_io" {
+            let (_, stdout) = run(&["--fault", "kind=hang,note=61,at=0.05s,until=0.055s"]);
+            let line = (stdout.lines())
+                .find_map(|l| l.strip_prefix("reset: watchdog timer reset at t = "))
+                .unwrap_or_else(|| panic!("{board}: {stdout}"));
+            assert!((2205..=2205 + 45).contains(&reset_sample(line)), "{line}");
+            assert!(line.contains("booted again"), "{line}");
+            assert!(
+                stdout.contains("board 1 core 0: watchdog on the whole board")
+                    && stdout.contains("faults: 1 TRIP, 1 RESET on 1 of 1 boards"),
+                "{stdout}"
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
