@@ -707,3 +707,58 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_hang_on_a_key_standing_still_is_warned_about_and_waits_for_it_to_move() {
+    // Key 61 pressed by 0.05 s and held to 0.3 s; key 60 never played.
+    let dir = temp_dir("cli-faults-resting-hang");
+    let layout = small_layout(&dir, 60, 63);
+    let midi = dir.join("held.mid");
+    write_midi(&midi, &[(61, 80, 0.05, 0.3)], &[]);
+    let play = |fault: &str| {
+        let out = tactus()
+            .args(["play", midi.to_str().unwrap(), "--layout"])
+            .arg(&layout)
+            .args(["--seconds", "0.3", "--no-wav", "--fault", fault, "-o"])
+            .arg(dir.join("out"))
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        (
+            String::from_utf8_lossy(&out.stdout).to_string(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
+    };
+    // Held still from 0.07 s: the guard skips its update, the hang waits for the release
+    // at 0.3 s, and the warning says so; the watchdog resets the board then.
+    let (stdout, stderr) = play("kind=hang,note=61,at=0.07s");
+    assert!(
+        stderr.contains(
+            "warning: --fault kind=hang,note=61,at=0.07s: key 61 (C#4) stands still at 0.070 s"
+        ) && stderr.contains("at the latest when the key next moves, at 0.300 s"),
+        "{stderr}"
+    );
+    let line = (stdout.lines())
+        .find_map(|l| {
+            l.trim()
+                .strip_prefix("board 1: watchdog timer reset at t = ")
+        })
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!(
+        (13_230..=13_230 + 45).contains(&reset_sample(line)),
+        "{line}"
+    );
+    // A key that rests over the whole fault, as does every key of its instrument: the hang
+    // never runs (no reset), and the warning says it may not.
+    let (stdout, stderr) = play("kind=hang,note=60,at=0.07s,until=0.1s");
+    assert!(
+        stderr.contains("key 60 (C4) stands still at 0.070 s")
+            && stderr.contains("the hang may never run"),
+        "{stderr}"
+    );
+    assert!(stdout.contains("faults: 0 trips on 1 board\n"), "{stdout}");
+    // A key moving when the hang begins: no warning.
+    let (_, stderr) = play("kind=hang,note=61,at=0.03s");
+    assert!(!stderr.contains("stands still"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
