@@ -418,17 +418,14 @@ fn a_note_at_0_s_is_struck_on_every_engine_and_trips_no_check() {
         assert!(row[0] == "63" && t.abs() < 0.05, "{engine} {player}: {csv}");
         // The trace from the run's first sample: the lead-in before 0 s, then a row at the
         // performance's 0 s itself (the lead-in is whole samples), one a sample.
-        let text = std::fs::read_to_string(out_dir.join("zero-key63.csv")).unwrap();
-        assert!(text.starts_with("time_s,"), "{text}");
-        let rows: Vec<(f64,)> = (text.lines().skip(1))
-            .map(|l| (l.split(',').next().unwrap().parse().unwrap(),))
-            .collect();
-        let first = rows[0].0;
+        let (head, rows) = trace_rows(&out_dir.join("zero-key63.csv"));
+        assert_eq!(head[0], "time_s");
+        let first = rows[0][0];
         assert!(
             (-0.1..-1e-3).contains(&first),
             "{engine} {player}: the trace starts at {first} s"
         );
-        let zero = rows.iter().position(|r| r.0.abs() < 1e-9);
+        let zero = rows.iter().position(|r| r[0].abs() < 1e-9);
         let zero = zero.unwrap_or_else(|| panic!("{engine} {player}: no row at 0 s"));
         assert!(
             (zero as f64 / 44_100.0 + first).abs() < 1e-9,
@@ -436,7 +433,7 @@ fn a_note_at_0_s_is_struck_on_every_engine_and_trips_no_check() {
         );
         // The strike's row: the hammer meets the string within the trace, at the strike.
         assert!(
-            rows.iter().any(|r| (r.0 - t).abs() < 1e-9),
+            rows.iter().any(|r| (r[0] - t).abs() < 1e-9),
             "{engine} {player}: no trace row at the strike's {t} s"
         );
     }
