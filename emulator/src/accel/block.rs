@@ -104,6 +104,9 @@ struct Cursor {
     op: u32,
     end: u32,
     generation: u64,
+    /// It stopped at its run's limit (not before an instruction it leaves to the general
+    /// path): [`run_confined`] goes on in the block.
+    at_limit: bool,
 }
 
 /// Why [`run`] returned early.
@@ -490,6 +493,7 @@ pub(crate) fn run<T: Turns>(
             op: i as u32,
             end: end as u32,
             generation: blocks.generation,
+            at_limit: false,
         };
         if let Some(l) = leave {
             break Err(l);
@@ -605,7 +609,9 @@ pub(crate) fn run_confined(
         // The rest of a block the core stopped in at the last run's limit (core 1 at a
         // meeting's cut, `window.rs`) runs pre-decoded: no region is looked up, and none
         // compiled, at an instruction inside a block (a meeting's cut falls anywhere).
-        let inside = blocks.resume(core.id, pc).is_some() && sys.code_epoch == blocks.epoch;
+        let inside = blocks.cursor[core.id & 1].at_limit
+            && blocks.resume(core.id, pc).is_some()
+            && sys.code_epoch == blocks.epoch;
         if inside {
             unfit = true;
         } else if blocks.memo.watches(pc) {
@@ -698,6 +704,7 @@ pub(crate) fn run_confined(
             op: i as u32,
             end: end as u32,
             generation: blocks.generation,
+            at_limit: leave.is_none(),
         };
         if let Some(l) = leave {
             break Err(l);
