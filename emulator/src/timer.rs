@@ -11,7 +11,9 @@
 //! interrupts are cleared; released at cycle *r*, it counts the microsecond ticks after *r*
 //! (the ticks come from the watchdog's tick generator, which runs on: the count is the
 //! ticks since power-on minus those up to *r*). At power-on it runs, as the boot ROM leaves
-//! it (it pulses the timer's reset, pico-bootrom `bootrom_main.c`, `main`).
+//! it (it pulses the timer's reset, pico-bootrom `bootrom_main.c`, `main`). After a
+//! watchdog reset it is held until that pulse, or, when the boot ROM takes the watchdog
+//! entry and skips `main`, until the firmware releases it (`crate::machine`'s `reset.rs`).
 
 use tactus_rp2040::timer::reg;
 
@@ -80,8 +82,23 @@ impl Timer {
         self.offset = 0u64.wrapping_sub(self.micros(now));
     }
 
-    /// The cycle of the timer's last release from reset, `None` while it has run since
-    /// power-on.
+    /// A chip reset (`crate::machine`, the watchdog's): RESETS holds the timer as
+    /// [`Timer::hold`] does, and no release by the firmware is recorded since.
+    pub(crate) fn chip_reset(&mut self) {
+        self.hold();
+        self.released_at = None;
+    }
+
+    /// The boot ROM's pulse of the timer's reset at cycle `now` (after a chip reset,
+    /// `crate::machine`): it counts from 0 there, and like at power-on no release by the
+    /// firmware is recorded ([`Timer::released_at`] is `None`).
+    pub(crate) fn restart_as_at_power_on(&mut self, now: u64) {
+        self.release(now);
+        self.released_at = None;
+    }
+
+    /// The cycle of the firmware's last release of the timer from reset, `None` while it
+    /// runs as the boot ROM left it (since power-on or the last chip reset).
     pub fn released_at(&self) -> Option<u64> {
         self.released_at
     }

@@ -9,6 +9,7 @@ use common::enc::*;
 use common::{cores_state, load_program};
 use tactus_emulator::watchdog::Reason;
 use tactus_emulator::{Board, Config, Engine, StopReason};
+use tactus_rp2040::timer::reg::TIMERAWL;
 use tactus_rp2040::watchdog::{BOOT_MAGIC, REASON_FORCE, REASON_TIMER};
 
 const CODE: u32 = 0x2000_0000;
@@ -19,6 +20,11 @@ const CLOCK_HZ: u64 = 125_000_000;
 /// `ADDS Rd, Rn, Rm`
 fn adds_reg(rd: u16, rn: u16, rm: u16) -> u16 {
     0x1800 | rm << 6 | rn << 3 | rd
+}
+
+/// `BICS Rdn, Rm`
+fn bics(rdn: u16, rm: u16) -> u16 {
+    0x4380 | rm << 3 | rdn
 }
 
 /// A program that counts its boots at `DATA`, arms the boot ROM's watchdog entry (the
@@ -131,13 +137,59 @@ fn the_count_falls_twice_a_tick_and_a_hung_core_is_reset_after_load_over_two_mic
         BOOT_MAGIC,
         "armed again by the program"
     );
-    // Core 1 is back in the boot ROM's launch protocol; the timer restarted at the reset.
+    // Core 1 is back in the boot ROM's launch protocol; the timer is held in reset (the
+    // watchdog entry skips the ROM's `main`, which releases it) and this program never
+    // releases it.
     assert_eq!(
         b.cores[1].state,
         tactus_emulator::core::RunState::Parked,
         "core 1 parked"
     );
-    assert!(b.system.timer.micros(b.cycle()) < 20);
+    let now = b.cycle();
+    assert_eq!(b.system.timer.read(now, TIMERAWL), Some(0), "held");
+    assert_eq!(b.system.timer.released_at(), None);
+}
+
+#[test]
+fn after_a_reset_through_the_boot_entry_the_firmware_releases_the_timer() {
+    // The program with a release of the timer first (RESETS.RESET's TIMER bit set, then
+    // cleared): after the reset the timer counts from the firmware's release, as after
+    // power-on, not from the reset.
+    let release = [
+        movs(5, 0x40),
+        lsls(5, 5, 24),
+        movs(6, 0xc0),
+        lsls(6, 6, 8),
+        adds_reg(5, 5, 6), // r5 = RESETS_BASE, 0x4000_c000
+        movs(6, 0x20),
+        lsls(6, 6, 16), // r6 = 1 << 21, TIMER
+        ldr(7, 5, 0),
+        bics(7, 6),
+        str(7, 5, 0), // out of reset
+    ];
+    let code: Vec<u16> = release.into_iter().chain(program(50, 1, false)).collect();
+    let mut b = board(Engine::LockStep, &code);
+    let fire = loop {
+        assert_eq!(b.run_for(2_000), StopReason::CycleLimit);
+        if b.system.watchdog.resets().0 == 1 {
+            break b.system.watchdog.resets().1.unwrap().cycle;
+        }
+    };
+    assert_eq!(b.run_until(fire + 500), StopReason::CycleLimit);
+    assert_eq!(boots(&mut b), 2);
+    let released = b
+        .system
+        .timer
+        .released_at()
+        .expect("released by the program");
+    assert!(
+        released > fire && released < fire + 40,
+        "{released} after {fire}"
+    );
+    let now = b.cycle();
+    let t = u64::from(b.system.timer.read(now, TIMERAWL).unwrap());
+    let want = (now - released) * 1_000_000 / CLOCK_HZ;
+    assert!(t.abs_diff(want) <= 1, "{t} µs, want {want}");
 }
 
 #[test]
@@ -149,6 +201,14 @@ fn without_a_boot_entry_the_board_boots_from_flash_and_an_empty_flash_stops_it()
     assert_eq!(stop, StopReason::Idle, "USB boot: nothing runs");
     assert_eq!(b.system.watchdog.resets().0, 1);
     assert_eq!(boots(&mut b), 1);
+    // The ROM's `main` pulsed the timer's reset before it looked for flash: the timer
+    // counts from the reset, with no release by a firmware recorded.
+    let reset = b.system.watchdog.resets().1.unwrap().cycle;
+    let now = b.cycle();
+    let t = u64::from(b.system.timer.read(now, TIMERAWL).unwrap());
+    let want = (now - reset) * 1_000_000 / CLOCK_HZ;
+    assert!(t.abs_diff(want) <= 1, "{t} µs, want {want}");
+    assert_eq!(b.system.timer.released_at(), None);
 }
 
 #[test]

@@ -104,6 +104,9 @@ struct Cursor {
     op: u32,
     end: u32,
     generation: u64,
+    /// It stopped at its run's limit (not before an instruction it leaves to the general
+    /// path): [`run_confined`] goes on in the block.
+    at_limit: bool,
 }
 
 /// Why [`run`] returned early.
@@ -490,6 +493,7 @@ pub(crate) fn run<T: Turns>(
             op: i as u32,
             end: end as u32,
             generation: blocks.generation,
+            at_limit: false,
         };
         if let Some(l) = leave {
             break Err(l);
@@ -551,7 +555,8 @@ fn journal_store(core: &Core, sys: &System, instr: &Instr, journal: &mut Vec<u64
 /// is appended to `journal` — by the native code, and by [`journal_store`] before a
 /// pre-decoded store — (the run ends before a store that finds it full) so that the
 /// caller can undo the run; pre-decoded blocks run where a region does not fit before
-/// `limit` (a meeting's run of core 1 to core 0's cycle, `window.rs`), and elsewhere an
+/// `limit` (a meeting's run of core 1 to core 0's cycle, `window.rs`) and through the rest
+/// of a block the core stopped in at the last run's limit, and elsewhere an
 /// instruction native code does not run ends the run (`Err(Leave::General)`). With `io`
 /// (a window on a board with an I/O: its log, the DMA's banks `L`, and those of `L` the
 /// core may access, `accel/io_window/`), memos that touch `L` apply too, logging their
@@ -601,7 +606,15 @@ pub(crate) fn run_confined(
         let pc = core.r[15];
         // A region at `pc` that does not fit before `limit`.
         let mut unfit = false;
-        if blocks.memo.watches(pc) {
+        // The rest of a block the core stopped in at the last run's limit (core 1 at a
+        // meeting's cut, `window.rs`) runs pre-decoded: no region is looked up, and none
+        // compiled, at an instruction inside a block (a meeting's cut falls anywhere).
+        let inside = blocks.cursor[core.id & 1].at_limit
+            && blocks.resume(core.id, pc).is_some()
+            && sys.code_epoch == blocks.epoch;
+        if inside {
+            unfit = true;
+        } else if blocks.memo.watches(pc) {
             let solo = core.cycle >= quiet_from;
             match blocks.memo.call(
                 core,
@@ -617,7 +630,7 @@ pub(crate) fn run_confined(
                 Try::Run => {}
             }
         }
-        if native {
+        if native && !inside {
             let cache = if core.cycle >= quiet_from {
                 &mut blocks.confined_solo[solo_at]
             } else {
@@ -691,6 +704,7 @@ pub(crate) fn run_confined(
             op: i as u32,
             end: end as u32,
             generation: blocks.generation,
+            at_limit: leave.is_none(),
         };
         if let Some(l) = leave {
             break Err(l);

@@ -42,8 +42,8 @@
 //!
 //! *Meetings.* Core 0 runs first. When it stops at a single load it cannot make confined
 //! at cycle C (a word of core 1's banks: the firmware's watchdog feed reads core 1's
-//! sample count), that instruction is put back as it was before it (its exception entry
-//! and stores undone) and core 1 runs to C: both then stand at their first instruction
+//! sample count), which it finds before running the load (its one access would be
+//! refused), core 1 runs to C: both then stand at their first instruction
 //! boundary at or after C, as a lock-step run to C leaves them, so the load, which goes
 //! first in lock-step order (core 0 at C, core 1 at or after it), runs there with core 1's
 //! banks readable and reads what the lock-step run would (core 1's stores before C, its
@@ -144,8 +144,6 @@ struct Confined<'a> {
     readable: u8,
     journal: &'a mut Vec<u64>,
     foreign: bool,
-    /// The access refused was a load of SRAM: core 0 may meet core 1 there.
-    meet: bool,
     /// A call being recorded ([`crate::accel::memo`]): its SRAM accesses are logged, any other
     /// access spoils it.
     log: Option<&'a mut Recording>,
@@ -213,7 +211,6 @@ impl Bus for Confined<'_> {
             None => Self::private(addr),
         };
         if !ok {
-            self.meet = sram_location(addr).is_some();
             return Err(self.refuse(addr));
         }
         let r = self.sys.read(core, cycle, addr, size);
@@ -691,7 +688,8 @@ impl Drive<'_> {
         };
         let start = core.cycle;
         // Core 0 runs first: at a single load of SRAM it may not read it meets core 1
-        // (module documentation, "Meetings"): kept to put it back.
+        // (module documentation, "Meetings"). The load's only access would be refused, so
+        // nothing of it runs: the core stands before it for the meeting.
         let cut = k == 0
             && fetched.is_some_and(|(instr, ..)| {
                 let r = &self.m.cores[0].r;
@@ -706,10 +704,10 @@ impl Drive<'_> {
                 };
                 sram_location(addr).is_some_and(|(_, bank)| readable >> bank & 1 == 0)
             });
-        let before = cut.then(|| {
-            let logged = self.a.io_logs[0].len();
-            (self.m.snapshot_core(0), journal.len(), logged)
-        });
+        if cut {
+            self.a.cut = Some(start);
+            return false;
+        }
         let core = &mut self.m.cores[k];
         let mut bus = Confined {
             sys: &mut self.m.system,
@@ -717,7 +715,6 @@ impl Drive<'_> {
             readable,
             journal,
             foreign: false,
-            meet: false,
             log,
             io: self.a.io_window.map(|banks| IoLog {
                 banks,
@@ -732,14 +729,7 @@ impl Drive<'_> {
             }
             None => core.step(&mut bus, lines),
         };
-        let (foreign, meet) = (bus.foreign, bus.meet);
-        if let (true, Some((snap, from, logged))) = (foreign && meet, before) {
-            self.m.restore_core(0, snap, &journal[from..]);
-            journal.truncate(from);
-            self.a.io_logs[0].truncate(logged);
-            self.a.cut = Some(start);
-        }
-        !foreign && event == Event::None
+        !bus.foreign && event == Event::None
     }
 }
 

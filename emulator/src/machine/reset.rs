@@ -12,12 +12,21 @@
 //! A brown-out ([`Machine::brown_out`]) is a power-on: SRAM and the watchdog lost too.
 //!
 //! **The boot path after it** is the boot ROM's (pico-bootrom `bootrom/bootrom_rt0.S`,
-//! `check_wdog`, then `_flash_boot`): the watchdog entry when the scratch registers hold
-//! one (`SCRATCH4` cleared, core 0 entered at `SCRATCH7` in Thumb state with SP =
-//! `SCRATCH6`, VTOR 0), else boot from flash ([`Machine::boot_from_flash`] without the
+//! `check_wdog`, then `main` and `_flash_boot`): the watchdog entry when the scratch
+//! registers hold one (`SCRATCH4` cleared, core 0 entered at `SCRATCH7` in Thumb state with
+//! SP = `SCRATCH6`, VTOR 0), else boot from flash ([`Machine::boot_from_flash`] without the
 //! power-on's SRAM pattern); when boot2 fails its check the ROM would start USB boot: core 0
 //! stays parked (the board then stops, [`StopReason::Idle`]). Core 1 restarts in the boot
 //! ROM's launch protocol.
+//!
+//! **The timer.** RESETS is reset with the rest, so it holds the timer (RESETS.RESET's
+//! reset value holds every block, datasheet 2.14). The ROM's `main` pulses the timer's
+//! reset (`reset_unreset_block_wait` of IO_QSPI, PADS_QSPI and TIMER) before it looks for
+//! flash, so on that path the timer runs from the reset as from a power-on
+//! ([`crate::timer::Timer::restart_as_at_power_on`]); the watchdog entry skips `main`, so
+//! there the timer stays held until the firmware releases it through RESETS. The other
+//! blocks' reset bits are not modelled (every block reads as out of reset,
+//! [`crate::clocks::SysCtl`]).
 //!
 //! **When.** The chip resets when the core whose turn it is ([`Machine::next_core`]) is at
 //! or past [`crate::watchdog::Watchdog::fire_at`]: each core is then at its first
@@ -26,6 +35,8 @@
 
 use super::*;
 use crate::watchdog::Reason;
+use tactus_rp2040::resets::{self, RESETS_BASE};
+use tactus_rp2040::{ATOMIC_CLR, ATOMIC_SET};
 
 impl Machine {
     /// The watchdog fires (module documentation): the chip resets and boots again as the
@@ -34,7 +45,7 @@ impl Machine {
         let at = self.reset_cycle();
         let reason = self.system.watchdog.fire(at);
         self.chip_reset(at);
-        self.boot_again();
+        self.boot_again(at);
         reason
     }
 
@@ -51,7 +62,7 @@ impl Machine {
         self.fill_power_on_pattern();
         self.system.invalidate_code();
         self.chip_reset(at);
-        self.boot_again();
+        self.boot_again(at);
     }
 
     /// The later of the running cores' cycles (of all cores when none runs).
@@ -79,21 +90,31 @@ impl Machine {
             c.nvic.clock_hz = clock_hz;
         }
         self.system.sio = Default::default();
-        self.system.timer.hold();
-        self.system.timer.release(at);
         self.system.sysctl = Default::default();
+        // RESETS holds the timer (PSM.WDSEL selects RESETS): only the boot ROM's `main`
+        // releases it ([`Machine::boot_again`]).
+        self.system.timer.chip_reset();
+        self.system
+            .sysctl
+            .write(RESETS_BASE + ATOMIC_SET + resets::reg::RESET, resets::TIMER);
         self.system.irq_epoch += 1;
         self.launch = Some(Launch::default());
         self.launch_handshake();
     }
 
-    /// Core 0 into the boot ROM's path after a reset (module documentation).
-    fn boot_again(&mut self) {
+    /// Core 0 into the boot ROM's path after a reset at cycle `at` (module documentation).
+    fn boot_again(&mut self, at: u64) {
         if let Some((pc, sp)) = self.system.watchdog.take_boot_entry().filter(|e| e.0 != 0) {
             self.cores[0].reset_to(pc | 1, sp);
             self.cores[0].nvic.vtor = 0;
             return;
         }
+        // The ROM's `main` pulses the timer's reset before it looks for flash: the timer
+        // runs from here as it does from power-on.
+        self.system
+            .sysctl
+            .write(RESETS_BASE + ATOMIC_CLR + resets::reg::RESET, resets::TIMER);
+        self.system.timer.restart_as_at_power_on(at);
         if self.flash_boot().is_err() {
             // USB boot: nothing of the image runs.
             self.cores[0].state = RunState::Parked;

@@ -248,20 +248,9 @@ const MAX_BOOT_US: u64 = 1_000_000;
 /// firmware has not released the timer within a second of the board's clock, or when
 /// it restarts the timer more than 16 times.
 pub fn run_to_timer(board: &mut Board, us: u64) -> Result<u64, String> {
-    run_to_timer_after(board, us, 0)
-}
-
-/// [`run_to_timer`] after a reset at cycle `reset` (0: none): a release of the timer at or
-/// before it (by the boot before the reset, or the reset's own) is not the firmware's.
-fn run_to_timer_after(board: &mut Board, us: u64, reset: u64) -> Result<u64, String> {
     let step = (us * board.config.clock_hz / 2_000_000).max(1);
     let give_up = board.cycle() + MAX_BOOT_US * (board.config.clock_hz / 1_000_000);
-    while board
-        .system
-        .timer
-        .released_at()
-        .is_none_or(|c| c <= reset && reset > 0)
-    {
+    while board.system.timer.released_at().is_none() {
         if board.cycle() > give_up {
             return Err(format!(
                 "the firmware did not release the timer from reset within {} ms of power-on",
@@ -299,16 +288,6 @@ fn run_to_timer_after(board: &mut Board, us: u64, reset: u64) -> Result<u64, Str
 /// counting the processor clock with its interrupt enabled by then, or the cores' first
 /// ticks differ.
 pub fn run_to_first_tick(board: &mut Board, alarm_us: u64, cores: usize) -> Result<u64, String> {
-    run_to_first_tick_after(board, alarm_us, cores, 0)
-}
-
-/// [`run_to_first_tick`] after a reset at cycle `reset` (`inject.rs`: the boot again).
-fn run_to_first_tick_after(
-    board: &mut Board,
-    alarm_us: u64,
-    cores: usize,
-    reset: u64,
-) -> Result<u64, String> {
     let check = |stop: StopReason, board: &Board| match stop {
         StopReason::CycleLimit => Ok(()),
         other => Err(format!(
@@ -316,7 +295,7 @@ fn run_to_first_tick_after(
             board.describe_stop(&other)
         )),
     };
-    let started = run_to_timer_after(board, alarm_us, reset)? + START_CYCLES;
+    let started = run_to_timer(board, alarm_us)? + START_CYCLES;
     let stop = board.run_until(started);
     check(stop, board)?;
     let mut first = None;

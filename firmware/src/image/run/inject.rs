@@ -424,7 +424,7 @@ impl ImageRun {
         let start = self.board.cycle();
         let alarm = self.image.start_alarm_us as u64;
         let cores = self.image.cores.len();
-        let reboot = run_to_first_tick_after(&mut self.board, alarm, cores, cycle).map(|first| {
+        let reboot = run_to_first_tick(&mut self.board, alarm, cores).map(|first| {
             let period = self.image.cycles_per_sample().max(1);
             let zero = (first.saturating_sub(start)).div_ceil(period).max(1);
             self.first_tick = first;
