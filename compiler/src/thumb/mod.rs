@@ -6,7 +6,7 @@
 //! literal pools, relaxes branches, encodes with the emulator's encoder and writes a GNU
 //! assembler listing; the firmware image's glue uses the same buffer) → `peephole` (each
 //! function's allocated code: compares with 0 the flags already answer, loads of values a
-//! register holds) → [`elf`] (a relocatable object).
+//! register holds, register copies) → [`elf`] (a relocatable object).
 //!
 //! The generated functions have the interface and state layout of [`crate::abi`] exactly,
 //! as the C backend's do — one header describes both:

@@ -2,9 +2,9 @@
 //! [`super::emit`] has lowered it (physical registers, spill homes, literal loads): what
 //! the lowering of one machine-IR instruction at a time cannot see.
 //!
-//! Two passes, each over the code as a forward-only graph (the backend's bodies branch
+//! Three passes, each over the code as a forward-only graph (the backend's bodies branch
 //! only forward, so one walk in program order meets every way into a label before the
-//! label; a branch backwards makes both passes leave the function alone):
+//! label; a branch backwards makes the passes leave the function alone):
 //!
 //! 1. **Compares with 0 that the flags already answer.** `CMP Rn, #0` right after an
 //!    instruction that set N and Z from `Rn`'s value (`ADDS`, `LSRS`, `MULS`, … with no
@@ -21,6 +21,12 @@
 //!    destination already holds is dropped; of one another register holds, it becomes
 //!    `MOV Rt, Rm` (1 cycle where `LDR` costs 2; neither touches the flags). A `MOVS Rd,
 //!    #imm` of the value `Rd` already holds is dropped where its N and Z are dead.
+//! 3. **Register copies.** With a backward liveness of the registers: `MOV Rd, Rm` whose
+//!    copy only the next instruction reads goes, that instruction reading `Rm` (where its
+//!    encoding takes `Rm`); `MOV Rd, Rs` right after the instruction that wrote `Rs`, with
+//!    `Rs` dead after it, goes, that instruction writing `Rd` (a three-address form).
+//!    What the selector's two-address `MOV`s and a diamond's copies into its result
+//!    register leave behind.
 //!
 //! Both keep every register, memory word and live flag as it was at every instruction
 //! that remains, so results are bit-identical; the WCET analysis then prices the shorter
@@ -484,7 +490,249 @@ fn values(items: &mut [Item], pools: &[Vec<u32>]) -> Vec<bool> {
     dead
 }
 
-/// Runs both passes over the function whose items start at `start` in `buf` (its prologue
+/// The registers `i` reads (bit *n* = r*n*), or `None` where [`effect`] is `None`.
+fn reads(i: &Instr) -> Option<u16> {
+    use Instr::*;
+    let r = |x: u8| 1u16 << x;
+    Some(match *i {
+        LslImm { rm, .. } | LsrImm { rm, .. } | AsrImm { rm, .. } => r(rm),
+        AddReg { rn, rm, .. } | SubReg { rn, rm, .. } => r(rn) | r(rm),
+        AddImm { rn, .. } | SubImm { rn, .. } | CmpImm { rn, .. } => r(rn),
+        MovImm { .. } | LdrLit { .. } | Adr { .. } | Hint(_) | Cps { .. } | Barrier(_) => 0,
+        Alu {
+            op: AluOp::Rsb | AluOp::Mvn,
+            rm,
+            ..
+        } => r(rm),
+        Alu { rdn, rm, .. } | AddHi { rdn, rm } => r(rdn) | r(rm),
+        CmpHi { rn, rm } => r(rn) | r(rm),
+        MovHi { rm, .. } => r(rm),
+        MemReg { op, rt, rn, rm } => r(rn) | r(rm) | if op.is_store() { r(rt) } else { 0 },
+        MemImm { op, rt, rn, .. } => r(rn) | if op.is_store() { r(rt) } else { 0 },
+        AddSpImm { .. } | AddSp { .. } | SubSp { .. } | Pop { .. } => r(13),
+        Push { list } => list | r(13),
+        Sxth { rm, .. }
+        | Sxtb { rm, .. }
+        | Uxth { rm, .. }
+        | Uxtb { rm, .. }
+        | Rev { rm, .. }
+        | Rev16 { rm, .. }
+        | Revsh { rm, .. } => r(rm),
+        Stm { rn, list } => r(rn) | u16::from(list),
+        Ldm { rn, .. } => r(rn),
+        Mrs { .. } => 0,
+        _ => return None,
+    })
+}
+
+/// The registers live after each item (read on some way onward before they are written),
+/// from a backward walk. A return keeps every register but those it pops live (what the
+/// caller may read is not this pass's to decide).
+fn live_registers(items: &[Item]) -> Vec<u16> {
+    let mut at_label: HashMap<usize, u16> = HashMap::new();
+    let mut after = vec![0u16; items.len()];
+    let mut live = u16::MAX;
+    for k in (0..items.len()).rev() {
+        after[k] = live;
+        let target =
+            |l: &super::buffer::Label| at_label.get(&l.index()).copied().unwrap_or(u16::MAX);
+        live = match &items[k] {
+            Item::Branch(None, l) => target(l),
+            Item::Branch(Some(_), l) => live | target(l),
+            Item::Bind(l) => {
+                at_label.insert(l.index(), live);
+                live
+            }
+            Item::Instr(Instr::Pop { list }) if list & 1 << 15 != 0 => !(list & 0xff),
+            Item::Instr(i) => match (effect(i), reads(i)) {
+                (Some(e), Some(r)) => live & !e.writes | r,
+                _ => u16::MAX,
+            },
+            Item::Lit { rt, .. } => live & !(1 << rt),
+            Item::Call(_) => u16::MAX,
+            _ => live,
+        };
+    }
+    after
+}
+
+/// `i` with its register operands renamed by `f` (`read` for each register it reads,
+/// `write` for the one it writes), if the result still encodes: `None` for a form this
+/// pass leaves alone or a high register where only a low one fits.
+fn rename(i: &Instr, read: impl Fn(u8) -> u8, write: impl Fn(u8) -> u8) -> Option<Instr> {
+    use Instr::*;
+    let lo = |x: u8| (x < 8).then_some(x);
+    Some(match *i {
+        LslImm { rd, rm, imm } => LslImm {
+            rd: lo(write(rd))?,
+            rm: lo(read(rm))?,
+            imm,
+        },
+        LsrImm { rd, rm, imm } => LsrImm {
+            rd: lo(write(rd))?,
+            rm: lo(read(rm))?,
+            imm,
+        },
+        AsrImm { rd, rm, imm } => AsrImm {
+            rd: lo(write(rd))?,
+            rm: lo(read(rm))?,
+            imm,
+        },
+        AddReg { rd, rn, rm } => AddReg {
+            rd: lo(write(rd))?,
+            rn: lo(read(rn))?,
+            rm: lo(read(rm))?,
+        },
+        SubReg { rd, rn, rm } => SubReg {
+            rd: lo(write(rd))?,
+            rn: lo(read(rn))?,
+            rm: lo(read(rm))?,
+        },
+        // The 8-bit immediate form is two-address.
+        AddImm { rd, rn, imm } | SubImm { rd, rn, imm } => {
+            let (d, n) = (lo(write(rd))?, lo(read(rn))?);
+            if imm > 7 && d != n {
+                return None;
+            }
+            if matches!(i, AddImm { .. }) {
+                AddImm { rd: d, rn: n, imm }
+            } else {
+                SubImm { rd: d, rn: n, imm }
+            }
+        }
+        MovImm { rd, imm } => MovImm {
+            rd: lo(write(rd))?,
+            imm,
+        },
+        CmpImm { rn, imm } => CmpImm {
+            rn: lo(read(rn))?,
+            imm,
+        },
+        // Two-address: renamed only where the register read and written stays one.
+        Alu { op, rdn, rm } => {
+            let d = match op {
+                AluOp::Cmp | AluOp::Cmn | AluOp::Tst => read(rdn),
+                AluOp::Rsb | AluOp::Mvn => write(rdn),
+                _ if read(rdn) == write(rdn) => read(rdn),
+                _ => return None,
+            };
+            let m = read(rm);
+            match op {
+                AluOp::Cmp if d >= 8 || m >= 8 => CmpHi { rn: d, rm: m },
+                _ => Alu {
+                    op,
+                    rdn: lo(d)?,
+                    rm: lo(m)?,
+                },
+            }
+        }
+        CmpHi { rn, rm } => {
+            let (n, m) = (read(rn), read(rm));
+            if n < 8 && m < 8 {
+                Alu {
+                    op: AluOp::Cmp,
+                    rdn: n,
+                    rm: m,
+                }
+            } else {
+                CmpHi { rn: n, rm: m }
+            }
+        }
+        MovHi { rd, rm } => MovHi {
+            rd: write(rd),
+            rm: read(rm),
+        },
+        MemImm { op, rt, rn, imm } => MemImm {
+            op,
+            rt: lo(if op.is_store() { read(rt) } else { write(rt) })?,
+            rn: match read(rn) {
+                n @ (13 | 0..8) if (n == 13) == (rn == 13) => n,
+                _ => return None,
+            },
+            imm,
+        },
+        MemReg { op, rt, rn, rm } => MemReg {
+            op,
+            rt: lo(if op.is_store() { read(rt) } else { write(rt) })?,
+            rn: lo(read(rn))?,
+            rm: lo(read(rm))?,
+        },
+        Uxth { rd, rm } => Uxth {
+            rd: lo(write(rd))?,
+            rm: lo(read(rm))?,
+        },
+        Sxth { rd, rm } => Sxth {
+            rd: lo(write(rd))?,
+            rm: lo(read(rm))?,
+        },
+        _ => return None,
+    })
+}
+
+/// Pass 3: register copies. `MOV Rd, Rm` whose copy the next instruction alone reads
+/// (`Rd` dead after it, not written by it) goes, that instruction reading `Rm` instead;
+/// `MOV Rd, Rs` right after the instruction that wrote `Rs`, when `Rs` is dead after the
+/// `MOV`, goes, that instruction writing `Rd` instead. Returns the items to drop.
+fn copies(items: &mut [Item]) -> Vec<bool> {
+    let after = live_registers(items);
+    let mut dead = vec![false; items.len()];
+    let silent = |it: &Item| matches!(it, Item::Note(_) | Item::Mark(_));
+    for k in 0..items.len() {
+        let Item::Instr(Instr::MovHi { rd, rm }) = items[k] else {
+            continue;
+        };
+        if rd == rm || rd >= 13 || rm >= 13 && rm != 14 {
+            continue;
+        }
+        // The copy read once, by the next instruction.
+        let next = (k + 1..items.len()).find(|&q| !silent(&items[q]));
+        if let Some(q) = next {
+            if let Item::Instr(i) = &items[q] {
+                let (e, r) = (effect(i), reads(i));
+                if let (Some(e), Some(r)) = (e, r) {
+                    if r & 1 << rd != 0 && e.writes & 1 << rd == 0 && after[q] & 1 << rd == 0 {
+                        let sub = |x: u8| if x == rd { rm } else { x };
+                        if let Some(j) = rename(i, sub, |x| x) {
+                            // A copy back into its source is no instruction at all.
+                            dead[q] = matches!(j, Instr::MovHi { rd, rm } if rd == rm);
+                            items[q] = Item::Instr(j);
+                            dead[k] = true;
+                            continue;
+                        }
+                    }
+                }
+            }
+        }
+        // The copy of what the instruction before just wrote.
+        let prev = (0..k).rev().find(|&p| !dead[p] && !silent(&items[p]));
+        let Some(p) = prev else { continue };
+        if after[k] & 1 << rm != 0 || rd >= 8 || rm >= 8 {
+            continue;
+        }
+        let renamed = match &items[p] {
+            Item::Lit { rt, pool, index } if *rt == rm => Some(Item::Lit {
+                rt: rd,
+                pool: *pool,
+                index: *index,
+            }),
+            Item::Instr(i) => match effect(i) {
+                Some(e) if e.writes == 1 << rm => {
+                    let sub = |x: u8| if x == rm { rd } else { x };
+                    rename(i, |x| x, sub).map(Item::Instr)
+                }
+                _ => None,
+            },
+            _ => None,
+        };
+        if let Some(it) = renamed {
+            items[p] = it;
+            dead[k] = true;
+        }
+    }
+    dead
+}
+
+/// Runs the three passes over the function whose items start at `start` in `buf` (its prologue
 /// on; lowered, not yet assembled).
 pub(super) fn run(buf: &mut CodeBuffer, start: usize) {
     let (items, _) = buf.items_from(start);
@@ -496,6 +744,9 @@ pub(super) fn run(buf: &mut CodeBuffer, start: usize) {
     let (items, pools) = buf.items_from(start);
     let pools = pools.to_vec();
     let dead = values(items, &pools);
+    buf.drop_from(start, &dead);
+    let (items, _) = buf.items_from(start);
+    let dead = copies(items);
     buf.drop_from(start, &dead);
 }
 
@@ -735,5 +986,69 @@ mod tests {
             live.iter().filter(|s| **s == format!("{movs:?}")).count(),
             2
         );
+    }
+    /// `body`, then `MOVS r0–r6, #0` (every low register but r7 written: dead) and a return.
+    fn copy_pass(body: &[Instr]) -> Vec<String> {
+        after(|b| {
+            for &i in body {
+                b.i(i);
+            }
+            for r in 0..7 {
+                b.i(Instr::MovImm { rd: r, imm: 0 });
+            }
+            b.i(ret());
+        })
+    }
+
+    #[test]
+    fn a_copy_read_once_next_is_read_at_its_source() {
+        let cmp = |rdn, rm| Instr::Alu {
+            op: AluOp::Cmp,
+            rdn,
+            rm,
+        };
+        let got = copy_pass(&[mov(6, 1), cmp(0, 6)]);
+        assert_eq!(got[0], format!("{:?}", cmp(0, 1)), "{got:?}");
+        // A high source: CMP's high-register form.
+        let got = copy_pass(&[mov(6, 12), cmp(0, 6)]);
+        assert_eq!(got[0], format!("{:?}", Instr::CmpHi { rn: 0, rm: 12 }));
+        // Read again later, or a high register where only a low one fits: kept.
+        let kept = copy_pass(&[mov(6, 1), cmp(0, 6), str(6, 7, 0)]);
+        assert_eq!(kept[0], format!("{:?}", mov(6, 1)));
+        let lsls = Instr::LslImm {
+            rd: 2,
+            rm: 6,
+            imm: 3,
+        };
+        let kept = copy_pass(&[mov(6, 12), lsls]);
+        assert_eq!(kept[0], format!("{:?}", mov(6, 12)));
+    }
+
+    #[test]
+    fn a_copy_of_what_was_just_written_is_written_there() {
+        let asrs = |rd, rm| Instr::AsrImm { rd, rm, imm: 1 };
+        // (Read twice after: not a copy the next instruction alone reads.)
+        let got = copy_pass(&[asrs(0, 0), mov(1, 0), str(1, 7, 0), str(1, 7, 4)]);
+        assert_eq!(got[0], format!("{:?}", asrs(1, 0)), "{got:?}");
+        assert_eq!(got[1], format!("{:?}", str(1, 7, 0)));
+        let got = after(|b| {
+            b.ldr_const(0, 123_456);
+            b.i(mov(1, 0));
+            b.i(str(1, 7, 0));
+            b.i(str(1, 7, 4));
+            b.i(Instr::MovImm { rd: 0, imm: 0 });
+            b.i(ret());
+        });
+        assert_eq!(got[0], "lit r1", "{got:?}");
+        // The source read again, or an 8-bit immediate's two-address form: kept.
+        let kept = copy_pass(&[asrs(0, 0), mov(1, 0), str(0, 7, 0)]);
+        assert_eq!(kept[1], format!("{:?}", mov(1, 0)));
+        let adds = Instr::AddImm {
+            rd: 0,
+            rn: 0,
+            imm: 16,
+        };
+        let kept = copy_pass(&[adds, mov(1, 0), str(1, 7, 0), str(1, 7, 4)]);
+        assert_eq!(kept[1], format!("{:?}", mov(1, 0)));
     }
 }
