@@ -33,6 +33,7 @@
 //! code from the timing table like any other.
 
 use super::buffer::{CodeBuffer, Item};
+use super::ins::cond::{EQ, GE, LT, MI, NE, PL};
 use std::collections::HashMap;
 use tactus_isa::decode::{AluOp, Instr, MemOp};
 
@@ -218,8 +219,8 @@ fn compares(items: &mut [Item]) -> Vec<bool> {
                     for b in run {
                         if let Item::Branch(Some(c), _) = &mut items[b] {
                             *c = match *c {
-                                10 => 5,
-                                11 => 4,
+                                GE => PL,
+                                LT => MI,
                                 same => same,
                             };
                         }
@@ -262,7 +263,7 @@ fn readers(items: &[Item], after: &[u8], k: usize) -> Option<Vec<usize>> {
                     return None;
                 }
                 match c {
-                    Some(0 | 1 | 4 | 5 | 10 | 11) => run.push(q),
+                    Some(EQ | NE | MI | PL | GE | LT) => run.push(q),
                     Some(_) => return None,
                     None => return Some(run),
                 }
@@ -753,42 +754,21 @@ pub(super) fn run(buf: &mut CodeBuffer, start: usize) {
 #[cfg(test)]
 mod tests {
     use super::super::buffer::{CodeBuffer, Item, LongBranch};
+    use super::super::ins::cond::{EQ, GE, GT, LT, MI, NE, PL};
+    use super::super::ins::{alu, asrs, cmp, cmp_imm, ldr, movs, pop_pc, str, subs_imm};
     use super::run;
-    use tactus_isa::decode::{AluOp, Instr, MemOp};
-
-    const EQ: u8 = 0;
-    const NE: u8 = 1;
-    const MI: u8 = 4;
-    const PL: u8 = 5;
-    const GE: u8 = 10;
-    const LT: u8 = 11;
-    const GT: u8 = 12;
+    use tactus_isa::decode::{AluOp, Instr};
 
     fn subs(rd: u8) -> Instr {
-        Instr::SubImm { rd, rn: rd, imm: 1 }
+        subs_imm(rd, rd, 1)
     }
     fn cmp0(rn: u8) -> Instr {
-        Instr::CmpImm { rn, imm: 0 }
+        cmp_imm(rn, 0)
     }
     fn ret() -> Instr {
-        Instr::Pop { list: 1 << 15 }
+        pop_pc(0)
     }
-    fn ldr(rt: u8, rn: u8, imm: u16) -> Instr {
-        Instr::MemImm {
-            op: MemOp::Ldr,
-            rt,
-            rn,
-            imm,
-        }
-    }
-    fn str(rt: u8, rn: u8, imm: u16) -> Instr {
-        Instr::MemImm {
-            op: MemOp::Str,
-            rt,
-            rn,
-            imm,
-        }
-    }
+    /// `MOV rd, rm` (no flags; `ins::mov` is `MOVS`).
     fn mov(rd: u8, rm: u8) -> Instr {
         Instr::MovHi { rd, rm }
     }
@@ -820,7 +800,7 @@ mod tests {
             b.i(op);
             b.i(cmp0(0));
             b.bc(cond, l);
-            b.i(Instr::MovImm { rd: 1, imm: 1 });
+            b.i(movs(1, 1));
             b.bind(l);
             for &i in tail {
                 b.i(i);
@@ -837,11 +817,7 @@ mod tests {
         assert_eq!(compare(subs(0), GE, &[])[1], format!("b{PL}"));
         assert_eq!(compare(subs(0), EQ, &[])[1], format!("b{EQ}"));
         // MULS sets N and Z from its result (C and V are kept).
-        let muls = Instr::Alu {
-            op: AluOp::Mul,
-            rdn: 0,
-            rm: 2,
-        };
+        let muls = alu(AluOp::Mul, 0, 2);
         assert_eq!(compare(muls, NE, &[])[1], format!("b{NE}"));
         // A load or store between them writes neither the register nor the flags.
         let got = after(|b| {
@@ -863,11 +839,7 @@ mod tests {
         // GT reads Z, N and V: V after SUBS is not CMP #0's 0.
         assert!(kept(compare(subs(0), GT, &[])));
         // ADCS after the join reads CMP's C (1).
-        let adcs = Instr::Alu {
-            op: AluOp::Adc,
-            rdn: 2,
-            rm: 3,
-        };
+        let adcs = alu(AluOp::Adc, 2, 3);
         assert!(kept(compare(subs(0), EQ, &[adcs])));
         // The flags are another register's.
         assert!(kept(after(|b| {
@@ -956,12 +928,8 @@ mod tests {
 
     #[test]
     fn a_movs_of_the_value_there_goes_where_its_flags_are_dead() {
-        let movs = Instr::MovImm { rd: 1, imm: 0 };
-        let adcs = Instr::Alu {
-            op: AluOp::Adc,
-            rdn: 3,
-            rm: 1,
-        };
+        let movs = movs(1, 0);
+        let adcs = alu(AluOp::Adc, 3, 1);
         let dead = after(|b| {
             b.i(movs);
             b.i(adcs);
@@ -994,7 +962,7 @@ mod tests {
                 b.i(i);
             }
             for r in 0..7 {
-                b.i(Instr::MovImm { rd: r, imm: 0 });
+                b.i(movs(r, 0));
             }
             b.i(ret());
         })
@@ -1002,11 +970,6 @@ mod tests {
 
     #[test]
     fn a_copy_read_once_next_is_read_at_its_source() {
-        let cmp = |rdn, rm| Instr::Alu {
-            op: AluOp::Cmp,
-            rdn,
-            rm,
-        };
         let got = copy_pass(&[mov(6, 1), cmp(0, 6)]);
         assert_eq!(got[0], format!("{:?}", cmp(0, 1)), "{got:?}");
         // A high source: CMP's high-register form.
@@ -1015,18 +978,14 @@ mod tests {
         // Read again later, or a high register where only a low one fits: kept.
         let kept = copy_pass(&[mov(6, 1), cmp(0, 6), str(6, 7, 0)]);
         assert_eq!(kept[0], format!("{:?}", mov(6, 1)));
-        let lsls = Instr::LslImm {
-            rd: 2,
-            rm: 6,
-            imm: 3,
-        };
+        let lsls = super::super::ins::lsls(2, 6, 3);
         let kept = copy_pass(&[mov(6, 12), lsls]);
         assert_eq!(kept[0], format!("{:?}", mov(6, 12)));
     }
 
     #[test]
     fn a_copy_of_what_was_just_written_is_written_there() {
-        let asrs = |rd, rm| Instr::AsrImm { rd, rm, imm: 1 };
+        let asrs = |rd, rm| asrs(rd, rm, 1);
         // (Read twice after: not a copy the next instruction alone reads.)
         let got = copy_pass(&[asrs(0, 0), mov(1, 0), str(1, 7, 0), str(1, 7, 4)]);
         assert_eq!(got[0], format!("{:?}", asrs(1, 0)), "{got:?}");
@@ -1036,18 +995,14 @@ mod tests {
             b.i(mov(1, 0));
             b.i(str(1, 7, 0));
             b.i(str(1, 7, 4));
-            b.i(Instr::MovImm { rd: 0, imm: 0 });
+            b.i(movs(0, 0));
             b.i(ret());
         });
         assert_eq!(got[0], "lit r1", "{got:?}");
         // The source read again, or an 8-bit immediate's two-address form: kept.
         let kept = copy_pass(&[asrs(0, 0), mov(1, 0), str(0, 7, 0)]);
         assert_eq!(kept[1], format!("{:?}", mov(1, 0)));
-        let adds = Instr::AddImm {
-            rd: 0,
-            rn: 0,
-            imm: 16,
-        };
+        let adds = super::super::ins::adds_imm(0, 0, 16);
         let kept = copy_pass(&[adds, mov(1, 0), str(1, 7, 0), str(1, 7, 4)]);
         assert_eq!(kept[1], format!("{:?}", mov(1, 0)));
     }
