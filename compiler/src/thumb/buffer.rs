@@ -110,14 +110,16 @@ impl std::error::Error for BufferError {}
 
 /// The target of a `BL`.
 #[derive(Clone, Copy, Debug)]
-enum Callee {
+pub(super) enum Callee {
     Label(Label),
     /// An absolute address (the Thumb bit is ignored): resolved as `R_ARM_THM_CALL`.
     Addr(u32),
 }
 
+/// One entry of the buffer: an instruction, a label bound here, a branch or call to be
+/// laid out, a literal load, a pool, data or a marker.
 #[derive(Clone, Debug)]
-enum Item {
+pub(super) enum Item {
     Instr(Instr),
     Bind(Label),
     /// `B`/`B<cond>` to a label; relaxed per [`LongBranch`].
@@ -293,6 +295,28 @@ impl CodeBuffer {
     /// Places the open pool here behind a `B` over it.
     pub fn pool_inline(&mut self) {
         self.place_pool(true);
+    }
+
+    /// How many items the buffer holds: where the next function's code starts, for a pass
+    /// over it ([`CodeBuffer::items_from`]).
+    pub(super) fn len(&self) -> usize {
+        self.items.len()
+    }
+
+    /// The items from `start` on (a pass over one function's code may rewrite them, never
+    /// a pool, a label or a mark) and the literal pools their loads index.
+    pub(super) fn items_from(&mut self, start: usize) -> (&mut [Item], &[Vec<u32>]) {
+        (&mut self.items[start..], &self.pools)
+    }
+
+    /// Drops item `start + k` for each `dead[k]` (a function's deleted instructions; the
+    /// code only shrinks, so every branch and literal load stays in reach).
+    pub(super) fn drop_from(&mut self, start: usize, dead: &[bool]) {
+        let mut k = 0;
+        self.items.retain(|_| {
+            k += 1;
+            k <= start || !dead.get(k - 1 - start).copied().unwrap_or(false)
+        });
     }
 
     /// Aligns to 4 bytes (with a no-op).

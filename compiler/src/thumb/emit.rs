@@ -803,6 +803,7 @@ pub(crate) fn lower(
         used_high.iter().partition(|&&r| cfg.free & 1 << r != 0);
     let used_low = (alloc.used_mask | 0x80) & 0xf0;
     let clobbered = (used_low as u16 & cfg.free) | free_high.iter().fold(0, |m, &r| m | 1 << r);
+    let start = buf.len();
     buf.begin_function(name);
     let mut l = Lower {
         alloc,
@@ -868,6 +869,7 @@ pub(crate) fn lower(
     l.i(Instr::Pop {
         list: saved as u16 | 1 << 15,
     });
+    super::peephole::run(l.buf, start);
     l.buf.end_function();
     clobbered
 }

@@ -4,8 +4,9 @@
 //! sequence from the range analysis' word bounds) → [`regalloc`] (linear scan, spilling
 //! to the stack) → [`emit`] (prologue/epilogue per AAPCS into the [`buffer`], which places
 //! literal pools, relaxes branches, encodes with the emulator's encoder and writes a GNU
-//! assembler listing; the firmware image's glue uses the same buffer) → [`elf`] (a
-//! relocatable object).
+//! assembler listing; the firmware image's glue uses the same buffer) → `peephole` (each
+//! function's allocated code: compares with 0 the flags already answer, loads of values a
+//! register holds, register copies) → [`elf`] (a relocatable object).
 //!
 //! The generated functions have the interface and state layout of [`crate::abi`] exactly,
 //! as the C backend's do — one header describes both:
@@ -33,6 +34,7 @@ mod forward;
 pub mod ins;
 mod literals;
 pub mod mir;
+mod peephole;
 pub mod regalloc;
 pub mod select;
 
