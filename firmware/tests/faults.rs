@@ -9,7 +9,7 @@ use tactus_firmware::image::{FaultKind, FirmwareImage, ImageRun, Injection};
 
 #[path = "common/layouts.rs"]
 mod layouts;
-use layouts::firmware;
+use layouts::{firmware, firmware_with};
 
 fn faults() -> Vec<Injection> {
     let f = |kind, key, core, from, until| Injection {
@@ -63,8 +63,9 @@ fn run(
         .collect()
 }
 
-fn check(kind: Option<&str>) {
-    let (boards, _) = firmware("instruments/layouts/grand88.toml", kind, Load::Ram);
+fn check(kind: Option<&str>, sensor_check: bool) {
+    let layout = "instruments/layouts/grand88.toml";
+    let (boards, _) = firmware_with(layout, kind, Load::Ram, Some(sensor_check));
     let image = &boards[0].image;
     assert!(image.keys().len() >= 4);
     let n = 1_500;
@@ -85,6 +86,12 @@ fn check(kind: Option<&str>) {
         differs(900..1060),
         "{kind:?}: open and short changed nothing"
     );
+    if sensor_check {
+        // The short of key 3 (at rest: a jump to full scale) tripped it: its DAC code 0
+        // within 1 ms and until the short ends.
+        let zero = (950..1050).filter(|&i| reference[i].dac[3] == 0).count();
+        assert!(zero >= 100 - 44, "{kind:?}: key 3 at 0 for {zero} samples");
+    }
     let keys0: Vec<usize> = (0..image.keys().len())
         .filter(|&k| image.keys()[k].core == 0)
         .collect();
@@ -100,12 +107,21 @@ fn check(kind: Option<&str>) {
 
 #[test]
 fn a_faulted_plain_board_runs_the_same_on_every_engine() {
-    check(None);
+    check(None, false);
 }
 
 #[test]
 fn a_faulted_converter_board_runs_the_same_on_every_engine() {
-    check(Some("rp2040_io"));
+    check(Some("rp2040_io"), false);
+}
+
+/// With the sensor check on: its keys take turns (grand88's boards: four classes a core,
+/// `glue::Turns`), the faults trip them, and the trip paths and the gated limiters run the
+/// same on the lock-step machine and the block engine with the rest replay.
+#[test]
+fn a_checked_board_trips_the_same_on_every_engine() {
+    check(None, true);
+    check(Some("rp2040_io"), true);
 }
 
 #[test]

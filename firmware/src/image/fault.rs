@@ -194,15 +194,17 @@ pub fn recovery_samples(fs: f64) -> u32 {
 /// must be filtered before the firmware, or its keys trip (`sensor-rate`).
 pub const SENSOR_NOISE_FRACTION: f64 = 0.02;
 
-/// The largest change of a sensor word in one sample at `fs` Hz that the checks accept as
-/// plausible: the key's physics ([`MAX_SPEED_MPS`]) plus the sensor's noise on both
+/// The largest change of a sensor word over `samples` samples at `fs` Hz (the longest gap
+/// between two checks of a key, `glue::Turns`) that the checks accept as plausible: the
+/// key's physics ([`MAX_SPEED_MPS`]) over that time plus the sensor's noise on both
 /// readings (2 × [`SENSOR_NOISE_FRACTION`] of the span). A sensor whose raw words span
 /// `[lo, hi]` for `span_m` metres (its declared range) moves `(hi − lo) / span_m` raw
-/// units per metre. For a 10 mm key: 136 µm + 400 µm = 536 µm. At least 1.
-pub fn max_step_raw(lo: i32, hi: i32, span_m: f64, fs: f64) -> u32 {
+/// units per metre. For a 10 mm key checked every sample: 136 µm + 400 µm = 536 µm; every
+/// 5 samples: 680 µm + 400 µm = 1,080 µm. At least 1.
+pub fn max_step_raw(lo: i32, hi: i32, span_m: f64, fs: f64, samples: u32) -> u32 {
     let span_raw = f64::from(hi) - f64::from(lo);
     let per_m = span_raw / span_m.max(1e-9);
-    let physics = per_m * MAX_SPEED_MPS / fs;
+    let physics = per_m * MAX_SPEED_MPS * f64::from(samples.max(1)) / fs;
     let noise = 2.0 * SENSOR_NOISE_FRACTION * span_raw;
     (physics + noise)
         .ceil()
@@ -230,7 +232,7 @@ mod tests {
         // 10 mm in Q37 (raw words per metre 2^37): 136 µm of motion at 6 m/s, 2 × 0.2 mm
         // of noise.
         let hi = (0.01f64 * 2f64.powi(37)) as i32;
-        let l = max_step_raw(0, hi, 0.01, 44100.0);
+        let l = max_step_raw(0, hi, 0.01, 44100.0, 1);
         let um = f64::from(l) / 2f64.powi(37) * 1e6;
         assert!((um - 536.05).abs() < 0.01, "{um} µm");
         assert_eq!(recovery_samples(44100.0), 4410);

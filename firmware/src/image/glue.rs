@@ -31,7 +31,7 @@ use checks::{
     check_step, copy_words, enable_watchdog, feed_watchdog, restore_fault_record, trip_path,
     CopyMode,
 };
-pub use checks::{Feed, SensorCheck};
+pub use checks::{Feed, Gate, SensorCheck, Turns, MAX_GAP};
 
 /// Byte offsets in a core's control block (words in the core's own SRAM bank).
 pub mod ctrl {
@@ -189,7 +189,7 @@ pub fn limiter_inline(
         Scale::Clobbered => HI_REGISTERS,
         _ => 0,
     };
-    limiter_with(a, c, s, scale, lost, base, budget_off, &mut |_| {})
+    limiter_with(a, c, s, scale, lost, base, budget_off, None, &mut |_| {})
 }
 
 /// Bits of [`hi`]'s registers in a register mask.
@@ -199,7 +199,10 @@ const HI_REGISTERS: u16 = 0xf << 8;
 /// nothing: their constants come from the literal pool, or an immediate where one fits
 /// (`CMP #imm8`, `MOVS #imm8`: 1 cycle, as the register). `aside` emits code that no
 /// path of the limiter falls into (a sensor check's trip path, [`SensorCheck`]): it is
-/// placed behind the limiter's last unconditional branch, before its literal pool.
+/// placed behind the limiter's last unconditional branch, before its literal pool. With
+/// `gate` (byte offsets from r`base` of a rated-magnitude threshold word and a gain word,
+/// [`SensorCheck::gate`]) the limiter reads those two constants from there (`LDR`, as a
+/// literal's) instead of a register or the pool.
 #[allow(clippy::too_many_arguments)]
 fn limiter_with(
     a: &mut CodeBuffer,
@@ -209,6 +212,7 @@ fn limiter_with(
     lost: u16,
     base: u8,
     budget_off: u16,
+    gate: Option<(u16, u16)>,
     aside: &mut dyn FnMut(&mut CodeBuffer),
 ) -> Result<(), ImageError> {
     use AluOp::*;
@@ -246,13 +250,19 @@ fn limiter_with(
         a.i(asm::lsrs(0, 0, s.pre_shift as u8));
     }
     a.i(asm::ldr(1, base, budget_off));
-    cmp_const(
-        a,
-        0,
-        hi::RATED_MAG,
-        true,
-        s.last_magnitude_within(c.rated_code),
-    );
+    match gate {
+        Some((rated, _)) => {
+            a.i(asm::ldr(3, base, rated));
+            a.i(asm::cmp(0, 3));
+        }
+        None => cmp_const(
+            a,
+            0,
+            hi::RATED_MAG,
+            true,
+            s.last_magnitude_within(c.rated_code),
+        ),
+    }
     a.bc(cond::LS, earn);
     // Above rated (or saturated): spend, if the budget allows.
     a.i(asm::subs_imm(1, 1, rec));
@@ -287,7 +297,9 @@ fn limiter_with(
     a.i(asm::adds_imm(1, 1, 1));
     // The code asked: m ≤ 32767, so the product fits.
     a.bind(mul);
-    if in_reg(hi::GAIN, true) {
+    if let Some((_, gain)) = gate {
+        a.i(asm::ldr(3, base, gain));
+    } else if in_reg(hi::GAIN, true) {
         a.i(mov_hi(3, hi::GAIN));
     } else {
         a.mov_const(3, s.gain);
@@ -671,6 +683,7 @@ pub fn core_code(
     start: &dyn Fn(&mut CodeBuffer),
     io: Option<&super::io::IoPlan>,
     feed: Option<Feed>,
+    turns: &Turns,
 ) -> Result<CoreLabels, ImageError> {
     let labels = CoreLabels {
         reset: a.label(),
@@ -749,7 +762,7 @@ pub fn core_code(
     walk(a, keys, &mut |a, k| {
         ldr_rec(a, 0, k.state_offset);
         a.bl_addr(k.init);
-        if let Some(c) = k.check.filter(|c| c.state_words > 0) {
+        if let Some(c) = k.check.as_ref().filter(|c| c.state_words > 0) {
             // The rest image of the sensor check's recovery ([`SensorCheck::rest`]).
             ldr_rec(a, 0, k.state_offset);
             a.ldr_const(1, c.rest);
@@ -834,138 +847,208 @@ pub fn core_code(
             .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5));
         p.handler_start(a, core, borrow_r6);
     }
-    // The reload value of the period after this one.
+    // The reload value of the period after this one (r2 = the accumulator after it).
     tick_step(a, &tick);
+    // The copies of the keys' code ([`Turns`]): the class's bits of the accumulator into
+    // N (bit `shift`) and C (bit `shift + 1`), read by the dispatch's branches (the keys
+    // part, which the emulator memoizes, reads the flags, not the accumulator).
+    let copies = turns.classes.max(1);
+    if copies > 1 {
+        a.i(asm::lsls(0, 2, 31 - turns.shift));
+    }
     a.bind(labels.keys);
-    // Every key: sensors → record, update, then each force word: limiter, DAC.
-    walk(a, keys, &mut |a, k| {
-        // Without the guard the update reads its sensor words straight from the window
-        // (they are consecutive words: the key's slots); the guard compares a copy.
-        // With converters whose ADC does not push the words themselves, every sensor word
-        // is made of its ADC code into the record (`super::io::read_sensor`); otherwise
-        // the words lie in the window or this sample's results (r6).
-        let convert = !k.sensor_channels.is_empty();
-        // The sensor check reads the copy its word replaces: a checked key's words are
-        // copied.
-        let check = k.check.filter(|_| !k.drives.is_empty());
-        let trip = a.label();
-        let in_window =
-            !convert && k.guard.is_none() && check.is_none() && !k.sensor_words.is_empty();
-        let copied = match (in_window, convert) {
-            (true, _) => 0,
-            (false, true) => k.sensor_channels.len(),
-            (false, false) => k.sensor_words.len(),
-        };
-        for i in 0..copied {
-            if convert {
-                let (ch, scale) = &k.sensor_channels[i];
-                super::io::read_sensor(a, *ch, scale);
-            } else {
-                let w = k.sensor_words[i];
-                let off = w.wrapping_sub(sensor_base);
-                if off <= 124 && off % 4 == 0 {
-                    a.i(asm::ldr(0, 6, off as u16));
+    let starts: Vec<Label> = (0..copies).map(|_| a.label()).collect();
+    let tails: Vec<Label> = (0..copies).map(|_| a.label()).collect();
+    let (upper, end) = (a.label(), a.label());
+    // Trampolines: [to copy 1, to copy 2 (hop), to copy 3 (hop), to copy 3 (second hop)].
+    let tramp: Vec<Label> = (0..4).map(|_| a.label()).collect();
+    match copies {
+        1 => {}
+        2 => a.bc(cond::MI, tramp[0]),
+        _ => {
+            a.bc(cond::CS, upper);
+            a.bc(cond::MI, tramp[0]);
+        }
+    }
+    for copy in 0..copies {
+        a.bind(starts[copy as usize]);
+        let mut first_aside = copies > 1;
+        // Every key: sensors → record, update, then each force word: limiter, DAC.
+        walk(a, keys, &mut |a, k| {
+            // This copy checks the key: on its turn, or every sample.
+            let check = k
+                .check
+                .as_ref()
+                .filter(|c| !k.drives.is_empty() && c.turn.is_none_or(|t| u32::from(t) == copy))
+                .cloned();
+            // Its limiters read the gate's words while it takes turns.
+            let gates: Vec<(u16, u16)> =
+                k.check
+                    .as_ref()
+                    .filter(|c| c.turn.is_some())
+                    .map_or(Vec::new(), |c| {
+                        c.gate
+                            .iter()
+                            .map(|g| (g.rated_offset as u16, g.gain_offset as u16))
+                            .collect()
+                    });
+            // Without the guard the update reads its sensor words straight from the window
+            // (they are consecutive words: the key's slots); the guard compares a copy.
+            // With converters whose ADC does not push the words themselves, every sensor
+            // word is made of its ADC code into the record (`super::io::read_sensor`);
+            // otherwise the words lie in the window or this sample's results (r6).
+            let convert = !k.sensor_channels.is_empty();
+            // The sensor check reads the copy its word replaces: a checked key's words are
+            // copied.
+            let trip = a.label();
+            let in_window =
+                !convert && k.guard.is_none() && check.is_none() && !k.sensor_words.is_empty();
+            let copied = match (in_window, convert) {
+                (true, _) => 0,
+                (false, true) => k.sensor_channels.len(),
+                (false, false) => k.sensor_words.len(),
+            };
+            for i in 0..copied {
+                if convert {
+                    let (ch, scale) = &k.sensor_channels[i];
+                    super::io::read_sensor(a, *ch, scale);
                 } else {
-                    a.ldr_const(0, w);
-                    a.i(asm::ldr(0, 0, 0));
+                    let w = k.sensor_words[i];
+                    let off = w.wrapping_sub(sensor_base);
+                    if off <= 124 && off % 4 == 0 {
+                        a.i(asm::ldr(0, 6, off as u16));
+                    } else {
+                        a.ldr_const(0, w);
+                        a.i(asm::ldr(0, 0, 0));
+                    }
                 }
-            }
-            if let (0, Some(c)) = (i, &check) {
-                check_step(a, c, 0, trip);
-            }
-            if k.guard.is_some() {
-                // r3 = new ^ old for the first word, r3 |= new ^ old for the others (the
-                // image keeps at most 24 sensors: offsets ≤ 92).
-                if i == 0 {
-                    a.i(asm::ldr(3, 4, 0));
-                    a.i(asm::alu(AluOp::Eor, 3, 0));
+                if let (0, Some(c)) = (i, &check) {
+                    check_step(a, c, 0, trip);
+                }
+                if k.guard.is_some() {
+                    // r3 = new ^ old for the first word, r3 |= new ^ old for the others
+                    // (the image keeps at most 24 sensors: offsets ≤ 92).
+                    if i == 0 {
+                        a.i(asm::ldr(3, 4, 0));
+                        a.i(asm::alu(AluOp::Eor, 3, 0));
+                    } else {
+                        a.i(asm::ldr(1, 4, 4 * i as u16));
+                        a.i(asm::alu(AluOp::Eor, 1, 0));
+                        a.i(asm::alu(AluOp::Orr, 3, 1));
+                    }
+                }
+                if 4 * i <= 124 {
+                    a.i(asm::str(0, 4, 4 * i as u16));
                 } else {
-                    a.i(asm::ldr(1, 4, 4 * i as u16));
-                    a.i(asm::alu(AluOp::Eor, 1, 0));
-                    a.i(asm::alu(AluOp::Orr, 3, 1));
+                    a.mov_const(1, 4 * i as u32);
+                    a.i(Instr::MemReg {
+                        op: tactus_isa::decode::MemOp::Str,
+                        rt: 0,
+                        rn: 4,
+                        rm: 1,
+                    });
                 }
             }
-            if 4 * i <= 124 {
-                a.i(asm::str(0, 4, 4 * i as u16));
-            } else {
-                a.mov_const(1, 4 * i as u32);
-                a.i(Instr::MemReg {
-                    op: tactus_isa::decode::MemOp::Str,
-                    rt: 0,
-                    rn: 4,
-                    rm: 1,
-                });
+            let skip = a.label();
+            if let Some(g) = &k.guard {
+                guard_check(a, g, skip);
             }
-        }
-        let skip = a.label();
-        if let Some(g) = &k.guard {
-            guard_check(a, g, skip);
-        }
-        ldr_rec(a, 0, k.state_offset);
-        if in_window {
-            let off = k.sensor_words[0].wrapping_sub(sensor_base);
-            if off <= 7 {
-                a.i(asm::adds_imm(1, 6, off as u8));
-            } else if off <= 255 {
-                a.i(asm::mov(1, 6));
-                a.i(asm::adds_imm(1, 1, off as u8));
-            } else {
-                a.ldr_const(1, k.sensor_words[0]);
-            }
-        } else {
-            a.i(asm::mov(1, 4));
-        }
-        if k.out_offset <= 7 {
-            a.i(asm::adds_imm(2, 4, k.out_offset as u8));
-        } else {
-            a.i(asm::mov(2, 4));
-            add_big(a, 2, k.out_offset);
-        }
-        a.bl_addr(k.update);
-        if let Some(g) = &k.guard {
-            let window = |a: &mut CodeBuffer| a.ldr_const(6, sensor_base);
-            let restore: &dyn Fn(&mut CodeBuffer) = match io {
-                Some(_) => &super::io::restore_r6,
-                None => &window,
-            };
-            guard_record(a, g, k.state_offset, Some(restore));
-        }
-        a.bind(skip);
-        for (j, d) in k.drives.iter().enumerate() {
-            ldr_rec(a, 0, d.force_offset);
-            let in_regs = if d.scale == scale {
-                Scale::InRegisters
-            } else {
-                Scale::Literal
-            };
-            let off = d.budget_offset as u16;
-            // The trip path behind the first limiter's last branch: within a `BNE`'s
-            // reach of the check.
-            let mut aside = |a: &mut CodeBuffer| {
-                if let (0, Some(c)) = (j, &check) {
-                    // The path itself after the handler's end (within a `B`'s reach).
-                    let far = a.label();
-                    a.bind(trip);
-                    a.b(far);
-                    let i = keys.iter().position(|x| std::ptr::eq(x, k)).unwrap_or(0);
-                    trips.push((*c, far, skip, i));
+            ldr_rec(a, 0, k.state_offset);
+            if in_window {
+                let off = k.sensor_words[0].wrapping_sub(sensor_base);
+                if off <= 7 {
+                    a.i(asm::adds_imm(1, 6, off as u8));
+                } else if off <= 255 {
+                    a.i(asm::mov(1, 6));
+                    a.i(asm::adds_imm(1, 1, off as u8));
+                } else {
+                    a.ldr_const(1, k.sensor_words[0]);
                 }
-            };
-            limiter_with(a, limiter, &d.scale, in_regs, lost, 4, off, &mut aside)?;
-            let off = d.dac_word.wrapping_sub(dac_base);
-            if let (Some(ch), Some(_)) = (d.dac_channel, io) {
-                super::io::write_dac(a, ch);
-            } else if off <= 124 && off % 4 == 0 {
-                a.i(asm::str(0, 7, off as u16));
             } else {
-                a.ldr_const(1, d.dac_word);
-                a.i(asm::str(0, 1, 0));
+                a.i(asm::mov(1, 4));
+            }
+            if k.out_offset <= 7 {
+                a.i(asm::adds_imm(2, 4, k.out_offset as u8));
+            } else {
+                a.i(asm::mov(2, 4));
+                add_big(a, 2, k.out_offset);
+            }
+            a.bl_addr(k.update);
+            if let Some(g) = &k.guard {
+                let window = |a: &mut CodeBuffer| a.ldr_const(6, sensor_base);
+                let restore: &dyn Fn(&mut CodeBuffer) = match io {
+                    Some(_) => &super::io::restore_r6,
+                    None => &window,
+                };
+                guard_record(a, g, k.state_offset, Some(restore));
+            }
+            a.bind(skip);
+            for (j, d) in k.drives.iter().enumerate() {
+                ldr_rec(a, 0, d.force_offset);
+                let in_regs = if d.scale == scale {
+                    Scale::InRegisters
+                } else {
+                    Scale::Literal
+                };
+                let off = d.budget_offset as u16;
+                // The trip path behind the first limiter's last branch: within a `BNE`'s
+                // reach of the check; the dispatch's trampolines behind the first copy's
+                // first limiter, within a `B<cc>`'s reach of the dispatch.
+                let mut aside = |a: &mut CodeBuffer| {
+                    if let (0, Some(c)) = (j, &check) {
+                        // The path itself after the handler's end (within a `B`'s reach).
+                        let far = a.label();
+                        a.bind(trip);
+                        a.b(far);
+                        let i = keys.iter().position(|x| std::ptr::eq(x, k)).unwrap_or(0);
+                        trips.push((c.clone(), far, skip, i));
+                    }
+                    if std::mem::take(&mut first_aside) {
+                        dispatch_trampolines(a, copy, turns, upper, &tramp, &starts);
+                    }
+                };
+                let gate = gates.get(j).copied();
+                limiter_with(
+                    a, limiter, &d.scale, in_regs, lost, 4, off, gate, &mut aside,
+                )?;
+                let off = d.dac_word.wrapping_sub(dac_base);
+                if let (Some(ch), Some(_)) = (d.dac_channel, io) {
+                    super::io::write_dac(a, ch);
+                } else if off <= 124 && off % 4 == 0 {
+                    a.i(asm::str(0, 7, off as u16));
+                } else {
+                    a.ldr_const(1, d.dac_word);
+                    a.i(asm::str(0, 1, 0));
+                }
+            }
+            // The literals this key needs after its last limiter (a far DAC word, another
+            // format's gain) wait for the next key's limiter's pool, or the end's.
+            Ok(())
+        })?;
+        if first_aside {
+            // No limiter in the first copy (no drives): the trampolines here.
+            let over = a.label();
+            a.b(over);
+            dispatch_trampolines(a, copy, turns, upper, &tramp, &starts);
+            a.bind(over);
+        }
+        if copy + 1 < copies {
+            // To the end, or with hops to the next copy's branch to it.
+            a.bind(tails[copy as usize]);
+            match (turns.hops, copy + 2 < copies) {
+                (true, true) => a.b(tails[copy as usize + 1]),
+                _ => a.b(end),
+            }
+            a.pool();
+            // This copy's trip paths here, within a `B`'s reach of its checks.
+            for (c, far, join, i) in trips.drain(..) {
+                a.bind(far);
+                trip_path(a, &keys[i], &c, ctrl_addr, core, join);
+                a.pool();
             }
         }
-        // The literals this key needs after its last limiter (a far DAC word, another
-        // format's gain) wait for the next key's limiter's pool, or the end's.
-        Ok(())
-    })?;
+    }
+    a.bind(end);
     if clobbered & 1 << 5 != 0
         || keys
             .iter()
@@ -1002,6 +1085,56 @@ pub fn core_code(
         a.pool();
     }
     Ok(labels)
+}
+
+/// The dispatch's far half ([`Turns`]) that copy `copy` hosts, out of the copies' flow
+/// (behind its first limiter: within a `B<cc>`'s reach of what branches here). Copy 0
+/// hosts the branch to copy 1 and `upper` (C set: classes 2 and 3), which tests N for
+/// class 3; the branches to copies 2 and 3 are there too, or, with [`Turns::hops`] (copies
+/// beyond a `B`'s 2 KiB), one copy on at a time.
+fn dispatch_trampolines(
+    a: &mut CodeBuffer,
+    copy: u32,
+    turns: &Turns,
+    upper: Label,
+    tramp: &[Label],
+    starts: &[Label],
+) {
+    let copies = turns.classes;
+    match (copy, turns.hops && copies > 2) {
+        (0, false) => {
+            a.bind(tramp[0]);
+            a.b(starts[1]);
+            if copies > 2 {
+                a.bind(upper);
+                a.bc(cond::MI, tramp[2]);
+                a.b(starts[2]);
+                a.bind(tramp[2]);
+                a.b(starts[3]);
+            }
+        }
+        (0, true) => {
+            let three = a.label();
+            a.bind(tramp[0]);
+            a.b(starts[1]);
+            a.bind(upper);
+            a.bc(cond::MI, three);
+            a.b(tramp[1]);
+            a.bind(three);
+            a.b(tramp[2]);
+        }
+        (1, true) => {
+            a.bind(tramp[1]);
+            a.b(starts[2]);
+            a.bind(tramp[2]);
+            a.b(tramp[3]);
+        }
+        (2, true) => {
+            a.bind(tramp[3]);
+            a.b(starts[3]);
+        }
+        _ => {}
+    }
 }
 
 /// `rd += n` through r3 when `n` is beyond two `ADDS #imm8`.

@@ -209,14 +209,15 @@ pub(super) fn check_code_fits(
 }
 
 /// Words of a key record after its sensor copies for the sensor check
-/// ([`glue::SensorCheck`]).
+/// ([`glue::SensorCheck`]): the recovery count and the last reading, then per drive its
+/// gate's two words ([`glue::Gate`]).
 const FAULT_WORDS: u32 = 2;
 
 /// Words of a key record with `ns` sensor words, `out_len` out words and `nd` drives:
 /// the sensor copies, the out words, the budgets, the state address, the guard's counter
 /// and the check's words.
 fn record_words(ns: u32, out_len: u32, nd: u32, checked: bool) -> u32 {
-    ns + out_len + nd + 2 + if checked { FAULT_WORDS } else { 0 }
+    ns + out_len + nd + 2 + if checked { FAULT_WORDS + 2 * nd } else { 0 }
 }
 
 /// Whether a key of program `p` has a rest image in its core's data: its first sensor is
@@ -229,22 +230,42 @@ fn has_rest_image(p: &Program) -> bool {
 
 /// The sensor check of a key of program `p` at `fs` Hz ([`glue::SensorCheck`]): on its
 /// first sensor word (a key's position, a pen's depth), the check words at record offset
-/// `words_at`, its fault word naming window slot `slot`. `None` for a program without
-/// sensors.
-fn sensor_check(p: &Program, fs: f64, words_at: u32, slot: usize) -> Option<glue::SensorCheck> {
-    if words_at + 4 > 124 {
-        // Beyond an `LDR` immediate (a record of many out words): unchecked.
+/// `words_at`, its fault word naming window slot `slot`; checked on turn `turn` with gaps
+/// of at most `max_gap` samples between checks and `recovery` plausible checks before a
+/// tripped key plays again ([`glue::Turns`]; `None`, 1 and the recovery's samples: every
+/// sample), its limiters' gate words for `drives` (each drive's scale)
+/// after the check's words when it takes turns. `None` for a program without sensors,
+/// and where the words lie beyond an `LDR` immediate.
+fn sensor_check(
+    p: &Program,
+    l: &Layout,
+    words_at: u32,
+    slot: usize,
+    turn: Option<u8>,
+    (max_gap, recovery): (u32, u32),
+    drives: &[DacScale],
+) -> Option<glue::SensorCheck> {
+    if !checkable(p, words_at, drives.len()) {
         return None;
     }
     let sensor = p.fixed.program.sensors.first()?;
-    if !has_rest_image(p) {
-        // Only a position has a largest speed (a force sensor's word may jump).
-        return None;
-    }
     let &(lo, hi) = p.fixed.sensor_raw_range.first()?;
-    let step = super::fault::max_step_raw(lo, hi, sensor.range.1 - sensor.range.0, fs);
+    let step = super::fault::max_step_raw(lo, hi, sensor.range.1 - sensor.range.0, l.fs, max_gap);
     // The accepted change is [-2^k, 2^k) with 2^k the power of two at or above the bound.
     let k = (32 - (step.max(2) - 1).leading_zeros()).clamp(1, 30) as u8;
+    let gate = match turn {
+        Some(_) => drives
+            .iter()
+            .enumerate()
+            .map(|(j, s)| glue::Gate {
+                rated_offset: words_at + 8 + 8 * j as u32,
+                gain_offset: words_at + 12 + 8 * j as u32,
+                rated: s.last_magnitude_within(l.consts.rated_code),
+                gain: s.gain,
+            })
+            .collect(),
+        None => Vec::new(),
+    };
     Some(glue::SensorCheck {
         lo,
         hi,
@@ -252,10 +273,21 @@ fn sensor_check(p: &Program, fs: f64, words_at: u32, slot: usize) -> Option<glue
         left_offset: words_at,
         last_offset: words_at + 4,
         slot: slot.min(0xfe) as u8,
-        recovery: super::fault::recovery_samples(fs),
+        recovery,
         rest: 0,
         state_words: (p.thumb.state.size as u32).div_ceil(4),
+        turn,
+        gate,
     })
+}
+
+/// Whether a key of program `p` with `nd` drives, its check's words at `words_at`, has a
+/// sensor check: a position sensor, a drive, and every word within an `LDR` immediate.
+fn checkable(p: &Program, words_at: u32, nd: usize) -> bool {
+    has_rest_image(p)
+        && nd > 0
+        && words_at + 4 + 8 * nd as u32 <= 124
+        && !p.fixed.sensor_raw_range.is_empty()
 }
 
 /// Cycles after the start alarm by which both cores have enabled their SysTick (the
@@ -350,7 +382,7 @@ pub(super) fn key_records(
     core: usize,
     ctrl_addr: u32,
     cc: &CoreCode,
-) -> Result<(Vec<KeyCode>, Vec<KeyPlace>, u32), ImageError> {
+) -> Result<(Vec<KeyCode>, Vec<KeyPlace>, u32, glue::Turns), ImageError> {
     let (programs, keys) = (l.programs, l.keys);
     let my: Vec<usize> = (0..keys.len()).filter(|&i| keys[i].core == core).collect();
     // Records after the control block, states after the records.
@@ -358,6 +390,21 @@ pub(super) fn key_records(
     let mut kc = Vec::new();
     let mut kp = Vec::new();
     let code_of = code_of(programs);
+    // The keys whose checks take turns ([`glue::Turns`]): checked, without the
+    // quiescent-key guard (whose copy of the sensor word is the check's, every sample).
+    let words_at = |i: usize| {
+        let p = &programs[keys[i].program];
+        4 * (p.sensor_words() as u32 + p.thumb.out.len as u32 + l.key_drives[i].len() as u32 + 2)
+    };
+    let taking_turns: Vec<usize> = my
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let p = &programs[keys[i].program];
+            checkable(p, words_at(i), l.key_drives[i].len()) && p.guard(0).is_none()
+        })
+        .collect();
+    let turns = glue::Turns::plan(&l.tick, taking_turns.len());
     // The core's next window word (module documentation, "Split windows"), and with
     // converters its next ADC and DAC channels.
     let mut word = 0;
@@ -447,6 +494,27 @@ pub(super) fn key_records(
                 (ch, scale)
             })
             .collect();
+        let scales: Vec<DacScale> = drives
+            .iter()
+            .map(|d| {
+                // Checked by `check_keys`, with the same constants.
+                l.consts.dac_scale(d.frac).unwrap_or(DacScale {
+                    pre_shift: 0,
+                    gain: 1,
+                    post_shift: 0,
+                })
+            })
+            .collect();
+        let recovery = super::fault::recovery_samples(l.fs);
+        let (turn, gaps) = match taking_turns.iter().position(|&t| t == i) {
+            Some(n) if turns.classes > 1 => {
+                let c = turns.class_of(n);
+                let max_gap = turns.gaps[usize::from(c)].0;
+                (Some(c), (max_gap, turns.checks_in(c, recovery)))
+            }
+            _ => (None, (1, recovery)),
+        };
+        let check = sensor_check(p, l, fs, keys[i].slot, turn, gaps, &scales);
         kc.push(KeyCode {
             sensor_words: sensor_addrs,
             sensor_channels,
@@ -461,12 +529,7 @@ pub(super) fn key_records(
                     force_offset: out_offset + 4 * d.out_index as u32,
                     budget_offset: b,
                     dac_word: window_alias(DAC_BASE, dac_words[j]),
-                    // Checked by `check_keys`, with the same constants.
-                    scale: l.consts.dac_scale(d.frac).unwrap_or(DacScale {
-                        pre_shift: 0,
-                        gain: 1,
-                        post_shift: 0,
-                    }),
+                    scale: scales[j],
                 })
                 .collect(),
             record_size: size,
@@ -474,7 +537,7 @@ pub(super) fn key_records(
             init: sym(p.thumb.init_name())?,
             guard: p.guard(calm_offset),
             clobbers: p.thumb.clobbers,
-            check: sensor_check(p, l.fs, fs, keys[i].slot),
+            check: check.clone(),
         });
         kp.push(KeyPlace {
             index: i,
@@ -490,6 +553,7 @@ pub(super) fn key_records(
             out_offset,
             state_offset,
             drives: drives.iter().copied().zip(budgets).collect(),
+            check,
         });
         at += size;
     }
@@ -509,7 +573,7 @@ pub(super) fn key_records(
             end += 4 * (p.thumb.state.size as u32).div_ceil(4);
         }
     }
-    Ok((kc, kp, at))
+    Ok((kc, kp, at, turns))
 }
 
 /// One core's glue, assembled: the assembler (labels bound), the handlers' labels, the
@@ -517,6 +581,8 @@ pub(super) fn key_records(
 pub(super) struct Glue {
     pub asm: CodeBuffer,
     pub labels: glue::CoreLabels,
+    /// The turns of the core's sensor checks.
+    pub turns: glue::Turns,
     pub keys: Vec<KeyPlace>,
     pub data_end: u32,
 }
@@ -533,24 +599,35 @@ pub(super) fn assemble_glue(
     boot: &Boot,
 ) -> Result<Glue, ImageError> {
     let ctrl_addr = bank_base(core) + data_off;
-    let (kc, kp, data_end) = key_records(l, core, ctrl_addr, cc)?;
-    let mut a = CodeBuffer::new(LongBranch::Refuse);
+    let (kc, kp, data_end, mut turns) = key_records(l, core, ctrl_addr, cc)?;
     let bottom = stack(core).0;
     let start = |a: &mut CodeBuffer| boot::core_start(a, core, boot, bottom, STACK_CANARY);
-    let labels = glue::core_code(
-        &mut a,
-        core,
-        &kc,
-        ctrl_addr,
-        l.tick,
-        &l.consts,
-        &start,
-        l.io.as_ref(),
-        l.feed(data_off),
-    )?;
+    let emit = |turns: &glue::Turns| -> Result<_, ImageError> {
+        let mut a = CodeBuffer::new(LongBranch::Refuse);
+        let labels = glue::core_code(
+            &mut a,
+            core,
+            &kc,
+            ctrl_addr,
+            l.tick,
+            &l.consts,
+            &start,
+            l.io.as_ref(),
+            l.feed(data_off),
+            turns,
+        )?;
+        Ok((a, labels))
+    };
+    let (mut a, mut labels) = emit(&turns)?;
+    if turns.classes > 2 && a.finish_code(cc.start + cc.glue).is_err() {
+        // The copies too long for the dispatch's branches: through hops.
+        turns.hops = true;
+        (a, labels) = emit(&turns)?;
+    }
     Ok(Glue {
         asm: a,
         labels,
+        turns,
         keys: kp,
         data_end,
     })
@@ -646,9 +723,7 @@ pub(super) fn data_block(
         }
         // The sensor check's words at power-on ([`glue::SensorCheck::seed`]), at the
         // offsets `key_records` gives them.
-        let check_at = 4 * (k.sensors + k.out_len + k.drives.len() + 2) as u32;
-        let checked = sensor_check(p, l.fs, check_at, k.spec.slot).filter(|_| !k.drives.is_empty());
-        if let Some(c) = checked {
+        if let Some(c) = &k.check {
             for (off, v) in c.seed() {
                 put(&mut r, off, v);
             }
@@ -750,12 +825,11 @@ pub(super) fn analyse_handler(
     let image = wcet::Image { base, bytes: code };
     let w = wcet::analyse_isr(&image, lab(labels.isr), &bounds)
         .map_err(|e| ImageError::Wcet(format!("core {core}: {e}")))?;
-    let update_addrs: Vec<u32> = kp.iter().map(|k| k.update).collect();
-    let updates = w
-        .calls
+    // Each key's update once: the handler's copies ([`glue::Turns`]) each call every key,
+    // and its worst path runs one copy.
+    let updates = kp
         .iter()
-        .filter(|c| update_addrs.contains(&c.callee))
-        .map(|c| crate::runner::BL_CYCLES + c.cycles)
+        .map(|k| crate::runner::BL_CYCLES + update_wcets[k.spec.program])
         .sum();
     Ok(IsrWcet {
         analysed: w.cycles,

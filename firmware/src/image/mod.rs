@@ -160,11 +160,15 @@ pub struct Program {
     /// ([`glue::GuardCode`]: a key whose sensors and state stand still skips its update and
     /// keeps its outputs). On by default; its cost is in every static bound of the image.
     pub quiescent_guard: bool,
-    /// Whether the image checks its keys' first sensor word every sample
-    /// ([`glue::SensorCheck`], docs/firmware.md, "Faults"). Off by default until a key held
-    /// away from rest at the first sample no longer trips (its copy starts at 0) and the
-    /// converter board's budget holds it (11 cycles a key: grand88 on `rp2040_io` would
-    /// need 15 boards).
+    /// Whether the image checks its keys' first sensor word ([`glue::SensorCheck`],
+    /// docs/firmware.md, "Faults"): every few samples, a class of keys a sample
+    /// ([`glue::Turns`]), a tripped key's limiters gated to DAC code 0 between its checks.
+    /// Its dispatch and one key's check a sample fit grand88 on every board kind (11, 11,
+    /// 8 and 8 boards with it on: `tactus build grand88 --target rp2040 --sensor-check on
+    /// [--board …]`). Off by default until the rest of the suite runs with it: a pen's
+    /// stimuli trip it, and each key's first check sets its force to 0 for that sample
+    /// and its state to the rest image (`SensorCheck::seed`), so a checked board's first
+    /// samples are not the model's.
     pub sensor_check: bool,
     /// Whether an image holding this program runs the RP2040's watchdog, fed by core 0
     /// when both cores finished their sample ([`fault`], "The watchdog": a core that stops
@@ -756,6 +760,8 @@ pub(crate) struct KeyPlace {
     pub state_offset: u32,
     /// Its force words, each with the byte offset of its limiter budget in the record.
     pub drives: Vec<(Drive, u32)>,
+    /// Its sensor check, if it has one.
+    pub check: Option<glue::SensorCheck>,
 }
 
 /// Where one core's pieces live.
@@ -793,6 +799,8 @@ pub struct FirmwareImage {
     pub(crate) boot: boot::Boot,
     /// The converters' drivers, on a board that has them.
     pub(crate) io: Option<io::IoPlan>,
+    /// Per core: the turns of its sensor checks ([`glue::Turns`]).
+    pub(crate) turns: Vec<glue::Turns>,
 }
 
 /// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
@@ -896,9 +904,11 @@ impl FirmwareImage {
         let mut window_accesses = vec![[0u64; 4]; cores];
         let mut window_banks = vec![0u8; cores];
         let mut code_bytes = vec![0u32; cores];
+        let mut turns = Vec::with_capacity(cores);
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
             let g = layout::assemble_glue(&l, core, data_off, c, &boot)?;
+            turns.push(g.turns.clone());
             let out = g.asm.finish_code(base + c.glue)?;
             let (glue_bytes, addr) = (out.text, out.labels);
             if addr[g.labels.reset.index()] != base + c.glue {
@@ -1004,6 +1014,7 @@ impl FirmwareImage {
             code_bytes,
             boot,
             io: l.io,
+            turns,
         })
     }
 
@@ -1089,6 +1100,20 @@ impl FirmwareImage {
     /// addresses (each core's in its bank through the non-striped alias).
     pub fn segments(&self) -> &[(u32, Vec<u8>)] {
         &self.segments
+    }
+
+    /// The turns of core `core`'s sensor checks ([`glue::Turns`]: which samples check
+    /// which keys; one class, every sample, on a core without keys taking turns).
+    pub fn check_turns(&self, core: usize) -> Option<&glue::Turns> {
+        self.turns.get(core)
+    }
+
+    /// Samples by which every checked key has had its first check (whose first reading
+    /// sets its force to 0 for that sample, [`glue::SensorCheck::seed`]): the longest gap
+    /// of any core's turns.
+    pub fn first_checks(&self) -> u64 {
+        let worst = self.turns.iter().map(glue::Turns::worst_gap).max();
+        u64::from(worst.unwrap_or(1))
     }
 
     /// Per core: (vector table, reset handler, sample interrupt, control block, stack

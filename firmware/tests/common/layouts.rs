@@ -36,6 +36,17 @@ pub fn shipped_board(name: &str) -> BoardSpec {
 /// Every board of `layout` as `tactus build` makes it (boards planned when the layout lists
 /// none) on the board file `kind` (default: the layout's), with the board kind it uses.
 pub fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmware>, BoardSpec) {
+    firmware_with(layout, kind, load, None)
+}
+
+/// [`firmware`] with the sensor check (`Program::sensor_check`) set on every program when
+/// `check` is given.
+pub fn firmware_with(
+    layout: &str,
+    kind: Option<&str>,
+    load: Load,
+    check: Option<bool>,
+) -> (Vec<BoardFirmware>, BoardSpec) {
     let path = root().join(layout);
     let (l, keys) = read_layout(&path).unwrap();
     let kind = kind
@@ -43,7 +54,10 @@ pub fn firmware(layout: &str, kind: Option<&str>, load: Load) -> (Vec<BoardFirmw
         .or(l.board_kind.clone())
         .unwrap_or_else(|| "rp2040".into());
     let board = shipped_board(kind.trim_end_matches(".toml"));
-    let (programs, index) = compile_layout(&keys, &shipped, board.sample_rate_hz).unwrap();
+    let (mut programs, index) = compile_layout(&keys, &shipped, board.sample_rate_hz).unwrap();
+    if let Some(on) = check {
+        programs.iter_mut().for_each(|p| p.sensor_check = on);
+    }
     let mut names = vec![(String::new(), Vec::new()); programs.len()];
     for (k, &p) in keys.iter().zip(&index) {
         names[p] = (k.instrument.clone(), k.params.clone());

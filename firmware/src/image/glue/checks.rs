@@ -36,7 +36,7 @@ use tactus_isa::decode::{AluOp, Instr};
 ///   update's differentiators then start again from the reading) — the guard's counter 0;
 /// - always: the key's force words are 0, and the handler joins the key's limiters (so its
 ///   DAC words are 0 from this sample on while tripped, [`super::super::fault`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SensorCheck {
     /// The sensor word's declared range, raw.
     pub lo: i32,
@@ -57,6 +57,31 @@ pub struct SensorCheck {
     pub rest: u32,
     /// Words of the state struct.
     pub state_words: u32,
+    /// The key's turn ([`Turns`]): the class of samples whose handler checks it, `None`
+    /// when every sample does (a key with the quiescent-key guard, or a core whose tick has
+    /// no accumulator).
+    pub turn: Option<u8>,
+    /// Per drive, byte offsets in the record of the limiter's rated-magnitude threshold
+    /// and gain words while the key takes turns: the limiter reads them there (not from
+    /// the literal pool), and the trip path sets them to `u32::MAX` and 0 while the key is
+    /// tripped, so that its DAC code is 0 in the samples between its checks
+    /// ([`super::limiter_inline`]'s earn path: `m ≤ u32::MAX`, `m · 0`). Empty when
+    /// `turn` is `None`.
+    pub gate: Vec<Gate>,
+}
+
+/// One drive's gate words ([`SensorCheck::gate`]): where they lie in the record and what
+/// they hold while the key plays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Gate {
+    /// Byte offset of the rated-magnitude threshold word (≤ 124).
+    pub rated_offset: u32,
+    /// Byte offset of the gain word (≤ 124).
+    pub gain_offset: u32,
+    /// The threshold while the key plays (`DacScale::last_magnitude_within(rated_code)`).
+    pub rated: u32,
+    /// The gain while the key plays (`DacScale::gain`).
+    pub gain: u32,
 }
 
 impl SensorCheck {
@@ -69,21 +94,163 @@ impl SensorCheck {
     }
 
     /// The record's words of the check at power-on (byte offset in the record, value): the
-    /// copy and the last reading the poison word, the recovery count 1. So the first
-    /// sample takes the trip path, which judges the first reading by its range alone
-    /// (there is no change yet to judge) and, when it is in range, recovers the key at
-    /// once: the copy is the first reading, whatever the key's position at the start (a
-    /// key held down at power-on does not trip); the key's force words are 0 for that
-    /// sample. A reading out of range trips as any later one would.
-    pub fn seed(&self) -> [(u32, u32); 3] {
+    /// copy and the last reading the poison word, the recovery count 1, the gate's words
+    /// those of a key that plays. So the key's first check takes the trip path, which
+    /// judges the first reading by its range alone (there is no change yet to judge) and,
+    /// when it is in range, recovers the key at once: the copy is the first reading,
+    /// whatever the key's position at the start (a key held down at power-on does not
+    /// trip); the key's force words are 0 for that sample and its state the rest image. A
+    /// reading out of range trips as any later one would.
+    pub fn seed(&self) -> Vec<(u32, u32)> {
         let p = self.poison();
-        [(0, p), (self.left_offset, 1), (self.last_offset, p)]
+        let mut w = vec![(0, p), (self.left_offset, 1), (self.last_offset, p)];
+        for g in &self.gate {
+            w.push((g.rated_offset, g.rated));
+            w.push((g.gain_offset, g.gain));
+        }
+        w
     }
 
     /// Whether `word` is plausible after `prev` by the every-sample test.
     pub fn step_ok(&self, prev: i32, word: i32) -> bool {
         let d = word.wrapping_sub(prev) >> self.shift;
         d == 0 || d == -1
+    }
+}
+
+/// Which samples check which keys on a core (docs/firmware.md, "Faults"): the handler
+/// runs one of `classes` copies of its keys' code, chosen by two bits of the tick's
+/// accumulator ([`super::ctrl::ACC`], already in a register after the tick's step:
+/// `class = (acc >> shift) & (classes − 1)`), and copy `c` checks the keys of class `c`.
+/// The accumulator repeats with the tick's period (`den` samples), so the state of a
+/// board at rest still repeats with it (`super::super::rest`), and the dispatch reads no
+/// counter. A key is thus checked every few samples, not every one: its rate bound is
+/// the key's physics over the longest gap between two checks of its class plus the
+/// noise ([`super::super::fault::max_step_raw`]), its recovery a count of plausible
+/// checks that spans at least the stated time over the shortest gap.
+///
+/// Why: checking every key every sample costs 11 cycles a key, 44 on a core of four
+/// piano keys, where grand88's fullest core on `rp2040_io` has 19 to spare; one check a
+/// sample plus its dispatch (two flag branches) costs at most 18.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Turns {
+    /// Classes of samples (1: every checked key every sample; 2 or 4).
+    pub classes: u32,
+    /// The accumulator's bit the class starts at.
+    pub shift: u8,
+    /// Per class: the longest and the shortest gap, samples, from one sample of the
+    /// class to the next.
+    pub gaps: Vec<(u32, u32)>,
+    /// Per class: its samples in one period of the accumulator.
+    pub per_period: Vec<u32>,
+    /// The accumulator's period, samples (the tick's `den`; 1 for every sample).
+    pub period: u32,
+    /// Whether the dispatch reaches copies 2 and 3 through a trampoline in each copy
+    /// before them (two cycles more a hop): where the copies are too long for one `B`
+    /// (2 KiB) from the first.
+    pub hops: bool,
+}
+
+/// The most samples between two checks of a key: 1 ms at 44.1 kHz is 44; a gap of at
+/// most 40 leaves the converters' sample of delay and a margin.
+pub const MAX_GAP: u32 = 40;
+
+/// The longest accumulator period [`Turns::plan`] simulates (a board whose tick's
+/// fraction has a larger denominator checks every key every sample).
+const MAX_DEN: u32 = 8192;
+
+impl Turns {
+    /// Every checked key every sample.
+    pub fn every_sample() -> Turns {
+        Turns {
+            classes: 1,
+            shift: 0,
+            gaps: vec![(1, 1)],
+            per_period: vec![1],
+            period: 1,
+            hops: false,
+        }
+    }
+
+    /// The turns of `keys` checked keys that may take turns under tick `t`: as many
+    /// classes as keys up to 4 (a power of two), the shift whose classes come back most
+    /// evenly (the smallest longest gap, from the accumulator's sequence over a period as
+    /// the handler steps it from its first value `rem`); every sample when there is one
+    /// key or none, no accumulator (a whole number of cycles a sample), or no shift keeps
+    /// every gap within [`MAX_GAP`].
+    pub fn plan(t: &super::Tick, keys: usize) -> Turns {
+        if keys <= 1 || t.rem == 0 || t.den > MAX_DEN {
+            return Turns::every_sample();
+        }
+        let classes = (keys.next_power_of_two().min(4)) as u32;
+        let n = t.den as usize;
+        let mut acc = t.rem;
+        let seq: Vec<u32> = (0..n)
+            .map(|_| {
+                // The handler's step: acc − (den − rem), plus den when negative.
+                acc = (acc + t.rem) % t.den;
+                acc
+            })
+            .collect();
+        let mut best: Option<Turns> = None;
+        for shift in 0..(32 - t.den.leading_zeros()) as u8 {
+            let class = |a: u32| (a >> shift) & (classes - 1);
+            let mut gaps = Vec::with_capacity(classes as usize);
+            let mut per_period = Vec::with_capacity(classes as usize);
+            for c in 0..classes {
+                let at: Vec<usize> = (0..n).filter(|&i| class(seq[i]) == c).collect();
+                if at.is_empty() {
+                    gaps.clear();
+                    break;
+                }
+                per_period.push(at.len() as u32);
+                // Cyclic gaps over the period.
+                let g: Vec<u32> = at
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &i)| {
+                        let next = at.get(j + 1).copied().unwrap_or(at[0] + n);
+                        (next - i) as u32
+                    })
+                    .collect();
+                gaps.push((
+                    g.iter().copied().max().unwrap_or(1),
+                    g.iter().copied().min().unwrap_or(1),
+                ));
+            }
+            if gaps.is_empty() {
+                continue;
+            }
+            let worst = gaps.iter().map(|g| g.0).max().unwrap_or(u32::MAX);
+            if worst <= MAX_GAP && best.as_ref().is_none_or(|b| worst < b.worst_gap()) {
+                best = Some(Turns {
+                    classes,
+                    shift,
+                    gaps,
+                    per_period,
+                    period: t.den,
+                    hops: false,
+                });
+            }
+        }
+        best.unwrap_or_else(Turns::every_sample)
+    }
+
+    /// The longest gap of any class, samples.
+    pub fn worst_gap(&self) -> u32 {
+        self.gaps.iter().map(|g| g.0).max().unwrap_or(1)
+    }
+
+    /// Checks of class `class` in `samples` samples, rounded up (a key's recovery in
+    /// checks: as many as fall in the stated time, within one accumulator period).
+    pub fn checks_in(&self, class: u8, samples: u32) -> u32 {
+        let n = u64::from(self.per_period[usize::from(class)]);
+        (u64::from(samples) * n).div_ceil(u64::from(self.period.max(1))) as u32
+    }
+
+    /// The class of the `i`-th key that takes turns.
+    pub fn class_of(&self, i: usize) -> u8 {
+        (i as u32 % self.classes) as u8
     }
 }
 
@@ -112,7 +279,7 @@ pub(super) fn trip_path(
 ) {
     use super::super::fault::{self, FaultKind};
     use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
-    let (check, bad, zero) = (a.label(), a.label(), a.label());
+    let (check, bad, zero, gate) = (a.label(), a.label(), a.label(), a.label());
     let (bad_range, plausible) = (a.label(), a.label());
     let (left, last) = (c.left_offset as u16, c.last_offset as u16);
     // First trip of a fault: the last reading is the copy (the one before this word).
@@ -147,7 +314,7 @@ pub(super) fn trip_path(
     a.i(asm::ldr(1, 4, left));
     a.i(asm::subs_imm(1, 1, 1));
     a.i(asm::str(1, 4, left));
-    a.bc(cond::NE, zero);
+    a.bc(cond::NE, gate);
     a.i(asm::str(0, 4, 0));
     if let Some(g) = &k.guard {
         a.i(asm::movs(1, 0));
@@ -157,6 +324,13 @@ pub(super) fn trip_path(
     ldr_rec(a, 0, k.state_offset);
     a.ldr_const(1, c.rest);
     copy_words(a, 1, 0, c.state_words, CopyMode::Unrolled);
+    // Its limiters' constants back (a key taking turns).
+    for g in &c.gate {
+        a.ldr_const(1, g.rated);
+        a.i(asm::str(1, 4, g.rated_offset as u16));
+        a.ldr_const(1, g.gain);
+        a.i(asm::str(1, 4, g.gain_offset as u16));
+    }
     a.b(zero);
     // Implausible: poison the copy, count the recovery again; a new fault is a trip.
     a.bind(bad_range);
@@ -168,7 +342,7 @@ pub(super) fn trip_path(
     a.ldr_const(2, c.recovery);
     a.i(asm::str(2, 4, left));
     a.i(asm::cmp_imm(1, 0));
-    a.bc(cond::NE, zero);
+    a.bc(cond::NE, gate);
     a.ldr_const(2, ctrl_addr);
     a.i(asm::ldr(1, 2, ctrl::FAULT));
     a.i(asm::lsrs(1, 1, 16));
@@ -184,6 +358,17 @@ pub(super) fn trip_path(
     a.ldr_const(2, WATCHDOG_BASE + wreg::SCRATCH0 + 4 * w);
     a.i(asm::str(1, 2, 0));
     a.i(asm::str(3, 2, 4));
+    // A key taking turns stays at DAC code 0 until its next check: its limiters' earn
+    // path (every magnitude at or below `u32::MAX`) times a gain of 0.
+    a.bind(gate);
+    if !c.gate.is_empty() {
+        a.i(asm::movs(0, 0));
+        a.i(asm::alu(AluOp::Mvn, 1, 0));
+        for g in &c.gate {
+            a.i(asm::str(1, 4, g.rated_offset as u16));
+            a.i(asm::str(0, 4, g.gain_offset as u16));
+        }
+    }
     // The key's force words 0: its limiters make DAC code 0 of them.
     a.bind(zero);
     a.i(asm::movs(0, 0));
