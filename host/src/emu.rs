@@ -278,8 +278,6 @@ pub struct FirmwareJob {
     /// Per program of the image, its first sensor's words over the stimulus (one run of
     /// it, at most the samples to run; empty without a sensor).
     words: Vec<Vec<i32>>,
-    /// Whether the firmware runs the sensor check and the watchdog (found by the rebuild).
-    checks: (bool, bool),
     /// The faults to inject, resolved on this board.
     faults: Vec<(FaultSpec, Injection)>,
     /// Samples to run.
@@ -409,8 +407,7 @@ fn map_differences(a: &serde_json::Value, b: &serde_json::Value, most: usize) ->
 /// The image of board `map.board` of the keyboard `kb` (rebuilt from its key maps:
 /// [`crate::keyboard::from_key_maps`]) as `tactus build` builds it, with the sensor check
 /// and the watchdog as the key map records them (`KeyMap::sensor_check`, `watchdog`),
-/// checked to be `elf` byte for byte and to write `map`. Returns the image and whether the
-/// check and the watchdog are on.
+/// checked to be `elf` byte for byte and to write `map`. Returns the image.
 ///
 /// Errors, as messages naming `file` and `map_name`: the build of the key maps is not `elf`
 /// (another keyboard's or version's firmware, or a key map edited by hand), or it is but
@@ -421,7 +418,7 @@ fn rebuild(
     elf: &[u8],
     file: &Path,
     map_name: &str,
-) -> Result<(FirmwareImage, (bool, bool)), String> {
+) -> Result<FirmwareImage, String> {
     let defaults = kb.firmware().map_err(|e| format!("{map_name}: {e}"))?;
     let (sensor_check, watchdog) = (map.sensor_check, map.watchdog);
     let names: Vec<(String, Vec<(String, String)>)> = (kb.sets.iter())
@@ -499,7 +496,7 @@ fn rebuild(
     }
     kb.sensor_check = Some(sensor_check);
     kb.watchdog = Some(watchdog);
-    Ok((fw.image, (sensor_check, watchdog)))
+    Ok(fw.image)
 }
 
 /// Per program of `image`, its first sensor's raw words over `stimulus` (a built-in key
@@ -608,7 +605,7 @@ impl FirmwareJob {
         let maps = keyboard_maps(&map, &map_path)?;
         let mut kb =
             crate::keyboard::from_key_maps(&maps, &map_name, report).map_err(|e| e.to_string())?;
-        let (image, checks) = rebuild(&mut kb, &map, &elf, file, &map_name)?;
+        let image = rebuild(&mut kb, &map, &elf, file, &map_name)?;
         let words = stimulus_words(&image, stimulus, fs, samples)?;
         Ok(FirmwareJob {
             file: file.to_path_buf(),
@@ -617,7 +614,6 @@ impl FirmwareJob {
             map,
             image,
             words,
-            checks,
             faults,
             samples,
         })
@@ -711,8 +707,8 @@ impl FirmwareJob {
             self.stimulus,
             map.sample_rate_hz,
             image.cycles_per_sample(),
-            on_off(self.checks.0),
-            on_off(self.checks.1),
+            on_off(map.sensor_check),
+            on_off(map.watchdog),
         )];
         for c in 0..cores {
             lines.push(format!(
