@@ -44,6 +44,11 @@ pub enum LongBranch {
     /// so this is only for code that has saved LR: an AAPCS function body that returns
     /// with `POP {…, PC}`, as the backend's functions do.
     Bl,
+    /// A conditional branch out of its ±256 bytes becomes `B<!cond> .+4; B label` (±2 KiB,
+    /// one cycle more when it is not taken, ARMv6-M A6.7.10); an unconditional one out of
+    /// its ±2 KiB is a [`BufferError::BranchRange`]. LR is not written: for code where LR is
+    /// live or is not saved, such as an exception handler's glue.
+    Hop,
     /// A [`BufferError::BranchRange`]: code where LR is live, such as an exception
     /// handler (its LR holds the EXC_RETURN value).
     Refuse,
@@ -367,6 +372,7 @@ impl CodeBuffer {
                 Item::Branch(c, _) => match (long[k], c) {
                     (false, _) => 2,
                     (true, None) => 4,
+                    (true, Some(_)) if self.long == LongBranch::Hop => 4,
                     (true, Some(_)) => 6,
                 },
                 Item::Call(_) => 4,
@@ -431,7 +437,12 @@ impl CodeBuffer {
                         None => (-2048..=2046).contains(&off),
                     };
                     if !ok {
-                        if self.long == LongBranch::Refuse {
+                        let refused = match self.long {
+                            LongBranch::Refuse => true,
+                            LongBranch::Hop => c.is_none(),
+                            LongBranch::Bl => false,
+                        };
+                        if refused {
                             return Err(BufferError::BranchRange {
                                 at: lay.at[k],
                                 target,
@@ -500,6 +511,17 @@ impl CodeBuffer {
                         };
                         out.text.extend(enc(&i)?);
                         let _ = writeln!(listing, "    b{} .L{}", c.map_or("", cname), l.0);
+                    } else if let (LongBranch::Hop, Some(c)) = (self.long, c) {
+                        // B<!c> over a B to the label.
+                        let inv = c ^ 1;
+                        out.text.extend(enc(&Instr::BCond {
+                            cond: inv,
+                            offset: 0,
+                        })?);
+                        let offset = dest as i32 - (pc as i32 + 2 + 4);
+                        out.text.extend(enc(&Instr::B { offset })?);
+                        let _ = writeln!(listing, "    b{} .+4", cname(inv));
+                        let _ = writeln!(listing, "    b .L{}", l.0);
                     } else {
                         let mut at = pc;
                         if let Some(c) = c {
@@ -867,5 +889,36 @@ mod tests {
         assert_eq!(out.labels[0], 6 + 400);
         assert_eq!(out.symbols, vec![("f".to_string(), 0, 408)]);
         assert!(out.listing.contains("bne .+6\n    bl .L0\n"));
+        // Hop: BNE .+4 ; B far (LR untouched).
+        let out = build(LongBranch::Hop).unwrap();
+        assert_eq!(
+            dec(&out.text, 0),
+            Instr::BCond {
+                cond: cond::NE,
+                offset: 0
+            }
+        );
+        let Instr::B { offset } = dec(&out.text, 2) else {
+            panic!("{:?}", dec(&out.text, 2))
+        };
+        assert_eq!(out.labels[0], 4 + 400);
+        assert_eq!(6 + offset as usize, out.labels[0] as usize);
+        assert!(out.listing.contains("bne .+4\n    b .L0\n"));
+    }
+
+    #[test]
+    fn a_hop_refuses_an_unconditional_branch_beyond_2_kib() {
+        let mut a = CodeBuffer::new(LongBranch::Hop);
+        let far = a.label();
+        a.b(far);
+        for _ in 0..1100 {
+            a.i(movs(1, 1));
+        }
+        a.bind(far);
+        a.i(movs(2, 2));
+        assert!(matches!(
+            a.finish(0).unwrap_err(),
+            BufferError::BranchRange { at: 0, .. }
+        ));
     }
 }

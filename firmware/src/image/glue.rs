@@ -836,8 +836,9 @@ pub fn core_code(
     a.pool();
 
     // ---- the sample interrupt ----
-    // The sensor checks' trip paths: (check, the path's label, the key's limiters, key).
-    let mut trips: Vec<(SensorCheck, Label, Label, usize)> = Vec::new();
+    // The sensor checks' trip paths
+    // (check, the path's label, the key's limiters, the check's way on, key).
+    let mut trips: Vec<(SensorCheck, Label, Label, Label, usize)> = Vec::new();
     a.align4();
     a.bind(labels.isr);
     if let Some(p) = io {
@@ -900,7 +901,7 @@ pub fn core_code(
             let convert = !k.sensor_channels.is_empty();
             // The sensor check reads the copy its word replaces: a checked key's words are
             // copied.
-            let trip = a.label();
+            let (trip, resume) = (a.label(), a.label());
             let in_window =
                 !convert && k.guard.is_none() && check.is_none() && !k.sensor_words.is_empty();
             let copied = match (in_window, convert) {
@@ -924,6 +925,7 @@ pub fn core_code(
                 }
                 if let (0, Some(c)) = (i, &check) {
                     check_step(a, c, 0, trip);
+                    a.bind(resume);
                 }
                 if k.guard.is_some() {
                     // r3 = new ^ old for the first word, r3 |= new ^ old for the others
@@ -1001,7 +1003,7 @@ pub fn core_code(
                         a.bind(trip);
                         a.b(far);
                         let i = keys.iter().position(|x| std::ptr::eq(x, k)).unwrap_or(0);
-                        trips.push((c.clone(), far, skip, i));
+                        trips.push((c.clone(), far, skip, resume, i));
                     }
                     if std::mem::take(&mut first_aside) {
                         dispatch_trampolines(a, copy, turns, upper, &tramp, &starts);
@@ -1041,9 +1043,9 @@ pub fn core_code(
             }
             a.pool();
             // This copy's trip paths here, within a `B`'s reach of its checks.
-            for (c, far, join, i) in trips.drain(..) {
+            for (c, far, join, resume, i) in trips.drain(..) {
                 a.bind(far);
-                trip_path(a, &keys[i], &c, ctrl_addr, core, join);
+                trip_path(a, &keys[i], &c, ctrl_addr, core, join, resume);
                 a.pool();
             }
         }
@@ -1079,9 +1081,9 @@ pub fn core_code(
     a.i(mov_hi(14, 0));
     a.i(Instr::Bx { rm: 14 });
     a.pool();
-    for (c, far, join, i) in trips {
+    for (c, far, join, resume, i) in trips {
         a.bind(far);
-        trip_path(a, &keys[i], &c, ctrl_addr, core, join);
+        trip_path(a, &keys[i], &c, ctrl_addr, core, join, resume);
         a.pool();
     }
     Ok(labels)

@@ -603,7 +603,7 @@ pub(super) fn assemble_glue(
     let bottom = stack(core).0;
     let start = |a: &mut CodeBuffer| boot::core_start(a, core, boot, bottom, STACK_CANARY);
     let emit = |turns: &glue::Turns| -> Result<_, ImageError> {
-        let mut a = CodeBuffer::new(LongBranch::Refuse);
+        let mut a = CodeBuffer::new(LongBranch::Hop);
         let labels = glue::core_code(
             &mut a,
             core,

@@ -165,10 +165,10 @@ pub struct Program {
     /// ([`glue::Turns`]), a tripped key's limiters gated to DAC code 0 between its checks.
     /// Its dispatch and one key's check a sample fit grand88 on every board kind (11, 11,
     /// 8 and 8 boards with it on: `tactus build grand88 --target rp2040 --sensor-check on
-    /// [--board …]`). Off by default until the rest of the suite runs with it: a pen's
-    /// stimuli trip it, and each key's first check sets its force to 0 for that sample
-    /// and its state to the rest image (`SensorCheck::seed`), so a checked board's first
-    /// samples are not the model's.
+    /// [--board …]`). **On by default**; a key's first reading in range is taken as it
+    /// stands (`SensorCheck::seed`), so a checked board is the model from its first
+    /// sample. Off (`--sensor-check off`) only to measure a key's glue alone or to run a
+    /// stimulus that is not a sensor's (a jump no key's physics makes).
     pub sensor_check: bool,
     /// Whether an image holding this program runs the RP2040's watchdog, fed by core 0
     /// when both cores finished their sample ([`fault`], "The watchdog": a core that stops
@@ -193,7 +193,7 @@ impl Program {
             update_cost: Arc::default(),
             init_cycles: Arc::default(),
             quiescent_guard: true,
-            sensor_check: false,
+            sensor_check: true,
             watchdog: true,
         }
     }

@@ -94,16 +94,17 @@ impl SensorCheck {
     }
 
     /// The record's words of the check at power-on (byte offset in the record, value): the
-    /// copy and the last reading the poison word, the recovery count 1, the gate's words
+    /// copy and the last reading the poison word, the recovery count 0, the gate's words
     /// those of a key that plays. So the key's first check takes the trip path, which
     /// judges the first reading by its range alone (there is no change yet to judge) and,
-    /// when it is in range, recovers the key at once: the copy is the first reading,
-    /// whatever the key's position at the start (a key held down at power-on does not
-    /// trip); the key's force words are 0 for that sample and its state the rest image. A
-    /// reading out of range trips as any later one would.
+    /// when it is in range, takes it as the last reading and runs the key's update on it
+    /// ([`trip_path`]'s first reading): whatever the key's position at the start (a key
+    /// held down at power-on does not trip), its forces and state are the model's from
+    /// its first sample. A reading out of range trips as any later one would, and is
+    /// recorded in the fault word.
     pub fn seed(&self) -> Vec<(u32, u32)> {
         let p = self.poison();
-        let mut w = vec![(0, p), (self.left_offset, 1), (self.last_offset, p)];
+        let mut w = vec![(0, p), (self.left_offset, 0), (self.last_offset, p)];
         for g in &self.gate {
             w.push((g.rated_offset, g.rated));
             w.push((g.gain_offset, g.gain));
@@ -267,8 +268,17 @@ pub(super) fn check_step(a: &mut CodeBuffer, c: &SensorCheck, copy_off: u16, tri
 
 /// The trip path of [`SensorCheck`] for key `k` (its record at r4): entered with r0 = the
 /// word that tripped; ends with a branch to `join` (the key's limiters) with its force
-/// words 0. Uses the control block's address `ctrl_addr` (r5 may be an update's), the
-/// watchdog's scratch pair of core `core`.
+/// words 0, or, for the key's first reading in range, to `resume` (the check's way on to
+/// the update) with r0 the word. Uses the control block's address `ctrl_addr` (r5 may be
+/// an update's), the watchdog's scratch pair of core `core`.
+///
+/// **The first reading** (the last reading still the poison word the record starts with,
+/// [`SensorCheck::seed`]) has no change to judge: in range, it becomes the last reading,
+/// the recovery count 0, and the key's update runs on it as on any plausible reading (the
+/// copy is stored on the way on), so a checked key is the model from its first sample,
+/// whatever its position at power-on; out of range, it trips as any later reading would.
+/// Its cost over the check's path, 21 cycles once per key, is in the static bound.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn trip_path(
     a: &mut CodeBuffer,
     k: &KeyCode,
@@ -276,12 +286,28 @@ pub(super) fn trip_path(
     ctrl_addr: u32,
     core: usize,
     join: Label,
+    resume: Label,
 ) {
     use super::super::fault::{self, FaultKind};
     use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
     let (check, bad, zero, gate) = (a.label(), a.label(), a.label(), a.label());
-    let (bad_range, plausible) = (a.label(), a.label());
+    let (bad_range, plausible, tripped) = (a.label(), a.label(), a.label());
     let (left, last) = (c.left_offset as u16, c.last_offset as u16);
+    // The first reading since the start, in range: on to the update.
+    a.i(asm::ldr(2, 4, last));
+    a.ldr_const(3, c.poison());
+    a.i(asm::cmp(2, 3));
+    a.bc(cond::NE, tripped);
+    a.ldr_const(1, c.lo as u32);
+    a.i(asm::subs(1, 0, 1));
+    a.ldr_const(3, c.hi.wrapping_sub(c.lo) as u32);
+    a.i(asm::cmp(1, 3));
+    a.bc(cond::HI, tripped);
+    a.i(asm::str(0, 4, last));
+    a.i(asm::movs(1, 0));
+    a.i(asm::str(1, 4, left));
+    a.b(resume);
+    a.bind(tripped);
     // First trip of a fault: the last reading is the copy (the one before this word).
     a.i(asm::ldr(1, 4, left));
     a.i(asm::cmp_imm(1, 0));
@@ -297,11 +323,6 @@ pub(super) fn trip_path(
     a.ldr_const(3, c.hi.wrapping_sub(c.lo) as u32);
     a.i(asm::cmp(1, 3));
     a.bc(cond::HI, bad_range);
-    // The first reading since the start (the last reading the poison word the record
-    // starts with, [`SensorCheck::seed`]) has no change to judge.
-    a.ldr_const(3, c.poison());
-    a.i(asm::cmp(2, 3));
-    a.bc(cond::EQ, plausible);
     // The change since the last reading (kind: rate).
     a.i(asm::movs(3, FaultKind::SensorRate.code()));
     a.i(asm::subs(2, 0, 2));
