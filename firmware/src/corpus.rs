@@ -296,6 +296,14 @@ pub fn corpus(fp: &FixedProgram, size: Size) -> Vec<Run> {
     runs
 }
 
+/// Whether a corpus run of this label feeds the sensor implausible words by design:
+/// `glitch-…` ([`glitches`]: corner words, dropouts, spikes) and `random…` (adversarial
+/// words, [`random_runs`]). The others are motions a key makes (with a real sensor's
+/// noise), which the firmware's sensor check must let through (`tactus corpus trips`).
+pub fn by_design(label: &str) -> bool {
+    label.starts_with("glitch") || label.starts_with("random")
+}
+
 /// Samples in a set of runs.
 pub fn samples(runs: &[Run]) -> usize {
     runs.iter().map(|r| r.records.len()).sum()

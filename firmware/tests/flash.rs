@@ -3,8 +3,9 @@
 //! 200 MHz, booted from its flash UF2 in the emulator — the boot ROM's CRC check of boot2,
 //! boot2 setting the flash up for XIP, the image copying itself to SRAM, then the entry
 //! stub, the core voltage and clock set-up, core 1 launched over the SIO FIFOs by the boot
-//! ROM's protocol — and run on the budget corpus against the fixed interpreter and the
-//! reference limiter: every force word, DAC word and event (so every strike) bit-exact, no
+//! ROM's protocol — and run on the budget corpus's physical runs (`layouts::physical_words`:
+//! the sensor check is on, as shipped) against the fixed interpreter and the reference
+//! limiter, from the first sample: every force word, DAC word and event (so every strike) bit-exact, no
 //! deadline missed. Each UF2 checked by a reader written here from the format's
 //! specification (microsoft/uf2 `README.md`) and by the format's own `uf2conv.py` (vendored
 //! in `tests/tools/uf2/`), its flash bytes equal to the ELF's loadable bytes at their
@@ -27,7 +28,7 @@ use tactus_runtime::limiter::Limiter;
 
 #[path = "common/layouts.rs"]
 mod layouts;
-use layouts::{corpus_words, firmware, on_host_threads, root};
+use layouts::{firmware, on_host_threads, physical_words, root};
 
 /// Samples every board runs in CI (the first and last board of each layout run a second).
 const SHORT: usize = 2_205;
@@ -63,8 +64,8 @@ struct Outcome {
     trace: Vec<(Vec<i16>, usize, Vec<u64>)>,
 }
 
-/// Runs `samples` samples of the corpus on `run` (booted from `fw`) against the fixed
-/// interpreter and the reference limiter.
+/// Runs `samples` samples of the corpus's physical runs on `run` (booted from `fw`) against
+/// the fixed interpreter and the reference limiter.
 fn run_corpus(fw: &BoardFirmware, mut run: ImageRun, samples: usize, trace: bool) -> Outcome {
     let image = &fw.image;
     let programs = image.programs();
@@ -72,7 +73,7 @@ fn run_corpus(fw: &BoardFirmware, mut run: ImageRun, samples: usize, trace: bool
     let words: Vec<Vec<i32>> = keys
         .iter()
         .enumerate()
-        .map(|(i, k)| corpus_words(&programs[k.program], fw.keys[0] as usize + i, samples))
+        .map(|(i, k)| physical_words(&programs[k.program], fw.keys[0] as usize + i, samples))
         .collect();
     let mut insts: Vec<FixedInstance> = keys
         .iter()

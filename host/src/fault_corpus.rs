@@ -31,11 +31,7 @@ pub struct CorpusTrips {
     pub faults: BoardFaults,
 }
 
-/// Whether a budget corpus run of this label feeds the sensor implausible words by design:
-/// `glitch-…` (corner words, dropouts, spikes) and `random…` (adversarial words).
-pub fn by_design(label: &str) -> bool {
-    label.starts_with("glitch") || label.starts_with("random")
-}
+pub use tactus_firmware::corpus::by_design;
 
 /// The budget corpus (`tactus_firmware::corpus::Size::Quick` when `quick`, else `Full`)
 /// through every board of `kb`'s plan (the firmware of

@@ -1025,6 +1025,17 @@ pub fn core_code(
             }
             // The literals this key needs after its last limiter (a far DAC word, another
             // format's gain) wait for the next key's limiter's pool, or the end's.
+            if turns.near_trips && !trips.is_empty() {
+                // Its trip path here, over a `B` ([`Turns::near_trips`]).
+                let over = a.label();
+                a.b(over);
+                for (c, far, join, resume, i) in trips.drain(..) {
+                    a.bind(far);
+                    trip_path(a, &keys[i], &c, ctrl_addr, core, join, resume);
+                }
+                a.pool();
+                a.bind(over);
+            }
             Ok(())
         })?;
         if first_aside {

@@ -624,6 +624,11 @@ pub(super) fn assemble_glue(
         turns.hops = true;
         (a, labels) = emit(&turns)?;
     }
+    if a.finish_code(cc.start + cc.glue).is_err() {
+        // The trip paths too far from their keys' checks: each after its key's code.
+        turns.near_trips = true;
+        (a, labels) = emit(&turns)?;
+    }
     Ok(Glue {
         asm: a,
         labels,

@@ -150,6 +150,10 @@ pub struct Turns {
     /// before them (two cycles more a hop): where the copies are too long for one `B`
     /// (2 KiB) from the first.
     pub hops: bool,
+    /// Whether each checked key's trip path follows the key's code in its copy, behind a
+    /// `B` over it (2 cycles a checked key), instead of at the copy's or the handler's end:
+    /// where a copy is too long for the `B`s between a check and its path (2 KiB).
+    pub near_trips: bool,
 }
 
 /// The most samples between two checks of a key: 1 ms at 44.1 kHz is 44; a gap of at
@@ -170,6 +174,7 @@ impl Turns {
             per_period: vec![1],
             period: 1,
             hops: false,
+            near_trips: false,
         }
     }
 
@@ -231,6 +236,7 @@ impl Turns {
                     per_period,
                     period: t.den,
                     hops: false,
+                    near_trips: false,
                 });
             }
         }
