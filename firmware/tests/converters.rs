@@ -67,7 +67,12 @@ fn keys() -> Vec<KeySpec> {
 
 #[test]
 fn converters_carry_the_same_positions_in_and_codes_out() {
-    let p = instrument("harpsichord");
+    // The sensor check off: the stimuli start mid-travel, and on the converter board the
+    // start handler's ADC burst samples the keys before the host sets any code (at rest),
+    // a jump at the first step the check would rightly trip (`fault.rs` holds a key down
+    // at power-on on a board without converters).
+    let mut p = instrument("harpsichord");
+    p.sensor_check = false;
     let keys = keys();
     let with = image(&p, &keys, "rp2040_io");
     let without = image(&p, &keys, "rp2040");
@@ -243,7 +248,8 @@ fn more_keys_than_converter_channels_is_an_error_naming_the_field() {
         other => panic!("{other:?}"),
     }
     // Eight fit.
-    assert!(FirmwareImage::build(&[p], &keys[..8], &board("rp2040_io"), &lim).is_ok());
+    let eight = FirmwareImage::build(&[p], &keys[..8], &board("rp2040_io"), &lim);
+    assert!(eight.is_ok(), "{:?}", eight.err());
 }
 
 #[test]

@@ -663,6 +663,8 @@ fn handler_overhead_per_core_and_per_key_measured_and_static() {
     // is the issue-15 glue alone (the guard's cost: `quiescent_guard_*`).
     let mut programs = vec![instrument("hammond", &[])];
     programs[0].quiescent_guard = false;
+    // The issue-15 glue without the sensor check either (its cost: `budget.rs`).
+    programs[0].sensor_check = false;
     let keys: Vec<KeySpec> = (0..2)
         .map(|i| KeySpec {
             slot: 10 + i,
@@ -794,7 +796,13 @@ const TINY_PEN: &str = "instrument tiny_pen {
 /// first sensor (z: 0.4 s down, 0.1 s lifted, depth varying from press to press) and, per
 /// further sensor, a stroke sweeping its range at its own rate, with `seed`'s noise and an
 /// occasional out-of-range glitch.
-fn pen_gesture(p: &Program, fs: f64, len: usize, rng: &mut XorShift64) -> Vec<Vec<i32>> {
+fn pen_gesture(
+    p: &Program,
+    fs: f64,
+    len: usize,
+    rng: &mut XorShift64,
+    glitches: bool,
+) -> Vec<Vec<i32>> {
     let fp = &p.fixed;
     let sensors = &fp.program.sensors;
     (0..len)
@@ -820,7 +828,7 @@ fn pen_gesture(p: &Program, fs: f64, len: usize, rng: &mut XorShift64) -> Vec<Ve
                         let f = 1.3 * i as f64 + 0.7;
                         lo + span * (0.5 + 0.45 * (2.0 * std::f64::consts::PI * f * t).sin())
                     };
-                    let x = if rng.below(500) == 0 {
+                    let x = if rng.below(500) == 0 && glitches {
                         [lo - span, hi + span][rng.below(2)]
                     } else {
                         x + noise
@@ -889,7 +897,11 @@ fn assert_z_and_x_move_y_still(st: &Stats, what: &str) {
 
 #[test]
 fn a_pen_drives_one_dac_word_per_axis_each_the_limited_axis_total() {
-    let pen = Program::compile(TINY_PEN, &Config::default()).unwrap();
+    // The sensor check off: the gesture glitches out of range by design (the update's
+    // saturation held bit-exact), which the check would trip on (the check on a pen:
+    // `a_checked_pen_plays_bit_exact_without_a_trip`).
+    let mut pen = Program::compile(TINY_PEN, &Config::default()).unwrap();
+    pen.sensor_check = false;
     assert_eq!(pen.sensor_words(), 3);
     let axes: Vec<_> = pen.drives().unwrap().iter().map(|d| d.axis).collect();
     assert_eq!(axes, [Some(Axis::Z), Some(Axis::X), Some(Axis::Y)]);
@@ -926,7 +938,7 @@ fn a_pen_drives_one_dac_word_per_axis_each_the_limited_axis_total() {
         .map(|(i, k)| {
             let p = &programs[k.program];
             if k.program == 0 {
-                pen_gesture(p, 44_100.0, samples, &mut rng)
+                pen_gesture(p, 44_100.0, samples, &mut rng, true)
             } else {
                 stimuli(p, i, samples)
                     .into_iter()
@@ -965,7 +977,9 @@ fn the_rubbed_bank_runs_as_a_pen_at_8_khz_bit_exact_without_misses() {
         sample_rate_hz: fs,
         ..Config::default()
     };
-    let bank = Program::compile(&text, &config).unwrap();
+    let mut bank = Program::compile(&text, &config).unwrap();
+    // The gesture glitches out of range by design: the sensor check off (as for the pens).
+    bank.sensor_check = false;
     assert_eq!(bank.sensor_words(), 2);
     let axes: Vec<_> = bank.drives().unwrap().iter().map(|d| d.axis).collect();
     assert_eq!(axes, [Some(Axis::Z), Some(Axis::X), Some(Axis::Y)]);
@@ -986,7 +1000,7 @@ fn the_rubbed_bank_runs_as_a_pen_at_8_khz_bit_exact_without_misses() {
     let image = FirmwareImage::build(&programs, &keys, &board, &LimiterConfig::default()).unwrap();
     let samples = 8000; // one second
     let mut rng = XorShift64::new(11);
-    let sensors = vec![pen_gesture(&programs[0], fs, samples, &mut rng)];
+    let sensors = vec![pen_gesture(&programs[0], fs, samples, &mut rng, true)];
     let st = check_pen_run(&image, &sensors, samples, "rubbed_bank at 8 kHz");
     // The plane (z) and the friction (x) move; nothing pushes along y.
     assert_z_and_x_move_y_still(&st, "rubbed_bank");
@@ -1014,6 +1028,8 @@ fn pen_glue_per_key_measured_and_static() {
     // the cores is then the key's glue.
     let mut pen = Program::compile(TINY_PEN, &Config::default()).unwrap();
     pen.watchdog = false;
+    // The glue without the sensor check (the gesture's glitches would trip it).
+    pen.sensor_check = false;
     let programs = vec![pen];
     let keys = [KeySpec {
         slot: 5,
@@ -1025,7 +1041,7 @@ fn pen_glue_per_key_measured_and_static() {
     let mut run = image.run().unwrap();
     let profile = run.board().profile_addr(image.update_addr(0).unwrap());
     let mut rng = XorShift64::new(3);
-    let sensors = pen_gesture(&programs[0], 44_100.0, 3000, &mut rng);
+    let sensors = pen_gesture(&programs[0], 44_100.0, 3000, &mut rng, true);
     let mut glue_worst = 0;
     for w in &sensors {
         let s = run.step(w).unwrap().clone();
@@ -1044,6 +1060,7 @@ fn pen_glue_per_key_measured_and_static() {
     // The keyboard key's glue, the same way.
     let mut hammond = vec![instrument("hammond", &[])];
     hammond[0].watchdog = false;
+    hammond[0].sensor_check = false;
     let kb = FirmwareImage::build(&hammond, &keys, &rp2040(), &LimiterConfig::default()).unwrap();
     let (k0, k1) = (kb.wcet(0).unwrap(), kb.wcet(1).unwrap());
     let key_glue = k0.analysed - k0.updates - k1.analysed;
@@ -1140,7 +1157,9 @@ fn a_program_too_large_for_a_bank_is_a_no_room_error() {
 /// DAC word, without a missed deadline, within the static bound.
 #[test]
 fn the_plucked_string_runs_as_a_pen_at_44_1_khz_bit_exact_without_misses() {
-    let pen = instrument("plucked_string", &[]);
+    // The gesture glitches out of range by design: the sensor check off (as for the pens).
+    let mut pen = instrument("plucked_string", &[]);
+    pen.sensor_check = false;
     assert_eq!(pen.sensor_words(), 3);
     assert_eq!(pen.drives().unwrap().len(), 3);
     let keys = [KeySpec {
@@ -1153,7 +1172,7 @@ fn the_plucked_string_runs_as_a_pen_at_44_1_khz_bit_exact_without_misses() {
         FirmwareImage::build(&programs, &keys, &rp2040(), &LimiterConfig::default()).unwrap();
     let samples = 44_100;
     let mut rng = XorShift64::new(13);
-    let sensors = vec![pen_gesture(&programs[0], 44_100.0, samples, &mut rng)];
+    let sensors = vec![pen_gesture(&programs[0], 44_100.0, samples, &mut rng, true)];
     // The gesture plucks: the reference emits `pluck` events.
     let mut reference = FixedInstance::new(&programs[0].fixed);
     let plucks: usize = sensors[0]
@@ -1165,6 +1184,49 @@ fn the_plucked_string_runs_as_a_pen_at_44_1_khz_bit_exact_without_misses() {
     let st = check_pen_run(&image, &sensors, samples, "plucked_string at 44.1 kHz");
     // The plane (z) and the string (x: its lateral stiffness and the windings) push; y not.
     assert_z_and_x_move_y_still(&st, "plucked_string");
+}
+
+/// A pen as shipped (the sensor check on) playing a gesture without glitches: bit-exact
+/// with the fixed interpreter from the first sample, so no trip (a trip's force is 0), and
+/// it plucks; the same gesture with its glitches trips the check.
+#[test]
+fn a_checked_pen_plays_bit_exact_without_a_trip() {
+    let pen = instrument("plucked_string", &[]);
+    assert!(pen.sensor_check, "the check is on by default");
+    let keys = [KeySpec {
+        slot: 0,
+        program: 0,
+        core: 0,
+    }];
+    let programs = vec![pen];
+    let image =
+        FirmwareImage::build(&programs, &keys, &rp2040(), &LimiterConfig::default()).unwrap();
+    let samples = 22_050;
+    let sensors = vec![pen_gesture(
+        &programs[0],
+        44_100.0,
+        samples,
+        &mut XorShift64::new(13),
+        false,
+    )];
+    let mut reference = FixedInstance::new(&programs[0].fixed);
+    let plucks: usize = sensors[0]
+        .iter()
+        .map(|w| reference.step_raw(w).events.len())
+        .sum();
+    assert!(plucks >= 1, "{plucks} plucks");
+    let st = check_pen_run(&image, &sensors, samples, "checked plucked_string");
+    assert_z_and_x_move_y_still(&st, "checked plucked_string");
+    // With its glitches the same pen trips: its forces leave the reference's.
+    let glitchy = vec![pen_gesture(
+        &programs[0],
+        44_100.0,
+        samples,
+        &mut XorShift64::new(13),
+        true,
+    )];
+    let (bad, ..) = run_words_against_reference(&image, &glitchy, samples);
+    assert!(bad > 0, "the glitches tripped nothing");
 }
 
 /// The quiescent-key guard (`glue::GuardCode`, docs/language.md "Quiescent keys"): on every
