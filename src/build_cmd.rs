@@ -76,8 +76,8 @@ pub struct BuildArgs {
     pub ram: bool,
     /// Firmware: the per-key sensor check (range and largest step per sample, a trip
     /// setting the key's motor to zero force and the core's fault word: docs/faults.md)
-    /// `on` or `off` on every key, the boards planned and priced with it [default: the
-    /// firmware's own].
+    /// `on` or `off` on every key, the boards planned and priced with it [default: on,
+    /// the firmware's own].
     #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off)]
     pub sensor_check: Option<bool>,
     /// Firmware: the RP2040's watchdog (datasheet 4.7) `on` or `off` on every board, fed

@@ -69,7 +69,7 @@ pub enum EmuCommand {
 
 /// `tactus emu run --help`'s examples.
 const RUN_EXAMPLES: &str = "Examples:
-  tactus build grand88 --target rp2040 --sensor-check on --watchdog on -o fw
+  tactus build grand88 --target rp2040 -o fw
   tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --seconds 0.5
       every key of board 5 dipping mezzoforte: each core's cycles and misses, the fault words
   tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --seconds 0.5 \\
@@ -80,7 +80,7 @@ const RUN_EXAMPLES: &str = "Examples:
   tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --fault kind=hang,note=60,at=0.1s
       key 60's update never returns: with the watchdog on, the board resets (printed, with the
       samples at zero force until it runs again) and its fault word says `watchdog`
-  tactus build grand88 --target rp2040 --board rp2040_io --sensor-check on -o fw-io
+  tactus build grand88 --target rp2040 --board rp2040_io -o fw-io
   tactus emu run fw-io/board-05/firmware.elf --stimulus mf-dip --fault kind=adc-silent,board=5,core=1,at=0.1s
 
 The firmware is rebuilt from the key maps of its keyboard (its keys.json and those of the

@@ -1,6 +1,7 @@
 //! `--fault` end to end through the CLI (issue 72): a sensor fault injected by `tactus play`
 //! on a plain board and on a converter board, and by `tactus emu run` on one board's
-//! firmware from `tactus build`, with the firmware's sensor check on: the fault report
+//! firmware from `tactus build`, with the firmware's sensor check on as shipped (no flag):
+//! the fault report
 //! names the check, the key and the sample, and the key's motor is at zero force within
 //! 1 ms; `emu run` and `play` run a fault through the one path (`ImageRun::inject`) and
 //! report the same trips on both boards; a hung update with `--watchdog on` resets the
@@ -41,7 +42,7 @@ fn a_shorted_sensor_under_play_trips_its_check_and_its_motor_is_at_zero_within_1
         let mut c = tactus();
         c.args(["play", midi.to_str().unwrap(), "--layout"])
             .arg(&layout)
-            .args(["--seconds", "0.3", "--no-wav", "--sensor-check", "on"]);
+            .args(["--seconds", "0.3", "--no-wav"]);
         c
     };
     for board in ["rp2040", "rp2040_io"] {
@@ -110,14 +111,7 @@ fn emu_run_injects_a_sensor_fault_into_built_firmware_and_reports_its_fault_word
     let layout = small_layout(&dir, 60, 63);
     let fw = dir.join("fw");
     let out = tactus()
-        .args([
-            "build",
-            layout.to_str().unwrap(),
-            "--target",
-            "rp2040",
-            "--sensor-check",
-            "on",
-        ])
+        .args(["build", layout.to_str().unwrap(), "--target", "rp2040"])
         .arg("-o")
         .arg(&fw)
         .output()
@@ -216,7 +210,7 @@ fn emu_run_and_play_report_the_same_trips_for_the_same_faults_on_both_boards() {
         let fw = dir.join(format!("fw-{board}"));
         let out = tactus()
             .args(["build", layout.to_str().unwrap(), "--target", "rp2040"])
-            .args(["--board", board, "--sensor-check", "on", "-o"])
+            .args(["--board", board, "-o"])
             .arg(&fw)
             .output()
             .unwrap();
@@ -234,7 +228,6 @@ fn emu_run_and_play_report_the_same_trips_for_the_same_faults_on_both_boards() {
             .args(["play", midi.to_str().unwrap(), "--layout"])
             .arg(&layout)
             .args(["--board", board, "--seconds", "0.12", "--no-wav"])
-            .args(["--sensor-check", "on"])
             .args(faults)
             .arg("-o")
             .arg(dir.join(board))
@@ -308,11 +301,7 @@ fn a_hung_update_with_the_watchdog_on_resets_the_board_under_emu_run() {
     let json = std::fs::read_to_string(&keys).unwrap();
     let map: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert_eq!(map["watchdog"], serde_json::Value::Bool(false), "{json}");
-    assert_eq!(
-        map["sensor_check"],
-        serde_json::Value::Bool(false),
-        "{json}"
-    );
+    assert_eq!(map["sensor_check"], serde_json::Value::Bool(true), "{json}");
     let edit = |f: &dyn Fn(&mut serde_json::Map<String, serde_json::Value>)| {
         let mut m = map.clone();
         f(m.as_object_mut().unwrap());
@@ -326,7 +315,7 @@ fn a_hung_update_with_the_watchdog_on_resets_the_board_under_emu_run() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
         stderr.contains("not the firmware its key maps build")
-            && stderr.contains("the sensor check off and the watchdog on as ")
+            && stderr.contains("the sensor check on and the watchdog on as ")
             && stderr.contains("the ELFs differ"),
         "{stderr}"
     );
@@ -372,7 +361,7 @@ fn a_note_at_0_s_is_struck_on_every_engine_and_trips_no_check() {
         play.args(["play", midi.to_str().unwrap(), "--layout"])
             .arg(&layout)
             .args(["--engine", engine, "--player", player])
-            .args(["--seconds", "0.3", "--no-wav", "--sensor-check", "on"])
+            .args(["--seconds", "0.3", "--no-wav"])
             .args(["--trace-keys", "63", "--trace-from=-1", "-o"])
             .arg(&out_dir);
         // On the firmware, a fault at 0.1 s of the performance on a resting key: its trip
@@ -469,7 +458,7 @@ fn the_budget_corpus_trips_no_check_but_its_glitches_and_random_words_do() {
     let layout = small_layout(&dir, 60, 61);
     let out = tactus()
         .args(["corpus", "trips", layout.to_str().unwrap(), "--quick"])
-        .args(["--sensor-check", "on", "--watchdog", "on"])
+        .args(["--watchdog", "on"])
         .output()
         .unwrap();
     assert_ok(&out);

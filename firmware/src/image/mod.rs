@@ -164,8 +164,8 @@ pub struct Program {
     /// docs/firmware.md, "Faults"): every few samples, a class of keys a sample
     /// ([`glue::Turns`]), a tripped key's limiters gated to DAC code 0 between its checks.
     /// Its dispatch and one key's check a sample fit grand88 on every board kind (11, 11,
-    /// 8 and 8 boards with it on: `tactus build grand88 --target rp2040 --sensor-check on
-    /// [--board …]`). **On by default**; a key's first reading in range is taken as it
+    /// 8 and 8 boards: `tactus budget grand88 --quick [--board …]`). **On by default**;
+    /// a key's first reading in range is taken as it
     /// stands (`SensorCheck::seed`), so a checked board is the model from its first
     /// sample. Off (`--sensor-check off`) only to measure a key's glue alone or to run a
     /// stimulus that is not a sensor's (a jump no key's physics makes).
