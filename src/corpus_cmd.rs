@@ -119,7 +119,7 @@ fn trips(args: &TripsArgs) -> ExitCode {
         tactus_host::fault_corpus::corpus_trips_text(&runs, kb.board.sample_rate_hz);
     lines.iter().for_each(|l| println!("{l}"));
     if physical > 0 {
-        eprintln!("error: {physical} trips in physical runs: false alarms");
+        eprintln!("error: {physical} trips and resets in physical runs: false alarms");
         return ExitCode::from(1);
     }
     ExitCode::SUCCESS

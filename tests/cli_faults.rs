@@ -479,7 +479,7 @@ fn the_budget_corpus_trips_no_check_but_its_glitches_and_random_words_do() {
     );
     assert!(!glitch.contains(" 0 trips"), "{glitch}");
     assert!(
-        stdout.contains("budget corpus through 1 board: 0 trips in the physical runs"),
+        stdout.contains("budget corpus through 1 board: 0 trips and 0 resets in the physical runs"),
         "{stdout}"
     );
     let _ = std::fs::remove_dir_all(&dir);

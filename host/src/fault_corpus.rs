@@ -126,8 +126,10 @@ pub fn budget_corpus_trips(
 
 /// The budget corpus's trips as text: a line per run label (its trips over every board,
 /// and the first trip's board, core, kind and key), then the totals of the physical runs
-/// (0 expected: a trip is a false alarm) and of the runs faulty by design. Returns the
-/// lines and the physical runs' trips.
+/// (0 expected: a trip is a false alarm) and of the runs faulty by design, each with its
+/// resets (the watchdog's, a brown-out: [`BoardFaults::resets`]). Returns the lines and
+/// the physical runs' trips and resets summed (a reset in a physical run is a false alarm
+/// as a trip is).
 pub fn corpus_trips_text(runs: &[CorpusTrips], fs: f64) -> (Vec<String>, u64) {
     let mut labels: Vec<&str> = Vec::new();
     for r in runs {
@@ -138,14 +140,18 @@ pub fn corpus_trips_text(runs: &[CorpusTrips], fs: f64) -> (Vec<String>, u64) {
     let boards = runs.iter().map(|r| r.faults.board).max().unwrap_or(0);
     let mut lines = Vec::new();
     let (mut physical, mut designed) = (0u64, 0u64);
+    let (mut physical_resets, mut designed_resets) = (0u64, 0u64);
     for label in labels {
         let of: Vec<&CorpusTrips> = runs.iter().filter(|r| r.label == label).collect();
         let trips: u64 = of.iter().map(|r| r.faults.trips()).sum();
+        let resets: u64 = of.iter().map(|r| r.faults.resets.len() as u64).sum();
         let design = of.first().is_some_and(|r| r.by_design);
-        match design {
-            true => designed += trips,
-            false => physical += trips,
-        }
+        let (t, r) = match design {
+            true => (&mut designed, &mut designed_resets),
+            false => (&mut physical, &mut physical_resets),
+        };
+        *t += trips;
+        *r += resets;
         let first = (of.iter())
             .find(|r| r.faults.trips() > 0)
             .and_then(|r| {
@@ -155,14 +161,64 @@ pub fn corpus_trips_text(runs: &[CorpusTrips], fs: f64) -> (Vec<String>, u64) {
             })
             .map_or(String::new(), |l| format!(" (first: {l})"));
         lines.push(format!(
-            "  {label:<24} {:>7} samples  {trips:>6} trips{}{first}",
+            "  {label:<24} {:>7} samples  {trips:>6} trips{}{}{first}",
             of.first().map_or(0, |r| r.samples),
+            match resets {
+                0 => String::new(),
+                n => format!(" {n} reset{}", if n == 1 { "" } else { "s" }),
+            },
             if design { " (a fault by design)" } else { "" },
         ));
     }
     lines.push(format!(
-        "budget corpus through {boards} board{}: {physical} trips in the physical runs (0 expected), {designed} in the runs faulty by design (glitches, random words)",
+        "budget corpus through {boards} board{}: {physical} trips and {physical_resets} resets in the physical runs (0 expected), {designed} trips and {designed_resets} resets in the runs faulty by design (glitches, random words)",
         if boards == 1 { "" } else { "s" }
     ));
-    (lines, physical)
+    (lines, physical + physical_resets)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(label: &str, resets: usize) -> CorpusTrips {
+        let reset = tactus_firmware::image::ResetRecord {
+            sample: 10,
+            cycle: 1000,
+            why: "watchdog timer",
+            reboot: Ok(3),
+        };
+        CorpusTrips {
+            label: label.into(),
+            by_design: by_design(label),
+            samples: 100,
+            faults: BoardFaults {
+                board: 1,
+                cores: Vec::new(),
+                slots: Vec::new(),
+                resets: vec![reset; resets],
+            },
+        }
+    }
+
+    #[test]
+    fn resets_count_as_false_alarms_in_physical_runs() {
+        let (lines, physical) = corpus_trips_text(&[run("ff-dip", 0), run("random0", 2)], 44100.0);
+        assert_eq!(physical, 0, "{lines:?}");
+        assert!(
+            lines[1].contains(" 2 resets (a fault by design)"),
+            "{lines:?}"
+        );
+        assert!(
+            lines[2].contains("0 trips and 0 resets in the physical runs"),
+            "{lines:?}"
+        );
+        assert!(
+            lines[2].contains("0 trips and 2 resets in the runs faulty"),
+            "{lines:?}"
+        );
+        let (lines, physical) = corpus_trips_text(&[run("ff-dip", 1)], 44100.0);
+        assert_eq!(physical, 1, "{lines:?}");
+        assert!(lines[0].ends_with(" 0 trips 1 reset"), "{lines:?}");
+    }
 }
