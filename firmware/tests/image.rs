@@ -1162,14 +1162,7 @@ fn the_plucked_string_runs_as_a_pen_at_44_1_khz_bit_exact_without_misses() {
     pen.sensor_check = false;
     assert_eq!(pen.sensor_words(), 3);
     assert_eq!(pen.drives().unwrap().len(), 3);
-    let keys = [KeySpec {
-        slot: 0,
-        program: 0,
-        core: 0,
-    }];
-    let programs = vec![pen];
-    let image =
-        FirmwareImage::build(&programs, &keys, &rp2040(), &LimiterConfig::default()).unwrap();
+    let (programs, image) = one_pen(pen);
     let samples = 44_100;
     let mut rng = XorShift64::new(13);
     let sensors = vec![pen_gesture(&programs[0], 44_100.0, samples, &mut rng, true)];
@@ -1186,13 +1179,8 @@ fn the_plucked_string_runs_as_a_pen_at_44_1_khz_bit_exact_without_misses() {
     assert_z_and_x_move_y_still(&st, "plucked_string");
 }
 
-/// A pen as shipped (the sensor check on) playing a gesture without glitches: bit-exact
-/// with the fixed interpreter from the first sample, so no trip (a trip's force is 0), and
-/// it plucks; the same gesture with its glitches trips the check.
-#[test]
-fn a_checked_pen_plays_bit_exact_without_a_trip() {
-    let pen = instrument("plucked_string", &[]);
-    assert!(pen.sensor_check, "the check is on by default");
+/// `pen` alone on core 0 of the stock board: its programs and image.
+fn one_pen(pen: Program) -> (Vec<Program>, FirmwareImage) {
     let keys = [KeySpec {
         slot: 0,
         program: 0,
@@ -1201,6 +1189,17 @@ fn a_checked_pen_plays_bit_exact_without_a_trip() {
     let programs = vec![pen];
     let image =
         FirmwareImage::build(&programs, &keys, &rp2040(), &LimiterConfig::default()).unwrap();
+    (programs, image)
+}
+
+/// A pen as shipped (the sensor check on) playing a gesture without glitches: bit-exact
+/// with the fixed interpreter from the first sample, so no trip (a trip's force is 0), and
+/// it plucks; the same gesture with its glitches trips the check.
+#[test]
+fn a_checked_pen_plays_bit_exact_without_a_trip() {
+    let pen = instrument("plucked_string", &[]);
+    assert!(pen.sensor_check, "the check is on by default");
+    let (programs, image) = one_pen(pen);
     let samples = 22_050;
     let sensors = vec![pen_gesture(
         &programs[0],
