@@ -28,8 +28,8 @@ use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
 mod checks;
 use checks::{
-    check_step, copy_words, enable_watchdog, feed_watchdog, restore_fault_record, trip_path,
-    CopyMode,
+    check_step, copy_words, enable_watchdog, feed_watchdog, restore_fault_record, trip_paths,
+    CopyMode, PendingTrip,
 };
 pub use checks::{Feed, Gate, SensorCheck, Turns, MAX_GAP};
 
@@ -836,9 +836,8 @@ pub fn core_code(
     a.pool();
 
     // ---- the sample interrupt ----
-    // The sensor checks' trip paths
-    // (check, the path's label, the key's limiters, the check's way on, key).
-    let mut trips: Vec<(SensorCheck, Label, Label, Label, usize)> = Vec::new();
+    // The sensor checks' trip paths, branched to but not yet emitted.
+    let mut trips: Vec<PendingTrip> = Vec::new();
     a.align4();
     a.bind(labels.isr);
     if let Some(p) = io {
@@ -1003,7 +1002,13 @@ pub fn core_code(
                         a.bind(trip);
                         a.b(far);
                         let i = keys.iter().position(|x| std::ptr::eq(x, k)).unwrap_or(0);
-                        trips.push((c.clone(), far, skip, resume, i));
+                        trips.push(PendingTrip {
+                            check: c.clone(),
+                            far,
+                            join: skip,
+                            resume,
+                            key: i,
+                        });
                     }
                     if std::mem::take(&mut first_aside) {
                         dispatch_trampolines(a, copy, turns, upper, &tramp, &starts);
@@ -1029,11 +1034,7 @@ pub fn core_code(
                 // Its trip path here, over a `B` ([`Turns::near_trips`]).
                 let over = a.label();
                 a.b(over);
-                for (c, far, join, resume, i) in trips.drain(..) {
-                    a.bind(far);
-                    trip_path(a, &keys[i], &c, ctrl_addr, core, join, resume);
-                }
-                a.pool();
+                trip_paths(a, &mut trips, keys, ctrl_addr, core);
                 a.bind(over);
             }
             Ok(())
@@ -1054,11 +1055,7 @@ pub fn core_code(
             }
             a.pool();
             // This copy's trip paths here, within a `B`'s reach of its checks.
-            for (c, far, join, resume, i) in trips.drain(..) {
-                a.bind(far);
-                trip_path(a, &keys[i], &c, ctrl_addr, core, join, resume);
-                a.pool();
-            }
+            trip_paths(a, &mut trips, keys, ctrl_addr, core);
         }
     }
     a.bind(end);
@@ -1092,11 +1089,7 @@ pub fn core_code(
     a.i(mov_hi(14, 0));
     a.i(Instr::Bx { rm: 14 });
     a.pool();
-    for (c, far, join, resume, i) in trips {
-        a.bind(far);
-        trip_path(a, &keys[i], &c, ctrl_addr, core, join, resume);
-        a.pool();
-    }
+    trip_paths(a, &mut trips, keys, ctrl_addr, core);
     Ok(labels)
 }
 

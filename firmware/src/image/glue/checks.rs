@@ -285,7 +285,7 @@ pub(super) fn check_step(a: &mut CodeBuffer, c: &SensorCheck, copy_off: u16, tri
 /// whatever its position at power-on; out of range, it trips as any later reading would.
 /// Its cost over the check's path, 21 cycles once per key, is in the static bound.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn trip_path(
+fn trip_path(
     a: &mut CodeBuffer,
     k: &KeyCode,
     c: &SensorCheck,
@@ -297,18 +297,14 @@ pub(super) fn trip_path(
     use super::super::fault::{self, FaultKind};
     use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
     let (check, bad, zero, gate) = (a.label(), a.label(), a.label(), a.label());
-    let (bad_range, plausible, tripped) = (a.label(), a.label(), a.label());
+    let (bad_range, tripped) = (a.label(), a.label());
     let (left, last) = (c.left_offset as u16, c.last_offset as u16);
     // The first reading since the start, in range: on to the update.
     a.i(asm::ldr(2, 4, last));
     a.ldr_const(3, c.poison());
     a.i(asm::cmp(2, 3));
     a.bc(cond::NE, tripped);
-    a.ldr_const(1, c.lo as u32);
-    a.i(asm::subs(1, 0, 1));
-    a.ldr_const(3, c.hi.wrapping_sub(c.lo) as u32);
-    a.i(asm::cmp(1, 3));
-    a.bc(cond::HI, tripped);
+    range_test(a, c, tripped);
     a.i(asm::str(0, 4, last));
     a.i(asm::movs(1, 0));
     a.i(asm::str(1, 4, left));
@@ -321,14 +317,10 @@ pub(super) fn trip_path(
     a.i(asm::ldr(1, 4, 0));
     a.i(asm::str(1, 4, last));
     a.bind(check);
-    // The range (kind: range), unsigned: word − lo ≤ hi − lo.
+    // The range (kind: range).
     a.i(asm::ldr(2, 4, last));
     a.i(asm::str(0, 4, last));
-    a.ldr_const(1, c.lo as u32);
-    a.i(asm::subs(1, 0, 1));
-    a.ldr_const(3, c.hi.wrapping_sub(c.lo) as u32);
-    a.i(asm::cmp(1, 3));
-    a.bc(cond::HI, bad_range);
+    range_test(a, c, bad_range);
     // The change since the last reading (kind: rate).
     a.i(asm::movs(3, FaultKind::SensorRate.code()));
     a.i(asm::subs(2, 0, 2));
@@ -337,7 +329,6 @@ pub(super) fn trip_path(
     a.i(asm::lsrs(2, 2, 1));
     a.bc(cond::NE, bad);
     // Plausible: one less to count; at 0 the key recovers.
-    a.bind(plausible);
     a.i(asm::ldr(1, 4, left));
     a.i(asm::subs_imm(1, 1, 1));
     a.i(asm::str(1, 4, left));
@@ -414,6 +405,50 @@ pub(super) fn trip_path(
         }
     }
     a.b(join);
+}
+
+/// The range test of [`SensorCheck`]: `r0` = the word; branches to `bad` when it lies
+/// outside `[lo, hi]`, tested unsigned as `word − lo > hi − lo` (`SUBS`, `CMP`, `BHI`).
+/// Clobbers r1, r3.
+fn range_test(a: &mut CodeBuffer, c: &SensorCheck, bad: Label) {
+    a.ldr_const(1, c.lo as u32);
+    a.i(asm::subs(1, 0, 1));
+    a.ldr_const(3, c.hi.wrapping_sub(c.lo) as u32);
+    a.i(asm::cmp(1, 3));
+    a.bc(cond::HI, bad);
+}
+
+/// A checked key's trip path that the handler has branched to but not yet emitted: the
+/// check's `BNE` reaches a `B` behind the key's first limiter, which reaches the path
+/// where [`trip_paths`] puts it (after the key, its copy or the handler:
+/// [`Turns::near_trips`]).
+pub(super) struct PendingTrip {
+    /// The key's sensor check.
+    pub check: SensorCheck,
+    /// The path's own label, the target of the `B` behind the key's first limiter.
+    pub far: Label,
+    /// The key's limiters, where the path joins the handler with the key's force words 0.
+    pub join: Label,
+    /// The check's way on to the update, for the key's first reading in range.
+    pub resume: Label,
+    /// The key's index in the core's keys.
+    pub key: usize,
+}
+
+/// Emits the pending trip paths `trips` (taking them all), each with its literal pool
+/// after it, for the core `core` with control block `ctrl_addr` ([`trip_path`]).
+pub(super) fn trip_paths(
+    a: &mut CodeBuffer,
+    trips: &mut Vec<PendingTrip>,
+    keys: &[KeyCode],
+    ctrl_addr: u32,
+    core: usize,
+) {
+    for t in trips.drain(..) {
+        a.bind(t.far);
+        trip_path(a, &keys[t.key], &t.check, ctrl_addr, core, t.join, t.resume);
+        a.pool();
+    }
 }
 
 /// How [`copy_words`] copies.
