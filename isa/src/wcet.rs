@@ -47,7 +47,8 @@
 //! one-cycle arbitration wait is not included), and flash as zero-wait (as the emulator
 //! models it). The hardware divider does not stall a read, so it costs nothing extra here.
 
-use crate::decode::{self, AluOp, Instr};
+use crate::decode::{self, Instr};
+use crate::effects;
 use crate::timing::{self, APB_LOAD_WAIT, APB_STORE_WAIT, EXCEPTION_ENTRY, EXCEPTION_RETURN};
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 use std::fmt;
@@ -895,55 +896,19 @@ impl Consts {
                 self.set(rd, v)
             }
             MovHi { rd, rm } => self.set(rd, self.get(rm)),
-            AsrImm { rd, .. }
-            | SubReg { rd, .. }
-            | Sxth { rd, .. }
-            | Sxtb { rd, .. }
-            | Uxth { rd, .. }
-            | Uxtb { rd, .. }
-            | Rev { rd, .. }
-            | Rev16 { rd, .. }
-            | Revsh { rd, .. }
-            | AddSpImm { rd, .. }
-            | Mrs { rd, .. } => self.set(rd, None),
-            Alu { op, rdn, .. } => {
-                if !matches!(op, AluOp::Tst | AluOp::Cmp | AluOp::Cmn) {
-                    self.set(rdn, None)
-                }
-            }
-            AddHi { rdn, .. } => self.set(rdn, None),
-            MemReg { op, rt, .. } | MemImm { op, rt, .. } => {
-                if !op.is_store() {
-                    self.set(rt, None)
-                }
-            }
-            Pop { list } => {
-                for r in 0..8 {
-                    if list & (1 << r) != 0 {
+            // A special register (and the flags): no general register.
+            Msr { .. } => {}
+            // Every other instruction: what it writes is unknown (`effects`; SP, r13, is
+            // never known). Branches, calls and traps end a block or are errors; forget
+            // everything.
+            _ => match effects::effect(instr) {
+                Some(e) => {
+                    for r in (0..16).filter(|r| e.writes & 1 << r != 0) {
                         self.set(r, None);
                     }
                 }
-            }
-            Ldm { rn, list } => {
-                self.set(rn, None);
-                for r in 0..8 {
-                    if list & (1 << r) != 0 {
-                        self.set(r, None);
-                    }
-                }
-            }
-            Stm { rn, .. } => self.set(rn, None),
-            CmpImm { .. }
-            | CmpHi { .. }
-            | Push { .. }
-            | AddSp { .. }
-            | SubSp { .. }
-            | Cps { .. }
-            | Hint(_)
-            | Barrier(_)
-            | Msr { .. } => {}
-            // Branches, calls and traps end a block or are errors; forget everything.
-            _ => *self = Consts::new(),
+                None => *self = Consts::new(),
+            },
         }
     }
 }

@@ -30,103 +30,14 @@
 //!
 //! Both keep every register, memory word and live flag as it was at every instruction
 //! that remains, so results are bit-identical; the WCET analysis then prices the shorter
-//! code from the timing table like any other.
+//! code from the timing table like any other. What each instruction reads and writes,
+//! registers and flags, is [`tactus_isa::effects`]'s one table.
 
 use super::buffer::{CodeBuffer, Item};
 use super::ins::cond::{EQ, GE, LT, MI, NE, PL};
 use std::collections::HashMap;
 use tactus_isa::decode::{AluOp, Instr, MemOp};
-
-/// The APSR flags as bits of a liveness set.
-const N: u8 = 1;
-const Z: u8 = 2;
-const C: u8 = 4;
-const V: u8 = 8;
-const ALL: u8 = N | Z | C | V;
-
-/// The flags condition `cond` (ARMv6-M A6.3) reads.
-fn cond_reads(cond: u8) -> u8 {
-    match cond {
-        0 | 1 => Z,
-        2 | 3 => C,
-        4 | 5 => N,
-        6 | 7 => V,
-        8 | 9 => C | Z,
-        10 | 11 => N | V,
-        12 | 13 => N | Z | V,
-        _ => 0,
-    }
-}
-
-/// What an instruction that neither branches nor returns does to registers and flags.
-#[derive(Clone, Copy, Debug)]
-struct Effect {
-    /// Registers written (bit *n* = r*n*).
-    writes: u16,
-    /// Flags read.
-    reads: u8,
-    /// Flags always written.
-    sets: u8,
-    /// The register whose new value N and Z then reflect (`None` when they reflect no
-    /// register's value, or are not written).
-    nz: Option<u8>,
-}
-
-/// [`Effect`] of `i`, or `None` for what this pass does not follow (control transfers,
-/// writes of PC or of the flags by `MSR`, undefined encodings).
-fn effect(i: &Instr) -> Option<Effect> {
-    use Instr::*;
-    let e = |writes: u16, reads: u8, sets: u8, nz: Option<u8>| {
-        Some(Effect {
-            writes,
-            reads,
-            sets,
-            nz,
-        })
-    };
-    let r = |x: u8| 1u16 << x;
-    match *i {
-        LslImm { rd, imm, .. } => e(r(rd), 0, if imm == 0 { N | Z } else { N | Z | C }, Some(rd)),
-        LsrImm { rd, .. } | AsrImm { rd, .. } => e(r(rd), 0, N | Z | C, Some(rd)),
-        AddReg { rd, .. } | SubReg { rd, .. } | AddImm { rd, .. } | SubImm { rd, .. } => {
-            e(r(rd), 0, ALL, Some(rd))
-        }
-        MovImm { rd, .. } => e(r(rd), 0, N | Z, Some(rd)),
-        CmpImm { rn, imm } => e(0, 0, ALL, (imm == 0).then_some(rn)),
-        CmpHi { .. } => e(0, 0, ALL, None),
-        Alu { op, rdn, .. } => match op {
-            AluOp::Tst => e(0, 0, N | Z, None),
-            AluOp::Cmp | AluOp::Cmn => e(0, 0, ALL, None),
-            AluOp::Adc | AluOp::Sbc => e(r(rdn), C, ALL, Some(rdn)),
-            AluOp::Rsb => e(r(rdn), 0, ALL, Some(rdn)),
-            // A shift by a register leaves C alone when the amount is 0.
-            AluOp::Lsl | AluOp::Lsr | AluOp::Asr | AluOp::Ror => e(r(rdn), 0, N | Z, Some(rdn)),
-            AluOp::And | AluOp::Eor | AluOp::Orr | AluOp::Mul | AluOp::Bic | AluOp::Mvn => {
-                e(r(rdn), 0, N | Z, Some(rdn))
-            }
-        },
-        AddHi { rdn, .. } | MovHi { rd: rdn, .. } if rdn != 15 => e(r(rdn), 0, 0, None),
-        LdrLit { rt, .. } => e(r(rt), 0, 0, None),
-        MemReg { op, rt, .. } | MemImm { op, rt, .. } => {
-            e(if op.is_store() { 0 } else { r(rt) }, 0, 0, None)
-        }
-        Adr { rd, .. } | AddSpImm { rd, .. } => e(r(rd), 0, 0, None),
-        AddSp { .. } | SubSp { .. } | Push { .. } => e(r(13), 0, 0, None),
-        Pop { list } if list & 1 << 15 == 0 => e(list | r(13), 0, 0, None),
-        Sxth { rd, .. }
-        | Sxtb { rd, .. }
-        | Uxth { rd, .. }
-        | Uxtb { rd, .. }
-        | Rev { rd, .. }
-        | Rev16 { rd, .. }
-        | Revsh { rd, .. } => e(r(rd), 0, 0, None),
-        Stm { rn, .. } => e(r(rn), 0, 0, None),
-        Ldm { rn, list } => e(r(rn) | list as u16, 0, 0, None),
-        Mrs { rd, .. } => e(r(rd), 0, 0, None),
-        Hint(_) | Cps { .. } | Barrier(_) => e(0, 0, 0, None),
-        _ => None,
-    }
-}
+use tactus_isa::effects::{cond_reads, effect, ALL, C, N, V, Z};
 
 /// A return (`POP {…, PC}`): the flags are dead after it (AAPCS preserves none).
 fn returns(i: &Instr) -> bool {
@@ -167,7 +78,7 @@ fn liveness(items: &[Item]) -> Vec<u8> {
             }
             Item::Instr(i) if returns(i) => 0,
             Item::Instr(i) => match effect(i) {
-                Some(e) => live & !e.sets | e.reads,
+                Some(e) => live & !e.flags_set | e.flags_read,
                 None => ALL,
             },
             Item::Call(_) => ALL,
@@ -230,8 +141,10 @@ fn compares(items: &mut [Item]) -> Vec<bool> {
             }
             Item::Instr(i) if returns(i) => reachable = false,
             Item::Instr(i) => match effect(i) {
-                Some(e) if e.sets & (N | Z) == N | Z => nz = e.nz,
-                Some(e) if nz.is_some_and(|r| e.writes & 1 << r != 0) || e.sets != 0 => nz = None,
+                Some(e) if e.flags_set & (N | Z) == N | Z => nz = e.nz,
+                Some(e) if nz.is_some_and(|r| e.writes & 1 << r != 0) || e.flags_set != 0 => {
+                    nz = None
+                }
                 Some(_) => {}
                 None => nz = None,
             },
@@ -491,41 +404,6 @@ fn values(items: &mut [Item], pools: &[Vec<u32>]) -> Vec<bool> {
     dead
 }
 
-/// The registers `i` reads (bit *n* = r*n*), or `None` where [`effect`] is `None`.
-fn reads(i: &Instr) -> Option<u16> {
-    use Instr::*;
-    let r = |x: u8| 1u16 << x;
-    Some(match *i {
-        LslImm { rm, .. } | LsrImm { rm, .. } | AsrImm { rm, .. } => r(rm),
-        AddReg { rn, rm, .. } | SubReg { rn, rm, .. } => r(rn) | r(rm),
-        AddImm { rn, .. } | SubImm { rn, .. } | CmpImm { rn, .. } => r(rn),
-        MovImm { .. } | LdrLit { .. } | Adr { .. } | Hint(_) | Cps { .. } | Barrier(_) => 0,
-        Alu {
-            op: AluOp::Rsb | AluOp::Mvn,
-            rm,
-            ..
-        } => r(rm),
-        Alu { rdn, rm, .. } | AddHi { rdn, rm } => r(rdn) | r(rm),
-        CmpHi { rn, rm } => r(rn) | r(rm),
-        MovHi { rm, .. } => r(rm),
-        MemReg { op, rt, rn, rm } => r(rn) | r(rm) | if op.is_store() { r(rt) } else { 0 },
-        MemImm { op, rt, rn, .. } => r(rn) | if op.is_store() { r(rt) } else { 0 },
-        AddSpImm { .. } | AddSp { .. } | SubSp { .. } | Pop { .. } => r(13),
-        Push { list } => list | r(13),
-        Sxth { rm, .. }
-        | Sxtb { rm, .. }
-        | Uxth { rm, .. }
-        | Uxtb { rm, .. }
-        | Rev { rm, .. }
-        | Rev16 { rm, .. }
-        | Revsh { rm, .. } => r(rm),
-        Stm { rn, list } => r(rn) | u16::from(list),
-        Ldm { rn, .. } => r(rn),
-        Mrs { .. } => 0,
-        _ => return None,
-    })
-}
-
 /// The registers live after each item (read on some way onward before they are written),
 /// from a backward walk. A return keeps every register but those it pops live (what the
 /// caller may read is not this pass's to decide).
@@ -545,9 +423,9 @@ fn live_registers(items: &[Item]) -> Vec<u16> {
                 live
             }
             Item::Instr(Instr::Pop { list }) if list & 1 << 15 != 0 => !(list & 0xff),
-            Item::Instr(i) => match (effect(i), reads(i)) {
-                (Some(e), Some(r)) => live & !e.writes | r,
-                _ => u16::MAX,
+            Item::Instr(i) => match effect(i) {
+                Some(e) => live & !e.writes | e.reads,
+                None => u16::MAX,
             },
             Item::Lit { rt, .. } => live & !(1 << rt),
             Item::Call(_) => u16::MAX,
@@ -563,54 +441,33 @@ fn live_registers(items: &[Item]) -> Vec<u16> {
 fn rename(i: &Instr, read: impl Fn(u8) -> u8, write: impl Fn(u8) -> u8) -> Option<Instr> {
     use Instr::*;
     let lo = |x: u8| (x < 8).then_some(x);
-    Some(match *i {
-        LslImm { rd, rm, imm } => LslImm {
-            rd: lo(write(rd))?,
-            rm: lo(read(rm))?,
-            imm,
-        },
-        LsrImm { rd, rm, imm } => LsrImm {
-            rd: lo(write(rd))?,
-            rm: lo(read(rm))?,
-            imm,
-        },
-        AsrImm { rd, rm, imm } => AsrImm {
-            rd: lo(write(rd))?,
-            rm: lo(read(rm))?,
-            imm,
-        },
-        AddReg { rd, rn, rm } => AddReg {
-            rd: lo(write(rd))?,
-            rn: lo(read(rn))?,
-            rm: lo(read(rm))?,
-        },
-        SubReg { rd, rn, rm } => SubReg {
-            rd: lo(write(rd))?,
-            rn: lo(read(rn))?,
-            rm: lo(read(rm))?,
-        },
+    let mut j = *i;
+    match &mut j {
+        LslImm { rd, rm, .. }
+        | LsrImm { rd, rm, .. }
+        | AsrImm { rd, rm, .. }
+        | Uxth { rd, rm }
+        | Sxth { rd, rm } => {
+            *rd = lo(write(*rd))?;
+            *rm = lo(read(*rm))?;
+        }
+        AddReg { rd, rn, rm } | SubReg { rd, rn, rm } => {
+            *rd = lo(write(*rd))?;
+            *rn = lo(read(*rn))?;
+            *rm = lo(read(*rm))?;
+        }
         // The 8-bit immediate form is two-address.
         AddImm { rd, rn, imm } | SubImm { rd, rn, imm } => {
-            let (d, n) = (lo(write(rd))?, lo(read(rn))?);
-            if imm > 7 && d != n {
+            let (d, n) = (lo(write(*rd))?, lo(read(*rn))?);
+            if *imm > 7 && d != n {
                 return None;
             }
-            if matches!(i, AddImm { .. }) {
-                AddImm { rd: d, rn: n, imm }
-            } else {
-                SubImm { rd: d, rn: n, imm }
-            }
+            (*rd, *rn) = (d, n);
         }
-        MovImm { rd, imm } => MovImm {
-            rd: lo(write(rd))?,
-            imm,
-        },
-        CmpImm { rn, imm } => CmpImm {
-            rn: lo(read(rn))?,
-            imm,
-        },
+        MovImm { rd, .. } => *rd = lo(write(*rd))?,
+        CmpImm { rn, .. } => *rn = lo(read(*rn))?,
         // Two-address: renamed only where the register read and written stays one.
-        Alu { op, rdn, rm } => {
+        &mut Alu { op, rdn, rm } => {
             let d = match op {
                 AluOp::Cmp | AluOp::Cmn | AluOp::Tst => read(rdn),
                 AluOp::Rsb | AluOp::Mvn => write(rdn),
@@ -618,18 +475,18 @@ fn rename(i: &Instr, read: impl Fn(u8) -> u8, write: impl Fn(u8) -> u8) -> Optio
                 _ => return None,
             };
             let m = read(rm);
-            match op {
+            j = match op {
                 AluOp::Cmp if d >= 8 || m >= 8 => CmpHi { rn: d, rm: m },
                 _ => Alu {
                     op,
                     rdn: lo(d)?,
                     rm: lo(m)?,
                 },
-            }
+            };
         }
-        CmpHi { rn, rm } => {
+        &mut CmpHi { rn, rm } => {
             let (n, m) = (read(rn), read(rm));
-            if n < 8 && m < 8 {
+            j = if n < 8 && m < 8 {
                 Alu {
                     op: AluOp::Cmp,
                     rdn: n,
@@ -637,37 +494,24 @@ fn rename(i: &Instr, read: impl Fn(u8) -> u8, write: impl Fn(u8) -> u8) -> Optio
                 }
             } else {
                 CmpHi { rn: n, rm: m }
-            }
+            };
         }
-        MovHi { rd, rm } => MovHi {
-            rd: write(rd),
-            rm: read(rm),
-        },
-        MemImm { op, rt, rn, imm } => MemImm {
-            op,
-            rt: lo(if op.is_store() { read(rt) } else { write(rt) })?,
-            rn: match read(rn) {
-                n @ (13 | 0..8) if (n == 13) == (rn == 13) => n,
+        MovHi { rd, rm } => (*rd, *rm) = (write(*rd), read(*rm)),
+        MemImm { op, rt, rn, .. } => {
+            *rt = lo(if op.is_store() { read(*rt) } else { write(*rt) })?;
+            *rn = match read(*rn) {
+                n @ (13 | 0..8) if (n == 13) == (*rn == 13) => n,
                 _ => return None,
-            },
-            imm,
-        },
-        MemReg { op, rt, rn, rm } => MemReg {
-            op,
-            rt: lo(if op.is_store() { read(rt) } else { write(rt) })?,
-            rn: lo(read(rn))?,
-            rm: lo(read(rm))?,
-        },
-        Uxth { rd, rm } => Uxth {
-            rd: lo(write(rd))?,
-            rm: lo(read(rm))?,
-        },
-        Sxth { rd, rm } => Sxth {
-            rd: lo(write(rd))?,
-            rm: lo(read(rm))?,
-        },
+            };
+        }
+        MemReg { op, rt, rn, rm } => {
+            *rt = lo(if op.is_store() { read(*rt) } else { write(*rt) })?;
+            *rn = lo(read(*rn))?;
+            *rm = lo(read(*rm))?;
+        }
         _ => return None,
-    })
+    }
+    Some(j)
 }
 
 /// Pass 3: register copies. `MOV Rd, Rm` whose copy the next instruction alone reads
@@ -689,9 +533,9 @@ fn copies(items: &mut [Item]) -> Vec<bool> {
         let next = (k + 1..items.len()).find(|&q| !silent(&items[q]));
         if let Some(q) = next {
             if let Item::Instr(i) = &items[q] {
-                let (e, r) = (effect(i), reads(i));
-                if let (Some(e), Some(r)) = (e, r) {
-                    if r & 1 << rd != 0 && e.writes & 1 << rd == 0 && after[q] & 1 << rd == 0 {
+                if let Some(e) = effect(i) {
+                    if e.reads & 1 << rd != 0 && e.writes & 1 << rd == 0 && after[q] & 1 << rd == 0
+                    {
                         let sub = |x: u8| if x == rd { rm } else { x };
                         if let Some(j) = rename(i, sub, |x| x) {
                             // A copy back into its source is no instruction at all.
