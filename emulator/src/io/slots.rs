@@ -729,6 +729,41 @@ mod tests {
     }
 
     #[test]
+    fn each_data_word_has_its_own_lanes_of_its_width() {
+        // `replay_state!` pairs each data field with the lanes field of its name: a recording
+        // gives every slot its own bits as its lanes (none shared, none missing), as wide as
+        // the word; only the FIFOs' empty words are constants.
+        let mut io = io();
+        let n = io.start_lanes();
+        let at: Vec<Option<Slot>> = (0..n as usize).map(|i| io.locate(i)).collect();
+        let mut k = 0u32;
+        let mut widths = Vec::new();
+        io.data_slots(&mut |_, l| {
+            let l = l.expect("lanes while recording");
+            widths.push(l.len());
+            let fifo = matches!(at[k as usize], Some(Slot::Pio(_, j)) if j >= 3 && (j - 3) % 20 >= 4);
+            for (b, x) in l.iter().enumerate() {
+                let want = match fifo {
+                    true => Lane::CONST,
+                    false => Lane::input(k, b as u32),
+                };
+                assert_eq!(*x, want, "slot {k} bit {b}");
+            }
+            k += 1;
+        });
+        assert_eq!(k, n);
+        for (i, w) in widths.iter().enumerate() {
+            let want = match at[i] {
+                Some(Slot::Adc(_, 0..=8)) | Some(Slot::Dac(_, 0..=15)) => 16,
+                Some(Slot::Adc(_, 10)) => 1,
+                _ => 32,
+            };
+            assert_eq!(*w, want, "slot {i}");
+        }
+        assert!(io.stop_lanes().is_some());
+    }
+
+    #[test]
     fn machines_equal_but_for_data_compare_equal() {
         let (mut a, mut b) = (io(), io());
         b.data_slots(&mut |v, _| *v = 0x5a5a_5a5a);
