@@ -741,7 +741,8 @@ mod tests {
         io.data_slots(&mut |_, l| {
             let l = l.expect("lanes while recording");
             widths.push(l.len());
-            let fifo = matches!(at[k as usize], Some(Slot::Pio(_, j)) if j >= 3 && (j - 3) % 20 >= 4);
+            let fifo =
+                matches!(at[k as usize], Some(Slot::Pio(_, j)) if j >= 3 && (j - 3) % 20 >= 4);
             for (b, x) in l.iter().enumerate() {
                 let want = match fifo {
                     true => Lane::CONST,

@@ -1,9 +1,10 @@
 //! What a window's replay and the period memo need of a PIO block (`crate::io::slots`): its
 //! data words (the pins' levels, the input synchroniser, each state machine's X, Y, ISR, OSR
-//! and FIFO words) named in a fixed order ([`crate::replay::Data`]), the block compared and taken
-//! but for them (its `crate::replay::ReplayState`, each field's role declared once), and, while a replay is
-//! recorded, the lanes of each data bit (`crate::lanes`: [`PioLanes`]) that the execution
-//! (`exec.rs`) moves with the data and fixes where data decides something.
+//! and FIFO words) in a fixed order, the block compared and taken but for them (its
+//! `crate::replay::Data` and `ReplayState`, both from each field's role declared once), and,
+//! while a replay is recorded, the lanes of each data bit (`crate::lanes`: [`PioLanes`],
+//! each at its data field's name) that the execution (`exec.rs`) moves with the data and
+//! fixes where data decides something.
 
 use super::*;
 use crate::replay::replay_state;
