@@ -41,7 +41,7 @@ const CONST16: Lanes16 = [Lane::CONST; 16];
 pub(crate) struct AdcLanes {
     codes: [Lanes16; 8],
     /// The code of the frame under way.
-    frame_code: Lanes16,
+    frame: Lanes16,
     shift_in: Word,
     sdo: Lane,
     /// The level on SDI at the pins, as [`Ads8688::observe_lanes`] was last given it.
@@ -325,16 +325,20 @@ fn keep<T>(list: &mut Vec<T>, item: T) {
 
 // The replay's view of the parts ([`crate::replay::ReplayState`]): every field given its
 // role once. Their records (frames, updates, breaches), which only grow, are not state.
-crate::replay::replay_state! { Ads8688 {
+// Their data words (`crate::io::Io::data_slots`), in order: an ADC's eight channels' codes,
+// the code of the frame under way (0 without one), the command shifting in, the SDO level;
+// a DAC's eight input registers, its eight output registers, the frame shifting in.
+crate::replay::replay_state! { Ads8688 [kept in lanes: AdcLanes, words] {
     same: part, pins, clock_hz, next, auto, lines, falling;
     cycles: last_rise, last_cs_fall;
+    data: codes;
     part: frame;
-    data: codes, shift_in, sdo;
+    data: shift_in, sdo;
     lanes: lanes;
     skip: frames, violations, kept;
 } }
 
-crate::replay::replay_state! { Dac8568 {
+crate::replay::replay_state! { Dac8568 [kept in lanes: DacLanes, words] {
     same: part, pins, clock_hz, lines, bits;
     cycles: sync_fell, sync_rose, last_fall;
     data: input, output, shift;
@@ -364,6 +368,36 @@ impl crate::replay::ReplayState for Option<AdcFrame> {
     fn rebase_cycles(&mut self, r: crate::replay::Rebase) {
         if let Some(f) = self {
             f.cs_fall = r.at(f.cs_fall);
+        }
+    }
+}
+
+/// The code of the frame under way: a data word that reads 0 without a frame, where a
+/// word written is dropped.
+impl crate::replay::Data for Option<AdcFrame> {
+    type Lanes = Lanes16;
+    #[inline]
+    fn visit(
+        &mut self,
+        lanes: Option<&mut Lanes16>,
+        f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>),
+    ) {
+        let mut v = crate::replay::Words::get(self, 0);
+        f(&mut v, lanes.map(|l| &mut l[..]));
+        crate::replay::Words::set(self, 0, v);
+    }
+}
+
+impl crate::replay::Words for Option<AdcFrame> {
+    const WORDS: usize = 1;
+    #[inline]
+    fn get(&self, _: usize) -> u32 {
+        self.as_ref().map_or(0, |f| u32::from(f.code))
+    }
+    #[inline]
+    fn set(&mut self, _: usize, v: u32) {
+        if let Some(f) = self {
+            f.code = v as u16;
         }
     }
 }
@@ -448,11 +482,11 @@ impl Ads8688 {
     }
 
     /// Starts keeping lanes (`crate::lanes`), all constants (`crate::io::Io` gives its
-    /// data words theirs through [`Ads8688::data_slots`]).
+    /// data words theirs through [`crate::replay::Data`]).
     pub(crate) fn start_lanes(&mut self) {
         self.lanes = Some(Box::new(AdcLanes {
             codes: [CONST16; 8],
-            frame_code: CONST16,
+            frame: CONST16,
             shift_in: CONST,
             sdo: Lane::CONST,
             sdi: Lane::CONST,
@@ -460,61 +494,6 @@ impl Ads8688 {
             fixed: Vec::new(),
         }));
     }
-
-    /// Its data words in a fixed order, each with its lanes while they are kept: the eight
-    /// channels' codes, the code of the frame under way (0 without one), the command
-    /// shifting in, the SDO level.
-    pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
-        let mut l = self.lanes.as_deref_mut();
-        for c in 0..8 {
-            let mut v = u32::from(self.codes[c]);
-            f(&mut v, l.as_deref_mut().map(|l| &mut l.codes[c][..]));
-            self.codes[c] = v as u16;
-        }
-        let mut v = self.frame.as_ref().map_or(0, |f| u32::from(f.code));
-        f(&mut v, l.as_deref_mut().map(|l| &mut l.frame_code[..]));
-        if let Some(fr) = self.frame.as_mut() {
-            fr.code = v as u16;
-        }
-        f(
-            &mut self.shift_in,
-            l.as_deref_mut().map(|l| &mut l.shift_in[..]),
-        );
-        let mut v = u32::from(self.sdo);
-        f(&mut v, l.map(|l| std::slice::from_mut(&mut l.sdo)));
-        self.sdo = v & 1 != 0;
-    }
-
-    /// Its `i`-th data word ([`Ads8688::data_slots`]' order; 0 past them).
-    #[inline]
-    pub(crate) fn slot(&self, i: usize) -> u32 {
-        match i {
-            0..=7 => u32::from(self.codes[i]),
-            8 => self.frame.as_ref().map_or(0, |f| u32::from(f.code)),
-            9 => self.shift_in,
-            10 => u32::from(self.sdo),
-            _ => 0,
-        }
-    }
-
-    /// Sets its `i`-th data word ([`Ads8688::data_slots`]' order) as that visit would.
-    #[inline]
-    pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
-        match i {
-            0..=7 => self.codes[i] = v as u16,
-            8 => {
-                if let Some(f) = self.frame.as_mut() {
-                    f.code = v as u16;
-                }
-            }
-            9 => self.shift_in = v,
-            10 => self.sdo = v & 1 != 0,
-            _ => {}
-        }
-    }
-
-    /// Its data words' number ([`Ads8688::data_slots`]).
-    pub(crate) const SLOTS: usize = 11;
 
     /// [`Ads8688::observe`] with the lanes of the pins' levels, `l`, while lanes are kept.
     pub(crate) fn observe_lanes(&mut self, cycle: u64, values: u32, dirs: u32, l: &Word) {
@@ -656,7 +635,7 @@ impl Ads8688 {
         self.last_rise = None;
         self.sdo = false;
         if let Some(l) = self.lanes.as_deref_mut() {
-            l.frame_code = l.codes[channel as usize & 7];
+            l.frame = l.codes[channel as usize & 7];
             l.shift_in = CONST;
             l.sdo = Lane::CONST;
         }
@@ -669,7 +648,7 @@ impl Ads8688 {
         if let Some(l) = self.lanes.as_deref_mut() {
             l.sdo = Lane::CONST;
             if self.frame.is_some() && room {
-                l.frames.push(l.frame_code);
+                l.frames.push(l.frame);
             }
         }
         if let Some(f) = self.frame.take() {
@@ -730,7 +709,7 @@ impl Ads8688 {
             let bits = self.part.frame_bits;
             let half = bits / 2;
             l.sdo = match f.sclks > half && f.sclks <= bits {
-                true => (l.frame_code.get((bits - f.sclks) as usize)).map_or(Lane::CONST, |x| *x),
+                true => (l.frame.get((bits - f.sclks) as usize)).map_or(Lane::CONST, |x| *x),
                 false => Lane::CONST,
             };
         }
@@ -899,7 +878,7 @@ impl Dac8568 {
     }
 
     /// Starts keeping lanes (`crate::lanes`), all constants (`crate::io::Io` gives its
-    /// data words theirs through [`Dac8568::data_slots`]).
+    /// data words theirs through [`crate::replay::Data`]).
     pub(crate) fn start_lanes(&mut self) {
         self.lanes = Some(Box::new(DacLanes {
             input: [CONST16; 8],
@@ -911,47 +890,6 @@ impl Dac8568 {
         }));
     }
 
-    /// Its data words in a fixed order, each with its lanes while they are kept: the eight
-    /// input registers, the eight output registers, the frame shifting in.
-    pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
-        let mut l = self.lanes.as_deref_mut();
-        for c in 0..8 {
-            let mut v = u32::from(self.input[c]);
-            f(&mut v, l.as_deref_mut().map(|l| &mut l.input[c][..]));
-            self.input[c] = v as u16;
-        }
-        for c in 0..8 {
-            let mut v = u32::from(self.output[c]);
-            f(&mut v, l.as_deref_mut().map(|l| &mut l.output[c][..]));
-            self.output[c] = v as u16;
-        }
-        f(&mut self.shift, l.map(|l| &mut l.shift[..]));
-    }
-
-    /// Its `i`-th data word ([`Dac8568::data_slots`]' order; 0 past them).
-    #[inline]
-    pub(crate) fn slot(&self, i: usize) -> u32 {
-        match i {
-            0..=7 => u32::from(self.input[i]),
-            8..=15 => u32::from(self.output[i - 8]),
-            16 => self.shift,
-            _ => 0,
-        }
-    }
-
-    /// Sets its `i`-th data word ([`Dac8568::data_slots`]' order) as that visit would.
-    #[inline]
-    pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
-        match i {
-            0..=7 => self.input[i] = v as u16,
-            8..=15 => self.output[i - 8] = v as u16,
-            16 => self.shift = v,
-            _ => {}
-        }
-    }
-
-    /// Its data words' number ([`Dac8568::data_slots`]).
-    pub(crate) const SLOTS: usize = 17;
     /// [`Dac8568::observe`] with the lanes of the pins' levels, `l`, while lanes are kept.
     pub(crate) fn observe_lanes(&mut self, cycle: u64, values: u32, dirs: u32, l: &Word) {
         if let Some(d) = self.lanes.as_deref_mut() {

@@ -226,13 +226,21 @@ pub struct Dma {
     last_high: usize,
     last_low: usize,
     round_served: u32,
-    /// The lanes of the transfers' values while a replay is recorded (`crate::lanes`), in
-    /// the queue's order; `None` otherwise.
-    pub(crate) lanes: Option<Box<[Word; TRANSFER_FIFO_DEPTH]>>,
+    /// The lanes of the transfers' values while a replay is recorded (`crate::lanes`);
+    /// `None` otherwise.
+    pub(crate) lanes: Option<Box<DmaLanes>>,
+}
+
+/// The DMA's lanes while a replay is recorded (`crate::lanes`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct DmaLanes {
+    /// The lanes of the transfers' values, in the queue's order.
+    queue: [Word; TRANSFER_FIFO_DEPTH],
 }
 
 // The replay's view of the controller ([`ReplayState`]): every field given its role once.
-crate::replay::replay_state! { Dma {
+// Its data words (`crate::io::Io::data_slots`): the values of the transfer FIFO's entries.
+crate::replay::replay_state! { Dma [kept in lanes: DmaLanes, words] {
     same: ch, intr, inte, intf, timer, timer_acc, timer_credit, last_high, last_low,
         round_served;
     cycles: read_free, write_free;
@@ -263,6 +271,36 @@ impl crate::replay::ReplayState for Queue {
     fn rebase_cycles(&mut self, r: crate::replay::Rebase) {
         for t in &mut self.t[..self.len] {
             t.ready = r.at(t.ready);
+        }
+    }
+}
+
+/// The transfers' values, in the FIFO's order (the entries past its length too).
+impl crate::replay::Data for Queue {
+    type Lanes = [Word; TRANSFER_FIFO_DEPTH];
+    #[inline]
+    fn visit(
+        &mut self,
+        lanes: Option<&mut Self::Lanes>,
+        f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>),
+    ) {
+        let mut l = lanes;
+        for (i, t) in self.t.iter_mut().enumerate() {
+            f(&mut t.value, l.as_deref_mut().map(|l| &mut l[i][..]));
+        }
+    }
+}
+
+impl crate::replay::Words for Queue {
+    const WORDS: usize = TRANSFER_FIFO_DEPTH;
+    #[inline]
+    fn get(&self, i: usize) -> u32 {
+        self.t.get(i).map_or(0, |t| t.value)
+    }
+    #[inline]
+    fn set(&mut self, i: usize, v: u32) {
+        if let Some(t) = self.t.get_mut(i) {
+            t.value = v;
         }
     }
 }
@@ -299,16 +337,6 @@ impl Dma {
         }
     }
 
-    /// Its `i`-th data word ([`Dma::data_slots`]' order; 0 past them).
-    pub(crate) fn slot(&self, i: usize) -> u32 {
-        self.queue.t.get(i).map_or(0, |t| t.value)
-    }
-
-    /// Its `i`-th data word ([`Dma::data_slots`]' order), settable.
-    pub(crate) fn slot_mut(&mut self, i: usize) -> Option<&mut u32> {
-        self.queue.t.get_mut(i).map(|t| &mut t.value)
-    }
-
     /// Mixes some of its control state (none of its data words) into `mix`: a cheap first
     /// test of two controllers' equality but for data (`crate::io::Io::quick_key`).
     pub(crate) fn quick_key(&self, r: crate::replay::Rebase, mix: &mut impl FnMut(u64)) {
@@ -321,18 +349,11 @@ impl Dma {
     }
 
     /// Starts keeping lanes (`crate::lanes`), all constants (`crate::io::Io` gives its data
-    /// words theirs through [`Dma::data_slots`]).
+    /// words theirs through [`crate::replay::Data`]).
     pub(crate) fn start_lanes(&mut self) {
-        self.lanes = Some(Box::new([CONST; TRANSFER_FIFO_DEPTH]));
-    }
-
-    /// Its data words in a fixed order, each with its lanes while they are kept: the values
-    /// of the transfer FIFO's entries.
-    pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
-        let mut l = self.lanes.as_deref_mut();
-        for (i, t) in self.queue.t.iter_mut().enumerate() {
-            f(&mut t.value, l.as_deref_mut().map(|l| &mut l[i][..]));
-        }
+        self.lanes = Some(Box::new(DmaLanes {
+            queue: [CONST; TRANSFER_FIFO_DEPTH],
+        }));
     }
 
     /// The queue without the transfers `drop` names, their lanes with them.
@@ -342,11 +363,11 @@ impl Dma {
             let mut k = 0;
             for (i, t) in self.queue.t[..self.queue.len].iter().enumerate() {
                 if !drop(t) {
-                    kept[k] = l[i];
+                    kept[k] = l.queue[i];
                     k += 1;
                 }
             }
-            *l = kept;
+            l.queue = kept;
         }
         self.queue.retain(|t| !drop(t));
     }
@@ -657,6 +678,7 @@ impl Dma {
             if let Some(t) = self.queue.front().copied().filter(|t| t.ready <= cycle) {
                 self.queue.pop_front();
                 if let Some(l) = self.lanes.as_deref_mut() {
+                    let l = &mut l.queue;
                     let w = l[0];
                     l.copy_within(1.., 0);
                     l[TRANSFER_FIFO_DEPTH - 1] = CONST;
@@ -709,7 +731,7 @@ impl Dma {
                             _ => w,
                         };
                     }
-                    if let Some(slot) = l.get_mut(self.queue.len()) {
+                    if let Some(slot) = l.queue.get_mut(self.queue.len()) {
                         *slot = w;
                     }
                 }

@@ -161,12 +161,12 @@ impl Io {
     /// no change of CS or SCLK, do nothing either way), the inputs' the ADCs' SDO lanes.
     pub(super) fn observe_lanes(&mut self, cycle: u64, now: (u32, u32)) {
         let [m0, m1] = self.pio_pins;
-        let out = |p: &Pio| p.lanes.as_ref().map_or(CONST, |l| l.out);
+        let out = |p: &Pio| p.lanes.as_ref().map_or(CONST, |l| l.out_values);
         let pins = lanes::select(m0, &out(&self.pio[0]), &lanes::and(&out(&self.pio[1]), m1));
         let Some(l) = self.lanes.as_deref_mut() else {
             return;
         };
-        l.pins = pins;
+        l.pin_levels = pins;
         if now == (self.pin_levels, self.pin_dirs) {
             return;
         }

@@ -9,7 +9,7 @@
 //! ([`EndState`], [`LazyEnd`]), and the parts' records of a stretch ([`IoRecords`]).
 
 use super::*;
-use crate::replay::{replay_state, ReplayState};
+use crate::replay::{replay_state, Data, ReplayState, Words};
 
 /// Where a data word of the machine lies ([`Io::locate`]): the machine's own (0 the pins'
 /// levels, 1 the inputs), or a part's and its index among the part's.
@@ -26,7 +26,7 @@ pub(crate) enum Slot {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub(super) struct IoLanes {
     /// The levels driven, as the converters saw them last ([`Io::pins`]).
-    pub(super) pins: Word,
+    pub(super) pin_levels: Word,
     /// The levels the converters drive ([`Io::gpio_in`]).
     pub(super) gpio_in: Word,
     /// Two parts drove data onto one pin: no lane says what it reads.
@@ -225,13 +225,13 @@ impl IoRecords {
 // The replay's view of the machine ([`ReplayState`]): every field given its role once, the
 // parts' in their own declarations (`crate::pio::slots`, `crate::dma`, `crate::converters`).
 // `stepwise` is how the live machine runs, `idle` a note to itself, `touches` its count of
-// changes.
-replay_state! { Io {
-    part: pio, dma, adcs, dacs;
+// changes. Its data words ([`Io::data_slots`]): its own two, then its parts' in this order.
+replay_state! { Io [kept in lanes: IoLanes] {
+    data: pin_levels, gpio_in;
+    device: pio, dma, adcs, dacs;
     cycles: cycle, dma_claim, sm_clock, sdo_log, held_until;
     same: gpio_ctrl, pio_pins, bus_priority, held, pin_dirs, reach_banks, ahead, behind;
     live: stepwise;
-    data: pin_levels, gpio_in;
     hint: idle;
     lanes: lanes;
     skip: touches;
@@ -255,7 +255,7 @@ impl Io {
     pub(crate) fn start_lanes(&mut self) -> u32 {
         self.touch();
         self.lanes = Some(Box::new(IoLanes {
-            pins: CONST,
+            pin_levels: CONST,
             gpio_in: CONST,
             clash: false,
         }));
@@ -321,10 +321,10 @@ impl Io {
         match at {
             Some(Slot::Io(0)) => self.pin_levels,
             Some(Slot::Io(_)) => self.gpio_in,
-            Some(Slot::Pio(b, j)) => self.pio[b].slot(j),
-            Some(Slot::Dma(j)) => self.dma.slot(j),
-            Some(Slot::Adc(k, j)) => self.adcs[k].slot(j),
-            Some(Slot::Dac(k, j)) => self.dacs[k].slot(j),
+            Some(Slot::Pio(b, j)) => Words::get(&self.pio[b], j),
+            Some(Slot::Dma(j)) => Words::get(&self.dma, j),
+            Some(Slot::Adc(k, j)) => Words::get(&self.adcs[k], j),
+            Some(Slot::Dac(k, j)) => Words::get(&self.dacs[k], j),
             None => 0,
         }
     }
@@ -342,35 +342,32 @@ impl Io {
         match at {
             Some(Slot::Io(0)) => self.pin_levels = v,
             Some(Slot::Io(_)) => self.gpio_in = v,
-            Some(Slot::Pio(b, j)) => self.pio[b].set_slot(j, v),
-            Some(Slot::Dma(j)) => {
-                if let Some(w) = self.dma.slot_mut(j) {
-                    *w = v;
-                }
-            }
-            Some(Slot::Adc(k, j)) => self.adcs[k].set_slot(j, v),
-            Some(Slot::Dac(k, j)) => self.dacs[k].set_slot(j, v),
+            Some(Slot::Pio(b, j)) => Words::set(&mut self.pio[b], j, v),
+            Some(Slot::Dma(j)) => Words::set(&mut self.dma, j, v),
+            Some(Slot::Adc(k, j)) => Words::set(&mut self.adcs[k], j, v),
+            Some(Slot::Dac(k, j)) => Words::set(&mut self.dacs[k], j, v),
             None => {}
         }
     }
 
     /// The first ADC's first data slot ([`Io::data_slots`]' order): the machine's own two,
     /// both PIO blocks', the DMA's.
-    pub(super) const ADC_SLOTS: usize = 2 + 2 * Pio::SLOTS + crate::dma::TRANSFER_FIFO_DEPTH;
+    pub(super) const ADC_SLOTS: usize = 2 + 2 * Pio::WORDS + Dma::WORDS;
 
-    /// Where its `i`-th data word lies ([`Io::data_slots`]' order).
+    /// Where its `i`-th data word lies ([`Io::data_slots`]' order: `replay_state!`'s for
+    /// `Io`, and each part's [`Words`]).
     pub(crate) fn locate(&self, i: usize) -> Option<Slot> {
         let pio = 2;
-        let dma = pio + 2 * Pio::SLOTS;
+        let dma = pio + 2 * Pio::WORDS;
         let adcs = Self::ADC_SLOTS;
-        let dacs = adcs + self.adcs.len() * Ads8688::SLOTS;
-        let end = dacs + self.dacs.len() * Dac8568::SLOTS;
+        let dacs = adcs + self.adcs.len() * Ads8688::WORDS;
+        let end = dacs + self.dacs.len() * Dac8568::WORDS;
         Some(match i {
             _ if i < pio => Slot::Io(i),
-            _ if i < dma => Slot::Pio((i - pio) / Pio::SLOTS, (i - pio) % Pio::SLOTS),
+            _ if i < dma => Slot::Pio((i - pio) / Pio::WORDS, (i - pio) % Pio::WORDS),
             _ if i < adcs => Slot::Dma(i - dma),
-            _ if i < dacs => Slot::Adc((i - adcs) / Ads8688::SLOTS, (i - adcs) % Ads8688::SLOTS),
-            _ if i < end => Slot::Dac((i - dacs) / Dac8568::SLOTS, (i - dacs) % Dac8568::SLOTS),
+            _ if i < dacs => Slot::Adc((i - adcs) / Ads8688::WORDS, (i - adcs) % Ads8688::WORDS),
+            _ if i < end => Slot::Dac((i - dacs) / Dac8568::WORDS, (i - dacs) % Dac8568::WORDS),
             _ => return None,
         })
     }
@@ -441,26 +438,13 @@ impl Io {
     /// Its data words, each with its lanes while they are kept, in a fixed order that the
     /// rest of the machine decides (the same for equal machines but for their data): the
     /// pins' levels as the converters saw them, the levels the converters drive, then the
-    /// PIO blocks' ([`Pio::data_slots`]), the DMA's, the ADCs' and the DACs'. A period memo
-    /// (`accel/io_window/`) compares machines without them, and gives a recorded
-    /// replay's by their routes.
+    /// PIO blocks', the DMA's, the ADCs' and the DACs' (each part's [`Data`], derived with
+    /// its [`ReplayState`] by `replay_state!` from the one list of its fields). A period memo
+    /// (`accel/io_window/`) compares machines without them, and gives a recorded replay's by
+    /// their routes.
+    #[inline]
     pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
-        let mut l = self.lanes.as_deref_mut();
-        f(
-            &mut self.pin_levels,
-            l.as_deref_mut().map(|l| &mut l.pins[..]),
-        );
-        f(&mut self.gpio_in, l.map(|l| &mut l.gpio_in[..]));
-        for p in &mut self.pio {
-            p.data_slots(f);
-        }
-        self.dma.data_slots(f);
-        for a in &mut self.adcs {
-            a.data_slots(f);
-        }
-        for d in &mut self.dacs {
-            d.data_slots(f);
-        }
+        Data::visit(self, None, f);
     }
 
     /// The machine as it is now, to go back to with [`Io::rewind`] (a window's undo,
@@ -585,7 +569,7 @@ impl Io {
     /// ([`Ads8688::set_code`]: its slots 0–7); `None` without that ADC or channel.
     pub(crate) fn adc_code_slot(&self, adc: usize, channel: usize) -> Option<usize> {
         (adc < self.adcs.len() && channel < 8)
-            .then(|| Self::ADC_SLOTS + adc * Ads8688::SLOTS + channel)
+            .then(|| Self::ADC_SLOTS + adc * Ads8688::WORDS + channel)
     }
 
     /// Appends `records` moved by `r`, their codes given by `codes` when some, as a run that
@@ -742,6 +726,42 @@ mod tests {
             k += 1;
         });
         assert_eq!(k, n as usize);
+    }
+
+    #[test]
+    fn each_data_word_has_its_own_lanes_of_its_width() {
+        // `replay_state!` pairs each data field with the lanes field of its name: a recording
+        // gives every slot its own bits as its lanes (none shared, none missing), as wide as
+        // the word; only the FIFOs' empty words are constants.
+        let mut io = io();
+        let n = io.start_lanes();
+        let at: Vec<Option<Slot>> = (0..n as usize).map(|i| io.locate(i)).collect();
+        let mut k = 0u32;
+        let mut widths = Vec::new();
+        io.data_slots(&mut |_, l| {
+            let l = l.expect("lanes while recording");
+            widths.push(l.len());
+            let fifo =
+                matches!(at[k as usize], Some(Slot::Pio(_, j)) if j >= 3 && (j - 3) % 20 >= 4);
+            for (b, x) in l.iter().enumerate() {
+                let want = match fifo {
+                    true => Lane::CONST,
+                    false => Lane::input(k, b as u32),
+                };
+                assert_eq!(*x, want, "slot {k} bit {b}");
+            }
+            k += 1;
+        });
+        assert_eq!(k, n);
+        for (i, w) in widths.iter().enumerate() {
+            let want = match at[i] {
+                Some(Slot::Adc(_, 0..=8)) | Some(Slot::Dac(_, 0..=15)) => 16,
+                Some(Slot::Adc(_, 10)) => 1,
+                _ => 32,
+            };
+            assert_eq!(*w, want, "slot {i}");
+        }
+        assert!(io.stop_lanes().is_some());
     }
 
     #[test]

@@ -40,7 +40,7 @@
 //! both blocks, skipping stretches in which every enabled state machine stalls without
 //! effect ([`Pio::quiet`], [`Pio::skip`]).
 
-use crate::lanes::{self, Fixed, Lane, Word, CONST};
+use crate::lanes::{self, Fixed, Word, CONST};
 use tactus_rp2040::pio::{reg, CLKDIV_RESET, EXECCTRL_RESET, PINCTRL_RESET, SHIFTCTRL_RESET};
 
 mod bitloop;
@@ -639,7 +639,7 @@ impl Pio {
             if let (Some(l), Some(st)) = (self.lanes.as_deref_mut(), self.sm[n].stalled) {
                 // Whether it is already there depends on those pins' levels.
                 let pins = st.side_values.0;
-                lanes::fix(&mut l.out, self.out_values, pins, &mut l.fixed);
+                lanes::fix(&mut l.out_values, self.out_values, pins, &mut l.fixed);
             }
             if self.fifo_stall(n) {
                 continue;
@@ -893,8 +893,8 @@ impl Pio {
                 {
                     let n = ((o - reg::SM0_CLKDIV) / reg::SM_STRIDE) as usize;
                     if (self.sm[n].shiftctrl ^ value) >> 30 != 0 {
-                        l.sm[n].tx = FifoLanes([CONST; 8]);
-                        l.sm[n].rx = FifoLanes([CONST; 8]);
+                        l.sm[n].tx = FifoLanes::CONST;
+                        l.sm[n].rx = FifoLanes::CONST;
                     }
                 }
                 _ => {}
@@ -978,10 +978,10 @@ impl Pio {
         self.out_dirs = set(set(self.out_dirs, fx.dirs), fx.side_dirs);
         if let Some(l) = self.lanes.as_deref_mut() {
             if fx.values.0 != 0 {
-                l.out = lanes::select(fx.values.0, &l.pend[n], &l.out);
+                l.out_values = lanes::select(fx.values.0, &l.pend[n], &l.out_values);
             }
             if fx.side_values.0 != 0 {
-                l.out = lanes::select(fx.side_values.0, &CONST, &l.out);
+                l.out_values = lanes::select(fx.side_values.0, &CONST, &l.out_values);
             }
         }
     }

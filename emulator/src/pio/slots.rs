@@ -1,9 +1,10 @@
 //! What a window's replay and the period memo need of a PIO block (`crate::io::slots`): its
 //! data words (the pins' levels, the input synchroniser, each state machine's X, Y, ISR, OSR
-//! and FIFO words) named in a fixed order ([`Pio::data_slots`]), the block compared and taken
-//! but for them (its `crate::replay::ReplayState`, each field's role declared once), and, while a replay is
-//! recorded, the lanes of each data bit (`crate::lanes`: [`PioLanes`]) that the execution
-//! (`exec.rs`) moves with the data and fixes where data decides something.
+//! and FIFO words) in a fixed order, the block compared and taken but for them (its
+//! `crate::replay::Data` and `ReplayState`, both from each field's role declared once), and,
+//! while a replay is recorded, the lanes of each data bit (`crate::lanes`: [`PioLanes`],
+//! each at its data field's name) that the execution (`exec.rs`) moves with the data and
+//! fixes where data decides something.
 
 use super::*;
 use crate::replay::replay_state;
@@ -11,22 +12,27 @@ use crate::replay::replay_state;
 /// The lanes of a [`Fifo`]'s words (`crate::lanes`), kept as its words are: pushed at the
 /// FIFO's length before the push, popped from the front.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub(super) struct FifoLanes(pub(super) [Word; 8]);
+pub(super) struct FifoLanes {
+    pub(super) words: [Word; 8],
+}
 
 impl FifoLanes {
     /// The lanes of the word pushed onto a FIFO of `len` words.
     pub(super) fn push(&mut self, len: usize, w: Word) {
-        if let Some(slot) = self.0.get_mut(len) {
+        if let Some(slot) = self.words.get_mut(len) {
             *slot = w;
         }
     }
     /// The lanes of the word popped from a FIFO that held one.
     pub(super) fn pop(&mut self) -> Word {
-        let w = self.0[0];
-        self.0.copy_within(1.., 0);
-        self.0[7] = CONST;
+        let w = self.words[0];
+        self.words.copy_within(1.., 0);
+        self.words[7] = CONST;
         w
     }
+
+    /// Every word constant (an empty FIFO's).
+    pub(super) const CONST: FifoLanes = FifoLanes { words: [CONST; 8] };
 }
 
 /// A state machine's lanes while a replay is recorded (`crate::lanes`).
@@ -47,7 +53,7 @@ pub(super) struct SmLanes {
 pub(crate) struct PioLanes {
     pub(super) sm: [SmLanes; 4],
     /// The state machines' output levels.
-    pub(crate) out: Word,
+    pub(crate) out_values: Word,
     pub(super) sync: [Word; 2],
     pub(super) seen: Word,
     /// The GPIO inputs of the coming [`Pio::tick`] (what the converters drive).
@@ -70,12 +76,12 @@ impl PioLanes {
             y: CONST,
             isr: CONST,
             osr: CONST,
-            tx: FifoLanes([CONST; 8]),
-            rx: FifoLanes([CONST; 8]),
+            tx: FifoLanes::CONST,
+            rx: FifoLanes::CONST,
         };
         PioLanes {
             sm: std::array::from_fn(|_| sm.clone()),
-            out: CONST,
+            out_values: CONST,
             sync: [CONST; 2],
             seen: CONST,
             gpio_in: CONST,
@@ -132,80 +138,31 @@ pub(super) fn map_lanes(base: u32, count: u32, w: &Word) -> Word {
     lanes::rotl(&lanes::and(w, mask), base)
 }
 
-// The replay's view of a block (`crate::replay::ReplayState`): every field given its role once.
-replay_state! { Fifo {
+// The replay's view of a block (`crate::replay::ReplayState`): every field given its role
+// once. Its data words (`crate::io::Io::data_slots`), in order: the pins' output levels, the
+// synchroniser's two flops, then per state machine X, Y, ISR, OSR and its TX and RX FIFOs'
+// eight words each.
+replay_state! { Fifo [given: FifoLanes, words] {
     same: len;
     data: words;
 } }
 
-replay_state! { StateMachine {
+replay_state! { StateMachine [given: SmLanes, words] {
     same: clkdiv, execctrl, shiftctrl, pinctrl, pc, isr_count, osr_count, delay, exec,
         current, acc, irq_waiting, stalled;
-    part: tx, rx;
     data: x, y, isr, osr;
+    part: tx, rx;
 } }
 
 // The lanes are left as they are (none outside a recording).
-replay_state! { Pio {
+replay_state! { Pio [kept in lanes: PioLanes, words] {
     same: instr, enabled, irq, sync_bypass, out_dirs, config_epoch;
+    data: out_values, sync;
     part: sm;
-    data: sync, out_values;
     skip: lanes;
 } }
 
 impl Pio {
-    /// Sets its `i`-th data word ([`Pio::data_slots`]' order, `i` below [`Pio::SLOTS`]).
-    #[inline]
-    pub(crate) fn set_slot(&mut self, i: usize, v: u32) {
-        if let Some(w) = self.slot_mut(i) {
-            *w = v;
-        }
-    }
-
-    /// Its `i`-th data word ([`Pio::data_slots`]' order; 0 past them).
-    #[inline]
-    pub(crate) fn slot(&self, i: usize) -> u32 {
-        match i {
-            0 => self.out_values,
-            1 | 2 => self.sync[i - 1],
-            _ => {
-                let Some(s) = self.sm.get((i - 3) / 20) else {
-                    return 0;
-                };
-                match (i - 3) % 20 {
-                    0 => s.x,
-                    1 => s.y,
-                    2 => s.isr,
-                    3 => s.osr,
-                    k @ 4..=11 => s.tx.words[k - 4],
-                    k => s.rx.words[k - 12],
-                }
-            }
-        }
-    }
-
-    #[inline]
-    pub(super) fn slot_mut(&mut self, i: usize) -> Option<&mut u32> {
-        match i {
-            0 => Some(&mut self.out_values),
-            1 | 2 => Some(&mut self.sync[i - 1]),
-            _ => {
-                let s = self.sm.get_mut((i - 3) / 20)?;
-                Some(match (i - 3) % 20 {
-                    0 => &mut s.x,
-                    1 => &mut s.y,
-                    2 => &mut s.isr,
-                    3 => &mut s.osr,
-                    k @ 4..=11 => &mut s.tx.words[k - 4],
-                    k => &mut s.rx.words[k - 12],
-                })
-            }
-        }
-    }
-
-    /// Its data words' number ([`Pio::data_slots`]).
-    pub(crate) const SLOTS: usize = 3 + 4 * 20;
-
     /// Mixes some of its control state (none of its data words) into `mix`: a cheap first
     /// test of two blocks' equality but for data (`crate::io::Io::quick_key`).
     pub(crate) fn quick_key(&self, mix: &mut impl FnMut(u64)) {
@@ -220,7 +177,7 @@ impl Pio {
     }
 
     /// Starts keeping lanes (`crate::lanes`), all constants (`crate::io::Io` gives its data
-    /// words theirs through [`Pio::data_slots`]).
+    /// words theirs through [`crate::replay::Data`]).
     pub(crate) fn start_lanes(&mut self) {
         self.lanes = Some(Box::new(PioLanes::new()));
     }
@@ -234,44 +191,8 @@ impl Pio {
         for (s, sl) in self.sm.iter().zip(&mut l.sm) {
             debug_assert!(s.tx.words[s.tx.len()..].iter().all(|&w| w == 0));
             debug_assert!(s.rx.words[s.rx.len()..].iter().all(|&w| w == 0));
-            sl.tx.0[s.tx.len()..].fill(CONST);
-            sl.rx.0[s.rx.len()..].fill(CONST);
-        }
-    }
-
-    /// Its data words in a fixed order, each with its lanes while they are kept (`crate::io::Io::data_slots`):
-    /// the pins' output levels, the synchroniser's two flops, then per state machine X, Y,
-    /// ISR, OSR and its TX and RX FIFOs' eight words each.
-    pub(crate) fn data_slots(&mut self, f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>)) {
-        let mut l = self.lanes.as_deref_mut();
-        f(
-            &mut self.out_values,
-            l.as_deref_mut().map(|l| &mut l.out[..]),
-        );
-        for k in 0..2 {
-            f(
-                &mut self.sync[k],
-                l.as_deref_mut().map(|l| &mut l.sync[k][..]),
-            );
-        }
-        for (n, s) in self.sm.iter_mut().enumerate() {
-            let mut sl = l.as_deref_mut().map(|l| &mut l.sm[n]);
-            f(&mut s.x, sl.as_deref_mut().map(|l| &mut l.x[..]));
-            f(&mut s.y, sl.as_deref_mut().map(|l| &mut l.y[..]));
-            f(&mut s.isr, sl.as_deref_mut().map(|l| &mut l.isr[..]));
-            f(&mut s.osr, sl.as_deref_mut().map(|l| &mut l.osr[..]));
-            for i in 0..8 {
-                f(
-                    &mut s.tx.words[i],
-                    sl.as_deref_mut().map(|l| &mut l.tx.0[i][..]),
-                );
-            }
-            for i in 0..8 {
-                f(
-                    &mut s.rx.words[i],
-                    sl.as_deref_mut().map(|l| &mut l.rx.0[i][..]),
-                );
-            }
+            sl.tx.words[s.tx.len()..].fill(CONST);
+            sl.rx.words[s.rx.len()..].fill(CONST);
         }
     }
 }
