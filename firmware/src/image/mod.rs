@@ -108,6 +108,7 @@ mod flash_image;
 pub mod glue;
 pub mod io;
 mod layout;
+pub mod reboot;
 mod rest;
 mod run;
 mod sample;
@@ -801,6 +802,8 @@ pub struct FirmwareImage {
     pub(crate) io: Option<io::IoPlan>,
     /// Per core: the turns of its sensor checks ([`glue::Turns`]).
     pub(crate) turns: Vec<glue::Turns>,
+    /// The RAM image's re-entry after a watchdog reset, or why it has none ([`reboot`]).
+    pub(crate) reentry: Result<reboot::Reboot, String>,
 }
 
 /// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
@@ -896,7 +899,8 @@ impl FirmwareImage {
             .map(Program::update_wcet)
             .collect::<Result<_, _>>()?;
 
-        let mut segments = vec![(boot::ENTRY, boot::entry_stub(cc[0].start)?)];
+        // The entry stub first: made last, once the re-entry is known (`reboot`).
+        let mut segments = vec![(boot::ENTRY, Vec::new())];
         let mut places: Vec<CorePlace> = Vec::with_capacity(cores);
         let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
         let mut wcet = Vec::with_capacity(cores);
@@ -990,6 +994,26 @@ impl FirmwareImage {
                 segments.push((io::io_base(c), io.io_block(c)));
             }
         }
+        // A RAM image's way back after a watchdog reset: its data's pristine copies.
+        let data: Vec<(u32, &[u8])> = (segments.iter())
+            .filter(|(at, _)| {
+                places.iter().any(|p| p.ctrl == *at)
+                    || (0..cores).any(|c| l.io.is_some() && io::io_base(c) == *at)
+            })
+            .map(|(at, d)| (*at, d.as_slice()))
+            .collect();
+        let reentry = match l.watchdog {
+            true => reboot::plan(&data)?,
+            false => Err("the image runs no watchdog".into()),
+        };
+        if let Ok(r) = &reentry {
+            segments.extend(r.segments.iter().cloned());
+        }
+        let ram_source = match reentry {
+            Ok(_) => tactus_rp2040::watchdog::BOOT_MAGIC,
+            Err(_) => fault::NON_REBOOT_MAGIC,
+        };
+        segments[0].1 = boot::entry_stub(cc[0].start, ram_source)?;
         let keys = key_places
             .into_iter()
             .enumerate()
@@ -1015,6 +1039,7 @@ impl FirmwareImage {
             boot,
             io: l.io,
             turns,
+            reentry,
         })
     }
 
@@ -1059,6 +1084,14 @@ impl FirmwareImage {
             cycles: one.saturating_sub(none).max(second),
             window_words: (program.sensor_words() + drives) as u64,
         })
+    }
+
+    /// The RAM image's re-entry after a watchdog reset ([`reboot`]: the boot ROM's watchdog
+    /// entry restores its data from pristine copies and boots it again), or why it has
+    /// none (no watchdog, no room for the copies): then a watchdog reset leaves a RAM
+    /// image in USB boot. A flash image boots from flash again either way.
+    pub fn ram_reboot(&self) -> Result<&reboot::Reboot, &str> {
+        self.reentry.as_ref().map_err(String::as_str)
     }
 
     /// Whether the image can run on a chip, not only in the emulator: `Err` naming the
