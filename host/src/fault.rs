@@ -369,7 +369,8 @@ pub struct BoardFaults {
     pub slots: Vec<(usize, u8)>,
     /// The resets the board met (the watchdog's, a brown-out), each at its sample: a reset
     /// board's motors are at zero force from the reset until its firmware runs again, or
-    /// from then on when it does not boot again (a RAM image, which `play` runs).
+    /// from then on when it does not boot again (a RAM image, which `play` runs, after a
+    /// brown-out: SRAM lost, the boot ROM in USB boot).
     pub resets: Vec<tactus_firmware::image::ResetRecord>,
 }
 

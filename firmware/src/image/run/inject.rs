@@ -22,9 +22,13 @@
 //! gives zero-force samples for the samples that took (the DACs are cleared at the reset,
 //! `tactus_emulator::converters::Dac8568`'s CLR; without converters the host reads zero
 //! from the reset until the firmware's handler runs again); the board's clock then runs
-//! behind the host's by less than a sample. A board that cannot boot again (no watchdog
-//! entry for a RAM image, a brown-out of a RAM image: USB boot) gives zero forces from
-//! then on and says why ([`ImageRun::resets`]).
+//! behind the host's by less than a sample. A RAM image boots again through the boot ROM's
+//! watchdog entry (`super::super::reboot`), a flash image from flash. A board that cannot
+//! boot again (a brown-out of a RAM image, or a RAM image without a re-entry: USB boot)
+//! gives zero forces from then on and says why ([`ImageRun::resets`]). A fault that starts
+//! or ends in the samples of zero force while a board boots again takes effect at the
+//! first sample of the new boot, before its firmware runs it (a hang that clears there
+//! lets the new boot play).
 
 use super::*;
 use tactus_runtime::converters::AdcScale;
