@@ -112,7 +112,7 @@ pub fn plan(data: &[(u32, &[u8])]) -> Result<Result<Reboot, String>, ImageError>
     let mut restores = Vec::with_capacity(data.len());
     for &(to, d) in data {
         let len = d.len() as u32;
-        if len % 4 != 0 {
+        if !len.is_multiple_of(4) {
             return Ok(Err(format!(
                 "the data segment at {to:#010x} is {len} bytes, not whole words"
             )));
