@@ -994,26 +994,11 @@ impl FirmwareImage {
                 segments.push((io::io_base(c), io.io_block(c)));
             }
         }
-        // A RAM image's way back after a watchdog reset: its data's pristine copies.
-        let data: Vec<(u32, &[u8])> = (segments.iter())
-            .filter(|(at, _)| {
-                places.iter().any(|p| p.ctrl == *at)
-                    || (0..cores).any(|c| l.io.is_some() && io::io_base(c) == *at)
-            })
-            .map(|(at, d)| (*at, d.as_slice()))
+        // A RAM image's way back after a watchdog reset, and the entry stub.
+        let data_at: Vec<u32> = (places.iter().map(|p| p.ctrl))
+            .chain((0..cores).filter(|_| l.io.is_some()).map(io::io_base))
             .collect();
-        let reentry = match l.watchdog {
-            true => reboot::plan(&data)?,
-            false => Err("the image runs no watchdog".into()),
-        };
-        if let Ok(r) = &reentry {
-            segments.extend(r.segments.iter().cloned());
-        }
-        let ram_source = match reentry {
-            Ok(_) => tactus_rp2040::watchdog::BOOT_MAGIC,
-            Err(_) => fault::NON_REBOOT_MAGIC,
-        };
-        segments[0].1 = boot::entry_stub(cc[0].start, ram_source)?;
+        let reentry = reboot::finish(&mut segments, &data_at, l.watchdog, cc[0].start)?;
         let keys = key_places
             .into_iter()
             .enumerate()
@@ -1084,14 +1069,6 @@ impl FirmwareImage {
             cycles: one.saturating_sub(none).max(second),
             window_words: (program.sensor_words() + drives) as u64,
         })
-    }
-
-    /// The RAM image's re-entry after a watchdog reset ([`reboot`]: the boot ROM's watchdog
-    /// entry restores its data from pristine copies and boots it again), or why it has
-    /// none (no watchdog, no room for the copies): then a watchdog reset leaves a RAM
-    /// image in USB boot. A flash image boots from flash again either way.
-    pub fn ram_reboot(&self) -> Result<&reboot::Reboot, &str> {
-        self.reentry.as_ref().map_err(String::as_str)
     }
 
     /// Whether the image can run on a chip, not only in the emulator: `Err` naming the

@@ -48,7 +48,7 @@
 
 use super::boot::{self, copy_pieces};
 use super::fault::NON_REBOOT_MAGIC;
-use super::ImageError;
+use super::{FirmwareImage, ImageError};
 use tactus_compiler::thumb::buffer::{CodeBuffer, LongBranch};
 use tactus_isa::decode::Instr;
 use tactus_rp2040::memory::SRAM_ALIAS_BASE;
@@ -92,6 +92,52 @@ impl Reboot {
     pub fn bytes(&self) -> u32 {
         self.segments.iter().map(|s| s.1.len() as u32).sum()
     }
+}
+
+impl FirmwareImage {
+    /// The RAM image's re-entry after a watchdog reset (module documentation: the boot
+    /// ROM's watchdog entry restores its data from pristine copies and boots it again), or
+    /// why it has none (no watchdog, no room for the copies): then a watchdog reset leaves
+    /// a RAM image in USB boot. A flash image boots from flash again either way.
+    pub fn ram_reboot(&self) -> Result<&Reboot, &str> {
+        self.reentry.as_ref().map_err(String::as_str)
+    }
+}
+
+/// The last step of an image's build: with the watchdog on, the re-entry restoring the
+/// data segments at `data_at` ([`plan`]) added to `segments`; then the entry stub, first of
+/// `segments` (core 0's vector table at `vectors`), made for it ([`super::boot::entry_stub`]:
+/// a RAM image's boot arms the boot ROM's entry only when there is a re-entry). Returns the
+/// re-entry, or why there is none.
+///
+/// Errors: [`ImageError::Assemble`].
+pub(super) fn finish(
+    segments: &mut Vec<(u32, Vec<u8>)>,
+    data_at: &[u32],
+    watchdog: bool,
+    vectors: u32,
+) -> Result<Result<Reboot, String>, ImageError> {
+    let data: Vec<(u32, &[u8])> = (segments.iter())
+        .filter(|(at, _)| data_at.contains(at))
+        .map(|(at, d)| (*at, d.as_slice()))
+        .collect();
+    let reentry = match watchdog {
+        true => plan(&data)?,
+        false => Err("the image runs no watchdog".into()),
+    };
+    let ram_source = match &reentry {
+        Ok(r) => {
+            segments.extend(r.segments.iter().cloned());
+            tactus_rp2040::watchdog::BOOT_MAGIC
+        }
+        Err(_) => NON_REBOOT_MAGIC,
+    };
+    let stub = boot::entry_stub(vectors, ram_source)?;
+    match segments.first_mut() {
+        Some(first) if first.0 == boot::ENTRY => first.1 = stub,
+        _ => segments.insert(0, (boot::ENTRY, stub)),
+    }
+    Ok(reentry)
 }
 
 /// The re-entry restoring `data` (the image's data segments: each core's control block,
