@@ -128,9 +128,10 @@ pub struct PlayArgs {
     pub sensor_check: Option<bool>,
     /// With `--engine emu`: the RP2040's watchdog (datasheet 4.7) `on` or `off` on every
     /// board: fed by core 0 only when both cores finished their sample, so a core caught
-    /// in a loop resets the board (its motors at zero force from the reset on: play runs
-    /// RAM images, which do not boot again; a board's flash image boots again and leaves a
-    /// `watchdog` fault word, `tactus emu run`); the boards planned and priced with its feed
+    /// in a loop resets the board (its motors at zero force until it boots again: play
+    /// runs RAM images, which the boot ROM enters again with their data restored, a board's
+    /// flash image boots from flash again, `tactus emu run`; both leave a `watchdog` fault
+    /// word; a brown-out leaves a RAM image in USB boot); the boards planned and priced with its feed
     /// [default: the firmware's own]. Each reset is printed with the fault report (the
     /// kind, the time, the board); with no `--fault`, a reset is a false alarm: exit 1.
     /// docs/faults.md.

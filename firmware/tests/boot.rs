@@ -118,10 +118,10 @@ fn a_flash_image_boots_through_boot2_and_runs_as_the_ram_image() {
     let img = image(&b);
     let flash = img.flash_image().unwrap();
     assert_eq!(&flash.bytes[..BOOT2_SIZE], &boot2::bytes().unwrap()[..]);
-    // Up to the RAM image's entry stub: boot2, then the copy.
+    // Up to the RAM image's entry stub (its entry from flash): boot2, then the copy.
     let mut board = flash_board(&flash.bytes);
     board.boot_from_flash().unwrap();
-    while board.cores[0].r[15] != tactus_firmware::image::boot::ENTRY {
+    while board.cores[0].r[15] != tactus_firmware::image::boot::ENTRY_FROM_FLASH {
         assert_eq!(board.step(u64::MAX).unwrap(), Ok(0));
         assert!(board.cycle() < 5_000_000, "no entry stub");
     }
@@ -227,7 +227,7 @@ fn boot2_sets_qe_once() {
         // Until boot2 enters the image (its flash reset handler), then until the copy is
         // done (the RAM image's entry stub).
         let mut boot2 = None;
-        while board.cores[0].r[15] != tactus_firmware::image::boot::ENTRY {
+        while board.cores[0].r[15] != tactus_firmware::image::boot::ENTRY_FROM_FLASH {
             assert_eq!(board.step(u64::MAX).unwrap(), Ok(0));
             assert!(board.cycle() - start < 10_000_000, "boot2 does not finish");
             if board.cores[0].r[15] == flash.reset && boot2.is_none() {

@@ -169,6 +169,7 @@ fn converters_carry_the_same_positions_in_and_codes_out() {
     // of core 1's count from core 1's bank, which either core may wait for).
     let feed = tactus_firmware::image::glue::Feed {
         other_samples: Some(0),
+        entry: None,
     };
     for (c, n) in [(0u64, 3u64), (1, 2)] {
         let w = with.wcet(c as usize).unwrap();

@@ -193,3 +193,181 @@ fn a_brown_out_zeroes_the_motors_and_the_board_plays_again() {
         assert!(!fault(&mut r, &image, 0).tripped(), "{board}");
     }
 }
+
+/// `samples` samples of the keys held at mid-travel from a RAM image (as `tactus play`
+/// runs it), key `hung`'s update hung from sample `from` until `until`; every sample and
+/// the run.
+fn run_ram(
+    image: &FirmwareImage,
+    engine: Engine,
+    hung: Option<(usize, Option<u64>)>,
+    from: u64,
+    samples: usize,
+) -> (Vec<SampleOut>, ImageRun) {
+    let mut r = image.run().unwrap();
+    r.board().config.engine = engine;
+    r.set_rest_replay(engine != Engine::LockStep).unwrap();
+    if let Some((k, until)) = hung {
+        r.inject(Injection {
+            kind: image::FaultKind::Hang,
+            key: Some(k),
+            core: None,
+            from,
+            until,
+        })
+        .unwrap();
+    }
+    let p = &image.programs()[0];
+    let (lo, hi) = p.fixed.sensor_raw_range[0];
+    let words = vec![lo + (hi - lo) / 2; 3];
+    let out = (0..samples)
+        .map(|_| r.step(&words).unwrap().clone())
+        .collect();
+    (out, r)
+}
+
+/// A RAM image (no flash to boot from) with a hung update: the watchdog resets the board,
+/// the boot ROM enters the image's re-entry (`image/reboot.rs`), which restores its data,
+/// and the board plays again as a fresh board from its first sample, the watchdog's trip
+/// counted. The hang lasts until the reboot (the injected hang is in the code, which the
+/// re-entry does not restore: a hang that outlived the reset would hang the new boot too).
+fn ram_image_boots_again(board: &str, key: usize) {
+    let image = image(board, true);
+    let reboot = image.ram_reboot().expect("a re-entry");
+    assert_eq!(
+        reboot.restores.len(),
+        if board == "rp2040_io" { 4 } else { 2 }
+    );
+    let (from, n) = (100u64, 220usize);
+    // Where the reset falls, and the boot after it, with the hang for good: the boot ROM
+    // enters the image again, the hung code hangs it again, and the watchdog resets it
+    // again, each reset counted.
+    let (_, mut r) = run_ram(&image, Engine::LockStep, Some((key, None)), from, n);
+    let resets = r.resets().to_vec();
+    assert!(resets.len() >= 2, "{board}: {resets:?}");
+    assert!(
+        resets.iter().all(|x| x.reboot.is_ok()),
+        "{board}: {resets:?}"
+    );
+    let f = fault(&mut r, &image, 0);
+    assert_eq!(
+        (f.kind, f.trips as usize),
+        (Some(FaultKind::Watchdog), resets.len()),
+        "{board}: {f:?}"
+    );
+    // The hang cleared in the reboot's samples of zero force.
+    let until = resets[0].sample + 1;
+    let (out, mut r) = run_ram(&image, Engine::LockStep, Some((key, Some(until))), from, n);
+    let (fresh, _) = run_ram(&image, Engine::LockStep, None, from, n);
+    let resets = r.resets().to_vec();
+    assert_eq!(resets.len(), 1, "{board}: {resets:?}");
+    let reset = &resets[0];
+    assert_eq!(reset.why, "watchdog timer");
+    let zero = *reset.reboot.as_ref().expect("the RAM image boots again");
+    let (at, back) = (reset.sample as usize, (reset.sample + zero) as usize);
+    assert!(
+        until as usize <= back && back + 60 < n,
+        "{board}: {reset:?}"
+    );
+    // Zero force from the reset's sample through the boot's (the reset's own sample and
+    // `zero` more), then the first sample of the new boot.
+    let first = back + 1;
+    for (i, s) in out.iter().enumerate() {
+        if i < from as usize {
+            assert_eq!(s, &fresh[i], "{board} sample {i}: before the hang");
+        } else if (at..first).contains(&i) {
+            assert!(
+                s.dac.iter().all(|&d| d == 0),
+                "{board} sample {i}: rebooting"
+            );
+        }
+    }
+    assert!(
+        out[first].dac.iter().all(|&d| d != 0),
+        "{board}: plays again"
+    );
+    // Playing again from rest as a fresh board plays from its first sample: the same
+    // forces, currents, DAC codes and misses, sample for sample. But on the converter
+    // board, whose fresh first sample reads the ADC's power-on code 0 (its first burst is
+    // the start handler's, before the host sets a code: docs/firmware.md, "Faults"), the
+    // rebooted board's ADC keeps the held key's code through the reset (the converters
+    // are other chips): its first sample is the fresh board's second.
+    for j in 0..n - first {
+        let (a, mut b) = (&out[first + j], &fresh[j]);
+        if board == "rp2040_io" && j == 0 {
+            assert_ne!(fresh[0].force, fresh[1].force, "{board}: the power-on code");
+            b = &fresh[1];
+        }
+        assert_eq!(
+            (&a.force, &a.current_ua, &a.dac, &a.misses),
+            (&b.force, &b.current_ua, &b.dac, &b.misses),
+            "{board}: sample {j} after the reboot"
+        );
+    }
+    // The watchdog's trip counted over the record the scratch registers kept.
+    let f = fault(&mut r, &image, 0);
+    assert_eq!(
+        (f.kind, f.key, f.trips, f.at_sample),
+        (Some(FaultKind::Watchdog), NO_KEY, 1, 0),
+        "{board}: {f:?}"
+    );
+    assert!(!fault(&mut r, &image, 1).tripped(), "{board}");
+    // Armed again for the next reset: SCRATCH4 the boot ROM's magic, SCRATCH7 the entry.
+    let wd = &r.board().system.watchdog;
+    assert_eq!(
+        wd.scratch(4),
+        tactus_rp2040::watchdog::BOOT_MAGIC,
+        "{board}"
+    );
+    assert_eq!(wd.scratch(7), image::reboot::REENTRY | 1, "{board}");
+    // The engines agree through the hang, the reset, the re-entry and the reboot.
+    let (fast, _) = run_ram(&image, Engine::Block, Some((key, Some(until))), from, n);
+    for (i, (a, b)) in out.iter().zip(&fast).enumerate() {
+        assert_eq!(a, b, "{board} sample {i}: lock-step vs block engine");
+    }
+}
+
+#[test]
+fn a_hung_ram_image_boots_again_through_the_boot_rom_on_a_plain_board() {
+    ram_image_boots_again("rp2040", 0);
+}
+
+#[test]
+fn a_hung_ram_image_boots_again_through_the_boot_rom_on_a_converter_board() {
+    ram_image_boots_again("rp2040_io", 2);
+}
+
+/// A brown-out clears SRAM: a RAM image is gone with it and the boot ROM finds no flash
+/// image, so the board stays in USB boot, its motors at zero force for the rest of the run,
+/// and the run says so (not a hang, not a board that seems to play).
+#[test]
+fn a_browned_out_ram_image_stays_in_usb_boot_and_says_so() {
+    for board in ["rp2040", "rp2040_io"] {
+        let image = image(board, true);
+        let mut r = image.run().unwrap();
+        r.inject(Injection {
+            kind: image::FaultKind::BrownOut,
+            key: None,
+            core: None,
+            from: 50,
+            until: None,
+        })
+        .unwrap();
+        let p = &image.programs()[0];
+        let (lo, hi) = p.fixed.sensor_raw_range[0];
+        let words = vec![lo + (hi - lo) / 2; 3];
+        let out: Vec<SampleOut> = (0..150).map(|_| r.step(&words).unwrap().clone()).collect();
+        assert!(out[49].dac.iter().all(|&d| d != 0), "{board}: played");
+        for (i, s) in out.iter().enumerate().skip(50) {
+            assert!(s.dac.iter().all(|&d| d == 0), "{board} sample {i}");
+        }
+        let resets = r.resets().to_vec();
+        assert_eq!(resets.len(), 1, "{board}: {resets:?}");
+        assert_eq!(resets[0].why, "brown-out");
+        let why = resets[0].reboot.as_ref().expect_err("no image to boot");
+        assert!(
+            why.contains("USB boot") && why.contains("brown-out clears SRAM"),
+            "{board}: {why}"
+        );
+    }
+}

@@ -369,7 +369,8 @@ pub struct BoardFaults {
     pub slots: Vec<(usize, u8)>,
     /// The resets the board met (the watchdog's, a brown-out), each at its sample: a reset
     /// board's motors are at zero force from the reset until its firmware runs again, or
-    /// from then on when it does not boot again (a RAM image, which `play` runs).
+    /// from then on when it does not boot again (a RAM image, which `play` runs, after a
+    /// brown-out: SRAM lost, the boot ROM in USB boot).
     pub resets: Vec<tactus_firmware::image::ResetRecord>,
 }
 
@@ -561,13 +562,19 @@ impl FaultSpec {
 /// The fault records of a board's run now: per core of its image, the fault word and time
 /// at its control block's record (`tactus_firmware::image::glue::ctrl::fault_record`),
 /// read from the emulated SRAM ([`read_records`]). What `play`, `emu run` and `corpus
-/// trips` report.
+/// trips` report. A board that a brown-out left without firmware (a RAM image: SRAM lost,
+/// the boot ROM in USB boot) has no record: SRAM holds the power-on pattern there, and the
+/// scratch registers were cleared with it; its cores report none (the reset's line says
+/// why).
 ///
 /// Errors: a record the board cannot read, naming the core.
 pub fn run_records(
     run: &mut tactus_firmware::image::ImageRun,
 ) -> Result<Vec<tactus_firmware::image::fault::FaultWord>, String> {
     let image = run.image();
+    if (run.resets().last()).is_some_and(|r| r.why == "brown-out" && r.reboot.is_err()) {
+        return Ok(decode(&vec![[0, 0]; image.cores()]));
+    }
     let addrs: Vec<u32> = (0..image.cores())
         .filter_map(|c| {
             (image.core_addresses(c))

@@ -142,9 +142,11 @@ pub struct FingerRange {
 }
 
 /// What `play` says after a board that did not boot again after a reset.
-const RAM_RESET: &str = "(play runs each board's RAM image, which the boot ROM does not start \
-     again after a reset: the board stays at zero force to the end of the run; the flash \
-     image `tactus build` writes boots again: `tactus emu run`)";
+const RAM_RESET: &str = "(play runs each board's RAM image: after a watchdog reset the boot \
+     ROM enters it again, its data restored, but a brown-out clears SRAM and the image with \
+     it, and the boot ROM then waits in USB boot: the board stays at zero force to the end \
+     of the run; the flash image `tactus build` writes boots from flash again: `tactus emu \
+     run`)";
 
 impl Piece {
     /// What to print of the boards' budget over the run ([`budget_text`], or a line saying

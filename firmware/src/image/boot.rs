@@ -12,8 +12,12 @@
 //! reset handler through it with the table's stack pointer.
 //!
 //! From flash, the boot ROM enters boot2 instead (`super::boot2`), which enters the flash
-//! image's reset handler, which copies the image to SRAM and jumps to the same entry stub
-//! (`super::flash_image`): from the stub on, both boots are the same.
+//! image's reset handler, which copies the image to SRAM and jumps to the entry stub's
+//! second entry, [`ENTRY_FROM_FLASH`] (`super::flash_image`): from the stub on, both boots
+//! are the same but for the one word the stub writes first, [`BOOT_SOURCE`]: the value core
+//! 0's start handler gives SCRATCH4 when it enables the watchdog (`super::reboot`: a RAM
+//! image arms the boot ROM's watchdog entry into its re-entry, a flash image boots from
+//! flash again).
 //!
 //! **Clocks** ([`clock_set_up`]): the 12 MHz crystal (XOSC, datasheet 2.16), clk_ref on it;
 //! where the board file gives a core voltage, VREG set to it and 1 ms (12,000 crystal
@@ -49,10 +53,24 @@ use tactus_rp2040::{ATOMIC_CLR as CLR, ATOMIC_SET as SET};
 
 /// Where the boot ROM enters a RAM image: its lowest address (the entry stub's).
 pub const ENTRY: u32 = 0x2000_0000;
-/// Bytes reserved for the entry stub at the start of each bank: the stub's 24 bytes at
+/// The entry stub's second entry, where the flash image's reset handler enters it
+/// ([`entry_stub`]).
+pub const ENTRY_FROM_FLASH: u32 = ENTRY + 4;
+/// Bytes reserved for the entry stub at the start of each bank: the stub's 44 bytes at
 /// the striped [`ENTRY`] fill the first words of all four banks, and core 0's vector
 /// table, 256-aligned for VTOR, starts after them.
 pub const ENTRY_RESERVE: u32 = 0x100;
+/// Bytes of the entry stub's code; its literal pool follows.
+pub const ENTRY_STUB_CODE: u32 = 24;
+/// The word the entry stub writes on every boot (in no segment of the image: bank 2's
+/// first 256-byte page past the stub's words, which holds nothing else): the value core
+/// 0's start handler writes to SCRATCH4 when it enables the watchdog
+/// (`super::glue::Feed::entry`). From [`ENTRY`] (a RAM image's boot) the image's choice,
+/// [`tactus_rp2040::watchdog::BOOT_MAGIC`] when it can boot again through the boot ROM's
+/// watchdog entry (`super::reboot`), else [`super::fault::NON_REBOOT_MAGIC`]; from
+/// [`ENTRY_FROM_FLASH`] always [`super::fault::NON_REBOOT_MAGIC`] (a flash image boots
+/// from flash again after a reset, boot2 copying a clean image).
+pub const BOOT_SOURCE: u32 = tactus_rp2040::memory::SRAM_ALIAS_BASE + 0x2_0000 + ENTRY_RESERVE;
 /// The M0+'s VTOR (ARMv6-M B3.2.5; RP2040 datasheet 2.4.8).
 const VTOR: u32 = 0xe000_ed08;
 
@@ -92,13 +110,24 @@ impl Boot {
     }
 }
 
-/// The entry stub at [`ENTRY`]: VTOR = `vectors` (core 0's table), SP = its word 0, jump
-/// to its word 1. Returns the assembled bytes.
+/// The entry stub at [`ENTRY`]: [`BOOT_SOURCE`] = `ram_source` (entered at [`ENTRY`], a
+/// RAM image's boot) or [`super::fault::NON_REBOOT_MAGIC`] (entered at
+/// [`ENTRY_FROM_FLASH`]), then VTOR = `vectors` (core 0's table), SP = its word 0, jump to
+/// its word 1. Returns the assembled bytes: [`ENTRY_STUB_CODE`] bytes of code, then its
+/// literal pool.
 ///
 /// Errors: [`ImageError::Assemble`].
-pub fn entry_stub(vectors: u32) -> Result<Vec<u8>, ImageError> {
+pub fn entry_stub(vectors: u32, ram_source: u32) -> Result<Vec<u8>, ImageError> {
     let mut a = CodeBuffer::new(LongBranch::Refuse);
+    let (from_flash, common) = (a.label(), a.label());
+    a.ldr_const(3, ram_source);
+    a.b(common);
+    a.bind(from_flash);
+    a.ldr_const(3, super::fault::NON_REBOOT_MAGIC);
+    a.bind(common);
     a.ldr_const(0, vectors);
+    a.ldr_const(1, BOOT_SOURCE);
+    a.i(asm::str(3, 1, 0));
     a.ldr_const(1, VTOR);
     a.i(asm::str(0, 1, 0));
     a.i(asm::ldr(1, 0, 0));
@@ -106,7 +135,15 @@ pub fn entry_stub(vectors: u32) -> Result<Vec<u8>, ImageError> {
     a.i(Instr::MovHi { rd: 13, rm: 1 });
     a.i(Instr::Bx { rm: 2 });
     a.pool();
-    let bytes = a.finish_code(ENTRY)?.text;
+    let out = a.finish_code(ENTRY)?;
+    if out.labels[from_flash.index()] != ENTRY_FROM_FLASH
+        || out.data.first().map(|d| d.0 as u32) != Some(ENTRY_STUB_CODE)
+    {
+        return Err(ImageError::Assemble(
+            "the entry stub's flash entry or literal pool moved".into(),
+        ));
+    }
+    let bytes = out.text;
     if bytes.len() as u32 > ENTRY_RESERVE / 4 {
         return Err(ImageError::Assemble(format!(
             "the entry stub takes {} bytes, more than the {} its banks reserve",
@@ -115,6 +152,40 @@ pub fn entry_stub(vectors: u32) -> Result<Vec<u8>, ImageError> {
         )));
     }
     Ok(bytes)
+}
+
+/// Copies the pieces of a copy table from `table` to `end` (three words a piece: the
+/// address of its bytes, the address they go to, and that address's end; both word
+/// aligned), word by word (`LDM`/`STM`), in table order: the flash image's copy of itself
+/// to SRAM (`super::flash_image`) and a RAM image's restore of its data after a watchdog
+/// reset (`super::reboot`). Clobbers r0-r5.
+pub fn copy_pieces(a: &mut CodeBuffer, table: u32, end: u32) {
+    let (next, word, test, done) = (a.label(), a.label(), a.label(), a.label());
+    a.ldr_const(0, table);
+    a.ldr_const(3, end);
+    a.bind(next);
+    a.i(asm::cmp(0, 3));
+    a.bc(cond::EQ, done);
+    // r1 = the piece's bytes, r2 = where they go, r4 = its end.
+    a.i(Instr::Ldm {
+        rn: 0,
+        list: 0b1_0110,
+    });
+    a.b(test);
+    a.bind(word);
+    a.i(Instr::Ldm {
+        rn: 1,
+        list: 0b10_0000,
+    });
+    a.i(Instr::Stm {
+        rn: 2,
+        list: 0b10_0000,
+    });
+    a.bind(test);
+    a.i(asm::cmp(2, 4));
+    a.bc(cond::NE, word);
+    a.b(next);
+    a.bind(done);
 }
 
 /// `[addr] = value` (clobbers r0, r1).

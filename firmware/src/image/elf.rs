@@ -51,22 +51,32 @@ struct Piece<'a> {
     code: bool,
 }
 
-/// The RAM image's sections, in segment order: the stub, then per core its code and data.
+/// The RAM image's sections, in segment order: the stub, per core its code and data, per
+/// core its I/O block (a converter board), then the re-entry's code and copies
+/// (`super::reboot`).
 fn ram_pieces(image: &FirmwareImage) -> Vec<Piece<'_>> {
+    let cores = image.cores.len();
+    let io = if image.io.is_some() { cores } else { 0 };
     image
         .segments
         .iter()
         .enumerate()
-        .map(|(i, (addr, data))| Piece {
-            name: match i {
-                0 => ".entry".to_string(),
-                i if i % 2 == 1 => format!(".core{}.text", (i - 1) / 2),
-                i => format!(".core{}.data", (i - 1) / 2),
-            },
-            vaddr: *addr,
-            paddr: *addr,
-            data,
-            code: i == 0 || i % 2 == 1,
+        .map(|(i, (addr, data))| {
+            let (name, code) = match i {
+                0 => (".entry".to_string(), true),
+                i if i <= 2 * cores && i % 2 == 1 => (format!(".core{}.text", (i - 1) / 2), true),
+                i if i <= 2 * cores => (format!(".core{}.data", (i - 1) / 2), false),
+                i if i <= 2 * cores + io => (format!(".core{}.io", i - 1 - 2 * cores), false),
+                i if i == 2 * cores + io + 1 => (".reboot".to_string(), true),
+                _ => (".reboot.copies".to_string(), false),
+            };
+            Piece {
+                name,
+                vaddr: *addr,
+                paddr: *addr,
+                data,
+                code,
+            }
         })
         .collect()
 }
@@ -291,12 +301,16 @@ impl FirmwareImage {
             local: false,
         };
         locals.push(map("$t", boot::ENTRY));
-        if let Some((_, stub)) = self.segments.first() {
-            // The stub's literal pool: its last two words.
-            let pool = boot::ENTRY + (stub.len() as u32).saturating_sub(8);
-            locals.push(map("$d", pool));
-        }
+        // The stub's literal pool after its code.
+        locals.push(map("$d", boot::ENTRY + boot::ENTRY_STUB_CODE));
         globals.push(func("_entry_point".into(), boot::ENTRY, 0));
+        globals.push(func("_entry_from_flash".into(), boot::ENTRY_FROM_FLASH, 0));
+        if let Ok(r) = &self.reentry {
+            // The re-entry's code, then its pool, table and copies (`super::reboot`).
+            locals.push(map("$t", super::reboot::REENTRY));
+            locals.push(map("$d", r.pool));
+            globals.push(func("_reentry".into(), super::reboot::REENTRY, 0));
+        }
         for (c, place) in self.cores.iter().enumerate() {
             locals.push(map("$d", place.vtor));
             locals.push(map("$t", place.vtor + VECTORS));

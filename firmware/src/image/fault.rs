@@ -20,29 +20,35 @@
 //! **The fault time** is the core's sample count ([`super::glue::ctrl::SAMPLES`]) at the
 //! last trip: samples since the sample loop started, after the last reset.
 //!
-//! **Across a watchdog reset.** SRAM is reloaded at boot, so every trip also writes the
-//! core's pair to the watchdog's scratch registers (datasheet 4.7: SCRATCH0–7 keep their
-//! values through a watchdog reset, a power-on or brown-out reset clears them): core *c*'s
-//! fault word to SCRATCH(2*c*), its time to SCRATCH(2*c* + 1) ([`scratch`]; SCRATCH4–7 are
-//! the boot ROM's).
+//! **Across a watchdog reset.** SRAM is reloaded (from flash) or restored (a RAM image's
+//! re-entry, [`super::reboot`]) at boot, so every trip also writes the core's pair to the
+//! watchdog's scratch registers (datasheet 4.7: SCRATCH0–7 keep their values through a
+//! watchdog reset, a power-on or brown-out reset clears them): core *c*'s fault word to
+//! SCRATCH(2*c*), its time to SCRATCH(2*c* + 1) ([`scratch`]; SCRATCH4–7 are the boot
+//! ROM's).
 //!
 //! **The watchdog** ([`super::Program::watchdog`]; docs/firmware.md, "Faults"). Core 0's
 //! start handler enables it, at the start alarm (so a long start-up of many keys' `init`s
-//! cannot outlast it): SCRATCH4 = [`NON_REBOOT_MAGIC`] (not the boot ROM's entry magic,
-//! so a watchdog reset boots from flash again, boot2 copying a clean image into SRAM; the
-//! magic tells the next start-up that the watchdog, not the boot ROM, reset the board, as
-//! pico-sdk's `watchdog_enable_caused_reboot` tells it), LOAD = [`WATCHDOG_LOAD`], CTRL's
-//! ENABLE set. Core 0's handler feeds it (LOAD again) at the end of each sample in which
-//! core 1's sample count is its own or one less (core 1 finished the sample before or
-//! finishes it now); on a one-core image every sample. So a core that stops finishing its
-//! samples (a hung update, an interrupt that never returns) stops the feeds, and the
-//! watchdog resets the board [`WATCHDOG_PERIOD_US`] after the last feed: at most 1 ms and
-//! one sample after the hang began. Each core's reset handler copies its scratch pair
-//! back into its control block before the sample loop; core 0's, when REASON is set and
-//! SCRATCH4 holds [`NON_REBOOT_MAGIC`], first records one more trip of kind
-//! [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over its own pair. A RAM image (a
-//! development load without flash) cannot boot again: the boot ROM then waits in USB boot,
-//! the DACs at zero.
+//! cannot outlast it): SCRATCH5–7 for the boot ROM's watchdog entry into the RAM image's
+//! re-entry, then SCRATCH4 = the word the entry stub wrote ([`super::boot::BOOT_SOURCE`]):
+//! on a RAM image's boot the ROM's entry magic ([`tactus_rp2040::watchdog::BOOT_MAGIC`]),
+//! so that after a reset the ROM enters the re-entry, which restores the image's data and
+//! boots it again ([`super::reboot`]); on a boot from flash [`NON_REBOOT_MAGIC`], so that
+//! after a reset the ROM boots from flash again, boot2 copying a clean image into SRAM.
+//! Either way the next start-up finds SCRATCH4 = [`NON_REBOOT_MAGIC`] (the re-entry writes
+//! it over the one the ROM cleared) and knows that the watchdog, not the boot ROM, reset
+//! the board, as pico-sdk's `watchdog_enable_caused_reboot` tells it. Then LOAD =
+//! [`WATCHDOG_LOAD`], CTRL's ENABLE set. Core 0's handler feeds it (LOAD again) at the end
+//! of each sample in which core 1's sample count is its own or one less (core 1 finished
+//! the sample before or finishes it now); on a one-core image every sample. So a core that
+//! stops finishing its samples (a hung update, an interrupt that never returns) stops the
+//! feeds, and the watchdog resets the board [`WATCHDOG_PERIOD_US`] after the last feed: at
+//! most 1 ms and one sample after the hang began. Each core's reset handler copies its
+//! scratch pair back into its control block before the sample loop; core 0's, when REASON
+//! is set and SCRATCH4 holds [`NON_REBOOT_MAGIC`], first records one more trip of kind
+//! [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over its own pair. A brown-out clears
+//! SRAM and the scratch registers: a flash image boots as at power-on, a RAM image is gone
+//! and the boot ROM waits in USB boot, the DACs at zero.
 
 /// Kinds of fault, the low byte of the fault word. The codes are stable (the host and the
 /// emulator's fault report decode them): new kinds take new codes.
@@ -155,10 +161,10 @@ pub const WATCHDOG_PERIOD_US: u32 = 1000;
 /// pico-sdk's `watchdog_enable` doubles its value the same way).
 pub const WATCHDOG_LOAD: u32 = 2 * WATCHDOG_PERIOD_US;
 
-/// SCRATCH4's value while the image's watchdog runs: pico-sdk's
-/// `WATCHDOG_NON_REBOOT_MAGIC` (`hardware_watchdog/watchdog.c`), which is not the boot
-/// ROM's entry magic ([`tactus_rp2040::watchdog::BOOT_MAGIC`]): after a reset the boot ROM
-/// boots from flash, and the firmware knows its own watchdog fired.
+/// SCRATCH4's value while a flash-booted image's watchdog runs, and after a RAM image's
+/// re-entry: pico-sdk's `WATCHDOG_NON_REBOOT_MAGIC` (`hardware_watchdog/watchdog.c`), which
+/// is not the boot ROM's entry magic ([`tactus_rp2040::watchdog::BOOT_MAGIC`]): after a
+/// reset the boot ROM boots from flash, and the firmware knows its own watchdog fired.
 pub const NON_REBOOT_MAGIC: u32 = 0x6ab7_3121;
 
 /// The scratch registers that keep core `core`'s pair across a watchdog reset: (fault

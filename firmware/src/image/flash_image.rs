@@ -15,9 +15,12 @@
 //!
 //! **The flash reset handler** copies each piece word by word (`LDM`/`STM`, so a piece's
 //! last word is filled up to 4 bytes with zeros: [`FirmwareImage::flash_image`] checks that
-//! no other piece needs those bytes) and then jumps to the RAM image's entry stub at
-//! 0x20000000, which enters core 0's reset handler as after a RAM UF2
-//! (`super::boot`): from there on, the same code at the same addresses as the RAM image,
+//! no other piece needs those bytes) and then jumps to the RAM image's entry stub at its
+//! flash entry ([`super::boot::ENTRY_FROM_FLASH`], 0x20000004), which marks the boot as
+//! one from flash ([`super::boot::BOOT_SOURCE`]: a watchdog reset then boots from flash
+//! again, not through the RAM image's re-entry, `super::reboot`) and enters core 0's reset
+//! handler as after a RAM UF2 (`super::boot`): from there on, the same code at the same
+//! addresses as the RAM image,
 //! so the sample interrupt's WCET, cycles and outputs are the RAM image's. Only core 0 runs
 //! it; core 1 waits in the boot ROM until core 0's reset handler launches it.
 //!
@@ -26,11 +29,10 @@
 //! emulator, `tactus_emulator::xip`) affects how long the board takes to boot, never a
 //! sample.
 
-use super::boot::ENTRY;
+use super::boot::{copy_pieces, ENTRY_FROM_FLASH};
 use super::boot2::{self, FLASH_VECTORS};
 use super::{FirmwareImage, ImageError};
 use tactus_compiler::thumb::buffer::{CodeBuffer, LongBranch};
-use tactus_compiler::thumb::ins::{self as asm, cond};
 use tactus_isa::decode::Instr;
 use tactus_rp2040::memory::{sram_location, FLASH_BASE, FLASH_SIZE, SRAM_END};
 
@@ -83,34 +85,9 @@ impl FirmwareImage {
         // literal values do not change its size), then at the final addresses.
         let handler = |table: u32, end: u32| -> Result<_, ImageError> {
             let mut a = CodeBuffer::new(LongBranch::Refuse);
-            let (next, word, test, done, halt) =
-                (a.label(), a.label(), a.label(), a.label(), a.label());
-            a.ldr_const(0, table);
-            a.ldr_const(3, end);
-            a.bind(next);
-            a.i(asm::cmp(0, 3));
-            a.bc(cond::EQ, done);
-            // r1 = the piece in flash, r2 = in SRAM, r4 = its SRAM end.
-            a.i(Instr::Ldm {
-                rn: 0,
-                list: 0b1_0110,
-            });
-            a.b(test);
-            a.bind(word);
-            a.i(Instr::Ldm {
-                rn: 1,
-                list: 0b10_0000,
-            });
-            a.i(Instr::Stm {
-                rn: 2,
-                list: 0b10_0000,
-            });
-            a.bind(test);
-            a.i(asm::cmp(2, 4));
-            a.bc(cond::NE, word);
-            a.b(next);
-            a.bind(done);
-            a.ldr_const(0, ENTRY | 1);
+            let halt = a.label();
+            copy_pieces(&mut a, table, end);
+            a.ldr_const(0, ENTRY_FROM_FLASH | 1);
             a.i(Instr::Bx { rm: 0 });
             a.bind(halt);
             a.b(halt);

@@ -829,8 +829,8 @@ pub fn core_code(
         // The first ADC burst, for the first sample.
         p.start_burst(a, core);
     }
-    if let (0, Some(_)) = (core, feed) {
-        enable_watchdog(a);
+    if let (0, Some(f)) = (core, feed) {
+        enable_watchdog(a, &f);
     }
     a.i(Instr::Bx { rm: 14 });
     a.pool();

@@ -9,8 +9,10 @@
 //! is named: the DMA's one read and one write port, shared by both cores' channels in
 //! round-robin (a transfer of one core's can wait a cycle for the other's), and
 //! BUS_PRIORITY, which core 0 sets once at boot. The buffers lie in a bank no other code or
-//! data of the image uses (banks 2 and 3 hold only the host's windows, above
-//! [`IO_OFFSET`]), so the DMA meets a core's accesses only there: the handler's own reads
+//! data of the image uses while it runs (banks 2 and 3 hold the host's windows above
+//! [`IO_OFFSET`] and, below it, a RAM image's re-entry and the pristine copies of its data,
+//! which only the boot after a watchdog reset reads: `super::reboot`), so the DMA meets a
+//! core's accesses only there: the handler's own reads
 //! and writes of its buffers, which wait at most one cycle per DMA access to the bank
 //! (the DMA has the higher bus priority) — [`CoreIo::contention`], in the static bound.
 //!

@@ -48,11 +48,14 @@ pub(super) struct Layout<'a> {
 
 impl Layout<'_> {
     /// Core `core`'s part of the watchdog's feed ([`glue::Feed`]), with the control blocks
-    /// at bank offset `data_off`: core 0 feeds, watching core 1's sample count.
+    /// at bank offset `data_off`: core 0 feeds, watching core 1's sample count, and arms
+    /// the boot ROM's watchdog entry into the RAM image's re-entry (`super::reboot`).
     pub fn feed(&self, data_off: u32) -> Option<glue::Feed> {
         self.watchdog.then(|| glue::Feed {
             other_samples: (self.cores > 1)
                 .then(|| bank_base(1) + data_off + u32::from(glue::ctrl::SAMPLES)),
+            // The RAM image's re-entry, with core 0's stack (`super::reboot`).
+            entry: Some((super::reboot::REENTRY | 1, stack(0).1)),
         })
     }
 }

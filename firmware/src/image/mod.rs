@@ -112,6 +112,7 @@ pub mod io;
 mod keys;
 mod layout;
 mod program;
+pub mod reboot;
 mod rest;
 mod run;
 mod sample;
@@ -289,6 +290,8 @@ pub struct FirmwareImage {
     pub(crate) io: Option<io::IoPlan>,
     /// Per core: the turns of its sensor checks ([`glue::Turns`]).
     pub(crate) turns: Vec<glue::Turns>,
+    /// The RAM image's re-entry after a watchdog reset, or why it has none ([`reboot`]).
+    pub(crate) reentry: Result<reboot::Reboot, String>,
 }
 
 /// Bytes of each core's bank below the sensor/DAC windows' share of it (the windows take
@@ -384,7 +387,8 @@ impl FirmwareImage {
             .map(Program::update_wcet)
             .collect::<Result<_, _>>()?;
 
-        let mut segments = vec![(boot::ENTRY, boot::entry_stub(cc[0].start)?)];
+        // The entry stub first: made last, once the re-entry is known (`reboot`).
+        let mut segments = vec![(boot::ENTRY, Vec::new())];
         let mut places: Vec<CorePlace> = Vec::with_capacity(cores);
         let mut key_places: Vec<Option<KeyPlace>> = vec![None; keys.len()];
         let mut wcet = Vec::with_capacity(cores);
@@ -478,6 +482,11 @@ impl FirmwareImage {
                 segments.push((io::io_base(c), io.io_block(c)));
             }
         }
+        // A RAM image's way back after a watchdog reset, and the entry stub.
+        let data_at: Vec<u32> = (places.iter().map(|p| p.ctrl))
+            .chain((0..cores).filter(|_| l.io.is_some()).map(io::io_base))
+            .collect();
+        let reentry = reboot::finish(&mut segments, &data_at, l.watchdog, cc[0].start)?;
         let keys = key_places
             .into_iter()
             .enumerate()
@@ -503,6 +512,7 @@ impl FirmwareImage {
             boot,
             io: l.io,
             turns,
+            reentry,
         })
     }
 

@@ -8,6 +8,7 @@ use super::{ctrl, ldr_rec, KeyCode};
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label};
 use tactus_compiler::thumb::ins::{self as asm, cond};
 use tactus_isa::decode::{AluOp, Instr};
+use tactus_rp2040::watchdog::BOOT_MAGIC;
 
 /// The plausibility check of a key's first sensor word (a key's position, a pen's depth;
 /// docs/firmware.md, "Faults"), and the key's trip path.
@@ -500,6 +501,10 @@ pub struct Feed {
     /// The address of core 1's sample count ([`ctrl::SAMPLES`] in its control block); `None`
     /// on a one-core image (then every sample feeds).
     pub other_samples: Option<u32>,
+    /// The boot ROM's watchdog entry core 0's start handler arms with the watchdog
+    /// ([`enable_watchdog`]): (entry, Thumb bit set; stack pointer), the RAM image's
+    /// re-entry (`super::super::reboot`); `None` arms none (SCRATCH4 the non-reboot magic).
+    pub entry: Option<(u32, u32)>,
 }
 
 impl Feed {
@@ -542,13 +547,30 @@ pub(super) fn feed_watchdog(a: &mut CodeBuffer, f: &Feed) {
 }
 
 /// Core 0's start handler enables the watchdog ([`super::super::fault`], "The watchdog"):
-/// SCRATCH4 = [`super::super::fault::NON_REBOOT_MAGIC`], LOAD, CTRL.ENABLE (through the SET
+/// with [`Feed::entry`], SCRATCH5-7 for the boot ROM's watchdog entry into it (SCRATCH5 =
+/// entry ^ −[`BOOT_MAGIC`], SCRATCH6 = SP, SCRATCH7 = entry: pico-sdk's `watchdog_reboot`)
+/// and then SCRATCH4 = the word the entry stub wrote at [`super::super::boot::BOOT_SOURCE`]
+/// ([`BOOT_MAGIC`] on a RAM image's boot that can come back, the non-reboot magic from
+/// flash: `super::super::reboot`); without it SCRATCH4 =
+/// [`super::super::fault::NON_REBOOT_MAGIC`]. Then LOAD, CTRL.ENABLE (through the SET
 /// alias: the PAUSE bits kept). Clobbers r0-r2.
-pub(super) fn enable_watchdog(a: &mut CodeBuffer) {
+pub(super) fn enable_watchdog(a: &mut CodeBuffer, f: &Feed) {
     use tactus_rp2040::watchdog::{reg as wreg, CTRL_ENABLE, WATCHDOG_BASE};
+    let scratch = |n: u32| (wreg::SCRATCH0 + 4 * n) as u16;
     a.ldr_const(0, WATCHDOG_BASE);
-    a.ldr_const(1, super::super::fault::NON_REBOOT_MAGIC);
-    a.i(asm::str(1, 0, (wreg::SCRATCH0 + 16) as u16));
+    if let Some((pc, sp)) = f.entry {
+        a.ldr_const(1, pc ^ BOOT_MAGIC.wrapping_neg());
+        a.i(asm::str(1, 0, scratch(5)));
+        a.ldr_const(1, sp);
+        a.i(asm::str(1, 0, scratch(6)));
+        a.ldr_const(1, pc);
+        a.i(asm::str(1, 0, scratch(7)));
+        a.ldr_const(1, super::super::boot::BOOT_SOURCE);
+        a.i(asm::ldr(1, 1, 0));
+    } else {
+        a.ldr_const(1, super::super::fault::NON_REBOOT_MAGIC);
+    }
+    a.i(asm::str(1, 0, scratch(4)));
     a.ldr_const(1, super::super::fault::WATCHDOG_LOAD);
     a.i(asm::str(1, 0, wreg::LOAD as u16));
     a.ldr_const(2, WATCHDOG_BASE + tactus_rp2040::ATOMIC_SET + wreg::CTRL);

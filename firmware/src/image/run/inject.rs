@@ -22,9 +22,13 @@
 //! gives zero-force samples for the samples that took (the DACs are cleared at the reset,
 //! `tactus_emulator::converters::Dac8568`'s CLR; without converters the host reads zero
 //! from the reset until the firmware's handler runs again); the board's clock then runs
-//! behind the host's by less than a sample. A board that cannot boot again (no watchdog
-//! entry for a RAM image, a brown-out of a RAM image: USB boot) gives zero forces from
-//! then on and says why ([`ImageRun::resets`]).
+//! behind the host's by less than a sample. A RAM image boots again through the boot ROM's
+//! watchdog entry (`super::super::reboot`), a flash image from flash. A board that cannot
+//! boot again (a brown-out of a RAM image, or a RAM image without a re-entry: USB boot)
+//! gives zero forces from then on and says why ([`ImageRun::resets`]). A fault that starts
+//! or ends in the samples of zero force while a board boots again takes effect at the
+//! first sample of the new boot, before its firmware runs it (a hang that clears there
+//! lets the new boot play).
 
 use super::*;
 use tactus_runtime::converters::AdcScale;
@@ -152,6 +156,8 @@ pub(super) struct Faults {
     pub(super) count_base: u32,
     /// xorshift32 state of the noise.
     seed: u32,
+    /// The first sample whose starts and ends are not yet done to the board.
+    next_applied: u64,
 }
 
 fn noise(seed: &mut u32, amplitude: u16) -> i32 {
@@ -306,12 +312,16 @@ impl ImageRun {
             at += self.image.programs[k.spec.program].sensor_words();
         }
         let list = self.faults.list.clone();
+        // A start or an end in the samples since the last applied (those of zero force
+        // while the board booted again) takes effect now, before the firmware's next sample.
+        let since = self.faults.next_applied..=n;
+        self.faults.next_applied = n + 1;
         for f in &list {
-            if f.from == n || f.until == Some(n) {
+            let starts = since.contains(&f.from);
+            let ends = f.until.is_some_and(|u| since.contains(&u));
+            if starts || ends {
                 changed = true;
             }
-            let starts = f.from == n;
-            let ends = f.until == Some(n);
             match f.kind {
                 FaultKind::Flip { word, bit } if starts => {
                     let k = &self.image.keys[f.key.unwrap_or(0)];
@@ -326,7 +336,7 @@ impl ImageRun {
                     self.faults.browned = true;
                     self.faults.brown_at = self.board.cycle();
                 }
-                FaultKind::Hang if starts => {
+                FaultKind::Hang if starts && !ends => {
                     let a = self.image.keys[f.key.unwrap_or(0)].update & !1;
                     let mut old = [0u8; 2];
                     self.board.read_bytes(a, &mut old).map_err(emu)?;
@@ -351,7 +361,7 @@ impl ImageRun {
                             if k.spec.core == c {
                                 let held = i32::from(self.sample.drives[i][j].dac);
                                 if let Some(fz) = self.faults.frozen.get_mut(flat) {
-                                    *fz = starts.then_some(held);
+                                    *fz = (starts && !ends).then_some(held);
                                 }
                             }
                             flat += 1;
@@ -424,7 +434,23 @@ impl ImageRun {
         let start = self.board.cycle();
         let alarm = self.image.start_alarm_us as u64;
         let cores = self.image.cores.len();
-        let reboot = run_to_first_tick(&mut self.board, alarm, cores).map(|first| {
+        let reboot = run_to_first_tick(&mut self.board, alarm, cores);
+        // Core 0 parked: the boot ROM found no entry and no flash image (USB boot).
+        let usb = self.board.cores[0].state == tactus_emulator::core::RunState::Parked;
+        let reboot = reboot.map_err(|e| match (usb, brown) {
+            (false, _) => e,
+            (true, true) => "a brown-out clears SRAM, where this RAM image lived, and the \
+                             flash holds no image: the boot ROM waits in USB boot (BOOTSEL \
+                             mode), nothing of the image runs"
+                .into(),
+            (true, false) => format!(
+                "the boot ROM found no watchdog entry and no image in flash: it waits in USB \
+                 boot (BOOTSEL mode), nothing of the image runs (this RAM image has no \
+                 re-entry: {})",
+                self.image.ram_reboot().err().unwrap_or("?")
+            ),
+        });
+        let reboot = reboot.map(|first| {
             let period = self.image.cycles_per_sample().max(1);
             let zero = (first.saturating_sub(start)).div_ceil(period).max(1);
             self.first_tick = first;
