@@ -30,6 +30,24 @@ fn image(board: &str, watchdog: bool) -> FirmwareImage {
 
 /// `samples` samples of the keys held at mid-travel from flash, key `hung`'s update hung
 /// from sample `from`; every sample, the run, and the cycle of sample `from`'s tick.
+/// Every sensor word of a board at the middle of the first program's sensor range (a key
+/// held still, half down): three words, as many as the images' keys read.
+fn mid_words(image: &FirmwareImage) -> Vec<i32> {
+    let (lo, hi) = image.programs()[0].fixed.sensor_raw_range[0];
+    vec![lo + (hi - lo) / 2; 3]
+}
+
+/// A brown-out of the whole board at sample `from`.
+fn brown_out(from: u64) -> Injection {
+    Injection {
+        kind: image::FaultKind::BrownOut,
+        key: None,
+        core: None,
+        from,
+        until: None,
+    }
+}
+
 fn run(
     image: &FirmwareImage,
     engine: Engine,
@@ -51,9 +69,7 @@ fn run(
         })
         .unwrap();
     }
-    let p = &image.programs()[0];
-    let (lo, hi) = p.fixed.sensor_raw_range[0];
-    let words = vec![lo + (hi - lo) / 2; 3];
+    let words = mid_words(image);
     let at = r.tick_cycle(from);
     let out = (0..samples)
         .map(|_| r.step(&words).unwrap().clone())
@@ -161,17 +177,8 @@ fn a_brown_out_zeroes_the_motors_and_the_board_plays_again() {
         let flash = image.flash_image().unwrap().bytes;
         let mut r = ImageRun::from_flash(&image, &flash).unwrap();
         let mut clean = ImageRun::from_flash(&image, &flash).unwrap();
-        r.inject(Injection {
-            kind: image::FaultKind::BrownOut,
-            key: None,
-            core: None,
-            from: 50,
-            until: None,
-        })
-        .unwrap();
-        let p = &image.programs()[0];
-        let (lo, hi) = p.fixed.sensor_raw_range[0];
-        let words = vec![lo + (hi - lo) / 2; 3];
+        r.inject(brown_out(50)).unwrap();
+        let words = mid_words(&image);
         let out: Vec<SampleOut> = (0..150).map(|_| r.step(&words).unwrap().clone()).collect();
         let want: Vec<SampleOut> = (0..150)
             .map(|_| clean.step(&words).unwrap().clone())
@@ -217,9 +224,7 @@ fn run_ram(
         })
         .unwrap();
     }
-    let p = &image.programs()[0];
-    let (lo, hi) = p.fixed.sensor_raw_range[0];
-    let words = vec![lo + (hi - lo) / 2; 3];
+    let words = mid_words(image);
     let out = (0..samples)
         .map(|_| r.step(&words).unwrap().clone())
         .collect();
@@ -345,17 +350,8 @@ fn a_browned_out_ram_image_stays_in_usb_boot_and_says_so() {
     for board in ["rp2040", "rp2040_io"] {
         let image = image(board, true);
         let mut r = image.run().unwrap();
-        r.inject(Injection {
-            kind: image::FaultKind::BrownOut,
-            key: None,
-            core: None,
-            from: 50,
-            until: None,
-        })
-        .unwrap();
-        let p = &image.programs()[0];
-        let (lo, hi) = p.fixed.sensor_raw_range[0];
-        let words = vec![lo + (hi - lo) / 2; 3];
+        r.inject(brown_out(50)).unwrap();
+        let words = mid_words(&image);
         let out: Vec<SampleOut> = (0..150).map(|_| r.step(&words).unwrap().clone()).collect();
         assert!(out[49].dac.iter().all(|&d| d != 0), "{board}: played");
         for (i, s) in out.iter().enumerate().skip(50) {
