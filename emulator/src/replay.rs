@@ -244,6 +244,20 @@ impl Words for bool {
     }
 }
 
+/// Items in order, each with its lanes (the same index in `lanes`): an array's or a
+/// `Vec`'s [`Data::visit`].
+#[inline]
+fn visit_items<T: Data>(
+    items: &mut [T],
+    lanes: Option<&mut [T::Lanes]>,
+    f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>),
+) {
+    match lanes {
+        Some(l) => (items.iter_mut().zip(l)).for_each(|(x, l)| x.visit(Some(l), f)),
+        None => items.iter_mut().for_each(|x| x.visit(None, f)),
+    }
+}
+
 /// An array's items in order, each with its lanes (the same index in the lanes' array).
 impl<T: Data, const N: usize> Data for [T; N] {
     type Lanes = [T::Lanes; N];
@@ -253,10 +267,7 @@ impl<T: Data, const N: usize> Data for [T; N] {
         lanes: Option<&mut Self::Lanes>,
         f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>),
     ) {
-        match lanes {
-            Some(l) => (self.iter_mut().zip(l)).for_each(|(x, l)| x.visit(Some(l), f)),
-            None => self.iter_mut().for_each(|x| x.visit(None, f)),
-        }
+        visit_items(self, lanes.map(|l| &mut l[..]), f);
     }
 }
 
@@ -283,10 +294,7 @@ impl<T: Data> Data for Vec<T> {
         lanes: Option<&mut Self::Lanes>,
         f: &mut impl FnMut(&mut u32, Option<&mut [Lane]>),
     ) {
-        match lanes {
-            Some(l) => (self.iter_mut().zip(l)).for_each(|(x, l)| x.visit(Some(l), f)),
-            None => self.iter_mut().for_each(|x| x.visit(None, f)),
-        }
+        visit_items(self, lanes.map(|l| &mut l[..]), f);
     }
 }
 
