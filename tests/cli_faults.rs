@@ -518,12 +518,12 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
     let midi = dir.join("two.mid");
     write_midi(&midi, &[(61, 80, 0.05, 0.3), (63, 80, 0.05, 0.3)], &[]);
     let fs = 44_100.0;
-    let play = |board: &str, name: &str, fault: Option<&str>| {
+    let play_for = |seconds: &str, board: &str, name: &str, fault: Option<&str>| {
         let out_dir = dir.join(format!("{board}-{name}"));
         let mut c = tactus();
         c.args(["play", midi.to_str().unwrap(), "--layout"])
             .arg(&layout)
-            .args(["--board", board, "--seconds", "0.3", "--no-wav"])
+            .args(["--board", board, "--seconds", seconds, "--no-wav"])
             .args(["--trace-keys", "61,63", "-o"])
             .arg(&out_dir);
         if let Some(f) = fault {
@@ -535,6 +535,7 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
         let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
         (stdout, key(61), key(63))
     };
+    let play = |board: &str, name: &str, fault: Option<&str>| play_for("0.3", board, name, fault);
     for board in ["rp2040", "rp2040_io"] {
         let (_, clean61, clean63) = play(board, "clean", None);
         let col = |head: &[String], name: &str| head.iter().position(|h| h == name).unwrap();
@@ -569,7 +570,9 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
         // (its re-entry restores the data), but the hang is in the code, which stays hung:
         // each boot hangs again at key 61's next update and resets again, every reset
         // named and counted, the motors at zero force through each boot.
-        let (stdout, _, _) = play(board, "hang", Some("kind=hang,note=61,at=0.03s"));
+        // (0.06 s: a boot every 1.1 ms from 0.03 s is some 27 boots, each emulated.)
+        let hang = Some("kind=hang,note=61,at=0.03s");
+        let (stdout, _, _) = play_for("0.06", board, "hang", hang);
         let lines: Vec<&str> = (stdout.lines())
             .filter_map(|l| {
                 l.trim()
