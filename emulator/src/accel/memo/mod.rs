@@ -117,6 +117,10 @@ use record::{differ, flags_of, peek, poke, special_of, words, Entry, Save, Word}
 /// one). With 48 the converter demo took 80.54 G instructions, with 64 59.21 G (before
 /// based memos; the plain demo 15.41 G either way).
 const PER_SITE: usize = 64;
+/// Most sites of one watched function on one core, each its own first argument (a
+/// key's state, [`Site::arg`]); then one more for its calls with any other: r0 may be
+/// data, not a key's state, and sites are looked for one by one.
+const ARGS: usize = 64;
 /// Most instructions a recorded call may run.
 const MAX_INSTRUCTIONS: u64 = 50_000;
 /// Most SRAM accesses a recording logs.
@@ -377,8 +381,9 @@ struct Site {
     /// Whether its entry is a span's (its end fixed), not a function's (the return
     /// address in LR).
     span: bool,
-    /// A function's first argument (r0) at its calls (a key's state), 0 for a span.
-    arg: u32,
+    /// A function's first argument (r0) at its calls (a key's state); `None` for a span,
+    /// and for a function's calls with any first argument past the [`ARGS`] first.
+    arg: Option<u32>,
     memos: Vec<Memo>,
     /// Index in `memos` of the memo applied last (`usize::MAX`: none).
     last: usize,
@@ -485,7 +490,7 @@ impl Memos {
         // the first argument: sites are unique by those (a function's calls from every
         // return address share one).
         if let Some(s) = self.sites.get(*hint as usize) {
-            if s.pc == pc && s.core == id && (s.span || s.arg == core.r[0]) {
+            if s.pc == pc && s.core == id && (s.span || s.arg == Some(core.r[0])) {
                 return *hint as usize;
             }
         }
@@ -502,8 +507,22 @@ impl Memos {
             Some(&(_, Some(end))) => (end, true),
             _ => (0, false),
         };
-        let arg = if span { 0 } else { core.r[0] };
-        match (self.sites.iter()).position(|s| s.pc == pc && s.core == id && s.arg == arg) {
+        let find = |sites: &[Site], arg| {
+            sites
+                .iter()
+                .position(|s| s.pc == pc && s.core == id && s.arg == arg)
+        };
+        let mut arg = (!span).then_some(core.r[0]);
+        if arg.is_some() && find(&self.sites, arg).is_none() {
+            // Past [`ARGS`] first arguments, the entry's calls share one site.
+            let n = (self.sites.iter())
+                .filter(|s| s.pc == pc && s.core == id)
+                .count();
+            if n >= ARGS {
+                arg = None;
+            }
+        }
+        match find(&self.sites, arg) {
             Some(i) => i,
             None => {
                 self.sites.push(Site {
