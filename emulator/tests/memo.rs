@@ -414,9 +414,18 @@ fn a_memo_returns_to_its_own_caller() {
                 boards[0].system.sram == boards[1].system.sram,
                 "call {i}: SRAM differs from the interpreter's"
             );
-            assert_eq!(boards[0].cores[0].r[15], from + 4, "call {i}: returned to its caller");
+            assert_eq!(
+                boards[0].cores[0].r[15],
+                from + 4,
+                "call {i}: returned to its caller"
+            );
             hits.push(boards[0].memo_stats().hits);
         }
-        assert_eq!(hits, want, "hits after each call: {:?}", boards[0].memo_stats());
+        assert_eq!(
+            hits,
+            want,
+            "hits after each call: {:?}",
+            boards[0].memo_stats()
+        );
     }
 }
