@@ -358,3 +358,74 @@ fn a_span_whose_call_missed_last_run_is_not_recorded() {
         "at rest the span's memo replaces the call and its BL: {span2:?} against {call2:?}"
     );
 }
+
+/// A function called from two return addresses shares its memos (its site is the core,
+/// the entry and r0, not the return address): a call that pushes LR and pops it into PC,
+/// reading it nowhere else, is replayed from a recording made at the other call site,
+/// returning to its own caller. One that reads LR otherwise (stores it) compares it: no
+/// hit from the other call site. Every call equals the interpreter's.
+#[test]
+fn a_memo_returns_to_its_own_caller() {
+    let pushed: [u16; 6] = [
+        0xb510, // push {r4, lr}
+        0x680c, // ldr r4, [r1, #0]
+        0x3401, // adds r4, #1
+        0x6014, // str r4, [r2, #0]
+        0x2000, // movs r0, #0
+        0xbd10, // pop {r4, pc}
+    ];
+    let read: [u16; 6] = [
+        0xb510, // push {r4, lr}
+        0x4673, // mov r3, lr
+        0x6053, // str r3, [r2, #4]
+        0x680c, // ldr r4, [r1, #0]
+        0x6014, // str r4, [r2, #0]
+        0xbd10, // pop {r4, pc}
+    ];
+    // A second caller, 0x40 bytes after the first: `bl FUNC; b .`.
+    let caller2 = CALLER + 0x40;
+    let mut code: Vec<u8> = Vec::new();
+    for h in bl(caller2, FUNC).into_iter().chain([0xe7fe]) {
+        code.extend(h.to_le_bytes());
+    }
+    for (body, want) in [(&pushed, [0, 1, 2, 3]), (&read, [0, 0, 1, 2])] {
+        let bytes: Vec<u8> = body.iter().flat_map(|h| h.to_le_bytes()).collect();
+        let mut boards = [board(Engine::Block), board(Engine::Interp)];
+        for b in boards.iter_mut() {
+            b.write_bytes(FUNC, &bytes).unwrap();
+            b.write_bytes(caller2, &code).unwrap();
+        }
+        let mut hits = Vec::new();
+        for (i, from) in [CALLER, caller2, caller2, CALLER].into_iter().enumerate() {
+            let mut got = Vec::new();
+            for b in boards.iter_mut() {
+                b.write_data(DATA, &[7, 0, 0, 0]).unwrap();
+                b.start_core(0, from | 1, SP, VTOR);
+                let now = b.cores[0].cycle.max(b.cores[1].cycle) + 5000;
+                b.cores[0].cycle = now;
+                b.cores[1].cycle = now;
+                let c = &mut b.cores[0];
+                c.r[..8].copy_from_slice(&[DATA + 0x40, DATA, DATA + 0x10, 0, 0x44, 0, 0, 0]);
+                let stop = b.run_until(now + 600);
+                got.push((stop, state(b)));
+            }
+            assert_eq!(got[0], got[1], "call {i} from {from:#x}");
+            assert!(
+                boards[0].system.sram == boards[1].system.sram,
+                "call {i}: SRAM differs from the interpreter's"
+            );
+            assert_eq!(
+                boards[0].cores[0].r[15],
+                from + 4,
+                "call {i}: returned to its caller"
+            );
+            hits.push(boards[0].memo_stats().hits);
+        }
+        assert_eq!(
+            hits,
+            want,
+            "hits after each call: {:?}",
+            boards[0].memo_stats()
+        );
+    }
+}

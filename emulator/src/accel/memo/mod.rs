@@ -61,9 +61,23 @@
 //! `tests/memo.rs::a_memo_moves_with_its_base_and_keeps_the_saved_registers`, and the
 //! random calls (loads through r0-r3, data repeating every 16 bytes, bases moved by 16).
 //!
+//! **The return address.** A function's call site is the core, the entry and the first
+//! argument r0 (a key's state: the keys of an image share their program's update), not
+//! the return address: with the sensor check on, each key's update is called from each of
+//! the handler's copies of the keys' code (`tactus-firmware`'s `glue/checks.rs`, `Turns`),
+//! and sites by return address each saw a quarter of a key's calls. A call that pushes LR
+//! while it holds its entry value and pops that word into PC, LR read nowhere else and the
+//! word touched by nothing else in between, returns to whatever LR held at the entry: its
+//! memo compares of LR only the Thumb bit and the top nibble (an `EXC_RETURN` value would
+//! make the `POP` an exception return), and a hit stores LR into the pushed word and sets
+//! PC to it (the `POP`'s cycles do not depend on the address). Any other call compares LR
+//! and returns where it was recorded returning. The demo with the sensor check:
+//! 21.04 → 18.68 G instructions, hits 1.77 → 1.98 M, misses 656 → 445 k, recordings
+//! 8,043 → 3,174. Test: `tests/memo.rs::a_memo_returns_to_its_own_caller`.
+//!
 //! **When to record.** Recording runs the call on the interpreter, several times the
 //! native code's cost; a moving key's inputs differ every sample. So per call site (the
-//! function, the core and the return address) each recording doubles the misses to wait
+//! function, the core and the first argument) each recording doubles the misses to wait
 //! before the next one, up to 4,095; a hit makes the next miss record (a key that moved
 //! and stopped is memoized at once) but takes only one halving off the wait per 256 hits in
 //! a row, so a key that keeps changing between hits (settling slowly on its felts, or
@@ -103,6 +117,10 @@ use record::{differ, flags_of, peek, poke, special_of, words, Entry, Save, Word}
 /// one). With 48 the converter demo took 80.54 G instructions, with 64 59.21 G (before
 /// based memos; the plain demo 15.41 G either way).
 const PER_SITE: usize = 64;
+/// Most sites of one watched function on one core, each its own first argument (a
+/// key's state, [`Site::arg`]); then one more for its calls with any other: r0 may be
+/// data, not a key's state, and sites are looked for one by one.
+const ARGS: usize = 64;
 /// Most instructions a recorded call may run.
 const MAX_INSTRUCTIONS: u64 = 50_000;
 /// Most SRAM accesses a recording logs.
@@ -210,6 +228,11 @@ struct Memo {
     /// SRAM word (offset) it pushed each to and the register. A hit stores each one's
     /// value there (not compared: the call leaves it as it was).
     saved: Vec<(u32, u8)>,
+    /// The SRAM word (offset) the call pushed its return address to and popped it from
+    /// into PC, LR not read otherwise (module documentation, "The return address"): a hit
+    /// stores LR there and returns to it. `None`: LR is compared as any register, PC set
+    /// as recorded.
+    lr: Option<u32>,
     /// [`Memos`]' clock at its last use.
     used: u64,
     /// Index in its site of the memo applied after it last (`usize::MAX`: none yet).
@@ -282,6 +305,8 @@ impl Memo {
         // (no word of them is stored), the word-by-word loop would do nothing either.
         let (quads, rest) = self.writes.as_chunks::<4>();
         let mut j = journal;
+        // The return address, before the registers are set (the call may write LR).
+        let lr = core.r[14];
         let mut store = |sram: &mut [u8], w: &Word| {
             // SAFETY: every word's offset + 4 is at most `self.end`.
             let old = unsafe { peek(sram, w.off) };
@@ -310,8 +335,22 @@ impl Memo {
                 },
             );
         }
+        if let Some(off) = self.lr {
+            store(
+                sram,
+                &Word {
+                    off,
+                    mask: u32::MAX,
+                    value: lr,
+                },
+            );
+        }
         for ((r, &keep), &v) in core.r.iter_mut().zip(&self.keep).zip(&self.regs_out) {
             *r = *r & keep | v;
+        }
+        if self.lr.is_some() {
+            // `POP {..., pc}` of the word holding LR: its bit 0 is the Thumb bit, compared.
+            core.r[15] = lr & !1;
         }
         let f = (flags_of(core) & !self.out_flags) | self.flags_out;
         (core.n, core.z, core.c, core.v) = (f & N != 0, f & Z != 0, f & C != 0, f & V != 0);
@@ -327,18 +366,24 @@ impl Memo {
     }
 }
 
-/// A call site: a watched function called on one core with one return address (a key of
-/// the image). Its memos, newest last, the one applied last, and how many calls to let run
+/// A call site: a watched function called on one core with one first argument (a key of
+/// the image: the keys share their program's update, each its own state in r0), from any
+/// return address (each key's update is called from every copy of the handler's code), or
+/// a span on one core. Its memos, newest last, the one applied last, and how many calls to let run
 /// before the next recording.
 #[derive(Clone, Debug)]
 struct Site {
     core: usize,
     pc: u32,
-    /// Where its calls end (the return address, or the span's end).
+    /// Where its calls end, a span's (a function's calls end at the return address in
+    /// LR at their entry; 0 here).
     end: u32,
     /// Whether its entry is a span's (its end fixed), not a function's (the return
     /// address in LR).
     span: bool,
+    /// A function's first argument (r0) at its calls (a key's state); `None` for a span,
+    /// and for a function's calls with any first argument past the [`ARGS`] first.
+    arg: Option<u32>,
     memos: Vec<Memo>,
     /// Index in `memos` of the memo applied last (`usize::MAX`: none).
     last: usize,
@@ -392,7 +437,7 @@ pub(crate) struct Memos {
     /// Bit `(entry >> 1) % 64` of every entry: a clear bit rules a PC out at once.
     filter: u64,
     sites: Vec<Site>,
-    /// Per core and bits 1-6 of the entry XOR the return address, the index in `sites` of
+    /// Per core and bits 1-6 of the entry XOR bits 2-7 of r0, the index in `sites` of
     /// the site found there last: tried first by [`Memos::site`] (a hint, checked before
     /// use).
     hints: SiteHints,
@@ -437,14 +482,15 @@ impl Memos {
     #[inline(always)]
     fn site(&mut self, core: &Core) -> usize {
         let (id, pc) = (core.id, core.r[15]);
-        // By entry and return address: the keys of an image share their program's update.
-        let slot = (((pc ^ core.r[14]) >> 1) & 63) as usize;
+        // By entry and first argument: the keys of an image share their program's update,
+        // each its own state (r0).
+        let slot = (((pc >> 1) ^ (core.r[0] >> 2)) & 63) as usize;
         let hint = &mut self.hints.0[id & 1][slot];
-        // The hinted site is this call's when it has the core, the entry and the end (a
-        // span's end is its entry's, a function's the return address): sites are unique
-        // by those three.
+        // The hinted site is this call's when it has the core, the entry and (a function's)
+        // the first argument: sites are unique by those (a function's calls from every
+        // return address share one).
         if let Some(s) = self.sites.get(*hint as usize) {
-            if s.pc == pc && s.core == id && (s.span || s.end == core.r[14] & !1) {
+            if s.pc == pc && s.core == id && (s.span || s.arg == Some(core.r[0])) {
                 return *hint as usize;
             }
         }
@@ -459,13 +505,24 @@ impl Memos {
         let (id, pc) = (core.id, core.r[15]);
         let (end, span) = match self.entries.iter().find(|e| e.0 == pc) {
             Some(&(_, Some(end))) => (end, true),
-            _ => (core.r[14] & !1, false),
+            _ => (0, false),
         };
-        match self
-            .sites
-            .iter()
-            .position(|s| s.end == end && s.pc == pc && s.core == id)
-        {
+        let find = |sites: &[Site], arg| {
+            sites
+                .iter()
+                .position(|s| s.pc == pc && s.core == id && s.arg == arg)
+        };
+        let mut arg = (!span).then_some(core.r[0]);
+        if arg.is_some() && find(&self.sites, arg).is_none() {
+            // Past [`ARGS`] first arguments, the entry's calls share one site.
+            let n = (self.sites.iter())
+                .filter(|s| s.pc == pc && s.core == id)
+                .count();
+            if n >= ARGS {
+                arg = None;
+            }
+        }
+        match find(&self.sites, arg) {
             Some(i) => i,
             None => {
                 self.sites.push(Site {
@@ -473,6 +530,7 @@ impl Memos {
                     pc,
                     end,
                     span,
+                    arg,
                     memos: Vec::new(),
                     last: usize::MAX,
                     wait: 0,
@@ -530,9 +588,9 @@ impl Memos {
         site.quiet = site.quiet.saturating_add(1);
         if let Some(i) = found {
             let m = &mut site.memos[i];
-            let room = journal
-                .as_deref()
-                .is_none_or(|j| j.capacity() - j.len() >= m.writes.len() + m.saved.len());
+            let room = journal.as_deref().is_none_or(|j| {
+                j.capacity() - j.len() >= m.writes.len() + m.saved.len() + m.lr.iter().len()
+            });
             // The DMA's banks (`L`) are not allowed in a window on a board with an I/O,
             // but a memo recorded with the same `L` holds its accesses to them for the
             // window's log.
@@ -599,9 +657,10 @@ impl Memos {
             s.moving |= (0..8).any(|i| live >> i & 1 != 0 && core.r[i] != r[i]);
         }
         let moving = s.moving;
+        let span = s.span;
         Recording {
             site,
-            end: self.sites[site].end,
+            end: if span { s.end } else { core.r[14] & !1 },
             entry: Entry {
                 r: core.r,
                 flags: flags_of(core),
@@ -632,6 +691,8 @@ impl Memos {
             restored: 0,
             lost: if moving { 0 } else { 0xf0 },
             slots: (u32::MAX, 0),
+            lr: if span { Save::Lost } else { Save::Entry },
+            lr_moving: false,
         }
     }
 
@@ -717,13 +778,28 @@ impl Memos {
                 _ => None,
             })
             .collect();
+        // The return address, pushed and popped into PC, its word holding it again and
+        // not among the I/O's accesses (whose values a hit logs as recorded).
+        let lr = match rec.lr {
+            Save::Restored(at)
+                if rec.live_regs >> 14 & 1 != 0
+                    && core.r[15] == e.r[14] & !1
+                    && sys.sram_peek(at) == e.r[14]
+                    && rec.io.iter().all(|a| a.addr & !3 != at) =>
+            {
+                Some(at)
+            }
+            _ => None,
+        };
         let saved_bits = saved.iter().fold(0u16, |b, &(_, r)| b | 1 << r);
+        // LR is no input then; the call sets it only where it writes it (`def_regs`).
+        let lr_bit = u16::from(lr.is_some()) << 14;
         let writes: Vec<Word> = (writes.into_iter())
-            .filter(|w| saved.iter().all(|&(at, _)| at != w.off))
+            .filter(|w| saved.iter().all(|&(at, _)| at != w.off) && lr != Some(w.off))
             .collect();
         // The base and the saved registers are no inputs, and the call leaves them as
         // they were (the base unless it writes it).
-        let live_regs = rec.live_regs & !base_bit & !saved_bits;
+        let live_regs = rec.live_regs & !base_bit & !saved_bits & !lr_bit;
         let out_regs = (live_regs | rec.def_regs | 1 << 15) & !saved_bits;
         let out_flags = rec.live_flags | rec.def_flags;
         let mut claims = [u64::MAX; BANKS];
@@ -733,8 +809,13 @@ impl Memos {
                 *c = now - e.cycle;
             }
         }
-        let live: [u32; 16] =
+        let mut live: [u32; 16] =
             std::array::from_fn(|i| 0u32.wrapping_sub(u32::from(live_regs >> i & 1)));
+        if lr.is_some() {
+            // Of a return address, only what makes the `POP` a plain return to it: the
+            // Thumb bit and the top nibble (0xf in handler mode: an exception return).
+            live[14] = 0xf000_0001;
+        }
         let memo = Memo {
             epoch: e.epoch,
             live,
@@ -757,6 +838,7 @@ impl Memos {
             io: rec.io,
             based: based.map(Box::new),
             saved,
+            lr,
             used: self.clock,
             next: usize::MAX,
         };

@@ -275,6 +275,12 @@ pub(crate) struct Recording {
     /// The lowest and highest SRAM word any of them was pushed to (a load or store
     /// outside meets none).
     pub(super) slots: (u32, u32),
+    /// The return address in LR ([`Recording::track_return`]): [`Save::Restored`] once
+    /// the call has popped it into PC from the word it pushed it to (a function's call;
+    /// a span's is [`Save::Lost`] from the start).
+    pub(super) lr: Save,
+    /// Whether the instruction being run is the `PUSH` or `POP` of LR's word.
+    pub(super) lr_moving: bool,
 }
 
 impl Recording {
@@ -300,6 +306,9 @@ impl Recording {
         }
         if self.moving {
             self.track_moving(core, instr, &u);
+        }
+        if self.lr != Save::Lost {
+            self.track_return(core, instr, &u);
         }
         self.live_regs |= u.reads & !self.def_regs;
         self.def_regs |= u.writes;
@@ -392,6 +401,49 @@ impl Recording {
         }
     }
 
+    /// Before `core` runs `instr` (of usage `u`): the [`Save`] of the return address in LR
+    /// (module documentation, "The return address"). A `PUSH` of LR still at its entry
+    /// value saves it; the `POP` of that word into PC returns to it; any other read of its
+    /// entry value, or any instruction after that `POP` (the call did not return), loses
+    /// it. Accesses of other instructions to the word lose it too ([`Recording::load`]).
+    pub(super) fn track_return(&mut self, core: &Core, instr: &Instr, u: &Usage) {
+        const LR: u16 = 1 << 14;
+        self.lr_moving = false;
+        let unwritten = self.def_regs & LR == 0;
+        let low = |list: u16| 4 * (list & 0xff).count_ones();
+        self.lr = match (self.lr, *instr) {
+            (Save::Entry, Instr::Push { list }) if list & LR != 0 && unwritten => {
+                self.lr_moving = true;
+                let first = core.r[13].wrapping_sub(low(list) + 4);
+                let slot = first.wrapping_add(low(list));
+                sram_location(slot).map_or(Save::Lost, |(off, _)| Save::Pushed(off as u32))
+            }
+            (Save::Pushed(at), Instr::Pop { list }) if list & 0x8000 != 0 => {
+                self.lr_moving = true;
+                let slot = core.r[13].wrapping_add(low(list));
+                match sram_location(slot) {
+                    Some((off, _)) if off as u32 == at => Save::Restored(at),
+                    _ => Save::Lost,
+                }
+            }
+            (Save::Entry | Save::Pushed(_), _) if u.reads & LR != 0 && unwritten => Save::Lost,
+            (Save::Restored(_), _) => Save::Lost,
+            (s, _) => s,
+        };
+    }
+
+    /// A load or store of `size` bytes at SRAM offset `off` loses LR's saved word when it
+    /// meets it, unless the instruction is its own `PUSH` or `POP`.
+    #[inline]
+    fn meet_return(&mut self, off: u32, size: u32) {
+        if let Save::Pushed(at) | Save::Restored(at) = self.lr {
+            let (lo, hi) = (off & !3, (off + size.max(1) - 1) & !3);
+            if (at == lo || at == hi) && !self.lr_moving {
+                self.lr = Save::Lost;
+            }
+        }
+    }
+
     /// Register `r` (of [`SAVES`]) now stands as `s`: its [`Save`], the masks of them, and
     /// the span of the words pushed to.
     pub(super) fn set_save(&mut self, r: u8, s: Save) {
@@ -437,6 +489,7 @@ impl Recording {
     /// decoded code.
     #[inline]
     pub(crate) fn load(&mut self, off: u32, size: u32, value: u32, code: bool) {
+        self.meet_return(off, size);
         if self.moving {
             self.meet_saves(off, size);
             if let Some((r, addr)) = self.via {
@@ -455,6 +508,7 @@ impl Recording {
     /// A store of `size` bytes at SRAM offset `off`.
     #[inline]
     pub(crate) fn store(&mut self, off: u32, size: u32) {
+        self.meet_return(off, size);
         if self.moving {
             self.meet_saves(off, size);
         }
