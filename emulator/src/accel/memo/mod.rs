@@ -121,6 +121,13 @@ const PER_SITE: usize = 64;
 /// key's state, [`Site::arg`]); then one more for its calls with any other: r0 may be
 /// data, not a key's state, and sites are looked for one by one.
 const ARGS: usize = 64;
+/// Successors a memo remembers ([`Memo::next`]), tried in turn before a scan of the
+/// site's memos.
+const NEXTS: usize = 4;
+/// No memo, in [`Memo::next`].
+const NONE: u8 = u8::MAX;
+// A site's memo indices fit `Memo::next`'s bytes, with `NONE` left over.
+const _: () = assert!(PER_SITE < NONE as usize);
 /// Most instructions a recorded call may run.
 const MAX_INSTRUCTIONS: u64 = 50_000;
 /// Most SRAM accesses a recording logs.
@@ -235,8 +242,10 @@ struct Memo {
     lr: Option<u32>,
     /// [`Memos`]' clock at its last use.
     used: u64,
-    /// Index in its site of the memo applied after it last (`usize::MAX`: none yet).
-    next: usize,
+    /// Indices in its site of the memos applied after it, the latest first ([`NONE`]:
+    /// none yet): a based memo stands for several states (a key's sensor words in each
+    /// results buffer of a converter board), each with its own successor.
+    next: [u8; NEXTS],
 }
 
 impl Memo {
@@ -407,6 +416,50 @@ struct Site {
     seen: Option<(u16, [u32; 8])>,
 }
 
+/// Notes in a memo's successors `next` ([`Memo::next`]) that the memo at index `i` of its
+/// site was applied after it: `i` first, the others kept in order behind it (the last
+/// dropped when `i` is new).
+fn follow(next: &mut [u8; NEXTS], i: usize) {
+    let i = i as u8;
+    let at = next.iter().position(|&n| n == i).unwrap_or(NEXTS - 1);
+    next.copy_within(0..at, 1);
+    next[0] = i;
+}
+
+impl Site {
+    /// The memo to apply when the first of `next` (the successors of the memo applied
+    /// last) does not match: within [`SCAN_AFTER`] calls of the last hit or recording, the
+    /// other successors, then every memo of the site; after that, none.
+    #[inline(never)]
+    fn other(
+        &mut self,
+        next: [u8; NEXTS],
+        core: &Core,
+        sys: &System,
+        stats: &mut MemoStats,
+    ) -> Option<usize> {
+        if self.quiet >= SCAN_AFTER {
+            // A key moving for a while: no memo tried but the first successor.
+            return None;
+        }
+        let tried = next.iter().take_while(|&&n| n != NONE).count().max(1);
+        let found = (next[1..tried].iter().map(|&n| n as usize)).find(|&n| {
+            self.memos
+                .get_mut(n)
+                .is_some_and(|m| m.inputs_match(core, sys))
+        });
+        if found.is_some() {
+            return found;
+        }
+        // The successors tried are tried again (rarely: a hit usually stops at the first).
+        let first = next[0] as usize;
+        let i =
+            (0..self.memos.len()).find(|&i| i != first && self.memos[i].inputs_match(core, sys));
+        stats.unpredicted += i.is_some() as u64;
+        i
+    }
+}
+
 /// What [`Memos::call`] found at a watched entry.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Try {
@@ -573,17 +626,11 @@ impl Memos {
             // New code at the site: its calls' past says nothing of these.
             (site.epoch, site.fails, site.wait, site.streak) = (sys.code_epoch, 0, 0, 0);
         }
-        let next = site.memos.get(site.last).map_or(usize::MAX, |m| m.next);
-        let predicted = (site.memos.get_mut(next)).is_some_and(|m| m.inputs_match(core, sys));
-        let found = match predicted {
-            true => Some(next),
-            false if site.quiet < SCAN_AFTER => {
-                let i = (0..site.memos.len())
-                    .find(|&i| i != next && site.memos[i].inputs_match(core, sys));
-                self.stats.unpredicted += i.is_some() as u64;
-                i
-            }
-            false => None,
+        let next = site.memos.get(site.last).map_or([NONE; NEXTS], |m| m.next);
+        let first = next[0] as usize;
+        let found = match (site.memos.get_mut(first)).is_some_and(|m| m.inputs_match(core, sys)) {
+            true => Some(first),
+            false => site.other(next, core, sys, &mut self.stats),
         };
         site.quiet = site.quiet.saturating_add(1);
         if let Some(i) = found {
@@ -611,7 +658,7 @@ impl Memos {
             m.used = self.clock;
             self.stats.hit_cycles += m.cycles;
             if let Some(l) = site.memos.get_mut(site.last) {
-                l.next = i;
+                follow(&mut l.next, i);
             }
             site.last = i;
             // The next miss records (a key that moved and stopped again is memoized at
@@ -840,7 +887,7 @@ impl Memos {
             saved,
             lr,
             used: self.clock,
-            next: usize::MAX,
+            next: [NONE; NEXTS],
         };
         self.stats.recorded += 1;
         let site = &mut self.sites[rec.site];
@@ -857,15 +904,39 @@ impl Memos {
             // Indices moved: forget the successors.
             site.last = usize::MAX;
             for m in &mut site.memos {
-                m.next = usize::MAX;
+                m.next = [NONE; NEXTS];
             }
         }
         // The new memo follows the one applied last (a cycle of states comes round in order).
         let at = site.memos.len();
         if let Some(l) = site.memos.get_mut(site.last) {
-            l.next = at;
+            follow(&mut l.next, at);
         }
         site.last = site.memos.len();
         site.memos.push(memo);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{follow, NEXTS, NONE};
+
+    #[test]
+    fn successors_are_kept_latest_first_without_repeats() {
+        let mut next = [NONE; NEXTS];
+        follow(&mut next, 5);
+        assert_eq!(next, [5, NONE, NONE, NONE]);
+        for i in [7, 9, 11] {
+            follow(&mut next, i);
+        }
+        assert_eq!(next, [11, 9, 7, 5]);
+        // One already there moves to the front; nothing is lost or repeated.
+        follow(&mut next, 7);
+        assert_eq!(next, [7, 11, 9, 5]);
+        follow(&mut next, 7);
+        assert_eq!(next, [7, 11, 9, 5]);
+        // A new one pushes the oldest out.
+        follow(&mut next, 2);
+        assert_eq!(next, [2, 7, 11, 9]);
     }
 }
