@@ -652,6 +652,10 @@ pub struct CoreLabels {
     pub keys: Label,
     /// See [`CoreLabels::keys`].
     pub keys_end: Label,
+    /// Per key of the core, in the order given: its update's call sites (each `BL`), one
+    /// in each copy of the keys' code ([`Turns`]), in copy order. What an injected hang
+    /// of that key alone patches (`super::run`'s `FaultKind::Hang`).
+    pub calls: Vec<Vec<Label>>,
 }
 
 /// The reset, start and sample-interrupt handlers of core `core` with `keys`, its control
@@ -692,7 +696,9 @@ pub fn core_code(
         default: a.label(),
         keys: a.label(),
         keys_end: a.label(),
+        calls: vec![Vec::new(); keys.len()],
     };
+    let mut calls = vec![Vec::new(); keys.len()];
     if let Some(k) = keys.iter().find(|k| k.clobbers & !CLOBBERABLE != 0) {
         return Err(ImageError::Compile(format!(
             "an update clobbers registers {:#06x}; the image's glue allows only {CLOBBERABLE:#06x}",
@@ -974,6 +980,11 @@ pub fn core_code(
                 a.i(asm::mov(2, 4));
                 add_big(a, 2, k.out_offset);
             }
+            let call = a.label();
+            a.bind(call);
+            if let Some(c) = keys.iter().position(|x| std::ptr::eq(x, k)) {
+                calls[c].push(call);
+            }
             a.bl_addr(k.update);
             if let Some(g) = &k.guard {
                 let window = |a: &mut CodeBuffer| a.ldr_const(6, sensor_base);
@@ -1090,7 +1101,7 @@ pub fn core_code(
     a.i(Instr::Bx { rm: 14 });
     a.pool();
     trip_paths(a, &mut trips, keys, ctrl_addr, core);
-    Ok(labels)
+    Ok(CoreLabels { calls, ..labels })
 }
 
 /// The dispatch's far half ([`Turns`]) that copy `copy` hosts, out of the copies' flow
