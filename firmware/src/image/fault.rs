@@ -109,6 +109,14 @@ impl FaultKind {
 /// The key field of a fault that is no key's (a watchdog reset).
 pub const NO_KEY: u8 = 0xff;
 
+/// The bit of core 1's fault word in the watchdog's scratch register that core 0's handler
+/// sets at the end of a sample in which it does not feed the watchdog because core 1 is
+/// more than a sample behind (`glue::checks::mark_behind`): after the reset, the watchdog's
+/// trip is counted on core 1's record, not core 0's, and the bit cleared. Bit 7 of the
+/// kind byte, which no kind's code uses. A board within its budget never sets it: core 1
+/// finishes each sample within the sample.
+pub const BEHIND: u32 = 0x80;
+
 /// One core's fault record as the host reads it: the fault word and the fault time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FaultWord {
