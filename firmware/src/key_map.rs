@@ -420,9 +420,8 @@ pub fn check(map: &KeyMap, image: &Image) -> Result<CheckedMap, String> {
         for (j, c) in k.update_calls.iter().enumerate() {
             let a = addr(c, &f("update_calls"))?;
             // A 32-bit `BL`: 0xf000 | imm, then 0xd000 | imm (DDI0419 A6.7.13, T1).
-            let bl = bytes(image, a, 4).is_some_and(|b| {
-                b[1] & 0xf8 == 0xf0 && b[3] & 0xd0 == 0xd0 && a % 2 == 0
-            });
+            let bl = bytes(image, a, 4)
+                .is_some_and(|b| b[1] & 0xf8 == 0xf0 && b[3] & 0xd0 == 0xd0 && a % 2 == 0);
             if !bl {
                 return Err(format!(
                     "`{}[{j}]` = {c}: not a `BL` of the image",

@@ -194,10 +194,14 @@ fn a_hang_is_its_keys_alone(board: &str) {
     assert!(r.resets().is_empty() && !fault(&mut r, &image, 0).tripped());
     let (still, r, _) = run_with(&image, Engine::LockStep, Some(0), from, n, &words);
     assert!(r.resets().is_empty(), "{board}: {:?}", r.resets());
-    assert_eq!(still, clean, "{board}: a hang of a key that never calls its update");
+    assert_eq!(
+        still, clean,
+        "{board}: a hang of a key that never calls its update"
+    );
     for key in [1, 2] {
         let core = image.keys()[key].core;
-        let (out, mut r, hang_cycle) = run_with(&image, Engine::LockStep, Some(key), from, n, &words);
+        let (out, mut r, hang_cycle) =
+            run_with(&image, Engine::LockStep, Some(key), from, n, &words);
         let resets = r.resets().to_vec();
         assert_eq!(resets.len(), 1, "{board} key {key}: {resets:?}");
         let reset = &resets[0];
@@ -214,7 +218,10 @@ fn a_hang_is_its_keys_alone(board: &str) {
             if i < from as usize {
                 assert_eq!(s, &clean[i], "{board} key {key} sample {i}");
             } else if (at..back).contains(&i) {
-                assert!(s.dac.iter().all(|&d| d == 0), "{board} key {key} sample {i}");
+                assert!(
+                    s.dac.iter().all(|&d| d == 0),
+                    "{board} key {key} sample {i}"
+                );
             }
         }
         // After the reboot every key plays again, as in the clean run.
@@ -227,7 +234,10 @@ fn a_hang_is_its_keys_alone(board: &str) {
             (Some(FaultKind::Watchdog), NO_KEY, 1),
             "{board} key {key}: {f:?}"
         );
-        assert!(!fault(&mut r, &image, 1 - core).tripped(), "{board} key {key}");
+        assert!(
+            !fault(&mut r, &image, 1 - core).tripped(),
+            "{board} key {key}"
+        );
         let (fast, ..) = run_with(&image, Engine::Block, Some(key), from, n, &words);
         assert_eq!(out, fast, "{board} key {key}: lock-step vs block engine");
     }

@@ -790,10 +790,14 @@ impl FirmwareJob {
         let end = self.samples as u64;
         let mut out = Vec::new();
         for (spec, inj) in &self.faults {
-            let Some(k) = inj.key.filter(|_| inj.kind == FaultKind::Hang && inj.from < end) else {
+            let Some(k) = inj
+                .key
+                .filter(|_| inj.kind == FaultKind::Hang && inj.from < end)
+            else {
                 continue;
             };
-            let (Some(key), Some(program)) = (self.map.keys.get(k), specs.get(k).map(|s| s.program))
+            let (Some(key), Some(program)) =
+                (self.map.keys.get(k), specs.get(k).map(|s| s.program))
             else {
                 continue;
             };

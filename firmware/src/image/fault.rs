@@ -45,8 +45,13 @@
 //! feeds, and the watchdog resets the board [`WATCHDOG_PERIOD_US`] after the last feed: at
 //! most 1 ms and one sample after the hang began. Each core's reset handler copies its
 //! scratch pair back into its control block before the sample loop; core 0's, when REASON
-//! is set and SCRATCH4 holds [`NON_REBOOT_MAGIC`], first records one more trip of kind
-//! [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over its own pair. A brown-out clears
+//! is set and SCRATCH4 holds [`NON_REBOOT_MAGIC`], first (before core 1's launch) records
+//! one more trip of kind [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over the pair of
+//! the core that stopped: core 1's when its scratch fault word holds [`BEHIND`] (set by
+//! core 0's handler in place of the feed while core 1 was more than a sample behind), else
+//! its own. Which key hung the firmware does not know: after the reset nothing of the hung
+//! sample is left but the scratch registers, and naming the key there would take a store
+//! per key and sample. A brown-out clears
 //! SRAM and the scratch registers: a flash image boots as at power-on, a RAM image is gone
 //! and the boot ROM waits in USB boot, the DACs at zero.
 

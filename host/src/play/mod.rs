@@ -38,6 +38,7 @@ pub use run::{TraceRows, TraceWindow, Traces};
 pub use strike::Strike;
 pub use timeline::Timeline;
 
+pub use crate::fault::RestingHang;
 use calibrate::{calibrate, CALIBRATION_LEVELS_N};
 use emulated::{play_boards, BoardRun, PerformOptions};
 use engine::{FixedJitEngine, HostKey, JitEngine};
@@ -45,7 +46,6 @@ use motion::{busy_stretches, key_motion, stretch_samples};
 pub use motion::{FingerCalibration, Restrikes};
 use run::{run_keys, Drive};
 use std::collections::BTreeMap;
-pub use crate::fault::RestingHang;
 use tactus_compiler::ir::Program;
 use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_runtime::keyboard::{BoardSpec, KeyAssignment};
