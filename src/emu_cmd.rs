@@ -50,7 +50,7 @@ pub enum EmuCommand {
         /// With `--stimulus`: inject a fault (repeatable), in `tactus play --fault`'s syntax:
         /// `kind=open|short|stuck|jump|noise` on a key (`note=MIDI`, or `board=N,key=K`: N
         /// this firmware's board, its keys.json's `board`; K from 0 in its key order),
-        /// `kind=hang` (its update never returns) or `kind=flip` (`word=`, `bit=`) on a key,
+        /// `kind=hang` (that key's update alone never returns) or `kind=flip` (`word=`, `bit=`) on a key,
         /// `kind=adc-silent|dac-stall` on `board=N,core=C`, `kind=brownout` on `board=N`;
         /// `at=TIME` and optionally `until=TIME` (`1.5s`, `200ms`), and the kind's value
         /// (`code=`, `delta=`, `amplitude=`). On plain and converter boards alike. After the
@@ -78,8 +78,9 @@ const RUN_EXAMPLES: &str = "Examples:
       the check that tripped (sensor-range), the key, the sample and the trips
   tactus emu run fw/board-05/firmware.elf --stimulus pp-dip --fault kind=noise,amplitude=2000,board=5,key=3,at=0.1s
   tactus emu run fw/board-05/firmware.elf --stimulus mf-dip --fault kind=hang,note=60,at=0.1s
-      key 60's update never returns: with the watchdog on, the board resets (printed, with the
-      samples at zero force until it runs again) and its fault word says `watchdog`
+      key 60's update never returns (the other keys' calls of the same code do): with the
+      watchdog on, the board resets within 1 ms (printed, with the samples at zero force
+      until it runs again) and the fault word of key 60's core says `watchdog`
   tactus build grand88 --target rp2040 --board rp2040_io -o fw-io
   tactus emu run fw-io/board-05/firmware.elf --stimulus mf-dip --fault kind=adc-silent,board=5,core=1,at=0.1s
 
@@ -183,6 +184,7 @@ fn run_firmware(
     for line in &run.lines {
         println!("{line}");
     }
+    run.warnings.iter().for_each(|w| eprintln!("warning: {w}"));
     if let Some(e) = &run.false_alarm {
         eprintln!("error: {e}");
     }

@@ -114,7 +114,8 @@ pub struct PlayArgs {
     /// target `note=MIDI` or `board=N,key=K` (`board=N,core=C` for the converters,
     /// `board=N` for a brown-out), `at=TIME` and optionally `until=TIME` (`1.5s`,
     /// `200ms`), and the kind's value (`code=`, `delta=`, `amplitude=`, `word=` and
-    /// `bit=`). E.g. `--fault kind=open,note=60,at=1s,until=1.2s`. After the run each
+    /// `bit=`); `hang` hangs that key's update alone (its core stops: the watchdog resets
+    /// the board, the trip on that core's record). E.g. `--fault kind=open,note=60,at=1s,until=1.2s`. After the run each
     /// board's resets and fault words are printed (the kind the firmware's check named, the
     /// key, the time, the trips) and written to OUT/NAME-faults.csv; the syntax, the kinds
     /// and the report: docs/faults.md.

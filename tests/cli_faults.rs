@@ -619,8 +619,10 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
             stdout.contains("faults: 1 TRIP, 1 RESET on 1 of 1 boards"),
             "{board}: {stdout}"
         );
+        // On key 61's core, which fell behind (core 0 kept its samples).
         assert!(
-            stdout.contains("board 1 core 0: watchdog on the whole board at sample 0"),
+            stdout.contains("board 1 core 1: watchdog on the whole board at sample 0")
+                && !stdout.contains("board 1 core 0: "),
             "{board}: {stdout}"
         );
         let (from, back) = ((first + 1) as f64 / fs, (first + zero) as f64 / fs);
@@ -757,8 +759,10 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
                 .unwrap_or_else(|| panic!("{board}: {stdout}"));
             assert!((2205..=2205 + 45).contains(&reset_sample(line)), "{line}");
             assert!(line.contains("booted again"), "{line}");
+            // Key 61's core, which fell behind: core 1's record.
             assert!(
-                stdout.contains("board 1 core 0: watchdog on the whole board")
+                stdout.contains("board 1 core 1: watchdog on the whole board")
+                    && !stdout.contains("board 1 core 0: ")
                     && stdout.contains("faults: 1 TRIP, 1 RESET on 1 of 1 boards"),
                 "{stdout}"
             );
@@ -818,6 +822,51 @@ fn a_hang_on_a_key_standing_still_is_warned_about_and_waits_for_it_to_move() {
     assert!(stdout.contains("faults: 0 trips on 1 board\n"), "{stdout}");
     // A key moving when the hang begins: no warning.
     let (_, stderr) = play("kind=hang,note=61,at=0.03s");
+    assert!(!stderr.contains("stands still"), "{stderr}");
+    // `emu run` warns of the same fact in the same words (`fault::RestingHang`): `mf-dip`
+    // holds every key at the bottom from 0.08 s to 0.38 s.
+    let fw = dir.join("fw");
+    assert_ok(
+        &tactus()
+            .args([
+                "build",
+                layout.to_str().unwrap(),
+                "--target",
+                "rp2040",
+                "-o",
+            ])
+            .arg(&fw)
+            .output()
+            .unwrap(),
+    );
+    let emu = |seconds: &str, fault: &str| {
+        let out = tactus()
+            .args(["emu", "run"])
+            .arg(fw.join("board-01/firmware.elf"))
+            .args([
+                "--stimulus",
+                "mf-dip",
+                "--seconds",
+                seconds,
+                "--fault",
+                fault,
+            ])
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    let stderr = emu("0.12", "kind=hang,note=61,at=0.1s");
+    assert!(
+        stderr.contains(
+            "warning: --fault kind=hang,note=61,at=0.1s: key 61 (C#4) stands still at 0.100 s"
+        ) && stderr.contains("the hang may never run"),
+        "{stderr}"
+    );
+    let stderr = emu("0.12", "kind=hang,note=61,at=0.09s,until=0.11s");
+    assert!(stderr.contains("stands still at 0.090 s"), "{stderr}");
+    // Moving (the dip's descent) when the hang begins: no warning.
+    let stderr = emu("0.06", "kind=hang,note=61,at=0.05s");
     assert!(!stderr.contains("stands still"), "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }

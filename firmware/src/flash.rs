@@ -244,6 +244,9 @@ fn key_map(
             record: hex(record),
             state: hex(state),
             param_block: (!p.params.is_empty()).then(|| hex(state + p.thumb.state.params as u32)),
+            update_calls: (image.update_calls(i).unwrap_or_default().iter())
+                .map(|&a| hex(a))
+                .collect(),
         });
     }
     let cores = (0..image.cores())

@@ -176,6 +176,12 @@ pub struct KeyMapEntry {
     /// run-time param, its graded values in their planned formats); `null` when the
     /// program has no run-time params (every value compiled in as a constant).
     pub param_block: Option<String>,
+    /// Its update's call sites in its core's sample interrupt: the address of each `BL`
+    /// that calls it, one in each copy of the core's keys code (`image::glue::Turns`), in
+    /// copy order. A hang injected on this key (`--fault kind=hang`) loops there, so that
+    /// only this key's update never returns.
+    #[serde(default)]
+    pub update_calls: Vec<String>,
 }
 
 /// The latest start alarm a key map may name, µs after the timer's release: the images
@@ -409,6 +415,18 @@ pub fn check(map: &KeyMap, image: &Image) -> Result<CheckedMap, String> {
             let a = addr(v, &f(name))?;
             if bytes(image, a, 4).is_none() {
                 return Err(format!("`{}` = {v}: not inside the image", f(name)));
+            }
+        }
+        for (j, c) in k.update_calls.iter().enumerate() {
+            let a = addr(c, &f("update_calls"))?;
+            // A 32-bit `BL`: 0xf000 | imm, then 0xd000 | imm (DDI0419 A6.7.13, T1).
+            let bl = bytes(image, a, 4)
+                .is_some_and(|b| b[1] & 0xf8 == 0xf0 && b[3] & 0xd0 == 0xd0 && a % 2 == 0);
+            if !bl {
+                return Err(format!(
+                    "`{}[{j}]` = {c}: not a `BL` of the image",
+                    f("update_calls")
+                ));
             }
         }
         if let Some(p) = &k.param_block {

@@ -55,6 +55,19 @@ fn run(
     from: u64,
     samples: usize,
 ) -> (Vec<SampleOut>, ImageRun, u64) {
+    let words = mid_words(image);
+    run_with(image, engine, hung, from, samples, &|_| words.clone())
+}
+
+/// [`run`] with the sensor words of sample `i` given by `words(i)`.
+fn run_with(
+    image: &FirmwareImage,
+    engine: Engine,
+    hung: Option<usize>,
+    from: u64,
+    samples: usize,
+    words: &dyn Fn(usize) -> Vec<i32>,
+) -> (Vec<SampleOut>, ImageRun, u64) {
     let flash = image.flash_image().unwrap().bytes;
     let mut r = ImageRun::from_flash(image, &flash).unwrap();
     r.board().config.engine = engine;
@@ -69,10 +82,9 @@ fn run(
         })
         .unwrap();
     }
-    let words = mid_words(image);
     let at = r.tick_cycle(from);
     let out = (0..samples)
-        .map(|_| r.step(&words).unwrap().clone())
+        .map(|i| r.step(&words(i)).unwrap().clone())
         .collect();
     (out, r, at)
 }
@@ -124,12 +136,15 @@ fn hang_resets_and_recovers(board: &str, key: usize) {
             assert_eq!(out[i].dac[k], clean[i].dac[k], "{board} sample {i} key {k}");
         }
     }
-    let f = fault(&mut r, &image, 0);
+    // The trip on the hung key's core's record (core 0 saw core 1 fall behind, or core 0
+    // itself stopped), the other core's untouched.
+    let f = fault(&mut r, &image, core);
     assert_eq!(
         (f.kind, f.key, f.trips, f.at_sample),
         (Some(FaultKind::Watchdog), NO_KEY, 1, 0),
-        "{board}: {f:?}"
+        "{board} core {core}: {f:?}"
     );
+    assert!(!fault(&mut r, &image, 1 - core).tripped(), "{board}");
     // The engines agree through the hang, the reset and the reboot.
     let (fast, ..) = run(&image, Engine::Block, Some(key), from, n);
     for (i, (a, b)) in out.iter().zip(&fast).enumerate() {
@@ -150,6 +165,92 @@ fn a_hung_core_1_resets_a_plain_board_within_the_period() {
 #[test]
 fn a_hung_core_resets_a_converter_board_within_the_period() {
     hang_resets_and_recovers("rp2040_io", 2);
+}
+
+/// A hang is its key's alone (`FaultKind::Hang` loops at that key's calls of its update,
+/// every copy of its core's keys code). With the quiescent-key guard on, key 0, held still,
+/// never calls its update: a hang of it never runs, and the board plays as without it,
+/// although key 1 beside it on core 0 runs the same update code every sample (it moves).
+/// A hang of key 1 (core 0) or key 2 (core 1), which move, resets the board within the
+/// watchdog's period, the trip on that key's core's record; the motors are at zero through
+/// the reboot and the keys play again after it.
+fn a_hang_is_its_keys_alone(board: &str) {
+    let mut p = spring::spring();
+    p.watchdog = true;
+    p.sensor_check = false;
+    assert!(p.quiescent_guard, "the guard on by default");
+    let image = spring::three_keys(&p, board);
+    let (lo, hi) = image.programs()[0].fixed.sensor_raw_range[0];
+    // Key 0 at mid-travel; keys 1 and 2 on a triangle over the middle half of the range.
+    let words = move |i: usize| {
+        let t = (i % 40) as i64;
+        let tri = if t < 20 { t } else { 40 - t };
+        let span = i64::from(hi) - i64::from(lo);
+        let moving = (i64::from(lo) + span / 4 + span / 2 * tri / 20) as i32;
+        vec![lo + (hi - lo) / 2, moving, moving]
+    };
+    let (from, n) = (100u64, 200usize);
+    let (clean, mut r, _) = run_with(&image, Engine::LockStep, None, from, n, &words);
+    assert!(r.resets().is_empty() && !fault(&mut r, &image, 0).tripped());
+    let (still, r, _) = run_with(&image, Engine::LockStep, Some(0), from, n, &words);
+    assert!(r.resets().is_empty(), "{board}: {:?}", r.resets());
+    assert_eq!(
+        still, clean,
+        "{board}: a hang of a key that never calls its update"
+    );
+    for key in [1, 2] {
+        let core = image.keys()[key].core;
+        let (out, mut r, hang_cycle) =
+            run_with(&image, Engine::LockStep, Some(key), from, n, &words);
+        let resets = r.resets().to_vec();
+        assert_eq!(resets.len(), 1, "{board} key {key}: {resets:?}");
+        let reset = &resets[0];
+        let period = 133_000 * u64::from(WATCHDOG_PERIOD_US) / 1000;
+        let after = reset.cycle - hang_cycle;
+        assert!(
+            after > period - 3016 && after <= period + 3016,
+            "{board} key {key}: reset {after} cycles after the hang's tick"
+        );
+        let zero = *reset.reboot.as_ref().unwrap() as usize;
+        let (at, back) = (reset.sample as usize, reset.sample as usize + zero);
+        assert!(back + 20 < n);
+        for (i, s) in out.iter().enumerate() {
+            if i < from as usize {
+                assert_eq!(s, &clean[i], "{board} key {key} sample {i}");
+            } else if (at..back).contains(&i) {
+                assert!(
+                    s.dac.iter().all(|&d| d == 0),
+                    "{board} key {key} sample {i}"
+                );
+            }
+        }
+        // After the reboot every key plays again, as in the clean run.
+        for i in back + 2..n {
+            assert_eq!(out[i].force, clean[i].force, "{board} key {key} sample {i}");
+        }
+        let f = fault(&mut r, &image, core);
+        assert_eq!(
+            (f.kind, f.key, f.trips),
+            (Some(FaultKind::Watchdog), NO_KEY, 1),
+            "{board} key {key}: {f:?}"
+        );
+        assert!(
+            !fault(&mut r, &image, 1 - core).tripped(),
+            "{board} key {key}"
+        );
+        let (fast, ..) = run_with(&image, Engine::Block, Some(key), from, n, &words);
+        assert_eq!(out, fast, "{board} key {key}: lock-step vs block engine");
+    }
+}
+
+#[test]
+fn a_hang_is_its_keys_alone_on_a_plain_board() {
+    a_hang_is_its_keys_alone("rp2040");
+}
+
+#[test]
+fn a_hang_is_its_keys_alone_on_a_converter_board() {
+    a_hang_is_its_keys_alone("rp2040_io");
 }
 
 #[test]
@@ -254,7 +355,7 @@ fn ram_image_boots_again(board: &str, key: usize) {
         resets.iter().all(|x| x.reboot.is_ok()),
         "{board}: {resets:?}"
     );
-    let f = fault(&mut r, &image, 0);
+    let f = fault(&mut r, &image, image.keys()[key].core);
     assert_eq!(
         (f.kind, f.trips as usize),
         (Some(FaultKind::Watchdog), resets.len()),
@@ -309,14 +410,16 @@ fn ram_image_boots_again(board: &str, key: usize) {
             "{board}: sample {j} after the reboot"
         );
     }
-    // The watchdog's trip counted over the record the scratch registers kept.
-    let f = fault(&mut r, &image, 0);
+    // The watchdog's trip counted over the record the scratch registers kept, on the hung
+    // key's core.
+    let core = image.keys()[key].core;
+    let f = fault(&mut r, &image, core);
     assert_eq!(
         (f.kind, f.key, f.trips, f.at_sample),
         (Some(FaultKind::Watchdog), NO_KEY, 1, 0),
         "{board}: {f:?}"
     );
-    assert!(!fault(&mut r, &image, 1).tripped(), "{board}");
+    assert!(!fault(&mut r, &image, 1 - core).tripped(), "{board}");
     // Armed again for the next reset: SCRATCH4 the boot ROM's magic, SCRATCH7 the entry.
     let wd = &r.board().system.watchdog;
     assert_eq!(

@@ -12,7 +12,7 @@ use tactus_emulator::debug::gdb;
 use tactus_emulator::Debugger;
 use tactus_emulator::{Board, Config, StopReason};
 use tactus_firmware::flash::{self, KeyMap};
-use tactus_firmware::image::{FirmwareImage, ImageRun, Injection, ResetRecord};
+use tactus_firmware::image::{FaultKind, FirmwareImage, ImageRun, Injection, ResetRecord};
 
 /// The largest ELF file read, bytes: every memory an ELF may load into (ROM, 2 MB of
 /// flash, SRAM) is far smaller; a bound on what a mistaken path (`/dev/zero`) can make the
@@ -302,6 +302,9 @@ pub struct FirmwareText {
     /// With no fault injected, a trip of the firmware's checks or a reset: a false alarm,
     /// said.
     pub false_alarm: Option<String>,
+    /// Warnings: each `--fault kind=hang` whose key the stimulus leaves standing still when
+    /// the hang begins ([`crate::fault::RestingHang`], as `tactus play` warns of it).
+    pub warnings: Vec<String>,
 }
 
 /// The most key maps of one keyboard read beside a board's (`board-NN` directories).
@@ -763,12 +766,61 @@ impl FirmwareJob {
             )
         });
         let missed = self.faults.is_empty() && misses.iter().any(|&m| m > 0);
+        let warnings = (self.resting_hangs().iter())
+            .map(crate::fault::RestingHang::warning)
+            .collect();
         Ok(FirmwareText {
             lines,
             missed,
             faults,
             resets,
             false_alarm,
+            warnings,
         })
+    }
+
+    /// The hangs injected on keys that the stimulus leaves standing still when the hang
+    /// begins ([`crate::fault::RestingHang::of`]), on keys whose program runs with the
+    /// quiescent-key guard; times are the run's. A key's first sensor follows the stimulus
+    /// (repeated), so it next moves at the first sample whose word differs from the one
+    /// before.
+    pub fn resting_hangs(&self) -> Vec<crate::fault::RestingHang> {
+        let (specs, programs) = (self.image.keys(), self.image.programs());
+        let fs = f64::from(self.map.sample_rate_hz);
+        let end = self.samples as u64;
+        let mut out = Vec::new();
+        for (spec, inj) in &self.faults {
+            let Some(k) = inj
+                .key
+                .filter(|_| inj.kind == FaultKind::Hang && inj.from < end)
+            else {
+                continue;
+            };
+            let (Some(key), Some(program)) =
+                (self.map.keys.get(k), specs.get(k).map(|s| s.program))
+            else {
+                continue;
+            };
+            if programs[program].guard_words().is_none() {
+                continue;
+            }
+            let until = inj.until.unwrap_or(end).min(end);
+            let w = &self.words[program];
+            let at = |n: u64| w[(n % w.len() as u64) as usize];
+            let next = match w.is_empty() {
+                true => None,
+                false => (inj.from.max(1)..until).find(|&n| at(n) != at(n - 1)),
+            };
+            let next_s = next.map_or(f64::INFINITY, |n| n as f64 / fs);
+            out.extend(crate::fault::RestingHang::of(
+                &spec.text,
+                key.midi,
+                inj.from as f64 / fs,
+                until as f64 / fs,
+                next_s,
+                fs,
+            ));
+        }
+        out
     }
 }

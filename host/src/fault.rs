@@ -10,7 +10,7 @@
 //! kind=jump,delta=8000,note=60,at=1s          the code plus 8,000 from 1 s on
 //! kind=adc-silent,board=1,core=0,at=1s        core 0's ADC answers all ones
 //! kind=dac-stall,board=1,core=1,at=1s         core 1's DAC takes no more frames
-//! kind=hang,note=60,at=1s,until=1.5s          the key's update never returns (`b .`)
+//! kind=hang,note=60,at=1s,until=1.5s          that key's update never returns (`b .`)
 //! kind=flip,word=2,bit=30,note=60,at=1s       bit 30 of the key's state word 2 flips
 //! kind=brownout,board=1,at=1s                 the supply dips: a power-on reset
 //! ```
@@ -611,6 +611,70 @@ pub fn reset_text(reset: &tactus_firmware::image::ResetRecord, fs: f64) -> Strin
         reset.sample,
         reset.cycle
     )
+}
+
+/// A hung update (`kind=hang`) injected on a key that stands still when it begins. The
+/// firmware's quiescent-key guard skips the update of a key whose sensors and state stand
+/// still, and the hang loops at that key's own calls of its update
+/// (`tactus_firmware::image::FaultKind::Hang`), so it takes effect when the key's update
+/// next runs: at the latest when the key next moves, sooner while its state still settles,
+/// or maybe never when it rests until the fault clears or the run ends (docs/faults.md:
+/// hang a key that moves). `tactus play` and `tactus emu run` find it by this one rule
+/// ([`RestingHang::of`]) and warn of it in these words ([`RestingHang::warning`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RestingHang {
+    /// The `--fault` as given.
+    pub fault: String,
+    /// The key (MIDI).
+    pub key: u8,
+    /// When the hang begins, s.
+    pub at_s: f64,
+    /// When the key next moves within the fault's window, s (the clock of `at_s`); `None`:
+    /// not before the fault clears or the run ends.
+    pub moves_at_s: Option<f64>,
+}
+
+impl RestingHang {
+    /// The hang `fault` on `key` from `from_s` to `until_s` (s; the run's end when it does
+    /// not clear) whose key's sensor next moves at `next_s` (at or after `from_s`; infinite
+    /// when it never does), at `fs` samples a second, if the key stands still when the
+    /// hang begins: it does not move within a sample of `from_s`. The times keep the
+    /// caller's clock.
+    pub fn of(
+        fault: &str,
+        key: u8,
+        from_s: f64,
+        until_s: f64,
+        next_s: f64,
+        fs: f64,
+    ) -> Option<RestingHang> {
+        (next_s > from_s + 1.0 / fs).then(|| RestingHang {
+            fault: fault.to_string(),
+            key,
+            at_s: from_s,
+            moves_at_s: (next_s < until_s).then_some(next_s),
+        })
+    }
+
+    /// The warning: the key stands still, the guard skips its update, and when the hang
+    /// takes effect (docs/faults.md).
+    pub fn warning(&self) -> String {
+        let key = format!(
+            "key {} ({})",
+            self.key,
+            tactus_firmware::budget::note_name(self.key)
+        );
+        let when = match self.moves_at_s {
+            None => "it does not move before the fault ends: the hang may never run (only while the key's state still settles)".to_string(),
+            Some(t) => format!(
+                "the hang takes effect when its update next runs: at the latest when the key next moves, at {t:.3} s"
+            ),
+        };
+        format!(
+            "--fault {}: {key} stands still at {:.3} s, and the quiescent-key guard skips the update of a key whose sensor and state stand still (the hang loops at that key's calls of its update); {when}. Hang a key that moves (docs/faults.md)",
+            self.fault, self.at_s
+        )
+    }
 }
 
 /// Decodes each core's raw fault record (the fault word, the fault time).

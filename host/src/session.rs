@@ -270,26 +270,7 @@ impl Piece {
             ));
         }
         // A hang on a key standing still waits for it to move (the quiescent-key guard).
-        for h in &played.resting_hangs {
-            let key = format!(
-                "key {} ({})",
-                h.key,
-                tactus_firmware::budget::note_name(h.key)
-            );
-            let when = match (h.moves_at_s, h.others_move) {
-                (None, false) => {
-                    "neither it nor a key of its instrument on its board moves before the fault ends: the hang may never run (only while the key's state still settles)".to_string()
-                }
-                (Some(t), _) => format!(
-                    "the hang takes effect when that code next runs: at the latest when the key next moves, at {t:.3} s"
-                ),
-                (None, true) => "the hang takes effect only when that code next runs: when the key's state settles or a key of its instrument on its core moves".to_string(),
-            };
-            warnings.push(format!(
-                "--fault {}: {key} stands still at {:.3} s, and the quiescent-key guard skips the update of a key whose sensor and state stand still (the hang loops the first instruction of the update code the keys of its instrument on its core share); {when}. Hang a key that moves (docs/faults.md)",
-                h.fault, h.at_s
-            ));
-        }
+        warnings.extend(played.resting_hangs.iter().map(|h| h.warning()));
         let force = self.player == play::Player::Force;
         let skipped = self.skipped.len();
         lines.push(format!(

@@ -41,6 +41,14 @@ impl FirmwareImage {
             .map(|c| [c.vtor, c.reset, c.isr, c.ctrl, c.stack_top])
     }
 
+    /// Per key (in key-list order): the addresses of its update's call sites in its core's
+    /// sample interrupt, one `BL` in each copy of the core's keys code ([`glue::Turns`]),
+    /// in copy order (`keys.json`'s `update_calls`); what a hang of that key patches
+    /// ([`super::FaultKind::Hang`]).
+    pub fn update_calls(&self, key: usize) -> Option<&[u32]> {
+        self.keys.get(key).map(|k| &k.calls[..])
+    }
+
     /// Per key (in key-list order): the address of its record (the update's sensor words
     /// first, then its out words, limiter budgets and state address) and of its state.
     pub fn key_addresses(&self, key: usize) -> Option<(u32, u32)> {

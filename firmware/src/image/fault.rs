@@ -45,8 +45,13 @@
 //! feeds, and the watchdog resets the board [`WATCHDOG_PERIOD_US`] after the last feed: at
 //! most 1 ms and one sample after the hang began. Each core's reset handler copies its
 //! scratch pair back into its control block before the sample loop; core 0's, when REASON
-//! is set and SCRATCH4 holds [`NON_REBOOT_MAGIC`], first records one more trip of kind
-//! [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over its own pair. A brown-out clears
+//! is set and SCRATCH4 holds [`NON_REBOOT_MAGIC`], first (before core 1's launch) records
+//! one more trip of kind [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over the pair of
+//! the core that stopped: core 1's when its scratch fault word holds [`BEHIND`] (set by
+//! core 0's handler in place of the feed while core 1 was more than a sample behind), else
+//! its own. Which key hung the firmware does not know: after the reset nothing of the hung
+//! sample is left but the scratch registers, and naming the key there would take a store
+//! per key and sample. A brown-out clears
 //! SRAM and the scratch registers: a flash image boots as at power-on, a RAM image is gone
 //! and the boot ROM waits in USB boot, the DACs at zero.
 
@@ -108,6 +113,14 @@ impl FaultKind {
 
 /// The key field of a fault that is no key's (a watchdog reset).
 pub const NO_KEY: u8 = 0xff;
+
+/// The bit of core 1's fault word in the watchdog's scratch register that core 0's handler
+/// sets at the end of a sample in which it does not feed the watchdog because core 1 is
+/// more than a sample behind (`glue::checks::mark_behind`): after the reset, the watchdog's
+/// trip is counted on core 1's record, not core 0's, and the bit cleared. Bit 7 of the
+/// kind byte, which no kind's code uses. A board within its budget never sets it: core 1
+/// finishes each sample within the sample.
+pub const BEHIND: u32 = 0x80;
 
 /// One core's fault record as the host reads it: the fault word and the fault time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -28,8 +28,8 @@ use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
 mod checks;
 use checks::{
-    check_step, copy_words, enable_watchdog, feed_watchdog, restore_fault_record, trip_paths,
-    CopyMode, PendingTrip,
+    check_step, copy_words, enable_watchdog, feed_watchdog, mark_behind, record_watchdog_trip,
+    restore_fault_record, trip_paths, CopyMode, PendingTrip,
 };
 pub use checks::{Feed, Gate, SensorCheck, Turns, MAX_GAP};
 
@@ -652,6 +652,10 @@ pub struct CoreLabels {
     pub keys: Label,
     /// See [`CoreLabels::keys`].
     pub keys_end: Label,
+    /// Per key of the core, in the order given: its update's call sites (each `BL`), one
+    /// in each copy of the keys' code ([`Turns`]), in copy order. What an injected hang
+    /// of that key alone patches (`super::run`'s `FaultKind::Hang`).
+    pub calls: Vec<Vec<Label>>,
 }
 
 /// The reset, start and sample-interrupt handlers of core `core` with `keys`, its control
@@ -692,7 +696,9 @@ pub fn core_code(
         default: a.label(),
         keys: a.label(),
         keys_end: a.label(),
+        calls: vec![Vec::new(); keys.len()],
     };
+    let mut calls = vec![Vec::new(); keys.len()];
     if let Some(k) = keys.iter().find(|k| k.clobbers & !CLOBBERABLE != 0) {
         return Err(ImageError::Compile(format!(
             "an update clobbers registers {:#06x}; the image's glue allows only {CLOBBERABLE:#06x}",
@@ -754,6 +760,10 @@ pub fn core_code(
     // ---- reset: init every key, prepare the tick, set the limiter's registers, mark the
     // core ready, enable the start interrupt, sleep ----
     a.bind(labels.reset);
+    if let (0, Some(f)) = (core, feed) {
+        // Before core 1's launch: its pair is final when it copies it.
+        record_watchdog_trip(a, 1 + usize::from(f.other_samples.is_some()));
+    }
     start(a);
     a.ldr_const(5, ctrl_addr);
     if feed.is_some() {
@@ -974,6 +984,11 @@ pub fn core_code(
                 a.i(asm::mov(2, 4));
                 add_big(a, 2, k.out_offset);
             }
+            let call = a.label();
+            a.bind(call);
+            if let Some(c) = keys.iter().position(|x| std::ptr::eq(x, k)) {
+                calls[c].push(call);
+            }
             a.bl_addr(k.update);
             if let Some(g) = &k.guard {
                 let window = |a: &mut CodeBuffer| a.ldr_const(6, sensor_base);
@@ -1081,16 +1096,28 @@ pub fn core_code(
     a.i(asm::ldr(1, 5, ctrl::SAMPLES));
     a.i(asm::adds_imm(1, 1, 1));
     a.i(asm::str(1, 5, ctrl::SAMPLES));
-    if let Some(f) = feed.filter(|_| core == 0) {
-        feed_watchdog(a, &f);
+    let behind = a.label();
+    let fed = feed.filter(|_| core == 0);
+    if let Some(f) = fed {
+        feed_watchdog(a, &f, behind);
     }
-    a.i(asm::movs(0, EXC_RETURN_NOT));
-    a.i(asm::alu(AluOp::Mvn, 0, 0));
-    a.i(mov_hi(14, 0));
-    a.i(Instr::Bx { rm: 14 });
+    let ret = |a: &mut CodeBuffer| {
+        a.i(asm::movs(0, EXC_RETURN_NOT));
+        a.i(asm::alu(AluOp::Mvn, 0, 0));
+        a.i(mov_hi(14, 0));
+        a.i(Instr::Bx { rm: 14 });
+    };
+    ret(a);
+    if fed.is_some_and(|f| f.other_samples.is_some()) {
+        // Core 1 behind: no feed, the mark instead, and its own return (no branch back:
+        // as long as the feed).
+        a.bind(behind);
+        mark_behind(a);
+        ret(a);
+    }
     a.pool();
     trip_paths(a, &mut trips, keys, ctrl_addr, core);
-    Ok(labels)
+    Ok(CoreLabels { calls, ..labels })
 }
 
 /// The dispatch's far half ([`Turns`]) that copy `copy` hosts, out of the copies' flow

@@ -557,6 +557,7 @@ pub(super) fn key_records(
             state_offset,
             drives: drives.iter().copied().zip(budgets).collect(),
             check,
+            calls: Vec::new(),
         });
         at += size;
     }

@@ -251,6 +251,9 @@ pub(crate) struct KeyPlace {
     pub drives: Vec<(Drive, u32)>,
     /// Its sensor check, if it has one.
     pub check: Option<glue::SensorCheck>,
+    /// Its update's call sites in its core's sample interrupt (each `BL`'s address), one
+    /// per copy of the keys' code ([`glue::CoreLabels::calls`]).
+    pub calls: Vec<u32>,
 }
 
 /// Where one core's pieces live.
@@ -439,7 +442,8 @@ impl FirmwareImage {
             segments.push((base, code));
             segments.push((ctrl_addr, data));
             let mut place = layout::core_place(core, c, &g.labels, &addr, ctrl_addr);
-            for k in g.keys {
+            for (mut k, calls) in g.keys.into_iter().zip(&g.labels.calls) {
+                k.calls = calls.iter().map(|l| addr[l.index()]).collect();
                 let i = k.index;
                 place.keys.push(i);
                 if let Some(slot) = key_places.get_mut(i) {

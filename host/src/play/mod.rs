@@ -38,6 +38,7 @@ pub use run::{TraceRows, TraceWindow, Traces};
 pub use strike::Strike;
 pub use timeline::Timeline;
 
+pub use crate::fault::RestingHang;
 use calibrate::{calibrate, CALIBRATION_LEVELS_N};
 use emulated::{play_boards, BoardRun, PerformOptions};
 use engine::{FixedJitEngine, HostKey, JitEngine};
@@ -291,58 +292,24 @@ pub struct Played {
     pub timeline: Timeline,
     /// With `Emu`: the `--fault kind=hang` whose key stands still when the hang begins
     /// (the quiescent-key guard skips such a key's update, so the hang waits for it to
-    /// move): [`RestingHang`].
+    /// move), in the performance's time: [`RestingHang`].
     pub resting_hangs: Vec<RestingHang>,
 }
 
-/// A hung update injected into a key that stands still when it begins. The firmware's
-/// quiescent-key guard skips the update of a key whose sensors and state stand still, and
-/// the injection makes the first instruction of the key's update code loop
-/// (`tactus_firmware::image::FaultKind::Hang`), code the keys of its instrument on its core
-/// share: the hang takes effect when that code next runs — at the latest when the key next
-/// moves, sooner when a key sharing it moves or the key's state still settles — or maybe
-/// never, when none of them moves before the fault clears or the run ends (docs/faults.md:
-/// hang a key that moves).
-#[derive(Clone, Debug, PartialEq)]
-pub struct RestingHang {
-    /// The `--fault` as given.
-    pub fault: String,
-    /// The key (MIDI).
-    pub key: u8,
-    /// When the hang begins, s (the performance's time).
-    pub at_s: f64,
-    /// When the key next moves within the fault's window, s (the performance's time);
-    /// `None`: not before the fault clears or the run ends.
-    pub moves_at_s: Option<f64>,
-    /// Whether a key of the same instrument on its board (which may share its update
-    /// code) moves within the fault's window.
-    pub others_move: bool,
-}
-
 /// The hangs of `faults` (resolved: board, injection in the run's samples) on keys of
-/// `boards` that stand still when they begin, by the keys' `motions` (the run's time of
-/// `timeline`; a key without one rests throughout) and programs `key_program`; `end` is
-/// the run's last sample. A key moved by a finger (the force player) moves with the force:
-/// none of its hangs is listed.
+/// `boards` that stand still when they begin ([`RestingHang::of`]), by the keys' `motions`
+/// (the run's time of `timeline`; a key without one rests throughout); `end` is the run's
+/// last sample. A key moved by a finger (the force player) moves with the force: none of
+/// its hangs is listed. The times are the performance's.
 fn resting_hangs(
     faults: &[(usize, tactus_firmware::image::Injection)],
     specs: &[crate::fault::FaultSpec],
     boards: &[Vec<u8>],
-    key_program: &BTreeMap<u8, usize>,
     motions: &BTreeMap<u8, &Motion>,
     timeline: &Timeline,
     end: usize,
 ) -> Vec<RestingHang> {
     use tactus_firmware::image::FaultKind;
-    // When `key` next moves at or after `from` (run time, s): `from` while it moves,
-    // infinite when it never does; `None` for a finger's key.
-    let next_move = |key: u8, from: f64| -> Option<f64> {
-        match motions.get(&key) {
-            None => Some(f64::INFINITY),
-            Some(Motion::Finger(_)) => None,
-            Some(Motion::Track(t)) => Some(t.steady_from(from, &mut 0).map_or(from, |s| s.1)),
-        }
-    };
     let mut out = Vec::new();
     for ((b, inj), spec) in faults.iter().zip(specs) {
         if inj.kind != FaultKind::Hang {
@@ -353,23 +320,18 @@ fn resting_hangs(
         };
         let run_s = |n: u64| n as f64 / timeline.fs;
         let (from, until) = (run_s(inj.from), run_s(inj.until.unwrap_or(end as u64)));
-        let Some(next) = next_move(key, from) else {
-            continue;
+        // When the key next moves at or after `from` (run time, s): `from` while it moves,
+        // infinite when it never does; none for a finger's key.
+        let next = match motions.get(&key) {
+            None => f64::INFINITY,
+            Some(Motion::Finger(_)) => continue,
+            Some(Motion::Track(t)) => t.steady_from(from, &mut 0).map_or(from, |s| s.1),
         };
-        if next <= from + 1.0 / timeline.fs {
-            continue;
+        if let Some(mut h) = RestingHang::of(&spec.text, key, from, until, next, timeline.fs) {
+            h.at_s = timeline.run_to_performance_s(h.at_s);
+            h.moves_at_s = h.moves_at_s.map(|t| timeline.run_to_performance_s(t));
+            out.push(h);
         }
-        let program = key_program.get(&key);
-        let others_move = (boards[*b].iter())
-            .filter(|&&k| k != key && key_program.get(&k) == program)
-            .any(|&k| next_move(k, from).is_none_or(|t| t < until));
-        out.push(RestingHang {
-            fault: spec.text.clone(),
-            key,
-            at_s: timeline.run_to_performance_s(from),
-            moves_at_s: (next < until).then(|| timeline.run_to_performance_s(next)),
-            others_move,
-        });
     }
     out
 }
@@ -614,11 +576,6 @@ pub fn play(
                 &faults,
                 &config.faults,
                 &plan_boards,
-                &keys
-                    .iter()
-                    .copied()
-                    .zip(firmware_index.iter().copied())
-                    .collect(),
                 &motions.iter().map(|(&k, (m, _))| (k, m)).collect(),
                 &timeline,
                 end,

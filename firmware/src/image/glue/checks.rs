@@ -528,22 +528,38 @@ impl Feed {
 
 /// The feed at the end of core 0's handler, r1 = core 0's sample count just stored: LOAD =
 /// [`super::super::fault::WATCHDOG_LOAD`] when core 1's count is core 0's or one less (core 1
-/// finished this sample, or the one before and is finishing this one now). Clobbers
-/// r0-r2. 13 cycles on the feeding path with two cores (plus [`Feed::unpriced_cycles`]).
-pub(super) fn feed_watchdog(a: &mut CodeBuffer, f: &Feed) {
+/// finished this sample, or the one before and is finishing this one now); else a branch
+/// to `behind` ([`mark_behind`]). Clobbers r0-r2. 13 cycles on the feeding path with two
+/// cores (plus [`Feed::unpriced_cycles`]).
+pub(super) fn feed_watchdog(a: &mut CodeBuffer, f: &Feed, behind: Label) {
     use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
-    let skip = a.label();
     if let Some(other) = f.other_samples {
         a.ldr_const(2, other);
         a.i(asm::ldr(2, 2, 0));
         a.i(asm::subs(2, 1, 2));
         a.i(asm::cmp_imm(2, 1));
-        a.bc(cond::HI, skip);
+        a.bc(cond::HI, behind);
     }
     a.ldr_const(0, WATCHDOG_BASE + wreg::LOAD);
     a.ldr_const(1, super::super::fault::WATCHDOG_LOAD);
     a.i(asm::str(1, 0, 0));
-    a.bind(skip);
+}
+
+/// Where [`feed_watchdog`] goes instead of feeding (core 1 more than a sample behind: hung,
+/// or stopped finishing its samples): sets [`super::super::fault::BEHIND`] in core 1's
+/// fault word in the watchdog's scratch register (through the SET alias, datasheet 2.1.2:
+/// no read), so that after the reset the trip is recorded on core 1's side
+/// ([`record_watchdog_trip`]). The caller then returns from the handler as the feeding path
+/// does. As long as the feed it replaces (a taken branch, a literal, a `MOVS`, an APB
+/// store: 7 cycles against the feed's 7, the same 2 APB wait states), so the handler's
+/// bound does not change.
+pub(super) fn mark_behind(a: &mut CodeBuffer) {
+    use super::super::fault::{self, BEHIND};
+    use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
+    let w = wreg::SCRATCH0 + 4 * fault::scratch(1).0;
+    a.ldr_const(0, WATCHDOG_BASE + tactus_rp2040::ATOMIC_SET + w);
+    a.i(asm::movs(1, BEHIND as u8));
+    a.i(asm::str(1, 0, 0));
 }
 
 /// Core 0's start handler enables the watchdog ([`super::super::fault`], "The watchdog"):
@@ -578,40 +594,69 @@ pub(super) fn enable_watchdog(a: &mut CodeBuffer, f: &Feed) {
     a.i(asm::str(1, 2, 0));
 }
 
-/// The reset handler's copy of core `core`'s fault record from the watchdog's scratch
-/// pair into its control block (r5); on core 0, after a reset by its own watchdog
-/// (REASON set, SCRATCH4 = [`super::super::fault::NON_REBOOT_MAGIC`]), one more trip of kind
-/// [`super::super::fault::FaultKind::Watchdog`] first, in both places. Clobbers r0-r4.
+/// Core 0's reset handler, first (before core 1's launch, so before core 1 copies its
+/// pair): after a reset by its own watchdog (REASON set, SCRATCH4 =
+/// [`super::super::fault::NON_REBOOT_MAGIC`]) one more trip of kind
+/// [`super::super::fault::FaultKind::Watchdog`] (key [`super::super::fault::NO_KEY`], time 0)
+/// in the scratch pair of the core that stopped: core 1's when its fault word holds
+/// [`super::super::fault::BEHIND`] (core 0 saw it more than a sample behind, [`mark_behind`]),
+/// else core 0's. Then, on a two-core image, the mark cleared. Clobbers r0-r4.
+pub(super) fn record_watchdog_trip(a: &mut CodeBuffer, cores: usize) {
+    use super::super::fault::{self, FaultKind, BEHIND, NON_REBOOT_MAGIC, NO_KEY};
+    use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
+    let at = |core: usize| (wreg::SCRATCH0 + 4 * fault::scratch(core).0) as u16;
+    let (done, own) = (a.label(), a.label());
+    a.ldr_const(2, WATCHDOG_BASE);
+    a.i(asm::ldr(3, 2, wreg::REASON as u16));
+    a.i(asm::cmp_imm(3, 0));
+    a.bc(cond::EQ, done);
+    a.i(asm::ldr(3, 2, (wreg::SCRATCH0 + 16) as u16));
+    a.ldr_const(4, NON_REBOOT_MAGIC);
+    a.i(asm::cmp(3, 4));
+    a.bc(cond::NE, done);
+    // r4 = the offset of the stopped core's fault word from SCRATCH0.
+    a.i(asm::movs(4, at(0) as u8));
+    if cores > 1 {
+        a.i(asm::ldr(0, 2, at(1)));
+        a.i(asm::movs(1, BEHIND as u8));
+        a.i(asm::alu(AluOp::Tst, 0, 1));
+        a.bc(cond::EQ, own);
+        a.i(asm::movs(4, at(1) as u8));
+    }
+    a.bind(own);
+    a.i(asm::adds(4, 4, 2));
+    a.i(asm::ldr(0, 4, 0));
+    a.i(asm::lsrs(0, 0, 16));
+    a.i(asm::adds_imm(0, 0, 1));
+    a.i(asm::lsls(0, 0, 16));
+    a.ldr_const(
+        3,
+        u32::from(NO_KEY) << 8 | u32::from(FaultKind::Watchdog.code()),
+    );
+    a.i(asm::alu(AluOp::Orr, 0, 3));
+    a.i(asm::movs(1, 0));
+    a.i(asm::str(0, 4, 0));
+    a.i(asm::str(1, 4, 4));
+    a.bind(done);
+    if cores > 1 {
+        a.i(asm::ldr(0, 2, at(1)));
+        a.i(asm::movs(1, BEHIND as u8));
+        a.i(asm::alu(AluOp::Bic, 0, 1));
+        a.i(asm::str(0, 2, at(1)));
+    }
+}
+
+/// The reset handler's copy of core `core`'s fault record from the watchdog's scratch pair
+/// (where [`record_watchdog_trip`] counted a watchdog reset) into its control block (r5).
+/// Clobbers r0-r2.
 pub(super) fn restore_fault_record(a: &mut CodeBuffer, core: usize) {
-    use super::super::fault::{self, FaultKind, NON_REBOOT_MAGIC, NO_KEY};
+    use super::super::fault;
     use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
     let (w, _) = fault::scratch(core);
     let at = (wreg::SCRATCH0 + 4 * w) as u16;
-    let done = a.label();
     a.ldr_const(2, WATCHDOG_BASE);
     a.i(asm::ldr(0, 2, at));
     a.i(asm::ldr(1, 2, at + 4));
-    if core == 0 {
-        a.i(asm::ldr(3, 2, wreg::REASON as u16));
-        a.i(asm::cmp_imm(3, 0));
-        a.bc(cond::EQ, done);
-        a.i(asm::ldr(3, 2, (wreg::SCRATCH0 + 16) as u16));
-        a.ldr_const(4, NON_REBOOT_MAGIC);
-        a.i(asm::cmp(3, 4));
-        a.bc(cond::NE, done);
-        a.i(asm::lsrs(0, 0, 16));
-        a.i(asm::adds_imm(0, 0, 1));
-        a.i(asm::lsls(0, 0, 16));
-        a.ldr_const(
-            3,
-            u32::from(NO_KEY) << 8 | u32::from(FaultKind::Watchdog.code()),
-        );
-        a.i(asm::alu(AluOp::Orr, 0, 3));
-        a.i(asm::movs(1, 0));
-        a.i(asm::str(0, 2, at));
-        a.i(asm::str(1, 2, at + 4));
-    }
-    a.bind(done);
     a.i(asm::str(0, 5, ctrl::FAULT));
     a.i(asm::str(1, 5, ctrl::FAULT_AT));
 }

@@ -5,7 +5,8 @@
 //! replay stay exact: a sensor fault changes the key's sensor word (a board without
 //! converters) or the code its ADC channel reads (`Board::set_adc_code`, with them); a
 //! flipped bit and a hung update are host writes to SRAM between samples (`write_data`,
-//! `write_bytes`, which drops decoded code); the ADC's silence, the DAC's stall and a
+//! `write_bytes`, which drops decoded code: a hang loops at the key's calls of its update,
+//! `KeyPlace::calls`, so that the key alone hangs); the ADC's silence, the DAC's stall and a
 //! brown-out change the emulated parts or chip between samples. A recording of the rest
 //! replay never spans a change: the replay is left and forgotten at each.
 //!
@@ -54,7 +55,10 @@ pub enum FaultKind {
     /// sample before (with or without converters). Nothing on the RP2040 sees it: the
     /// DAC8568 has no read-back.
     DacStall,
-    /// The key's update never returns: its first instruction becomes `b .`.
+    /// The key's update never returns: each of the key's calls of its update in its core's
+    /// sample interrupt (one per copy of the core's keys code, `glue::Turns`; the image's
+    /// `update_calls`, `keys.json`'s) becomes `b .`, so this key alone hangs its core, at
+    /// its next update (a key the quiescent-key guard skips reaches it when it moves).
     Hang,
     /// Bit `bit` (0–31) of word `word` of the key's state struct flips once.
     Flip {
@@ -134,8 +138,8 @@ pub(super) struct Faults {
     pub(super) codes: Vec<Option<u16>>,
     /// The codes forced last sample: a change leaves the rest replay.
     last_codes: Vec<Option<u16>>,
-    /// A hung update's address and the halfword it replaced.
-    hung: Vec<(u32, [u8; 2])>,
+    /// A hung key's call sites: the key, the address and the halfword it replaced.
+    hung: Vec<(usize, u32, [u8; 2])>,
     /// Per drive of every key (flat, key order): the DAC code it holds while its core's
     /// DAC is stalled.
     pub(super) frozen: Vec<Option<i32>>,
@@ -337,17 +341,24 @@ impl ImageRun {
                     self.faults.brown_at = self.board.cycle();
                 }
                 FaultKind::Hang if starts && !ends => {
-                    let a = self.image.keys[f.key.unwrap_or(0)].update & !1;
-                    let mut old = [0u8; 2];
-                    self.board.read_bytes(a, &mut old).map_err(emu)?;
-                    // `b .`: 0xe7fe.
-                    self.board.write_bytes(a, &[0xfe, 0xe7]).map_err(emu)?;
-                    self.faults.hung.push((a, old));
+                    // `b .` (0xe7fe) over the first halfword of each of the key's calls of
+                    // its update (one per copy of its core's keys code): that key's update
+                    // alone never returns; the keys sharing its code call it as before.
+                    let k = f.key.unwrap_or(0);
+                    for &a in &self.image.keys[k].calls {
+                        let mut old = [0u8; 2];
+                        self.board.read_bytes(a, &mut old).map_err(emu)?;
+                        self.board.write_bytes(a, &[0xfe, 0xe7]).map_err(emu)?;
+                        self.faults.hung.push((k, a, old));
+                    }
                 }
                 FaultKind::Hang if ends => {
-                    let a = self.image.keys[f.key.unwrap_or(0)].update & !1;
-                    if let Some(i) = self.faults.hung.iter().position(|h| h.0 == a) {
-                        let (a, old) = self.faults.hung.remove(i);
+                    let k = f.key.unwrap_or(0);
+                    let (back, kept) = std::mem::take(&mut self.faults.hung)
+                        .into_iter()
+                        .partition(|h| h.0 == k);
+                    self.faults.hung = kept;
+                    for (_, a, old) in back {
                         self.board.write_bytes(a, &old).map_err(emu)?;
                     }
                 }
