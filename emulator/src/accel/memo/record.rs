@@ -192,7 +192,9 @@ pub(super) struct Entry {
 }
 
 pub(super) fn flags_of(core: &Core) -> u8 {
-    (core.n as u8) * N | (core.z as u8) * Z | (core.c as u8) * C | (core.v as u8) * V
+    [(core.n, N), (core.z, Z), (core.c, C), (core.v, V)]
+        .iter()
+        .fold(0, |f, &(on, bit)| if on { f | bit } else { f })
 }
 
 /// What a call may not change: Thumb bit, IPSR, PRIMASK, CONTROL, the other SP, the event
