@@ -24,6 +24,7 @@ pub const V: u8 = 8;
 pub const ALL: u8 = N | Z | C | V;
 
 /// The flags condition `cond` (0-13, ARMv6-M A6.3) reads; 0 for `AL` and beyond.
+#[inline]
 pub fn cond_reads(cond: u8) -> u8 {
     match cond {
         0 | 1 => Z,
@@ -59,6 +60,8 @@ pub struct Effect {
 /// [`Effect`] of `i`, or `None` for what an analysis cannot follow as straight-line code:
 /// control transfers (branches, calls, `BX`/`BLX`, writes of PC by `ADD`, `MOV` or `POP`),
 /// `MSR` (a special register, and the flags), traps and undefined encodings.
+// Inlined: the emulator's memo recording asks it of every instruction it records.
+#[inline]
 pub fn effect(i: &Instr) -> Option<Effect> {
     use Instr::*;
     let e = |reads: u16, writes: u16, flags_read: u8, flags_set: u8, nz: Option<u8>| {

@@ -24,7 +24,7 @@
 use std::collections::HashMap;
 use std::fmt::{self, Write as _};
 use tactus_isa::decode::Instr;
-use tactus_isa::encode::{enc_imm8, encode};
+use tactus_isa::encode::{enc_imm8, encode, Encoding};
 
 /// A label: an index into the buffer's label table ([`Assembled::labels`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -491,7 +491,7 @@ impl CodeBuffer {
             let listing = &mut text;
             match it {
                 Item::Instr(i) => {
-                    out.text.extend(enc(i)?);
+                    put(&mut out.text, enc(i)?);
                     let _ = writeln!(listing, "    {i}");
                 }
                 Item::Bind(l) => {
@@ -509,17 +509,20 @@ impl CodeBuffer {
                             },
                             None => Instr::B { offset },
                         };
-                        out.text.extend(enc(&i)?);
+                        put(&mut out.text, enc(&i)?);
                         let _ = writeln!(listing, "    b{} .L{}", c.map_or("", cname), l.0);
                     } else if let (LongBranch::Hop, Some(c)) = (self.long, c) {
                         // B<!c> over a B to the label.
                         let inv = c ^ 1;
-                        out.text.extend(enc(&Instr::BCond {
-                            cond: inv,
-                            offset: 0,
-                        })?);
+                        put(
+                            &mut out.text,
+                            enc(&Instr::BCond {
+                                cond: inv,
+                                offset: 0,
+                            })?,
+                        );
                         let offset = dest as i32 - (pc as i32 + 2 + 4);
-                        out.text.extend(enc(&Instr::B { offset })?);
+                        put(&mut out.text, enc(&Instr::B { offset })?);
                         let _ = writeln!(listing, "    b{} .+4", cname(inv));
                         let _ = writeln!(listing, "    b .L{}", l.0);
                     } else {
@@ -527,14 +530,17 @@ impl CodeBuffer {
                         if let Some(c) = c {
                             // B<!c> over the 4-byte BL.
                             let inv = c ^ 1;
-                            out.text.extend(enc(&Instr::BCond {
-                                cond: inv,
-                                offset: 2,
-                            })?);
+                            put(
+                                &mut out.text,
+                                enc(&Instr::BCond {
+                                    cond: inv,
+                                    offset: 2,
+                                })?,
+                            );
                             let _ = writeln!(listing, "    b{} .+6", cname(inv));
                             at += 2;
                         }
-                        out.text.extend(call(at, dest)?);
+                        put(&mut out.text, call(at, dest)?);
                         let _ = writeln!(listing, "    bl .L{}", l.0);
                     }
                 }
@@ -543,7 +549,7 @@ impl CodeBuffer {
                         Callee::Label(l) => lay.label(l)?,
                         Callee::Addr(a) => a & !1,
                     };
-                    out.text.extend(call(pc, dest)?);
+                    put(&mut out.text, call(pc, dest)?);
                     let _ = match *c {
                         Callee::Label(l) => writeln!(listing, "    bl .L{}", l.0),
                         Callee::Addr(_) => writeln!(listing, "    bl {dest:#x}"),
@@ -556,10 +562,13 @@ impl CodeBuffer {
                         .checked_sub(from)
                         .filter(|d| *d <= 1020)
                         .ok_or(BufferError::LiteralRange { at: pc, literal })?;
-                    out.text.extend(enc(&Instr::LdrLit {
-                        rt: *rt,
-                        imm: imm as u16,
-                    })?);
+                    put(
+                        &mut out.text,
+                        enc(&Instr::LdrLit {
+                            rt: *rt,
+                            imm: imm as u16,
+                        })?,
+                    );
                     let _ = writeln!(listing, "    ldr r{rt}, .Lpool{pool}_{index}");
                 }
                 Item::Align4 => pad(&mut out, listing, base)?,
@@ -571,9 +580,12 @@ impl CodeBuffer {
                     let words = &self.pools[*id];
                     if *jump {
                         let end = lay.pools[*id] + 4 * words.len() as u32;
-                        out.text.extend(enc(&Instr::B {
-                            offset: end as i32 - (pc as i32 + 4),
-                        })?);
+                        put(
+                            &mut out.text,
+                            enc(&Instr::B {
+                                offset: end as i32 - (pc as i32 + 4),
+                            })?,
+                        );
                         let _ = writeln!(listing, "    b .Lisland{id}_end");
                     }
                     pad(&mut out, listing, base)?;
@@ -642,7 +654,7 @@ impl fmt::Write for Listing {
 
 /// Encodes `i`. `ADDS Rdn, Rdn, #imm` with imm < 8 has two 16-bit encodings; GNU as picks
 /// T2 (imm8), so the listing assembles to the same bytes only if we do too.
-fn enc(i: &Instr) -> Result<Vec<u8>, BufferError> {
+fn enc(i: &Instr) -> Result<Encoding, BufferError> {
     match *i {
         Instr::AddImm { rd, rn, imm } | Instr::SubImm { rd, rn, imm } if rd == rn && rd < 8 => {
             let op = if matches!(i, Instr::SubImm { .. }) {
@@ -650,21 +662,35 @@ fn enc(i: &Instr) -> Result<Vec<u8>, BufferError> {
             } else {
                 2
             };
-            Ok(enc_imm8(op, rd as u16, imm as u16).to_le_bytes().to_vec())
+            Ok(Encoding::Half(enc_imm8(op, rd as u16, imm as u16)))
         }
-        _ => encode(i)
-            .map(|e| e.bytes())
-            .map_err(|e| BufferError::Encoding(format!("{i:?}: {e}"))),
+        _ => encode(i).map_err(|e| BufferError::Encoding(format!("{i:?}: {e}"))),
+    }
+}
+
+/// Appends `e`'s little-endian bytes, as they sit in memory, to `text` (no allocation:
+/// the glue of every image a keyboard's plan tries is assembled, a million instructions
+/// for the demo).
+fn put(text: &mut Vec<u8>, e: Encoding) {
+    match e {
+        Encoding::Half(h) => text.extend(h.to_le_bytes()),
+        Encoding::Word(a, b) => {
+            text.extend(a.to_le_bytes());
+            text.extend(b.to_le_bytes());
+        }
     }
 }
 
 /// Size in bytes of `i` (2 when it does not encode; [`enc`] reports that).
 fn size(i: &Instr) -> u32 {
-    encode(i).map(|e| e.bytes().len() as u32).unwrap_or(2)
+    match encode(i) {
+        Ok(Encoding::Word(..)) => 4,
+        _ => 2,
+    }
 }
 
 /// The `BL` at `at` to `target`, range checked.
-fn call(at: u32, target: u32) -> Result<Vec<u8>, BufferError> {
+fn call(at: u32, target: u32) -> Result<Encoding, BufferError> {
     let offset = target as i64 - (at as i64 + 4);
     if !(-(1 << 22)..(1 << 22)).contains(&offset) {
         return Err(BufferError::CallRange { at, target });
@@ -677,7 +703,7 @@ fn call(at: u32, target: u32) -> Result<Vec<u8>, BufferError> {
 /// Pads `out` to a word boundary (absolute, from `base`).
 fn pad(out: &mut Assembled, listing: &mut Listing, base: u32) -> Result<(), BufferError> {
     if !(base as usize + out.text.len()).is_multiple_of(4) {
-        out.text.extend(enc(&PAD)?);
+        put(&mut out.text, enc(&PAD)?);
         let _ = listing.write_str("    mov r8, r8\n");
     }
     Ok(())
@@ -758,7 +784,7 @@ mod tests {
         assert_eq!(out.labels[0], 0x2000_0002);
         // ldr 0x..02, ldr 0x..04, bne 0x..06, bl 0x..08, b over 0x..0c, padding at 0x..0e,
         // the pool's one (shared) literal at 0x..10: absolute alignment, whatever the base.
-        assert_eq!(&bytes[0x0c..0x0e], &enc(&PAD).unwrap()[..]);
+        assert_eq!(&bytes[0x0c..0x0e], &enc(&PAD).unwrap().bytes()[..]);
         assert_eq!(&bytes[0x0e..0x12], &0x1234_5678u32.to_le_bytes());
         assert_eq!(bytes.len(), 0x16);
         match dec(bytes, 0) {

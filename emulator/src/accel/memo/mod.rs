@@ -100,6 +100,8 @@ use crate::exec::literal_address;
 use crate::system::System;
 use std::collections::{BTreeMap, BTreeSet};
 use tactus_isa::decode::{self, AluOp, Instr};
+// The flag bits of [`Usage`]: N, Z, C, V as `effects` numbers them.
+use tactus_isa::effects::{self, C, N, V, Z};
 use tactus_rp2040::memory::{sram_location, BANKS};
 
 mod based;
@@ -149,14 +151,6 @@ const BASES: u16 = 0xf;
 /// r4-r7 (AAPCS), which a key update pushes at its entry and pops at its return.
 const SAVES: std::ops::RangeInclusive<u8> = 4..=7;
 
-/// Flag bits of [`Usage`]: N, Z, C, V.
-const N: u8 = 8;
-const Z: u8 = 4;
-const C: u8 = 2;
-const V: u8 = 1;
-const NZ: u8 = N | Z;
-const NZCV: u8 = N | Z | C | V;
-
 /// What the memos did (for tests and reports).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MemoStats {
@@ -177,7 +171,7 @@ pub struct MemoStats {
 }
 
 /// The registers (bit *n*: r*n*, r0-r14; PC is never an input, its value is the code's)
-/// and flags (N 8, Z 4, C 2, V 1) an instruction may read, and those it writes. A register
+/// and flags ([`effects::N`], `Z`, `C`, `V`) an instruction may read, and those it writes. A register
 /// or flag an instruction writes only sometimes (the carry of a shift by a register) is
 /// among its reads too, so that a write counts only where it always happens.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

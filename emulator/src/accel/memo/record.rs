@@ -22,10 +22,14 @@ pub(super) enum Save {
 }
 
 /// The [`Usage`] of `instr` (DDI0419 A6.7, as `exec.rs` executes it), `None` for an
-/// instruction a memoized call may not contain.
+/// instruction a memoized call may not contain: a layer over [`effects::effect`], the one
+/// list of what an instruction reads and writes, that adds the control transfers a call
+/// makes (which have no [`effects::Effect`]) and counts a flag an instruction writes only
+/// sometimes (the carry of a shift by a register, left alone by a shift of 0) as read too.
 pub(crate) fn usage(instr: &Instr) -> Option<Usage> {
     use Instr::*;
     let b = |r: u8| 1u16 << (r & 15);
+    // PC is never an input or an output here: its value is the code's.
     let u = |reads: u16, writes: u16, flag_reads: u8, flag_writes: u8| {
         Some(Usage {
             reads: reads & 0x7fff,
@@ -35,55 +39,8 @@ pub(crate) fn usage(instr: &Instr) -> Option<Usage> {
         })
     };
     match *instr {
-        // LSLS #0 is MOVS: the carry is left alone.
-        LslImm { rd, rm, imm } => u(b(rm), b(rd), 0, if imm == 0 { NZ } else { NZ | C }),
-        LsrImm { rd, rm, .. } | AsrImm { rd, rm, .. } => u(b(rm), b(rd), 0, NZ | C),
-        AddReg { rd, rn, rm } | SubReg { rd, rn, rm } => u(b(rn) | b(rm), b(rd), 0, NZCV),
-        AddImm { rd, rn, .. } | SubImm { rd, rn, .. } => u(b(rn), b(rd), 0, NZCV),
-        MovImm { rd, .. } => u(0, b(rd), 0, NZ),
-        CmpImm { rn, .. } => u(b(rn), 0, 0, NZCV),
-        Alu { op, rdn, rm } => {
-            let both = b(rdn) | b(rm);
-            match op {
-                AluOp::And | AluOp::Eor | AluOp::Orr | AluOp::Bic | AluOp::Mul | AluOp::Mvn => {
-                    u(both, b(rdn), 0, NZ)
-                }
-                // A shift by zero leaves the carry: read and written.
-                AluOp::Lsl | AluOp::Lsr | AluOp::Asr | AluOp::Ror => u(both, b(rdn), C, NZ | C),
-                AluOp::Adc | AluOp::Sbc => u(both, b(rdn), C, NZCV),
-                AluOp::Rsb => u(both, b(rdn), 0, NZCV),
-                AluOp::Tst => u(both, 0, 0, NZ),
-                AluOp::Cmp | AluOp::Cmn => u(both, 0, 0, NZCV),
-            }
-        }
-        AddHi { rdn, rm } => u(b(rdn) | b(rm), b(rdn), 0, 0),
-        CmpHi { rn, rm } => u(b(rn) | b(rm), 0, 0, NZCV),
-        MovHi { rd, rm } => u(b(rm), b(rd), 0, 0),
-        Bx { rm } => u(b(rm), 0, 0, 0),
-        Blx { rm } => u(b(rm), b(14), 0, 0),
-        LdrLit { rt, .. } => u(0, b(rt), 0, 0),
-        MemReg { op, rt, rn, rm } if op.is_store() => u(b(rt) | b(rn) | b(rm), 0, 0, 0),
-        MemReg { rt, rn, rm, .. } => u(b(rn) | b(rm), b(rt), 0, 0),
-        MemImm { op, rt, rn, .. } if op.is_store() => u(b(rt) | b(rn), 0, 0, 0),
-        MemImm { rt, rn, .. } => u(b(rn), b(rt), 0, 0),
-        Adr { rd, .. } => u(0, b(rd), 0, 0),
-        AddSpImm { rd, .. } => u(b(13), b(rd), 0, 0),
-        AddSp { .. } | SubSp { .. } => u(b(13), b(13), 0, 0),
-        Sxth { rd, rm }
-        | Sxtb { rd, rm }
-        | Uxth { rd, rm }
-        | Uxtb { rd, rm }
-        | Rev { rd, rm }
-        | Rev16 { rd, rm }
-        | Revsh { rd, rm } => u(b(rm), b(rd), 0, 0),
-        Push { list } => u(b(13) | (list & 0x40ff), b(13), 0, 0),
-        Pop { list } => u(b(13), b(13) | (list & 0xff), 0, 0),
-        Stm { rn, list } => u(b(rn) | list as u16, b(rn), 0, 0),
-        // Written back, or loaded when in the list: written either way.
-        Ldm { rn, list } => u(b(rn), b(rn) | list as u16, 0, 0),
-        BCond { .. } => u(0, 0, NZCV, 0),
         B { .. } | Hint(decode::Hint::Nop | decode::Hint::Yield) => u(0, 0, 0, 0),
-        Bl { .. } => u(0, b(14), 0, 0),
+        // What a memo cannot hold: special registers, traps, other hints, barriers.
         Cps { .. }
         | Bkpt { .. }
         | Hint(_)
@@ -93,6 +50,28 @@ pub(crate) fn usage(instr: &Instr) -> Option<Usage> {
         | Mrs { .. }
         | Barrier(_)
         | Undefined { .. } => None,
+        BCond { cond, .. } => u(0, 0, effects::cond_reads(cond), 0),
+        Bl { .. } => u(0, b(14), 0, 0),
+        Bx { rm } => u(b(rm), 0, 0, 0),
+        Blx { rm } => u(b(rm), b(14), 0, 0),
+        AddHi { rdn: 15, rm } | MovHi { rd: 15, rm } => u(b(rm), 0, 0, 0),
+        Pop { list } if list & 1 << 15 != 0 => u(b(13), b(13) | (list & 0xff), 0, 0),
+        _ => {
+            let e = effects::effect(instr)?;
+            let sometimes = match *instr {
+                Alu {
+                    op: AluOp::Lsl | AluOp::Lsr | AluOp::Asr | AluOp::Ror,
+                    ..
+                } => C,
+                _ => 0,
+            };
+            u(
+                e.reads,
+                e.writes,
+                e.flags_read | sometimes,
+                e.flags_set | sometimes,
+            )
+        }
     }
 }
 
@@ -213,7 +192,9 @@ pub(super) struct Entry {
 }
 
 pub(super) fn flags_of(core: &Core) -> u8 {
-    (core.n as u8) << 3 | (core.z as u8) << 2 | (core.c as u8) << 1 | core.v as u8
+    [(core.n, N), (core.z, Z), (core.c, C), (core.v, V)]
+        .iter()
+        .fold(0, |f, &(on, bit)| if on { f | bit } else { f })
 }
 
 /// What a call may not change: Thumb bit, IPSR, PRIMASK, CONTROL, the other SP, the event
