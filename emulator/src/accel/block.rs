@@ -570,9 +570,11 @@ fn journal_store(core: &Core, sys: &System, instr: &Instr, journal: &mut Vec<u64
 /// instruction fetched from another bank leaves too. With `journal`, every store's old word
 /// is appended to `journal` — by the native code, and by [`journal_store`] before a
 /// pre-decoded store — (the run ends before a store that finds it full) so that the
-/// caller can undo the run; pre-decoded blocks run where a region does not fit before
-/// `limit` (a meeting's run of core 1 to core 0's cycle, `window.rs`) and through the rest
-/// of a block the core stopped in at the last run's limit, and elsewhere an
+/// caller can undo the run; where a region does not fit before `limit` (a meeting's run
+/// of core 1 to core 0's cycle, `window.rs`) its timed variant runs, which checks the
+/// deadline before each instruction ([`jit::Flavour::Confined`]), or pre-decoded blocks
+/// until that is compiled; pre-decoded blocks also run through the rest of a block the
+/// core stopped in at the last run's limit (by either), and elsewhere an
 /// instruction native code does not run ends the run (`Err(Leave::General)`). With `io`
 /// (a window on a board with an I/O: its log, the DMA's banks `L`, and those of `L` the
 /// core may access, `accel/io_window/`), memos that touch `L` apply too, logging their
