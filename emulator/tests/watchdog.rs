@@ -263,6 +263,10 @@ enum Feeding {
     /// Core 0 at the end of each sample, after reading core 1's sample count from core 1's
     /// bank: the firmware's way (at that load the window meets core 1).
     Checked,
+    /// As `Checked`, with core 1's sample starting just before core 0's and its work longer:
+    /// at the load core 1 is inside its work loop, which runs to core 0's cycle natively,
+    /// timed (`Board::timed_stops`).
+    Met,
     /// Both cores each sample (their writes in one window: the window is undone).
     Both,
     /// Core 0, with a LOAD shorter than a sample from the 10th sample on: the watchdog
@@ -293,21 +297,28 @@ fn fed_board(engine: Engine, feeding: Feeding) -> Board {
     for core in 0..2 {
         let base = own_bank(core);
         let feeds = match feeding {
-            Feeding::Core0 | Feeding::Checked | Feeding::Starved => core == 0,
+            Feeding::Core0 | Feeding::Checked | Feeding::Met | Feeding::Starved => core == 0,
             Feeding::Both => true,
         };
         let mut handler = vec![
             ldr(0, 4, 0),
             adds_imm8(0, 1),
             str(0, 4, 0), // the sample count + 1
-            movs(1, 30),
+            movs(
+                1,
+                if matches!(feeding, Feeding::Met) {
+                    200
+                } else {
+                    30
+                },
+            ),
             subs_imm8(1, 1),
             bcond(1, -2), // some work
         ];
         if matches!(feeding, Feeding::Starved) && core == 0 {
             handler.extend([cmp_imm(0, 10), bcond(1, 4), movs(6, 20)]); // LOAD 20: 10 µs
         }
-        if matches!(feeding, Feeding::Checked) && core == 0 {
+        if matches!(feeding, Feeding::Checked | Feeding::Met) && core == 0 {
             handler.push(ldr(2, 3, 0)); // core 1's sample count
         }
         if feeds {
@@ -338,7 +349,11 @@ fn fed_board(engine: Engine, feeding: Feeding) -> Board {
         c.r[7] = tactus_rp2040::watchdog::CTRL_ENABLE;
         c.nvic.syst_rvr = (SAMPLE - 1) as u32;
         c.nvic.syst_csr = 7; // enabled, interrupting, on the processor clock
-        c.nvic.syst_next = 500 + 700 * core as u64;
+        c.nvic.syst_next = match feeding {
+            // Core 1's tick a little before core 0's, its work past core 0's load.
+            Feeding::Met => 500 - 37 * core as u64,
+            _ => 500 + 700 * core as u64,
+        };
     }
     board
 }
@@ -385,6 +400,7 @@ fn feeds_inside_windows_give_the_lock_step_run() {
     for feeding in [
         Feeding::Core0,
         Feeding::Checked,
+        Feeding::Met,
         Feeding::Both,
         Feeding::Starved,
     ] {
@@ -416,6 +432,17 @@ fn feeds_inside_windows_give_the_lock_step_run() {
                     kept >= 50 && undone <= 1,
                     "windows kept {kept}, undone {undone}"
                 );
+            }
+            Feeding::Met => {
+                assert_eq!(resets, 0);
+                assert!(
+                    kept >= 50 && undone <= 1,
+                    "windows kept {kept}, undone {undone}"
+                );
+                // Core 1 ran to the meeting natively, timed, in 24 of the 60 samples (the
+                // others' meetings fall where its loop's region fits, or the run's limits
+                // cut the window first).
+                assert!(block.timed_stops() >= 20, "{}", block.timed_stops());
             }
             // After an undone window the lock-step loop runs 4,096 cycles before the next.
             Feeding::Both => assert!(undone >= 20, "windows kept {kept}, undone {undone}"),

@@ -121,8 +121,10 @@ pub(crate) enum Leave {
     Record,
 }
 
-/// A bank mask, whether journaled, and the indices of its confined caches (solo, shared).
-type ConfinedAt = (u8, bool, bool, (usize, usize));
+/// A bank mask, whether journaled, whether with the I/O's code, and the indices of its
+/// confined caches: (solo, shared), then the same timed ([`jit::Flavour::Confined`]'s fourth
+/// field).
+type ConfinedAt = (u8, bool, bool, [usize; 4]);
 
 /// Undo-journal entries the journal is made with (a window's stores beyond stop its core).
 const JOURNAL: usize = 1 << 16;
@@ -154,6 +156,11 @@ pub(crate) struct Blocks {
     /// Per core, the last bank mask and journaling [`run_confined`] ran it with, and their
     /// caches' indices in `confined_solo` and `confined` (the lists only grow).
     confined_last: [Option<ConfinedAt>; 2],
+    /// Per core, the PC at which timed native code stopped at the last run's limit
+    /// ([`run_confined`]): the next run goes on pre-decoded to the end of the block there.
+    timed_cut: [Option<u32>; 2],
+    /// Runs of timed native code that stopped at their limit (for tests and reports).
+    pub(crate) timed_stops: u64,
     /// The undo journals of the two cores in a window (entries as [`crate::accel::jit`] writes
     /// them; [`crate::board`]'s `window.rs`).
     pub(crate) journal: Vec<u64>,
@@ -195,6 +202,8 @@ impl Blocks {
             confined: Vec::new(),
             confined_solo: Vec::new(),
             confined_last: [None; 2],
+            timed_cut: [None; 2],
+            timed_stops: 0,
             journal: Vec::with_capacity(JOURNAL),
             journal_other: Vec::with_capacity(JOURNAL),
             memo: Memos::default(),
@@ -203,19 +212,26 @@ impl Blocks {
 
     /// The index of the confined cache (`solo`: without arbitration, in
     /// `confined_solo`; else in `confined`) for bank mask `mask`, with or without journal
-    /// code, with or without the code that logs the I/O's accesses (`io`), made on first use
-    /// with the board's compile threshold.
-    fn confined_index(&mut self, solo: bool, mask: u8, journaled: bool, io: bool) -> usize {
+    /// code, with or without the code that logs the I/O's accesses (`io`), timed or not
+    /// ([`jit::Flavour::Confined`]), made on first use with the board's compile threshold.
+    fn confined_index(
+        &mut self,
+        solo: bool,
+        mask: u8,
+        journaled: bool,
+        io: bool,
+        timed: bool,
+    ) -> usize {
         let threshold = self.jit.threshold;
         let (list, flavour) = if solo {
             (
                 &mut self.confined_solo,
-                jit::Flavour::ConfinedSolo(mask, journaled, io),
+                jit::Flavour::ConfinedSolo(mask, journaled, io, timed),
             )
         } else {
             (
                 &mut self.confined,
-                jit::Flavour::Confined(mask, journaled, io),
+                jit::Flavour::Confined(mask, journaled, io, timed),
             )
         };
         match list.iter().position(|j| j.flavour() == flavour) {
@@ -554,9 +570,11 @@ fn journal_store(core: &Core, sys: &System, instr: &Instr, journal: &mut Vec<u64
 /// instruction fetched from another bank leaves too. With `journal`, every store's old word
 /// is appended to `journal` — by the native code, and by [`journal_store`] before a
 /// pre-decoded store — (the run ends before a store that finds it full) so that the
-/// caller can undo the run; pre-decoded blocks run where a region does not fit before
-/// `limit` (a meeting's run of core 1 to core 0's cycle, `window.rs`) and through the rest
-/// of a block the core stopped in at the last run's limit, and elsewhere an
+/// caller can undo the run; where a region does not fit before `limit` (a meeting's run
+/// of core 1 to core 0's cycle, `window.rs`) its timed variant runs, which checks the
+/// deadline before each instruction ([`jit::Flavour::Confined`]), or pre-decoded blocks
+/// until that is compiled; pre-decoded blocks also run through the rest of a block the
+/// core stopped in at the last run's limit (by either), and elsewhere an
 /// instruction native code does not run ends the run (`Err(Leave::General)`). With `io`
 /// (a window on a board with an I/O: its log, the DMA's banks `L`, and those of `L` the
 /// core may access, `accel/io_window/`), memos that touch `L` apply too, logging their
@@ -588,17 +606,18 @@ pub(crate) fn run_confined(
     // Code that logs the I/O's accesses only where there are some to log: it is larger,
     // and compiling it cost the plain board's demo 3.7 % more instructions.
     let io_code = io_own != 0;
-    let (solo_at, shared_at) = match blocks.confined_last[core.id & 1] {
-        Some((mask, j, i, at)) if mask == allowed && j == journaled && i == io_code => at,
-        _ => {
-            let at = (
-                blocks.confined_index(true, allowed, journaled, io_code),
-                blocks.confined_index(false, allowed, journaled, io_code),
-            );
-            blocks.confined_last[core.id & 1] = Some((allowed, journaled, io_code, at));
-            at
-        }
-    };
+    let [solo_at, shared_at, timed_solo_at, timed_shared_at] =
+        match blocks.confined_last[core.id & 1] {
+            Some((mask, j, i, at)) if mask == allowed && j == journaled && i == io_code => at,
+            _ => {
+                let at = [(true, false), (false, false), (true, true), (false, true)].map(
+                    |(solo, timed)| blocks.confined_index(solo, allowed, journaled, io_code, timed),
+                );
+                blocks.confined_last[core.id & 1] = Some((allowed, journaled, io_code, at));
+                at
+            }
+        };
+    let timed_cut = blocks.timed_cut[core.id & 1].take();
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
@@ -609,9 +628,11 @@ pub(crate) fn run_confined(
         // The rest of a block the core stopped in at the last run's limit (core 1 at a
         // meeting's cut, `window.rs`) runs pre-decoded: no region is looked up, and none
         // compiled, at an instruction inside a block (a meeting's cut falls anywhere).
-        let inside = blocks.cursor[core.id & 1].at_limit
+        // So does the rest of the block from where timed native code stopped at that limit.
+        let inside = (blocks.cursor[core.id & 1].at_limit
             && blocks.resume(core.id, pc).is_some()
-            && sys.code_epoch == blocks.epoch;
+            && sys.code_epoch == blocks.epoch)
+            || timed_cut == Some(pc);
         if inside {
             unfit = true;
         } else if blocks.memo.watches(pc) {
@@ -631,14 +652,24 @@ pub(crate) fn run_confined(
             }
         }
         if native && !inside {
-            let cache = if core.cycle >= quiet_from {
+            let solo = core.cycle >= quiet_from;
+            let cache = if solo {
                 &mut blocks.confined_solo[solo_at]
             } else {
                 &mut blocks.confined[shared_at]
             };
-            if let Some(region) = cache.lookup(sys, pc) {
-                if core.cycle.saturating_add(region.bound) <= limit && region.banks & !allowed == 0
-                {
+            if let Some(mut region) = cache.lookup(sys, pc) {
+                let fits = core.cycle.saturating_add(region.bound) <= limit;
+                // A region that does not fit runs timed, once compiled so.
+                let timed = match (fits, solo) {
+                    (true, _) => None,
+                    (false, true) => blocks.confined_solo[timed_solo_at].lookup(sys, pc),
+                    (false, false) => blocks.confined[timed_shared_at].lookup(sys, pc),
+                };
+                if let Some(t) = timed {
+                    region = t;
+                }
+                if (fits || timed.is_some()) && region.banks & !allowed == 0 {
                     let mut confine = jit::Confine {
                         allowed,
                         journal: journal.as_deref_mut(),
@@ -653,6 +684,10 @@ pub(crate) fn run_confined(
                         jit::Exit::Invalidate => sys.invalidate_code(),
                         jit::Exit::General => native = false,
                         jit::Exit::Out | jit::Exit::Deadline => {}
+                    }
+                    if timed.is_some() && core.cycle >= limit {
+                        blocks.timed_cut[core.id & 1] = Some(core.r[15]);
+                        blocks.timed_stops += 1;
                     }
                     continue;
                 }

@@ -132,6 +132,11 @@ impl Accel {
         b.jit.count + b.solo.count + confined
     }
 
+    /// Runs of timed native code stopped at their limit ([`crate::Board::timed_stops`]).
+    pub(crate) fn timed_stops(&self) -> u64 {
+        self.blocks.timed_stops
+    }
+
     /// Compiles a code region once its entry has been reached `times` times.
     pub(crate) fn set_compile_threshold(&mut self, times: u32) {
         self.blocks.jit.threshold = times;

@@ -271,6 +271,13 @@ impl Board {
         self.accel.regions_compiled()
     }
 
+    /// Times native code compiled *timed* (checking the deadline before each instruction)
+    /// ran a core in a window up to its run's limit, where the region's bound did not fit
+    /// before it (a core run to the other's cycle at a meeting, `accel/window.rs`).
+    pub fn timed_stops(&self) -> u64 {
+        self.accel.timed_stops()
+    }
+
     /// The block engine compiles a code region to native code once its entry has been
     /// reached `times` times (default 16; 0 compiles every region at once — the tests use
     /// it to run everything natively). Results never depend on it, only speed.

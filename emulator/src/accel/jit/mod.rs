@@ -95,7 +95,9 @@
 //! **Flavours.** Each region is compiled in several variants ([`Flavour`]): arbitrating
 //! against the other core's bank claims or *solo* (the other core's claims are all older
 //! than the core's cycle, so no access can wait and each only records its claim), each
-//! plain or confined (per bank mask, with or without journal code). The runner picks
+//! plain or confined (per bank mask, with or without journal code, timed or not: timed
+//! code checks the deadline before every instruction, for a region whose bound does not fit
+//! before the run's limit, [`Flavour::Confined`]). The runner picks
 //! solo code once the core's cycle has passed the other core's last claim (of the banks
 //! it may touch, when confined), which it cannot change while this core runs.
 

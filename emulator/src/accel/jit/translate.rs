@@ -61,14 +61,21 @@ pub(crate) enum Flavour {
     /// window on a board with converters, `accel/io_window/`: [`abi::io_sram`],
     /// [`abi::io_reg`]); without it such an access leaves, as any other outside the mask.
     ///
+    /// The fourth field: the code checks the deadline before every instruction and leaves
+    /// there ([`Exit::Deadline`]) once the cycle has reached it, as the interpreter stops
+    /// at its first instruction boundary at or after the limit; its back edges check only
+    /// the journal's room. Called where the region's bound does not fit before the run's
+    /// limit (a core run to the other's cycle at a meeting, `accel/window.rs`), instead of
+    /// pre-decoded instructions.
+    ///
     /// [`abi::Confine::allowed`]: super::abi::Confine::allowed
     /// [`abi::io_sram`]: super::abi::io_sram
     /// [`abi::io_reg`]: super::abi::io_reg
-    Confined(u8, bool, bool),
+    Confined(u8, bool, bool, bool),
     /// [`Flavour::Confined`] for a core whose accesses all come after the other core's last
     /// claims (as [`Flavour::Solo`]): in a window the other core does not touch the banks
     /// this core may, so their claims stay as they were.
-    ConfinedSolo(u8, bool, bool),
+    ConfinedSolo(u8, bool, bool, bool),
 }
 
 pub(super) struct Translator<'a> {
@@ -102,6 +109,8 @@ pub(super) struct Translator<'a> {
     /// The region is fetched through the non-striped alias of SRAM0-3 (as the firmware
     /// images place each core's code): its accesses try that view before the striped one.
     pub(super) alias_first: bool,
+    /// Every instruction checks the deadline ([`Flavour::Confined`]'s fourth field).
+    pub(super) timed: bool,
 }
 
 /// A confined function's bank mask and journal (the journal's pointer and capacity are
@@ -136,9 +145,11 @@ impl<'a> Translator<'a> {
         instrs: &[RegionInstr],
         flavour: Flavour,
     ) -> (FunctionBuilder<'a>, u64) {
-        let (mask, journaled, io) = match flavour {
-            Flavour::Confined(m, j, io) | Flavour::ConfinedSolo(m, j, io) => (Some(m), j, io),
-            _ => (None, false, false),
+        let (mask, journaled, io, timed) = match flavour {
+            Flavour::Confined(m, j, io, t) | Flavour::ConfinedSolo(m, j, io, t) => {
+                (Some(m), j, io, t)
+            }
+            _ => (None, false, false, false),
         };
         let confined = mask.is_some();
         let solo = matches!(flavour, Flavour::Solo | Flavour::ConfinedSolo(..));
@@ -283,6 +294,7 @@ impl<'a> Translator<'a> {
             written: 0,
             confined,
             alias_first: instrs[0].pc.wrapping_sub(SRAM_ALIAS_BASE) < 0x4_0000,
+            timed,
         };
         // A block for each instruction a branch of the region jumps to.
         let mut labels: Vec<Option<Block>> = vec![None; instrs.len()];
@@ -314,6 +326,9 @@ impl<'a> Translator<'a> {
             }
             if !live {
                 continue;
+            }
+            if t.timed {
+                t.deadline_check(ins.pc);
             }
             live = t.instr(ins, targets[i].map(|j| (j, labels[j], bound[j], j <= i)));
         }
@@ -501,6 +516,25 @@ impl<'a> Translator<'a> {
         self.b.switch_to_block(on);
     }
 
+    /// Timed code ([`Translator::timed`]): leaves before the instruction at `pc` with
+    /// [`Exit::Deadline`] when the cycle has reached the limit (nothing of it done).
+    fn deadline_check(&mut self, pc: u32) {
+        self.flush();
+        let c = self.b.use_var(self.cyc);
+        let late = self
+            .b
+            .ins()
+            .icmp(IntCC::UnsignedGreaterThanOrEqual, c, self.limit);
+        let out = self.b.create_block();
+        self.b.set_cold_block(out);
+        let on = self.b.create_block();
+        self.b.ins().brif(late, out, &[], on, &[]);
+        self.b.switch_to_block(out);
+        let p = self.c32(pc);
+        self.leave(p, Exit::Deadline);
+        self.b.switch_to_block(on);
+    }
+
     /// Leaves before the instruction at `pc` when `cond` holds (nothing of it done).
     pub(super) fn general_if(&mut self, cond: Value, pc: u32) {
         self.flush();
@@ -545,13 +579,16 @@ impl<'a> Translator<'a> {
             Some((_, Some(label), bound, back)) => {
                 if back {
                     // Every instruction up to the next exit or back edge starts before the
-                    // limit when `cycle + bound <= limit`.
+                    // limit when `cycle + bound <= limit` (timed code checks each one).
                     let c = self.b.use_var(self.cyc);
                     let end = self.b.ins().iadd_imm_s(c, bound as i64);
-                    let mut fits =
-                        self.b
+                    let mut fits = match self.timed {
+                        true => self.b.ins().iconst(types::I8, 1),
+                        false => self
+                            .b
                             .ins()
-                            .icmp(IntCC::UnsignedLessThanOrEqual, end, self.limit);
+                            .icmp(IntCC::UnsignedLessThanOrEqual, end, self.limit),
+                    };
                     if self.confined.is_some_and(|c| c.journaled) {
                         let room = self.journal_room();
                         fits = self.b.ins().band(fits, room);
