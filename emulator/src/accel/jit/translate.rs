@@ -505,15 +505,7 @@ impl<'a> Translator<'a> {
 
     /// Leaves before the instruction at `pc` unless `cond` holds (nothing of it done).
     pub(super) fn general_unless(&mut self, cond: Value, pc: u32) {
-        self.flush();
-        let out = self.b.create_block();
-        self.b.set_cold_block(out);
-        let on = self.b.create_block();
-        self.b.ins().brif(cond, on, &[], out, &[]);
-        self.b.switch_to_block(out);
-        let p = self.c32(pc);
-        self.leave(p, Exit::General);
-        self.b.switch_to_block(on);
+        self.leave_unless(cond, pc, Exit::General);
     }
 
     /// Timed code ([`Translator::timed`]): leaves before the instruction at `pc` with
@@ -521,17 +513,21 @@ impl<'a> Translator<'a> {
     fn deadline_check(&mut self, pc: u32) {
         self.flush();
         let c = self.b.use_var(self.cyc);
-        let late = self
-            .b
-            .ins()
-            .icmp(IntCC::UnsignedGreaterThanOrEqual, c, self.limit);
+        let early = self.b.ins().icmp(IntCC::UnsignedLessThan, c, self.limit);
+        self.leave_unless(early, pc, Exit::Deadline);
+    }
+
+    /// Leaves by `exit` before the instruction at `pc` unless `cond` holds, through a cold
+    /// block (nothing of the instruction done).
+    fn leave_unless(&mut self, cond: Value, pc: u32, exit: Exit) {
+        self.flush();
         let out = self.b.create_block();
         self.b.set_cold_block(out);
         let on = self.b.create_block();
-        self.b.ins().brif(late, out, &[], on, &[]);
+        self.b.ins().brif(cond, on, &[], out, &[]);
         self.b.switch_to_block(out);
         let p = self.c32(pc);
-        self.leave(p, Exit::Deadline);
+        self.leave(p, exit);
         self.b.switch_to_block(on);
     }
 
