@@ -79,7 +79,7 @@ entity!(
 );
 
 /// The type of a value.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Ty {
     /// A real quantity of the given dimension, in SI.
     Real(Dim),
@@ -197,7 +197,7 @@ pub struct EdgeDecl {
 
 /// Arithmetic operators. Dimension rule: `Add`/`Sub` need equal dimensions and keep it;
 /// `Mul` adds exponents, `Div` subtracts them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[allow(missing_docs)]
 pub enum ArithOp {
     Add,
@@ -207,7 +207,7 @@ pub enum ArithOp {
 }
 
 /// Comparisons: operands of equal dimension (or the same mode, for `Eq`/`Ne`); result `Bool`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[allow(missing_docs)]
 pub enum CmpOp {
     Eq,
@@ -232,7 +232,7 @@ impl CmpOp {
 }
 
 /// Built-in functions.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Builtin {
     /// `abs(x)`: same dimension.
     Abs,

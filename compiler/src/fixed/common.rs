@@ -76,11 +76,59 @@ struct Generations {
 
 /// What makes two definitions the same value: the operation on (already shared) operands,
 /// the type, and for a read of a state, mode or edge the generation it reads.
-#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 struct Key {
-    op: String,
-    ty: String,
+    op: OpKey,
+    ty: Ty,
     generation: u32,
+}
+
+/// An [`Op`] as a hashable key: a constant by its bits (every NaN one key, as its
+/// printed form was), everything else as it is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum OpKey {
+    Const(u64),
+    BoolConst(bool),
+    Variant(ModeId, u32),
+    Param(ParamId),
+    Sensor(SensorId),
+    Deriv(SensorId, u8),
+    State(StateId),
+    Mode(ModeId),
+    Edge(EdgeId),
+    Neg(Value),
+    Not(Value),
+    Arith(ArithOp, Value, Value),
+    Cmp(CmpOp, Value, Value),
+    And(Value, Value),
+    Or(Value, Value),
+    Select(Value, Value, Value),
+    Call(Builtin, Value, Option<Value>),
+}
+
+impl OpKey {
+    fn of(op: &Op) -> OpKey {
+        match *op {
+            Op::Const(c) if c.is_nan() => OpKey::Const(f64::NAN.to_bits()),
+            Op::Const(c) => OpKey::Const(c.to_bits()),
+            Op::BoolConst(b) => OpKey::BoolConst(b),
+            Op::Variant(m, v) => OpKey::Variant(m, v),
+            Op::Param(p) => OpKey::Param(p),
+            Op::Sensor(s) => OpKey::Sensor(s),
+            Op::Deriv(s, o) => OpKey::Deriv(s, o),
+            Op::State(s) => OpKey::State(s),
+            Op::Mode(m) => OpKey::Mode(m),
+            Op::Edge(e) => OpKey::Edge(e),
+            Op::Neg(x) => OpKey::Neg(x),
+            Op::Not(x) => OpKey::Not(x),
+            Op::Arith(o, x, y) => OpKey::Arith(o, x, y),
+            Op::Cmp(o, x, y) => OpKey::Cmp(o, x, y),
+            Op::And(x, y) => OpKey::And(x, y),
+            Op::Or(x, y) => OpKey::Or(x, y),
+            Op::Select(c, x, y) => OpKey::Select(c, x, y),
+            Op::Call(b, x, y) => OpKey::Call(b, x, y),
+        }
+    }
 }
 
 pub(crate) fn map_op(op: &Op, f: impl Fn(Value) -> Value) -> Op {
@@ -119,8 +167,8 @@ fn rewrite(
                     _ => 0,
                 };
                 let key = Key {
-                    op: format!("{op:?}"),
-                    ty: format!("{:?}", vd.ty),
+                    op: OpKey::of(&op),
+                    ty: vd.ty,
                     generation,
                 };
                 match scopes.iter().rev().find_map(|m| m.get(&key)) {
