@@ -9,7 +9,7 @@
 //! PUSH/POP pairs, short forward branches) and sometimes anything (SIO, peripherals,
 //! faults, MRS, WFI, stores into the code): those calls must run exactly as before.
 
-use tactus_emulator::{Board, Config, Engine};
+use tactus_emulator::{Board, Config, Engine, StopReason};
 
 mod common;
 use common::Rng;
@@ -120,6 +120,25 @@ fn state(b: &mut Board) -> String {
     s
 }
 
+/// Core 0 started at `from` (a caller's `BL`) with `regs` in r0…, both cores' cycles moved
+/// past the lock-step stretch that follows an undone window, and run 600 cycles: why it
+/// stopped and core 0's [`state`]. `set` sets anything more of core 0 (flags).
+fn call_at(
+    b: &mut Board,
+    from: u32,
+    regs: &[u32],
+    set: impl FnOnce(&mut tactus_emulator::core::Core),
+) -> (StopReason, String) {
+    b.start_core(0, from | 1, SP, VTOR);
+    let now = b.cores[0].cycle.max(b.cores[1].cycle) + 5000;
+    b.cores[0].cycle = now;
+    b.cores[1].cycle = now;
+    b.cores[0].r[..regs.len()].copy_from_slice(regs);
+    set(&mut b.cores[0]);
+    let stop = b.run_until(now + 600);
+    (stop, state(b))
+}
+
 #[test]
 fn memoized_calls_match_the_interpreter() {
     let mut rng = Rng(0x3e30_ca11);
@@ -176,17 +195,10 @@ fn memoized_calls_match_the_interpreter() {
             for b in boards.iter_mut() {
                 b.write_data(DATA, &inputs.data).unwrap();
                 b.write_data(SP, &inputs.stack).unwrap();
-                b.start_core(0, CALLER | 1, SP, VTOR);
-                // Past the lock-step stretch that follows an undone window.
-                let now = b.cores[0].cycle.max(b.cores[1].cycle) + 5000;
-                b.cores[0].cycle = now;
-                b.cores[1].cycle = now;
-                let c = &mut b.cores[0];
-                c.r[..13].copy_from_slice(&inputs.regs);
                 let f = inputs.flags;
-                (c.n, c.z, c.c, c.v) = (f & 8 != 0, f & 4 != 0, f & 2 != 0, f & 1 != 0);
-                let stop = b.run_until(now + 600);
-                out.push((stop, state(b)));
+                out.push(call_at(b, CALLER, &inputs.regs, |c| {
+                    (c.n, c.z, c.c, c.v) = (f & 8 != 0, f & 4 != 0, f & 2 != 0, f & 1 != 0)
+                }));
             }
             let same_sram = boards[0].system.sram == boards[1].system.sram;
             if out[0] != out[1] || !same_sram {
@@ -271,14 +283,8 @@ fn a_memo_moves_with_its_base_and_keeps_the_saved_registers() {
                 let data: Vec<u8> = w.iter().flat_map(|x| x.to_le_bytes()).collect();
                 b.write_data(buffers[k], &data).unwrap();
             }
-            b.start_core(0, CALLER | 1, SP, VTOR);
-            let now = b.cores[0].cycle.max(b.cores[1].cycle) + 5000;
-            b.cores[0].cycle = now;
-            b.cores[1].cycle = now;
-            let c = &mut b.cores[0];
-            c.r[..8].copy_from_slice(&[0, buffers[buf], out, 0, 0x44, 0x55, r6, 0x77]);
-            let stop = b.run_until(now + 600);
-            got.push((stop, state(b)));
+            let regs = [0, buffers[buf], out, 0, 0x44, 0x55, r6, 0x77];
+            got.push(call_at(b, CALLER, &regs, |_| {}));
         }
         assert_eq!(got[0], got[1], "call {i}");
         assert!(
@@ -323,13 +329,7 @@ fn a_span_whose_call_missed_last_run_is_not_recorded() {
         let mut got = Vec::new();
         for b in boards.iter_mut() {
             b.write_data(DATA, &word.to_le_bytes()).unwrap();
-            b.start_core(0, CALLER | 1, SP, VTOR);
-            let now = b.cores[0].cycle.max(b.cores[1].cycle) + 5000;
-            b.cores[0].cycle = now;
-            b.cores[1].cycle = now;
-            b.cores[0].r[7] = DATA;
-            let stop = b.run_until(now + 600);
-            got.push((stop, state(b)));
+            got.push(call_at(b, CALLER, &[], |c| c.r[7] = DATA));
         }
         assert_eq!(got[0], got[2], "the span's board against the interpreter");
         assert_eq!(got[1], got[2], "the call's board against the interpreter");
@@ -400,14 +400,8 @@ fn a_memo_returns_to_its_own_caller() {
             let mut got = Vec::new();
             for b in boards.iter_mut() {
                 b.write_data(DATA, &[7, 0, 0, 0]).unwrap();
-                b.start_core(0, from | 1, SP, VTOR);
-                let now = b.cores[0].cycle.max(b.cores[1].cycle) + 5000;
-                b.cores[0].cycle = now;
-                b.cores[1].cycle = now;
-                let c = &mut b.cores[0];
-                c.r[..8].copy_from_slice(&[DATA + 0x40, DATA, DATA + 0x10, 0, 0x44, 0, 0, 0]);
-                let stop = b.run_until(now + 600);
-                got.push((stop, state(b)));
+                let regs = [DATA + 0x40, DATA, DATA + 0x10, 0, 0x44, 0, 0, 0];
+                got.push(call_at(b, from, &regs, |_| {}));
             }
             assert_eq!(got[0], got[1], "call {i} from {from:#x}");
             assert!(

@@ -89,6 +89,57 @@ fn run_with(
     (out, r, at)
 }
 
+/// The one reset of a run whose update hung at the tick of cycle `hang_cycle`: by the
+/// watchdog, within the period of the last feed, which came at the latest at the end of
+/// core 0's handler of the hang's sample (core 1's count one behind its own: core 1 may
+/// still be finishing it): 1 ms and a sample from the hang's tick at most, and more than
+/// 1 ms less a sample (no feed came later); the board boots again from flash and is back
+/// 20 samples or more before the run's `n` end. Returns the samples of the reset and of
+/// the return (the first after the reboot).
+fn reset_after_hang(r: &ImageRun, hang_cycle: u64, n: usize, what: &str) -> (usize, usize) {
+    let resets = r.resets();
+    assert_eq!(resets.len(), 1, "{what}: {resets:?}");
+    let reset = &resets[0];
+    assert_eq!(reset.why, "watchdog timer", "{what}");
+    let (period, sample) = (133_000 * u64::from(WATCHDOG_PERIOD_US) / 1000, 3016);
+    let after = reset.cycle.saturating_sub(hang_cycle);
+    assert!(
+        after > period - sample && after <= period + sample,
+        "{what}: reset {after} cycles after the hang's tick (period {period})"
+    );
+    let zero = *reset
+        .reboot
+        .as_ref()
+        .expect("the board boots again from flash");
+    let (at, back) = (reset.sample as usize, reset.sample as usize + zero as usize);
+    assert!(back + 20 < n, "{what}: back at sample {back}");
+    (at, back)
+}
+
+/// Around a hang's reset (`at`, `back` from [`reset_after_hang`]): every sample before the
+/// hang's `from` is the clean run's, the DACs are at zero while the board reboots, and
+/// from the second sample after it every key's force is the clean run's again.
+fn assert_reboot(
+    out: &[SampleOut],
+    clean: &[SampleOut],
+    from: u64,
+    (at, back): (usize, usize),
+    what: &str,
+) {
+    for (i, s) in out.iter().enumerate() {
+        if i < from as usize {
+            assert_eq!(s, &clean[i], "{what} sample {i}: before the hang");
+        } else if (at..back).contains(&i) {
+            assert!(
+                s.dac.iter().all(|&d| d == 0),
+                "{what} sample {i}: rebooting"
+            );
+        } else if i >= back + 2 {
+            assert_eq!(s.force, clean[i].force, "{what} sample {i}: plays again");
+        }
+    }
+}
+
 fn hang_resets_and_recovers(board: &str, key: usize) {
     let image = image(board, true);
     let (from, n) = (100u64, 200usize);
@@ -96,39 +147,8 @@ fn hang_resets_and_recovers(board: &str, key: usize) {
     let (out, mut r, hang_cycle) = run(&image, Engine::LockStep, Some(key), from, n);
     // A healthy board is fed every sample: the clean run never resets.
     assert!(clean.iter().all(|s| s.dac.iter().all(|&d| d != 0)));
-    let resets = r.resets().to_vec();
-    assert_eq!(resets.len(), 1, "{board}: {resets:?}");
-    let reset = &resets[0];
-    assert_eq!(reset.why, "watchdog timer");
-    // Within the period of the last feed, which came at the latest at the end of core 0's
-    // handler of the hang's sample (core 1's count one behind its own: core 1 may still be
-    // finishing it): 1 ms and a sample from the hang's tick at most, and more than 1 ms
-    // less a sample (no feed came later).
-    let (period, sample) = (133_000 * u64::from(WATCHDOG_PERIOD_US) / 1000, 3016);
-    let after = reset.cycle.saturating_sub(hang_cycle);
-    assert!(
-        after > period - sample && after <= period + sample,
-        "{board}: reset {after} cycles after the hang's tick (period {period})"
-    );
-    let zero = *reset
-        .reboot
-        .as_ref()
-        .expect("the board boots again from flash");
-    let (at, back) = (reset.sample as usize, reset.sample as usize + zero as usize);
-    assert!(back + 20 < n, "{board}: back at sample {back}");
-    for (i, s) in out.iter().enumerate() {
-        if i < from as usize {
-            assert_eq!(s, &clean[i], "{board} sample {i}: before the hang");
-        } else if (at..back).contains(&i) {
-            assert!(
-                s.dac.iter().all(|&d| d == 0),
-                "{board} sample {i}: rebooting"
-            );
-        } else if i >= back + 2 {
-            // Playing again: every key's force is the clean run's.
-            assert_eq!(s.force, clean[i].force, "{board} sample {i}: plays again");
-        }
-    }
+    let (at, back) = reset_after_hang(&r, hang_cycle, n, board);
+    assert_reboot(&out, &clean, from, (at, back), board);
     // The keys the hang does not reach play on until the reset.
     let core = image.keys()[key].core;
     for i in from as usize..at {
@@ -202,32 +222,9 @@ fn a_hang_is_its_keys_alone(board: &str) {
         let core = image.keys()[key].core;
         let (out, mut r, hang_cycle) =
             run_with(&image, Engine::LockStep, Some(key), from, n, &words);
-        let resets = r.resets().to_vec();
-        assert_eq!(resets.len(), 1, "{board} key {key}: {resets:?}");
-        let reset = &resets[0];
-        let period = 133_000 * u64::from(WATCHDOG_PERIOD_US) / 1000;
-        let after = reset.cycle - hang_cycle;
-        assert!(
-            after > period - 3016 && after <= period + 3016,
-            "{board} key {key}: reset {after} cycles after the hang's tick"
-        );
-        let zero = *reset.reboot.as_ref().unwrap() as usize;
-        let (at, back) = (reset.sample as usize, reset.sample as usize + zero);
-        assert!(back + 20 < n);
-        for (i, s) in out.iter().enumerate() {
-            if i < from as usize {
-                assert_eq!(s, &clean[i], "{board} key {key} sample {i}");
-            } else if (at..back).contains(&i) {
-                assert!(
-                    s.dac.iter().all(|&d| d == 0),
-                    "{board} key {key} sample {i}"
-                );
-            }
-        }
-        // After the reboot every key plays again, as in the clean run.
-        for i in back + 2..n {
-            assert_eq!(out[i].force, clean[i].force, "{board} key {key} sample {i}");
-        }
+        let what = format!("{board} key {key}");
+        let (at, back) = reset_after_hang(&r, hang_cycle, n, &what);
+        assert_reboot(&out, &clean, from, (at, back), &what);
         let f = fault(&mut r, &image, core);
         assert_eq!(
             (f.kind, f.key, f.trips),
