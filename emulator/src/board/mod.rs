@@ -279,7 +279,7 @@ impl Board {
     }
 
     /// The block engine compiles a code region to native code once its entry has been
-    /// reached `times` times (default 16; 0 compiles every region at once — the tests use
+    /// reached `times` times (default 64; 0 compiles every region at once — the tests use
     /// it to run everything natively). Results never depend on it, only speed.
     pub fn set_compile_threshold(&mut self, times: u32) {
         self.accel.set_compile_threshold(times);
