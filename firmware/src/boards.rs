@@ -35,6 +35,7 @@
 use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
 use crate::windows::MAX_KEYS;
 use serde::Serialize;
+use std::sync::Arc;
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
 
@@ -143,6 +144,45 @@ impl std::fmt::Display for BoardsError {
 }
 
 impl std::error::Error for BoardsError {}
+
+/// A board's image as [`board_image`] builds it: the core of each of its keys (in key
+/// order) and the image.
+#[derive(Clone, Debug)]
+pub struct BoardImage {
+    /// Per key of the board, in key order: its core.
+    pub core_of: Vec<usize>,
+    /// The image.
+    pub image: FirmwareImage,
+}
+
+impl BoardImage {
+    /// Whether this can be the image of the board holding `keys` running `programs`: as many
+    /// keys, each running the same code with the same param block, sensor check and
+    /// watchdog (the quiescent-key guard is the planner's to drop, [`board_image`]).
+    pub fn holds(&self, programs: &[Program], keys: &[PlanKey]) -> bool {
+        let (specs, local) = (self.image.keys(), self.image.programs());
+        specs.len() == keys.len()
+            && self.core_of.len() == keys.len()
+            && specs.iter().zip(keys).all(|(s, k)| {
+                match (local.get(s.program), programs.get(k.program)) {
+                    (Some(a), Some(b)) => {
+                        a.same_code(b)
+                            && a.params == b.params
+                            && a.sensor_check == b.sensor_check
+                            && a.watchdog == b.watchdog
+                    }
+                    _ => false,
+                }
+            })
+    }
+}
+
+impl PartialEq for BoardImage {
+    /// The same cores and the same bytes at the same addresses.
+    fn eq(&self, other: &BoardImage) -> bool {
+        self.core_of == other.core_of && self.image.segments() == other.image.segments()
+    }
+}
 
 /// What one key of each program costs in a sample interrupt and how many window slots it
 /// takes, computed once per program.
@@ -382,11 +422,13 @@ pub fn check_board(
     board: &BoardSpec,
     limiter: &LimiterConfig,
 ) -> Result<BoardVerdict, BoardsError> {
-    verdict_of(programs, costs, keys, board, limiter, true)
+    let (core_of, image) = board_image(programs, costs, keys, board, limiter)?;
+    Ok(image_verdict(programs, keys, board, &core_of, &image))
 }
 
-/// The verdict of each board of a layout that lists its own (`lists`: the MIDI keys of
-/// each board), as [`check_board`] gives it; `progress(boards done, boards in all)`.
+/// The plan of a layout that lists its own boards (`lists`: the MIDI keys of each board):
+/// each board's verdict as [`check_board`] gives it, with its image;
+/// `progress(boards done, boards in all)`.
 ///
 /// Errors: as [`board_image`].
 pub fn check_boards(
@@ -397,7 +439,7 @@ pub fn check_boards(
     board: &BoardSpec,
     limiter: &LimiterConfig,
     progress: &mut dyn FnMut(usize, usize),
-) -> Result<Vec<BoardVerdict>, BoardsError> {
+) -> Result<KeyboardPlan, BoardsError> {
     let mut out = Vec::with_capacity(lists.len());
     for (i, list) in lists.iter().enumerate() {
         progress(i, lists.len());
@@ -406,9 +448,9 @@ pub fn check_boards(
             .filter(|k| list.contains(&k.key))
             .copied()
             .collect();
-        out.push(check_board(programs, costs, &ks, board, limiter)?);
+        out.push(checked(programs, costs, &ks, board, limiter, true)?);
     }
-    Ok(out)
+    Ok(KeyboardPlan::of(out, false))
 }
 
 /// A keyboard's boards with their verdicts: planned by [`plan`] when its layout lists none,
@@ -420,26 +462,86 @@ pub struct KeyboardPlan {
     pub boards: Vec<BoardVerdict>,
     /// Whether the boards were planned (`false`: the layout's own).
     pub planned: bool,
+    /// Per board: its image, [`board_image`] of its keys, where the planner built it while
+    /// planning (`None`: none was built, or it has none — its verdict's error says why).
+    /// `tactus play` runs these instead of building them again.
+    pub images: Vec<Option<Arc<BoardImage>>>,
 }
 
 impl KeyboardPlan {
+    /// The plan of the checked boards `boards`.
+    fn of(boards: Vec<Checked>, planned: bool) -> KeyboardPlan {
+        let (boards, images) = boards.into_iter().map(|c| (c.verdict, c.image)).unzip();
+        KeyboardPlan {
+            boards,
+            planned,
+            images,
+        }
+    }
+
     /// The MIDI keys of each board, in board order.
     pub fn key_lists(&self) -> Vec<Vec<u8>> {
         self.boards.iter().map(|b| b.keys.clone()).collect()
     }
 }
 
-/// [`check_board`], the guard dropped only when `may_drop_guard` ([`image_of`]).
-fn verdict_of(
+/// A candidate board's verdict and, when it could be built, its image (what [`sweep`]
+/// keeps of a board it chose).
+#[derive(Clone, Debug, PartialEq)]
+struct Checked {
+    verdict: BoardVerdict,
+    image: Option<Arc<BoardImage>>,
+}
+
+/// Whether a candidate board fits ([`BoardVerdict::fits`]), for the search of [`greedy_end`]
+/// over verdicts alone or verdicts with their images.
+trait Fits {
+    fn fits(&self) -> bool;
+}
+
+impl Fits for BoardVerdict {
+    fn fits(&self) -> bool {
+        BoardVerdict::fits(self)
+    }
+}
+
+impl Fits for Checked {
+    fn fits(&self) -> bool {
+        self.verdict.fits()
+    }
+}
+
+/// [`check_board`] with the image kept, the guard dropped only when `may_drop_guard`
+/// ([`image_of`]).
+fn checked(
     programs: &[Program],
     costs: &ProgramCosts,
     keys: &[PlanKey],
     board: &BoardSpec,
     limiter: &LimiterConfig,
     may_drop_guard: bool,
-) -> Result<BoardVerdict, BoardsError> {
+) -> Result<Checked, BoardsError> {
+    let (core_of, image) = image_of(programs, costs, keys, board, limiter, may_drop_guard)?;
+    let verdict = image_verdict(programs, keys, board, &core_of, &image);
+    Ok(Checked {
+        verdict,
+        image: image
+            .ok()
+            .map(|image| Arc::new(BoardImage { core_of, image })),
+    })
+}
+
+/// The verdict of the board holding `keys` from what [`board_image`] gave for it (the core
+/// of each key and the image, or why there is none): each core's static bound against
+/// `board`'s cycles per sample. [`check_board`] is this of [`board_image`].
+pub fn image_verdict(
+    programs: &[Program],
+    keys: &[PlanKey],
+    board: &BoardSpec,
+    core: &[usize],
+    image: &Result<FirmwareImage, ImageError>,
+) -> BoardVerdict {
     let cps = board.cycles_per_sample();
-    let (core, image) = image_of(programs, costs, keys, board, limiter, may_drop_guard)?;
     let key_list: Vec<u8> = keys.iter().map(|k| k.key).collect();
     let asked = keys
         .iter()
@@ -447,14 +549,14 @@ fn verdict_of(
     let image = match image {
         Ok(i) => i,
         Err(e) => {
-            return Ok(BoardVerdict {
+            return BoardVerdict {
                 keys: key_list,
                 cores: Vec::new(),
                 code_bytes: Vec::new(),
                 error: Some(e.to_string()),
                 guard_off: false,
                 latency_cycles: None,
-            })
+            }
         }
     };
     let cores = (0..image.cores())
@@ -464,7 +566,7 @@ fn verdict_of(
             CoreVerdict {
                 keys: keys
                     .iter()
-                    .zip(&core)
+                    .zip(core)
                     .filter(|(_, &kc)| kc == c)
                     .map(|(k, _)| k.key)
                     .collect(),
@@ -478,7 +580,7 @@ fn verdict_of(
             }
         })
         .collect();
-    Ok(BoardVerdict {
+    BoardVerdict {
         keys: key_list,
         cores,
         code_bytes: (0..image.cores()).map(|c| image.code_bytes(c)).collect(),
@@ -487,7 +589,7 @@ fn verdict_of(
         latency_cycles: (0..keys.len())
             .filter_map(|k| image.latency_cycles(k))
             .max(),
-    })
+    }
 }
 
 /// Plans the fewest boards for `keys` (ascending by key): contiguous ranges, each as long
@@ -510,13 +612,14 @@ pub fn plan(
     board: &BoardSpec,
     limiter: &LimiterConfig,
     progress: &mut dyn FnMut(usize, usize),
-) -> Result<Vec<BoardVerdict>, BoardsError> {
+) -> Result<KeyboardPlan, BoardsError> {
     let fewest = sweep(programs, costs, keys, board, limiter, true, None, progress)?;
-    if !fewest.iter().any(|b| b.guard_off) {
-        return Ok(fewest);
+    if !fewest.iter().any(|b| b.verdict.guard_off) {
+        return Ok(KeyboardPlan::of(fewest, true));
     }
     // The guarded plan counts only if it needs no more boards, all fitting: its sweep stops
-    // as soon as it cannot be that plan.
+    // as soon as it cannot be that plan. (Its boards all fit with the guard, so each image
+    // is also what `board_image`, which drops the guard only where it does not fit, builds.)
     let guarded = sweep(
         programs,
         costs,
@@ -527,14 +630,14 @@ pub fn plan(
         Some(fewest.len()),
         &mut |_, _| {},
     )?;
-    let covered: usize = guarded.iter().map(|b| b.keys.len()).sum();
+    let covered: usize = guarded.iter().map(|b| b.verdict.keys.len()).sum();
     if covered == keys.len()
         && guarded.len() <= fewest.len()
-        && guarded.iter().all(BoardVerdict::fits)
+        && guarded.iter().all(|b| b.verdict.fits())
     {
-        return Ok(guarded);
+        return Ok(KeyboardPlan::of(guarded, true));
     }
-    Ok(fewest)
+    Ok(KeyboardPlan::of(fewest, true))
 }
 
 /// The greedy sweep of [`plan`], boards without the guard allowed when `may_drop_guard`.
@@ -567,8 +670,8 @@ fn sweep(
     may_drop_guard: bool,
     most: Option<usize>,
     progress: &mut dyn FnMut(usize, usize),
-) -> Result<Vec<BoardVerdict>, BoardsError> {
-    let check = |ks: &[PlanKey]| verdict_of(programs, costs, ks, board, limiter, may_drop_guard);
+) -> Result<Vec<Checked>, BoardsError> {
+    let check = |ks: &[PlanKey]| checked(programs, costs, ks, board, limiter, may_drop_guard);
     let mut boards = Vec::new();
     let mut i = 0;
     let cycles = board
@@ -603,17 +706,17 @@ fn sweep(
 ///
 /// Errors: the error of `keys[start..=e + 1]`'s check (or of `keys[start..=start]`'s when
 /// one key does not fit), as the one-key-at-a-time sweep would meet it.
-fn greedy_end(
-    check: &(dyn Fn(&[PlanKey]) -> Result<BoardVerdict, BoardsError> + Sync),
+fn greedy_end<T: Fits + Send>(
+    check: &(dyn Fn(&[PlanKey]) -> Result<T, BoardsError> + Sync),
     keys: &[PlanKey],
     start: usize,
     guess: usize,
-) -> Result<(usize, BoardVerdict), BoardsError> {
+) -> Result<(usize, T), BoardsError> {
     let n = keys.len();
     // Checked ends and their answers; `lo` the last end known to fit (`None`: none yet),
     // `hi` the first end known not to (`n`: past the keys, which "does not fit").
-    let mut seen: Vec<(usize, Result<BoardVerdict, BoardsError>)> = Vec::new();
-    let fits = |r: &Result<BoardVerdict, BoardsError>| r.as_ref().is_ok_and(BoardVerdict::fits);
+    let mut seen: Vec<(usize, Result<T, BoardsError>)> = Vec::new();
+    let fits = |r: &Result<T, BoardsError>| r.as_ref().is_ok_and(Fits::fits);
     let (mut lo, mut hi): (Option<usize>, usize) = (None, n);
     let mut next = (start + guess.max(1) - 1).min(n - 1);
     loop {
@@ -677,11 +780,11 @@ fn greedy_end(
 /// The one-key-at-a-time answer of [`greedy_end`]: what the search falls back on when its
 /// own checks show a range fitting beyond one that does not (which the module
 /// documentation's argument excludes), so that it never settles on a contradiction.
-fn first_miss(
-    check: &(dyn Fn(&[PlanKey]) -> Result<BoardVerdict, BoardsError> + Sync),
+fn first_miss<T: Fits>(
+    check: &(dyn Fn(&[PlanKey]) -> Result<T, BoardsError> + Sync),
     keys: &[PlanKey],
     start: usize,
-) -> Result<(usize, BoardVerdict), BoardsError> {
+) -> Result<(usize, T), BoardsError> {
     let mut best = check(&keys[start..=start])?;
     let mut end = start;
     while best.fits() && end + 1 < keys.len() {
