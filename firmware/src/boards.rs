@@ -35,7 +35,8 @@
 use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
 use crate::windows::MAX_KEYS;
 use serde::Serialize;
-use std::sync::Arc;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
 
@@ -440,6 +441,7 @@ pub fn check_boards(
     limiter: &LimiterConfig,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<KeyboardPlan, BoardsError> {
+    let memo = Verdicts::new(programs, true);
     let mut out = Vec::with_capacity(lists.len());
     for (i, list) in lists.iter().enumerate() {
         progress(i, lists.len());
@@ -448,7 +450,7 @@ pub fn check_boards(
             .filter(|k| list.contains(&k.key))
             .copied()
             .collect();
-        out.push(checked(programs, costs, &ks, board, limiter, true)?);
+        out.push(memo.checked(programs, costs, &ks, board, limiter, true)?);
     }
     Ok(KeyboardPlan::of(out, false))
 }
@@ -529,6 +531,117 @@ fn checked(
             .ok()
             .map(|image| Arc::new(BoardImage { core_of, image })),
     })
+}
+
+/// What decides a candidate board's verdict but its keys' MIDI numbers, per key in key
+/// order: the class of its program ([`Verdicts::new`]), the program's place among the
+/// board's programs (in order of first use, as [`image_of`] numbers them), its costs
+/// ([`ProgramCosts::key_cycles`], [`ProgramCosts::plain_key_cycles`]) and its window slots.
+/// Two candidates of one shape get one layout, the same code in every bank and so the same
+/// static bounds; they differ in their keys' param blocks only, which the image places
+/// as data ([`Program::params`]: written into each key's state, never read by the WCET
+/// analysis, and the same size within a class).
+type Shape = Vec<(usize, usize, u64, u64, usize)>;
+
+/// The verdicts of the candidate boards a sweep has built, by [`Shape`], with the core of
+/// each key: a candidate of a shape already seen takes its verdict, its keys renamed,
+/// instead of building and analysing the same image again (the boards of a graded
+/// keyboard are mostly alike: grand88's 11 boards are one shape).
+struct Verdicts {
+    /// Per program: the first program of its class, one that differs from it in its param
+    /// block only (the same code and fixed-point program, the same flags).
+    class: Vec<usize>,
+    seen: Mutex<HashMap<Shape, (BoardVerdict, Vec<usize>)>>,
+    /// Whether verdicts are taken by shape (`false`: every candidate is built, as the tests
+    /// that compare the two sweeps run it).
+    on: bool,
+}
+
+impl Verdicts {
+    fn new(programs: &[Program], on: bool) -> Verdicts {
+        let alike = |a: &Program, b: &Program| {
+            a.same_code(b)
+                && Arc::ptr_eq(&a.fixed, &b.fixed)
+                && a.params.len() == b.params.len()
+                && a.quiescent_guard == b.quiescent_guard
+                && a.sensor_check == b.sensor_check
+                && a.watchdog == b.watchdog
+        };
+        let class = (0..programs.len())
+            .map(|i| {
+                (0..i)
+                    .find(|&j| alike(&programs[j], &programs[i]))
+                    .unwrap_or(i)
+            })
+            .collect();
+        Verdicts {
+            class,
+            seen: Mutex::new(HashMap::new()),
+            on,
+        }
+    }
+
+    /// The shape of the board holding `keys`; `None` when a key's program does not exist
+    /// (its check gives the error).
+    fn shape(&self, costs: &ProgramCosts, keys: &[PlanKey]) -> Option<Shape> {
+        let mut used: Vec<usize> = Vec::new();
+        keys.iter()
+            .map(|k| {
+                let p = k.program;
+                let local = used.iter().position(|&u| u == p).unwrap_or_else(|| {
+                    used.push(p);
+                    used.len() - 1
+                });
+                Some((
+                    *self.class.get(p)?,
+                    local,
+                    *costs.key_cycles.get(p)?,
+                    *costs.plain_key_cycles.get(p)?,
+                    *costs.slots.get(p)?,
+                ))
+            })
+            .collect()
+    }
+
+    /// [`checked`], or the verdict of a candidate of the same shape with `keys`' MIDI
+    /// numbers (and no image: none was built).
+    #[allow(clippy::too_many_arguments)] // `checked`'s inputs
+    fn checked(
+        &self,
+        programs: &[Program],
+        costs: &ProgramCosts,
+        keys: &[PlanKey],
+        board: &BoardSpec,
+        limiter: &LimiterConfig,
+        may_drop_guard: bool,
+    ) -> Result<Checked, BoardsError> {
+        let check = || checked(programs, costs, keys, board, limiter, may_drop_guard);
+        let Some(shape) = self.shape(costs, keys).filter(|_| self.on) else {
+            return check();
+        };
+        let seen = || self.seen.lock().unwrap_or_else(|e| e.into_inner());
+        let hit = seen().get(&shape).cloned();
+        if let Some((mut verdict, core_of)) = hit {
+            verdict.keys = keys.iter().map(|k| k.key).collect();
+            for (c, core) in verdict.cores.iter_mut().enumerate() {
+                core.keys = (keys.iter().zip(&core_of))
+                    .filter(|(_, &kc)| kc == c)
+                    .map(|(k, _)| k.key)
+                    .collect();
+            }
+            return Ok(Checked {
+                verdict,
+                image: None,
+            });
+        }
+        let c = check()?;
+        let core_of = c
+            .image
+            .as_ref()
+            .map_or_else(Vec::new, |i| i.core_of.clone());
+        seen().insert(shape, (c.verdict.clone(), core_of));
+        Ok(c)
+    }
 }
 
 /// The verdict of the board holding `keys` from what [`board_image`] gave for it (the core
@@ -613,7 +726,22 @@ pub fn plan(
     limiter: &LimiterConfig,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<KeyboardPlan, BoardsError> {
-    let fewest = sweep(programs, costs, keys, board, limiter, true, None, progress)?;
+    plan_with(programs, costs, keys, board, limiter, true, progress)
+}
+
+/// [`plan`], its sweeps taking a candidate's verdict by shape ([`Verdicts`]) when `memo`.
+fn plan_with(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    keys: &[PlanKey],
+    board: &BoardSpec,
+    limiter: &LimiterConfig,
+    memo: bool,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<KeyboardPlan, BoardsError> {
+    let fewest = sweep(
+        programs, costs, keys, board, limiter, true, None, memo, progress,
+    )?;
     if !fewest.iter().any(|b| b.verdict.guard_off) {
         return Ok(KeyboardPlan::of(fewest, true));
     }
@@ -628,6 +756,7 @@ pub fn plan(
         limiter,
         false,
         Some(fewest.len()),
+        memo,
         &mut |_, _| {},
     )?;
     let covered: usize = guarded.iter().map(|b| b.verdict.keys.len()).sum();
@@ -669,9 +798,11 @@ fn sweep(
     limiter: &LimiterConfig,
     may_drop_guard: bool,
     most: Option<usize>,
+    memo: bool,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<Checked>, BoardsError> {
-    let check = |ks: &[PlanKey]| checked(programs, costs, ks, board, limiter, may_drop_guard);
+    let memo = Verdicts::new(programs, memo);
+    let check = |ks: &[PlanKey]| memo.checked(programs, costs, ks, board, limiter, may_drop_guard);
     let mut boards = Vec::new();
     let mut i = 0;
     let cycles = board
@@ -893,8 +1024,105 @@ pub fn densest_board(
 
 #[cfg(test)]
 mod tests {
-    use super::{first_miss, greedy_end, read_board, BoardVerdict, BoardsError, PlanKey};
+    use super::{
+        check_board, first_miss, greedy_end, plan_with, read_board, BoardVerdict, BoardsError,
+        PlanKey, ProgramCosts,
+    };
+    use crate::image::{compile_layout, Program};
+    use std::path::Path;
+    use tactus_runtime::keyboard::BoardSpec;
+    use tactus_runtime::limiter::LimiterConfig;
     use tactus_runtime::rng::XorShift64;
+
+    /// The shipped layout `name`'s programs and keys (ascending).
+    fn layout(name: &str) -> (Vec<Program>, Vec<PlanKey>) {
+        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
+        let path = root.join(format!("instruments/layouts/{name}.toml"));
+        let (_, keys) = tactus_runtime::keyboard::read_layout(&path).unwrap();
+        let source = |i: &str| {
+            std::fs::read_to_string(root.join(format!("instruments/{i}.tactus")))
+                .map_err(|e| format!("{i}: {e}"))
+        };
+        let (programs, index) = compile_layout(&keys, &source, 44_100.0).unwrap();
+        let mut keys: Vec<PlanKey> = (keys.iter().zip(index))
+            .map(|(k, program)| PlanKey {
+                key: k.key,
+                program,
+            })
+            .collect();
+        keys.sort_by_key(|k| k.key);
+        (programs, keys)
+    }
+
+    /// Plans `keys` with the verdicts taken by shape and with every candidate built: the
+    /// same boards, verdicts and errors; each image the first plan kept is the second's, and
+    /// each board's verdict that of its board checked alone. Returns the boards and how
+    /// many images the first plan kept.
+    fn same_plans(programs: &[Program], keys: &[PlanKey], b: &BoardSpec) -> (usize, usize) {
+        let lim = LimiterConfig::for_board(b);
+        let costs = ProgramCosts::new(programs, b, &lim).unwrap();
+        let memo = plan_with(programs, &costs, keys, b, &lim, true, &mut |_, _| {});
+        let each = plan_with(programs, &costs, keys, b, &lim, false, &mut |_, _| {});
+        let (memo, each) = match (memo, each) {
+            (Ok(m), Ok(e)) => (m, e),
+            (m, e) => {
+                assert_eq!(m.map(|p| p.boards), e.map(|p| p.boards), "{}", b.name);
+                return (0, 0);
+            }
+        };
+        assert_eq!(memo.boards, each.boards, "{}", b.name);
+        assert_eq!(memo.planned, each.planned);
+        assert!(each.images.iter().all(Option::is_some), "{}", b.name);
+        let mut kept = 0;
+        for (i, (m, e)) in memo.images.iter().zip(&each.images).enumerate() {
+            if m.is_some() {
+                assert_eq!(m, e, "{} board {i}", b.name);
+                kept += 1;
+            }
+            let bkeys: Vec<PlanKey> = (keys.iter())
+                .filter(|k| memo.boards[i].keys.contains(&k.key))
+                .copied()
+                .collect();
+            let alone = check_board(programs, &costs, &bkeys, b, &lim).unwrap();
+            assert_eq!(alone, memo.boards[i], "{} board {i}", b.name);
+        }
+        (memo.boards.len(), kept)
+    }
+
+    #[test]
+    fn the_plan_with_verdicts_by_shape_is_the_plan_of_every_candidate_built() {
+        let board = |name: &str| {
+            let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../boards"));
+            let text = std::fs::read_to_string(root.join(format!("{name}.toml"))).unwrap();
+            read_board(&text, name).unwrap()
+        };
+        // grand88: 88 graded piano keys, one code; 11 boards on rp2040, of which the
+        // first was built (the others are of its shape).
+        let (programs, keys) = layout("grand88");
+        let (boards, kept) = same_plans(&programs, &keys, &board("rp2040"));
+        assert_eq!(boards, 11);
+        assert!((1..11).contains(&kept), "{kept}");
+        // Two instruments, on a converter board (the capped partition).
+        let (programs, keys) = layout("split_harpsichord_piano");
+        let (boards, _) = same_plans(&programs, &keys, &board("rp2040_io"));
+        assert!(boards >= 2, "{boards}");
+        // Keys of the two instruments interleaved, some sharing a param set: boards with
+        // a program used twice or more and classes mixed; and a key whose program does
+        // not exist (the sweep's error, as without shapes).
+        let mut rng = XorShift64::new(0x5AFE);
+        let pick = [0, 1, programs.len() - 1, programs.len() - 2];
+        let mixed: Vec<PlanKey> = (0..40)
+            .map(|k| PlanKey {
+                key: 21 + k as u8,
+                program: pick[rng.below(pick.len())],
+            })
+            .collect();
+        let (boards, _) = same_plans(&programs, &mixed, &board("rp2040"));
+        assert!(boards >= 2, "{boards}");
+        let mut bad = mixed.clone();
+        bad[25].program = programs.len();
+        assert_eq!(same_plans(&programs, &bad, &board("rp2040")), (0, 0));
+    }
 
     /// A verdict that fits or not, for `len` keys.
     fn verdict(len: usize, fits: bool) -> BoardVerdict {
