@@ -30,7 +30,12 @@
 //! against brute force over every contiguous split of small mixed layouts. Heredity also
 //! makes the sweep cheap: a board's end is settled by two answers (its range fits, one key
 //! more does not), so the sweep searches from the previous board's key count instead of
-//! growing each board from one key (`sweep`).
+//! growing each board from one key (`sweep`). And a candidate of the same *shape* as one
+//! already built (its keys' code, flags, costs and places: `Shape`; params are data the
+//! WCET never reads) takes that one's verdict, its keys renamed, instead of being built
+//! and analysed again: grand88's boards are all of one shape. The plan keeps the images
+//! it built ([`KeyboardPlan::images`]), which `tactus play` boots instead of building them
+//! again.
 
 use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
 use crate::windows::MAX_KEYS;
