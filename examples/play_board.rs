@@ -107,6 +107,8 @@ fn run(piece: &Path, seconds: f64, which: Option<usize>) -> Result<bool, String>
         finger: Default::default(),
         trace: Default::default(),
         boards: vec![list.clone()],
+        // No plan's image: the board's is built.
+        images: Vec::new(),
         limiter: kb.limiter(),
         engine: tactus_emulator::Engine::Block,
         quiescent_guard: true,

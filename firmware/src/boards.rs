@@ -30,11 +30,18 @@
 //! against brute force over every contiguous split of small mixed layouts. Heredity also
 //! makes the sweep cheap: a board's end is settled by two answers (its range fits, one key
 //! more does not), so the sweep searches from the previous board's key count instead of
-//! growing each board from one key (`sweep`).
+//! growing each board from one key (`sweep`). And a candidate of the same *shape* as one
+//! already built (its keys' code, flags, costs and places: `Shape`; params are data the
+//! WCET never reads) takes that one's verdict, its keys renamed, instead of being built
+//! and analysed again: grand88's boards are all of one shape. The plan keeps the images
+//! it built ([`KeyboardPlan::images`]), which `tactus play` boots instead of building them
+//! again.
 
 use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
 use crate::windows::MAX_KEYS;
 use serde::Serialize;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 use tactus_runtime::keyboard::BoardSpec;
 use tactus_runtime::limiter::LimiterConfig;
 
@@ -143,6 +150,45 @@ impl std::fmt::Display for BoardsError {
 }
 
 impl std::error::Error for BoardsError {}
+
+/// A board's image as [`board_image`] builds it: the core of each of its keys (in key
+/// order) and the image.
+#[derive(Clone, Debug)]
+pub struct BoardImage {
+    /// Per key of the board, in key order: its core.
+    pub core_of: Vec<usize>,
+    /// The image.
+    pub image: FirmwareImage,
+}
+
+impl BoardImage {
+    /// Whether this can be the image of the board holding `keys` running `programs`: as many
+    /// keys, each running the same code with the same param block, sensor check and
+    /// watchdog (the quiescent-key guard is the planner's to drop, [`board_image`]).
+    pub fn holds(&self, programs: &[Program], keys: &[PlanKey]) -> bool {
+        let (specs, local) = (self.image.keys(), self.image.programs());
+        specs.len() == keys.len()
+            && self.core_of.len() == keys.len()
+            && specs.iter().zip(keys).all(|(s, k)| {
+                match (local.get(s.program), programs.get(k.program)) {
+                    (Some(a), Some(b)) => {
+                        a.same_code(b)
+                            && a.params == b.params
+                            && a.sensor_check == b.sensor_check
+                            && a.watchdog == b.watchdog
+                    }
+                    _ => false,
+                }
+            })
+    }
+}
+
+impl PartialEq for BoardImage {
+    /// The same cores and the same bytes at the same addresses.
+    fn eq(&self, other: &BoardImage) -> bool {
+        self.core_of == other.core_of && self.image.segments() == other.image.segments()
+    }
+}
 
 /// What one key of each program costs in a sample interrupt and how many window slots it
 /// takes, computed once per program.
@@ -382,11 +428,13 @@ pub fn check_board(
     board: &BoardSpec,
     limiter: &LimiterConfig,
 ) -> Result<BoardVerdict, BoardsError> {
-    verdict_of(programs, costs, keys, board, limiter, true)
+    let (core_of, image) = board_image(programs, costs, keys, board, limiter)?;
+    Ok(image_verdict(programs, keys, board, &core_of, &image))
 }
 
-/// The verdict of each board of a layout that lists its own (`lists`: the MIDI keys of
-/// each board), as [`check_board`] gives it; `progress(boards done, boards in all)`.
+/// The plan of a layout that lists its own boards (`lists`: the MIDI keys of each board):
+/// each board's verdict as [`check_board`] gives it, with its image;
+/// `progress(boards done, boards in all)`.
 ///
 /// Errors: as [`board_image`].
 pub fn check_boards(
@@ -397,7 +445,8 @@ pub fn check_boards(
     board: &BoardSpec,
     limiter: &LimiterConfig,
     progress: &mut dyn FnMut(usize, usize),
-) -> Result<Vec<BoardVerdict>, BoardsError> {
+) -> Result<KeyboardPlan, BoardsError> {
+    let memo = Verdicts::new(programs, true);
     let mut out = Vec::with_capacity(lists.len());
     for (i, list) in lists.iter().enumerate() {
         progress(i, lists.len());
@@ -406,9 +455,9 @@ pub fn check_boards(
             .filter(|k| list.contains(&k.key))
             .copied()
             .collect();
-        out.push(check_board(programs, costs, &ks, board, limiter)?);
+        out.push(memo.checked(programs, costs, &ks, board, limiter, true)?);
     }
-    Ok(out)
+    Ok(KeyboardPlan::of(out, false))
 }
 
 /// A keyboard's boards with their verdicts: planned by [`plan`] when its layout lists none,
@@ -420,26 +469,197 @@ pub struct KeyboardPlan {
     pub boards: Vec<BoardVerdict>,
     /// Whether the boards were planned (`false`: the layout's own).
     pub planned: bool,
+    /// Per board: its image, [`board_image`] of its keys, where the planner built it while
+    /// planning (`None`: none was built, or it has none — its verdict's error says why).
+    /// `tactus play` runs these instead of building them again.
+    pub images: Vec<Option<Arc<BoardImage>>>,
 }
 
 impl KeyboardPlan {
+    /// The plan of the checked boards `boards`.
+    fn of(boards: Vec<Checked>, planned: bool) -> KeyboardPlan {
+        let (boards, images) = boards.into_iter().map(|c| (c.verdict, c.image)).unzip();
+        KeyboardPlan {
+            boards,
+            planned,
+            images,
+        }
+    }
+
     /// The MIDI keys of each board, in board order.
     pub fn key_lists(&self) -> Vec<Vec<u8>> {
         self.boards.iter().map(|b| b.keys.clone()).collect()
     }
 }
 
-/// [`check_board`], the guard dropped only when `may_drop_guard` ([`image_of`]).
-fn verdict_of(
+/// A candidate board's verdict and, when it could be built, its image (what [`sweep`]
+/// keeps of a board it chose).
+#[derive(Clone, Debug, PartialEq)]
+struct Checked {
+    verdict: BoardVerdict,
+    image: Option<Arc<BoardImage>>,
+}
+
+/// Whether a candidate board fits ([`BoardVerdict::fits`]), for the search of [`greedy_end`]
+/// over verdicts alone or verdicts with their images.
+trait Fits {
+    fn fits(&self) -> bool;
+}
+
+impl Fits for BoardVerdict {
+    fn fits(&self) -> bool {
+        BoardVerdict::fits(self)
+    }
+}
+
+impl Fits for Checked {
+    fn fits(&self) -> bool {
+        self.verdict.fits()
+    }
+}
+
+/// [`check_board`] with the image kept, the guard dropped only when `may_drop_guard`
+/// ([`image_of`]).
+fn checked(
     programs: &[Program],
     costs: &ProgramCosts,
     keys: &[PlanKey],
     board: &BoardSpec,
     limiter: &LimiterConfig,
     may_drop_guard: bool,
-) -> Result<BoardVerdict, BoardsError> {
+) -> Result<Checked, BoardsError> {
+    let (core_of, image) = image_of(programs, costs, keys, board, limiter, may_drop_guard)?;
+    let verdict = image_verdict(programs, keys, board, &core_of, &image);
+    Ok(Checked {
+        verdict,
+        image: image
+            .ok()
+            .map(|image| Arc::new(BoardImage { core_of, image })),
+    })
+}
+
+/// What decides a candidate board's verdict but its keys' MIDI numbers, per key in key
+/// order: the class of its program ([`Verdicts::new`]), the program's place among the
+/// board's programs (in order of first use, as [`image_of`] numbers them), its costs
+/// ([`ProgramCosts::key_cycles`], [`ProgramCosts::plain_key_cycles`]) and its window slots.
+/// Two candidates of one shape get one layout, the same code in every bank and so the same
+/// static bounds; they differ in their keys' param blocks only, which the image places
+/// as data ([`Program::params`]: written into each key's state, never read by the WCET
+/// analysis, and the same size within a class).
+type Shape = Vec<(usize, usize, u64, u64, usize)>;
+
+/// The verdicts of the candidate boards a sweep has built, by [`Shape`], with the core of
+/// each key: a candidate of a shape already seen takes its verdict, its keys renamed,
+/// instead of building and analysing the same image again (the boards of a graded
+/// keyboard are mostly alike: grand88's 11 boards are one shape).
+struct Verdicts {
+    /// Per program: the first program of its class, one that differs from it in its param
+    /// block only (the same code and fixed-point program, the same flags).
+    class: Vec<usize>,
+    seen: Mutex<HashMap<Shape, (BoardVerdict, Vec<usize>)>>,
+    /// Whether verdicts are taken by shape (`false`: every candidate is built, as the tests
+    /// that compare the two sweeps run it).
+    on: bool,
+}
+
+impl Verdicts {
+    fn new(programs: &[Program], on: bool) -> Verdicts {
+        let alike = |a: &Program, b: &Program| {
+            a.same_code(b)
+                && Arc::ptr_eq(&a.fixed, &b.fixed)
+                && a.params.len() == b.params.len()
+                && a.quiescent_guard == b.quiescent_guard
+                && a.sensor_check == b.sensor_check
+                && a.watchdog == b.watchdog
+        };
+        let class = (0..programs.len())
+            .map(|i| {
+                (0..i)
+                    .find(|&j| alike(&programs[j], &programs[i]))
+                    .unwrap_or(i)
+            })
+            .collect();
+        Verdicts {
+            class,
+            seen: Mutex::new(HashMap::new()),
+            on,
+        }
+    }
+
+    /// The shape of the board holding `keys`; `None` when a key's program does not exist
+    /// (its check gives the error).
+    fn shape(&self, costs: &ProgramCosts, keys: &[PlanKey]) -> Option<Shape> {
+        let mut used: Vec<usize> = Vec::new();
+        keys.iter()
+            .map(|k| {
+                let p = k.program;
+                let local = used.iter().position(|&u| u == p).unwrap_or_else(|| {
+                    used.push(p);
+                    used.len() - 1
+                });
+                Some((
+                    *self.class.get(p)?,
+                    local,
+                    *costs.key_cycles.get(p)?,
+                    *costs.plain_key_cycles.get(p)?,
+                    *costs.slots.get(p)?,
+                ))
+            })
+            .collect()
+    }
+
+    /// [`checked`], or the verdict of a candidate of the same shape with `keys`' MIDI
+    /// numbers (and no image: none was built).
+    #[allow(clippy::too_many_arguments)] // `checked`'s inputs
+    fn checked(
+        &self,
+        programs: &[Program],
+        costs: &ProgramCosts,
+        keys: &[PlanKey],
+        board: &BoardSpec,
+        limiter: &LimiterConfig,
+        may_drop_guard: bool,
+    ) -> Result<Checked, BoardsError> {
+        let check = || checked(programs, costs, keys, board, limiter, may_drop_guard);
+        let Some(shape) = self.shape(costs, keys).filter(|_| self.on) else {
+            return check();
+        };
+        let seen = || self.seen.lock().unwrap_or_else(|e| e.into_inner());
+        let hit = seen().get(&shape).cloned();
+        if let Some((mut verdict, core_of)) = hit {
+            verdict.keys = keys.iter().map(|k| k.key).collect();
+            for (c, core) in verdict.cores.iter_mut().enumerate() {
+                core.keys = (keys.iter().zip(&core_of))
+                    .filter(|(_, &kc)| kc == c)
+                    .map(|(k, _)| k.key)
+                    .collect();
+            }
+            return Ok(Checked {
+                verdict,
+                image: None,
+            });
+        }
+        let c = check()?;
+        let core_of = c
+            .image
+            .as_ref()
+            .map_or_else(Vec::new, |i| i.core_of.clone());
+        seen().insert(shape, (c.verdict.clone(), core_of));
+        Ok(c)
+    }
+}
+
+/// The verdict of the board holding `keys` from what [`board_image`] gave for it (the core
+/// of each key and the image, or why there is none): each core's static bound against
+/// `board`'s cycles per sample. [`check_board`] is this of [`board_image`].
+pub fn image_verdict(
+    programs: &[Program],
+    keys: &[PlanKey],
+    board: &BoardSpec,
+    core: &[usize],
+    image: &Result<FirmwareImage, ImageError>,
+) -> BoardVerdict {
     let cps = board.cycles_per_sample();
-    let (core, image) = image_of(programs, costs, keys, board, limiter, may_drop_guard)?;
     let key_list: Vec<u8> = keys.iter().map(|k| k.key).collect();
     let asked = keys
         .iter()
@@ -447,14 +667,14 @@ fn verdict_of(
     let image = match image {
         Ok(i) => i,
         Err(e) => {
-            return Ok(BoardVerdict {
+            return BoardVerdict {
                 keys: key_list,
                 cores: Vec::new(),
                 code_bytes: Vec::new(),
                 error: Some(e.to_string()),
                 guard_off: false,
                 latency_cycles: None,
-            })
+            }
         }
     };
     let cores = (0..image.cores())
@@ -464,7 +684,7 @@ fn verdict_of(
             CoreVerdict {
                 keys: keys
                     .iter()
-                    .zip(&core)
+                    .zip(core)
                     .filter(|(_, &kc)| kc == c)
                     .map(|(k, _)| k.key)
                     .collect(),
@@ -478,7 +698,7 @@ fn verdict_of(
             }
         })
         .collect();
-    Ok(BoardVerdict {
+    BoardVerdict {
         keys: key_list,
         cores,
         code_bytes: (0..image.cores()).map(|c| image.code_bytes(c)).collect(),
@@ -487,7 +707,7 @@ fn verdict_of(
         latency_cycles: (0..keys.len())
             .filter_map(|k| image.latency_cycles(k))
             .max(),
-    })
+    }
 }
 
 /// Plans the fewest boards for `keys` (ascending by key): contiguous ranges, each as long
@@ -510,13 +730,29 @@ pub fn plan(
     board: &BoardSpec,
     limiter: &LimiterConfig,
     progress: &mut dyn FnMut(usize, usize),
-) -> Result<Vec<BoardVerdict>, BoardsError> {
-    let fewest = sweep(programs, costs, keys, board, limiter, true, None, progress)?;
-    if !fewest.iter().any(|b| b.guard_off) {
-        return Ok(fewest);
+) -> Result<KeyboardPlan, BoardsError> {
+    plan_with(programs, costs, keys, board, limiter, true, progress)
+}
+
+/// [`plan`], its sweeps taking a candidate's verdict by shape ([`Verdicts`]) when `memo`.
+fn plan_with(
+    programs: &[Program],
+    costs: &ProgramCosts,
+    keys: &[PlanKey],
+    board: &BoardSpec,
+    limiter: &LimiterConfig,
+    memo: bool,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<KeyboardPlan, BoardsError> {
+    let fewest = sweep(
+        programs, costs, keys, board, limiter, true, None, memo, progress,
+    )?;
+    if !fewest.iter().any(|b| b.verdict.guard_off) {
+        return Ok(KeyboardPlan::of(fewest, true));
     }
     // The guarded plan counts only if it needs no more boards, all fitting: its sweep stops
-    // as soon as it cannot be that plan.
+    // as soon as it cannot be that plan. (Its boards all fit with the guard, so each image
+    // is also what `board_image`, which drops the guard only where it does not fit, builds.)
     let guarded = sweep(
         programs,
         costs,
@@ -525,16 +761,17 @@ pub fn plan(
         limiter,
         false,
         Some(fewest.len()),
+        memo,
         &mut |_, _| {},
     )?;
-    let covered: usize = guarded.iter().map(|b| b.keys.len()).sum();
+    let covered: usize = guarded.iter().map(|b| b.verdict.keys.len()).sum();
     if covered == keys.len()
         && guarded.len() <= fewest.len()
-        && guarded.iter().all(BoardVerdict::fits)
+        && guarded.iter().all(|b| b.verdict.fits())
     {
-        return Ok(guarded);
+        return Ok(KeyboardPlan::of(guarded, true));
     }
-    Ok(fewest)
+    Ok(KeyboardPlan::of(fewest, true))
 }
 
 /// The greedy sweep of [`plan`], boards without the guard allowed when `may_drop_guard`.
@@ -566,9 +803,11 @@ fn sweep(
     limiter: &LimiterConfig,
     may_drop_guard: bool,
     most: Option<usize>,
+    memo: bool,
     progress: &mut dyn FnMut(usize, usize),
-) -> Result<Vec<BoardVerdict>, BoardsError> {
-    let check = |ks: &[PlanKey]| verdict_of(programs, costs, ks, board, limiter, may_drop_guard);
+) -> Result<Vec<Checked>, BoardsError> {
+    let memo = Verdicts::new(programs, memo);
+    let check = |ks: &[PlanKey]| memo.checked(programs, costs, ks, board, limiter, may_drop_guard);
     let mut boards = Vec::new();
     let mut i = 0;
     let cycles = board
@@ -603,17 +842,17 @@ fn sweep(
 ///
 /// Errors: the error of `keys[start..=e + 1]`'s check (or of `keys[start..=start]`'s when
 /// one key does not fit), as the one-key-at-a-time sweep would meet it.
-fn greedy_end(
-    check: &(dyn Fn(&[PlanKey]) -> Result<BoardVerdict, BoardsError> + Sync),
+fn greedy_end<T: Fits + Send>(
+    check: &(dyn Fn(&[PlanKey]) -> Result<T, BoardsError> + Sync),
     keys: &[PlanKey],
     start: usize,
     guess: usize,
-) -> Result<(usize, BoardVerdict), BoardsError> {
+) -> Result<(usize, T), BoardsError> {
     let n = keys.len();
     // Checked ends and their answers; `lo` the last end known to fit (`None`: none yet),
     // `hi` the first end known not to (`n`: past the keys, which "does not fit").
-    let mut seen: Vec<(usize, Result<BoardVerdict, BoardsError>)> = Vec::new();
-    let fits = |r: &Result<BoardVerdict, BoardsError>| r.as_ref().is_ok_and(BoardVerdict::fits);
+    let mut seen: Vec<(usize, Result<T, BoardsError>)> = Vec::new();
+    let fits = |r: &Result<T, BoardsError>| r.as_ref().is_ok_and(Fits::fits);
     let (mut lo, mut hi): (Option<usize>, usize) = (None, n);
     let mut next = (start + guess.max(1) - 1).min(n - 1);
     loop {
@@ -677,11 +916,11 @@ fn greedy_end(
 /// The one-key-at-a-time answer of [`greedy_end`]: what the search falls back on when its
 /// own checks show a range fitting beyond one that does not (which the module
 /// documentation's argument excludes), so that it never settles on a contradiction.
-fn first_miss(
-    check: &(dyn Fn(&[PlanKey]) -> Result<BoardVerdict, BoardsError> + Sync),
+fn first_miss<T: Fits>(
+    check: &(dyn Fn(&[PlanKey]) -> Result<T, BoardsError> + Sync),
     keys: &[PlanKey],
     start: usize,
-) -> Result<(usize, BoardVerdict), BoardsError> {
+) -> Result<(usize, T), BoardsError> {
     let mut best = check(&keys[start..=start])?;
     let mut end = start;
     while best.fits() && end + 1 < keys.len() {
@@ -790,8 +1029,105 @@ pub fn densest_board(
 
 #[cfg(test)]
 mod tests {
-    use super::{first_miss, greedy_end, read_board, BoardVerdict, BoardsError, PlanKey};
+    use super::{
+        check_board, first_miss, greedy_end, plan_with, read_board, BoardVerdict, BoardsError,
+        PlanKey, ProgramCosts,
+    };
+    use crate::image::{compile_layout, Program};
+    use std::path::Path;
+    use tactus_runtime::keyboard::BoardSpec;
+    use tactus_runtime::limiter::LimiterConfig;
     use tactus_runtime::rng::XorShift64;
+
+    /// The shipped layout `name`'s programs and keys (ascending).
+    fn layout(name: &str) -> (Vec<Program>, Vec<PlanKey>) {
+        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
+        let path = root.join(format!("instruments/layouts/{name}.toml"));
+        let (_, keys) = tactus_runtime::keyboard::read_layout(&path).unwrap();
+        let source = |i: &str| {
+            std::fs::read_to_string(root.join(format!("instruments/{i}.tactus")))
+                .map_err(|e| format!("{i}: {e}"))
+        };
+        let (programs, index) = compile_layout(&keys, &source, 44_100.0).unwrap();
+        let mut keys: Vec<PlanKey> = (keys.iter().zip(index))
+            .map(|(k, program)| PlanKey {
+                key: k.key,
+                program,
+            })
+            .collect();
+        keys.sort_by_key(|k| k.key);
+        (programs, keys)
+    }
+
+    /// Plans `keys` with the verdicts taken by shape and with every candidate built: the
+    /// same boards, verdicts and errors; each image the first plan kept is the second's, and
+    /// each board's verdict that of its board checked alone. Returns the boards and how
+    /// many images the first plan kept.
+    fn same_plans(programs: &[Program], keys: &[PlanKey], b: &BoardSpec) -> (usize, usize) {
+        let lim = LimiterConfig::for_board(b);
+        let costs = ProgramCosts::new(programs, b, &lim).unwrap();
+        let memo = plan_with(programs, &costs, keys, b, &lim, true, &mut |_, _| {});
+        let each = plan_with(programs, &costs, keys, b, &lim, false, &mut |_, _| {});
+        let (memo, each) = match (memo, each) {
+            (Ok(m), Ok(e)) => (m, e),
+            (m, e) => {
+                assert_eq!(m.map(|p| p.boards), e.map(|p| p.boards), "{}", b.name);
+                return (0, 0);
+            }
+        };
+        assert_eq!(memo.boards, each.boards, "{}", b.name);
+        assert_eq!(memo.planned, each.planned);
+        assert!(each.images.iter().all(Option::is_some), "{}", b.name);
+        let mut kept = 0;
+        for (i, (m, e)) in memo.images.iter().zip(&each.images).enumerate() {
+            if m.is_some() {
+                assert_eq!(m, e, "{} board {i}", b.name);
+                kept += 1;
+            }
+            let bkeys: Vec<PlanKey> = (keys.iter())
+                .filter(|k| memo.boards[i].keys.contains(&k.key))
+                .copied()
+                .collect();
+            let alone = check_board(programs, &costs, &bkeys, b, &lim).unwrap();
+            assert_eq!(alone, memo.boards[i], "{} board {i}", b.name);
+        }
+        (memo.boards.len(), kept)
+    }
+
+    #[test]
+    fn the_plan_with_verdicts_by_shape_is_the_plan_of_every_candidate_built() {
+        let board = |name: &str| {
+            let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../boards"));
+            let text = std::fs::read_to_string(root.join(format!("{name}.toml"))).unwrap();
+            read_board(&text, name).unwrap()
+        };
+        // grand88: 88 graded piano keys, one code; 11 boards on rp2040, of which the
+        // first was built (the others are of its shape).
+        let (programs, keys) = layout("grand88");
+        let (boards, kept) = same_plans(&programs, &keys, &board("rp2040"));
+        assert_eq!(boards, 11);
+        assert!((1..11).contains(&kept), "{kept}");
+        // Two instruments, on a converter board (the capped partition).
+        let (programs, keys) = layout("split_harpsichord_piano");
+        let (boards, _) = same_plans(&programs, &keys, &board("rp2040_io"));
+        assert!(boards >= 2, "{boards}");
+        // Keys of the two instruments interleaved, some sharing a param set: boards with
+        // a program used twice or more and classes mixed; and a key whose program does
+        // not exist (the sweep's error, as without shapes).
+        let mut rng = XorShift64::new(0x5AFE);
+        let pick = [0, 1, programs.len() - 1, programs.len() - 2];
+        let mixed: Vec<PlanKey> = (0..40)
+            .map(|k| PlanKey {
+                key: 21 + k as u8,
+                program: pick[rng.below(pick.len())],
+            })
+            .collect();
+        let (boards, _) = same_plans(&programs, &mixed, &board("rp2040"));
+        assert!(boards >= 2, "{boards}");
+        let mut bad = mixed.clone();
+        bad[25].program = programs.len();
+        assert_eq!(same_plans(&programs, &bad, &board("rp2040")), (0, 0));
+    }
 
     /// A verdict that fits or not, for `len` keys.
     fn verdict(len: usize, fits: bool) -> BoardVerdict {

@@ -132,8 +132,10 @@ pub fn keyboard_firmware(
             .filter(|k| list.contains(&k.key))
             .copied()
             .collect();
-        let verdict = boards::check_board(programs, &costs, &bkeys, board, lim)
+        // The image, and its verdict (`boards::check_board`'s, of this one build).
+        let (core_of, image) = boards::board_image(programs, &costs, &bkeys, board, lim)
             .map_err(|e| format!("{}: {e}", what()))?;
+        let verdict = boards::image_verdict(programs, &bkeys, board, &core_of, &image);
         if !verdict.fits() {
             // The budget's rule and words: a key that fits no board says why.
             let alone = match bkeys.as_slice() {
@@ -161,8 +163,6 @@ pub fn keyboard_firmware(
                 ),
             });
         }
-        let (core_of, image) = boards::board_image(programs, &costs, &bkeys, board, lim)
-            .map_err(|e| format!("{}: {e}", what()))?;
         let image = image.map_err(|e| format!("{}: {e}", what()))?;
         image.flashable().map_err(|e| format!("{}: {e}", what()))?;
         let fail = |e: crate::image::ImageError| format!("{}: {e}", what());

@@ -108,8 +108,9 @@ fn the_planner_needs_no_more_boards_than_brute_force() {
                     program,
                 });
             }
-            let plan =
-                boards::plan(&programs, &costs, &keys, &b, &limiter(&b), &mut |_, _| {}).unwrap();
+            let plan = boards::plan(&programs, &costs, &keys, &b, &limiter(&b), &mut |_, _| {})
+                .unwrap()
+                .boards;
             let covered: Vec<u8> = plan.iter().flat_map(|p| p.keys.clone()).collect();
             assert_eq!(covered, keys.iter().map(|k| k.key).collect::<Vec<_>>());
             assert!(plan.iter().all(|p| p.fits()), "{plan:?}");
@@ -151,7 +152,9 @@ fn boards_run_bit_exact(layout: &str, samples: usize) {
             program,
         })
         .collect();
-    let plan = boards::plan(&programs, &costs, &keys, &b, &lim, &mut |_, _| {}).unwrap();
+    let plan = boards::plan(&programs, &costs, &keys, &b, &lim, &mut |_, _| {})
+        .unwrap()
+        .boards;
     assert!(plan.iter().all(|p| p.fits()), "{layout}: {plan:?}");
     // Each program's corpus, concatenated and cycled to `samples`; key i starts at an
     // offset of its own so that neighbours do not move in step.
@@ -376,8 +379,11 @@ fn the_planner_drops_the_guard_only_where_it_saves_a_board() {
     let lim = limiter(&b);
     let programs = vec![program];
     let costs = ProgramCosts::new(&programs, &b, &lim).unwrap();
-    let plan =
-        |n: usize| boards::plan(&programs, &costs, &keys(n), &b, &lim, &mut |_, _| {}).unwrap();
+    let plan = |n: usize| {
+        boards::plan(&programs, &costs, &keys(n), &b, &lim, &mut |_, _| {})
+            .unwrap()
+            .boards
+    };
     // With the guard on every board (the board's image, no fallback), how many keys fit.
     let guarded_fit = |n: usize| {
         let local = boards::board_image(&programs, &costs, &keys(n), &b, &lim)

@@ -96,7 +96,9 @@ fn setup(board: &str) -> Setup {
             program,
         })
         .collect();
-    let planned = boards::plan(&programs, &costs, &keys, &board, &lim, &mut |_, _| {}).unwrap();
+    let planned = boards::plan(&programs, &costs, &keys, &board, &lim, &mut |_, _| {})
+        .unwrap()
+        .boards;
     let boards = planned
         .iter()
         .map(|b| {

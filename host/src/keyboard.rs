@@ -598,20 +598,13 @@ impl Keyboard {
         let keys: Vec<boards::PlanKey> = (self.key_programs().into_iter())
             .map(|(key, program)| boards::PlanKey { key, program })
             .collect();
-        Ok(match &self.boards {
-            None => KeyboardPlan {
-                boards: boards::plan(programs, &costs, &keys, board, &limiter, progress)
-                    .map_err(bad)?,
-                planned: true,
-            },
-            Some(lists) => KeyboardPlan {
-                boards: boards::check_boards(
-                    programs, &costs, &keys, lists, board, &limiter, progress,
-                )
-                .map_err(bad)?,
-                planned: false,
-            },
-        })
+        match &self.boards {
+            None => boards::plan(programs, &costs, &keys, board, &limiter, progress),
+            Some(lists) => {
+                boards::check_boards(programs, &costs, &keys, lists, board, &limiter, progress)
+            }
+        }
+        .map_err(bad)
     }
 
     /// The keyboard as a layout file with `report`'s boards: the layout (or one range for a
@@ -706,7 +699,7 @@ impl Keyboard {
         &'a self,
         played: &BTreeSet<u8>,
         firmware: Option<&'a [FirmwareProgram]>,
-        plan: Option<&KeyboardPlan>,
+        plan: Option<&'a KeyboardPlan>,
     ) -> Result<play::Keyboard<'a>, KeyboardError> {
         // Set index → index among the played programs.
         let mut host: BTreeMap<usize, usize> = BTreeMap::new();
@@ -760,6 +753,7 @@ impl Keyboard {
             firmware: firmware.map(|programs| play::Firmware {
                 programs,
                 key_program: &self.key_set,
+                images: plan.map_or(&[], |p| &p.images),
             }),
         })
     }

@@ -97,7 +97,7 @@ pub fn plan(
         .map(|&(key, program)| PlanKey { key, program })
         .collect();
     let planned = boards::plan(programs, &costs, &keys, board, limiter, &mut |_, _| {})?;
-    Ok(planned.into_iter().map(|b| b.keys).collect())
+    Ok(planned.key_lists())
 }
 
 /// The budget corpus (quick) for each key, its runs concatenated and repeated, each key

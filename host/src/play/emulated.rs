@@ -17,8 +17,9 @@ use crate::play::run::{Drive, KeysLoop, LoopConfig, TraceWindow};
 use crate::play::strike::{strike_event, Strike};
 use crate::play::timeline::Timeline;
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use tactus_compiler::fixed::interp::FixedInstance;
-use tactus_firmware::boards::{self, PlanKey, ProgramCosts};
+use tactus_firmware::boards::{self, BoardImage, PlanKey, ProgramCosts};
 use tactus_firmware::image::Program;
 use tactus_runtime::fixed::to_f64;
 use tactus_runtime::keyboard::BoardSpec;
@@ -46,6 +47,10 @@ pub struct PerformOptions {
     /// (`crate::keyboard::Keyboard::plan`: the boards `tactus budget` reports and `tactus
     /// build` builds).
     pub boards: Vec<Vec<u8>>,
+    /// Per board of `boards`: the image its plan built (`KeyboardPlan::images`), which the
+    /// run takes instead of building it again when the board's keys and programs are the
+    /// plan's (`None`, or none given: it builds it, [`boards::board_image`]).
+    pub images: Vec<Option<Arc<BoardImage>>>,
     /// The safety limiter.
     pub limiter: LimiterConfig,
     /// The emulator's engine (the same cycles either way).
@@ -158,6 +163,10 @@ pub fn play_boards(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<KeyboardRun, RunError> {
     let lim = &opts.limiter;
+    // The plan's images are of the programs as given (`opts.images`).
+    let same_programs = programs
+        .iter()
+        .all(|p| p.quiescent_guard == opts.quiescent_guard);
     let guarded: Vec<Program> = programs
         .iter()
         .map(|p| {
@@ -221,8 +230,12 @@ pub fn play_boards(
                     .filter(|k| list.contains(&k.key))
                     .copied()
                     .collect();
+                // The plan's image, built of the same programs for the same keys.
+                let planned = (opts.images.get(i).and_then(Option::as_deref))
+                    .filter(|b| same_programs && b.holds(programs, &bkeys));
                 let r = run_board(
-                    programs, &costs, &bkeys, board, motions, opts, progress, decimation, i,
+                    programs, &costs, planned, &bkeys, board, motions, opts, progress, decimation,
+                    i,
                 )
                 .map(|r| (i, r))
                 .map_err(|source| RunError::Board {
@@ -361,7 +374,27 @@ impl<'p> BoardEngine<'p> {
         decimation: usize,
     ) -> Result<Self, BoardError> {
         let (core_of, image) = boards::board_image(programs, costs, bkeys, board, limiter)?;
-        let image = image?;
+        let built = BoardImage {
+            core_of,
+            image: image?,
+        };
+        BoardEngine::boot(programs, bkeys, board, engine, decimation, &built)
+    }
+
+    /// Boots `built`, the image [`boards::board_image`] gives the board whose keys are
+    /// `bkeys` (the plan's, `tactus_firmware::boards::KeyboardPlan::images`), as
+    /// [`BoardEngine::new`] boots the image it builds.
+    ///
+    /// Errors: a message when the image cannot be booted.
+    pub fn boot(
+        programs: &'p [Program],
+        bkeys: &[PlanKey],
+        board: &BoardSpec,
+        engine: tactus_emulator::Engine,
+        decimation: usize,
+        built: &BoardImage,
+    ) -> Result<Self, BoardError> {
+        let (core_of, image) = (&built.core_of, &built.image);
         let mut run = image.run()?;
         run.board().config.engine = engine;
         // Nothing reads the converters' frames but an I/O trace (`trace_io`), which keeps
@@ -658,11 +691,13 @@ fn count_sample(
     }
 }
 
-/// One board of [`play_boards`]: its image, every key every sample through the play loop.
+/// One board of [`play_boards`]: its image (`planned`, the plan's, else built), every key
+/// every sample through the play loop.
 #[allow(clippy::too_many_arguments)]
 fn run_board(
     programs: &[Program],
     costs: &ProgramCosts,
+    planned: Option<&BoardImage>,
     bkeys: &[PlanKey],
     board: &BoardSpec,
     motions: &BTreeMap<u8, &Motion>,
@@ -671,15 +706,18 @@ fn run_board(
     decimation: usize,
     index: usize,
 ) -> Result<BoardRun, BoardError> {
-    let mut engine = BoardEngine::new(
-        programs,
-        costs,
-        bkeys,
-        board,
-        &opts.limiter,
-        opts.engine,
-        decimation,
-    )?
+    let mut engine = match planned {
+        Some(built) => BoardEngine::boot(programs, bkeys, board, opts.engine, decimation, built),
+        None => BoardEngine::new(
+            programs,
+            costs,
+            bkeys,
+            board,
+            &opts.limiter,
+            opts.engine,
+            decimation,
+        ),
+    }?
     // A traced board writes each sample's frames as they come: it runs every sample.
     .rest_replay(opts.rest_replay && opts.io_trace.is_none())?;
     for (_, f) in opts.faults.iter().filter(|f| f.0 == index) {

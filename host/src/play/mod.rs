@@ -46,7 +46,9 @@ use motion::{busy_stretches, key_motion, stretch_samples};
 pub use motion::{FingerCalibration, Restrikes};
 use run::{run_keys, Drive};
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use tactus_compiler::ir::Program;
+use tactus_firmware::boards::BoardImage;
 use tactus_firmware::image::Program as FirmwareProgram;
 use tactus_runtime::keyboard::{BoardSpec, KeyAssignment};
 use tactus_runtime::performance::{Note, Performance};
@@ -112,6 +114,10 @@ pub struct Firmware<'a> {
     pub programs: &'a [FirmwareProgram],
     /// `programs[key_program[i]]` is [`Keyboard::keys`]`[i]`'s program.
     pub key_program: &'a [usize],
+    /// Per board of [`Keyboard::boards`]: the image its plan built of `programs`
+    /// ([`tactus_firmware::boards::KeyboardPlan::images`]; `None`, or none given: the run
+    /// builds it).
+    pub images: &'a [Option<Arc<BoardImage>>],
 }
 
 /// How [`play`] runs.
@@ -587,6 +593,7 @@ pub fn play(
             finger,
             trace: trace.clone(),
             boards: plan_boards,
+            images: keyboard.firmware.map_or(Vec::new(), |f| f.images.to_vec()),
             limiter: tactus_runtime::limiter::LimiterConfig::for_board(&config.board),
             engine: config.emulator,
             quiescent_guard: config.quiescent_guard,
