@@ -624,6 +624,7 @@ pub(crate) fn run_confined(
     let timed_cut = blocks.timed_cut[core.id & 1].take();
     // Blocks still to run pre-decoded after the one the core resumed in (see `inside`).
     let mut tail = 0u32;
+    let mut first = true;
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
@@ -638,11 +639,14 @@ pub(crate) fn run_confined(
         // and after it up to [`TAIL_BLOCKS`] blocks more while each ends going forward (a
         // conditional or plain branch ahead, or no branch): the cut falls anywhere in the
         // code, and a region compiled at each place the core went on from (a *tail*, a few
-        // instructions inside a compiled region) cost the demo about 0.5 G of compiling.
-        let resumed = (blocks.cursor[core.id & 1].at_limit
-            && blocks.resume(core.id, pc).is_some()
-            && sys.code_epoch == blocks.epoch)
-            || timed_cut == Some(pc);
+        // instructions inside a compiled region) cost the demo 0.30 G, most of it compiling.
+        // Only where the run starts: a block this run leaves before its end stops it (at
+        // `limit`) or starts a new code epoch, and timed native code stops it.
+        let resumed = std::mem::take(&mut first)
+            && ((blocks.cursor[core.id & 1].at_limit
+                && blocks.resume(core.id, pc).is_some()
+                && sys.code_epoch == blocks.epoch)
+                || timed_cut == Some(pc));
         if resumed {
             tail = TAIL_BLOCKS;
         }
