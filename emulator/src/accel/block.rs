@@ -126,6 +126,10 @@ pub(crate) enum Leave {
 /// field).
 type ConfinedAt = (u8, bool, bool, [usize; 4]);
 
+/// Blocks [`run_confined`] runs pre-decoded from where the core resumed at the last run's
+/// limit, while each ends going forward (no region compiled at each place it resumes at).
+const TAIL_BLOCKS: u32 = 8;
+
 /// Undo-journal entries the journal is made with (a window's stores beyond stop its core).
 const JOURNAL: usize = 1 << 16;
 
@@ -618,6 +622,9 @@ pub(crate) fn run_confined(
             }
         };
     let timed_cut = blocks.timed_cut[core.id & 1].take();
+    // Blocks still to run pre-decoded after the one the core resumed in (see `inside`).
+    let mut tail = 0u32;
+    let mut first = true;
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
@@ -628,11 +635,22 @@ pub(crate) fn run_confined(
         // The rest of a block the core stopped in at the last run's limit (core 1 at a
         // meeting's cut, `window.rs`) runs pre-decoded: no region is looked up, and none
         // compiled, at an instruction inside a block (a meeting's cut falls anywhere).
-        // So does the rest of the block from where timed native code stopped at that limit.
-        let inside = (blocks.cursor[core.id & 1].at_limit
-            && blocks.resume(core.id, pc).is_some()
-            && sys.code_epoch == blocks.epoch)
-            || timed_cut == Some(pc);
+        // So does the rest of the block from where timed native code stopped at that limit,
+        // and after it up to [`TAIL_BLOCKS`] blocks more while each ends going forward (a
+        // conditional or plain branch ahead, or no branch): the cut falls anywhere in the
+        // code, and a region compiled at each place the core went on from (a *tail*, a few
+        // instructions inside a compiled region) cost the demo 0.30 G, most of it compiling.
+        // Only where the run starts: a block this run leaves before its end stops it (at
+        // `limit`) or starts a new code epoch, and timed native code stops it.
+        let resumed = std::mem::take(&mut first)
+            && ((blocks.cursor[core.id & 1].at_limit
+                && blocks.resume(core.id, pc).is_some()
+                && sys.code_epoch == blocks.epoch)
+                || timed_cut == Some(pc));
+        if resumed {
+            tail = TAIL_BLOCKS;
+        }
+        let inside = tail > 0;
         if inside {
             unfit = true;
         } else if blocks.memo.watches(pc) {
@@ -734,6 +752,14 @@ pub(crate) fn run_confined(
             if o.store && sys.code_epoch != epoch {
                 break;
             }
+        }
+        if inside {
+            tail = match ops[i.max(1) - 1].instr {
+                _ if i < end => 0,
+                Instr::B { offset } | Instr::BCond { offset, .. } if offset >= 0 => tail - 1,
+                ref last if !ends_block(last) => tail - 1,
+                _ => 0,
+            };
         }
         blocks.cursor[core.id & 1] = Cursor {
             op: i as u32,

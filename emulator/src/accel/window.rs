@@ -206,15 +206,21 @@ impl Bus for Confined<'_> {
         addr: u32,
         size: u32,
     ) -> Result<(u32, u32), BusFault> {
-        let ok = match sram_location(addr) {
-            Some((_, bank)) => self.readable >> bank & 1 != 0,
-            None => Self::private(addr),
+        let Some((off, bank)) = sram_location(addr) else {
+            if !Self::private(addr) {
+                return Err(self.refuse(addr));
+            }
+            let r = self.sys.read(core, cycle, addr, size);
+            if let Some(rec) = self.log.as_deref_mut() {
+                rec.spoil();
+            }
+            return r;
         };
-        if !ok {
+        if self.readable >> bank & 1 == 0 {
             return Err(self.refuse(addr));
         }
         let r = self.sys.read(core, cycle, addr, size);
-        if let (Some((off, bank)), Ok((value, _))) = (sram_location(addr), r) {
+        if let Ok((value, _)) = r {
             if self.io_bank(bank) {
                 if let Some(l) = self.io.as_mut() {
                     let a = l.push(cycle, IoKind::Load, off as u32, size, value, 0);
@@ -225,8 +231,8 @@ impl Bus for Confined<'_> {
             }
         }
         if let Some(rec) = self.log.as_deref_mut() {
-            match (sram_location(addr), r) {
-                (Some((off, _)), Ok((value, _))) => {
+            match r {
+                Ok((value, _)) => {
                     let code = self.sys.code_pages[off >> 8];
                     rec.load(off as u32, size, value, code);
                 }
