@@ -30,7 +30,10 @@
 //! summary that must not change between emulator versions (per board the handler cycles of
 //! each core, the strikes), for `valgrind
 //! --tool=callgrind --collect-atstart=no --toggle-collect='*run_keys*'`, whose
-//! instruction counts do not depend on the machine's load.
+//! instruction counts do not depend on the machine's load. That one pass includes the
+//! JIT's compiles (`Jit::miss`); `block_steady` (or `block_io_steady`) first plays the
+//! music once on other boards, then measures a second pass on fresh boots
+//! (`--toggle-collect='*steady_pass*'`): the steady state criterion times.
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use std::collections::BTreeMap;
@@ -165,10 +168,22 @@ fn handler_cycles(runs: &[(BoardRun, usize)]) -> u64 {
     runs.iter().map(|(r, _)| r.total.iter().sum::<u64>()).sum()
 }
 
-/// `KEYBOARD_BENCH_ONCE=engine`: one run on `board`, with a summary.
-fn once(engine: Engine, board: &str) {
+/// The measured pass of `KEYBOARD_BENCH_ONCE=block_steady` (a function of its own for
+/// callgrind's `--toggle-collect='*steady_pass*'`).
+#[inline(never)]
+fn steady_pass(s: &Setup, boards: Vec<(BoardEngine, Vec<Drive>)>) -> Vec<(BoardRun, usize)> {
+    play(s, boards)
+}
+
+/// `KEYBOARD_BENCH_ONCE=engine`: one run on `board`, with a summary; with `steady`, after a
+/// first run on other boards that fills the process's code store, as in the criterion
+/// iterations after the first (the second run is [`steady_pass`]).
+fn once(engine: Engine, board: &str, steady: bool) {
     let s = setup(board);
-    let runs = play(&s, boot(&s, engine, true));
+    if steady {
+        play(&s, boot(&s, engine, true));
+    }
+    let runs = steady_pass(&s, boot(&s, engine, true));
     let mut strikes = 0;
     for (i, (b, n)) in runs.iter().enumerate() {
         strikes += n;
@@ -230,12 +245,15 @@ fn bench(c: &mut Criterion) {
 
 fn main_or_once(c: &mut Criterion) {
     match std::env::var("KEYBOARD_BENCH_ONCE").as_deref() {
-        Ok("block") => once(Engine::Block, "rp2040"),
-        Ok("interp") => once(Engine::Interp, "rp2040"),
-        Ok("block_io") => once(Engine::Block, "rp2040_io"),
-        Ok(other) => {
-            eprintln!("KEYBOARD_BENCH_ONCE={other}: expected `block`, `interp` or `block_io`")
-        }
+        Ok("block") => once(Engine::Block, "rp2040", false),
+        Ok("block_steady") => once(Engine::Block, "rp2040", true),
+        Ok("interp") => once(Engine::Interp, "rp2040", false),
+        Ok("block_io") => once(Engine::Block, "rp2040_io", false),
+        Ok("block_io_steady") => once(Engine::Block, "rp2040_io", true),
+        Ok(other) => eprintln!(
+            "KEYBOARD_BENCH_ONCE={other}: expected `block`, `block_steady`, `interp`, \
+             `block_io` or `block_io_steady`"
+        ),
         Err(_) => bench(c),
     }
 }
