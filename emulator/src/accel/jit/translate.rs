@@ -111,6 +111,10 @@ pub(super) struct Translator<'a> {
     pub(super) alias_first: bool,
     /// Every instruction checks the deadline ([`Flavour::Confined`]'s fourth field).
     pub(super) timed: bool,
+    /// The last cold exit block made ([`Translator::cold_exit`]): the PC it leaves before,
+    /// its reason, the instructions it retires, and the block. The checks of one
+    /// instruction (view, alignment, bank, confinement) share it.
+    pub(super) cold: Option<(u32, Exit, u64, Block)>,
 }
 
 /// A confined function's bank mask and journal (the journal's pointer and capacity are
@@ -295,6 +299,7 @@ impl<'a> Translator<'a> {
             confined,
             alias_first: instrs[0].pc.wrapping_sub(SRAM_ALIAS_BASE) < 0x4_0000,
             timed,
+            cold: None,
         };
         // A block for each instruction a branch of the region jumps to.
         let mut labels: Vec<Option<Block>> = vec![None; instrs.len()];
@@ -521,27 +526,53 @@ impl<'a> Translator<'a> {
     /// block (nothing of the instruction done).
     fn leave_unless(&mut self, cond: Value, pc: u32, exit: Exit) {
         self.flush();
-        let out = self.b.create_block();
-        self.b.set_cold_block(out);
+        let (out, new) = self.cold_exit(pc, exit);
         let on = self.b.create_block();
         self.b.ins().brif(cond, on, &[], out, &[]);
-        self.b.switch_to_block(out);
-        let p = self.c32(pc);
-        self.leave(p, exit);
+        self.fill_cold_exit(out, new, pc, exit);
         self.b.switch_to_block(on);
     }
 
     /// Leaves before the instruction at `pc` when `cond` holds (nothing of it done).
     pub(super) fn general_if(&mut self, cond: Value, pc: u32) {
         self.flush();
-        let out = self.b.create_block();
-        self.b.set_cold_block(out);
+        let (out, new) = self.cold_exit(pc, Exit::General);
         let on = self.b.create_block();
         self.b.ins().brif(cond, out, &[], on, &[]);
-        self.b.switch_to_block(out);
-        let p = self.c32(pc);
-        self.leave(p, Exit::General);
+        self.fill_cold_exit(out, new, pc, Exit::General);
         self.b.switch_to_block(on);
+    }
+
+    /// The cold block that leaves by `exit` before the instruction at `pc` (pending cycles
+    /// flushed by the caller), and whether it is new (to be filled by
+    /// [`Translator::fill_cold_exit`] once the branch to it is made): the last one made
+    /// when that leaves before the same instruction for the same reason with the same
+    /// instructions pending, else a new one. Each check of an access used to have its
+    /// own, each a jump with every guest register and flag to the exit: one per
+    /// instruction halves the exits of a memory access, whose arguments are what the
+    /// register allocator spends most of a compile on. The values the exit writes back are
+    /// the variables' on each path into the block (the SSA builder gives the block a
+    /// parameter where two paths differ), so a shared block leaves each path as its own
+    /// would.
+    fn cold_exit(&mut self, pc: u32, exit: Exit) -> (Block, bool) {
+        match self.cold {
+            Some((p, e, n, block)) if p == pc && e == exit && n == self.pend_n => (block, false),
+            _ => {
+                let out = self.b.create_block();
+                self.b.set_cold_block(out);
+                self.cold = Some((pc, exit, self.pend_n, out));
+                (out, true)
+            }
+        }
+    }
+
+    /// Fills a new cold exit block (see [`Translator::cold_exit`]); nothing for a shared one.
+    fn fill_cold_exit(&mut self, out: Block, new: bool, pc: u32, exit: Exit) {
+        if new {
+            self.b.switch_to_block(out);
+            let p = self.c32(pc);
+            self.leave(p, exit);
+        }
     }
 
     /// Counts a completed instruction of `cycles` static cycles (plus `wait` dynamic ones),
