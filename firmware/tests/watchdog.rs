@@ -11,7 +11,7 @@ mod spring;
 use spring::fault;
 
 use tactus_emulator::Engine;
-use tactus_firmware::image::fault::{FaultKind, NO_KEY, WATCHDOG_PERIOD_US};
+use tactus_firmware::image::fault::{FaultKind, UNKNOWN_KEY, WATCHDOG_PERIOD_US};
 use tactus_firmware::image::{self, FirmwareImage, ImageRun, Injection, SampleOut};
 
 /// The spring's three keys, the watchdog on or off.
@@ -158,10 +158,12 @@ fn hang_resets_and_recovers(board: &str, key: usize) {
     }
     // The trip on the hung key's core's record (core 0 saw core 1 fall behind, or core 0
     // itself stopped), the other core's untouched.
+    // It names the key that hung (its window slot), read from the core's return slot.
     let f = fault(&mut r, &image, core);
+    let slot = image.keys()[key].slot as u8;
     assert_eq!(
         (f.kind, f.key, f.trips, f.at_sample),
-        (Some(FaultKind::Watchdog), NO_KEY, 1, 0),
+        (Some(FaultKind::Watchdog), slot, 1, 0),
         "{board} core {core}: {f:?}"
     );
     assert!(!fault(&mut r, &image, 1 - core).tripped(), "{board}");
@@ -225,10 +227,12 @@ fn a_hang_is_its_keys_alone(board: &str) {
         let what = format!("{board} key {key}");
         let (at, back) = reset_after_hang(&r, hang_cycle, n, &what);
         assert_reboot(&out, &clean, from, (at, back), &what);
+        // Key 1, not key 0 beside it, whose update is the same code (key 0's guard skips
+        // it): the return slot holds key 1's call site.
         let f = fault(&mut r, &image, core);
         assert_eq!(
             (f.kind, f.key, f.trips),
-            (Some(FaultKind::Watchdog), NO_KEY, 1),
+            (Some(FaultKind::Watchdog), image.keys()[key].slot as u8, 1),
             "{board} key {key}: {f:?}"
         );
         assert!(
@@ -408,12 +412,12 @@ fn ram_image_boots_again(board: &str, key: usize) {
         );
     }
     // The watchdog's trip counted over the record the scratch registers kept, on the hung
-    // key's core.
+    // key's core, naming the key.
     let core = image.keys()[key].core;
     let f = fault(&mut r, &image, core);
     assert_eq!(
         (f.kind, f.key, f.trips, f.at_sample),
-        (Some(FaultKind::Watchdog), NO_KEY, 1, 0),
+        (Some(FaultKind::Watchdog), image.keys()[key].slot as u8, 1, 0),
         "{board}: {f:?}"
     );
     assert!(!fault(&mut r, &image, 1 - core).tripped(), "{board}");
