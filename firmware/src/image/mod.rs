@@ -18,8 +18,9 @@
 //! interrupt with the limiter inline per force word), its control block, its keys' records
 //! and their state structs (each holding its key's param block, which `init` leaves
 //! alone). Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
-//! core 1). Its keys' words of the sensor and DAC windows lie in its own banks too (the
-//! *split windows*, below). So the two cores share no SRAM bank after the boot: no access
+//! core 1, its top 1 KiB below the end of SRAM: [`fault::CORE1_STACK_RESERVE`]). Its
+//! keys' words of the sensor and DAC windows lie in its own banks too (the *split
+//! windows*, below). So the two cores share no SRAM bank after the boot: no access
 //! ever waits for the other core ([`IsrWcet::contention`] is 0), and the emulator runs the
 //! two cores of a board as independent machines over each sample period
 //! (`tactus_emulator::Config::own_banks`, [`FirmwareImage::own_banks`]). Where the cores

@@ -597,8 +597,8 @@ pub(super) fn enable_watchdog(a: &mut CodeBuffer, f: &Feed) {
 /// Core 0's reset handler, first (before core 1's launch, so before core 1 copies its
 /// pair): after a reset by its own watchdog (REASON set, SCRATCH4 =
 /// [`super::super::fault::NON_REBOOT_MAGIC`]) one more trip of kind
-/// [`super::super::fault::FaultKind::Watchdog`] (key [`super::super::fault::NO_KEY`], time 0)
-/// in the scratch pair of the core that stopped: core 1's when its fault word holds
+/// [`super::super::fault::FaultKind::Watchdog`] (key [`super::super::fault::NO_KEY`] until
+/// [`restore_fault_record`] names it, time 0) in the scratch pair of the core that stopped: core 1's when its fault word holds
 /// [`super::super::fault::BEHIND`] (core 0 saw it more than a sample behind, [`mark_behind`]),
 /// else core 0's. Then, on a two-core image, the mark cleared. Clobbers r0-r4.
 pub(super) fn record_watchdog_trip(a: &mut CodeBuffer, cores: usize) {
