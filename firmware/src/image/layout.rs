@@ -304,7 +304,9 @@ pub const START_CYCLES: u64 = 64;
 /// cycles in the emulator, which does not model oscillator start-up or PLL lock times;
 /// the timer counts from its release after them), the keys' `init` calls (their static
 /// WCET; 4000 cycles for one that cannot be analysed) plus a few dozen cycles per key and
-/// for the timer set-up.
+/// for the timer set-up (50 a key: its `init` call, and after a watchdog reset the reset
+/// handler's search of its call sites for the key that hung, `glue::HangLookup`, at most
+/// 4 copies of 8 cycles; the sum is over both cores' keys, which start up in parallel).
 pub(super) fn start_alarm_us(programs: &[Program], keys: &[KeySpec], clock_hz: u64) -> u32 {
     let mut init_cycles = Vec::with_capacity(programs.len());
     for p in programs {

@@ -664,7 +664,7 @@ impl HangLookup {
     pub fn table_bytes(calls: &[(u32, u8)]) -> Vec<u8> {
         let mut t = Vec::with_capacity(8 * calls.len());
         for &(at, slot) in calls {
-            t.extend((at + 4 | 1).to_le_bytes());
+            t.extend(((at + 4) | 1).to_le_bytes());
             t.extend(u32::from(slot).to_le_bytes());
         }
         t
