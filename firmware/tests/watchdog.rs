@@ -509,10 +509,18 @@ fn ram_image_boots_again(board: &str, key: usize) {
         "{board}"
     );
     assert_eq!(wd.scratch(7), image::reboot::REENTRY | 1, "{board}");
-    // The engines agree through the hang, the reset, the re-entry and the reboot.
-    let (fast, _) = run_ram(&image, Engine::Block, Some((key, Some(until))), from, n);
+    // The engines agree through the hang, the reset, the re-entry and the reboot, the
+    // records too.
+    let (fast, mut rf) = run_ram(&image, Engine::Block, Some((key, Some(until))), from, n);
     for (i, (a, b)) in out.iter().zip(&fast).enumerate() {
         assert_eq!(a, b, "{board} sample {i}: lock-step vs block engine");
+    }
+    for c in 0..2 {
+        assert_eq!(
+            fault(&mut rf, &image, c),
+            fault(&mut r, &image, c),
+            "{board} core {c}: the block engine's record"
+        );
     }
 }
 
