@@ -497,7 +497,12 @@ fn ram_image_boots_again(board: &str, key: usize) {
     let f = fault(&mut r, &image, core);
     assert_eq!(
         (f.kind, f.key, f.trips, f.at_sample),
-        (Some(FaultKind::Watchdog), image.keys()[key].slot as u8, 1, 0),
+        (
+            Some(FaultKind::Watchdog),
+            image.keys()[key].slot as u8,
+            1,
+            0
+        ),
         "{board}: {f:?}"
     );
     assert!(!fault(&mut r, &image, 1 - core).tripped(), "{board}");

@@ -690,7 +690,10 @@ pub(super) fn restore_fault_record(a: &mut CodeBuffer, core: usize, hang: Option
         // The kind and key halfword: a watchdog trip not yet named?
         a.i(asm::lsls(3, 0, 16));
         a.i(asm::lsrs(3, 3, 16));
-        a.ldr_const(1, u32::from(NO_KEY) << 8 | u32::from(FaultKind::Watchdog.code()));
+        a.ldr_const(
+            1,
+            u32::from(NO_KEY) << 8 | u32::from(FaultKind::Watchdog.code()),
+        );
         a.i(asm::cmp(3, 1));
         a.bc(cond::NE, keep);
         // r3 = the slot's word; r1..r4 the table; r7 = the key.

@@ -32,8 +32,8 @@
 //! lets the new boot play).
 
 use super::*;
-use tactus_runtime::converters::AdcScale;
 use tactus_isa::decode::Instr;
+use tactus_runtime::converters::AdcScale;
 
 /// The code a hung key's calls enter ([`FaultKind::Hang`]): `PUSH {LR}; B .`, a loop entered
 /// as an update is, its return address pushed where an update's prologue pushes it (the
