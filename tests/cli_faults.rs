@@ -759,9 +759,9 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
                 .unwrap_or_else(|| panic!("{board}: {stdout}"));
             assert!((2205..=2205 + 45).contains(&reset_sample(line)), "{line}");
             assert!(line.contains("booted again"), "{line}");
-            // Key 61's core, which fell behind: core 1's record.
+            // Key 61's core, which fell behind: core 1's record, naming key 61.
             assert!(
-                stdout.contains("board 1 core 1: watchdog on the whole board")
+                stdout.contains("board 1 core 1: watchdog on key 61 (C#4)")
                     && !stdout.contains("board 1 core 0: ")
                     && stdout.contains("faults: 1 TRIP, 1 RESET on 1 of 1 boards"),
                 "{stdout}"
