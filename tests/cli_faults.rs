@@ -285,7 +285,7 @@ fn a_hung_update_with_the_watchdog_on_resets_the_board_under_emu_run() {
     assert!((2205..2205 + 441).contains(&sample), "{stdout}");
     assert!(reset.contains("booted again"), "{stdout}");
     assert!(
-        stdout.contains("board 1 core 0: watchdog on the whole board"),
+        stdout.contains("board 1 core 0: watchdog on key 61 (C#4)"),
         "{stdout}"
     );
     // Without the watchdog nothing resets the board: the hung core never completes its
@@ -619,9 +619,9 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
             stdout.contains("faults: 1 TRIP, 1 RESET on 1 of 1 boards"),
             "{board}: {stdout}"
         );
-        // On key 61's core, which fell behind (core 0 kept its samples).
+        // On key 61's core, which fell behind (core 0 kept its samples), naming key 61.
         assert!(
-            stdout.contains("board 1 core 1: watchdog on the whole board at sample 0")
+            stdout.contains("board 1 core 1: watchdog on key 61 (C#4) at sample 0")
                 && !stdout.contains("board 1 core 0: "),
             "{board}: {stdout}"
         );
@@ -759,9 +759,9 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
                 .unwrap_or_else(|| panic!("{board}: {stdout}"));
             assert!((2205..=2205 + 45).contains(&reset_sample(line)), "{line}");
             assert!(line.contains("booted again"), "{line}");
-            // Key 61's core, which fell behind: core 1's record.
+            // Key 61's core, which fell behind: core 1's record, naming key 61.
             assert!(
-                stdout.contains("board 1 core 1: watchdog on the whole board")
+                stdout.contains("board 1 core 1: watchdog on key 61 (C#4)")
                     && !stdout.contains("board 1 core 0: ")
                     && stdout.contains("faults: 1 TRIP, 1 RESET on 1 of 1 boards"),
                 "{stdout}"

@@ -11,7 +11,7 @@ mod spring;
 use spring::fault;
 
 use tactus_emulator::Engine;
-use tactus_firmware::image::fault::{FaultKind, NO_KEY, WATCHDOG_PERIOD_US};
+use tactus_firmware::image::fault::{FaultKind, UNKNOWN_KEY, WATCHDOG_PERIOD_US};
 use tactus_firmware::image::{self, FirmwareImage, ImageRun, Injection, SampleOut};
 
 /// The spring's three keys, the watchdog on or off.
@@ -158,18 +158,100 @@ fn hang_resets_and_recovers(board: &str, key: usize) {
     }
     // The trip on the hung key's core's record (core 0 saw core 1 fall behind, or core 0
     // itself stopped), the other core's untouched.
+    // It names the key that hung (its window slot), read from the core's return slot.
     let f = fault(&mut r, &image, core);
+    let slot = image.keys()[key].slot as u8;
     assert_eq!(
         (f.kind, f.key, f.trips, f.at_sample),
-        (Some(FaultKind::Watchdog), NO_KEY, 1, 0),
+        (Some(FaultKind::Watchdog), slot, 1, 0),
         "{board} core {core}: {f:?}"
     );
     assert!(!fault(&mut r, &image, 1 - core).tripped(), "{board}");
-    // The engines agree through the hang, the reset and the reboot.
-    let (fast, ..) = run(&image, Engine::Block, Some(key), from, n);
+    // The engines agree through the hang, the reset and the reboot, the records too.
+    let (fast, mut rf, _) = run(&image, Engine::Block, Some(key), from, n);
     for (i, (a, b)) in out.iter().zip(&fast).enumerate() {
         assert_eq!(a, b, "{board} sample {i}: lock-step vs block engine");
     }
+    for c in 0..2 {
+        assert_eq!(
+            fault(&mut rf, &image, c),
+            fault(&mut r, &image, c),
+            "{board} core {c}: the block engine's record"
+        );
+    }
+}
+
+#[test]
+fn a_hung_key_beside_another_on_core_0_is_named_on_a_plain_board() {
+    hang_resets_and_recovers("rp2040", 1);
+}
+
+#[test]
+fn a_hung_core_0_resets_a_converter_board_within_the_period() {
+    hang_resets_and_recovers("rp2040_io", 0);
+}
+
+/// The return slot (`image/fault.rs`, "Which key hung"): 0 after the boot (cleared after the
+/// keys' `init`s), then after each sample the return address of the core's last update
+/// call, the last key's in the copy of the keys' code that ran; the word below it is the
+/// update's saved r7 or lower, never the return address (the update pushed LR there).
+#[test]
+fn the_return_slot_holds_the_last_update_calls_return_address() {
+    for board in ["rp2040", "rp2040_io"] {
+        let image = image(board, true);
+        let mut r = image.run().unwrap();
+        for c in 0..2 {
+            let slot = image.return_slot(c).unwrap();
+            assert_eq!(r.board().read_u32(slot).unwrap(), 0, "{board} core {c}");
+        }
+        let words = mid_words(&image);
+        for _ in 0..5 {
+            r.step(&words).unwrap();
+            for c in 0..2 {
+                let slot = image.return_slot(c).unwrap();
+                let last = *image.core_keys(c).last().unwrap();
+                let lr = r.board().read_u32(slot).unwrap();
+                let calls = image.update_calls(last).unwrap();
+                assert!(
+                    calls.iter().any(|&a| a + 5 == lr),
+                    "{board} core {c}: {lr:#010x} is no return of key {last}'s calls {calls:x?}"
+                );
+            }
+        }
+    }
+}
+
+/// A core that hangs before any update of the boot was entered (here core 0's sample
+/// interrupt made a `B .` at its first instruction before the first tick, as a corrupted
+/// handler would be) leaves its return slot as the boot cleared it: the record says the
+/// key is unknown, not a wrong one; the boot from flash mends the code and the board plays.
+#[test]
+fn a_hang_before_any_update_names_no_key() {
+    let image = image("rp2040", true);
+    let flash = image.flash_image().unwrap().bytes;
+    let mut r = ImageRun::from_flash(&image, &flash).unwrap();
+    let isr = image.core_addresses(0).unwrap()[2];
+    r.board().write_bytes(isr, &[0xfe, 0xe7]).unwrap();
+    // A run follows resets once a fault is injected: one that starts after the run.
+    r.inject(Injection {
+        kind: image::FaultKind::Hang,
+        key: Some(1),
+        core: None,
+        from: 1_000_000,
+        until: None,
+    })
+    .unwrap();
+    let words = mid_words(&image);
+    let out: Vec<SampleOut> = (0..120).map(|_| r.step(&words).unwrap().clone()).collect();
+    assert_eq!(r.resets().len(), 1, "{:?}", r.resets());
+    let f = fault(&mut r, &image, 0);
+    assert_eq!(
+        (f.kind, f.key, f.trips),
+        (Some(FaultKind::Watchdog), UNKNOWN_KEY, 1),
+        "{f:?}"
+    );
+    assert!(!fault(&mut r, &image, 1).tripped());
+    assert!(out[119].dac.iter().all(|&d| d != 0), "plays again");
 }
 
 #[test]
@@ -225,10 +307,12 @@ fn a_hang_is_its_keys_alone(board: &str) {
         let what = format!("{board} key {key}");
         let (at, back) = reset_after_hang(&r, hang_cycle, n, &what);
         assert_reboot(&out, &clean, from, (at, back), &what);
+        // Key 1, not key 0 beside it, whose update is the same code (key 0's guard skips
+        // it): the return slot holds key 1's call site.
         let f = fault(&mut r, &image, core);
         assert_eq!(
             (f.kind, f.key, f.trips),
-            (Some(FaultKind::Watchdog), NO_KEY, 1),
+            (Some(FaultKind::Watchdog), image.keys()[key].slot as u8, 1),
             "{board} key {key}: {f:?}"
         );
         assert!(
@@ -408,12 +492,17 @@ fn ram_image_boots_again(board: &str, key: usize) {
         );
     }
     // The watchdog's trip counted over the record the scratch registers kept, on the hung
-    // key's core.
+    // key's core, naming the key.
     let core = image.keys()[key].core;
     let f = fault(&mut r, &image, core);
     assert_eq!(
         (f.kind, f.key, f.trips, f.at_sample),
-        (Some(FaultKind::Watchdog), NO_KEY, 1, 0),
+        (
+            Some(FaultKind::Watchdog),
+            image.keys()[key].slot as u8,
+            1,
+            0
+        ),
         "{board}: {f:?}"
     );
     assert!(!fault(&mut r, &image, 1 - core).tripped(), "{board}");
@@ -425,10 +514,18 @@ fn ram_image_boots_again(board: &str, key: usize) {
         "{board}"
     );
     assert_eq!(wd.scratch(7), image::reboot::REENTRY | 1, "{board}");
-    // The engines agree through the hang, the reset, the re-entry and the reboot.
-    let (fast, _) = run_ram(&image, Engine::Block, Some((key, Some(until))), from, n);
+    // The engines agree through the hang, the reset, the re-entry and the reboot, the
+    // records too.
+    let (fast, mut rf) = run_ram(&image, Engine::Block, Some((key, Some(until))), from, n);
     for (i, (a, b)) in out.iter().zip(&fast).enumerate() {
         assert_eq!(a, b, "{board} sample {i}: lock-step vs block engine");
+    }
+    for c in 0..2 {
+        assert_eq!(
+            fault(&mut rf, &image, c),
+            fault(&mut r, &image, c),
+            "{board} core {c}: the block engine's record"
+        );
     }
 }
 

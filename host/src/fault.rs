@@ -10,7 +10,7 @@
 //! kind=jump,delta=8000,note=60,at=1s          the code plus 8,000 from 1 s on
 //! kind=adc-silent,board=1,core=0,at=1s        core 0's ADC answers all ones
 //! kind=dac-stall,board=1,core=1,at=1s         core 1's DAC takes no more frames
-//! kind=hang,note=60,at=1s,until=1.5s          that key's update never returns (`b .`)
+//! kind=hang,note=60,at=1s,until=1.5s          that key's update never returns (a loop)
 //! kind=flip,word=2,bit=30,note=60,at=1s       bit 30 of the key's state word 2 flips
 //! kind=brownout,board=1,at=1s                 the supply dips: a power-on reset
 //! ```
@@ -34,7 +34,7 @@
 //! 11 boards`).
 
 use std::fmt;
-use tactus_firmware::image::fault::{FaultKind as TripKind, FaultWord, NO_KEY};
+use tactus_firmware::image::fault::{FaultKind as TripKind, FaultWord, NO_KEY, UNKNOWN_KEY};
 use tactus_firmware::image::{FaultKind, Injection};
 
 /// Where a fault is.
@@ -388,11 +388,14 @@ impl BoardFaults {
             .map(|s| s.1)
     }
 
-    /// The key a fault word names, in words: `key 64 (E4)`, `the whole board`, or the slot
-    /// when the board has no key there.
+    /// The key a fault word names, in words: `key 64 (E4)` (a watchdog trip's: the key whose
+    /// update hung), `the whole board`, `an unknown key` (a watchdog trip whose hung key the
+    /// firmware could not name, `tactus_firmware::image::fault`, "Which key hung"), or the
+    /// slot when the board has no key there.
     fn key_text(&self, w: &FaultWord) -> String {
         match (w.key, self.midi(w)) {
             (NO_KEY, _) => "the whole board".to_string(),
+            (UNKNOWN_KEY, _) => "an unknown key".to_string(),
             (_, Some(k)) => format!("key {k} ({})", tactus_firmware::budget::note_name(k)),
             (s, None) => format!("window slot {s} (no key of the board)"),
         }

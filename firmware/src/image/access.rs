@@ -41,10 +41,19 @@ impl FirmwareImage {
             .map(|c| [c.vtor, c.reset, c.isr, c.ctrl, c.stack_top])
     }
 
+    /// Core `core`'s return slot: the stack word where an update pushes its return address
+    /// into its call site, which the reset handler reads after a watchdog reset to name the
+    /// key that hung (`super::fault`, "Which key hung"); `None` for a core beyond the
+    /// image's.
+    pub fn return_slot(&self, core: usize) -> Option<u32> {
+        (self.cores.get(core)).map(|c| super::fault::return_slot(c.stack_top))
+    }
+
     /// Per key (in key-list order): the addresses of its update's call sites in its core's
     /// sample interrupt, one `BL` in each copy of the core's keys code ([`glue::Turns`]),
     /// in copy order (`keys.json`'s `update_calls`); what a hang of that key patches
-    /// ([`super::FaultKind::Hang`]).
+    /// ([`super::FaultKind::Hang`]), and what the reset handler's table of call sites
+    /// names the key by (`super::fault`, "Which key hung").
     pub fn update_calls(&self, key: usize) -> Option<&[u32]> {
         self.keys.get(key).map(|k| &k.calls[..])
     }

@@ -49,11 +49,34 @@
 //! one more trip of kind [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over the pair of
 //! the core that stopped: core 1's when its scratch fault word holds [`BEHIND`] (set by
 //! core 0's handler in place of the feed while core 1 was more than a sample behind), else
-//! its own. Which key hung the firmware does not know: after the reset nothing of the hung
-//! sample is left but the scratch registers, and naming the key there would take a store
-//! per key and sample. A brown-out clears
+//! its own, with the key field [`NO_KEY`] for the moment. Each core's reset handler then
+//! names the key (below) in its pair before it copies it. A brown-out clears
 //! SRAM and the scratch registers: a flash image boots as at power-on, a RAM image is gone
 //! and the boot ROM waits in USB boot, the DACs at zero.
+//!
+//! **Which key hung** (no cycle of the sample interrupt: read at boot). The handler has no
+//! loop, and its cost is proven within the period, so a core stops finishing its samples
+//! only inside a key's update (a loop that never ends, or a fault exception it raised, whose
+//! handler is `B .`). Every update's first instruction is the compiler's `PUSH {…, LR}`
+//! (`tactus_compiler::thumb::emit`), and the handler pushes nothing (`super::glue`), so the
+//! update pushes the return address into its call site at the same place for every key of
+//! the core: the word below the exception frame on the handler's stack, the core's
+//! *return slot* ([`return_slot`]). SRAM survives a watchdog reset (datasheet 4.7) and
+//! nothing the boot runs before the reset handler writes there: the boot ROM uses no stack
+//! before its watchdog entry (pico-bootrom `bootrom_rt0.S`, "We DO NOT use any stack prior
+//! to possible watchdog entry"), a RAM image's re-entry none, and on a boot from flash the
+//! boot ROM's frames and boot2 lie above core 1's stack ([`super::boot2`]; core 1's stack
+//! top is [`CORE1_STACK_RESERVE`] below the end of SRAM) and the flash reset handler's
+//! stack is SRAM5's top, not core 0's SRAM4. So each core's reset handler, finding a
+//! watchdog trip whose key field is still [`NO_KEY`] on its own pair, reads its return
+//! slot and looks the value up in its table of call sites (each `BL`'s return address and
+//! its key's window slot, in its data after the keys' rest images): a match names that
+//! key, anything else [`UNKNOWN_KEY`] (a fault exception of the handler's own code, whose
+//! frame overwrites the slot). Then, after its keys' `init`s (whose frames may reach the
+//! slot), it clears the slot, so that the word a later reset finds was pushed by an update
+//! of this boot or is 0 (no update entered: [`UNKNOWN_KEY`]). What the slot cannot tell
+//! apart: a core that stopped *between* two updates names the key it called last; only a
+//! handler over its proven budget (a board the budget rejects) could stop there.
 
 /// Kinds of fault, the low byte of the fault word. The codes are stable (the host and the
 /// emulator's fault report decode them): new kinds take new codes.
@@ -111,8 +134,29 @@ impl FaultKind {
     }
 }
 
-/// The key field of a fault that is no key's (a watchdog reset).
+/// The key field of a fault that is no key's (a board's fault; a watchdog trip's until the
+/// reset handler names its key).
 pub const NO_KEY: u8 = 0xff;
+
+/// The key field of a watchdog trip whose hung key the reset handler could not name: the
+/// core's return slot held no return address of an update call (module documentation,
+/// "Which key hung").
+pub const UNKNOWN_KEY: u8 = 0xfe;
+
+/// Bytes between core 1's stack top and the end of SRAM: boot2's 256 bytes
+/// ([`tactus_rp2040::bootrom::BOOT2_LOAD`]) and 768 below them for the boot ROM's own
+/// frames on a boot from flash (its stack starts at boot2's load address, pico-bootrom
+/// `bootrom.ld`; its path to boot2, `main` and `_flash_boot`, nests a few calls), so that
+/// neither reaches core 1's return slot ([`return_slot`]). Core 1's stack keeps 3 KiB.
+pub const CORE1_STACK_RESERVE: u32 = 1024;
+
+/// The return slot of a core whose stack top is `stack_top`: the word where an update pushes
+/// its return address (module documentation, "Which key hung"), below the 8-word exception
+/// frame the sample interrupt's entry pushes at the idle loop's stack pointer, the stack
+/// top (8-byte aligned: no padding word, ARMv6-M ARM B1.5.7).
+pub fn return_slot(stack_top: u32) -> u32 {
+    stack_top - 32 - 4
+}
 
 /// The bit of core 1's fault word in the watchdog's scratch register that core 0's handler
 /// sets at the end of a sample in which it does not feed the watchdog because core 1 is

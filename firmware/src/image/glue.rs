@@ -28,10 +28,10 @@ use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
 mod checks;
 use checks::{
-    check_step, copy_words, enable_watchdog, feed_watchdog, mark_behind, record_watchdog_trip,
-    restore_fault_record, trip_paths, CopyMode, PendingTrip,
+    check_step, clear_return_slot, copy_words, enable_watchdog, feed_watchdog, mark_behind,
+    record_watchdog_trip, restore_fault_record, trip_paths, CopyMode, PendingTrip,
 };
-pub use checks::{Feed, Gate, SensorCheck, Turns, MAX_GAP};
+pub use checks::{Feed, Gate, HangLookup, SensorCheck, Turns, MAX_GAP};
 
 /// Byte offsets in a core's control block (words in the core's own SRAM bank).
 pub mod ctrl {
@@ -687,6 +687,7 @@ pub fn core_code(
     start: &dyn Fn(&mut CodeBuffer),
     io: Option<&super::io::IoPlan>,
     feed: Option<Feed>,
+    hang: Option<HangLookup>,
     turns: &Turns,
 ) -> Result<CoreLabels, ImageError> {
     let labels = CoreLabels {
@@ -767,7 +768,7 @@ pub fn core_code(
     start(a);
     a.ldr_const(5, ctrl_addr);
     if feed.is_some() {
-        restore_fault_record(a, core);
+        restore_fault_record(a, core, hang.as_ref());
     }
     walk(a, keys, &mut |a, k| {
         ldr_rec(a, 0, k.state_offset);
@@ -780,6 +781,9 @@ pub fn core_code(
         }
         Ok(())
     })?;
+    if let Some(h) = &hang {
+        clear_return_slot(a, h);
+    }
     if clobbered & 1 << 5 != 0 {
         a.ldr_const(5, ctrl_addr);
     }

@@ -304,7 +304,9 @@ pub const START_CYCLES: u64 = 64;
 /// cycles in the emulator, which does not model oscillator start-up or PLL lock times;
 /// the timer counts from its release after them), the keys' `init` calls (their static
 /// WCET; 4000 cycles for one that cannot be analysed) plus a few dozen cycles per key and
-/// for the timer set-up.
+/// for the timer set-up (50 a key: its `init` call, and after a watchdog reset the reset
+/// handler's search of its call sites for the key that hung, `glue::HangLookup`, at most
+/// 4 copies of 8 cycles; the sum is over both cores' keys, which start up in parallel).
 pub(super) fn start_alarm_us(programs: &[Program], keys: &[KeySpec], clock_hz: u64) -> u32 {
     let mut init_cycles = Vec::with_capacity(programs.len());
     for p in programs {
@@ -385,7 +387,7 @@ pub(super) fn key_records(
     core: usize,
     ctrl_addr: u32,
     cc: &CoreCode,
-) -> Result<(Vec<KeyCode>, Vec<KeyPlace>, u32, glue::Turns), ImageError> {
+) -> Result<Records, ImageError> {
     let (programs, keys) = (l.programs, l.keys);
     let my: Vec<usize> = (0..keys.len()).filter(|&i| keys[i].core == core).collect();
     // Records after the control block, states after the records.
@@ -577,7 +579,28 @@ pub(super) fn key_records(
             end += 4 * (p.thumb.state.size as u32).div_ceil(4);
         }
     }
-    Ok((kc, kp, at, turns))
+    Ok(Records {
+        code: kc,
+        places: kp,
+        data_end: at,
+        table: end,
+        turns,
+    })
+}
+
+/// A core's keys as [`key_records`] lays them out.
+pub(super) struct Records {
+    /// The keys as the glue sees them.
+    pub code: Vec<KeyCode>,
+    /// Where they live.
+    pub places: Vec<KeyPlace>,
+    /// The address after the last key record (the states follow).
+    pub data_end: u32,
+    /// The address after the last rest image: the table of call sites
+    /// ([`glue::HangLookup`]), the data's last part.
+    pub table: u32,
+    /// The turns of the core's sensor checks.
+    pub turns: glue::Turns,
 }
 
 /// One core's glue, assembled: the assembler (labels bound), the handlers' labels, the
@@ -589,6 +612,9 @@ pub(super) struct Glue {
     pub turns: glue::Turns,
     pub keys: Vec<KeyPlace>,
     pub data_end: u32,
+    /// With the watchdog: where the reset handler finds which key hung; the data block
+    /// ends with its table ([`data_block`]).
+    pub hang: Option<glue::HangLookup>,
 }
 
 /// The glue of core `core` (reset handler, sample interrupt) for its control block at
@@ -603,8 +629,23 @@ pub(super) fn assemble_glue(
     boot: &Boot,
 ) -> Result<Glue, ImageError> {
     let ctrl_addr = bank_base(core) + data_off;
-    let (kc, kp, data_end, mut turns) = key_records(l, core, ctrl_addr, cc)?;
-    let bottom = stack(core).0;
+    let Records {
+        code: kc,
+        places: kp,
+        data_end,
+        table,
+        mut turns,
+    } = key_records(l, core, ctrl_addr, cc)?;
+    let (bottom, top) = stack(core);
+    // Which key hung, found at boot (`super::fault`, "Which key hung"): a call site per
+    // key in each copy of the keys' code.
+    let hang = |turns: &glue::Turns| {
+        l.watchdog.then(|| glue::HangLookup {
+            slot: super::fault::return_slot(top),
+            table,
+            entries: (kc.len() as u32) * turns.classes.max(1),
+        })
+    };
     let start = |a: &mut CodeBuffer| boot::core_start(a, core, boot, bottom, STACK_CANARY);
     let emit = |turns: &glue::Turns| -> Result<_, ImageError> {
         let mut a = CodeBuffer::new(LongBranch::Hop);
@@ -618,6 +659,7 @@ pub(super) fn assemble_glue(
             &start,
             l.io.as_ref(),
             l.feed(data_off),
+            hang(turns),
             turns,
         )?;
         Ok((a, labels))
@@ -636,6 +678,7 @@ pub(super) fn assemble_glue(
     Ok(Glue {
         asm: a,
         labels,
+        hang: hang(&turns),
         turns,
         keys: kp,
         data_end,
@@ -691,6 +734,7 @@ pub(super) fn data_block(
     data_end: u32,
     start_us: u32,
     tick: &Tick,
+    hang: Option<(&glue::HangLookup, &[u8])>,
 ) -> Result<Vec<u8>, ImageError> {
     let bank = bank_base(core);
     let mut at = data_end.next_multiple_of(4);
@@ -761,6 +805,20 @@ pub(super) fn data_block(
             at += 4 * words;
         }
     }
+    // The table of call sites (`super::fault`, "Which key hung"), where the glue reads it.
+    if let Some((h, table)) = hang {
+        if at != h.table || table.len() as u32 != 8 * h.entries {
+            return Err(ImageError::Assemble(format!(
+                "core {core}: the table of call sites at {at:#x} with {} bytes, where the \
+                 reset handler reads it at {:#x} with {} entries",
+                table.len(),
+                h.table,
+                h.entries
+            )));
+        }
+        data.extend_from_slice(table);
+        at += table.len() as u32;
+    }
     let need = at - bank;
     if need > BANK_LIMIT {
         return Err(ImageError::NoRoom {
@@ -773,10 +831,16 @@ pub(super) fn data_block(
 }
 
 /// Core `core`'s stack: (bottom, top) in its scratch bank (SRAM4 for core 0, SRAM5 for
-/// core 1).
+/// core 1, whose top leaves [`super::fault::CORE1_STACK_RESERVE`] for boot2 and the boot
+/// ROM's frames on a boot from flash, so that its return slot outlives them).
 pub(super) fn stack(core: usize) -> (u32, u32) {
-    let bottom = if core == 0 { SRAM4_BASE } else { SRAM5_BASE };
-    (bottom, bottom + STACK_BYTES)
+    match core {
+        0 => (SRAM4_BASE, SRAM4_BASE + STACK_BYTES),
+        _ => (
+            SRAM5_BASE,
+            SRAM5_BASE + STACK_BYTES - super::fault::CORE1_STACK_RESERVE,
+        ),
+    }
 }
 
 /// The bytes of core `core`'s code block `cc`: its vector table (initial SP, reset

@@ -18,8 +18,9 @@
 //! interrupt with the limiter inline per force word), its control block, its keys' records
 //! and their state structs (each holding its key's param block, which `init` leaves
 //! alone). Its stack is in a scratch bank (SRAM4 for core 0, SRAM5 for
-//! core 1). Its keys' words of the sensor and DAC windows lie in its own banks too (the
-//! *split windows*, below). So the two cores share no SRAM bank after the boot: no access
+//! core 1, its top 1 KiB below the end of SRAM: [`fault::CORE1_STACK_RESERVE`]). Its
+//! keys' words of the sensor and DAC windows lie in its own banks too (the *split
+//! windows*, below). So the two cores share no SRAM bank after the boot: no access
 //! ever waits for the other core ([`IsrWcet::contention`] is 0), and the emulator runs the
 //! two cores of a board as independent machines over each sample period
 //! (`tactus_emulator::Config::own_banks`, [`FirmwareImage::own_banks`]). Where the cores
@@ -123,7 +124,7 @@ pub use keys::{assign_cores, key_specs, KeySpec};
 pub use program::{compile_layout, compile_shared, Drive, Program, MAX_GUARDED_WORDS};
 pub use run::{
     code_word, run_to_first_tick, run_to_timer, FaultKind, ImageRun, Injection, IoRecord,
-    ResetRecord, NOISE_SEED,
+    ResetRecord, HANG_STUB, NOISE_SEED,
 };
 pub use sample::{DriveOut, KeyEvent, SampleOut};
 
@@ -422,7 +423,25 @@ impl FirmwareImage {
             }
             code_bytes[core] = code_end - base;
             let ctrl_addr = bank + data_off;
-            let data = layout::data_block(&l, core, &g.keys, g.data_end, start_alarm_us, &l.tick)?;
+            // Each call site of the core's keys and its key's window slot, for the reset
+            // handler's search of a hung key (`fault`, "Which key hung").
+            let at = &addr;
+            let sites: Vec<(u32, u8)> = (g.keys.iter().zip(&g.labels.calls))
+                .flat_map(|(k, calls)| {
+                    let slot = k.spec.slot.min(usize::from(fault::UNKNOWN_KEY) - 1) as u8;
+                    calls.iter().map(move |l| (at[l.index()], slot))
+                })
+                .collect();
+            let table = glue::HangLookup::table_bytes(&sites);
+            let data = layout::data_block(
+                &l,
+                core,
+                &g.keys,
+                g.data_end,
+                start_alarm_us,
+                &l.tick,
+                g.hang.as_ref().map(|h| (h, &table[..])),
+            )?;
             let code = layout::vector_table(core, c, programs, &g.labels, &addr, &glue_bytes);
             wcet.push(layout::analyse_handler(
                 core,

@@ -26,7 +26,7 @@ use tactus_rp2040::memory::sram_location;
 use tactus_runtime::limiter::{Limiter, LimiterConstants};
 
 mod inject;
-pub use inject::{code_word, FaultKind, Injection, ResetRecord, NOISE_SEED};
+pub use inject::{code_word, FaultKind, Injection, ResetRecord, HANG_STUB, NOISE_SEED};
 
 /// One frame at a converter's pins ([`ImageRun::take_io`]): an ADC frame (the channel it
 /// sampled at its chip select's fall, the code, the command it carried) or a DAC output

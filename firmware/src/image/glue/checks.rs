@@ -597,8 +597,8 @@ pub(super) fn enable_watchdog(a: &mut CodeBuffer, f: &Feed) {
 /// Core 0's reset handler, first (before core 1's launch, so before core 1 copies its
 /// pair): after a reset by its own watchdog (REASON set, SCRATCH4 =
 /// [`super::super::fault::NON_REBOOT_MAGIC`]) one more trip of kind
-/// [`super::super::fault::FaultKind::Watchdog`] (key [`super::super::fault::NO_KEY`], time 0)
-/// in the scratch pair of the core that stopped: core 1's when its fault word holds
+/// [`super::super::fault::FaultKind::Watchdog`] (key [`super::super::fault::NO_KEY`] until
+/// [`restore_fault_record`] names it, time 0) in the scratch pair of the core that stopped: core 1's when its fault word holds
 /// [`super::super::fault::BEHIND`] (core 0 saw it more than a sample behind, [`mark_behind`]),
 /// else core 0's. Then, on a two-core image, the mark cleared. Clobbers r0-r4.
 pub(super) fn record_watchdog_trip(a: &mut CodeBuffer, cores: usize) {
@@ -646,17 +646,91 @@ pub(super) fn record_watchdog_trip(a: &mut CodeBuffer, cores: usize) {
     }
 }
 
+/// Where a core's reset handler finds which key hung (`super::super::fault`, "Which key
+/// hung"): its return slot and its table of call sites.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HangLookup {
+    /// The core's return slot ([`super::super::fault::return_slot`]).
+    pub slot: u32,
+    /// The table's address: per call site two words, the `BL`'s return address (its
+    /// address + 4, Thumb bit set) and its key's window slot.
+    pub table: u32,
+    /// The table's entries.
+    pub entries: u32,
+}
+
+impl HangLookup {
+    /// The table's bytes for `calls` (per call site: its `BL`'s address, its key's slot).
+    pub fn table_bytes(calls: &[(u32, u8)]) -> Vec<u8> {
+        let mut t = Vec::with_capacity(8 * calls.len());
+        for &(at, slot) in calls {
+            t.extend(((at + 4) | 1).to_le_bytes());
+            t.extend(u32::from(slot).to_le_bytes());
+        }
+        t
+    }
+}
+
 /// The reset handler's copy of core `core`'s fault record from the watchdog's scratch pair
 /// (where [`record_watchdog_trip`] counted a watchdog reset) into its control block (r5).
-/// Clobbers r0-r2.
-pub(super) fn restore_fault_record(a: &mut CodeBuffer, core: usize) {
-    use super::super::fault;
+/// With `hang`, first a watchdog trip on the pair whose key is still
+/// [`super::super::fault::NO_KEY`] gets its key: the one whose call site the return slot
+/// holds the return address of, else [`super::super::fault::UNKNOWN_KEY`]
+/// (`super::super::fault`, "Which key hung"); the pair in the scratch registers too.
+/// Clobbers r0-r4, r6, r7.
+pub(super) fn restore_fault_record(a: &mut CodeBuffer, core: usize, hang: Option<&HangLookup>) {
+    use super::super::fault::{self, FaultKind, NO_KEY, UNKNOWN_KEY};
     use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
     let (w, _) = fault::scratch(core);
     let at = (wreg::SCRATCH0 + 4 * w) as u16;
     a.ldr_const(2, WATCHDOG_BASE);
     a.i(asm::ldr(0, 2, at));
+    if let Some(h) = hang {
+        let (keep, next, unknown, put) = (a.label(), a.label(), a.label(), a.label());
+        // The kind and key halfword: a watchdog trip not yet named?
+        a.i(asm::lsls(3, 0, 16));
+        a.i(asm::lsrs(3, 3, 16));
+        a.ldr_const(
+            1,
+            u32::from(NO_KEY) << 8 | u32::from(FaultKind::Watchdog.code()),
+        );
+        a.i(asm::cmp(3, 1));
+        a.bc(cond::NE, keep);
+        // r3 = the slot's word; r1..r4 the table; r7 = the key.
+        a.ldr_const(3, h.slot);
+        a.i(asm::ldr(3, 3, 0));
+        a.ldr_const(1, h.table);
+        a.ldr_const(4, h.table + 8 * h.entries);
+        a.bind(next);
+        a.i(asm::cmp(1, 4));
+        a.bc(cond::EQ, unknown);
+        a.i(Instr::Ldm {
+            rn: 1,
+            list: 0b1100_0000,
+        });
+        a.i(asm::cmp(6, 3));
+        a.bc(cond::NE, next);
+        a.b(put);
+        a.bind(unknown);
+        a.i(asm::movs(7, UNKNOWN_KEY));
+        a.bind(put);
+        // The key into the word's key byte, in the scratch register and below.
+        a.i(asm::lsls(7, 7, 8));
+        a.ldr_const(1, u32::from(NO_KEY) << 8);
+        a.i(asm::alu(AluOp::Bic, 0, 1));
+        a.i(asm::alu(AluOp::Orr, 0, 7));
+        a.i(asm::str(0, 2, at));
+        a.bind(keep);
+    }
     a.i(asm::ldr(1, 2, at + 4));
     a.i(asm::str(0, 5, ctrl::FAULT));
     a.i(asm::str(1, 5, ctrl::FAULT_AT));
+}
+
+/// The reset handler's clear of the return slot after its keys' `init`s (whose frames may
+/// reach it; `super::super::fault`, "Which key hung"). Clobbers r0, r1.
+pub(super) fn clear_return_slot(a: &mut CodeBuffer, hang: &HangLookup) {
+    a.ldr_const(0, hang.slot);
+    a.i(asm::movs(1, 0));
+    a.i(asm::str(1, 0, 0));
 }

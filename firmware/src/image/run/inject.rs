@@ -5,8 +5,8 @@
 //! replay stay exact: a sensor fault changes the key's sensor word (a board without
 //! converters) or the code its ADC channel reads (`Board::set_adc_code`, with them); a
 //! flipped bit and a hung update are host writes to SRAM between samples (`write_data`,
-//! `write_bytes`, which drops decoded code: a hang loops at the key's calls of its update,
-//! `KeyPlace::calls`, so that the key alone hangs); the ADC's silence, the DAC's stall and a
+//! `write_bytes`, which drops decoded code: a hang calls a loop, [`HANG_STUB`], from the
+//! key's calls of its update, `KeyPlace::calls`, so that the key alone hangs); the ADC's silence, the DAC's stall and a
 //! brown-out change the emulated parts or chip between samples. A recording of the rest
 //! replay never spans a change: the replay is left and forgotten at each.
 //!
@@ -32,7 +32,13 @@
 //! lets the new boot play).
 
 use super::*;
+use tactus_isa::decode::Instr;
 use tactus_runtime::converters::AdcScale;
+
+/// The code a hung key's calls enter ([`FaultKind::Hang`]): `PUSH {LR}; B .`, a loop entered
+/// as an update is, its return address pushed where an update's prologue pushes it (the
+/// core's return slot, `super::super::fault`, "Which key hung").
+pub const HANG_STUB: [u8; 4] = [0x00, 0xb5, 0xfe, 0xe7];
 
 /// What a fault does ([`Injection`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -57,8 +63,10 @@ pub enum FaultKind {
     DacStall,
     /// The key's update never returns: each of the key's calls of its update in its core's
     /// sample interrupt (one per copy of the core's keys code, `glue::Turns`; the image's
-    /// `update_calls`, `keys.json`'s) becomes `b .`, so this key alone hangs its core, at
-    /// its next update (a key the quiescent-key guard skips reaches it when it moves).
+    /// `update_calls`, `keys.json`'s) calls [`HANG_STUB`] instead, so this key alone hangs
+    /// its core, at its next update (a key the quiescent-key guard skips reaches it when it
+    /// moves), with its return address on the stack where a real hang in its update leaves
+    /// it.
     Hang,
     /// Bit `bit` (0–31) of word `word` of the key's state struct flips once.
     Flip {
@@ -138,8 +146,8 @@ pub(super) struct Faults {
     pub(super) codes: Vec<Option<u16>>,
     /// The codes forced last sample: a change leaves the rest replay.
     last_codes: Vec<Option<u16>>,
-    /// A hung key's call sites: the key, the address and the halfword it replaced.
-    hung: Vec<(usize, u32, [u8; 2])>,
+    /// A hung key's call sites: the key, the address and the `BL` it replaced.
+    hung: Vec<(usize, u32, [u8; 4])>,
     /// Per drive of every key (flat, key order): the DAC code it holds while its core's
     /// DAC is stalled.
     pub(super) frozen: Vec<Option<i32>>,
@@ -263,6 +271,29 @@ impl ImageRun {
         Ok(())
     }
 
+    /// Where a hang of a key of core `core` loops ([`FaultKind::Hang`]): the word after
+    /// the core's code block, written with [`HANG_STUB`] (again at each hang: a flash
+    /// boot may have copied a piece over it), in the core's own bank.
+    ///
+    /// Errors: [`ImageError::Run`] when an image segment lies there.
+    fn hang_stub(&mut self, core: usize) -> Result<u32, ImageError> {
+        let vtor = self.image.cores[core].vtor;
+        let segs = &self.image.segments;
+        let end = (segs.iter())
+            .find(|(at, d)| (*at..*at + d.len() as u32).contains(&vtor))
+            .map(|(at, d)| at + d.len() as u32)
+            .ok_or_else(|| ImageError::Run(format!("core {core}: no code block at its VTOR")))?;
+        let stub = end.next_multiple_of(4);
+        let taken = |(at, d): &(u32, Vec<u8>)| stub < at + d.len() as u32 && *at < stub + 4;
+        if segs.iter().any(taken) {
+            return Err(ImageError::Run(format!(
+                "core {core}: no free word after its code block at {stub:#010x} for the hang"
+            )));
+        }
+        self.board.write_bytes(stub, &HANG_STUB).map_err(emu)?;
+        Ok(stub)
+    }
+
     /// Whether any fault was injected.
     pub(super) fn has_faults(&self) -> bool {
         !self.faults.list.is_empty()
@@ -341,14 +372,19 @@ impl ImageRun {
                     self.faults.brown_at = self.board.cycle();
                 }
                 FaultKind::Hang if starts && !ends => {
-                    // `b .` (0xe7fe) over the first halfword of each of the key's calls of
-                    // its update (one per copy of its core's keys code): that key's update
-                    // alone never returns; the keys sharing its code call it as before.
+                    // Each of the key's calls of its update (one per copy of its core's
+                    // keys code) a call of the hang stub instead: that key alone enters a
+                    // loop that never returns, its return address pushed where its update
+                    // pushes it; the keys sharing its code call the update as before.
                     let k = f.key.unwrap_or(0);
+                    let stub = self.hang_stub(self.image.keys[k].spec.core)?;
                     for &a in &self.image.keys[k].calls {
-                        let mut old = [0u8; 2];
+                        let mut old = [0u8; 4];
                         self.board.read_bytes(a, &mut old).map_err(emu)?;
-                        self.board.write_bytes(a, &[0xfe, 0xe7]).map_err(emu)?;
+                        let offset = stub.wrapping_sub(a + 4) as i32;
+                        let bl = tactus_isa::encode::encode(&Instr::Bl { offset })
+                            .map_err(|e| ImageError::Run(format!("the hang's call: {e}")))?;
+                        self.board.write_bytes(a, &bl.bytes()).map_err(emu)?;
                         self.faults.hung.push((k, a, old));
                     }
                 }
