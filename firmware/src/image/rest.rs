@@ -59,15 +59,16 @@ pub(super) enum Phase {
         /// earlier try, to reuse).
         outs: Vec<SampleOut>,
         filled: usize,
-        /// Every key's out words after each of those samples, flat.
-        words: Vec<u32>,
+        /// Every key's out words after each of those samples, flat, as little-endian bytes
+        /// (the SRAM's).
+        words: Vec<u8>,
     },
     /// The board parked at `period`'s end (after sample `parked_at`); `given` samples given
     /// from `outs` (and `words`) since; `sensors` the words of the rest.
     Replaying {
         period: Box<Period>,
         outs: Vec<SampleOut>,
-        words: Vec<u32>,
+        words: Vec<u8>,
         sensors: Vec<i32>,
         parked_at: u64,
         given: u64,
@@ -100,7 +101,7 @@ pub(super) struct Rest {
     /// before.
     pub spare: Vec<SampleOut>,
     /// The largest out-words buffer a recording used, kept for the next (empty).
-    pub spare_words: Vec<u32>,
+    pub spare_words: Vec<u8>,
 }
 
 impl Rest {
@@ -164,7 +165,7 @@ impl Rest {
     /// Keeps a recording's or a replay's buffers, done with: its samples among the spare
     /// ones ([`Rest::keep_spare`]), its out words as the spare buffer when it is the
     /// largest yet.
-    pub fn keep_buffers(&mut self, outs: Vec<SampleOut>, mut words: Vec<u32>) {
+    pub fn keep_buffers(&mut self, outs: Vec<SampleOut>, mut words: Vec<u8>) {
         self.keep_spare(outs);
         if words.capacity() > self.spare_words.capacity() {
             words.clear();

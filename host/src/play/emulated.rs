@@ -716,13 +716,15 @@ fn count_sample(
     decimation: usize,
     out: &tactus_firmware::image::SampleOut,
 ) {
-    // `span_max` has a word per core, as `r.max`.
-    for (c, span) in span_max.iter_mut().enumerate() {
-        let cycles = out.core_cycles[c];
-        r.max[c] = r.max[c].max(cycles);
+    // `span_max` has a word per core, as `r.max`, `r.total` and `r.misses`.
+    let cores = (r.max.iter_mut().zip(&mut r.total))
+        .zip(r.misses.iter_mut().zip(span_max.iter_mut()))
+        .zip(out.core_cycles.iter().zip(&out.misses));
+    for (((max, total), (misses, span)), (&cycles, &m)) in cores {
+        *max = (*max).max(cycles);
         *span = (*span).max(cycles);
-        r.total[c] += cycles;
-        r.misses[c] = out.misses[c];
+        *total += cycles;
+        *misses = m;
         *block_max = (*block_max).max(cycles);
     }
     *steps += 1;
