@@ -59,16 +59,15 @@ pub(super) enum Phase {
         /// earlier try, to reuse).
         outs: Vec<SampleOut>,
         filled: usize,
-        /// Every key's out words after each of those samples, flat, as little-endian bytes
-        /// (the SRAM's).
-        words: Vec<u8>,
+        /// Every key's out words after each of those samples, flat.
+        words: Vec<u32>,
     },
     /// The board parked at `period`'s end (after sample `parked_at`); `given` samples given
     /// from `outs` (and `words`) since; `sensors` the words of the rest.
     Replaying {
         period: Box<Period>,
         outs: Vec<SampleOut>,
-        words: Vec<u8>,
+        words: Vec<u32>,
         sensors: Vec<i32>,
         parked_at: u64,
         given: u64,
@@ -101,7 +100,7 @@ pub(super) struct Rest {
     /// before.
     pub spare: Vec<SampleOut>,
     /// The largest out-words buffer a recording used, kept for the next (empty).
-    pub spare_words: Vec<u8>,
+    pub spare_words: Vec<u32>,
 }
 
 impl Rest {
@@ -187,7 +186,7 @@ impl Rest {
     /// Keeps a recording's or a replay's buffers, done with: its samples among the spare
     /// ones ([`Rest::keep_spare`]), its out words as the spare buffer when it is the
     /// largest yet.
-    pub fn keep_buffers(&mut self, outs: Vec<SampleOut>, mut words: Vec<u8>) {
+    pub fn keep_buffers(&mut self, outs: Vec<SampleOut>, mut words: Vec<u32>) {
         self.keep_spare(outs);
         if words.capacity() > self.spare_words.capacity() {
             words.clear();

@@ -87,9 +87,6 @@ struct HostWords {
     outs: Vec<Vec<usize>>,
     /// Every key's out words, in key order (`outs` flat: the rest replay's recording).
     all_outs: Vec<usize>,
-    /// `all_outs` as byte ranges of consecutive words, in order (what the recording
-    /// copies).
-    out_runs: Vec<std::ops::Range<usize>>,
     /// Per core: its sample counter, its miss counter, its stack canary.
     samples: Vec<usize>,
     /// Per drive of each key (key index, drive index, SRAM offset): its limiter's budget
@@ -154,7 +151,6 @@ impl HostWords {
                     .collect::<Result<_, _>>()?
             },
             all_outs: outs.iter().flatten().copied().collect(),
-            out_runs: word_runs(outs.iter().flatten().copied()),
             outs,
             misses: image
                 .cores
@@ -178,19 +174,6 @@ fn word(sram: &[u8], o: usize) -> u32 {
     sram.get(o..o + 4)
         .and_then(|b| b.try_into().ok())
         .map_or(0, u32::from_le_bytes)
-}
-
-/// The byte ranges of the words at byte offsets `offsets`, consecutive words merged, in
-/// order.
-fn word_runs(offsets: impl Iterator<Item = usize>) -> Vec<std::ops::Range<usize>> {
-    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
-    for o in offsets {
-        match runs.last_mut() {
-            Some(r) if r.end == o => r.end = o + 4,
-            _ => runs.push(o..o + 4),
-        }
-    }
-    runs
 }
 
 /// `from` into `to`, reusing `to`'s buffers (every field named: a new one must be
@@ -724,11 +707,8 @@ impl ImageRun {
                     None => outs.push(self.sample.clone()),
                 }
                 filled += 1;
-                // Every key's out words, as the SRAM holds them (little-endian bytes).
                 let sram = &self.board.system.sram;
-                for r in &self.at.out_runs {
-                    words.extend_from_slice(sram.get(r.clone()).unwrap_or(&[]));
-                }
+                words.extend(self.at.all_outs.iter().map(|&o| word(sram, o)));
                 let last = starts.last().map_or(0, |s| s.1);
                 if filled - last < self.rest.period {
                     Phase::Recording {
@@ -761,9 +741,9 @@ impl ImageRun {
         mut starts: Vec<(Box<tactus_emulator::RestPoint>, usize)>,
         mut outs: Vec<SampleOut>,
         mut filled: usize,
-        mut words: Vec<u8>,
+        mut words: Vec<u32>,
     ) -> Phase {
-        let per = 4 * self.at.all_outs.len();
+        let per = self.at.all_outs.len();
         for (start, at) in starts.iter().rev() {
             let Ok(period) = self.board.period(start, &end) else {
                 continue;
@@ -1060,13 +1040,12 @@ impl ImageRun {
         } = &self.rest.phase
         {
             if *given > 0 {
-                let per = 4 * self.at.all_outs.len();
+                let per = self.at.all_outs.len();
                 let before: usize = self.at.outs[..key].iter().map(Vec::len).sum();
                 let i = ((*given - 1) % outs.len() as u64) as usize;
-                let at = i * per + 4 * before;
-                return (words.get(at..at + 4 * w.len()).unwrap_or(&[]))
-                    .chunks_exact(4)
-                    .map(|b| word(b, 0) as i32)
+                let at = i * per + before;
+                return (words.get(at..at + w.len()).unwrap_or(&[]).iter())
+                    .map(|&x| x as i32)
                     .collect();
             }
         }
