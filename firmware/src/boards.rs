@@ -1121,21 +1121,6 @@ mod tests {
         (memo.boards.len(), kept)
     }
 
-    /// The board of `keys` as [`board_image`] builds it.
-    fn built(
-        programs: &[Program],
-        costs: &ProgramCosts,
-        keys: &[PlanKey],
-        b: &BoardSpec,
-        lim: &LimiterConfig,
-    ) -> BoardImage {
-        let (core_of, image) = board_image(programs, costs, keys, b, lim).unwrap();
-        BoardImage {
-            core_of,
-            image: image.unwrap(),
-        }
-    }
-
     #[test]
     fn every_planned_board_of_grand88_has_the_image_board_image_builds_for_it() {
         // grand88's boards are of one shape: the plan builds the first board's image and
@@ -1157,7 +1142,11 @@ mod tests {
                     .copied()
                     .collect();
                 let planned = planned.as_deref().expect("an image for every board");
-                let want = built(&programs, &costs, &bkeys, &b, &lim);
+                let (core_of, image) = board_image(&programs, &costs, &bkeys, &b, &lim).unwrap();
+                let want = BoardImage {
+                    core_of,
+                    image: image.unwrap(),
+                };
                 assert!(
                     planned == &want,
                     "{name} board {}: not board_image's",
