@@ -567,6 +567,9 @@ fn checked(
 /// analysis, and the same size within a class).
 type Shape = Vec<(usize, usize, u64, u64, usize)>;
 
+/// A built candidate's verdict and image (`None`: it has none), as [`Verdicts`] keeps it.
+type Built = (BoardVerdict, Option<Arc<BoardImage>>);
+
 /// The verdicts of the candidate boards a sweep has built, by [`Shape`], with the core of
 /// each key and the image: a candidate of a shape already seen takes its verdict, its keys
 /// renamed, and its image, its keys' param blocks written in
@@ -577,7 +580,7 @@ struct Verdicts {
     /// Per program: the first program of its class, one that differs from it in its param
     /// block only (the same code and fixed-point program, the same flags).
     class: Vec<usize>,
-    seen: Mutex<HashMap<Shape, (BoardVerdict, Option<Arc<BoardImage>>)>>,
+    seen: Mutex<HashMap<Shape, Built>>,
     /// Whether verdicts are taken by shape (`false`: every candidate is built, as the tests
     /// that compare the two sweeps run it).
     on: bool,
