@@ -33,9 +33,10 @@
 //! growing each board from one key (`sweep`). And a candidate of the same *shape* as one
 //! already built (its keys' code, flags, costs and places: `Shape`; params are data the
 //! WCET never reads) takes that one's verdict, its keys renamed, instead of being built
-//! and analysed again: grand88's boards are all of one shape. The plan keeps the images
-//! it built ([`KeyboardPlan::images`]), which `tactus play` boots instead of building them
-//! again.
+//! and analysed again: grand88's boards are all of one shape. The plan keeps each board's
+//! image ([`KeyboardPlan::images`]: a board of a shape already built takes that image with
+//! its keys' param blocks, [`FirmwareImage::with_params`]), which `tactus play` boots
+//! instead of building them again.
 
 use crate::image::{FirmwareImage, ImageError, IsrWcet, KeySpec, Program};
 use crate::windows::MAX_KEYS;
@@ -183,6 +184,19 @@ impl BoardImage {
     }
 }
 
+impl BoardImage {
+    /// Whether every core's sample interrupt fits `board`'s cycles per sample
+    /// ([`IsrWcet::bound`]): the image's part of [`BoardVerdict::fits`].
+    pub fn fits(&self, board: &BoardSpec) -> bool {
+        image_fits(&self.image, board.cycles_per_sample())
+    }
+}
+
+/// Whether every core of `image` has a static bound of at most `cps` cycles.
+fn image_fits(image: &FirmwareImage, cps: u64) -> bool {
+    (0..image.cores()).all(|c| image.wcet(c).is_none_or(|w| w.bound() <= cps))
+}
+
 impl PartialEq for BoardImage {
     /// The same cores and the same bytes at the same addresses.
     fn eq(&self, other: &BoardImage) -> bool {
@@ -276,6 +290,17 @@ pub fn board_image(
     image_of(programs, costs, keys, board, limiter, true)
 }
 
+/// The programs `keys` run, in order of first use: the image's programs, by index.
+fn used_programs(keys: &[PlanKey]) -> Vec<usize> {
+    let mut used: Vec<usize> = Vec::new();
+    for k in keys {
+        if !used.contains(&k.program) {
+            used.push(k.program);
+        }
+    }
+    used
+}
+
 /// [`board_image`], with the fallback to an unguarded image only when `may_drop_guard`.
 fn image_of(
     programs: &[Program],
@@ -285,7 +310,7 @@ fn image_of(
     limiter: &LimiterConfig,
     may_drop_guard: bool,
 ) -> Result<(Vec<usize>, Result<FirmwareImage, ImageError>), BoardsError> {
-    let mut used: Vec<usize> = Vec::new();
+    let used = used_programs(keys);
     let mut specs = Vec::with_capacity(keys.len());
     let mut slot = 0;
     let mut cycles = Vec::with_capacity(keys.len());
@@ -296,13 +321,7 @@ fn image_of(
                 k.key, k.program
             ))
         })?;
-        let local = match used.iter().position(|&p| p == k.program) {
-            Some(i) => i,
-            None => {
-                used.push(k.program);
-                used.len() - 1
-            }
-        };
+        let local = used.iter().position(|&p| p == k.program).unwrap_or(0);
         specs.push(KeySpec {
             slot,
             program: local,
@@ -348,8 +367,7 @@ fn image_of(
     // deadline (or has no room), the board is built without it, its cores partitioned by
     // the unguarded costs.
     let cps = board.cycles_per_sample();
-    let fits =
-        |i: &FirmwareImage| (0..i.cores()).all(|c| i.wcet(c).is_none_or(|w| w.bound() <= cps));
+    let fits = |i: &FirmwareImage| image_fits(i, cps);
     let guarded = local.iter().any(|p| p.quiescent_guard);
     if may_drop_guard && guarded && !image.as_ref().is_ok_and(fits) {
         let plain: Vec<Program> = local
@@ -469,9 +487,10 @@ pub struct KeyboardPlan {
     pub boards: Vec<BoardVerdict>,
     /// Whether the boards were planned (`false`: the layout's own).
     pub planned: bool,
-    /// Per board: its image, [`board_image`] of its keys, where the planner built it while
-    /// planning (`None`: none was built, or it has none — its verdict's error says why).
-    /// `tactus play` runs these instead of building them again.
+    /// Per board: its image, [`board_image`] of its keys, as the planner built it, or took
+    /// it from a board of the same shape with its keys' param blocks
+    /// ([`FirmwareImage::with_params`]); `None` when it has none (its verdict's error says
+    /// why). `tactus play` runs these instead of building them again.
     pub images: Vec<Option<Arc<BoardImage>>>,
 }
 
@@ -548,15 +567,20 @@ fn checked(
 /// analysis, and the same size within a class).
 type Shape = Vec<(usize, usize, u64, u64, usize)>;
 
+/// A built candidate's verdict and image (`None`: it has none), as [`Verdicts`] keeps it.
+type Built = (BoardVerdict, Option<Arc<BoardImage>>);
+
 /// The verdicts of the candidate boards a sweep has built, by [`Shape`], with the core of
-/// each key: a candidate of a shape already seen takes its verdict, its keys renamed,
-/// instead of building and analysing the same image again (the boards of a graded
-/// keyboard are mostly alike: grand88's 11 boards are one shape).
+/// each key and the image: a candidate of a shape already seen takes its verdict, its keys
+/// renamed, and its image, its keys' param blocks written in
+/// ([`FirmwareImage::with_params`]), instead of building and analysing the same image
+/// again (the boards of a graded keyboard are mostly alike: grand88's 11 boards are one
+/// shape).
 struct Verdicts {
     /// Per program: the first program of its class, one that differs from it in its param
     /// block only (the same code and fixed-point program, the same flags).
     class: Vec<usize>,
-    seen: Mutex<HashMap<Shape, (BoardVerdict, Vec<usize>)>>,
+    seen: Mutex<HashMap<Shape, Built>>,
     /// Whether verdicts are taken by shape (`false`: every candidate is built, as the tests
     /// that compare the two sweeps run it).
     on: bool,
@@ -609,7 +633,7 @@ impl Verdicts {
     }
 
     /// [`checked`], or the verdict of a candidate of the same shape with `keys`' MIDI
-    /// numbers (and no image: none was built).
+    /// numbers and its image with `keys`' param blocks.
     #[allow(clippy::too_many_arguments)] // `checked`'s inputs
     fn checked(
         &self,
@@ -626,25 +650,31 @@ impl Verdicts {
         };
         let seen = || self.seen.lock().unwrap_or_else(|e| e.into_inner());
         let hit = seen().get(&shape).cloned();
-        if let Some((mut verdict, core_of)) = hit {
+        if let Some((mut verdict, built)) = hit {
+            let core_of = built.as_ref().map_or(&[][..], |b| &b.core_of[..]);
             verdict.keys = keys.iter().map(|k| k.key).collect();
             for (c, core) in verdict.cores.iter_mut().enumerate() {
-                core.keys = (keys.iter().zip(&core_of))
+                core.keys = (keys.iter().zip(core_of))
                     .filter(|(_, &kc)| kc == c)
                     .map(|(k, _)| k.key)
                     .collect();
             }
-            return Ok(Checked {
-                verdict,
-                image: None,
+            // The image's programs (the guard as it chose), with these keys' param blocks.
+            let image = built.and_then(|b| {
+                let local: Vec<Program> = (used_programs(keys).iter())
+                    .zip(b.image.programs())
+                    .map(|(&p, q)| q.with_params(programs[p].params.clone()))
+                    .collect();
+                let image = b.image.with_params(&local).ok()?;
+                Some(Arc::new(BoardImage {
+                    core_of: b.core_of.clone(),
+                    image,
+                }))
             });
+            return Ok(Checked { verdict, image });
         }
         let c = check()?;
-        let core_of = c
-            .image
-            .as_ref()
-            .map_or_else(Vec::new, |i| i.core_of.clone());
-        seen().insert(shape, (c.verdict.clone(), core_of));
+        seen().insert(shape, (c.verdict.clone(), c.image.clone()));
         Ok(c)
     }
 }
@@ -1030,8 +1060,8 @@ pub fn densest_board(
 #[cfg(test)]
 mod tests {
     use super::{
-        check_board, first_miss, greedy_end, plan_with, read_board, BoardVerdict, BoardsError,
-        PlanKey, ProgramCosts,
+        board_image, check_board, first_miss, greedy_end, plan, plan_with, read_board, BoardImage,
+        BoardVerdict, BoardsError, PlanKey, ProgramCosts,
     };
     use crate::image::{compile_layout, Program};
     use std::path::Path;
@@ -1095,18 +1125,61 @@ mod tests {
     }
 
     #[test]
+    fn every_planned_board_of_grand88_has_the_image_board_image_builds_for_it() {
+        // grand88's boards are of one shape: the plan builds the first board's image and
+        // gives the others that image with their keys' param blocks (`with_params`). Each
+        // must be byte for byte the image `board_image` builds for the board (the guard
+        // left out, as the plan chose: BENCHMARKS.md), cores included, and hold the
+        // board's programs (what `tactus play` checks before booting it).
+        let (programs, keys) = layout("grand88");
+        for name in ["rp2040", "rp2040_io"] {
+            let b = board(name);
+            let lim = LimiterConfig::for_board(&b);
+            let costs = ProgramCosts::new(&programs, &b, &lim).unwrap();
+            let plan = plan(&programs, &costs, &keys, &b, &lim, &mut |_, _| {}).unwrap();
+            assert_eq!(plan.boards.len(), 11, "{name}");
+            assert_eq!(plan.images.len(), 11, "{name}");
+            for (i, (v, planned)) in plan.boards.iter().zip(&plan.images).enumerate() {
+                let bkeys: Vec<PlanKey> = (keys.iter())
+                    .filter(|k| v.keys.contains(&k.key))
+                    .copied()
+                    .collect();
+                let planned = planned.as_deref().expect("an image for every board");
+                let (core_of, image) = board_image(&programs, &costs, &bkeys, &b, &lim).unwrap();
+                let want = BoardImage {
+                    core_of,
+                    image: image.unwrap(),
+                };
+                assert!(
+                    planned == &want,
+                    "{name} board {}: not board_image's",
+                    i + 1
+                );
+                assert!(planned.holds(&programs, &bkeys), "{name} board {}", i + 1);
+                // The boards differ in their param blocks: a board's image is not another's.
+                if i > 0 {
+                    let first = plan.images[0].as_deref().unwrap();
+                    assert!(first != planned, "{name} board {}: board 1's image", i + 1);
+                }
+            }
+        }
+    }
+
+    /// The shipped board `name`.
+    fn board(name: &str) -> BoardSpec {
+        let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../boards"));
+        let text = std::fs::read_to_string(root.join(format!("{name}.toml"))).unwrap();
+        read_board(&text, name).unwrap()
+    }
+
+    #[test]
     fn the_plan_with_verdicts_by_shape_is_the_plan_of_every_candidate_built() {
-        let board = |name: &str| {
-            let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../boards"));
-            let text = std::fs::read_to_string(root.join(format!("{name}.toml"))).unwrap();
-            read_board(&text, name).unwrap()
-        };
-        // grand88: 88 graded piano keys, one code; 11 boards on rp2040, of which the
-        // first was built (the others are of its shape).
+        // grand88: 88 graded piano keys, one code; 11 boards on rp2040, the first built,
+        // the others of its shape, each with its image all the same.
         let (programs, keys) = layout("grand88");
         let (boards, kept) = same_plans(&programs, &keys, &board("rp2040"));
         assert_eq!(boards, 11);
-        assert!((1..11).contains(&kept), "{kept}");
+        assert_eq!(kept, 11);
         // Two instruments, on a converter board (the capped partition).
         let (programs, keys) = layout("split_harpsichord_piano");
         let (boards, _) = same_plans(&programs, &keys, &board("rp2040_io"));

@@ -318,6 +318,20 @@ fn bank_base(core: usize) -> u32 {
 /// Rows of one bank in each window: window word *w* is row *w* / 4 of bank *w* mod 4.
 const WINDOW_ROWS: usize = MAX_KEYS / 4;
 
+/// Writes `bytes` at address `at` into the segment of `segments` that holds them all;
+/// `false` when none does.
+fn write_at(segments: &mut [(u32, Vec<u8>)], at: u32, bytes: &[u8]) -> bool {
+    let len = bytes.len() as u32;
+    let Some((base, data)) =
+        (segments.iter_mut()).find(|(b, d)| at >= *b && at - *b + len <= d.len() as u32)
+    else {
+        return false;
+    };
+    let o = (at - *base) as usize;
+    data[o..o + bytes.len()].copy_from_slice(bytes);
+    true
+}
+
 /// The window word (index from `SENSOR_BASE` / `DAC_BASE`) of core `core`'s `j`-th word on
 /// a board of `cores` cores: its own banks' rows in order (core *c* of two: bank *c*, then
 /// bank *c* + 2; a single core: banks 0 to 3), `None` past them — the split windows of the
@@ -537,6 +551,67 @@ impl FirmwareImage {
             turns,
             reentry,
         })
+    }
+
+    /// The same image for keys whose programs differ from this image's in their param
+    /// blocks only: `programs` as many as [`FirmwareImage::programs`], each of the same code,
+    /// fixed-point program and flags as the image's program of its index and with a param
+    /// block of the same length. Each key's param block is written into its state (and into
+    /// the state's pristine copy of the watchdog's re-entry, [`reboot`]). A param block is
+    /// data the image places and nothing else reads (no code, layout or static bound depends
+    /// on it, [`Program::params`]), so this is byte for byte the image
+    /// [`FirmwareImage::build`] makes of `programs` for the same keys: what the planner's
+    /// boards of one shape share (`crate::boards`).
+    ///
+    /// Errors: [`ImageError::BadKey`] naming the first key whose program is not such a
+    /// program (or a program count unlike the image's), or whose param block is not in a
+    /// data segment.
+    pub fn with_params(&self, programs: &[Program]) -> Result<FirmwareImage, ImageError> {
+        let alike = |a: &Program, b: &Program| {
+            a.same_code(b)
+                && std::sync::Arc::ptr_eq(&a.fixed, &b.fixed)
+                && a.params.len() == b.params.len()
+                && a.quiescent_guard == b.quiescent_guard
+                && a.sensor_check == b.sensor_check
+                && a.watchdog == b.watchdog
+        };
+        let bad = |key: usize, why: &str| ImageError::BadKey {
+            key,
+            why: why.to_string(),
+        };
+        if programs.len() != self.programs.len() {
+            return Err(bad(0, "not as many programs as the image's"));
+        }
+        let mut image = self.clone();
+        for (k, key) in self.keys.iter().enumerate() {
+            let (old, new) = (
+                &self.programs[key.spec.program],
+                &programs[key.spec.program],
+            );
+            if !alike(old, new) {
+                return Err(bad(k, "its program is not the image's with other params"));
+            }
+            if new.params.is_empty() {
+                continue;
+            }
+            let (_, state) = self.key_addresses(k).ok_or_else(|| bad(k, "no state"))?;
+            let at = state + new.thumb.state.params as u32;
+            let bytes: Vec<u8> = new.params.iter().flat_map(|w| w.to_le_bytes()).collect();
+            let copy = (self.reentry.as_ref().ok()).map(|r| r.copy_of(at, bytes.len() as u32));
+            if !write_at(&mut image.segments, at, &bytes) || copy == Some(None) {
+                return Err(bad(k, "its param block is not in the image's data"));
+            }
+            if let (Some(Some(copy)), Ok(r)) = (copy, image.reentry.as_mut()) {
+                // The copy is in the image's segments and in the re-entry's own.
+                if !write_at(&mut image.segments, copy, &bytes)
+                    || !write_at(&mut r.segments, copy, &bytes)
+                {
+                    return Err(bad(k, "its param block's copy is not in the image"));
+                }
+            }
+        }
+        image.programs = programs.to_vec();
+        Ok(image)
     }
 
     /// Static cost of one key of `program` in the sample interrupt beyond its update: its

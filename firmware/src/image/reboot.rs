@@ -92,6 +92,14 @@ impl Reboot {
     pub fn bytes(&self) -> u32 {
         self.segments.iter().map(|s| s.1.len() as u32).sum()
     }
+
+    /// The address of the pristine copy of the `len` data bytes at `at`, when a restore
+    /// covers them all.
+    pub fn copy_of(&self, at: u32, len: u32) -> Option<u32> {
+        (self.restores.iter())
+            .find(|r| at >= r.to && at + len <= r.to + r.len)
+            .map(|r| r.copy + (at - r.to))
+    }
 }
 
 impl FirmwareImage {

@@ -131,16 +131,6 @@ impl Rest {
         matches!(self.phase, Phase::Replaying { given, room, .. } if given < room)
     }
 
-    /// The sample [`Rest::give`] gives next, not given (an empty one when none is).
-    pub fn peek(&self) -> &SampleOut {
-        match &self.phase {
-            Phase::Replaying { outs, given, .. } if !outs.is_empty() => {
-                &outs[(*given % outs.len() as u64) as usize]
-            }
-            _ => &NONE,
-        }
-    }
-
     /// The next sample of the recording being replayed (an empty one when none is:
     /// call only when [`Rest::replaying`]).
     pub fn give(&mut self) -> &SampleOut {
@@ -153,6 +143,38 @@ impl Rest {
             }
             _ => &NONE,
         }
+    }
+
+    /// Gives up to `most` samples of the recording being replayed, as as many
+    /// [`Rest::give`]s would (no more than its room), while `take` accepts each (the first
+    /// it refuses is not given); returns how many it gave (none when nothing is replayed).
+    pub fn give_while(&mut self, most: u64, mut take: impl FnMut(&SampleOut) -> bool) -> u64 {
+        let Phase::Replaying {
+            outs, given, room, ..
+        } = &mut self.phase
+        else {
+            return 0;
+        };
+        let len = outs.len();
+        if len == 0 {
+            return 0;
+        }
+        let most = most.min(room.saturating_sub(*given));
+        let mut i = (*given % len as u64) as usize;
+        let mut n = 0;
+        while n < most {
+            if !take(&outs[i]) {
+                break;
+            }
+            n += 1;
+            i += 1;
+            if i == len {
+                i = 0;
+            }
+        }
+        *given += n;
+        self.given += n;
+        n
     }
 
     /// Keeps `outs` (a recording's or a replay's buffers, done with) among the spare ones.

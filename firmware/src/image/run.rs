@@ -562,7 +562,7 @@ impl ImageRun {
         &mut self,
         sensors: &[i32],
         most: u64,
-        mut take: impl FnMut(&SampleOut) -> bool,
+        take: impl FnMut(&SampleOut) -> bool,
     ) -> u64 {
         if !self.rest.on || self.rest_error.is_some() || self.rest.last != sensors {
             return 0;
@@ -572,14 +572,7 @@ impl ImageRun {
         } else {
             most
         };
-        let mut given = 0;
-        while given < most && self.rest.can_give() {
-            if !take(self.rest.peek()) {
-                break;
-            }
-            self.rest.give();
-            given += 1;
-        }
+        let given = self.rest.give_while(most, take);
         self.rest.same += given;
         self.samples += given;
         given

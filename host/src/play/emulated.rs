@@ -149,8 +149,10 @@ pub struct KeyboardRun {
 }
 
 /// Plays `motions` on the keyboard whose keys (ascending MIDI numbers) run `programs`
-/// (`key_programs[i]` is key `keys[i]`'s program) on the boards `opts.boards`: builds each
-/// board's image and runs it for `opts.end` samples, the boards in parallel (rayon). `progress` is called with key-samples done since its last call.
+/// (`key_programs[i]` is key `keys[i]`'s program) on the boards `opts.boards`: boots each
+/// board's image (the plan's, `opts.images`, else built) and runs it for `opts.end`
+/// samples, the boards in parallel (rayon). `progress` is called with key-samples done
+/// since its last call.
 ///
 /// Errors: a message naming the board when its image cannot be built or its run fails.
 pub fn play_boards(
@@ -176,26 +178,67 @@ pub fn play_boards(
         })
         .collect();
     let programs = &guarded[..];
-    let costs = ProgramCosts::new(programs, board, lim)?;
     let keys: Vec<PlanKey> = keys
         .iter()
         .zip(key_programs)
         .map(|(&key, &program)| PlanKey { key, program })
         .collect();
     let lists = &opts.boards;
+    let board_keys: Vec<Vec<PlanKey>> = (lists.iter())
+        .map(|list| {
+            keys.iter()
+                .filter(|k| list.contains(&k.key))
+                .copied()
+                .collect()
+        })
+        .collect();
+    // The plan's image of each board, built of the same programs for the same keys.
+    let planned: Vec<Option<&BoardImage>> = (board_keys.iter().enumerate())
+        .map(|(i, bkeys)| {
+            (opts.images.get(i).and_then(Option::as_deref))
+                .filter(|b| same_programs && b.holds(programs, bkeys))
+        })
+        .collect();
+    // The programs' costs, for the boards the run builds (none when the plan gave them all).
+    let costs = std::sync::OnceLock::new();
+    let costs = || -> Result<&ProgramCosts, RunError> {
+        if let Some(c) = costs.get() {
+            return Ok(c);
+        }
+        let c = ProgramCosts::new(programs, board, lim)?;
+        Ok(costs.get_or_init(|| c))
+    };
     // A key that fits no board of this kind stops the run with the budget's reason (a
-    // board over its deadline still runs: its misses are what the run shows).
-    let unfit = boards::fits_no_board_each(programs, &costs, board, lim)?;
-    if let Some((k, why)) = keys
-        .iter()
-        .find_map(|k| unfit.get(k.program)?.as_ref().map(|w| (k.key, w)))
-    {
-        return Err(RunError::Unfit {
-            key: k,
-            board: board.name.clone(),
-            why: why.clone(),
-        });
+    // board over its deadline still runs: its misses are what the run shows). A key on a
+    // board whose planned image fits fits alone (a sub-range of a fitting range fits:
+    // `tactus_firmware::boards`), so only the other keys are asked.
+    let asked: Vec<PlanKey> = (keys.iter())
+        .filter(|k| {
+            !(board_keys.iter().zip(&planned))
+                .any(|(bk, p)| p.is_some_and(|p| p.fits(board)) && bk.contains(k))
+        })
+        .copied()
+        .collect();
+    if !asked.is_empty() {
+        let unfit = boards::fits_no_board_each(programs, costs()?, board, lim)?;
+        if let Some((k, why)) =
+            (asked.iter()).find_map(|k| unfit.get(k.program)?.as_ref().map(|w| (k.key, w)))
+        {
+            return Err(RunError::Unfit {
+                key: k,
+                board: board.name.clone(),
+                why: why.clone(),
+            });
+        }
     }
+    // Each board's image: the plan's, else built from the costs (found before the boards
+    // start).
+    let images: Vec<Image> = (planned.iter())
+        .map(|p| match p {
+            Some(built) => Ok(Image::Planned(built)),
+            None => costs().map(Image::Build),
+        })
+        .collect::<Result<_, _>>()?;
     if opts.io_trace.is_some() && board.converters.is_none() {
         return Err(RunError::NoConverters {
             board: board.name.clone(),
@@ -224,23 +267,21 @@ pub fn play_boards(
                 let Some(&i) = order.get(n) else {
                     break;
                 };
-                let list = &lists[i];
-                let bkeys: Vec<PlanKey> = keys
-                    .iter()
-                    .filter(|k| list.contains(&k.key))
-                    .copied()
-                    .collect();
-                // The plan's image, built of the same programs for the same keys.
-                let planned = (opts.images.get(i).and_then(Option::as_deref))
-                    .filter(|b| same_programs && b.holds(programs, &bkeys));
                 let r = run_board(
-                    programs, &costs, planned, &bkeys, board, motions, opts, progress, decimation,
+                    programs,
+                    images[i],
+                    &board_keys[i],
+                    board,
+                    motions,
+                    opts,
+                    progress,
+                    decimation,
                     i,
                 )
                 .map(|r| (i, r))
                 .map_err(|source| RunError::Board {
                     board: i + 1,
-                    keys: tactus_firmware::verdict::key_ranges(list),
+                    keys: tactus_firmware::verdict::key_ranges(&lists[i]),
                     source,
                 });
                 results.lock().unwrap_or_else(|e| e.into_inner()).push(r);
@@ -675,13 +716,15 @@ fn count_sample(
     decimation: usize,
     out: &tactus_firmware::image::SampleOut,
 ) {
-    // `span_max` has a word per core, as `r.max`.
-    for (c, span) in span_max.iter_mut().enumerate() {
-        let cycles = out.core_cycles[c];
-        r.max[c] = r.max[c].max(cycles);
+    // `span_max` has a word per core, as `r.max`, `r.total` and `r.misses`.
+    let cores = (r.max.iter_mut().zip(&mut r.total))
+        .zip(r.misses.iter_mut().zip(span_max.iter_mut()))
+        .zip(out.core_cycles.iter().zip(&out.misses));
+    for (((max, total), (misses, span)), (&cycles, &m)) in cores {
+        *max = (*max).max(cycles);
         *span = (*span).max(cycles);
-        r.total[c] += cycles;
-        r.misses[c] = out.misses[c];
+        *total += cycles;
+        *misses = m;
         *block_max = (*block_max).max(cycles);
     }
     *steps += 1;
@@ -691,13 +734,20 @@ fn count_sample(
     }
 }
 
-/// One board of [`play_boards`]: its image (`planned`, the plan's, else built), every key
-/// every sample through the play loop.
+/// Where a board's image comes from in [`play_boards`].
+#[derive(Clone, Copy)]
+enum Image<'a> {
+    /// The plan's (`PerformOptions::images`).
+    Planned(&'a BoardImage),
+    /// Built by [`BoardEngine::new`] from the programs' costs.
+    Build(&'a ProgramCosts),
+}
+
+/// One board of [`play_boards`]: its image, every key every sample through the play loop.
 #[allow(clippy::too_many_arguments)]
 fn run_board(
     programs: &[Program],
-    costs: &ProgramCosts,
-    planned: Option<&BoardImage>,
+    image: Image,
     bkeys: &[PlanKey],
     board: &BoardSpec,
     motions: &BTreeMap<u8, &Motion>,
@@ -706,9 +756,11 @@ fn run_board(
     decimation: usize,
     index: usize,
 ) -> Result<BoardRun, BoardError> {
-    let mut engine = match planned {
-        Some(built) => BoardEngine::boot(programs, bkeys, board, opts.engine, decimation, built),
-        None => BoardEngine::new(
+    let mut engine = match image {
+        Image::Planned(built) => {
+            BoardEngine::boot(programs, bkeys, board, opts.engine, decimation, built)
+        }
+        Image::Build(costs) => BoardEngine::new(
             programs,
             costs,
             bkeys,
