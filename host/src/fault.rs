@@ -400,6 +400,19 @@ impl BoardFaults {
             (s, None) => format!("window slot {s} (no key of the board)"),
         }
     }
+
+    /// The sample a fault word's last trip is reported at. A watchdog trip is recorded by
+    /// the reset handler at the boot after the reset, when the core's sample count starts
+    /// again from 0 (`tactus_firmware::image::fault`): its time is the sample of the
+    /// board's last watchdog reset in [`BoardFaults::resets`] (the firmware's 0 when the
+    /// board met none). Every other kind: the fault word's own time.
+    pub fn trip_sample(&self, w: &FaultWord) -> u64 {
+        let watchdog = (self.resets.iter().rev()).find(|r| r.why.starts_with("watchdog"));
+        match (w.kind, watchdog) {
+            (Some(TripKind::Watchdog), Some(r)) => r.sample,
+            _ => u64::from(w.at_sample),
+        }
+    }
 }
 
 /// Reads the fault record at each of `addrs` (one per core: the fault word, then the
@@ -438,12 +451,12 @@ pub fn report_lines(boards: &[BoardFaults], fs: f64) -> Vec<String> {
     for b in boards {
         for (c, w) in b.cores.iter().enumerate().filter(|(_, w)| w.tripped()) {
             let key = b.key_text(w);
+            let at = b.trip_sample(w);
             lines.push(format!(
-                "board {} core {c}: {} on {key} at sample {} ({:.4} s), {} trip{}",
+                "board {} core {c}: {} on {key} at sample {at} ({:.4} s), {} trip{}",
                 b.board,
                 kind_name(w),
-                w.at_sample,
-                f64::from(w.at_sample) / fs.max(1.0),
+                at as f64 / fs.max(1.0),
                 w.trips,
                 if w.trips == 1 { "" } else { "s" }
             ));
@@ -483,15 +496,15 @@ pub fn csv_text(boards: &[BoardFaults], fs: f64) -> String {
     for b in boards {
         for (c, w) in b.cores.iter().enumerate() {
             let key = b.midi(w).map_or(String::new(), |k| k.to_string());
+            let at = b.trip_sample(w);
             s.push_str(&format!(
-                "{},{c},{},{},{},{key},{},{},{:.6}\n",
+                "{},{c},{},{},{},{key},{},{at},{:.6}\n",
                 b.board,
                 kind_name(w),
                 w.code,
                 w.key,
                 w.trips,
-                w.at_sample,
-                f64::from(w.at_sample) / fs.max(1.0)
+                at as f64 / fs.max(1.0)
             ));
         }
     }
@@ -830,6 +843,36 @@ mod tests {
             "{:?}",
             report_lines(&both, 44_100.0)
         );
+        // A watchdog trip (recorded at the boot after the reset, at the core's sample 0) is
+        // reported at the board's last watchdog reset; with none, at the record's own time.
+        let hung = FaultWord::decode(FaultWord::encode(TripKind::Watchdog, 2, 2), 0);
+        let mut hung_board = BoardFaults {
+            board: 3,
+            cores: vec![hung, boards[0].cores[0]],
+            slots: boards[0].slots.clone(),
+            resets: Vec::new(),
+        };
+        assert_eq!(hung_board.trip_sample(&hung), 0);
+        let watchdog_reset = |sample| tactus_firmware::image::ResetRecord {
+            sample,
+            reboot: Ok(5),
+            ..reset.clone()
+        };
+        hung_board.resets = vec![watchdog_reset(13_230), watchdog_reset(13_236)];
+        assert_eq!(
+            report_lines(std::slice::from_ref(&hung_board), 44_100.0)[0],
+            "board 3 core 0: watchdog on key 59 (B3) at sample 13236 (0.3001 s), 2 trips"
+        );
+        assert!(
+            csv_text(std::slice::from_ref(&hung_board), 44_100.0)
+                .contains("\n3,0,watchdog,4,2,59,2,13236,0.300136\n"),
+            "{}",
+            csv_text(std::slice::from_ref(&hung_board), 44_100.0)
+        );
+        // A sensor trip keeps its own time beside a watchdog reset.
+        let mut sensor_board = boards[1].clone();
+        sensor_board.resets = hung_board.resets.clone();
+        assert_eq!(sensor_board.trip_sample(&sensor_board.cores[0]), 44_100);
         assert_eq!(
             tactus_firmware::image::glue::ctrl::fault_record(0x2003_f000),
             0x2003_f014
