@@ -407,7 +407,7 @@ impl BoardFaults {
     /// board's last watchdog reset in [`BoardFaults::resets`] (the firmware's 0 when the
     /// board met none). Every other kind: the fault word's own time.
     pub fn trip_sample(&self, w: &FaultWord) -> u64 {
-        let watchdog = (self.resets.iter().rev()).find(|r| r.why.starts_with("watchdog"));
+        let watchdog = (self.resets.iter().rev()).find(|r| r.by_watchdog());
         match (w.kind, watchdog) {
             (Some(TripKind::Watchdog), Some(r)) => r.sample,
             _ => u64::from(w.at_sample),

@@ -38,7 +38,7 @@ use tactus_runtime::converters::AdcScale;
 /// The code a hung key's calls enter ([`FaultKind::Hang`]): `PUSH {LR}; B .`, a loop entered
 /// as an update is, its return address pushed where an update's prologue pushes it (the
 /// core's return slot, `super::super::fault`, "Which key hung").
-pub const HANG_STUB: [u8; 4] = [0x00, 0xb5, 0xfe, 0xe7];
+pub const HANG_STUB: [Instr; 2] = [Instr::Push { list: 1 << 14 }, Instr::B { offset: -4 }];
 
 /// What a fault does ([`Injection`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -132,6 +132,13 @@ pub struct ResetRecord {
     pub why: &'static str,
     /// Samples of zero force while the firmware booted; `Err` when it did not boot again.
     pub reboot: Result<u64, String>,
+}
+
+impl ResetRecord {
+    /// Whether the watchdog reset the board (its timer or a trigger), not a brown-out.
+    pub fn by_watchdog(&self) -> bool {
+        self.why.starts_with("watchdog")
+    }
 }
 
 /// The faults of a run and what they left (module documentation).
@@ -290,7 +297,13 @@ impl ImageRun {
                 "core {core}: no free word after its code block at {stub:#010x} for the hang"
             )));
         }
-        self.board.write_bytes(stub, &HANG_STUB).map_err(emu)?;
+        let mut code = Vec::with_capacity(4);
+        for i in &HANG_STUB {
+            let e = tactus_isa::encode::encode(i)
+                .map_err(|e| ImageError::Run(format!("the hang's loop: {e}")))?;
+            code.extend(e.bytes());
+        }
+        self.board.write_bytes(stub, &code).map_err(emu)?;
         Ok(stub)
     }
 
