@@ -121,10 +121,21 @@ pub(crate) enum Leave {
     Record,
 }
 
-/// A bank mask, whether journaled, whether with the I/O's code, and the indices of its
-/// confined caches: (solo, shared), then the same timed ([`jit::Flavour::Confined`]'s fourth
-/// field).
-type ConfinedAt = (u8, bool, bool, [usize; 4]);
+/// The confined caches [`run_confined`] runs a core's code with, for one bank mask,
+/// journaling and I/O code (the first three fields of [`jit::Flavour::Confined`]): their
+/// indices in [`Blocks::confined_solo`] (`solo`, `timed_solo`) and [`Blocks::confined`]
+/// (`shared`, `timed_shared`); the timed ones are compiled with the flavour's fourth field
+/// set (a region checked instruction by instruction against the run's limit).
+#[derive(Clone, Copy, Debug)]
+struct ConfinedAt {
+    mask: u8,
+    journaled: bool,
+    io: bool,
+    solo: usize,
+    shared: usize,
+    timed_solo: usize,
+    timed_shared: usize,
+}
 
 /// Blocks [`run_confined`] runs pre-decoded from where the core resumed at the last run's
 /// limit, while each ends going forward (no region compiled at each place it resumes at).
@@ -610,17 +621,24 @@ pub(crate) fn run_confined(
     // Code that logs the I/O's accesses only where there are some to log: it is larger,
     // and compiling it cost the plain board's demo 3.7 % more instructions.
     let io_code = io_own != 0;
-    let [solo_at, shared_at, timed_solo_at, timed_shared_at] =
-        match blocks.confined_last[core.id & 1] {
-            Some((mask, j, i, at)) if mask == allowed && j == journaled && i == io_code => at,
-            _ => {
-                let at = [(true, false), (false, false), (true, true), (false, true)].map(
-                    |(solo, timed)| blocks.confined_index(solo, allowed, journaled, io_code, timed),
-                );
-                blocks.confined_last[core.id & 1] = Some((allowed, journaled, io_code, at));
-                at
-            }
-        };
+    let at = match blocks.confined_last[core.id & 1] {
+        Some(at) if at.mask == allowed && at.journaled == journaled && at.io == io_code => at,
+        _ => {
+            let mut index =
+                |solo, timed| blocks.confined_index(solo, allowed, journaled, io_code, timed);
+            let at = ConfinedAt {
+                mask: allowed,
+                journaled,
+                io: io_code,
+                solo: index(true, false),
+                shared: index(false, false),
+                timed_solo: index(true, true),
+                timed_shared: index(false, true),
+            };
+            blocks.confined_last[core.id & 1] = Some(at);
+            at
+        }
+    };
     let timed_cut = blocks.timed_cut[core.id & 1].take();
     // Blocks still to run pre-decoded after the one the core resumed in (see `inside`).
     let mut tail = 0u32;
@@ -672,17 +690,17 @@ pub(crate) fn run_confined(
         if native && !inside {
             let solo = core.cycle >= quiet_from;
             let cache = if solo {
-                &mut blocks.confined_solo[solo_at]
+                &mut blocks.confined_solo[at.solo]
             } else {
-                &mut blocks.confined[shared_at]
+                &mut blocks.confined[at.shared]
             };
             if let Some(mut region) = cache.lookup(sys, pc) {
                 let fits = core.cycle.saturating_add(region.bound) <= limit;
                 // A region that does not fit runs timed, once compiled so.
                 let timed = match (fits, solo) {
                     (true, _) => None,
-                    (false, true) => blocks.confined_solo[timed_solo_at].lookup(sys, pc),
-                    (false, false) => blocks.confined[timed_shared_at].lookup(sys, pc),
+                    (false, true) => blocks.confined_solo[at.timed_solo].lookup(sys, pc),
+                    (false, false) => blocks.confined[at.timed_shared].lookup(sys, pc),
                 };
                 if let Some(t) = timed {
                     region = t;
