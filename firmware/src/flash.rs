@@ -3,8 +3,9 @@
 //!
 //! The boards are the keyboard's plan (the layout's own `[[board]]`s or planned by
 //! [`crate::boards::plan`], once per keyboard: [`crate::boards::KeyboardPlan`], the plan
-//! `tactus budget` reports); each board's image is [`crate::boards::board_image`], the
-//! very image whose sample interrupt the budget proved, so a board that does not fit is an
+//! `tactus budget` reports); each board's image is the plan's
+//! ([`crate::boards::KeyboardPlan::images`]) or, without one, [`crate::boards::board_image`]
+//! of its keys: the very image whose sample interrupt the budget proved, so a board that does not fit is an
 //! error here rather than firmware that misses its deadline. By default the firmware lives
 //! in flash and boots at power-on through its second-stage boot loader, copying itself to
 //! SRAM ([`Load::Flash`], `crate::image::flash_image`); [`Load::Ram`] writes the RAM-only
@@ -12,9 +13,10 @@
 //! the RAM image's entry stub on both run the same code at the same addresses
 //! ([`crate::image::boot`]).
 
-use crate::boards::{self, PlanKey, ProgramCosts};
+use crate::boards::{self, BoardImage, PlanKey, ProgramCosts};
 use crate::image::{FirmwareImage, FlashImage, Program};
 use crate::windows::{DAC_BASE, SENSOR_BASE};
+use std::sync::Arc;
 use tactus_runtime::keyboard::{self, BoardSpec};
 use tactus_runtime::limiter::LimiterConfig;
 
@@ -84,6 +86,11 @@ pub struct KeyboardInput<'a> {
     /// ([`crate::boards::KeyboardPlan::key_lists`]); each is checked again here, and one
     /// that does not fit is an error.
     pub boards: &'a [Vec<u8>],
+    /// Per board, the image the plan built for it ([`crate::boards::KeyboardPlan::images`]),
+    /// taken when it holds the board's keys ([`crate::boards::BoardImage::holds`]); a board
+    /// past the end of the list, or `None`, is built here ([`crate::boards::board_image`]).
+    /// Empty: every board built here.
+    pub images: &'a [Option<Arc<BoardImage>>],
     /// The safety limiter.
     pub limiter: &'a LimiterConfig,
     /// Flash (the default) or RAM-only firmware.
@@ -132,9 +139,14 @@ pub fn keyboard_firmware(
             .filter(|k| list.contains(&k.key))
             .copied()
             .collect();
-        // The image, and its verdict (`boards::check_board`'s, of this one build).
-        let (core_of, image) = boards::board_image(programs, &costs, &bkeys, board, lim)
-            .map_err(|e| format!("{}: {e}", what()))?;
+        // The image, the plan's or built here, and its verdict (`boards::check_board`'s).
+        let planned =
+            (input.images.get(i).and_then(Option::as_ref)).filter(|b| b.holds(programs, &bkeys));
+        let (core_of, image) = match planned {
+            Some(b) => (b.core_of.clone(), Ok(b.image.clone())),
+            None => boards::board_image(programs, &costs, &bkeys, board, lim)
+                .map_err(|e| format!("{}: {e}", what()))?,
+        };
         let verdict = boards::image_verdict(programs, &bkeys, board, &core_of, &image);
         if !verdict.fits() {
             // The budget's rule and words: a key that fits no board says why.

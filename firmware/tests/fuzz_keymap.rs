@@ -60,6 +60,7 @@ fn firmware() -> (Vec<u8>, String) {
             keys: &pairs,
             board: &board,
             boards: &lists,
+            images: &[],
             limiter: &limiter,
             command: "fuzz",
             load: flash::Load::Ram,

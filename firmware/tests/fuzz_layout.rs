@@ -172,6 +172,7 @@ fn one_case(
         keys: &pairs,
         board: &board,
         boards: &lists,
+        images: &[],
         limiter: &limiter,
         command: "fuzz",
         load: flash::Load::Ram,

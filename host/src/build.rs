@@ -129,6 +129,7 @@ pub fn build_firmware(
         keys: &key_programs,
         board: &kb.board,
         boards: &plan.key_lists(),
+        images: &plan.images,
         limiter: &limiter,
         load: if ram { Load::Ram } else { Load::Flash },
         command,

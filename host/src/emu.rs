@@ -452,6 +452,7 @@ fn rebuild(
         keys: &keys,
         board: &kb.board,
         boards: std::slice::from_ref(&list),
+        images: &[],
         limiter: &limiter,
         load,
         command: "",

@@ -76,6 +76,7 @@ pub fn firmware_with(
         keys: &pairs,
         board: &board,
         boards: &boards,
+        images: &[],
         limiter: &limiter,
         load,
         command: "test",
