@@ -608,12 +608,10 @@ fn a_hang_for_good_resets_at_the_runs_samples(board: &str, key: usize) {
             );
             seen += 1;
         }
-        for c in 0..2 {
+        for (c, (&cycles, &bound)) in out[i as usize].core_cycles.iter().zip(&bounds).enumerate() {
             assert!(
-                out[i as usize].core_cycles[c] <= bounds[c],
-                "{board} sample {i} core {c}: {} cycles, static bound {}",
-                out[i as usize].core_cycles[c],
-                bounds[c]
+                cycles <= bound,
+                "{board} sample {i} core {c}: {cycles} cycles, static bound {bound}"
             );
         }
     }
