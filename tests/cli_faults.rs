@@ -5,8 +5,11 @@
 //! names the check, the key and the sample, and the key's motor is at zero force within
 //! 1 ms; `emu run` and `play` run a fault through the one path (`ImageRun::inject`) and
 //! report the same trips on both boards; a hung update with `--watchdog on` resets the
-//! board, and `emu run` says so with the fault word it leaves; a `--fault` that cannot be
-//! run names its field.
+//! board, and `emu run` says so with the fault word it leaves, each reset at the run's
+//! sample it came in (a watchdog period after the hang) and the hung handler counted
+//! unfinished, never measured; a stalled DAC and a flipped bit, which no check sees, keep
+//! the motor's current within the limiter's peak (the board's limiter); a `--fault` that
+//! cannot be run names its field.
 
 mod common;
 
@@ -281,13 +284,32 @@ fn a_hung_update_with_the_watchdog_on_resets_the_board_under_emu_run() {
     let reset = (stdout.lines())
         .find_map(|l| l.strip_prefix("reset: watchdog timer reset at t = "))
         .unwrap_or_else(|| panic!("{stdout}"));
+    // At the run's sample of the reset: the hang's (2205) and the watchdog's period.
     let sample = reset_sample(reset);
-    assert!((2205..2205 + 441).contains(&sample), "{stdout}");
-    assert!(reset.contains("booted again"), "{stdout}");
+    let period = watchdog_samples();
     assert!(
-        stdout.contains("board 1 core 0: watchdog on key 61 (C#4)"),
+        (2205 + period - 1..=2205 + period + 1).contains(&sample),
         "{stdout}"
     );
+    assert!(reset.contains("booted again"), "{stdout}");
+    assert!(
+        stdout.contains(&format!(
+            "board 1 core 0: watchdog on key 61 (C#4) at sample {sample} ("
+        )),
+        "{stdout}"
+    );
+    // The hung handler is no handler time: the samples from the hang to the reset are
+    // counted unfinished on key 61's core, and every core's worst handler is a handler's,
+    // within the period (not a hung sample's, nor a sample's sum of several).
+    for core in 0..2 {
+        let (worst, unfinished) = emu_core_line(&stdout, core);
+        assert!(
+            worst < emu_period(&stdout),
+            "core {core}: worst {worst}: {stdout}"
+        );
+        let hung = if core == 0 { sample - 2205 } else { 0 };
+        assert_eq!(unfinished, hung, "core {core}: {stdout}");
+    }
     // Without the watchdog nothing resets the board: the hung core never completes its
     // sample, an error of the run.
     assert_ok(&build("off"));
@@ -485,6 +507,49 @@ fn the_budget_corpus_trips_no_check_but_its_glitches_and_random_words_do() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The limiter's peak on board `board` — the one configuration `tactus build` and `tactus
+/// play` give its firmware (`LimiterConfig::for_board`) — as a DAC code and as a motor
+/// current, A (`Limiter::peak_ua`).
+fn limiter_peak(board: &str) -> (i32, f64) {
+    use tactus_runtime::limiter::{Limiter, LimiterConfig};
+    let spec = tactus_host::catalogue::board(board).unwrap();
+    let limiter = Limiter::new(&LimiterConfig::for_board(&spec)).unwrap();
+    (limiter.peak_code(), f64::from(limiter.peak_ua()) * 1e-6)
+}
+
+/// The watchdog's period in samples at 44.1 kHz (`WATCHDOG_PERIOD_US`: 44.1).
+fn watchdog_samples() -> u64 {
+    u64::from(tactus_firmware::image::fault::WATCHDOG_PERIOD_US) * 44_100 / 1_000_000
+}
+
+/// The fields of `emu run`'s line for core `core` (`core 1: keys […], N samples, handler
+/// cycles mean … worst W (P % of the period), misses M[, U samples unfinished (…)]`): the
+/// worst handler's cycles and the samples unfinished (0 when the line names none).
+fn emu_core_line(stdout: &str, core: usize) -> (u64, u64) {
+    let line = (stdout.lines())
+        .find(|l| l.starts_with(&format!("core {core}: keys ")))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    let worst = (line.split_once(" worst "))
+        .and_then(|(_, w)| w.split(' ').next())
+        .unwrap_or_else(|| panic!("{line}"))
+        .parse()
+        .unwrap();
+    let unfinished = (line.split_once("misses "))
+        .and_then(|(_, m)| m.split_once(", "))
+        .map_or(0, |(_, u)| u.split(' ').next().unwrap().parse().unwrap());
+    (worst, unfinished)
+}
+
+/// The cycles of a sample period `emu run` names in its first line (`…, 3015 cycles per
+/// sample, …`).
+fn emu_period(stdout: &str) -> u64 {
+    (stdout.split_once(" cycles per sample"))
+        .and_then(|(a, _)| a.rsplit(' ').next())
+        .unwrap_or_else(|| panic!("{stdout}"))
+        .parse()
+        .unwrap()
+}
+
 /// The sample of a reset line (`… reset at t = 0.0500 s (sample 2205, cycle …): …`).
 fn reset_sample(line: &str) -> u64 {
     let after = line
@@ -545,8 +610,9 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
         );
 
         // A flipped sign bit in key 61's state (its fourth word) before its press: not
-        // detected, its outputs change, never above the limiter's peak (2 A), and key 63 on
-        // the other core plays exactly as without it.
+        // detected, its outputs change, never above the limiter's peak (the board's
+        // limiter: 2 A), and key 63 on the other core plays exactly as without it.
+        let (_, peak_a) = limiter_peak(board);
         let (stdout, flip61, flip63) = play(
             board,
             "flip",
@@ -561,9 +627,34 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
             .count();
         assert!(changed > 100, "{board}: the flip changed {changed} samples");
         for r in &flip61.1 {
-            assert!(r[current].abs() <= 2.0 + 1e-9, "{board}: {r:?}");
+            assert!(r[current].abs() <= peak_a + 1e-9, "{board}: {r:?}");
         }
         assert_eq!(flip63.1, clean63.1, "{board}: key 63 changed");
+
+        // Core 1's DAC stalls at 0.06 s, key 61 mid-press: nothing detects it (the DAC8568
+        // has no read-back), so its motor holds the current of the sample before, never
+        // above the limiter's peak; key 63 on core 0 plays exactly as without it.
+        let (stdout, stall61, stall63) = play(
+            board,
+            "stall",
+            Some("kind=dac-stall,board=1,core=1,at=0.06s"),
+        );
+        assert!(
+            stdout.contains("faults: 0 trips on 1 board\n"),
+            "{board}: {stdout}"
+        );
+        let at = stall61.1.iter().position(|r| r[0] >= 0.06).unwrap();
+        let held = stall61.1[at - 1][current];
+        assert!(held != 0.0, "{board}: key 61 pushes at the stall");
+        for (r, c) in stall61.1.iter().zip(&clean61.1) {
+            assert!(r[current].abs() <= peak_a + 1e-9, "{board}: {r:?}");
+            if r[0] < 0.06 {
+                assert_eq!(r, c, "{board}: before the stall");
+            } else {
+                assert_eq!(r[current], held, "{board}: {r:?}");
+            }
+        }
+        assert_eq!(stall63.1, clean63.1, "{board}: key 63 changed");
 
         // A hang of key 61's update while it moves (its descent): the watchdog resets the
         // board within 1 ms and a sample; the boot ROM enters the RAM image play runs again
@@ -572,22 +663,75 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
         // named and counted, the motors at zero force through each boot.
         // (0.06 s: a boot every 1.1 ms from 0.03 s is some 27 boots, each emulated.)
         let hang = Some("kind=hang,note=61,at=0.03s");
-        let (stdout, _, _) = play_for("0.06", board, "hang", hang);
+        let (stdout, hung61, _) = play_for("0.06", board, "hang", hang);
         let lines: Vec<&str> = (stdout.lines())
             .filter_map(|l| {
                 l.trim()
                     .strip_prefix("board 1: watchdog timer reset at t = ")
             })
             .collect();
+        // Each reset at the run's sample it came in: the first a watchdog period after
+        // the hang's (1323), each next a period after the boot's first sample (where key
+        // 61 hangs again), every one within the run's samples.
+        let period = watchdog_samples();
         let first = reset_sample(lines.first().unwrap_or_else(|| panic!("{board}: {stdout}")));
-        assert!((1323..=1323 + 45).contains(&first), "{board}: {stdout}");
+        assert!(
+            (1323 + period - 1..=1323 + period + 1).contains(&first),
+            "{board}: {stdout}"
+        );
         assert!(
             lines.len() >= 10,
             "{board}: {} resets: {stdout}",
             lines.len()
         );
+        let run_samples = hung61.1.len() as u64;
+        let mut last: Option<(u64, u64)> = None;
         for line in &lines {
-            assert!(line.contains("booted again"), "{board}: {line}");
+            let sample = reset_sample(line);
+            assert!(sample < run_samples, "{board}: {line} of {run_samples}");
+            let zero: u64 = (line.split_once("booted again, "))
+                .and_then(|(_, z)| z.split(' ').next())
+                .unwrap_or_else(|| panic!("{board}: {line}"))
+                .parse()
+                .unwrap();
+            if let Some((before, zero_before)) = last {
+                let hangs = before + zero_before + 1;
+                assert!(
+                    (hangs + period - 1..=hangs + period + 1).contains(&sample),
+                    "{board}: {line} after a reset at {before}"
+                );
+            }
+            last = Some((sample, zero));
+        }
+        // The watchdog's trip at the last reset; the hung core's samples unfinished, no
+        // handler over the period on either core (a hung handler is not measured).
+        let (last, _) = last.unwrap();
+        assert!(
+            stdout.contains(&format!(
+                "board 1 core 1: watchdog on key 61 (C#4) at sample {last} ("
+            )),
+            "{board}: {stdout}"
+        );
+        let budget = (stdout.lines())
+            .find(|l| l.trim_start().starts_with("board 1 (keys "))
+            .unwrap_or_else(|| panic!("{board}: {stdout}"));
+        let deadline: u64 = (stdout.split_once(" cycles per sample per core"))
+            .and_then(|(a, _)| a.rsplit('(').next())
+            .unwrap()
+            .parse()
+            .unwrap();
+        let (core0, core1) = budget.split_once("; core 1: ").unwrap();
+        assert!(
+            !core0.contains("unfinished") && core1.contains(" samples unfinished ("),
+            "{board}: {budget}"
+        );
+        for part in [core0, core1] {
+            let max: u64 = (part.split_once("max "))
+                .and_then(|(_, m)| m.split(' ').next())
+                .unwrap()
+                .parse()
+                .unwrap();
+            assert!(max < deadline, "{board}: {budget}");
         }
         assert!(
             stdout.contains(&format!(
@@ -648,7 +792,7 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
                 "{board}: plays again"
             );
             for r in playing {
-                assert!(r[current].abs() <= 2.0 + 1e-9, "{board}: {r:?}");
+                assert!(r[current].abs() <= peak_a + 1e-9, "{board}: {r:?}");
             }
         }
         // A brown-out clears SRAM and the RAM image with it: the boot ROM waits in USB
@@ -721,12 +865,17 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
         // Core 1's DAC takes no frame from 0.05 s: its keys hold the codes they had then
         // (not the clean run's at the end: the dip moved on), core 0's keys are untouched.
         // Nothing detects it (docs/firmware.md, "Faults"): 0 trips.
+        // The held codes never above the limiter's peak (the board's limiter: its DAC code).
         let (stalled, stdout) = run(&["--fault", "kind=dac-stall,board=1,core=1,at=0.05s"]);
         assert_eq!(stalled[2..], clean[2..], "{board}: {stdout}");
         assert!(
             stalled[0] != clean[0] && stalled[1] != clean[1],
             "{board}: {stalled:?} vs {clean:?}"
         );
+        let (peak_code, _) = limiter_peak(board);
+        for code in &stalled {
+            assert!(code.abs() <= peak_code, "{board}: {stalled:?}");
+        }
         assert!(
             stdout.contains("faults: 0 trips on 1 board\n"),
             "{board}: {stdout}"
@@ -759,8 +908,24 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
             let line = (stdout.lines())
                 .find_map(|l| l.strip_prefix("reset: watchdog timer reset at t = "))
                 .unwrap_or_else(|| panic!("{board}: {stdout}"));
-            assert!((2205..=2205 + 45).contains(&reset_sample(line)), "{line}");
+            // At the run's sample it came in, a watchdog period after the hang's; the
+            // hung core's samples till then unfinished, no handler over the period.
+            let sample = reset_sample(line);
+            let period = watchdog_samples();
+            assert!(
+                (2205 + period - 1..=2205 + period + 1).contains(&sample),
+                "{line}"
+            );
             assert!(line.contains("booted again"), "{line}");
+            for core in 0..2 {
+                let (worst, unfinished) = emu_core_line(&stdout, core);
+                assert!(
+                    worst < emu_period(&stdout),
+                    "core {core}: worst {worst}: {stdout}"
+                );
+                let hung = if core == 1 { sample - 2205 } else { 0 };
+                assert_eq!(unfinished, hung, "core {core}: {stdout}");
+            }
             // Key 61's core, which fell behind: core 1's record, naming key 61.
             assert!(
                 stdout.contains("board 1 core 1: watchdog on key 61 (C#4)")

@@ -564,3 +564,102 @@ fn a_browned_out_ram_image_stays_in_usb_boot_and_says_so() {
         );
     }
 }
+
+/// A hang for good of a RAM image's key: each boot hangs again and the watchdog resets the
+/// board again. Every reset is reported at the run's sample during which it came (its
+/// cycle between that sample's tick and the next, each within the run), one watchdog
+/// period after the hang's tick and, after the first, one period after the boot's first
+/// sample: the host's sample clock is the board's (`inject.rs`, "Late samples"). Meanwhile
+/// the hung core's drives hold their codes, the other core plays on, and the hung core's
+/// unfinished samples are counted, never measured as a handler: every sample's handler
+/// cycles stay within the core's static bound.
+fn a_hang_for_good_resets_at_the_runs_samples(board: &str, key: usize) {
+    let image = image(board, true);
+    let (from, n) = (100u64, 400usize);
+    let mut r = image.run().unwrap();
+    r.inject(Injection {
+        kind: image::FaultKind::Hang,
+        key: Some(key),
+        core: None,
+        from,
+        until: None,
+    })
+    .unwrap();
+    let words = mid_words(&image);
+    let fs = 44_100;
+    // The watchdog's period in samples: 44.1 at 44.1 kHz.
+    let period = u64::from(WATCHDOG_PERIOD_US) * fs / 1_000_000;
+    let core = image.keys()[key].core;
+    let bounds: Vec<u64> = (0..2).map(|c| image.wcet(c).unwrap().bound()).collect();
+    let mut out: Vec<SampleOut> = Vec::new();
+    let mut seen = 0;
+    for i in 0..n as u64 {
+        assert_eq!(r.samples(), i, "{board}");
+        let (tick, next) = (r.tick_cycle(i), r.tick_cycle(i + 1));
+        out.push(r.step(&words).unwrap().clone());
+        let resets = r.resets();
+        if resets.len() > seen {
+            assert_eq!(resets.len(), seen + 1, "{board}: two resets in sample {i}");
+            let reset = &resets[seen];
+            assert_eq!(reset.sample, i, "{board}: {reset:?}");
+            assert!(
+                (tick..=next).contains(&reset.cycle),
+                "{board} sample {i} (ticks {tick}–{next}): {reset:?}"
+            );
+            seen += 1;
+        }
+        for (c, (&cycles, &bound)) in out[i as usize].core_cycles.iter().zip(&bounds).enumerate() {
+            assert!(
+                cycles <= bound,
+                "{board} sample {i} core {c}: {cycles} cycles, static bound {bound}"
+            );
+        }
+    }
+    let resets = r.resets().to_vec();
+    assert!(resets.len() >= 4, "{board}: {resets:?}");
+    // The first reset one period after the hang's sample (it hangs at its tick; the last
+    // feed came at the end of core 0's handler of the sample before, or of this one).
+    let first = resets[0].sample;
+    assert!(
+        (from + period - 1..=from + period + 1).contains(&first),
+        "{board}: hung at sample {from}, reset at {first} (period {period} samples)"
+    );
+    // Each next: the boot's zero samples, its first sample (where the key hangs again),
+    // and a period.
+    for w in resets.windows(2) {
+        let zero = *w[0].reboot.as_ref().unwrap();
+        let hangs = w[0].sample + zero + 1;
+        assert!(
+            (hangs + period - 1..=hangs + period + 1).contains(&w[1].sample),
+            "{board}: {:?} then {:?}",
+            w[0],
+            w[1]
+        );
+    }
+    // Between the hang and the reset the hung core's drives hold the codes of the sample
+    // before the hang; the other core's keys play on (held still: their codes of before).
+    for i in from as usize..first as usize {
+        assert_eq!(out[i].dac, out[from as usize - 1].dac, "{board} sample {i}");
+    }
+    // The hung core's samples from each hang to its reset are unfinished; the other's none.
+    let unfinished = r.unfinished().to_vec();
+    let mut late = first - from;
+    for w in resets.windows(2) {
+        late += w[1].sample - (w[0].sample + w[0].reboot.as_ref().unwrap() + 1);
+    }
+    // And from the last boot's first sample, hung again, to the run's end.
+    let last = resets.last().unwrap();
+    late += n as u64 - (last.sample + last.reboot.as_ref().unwrap() + 1);
+    assert_eq!(unfinished[core], late, "{board}: {unfinished:?}");
+    assert_eq!(unfinished[1 - core], 0, "{board}: {unfinished:?}");
+}
+
+#[test]
+fn a_hang_for_good_resets_a_plain_board_at_the_runs_samples() {
+    a_hang_for_good_resets_at_the_runs_samples("rp2040", 0);
+}
+
+#[test]
+fn a_hang_for_good_resets_a_converter_board_at_the_runs_samples() {
+    a_hang_for_good_resets_at_the_runs_samples("rp2040_io", 2);
+}

@@ -716,13 +716,14 @@ impl FirmwareJob {
         )];
         for c in 0..cores {
             lines.push(format!(
-                "core {c}: keys {:?}, {} samples, handler cycles mean {:.1} worst {} ({:.1} % of the period), misses {}",
+                "core {c}: keys {:?}, {} samples, handler cycles mean {:.1} worst {} ({:.1} % of the period), misses {}{}",
                 map.cores.get(c).map(|m| m.keys.clone()).unwrap_or_default(),
                 runs[c],
                 total[c] as f64 / runs[c].max(1) as f64,
                 worst[c],
                 100.0 * worst[c] as f64 / image.cycles_per_sample().max(1) as f64,
-                misses[c]
+                misses[c],
+                crate::fault::unfinished_text(run.unfinished().get(c).copied().unwrap_or(0)),
             ));
         }
         let board = run.board();

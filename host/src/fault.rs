@@ -701,6 +701,19 @@ pub fn decode(records: &[[u32; 2]]) -> Vec<FaultWord> {
         .collect()
 }
 
+/// `, N samples unfinished (…)` for a core that had not finished `n` > 0 samples by the
+/// next tick (a hung handler: `tactus_firmware::image::ImageRun::unfinished`), else
+/// nothing: the same words in `play` and `emu run`.
+pub fn unfinished_text(n: u64) -> String {
+    match n {
+        0 => String::new(),
+        n => format!(
+            ", {n} sample{} unfinished (a handler that never returned, cut by a reset: not a handler time, in neither max nor mean)",
+            if n == 1 { "" } else { "s" }
+        ),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

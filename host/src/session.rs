@@ -686,14 +686,15 @@ pub fn budget_text(r: &BoardsReport) -> String {
         let cores: Vec<String> = (0..b.max.len())
             .map(|c| {
                 format!(
-                    "core {c}: {} keys, max {} cycles per sample ({:.1} %, static {}, mean {:.1} %), headroom {}, deadline misses {}",
+                    "core {c}: {} keys, max {} cycles per sample ({:.1} %, static {}, mean {:.1} %), headroom {}, deadline misses {}{}",
                     b.core_keys[c],
                     b.max[c],
                     100.0 * b.max[c] as f64 / r.deadline as f64,
                     b.bound[c],
                     100.0 * b.total[c] as f64 / (r.samples.max(1) * r.deadline) as f64,
                     r.deadline as i64 - b.max[c] as i64,
-                    b.misses[c]
+                    b.misses[c],
+                    crate::fault::unfinished_text(b.unfinished.get(c).copied().unwrap_or(0)),
                 )
             })
             .collect();

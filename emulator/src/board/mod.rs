@@ -214,6 +214,13 @@ impl Board {
         self.profiler.add(addr, true)
     }
 
+    /// A brown-out ([`Machine::brown_out`]): the profiles' open calls, which never
+    /// return, dropped (as at a watchdog reset).
+    pub fn brown_out(&mut self) {
+        self.machine.brown_out();
+        self.profiler.cores_reset();
+    }
+
     /// Starts measuring the function named `name`.
     pub fn profile(&mut self, name: &str) -> Result<usize, EmuError> {
         let addr = self.symbol(name)?;

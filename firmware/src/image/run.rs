@@ -851,6 +851,8 @@ impl ImageRun {
             self.rest.forget();
             self.samples = want;
             self.zero_sample();
+            // The handlers that completed in this sample before the reset.
+            self.take_handlers();
             return Ok(());
         }
         self.check_stop(stop)?;
@@ -858,6 +860,10 @@ impl ImageRun {
         let mut extra = 0;
         // The firmware's sample count since its last boot (`inject.rs`).
         let (base, count_base) = (self.faults.tick_base, self.faults.count_base);
+        // With faults on a board whose watchdog counts, a core that has not finished the
+        // sample by its end is late (`inject.rs`, "Late samples"): the run does not wait
+        // for it, so that the board's clock keeps the host's.
+        let give_late = self.has_faults() && self.board.system.watchdog.is_enabled();
         loop {
             let sram = &self.board.system.sram;
             let done = self
@@ -866,7 +872,11 @@ impl ImageRun {
                 .iter()
                 .all(|&o| word(sram, o).wrapping_sub(count_base) as u64 >= want - base);
             if done {
+                self.faults.late_since = None;
                 break;
+            }
+            if give_late {
+                return self.late_sample(want);
             }
             extra += 1;
             if extra > MAX_EXTRA_EIGHTHS {
@@ -880,6 +890,7 @@ impl ImageRun {
                 self.rest.forget();
                 self.samples = want;
                 self.zero_sample();
+                self.take_handlers();
                 return Ok(());
             }
             self.check_stop(stop)?;
@@ -913,9 +924,11 @@ impl ImageRun {
         }
     }
 
-    fn collect(&mut self) -> Result<(), ImageError> {
+    /// Each core's handler runs completed since the last sample into the sample (their
+    /// cycles with the exception entry, and their count), forgotten by the profiles. A run
+    /// a reset cut never completes: the emulator drops it (`Board::calls`).
+    fn take_handlers(&mut self) {
         let s = &mut self.sample;
-        s.events.clear();
         for c in 0..self.image.cores.len() {
             let calls = self.board.calls(self.profiles[c]);
             s.core_cycles[c] = calls
@@ -924,6 +937,14 @@ impl ImageRun {
                 .sum();
             s.handler_runs[c] = calls.len() as u32;
             self.board.clear_calls(self.profiles[c]);
+        }
+    }
+
+    fn collect(&mut self) -> Result<(), ImageError> {
+        self.take_handlers();
+        let s = &mut self.sample;
+        s.events.clear();
+        for c in 0..self.image.cores.len() {
             let sram = &self.board.system.sram;
             s.misses[c] = word(sram, self.at.misses[c]);
             if word(sram, self.at.canaries[c]) != STACK_CANARY {

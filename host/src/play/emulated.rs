@@ -101,6 +101,10 @@ pub struct BoardRun {
     pub total: Vec<u64>,
     /// Deadline misses the firmware counted, per core.
     pub misses: Vec<u32>,
+    /// Per core, the samples it had not finished by the next tick: a handler that never
+    /// returned (a hung update), cut by the watchdog's reset, in no `max` or `total`
+    /// (`tactus_firmware::image::ImageRun::unfinished`; all zero without injected faults).
+    pub unfinished: Vec<u64>,
     /// The static bound of each core's handler.
     pub bound: Vec<u64>,
     /// The busier core's cycles, the largest of each `decimation` samples.
@@ -541,6 +545,7 @@ impl BoardEngine<'_> {
         self.report.memo = self.run.board().memo_stats();
         self.report.rest_replayed = self.run.rest_replayed();
         self.report.resets = self.run.resets().to_vec();
+        self.report.unfinished = self.run.unfinished().to_vec();
         self.report.faults = crate::fault::run_records(&mut self.run)
             .map_err(tactus_firmware::image::ImageError::Run)?;
         self.report.io_windows = self.run.board().io_windows();
@@ -581,6 +586,7 @@ impl BoardEngine<'_> {
             misses: (now.misses.iter().enumerate())
                 .map(|(c, &m)| m.saturating_sub(then.misses.get(c).copied().unwrap_or(0)))
                 .collect(),
+            unfinished: minus(&now.unfinished, &then.unfinished),
             bound: now.bound.clone(),
             rest_replayed: (
                 now.rest_replayed.0.saturating_sub(then.rest_replayed.0),
@@ -603,6 +609,7 @@ impl BoardEngine<'_> {
         self.span_start = BoardRun {
             total: now.total.clone(),
             misses: now.misses.clone(),
+            unfinished: now.unfinished.clone(),
             rest_replayed: now.rest_replayed,
             io_windows: now.io_windows,
             io_breaches: now.io_breaches.clone(),

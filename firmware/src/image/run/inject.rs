@@ -30,6 +30,17 @@
 //! or ends in the samples of zero force while a board boots again takes effect at the
 //! first sample of the new boot, before its firmware runs it (a hang that clears there
 //! lets the new boot play).
+//!
+//! **Late samples.** With faults injected and the board's watchdog counting, a core that
+//! has not finished a sample by the next tick (a hung update) does not hold the host's
+//! clock: the sample is given as the board stands at that tick ([`ImageRun::late_sample`]:
+//! the late core's drives hold what they last were, as its DAC does, its handler counted
+//! as none finished, the other core playing on), and so is each sample after it until the
+//! core catches up or the watchdog resets the board. So every sample the host gives is
+//! one period of the board's clock, and a reset falls in the host's sample when it
+//! happened: a hung core's motors hold their force for the watchdog's period, then are at
+//! zero. (Without the watchdog nothing ends a hang: the run waits for the core, as for an
+//! overloaded image, and gives up with an error.)
 
 use super::*;
 use tactus_isa::decode::Instr;
@@ -158,6 +169,10 @@ pub(super) struct Faults {
     /// Per drive of every key (flat, key order): the DAC code it holds while its core's
     /// DAC is stalled.
     pub(super) frozen: Vec<Option<i32>>,
+    /// The first of the late samples under way ("Late samples"), if the last was late.
+    pub(super) late_since: Option<u64>,
+    /// Per core, the samples it had not finished by the next tick ([`ImageRun::unfinished`]).
+    unfinished: [u64; 2],
     /// A brown-out was injected this sample.
     browned: bool,
     /// The board's cycle at the last brown-out.
@@ -315,6 +330,15 @@ impl ImageRun {
     /// The resets met so far (module documentation).
     pub fn resets(&self) -> &[ResetRecord] {
         &self.faults.resets
+    }
+
+    /// Per core (as many as the image has), the samples it had not finished by the next
+    /// tick ("Late samples": a hung handler, which never returns; the watchdog's reset
+    /// cuts it). Such a handler is no handler run: its cycles are in no
+    /// [`SampleOut::core_cycles`] (that of a sample cut by a reset holds the runs that
+    /// completed before it).
+    pub fn unfinished(&self) -> &[u64] {
+        &self.faults.unfinished[..self.image.cores.len().min(2)]
     }
 
     /// The samples from `n` on in which nothing injected changes (`give_while`'s bound):
@@ -514,7 +538,8 @@ impl ImageRun {
             let period = self.image.cycles_per_sample().max(1);
             let zero = (first.saturating_sub(start)).div_ceil(period).max(1);
             self.first_tick = first;
-            self.faults.tick_base = sample + zero;
+            // The reset's sample and `zero` more at zero force: the next is tick 0.
+            self.faults.tick_base = sample + zero + 1;
             let sram = &self.board.system.sram;
             self.faults.count_base = word(sram, self.at.samples[0]);
             zero
@@ -524,6 +549,7 @@ impl ImageRun {
             Err(e) => self.faults.dead = Some(e.clone()),
         }
         self.stalls = self.board.system.contention_stalls;
+        self.faults.late_since = None;
         self.faults.resets.push(ResetRecord {
             sample,
             cycle,
@@ -531,6 +557,32 @@ impl ImageRun {
             reboot,
         });
         Ok(true)
+    }
+
+    /// Gives sample `want` (counted from 1) of a core that has not finished it by the next
+    /// tick ("Late samples"): the outputs as the board holds them.
+    ///
+    /// Errors: [`ImageError::Run`] when the core has not finished a sample for as long
+    /// as the run waits for an overloaded one (1,000 periods: a watchdog that never
+    /// resets the board); those of the sample's collection.
+    pub(super) fn late_sample(&mut self, want: u64) -> Result<(), ImageError> {
+        let since = *self.faults.late_since.get_or_insert(want);
+        if want - since >= u64::from(MAX_EXTRA_EIGHTHS / 8) {
+            return Err(ImageError::Run(format!(
+                "sample {since} not completed {} periods after its tick",
+                MAX_EXTRA_EIGHTHS / 8
+            )));
+        }
+        let (base, count_base) = (self.faults.tick_base, self.faults.count_base);
+        let sram = &self.board.system.sram;
+        for (c, &o) in self.at.samples.iter().enumerate() {
+            if (word(sram, o).wrapping_sub(count_base) as u64) < want - base {
+                self.faults.unfinished[c] += 1;
+            }
+        }
+        self.rest.forget();
+        self.samples = want;
+        self.collect()
     }
 
     /// A sample of zero force (a board rebooting or dead): every drive's force, current and
