@@ -1,7 +1,9 @@
-//! A region's function: the entry (guest registers and flags loaded into cranelift
-//! variables), straight-line code with pending cycle and instruction counts, branches
-//! inside the region as native jumps (back edges checking the deadline), the exits, and
-//! the write-back. The instruction groups are in [`super::alu`] and [`super::memory`].
+//! A region's function: the entry (flags and cycle loaded into cranelift variables; the
+//! guest registers stay in the core, each read a load and each write a store, a value
+//! reused where its load or store dominates), straight-line code with pending cycle and
+//! instruction counts, branches inside the region as native jumps (back edges checking
+//! the deadline), the exits, and the write-back. The instruction groups are in
+//! [`super::alu`] and [`super::memory`].
 
 use super::abi::{Ctx, Exit};
 use super::scan::{bounds, branch_of, RegionInstr};
@@ -87,7 +89,17 @@ pub(super) struct Translator<'a> {
     pub(super) claims_self: Value,
     /// `None` in [`Flavour::Solo`] code: no access waits.
     pub(super) claims_other: Option<Value>,
-    pub(super) regs: [Variable; 16],
+    /// The guest registers live in the core ([`Core::r`]): a write is a store there, a
+    /// read a load, so no exit carries them. The value last loaded or stored of each,
+    /// with the block where: reused where that block dominates (see
+    /// [`Translator::known`]).
+    pub(super) known: [Option<(Value, Block)>; 16],
+    /// The blocks the translation stood in at an instruction's start since the last label:
+    /// each dominates the code after it up to the next label (every path from one
+    /// instruction's start to the next runs through that instruction's code).
+    pub(super) main_line: Vec<Block>,
+    /// The registers the region never writes (their loads are pure).
+    pub(super) read_only: u16,
     pub(super) flags: Flags,
     pub(super) cyc: Variable,
     /// The call's [`Ctx`]: instructions retired are added to [`Ctx::retired`] in place
@@ -176,7 +188,6 @@ impl<'a> Translator<'a> {
         let claims_self = ptr(&mut b, offset_of!(Ctx, claims_self));
         let claims_other = (!solo).then(|| ptr(&mut b, offset_of!(Ctx, claims_other)));
         let stalls_ptr = ptr(&mut b, offset_of!(Ctx, stalls));
-        let regs = std::array::from_fn(|_| b.declare_var(types::I32));
         let flags = Flags {
             nz: b.declare_var(types::I32),
             c: b.declare_var(types::I8),
@@ -187,26 +198,13 @@ impl<'a> Translator<'a> {
         let q = b.declare_var(types::I64);
         let exit_pc = b.declare_var(types::I32);
         let exit_why = b.declare_var(types::I32);
-        // A register the region never writes is stored nowhere in it (the exit writes back
-        // only the written ones, and no helper the code calls touches the core's registers),
-        // so its load at the entry is pure: cranelift drops it where the region never reads
-        // the register and places it where first read. A written register's load stays
-        // where it is: placed at its first use, it could come after the exit's store of the
-        // register (a swap of two registers).
+        // A register the region never writes is stored nowhere in it (no helper the code
+        // calls touches the core's registers), so its loads are pure: cranelift merges
+        // them and places them where first needed.
         let written = instrs.iter().try_fold(0u16, |w, i| {
             crate::accel::memo::usage(&i.instr).map(|u| w | u.writes)
         });
-        let pure = mf.with_readonly().with_can_move();
-        for (i, &r) in regs.iter().enumerate() {
-            let read_only = i < 15 && written.is_some_and(|w| w >> i & 1 == 0);
-            let v = b.ins().load(
-                types::I32,
-                if read_only { pure } else { mf },
-                core,
-                (offset_of!(Core, r) + 4 * i) as i32,
-            );
-            b.def_var(r, v);
-        }
+        let read_only = written.map_or(0, |w| !w & 0x7fff);
         let flag_at = [
             offset_of!(Core, n),
             offset_of!(Core, z),
@@ -284,7 +282,9 @@ impl<'a> Translator<'a> {
             sram,
             claims_self,
             claims_other,
-            regs,
+            known: [None; 16],
+            main_line: Vec::new(),
+            read_only,
             flags,
             cyc,
             ctx,
@@ -327,6 +327,7 @@ impl<'a> Translator<'a> {
                 // sake, which must not reach the code after the label.
                 (t.pend_cyc, t.pend_n) = (0, 0);
                 t.b.switch_to_block(l);
+                t.main_line.clear();
                 live = true;
             }
             if !live {
@@ -335,6 +336,7 @@ impl<'a> Translator<'a> {
             if t.timed {
                 t.deadline_check(ins.pc);
             }
+            t.mark_main_line();
             live = t.instr(ins, targets[i].map(|j| (j, labels[j], bound[j], j <= i)));
         }
         if live {
@@ -347,13 +349,6 @@ impl<'a> Translator<'a> {
         debug_assert!(written.is_none_or(|w| t.written & !w & 0x7fff == 0));
         // The exit: write back and return.
         t.b.switch_to_block(exit);
-        for i in 0..16 {
-            if t.written & (1 << i) != 0 {
-                let v = t.b.use_var(t.regs[i]);
-                t.b.ins()
-                    .store(mf, v, core, (offset_of!(Core, r) + 4 * i) as i32);
-            }
-        }
         let pc = t.b.use_var(exit_pc);
         t.b.ins()
             .store(mf, pc, core, (offset_of!(Core, r) + 4 * 15) as i32);
@@ -421,13 +416,48 @@ impl<'a> Translator<'a> {
         if r == 15 {
             return self.c32(pc.wrapping_add(4));
         }
-        self.b.use_var(self.regs[(r & 15) as usize])
+        let r = (r & 15) as usize;
+        if let Some(v) = self.known(r) {
+            return v;
+        }
+        let flags = match self.read_only >> r & 1 {
+            1 => self.mf.with_readonly().with_can_move(),
+            _ => self.mf,
+        };
+        let at = (offset_of!(Core, r) + 4 * r) as i32;
+        let v = self.b.ins().load(types::I32, flags, self.core, at);
+        self.known[r] = Some((v, self.block()));
+        v
     }
 
     pub(super) fn set(&mut self, r: u8, v: Value) {
         let r = (r & 15) as usize;
         self.written |= 1 << r;
-        self.b.def_var(self.regs[r], v);
+        let at = (offset_of!(Core, r) + 4 * r) as i32;
+        self.b.ins().store(self.mf, v, self.core, at);
+        self.known[r] = Some((v, self.block()));
+    }
+
+    /// Register `r`'s value as last loaded or stored, where the block of that dominates
+    /// the current one (the same block, or one of [`Translator::main_line`]).
+    fn known(&mut self, r: usize) -> Option<Value> {
+        let (v, at) = self.known[r]?;
+        (at == self.block() || self.main_line.contains(&at)).then_some(v)
+    }
+
+    fn block(&self) -> Block {
+        self.b
+            .current_block()
+            .expect("the translation stands in a block")
+    }
+
+    /// Records the current block as the start of an instruction (see
+    /// [`Translator::main_line`]).
+    pub(super) fn mark_main_line(&mut self) {
+        let b = self.block();
+        if self.main_line.last() != Some(&b) {
+            self.main_line.push(b);
+        }
     }
 
     /// Flag `f` (0 or 1, i8) from its held form ([`Flags`]).
