@@ -107,14 +107,14 @@ pub(super) struct Translator<'a> {
     pub(super) ctx: Value,
     pub(super) stalls: Variable,
     pub(super) q: Variable,
-    pub(super) exit_pc: Variable,
-    pub(super) exit_why: Variable,
     /// Cycles not yet added to `cyc` and instructions not yet added to [`Ctx::retired`]
     /// (straight-line code; the cycles are added before each memory access and branch,
     /// the instructions only where control flow leaves or joins).
     pub(super) pend_cyc: u64,
     pub(super) pend_n: u64,
-    pub(super) exit: Block,
+    /// The exits' blocks, one per reason ([`Exit`] as index): each writes back and returns
+    /// its reason. A leaving path stores the PC itself, so the exits take no PC or reason.
+    pub(super) exits: [Option<Block>; 4],
     pub(super) written: u16,
     /// Confined code only (see the parent module): the bank mask and the journal.
     pub(super) confined: Option<Confined>,
@@ -196,8 +196,6 @@ impl<'a> Translator<'a> {
         let cyc = b.declare_var(types::I64);
         let stalls = b.declare_var(types::I64);
         let q = b.declare_var(types::I64);
-        let exit_pc = b.declare_var(types::I32);
-        let exit_why = b.declare_var(types::I32);
         // A register the region never writes is stored nowhere in it (no helper the code
         // calls touches the core's registers), so its loads are pure: cranelift merges
         // them and places them where first needed.
@@ -245,9 +243,6 @@ impl<'a> Translator<'a> {
         b.def_var(stalls, v);
         let zero = b.ins().iconst(types::I64, 0);
         b.def_var(q, zero);
-        let zero32 = b.ins().iconst(types::I32, 0);
-        b.def_var(exit_pc, zero32);
-        b.def_var(exit_why, zero32);
         let confined = confined.then(|| {
             let len = b.declare_var(types::I64);
             let v = ptr(&mut b, offset_of!(Ctx, journal_len));
@@ -273,7 +268,6 @@ impl<'a> Translator<'a> {
                 io,
             }
         });
-        let exit = b.create_block();
         let mut t = Translator {
             b,
             mf,
@@ -290,11 +284,9 @@ impl<'a> Translator<'a> {
             ctx,
             stalls,
             q,
-            exit_pc,
-            exit_why,
             pend_cyc: 0,
             pend_n: 0,
-            exit,
+            exits: [None; 4],
             written: 0,
             confined,
             alias_first: instrs[0].pc.wrapping_sub(SRAM_ALIAS_BASE) < 0x4_0000,
@@ -347,29 +339,29 @@ impl<'a> Translator<'a> {
         }
         // The loads made pure above were of registers the translation never wrote.
         debug_assert!(written.is_none_or(|w| t.written & !w & 0x7fff == 0));
-        // The exit: write back and return.
-        t.b.switch_to_block(exit);
-        let pc = t.b.use_var(exit_pc);
-        t.b.ins()
-            .store(mf, pc, core, (offset_of!(Core, r) + 4 * 15) as i32);
-        let values = [N, Z, C, V].map(|f| t.flag(f));
-        for (v, at) in values.into_iter().zip(flag_at) {
-            t.b.ins().store(mf, v, core, at as i32);
+        // The exits: write back and return.
+        for (why, exit) in t.exits.into_iter().enumerate() {
+            let Some(exit) = exit else { continue };
+            t.b.switch_to_block(exit);
+            let values = [N, Z, C, V].map(|f| t.flag(f));
+            for (v, at) in values.into_iter().zip(flag_at) {
+                t.b.ins().store(mf, v, core, at as i32);
+            }
+            let v = t.b.use_var(cyc);
+            t.b.ins().store(mf, v, core, offset_of!(Core, cycle) as i32);
+            let v = t.b.use_var(stalls);
+            let stalls_ptr = t.ctx_ptr(offset_of!(Ctx, stalls));
+            t.b.ins().store(mf, v, stalls_ptr, 0);
+            let v = t.b.use_var(q);
+            t.b.ins().store(mf, v, ctx, offset_of!(Ctx, q) as i32);
+            if let Some(c) = t.confined {
+                let v = t.b.use_var(c.len);
+                t.b.ins()
+                    .store(mf, v, ctx, offset_of!(Ctx, journal_len) as i32);
+            }
+            let why = t.b.ins().iconst(types::I32, why as i64);
+            t.b.ins().return_(&[why]);
         }
-        let v = t.b.use_var(cyc);
-        t.b.ins().store(mf, v, core, offset_of!(Core, cycle) as i32);
-        let v = t.b.use_var(stalls);
-        let stalls_ptr = t.ctx_ptr(offset_of!(Ctx, stalls));
-        t.b.ins().store(mf, v, stalls_ptr, 0);
-        let v = t.b.use_var(q);
-        t.b.ins().store(mf, v, ctx, offset_of!(Ctx, q) as i32);
-        if let Some(c) = t.confined {
-            let v = t.b.use_var(c.len);
-            t.b.ins()
-                .store(mf, v, ctx, offset_of!(Ctx, journal_len) as i32);
-        }
-        let why = t.b.use_var(exit_why);
-        t.b.ins().return_(&[why]);
         t.b.seal_all_blocks();
         (t.b, bound[0])
     }
@@ -512,14 +504,14 @@ impl<'a> Translator<'a> {
         }
     }
 
-    /// Jumps to the exit with PC `pc` and reason `why` (pending counts flushed first).
+    /// Stores PC `pc` and jumps to the exit for `why` (pending counts flushed first).
     pub(super) fn leave(&mut self, pc: Value, why: Exit) {
         self.flush();
         self.add_retired();
-        self.b.def_var(self.exit_pc, pc);
-        let w = self.b.ins().iconst(types::I32, why as i64);
-        self.b.def_var(self.exit_why, w);
-        self.b.ins().jump(self.exit, &[]);
+        let at = (offset_of!(Core, r) + 4 * 15) as i32;
+        self.b.ins().store(self.mf, pc, self.core, at);
+        let exit = *self.exits[why as usize].get_or_insert_with(|| self.b.create_block());
+        self.b.ins().jump(exit, &[]);
     }
 
     /// Confined code: whether the journal has room for [`Confined::room`] more entries.
