@@ -58,16 +58,19 @@
 //! control flow leaves the code or joins a label, so no host register carries the count
 //! around a loop.
 //!
-//! **Registers and layout.** A region keeps the guest registers, the flags and the cycle
-//! count in cranelift variables; of the context, only what nearly every access uses (the
-//! SRAM and the bank claims) is held from the entry, and the rest (flash, code pages, the
-//! journal and its capacity, the stall counter) is loaded where it is used, so that fewer
-//! values compete for the host's registers (x86-64 has 5 callee-saved ones to keep a value
-//! across a helper call in, and the converter flavour's helper calls make the pressure
-//! worse). A register the region never writes ([`crate::accel::memo`]'s `usage`) is loaded by a
-//! pure load, which cranelift drops where the region never reads it (a written one's load
-//! stays: placed at its first use it could follow the exit's store of it). The demo: 13.75
-//! → 13.59 G host instructions on the plain board, 17.85 → 17.66 G with converters. Exits,
+//! **Registers and layout.** A region keeps the flags and the cycle count in cranelift
+//! variables; the guest registers stay in the core (`Core::r`): a read is a load, a write a
+//! store, and a value is reused where its load or store dominates (the same block, or an
+//! instruction's start since the last label), so that no exit carries them (an exit's
+//! arguments were most of the register allocator's work: the demo 15.76 → 15.12 G host
+//! instructions plain, 20.22 → 19.61 G with converters, and the native code no slower). Each
+//! leaving path stores its PC, and there is one exit block per reason. Of the context, only
+//! what nearly every access uses (the SRAM and the bank claims) is held from the entry, and
+//! the rest (flash, code pages, the journal and its capacity, the stall counter) is loaded
+//! where it is used, so that fewer values compete for the host's registers (x86-64 has 5
+//! callee-saved ones to keep a value across a helper call in). A register the region never
+//! writes ([`crate::accel::memo`]'s `usage`) is loaded by a pure load, which cranelift merges
+//! and places where first needed. Exits,
 //! helper calls and the general path's blocks are marked cold, so cranelift lays them
 //! after the hot path (the demo's simulated I1 misses −8 % plain, −5 % with converters).
 //!

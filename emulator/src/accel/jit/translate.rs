@@ -1,7 +1,9 @@
-//! A region's function: the entry (guest registers and flags loaded into cranelift
-//! variables), straight-line code with pending cycle and instruction counts, branches
-//! inside the region as native jumps (back edges checking the deadline), the exits, and
-//! the write-back. The instruction groups are in [`super::alu`] and [`super::memory`].
+//! A region's function: the entry (flags and cycle loaded into cranelift variables; the
+//! guest registers stay in the core, each read a load and each write a store, a value
+//! reused where its load or store dominates), straight-line code with pending cycle and
+//! instruction counts, branches inside the region as native jumps (back edges checking
+//! the deadline), the exits, and the write-back. The instruction groups are in
+//! [`super::alu`] and [`super::memory`].
 
 use super::abi::{Ctx, Exit};
 use super::scan::{bounds, branch_of, RegionInstr};
@@ -87,7 +89,17 @@ pub(super) struct Translator<'a> {
     pub(super) claims_self: Value,
     /// `None` in [`Flavour::Solo`] code: no access waits.
     pub(super) claims_other: Option<Value>,
-    pub(super) regs: [Variable; 16],
+    /// The guest registers live in the core ([`Core::r`]): a write is a store there, a
+    /// read a load, so no exit carries them. The value last loaded or stored of each,
+    /// with the block where: reused where that block dominates (see
+    /// [`Translator::known`]).
+    pub(super) known: [Option<(Value, Block)>; 16],
+    /// The blocks the translation stood in at an instruction's start since the last label:
+    /// each dominates the code after it up to the next label (every path from one
+    /// instruction's start to the next runs through that instruction's code).
+    pub(super) main_line: Vec<Block>,
+    /// The registers the region never writes (their loads are pure).
+    pub(super) read_only: u16,
     pub(super) flags: Flags,
     pub(super) cyc: Variable,
     /// The call's [`Ctx`]: instructions retired are added to [`Ctx::retired`] in place
@@ -95,14 +107,14 @@ pub(super) struct Translator<'a> {
     pub(super) ctx: Value,
     pub(super) stalls: Variable,
     pub(super) q: Variable,
-    pub(super) exit_pc: Variable,
-    pub(super) exit_why: Variable,
     /// Cycles not yet added to `cyc` and instructions not yet added to [`Ctx::retired`]
     /// (straight-line code; the cycles are added before each memory access and branch,
     /// the instructions only where control flow leaves or joins).
     pub(super) pend_cyc: u64,
     pub(super) pend_n: u64,
-    pub(super) exit: Block,
+    /// The exits' blocks, one per reason ([`Exit`] as index): each writes back and returns
+    /// its reason. A leaving path stores the PC itself, so the exits take no PC or reason.
+    pub(super) exits: [Option<Block>; 4],
     pub(super) written: u16,
     /// Confined code only (see the parent module): the bank mask and the journal.
     pub(super) confined: Option<Confined>,
@@ -176,7 +188,6 @@ impl<'a> Translator<'a> {
         let claims_self = ptr(&mut b, offset_of!(Ctx, claims_self));
         let claims_other = (!solo).then(|| ptr(&mut b, offset_of!(Ctx, claims_other)));
         let stalls_ptr = ptr(&mut b, offset_of!(Ctx, stalls));
-        let regs = std::array::from_fn(|_| b.declare_var(types::I32));
         let flags = Flags {
             nz: b.declare_var(types::I32),
             c: b.declare_var(types::I8),
@@ -185,28 +196,13 @@ impl<'a> Translator<'a> {
         let cyc = b.declare_var(types::I64);
         let stalls = b.declare_var(types::I64);
         let q = b.declare_var(types::I64);
-        let exit_pc = b.declare_var(types::I32);
-        let exit_why = b.declare_var(types::I32);
-        // A register the region never writes is stored nowhere in it (the exit writes back
-        // only the written ones, and no helper the code calls touches the core's registers),
-        // so its load at the entry is pure: cranelift drops it where the region never reads
-        // the register and places it where first read. A written register's load stays
-        // where it is: placed at its first use, it could come after the exit's store of the
-        // register (a swap of two registers).
+        // A register the region never writes is stored nowhere in it (no helper the code
+        // calls touches the core's registers), so its loads are pure: cranelift merges
+        // them and places them where first needed.
         let written = instrs.iter().try_fold(0u16, |w, i| {
             crate::accel::memo::usage(&i.instr).map(|u| w | u.writes)
         });
-        let pure = mf.with_readonly().with_can_move();
-        for (i, &r) in regs.iter().enumerate() {
-            let read_only = i < 15 && written.is_some_and(|w| w >> i & 1 == 0);
-            let v = b.ins().load(
-                types::I32,
-                if read_only { pure } else { mf },
-                core,
-                (offset_of!(Core, r) + 4 * i) as i32,
-            );
-            b.def_var(r, v);
-        }
+        let read_only = written.map_or(0, |w| !w & 0x7fff);
         let flag_at = [
             offset_of!(Core, n),
             offset_of!(Core, z),
@@ -247,9 +243,6 @@ impl<'a> Translator<'a> {
         b.def_var(stalls, v);
         let zero = b.ins().iconst(types::I64, 0);
         b.def_var(q, zero);
-        let zero32 = b.ins().iconst(types::I32, 0);
-        b.def_var(exit_pc, zero32);
-        b.def_var(exit_why, zero32);
         let confined = confined.then(|| {
             let len = b.declare_var(types::I64);
             let v = ptr(&mut b, offset_of!(Ctx, journal_len));
@@ -275,7 +268,6 @@ impl<'a> Translator<'a> {
                 io,
             }
         });
-        let exit = b.create_block();
         let mut t = Translator {
             b,
             mf,
@@ -284,17 +276,17 @@ impl<'a> Translator<'a> {
             sram,
             claims_self,
             claims_other,
-            regs,
+            known: [None; 16],
+            main_line: Vec::new(),
+            read_only,
             flags,
             cyc,
             ctx,
             stalls,
             q,
-            exit_pc,
-            exit_why,
             pend_cyc: 0,
             pend_n: 0,
-            exit,
+            exits: [None; 4],
             written: 0,
             confined,
             alias_first: instrs[0].pc.wrapping_sub(SRAM_ALIAS_BASE) < 0x4_0000,
@@ -327,6 +319,7 @@ impl<'a> Translator<'a> {
                 // sake, which must not reach the code after the label.
                 (t.pend_cyc, t.pend_n) = (0, 0);
                 t.b.switch_to_block(l);
+                t.main_line.clear();
                 live = true;
             }
             if !live {
@@ -335,6 +328,7 @@ impl<'a> Translator<'a> {
             if t.timed {
                 t.deadline_check(ins.pc);
             }
+            t.mark_main_line();
             live = t.instr(ins, targets[i].map(|j| (j, labels[j], bound[j], j <= i)));
         }
         if live {
@@ -345,36 +339,29 @@ impl<'a> Translator<'a> {
         }
         // The loads made pure above were of registers the translation never wrote.
         debug_assert!(written.is_none_or(|w| t.written & !w & 0x7fff == 0));
-        // The exit: write back and return.
-        t.b.switch_to_block(exit);
-        for i in 0..16 {
-            if t.written & (1 << i) != 0 {
-                let v = t.b.use_var(t.regs[i]);
-                t.b.ins()
-                    .store(mf, v, core, (offset_of!(Core, r) + 4 * i) as i32);
+        // The exits: write back and return.
+        for (why, exit) in t.exits.into_iter().enumerate() {
+            let Some(exit) = exit else { continue };
+            t.b.switch_to_block(exit);
+            let values = [N, Z, C, V].map(|f| t.flag(f));
+            for (v, at) in values.into_iter().zip(flag_at) {
+                t.b.ins().store(mf, v, core, at as i32);
             }
+            let v = t.b.use_var(cyc);
+            t.b.ins().store(mf, v, core, offset_of!(Core, cycle) as i32);
+            let v = t.b.use_var(stalls);
+            let stalls_ptr = t.ctx_ptr(offset_of!(Ctx, stalls));
+            t.b.ins().store(mf, v, stalls_ptr, 0);
+            let v = t.b.use_var(q);
+            t.b.ins().store(mf, v, ctx, offset_of!(Ctx, q) as i32);
+            if let Some(c) = t.confined {
+                let v = t.b.use_var(c.len);
+                t.b.ins()
+                    .store(mf, v, ctx, offset_of!(Ctx, journal_len) as i32);
+            }
+            let why = t.b.ins().iconst(types::I32, why as i64);
+            t.b.ins().return_(&[why]);
         }
-        let pc = t.b.use_var(exit_pc);
-        t.b.ins()
-            .store(mf, pc, core, (offset_of!(Core, r) + 4 * 15) as i32);
-        let values = [N, Z, C, V].map(|f| t.flag(f));
-        for (v, at) in values.into_iter().zip(flag_at) {
-            t.b.ins().store(mf, v, core, at as i32);
-        }
-        let v = t.b.use_var(cyc);
-        t.b.ins().store(mf, v, core, offset_of!(Core, cycle) as i32);
-        let v = t.b.use_var(stalls);
-        let stalls_ptr = t.ctx_ptr(offset_of!(Ctx, stalls));
-        t.b.ins().store(mf, v, stalls_ptr, 0);
-        let v = t.b.use_var(q);
-        t.b.ins().store(mf, v, ctx, offset_of!(Ctx, q) as i32);
-        if let Some(c) = t.confined {
-            let v = t.b.use_var(c.len);
-            t.b.ins()
-                .store(mf, v, ctx, offset_of!(Ctx, journal_len) as i32);
-        }
-        let why = t.b.use_var(exit_why);
-        t.b.ins().return_(&[why]);
         t.b.seal_all_blocks();
         (t.b, bound[0])
     }
@@ -421,13 +408,48 @@ impl<'a> Translator<'a> {
         if r == 15 {
             return self.c32(pc.wrapping_add(4));
         }
-        self.b.use_var(self.regs[(r & 15) as usize])
+        let r = (r & 15) as usize;
+        if let Some(v) = self.known(r) {
+            return v;
+        }
+        let flags = match self.read_only >> r & 1 {
+            1 => self.mf.with_readonly().with_can_move(),
+            _ => self.mf,
+        };
+        let at = (offset_of!(Core, r) + 4 * r) as i32;
+        let v = self.b.ins().load(types::I32, flags, self.core, at);
+        self.known[r] = Some((v, self.block()));
+        v
     }
 
     pub(super) fn set(&mut self, r: u8, v: Value) {
         let r = (r & 15) as usize;
         self.written |= 1 << r;
-        self.b.def_var(self.regs[r], v);
+        let at = (offset_of!(Core, r) + 4 * r) as i32;
+        self.b.ins().store(self.mf, v, self.core, at);
+        self.known[r] = Some((v, self.block()));
+    }
+
+    /// Register `r`'s value as last loaded or stored, where the block of that dominates
+    /// the current one (the same block, or one of [`Translator::main_line`]).
+    fn known(&mut self, r: usize) -> Option<Value> {
+        let (v, at) = self.known[r]?;
+        (at == self.block() || self.main_line.contains(&at)).then_some(v)
+    }
+
+    fn block(&self) -> Block {
+        self.b
+            .current_block()
+            .expect("the translation stands in a block")
+    }
+
+    /// Records the current block as the start of an instruction (see
+    /// [`Translator::main_line`]).
+    pub(super) fn mark_main_line(&mut self) {
+        let b = self.block();
+        if self.main_line.last() != Some(&b) {
+            self.main_line.push(b);
+        }
     }
 
     /// Flag `f` (0 or 1, i8) from its held form ([`Flags`]).
@@ -482,14 +504,14 @@ impl<'a> Translator<'a> {
         }
     }
 
-    /// Jumps to the exit with PC `pc` and reason `why` (pending counts flushed first).
+    /// Stores PC `pc` and jumps to the exit for `why` (pending counts flushed first).
     pub(super) fn leave(&mut self, pc: Value, why: Exit) {
         self.flush();
         self.add_retired();
-        self.b.def_var(self.exit_pc, pc);
-        let w = self.b.ins().iconst(types::I32, why as i64);
-        self.b.def_var(self.exit_why, w);
-        self.b.ins().jump(self.exit, &[]);
+        let at = (offset_of!(Core, r) + 4 * 15) as i32;
+        self.b.ins().store(self.mf, pc, self.core, at);
+        let exit = *self.exits[why as usize].get_or_insert_with(|| self.b.create_block());
+        self.b.ins().jump(exit, &[]);
     }
 
     /// Confined code: whether the journal has room for [`Confined::room`] more entries.
