@@ -109,7 +109,7 @@ mod record;
 use based::{based_of, Based};
 pub(crate) use record::usage;
 pub(crate) use record::Recording;
-use record::{flags_of, holds, peek, poke, special_of, words, Entry, Save, Word};
+use record::{flags_of, holds, peek, poke, special_of, words, Entry, Save, Stores, Word};
 
 /// Memos kept per call site (the least recently used goes first): a key at rest calls
 /// its update in up to 17 states in turn (its differentiator ring's positions; on a
@@ -196,7 +196,7 @@ struct Memo {
     reads: Vec<Word>,
     /// Stored bytes, by word, with their final values (but for words stored back as they
     /// were read, which the inputs' match already guarantees).
-    writes: Vec<Word>,
+    writes: Stores,
     /// One past the last byte of any of those words (checked against the SRAM's length
     /// once per use).
     end: usize,
@@ -336,7 +336,10 @@ impl Memo {
                 unsafe { poke(sram, off, old & !mask | value) };
             }
         };
-        for w in &self.writes {
+        for &(off, value) in &self.writes.full {
+            store(off, u32::MAX, value);
+        }
+        for w in &self.writes.part {
             store(w.off, w.mask, w.value);
         }
         for &(off, r) in &self.saved {
@@ -431,10 +434,14 @@ fn page_groups(pages: impl Iterator<Item = u32>, len: usize) -> Vec<(u32, u64)> 
 /// site was applied after it: `i` first, the others kept in order behind it (the last
 /// dropped when `i` is new).
 fn follow(next: &mut [u8; NEXTS], i: usize) {
+    const _: () = assert!(NEXTS == 4);
     let i = i as u8;
     let at = next.iter().position(|&n| n == i).unwrap_or(NEXTS - 1);
-    next.copy_within(0..at, 1);
-    next[0] = i;
+    // As one word (no call of `memmove` for three bytes): those before `at` move up one,
+    // those after it stay.
+    let v = u32::from_le_bytes(*next);
+    let after = u32::MAX.checked_shl(8 * (at as u32 + 1)).unwrap_or(0);
+    *next = (v & after | (v << 8) & !after & !0xff | u32::from(i)).to_le_bytes();
 }
 
 impl Site {
@@ -907,7 +914,7 @@ impl Memos {
             banks,
             io_banks: rec.io_banks,
             io: rec.io,
-            writes,
+            writes: Stores::new(&writes),
             based: based.map(Box::new),
             saved,
             lr,

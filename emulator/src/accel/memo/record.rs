@@ -182,6 +182,24 @@ pub(super) unsafe fn holds(sram: &[u8], ws: &[Word]) -> bool {
     rest.iter().fold(0, |d, w| d | differ(w)) == 0
 }
 
+/// A memo's stored words as lists a hit runs down: those of all four bytes (most) as
+/// their offsets and values, the others as [`Word`]s.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Stores {
+    pub(super) full: Box<[(u32, u32)]>,
+    pub(super) part: Box<[Word]>,
+}
+
+impl Stores {
+    pub(super) fn new(ws: &[Word]) -> Stores {
+        let (full, part): (Vec<Word>, Vec<Word>) = ws.iter().partition(|w| w.mask == u32::MAX);
+        Stores {
+            full: full.iter().map(|w| (w.off, w.value)).collect(),
+            part: part.into(),
+        }
+    }
+}
+
 /// The architectural state a recording starts from.
 #[derive(Clone, Debug)]
 pub(super) struct Entry {
