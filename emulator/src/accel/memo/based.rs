@@ -161,6 +161,7 @@ impl Based {
     /// Whether the words loaded through the base, moved by `delta` bytes (the base's
     /// value now less `at`), hold their bytes in `sram`, each in its bank and apart from
     /// the call's other accesses.
+    #[inline]
     pub(super) fn matches(&mut self, delta: u32, sram: &[u8]) -> bool {
         if delta == 0 {
             return self.words.iter().all(|w| {
@@ -169,6 +170,12 @@ impl Based {
                     && unsafe { peek(sram, w.off) } & w.mask == w.value
             });
         }
+        self.matches_moved(delta, sram)
+    }
+
+    /// [`Based::matches`] with `delta` not 0.
+    #[inline(never)]
+    fn matches_moved(&mut self, delta: u32, sram: &[u8]) -> bool {
         let i = self.moved(delta);
         let (words, m) = (&self.words, &self.moved[i]);
         m.end <= sram.len()

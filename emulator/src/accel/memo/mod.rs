@@ -98,7 +98,6 @@ use crate::bus::sram_bank;
 use crate::core::{Core, RunState};
 use crate::exec::literal_address;
 use crate::system::System;
-use std::collections::{BTreeMap, BTreeSet};
 use tactus_isa::decode::{self, AluOp, Instr};
 // The flag bits of [`Usage`]: N, Z, C, V as `effects` numbers them.
 use tactus_isa::effects::{self, C, N, V, Z};
@@ -110,7 +109,7 @@ mod record;
 use based::{based_of, Based};
 pub(crate) use record::usage;
 pub(crate) use record::Recording;
-use record::{differ, flags_of, peek, poke, special_of, words, Entry, Save, Word};
+use record::{flags_of, holds, peek, poke, special_of, words, Entry, Save, Stores, Word};
 
 /// Memos kept per call site (the least recently used goes first): a key at rest calls
 /// its update in up to 17 states in turn (its differentiator ring's positions; on a
@@ -197,12 +196,16 @@ struct Memo {
     reads: Vec<Word>,
     /// Stored bytes, by word, with their final values (but for words stored back as they
     /// were read, which the inputs' match already guarantees).
-    writes: Vec<Word>,
+    writes: Stores,
     /// One past the last byte of any of those words (checked against the SRAM's length
     /// once per use).
     end: usize,
-    /// 256-byte pages of the stored bytes (each once).
-    pages: Vec<u32>,
+    /// 256-byte pages of the stored bytes, as groups of eight of [`System::code_pages`]:
+    /// the first page's index and a mask of the group's bytes (`0xff` per page stored to),
+    /// so that a hit reads eight pages' flags at once ([`Memo::stores_to_code`]).
+    pages: Vec<(u32, u64)>,
+    /// Words a hit may journal: `writes`, `saved` and `lr`'s.
+    stores: usize,
     /// Registers and flags set by the call (r15 among them), and their values: per
     /// register, all ones when the call leaves it as it was, else 0 (r_i becomes
     /// `r_i & keep[i] | regs_out[i]`, lane by lane with no branch) ...
@@ -214,8 +217,10 @@ struct Memo {
     flags_out: u8,
     cycles: u64,
     instructions: u64,
-    /// Each bank's last claim by the core, from the entry cycle (`u64::MAX`: none).
-    claims: [u64; BANKS],
+    /// The banks the core claimed and its last claim of each, from the entry cycle (the
+    /// first `claimed` of them).
+    claims: [(u8, u64); BANKS],
+    claimed: u8,
     /// SRAM banks the call fetched from, loaded from or stored to.
     banks: u8,
     /// The recording's [`Recording::io_banks`] and accesses to them (cycles from the
@@ -248,25 +253,38 @@ impl Memo {
         if self.epoch != sys.code_epoch {
             return false;
         }
-        let regs = core.r.iter().zip(&self.live).zip(&self.regs_in);
-        if regs.fold(0, |d, ((&r, &live), &v)| d | ((r & live) ^ v)) != 0 {
-            return false;
+        // Lane by lane with no branch (the compiler's vector instructions).
+        let mut d = 0;
+        for i in 0..16 {
+            d |= (core.r[i] & self.live[i]) ^ self.regs_in[i];
         }
-        if flags_of(core) & self.live_flags != self.flags_in {
+        if d != 0 || flags_of(core) & self.live_flags != self.flags_in {
             return false;
         }
         let sram = &sys.sram[..];
         if self.end > sram.len() {
             return false;
         }
-        let (quads, rest) = self.reads.as_chunks::<4>();
         // SAFETY: every word's offset + 4 is at most `self.end`.
-        quads.iter().all(|q| unsafe { differ(sram, q) } == 0)
-            && rest
-                .iter()
-                .all(|w| unsafe { peek(sram, w.off) } & w.mask == w.value)
-            && (self.based.as_deref_mut())
-                .is_none_or(|b| b.matches(core.r[b.reg as usize].wrapping_sub(b.at), sram))
+        let held = unsafe { holds(sram, &self.reads) };
+        held && (self.based.as_deref_mut())
+            .is_none_or(|b| b.matches(core.r[b.reg as usize].wrapping_sub(b.at), sram))
+    }
+
+    /// Whether the memo stores to a page of [`System::code_pages`] (its pages' flags read
+    /// eight at a time).
+    #[inline]
+    fn stores_to_code(&self, sys: &System) -> bool {
+        let flags = &sys.code_pages[..];
+        self.pages.iter().any(|&(first, mask)| {
+            let first = first as usize;
+            // `bool` is one byte, 0 or 1 (its groups lie in the flags: checked here).
+            first + 8 > flags.len()
+                // SAFETY: `first + 8 <= flags.len()`.
+                || unsafe { std::ptr::read_unaligned(flags.as_ptr().add(first) as *const u64) }
+                    & mask
+                    != 0
+        })
     }
 
     /// Before [`Memo::apply`] at `entry`: its accesses to the DMA's banks into a window's
@@ -304,65 +322,48 @@ impl Memo {
         // `inputs_match` has checked `self.end` against the SRAM's length (which never
         // changes): only a memo whose inputs matched is applied.
         assert!(self.end <= sram.len());
-        // Four words at a time are checked first: where all four hold their bytes already
-        // (no word of them is stored), the word-by-word loop would do nothing either.
-        let (quads, rest) = self.writes.as_chunks::<4>();
         let mut j = journal;
         // The return address, before the registers are set (the call may write LR).
         let lr = core.r[14];
-        let mut store = |sram: &mut [u8], w: &Word| {
+        let mut store = |off: u32, mask: u32, value: u32| {
             // SAFETY: every word's offset + 4 is at most `self.end`.
-            let old = unsafe { peek(sram, w.off) };
-            if old & w.mask != w.value {
+            let old = unsafe { peek(sram, off) };
+            if old & mask != value {
                 if let Some(j) = j.as_deref_mut() {
-                    j.push((w.off as u64) << 32 | old as u64);
+                    j.push(u64::from(off) << 32 | u64::from(old));
                 }
                 // SAFETY: as above.
-                unsafe { poke(sram, w.off, old & !w.mask | w.value) };
+                unsafe { poke(sram, off, old & !mask | value) };
             }
         };
-        for q in quads {
-            // SAFETY: as above.
-            if unsafe { differ(sram, q) } != 0 {
-                q.iter().for_each(|w| store(sram, w));
-            }
+        for &(off, value) in &self.writes.full {
+            store(off, u32::MAX, value);
         }
-        rest.iter().for_each(|w| store(sram, w));
+        for w in &self.writes.part {
+            store(w.off, w.mask, w.value);
+        }
         for &(off, r) in &self.saved {
-            store(
-                sram,
-                &Word {
-                    off,
-                    mask: u32::MAX,
-                    value: core.r[r as usize],
-                },
-            );
+            store(off, u32::MAX, core.r[r as usize & 15]);
         }
         if let Some(off) = self.lr {
-            store(
-                sram,
-                &Word {
-                    off,
-                    mask: u32::MAX,
-                    value: lr,
-                },
-            );
+            store(off, u32::MAX, lr);
         }
-        for ((r, &keep), &v) in core.r.iter_mut().zip(&self.keep).zip(&self.regs_out) {
-            *r = *r & keep | v;
+        // Lane by lane with no branch.
+        for i in 0..16 {
+            core.r[i] = core.r[i] & self.keep[i] | self.regs_out[i];
         }
         if self.lr.is_some() {
             // `POP {..., pc}` of the word holding LR: its bit 0 is the Thumb bit, compared.
             core.r[15] = lr & !1;
         }
-        let f = (flags_of(core) & !self.out_flags) | self.flags_out;
-        (core.n, core.z, core.c, core.v) = (f & N != 0, f & Z != 0, f & C != 0, f & V != 0);
+        if self.out_flags != 0 {
+            let f = (flags_of(core) & !self.out_flags) | self.flags_out;
+            (core.n, core.z, core.c, core.v) = (f & N != 0, f & Z != 0, f & C != 0, f & V != 0);
+        }
         let entry = core.cycle;
         let k = core.id & 1;
-        for (b, &d) in self.claims.iter().enumerate() {
-            if d != u64::MAX {
-                sys.bank_claim[b][k] = entry + d;
-            }
+        for &(b, d) in &self.claims[..self.claimed as usize] {
+            sys.bank_claim[b as usize][k] = entry + d;
         }
         core.cycle = entry + self.cycles;
         core.instructions += self.instructions;
@@ -410,14 +411,37 @@ struct Site {
     seen: Option<(u16, [u32; 8])>,
 }
 
+/// The groups of eight pages ([`Memo::pages`]) of `pages` (ascending, repeats allowed),
+/// each within the `len` flags of [`System::code_pages`] (`len` at least 8).
+fn page_groups(pages: impl Iterator<Item = u32>, len: usize) -> Vec<(u32, u64)> {
+    let last = len.saturating_sub(8) as u32;
+    let mut groups: Vec<(u32, u64)> = Vec::new();
+    for p in pages {
+        match groups.last_mut() {
+            Some((first, mask)) if p >= *first && p < *first + 8 => {
+                *mask |= 0xff << (8 * (p - *first));
+            }
+            _ => {
+                let first = p.min(last);
+                groups.push((first, 0xff << (8 * (p - first))));
+            }
+        }
+    }
+    groups
+}
+
 /// Notes in a memo's successors `next` ([`Memo::next`]) that the memo at index `i` of its
 /// site was applied after it: `i` first, the others kept in order behind it (the last
 /// dropped when `i` is new).
 fn follow(next: &mut [u8; NEXTS], i: usize) {
+    const _: () = assert!(NEXTS == 4);
     let i = i as u8;
     let at = next.iter().position(|&n| n == i).unwrap_or(NEXTS - 1);
-    next.copy_within(0..at, 1);
-    next[0] = i;
+    // As one word (no call of `memmove` for three bytes): those before `at` move up one,
+    // those after it stay.
+    let v = u32::from_le_bytes(*next);
+    let after = u32::MAX.checked_shl(8 * (at as u32 + 1)).unwrap_or(0);
+    *next = (v & after | (v << 8) & !after & !0xff | u32::from(i)).to_le_bytes();
 }
 
 impl Site {
@@ -629,9 +653,9 @@ impl Memos {
         site.quiet = site.quiet.saturating_add(1);
         if let Some(i) = found {
             let m = &mut site.memos[i];
-            let room = journal.as_deref().is_none_or(|j| {
-                j.capacity() - j.len() >= m.writes.len() + m.saved.len() + m.lr.iter().len()
-            });
+            let room = journal
+                .as_deref()
+                .is_none_or(|j| j.capacity() - j.len() >= m.stores);
             // The DMA's banks (`L`) are not allowed in a window on a board with an I/O,
             // but a memo recorded with the same `L` holds its accesses to them for the
             // window's log.
@@ -641,7 +665,7 @@ impl Memos {
                 && m.banks & !(allowed | io_banks) == 0
                 && (m.banks & io_banks == 0 || m.io_banks == io_banks)
                 && room
-                && m.pages.iter().all(|&p| !sys.code_pages[p as usize]);
+                && !m.stores_to_code(sys);
             if !fits {
                 return Try::Run;
             }
@@ -756,9 +780,11 @@ impl Memos {
             return;
         }
         // The inputs: bytes loaded before any store of the call to them, outside pages of
-        // code; the outputs: every byte stored.
-        let mut stored: BTreeSet<u32> = BTreeSet::new();
-        let mut inputs: BTreeMap<u32, u8> = BTreeMap::new();
+        // code; the outputs: every byte stored. Each byte of each access as one number,
+        // sorted by byte and then by its place in the log: the byte's offset (bits 32-50),
+        // the access's place (bits 10-31), a store (bit 9), a load from a page of code (bit
+        // 8), and the value loaded (bits 0-7).
+        let mut bytes: Vec<u64> = Vec::with_capacity(4 * rec.log.len());
         let mut banks = rec.fetch_banks;
         let based = based_of(&rec);
         let base_bit = based.as_ref().map_or(0, |b| 1u16 << b.reg);
@@ -773,19 +799,28 @@ impl Memos {
             if through.next_if_eq(&n).is_some() {
                 continue;
             }
+            let kind = if a.store { 2 } else { u64::from(a.code) };
             for i in 0..a.size as u32 {
-                let byte = a.off + i;
-                if a.store {
-                    stored.insert(byte);
-                } else if !a.code && !stored.contains(&byte) {
-                    inputs.entry(byte).or_insert((a.value >> (8 * i)) as u8);
-                }
+                let value = u64::from((a.value >> (8 * i)) as u8);
+                bytes.push(u64::from(a.off + i) << 32 | (n as u64) << 10 | kind << 8 | value);
             }
         }
-        let reads = words(inputs.iter().map(|(&b, &x)| (b, x)));
+        bytes.sort_unstable();
+        let (mut inputs, mut stored): (Vec<(u32, u8)>, Vec<u32>) = (Vec::new(), Vec::new());
+        for accesses in bytes.chunk_by(|a, b| a >> 32 == b >> 32) {
+            let byte = (accesses[0] >> 32) as u32;
+            let first_store = accesses.iter().position(|&x| x >> 8 & 3 == 2);
+            let before = &accesses[..first_store.unwrap_or(accesses.len())];
+            if let Some(&x) = before.iter().find(|&&x| x >> 8 & 3 == 0) {
+                inputs.push((byte, x as u8));
+            }
+            if first_store.is_some() {
+                stored.push(byte);
+            }
+        }
+        let reads = words(inputs.into_iter());
         let writes = words(stored.iter().map(|&b| (b, sys.sram[b as usize])));
-        let mut pages: Vec<u32> = writes.iter().map(|w| w.off >> 8).collect();
-        pages.dedup();
+        let pages = page_groups(writes.iter().map(|w| w.off >> 8), sys.code_pages.len());
         // A stored word whose bytes are all inputs, stored back with the values they were
         // read with, already holds them whenever the inputs match: applying it would
         // change nothing (a key at rest rewrites its state), so it is left out of the
@@ -843,11 +878,12 @@ impl Memos {
         let live_regs = rec.live_regs & !base_bit & !saved_bits & !lr_bit;
         let out_regs = (live_regs | rec.def_regs | 1 << 15) & !saved_bits;
         let out_flags = rec.live_flags | rec.def_flags;
-        let mut claims = [u64::MAX; BANKS];
-        for (b, c) in claims.iter_mut().enumerate() {
+        let (mut claims, mut claimed) = ([(0, 0); BANKS], 0);
+        for b in 0..BANKS {
             let now = sys.bank_claim[b][k];
             if now != e.claims[b] {
-                *c = now - e.cycle;
+                claims[claimed] = (b as u8, now - e.cycle);
+                claimed += 1;
             }
         }
         let mut live: [u32; 16] =
@@ -865,8 +901,8 @@ impl Memos {
             flags_in: e.flags & rec.live_flags,
             end,
             reads,
-            writes,
             pages,
+            stores: writes.len() + saved.len() + usize::from(lr.is_some()),
             keep: std::array::from_fn(|i| if out_regs >> i & 1 != 0 { 0 } else { u32::MAX }),
             regs_out: std::array::from_fn(|i| if out_regs >> i & 1 != 0 { core.r[i] } else { 0 }),
             out_flags,
@@ -874,9 +910,11 @@ impl Memos {
             cycles: core.cycle - e.cycle,
             instructions: core.instructions - e.instructions,
             claims,
+            claimed: claimed as u8,
             banks,
             io_banks: rec.io_banks,
             io: rec.io,
+            writes: Stores::new(&writes),
             based: based.map(Box::new),
             saved,
             lr,

@@ -164,18 +164,40 @@ pub(super) unsafe fn poke(sram: &mut [u8], off: u32, value: u32) {
     }
 }
 
-/// The bits in which four words of `sram` differ from the bytes `ws` give them, ORed: 0
-/// when all four hold them. Without a branch per word: a memo's word lists are compared
-/// four at a time.
+/// Whether the words of `sram` hold the bytes `ws` give them. Four words at a time with no
+/// branch per word (a memo's inputs are compared whole on a hit).
 ///
 /// # Safety
 /// Each word's `off + 4 <= sram.len()`.
 #[inline(always)]
-pub(super) unsafe fn differ(sram: &[u8], ws: &[Word; 4]) -> u32 {
-    // SAFETY: the caller's bound.
-    ws.iter().fold(0, |d, w| {
-        d | ((unsafe { peek(sram, w.off) } & w.mask) ^ w.value)
-    })
+pub(super) unsafe fn holds(sram: &[u8], ws: &[Word]) -> bool {
+    // SAFETY (of each `peek`): the caller's bound.
+    let differ = |w: &Word| (unsafe { peek(sram, w.off) } & w.mask) ^ w.value;
+    let (quads, rest) = ws.as_chunks::<4>();
+    for q in quads {
+        if differ(&q[0]) | differ(&q[1]) | differ(&q[2]) | differ(&q[3]) != 0 {
+            return false;
+        }
+    }
+    rest.iter().fold(0, |d, w| d | differ(w)) == 0
+}
+
+/// A memo's stored words as lists a hit runs down: those of all four bytes (most) as
+/// their offsets and values, the others as [`Word`]s.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Stores {
+    pub(super) full: Box<[(u32, u32)]>,
+    pub(super) part: Box<[Word]>,
+}
+
+impl Stores {
+    pub(super) fn new(ws: &[Word]) -> Stores {
+        let (full, part): (Vec<Word>, Vec<Word>) = ws.iter().partition(|w| w.mask == u32::MAX);
+        Stores {
+            full: full.iter().map(|w| (w.off, w.value)).collect(),
+            part: part.into(),
+        }
+    }
 }
 
 /// The architectural state a recording starts from.
