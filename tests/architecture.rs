@@ -367,7 +367,7 @@ fn one_board_reader_and_one_limiter_configuration() {
         .filter(|(_, l)| l.contains("pub fn read_board"))
         .map(|(f, _)| f.as_str())
         .collect();
-    assert_eq!(readers, ["firmware/src/boards.rs"]);
+    assert_eq!(readers, ["firmware/src/boards/mod.rs"]);
     // A limiter made from its fields: its definition, and the image's own copy at the
     // board's whole-hertz rate.
     let made: Vec<&str> = (lines.iter())
