@@ -337,7 +337,7 @@ impl<'a> Translator<'a> {
             let pc = t.c32(end.pc.wrapping_add(end.size));
             t.leave(pc, Exit::Out);
         }
-        // The loads made pure above were of registers the translation never wrote.
+        // The loads `reg` made pure were of registers the translation never wrote.
         debug_assert!(written.is_none_or(|w| t.written & !w & 0x7fff == 0));
         // The exits: write back and return.
         for (why, exit) in t.exits.into_iter().enumerate() {
@@ -569,13 +569,12 @@ impl<'a> Translator<'a> {
     /// flushed by the caller), and whether it is new (to be filled by
     /// [`Translator::fill_cold_exit`] once the branch to it is made): the last one made
     /// when that leaves before the same instruction for the same reason with the same
-    /// instructions pending, else a new one. Each check of an access used to have its
-    /// own, each a jump with every guest register and flag to the exit: one per
-    /// instruction halves the exits of a memory access, whose arguments are what the
-    /// register allocator spends most of a compile on. The values the exit writes back are
-    /// the variables' on each path into the block (the SSA builder gives the block a
-    /// parameter where two paths differ), so a shared block leaves each path as its own
-    /// would.
+    /// instructions pending, else a new one: one per instruction rather than one per
+    /// check of an access halves the exits of a memory access, each a jump with the
+    /// variables the exit writes back (flags, cycle, stalls, `q`, journal length; the
+    /// guest registers are in the core already). Those are the variables' values on each
+    /// path into the block (the SSA builder gives the block a parameter where two paths
+    /// differ), so a shared block leaves each path as its own would.
     fn cold_exit(&mut self, pc: u32, exit: Exit) -> (Block, bool) {
         match self.cold {
             Some((p, e, n, block)) if p == pc && e == exit && n == self.pend_n => (block, false),
