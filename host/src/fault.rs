@@ -588,7 +588,7 @@ pub fn run_records(
     run: &mut tactus_firmware::image::ImageRun,
 ) -> Result<Vec<tactus_firmware::image::fault::FaultWord>, String> {
     let image = run.image();
-    if (run.resets().last()).is_some_and(|r| r.why == "brown-out" && r.reboot.is_err()) {
+    if (run.resets().last()).is_some_and(|r| r.by_brown_out() && r.reboot.is_err()) {
         return Ok(decode(&vec![[0, 0]; image.cores()]));
     }
     let addrs: Vec<u32> = (0..image.cores())

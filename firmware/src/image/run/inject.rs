@@ -150,6 +150,11 @@ impl ResetRecord {
     pub fn by_watchdog(&self) -> bool {
         self.why.starts_with("watchdog")
     }
+
+    /// Whether a brown-out reset the board (a power-on reset: SRAM lost).
+    pub fn by_brown_out(&self) -> bool {
+        self.why == "brown-out"
+    }
 }
 
 /// The faults of a run and what they left (module documentation).
