@@ -170,6 +170,7 @@ fn converters_carry_the_same_positions_in_and_codes_out() {
     let feed = tactus_firmware::image::glue::Feed {
         other_samples: Some(0),
         entry: None,
+        class: None,
     };
     for (c, n) in [(0u64, 3u64), (1, 2)] {
         let w = with.wcet(c as usize).unwrap();

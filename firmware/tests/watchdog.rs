@@ -12,7 +12,9 @@ use spring::fault;
 
 use tactus_emulator::Engine;
 use tactus_firmware::image::fault::{FaultKind, UNKNOWN_KEY, WATCHDOG_PERIOD_US};
-use tactus_firmware::image::{self, FirmwareImage, ImageRun, Injection, SampleOut};
+use tactus_firmware::image::glue::ctrl;
+use tactus_firmware::image::{self, FirmwareImage, ImageRun, Injection, KeySpec, SampleOut};
+use tactus_runtime::limiter::LimiterConfig;
 
 /// The spring's three keys, the watchdog on or off.
 fn image(board: &str, watchdog: bool) -> FirmwareImage {
@@ -92,8 +94,10 @@ fn run_with(
 /// The one reset of a run whose update hung at the tick of cycle `hang_cycle`: by the
 /// watchdog, within the period of the last feed, which came at the latest at the end of
 /// core 0's handler of the hang's sample (core 1's count one behind its own: core 1 may
-/// still be finishing it): 1 ms and a sample from the hang's tick at most, and more than
-/// 1 ms less a sample (no feed came later); the board boots again from flash and is back
+/// still be finishing it), and at the earliest in the sample of the feeding class before
+/// the hang's, at most the image's feed gap (`FirmwareImage::feed_gap`, 1 when every
+/// sample feeds) before it: 1 ms and a sample from the hang's tick at most, and more than
+/// 1 ms less the gap (no feed came later); the board boots again from flash and is back
 /// 20 samples or more before the run's `n` end. Returns the samples of the reset and of
 /// the return (the first after the reboot).
 fn reset_after_hang(r: &ImageRun, hang_cycle: u64, n: usize, what: &str) -> (usize, usize) {
@@ -101,11 +105,12 @@ fn reset_after_hang(r: &ImageRun, hang_cycle: u64, n: usize, what: &str) -> (usi
     assert_eq!(resets.len(), 1, "{what}: {resets:?}");
     let reset = &resets[0];
     assert_eq!(reset.why, "watchdog timer", "{what}");
+    let gap = u64::from(r.image().feed_gap().expect("the watchdog"));
     let (period, sample) = (133_000 * u64::from(WATCHDOG_PERIOD_US) / 1000, 3016);
     let after = reset.cycle.saturating_sub(hang_cycle);
     assert!(
-        after > period - sample && after <= period + sample,
-        "{what}: reset {after} cycles after the hang's tick (period {period})"
+        after > period - gap * sample && after <= period + sample,
+        "{what}: reset {after} cycles after the hang's tick (period {period}, feeds every {gap} samples at most)"
     );
     let zero = *reset
         .reboot
@@ -332,6 +337,171 @@ fn a_hang_is_its_keys_alone_on_a_plain_board() {
 #[test]
 fn a_hang_is_its_keys_alone_on_a_converter_board() {
     a_hang_is_its_keys_alone("rp2040_io");
+}
+
+/// Four keys of the spring on core 0, taking turns (four classes, as grand88's cores), and
+/// one on core 1, the sensor check and the watchdog on: core 0 feeds the watchdog in one
+/// class of its samples (`glue::Feed::class`).
+fn turns_image(board: &str) -> FirmwareImage {
+    let mut p = spring::spring();
+    p.quiescent_guard = false;
+    p.sensor_check = true;
+    p.watchdog = true;
+    let keys: Vec<KeySpec> = (0..5)
+        .map(|i| KeySpec {
+            slot: 60 + i,
+            program: 0,
+            core: usize::from(i == 4),
+        })
+        .collect();
+    FirmwareImage::build(
+        std::slice::from_ref(&p),
+        &keys,
+        &layouts::shipped_board(board),
+        &LimiterConfig::default(),
+    )
+    .unwrap()
+}
+
+/// Every key of [`turns_image`] at rest (the converter board's ADC reads its power-on code
+/// 0 at the start handler's first burst, before the host sets one: a key held elsewhere
+/// would trip at its first check).
+fn rest_words(image: &FirmwareImage) -> Vec<i32> {
+    vec![image.programs()[0].fixed.sensor_raw_range[0].0; 5]
+}
+
+/// Per sample of a clean run of `samples` samples: its class on core 0 (from the tick's
+/// accumulator, as the handler's dispatch reads it: `glue::Turns`), and whether the
+/// watchdog was fed during it (its reset cycle moved).
+fn feeds(image: &FirmwareImage, engine: Engine, samples: usize) -> Vec<(u8, bool)> {
+    let turns = image.check_turns(0).unwrap().clone();
+    let acc = image.core_addresses(0).unwrap()[3] + u32::from(ctrl::ACC);
+    let mut r = image.run().unwrap();
+    r.board().config.engine = engine;
+    r.set_rest_replay(engine != Engine::LockStep).unwrap();
+    let words = rest_words(image);
+    let mut fire_at = r.board().system.watchdog.fire_at;
+    let out = (0..samples)
+        .map(|_| {
+            r.step(&words).unwrap();
+            let a = r.board().read_u32(acc).unwrap();
+            let class = ((a >> turns.shift) & (turns.classes - 1)) as u8;
+            let now = r.board().system.watchdog.fire_at;
+            let fed = now != fire_at;
+            fire_at = now;
+            (class, fed)
+        })
+        .collect();
+    assert!(r.resets().is_empty(), "{:?}", r.resets());
+    out
+}
+
+/// Core 0 feeds the watchdog in the samples of its feeding class and in no other (the
+/// class with the smallest longest gap, the lowest of those), so a healthy board is fed
+/// at most every `feed_gap` samples, well within the watchdog's period; the same on the
+/// lock-step machine and on the block engine with the rest replay.
+#[test]
+fn core_0_feeds_the_watchdog_in_its_feeding_class_of_samples_alone() {
+    for board in ["rp2040", "rp2040_io"] {
+        let image = turns_image(board);
+        let turns = image.check_turns(0).unwrap().clone();
+        assert_eq!(turns.classes, 4, "{board}: {turns:?}");
+        let class = image.watchdog_feed().unwrap().class;
+        assert_eq!(class, Some(0), "{board}: {turns:?}");
+        let gap = image.feed_gap().unwrap();
+        assert_eq!(gap, turns.gaps[0].0, "{board}");
+        assert!(gap > 1, "{board}: {turns:?}");
+        // Within a quarter of the period: 11 samples at 44.1 kHz.
+        assert!(
+            gap <= WATCHDOG_PERIOD_US * 44_100 / 4_000_000,
+            "{board}: {gap}"
+        );
+        // A whole period of the accumulator and more.
+        let n = turns.period as usize + 2 * gap as usize;
+        let got = feeds(&image, Engine::LockStep, n);
+        let mut last = None;
+        let mut longest = 0;
+        for (i, &(c, fed)) in got.iter().enumerate() {
+            assert_eq!(fed, c == 0, "{board} sample {i}: class {c}");
+            if fed {
+                if let Some(l) = last {
+                    longest = longest.max(i - l);
+                }
+                last = Some(i);
+            }
+        }
+        assert_eq!(
+            longest as u32, gap,
+            "{board}: the longest time between two feeds"
+        );
+        let fast = feeds(&image, Engine::Block, n);
+        assert_eq!(got, fast, "{board}: lock-step vs block engine");
+    }
+}
+
+/// With the feed in one class of samples, a hung update on either core still resets the
+/// board within the watchdog's period and a sample of the hang's tick, and no sooner than
+/// the period less the feed's gap: the last feed was the feeding class's last sample in
+/// which both cores had finished theirs (core 1 one sample behind at most), whichever
+/// class the hang's sample is of; the fault record names the key, and the engines agree.
+#[test]
+fn a_hang_resets_a_board_that_feeds_in_turns_within_the_period_and_a_sample() {
+    for board in ["rp2040", "rp2040_io"] {
+        let image = turns_image(board);
+        let gap = image.feed_gap().unwrap() as u64;
+        assert!(gap > 1, "{board}: the feed takes turns");
+        let feeding = image.watchdog_feed().unwrap().class.unwrap();
+        let classes = feeds(&image, Engine::LockStep, 200);
+        let words = rest_words(&image);
+        let n = 200usize;
+        // Hangs from a sample of each class, on core 0 (key 3) and core 1 (key 4).
+        for from in 100..100 + gap {
+            for key in [3usize, 4] {
+                let (out, mut r, hang_cycle) =
+                    run_with(&image, Engine::LockStep, Some(key), from, n, &|_| {
+                        words.clone()
+                    });
+                let what = format!("{board} key {key} from {from}");
+                let (at, _) = reset_after_hang(&r, hang_cycle, n, &what);
+                // The reset one period after the end of the last feeding sample: the hang's
+                // own when core 1 hung (core 0 finished it with core 1 one behind), the one
+                // before it when core 0 did.
+                let last = (0..=from as usize)
+                    .rev()
+                    .filter(|&i| key == 4 || i < from as usize)
+                    .find(|&i| classes[i].0 == feeding)
+                    .unwrap() as u64;
+                let reset = r.resets()[0].cycle;
+                let period = 133_000 * u64::from(WATCHDOG_PERIOD_US) / 1000;
+                // The ticks of the boot before the reset (`ImageRun::tick_cycle` counts
+                // from the new boot's after it), from the hang's.
+                let tick = |i: u64| {
+                    let t = |n| tactus_runtime::keyboard::tick_cycle(0, n, 133_000_000, 44_100);
+                    hang_cycle - t(from) + t(i)
+                };
+                assert!(
+                    reset > tick(last) + period && reset <= tick(last + 1) + period,
+                    "{what}: reset at {reset}, the last feed in sample {last} (ticks {} – {})",
+                    tick(last),
+                    tick(last + 1)
+                );
+                let core = usize::from(key == 4);
+                let f = fault(&mut r, &image, core);
+                assert_eq!(
+                    (f.kind, f.key, f.trips),
+                    (Some(FaultKind::Watchdog), 60 + key as u8, 1),
+                    "{what}: {f:?}"
+                );
+                assert!(out[at].dac.iter().all(|&d| d == 0), "{what}: rebooting");
+                if from == 100 {
+                    let (fast, ..) = run_with(&image, Engine::Block, Some(key), from, n, &|_| {
+                        words.clone()
+                    });
+                    assert_eq!(out, fast, "{what}: lock-step vs block engine");
+                }
+            }
+        }
+    }
 }
 
 #[test]

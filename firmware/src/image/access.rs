@@ -25,6 +25,28 @@ impl FirmwareImage {
         self.turns.get(core)
     }
 
+    /// The watchdog's feed as core 0's handler runs it ([`glue::Feed`]; `None` on an image
+    /// without the watchdog): [`glue::Feed::class`] the class of core 0's samples
+    /// ([`FirmwareImage::check_turns`]) whose handler feeds, `None` every sample.
+    pub fn watchdog_feed(&self) -> Option<&glue::Feed> {
+        self.feed.as_ref()
+    }
+
+    /// The most samples from one feed of the watchdog to the next on a healthy board: the
+    /// feeding class's longest gap ([`glue::Turns::gaps`]), 1 when every sample feeds;
+    /// `None` without the watchdog. A hang resets the board more than the watchdog's
+    /// period less this many samples, and at most the period and one sample, after the
+    /// hang's tick (`super::fault`, "The watchdog").
+    pub fn feed_gap(&self) -> Option<u32> {
+        let f = self.feed.as_ref()?;
+        Some(f.class.map_or(1, |c| {
+            self.turns
+                .first()
+                .and_then(|t| t.gaps.get(usize::from(c)))
+                .map_or(1, |g| g.0)
+        }))
+    }
+
     /// Samples by which every checked key has had its first check (whose first reading
     /// sets its force to 0 for that sample, [`glue::SensorCheck::seed`]): the longest gap
     /// of any core's turns.

@@ -213,6 +213,13 @@ impl FaultWord {
 /// before the reset sets it to zero.
 pub const WATCHDOG_PERIOD_US: u32 = 1000;
 
+/// The longest time between two feeds of the watchdog on a healthy board, µs, when core 0
+/// feeds it in one class of its samples only (`glue::Turns::feed_class`): a quarter of
+/// [`WATCHDOG_PERIOD_US`], so that the feeds keep a four-fold margin over the period (11
+/// samples at 44.1 kHz; grand88's boards feed every 3 or 5 samples at most). A board
+/// whose turns would leave a longer gap feeds every sample.
+pub const MAX_FEED_GAP_US: u32 = WATCHDOG_PERIOD_US / 4;
+
 /// The value written to the watchdog's LOAD for [`WATCHDOG_PERIOD_US`]: twice the period,
 /// since the RP2040's watchdog counts down twice per 1 µs tick (erratum RP2040-E1; the
 /// pico-sdk's `watchdog_enable` doubles its value the same way).

@@ -648,7 +648,10 @@ pub struct CoreLabels {
     pub default: Label,
     /// The sample interrupt's keys: from after the tick's step (the SYST_RVR store) to the
     /// ICSR load that checks for a miss. Everything between touches only the core's own
-    /// SRAM; the emulator memoizes it (`ImageRun`).
+    /// SRAM; the emulator memoizes it (`ImageRun`). On core 0 with a feeding class
+    /// ([`Feed::class`]) that class's copy ends at the ICSR load of its own tail instead,
+    /// which is not [`CoreLabels::keys_end`]: a run of the span through it is not
+    /// memoized (the recording gives up at that load, a peripheral's).
     pub keys: Label,
     /// See [`CoreLabels::keys`].
     pub keys_end: Label,
@@ -867,6 +870,21 @@ pub fn core_code(
     // N (bit `shift`) and C (bit `shift + 1`), read by the dispatch's branches (the keys
     // part, which the emulator memoizes, reads the flags, not the accumulator).
     let copies = turns.classes.max(1);
+    // The watchdog's feed (core 0): in the tail of its feeding class's copy alone
+    // ([`Feed::class`]), or every sample in the one tail.
+    let fed = feed.filter(|_| core == 0);
+    let fed_copy = fed
+        .and_then(|f| f.class)
+        .map(u32::from)
+        .filter(|&c| c < copies && copies > 1);
+    let reload_r5 = clobbered & 1 << 5 != 0
+        || keys
+            .iter()
+            .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5));
+    let tail = |a: &mut CodeBuffer, feeds: bool, keys_end: Option<Label>| {
+        let f = fed.as_ref().filter(|_| feeds);
+        handler_tail(a, ctrl_addr, reload_r5, f, keys_end);
+    };
     if copies > 1 {
         a.i(asm::lsls(0, 2, 31 - turns.shift));
     }
@@ -1065,30 +1083,54 @@ pub fn core_code(
             dispatch_trampolines(a, copy, turns, upper, &tramp, &starts);
             a.bind(over);
         }
-        if copy + 1 < copies {
-            // To the end, or with hops to the next copy's branch to it.
+        if Some(copy) == fed_copy {
+            // The feeding class's copy: its own tail, which feeds, in place of the branch
+            // to the others' (and the keys part's end, `labels.keys_end`).
+            tail(a, true, None);
+            a.pool();
+        }
+        if copy + 1 < copies && (Some(copy) != fed_copy || turns.hops) {
+            // To the end, or with hops to the next copy's branch to it (for the copies
+            // before hopping through here, after the feeding copy's own tail).
             a.bind(tails[copy as usize]);
             match (turns.hops, copy + 2 < copies) {
                 (true, true) => a.b(tails[copy as usize + 1]),
                 _ => a.b(end),
             }
             a.pool();
+        }
+        if copy + 1 < copies {
             // This copy's trip paths here, within a `B`'s reach of its checks.
             trip_paths(a, &mut trips, keys, ctrl_addr, core);
         }
     }
     a.bind(end);
-    if clobbered & 1 << 5 != 0
-        || keys
-            .iter()
-            .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5))
-    {
+    tail(a, fed_copy.is_none(), Some(labels.keys_end));
+    a.pool();
+    trip_paths(a, &mut trips, keys, ctrl_addr, core);
+    Ok(CoreLabels { calls, ..labels })
+}
+
+/// The sample interrupt's tail on core `core` (control block at `ctrl_addr`): `r5` reloaded
+/// when `reload_r5` (an update or a guard clobbers it), the miss check, the sample count,
+/// with `feed` the watchdog's feed ([`feed_watchdog`], and its [`mark_behind`] path), and
+/// the exception return. `keys_end` is bound at the ICSR load ([`CoreLabels::keys_end`]).
+fn handler_tail(
+    a: &mut CodeBuffer,
+    ctrl_addr: u32,
+    reload_r5: bool,
+    feed: Option<&Feed>,
+    keys_end: Option<Label>,
+) {
+    if reload_r5 {
         a.ldr_const(5, ctrl_addr);
     }
     // A miss: the next tick's wrap has already pended SysTick again (ICSR.PENDSTSET: the
     // entry cleared it), so the handler ends at or after the next tick.
     a.ldr_const(0, syst::ICSR);
-    a.bind(labels.keys_end);
+    if let Some(l) = keys_end {
+        a.bind(l);
+    }
     a.i(asm::ldr(2, 0, 0));
     a.i(asm::lsls(2, 2, 31 - syst::PENDSTSET_BIT)); // N = PENDSTSET
     let on_time = a.label();
@@ -1101,9 +1143,8 @@ pub fn core_code(
     a.i(asm::adds_imm(1, 1, 1));
     a.i(asm::str(1, 5, ctrl::SAMPLES));
     let behind = a.label();
-    let fed = feed.filter(|_| core == 0);
-    if let Some(f) = fed {
-        feed_watchdog(a, &f, behind);
+    if let Some(f) = feed {
+        feed_watchdog(a, f, behind);
     }
     let ret = |a: &mut CodeBuffer| {
         a.i(asm::movs(0, EXC_RETURN_NOT));
@@ -1112,16 +1153,13 @@ pub fn core_code(
         a.i(Instr::Bx { rm: 14 });
     };
     ret(a);
-    if fed.is_some_and(|f| f.other_samples.is_some()) {
+    if feed.is_some_and(|f| f.other_samples.is_some()) {
         // Core 1 behind: no feed, the mark instead, and its own return (no branch back:
         // as long as the feed).
         a.bind(behind);
         mark_behind(a);
         ret(a);
     }
-    a.pool();
-    trip_paths(a, &mut trips, keys, ctrl_addr, core);
-    Ok(CoreLabels { calls, ..labels })
 }
 
 /// The dispatch's far half ([`Turns`]) that copy `copy` hosts, out of the copies' flow

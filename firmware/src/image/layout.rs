@@ -56,6 +56,8 @@ impl Layout<'_> {
                 .then(|| bank_base(1) + data_off + u32::from(glue::ctrl::SAMPLES)),
             // The RAM image's re-entry, with core 0's stack (`super::reboot`).
             entry: Some((super::reboot::REENTRY | 1, stack(0).1)),
+            // Every sample, until core 0's turns are planned ([`assemble_glue`]).
+            class: None,
         })
     }
 }
@@ -610,6 +612,9 @@ pub(super) struct Glue {
     pub labels: glue::CoreLabels,
     /// The turns of the core's sensor checks.
     pub turns: glue::Turns,
+    /// The core's part of the watchdog's feed, as its glue runs it (core 0's with its
+    /// feeding class).
+    pub feed: Option<glue::Feed>,
     pub keys: Vec<KeyPlace>,
     pub data_end: u32,
     /// With the watchdog: where the reset handler finds which key hung; the data block
@@ -647,6 +652,15 @@ pub(super) fn assemble_glue(
         })
     };
     let start = |a: &mut CodeBuffer| boot::core_start(a, core, boot, bottom, STACK_CANARY);
+    // Core 0 feeds the watchdog in one class of its samples ([`glue::Feed::class`]).
+    let feed = l.feed(data_off).map(|f| glue::Feed {
+        class: if core == 0 {
+            turns.feed_class(l.fs)
+        } else {
+            None
+        },
+        ..f
+    });
     let emit = |turns: &glue::Turns| -> Result<_, ImageError> {
         let mut a = CodeBuffer::new(LongBranch::Hop);
         let labels = glue::core_code(
@@ -658,7 +672,7 @@ pub(super) fn assemble_glue(
             &l.consts,
             &start,
             l.io.as_ref(),
-            l.feed(data_off),
+            feed,
             hang(turns),
             turns,
         )?;
@@ -678,6 +692,7 @@ pub(super) fn assemble_glue(
     Ok(Glue {
         asm: a,
         labels,
+        feed,
         hang: hang(&turns),
         turns,
         keys: kp,

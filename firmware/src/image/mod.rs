@@ -294,6 +294,9 @@ pub struct FirmwareImage {
     pub(crate) io: Option<io::IoPlan>,
     /// Per core: the turns of its sensor checks ([`glue::Turns`]).
     pub(crate) turns: Vec<glue::Turns>,
+    /// The watchdog's feed as core 0's handler runs it (its feeding class); `None` without
+    /// the watchdog.
+    pub(crate) feed: Option<glue::Feed>,
     /// The RAM image's re-entry after a watchdog reset, or why it has none ([`reboot`]).
     pub(crate) reentry: Result<reboot::Reboot, String>,
 }
@@ -415,10 +418,14 @@ impl FirmwareImage {
         let mut window_banks = vec![0u8; cores];
         let mut code_bytes = vec![0u32; cores];
         let mut turns = Vec::with_capacity(cores);
+        let mut feed = None;
         for (core, c) in cc.iter().enumerate() {
             let (bank, base) = (bank_base(core), c.start);
             let g = layout::assemble_glue(&l, core, data_off, c, &boot)?;
             turns.push(g.turns.clone());
+            if core == 0 {
+                feed = g.feed;
+            }
             let out = g.asm.finish_code(base + c.glue)?;
             let (glue_bytes, addr) = (out.text, out.labels);
             if addr[g.labels.reset.index()] != base + c.glue {
@@ -549,6 +556,7 @@ impl FirmwareImage {
             boot,
             io: l.io,
             turns,
+            feed,
             reentry,
         })
     }
