@@ -39,11 +39,22 @@
 //! it over the one the ROM cleared) and knows that the watchdog, not the boot ROM, reset
 //! the board, as pico-sdk's `watchdog_enable_caused_reboot` tells it. Then LOAD =
 //! [`WATCHDOG_LOAD`], CTRL's ENABLE set. Core 0's handler feeds it (LOAD again) at the end
-//! of each sample in which core 1's sample count is its own or one less (core 1 finished
-//! the sample before or finishes it now); on a one-core image every sample. So a core that
-//! stops finishing its samples (a hung update, an interrupt that never returns) stops the
-//! feeds, and the watchdog resets the board [`WATCHDOG_PERIOD_US`] after the last feed: at
-//! most 1 ms and one sample after the hang began. Each core's reset handler copies its
+//! of each sample of its *feeding class* in which core 1's sample count is its own or one
+//! less (core 1 finished the sample before or finishes it now); on a one-core image each
+//! sample of the class. Where core 0's keys take turns (`glue::Turns`, the sensor check)
+//! the feeding class is one class of those samples, the one whose longest gap `G` is the
+//! smallest (`glue::Turns::feed_class`: grand88's boards `G` = 4 at 133 MHz, 5 at 200 MHz),
+//! when `G` samples are within [`MAX_FEED_GAP_US`]; otherwise (and with one class) every
+//! sample feeds, `G` = 1 (`FirmwareImage::feed_gap`). So a core that stops finishing its
+//! samples (a hung update, an interrupt that never returns) stops the feeds, and the
+//! watchdog resets the board [`WATCHDOG_PERIOD_US`] after the last feed. The last feed
+//! came at the latest in the hang's own sample (core 1 hung, one sample behind at core 0's
+//! feed) and at the earliest in the sample of the class before it, at most `G` samples
+//! before: the reset comes at most 1 ms and one sample after the hang began, as with a
+//! feed every sample, and more than 1 ms less `G` samples after it (1 ms less a sample
+//! with `G` = 1). A healthy board feeds at least every `G` samples, within
+//! [`MAX_FEED_GAP_US`]: three quarters of the period or more to spare. Each core's reset
+//! handler copies its
 //! scratch pair back into its control block before the sample loop; core 0's, when REASON
 //! is set and SCRATCH4 holds [`NON_REBOOT_MAGIC`], first (before core 1's launch) records
 //! one more trip of kind [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over the pair of
@@ -206,18 +217,20 @@ impl FaultWord {
     }
 }
 
-/// The watchdog's period, µs: 1 ms, 44 samples at 44.1 kHz. A healthy board feeds it every
-/// sample, so the period has a 44-fold margin over a late feed and over the start-up
-/// between the enabling store and the first sample (tens of µs, `start_alarm_us`); a hung
-/// core holds its motor's last DAC code (at most the limiter's peak) for at most this long
-/// before the reset sets it to zero.
+/// The watchdog's period, µs: 1 ms, 44 samples at 44.1 kHz. A healthy board feeds it at
+/// least every [`MAX_FEED_GAP_US`] (every 4 samples on grand88's boards at 133 MHz, where
+/// core 0's keys take turns; every sample otherwise), so the period has a four-fold margin
+/// or more over the time between feeds and over the start-up between the enabling store
+/// and the first feed (tens of µs, `start_alarm_us`, and the first sample of the feeding
+/// class); a hung core holds its motor's last DAC code (at most the limiter's peak) for at
+/// most this long and a sample before the reset sets it to zero.
 pub const WATCHDOG_PERIOD_US: u32 = 1000;
 
 /// The longest time between two feeds of the watchdog on a healthy board, µs, when core 0
 /// feeds it in one class of its samples only (`glue::Turns::feed_class`): a quarter of
 /// [`WATCHDOG_PERIOD_US`], so that the feeds keep a four-fold margin over the period (11
-/// samples at 44.1 kHz; grand88's boards feed every 3 or 5 samples at most). A board
-/// whose turns would leave a longer gap feeds every sample.
+/// samples at 44.1 kHz; grand88's boards feed every 4 samples at most at 133 MHz, every 5
+/// at 200 MHz). A board whose turns would leave a longer gap feeds every sample.
 pub const MAX_FEED_GAP_US: u32 = WATCHDOG_PERIOD_US / 4;
 
 /// The value written to the watchdog's LOAD for [`WATCHDOG_PERIOD_US`]: twice the period,

@@ -523,11 +523,14 @@ pub struct Feed {
     /// the copy of the keys' code of that class ends with its own tail, which feeds, and the
     /// other copies' tail does not (`super::core_code`). `None`: every sample feeds.
     ///
-    /// Why: the feed's load of core 1's count makes the two cores meet in the emulator every
-    /// sample it runs, which costs its speed machinery most of what the feed costs the
-    /// demo (`--watchdog off`: 1.67 G instructions fewer of 14.86 G); feeding in one class
-    /// of samples leaves the hang's bound as it was (`super::super::fault`, "The
-    /// watchdog") and takes the feed's cycles off the other classes' paths.
+    /// Why: the feed's load of core 1's count makes the two cores meet in the emulator in
+    /// every sample that feeds, which costs its speed machinery most of what the feed costs
+    /// (the demo fed every sample: 14.86 G host instructions; in class 0's samples, a
+    /// quarter: 13.68 G; BENCHMARKS.md). Feeding in one class keeps the hang's upper bound
+    /// (the last feed is still at the latest the hang's own sample's: `super::super::fault`,
+    /// "The watchdog") and takes the feed's cycles off the other classes' paths; the
+    /// feeding path itself is as long or 2 cycles shorter (no branch to the common tail), so the
+    /// handler's static bound, the maximum over the copies, does not rise.
     pub class: Option<u8>,
     /// The boot ROM's watchdog entry core 0's start handler arms with the watchdog
     /// ([`enable_watchdog`]): (entry, Thumb bit set; stack pointer), the RAM image's
