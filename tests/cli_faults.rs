@@ -855,6 +855,14 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
             emu_codes(&out)
         };
         let (clean, stdout) = run(&[]);
+        // The firmware's reset word of the run's power-on: CHIP_RESET.HAD_POR, REASON 0.
+        assert!(
+            stdout.contains(
+                "boot: its firmware recorded its boot from a power-on or brown-out (reset \
+                 word 0x00000100)\n"
+            ),
+            "{board}: {stdout}"
+        );
         // Keys 60, 61 on core 1, 62, 63 on core 0.
         assert!(
             stdout.contains("core 1: keys [60, 61]"),
@@ -899,6 +907,17 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
             stdout.contains("faults: 0 trips, 1 RESET on 1 of 1 boards"),
             "{board}: {stdout}"
         );
+        // The boot after it wrote its reset word into SRAM the brown-out had filled with
+        // the power-on pattern: a power-on or brown-out (HAD_POR, REASON 0), which the run
+        // names the brown-out.
+        assert!(
+            stdout.contains(
+                "board 1: its firmware recorded its last boot from a power-on or brown-out \
+                 (reset word 0x00000100): the brown-out at sample 2205 (the board ran before \
+                 it; its trips before it were lost with SRAM and the scratch registers)"
+            ) && !stdout.contains("boot: "),
+            "{board}: {stdout}"
+        );
 
         // A hung update (the plain board's is in
         // a_hung_update_with_the_watchdog_on_resets_the_board_under_emu_run): the watchdog
@@ -917,6 +936,15 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
                 "{line}"
             );
             assert!(line.contains("booted again"), "{line}");
+            // The reset word: REASON.TIMER beside the power-on's HAD_POR, which a watchdog
+            // reset keeps (CHIP_RESET records chip-level resets only).
+            assert!(
+                stdout.contains(&format!(
+                    "board 1: its firmware recorded its last boot from the watchdog (reset \
+                     word 0x00000101): the watchdog's reset at sample {sample}"
+                )),
+                "{stdout}"
+            );
             for core in 0..2 {
                 let (worst, unfinished) = emu_core_line(&stdout, core);
                 assert!(
