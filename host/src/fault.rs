@@ -9,6 +9,7 @@
 //! kind=noise,amplitude=400,note=64,at=200ms,until=300ms
 //! kind=jump,delta=8000,note=60,at=1s          the code plus 8,000 from 1 s on
 //! kind=adc-silent,board=1,core=0,at=1s        core 0's ADC answers all ones
+//! kind=adc-no-dreq,board=1,core=0,at=1s       core 0's ADC raises no DREQ (converter boards)
 //! kind=dac-stall,board=1,core=1,at=1s         core 1's DAC takes no more frames
 //! kind=hang,note=60,at=1s,until=1.5s          that key's update never returns (a loop)
 //! kind=flip,word=2,bit=30,note=60,at=1s       bit 30 of the key's state word 2 flips
@@ -17,7 +18,7 @@
 //!
 //! Kinds: `open` (code 0), `short` (full scale), `stuck` (`code=` 0–65535), `jump`
 //! (`delta=` −65535–65535 codes), `noise` (`amplitude=` 1–65535 codes, each sample),
-//! `adc-silent`, `dac-stall`, `hang`, `flip` (`word=`, `bit=` 0–31), `brownout`. The
+//! `adc-silent`, `adc-no-dreq`, `dac-stall`, `hang`, `flip` (`word=`, `bit=` 0–31), `brownout`. The
 //! target: `note=` a MIDI key (0–127), or `board=` (from 1, along the keyboard) with `key=`
 //! (from 0, in the board's key order) or `core=` (0 or 1). `at=` and `until=` are times
 //! from the run's start: seconds (`1.5`, `1.5s`) or milliseconds (`200ms`). A flip and a
@@ -104,7 +105,7 @@ impl std::error::Error for FaultError {}
 
 /// The fault kinds' names, as `kind=` takes them.
 pub const KINDS: &str =
-    "open, short, stuck, jump, noise, adc-silent, dac-stall, hang, flip, brownout";
+    "open, short, stuck, jump, noise, adc-silent, adc-no-dreq, dac-stall, hang, flip, brownout";
 
 /// The longest time a fault may name, s (an hour: longer than any run `play` allows).
 const MAX_TIME_S: f64 = 3600.0;
@@ -203,6 +204,7 @@ impl std::str::FromStr for FaultSpec {
             "jump" => FaultKind::Jump(need("delta", -65535, 65535, "jump")? as i32),
             "noise" => FaultKind::Noise(need("amplitude", 1, 65535, "noise")? as u16),
             "adc-silent" => FaultKind::AdcSilent,
+            "adc-no-dreq" => FaultKind::AdcNoDreq,
             "dac-stall" => FaultKind::DacStall,
             "hang" => FaultKind::Hang,
             "flip" => FaultKind::Flip {
@@ -235,7 +237,10 @@ impl std::str::FromStr for FaultSpec {
         let board = num("board", 1, 1 << 16)?;
         let key = num("key", 0, 1 << 16)?;
         let core = num("core", 0, 1)?;
-        let by_core = matches!(kind, FaultKind::AdcSilent | FaultKind::DacStall);
+        let by_core = matches!(
+            kind,
+            FaultKind::AdcSilent | FaultKind::AdcNoDreq | FaultKind::DacStall
+        );
         let by_board = kind == FaultKind::BrownOut;
         let target = match (note, board, key, core) {
             _ if by_board => match (note, board, key, core) {
@@ -653,11 +658,16 @@ pub fn image_slots(image: &tactus_firmware::image::FirmwareImage, midi: &[u8]) -
 }
 
 /// A reset a board met, in words, at `fs` samples a second: `watchdog timer reset at t =
-/// 1.0000 s (sample 44100, cycle …): booted again, 12 samples at zero force`, or that the
-/// board held at zero force from then on, since it did not boot again, and why.
+/// 1.0000 s (sample 44100, cycle …): booted again, 12 samples at zero force after the
+/// reset's own (13 in all)` — the run gives the reset's sample at zero force, then
+/// [`tactus_firmware::image::ResetRecord::reboot`] more while the firmware boots —, or that
+/// the board held at zero force from then on, since it did not boot again, and why.
 pub fn reset_text(reset: &tactus_firmware::image::ResetRecord, fs: f64) -> String {
     let after = match &reset.reboot {
-        Ok(n) => format!("booted again, {n} samples at zero force"),
+        Ok(n) => format!(
+            "booted again, {n} samples at zero force after the reset's own ({} in all)",
+            n + 1
+        ),
         Err(e) => format!("the board held at zero force from then (it did not boot again: {e})"),
     };
     format!(
@@ -773,6 +783,12 @@ mod tests {
         assert_eq!(f.target, Target::Key { board: 2, key: 3 });
         let f: FaultSpec = "kind=adc-silent,board=1,core=1,at=0".parse().unwrap();
         assert_eq!(f.target, Target::Core { board: 1, core: 1 });
+        let f: FaultSpec = "kind=adc-no-dreq,board=2,core=0,at=1s,until=2s"
+            .parse()
+            .unwrap();
+        assert_eq!(f.kind, FaultKind::AdcNoDreq);
+        assert_eq!(f.target, Target::Core { board: 2, core: 0 });
+        assert_eq!(err("kind=adc-no-dreq,note=60,at=1s").field, "core");
         let f: FaultSpec = "kind=flip,word=2,bit=31,note=21,at=2s".parse().unwrap();
         assert_eq!(f.kind, FaultKind::Flip { word: 2, bit: 31 });
         let f: FaultSpec = "kind=brownout,board=4,at=1s".parse().unwrap();

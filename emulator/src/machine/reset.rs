@@ -68,6 +68,24 @@ impl Machine {
         self.boot_again(at);
     }
 
+    /// A store to an I/O register (the PIOs', the DMA's) by the host between two runs, as a
+    /// core's store there would make it (any alias, datasheet 2.1.2), at the later of the
+    /// running cores' cycles: what a fault injection changes in the chip, such as a
+    /// converter's state machine that stops (its `CTRL.SM_ENABLE` cleared). False without
+    /// I/O, or for an address it does not own or a block held in reset.
+    pub fn io_write(&mut self, addr: u32, value: u32) -> bool {
+        let at = self.reset_cycle();
+        self.system.io_unlazy();
+        if self.system.io.is_none() {
+            return false;
+        }
+        self.system.io_advance(at);
+        let done = (self.system.io.as_deref_mut())
+            .is_some_and(|io| io.accepts(addr) && io.write(addr, value));
+        self.system.io_refresh();
+        done
+    }
+
     /// The later of the running cores' cycles (of all cores when none runs).
     fn reset_cycle(&self) -> u64 {
         let running = self.cores.iter().filter(|c| active(c)).map(|c| c.cycle);
