@@ -855,6 +855,14 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
             emu_codes(&out)
         };
         let (clean, stdout) = run(&[]);
+        // The firmware's reset word of the run's power-on: CHIP_RESET.HAD_POR, REASON 0.
+        assert!(
+            stdout.contains(
+                "boot: its firmware recorded its boot from a power-on or brown-out (reset \
+                 word 0x00000100)\n"
+            ),
+            "{board}: {stdout}"
+        );
         // Keys 60, 61 on core 1, 62, 63 on core 0.
         assert!(
             stdout.contains("core 1: keys [60, 61]"),
@@ -880,6 +888,26 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
             stdout.contains("faults: 0 trips on 1 board\n"),
             "{board}: {stdout}"
         );
+        // The stall clears at 0.06 s: the DAC takes frames again and its outputs follow
+        // the firmware's codes again, the clean run's at the end, though the run's codes
+        // differed while it held (the digest of every sample's codes).
+        let digest = |s: &str| {
+            (s.lines())
+                .find_map(|l| l.split_once("digest of every sample's codes "))
+                .map(|(_, d)| d.to_string())
+                .unwrap_or_else(|| panic!("{s}"))
+        };
+        let (_, clean_stdout) = run(&[]);
+        let (recovered, stdout) = run(&[
+            "--fault",
+            "kind=dac-stall,board=1,core=1,at=0.05s,until=0.06s",
+        ]);
+        assert_eq!(recovered, clean, "{board}: {stdout}");
+        assert_ne!(digest(&stdout), digest(&clean_stdout), "{board}: {stdout}");
+        assert!(
+            stdout.contains("faults: 0 trips on 1 board\n"),
+            "{board}: {stdout}"
+        );
 
         // A brown-out at 0.05 s: a power-on reset in that sample, the flash image boots
         // again within a few samples of zero force, the fault record starts again at 0.
@@ -897,6 +925,17 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
         assert!((1..=20).contains(&zero), "{board}: {line}");
         assert!(
             stdout.contains("faults: 0 trips, 1 RESET on 1 of 1 boards"),
+            "{board}: {stdout}"
+        );
+        // The boot after it wrote its reset word into SRAM the brown-out had filled with
+        // the power-on pattern: a power-on or brown-out (HAD_POR, REASON 0), which the run
+        // names the brown-out.
+        assert!(
+            stdout.contains(
+                "board 1: its firmware recorded its last boot from a power-on or brown-out \
+                 (reset word 0x00000100): the brown-out at sample 2205 (the board ran before \
+                 it; its trips before it were lost with SRAM and the scratch registers)"
+            ) && !stdout.contains("boot: "),
             "{board}: {stdout}"
         );
 
@@ -917,6 +956,15 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
                 "{line}"
             );
             assert!(line.contains("booted again"), "{line}");
+            // The reset word: REASON.TIMER beside the power-on's HAD_POR, which a watchdog
+            // reset keeps (CHIP_RESET records chip-level resets only).
+            assert!(
+                stdout.contains(&format!(
+                    "board 1: its firmware recorded its last boot from the watchdog (reset \
+                     word 0x00000101): the watchdog's reset at sample {sample}"
+                )),
+                "{stdout}"
+            );
             for core in 0..2 {
                 let (worst, unfinished) = emu_core_line(&stdout, core);
                 assert!(
@@ -1035,5 +1083,94 @@ fn a_hang_on_a_key_standing_still_is_warned_about_and_waits_for_it_to_move() {
     // Moving (the dip's descent) when the hang begins: no warning.
     let stderr = emu("0.06", "kind=hang,note=61,at=0.05s");
     assert!(!stderr.contains("stands still"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `kind=adc-no-dreq`: a converter board's ADC raises no more DREQ (its state machine
+/// stops), so the DMA channel that reads its results never completes a burst. The
+/// firmware does not see it (docs/firmware.md, "Faults": the gap, and what a check would
+/// cost): the stalled core's keys read the last bursts' positions from the ring of
+/// results buffers, 0 trips, the other core untouched. When the ADC runs again (`until`)
+/// the positions jump back to the key's and the sensor check trips (`sensor-rate`, at the
+/// sample after), the motors at zero; 100 ms of plausible readings later the keys play
+/// again, the clean run's codes at the end. A board without converters refuses the kind,
+/// naming the field, in `emu run` and in `play`.
+#[test]
+fn an_adc_without_dreq_is_injected_on_a_converter_board_and_refused_on_a_plain_one() {
+    let dir = temp_dir("cli-faults-no-dreq");
+    let layout = small_layout(&dir, 60, 63);
+    for board in ["rp2040", "rp2040_io"] {
+        let fw = dir.join(board);
+        let out = tactus()
+            .args(["build", layout.to_str().unwrap(), "--target", "rp2040"])
+            .args(["--board", board, "-o"])
+            .arg(&fw)
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let run = |seconds: &str, fault: &[&str]| {
+            tactus()
+                .args(["emu", "run"])
+                .arg(fw.join("board-01/firmware.elf"))
+                .args(["--stimulus", "mf-dip", "--seconds", seconds])
+                .args(fault)
+                .output()
+                .unwrap()
+        };
+        if board == "rp2040" {
+            let out = run(
+                "0.07",
+                &["--fault", "kind=adc-no-dreq,board=1,core=1,at=0.05s"],
+            );
+            assert!(!out.status.success(), "{out:?}");
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert!(
+                stderr.contains("`kind`: `adc-no-dreq`") && stderr.contains("no converters"),
+                "{stderr}"
+            );
+            let midi = dir.join("held.mid");
+            write_midi(&midi, &[(60, 90, 0.05, 0.1)], &[]);
+            let out = tactus()
+                .args(["play", midi.to_str().unwrap(), "--layout"])
+                .arg(&layout)
+                .args(["--seconds", "0.1", "--no-wav", "--board", board])
+                .args(["--fault", "kind=adc-no-dreq,board=1,core=0,at=0.05s"])
+                .output()
+                .unwrap();
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert!(
+                !out.status.success() && stderr.contains("`kind`: `adc-no-dreq`"),
+                "{stderr}"
+            );
+            continue;
+        }
+        let (clean, _) = emu_codes(&run("0.07", &[]));
+        // Keys 60, 61 on core 1, 62, 63 on core 0.
+        let (stalled, stdout) = emu_codes(&run(
+            "0.07",
+            &["--fault", "kind=adc-no-dreq,board=1,core=1,at=0.05s"],
+        ));
+        assert_eq!(stalled[2..], clean[2..], "{stdout}");
+        assert_ne!(stalled[..2], clean[..2], "{stdout}");
+        let (peak_code, _) = limiter_peak(board);
+        assert!(stalled.iter().all(|c| c.abs() <= peak_code), "{stalled:?}");
+        assert!(stdout.contains("faults: 0 trips on 1 board\n"), "{stdout}");
+
+        let (clean, _) = emu_codes(&run("0.3", &[]));
+        let (back, stdout) = emu_codes(&run(
+            "0.3",
+            &[
+                "--fault",
+                "kind=adc-no-dreq,board=1,core=1,at=0.05s,until=0.06s",
+            ],
+        ));
+        // 0.06 s is sample 2646: the first burst after it is read at the next sample.
+        assert!(
+            stdout.contains("board 1 core 1: sensor-rate on key 61 (C#4) at sample 2647 ")
+                && !stdout.contains("board 1 core 0: "),
+            "{stdout}"
+        );
+        assert_eq!(back, clean, "{stdout}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1155,15 +1155,21 @@ fn a_truncated_midi_file_plays_as_far_as_it_goes_on_every_board_with_a_warning()
 }
 
 /// The whole of each shipped Maestro through the firmware of every board of grand88
-/// (`tactus play`'s defaults): one strike per note within 50 ms and 0 deadline misses on
-/// every core of every board; prints the real-time factor and peak memory `tactus play`
-/// reports. Tens of minutes of emulation per piece even in release, so it runs on request:
+/// (`tactus play`'s defaults), on plain boards (`rp2040`) and on converter boards
+/// (`rp2040_io`): one strike per note within 50 ms, 0 deadline misses on every core of
+/// every board and no false alarm (0 trips, 0 resets: `play` exits 1 on one, and the
+/// summary line says `faults: 0 trips on 11 boards`); prints the real-time factor and peak
+/// memory `tactus play` reports. Tens of minutes of emulation per piece and board kind
+/// even in release, so it runs on request:
 /// `cargo test --release --test play whole_maestro -- --ignored --nocapture`
 /// (BENCHMARKS.md has the figures).
 #[test]
-#[ignore = "tens of minutes per piece in release (more since the planned boards leave the guard out); run on request"]
+#[ignore = "tens of minutes per piece and board kind in release (more since the planned boards leave the guard out); run on request"]
 fn whole_maestro_pieces_on_every_board_of_grand88_without_misses() {
-    for name in ["Maestro_1.mid", "Maestro_2.mid", "Maestro_3.mid"] {
+    for (board, name) in ["rp2040", "rp2040_io"]
+        .into_iter()
+        .flat_map(|b| ["Maestro_1.mid", "Maestro_2.mid", "Maestro_3.mid"].map(move |n| (b, n)))
+    {
         let Some(midi) = performance(name) else {
             continue;
         };
@@ -1171,11 +1177,13 @@ fn whole_maestro_pieces_on_every_board_of_grand88_without_misses() {
         let out = tactus()
             .arg("play")
             .arg(&midi)
-            .args(["--no-wav", "--out"])
+            .args(["--board", board, "--no-wav", "--out"])
             .arg(&dir)
             .output()
             .unwrap();
         assert_ok(&out);
+        let name = format!("{name} on {board}");
+        let name = name.as_str();
         let stdout = String::from_utf8_lossy(&out.stdout);
         let boards: Vec<&str> = stdout
             .lines()
@@ -1185,7 +1193,11 @@ fn whole_maestro_pieces_on_every_board_of_grand88_without_misses() {
         for l in &boards {
             assert_eq!(l.matches("deadline misses 0").count(), 2, "{name}: {l}");
         }
-        let stem = name.trim_end_matches(".mid");
+        assert!(
+            stdout.contains("faults: 0 trips on 11 boards"),
+            "{name}: {stdout}"
+        );
+        let stem = name.split(".mid").next().unwrap_or(name);
         let rows = strikes(&dir.join(format!("{stem}-strikes.csv")));
         let perf = read_midi(&midi).unwrap();
         let rho = check_one_strike_per_note(&midi, &rows, perf.duration_s + 1.0);

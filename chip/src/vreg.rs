@@ -10,7 +10,24 @@ pub const DEFAULT_CORE_MV: u32 = 1100;
 pub mod reg {
     /// VREG (EN bit 0, HIZ bit 1, VSEL 7:4, ROK bit 12).
     pub const VREG: u32 = 0x0;
+    /// CHIP_RESET: the source of the last chip-level reset (datasheet 2.10.7 and 2.12.7,
+    /// "Source of Last Reset"): [`super::HAD_POR`], [`super::HAD_RUN`],
+    /// [`super::HAD_PSM_RESTART`], read only.
+    pub const CHIP_RESET: u32 = 0x8;
 }
+
+/// CHIP_RESET: the last chip-level reset was from the power-on reset or the brown-out
+/// detection block (bit 8). The two cannot be told apart on the RP2040. A watchdog reset
+/// is not a chip-level reset and leaves CHIP_RESET as it was (WATCHDOG.REASON tells it;
+/// a chip-level reset clears REASON): so after a watchdog reset of a board that powered
+/// on, HAD_POR is still set, and a reset's cause is REASON's first, CHIP_RESET's only when
+/// REASON is 0 (as CircuitPython's `common_hal_mcu_processor_get_reset_reason` reads
+/// them: "watchdog doesn't clear chip_reset, while chip_reset clears the watchdog").
+pub const HAD_POR: u32 = 1 << 8;
+/// CHIP_RESET: the last chip-level reset was from the RUN pin (bit 16).
+pub const HAD_RUN: u32 = 1 << 16;
+/// CHIP_RESET: the last chip-level reset was from the debug port's PSM restart (bit 20).
+pub const HAD_PSM_RESTART: u32 = 1 << 20;
 
 /// VREG: VSEL's bits.
 pub const VREG_VSEL_BITS: u32 = 0xf0;

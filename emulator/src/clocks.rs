@@ -24,6 +24,13 @@
 //! VREG, or lowering VREG under a fast clock — is refused: the store faults and the board
 //! stops with [`crate::StopReason::Refused`] naming the clock and the voltage
 //! ([`Refusal`]), where a real chip might run on with timing failures.
+//!
+//! **The source of the last reset.** CHIP_RESET (datasheet 2.12.7) reads
+//! [`vreg::HAD_POR`]: every chip-level reset the emulator makes is a power-on or a
+//! brown-out (`Machine::brown_out`); it models no RUN pin and no debugger's PSM restart. A
+//! watchdog reset is not a chip-level reset and leaves CHIP_RESET as it was
+//! ([`SysCtl::watchdog_reset`]; WATCHDOG.REASON says it, `crate::watchdog`). Its
+//! PSM_RESTART_FLAG (bit 24, the debugger's) is not modelled: writes are ignored.
 
 use tactus_rp2040::clocks::{self, CLOCKS_BASE};
 use tactus_rp2040::pll::{self, PLL_SYS_BASE};
@@ -65,6 +72,8 @@ pub struct SysCtl {
     regs: std::collections::BTreeMap<(u32, u32), u32>,
     /// The last write refused (module documentation), until the board takes it.
     pub(crate) refusal: Option<Refusal>,
+    /// CHIP_RESET (module documentation, "The source of the last reset").
+    chip_reset: u32,
 }
 
 impl Default for SysCtl {
@@ -88,6 +97,7 @@ impl Default for SysCtl {
         SysCtl {
             regs,
             refusal: None,
+            chip_reset: vreg::HAD_POR,
         }
     }
 }
@@ -133,6 +143,7 @@ impl SysCtl {
                 1 << (self.get(CLOCKS_BASE, clocks::reg::CLK_SYS_CTRL) & 1)
             }
             (VREG_AND_CHIP_RESET_BASE, vreg::reg::VREG) => v | ((v & 1) << 12),
+            (VREG_AND_CHIP_RESET_BASE, vreg::reg::CHIP_RESET) => self.chip_reset,
             _ => v,
         })
     }
@@ -146,6 +157,9 @@ impl SysCtl {
             return false;
         };
         let off = addr & 0xffc;
+        if (base, off) == (VREG_AND_CHIP_RESET_BASE, vreg::reg::CHIP_RESET) {
+            return true; // read only (module documentation)
+        }
         let old = self.get(base, off);
         let mut new = match (addr >> 12) & 3 {
             0 => value,
@@ -168,6 +182,20 @@ impl SysCtl {
             }
         }
         true
+    }
+
+    /// The registers after a watchdog reset: every one at its power-on value but
+    /// CHIP_RESET, which a watchdog reset leaves as it was (module documentation).
+    pub fn watchdog_reset(&mut self) {
+        *self = SysCtl {
+            chip_reset: self.chip_reset,
+            ..SysCtl::default()
+        };
+    }
+
+    /// CHIP_RESET as the firmware reads it (module documentation).
+    pub fn chip_reset(&self) -> u32 {
+        self.chip_reset
     }
 
     /// The refused write's reason, once (module documentation).
@@ -216,5 +244,28 @@ impl SysCtl {
             return None;
         }
         self.pll_sys_hz().map(|f| f / div)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chip_reset_reads_a_power_on_and_a_watchdog_reset_keeps_it() {
+        let at = VREG_AND_CHIP_RESET_BASE + vreg::reg::CHIP_RESET;
+        let mut s = SysCtl::default();
+        assert_eq!(s.read(at), Some(vreg::HAD_POR));
+        // Read only: a write (any alias) changes nothing.
+        assert!(s.write(at, 0));
+        assert!(s.write(at + 0x3000, vreg::HAD_POR));
+        assert_eq!(s.read(at), Some(vreg::HAD_POR));
+        // A watchdog reset puts VREG back but keeps CHIP_RESET.
+        s.chip_reset = vreg::HAD_RUN;
+        let vreg_at = VREG_AND_CHIP_RESET_BASE + vreg::reg::VREG;
+        assert!(s.write(vreg_at, 0xc1));
+        s.watchdog_reset();
+        assert_eq!(s.read(at), Some(vreg::HAD_RUN));
+        assert_eq!(s.read(vreg_at), Some(vreg::VREG_RESET | vreg::VREG_ROK));
     }
 }

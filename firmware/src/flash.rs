@@ -449,8 +449,9 @@ pub struct ElfRun {
     /// changes when any word of the run does.
     pub dac_digest: u64,
     /// Per core, its fault record at the end (the key map's `cores[c].fault`: the fault
-    /// word and the fault time, raw; `crate::image::fault::FaultWord::decode`).
-    pub fault_records: Vec<[u32; 2]>,
+    /// word, the fault time and the reset word, raw;
+    /// `crate::image::fault::FaultWord::decode_record`).
+    pub fault_records: Vec<[u32; 3]>,
 }
 
 /// Most samples [`run_elf`] runs (one emulated minute at 44.1 kHz).
@@ -591,7 +592,7 @@ pub fn run_elf(
     let mut out = Vec::new();
     let mut fault_records = Vec::with_capacity(cores.len());
     for (c, (_, ctrl)) in cores.iter().enumerate() {
-        let mut record = [0u32; 2];
+        let mut record = [0u32; 3];
         board
             .read_words(crate::image::glue::ctrl::fault_record(*ctrl), &mut record)
             .map_err(|e| e.to_string())?;

@@ -136,10 +136,11 @@ pub struct CoreMap {
     /// Its sample interrupt (its SysTick's exception).
     pub sample_isr: String,
     /// Its control block: start alarm (µs), tick accumulator, samples, misses, ready,
-    /// fault word, fault time (words).
+    /// fault word, fault time, reset word (words).
     pub control: String,
-    /// Its fault record: the fault word (kind, key, trips) and, in the next word, the
-    /// sample count at the last trip (`crate::image::fault`); in its control block.
+    /// Its fault record: the fault word (kind, key, trips), in the next word the sample
+    /// count at the last trip, in the next the reset word (why the board last booted:
+    /// WATCHDOG.REASON | CHIP_RESET) (`crate::image::fault`); in its control block.
     pub fault: String,
     /// Its initial stack pointer.
     pub stack_top: String,

@@ -756,6 +756,17 @@ impl FirmwareJob {
             ),
             resets: resets.clone(),
         };
+        if faults.boot_line().is_none() {
+            // No reset the board booted again from: the run's own power-on (the fault
+            // report says the boot after a reset).
+            if let Some(w) = faults.cores.first() {
+                lines.push(format!(
+                    "boot: its firmware recorded its boot from {} (reset word {:#010x})",
+                    w.reset_cause().text(),
+                    w.reset_word
+                ));
+            }
+        }
         lines.extend(crate::fault::report_lines(
             std::slice::from_ref(&faults),
             f64::from(map.sample_rate_hz),

@@ -9,6 +9,7 @@
 //! kind=noise,amplitude=400,note=64,at=200ms,until=300ms
 //! kind=jump,delta=8000,note=60,at=1s          the code plus 8,000 from 1 s on
 //! kind=adc-silent,board=1,core=0,at=1s        core 0's ADC answers all ones
+//! kind=adc-no-dreq,board=1,core=0,at=1s       core 0's ADC raises no DREQ (converter boards)
 //! kind=dac-stall,board=1,core=1,at=1s         core 1's DAC takes no more frames
 //! kind=hang,note=60,at=1s,until=1.5s          that key's update never returns (a loop)
 //! kind=flip,word=2,bit=30,note=60,at=1s       bit 30 of the key's state word 2 flips
@@ -17,7 +18,7 @@
 //!
 //! Kinds: `open` (code 0), `short` (full scale), `stuck` (`code=` 0–65535), `jump`
 //! (`delta=` −65535–65535 codes), `noise` (`amplitude=` 1–65535 codes, each sample),
-//! `adc-silent`, `dac-stall`, `hang`, `flip` (`word=`, `bit=` 0–31), `brownout`. The
+//! `adc-silent`, `adc-no-dreq`, `dac-stall`, `hang`, `flip` (`word=`, `bit=` 0–31), `brownout`. The
 //! target: `note=` a MIDI key (0–127), or `board=` (from 1, along the keyboard) with `key=`
 //! (from 0, in the board's key order) or `core=` (0 or 1). `at=` and `until=` are times
 //! from the run's start: seconds (`1.5`, `1.5s`) or milliseconds (`200ms`). A flip and a
@@ -104,7 +105,7 @@ impl std::error::Error for FaultError {}
 
 /// The fault kinds' names, as `kind=` takes them.
 pub const KINDS: &str =
-    "open, short, stuck, jump, noise, adc-silent, dac-stall, hang, flip, brownout";
+    "open, short, stuck, jump, noise, adc-silent, adc-no-dreq, dac-stall, hang, flip, brownout";
 
 /// The longest time a fault may name, s (an hour: longer than any run `play` allows).
 const MAX_TIME_S: f64 = 3600.0;
@@ -203,6 +204,7 @@ impl std::str::FromStr for FaultSpec {
             "jump" => FaultKind::Jump(need("delta", -65535, 65535, "jump")? as i32),
             "noise" => FaultKind::Noise(need("amplitude", 1, 65535, "noise")? as u16),
             "adc-silent" => FaultKind::AdcSilent,
+            "adc-no-dreq" => FaultKind::AdcNoDreq,
             "dac-stall" => FaultKind::DacStall,
             "hang" => FaultKind::Hang,
             "flip" => FaultKind::Flip {
@@ -235,7 +237,10 @@ impl std::str::FromStr for FaultSpec {
         let board = num("board", 1, 1 << 16)?;
         let key = num("key", 0, 1 << 16)?;
         let core = num("core", 0, 1)?;
-        let by_core = matches!(kind, FaultKind::AdcSilent | FaultKind::DacStall);
+        let by_core = matches!(
+            kind,
+            FaultKind::AdcSilent | FaultKind::AdcNoDreq | FaultKind::DacStall
+        );
         let by_board = kind == FaultKind::BrownOut;
         let target = match (note, board, key, core) {
             _ if by_board => match (note, board, key, core) {
@@ -415,8 +420,42 @@ impl BoardFaults {
     }
 }
 
-/// Reads the fault record at each of `addrs` (one per core: the fault word, then the
-/// fault time) through `read` (a word of the emulated board's memory), decoded.
+impl BoardFaults {
+    /// The line of a board that booted again after a reset: why its firmware recorded the
+    /// boot (core 0's reset word, `tactus_firmware::image::fault`, "The reset word"). After
+    /// a brown-out the word says a power-on or brown-out, which the RP2040 cannot tell
+    /// apart; the run, which started before, names it a brown-out, and says that the trips
+    /// before it were lost with SRAM. `None` for a board without a reset it booted again
+    /// from.
+    pub fn boot_line(&self) -> Option<String> {
+        let last = self.resets.iter().rev().find(|r| r.reboot.is_ok())?;
+        let w = self.cores.first()?;
+        let cause = w.reset_cause();
+        let after = match (last.by_brown_out(), cause) {
+            (true, tactus_firmware::image::fault::ResetCause::PowerOn) => format!(
+                ": the brown-out at sample {} (the board ran before it; its trips before it \
+                 were lost with SRAM and the scratch registers)",
+                last.sample
+            ),
+            (false, tactus_firmware::image::fault::ResetCause::Watchdog) => {
+                format!(": the watchdog's reset at sample {}", last.sample)
+            }
+            _ => format!(
+                " (the run's last reset: {} at sample {})",
+                last.why, last.sample
+            ),
+        };
+        Some(format!(
+            "board {}: its firmware recorded its last boot from {} (reset word {:#010x}){after}",
+            self.board,
+            cause.text(),
+            w.reset_word
+        ))
+    }
+}
+
+/// Reads the fault record at each of `addrs` (one per core: the fault word, the fault time,
+/// the reset word) through `read` (a word of the emulated board's memory), decoded.
 ///
 /// Errors: what `read` returns, naming the core.
 pub fn read_records(
@@ -427,7 +466,9 @@ pub fn read_records(
         .map(|(c, &a)| {
             let word = read(a).map_err(|e| format!("core {c}'s fault word: {e}"))?;
             let at = read(a.wrapping_add(4)).map_err(|e| format!("core {c}'s fault time: {e}"))?;
-            Ok([word, at])
+            let boot =
+                read(a.wrapping_add(8)).map_err(|e| format!("core {c}'s reset word: {e}"))?;
+            Ok([word, at, boot])
         })
         .collect::<Result<Vec<_>, String>>()?;
     Ok(decode(&records))
@@ -462,6 +503,7 @@ pub fn report_lines(boards: &[BoardFaults], fs: f64) -> Vec<String> {
             ));
         }
     }
+    lines.extend(boards.iter().filter_map(BoardFaults::boot_line));
     let trips: u64 = boards.iter().map(BoardFaults::trips).sum();
     let resets: usize = boards.iter().map(|b| b.resets.len()).sum();
     let hit = (boards.iter())
@@ -486,11 +528,13 @@ pub fn report_lines(boards: &[BoardFaults], fs: f64) -> Vec<String> {
 }
 
 /// The columns of a run's fault file (`OUT/NAME-faults.csv`, [`csv_text`]).
-pub const CSV_HEADER: &str = "board,core,kind,code,slot,key,trips,at_sample,at_s";
+pub const CSV_HEADER: &str = "board,core,kind,code,slot,key,trips,at_sample,at_s,boot";
 
 /// The fault records as CSV ([`CSV_HEADER`]): one row per core of every board, tripped or
 /// not (kind `none`, trips 0): the fault word's key field (`slot`) and its MIDI key (empty
-/// when it names none); `at_s` at `fs` Hz.
+/// when it names none); `at_s` at `fs` Hz; `boot` the core's reset word's cause
+/// (`tactus_firmware::image::fault::ResetCause::name`: `power-on` on a board that never
+/// reset, and after a brown-out).
 pub fn csv_text(boards: &[BoardFaults], fs: f64) -> String {
     let mut s = format!("{CSV_HEADER}\n");
     for b in boards {
@@ -498,13 +542,14 @@ pub fn csv_text(boards: &[BoardFaults], fs: f64) -> String {
             let key = b.midi(w).map_or(String::new(), |k| k.to_string());
             let at = b.trip_sample(w);
             s.push_str(&format!(
-                "{},{c},{},{},{},{key},{},{at},{:.6}\n",
+                "{},{c},{},{},{},{key},{},{at},{:.6},{}\n",
                 b.board,
                 kind_name(w),
                 w.code,
                 w.key,
                 w.trips,
-                at as f64 / fs.max(1.0)
+                at as f64 / fs.max(1.0),
+                w.reset_cause().name()
             ));
         }
     }
@@ -589,7 +634,7 @@ pub fn run_records(
 ) -> Result<Vec<tactus_firmware::image::fault::FaultWord>, String> {
     let image = run.image();
     if (run.resets().last()).is_some_and(|r| r.by_brown_out() && r.reboot.is_err()) {
-        return Ok(decode(&vec![[0, 0]; image.cores()]));
+        return Ok(decode(&vec![[0, 0, 0]; image.cores()]));
     }
     let addrs: Vec<u32> = (0..image.cores())
         .filter_map(|c| {
@@ -613,11 +658,16 @@ pub fn image_slots(image: &tactus_firmware::image::FirmwareImage, midi: &[u8]) -
 }
 
 /// A reset a board met, in words, at `fs` samples a second: `watchdog timer reset at t =
-/// 1.0000 s (sample 44100, cycle …): booted again, 12 samples at zero force`, or that the
-/// board held at zero force from then on, since it did not boot again, and why.
+/// 1.0000 s (sample 44100, cycle …): booted again, 12 samples at zero force after the
+/// reset's own (13 in all)` — the run gives the reset's sample at zero force, then
+/// [`tactus_firmware::image::ResetRecord::reboot`] more while the firmware boots —, or that
+/// the board held at zero force from then on, since it did not boot again, and why.
 pub fn reset_text(reset: &tactus_firmware::image::ResetRecord, fs: f64) -> String {
     let after = match &reset.reboot {
-        Ok(n) => format!("booted again, {n} samples at zero force"),
+        Ok(n) => format!(
+            "booted again, {n} samples at zero force after the reset's own ({} in all)",
+            n + 1
+        ),
         Err(e) => format!("the board held at zero force from then (it did not boot again: {e})"),
     };
     format!(
@@ -693,11 +743,11 @@ impl RestingHang {
     }
 }
 
-/// Decodes each core's raw fault record (the fault word, the fault time).
-pub fn decode(records: &[[u32; 2]]) -> Vec<FaultWord> {
+/// Decodes each core's raw fault record (the fault word, the fault time, the reset word).
+pub fn decode(records: &[[u32; 3]]) -> Vec<FaultWord> {
     records
         .iter()
-        .map(|r| FaultWord::decode(r[0], r[1]))
+        .map(|&r| FaultWord::decode_record(r))
         .collect()
 }
 
@@ -733,6 +783,12 @@ mod tests {
         assert_eq!(f.target, Target::Key { board: 2, key: 3 });
         let f: FaultSpec = "kind=adc-silent,board=1,core=1,at=0".parse().unwrap();
         assert_eq!(f.target, Target::Core { board: 1, core: 1 });
+        let f: FaultSpec = "kind=adc-no-dreq,board=2,core=0,at=1s,until=2s"
+            .parse()
+            .unwrap();
+        assert_eq!(f.kind, FaultKind::AdcNoDreq);
+        assert_eq!(f.target, Target::Core { board: 2, core: 0 });
+        assert_eq!(err("kind=adc-no-dreq,note=60,at=1s").field, "core");
         let f: FaultSpec = "kind=flip,word=2,bit=31,note=21,at=2s".parse().unwrap();
         assert_eq!(f.kind, FaultKind::Flip { word: 2, bit: 31 });
         let f: FaultSpec = "kind=brownout,board=4,at=1s".parse().unwrap();
@@ -780,8 +836,10 @@ mod tests {
                 FaultWord::encode(TripKind::SensorRange, 3, 2),
             ),
             (0x2000_0018, 44_100),
+            (0x2000_001c, 0),
             (0x2000_0114, 0),
             (0x2000_0118, 0),
+            (0x2000_011c, 0),
         ];
         let mut read =
             |a: u32| (mem.iter().find(|m| m.0 == a).map(|m| m.1)).ok_or_else(|| format!("{a:#x}"));
@@ -822,10 +880,13 @@ mod tests {
         );
         let csv = csv_text(&boards, 44_100.0);
         assert!(
-            csv.contains("\n2,0,sensor-range,1,3,60,2,44100,1.000000\n"),
+            csv.contains("\n2,0,sensor-range,1,3,60,2,44100,1.000000,unrecorded\n"),
             "{csv}"
         );
-        assert!(csv.contains("\n1,1,none,0,0,,0,0,0.000000\n"), "{csv}");
+        assert!(
+            csv.contains("\n1,1,none,0,0,,0,0,0.000000,unrecorded\n"),
+            "{csv}"
+        );
         assert_eq!(
             report_lines(&boards[..1], 44_100.0),
             ["faults: 0 trips on 1 board"]
@@ -878,10 +939,34 @@ mod tests {
         );
         assert!(
             csv_text(std::slice::from_ref(&hung_board), 44_100.0)
-                .contains("\n3,0,watchdog,4,2,59,2,13236,0.300136\n"),
+                .contains("\n3,0,watchdog,4,2,59,2,13236,0.300136,unrecorded\n"),
             "{}",
             csv_text(std::slice::from_ref(&hung_board), 44_100.0)
         );
+        // The firmware's reset word, on the line of a board that booted again: after a
+        // watchdog reset the watchdog (REASON.TIMER, HAD_POR kept from the power-on), after
+        // a brown-out a power-on, which the run names a brown-out.
+        hung_board.cores[0].reset_word = 0x101;
+        assert_eq!(
+            hung_board.boot_line().unwrap(),
+            "board 3: its firmware recorded its last boot from the watchdog (reset word \
+             0x00000101): the watchdog's reset at sample 13236"
+        );
+        let mut browned = hung_board.clone();
+        browned.cores[0] = FaultWord::decode_record([0, 0, 0x100]);
+        browned.resets.push(tactus_firmware::image::ResetRecord {
+            sample: 20_000,
+            why: "brown-out",
+            ..watchdog_reset(0)
+        });
+        assert_eq!(
+            report_lines(std::slice::from_ref(&browned), 44_100.0)[0],
+            "board 3: its firmware recorded its last boot from a power-on or brown-out (reset \
+             word 0x00000100): the brown-out at sample 20000 (the board ran before it; its \
+             trips before it were lost with SRAM and the scratch registers)"
+        );
+        assert!(csv_text(std::slice::from_ref(&browned), 44_100.0).contains(",power-on\n"));
+        assert_eq!(boards[0].boot_line(), None, "no reset");
         // A sensor trip keeps its own time beside a watchdog reset.
         let mut sensor_board = boards[1].clone();
         sensor_board.resets = hung_board.resets.clone();

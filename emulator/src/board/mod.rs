@@ -214,6 +214,11 @@ impl Board {
         self.profiler.add(addr, true)
     }
 
+    /// [`Machine::io_write`].
+    pub fn io_write(&mut self, addr: u32, value: u32) -> bool {
+        self.machine.io_write(addr, value)
+    }
+
     /// A brown-out ([`Machine::brown_out`]): the profiles' open calls, which never
     /// return, dropped (as at a watchdog reset).
     pub fn brown_out(&mut self) {

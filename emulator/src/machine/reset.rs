@@ -5,7 +5,8 @@
 //! state machine, 4.7): both cores restart, SIO (FIFOs, spinlocks, dividers), the timer,
 //! RESETS, the clocks, PLL and VREG registers (`crate::clocks`) and on a board with
 //! converters the PIOs, the DMA and IO_BANK0 go back to their power-on values; SRAM keeps
-//! its contents, the watchdog its REASON and scratch registers. The converters at the pins
+//! its contents, the watchdog its REASON and scratch registers, VREG_AND_CHIP_RESET its
+//! CHIP_RESET (the source of the last chip-level reset: HAD_POR from the power-on). The converters at the pins
 //! are other chips and keep their state, but the DACs are cleared (`Dac8568::clear`:
 //! the board's CLR wiring). Not modelled: the SSI's reset on this path (the XIP window
 //! stays as it was; a boot from flash sets it up again), the PSM's WDSEL register itself.
@@ -59,10 +60,30 @@ impl Machine {
     pub fn brown_out(&mut self) {
         let at = self.reset_cycle();
         self.system.watchdog.power_on();
+        // CHIP_RESET.HAD_POR: "power-on reset or brown-out detection" (datasheet 2.12.7).
+        self.system.sysctl = Default::default();
         self.fill_power_on_pattern();
         self.system.invalidate_code();
         self.chip_reset(at);
         self.boot_again(at);
+    }
+
+    /// A store to an I/O register (the PIOs', the DMA's) by the host between two runs, as a
+    /// core's store there would make it (any alias, datasheet 2.1.2), at the later of the
+    /// running cores' cycles: what a fault injection changes in the chip, such as a
+    /// converter's state machine that stops (its `CTRL.SM_ENABLE` cleared). False without
+    /// I/O, or for an address it does not own or a block held in reset.
+    pub fn io_write(&mut self, addr: u32, value: u32) -> bool {
+        let at = self.reset_cycle();
+        self.system.io_unlazy();
+        if self.system.io.is_none() {
+            return false;
+        }
+        self.system.io_advance(at);
+        let done = (self.system.io.as_deref_mut())
+            .is_some_and(|io| io.accepts(addr) && io.write(addr, value));
+        self.system.io_refresh();
+        done
     }
 
     /// The later of the running cores' cycles (of all cores when none runs).
@@ -90,7 +111,8 @@ impl Machine {
             c.nvic.clock_hz = clock_hz;
         }
         self.system.sio = Default::default();
-        self.system.sysctl = Default::default();
+        // A power-on's CHIP_RESET is the default's (HAD_POR); a watchdog reset keeps it.
+        self.system.sysctl.watchdog_reset();
         // RESETS holds the timer (PSM.WDSEL selects RESETS): only the boot ROM's `main`
         // releases it ([`Machine::boot_again`]).
         self.system.timer.chip_reset();

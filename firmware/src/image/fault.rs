@@ -20,6 +20,15 @@
 //! **The fault time** is the core's sample count ([`super::glue::ctrl::SAMPLES`]) at the
 //! last trip: samples since the sample loop started, after the last reset.
 //!
+//! **The reset word** (the record's third word, [`super::glue::ctrl::RESET_CAUSE`]) is why
+//! the board last booted, as each core's reset handler read it: WATCHDOG.REASON (bits 1:0)
+//! | VREG_AND_CHIP_RESET.CHIP_RESET (bits 8, 16, 20), raw ([`ResetCause::of`] decodes it).
+//! It is what a brown-out leaves: SRAM and the scratch registers are lost with the supply,
+//! so the trips before it are gone, but the boot after it records a power-on or brown-out
+//! boot (CHIP_RESET.HAD_POR, REASON 0). The RP2040 cannot tell a brown-out from a first
+//! power-on, and neither can the firmware: the host, which knows the board ran before,
+//! reports the brown-out. Written at every boot, no cycle of the sample interrupt.
+//!
 //! **Across a watchdog reset.** SRAM is reloaded (from flash) or restored (a RAM image's
 //! re-entry, [`super::reboot`]) at boot, so every trip also writes the core's pair to the
 //! watchdog's scratch registers (datasheet 4.7: SCRATCH0–7 keep their values through a
@@ -145,6 +154,72 @@ impl FaultKind {
     }
 }
 
+/// Why the board last booted: the reset word decoded (module documentation, "The reset
+/// word"). A watchdog reset leaves CHIP_RESET as it was and a chip-level reset clears
+/// REASON, so REASON decides first (`tactus_rp2040::vreg::HAD_POR`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResetCause {
+    /// The word is 0: no reset handler recorded one (an image older than the word, or a
+    /// board whose SRAM was lost and did not boot again).
+    Unrecorded,
+    /// A power-on or a brown-out (CHIP_RESET.HAD_POR, REASON 0): the RP2040 does not tell
+    /// them apart.
+    PowerOn,
+    /// The RUN pin (CHIP_RESET.HAD_RUN, REASON 0).
+    RunPin,
+    /// The debug port's PSM restart (CHIP_RESET.HAD_PSM_RESTART, REASON 0).
+    DebugPort,
+    /// The watchdog: its count reached 0 (REASON.TIMER) or CTRL.TRIGGER (REASON.FORCE).
+    Watchdog,
+    /// Bits that are none of these.
+    Other(u32),
+}
+
+impl ResetCause {
+    /// The cause of a reset word (REASON | CHIP_RESET).
+    pub fn of(word: u32) -> ResetCause {
+        use tactus_rp2040::vreg::{HAD_POR, HAD_PSM_RESTART, HAD_RUN};
+        use tactus_rp2040::watchdog::{REASON_FORCE, REASON_TIMER};
+        if word & (REASON_TIMER | REASON_FORCE) != 0 {
+            ResetCause::Watchdog
+        } else if word & HAD_POR != 0 {
+            ResetCause::PowerOn
+        } else if word & HAD_RUN != 0 {
+            ResetCause::RunPin
+        } else if word & HAD_PSM_RESTART != 0 {
+            ResetCause::DebugPort
+        } else if word == 0 {
+            ResetCause::Unrecorded
+        } else {
+            ResetCause::Other(word)
+        }
+    }
+
+    /// Its name in the fault file's `boot` column: `power-on`, `watchdog`, ….
+    pub fn name(self) -> &'static str {
+        match self {
+            ResetCause::Unrecorded => "unrecorded",
+            ResetCause::PowerOn => "power-on",
+            ResetCause::RunPin => "run-pin",
+            ResetCause::DebugPort => "debug-port",
+            ResetCause::Watchdog => "watchdog",
+            ResetCause::Other(_) => "other",
+        }
+    }
+
+    /// In reports: `a power-on or brown-out`, `the watchdog`, ….
+    pub fn text(self) -> String {
+        match self {
+            ResetCause::Unrecorded => "not recorded".into(),
+            ResetCause::PowerOn => "a power-on or brown-out".into(),
+            ResetCause::RunPin => "the RUN pin".into(),
+            ResetCause::DebugPort => "the debug port".into(),
+            ResetCause::Watchdog => "the watchdog".into(),
+            ResetCause::Other(w) => format!("reset word {w:#010x}"),
+        }
+    }
+}
+
 /// The key field of a fault that is no key's (a board's fault; a watchdog trip's until the
 /// reset handler names its key).
 pub const NO_KEY: u8 = 0xff;
@@ -191,6 +266,8 @@ pub struct FaultWord {
     pub trips: u16,
     /// The core's sample count at the last trip.
     pub at_sample: u32,
+    /// The record's reset word (module documentation, "The reset word"; 0 when not read).
+    pub reset_word: u32,
 }
 
 impl FaultWord {
@@ -203,7 +280,21 @@ impl FaultWord {
             key: (word >> 8) as u8,
             trips: (word >> 16) as u16,
             at_sample,
+            reset_word: 0,
         }
+    }
+
+    /// Decodes a whole record: the fault word, the fault time and the reset word.
+    pub fn decode_record(record: [u32; 3]) -> FaultWord {
+        FaultWord {
+            reset_word: record[2],
+            ..FaultWord::decode(record[0], record[1])
+        }
+    }
+
+    /// Why the board last booted, by the reset word.
+    pub fn reset_cause(&self) -> ResetCause {
+        ResetCause::of(self.reset_word)
     }
 
     /// The fault word of a record (the inverse of [`FaultWord::decode`] for its first word).
@@ -308,6 +399,18 @@ mod tests {
         }
         assert_eq!(FaultWord::decode(0x2a, 0).kind, None);
         assert!(!FaultWord::decode(0, 0).tripped());
+    }
+
+    #[test]
+    fn reset_words_decode_reason_first() {
+        // A watchdog reset of a board that powered on: HAD_POR still set, REASON decides.
+        assert_eq!(ResetCause::of(0x101), ResetCause::Watchdog);
+        assert_eq!(ResetCause::of(0x102), ResetCause::Watchdog);
+        assert_eq!(ResetCause::of(0x100), ResetCause::PowerOn);
+        assert_eq!(ResetCause::of(0x1_0000), ResetCause::RunPin);
+        assert_eq!(ResetCause::of(0x10_0000), ResetCause::DebugPort);
+        assert_eq!(ResetCause::of(0), ResetCause::Unrecorded);
+        assert_eq!(ResetCause::of(0x8), ResetCause::Other(8));
     }
 
     #[test]

@@ -27,6 +27,7 @@ use tactus_rp2040::timer::{reg, TIMER_BASE};
 use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
 mod checks;
+mod reset_cause;
 use checks::{
     check_step, clear_return_slot, copy_words, enable_watchdog, feed_watchdog, mark_behind,
     record_watchdog_trip, restore_fault_record, trip_paths, CopyMode, PendingTrip,
@@ -50,8 +51,11 @@ pub mod ctrl {
     pub const FAULT: u16 = 20;
     /// The core's sample count at its last trip (`super::super::fault`).
     pub const FAULT_AT: u16 = 24;
+    /// The reset word: why the board last booted, WATCHDOG.REASON | CHIP_RESET as the
+    /// reset handler read them (`super::super::fault`, "The reset word").
+    pub const RESET_CAUSE: u16 = 28;
     /// Size of the block; the key records follow it.
-    pub const SIZE: u32 = 28;
+    pub const SIZE: u32 = 32;
 
     /// The address of a core's fault record (the fault word at [`FAULT`], then the fault
     /// time) in an image whose control block is at `control`: the rule `keys.json`'s
@@ -770,6 +774,7 @@ pub fn core_code(
     }
     start(a);
     a.ldr_const(5, ctrl_addr);
+    reset_cause::record_reset_cause(a);
     if feed.is_some() {
         restore_fault_record(a, core, hang.as_ref());
     }

@@ -762,6 +762,8 @@ pub(super) fn data_block(
     data.extend(word(0)); // READY
     data.extend(word(0)); // FAULT (the reset handler copies it from the watchdog's scratch)
     data.extend(word(0)); // FAULT_AT
+    data.extend(word(0)); // RESET_CAUSE (the reset handler writes it at each boot)
+    debug_assert_eq!(data.len(), ctrl::SIZE as usize);
     let mut states = Vec::new();
     for k in kp {
         let p = &l.programs[k.spec.program];

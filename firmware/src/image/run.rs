@@ -848,11 +848,7 @@ impl ImageRun {
         let limit = self.tick_cycle(want);
         let stop = self.board.run_until(limit);
         if self.has_faults() && self.after_reset(stop)? {
-            self.rest.forget();
-            self.samples = want;
-            self.zero_sample();
-            // The handlers that completed in this sample before the reset.
-            self.take_handlers();
+            self.reset_sample(want);
             return Ok(());
         }
         self.check_stop(stop)?;
@@ -887,16 +883,23 @@ impl ImageRun {
             }
             let stop = self.board.run_for(eighth);
             if self.has_faults() && self.after_reset(stop)? {
-                self.rest.forget();
-                self.samples = want;
-                self.zero_sample();
-                self.take_handlers();
+                self.reset_sample(want);
                 return Ok(());
             }
             self.check_stop(stop)?;
         }
         self.samples = want;
         self.collect()
+    }
+
+    /// Sample `want`, in which the board reset (`inject.rs`, `after_reset`): the rest
+    /// replay forgotten, the sample one of zero force, with the handlers that completed in
+    /// it before the reset.
+    fn reset_sample(&mut self, want: u64) {
+        self.rest.forget();
+        self.samples = want;
+        self.zero_sample();
+        self.take_handlers();
     }
 
     /// With converters: each key's sensor words as its ADC channels' codes

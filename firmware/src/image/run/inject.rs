@@ -67,6 +67,13 @@ pub enum FaultKind {
     /// The ADC of this core answers all ones on every channel (its SDO stuck high); without
     /// converters every sensor word of the core's keys reads full scale.
     AdcSilent,
+    /// The ADC of this core raises no more DREQ (a converter board's: its state machine,
+    /// which clocks the ADC and fills the RX FIFO whose DREQ paces the results channel,
+    /// stops: `CTRL.SM_ENABLE` of the ADC's state machine cleared, set again when it
+    /// clears): the DMA channel that reads the results never completes its burst, and the
+    /// commands channel stops when the TX FIFO is full. A board without converters has no
+    /// ADC: an error.
+    AdcNoDreq,
     /// The DAC of this core takes no more frames (its SPI link broken): its outputs hold
     /// their codes, so the codes the host reads for the core's drives hold those of the
     /// sample before (with or without converters). Nothing on the RP2040 sees it: the
@@ -141,7 +148,9 @@ pub struct ResetRecord {
     pub cycle: u64,
     /// `watchdog timer`, `watchdog trigger` or `brown-out`.
     pub why: &'static str,
-    /// Samples of zero force while the firmware booted; `Err` when it did not boot again.
+    /// Samples of zero force while the firmware booted, after the reset's own sample (which
+    /// the run gives at zero force too: `reboot + 1` in all, the next sample the new boot's
+    /// first); `Err` when it did not boot again.
     pub reboot: Result<u64, String>,
 }
 
@@ -255,7 +264,18 @@ impl ImageRun {
             }
             _ => {}
         }
-        if matches!(f.kind, FaultKind::AdcSilent | FaultKind::DacStall) {
+        if f.kind == FaultKind::AdcNoDreq && self.image.io.is_none() {
+            return Err(
+                "`kind`: `adc-no-dreq` stops the ADC's state machine of a converter \
+                        board (`rp2040_io`): this board has no converters (no `[converters]` \
+                        in its board file), so no ADC and no DREQ"
+                    .into(),
+            );
+        }
+        if matches!(
+            f.kind,
+            FaultKind::AdcSilent | FaultKind::AdcNoDreq | FaultKind::DacStall
+        ) {
             match f.core {
                 None => return Err("`core`: this fault needs a core".into()),
                 Some(c) if c >= self.image.cores.len() => {
@@ -438,6 +458,22 @@ impl ImageRun {
                     self.faults.hung = kept;
                     for (_, a, old) in back {
                         self.board.write_bytes(a, &old).map_err(emu)?;
+                    }
+                }
+                FaultKind::AdcNoDreq if starts != ends => {
+                    // The ADC's state machine (SM 0 of the core's PIO block, `super::super::io`)
+                    // stops, or runs again: CTRL's SM_ENABLE bit through the CLR or SET alias.
+                    let c = f.core.unwrap_or(0);
+                    let alias = if starts {
+                        tactus_rp2040::ATOMIC_CLR
+                    } else {
+                        tactus_rp2040::ATOMIC_SET
+                    };
+                    let ctrl = super::super::io::pio_base(c) + tactus_rp2040::pio::reg::CTRL;
+                    if !self.board.io_write(ctrl + alias, 1) {
+                        return Err(ImageError::Run(format!(
+                            "core {c}: the ADC's state machine cannot be stopped (no PIO block)"
+                        )));
                     }
                 }
                 FaultKind::DacStall if starts || ends => {
