@@ -1194,3 +1194,30 @@ fn a_branch_into_the_middle_of_a_32_bit_instruction_is_an_error() {
         WcetError::Overlap { addr: BASE + 6 }
     );
 }
+
+#[test]
+fn a_path_placed_below_the_entry() {
+    // The entry branches back to a path at a lower address (no loop: it returns), as a
+    // handler's rare path placed before it. The analysis starts at the entry, not at the
+    // lowest block: a root taken from the lowest address priced the rare path alone.
+    let mut p = Prog::new(&[
+        l("rare"),
+        movs(1, 1), // 1
+        bx_lr(),    // 2
+        l("f"),
+        cmpi(0, 0),        // 1
+        bc(EQ, "rare"),    // 2 taken, 1 not
+        adds(1, 1, 1),     // 1
+        adds(1, 1, 1),     // 1
+        adds(1, 1, 1),     // 1
+        adds(1, 1, 1),     // 1
+        adds(1, 1, 1),     // 1
+        bx_lr(),           // 2
+    ]);
+    let c = p.check("f", &Bounds::new(), &[vec![0], vec![1], vec![9]]);
+    assert_eq!(c, 1 + 1 + 5 + 2);
+    let w = p.wcet("f", &Bounds::new()).unwrap();
+    assert_eq!(w.path, vec![p.at("f"), w.blocks[2].start]);
+    // The rare path: 1 + 2 + 1 + 2 = 6, under the common one.
+    assert_eq!(p.run("f", &[0]), 6);
+}

@@ -621,9 +621,12 @@ impl Cx<'_> {
             }
         }
 
-        // 3. Dominators, back edges, natural loops.
+        // 3. Dominators, back edges, natural loops. The entry's block is the root, wherever
+        // it lies: blocks are numbered by address, and code the function reaches may lie
+        // below its entry (a path placed before it).
         let n = blocks.len();
-        let order = dfs_order(&blocks);
+        let root = index[&entry];
+        let order = dfs_order(&blocks, root);
         let mut rpo_num = vec![usize::MAX; n];
         for (i, &b) in order.iter().enumerate() {
             rpo_num[b] = i;
@@ -638,12 +641,12 @@ impl Cx<'_> {
                 }
             }
         }
-        let idom = dominators(&order, &rpo_num, &preds);
+        let idom = dominators(&order, &rpo_num, &preds, root);
         let dominates = |a: usize, mut b: usize| loop {
             if a == b {
                 return true;
             }
-            if b == 0 {
+            if b == root {
                 return false;
             }
             b = idom[b];
@@ -755,9 +758,9 @@ impl Cx<'_> {
             member: None,
             unexecuted: &self.bounds.unexecuted,
         };
-        let start = match owner[0] {
+        let start = match owner[root] {
             Some(l) => Node::Loop(l),
-            None => Node::Block(0),
+            None => Node::Block(root),
         };
         let (cycles, path) = region
             .longest(start, Sink::Exit(None))?
@@ -913,13 +916,14 @@ impl Consts {
     }
 }
 
-/// Depth-first order of the blocks reachable from block 0: reverse postorder.
-fn dfs_order(blocks: &[Block]) -> Vec<usize> {
+/// Depth-first order of the blocks reachable from block `root` (the entry's): reverse
+/// postorder, `root` first.
+fn dfs_order(blocks: &[Block], root: usize) -> Vec<usize> {
     let n = blocks.len();
     let mut seen = vec![false; n];
     let mut post = Vec::with_capacity(n);
-    let mut stack: Vec<(usize, usize)> = vec![(0, 0)];
-    seen[0] = true;
+    let mut stack: Vec<(usize, usize)> = vec![(root, 0)];
+    seen[root] = true;
     while let Some(&mut (b, ref mut i)) = stack.last_mut() {
         let edges = &blocks[b].edges;
         if *i < edges.len() {
@@ -941,10 +945,10 @@ fn dfs_order(blocks: &[Block]) -> Vec<usize> {
 }
 
 /// Immediate dominators (Cooper, Harvey, Kennedy, "A Simple, Fast Dominance Algorithm").
-fn dominators(order: &[usize], rpo: &[usize], preds: &[Vec<usize>]) -> Vec<usize> {
+fn dominators(order: &[usize], rpo: &[usize], preds: &[Vec<usize>], root: usize) -> Vec<usize> {
     let n = rpo.len();
     let mut idom = vec![usize::MAX; n];
-    idom[0] = 0;
+    idom[root] = root;
     let mut changed = true;
     while changed {
         changed = false;
