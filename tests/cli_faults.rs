@@ -1088,13 +1088,12 @@ fn a_hang_on_a_key_standing_still_is_warned_about_and_waits_for_it_to_move() {
 
 /// `kind=adc-no-dreq`: a converter board's ADC raises no more DREQ (its state machine
 /// stops), so the DMA channel that reads its results never completes a burst. The
-/// firmware does not see it (docs/firmware.md, "Faults": the gap, and what a check would
-/// cost): the stalled core's keys read the last bursts' positions from the ring of
-/// results buffers, 0 trips, the other core untouched. When the ADC runs again (`until`)
-/// the positions jump back to the key's and the sensor check trips (`sensor-rate`, at the
-/// sample after), the motors at zero; 100 ms of plausible readings later the keys play
-/// again, the clean run's codes at the end. A board without converters refuses the kind,
-/// naming the field, in `emu run` and in `play`.
+/// firmware's burst check (docs/firmware.md, "Faults") sees it at the next sample: the
+/// stalled core's motors at zero force within two samples, an `adc-stall` trip on every
+/// key of the core, the other core untouched. When the ADC runs again (`until`) the keys
+/// read positions again, their change checks trip on the jump, and 100 ms of plausible
+/// readings later they play again, the clean run's codes at the end. A board without
+/// converters refuses the kind, naming the field, in `emu run` and in `play`.
 #[test]
 fn an_adc_without_dreq_is_injected_on_a_converter_board_and_refused_on_a_plain_one() {
     let dir = temp_dir("cli-faults-no-dreq");
@@ -1145,17 +1144,51 @@ fn an_adc_without_dreq_is_injected_on_a_converter_board_and_refused_on_a_plain_o
             continue;
         }
         let (clean, _) = emu_codes(&run("0.07", &[]));
-        // Keys 60, 61 on core 1, 62, 63 on core 0.
+        // Keys 60, 61 on core 1, 62, 63 on core 0. The burst check sees the stall at the
+        // first sample whose results it should have filled: core 1's motors at DAC code 0
+        // (zero force) and its keys out of the model for as long as it lasts, one trip of
+        // kind adc-stall on every key of the core; core 0 plays as without it.
         let (stalled, stdout) = emu_codes(&run(
             "0.07",
             &["--fault", "kind=adc-no-dreq,board=1,core=1,at=0.05s"],
         ));
         assert_eq!(stalled[2..], clean[2..], "{stdout}");
-        assert_ne!(stalled[..2], clean[..2], "{stdout}");
-        let (peak_code, _) = limiter_peak(board);
-        assert!(stalled.iter().all(|c| c.abs() <= peak_code), "{stalled:?}");
-        assert!(stdout.contains("faults: 0 trips on 1 board\n"), "{stdout}");
+        assert_eq!(stalled[..2], [0, 0], "{stdout}");
+        assert_ne!(clean[..2], [0, 0], "{stdout}");
+        assert!(
+            stdout.contains("board 1 core 1: adc-stall on every key of the core")
+                && stdout.contains(", 1 trip\n")
+                && !stdout.contains("board 1 core 0: "),
+            "{stdout}"
+        );
+        // Within two samples: a stall from sample s is seen by the handler of s + 1 (a run of
+        // samples 0 to s sees none), whose
+        // zero codes the DMA sends at the tick of s + 2.
+        let from = 2205; // 0.05 s at 44.1 kHz
+        assert!(
+            stdout.contains(&format!("(from sample {from} on)")),
+            "{stdout}"
+        );
+        for (samples, seen) in [(from + 1, false), (from + 2, true)] {
+            let seconds = format!("{:.9}", (samples as f64 + 0.01) / 44_100.0);
+            let (codes, stdout) = emu_codes(&run(
+                &seconds,
+                &["--fault", "kind=adc-no-dreq,board=1,core=1,at=0.05s"],
+            ));
+            assert_eq!(stdout.contains("adc-stall"), seen, "{samples}: {stdout}");
+            if seen {
+                assert!(
+                    stdout.contains(&format!("adc-stall on every key of the core (its ADC's burst did not finish) at sample {}", from + 1)),
+                    "{stdout}"
+                );
+                assert_eq!(codes[..2], [0, 0], "{samples}: {stdout}");
+            }
+        }
 
+        // When the ADC answers again (`until`), the bursts finish and the keys read
+        // positions again: the keys moved during the stall (`mf-dip` presses them), so
+        // their change checks trip and the keys recover as from any sensor fault, after
+        // which the board plays as the clean run does.
         let (clean, _) = emu_codes(&run("0.3", &[]));
         let (back, stdout) = emu_codes(&run(
             "0.3",
@@ -1164,10 +1197,8 @@ fn an_adc_without_dreq_is_injected_on_a_converter_board_and_refused_on_a_plain_o
                 "kind=adc-no-dreq,board=1,core=1,at=0.05s,until=0.06s",
             ],
         ));
-        // 0.06 s is sample 2646: the first burst after it is read at the next sample.
         assert!(
-            stdout.contains("board 1 core 1: sensor-rate on key 61 (C#4) at sample 2647 ")
-                && !stdout.contains("board 1 core 0: "),
+            stdout.contains("board 1 core 1: ") && !stdout.contains("board 1 core 0: "),
             "{stdout}"
         );
         assert_eq!(back, clean, "{stdout}");

@@ -1205,14 +1205,14 @@ fn a_path_placed_below_the_entry() {
         movs(1, 1), // 1
         bx_lr(),    // 2
         l("f"),
-        cmpi(0, 0),        // 1
-        bc(EQ, "rare"),    // 2 taken, 1 not
-        adds(1, 1, 1),     // 1
-        adds(1, 1, 1),     // 1
-        adds(1, 1, 1),     // 1
-        adds(1, 1, 1),     // 1
-        adds(1, 1, 1),     // 1
-        bx_lr(),           // 2
+        cmpi(0, 0),     // 1
+        bc(EQ, "rare"), // 2 taken, 1 not
+        adds(1, 1, 1),  // 1
+        adds(1, 1, 1),  // 1
+        adds(1, 1, 1),  // 1
+        adds(1, 1, 1),  // 1
+        adds(1, 1, 1),  // 1
+        bx_lr(),        // 2
     ]);
     let c = p.check("f", &Bounds::new(), &[vec![0], vec![1], vec![9]]);
     assert_eq!(c, 1 + 1 + 5 + 2);

@@ -394,11 +394,14 @@ impl BoardFaults {
     }
 
     /// The key a fault word names, in words: `key 64 (E4)` (a watchdog trip's: the key whose
-    /// update hung), `the whole board`, `an unknown key` (a watchdog trip whose hung key the
+    /// update hung), `every key of the core …` (an `adc-stall`), `the whole board`, `an unknown key` (a watchdog trip whose hung key the
     /// firmware could not name, `tactus_firmware::image::fault`, "Which key hung"), or the
     /// slot when the board has no key there.
     fn key_text(&self, w: &FaultWord) -> String {
         match (w.key, self.midi(w)) {
+            (NO_KEY, _) if w.kind == Some(TripKind::AdcStall) => {
+                "every key of the core (its ADC's burst did not finish)".to_string()
+            }
             (NO_KEY, _) => "the whole board".to_string(),
             (UNKNOWN_KEY, _) => "an unknown key".to_string(),
             (_, Some(k)) => format!("key {k} ({})", tactus_firmware::budget::note_name(k)),

@@ -120,16 +120,22 @@ pub enum FaultKind {
     /// The board came back from a watchdog reset (REASON.TIMER or REASON.FORCE set at
     /// boot): a core hung, or stopped finishing its samples, for [`WATCHDOG_PERIOD_US`].
     Watchdog = 4,
+    /// A converter core's ADC burst that did not finish within its sample (the burst
+    /// check, [`super::io::IoPlan::burst_mark`]): an ADC that stopped answering, its DREQ
+    /// gone. Key [`NO_KEY`]: every key of the core; the fault time is the stall's latest
+    /// sample, and a stall counts one trip however long it lasts.
+    AdcStall = 5,
 }
 
 impl FaultKind {
     /// Every kind, by code.
-    pub const ALL: [FaultKind; 5] = [
+    pub const ALL: [FaultKind; 6] = [
         FaultKind::None,
         FaultKind::SensorRange,
         FaultKind::SensorRate,
         FaultKind::StateRange,
         FaultKind::Watchdog,
+        FaultKind::AdcStall,
     ];
 
     /// The kind of code `code`, if it is one.
@@ -150,6 +156,7 @@ impl FaultKind {
             FaultKind::SensorRate => "sensor-rate",
             FaultKind::StateRange => "state-range",
             FaultKind::Watchdog => "watchdog",
+            FaultKind::AdcStall => "adc-stall",
         }
     }
 }

@@ -860,6 +860,28 @@ pub fn core_code(
     // ---- the sample interrupt ----
     // The sensor checks' trip paths, branched to but not yet emitted.
     let mut trips: Vec<PendingTrip> = Vec::new();
+    // The burst check's stall path, before the handler (within a `B<cond>`'s reach of the
+    // check): the tick's step, the stall's record and the motors at zero, and the
+    // handler's end (feeding the watchdog on core 0: the core is not hung).
+    let stall = match io.and_then(|p| Some((p.burst_mark(core)?, p.cores.get(core)?))) {
+        Some((_, c)) => {
+            a.align4();
+            let l = a.label();
+            a.bind(l);
+            tick_step(a, &tick);
+            checks::adc_stall_path(a, core, c.dac_channels);
+            handler_tail(
+                a,
+                ctrl_addr,
+                false,
+                feed.filter(|_| core == 0).as_ref(),
+                None,
+            );
+            a.pool();
+            Some(l)
+        }
+        None => None,
+    };
     a.align4();
     a.bind(labels.isr);
     if let Some(p) = io {
@@ -868,6 +890,11 @@ pub fn core_code(
             .iter()
             .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5));
         p.handler_start(a, core, borrow_r6);
+    }
+    if let Some(l) = stall {
+        // The burst check: the mark still in this sample's results.
+        a.i(asm::cmp(2, 7));
+        a.bc(cond::EQ, l);
     }
     // The reload value of the period after this one (r2 = the accumulator after it).
     tick_step(a, &tick);

@@ -876,9 +876,32 @@ impl IoPlan {
         a.i(asm::str(1, 0, cmd));
     }
 
+    /// The byte offset in a results buffer of core `core`'s *burst mark*, when its keys read
+    /// the ADC: the word of its last channel, which the burst's last transfer writes.
+    ///
+    /// **The burst check** (docs/firmware.md, "Faults": an ADC that stops answering, its
+    /// DREQ gone, so that the results channel's burst never finishes): before each burst
+    /// starts, the handler writes the mark, `r7` (the core's DAC frames' SRAM address),
+    /// into that word of the buffer the burst fills, and the next handler, which reads that
+    /// buffer, finds the mark still there exactly when the burst did not finish (the DMA
+    /// writes the channels in order, the last one last). No burst writes the mark: a
+    /// direct word is `code << shift` (its low `shift` bits 0, below 2^(16 + shift)),
+    /// which the mark (`0x2102_f08c` or `0x2103_f08c`: bits 2, 3 and 7 set) never is; a
+    /// converter that answers words of its own (not `direct`) would have to answer that
+    /// word exactly, in its last channel. The check costs the handler a load, a store, a
+    /// compare and an untaken branch (6 cycles, and at most two waits for the DMA at the
+    /// bank, inside [`CoreIo::contention`]'s bound, which counts the DMA's accesses) and
+    /// reads no DMA register, which the emulator's windows could not run ahead of.
+    /// `None` for a core whose keys read no ADC channel.
+    pub fn burst_mark(&self, core: usize) -> Option<u16> {
+        let n = self.cores.get(core)?.adc_channels();
+        (n > 0).then(|| (4 * (n - 1)) as u16)
+    }
+
     /// The handler's first act (module documentation): `r6` = this sample's results (kept
     /// for [`restore_r6`] with `keep_now`), the next ADC burst into the other buffer, the
-    /// commands, the last sample's DAC frames. Needs `r7`; clobbers r0, r1. At the time of writing 20 cycles (with the I/O bank's
+    /// commands, the last sample's DAC frames; with [`IoPlan::burst_mark`], r2 = this
+    /// sample's mark word, to be compared with `r7`. Needs `r7`; clobbers r0-r2. At the time of writing 20 cycles (with the I/O bank's
     /// accesses through the bus: each may wait for the DMA, [`CoreIo::contention`]).
     pub fn handler_start(&self, a: &mut CodeBuffer, core: usize, keep_now: bool) {
         let (base, res, cmd, dac) = trigger_offsets(core);
@@ -892,6 +915,12 @@ impl IoPlan {
         // The next buffer in the ring: one load, as many cycles as the `MOVS`, `EORS` that
         // flipped between two buffers.
         a.i(asm::ldr(1, 6, RING_NEXT as u16));
+        if let Some(last) = self.burst_mark(core) {
+            // The burst check ([`IoPlan::burst_mark`]): r2 = this sample's last result, the
+            // next buffer's marked before its burst starts.
+            a.i(asm::ldr(2, 6, last));
+            a.i(asm::str(7, 1, last));
+        }
         a.i(asm::str(1, 7, from_r7(READ_NEXT)));
         a.i(asm::str(1, 0, res));
         a.i(asm::mov(1, 7));
