@@ -74,8 +74,9 @@ pub struct BuildArgs {
     /// power-off) instead of a flash image that boots at power-on.
     #[arg(long)]
     pub ram: bool,
-    /// Firmware: the per-key sensor check (range and largest step per sample, a trip
-    /// setting the key's motor to zero force and the core's fault word: docs/faults.md)
+    /// Firmware: the per-key sensor check (range and largest step per sample, and on a
+    /// converter board the ADC's burst check; a trip setting the motors to zero force and
+    /// the core's fault word: docs/faults.md)
     /// `on` or `off` on every key, the boards planned and priced with it [default: on,
     /// the firmware's own].
     #[arg(long, value_name = "on|off", value_parser = crate::play_cmd::parse_on_off)]

@@ -122,9 +122,9 @@ pub struct PlayArgs {
     #[arg(long = "fault", value_name = "FAULT", value_parser = parse_fault)]
     pub fault: Vec<tactus_host::fault::FaultSpec>,
     /// With `--engine emu`: the firmware's per-key sensor check (range and largest step
-    /// per sample; a trip sets the key's motor to zero force and its fault word) `on` or
-    /// `off` on every key, the boards planned and priced with it [default: on, the
-    /// firmware's own]. With it on and no `--fault`, a trip is a false alarm: exit 1.
+    /// per sample, and on a converter board the ADC's burst check; a trip sets the motors
+    /// to zero force and the fault word) `on` or `off` on every key, the boards planned and
+    /// priced with it [default: on, the firmware's own]. With it on and no `--fault`, a trip is a false alarm: exit 1.
     #[arg(long, value_name = "on|off", value_parser = parse_on_off)]
     pub sensor_check: Option<bool>,
     /// With `--engine emu`: the RP2040's watchdog (datasheet 4.7) `on` or `off` on every

@@ -863,7 +863,13 @@ pub fn core_code(
     // The burst check's stall path, before the handler (within a `B<cond>`'s reach of the
     // check): the tick's step, the stall's record and the motors at zero, and the
     // handler's end (feeding the watchdog on core 0: the core is not hung).
-    let stall = match io.and_then(|p| Some((p.burst_mark(core)?, p.cores.get(core)?))) {
+    // With the sensor check (`Program::sensor_check`: a key's checks need its ADC's
+    // bursts), not without it.
+    let burst_check = keys.iter().any(|k| k.check.is_some());
+    let stall = match io
+        .filter(|_| burst_check)
+        .and_then(|p| Some((p.burst_mark(core)?, p.cores.get(core)?)))
+    {
         Some((_, c)) => {
             a.align4();
             let l = a.label();
@@ -889,7 +895,7 @@ pub fn core_code(
         let borrow_r6 = keys
             .iter()
             .any(|k| k.guard.as_ref().is_some_and(guard_uses_r5));
-        p.handler_start(a, core, borrow_r6);
+        p.handler_start(a, core, borrow_r6, stall.is_some());
     }
     if let Some(l) = stall {
         // The burst check: the mark still in this sample's results.

@@ -900,10 +900,11 @@ impl IoPlan {
 
     /// The handler's first act (module documentation): `r6` = this sample's results (kept
     /// for [`restore_r6`] with `keep_now`), the next ADC burst into the other buffer, the
-    /// commands, the last sample's DAC frames; with [`IoPlan::burst_mark`], r2 = this
-    /// sample's mark word, to be compared with `r7`. Needs `r7`; clobbers r0-r2. At the time of writing 20 cycles (with the I/O bank's
+    /// commands, the last sample's DAC frames; with `mark` (the burst check, which the
+    /// image makes with the sensor check) and a [`IoPlan::burst_mark`], r2 = this sample's
+    /// mark word, to be compared with `r7`. Needs `r7`; clobbers r0-r2. At the time of writing 20 cycles (with the I/O bank's
     /// accesses through the bus: each may wait for the DMA, [`CoreIo::contention`]).
-    pub fn handler_start(&self, a: &mut CodeBuffer, core: usize, keep_now: bool) {
+    pub fn handler_start(&self, a: &mut CodeBuffer, core: usize, keep_now: bool, mark: bool) {
         let (base, res, cmd, dac) = trigger_offsets(core);
         let from_r7 = |off: u32| (off - DAC_FRAMES) as u16;
         a.ldr_const(0, base);
@@ -915,7 +916,7 @@ impl IoPlan {
         // The next buffer in the ring: one load, as many cycles as the `MOVS`, `EORS` that
         // flipped between two buffers.
         a.i(asm::ldr(1, 6, RING_NEXT as u16));
-        if let Some(last) = self.burst_mark(core) {
+        if let Some(last) = self.burst_mark(core).filter(|_| mark) {
             // The burst check ([`IoPlan::burst_mark`]): r2 = this sample's last result, the
             // next buffer's marked before its burst starts.
             a.i(asm::ldr(2, 6, last));
