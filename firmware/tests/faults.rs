@@ -11,7 +11,7 @@ use tactus_firmware::image::{FaultKind, FirmwareImage, ImageRun, Injection};
 mod layouts;
 use layouts::{firmware, firmware_with};
 
-fn faults() -> Vec<Injection> {
+fn faults(io: bool) -> Vec<Injection> {
     let f = |kind, key, core, from, until| Injection {
         kind,
         key,
@@ -35,6 +35,10 @@ fn faults() -> Vec<Injection> {
         f(FaultKind::AdcSilent, None, Some(1), 1100, Some(1200)),
         f(FaultKind::DacStall, None, Some(0), 1250, Some(1350)),
     ]
+    .into_iter()
+    // A converter board's ADC without DREQ: its state machine stopped and started again.
+    .chain(io.then(|| f(FaultKind::AdcNoDreq, None, Some(1), 1380, Some(1450))))
+    .collect()
 }
 
 /// `image` run `samples` samples at rest on `engine` (the rest replay on when `rest`), with
@@ -50,7 +54,7 @@ fn run(
     r.board().config.engine = engine;
     r.set_rest_replay(rest).unwrap();
     if faulted {
-        for f in faults() {
+        for f in faults(image.io().is_some()) {
             r.inject(f).unwrap();
         }
     }
