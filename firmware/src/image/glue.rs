@@ -1149,7 +1149,7 @@ pub fn core_code(
     Ok(CoreLabels { calls, ..labels })
 }
 
-/// The sample interrupt's tail on core `core` (control block at `ctrl_addr`): `r5` reloaded
+/// The sample interrupt's tail (its control block at `ctrl_addr`): `r5` reloaded
 /// when `reload_r5` (an update or a guard clobbers it), the miss check, the sample count,
 /// with `feed` the watchdog's feed ([`feed_watchdog`], and its [`mark_behind`] path), and
 /// the exception return. `keys_end` is bound at the ICSR load ([`CoreLabels::keys_end`]).
