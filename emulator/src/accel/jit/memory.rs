@@ -177,9 +177,13 @@ impl Translator<'_> {
         let wait = self.b.ins().uextend(types::I64, hit);
         let claim = self.b.ins().iadd(at, wait);
         self.b.ins().store(self.mf, claim, self_at, 0);
-        let s = self.b.use_var(self.stalls);
-        let s = self.b.ins().iadd(s, wait);
-        self.b.def_var(self.stalls, s);
+        // Arbitrating code keeps its stalls (`Translator::stalls`, set where the other
+        // core's claims are).
+        if let Some(stalls) = self.stalls {
+            let s = self.b.use_var(stalls);
+            let s = self.b.ins().iadd(s, wait);
+            self.b.def_var(stalls, s);
+        }
         Some(wait)
     }
 

@@ -105,7 +105,9 @@ pub(super) struct Translator<'a> {
     /// The call's [`Ctx`]: instructions retired are added to [`Ctx::retired`] in place
     /// (at exits, back edges and jumps to a label), so no register holds their count.
     pub(super) ctx: Value,
-    pub(super) stalls: Variable,
+    /// The core's contention stalls: only code that arbitrates ([`Flavour::Shared`],
+    /// [`Flavour::Confined`]) can add to them, so the others neither load nor store them.
+    pub(super) stalls: Option<Variable>,
     pub(super) q: Variable,
     /// Cycles not yet added to `cyc` and instructions not yet added to [`Ctx::retired`]
     /// (straight-line code; the cycles are added before each memory access and branch,
@@ -187,14 +189,13 @@ impl<'a> Translator<'a> {
         let sram = ptr(&mut b, offset_of!(Ctx, sram));
         let claims_self = ptr(&mut b, offset_of!(Ctx, claims_self));
         let claims_other = (!solo).then(|| ptr(&mut b, offset_of!(Ctx, claims_other)));
-        let stalls_ptr = ptr(&mut b, offset_of!(Ctx, stalls));
         let flags = Flags {
             nz: b.declare_var(types::I32),
             c: b.declare_var(types::I8),
             v: b.declare_var(types::I32),
         };
         let cyc = b.declare_var(types::I64);
-        let stalls = b.declare_var(types::I64);
+        let stalls = (!solo).then(|| b.declare_var(types::I64));
         let q = b.declare_var(types::I64);
         // A register the region never writes is stored nowhere in it (no helper the code
         // calls touches the core's registers), so its loads are pure: cranelift merges
@@ -239,8 +240,11 @@ impl<'a> Translator<'a> {
             .ins()
             .load(types::I64, mf, core, offset_of!(Core, cycle) as i32);
         b.def_var(cyc, v);
-        let v = b.ins().load(types::I64, mf, stalls_ptr, 0);
-        b.def_var(stalls, v);
+        if let Some(stalls) = stalls {
+            let stalls_ptr = ptr(&mut b, offset_of!(Ctx, stalls));
+            let v = b.ins().load(types::I64, mf, stalls_ptr, 0);
+            b.def_var(stalls, v);
+        }
         let zero = b.ins().iconst(types::I64, 0);
         b.def_var(q, zero);
         let confined = confined.then(|| {
@@ -349,9 +353,11 @@ impl<'a> Translator<'a> {
             }
             let v = t.b.use_var(cyc);
             t.b.ins().store(mf, v, core, offset_of!(Core, cycle) as i32);
-            let v = t.b.use_var(stalls);
-            let stalls_ptr = t.ctx_ptr(offset_of!(Ctx, stalls));
-            t.b.ins().store(mf, v, stalls_ptr, 0);
+            if let Some(stalls) = stalls {
+                let v = t.b.use_var(stalls);
+                let stalls_ptr = t.ctx_ptr(offset_of!(Ctx, stalls));
+                t.b.ins().store(mf, v, stalls_ptr, 0);
+            }
             let v = t.b.use_var(q);
             t.b.ins().store(mf, v, ctx, offset_of!(Ctx, q) as i32);
             if let Some(c) = t.confined {
