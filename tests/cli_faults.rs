@@ -34,6 +34,17 @@ fn trace(path: &Path) -> Vec<(f64, f64, f64)> {
         .collect()
 }
 
+/// `tactus build LAYOUT --target rp2040 --board BOARD -o OUT`, which must succeed.
+fn build_for(layout: &Path, board: &str, out: &Path) {
+    let built = tactus()
+        .args(["build", layout.to_str().unwrap(), "--target", "rp2040"])
+        .args(["--board", board, "-o"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert_ok(&built);
+}
+
 #[test]
 fn a_shorted_sensor_under_play_trips_its_check_and_its_motor_is_at_zero_within_1_ms() {
     let dir = temp_dir("cli-faults-play");
@@ -211,13 +222,7 @@ fn emu_run_and_play_report_the_same_trips_for_the_same_faults_on_both_boards() {
     ];
     for board in ["rp2040", "rp2040_io"] {
         let fw = dir.join(format!("fw-{board}"));
-        let out = tactus()
-            .args(["build", layout.to_str().unwrap(), "--target", "rp2040"])
-            .args(["--board", board, "-o"])
-            .arg(&fw)
-            .output()
-            .unwrap();
-        assert_ok(&out);
+        build_for(&layout, board, &fw);
         let out = tactus()
             .args(["emu", "run"])
             .arg(fw.join("board-01/firmware.elf"))
@@ -837,13 +842,7 @@ fn emu_run_injects_a_dac_stall_a_brownout_and_a_hang_on_both_boards() {
     let layout = small_layout(&dir, 60, 63);
     for board in ["rp2040", "rp2040_io"] {
         let fw = dir.join(board);
-        let out = tactus()
-            .args(["build", layout.to_str().unwrap(), "--target", "rp2040"])
-            .args(["--board", board, "-o"])
-            .arg(&fw)
-            .output()
-            .unwrap();
-        assert_ok(&out);
+        build_for(&layout, board, &fw);
         let run = |fault: &[&str]| {
             let out = tactus()
                 .args(["emu", "run"])
@@ -1100,13 +1099,7 @@ fn an_adc_without_dreq_is_injected_on_a_converter_board_and_refused_on_a_plain_o
     let layout = small_layout(&dir, 60, 63);
     for board in ["rp2040", "rp2040_io"] {
         let fw = dir.join(board);
-        let out = tactus()
-            .args(["build", layout.to_str().unwrap(), "--target", "rp2040"])
-            .args(["--board", board, "-o"])
-            .arg(&fw)
-            .output()
-            .unwrap();
-        assert_ok(&out);
+        build_for(&layout, board, &fw);
         let run = |seconds: &str, fault: &[&str]| {
             tactus()
                 .args(["emu", "run"])
