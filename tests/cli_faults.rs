@@ -512,6 +512,33 @@ fn the_budget_corpus_trips_no_check_but_its_glitches_and_random_words_do() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+#[test]
+fn keys_held_from_power_on_trip_no_check_under_emu_run_on_either_board() {
+    // `--stimulus hold`: every key at half its dip from power-on. A converter board's
+    // first handler reads the start alarm's ADC burst, which must sample the keys where
+    // the stimulus starts (not at rest, code 0): else the check takes the next reading for
+    // a jump of half the dip (a false alarm on `rp2040_io`, exit 2).
+    let dir = temp_dir("cli-faults-held");
+    let layout = small_layout(&dir, 60, 63);
+    for board in ["rp2040", "rp2040_io"] {
+        let fw = dir.join(format!("fw-{board}"));
+        build_for(&layout, board, &fw);
+        let out = tactus()
+            .args(["emu", "run"])
+            .arg(fw.join("board-01/firmware.elf"))
+            .args(["--stimulus", "hold", "--seconds", "0.01"])
+            .output()
+            .unwrap();
+        assert_ok(&out);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            stdout.contains("faults: 0 trips on 1 board"),
+            "{board}: {stdout}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The limiter's peak on board `board` — the one configuration `tactus build` and `tactus
 /// play` give its firmware (`LimiterConfig::for_board`) — as a DAC code and as a motor
 /// current, A (`Limiter::peak_ua`).

@@ -229,6 +229,66 @@ fn converters_carry_the_same_positions_in_and_codes_out() {
     assert!(a.take_io().0.is_empty());
 }
 
+/// Core `c`'s fault word (0: no trip since power-on; `tactus_firmware::image::fault`).
+fn fault_word(image: &FirmwareImage, run: &mut tactus_firmware::image::ImageRun, c: usize) -> u32 {
+    let ctrl = image.core_addresses(c).unwrap()[3];
+    let at = tactus_firmware::image::glue::ctrl::fault_record(ctrl);
+    run.board().read_u32(at).unwrap()
+}
+
+#[test]
+fn a_board_powered_on_under_held_keys_reads_them_where_they_are() {
+    // Keys held down from power-on (the budget corpus's `hold`): the converter board's
+    // first handler reads the burst of the start alarm, before any step, which samples the
+    // keys where `run_from` says they are. So the sensor check (on) sees keys that do not
+    // move, and the board computes what the board without converters computes from the
+    // same positions quantised, from the first sample on.
+    let p = instrument("grand_piano");
+    assert!(p.sensor_check, "the sensor check is on by default");
+    let keys = keys();
+    let with = image(&p, &keys, "rp2040_io");
+    let without = image(&p, &keys, "rp2040");
+    let (lo, hi) = p.fixed.sensor_raw_range[0];
+    let scale = AdcScale::new(lo, hi, 16);
+    let dip = p.fixed.program.sensors[0].range.1;
+    let held: Vec<i32> = (0..keys.len())
+        .map(|i| FixedInstance::sensor_raw(&p.fixed, 0, Some(dip * (0.3 + 0.1 * i as f64))))
+        .collect();
+    let seen: Vec<i32> = held.iter().map(|&w| scale.quantise(w)).collect();
+    assert!(
+        seen.iter().all(|&w| w != scale.word(0)),
+        "held off the rest code"
+    );
+    let mut a = with.run_from(&held).unwrap();
+    let mut b = without.run_from(&seen).unwrap();
+    let mut pushed = 0;
+    for n in 0..200 {
+        let ga = a.step(&held).unwrap().clone();
+        let gb = b.step(&seen).unwrap().clone();
+        assert_eq!(ga.force, gb.force, "sample {n}: the updates' forces");
+        assert_eq!(ga.dac, gb.dac, "sample {n}: the limiter's codes");
+        pushed += usize::from(ga.dac.iter().any(|&d| d != 0));
+    }
+    assert!(pushed > 100, "held keys push back ({pushed} samples)");
+    for c in 0..2 {
+        assert_eq!(fault_word(&with, &mut a, c), 0, "core {c}: no trip");
+        assert_eq!(fault_word(&without, &mut b, c), 0, "core {c}: no trip");
+    }
+    // `run` instead powers the keys on at rest (every ADC channel at code 0): the held
+    // keys then move half the dip between the first handler's reading and the next, which
+    // the sensor check rightly takes for a jump.
+    let mut r = with.run().unwrap();
+    for _ in 0..10 {
+        r.step(&held).unwrap();
+    }
+    let words: Vec<u32> = (0..2).map(|c| fault_word(&with, &mut r, c)).collect();
+    let rate = u32::from(tactus_firmware::image::fault::FaultKind::SensorRate.code());
+    assert!(
+        words.iter().all(|&w| w & 0xff == rate),
+        "a jump from rest trips each core's check: {words:x?}"
+    );
+}
+
 #[test]
 fn more_keys_than_converter_channels_is_an_error_naming_the_field() {
     let p = instrument("hammond");

@@ -589,7 +589,7 @@ fn ram_only_firmware_stays_available() {
         check_with_uf2conv(fw, &dir, 0x2000_0000);
     }
     let _ = std::fs::remove_dir_all(&dir);
-    let run = ImageRun::from_elf(&fw.image, &fw.elf).unwrap();
+    let run = ImageRun::from_elf(&fw.image, &fw.elf, None).unwrap();
     let o = run_corpus(fw, run, SHORT, false);
     assert_eq!(o.bad, 0, "{:?}", o.first);
     assert!(o.misses.iter().all(|&m| m == 0));

@@ -638,14 +638,6 @@ impl FirmwareJob {
     ) -> Result<FirmwareText, String> {
         let (map, image, file) = (&self.map, &self.image, self.file.display());
         let fail = |e: tactus_firmware::image::ImageError| format!("{file}: {e}");
-        let mut run = ImageRun::from_elf(image, &self.elf).map_err(fail)?;
-        run.set_rest_replay(debugger.is_none()).map_err(fail)?;
-        if let Some(d) = debugger {
-            run.board().attach_debugger(d);
-        }
-        for (spec, f) in &self.faults {
-            run.inject(*f).map_err(|e| format!("{}: {e}", spec.text))?;
-        }
         // Each key's words: its first sensor following the stimulus (repeated), the others
         // at the bottom of their range.
         let specs = image.keys();
@@ -666,8 +658,7 @@ impl FirmwareJob {
         let mut misses = vec![0u32; cores];
         let mut digest: u64 = 0xcbf2_9ce4_8422_2325;
         let mut flat = Vec::with_capacity(image.sensor_words());
-        let mut dac: Vec<i16> = Vec::new();
-        for n in 0..self.samples {
+        let words_at = |n: usize, flat: &mut Vec<i32>| {
             flat.clear();
             for (k, r) in specs.iter().zip(&rest) {
                 let w = &self.words[k.program];
@@ -679,6 +670,21 @@ impl FirmwareJob {
                     flat[first] = w[n % w.len()];
                 }
             }
+        };
+        // The keys where the stimulus starts from power-on (a converter board's first
+        // handler reads the burst of the start alarm: `FirmwareImage::run_from`).
+        words_at(0, &mut flat);
+        let mut run = ImageRun::from_elf(image, &self.elf, Some(&flat)).map_err(fail)?;
+        run.set_rest_replay(debugger.is_none()).map_err(fail)?;
+        if let Some(d) = debugger {
+            run.board().attach_debugger(d);
+        }
+        for (spec, f) in &self.faults {
+            run.inject(*f).map_err(|e| format!("{}: {e}", spec.text))?;
+        }
+        let mut dac: Vec<i16> = Vec::new();
+        for n in 0..self.samples {
+            words_at(n, &mut flat);
             let out = run
                 .step(&flat)
                 .map_err(|e| format!("{file}: sample {n}: {e}"))?;

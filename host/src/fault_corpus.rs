@@ -94,14 +94,21 @@ pub fn budget_corpus_trips(
                 .map(|k| runs[k.program].iter().find(|r| &r.label == label))
                 .collect();
             let samples = key_runs.iter().flatten().map(|r| r.records.len()).max();
-            let mut run = image.run().map_err(|e| format!("board {}: {e}", b + 1))?;
-            let mut words = Vec::new();
-            for n in 0..samples.unwrap_or(0) {
+            let words_at = |n: usize, words: &mut Vec<i32>| {
                 words.clear();
                 for (r, rest) in key_runs.iter().zip(&rest) {
                     let rec = r.and_then(|r| r.records.get(n)).unwrap_or(rest);
                     words.extend((0..rest.len()).map(|i| rec.get(i).copied().unwrap_or(rest[i])));
                 }
+            };
+            // From power-on the keys where their runs start (a key held at power-on: a
+            // converter board's first handler reads the start alarm's burst,
+            // `FirmwareImage::run_from`).
+            let mut words = Vec::new();
+            words_at(0, &mut words);
+            let mut run = (image.run_from(&words)).map_err(|e| format!("board {}: {e}", b + 1))?;
+            for n in 0..samples.unwrap_or(0) {
+                words_at(n, &mut words);
                 run.step(&words)
                     .map_err(|e| format!("board {}, run {label}, sample {n}: {e}", b + 1))?;
             }

@@ -236,8 +236,25 @@ impl FirmwareImage {
     }
 
     /// Loads the image into a fresh emulated board and runs it up to the first tick
-    /// (every core's start-up); see [`ImageRun`].
+    /// (every core's start-up); see [`ImageRun`]. On a board with converters every ADC
+    /// channel reads code 0 until the first [`ImageRun::step`] — the bottom of each
+    /// sensor's range, a key at rest — so the first sample's handler, which reads the
+    /// burst of the start alarm, sees the keys at rest: [`FirmwareImage::run_from`] for
+    /// keys elsewhere at power-on.
     pub fn run(&self) -> Result<ImageRun, ImageError> {
-        ImageRun::new(self)
+        ImageRun::new(self, None)
+    }
+
+    /// [`FirmwareImage::run`] with the keys' sensors at `first` from power-on (the raw
+    /// sensor words of every key in key-list order, as [`ImageRun::step`] takes them:
+    /// usually the first sample's). On a board with converters the ADC's channels read
+    /// their codes from before the start alarm, so the first handler reads the keys where
+    /// they are, as a board powered on under a held key reads them; on a plain board the
+    /// first step writes the sensor window before the first tick anyway.
+    ///
+    /// Errors: [`ImageError::SensorCount`] when `first` is not [`FirmwareImage::sensor_words`]
+    /// long; those of [`FirmwareImage::run`].
+    pub fn run_from(&self, first: &[i32]) -> Result<ImageRun, ImageError> {
+        ImageRun::new(self, Some(first))
     }
 }

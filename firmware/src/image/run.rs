@@ -343,7 +343,10 @@ impl ImageRun {
         board
     }
 
-    pub(crate) fn new(image: &FirmwareImage) -> Result<ImageRun, ImageError> {
+    pub(crate) fn new(
+        image: &FirmwareImage,
+        first: Option<&[i32]>,
+    ) -> Result<ImageRun, ImageError> {
         let mut board = ImageRun::fresh_board(image, image.own_banks());
         for (addr, bytes) in &image.segments {
             board.write_bytes(*addr, bytes).map_err(emu)?;
@@ -352,7 +355,7 @@ impl ImageRun {
         // lowest address with SP at the top of SRAM (`super::boot`); core 0 sets the clocks
         // up and launches core 1 over the FIFOs, where core 1 waits in the boot ROM.
         board.enter_ram_image(super::boot::ENTRY | 1);
-        ImageRun::start(board, image)
+        ImageRun::start(board, image, first)
     }
 
     /// Writes `flash` (bytes from 0x10000000: the image's [`FirmwareImage::flash_image`], or
@@ -369,24 +372,34 @@ impl ImageRun {
             .write_bytes(tactus_rp2040::memory::FLASH_BASE, flash)
             .map_err(emu)?;
         board.boot_from_flash().map_err(emu)?;
-        ImageRun::start(board, image)
+        ImageRun::start(board, image, None)
     }
 
     /// Loads `elf` (the image's [`FirmwareImage::elf`] or [`FirmwareImage::flash_elf`], or a
     /// file claiming to be) into a fresh emulated board, which boots it as the boot ROM
     /// would ([`Board::load_elf`]: from flash through boot2, or at the entry point of a RAM
     /// image), and runs it up to the first tick; `image` tells where its keys and counters
-    /// are.
+    /// are. `first`: the keys' sensor words from power-on, as
+    /// [`FirmwareImage::run_from`] takes them (`None`: [`FirmwareImage::run`]'s).
     ///
     /// Errors: [`ImageError::Emu`] for a file the loader rejects; those of
-    /// [`FirmwareImage::run`].
-    pub fn from_elf(image: &FirmwareImage, elf: &[u8]) -> Result<ImageRun, ImageError> {
+    /// [`FirmwareImage::run_from`].
+    pub fn from_elf(
+        image: &FirmwareImage,
+        elf: &[u8],
+        first: Option<&[i32]>,
+    ) -> Result<ImageRun, ImageError> {
         let mut board = ImageRun::fresh_board(image, image.own_banks());
         board.load_elf(elf).map_err(emu)?;
-        ImageRun::start(board, image)
+        ImageRun::start(board, image, first)
     }
 
-    fn start(mut board: Board, image: &FirmwareImage) -> Result<ImageRun, ImageError> {
+    /// `first`: the keys' sensor words from power-on ([`FirmwareImage::run_from`]).
+    fn start(
+        mut board: Board,
+        image: &FirmwareImage,
+        first: Option<&[i32]>,
+    ) -> Result<ImageRun, ImageError> {
         let mut profiles = Vec::new();
         for c in &image.cores {
             profiles.push(board.profile_handler(c.isr));
@@ -440,6 +453,17 @@ impl ImageRun {
             rest_error: None,
             faults: Default::default(),
         };
+        if let Some(first) = first {
+            // Before the start alarm, whose ADC burst the first handler reads.
+            let expected = run.image.sensor_words();
+            if first.len() != expected {
+                return Err(ImageError::SensorCount {
+                    expected,
+                    got: first.len(),
+                });
+            }
+            run.set_codes(first);
+        }
         let alarm = run.image.start_alarm_us as u64;
         run_to_timer(&mut run.board, alarm).map_err(ImageError::Run)?;
         for (k, c) in run.image.cores.iter().enumerate() {
