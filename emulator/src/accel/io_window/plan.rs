@@ -30,7 +30,7 @@
 //! done without a match per step or a value kept per read: 17.65 → 17.49 G. The firmware's
 //! burst check stores a mark into a results word before the burst that overwrites it
 //! (`tactus_firmware`'s `IoPlan::burst_mark`): planned since such a word no longer keeps
-//! a window from a plan, 20.19 → 17.6 G.
+//! a window from a plan, 20.19 → 18.29 G (18.10 G without the check).
 //! `tests/io_windows.rs` (`planned_hits_equal_the_lock_step`,
 //! `a_core_store_the_dma_overwrites_is_planned`,
 //! `a_hit_meets_the_dmas_claims_with_or_without_a_plan` and every comparison; their windows
