@@ -90,8 +90,10 @@ impl Asm {
 const SPANS: [u32; 2] = [28, 10];
 
 /// Core 0's handler: sums six results words (into bank 2, then its data), restarts the ADC burst
-/// (two trigger-alias stores), counts in bank 2 (a halfword and a word store).
-fn handler0(data: u32) -> Asm {
+/// (two trigger-alias stores; with `mark`, after storing a mark into the last results word,
+/// which the burst then overwrites, as the firmware's burst check does), counts in bank 2 (a
+/// halfword and a word store).
+fn handler0(data: u32, mark: bool) -> Asm {
     let mut a = Asm::default();
     a.lit(0, RESULTS)
         .op(&[0x6801, 0x6842, 0x1889, 0x6882, 0x1889, 0x68c2, 0x1889]) // ldr r1,[r0]; ldr r2,[r0,#4]; adds; #8; #12
@@ -100,8 +102,11 @@ fn handler0(data: u32) -> Asm {
         .lit(3, data)
         .op(&[0x681a, 0x1852, 0x601a]) // ldr r2,[r3]; adds r2,r2,r1; str r2,[r3]
         .lit(0, ch(0, dreg::AL2_WRITE_ADDR_TRIG))
-        .lit(1, RESULTS)
-        .op(&[0x6001]) // str r1,[r0]
+        .lit(1, RESULTS);
+    if mark {
+        a.op(&[0x61c9]); // str r1,[r1,#28]
+    }
+    a.op(&[0x6001]) // str r1,[r0]
         .lit(0, ch(1, dreg::AL3_READ_ADDR_TRIG))
         .lit(1, COMMANDS)
         .op(&[0x6001])
@@ -168,6 +173,9 @@ struct Shape {
     /// parts keep no records (as in `tactus play` without an I/O trace: the period memo's
     /// hits leave their ends behind, and its plans serve).
     poll: bool,
+    /// Core 0's handler marks the last results word before it restarts the burst, which
+    /// overwrites the mark later in the window ([`handler0`]).
+    mark: bool,
 }
 
 /// The channel [`Shape::chain`] chains the copy to.
@@ -195,6 +203,7 @@ fn board(
         period,
         chain,
         poll,
+        mark,
         ..
     }: Shape,
 ) -> Board {
@@ -261,7 +270,7 @@ fn board(
         let main = handler + 0x200;
         let data = base + 0x8000;
         let code = if core == 0 {
-            handler0(data).bytes(handler)
+            handler0(data, mark).bytes(handler)
         } else {
             handler1(data, periodic, chain).bytes(handler)
         };
@@ -444,6 +453,30 @@ fn planned_hits_equal_the_lock_step() {
         eprintln!("{period} {to:x}: {io:?}");
         assert!(io.memo_hits > 120, "{period}: {io:?}");
         assert_eq!(io.memo_planned > 20, planned, "{period} {to:x}: {io:?}");
+    }
+}
+
+#[test]
+fn a_core_store_the_dma_overwrites_is_planned() {
+    // Core 0's handler stores a mark into the last results word, then restarts the burst,
+    // whose last transfer overwrites it later in the window (the firmware's burst check,
+    // `tactus_firmware::image::io::IoPlan::burst_mark`): a word both a core and the DMA
+    // write, the core first, which a plan serves (the DMA's writes over the SRAM the cores'
+    // run left); equal to a board without plans and the lock-step run (`compare`). The
+    // other order, a core's store after the DMA's write, is planned_hits_equal_the_lock_step's
+    // last case (no plan serves).
+    for period in [3000, 3001] {
+        let block = compare(
+            Shape {
+                mark: true,
+                ..Shape::periodic(period)
+            },
+            1_200_000,
+        );
+        let io = block.io_windows();
+        eprintln!("{period}: {io:?}");
+        assert!(io.memo_hits > 120, "{period}: {io:?}");
+        assert!(io.memo_planned > 20, "{period}: {io:?}");
     }
 }
 

@@ -10,10 +10,11 @@
 //! earlier DMA write of the window; and which core loads read a word a DMA write wrote
 //! before them (checked against it). A window of that shape then takes the plan: the DMA's
 //! reads and their constraints, the writes' values by their routes, the checks, then the
-//! writes in their order — the SRAM the merged replay leaves, since no word is both stored
-//! by a core and written by the DMA nor accessed by both cores (a plan is not made for
-//! such a shape), and a core access in a cycle the DMA claims its bank leaves the window to
-//! the merged replay. A read or check that fails changes nothing: the merged replay then
+//! writes in their order — the SRAM the merged replay leaves, since no core stores a word
+//! after the DMA wrote it in the window nor do both cores access one (a plan is not made
+//! for such a shape: a core's stores to a word before the DMA's writes to it are what the
+//! cores' run left there, which the writes then overwrite as in the merged order), and a
+//! core access in a cycle the DMA claims its bank leaves the window to the merged replay. A read or check that fails changes nothing: the merged replay then
 //! finds what becomes of the window (a miss, stale, or kept). Once the checks pass
 //! nothing fails, so the writes are not journaled (the one exception to the replay's
 //! journal, which only undoes). The stores are taken back only for the merged replay, and
@@ -26,8 +27,12 @@
 //! lookup in the entry's per-cycle table: 18.02 → 17.94 G. Where no DMA read takes an
 //! earlier DMA write's word (the shipped drivers: the DAC frames are read at the tick, the
 //! ADC results written later), a plan splits into its reads, then its writes ([`Split`]),
-//! done without a match per step or a value kept per read: 17.65 → 17.49 G.
+//! done without a match per step or a value kept per read: 17.65 → 17.49 G. The firmware's
+//! burst check stores a mark into a results word before the burst that overwrites it
+//! (`tactus_firmware`'s `IoPlan::burst_mark`): planned since such a word no longer keeps
+//! a window from a plan, 20.19 → 18.29 G (18.10 G without the check).
 //! `tests/io_windows.rs` (`planned_hits_equal_the_lock_step`,
+//! `a_core_store_the_dma_overwrites_is_planned`,
 //! `a_hit_meets_the_dmas_claims_with_or_without_a_plan` and every comparison; their windows
 //! take both split and unsplit plans) runs boards with and without plans against the
 //! lock-step run.
@@ -488,7 +493,7 @@ impl Plan {
     /// The plan of entry `e` for windows shaped as `logs` (cycles from `base`; their shape
     /// `shape`): the general replay's order ([`Board::io_memo_apply`]) worked out once.
     /// Not `ok` (the general replay serves such windows) where a word is accessed by both
-    /// cores or both written by the DMA and stored by a core, a DMA read reads a DMA
+    /// cores or stored by a core after a DMA write to it, a DMA read reads a DMA
     /// write's bytes other than exactly, or a read mixes bytes of the DMA's writes and
     /// others.
     pub(super) fn new(e: &MemoEntry, logs: &[Vec<IoAccess>; 2], base: u64, shape: &[u64]) -> Plan {
@@ -505,27 +510,29 @@ impl Plan {
         };
         // The steps in the merged replay's order.
         let steps: Vec<Step> = Order::new(&e.ops, logs, base).collect();
-        // Words by who touches them: bits 0 and 1 the cores, bit 2 a core's store, bit 3
-        // a DMA write.
+        // Words by who touches them: bits 0 and 1 the cores, bit 2 a DMA write, bit 3 a
+        // core's store after a DMA write (a store before the DMA's writes to its word is
+        // what the cores' run left there, which the writes then overwrite as the merged
+        // order does: the burst check's mark, `firmware/src/image/io.rs`).
         let mut words: Vec<(u32, u8)> = Vec::new();
         for &step in &steps {
             let (word, bits) = match step {
-                Step::Core(k, i) => {
-                    let a = &logs[k][i];
-                    let store = if a.kind == IoKind::Store { 4 } else { 0 };
-                    (a.addr & !3, 1 << k | store)
-                }
+                Step::Core(k, i) => (logs[k][i].addr & !3, 1 << k),
                 Step::Dma(j) => match e.ops.get(j) {
-                    Some(op) if matches!(op.kind, MemoOpKind::Write { .. }) => (op.off & !3, 8),
+                    Some(op) if matches!(op.kind, MemoOpKind::Write { .. }) => (op.off & !3, 4),
                     _ => continue,
                 },
             };
+            let store_after_write = |w: u8| match step {
+                Step::Core(k, i) if logs[k][i].kind == IoKind::Store && w & 4 != 0 => 8,
+                _ => 0,
+            };
             match words.iter_mut().find(|w| w.0 == word) {
-                Some(w) => w.1 |= bits,
+                Some(w) => w.1 |= bits | store_after_write(w.1),
                 None => words.push((word, bits)),
             }
         }
-        if words.iter().any(|&(_, w)| w & 3 == 3 || w & 12 == 12) {
+        if words.iter().any(|&(_, w)| w & 3 == 3 || w & 8 != 0) {
             return not(fits);
         }
         // Each byte a DMA write wrote so far, with the write (op index).
