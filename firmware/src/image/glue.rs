@@ -710,6 +710,9 @@ pub fn core_code(
         calls: vec![Vec::new(); keys.len()],
     };
     let mut calls = vec![Vec::new(); keys.len()];
+    // The watchdog's enabling and feed: core 0's alone (`feed` on core 1: its fault
+    // record restored at reset).
+    let fed = feed.filter(|_| core == 0);
     if let Some(k) = keys.iter().find(|k| k.clobbers & !CLOBBERABLE != 0) {
         return Err(ImageError::Compile(format!(
             "an update clobbers registers {:#06x}; the image's glue allows only {CLOBBERABLE:#06x}",
@@ -771,7 +774,7 @@ pub fn core_code(
     // ---- reset: init every key, prepare the tick, set the limiter's registers, mark the
     // core ready, enable the start interrupt, sleep ----
     a.bind(labels.reset);
-    if let (0, Some(f)) = (core, feed) {
+    if let Some(f) = fed {
         // Before core 1's launch: its pair is final when it copies it.
         record_watchdog_trip(a, 1 + usize::from(f.other_samples.is_some()));
     }
@@ -854,7 +857,7 @@ pub fn core_code(
         // The first ADC burst, for the first sample.
         p.start_burst(a, core);
     }
-    if let (0, Some(f)) = (core, feed) {
+    if let Some(f) = fed {
         enable_watchdog(a, &f);
     }
     a.i(Instr::Bx { rm: 14 });
@@ -869,20 +872,12 @@ pub fn core_code(
     // With the sensor check (`Program::sensor_check`: a key's checks need its ADC's
     // bursts), not without it.
     let burst_check = keys.iter().any(|k| k.check.is_some());
-    let stall = match io
+    let stall = io
         .filter(|_| burst_check)
         .and_then(|p| Some((p.burst_mark(core)?, p.cores.get(core)?)))
-    {
-        Some((_, c)) => Some(stall::adc_stall_path(
-            a,
-            core,
-            c.dac_channels,
-            &tick,
-            ctrl_addr,
-            feed.filter(|_| core == 0).as_ref(),
-        )),
-        None => None,
-    };
+        .map(|(_, c)| {
+            stall::adc_stall_path(a, core, c.dac_channels, &tick, ctrl_addr, fed.as_ref())
+        });
     a.align4();
     a.bind(labels.isr);
     if let Some(p) = io {
@@ -905,7 +900,6 @@ pub fn core_code(
     let copies = turns.classes.max(1);
     // The watchdog's feed (core 0): in the tail of its feeding class's copy alone
     // ([`Feed::class`]), or every sample in the one tail.
-    let fed = feed.filter(|_| core == 0);
     let fed_copy = fed
         .and_then(|f| f.class)
         .map(u32::from)
