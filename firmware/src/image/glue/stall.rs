@@ -56,6 +56,8 @@ fn stall_record(a: &mut CodeBuffer, core: usize, dac_channels: u32) {
     use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
     let (new, same) = (a.label(), a.label());
     let tag = u32::from(NO_KEY) << 8 | u32::from(FaultKind::AdcStall.code());
+    // r2 = the tag, for the test of a stall going on and the record of a new one.
+    a.mov_const(2, tag);
     a.i(asm::ldr(1, 5, ctrl::FAULT));
     a.i(asm::ldr(3, 5, ctrl::FAULT_AT));
     a.i(asm::ldr(0, 5, ctrl::SAMPLES));
@@ -64,7 +66,6 @@ fn stall_record(a: &mut CodeBuffer, core: usize, dac_channels: u32) {
     a.bc(cond::NE, new);
     a.i(asm::lsls(3, 1, 16));
     a.i(asm::lsrs(3, 3, 16));
-    a.mov_const(2, tag);
     a.i(asm::cmp(3, 2));
     a.bc(cond::EQ, same);
     a.bind(new);
@@ -72,7 +73,6 @@ fn stall_record(a: &mut CodeBuffer, core: usize, dac_channels: u32) {
     a.i(asm::lsrs(1, 1, 16));
     a.i(asm::adds_imm(1, 1, 1));
     a.i(asm::lsls(1, 1, 16));
-    a.mov_const(2, tag);
     a.i(asm::alu(AluOp::Orr, 1, 2));
     a.i(asm::str(1, 5, ctrl::FAULT));
     a.bind(same);
