@@ -407,22 +407,46 @@ fn trip_path(
     }
     // The key's force words 0: its limiters make DAC code 0 of them.
     a.bind(zero);
+    motors_to_zero(a, k.drives.iter().map(|d| ZeroWord::Force(d.force_offset)));
+    a.b(join);
+}
+
+/// A word [`motors_to_zero`] writes the zero force to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum ZeroWord {
+    /// A key's force word, at this byte offset in its record (r4): the key's limiter, which
+    /// the caller then runs, makes DAC code 0 of it (its earn path: a magnitude of 0), and
+    /// its time budget earns as at any zero force.
+    Force(u32),
+    /// A converter core's DAC channel: its DAC word (r7's frames, [`super::super::io::write_dac`])
+    /// code 0, sent by the next sample's DMA, no limiter run.
+    Dac(u32),
+}
+
+/// The motors at zero force on a fault, the image's one emitter of it: r0 = 0 stored to
+/// each of `words` — a tripped key's force words (the sensor check's trip path, which then
+/// joins the key's limiters, so a key taking turns keeps its gate) or a stalled converter
+/// core's DAC words (the burst check's stall path, whose keys do not run). Both are DAC
+/// code 0 in the sample they run in: the limiter of a zero force is code 0 for every
+/// format ([`super::limiter_inline`]). Rare paths only: no cycle of the sample path.
+/// Leaves r0 = 0; clobbers r1.
+pub(super) fn motors_to_zero(a: &mut CodeBuffer, words: impl IntoIterator<Item = ZeroWord>) {
     a.i(asm::movs(0, 0));
-    for d in &k.drives {
-        if d.force_offset <= 124 {
-            a.i(asm::str(0, 4, d.force_offset as u16));
-        } else {
-            a.mov_const(1, d.force_offset);
-            a.i(Instr::MemReg {
-                op: tactus_isa::decode::MemOp::Str,
-                rt: 0,
-                rn: 4,
-                rm: 1,
-            });
-            a.i(asm::movs(0, 0));
+    for w in words {
+        match w {
+            ZeroWord::Force(off) if off <= 124 => a.i(asm::str(0, 4, off as u16)),
+            ZeroWord::Force(off) => {
+                a.mov_const(1, off);
+                a.i(Instr::MemReg {
+                    op: tactus_isa::decode::MemOp::Str,
+                    rt: 0,
+                    rn: 4,
+                    rm: 1,
+                });
+            }
+            ZeroWord::Dac(ch) => super::super::io::write_dac(a, ch),
         }
     }
-    a.b(join);
 }
 
 /// The range test of [`SensorCheck`]: `r0` = the word; branches to `bad` when it lies

@@ -3,7 +3,7 @@
 //! its keys when the ADC burst of the last sample did not finish. Kept beside the handler's
 //! glue, whose registers and control block it shares (`super`'s module documentation).
 
-use super::checks::Feed;
+use super::checks::{motors_to_zero, Feed, ZeroWord};
 use super::tail::handler_tail;
 use super::{ctrl, tick_step, Tick};
 use tactus_compiler::thumb::buffer::{CodeBuffer, Label};
@@ -82,8 +82,5 @@ fn stall_record(a: &mut CodeBuffer, core: usize, dac_channels: u32) {
     a.i(asm::str(1, 2, 0));
     a.i(asm::str(0, 2, 4));
     // The motors at zero force.
-    a.i(asm::movs(0, 0));
-    for ch in 0..dac_channels {
-        super::super::io::write_dac(a, ch);
-    }
+    motors_to_zero(a, (0..dac_channels).map(ZeroWord::Dac));
 }
