@@ -9,12 +9,10 @@
 mod layouts;
 #[path = "common/spring.rs"]
 mod spring;
-use spring::fault;
+use spring::{fault, turns_image};
 
 use tactus_firmware::image::fault::{recovery_samples, FaultKind};
-use tactus_firmware::image::{
-    FaultKind as InjKind, FirmwareImage, ImageRun, Injection, KeySpec, Program,
-};
+use tactus_firmware::image::{FaultKind as InjKind, FirmwareImage, ImageRun, Injection, Program};
 use tactus_runtime::limiter::LimiterConfig;
 
 fn image(board: &str) -> (Program, FirmwareImage) {
@@ -282,30 +280,6 @@ fn injected_on(
         }
         None => assert!(!f.tripped(), "{board} {kind:?}: {f:?}"),
     }
-}
-
-/// Four keys on core 0 and one on core 1 of the spring without the quiescent-key guard:
-/// core 0's keys take turns ([`tactus_firmware::image::glue::Turns`], four classes, as
-/// grand88's), core 1's is checked every sample.
-fn turns_image(board: &str) -> (Program, FirmwareImage) {
-    let mut p = spring::spring();
-    p.quiescent_guard = false;
-    p.sensor_check = true;
-    let keys: Vec<KeySpec> = (0..5)
-        .map(|i| KeySpec {
-            slot: 60 + i,
-            program: 0,
-            core: usize::from(i == 4),
-        })
-        .collect();
-    let image = FirmwareImage::build(
-        std::slice::from_ref(&p),
-        &keys,
-        &layouts::shipped_board(board),
-        &LimiterConfig::default(),
-    )
-    .unwrap();
-    (p, image)
 }
 
 #[test]
