@@ -7,7 +7,9 @@
 //! board its own program's run of the label), so the check sees what the hardware would:
 //! the glue, both cores, the words the handler copies. A fresh boot per run keeps each run
 //! from its initial state, as the budget's are, and keeps a run ending mid-travel from
-//! looking like a jump to the next. The runs split in two: the physical ones (key motions,
+//! looking like a jump to the next; the keys stand at the run's first words from power-on
+//! (`FirmwareImage::run_at`: a converter board's first reading is its boot's ADC burst),
+//! so a run that starts mid-travel (`hold`) is a key held there as the board boots. The runs split in two: the physical ones (key motions,
 //! sensor noise) must trip nothing, a trip being a false alarm; the ones faulty by design
 //! (glitches to corner words, adversarial random words: [`by_design`]) show the checks at
 //! work.
@@ -94,15 +96,21 @@ pub fn budget_corpus_trips(
                 .map(|k| runs[k.program].iter().find(|r| &r.label == label))
                 .collect();
             let samples = key_runs.iter().flatten().map(|r| r.records.len()).max();
-            let mut run = image.run().map_err(|e| format!("board {}: {e}", b + 1))?;
-            let mut words = Vec::new();
-            for n in 0..samples.unwrap_or(0) {
-                words.clear();
+            let words_at = |n: usize| -> Vec<i32> {
+                let mut words = Vec::new();
                 for (r, rest) in key_runs.iter().zip(&rest) {
                     let rec = r.and_then(|r| r.records.get(n)).unwrap_or(rest);
                     words.extend((0..rest.len()).map(|i| rec.get(i).copied().unwrap_or(rest[i])));
                 }
-                run.step(&words)
+                words
+            };
+            // The keys where the run starts from power-on (a run may start mid-travel, a
+            // key held there as the board boots: `FirmwareImage::run_at`).
+            let mut run = image
+                .run_at(&words_at(0))
+                .map_err(|e| format!("board {}: {e}", b + 1))?;
+            for n in 0..samples.unwrap_or(0) {
+                run.step(&words_at(n))
                     .map_err(|e| format!("board {}, run {label}, sample {n}: {e}", b + 1))?;
             }
             run.settle().map_err(|e| format!("board {}: {e}", b + 1))?;

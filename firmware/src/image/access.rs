@@ -238,6 +238,20 @@ impl FirmwareImage {
     /// Loads the image into a fresh emulated board and runs it up to the first tick
     /// (every core's start-up); see [`ImageRun`].
     pub fn run(&self) -> Result<ImageRun, ImageError> {
-        ImageRun::new(self)
+        ImageRun::new(self, None)
+    }
+
+    /// [`FirmwareImage::run`] with the keys where `sensors` (the first sample's words, as
+    /// [`ImageRun::step`] takes them) puts them from power-on: on a converter board the
+    /// ADC's inputs hold their codes before the boot, so the start handler's burst (the
+    /// keys' first reading) samples them, as a real board's samples its keys where they
+    /// are; [`FirmwareImage::run`]'s ADC reads its power-on code 0 there (the key at rest),
+    /// and a key held elsewhere jumps at the first step. The same as
+    /// [`FirmwareImage::run`] on a board without converters, whose first reading is the
+    /// first step's.
+    ///
+    /// Errors: [`ImageError::SensorCount`]; those of [`FirmwareImage::run`].
+    pub fn run_at(&self, sensors: &[i32]) -> Result<ImageRun, ImageError> {
+        ImageRun::new(self, Some(sensors))
     }
 }

@@ -343,7 +343,11 @@ impl ImageRun {
         board
     }
 
-    pub(crate) fn new(image: &FirmwareImage) -> Result<ImageRun, ImageError> {
+    /// [`FirmwareImage::run`], or with `first` [`FirmwareImage::run_at`].
+    pub(crate) fn new(
+        image: &FirmwareImage,
+        first: Option<&[i32]>,
+    ) -> Result<ImageRun, ImageError> {
         let mut board = ImageRun::fresh_board(image, image.own_banks());
         for (addr, bytes) in &image.segments {
             board.write_bytes(*addr, bytes).map_err(emu)?;
@@ -352,7 +356,7 @@ impl ImageRun {
         // lowest address with SP at the top of SRAM (`super::boot`); core 0 sets the clocks
         // up and launches core 1 over the FIFOs, where core 1 waits in the boot ROM.
         board.enter_ram_image(super::boot::ENTRY | 1);
-        ImageRun::start(board, image)
+        ImageRun::start(board, image, first)
     }
 
     /// Writes `flash` (bytes from 0x10000000: the image's [`FirmwareImage::flash_image`], or
@@ -369,7 +373,7 @@ impl ImageRun {
             .write_bytes(tactus_rp2040::memory::FLASH_BASE, flash)
             .map_err(emu)?;
         board.boot_from_flash().map_err(emu)?;
-        ImageRun::start(board, image)
+        ImageRun::start(board, image, None)
     }
 
     /// Loads `elf` (the image's [`FirmwareImage::elf`] or [`FirmwareImage::flash_elf`], or a
@@ -383,10 +387,20 @@ impl ImageRun {
     pub fn from_elf(image: &FirmwareImage, elf: &[u8]) -> Result<ImageRun, ImageError> {
         let mut board = ImageRun::fresh_board(image, image.own_banks());
         board.load_elf(elf).map_err(emu)?;
-        ImageRun::start(board, image)
+        ImageRun::start(board, image, None)
     }
 
-    fn start(mut board: Board, image: &FirmwareImage) -> Result<ImageRun, ImageError> {
+    fn start(
+        mut board: Board,
+        image: &FirmwareImage,
+        first: Option<&[i32]>,
+    ) -> Result<ImageRun, ImageError> {
+        if let Some(w) = first.filter(|w| w.len() != image.sensor_words()) {
+            return Err(ImageError::SensorCount {
+                expected: image.sensor_words(),
+                got: w.len(),
+            });
+        }
         let mut profiles = Vec::new();
         for c in &image.cores {
             profiles.push(board.profile_handler(c.isr));
@@ -440,6 +454,10 @@ impl ImageRun {
             rest_error: None,
             faults: Default::default(),
         };
+        if let Some(w) = first {
+            // The ADC's inputs before the boot ([`FirmwareImage::run_at`]).
+            run.set_codes(w);
+        }
         let alarm = run.image.start_alarm_us as u64;
         run_to_timer(&mut run.board, alarm).map_err(ImageError::Run)?;
         for (k, c) in run.image.cores.iter().enumerate() {
