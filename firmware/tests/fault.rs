@@ -9,12 +9,10 @@
 mod layouts;
 #[path = "common/spring.rs"]
 mod spring;
-use spring::fault;
+use spring::{fault, turns_image};
 
 use tactus_firmware::image::fault::{recovery_samples, FaultKind};
-use tactus_firmware::image::{
-    FaultKind as InjKind, FirmwareImage, ImageRun, Injection, KeySpec, Program,
-};
+use tactus_firmware::image::{FaultKind as InjKind, FirmwareImage, ImageRun, Injection, Program};
 use tactus_runtime::limiter::LimiterConfig;
 
 fn image(board: &str) -> (Program, FirmwareImage) {
@@ -128,11 +126,12 @@ fn a_converter_board_trips_on_its_adc_codes() {
 fn a_key_held_down_at_power_on_plays_from_the_first_sample() {
     // A key's first reading in range is taken as it stands and its update runs on it
     // (`SensorCheck::seed`): a key away from rest at the start is no fault, and the
-    // checked board is the unchecked one from the first sample. On a board without converters: with them the
-    // first reading is the start handler's ADC burst, which `FirmwareImage::run` makes
-    // before the host can set the ADC's codes (they read 0, the key at rest), so there
-    // the emulated key is at rest at power-on and jumps at the first step.
-    for board in ["rp2040"] {
+    // checked board is the unchecked one from the first sample. On a converter board the
+    // first reading is the start handler's ADC burst: `FirmwareImage::run_from` sets the
+    // ADC's codes before the boot, as a real board's keys stand at power-on
+    // (`FirmwareImage::run`'s ADC reads 0 there, the key at rest, and the held key jumps
+    // at the first step: a trip, below).
+    for board in ["rp2040", "rp2040_io"] {
         let (p, image) = image(board);
         let mut plain = p.clone();
         plain.sensor_check = false;
@@ -146,8 +145,8 @@ fn a_key_held_down_at_power_on_plays_from_the_first_sample() {
         let (lo, hi) = p.fixed.sensor_raw_range[0];
         // Key 0 held at 3/4 of its travel, key 1 at the bottom, key 2 at rest.
         let words = [lo + (hi - lo) / 4 * 3, hi, lo];
-        let mut run = image.run().unwrap();
-        let mut reference = unchecked.run().unwrap();
+        let mut run = image.run_from(&words).unwrap();
+        let mut reference = unchecked.run_from(&words).unwrap();
         for n in 0..50 {
             let got = run.step(&words).unwrap().clone();
             let want = reference.step(&words).unwrap().clone();
@@ -165,6 +164,14 @@ fn a_key_held_down_at_power_on_plays_from_the_first_sample() {
             let f = fault(&mut run, &image, core);
             assert!(!f.tripped(), "{board} core {core}: {f:?}");
         }
+        // Booted with the keys at rest instead, the converter board's held keys jump at
+        // the first step: core 0's check sees it.
+        let mut run = image.run().unwrap();
+        for _ in 0..50 {
+            run.step(&words).unwrap();
+        }
+        let f = fault(&mut run, &image, 0);
+        assert_eq!(f.tripped(), board == "rp2040_io", "{board}: {f:?}");
     }
 }
 
@@ -282,30 +289,6 @@ fn injected_on(
         }
         None => assert!(!f.tripped(), "{board} {kind:?}: {f:?}"),
     }
-}
-
-/// Four keys on core 0 and one on core 1 of the spring without the quiescent-key guard:
-/// core 0's keys take turns ([`tactus_firmware::image::glue::Turns`], four classes, as
-/// grand88's), core 1's is checked every sample.
-fn turns_image(board: &str) -> (Program, FirmwareImage) {
-    let mut p = spring::spring();
-    p.quiescent_guard = false;
-    p.sensor_check = true;
-    let keys: Vec<KeySpec> = (0..5)
-        .map(|i| KeySpec {
-            slot: 60 + i,
-            program: 0,
-            core: usize::from(i == 4),
-        })
-        .collect();
-    let image = FirmwareImage::build(
-        std::slice::from_ref(&p),
-        &keys,
-        &layouts::shipped_board(board),
-        &LimiterConfig::default(),
-    )
-    .unwrap();
-    (p, image)
 }
 
 #[test]

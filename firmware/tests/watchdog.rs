@@ -8,13 +8,12 @@
 mod layouts;
 #[path = "common/spring.rs"]
 mod spring;
-use spring::fault;
+use spring::{fault, turns_image};
 
 use tactus_emulator::Engine;
 use tactus_firmware::image::fault::{FaultKind, UNKNOWN_KEY, WATCHDOG_PERIOD_US};
 use tactus_firmware::image::glue::ctrl;
-use tactus_firmware::image::{self, FirmwareImage, ImageRun, Injection, KeySpec, SampleOut};
-use tactus_runtime::limiter::LimiterConfig;
+use tactus_firmware::image::{self, FirmwareImage, ImageRun, Injection, SampleOut};
 
 /// The spring's three keys, the watchdog on or off.
 fn image(board: &str, watchdog: bool) -> FirmwareImage {
@@ -339,30 +338,6 @@ fn a_hang_is_its_keys_alone_on_a_converter_board() {
     a_hang_is_its_keys_alone("rp2040_io");
 }
 
-/// Four keys of the spring on core 0, taking turns (four classes, as grand88's cores), and
-/// one on core 1, the sensor check and the watchdog on: core 0 feeds the watchdog in one
-/// class of its samples (`glue::Feed::class`).
-fn turns_image(board: &str) -> FirmwareImage {
-    let mut p = spring::spring();
-    p.quiescent_guard = false;
-    p.sensor_check = true;
-    p.watchdog = true;
-    let keys: Vec<KeySpec> = (0..5)
-        .map(|i| KeySpec {
-            slot: 60 + i,
-            program: 0,
-            core: usize::from(i == 4),
-        })
-        .collect();
-    FirmwareImage::build(
-        std::slice::from_ref(&p),
-        &keys,
-        &layouts::shipped_board(board),
-        &LimiterConfig::default(),
-    )
-    .unwrap()
-}
-
 /// Every key of [`turns_image`] at rest (the converter board's ADC reads its power-on code
 /// 0 at the start handler's first burst, before the host sets one: a key held elsewhere
 /// would trip at its first check).
@@ -403,7 +378,7 @@ fn feeds(image: &FirmwareImage, engine: Engine, samples: usize) -> Vec<(u8, bool
 #[test]
 fn core_0_feeds_the_watchdog_in_its_feeding_class_of_samples_alone() {
     for board in ["rp2040", "rp2040_io"] {
-        let image = turns_image(board);
+        let (_, image) = turns_image(board);
         let turns = image.check_turns(0).unwrap().clone();
         assert_eq!(turns.classes, 4, "{board}: {turns:?}");
         let class = image.watchdog_feed().unwrap().class;
@@ -447,7 +422,7 @@ fn core_0_feeds_the_watchdog_in_its_feeding_class_of_samples_alone() {
 #[test]
 fn a_hang_resets_a_board_that_feeds_in_turns_within_the_period_and_a_sample() {
     for board in ["rp2040", "rp2040_io"] {
-        let image = turns_image(board);
+        let (_, image) = turns_image(board);
         let gap = image.feed_gap().unwrap() as u64;
         assert!(gap > 1, "{board}: the feed takes turns");
         let feeding = image.watchdog_feed().unwrap().class.unwrap();

@@ -291,7 +291,14 @@ pub fn board_image(
     board: &BoardSpec,
     limiter: &LimiterConfig,
 ) -> Result<(Vec<usize>, Result<FirmwareImage, ImageError>), BoardsError> {
-    image_of(programs, costs, keys, board, limiter, true)
+    let inputs = PlanInputs {
+        programs,
+        costs,
+        board,
+        limiter,
+        may_drop_guard: true,
+    };
+    image_of(inputs, keys)
 }
 
 /// The programs `keys` run, in order of first use: the image's programs, by index.
@@ -305,15 +312,32 @@ fn used_programs(keys: &[PlanKey]) -> Vec<usize> {
     used
 }
 
-/// [`board_image`], with the fallback to an unguarded image only when `may_drop_guard`.
-fn image_of(
-    programs: &[Program],
-    costs: &ProgramCosts,
-    keys: &[PlanKey],
-    board: &BoardSpec,
-    limiter: &LimiterConfig,
+/// What a candidate board's image is built from but its keys, the same for every candidate
+/// of a plan ([`image_of`], the planner's `checked` and its memo's): the programs, their
+/// costs, the board and the limiter, and whether a board may leave the quiescent-key guard
+/// out where only that makes it fit.
+#[derive(Clone, Copy)]
+struct PlanInputs<'a> {
+    programs: &'a [Program],
+    costs: &'a ProgramCosts,
+    board: &'a BoardSpec,
+    limiter: &'a LimiterConfig,
     may_drop_guard: bool,
+}
+
+/// [`board_image`] of `keys` from `inputs`, with the fallback to an unguarded image only
+/// when [`PlanInputs::may_drop_guard`].
+fn image_of(
+    inputs: PlanInputs,
+    keys: &[PlanKey],
 ) -> Result<(Vec<usize>, Result<FirmwareImage, ImageError>), BoardsError> {
+    let PlanInputs {
+        programs,
+        costs,
+        board,
+        limiter,
+        may_drop_guard,
+    } = inputs;
     let used = used_programs(keys);
     let mut specs = Vec::with_capacity(keys.len());
     let mut slot = 0;

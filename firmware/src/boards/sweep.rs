@@ -5,7 +5,7 @@
 
 use super::{
     image_of, image_verdict, used_programs, BoardImage, BoardVerdict, BoardsError, KeyboardPlan,
-    PlanKey, ProgramCosts,
+    PlanInputs, PlanKey, ProgramCosts,
 };
 use crate::image::Program;
 use crate::windows::MAX_KEYS;
@@ -40,18 +40,11 @@ impl Fits for Checked {
     }
 }
 
-/// [`check_board`](super::check_board) with the image kept, the guard dropped only when `may_drop_guard`
-/// ([`image_of`]).
-fn checked(
-    programs: &[Program],
-    costs: &ProgramCosts,
-    keys: &[PlanKey],
-    board: &BoardSpec,
-    limiter: &LimiterConfig,
-    may_drop_guard: bool,
-) -> Result<Checked, BoardsError> {
-    let (core_of, image) = image_of(programs, costs, keys, board, limiter, may_drop_guard)?;
-    let verdict = image_verdict(programs, keys, board, &core_of, &image);
+/// [`check_board`](super::check_board) of `keys` with the image kept, the guard dropped only
+/// when [`PlanInputs::may_drop_guard`] ([`image_of`]).
+fn checked(inputs: PlanInputs, keys: &[PlanKey]) -> Result<Checked, BoardsError> {
+    let (core_of, image) = image_of(inputs, keys)?;
+    let verdict = image_verdict(inputs.programs, keys, inputs.board, &core_of, &image);
     Ok(Checked {
         verdict,
         image: image
@@ -137,18 +130,9 @@ impl Verdicts {
 
     /// [`checked`], or the verdict of a candidate of the same shape with `keys`' MIDI
     /// numbers and its image with `keys`' param blocks.
-    #[allow(clippy::too_many_arguments)] // `checked`'s inputs
-    fn checked(
-        &self,
-        programs: &[Program],
-        costs: &ProgramCosts,
-        keys: &[PlanKey],
-        board: &BoardSpec,
-        limiter: &LimiterConfig,
-        may_drop_guard: bool,
-    ) -> Result<Checked, BoardsError> {
-        let check = || checked(programs, costs, keys, board, limiter, may_drop_guard);
-        let Some(shape) = self.shape(costs, keys).filter(|_| self.on) else {
+    fn checked(&self, inputs: PlanInputs, keys: &[PlanKey]) -> Result<Checked, BoardsError> {
+        let check = || checked(inputs, keys);
+        let Some(shape) = self.shape(inputs.costs, keys).filter(|_| self.on) else {
             return check();
         };
         let seen = || self.seen.lock().unwrap_or_else(|e| e.into_inner());
@@ -166,7 +150,7 @@ impl Verdicts {
             let image = built.and_then(|b| {
                 let local: Vec<Program> = (used_programs(keys).iter())
                     .zip(b.image.programs())
-                    .map(|(&p, q)| q.with_params(programs[p].params.clone()))
+                    .map(|(&p, q)| q.with_params(inputs.programs[p].params.clone()))
                     .collect();
                 let image = b.image.with_params(&local).ok()?;
                 Some(Arc::new(BoardImage {
@@ -197,6 +181,13 @@ pub fn check_boards(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<KeyboardPlan, BoardsError> {
     let memo = Verdicts::new(programs, true);
+    let inputs = PlanInputs {
+        programs,
+        costs,
+        board,
+        limiter,
+        may_drop_guard: true,
+    };
     let mut out = Vec::with_capacity(lists.len());
     for (i, list) in lists.iter().enumerate() {
         progress(i, lists.len());
@@ -205,7 +196,7 @@ pub fn check_boards(
             .filter(|k| list.contains(&k.key))
             .copied()
             .collect();
-        out.push(memo.checked(programs, costs, &ks, board, limiter, true)?);
+        out.push(memo.checked(inputs, &ks)?);
     }
     Ok(KeyboardPlan::of(out, false))
 }
@@ -244,9 +235,14 @@ pub(super) fn plan_with(
     memo: bool,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<KeyboardPlan, BoardsError> {
-    let fewest = sweep(
-        programs, costs, keys, board, limiter, true, None, memo, progress,
-    )?;
+    let inputs = PlanInputs {
+        programs,
+        costs,
+        board,
+        limiter,
+        may_drop_guard: true,
+    };
+    let fewest = sweep(inputs, keys, None, memo, progress)?;
     if !fewest.iter().any(|b| b.verdict.guard_off) {
         return Ok(KeyboardPlan::of(fewest, true));
     }
@@ -254,12 +250,11 @@ pub(super) fn plan_with(
     // as soon as it cannot be that plan. (Its boards all fit with the guard, so each image
     // is also what `board_image`, which drops the guard only where it does not fit, builds.)
     let guarded = sweep(
-        programs,
-        costs,
+        PlanInputs {
+            may_drop_guard: false,
+            ..inputs
+        },
         keys,
-        board,
-        limiter,
-        false,
         Some(fewest.len()),
         memo,
         &mut |_, _| {},
@@ -274,7 +269,8 @@ pub(super) fn plan_with(
     Ok(KeyboardPlan::of(fewest, true))
 }
 
-/// The greedy sweep of [`plan`], boards without the guard allowed when `may_drop_guard`.
+/// The greedy sweep of [`plan`] over `keys`, boards without the guard allowed when
+/// [`PlanInputs::may_drop_guard`].
 ///
 /// Each board's end is the greedy one — the last key such that the board from its first
 /// key to it fits — found by a search instead of one key at a time: because "fits" is
@@ -294,20 +290,16 @@ pub(super) fn plan_with(
 /// With `most: Some(m)` the sweep stops, returning the boards so far, as soon as a board
 /// does not fit or the plan would need more than `m` boards (the caller then has its
 /// answer: not a plan of at most `m` fitting boards).
-#[allow(clippy::too_many_arguments)] // the plan's inputs, and the two ways it is swept
 fn sweep(
-    programs: &[Program],
-    costs: &ProgramCosts,
+    inputs: PlanInputs,
     keys: &[PlanKey],
-    board: &BoardSpec,
-    limiter: &LimiterConfig,
-    may_drop_guard: bool,
     most: Option<usize>,
     memo: bool,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<Checked>, BoardsError> {
-    let memo = Verdicts::new(programs, memo);
-    let check = |ks: &[PlanKey]| memo.checked(programs, costs, ks, board, limiter, may_drop_guard);
+    let PlanInputs { costs, board, .. } = inputs;
+    let memo = Verdicts::new(inputs.programs, memo);
+    let check = |ks: &[PlanKey]| memo.checked(inputs, ks);
     let mut boards = Vec::new();
     let mut i = 0;
     let cycles = board

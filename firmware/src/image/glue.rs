@@ -28,11 +28,14 @@ use tactus_runtime::limiter::{DacScale, LimiterConstants};
 
 mod checks;
 mod reset_cause;
+mod stall;
+mod tail;
 use checks::{
-    check_step, clear_return_slot, copy_words, enable_watchdog, feed_watchdog, mark_behind,
-    record_watchdog_trip, restore_fault_record, trip_paths, CopyMode, PendingTrip,
+    check_step, clear_return_slot, copy_words, enable_watchdog, record_watchdog_trip,
+    restore_fault_record, trip_paths, CopyMode, PendingTrip,
 };
 pub use checks::{Feed, Gate, HangLookup, SensorCheck, Turns, MAX_GAP};
+use tail::handler_tail;
 
 /// Byte offsets in a core's control block (words in the core's own SRAM bank).
 pub mod ctrl {
@@ -707,6 +710,9 @@ pub fn core_code(
         calls: vec![Vec::new(); keys.len()],
     };
     let mut calls = vec![Vec::new(); keys.len()];
+    // The watchdog's enabling and feed: core 0's alone (`feed` on core 1: its fault
+    // record restored at reset).
+    let fed = feed.filter(|_| core == 0);
     if let Some(k) = keys.iter().find(|k| k.clobbers & !CLOBBERABLE != 0) {
         return Err(ImageError::Compile(format!(
             "an update clobbers registers {:#06x}; the image's glue allows only {CLOBBERABLE:#06x}",
@@ -768,7 +774,7 @@ pub fn core_code(
     // ---- reset: init every key, prepare the tick, set the limiter's registers, mark the
     // core ready, enable the start interrupt, sleep ----
     a.bind(labels.reset);
-    if let (0, Some(f)) = (core, feed) {
+    if let Some(f) = fed {
         // Before core 1's launch: its pair is final when it copies it.
         record_watchdog_trip(a, 1 + usize::from(f.other_samples.is_some()));
     }
@@ -851,7 +857,7 @@ pub fn core_code(
         // The first ADC burst, for the first sample.
         p.start_burst(a, core);
     }
-    if let (0, Some(f)) = (core, feed) {
+    if let Some(f) = fed {
         enable_watchdog(a, &f);
     }
     a.i(Instr::Bx { rm: 14 });
@@ -866,28 +872,12 @@ pub fn core_code(
     // With the sensor check (`Program::sensor_check`: a key's checks need its ADC's
     // bursts), not without it.
     let burst_check = keys.iter().any(|k| k.check.is_some());
-    let stall = match io
+    let stall = io
         .filter(|_| burst_check)
         .and_then(|p| Some((p.burst_mark(core)?, p.cores.get(core)?)))
-    {
-        Some((_, c)) => {
-            a.align4();
-            let l = a.label();
-            a.bind(l);
-            tick_step(a, &tick);
-            checks::adc_stall_path(a, core, c.dac_channels);
-            handler_tail(
-                a,
-                ctrl_addr,
-                false,
-                feed.filter(|_| core == 0).as_ref(),
-                None,
-            );
-            a.pool();
-            Some(l)
-        }
-        None => None,
-    };
+        .map(|(_, c)| {
+            stall::adc_stall_path(a, core, c.dac_channels, &tick, ctrl_addr, fed.as_ref())
+        });
     a.align4();
     a.bind(labels.isr);
     if let Some(p) = io {
@@ -910,7 +900,6 @@ pub fn core_code(
     let copies = turns.classes.max(1);
     // The watchdog's feed (core 0): in the tail of its feeding class's copy alone
     // ([`Feed::class`]), or every sample in the one tail.
-    let fed = feed.filter(|_| core == 0);
     let fed_copy = fed
         .and_then(|f| f.class)
         .map(u32::from)
@@ -1147,57 +1136,6 @@ pub fn core_code(
     a.pool();
     trip_paths(a, &mut trips, keys, ctrl_addr, core);
     Ok(CoreLabels { calls, ..labels })
-}
-
-/// The sample interrupt's tail (its control block at `ctrl_addr`): `r5` reloaded
-/// when `reload_r5` (an update or a guard clobbers it), the miss check, the sample count,
-/// with `feed` the watchdog's feed ([`feed_watchdog`], and its [`mark_behind`] path), and
-/// the exception return. `keys_end` is bound at the ICSR load ([`CoreLabels::keys_end`]).
-fn handler_tail(
-    a: &mut CodeBuffer,
-    ctrl_addr: u32,
-    reload_r5: bool,
-    feed: Option<&Feed>,
-    keys_end: Option<Label>,
-) {
-    if reload_r5 {
-        a.ldr_const(5, ctrl_addr);
-    }
-    // A miss: the next tick's wrap has already pended SysTick again (ICSR.PENDSTSET: the
-    // entry cleared it), so the handler ends at or after the next tick.
-    a.ldr_const(0, syst::ICSR);
-    if let Some(l) = keys_end {
-        a.bind(l);
-    }
-    a.i(asm::ldr(2, 0, 0));
-    a.i(asm::lsls(2, 2, 31 - syst::PENDSTSET_BIT)); // N = PENDSTSET
-    let on_time = a.label();
-    a.bc(cond::PL, on_time);
-    a.i(asm::ldr(1, 5, ctrl::MISSES));
-    a.i(asm::adds_imm(1, 1, 1));
-    a.i(asm::str(1, 5, ctrl::MISSES));
-    a.bind(on_time);
-    a.i(asm::ldr(1, 5, ctrl::SAMPLES));
-    a.i(asm::adds_imm(1, 1, 1));
-    a.i(asm::str(1, 5, ctrl::SAMPLES));
-    let behind = a.label();
-    if let Some(f) = feed {
-        feed_watchdog(a, f, behind);
-    }
-    let ret = |a: &mut CodeBuffer| {
-        a.i(asm::movs(0, EXC_RETURN_NOT));
-        a.i(asm::alu(AluOp::Mvn, 0, 0));
-        a.i(mov_hi(14, 0));
-        a.i(Instr::Bx { rm: 14 });
-    };
-    ret(a);
-    if feed.is_some_and(|f| f.other_samples.is_some()) {
-        // Core 1 behind: no feed, the mark instead, and its own return (no branch back:
-        // as long as the feed).
-        a.bind(behind);
-        mark_behind(a);
-        ret(a);
-    }
 }
 
 /// The dispatch's far half ([`Turns`]) that copy `copy` hosts, out of the copies' flow

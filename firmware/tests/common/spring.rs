@@ -1,5 +1,6 @@
-//! The fault tests' board (`fault.rs`, `watchdog.rs`): three keys of a spring, keys 0 and
-//! 1 on core 0 and key 2 on core 1, window slots 60–62, and each core's fault record.
+//! The fault tests' boards (`fault.rs`, `watchdog.rs`): three keys of a spring, keys 0 and
+//! 1 on core 0 and key 2 on core 1, window slots 60–62; five whose core 0 keys take turns;
+//! and each core's fault record.
 #![allow(dead_code)] // each test binary uses a subset
 
 use tactus_compiler::lower::Config;
@@ -36,6 +37,33 @@ pub fn three_keys(p: &Program, board: &str) -> FirmwareImage {
         &LimiterConfig::default(),
     )
     .unwrap()
+}
+
+/// Four keys of the spring on core 0 and one on core 1 (window slots 60–64), the
+/// quiescent-key guard off, the sensor check and the watchdog on: core 0's keys take turns
+/// (`tactus_firmware::image::glue::Turns`, four classes, as grand88's cores), core 1's is
+/// checked every sample, and core 0 feeds the watchdog in one class of its samples
+/// (`glue::Feed::class`). The program and its image on the shipped board `board`.
+pub fn turns_image(board: &str) -> (Program, FirmwareImage) {
+    let mut p = spring();
+    p.quiescent_guard = false;
+    p.sensor_check = true;
+    p.watchdog = true;
+    let keys: Vec<KeySpec> = (0..5)
+        .map(|i| KeySpec {
+            slot: 60 + i,
+            program: 0,
+            core: usize::from(i == 4),
+        })
+        .collect();
+    let image = FirmwareImage::build(
+        std::slice::from_ref(&p),
+        &keys,
+        &super::layouts::shipped_board(board),
+        &LimiterConfig::default(),
+    )
+    .unwrap();
+    (p, image)
 }
 
 /// Core `core`'s fault record, read from its control block.

@@ -407,22 +407,46 @@ fn trip_path(
     }
     // The key's force words 0: its limiters make DAC code 0 of them.
     a.bind(zero);
+    motors_to_zero(a, k.drives.iter().map(|d| ZeroWord::Force(d.force_offset)));
+    a.b(join);
+}
+
+/// A word [`motors_to_zero`] writes the zero force to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum ZeroWord {
+    /// A key's force word, at this byte offset in its record (r4): the key's limiter, which
+    /// the caller then runs, makes DAC code 0 of it (its earn path: a magnitude of 0), and
+    /// its time budget earns as at any zero force.
+    Force(u32),
+    /// A converter core's DAC channel: its DAC word (r7's frames, [`super::super::io::write_dac`])
+    /// code 0, sent by the next sample's DMA, no limiter run.
+    Dac(u32),
+}
+
+/// The motors at zero force on a fault, the image's one emitter of it: r0 = 0 stored to
+/// each of `words` — a tripped key's force words (the sensor check's trip path, which then
+/// joins the key's limiters, so a key taking turns keeps its gate) or a stalled converter
+/// core's DAC words (the burst check's stall path, whose keys do not run). Both are DAC
+/// code 0 in the sample they run in: the limiter of a zero force is code 0 for every
+/// format ([`super::limiter_inline`]). Rare paths only: no cycle of the sample path.
+/// Leaves r0 = 0; clobbers r1.
+pub(super) fn motors_to_zero(a: &mut CodeBuffer, words: impl IntoIterator<Item = ZeroWord>) {
     a.i(asm::movs(0, 0));
-    for d in &k.drives {
-        if d.force_offset <= 124 {
-            a.i(asm::str(0, 4, d.force_offset as u16));
-        } else {
-            a.mov_const(1, d.force_offset);
-            a.i(Instr::MemReg {
-                op: tactus_isa::decode::MemOp::Str,
-                rt: 0,
-                rn: 4,
-                rm: 1,
-            });
-            a.i(asm::movs(0, 0));
+    for w in words {
+        match w {
+            ZeroWord::Force(off) if off <= 124 => a.i(asm::str(0, 4, off as u16)),
+            ZeroWord::Force(off) => {
+                a.mov_const(1, off);
+                a.i(Instr::MemReg {
+                    op: tactus_isa::decode::MemOp::Str,
+                    rt: 0,
+                    rn: 4,
+                    rm: 1,
+                });
+            }
+            ZeroWord::Dac(ch) => super::super::io::write_dac(a, ch),
         }
     }
-    a.b(join);
 }
 
 /// The range test of [`SensorCheck`]: `r0` = the word; branches to `bad` when it lies
@@ -764,57 +788,4 @@ pub(super) fn clear_return_slot(a: &mut CodeBuffer, hang: &HangLookup) {
     a.ldr_const(0, hang.slot);
     a.i(asm::movs(1, 0));
     a.i(asm::str(1, 0, 0));
-}
-
-/// The burst check's stall path's record and outputs (docs/firmware.md, "Faults"; the
-/// check: [`super::super::io::IoPlan::burst_mark`]): core `core`'s ADC burst of the last
-/// sample did not finish, so this sample has no positions. Entered with r5 = the core's
-/// control block; the keys do not run (their states stay as they were), and the caller
-/// ends the handler as every sample does (the sample count, the watchdog's feed).
-///
-/// - **The record**: an [`super::super::fault::FaultKind::AdcStall`] trip on key
-///   [`super::super::fault::NO_KEY`] (every key of the core), counted once a stall — a
-///   stalled sample whose last sample was one too (the fault time one less than the sample
-///   count, the word's kind and key this one's) keeps the count — and its time the stall's
-///   latest sample; copied to the core's watchdog scratch pair, as every trip is.
-/// - **The motors**: each of the core's `dac_channels` DAC words code 0 (zero force),
-///   which the next sample's DMA sends (one `STRH` each: the frames' headers stay).
-///
-/// Its cycles (about 40) are far fewer than the keys' code it takes the place of, so the
-/// handler's bound does not rise but for the check itself. Clobbers r0-r3.
-pub(super) fn adc_stall_path(a: &mut CodeBuffer, core: usize, dac_channels: u32) {
-    use super::super::fault::{self, FaultKind, NO_KEY};
-    use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
-    let (new, same) = (a.label(), a.label());
-    let tag = u32::from(NO_KEY) << 8 | u32::from(FaultKind::AdcStall.code());
-    a.i(asm::ldr(1, 5, ctrl::FAULT));
-    a.i(asm::ldr(3, 5, ctrl::FAULT_AT));
-    a.i(asm::ldr(0, 5, ctrl::SAMPLES));
-    a.i(asm::adds_imm(3, 3, 1));
-    a.i(asm::cmp(3, 0));
-    a.bc(cond::NE, new);
-    a.i(asm::lsls(3, 1, 16));
-    a.i(asm::lsrs(3, 3, 16));
-    a.mov_const(2, tag);
-    a.i(asm::cmp(3, 2));
-    a.bc(cond::EQ, same);
-    a.bind(new);
-    // A new stall: one more trip, this kind on every key.
-    a.i(asm::lsrs(1, 1, 16));
-    a.i(asm::adds_imm(1, 1, 1));
-    a.i(asm::lsls(1, 1, 16));
-    a.mov_const(2, tag);
-    a.i(asm::alu(AluOp::Orr, 1, 2));
-    a.i(asm::str(1, 5, ctrl::FAULT));
-    a.bind(same);
-    a.i(asm::str(0, 5, ctrl::FAULT_AT));
-    let (w, _) = fault::scratch(core);
-    a.ldr_const(2, WATCHDOG_BASE + wreg::SCRATCH0 + 4 * w);
-    a.i(asm::str(1, 2, 0));
-    a.i(asm::str(0, 2, 4));
-    // The motors at zero force.
-    a.i(asm::movs(0, 0));
-    for ch in 0..dac_channels {
-        super::super::io::write_dac(a, ch);
-    }
 }
