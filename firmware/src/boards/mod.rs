@@ -291,13 +291,7 @@ pub fn board_image(
     board: &BoardSpec,
     limiter: &LimiterConfig,
 ) -> Result<(Vec<usize>, Result<FirmwareImage, ImageError>), BoardsError> {
-    let inputs = PlanInputs {
-        programs,
-        costs,
-        board,
-        limiter,
-        may_drop_guard: true,
-    };
+    let inputs = PlanInputs::new(programs, costs, board, limiter);
     image_of(inputs, keys)
 }
 
@@ -323,6 +317,25 @@ struct PlanInputs<'a> {
     board: &'a BoardSpec,
     limiter: &'a LimiterConfig,
     may_drop_guard: bool,
+}
+
+impl<'a> PlanInputs<'a> {
+    /// The inputs of a plan that may leave a board's quiescent-key guard out where only
+    /// that makes it fit (every planner's start; the sweep's second pass turns it off).
+    fn new(
+        programs: &'a [Program],
+        costs: &'a ProgramCosts,
+        board: &'a BoardSpec,
+        limiter: &'a LimiterConfig,
+    ) -> PlanInputs<'a> {
+        PlanInputs {
+            programs,
+            costs,
+            board,
+            limiter,
+            may_drop_guard: true,
+        }
+    }
 }
 
 /// [`board_image`] of `keys` from `inputs`, with the fallback to an unguarded image only

@@ -181,13 +181,7 @@ pub fn check_boards(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<KeyboardPlan, BoardsError> {
     let memo = Verdicts::new(programs, true);
-    let inputs = PlanInputs {
-        programs,
-        costs,
-        board,
-        limiter,
-        may_drop_guard: true,
-    };
+    let inputs = PlanInputs::new(programs, costs, board, limiter);
     let mut out = Vec::with_capacity(lists.len());
     for (i, list) in lists.iter().enumerate() {
         progress(i, lists.len());
@@ -235,13 +229,7 @@ pub(super) fn plan_with(
     memo: bool,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<KeyboardPlan, BoardsError> {
-    let inputs = PlanInputs {
-        programs,
-        costs,
-        board,
-        limiter,
-        may_drop_guard: true,
-    };
+    let inputs = PlanInputs::new(programs, costs, board, limiter);
     let fewest = sweep(inputs, keys, None, memo, progress)?;
     if !fewest.iter().any(|b| b.verdict.guard_off) {
         return Ok(KeyboardPlan::of(fewest, true));
