@@ -13,6 +13,7 @@
 //! work.
 
 use crate::fault::{report_lines, run_records, BoardFaults};
+use std::collections::BTreeMap;
 
 /// One run of the budget corpus (`tactus_firmware::corpus`) through one board of a
 /// keyboard: every key of the board following the run (each key its own program's run of
@@ -59,14 +60,14 @@ pub fn budget_corpus_trips(
     let lim = kb.limiter();
     let costs = ProgramCosts::new(&programs, &kb.board, &lim).map_err(|e| e.to_string())?;
     let key_programs = kb.key_programs();
-    // Each program's runs, once.
-    let runs: Vec<Vec<tactus_firmware::measure::Run>> = (programs.iter())
-        .map(|p| tactus_firmware::corpus::corpus(&p.fixed, size))
-        .collect();
+    let corpus_of = |program: usize| {
+        (programs.get(program)).map_or_else(Vec::new, |p| {
+            tactus_firmware::corpus::corpus(&p.fixed, size)
+        })
+    };
     let lists = plan.key_lists();
     let labels: Vec<String> = (key_programs.first())
-        .and_then(|k| runs.get(k.1))
-        .map(|r| r.iter().map(|r| r.label.clone()).collect())
+        .map(|k| corpus_of(k.1).into_iter().map(|r| r.label).collect())
         .unwrap_or_default();
     let total = lists.len() * labels.len();
     let mut out = Vec::with_capacity(total);
@@ -79,6 +80,13 @@ pub fn budget_corpus_trips(
             .map_err(|e| format!("board {}: {e}", b + 1))?;
         let image = image.map_err(|e| format!("board {}: {e}", b + 1))?;
         let midi: Vec<u8> = bkeys.iter().map(|k| k.key).collect();
+        // The runs of this board's programs alone, made here and dropped with the board: a
+        // graded keyboard has a program per key (grand88: 88), and every program's full
+        // corpus held at once took 6.3 GB.
+        let mut runs: BTreeMap<usize, Vec<tactus_firmware::measure::Run>> = BTreeMap::new();
+        for k in &bkeys {
+            runs.entry(k.program).or_insert_with(|| corpus_of(k.program));
+        }
         let slots = crate::fault::image_slots(&image, &midi);
         let rest: Vec<Vec<i32>> = (bkeys.iter())
             .map(|k| {
@@ -91,7 +99,7 @@ pub fn budget_corpus_trips(
             progress(out.len(), total);
             // Each key's run of this label (a key whose program has none stays at rest).
             let key_runs: Vec<Option<&tactus_firmware::measure::Run>> = (bkeys.iter())
-                .map(|k| runs[k.program].iter().find(|r| &r.label == label))
+                .map(|k| runs.get(&k.program)?.iter().find(|r| &r.label == label))
                 .collect();
             let samples = key_runs.iter().flatten().map(|r| r.records.len()).max();
             let words_at = |n: usize, words: &mut Vec<i32>| {
