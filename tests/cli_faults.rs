@@ -1224,3 +1224,211 @@ fn an_adc_without_dreq_is_injected_on_a_converter_board_and_refused_on_a_plain_o
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The flips of `a_flipped_bit_in_any_state_word_…`: (word of the grand piano key's state
+/// struct, bit, time s, whether the key's forces change, what the word is). The struct
+/// (`tactus_compiler::abi::StateLayout`, `tactus build grand_piano --target rp2040`'s
+/// header): byte 0 the escapement's mode (`ready`, `hold`, `escaped`: 0–2), bytes 1–7 the
+/// `on` handlers' edges, byte 8 the differentiator ring's position (word 2: left out, see
+/// docs/firmware.md's flipped-bit row), words 3–10 the states `s`, `w`, `pulse`, `tau`,
+/// `fr.w`, `esc.xmax`, `esc.fhold`, `dt/tau`, words 11–44 the ring, 45–53 the published
+/// forces and outputs. The times: 0.02 s with the key starting its press, 0.1 s held at
+/// the bottom after its strike. A mode byte out of range trips the state check instead
+/// (`a_mode_byte_out_of_range_trips_…`).
+const FLIPS: [(u32, u8, f64, bool, &str); 14] = [
+    (
+        0,
+        1,
+        0.02,
+        true,
+        "mode ready to escaped: a valid mode, which no check sees",
+    ),
+    (1, 24, 0.02, true, "an edge byte"),
+    (3, 30, 0.02, true, "s, the hammer's angle"),
+    (3, 30, 0.1, true, "s while held"),
+    (4, 31, 0.02, true, "w, the hammer's speed"),
+    (5, 30, 0.02, true, "pulse"),
+    (
+        5,
+        31,
+        0.1,
+        true,
+        "pulse's sign while held: saturated to 0 N",
+    ),
+    (
+        6,
+        31,
+        0.02,
+        false,
+        "tau, read only with a pulse, rewritten with it",
+    ),
+    (7, 30, 0.02, true, "fr.w, clamped every sample"),
+    (
+        8,
+        30,
+        0.02,
+        true,
+        "esc.xmax, kept at rest, read by the press",
+    ),
+    (9, 31, 0.02, false, "esc.fhold, rewritten before it is read"),
+    (10, 31, 0.02, true, "dt/tau"),
+    (27, 31, 0.02, true, "a ring word: one sample's d()"),
+    (
+        45,
+        31,
+        0.02,
+        false,
+        "a published word, rewritten every sample",
+    ),
+];
+
+#[test]
+fn a_flipped_bit_in_any_state_word_stays_under_the_peak_and_wears_off_on_both_boards() {
+    // Key 61 (core 1) and key 63 (core 0) pressed from about 10 ms before 0.05 s, held to
+    // 0.3 s; the run goes on to rest (0.86 s). Every update runs (no quiescent guard, as on
+    // grand88's boards). Each flip of FLIPS in key 61's state: no check trips (the state
+    // check sees only a mode byte out of range: docs/firmware.md), every sample's motor current within the board's
+    // limiter peak, key 63 on the other core exactly as without it, key 61's forces changed
+    // where the word is read (a test that could not fail otherwise), and the flip worn off:
+    // key 61's last 0.1 s (4,410 samples) exactly the clean run's.
+    let dir = temp_dir("cli-faults-flips");
+    let layout = small_layout(&dir, 60, 63);
+    let midi = dir.join("two.mid");
+    write_midi(&midi, &[(61, 80, 0.05, 0.3), (63, 80, 0.05, 0.3)], &[]);
+    let play = |board: &str, name: &str, fault: Option<&str>| {
+        let out_dir = dir.join(format!("{board}-{name}"));
+        let mut c = tactus();
+        c.args(["play", midi.to_str().unwrap(), "--layout"])
+            .arg(&layout)
+            .args(["--board", board, "--seconds", "0.3", "--no-wav"])
+            .args(["--no-quiescent-guard", "--trace-keys", "61,63", "-o"])
+            .arg(&out_dir);
+        if let Some(f) = fault {
+            c.args(["--fault", f]);
+        }
+        let out = c.output().unwrap();
+        assert_ok(&out);
+        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+        let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
+        (stdout, key(61), key(63))
+    };
+    for board in ["rp2040", "rp2040_io"] {
+        let (_, clean61, clean63) = play(board, "clean", None);
+        let col = |name: &str| clean61.0.iter().position(|h| h == name).unwrap();
+        let (force, current) = (col("force_n"), col("motor_current_a"));
+        let (_, peak_a) = limiter_peak(board);
+        assert!(clean61.1.len() > 30_000, "{board}: {}", clean61.1.len());
+        for (word, bit, at, changes, what) in FLIPS {
+            let fault = format!("kind=flip,word={word},bit={bit},note=61,at={at}s");
+            let name = format!("w{word}b{bit}t{at}");
+            let (stdout, flip61, flip63) = play(board, &name, Some(&fault));
+            let case = format!("{board}, {fault} ({what})");
+            assert!(
+                stdout.contains("faults: 0 trips on 1 board\n"),
+                "{case}: {stdout}"
+            );
+            assert_eq!(flip63.1, clean63.1, "{case}: key 63 changed");
+            assert_eq!(flip61.1.len(), clean61.1.len(), "{case}");
+            for r in &flip61.1 {
+                assert!(r[current].abs() <= peak_a + 1e-9, "{case}: {r:?}");
+            }
+            let changed: Vec<usize> = (flip61.1.iter().zip(&clean61.1))
+                .enumerate()
+                .filter(|(_, (a, b))| a[force] != b[force])
+                .map(|(i, _)| i)
+                .collect();
+            assert_eq!(!changed.is_empty(), changes, "{case}: {changed:?}");
+            let tail = clean61.1.len() - 4_410;
+            assert_eq!(flip61.1[tail..], clean61.1[tail..], "{case}: not worn off");
+            if let (Some(first), Some(last)) = (changed.first(), changed.last()) {
+                eprintln!(
+                    "{case}: {} samples changed, from {first} to {last}",
+                    changed.len()
+                );
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_mode_byte_out_of_range_trips_the_state_check_and_recovers_on_both_boards() {
+    // Key 61 (core 1) and key 63 (core 0) as in `a_flipped_bit_in_any_state_word_…`. A
+    // flip that leaves key 61's escapement mode byte (byte 0 of its state: variants 0–2)
+    // out of range, while it starts its press (bit 2, at two samples) and while it is held
+    // (bit 7): the state check trips at the key's next check, within its class's longest
+    // gap (docs/firmware.md: at most 7 samples at 133 MHz), as `state-range` on key 61 with
+    // that sample; its motor at DAC code 0 from that sample for 100 ms (4,410 samples),
+    // then it plays again (its state from rest) and is the clean run's again by the end;
+    // key 63 on the other core exactly as without it; never a current above the peak.
+    // Without the state check the same flips trip nothing (the mode is kept until the
+    // press's end, the escapement's let-off left out meanwhile: docs/firmware.md).
+    let dir = temp_dir("cli-faults-state-check");
+    let layout = small_layout(&dir, 60, 63);
+    let midi = dir.join("two.mid");
+    write_midi(&midi, &[(61, 80, 0.05, 0.3), (63, 80, 0.05, 0.3)], &[]);
+    let fs = 44_100.0;
+    let play = |board: &str, name: &str, fault: Option<&str>| {
+        let out_dir = dir.join(format!("{board}-{name}"));
+        let mut c = tactus();
+        c.args(["play", midi.to_str().unwrap(), "--layout"])
+            .arg(&layout)
+            .args(["--board", board, "--seconds", "0.3", "--no-wav"])
+            .args(["--no-quiescent-guard", "--trace-keys", "61,63", "-o"])
+            .arg(&out_dir);
+        if let Some(f) = fault {
+            c.args(["--fault", f]);
+        }
+        let out = c.output().unwrap();
+        assert_ok(&out);
+        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+        let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
+        (stdout, key(61), key(63))
+    };
+    for board in ["rp2040", "rp2040_io"] {
+        let (_, clean61, clean63) = play(board, "clean", None);
+        let col = |name: &str| clean61.0.iter().position(|h| h == name).unwrap();
+        let (current, code) = (col("motor_current_a"), col("dac_code"));
+        let (_, peak_a) = limiter_peak(board);
+        for (bit, at) in [(2u8, 882usize), (2, 883), (7, 4410)] {
+            // The flip before sample `at` (a time just under it: its sample is the ceiling).
+            let fault = format!(
+                "kind=flip,word=0,bit={bit},note=61,at={:.9}s",
+                (at as f64 - 0.5) / fs
+            );
+            let (stdout, flip61, flip63) = play(board, &format!("b{bit}-{at}"), Some(&fault));
+            let case = format!("{board}, {fault}");
+            assert!(
+                stdout.contains("faults: 1 TRIP on 1 of 1 boards"),
+                "{case}: {stdout}"
+            );
+            let tripped: usize = (stdout
+                .split_once("board 1 core 1: state-range on key 61 (C#4) at sample "))
+            .and_then(|(_, rest)| rest.split(' ').next())
+            .unwrap_or_else(|| panic!("{case}: {stdout}"))
+            .parse()
+            .unwrap();
+            assert!((at..=at + 7).contains(&tripped), "{case}: at {tripped}");
+            assert_eq!(flip63.1, clean63.1, "{case}: key 63 changed");
+            assert_eq!(flip61.1[..at], clean61.1[..at], "{case}: before the flip");
+            let back = tripped + 4_410;
+            for r in &flip61.1[tripped..back] {
+                assert!(r[current] == 0.0 && r[code] == 0.0, "{case}: {r:?}");
+            }
+            assert!(
+                flip61.1[back..back + 50].iter().any(|r| r[code] != 0.0),
+                "{case}: plays again"
+            );
+            for r in &flip61.1 {
+                assert!(r[current].abs() <= peak_a + 1e-9, "{case}: {r:?}");
+            }
+            let tail = clean61.1.len() - 4_410;
+            assert_eq!(
+                flip61.1[tail..],
+                clean61.1[tail..],
+                "{case}: not the clean run's"
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

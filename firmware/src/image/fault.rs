@@ -114,8 +114,9 @@ pub enum FaultKind {
     /// A sensor word that moved further in one sample than the key's physics allows
     /// ([`max_step_raw`]): a jump, a noise burst, an open or short that strikes mid-travel.
     SensorRate = 2,
-    /// A key's state word outside the range the compiler's fixed-point analysis proved for
-    /// it: a flipped bit in SRAM.
+    /// A key's state word outside its range, as the state check sees it: a mode byte that
+    /// is no variant of its mode (`glue::SensorCheck::modes`; a flipped bit in SRAM: the
+    /// one state word the update keeps and reads out of range; docs/firmware.md, "Faults").
     StateRange = 3,
     /// The board came back from a watchdog reset (REASON.TIMER or REASON.FORCE set at
     /// boot): a core hung, or stopped finishing its samples, for [`WATCHDOG_PERIOD_US`].

@@ -31,7 +31,7 @@ mod reset_cause;
 mod stall;
 mod tail;
 use checks::{
-    check_step, clear_return_slot, copy_words, enable_watchdog, record_watchdog_trip,
+    check_modes, check_step, clear_return_slot, copy_words, enable_watchdog, record_watchdog_trip,
     restore_fault_record, trip_paths, CopyMode, PendingTrip,
 };
 pub use checks::{Feed, Gate, HangLookup, SensorCheck, Turns, MAX_GAP};
@@ -1014,6 +1014,12 @@ pub fn core_code(
                 guard_check(a, g, skip);
             }
             ldr_rec(a, 0, k.state_offset);
+            // The state check of the key this copy checks (its mode bytes in range).
+            let state_trip = check.as_ref().filter(|c| !c.modes.is_empty()).map(|c| {
+                let l = a.label();
+                check_modes(a, c, l);
+                l
+            });
             if in_window {
                 let off = k.sensor_words[0].wrapping_sub(sensor_base);
                 if off <= 7 {
@@ -1065,12 +1071,19 @@ pub fn core_code(
                         let far = a.label();
                         a.bind(trip);
                         a.b(far);
+                        let state = state_trip.map(|near| {
+                            let far = a.label();
+                            a.bind(near);
+                            a.b(far);
+                            far
+                        });
                         let i = keys.iter().position(|x| std::ptr::eq(x, k)).unwrap_or(0);
                         trips.push(PendingTrip {
                             check: c.clone(),
                             far,
                             join: skip,
                             resume,
+                            state,
                             key: i,
                         });
                     }

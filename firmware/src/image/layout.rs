@@ -283,7 +283,22 @@ fn sensor_check(
         state_words: (p.thumb.state.size as u32).div_ceil(4),
         turn,
         gate,
+        modes: state_check_modes(p),
     })
+}
+
+/// The mode bytes a key of program `p`'s state check tests ([`glue::SensorCheck::modes`]):
+/// each mode's byte offset in the state struct and its variants, where the byte lies
+/// within an `LDRB` immediate (31) and some byte value is no variant (fewer than 256).
+fn state_check_modes(p: &Program) -> Vec<(u8, u8)> {
+    let base = p.thumb.state.modes;
+    (p.fixed.program.modes.iter().enumerate())
+        .filter_map(|(i, m)| {
+            let off = u8::try_from(base + i).ok().filter(|&o| o <= 31)?;
+            let n = u8::try_from(m.variants.len()).ok()?;
+            Some((off, n))
+        })
+        .collect()
 }
 
 /// Whether a key of program `p` with `nd` drives, its check's words at `words_at`, has a

@@ -44,7 +44,8 @@ pub struct Program {
     pub quiescent_guard: bool,
     /// Whether the image checks its keys' first sensor word ([`glue::SensorCheck`],
     /// docs/firmware.md, "Faults"): every few samples, a class of keys a sample
-    /// ([`glue::Turns`]), a tripped key's limiters gated to DAC code 0 between its checks.
+    /// ([`glue::Turns`]), a tripped key's limiters gated to DAC code 0 between its checks;
+    /// with it the state check of the checked key's mode bytes ([`glue::SensorCheck::modes`]).
     /// Its dispatch and one key's check a sample fit grand88 on every board kind (11, 11,
     /// 8 and 8 boards: `tactus budget grand88 --quick [--board …]`). **On by default**;
     /// a key's first reading in range is taken as it

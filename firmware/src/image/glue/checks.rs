@@ -69,6 +69,19 @@ pub struct SensorCheck {
     /// ([`super::limiter_inline`]'s earn path: `m ≤ u32::MAX`, `m · 0`). Empty when
     /// `turn` is `None`.
     pub gate: Vec<Gate>,
+    /// The state check (docs/firmware.md, "Faults", the flipped-bit row): per mode of the
+    /// key's program, its byte's offset in the state struct (`StateLayout::modes` + the
+    /// mode's index, ≤ 31) and its variants (1–255). At each of the key's checks, after
+    /// its sensor word passed, the handler tests each mode byte below its variants
+    /// (`LDRB`, `CMP`, `BCS`: 4 cycles a mode, on the path of the one key a copy checks)
+    /// and on a byte out of range takes the key's trip path as a `state-range` trip
+    /// ([`super::super::fault::FaultKind::StateRange`]): its force words 0, its limiters
+    /// gated, the fault record written, and its recovery (plausible readings, then its
+    /// state copied back from the rest image, where every mode is valid) as a sensor
+    /// trip's. The one state word a flipped bit leaves out of range that the update keeps
+    /// and reads: every other state word the update rewrites (saturated to its range)
+    /// before it reads it, or keeps in range whatever its bits. Empty: no state check.
+    pub modes: Vec<(u8, u8)>,
 }
 
 /// One drive's gate words ([`SensorCheck::gate`]): where they lie in the record and what
@@ -290,6 +303,21 @@ pub(super) fn check_step(a: &mut CodeBuffer, c: &SensorCheck, copy_off: u16, tri
     a.bc(cond::NE, trip);
 }
 
+/// The state check of [`SensorCheck::modes`]: r0 = the key's state struct; branches to
+/// `trip` when a mode byte is not below its variants (`LDRB`, `CMP`, `BCS`). Clobbers r1.
+pub(super) fn check_modes(a: &mut CodeBuffer, c: &SensorCheck, trip: Label) {
+    for &(off, variants) in &c.modes {
+        a.i(Instr::MemImm {
+            op: tactus_isa::decode::MemOp::Ldrb,
+            rt: 1,
+            rn: 0,
+            imm: u16::from(off),
+        });
+        a.i(asm::cmp_imm(1, variants));
+        a.bc(cond::CS, trip);
+    }
+}
+
 /// The trip path of [`SensorCheck`] for key `k` (its record at r4): entered with r0 = the
 /// word that tripped; ends with a branch to `join` (the key's limiters) with its force
 /// words 0, or, for the key's first reading in range, to `resume` (the check's way on to
@@ -311,6 +339,7 @@ fn trip_path(
     core: usize,
     join: Label,
     resume: Label,
+    state: Option<Label>,
 ) {
     use super::super::fault::{self, FaultKind};
     use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
@@ -368,6 +397,16 @@ fn trip_path(
         a.i(asm::str(1, 4, g.gain_offset as u16));
     }
     a.b(zero);
+    // A mode byte out of range ([`SensorCheck::modes`]; the key plays: its recovery count
+    // is 0): the reading, stored as the copy, becomes the last reading; then as an
+    // implausible reading, of kind state-range.
+    if let Some(entry) = state {
+        a.bind(entry);
+        a.i(asm::ldr(0, 4, 0));
+        a.i(asm::str(0, 4, last));
+        a.i(asm::movs(3, FaultKind::StateRange.code()));
+        a.b(bad);
+    }
     // Implausible: poison the copy, count the recovery again; a new fault is a trip.
     a.bind(bad_range);
     a.i(asm::movs(3, FaultKind::SensorRange.code()));
@@ -473,6 +512,9 @@ pub(super) struct PendingTrip {
     pub join: Label,
     /// The check's way on to the update, for the key's first reading in range.
     pub resume: Label,
+    /// The path's entry for a mode byte out of range ([`SensorCheck::modes`]), the target
+    /// of a `B` behind the key's first limiter; `None` without a state check.
+    pub state: Option<Label>,
     /// The key's index in the core's keys.
     pub key: usize,
 }
@@ -488,7 +530,16 @@ pub(super) fn trip_paths(
 ) {
     for t in trips.drain(..) {
         a.bind(t.far);
-        trip_path(a, &keys[t.key], &t.check, ctrl_addr, core, t.join, t.resume);
+        trip_path(
+            a,
+            &keys[t.key],
+            &t.check,
+            ctrl_addr,
+            core,
+            t.join,
+            t.resume,
+            t.state,
+        );
         a.pool();
     }
 }
