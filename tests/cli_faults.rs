@@ -1229,8 +1229,8 @@ fn an_adc_without_dreq_is_injected_on_a_converter_board_and_refused_on_a_plain_o
 /// struct, bit, time s, whether the key's forces change, what the word is). The struct
 /// (`tactus_compiler::abi::StateLayout`, `tactus build grand_piano --target rp2040`'s
 /// header): byte 0 the escapement's mode (`ready`, `hold`, `escaped`: 0–2), bytes 1–7 the
-/// `on` handlers' edges, byte 8 the differentiator ring's position (word 2: left out, see
-/// docs/firmware.md's flipped-bit row), words 3–10 the states `s`, `w`, `pulse`, `tau`,
+/// `on` handlers' edges, byte 8 the differentiator ring's position (word 2: left out here,
+/// `a_flipped_high_bit_of_the_ring_position_…`), words 3–10 the states `s`, `w`, `pulse`, `tau`,
 /// `fr.w`, `esc.xmax`, `esc.fhold`, `dt/tau`, words 11–44 the ring, 45–53 the published
 /// forces and outputs. The times: 0.02 s with the key starting its press, 0.1 s held at
 /// the bottom after its strike. A mode byte out of range trips the state check instead
@@ -1359,8 +1359,8 @@ fn a_flipped_high_bit_of_the_ring_position_writes_no_other_key_on_both_boards() 
     // the position leaves 4..=68, and the update takes the wrap (the ring starts again at
     // its end) instead of storing its readings past its struct. Key 61 exactly as without
     // the flip, no trip and no fault, key 60's current within the board's limiter peak, and
-    // key 60's last 0.1 s (4,410 samples) the clean run's. Without the wrap, bit 7 writes
-    // key 61's state (its forces change).
+    // key 60's last 0.1 s (4,410 samples) the clean run's. Without the wrap, the update
+    // stores past its struct into key 61's (a HardFault when it hits key 61's position).
     let dir = temp_dir("cli-faults-ring-pos");
     let layout = small_layout(&dir, 60, 63);
     let midi = dir.join("two.mid");
@@ -1407,6 +1407,13 @@ fn a_flipped_high_bit_of_the_ring_position_writes_no_other_key_on_both_boards() 
                 }
                 let tail = clean60.1.len() - 4_410;
                 assert_eq!(flip60.1[tail..], clean60.1[tail..], "{case}: not worn off");
+                // Starting the press the ring's readings differ, so its d() (and the
+                // hammer after it) change: the flip reached the update. Held, they are
+                // alike and nothing changes.
+                let changed = (flip60.1.iter().zip(&clean60.1))
+                    .filter(|(a, b)| a[force] != b[force])
+                    .count();
+                assert_eq!(changed > 0, at < 0.05, "{case}: {changed} samples changed");
             }
         }
     }
