@@ -1384,11 +1384,8 @@ fn a_flipped_high_bit_of_the_ring_position_writes_no_other_key_on_both_boards() 
     };
     for board in ["rp2040", "rp2040_io"] {
         let (_, clean60, clean61) = play(board, "clean", None);
-        let current = clean60
-            .0
-            .iter()
-            .position(|h| h == "motor_current_a")
-            .unwrap();
+        let col = |name: &str| clean60.0.iter().position(|h| h == name).unwrap();
+        let (force, current) = (col("force_n"), col("motor_current_a"));
         let (_, peak_a) = limiter_peak(board);
         assert!(clean60.1.len() > 30_000, "{board}: {}", clean60.1.len());
         for bit in [6, 7] {
