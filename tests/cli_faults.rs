@@ -1229,8 +1229,8 @@ fn an_adc_without_dreq_is_injected_on_a_converter_board_and_refused_on_a_plain_o
 /// struct, bit, time s, whether the key's forces change, what the word is). The struct
 /// (`tactus_compiler::abi::StateLayout`, `tactus build grand_piano --target rp2040`'s
 /// header): byte 0 the escapement's mode (`ready`, `hold`, `escaped`: 0–2), bytes 1–7 the
-/// `on` handlers' edges, byte 8 the differentiator ring's position (word 2: left out, see
-/// docs/firmware.md's flipped-bit row), words 3–10 the states `s`, `w`, `pulse`, `tau`,
+/// `on` handlers' edges, byte 8 the differentiator ring's position (word 2: left out here,
+/// `a_flipped_high_bit_of_the_ring_position_…`), words 3–10 the states `s`, `w`, `pulse`, `tau`,
 /// `fr.w`, `esc.xmax`, `esc.fhold`, `dt/tau`, words 11–44 the ring, 45–53 the published
 /// forces and outputs. The times: 0.02 s with the key starting its press, 0.1 s held at
 /// the bottom after its strike. A mode byte out of range trips the state check instead
@@ -1345,6 +1345,72 @@ fn a_flipped_bit_in_any_state_word_stays_under_the_peak_and_wears_off_on_both_bo
                     "{case}: {} samples changed, from {first} to {last}",
                     changed.len()
                 );
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_flipped_high_bit_of_the_ring_position_writes_no_other_key_on_both_boards() {
+    // Keys 60 and 61 (adjacent state structs: docs/firmware.md's flip table) pressed from
+    // about 10 ms before 0.05 s, held to 0.3 s. A flip of bit 6 or 7 of key 60's ring
+    // position (byte 8 of its state, word 2's low byte), starting the press and while held:
+    // the position leaves 4..=68, and the update takes the wrap (the ring starts again at
+    // its end) instead of storing its readings past its struct. Key 61 exactly as without
+    // the flip, no trip and no fault, key 60's current within the board's limiter peak, and
+    // key 60's last 0.1 s (4,410 samples) the clean run's. Without the wrap, the update
+    // stores past its struct into key 61's (a HardFault when it hits key 61's position).
+    let dir = temp_dir("cli-faults-ring-pos");
+    let layout = small_layout(&dir, 60, 63);
+    let midi = dir.join("two.mid");
+    write_midi(&midi, &[(60, 80, 0.05, 0.3), (61, 80, 0.05, 0.3)], &[]);
+    let play = |board: &str, name: &str, fault: Option<&str>| {
+        let out_dir = dir.join(format!("{board}-{name}"));
+        let mut c = tactus();
+        c.args(["play", midi.to_str().unwrap(), "--layout"])
+            .arg(&layout)
+            .args(["--board", board, "--seconds", "0.3", "--no-wav"])
+            .args(["--no-quiescent-guard", "--trace-keys", "60,61", "-o"])
+            .arg(&out_dir);
+        if let Some(f) = fault {
+            c.args(["--fault", f]);
+        }
+        let out = c.output().unwrap();
+        assert_ok(&out);
+        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+        let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
+        (stdout, key(60), key(61))
+    };
+    for board in ["rp2040", "rp2040_io"] {
+        let (_, clean60, clean61) = play(board, "clean", None);
+        let col = |name: &str| clean60.0.iter().position(|h| h == name).unwrap();
+        let (force, current) = (col("force_n"), col("motor_current_a"));
+        let (_, peak_a) = limiter_peak(board);
+        assert!(clean60.1.len() > 30_000, "{board}: {}", clean60.1.len());
+        for bit in [6, 7] {
+            for at in [0.02, 0.1] {
+                let fault = format!("kind=flip,word=2,bit={bit},note=60,at={at}s");
+                let (stdout, flip60, flip61) = play(board, &format!("b{bit}t{at}"), Some(&fault));
+                let case = format!("{board}, {fault}");
+                assert!(
+                    stdout.contains("faults: 0 trips on 1 board\n"),
+                    "{case}: {stdout}"
+                );
+                assert_eq!(flip61.1, clean61.1, "{case}: key 61 changed");
+                assert_eq!(flip60.1.len(), clean60.1.len(), "{case}");
+                for r in &flip60.1 {
+                    assert!(r[current].abs() <= peak_a + 1e-9, "{case}: {r:?}");
+                }
+                let tail = clean60.1.len() - 4_410;
+                assert_eq!(flip60.1[tail..], clean60.1[tail..], "{case}: not worn off");
+                // Starting the press the ring's readings differ, so its d() (and the
+                // hammer after it) change: the flip reached the update. Held, they are
+                // alike and nothing changes.
+                let changed = (flip60.1.iter().zip(&clean60.1))
+                    .filter(|(a, b)| a[force] != b[force])
+                    .count();
+                assert_eq!(changed > 0, at < 0.05, "{case}: {changed} samples changed");
             }
         }
     }

@@ -85,7 +85,8 @@ pub fn budget_corpus_trips(
         // corpus held at once took 6.3 GB.
         let mut runs: BTreeMap<usize, Vec<tactus_firmware::measure::Run>> = BTreeMap::new();
         for k in &bkeys {
-            runs.entry(k.program).or_insert_with(|| corpus_of(k.program));
+            runs.entry(k.program)
+                .or_insert_with(|| corpus_of(k.program));
         }
         let slots = crate::fault::image_slots(&image, &midi);
         let rest: Vec<Vec<i32>> = (bkeys.iter())

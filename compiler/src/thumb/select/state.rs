@@ -148,13 +148,25 @@ impl<'a> Sel<'a> {
         let hlen = 2 * WINDOW + 1;
         let s = self.sensors[i];
         let base = st.hist + 8 * hlen * h;
-        // q = pos − 4: positive, the new position; 0, the wrap to 2N; negative, the first
+        // q = pos − 4: 1..=4·2N, the new position; 0, the wrap to 2N; negative, the first
         // sample (pos 0 before it), which primes the words the next 2N samples read with
-        // this reading and then starts at 2N like a wrap.
+        // this reading and then starts at 2N like a wrap. Above 4·2N (a flipped high bit of
+        // the byte): the wrap too, so that no store leaves the ring. Each of the three
+        // paths that skip the priming takes 6 cycles (the step `SUBS`, `BLE`, `CMP`, `BGT`,
+        // `B`; the wrap from 0 `SUBS`, `BLE`, `BPL`, `MOVS`; from above `SUBS`, `BLE`,
+        // `CMP`, `BGT`, `MOVS`): a step taking 5 (`CMP`; `BLE ok`, the rest falling into
+        // `BPL wrap`) would make the wrap from above, and so the static bound, 7.
         let pos = self.load(MemOp::Ldrb, Base::State, st.hist_pos + h);
         let q = self.addi(true, pos, 4);
-        let (ok, wrap) = (self.label(), self.label());
-        self.push(M::Bc(Cond::Gt, ok));
+        let (ok, wrap, other) = (self.label(), self.label(), self.label());
+        self.push(M::Bc(Cond::Le, other));
+        self.push(M::CmpI {
+            a: q,
+            imm: (4 * (hlen - 1)) as u8,
+        });
+        self.push(M::Bc(Cond::Gt, wrap));
+        self.push(M::B(ok));
+        self.push(M::Label(other));
         self.push(M::Bc(Cond::Pl, wrap));
         // (The first call after `init`: a flow fact's block, `fixed::flow::first_sample_exclusions`.)
         self.push(M::Mark(crate::fixed::flow::FIRST_SAMPLE_MARK - h as u32));
