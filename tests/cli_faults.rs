@@ -1225,6 +1225,44 @@ fn an_adc_without_dreq_is_injected_on_a_converter_board_and_refused_on_a_plain_o
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A trace of one key: its CSV's header and rows ([`trace_rows`]).
+type KeyTrace = (Vec<String>, Vec<Vec<f64>>);
+
+/// `tactus play MIDI --layout LAYOUT --board BOARD --seconds 0.3 --no-quiescent-guard
+/// --trace-keys A,B [--fault FAULT]` into `dir/BOARD-NAME` (every update runs, as on
+/// grand88's boards), which must succeed: its standard output and the traces of keys `A`
+/// and `B` (the MIDI file's stem `two`).
+fn play_two(
+    dir: &Path,
+    midi: &Path,
+    layout: &Path,
+    [a, b]: [u8; 2],
+    board: &str,
+    name: &str,
+    fault: Option<&str>,
+) -> (String, KeyTrace, KeyTrace) {
+    let out_dir = dir.join(format!("{board}-{name}"));
+    let mut c = tactus();
+    c.args(["play", midi.to_str().unwrap(), "--layout"])
+        .arg(layout)
+        .args(["--board", board, "--seconds", "0.3", "--no-wav"])
+        .args([
+            "--no-quiescent-guard",
+            "--trace-keys",
+            &format!("{a},{b}"),
+            "-o",
+        ])
+        .arg(&out_dir);
+    if let Some(f) = fault {
+        c.args(["--fault", f]);
+    }
+    let out = c.output().unwrap();
+    assert_ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+    let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
+    (stdout, key(a), key(b))
+}
+
 /// The flips of `a_flipped_bit_in_any_state_word_…`: (word of the grand piano key's state
 /// struct, bit, time s, whether the key's forces change, what the word is). The struct
 /// (`tactus_compiler::abi::StateLayout`, `tactus build grand_piano --target rp2040`'s
@@ -1296,21 +1334,7 @@ fn a_flipped_bit_in_any_state_word_stays_under_the_peak_and_wears_off_on_both_bo
     let midi = dir.join("two.mid");
     write_midi(&midi, &[(61, 80, 0.05, 0.3), (63, 80, 0.05, 0.3)], &[]);
     let play = |board: &str, name: &str, fault: Option<&str>| {
-        let out_dir = dir.join(format!("{board}-{name}"));
-        let mut c = tactus();
-        c.args(["play", midi.to_str().unwrap(), "--layout"])
-            .arg(&layout)
-            .args(["--board", board, "--seconds", "0.3", "--no-wav"])
-            .args(["--no-quiescent-guard", "--trace-keys", "61,63", "-o"])
-            .arg(&out_dir);
-        if let Some(f) = fault {
-            c.args(["--fault", f]);
-        }
-        let out = c.output().unwrap();
-        assert_ok(&out);
-        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-        let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
-        (stdout, key(61), key(63))
+        play_two(&dir, &midi, &layout, [61, 63], board, name, fault)
     };
     for board in ["rp2040", "rp2040_io"] {
         let (_, clean61, clean63) = play(board, "clean", None);
@@ -1366,21 +1390,7 @@ fn a_flipped_high_bit_of_the_ring_position_writes_no_other_key_on_both_boards() 
     let midi = dir.join("two.mid");
     write_midi(&midi, &[(60, 80, 0.05, 0.3), (61, 80, 0.05, 0.3)], &[]);
     let play = |board: &str, name: &str, fault: Option<&str>| {
-        let out_dir = dir.join(format!("{board}-{name}"));
-        let mut c = tactus();
-        c.args(["play", midi.to_str().unwrap(), "--layout"])
-            .arg(&layout)
-            .args(["--board", board, "--seconds", "0.3", "--no-wav"])
-            .args(["--no-quiescent-guard", "--trace-keys", "60,61", "-o"])
-            .arg(&out_dir);
-        if let Some(f) = fault {
-            c.args(["--fault", f]);
-        }
-        let out = c.output().unwrap();
-        assert_ok(&out);
-        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-        let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
-        (stdout, key(60), key(61))
+        play_two(&dir, &midi, &layout, [60, 61], board, name, fault)
     };
     for board in ["rp2040", "rp2040_io"] {
         let (_, clean60, clean61) = play(board, "clean", None);
@@ -1435,21 +1445,7 @@ fn a_mode_byte_out_of_range_trips_the_state_check_and_recovers_on_both_boards() 
     write_midi(&midi, &[(61, 80, 0.05, 0.3), (63, 80, 0.05, 0.3)], &[]);
     let fs = 44_100.0;
     let play = |board: &str, name: &str, fault: Option<&str>| {
-        let out_dir = dir.join(format!("{board}-{name}"));
-        let mut c = tactus();
-        c.args(["play", midi.to_str().unwrap(), "--layout"])
-            .arg(&layout)
-            .args(["--board", board, "--seconds", "0.3", "--no-wav"])
-            .args(["--no-quiescent-guard", "--trace-keys", "61,63", "-o"])
-            .arg(&out_dir);
-        if let Some(f) = fault {
-            c.args(["--fault", f]);
-        }
-        let out = c.output().unwrap();
-        assert_ok(&out);
-        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-        let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
-        (stdout, key(61), key(63))
+        play_two(&dir, &midi, &layout, [61, 63], board, name, fault)
     };
     for board in ["rp2040", "rp2040_io"] {
         let (_, clean61, clean63) = play(board, "clean", None);
