@@ -1263,6 +1263,37 @@ fn play_two(
     (stdout, key(a), key(b))
 }
 
+/// What every contained flip must show (`case` names it in failures): `stdout` reports no
+/// trip; the `other` key's rows (flipped run, clean run) are the clean run's; the `flipped`
+/// key's rows are as many as the clean run's, each sample's motor current (column
+/// `current`) within the limiter's `peak` A, and its last 0.1 s (4,410 samples) the clean
+/// run's (worn off). `cols` = (force column, current column, peak A). Returns the samples
+/// whose force (column `force`) differs from the clean run's.
+fn assert_flip_contained(
+    case: &str,
+    stdout: &str,
+    (flipped, clean): (&[Vec<f64>], &[Vec<f64>]),
+    (other, other_clean): (&[Vec<f64>], &[Vec<f64>]),
+    (force, current, peak): (usize, usize, f64),
+) -> Vec<usize> {
+    assert!(
+        stdout.contains("faults: 0 trips on 1 board\n"),
+        "{case}: {stdout}"
+    );
+    assert_eq!(other, other_clean, "{case}: the other key changed");
+    assert_eq!(flipped.len(), clean.len(), "{case}");
+    for r in flipped {
+        assert!(r[current].abs() <= peak + 1e-9, "{case}: {r:?}");
+    }
+    let tail = clean.len() - 4_410;
+    assert_eq!(flipped[tail..], clean[tail..], "{case}: not worn off");
+    (flipped.iter().zip(clean))
+        .enumerate()
+        .filter(|(_, (a, b))| a[force] != b[force])
+        .map(|(i, _)| i)
+        .collect()
+}
+
 /// The flips of `a_flipped_bit_in_any_state_word_…`: (word of the grand piano key's state
 /// struct, bit, time s, whether the key's forces change, what the word is). The struct
 /// (`tactus_compiler::abi::StateLayout`, `tactus build grand_piano --target rp2040`'s
@@ -1347,23 +1378,14 @@ fn a_flipped_bit_in_any_state_word_stays_under_the_peak_and_wears_off_on_both_bo
             let name = format!("w{word}b{bit}t{at}");
             let (stdout, flip61, flip63) = play(board, &name, Some(&fault));
             let case = format!("{board}, {fault} ({what})");
-            assert!(
-                stdout.contains("faults: 0 trips on 1 board\n"),
-                "{case}: {stdout}"
+            let changed = assert_flip_contained(
+                &case,
+                &stdout,
+                (&flip61.1, &clean61.1),
+                (&flip63.1, &clean63.1),
+                (force, current, peak_a),
             );
-            assert_eq!(flip63.1, clean63.1, "{case}: key 63 changed");
-            assert_eq!(flip61.1.len(), clean61.1.len(), "{case}");
-            for r in &flip61.1 {
-                assert!(r[current].abs() <= peak_a + 1e-9, "{case}: {r:?}");
-            }
-            let changed: Vec<usize> = (flip61.1.iter().zip(&clean61.1))
-                .enumerate()
-                .filter(|(_, (a, b))| a[force] != b[force])
-                .map(|(i, _)| i)
-                .collect();
             assert_eq!(!changed.is_empty(), changes, "{case}: {changed:?}");
-            let tail = clean61.1.len() - 4_410;
-            assert_eq!(flip61.1[tail..], clean61.1[tail..], "{case}: not worn off");
             if let (Some(first), Some(last)) = (changed.first(), changed.last()) {
                 eprintln!(
                     "{case}: {} samples changed, from {first} to {last}",
@@ -1403,23 +1425,17 @@ fn a_flipped_high_bit_of_the_ring_position_writes_no_other_key_on_both_boards() 
                 let fault = format!("kind=flip,word=2,bit={bit},note=60,at={at}s");
                 let (stdout, flip60, flip61) = play(board, &format!("b{bit}t{at}"), Some(&fault));
                 let case = format!("{board}, {fault}");
-                assert!(
-                    stdout.contains("faults: 0 trips on 1 board\n"),
-                    "{case}: {stdout}"
-                );
-                assert_eq!(flip61.1, clean61.1, "{case}: key 61 changed");
-                assert_eq!(flip60.1.len(), clean60.1.len(), "{case}");
-                for r in &flip60.1 {
-                    assert!(r[current].abs() <= peak_a + 1e-9, "{case}: {r:?}");
-                }
-                let tail = clean60.1.len() - 4_410;
-                assert_eq!(flip60.1[tail..], clean60.1[tail..], "{case}: not worn off");
+                let changed = assert_flip_contained(
+                    &case,
+                    &stdout,
+                    (&flip60.1, &clean60.1),
+                    (&flip61.1, &clean61.1),
+                    (force, current, peak_a),
+                )
+                .len();
                 // Starting the press the ring's readings differ, so its d() (and the
                 // hammer after it) change: the flip reached the update. Held, they are
                 // alike and nothing changes.
-                let changed = (flip60.1.iter().zip(&clean60.1))
-                    .filter(|(a, b)| a[force] != b[force])
-                    .count();
                 assert_eq!(changed > 0, at < 0.05, "{case}: {changed} samples changed");
             }
         }
