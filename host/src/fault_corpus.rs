@@ -66,8 +66,10 @@ pub fn budget_corpus_trips(
         })
     };
     let lists = plan.key_lists();
-    let labels: Vec<String> = (key_programs.first())
-        .map(|k| corpus_of(k.1).into_iter().map(|r| r.label).collect())
+    // The first key's program's runs give the labels, and serve its board (made once).
+    let mut first = (key_programs.first()).map(|k| (k.1, corpus_of(k.1)));
+    let labels: Vec<String> = (first.as_ref())
+        .map(|(_, runs)| runs.iter().map(|r| r.label.clone()).collect())
         .unwrap_or_default();
     let total = lists.len() * labels.len();
     let mut out = Vec::with_capacity(total);
@@ -85,8 +87,12 @@ pub fn budget_corpus_trips(
         // corpus held at once took 6.3 GB.
         let mut runs: BTreeMap<usize, Vec<tactus_firmware::measure::Run>> = BTreeMap::new();
         for k in &bkeys {
-            runs.entry(k.program)
-                .or_insert_with(|| corpus_of(k.program));
+            runs.entry(k.program).or_insert_with(|| {
+                match first.take_if(|(program, _)| *program == k.program) {
+                    Some((_, made)) => made,
+                    None => corpus_of(k.program),
+                }
+            });
         }
         let slots = crate::fault::image_slots(&image, &midi);
         let rest: Vec<Vec<i32>> = (bkeys.iter())
