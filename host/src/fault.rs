@@ -394,7 +394,7 @@ impl BoardFaults {
     }
 
     /// The key a fault word names, in words: `key 64 (E4)` (a watchdog trip's: the key whose
-    /// update hung), `every key of the core …` (an `adc-stall`), `the whole board`, `an unknown key` (a watchdog trip whose hung key the
+    /// update hung; a hard-fault trip's: the key whose update faulted), `every key of the core …` (an `adc-stall`), `the whole board`, `an unknown key` (a watchdog trip whose hung key the
     /// firmware could not name, `tactus_firmware::image::fault`, "Which key hung"), or the
     /// slot when the board has no key there.
     fn key_text(&self, w: &FaultWord) -> String {
@@ -413,11 +413,16 @@ impl BoardFaults {
     /// the reset handler at the boot after the reset, when the core's sample count starts
     /// again from 0 (`tactus_firmware::image::fault`): its time is the sample of the
     /// board's last watchdog reset in [`BoardFaults::resets`] (the firmware's 0 when the
-    /// board met none). Every other kind: the fault word's own time.
+    /// board met none). A HardFault trip resets the board at once through the watchdog's
+    /// trigger: its time is the sample of the board's last `watchdog trigger` reset (the
+    /// fault word's own time, the firmware's count since its last boot, when it met none).
+    /// Every other kind: the fault word's own time.
     pub fn trip_sample(&self, w: &FaultWord) -> u64 {
         let watchdog = (self.resets.iter().rev()).find(|r| r.by_watchdog());
-        match (w.kind, watchdog) {
-            (Some(TripKind::Watchdog), Some(r)) => r.sample,
+        let trigger = (self.resets.iter().rev()).find(|r| r.why == "watchdog trigger");
+        match (w.kind, watchdog, trigger) {
+            (Some(TripKind::Watchdog), Some(r), _) => r.sample,
+            (Some(TripKind::HardFault), _, Some(r)) => r.sample,
             _ => u64::from(w.at_sample),
         }
     }

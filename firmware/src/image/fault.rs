@@ -126,17 +126,25 @@ pub enum FaultKind {
     /// gone. Key [`NO_KEY`]: every key of the core; the fault time is the stall's latest
     /// sample, and a stall counts one trip however long it lasts.
     AdcStall = 5,
+    /// A fault exception on the core (HardFault: an unaligned access — a key's ring
+    /// position a flipped bit left no multiple of 4 —, a bus fault, an undefined
+    /// instruction): its handler recorded it (key [`NO_KEY`] until the reset handler names
+    /// the key whose update faulted, as a hung key's: "Which key hung"; time the core's
+    /// sample count) and reset the board at once through the watchdog's CTRL.TRIGGER
+    /// (`glue::checks::hard_fault_handler`), the DACs cleared by the reset.
+    HardFault = 6,
 }
 
 impl FaultKind {
     /// Every kind, by code.
-    pub const ALL: [FaultKind; 6] = [
+    pub const ALL: [FaultKind; 7] = [
         FaultKind::None,
         FaultKind::SensorRange,
         FaultKind::SensorRate,
         FaultKind::StateRange,
         FaultKind::Watchdog,
         FaultKind::AdcStall,
+        FaultKind::HardFault,
     ];
 
     /// The kind of code `code`, if it is one.
@@ -158,6 +166,7 @@ impl FaultKind {
             FaultKind::StateRange => "state-range",
             FaultKind::Watchdog => "watchdog",
             FaultKind::AdcStall => "adc-stall",
+            FaultKind::HardFault => "hard-fault",
         }
     }
 }

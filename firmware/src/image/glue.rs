@@ -31,8 +31,8 @@ mod reset_cause;
 mod stall;
 mod tail;
 use checks::{
-    check_modes, check_step, clear_return_slot, copy_words, enable_watchdog, record_watchdog_trip,
-    restore_fault_record, trip_paths, CopyMode, PendingTrip,
+    check_modes, check_step, clear_return_slot, copy_words, enable_watchdog, hard_fault_handler,
+    record_watchdog_trip, restore_fault_record, trip_paths, CopyMode, PendingTrip,
 };
 pub use checks::{Feed, Gate, HangLookup, SensorCheck, Turns, MAX_GAP};
 use tail::handler_tail;
@@ -653,6 +653,10 @@ pub struct CoreLabels {
     pub start: Label,
     /// The default handler (`B .`) of every other vector.
     pub default: Label,
+    /// The HardFault handler (exception 3): with the watchdog (`feed`), the fault's record
+    /// and a watchdog reset at once ([`checks::hard_fault_handler`]); without it the
+    /// default handler's `B .`.
+    pub hard_fault: Label,
     /// The sample interrupt's keys: from after the tick's step (the SYST_RVR store) to the
     /// ICSR load that checks for a miss. Everything between touches only the core's own
     /// SRAM; the emulator memoizes it (`ImageRun`). On core 0 with a feeding class
@@ -705,6 +709,7 @@ pub fn core_code(
         isr: a.label(),
         start: a.label(),
         default: a.label(),
+        hard_fault: a.label(),
         keys: a.label(),
         keys_end: a.label(),
         calls: vec![Vec::new(); keys.len()],
@@ -838,7 +843,16 @@ pub fn core_code(
     a.b(idle);
     a.pool();
     a.bind(labels.default);
+    if feed.is_none() {
+        a.bind(labels.hard_fault);
+    }
     a.b(labels.default);
+    if feed.is_some() {
+        // Off the sample path: no exception but a fault enters it.
+        a.align4();
+        a.bind(labels.hard_fault);
+        hard_fault_handler(a, core, ctrl_addr);
+    }
 
     // ---- the start handler: both cores at once, from the same alarm (see above) ----
     a.align4();

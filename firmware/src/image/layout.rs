@@ -876,8 +876,9 @@ pub(super) fn stack(core: usize) -> (u32, u32) {
 }
 
 /// The bytes of core `core`'s code block `cc`: its vector table (initial SP, reset
-/// handler, the sample interrupt at SysTick — exception 15 —, the start handler at
-/// TIMER_IRQ_0 — exception 16 — and the default handler everywhere else), its program copies and its glue. `addr` gives each glue
+/// handler, the HardFault handler — exception 3 —, the sample interrupt at SysTick —
+/// exception 15 —, the start handler at TIMER_IRQ_0 — exception 16 — and the default
+/// handler everywhere else), its program copies and its glue. `addr` gives each glue
 /// label's address.
 pub(super) fn vector_table(
     core: usize,
@@ -891,6 +892,7 @@ pub(super) fn vector_table(
     let mut vt = vec![lab(labels.default) | 1; 48];
     vt[0] = stack(core).1;
     vt[1] = lab(labels.reset) | 1;
+    vt[3] = lab(labels.hard_fault) | 1;
     vt[15] = lab(labels.isr) | 1;
     vt[16] = lab(labels.start) | 1;
     let mut code = Vec::new();

@@ -701,21 +701,23 @@ pub(super) fn enable_watchdog(a: &mut CodeBuffer, f: &Feed) {
 }
 
 /// Core 0's reset handler, first (before core 1's launch, so before core 1 copies its
-/// pair): after a reset by its own watchdog (REASON set, SCRATCH4 =
-/// [`super::super::fault::NON_REBOOT_MAGIC`]) one more trip of kind
+/// pair): after a reset by its own watchdog's count (REASON.TIMER, SCRATCH4 =
+/// [`super::super::fault::NON_REBOOT_MAGIC`]; a reset by CTRL.TRIGGER, REASON.FORCE, is
+/// a HardFault's, whose handler recorded it, [`hard_fault_handler`]) one more trip of kind
 /// [`super::super::fault::FaultKind::Watchdog`] (key [`super::super::fault::NO_KEY`] until
 /// [`restore_fault_record`] names it, time 0) in the scratch pair of the core that stopped: core 1's when its fault word holds
 /// [`super::super::fault::BEHIND`] (core 0 saw it more than a sample behind, [`mark_behind`]),
 /// else core 0's. Then, on a two-core image, the mark cleared. Clobbers r0-r4.
 pub(super) fn record_watchdog_trip(a: &mut CodeBuffer, cores: usize) {
     use super::super::fault::{self, FaultKind, BEHIND, NON_REBOOT_MAGIC, NO_KEY};
-    use tactus_rp2040::watchdog::{reg as wreg, WATCHDOG_BASE};
+    use tactus_rp2040::watchdog::{reg as wreg, REASON_TIMER, WATCHDOG_BASE};
     let at = |core: usize| (wreg::SCRATCH0 + 4 * fault::scratch(core).0) as u16;
     let (done, own) = (a.label(), a.label());
     a.ldr_const(2, WATCHDOG_BASE);
     a.i(asm::ldr(3, 2, wreg::REASON as u16));
-    a.i(asm::cmp_imm(3, 0));
-    a.bc(cond::EQ, done);
+    // REASON.TIMER alone: a FORCE reset is a HardFault's, recorded by its handler.
+    a.i(asm::cmp_imm(3, REASON_TIMER as u8));
+    a.bc(cond::NE, done);
     a.i(asm::ldr(3, 2, (wreg::SCRATCH0 + 16) as u16));
     a.ldr_const(4, NON_REBOOT_MAGIC);
     a.i(asm::cmp(3, 4));
@@ -778,9 +780,9 @@ impl HangLookup {
 }
 
 /// The reset handler's copy of core `core`'s fault record from the watchdog's scratch pair
-/// (where [`record_watchdog_trip`] counted a watchdog reset) into its control block (r5).
-/// With `hang`, first a watchdog trip on the pair whose key is still
-/// [`super::super::fault::NO_KEY`] gets its key: the one whose call site the return slot
+/// (where [`record_watchdog_trip`] counted a watchdog reset, or [`hard_fault_handler`] a
+/// HardFault) into its control block (r5). With `hang`, first a watchdog or HardFault trip
+/// on the pair whose key is still [`super::super::fault::NO_KEY`] gets its key: the one whose call site the return slot
 /// holds the return address of, else [`super::super::fault::UNKNOWN_KEY`]
 /// (`super::super::fault`, "Which key hung"); the pair in the scratch registers too.
 /// Clobbers r0-r4, r6, r7.
@@ -793,7 +795,8 @@ pub(super) fn restore_fault_record(a: &mut CodeBuffer, core: usize, hang: Option
     a.i(asm::ldr(0, 2, at));
     if let Some(h) = hang {
         let (keep, next, unknown, put) = (a.label(), a.label(), a.label(), a.label());
-        // The kind and key halfword: a watchdog trip not yet named?
+        // The kind and key halfword: a watchdog or HardFault trip not yet named?
+        let name = a.label();
         a.i(asm::lsls(3, 0, 16));
         a.i(asm::lsrs(3, 3, 16));
         a.ldr_const(
@@ -801,7 +804,15 @@ pub(super) fn restore_fault_record(a: &mut CodeBuffer, core: usize, hang: Option
             u32::from(NO_KEY) << 8 | u32::from(FaultKind::Watchdog.code()),
         );
         a.i(asm::cmp(3, 1));
+        a.bc(cond::EQ, name);
+        a.i(asm::adds_imm(
+            1,
+            1,
+            FaultKind::HardFault.code() - FaultKind::Watchdog.code(),
+        ));
+        a.i(asm::cmp(3, 1));
         a.bc(cond::NE, keep);
+        a.bind(name);
         // r3 = the slot's word; r1..r4 the table; r7 = the key.
         a.ldr_const(3, h.slot);
         a.i(asm::ldr(3, 3, 0));
@@ -839,4 +850,47 @@ pub(super) fn clear_return_slot(a: &mut CodeBuffer, hang: &HangLookup) {
     a.ldr_const(0, hang.slot);
     a.i(asm::movs(1, 0));
     a.i(asm::str(1, 0, 0));
+}
+
+/// Core `core`'s HardFault handler (its control block at `ctrl_addr`; docs/firmware.md,
+/// "Faults"): a fault exception (an unaligned store of a key whose ring position a flipped
+/// bit left no multiple of 4, a bus fault, an undefined instruction) records one more trip
+/// of kind [`super::super::fault::FaultKind::HardFault`] on the core's pair — key
+/// [`super::super::fault::NO_KEY`] (the reset handler names it from the return slot, as a
+/// hung key's: [`restore_fault_record`]), time the core's sample count — in its control
+/// block and in its watchdog scratch pair, which keep it through the reset, and then
+/// writes CTRL.TRIGGER (datasheet 4.7.6, through the SET alias): the chip resets at once
+/// (REASON.FORCE, which [`record_watchdog_trip`] leaves to this record), the DACs cleared,
+/// instead of the core hanging in `B .` with its motors at their last codes until the
+/// watchdog's count runs out. The loop after the store only waits for the reset. Never on
+/// the sample path (an exception, not a branch, enters it): no cycle of the proven bound.
+/// Uses r0-r3 only, no stack (the faulting core's registers are of no more use).
+pub(super) fn hard_fault_handler(a: &mut CodeBuffer, core: usize, ctrl_addr: u32) {
+    use super::super::fault::{self, FaultKind, NO_KEY};
+    use tactus_rp2040::watchdog::{reg as wreg, CTRL_TRIGGER, WATCHDOG_BASE};
+    let (w, _) = fault::scratch(core);
+    // r1 = the scratch fault word's trips + 1, this kind, no key yet.
+    a.ldr_const(2, WATCHDOG_BASE + wreg::SCRATCH0 + 4 * w);
+    a.i(asm::ldr(1, 2, 0));
+    a.i(asm::lsrs(1, 1, 16));
+    a.i(asm::adds_imm(1, 1, 1));
+    a.i(asm::lsls(1, 1, 16));
+    a.ldr_const(
+        3,
+        u32::from(NO_KEY) << 8 | u32::from(FaultKind::HardFault.code()),
+    );
+    a.i(asm::alu(AluOp::Orr, 1, 3));
+    a.ldr_const(0, ctrl_addr);
+    a.i(asm::ldr(3, 0, ctrl::SAMPLES));
+    a.i(asm::str(1, 0, ctrl::FAULT));
+    a.i(asm::str(3, 0, ctrl::FAULT_AT));
+    a.i(asm::str(1, 2, 0));
+    a.i(asm::str(3, 2, 4));
+    a.ldr_const(0, WATCHDOG_BASE + tactus_rp2040::ATOMIC_SET + wreg::CTRL);
+    a.ldr_const(1, CTRL_TRIGGER);
+    a.i(asm::str(1, 0, 0));
+    let wait = a.label();
+    a.bind(wait);
+    a.b(wait);
+    a.pool();
 }

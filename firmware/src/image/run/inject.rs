@@ -315,6 +315,14 @@ impl ImageRun {
             self.faults.seed = NOISE_SEED;
         }
         self.faults.list.push(f);
+        // The board answers a fault exception as the chip does: its firmware's HardFault
+        // handler runs (with the watchdog, it records the fault and resets the board at
+        // once: `glue::checks::hard_fault_handler`), and the reset is followed as any
+        // ("Resets"). Without injected faults the run stops at the fault instead, naming
+        // the core, the instruction and why (`Config::stop_on_fault`): there a HardFault is
+        // the firmware's bug, never an answer to be tested. Without the watchdog the handler
+        // is `B .`: the run stops at the fault too, which says more than the hang would.
+        self.board.config.stop_on_fault = !self.image.programs.iter().any(|p| p.watchdog);
         Ok(())
     }
 
