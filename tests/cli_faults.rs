@@ -1510,3 +1510,87 @@ fn a_mode_byte_out_of_range_trips_the_state_check_and_recovers_on_both_boards() 
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_flipped_low_bit_of_the_ring_position_resets_the_board_at_once_on_both_boards() {
+    // Keys 60 (core 1) and 61 pressed from about 10 ms before 0.05 s, held to 0.3 s, as in
+    // `a_flipped_high_bit_of_the_ring_position_…`. A flip of bit 0 or 1 of key 60's ring
+    // position (byte 8 of its state) leaves it no multiple of 4: its next update's ring
+    // store is unaligned, a HardFault, whose handler records a `hard-fault` trip and resets
+    // the board at once through the watchdog's trigger (docs/firmware.md, "Faults"). The
+    // bound: the reset in the sample of the key's next update, here the flip's own (every
+    // update runs every sample). Then every motor at DAC code 0 from the reset's sample
+    // through the boot's samples, the fault report naming the kind, the key and the
+    // sample, never a current above the peak, and the board plays again (from rest: the
+    // clean run's over the last 0.1 s). Without the handler the core would hang in `B .`
+    // until the watchdog's count ran out (a `watchdog timer` reset 40–45 samples later).
+    let dir = temp_dir("cli-faults-hard-fault");
+    let layout = small_layout(&dir, 60, 63);
+    let midi = dir.join("two.mid");
+    write_midi(&midi, &[(60, 80, 0.05, 0.3), (61, 80, 0.05, 0.3)], &[]);
+    let fs = 44_100.0;
+    let play = |board: &str, name: &str, fault: Option<&str>| {
+        play_two(&dir, &midi, &layout, [60, 61], board, name, fault)
+    };
+    for board in ["rp2040", "rp2040_io"] {
+        let (_, clean60, clean61) = play(board, "clean", None);
+        let col = |name: &str| clean60.0.iter().position(|h| h == name).unwrap();
+        let (force, current, code) = (col("force_n"), col("motor_current_a"), col("dac_code"));
+        let (_, peak_a) = limiter_peak(board);
+        for bit in [0, 1] {
+            // Starting the press (sample 882) and held at the bottom (sample 4,410).
+            for at in [882usize, 4_410] {
+                let fault = format!(
+                    "kind=flip,word=2,bit={bit},note=60,at={:.9}s",
+                    (at as f64 - 0.5) / fs
+                );
+                let (stdout, flip60, flip61) = play(board, &format!("b{bit}-{at}"), Some(&fault));
+                let case = format!("{board}, {fault}");
+                assert!(
+                    stdout.contains("faults: 1 TRIP, 1 RESET on 1 of 1 boards"),
+                    "{case}: {stdout}"
+                );
+                assert!(
+                    stdout.contains(&format!(
+                        "board 1 core 1: hard-fault on key 60 (C4) at sample {at} ("
+                    )),
+                    "{case}: {stdout}"
+                );
+                let line = (stdout.lines())
+                    .find_map(|l| {
+                        l.trim()
+                            .strip_prefix("board 1: watchdog trigger reset at t = ")
+                    })
+                    .unwrap_or_else(|| panic!("{case}: {stdout}"));
+                assert_eq!(reset_sample(line), at as u64, "{case}: {line}");
+                let zero: usize = (line.split_once("booted again, "))
+                    .and_then(|(_, z)| z.split(' ').next())
+                    .unwrap_or_else(|| panic!("{case}: {line}"))
+                    .parse()
+                    .unwrap();
+                assert!(zero <= 10, "{case}: {zero} samples booting");
+                let back = at + zero + 1;
+                for (rows, clean) in [(&flip60.1, &clean60.1), (&flip61.1, &clean61.1)] {
+                    assert_eq!(rows.len(), clean.len(), "{case}");
+                    assert_eq!(rows[..at], clean[..at], "{case}: before the flip");
+                    for r in &rows[at..back] {
+                        assert!(
+                            r[force] == 0.0 && r[current] == 0.0 && r[code] == 0.0,
+                            "{case}: {r:?}"
+                        );
+                    }
+                    for r in rows.iter() {
+                        assert!(r[current].abs() <= peak_a + 1e-9, "{case}: {r:?}");
+                    }
+                    assert!(
+                        rows[back..back + 50].iter().any(|r| r[code] != 0.0),
+                        "{case}: plays again"
+                    );
+                    let tail = clean.len() - 4_410;
+                    assert_eq!(rows[tail..], clean[tail..], "{case}: not recovered");
+                }
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -39,6 +39,11 @@ fn faults(io: bool) -> Vec<Injection> {
             600,
             None,
         ),
+        // Key 4's ring position (byte 8 of its state, word 2's low byte) to no multiple of
+        // 4: its next update's ring store is unaligned, a HardFault, whose handler resets
+        // the board at once (the watchdog's trigger); it boots again before the faults
+        // after it.
+        f(FaultKind::Flip { word: 2, bit: 0 }, Some(4), None, 50, None),
         f(FaultKind::Open, Some(0), None, 900, Some(1000)),
         f(FaultKind::Short, Some(3), None, 950, Some(1050)),
         f(FaultKind::AdcSilent, None, Some(1), 1100, Some(1200)),
@@ -59,21 +64,38 @@ fn run(
     faulted: bool,
     samples: usize,
 ) -> Vec<tactus_firmware::image::SampleOut> {
+    let list = if faulted {
+        faults(image.io().is_some())
+    } else {
+        Vec::new()
+    };
+    run_with(image, engine, rest, &list, samples).0
+}
+
+/// `image` run `samples` samples at rest on `engine` (the rest replay on when `rest`) with
+/// the faults `list`: every sample's outputs, and the run.
+fn run_with(
+    image: &FirmwareImage,
+    engine: Engine,
+    rest: bool,
+    list: &[Injection],
+    samples: usize,
+) -> (Vec<tactus_firmware::image::SampleOut>, ImageRun) {
     let mut r: ImageRun = image.run().unwrap();
     r.board().config.engine = engine;
     r.set_rest_replay(rest).unwrap();
-    if faulted {
-        for f in faults(image.io().is_some()) {
-            r.inject(f).unwrap();
-        }
+    for f in list {
+        r.inject(*f).unwrap();
     }
     let programs = image.programs();
     let words: Vec<i32> = (image.keys().iter())
         .map(|k| FixedInstance::sensor_raw(&programs[k.program].fixed, 0, Some(0.0)))
         .collect();
-    (0..samples)
+    let outs = (0..samples)
         .map(|_| r.step(&words).unwrap().clone())
-        .collect()
+        .collect();
+    r.settle().unwrap();
+    (outs, r)
 }
 
 fn check(kind: Option<&str>, sensor_check: bool) {
@@ -254,3 +276,137 @@ fn flipped_state_bits_stay_under_the_limiters_peak() {
     flips_stay_under_the_peak(None);
     flips_stay_under_the_peak(Some("rp2040_io"));
 }
+
+/// A flip of bit 0 or 1 of a key's ring position (byte 8 of the grand piano's state, word
+/// 2's low byte) leaves it no multiple of 4: the key's next update stores its reading
+/// unaligned, a HardFault on its core. The core's HardFault handler records a `hard-fault`
+/// trip and resets the board at once through the watchdog's trigger (docs/firmware.md,
+/// "Faults"): on grand88's first board at rest (every key's update runs every sample),
+/// for a key of each core, on a plain and a converter board,
+/// - the reset comes in the flip's own sample (`watchdog trigger`), within
+///   [`HARD_FAULT_CYCLES`] cycles of the handler's entry (measured against the same run
+///   stopped at the fault);
+/// - every motor at DAC code 0 from that sample until the board's sample loop runs again
+///   (the boot's samples), never a code above the limiter's peak;
+/// - the fault record of the key's core names it: kind `hard-fault`, the key's window slot
+///   (the return slot's call site), one trip, the reset word's REASON.FORCE; the other
+///   core's record untouched;
+/// - the board plays again as from power-on: from its new boot's first sample every
+///   key's outputs are the clean run's from its first (keys at rest, from rest);
+/// - the lock-step machine and the block engine with the rest replay give the same samples.
+///
+/// Without the handler (`B .`) the core would hang until the watchdog's count ran out,
+/// 40–45 samples later (a `watchdog timer` reset, kind `watchdog`), its motors at their
+/// last codes meanwhile.
+#[test]
+fn a_flipped_low_bit_of_the_ring_position_resets_the_board_at_once() {
+    use tactus_firmware::image::fault::{FaultKind as Trip, FaultWord, ResetCause};
+    use tactus_firmware::image::glue::ctrl;
+    for kind in [None, Some("rp2040_io")] {
+        let (boards, _) = firmware("instruments/layouts/grand88.toml", kind, Load::Ram);
+        let image = &boards[0].image;
+        let peak = tactus_runtime::limiter::Limiter::new(image.limiter_config())
+            .unwrap()
+            .constants()
+            .peak_code;
+        let n = 500;
+        let at = 100u64;
+        let (clean, _) = run_with(image, Engine::Block, true, &[], n);
+        let specs = image.keys();
+        let first_of = |c: usize| specs.iter().position(|k| k.core == c).unwrap();
+        for (key, bit) in [(first_of(0), 0u8), (first_of(1), 1)] {
+            let case = format!("{kind:?}, key {key}, bit {bit}");
+            let flip = [Injection {
+                kind: FaultKind::Flip { word: 2, bit },
+                key: Some(key),
+                core: None,
+                from: at,
+                until: None,
+            }];
+            let (outs, mut r) = run_with(image, Engine::LockStep, false, &flip, n);
+            let (fast, _) = run_with(image, Engine::Block, true, &flip, n);
+            assert_eq!(outs, fast, "{case}: the engines differ");
+            let resets = r.resets().to_vec();
+            assert_eq!(resets.len(), 1, "{case}: {resets:?}");
+            let reset = &resets[0];
+            assert_eq!(
+                (reset.sample, reset.why),
+                (at, "watchdog trigger"),
+                "{case}: {reset:?}"
+            );
+            let zero = *reset.reboot.as_ref().unwrap();
+            // The reset's own sample and `zero` more at zero force, then the new boot's.
+            let (from, back) = (at as usize, (at + zero + 1) as usize);
+            assert!(zero <= 10, "{case}: {zero} samples booting");
+            assert_eq!(outs[..from], clean[..from], "{case}: before the flip");
+            for (i, o) in outs.iter().enumerate() {
+                for d in o.drives.iter().flatten() {
+                    assert!(i32::from(d.dac).abs() <= peak, "{case}: sample {i}: {d:?}");
+                    if (from..back).contains(&i) {
+                        assert_eq!(d.dac, 0, "{case}: sample {i}: not at zero");
+                    }
+                }
+            }
+            assert!(
+                outs[back].drives.iter().flatten().any(|d| d.dac != 0),
+                "{case}: the board does not play after its boot"
+            );
+            // The new boot plays as the board did from power-on: every key from rest, the
+            // same sensor words, so its samples' drives are the clean run's first ones.
+            for (i, o) in outs[back..].iter().enumerate() {
+                assert_eq!(o.drives, clean[i].drives, "{case}: boot sample {i}");
+            }
+            // The fault records.
+            let core = specs[key].core;
+            for c in 0..image.cores() {
+                let control = image.core_addresses(c).unwrap()[3];
+                let mut at_word = |o: u32| r.board().read_u32(ctrl::fault_record(control) + o);
+                let record = [at_word(0), at_word(4), at_word(8)].map(Result::unwrap);
+                let w = FaultWord::decode_record(record);
+                if c == core {
+                    assert_eq!(w.kind, Some(Trip::HardFault), "{case}: {w:?}");
+                    assert_eq!(usize::from(w.key), specs[key].slot, "{case}: {w:?}");
+                    assert_eq!(w.trips, 1, "{case}: {w:?}");
+                    assert_eq!(w.at_sample as u64, at, "{case}: {w:?}");
+                } else {
+                    assert!(!w.tripped(), "{case}: core {c}: {w:?}");
+                }
+                assert_eq!(w.reset_cause(), ResetCause::Watchdog, "{case}: {w:?}");
+                assert_eq!(
+                    w.reset_word & tactus_rp2040::watchdog::REASON_FORCE,
+                    tactus_rp2040::watchdog::REASON_FORCE,
+                    "{case}: {w:?}"
+                );
+            }
+            // From the fault's exception to the reset: the same run, stopped at the fault.
+            let mut stopped: ImageRun = image.run().unwrap();
+            stopped.inject(flip[0]).unwrap();
+            stopped.board().config.stop_on_fault = true;
+            let programs = image.programs();
+            let words: Vec<i32> = (specs.iter())
+                .map(|k| FixedInstance::sensor_raw(&programs[k.program].fixed, 0, Some(0.0)))
+                .collect();
+            let e = (0..=at)
+                .find_map(|_| stopped.step(&words).err())
+                .unwrap_or_else(|| panic!("{case}: no HardFault"));
+            assert!(
+                e.to_string().contains(&format!("core {core} HardFault")),
+                "{case}: {e}"
+            );
+            let faulted = stopped.board().cores[core].cycle;
+            let cycles = reset.cycle - faulted;
+            eprintln!(
+                "{case}: reset {cycles} cycles ({:.3} µs) after the fault's exception",
+                cycles as f64 * 1e6 / stopped.board().config.clock_hz as f64
+            );
+            assert!(cycles <= HARD_FAULT_CYCLES, "{case}: {cycles} cycles");
+        }
+    }
+}
+
+/// The most cycles from the HardFault handler's first instruction (the exception's 15
+/// cycles of entry done) to the board's reset (`glue::checks::hard_fault_handler`: its
+/// literals, loads, four stores and the trigger's APB store, then the other core's
+/// instruction under way): 35 measured, so with the entry about 50 cycles, 0.38 µs at
+/// 133 MHz, from the faulting store to the reset.
+const HARD_FAULT_CYCLES: u64 = 50;

@@ -65,7 +65,7 @@
 //! [`MAX_FEED_GAP_US`]: three quarters of the period or more to spare. Each core's reset
 //! handler copies its
 //! scratch pair back into its control block before the sample loop; core 0's, when REASON
-//! is set and SCRATCH4 holds [`NON_REBOOT_MAGIC`], first (before core 1's launch) records
+//! is TIMER (FORCE: a HardFault's reset, below) and SCRATCH4 holds [`NON_REBOOT_MAGIC`], first (before core 1's launch) records
 //! one more trip of kind [`FaultKind::Watchdog`] (key [`NO_KEY`], time 0) over the pair of
 //! the core that stopped: core 1's when its scratch fault word holds [`BEHIND`] (set by
 //! core 0's handler in place of the feed while core 1 was more than a sample behind), else
@@ -76,8 +76,8 @@
 //!
 //! **Which key hung** (no cycle of the sample interrupt: read at boot). The handler has no
 //! loop, and its cost is proven within the period, so a core stops finishing its samples
-//! only inside a key's update (a loop that never ends, or a fault exception it raised, whose
-//! handler is `B .`). Every update's first instruction is the compiler's `PUSH {…, LR}`
+//! only inside a key's update (a loop that never ends; a fault exception it raises resets
+//! the board at once instead, below). Every update's first instruction is the compiler's `PUSH {…, LR}`
 //! (`tactus_compiler::thumb::emit`), and the handler pushes nothing (`super::glue`), so the
 //! update pushes the return address into its call site at the same place for every key of
 //! the core: the word below the exception frame on the handler's stack, the core's
@@ -97,6 +97,21 @@
 //! of this boot or is 0 (no update entered: [`UNKNOWN_KEY`]). What the slot cannot tell
 //! apart: a core that stopped *between* two updates names the key it called last; only a
 //! handler over its proven budget (a board the budget rejects) could stop there.
+//!
+//! **A HardFault** (a fault exception: an unaligned store of a key whose ring position a
+//! flipped bit left no multiple of 4, a bus fault, an undefined instruction) does not wait
+//! for the watchdog's count. Each core's HardFault handler (with the watchdog;
+//! `glue::checks::hard_fault_handler`) records one more [`FaultKind::HardFault`] trip on
+//! its pair, in its control block and its scratch registers (key [`NO_KEY`], time the
+//! core's sample count), and writes the watchdog's CTRL.TRIGGER: the chip resets at once
+//! (REASON.FORCE), the DACs cleared by the reset, instead of the core hanging in `B .` with
+//! its motors at their last codes for the watchdog's period. Core 0's reset handler counts
+//! a [`FaultKind::Watchdog`] trip for REASON.TIMER only, so the HardFault's is the record;
+//! each core's reset handler names its key from the return slot as a hung key's (the
+//! HardFault's exception frame lies below the faulting update's pushed return address; a
+//! fault in the handler's own code overwrites the slot with its frame: [`UNKNOWN_KEY`]).
+//! Off the sample path: no cycle of the proven bound. Without the watchdog the HardFault
+//! vector is the default handler, `B .`.
 
 /// Kinds of fault, the low byte of the fault word. The codes are stable (the host and the
 /// emulator's fault report decode them): new kinds take new codes.
