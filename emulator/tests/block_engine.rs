@@ -464,7 +464,7 @@ fn a_branch_island_chain_runs_in_one_region_exactly() {
     // Slices of random length: cut anywhere, with regions that do not fit before the
     // slice's end run pre-decoded.
     let (mut block, mut interp) = (make(Engine::Block), make(Engine::Interp));
-    let mut rng = Rng(0x151a_4d);
+    let mut rng = Rng(0x0015_1a4d);
     while block.cycle() < 1_000 {
         let limit = block.cycle() + 1 + rng.below(12) as u64;
         assert_eq!(block.run_until(limit), interp.run_until(limit));
