@@ -419,6 +419,59 @@ fn a_store_into_the_running_block_takes_effect_at_once() {
     }
 }
 
+/// A branch island chain (a `B` far ahead to a `B`, to a `B` back, as the firmware's
+/// assembler lays out a conditional branch's hop): the region that reaches the first `B`
+/// goes on through the islands ([`tactus_emulator`]'s `accel/jit/scan.rs`), so no region
+/// starts at an island; and every slice agrees with the interpreter, cut anywhere in the
+/// chain.
+#[test]
+fn a_branch_island_chain_runs_in_one_region_exactly() {
+    // 0x000: adds r1, #3
+    // 0x002: b 0x400
+    // 0x004: subs r4, #1      <- the last island's target
+    // 0x006: bne 0x000
+    // 0x008: b .
+    // 0x400: b 0x500          (an island)
+    // 0x500: b 0x004          (an island back)
+    // Every other halfword `adds r4, #1`, which no run reaches.
+    let mut code = vec![0x3401u16; 0x281];
+    code[..5].copy_from_slice(&[0x3103, 0xe1fd, 0x3c01, 0xd1fb, 0xe7fe]);
+    code[0x200] = 0xe07e;
+    code[0x280] = 0xe580;
+    let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+    let make = |engine| {
+        let mut b = Board::new(Config {
+            engine,
+            ..Config::default()
+        });
+        b.write_bytes(CODE, &bytes).unwrap();
+        b.start_core(0, CODE | 1, 0x2003_8000, VTOR);
+        b.cores[0].r[4] = 50;
+        b.set_compile_threshold(0);
+        b
+    };
+    // 20 rounds of 6 instructions and 10 cycles (`adds`, the three `B`s, `subs`, `bne`
+    // taken) in one run: the native code that reaches the first `B` runs on through both
+    // islands, so no region starts at one: three regions compiled (at the head, at the
+    // first `B`, where the run's first step leaves the core, and at the islands' target),
+    // five without the hops.
+    let (mut block, mut interp) = (make(Engine::Block), make(Engine::Interp));
+    assert_eq!(block.run_until(200), interp.run_until(200));
+    assert_eq!(state(&mut block), state(&mut interp));
+    assert_eq!(block.cores[0].r[1], 3 * (50 - block.cores[0].r[4]));
+    assert!(block.cores[0].r[4] < 50);
+    assert_eq!(block.regions_compiled(), 3, "a region starts at an island");
+    // Slices of random length: cut anywhere, with regions that do not fit before the
+    // slice's end run pre-decoded.
+    let (mut block, mut interp) = (make(Engine::Block), make(Engine::Interp));
+    let mut rng = Rng(0x0015_1a4d);
+    while block.cycle() < 1_000 {
+        let limit = block.cycle() + 1 + rng.below(12) as u64;
+        assert_eq!(block.run_until(limit), interp.run_until(limit));
+        assert_eq!(state(&mut block), state(&mut interp), "at {limit}");
+    }
+}
+
 /// The speed bench's firmware-like workload (key updates in the SysTick handler, WFI
 /// between samples) on one and on both cores: every slice agrees, and so do the DAC words
 /// the handlers wrote.

@@ -78,6 +78,8 @@ pub(crate) fn scan(sys: &mut System, entry: u32) -> (Vec<RegionInstr>, Vec<u16>)
     let mut halfwords = Vec::new();
     let mut a = entry;
     let mut furthest = entry;
+    // The instruction at `a` is a branch island the region went on to (see `island`).
+    let mut hop = false;
     while instrs.len() < MAX_REGION {
         let Ok((hw1, hw2, size)) = sys.fetch_instr(a) else {
             break;
@@ -112,12 +114,34 @@ pub(crate) fn scan(sys: &mut System, entry: u32) -> (Vec<RegionInstr>, Vec<u16>)
         }
         instrs.push(i);
         let next = a.wrapping_add(size);
-        if next < a || (unconditional(&instr) && furthest < next) {
+        if next < a {
             break;
+        }
+        if unconditional(&instr) && (hop || furthest < next) {
+            match island(sys, &i) {
+                Some(t) => {
+                    (a, hop) = (t, true);
+                    continue;
+                }
+                None => break,
+            }
         }
         a = next;
     }
     (instrs, halfwords)
+}
+
+/// The target of `i` when it is a `B` ahead whose target is itself a `B` (a branch island:
+/// the assembler's hop to a target beyond a conditional branch's reach), where the region
+/// goes on (see the module documentation): at an address past every one scanned so far, so
+/// a region's addresses still rise and none is scanned twice.
+fn island(sys: &mut System, i: &RegionInstr) -> Option<u32> {
+    let Instr::B { offset } = i.instr else {
+        return None;
+    };
+    let t = branch_target(i.pc, offset);
+    let (hw1, hw2, _) = sys.fetch_instr(t).ok()?;
+    (t > i.pc && matches!(decode(hw1, hw2), Instr::B { .. })).then_some(t)
 }
 
 /// Per instruction, an upper bound on the cycles from its start to the region's next exit
