@@ -199,6 +199,14 @@ fn a_fault_outside_the_board_is_refused_with_its_field() {
     assert!(e.contains("`word`"), "{e}");
 }
 
+/// The DAC code the image's current limiter never exceeds (its peak).
+fn peak_code(image: &tactus_firmware::image::FirmwareImage) -> i32 {
+    tactus_runtime::limiter::Limiter::new(image.limiter_config())
+        .unwrap()
+        .constants()
+        .peak_code
+}
+
 /// A flipped bit in a key's state words (`FaultKind::Flip`) that leaves every mode byte a
 /// variant is not detected (the state check tests the mode bytes alone: docs/firmware.md,
 /// "Faults"; these flips, on the shipped firmware, hit edges, the ring's position within
@@ -208,10 +216,7 @@ fn a_fault_outside_the_board_is_refused_with_its_field() {
 fn flips_stay_under_the_peak(kind: Option<&str>) {
     let (boards, _) = firmware("instruments/layouts/grand88.toml", kind, Load::Ram);
     let image = &boards[0].image;
-    let peak = tactus_runtime::limiter::Limiter::new(image.limiter_config())
-        .unwrap()
-        .constants()
-        .peak_code;
+    let peak = peak_code(image);
     let programs = image.programs();
     let n = 600;
     // Keys 0 and 4 (one per core) take flips in low, middle and sign bits of their first
@@ -305,10 +310,7 @@ fn a_flipped_low_bit_of_the_ring_position_resets_the_board_at_once() {
     for kind in [None, Some("rp2040_io")] {
         let (boards, _) = firmware("instruments/layouts/grand88.toml", kind, Load::Ram);
         let image = &boards[0].image;
-        let peak = tactus_runtime::limiter::Limiter::new(image.limiter_config())
-            .unwrap()
-            .constants()
-            .peak_code;
+        let peak = peak_code(image);
         let n = 500;
         let at = 100u64;
         let (clean, _) = run_with(image, Engine::Block, true, &[], n);
