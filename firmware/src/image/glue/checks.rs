@@ -709,7 +709,7 @@ pub(super) fn enable_watchdog(a: &mut CodeBuffer, f: &Feed) {
 /// [`super::super::fault::BEHIND`] (core 0 saw it more than a sample behind, [`mark_behind`]),
 /// else core 0's. Then, on a two-core image, the mark cleared. Clobbers r0-r4.
 pub(super) fn record_watchdog_trip(a: &mut CodeBuffer, cores: usize) {
-    use super::super::fault::{self, FaultKind, BEHIND, NON_REBOOT_MAGIC, NO_KEY};
+    use super::super::fault::{self, FaultKind, BEHIND, NON_REBOOT_MAGIC};
     use tactus_rp2040::watchdog::{reg as wreg, REASON_TIMER, WATCHDOG_BASE};
     let at = |core: usize| (wreg::SCRATCH0 + 4 * fault::scratch(core).0) as u16;
     let (done, own) = (a.label(), a.label());
@@ -733,15 +733,7 @@ pub(super) fn record_watchdog_trip(a: &mut CodeBuffer, cores: usize) {
     }
     a.bind(own);
     a.i(asm::adds(4, 4, 2));
-    a.i(asm::ldr(0, 4, 0));
-    a.i(asm::lsrs(0, 0, 16));
-    a.i(asm::adds_imm(0, 0, 1));
-    a.i(asm::lsls(0, 0, 16));
-    a.ldr_const(
-        3,
-        u32::from(NO_KEY) << 8 | u32::from(FaultKind::Watchdog.code()),
-    );
-    a.i(asm::alu(AluOp::Orr, 0, 3));
+    one_more_trip(a, 0, 4, FaultKind::Watchdog);
     a.i(asm::movs(1, 0));
     a.i(asm::str(0, 4, 0));
     a.i(asm::str(1, 4, 4));
@@ -866,20 +858,12 @@ pub(super) fn clear_return_slot(a: &mut CodeBuffer, hang: &HangLookup) {
 /// the sample path (an exception, not a branch, enters it): no cycle of the proven bound.
 /// Uses r0-r3 only, no stack (the faulting core's registers are of no more use).
 pub(super) fn hard_fault_handler(a: &mut CodeBuffer, core: usize, ctrl_addr: u32) {
-    use super::super::fault::{self, FaultKind, NO_KEY};
+    use super::super::fault::{self, FaultKind};
     use tactus_rp2040::watchdog::{reg as wreg, CTRL_TRIGGER, WATCHDOG_BASE};
     let (w, _) = fault::scratch(core);
     // r1 = the scratch fault word's trips + 1, this kind, no key yet.
     a.ldr_const(2, WATCHDOG_BASE + wreg::SCRATCH0 + 4 * w);
-    a.i(asm::ldr(1, 2, 0));
-    a.i(asm::lsrs(1, 1, 16));
-    a.i(asm::adds_imm(1, 1, 1));
-    a.i(asm::lsls(1, 1, 16));
-    a.ldr_const(
-        3,
-        u32::from(NO_KEY) << 8 | u32::from(FaultKind::HardFault.code()),
-    );
-    a.i(asm::alu(AluOp::Orr, 1, 3));
+    one_more_trip(a, 1, 2, FaultKind::HardFault);
     a.ldr_const(0, ctrl_addr);
     a.i(asm::ldr(3, 0, ctrl::SAMPLES));
     a.i(asm::str(1, 0, ctrl::FAULT));
@@ -893,4 +877,17 @@ pub(super) fn hard_fault_handler(a: &mut CodeBuffer, core: usize, ctrl_addr: u32
     a.bind(wait);
     a.b(wait);
     a.pool();
+}
+
+/// `rd` = the fault word at `[rn]` with one more trip, of kind `kind` and key
+/// [`super::super::fault::NO_KEY`] (the count in the high halfword, `super::super::fault`).
+/// Clobbers r3.
+fn one_more_trip(a: &mut CodeBuffer, rd: u8, rn: u8, kind: super::super::fault::FaultKind) {
+    use super::super::fault::NO_KEY;
+    a.i(asm::ldr(rd, rn, 0));
+    a.i(asm::lsrs(rd, rd, 16));
+    a.i(asm::adds_imm(rd, rd, 1));
+    a.i(asm::lsls(rd, rd, 16));
+    a.ldr_const(3, u32::from(NO_KEY) << 8 | u32::from(kind.code()));
+    a.i(asm::alu(AluOp::Orr, rd, 3));
 }
