@@ -419,7 +419,7 @@ impl BoardFaults {
     /// Every other kind: the fault word's own time.
     pub fn trip_sample(&self, w: &FaultWord) -> u64 {
         let watchdog = (self.resets.iter().rev()).find(|r| r.by_watchdog());
-        let trigger = (self.resets.iter().rev()).find(|r| r.why == "watchdog trigger");
+        let trigger = (self.resets.iter().rev()).find(|r| r.by_trigger());
         match (w.kind, watchdog, trigger) {
             (Some(TripKind::Watchdog), Some(r), _) => r.sample,
             (Some(TripKind::HardFault), _, Some(r)) => r.sample,

@@ -160,6 +160,12 @@ impl ResetRecord {
         self.why.starts_with("watchdog")
     }
 
+    /// Whether the watchdog's CTRL.TRIGGER reset the board (the firmware's HardFault
+    /// handler's reset at once: `glue::checks::hard_fault_handler`), not its timer.
+    pub fn by_trigger(&self) -> bool {
+        self.why == "watchdog trigger"
+    }
+
     /// Whether a brown-out reset the board (a power-on reset: SRAM lost).
     pub fn by_brown_out(&self) -> bool {
         self.why == "brown-out"
