@@ -87,10 +87,7 @@ fn run_with(
     for f in list {
         r.inject(*f).unwrap();
     }
-    let programs = image.programs();
-    let words: Vec<i32> = (image.keys().iter())
-        .map(|k| FixedInstance::sensor_raw(&programs[k.program].fixed, 0, Some(0.0)))
-        .collect();
+    let words = rest_words(image);
     let outs = (0..samples)
         .map(|_| r.step(&words).unwrap().clone())
         .collect();
@@ -199,8 +196,17 @@ fn a_fault_outside_the_board_is_refused_with_its_field() {
     assert!(e.contains("`word`"), "{e}");
 }
 
+/// Every key's sensor words at rest (position 0), in key-list order: what [`ImageRun::step`]
+/// takes for a board whose keys are not played.
+fn rest_words(image: &FirmwareImage) -> Vec<i32> {
+    let programs = image.programs();
+    (image.keys().iter())
+        .map(|k| FixedInstance::sensor_raw(&programs[k.program].fixed, 0, Some(0.0)))
+        .collect()
+}
+
 /// The DAC code the image's current limiter never exceeds (its peak).
-fn peak_code(image: &tactus_firmware::image::FirmwareImage) -> i32 {
+fn peak_code(image: &FirmwareImage) -> i32 {
     tactus_runtime::limiter::Limiter::new(image.limiter_config())
         .unwrap()
         .constants()
@@ -384,10 +390,7 @@ fn a_flipped_low_bit_of_the_ring_position_resets_the_board_at_once() {
             let mut stopped: ImageRun = image.run().unwrap();
             stopped.inject(flip[0]).unwrap();
             stopped.board().config.stop_on_fault = true;
-            let programs = image.programs();
-            let words: Vec<i32> = (specs.iter())
-                .map(|k| FixedInstance::sensor_raw(&programs[k.program].fixed, 0, Some(0.0)))
-                .collect();
+            let words = rest_words(image);
             let e = (0..=at)
                 .find_map(|_| stopped.step(&words).err())
                 .unwrap_or_else(|| panic!("{case}: no HardFault"));
