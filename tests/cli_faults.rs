@@ -14,7 +14,7 @@
 mod common;
 
 use common::{assert_ok, small_layout, tactus, temp_dir, write_midi};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The fault's onset, s: key 60 is held at the bottom of its travel then.
 const AT_S: f64 = 0.2;
@@ -1228,39 +1228,82 @@ fn an_adc_without_dreq_is_injected_on_a_converter_board_and_refused_on_a_plain_o
 /// A trace of one key: its CSV's header and rows ([`trace_rows`]).
 type KeyTrace = (Vec<String>, Vec<Vec<f64>>);
 
-/// `tactus play MIDI --layout LAYOUT --board BOARD --seconds 0.3 --no-quiescent-guard
-/// --trace-keys A,B [--fault FAULT]` into `dir/BOARD-NAME` (every update runs, as on
-/// grand88's boards), which must succeed: its standard output and the traces of keys `A`
-/// and `B` (the MIDI file's stem `two`).
-fn play_two(
-    dir: &Path,
-    midi: &Path,
-    layout: &Path,
-    [a, b]: [u8; 2],
-    board: &str,
-    name: &str,
-    fault: Option<&str>,
-) -> (String, KeyTrace, KeyTrace) {
-    let out_dir = dir.join(format!("{board}-{name}"));
-    let mut c = tactus();
-    c.args(["play", midi.to_str().unwrap(), "--layout"])
-        .arg(layout)
-        .args(["--board", board, "--seconds", "0.3", "--no-wav"])
-        .args([
-            "--no-quiescent-guard",
-            "--trace-keys",
-            &format!("{a},{b}"),
-            "-o",
-        ])
-        .arg(&out_dir);
-    if let Some(f) = fault {
-        c.args(["--fault", f]);
+/// The set-up the flip tests share: a temporary folder, a layout of keys 60–63 on one
+/// board, and a MIDI file `two.mid` pressing the two traced keys `keys` from about 10 ms
+/// before 0.05 s, held to 0.3 s (the run goes on to rest).
+struct FlipRig {
+    dir: PathBuf,
+    layout: PathBuf,
+    midi: PathBuf,
+    keys: [u8; 2],
+}
+
+/// A clean run of a [`FlipRig`] on one board: the two keys' traces, the columns asked for
+/// (by header name, in order) and the board's limiter peak as a motor current, A.
+struct CleanRun<const N: usize> {
+    a: KeyTrace,
+    b: KeyTrace,
+    cols: [usize; N],
+    peak_a: f64,
+}
+
+impl FlipRig {
+    /// The rig in a fresh temporary folder named after `name`.
+    fn new(name: &str, keys: [u8; 2]) -> Self {
+        let dir = temp_dir(name);
+        let layout = small_layout(&dir, 60, 63);
+        let midi = dir.join("two.mid");
+        let [a, b] = keys;
+        write_midi(&midi, &[(a, 80, 0.05, 0.3), (b, 80, 0.05, 0.3)], &[]);
+        FlipRig {
+            dir,
+            layout,
+            midi,
+            keys,
+        }
     }
-    let out = c.output().unwrap();
-    assert_ok(&out);
-    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-    let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
-    (stdout, key(a), key(b))
+
+    /// `tactus play two.mid --layout LAYOUT --board BOARD --seconds 0.3
+    /// --no-quiescent-guard --trace-keys A,B [--fault FAULT]` into `dir/BOARD-NAME` (every
+    /// update runs, as on grand88's boards), which must succeed: its standard output and
+    /// the traces of the two keys.
+    fn play(&self, board: &str, name: &str, fault: Option<&str>) -> (String, KeyTrace, KeyTrace) {
+        let [a, b] = self.keys;
+        let out_dir = self.dir.join(format!("{board}-{name}"));
+        let mut c = tactus();
+        c.args(["play", self.midi.to_str().unwrap(), "--layout"])
+            .arg(&self.layout)
+            .args(["--board", board, "--seconds", "0.3", "--no-wav"])
+            .args([
+                "--no-quiescent-guard",
+                "--trace-keys",
+                &format!("{a},{b}"),
+                "-o",
+            ])
+            .arg(&out_dir);
+        if let Some(f) = fault {
+            c.args(["--fault", f]);
+        }
+        let out = c.output().unwrap();
+        assert_ok(&out);
+        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+        let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
+        (stdout, key(a), key(b))
+    }
+
+    /// The clean run on `board` (no fault), with the columns `names` of the first key's
+    /// trace.
+    fn clean<const N: usize>(&self, board: &str, names: [&str; N]) -> CleanRun<N> {
+        let (_, a, b) = self.play(board, "clean", None);
+        let cols = names.map(|n| a.0.iter().position(|h| h == n).unwrap());
+        let (_, peak_a) = limiter_peak(board);
+        CleanRun { a, b, cols, peak_a }
+    }
+
+    /// Removes the temporary folder (left in place when a test fails, to be read).
+    fn done(self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
 }
 
 /// What every contained flip must show (`case` names it in failures): `stdout` reports no
@@ -1360,30 +1403,22 @@ fn a_flipped_bit_in_any_state_word_stays_under_the_peak_and_wears_off_on_both_bo
     // limiter peak, key 63 on the other core exactly as without it, key 61's forces changed
     // where the word is read (a test that could not fail otherwise), and the flip worn off:
     // key 61's last 0.1 s (4,410 samples) exactly the clean run's.
-    let dir = temp_dir("cli-faults-flips");
-    let layout = small_layout(&dir, 60, 63);
-    let midi = dir.join("two.mid");
-    write_midi(&midi, &[(61, 80, 0.05, 0.3), (63, 80, 0.05, 0.3)], &[]);
-    let play = |board: &str, name: &str, fault: Option<&str>| {
-        play_two(&dir, &midi, &layout, [61, 63], board, name, fault)
-    };
+    let rig = FlipRig::new("cli-faults-flips", [61, 63]);
     for board in ["rp2040", "rp2040_io"] {
-        let (_, clean61, clean63) = play(board, "clean", None);
-        let col = |name: &str| clean61.0.iter().position(|h| h == name).unwrap();
-        let (force, current) = (col("force_n"), col("motor_current_a"));
-        let (_, peak_a) = limiter_peak(board);
+        let clean = rig.clean(board, ["force_n", "motor_current_a"]);
+        let (clean61, clean63, [force, current]) = (&clean.a, &clean.b, clean.cols);
         assert!(clean61.1.len() > 30_000, "{board}: {}", clean61.1.len());
         for (word, bit, at, changes, what) in FLIPS {
             let fault = format!("kind=flip,word={word},bit={bit},note=61,at={at}s");
             let name = format!("w{word}b{bit}t{at}");
-            let (stdout, flip61, flip63) = play(board, &name, Some(&fault));
+            let (stdout, flip61, flip63) = rig.play(board, &name, Some(&fault));
             let case = format!("{board}, {fault} ({what})");
             let changed = assert_flip_contained(
                 &case,
                 &stdout,
                 (&flip61.1, &clean61.1),
                 (&flip63.1, &clean63.1),
-                (force, current, peak_a),
+                (force, current, clean.peak_a),
             );
             assert_eq!(!changed.is_empty(), changes, "{case}: {changed:?}");
             if let (Some(first), Some(last)) = (changed.first(), changed.last()) {
@@ -1394,7 +1429,7 @@ fn a_flipped_bit_in_any_state_word_stays_under_the_peak_and_wears_off_on_both_bo
             }
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
+    rig.done();
 }
 
 #[test]
@@ -1407,30 +1442,23 @@ fn a_flipped_high_bit_of_the_ring_position_writes_no_other_key_on_both_boards() 
     // the flip, no trip and no fault, key 60's current within the board's limiter peak, and
     // key 60's last 0.1 s (4,410 samples) the clean run's. Without the wrap, the update
     // stores past its struct into key 61's (a HardFault when it hits key 61's position).
-    let dir = temp_dir("cli-faults-ring-pos");
-    let layout = small_layout(&dir, 60, 63);
-    let midi = dir.join("two.mid");
-    write_midi(&midi, &[(60, 80, 0.05, 0.3), (61, 80, 0.05, 0.3)], &[]);
-    let play = |board: &str, name: &str, fault: Option<&str>| {
-        play_two(&dir, &midi, &layout, [60, 61], board, name, fault)
-    };
+    let rig = FlipRig::new("cli-faults-ring-pos", [60, 61]);
     for board in ["rp2040", "rp2040_io"] {
-        let (_, clean60, clean61) = play(board, "clean", None);
-        let col = |name: &str| clean60.0.iter().position(|h| h == name).unwrap();
-        let (force, current) = (col("force_n"), col("motor_current_a"));
-        let (_, peak_a) = limiter_peak(board);
+        let clean = rig.clean(board, ["force_n", "motor_current_a"]);
+        let (clean60, clean61, [force, current]) = (&clean.a, &clean.b, clean.cols);
         assert!(clean60.1.len() > 30_000, "{board}: {}", clean60.1.len());
         for bit in [6, 7] {
             for at in [0.02, 0.1] {
                 let fault = format!("kind=flip,word=2,bit={bit},note=60,at={at}s");
-                let (stdout, flip60, flip61) = play(board, &format!("b{bit}t{at}"), Some(&fault));
+                let (stdout, flip60, flip61) =
+                    rig.play(board, &format!("b{bit}t{at}"), Some(&fault));
                 let case = format!("{board}, {fault}");
                 let changed = assert_flip_contained(
                     &case,
                     &stdout,
                     (&flip60.1, &clean60.1),
                     (&flip61.1, &clean61.1),
-                    (force, current, peak_a),
+                    (force, current, clean.peak_a),
                 )
                 .len();
                 // Starting the press the ring's readings differ, so its d() (and the
@@ -1440,7 +1468,7 @@ fn a_flipped_high_bit_of_the_ring_position_writes_no_other_key_on_both_boards() 
             }
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
+    rig.done();
 }
 
 #[test]
@@ -1455,26 +1483,19 @@ fn a_mode_byte_out_of_range_trips_the_state_check_and_recovers_on_both_boards() 
     // key 63 on the other core exactly as without it; never a current above the peak.
     // Without the state check the same flips trip nothing (the mode is kept until the
     // press's end, the escapement's let-off left out meanwhile: docs/firmware.md).
-    let dir = temp_dir("cli-faults-state-check");
-    let layout = small_layout(&dir, 60, 63);
-    let midi = dir.join("two.mid");
-    write_midi(&midi, &[(61, 80, 0.05, 0.3), (63, 80, 0.05, 0.3)], &[]);
+    let rig = FlipRig::new("cli-faults-state-check", [61, 63]);
     let fs = 44_100.0;
-    let play = |board: &str, name: &str, fault: Option<&str>| {
-        play_two(&dir, &midi, &layout, [61, 63], board, name, fault)
-    };
     for board in ["rp2040", "rp2040_io"] {
-        let (_, clean61, clean63) = play(board, "clean", None);
-        let col = |name: &str| clean61.0.iter().position(|h| h == name).unwrap();
-        let (current, code) = (col("motor_current_a"), col("dac_code"));
-        let (_, peak_a) = limiter_peak(board);
+        let clean = rig.clean(board, ["motor_current_a", "dac_code"]);
+        let (clean61, clean63, [current, code]) = (&clean.a, &clean.b, clean.cols);
+        let peak_a = clean.peak_a;
         for (bit, at) in [(2u8, 882usize), (2, 883), (7, 4410)] {
             // The flip before sample `at` (a time just under it: its sample is the ceiling).
             let fault = format!(
                 "kind=flip,word=0,bit={bit},note=61,at={:.9}s",
                 (at as f64 - 0.5) / fs
             );
-            let (stdout, flip61, flip63) = play(board, &format!("b{bit}-{at}"), Some(&fault));
+            let (stdout, flip61, flip63) = rig.play(board, &format!("b{bit}-{at}"), Some(&fault));
             let case = format!("{board}, {fault}");
             assert!(
                 stdout.contains("faults: 1 TRIP on 1 of 1 boards"),
@@ -1508,7 +1529,7 @@ fn a_mode_byte_out_of_range_trips_the_state_check_and_recovers_on_both_boards() 
             );
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
+    rig.done();
 }
 
 #[test]
@@ -1524,19 +1545,12 @@ fn a_flipped_low_bit_of_the_ring_position_resets_the_board_at_once_on_both_board
     // sample, never a current above the peak, and the board plays again (from rest: the
     // clean run's over the last 0.1 s). Without the handler the core would hang in `B .`
     // until the watchdog's count ran out (a `watchdog timer` reset 40–45 samples later).
-    let dir = temp_dir("cli-faults-hard-fault");
-    let layout = small_layout(&dir, 60, 63);
-    let midi = dir.join("two.mid");
-    write_midi(&midi, &[(60, 80, 0.05, 0.3), (61, 80, 0.05, 0.3)], &[]);
+    let rig = FlipRig::new("cli-faults-hard-fault", [60, 61]);
     let fs = 44_100.0;
-    let play = |board: &str, name: &str, fault: Option<&str>| {
-        play_two(&dir, &midi, &layout, [60, 61], board, name, fault)
-    };
     for board in ["rp2040", "rp2040_io"] {
-        let (_, clean60, clean61) = play(board, "clean", None);
-        let col = |name: &str| clean60.0.iter().position(|h| h == name).unwrap();
-        let (force, current, code) = (col("force_n"), col("motor_current_a"), col("dac_code"));
-        let (_, peak_a) = limiter_peak(board);
+        let clean = rig.clean(board, ["force_n", "motor_current_a", "dac_code"]);
+        let (clean60, clean61, [force, current, code]) = (&clean.a, &clean.b, clean.cols);
+        let peak_a = clean.peak_a;
         for bit in [0, 1] {
             // Starting the press (sample 882) and held at the bottom (sample 4,410).
             for at in [882usize, 4_410] {
@@ -1544,7 +1558,8 @@ fn a_flipped_low_bit_of_the_ring_position_resets_the_board_at_once_on_both_board
                     "kind=flip,word=2,bit={bit},note=60,at={:.9}s",
                     (at as f64 - 0.5) / fs
                 );
-                let (stdout, flip60, flip61) = play(board, &format!("b{bit}-{at}"), Some(&fault));
+                let (stdout, flip60, flip61) =
+                    rig.play(board, &format!("b{bit}-{at}"), Some(&fault));
                 let case = format!("{board}, {fault}");
                 assert!(
                     stdout.contains("faults: 1 TRIP, 1 RESET on 1 of 1 boards"),
@@ -1592,5 +1607,5 @@ fn a_flipped_low_bit_of_the_ring_position_resets_the_board_at_once_on_both_board
             }
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
+    rig.done();
 }
