@@ -118,7 +118,7 @@ mod memory;
 mod scan;
 mod translate;
 
-pub(crate) use abi::{call, Confine, Exit};
+pub(crate) use abi::{call, call_confined, Ctx, Exit};
 pub(crate) use cache::Jit;
 pub(crate) use scan::data_words;
 pub(crate) use translate::Flavour;

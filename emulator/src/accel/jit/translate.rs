@@ -53,9 +53,9 @@ pub(crate) enum Flavour {
     /// only records its own claim (the other core reads it when it runs again).
     Solo,
     /// Running ahead ([`crate::board`], "Running ahead"): arbitrated, every access checked
-    /// against the allowed banks (the bank mask, bit per bank, as [`abi::Confine::allowed`]
-    /// at every call of this code: a constant of the code), and, when the second field is true (the code is only
-    /// called with a journal), every store journaled (see the parent module); when false
+    /// against the allowed banks (the bank mask, bit per bank, [`System::allowed_banks`] at
+    /// every call of this code: a constant of the code), and, when the second field is true
+    /// (the code is only called with a journal), every store journaled (see the parent module); when false
     /// (a core catching up, called without a journal), no journal code at all.
     ///
     /// The third field: the code also does and logs a single access to a bank of the
@@ -70,9 +70,9 @@ pub(crate) enum Flavour {
     /// limit (a core run to the other's cycle at a meeting, `accel/window.rs`), instead of
     /// pre-decoded instructions.
     ///
-    /// [`abi::Confine::allowed`]: super::abi::Confine::allowed
     /// [`abi::io_sram`]: super::abi::io_sram
     /// [`abi::io_reg`]: super::abi::io_reg
+    /// [`System::allowed_banks`]: crate::system::System::allowed_banks
     Confined(u8, bool, bool, bool),
     /// [`Flavour::Confined`] for a core whose accesses all come after the other core's last
     /// claims (as [`Flavour::Solo`]): in a window the other core does not touch the banks
