@@ -419,6 +419,45 @@ fn a_store_into_the_running_block_takes_effect_at_once() {
     }
 }
 
+/// A loop whose body sets the flags after an instruction the native code leaves on the
+/// second round (a load of SIO): that exit must write the flags back, although no
+/// instruction before it sets them in the translation's order (the loop's head is reached
+/// again from the back edge; `accel/jit/translate.rs`, `flags_set`), for the `bmi` after
+/// the load reads them.
+#[test]
+fn an_exit_at_a_loop_head_writes_back_the_flags_the_loop_set() {
+    // 0x000: mov r2, r2 (four: where the run starts native code, the loop is in its region)
+    // 0x008: ldr r0, [r1]     (r1: SRAM, then SIO's CPUID: the native code leaves before it)
+    // 0x00a: bmi 0x010        (N clear at the start: the first round goes on)
+    // 0x00c: movs r1, r4      (r4 = SIO: N set, Z clear)
+    // 0x00e: b 0x008
+    // 0x010: adds r5, #1
+    // 0x012: b .
+    let code: [u16; 10] = [
+        0x4612, 0x4612, 0x4612, 0x4612, 0x6808, 0xd401, 0x0021, 0xe7fb, 0x3501, 0xe7fe,
+    ];
+    let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+    let make = |engine| {
+        let mut b = Board::new(Config {
+            engine,
+            ..Config::default()
+        });
+        b.write_bytes(CODE, &bytes).unwrap();
+        b.start_core(0, CODE | 1, 0x2003_8000, VTOR);
+        b.cores[0].r[1] = 0x2002_0000;
+        b.cores[0].r[4] = SIO;
+        b.set_compile_threshold(0);
+        b
+    };
+    let (mut block, mut interp) = (make(Engine::Block), make(Engine::Interp));
+    for limit in [100, 200] {
+        assert_eq!(block.run_until(limit), interp.run_until(limit));
+        assert_eq!(state(&mut block), state(&mut interp), "at {limit}");
+    }
+    assert_eq!(block.cores[0].r[5], 1, "the second round left the loop");
+    assert!(block.regions_compiled() >= 1, "the loop ran as native code");
+}
+
 /// A branch island chain (a `B` far ahead to a `B`, to a `B` back, as the firmware's
 /// assembler lays out a conditional branch's hop): the region that reaches the first `B`
 /// goes on through the islands ([`tactus_emulator`]'s `accel/jit/scan.rs`), so no region

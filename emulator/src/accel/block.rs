@@ -464,7 +464,7 @@ pub(crate) fn run<T: Turns>(
             };
             if let Some(region) = cache.lookup(sys, pc) {
                 if core.cycle.saturating_add(region.bound) <= limit {
-                    let (exit, n, q) = jit::call(region.f, core, sys, limit, None);
+                    let (exit, n, q) = jit::call(region.f, core, sys, limit);
                     retired += n;
                     turns.after_native(core.cycle, q);
                     match exit {
@@ -594,7 +594,7 @@ fn journal_store(core: &Core, sys: &System, instr: &Instr, journal: &mut Vec<u64
 /// (a window on a board with an I/O: its log, the DMA's banks `L`, and those of `L` the
 /// core may access, `accel/io_window/`), memos that touch `L` apply too, logging their
 /// accesses there, and native code does and logs its single loads and stores to the third
-/// mask's banks and its word stores to the I/O's registers ([`jit::Confine::io`]). `Ok`
+/// mask's banks and its word stores to the I/O's registers ([`jit::Ctx::io_banks`]). `Ok`
 /// when the core reached `limit`.
 pub(crate) fn run_confined(
     core: &mut Core,
@@ -639,6 +639,13 @@ pub(crate) fn run_confined(
             at
         }
     };
+    // The native code's context, for the whole run (`jit::Ctx::confined`); it counts the
+    // instructions the native code retires.
+    let io_ctx = match sys.io_control() {
+        Some(i) if io_own != 0 => Some((io_own, i as *const crate::io::Io)),
+        _ => None,
+    };
+    let mut ctx = jit::Ctx::confined(sys, io_ctx);
     let timed_cut = blocks.timed_cut[core.id & 1].take();
     // Blocks still to run pre-decoded after the one the core resumed in (see `inside`).
     let mut tail = 0u32;
@@ -706,17 +713,12 @@ pub(crate) fn run_confined(
                     region = t;
                 }
                 if (fits || timed.is_some()) && region.banks & !allowed == 0 {
-                    let mut confine = jit::Confine {
-                        allowed,
-                        journal: journal.as_deref_mut(),
-                        io: io
-                            .as_mut()
-                            .filter(|_| io_own != 0)
-                            .map(|(log, _, _)| (&mut **log, io_own)),
-                    };
-                    let (exit, n, _) = jit::call(region.f, core, sys, limit, Some(&mut confine));
-                    retired += n;
-                    match exit {
+                    let log = io
+                        .as_mut()
+                        .filter(|_| io_own != 0)
+                        .map(|(log, ..)| &mut **log);
+                    let (f, journal) = (region.f, journal.as_deref_mut());
+                    match jit::call_confined(f, core, sys, limit, &mut ctx, journal, log) {
                         jit::Exit::Invalidate => sys.invalidate_code(),
                         jit::Exit::General => native = false,
                         jit::Exit::Out | jit::Exit::Deadline => {}
@@ -789,6 +791,6 @@ pub(crate) fn run_confined(
             break Err(l);
         }
     };
-    core.instructions += retired;
+    core.instructions += retired + ctx.retired;
     result
 }

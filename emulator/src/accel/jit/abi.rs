@@ -37,29 +37,15 @@ pub(crate) struct Ctx {
     /// before it ([`Exit::General`]).
     pub journal_cap: u64,
     /// Confined code in a window on a board with converters only (`accel/io_window/`):
-    /// bit *b* set when a single load or store to SRAM bank *b* (not in [`Confine::allowed`]:
-    /// the DMA's) is done inline and logged ([`io_sram`]); 0 elsewhere.
+    /// bit *b* set when a single load or store to SRAM bank *b* (not in the code's bank mask,
+    /// [`super::Flavour::Confined`]: the DMA's) is done inline and logged ([`io_sram`]); 0
+    /// elsewhere.
     pub io_banks: u64,
     /// The window's log of the core's accesses to the I/O ([`io_sram`], [`io_reg`]); null
     /// when `io_banks` is 0.
     pub io_log: *mut Vec<IoAccess>,
     /// The board's I/O, as the window's start left it ([`io_reg`]); null when `io_log` is.
     pub io: *const Io,
-}
-
-/// A confined run's bank mask and undo journal ([`call`]).
-pub(crate) struct Confine<'a> {
-    /// SRAM banks the core may access (bit per bank: 0-3 SRAM0-3, 4 SRAM4, 5 SRAM5); the
-    /// code called must have been compiled for this mask ([`super::Flavour::Confined`]'s first
-    /// field: the mask is a constant of the code).
-    pub allowed: u8,
-    /// The undo journal: the native code appends to it, up to its capacity (`None`: the
-    /// stores are not journaled).
-    pub journal: Option<&'a mut Vec<u64>>,
-    /// In a window on a board with converters: the core's log of its accesses to the I/O
-    /// and the SRAM banks (the DMA's, the core's own) whose single loads and stores the
-    /// native code does and logs ([`Ctx::io_banks`]).
-    pub io: Option<(&'a mut Vec<IoAccess>, u8)>,
 }
 
 /// Why native code returned.
@@ -195,16 +181,11 @@ pub(crate) unsafe extern "C" fn io_reg(ctx: *mut Ctx, start: u64, addr: u32, val
 /// A compiled region: `fn(core, ctx, limit) -> Exit`.
 pub(crate) type NativeFn = unsafe extern "C" fn(*mut Core, *mut Ctx, u64) -> u32;
 
-/// Runs `f` on `core`: the raw call with the context built from `sys`. Returns why it
-/// stopped, the instructions retired and the `q` cycle (see [`Ctx::q`]).
+/// Runs `f` on `core`: the raw call with the context built from `sys`, for code that is not
+/// confined ([`call_confined`] runs that). Returns why it stopped, the instructions retired
+/// and the `q` cycle (see [`Ctx::q`]).
 #[inline(always)]
-pub(crate) fn call(
-    f: NativeFn,
-    core: &mut Core,
-    sys: &mut System,
-    limit: u64,
-    mut confine: Option<&mut Confine>,
-) -> (Exit, u64, u64) {
+pub(crate) fn call(f: NativeFn, core: &mut Core, sys: &mut System, limit: u64) -> (Exit, u64, u64) {
     let id = core.id & 1;
     let claims = sys.bank_claim.as_mut_ptr() as *mut u64;
     let mut ctx = Ctx {
@@ -224,31 +205,89 @@ pub(crate) fn call(
         io_log: std::ptr::null_mut(),
         io: std::ptr::null(),
     };
-    if let Some(c) = confine.as_deref_mut() {
-        ctx.journal_cap = u64::MAX;
-        if let Some(j) = c.journal.as_deref() {
-            ctx.journal = j.as_ptr() as *mut u64;
-            ctx.journal_len = j.len() as u64;
-            ctx.journal_cap = j.capacity() as u64;
-        }
-        if let (Some((log, banks)), Some(io)) = (c.io.as_mut(), sys.io_control()) {
-            ctx.io_banks = u64::from(*banks & !c.allowed);
-            ctx.io_log = &mut **log;
-            ctx.io = io;
-        }
-    }
     // SAFETY: `f` was compiled by `Jit::compile` for this layout of `Core` and `Ctx`; it
     // reads and writes only the core's registers, flags, cycle, PC, the SRAM and flash
     // bytes at offsets it has bounds-checked against `SRAM_SIZE` / `FLASH_SIZE`, the code
     // page flags of those offsets, the claim table's six banks and the stall counter;
-    // confined code also writes journal entries below `journal_cap`, the vector's
-    // capacity, whose length is then set to the entries written (each initialised), and
-    // calls `io_sram` and `io_reg` with the context (the I/O log's vector and the I/O
-    // borrowed here for the call, untouched by anything else meanwhile).
+    // confined code ([`call_confined`]) also writes journal entries below `journal_cap`,
+    // the vector's capacity, whose length is then set to the entries written (each
+    // initialised), and calls `io_sram` and `io_reg` with the context (the I/O log's vector
+    // and the I/O, untouched by anything else during the call).
     let exit = unsafe { f(core, &mut ctx, limit) };
-    if let Some(j) = confine.and_then(|c| c.journal.as_deref_mut()) {
-        // SAFETY: the native code wrote entries `len..journal_len`, within the capacity.
-        unsafe { j.set_len(ctx.journal_len as usize) };
-    }
     (Exit::from_raw(exit), ctx.retired, ctx.q)
+}
+
+impl Ctx {
+    /// The context of a run of calls of confined code on core `id` of `sys`
+    /// ([`call_confined`]): made once a run rather than once a call (a region call cost the
+    /// `rp2040_io` demo about 30 host instructions of context, of some 9 M calls). The
+    /// pointers to the SRAM, flash and code pages are taken here: they are heap buffers of
+    /// `sys` that nothing resizes during the run, and a vector's `as_mut_ptr` pointer stays
+    /// valid beside every other use of it. With `io` (in a window on a board with
+    /// converters: the SRAM banks outside the code's mask whose single loads and stores the
+    /// native code does and logs, and the I/O as the window's start left it, which nothing
+    /// changes during the run), [`Ctx::io_banks`] and [`Ctx::io`]; the log is set by each
+    /// call. [`Ctx::retired`] adds up over the run's calls.
+    pub(crate) fn confined(sys: &mut System, io: Option<(u8, *const Io)>) -> Ctx {
+        let (io_banks, io) = io.map_or((0, std::ptr::null()), |(b, io)| (u64::from(b), io));
+        Ctx {
+            sram: sys.sram.as_mut_ptr(),
+            flash: sys.flash.as_ptr(),
+            code_pages: sys.code_pages.as_ptr() as *const u8,
+            claims_self: std::ptr::null_mut(),
+            claims_other: std::ptr::null(),
+            stalls: std::ptr::null_mut(),
+            q: 0,
+            retired: 0,
+            journal: std::ptr::null_mut(),
+            journal_len: 0,
+            journal_cap: u64::MAX,
+            io_banks,
+            io_log: std::ptr::null_mut(),
+            io,
+        }
+    }
+}
+
+/// [`call`] for confined code with the run's context `ctx` ([`Ctx::confined`], made from this
+/// `sys`): sets what the run's other code may have moved since the last call — the claim
+/// and stall pointers (fields of `sys`), the journal's pointer, length and capacity (a
+/// memo's or a pre-decoded store may have pushed to it) and the I/O log's pointer — and
+/// returns why the code stopped. The instructions it retired are added to
+/// [`Ctx::retired`]; its `q` is not needed (the window replays no sleeper).
+#[inline(always)]
+pub(crate) fn call_confined(
+    f: NativeFn,
+    core: &mut Core,
+    sys: &mut System,
+    limit: u64,
+    ctx: &mut Ctx,
+    journal: Option<&mut Vec<u64>>,
+    io_log: Option<&mut Vec<IoAccess>>,
+) -> Exit {
+    let id = core.id & 1;
+    let claims = sys.bank_claim.as_mut_ptr() as *mut u64;
+    // SAFETY (both): `bank_claim` is `[[u64; 2]; BANKS]`; `id` and `1 - id` are 0 or 1.
+    ctx.claims_self = unsafe { claims.add(id) };
+    ctx.claims_other = unsafe { claims.add(1 - id) };
+    ctx.stalls = &mut sys.contention_stalls[id];
+    if let Some(log) = io_log {
+        ctx.io_log = log;
+    }
+    let exit = match journal {
+        Some(j) => {
+            ctx.journal = j.as_mut_ptr();
+            ctx.journal_len = j.len() as u64;
+            ctx.journal_cap = j.capacity() as u64;
+            // SAFETY: as in `call`; the SRAM, flash and code-page pointers are those of
+            // `sys`'s buffers (`Ctx::confined`), the rest set above.
+            let exit = unsafe { f(core, ctx, limit) };
+            // SAFETY: the native code wrote entries `len..journal_len`, within the capacity.
+            unsafe { j.set_len(ctx.journal_len as usize) };
+            exit
+        }
+        // SAFETY: as above; code called without a journal has no journal code.
+        None => unsafe { f(core, ctx, limit) },
+    };
+    Exit::from_raw(exit)
 }

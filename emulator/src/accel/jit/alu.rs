@@ -13,6 +13,7 @@ use tactus_isa::decode::AluOp;
 impl Translator<'_> {
     /// N and Z from the result `r` (held as `r` itself, see [`super::translate::Flags`]).
     pub(super) fn nz(&mut self, r: Value) {
+        self.flags_set = true;
         self.b.def_var(self.flags.nz, r);
     }
 
@@ -37,6 +38,7 @@ impl Translator<'_> {
     /// Sets C, V (held as its word), N and Z from the result; returns the result.
     fn set_flagged(&mut self, f: Flagged<Value, Value>) -> Value {
         self.set_c(f.c);
+        self.flags_set = true;
         self.b.def_var(self.flags.v, f.v);
         self.nz(f.result);
         f.result

@@ -53,9 +53,9 @@ pub(crate) enum Flavour {
     /// only records its own claim (the other core reads it when it runs again).
     Solo,
     /// Running ahead ([`crate::board`], "Running ahead"): arbitrated, every access checked
-    /// against the allowed banks (the bank mask, bit per bank, as [`abi::Confine::allowed`]
-    /// at every call of this code: a constant of the code), and, when the second field is true (the code is only
-    /// called with a journal), every store journaled (see the parent module); when false
+    /// against the allowed banks (the bank mask, bit per bank, [`System::allowed_banks`] at
+    /// every call of this code: a constant of the code), and, when the second field is true
+    /// (the code is only called with a journal), every store journaled (see the parent module); when false
     /// (a core catching up, called without a journal), no journal code at all.
     ///
     /// The third field: the code also does and logs a single access to a bank of the
@@ -70,9 +70,9 @@ pub(crate) enum Flavour {
     /// limit (a core run to the other's cycle at a meeting, `accel/window.rs`), instead of
     /// pre-decoded instructions.
     ///
-    /// [`abi::Confine::allowed`]: super::abi::Confine::allowed
     /// [`abi::io_sram`]: super::abi::io_sram
     /// [`abi::io_reg`]: super::abi::io_reg
+    /// [`System::allowed_banks`]: crate::system::System::allowed_banks
     Confined(u8, bool, bool, bool),
     /// [`Flavour::Confined`] for a core whose accesses all come after the other core's last
     /// claims (as [`Flavour::Solo`]): in a window the other core does not touch the banks
@@ -114,9 +114,17 @@ pub(super) struct Translator<'a> {
     /// the instructions only where control flow leaves or joins).
     pub(super) pend_cyc: u64,
     pub(super) pend_n: u64,
-    /// The exits' blocks, one per reason ([`Exit`] as index): each writes back and returns
-    /// its reason. A leaving path stores the PC itself, so the exits take no PC or reason.
-    pub(super) exits: [Option<Block>; 4],
+    /// The exits' blocks, one per reason ([`Exit`] as index) and, from index 4 on, per reason
+    /// for paths that may have changed a flag ([`Translator::flags_set`]): each writes back
+    /// (the flags only from index 4 on) and returns its reason. A leaving path stores the PC
+    /// itself, so the exits take no PC or reason.
+    pub(super) exits: [Option<Block>; 8],
+    /// Whether a path from the entry to the translation's point may have set a flag: an
+    /// instruction that sets one has been translated since the entry, or a loop's head (a
+    /// label a later branch jumps back to) has been passed. An exit before that leaves the
+    /// core's flags as they were and writes none back (a short region's exit packed all four
+    /// again, some 10 host instructions).
+    pub(super) flags_set: bool,
     pub(super) written: u16,
     /// Confined code only (see the parent module): the bank mask and the journal.
     pub(super) confined: Option<Confined>,
@@ -128,7 +136,7 @@ pub(super) struct Translator<'a> {
     /// The last cold exit block made ([`Translator::cold_exit`]): the PC it leaves before,
     /// its reason, the instructions it retires, and the block. The checks of one
     /// instruction (view, alignment, bank, confinement) share it.
-    pub(super) cold: Option<(u32, Exit, u64, Block)>,
+    pub(super) cold: Option<(u32, Exit, u64, bool, Block)>,
 }
 
 /// A confined function's bank mask and journal (the journal's pointer and capacity are
@@ -290,7 +298,8 @@ impl<'a> Translator<'a> {
             q,
             pend_cyc: 0,
             pend_n: 0,
-            exits: [None; 4],
+            exits: [None; 8],
+            flags_set: false,
             written: 0,
             confined,
             alias_first: instrs[0].pc.wrapping_sub(SRAM_ALIAS_BASE) < 0x4_0000,
@@ -299,10 +308,14 @@ impl<'a> Translator<'a> {
         };
         // A block for each instruction a branch of the region jumps to.
         let mut labels: Vec<Option<Block>> = vec![None; instrs.len()];
-        for &t_ in targets.iter().flatten() {
+        // Loops' heads: reached again from code translated after them.
+        let mut loop_head = vec![false; instrs.len()];
+        for (i, &t_) in targets.iter().enumerate() {
+            let Some(t_) = t_ else { continue };
             if labels[t_].is_none() {
                 labels[t_] = Some(t.b.create_block());
             }
+            loop_head[t_] |= t_ <= i;
         }
         // Confined: no store checks the journal's capacity; the entry checks room for all.
         if let Some(c) = t.confined.filter(|c| c.journaled) {
@@ -322,6 +335,9 @@ impl<'a> Translator<'a> {
                 // (a `BL`, an unconditional exit) left its count pending for a side exit's
                 // sake, which must not reach the code after the label.
                 (t.pend_cyc, t.pend_n) = (0, 0);
+                // Every other way into a label was translated before it, with the flags as
+                // far as `flags_set` says, except a loop's back edge.
+                t.flags_set |= loop_head[i];
                 t.b.switch_to_block(l);
                 t.main_line.clear();
                 live = true;
@@ -344,12 +360,15 @@ impl<'a> Translator<'a> {
         // The loads `reg` made pure were of registers the translation never wrote.
         debug_assert!(written.is_none_or(|w| t.written & !w & 0x7fff == 0));
         // The exits: write back and return.
-        for (why, exit) in t.exits.into_iter().enumerate() {
+        for (k, exit) in t.exits.into_iter().enumerate() {
             let Some(exit) = exit else { continue };
+            let why = k % 4;
             t.b.switch_to_block(exit);
-            let values = [N, Z, C, V].map(|f| t.flag(f));
-            for (v, at) in values.into_iter().zip(flag_at) {
-                t.b.ins().store(mf, v, core, at as i32);
+            if k >= 4 {
+                let values = [N, Z, C, V].map(|f| t.flag(f));
+                for (v, at) in values.into_iter().zip(flag_at) {
+                    t.b.ins().store(mf, v, core, at as i32);
+                }
             }
             let v = t.b.use_var(cyc);
             t.b.ins().store(mf, v, core, offset_of!(Core, cycle) as i32);
@@ -479,6 +498,7 @@ impl<'a> Translator<'a> {
 
     /// Sets C (an i8, 0 or 1).
     pub(super) fn set_c(&mut self, c: Value) {
+        self.flags_set = true;
         self.b.def_var(self.flags.c, c);
     }
 
@@ -516,7 +536,8 @@ impl<'a> Translator<'a> {
         self.add_retired();
         let at = (offset_of!(Core, r) + 4 * 15) as i32;
         self.b.ins().store(self.mf, pc, self.core, at);
-        let exit = *self.exits[why as usize].get_or_insert_with(|| self.b.create_block());
+        let k = why as usize + 4 * self.flags_set as usize;
+        let exit = *self.exits[k].get_or_insert_with(|| self.b.create_block());
         self.b.ins().jump(exit, &[]);
     }
 
@@ -583,11 +604,15 @@ impl<'a> Translator<'a> {
     /// differ), so a shared block leaves each path as its own would.
     fn cold_exit(&mut self, pc: u32, exit: Exit) -> (Block, bool) {
         match self.cold {
-            Some((p, e, n, block)) if p == pc && e == exit && n == self.pend_n => (block, false),
+            Some((p, e, n, f, block))
+                if p == pc && e == exit && n == self.pend_n && f == self.flags_set =>
+            {
+                (block, false)
+            }
             _ => {
                 let out = self.b.create_block();
                 self.b.set_cold_block(out);
-                self.cold = Some((pc, exit, self.pend_n, out));
+                self.cold = Some((pc, exit, self.pend_n, self.flags_set, out));
                 (out, true)
             }
         }
