@@ -408,10 +408,12 @@ impl ImageRun {
             profiles.push(board.profile_handler(c.isr));
         }
         // Keys at rest compute the same update sample after sample: the emulator replays
-        // such calls, and a core's whole keys part of the handler, from recordings
-        // (exactly; `tactus_emulator::Board::memoize`).
+        // such calls, and each run of a copy of a core's keys code in the handler, from
+        // recordings (exactly; `tactus_emulator::Board::memoize`).
         let updates: Vec<u32> = image.keys.iter().map(|k| k.update).collect();
-        let spans: Vec<(u32, u32)> = image.cores.iter().map(|c| c.keys_span).collect();
+        let spans: Vec<(u32, u32)> = (image.cores.iter())
+            .flat_map(|c| c.keys_spans.iter().copied())
+            .collect();
         board.memoize(&updates, &spans);
         let n = image.keys.len();
         let cores = image.cores.len();

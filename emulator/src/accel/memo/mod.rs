@@ -576,6 +576,11 @@ impl Memos {
         self.call_missed = [false; 2];
     }
 
+    /// The watched entries' addresses (sorted, Thumb bit clear).
+    pub(crate) fn entries(&self) -> Vec<u32> {
+        self.entries.iter().map(|e| e.0).collect()
+    }
+
     /// Whether `pc` is a watched entry.
     #[inline(always)]
     pub(crate) fn watches(&self, pc: u32) -> bool {
