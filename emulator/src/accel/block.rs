@@ -699,6 +699,7 @@ pub(crate) fn run_confined(
                 allowed,
                 journal.as_deref_mut(),
                 io.as_mut().map(|(log, l, _)| (&mut **log, *l)),
+                None,
             ) {
                 Try::Applied => continue,
                 Try::Record => break Err(Leave::Record),

@@ -674,8 +674,12 @@ impl Memos {
         allowed: u8,
         journal: Option<&mut Vec<u64>>,
         io: Option<(&mut Vec<IoAccess>, u8)>,
+        mut nest: Option<&mut Recording>,
     ) -> Try {
         let s = self.site(core);
+        if nest.is_some() && self.sites[s].span {
+            return Try::Run;
+        }
         self.clock += 1;
         let site = &mut self.sites[s];
         // A span's entry starts a run of its keys: whether one of the last run's missed.
@@ -719,12 +723,16 @@ impl Memos {
                 && m.banks & !(allowed | io_banks) == 0
                 && (m.banks & io_banks == 0 || m.io_banks == io_banks)
                 && room
-                && !m.stores_to_code(sys);
+                && !m.stores_to_code(sys)
+                && nest.as_deref().is_none_or(|r| r.can_nest(m));
             if !fits {
                 return Try::Run;
             }
             if let Some((log, _)) = io {
                 m.log_io(core.cycle, core, sys, log);
+            }
+            if let Some(r) = nest.as_deref_mut() {
+                r.nest(m, core);
             }
             m.apply(core, sys, journal);
             m.used = self.clock;
@@ -753,6 +761,10 @@ impl Memos {
         site.streak = 0;
         if !site.span {
             self.call_missed[core.id & 1] = true;
+        }
+        if nest.is_some() {
+            // Within a recording: the call is recorded with it, not on its own.
+            return Try::Run;
         }
         if site.wait > 0 || !solo {
             site.wait = site.wait.saturating_sub(1);
