@@ -545,7 +545,8 @@ impl Recording {
             && self.lr == Save::Lost
             && self.io_banks == 0
             && m.io.is_empty()
-            && self.log.len() + 4 * (m.reads.len() + m.stores + m.based.as_ref().map_or(0, |b| b.words.len()))
+            && self.log.len()
+                + 4 * (m.reads.len() + m.stores + m.based.as_ref().map_or(0, |b| b.words.len()))
                 <= MAX_ACCESSES
     }
 
@@ -605,7 +606,14 @@ impl Recording {
                     Some(i) => b.moved[i].offs.as_ref().and_then(|o| o.get(k).copied()),
                 };
                 if let Some(off) = off {
-                    bytes(&Word { off, mask: w.mask, value: w.value }, false);
+                    bytes(
+                        &Word {
+                            off,
+                            mask: w.mask,
+                            value: w.value,
+                        },
+                        false,
+                    );
                 }
             }
         }
