@@ -183,7 +183,7 @@ pub(crate) struct Blocks {
     pub(crate) journal_other: Vec<u64>,
     /// The memoized calls ([`crate::accel::memo`]).
     pub(crate) memo: Memos,
-    /// The memoized entries, which no confined region runs through ([`Blocks::set_stops`]).
+    /// The memoized spans' entries, which no confined region runs through ([`Blocks::set_stops`]).
     stops: std::sync::Arc<[u32]>,
 }
 

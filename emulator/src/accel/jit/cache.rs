@@ -134,7 +134,7 @@ pub(crate) struct Jit {
     pub(crate) count: u64,
     /// Which variant of each region this cache holds.
     flavour: Flavour,
-    /// Addresses no region runs through (sorted, Thumb bit clear): the memoized entries
+    /// Addresses no region runs through (sorted, Thumb bit clear): the memoized spans' entries
     /// ([`crate::accel::memo`]), which a core must reach at a dispatch for its memo to be
     /// tried ([`Jit::set_stops`]).
     stops: Arc<[u32]>,

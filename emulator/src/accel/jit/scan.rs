@@ -73,7 +73,7 @@ pub(crate) fn data_words(instr: &Instr) -> u32 {
 
 /// Decodes the region at `entry` (see the module documentation), marking the SRAM pages
 /// it comes from as code pages. Returns its instructions and halfwords (the cache key).
-/// The region ends before any address of `stops` (sorted) but its entry: a memoized entry
+/// The region ends before any address of `stops` (sorted) but its entry: a memoized span's entry
 /// ([`crate::accel::memo`]) is tried only where a core is dispatched, so no region runs
 /// through one (a core's keys part, entered by falling through from the sample
 /// interrupt's tick code, would otherwise never be replayed).
