@@ -691,7 +691,7 @@ pub(crate) fn run_confined(
             unfit = true;
         } else if blocks.memo.watches(pc) {
             let solo = core.cycle >= quiet_from;
-            match blocks.memo.call(
+            match blocks.memo.call::<false>(
                 core,
                 sys,
                 limit,

@@ -652,7 +652,7 @@ impl Drive<'_> {
             }
             let pc = core.r[15];
             if nesting && core.cycle >= quiet_from && self.a.blocks.memo.watches(pc) {
-                let tried = self.a.blocks.memo.call(
+                let tried = self.a.blocks.memo.call::<true>(
                     &mut self.m.cores[k],
                     &mut self.m.system,
                     deadline,

@@ -686,7 +686,7 @@ impl Memos {
     // The run's state (core, system, limit, solo, allowed banks) and its two sinks (undo
     // journal, I/O log), as `block::run_confined` holds them.
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn call(
+    pub(crate) fn call<const NEST: bool>(
         &mut self,
         core: &mut Core,
         sys: &mut System,
@@ -695,8 +695,10 @@ impl Memos {
         allowed: u8,
         journal: Option<&mut Vec<u64>>,
         io: Option<(&mut Vec<IoAccess>, u8)>,
-        mut nest: Option<&mut Recording>,
+        nest: Option<&mut Recording>,
     ) -> Try {
+        // `NEST` false (the native run's calls): none, known when compiled.
+        let mut nest = if NEST { nest } else { None };
         let s = self.site(core);
         if nest.is_some() && self.sites[s].span {
             return Try::Run;
@@ -887,9 +889,10 @@ impl Memos {
             if through.next_if_eq(&n).is_some() {
                 continue;
             }
-            let last = a.off + u32::from(a.size.max(1)) - 1;
-            for w in a.off >> 2..=last >> 2 {
-                keys.push(u64::from(w) << 32 | n as u64);
+            let (first, last) = (a.off >> 2, (a.off + u32::from(a.size.max(1)) - 1) >> 2);
+            keys.push(u64::from(first) << 32 | n as u64);
+            if last != first {
+                keys.push(u64::from(last) << 32 | n as u64);
             }
         }
         keys.sort_unstable();
