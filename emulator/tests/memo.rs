@@ -359,6 +359,74 @@ fn a_span_whose_call_missed_last_run_is_not_recorded() {
     );
 }
 
+/// A span whose recording meets a watched call that has a memo takes the call from it
+/// (`Recording::nest`: the memo's inputs and effect logged as the call's instructions),
+/// as a span of the firmware's keys code takes each key's update: the span reads a word
+/// of its own besides the call's (a new one every run, then the word of a run recorded
+/// so again). Every run equals the interpreter's, registers, cycles and all of SRAM.
+#[test]
+fn a_span_recording_takes_a_call_from_its_memo() {
+    let body: [u16; 5] = [
+        0xb510, // push {r4, lr}
+        0x683c, // ldr r4, [r7, #0]
+        0x3401, // adds r4, #1
+        0x607c, // str r4, [r7, #4]
+        0xbd10, // pop {r4, pc}
+    ];
+    let bytes: Vec<u8> = body.iter().flat_map(|h| h.to_le_bytes()).collect();
+    // The span: a word of its own copied, then the call (to the `B .` after it).
+    let at = CALLER + 0x80;
+    let mut code: Vec<u8> = Vec::new();
+    let glue = [0x68bb, 0x60fb]; // ldr r3, [r7, #8]; str r3, [r7, #12]
+    for h in glue.into_iter().chain(bl(at + 4, FUNC)).chain([0xe7fe]) {
+        code.extend(h.to_le_bytes());
+    }
+    let mut boards = [board(Engine::Block), board(Engine::Interp)];
+    boards[0].memoize(&[FUNC | 1], &[(at, at + 8)]);
+    for b in boards.iter_mut() {
+        b.write_bytes(FUNC, &bytes).unwrap();
+        b.write_bytes(at, &code).unwrap();
+        b.write_data(DATA, &[7, 0, 0, 0]).unwrap();
+    }
+    let mut run = |own: u32| {
+        let before = boards[0].memo_stats();
+        let mut got = Vec::new();
+        for b in boards.iter_mut() {
+            b.write_data(DATA + 8, &own.to_le_bytes()).unwrap();
+            got.push(call_at(b, at, &[0, 0, 0, 0, 0x44], |c| c.r[7] = DATA));
+        }
+        assert_eq!(got[0], got[1], "the span with its own word {own}");
+        assert!(
+            boards[0].system.sram == boards[1].system.sram,
+            "own word {own}: SRAM differs from the interpreter's"
+        );
+        (before, boards[0].memo_stats())
+    };
+    // A recording of the span during which the call hit its memo.
+    let mut nested = None;
+    for own in 100..124 {
+        let (before, after) = run(own);
+        if after.recorded > before.recorded && after.hits > before.hits {
+            nested = Some(own);
+        }
+    }
+    let own = nested.expect("no recording of the span took the call from its memo");
+    // Its memo replaces the whole span, the call and the copy around it; with a new word
+    // the call alone hits.
+    let (b1, a1) = run(own);
+    assert_eq!(
+        (a1.hits, a1.recorded),
+        (b1.hits + 1, b1.recorded),
+        "the span's memo: {a1:?}"
+    );
+    let (b2, a2) = run(5000);
+    assert_eq!(a2.hits, b2.hits + 1, "the call's memo: {a2:?}");
+    assert!(
+        a1.hit_cycles - b1.hit_cycles > a2.hit_cycles - b2.hit_cycles,
+        "the span's hit covers more than the call's: {a1:?} {a2:?}"
+    );
+}
+
 /// A function called from two return addresses shares its memos (its site is the core,
 /// the entry and r0, not the return address): a call that pushes LR and pops it into PC,
 /// reading it nowhere else, is replayed from a recording made at the other call site,

@@ -183,6 +183,8 @@ pub(crate) struct Blocks {
     pub(crate) journal_other: Vec<u64>,
     /// The memoized calls ([`crate::accel::memo`]).
     pub(crate) memo: Memos,
+    /// The memoized spans' entries, which no confined region runs through ([`Blocks::set_stops`]).
+    stops: std::sync::Arc<[u32]>,
 }
 
 #[inline(always)]
@@ -204,6 +206,20 @@ fn ends_block(instr: &Instr) -> bool {
 }
 
 impl Blocks {
+    /// Makes the confined region caches, where memos are tried ([`run_confined`]), end
+    /// their regions before the addresses `stops` (sorted, Thumb bit clear:
+    /// [`Jit::set_stops`]), the ones made later too.
+    pub(crate) fn set_stops(&mut self, stops: Vec<u32>) {
+        self.stops = stops.into();
+        for j in self
+            .confined
+            .iter_mut()
+            .chain(self.confined_solo.iter_mut())
+        {
+            j.set_stops(self.stops.clone());
+        }
+    }
+
     pub(crate) fn new() -> Blocks {
         Blocks {
             slots: vec![(u64::MAX, 0, 0); SLOTS].into_boxed_slice(),
@@ -222,6 +238,7 @@ impl Blocks {
             journal: Vec::with_capacity(JOURNAL),
             journal_other: Vec::with_capacity(JOURNAL),
             memo: Memos::default(),
+            stops: std::sync::Arc::from([]),
         }
     }
 
@@ -254,6 +271,7 @@ impl Blocks {
             None => {
                 let mut j = Jit::new(flavour);
                 j.threshold = threshold;
+                j.set_stops(self.stops.clone());
                 list.push(j);
                 list.len() - 1
             }
@@ -680,7 +698,7 @@ pub(crate) fn run_confined(
             unfit = true;
         } else if blocks.memo.watches(pc) {
             let solo = core.cycle >= quiet_from;
-            match blocks.memo.call(
+            match blocks.memo.call::<false>(
                 core,
                 sys,
                 limit,
@@ -688,6 +706,7 @@ pub(crate) fn run_confined(
                 allowed,
                 journal.as_deref_mut(),
                 io.as_mut().map(|(log, l, _)| (&mut **log, *l)),
+                None,
             ) {
                 Try::Applied => continue,
                 Try::Record => break Err(Leave::Record),

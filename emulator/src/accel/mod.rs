@@ -113,6 +113,7 @@ impl Accel {
     /// ([`crate::Board::memoize`]); forgets every memo.
     pub(crate) fn memoize(&mut self, calls: &[u32], spans: &[(u32, u32)]) {
         self.blocks.memo.watch(calls, spans);
+        self.blocks.set_stops(self.blocks.memo.span_entries());
     }
 
     /// What the memoized calls did so far.

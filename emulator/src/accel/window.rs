@@ -626,6 +626,18 @@ impl Drive<'_> {
     ) -> bool {
         let mut rec = self.a.blocks.memo.begin(&self.m.cores[k], &self.m.system);
         rec.io_banks = self.a.io_window.unwrap_or(0);
+        // A watched function's call inside the recorded one (a key's update in a span) is
+        // taken from its memo where one applies, as `block::run_confined` would, with the
+        // memo's accesses logged as the call's (`Recording::nest`): no access can wait once
+        // the core is past the other core's last claim of its banks, which the other core
+        // does not touch meanwhile.
+        let nesting = self.a.io_window.is_none();
+        let quiet_from = (0..tactus_rp2040::memory::BANKS)
+            .filter(|b| banks >> b & 1 != 0)
+            .map(|b| self.m.system.bank_claim[b][(k ^ 1) & 1])
+            .filter(|&c| c != u64::MAX)
+            .max()
+            .unwrap_or(0);
         loop {
             let core = &self.m.cores[k];
             if rec.returned(core) {
@@ -639,6 +651,21 @@ impl Drive<'_> {
                 return true;
             }
             let pc = core.r[15];
+            if nesting && core.cycle >= quiet_from && self.a.blocks.memo.watches(pc) {
+                let tried = self.a.blocks.memo.call::<true>(
+                    &mut self.m.cores[k],
+                    &mut self.m.system,
+                    deadline,
+                    true,
+                    banks,
+                    Some(&mut *journal),
+                    None,
+                    Some(&mut rec),
+                );
+                if tried == crate::accel::memo::Try::Applied {
+                    continue;
+                }
+            }
             let admitted = match cached(&mut self.a.cache, &mut self.m.system, pc) {
                 Some((instr, size, _)) => rec.admit(&self.m.cores[k], &instr, size),
                 None => false,

@@ -657,15 +657,24 @@ pub struct CoreLabels {
     /// and a watchdog reset at once ([`checks::hard_fault_handler`]); without it the
     /// default handler's `B .`.
     pub hard_fault: Label,
-    /// The sample interrupt's keys: from after the tick's step (the SYST_RVR store) to the
-    /// ICSR load that checks for a miss. Everything between touches only the core's own
-    /// SRAM; the emulator memoizes it (`ImageRun`). On core 0 with a feeding class
-    /// ([`Feed::class`]) that class's copy ends at the ICSR load of its own tail instead,
-    /// which is not [`CoreLabels::keys_end`]: a run of the span through it is not
-    /// memoized (the recording gives up at that load, a peripheral's).
+    /// The sample interrupt's keys: from after the tick's step (the SYST_RVR store) and,
+    /// with the sensor check's turns, the `LSLS` that sets the flags of the dispatch to the
+    /// copies of the keys' code ([`Turns`]), to the ICSR load that checks for a miss.
+    /// Everything between touches only the core's own SRAM. On core 0 with a feeding
+    /// class ([`Feed::class`]) that class's copy ends at the ICSR load of its own tail
+    /// instead, which is not [`CoreLabels::keys_end`]. What the emulator memoizes is each
+    /// copy's run ([`CoreLabels::copies`]).
     pub keys: Label,
     /// See [`CoreLabels::keys`].
     pub keys_end: Label,
+    /// Per copy of the keys' code ([`Turns`], in copy order; one without turns, at
+    /// [`CoreLabels::keys`]): its first instruction, after the dispatch, and the ICSR load
+    /// its run ends at ([`CoreLabels::keys_end`], or the feeding copy's own). The emulator
+    /// memoizes each such run (`ImageRun`): a run of one copy repeats where a run of the
+    /// whole keys part would not, since a key at rest cycles through its differentiator
+    /// ring's 17 states while the copies take turns (68 states of the keys part, more than
+    /// a memoized site keeps, each read with the dispatch's flags).
+    pub copies: Vec<(Label, Label)>,
     /// Per key of the core, in the order given: its update's call sites (each `BL`), one
     /// in each copy of the keys' code ([`Turns`]), in copy order. What an injected hang
     /// of that key alone patches (`super::run`'s `FaultKind::Hang`).
@@ -712,6 +721,7 @@ pub fn core_code(
         hard_fault: a.label(),
         keys: a.label(),
         keys_end: a.label(),
+        copies: Vec::new(),
         calls: vec![Vec::new(); keys.len()],
     };
     let mut calls = vec![Vec::new(); keys.len()];
@@ -909,8 +919,8 @@ pub fn core_code(
     // The reload value of the period after this one (r2 = the accumulator after it).
     tick_step(a, &tick);
     // The copies of the keys' code ([`Turns`]): the class's bits of the accumulator into
-    // N (bit `shift`) and C (bit `shift + 1`), read by the dispatch's branches (the keys
-    // part, which the emulator memoizes, reads the flags, not the accumulator).
+    // N (bit `shift`) and C (bit `shift + 1`), read by the dispatch's branches (each
+    // copy's run, which the emulator memoizes, starts after them).
     let copies = turns.classes.max(1);
     // The watchdog's feed (core 0): in the tail of its feeding class's copy alone
     // ([`Feed::class`]), or every sample in the one tail.
@@ -931,6 +941,13 @@ pub fn core_code(
     }
     a.bind(labels.keys);
     let starts: Vec<Label> = (0..copies).map(|_| a.label()).collect();
+    // Where each copy's run ends: the feeding copy's at the ICSR load of its own tail.
+    let ends: Vec<Label> = (0..copies)
+        .map(|c| match Some(c) == fed_copy {
+            true => a.label(),
+            false => labels.keys_end,
+        })
+        .collect();
     let tails: Vec<Label> = (0..copies).map(|_| a.label()).collect();
     let (upper, end) = (a.label(), a.label());
     // Trampolines: [to copy 1, to copy 2 (hop), to copy 3 (hop), to copy 3 (second hop)].
@@ -1140,7 +1157,7 @@ pub fn core_code(
         if Some(copy) == fed_copy {
             // The feeding class's copy: its own tail, which feeds, in place of the branch
             // to the others' (and the keys part's end, `labels.keys_end`).
-            tail(a, true, None);
+            tail(a, true, Some(ends[copy as usize]));
             a.pool();
         }
         if copy + 1 < copies && (Some(copy) != fed_copy || turns.hops) {
@@ -1162,7 +1179,12 @@ pub fn core_code(
     tail(a, fed_copy.is_none(), Some(labels.keys_end));
     a.pool();
     trip_paths(a, &mut trips, keys, ctrl_addr, core);
-    Ok(CoreLabels { calls, ..labels })
+    let copies = starts.into_iter().zip(ends).collect();
+    Ok(CoreLabels {
+        calls,
+        copies,
+        ..labels
+    })
 }
 
 /// The dispatch's far half ([`Turns`]) that copy `copy` hosts, out of the copies' flow

@@ -961,7 +961,9 @@ pub(super) fn core_place(
         vtor: cc.start,
         reset: lab(labels.reset),
         isr: lab(labels.isr),
-        keys_span: (lab(labels.keys), lab(labels.keys_end)),
+        keys_spans: (labels.copies.iter())
+            .map(|&(start, end)| (lab(start), lab(end)))
+            .collect(),
         ctrl: ctrl_addr,
         stack_top,
         stack_bottom,

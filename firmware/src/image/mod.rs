@@ -263,8 +263,9 @@ pub(crate) struct CorePlace {
     pub vtor: u32,
     pub reset: u32,
     pub isr: u32,
-    /// The sample interrupt's keys part ([`glue::CoreLabels::keys`]): start and end.
-    pub keys_span: (u32, u32),
+    /// The runs of the sample interrupt's copies of the keys' code
+    /// ([`glue::CoreLabels::copies`]): start and end of each.
+    pub keys_spans: Vec<(u32, u32)>,
     pub ctrl: u32,
     pub stack_top: u32,
     pub stack_bottom: u32,

@@ -134,6 +134,10 @@ pub(crate) struct Jit {
     pub(crate) count: u64,
     /// Which variant of each region this cache holds.
     flavour: Flavour,
+    /// Addresses no region runs through (sorted, Thumb bit clear): the memoized spans' entries
+    /// ([`crate::accel::memo`]), which a core must reach at a dispatch for its memo to be
+    /// tried ([`Jit::set_stops`]).
+    stops: Arc<[u32]>,
 }
 
 /// Chunks a board's lookup may hold before it forgets them all.
@@ -160,7 +164,16 @@ impl Jit {
             // 17.10 → 17.04 G host instructions plain, 21.80 → 21.72 G on rp2040_io).
             threshold: 64,
             count: 0,
+            stops: Arc::from([]),
         }
+    }
+
+    /// Addresses no region runs through from now on (sorted, Thumb bit clear; see
+    /// [`super::scan::scan`]): the regions looked up so far are forgotten, since one may
+    /// run through a new stop.
+    pub(crate) fn set_stops(&mut self, stops: Arc<[u32]>) {
+        self.stops = stops;
+        self.slots.fill(EMPTY);
     }
 
     /// The compiled region at `pc`, compiling it when it has been seen
@@ -188,7 +201,7 @@ impl Jit {
     fn miss(&mut self, sys: &mut System, pc: u32) -> Option<Region> {
         let index = ((pc >> 1) as usize) & (SLOTS - 1);
         let fresh = self.slots[index].tag != tag(pc, sys.code_epoch);
-        let (instrs, halfwords) = scan(sys, pc);
+        let (instrs, halfwords) = scan(sys, pc, &self.stops);
         let mut slot = Slot {
             tag: tag(pc, sys.code_epoch),
             func: None,

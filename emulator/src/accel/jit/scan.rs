@@ -79,7 +79,11 @@ pub(crate) fn data_words(instr: &Instr) -> u32 {
 
 /// Decodes the region at `entry` (see the module documentation), marking the SRAM pages
 /// it comes from as code pages. Returns its instructions and halfwords (the cache key).
-pub(crate) fn scan(sys: &mut System, entry: u32) -> (Vec<RegionInstr>, Vec<u16>) {
+/// The region ends before any address of `stops` (sorted) but its entry: a memoized span's entry
+/// ([`crate::accel::memo`]) is tried only where a core is dispatched, so no region runs
+/// through one (a core's keys part, entered by falling through from the sample
+/// interrupt's tick code, would otherwise never be replayed).
+pub(crate) fn scan(sys: &mut System, entry: u32, stops: &[u32]) -> (Vec<RegionInstr>, Vec<u16>) {
     let mut instrs = Vec::new();
     let mut halfwords = Vec::new();
     let mut a = entry;
@@ -87,6 +91,9 @@ pub(crate) fn scan(sys: &mut System, entry: u32) -> (Vec<RegionInstr>, Vec<u16>)
     // The instruction at `a` is a branch island the region went on to (see `island`).
     let mut hop = false;
     while instrs.len() < MAX_REGION {
+        if a != entry && stops.binary_search(&a).is_ok() {
+            break;
+        }
         let Ok((hw1, hw2, size)) = sys.fetch_instr(a) else {
             break;
         };

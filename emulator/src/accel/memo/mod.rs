@@ -87,7 +87,23 @@
 //! would not repeat this one) is not recorded, its backoff counted as if it were: on the
 //! demo that took the span recordings from 941 to 160 (plain board) and from 1,212 to
 //! 353 (converters), each an interpretation of every key of a core, for 15 % fewer span
-//! hits (`tests/memo.rs::a_span_whose_call_missed_last_run_is_not_recorded`). Tests:
+//! hits (`tests/memo.rs::a_span_whose_call_missed_last_run_is_not_recorded`).
+//!
+//! **Spans of a firmware's keys code.** With the sensor check's turns a core's keys code
+//! comes in four copies, one per class of samples (`tactus-firmware`'s `Turns`), and its
+//! keys at rest cycle through their differentiator rings' 17 states: a span of the whole
+//! keys part, dispatch included, would come round only every 68 samples (more states than
+//! a site keeps, each recorded through a backoff). So each copy is a span of its own
+//! (from after the dispatch), of 17 states. A span is tried only where a core is
+//! dispatched, so no confined region runs through a span's entry (`Jit::set_stops`).
+//! Its recording interprets the span, but takes each watched function's call in it from
+//! the call's memo where one applies ([`Recording::nest`]: the memo's inputs and effect
+//! logged as the call's instructions would be), as `block::run_confined` would: a key's
+//! update is most of a span's cycles, and interpreting it made the four copies' 136
+//! recordings a board cost more than their hits saved (keyboard bench's steady pass
+//! 5.22 G host instructions, 3.89 G with the nesting; 3.99 G with no span hit at all).
+//! Without an I/O only (`tactus-firmware` watches no span on a board with converters).
+//! Test: `tests/memo.rs::a_span_recording_takes_a_call_from_its_memo`. Tests:
 //! `tests/memo.rs` (random calls
 //! against the interpreter, one input changed at a time), `firmware/tests/image.rs` and the
 //! keyboard comparisons (firmware images on the block engine, memoized, against the
@@ -576,6 +592,17 @@ impl Memos {
         self.call_missed = [false; 2];
     }
 
+    /// The watched spans' entries (sorted, Thumb bit clear): where no confined region may
+    /// run through (`Jit::set_stops`). Not the functions' entries, which their calls reach
+    /// by a `BL` (the end of a region): stopping at those too cost the `rp2040_io` demo,
+    /// where no span is watched, 0.01 G host instructions.
+    pub(crate) fn span_entries(&self) -> Vec<u32> {
+        (self.entries.iter())
+            .filter(|e| e.1.is_some())
+            .map(|e| e.0)
+            .collect()
+    }
+
     /// Whether `pc` is a watched entry.
     #[inline(always)]
     pub(crate) fn watches(&self, pc: u32) -> bool {
@@ -660,7 +687,7 @@ impl Memos {
     // The run's state (core, system, limit, solo, allowed banks) and its two sinks (undo
     // journal, I/O log), as `block::run_confined` holds them.
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn call(
+    pub(crate) fn call<const NEST: bool>(
         &mut self,
         core: &mut Core,
         sys: &mut System,
@@ -669,8 +696,14 @@ impl Memos {
         allowed: u8,
         journal: Option<&mut Vec<u64>>,
         io: Option<(&mut Vec<IoAccess>, u8)>,
+        nest: Option<&mut Recording>,
     ) -> Try {
+        // `NEST` false (the native run's calls): none, known when compiled.
+        let mut nest = if NEST { nest } else { None };
         let s = self.site(core);
+        if nest.is_some() && self.sites[s].span {
+            return Try::Run;
+        }
         self.clock += 1;
         let site = &mut self.sites[s];
         // A span's entry starts a run of its keys: whether one of the last run's missed.
@@ -714,12 +747,16 @@ impl Memos {
                 && m.banks & !(allowed | io_banks) == 0
                 && (m.banks & io_banks == 0 || m.io_banks == io_banks)
                 && room
-                && !m.stores_to_code(sys);
+                && !m.stores_to_code(sys)
+                && nest.as_deref().is_none_or(|r| r.can_nest(m));
             if !fits {
                 return Try::Run;
             }
             if let Some((log, _)) = io {
                 m.log_io(core.cycle, core, sys, log);
+            }
+            if let Some(r) = nest.as_deref_mut() {
+                r.nest(m, core);
             }
             m.apply(core, sys, journal);
             m.used = self.clock;
@@ -748,6 +785,10 @@ impl Memos {
         site.streak = 0;
         if !site.span {
             self.call_missed[core.id & 1] = true;
+        }
+        if nest.is_some() {
+            // Within a recording: the call is recorded with it, not on its own.
+            return Try::Run;
         }
         if site.wait > 0 || !solo {
             site.wait = site.wait.saturating_sub(1);
@@ -830,11 +871,12 @@ impl Memos {
             return;
         }
         // The inputs: bytes loaded before any store of the call to them, outside pages of
-        // code; the outputs: every byte stored. Each byte of each access as one number,
-        // sorted by byte and then by its place in the log: the byte's offset (bits 32-50),
-        // the access's place (bits 10-31), a store (bit 9), a load from a page of code (bit
-        // 8), and the value loaded (bits 0-7).
-        let mut bytes: Vec<u64> = Vec::with_capacity(4 * rec.log.len());
+        // code; the outputs: every byte stored. Each access as one number per SRAM word it
+        // touches, sorted by word and then by its place in the log: the word (bits 32-63)
+        // and the place (bits 0-31); then each word's accesses in the log's order. (One
+        // number per byte cost the keyboard bench's steady pass 3.89 G host instructions
+        // against 3.76 G, most of it sorting.)
+        let mut keys: Vec<u64> = Vec::with_capacity(rec.log.len() + 8);
         let mut banks = rec.fetch_banks;
         let based = based_of(&rec);
         let base_bit = based.as_ref().map_or(0, |b| 1u16 << b.reg);
@@ -849,23 +891,42 @@ impl Memos {
             if through.next_if_eq(&n).is_some() {
                 continue;
             }
-            let kind = if a.store { 2 } else { u64::from(a.code) };
-            for i in 0..a.size as u32 {
-                let value = u64::from((a.value >> (8 * i)) as u8);
-                bytes.push(u64::from(a.off + i) << 32 | (n as u64) << 10 | kind << 8 | value);
+            let (first, last) = (a.off >> 2, (a.off + u32::from(a.size.max(1)) - 1) >> 2);
+            keys.push(u64::from(first) << 32 | n as u64);
+            if last != first {
+                keys.push(u64::from(last) << 32 | n as u64);
             }
         }
-        bytes.sort_unstable();
+        keys.sort_unstable();
         let (mut inputs, mut stored): (Vec<(u32, u8)>, Vec<u32>) = (Vec::new(), Vec::new());
-        for accesses in bytes.chunk_by(|a, b| a >> 32 == b >> 32) {
-            let byte = (accesses[0] >> 32) as u32;
-            let first_store = accesses.iter().position(|&x| x >> 8 & 3 == 2);
-            let before = &accesses[..first_store.unwrap_or(accesses.len())];
-            if let Some(&x) = before.iter().find(|&&x| x >> 8 & 3 == 0) {
-                inputs.push((byte, x as u8));
+        for accesses in keys.chunk_by(|a, b| a >> 32 == b >> 32) {
+            let word = (accesses[0] >> 32) as u32;
+            // Per byte of the word: the value its first load before any store gave (not
+            // from a page of code), and whether it was stored.
+            let (mut input, mut store) = ([None::<u8>; 4], [false; 4]);
+            for &x in accesses {
+                let a = &rec.log[x as u32 as usize];
+                for i in 0..u32::from(a.size) {
+                    let byte = a.off + i;
+                    if byte >> 2 != word {
+                        continue;
+                    }
+                    let j = (byte & 3) as usize;
+                    if a.store {
+                        store[j] = true;
+                    } else if !store[j] && !a.code && input[j].is_none() {
+                        input[j] = Some((a.value >> (8 * i)) as u8);
+                    }
+                }
             }
-            if first_store.is_some() {
-                stored.push(byte);
+            for j in 0..4 {
+                let byte = 4 * word + j as u32;
+                if let Some(v) = input[j] {
+                    inputs.push((byte, v));
+                }
+                if store[j] {
+                    stored.push(byte);
+                }
             }
         }
         let reads = words(inputs.into_iter());

@@ -534,6 +534,106 @@ impl Recording {
         self.io.push(a);
     }
 
+    /// Whether the memo `m` of a watched function, its inputs matching at the function's
+    /// entry in the recorded call, may stand for the function's call in the recording
+    /// ([`Recording::nest`]): where the recording tracks no base, saved register or return
+    /// address (which a hit would hide from it: a span's recording on a board whose keys do
+    /// not move), on a board without an I/O, and with room in the log. A based memo's
+    /// words are loaded where its base points now (`core`'s register: they matched there).
+    pub(super) fn can_nest(&self, m: &Memo) -> bool {
+        !self.moving
+            && self.lr == Save::Lost
+            && self.io_banks == 0
+            && m.io.is_empty()
+            && self.log.len()
+                + 4 * (m.reads.len() + m.stores + m.based.as_ref().map_or(0, |b| b.words.len()))
+                <= MAX_ACCESSES
+    }
+
+    /// Takes the memo `m`, about to be applied in place of a call inside the recorded one
+    /// ([`Recording::can_nest`]), into the recording as the instructions of that call would
+    /// have come: its input registers and flags read, the others it sets written, its
+    /// input bytes loaded (with the values they hold now: its inputs match), then the
+    /// words it stores (its effect's, the saved registers' and the return address's) stored,
+    /// and its banks. What it stored back as it was read is left out of its effect and is
+    /// among its inputs: loaded, the byte holds that value after the call too.
+    pub(super) fn nest(&mut self, m: &mut Memo, core: &Core) {
+        let (mut reads, mut writes) = (0u16, 0u16);
+        for i in 0..15 {
+            if m.live[i] != 0 {
+                reads |= 1 << i;
+            }
+            if m.keep[i] == 0 {
+                writes |= 1 << i;
+            }
+        }
+        for &(_, r) in &m.saved {
+            reads |= 1 << (r & 15);
+        }
+        if let Some(b) = m.based.as_deref() {
+            reads |= 1 << (b.reg & 15);
+        }
+        if m.lr.is_some() {
+            reads |= 1 << 14;
+        }
+        self.live_regs |= reads & !self.def_regs;
+        self.def_regs |= writes;
+        self.live_flags |= m.live_flags & !self.def_flags;
+        self.def_flags |= m.out_flags;
+        self.fetch_banks |= m.banks;
+        let mut bytes = |w: &Word, store: bool| {
+            for i in 0..4 {
+                if w.mask >> (8 * i) & 0xff != 0 {
+                    self.log.push(Access {
+                        off: w.off + i,
+                        size: 1,
+                        store,
+                        code: false,
+                        value: if store { 0 } else { w.value >> (8 * i) & 0xff },
+                    });
+                }
+            }
+        };
+        for w in &m.reads {
+            bytes(w, false);
+        }
+        if let Some(b) = m.based.as_deref_mut() {
+            let delta = core.r[b.reg as usize & 15].wrapping_sub(b.at);
+            let moved = (delta != 0).then(|| b.moved(delta));
+            for (k, w) in b.words.iter().enumerate() {
+                let off = match moved {
+                    None => Some(w.off),
+                    Some(i) => b.moved[i].offs.as_ref().and_then(|o| o.get(k).copied()),
+                };
+                if let Some(off) = off {
+                    bytes(
+                        &Word {
+                            off,
+                            mask: w.mask,
+                            value: w.value,
+                        },
+                        false,
+                    );
+                }
+            }
+        }
+        for w in &m.writes.part {
+            bytes(w, true);
+        }
+        let stored = (m.writes.full.iter().map(|&(off, _)| off))
+            .chain(m.saved.iter().map(|&(off, _)| off))
+            .chain(m.lr);
+        for off in stored {
+            self.log.push(Access {
+                off,
+                size: 4,
+                store: true,
+                code: false,
+                value: 0,
+            });
+        }
+    }
+
     /// An access a memo cannot hold (outside SRAM).
     #[inline]
     pub(crate) fn spoil(&mut self) {
