@@ -617,27 +617,10 @@ fn trace_rows(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
 #[test]
 fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() {
     // Key 61 (core 1) and key 63 (core 0) pressed from about 10 ms, held to 0.3 s.
-    let dir = temp_dir("cli-faults-play-reset");
-    let layout = small_layout(&dir, 60, 63);
-    let midi = dir.join("two.mid");
-    write_midi(&midi, &[(61, 80, 0.05, 0.3), (63, 80, 0.05, 0.3)], &[]);
+    let rig = FlipRig::new("cli-faults-play-reset", [61, 63]);
     let fs = 44_100.0;
     let play_for = |seconds: &str, board: &str, name: &str, fault: Option<&str>| {
-        let out_dir = dir.join(format!("{board}-{name}"));
-        let mut c = tactus();
-        c.args(["play", midi.to_str().unwrap(), "--layout"])
-            .arg(&layout)
-            .args(["--board", board, "--seconds", seconds, "--no-wav"])
-            .args(["--trace-keys", "61,63", "-o"])
-            .arg(&out_dir);
-        if let Some(f) = fault {
-            c.args(["--fault", f]);
-        }
-        let out = c.output().unwrap();
-        assert_ok(&out);
-        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-        let key = |k: u8| trace_rows(&out_dir.join(format!("two-key{k}.csv")));
-        (stdout, key(61), key(63))
+        rig.play_with(seconds, true, board, name, fault)
     };
     let play = |board: &str, name: &str, fault: Option<&str>| play_for("0.3", board, name, fault);
     for board in ["rp2040", "rp2040_io"] {
@@ -849,7 +832,7 @@ fn play_names_a_watchdog_reset_and_a_flip_stays_under_the_peak_on_both_boards() 
             }
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
+    rig.done();
 }
 
 /// The DAC codes at the end of an `emu run` (keys.json's order) and its whole output.
@@ -1268,18 +1251,28 @@ impl FlipRig {
     /// update runs, as on grand88's boards), which must succeed: its standard output and
     /// the traces of the two keys.
     fn play(&self, board: &str, name: &str, fault: Option<&str>) -> (String, KeyTrace, KeyTrace) {
+        self.play_with("0.3", false, board, name, fault)
+    }
+
+    /// [`FlipRig::play`] of `seconds` of music, with the quiescent-key guard when `guard`.
+    fn play_with(
+        &self,
+        seconds: &str,
+        guard: bool,
+        board: &str,
+        name: &str,
+        fault: Option<&str>,
+    ) -> (String, KeyTrace, KeyTrace) {
         let [a, b] = self.keys;
         let out_dir = self.dir.join(format!("{board}-{name}"));
         let mut c = tactus();
         c.args(["play", self.midi.to_str().unwrap(), "--layout"])
             .arg(&self.layout)
-            .args(["--board", board, "--seconds", "0.3", "--no-wav"])
-            .args([
-                "--no-quiescent-guard",
-                "--trace-keys",
-                &format!("{a},{b}"),
-                "-o",
-            ])
+            .args(["--board", board, "--seconds", seconds, "--no-wav"]);
+        if !guard {
+            c.arg("--no-quiescent-guard");
+        }
+        c.args(["--trace-keys", &format!("{a},{b}"), "-o"])
             .arg(&out_dir);
         if let Some(f) = fault {
             c.args(["--fault", f]);

@@ -419,6 +419,23 @@ fn a_store_into_the_running_block_takes_effect_at_once() {
     }
 }
 
+/// A board on `engine` running `code` (Thumb halfwords at `CODE`) on core 0 with the
+/// registers `regs` (number, value) set, compiling a region at its first sight (threshold 0).
+fn native_board(engine: Engine, code: &[u16], regs: &[(usize, u32)]) -> Board {
+    let mut b = Board::new(Config {
+        engine,
+        ..Config::default()
+    });
+    let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
+    b.write_bytes(CODE, &bytes).unwrap();
+    b.start_core(0, CODE | 1, 0x2003_8000, VTOR);
+    for &(r, v) in regs {
+        b.cores[0].r[r] = v;
+    }
+    b.set_compile_threshold(0);
+    b
+}
+
 /// A loop whose body sets the flags after an instruction the native code leaves on the
 /// second round (a load of SIO): that exit must write the flags back, although no
 /// instruction before it sets them in the translation's order (the loop's head is reached
@@ -436,19 +453,7 @@ fn an_exit_at_a_loop_head_writes_back_the_flags_the_loop_set() {
     let code: [u16; 10] = [
         0x4612, 0x4612, 0x4612, 0x4612, 0x6808, 0xd401, 0x0021, 0xe7fb, 0x3501, 0xe7fe,
     ];
-    let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
-    let make = |engine| {
-        let mut b = Board::new(Config {
-            engine,
-            ..Config::default()
-        });
-        b.write_bytes(CODE, &bytes).unwrap();
-        b.start_core(0, CODE | 1, 0x2003_8000, VTOR);
-        b.cores[0].r[1] = 0x2002_0000;
-        b.cores[0].r[4] = SIO;
-        b.set_compile_threshold(0);
-        b
-    };
+    let make = |engine| native_board(engine, &code, &[(1, 0x2002_0000), (4, SIO)]);
     let (mut block, mut interp) = (make(Engine::Block), make(Engine::Interp));
     for limit in [100, 200] {
         assert_eq!(block.run_until(limit), interp.run_until(limit));
@@ -477,18 +482,7 @@ fn a_branch_island_chain_runs_in_one_region_exactly() {
     code[..5].copy_from_slice(&[0x3103, 0xe1fd, 0x3c01, 0xd1fb, 0xe7fe]);
     code[0x200] = 0xe07e;
     code[0x280] = 0xe580;
-    let bytes: Vec<u8> = code.iter().flat_map(|h| h.to_le_bytes()).collect();
-    let make = |engine| {
-        let mut b = Board::new(Config {
-            engine,
-            ..Config::default()
-        });
-        b.write_bytes(CODE, &bytes).unwrap();
-        b.start_core(0, CODE | 1, 0x2003_8000, VTOR);
-        b.cores[0].r[4] = 50;
-        b.set_compile_threshold(0);
-        b
-    };
+    let make = |engine| native_board(engine, &code, &[(4, 50)]);
     // 20 rounds of 6 instructions and 10 cycles (`adds`, the three `B`s, `subs`, `bne`
     // taken) in one run: the native code that reaches the first `B` runs on through both
     // islands, so no region starts at one: three regions compiled (at the head, at the
