@@ -205,6 +205,18 @@ fn ends_block(instr: &Instr) -> bool {
     }
 }
 
+/// The cycle from which core `core`'s accesses to the SRAM banks `banks` (bit per bank) can
+/// wait no more while the other core takes no turn: the other core's last claim of any of
+/// them (0 when it claimed none).
+pub(crate) fn quiet_from(sys: &System, core: usize, banks: u8) -> u64 {
+    (0..tactus_rp2040::memory::BANKS)
+        .filter(|b| banks >> b & 1 != 0)
+        .map(|b| sys.bank_claim[b][(core ^ 1) & 1])
+        .filter(|&c| c != u64::MAX)
+        .max()
+        .unwrap_or(0)
+}
+
 impl Blocks {
     /// Makes the confined region caches, where memos are tried ([`run_confined`]), end
     /// their regions before the addresses `stops` (sorted, Thumb bit clear:
@@ -462,13 +474,7 @@ pub(crate) fn run<T: Turns>(
     let mut native = true;
     // The other core takes no turn during this run: once the core's cycle reaches the
     // other's last claim of any bank, none of its accesses can wait (solo code).
-    let quiet_from = sys
-        .bank_claim
-        .iter()
-        .map(|c| c[(core.id ^ 1) & 1])
-        .filter(|&c| c != u64::MAX)
-        .max()
-        .unwrap_or(0);
+    let quiet_from = quiet_from(sys, core.id, u8::MAX);
     let result = loop {
         if core.cycle >= limit {
             break Ok(());
@@ -629,12 +635,7 @@ pub(crate) fn run_confined(
     // The other core does not touch the allowed banks while this one runs (see
     // [`crate::board`], "Running ahead"), so its claims of them stay as they are: once the
     // core's cycle reaches the last, no access can wait.
-    let quiet_from = (0..tactus_rp2040::memory::BANKS)
-        .filter(|b| (allowed | io_own) >> b & 1 != 0)
-        .map(|b| sys.bank_claim[b][(core.id ^ 1) & 1])
-        .filter(|&c| c != u64::MAX)
-        .max()
-        .unwrap_or(0);
+    let quiet_from = quiet_from(sys, core.id, allowed | io_own);
     let journaled = journal.is_some();
     // Code that logs the I/O's accesses only where there are some to log: it is larger,
     // and compiling it cost the plain board's demo 3.7 % more instructions.

@@ -632,12 +632,7 @@ impl Drive<'_> {
         // the core is past the other core's last claim of its banks, which the other core
         // does not touch meanwhile.
         let nesting = self.a.io_window.is_none();
-        let quiet_from = (0..tactus_rp2040::memory::BANKS)
-            .filter(|b| banks >> b & 1 != 0)
-            .map(|b| self.m.system.bank_claim[b][(k ^ 1) & 1])
-            .filter(|&c| c != u64::MAX)
-            .max()
-            .unwrap_or(0);
+        let quiet_from = crate::accel::block::quiet_from(&self.m.system, k, banks);
         loop {
             let core = &self.m.cores[k];
             if rec.returned(core) {
